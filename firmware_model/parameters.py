@@ -1,0 +1,244 @@
+"""Load, convert to SI and validate a gearbox parameter file (one TOML file per variant).
+
+Each entry in the file is `name = { v = value, u = "unit", src = "seed|derived|assumed", ref/note = ... }`.
+The loader converts every value to SI (temperatures stay in degC), checks the unit is one the entry may have and the
+value lies in its allowed range (ranges live here, in code, so a file cannot widen its own), and keeps the provenance
+of every value. A variant file may `inherit` another and override entries.
+
+    >>> p = load_parameters("GRS905")
+    >>> round(p["gear.3.width1"], 3)          # SI: metres
+    0.04
+    >>> p.provenance("heat.h_nom")
+    'seed'
+"""
+from __future__ import annotations
+
+import fnmatch
+import math
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from .errors import ParameterError
+from .kinematics import KinematicTable, Teeth, build_table
+
+PARAM_DIR = Path(__file__).resolve().parent / "params"
+VARIANTS = ("GRS905", "GRSO905")
+PROVENANCES = ("seed", "derived", "assumed")
+
+_RPM = 2.0 * math.pi / 60.0
+#: unit string in a file -> (SI dimension, factor to SI)
+UNITS = {
+    "-": ("1", 1.0),
+    "m": ("m", 1.0), "mm": ("m", 1e-3),
+    "m2": ("m2", 1.0),
+    "L": ("m3", 1e-3), "m3": ("m3", 1.0),
+    "deg": ("rad", math.pi / 180.0), "rad": ("rad", 1.0),
+    "kg": ("kg", 1.0), "kg/m3": ("kg/m3", 1.0),
+    "W/(m K)": ("W/(m K)", 1.0), "J/(kg K)": ("J/(kg K)", 1.0), "W/(m2 K)": ("W/(m2 K)", 1.0),
+    "W/K": ("W/K", 1.0), "W": ("W", 1.0), "kW": ("W", 1e3),
+    "Pa": ("Pa", 1.0), "N": ("N", 1.0), "Nm": ("N m", 1.0),
+    "s": ("s", 1.0), "degC": ("degC", 1.0),
+    "rpm": ("rad/s", _RPM), "rad/s": ("rad/s", 1.0),
+    "Nm/rpm": ("N m s/rad", 1.0 / _RPM),           # torque per speed
+    "L/min/rpm": ("m3/rad", 1e-3 / 60.0 / _RPM),   # volume flow per speed
+}
+
+#: allowed SI range per dimension (inclusive); specific keys are narrowed below
+DIM_RANGE = {
+    "1": (0.0, 1e6), "m": (0.0, 3.0), "m2": (0.0, 50.0), "m3": (0.0, 0.1), "rad": (0.0, math.radians(45)),
+    "kg": (0.0, 1000.0), "kg/m3": (500.0, 20000.0), "W/(m K)": (0.01, 500.0), "J/(kg K)": (100.0, 5000.0),
+    "W/(m2 K)": (0.0, 1e7), "W/K": (0.0, 1e5), "W": (0.0, 1e6), "Pa": (1e6, 1e13), "N": (0.0, 1e7),
+    "N m": (-1e5, 1e5), "s": (0.0, 1e5), "degC": (-60.0, 250.0), "rad/s": (0.0, 1000.0),
+    "N m s/rad": (0.0, 1.0), "m3/rad": (0.0, 1e-4),
+}
+#: (glob pattern, low, high, integer?) checked after the dimension range, first match wins
+KEY_RULES = [
+    ("gear.*.z*", 8, 200, True), ("planetary.z_*", 8, 250, True), ("planetary.n_planets", 2, 8, True),
+    ("*.n_rollers*", 4, 100, True), ("sync.n_ring_*", 0, 6, True), ("meta.split_inverted", 0, 1, True),
+    ("wheel.covered_sides", 0, 1, True),
+    ("*frac*", 0.0, 1.0, False), ("housing.internal_split_*", 0.0, 1.0, False), ("*.immersion", 0.0, 1.0, False),
+    ("housing.emissivity", 0.0, 1.0, False), ("material.*.poisson", 0.0, 0.5, False),
+    ("scale.*_to_heat", 0.1, 3.0, False), ("bearing.sf_*", 0.0, 1.0, False), ("*.sf_*", 0.0, 1.0, False),
+    ("oil.volume", 4e-3, 20e-3, False), ("heat.h_nom", 10.0, 5000.0, False), ("heat.TCC", 1e3, 1e6, False),
+    ("heat.splash_exponent", 0.0, 2.0, False), ("planetary.h_oil", 10.0, 1e4, False),
+    ("housing.h_oil", 10.0, 5000.0, False), ("housing.h_air", 1.0, 200.0, False),
+    ("gear.alpha_n", math.radians(14), math.radians(30), False),
+    ("bearing.f0_*", 0.5, 10.0, False), ("wheel_bearing.f0_*", 0.5, 10.0, False),
+    ("bearing.f1_*", 0.0, 0.01, False), ("wheel.hub_mass_factor", 1.0, 3.0, False),
+    ("engine.max_speed", 100.0, 1000.0, False),
+]
+
+
+@dataclass
+class Parameters:
+    """A validated parameter set: SI values and provenance by dotted key, plus the kinematics."""
+    variant: str
+    values: dict
+    sources: dict
+    units: dict
+    strings: dict = field(default_factory=dict)
+    origin: str = ""
+
+    def __getitem__(self, key: str) -> float:
+        try:
+            return self.values[key]
+        except KeyError:
+            raise ParameterError(f"parameter {key!r} is missing from parameter set {self.variant}") from None
+
+    def get(self, key, default=None):
+        return self.values.get(key, default)
+
+    def provenance(self, key: str) -> str:
+        return self.sources[key]
+
+    def string(self, key: str) -> str:
+        return self.strings[key]
+
+    @property
+    def split_inverted(self) -> bool:
+        return bool(self["meta.split_inverted"])
+
+    @property
+    def teeth(self) -> Teeth:
+        z = self.values
+        idle = {"LI": int(z["gear.L.z1"]), "3M": int(z["gear.3.z1"]), "2M": int(z["gear.2.z1"]),
+                "1M": int(z["gear.1.z1"]), "CM": int(z["gear.C.z1"]), "RM": int(z["gear.R.z1"])}
+        lay = {"LL": int(z["gear.L.z2"]), "3L": int(z["gear.3.z2"]), "2L": int(z["gear.2.z2"]),
+               "1L": int(z["gear.1.z2"]), "CL": int(z["gear.C.z2"]), "RL": int(z["gear.R.z2"])}
+        return Teeth(idle, lay, int(z["gear.R.z_idler"]), int(z["planetary.z_sun"]), int(z["planetary.z_planet"]),
+                     int(z["planetary.z_ring"]), int(z["planetary.n_planets"]))
+
+    @property
+    def kinematics(self) -> KinematicTable:
+        kin = self.__dict__.get("_kin")
+        if kin is None:
+            kin = build_table(self.teeth, self.split_inverted)
+            self.__dict__["_kin"] = kin
+        return kin
+
+    def with_overrides(self, overrides: dict) -> "Parameters":
+        """A copy with SI values replaced (keys must exist); used by effects and parameter studies."""
+        vals = dict(self.values)
+        for k, v in overrides.items():
+            if k not in vals:
+                raise ParameterError(f"cannot override unknown parameter {k!r}")
+            vals[k] = float(v)
+        new = Parameters(self.variant, vals, dict(self.sources), dict(self.units), dict(self.strings), self.origin)
+        _check_values(new)
+        return new
+
+    def table(self):
+        """Rows (key, SI value, SI unit, provenance) for documentation."""
+        return [(k, self.values[k], self.units[k], self.sources[k]) for k in sorted(self.values)]
+
+
+def _flatten(d: dict, prefix: str = ""):
+    for k, v in d.items():
+        key = f"{prefix}{k}"
+        if isinstance(v, dict) and "v" not in v:
+            yield from _flatten(v, key + ".")
+        else:
+            yield key, v
+
+
+def _read(path: Path, seen=()) -> dict:
+    try:
+        with open(path, "rb") as fh:
+            doc = tomllib.load(fh)
+    except FileNotFoundError:
+        raise ParameterError(f"parameter file {path.name} does not exist") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise ParameterError(f"parameter file {path.name} is not valid TOML: {exc}") from None
+    entries = dict(_flatten(doc))
+    parent = doc.get("meta", {}).get("inherit")
+    if parent:
+        if parent in seen:
+            raise ParameterError(f"parameter file {path.name} inherits in a cycle through {parent}")
+        base = _read(PARAM_DIR / f"{parent}.toml", seen + (parent,))
+        base.update({k: v for k, v in entries.items() if k != "meta.inherit"})
+        entries = base
+    return entries
+
+
+def load_parameters(variant_or_path: str | Path = "GRS905") -> Parameters:
+    """Load a variant by name (GRS905, GRSO905) or a TOML file by path."""
+    p = Path(variant_or_path)
+    if p.suffix.lower() == ".toml":
+        path = p
+    elif str(variant_or_path) in VARIANTS:
+        path = PARAM_DIR / f"{variant_or_path}.toml"
+    else:
+        raise ParameterError(f"unknown gearbox variant {variant_or_path!r}: use one of {', '.join(VARIANTS)} "
+                             f"or the path of a .toml parameter file")
+    entries = _read(path)
+    values, sources, units, strings = {}, {}, {}, {}
+    for key, e in entries.items():
+        if key in ("meta.variant", "meta.inherit"):
+            strings[key] = str(e)
+            continue
+        if not isinstance(e, dict) or "v" not in e:
+            raise ParameterError(f"{path.name}: entry {key!r} must be a table {{ v = ..., u = ..., src = ... }}")
+        u = e.get("u")
+        src = e.get("src")
+        if src not in PROVENANCES:
+            raise ParameterError(f"{path.name}: {key} has provenance {src!r}; it must be one of {PROVENANCES}")
+        if isinstance(e["v"], str):
+            strings[key] = e["v"]
+            sources[key] = src
+            continue
+        if u not in UNITS:
+            raise ParameterError(f"{path.name}: {key} has unit {u!r}, which is not one of {sorted(UNITS)}")
+        dim, fac = UNITS[u]
+        try:
+            v = float(e["v"]) * fac
+        except (TypeError, ValueError):
+            raise ParameterError(f"{path.name}: {key} = {e['v']!r} is not a number") from None
+        values[key] = v
+        sources[key] = src
+        units[key] = dim
+    params = Parameters(strings.get("meta.variant", path.stem), values, sources, units, strings, path.name)
+    _check_values(params)
+    _check_required(params)
+    kind = params.strings.get("cooler.kind", "liquid")
+    if kind not in COOLER_KINDS:
+        raise ParameterError(f"cooler.kind = {kind!r} must be one of {', '.join(COOLER_KINDS)}")
+    return params
+
+
+COOLER_KINDS = ("none", "liquid", "air", "hold", "measured")
+
+REQUIRED = [
+    "gear.center_distance", "gear.alpha_n", "oil.volume", "heat.h_nom", "heat.TCC", "planetary.z_sun",
+    "scale.gear_contact_to_heat", "scale.planet_to_heat", "scale.churn_to_heat", "housing.h_oil",
+    "cooler.liquid_hA_ref", "boundary.ambient", "engine.max_torque", "engine.max_speed",
+] + [f"gear.{p}.{k}" for p in ("L", "3", "2", "1", "C", "R") for k in ("z1", "z2", "m_n", "beta", "width1", "width2")]
+
+
+def _check_required(p: Parameters):
+    for k in REQUIRED:
+        if k not in p.values:
+            raise ParameterError(f"parameter {k!r} is missing from {p.origin}")
+    ratio = 1.0 + p["planetary.z_ring"] / p["planetary.z_sun"]
+    if abs((p["planetary.z_ring"] - p["planetary.z_sun"]) / 2.0 - p["planetary.z_planet"]) > 0.5:
+        raise ParameterError(f"planetary.z_planet = {p['planetary.z_planet']:.0f} does not fit between sun and ring "
+                             f"(must be (z_ring - z_sun) / 2)")
+    if not 2.0 < ratio < 6.0:
+        raise ParameterError(f"planetary range ratio 1 + z_ring/z_sun = {ratio:.2f} is outside 2..6")
+
+
+def _check_values(p: Parameters):
+    for key, v in p.values.items():
+        if not math.isfinite(v):
+            raise ParameterError(f"{key} = {v} is not a finite number")
+        dim = p.units.get(key, "1")
+        lo, hi = DIM_RANGE.get(dim, (-math.inf, math.inf))
+        if not lo <= v <= hi:
+            raise ParameterError(f"{key} = {v:g} {dim} is outside its allowed range {lo:g}..{hi:g} {dim}")
+        for pat, klo, khi, integer in KEY_RULES:
+            if fnmatch.fnmatchcase(key, pat):
+                if not klo <= v <= khi:
+                    raise ParameterError(f"{key} = {v:g} is outside its allowed range {klo:g}..{khi:g}")
+                if integer and v != int(v):
+                    raise ParameterError(f"{key} = {v:g} must be an integer")
+                break
