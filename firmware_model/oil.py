@@ -1,0 +1,179 @@
+"""Gearbox oil properties as functions of the oil temperature in degC (seed Appendix 2, section 2.5).
+
+Every function takes a float or a numpy array ``T_c`` and broadcasts. The input temperature is clipped to
+``T_MIN_C .. T_MAX_C`` (-40..200 degC) before any property is evaluated, so a wild sensor value cannot
+produce NaN or a negative viscosity inside the solver loop.
+
+Provenance of each property
+---------------------------
+* Density, kinematic viscosity and piezo-viscosity coefficient: the seed's Appendix 2 table (the oil used
+  in the thesis model; rows -20..140 degC). The 1000 degC row of that table (359.102 kg/m3, 1.00 cSt,
+  1.00e-9 /Pa) only existed to stop Amesim's linear extrapolation from going negative; it is kept below as
+  documentation (``_ROW_1000C``) and is *not* used.
+* Density: the table is exactly linear (-0.5268 kg/m3 per K, even through the 1000 degC row), so density
+  is that straight line, extrapolated linearly over the clip range.
+* Kinematic viscosity: Walther / ASTM D341 interpolation, log10(log10(nu_cSt + 0.7)) linear in log10(T_K)
+  between consecutive table rows; below -20 degC and above 140 degC the first/last segment is extended with
+  the same law. The seed's Amesim model interpolated a 1 K table linearly; Walther through the 20 K rows
+  reproduces the rows exactly and is the standard law for mineral oils between them.
+* Piezo-viscosity coefficient (Barus alpha): linear between the rows 20..120 degC (the -20, 0 and 140 degC
+  rows are blank in the seed); outside, the first/last segment is extended linearly (it grows towards the
+  cold end, falls towards the hot end) and floored at ``PIEZO_FLOOR_PER_PA`` = 1.0e-9 /Pa so it can never
+  reach zero or go negative (within the clip range the floor is never active: 1.2e-9 /Pa at 200 degC).
+* Thermal conductivity and specific heat: *assumed, typical gear oil* (the seed only shows Amesim plots
+  for these): k = 0.134 - 7.0e-5 * T_c W/(m K), cp = 1880 + 3.7 * T_c J/(kg K), i.e. 0.127 W/(m K) and
+  2250 J/(kg K) at 100 degC, in line with handbook values for mineral gear oils (ISO VG 100..220).
+"""
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+#: clip range of the input temperature [degC]
+T_MIN_C = -40.0
+T_MAX_C = 200.0
+#: 0 degC in kelvin
+KELVIN_OFFSET = 273.15
+
+# --- Appendix 2 table -------------------------------------------------------------------------------------
+#: table temperatures [degC]
+TABLE_T_C = np.array([-20.0, 0.0, 20.0, 40.0, 60.0, 80.0, 100.0, 120.0, 140.0])
+#: density [kg/m3]
+TABLE_RHO_KG_M3 = np.array([896.438, 885.902, 875.366, 864.830, 854.294, 843.758, 833.222, 822.686, 812.150])
+#: kinematic viscosity [cSt = mm2/s]
+TABLE_NU_CST = np.array([9486.0, 1397.0, 337.6, 115.0, 49.9, 25.8, 15.2, 9.84, 6.84])
+#: temperatures with a piezo-viscosity entry [degC]
+TABLE_PIEZO_T_C = np.array([20.0, 40.0, 60.0, 80.0, 100.0, 120.0])
+#: piezo-viscosity coefficient [1/Pa]
+TABLE_PIEZO_PER_PA = np.array([24.0, 21.6, 19.3, 16.9, 14.7, 12.0]) * 1e-9
+#: the 1000 degC row (T_c, rho_kg_m3, nu_cst, piezo_per_pa): documentation only, not used
+_ROW_1000C = (1000.0, 359.102, 1.00, 1.00e-9)
+
+#: lower bound of the extrapolated piezo-viscosity coefficient [1/Pa] (the seed's 1000 degC value)
+PIEZO_FLOOR_PER_PA = 1.0e-9
+
+# Density: exact straight line through the table (Eq: rho = RHO_0 + SLOPE * T_c)
+_RHO_0_KG_M3 = 885.902
+_RHO_SLOPE_KG_M3K = (TABLE_RHO_KG_M3[-1] - TABLE_RHO_KG_M3[0]) / (TABLE_T_C[-1] - TABLE_T_C[0])  # -0.5268
+
+# Walther (ASTM D341): W = log10(log10(nu_cSt + 0.7)), X = log10(T_K); W is piecewise linear in X.
+_WALTHER_C = 0.7
+_X_ROWS = np.log10(TABLE_T_C + KELVIN_OFFSET)
+_W_ROWS = np.log10(np.log10(TABLE_NU_CST + _WALTHER_C))
+_W_SLOPE_FIRST = (_W_ROWS[1] - _W_ROWS[0]) / (_X_ROWS[1] - _X_ROWS[0])
+_W_SLOPE_LAST = (_W_ROWS[-1] - _W_ROWS[-2]) / (_X_ROWS[-1] - _X_ROWS[-2])
+_X_FIRST = float(_X_ROWS[0])
+_X_LAST = float(_X_ROWS[-1])
+
+_PIEZO_SLOPE_FIRST = (TABLE_PIEZO_PER_PA[1] - TABLE_PIEZO_PER_PA[0]) / (TABLE_PIEZO_T_C[1] - TABLE_PIEZO_T_C[0])
+_PIEZO_SLOPE_LAST = (TABLE_PIEZO_PER_PA[-1] - TABLE_PIEZO_PER_PA[-2]) / (TABLE_PIEZO_T_C[-1] - TABLE_PIEZO_T_C[-2])
+_PIEZO_T_FIRST = float(TABLE_PIEZO_T_C[0])
+_PIEZO_T_LAST = float(TABLE_PIEZO_T_C[-1])
+
+# Assumed, typical gear oil (not in the seed's table): k = K0 + K1*T_c, cp = CP0 + CP1*T_c
+K0_W_PER_MK = 0.134
+K1_W_PER_MK2 = -7.0e-5
+CP0_J_PER_KGK = 1880.0
+CP1_J_PER_KGK2 = 3.7
+
+
+class OilProperties(NamedTuple):
+    """All oil properties at one temperature (or array of temperatures); a tuple, cheap to build."""
+
+    T_c: np.ndarray | float
+    rho_kg_m3: np.ndarray | float
+    nu_m2_s: np.ndarray | float
+    mu_pa_s: np.ndarray | float
+    piezo_per_pa: np.ndarray | float
+    k_w_per_mk: np.ndarray | float
+    cp_j_per_kgk: np.ndarray | float
+    alpha_m2_s: np.ndarray | float
+    pr: np.ndarray | float
+
+
+def _clip_t(T_c):
+    return np.clip(T_c, T_MIN_C, T_MAX_C)
+
+
+def _density(Tc):
+    return _RHO_0_KG_M3 + _RHO_SLOPE_KG_M3K * Tc
+
+
+def _kinematic(Tc):
+    x = np.log10(Tc + KELVIN_OFFSET)
+    # np.interp holds the end rows; add the end-segment slopes outside the table (linear extrapolation of W)
+    w = (np.interp(x, _X_ROWS, _W_ROWS)
+         + _W_SLOPE_FIRST * np.minimum(x - _X_FIRST, 0.0)
+         + _W_SLOPE_LAST * np.maximum(x - _X_LAST, 0.0))
+    nu_cst = 10.0 ** (10.0 ** w) - _WALTHER_C  # always > 0.3 cSt: 10**(10**w) > 1
+    return nu_cst * 1e-6
+
+
+def _piezo(Tc):
+    a = (np.interp(Tc, TABLE_PIEZO_T_C, TABLE_PIEZO_PER_PA)
+         + _PIEZO_SLOPE_FIRST * np.minimum(Tc - _PIEZO_T_FIRST, 0.0)
+         + _PIEZO_SLOPE_LAST * np.maximum(Tc - _PIEZO_T_LAST, 0.0))
+    return np.maximum(a, PIEZO_FLOOR_PER_PA)
+
+
+def _conductivity(Tc):
+    return K0_W_PER_MK + K1_W_PER_MK2 * Tc
+
+
+def _specific_heat(Tc):
+    return CP0_J_PER_KGK + CP1_J_PER_KGK2 * Tc
+
+
+def density_kg_m3(T_c):
+    """Oil density [kg/m3] (Appendix 2 table, exactly linear in T)."""
+    return _density(_clip_t(T_c))
+
+
+def kinematic_viscosity_m2_s(T_c):
+    """Oil kinematic viscosity [m2/s], Walther/ASTM D341 interpolation of the Appendix 2 table."""
+    return _kinematic(_clip_t(T_c))
+
+
+def dynamic_viscosity_pa_s(T_c):
+    """Oil dynamic viscosity [Pa s] = rho * nu (section 2.5)."""
+    Tc = _clip_t(T_c)
+    return _density(Tc) * _kinematic(Tc)
+
+
+def piezo_viscosity_per_pa(T_c):
+    """Barus piezo-viscosity coefficient [1/Pa] (Appendix 2; linear, floored at 1e-9 /Pa outside 20..120 degC)."""
+    return _piezo(_clip_t(T_c))
+
+
+def thermal_conductivity_w_per_mk(T_c):
+    """Oil thermal conductivity [W/(m K)]; assumed, typical gear oil: 0.134 - 7e-5 T_c."""
+    return _conductivity(_clip_t(T_c))
+
+
+def specific_heat_j_per_kgk(T_c):
+    """Oil specific heat [J/(kg K)]; assumed, typical gear oil: 1880 + 3.7 T_c."""
+    return _specific_heat(_clip_t(T_c))
+
+
+def thermal_diffusivity_m2_s(T_c):
+    """Oil thermal diffusivity alpha = k / (rho cp) [m2/s] (section 2.5)."""
+    Tc = _clip_t(T_c)
+    return _conductivity(Tc) / (_density(Tc) * _specific_heat(Tc))
+
+
+def prandtl(T_c):
+    """Oil Prandtl number Pr = nu / alpha [-] (section 2.5)."""
+    Tc = _clip_t(T_c)
+    return _kinematic(Tc) * _density(Tc) * _specific_heat(Tc) / _conductivity(Tc)
+
+
+def oil_properties(T_c) -> OilProperties:
+    """Every oil property at once (one clip, one Walther evaluation); for the solver loop."""
+    Tc = _clip_t(T_c)
+    rho = _density(Tc)
+    nu = _kinematic(Tc)
+    k = _conductivity(Tc)
+    cp = _specific_heat(Tc)
+    alpha = k / (rho * cp)
+    return OilProperties(Tc, rho, nu, rho * nu, _piezo(Tc), k, cp, alpha, nu / alpha)

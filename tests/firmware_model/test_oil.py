@@ -1,0 +1,98 @@
+"""Oil properties against the seed's Appendix 2 table and hand calculations."""
+import math
+
+import numpy as np
+import pytest
+
+from firmware_model import oil
+
+ROWS_T = [-20.0, 0.0, 20.0, 40.0, 60.0, 80.0, 100.0, 120.0, 140.0]
+ROWS_RHO = [896.438, 885.902, 875.366, 864.830, 854.294, 843.758, 833.222, 822.686, 812.150]
+ROWS_NU_CST = [9486.0, 1397.0, 337.6, 115.0, 49.9, 25.8, 15.2, 9.84, 6.84]
+ROWS_PIEZO = {20.0: 24.0e-9, 40.0: 21.6e-9, 60.0: 19.3e-9, 80.0: 16.9e-9, 100.0: 14.7e-9, 120.0: 12.0e-9}
+
+
+def _walther(nu_cst):
+    return math.log10(math.log10(nu_cst + 0.7))
+
+
+def test_table_rows_reproduced_exactly():
+    T = np.array(ROWS_T)
+    np.testing.assert_allclose(oil.kinematic_viscosity_m2_s(T), np.array(ROWS_NU_CST) * 1e-6, rtol=1e-12)
+    np.testing.assert_allclose(oil.density_kg_m3(T), ROWS_RHO, rtol=1e-12)
+    for t, a in ROWS_PIEZO.items():
+        assert oil.piezo_viscosity_per_pa(t) == pytest.approx(a, rel=1e-12)
+
+
+def test_viscosity_30c_walther_between_rows():
+    nu30 = oil.kinematic_viscosity_m2_s(30.0) * 1e6
+    # hand Walther: W linear in log10(T_K) between the 20 and 40 degC rows
+    x20, x40, x30 = math.log10(293.15), math.log10(313.15), math.log10(303.15)
+    w = _walther(337.6) + (_walther(115.0) - _walther(337.6)) * (x30 - x20) / (x40 - x20)
+    expected = 10 ** (10 ** w) - 0.7
+    assert nu30 == pytest.approx(expected, rel=1e-10)
+    geometric = math.sqrt(115.0 * 337.6)       # 197.0 cSt (log-linear in T)
+    arithmetic = 0.5 * (115.0 + 337.6)         # 226.3 cSt (linear in T)
+    assert 115.0 < nu30 < 337.6
+    assert nu30 < arithmetic
+    assert abs(nu30 - geometric) < abs(nu30 - arithmetic)
+    print(f"nu(30 degC) = {nu30:.1f} cSt (geometric mean {geometric:.1f}, arithmetic {arithmetic:.1f})")
+
+
+def test_viscosity_monotone_positive_and_clipped():
+    T = np.linspace(-60.0, 260.0, 2000)
+    nu = oil.kinematic_viscosity_m2_s(T)
+    assert np.all(nu > 0.0)
+    assert np.all(np.diff(nu) <= 0.0)
+    assert oil.kinematic_viscosity_m2_s(-100.0) == oil.kinematic_viscosity_m2_s(-40.0)
+    assert oil.kinematic_viscosity_m2_s(500.0) == oil.kinematic_viscosity_m2_s(200.0)
+
+
+def test_viscosity_extrapolation_uses_end_segments():
+    # below -20 degC: the -20/0 degC Walther line; above 140: the 120/140 line
+    def line(t_a, nu_a, t_b, nu_b, t):
+        xa, xb, x = (math.log10(v + 273.15) for v in (t_a, t_b, t))
+        w = _walther(nu_a) + (_walther(nu_b) - _walther(nu_a)) * (x - xa) / (xb - xa)
+        return 10 ** (10 ** w) - 0.7
+
+    assert oil.kinematic_viscosity_m2_s(-40.0) * 1e6 == pytest.approx(line(-20, 9486.0, 0, 1397.0, -40), rel=1e-9)
+    assert oil.kinematic_viscosity_m2_s(200.0) * 1e6 == pytest.approx(line(120, 9.84, 140, 6.84, 200), rel=1e-9)
+
+
+def test_density_linear():
+    # table slope: (812.150 - 896.438) / 160 = -0.5268 kg/m3/K
+    assert oil.density_kg_m3(50.0) == pytest.approx(885.902 - 0.5268 * 50.0, rel=1e-12)
+    assert oil.density_kg_m3(-40.0) == pytest.approx(885.902 + 0.5268 * 40.0, rel=1e-12)
+
+
+def test_piezo_interpolation_and_extrapolation():
+    assert oil.piezo_viscosity_per_pa(30.0) == pytest.approx(22.8e-9, rel=1e-12)     # (24.0 + 21.6) / 2
+    assert oil.piezo_viscosity_per_pa(10.0) == pytest.approx(25.2e-9, rel=1e-12)     # 24.0 + 0.12 * 10
+    assert oil.piezo_viscosity_per_pa(130.0) == pytest.approx(10.65e-9, rel=1e-12)   # 12.0 - 0.135 * 10
+    a = oil.piezo_viscosity_per_pa(np.linspace(-60.0, 300.0, 500))
+    assert np.all(a >= oil.PIEZO_FLOOR_PER_PA) and np.all(np.diff(a) <= 0.0)
+
+
+def test_assumed_thermal_properties_at_100c():
+    assert oil.thermal_conductivity_w_per_mk(100.0) == pytest.approx(0.134 - 7e-5 * 100.0)
+    assert oil.specific_heat_j_per_kgk(100.0) == pytest.approx(1880.0 + 370.0)
+    alpha = 0.127 / (833.222 * 2250.0)
+    assert oil.thermal_diffusivity_m2_s(100.0) == pytest.approx(alpha, rel=1e-12)
+    assert oil.prandtl(100.0) == pytest.approx(15.2e-6 / alpha, rel=1e-10)
+    assert oil.dynamic_viscosity_pa_s(100.0) == pytest.approx(833.222 * 15.2e-6, rel=1e-12)
+
+
+def test_oil_properties_matches_individual_functions_and_broadcasts():
+    T = np.array([[-30.0, 25.0, 77.7], [101.0, 150.0, 199.0]])
+    p = oil.oil_properties(T)
+    assert p.nu_m2_s.shape == T.shape
+    np.testing.assert_allclose(p.rho_kg_m3, oil.density_kg_m3(T))
+    np.testing.assert_allclose(p.nu_m2_s, oil.kinematic_viscosity_m2_s(T))
+    np.testing.assert_allclose(p.mu_pa_s, oil.dynamic_viscosity_pa_s(T))
+    np.testing.assert_allclose(p.piezo_per_pa, oil.piezo_viscosity_per_pa(T))
+    np.testing.assert_allclose(p.k_w_per_mk, oil.thermal_conductivity_w_per_mk(T))
+    np.testing.assert_allclose(p.cp_j_per_kgk, oil.specific_heat_j_per_kgk(T))
+    np.testing.assert_allclose(p.alpha_m2_s, oil.thermal_diffusivity_m2_s(T))
+    np.testing.assert_allclose(p.pr, oil.prandtl(T))
+    s = oil.oil_properties(90.0)
+    assert float(s.mu_pa_s) == pytest.approx(float(oil.dynamic_viscosity_pa_s(90.0)))
