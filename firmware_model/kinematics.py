@@ -113,7 +113,8 @@ class KinematicTable:
 
     speed columns (rad/s per rad/s of input): named in `speed_names`
     mesh torque columns (N m on the driving wheel per N m of input): named in MESHES; 0 when the mesh is unloaded
-    mesh driven-speed columns: relative speed of the driven wheel (to the planet carrier for planetary meshes)
+    mesh speed columns: speed of wheel 2 of the mesh geometry (the layshaft wheel for the six pairs; the driven wheel
+    relative to the planet carrier for planetary meshes); mesh torque is the torque on wheel 1
     """
     speed_names: tuple
     speed: np.ndarray           # (N_GEARS, n_speeds)
@@ -210,8 +211,10 @@ def build_table(teeth: Teeth, split_inverted: bool = False) -> KinematicTable:
                     mtq[r, MESHES.index("RI")] = T_ls * teeth.z_RI / z_l["RL"]
                     mw2[r, MESHES.index("RI")] = abs(w_idle["RM"])
                 else:
-                    mtq[r, MESHES.index(mp)] = T_ls
-                    mw2[r, MESHES.index(mp)] = abs(w_idle[miw])
+                    # mesh geometry has the idle wheel as wheel 1 and the layshaft wheel as wheel 2 whatever the
+                    # power direction: torque on wheel 1, speed of wheel 2 (same tangential force either way)
+                    mtq[r, MESHES.index(mp)] = T_ls * z_i[miw] / z_l[mlw]
+                    mw2[r, MESHES.index(mp)] = abs(w_ls)
                 act[r, pair_keys.index(mp)] = True
                 T_ms = T_ls * z_i[miw] / z_l[mlw]
             if low:
