@@ -1,0 +1,93 @@
+"""Project configuration (`--config FILE.toml`): which gearbox, which cooler, boundary temperatures, CAN addresses,
+sensor options. Every section is optional; unknown keys are an error naming the key (typos must not pass silently).
+
+Example::
+
+    [gearbox]
+    variant = "GRS905"          # or GRSO905, or params = "my_gearbox.toml"
+    [cooler]
+    kind = "liquid"             # none | liquid | air | hold | measured
+    [boundary]                  # degC, constant defaults when a run table carries no bc_ columns
+    ambient = 25.0
+    hot_surroundings = 90.0
+    [can]
+    sensor_source_address = 0xE5
+    engine_source_address = 0x00
+    transmission_source_address = 0x03
+    retarder_source_address = 0x10
+    engine_reference_torque_nm = 2400   # used until EC1 (TP.BAM) has arrived
+    retarder_reference_torque_nm = 3500
+    [sensor]
+    oil_mode = "measured"        # measured | model
+"""
+from __future__ import annotations
+
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from .errors import ParameterError
+
+ALLOWED = {
+    "gearbox": {"variant", "params"},
+    "cooler": {"kind"},
+    "boundary": {"initial", "ambient", "engine_shaft", "flywheel_cover", "support_beam", "end_yoke",
+                 "hot_surroundings", "cold_surroundings", "coolant"},
+    "can": {"sensor_source_address", "engine_source_address", "transmission_source_address",
+            "retarder_source_address", "ambient_source_address", "engine_reference_torque_nm",
+            "retarder_reference_torque_nm", "gear_map", "output_period_s", "stale_factor", "counter_log_period_s"},
+    "sensor": {"oil_mode", "limits", "debounce_s", "hysteresis_c", "snapshot"},
+}
+
+
+@dataclass
+class Config:
+    variant: str = "GRS905"
+    params_path: str | None = None
+    cooler: str | None = None
+    boundary: dict = field(default_factory=dict)
+    can: dict = field(default_factory=dict)
+    sensor: dict = field(default_factory=dict)
+    origin: str = "defaults"
+
+    def load_params(self):
+        from .parameters import load_parameters
+        p = load_parameters(self.params_path or self.variant)
+        if self.boundary:
+            p = p.with_overrides({f"boundary.{k}": float(v) for k, v in self.boundary.items()})
+        if self.cooler:
+            p.strings["cooler.kind"] = self.cooler
+        return p
+
+
+def load_config(path: str | Path | None) -> Config:
+    if path is None:
+        return Config()
+    path = Path(path)
+    try:
+        with open(path, "rb") as fh:
+            doc = tomllib.load(fh)
+    except FileNotFoundError:
+        raise ParameterError(f"config file {path} does not exist") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise ParameterError(f"config file {path} is not valid TOML: {exc}") from None
+    for sec, body in doc.items():
+        if sec not in ALLOWED:
+            raise ParameterError(f"config {path.name}: unknown section [{sec}]; known: {', '.join(ALLOWED)}")
+        if not isinstance(body, dict):
+            raise ParameterError(f"config {path.name}: [{sec}] must be a table")
+        for k in body:
+            if k not in ALLOWED[sec]:
+                raise ParameterError(f"config {path.name}: unknown key {sec}.{k}; known: {', '.join(sorted(ALLOWED[sec]))}")
+    g = doc.get("gearbox", {})
+    params = g.get("params")
+    if params is not None and not Path(params).is_absolute():
+        params = str((path.parent / params).resolve())
+    cooler = doc.get("cooler", {}).get("kind")
+    if cooler is not None and cooler not in ("none", "liquid", "air", "hold", "measured"):
+        raise ParameterError(f"config {path.name}: cooler.kind = {cooler!r} must be none, liquid, air, hold or measured")
+    for k, v in doc.get("boundary", {}).items():
+        if not isinstance(v, (int, float)) or not -60 <= v <= 250:
+            raise ParameterError(f"config {path.name}: boundary.{k} = {v!r} must be a temperature in -60..250 degC")
+    return Config(g.get("variant", "GRS905"), params, cooler, dict(doc.get("boundary", {})), dict(doc.get("can", {})),
+                  dict(doc.get("sensor", {})), str(path))
