@@ -176,8 +176,9 @@ class GearboxLosses:
                 mesh = self.meshes[j]
                 if m in ("PSP", "PPR"):
                     T1 = T1 / self.n_planets
+                # rolling losses are ~1 W (seed 3.2): a coarse quadrature is plenty for them
                 P = L.gear_slip_loss_w(mesh, T1, mw[:, j], rho, mu) + L.gear_rolling_loss_w(
-                    mesh, T1, mw[:, j], mu, piezo, self.E, self.E, self.poisson, self.poisson)
+                    mesh, T1, mw[:, j], mu, piezo, self.E, self.E, self.poisson, self.poisson, n_points=4)
                 P = np.where(T1 > 0, P, 0.0)
                 if m in ("PSP", "PPR"):
                     P = P * self.n_planets

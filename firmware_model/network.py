@@ -542,8 +542,10 @@ class ConductanceEvaluator:
             if low_range:
                 G[i] = self.net.link_G0[i] * self.h_house
             else:
+                # rotating with the sun at high range: splash (Eq 59), never below the stationary housing value
+                # (the ring always sits in oil; at standstill it must not be thermally isolated)
                 w = speeds[kp["speed"].astype(int)]
-                G[i] = self.net.link_G0[i] * self.h_nom * (w / self.w_nom) ** self.exp_splash
+                G[i] = self.net.link_G0[i] * np.maximum(self.h_nom * (w / self.w_nom) ** self.exp_splash, self.h_house)
             G[i] *= sc.all_oil_h
         # oil-system streams: flow linear in layshaft speed; effectiveness-limited
         i = self.idx[K_STREAM]
@@ -570,6 +572,10 @@ class ConductanceEvaluator:
         i = self.idx[K_EXT_CONV]
         if i.size:
             G[i] = self.net.link_G0[i] * self.h_air * sc.housing_air_h
+        self._update_radiation(G, T_nodes_c, T_bc_c)
+        return G
+
+    def _update_radiation(self, G, T_nodes_c, T_bc_c):
         # radiation, linearised around the current temperatures (Eq 6, 81)
         i = self.ext_rad_idx
         if i.size:
@@ -578,4 +584,18 @@ class ConductanceEvaluator:
             else:
                 h = ht.radiation_h_w_per_m2k(self.eps, T_nodes_c[self.ext_rad_a], T_bc_c[self.ext_rad_b])
             G[i] = self.net.link_G0[i] * h
+
+    def evaluate_cached(self, T_oil_c, speeds, gear_row, mesh_torque_row, low_range, T_nodes_c, T_bc_c,
+                        speed_rtol=0.01, oil_atol_c=0.25):
+        """Like `evaluate`, but reuses the speed- and oil-dependent conductances while the gear is the same, the
+        speeds are within `speed_rtol` and the oil within `oil_atol_c` of the last full evaluation (radiation is
+        always updated). The error this allows is below 1 % on any conductance."""
+        c = getattr(self, "_cache", None)
+        if c is not None and c[0] == gear_row and abs(T_oil_c - c[1]) < oil_atol_c and np.all(
+                np.abs(speeds - c[2]) <= speed_rtol * np.maximum(c[2], 1.0)):
+            G = c[3]
+            self._update_radiation(G, T_nodes_c, T_bc_c)
+            return G
+        G = self.evaluate(T_oil_c, speeds, gear_row, mesh_torque_row, low_range, T_nodes_c, T_bc_c)
+        self._cache = (gear_row, float(T_oil_c), np.array(speeds, dtype=float), G)
         return G

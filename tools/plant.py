@@ -287,8 +287,8 @@ class ReferencePlant:
                 lag_y = y_new
                 q_nodes = self.S @ delivered
                 # conductances at the current state
-                G = self.ev.evaluate(T[self.i_oil], speeds, row, kin.mesh_torque[row], bool(kin.low_range[row]),
-                                     T, T_bc)
+                G = self.ev.evaluate_cached(T[self.i_oil], speeds, row, kin.mesh_torque[row],
+                                            bool(kin.low_range[row]), T, T_bc)
                 # cooler
                 w_eng = speeds[SPEED_NAMES.index("IS")]
                 vk = float(np.interp(tm, t, v_kmh)) if v_kmh is not None else 50.0
