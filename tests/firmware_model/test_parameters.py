@@ -1,0 +1,103 @@
+"""Parameter files: SI conversion, provenance on every value, ranges, inheritance; kinematics against the seed."""
+import math
+import re
+
+import numpy as np
+import pytest
+
+from firmware_model.errors import InputError, ParameterError
+from firmware_model.kinematics import GEAR_BY_NAME, build_table, gear_state, parse_gear
+from firmware_model.parameters import PARAM_DIR, load_parameters
+
+
+def test_every_value_has_unit_and_provenance():
+    for variant in ("GRS905", "GRSO905"):
+        p = load_parameters(variant)
+        assert p.values, variant
+        for k in p.values:
+            assert p.provenance(k) in ("seed", "derived", "assumed"), k
+            assert k in p.units, k
+
+
+def test_si_conversion():
+    p = load_parameters()
+    assert p["gear.3.width1"] == pytest.approx(0.040)              # mm -> m
+    assert p["oil.volume"] == pytest.approx(13.5e-3)               # L -> m3
+    assert p["gear.alpha_n"] == pytest.approx(math.radians(20))    # deg -> rad
+    assert p["heat.N_nom"] == pytest.approx(1000 * 2 * math.pi / 60)
+    assert p["cooler.liquid_Qmax_cool"] == pytest.approx(14e3)     # kW -> W
+    assert p.provenance("heat.h_nom") == "seed" and p["heat.h_nom"] == 325
+
+
+def test_seed_values_are_the_seeds():
+    p = load_parameters()
+    assert p["scale.gear_contact_to_heat"] == 0.75 and p["scale.planet_to_heat"] == 0.80
+    assert p["scale.churn_to_heat"] == 1.33 and p["planetary.h_oil"] == 750 and p["housing.h_oil"] == 200
+    assert p["housing.internal_area"] == 1.9 and p["housing.oil_covered_frac"] == 0.9
+    assert (p["housing.area_H1"], p["housing.area_H2"], p["housing.area_H3"]) == (2.4, 1.7, 0.7)
+    assert p["housing.h_air"] == 10 and p["housing.emissivity"] == 0.8
+
+
+def test_ratios_match_the_seed():
+    k = load_parameters().kinematics
+    r = {n: k.ratio[g + 2] for n, g in GEAR_BY_NAME.items() if g}
+    assert r["CL"] == pytest.approx(16.406, rel=0.01)
+    assert r["1H"] == pytest.approx(9.164, rel=0.01)
+    assert r["6H"] == pytest.approx(1.0, abs=1e-12)
+    assert r["3H"] / r["6H"] == pytest.approx(3.75)           # planetary low range
+    assert r["6L"] / r["6H"] == pytest.approx(1.235, rel=0.01)  # split step
+    assert r["1H"] / 3.75 == pytest.approx(2.444, rel=0.01)    # before the planetary
+    assert r["RL"] < 0 and r["RH"] < 0
+
+
+def test_overdrive_variant_inverts_the_split():
+    p = load_parameters("GRSO905")
+    k = p.kinematics
+    assert p.split_inverted
+    assert k.ratio[14 + 2] == pytest.approx(0.8, rel=0.02)
+    assert k.ratio[13 + 2] == pytest.approx(1.0)
+    assert gear_state(14, True).split_pair == "L" and gear_state(14, False).split_pair == "3"
+
+
+def test_kinematics_torque_paths():
+    k = load_parameters().kinematics
+    row = 9 + 2   # 4L: low split (L pair) and 1st, high range
+    active = dict(zip(("L", "3", "2", "1", "C", "R"), k.active_pair[row]))
+    assert active == {"L": True, "3": False, "2": False, "1": True, "C": False, "R": False}
+    assert not k.active_pair[14 + 2].any()            # direct drive
+    assert k.mesh_torque[8 + 2, 7] > 0 and k.mesh_torque[9 + 2, 7] == 0   # planetary loaded only at low range
+    # idle wheels on an engaged interface do not slip on their bearing, the others do
+    assert k.wheel_bearing_rel[14 + 2][1] == pytest.approx(0.0)            # 3M locked at 6H
+    assert k.wheel_bearing_rel[14 + 2][0] > 0                               # LI free at 6H
+
+
+def test_gear_parsing():
+    assert parse_gear("4L") == 9 and parse_gear(" 6h ") == 14 and parse_gear("N") == 0 and parse_gear(3.0) == 3
+    for bad in ("7X", 15, -3, 2.5, float("nan")):
+        with pytest.raises(InputError):
+            parse_gear(bad)
+
+
+def test_out_of_range_and_bad_unit_are_refused(tmp_path):
+    src = (PARAM_DIR / "GRS905.toml").read_text()
+    bad = tmp_path / "bad.toml"
+    bad.write_text(re.sub(r'h_nom = \{ v = 325,', "h_nom = { v = -5,", src))
+    with pytest.raises(ParameterError, match="heat.h_nom"):
+        load_parameters(bad)
+    bad.write_text(src.replace('emissivity = { v = 0.8, u = "-"', 'emissivity = { v = 0.8, u = "furlong"'))
+    with pytest.raises(ParameterError, match="unit"):
+        load_parameters(bad)
+    bad.write_text(src.replace('src = "seed", ref = "Eq 45" }', 'src = "guess", ref = "Eq 45" }', 1))
+    with pytest.raises(ParameterError, match="provenance"):
+        load_parameters(bad)
+    with pytest.raises(ParameterError, match="variant"):
+        load_parameters("GRS999")
+
+
+def test_overrides_are_checked():
+    p = load_parameters()
+    with pytest.raises(ParameterError):
+        p.with_overrides({"housing.emissivity": 1.5})
+    with pytest.raises(ParameterError):
+        p.with_overrides({"no.such.key": 1.0})
+    assert p.with_overrides({"housing.h_air": 12.0})["housing.h_air"] == 12.0

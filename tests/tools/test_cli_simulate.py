@@ -1,0 +1,62 @@
+"""`gearbox-vsensor simulate`: output contract and bad input (one sentence, non-zero exit, nothing written)."""
+import numpy as np
+import pytest
+
+from tools.cli import main
+from tools.runtable import RunTable, read_run_table, write_run_table
+
+
+def _cycle(path, **mod):
+    t = np.arange(0.0, 120.0, 1.0)
+    cols = {"time_s": t, "engine_speed_rpm": np.full(t.size, 1300.0), "engine_torque_nm": np.full(t.size, 1500.0),
+            "gear": np.full(t.size, 9.0)}
+    for k, (row, v) in mod.items():
+        cols[k] = cols[k].copy()
+        cols[k][row] = v
+    write_run_table(RunTable(cols), path)
+    return path
+
+
+def test_simulate_writes_the_contract_columns(tmp_path, capsys):
+    out = tmp_path / "run.csv"
+    rc = main(["simulate", "--cycle", str(_cycle(tmp_path / "c.csv")), "--out", str(out), "--quiet",
+               "--plot", str(tmp_path / "p.png")])
+    assert rc == 0
+    t = read_run_table(out)
+    for c in ("time_s", "engine_speed_rpm", "engine_torque_nm", "gear", "oil_temp_c", "T_LI.teeth_c", "T_PS_c",
+              "T_oil_c", "T_LS@1L_c", "Q_heat_total_w", "Q_out_cooler_w", "Q_out_housing_radiation_w"):
+        assert c in t.columns, c
+    assert (tmp_path / "p.png").stat().st_size > 10000 and (tmp_path / "p_heat.png").exists()
+
+
+@pytest.mark.parametrize("args_mod, words", [
+    ({"gear": (5, 17.0)}, "gear"),
+    ({"engine_speed_rpm": (5, -10.0)}, "engine_speed_rpm"),
+    ({"engine_torque_nm": (5, float("nan"))}, "engine_torque_nm"),
+])
+def test_bad_cycles_fail_cleanly(tmp_path, capsys, args_mod, words):
+    out = tmp_path / "run.csv"
+    rc = main(["simulate", "--cycle", str(_cycle(tmp_path / "c.csv", **args_mod)), "--out", str(out), "--quiet"])
+    err = capsys.readouterr().err.strip()
+    assert rc == 2 and words in err and "row" in err
+    assert len(err.splitlines()) == 1
+    assert not out.exists()
+
+
+def test_missing_column_unknown_effect_bad_config(tmp_path, capsys):
+    c = tmp_path / "c.csv"
+    c.write_text("time_s,engine_speed_rpm,gear\n0,1000,9\n1,1000,9\n")
+    out = tmp_path / "run.csv"
+    assert main(["simulate", "--cycle", str(c), "--out", str(out), "--quiet"]) == 2
+    assert "engine_torque_nm" in capsys.readouterr().err
+    good = _cycle(tmp_path / "g.csv")
+    assert main(["simulate", "--cycle", str(good), "--out", str(out), "--effect", "flux_capacitor:x=1"]) == 2
+    assert "unknown effect" in capsys.readouterr().err
+    assert main(["simulate", "--cycle", str(good), "--out", str(out), "--effect", "retarder_heat:fraction=0.5"]) == 2
+    assert "outside" in capsys.readouterr().err
+    cfg = tmp_path / "cfg.toml"
+    cfg.write_text("[boundary]\nambient = 400\n")
+    assert main(["simulate", "--cycle", str(good), "--out", str(out), "--config", str(cfg)]) == 2
+    assert "boundary.ambient" in capsys.readouterr().err
+    assert main(["simulate", "--cycle", "no_such_cycle", "--out", str(out)]) == 2
+    assert not out.exists()
