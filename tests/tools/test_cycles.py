@@ -1,0 +1,262 @@
+"""Named synthetic drive cycles: well-formed, consistent, deterministic, and shaped like the thesis's load cases."""
+import numpy as np
+import pytest
+
+from firmware_model.errors import InputError
+from firmware_model.kinematics import GEAR_NAMES
+from tools.cycles import (BC_COLUMNS, COLUMNS, CYCLE_HELP, CYCLE_NAMES, TABLE11_LC1, TABLE11_LC2, Vehicle,
+                          get_cycle, parse_steady_spec, road_profile, summarize, total_ratios)
+from tools.runtable import read_run_table, write_run_table
+
+DURATION_S = {"steady": 3600.0, "all_gears": 1600.0, "long_haul": 3600.0, "uphill": 7200.0, "mining": 10800.0}
+INITIAL_C = {"steady": 20.0, "all_gears": 100.0, "long_haul": 33.5, "uphill": 68.3, "mining": 40.0}
+ROAD = ("long_haul", "uphill", "mining")
+
+
+@pytest.fixture(scope="module")
+def cycles():
+    return {name: get_cycle(name) for name in CYCLE_NAMES}
+
+
+def test_names_and_help():
+    assert CYCLE_NAMES == ("steady", "all_gears", "long_haul", "uphill", "mining")
+    assert set(CYCLE_HELP) == set(CYCLE_NAMES)
+    assert all(isinstance(h, str) and "\n" not in h for h in CYCLE_HELP.values())
+
+
+@pytest.mark.parametrize("name", CYCLE_NAMES)
+def test_cycle_is_well_formed(cycles, name):
+    tb = cycles[name]
+    assert tb.columns == COLUMNS
+    t = tb.time_s
+    assert t[0] == 0.0 and np.all(np.diff(t) > 0)
+    np.testing.assert_allclose(np.diff(t), 0.1, atol=1e-9)
+    assert tb.n == int(DURATION_S[name] * 10)
+    for c in tb.columns:
+        assert np.all(np.isfinite(tb[c])), c
+    g = tb["gear"]
+    assert np.all(g == np.round(g)) and g.min() >= -2 and g.max() <= 14
+    n = tb["engine_speed_rpm"]
+    assert n.min() >= 0 and n.max() <= 2500
+    tq = tb["engine_torque_nm"]
+    assert tq.min() >= -600 and tq.max() <= 3000
+    # the propeller-shaft cap: 2700 Nm below 4L and in reverse
+    assert np.all(tq[g < 9] <= 2700 + 1e-9)
+    assert np.all(tb["vehicle_speed_kmh"] >= 0) and np.all(tb["retarder_torque_nm"] >= 0)
+    assert tb.meta["initial_temp_c"] == INITIAL_C[name]
+    assert tb.meta["synthetic"] is True and "hold_oil_c" in tb.meta
+    # summarize() agrees with the duration
+    assert summarize(tb)["duration_s"] == pytest.approx(DURATION_S[name])
+
+
+@pytest.mark.parametrize("name", ROAD)
+def test_road_cycles_are_physically_consistent(cycles, name):
+    """Engine speed, gear and vehicle speed agree wherever the driveline is closed (not shifting, not slipping)."""
+    tb = cycles[name]
+    ratio = total_ratios()
+    veh = Vehicle()
+    g = tb["gear"].astype(int)
+    n = tb["engine_speed_rpm"]
+    v = tb["vehicle_speed_kmh"] / 3.6
+    rt = np.array([ratio[k] for k in g])
+    engaged = (g != 0) & (v > 1.0)
+    n_sync = v[engaged] / veh.wheel_radius_m * veh.final_drive * rt[engaged] * 60 / (2 * np.pi)
+    ok = np.abs(n[engaged] - n_sync) < 5.0
+    assert ok.mean() > 0.95
+    # standstill: neutral at idle
+    still = tb["vehicle_speed_kmh"] == 0
+    assert np.all(n[still & (g == 0)] == 600.0)
+    # engine within its range while driving
+    assert n[g != 0].min() >= 600 - 1e-9 and n.max() <= 2100
+    # shifts: several, and each one interrupts the torque
+    ch = np.flatnonzero(np.diff(g) != 0) + 1
+    fwd = [i for i in ch if g[i - 1] > 0 and g[i] > 0]
+    assert len(fwd) >= 5
+    assert all(np.abs(tb["engine_torque_nm"][i - 2:i + 2]).min() < 1e-6 for i in fwd)
+
+
+@pytest.mark.parametrize("name", CYCLE_NAMES)
+def test_boundaries_follow_table11(cycles, name):
+    tb = cycles[name]
+    t = tb.time_s
+    end = {c: tb[c][-1] for c in BC_COLUMNS}
+    if name == "long_haul":
+        assert all(tb[c][0] == 33.5 for c in BC_COLUMNS) and tb["coolant_temp_c"][0] == 33.5
+        assert tuple(end.values()) == TABLE11_LC1
+        i = np.searchsorted(t, 1000.0)
+        assert tb["coolant_temp_c"][i] == pytest.approx(80.0) and tb["coolant_temp_c"][-1] == 80.0
+        assert tb["bc_engine_shaft_c"][np.searchsorted(t, 1000.0)] == pytest.approx((33.5 + 90) / 2)
+    elif name == "uphill":
+        assert all(np.all(tb[c] == v) for c, v in zip(BC_COLUMNS, TABLE11_LC2))
+        cool = tb["coolant_temp_c"]
+        assert cool[0] == 80 and cool[np.searchsorted(t, 1000.0)] == pytest.approx(100)
+        assert cool[np.searchsorted(t, 2500.0)] == 100 and cool[-1] == 90
+    assert np.all(tb["ambient_temp_c"] == 25.0)
+
+
+def test_uphill_first_hour_in_low_range_at_high_torque(cycles):
+    tb = cycles["uphill"]
+    t, g, tq = tb.time_s, tb["gear"], tb["engine_torque_nm"]
+    h1 = t < 3600
+    low = h1 & (g >= 1) & (g <= 8)
+    assert low.sum() / h1.sum() >= 0.40
+    assert tq[low].mean() > 1500
+    mid = h1 & (g >= 9) & (g <= 11)
+    assert mid.sum() / h1.sum() > 0.10 and tq[mid].mean() > 1500
+    # the second hour is lighter and in high gears
+    h2 = t >= 3600
+    assert np.mean(g[h2] >= 12) > 0.9 and tq[h2].mean() < 0.6 * tq[h1 & (g > 0)].mean()
+    # ~900 m up in the first hour at a ~2-3 % mean grade
+    rp = road_profile("uphill")
+    i = np.searchsorted(rp["time_s"], 3600.0)
+    assert 750 < rp["altitude_m"][i] < 1050
+    assert 0.015 < rp["altitude_m"][i] / rp["distance_m"][i] < 0.035
+
+
+def test_mining_has_engine_braking_retarder_stops_crawler_and_reverse(cycles):
+    tb = cycles["mining"]
+    g, tq, ret, v = tb["gear"], tb["engine_torque_nm"], tb["retarder_torque_nm"], tb["vehicle_speed_kmh"]
+    s = summarize(tb)
+    assert np.mean(tq < -300) > 0.05 and tq.min() >= -600
+    assert np.mean(ret > 100) > 0.10
+    # the retarder works on descents, together with the engine brake
+    assert np.mean(tq[ret > 100] < 0) > 0.8
+    rp = road_profile("mining")
+    grade = np.interp(tb.time_s, rp["time_s"], rp["grade"])
+    assert np.mean(grade[ret > 100] < -0.02) > 0.7
+    # loading / dumping stops in neutral, crawler launches, reversing
+    assert s["share"]["neutral"] > 0.08 and np.all(v[g == 0] < 25)
+    assert np.any(g == 1) and s["share"]["reverse"] > 0.01
+    # climbs at high torque in low range
+    climb = (g >= 3) & (g <= 8) & (tq > 1500)
+    assert np.mean(climb) > 0.1 and tq.max() >= 2500
+    assert 3 <= np.sum(np.diff((g == -2).astype(int)) == 1) <= 40
+
+
+def test_long_haul_mostly_direct_drive(cycles):
+    tb = cycles["long_haul"]
+    t, g, tq = tb.time_s, tb["gear"], tb["engine_torque_nm"]
+    assert np.mean(g == 14) >= 0.80
+    in6h = g == 14
+    assert 300 < np.median(tq[in6h]) < 900
+    assert np.percentile(tq[in6h], 10) > 200 and np.percentile(tq[in6h], 90) < 1100
+    assert 1200 < np.median(tb["engine_speed_rpm"][in6h]) < 1400
+    # a start from standstill through the gears in the first minutes
+    first = g[t < 300]
+    assert first[0] == 0 and len(set(first.tolist()) - {0}) >= 5 and first[-1] == 14
+    # a few slowdowns with downshifts later on
+    later = g[t > 600]
+    downs = np.sum(np.diff((later < 14).astype(int)) == 1)
+    assert 2 <= downs <= 8
+
+
+def test_all_gears_sweeps_rl_to_6h(cycles):
+    tb = cycles["all_gears"]
+    t, g = tb.time_s, tb["gear"]
+    mid = g[((t % 100) > 40) & ((t % 100) < 60)].reshape(16, -1)[:, 0]
+    assert mid.tolist() == [-2, -1] + list(range(1, 15))
+    assert not np.any(g == 0)
+    assert tb.meta["hold_oil_c"] == 100.0
+    assert np.all(tb["engine_speed_rpm"] == 1300)
+    tq = tb["engine_torque_nm"]
+    assert tq[(g >= 3) & ((t % 100) > 5) & ((t % 100) < 95)].min() == 1000
+    assert tq[(g <= 2) & ((t % 100) > 5) & ((t % 100) < 95)].max() <= 700
+
+
+def test_steady_spec():
+    tb = get_cycle("steady:gear=4L,rpm=1300,nm=2000,s=600,oil=100")
+    assert tb.n == 6000 and np.all(tb["gear"] == 9) and np.all(tb["engine_torque_nm"] == 2000)
+    assert tb.meta["hold_oil_c"] == 100.0 and tb.meta["initial_temp_c"] == 100.0
+    assert tb.meta["cycle"] == "steady:gear=4L,rpm=1300,nm=2000,s=600,oil=100"
+    d = get_cycle("steady")
+    assert d.n == 36000 and d["gear"][0] == 9 and d["engine_speed_rpm"][0] == 1300
+    assert d.meta["hold_oil_c"] is None and d.meta["initial_temp_c"] == 20.0
+    assert get_cycle("steady:gear=3H,s=10")["gear"][0] == 8
+    assert get_cycle("steady:gear=-1,s=10")["gear"][0] == -1
+    assert parse_steady_spec("steady:gear=6h,init=35")["init"] == 35.0
+    for g, name in GEAR_NAMES.items():
+        assert parse_steady_spec(f"steady:gear={name}")["gear"] == g
+
+
+@pytest.mark.parametrize("spec, words", [
+    ("steady:gear=4X", ["4X", "Table 1"]),
+    ("steady:gear=15", ["15"]),
+    ("steady:speed=1300", ["'speed=1300'", "gear=", "rpm=", "nm=", "s=", "oil="]),
+    ("steady:rpm=fast", ["rpm", "'fast'", "not a number"]),
+    ("steady:rpm=-5", ["rpm=-5"]),
+    ("steady:s=0", ["s=0"]),
+])
+def test_bad_steady_spec(spec, words):
+    with pytest.raises(InputError) as ei:
+        get_cycle(spec)
+    for w in words:
+        assert w in str(ei.value)
+
+
+def test_unknown_cycle_lists_valid_names():
+    with pytest.raises(InputError) as ei:
+        get_cycle("autobahn")
+    msg = str(ei.value)
+    assert "'autobahn'" in msg and all(n in msg for n in CYCLE_NAMES) and "CSV" in msg
+
+
+@pytest.mark.parametrize("rate", [0, -1, float("nan"), 5000])
+def test_bad_rate(rate):
+    with pytest.raises(InputError, match="sample rate"):
+        get_cycle("long_haul", rate_hz=rate)
+
+
+def test_csv_path_is_read(tmp_path, cycles):
+    p = tmp_path / "cyc.csv"
+    write_run_table(cycles["all_gears"], p)
+    back = get_cycle(str(p))
+    assert back.columns == COLUMNS and back.n == cycles["all_gears"].n
+    np.testing.assert_allclose(back["engine_torque_nm"], cycles["all_gears"]["engine_torque_nm"], rtol=1e-9)
+    with pytest.raises(InputError, match="no such file"):
+        get_cycle(str(tmp_path / "missing.csv"))
+
+
+@pytest.mark.parametrize("name", ROAD + ("all_gears",))
+def test_deterministic_for_a_seed(name):
+    a = get_cycle(name, noise=True, seed=3)
+    b = get_cycle(name, noise=True, seed=3)
+    for c in COLUMNS:
+        np.testing.assert_array_equal(a[c], b[c])
+    c = get_cycle(name, noise=True, seed=4)
+    assert not np.array_equal(a["engine_torque_nm"], c["engine_torque_nm"])
+
+
+def test_seed_varies_the_route_but_keeps_its_character():
+    a, b = get_cycle("uphill", seed=0), get_cycle("uphill", seed=1)
+    assert not np.array_equal(a["gear"], b["gear"])
+    for tb in (a, b):
+        h1 = tb.time_s < 3600
+        low = h1 & (tb["gear"] >= 1) & (tb["gear"] <= 8)
+        assert low.sum() / h1.sum() >= 0.40 and tb["engine_torque_nm"][low].mean() > 1500
+
+
+def test_noisy_100hz_variant(cycles):
+    clean = cycles["long_haul"]
+    hi = get_cycle("long_haul", rate_hz=100, noise=True, seed=0)
+    assert hi.n == 10 * clean.n
+    np.testing.assert_allclose(np.diff(hi.time_s), 0.01, atol=1e-9)
+    assert hi.meta["rate_hz"] == 100 and hi.meta["noise"] is True
+    # the gear is not noisy; it is the 10 Hz gear held
+    np.testing.assert_array_equal(hi["gear"][::10], clean["gear"])
+    # noise: a few rpm and a few percent of torque around the clean signal
+    hi_clean = get_cycle("long_haul", rate_hz=100, noise=False, seed=0)
+    dn = hi["engine_speed_rpm"] - hi_clean["engine_speed_rpm"]
+    assert 1.0 < dn.std() < 6.0
+    tq = hi_clean["engine_torque_nm"]
+    rel = (hi["engine_torque_nm"] - tq)[tq > 500] / tq[tq > 500]
+    assert 0.01 < rel.std() < 0.05
+    assert hi["engine_speed_rpm"].min() >= 0
+
+
+def test_written_cycle_reads_back_valid(tmp_path):
+    tb = get_cycle("mining", rate_hz=1)
+    assert tb.n == 10800
+    p = write_run_table(tb, tmp_path / "m.csv")
+    back = read_run_table(p)
+    assert back.columns == COLUMNS and back.meta == {}
+    np.testing.assert_allclose(back["gear"], tb["gear"])

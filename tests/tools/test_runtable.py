@@ -1,0 +1,316 @@
+"""Run tables (CONTRACTS.md section 3): write-then-read, every validation rule, atomic writes."""
+import os
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from firmware_model.errors import InputError
+from tools import runtable
+from tools.runtable import ColumnError, RunTable, read_run_table, write_run_table
+
+HEADER = "time_s,engine_speed_rpm,engine_torque_nm,gear"
+
+
+def write_text(tmp_path, text, name="run.csv"):
+    p = tmp_path / name
+    p.write_text(text, encoding="utf-8")
+    return p
+
+
+def good_rows(n=20):
+    return [f"{0.1 * i:.1f},{1300 + i},{1000 - 10 * i},{4 if i < 10 else 5}" for i in range(n)]
+
+
+def csv_with(tmp_path, row_no, col, value, n=20, header=HEADER):
+    """A good file whose data row `row_no` (1-based) has `value` in column `col`."""
+    names = header.split(",")
+    rows = [r.split(",") for r in good_rows(n)]
+    rows[row_no - 1][names.index(col)] = value
+    return write_text(tmp_path, header + "\n" + "\n".join(",".join(r) for r in rows) + "\n")
+
+
+def error_of(path, **kw):
+    with pytest.raises(InputError) as ei:
+        read_run_table(path, **kw)
+    msg = str(ei.value)
+    assert "\n" not in msg
+    return msg
+
+
+# ---------------------------------------------------------------- RunTable
+
+def test_runtable_helpers():
+    t = RunTable({"time_s": [0.0, 0.1, 0.2], "gear": [4, 4, 5], "x_c": [1.0, np.nan, 3.0]}, meta={"a": 1})
+    assert t.n == 3 and len(t) == 3
+    assert t.columns == ("time_s", "gear", "x_c")
+    assert t.has("gear") and not t.has("oil_temp_c") and "gear" in t
+    assert t["gear"].dtype == np.float64
+    np.testing.assert_array_equal(t.time_s, [0.0, 0.1, 0.2])
+    t["y_w"] = 5.0   # scalars broadcast
+    assert t["y_w"].tolist() == [5.0, 5.0, 5.0]
+    with pytest.raises(InputError, match='column "z" has 2 rows but the table has 3'):
+        t["z"] = [1.0, 2.0]
+    with pytest.raises(ColumnError, match='no column "nope"') as ei:
+        t["nope"]
+    assert isinstance(ei.value, KeyError) and isinstance(ei.value, InputError)
+    c = t.copy()
+    c["gear"][0] = 9
+    assert t["gear"][0] == 4 and c.meta == {"a": 1}
+    assert t.select(t["gear"] == 4).n == 2
+
+
+def test_runtable_copies_its_input():
+    a = np.arange(3.0)
+    t = RunTable({"time_s": a})
+    a[0] = 99
+    assert t["time_s"][0] == 0.0
+
+
+# ---------------------------------------------------------------- round trip
+
+def test_write_then_read_round_trip_with_nan_and_extra_columns(tmp_path):
+    n = 1000
+    rng = np.random.default_rng(1)
+    t = RunTable({
+        "time_s": 10000.0 + np.arange(n) * 0.01,        # 100 Hz late in a 3 h run
+        "engine_speed_rpm": rng.uniform(600, 2100, n),
+        "engine_torque_nm": rng.uniform(-600, 3000, n),
+        "gear": rng.integers(-2, 15, n),
+        "oil_temp_c": rng.normal(80, 5, n),
+        "T_LI.teeth_c": rng.normal(100, 10, n),
+        "Q_gear_w": rng.uniform(0, 2e4, n) * 1e-3,
+        "tiny_m2_s": rng.uniform(1e-6, 1e-4, n),
+    }, meta={"initial_temp_c": 33.5})
+    t["oil_temp_c"][::7] = np.nan
+    t["T_LI.teeth_c"][0] = np.nan    # first cell of a row
+    t["tiny_m2_s"][-1] = np.nan      # last cell of the file
+    p = write_run_table(t, tmp_path / "rt.csv")
+    text = p.read_text()
+    assert text.splitlines()[0] == ",".join(t.columns)
+    assert "nan" not in text and "initial_temp_c" not in text   # NaN is an empty cell; meta stays out
+    back = read_run_table(p)
+    assert back.columns == t.columns
+    for c in t.columns:
+        np.testing.assert_array_equal(np.isnan(back[c]), np.isnan(t[c]), err_msg=c)
+        np.testing.assert_allclose(back[c], t[c], rtol=1e-9, atol=0, equal_nan=True, err_msg=c)
+    # time keeps its 100 Hz resolution exactly enough to stay strictly increasing with the same steps
+    np.testing.assert_allclose(np.diff(back.time_s), 0.01, atol=1e-9)
+    assert back.meta == {}
+
+
+def test_integral_values_written_without_decimals(tmp_path):
+    t = RunTable({"time_s": [0, 1], "engine_speed_rpm": [600, 1300.5], "engine_torque_nm": [0, -250],
+                  "gear": [0, 14]})
+    lines = write_run_table(t, tmp_path / "a.csv").read_text().splitlines()
+    assert lines[1:] == ["0,600,0,0", "1,1300.5,-250,14"]
+
+
+def test_write_accepts_per_column_formats(tmp_path):
+    t = RunTable({"time_s": [0.0, 0.5], "engine_speed_rpm": [1, 2], "engine_torque_nm": [1, 2], "gear": [1, 2],
+                  "x_c": [1.23456, np.nan]})
+    text = write_run_table(t, tmp_path / "f.csv", formats={"x_c": "%.2f"}).read_text()
+    assert text.splitlines()[1].endswith(",1.23") and text.splitlines()[2].endswith(",")
+
+
+def test_read_accepts_crlf_bom_blank_tail_spaces_and_quoted_cells(tmp_path):
+    p = tmp_path / "w.csv"
+    p.write_bytes(("\ufeff" + HEADER + ",note_x\r\n0,600, 0 ,0,1\r\n0.1,700,10,\"3\",\r\n\r\n\r\n").encode("utf-8"))
+    t = read_run_table(p)
+    assert t.columns == ("time_s", "engine_speed_rpm", "engine_torque_nm", "gear", "note_x")
+    assert t["gear"].tolist() == [0.0, 3.0]
+    assert t["engine_torque_nm"].tolist() == [0.0, 10.0]
+    assert np.isnan(t["note_x"][1])
+
+
+def test_extra_columns_kept_and_only_required_checked(tmp_path):
+    p = write_text(tmp_path, "time_s,meas_T_PS_c\n0,50\n1,\n2,52\n")
+    t = read_run_table(p, required=("time_s",))
+    assert t.columns == ("time_s", "meas_T_PS_c") and np.isnan(t["meas_T_PS_c"][1])
+
+
+def test_empty_cells_and_fast_path_give_the_same_table(tmp_path):
+    rows = good_rows(50)
+    a = write_text(tmp_path, HEADER + ",oil_temp_c\n" + "\n".join(r + ",80" for r in rows) + "\n", "a.csv")
+    b = write_text(tmp_path, HEADER + ",oil_temp_c\n" + "\n".join(r + ("," if i % 3 else ",80")
+                                                             for i, r in enumerate(rows)) + "\n", "b.csv")
+    ta, tb = read_run_table(a), read_run_table(b)
+    for c in HEADER.split(","):
+        np.testing.assert_array_equal(ta[c], tb[c])
+    assert np.isnan(tb["oil_temp_c"][1]) and tb["oil_temp_c"][0] == 80
+
+
+# ---------------------------------------------------------------- validation: one sentence naming file, column, row
+
+def test_missing_required_column_names_it_and_lists_the_columns(tmp_path):
+    p = write_text(tmp_path, "time_s,engine_speed_rpm,engine_torque_nm\n0,1,2\n")
+    msg = error_of(p)
+    assert "run.csv" in msg and '"gear"' in msg and "missing" in msg
+    assert "time_s, engine_speed_rpm, engine_torque_nm" in msg
+
+
+def test_gear_not_integer(tmp_path):
+    msg = error_of(csv_with(tmp_path, 17, "gear", "3.5"))
+    assert msg.endswith('run.csv: column "gear" row 17: 3.5 is not an integer gear in -2..14 (seed Table 1)') or \
+        'column "gear" row 17: 3.5 is not an integer gear in -2..14 (seed Table 1)' in msg
+
+
+@pytest.mark.parametrize("value", ["15", "-3"])
+def test_gear_out_of_range(tmp_path, value):
+    msg = error_of(csv_with(tmp_path, 4, "gear", value))
+    assert f'column "gear" row 4: {value} is not an integer gear in -2..14' in msg
+
+
+def test_time_duplicated(tmp_path):
+    msg = error_of(csv_with(tmp_path, 6, "time_s", "0.4"))
+    assert 'run.csv: column "time_s" row 6' in msg and "duplicated" in msg and "row 5" in msg
+
+
+def test_time_goes_backwards(tmp_path):
+    msg = error_of(csv_with(tmp_path, 9, "time_s", "0.2"))
+    assert 'column "time_s" row 9' in msg and "goes backwards" in msg and "row 8" in msg
+
+
+@pytest.mark.parametrize("col", ["time_s", "engine_speed_rpm", "engine_torque_nm", "gear"])
+def test_empty_cell_in_required_column(tmp_path, col):
+    msg = error_of(csv_with(tmp_path, 12, col, ""))
+    assert f'run.csv: column "{col}" row 12' in msg and "empty" in msg
+
+
+@pytest.mark.parametrize("col", ["time_s", "engine_speed_rpm", "engine_torque_nm"])
+def test_infinite_value(tmp_path, col):
+    msg = error_of(csv_with(tmp_path, 3, col, "inf"))
+    assert f'column "{col}" row 3' in msg and "finite" in msg
+
+
+def test_negative_engine_speed(tmp_path):
+    msg = error_of(csv_with(tmp_path, 7, "engine_speed_rpm", "-20"))
+    assert 'column "engine_speed_rpm" row 7: -20 rpm is negative' in msg
+
+
+def test_non_numeric_cell_is_named(tmp_path):
+    msg = error_of(csv_with(tmp_path, 11, "engine_torque_nm", "abc"))
+    assert 'run.csv: column "engine_torque_nm" row 11' in msg and "'abc' is not a number" in msg
+
+
+def test_non_numeric_cell_in_extra_column(tmp_path):
+    p = write_text(tmp_path, HEADER + ",oil_temp_c\n0,1,2,3,80\n1,1,2,3,hot\n")
+    msg = error_of(p)
+    assert 'column "oil_temp_c" row 2' in msg and "'hot'" in msg
+
+
+def test_decimal_comma_gives_a_hint(tmp_path):
+    p = write_text(tmp_path, HEADER + "\n0,1300,2,3\n0,5,1300,2,3\n")
+    msg = error_of(p)
+    assert "row 2 has 5 cells but the header has 4 columns" in msg and "decimal" in msg
+
+
+def test_missing_cells_in_a_row(tmp_path):
+    p = write_text(tmp_path, HEADER + "\n0,1300,2,3\n1,1300\n")
+    assert "row 2 has 2 cells but the header has 4 columns" in error_of(p)
+
+
+def test_file_not_found(tmp_path):
+    msg = error_of(tmp_path / "nope.csv")
+    assert "nope.csv" in msg and "no such file" in msg
+
+
+def test_empty_file(tmp_path):
+    msg = error_of(write_text(tmp_path, ""))
+    assert "run.csv" in msg and "empty" in msg
+
+
+def test_header_without_rows(tmp_path):
+    msg = error_of(write_text(tmp_path, HEADER + "\n"))
+    assert "run.csv" in msg and "no data rows" in msg
+
+
+def test_semicolon_file(tmp_path):
+    msg = error_of(write_text(tmp_path, "time_s;engine_speed_rpm\n0;1\n"))
+    assert "semicolon" in msg
+
+
+def test_duplicate_header_column(tmp_path):
+    assert 'column "gear" appears twice' in error_of(write_text(tmp_path, HEADER + ",gear\n0,1,2,3,3\n"))
+
+
+def test_row_numbers_do_not_depend_on_empty_cells_elsewhere(tmp_path):
+    """The careful path (empty cells) and the fast path count rows the same way."""
+    names = HEADER.split(",") + ["oil_temp_c"]
+    rows = [r.split(",") + ["80"] for r in good_rows(30)]
+    rows[2][4] = ""
+    rows[24][3] = "2.5"
+    p = write_text(tmp_path, ",".join(names) + "\n" + "\n".join(",".join(r) for r in rows) + "\n")
+    assert 'column "gear" row 25: 2.5' in error_of(p)
+
+
+# ---------------------------------------------------------------- atomic writes
+
+def small_table():
+    return RunTable({"time_s": np.arange(5000) * 0.1, "engine_speed_rpm": 1300.0, "engine_torque_nm": 1.0,
+                     "gear": 14.0})
+
+
+def test_failure_mid_write_leaves_no_file(tmp_path, monkeypatch):
+    """The disk fills up after two blocks: the exception propagates, nothing is left at the target or beside it."""
+    target = tmp_path / "out.csv"
+    monkeypatch.setattr(runtable, "_CHUNK_ROWS", 100)
+    real_fdopen = os.fdopen
+    writes = []
+
+    class Failing:
+        def __init__(self, f):
+            self.f = f
+
+        def write(self, s):
+            writes.append(len(s))
+            if len(writes) == 4:          # header, two blocks, then the failure
+                raise OSError(28, "No space left on device")
+            return self.f.write(s)
+
+        def __getattr__(self, name):
+            return getattr(self.f, name)
+
+        def __enter__(self):
+            return self
+
+        def __exit__(self, *exc):
+            self.f.close()
+
+    monkeypatch.setattr(runtable.os, "fdopen", lambda *a, **k: Failing(real_fdopen(*a, **k)))
+    with pytest.raises(OSError, match="No space"):
+        write_run_table(small_table(), target)
+    assert len(writes) == 4
+    assert not target.exists()
+    assert list(tmp_path.iterdir()) == []   # no temp file left behind
+
+
+def test_failure_keeps_the_previous_file(tmp_path, monkeypatch):
+    target = tmp_path / "out.csv"
+    target.write_text("old content\n")
+
+    def boom(*a, **k):
+        raise OSError("simulated failure at the end")
+
+    monkeypatch.setattr(runtable.os, "fsync", boom)
+    with pytest.raises(OSError):
+        write_run_table(small_table(), target)
+    assert target.read_text() == "old content\n"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out.csv"]
+
+
+def test_write_replaces_an_existing_file(tmp_path):
+    target = tmp_path / "out.csv"
+    target.write_text("old\n")
+    write_run_table(small_table(), target)
+    assert read_run_table(target).n == 5000
+
+
+def test_write_into_missing_directory(tmp_path):
+    with pytest.raises(InputError, match="does not exist"):
+        write_run_table(small_table(), tmp_path / "no" / "such" / "dir.csv")
+
+
+def test_write_accepts_str_paths(tmp_path):
+    p = write_run_table(small_table(), str(tmp_path / "s.csv"))
+    assert isinstance(p, Path) and p.exists() and os.path.getsize(p) > 0
