@@ -544,7 +544,7 @@ def _mining_route(rng: np.random.Generator) -> tuple[list[Segment], Vehicle]:
                     mass_after_kg=MINING_LOADED_KG, start_gear=1),
             Segment(300, 0.0, 15),
             Segment(250, 0.12, 8),                                        # steep bend out of the loading area
-            Segment(ramp - 250, depth_grade, 20),                         # loaded climb
+            Segment(ramp - 250 * 0.12 / depth_grade, depth_grade, 20),   # loaded climb back to the portal
             Segment(1500, 0.005, u(30, 40), stop_s=u(60, 110), reverse_m=u(20, 35),  # haul to the tip, dump
                     mass_after_kg=MINING_EMPTY_KG),
             Segment(1500, -0.005, u(30, 40)),
@@ -560,7 +560,7 @@ _ROAD = {
 }
 
 
-@lru_cache(maxsize=16)
+@lru_cache(maxsize=8)
 def _road_cycle(name: str, seed: int) -> dict:
     build, duration, idle, _ = _ROAD[name]
     rng = np.random.default_rng([seed, sum(map(ord, name))])
