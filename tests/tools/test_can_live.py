@@ -1,0 +1,163 @@
+"""The live service end to end on python-can's virtual bus: frames in, GBX_* frames out; live equals offline replay
+(real time, and 20x with the log's timestamps); `gearbox-vsensor run` starts and stops cleanly on SIGTERM."""
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+import uuid
+from pathlib import Path
+
+import can
+import numpy as np
+import pytest
+
+from can_dbc.adapter import decode_outputs, pgn_of
+from firmware_model.can_service import SensorService, ServiceOptions, can_filters, serve
+from firmware_model.components import PUBLISHED
+from tools.logsynth import write_can_log
+from tools.replay_log import play_log, read_log, replay_log
+
+from ..firmware_model.sensor_standin import make_sensor, real_sensor_available
+
+REPO = Path(__file__).resolve().parents[2]
+GBX_PGNS = set(range(0xFF40, 0xFF50)) | {0xFECA}
+
+
+@pytest.fixture(scope="module")
+def drive_log(tmp_path_factory):
+    """40 s of the uphill cycle through the reference plant, as a J1939 + rig log."""
+    from firmware_model.config import load_config
+    from tools.cycles import get_cycle
+    from tools.plant import ReferencePlant
+    from tools.runtable import RunTable
+    table = get_cycle("uphill")
+    keep = table["time_s"] <= 40.0
+    table = RunTable({c: table[c][keep] for c in table.columns}, meta=table.meta)
+    res = ReferencePlant(load_config(None).load_params()).run(table, progress=False)
+    path = tmp_path_factory.mktemp("live") / "drive.log"
+    write_can_log(table, res.table, path, start_timestamp_s=1_700_000_000.0)
+    return path
+
+
+def offline(path):
+    frames = []
+    table = replay_log(path, SensorService(make_sensor(), ServiceOptions(), record=True),
+                       on_frames=frames.extend)
+    return table, frames
+
+
+def live(path, *, speed, preserve):
+    """Play the log onto a virtual bus while the service runs on it; returns the GBX frames seen by a monitor."""
+    channel = f"test-{uuid.uuid4()}"
+    svc_bus = can.Bus(interface="virtual", channel=channel, can_filters=can_filters())
+    player = can.Bus(interface="virtual", channel=channel, preserve_timestamps=preserve)
+    monitor = can.Bus(interface="virtual", channel=channel)
+    service = SensorService(make_sensor(), ServiceOptions())
+    stop = threading.Event()
+    result = {}
+    worker = threading.Thread(target=lambda: result.update(r=serve(svc_bus, service, stop=stop)), daemon=True)
+    worker.start()
+    try:
+        play_log(path, player, speed=speed)
+        deadline = time.monotonic() + 10.0
+        n_in = sum(1 for _ in read_log(path))
+        while time.monotonic() < deadline and service.decoder.counters["frames_seen"] < n_in:
+            time.sleep(0.05)
+        time.sleep(0.2)
+    finally:
+        stop.set()
+        worker.join(10.0)
+        svc_bus.shutdown()
+        player.shutdown()
+    out = []
+    while (m := monitor.recv(0)) is not None:
+        if pgn_of(m.arbitration_id) in GBX_PGNS:
+            out.append(m)
+    monitor.shutdown()
+    assert not worker.is_alive()
+    return out, service, result["r"]
+
+
+def key(frames):
+    return [(m.arbitration_id, bytes(m.data)) for m in frames]
+
+
+def test_frames_in_temperatures_and_warnings_out_as_the_sensor_computed(drive_log):
+    table, frames = offline(drive_log)
+    out, service, res = live(drive_log, speed=20.0, preserve=True)
+    assert res.frames_out == len(out) and res.send_errors == 0
+    assert key(out) == key(frames)
+    # the last step's frames decode (cantools, the DBC) to the sensor's outputs of that step
+    last = decode_outputs(out[-17:])
+    row = -1
+    for c in PUBLISHED:
+        T = table[f"T_{c}_c"][row]
+        got = last["temps_c"][c]
+        assert (got is None and np.isnan(T)) or abs(got - T) <= 1 / 64, c
+        assert last["levels"][c] == int(table[f"W_{c}"][row]), c
+    st = last["status"]
+    assert st["speed_valid"] and st["torque_valid"] and st["gear_valid"] and st["oil_valid"]
+    assert st["degraded_mode"] == int(table["degraded_mode"][row])
+    steps = [m for m in out if pgn_of(m.arbitration_id) == 0xFF4F]
+    assert len(steps) == table.n == service.counters["steps"]
+
+
+def test_real_time_replay_on_a_bus_equals_offline(drive_log, tmp_path):
+    """Played at 1x with bus timestamps (the wall clock, with the scheduling jitter of this machine): the steps
+    sample the same inputs as offline, because logsynth puts every value change half-way between two steps."""
+    short = tmp_path / "short.log"
+    lines = drive_log.read_text().splitlines(keepends=True)
+    t0 = float(lines[0][1:lines[0].index(")")])
+    short.write_text("".join(ln for ln in lines if float(ln[1:ln.index(")")]) - t0 < 6.0))
+    _, frames = offline(short)
+    out, _, _ = live(short, speed=1.0, preserve=False)
+    assert key(out) == key(frames)
+
+
+def test_twenty_times_real_time_with_log_timestamps_equals_offline(drive_log):
+    _, frames = offline(drive_log)
+    out, _, _ = live(drive_log, speed=20.0, preserve=True)
+    assert key(out) == key(frames)
+    assert len(frames) > 390 * 16
+
+
+needs_sensor = pytest.mark.skipif(not real_sensor_available(), reason="firmware_model.sensor is not there yet")
+
+
+@needs_sensor
+def test_run_subcommand_starts_and_exits_0_on_sigterm():
+    env = {**os.environ, "PYTHONPATH": str(REPO) + os.pathsep + os.environ.get("PYTHONPATH", "")}
+    proc = subprocess.Popen([sys.executable, "-m", "tools.cli", "run", "--interface", "virtual", "--channel",
+                             f"sigterm-{uuid.uuid4()}", "--log-level", "INFO"], cwd=REPO, env=env,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        lines = []
+        deadline = time.monotonic() + 60
+        while time.monotonic() < deadline:
+            line = proc.stderr.readline()
+            if not line:
+                break
+            lines.append(line)
+            if "listening on virtual" in line:
+                break
+        assert any("listening on virtual" in ln for ln in lines), "".join(lines)
+        proc.send_signal(signal.SIGTERM)
+        _, err = proc.communicate(timeout=30)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 0, err
+    assert "stopped (signal)" in err and "frames seen 0" in err
+
+
+@needs_sensor
+def test_run_bad_interface_is_one_sentence_exit_2():
+    env = {**os.environ, "PYTHONPATH": str(REPO) + os.pathsep + os.environ.get("PYTHONPATH", "")}
+    p = subprocess.run([sys.executable, "-m", "tools.cli", "run", "--interface", "nosuchbus", "--channel", "x"],
+                       cwd=REPO, env=env, capture_output=True, text=True, timeout=60)
+    assert p.returncode == 2
+    assert p.stderr.count("\n") == 1 and "nosuchbus" in p.stderr and "error:" in p.stderr

@@ -1,0 +1,114 @@
+"""`gearbox-vsensor run`: the onboard sensor live on a CAN bus (any python-can interface).
+
+J1939 frames in (receive filters on the needed PGNs), the sensor stepped every 100 ms of frame time, GBX_* frames
+and DM1 out (firmware_model/can_service.py, docs/can.md). SIGINT and SIGTERM stop it cleanly: the loop drains the
+frames already received, stops the notifier, shuts the bus down and exits 0.
+"""
+from __future__ import annotations
+
+import argparse
+import logging
+import signal
+import sys
+import threading
+
+from firmware_model.errors import InputError
+
+LOG_LEVELS = ("DEBUG", "INFO", "WARNING", "ERROR")
+
+
+def add_subparser(sub):
+    p = sub.add_parser(
+        "run", help="run the onboard sensor live on a CAN bus (J1939 in, GBX_* frames out)",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        description="Run the onboard virtual sensor on a CAN bus: decode the J1939 inputs (EEC1, EC1 by TP.BAM, "
+                    "ETC2, TRF1, ET1, AMB, CCVS1, ERC1; source addresses from --config [can]), step the sensor every "
+                    "100 ms of frame time (frame timestamps, never the wall clock) and send GBX_TEMP_1..7, GBX_WARN, "
+                    "GBX_TTL_1..7, GBX_STATUS every 100 ms and GBX_DM1 every second and on change. A signal that "
+                    "stops arriving for 3x its period is 'not available' to the sensor (degraded mode) until it "
+                    "returns. Counters of frames seen, used and rejected (by reason) are logged every "
+                    "[can] counter_log_period_s (60 s) of frame time. Stop with Ctrl-C or SIGTERM (exit 0).",
+        epilog="examples:\n"
+               "  gearbox-vsensor run --interface socketcan --channel can0\n"
+               "  gearbox-vsensor run --interface socketcan --channel vcan0 --config truck.toml --log-level DEBUG\n"
+               "  gearbox-vsensor run --interface pcan --channel PCAN_USBBUS1 --bitrate 250000 --duration 3600\n\n"
+               "config [can] keys: sensor_source_address, engine_source_address, transmission_source_address,\n"
+               "retarder_source_address, ambient_source_address, engine_reference_torque_nm (used until EC1 arrives),\n"
+               "retarder_reference_torque_nm, gear_map, output_period_s, stale_factor, counter_log_period_s.\n"
+               "Watch the outputs: python -m cantools monitor -c vcan0 can_dbc/gearbox_vsensor.dbc")
+    p.add_argument("--interface", required=True, metavar="NAME",
+                   help="python-can interface: socketcan, virtual, pcan, kvaser, vector, slcan, udp_multicast ...")
+    p.add_argument("--channel", required=True, metavar="NAME", help="channel of that interface, e.g. can0, vcan0")
+    p.add_argument("--config", metavar="TOML", help="project configuration (gearbox variant, [can], [sensor])")
+    p.add_argument("--bitrate", type=int, metavar="BIT_S",
+                   help="bit rate for interfaces that set it (J1939: 250000 or 500000); socketcan takes the link's")
+    p.add_argument("--duration", type=float, metavar="S", help="stop after this many seconds of wall time")
+    p.add_argument("--log-level", default="INFO", type=str.upper, choices=LOG_LEVELS,
+                   help="logging level on stderr (default INFO)")
+    p.add_argument("--no-filters", action="store_true",
+                   help="receive every frame (no receive filters): the counters then show all traffic")
+    p.add_argument("--rig", action="store_true", help="also receive the rig thermocouple frames (RIG_TC_*)")
+    p.set_defaults(func=run)
+    return p
+
+
+def open_bus(interface: str, channel: str, bitrate: int | None = None, can_filters=None, **kwargs):
+    """A python-can bus; configuration problems become one-sentence InputErrors."""
+    import can
+    kw = dict(kwargs)
+    if bitrate is not None:
+        kw["bitrate"] = bitrate
+    if can_filters is not None:
+        kw["can_filters"] = can_filters
+    try:
+        return can.Bus(interface=interface, channel=channel, **kw)
+    except can.CanInterfaceNotImplementedError as exc:
+        raise InputError(f"--interface {interface!r} is not available here: {exc}") from None
+    except (can.CanError, OSError, ValueError, ImportError) as exc:
+        raise InputError(f"cannot open CAN channel {channel!r} on interface {interface!r}: {exc}") from None
+
+
+def build_service(config_path, *, record: bool = False, emit_frames: bool = True, **overrides):
+    """Config -> (sensor, SensorService); shared by run, replay of logs and the HIL tests."""
+    from firmware_model.can_service import SensorService, ServiceOptions
+    from firmware_model.config import load_config
+    from firmware_model.sensor import VirtualSensor
+    cfg = load_config(config_path)
+    params = cfg.load_params()
+    sensor = VirtualSensor(params, config=cfg)
+    options = ServiceOptions.from_config(cfg, rig=True, **overrides)
+    return SensorService(sensor, options, record=record, emit_frames=emit_frames)
+
+
+def run(args) -> int:
+    from firmware_model.can_service import can_filters, serve
+    if args.duration is not None and not args.duration > 0:
+        raise InputError(f"--duration {args.duration} must be a positive number of seconds")
+    if args.bitrate is not None and not 10_000 <= args.bitrate <= 1_000_000:
+        raise InputError(f"--bitrate {args.bitrate} must be a CAN bit rate in 10000..1000000 bit/s")
+    logging.basicConfig(level=getattr(logging, args.log_level), stream=sys.stderr,
+                        format="%(asctime)s %(levelname)s %(name)s: %(message)s")
+    log = logging.getLogger("gearbox_vsensor.run")
+    service = build_service(args.config)
+    filters = None if args.no_filters else can_filters(rig=args.rig)
+    bus = open_bus(args.interface, args.channel, args.bitrate, filters)
+    stop = threading.Event()
+
+    def on_signal(signum, frame):  # only sets a flag: the loop drains and shuts down
+        stop.set()
+
+    previous = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        log.info("listening on %s %s (%s); sending as source address 0x%02X", args.interface, args.channel,
+                 "no receive filters" if filters is None else f"{len(filters)} receive filters",
+                 service.options.sensor_source_address)
+        result = serve(bus, service, stop=stop, duration_s=args.duration)
+    finally:
+        for s, handler in previous.items():
+            signal.signal(s, handler)
+        bus.shutdown()
+    service.log_counters()
+    log.info("stopped (%s): %d frames in, %d frames out, %d send errors, %.1f s, CPU %.1f %% of one core",
+             {"stop": "signal", "duration": "--duration"}.get(result.reason, result.reason), result.frames_in,
+             result.frames_out, result.send_errors, result.wall_s, 100.0 * result.cpu_share)
+    return 0

@@ -1,0 +1,211 @@
+"""Replay of CAN logs through the onboard sensor: the log half of `gearbox-vsensor replay`.
+
+- :func:`replay_log` reads a log (``.log`` candump -L, ``.asc``, ``.blf``, ``.mf4``; python-can's ``LogReader`` by
+  suffix) as fast as it can through the *same* :class:`~firmware_model.can_service.SensorService` that runs live
+  (``gearbox-vsensor run``), and returns the sensor output run table (CONTRACTS.md section 3, 10 Hz): the decoded
+  inputs, ``T_<id>_c``, ``W_<id>``, ``ttl_<id>_s``, the status and ``meas_T_<id>_c`` from rig thermocouple frames.
+  Outputs are bit-identical to a live run on the same traffic: the service keeps time by frame timestamps only.
+- :func:`play_log` plays a log onto a bus with its original timing (python-can ``MessageSync``, like canplayer),
+  optionally faster (``speed``).
+- :func:`add_log_options` / :func:`run_log` are the CLI pieces that ``tools/cmd_replay.py`` hooks in for log files.
+
+``.mf4`` needs ``asammdf`` (``pip install 'gearbox-vsensor[mf4]'``); without it the error says so.
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import threading
+from pathlib import Path
+from typing import Iterable, Iterator
+
+from firmware_model.errors import InputError
+
+#: CAN log suffixes read by python-can's LogReader
+LOG_SUFFIXES = {".log": "candump -L", ".asc": "Vector ASC", ".blf": "Vector BLF", ".mf4": "ASAM MDF 4"}
+
+
+def is_can_log(path: str | os.PathLike) -> bool:
+    """True for a path whose suffix is a CAN log format (not a CSV run table)."""
+    return Path(path).suffix.lower() in LOG_SUFFIXES
+
+
+def _check_log(path: str | os.PathLike) -> Path:
+    p = Path(path)
+    suffix = p.suffix.lower()
+    if suffix not in LOG_SUFFIXES:
+        raise InputError(f"{p}: unknown log suffix {suffix!r}; CAN logs are "
+                         + ", ".join(f"{s} ({n})" for s, n in LOG_SUFFIXES.items()) + ", run tables .csv")
+    if not p.is_file():
+        raise InputError(f"{p}: the log file does not exist")
+    if suffix == ".mf4":
+        try:
+            import asammdf  # noqa: F401
+        except ImportError:
+            raise InputError(f"{p}: reading .mf4 needs the optional package asammdf; install it with "
+                             f"pip install 'gearbox-vsensor[mf4]'") from None
+    return p
+
+
+def read_log(path: str | os.PathLike) -> Iterator:
+    """The frames of a CAN log in file order (``can.Message``); problems raise InputError naming the file."""
+    import can
+    p = _check_log(path)
+    try:
+        reader = can.LogReader(p)
+    except Exception as exc:  # python-can raises a variety of errors for a broken file
+        raise InputError(f"{p}: cannot open as a {LOG_SUFFIXES[p.suffix.lower()]} log: {exc}") from None
+    n = 0
+    try:
+        with reader:
+            for msg in reader:
+                n += 1
+                yield msg
+    except InputError:
+        raise
+    except Exception as exc:
+        raise InputError(f"{p}: frame {n + 1} cannot be read as a {LOG_SUFFIXES[p.suffix.lower()]} log: "
+                         f"{exc}") from None
+
+
+def replay_log(path: str | os.PathLike, sensor_or_service, *, config=None, options=None,
+               on_frames=None):
+    """Replay a CAN log through the sensor service; returns the sensor output run table (10 Hz).
+
+    ``sensor_or_service``: a ``VirtualSensor`` (a service is built from ``options`` or the ``config``'s ``[can]``)
+    or a :class:`~firmware_model.can_service.SensorService` built with ``record=True``. ``on_frames(frames)``
+    receives the frames the service would send, in order (for comparisons with a live run). The table's ``meta``
+    holds the counters (``meta["counters"]``). Raises InputError when the log holds no usable J1939 traffic.
+    """
+    from firmware_model.can_service import SensorService, ServiceOptions
+    from tools.runtable import RunTable
+    if isinstance(sensor_or_service, SensorService):
+        service = sensor_or_service
+        if not service.record:
+            raise InputError("replay_log needs a SensorService built with record=True")
+    else:
+        service = SensorService(sensor_or_service, options or ServiceOptions.from_config(config), record=True,
+                                emit_frames=on_frames is not None)
+    feed = service.feed
+    if on_frames is None:
+        for msg in read_log(path):
+            feed(msg)
+    else:
+        for msg in read_log(path):
+            frames = feed(msg)
+            if frames:
+                on_frames(frames)
+    columns = service.recorded()
+    if not len(columns["time_s"]):
+        d = service.decoder.counters
+        raise InputError(f"{path}: no sensor step in {d['frames_seen']} frames: the log holds less than 100 ms of "
+                         f"J1939 input traffic (EEC1, ETC2, TRF1, ET1, AMB, CCVS1, ERC1, TP) from the expected "
+                         f"sources")
+    return RunTable(columns, meta={"counters": service.all_counters(), "log": os.fspath(path)},
+                    source=os.fspath(path))
+
+
+def play_log(path: str | os.PathLike, bus, *, speed: float = 1.0, stop: threading.Event | None = None,
+             skip_s: float = 60.0) -> int:
+    """Send the frames of a log onto ``bus`` with their original timing (``speed`` x faster), like canplayer.
+
+    Uses python-can's ``MessageSync`` (gaps longer than ``skip_s`` are cut short); the frames keep their original
+    timestamps (a bus with ``preserve_timestamps`` passes them on). Error frames in the log are not sent. Returns
+    the number of frames sent.
+    """
+    import collections
+    import can
+    if not speed > 0:
+        raise InputError(f"--speed {speed} must be positive")
+    originals: collections.deque = collections.deque()
+
+    def timed(msgs):
+        t0 = None
+        for msg in msgs:
+            originals.append(msg.timestamp)
+            if t0 is None:
+                t0 = msg.timestamp
+            if speed != 1.0:
+                msg.timestamp = t0 + (msg.timestamp - t0) / speed
+            yield msg
+
+    sent = 0
+    for msg in can.MessageSync(timed(read_log(path)), timestamps=True, gap=0.0, skip=skip_s / speed):
+        msg.timestamp = originals.popleft()
+        if stop is not None and stop.is_set():
+            break
+        if msg.is_error_frame:
+            continue
+        bus.send(msg)
+        sent += 1
+    return sent
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# CLI pieces for tools/cmd_replay.py
+# ---------------------------------------------------------------------------------------------------------------
+
+def add_log_options(p: argparse.ArgumentParser) -> None:
+    """Options of `replay` that only apply to CAN logs."""
+    g = p.add_argument_group("CAN logs (.log candump -L, .asc, .blf, .mf4)")
+    g.add_argument("--realtime", action="store_true",
+                   help="play the log onto a bus (--interface/--channel) with its original timing, like canplayer, "
+                        "instead of computing the outputs here (run `gearbox-vsensor run` on that bus)")
+    g.add_argument("--interface", metavar="NAME", help="python-can interface for --realtime (socketcan, virtual ...)")
+    g.add_argument("--channel", metavar="NAME", help="channel for --realtime (vcan0 ...)")
+    g.add_argument("--bitrate", type=int, metavar="BIT_S", help="bit rate for --realtime, where the interface sets it")
+    g.add_argument("--speed", type=float, default=1.0, metavar="X",
+                   help="--realtime: play X times faster (default 1)")
+    g.add_argument("--frames-out", metavar="OUT.log",
+                   help="also write the frames the sensor would send (GBX_*, DM1) as a CAN log")
+
+
+def run_log(args) -> int:
+    """`gearbox-vsensor replay LOG ...` for a CAN log: offline (``--out``) or ``--realtime`` onto a bus."""
+    import signal
+    if getattr(args, "realtime", False):
+        if not args.interface or not args.channel:
+            raise InputError("--realtime needs --interface and --channel (the bus to play the log onto)")
+        from tools.cmd_run import open_bus
+        _check_log(args.log if hasattr(args, "log") else args.input)
+        bus = open_bus(args.interface, args.channel, args.bitrate)
+        stop = threading.Event()
+        previous = {s: signal.signal(s, lambda *_: stop.set()) for s in (signal.SIGINT, signal.SIGTERM)}
+        try:
+            n = play_log(args.log if hasattr(args, "log") else args.input, bus, speed=args.speed, stop=stop)
+        finally:
+            for s, h in previous.items():
+                signal.signal(s, h)
+            bus.shutdown()
+        print(f"played {n} frames onto {args.interface} {args.channel}")
+        return 0
+    from tools.cmd_run import build_service
+    from tools.runtable import write_run_table
+    path = args.log if hasattr(args, "log") else args.input
+    if not getattr(args, "out", None):
+        raise InputError("--out EST.csv is required to replay a log offline (or use --realtime)")
+    service = build_service(getattr(args, "config", None), record=True,
+                            emit_frames=bool(getattr(args, "frames_out", None)))
+    writer = None
+    on_frames = None
+    if getattr(args, "frames_out", None):
+        import can
+        if Path(args.frames_out).suffix.lower() not in (".log", ".asc", ".blf"):
+            raise InputError(f"--frames-out {args.frames_out}: use a .log, .asc or .blf file")
+        writer = can.Logger(args.frames_out)
+
+        def on_frames(frames):
+            for f in frames:
+                writer.on_message_received(f)
+    try:
+        table = replay_log(path, service, on_frames=on_frames)
+    finally:
+        if writer is not None:
+            writer.stop()
+    out = write_run_table(table, args.out)
+    d = service.decoder.counters
+    rejected = ", ".join(f"{k} {v}" for k, v in sorted(d["rejected"].items())) or "none"
+    if not getattr(args, "quiet", False):
+        print(f"replayed {d['frames_seen']} frames ({d['frames_used']} used; rejected: {rejected}) -> "
+              f"{table.n} steps of {table['time_s'][-1]:.1f} s -> {out}")
+    return 0
