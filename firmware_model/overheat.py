@@ -1,0 +1,238 @@
+"""Overheat warnings and time to limit of the onboard sensor.
+
+* :func:`load_limits` reads ``params/limits.toml`` (per component group, optional per-component overrides) into a
+  frozen :class:`Limits` record with one value per published component.
+* :func:`update_levels` is the warning state machine: two levels (warning, critical) with hysteresis and a debounce
+  time, plus level 3 "not available"; vectorised over vehicles.
+* :class:`HeldInputSolver` answers "what happens if the current inputs are held": with the inputs frozen the onboard
+  network is linear, ``C dT/dt = -K T + b``. ``K`` is symmetric (a weighted Laplacian plus boundary and cooler terms
+  on its diagonal), so ``C^-1/2 K C^-1/2 = V diag(lambda) V^T`` with real ``lambda > 0`` and
+  ``T(t) = T_inf + C^-1/2 V exp(-lambda t) V^T C^1/2 (T(0) - T_inf)`` exactly. The decomposition depends only on
+  the operating point (gear, speed, oil temperature, oil measured or not) and is cached per quantised operating point
+  (a bounded LRU); ``T_inf`` and the modal coefficients are recomputed from the current temperatures and heat every
+  time. Time to limit is the first crossing of the warning limit, found on a geometric time grid and refined by
+  bisection; the same solution propagates the state over a time jump (held inputs) and cools a snapshot down
+  (engine off) on restart.
+"""
+from __future__ import annotations
+
+import math
+import tomllib
+from collections import OrderedDict
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .components import GROUP, PUBLISHED
+from .errors import ParameterError
+
+LIMITS_PATH = Path(__file__).resolve().parent / "params" / "limits.toml"
+GROUPS = ("gear", "sun", "planetary", "bearing", "oil")
+LEVEL_NORMAL, LEVEL_WARNING, LEVEL_CRITICAL, LEVEL_NA = 0, 1, 2, 3
+_KEYS = {"warning": "degC", "critical": "degC", "hysteresis": "K"}
+
+
+@dataclass(frozen=True)
+class Limits:
+    """Per published component (PUBLISHED order): warning and critical limits [degC], hysteresis [K]; debounce [s]."""
+    warning_c: np.ndarray
+    critical_c: np.ndarray
+    hysteresis_k: np.ndarray
+    debounce_s: float
+    provenance: dict
+    origin: str = "default"
+
+    def of(self, component: str) -> tuple:
+        i = PUBLISHED.index(component)
+        return float(self.warning_c[i]), float(self.critical_c[i]), float(self.hysteresis_k[i])
+
+
+def _value(entry, where: str, unit: str) -> tuple:
+    if not isinstance(entry, dict) or "v" not in entry:
+        raise ParameterError(f"{where} must be a table {{ v = ..., u = \"{unit}\", src = ... }}")
+    if entry.get("u") != unit:
+        raise ParameterError(f"{where} has unit {entry.get('u')!r}; it must be {unit!r}")
+    if entry.get("src") not in ("seed", "derived", "assumed"):
+        raise ParameterError(f"{where} has provenance {entry.get('src')!r}; it must be seed, derived or assumed")
+    v = entry["v"]
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+        raise ParameterError(f"{where} = {v!r} is not a finite number")
+    return float(v), entry["src"]
+
+
+def load_limits(path: str | Path | None = None, debounce_s: float | None = None,
+                hysteresis_k: float | None = None) -> Limits:
+    """Limits from a TOML file (default params/limits.toml); ``debounce_s`` / ``hysteresis_k`` override the file
+    (config [sensor] debounce_s, hysteresis_c)."""
+    path = Path(path) if path is not None else LIMITS_PATH
+    try:
+        with open(path, "rb") as fh:
+            doc = tomllib.load(fh)
+    except FileNotFoundError:
+        raise ParameterError(f"limits file {path} does not exist") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise ParameterError(f"limits file {path.name} is not valid TOML: {exc}") from None
+    known = set(GROUPS) | {"meta", "timing", "component"}
+    for k in doc:
+        if k not in known:
+            raise ParameterError(f"{path.name}: unknown section [{k}]; known: {', '.join(sorted(known))}")
+    prov = {}
+    per = {}
+    for g in GROUPS:
+        sec = doc.get(g)
+        if not isinstance(sec, dict):
+            raise ParameterError(f"{path.name}: section [{g}] is missing")
+        for key, unit in _KEYS.items():
+            if key not in sec:
+                raise ParameterError(f"{path.name}: {g}.{key} is missing")
+            per[(g, key)], prov[f"{g}.{key}"] = _value(sec[key], f"{path.name}: {g}.{key}", unit)
+        for key in sec:
+            if key not in _KEYS:
+                raise ParameterError(f"{path.name}: unknown key {g}.{key}; known: {', '.join(_KEYS)}")
+    timing = doc.get("timing", {})
+    deb, prov["timing.debounce"] = _value(timing.get("debounce", {"v": 1.0, "u": "s", "src": "assumed"}),
+                                          f"{path.name}: timing.debounce", "s")
+    n = len(PUBLISHED)
+    arr = {key: np.array([per[(GROUP[c], key)] for c in PUBLISHED]) for key in _KEYS}
+    for comp, sec in (doc.get("component") or {}).items():
+        if comp not in PUBLISHED:
+            raise ParameterError(f"{path.name}: [component.{comp!r}] is not a published component")
+        i = PUBLISHED.index(comp)
+        for key, entry in sec.items():
+            if key not in _KEYS:
+                raise ParameterError(f"{path.name}: unknown key component.{comp}.{key}")
+            arr[key][i], prov[f"component.{comp}.{key}"] = _value(entry, f"{path.name}: component.{comp}.{key}",
+                                                                   _KEYS[key])
+    if debounce_s is not None:
+        deb = float(debounce_s)
+    if hysteresis_k is not None:
+        arr["hysteresis"] = np.full(n, float(hysteresis_k))
+    w, c, hy = arr["warning"], arr["critical"], arr["hysteresis"]
+    for i, comp in enumerate(PUBLISHED):
+        if not -40.0 <= w[i] < c[i] <= 250.0:
+            raise ParameterError(f"limits of {comp}: warning {w[i]:g} degC must be below critical {c[i]:g} degC, "
+                                 f"both in -40..250 degC")
+        if not 0.0 <= hy[i] < c[i] - w[i]:
+            raise ParameterError(f"limits of {comp}: hysteresis {hy[i]:g} K must be in 0..(critical - warning) = "
+                                 f"{c[i] - w[i]:g} K")
+    if not 0.0 <= deb <= 60.0:
+        raise ParameterError(f"debounce = {deb:g} s must be in 0..60 s")
+    for a in (w, c, hy):
+        a.setflags(write=False)
+    return Limits(w, c, hy, deb, prov, str(path.name))
+
+
+def update_levels(level, pending_s, T_c, available, limits: Limits, dt_s: float):
+    """One step of the warning state machine, vectorised: returns (level, pending_s).
+
+    Target level: critical while T >= critical (or, once critical, while T > critical - hysteresis); else warning
+    while T >= warning (or, once at warning or above, while T > warning - hysteresis); else normal. A change to the
+    target is taken when it has been pending for ``debounce`` seconds (the timer restarts whenever the target equals
+    the current level). Level 3 (not available) is entered and left at once: it reports the sensor, not the part.
+    """
+    T = np.asarray(T_c)
+    lv = np.asarray(level)
+    crit = (T >= limits.critical_c) | ((lv == LEVEL_CRITICAL) & (T > limits.critical_c - limits.hysteresis_k))
+    warn = (T >= limits.warning_c) | ((lv >= LEVEL_WARNING) & (lv <= LEVEL_CRITICAL)
+                                       & (T > limits.warning_c - limits.hysteresis_k))
+    target = np.where(crit, LEVEL_CRITICAL, np.where(warn, LEVEL_WARNING, LEVEL_NORMAL))
+    avail = np.asarray(available)[..., None] if np.ndim(available) == np.ndim(T) - 1 else np.asarray(available)
+    target = np.where(avail, target, LEVEL_NA)
+    change = target != lv
+    pend = np.where(change, pending_s + dt_s, 0.0)
+    immediate = (target == LEVEL_NA) | (lv == LEVEL_NA)
+    take = change & (immediate | (pend >= limits.debounce_s - 1e-9))
+    new = np.where(take, target, lv).astype(np.int8)
+    return new, np.where(take, 0.0, pend)
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# held inputs: the linear network and its modal solution
+
+#: geometric time grid of the first-crossing search [s]
+TTL_GRID_S = np.concatenate([[0.0], np.geomspace(0.5, 2.0e6, 72)])
+#: time to limit beyond this is reported as never (inf) [s]
+TTL_HORIZON_S = float(TTL_GRID_S[-1])
+
+
+class HeldInputSolver:
+    """Modal solution of the onboard network with held inputs; one per (ReducedParams, cache size)."""
+
+    def __init__(self, n_nodes: int, C_j_per_k: np.ndarray, cache_size: int = 64):
+        self.n = n_nodes
+        self.C = np.asarray(C_j_per_k, dtype=float)
+        self.sqrtC = np.sqrt(self.C)
+        self.cache: OrderedDict = OrderedDict()
+        self.cache_size = cache_size
+        self.hits = 0
+        self.misses = 0
+
+    def modes(self, key, K: np.ndarray, free: np.ndarray):
+        """Eigen-decomposition of C^-1/2 K C^-1/2 over the free nodes (cached under ``key``)."""
+        item = self.cache.get(key) if key is not None else None
+        if item is not None:
+            self.cache.move_to_end(key)
+            self.hits += 1
+            return item
+        self.misses += 1
+        s = self.sqrtC[free]
+        Kf = K[np.ix_(free, free)]
+        M = Kf / s[:, None] / s[None, :]
+        lam, V = np.linalg.eigh(0.5 * (M + M.T))
+        lam = np.maximum(lam, 1e-12)
+        item = (lam, V, s, free)
+        if key is not None:
+            self.cache[key] = item
+            if len(self.cache) > self.cache_size:
+                self.cache.popitem(last=False)
+        return item
+
+    @staticmethod
+    def steady(item, b_free):
+        """T_inf over the free nodes: K_ff^-1 b_f = C^-1/2 V lambda^-1 V^T C^-1/2 b_f."""
+        lam, V, s, _ = item
+        return (V @ ((V.T @ (b_free / s)) / lam)) / s
+
+    @staticmethod
+    def propagate(item, T0_free, Tinf_free, t_s):
+        """Free-node temperatures after t_s seconds of held inputs."""
+        lam, V, s, _ = item
+        c = V.T @ (s * (T0_free - Tinf_free))
+        return Tinf_free + (V @ (c * np.exp(-lam * t_s))) / s
+
+    @staticmethod
+    def time_to_limit(item, T0_free, Tinf_free, rows, limit_c):
+        """First time [s] each free node ``rows`` reaches ``limit_c`` (0 if already there, inf if never within the
+        horizon), for held inputs."""
+        lam, V, s, _ = item
+        c = V.T @ (s * (T0_free - Tinf_free))
+        W = V[rows] / s[rows, None]                       # (r, m)
+        Wc = W * c                                        # modal contributions
+        T0 = T0_free[rows]
+        out = np.full(len(rows), np.inf)
+        out[T0 >= limit_c] = 0.0
+        # bound: T(t) <= T_inf + sum |W c| for all t >= 0
+        reach = (T0 < limit_c) & (Tinf_free[rows] + np.abs(Wc).sum(axis=1) >= limit_c)
+        idx = np.flatnonzero(reach)
+        if idx.size == 0:
+            return out
+        E = np.exp(-np.outer(lam, TTL_GRID_S))             # (m, g)
+        F = Tinf_free[rows[idx], None] + Wc[idx] @ E       # (k, g)
+        L = limit_c[idx, None]
+        above = F >= L
+        first = np.where(above.any(axis=1), above.argmax(axis=1), -1)
+        for j, g in zip(idx, first):
+            if g <= 0:
+                continue
+            lo, hi = TTL_GRID_S[g - 1], TTL_GRID_S[g]
+            wc = Wc[j]
+            Ti, Lj = Tinf_free[rows[j]], limit_c[j]
+            for _ in range(30):                            # bisection to < 1e-9 of the bracket
+                mid = 0.5 * (lo + hi)
+                if Ti + wc @ np.exp(-lam * mid) >= Lj:
+                    hi = mid
+                else:
+                    lo = mid
+            out[j] = hi
+        return out

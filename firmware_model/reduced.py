@@ -1,0 +1,1029 @@
+"""The onboard model: the full thermal network and loss model, rebuilt as cheap, fixed-size tables for a 10 Hz
+explicit step, with a stability guarantee checked when the parameters load.
+
+Everything here is derived by code from the same description the reference plant integrates
+(:func:`firmware_model.network.build_network`, :class:`~firmware_model.network.ConductanceEvaluator`,
+:class:`~firmware_model.gearbox_losses.GearboxLosses`): no number is copied by hand.
+
+Reduction (docs/sensor.md, "Reduction")
+---------------------------------------
+* **Nodes by aggregation.** A *partition* maps every full node to a reduced node. A reduced node's heat capacity is
+  the sum of its members'; a reduced link's conductance is the sum of the full links between two groups (links
+  inside a group vanish); heat sources follow their node. ``PARTITIONS["fine"]`` (the default) keeps every node of
+  the full network: an error-driven search (docs/sensor.md) showed that every merge of two nodes costs a published
+  bearing more than the 0.3 K RMS budget on at least one cycle, because each bearing reads the temperature of the
+  shaft segment and housing it sits in. ``PARTITIONS["compact"]`` (40 nodes: one node per shaft, one housing, the
+  reverse idler in the sump) is the cheaper alternative for ECUs that can accept larger errors on bearings.
+* **Conductance laws.** Every speed- or oil-temperature-dependent link is tabulated from the full evaluator on a
+  grid of its own shaft speed x oil temperature and classified: *power law* ``a(gear) w^e phi(T_oil)`` when the
+  table is separable to 1e-9 (splash Eq 59, Harris Eq 63, immersed bearings Eq 52: exact), else a bilinear table
+  over ``(sqrt(w / w_max), T_oil)`` (immersed wheels with their laminar/turbulent bridge and fling-off, oil-system
+  streams with their flow-limited effectiveness). Gear contacts (Eq 45) are a per-gear mask, the ring gear is a
+  splash law at high range and a constant at low range, radiation (Eq 81) is evaluated from the housing
+  temperature every step.
+* **Loss maps.** Gear-contact slip (Eq 7-10) of a mesh is exactly ``T1 w2 phi(log10 T1 - log10 mu - 3 log10 w2)``
+  (the Benedict-Kelley argument is load / (mu V_g V_r^2) and both speeds are proportional to w2), so each mesh needs
+  one 1-D table; rolling (Eq 14-22) is exactly ``K mu^0.7 a_p^0.54 w2^1.7 T1^-0.13``; bearings (Eq 35-40),
+  needle bearings, synchronizers (Eq 41) and the pump (Eq 42) are closed forms with per-gear coefficients; churning
+  (Eq 23-34) is a table over layshaft speed x oil temperature. Oil properties are one row of a table over the oil
+  temperature (5 K steps).
+
+Stability (docs/sensor.md, "Stability")
+---------------------------------------
+Forward Euler on ``C dT/dt = -K T + b`` is stable (and monotone: every new temperature is a convex combination of
+the old ones and the sources, so no overshoot) when ``dt <= C_i / sum_j G_ij`` for every node i (Gershgorin:
+every eigenvalue of ``C^-1 K`` lies in ``[0, 2 max_i sum_j G_ij / C_i]``). :func:`check_stability` bounds every
+link's conductance over the whole operating range (every gear, 0..max engine speed, oil -40..150 degC) from the
+laws themselves (power laws are monotone in speed, bilinear tables stay inside their corner values, the oil-
+temperature columns are piecewise linear), adds the cooler and its inlet-temperature coupling, and raises
+:class:`~firmware_model.errors.StabilityError` naming the node when ``dt > margin x C_i / max sum_j G_ij``.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, fields
+
+import numpy as np
+
+from . import heat_transfer as ht
+from . import losses as L
+from . import oil as oilprops
+from .components import IDLE_WHEELS, PAIRS, PUBLISHED, SHAFT_BEARINGS
+from .effects import CATALOG, effect_value
+from .errors import ParameterError, StabilityError
+from .gearbox_losses import GearboxLosses
+from .kinematics import GEAR_MIN, MESHES, N_GEARS, SPEED_NAMES, SYNCS, gear_state
+from .network import (BOUNDARIES, K_BRG_SPLASH, K_CONST, K_CONTACT, K_EXT_CONV, K_EXT_RAD, K_IMM_BRG, K_IMM_GEAR,
+                      K_RING, K_SPLASH, K_STREAM, S_CHANNEL, S_IMPOSED, S_PIPE, SHAFT_SEGMENTS, ConductanceEvaluator,
+                      HeatTransferScales, Network, build_network)
+from .parameters import Parameters
+
+RPM = 2.0 * math.pi / 60.0
+#: fixed step of the onboard model [s]
+DT_S = 0.1
+#: the stability check requires dt <= STABILITY_MARGIN x min_i C_i / max sum_j G_ij
+STABILITY_MARGIN = 0.8
+#: oil temperature range over which stability is guaranteed [degC]
+OIL_RANGE_C = (-40.0, 150.0)
+#: oil-temperature grid of the property and conductance tables [degC]; outside it the end rows are held
+T_GRID_C = np.arange(-40.0, 200.0 + 1e-9, 5.0)
+#: number of speed points of the bilinear conductance and churning tables (in sqrt(w / w_max))
+N_U = 17
+#: number of layshaft-speed points of the churning table (in sqrt(w / w_max)); on the full oil grid
+N_U_CHURN = 33
+#: the 2-D tables use every second row of T_GRID_C (10 K)
+T2_STRIDE = 2
+#: spacing of the mesh slip-loss tables in x = log10(T1 / (mu w2^3))
+X_STEP = 0.125
+#: quadrature points of the rolling loss (the same as GearboxLosses: ~1 W terms)
+ROLL_POINTS = 4
+#: separability tolerance for power-law conductances (relative)
+SEPARABLE_RTOL = 1e-7
+#: linearised radiation is evaluated with housing temperatures clipped to this range [degC]
+RAD_T_RANGE_C = (-40.0, 200.0)
+
+#: effect ids the onboard model represents, each per vehicle (arrays) as well as scalar; oil_level_low changes the
+#: geometry and is applied when the model is built (scalar only)
+EFFECT_HOOKS = ("retarder_heat", "churning_scale", "gear_friction_scale", "planetary_loss_scale",
+                "bearing_loss_scale", "teeth_oil_h_scale", "planet_oil_h_scale", "housing_air_h_scale",
+                "cooler_effectiveness_scale", "thermostat_offset", "hot_surroundings_offset")
+BUILD_EFFECTS = ("oil_level_low",)
+
+# ---------------------------------------------------------------------------------------------------------------
+# partitions
+
+
+def _compact_partition() -> dict:
+    part = {}
+    for shaft, segs in SHAFT_SEGMENTS.items():
+        for s in segs:
+            part[s] = shaft
+    for h in ("H1", "H2", "H3"):
+        part[h] = "H"
+    part["RI"] = "oil"
+    return part
+
+
+#: name -> {full node: reduced node}; nodes not named keep their own name
+PARTITIONS = {"fine": {}, "compact": _compact_partition()}
+
+# loss sources of the onboard model (columns of the source matrix)
+SRC_NAMES = tuple(f"mesh:{m}" for m in MESHES) + tuple(f"bearing:{b}" for b in SHAFT_BEARINGS) + (
+    "oil_lumped", "retarder")
+N_SRC = len(SRC_NAMES)
+I_SRC_BEARING = len(MESHES)
+I_SRC_OIL = I_SRC_BEARING + len(SHAFT_BEARINGS)
+I_SRC_RET = I_SRC_OIL + 1
+COOLER_CODES = {"none": 0, "liquid": 1, "air": 2}
+
+# columns of the oil property table (logarithms where the property spans decades: interpolated in the log)
+P_LOG10_MU, P_LN_NU_CST, P_LN_MU, P_LN_ROLL, P_RHO, P_CP, P_K, P_LN_PR = range(8)
+N_PROP = 8
+
+
+def _ro(a, dtype=float) -> np.ndarray:
+    a = np.array(a, dtype=dtype)
+    a.setflags(write=False)
+    return a
+
+
+@dataclass(frozen=True)
+class ReducedParams:
+    """Everything the onboard step needs, as read-only arrays (a frozen, typed record; dynamax style).
+
+    Shapes: n nodes, nl links, nb boundaries (network.BOUNDARIES), ns sources (SRC_NAMES), 17 gears (row =
+    gear - GEAR_MIN). Links: ``link_a`` is a node; ``link_b`` a node, or ``n + boundary index``.
+    """
+    variant: str
+    partition: str
+    nodes: tuple
+    dt_s: float
+    margin: float
+    C_j_per_k: np.ndarray            # (n,)
+    i_oil: int
+    published_index: np.ndarray      # (28,) node index of each PUBLISHED component
+    members: tuple                   # full-network node names of each reduced node
+    # --- links
+    link_a: np.ndarray               # (nl,)
+    link_b: np.ndarray               # (nl,)
+    link_name: tuple
+    G_const_w_per_k: np.ndarray      # (nl,) constant part
+    # power-law terms: G = coef[gear, t] * w_in^exp[t] * (phi[T_oil, col[t]] or 1) * effect scale
+    pw_link: np.ndarray              # (npw,)
+    pw_exp: np.ndarray               # (npw,)
+    pw_gear_coef: np.ndarray         # (17, npw) includes |shaft speed / input speed|^exp and gear masks
+    pw_col: np.ndarray               # (npw,) column of pw_phi or -1
+    pw_phi: np.ndarray               # (nT, ncol) oil-temperature factors
+    pw_effect: np.ndarray            # (npw,) 0 none, 1 teeth_oil_h, 2 planet_oil_h, 3 housing_air_h
+    # bilinear terms: G = table[t](sqrt(w_t / w_max[t]), T_oil), w_t = |speed coef[gear, t]| w_in
+    t2_link: np.ndarray              # (n2,)
+    t2_speed_coef: np.ndarray        # (17, n2)
+    t2_w_max: np.ndarray             # (n2,) rad/s
+    t2_table: np.ndarray             # (n2, N_U, nT2) W/K
+    t2_stream: np.ndarray            # (n2,) bool: oil-system stream (the cooler's inlet drop applies)
+    t2_frac: np.ndarray              # (n2,) oil-flow fraction of a stream (for the stability bound)
+    t2_effect: np.ndarray            # (n2,) 0 none (pipe flows and immersed wheels)
+    # immersed wheels, Nusselt part in closed form (Eq 46-48 with the bridge of heat_transfer.nusselt_rotating_cylinder):
+    # G = c[t] k_oil Nu(Re, Pr), Re = R_p^2 w_t / nu, w_t = max(|speed coef[gear, t]| w_in, 1e-3)
+    # (their fling-off part, Eq 54-58, is an exact sqrt(w) power law among the pw terms)
+    cyl_link: np.ndarray             # (nc,)
+    cyl_speed_coef: np.ndarray       # (17, nc)
+    cyl_c: np.ndarray                # (nc,) area / R_p [m]
+    cyl_ln_rp2: np.ndarray           # (nc,) ln(R_p^2 [m2])
+    # oil-system streams in closed form (Eq 69-80, NTU): G = m (1 - exp(-hA / m)), m = mcp[t] rho cp(T) |w_LS|,
+    # hA = alpha[t] k_oil(T) + beta[t] (channel flows: 7.54 k / D_h x area; planetary: imposed h x area)
+    ef_link: np.ndarray              # (ne,)
+    ef_mcp: np.ndarray               # (ne,) flow fraction x flow per radian [m3/rad]
+    ef_alpha: np.ndarray             # (ne,) [m]
+    ef_beta: np.ndarray              # (ne,) [W/K]
+    ef_effect: np.ndarray            # (ne,) 2 = planet_oil_h scales beta
+    # radiation links: G = area_eps[r] * sigma (T1^2 + T2^2)(T1 + T2)
+    rad_link: np.ndarray
+    rad_area_eps: np.ndarray
+    # --- oil properties on T_GRID_C
+    prop: np.ndarray                 # (nT, N_PROP)
+    # --- losses
+    speed_coef: np.ndarray           # (17, 14) SPEED_NAMES per unit input speed
+    mesh_torque: np.ndarray          # (17, 9)
+    mesh_omega2: np.ndarray          # (17, 9)
+    mesh_x0: np.ndarray              # (9,)
+    mesh_phi: np.ndarray             # (9, nx)
+    mesh_roll_k: np.ndarray          # (9,)
+    mesh_heat_sf: np.ndarray         # (9,) seed loss-to-heat factor (0.75 gear contact, 0.80 planetary)
+    bear_speed: np.ndarray           # (17, 6) |bearing speed| per unit input speed
+    bear_c: np.ndarray               # (6,) Palmgren M0 coefficient 9.78e-2 f0 Dm^3
+    bear_load: np.ndarray            # (17, 6) load torque per N m of input torque
+    needle_rel: np.ndarray           # (17, 6)
+    needle_c: np.ndarray             # (6,)
+    sync_coef: np.ndarray            # (17,) sum_k c_k rel_k^2: P_sync = mu w_in^2 sync_coef
+    pump_coef: np.ndarray            # (17,) P_pump = pump_coef w_in^2
+    churn_w_max: float
+    churn_table: np.ndarray          # (N_U_CHURN, nT) W at the layshaft speed u^2 w_max
+    churn_heat_sf: float
+    src_matrix: np.ndarray           # (ns, n) node heat = src_power @ src_matrix
+    heat_lag_tau_s: float
+    # --- cooler (seed 3.4, Eq 82-83)
+    cooler_code: int
+    cooler: dict
+    flow_m3_per_rad: float           # oil-system flow per radian of layshaft rotation
+    # --- boundaries
+    bc_default_c: np.ndarray         # (nb,)
+    i_ambient: int
+    i_coolant: int
+    i_hot: int
+    # --- limits of the operating range (inputs are clamped to these)
+    max_speed_rpm: float
+    min_torque_nm: float
+    max_torque_nm: float
+    stability: dict = field(default_factory=dict)
+
+    @property
+    def n(self) -> int:
+        return len(self.nodes)
+
+    def index(self, name: str) -> int:
+        return self.nodes.index(name)
+
+    def footprint(self, dtype=np.float32) -> dict:
+        """Bytes an ECU would hold for these parameters: every float table as ``dtype``, index arrays as int16.
+        (The dense scatter helpers numpy uses are implementation detail, not counted.)"""
+        fb = np.dtype(dtype).itemsize
+        floats = ints = 0
+        for f in fields(self):
+            v = getattr(self, f.name)
+            if isinstance(v, np.ndarray):
+                if v.dtype.kind in "iub":
+                    ints += v.size
+                else:
+                    floats += v.size
+            elif isinstance(v, float):
+                floats += 1
+            elif isinstance(v, dict) and f.name == "cooler":
+                floats += len(v)
+        return {"float_values": floats, "index_values": ints, "bytes": floats * fb + ints * 2}
+
+
+@dataclass(frozen=True)
+class Effects:
+    """Effect values the onboard model applies at run time; each a float or an array over vehicles (V,)."""
+    src_scale: np.ndarray = None       # (..., ns) multiplier on each source's heat
+    teeth_oil_h: object = 1.0
+    planet_oil_h: object = 1.0
+    housing_air_h: object = 1.0
+    cooler_scale: object = 1.0
+    thermostat_offset_c: object = 0.0
+    hot_offset_c: object = 0.0
+    retarder_frac: object = 0.0
+    churn_scale: object = 1.0
+    needle_scale: object = 1.0
+
+
+def make_effects(effects: dict | None = None) -> Effects:
+    """Effects record from {effect id: value or array of per-vehicle values}; unknown or unsupported ids raise."""
+    effects = dict(effects or {})
+    for eid, v in effects.items():
+        if eid not in CATALOG:
+            raise ParameterError(f"unknown effect id {eid!r}")
+        if eid not in EFFECT_HOOKS and eid not in BUILD_EFFECTS:
+            raise ParameterError(f"effect {eid} is not represented by the onboard model (it represents "
+                                 f"{', '.join(EFFECT_HOOKS + BUILD_EFFECTS)})")
+        a = np.asarray(v, dtype=float)
+        e = CATALOG[eid]
+        if np.any(~np.isfinite(a)) or np.any(a < e.low) or np.any(a > e.high):
+            raise ParameterError(f"effect {eid}: {e.param} = {v} is outside its plausible range "
+                                 f"{e.low:g}..{e.high:g} {e.unit}")
+
+    def val(eid):
+        v = effects.get(eid, CATALOG[eid].neutral)
+        a = np.asarray(v, dtype=float)
+        return float(a) if a.ndim == 0 else a
+
+    gf, pl, ch, br = (np.asarray(val(k), dtype=float) for k in (
+        "gear_friction_scale", "planetary_loss_scale", "churning_scale", "bearing_loss_scale"))
+    shape = np.broadcast(gf, pl, ch, br).shape
+    s = np.ones(shape + (N_SRC,))
+    for j, m in enumerate(MESHES):
+        s[..., j] = pl if m in ("PSP", "PPR") else gf
+    s[..., I_SRC_BEARING:I_SRC_OIL] = br[..., None] if br.ndim else br
+    s[..., I_SRC_OIL] = 1.0            # the lumped oil source carries its own scales (churning, needle bearings)
+    s.setflags(write=False)
+    return Effects(src_scale=s, teeth_oil_h=val("teeth_oil_h_scale"), planet_oil_h=val("planet_oil_h_scale"),
+                   housing_air_h=val("housing_air_h_scale"), cooler_scale=val("cooler_effectiveness_scale"),
+                   thermostat_offset_c=val("thermostat_offset"), hot_offset_c=val("hot_surroundings_offset"),
+                   retarder_frac=val("retarder_heat"), churn_scale=val("churning_scale"),
+                   needle_scale=val("bearing_loss_scale"))
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# aggregation
+
+
+@dataclass(frozen=True)
+class Aggregation:
+    nodes: tuple
+    members: tuple
+    C: np.ndarray
+    node_of_full: np.ndarray        # (n_full,) reduced node index
+    link_of_full: np.ndarray        # (nl_full,) reduced link index or -1 (inside a group)
+    link_a: np.ndarray
+    link_b: np.ndarray
+    link_name: tuple
+
+
+def aggregate(net: Network, partition: dict) -> Aggregation:
+    """Merge full nodes into groups: C summed, links between groups summed, links inside a group dropped."""
+    for k in partition:
+        if k not in net.nodes:
+            raise ParameterError(f"partition names node {k!r}, which is not in the thermal network")
+    names = []
+    for nm in net.nodes:
+        g = partition.get(nm, nm)
+        if g not in names:
+            names.append(g)
+    for c in PUBLISHED:
+        if c not in names:
+            raise ParameterError(f"the partition has no node named {c!r} (every published component must be one)")
+    gi = {g: i for i, g in enumerate(names)}
+    n_full, m = net.n, len(names)
+    node_of = np.array([gi[partition.get(nm, nm)] for nm in net.nodes])
+    C = np.bincount(node_of, net.C_j_per_k, minlength=m)
+    members = tuple(tuple(nm for nm in net.nodes if partition.get(nm, nm) == g) for g in names)
+    keys: dict = {}
+    link_of = np.full(len(net.link_a), -1)
+    for k, (a, b) in enumerate(zip(net.link_a, net.link_b)):
+        ga = node_of[a]
+        gb = node_of[b] if b < n_full else m + (b - n_full)
+        if ga == gb:
+            continue
+        if gb < m and gb < ga:
+            ga, gb = gb, ga
+        kind_class = "rad" if net.link_kind[k] == K_EXT_RAD else "lin"
+        key = (ga, gb, kind_class)
+        if key not in keys:
+            keys[key] = len(keys)
+        link_of[k] = keys[key]
+    la = np.array([k[0] for k in keys], dtype=np.int64)
+    lb = np.array([k[1] for k in keys], dtype=np.int64)
+    allnames = list(names) + list(BOUNDARIES)
+    lname = tuple(f"{allnames[a]}-{allnames[b]}{':rad' if c == 'rad' else ''}" for a, b, c in keys)
+    return Aggregation(tuple(names), members, C, node_of, link_of, la, lb, lname)
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# build
+
+
+def oil_property_table(T_c: np.ndarray) -> np.ndarray:
+    op = oilprops.oil_properties(T_c)
+    prop = np.empty((T_c.size, N_PROP))
+    prop[:, P_LOG10_MU] = np.log10(op.mu_pa_s)
+    prop[:, P_LN_NU_CST] = np.log(op.nu_m2_s * 1e6)
+    prop[:, P_LN_MU] = np.log(op.mu_pa_s)
+    prop[:, P_LN_ROLL] = 0.7 * np.log(op.mu_pa_s) + 0.54 * np.log(op.piezo_per_pa)
+    prop[:, P_RHO] = op.rho_kg_m3
+    prop[:, P_CP] = op.cp_j_per_kgk
+    prop[:, P_K] = op.k_w_per_mk
+    prop[:, P_LN_PR] = np.log(op.pr)
+    return prop
+
+
+def _speed_of_link(net: Network, k: int) -> int:
+    kind = int(net.link_kind[k])
+    if kind == K_STREAM:
+        return SPEED_NAMES.index("LS")
+    j = int(np.sum(net.link_kind[:k] == kind))
+    return int(net.kind_params[kind]["speed"][j])
+
+
+def _link_param(net: Network, k: int, key: str):
+    kind = int(net.link_kind[k])
+    j = int(np.sum(net.link_kind[:k] == kind))
+    return net.kind_params[kind][key][j]
+
+
+def build_reduced(p: Parameters, partition: str | dict = "fine", effects: dict | None = None,
+                  dt_s: float = DT_S, margin: float = STABILITY_MARGIN, check: bool = True) -> ReducedParams:
+    """Build the onboard model from a validated parameter set; raises StabilityError if dt is unsafe.
+
+    ``effects``: only the build-time effect oil_level_low is used here (the others are applied at run time through
+    :func:`make_effects`)."""
+    vol_l = effect_value(effects, "oil_level_low")
+    if vol_l < CATALOG["oil_level_low"].neutral:
+        p = p.with_overrides({"oil.volume": vol_l * 1e-3})
+    if not 0.0 < dt_s <= 1.0:
+        raise ParameterError(f"dt_s = {dt_s} s must be in (0, 1] s")
+    if not 0.0 < margin <= 1.0:
+        raise ParameterError(f"stability margin = {margin} must be in (0, 1]")
+    part_name = partition if isinstance(partition, str) else "custom"
+    if isinstance(partition, str):
+        if partition not in PARTITIONS:
+            raise ParameterError(f"unknown partition {partition!r}; known: {', '.join(PARTITIONS)}")
+        partition = PARTITIONS[partition]
+    net = build_network(p)
+    agg = aggregate(net, partition)
+    n = len(agg.nodes)
+    kin = p.kinematics
+    n_links_full = len(net.link_a)
+    w_in_max = p["engine.max_speed"]                 # rad/s
+    speed_abs = np.abs(kin.speed)                    # (17, 14)
+
+    # ---- conductance laws: tabulate every link at its own shaft speed w (all shafts at w) x oil temperature
+    ev = ConductanceEvaluator(net, p, HeatTransferScales())
+    T_grid = T_GRID_C
+    T2 = T_grid[::T2_STRIDE]
+    u = np.linspace(0.0, 1.0, N_U)
+    src_of_link = np.full(n_links_full, -1)
+    variable_kinds = (K_SPLASH, K_IMM_GEAR, K_IMM_BRG, K_BRG_SPLASH, K_STREAM, K_RING)
+    for k in range(n_links_full):
+        if int(net.link_kind[k]) in variable_kinds:
+            src_of_link[k] = _speed_of_link(net, k)
+    # max shaft speed per speed source over all gears
+    w_src_max = speed_abs.max(axis=0) * w_in_max
+    zero_mt = np.zeros(len(MESHES))
+    T_dummy = np.full(net.n, 60.0)
+    bc_dummy = np.full(len(BOUNDARIES), 40.0)
+
+    def eval_all(w, T, low_range=False):
+        sp = np.full(len(SPEED_NAMES), float(w))
+        return ev.evaluate(float(T), sp, 0, zero_mt, low_range, T_dummy, bc_dummy).copy()
+
+    # table per speed source: G[src](w_i = u_i^2 w_max, T_j) for every link (on the fine T grid)
+    tables = {}
+    for s in sorted(set(src_of_link[src_of_link >= 0].tolist())):
+        wmax = max(w_src_max[s], 1e-6)
+        tab = np.empty((N_U, T_grid.size, n_links_full))
+        for i, ui in enumerate(u):
+            for j, Tj in enumerate(T_grid):
+                tab[i, j] = eval_all(ui * ui * wmax, Tj)
+        tables[s] = tab
+
+    G_const = np.zeros(len(agg.link_a))
+    pw, t2, rad, ef, cyl = [], [], [], [], []
+    phi_cols: list = []
+
+    def phi_col(values):
+        for c, v in enumerate(phi_cols):
+            if np.allclose(v, values, rtol=1e-12, atol=0):
+                return c
+        phi_cols.append(values)
+        return len(phi_cols) - 1
+
+    sc = HeatTransferScales()
+    for k in range(n_links_full):
+        r = agg.link_of_full[k]
+        if r < 0:
+            continue
+        kind = int(net.link_kind[k])
+        name = net.link_name[k]
+        if kind == K_CONST:
+            G_const[r] += net.link_G0[k]
+        elif kind == K_CONTACT:
+            mesh = int(_link_param(net, k, "mesh"))
+            mask = (kin.mesh_torque[:, mesh] != 0).astype(float)
+            pw.append((r, 0.0, net.link_G0[k] * mask, -1, 0))
+        elif kind == K_EXT_CONV:
+            pw.append((r, 0.0, np.full(N_GEARS, net.link_G0[k] * p["housing.h_air"]), -1, 3))
+        elif kind == K_EXT_RAD:
+            rad.append((r, net.link_G0[k] * p["housing.emissivity"]))
+        else:
+            s = src_of_link[k]
+            tab = tables[s][:, :, k]                     # (N_U, nT)
+            if kind == K_IMM_GEAR:
+                R_p = float(_link_param(net, k, "R_p"))
+                fo = _fling_off_table(net, k, u * u * w_src_max[s], T_grid)
+                law = _separable_power_law(fo, u * u * w_src_max[s])
+                nus = _cyl_table(net.link_G0[k] / R_p, R_p, u * u * w_src_max[s], T_grid)
+                if law is None or np.max(np.abs(nus + fo - tab)) > 1e-9 * np.abs(tab).max():
+                    raise ParameterError(f"link {name}: the immersed-wheel conductance is not Nusselt (Eq 46-48) "
+                                         f"plus fling-off (Eq 54-58) as the onboard model assumes")
+                e, a, phi = law
+                pw.append((r, e, a * speed_abs[:, s] ** e, phi_col(phi), 0))
+                cyl.append((r, speed_abs[:, s], net.link_G0[k] / R_p, math.log(R_p * R_p)))
+                continue
+            if kind == K_STREAM and int(_link_param(net, k, "sub")) in (S_CHANNEL, S_IMPOSED):
+                sub = int(_link_param(net, k, "sub"))
+                frac = float(_link_param(net, k, "frac"))
+                if sub == S_CHANNEL:
+                    alpha, beta = net.link_G0[k] * ht.NU_CHANNEL / float(_link_param(net, k, "D")), 0.0  # Eq 77-80
+                else:
+                    alpha, beta = 0.0, net.link_G0[k] * float(_link_param(net, k, "h"))
+                ef.append((r, frac * p["oil_system.flow_per_ls_rpm"], alpha, beta, 2 if sub == S_IMPOSED else 0))
+                continue
+            wmax = w_src_max[s]
+            eff = 1 if (name.startswith("splash:") and name.endswith(".teeth")) else 0
+            law = _separable_power_law(tab, u * u * wmax)
+            if kind == K_RING:
+                # low range: housing-like constant h (seed 3.3); high range: the ring turns with the sun (splash)
+                G_low = float(eval_all(0.0, 60.0, low_range=True)[k])
+                if law is not None:
+                    pw.append((r, 0.0, G_low * kin.low_range.astype(float), -1, 0))
+                elif not np.allclose(tab[0, :], G_low, rtol=1e-9):
+                    raise ParameterError("ring-gear conductance: the high-range law at standstill differs from the "
+                                         "low-range value; the onboard tables cannot represent it")
+                # else: the table at zero ring speed (the ring does not turn at low range) is the low-range value
+            if law is not None:
+                e, a, phi = law
+                col = -1 if np.allclose(phi, 1.0, rtol=1e-12) else phi_col(phi)
+                coef = a * speed_abs[:, s] ** e
+                if kind == K_RING:
+                    coef = coef * (~kin.low_range)
+                pw.append((r, e, coef, col, eff))
+            else:
+                frac = float(_link_param(net, k, "frac")) if kind == K_STREAM else 0.0
+                t2.append((r, speed_abs[:, s], wmax, tab[:, ::T2_STRIDE], kind == K_STREAM, frac, 0))
+    ncol = max(len(phi_cols), 1)
+    pw_phi = np.ones((T_grid.size, ncol))
+    for c, v in enumerate(phi_cols):
+        pw_phi[:, c] = v
+
+    # ---- losses
+    gl = GearboxLosses(p, net.geometry)
+    mesh_x0, mesh_phi_rows, roll_k = _mesh_tables(gl)
+    bear_speed = np.zeros((N_GEARS, len(SHAFT_BEARINGS)))
+    for j, b in enumerate(SHAFT_BEARINGS):
+        if b == "BIM":
+            bear_speed[:, j] = np.abs(kin.speed[:, SPEED_NAMES.index("IS")] - kin.speed[:, SPEED_NAMES.index("MS")])
+        else:
+            bear_speed[:, j] = speed_abs[:, gl.bearing_speed_idx[j]]
+    bear_c = L.PALMGREN_SEED_C * gl.f0 * gl.Dm ** 3
+    needle_c = L.PALMGREN_SEED_C * gl.needle_f0 * gl.needle_Dm ** 3
+    sync_c = np.array([n_r * 2.0 * math.pi * R ** 3 * p["sync.w_ring"] / (J * math.sin(p["sync.theta_ring"]))
+                       for n_r, R, J in gl.sync_geo])
+    sync_coef = (kin.sync_rel ** 2) @ sync_c
+    i_ls = SPEED_NAMES.index("LS")
+    pump_coef = gl.pump_k * kin.speed[:, i_ls] ** 2
+    churn_w_max = w_src_max[i_ls]
+    u_ch = np.linspace(0.0, 1.0, N_U_CHURN)
+    churn_table = _churn_table(gl, u_ch * u_ch * churn_w_max, T_grid, kin)
+    # where each source's heat goes (reduced nodes)
+    S = np.zeros((N_SRC, n))
+    for j, nm in enumerate(SRC_NAMES):
+        if nm.startswith("mesh:") and nm[5:] in ("PSP", "PPR"):
+            dist = net.sources["planetary"]
+        elif nm == "oil_lumped":
+            dist = net.sources["churning"]
+        else:
+            dist = net.sources[nm]
+        for node, frac in dist:
+            S[j, agg.node_of_full[node]] += frac
+    heat_sf = np.array([p["scale.planet_to_heat"] if m in ("PSP", "PPR") else p["scale.gear_contact_to_heat"]
+                        for m in MESHES])
+
+    # ---- cooler
+    kind = p.strings.get("cooler.kind", "liquid")
+    cooler_code = COOLER_CODES.get(kind, 0)
+    cooler = {k: p[f"cooler.{k}"] for k in (
+        "liquid_hA_ref", "liquid_Qmax_cool", "liquid_Qmax_heat", "air_hA_ref", "air_Qmax_cool", "thermostat_open",
+        "thermostat_full", "ref_ls_speed", "ref_engine_speed", "exp_inner", "exp_outer", "air_flow_min_frac")}
+
+    bc = np.array([p[f"boundary.{b}"] for b in BOUNDARIES])
+    published = np.array([agg.nodes.index(c) for c in PUBLISHED])
+
+    def arr(rows, i, dtype=float):
+        return np.array([r[i] for r in rows], dtype=dtype)
+
+    rp = ReducedParams(
+        variant=p.variant, partition=part_name, nodes=agg.nodes, dt_s=float(dt_s), margin=float(margin),
+        C_j_per_k=_ro(agg.C), i_oil=agg.nodes.index("oil"), published_index=_ro(published, np.int64),
+        members=agg.members,
+        link_a=_ro(agg.link_a, np.int64), link_b=_ro(agg.link_b, np.int64), link_name=agg.link_name, G_const_w_per_k=_ro(G_const),
+        pw_link=_ro(arr(pw, 0, np.int64), np.int64), pw_exp=_ro(arr(pw, 1)),
+        pw_gear_coef=_ro(np.array([r[2] for r in pw]).T.reshape(N_GEARS, len(pw))),
+        pw_col=_ro(arr(pw, 3, np.int64), np.int64), pw_phi=_ro(pw_phi), pw_effect=_ro(arr(pw, 4, np.int64), np.int64),
+        t2_link=_ro(arr(t2, 0, np.int64), np.int64),
+        t2_speed_coef=_ro(np.array([r[1] for r in t2]).T.reshape(N_GEARS, len(t2))),
+        t2_w_max=_ro(arr(t2, 2)), t2_table=_ro(np.array([r[3] for r in t2]).reshape(len(t2), N_U, T2.size)),
+        t2_stream=_ro([r[4] for r in t2], bool), t2_frac=_ro(arr(t2, 5)),
+        t2_effect=_ro(arr(t2, 6, np.int64), np.int64),
+        cyl_link=_ro(arr(cyl, 0, np.int64), np.int64),
+        cyl_speed_coef=_ro(np.array([r[1] for r in cyl]).T.reshape(N_GEARS, len(cyl))),
+        cyl_c=_ro(arr(cyl, 2)), cyl_ln_rp2=_ro(arr(cyl, 3)),
+        ef_link=_ro(arr(ef, 0, np.int64), np.int64), ef_mcp=_ro(arr(ef, 1)), ef_alpha=_ro(arr(ef, 2)),
+        ef_beta=_ro(arr(ef, 3)), ef_effect=_ro(arr(ef, 4, np.int64), np.int64),
+        rad_link=_ro(arr(rad, 0, np.int64), np.int64), rad_area_eps=_ro(arr(rad, 1)),
+        prop=_ro(oil_property_table(T_grid)),
+        speed_coef=_ro(kin.speed), mesh_torque=_ro(kin.mesh_torque), mesh_omega2=_ro(kin.mesh_omega2),
+        mesh_x0=_ro(mesh_x0), mesh_phi=_ro(mesh_phi_rows), mesh_roll_k=_ro(roll_k), mesh_heat_sf=_ro(heat_sf),
+        bear_speed=_ro(bear_speed), bear_c=_ro(bear_c), bear_load=_ro(gl.load_torque_coef),
+        needle_rel=_ro(kin.wheel_bearing_rel), needle_c=_ro(needle_c), sync_coef=_ro(sync_coef),
+        pump_coef=_ro(pump_coef), churn_w_max=float(churn_w_max), churn_table=_ro(churn_table),
+        churn_heat_sf=float(p["scale.churn_to_heat"]), src_matrix=_ro(S),
+        heat_lag_tau_s=float(p["scale.heat_lag_tau"]), cooler_code=cooler_code, cooler=cooler,
+        flow_m3_per_rad=float(p["oil_system.flow_per_ls_rpm"]), bc_default_c=_ro(bc),
+        i_ambient=BOUNDARIES.index("ambient"), i_coolant=BOUNDARIES.index("coolant"),
+        i_hot=BOUNDARIES.index("hot_surroundings"),
+        max_speed_rpm=float(p["engine.max_speed"] / RPM), min_torque_nm=float(p["engine.min_torque"]),
+        max_torque_nm=float(p["engine.max_torque"]))
+    if check:
+        object.__setattr__(rp, "stability", check_stability(rp))
+    return rp
+
+
+def _separable_power_law(tab: np.ndarray, w: np.ndarray):
+    """(exponent e, a, phi(T)) with tab[i, j] = a w_i^e phi_j to SEPARABLE_RTOL for every w_i > 0, else None.
+
+    phi is normalised to 1 at 60 degC. At w = 0 the law gives 0 (the full evaluator floors some speeds at 1e-3 rad/s,
+    a conductance below 0.3 % of its value at 100 rpm)."""
+    if not np.all(np.isfinite(tab)) or np.any(tab < 0):
+        return None
+    pos = np.flatnonzero(w > 0)
+    j_ref = int(np.argmin(np.abs(T_GRID_C - 60.0)))
+    i1, i2 = pos[0], pos[-1]
+    if tab[i1, j_ref] <= 0 or tab[i2, j_ref] <= 0:
+        return None
+    e = math.log(tab[i2, j_ref] / tab[i1, j_ref]) / math.log(w[i2] / w[i1])
+    if abs(e) < 1e-9:
+        e = 0.0
+    a = tab[i2, j_ref] / w[i2] ** e
+    phi = tab[i2, :] / tab[i2, j_ref]
+    model = a * w[pos, None] ** e * phi[None, :]
+    if np.max(np.abs(model - tab[pos])) <= SEPARABLE_RTOL * np.abs(tab).max():
+        return e, a, phi
+    return None
+
+
+def _cyl_nusselt(ln_re, ln_pr):
+    """Eq 46 / 47 with the geometric bridge between Re = 2.5e5 and 3.2e5, in logarithms (identical to
+    heat_transfer.nusselt_rotating_cylinder)."""
+    ln46 = _LN_04 + 0.5 * ln_re + ln_pr / 3.0
+    ln47 = _LN_0238 + 0.8 * ln_re + 0.6 * ln_pr
+    s = np.clip((ln_re - _LN_RE_LAM) / _LN_RE_BRIDGE, 0.0, 1.0)
+    return np.exp(ln46 + s * (ln47 - ln46))
+
+
+_LN_04, _LN_0238 = math.log(0.4), math.log(0.238)
+_LN_RE_LAM = math.log(ht.RE_LAMINAR_MAX)
+_LN_RE_BRIDGE = math.log(ht.RE_TURBULENT_MIN / ht.RE_LAMINAR_MAX)
+_LN_1E6 = math.log(1e-6)
+
+
+def _cyl_table(c, R_p, w, T):
+    op = oilprops.oil_properties(T)
+    wf = np.maximum(w, 1e-3)[:, None]
+    re = R_p * R_p * wf / op.nu_m2_s[None, :]
+    return c * op.k_w_per_mk[None, :] * ht.nusselt_rotating_cylinder(re, op.pr[None, :])
+
+
+def _fling_off_table(net: Network, k: int, w, T):
+    kp = {key: float(_link_param(net, k, key)) for key in ("z", "width", "h_t", "R_p", "h_i")}
+    op = oilprops.oil_properties(T)
+    wf = np.maximum(w, 1e-3)[:, None]
+    return ht.fling_off_hA(kp["z"], kp["width"], kp["h_t"], kp["R_p"], kp["h_i"], wf, op.k_w_per_mk[None, :],
+                           op.alpha_m2_s[None, :], op.nu_m2_s[None, :]).hA_w_per_k
+
+
+def _mesh_tables(gl: GearboxLosses):
+    """Per mesh: x0 and phi on x = x0 + X_STEP i (slip loss / (T1 w2)), and the rolling-loss constant."""
+    n_pl = gl.n_planets
+    rows, x0s, roll = [], [], []
+    # x range: beyond it f_g is clipped at both ends for every point of the line of action
+    xs = np.arange(-16.0, 24.0 + 1e-9, X_STEP)
+    for m, mesh in zip(MESHES, gl.meshes):
+        planetary = m in ("PSP", "PPR")
+        # total torque T on wheel 1; the loss model splits it over the planets
+        T_tot = 10.0 ** xs
+        T1 = T_tot / n_pl if planetary else T_tot
+        P = L.gear_slip_loss_w(mesh, T1, 1.0, 1.0, 1.0)
+        if planetary:
+            P = P * n_pl
+        phi = P / T_tot
+        # trim constant ends (keep one point of each plateau)
+        d = np.abs(np.diff(phi)) > 1e-14 * np.abs(phi).max()
+        lo = max(int(np.argmax(d)) - 1, 0)
+        hi = min(len(phi) - int(np.argmax(d[::-1])) + 1, len(phi))
+        rows.append(phi[lo:hi])
+        x0s.append(xs[lo])
+        Tr = 1000.0 / (n_pl if planetary else 1.0)
+        Pr = L.gear_rolling_loss_w(mesh, Tr, 100.0, 1.0, 1.0, gl.E, gl.E, gl.poisson, gl.poisson,
+                                    n_points=ROLL_POINTS)
+        if planetary:
+            Pr = Pr * n_pl
+        roll.append(float(Pr) / (100.0 ** 1.7 * 1000.0 ** -0.13))
+    nx = max(len(r) for r in rows)
+    tab = np.empty((len(MESHES), nx))
+    for i, r in enumerate(rows):
+        tab[i, :len(r)] = r
+        tab[i, len(r):] = r[-1]
+    return np.array(x0s), tab, np.array(roll)
+
+
+def _churn_table(gl: GearboxLosses, w_ls: np.ndarray, T2: np.ndarray, kin) -> np.ndarray:
+    """Churning loss [W] of every immersed wheel at layshaft speed w_ls x oil temperature T2 (Eq 23-34)."""
+    ri_ratio = abs(kin.speed[0 - GEAR_MIN, SPEED_NAMES.index("RI")] / kin.speed[0 - GEAR_MIN, SPEED_NAMES.index("LS")])
+    out = np.zeros((w_ls.size, T2.size))
+    for j, T in enumerate(T2):
+        op = oilprops.oil_properties(T)
+        wc = np.where(gl.ch_is_RI[None, :] > 0, (w_ls * ri_ratio)[:, None], w_ls[:, None])
+        ch = L.churning_loss(wc, gl.ch_Ra, gl.ch_Rp, gl.ch_ht, gl.ch_w, gl.ch_hi, gl.ch_Vp, gl.V0, op.rho_kg_m3,
+                             op.nu_m2_s, gl.h_t0)
+        out[:, j] = np.sum(np.where(gl.ch_mask, ch.power_w, 0.0), axis=1)
+    return out
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# evaluation (pure functions of the parameters and the current operating point; broadcast over vehicles)
+
+
+class Helpers:
+    """Dense scatter matrices and index splits numpy uses to evaluate a ReducedParams quickly (derived, cached;
+    an ECU would loop over the index arrays instead)."""
+
+    def __init__(self, rp: ReducedParams):
+        n, nl = rp.n, len(rp.link_a)
+        self.nl = nl
+        self.pw_scatter = np.zeros((len(rp.pw_link), nl))
+        self.pw_scatter[np.arange(len(rp.pw_link)), rp.pw_link] = 1.0
+        self.t2_scatter = np.zeros((len(rp.t2_link), nl))
+        self.t2_scatter[np.arange(len(rp.t2_link)), rp.t2_link] = 1.0
+        self.ef_scatter = np.zeros((len(rp.ef_link), nl))
+        self.ef_scatter[np.arange(len(rp.ef_link)), rp.ef_link] = 1.0
+        self.cyl_scatter = np.zeros((len(rp.cyl_link), nl))
+        self.cyl_scatter[np.arange(len(rp.cyl_link)), rp.cyl_link] = 1.0
+        self.internal = rp.link_b < n
+        self.ia = rp.link_a[self.internal]
+        self.ib = rp.link_b[self.internal]
+        self.int_idx = np.flatnonzero(self.internal)
+        self.ext_idx = np.flatnonzero(~self.internal)
+        self.ea = rp.link_a[~self.internal]
+        self.eb = rp.link_b[~self.internal] - n
+        # flux -> node rate: q_nodes = flux_int @ B_int + flux_ext @ B_ext (flux = G (T_a - T_b), from a to b)
+        self.B_int = np.zeros((self.ia.size, n))
+        self.B_int[np.arange(self.ia.size), self.ia] = -1.0
+        self.B_int[np.arange(self.ia.size), self.ib] += 1.0
+        self.B_ext = np.zeros((self.ea.size, n))
+        self.B_ext[np.arange(self.ea.size), self.ea] = -1.0
+        # oil-system streams (pipe tables, then closed-form channels): the cooler's inlet drop dT moves G dT from
+        # the component to the sump
+        self.t2_streams = np.flatnonzero(rp.t2_stream)
+        links = np.concatenate([rp.t2_link[self.t2_streams], rp.ef_link]).astype(np.int64)
+        la, lb = rp.link_a[links], rp.link_b[links]
+        node = np.where(la == rp.i_oil, lb, la)
+        self.stream_scatter = np.zeros((links.size, n))
+        self.stream_scatter[np.arange(links.size), node] -= 1.0
+        self.stream_scatter[np.arange(links.size), rp.i_oil] += 1.0
+        self.nT = T_GRID_C.size
+        self.T0 = float(T_GRID_C[0])
+        self.dT = float(T_GRID_C[1] - T_GRID_C[0])
+        self.nT2 = rp.t2_table.shape[2]
+        self.t2_flat = np.ascontiguousarray(rp.t2_table).reshape(-1)
+        self.t2_base = np.arange(len(rp.t2_link)) * N_U * self.nT2
+        self.churn_flat = np.ascontiguousarray(rp.churn_table).reshape(-1)
+        self.mesh_flat = np.ascontiguousarray(rp.mesh_phi).reshape(-1)
+        self.nx = rp.mesh_phi.shape[1]
+        self.mesh_base = np.arange(len(MESHES)) * self.nx
+        self.rad_node = rp.link_a[rp.rad_link]
+        self.rad_bc = rp.link_b[rp.rad_link] - n
+        self.pw_eff = [np.flatnonzero(rp.pw_effect == k) for k in range(4)]
+        self.ef_planet = np.flatnonzero(rp.ef_effect == 2)
+        self.pw_colc = np.maximum(rp.pw_col, 0)
+        self.pw_has_col = rp.pw_col >= 0
+        self.C = np.array(rp.C_j_per_k, dtype=float)
+        self.inv_C = 1.0 / self.C
+
+
+_HELPERS: dict = {}
+
+
+def helpers(rp: ReducedParams) -> Helpers:
+    key = id(rp)
+    item = _HELPERS.get(key)
+    if item is None or item[0] is not rp:
+        item = (rp, Helpers(rp))
+        _HELPERS[key] = item
+        if len(_HELPERS) > 64:
+            _HELPERS.pop(next(iter(_HELPERS)))
+    return item[1]
+
+
+def oil_row(rp: ReducedParams, T_oil_c, h: Helpers | None = None):
+    """(x, property row (..., N_PROP), pw phi row (..., ncol)) at the oil temperature; x is the fractional index
+    on T_GRID_C (held at the ends)."""
+    h = h or helpers(rp)
+    x = (np.clip(np.asarray(T_oil_c, dtype=float), T_GRID_C[0], T_GRID_C[-1]) - h.T0) / h.dT
+    i = np.minimum(x.astype(np.int64), h.nT - 2)
+    f = (x - i)[..., None]
+    prop = rp.prop[i] * (1.0 - f) + rp.prop[i + 1] * f
+    phi = rp.pw_phi[i] * (1.0 - f) + rp.pw_phi[i + 1] * f
+    return x, prop, phi
+
+
+def _scaled(G, idx, val):
+    if idx.size == 0 or (np.ndim(val) == 0 and float(val) == 1.0):
+        return G
+    G = np.array(G, copy=True)
+    G[..., idx] *= np.asarray(val, dtype=float)[..., None]
+    return G
+
+
+def conductances(rp: ReducedParams, row, w_in, x_T, prop, phi, T_nodes_c, T_bc_c, eff: Effects | None = None,
+                 h: Helpers | None = None, radiation: bool = True):
+    """Conductance of every reduced link [W/K] (..., nl) and of the oil-system stream terms (..., nst).
+
+    row: gear row (gear - GEAR_MIN), w_in: input speed [rad/s] >= 0, (x_T, prop, phi): :func:`oil_row` at the oil
+    temperature; T_nodes_c / T_bc_c: node and boundary temperatures (radiation, Eq 81)."""
+    h = h or helpers(rp)
+    w = np.asarray(w_in, dtype=float)
+    # power laws: coef(gear) w^e phi(T)
+    ph = np.where(h.pw_has_col, np.take(phi, h.pw_colc, axis=-1), 1.0)
+    Gp = rp.pw_gear_coef[row] * np.power(w[..., None], rp.pw_exp) * ph
+    if eff is not None:
+        Gp = _scaled(Gp, h.pw_eff[1], eff.teeth_oil_h)
+        Gp = _scaled(Gp, h.pw_eff[3], eff.housing_air_h)
+    # bilinear tables over (sqrt(w_t / w_max), T)
+    wt = rp.t2_speed_coef[row] * w[..., None]
+    uu = np.sqrt(np.minimum(wt / rp.t2_w_max, 1.0)) * (N_U - 1)
+    iu = np.minimum(uu.astype(np.int64), N_U - 2)
+    fu = uu - iu
+    xT2 = np.asarray(x_T) / T2_STRIDE
+    jT = np.minimum(xT2.astype(np.int64), h.nT2 - 2)
+    fT = (xT2 - jT)[..., None]
+    base = h.t2_base + iu * h.nT2 + jT[..., None]
+    tf = h.t2_flat
+    lo = tf[base] * (1.0 - fT) + tf[base + 1] * fT
+    hi = tf[base + h.nT2] * (1.0 - fT) + tf[base + h.nT2 + 1] * fT
+    G2 = lo + (hi - lo) * fu
+    # closed-form streams: m (1 - exp(-hA / m))  (NTU effectiveness, Eq 69-80)
+    w_ls = np.abs(rp.speed_coef[row, 1]) * w
+    m = rp.ef_mcp * (prop[..., P_RHO] * prop[..., P_CP] * w_ls)[..., None]
+    beta = rp.ef_beta
+    if eff is not None and h.ef_planet.size and not (np.ndim(eff.planet_oil_h) == 0 and eff.planet_oil_h == 1.0):
+        beta = _scaled(np.broadcast_to(beta, m.shape), h.ef_planet, eff.planet_oil_h)
+    hA = rp.ef_alpha * prop[..., P_K, None] + beta
+    ms = np.where(m > 0.0, m, 1.0)
+    Ge = np.where(m > 0.0, -ms * np.expm1(-hA / ms), 0.0)
+    # immersed wheels: Nusselt (Eq 46-48) in closed form
+    wc = np.maximum(rp.cyl_speed_coef[row] * w[..., None], 1e-3)
+    ln_re = rp.cyl_ln_rp2 + np.log(wc) - (prop[..., P_LN_NU_CST, None] + _LN_1E6)
+    Gc = rp.cyl_c * prop[..., P_K, None] * _cyl_nusselt(ln_re, prop[..., P_LN_PR, None])
+    G = rp.G_const_w_per_k + Gp @ h.pw_scatter + G2 @ h.t2_scatter + Ge @ h.ef_scatter + Gc @ h.cyl_scatter
+    if radiation and rp.rad_link.size:
+        G[..., rp.rad_link] = radiation_conductances(rp, T_nodes_c, T_bc_c, h)
+    G_streams = np.concatenate([G2[..., h.t2_streams], Ge], axis=-1)
+    return G, G_streams
+
+
+def radiation_conductances(rp: ReducedParams, T_nodes_c, T_bc_c, h: Helpers | None = None):
+    """Linearised radiation conductance of every radiation link [W/K] (Eq 81), housing temperatures clipped."""
+    h = h or helpers(rp)
+    T1 = np.minimum(np.maximum(np.take(T_nodes_c, h.rad_node, axis=-1), RAD_T_RANGE_C[0]), RAD_T_RANGE_C[1]) \
+        + ht.KELVIN_OFFSET
+    T2 = np.take(T_bc_c, h.rad_bc, axis=-1) + ht.KELVIN_OFFSET
+    return rp.rad_area_eps * ht.SIGMA_W_PER_M2K4 * (T1 * T1 + T2 * T2) * (T1 + T2)  # Eq 81
+
+
+def heat_sources(rp: ReducedParams, row, w_in, torque_abs_nm, prop, x_T, src_scale=None, churn_scale=1.0,
+                 needle_scale=1.0, retarder_w=0.0, h: Helpers | None = None):
+    """Heat of every source [W], shape (..., N_SRC): meshes (Eq 7-22, x seed heat factors), shaft bearings
+    (Eq 35-40), the oil-lumped sources (churning x 1.33, needle bearings, synchronizers, pump) and the retarder."""
+    h = h or helpers(rp)
+    w = np.asarray(w_in, dtype=float)
+    Tq = np.asarray(torque_abs_nm, dtype=float)
+    w_ = w[..., None]
+    T1 = rp.mesh_torque[row] * Tq[..., None]
+    w2 = rp.mesh_omega2[row] * w_
+    on = (T1 > 0.0) & (w2 > 0.0)
+    T1s = np.where(on, T1, 1.0)
+    w2s = np.where(on, w2, 1.0)
+    lT, lw = np.log10(T1s), np.log10(w2s)
+    x = (lT - prop[..., P_LOG10_MU, None] - 3.0 * lw - rp.mesh_x0) / X_STEP
+    x = np.clip(x, 0.0, h.nx - 1.000001)
+    ix = x.astype(np.int64)
+    fx = x - ix
+    mf = h.mesh_flat
+    b = h.mesh_base + ix
+    phi = mf[b] * (1.0 - fx) + mf[b + 1] * fx
+    # slip: T1 w2 phi; rolling: K mu^0.7 a^0.54 w2^1.7 T1^-0.13 (Eq 18: exact power law)
+    P = T1s * w2s * (phi + rp.mesh_roll_k * np.exp(prop[..., P_LN_ROLL, None] + math.log(10.0) * (0.7 * lw - 1.13 * lT)))
+    P_mesh = np.where(on, P, 0.0) * rp.mesh_heat_sf
+    # shaft bearings (Eq 35-40)
+    wb = rp.bear_speed[row] * w_
+    nu = np.exp(prop[..., P_LN_NU_CST, None])
+    M0 = rp.bear_c * np.maximum(nu * wb * (30.0 / math.pi), L.PALMGREN_NU_N_MIN) ** (2.0 / 3.0)
+    P_bear = (M0 + rp.bear_load[row] * Tq[..., None]) * wb
+    # lumped into the sump: needle bearings (Eq 36-37 on relative speed), synchronizers (Eq 41), pump (Eq 42),
+    # churning (Eq 23-34, table)
+    rel = rp.needle_rel[row] * w_
+    Mn = rp.needle_c * np.maximum(nu * rel * (30.0 / math.pi), L.PALMGREN_NU_N_MIN) ** (2.0 / 3.0)
+    P_needle = np.sum(Mn * rel, axis=-1)
+    w2in = w * w
+    P_sync = np.exp(prop[..., P_LN_MU]) * w2in * rp.sync_coef[row]
+    P_pump = rp.pump_coef[row] * w2in
+    w_ls = np.abs(rp.speed_coef[row, 1]) * w
+    uu = np.sqrt(np.minimum(w_ls / rp.churn_w_max, 1.0)) * (N_U_CHURN - 1)
+    iu = np.minimum(np.asarray(uu).astype(np.int64), N_U_CHURN - 2)
+    fu = uu - iu
+    xT = np.asarray(x_T)
+    jT = np.minimum(xT.astype(np.int64), h.nT - 2)
+    fT = xT - jT
+    cf = h.churn_flat
+    b = iu * h.nT + jT
+    lo = cf[b] * (1.0 - fT) + cf[b + 1] * fT
+    hi = cf[b + h.nT] * (1.0 - fT) + cf[b + h.nT + 1] * fT
+    P_churn = lo + (hi - lo) * fu
+    P_oil = P_churn * rp.churn_heat_sf * churn_scale + P_needle * needle_scale + P_sync + P_pump
+    out = np.concatenate([P_mesh, P_bear, np.stack([P_oil, np.broadcast_to(retarder_w, np.shape(P_oil))], -1)], -1)
+    if src_scale is not None:
+        out = out * src_scale
+    return out
+
+
+def cooler_heat(rp: ReducedParams, T_oil_c, w_ls, w_eng, T_coolant_c, T_ambient_c, v_kmh, rho_cp,
+                scale=1.0, thermostat_offset_c=0.0):
+    """Heat from the sump to the cooler [W] (Eq 83), the oil-system flow capacity mdot cp [W/K] and the cooler's
+    maximum slope dQ/dT_oil [W/K] at this operating point; the same model as the reference plant."""
+    c = rp.cooler
+    w_ls = np.asarray(w_ls, dtype=float)
+    mcp = rho_cp * rp.flow_m3_per_rad * w_ls
+    if rp.cooler_code == 0:
+        z = np.zeros(np.broadcast(T_oil_c, w_ls).shape)
+        return z, mcp, z
+    inner = (w_ls / c["ref_ls_speed"]) ** c["exp_inner"]
+    if rp.cooler_code == 1:
+        outer = (np.maximum(w_eng, 0.0) / c["ref_engine_speed"]) ** c["exp_outer"]
+        hA = c["liquid_hA_ref"] * inner * outer * scale
+        Q = np.clip(hA * (T_oil_c - T_coolant_c), -c["liquid_Qmax_heat"], c["liquid_Qmax_cool"])   # Eq 83
+    else:
+        fmin = c["air_flow_min_frac"]
+        v = np.clip(np.nan_to_num(v_kmh, nan=50.0), 0.0, None)
+        outer = (fmin + (1.0 - fmin) * np.minimum(v / 85.0, 1.5)) ** c["exp_outer"]
+        hA = c["air_hA_ref"] * inner * outer * scale
+        T_air = T_ambient_c + np.interp(v, _AIR_RECIRC[0], _AIR_RECIRC[1])
+        Q = ht.cooler_heat_w("air", hA, T_oil_c, T_air, np.where(mcp > 0, mcp, 0.0), 1.0, c["air_Qmax_cool"], 0.0,
+                             c["thermostat_open"] + thermostat_offset_c, c["thermostat_full"] + thermostat_offset_c)
+    Q = np.where(mcp > 0.0, Q, 0.0)
+    return Q, mcp, hA
+
+
+#: recirculated air at the air cooler (seed 3.4; same table as tools.plant)
+_AIR_RECIRC = (np.array([0.0, 15.0, 50.0, 85.0, 200.0]), np.array([12.0, 9.0, 2.0, 0.5, 0.0]))
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# stability
+
+
+def max_conductances(rp: ReducedParams) -> dict:
+    """Upper bounds over the operating range (every gear, 0..max speed, oil OIL_RANGE_C, effects at the top of their
+    plausible ranges) of every link's conductance and of the cooler's slope, from the laws themselves: power laws
+    grow with speed (exponents >= 0), bilinear tables stay within their corner values, oil-temperature columns are
+    piecewise linear, NTU streams are below both hA and mdot cp, radiation grows with temperature."""
+    w_max = rp.max_speed_rpm * RPM
+    jT = (T_GRID_C >= OIL_RANGE_C[0] - 1e-9) & (T_GRID_C <= OIL_RANGE_C[1] + 1e-9)
+    jT = np.convolve(jT.astype(int), [1, 1, 1], mode="same") > 0       # neighbours bound the interpolation
+    G = np.array(rp.G_const_w_per_k, dtype=float)
+    phi_max = np.max(rp.pw_phi[jT], axis=0)
+    eff_max = {1: CATALOG["teeth_oil_h_scale"].high, 2: CATALOG["planet_oil_h_scale"].high,
+               3: CATALOG["housing_air_h_scale"].high}
+    if np.any(rp.pw_exp < 0):
+        raise ParameterError("a conductance law has a negative speed exponent; the stability bound needs >= 0")
+    for t in range(len(rp.pw_link)):
+        ph = phi_max[rp.pw_col[t]] if rp.pw_col[t] >= 0 else 1.0
+        G[rp.pw_link[t]] += (np.max(rp.pw_gear_coef[:, t]) * w_max ** rp.pw_exp[t] * ph
+                             * eff_max.get(int(rp.pw_effect[t]), 1.0))
+    jT2 = jT[::T2_STRIDE]
+    for t in range(len(rp.t2_link)):
+        G[rp.t2_link[t]] += np.max(rp.t2_table[t][:, jT2])
+    prop = rp.prop[jT]
+    w_ls_max = np.max(np.abs(rp.speed_coef[:, 1])) * w_max
+    for t in range(len(rp.ef_link)):
+        hA = rp.ef_alpha[t] * np.max(prop[:, P_K]) + rp.ef_beta[t] * (eff_max[2] if rp.ef_effect[t] == 2 else 1.0)
+        m = rp.ef_mcp[t] * np.max(prop[:, P_RHO] * prop[:, P_CP]) * w_ls_max
+        G[rp.ef_link[t]] += min(hA, m)
+    if len(rp.cyl_link):
+        # monotone in speed (Re); over the oil range sampled every 0.25 K of the interpolated properties, +2 %
+        Td = np.arange(OIL_RANGE_C[0], OIL_RANGE_C[1] + 1e-9, 0.25)
+        x = (Td - T_GRID_C[0]) / (T_GRID_C[1] - T_GRID_C[0])
+        i = np.minimum(x.astype(np.int64), T_GRID_C.size - 2)
+        f = (x - i)[:, None]
+        pr = rp.prop[i] * (1.0 - f) + rp.prop[i + 1] * f
+        wc = np.max(rp.cyl_speed_coef, axis=0) * w_max
+        ln_re = rp.cyl_ln_rp2 + np.log(np.maximum(wc, 1e-3)) - (pr[:, P_LN_NU_CST, None] + _LN_1E6)
+        Gc = rp.cyl_c * pr[:, P_K, None] * _cyl_nusselt(ln_re, pr[:, P_LN_PR, None])
+        np.add.at(G, rp.cyl_link, 1.02 * Gc.max(axis=0))
+    if rp.rad_link.size:
+        T1 = RAD_T_RANGE_C[1] + ht.KELVIN_OFFSET
+        T2 = 250.0 + ht.KELVIN_OFFSET
+        G[rp.rad_link] = rp.rad_area_eps * ht.SIGMA_W_PER_M2K4 * (T1 * T1 + T2 * T2) * (T1 + T2)
+    # cooler: the largest slope dQ/dT_oil (hA at the highest flows, effectiveness scale at its maximum)
+    c = rp.cooler
+    inner = (w_ls_max / c["ref_ls_speed"]) ** c["exp_inner"]
+    smax = CATALOG["cooler_effectiveness_scale"].high
+    if rp.cooler_code == 1:
+        hA = c["liquid_hA_ref"] * inner * (w_max / c["ref_engine_speed"]) ** c["exp_outer"] * smax
+    elif rp.cooler_code == 2:
+        hA = c["air_hA_ref"] * inner * 1.5 ** c["exp_outer"] * smax
+    else:
+        hA = 0.0
+    return {"G": G, "cooler_hA": float(hA)}
+
+
+def check_stability(rp: ReducedParams) -> dict:
+    """Prove dt <= margin x C_i / max sum_j G_ij for every node (module doc); raise StabilityError naming the node."""
+    h = helpers(rp)
+    mc = max_conductances(rp)
+    G = mc["G"]
+    n = rp.n
+    rowsum = np.bincount(rp.link_a, G, minlength=n)
+    inner = rp.link_b < n
+    rowsum = rowsum + np.bincount(rp.link_b[inner], G[inner], minlength=n)
+    hA = mc["cooler_hA"]
+    # the cooler on the sump, and its inlet-temperature drop dT_in = Q / (mdot cp): a stream term moves G_s dT_in
+    # from its component to the sump and |d(G_s dT_in)/dT_oil| <= G_s hA / (mdot cp) <= frac_s hA
+    extra = np.zeros(n)
+    extra[rp.i_oil] += hA
+    fracs = np.concatenate([rp.t2_frac[h.t2_streams], rp.ef_mcp / rp.flow_m3_per_rad])
+    nodes = np.argmin(h.stream_scatter, axis=1)
+    np.add.at(extra, nodes, fracs * hA)
+    extra[rp.i_oil] += fracs.sum() * hA
+    total = rowsum + extra
+    dt_max = rp.margin * h.C / total
+    i = int(np.argmin(dt_max))
+    info = {"dt_max_s": dt_max, "max_sum_G_w_per_k": total, "limiting_node": rp.nodes[i],
+            "C_j_per_k": float(h.C[i]), "margin": rp.margin, "tau_min_s": float(h.C[i] / total[i])}
+    if rp.dt_s > dt_max[i]:
+        raise StabilityError(
+            f"node {rp.nodes[i]} (C = {h.C[i]:.4g} J/K) has a maximum total conductance of {total[i]:.4g} W/K over "
+            f"the operating range (every gear, 0..{rp.max_speed_rpm:.0f} rpm, oil {OIL_RANGE_C[0]:g}.."
+            f"{OIL_RANGE_C[1]:g} degC): the explicit step dt = {rp.dt_s:g} s exceeds margin {rp.margin:g} x "
+            f"C / sum G = {dt_max[i]:.4g} s; merge the node with a neighbour or raise its thermal mass")
+    return info
