@@ -201,8 +201,9 @@ class GearboxLosses:
         w_ls = np.abs(sp[:, self.i_ls])
         w_ri = np.abs(sp[:, SPEED_NAMES.index("RI")])
         wc = np.where(self.ch_is_RI[None, :] > 0, w_ri[:, None], w_ls[:, None])
-        ch = L.churning_loss(wc, self.ch_Ra, self.ch_Rp, self.ch_ht, self.ch_w, self.ch_hi, self.ch_Vp, self.V0,
-                             rho, nu, self.h_t0)
+        with np.errstate(divide="ignore", invalid="ignore"):   # wheels lifted out of the oil are masked below
+            ch = L.churning_loss(wc, self.ch_Ra, self.ch_Rp, self.ch_ht, self.ch_w, self.ch_hi, self.ch_Vp, self.V0,
+                                 rho, nu, self.h_t0)
         out["churning"] = np.sum(np.where(self.ch_mask, ch.power_w, 0.0), axis=1)
         if churn_validity:
             out["churning_valid"] = np.all(ch.valid | ~self.ch_mask, axis=1)
