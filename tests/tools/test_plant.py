@@ -135,3 +135,14 @@ def test_bad_inputs_are_one_sentence_errors(params):
         assert words in str(exc.value) and "row 4" in str(exc.value)
     with pytest.raises(InputError):
         ReferencePlant(params, cooler="measured").run(good)
+
+
+@pytest.mark.parametrize("cycle", ["steady", "all_gears", "long_haul", "uphill", "mining"])
+def test_energy_closes_on_every_named_cycle(params, cycle):
+    """Generated heat = stored + rejected within 0.1 % on every named (synthetic) cycle, at its own settings."""
+    from tools.cycles import get_cycle
+    tab = get_cycle(cycle, rate_hz=2)
+    res = ReferencePlant(params, dt_s=1.0).run(tab, out_dt_s=10.0)
+    eb = res.energy_balance()
+    assert eb["generated_j"] > 1e6
+    assert eb["closure_rel"] < 1e-3
