@@ -240,6 +240,10 @@ class SensorService:
         self.encoder = OutputEncoder(o.sensor_source_address)
         self.log = logger or log
         self._inputs = _inputs_factory(sensor)
+        self._inputs_have_time = "t_s" in getattr(self._inputs, "_fields", ())
+        import importlib
+        reasons = getattr(importlib.import_module(type(sensor).__module__), "REJECT_REASONS", None)
+        self._reject_names = tuple(reasons) if isinstance(reasons, (tuple, list)) else ()
         self._wanted = {_wanted_key(f["can_id"]) for f in can_filters(rig=False)}
         self._timing_ids: dict[int, bool] = {}
         # latest value and frame time per decoder signal
@@ -256,7 +260,6 @@ class SensorService:
         # sensor
         self.state = None
         self._initialised = False
-        self._snapshot_gap_s = 0.0
         self._last_dm1: bytes | None = None
         self._steps_since_dm1 = 0
         self._last_levels: dict | None = None
@@ -337,7 +340,7 @@ class SensorService:
         thermocouples that were received. ``can_time_s`` is the step's frame time."""
         n = len(PUBLISHED)
         rows = self._rows
-        head = np.array([r[0] for r in rows], dtype=float).reshape(len(rows), -1)
+        head = np.array([r[0] for r in rows], dtype=float).reshape(len(rows), len(self._head_names()))
         cols = {name: head[:, j] for j, name in enumerate(self._head_names())}
         for k, (prefix, suffix) in enumerate((("T_", "_c"), ("W_", ""), ("ttl_", "_s"))):
             block = np.array([r[1 + k] for r in rows], dtype=float).reshape(len(rows), n)
@@ -345,7 +348,7 @@ class SensorService:
                 block[np.isinf(block)] = np.nan  # CONTRACTS 3: "never" is an empty cell
             for j, c in enumerate(PUBLISHED):
                 cols[f"{prefix}{c}{suffix}"] = block[:, j]
-        tail = np.array([r[4] for r in rows], dtype=float).reshape(len(rows), -1)
+        tail = np.array([r[4] for r in rows], dtype=float).reshape(len(rows), len(self._tail_names()))
         for j, name in enumerate(self._tail_names()):
             cols[name] = tail[:, j]
         if self._meas_seen.any():
@@ -402,18 +405,8 @@ class SensorService:
             self._next_log_t = ts + self.options.counter_log_period_s
         self.latest.clear()
         self._meas_t[:] = -np.inf
-        if self._initialised:
-            self._snapshot_gap_s = max(gap, 0.0)
-            self.state = self._resume(self.state, self._snapshot_gap_s)
+        # the sensor sees the gap in the frame time of its next step (SensorInputs.t_s) and propagates over it
         self._anchor(ts, gap)
-
-    def _resume(self, state, elapsed_s: float):
-        """The sensor's state after a gap: ``initial_state(snapshot=state, elapsed_s=gap)`` when supported."""
-        try:
-            return self.sensor.initial_state(T_oil_c=self._fresh("oil_temp_c", None), snapshot=state,
-                                             elapsed_s=elapsed_s)
-        except TypeError:  # a sensor without snapshots keeps its state
-            return state
 
     def _fresh(self, name: str, t_step: float | None):
         item = self.latest.get(name)
@@ -479,8 +472,10 @@ class SensorService:
             self.log.info("sensor initialised at frame time %.3f s with oil temperature %s", t_step,
                           "not available" if oil is None else f"{oil:.2f} degC")
 
-        inputs = self._inputs(**{f: (math.nan if values[n] is None else float(values[n]))
-                                 for f, n in SENSOR_INPUTS})
+        fields = {f: (math.nan if values[n] is None else float(values[n])) for f, n in SENSOR_INPUTS}
+        if self._inputs_have_time:
+            fields["t_s"] = t_step - self._first_t + self._time_offset
+        inputs = self._inputs(**fields)
         self.state, outputs = self.sensor.step(self.state, inputs)
         T = np.asarray(outputs.T_c, dtype=float)
         lev = np.asarray(outputs.level)
@@ -491,7 +486,8 @@ class SensorService:
         status = self._status(outputs.status, values, ref)
         frames = self._encode(t_step, temps, levels, ttls, status, send)
         if self.record:
-            self._record(t_step, values, ref, T, lev, ttl, status)
+            rejects = _status_value(outputs.status, "rejects", default=None)
+            self._record(t_step, values, ref, T, lev, ttl, status, rejects)
         return frames
 
     def _status(self, st, values: dict, ref) -> dict:
@@ -553,20 +549,25 @@ class SensorService:
     def _head_names() -> list[str]:
         return ["time_s", "can_time_s", *INPUT_COLUMNS]
 
-    @staticmethod
-    def _tail_names() -> list[str]:
-        return ["degraded_mode", *STATUS_FLAGS, "oil_innovation_c", "model_oil_temp_c"]
+    def _tail_names(self) -> list[str]:
+        return ["degraded", *_TAIL_KEYS, *(f"rejects_{r}" for r in self._reject_names)]
 
-    def _record(self, t_step, values, ref, T, lev, ttl, status) -> None:
+    def _record(self, t_step, values, ref, T, lev, ttl, status, rejects=None) -> None:
         nan = math.nan
         pct = self._fresh("engine_torque_pct", t_step)
         head = (t_step - self._first_t + self._time_offset, t_step,
                 *[nan if values.get(n) is None else values[n] for n in INPUT_COLUMNS[:8]],
                 nan if pct is None else pct, nan if ref is None else ref)
-        tail = tuple(nan if status[k] is None else float(status[k]) for k in _TAIL_KEYS)
+        mode = status["degraded_mode"]
+        tail = (nan if mode is None else float(mode != 0),
+                *(nan if status[k] is None else float(status[k]) for k in _TAIL_KEYS))
         meas = None
         if self._meas_seen.any():
             meas = np.where(t_step - self._meas_t <= self._max_age["RIG"], self._meas_v, nan)
+        if self._reject_names:
+            n_r = len(self._reject_names)
+            tail += tuple(np.asarray(rejects, dtype=float).reshape(-1)[:n_r]) if rejects is not None \
+                else (0.0,) * n_r
         self._rows.append((head, np.array(T, dtype=float), np.array(lev, dtype=float),
                            np.array(ttl, dtype=float), tail, meas))
 

@@ -68,15 +68,19 @@ def open_bus(interface: str, channel: str, bitrate: int | None = None, can_filte
         raise InputError(f"cannot open CAN channel {channel!r} on interface {interface!r}: {exc}") from None
 
 
-def build_service(config_path, *, record: bool = False, emit_frames: bool = True, **overrides):
-    """Config -> (sensor, SensorService); shared by run, replay of logs and the HIL tests."""
+def build_service(config_path, *, record: bool = False, emit_frames: bool = True, sensor_options=None,
+                  **overrides):
+    """Config -> SensorService with the onboard VirtualSensor; shared by run, log replay and the tests.
+
+    ``sensor_options``: VirtualSensor options (oil_mode, initial_temp_c ...); ``overrides``: ServiceOptions fields.
+    """
     from firmware_model.can_service import SensorService, ServiceOptions
     from firmware_model.config import load_config
     from firmware_model.sensor import VirtualSensor
     cfg = load_config(config_path)
     params = cfg.load_params()
-    sensor = VirtualSensor(params, config=cfg)
-    options = ServiceOptions.from_config(cfg, rig=True, **overrides)
+    sensor = VirtualSensor(params, config=cfg, **(sensor_options or {}))
+    options = ServiceOptions.from_config(cfg, **overrides)
     return SensorService(sensor, options, record=record, emit_frames=emit_frames)
 
 

@@ -70,7 +70,7 @@ def run(args) -> int:
     out = write_run_table(res.table, args.out)
     if args.can_log:
         from tools.logsynth import write_can_log
-        write_can_log(table, res.table, args.can_log, params)
+        write_can_log(table, res.table, args.can_log, params, config=cfg)
     if args.plot:
         from tools.plots import plot_heat_budget, plot_temperatures
         title = f"{params.variant} reference plant, cycle {args.cycle}" + (f", effects {args.effect}" if effects else "")

@@ -184,7 +184,12 @@ def run_log(args) -> int:
     path = args.log if hasattr(args, "log") else args.input
     if not getattr(args, "out", None):
         raise InputError("--out EST.csv is required to replay a log offline (or use --realtime)")
-    service = build_service(getattr(args, "config", None), record=True,
+    sensor_options = {}
+    if getattr(args, "oil_mode", None):
+        sensor_options["oil_mode"] = args.oil_mode
+    if getattr(args, "initial_temp", None) is not None:
+        sensor_options["initial_temp_c"] = args.initial_temp
+    service = build_service(getattr(args, "config", None), record=True, sensor_options=sensor_options,
                             emit_frames=bool(getattr(args, "frames_out", None)))
     writer = None
     on_frames = None
@@ -203,9 +208,14 @@ def run_log(args) -> int:
         if writer is not None:
             writer.stop()
     out = write_run_table(table, args.out)
+    if getattr(args, "plot", None):
+        from tools.cmd_replay import plot_replay
+        plot_replay(table, args.plot, f"onboard sensor, replay of {Path(path).name}")
     d = service.decoder.counters
     rejected = ", ".join(f"{k} {v}" for k, v in sorted(d["rejected"].items())) or "none"
     if not getattr(args, "quiet", False):
         print(f"replayed {d['frames_seen']} frames ({d['frames_used']} used; rejected: {rejected}) -> "
               f"{table.n} steps of {table['time_s'][-1]:.1f} s -> {out}")
+        if service.counters["time_jumps"]:
+            print(f"note: {service.counters['time_jumps']} time jumps in the log (see the log messages)")
     return 0

@@ -2,6 +2,7 @@
 sensor is not importable. Deterministic, cheap, and it reacts to every input so that wrong inputs show."""
 from __future__ import annotations
 
+import functools
 import math
 from typing import NamedTuple
 
@@ -72,8 +73,10 @@ def real_sensor_available() -> bool:
     return True
 
 
+@functools.cache
 def make_sensor():
-    """The real VirtualSensor with the default parameters when it exists, else this stand-in."""
+    """The real VirtualSensor with the default parameters when it exists, else this stand-in. Shared: the sensor
+    keeps no state of its own (its step is pure), so one instance serves every test."""
     if real_sensor_available():
         from firmware_model.config import load_config
         from firmware_model.sensor import VirtualSensor as Real

@@ -1,0 +1,113 @@
+"""Replay of CAN logs (.log, .asc, .blf, .mf4) through the sensor service into a sensor output run table."""
+from __future__ import annotations
+
+import sys
+
+import numpy as np
+import pytest
+
+from firmware_model.can_service import SensorService, ServiceOptions
+from firmware_model.components import PUBLISHED
+from firmware_model.errors import InputError
+from tools.logsynth import synth_frames, write_frames
+from tools.replay_log import is_can_log, read_log, replay_log
+from tools.runtable import RunTable, read_run_table, write_run_table
+
+from ..firmware_model.sensor_standin import make_sensor
+
+
+def cycle(seconds=20.0):
+    t = np.arange(0.0, seconds, 0.1)
+    n = t.size
+    return RunTable({"time_s": t, "engine_speed_rpm": 1000.0 + 500.0 * np.sin(t / 3.0),
+                     "engine_torque_nm": 800.0 + 600.0 * np.cos(t / 4.0), "gear": np.where(t < 10, 7, 8),
+                     "ambient_temp_c": np.full(n, 20.0), "coolant_temp_c": np.full(n, 85.0),
+                     "vehicle_speed_kmh": np.full(n, 50.0)})
+
+
+def plant(inputs):
+    t = np.arange(0.0, inputs["time_s"][-1] + 0.5, 1.0)
+    cols = {"time_s": t, "oil_temp_c": 60.0 + 0.2 * t}
+    for i, c in enumerate(PUBLISHED):
+        cols[f"T_{c}_c"] = 61.0 + i + 0.3 * t
+    return RunTable(cols)
+
+
+@pytest.fixture(scope="module")
+def frames():
+    inp = cycle()
+    return inp, synth_frames(inp, plant(inp))[0]
+
+
+def replay(path):
+    return replay_log(path, SensorService(make_sensor(), ServiceOptions(configured_ref_torque_nm=None), record=True))
+
+
+def test_replay_table_has_the_contract_columns_and_the_decoded_inputs(tmp_path, frames):
+    inp, fr = frames
+    table = replay(write_frames(fr, tmp_path / "drive.log"))
+    for col in ("time_s", "engine_speed_rpm", "engine_torque_nm", "gear", "oil_temp_c", "ambient_temp_c",
+                "coolant_temp_c", "vehicle_speed_kmh", "retarder_torque_nm"):
+        assert table.has(col), col
+    for c in PUBLISHED:
+        for col in (f"T_{c}_c", f"W_{c}", f"ttl_{c}_s", f"meas_T_{c}_c"):
+            assert table.has(col), col
+    assert np.allclose(np.diff(table["time_s"]), 0.1) and table.n == 198
+    # at step k (time 0.1 k) the sensor had the cycle's sample k - 1 (values change half-way between steps)
+    t = table["time_s"]
+    k = np.round(t / 0.1).astype(int) - 1
+    assert np.abs(table["engine_speed_rpm"] - inp["engine_speed_rpm"][k]).max() <= 0.0625
+    assert np.array_equal(table["gear"], inp["gear"][k])
+    ok = t > 0.36  # EC1 completes at 0.35 s
+    want = np.clip(np.rint(inp["engine_torque_nm"][k] / 3000.0 * 100.0), -125, 125) * 30.0
+    assert np.allclose(table["engine_torque_nm"][ok], want[ok]) and np.isnan(table["engine_torque_nm"][~ok]).all()
+    assert np.isnan(table["retarder_torque_nm"]).all()  # no ERC1 in this cycle
+    assert np.allclose(table["meas_T_PS_c"], 61.0 + PUBLISHED.index("PS") + 0.3 * (t - 0.025 - 0.05),
+                       atol=1 / 64 + 1e-6)
+    assert table.meta["counters"]["decoder"]["frames_seen"] == len(fr)
+    out = write_run_table(table, tmp_path / "est.csv")
+    back = read_run_table(out, required=("time_s",))
+    assert back.n == table.n and back.has("W_PS")
+
+
+@pytest.mark.parametrize("suffix", [".asc", ".blf", ".mf4"])
+def test_every_log_format_gives_the_same_table(tmp_path, frames, suffix):
+    if suffix == ".mf4":
+        pytest.importorskip("asammdf", reason="the optional package asammdf (pip install .[mf4]) is not installed")
+        import can
+        with can.Logger(tmp_path / "drive.mf4") as w:
+            for m in fr_messages(frames[1]):
+                w.on_message_received(m)
+        path = tmp_path / "drive.mf4"
+    else:
+        path = write_frames(frames[1], tmp_path / f"drive{suffix}")
+    ref = replay(write_frames(frames[1], tmp_path / "drive.log"))
+    table = replay(path)
+    assert table.n == ref.n
+    for col in ref.columns:
+        if col == "can_time_s":
+            continue
+        assert np.array_equal(table[col], ref[col], equal_nan=True), col
+
+
+def fr_messages(fr):
+    return fr.messages(channel=0)
+
+
+def test_errors_name_the_file_and_the_rule(tmp_path, monkeypatch):
+    with pytest.raises(InputError, match="does not exist"):
+        list(read_log(tmp_path / "missing.log"))
+    (tmp_path / "x.txt").write_text("hello")
+    with pytest.raises(InputError, match="unknown log suffix '.txt'"):
+        list(read_log(tmp_path / "x.txt"))
+    (tmp_path / "bad.log").write_text("(0.0) can0 18FEF100#00\nthis is not candump\n")
+    with pytest.raises(InputError, match="bad.log: frame 2 cannot be read"):
+        list(read_log(tmp_path / "bad.log"))
+    (tmp_path / "other.log").write_text("(0.000000) can0 18FECA00#0000000000000000\n(0.5) can0 123#00\n")
+    with pytest.raises(InputError, match="no sensor step"):
+        replay(tmp_path / "other.log")
+    (tmp_path / "x.mf4").write_bytes(b"\0" * 64)
+    monkeypatch.setitem(sys.modules, "asammdf", None)
+    with pytest.raises(InputError, match=r"needs the optional package asammdf.*gearbox-vsensor\[mf4\]"):
+        list(read_log(tmp_path / "x.mf4"))
+    assert is_can_log("a.LOG") and is_can_log("b.blf") and not is_can_log("c.csv")
