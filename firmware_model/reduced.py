@@ -464,7 +464,13 @@ def build_reduced(p: Parameters, partition: str | dict = "fine", effects: dict |
         elif kind == K_EXT_CONV:
             pw.append((r, 0.0, np.full(N_GEARS, net.link_G0[k] * p["housing.h_air"]), -1, 3))
         elif kind == K_EXT_RAD:
-            rad.append((r, net.link_G0[k] * p["housing.emissivity"]))
+            # housings merged into one node: their radiation areas add (same boundary, same law)
+            for i, (rr, a) in enumerate(rad):
+                if rr == r:
+                    rad[i] = (rr, a + net.link_G0[k] * p["housing.emissivity"])
+                    break
+            else:
+                rad.append((r, net.link_G0[k] * p["housing.emissivity"]))
         else:
             s = src_of_link[k]
             tab = tables[s][:, :, k]                     # (N_U, nT)
@@ -759,6 +765,17 @@ class Helpers:
         self.pw_has_col = rp.pw_col >= 0
         self.C = np.array(rp.C_j_per_k, dtype=float)
         self.inv_C = 1.0 / self.C
+        # links to the sump and their other end (a measured sump is a boundary of the held-input system)
+        self.oil_links = np.flatnonzero((self.ia == rp.i_oil) | (self.ib == rp.i_oil))
+        self.oil_other = np.where(self.ia[self.oil_links] == rp.i_oil, self.ib[self.oil_links],
+                                  self.ia[self.oil_links])
+        # published components among the free nodes of the held-input system (sump measured / modelled)
+        free_meas = np.flatnonzero(np.arange(n) != rp.i_oil)
+        pub = np.asarray(rp.published_index)
+        self.pub_free_meas = pub != rp.i_oil
+        self.pub_rows_meas = np.searchsorted(free_meas, pub[self.pub_free_meas])
+        self.pub_free_all = np.ones(pub.size, dtype=bool)
+        self.pub_rows_all = pub.copy()
 
 
 _HELPERS: dict = {}
@@ -840,6 +857,31 @@ def conductances(rp: ReducedParams, row, w_in, x_T, prop, phi, T_nodes_c, T_bc_c
         G[..., rp.rad_link] = radiation_conductances(rp, T_nodes_c, T_bc_c, h)
     G_streams = np.concatenate([G2[..., h.t2_streams], Ge], axis=-1)
     return G, G_streams
+
+
+def explicit_step(T, q_w, G_int, G_ext, T_bc_c, ia, ib, ea, eb, dt_over_C, B_int=None, B_ext=None):
+    """One forward-Euler step of C dT/dt = sum_links G (T_other - T) + q on any graph (pure array math).
+
+    T (..., n); q_w (..., n) heat into each node; G_int (..., n_int) conductances of the node-node links (ia, ib);
+    G_ext (..., n_ext) of the node-boundary links (ea, eb into T_bc_c (..., nb)); dt_over_C (n,). B_int / B_ext:
+    the links' incidence matrices (Helpers) to scatter with one matrix product instead of index sums."""
+    n = T.shape[-1]
+    f_int = G_int * (T[..., ia] - T[..., ib])                       # heat from a to b
+    f_ext = G_ext * (T[..., ea] - T_bc_c[..., eb])
+    if B_int is not None:
+        rate = q_w + f_int @ B_int + f_ext @ B_ext
+    else:
+        rate = q_w - _scatter(f_int, ia, n) + _scatter(f_int, ib, n) - _scatter(f_ext, ea, n)
+    return T + dt_over_C * rate
+
+
+def _scatter(f, idx, n):
+    """out[..., j] = sum of f[..., k] over idx[k] == j."""
+    out = np.zeros(f.shape[:-1] + (n,))
+    if f.size:
+        flat = out.reshape(-1, n)
+        np.add.at(flat, (slice(None), idx), f.reshape(-1, f.shape[-1]))
+    return out
 
 
 def radiation_conductances(rp: ReducedParams, T_nodes_c, T_bc_c, h: Helpers | None = None):

@@ -127,8 +127,6 @@ class SensorOptions:
     default_vehicle_speed_kmh: float = 50.0
     ttl_period_s: float = 1.0            # time to limit refreshed this often (0: every step)
     time_jump_hold_s: float = 60.0       # forward jumps: held inputs this long, then engine off
-    ttl_speed_bin_rpm: float = 50.0      # operating-point quantisation of the cached held-input modes
-    ttl_oil_bin_c: float = 2.0
     initial_temp_c: float | None = None  # cold start without oil: default = ambient boundary
 
 
@@ -142,6 +140,8 @@ class SensorParams:
     solver: HeldInputSolver = field(compare=False, repr=False, default=None)
     #: memo of the quantised conductances (a bounded cache of a pure function)
     gcache: dict = field(compare=False, repr=False, default_factory=dict)
+    svmemo: dict = field(compare=False, repr=False, default_factory=dict)
+    kcache: dict = field(compare=False, repr=False, default_factory=dict)
 
     @property
     def dt_s(self) -> float:
@@ -167,6 +167,9 @@ class SensorParams:
         d(self, "thermostat_offset", np.asarray(eff.thermostat_offset_c)[..., None]
           if np.ndim(eff.thermostat_offset_c) else float(eff.thermostat_offset_c))
         d(self, "ttl_every", max(int(round(opt.ttl_period_s / dt)), 1))
+        d(self, "scalar_effects", all(np.ndim(v) == 0 for v in (
+            eff.teeth_oil_h, eff.planet_oil_h, eff.housing_air_h, eff.cooler_scale, eff.thermostat_offset_c,
+            eff.hot_offset_c, eff.retarder_frac, eff.churn_scale, eff.needle_scale)) and np.ndim(eff.src_scale) <= 1)
 
 
 # ---------------------------------------------------------------------------------------------------------------
@@ -220,7 +223,17 @@ def _conductances_q(sp: SensorParams, row, w_in, T_oil, h):
 
 
 def step(state: SensorState, inputs: SensorInputs, sp: SensorParams):
-    """One 0.1 s step. Pure: returns the new state and the outputs; the input state is not modified."""
+    """One 0.1 s step. Pure: returns the new state and the outputs; the input state is not modified.
+
+    One vehicle (scalar state) runs :func:`step_scalar`, the same arithmetic written for scalars (what an ECU would
+    run); a batch runs :func:`step_vector`. Tests hold the two equal."""
+    if state.t_last_s.ndim == 0 and sp.scalar_effects:
+        return step_scalar(state, inputs, sp)
+    return step_vector(state, inputs, sp)
+
+
+def step_vector(state: SensorState, inputs: SensorInputs, sp: SensorParams):
+    """:func:`step` vectorised over any batch shape (numpy)."""
     rp, opt, lim, eff = sp.reduced, sp.options, sp.limits, sp.effects
     h = R.helpers(rp)
     dt = rp.dt_s
@@ -324,10 +337,8 @@ def step(state: SensorState, inputs: SensorInputs, sp: SensorParams):
     q2[..., rp.i_oil] -= Q_cool
 
     # ---- one explicit (forward Euler) step of both copies
-    Gi = G[..., None, h.int_idx]
-    Ge = G[..., None, h.ext_idx]
-    rate = (Gi * (T[..., h.ia] - T[..., h.ib])) @ h.B_int + (Ge * (T[..., h.ea] - T_bc[..., None, h.eb])) @ h.B_ext
-    T_new = T + sp.dt_inv_C * (rate + q2)
+    T_new = R.explicit_step(T, q2, G[..., None, h.int_idx], G[..., None, h.ext_idx], T_bc[..., None, :], h.ia, h.ib,
+                            h.ea, h.eb, sp.dt_inv_C, h.B_int, h.B_ext)
     T_new[..., MAIN, rp.i_oil] = np.where(measured, oil, T_new[..., MAIN, rp.i_oil])
 
     # ---- outputs, warnings, time to limit
@@ -358,6 +369,367 @@ def step(state: SensorState, inputs: SensorInputs, sp: SensorParams):
 
 
 _BITS = (1 << np.arange(8)).astype(np.int64)
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# the single-vehicle step in scalar arithmetic
+
+
+class _ScalarTables:
+    """Python-list views of a ReducedParams for scalar arithmetic (derived once per parameter set)."""
+
+    def __init__(self, sp: SensorParams):
+        rp = sp.reduced
+        eff = sp.effects
+        src_scale = np.broadcast_to(np.asarray(eff.src_scale, dtype=float), (R.N_SRC,))
+        self.src_scale = src_scale.tolist()
+        n_m = len(R.MESHES)
+        self.mesh_phi = rp.mesh_phi.tolist()
+        self.nx = rp.mesh_phi.shape[1]
+        self.rows = []
+        for row in range(rp.speed_coef.shape[0]):
+            meshes = [(m, float(rp.mesh_torque[row, m]), float(rp.mesh_omega2[row, m]), float(rp.mesh_x0[m]),
+                       float(rp.mesh_roll_k[m]), float(rp.mesh_heat_sf[m]) * self.src_scale[m])
+                      for m in range(n_m) if rp.mesh_torque[row, m] > 0 and rp.mesh_omega2[row, m] > 0]
+            bears = [(j, float(rp.bear_speed[row, j]), float(rp.bear_c[j]), float(rp.bear_load[row, j]))
+                     for j in range(rp.bear_speed.shape[1])]
+            needles = [(float(rp.needle_rel[row, j]), float(rp.needle_c[j])) for j in range(rp.needle_rel.shape[1])
+                       if rp.needle_rel[row, j] > 0]
+            self.rows.append((meshes, bears, needles, float(rp.sync_coef[row]), float(rp.pump_coef[row]),
+                              abs(float(rp.speed_coef[row, 1])), abs(float(rp.speed_coef[row, 3]))))
+        self.prop = rp.prop.tolist()
+        self.nT = rp.prop.shape[0]
+        self.T0 = float(R.T_GRID_C[0])
+        self.dT = float(R.T_GRID_C[1] - R.T_GRID_C[0])
+        self.Tmax = float(R.T_GRID_C[-1])
+        self.churn = rp.churn_table.tolist()
+        self.churn_w_max = rp.churn_w_max
+        self.churn_sf = rp.churn_heat_sf * float(eff.churn_scale)
+        self.needle_scale = float(eff.needle_scale)
+        self.bear_scale = self.src_scale[R.I_SRC_BEARING:R.I_SRC_OIL]
+        self.oil_scale = self.src_scale[R.I_SRC_OIL]
+        self.ret_scale = self.src_scale[R.I_SRC_RET]
+        self.retarder_frac = float(eff.retarder_frac)
+        self.cooler_scale = float(eff.cooler_scale)
+        self.thermostat_offset = float(eff.thermostat_offset_c)
+        self.bc = np.asarray(sp.bc, dtype=float)
+        self.aux_default = sp.aux_default.tolist()
+        self.warn_minus_hyst = np.asarray(sp.limits.warning_c - sp.limits.hysteresis_k)
+        self.zero_levels = np.zeros(N_PUB, dtype=np.int8)
+        self.zero_pending = np.zeros(N_PUB)
+        h = R.helpers(rp)
+        self.bc_list = np.asarray(sp.bc, dtype=float).tolist()
+        self.rad = [(int(nd), int(bi), float(ae), self.bc_list[int(bi)] + 273.15)
+                    for nd, bi, ae in zip(h.rad_node, h.rad_bc, rp.rad_area_eps)]
+        self.rad_node = np.asarray(h.rad_node)
+        self.rad_bc_c = np.asarray(sp.bc, dtype=float)[h.rad_bc]
+        self.rad_scatter = np.zeros((len(self.rad), rp.n))
+        self.rad_scatter[np.arange(len(self.rad)), h.rad_node] = 1.0
+
+
+_SCALAR_TABLES: dict = {}
+
+
+def _scalar_tables(sp: SensorParams) -> _ScalarTables:
+    item = _SCALAR_TABLES.get(id(sp))
+    if item is None or item[0] is not sp:
+        item = (sp, _ScalarTables(sp))
+        _SCALAR_TABLES[id(sp)] = item
+        if len(_SCALAR_TABLES) > 32:
+            _SCALAR_TABLES.pop(next(iter(_SCALAR_TABLES)))
+    return item[1]
+
+
+_LN10 = math.log(10.0)
+_RPM_TO_NU_N = 30.0 / math.pi
+_NU_N_MIN = R.L.PALMGREN_NU_N_MIN
+
+
+def _heat_scalar(tb: _ScalarTables, row: int, w: float, Tq: float, pr: list, xT: float, ret_w: float) -> list:
+    """heat_sources() for one vehicle, written for scalars (only the loaded meshes are evaluated)."""
+    meshes, bears, needles, sync_c, pump_c, ls_c, _ = tb.rows[row]
+    src = [0.0] * R.N_SRC
+    log10mu = pr[R.P_LOG10_MU]
+    ln_roll = pr[R.P_LN_ROLL]
+    nx1 = tb.nx - 1.000001
+    for m, tc, wc, x0, kroll, sf in meshes:
+        T1 = tc * Tq
+        w2 = wc * w
+        if T1 <= 0.0 or w2 <= 0.0:
+            continue
+        lT = math.log10(T1)
+        lw = math.log10(w2)
+        x = (lT - log10mu - 3.0 * lw - x0) / R.X_STEP
+        x = 0.0 if x < 0.0 else (nx1 if x > nx1 else x)
+        ix = int(x)
+        fx = x - ix
+        tab = tb.mesh_phi[m]
+        phi = tab[ix] * (1.0 - fx) + tab[ix + 1] * fx
+        src[m] = T1 * w2 * (phi + kroll * math.exp(ln_roll + _LN10 * (0.7 * lw - 1.13 * lT))) * sf
+    nu = math.exp(pr[R.P_LN_NU_CST])
+    for (j, bs, bc, bl), scale in zip(bears, tb.bear_scale):
+        wb = bs * w
+        nn = nu * wb * _RPM_TO_NU_N
+        src[R.I_SRC_BEARING + j] = (bc * (nn if nn > _NU_N_MIN else _NU_N_MIN) ** (2.0 / 3.0) + bl * Tq) * wb * scale
+    P_needle = 0.0
+    for rel_c, c in needles:
+        rel = rel_c * w
+        nn = nu * rel * _RPM_TO_NU_N
+        P_needle += c * (nn if nn > _NU_N_MIN else _NU_N_MIN) ** (2.0 / 3.0) * rel
+    w2in = w * w
+    P_sync = math.exp(pr[R.P_LN_MU]) * w2in * sync_c
+    P_pump = pump_c * w2in
+    w_ls = ls_c * w
+    r = w_ls / tb.churn_w_max
+    uu = math.sqrt(r if r < 1.0 else 1.0) * (R.N_U_CHURN - 1)
+    iu = min(int(uu), R.N_U_CHURN - 2)
+    fu = uu - iu
+    jT = min(int(xT), tb.nT - 2)
+    fT = xT - jT
+    c0, c1 = tb.churn[iu], tb.churn[iu + 1]
+    lo = c0[jT] * (1.0 - fT) + c0[jT + 1] * fT
+    hi = c1[jT] * (1.0 - fT) + c1[jT + 1] * fT
+    P_churn = lo + (hi - lo) * fu
+    src[R.I_SRC_OIL] = (P_churn * tb.churn_sf + P_needle * tb.needle_scale + P_sync + P_pump) * tb.oil_scale
+    src[R.I_SRC_RET] = ret_w * tb.ret_scale
+    return src
+
+
+def _cooler_scalar(rp: R.ReducedParams, tb, T_oil, w_ls, w_eng, T_cool, T_amb, v_kmh, rho_cp):
+    """cooler_heat() for one sump temperature, in scalars: (Q [W], mdot cp [W/K])."""
+    mcp = rho_cp * rp.flow_m3_per_rad * w_ls
+    if rp.cooler_code == 0 or mcp <= 0.0:
+        return 0.0, mcp
+    c = rp.cooler
+    inner = (w_ls / c["ref_ls_speed"]) ** c["exp_inner"]
+    if rp.cooler_code == 1:
+        outer = ((w_eng if w_eng > 0 else 0.0) / c["ref_engine_speed"]) ** c["exp_outer"]
+        hA = c["liquid_hA_ref"] * inner * outer * tb.cooler_scale
+        Q = hA * (T_oil - T_cool)
+        return min(max(Q, -c["liquid_Qmax_heat"]), c["liquid_Qmax_cool"]), mcp
+    Q = float(R.cooler_heat(rp, T_oil, w_ls, w_eng, T_cool, T_amb, v_kmh, rho_cp, tb.cooler_scale,
+                            tb.thermostat_offset)[0])
+    return Q, mcp
+
+
+def step_scalar(state: SensorState, inputs: SensorInputs, sp: SensorParams):
+    """:func:`step` for one vehicle: the same arithmetic as :func:`step_vector` in Python scalars where the data are
+    scalar, numpy only for the network vectors."""
+    rp, opt, lim = sp.reduced, sp.options, sp.limits
+    tb = _scalar_tables(sp)
+    h = R.helpers(rp)
+    dt = rp.dt_s
+    raw = [float(v) for v in inputs[:8]]
+    t_now = float(inputs.t_s)
+    counts = [0] * NR
+    t_last = float(state.t_last_s)
+    if t_now == t_now and t_last == t_last:
+        gap = t_now - t_last
+        if gap < 0.5 * dt:
+            counts[RJ["time_backward"]] += 1
+            return _skip(state, np.array(counts, dtype=np.int64), np.bool_(True), sp)
+        if gap > 1.5 * dt:
+            counts[RJ["time_jump"]] += 1
+            state = _jump(state, np.float64(gap - dt), sp)
+    hold = state.hold.tolist()
+    age_prev = state.age_s.tolist()
+    same_prev = state.same_s.tolist()
+    raw_prev = state.raw_prev.tolist()
+    fin = [v - v == 0.0 for v in raw]                         # finite (NaN and inf give False)
+    ok = list(fin)
+    spd, tq, gr, oil = raw[I_SPEED], raw[I_TORQUE], raw[I_GEAR], raw[I_OIL]
+    if not fin[I_SPEED]:
+        counts[RJ["speed_missing"]] += 1
+    if not fin[I_TORQUE]:
+        counts[RJ["torque_missing"]] += 1
+    if not fin[I_GEAR]:
+        counts[RJ["gear_missing"]] += 1
+    spd_c = min(max(spd, 0.0), rp.max_speed_rpm) if fin[I_SPEED] else spd
+    tq_c = min(max(tq, rp.min_torque_nm), rp.max_torque_nm) if fin[I_TORQUE] else tq
+    if fin[I_SPEED] and spd_c != spd:
+        counts[RJ["speed_clamped"]] += 1
+    if fin[I_TORQUE] and tq_c != tq:
+        counts[RJ["torque_clamped"]] += 1
+    gear_ok = fin[I_GEAR] and gr == round(gr) and GEAR_MIN <= gr <= GEAR_MAX
+    if fin[I_GEAR] and not gear_ok:
+        counts[RJ["gear_unknown"]] += 1
+    ok[I_GEAR] = gear_ok
+    oil_ok = fin[I_OIL] and opt.oil_range_c[0] <= oil <= opt.oil_range_c[1]
+    jumpy = oil_ok and age_prev[I_OIL] <= 1.0 and abs(oil - hold[I_OIL]) > opt.oil_step_c
+    same = [same_prev[i] + dt if (fin[i] and raw[i] == raw_prev[i]) else 0.0 for i in range(8)]
+    T = np.array(state.T_c, dtype=float)
+    twin_oil = float(T[TWIN, rp.i_oil])
+    oil_ref = float(state.oil_ref_c) if same[I_OIL] > 0 else twin_oil
+    oil_frozen = oil_ok and same[I_OIL] >= opt.oil_frozen_s and abs(twin_oil - oil_ref) >= opt.oil_frozen_drift_c
+    if not fin[I_OIL]:
+        counts[RJ["oil_missing"]] += 1
+    if (fin[I_OIL] and not oil_ok) or jumpy:
+        counts[RJ["oil_implausible"]] += 1
+    if oil_frozen:
+        counts[RJ["oil_frozen"]] += 1
+    oil_ok = oil_ok and not jumpy and not oil_frozen
+    ok[I_OIL] = oil_ok
+    drive_frozen = same[I_SPEED] >= opt.drive_frozen_s and same[I_TORQUE] >= opt.drive_frozen_s and spd_c > 0
+    if drive_frozen:
+        counts[RJ["drive_frozen"]] += 1
+    lo_a, hi_a = opt.aux_range_c
+    for i in (I_AMB, I_COOL):
+        ok[i] = fin[i] and lo_a <= raw[i] <= hi_a
+    ok[I_VKMH] = fin[I_VKMH] and 0.0 <= raw[I_VKMH] <= opt.max_vehicle_speed_kmh
+    counts[RJ["aux_missing"]] += sum(1 for i in range(I_AMB, 8) if not ok[i])
+    fixed = list(raw)
+    fixed[I_SPEED] = spd_c
+    fixed[I_TORQUE] = tq_c
+    fixed[I_RET] = abs(raw[I_RET])
+    used = [fixed[i] if ok[i] else hold[i] for i in range(8)]
+    for i in range(I_AMB, 8):
+        used[i] = fixed[i] if ok[i] else tb.aux_default[i - I_AMB]
+    age = [0.0 if ok[i] else age_prev[i] + dt for i in range(8)]
+    drive_ok = ok[I_SPEED] and ok[I_TORQUE] and ok[I_GEAR]
+    drive_age = max(age[I_SPEED], age[I_TORQUE], age[I_GEAR])
+    measured = oil_ok and opt.oil_mode == "measured"
+
+    # ---- operating point
+    w_in = used[I_SPEED] * R.RPM
+    Tq = abs(used[I_TORQUE])
+    row = int(used[I_GEAR]) - GEAR_MIN
+    T_main_oil = oil if measured else float(T[MAIN, rp.i_oil])
+    T[MAIN, rp.i_oil] = T_main_oil
+    xT = (min(max(T_main_oil, tb.T0), tb.Tmax) - tb.T0) / tb.dT
+    i = min(int(xT), tb.nT - 2)
+    f = xT - i
+    p0, p1 = tb.prop[i], tb.prop[i + 1]
+    pr = [a * (1.0 - f) + b * f for a, b in zip(p0, p1)]
+    T_bc = tb.bc.copy()
+    T_bc[rp.i_ambient] = used[I_AMB]
+    T_bc[rp.i_coolant] = used[I_COOL]
+
+    # ---- heat through the lag
+    _, _, _, _, _, ls_c, os_c = tb.rows[row]
+    ret_w = tb.retarder_frac * used[I_RET] * os_c * w_in
+    src = np.array(_heat_scalar(tb, row, w_in, Tq, pr, xT, ret_w))
+    lag0 = state.lag_w
+    lag = lag0 + (src - lag0) * sp.a_lag
+    q = (src - sp.lag_ratio * (lag - lag0)) @ rp.src_matrix
+
+    # ---- conductances (cached per quantised operating point), cooler, inlet drop
+    it = _key_item(sp, row, w_in, T_main_oil, h)
+    w_ls = ls_c * w_in
+    rho_cp = pr[R.P_RHO] * pr[R.P_CP]
+    Qc = [0.0, 0.0]
+    dTin = [0.0, 0.0]
+    for c in (MAIN, TWIN):
+        Q, mcp = _cooler_scalar(rp, tb, float(T[c, rp.i_oil]), w_ls, w_in, used[I_COOL], used[I_AMB],
+                                used[I_VKMH], rho_cp)
+        d = Q / mcp if mcp > 0 else 0.0
+        Qc[c], dTin[c] = Q, (-30.0 if d < -30.0 else (30.0 if d > 30.0 else d))
+    q2 = q + np.outer(dTin, it.sv)
+    q2[:, rp.i_oil] -= Qc
+    # radiation (Eq 81, linearised at the main copy's housing temperatures)
+    Th = T[MAIN, tb.rad_node].tolist()
+    g_rad = []
+    for (nd, bi, ae, T2), T1 in zip(tb.rad, Th):
+        T1 = (R.RAD_T_RANGE_C[0] if T1 < R.RAD_T_RANGE_C[0] else (R.RAD_T_RANGE_C[1] if T1 > R.RAD_T_RANGE_C[1]
+                                                                   else T1)) + 273.15
+        g_rad.append(ae * _SIGMA * (T1 * T1 + T2 * T2) * (T1 + T2))
+    q2 += (np.array(g_rad) * (tb.rad_bc_c - T[:, tb.rad_node])) @ tb.rad_scatter
+
+    # ---- one explicit step of both copies: T_new = T M + dt/C (c + sources), M = I - dt C^-1 K (per bin)
+    T_new = T @ it.M + (it.c_dt + sp.dt_inv_C * q2)
+    if measured:
+        T_new[MAIN, rp.i_oil] = oil
+    G = None
+
+    # ---- outputs, warnings, time to limit
+    T_pub = T_new[MAIN, rp.published_index]
+    available = drive_age <= opt.hold_s
+    lv0 = state.level
+    if available and not lv0.any() and not state.pending_s.any() and (T_pub < tb.warn_minus_hyst).all():
+        level, pend = tb.zero_levels, tb.zero_pending           # nothing near a limit: the state machine rests
+    else:
+        level, pend = update_levels(lv0, state.pending_s, T_pub, available, lim, dt)
+    ttl = state.ttl_s
+    if int(state.k) % sp.ttl_every == 0:
+        G = it.G.copy()
+        G[rp.rad_link] = g_rad
+        ttl = _time_to_limit(sp, T_new[MAIN], src, G, it.Gs, dTin[MAIN], Qc[MAIN], measured, row, w_in, T_main_oil,
+                             T_bc, np.array(used), rho_cp)
+    if level.any() or (T_pub >= lim.warning_c).any():
+        ttl_out = np.where(level == LEVEL_NA, np.nan, np.where(T_pub >= lim.warning_c, 0.0, ttl))
+    else:
+        ttl_out = ttl
+    mode = MODE_HOLDING if not drive_ok else (MODE_NORMAL if measured else MODE_OIL_MODEL)
+    twin_new = float(T_new[TWIN, rp.i_oil])
+    flags = sum(1 << i for i in range(8) if ok[i])
+    frozen_bits = (((1 << I_SPEED) | (1 << I_TORQUE)) if drive_frozen else 0) | ((1 << I_OIL) if oil_frozen else 0)
+    rejects = state.rejects + np.array(counts, dtype=np.int64) if any(counts) else state.rejects
+    status = SensorStatus(np.int8(mode), ok[I_SPEED], ok[I_TORQUE], ok[I_GEAR], oil_ok, flags, twin_new,
+                          oil - twin_new if oil_ok else math.nan, np.int8(0 if measured else 1), frozen_bits,
+                          rejects)
+    new_hold = np.array([used[i] if ok[i] else hold[i] for i in range(8)])
+    new_state = SensorState(T_new, lag, new_hold, np.array(age), np.array(same), np.array(raw), np.float64(oil_ref),
+                            level, pend, ttl, np.float64(t_now if t_now == t_now else t_last), state.k + 1, rejects)
+    return new_state, SensorOutputs(T_pub, level, ttl_out, status)
+
+
+_SIGMA = R.ht.SIGMA_W_PER_M2K4
+
+
+class _KeyItem(NamedTuple):
+    G: np.ndarray        # (nl,) conductances at the bin centre, radiation links 0
+    Gs: np.ndarray       # (nst,) stream conductances
+    sv: np.ndarray       # (n,) Gs @ stream_scatter: the inlet-drop transfer per kelvin
+    M: np.ndarray        # (n, n) Euler matrix I - dt C^-1 K (radiation excluded)
+    c_dt: np.ndarray     # (n,) dt/C x boundary heat of the non-radiation boundary links
+    K: np.ndarray        # (n, n) the network's conductance matrix (radiation excluded)
+    key: tuple           # (gear row, speed bin, oil bin centre)
+
+
+def _key_item(sp: SensorParams, row: int, w_in: float, T_oil: float, h) -> _KeyItem:
+    """Everything that depends only on the quantised operating point, cached (a bounded memo of a pure function)."""
+    if w_in >= SPEED_BIN_MIN_RAD_S:
+        b = round(math.log(w_in) / _LN_BIN)
+    else:
+        b = None
+    T_q = round(T_oil / OIL_BIN_C) * OIL_BIN_C
+    key = (row, b, T_q)
+    cache = sp.kcache
+    item = cache.get(key)
+    if item is not None:
+        return item
+    rp = sp.reduced
+    w_q = math.exp(b * _LN_BIN) if b is not None else 0.0
+    x, prop, phi = R.oil_row(rp, T_q, h)
+    G, Gs = R.conductances(rp, row, w_q, x, prop, phi, None, None, sp.effects, h, radiation=False)
+    n = rp.n
+    Gi = G[h.int_idx]
+    K = np.zeros((n, n))
+    np.add.at(K, (h.ia, h.ia), Gi)
+    np.add.at(K, (h.ib, h.ib), Gi)
+    np.add.at(K, (h.ia, h.ib), -Gi)
+    np.add.at(K, (h.ib, h.ia), -Gi)
+    Ge = G[h.ext_idx]
+    np.add.at(K, (h.ea, h.ea), Ge)
+    M = np.eye(n) - K * sp.dt_inv_C[None, :]
+    c = np.bincount(h.ea, Ge * np.asarray(sp.bc, dtype=float)[h.eb], minlength=n) * sp.dt_inv_C
+    item = _KeyItem(G, Gs, Gs @ h.stream_scatter, M, c, K, key)
+    cache[key] = item
+    if len(cache) > 256:
+        cache.pop(next(iter(cache)))
+    return item
+
+
+def _stream_vector(sp: SensorParams, Gs):
+    """Gs @ stream_scatter, memoised on the identity of the cached Gs (the same for every step of a bin)."""
+    memo = sp.svmemo
+    key = id(Gs)
+    item = memo.get(key)
+    if item is None or item[0] is not Gs:
+        item = (Gs, Gs @ R.helpers(sp.reduced).stream_scatter)
+        memo[key] = item
+        if len(memo) > 1024:
+            memo.pop(next(iter(memo)))
+    return item[1]
 
 
 def _skip(state: SensorState, counts, skip_mask, sp: SensorParams):
@@ -405,33 +777,6 @@ def _linear_system(sp: SensorParams, G, q_nodes, xfer_nodes, T_bc, T_oil_c, Q_co
     return K, b, free
 
 
-def _op_key(sp, row, w_in, T_oil_c, measured):
-    o = sp.options
-    wq = round(w_in / (o.ttl_speed_bin_rpm * R.RPM))
-    Tq = round(T_oil_c / o.ttl_oil_bin_c)
-    return (row, wq, Tq, measured), wq * o.ttl_speed_bin_rpm * R.RPM, Tq * o.ttl_oil_bin_c
-
-
-def _modes_at(sp, key, w_q, T_q, row, T_bc, measured, used, cooler_slope_fn):
-    """Cached modes of the main network at the quantised operating point (pure function of the key)."""
-    item = sp.solver.cache.get(key)
-    if item is not None:
-        sp.solver.cache.move_to_end(key)
-        sp.solver.hits += 1
-        return item
-    rp = sp.reduced
-    h = R.helpers(rp)
-    x, prop, phi = R.oil_row(rp, T_q, h)
-    bc = np.array(rp.bc_default_c, dtype=float)
-    Tn = np.full(rp.n, T_q)
-    e = sp.effects
-    scalar = all(np.ndim(v) == 0 for v in (e.teeth_oil_h, e.housing_air_h, e.planet_oil_h))
-    G, _ = R.conductances(rp, row, w_q, x, prop, phi, Tn, bc, e if scalar else None, h)
-    slope = cooler_slope_fn(T_q, w_q) if not measured else 0.0
-    K, _, free = _linear_system(sp, G, np.zeros(rp.n), np.zeros(rp.n), bc, T_q, 0.0, measured, slope)
-    return sp.solver.modes(key, K, free)
-
-
 def _cooler_slope(sp, T_oil, w_in, row, used, rho_cp):
     rp = sp.reduced
     w_ls = abs(rp.speed_coef[row, 1]) * w_in
@@ -447,35 +792,58 @@ def _scalar(v):
     return float(a) if a.ndim == 0 else float(a.reshape(-1)[0])
 
 
+#: bin of the cooler slope dQ/dT_oil in the cached held-input modes (model-oil mode) [W/K]
+SLOPE_BIN_W_PER_K = 10.0
+
+
 def _time_to_limit(sp, T_main, src, G, Gs, dT_in, Q_cool, measured, row, w_in, T_oil, T_bc, used, rho_cp):
-    """Time [s] until each published component reaches its warning limit if the current inputs are held."""
+    """Time [s] until each published component reaches its warning limit if the current inputs are held.
+
+    K (and its modes) at the quantised operating point of the conductance cache (plus radiation at the bin's oil
+    temperature and, with the sump modelled, the cooler slope in 10 W/K bins): a pure function of the bin, cached.
+    b (heat, boundaries, inlet drop, the measured sump) at the actual operating point."""
     rp = sp.reduced
     h = R.helpers(rp)
-    key, w_q, T_q = _op_key(sp, row, w_in, T_oil, measured)
-    slope_fn = (lambda T, w: _cooler_slope(sp, T, w, row, used, rho_cp))
-    item = _modes_at(sp, key, w_q, T_q, row, T_bc, measured, used, slope_fn)
-    q_nodes = src @ rp.src_matrix
-    xfer = (Gs * dT_in) @ h.stream_scatter
-    xfer[rp.i_oil] -= Q_cool
     slope = 0.0 if measured else _cooler_slope(sp, T_oil, w_in, row, used, rho_cp)
-    # b at the actual operating point (K of the quantised one): sources, boundaries, cooler and inlet drop
+    sbin = 0 if measured else int(round(slope / SLOPE_BIN_W_PER_K))
+    if sp.scalar_effects:
+        it = _key_item(sp, row, w_in, T_oil, h)
+        key = (it.key, bool(measured), sbin)
+        item = sp.solver.cache.get(key)
+    else:                          # per-vehicle effects: the vehicle's own conductances, no cache
+        it, key, item = None, None, None
+    if item is not None:
+        sp.solver.cache.move_to_end(key)
+        sp.solver.hits += 1
+    else:
+        if it is not None:
+            T_q = it.key[2]
+            K = it.K.copy()
+            g_rad = R.radiation_conductances(rp, np.full(rp.n, T_q), np.asarray(sp.bc, dtype=float), h)
+        else:
+            K, _, _ = _linear_system(sp, np.where(np.isin(np.arange(len(G)), rp.rad_link), 0.0, G), np.zeros(rp.n),
+                                     np.zeros(rp.n), T_bc, T_oil, 0.0, False, 0.0)
+            g_rad = G[rp.rad_link]
+        np.add.at(K, (h.rad_node, h.rad_node), g_rad)
+        if measured:
+            free = np.flatnonzero(np.arange(rp.n) != rp.i_oil)
+        else:
+            free = np.arange(rp.n)
+            K[rp.i_oil, rp.i_oil] += sbin * SLOPE_BIN_W_PER_K
+        item = sp.solver.modes(key, K, free)
     n = rp.n
-    Ge = G[h.ext_idx]
-    b = q_nodes + xfer + np.bincount(h.ea, Ge * T_bc[h.eb], minlength=n)
-    lam, V, s, free = item
+    b = src @ rp.src_matrix + (Gs * dT_in) @ h.stream_scatter + np.bincount(
+        h.ea, G[h.ext_idx] * T_bc[h.eb], minlength=n)
     if measured:
         # links to the (held) measured sump enter b
         Gi = G[h.int_idx]
-        to_oil = (h.ia == rp.i_oil) | (h.ib == rp.i_oil)
-        other = np.where(h.ia[to_oil] == rp.i_oil, h.ib[to_oil], h.ia[to_oil])
-        b = b + np.bincount(other, Gi[to_oil] * T_oil, minlength=n)
+        b = b + np.bincount(h.oil_other, Gi[h.oil_links] * T_oil, minlength=n)
     else:
-        b[rp.i_oil] += slope * T_oil
-    b_free = b[free]
-    T_inf = HeldInputSolver.steady(item, b_free)
-    pos = np.searchsorted(free, rp.published_index)
-    pub_free = free[np.minimum(pos, len(free) - 1)] == rp.published_index
-    rows = pos[pub_free]
+        # cooler linearised at the current sump: Q = Q0 + g (T - T0)
+        b[rp.i_oil] += sbin * SLOPE_BIN_W_PER_K * T_oil - Q_cool
+    lam, V, s, free = item
+    T_inf = HeldInputSolver.steady(item, b[free])
+    pub_free, rows = (h.pub_free_meas, h.pub_rows_meas) if measured else (h.pub_free_all, h.pub_rows_all)
     out = np.full(N_PUB, np.inf)
     out[pub_free] = HeldInputSolver.time_to_limit(item, T_main[free], T_inf, rows, sp.limits.warning_c[pub_free])
     if measured:
@@ -507,30 +875,43 @@ def _amb(state, v, sp):
 
 
 def _held_propagate(sp, state, v, copy, t_s):
-    """Temperatures of one copy after t_s seconds with the last good inputs held (exact modal solution)."""
+    """Temperatures of one copy after t_s seconds with the last good inputs held (exact modal solution): the main
+    copy keeps a measured sump at its last reading, the twin integrates its own."""
     rp = sp.reduced
     h = R.helpers(rp)
     hold = np.array(state.hold[v], dtype=float)
     T0 = np.array(state.T_c[v + (copy,)], dtype=float)
-    spd = hold[I_SPEED] if math.isfinite(hold[I_SPEED]) else 0.0
-    gear = int(hold[I_GEAR]) if math.isfinite(hold[I_GEAR]) else 0
-    tq = abs(hold[I_TORQUE]) if math.isfinite(hold[I_TORQUE]) else 0.0
+
+    def held(i, default):
+        return float(hold[i]) if math.isfinite(hold[i]) else default
+    spd, tq, gear = held(I_SPEED, 0.0), abs(held(I_TORQUE, 0.0)), int(held(I_GEAR, 0.0))
+    amb = held(I_AMB, float(sp.aux_default[0]))
+    cool = held(I_COOL, float(sp.aux_default[1]))
+    vk = held(I_VKMH, float(sp.aux_default[2]))
+    ret = abs(held(I_RET, 0.0))
     row = gear - GEAR_MIN
     w_in = spd * R.RPM
-    T_oil = float(T0[rp.i_oil])
-    measured = False
+    measured = (copy == MAIN and sp.options.oil_mode == "measured" and float(np.asarray(state.age_s)[v + (I_OIL,)])
+                == 0.0 and math.isfinite(hold[I_OIL]))
+    T_oil = float(hold[I_OIL]) if measured else float(T0[rp.i_oil])
+    T0[rp.i_oil] = T_oil
     x, prop, phi = R.oil_row(rp, T_oil, h)
-    T_bc = np.array(rp.bc_default_c, dtype=float)
-    used = np.array([spd, tq, gear, T_oil, _amb(state, v, sp), T_bc[rp.i_coolant], 50.0, 0.0])
-    src = R.heat_sources(rp, row, w_in, tq, prop, x, _first(sp.effects.src_scale), h=h)
-    G, Gs = R.conductances(rp, row, w_in, x, prop, phi, T0, T_bc, None, h)
+    T_bc = np.array(np.asarray(sp.bc, dtype=float).reshape(-1, len(BOUNDARIES))[0])
+    T_bc[rp.i_ambient], T_bc[rp.i_coolant] = amb, cool
+    e = sp.effects
+    ret_w = _scalar(e.retarder_frac) * ret * abs(rp.speed_coef[row, 3]) * w_in
+    src = R.heat_sources(rp, row, w_in, tq, prop, x, _first(e.src_scale), _scalar(e.churn_scale),
+                         _scalar(e.needle_scale), ret_w, h=h)
+    G, Gs = R.conductances(rp, row, w_in, x, prop, phi, T0, T_bc, e if sp.scalar_effects else None, h)
     rho_cp = float(prop[R.P_RHO] * prop[R.P_CP])
     w_ls = abs(rp.speed_coef[row, 1]) * w_in
-    Q, mcp, _ = R.cooler_heat(rp, T_oil, w_ls, w_in, T_bc[rp.i_coolant], used[I_AMB], 50.0, rho_cp)
+    used = np.array([spd, tq, gear, T_oil, amb, cool, vk, ret])
+    Q, mcp, _ = R.cooler_heat(rp, T_oil, w_ls, w_in, cool, amb, vk, rho_cp, _scalar(e.cooler_scale),
+                              _scalar(e.thermostat_offset_c))
     dT_in = float(np.clip(Q / mcp, -30, 30)) if mcp > 0 else 0.0
     q = src @ rp.src_matrix
     xfer = (Gs * dT_in) @ h.stream_scatter
-    slope = _cooler_slope(sp, T_oil, w_in, row, used, rho_cp)
+    slope = 0.0 if measured else _cooler_slope(sp, T_oil, w_in, row, used, rho_cp)
     K, b, free = _linear_system(sp, G, q, xfer, T_bc, T_oil, float(Q), measured, slope)
     item = sp.solver.modes(None, K, free)
     T_inf = HeldInputSolver.steady(item, b[free])
@@ -607,12 +988,14 @@ class VirtualSensor:
         oil_mode = options.pop("oil_mode", sensor_cfg.get("oil_mode", "measured"))
         if oil_mode not in ("measured", "model"):
             raise ParameterError(f"sensor.oil_mode = {oil_mode!r} must be 'measured' or 'model'")
+        if params.strings.get("cooler.kind") in ("hold", "measured"):
+            # a rig: the sump is conditioned from outside (no cooler to model, a constant reading is normal)
+            params = _with_cooler(params, "none")
+            options.setdefault("oil_frozen_s", math.inf)
         try:
             opts = SensorOptions(oil_mode=oil_mode, **options)
         except TypeError as exc:
             raise ParameterError(f"unknown sensor option: {exc}") from None
-        if params.strings.get("cooler.kind") in ("hold", "measured"):
-            params = _with_cooler(params, "none")
         self.params = params
         self.reduced = R.build_reduced(params, partition=partition, effects=effects)
         self.effects = R.make_effects({k: v for k, v in (effects or {}).items() if k in R.EFFECT_HOOKS})

@@ -1,0 +1,166 @@
+"""Warning limits, the two-level warning state machine (hysteresis, debounce) and time to limit."""
+import math
+
+import numpy as np
+import pytest
+
+from firmware_model.components import GROUP, PUBLISHED
+from firmware_model.errors import ParameterError
+from firmware_model.overheat import LIMITS_PATH, load_limits, update_levels
+from firmware_model.parameters import load_parameters
+from firmware_model.sensor import SensorInputs, VirtualSensor
+
+I = {c: i for i, c in enumerate(PUBLISHED)}
+
+
+@pytest.fixture(scope="module")
+def params():
+    return load_parameters("GRS905")
+
+
+@pytest.fixture(scope="module")
+def limits():
+    return load_limits()
+
+
+# ---- limits file
+
+def test_default_limits_per_group_with_provenance(limits):
+    assert limits.of("PS")[0] == 130.0 and limits.of("LI.teeth")[0] == 150.0 and limits.of("oil")[0] == 120.0
+    assert limits.of("BLR")[:2] == (120.0, 140.0) and limits.of("PP")[1] == 150.0
+    for c in PUBLISHED:
+        w, cr, hy = limits.of(c)
+        assert w < cr and 0 <= hy < cr - w
+    assert all(v in ("seed", "derived", "assumed") for v in limits.provenance.values())
+    assert limits.debounce_s == 1.0
+    assert {GROUP[c] for c in PUBLISHED} == {"gear", "sun", "planetary", "bearing", "oil"}
+
+
+def _write(tmp_path, text):
+    p = tmp_path / "limits.toml"
+    p.write_text(text)
+    return p
+
+
+def test_component_override_and_config_overrides(tmp_path):
+    text = LIMITS_PATH.read_text() + '\n[component."PS"]\nwarning = { v = 125, u = "degC", src = "assumed" }\n'
+    lim = load_limits(_write(tmp_path, text), debounce_s=3.0, hysteresis_k=2.0)
+    assert lim.of("PS") == (125.0, 150.0, 2.0) and lim.debounce_s == 3.0 and lim.of("oil")[2] == 2.0
+
+
+@pytest.mark.parametrize("edit, msg", [
+    (("warning = { v = 150", "warning = { v = 190"), "below critical"),
+    (("hysteresis = { v = 5, u = \"K\"", "hysteresis = { v = 50, u = \"K\""), "hysteresis"),
+    (("[oil]", "[oill]"), "unknown section"),
+    (("warning = { v = 150, u = \"degC\"", "warning = { v = 150, u = \"K\""), "unit"),
+])
+def test_invalid_limits_are_refused_naming_the_field(tmp_path, edit, msg):
+    text = LIMITS_PATH.read_text().replace(*edit, 1)
+    with pytest.raises(ParameterError, match=msg):
+        load_limits(_write(tmp_path, text))
+
+
+# ---- the state machine
+
+def _drive(limits, temps, comp="PS", dt=0.1, level=0):
+    n = len(PUBLISHED)
+    lv = np.full(n, level, dtype=np.int8)
+    pend = np.zeros(n)
+    out = []
+    for T in temps:
+        Tv = np.full(n, 20.0)
+        Tv[I[comp]] = T
+        lv, pend = update_levels(lv, pend, Tv, True, limits, dt)
+        out.append(int(lv[I[comp]]))
+    return out
+
+
+def test_warning_needs_the_debounce_time(limits):
+    w = limits.of("PS")[0]
+    short = _drive(limits, [w - 1] * 5 + [w + 1] * 9 + [w - 1] * 20)       # 0.9 s above: nothing
+    assert max(short) == 0
+    long = _drive(limits, [w - 1] * 5 + [w + 1] * 10)                       # 1.0 s above: warning
+    assert long[-1] == 1 and long[13] == 0
+
+
+def test_warning_clears_only_below_limit_minus_hysteresis(limits):
+    w, c, hy = limits.of("PS")
+    lv = _drive(limits, [w + 1] * 20 + [w - hy + 0.5] * 50)                 # inside the hysteresis band
+    assert lv[-1] == 1
+    lv = _drive(limits, [w + 1] * 20 + [w - hy - 0.5] * 9)                  # below, but < debounce
+    assert lv[-1] == 1
+    lv = _drive(limits, [w + 1] * 20 + [w - hy - 0.5] * 10)
+    assert lv[-1] == 0
+
+
+def test_critical_level_with_its_own_hysteresis(limits):
+    w, c, hy = limits.of("LI.teeth")
+    lv = _drive(limits, [c + 2] * 15 + [c - hy + 1] * 30 + [c - hy - 1] * 15 + [w - hy - 1] * 15, comp="LI.teeth")
+    assert lv[14] == 2 and lv[44] == 2 and lv[59] == 1 and lv[-1] == 0
+
+
+def test_not_available_is_immediate(limits):
+    n = len(PUBLISHED)
+    lv, pend = update_levels(np.zeros(n, np.int8), np.zeros(n), np.full(n, 200.0), False, limits, 0.1)
+    assert np.all(lv == 3)
+    lv, pend = update_levels(lv, pend, np.full(n, 20.0), True, limits, 0.1)
+    assert np.all(lv == 0)
+
+
+def test_the_sensor_warns_and_clears_in_a_load_cycle(params):
+    s = VirtualSensor(params, oil_frozen_s=math.inf)
+    st = s.initial_state(T_oil_c=95.0)
+    heavy = SensorInputs(1400.0, 2600.0, 5, 95.0, 25.0, 85.0, 20.0, 0.0)
+    light = SensorInputs(1200.0, 300.0, 14, 95.0, 25.0, 85.0, 80.0, 0.0)
+    levels, T = [], []
+    for k in range(4000):
+        st, out = s.step(st, heavy if k < 1500 else light)
+        levels.append(int(out.level[I["PS"]]))
+        T.append(float(out.T_c[I["PS"]]))
+    levels, T = np.array(levels), np.array(T)
+    w, _, hy = s.limits.of("PS")
+    first_above = int(np.argmax(T >= w))
+    assert levels.max() == 1 and int(np.argmax(levels == 1)) == first_above + 9      # 1 s debounce
+    cleared = int(np.flatnonzero(levels == 1)[-1]) + 1
+    assert T[cleared - 9] < w - hy <= T[cleared - 10]                                # clears below w - hyst
+
+
+# ---- time to limit
+
+@pytest.mark.parametrize("comp", ["PS", "2M.teeth"])
+def test_time_to_limit_matches_a_held_input_simulation(params, comp):
+    """Measured sump: the held-input network is exactly linear; the prediction at 60 s against the sensor's own
+    step-by-step crossing time with the inputs held."""
+    s = VirtualSensor(params, oil_frozen_s=math.inf)
+    st = s.initial_state(T_oil_c=95.0)
+    inp = SensorInputs(1400.0, 2600.0, 5, 95.0, 25.0, 85.0, 20.0, 0.0)
+    pred = crossed = None
+    for k in range(12000):
+        st, out = s.step(st, inp)
+        if k == 599:
+            pred = 60.0 + float(out.ttl_s[I[comp]])
+        if k > 599 and out.T_c[I[comp]] >= s.limits.warning_c[I[comp]]:
+            crossed = (k + 1) * 0.1
+            break
+    assert crossed is not None
+    assert abs(pred - crossed) <= 0.02 * (crossed - 60.0) + 0.5
+
+
+def test_time_to_limit_is_inf_when_never_and_zero_at_the_limit(params):
+    s = VirtualSensor(params, oil_frozen_s=math.inf)
+    st = s.initial_state(T_oil_c=70.0)
+    for _ in range(20):
+        st, out = s.step(st, SensorInputs(1200.0, 300.0, 14, 70.0, 25.0, 85.0, 80.0, 0.0))
+    assert np.all(np.isinf(out.ttl_s))
+    hot = s.initial_state(T_oil_c=170.0)
+    st, out = s.step(hot, SensorInputs(1200.0, 300.0, 14, 170.0, 25.0, 85.0, 80.0, 0.0))
+    assert np.all(out.ttl_s == 0.0)
+
+
+def test_time_to_limit_with_the_modelled_sump_is_finite_and_ordered(params):
+    s = VirtualSensor(params)
+    st = s.initial_state(T_oil_c=95.0)
+    for _ in range(600):
+        st, out = s.step(st, SensorInputs(1400.0, 2600.0, 5, math.nan, 25.0, 85.0, 20.0, 0.0))
+    ttl = out.ttl_s
+    assert np.isfinite(ttl[I["PS"]]) and 0 < ttl[I["PS"]] < ttl[I["2M.teeth"]]

@@ -1,0 +1,225 @@
+"""The onboard network: derived from the full one (aggregation, laws, loss maps), explicit step, stability proof."""
+import math
+
+import numpy as np
+import pytest
+
+from firmware_model import reduced as R
+from firmware_model.components import PUBLISHED
+from firmware_model.errors import ParameterError, StabilityError
+from firmware_model.gearbox_losses import SOURCES, GearboxLosses
+from firmware_model.kinematics import GEAR_MIN
+from firmware_model.network import BOUNDARIES, ConductanceEvaluator, build_network
+from firmware_model.parameters import load_parameters
+
+
+@pytest.fixture(scope="module")
+def params():
+    return load_parameters("GRS905")
+
+
+@pytest.fixture(scope="module")
+def rp(params):
+    return R.build_reduced(params)
+
+
+@pytest.fixture(scope="module")
+def full(params):
+    net = build_network(params)
+    return net, ConductanceEvaluator(net, params), GearboxLosses(params, net.geometry)
+
+
+def _link_matrix(net, agg):
+    M = np.zeros((len(agg.link_a), len(net.link_a)))
+    for k, r in enumerate(agg.link_of_full):
+        if r >= 0:
+            M[r, k] = 1.0
+    return M
+
+
+# ---- the explicit step on a single RC node (hand calculation)
+
+@pytest.mark.parametrize("scatter", ["index", "incidence"])
+def test_single_rc_node_follows_its_exponential(scatter):
+    """C dT/dt = G (T_b - T) + q: forward Euler at dt = 0.1 s against T_inf + (T0 - T_inf) exp(-t G / C)."""
+    C, G, Tb, q, T0, dt = 2000.0, 40.0, 20.0, 800.0, 80.0, 0.1    # tau = 50 s, T_inf = 40 degC
+    tau, T_inf = C / G, Tb + q / G
+    kw = {}
+    if scatter == "incidence":
+        kw = dict(B_int=np.zeros((0, 1)), B_ext=np.array([[-1.0]]))
+    T = np.array([T0])
+    worst = 0.0
+    for k in range(1, 5001):                                        # 10 time constants
+        T = R.explicit_step(T, np.array([q]), np.zeros(0), np.array([G]), np.array([Tb]), np.zeros(0, int),
+                            np.zeros(0, int), np.array([0]), np.array([0]), np.array([dt / C]), **kw)
+        exact = T_inf + (T0 - T_inf) * math.exp(-k * dt / tau)
+        worst = max(worst, abs(T[0] - exact))
+    # Euler's global error for a decaying exponential is below dt / (2 tau) x e^-1 x |T0 - T_inf|
+    assert worst <= dt / (2 * tau) * math.exp(-1) * abs(T0 - T_inf) * 1.01
+    # the equilibrium is exact: a node at T_inf stays there
+    T = R.explicit_step(np.array([T_inf]), np.array([q]), np.zeros(0), np.array([G]), np.array([Tb]),
+                        np.zeros(0, int), np.zeros(0, int), np.array([0]), np.array([0]), np.array([dt / C]), **kw)
+    assert T[0] == pytest.approx(T_inf, abs=1e-12)
+
+
+def test_two_node_exchange_conserves_heat():
+    T = np.array([[100.0, 20.0]])
+    C = np.array([500.0, 1500.0])
+    for _ in range(20000):
+        T = R.explicit_step(T, np.zeros((1, 2)), np.array([[5.0]]), np.zeros((1, 0)), np.zeros((1, 1)),
+                            np.array([0]), np.array([1]), np.zeros(0, int), np.zeros(0, int), 0.1 / C)
+    assert float(C @ T[0]) == pytest.approx(500 * 100 + 1500 * 20, rel=1e-12)
+    assert T[0, 0] == pytest.approx(40.0, abs=1e-3) and T[0, 1] == pytest.approx(40.0, abs=1e-3)
+
+
+# ---- stability
+
+def test_stability_is_proven_for_the_default_parameters(rp):
+    st = rp.stability
+    assert rp.dt_s == 0.1 and st["margin"] == R.STABILITY_MARGIN
+    assert np.all(st["dt_max_s"] >= rp.dt_s)
+    assert st["limiting_node"] in rp.nodes and st["tau_min_s"] > 0
+
+
+def test_stability_check_refuses_a_too_light_node(params):
+    light = params.with_overrides({"wheel_bearing.mass_needle": 0.002})      # a 2 g needle bearing: C ~ 1 J/K
+    with pytest.raises(StabilityError) as exc:
+        R.build_reduced(light)
+    msg = str(exc.value)
+    assert "node LB" in msg or "node 2B" in msg or "node 1B" in msg
+    assert "J/K" in msg and "W/K" in msg and "margin 0.8" in msg and "dt = 0.1 s" in msg
+
+
+def test_stability_margin_and_dt_are_checked(params):
+    with pytest.raises(StabilityError):
+        R.build_reduced(params, dt_s=1.0)                                     # the CL wheel cannot take 1 s
+    with pytest.raises(ParameterError):
+        R.build_reduced(params, margin=1.5)
+
+
+def test_stability_bound_covers_the_operating_range(rp):
+    """The proven bound is above every node's actual sum of conductances at random operating points."""
+    h = R.helpers(rp)
+    G_max = R.max_conductances(rp)["G"]
+    rng = np.random.default_rng(7)
+    bc = np.array(rp.bc_default_c)
+    for _ in range(400):
+        row = int(rng.integers(0, 17))
+        w = rng.uniform(0, rp.max_speed_rpm) * R.RPM
+        T = rng.uniform(*R.OIL_RANGE_C)
+        x, prop, phi = R.oil_row(rp, T, h)
+        G, _ = R.conductances(rp, row, w, x, prop, phi, np.full(rp.n, T), bc, None, h)
+        assert np.all(G <= G_max * (1 + 1e-9) + 1e-12), rp.link_name[int(np.argmax(G - G_max))]
+
+
+# ---- derived from the full network
+
+def test_fine_partition_keeps_every_node_and_the_total_heat_capacity(rp, full):
+    net = full[0]
+    assert rp.nodes == net.nodes and rp.partition == "fine"
+    assert float(np.sum(rp.C_j_per_k)) == pytest.approx(float(np.sum(net.C_j_per_k)), rel=1e-12)
+    assert [rp.nodes[i] for i in rp.published_index] == list(PUBLISHED)
+
+
+def test_compact_partition_is_an_aggregation(params, full):
+    net = full[0]
+    agg = R.aggregate(net, R.PARTITIONS["compact"])
+    assert len(agg.nodes) <= 41 and all(c in agg.nodes for c in PUBLISHED)
+    assert float(agg.C.sum()) == pytest.approx(float(net.C_j_per_k.sum()), rel=1e-12)
+    assert agg.C[agg.nodes.index("MS")] == pytest.approx(
+        sum(net.C_j_per_k[net.index(s)] for s in net.nodes if s.startswith("MS@")), rel=1e-12)
+    # links inside a group vanish; a link between groups is the sum of its members
+    for k, r in enumerate(agg.link_of_full):
+        a = agg.node_of_full[net.link_a[k]]
+        b = net.link_b[k]
+        if b < net.n and agg.node_of_full[b] == a:
+            assert r == -1
+    rpc = R.build_reduced(params, partition="compact")
+    ev = full[1]
+    kin = params.kinematics
+    M = _link_matrix(net, agg)
+    for g, rpm, T in ((9, 1300, 90.0), (3, 2000, 60.0), (14, 900, 110.0)):
+        row = g - GEAR_MIN
+        sp = np.abs(kin.speed[row] * rpm * R.RPM)
+        Gf = ev.evaluate(T, sp, row, kin.mesh_torque[row], bool(kin.low_range[row]), np.full(net.n, T),
+                         rpc.bc_default_c)
+        x, prop, phi = R.oil_row(rpc, T)
+        G, _ = R.conductances(rpc, row, rpm * R.RPM, x, prop, phi, np.full(rpc.n, T), rpc.bc_default_c)
+        ref = M @ Gf
+        big = ref > 0.5
+        assert np.max(np.abs(G[big] - ref[big]) / ref[big]) < 0.05
+
+
+def test_conductance_laws_match_the_full_evaluator(rp, full):
+    net, ev, _ = full
+    kin = load_parameters("GRS905").kinematics
+    M = _link_matrix(net, R.aggregate(net, {}))
+    rng = np.random.default_rng(11)
+    h = R.helpers(rp)
+    errs = []
+    for _ in range(600):
+        g = int(rng.integers(-2, 15))
+        row = g - GEAR_MIN
+        rpm = rng.uniform(0, 4000)
+        T = rng.uniform(-40, 150)
+        sp = np.abs(kin.speed[row] * rpm * R.RPM)
+        Tn = np.full(net.n, T + 3.0)
+        Gf = M @ ev.evaluate(T, sp, row, kin.mesh_torque[row], bool(kin.low_range[row]), Tn, rp.bc_default_c)
+        x, prop, phi = R.oil_row(rp, T, h)
+        G, _ = R.conductances(rp, row, rpm * R.RPM, x, prop, phi, np.full(rp.n, T + 3.0), rp.bc_default_c,
+                              None, h)
+        big = Gf > 0.5                            # below 0.5 W/K: links of a shaft at (nearly) standstill
+        errs.append(np.abs(G[big] - Gf[big]) / Gf[big])
+    e = np.concatenate(errs)
+    assert np.percentile(e, 99) < 0.01
+    assert e.max() < 0.06                         # the ring's splash/housing kink inside one table cell
+
+
+def test_power_laws_are_exact_where_the_physics_is_separable(rp):
+    # splash (Eq 59) exponent 0.6, Harris and immersed bearings (Eq 52, 63) 0.5, constants 0
+    assert set(np.round(rp.pw_exp, 6)) <= {0.0, 0.5, 0.6}
+    assert {rp.link_name[i] for i in rp.cyl_link} == {f"{w}-oil" for w in ("LL", "3L", "2L", "1L", "CL", "RL", "RI")}
+
+
+@pytest.mark.parametrize("T_range", [(20.0, 40.0), (40.0, 150.0)])
+def test_loss_maps_match_gearbox_losses(rp, full, T_range):
+    _, _, gl = full
+    rng = np.random.default_rng(5)
+    h = R.helpers(rp)
+    tol_mesh = 0.003 if T_range[0] < 40 else 0.001
+    for _ in range(300):
+        g = int(rng.integers(-2, 15))
+        rpm = rng.uniform(300, 4000)
+        tq = rng.uniform(-1000, 4200)
+        T = rng.uniform(*T_range)
+        ref = gl.heat(gl.evaluate(rpm * R.RPM, tq, g, T))
+        x, prop, phi = R.oil_row(rp, T, h)
+        Q = R.heat_sources(rp, g - GEAR_MIN, rpm * R.RPM, abs(tq), prop, x, h=h)
+        meshes = [float(ref[f"mesh:{m}"][0]) for m in ("L", "3", "2", "1", "C", "R", "RI")]
+        assert np.allclose(Q[:7], meshes, rtol=tol_mesh, atol=0.05)
+        assert Q[7] + Q[8] == pytest.approx(float(ref["planetary"][0]), rel=tol_mesh, abs=0.05)
+        bearings = [float(ref[f"bearing:{b}"][0]) for b in ("BIF", "BLF", "BLR", "BIM", "BMR", "BO")]
+        assert np.allclose(Q[9:15], bearings, rtol=0.003, atol=0.05)
+        oil = sum(float(ref[k][0]) for k in ("churning", "wheel_bearings", "synchronizers", "pump"))
+        assert Q[R.I_SRC_OIL] == pytest.approx(oil, rel=0.07, abs=1.0)     # churning regime jumps (Eq 28-32)
+
+
+def test_footprint_fits_an_ecu(rp):
+    fp = rp.footprint(np.float32)
+    assert fp["bytes"] <= 64 * 1024
+
+
+def test_effects_record_validates_and_broadcasts():
+    e = R.make_effects({"gear_friction_scale": [1.0, 1.3], "retarder_heat": 0.05})
+    assert e.src_scale.shape == (2, R.N_SRC) and e.src_scale[1, 0] == 1.3 and e.retarder_frac == 0.05
+    with pytest.raises(ParameterError):
+        R.make_effects({"gear_friction_scale": 9.0})
+    with pytest.raises(ParameterError):
+        R.make_effects({"oil_sensor_lag": 10.0})
+
+
+def test_radiation_and_boundaries_are_those_of_the_plant(rp):
+    assert len(rp.bc_default_c) == len(BOUNDARIES)
+    h = R.helpers(rp)
+    g = R.radiation_conductances(rp, np.full(rp.n, 80.0), np.asarray(rp.bc_default_c), h)
+    assert np.all(g > 0) and len(g) == 6

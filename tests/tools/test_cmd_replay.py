@@ -1,0 +1,113 @@
+"""`gearbox-vsensor replay` on run tables: output contract, bad values handled by the sensor, bad files refused."""
+import math
+
+import numpy as np
+import pytest
+
+from firmware_model.components import PUBLISHED
+from firmware_model.parameters import load_parameters
+from firmware_model.sensor import SensorInputs, VirtualSensor
+from tools.cli import main
+from tools.cmd_replay import read_inputs_table, replay_records, replay_table, table_records
+from tools.runtable import RunTable, read_run_table, write_run_table
+
+
+def _table(seconds=60.0, rate=10.0, **cols):
+    t = np.arange(0.0, seconds, 1.0 / rate)
+    base = {"time_s": t, "engine_speed_rpm": np.full(t.size, 1300.0), "engine_torque_nm": np.full(t.size, 2000.0),
+            "gear": np.full(t.size, 9.0), "oil_temp_c": 80.0 + 0.01 * t}
+    base.update({k: np.asarray(v, dtype=float) for k, v in cols.items()})
+    return RunTable(base)
+
+
+@pytest.fixture(scope="module")
+def sensor():
+    return VirtualSensor(load_parameters("GRS905"))
+
+
+def test_replay_cli_writes_the_contract_columns(tmp_path, capsys):
+    src = write_run_table(_table(), tmp_path / "run.csv")
+    out = tmp_path / "est.csv"
+    rc = main(["replay", str(src), "--out", str(out), "--plot", str(tmp_path / "est.png")])
+    assert rc == 0
+    t = read_run_table(out, required=("time_s",))
+    assert t.n == 599                                    # one row per 0.1 s step, at the end of the step
+    assert t["time_s"][0] == pytest.approx(0.1) and np.allclose(np.diff(t["time_s"]), 0.1)
+    for c in PUBLISHED:
+        for col in (f"T_{c}_c", f"W_{c}", f"ttl_{c}_s"):
+            assert col in t.columns, col
+    for col in ("engine_speed_rpm", "engine_torque_nm", "gear", "oil_temp_c", "oil_innovation_c", "degraded",
+                "degraded_mode", "model_oil_temp_c", "rejects_speed_missing"):
+        assert col in t.columns, col
+    assert np.isnan(t["ttl_oil_s"]).all()                 # never: an empty cell
+    assert np.isnan(t["ambient_temp_c"]).all()            # not in the input: empty
+    assert (tmp_path / "est.png").stat().st_size > 10000
+    assert "replayed" in capsys.readouterr().out
+
+
+def test_bad_values_in_the_table_are_the_sensor_business(tmp_path, capsys):
+    n = 600
+    spd = np.full(n, 1300.0)
+    spd[100:120] = np.nan
+    spd[200] = -50.0
+    gear = np.full(n, 9.0)
+    gear[300:305] = 7.5
+    oil = np.full(n, 80.0)
+    oil[400:] = np.nan
+    src = write_run_table(_table(engine_speed_rpm=spd, gear=gear, oil_temp_c=oil), tmp_path / "bad.csv")
+    out = tmp_path / "est.csv"
+    assert main(["replay", str(src), "--out", str(out), "--quiet"]) == 0
+    t = read_inputs_table(out)                           # the output shows the raw inputs it read
+    assert t["rejects_speed_missing"][-1] == 20 and t["rejects_speed_clamped"][-1] == 1
+    assert t["rejects_gear_unknown"][-1] == 5
+    assert np.all(t["degraded_mode"][405:] == 1) and np.all(t["degraded"][405:] == 1)
+    assert all(np.all(np.isfinite(t[f"T_{c}_c"])) for c in PUBLISHED)
+
+
+def test_a_gap_in_the_table_is_a_time_jump(sensor):
+    tab = _table(30.0)
+    t = tab["time_s"].copy()
+    t[150:] += 100.0                                     # a 100 s hole
+    tab["time_s"] = t
+    out = replay_table(tab, sensor)
+    assert out["rejects_time_jump"][-1] == 1
+    assert out.n == 149 + 149
+    assert out["time_s"][-1] == pytest.approx(t[-1])
+
+
+def test_records_are_the_plug_point_for_other_sources(sensor):
+    recs = [(0.1 * (k + 1), SensorInputs(1300.0, 2000.0, 9.0, 80.0, t_s=0.1 * (k + 1))) for k in range(50)]
+    out = replay_records(iter(recs), sensor)
+    assert out.n == 50 and out["T_PS_c"][-1] > 80.0
+    first = next(table_records(_table(1.0)))
+    assert isinstance(first[1], SensorInputs) and first[0] == pytest.approx(0.1)
+
+
+@pytest.mark.parametrize("content, words", [
+    ("time_s,engine_speed_rpm\n0,1\n", "required column"),
+    ("time_s,engine_speed_rpm,engine_torque_nm,gear\n0,1,1,1\n0,1,1,1\n", "duplicated"),
+])
+def test_bad_files_fail_with_one_sentence(tmp_path, capsys, content, words):
+    p = tmp_path / "bad.csv"
+    p.write_text(content)
+    rc = main(["replay", str(p), "--out", str(tmp_path / "o.csv")])
+    err = capsys.readouterr().err.strip()
+    assert rc == 2 and words in err and err.count("\n") == 0
+    assert not (tmp_path / "o.csv").exists()
+
+
+def test_unknown_input_type_and_missing_out(tmp_path, capsys):
+    p = tmp_path / "x.txt"
+    p.write_text("hello")
+    assert main(["replay", str(p), "--out", str(tmp_path / "o.csv")]) == 2
+    src = write_run_table(_table(2.0), tmp_path / "run.csv")
+    assert main(["replay", str(src)]) == 2
+    assert "--out" in capsys.readouterr().err
+
+
+def test_help_explains_every_option(capsys):
+    with pytest.raises(SystemExit):
+        main(["replay", "--help"])
+    text = capsys.readouterr().out
+    for opt in ("--config", "--out", "--plot", "--oil-mode", "--initial-temp"):
+        assert opt in text
