@@ -42,6 +42,9 @@ class Limits:
     debounce_s: float
     provenance: dict
     origin: str = "default"
+    #: a warning also fires when the component will reach its warning limit within lead_s at the current load
+    #: (and clears only when that is more than 2 lead_s away); 0 switches the early warning off
+    lead_s: float = 0.0
 
     def of(self, component: str) -> tuple:
         i = PUBLISHED.index(component)
@@ -62,7 +65,7 @@ def _value(entry, where: str, unit: str) -> tuple:
 
 
 def load_limits(path: str | Path | None = None, debounce_s: float | None = None,
-                hysteresis_k: float | None = None) -> Limits:
+                hysteresis_k: float | None = None, lead_s: float | None = None) -> Limits:
     """Limits from a TOML file (default params/limits.toml); ``debounce_s`` / ``hysteresis_k`` override the file
     (config [sensor] debounce_s, hysteresis_c)."""
     path = Path(path) if path is not None else LIMITS_PATH
@@ -93,6 +96,11 @@ def load_limits(path: str | Path | None = None, debounce_s: float | None = None,
     timing = doc.get("timing", {})
     deb, prov["timing.debounce"] = _value(timing.get("debounce", {"v": 1.0, "u": "s", "src": "assumed"}),
                                           f"{path.name}: timing.debounce", "s")
+    lead, prov["timing.lead"] = _value(timing.get("lead", {"v": 0.0, "u": "s", "src": "assumed"}),
+                                       f"{path.name}: timing.lead", "s")
+    for k in timing:
+        if k not in ("debounce", "lead"):
+            raise ParameterError(f"{path.name}: unknown key timing.{k}; known: debounce, lead")
     n = len(PUBLISHED)
     arr = {key: np.array([per[(GROUP[c], key)] for c in PUBLISHED]) for key in _KEYS}
     for comp, sec in (doc.get("component") or {}).items():
@@ -118,24 +126,32 @@ def load_limits(path: str | Path | None = None, debounce_s: float | None = None,
                                  f"{c[i] - w[i]:g} K")
     if not 0.0 <= deb <= 60.0:
         raise ParameterError(f"debounce = {deb:g} s must be in 0..60 s")
+    if lead_s is not None:
+        lead = float(lead_s)
+    if not 0.0 <= lead <= 3600.0:
+        raise ParameterError(f"lead = {lead:g} s must be in 0..3600 s")
     for a in (w, c, hy):
         a.setflags(write=False)
-    return Limits(w, c, hy, deb, prov, str(path.name))
+    return Limits(w, c, hy, deb, prov, str(path.name), lead)
 
 
-def update_levels(level, pending_s, T_c, available, limits: Limits, dt_s: float):
+def update_levels(level, pending_s, T_c, available, limits: Limits, dt_s: float, ttl_s=None):
     """One step of the warning state machine, vectorised: returns (level, pending_s).
 
     Target level: critical while T >= critical (or, once critical, while T > critical - hysteresis); else warning
-    while T >= warning (or, once at warning or above, while T > warning - hysteresis); else normal. A change to the
-    target is taken when it has been pending for ``debounce`` seconds (the timer restarts whenever the target equals
-    the current level). Level 3 (not available) is entered and left at once: it reports the sensor, not the part.
+    while T >= warning or the time to the warning limit is at most ``lead_s`` (or, once at warning or above, while
+    T > warning - hysteresis or the time to limit is at most 2 lead_s); else normal. A change to the target is
+    taken when it has been pending for ``debounce`` seconds (the timer restarts whenever the target equals the
+    current level). Level 3 (not available) is entered and left at once: it reports the sensor, not the part.
     """
     T = np.asarray(T_c)
     lv = np.asarray(level)
     crit = (T >= limits.critical_c) | ((lv == LEVEL_CRITICAL) & (T > limits.critical_c - limits.hysteresis_k))
-    warn = (T >= limits.warning_c) | ((lv >= LEVEL_WARNING) & (lv <= LEVEL_CRITICAL)
-                                       & (T > limits.warning_c - limits.hysteresis_k))
+    held = (lv >= LEVEL_WARNING) & (lv <= LEVEL_CRITICAL)
+    warn = (T >= limits.warning_c) | (held & (T > limits.warning_c - limits.hysteresis_k))
+    if ttl_s is not None and limits.lead_s > 0:
+        ttl = np.nan_to_num(np.asarray(ttl_s, dtype=float), nan=np.inf)
+        warn = warn | (ttl <= limits.lead_s) | (held & (ttl <= 2.0 * limits.lead_s))
     target = np.where(crit, LEVEL_CRITICAL, np.where(warn, LEVEL_WARNING, LEVEL_NORMAL))
     avail = np.asarray(available)[..., None] if np.ndim(available) == np.ndim(T) - 1 else np.asarray(available)
     target = np.where(avail, target, LEVEL_NA)

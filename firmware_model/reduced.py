@@ -866,10 +866,16 @@ def explicit_step(T, q_w, G_int, G_ext, T_bc_c, ia, ib, ea, eb, dt_over_C, B_int
     G_ext (..., n_ext) of the node-boundary links (ea, eb into T_bc_c (..., nb)); dt_over_C (n,). B_int / B_ext:
     the links' incidence matrices (Helpers) to scatter with one matrix product instead of index sums."""
     n = T.shape[-1]
-    f_int = G_int * (T[..., ia] - T[..., ib])                       # heat from a to b
-    f_ext = G_ext * (T[..., ea] - T_bc_c[..., eb])
+    f_int = G_int * (np.take(T, ia, axis=-1) - np.take(T, ib, axis=-1))      # heat from a to b
+    f_ext = G_ext * (np.take(T, ea, axis=-1) - np.take(T_bc_c, eb, axis=-1))
     if B_int is not None:
-        rate = q_w + f_int @ B_int + f_ext @ B_ext
+        # one matrix product over every vehicle and copy (a stacked matmul would loop over small ones)
+        lead = np.broadcast_shapes(f_int.shape[:-1], f_ext.shape[:-1], T.shape[:-1])
+        rows = int(np.prod(lead, dtype=np.int64))
+        rate = np.array(q_w, dtype=float) + np.zeros(lead + (n,))
+        for f, Bm in ((f_int, B_int), (f_ext, B_ext)):
+            if f.shape[-1]:
+                rate += (np.broadcast_to(f, lead + f.shape[-1:]).reshape(rows, f.shape[-1]) @ Bm).reshape(lead + (n,))
     else:
         rate = q_w - _scatter(f_int, ia, n) + _scatter(f_int, ib, n) - _scatter(f_ext, ea, n)
     return T + dt_over_C * rate

@@ -337,16 +337,18 @@ def step_vector(state: SensorState, inputs: SensorInputs, sp: SensorParams):
     q2[..., rp.i_oil] -= Q_cool
 
     # ---- one explicit (forward Euler) step of both copies
-    T_new = R.explicit_step(T, q2, G[..., None, h.int_idx], G[..., None, h.ext_idx], T_bc[..., None, :], h.ia, h.ib,
-                            h.ea, h.eb, sp.dt_inv_C, h.B_int, h.B_ext)
+    # copies first: (2, ..., n), so that the per-vehicle conductances broadcast over one leading axis
+    T_new = np.moveaxis(R.explicit_step(np.moveaxis(T, -2, 0), np.moveaxis(q2, -2, 0), G[..., h.int_idx],
+                                        G[..., h.ext_idx], T_bc, h.ia, h.ib, h.ea, h.eb, sp.dt_inv_C, h.B_int,
+                                        h.B_ext), 0, -2)
     T_new[..., MAIN, rp.i_oil] = np.where(measured, oil, T_new[..., MAIN, rp.i_oil])
 
-    # ---- outputs, warnings, time to limit
+    # ---- outputs, time to limit (refreshed every ttl_period_s, counted down in between), warnings
     T_pub = T_new[..., MAIN, rp.published_index]
     available = drive_age <= opt.hold_s
-    level, pend = update_levels(state.level, state.pending_s, T_pub, available, lim, dt)
     ttl = state.ttl_s
-    due = (state.k % sp.ttl_every) == 0
+    phase = state.k % sp.ttl_every
+    due = phase == 0
     if due.any():
         ttl = np.array(ttl, dtype=float, copy=True)
         for v in (np.ndindex(B) if B else [()]):
@@ -355,7 +357,9 @@ def step_vector(state: SensorState, inputs: SensorInputs, sp: SensorParams):
             ttl[v] = _time_to_limit(sp, T_new[v][MAIN], src[v], G[v], Gs[v], float(dT_in[v][MAIN]),
                                     float(Q_cool[v][MAIN]), bool(measured[v]), int(row[v]), float(w_in[v]),
                                     float(T_main_oil[v]), T_bc[v], used[v], float(rho_cp[v]))
-    ttl_out = np.where(level == LEVEL_NA, np.nan, np.where(T_pub >= lim.warning_c, 0.0, ttl))
+    ttl_now = np.maximum(ttl - (phase * dt)[..., None], 0.0)
+    level, pend = update_levels(state.level, state.pending_s, T_pub, available, lim, dt, ttl_now)
+    ttl_out = np.where(level == LEVEL_NA, np.nan, np.where(T_pub >= lim.warning_c, 0.0, ttl_now))
     mode = np.where(~drive_ok, MODE_HOLDING, np.where(measured, MODE_NORMAL, MODE_OIL_MODEL)).astype(np.int8)
     twin_new = T_new[..., TWIN, rp.i_oil]
     innov = np.where(oil_ok, oil - twin_new, np.nan)
@@ -640,24 +644,29 @@ def step_scalar(state: SensorState, inputs: SensorInputs, sp: SensorParams):
         T_new[MAIN, rp.i_oil] = oil
     G = None
 
-    # ---- outputs, warnings, time to limit
+    # ---- outputs, time to limit (refreshed every ttl_period_s, counted down in between), warnings
     T_pub = T_new[MAIN, rp.published_index]
     available = drive_age <= opt.hold_s
-    lv0 = state.level
-    if available and not lv0.any() and not state.pending_s.any() and (T_pub < tb.warn_minus_hyst).all():
-        level, pend = tb.zero_levels, tb.zero_pending           # nothing near a limit: the state machine rests
-    else:
-        level, pend = update_levels(lv0, state.pending_s, T_pub, available, lim, dt)
     ttl = state.ttl_s
-    if int(state.k) % sp.ttl_every == 0:
+    phase = int(state.k) % sp.ttl_every
+    if phase == 0:
         G = it.G.copy()
         G[rp.rad_link] = g_rad
         ttl = _time_to_limit(sp, T_new[MAIN], src, G, it.Gs, dTin[MAIN], Qc[MAIN], measured, row, w_in, T_main_oil,
                              T_bc, np.array(used), rho_cp)
-    if level.any() or (T_pub >= lim.warning_c).any():
-        ttl_out = np.where(level == LEVEL_NA, np.nan, np.where(T_pub >= lim.warning_c, 0.0, ttl))
+        ttl_now = ttl
     else:
-        ttl_out = ttl
+        ttl_now = np.maximum(ttl - phase * dt, 0.0)
+    lv0 = state.level
+    if (available and not lv0.any() and not state.pending_s.any() and (T_pub < tb.warn_minus_hyst).all()
+            and (lim.lead_s <= 0 or not (ttl_now <= 2.0 * lim.lead_s).any())):
+        level, pend = tb.zero_levels, tb.zero_pending           # nothing near a limit: the state machine rests
+    else:
+        level, pend = update_levels(lv0, state.pending_s, T_pub, available, lim, dt, ttl_now)
+    if level.any() or (T_pub >= lim.warning_c).any():
+        ttl_out = np.where(level == LEVEL_NA, np.nan, np.where(T_pub >= lim.warning_c, 0.0, ttl_now))
+    else:
+        ttl_out = ttl_now
     mode = MODE_HOLDING if not drive_ok else (MODE_NORMAL if measured else MODE_OIL_MODEL)
     twin_new = float(T_new[TWIN, rp.i_oil])
     flags = sum(1 << i for i in range(8) if ok[i])

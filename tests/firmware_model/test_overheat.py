@@ -32,7 +32,7 @@ def test_default_limits_per_group_with_provenance(limits):
         w, cr, hy = limits.of(c)
         assert w < cr and 0 <= hy < cr - w
     assert all(v in ("seed", "derived", "assumed") for v in limits.provenance.values())
-    assert limits.debounce_s == 1.0
+    assert limits.debounce_s == 1.0 and limits.lead_s == 30.0
     assert {GROUP[c] for c in PUBLISHED} == {"gear", "sun", "planetary", "bearing", "oil"}
 
 
@@ -61,6 +61,25 @@ def test_invalid_limits_are_refused_naming_the_field(tmp_path, edit, msg):
 
 
 # ---- the state machine
+
+def test_early_warning_from_the_time_to_limit(limits):
+    n = len(PUBLISHED)
+    T = np.full(n, 20.0)
+    ttl = np.full(n, np.inf)
+    ttl[I["PS"]] = 25.0
+    lv, pend = np.zeros(n, np.int8), np.zeros(n)
+    for _ in range(10):
+        lv, pend = update_levels(lv, pend, T, True, limits, 0.1, ttl)
+    assert lv[I["PS"]] == 1 and lv.sum() == 1
+    ttl[I["PS"]] = 50.0                                       # still within 2 x lead: held
+    for _ in range(20):
+        lv, pend = update_levels(lv, pend, T, True, limits, 0.1, ttl)
+    assert lv[I["PS"]] == 1
+    ttl[I["PS"]] = np.inf
+    for _ in range(10):
+        lv, pend = update_levels(lv, pend, T, True, limits, 0.1, ttl)
+    assert lv[I["PS"]] == 0
+
 
 def _drive(limits, temps, comp="PS", dt=0.1, level=0):
     n = len(PUBLISHED)
@@ -107,8 +126,7 @@ def test_not_available_is_immediate(limits):
     assert np.all(lv == 0)
 
 
-def test_the_sensor_warns_and_clears_in_a_load_cycle(params):
-    s = VirtualSensor(params, oil_frozen_s=math.inf)
+def _load_cycle(s):
     st = s.initial_state(T_oil_c=95.0)
     heavy = SensorInputs(1400.0, 2600.0, 5, 95.0, 25.0, 85.0, 20.0, 0.0)
     light = SensorInputs(1200.0, 300.0, 14, 95.0, 25.0, 85.0, 80.0, 0.0)
@@ -117,7 +135,23 @@ def test_the_sensor_warns_and_clears_in_a_load_cycle(params):
         st, out = s.step(st, heavy if k < 1500 else light)
         levels.append(int(out.level[I["PS"]]))
         T.append(float(out.T_c[I["PS"]]))
-    levels, T = np.array(levels), np.array(T)
+    return np.array(levels), np.array(T)
+
+
+def test_the_early_warning_fires_before_the_limit(params):
+    s = VirtualSensor(params, oil_frozen_s=math.inf)
+    assert s.limits.lead_s == 30.0
+    levels, T = _load_cycle(s)
+    w = s.limits.of("PS")[0]
+    first_above = int(np.argmax(T >= w))
+    first_warn = int(np.argmax(levels == 1))
+    assert 0.1 * (first_above - first_warn) >= 20.0          # at least 20 s of the 30 s lead
+    assert levels[-1] == 0
+
+
+def test_the_sensor_warns_and_clears_in_a_load_cycle(params):
+    s = VirtualSensor(params, limits=load_limits(lead_s=0.0), oil_frozen_s=math.inf)
+    levels, T = _load_cycle(s)
     w, _, hy = s.limits.of("PS")
     first_above = int(np.argmax(T >= w))
     assert levels.max() == 1 and int(np.argmax(levels == 1)) == first_above + 9      # 1 s debounce

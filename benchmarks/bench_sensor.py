@@ -1,0 +1,306 @@
+"""Figures of the onboard sensor: accuracy against the reference plant, speed, footprint, warnings.
+
+    python benchmarks/bench_sensor.py                       # everything (a few minutes)
+    python benchmarks/bench_sensor.py --only accuracy --per-component
+    python benchmarks/bench_sensor.py --only speed --full-batch   # 1000 vehicles x 3 h for real (slow)
+
+(a) accuracy per named cycle (steady, all_gears, long_haul, uphill, mining) and component: the reference plant and
+    the sensor get the same inputs (the cycles' bc_* boundary columns are dropped: the sensor cannot see them), the
+    plant runs with its own cooler (or the held sump of the rig cycles) and the sensor is fed the plant's oil
+    temperature as the measured one; max and RMS |diff| against the issue's 1.5 / 0.3 degC. Extra rows: the uphill
+    cycle with the plant seeing its Table 11 boundaries, and the compact 40-node partition.
+(b) speed: one step (median, CPU time), a 3 h run table at 10 Hz (mining), 1000 vehicles x 3 h batched
+    (measured over --batch-steps steps and extrapolated unless --full-batch).
+(c) footprint as an ECU would hold it: state bytes and every parameter table as float32.
+(d) warnings: the sun-wheel warning on uphill against the plant's crossing of the limit (lead time), its clearing;
+    warnings on long_haul; time to limit on uphill against the plant's actual crossing once the load has been
+    steady for a minute.
+Timings are CPU time of this process (time.process_time) on a machine that may be shared; OpenBLAS is limited to
+one thread (small matrices).
+"""
+import os
+
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+
+import argparse  # noqa: E402
+import math  # noqa: E402
+import sys  # noqa: E402
+import time  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+import numpy as np  # noqa: E402
+
+from firmware_model.components import PUBLISHED  # noqa: E402
+from firmware_model.parameters import Parameters, load_parameters  # noqa: E402
+from firmware_model.sensor import SensorInputs, VirtualSensor  # noqa: E402
+from tools.cmd_replay import replay_table  # noqa: E402
+from tools.cycles import get_cycle  # noqa: E402
+from tools.plant import ReferencePlant  # noqa: E402
+from tools.runtable import RunTable  # noqa: E402
+
+CYCLES = ("steady", "all_gears", "long_haul", "uphill", "mining")
+MAX_TOL, RMS_TOL = 1.5, 0.3
+
+
+def rig(params: Parameters) -> Parameters:
+    s = dict(params.strings)
+    s["cooler.kind"] = "hold"
+    return Parameters(params.variant, dict(params.values), dict(params.sources), dict(params.units), s,
+                      params.origin)
+
+
+def plant_and_sensor(params, name, keep_bc=False, partition="fine", cache={}):
+    key = (name, keep_bc, partition)
+    if key in cache:
+        return cache[key]
+    tab = get_cycle(name, rate_hz=10)
+    meta = tab.meta
+    cols = [c for c in tab.columns if keep_bc or not c.startswith("bc_")]
+    tab = RunTable({c: tab[c] for c in cols}, meta=meta)
+    hold = meta.get("hold_oil_c")
+    t0 = time.process_time()
+    res = ReferencePlant(params, cooler="hold" if hold is not None else "liquid").run(
+        tab, initial_temp_c=meta.get("initial_temp_c"), hold_oil_c=hold)
+    t_plant = time.process_time() - t0
+    ref = res.table
+    fed = RunTable({c: tab[c] for c in tab.columns if not c.startswith("bc_")}, meta=meta)
+    fed["oil_temp_c"] = np.interp(tab["time_s"], ref["time_s"], ref["oil_temp_c"])
+    sensor = VirtualSensor(rig(params) if hold is not None else params, partition=partition)
+    t0 = time.process_time()
+    out = replay_table(fed, sensor)
+    t_sensor = time.process_time() - t0
+    cache[key] = (tab, ref, out, t_plant, t_sensor, sensor)
+    return cache[key]
+
+
+def errors(ref, out):
+    t = ref["time_s"]
+    m = t >= out["time_s"][0]
+    res = {}
+    for c in PUBLISHED:
+        d = np.interp(t[m], out["time_s"], out[f"T_{c}_c"]) - ref[f"T_{c}_c"][m]
+        res[c] = (float(np.max(np.abs(d))), float(np.sqrt(np.mean(d * d))))
+    return res
+
+
+def section_accuracy(params, cycles, per_component):
+    print("\n(a) accuracy against the reference plant (same inputs, plant oil fed as measured)")
+    print(f"{'cycle':<28} {'h':>5} {'worst max |diff|':>24} {'worst RMS':>22}  pass (<= {MAX_TOL} / {RMS_TOL} degC)")
+    rows = []
+    for name in cycles:
+        tab, ref, out, tp, ts, _ = plant_and_sensor(params, name)
+        e = errors(ref, out)
+        rows.append((name, e))
+        wm = max(e.items(), key=lambda kv: kv[1][0])
+        wr = max(e.items(), key=lambda kv: kv[1][1])
+        ok = all(v[0] <= MAX_TOL and v[1] <= RMS_TOL for v in e.values())
+        hours = (tab["time_s"][-1] - tab["time_s"][0]) / 3600
+        print(f"{name:<28} {hours:5.2f} {wm[0]:>14} {wm[1][0]:7.2f} K {wr[0]:>12} {wr[1][1]:7.3f} K  "
+              f"{'PASS' if ok else 'FAIL'}")
+    for label, name, kw in (("uphill, plant sees Table 11", "uphill", {"keep_bc": True}),
+                            ("uphill, compact 40 nodes", "uphill", {"partition": "compact"}),
+                            ("mining, compact 40 nodes", "mining", {"partition": "compact"})):
+        if name not in cycles:
+            continue
+        tab, ref, out, *_ = plant_and_sensor(params, name, **kw)
+        e = errors(ref, out)
+        wm = max(e.items(), key=lambda kv: kv[1][0])
+        wr = max(e.items(), key=lambda kv: kv[1][1])
+        ok = all(v[0] <= MAX_TOL and v[1] <= RMS_TOL for v in e.values())
+        print(f"{label:<28} {'':>5} {wm[0]:>14} {wm[1][0]:7.2f} K {wr[0]:>12} {wr[1][1]:7.3f} K  "
+              f"{'pass' if ok else 'fail'} (reference rows)")
+    if per_component:
+        print("\nper component, max / RMS |diff| [K]:")
+        print(f"{'component':<10}" + "".join(f"{n:>16}" for n, _ in rows))
+        for c in PUBLISHED:
+            print(f"{c:<10}" + "".join(f"{e[c][0]:9.2f}/{e[c][1]:5.3f}" + " " for _, e in rows))
+
+
+def section_speed(params, batch_vehicles, batch_steps, full_batch):
+    print("\n(b) speed (CPU time)")
+    sensor = VirtualSensor(params)
+    tab = get_cycle("uphill", rate_hz=10, noise=True)
+    n = 3000
+    cols = [np.asarray(tab[c])[:n] for c in ("engine_speed_rpm", "engine_torque_nm", "gear", "coolant_temp_c",
+                                             "ambient_temp_c", "vehicle_speed_kmh", "retarder_torque_nm")]
+    inputs = [SensorInputs(cols[0][k], cols[1][k], cols[2][k], 80.0 + 0.001 * k, cols[4][k], cols[3][k], cols[5][k],
+                           cols[6][k]) for k in range(n)]
+    st = sensor.initial_state(T_oil_c=80.0)
+    times = np.empty(n)
+    step = sensor.step
+    for k in range(n):
+        t0 = time.perf_counter()
+        st, _ = step(st, inputs[k])
+        times[k] = time.perf_counter() - t0
+    c0 = time.process_time()
+    st2 = sensor.initial_state(T_oil_c=80.0)
+    for k in range(n):
+        st2, _ = step(st2, inputs[k])
+    cpu = (time.process_time() - c0) / n
+    ttl_steps = times[::sensor.sp.ttl_every]
+    print(f"one step, single vehicle: median {1e6 * np.median(times):.1f} us (wall), mean {1e6 * cpu:.1f} us "
+          f"(CPU, with the time to limit every {sensor.options.ttl_period_s:g} s: median "
+          f"{1e6 * np.median(ttl_steps):.0f} us on those steps); target 10 us")
+    mining = get_cycle("mining", rate_hz=10)
+    fed = RunTable({c: mining[c] for c in mining.columns if not c.startswith("bc_")}, meta=mining.meta)
+    fed["oil_temp_c"] = np.full(fed.n, 85.0) + 0.0001 * np.arange(fed.n)
+    c0 = time.process_time()
+    out = replay_table(fed, VirtualSensor(params))
+    t3h = time.process_time() - c0
+    print(f"3 h run table at 10 Hz (mining, {out.n} steps, replay_table): {t3h:.1f} s (target 2 s)")
+    V = batch_vehicles
+    rng = np.random.default_rng(0)
+    offs = rng.integers(0, tab.n - 1, V)
+    spd, tq, gr = (np.asarray(tab[c]) for c in ("engine_speed_rpm", "engine_torque_nm", "gear"))
+    for ttl_period in (1.0, 60.0):
+        bs = VirtualSensor(params, ttl_period_s=ttl_period)
+        steps = 108_000 if full_batch else batch_steps
+        st = bs.initial_state(T_oil_c=np.full(V, 80.0), n_vehicles=V)
+        c0 = time.process_time()
+        for k in range(steps):
+            j = (offs + k) % tab.n
+            st, _ = bs.step(st, SensorInputs(spd[j], tq[j], gr[j], 80.0 + 1e-4 * k, 25.0, 85.0, 50.0, 0.0))
+        tb = time.process_time() - c0
+        per = tb / steps
+        label = "measured" if full_batch else f"measured over {steps} steps, extrapolated"
+        print(f"{V} vehicles x 3 h batched, time to limit every {ttl_period:g} s: {per * 108_000:.0f} s ({label}: "
+              f"{1e3 * per:.2f} ms per batch step, {1e6 * per / V:.2f} us per vehicle-step); target 60 s")
+
+
+def section_footprint(params):
+    print("\n(c) footprint as an ECU would hold it (float32)")
+    s = VirtualSensor(params)
+    fp = s.reduced.footprint(np.float32)
+    print(f"state: {s.state_bytes(np.float32)} bytes per vehicle (target 1024): two copies of {s.reduced.n} node "
+          f"temperatures, heat lag, input holds, warning state, counters")
+    print(f"parameters incl. loss maps and conductance laws: {fp['bytes']} bytes = {fp['bytes'] / 1024:.1f} KiB "
+          f"({fp['float_values']} floats + {fp['index_values']} int16 indices; target 64 KiB)")
+
+
+def _episodes(mask):
+    d = np.diff(np.concatenate([[0], mask.astype(int), [0]]))
+    return list(zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1)))
+
+
+def section_warnings(params, cycles):
+    print("\n(d) warnings and time to limit")
+    if "uphill" in cycles:
+        tab, ref, out, _, _, sensor = plant_and_sensor(params, "uphill")
+        w, crit, hy = sensor.limits.of("PS")
+        tp, Tp = ref["time_s"], ref["T_PS_c"]
+        ts, lev = out["time_s"], out["W_PS"]
+        print(f"uphill, sun wheel PS (warning {w:g} degC, hysteresis {hy:g} K, debounce "
+              f"{sensor.limits.debounce_s:g} s, early warning {sensor.limits.lead_s:g} s before the limit):")
+        sensor_eps = [(ts[a], ts[min(b, ts.size - 1)]) for a, b in _episodes(lev >= 1)]
+        prev_end = -math.inf
+        for a, b in _episodes(Tp >= w):
+            t_cross, t_end = tp[a], tp[min(b, tp.size - 1)]
+            ep = [e for e in sensor_eps if e[0] <= t_cross + 30.0 and e[1] >= t_cross]
+            if not ep:
+                print(f"  plant PS >= {w:g} degC from {t_cross:7.1f} s to {t_end:7.1f} s: no sensor warning (missed)")
+            else:
+                s0 = ep[0][0]
+                note = "" if s0 > prev_end else f" (the warning of an earlier crossing, still on)"
+                print(f"  plant PS >= {w:g} degC from {t_cross:7.1f} s to {t_end:7.1f} s; sensor warning from "
+                      f"{s0:7.1f} s: lead {t_cross - s0:+6.1f} s{note}")
+            prev_end = t_end
+        on = _episodes(lev >= 1)
+        print(f"  sensor PS warning episodes: {len(on)}; cleared: "
+              + ", ".join(f"{ts[min(b, ts.size - 1)]:.0f} s (plant PS then {np.interp(ts[min(b, ts.size - 1)], tp, Tp):.1f} degC)"
+                          for a, b in on))
+        _ttl_report(tab, ref, out, sensor, "PS")
+    if "long_haul" in cycles:
+        tab, ref, out, *_ = plant_and_sensor(params, "long_haul")
+        n = sum(int(np.any(out[f"W_{c}"] >= 1)) for c in PUBLISHED)
+        print(f"long_haul: components that ever warned: {n} (plant hottest "
+              f"{max(float(ref[f'T_{c}_c'].max()) for c in PUBLISHED):.1f} degC)")
+
+
+def _ttl_report(tab, ref, out, sensor, comp):
+    """Prediction t + ttl(t) of the crossing time against the plant's crossing, at times when the load has been
+    steady for 60 s (gear unchanged, torque within +-5 %, speed within +-3 % of their 60 s means); strict: the load
+    also stays steady until the crossing."""
+    w = sensor.limits.of(comp)[0]
+    t_in = tab["time_s"]
+    g, tq, sp = tab["gear"], tab["engine_torque_nm"], tab["engine_speed_rpm"]
+    rate = 10
+    win = 60 * rate
+
+    def steady_between(i0, i1):
+        if i0 < 0:
+            return False
+        seg = slice(i0, i1 + 1)
+        gg, q, s = g[seg], tq[seg], sp[seg]
+        mq, ms = np.mean(q), np.mean(s)
+        return (np.all(gg == gg[0]) and mq > 100 and np.all(np.abs(q - mq) <= 0.05 * abs(mq))
+                and np.all(np.abs(s - ms) <= 0.03 * ms))
+    tp, Tp = ref["time_s"], ref[f"T_{comp}_c"]
+    ts, ttl = out["time_s"], out[f"ttl_{comp}_s"]
+    loose, strict = [], []
+    for a, _ in _episodes(Tp >= w):
+        t_cross = tp[a]
+        # candidate prediction times: once a second in the 30 min before the crossing
+        for t in np.arange(max(t_cross - 1800.0, 61.0), t_cross - 5.0, 1.0):
+            i = int(np.searchsorted(t_in, t))
+            if not steady_between(i - win, i):
+                continue
+            j = int(np.searchsorted(ts, t))
+            if j >= ts.size or not np.isfinite(ttl[j]) or ttl[j] <= 0:
+                continue
+            e = (t + ttl[j] - t_cross) / (t_cross - t)
+            loose.append((t_cross, t, e))
+            if steady_between(i - win, int(np.searchsorted(t_in, t_cross))):
+                strict.append((t_cross, t, e))
+    for label, lst in (("steady 60 s before the prediction", loose),
+                       ("steady from 60 s before the prediction until the crossing", strict)):
+        if not lst:
+            print(f"  time to limit, {label}: no such moment before a crossing in this cycle")
+            continue
+        e = np.array([x[2] for x in lst])
+        print(f"  time to limit, {label}: {len(lst)} predictions; |error| of the remaining time median "
+              f"{100 * np.median(np.abs(e)):.0f} %, within 20 % for {100 * np.mean(np.abs(e) <= 0.2):.0f} %")
+    # a held steady load where the definition holds by construction
+    params = sensor.params
+    spec = "steady:gear=5,rpm=1400,nm=2600,s=1200"
+    tab2 = get_cycle(spec, rate_hz=10)
+    tab2 = RunTable({c: tab2[c] for c in tab2.columns if not c.startswith("bc_")}, meta=tab2.meta)
+    res = ReferencePlant(params, cooler="liquid").run(tab2, initial_temp_c=90.0)
+    fed = tab2.copy()
+    fed["oil_temp_c"] = np.interp(tab2["time_s"], res.table["time_s"], res.table["oil_temp_c"])
+    o2 = replay_table(fed, VirtualSensor(params))
+    tc = float(np.interp(w, res.table[f"T_{comp}_c"], res.table["time_s"])) if res.table[f"T_{comp}_c"].max() >= w \
+        else math.nan
+    for t in (60.0, 120.0):
+        j = int(np.searchsorted(o2["time_s"], t))
+        pred = t + o2[f"ttl_{comp}_s"][j]
+        print(f"  {spec} from 90 degC, plant {comp} crosses {w:g} degC at {tc:.1f} s; predicted at {t:.0f} s: "
+              f"{pred:.1f} s (error {100 * (pred - tc) / (tc - t):+.1f} % of the remaining time)")
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--cycles", default=",".join(CYCLES))
+    ap.add_argument("--only", choices=("accuracy", "speed", "footprint", "warnings"))
+    ap.add_argument("--per-component", action="store_true", help="print the accuracy of every component")
+    ap.add_argument("--batch-vehicles", type=int, default=1000)
+    ap.add_argument("--batch-steps", type=int, default=600, help="batch steps measured (then extrapolated)")
+    ap.add_argument("--full-batch", action="store_true", help="run the 1000 x 3 h batch for real")
+    args = ap.parse_args()
+    params = load_parameters("GRS905")
+    cycles = [c for c in args.cycles.split(",") if c]
+    print(f"onboard sensor benchmark: {params.variant}, python {sys.version.split()[0]}, numpy {np.__version__}")
+    if args.only in (None, "accuracy"):
+        section_accuracy(params, cycles, args.per_component)
+    if args.only in (None, "speed"):
+        section_speed(params, args.batch_vehicles, args.batch_steps, args.full_batch)
+    if args.only in (None, "footprint"):
+        section_footprint(params)
+    if args.only in (None, "warnings"):
+        section_warnings(params, cycles)
+
+
+if __name__ == "__main__":
+    main()
