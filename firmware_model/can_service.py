@@ -601,20 +601,32 @@ class QueueListener:
 
 @dataclass
 class ServeResult:
+    """What :func:`serve` did. ``step_latency_s``: per sent step, wall time from the receive timestamp of the frame
+    that completed the step to the end of sending its frames (meaningful when the bus stamps frames with the wall
+    clock, as socketcan, udp_multicast and virtual do; the last 100000 steps)."""
     frames_in: int = 0
     frames_out: int = 0
     send_errors: int = 0
     wall_s: float = 0.0
     cpu_s: float = 0.0
     reason: str = ""
+    step_latency_s: list = field(default_factory=list)
 
     @property
     def cpu_share(self) -> float:
         return self.cpu_s / self.wall_s if self.wall_s > 0 else 0.0
 
+    def latency_ms(self) -> dict:
+        """Median, p99 and max of ``step_latency_s`` in ms (empty dict without steps)."""
+        if not self.step_latency_s:
+            return {}
+        a = np.sort(np.asarray(self.step_latency_s)) * 1e3
+        return {"median": float(np.median(a)), "p99": float(np.percentile(a, 99)), "max": float(a[-1])}
+
 
 def serve(bus, service: SensorService, *, stop: threading.Event | None = None, duration_s: float | None = None,
-          poll_s: float = 0.05, on_sent: Callable | None = None) -> ServeResult:
+          poll_s: float = 0.05, on_sent: Callable | None = None,
+          on_ready: Callable[[], None] | None = None) -> ServeResult:
     """Run ``service`` on ``bus`` until ``stop`` is set or ``duration_s`` of wall time passed.
 
     A ``can.Notifier`` thread receives and queues frames (:class:`QueueListener`); this loop, in the calling thread,
@@ -629,13 +641,20 @@ def serve(bus, service: SensorService, *, stop: threading.Event | None = None, d
     wall0, cpu0 = time.perf_counter(), time.process_time()
     deadline = None if duration_s is None else wall0 + duration_s
     notifier = can.Notifier(bus, [listener], timeout=0.1)
+    if on_ready is not None:
+        on_ready()
     last_err_log = -math.inf
     q = listener.queue
+
+    latencies = result.step_latency_s
 
     def handle(msg) -> None:
         nonlocal last_err_log
         result.frames_in += 1
-        for frame in service.feed(msg):
+        frames = service.feed(msg)
+        if not frames:
+            return
+        for frame in frames:
             try:
                 bus.send(frame)
                 result.frames_out += 1
@@ -648,6 +667,9 @@ def serve(bus, service: SensorService, *, stop: threading.Event | None = None, d
                     last_err_log = now
                     service.log.warning("cannot send %08X: %s (%d send errors so far)", frame.arbitration_id, exc,
                                         result.send_errors)
+        if len(latencies) >= 100_000:
+            del latencies[:50_000]
+        latencies.append(time.time() - msg.timestamp)
 
     try:
         while not stop.is_set():

@@ -48,6 +48,10 @@ def add_subparser(sub):
     p.add_argument("--no-filters", action="store_true",
                    help="receive every frame (no receive filters): the counters then show all traffic")
     p.add_argument("--rig", action="store_true", help="also receive the rig thermocouple frames (RIG_TC_*)")
+    p.add_argument("--rt-priority", type=int, metavar="N",
+                   help="run the receive and step threads with Linux real-time scheduling (SCHED_FIFO, priority "
+                        "1..99; needs root or CAP_SYS_NICE), as on a gateway: keeps the step latency low on a busy "
+                        "machine")
     p.set_defaults(func=run)
     return p
 
@@ -84,6 +88,19 @@ def build_service(config_path, *, record: bool = False, emit_frames: bool = True
     return SensorService(sensor, options, record=record, emit_frames=emit_frames)
 
 
+def set_realtime_priority(priority: int) -> None:
+    """SCHED_FIFO for the calling thread and the threads it starts later (the notifier)."""
+    import os
+    if not 1 <= priority <= 99:
+        raise InputError(f"--rt-priority {priority} must be in 1..99")
+    if not hasattr(os, "sched_setscheduler"):
+        raise InputError("--rt-priority needs Linux real-time scheduling (os.sched_setscheduler)")
+    try:
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
+    except PermissionError:
+        raise InputError(f"--rt-priority {priority}: not permitted (needs root or CAP_SYS_NICE)") from None
+
+
 def run(args) -> int:
     from firmware_model.can_service import can_filters, serve
     if args.duration is not None and not args.duration > 0:
@@ -95,6 +112,8 @@ def run(args) -> int:
     log = logging.getLogger("gearbox_vsensor.run")
     service = build_service(args.config)
     filters = None if args.no_filters else can_filters(rig=args.rig)
+    if args.rt_priority is not None:
+        set_realtime_priority(args.rt_priority)
     bus = open_bus(args.interface, args.channel, args.bitrate, filters)
     stop = threading.Event()
 
@@ -103,10 +122,12 @@ def run(args) -> int:
 
     previous = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
     try:
-        log.info("listening on %s %s (%s); sending as source address 0x%02X", args.interface, args.channel,
-                 "no receive filters" if filters is None else f"{len(filters)} receive filters",
-                 service.options.sensor_source_address)
-        result = serve(bus, service, stop=stop, duration_s=args.duration)
+        def ready():
+            log.info("listening on %s %s (%s); sending as source address 0x%02X", args.interface, args.channel,
+                     "no receive filters" if filters is None else f"{len(filters)} receive filters",
+                     service.options.sensor_source_address)
+
+        result = serve(bus, service, stop=stop, duration_s=args.duration, on_ready=ready)
     finally:
         for s, handler in previous.items():
             signal.signal(s, handler)
@@ -115,4 +136,8 @@ def run(args) -> int:
     log.info("stopped (%s): %d frames in, %d frames out, %d send errors, %.1f s, CPU %.1f %% of one core",
              {"stop": "signal", "duration": "--duration"}.get(result.reason, result.reason), result.frames_in,
              result.frames_out, result.send_errors, result.wall_s, 100.0 * result.cpu_share)
+    lat = result.latency_ms()
+    if lat:
+        log.info("step latency (completing frame received -> its outputs sent): median %.2f ms, p99 %.2f ms, "
+                 "max %.2f ms over %d steps", lat["median"], lat["p99"], lat["max"], len(result.step_latency_s))
     return 0
