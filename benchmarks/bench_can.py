@@ -12,7 +12,6 @@ from __future__ import annotations
 import argparse
 import sys
 import tempfile
-import threading
 import time
 from pathlib import Path
 
@@ -23,14 +22,13 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 import can  # noqa: E402
 
 from can_dbc.adapter import can_id_of, pgn_of  # noqa: E402
-from firmware_model.can_service import SensorService, ServiceOptions, can_filters, serve  # noqa: E402
-from firmware_model.components import PUBLISHED  # noqa: E402
+from firmware_model.can_service import SensorService, ServiceOptions, can_filters  # noqa: E402
 from firmware_model.config import load_config  # noqa: E402
 from firmware_model.sensor import SensorInputs, VirtualSensor  # noqa: E402
 from tools.cycles import get_cycle  # noqa: E402
 from tools.logsynth import synth_frames, write_can_log  # noqa: E402
 from tools.plant import ReferencePlant  # noqa: E402
-from tools.replay_log import read_log, replay_log  # noqa: E402
+from tools.replay_log import replay_log  # noqa: E402
 from tools.runtable import RunTable  # noqa: E402
 
 

@@ -42,7 +42,7 @@ from typing import Callable, Iterable, Mapping
 
 import numpy as np
 
-from can_dbc.adapter import (EC1_PGN, SENSOR_SOURCE_ADDRESS, TP_CM_PGN, TP_DT_PGN, J1939Decoder, OutputEncoder,
+from can_dbc.adapter import (SENSOR_SOURCE_ADDRESS, TP_CM_PGN, TP_DT_PGN, J1939Decoder, OutputEncoder,
                              load_database)
 from firmware_model.components import PUBLISHED
 from firmware_model.errors import ParameterError
@@ -582,7 +582,7 @@ _TAIL_KEYS = ("degraded_mode", *STATUS_FLAGS, "oil_innovation_c", "model_oil_tem
 class QueueListener:
     """A python-can listener that only queues frames (the Notifier's thread calls it)."""
 
-    def __init__(self, maxsize: int = 0) -> None:
+    def __init__(self) -> None:
         self.queue: queue.SimpleQueue = queue.SimpleQueue()
         self.errors: list[BaseException] = []
 

@@ -17,7 +17,7 @@ import argparse
 import os
 import threading
 from pathlib import Path
-from typing import Iterable, Iterator
+from typing import Iterator
 
 from firmware_model.errors import InputError
 

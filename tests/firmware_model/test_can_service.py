@@ -3,7 +3,6 @@ and the real truck captures of ../shared/data/real-j1939 through the whole servi
 from __future__ import annotations
 
 import logging
-import math
 from pathlib import Path
 
 import can
