@@ -52,20 +52,31 @@ def rig(params: Parameters) -> Parameters:
                       params.origin)
 
 
+def plant_run(params, name, keep_bc=False, cache={}):
+    """The cycle and the reference plant's result (cached)."""
+    key = (name, keep_bc)
+    if key not in cache:
+        tab = get_cycle(name, rate_hz=10)
+        meta = tab.meta
+        cols = [c for c in tab.columns if keep_bc or not c.startswith("bc_")]
+        tab = RunTable({c: tab[c] for c in cols}, meta=meta)
+        hold = meta.get("hold_oil_c")
+        t0 = time.process_time()
+        res = ReferencePlant(params, cooler="hold" if hold is not None else "liquid").run(
+            tab, initial_temp_c=meta.get("initial_temp_c"), hold_oil_c=hold)
+        cache[key] = (tab, res.table, time.process_time() - t0)
+    return cache[key]
+
+
 def plant_and_sensor(params, name, keep_bc=False, partition="fine", cache={}):
-    key = (name, keep_bc, partition)
+    """(cycle, plant table, sensor output, plant CPU s, sensor CPU s, sensor): the sensor gets the cycle's inputs
+    and the plant's oil temperature as the measured one."""
+    key = (name, keep_bc, partition if isinstance(partition, str) else repr(sorted(partition.items())))
     if key in cache:
         return cache[key]
-    tab = get_cycle(name, rate_hz=10)
+    tab, ref, t_plant = plant_run(params, name, keep_bc)
     meta = tab.meta
-    cols = [c for c in tab.columns if keep_bc or not c.startswith("bc_")]
-    tab = RunTable({c: tab[c] for c in cols}, meta=meta)
     hold = meta.get("hold_oil_c")
-    t0 = time.process_time()
-    res = ReferencePlant(params, cooler="hold" if hold is not None else "liquid").run(
-        tab, initial_temp_c=meta.get("initial_temp_c"), hold_oil_c=hold)
-    t_plant = time.process_time() - t0
-    ref = res.table
     fed = RunTable({c: tab[c] for c in tab.columns if not c.startswith("bc_")}, meta=meta)
     fed["oil_temp_c"] = np.interp(tab["time_s"], ref["time_s"], ref["oil_temp_c"])
     sensor = VirtualSensor(rig(params) if hold is not None else params, partition=partition)
@@ -117,6 +128,41 @@ def section_accuracy(params, cycles, per_component):
         print(f"{'component':<10}" + "".join(f"{n:>16}" for n, _ in rows))
         for c in PUBLISHED:
             print(f"{c:<10}" + "".join(f"{e[c][0]:9.2f}/{e[c][1]:5.3f}" + " " for _, e in rows))
+
+
+#: the cheapest merges first, as an error-driven greedy search over adjacent non-published nodes found them
+#: (docs/sensor.md, "Reduction"); each row adds one merge to the previous
+MERGES = (("RI", "oil"), ("IS@bulk", "IS@BIF"), ("MS@RM", "MS@CM"), ("H2", "H1"), ("H3", "H1"),
+          ("LS@BLR", "LS@RL"))
+
+
+def section_partitions(params, cycles):
+    from firmware_model.reduced import PARTITIONS
+    print("\n(a2) how far the network can be aggregated: worst component per cycle, as a share of the budget "
+          f"max(max/{MAX_TOL}, RMS/{RMS_TOL}) (1 = at the tolerance)")
+    names = [c for c in ("uphill", "mining") if c in cycles]
+    print(f"{'partition':<34}{'nodes':>6}" + "".join(f"{n:>26}" for n in names))
+    part = {}
+    rows = [("fine (default)", {})]
+    for a, b in MERGES:
+        part = dict(part)
+        for k, v in list(part.items()):
+            if v == a:
+                part[k] = b
+        part[a] = b
+        rows.append((f"+ {a} into {b}", part))
+    rows.append(("compact", PARTITIONS["compact"]))
+    for label, pt in rows:
+        cells = []
+        nn = None
+        for name in names:
+            tab, ref, out, _, _, sensor = plant_and_sensor(params, name, partition=pt if pt else "fine")
+            nn = sensor.reduced.n
+            e = errors(ref, out)
+            worst = max(e.items(), key=lambda kv: max(kv[1][0] / MAX_TOL, kv[1][1] / RMS_TOL))
+            score = max(worst[1][0] / MAX_TOL, worst[1][1] / RMS_TOL)
+            cells.append(f"{score:5.2f} ({worst[0]} {worst[1][0]:.2f}/{worst[1][1]:.2f})")
+        print(f"{label:<34}{nn:>6}" + "".join(f"{c:>26}" for c in cells))
 
 
 def section_speed(params, batch_vehicles, batch_steps, full_batch):
@@ -283,7 +329,7 @@ def _ttl_report(tab, ref, out, sensor, comp):
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--cycles", default=",".join(CYCLES))
-    ap.add_argument("--only", choices=("accuracy", "speed", "footprint", "warnings"))
+    ap.add_argument("--only", choices=("accuracy", "partitions", "speed", "footprint", "warnings"))
     ap.add_argument("--per-component", action="store_true", help="print the accuracy of every component")
     ap.add_argument("--batch-vehicles", type=int, default=1000)
     ap.add_argument("--batch-steps", type=int, default=600, help="batch steps measured (then extrapolated)")
@@ -294,6 +340,8 @@ def main():
     print(f"onboard sensor benchmark: {params.variant}, python {sys.version.split()[0]}, numpy {np.__version__}")
     if args.only in (None, "accuracy"):
         section_accuracy(params, cycles, args.per_component)
+    if args.only == "partitions":            # slow (a few minutes): not part of the default run
+        section_partitions(params, cycles)
     if args.only in (None, "speed"):
         section_speed(params, args.batch_vehicles, args.batch_steps, args.full_batch)
     if args.only in (None, "footprint"):

@@ -244,7 +244,7 @@ class HeldInputSolver:
             lo, hi = TTL_GRID_S[g - 1], TTL_GRID_S[g]
             wc = Wc[j]
             Ti, Lj = Tinf_free[rows[j]], limit_c[j]
-            for _ in range(30):                            # bisection to < 1e-9 of the bracket
+            for _ in range(14):                            # bisection to 6e-5 of the bracket
                 mid = 0.5 * (lo + hi)
                 if Ti + wc @ np.exp(-lam * mid) >= Lj:
                     hi = mid

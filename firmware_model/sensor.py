@@ -803,6 +803,10 @@ def _scalar(v):
 
 #: bin of the cooler slope dQ/dT_oil in the cached held-input modes (model-oil mode) [W/K]
 SLOPE_BIN_W_PER_K = 10.0
+#: operating-point bins of the cached held-input modes: 4 % in speed, 2 K in oil temperature
+TTL_SPEED_BIN_REL = 0.04
+TTL_OIL_BIN_C = 2.0
+_LN_TTL_BIN = math.log1p(TTL_SPEED_BIN_REL)
 
 
 def _time_to_limit(sp, T_main, src, G, Gs, dT_in, Q_cool, measured, row, w_in, T_oil, T_bc, used, rho_cp):
@@ -816,9 +820,14 @@ def _time_to_limit(sp, T_main, src, G, Gs, dT_in, Q_cool, measured, row, w_in, T
     slope = 0.0 if measured else _cooler_slope(sp, T_oil, w_in, row, used, rho_cp)
     sbin = 0 if measured else int(round(slope / SLOPE_BIN_W_PER_K))
     if sp.scalar_effects:
-        it = _key_item(sp, row, w_in, T_oil, h)
-        key = (it.key, bool(measured), sbin)
+        # modes on a coarser grid than the conductances (4 % in speed, 2 K in oil): far fewer eigen-decompositions
+        # while driving, T_inf and the modal coefficients still from the actual heat and conductances (b)
+        wb = round(math.log(w_in) / _LN_TTL_BIN) if w_in >= SPEED_BIN_MIN_RAD_S else None
+        Tb = round(T_oil / TTL_OIL_BIN_C) * TTL_OIL_BIN_C
+        key = (row, wb, Tb, bool(measured), sbin)
         item = sp.solver.cache.get(key)
+        if item is None:
+            it = _key_item(sp, row, math.exp(wb * _LN_TTL_BIN) if wb is not None else 0.0, Tb, h)
     else:                          # per-vehicle effects: the vehicle's own conductances, no cache
         it, key, item = None, None, None
     if item is not None:
@@ -826,7 +835,7 @@ def _time_to_limit(sp, T_main, src, G, Gs, dT_in, Q_cool, measured, row, w_in, T
         sp.solver.hits += 1
     else:
         if it is not None:
-            T_q = it.key[2]
+            T_q = Tb
             K = it.K.copy()
             g_rad = R.radiation_conductances(rp, np.full(rp.n, T_q), np.asarray(sp.bc, dtype=float), h)
         else:
