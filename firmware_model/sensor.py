@@ -139,8 +139,6 @@ class SensorParams:
     options: SensorOptions
     solver: HeldInputSolver = field(compare=False, repr=False, default=None)
     #: memo of the quantised conductances (a bounded cache of a pure function)
-    gcache: dict = field(compare=False, repr=False, default_factory=dict)
-    svmemo: dict = field(compare=False, repr=False, default_factory=dict)
     kcache: dict = field(compare=False, repr=False, default_factory=dict)
 
     @property
@@ -202,24 +200,25 @@ def quantise(w_in, T_oil_c):
     return w_q, T_q, b
 
 
+def _radiation_at(sp: SensorParams, T_q, h):
+    """Radiation conductances (Eq 81) linearised with the housings at the bin's oil temperature: the housings sit
+    within a few kelvin of the sump (200 W/(m2 K) on 1.7 m2), which moves h_rad by ~1 %."""
+    rp = sp.reduced
+    T1 = np.minimum(np.maximum(np.asarray(T_q, dtype=float), R.RAD_T_RANGE_C[0]), R.RAD_T_RANGE_C[1])[..., None] \
+        + R.ht.KELVIN_OFFSET
+    T2 = np.take(np.asarray(sp.bc, dtype=float), h.rad_bc, axis=-1) + R.ht.KELVIN_OFFSET
+    return rp.rad_area_eps * _SIGMA * (T1 * T1 + T2 * T2) * (T1 + T2)
+
+
 def _conductances_q(sp: SensorParams, row, w_in, T_oil, h):
-    """(G without radiation, stream G) at the quantised operating point; cached for a single vehicle."""
+    """(G, stream G) at the quantised operating point (radiation at the bin's oil temperature); the batch path."""
     rp = sp.reduced
     w_q, T_q, b = quantise(w_in, T_oil)
-    eff = sp.effects
-    if np.ndim(row) == 0:
-        key = (int(row), float(b) if w_q > 0 else -1e9, float(T_q))
-        cache = sp.gcache
-        item = cache.get(key)
-        if item is None:
-            x, prop, phi = R.oil_row(rp, T_q, h)
-            item = R.conductances(rp, row, w_q, x, prop, phi, None, None, eff, h, radiation=False)
-            cache[key] = item
-            if len(cache) > 1024:
-                cache.pop(next(iter(cache)))
-        return item
     x, prop, phi = R.oil_row(rp, T_q, h)
-    return R.conductances(rp, row, w_q, x, prop, phi, None, None, eff, h, radiation=False)
+    G, Gs = R.conductances(rp, row, w_q, x, prop, phi, None, None, sp.effects, h, radiation=False)
+    if rp.rad_link.size:
+        G[..., rp.rad_link] = _radiation_at(sp, T_q, h)
+    return G, Gs
 
 
 def step(state: SensorState, inputs: SensorInputs, sp: SensorParams):
@@ -321,11 +320,8 @@ def step_vector(state: SensorState, inputs: SensorInputs, sp: SensorParams):
     delivered = src - sp.lag_ratio * (lag - state.lag_w)
     q = delivered @ rp.src_matrix                                               # B + (n,)
 
-    # ---- conductances (quantised operating point, radiation exact), cooler, inlet drop
-    Gq, Gs = _conductances_q(sp, row, w_in, T_main_oil, h)
-    G = np.array(Gq, dtype=float)
-    if rp.rad_link.size:
-        G[..., rp.rad_link] = R.radiation_conductances(rp, T[..., MAIN, :], T_bc, h)
+    # ---- conductances (at the centre of the operating-point bin), cooler, inlet drop
+    G, Gs = _conductances_q(sp, row, w_in, T_main_oil, h)
     T_oils = T[..., :, rp.i_oil]                                                 # B + (2,)
     w_ls = np.abs(rp.speed_coef[row, 1]) * w_in
     rho_cp = prop[..., R.P_RHO] * prop[..., R.P_CP]
@@ -421,14 +417,6 @@ class _ScalarTables:
         self.warn_minus_hyst = np.asarray(sp.limits.warning_c - sp.limits.hysteresis_k)
         self.zero_levels = np.zeros(N_PUB, dtype=np.int8)
         self.zero_pending = np.zeros(N_PUB)
-        h = R.helpers(rp)
-        self.bc_list = np.asarray(sp.bc, dtype=float).tolist()
-        self.rad = [(int(nd), int(bi), float(ae), self.bc_list[int(bi)] + 273.15)
-                    for nd, bi, ae in zip(h.rad_node, h.rad_bc, rp.rad_area_eps)]
-        self.rad_node = np.asarray(h.rad_node)
-        self.rad_bc_c = np.asarray(sp.bc, dtype=float)[h.rad_bc]
-        self.rad_scatter = np.zeros((len(self.rad), rp.n))
-        self.rad_scatter[np.arange(len(self.rad)), h.rad_node] = 1.0
 
 
 _SCALAR_TABLES: dict = {}
@@ -629,14 +617,6 @@ def step_scalar(state: SensorState, inputs: SensorInputs, sp: SensorParams):
         Qc[c], dTin[c] = Q, (-30.0 if d < -30.0 else (30.0 if d > 30.0 else d))
     q2 = q + np.outer(dTin, it.sv)
     q2[:, rp.i_oil] -= Qc
-    # radiation (Eq 81, linearised at the main copy's housing temperatures)
-    Th = T[MAIN, tb.rad_node].tolist()
-    g_rad = []
-    for (nd, bi, ae, T2), T1 in zip(tb.rad, Th):
-        T1 = (R.RAD_T_RANGE_C[0] if T1 < R.RAD_T_RANGE_C[0] else (R.RAD_T_RANGE_C[1] if T1 > R.RAD_T_RANGE_C[1]
-                                                                   else T1)) + 273.15
-        g_rad.append(ae * _SIGMA * (T1 * T1 + T2 * T2) * (T1 + T2))
-    q2 += (np.array(g_rad) * (tb.rad_bc_c - T[:, tb.rad_node])) @ tb.rad_scatter
 
     # ---- one explicit step of both copies: T_new = T M + dt/C (c + sources), M = I - dt C^-1 K (per bin)
     T_new = T @ it.M + (it.c_dt + sp.dt_inv_C * q2)
@@ -650,16 +630,14 @@ def step_scalar(state: SensorState, inputs: SensorInputs, sp: SensorParams):
     ttl = state.ttl_s
     phase = int(state.k) % sp.ttl_every
     if phase == 0:
-        G = it.G.copy()
-        G[rp.rad_link] = g_rad
-        ttl = _time_to_limit(sp, T_new[MAIN], src, G, it.Gs, dTin[MAIN], Qc[MAIN], measured, row, w_in, T_main_oil,
-                             T_bc, np.array(used), rho_cp)
+        ttl = _time_to_limit(sp, T_new[MAIN], src, it.G, it.Gs, dTin[MAIN], Qc[MAIN], measured, row, w_in,
+                             T_main_oil, T_bc, np.array(used), rho_cp)
         ttl_now = ttl
     else:
         ttl_now = np.maximum(ttl - phase * dt, 0.0)
     lv0 = state.level
-    if (available and not lv0.any() and not state.pending_s.any() and (T_pub < tb.warn_minus_hyst).all()
-            and (lim.lead_s <= 0 or not (ttl_now <= 2.0 * lim.lead_s).any())):
+    if (available and (T_pub - tb.warn_minus_hyst).max() < 0.0 and not lv0.any() and not state.pending_s.any()
+            and (lim.lead_s <= 0 or ttl_now.min() > 2.0 * lim.lead_s)):
         level, pend = tb.zero_levels, tb.zero_pending           # nothing near a limit: the state machine rests
     else:
         level, pend = update_levels(lv0, state.pending_s, T_pub, available, lim, dt, ttl_now)
@@ -669,7 +647,7 @@ def step_scalar(state: SensorState, inputs: SensorInputs, sp: SensorParams):
         ttl_out = ttl_now
     mode = MODE_HOLDING if not drive_ok else (MODE_NORMAL if measured else MODE_OIL_MODEL)
     twin_new = float(T_new[TWIN, rp.i_oil])
-    flags = sum(1 << i for i in range(8) if ok[i])
+    flags = (ok[0] | ok[1] << 1 | ok[2] << 2 | ok[3] << 3 | ok[4] << 4 | ok[5] << 5 | ok[6] << 6 | ok[7] << 7)
     frozen_bits = (((1 << I_SPEED) | (1 << I_TORQUE)) if drive_frozen else 0) | ((1 << I_OIL) if oil_frozen else 0)
     rejects = state.rejects + np.array(counts, dtype=np.int64) if any(counts) else state.rejects
     status = SensorStatus(np.int8(mode), ok[I_SPEED], ok[I_TORQUE], ok[I_GEAR], oil_ok, flags, twin_new,
@@ -685,12 +663,12 @@ _SIGMA = R.ht.SIGMA_W_PER_M2K4
 
 
 class _KeyItem(NamedTuple):
-    G: np.ndarray        # (nl,) conductances at the bin centre, radiation links 0
+    G: np.ndarray        # (nl,) conductances at the bin centre
     Gs: np.ndarray       # (nst,) stream conductances
     sv: np.ndarray       # (n,) Gs @ stream_scatter: the inlet-drop transfer per kelvin
-    M: np.ndarray        # (n, n) Euler matrix I - dt C^-1 K (radiation excluded)
-    c_dt: np.ndarray     # (n,) dt/C x boundary heat of the non-radiation boundary links
-    K: np.ndarray        # (n, n) the network's conductance matrix (radiation excluded)
+    M: np.ndarray        # (n, n) Euler matrix I - dt C^-1 K
+    c_dt: np.ndarray     # (n,) dt/C x heat from the boundary links
+    K: np.ndarray        # (n, n) the network's conductance matrix
     key: tuple           # (gear row, speed bin, oil bin centre)
 
 
@@ -710,6 +688,8 @@ def _key_item(sp: SensorParams, row: int, w_in: float, T_oil: float, h) -> _KeyI
     w_q = math.exp(b * _LN_BIN) if b is not None else 0.0
     x, prop, phi = R.oil_row(rp, T_q, h)
     G, Gs = R.conductances(rp, row, w_q, x, prop, phi, None, None, sp.effects, h, radiation=False)
+    if rp.rad_link.size:
+        G[rp.rad_link] = _radiation_at(sp, T_q, h)
     n = rp.n
     Gi = G[h.int_idx]
     K = np.zeros((n, n))
@@ -726,19 +706,6 @@ def _key_item(sp: SensorParams, row: int, w_in: float, T_oil: float, h) -> _KeyI
     if len(cache) > 256:
         cache.pop(next(iter(cache)))
     return item
-
-
-def _stream_vector(sp: SensorParams, Gs):
-    """Gs @ stream_scatter, memoised on the identity of the cached Gs (the same for every step of a bin)."""
-    memo = sp.svmemo
-    key = id(Gs)
-    item = memo.get(key)
-    if item is None or item[0] is not Gs:
-        item = (Gs, Gs @ R.helpers(sp.reduced).stream_scatter)
-        memo[key] = item
-        if len(memo) > 1024:
-            memo.pop(next(iter(memo)))
-    return item[1]
 
 
 def _skip(state: SensorState, counts, skip_mask, sp: SensorParams):
@@ -835,14 +802,9 @@ def _time_to_limit(sp, T_main, src, G, Gs, dT_in, Q_cool, measured, row, w_in, T
         sp.solver.hits += 1
     else:
         if it is not None:
-            T_q = Tb
             K = it.K.copy()
-            g_rad = R.radiation_conductances(rp, np.full(rp.n, T_q), np.asarray(sp.bc, dtype=float), h)
         else:
-            K, _, _ = _linear_system(sp, np.where(np.isin(np.arange(len(G)), rp.rad_link), 0.0, G), np.zeros(rp.n),
-                                     np.zeros(rp.n), T_bc, T_oil, 0.0, False, 0.0)
-            g_rad = G[rp.rad_link]
-        np.add.at(K, (h.rad_node, h.rad_node), g_rad)
+            K, _, _ = _linear_system(sp, G, np.zeros(rp.n), np.zeros(rp.n), T_bc, T_oil, 0.0, False, 0.0)
         if measured:
             free = np.flatnonzero(np.arange(rp.n) != rp.i_oil)
         else:
