@@ -197,7 +197,7 @@ class HeldInputSolver:
         M = Kf / s[:, None] / s[None, :]
         lam, V = np.linalg.eigh(0.5 * (M + M.T))
         lam = np.maximum(lam, 1e-12)
-        item = (lam, V, s, free)
+        item = (lam, V, s, free, np.exp(-np.outer(lam, TTL_GRID_S)))
         if key is not None:
             self.cache[key] = item
             if len(self.cache) > self.cache_size:
@@ -207,13 +207,13 @@ class HeldInputSolver:
     @staticmethod
     def steady(item, b_free):
         """T_inf over the free nodes: K_ff^-1 b_f = C^-1/2 V lambda^-1 V^T C^-1/2 b_f."""
-        lam, V, s, _ = item
+        lam, V, s = item[:3]
         return (V @ ((V.T @ (b_free / s)) / lam)) / s
 
     @staticmethod
     def propagate(item, T0_free, Tinf_free, t_s):
         """Free-node temperatures after t_s seconds of held inputs."""
-        lam, V, s, _ = item
+        lam, V, s = item[:3]
         c = V.T @ (s * (T0_free - Tinf_free))
         return Tinf_free + (V @ (c * np.exp(-lam * t_s))) / s
 
@@ -221,7 +221,7 @@ class HeldInputSolver:
     def time_to_limit(item, T0_free, Tinf_free, rows, limit_c):
         """First time [s] each free node ``rows`` reaches ``limit_c`` (0 if already there, inf if never within the
         horizon), for held inputs."""
-        lam, V, s, _ = item
+        lam, V, s = item[:3]
         c = V.T @ (s * (T0_free - Tinf_free))
         W = V[rows] / s[rows, None]                       # (r, m)
         Wc = W * c                                        # modal contributions
@@ -233,22 +233,22 @@ class HeldInputSolver:
         idx = np.flatnonzero(reach)
         if idx.size == 0:
             return out
-        E = np.exp(-np.outer(lam, TTL_GRID_S))             # (m, g)
+        E = item[4] if len(item) > 4 else np.exp(-np.outer(lam, TTL_GRID_S))   # (m, g), cached with the modes
         F = Tinf_free[rows[idx], None] + Wc[idx] @ E       # (k, g)
         L = limit_c[idx, None]
         above = F >= L
         first = np.where(above.any(axis=1), above.argmax(axis=1), -1)
-        for j, g in zip(idx, first):
-            if g <= 0:
-                continue
+        sel = first > 0
+        if sel.any():
+            j = idx[sel]
+            g = first[sel]
             lo, hi = TTL_GRID_S[g - 1], TTL_GRID_S[g]
             wc = Wc[j]
             Ti, Lj = Tinf_free[rows[j]], limit_c[j]
-            for _ in range(14):                            # bisection to 6e-5 of the bracket
+            for _ in range(14):                            # bisection (all crossings at once) to 6e-5 of the bracket
                 mid = 0.5 * (lo + hi)
-                if Ti + wc @ np.exp(-lam * mid) >= Lj:
-                    hi = mid
-                else:
-                    lo = mid
+                up = Ti + np.einsum("km,km->k", wc, np.exp(-np.outer(mid, lam))) >= Lj
+                hi = np.where(up, mid, hi)
+                lo = np.where(up, lo, mid)
             out[j] = hi
         return out

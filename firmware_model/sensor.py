@@ -126,6 +126,8 @@ class SensorOptions:
     max_vehicle_speed_kmh: float = 250.0
     default_vehicle_speed_kmh: float = 50.0
     ttl_period_s: float = 1.0            # time to limit refreshed this often (0: every step)
+    ttl_sump: str = "model"              # time to limit: the sump evolves with the cooler model ("model") or a
+    #                                      measured reading is held like the other inputs ("held")
     time_jump_hold_s: float = 60.0       # forward jumps: held inputs this long, then engine off
     initial_temp_c: float | None = None  # cold start without oil: default = ambient boundary
 
@@ -754,8 +756,17 @@ def _linear_system(sp: SensorParams, G, q_nodes, xfer_nodes, T_bc, T_oil_c, Q_co
 
 
 def _cooler_slope(sp, T_oil, w_in, row, used, rho_cp):
+    """dQ_cooler/dT_oil [W/K] at this operating point (liquid: hA unless saturated; air: finite difference)."""
     rp = sp.reduced
     w_ls = abs(rp.speed_coef[row, 1]) * w_in
+    if rp.cooler_code == 0 or w_ls <= 0.0:
+        return 0.0
+    c = rp.cooler
+    if rp.cooler_code == 1:
+        hA = (c["liquid_hA_ref"] * (w_ls / c["ref_ls_speed"]) ** c["exp_inner"]
+              * (max(w_in, 0.0) / c["ref_engine_speed"]) ** c["exp_outer"] * _scalar(sp.effects.cooler_scale))
+        Q = hA * (T_oil - float(used[I_COOL]))
+        return hA if -c["liquid_Qmax_heat"] < Q < c["liquid_Qmax_cool"] else 0.0
     args = (w_ls, w_in, used[I_COOL], used[I_AMB], used[I_VKMH], rho_cp, _scalar(sp.effects.cooler_scale),
             _scalar(sp.effects.thermostat_offset_c))
     q1 = R.cooler_heat(rp, T_oil + 0.05, *args)[0]
@@ -784,19 +795,25 @@ def _time_to_limit(sp, T_main, src, G, Gs, dT_in, Q_cool, measured, row, w_in, T
     b (heat, boundaries, inlet drop, the measured sump) at the actual operating point."""
     rp = sp.reduced
     h = R.helpers(rp)
-    slope = 0.0 if measured else _cooler_slope(sp, T_oil, w_in, row, used, rho_cp)
-    sbin = 0 if measured else int(round(slope / SLOPE_BIN_W_PER_K))
+    if sp.options.ttl_sump == "model":
+        measured = False           # the sump is a state that heats with the held load, from its measured value
     if sp.scalar_effects:
-        # modes on a coarser grid than the conductances (4 % in speed, 2 K in oil): far fewer eigen-decompositions
-        # while driving, T_inf and the modal coefficients still from the actual heat and conductances (b)
+        # modes on a coarser grid than the conductances (4 % in speed, 2 K in oil, the cooler slope at the bin
+        # centre in 10 W/K): few eigen-decompositions while driving; T_inf and the modal coefficients still from the
+        # actual heat, boundaries and inlet drop (b)
         wb = round(math.log(w_in) / _LN_TTL_BIN) if w_in >= SPEED_BIN_MIN_RAD_S else None
         Tb = round(T_oil / TTL_OIL_BIN_C) * TTL_OIL_BIN_C
+        w_c = math.exp(wb * _LN_TTL_BIN) if wb is not None else 0.0
+        slope = 0.0 if measured else _cooler_slope(sp, Tb, w_c, row, used, rho_cp)
+        sbin = 0 if measured else int(round(slope / SLOPE_BIN_W_PER_K))
         key = (row, wb, Tb, bool(measured), sbin)
         item = sp.solver.cache.get(key)
         if item is None:
-            it = _key_item(sp, row, math.exp(wb * _LN_TTL_BIN) if wb is not None else 0.0, Tb, h)
+            it = _key_item(sp, row, w_c, Tb, h)
     else:                          # per-vehicle effects: the vehicle's own conductances, no cache
         it, key, item = None, None, None
+        slope = 0.0 if measured else _cooler_slope(sp, T_oil, w_in, row, used, rho_cp)
+        sbin = 0 if measured else int(round(slope / SLOPE_BIN_W_PER_K))
     if item is not None:
         sp.solver.cache.move_to_end(key)
         sp.solver.hits += 1
@@ -821,7 +838,7 @@ def _time_to_limit(sp, T_main, src, G, Gs, dT_in, Q_cool, measured, row, w_in, T
     else:
         # cooler linearised at the current sump: Q = Q0 + g (T - T0)
         b[rp.i_oil] += sbin * SLOPE_BIN_W_PER_K * T_oil - Q_cool
-    lam, V, s, free = item
+    free = item[3]
     T_inf = HeldInputSolver.steady(item, b[free])
     pub_free, rows = (h.pub_free_meas, h.pub_rows_meas) if measured else (h.pub_free_all, h.pub_rows_all)
     out = np.full(N_PUB, np.inf)
@@ -921,7 +938,7 @@ def cool_down(sp: SensorParams, T0, elapsed_s: float, ambient_c: float):
         G, _ = R.conductances(rp, 0 - GEAR_MIN, 0.0, x, prop, phi, np.full(rp.n, ambient_c), T_bc, None, h)
         K, _, free = _linear_system(sp, G, np.zeros(rp.n), np.zeros(rp.n), T_bc, ambient_c, 0.0, False, 0.0)
         item = sp.solver.modes(key, K, free)
-    lam, V, s, free = item
+    free = item[3]
     T_inf = np.full(len(free), float(ambient_c))
     out = T0.copy()
     out[free] = HeldInputSolver.propagate(item, T0[free], T_inf, float(elapsed_s))
@@ -968,6 +985,8 @@ class VirtualSensor:
         oil_mode = options.pop("oil_mode", sensor_cfg.get("oil_mode", "measured"))
         if oil_mode not in ("measured", "model"):
             raise ParameterError(f"sensor.oil_mode = {oil_mode!r} must be 'measured' or 'model'")
+        if options.get("ttl_sump", "model") not in ("model", "held"):
+            raise ParameterError(f"sensor option ttl_sump = {options['ttl_sump']!r} must be 'model' or 'held'")
         if params.strings.get("cooler.kind") in ("hold", "measured"):
             # a rig: the sump is conditioned from outside (no cooler to model, a constant reading is normal)
             params = _with_cooler(params, "none")

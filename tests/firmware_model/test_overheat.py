@@ -163,9 +163,9 @@ def test_the_sensor_warns_and_clears_in_a_load_cycle(params):
 
 @pytest.mark.parametrize("comp", ["PS", "2M.teeth"])
 def test_time_to_limit_matches_a_held_input_simulation(params, comp):
-    """Measured sump: the held-input network is exactly linear; the prediction at 60 s against the sensor's own
-    step-by-step crossing time with the inputs held."""
-    s = VirtualSensor(params, oil_frozen_s=math.inf)
+    """Measured sump held like the other inputs (ttl_sump="held"): the held-input network is exactly linear; the
+    prediction at 60 s against the sensor's own step-by-step crossing time with every input held."""
+    s = VirtualSensor(params, oil_frozen_s=math.inf, ttl_sump="held")
     st = s.initial_state(T_oil_c=95.0)
     inp = SensorInputs(1400.0, 2600.0, 5, 95.0, 25.0, 85.0, 20.0, 0.0)
     pred = crossed = None
@@ -178,6 +178,27 @@ def test_time_to_limit_matches_a_held_input_simulation(params, comp):
             break
     assert crossed is not None
     assert abs(pred - crossed) <= 0.02 * (crossed - 60.0) + 0.5
+
+
+@pytest.mark.parametrize("comp", ["PS", "2M.teeth"])
+def test_time_to_limit_with_the_sump_heating_matches_a_simulation(params, comp):
+    """Default (ttl_sump="model"): the load is held and the sump heats with it from its measured value; against the
+    sensor stepping on with the load held and the sump modelled from the same value (the losses' dependence on the
+    oil temperature is the only nonlinearity the prediction linearises)."""
+    s = VirtualSensor(params, oil_frozen_s=math.inf)
+    st = s.initial_state(T_oil_c=95.0)
+    inp = SensorInputs(1400.0, 2600.0, 5, 95.0, 25.0, 85.0, 20.0, 0.0)
+    for _ in range(600):
+        st, out = s.step(st, inp)
+    pred = 60.0 + float(out.ttl_s[I[comp]])
+    crossed = None
+    for k in range(600, 20000):
+        st, out = s.step(st, inp._replace(oil_temp_c=math.nan))
+        if out.T_c[I[comp]] >= s.limits.warning_c[I[comp]]:
+            crossed = (k + 1) * 0.1
+            break
+    assert crossed is not None
+    assert abs(pred - crossed) <= 0.15 * (crossed - 60.0)
 
 
 def test_time_to_limit_is_inf_when_never_and_zero_at_the_limit(params):
