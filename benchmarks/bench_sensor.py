@@ -249,7 +249,7 @@ def section_warnings(params, cycles):
                 print(f"  plant PS >= {w:g} degC from {t_cross:7.1f} s to {t_end:7.1f} s: no sensor warning (missed)")
             else:
                 s0 = ep[0][0]
-                note = "" if s0 > prev_end else f" (the warning of an earlier crossing, still on)"
+                note = "" if s0 > prev_end else " (the warning of an earlier crossing, still on)"
                 print(f"  plant PS >= {w:g} degC from {t_cross:7.1f} s to {t_end:7.1f} s; sensor warning from "
                       f"{s0:7.1f} s: lead {t_cross - s0:+6.1f} s{note}")
             prev_end = t_end

@@ -48,13 +48,13 @@ import numpy as np
 from . import heat_transfer as ht
 from . import losses as L
 from . import oil as oilprops
-from .components import IDLE_WHEELS, PAIRS, PUBLISHED, SHAFT_BEARINGS
+from .components import PUBLISHED, SHAFT_BEARINGS
 from .effects import CATALOG, effect_value
 from .errors import ParameterError, StabilityError
 from .gearbox_losses import GearboxLosses
-from .kinematics import GEAR_MIN, MESHES, N_GEARS, SPEED_NAMES, SYNCS, gear_state
+from .kinematics import GEAR_MIN, MESHES, N_GEARS, SPEED_NAMES
 from .network import (BOUNDARIES, K_BRG_SPLASH, K_CONST, K_CONTACT, K_EXT_CONV, K_EXT_RAD, K_IMM_BRG, K_IMM_GEAR,
-                      K_RING, K_SPLASH, K_STREAM, S_CHANNEL, S_IMPOSED, S_PIPE, SHAFT_SEGMENTS, ConductanceEvaluator,
+                      K_RING, K_SPLASH, K_STREAM, S_CHANNEL, S_IMPOSED, SHAFT_SEGMENTS, ConductanceEvaluator,
                       HeatTransferScales, Network, build_network)
 from .parameters import Parameters
 
@@ -448,7 +448,6 @@ def build_reduced(p: Parameters, partition: str | dict = "fine", effects: dict |
         phi_cols.append(values)
         return len(phi_cols) - 1
 
-    sc = HeatTransferScales()
     for k in range(n_links_full):
         r = agg.link_of_full[k]
         if r < 0:

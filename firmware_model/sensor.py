@@ -30,7 +30,7 @@ from __future__ import annotations
 import base64
 import json
 import math
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from typing import NamedTuple
 
 import numpy as np
@@ -40,7 +40,7 @@ from .components import PUBLISHED
 from .errors import InputError, ParameterError
 from .kinematics import GEAR_MAX, GEAR_MIN
 from .network import BOUNDARIES
-from .overheat import (LEVEL_NA, LEVEL_NORMAL, HeldInputSolver, Limits, load_limits, update_levels)
+from .overheat import LEVEL_NA, HeldInputSolver, Limits, load_limits, update_levels
 from .parameters import Parameters
 
 N_PUB = len(PUBLISHED)
@@ -624,7 +624,6 @@ def step_scalar(state: SensorState, inputs: SensorInputs, sp: SensorParams):
     T_new = T @ it.M + (it.c_dt + sp.dt_inv_C * q2)
     if measured:
         T_new[MAIN, rp.i_oil] = oil
-    G = None
 
     # ---- outputs, time to limit (refreshed every ttl_period_s, counted down in between), warnings
     T_pub = T_new[MAIN, rp.published_index]

@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import argparse
 import math
-import sys
 from pathlib import Path
 from typing import Iterable, Iterator
 
@@ -109,7 +108,7 @@ def run(args) -> int:
     return 0
 
 
-def read_inputs_table(path) -> "RunTable":
+def read_inputs_table(path):
     """Read a run table for the sensor: the structure is checked (header, numbers, the required columns, time_s
     strictly increasing) but not the *values* of the inputs: a NaN, a gear 7.5 or a negative speed is data for
     the sensor, which holds, clamps or degrades and counts it (docs/sensor.md "Bad input")."""

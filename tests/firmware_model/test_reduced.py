@@ -7,7 +7,7 @@ import pytest
 from firmware_model import reduced as R
 from firmware_model.components import PUBLISHED
 from firmware_model.errors import ParameterError, StabilityError
-from firmware_model.gearbox_losses import SOURCES, GearboxLosses
+from firmware_model.gearbox_losses import GearboxLosses
 from firmware_model.kinematics import GEAR_MIN
 from firmware_model.network import BOUNDARIES, ConductanceEvaluator, build_network
 from firmware_model.parameters import load_parameters

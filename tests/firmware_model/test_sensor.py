@@ -99,6 +99,7 @@ def test_batch_equals_single(params):
     rng = np.random.default_rng(2)
     states = [s.initial_state(T_oil_c=o) for o in (60.0, 80.0, 95.0)]
     batch = s.initial_state(T_oil_c=np.array([60.0, 80.0, 95.0]), n_vehicles=V)
+    gear = np.full(V, 9)
     for k in range(600):
         spd = 1000 + 800 * rng.random(V)
         tq = 3000 * rng.random(V) - 500

@@ -1,6 +1,4 @@
 """`gearbox-vsensor replay` on run tables: output contract, bad values handled by the sensor, bad files refused."""
-import math
-
 import numpy as np
 import pytest
 
