@@ -1,0 +1,290 @@
+"""Gap diagnosis (`gearbox-vsensor diagnose`): the JSON of CONTRACTS section 4, a planted effect found, a null
+scenario answered "none", and every bad input refused with one sentence and nothing written.
+
+The scenarios are short (10-minute synthetic cycles) so that each diagnosis takes well under a minute.
+"""
+from __future__ import annotations
+
+import json
+import math
+import warnings
+
+import numpy as np
+import pytest
+
+from firmware_model.effects import CATALOG, EFFECT_IDS
+from firmware_model.errors import InputError
+from firmware_model.parameters import load_parameters
+from tools.cli import main
+from tools.diagnosis import diagnose, lag_filter
+from tools.diagnosis_bench import make_scenario, mixed_cycle
+from tools.runtable import RunTable, write_run_table
+
+SHORT_S = 600.0
+
+
+@pytest.fixture(scope="module")
+def params():
+    return load_parameters("GRS905")
+
+
+def _write(sc, d):
+    paths = {"train": [], "test": []}
+    for role in ("train", "test"):
+        for k, tb in enumerate(getattr(sc, role)):
+            p = d / f"{role}{k + 1}.csv"
+            write_run_table(tb, p)
+            paths[role].append(str(p))
+    return paths
+
+
+@pytest.fixture(scope="module")
+def planted(tmp_path_factory, params):
+    """A rig scenario with the planetary heat 35 % above the correlation, diagnosed through the CLI with a report."""
+    d = tmp_path_factory.mktemp("planted")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        sc = make_scenario(0, 11, "rig", "planetary_loss_scale", 1.35, params, train_s=SHORT_S, test_s=SHORT_S)
+    paths = _write(sc, d)
+    out = d / "gap.json"
+    rep = d / "report" / "gap.md"
+    rc = main(["diagnose", "--train", *paths["train"], "--test", *paths["test"], "--model", "plant",
+               "--json", str(out), "--report", str(rep), "--quiet"])
+    assert rc == 0
+    return json.loads(out.read_text()), rep, paths
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# the contract JSON
+
+def test_json_schema_exactly_as_contract(planted):
+    res, _, paths = planted
+    for key in ("schema", "train", "test", "channels", "where", "candidates", "verdict"):
+        assert key in res
+    assert res["schema"] == "gap-diagnosis/1"
+    assert res["train"] == paths["train"] and res["test"] == paths["test"]
+    assert set(res["channels"]) == {"oil", "PS", "LI.teeth", "BLR"}
+    for ch in res["channels"].values():
+        for k in ("train_rms_c", "train_max_c", "test_rms_c", "test_max_c"):
+            assert isinstance(ch[k], float) and ch[k] >= 0
+        assert ch["train_max_c"] >= ch["train_rms_c"]
+    assert res["where"], "where is empty"
+    for w in res["where"]:
+        assert isinstance(w["channel"], str) and w["channel"] in res["channels"]
+        assert isinstance(w["regime"], str) and w["regime"]
+        assert isinstance(w["share"], float) and 0.0 <= w["share"] <= 1.0
+    shares = [w["share"] for w in res["where"]]
+    assert shares == sorted(shares, reverse=True)
+    # shares of one channel add up to one (a partition of its squared residual)
+    for cid in res["channels"]:
+        assert math.isclose(sum(w["share"] for w in res["where"] if w["channel"] == cid), 1.0, abs_tol=2e-3)
+    cands = res["candidates"]
+    assert sorted(c["effect"] for c in cands) == sorted(EFFECT_IDS)
+    scores = [c["score"] for c in cands]
+    assert scores == sorted(scores, reverse=True), "candidates must be best first"
+    for c in cands:
+        e = CATALOG[c["effect"]]
+        assert list(c["parameters"]) == [e.param]
+        v = c["parameters"][e.param]
+        assert isinstance(v, float) and e.low - 1e-9 <= v <= e.high + 1e-9
+        for k in ("train_rms_before_c", "train_rms_after_c", "test_rms_before_c", "test_rms_after_c", "score"):
+            assert isinstance(c[k], float)
+        assert isinstance(c["confusable_with"], list)
+        assert all(isinstance(x, str) and x in CATALOG for x in c["confusable_with"])
+    v = res["verdict"]
+    assert v["effect"] in CATALOG or v["effect"] in ("none", "unexplained")
+    for k in ("test_rms_before_c", "test_rms_after_c", "shrink"):
+        assert isinstance(v[k], float)
+    assert math.isclose(v["shrink"], 1.0 - v["test_rms_after_c"] / v["test_rms_before_c"], abs_tol=2e-3)
+    json.dumps(res, allow_nan=False)     # strict JSON: no NaN or Infinity anywhere
+
+
+def test_planted_effect_is_identified_and_shrinks(planted):
+    res, _, _ = planted
+    v = res["verdict"]
+    assert v["effect"] == "planetary_loss_scale", v
+    assert v["parameters"]["factor"] == pytest.approx(1.35, abs=0.05)
+    assert v["shrink"] > 0.7
+    # the gap sits where the planetary works hardest: the sun wheel in low range
+    top = res["where"][0]
+    assert top["channel"] == "PS" and top["regime"].startswith("low range")
+    assert res["candidates"][0]["effect"] == "planetary_loss_scale"
+
+
+def test_report_written_with_plots(planted):
+    _, rep, _ = planted
+    text = rep.read_text()
+    assert text.startswith("# ")
+    for stem in ("residuals", "regimes", "ranking", "test", "heat"):
+        png = rep.parent / f"gap_{stem}.png"
+        assert png.is_file() and png.stat().st_size > 1000
+        assert f"gap_{stem}.png" in text
+    assert not list(rep.parent.glob(".diag-report-*")), "staging directory left behind"
+
+
+def test_null_scenario_gives_none(params):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        sc = make_scenario(1, 12, "truck", None, None, params, train_s=SHORT_S, test_s=SHORT_S)
+        res = diagnose(sc.train, sc.test, params, model="plant")
+    assert res["verdict"]["effect"] == "none", res["verdict"]
+    assert res["verdict"]["shrink"] == 0.0
+    assert set(res["channels"]) == {"oil"}
+    # not identifiable from the oil alone: said so, not guessed
+    assert res["identifiability"]["thermostat_offset"]["identifiable"] is False
+    assert "oil alone" in res["identifiability"]["thermostat_offset"]["note"]
+
+
+def test_lag_filter_matches_exponential():
+    t = np.arange(0, 100.0, 1.0)
+    x = np.where(t >= 0, 1.0, 0.0)
+    x[0] = 0.0
+    y = lag_filter(x, 10.0, 1.0)
+    # x[n] holds over (t[n-1], t[n]] (the plant's convention): a unit step from t = 0 s on -> 1 - exp(-t/tau)
+    assert y[11] == pytest.approx(1 - math.exp(-1.1), rel=1e-9)
+    assert lag_filter(x, 0.0, 1.0) is x
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# bad input: one sentence, exit 2, nothing written
+
+def _table(n=900, oil=True, seed=3):
+    c = mixed_cycle(seed, float(n), rate_hz=1.0, initial_temp_c=40.0)
+    cols = {k: c[k] for k in c.columns}
+    if oil:
+        cols["oil_temp_c"] = 40.0 + 0.02 * np.arange(n) + np.random.default_rng(seed).normal(0, 0.1, n)
+    return cols
+
+
+def _run_bad(tmp_path, capsys, train_cols, test_cols=None, same=False):
+    tr = tmp_path / "train.csv"
+    write_run_table(RunTable(train_cols), tr)
+    if same:
+        te = tr
+    else:
+        te = tmp_path / "test.csv"
+        write_run_table(RunTable(test_cols if test_cols is not None else _table(seed=4)), te)
+    out = tmp_path / "gap.json"
+    rep = tmp_path / "gap.md"
+    rc = main(["diagnose", "--train", str(tr), "--test", str(te), "--model", "plant", "--json", str(out),
+               "--report", str(rep), "--quiet"])
+    err = capsys.readouterr().err.strip()
+    assert rc == 2
+    assert not out.exists() and not rep.exists()
+    assert not list(tmp_path.glob("*.png")) and not list(tmp_path.glob(".gap*"))
+    assert err.count("\n") == 0 and err.startswith("gearbox-vsensor diagnose: error: ")
+    return err
+
+
+def test_no_measured_channel(tmp_path, capsys):
+    err = _run_bad(tmp_path, capsys, _table(oil=False))
+    assert "no measured channel" in err
+
+
+def test_stuck_sensor(tmp_path, capsys):
+    cols = _table()
+    cols["oil_temp_c"] = np.full(cols["time_s"].size, 71.25)
+    err = _run_bad(tmp_path, capsys, cols)
+    assert "stuck sensor" in err and "oil_temp_c" in err
+
+
+def test_dead_sensor(tmp_path, capsys):
+    cols = _table()
+    cols["meas_T_PS_c"] = np.full(cols["time_s"].size, np.nan)
+    err = _run_bad(tmp_path, capsys, cols)
+    assert "dead sensor" in err and "meas_T_PS_c" in err
+
+
+def test_time_gap(tmp_path, capsys):
+    cols = _table()
+    cols["time_s"] = cols["time_s"] + np.where(cols["time_s"] > 400, 3600.0, 0.0)
+    err = _run_bad(tmp_path, capsys, cols)
+    assert "gap" in err and "time_s" in err
+
+
+def test_channel_gap(tmp_path, capsys):
+    cols = _table()
+    cols["oil_temp_c"][200:700] = np.nan
+    err = _run_bad(tmp_path, capsys, cols)
+    assert "no valid value for" in err
+
+
+def test_unsorted_timestamps(tmp_path, capsys):
+    cols = _table()
+    cols["time_s"][[100, 101]] = cols["time_s"][[101, 100]]
+    err = _run_bad(tmp_path, capsys, cols)
+    assert "goes backwards" in err
+
+
+def test_duplicated_timestamps(tmp_path, capsys):
+    cols = _table()
+    cols["time_s"][101] = cols["time_s"][100]
+    err = _run_bad(tmp_path, capsys, cols)
+    assert "duplicated" in err
+
+
+def test_train_and_test_the_same_file(tmp_path, capsys):
+    err = _run_bad(tmp_path, capsys, _table(), same=True)
+    assert "both a training and a test file" in err
+
+
+def test_train_and_test_the_same_data(tmp_path, capsys):
+    cols = _table()
+    err = _run_bad(tmp_path, capsys, cols, test_cols=cols)
+    assert "both a training and a test file" in err
+
+
+def test_missing_file(tmp_path, capsys):
+    rc = main(["diagnose", "--train", str(tmp_path / "nope.csv"), "--test", str(tmp_path / "nope2.csv"),
+               "--json", str(tmp_path / "o.json")])
+    err = capsys.readouterr().err.strip()
+    assert rc == 2 and "nope.csv" in err and not (tmp_path / "o.json").exists()
+
+
+def test_diagnose_api_raises_input_error(params):
+    cols = _table(oil=False)
+    with pytest.raises(InputError, match="no measured channel"):
+        diagnose([RunTable(cols)], [RunTable(_table(seed=5))], params, model="plant")
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# backends and inputs
+
+def test_onboard_backend_runs_effects_as_vehicles(params):
+    from tools.diagnosis import Options, prepare
+    from tools.diagnosis_models import OnboardModel, PlantModel, Run, onboard_available
+    if not onboard_available():
+        pytest.skip("the onboard model (firmware_model.sensor) is not installed")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        sc = make_scenario(2, 13, "rig", None, None, params, n_train=1, train_s=240.0, test_s=60.0)
+    ds = prepare(sc.train[0], "t.csv", "train", Options())
+    plant = PlantModel(params, workers=1)
+    runs = [Run.of(), Run.of({"planetary_loss_scale": 1.4}), Run.of({"synchronizer_shift_heat": 4000.0})]
+    with OnboardModel(params, cooler="liquid", fallback=plant, workers=1) as onb:
+        out = onb.simulate([ds], runs, ["oil_temp_c", "T_PS_c"])
+        assert onb.delegated == ["synchronizer_shift_heat"]
+    ref = plant.simulate([ds], runs[:1], ["oil_temp_c", "T_PS_c"])[0][0]
+    base, hot = out[0][0], out[1][0]
+    ps_ref = np.interp(base["time_s"], ref["time_s"], ref["T_PS_c"])
+    assert np.sqrt(np.mean((base["T_PS_c"] - ps_ref) ** 2)) < 0.5       # the onboard model follows the plant
+    assert np.max(hot["T_PS_c"] - base["T_PS_c"]) > 1.0                # the per-vehicle hook acts on the sun wheel
+    assert np.allclose(hot["time_s"], base["time_s"])
+
+
+def test_can_logs_as_input(tmp_path, params):
+    from tools.logsynth import write_can_log
+    from tools.plant import ReferencePlant
+    paths = []
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        for k, seed in enumerate((21, 22)):
+            cyc = mixed_cycle(seed, 240.0, rate_hz=1.0, initial_temp_c=50.0)
+            out = ReferencePlant(params).run(cyc, out_dt_s=1.0, progress=False).table
+            paths.append(tmp_path / f"run{k}.log")
+            write_can_log(cyc, out, paths[-1], params)
+        res = diagnose([paths[0]], [paths[1]], params, model="plant",
+                       candidates=["planetary_loss_scale", "oil_sensor_lag"])
+    assert res["train"] == [str(paths[0])] and res["test"] == [str(paths[1])]
+    assert {"oil", "oil@rig", "PS", "BLR"} <= set(res["channels"])       # TRF1 and the rig thermocouple frames
+    assert res["verdict"]["effect"] in ("none", "unexplained", "planetary_loss_scale", "oil_sensor_lag")

@@ -1,0 +1,123 @@
+"""`gearbox-vsensor diagnose`: locate, identify and test the gap between measurements and the model."""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import tempfile
+from pathlib import Path
+
+from firmware_model.config import load_config
+from firmware_model.errors import InputError
+
+
+def add_subparser(sub):
+    from firmware_model.effects import CATALOG
+    effects = "\n".join(f"  {e.id:28s} {e.param} {e.low:g}..{e.high:g} {e.unit}" for e in CATALOG.values())
+    p = sub.add_parser(
+        "diagnose", help="sim-to-real gap diagnosis: where the model misses, which unmodelled effect explains it",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        description=(
+            "Compare measured run tables with the model and diagnose the gap (CONTRACTS section 4).\n\n"
+            "Measured channels: oil_temp_c (the vehicle's oil sensor) and meas_T_<id>_c (rig thermocouples, ids of "
+            "CONTRACTS section 5). The model predicts the oil itself with its cooler model, and every component "
+            "follows the model's oil (see docs/diagnosis.md for why); with cooler kind 'measured' or 'hold' the "
+            "oil is an input and only thermocouples are diagnosed.\n\n"
+            "1. where: residual (measured - model) per channel, its share by regime and episode, and for the oil "
+            "the unexplained heat flow it implies;\n"
+            "2. which: every catalog effect fitted on the TRAINING files by re-simulation and ranked by "
+            "score = -dBIC with an effective sample size (autocorrelated residuals); confusable candidates and "
+            "the extra measurement that separates them; verdict 'none' when the model agrees within the "
+            "measurement noise, 'unexplained' when no candidate explains the gap;\n"
+            "3. how far it shrinks: RMS and max residual before/after on the TEST files only."),
+        epilog="examples:\n"
+               "  gearbox-vsensor diagnose --train run1.csv run2.csv --test run3.csv --json gap.json\n"
+               "  gearbox-vsensor diagnose --train rig_a.csv --test rig_b.csv --model plant --json gap.json "
+               "--report gap.md\n\neffects (CONTRACTS section 6):\n" + effects)
+    p.add_argument("--train", nargs="+", required=True, metavar="FILE",
+                   help="training runs: run tables (.csv) or CAN logs (.log candump -L, .asc, .blf, .mf4; decoded "
+                        "with the sensor's CAN service: TRF1 oil temperature and rig thermocouple frames)")
+    p.add_argument("--test", nargs="+", required=True, metavar="FILE", help="test runs (.csv or CAN logs), "
+                   "different runs from the training files")
+    p.add_argument("--config", metavar="TOML", help="project configuration (gearbox variant, cooler kind, boundaries)")
+    p.add_argument("--model", choices=("onboard", "plant"), default="onboard",
+                   help="model under diagnosis: the onboard reduced model that runs in the truck (default; the "
+                        "reference plant is used, and said so, while the onboard model is not available) or the "
+                        "reference plant")
+    p.add_argument("--cooler", choices=("none", "liquid", "air", "hold", "measured"),
+                   help="cooler kind of the vehicle or rig (overrides --config; default liquid)")
+    p.add_argument("--json", required=True, metavar="OUT.json", help="the gap-diagnosis result (written atomically)")
+    p.add_argument("--report", metavar="OUT.md", help="also write a Markdown report with PNG plots next to it")
+    p.add_argument("--grid-dt", type=float, default=2.0, metavar="S", help="analysis grid [s] (default 2)")
+    p.add_argument("--plant-dt", type=float, default=1.0, metavar="S",
+                   help="time step of the plant's re-simulations [s] (default 1)")
+    p.add_argument("--workers", type=int, metavar="N", help="processes for the re-simulations (default: 2 or the "
+                                                            "number of cores)")
+    p.add_argument("--quiet", action="store_true", help="no progress or summary on stderr/stdout")
+    p.set_defaults(func=run)
+    return p
+
+
+def write_json_atomic(obj, path) -> Path:
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
+    try:
+        with os.fdopen(fd, "w") as fh:
+            json.dump(obj, fh, indent=1)
+            fh.write("\n")
+            fh.flush()
+            os.fsync(fh.fileno())
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, 0o666 & ~umask)
+        os.replace(tmp, path)
+    except BaseException:
+        try:
+            os.unlink(tmp)
+        except OSError:
+            pass
+        raise
+    return path
+
+
+def run(args) -> int:
+    from tools.diagnosis import Options, diagnose
+    cfg = load_config(args.config)
+    params = cfg.load_params()
+    cooler = args.cooler or cfg.cooler or params.strings.get("cooler.kind", "liquid")
+    if not 0.1 <= args.grid_dt <= 60:
+        raise InputError(f"--grid-dt {args.grid_dt} must be within 0.1..60 s")
+    if not 0.05 <= args.plant_dt <= 5:
+        raise InputError(f"--plant-dt {args.plant_dt} must be within 0.05..5 s")
+    if args.workers is not None and args.workers < 1:
+        raise InputError(f"--workers {args.workers} must be at least 1")
+    outs = [Path(args.json)] + ([Path(args.report)] if args.report else [])
+    for f in args.train + args.test:
+        if any(Path(f).resolve() == o.resolve() for o in outs):
+            raise InputError(f"{f} is an input and an output; choose another --json/--report path")
+    opts = Options(grid_dt_s=args.grid_dt, plant_dt_s=args.plant_dt, workers=args.workers)
+
+    def progress(msg):
+        if not args.quiet:
+            print(f"  diagnose: {msg} ...", file=sys.stderr, flush=True)
+    res, d = diagnose(args.train, args.test, params, model=args.model, cooler=cooler, opts=opts,
+                      progress=progress, keep=True, config_path=args.config)
+    # render the report first (staged), then the JSON: both complete or nothing new
+    if args.report:
+        from tools.diagnosis_report import write_report
+        write_report(res, d, args.report)
+    write_json_atomic(res, args.json)
+    if not args.quiet:
+        v = res["verdict"]
+        extra = ""
+        if v["effect"] not in ("none", "unexplained"):
+            (pn, pv), = v["parameters"].items()
+            extra = f" ({pn} = {pv:g})"
+        print(f"verdict: {v['effect']}{extra}; test RMS {v['test_rms_before_c']:.3f} -> {v['test_rms_after_c']:.3f} "
+              f"degC (shrink {100 * v['shrink']:.0f} %) -> {args.json}")
+        print(f"reason: {v['reason']}")
+        if res["model"].get("note"):
+            print(f"note: {res['model']['note']}", file=sys.stderr)
+    return 0
