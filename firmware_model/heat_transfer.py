@@ -343,7 +343,7 @@ def cooler_heat_w(kind, hA_w_per_k, T_oil_c, T_medium_c, mdot_kg_s, cp_j_per_kgk
         return np.zeros(np.broadcast(hA, dT).shape) if np.ndim(hA) or np.ndim(dT) else 0.0
     if kind == "liquid":
         return np.clip(hA * dT, -np.asarray(Q_max_heat_w, dtype=float), np.asarray(Q_max_cool_w, dtype=float))  # Eq 83
-    if not T_full_c > T_open_c:
+    if not np.all(np.asarray(T_full_c) > np.asarray(T_open_c)):      # arrays: a thermostat per vehicle
         raise ParameterError(f"cooler T_full_c = {T_full_c} must exceed T_open_c = {T_open_c} [degC]")
     a = hA * np.maximum(dT, 0.0)
     C = np.abs(np.asarray(mdot_kg_s, dtype=float)) * cp_j_per_kgk
