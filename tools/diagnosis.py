@@ -650,6 +650,10 @@ class Diagnosis:
                 verdict = f.effect
                 reason = (f"{f.effect} has the strongest evidence (score {top['score']:.0f}) and explains "
                           f"{100 * min(top['explained'], 1.0):.0f} % of the excess squared residual")
+                if gap_left:
+                    reason += ("; a gap remains after it (systematic residual " + ", ".join(
+                        f"{c} {post[c]:.3f} > {gap_thr[c]:.3f} degC" for c in post if post[c] > gap_thr[c])
+                        + "): a second effect, or one outside the catalog")
             elif real_gap:
                 verdict = "unexplained"
                 reason = (why_not + "; a real gap remains (systematic residual " + ", ".join(
@@ -727,7 +731,8 @@ class Diagnosis:
             "verdict": {"effect": verdict, "test_rms_before_c": _r(rms_b), "test_rms_after_c": _r(rms_a),
                         "shrink": _r(shrink, 4), "reason": reason,
                         "test_max_before_c": _r(_max_abs(res_te0)), "test_max_after_c": _r(_max_abs(res_te1)),
-                        **({"parameters": cand_json[0]["parameters"], "confusable_with": conf_top}
+                        **({"parameters": cand_json[0]["parameters"], "confusable_with": conf_top,
+                            "remaining_gap_c": {c: _r(post[c]) for c in post if post[c] > gap_thr[c]}}
                            if verdict not in ("none", "unexplained") else {}),
                         **({"closest_candidate": cand_json[0]["effect"]} if verdict == "unexplained" else {})},
             "where_by": where_by,

@@ -270,6 +270,11 @@ def test_onboard_backend_runs_effects_as_vehicles(params):
     assert np.sqrt(np.mean((base["T_PS_c"] - ps_ref) ** 2)) < 0.5       # the onboard model follows the plant
     assert np.max(hot["T_PS_c"] - base["T_PS_c"]) > 1.0                # the per-vehicle hook acts on the sun wheel
     assert np.allclose(hot["time_s"], base["time_s"])
+    # an air cooler with a thermostat per vehicle (one batch, three thermostats)
+    runs = [Run.of({"thermostat_offset": v}) for v in (-10.0, 0.0, 10.0)]
+    with OnboardModel(params, cooler="air", fallback=PlantModel(params, cooler="air", workers=1), workers=1) as onb:
+        out = onb.simulate([ds], runs, ["oil_temp_c"])
+    assert all(np.all(np.isfinite(o[0]["oil_temp_c"])) for o in out)
 
 
 def test_can_logs_as_input(tmp_path, params):
