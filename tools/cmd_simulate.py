@@ -63,6 +63,9 @@ def run(args) -> int:
         raise InputError(f"--rate {args.rate} must be in (0, 1000] Hz")
     if args.out_dt <= 0:
         raise InputError(f"--out-dt {args.out_dt} must be positive")
+    for opt, path in (("--out", args.out), ("--plot", args.plot), ("--can-log", args.can_log)):
+        if path and not Path(path).resolve().parent.is_dir():
+            raise InputError(f"{opt} {path}: the directory {Path(path).resolve().parent} does not exist")
     table = get_cycle(args.cycle, rate_hz=args.rate, noise=args.noise, seed=args.seed)
     plant = ReferencePlant(params, effects, cooler=args.cooler or cfg.cooler, dt_s=args.dt)
     res = plant.run(table, initial_temp_c=args.initial_temp, hold_oil_c=args.hold_oil, out_dt_s=args.out_dt,

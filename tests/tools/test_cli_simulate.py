@@ -60,3 +60,8 @@ def test_missing_column_unknown_effect_bad_config(tmp_path, capsys):
     assert "boundary.ambient" in capsys.readouterr().err
     assert main(["simulate", "--cycle", "no_such_cycle", "--out", str(out)]) == 2
     assert not out.exists()
+
+
+def test_missing_output_directory_fails_before_simulating(tmp_path, capsys):
+    rc = main(["simulate", "--cycle", "mining", "--out", str(tmp_path / "no" / "run.csv"), "--quiet"])
+    assert rc == 2 and "does not exist" in capsys.readouterr().err
