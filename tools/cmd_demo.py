@@ -22,6 +22,7 @@ from firmware_model.components import PUBLISHED
 from firmware_model.errors import InputError
 
 LEVEL = {0: "ok", 1: "WARNING", 2: "CRITICAL", 3: "n/a"}
+DEGRADED = {1: "oil from the model", 2: "inputs missing, holding", 3: "not initialised"}
 
 
 def add_subparser(sub):
@@ -149,7 +150,8 @@ def run(args) -> int:
             line += f" | sun TTL {'never' if ps_ttl is None or ps_ttl == math.inf else f'{ps_ttl:.0f} s'}"
             line += f" | warnings: {', '.join(f'{c}={LEVEL[v]}' for c, v in warn.items()) or 'none'}"
             if st.get("degraded_mode"):
-                line += f" | degraded mode {st.get('degraded_mode')}"
+                dm = st.get("degraded_mode")
+                line += f" | degraded: {DEGRADED.get(dm, dm)}"
             print(line, flush=True)
     if first_warn:
         print("  first warnings (drive time): " + ", ".join(f"{c} at {t:.0f} s" for c, t in sorted(
@@ -169,8 +171,12 @@ def run(args) -> int:
                 errs.append((float(np.max(np.abs(e))), float(np.sqrt(np.mean(e ** 2))), c))
     if errs:
         worst = max(errs)
+        worst_rms = max(errs, key=lambda e: e[1])
         print(f"  sensor vs plant truth over {len(errs)} components: worst max |error| {worst[0]:.2f} K ({worst[2]}), "
-              f"worst RMS {max(e[1] for e in errs):.2f} K", flush=True)
+              f"worst RMS {worst_rms[1]:.2f} K ({worst_rms[2]})", flush=True)
+        print("  (the plant also sees engine-side boundary temperatures, seed Table 11, that no CAN signal carries: "
+              "the bearings next to the engine and end yoke show that gap; set [boundary] in --config when known)",
+              flush=True)
     _plot(est, truth, out / "demo.png")
     print(f"plots: {out / 'demo.png'}; sensor outputs: {out / 'sensor.csv'}", flush=True)
     if r is not None and r.send_errors:
