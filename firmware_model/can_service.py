@@ -257,8 +257,11 @@ class SensorService:
         self._time_offset = 0.0             # run-table time added after a backward restart
         self._next_log_t: float | None = None
         self._ref_warned = False
-        # sensor
+        # sensor; a sensor with step_deferred leaves its slow time-to-limit refresh to finish_pending(), which the
+        # live loop runs after the step's frames are sent and every step runs first (so outputs never depend on when)
         self.state = None
+        self._deferred = getattr(sensor, "step_deferred", None)
+        self._pending = None
         self._initialised = False
         self._last_dm1: bytes | None = None
         self._steps_since_dm1 = 0
@@ -308,6 +311,13 @@ class SensorService:
                 self._meas_v[j] = update.value
                 self._meas_seen[j] = True
         return out
+
+    def finish_pending(self) -> None:
+        """Run the work the last step left for after its frames were sent (the sensor's time-to-limit refresh).
+        Idempotent; the next step runs it anyway, so calling it or not never changes an output."""
+        if self._pending is not None:
+            job, self._pending = self._pending, None
+            self.state = self.sensor.refresh_ttl(self.state, job)
 
     def feed_all(self, msgs: Iterable) -> list:
         out: list = []
@@ -476,7 +486,11 @@ class SensorService:
         if self._inputs_have_time:
             fields["t_s"] = t_step - self._first_t + self._time_offset
         inputs = self._inputs(**fields)
-        self.state, outputs = self.sensor.step(self.state, inputs)
+        self.finish_pending()
+        if self._deferred is not None:
+            self.state, outputs, self._pending = self._deferred(self.state, inputs)
+        else:
+            self.state, outputs = self.sensor.step(self.state, inputs)
         T = np.asarray(outputs.T_c, dtype=float)
         lev = np.asarray(outputs.level)
         ttl = np.asarray(outputs.ttl_s, dtype=float)
@@ -670,6 +684,7 @@ def serve(bus, service: SensorService, *, stop: threading.Event | None = None, d
         if len(latencies) >= 100_000:
             del latencies[:50_000]
         latencies.append(time.time() - msg.timestamp)
+        service.finish_pending()           # the slow part of the step, now that its frames are out
 
     try:
         while not stop.is_set():

@@ -227,10 +227,40 @@ def step(state: SensorState, inputs: SensorInputs, sp: SensorParams):
     """One 0.1 s step. Pure: returns the new state and the outputs; the input state is not modified.
 
     One vehicle (scalar state) runs :func:`step_scalar`, the same arithmetic written for scalars (what an ECU would
-    run); a batch runs :func:`step_vector`. Tests hold the two equal."""
+    run); a batch runs :func:`step_vector`. Tests hold the two equal. Equivalent to :func:`step_deferred` followed
+    by :func:`refresh_ttl`."""
+    state, outputs, job = step_deferred(state, inputs, sp)
+    return refresh_ttl(state, job), outputs
+
+
+def step_deferred(state: SensorState, inputs: SensorInputs, sp: SensorParams):
+    """:func:`step` without its slow part: ``(state, outputs, job)``; ``refresh_ttl(state, job)`` must run before
+    the next step (the CAN service runs it after the step's frames are on the bus, off the latency path).
+
+    The time to limit is refreshed every ``ttl_period_s`` from the state *after* a step and published (counted down)
+    from the next step on; the outputs of a step never depend on that step's refresh, so deferring it changes when
+    the work is done, not a single output bit."""
     if state.t_last_s.ndim == 0 and sp.scalar_effects:
         return step_scalar(state, inputs, sp)
     return step_vector(state, inputs, sp)
+
+
+def refresh_ttl(state: SensorState, job) -> SensorState:
+    """Run the time-to-limit refresh a step left (``job`` from :func:`step_deferred`; None: nothing due)."""
+    if job is None:
+        return state
+    if isinstance(job, tuple):
+        return state._replace(ttl_s=_time_to_limit(*job))
+    ttl = np.array(state.ttl_s, dtype=float, copy=True)
+    for v, args in job:
+        ttl[v] = _time_to_limit(*args)
+    return state._replace(ttl_s=ttl)
+
+
+def _ttl_phase(k, every):
+    """Steps since the time to limit was last refreshed (it is refreshed after the steps k = 0, every, 2 every...)."""
+    k = np.asarray(k)
+    return np.where(k == 0, 0, (k - 1) % every + 1)
 
 
 def step_vector(state: SensorState, inputs: SensorInputs, sp: SensorParams):
@@ -345,18 +375,16 @@ def step_vector(state: SensorState, inputs: SensorInputs, sp: SensorParams):
     T_pub = T_new[..., MAIN, rp.published_index]
     available = drive_age <= opt.hold_s
     ttl = state.ttl_s
-    phase = state.k % sp.ttl_every
-    due = phase == 0
-    if due.any():
-        ttl = np.array(ttl, dtype=float, copy=True)
-        for v in (np.ndindex(B) if B else [()]):
-            if not due[v]:
-                continue
-            ttl[v] = _time_to_limit(sp, T_new[v][MAIN], src[v], G[v], Gs[v], float(dT_in[v][MAIN]),
-                                    float(Q_cool[v][MAIN]), bool(measured[v]), int(row[v]), float(w_in[v]),
-                                    float(T_main_oil[v]), T_bc[v], used[v], float(rho_cp[v]))
+    phase = _ttl_phase(state.k, sp.ttl_every)
     ttl_now = np.maximum(ttl - (phase * dt)[..., None], 0.0)
     level, pend = update_levels(state.level, state.pending_s, T_pub, available, lim, dt, ttl_now)
+    # the time-to-limit refresh of this step's state, run after the outputs (see refresh_ttl)
+    due = state.k % sp.ttl_every == 0
+    job = None
+    if due.any():
+        job = [(v, (sp, T_new[v][MAIN].copy(), src[v], G[v], Gs[v], float(dT_in[v][MAIN]), float(Q_cool[v][MAIN]),
+                    bool(measured[v]), int(row[v]), float(w_in[v]), float(T_main_oil[v]), T_bc[v], used[v],
+                    float(rho_cp[v]))) for v in (np.ndindex(B) if B else [()]) if due[v]]
     ttl_out = np.where(level == LEVEL_NA, np.nan, np.where(T_pub >= lim.warning_c, 0.0, ttl_now))
     mode = np.where(~drive_ok, MODE_HOLDING, np.where(measured, MODE_NORMAL, MODE_OIL_MODEL)).astype(np.int8)
     twin_new = T_new[..., TWIN, rp.i_oil]
@@ -367,7 +395,7 @@ def step_vector(state: SensorState, inputs: SensorInputs, sp: SensorParams):
                           twin_new, innov, (~measured).astype(np.int8), frozen_bits, rejects)
     new_state = SensorState(T_new, lag, np.where(ok, used, hold), age, same, raw, oil_ref, level, pend, ttl,
                             np.where(np.isfinite(t_now), t_now, state.t_last_s), state.k + 1, rejects)
-    return new_state, SensorOutputs(T_pub, level, ttl_out, status)
+    return new_state, SensorOutputs(T_pub, level, ttl_out, status), job
 
 
 _BITS = (1 << np.arange(8)).astype(np.int64)
@@ -629,13 +657,8 @@ def step_scalar(state: SensorState, inputs: SensorInputs, sp: SensorParams):
     T_pub = T_new[MAIN, rp.published_index]
     available = drive_age <= opt.hold_s
     ttl = state.ttl_s
-    phase = int(state.k) % sp.ttl_every
-    if phase == 0:
-        ttl = _time_to_limit(sp, T_new[MAIN], src, it.G, it.Gs, dTin[MAIN], Qc[MAIN], measured, row, w_in,
-                             T_main_oil, T_bc, np.array(used), rho_cp)
-        ttl_now = ttl
-    else:
-        ttl_now = np.maximum(ttl - phase * dt, 0.0)
+    k = int(state.k)
+    ttl_now = ttl if k == 0 else np.maximum(ttl - ((k - 1) % sp.ttl_every + 1) * dt, 0.0)
     lv0 = state.level
     if (available and (T_pub - tb.warn_minus_hyst).max() < 0.0 and not lv0.any() and not state.pending_s.any()
             and (lim.lead_s <= 0 or ttl_now.min() > 2.0 * lim.lead_s)):
@@ -657,7 +680,12 @@ def step_scalar(state: SensorState, inputs: SensorInputs, sp: SensorParams):
     new_hold = np.array([used[i] if ok[i] else hold[i] for i in range(8)])
     new_state = SensorState(T_new, lag, new_hold, np.array(age), np.array(same), np.array(raw), np.float64(oil_ref),
                             level, pend, ttl, np.float64(t_now if t_now == t_now else t_last), state.k + 1, rejects)
-    return new_state, SensorOutputs(T_pub, level, ttl_out, status)
+    job = None
+    if k % sp.ttl_every == 0:
+        # the time-to-limit refresh of this step's state, run after the outputs (see refresh_ttl)
+        job = (sp, T_new[MAIN].copy(), src, it.G, it.Gs, dTin[MAIN], Qc[MAIN], measured, row, w_in, T_main_oil, T_bc,
+               np.array(used), rho_cp)
+    return new_state, SensorOutputs(T_pub, level, ttl_out, status), job
 
 
 _SIGMA = R.ht.SIGMA_W_PER_M2K4
@@ -721,7 +749,7 @@ def _skip(state: SensorState, counts, skip_mask, sp: SensorParams):
                           state.T_c[..., TWIN, rp.i_oil], np.full(B, np.nan), np.ones(B, dtype=np.int8),
                           np.zeros(B, dtype=np.int64), rejects)
     if np.all(skip_mask):
-        return st, SensorOutputs(T_pub, state.level, state.ttl_s, status)
+        return st, SensorOutputs(T_pub, state.level, state.ttl_s, status), None
     raise InputError("time went backwards for some vehicles of a batch only; step the batch on one time grid")
 
 
@@ -1058,6 +1086,15 @@ class VirtualSensor:
 
     def step(self, state: SensorState, inputs: SensorInputs):
         return step(state, inputs, self.sp)
+
+    def step_deferred(self, state: SensorState, inputs: SensorInputs):
+        """``(state, outputs, job)``: the step without the time-to-limit refresh; call :meth:`refresh_ttl` before
+        the next step (same outputs as :meth:`step`, bit for bit)."""
+        return step_deferred(state, inputs, self.sp)
+
+    @staticmethod
+    def refresh_ttl(state: SensorState, job) -> SensorState:
+        return refresh_ttl(state, job)
 
     # -- snapshots
 

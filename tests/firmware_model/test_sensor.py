@@ -9,7 +9,8 @@ from firmware_model.components import PUBLISHED
 from firmware_model.errors import InputError, ParameterError
 from firmware_model.parameters import load_parameters
 from firmware_model.sensor import (MODE_HOLDING, MODE_NORMAL, MODE_OIL_MODEL, REJECT_REASONS, SensorInputs,
-                                   VirtualSensor, cool_down, slowest_time_constant_s, step_scalar, step_vector)
+                                   VirtualSensor, cool_down, slowest_time_constant_s, step_scalar, step_vector,
+                                   refresh_ttl)
 from tools.runtable import RunTable
 
 RJ = {k: i for i, k in enumerate(REJECT_REASONS)}
@@ -130,11 +131,29 @@ def test_scalar_and_vector_paths_agree_on_bad_input(sensor):
         if j < 8 and k % 3 == 0:
             vals[j] = [np.nan, np.inf, -np.inf, 1e9, -5.0, 7.5, 300.0][k % 7]
         inp = SensorInputs(*vals)
-        a, oa = step_scalar(a, inp, sensor.sp)
-        b, ob = step_vector(b, inp, sensor.sp)
+        a, oa, ja = step_scalar(a, inp, sensor.sp)
+        b, ob, jb = step_vector(b, inp, sensor.sp)
+        a, b = refresh_ttl(a, ja), refresh_ttl(b, jb)
         np.testing.assert_allclose(oa.T_c, ob.T_c, atol=1e-9)
         np.testing.assert_array_equal(oa.level, ob.level)
+        np.testing.assert_allclose(oa.ttl_s, ob.ttl_s, rtol=1e-6)
     np.testing.assert_array_equal(a.rejects, b.rejects)
+
+
+def test_deferred_time_to_limit_gives_the_same_outputs_bit_for_bit(sensor):
+    # the CAN service publishes a step's frames first and refreshes the time to limit afterwards
+    a = b = sensor.initial_state(T_oil_c=95.0)
+    jobs = 0
+    for k in range(300):
+        inp = SensorInputs(1500.0 + 50 * np.sin(k / 7), 2600.0, 3.0, 95.0 + 0.02 * k, 25.0, 85.0, 30.0, 0.0)
+        a, oa = sensor.step(a, inp)
+        b, ob, job = sensor.step_deferred(b, inp)
+        jobs += job is not None
+        b = sensor.refresh_ttl(b, job)
+        for x, y in zip(oa[:3], ob[:3]):
+            np.testing.assert_array_equal(x, y)
+    assert jobs == 30                                   # refreshed every ttl_period_s = 1 s
+    assert np.isfinite(ob.ttl_s).any() and (ob.ttl_s < np.inf).any()
 
 
 def test_per_vehicle_effects_in_a_batch_equal_a_sensor_built_with_the_effect(params):
