@@ -36,6 +36,7 @@ from typing import NamedTuple
 import numpy as np
 
 from . import reduced as R
+from .blas import limit_blas_threads
 from .components import PUBLISHED
 from .errors import InputError, ParameterError
 from .kinematics import GEAR_MAX, GEAR_MIN
@@ -998,6 +999,7 @@ class VirtualSensor:
 
     def __init__(self, params: Parameters, limits=None, config=None, effects: dict | None = None,
                  partition: str | dict = "fine", **options):
+        limit_blas_threads()         # firmware_model.blas: one BLAS thread (the small eigh is 25x slower with more)
         sensor_cfg = dict(getattr(config, "sensor", None) or {}) if config is not None else {}
         if isinstance(limits, Limits):
             lim = limits
