@@ -505,6 +505,13 @@ class SensorService:
         return frames
 
     def _status(self, st, values: dict, ref) -> dict:
+        if type(st).__name__ == "SensorStatus" and type(st).__module__ == "firmware_model.sensor":
+            # the onboard sensor's own record: the generic lookups below, without their per-field probing
+            return {"speed_valid": bool(st.speed_valid), "torque_valid": bool(st.torque_valid),
+                    "gear_valid": bool(st.gear_valid), "oil_valid": bool(st.oil_valid),
+                    "ref_torque_valid": ref is not None, "degraded_mode": int(st.degraded_mode),
+                    "oil_innovation_c": _opt_float(st.oil_innovation_c),
+                    "model_oil_temp_c": _opt_float(st.model_oil_temp_c)}
         flags = {
             "speed_valid": values["engine_speed_rpm"] is not None,
             "torque_valid": values["engine_torque_nm"] is not None,

@@ -646,7 +646,7 @@ def step_scalar(state: SensorState, inputs: SensorInputs, sp: SensorParams):
                                 used[I_VKMH], rho_cp)
         d = Q / mcp if mcp > 0 else 0.0
         Qc[c], dTin[c] = Q, (-30.0 if d < -30.0 else (30.0 if d > 30.0 else d))
-    q2 = q + np.outer(dTin, it.sv)
+    q2 = q + np.array(dTin)[:, None] * it.sv                  # = np.outer(dTin, sv), without its overhead
     q2[:, rp.i_oil] -= Qc
 
     # ---- one explicit step of both copies: T_new = T M + dt/C (c + sources), M = I - dt C^-1 K (per bin)

@@ -428,3 +428,22 @@ def test_real_capture_fuzz_and_tsc1_no_crash_no_warning(name):
     assert ((levels == 0) | (levels == 3)).all()
     dm1 = [m for m in out if pgn_of(m.arbitration_id) == 0xFECA]
     assert all(decode_outputs([m])["dm1"]["dtc"] is None for m in dm1)
+
+
+def test_status_fast_path_equals_the_generic_lookup():
+    import math
+    import types
+
+    from firmware_model.parameters import load_parameters
+    from firmware_model.sensor import SensorInputs
+    from firmware_model.sensor import VirtualSensor as Real
+    sensor = Real(load_parameters("GRS905"))
+    svc = SensorService(sensor, ServiceOptions())
+    st = sensor.initial_state(T_oil_c=70.0)
+    values = {"engine_speed_rpm": 1200.0, "engine_torque_nm": None, "gear": 9, "oil_temp_c": 70.0}
+    for inp in (SensorInputs(1200.0, math.nan, 9.0, 70.0, 20.0, 85.0, 50.0, 0.0),
+                SensorInputs(1200.0, 900.0, 9.0, math.nan, 20.0, 85.0, 50.0, 0.0)):
+        st, out = sensor.step(st, inp)
+        generic = types.SimpleNamespace(**out.status._asdict())        # not a SensorStatus: the generic path
+        for ref in (None, 2400.0):
+            assert svc._status(out.status, values, ref) == svc._status(generic, values, ref)
