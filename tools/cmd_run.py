@@ -2,7 +2,8 @@
 
 J1939 frames in (receive filters on the needed PGNs), the sensor stepped every 100 ms of frame time, GBX_* frames
 and DM1 out (firmware_model/can_service.py, docs/can.md). SIGINT and SIGTERM stop it cleanly: the loop drains the
-frames already received, stops the notifier, shuts the bus down and exits 0.
+frames already received, stops the notifier, shuts the bus down and exits 0. The signals are taken by a thread of
+their own (:class:`SignalWatcher`), never inside the loop's wait for frames, which could then hang on a silent bus.
 """
 from __future__ import annotations
 
@@ -88,6 +89,54 @@ def build_service(config_path, *, record: bool = False, emit_frames: bool = True
     return SensorService(sensor, options, record=record, emit_frames=emit_frames)
 
 
+STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+
+class SignalWatcher:
+    """While active, SIGINT and SIGTERM are taken by a thread of their own (``signal.sigwait``) that sets ``stop``;
+    they are blocked in the calling thread and in the threads it starts meanwhile (the notifier's).
+
+    Why: CPython 3.11's ``queue.SimpleQueue.get(timeout)``, where the live loop waits for frames, waits *forever* when
+    a signal handler that runs inside it (the signal interrupted its wait) outlasts the timeout: it recomputes the
+    timeout, gets a negative one and a negative timeout means no timeout; only the next frame would wake it, and a
+    silent bus sends none. Seen on a slow (emulated) CPU as `run` hanging after SIGTERM. A signal that still reaches
+    another thread runs the Python handler (``on_signal``) between bytecodes, never inside that wait. Without
+    ``pthread_sigmask``/``sigwait`` (Windows) this does nothing and the handlers alone stop the loop.
+    """
+
+    def __init__(self, stop: threading.Event, signals=STOP_SIGNALS):
+        self.stop = stop
+        self.signals = set(signals)
+        self.available = hasattr(signal, "pthread_sigmask") and hasattr(signal, "sigwait")
+        self._old_mask = None
+        self._thread: threading.Thread | None = None
+        self._done = False
+
+    def _watch(self) -> None:
+        while True:
+            signal.sigwait(self.signals)
+            if self._done:
+                return
+            self.stop.set()
+
+    def __enter__(self) -> "SignalWatcher":
+        if self.available:
+            self._old_mask = signal.pthread_sigmask(signal.SIG_BLOCK, self.signals)
+            self._thread = threading.Thread(target=self._watch, name="signal-watcher", daemon=True)
+            self._thread.start()  # inherits the blocked mask, as sigwait needs
+        return self
+
+    def __exit__(self, *exc) -> None:
+        if self._thread is not None:
+            self._done = True
+            signal.pthread_kill(self._thread.ident, signal.SIGTERM)  # to that thread only: its sigwait takes it
+            self._thread.join(timeout=1.0)
+            self._thread = None
+        if self._old_mask is not None:
+            signal.pthread_sigmask(signal.SIG_SETMASK, self._old_mask)
+            self._old_mask = None
+
+
 def set_realtime_priority(priority: int) -> None:
     """SCHED_FIFO for the calling thread and the threads it starts later (the notifier)."""
     import os
@@ -120,14 +169,16 @@ def run(args) -> int:
     def on_signal(signum, frame):  # only sets a flag: the loop drains and shuts down
         stop.set()
 
-    previous = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
+    previous = {s: signal.signal(s, on_signal) for s in STOP_SIGNALS}
+    watcher = SignalWatcher(stop)
     try:
         def ready():
             log.info("listening on %s %s (%s); sending as source address 0x%02X", args.interface, args.channel,
                      "no receive filters" if filters is None else f"{len(filters)} receive filters",
                      service.options.sensor_source_address)
 
-        result = serve(bus, service, stop=stop, duration_s=args.duration, on_ready=ready)
+        with watcher:
+            result = serve(bus, service, stop=stop, duration_s=args.duration, on_ready=ready)
     finally:
         for s, handler in previous.items():
             signal.signal(s, handler)
