@@ -207,3 +207,47 @@ def test_run_bad_interface_is_one_sentence_exit_2():
                        cwd=REPO, env=env, capture_output=True, text=True, timeout=60)
     assert p.returncode == 2
     assert p.stderr.count("\n") == 1 and "nosuchbus" in p.stderr and "error:" in p.stderr
+
+
+#: serve() in the main thread with a slow signal handler and no SignalWatcher, on a silent bus
+_SLOW_HANDLER_SERVE = """
+import signal, sys, threading, time
+import can
+from firmware_model.can_service import SensorService, serve
+from firmware_model.parameters import load_parameters
+from firmware_model.sensor import VirtualSensor
+stop = threading.Event()
+def slow(signum, frame):
+    time.sleep(0.2)          # outlasts serve()'s 50 ms wait for frames
+    stop.set()
+signal.signal(signal.SIGTERM, slow)
+bus = can.Bus(interface="virtual", channel=sys.argv[1])
+svc = SensorService(VirtualSensor(load_parameters("GRS905")))
+print("serving", flush=True)
+r = serve(bus, svc, stop=stop)
+bus.shutdown()
+print("stopped", r.reason, flush=True)
+"""
+
+
+@needs_sensor
+def test_serve_itself_stops_when_a_slow_signal_handler_runs_inside_its_wait():
+    # the root cause of the hang the SignalWatcher of `run` avoids: serve() waits on a queue whose timed get must
+    # keep its deadline when a signal handler runs inside it (CPython 3.11's SimpleQueue does not)
+    env = {**os.environ, "PYTHONPATH": str(REPO) + os.pathsep + os.environ.get("PYTHONPATH", "")}
+    proc = subprocess.Popen([sys.executable, "-c", _SLOW_HANDLER_SERVE, f"slow-handler-{uuid.uuid4()}"], cwd=REPO,
+                            env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        assert proc.stdout.readline().strip() == "serving", proc.stderr.read()
+        time.sleep(0.5)
+        proc.send_signal(signal.SIGTERM)
+        try:
+            out, err = proc.communicate(timeout=20)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            pytest.fail("serve() still waiting 20 s after SIGTERM on a silent bus")
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 0, err
+    assert "stopped stop" in out
