@@ -22,8 +22,10 @@ Per step (docs/sensor.md):
 5. one Euler step of two copies of the network side by side: the *main* copy (oil measured when available) whose
    temperatures are published, and the *open-loop twin* whose sump is always integrated with the cooler model;
    ``measured - twin sump`` is the published oil innovation, the live view of the sim-to-real gap;
-6. warning levels (two levels, hysteresis, debounce) and, every ``ttl_period_s``, the time to limit with the
-   inputs held (exact modal solution of the frozen linear network, firmware_model.overheat).
+6. warning levels (two levels, hysteresis, debounce), with the time to limit of the last refresh counted down;
+7. every ``ttl_period_s``, the refresh of the time to limit from the new state with the inputs held (exact modal
+   solution of the frozen linear network, firmware_model.overheat): :func:`refresh_ttl`, which :func:`step` runs at
+   its end and the CAN service runs after sending the step's frames (:func:`step_deferred`); same outputs either way.
 """
 from __future__ import annotations
 
