@@ -723,6 +723,19 @@ def _key_item(sp: SensorParams, row: int, w_in: float, T_oil: float, h) -> _KeyI
     if rp.rad_link.size:
         G[rp.rad_link] = _radiation_at(sp, T_q, h)
     n = rp.n
+    K, Ge = _conductance_matrix(G, h, n)
+    M = np.eye(n) - K * sp.dt_inv_C[None, :]
+    c = np.bincount(h.ea, Ge * np.asarray(sp.bc, dtype=float)[h.eb], minlength=n) * sp.dt_inv_C
+    item = _KeyItem(G, Gs, Gs @ h.stream_scatter, M, c, K, key)
+    cache[key] = item
+    if len(cache) > 256:
+        cache.pop(next(iter(cache)))
+    return item
+
+
+def _conductance_matrix(G, h, n: int):
+    """(K, G_ext): the network's conductance matrix (weighted Laplacian plus the boundary links on the diagonal) of
+    one vehicle's link conductances G, and the boundary links' conductances."""
     Gi = G[h.int_idx]
     K = np.zeros((n, n))
     np.add.at(K, (h.ia, h.ia), Gi)
@@ -731,13 +744,7 @@ def _key_item(sp: SensorParams, row: int, w_in: float, T_oil: float, h) -> _KeyI
     np.add.at(K, (h.ib, h.ia), -Gi)
     Ge = G[h.ext_idx]
     np.add.at(K, (h.ea, h.ea), Ge)
-    M = np.eye(n) - K * sp.dt_inv_C[None, :]
-    c = np.bincount(h.ea, Ge * np.asarray(sp.bc, dtype=float)[h.eb], minlength=n) * sp.dt_inv_C
-    item = _KeyItem(G, Gs, Gs @ h.stream_scatter, M, c, K, key)
-    cache[key] = item
-    if len(cache) > 256:
-        cache.pop(next(iter(cache)))
-    return item
+    return K, Ge
 
 
 def _skip(state: SensorState, counts, skip_mask, sp: SensorParams):
@@ -765,14 +772,7 @@ def _linear_system(sp: SensorParams, G, q_nodes, xfer_nodes, T_bc, T_oil_c, Q_co
     rp = sp.reduced
     h = R.helpers(rp)
     n = rp.n
-    Gi = G[h.int_idx]
-    K = np.zeros((n, n))
-    np.add.at(K, (h.ia, h.ia), Gi)
-    np.add.at(K, (h.ib, h.ib), Gi)
-    np.add.at(K, (h.ia, h.ib), -Gi)
-    np.add.at(K, (h.ib, h.ia), -Gi)
-    Ge = G[h.ext_idx]
-    np.add.at(K, (h.ea, h.ea), Ge)
+    K, Ge = _conductance_matrix(G, h, n)
     b = q_nodes + xfer_nodes + np.bincount(h.ea, Ge * T_bc[h.eb], minlength=n)
     if measured:
         free = np.flatnonzero(np.arange(n) != rp.i_oil)
