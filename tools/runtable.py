@@ -29,6 +29,7 @@ takes about 2.0 s (2.3 s with empty cells), writing 108 k rows x 150 columns abo
 """
 from __future__ import annotations
 
+import contextlib
 import csv
 import io
 import os
@@ -367,6 +368,30 @@ def _header_line(columns: Iterable[str]) -> str:
     return buf.getvalue()
 
 
+@contextlib.contextmanager
+def atomic_text_file(target: str | os.PathLike):
+    """Write a text file atomically: yields a file object on a temporary file in the target's directory, which
+    replaces ``target`` (``os.replace``) only when the block completes; on any error the temporary file is removed and
+    ``target`` is untouched. The file gets the usual permissions (0666 less the umask, not mkstemp's 0600)."""
+    target = Path(target)
+    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8", newline="\n") as f:
+            yield f
+            f.flush()
+            os.fsync(f.fileno())
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, 0o666 & ~umask)
+        os.replace(tmp, target)
+    except BaseException:
+        try:
+            os.unlink(tmp)
+        except OSError:
+            pass
+        raise
+
+
 def write_run_table(table: RunTable, path: str | os.PathLike, formats: Mapping[str, str] | None = None) -> Path:
     """Write `table` as CSV atomically (temp file in the same directory, then os.replace). NaN -> empty cell.
 
@@ -385,29 +410,18 @@ def write_run_table(table: RunTable, path: str | os.PathLike, formats: Mapping[s
     directory = target.parent if str(target.parent) else Path(".")
     if not directory.is_dir():
         raise InputError(f"{os.fspath(path)}: the directory {os.fspath(directory)} does not exist")
-    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=directory)
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8", newline="\n") as f:
-            f.write(_header_line(cols))
-            block_fmt = (row_fmt + "\n") * _CHUNK_ROWS
-            for i in range(0, data.shape[0], _CHUNK_ROWS):
-                block = data[i:i + _CHUNK_ROWS]
-                fmt = block_fmt if block.shape[0] == _CHUNK_ROWS else (row_fmt + "\n") * block.shape[0]
-                # one % over the whole block: far less Python overhead than one format per row
-                text = fmt % tuple(block.ravel().tolist())
-                if "nan" in text:
-                    # numbers never contain the letters "nan": every occurrence is a whole NaN cell
-                    text = text.replace("nan", "")
-                f.write(text)
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, target)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        raise
+    with atomic_text_file(target) as f:
+        f.write(_header_line(cols))
+        block_fmt = (row_fmt + "\n") * _CHUNK_ROWS
+        for i in range(0, data.shape[0], _CHUNK_ROWS):
+            block = data[i:i + _CHUNK_ROWS]
+            fmt = block_fmt if block.shape[0] == _CHUNK_ROWS else (row_fmt + "\n") * block.shape[0]
+            # one % over the whole block: far less Python overhead than one format per row
+            text = fmt % tuple(block.ravel().tolist())
+            if "nan" in text:
+                # numbers never contain the letters "nan": every occurrence is a whole NaN cell
+                text = text.replace("nan", "")
+            f.write(text)
     return target
 
 

@@ -314,3 +314,12 @@ def test_write_into_missing_directory(tmp_path):
 def test_write_accepts_str_paths(tmp_path):
     p = write_run_table(small_table(), str(tmp_path / "s.csv"))
     assert isinstance(p, Path) and p.exists() and os.path.getsize(p) > 0
+
+
+def test_written_files_get_the_usual_permissions_not_mkstemps_0600(tmp_path):
+    umask = os.umask(0o022)
+    try:
+        p = write_run_table(small_table(), tmp_path / "perm.csv")
+    finally:
+        os.umask(umask)
+    assert p.stat().st_mode & 0o777 == 0o644
