@@ -167,36 +167,50 @@ sys.exit(main(["run", "--interface", "virtual", "--channel", sys.argv[1], "--log
 """
 
 
+def _sigterm_when_ready(code: str, channel: str, ready: str, stream: str, what: str):
+    """Start ``python -c code channel``, wait (<= 60 s) for a line containing ``ready`` on ``stream`` (stdout or
+    stderr), pause, send SIGTERM and return (returncode, stdout, stderr); fail when it is still running 20 s later."""
+    env = {**os.environ, "PYTHONPATH": str(REPO) + os.pathsep + os.environ.get("PYTHONPATH", "")}
+    proc = subprocess.Popen([sys.executable, "-c", code, channel], cwd=REPO, env=env, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    try:
+        pipe = proc.stdout if stream == "stdout" else proc.stderr
+        lines = []
+        deadline = time.monotonic() + 60
+        while time.monotonic() < deadline:
+            line = pipe.readline()
+            if not line:
+                break
+            lines.append(line)
+            if ready in line:
+                break
+        assert any(ready in ln for ln in lines), "".join(lines)
+        time.sleep(0.3)
+        proc.send_signal(signal.SIGTERM)
+        try:
+            out, err = proc.communicate(timeout=20)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            pytest.fail(f"{what} still running 20 s after SIGTERM on a silent bus")
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    head = "".join(lines)              # what was read before SIGTERM belongs to that stream's text
+    if stream == "stdout":
+        out = head + out
+    else:
+        err = head + err
+    return proc.returncode, out, err
+
+
 @needs_sensor
 def test_run_exits_on_sigterm_on_a_silent_bus_even_when_signal_handling_is_slow():
     # CPython 3.11's queue.SimpleQueue.get(timeout) waits forever when a signal handler that runs inside it outlasts
     # the timeout (it then waits with a negative, i.e. infinite, timeout until a frame arrives): the main loop's
     # 50 ms poll must not be where SIGTERM is handled (seen as a hang after SIGTERM in the QEMU VM, tools/vcan_vm.py)
-    env = {**os.environ, "PYTHONPATH": str(REPO) + os.pathsep + os.environ.get("PYTHONPATH", "")}
-    proc = subprocess.Popen([sys.executable, "-c", _SLOW_SIGNAL_RUN, f"slow-signal-{uuid.uuid4()}"], cwd=REPO,
-                            env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    try:
-        lines = []
-        deadline = time.monotonic() + 60
-        while time.monotonic() < deadline:
-            line = proc.stderr.readline()
-            if not line:
-                break
-            lines.append(line)
-            if "listening on virtual" in line:
-                break
-        assert any("listening on virtual" in ln for ln in lines), "".join(lines)
-        time.sleep(0.3)
-        proc.send_signal(signal.SIGTERM)
-        try:
-            _, err = proc.communicate(timeout=20)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            pytest.fail("`run` still running 20 s after SIGTERM on a silent bus")
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-    assert proc.returncode == 0, err
+    rc, _, err = _sigterm_when_ready(_SLOW_SIGNAL_RUN, f"slow-signal-{uuid.uuid4()}", "listening on virtual", "stderr",
+                                     "`run`")
+    assert rc == 0, err
     assert "stopped (signal)" in err
 
 
@@ -234,20 +248,7 @@ print("stopped", r.reason, flush=True)
 def test_serve_itself_stops_when_a_slow_signal_handler_runs_inside_its_wait():
     # the root cause of the hang the SignalWatcher of `run` avoids: serve() waits on a queue whose timed get must
     # keep its deadline when a signal handler runs inside it (CPython 3.11's SimpleQueue does not)
-    env = {**os.environ, "PYTHONPATH": str(REPO) + os.pathsep + os.environ.get("PYTHONPATH", "")}
-    proc = subprocess.Popen([sys.executable, "-c", _SLOW_HANDLER_SERVE, f"slow-handler-{uuid.uuid4()}"], cwd=REPO,
-                            env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    try:
-        assert proc.stdout.readline().strip() == "serving", proc.stderr.read()
-        time.sleep(0.5)
-        proc.send_signal(signal.SIGTERM)
-        try:
-            out, err = proc.communicate(timeout=20)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            pytest.fail("serve() still waiting 20 s after SIGTERM on a silent bus")
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-    assert proc.returncode == 0, err
+    rc, out, err = _sigterm_when_ready(_SLOW_HANDLER_SERVE, f"slow-handler-{uuid.uuid4()}", "serving", "stdout",
+                                       "serve()")
+    assert rc == 0, err
     assert "stopped stop" in out
