@@ -320,13 +320,13 @@ class J1939Decoder:
                     params.append(self._param(name, signal, spns[signal.spn]))
             if len(params) != len(spns):
                 raise DecodeError(f"DBC message {name} lacks one of the SPNs {sorted(spns)}")
-            self._by_pgn[pgn_of(message.frame_id)] = (name, tuple(params))
+            self._by_pgn[pgn_of(message.frame_id)] = (name, self._fast(tuple(params)))
         if rig:
             for k, group in enumerate(_groups_of_four()):
                 message = db.get_message_by_name(f"RIG_TC_{k + 1}")
                 params = tuple(self._param(message.name, message.get_signal_by_name(f"TC_{_signal_name(c)}"),
                                            f"meas_T_{c}_c") for c in group)
-                self._by_pgn[pgn_of(message.frame_id)] = ("RIG", params)
+                self._by_pgn[pgn_of(message.frame_id)] = ("RIG", self._fast(params))
 
         self._sessions: dict[int, _Bam] = {}
         self.counters: dict = {"frames_seen": 0, "frames_used": 0, "rejected": {}, "signal_rejected": {},
@@ -350,13 +350,19 @@ class J1939Decoder:
 
     def feed(self, msg: can.Message) -> list[SignalUpdate]:
         """Decode one frame; returns the values it carries (often none). Never raises on frame content."""
-        out: list[SignalUpdate] = []
+        return [SignalUpdate(*u) for u in self.feed_raw(msg)]
+
+    def feed_raw(self, msg: can.Message) -> list[tuple[float, str, float]]:
+        """:meth:`feed` returning plain ``(timestamp_s, name, value)`` tuples (the service's hot path); the same
+        values and counters."""
+        out: list = []
         reason = self._dispatch(msg, out)
-        self.counters["frames_seen"] += 1
+        counters = self.counters
+        counters["frames_seen"] += 1
         if reason is None:
-            self.counters["frames_used"] += 1
+            counters["frames_used"] += 1
         else:
-            rejected = self.counters["rejected"]
+            rejected = counters["rejected"]
             rejected[reason] = rejected.get(reason, 0) + 1
         return out
 
@@ -381,7 +387,9 @@ class J1939Decoder:
             return "invalid_id"
         if msg.is_fd:
             return "fd_frame"
-        pgn = pgn_of(can_id)
+        pgn = (can_id >> 8) & 0x3FFFF          # pgn_of() inlined (the id range is checked above)
+        if (pgn >> 8) & 0xFF < 240:
+            pgn &= 0x3FF00
         sa = can_id & 0xFF
         data = msg.data
         eight = len(data) == 8 and msg.dlc == 8
@@ -414,29 +422,47 @@ class J1939Decoder:
         per_signal[reason] = per_signal.get(reason, 0) + 1
         return None, reason
 
-    def _decode_params(self, params: tuple[_Param, ...], data: bytearray, ts: float,
-                       out: list[SignalUpdate]) -> str | None:
+    def _decode_params(self, params: tuple, data: bytearray, ts: float, out: list) -> str | None:
+        """Values of a single-frame message; ``params`` are the :meth:`_fast` tuples of its parameters. The same
+        classification as :meth:`_value`, inlined: this runs for nearly every frame on the bus."""
         worst: str | None = None
         used = False
-        for p in params:
-            raw = data[p.byte0] if p.nbytes == 1 else data[p.byte0] | (data[p.byte0 + 1] << 8)
-            value, reason = self._value(p.name, raw, p.nbytes, p.scale, p.offset)
-            if value is None:
-                if worst is None or _SEVERITY[reason] > _SEVERITY[worst]:
-                    worst = reason
-                continue
-            used = True
-            if p.integer:
-                value = int(value)
-            out.append(SignalUpdate(ts, p.name, value))
-            if p.name == "engine_torque_pct":
-                ref = self.ref_torque_nm
-                if ref is not None:
-                    out.append(SignalUpdate(ts, "engine_torque_nm", value / 100.0 * ref))
-            elif p.name == "retarder_torque_pct":
-                if self.retarder_ref_torque_nm is not None:
-                    out.append(SignalUpdate(ts, "retarder_torque_nm", value / 100.0 * self.retarder_ref_torque_nm))
+        for name, b0, nbytes, scale, offset, integer, lo, hi, data_max, kind in params:
+            raw = data[b0] if nbytes == 1 else data[b0] | (data[b0 + 1] << 8)
+            if raw <= data_max:
+                value = raw * scale + offset
+                if lo <= value <= hi:
+                    used = True
+                    if integer:
+                        value = int(value)
+                    out.append((ts, name, value))
+                    if kind == 1:
+                        ref = self.ref_torque_nm
+                        if ref is not None:
+                            out.append((ts, "engine_torque_nm", value / 100.0 * ref))
+                    elif kind == 2 and self.retarder_ref_torque_nm is not None:
+                        out.append((ts, "retarder_torque_nm", value / 100.0 * self.retarder_ref_torque_nm))
+                    continue
+                reason = "out_of_range"
+            else:
+                reason = _raw_reason(raw, nbytes)
+            per_signal = self.counters["signal_rejected"].setdefault(name, {})
+            per_signal[reason] = per_signal.get(reason, 0) + 1
+            if worst is None or _SEVERITY[reason] > _SEVERITY[worst]:
+                worst = reason
         return None if used else worst
+
+    def _fast(self, params: tuple[_Param, ...]) -> tuple:
+        """Flat tuples of the parameters for :meth:`_decode_params`: (name, byte0, nbytes, scale, offset, integer,
+        low, high (the plausibility limits, +-inf without), largest raw data value, 1 engine torque % / 2 retarder
+        torque % / 0 other)."""
+        rows = []
+        for p in params:
+            lo, hi = self.limits.get(p.name, (-math.inf, math.inf))
+            kind = 1 if p.name == "engine_torque_pct" else (2 if p.name == "retarder_torque_pct" else 0)
+            rows.append((p.name, p.byte0, p.nbytes, p.scale, p.offset, p.integer, float(lo), float(hi),
+                         0xFA if p.nbytes == 1 else RAW16_DATA_MAX, kind))
+        return tuple(rows)
 
     # -- J1939-21 transport protocol, BAM only ---------------------------------------------------------------------
 
@@ -506,7 +532,7 @@ class J1939Decoder:
             return reason
         self.ec1_ref_torque_nm = value
         self.counters["tp"]["ec1_received"] += 1
-        out.append(SignalUpdate(ts, "engine_ref_torque_nm", value))
+        out.append((ts, "engine_ref_torque_nm", value))
         return None
 
 

@@ -249,6 +249,8 @@ class SensorService:
         # latest value and frame time per decoder signal
         self.latest: dict[str, tuple[float, float]] = {}
         self._max_age = {m: o.stale_factor * p for m, p in NOMINAL_PERIOD_S.items()}
+        self._input_ages = tuple((name, self._max_age[SIGNAL_MESSAGE[name]]) for _, name in SENSOR_INPUTS)
+        self._input_fields = tuple(f for f, _ in SENSOR_INPUTS)
         self._out_every = int(round(o.output_period_s / STEP_S))
         # time
         self._t0: float | None = None       # grid anchor (frame time)
@@ -273,7 +275,11 @@ class SensorService:
         # recording (replay)
         self.record = record
         self.emit_frames = emit_frames
-        self._rows: list[tuple] = []  # (head, T, level, ttl, tail, meas) per step
+        self._heads: list[tuple] = []       # per recorded step: time, inputs, torque %, reference torque
+        self._meas_rows: dict[int, np.ndarray] = {}   # recorded step -> rig thermocouples (when any were seen)
+        self._outs: list | tuple = []       # per recorded step: (T, level, ttl, status tail); see recorded_outputs
+        #: None, or a callable that takes each step's _gather request instead of _apply (two-process replay)
+        self._sink: Callable[[tuple], None] | None = None
         self._meas_names = [f"meas_T_{c}_c" for c in PUBLISHED]
         self._meas_index = {name: j for j, name in enumerate(self._meas_names)}
         n = len(PUBLISHED)
@@ -301,14 +307,14 @@ class SensorService:
         else:
             self.counters["frames_not_timing"] += 1
         latest = self.latest
-        for update in self.decoder.feed(msg):
-            name = update.name
+        for update in self.decoder.feed_raw(msg):
+            name = update[1]
             j = self._meas_index.get(name)
             if j is None:
-                latest[name] = (update.timestamp_s, update.value)
+                latest[name] = (update[0], update[2])
             else:
-                self._meas_t[j] = update.timestamp_s
-                self._meas_v[j] = update.value
+                self._meas_t[j] = update[0]
+                self._meas_v[j] = update[2]
                 self._meas_seen[j] = True
         return out
 
@@ -349,21 +355,24 @@ class SensorService:
         time_s, the decoded inputs, T_/W_/ttl_ per published component, the status, and meas_T_<id>_c for the rig
         thermocouples that were received. ``can_time_s`` is the step's frame time."""
         n = len(PUBLISHED)
-        rows = self._rows
-        head = np.array([r[0] for r in rows], dtype=float).reshape(len(rows), len(self._head_names()))
+        k = len(self._heads)
+        head = np.array(self._heads, dtype=float).reshape(k, len(self._head_names()))
         cols = {name: head[:, j] for j, name in enumerate(self._head_names())}
-        for k, (prefix, suffix) in enumerate((("T_", "_c"), ("W_", ""), ("ttl_", "_s"))):
-            block = np.array([r[1 + k] for r in rows], dtype=float).reshape(len(rows), n)
+        T, lev, ttl, tail = self.recorded_outputs()
+        if T.shape[0] != k:
+            raise RuntimeError(f"recorded {k} step heads but {T.shape[0]} sensor outputs")
+        for block, (prefix, suffix) in zip((T, lev, ttl), (("T_", "_c"), ("W_", ""), ("ttl_", "_s"))):
             if prefix == "ttl_":
+                block = block.copy()
                 block[np.isinf(block)] = np.nan  # CONTRACTS 3: "never" is an empty cell
             for j, c in enumerate(PUBLISHED):
                 cols[f"{prefix}{c}{suffix}"] = block[:, j]
-        tail = np.array([r[4] for r in rows], dtype=float).reshape(len(rows), len(self._tail_names()))
         for j, name in enumerate(self._tail_names()):
             cols[name] = tail[:, j]
         if self._meas_seen.any():
-            empty = np.full(n, np.nan)
-            meas = np.array([empty if r[5] is None else r[5] for r in rows], dtype=float).reshape(len(rows), n)
+            meas = np.full((k, n), np.nan)
+            for i, row in self._meas_rows.items():
+                meas[i] = row
             for j, name in enumerate(self._meas_names):
                 if self._meas_seen[j]:
                     cols[name] = meas[:, j]
@@ -445,25 +454,42 @@ class SensorService:
                 self.log_counters()
 
     # -- one step -----------------------------------------------------------------------------------------------
+    #
+    # A step has two halves: _gather (frame side: which inputs are fresh, the reference torque, initialisation,
+    # the run-table head) and _apply (sensor side: the sensor's step, status, frames, the recorded outputs). _gather
+    # never depends on what _apply computed, so an offline replay can run the halves in two processes
+    # (tools/replay_log.py) and get the same outputs.
 
     def _step(self, t_step: float, send: bool = True) -> list:
+        req = self._gather(t_step)
+        if self._sink is not None:
+            self._sink(req)
+            return []
+        return self._apply(req, send)
+
+    def _gather(self, t_step: float) -> tuple:
+        """The frame half of a step: ``(kind, t_step, inputs (SENSOR_INPUTS order, None = not available), reference
+        torque, sensor time)``; kind 0 not initialised, 1 initialise then step, 2 step."""
         self.counters["steps"] += 1
-        values = {}
         stale = self.counters["stale_steps"]
-        for _, name in SENSOR_INPUTS:
-            v = self._fresh(name, t_step)
-            if v is None:
+        latest = self.latest
+        vals = []
+        for name, max_age in self._input_ages:
+            item = latest.get(name)
+            if item is None or t_step - item[0] > max_age:
                 stale[name] = stale.get(name, 0) + 1
-            values[name] = v
-        gear = values["gear"]
+                vals.append(None)
+            else:
+                vals.append(item[1])
+        gear = vals[2]
         if gear is not None:
             if self.options.gear_map is not None:
                 gear = self.options.gear_map.get(int(gear))
             if gear is not None and not GEAR_RANGE[0] <= gear <= GEAR_RANGE[1]:
                 gear = None
-            values["gear"] = gear
-        if values["retarder_torque_nm"] is not None:
-            values["retarder_torque_nm"] = abs(values["retarder_torque_nm"])  # J1939 reports braking negative
+            vals[2] = gear
+        if vals[7] is not None:
+            vals[7] = abs(vals[7])  # J1939 reports retarder braking negative
         ref = self.decoder.ref_torque_nm
         if ref is None and not self._ref_warned and self._first_t is not None \
                 and t_step - self._first_t >= self.options.no_ref_torque_warning_s:
@@ -471,20 +497,40 @@ class SensorService:
             self.log.warning("no EC1 (engine reference torque, SPN 544) received in %.0f s of traffic and no "
                              "[can] engine_reference_torque_nm configured: engine torque is not available, the "
                              "sensor runs degraded", t_step - self._first_t)
-
+        kind = 2
         if not self._initialised:
-            oil = values["oil_temp_c"]
+            oil = vals[3]
             if oil is None and t_step - self._first_t < self.options.init_wait_s - 1e-9:
                 self.counters["uninitialised_steps"] += 1
-                return self._not_initialised(t_step, values, ref, send)
-            self.state = self.sensor.initial_state(T_oil_c=oil)
-            self._initialised = True
-            self.log.info("sensor initialised at frame time %.3f s with oil temperature %s", t_step,
-                          "not available" if oil is None else f"{oil:.2f} degC")
+                kind = 0
+            else:
+                kind = 1
+                self._initialised = True
+                self.log.info("sensor initialised at frame time %.3f s with oil temperature %s", t_step,
+                              "not available" if oil is None else f"{oil:.2f} degC")
+        vals = tuple(vals)
+        t_s = t_step - self._first_t + self._time_offset
+        if self.record:
+            nan = math.nan
+            pct = self._fresh("engine_torque_pct", t_step)
+            self._heads.append((t_s, t_step, *[nan if v is None else v for v in vals],
+                                nan if pct is None else pct, nan if ref is None else ref))
+            if self._meas_seen.any():
+                self._meas_rows[len(self._heads) - 1] = np.where(t_step - self._meas_t <= self._max_age["RIG"],
+                                                                 self._meas_v, nan)
+        return kind, t_step, vals, ref, t_s
 
-        fields = {f: (math.nan if values[n] is None else float(values[n])) for f, n in SENSOR_INPUTS}
+    def _apply(self, req: tuple, send: bool = True) -> list:
+        """The sensor half of a step (``req`` from :meth:`_gather`); returns the frames to send."""
+        kind, t_step, vals, ref, t_s = req
+        if kind == 0:
+            return self._not_initialised(t_step, vals, ref, send)
+        if kind == 1:
+            self.state = self.sensor.initial_state(T_oil_c=vals[3])
+        nan = math.nan
+        fields = {f: (nan if v is None else float(v)) for f, v in zip(self._input_fields, vals)}
         if self._inputs_have_time:
-            fields["t_s"] = t_step - self._first_t + self._time_offset
+            fields["t_s"] = t_s
         inputs = self._inputs(**fields)
         self.finish_pending()
         if self._deferred is not None:
@@ -494,17 +540,20 @@ class SensorService:
         T = np.asarray(outputs.T_c, dtype=float)
         lev = np.asarray(outputs.level)
         ttl = np.asarray(outputs.ttl_s, dtype=float)
-        temps = dict(zip(PUBLISHED, T.tolist()))
-        levels = dict(zip(PUBLISHED, lev.astype(int).tolist()))
-        ttls = dict(zip(PUBLISHED, ttl.tolist()))
-        status = self._status(outputs.status, values, ref)
-        frames = self._encode(t_step, temps, levels, ttls, status, send)
+        status = self._status(outputs.status, vals, ref)
+        frames = []
+        if self.emit_frames:
+            temps = dict(zip(PUBLISHED, T.tolist()))
+            levels = dict(zip(PUBLISHED, lev.astype(int).tolist()))
+            ttls = dict(zip(PUBLISHED, ttl.tolist()))
+            frames = self._encode(t_step, temps, levels, ttls, status, send)
         if self.record:
             rejects = _status_value(outputs.status, "rejects", default=None)
-            self._record(t_step, values, ref, T, lev, ttl, status, rejects)
+            self._record(T, lev, ttl, status, rejects)
         return frames
 
-    def _status(self, st, values: dict, ref) -> dict:
+    def _status(self, st, vals, ref) -> dict:
+        """The GBX_STATUS keys of a step; ``vals``: the inputs given to the sensor (SENSOR_INPUTS order)."""
         if type(st).__name__ == "SensorStatus" and type(st).__module__ == "firmware_model.sensor":
             # the onboard sensor's own record: the generic lookups below, without their per-field probing
             return {"speed_valid": bool(st.speed_valid), "torque_valid": bool(st.torque_valid),
@@ -513,10 +562,10 @@ class SensorService:
                     "oil_innovation_c": _opt_float(st.oil_innovation_c),
                     "model_oil_temp_c": _opt_float(st.model_oil_temp_c)}
         flags = {
-            "speed_valid": values["engine_speed_rpm"] is not None,
-            "torque_valid": values["engine_torque_nm"] is not None,
-            "gear_valid": values["gear"] is not None,
-            "oil_valid": values["oil_temp_c"] is not None,
+            "speed_valid": vals[0] is not None,
+            "torque_valid": vals[1] is not None,
+            "gear_valid": vals[2] is not None,
+            "oil_valid": vals[3] is not None,
         }
         valid = _status_value(st, "inputs_valid", "valid", default=None)
         if isinstance(valid, Mapping):
@@ -535,16 +584,15 @@ class SensorService:
                 "oil_innovation_c": _opt_float(_status_value(st, "oil_innovation_c", "innovation_c")),
                 "model_oil_temp_c": _opt_float(_status_value(st, "model_oil_temp_c", "T_oil_model_c"))}
 
-    def _not_initialised(self, t_step: float, values: dict, ref, send: bool) -> list:
-        status = {"speed_valid": values["engine_speed_rpm"] is not None,
-                  "torque_valid": values["engine_torque_nm"] is not None,
-                  "gear_valid": values["gear"] is not None, "oil_valid": False,
+    def _not_initialised(self, t_step: float, vals, ref, send: bool) -> list:
+        status = {"speed_valid": vals[0] is not None, "torque_valid": vals[1] is not None,
+                  "gear_valid": vals[2] is not None, "oil_valid": False,
                   "ref_torque_valid": ref is not None, "degraded_mode": MODE_NOT_INITIALISED,
                   "oil_innovation_c": None, "model_oil_temp_c": None}
         frames = self._encode(t_step, {}, {}, {}, status, send)
         if self.record:
             n = len(PUBLISHED)
-            self._record(t_step, values, ref, np.full(n, np.nan), np.full(n, 3), np.full(n, np.nan), status)
+            self._record(np.full(n, np.nan), np.full(n, 3), np.full(n, np.nan), status)
         return frames
 
     def _encode(self, t_step: float, temps, levels, ttls, status, send: bool) -> list:
@@ -573,24 +621,31 @@ class SensorService:
     def _tail_names(self) -> list[str]:
         return ["degraded", *_TAIL_KEYS, *(f"rejects_{r}" for r in self._reject_names)]
 
-    def _record(self, t_step, values, ref, T, lev, ttl, status, rejects=None) -> None:
+    def _record(self, T, lev, ttl, status, rejects=None) -> None:
+        """The sensor half of a recorded row: published temperatures, levels, time to limit and the status tail
+        (the head, inputs and rig thermocouples, is recorded by :meth:`_gather`)."""
         nan = math.nan
-        pct = self._fresh("engine_torque_pct", t_step)
-        head = (t_step - self._first_t + self._time_offset, t_step,
-                *[nan if values.get(n) is None else values[n] for n in INPUT_COLUMNS[:8]],
-                nan if pct is None else pct, nan if ref is None else ref)
         mode = status["degraded_mode"]
-        tail = (nan if mode is None else float(mode != 0),
-                *(nan if status[k] is None else float(status[k]) for k in _TAIL_KEYS))
-        meas = None
-        if self._meas_seen.any():
-            meas = np.where(t_step - self._meas_t <= self._max_age["RIG"], self._meas_v, nan)
+        tail = [nan if mode is None else float(mode != 0),
+                *(nan if status[k] is None else float(status[k]) for k in _TAIL_KEYS)]
         if self._reject_names:
             n_r = len(self._reject_names)
-            tail += tuple(np.asarray(rejects, dtype=float).reshape(-1)[:n_r]) if rejects is not None \
-                else (0.0,) * n_r
-        self._rows.append((head, np.array(T, dtype=float), np.array(lev, dtype=float),
-                           np.array(ttl, dtype=float), tail, meas))
+            tail += np.asarray(rejects, dtype=float).reshape(-1)[:n_r].tolist() if rejects is not None \
+                else [0.0] * n_r
+        self._outs.append((np.array(T, dtype=float), np.array(lev, dtype=float), np.array(ttl, dtype=float),
+                           tail))
+
+    def recorded_outputs(self) -> tuple:
+        """The sensor half of the recorded rows as arrays: (T (n, 28), level (n, 28), ttl (n, 28), tail (n, m))."""
+        n, m = len(PUBLISHED), len(self._tail_names())
+        outs = self._outs
+        if isinstance(outs, tuple):
+            return outs
+        k = len(outs)
+        return (np.array([r[0] for r in outs], dtype=float).reshape(k, n),
+                np.array([r[1] for r in outs], dtype=float).reshape(k, n),
+                np.array([r[2] for r in outs], dtype=float).reshape(k, n),
+                np.array([r[3] for r in outs], dtype=float).reshape(k, m))
 
 
 _TAIL_KEYS = ("degraded_mode", *STATUS_FLAGS, "oil_innovation_c", "model_oil_temp_c")

@@ -150,7 +150,7 @@ def update_levels(level, pending_s, T_c, available, limits: Limits, dt_s: float,
     held = (lv >= LEVEL_WARNING) & (lv <= LEVEL_CRITICAL)
     warn = (T >= limits.warning_c) | (held & (T > limits.warning_c - limits.hysteresis_k))
     if ttl_s is not None and limits.lead_s > 0:
-        ttl = np.nan_to_num(np.asarray(ttl_s, dtype=float), nan=np.inf)
+        ttl = np.asarray(ttl_s, dtype=float)          # NaN (not available) compares False, like inf
         warn = warn | (ttl <= limits.lead_s) | (held & (ttl <= 2.0 * limits.lead_s))
     target = np.where(crit, LEVEL_CRITICAL, np.where(warn, LEVEL_WARNING, LEVEL_NORMAL))
     avail = np.asarray(available)[..., None] if np.ndim(available) == np.ndim(T) - 1 else np.asarray(available)
@@ -168,6 +168,13 @@ def update_levels(level, pending_s, T_c, available, limits: Limits, dt_s: float,
 
 #: geometric time grid of the first-crossing search [s]
 TTL_GRID_S = np.concatenate([[0.0], np.geomspace(0.5, 2.0e6, 72)])
+#: safeguarded Newton steps of the first-crossing search (from regula falsi on the grid bracket; the bracket halves
+#: whenever Newton would leave it)
+NEWTON_STEPS = 8
+#: the search works on multiples of this [s] and returns the first multiple at or after the crossing: its result
+#: rests on comparisons (T >= limit at a multiple), not on the last bits of exp(), so machines whose exp() differs
+#: in the last bit (numpy's AVX-512 and AVX2 paths: the vcan VM and its host) give the same time to limit
+TTL_QUANTUM_S = 2.0 ** -7
 #: time to limit beyond this is reported as never (inf) [s]
 TTL_HORIZON_S = float(TTL_GRID_S[-1])
 
@@ -244,11 +251,24 @@ class HeldInputSolver:
             g = first[sel]
             lo, hi = TTL_GRID_S[g - 1], TTL_GRID_S[g]
             wc = Wc[j]
+            wl = wc * lam
             Ti, Lj = Tinf_free[rows[j]], limit_c[j]
-            for _ in range(14):                            # bisection (all crossings at once) to 6e-5 of the bracket
-                mid = 0.5 * (lo + hi)
-                up = Ti + np.einsum("km,km->k", wc, np.exp(-np.outer(mid, lam))) >= Lj
-                hi = np.where(up, mid, hi)
-                lo = np.where(up, lo, mid)
+            f_lo = F[sel, g - 1] - Lj                      # < 0
+            f_hi = F[sel, g] - Lj                          # >= 0
+            q = TTL_QUANTUM_S
+            t = np.round((lo + (hi - lo) * (-f_lo / (f_hi - f_lo))) / q) * q   # regula falsi start in the bracket
+            with np.errstate(divide="ignore", invalid="ignore"):
+                for _ in range(NEWTON_STEPS):              # safeguarded Newton on multiples of q (all at once)
+                    inside = (t > lo) & (t < hi)
+                    t = np.where(inside, t, np.round(0.5 * (lo + hi) / q) * q)    # else bisect the bracket
+                    inside = (t > lo) & (t < hi)           # False once the bracket is one quantum wide
+                    e = np.exp(-np.outer(t, lam))
+                    f = Ti + np.einsum("km,km->k", wc, e) - Lj
+                    up = f >= 0.0
+                    hi = np.where(inside & up, t, hi)
+                    lo = np.where(inside & ~up, t, lo)
+                    t_new = np.round((t + f / np.einsum("km,km->k", wl, e)) / q) * q  # t - f / (dT/dt)
+                    # Newton settled on t: test its neighbour on the open side of the crossing
+                    t = np.where(t_new == t, np.where(up, t - q, t + q), t_new)
             out[j] = hi
         return out

@@ -440,7 +440,7 @@ def test_status_fast_path_equals_the_generic_lookup():
     sensor = Real(load_parameters("GRS905"))
     svc = SensorService(sensor, ServiceOptions())
     st = sensor.initial_state(T_oil_c=70.0)
-    values = {"engine_speed_rpm": 1200.0, "engine_torque_nm": None, "gear": 9, "oil_temp_c": 70.0}
+    values = (1200.0, None, 9, 70.0, 20.0, 85.0, 50.0, 0.0)      # SENSOR_INPUTS order
     for inp in (SensorInputs(1200.0, math.nan, 9.0, 70.0, 20.0, 85.0, 50.0, 0.0),
                 SensorInputs(1200.0, 900.0, 9.0, math.nan, 20.0, 85.0, 50.0, 0.0)):
         st, out = sensor.step(st, inp)

@@ -219,3 +219,61 @@ def test_time_to_limit_with_the_modelled_sump_is_finite_and_ordered(params):
         st, out = s.step(st, SensorInputs(1400.0, 2600.0, 5, math.nan, 25.0, 85.0, 20.0, 0.0))
     ttl = out.ttl_s
     assert np.isfinite(ttl[I["PS"]]) and 0 < ttl[I["PS"]] < ttl[I["2M.teeth"]]
+
+
+def test_first_crossing_search_is_exact_on_a_random_network():
+    """HeldInputSolver.time_to_limit against a brute-force search of the modal solution: every first crossing to
+    the search quantum (7.8 ms), a node starting above its limit, limits never reached."""
+    from firmware_model.overheat import TTL_QUANTUM_S, HeldInputSolver
+    rng = np.random.default_rng(7)
+    n = 12
+    C = rng.uniform(20.0, 500.0, n)
+    G = np.zeros((n, n))
+    for i in range(n):
+        for j in range(i + 1, n):
+            if rng.random() < 0.4 or j == i + 1:
+                G[i, j] = G[j, i] = rng.uniform(0.5, 20.0)
+    K = np.diag(G.sum(axis=1)) - G
+    K[0, 0] += 3.0                                        # one link to a boundary at 0 degC
+    solver = HeldInputSolver(n, C)
+    free = np.arange(n)
+    item = solver.modes(None, K, free)
+    b = np.zeros(n)
+    b[5] = 400.0                                          # heat into node 5
+    T_inf = HeldInputSolver.steady(item, b)
+    assert np.allclose(K @ T_inf, b)
+    T0 = rng.uniform(20.0, 40.0, n)
+    T0[5] = 10.0
+    T0[6] = T_inf[6] + 30.0                               # starts hot: cools below, then the limit is below
+    rows = np.arange(n)
+    limit = T_inf - rng.uniform(-3.0, 8.0, n)             # some above the steady state (never), some below
+    got = HeldInputSolver.time_to_limit(item, T0, T_inf, rows, limit)
+    assert np.isfinite(got).sum() >= 4 and np.isinf(got).sum() >= 2 and (got == 0).sum() >= 1
+
+    def temp(i, t):
+        return HeldInputSolver.propagate(item, T0, T_inf, t)[i]
+
+    for i in range(n):
+        if T0[i] >= limit[i]:
+            assert got[i] == 0.0
+            continue
+        t_grid = np.concatenate([np.linspace(0.0, 50.0, 5001)[1:], np.geomspace(50.0, 2.0e6, 20000)[1:]])
+        T_grid = np.array([HeldInputSolver.propagate(item, T0, T_inf, t)[i] for t in t_grid[::50]])
+        # a dense scan (every 50th point first, then the bracket) for the first crossing
+        above = np.flatnonzero(T_grid >= limit[i])
+        if above.size == 0 and temp(i, 2.0e6) < limit[i]:
+            assert got[i] == np.inf, i
+            continue
+        k = max(above[0] * 50 - 50, 0) if above.size else t_grid.size - 51
+        seg = t_grid[k:k + 51]
+        vals = np.array([temp(i, t) for t in seg])
+        m = int(np.argmax(vals >= limit[i]))
+        lo, hi = (seg[m - 1] if m > 0 else 0.0), seg[m]
+        for _ in range(60):
+            mid = 0.5 * (lo + hi)
+            lo, hi = (lo, mid) if temp(i, mid) >= limit[i] else (mid, hi)
+        # the first multiple of the search quantum at or after the crossing
+        assert hi - 1e-9 <= got[i] <= hi + TTL_QUANTUM_S + 1e-9, (i, got[i], hi)
+    # the result rests on comparisons, not on the last bits of exp(): inputs 1 ulp apart give the same times
+    again = HeldInputSolver.time_to_limit(item, np.nextafter(T0, np.inf), np.nextafter(T_inf, -np.inf), rows, limit)
+    assert np.array_equal(again, got)

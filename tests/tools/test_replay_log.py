@@ -111,3 +111,81 @@ def test_errors_name_the_file_and_the_rule(tmp_path, monkeypatch):
     with pytest.raises(InputError, match=r"needs the optional package asammdf.*gearbox-vsensor\[mf4\]"):
         list(read_log(tmp_path / "x.mf4"))
     assert is_can_log("a.LOG") and is_can_log("b.blf") and not is_can_log("c.csv")
+
+
+def messy_log(path):
+    """A 60 s drive with what the service handles specially: no oil temperature for the first 3 s (not
+    initialised), EEC1 missing for 2 s (stale inputs), a forward and a backward time jump, rig thermocouples."""
+    from can_dbc.adapter import pgn_of
+    inp = cycle(60.0)
+    fr = synth_frames(inp, plant(inp))[0]
+    t, ids, data = fr.timestamp_s.copy(), fr.can_id.copy(), fr.data.copy()
+    pgn = np.array([pgn_of(int(i)) for i in ids])
+    keep = ~((pgn == 65272) & (t < 3.0)) & ~((pgn == 61444) & (t > 20.0) & (t < 22.0))
+    t, ids, data = t[keep], ids[keep], data[keep]
+    t = np.where(t > 35.0, t + 100.0, t)                 # forward jump
+    t = np.where(t > 145.0, t - 7.0, t)                  # backward jump
+    with open(path, "w") as fh:                          # candump -L by hand (our writer never goes backwards)
+        for ts, i, d in zip(t.tolist(), ids.tolist(), data):
+            fh.write(f"({ts:.6f}) can0 {i:08X}#{d.tobytes().hex().upper()}\n")
+    return path
+
+
+def test_two_process_replay_equals_one_process_bit_for_bit(tmp_path):
+    from tools.replay_log import pipeline_available
+    path = messy_log(tmp_path / "messy.log")
+    sensor = make_sensor()
+    tables, services = [], []
+    for processes in (1, 2):
+        svc = SensorService(sensor, ServiceOptions(configured_ref_torque_nm=None), record=True, emit_frames=False)
+        assert pipeline_available(svc) is None
+        tables.append(replay_log(path, svc, processes=processes))
+        services.append(svc)
+    one, two = tables
+    c = one.meta["counters"]
+    assert c["service"]["time_jumps"] == 2 and c["service"]["uninitialised_steps"] > 0
+    assert c["service"]["stale_steps"].get("engine_speed_rpm", 0) > 0
+    assert one.has("meas_T_PS_c") and (one["degraded"] == 1).any() and (one["degraded"] == 0).any()
+    assert one.columns == two.columns and one.n == two.n
+    for col in one.columns:
+        assert np.array_equal(one[col], two[col], equal_nan=True), col
+    assert two.meta["counters"] == c
+    for a, b in zip(services[0].state, services[1].state):
+        assert np.array_equal(np.asarray(a), np.asarray(b), equal_nan=True)
+
+
+class _Failing:
+    """A sensor whose step fails after 50 steps (the error must come back from the sensor process)."""
+
+    def __init__(self, real):
+        self.real = real
+        self.Inputs = type(real).__module__ and real.Inputs if hasattr(real, "Inputs") else None
+
+    def initial_state(self, **kw):
+        return (0, self.real.initial_state(**kw))
+
+    def step(self, state, inputs):
+        k, st = state
+        if k >= 50:
+            raise ValueError("deliberate failure at step 50")
+        st, out = self.real.step(st, inputs)
+        return (k + 1, st), out
+
+
+def test_two_process_replay_reports_a_failure_in_the_sensor_process(tmp_path, frames):
+    from firmware_model.sensor import SensorInputs
+    path = write_frames(frames[1], tmp_path / "drive.log")
+    failing = _Failing(make_sensor())
+    failing.Inputs = SensorInputs
+    svc = SensorService(failing, ServiceOptions(configured_ref_torque_nm=None), record=True, emit_frames=False)
+    with pytest.raises(RuntimeError, match="deliberate failure at step 50"):
+        replay_log(path, svc, processes=2)
+
+
+def test_two_processes_are_refused_with_the_reason(tmp_path, frames):
+    path = write_frames(frames[1], tmp_path / "drive.log")
+    svc = SensorService(make_sensor(), ServiceOptions(), record=True, emit_frames=True)
+    with pytest.raises(InputError, match="cannot replay in two processes: the output frames"):
+        replay_log(path, svc, processes=2)
+    with pytest.raises(InputError, match="processes = 3"):
+        replay_log(path, svc, processes=3)
