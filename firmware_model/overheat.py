@@ -11,7 +11,7 @@
   the operating point (gear, speed, oil temperature, oil measured or not) and is cached per quantised operating point
   (a bounded LRU); ``T_inf`` and the modal coefficients are recomputed from the current temperatures and heat every
   time. Time to limit is the first crossing of the warning limit, found on a geometric time grid and refined by
-  bisection; the same solution propagates the state over a time jump (held inputs) and cools a snapshot down
+  a safeguarded Newton search on multiples of 2^-7 s; the same solution propagates the state over a time jump (held inputs) and cools a snapshot down
   (engine off) on restart.
 """
 from __future__ import annotations
