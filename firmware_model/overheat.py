@@ -250,25 +250,28 @@ class HeldInputSolver:
             j = idx[sel]
             g = first[sel]
             lo, hi = TTL_GRID_S[g - 1], TTL_GRID_S[g]
-            wc = Wc[j]
-            wl = wc * lam
-            Ti, Lj = Tinf_free[rows[j]], limit_c[j]
-            f_lo = F[sel, g - 1] - Lj                      # < 0
-            f_hi = F[sel, g] - Lj                          # >= 0
+            wcl = np.stack([Wc[j], Wc[j] * lam], axis=1)  # (k, 2, m): T(t) - T_inf and -dT/dt from e
+            f0 = Tinf_free[rows[j]] - limit_c[j]
+            f_lo = F[sel, g - 1] - limit_c[j]              # < 0
+            f_hi = F[sel, g] - limit_c[j]                  # >= 0
             q = TTL_QUANTUM_S
             t = np.round((lo + (hi - lo) * (-f_lo / (f_hi - f_lo))) / q) * q   # regula falsi start in the bracket
+            inside = (t > lo) & (t < hi)
             with np.errstate(divide="ignore", invalid="ignore"):
                 for _ in range(NEWTON_STEPS):              # safeguarded Newton on multiples of q (all at once)
-                    inside = (t > lo) & (t < hi)
-                    t = np.where(inside, t, np.round(0.5 * (lo + hi) / q) * q)    # else bisect the bracket
-                    inside = (t > lo) & (t < hi)           # False once the bracket is one quantum wide
-                    e = np.exp(-np.outer(t, lam))
-                    f = Ti + np.einsum("km,km->k", wc, e) - Lj
+                    sums = (wcl * np.exp(np.multiply.outer(t, -lam))[:, None, :]).sum(axis=2)
+                    f = f0 + sums[:, 0]
                     up = f >= 0.0
                     hi = np.where(inside & up, t, hi)
                     lo = np.where(inside & ~up, t, lo)
-                    t_new = np.round((t + f / np.einsum("km,km->k", wl, e)) / q) * q  # t - f / (dT/dt)
+                    t_new = np.round((t + f / sums[:, 1]) / q) * q  # t - f / (dT/dt)
                     # Newton settled on t: test its neighbour on the open side of the crossing
                     t = np.where(t_new == t, np.where(up, t - q, t + q), t_new)
+                    inside = (t > lo) & (t < hi)
+                    if not inside.all():                   # else bisect the bracket
+                        t = np.where(inside, t, np.round(0.5 * (lo + hi) / q) * q)
+                        inside = (t > lo) & (t < hi)       # False once the bracket is one quantum wide
+                        if not inside.any():
+                            break
             out[j] = hi
         return out
