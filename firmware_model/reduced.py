@@ -775,6 +775,8 @@ class Helpers:
         self.pub_rows_meas = np.searchsorted(free_meas, pub[self.pub_free_meas])
         self.pub_free_all = np.ones(pub.size, dtype=bool)
         self.pub_rows_all = pub.copy()
+        # published components whose crossing re-linearises the time to limit (not the sump itself)
+        self.ttl_relin_pub = pub != rp.i_oil
 
 
 _HELPERS: dict = {}

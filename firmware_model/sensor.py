@@ -817,8 +817,61 @@ TTL_OIL_BIN_C = 2.0
 _LN_TTL_BIN = math.log1p(TTL_SPEED_BIN_REL)
 
 
+#: with the sump modelled: re-linearise the held-input system this many times at the sump temperature the last
+#: solution predicts at the earliest crossing (the losses and oil-side conductances follow the sump; docs/sensor.md)
+TTL_RELINEARISE_STEPS = 2
+#: ... until the operating point's sump temperature moves less than this [K]
+TTL_RELINEARISE_TOL_K = 0.5
+
+
 def _time_to_limit(sp, T_main, src, G, Gs, dT_in, Q_cool, measured, row, w_in, T_oil, T_bc, used, rho_cp):
     """Time [s] until each published component reaches its warning limit if the current inputs are held.
+
+    With the sump modelled (``ttl_sump = "model"``) the sump warms or cools under the held load, and the losses and
+    the oil-side conductances move with it: the system is re-linearised at the sump temperature the previous
+    solution predicts at the earliest crossing (from the same state), up to TTL_RELINEARISE_STEPS times."""
+    out, item, T_inf, slope = _ttl_solve(sp, T_main, src, G, Gs, dT_in, Q_cool, measured, row, w_in, T_oil, T_bc,
+                                         used, rho_cp, T_oil)
+    if sp.options.ttl_sump != "model" or not sp.scalar_effects:
+        return out
+    mcp = rho_cp * _oil_flow_m3_s(sp, row, w_in)
+    rp = sp.reduced
+    h = R.helpers(rp)
+    tb = _scalar_tables(sp)
+    T_op = T_oil
+    for _ in range(TTL_RELINEARISE_STEPS):
+        cand = out[h.ttl_relin_pub]
+        cand = cand[(cand > 0.0) & np.isfinite(cand)]
+        if cand.size == 0:
+            break
+        T_next = float(HeldInputSolver.propagate(item, T_main[item[3]], T_inf, float(cand.min()))[rp.i_oil])
+        if abs(T_next - T_op) < TTL_RELINEARISE_TOL_K:
+            break
+        T_op = T_next
+        xT = (min(max(T_op, tb.T0), tb.Tmax) - tb.T0) / tb.dT
+        i = min(int(xT), tb.nT - 2)
+        f = xT - i
+        pr = [a * (1.0 - f) + b * f for a, b in zip(tb.prop[i], tb.prop[i + 1])]
+        ret_w = tb.retarder_frac * float(used[I_RET]) * tb.rows[row][6] * w_in
+        src_op = np.array(_heat_scalar(tb, row, w_in, abs(float(used[I_TORQUE])), pr, xT, ret_w))
+        it = _key_item(sp, row, w_in, T_op, h)
+        # the oil-system inlet follows the sump through the (linearised) cooler: Q = Q0 + slope (T - T0)
+        d = (Q_cool + slope * (T_op - T_oil)) / mcp if mcp > 0.0 else 0.0
+        dT_op = -30.0 if d < -30.0 else (30.0 if d > 30.0 else d)
+        out, item, T_inf, _ = _ttl_solve(sp, T_main, src_op, it.G, it.Gs, dT_op, Q_cool, measured, row, w_in, T_oil,
+                                         T_bc, used, rho_cp, T_op)
+    return out
+
+
+def _oil_flow_m3_s(sp, row: int, w_in: float) -> float:
+    """Oil-system volume flow [m3/s] at this gear and input speed (the pump turns with the layshaft)."""
+    rp = sp.reduced
+    return rp.flow_m3_per_rad * abs(float(rp.speed_coef[row, 1])) * w_in
+
+
+def _ttl_solve(sp, T_main, src, G, Gs, dT_in, Q_cool, measured, row, w_in, T_oil, T_bc, used, rho_cp, T_op):
+    """One held-input solution: (time to limit, modes item, T_inf over the free nodes); T_oil is the sump the
+    cooler is linearised at, T_op the oil temperature of the operating point (bins, losses, conductances).
 
     K (and its modes) at the quantised operating point of the conductance cache (plus radiation at the bin's oil
     temperature and, with the sump modelled, the cooler slope in 10 W/K bins): a pure function of the bin, cached.
@@ -832,7 +885,7 @@ def _time_to_limit(sp, T_main, src, G, Gs, dT_in, Q_cool, measured, row, w_in, T
         # centre in 10 W/K): few eigen-decompositions while driving; T_inf and the modal coefficients still from the
         # actual heat, boundaries and inlet drop (b)
         wb = round(math.log(w_in) / _LN_TTL_BIN) if w_in >= SPEED_BIN_MIN_RAD_S else None
-        Tb = round(T_oil / TTL_OIL_BIN_C) * TTL_OIL_BIN_C
+        Tb = round(T_op / TTL_OIL_BIN_C) * TTL_OIL_BIN_C
         w_c = math.exp(wb * _LN_TTL_BIN) if wb is not None else 0.0
         slope = 0.0 if measured else _cooler_slope(sp, Tb, w_c, row, used, rho_cp)
         sbin = 0 if measured else int(round(slope / SLOPE_BIN_W_PER_K))
@@ -876,7 +929,7 @@ def _time_to_limit(sp, T_main, src, G, Gs, dT_in, Q_cool, measured, row, w_in, T
     if measured:
         i_pub_oil = PUBLISHED.index("oil")
         out[i_pub_oil] = 0.0 if T_oil >= sp.limits.warning_c[i_pub_oil] else np.inf
-    return out
+    return out, item, T_inf, (0.0 if measured else sbin * SLOPE_BIN_W_PER_K)
 
 
 def _jump(state: SensorState, gap_s, sp: SensorParams) -> SensorState:

@@ -277,3 +277,31 @@ def test_first_crossing_search_is_exact_on_a_random_network():
     # the result rests on comparisons, not on the last bits of exp(): inputs 1 ulp apart give the same times
     again = HeldInputSolver.time_to_limit(item, np.nextafter(T0, np.inf), np.nextafter(T_inf, -np.inf), rows, limit)
     assert np.array_equal(again, got)
+
+
+def test_time_to_limit_follows_the_cooler_outlet_as_the_sump_warms(params, monkeypatch):
+    """Engine coolant hotter than the sump (a climb): the cooler heats the oil and the oil-system stream reaches the
+    planetary above the sump temperature. As the sump warms that excess shrinks and the sun wheel settles below its
+    limit. The prediction, re-linearised at the sump temperature it predicts, says "never", as the sensor's own step
+    with the inputs held shows; frozen at the current inlet (no re-linearisation) it predicted a crossing."""
+    import firmware_model.sensor as S
+    inp = SensorInputs(1150.0, 1000.0, 8, 88.0, 20.0, 100.0, 20.0, 0.0)
+
+    def predict_then_hold(relinearise):
+        monkeypatch.setattr(S, "TTL_RELINEARISE_STEPS", relinearise)
+        s = VirtualSensor(params, oil_frozen_s=math.inf)
+        st = s.initial_state(T_oil_c=88.0)
+        for _ in range(3000):
+            st, out = s.step(st, inp)
+        pred = float(out.ttl_s[I["PS"]])
+        T_max = -math.inf
+        for _ in range(12000):
+            st, out = s.step(st, inp._replace(oil_temp_c=math.nan))
+            T_max = max(T_max, float(out.T_c[I["PS"]]))
+        return pred, T_max, s.limits.warning_c[I["PS"]]
+
+    pred, T_max, limit = predict_then_hold(2)
+    assert T_max < limit - 1.0              # 20 min held: the sun wheel never reaches its limit
+    assert pred == math.inf
+    frozen, _, _ = predict_then_hold(0)
+    assert frozen < 600.0                   # the frozen linearisation predicted a crossing within 10 min
