@@ -470,6 +470,14 @@ _RPM_TO_NU_N = 30.0 / math.pi
 _NU_N_MIN = R.L.PALMGREN_NU_N_MIN
 
 
+def _oil_props_scalar(tb: _ScalarTables, T_oil_c: float) -> tuple[float, list]:
+    """(position on the oil-temperature grid, oil property row interpolated there) for one oil temperature."""
+    xT = (min(max(T_oil_c, tb.T0), tb.Tmax) - tb.T0) / tb.dT
+    i = min(int(xT), tb.nT - 2)
+    f = xT - i
+    return xT, [a * (1.0 - f) + b * f for a, b in zip(tb.prop[i], tb.prop[i + 1])]
+
+
 def _heat_scalar(tb: _ScalarTables, row: int, w: float, Tq: float, pr: list, xT: float, ret_w: float) -> list:
     """heat_sources() for one vehicle, written for scalars (only the loaded meshes are evaluated)."""
     meshes, bears, needles, sync_c, pump_c, ls_c, _ = tb.rows[row]
@@ -620,11 +628,7 @@ def step_scalar(state: SensorState, inputs: SensorInputs, sp: SensorParams):
     row = int(used[I_GEAR]) - GEAR_MIN
     T_main_oil = oil if measured else float(T[MAIN, rp.i_oil])
     T[MAIN, rp.i_oil] = T_main_oil
-    xT = (min(max(T_main_oil, tb.T0), tb.Tmax) - tb.T0) / tb.dT
-    i = min(int(xT), tb.nT - 2)
-    f = xT - i
-    p0, p1 = tb.prop[i], tb.prop[i + 1]
-    pr = [a * (1.0 - f) + b * f for a, b in zip(p0, p1)]
+    xT, pr = _oil_props_scalar(tb, T_main_oil)
     T_bc = tb.bc.copy()
     T_bc[rp.i_ambient] = used[I_AMB]
     T_bc[rp.i_coolant] = used[I_COOL]
@@ -848,10 +852,7 @@ def _time_to_limit(sp, T_main, src, G, Gs, dT_in, Q_cool, measured, row, w_in, T
         if abs(T_next - T_op) < TTL_RELINEARISE_TOL_K:
             break
         T_op = T_next
-        xT = (min(max(T_op, tb.T0), tb.Tmax) - tb.T0) / tb.dT
-        i = min(int(xT), tb.nT - 2)
-        f = xT - i
-        pr = [a * (1.0 - f) + b * f for a, b in zip(tb.prop[i], tb.prop[i + 1])]
+        xT, pr = _oil_props_scalar(tb, T_op)
         ret_w = tb.retarder_frac * float(used[I_RET]) * tb.rows[row][6] * w_in
         src_op = np.array(_heat_scalar(tb, row, w_in, abs(float(used[I_TORQUE])), pr, xT, ret_w))
         it = _key_item(sp, row, w_in, T_op, h)
