@@ -318,6 +318,24 @@ class SensorService:
                 self._meas_seen[j] = True
         return out
 
+    # -- the two halves of a step, for a replay that runs them in two processes (tools/replay_log.py) -----------
+
+    def split_steps(self, sink: Callable[[tuple], None] | None) -> None:
+        """From now on hand each step's frame-half request to ``sink`` instead of stepping the sensor (None: step
+        again). The sensor half runs elsewhere: :meth:`apply_request` on a copy of this service."""
+        self._sink = sink
+
+    def apply_request(self, req: tuple) -> None:
+        """Run the sensor half of a step that :meth:`split_steps` handed out (not sent: offline)."""
+        self._apply(req, False)
+
+    def adopt_outputs(self, outputs: tuple, state) -> None:
+        """Take the sensor half's results from the copy that ran them: :meth:`recorded_outputs` and its final state
+        (its time-to-limit refresh done)."""
+        self._outs = outputs
+        self.state = state
+        self._pending = None
+
     def finish_pending(self) -> None:
         """Run the work the last step left for after its frames were sent (the sensor's time-to-limit refresh).
         Idempotent; the next step runs it anyway, so calling it or not never changes an output."""

@@ -137,7 +137,7 @@ def pipeline_available(service, on_frames=None) -> str | None:
         return "this platform cannot fork"
     if threading.active_count() > 1:
         return "this process runs other threads (forking it is not safe)"
-    if service._sink is not None or service._heads:
+    if service.counters["steps"] > 0:
         return "the service has already stepped"
     return None
 
@@ -145,13 +145,13 @@ def pipeline_available(service, on_frames=None) -> str | None:
 def _sensor_process(service, conn) -> None:
     """The sensor half of a two-process replay: apply every step request, then send back the outputs."""
     try:
-        apply = service._apply
+        apply = service.apply_request
         while True:
             batch = conn.recv()
             if batch is None:
                 break
             for req in batch:
-                apply(req, False)
+                apply(req)
         service.finish_pending()
         conn.send(("ok", service.recorded_outputs(), service.state))
     except BaseException:  # anything: the parent re-raises it with this traceback
@@ -184,12 +184,12 @@ def _feed_pipelined(path, service) -> None:
 
     def child_failed() -> RuntimeError:
         try:
-            kind, detail, _ = here.recv()
+            _, detail, _ = here.recv()
         except (EOFError, OSError):
-            kind, detail = "error", f"the sensor process ended (exit code {proc.exitcode})"
+            detail = f"the sensor process ended (exit code {proc.exitcode})"
         return RuntimeError(f"replay: the sensor process failed:\n{detail}")
 
-    service._sink = sink
+    service.split_steps(sink)
     ok = False
     try:
         feed = service.feed
@@ -207,12 +207,10 @@ def _feed_pipelined(path, service) -> None:
             raise child_failed() from None
         if kind != "ok":
             raise RuntimeError(f"replay: the sensor process failed:\n{outputs}")
-        service._outs = outputs
-        service.state = state
-        service._pending = None
+        service.adopt_outputs(outputs, state)
         ok = True
     finally:
-        service._sink = None
+        service.split_steps(None)
         here.close()
         if ok:
             proc.join(timeout=30.0)
