@@ -191,6 +191,7 @@ def section_speed(params, batch_vehicles, batch_steps, full_batch):
     print(f"one step, single vehicle: median {1e6 * np.median(times):.1f} us (wall), mean {1e6 * cpu:.1f} us "
           f"(CPU, with the time to limit every {sensor.options.ttl_period_s:g} s: median "
           f"{1e6 * np.median(ttl_steps):.0f} us on those steps); target 10 us")
+    _step_pieces(sensor, inputs[n // 2])
     mining = get_cycle("mining", rate_hz=10)
     fed = RunTable({c: mining[c] for c in mining.columns if not c.startswith("bc_")}, meta=mining.meta)
     fed["oil_temp_c"] = np.full(fed.n, 85.0) + 0.0001 * np.arange(fed.n)
@@ -215,6 +216,46 @@ def section_speed(params, batch_vehicles, batch_steps, full_batch):
         label = "measured" if full_batch else f"measured over {steps} steps, extrapolated"
         print(f"{V} vehicles x 3 h batched, time to limit every {ttl_period:g} s: {per * 108_000:.0f} s ({label}: "
               f"{1e3 * per:.2f} ms per batch step, {1e6 * per / V:.2f} us per vehicle-step); target 60 s")
+
+
+def _step_pieces(sensor, inp):
+    """Where a median step's time goes: the step's own arithmetic pieces, each timed alone (best of 5 x 20000 calls,
+    wall), against the 10 us target. Uses the step's private helpers: a measurement, not an API."""
+    import timeit
+
+    from firmware_model import reduced as R
+    from firmware_model import sensor as S
+    sp = sensor.sp
+    rp = sp.reduced
+    h = R.helpers(rp)
+    tb = S._scalar_tables(sp)
+    row = int(inp.gear) - S.GEAR_MIN
+    w = float(inp.speed_rpm) * R.RPM
+    Tq = abs(float(inp.torque_nm))
+    T_oil = 85.0
+    xT, pr = S._oil_props_scalar(tb, T_oil)
+    it = S._key_item(sp, row, w, T_oil, h)
+    src = np.array(S._heat_scalar(tb, row, w, Tq, pr, xT, 0.0))
+    g = dict(S=S, R=R, sp=sp, rp=rp, h=h, tb=tb, row=row, w=w, Tq=Tq, T_oil=T_oil, xT=xT, pr=pr, it=it, src=src,
+             lag0=0.9 * src, T=np.full((2, rp.n), T_oil), q2=np.zeros((2, rp.n)), a=np.ones(rp.n), b=np.ones(rp.n))
+    pieces = [
+        ("oil properties (one interpolated row)", "S._oil_props_scalar(tb, T_oil)"),
+        ("loss sources (meshes, bearings, sump terms)", "S._heat_scalar(tb, row, w, Tq, pr, xT, 0.0)"),
+        ("heat lag and sources to nodes", "lag = lag0 + (src - lag0) * sp.a_lag\n"
+                                          "q = (src - sp.lag_ratio * (lag - lag0)) @ rp.src_matrix"),
+        ("conductance bin lookup (cache hit)", "S._key_item(sp, row, w, T_oil, h)"),
+        ("network update, both copies (T M + c)", "T @ it.M + (it.c_dt + sp.dt_inv_C * q2)"),
+    ]
+    us = {}
+    for label, stmt in pieces:
+        us[label] = min(timeit.repeat(stmt, number=20000, repeat=5, globals=g)) / 20000 * 1e6
+    one = min(timeit.repeat("a + b", number=50000, repeat=5, globals=g)) / 50000 * 1e6
+    print("  where a median step's time goes, the step's own arithmetic timed alone (wall, best of 5):")
+    for label, v in us.items():
+        print(f"    {label:<46}{v:6.2f} us")
+    print(f"    {'sum of the arithmetic alone':<46}{sum(us.values()):6.2f} us (target for the whole step 10 us)")
+    print(f"    one numpy call on a {rp.n}-vector costs {one:.2f} us: the 10 us budget is ~{10 / one:.0f} numpy calls "
+          f"for everything, before input checks, warnings, outputs and state")
 
 
 def section_footprint(params):
@@ -345,7 +386,7 @@ def _held_oracle(tab, ref, out, sensor, comp, moments):
     w = sensor.limits.of(comp)[0]
     t_in = np.asarray(tab["time_s"])
     ts, ttl = out["time_s"], out[f"ttl_{comp}_s"]
-    errs, missing = [], 0
+    errs, missing, peaks = [], 0, []
     c0 = time.process_time()
     for _, t, _ in moments:
         i = int(np.searchsorted(t_in, t))
@@ -363,6 +404,7 @@ def _held_oracle(tab, ref, out, sensor, comp, moments):
         after = np.flatnonzero((tt >= t) & (TT >= w))
         if after.size == 0:
             missing += 1
+            peaks.append(float(TT[tt >= t].max()))
             continue
         k = after[0]
         t_held = float(np.interp(w, [TT[k - 1], TT[k]], [tt[k - 1], tt[k]])) if TT[k - 1] < w else float(tt[k])
@@ -374,6 +416,10 @@ def _held_oracle(tab, ref, out, sensor, comp, moments):
              f"{100 * np.mean(e <= 0.2):.0f} %, worst {100 * e.max():.0f} %" if errs else "")
           + f"; {missing} never crossed within max(3 x the prediction, 600 s), although the sensor predicted a "
             f"crossing" * bool(missing))
+    if peaks:
+        print(f"    in those {missing} held runs the plant's {comp} peaks at {min(peaks):.2f}..{max(peaks):.2f} degC, "
+              f"{w - max(peaks):.2f}..{w - min(peaks):.2f} K under the {w:g} degC limit: the predicted approach is "
+              f"asymptotic there, so a sub-kelvin model error decides whether and when it crosses")
 
 
 def main():
