@@ -179,6 +179,11 @@ TTL_QUANTUM_S = 2.0 ** -7
 TTL_HORIZON_S = float(TTL_GRID_S[-1])
 
 
+def _re(x):
+    """Real part of a modal sum (the modes of a coupled system may include a complex pair); real input as is."""
+    return x.real if np.iscomplexobj(x) else x
+
+
 class HeldInputSolver:
     """Modal solution of the onboard network with held inputs; one per (ReducedParams, cache size)."""
 
@@ -191,8 +196,16 @@ class HeldInputSolver:
         self.hits = 0
         self.misses = 0
 
-    def modes(self, key, K: np.ndarray, free: np.ndarray):
-        """Eigen-decomposition of C^-1/2 K C^-1/2 over the free nodes (cached under ``key``)."""
+    def modes(self, key, K: np.ndarray, free: np.ndarray, coupling=None):
+        """Eigen-decomposition of C^-1/2 K C^-1/2 over the free nodes (cached under ``key``).
+
+        ``coupling = (u, j)``: the system is ``C dT/dt = -(K - u e_j^T) T + b``, a node j (the modelled sump) that
+        drives the others through the column u (the oil-system inlet follows the sump through the cooler). That
+        matrix is not symmetric: its modes come from a general eigen-decomposition, ``V^-1`` is kept with them, and
+        the item says ``coupled`` (and keeps u as its item[6]). Its modes may include a complex pair: the
+        temperatures are then the real parts of the modal sums. When an eigenvalue has no positive real part or the
+        eigenvectors are ill-conditioned (V^-1 does not reproduce the matrix to 1e-9), the coupling is dropped (the symmetric modes of K) and the item says so (``coupled``
+        False), so that the caller can freeze the coupling instead."""
         item = self.cache.get(key) if key is not None else None
         if item is not None:
             self.cache.move_to_end(key)
@@ -202,9 +215,27 @@ class HeldInputSolver:
         s = self.sqrtC[free]
         Kf = K[np.ix_(free, free)]
         M = Kf / s[:, None] / s[None, :]
-        lam, V = np.linalg.eigh(0.5 * (M + M.T))
-        lam = np.maximum(lam, 1e-12)
-        item = (lam, V, s, free, np.exp(-np.outer(lam, TTL_GRID_S)))
+        item = None
+        if coupling is not None:
+            u, j = coupling
+            jf = int(np.searchsorted(free, j))
+            Mc = M.copy()
+            Mc[:, jf] -= np.asarray(u, dtype=float)[free] / (s * s[jf])
+            lam, V = np.linalg.eig(Mc)
+            if np.all(lam.imag == 0.0):
+                lam, V = lam.real.copy(), np.ascontiguousarray(V.real)
+            # a complex pair (the sump-stream loop can make one) is kept: temperatures are the real parts
+            if np.all(lam.real > 0.0):
+                try:
+                    Vinv = np.linalg.inv(V)
+                except np.linalg.LinAlgError:
+                    Vinv = None
+                if Vinv is not None and np.abs((V * lam) @ Vinv - Mc).max() <= 1e-9 * np.abs(Mc).max():
+                    item = (lam, V, s, free, np.exp(-np.outer(lam, TTL_GRID_S)), Vinv, np.asarray(u, dtype=float))
+        if item is None:
+            lam, V = np.linalg.eigh(0.5 * (M + M.T))
+            lam = np.maximum(lam, 1e-12)
+            item = (lam, V, s, free, np.exp(-np.outer(lam, TTL_GRID_S)), None)
         if key is not None:
             self.cache[key] = item
             if len(self.cache) > self.cache_size:
@@ -212,24 +243,34 @@ class HeldInputSolver:
         return item
 
     @staticmethod
+    def coupled(item) -> bool:
+        """True when the item's modes include the coupling asked for (see :meth:`modes`)."""
+        return len(item) > 5 and item[5] is not None
+
+    @staticmethod
+    def _to_modes(item, x):
+        """Modal coordinates of x (scaled by C^1/2): V^T x for the symmetric modes, V^-1 x for the coupled ones."""
+        return item[5] @ x if len(item) > 5 and item[5] is not None else item[1].T @ x
+
+    @staticmethod
     def steady(item, b_free):
-        """T_inf over the free nodes: K_ff^-1 b_f = C^-1/2 V lambda^-1 V^T C^-1/2 b_f."""
+        """T_inf over the free nodes: K_ff^-1 b_f = C^-1/2 V lambda^-1 V^-1 C^-1/2 b_f (V^-1 = V^T when symmetric)."""
         lam, V, s = item[:3]
-        return (V @ ((V.T @ (b_free / s)) / lam)) / s
+        return _re(V @ (HeldInputSolver._to_modes(item, b_free / s) / lam)) / s
 
     @staticmethod
     def propagate(item, T0_free, Tinf_free, t_s):
         """Free-node temperatures after t_s seconds of held inputs."""
         lam, V, s = item[:3]
-        c = V.T @ (s * (T0_free - Tinf_free))
-        return Tinf_free + (V @ (c * np.exp(-lam * t_s))) / s
+        c = HeldInputSolver._to_modes(item, s * (T0_free - Tinf_free))
+        return Tinf_free + _re(V @ (c * np.exp(-lam * t_s))) / s
 
     @staticmethod
     def time_to_limit(item, T0_free, Tinf_free, rows, limit_c):
         """First time [s] each free node ``rows`` reaches ``limit_c`` (0 if already there, inf if never within the
         horizon), for held inputs."""
         lam, V, s = item[:3]
-        c = V.T @ (s * (T0_free - Tinf_free))
+        c = HeldInputSolver._to_modes(item, s * (T0_free - Tinf_free))
         W = V[rows] / s[rows, None]                       # (r, m)
         Wc = W * c                                        # modal contributions
         T0 = T0_free[rows]
@@ -241,7 +282,7 @@ class HeldInputSolver:
         if idx.size == 0:
             return out
         E = item[4] if len(item) > 4 else np.exp(-np.outer(lam, TTL_GRID_S))   # (m, g), cached with the modes
-        F = Tinf_free[rows[idx], None] + Wc[idx] @ E       # (k, g)
+        F = Tinf_free[rows[idx], None] + _re(Wc[idx] @ E)  # (k, g)
         L = limit_c[idx, None]
         above = F >= L
         first = np.where(above.any(axis=1), above.argmax(axis=1), -1)
@@ -259,7 +300,7 @@ class HeldInputSolver:
             inside = (t > lo) & (t < hi)
             with np.errstate(divide="ignore", invalid="ignore"):
                 for _ in range(NEWTON_STEPS):              # safeguarded Newton on multiples of q (all at once)
-                    sums = (wcl * np.exp(np.multiply.outer(t, -lam))[:, None, :]).sum(axis=2)
+                    sums = _re((wcl * np.exp(np.multiply.outer(t, -lam))[:, None, :]).sum(axis=2))
                     f = f0 + sums[:, 0]
                     up = f >= 0.0
                     hi = np.where(inside & up, t, hi)

@@ -192,6 +192,9 @@ def _raw_inputs(inputs, B):
 SPEED_BIN_REL = 0.01
 SPEED_BIN_MIN_RAD_S = 1.0          # below ~10 rpm the conductances are evaluated at 0
 OIL_BIN_C = 0.5
+#: the step clips the oil-system inlet drop (sump minus cooler outlet) to +- this [K]
+INLET_DROP_MAX_K = 30.0
+_DT_MAX = INLET_DROP_MAX_K
 _LN_BIN = math.log1p(SPEED_BIN_REL)
 
 
@@ -363,7 +366,8 @@ def step_vector(state: SensorState, inputs: SensorInputs, sp: SensorParams):
     Q_cool, mcp, _ = R.cooler_heat(rp, T_oils, w_ls[..., None], w_in[..., None], used[..., I_COOL, None],
                                    used[..., I_AMB, None], used[..., I_VKMH, None], rho_cp[..., None],
                                    sp.cooler_scale, sp.thermostat_offset)
-    dT_in = np.minimum(np.maximum(np.where(mcp > 0, Q_cool / np.where(mcp > 0, mcp, 1.0), 0.0), -30.0), 30.0)
+    dT_in = np.minimum(np.maximum(np.where(mcp > 0, Q_cool / np.where(mcp > 0, mcp, 1.0), 0.0), -INLET_DROP_MAX_K),
+                       INLET_DROP_MAX_K)
     q2 = q[..., None, :] + (Gs[..., None, :] * dT_in[..., :, None]) @ h.stream_scatter            # B + (2, n)
     q2[..., rp.i_oil] -= Q_cool
 
@@ -651,7 +655,7 @@ def step_scalar(state: SensorState, inputs: SensorInputs, sp: SensorParams):
         Q, mcp = _cooler_scalar(rp, tb, float(T[c, rp.i_oil]), w_ls, w_in, used[I_COOL], used[I_AMB],
                                 used[I_VKMH], rho_cp)
         d = Q / mcp if mcp > 0 else 0.0
-        Qc[c], dTin[c] = Q, (-30.0 if d < -30.0 else (30.0 if d > 30.0 else d))
+        Qc[c], dTin[c] = Q, (-_DT_MAX if d < -_DT_MAX else (_DT_MAX if d > _DT_MAX else d))
     q2 = q + np.array(dTin)[:, None] * it.sv                  # = np.outer(dTin, sv), without its overhead
     q2[:, rp.i_oil] -= Qc
 
@@ -824,6 +828,9 @@ _LN_TTL_BIN = math.log1p(TTL_SPEED_BIN_REL)
 #: with the sump modelled: re-linearise the held-input system this many times at the sump temperature the last
 #: solution predicts at the earliest crossing (the losses and oil-side conductances follow the sump; docs/sensor.md)
 TTL_RELINEARISE_STEPS = 2
+#: with the sump modelled: the oil-system inlet follows the sump through the linearised cooler in the held-input
+#: system (a non-symmetric coupling, general eigen-decomposition; docs/sensor.md), unless the step clips it
+TTL_INLET_COUPLING = True
 #: ... until the operating point's sump temperature moves less than this [K]
 TTL_RELINEARISE_TOL_K = 0.5
 
@@ -838,7 +845,6 @@ def _time_to_limit(sp, T_main, src, G, Gs, dT_in, Q_cool, measured, row, w_in, T
                                          used, rho_cp, T_oil)
     if sp.options.ttl_sump != "model" or not sp.scalar_effects:
         return out
-    mcp = rho_cp * _oil_flow_m3_s(sp, row, w_in)
     rp = sp.reduced
     h = R.helpers(rp)
     tb = _scalar_tables(sp)
@@ -856,12 +862,27 @@ def _time_to_limit(sp, T_main, src, G, Gs, dT_in, Q_cool, measured, row, w_in, T
         ret_w = tb.retarder_frac * float(used[I_RET]) * tb.rows[row][6] * w_in
         src_op = np.array(_heat_scalar(tb, row, w_in, abs(float(used[I_TORQUE])), pr, xT, ret_w))
         it = _key_item(sp, row, w_in, T_op, h)
-        # the oil-system inlet follows the sump through the (linearised) cooler: Q = Q0 + slope (T - T0)
-        d = (Q_cool + slope * (T_op - T_oil)) / mcp if mcp > 0.0 else 0.0
-        dT_op = -30.0 if d < -30.0 else (30.0 if d > 30.0 else d)
-        out, item, T_inf, _ = _ttl_solve(sp, T_main, src_op, it.G, it.Gs, dT_op, Q_cool, measured, row, w_in, T_oil,
+        out, item, T_inf, _ = _ttl_solve(sp, T_main, src_op, it.G, it.Gs, dT_in, Q_cool, measured, row, w_in, T_oil,
                                          T_bc, used, rho_cp, T_op)
     return out
+
+
+def _inlet_follows_sump(sp, measured, sbin, dT_in, Q_cool, row, w_in, T_oil, T_op, rho_cp) -> bool:
+    """Whether the held-input system couples the oil-system inlet to the sump (see :func:`_ttl_solve`): the sump is
+    modelled, the cooler has a slope, and the inlet drop is inside the step's clip both now and, on the linearised
+    cooler, at the operating point's sump T_op (a clipped inlet drop does not follow the sump)."""
+    if not TTL_INLET_COUPLING or measured or sbin == 0 or not abs(dT_in) < INLET_DROP_MAX_K:
+        return False
+    mcp = rho_cp * _oil_flow_m3_s(sp, row, w_in)
+    if not mcp > 0.0:
+        return False
+    return abs((Q_cool + sbin * SLOPE_BIN_W_PER_K * (T_op - T_oil)) / mcp) < INLET_DROP_MAX_K
+
+
+def _rho_cp_scalar(sp, T_oil_c: float) -> float:
+    """Volumetric heat capacity of the oil [J/(m3 K)] at one temperature (the step's property row)."""
+    pr = _oil_props_scalar(_scalar_tables(sp), T_oil_c)[1]
+    return pr[R.P_RHO] * pr[R.P_CP]
 
 
 def _oil_flow_m3_s(sp, row: int, w_in: float) -> float:
@@ -890,14 +911,21 @@ def _ttl_solve(sp, T_main, src, G, Gs, dT_in, Q_cool, measured, row, w_in, T_oil
         w_c = math.exp(wb * _LN_TTL_BIN) if wb is not None else 0.0
         slope = 0.0 if measured else _cooler_slope(sp, Tb, w_c, row, used, rho_cp)
         sbin = 0 if measured else int(round(slope / SLOPE_BIN_W_PER_K))
-        key = (row, wb, Tb, bool(measured), sbin)
+        couple = _inlet_follows_sump(sp, measured, sbin, dT_in, Q_cool, row, w_in, T_oil, T_op, rho_cp)
+        key = (row, wb, Tb, bool(measured), sbin, couple)
         item = sp.solver.cache.get(key)
         if item is None:
             it = _key_item(sp, row, w_c, Tb, h)
+            # the inlet-coupling column at the bin centre (oil density and heat capacity at Tb)
+            mcp_c = _oil_flow_m3_s(sp, row, w_c) * _rho_cp_scalar(sp, Tb)
+            sv_c = it.sv
     else:                          # per-vehicle effects: the vehicle's own conductances, no cache
         it, key, item = None, None, None
         slope = 0.0 if measured else _cooler_slope(sp, T_oil, w_in, row, used, rho_cp)
         sbin = 0 if measured else int(round(slope / SLOPE_BIN_W_PER_K))
+        couple = _inlet_follows_sump(sp, measured, sbin, dT_in, Q_cool, row, w_in, T_oil, T_op, rho_cp)
+        mcp_c = _oil_flow_m3_s(sp, row, w_in) * rho_cp
+        sv_c = Gs @ h.stream_scatter
     if item is not None:
         sp.solver.cache.move_to_end(key)
         sp.solver.hits += 1
@@ -906,15 +934,30 @@ def _ttl_solve(sp, T_main, src, G, Gs, dT_in, Q_cool, measured, row, w_in, T_oil
             K = it.K.copy()
         else:
             K, _, _ = _linear_system(sp, G, np.zeros(rp.n), np.zeros(rp.n), T_bc, T_oil, 0.0, False, 0.0)
+        coupling = None
         if measured:
             free = np.flatnonzero(np.arange(rp.n) != rp.i_oil)
         else:
             free = np.arange(rp.n)
             K[rp.i_oil, rp.i_oil] += sbin * SLOPE_BIN_W_PER_K
-        item = sp.solver.modes(key, K, free)
+            if couple and mcp_c > 0.0:
+                # the oil-system inlet follows the sump through the linearised cooler: inlet drop
+                # (Q0 + slope (T_sump - T0)) / (mdot cp) moves sv (T_sump - T0) slope / (mdot cp) into the streams
+                coupling = (sv_c * (sbin * SLOPE_BIN_W_PER_K / mcp_c), rp.i_oil)
+        item = sp.solver.modes(key, K, free, coupling)
     n = rp.n
-    b = src @ rp.src_matrix + (Gs * dT_in) @ h.stream_scatter + np.bincount(
-        h.ea, G[h.ext_idx] * T_bc[h.eb], minlength=n)
+    if HeldInputSolver.coupled(item):
+        # the inlet drop is dT_in at the current sump and follows it (the coupling column of the modes): its part
+        # at the current sump goes into b
+        b_in = (Gs * dT_in) @ h.stream_scatter - item[6] * T_oil
+    else:
+        # frozen inlet drop, at the operating point's sump T_op through the linearised cooler
+        if T_op != T_oil and not measured:
+            mcp = rho_cp * _oil_flow_m3_s(sp, row, w_in)
+            d = (Q_cool + sbin * SLOPE_BIN_W_PER_K * (T_op - T_oil)) / mcp if mcp > 0.0 else 0.0
+            dT_in = -_DT_MAX if d < -_DT_MAX else (_DT_MAX if d > _DT_MAX else d)
+        b_in = (Gs * dT_in) @ h.stream_scatter
+    b = src @ rp.src_matrix + b_in + np.bincount(h.ea, G[h.ext_idx] * T_bc[h.eb], minlength=n)
     if measured:
         # links to the (held) measured sump enter b
         Gi = G[h.int_idx]
