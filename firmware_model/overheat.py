@@ -7,12 +7,14 @@
 * :class:`HeldInputSolver` answers "what happens if the current inputs are held": with the inputs frozen the onboard
   network is linear, ``C dT/dt = -K T + b``. ``K`` is symmetric (a weighted Laplacian plus boundary and cooler terms
   on its diagonal), so ``C^-1/2 K C^-1/2 = V diag(lambda) V^T`` with real ``lambda > 0`` and
-  ``T(t) = T_inf + C^-1/2 V exp(-lambda t) V^T C^1/2 (T(0) - T_inf)`` exactly. The decomposition depends only on
-  the operating point (gear, speed, oil temperature, oil measured or not) and is cached per quantised operating point
-  (a bounded LRU); ``T_inf`` and the modal coefficients are recomputed from the current temperatures and heat every
-  time. Time to limit is the first crossing of the warning limit, found on a geometric time grid and refined by
-  a safeguarded Newton search on multiples of 2^-7 s; the same solution propagates the state over a time jump (held inputs) and cools a snapshot down
-  (engine off) on restart.
+  ``T(t) = T_inf + C^-1/2 V exp(-lambda t) V^T C^1/2 (T(0) - T_inf)`` exactly. With the sump modelled, the oil-system
+  inlet follows the sump through a column ``u`` (``K - u e_sump^T``, not symmetric): then ``V diag(lambda) V^-1``
+  from a general eigen-decomposition, possibly with a complex pair (temperatures are the real parts). The
+  decomposition depends only on the operating point (gear, speed, oil temperature, oil measured or not, the cooler
+  slope) and is cached per quantised operating point (a bounded LRU); ``T_inf`` and the modal coefficients are
+  recomputed from the current temperatures and heat every time. Time to limit is the first crossing of the warning
+  limit, found on a geometric time grid and refined by a safeguarded Newton search on multiples of 2^-7 s; the same
+  solution propagates the state over a time jump (held inputs) and cools a snapshot down (engine off) on restart.
 """
 from __future__ import annotations
 
@@ -204,8 +206,9 @@ class HeldInputSolver:
         matrix is not symmetric: its modes come from a general eigen-decomposition, ``V^-1`` is kept with them, and
         the item says ``coupled`` (and keeps u as its item[6]). Its modes may include a complex pair: the
         temperatures are then the real parts of the modal sums. When an eigenvalue has no positive real part or the
-        eigenvectors are ill-conditioned (V^-1 does not reproduce the matrix to 1e-9), the coupling is dropped (the symmetric modes of K) and the item says so (``coupled``
-        False), so that the caller can freeze the coupling instead."""
+        eigenvectors are ill-conditioned (V^-1 does not reproduce the matrix to 1e-9), the coupling is dropped (the
+        symmetric modes of K) and the item says so (``coupled`` False), so that the caller can freeze the inlet
+        instead."""
         item = self.cache.get(key) if key is not None else None
         if item is not None:
             self.cache.move_to_end(key)
