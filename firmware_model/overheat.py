@@ -224,11 +224,14 @@ class HeldInputSolver:
             jf = int(np.searchsorted(free, j))
             Mc = M.copy()
             Mc[:, jf] -= np.asarray(u, dtype=float)[free] / (s * s[jf])
-            lam, V = np.linalg.eig(Mc)
-            if np.all(lam.imag == 0.0):
+            try:
+                lam, V = np.linalg.eig(Mc)
+            except (np.linalg.LinAlgError, ValueError):      # no convergence (or not finite): symmetric modes
+                lam, V = np.array([-1.0]), None
+            if np.all(lam.imag == 0.0) and V is not None:
                 lam, V = lam.real.copy(), np.ascontiguousarray(V.real)
             # a complex pair (the sump-stream loop can make one) is kept: temperatures are the real parts
-            if np.all(lam.real > 0.0):
+            if V is not None and np.all(lam.real > 0.0):
                 try:
                     Vinv = np.linalg.inv(V)
                 except np.linalg.LinAlgError:

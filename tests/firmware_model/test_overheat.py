@@ -397,3 +397,21 @@ def test_time_to_limit_couples_the_oil_inlet_to_the_warming_sump(params, monkeyp
         assert crossed is not None
         assert abs(pred - crossed) <= 0.15 * crossed
         assert frozen - crossed > 0.4 * crossed
+
+
+def test_coupled_modes_fall_back_to_the_symmetric_ones_when_unstable():
+    """A coupling that would make the held system unstable (an eigenvalue without a positive real part) is dropped:
+    the item is the symmetric decomposition of K, marked not coupled, so the caller freezes the inlet instead."""
+    from firmware_model.overheat import HeldInputSolver
+    n = 4
+    C = np.array([100.0, 50.0, 80.0, 60.0])
+    G = np.array([[0, 2.0, 0, 1.0], [2.0, 0, 3.0, 0], [0, 3.0, 0, 1.5], [1.0, 0, 1.5, 0]])
+    K = np.diag(G.sum(axis=1)) - G
+    K[0, 0] += 1.0
+    u = np.array([50.0, 0.0, 0.0, 0.0])                    # the sump would feed itself: K_00 - 50 < 0
+    solver = HeldInputSolver(n, C)
+    item = solver.modes(None, K, np.arange(n), (u, 0))
+    assert not HeldInputSolver.coupled(item)
+    sym = solver.modes(None, K, np.arange(n))
+    assert np.array_equal(item[0], sym[0]) and np.array_equal(item[1], sym[1])
+    assert np.all(item[0] > 0)
