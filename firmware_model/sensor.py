@@ -819,8 +819,9 @@ def _scalar(v):
 
 #: bin of the cooler slope dQ/dT_oil in the cached held-input modes (model-oil mode) [W/K]
 SLOPE_BIN_W_PER_K = 10.0
-#: operating-point bins of the cached held-input modes: 4 % in speed, 2 K in oil temperature
-TTL_SPEED_BIN_REL = 0.04
+#: operating-point bins of the cached held-input modes: 1 % in speed (4 % made the coupled inlet ~4 % slow on the
+#: uphill cycle: the coupling column scales with speed), 2 K in oil temperature
+TTL_SPEED_BIN_REL = 0.01
 TTL_OIL_BIN_C = 2.0
 _LN_TTL_BIN = math.log1p(TTL_SPEED_BIN_REL)
 
@@ -903,9 +904,9 @@ def _ttl_solve(sp, T_main, src, G, Gs, dT_in, Q_cool, measured, row, w_in, T_oil
     if sp.options.ttl_sump == "model":
         measured = False           # the sump is a state that heats with the held load, from its measured value
     if sp.scalar_effects:
-        # modes on a coarser grid than the conductances (4 % in speed, 2 K in oil, the cooler slope at the bin
-        # centre in 10 W/K): few eigen-decompositions while driving; T_inf and the modal coefficients still from the
-        # actual heat, boundaries and inlet drop (b)
+        # modes on their own grid (1 % in speed, 2 K in oil, the cooler slope at the bin centre in 10 W/K): few
+        # eigen-decompositions while driving; T_inf and the modal coefficients still from the actual heat,
+        # boundaries and inlet drop (b)
         wb = round(math.log(w_in) / _LN_TTL_BIN) if w_in >= SPEED_BIN_MIN_RAD_S else None
         Tb = round(T_op / TTL_OIL_BIN_C) * TTL_OIL_BIN_C
         w_c = math.exp(wb * _LN_TTL_BIN) if wb is not None else 0.0
