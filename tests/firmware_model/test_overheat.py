@@ -221,20 +221,27 @@ def test_time_to_limit_with_the_modelled_sump_is_finite_and_ordered(params):
     assert np.isfinite(ttl[I["PS"]]) and 0 < ttl[I["PS"]] < ttl[I["2M.teeth"]]
 
 
+def _random_network(rng, n, C_range, G_max, p_link, G_boundary):
+    """(C, K) of a random connected thermal network: capacities in C_range, a chain of links plus each other pair with
+    probability p_link (conductances 0.5..G_max), and node 0 linked to a boundary at 0 degC by G_boundary."""
+    C = rng.uniform(C_range[0], C_range[1], n)
+    G = np.zeros((n, n))
+    for i in range(n):
+        for j in range(i + 1, n):
+            if rng.random() < p_link or j == i + 1:
+                G[i, j] = G[j, i] = rng.uniform(0.5, G_max)
+    K = np.diag(G.sum(axis=1)) - G
+    K[0, 0] += G_boundary
+    return C, K
+
+
 def test_first_crossing_search_is_exact_on_a_random_network():
     """HeldInputSolver.time_to_limit against a brute-force search of the modal solution: every first crossing to
     the search quantum (7.8 ms), a node starting above its limit, limits never reached."""
     from firmware_model.overheat import TTL_QUANTUM_S, HeldInputSolver
     rng = np.random.default_rng(7)
     n = 12
-    C = rng.uniform(20.0, 500.0, n)
-    G = np.zeros((n, n))
-    for i in range(n):
-        for j in range(i + 1, n):
-            if rng.random() < 0.4 or j == i + 1:
-                G[i, j] = G[j, i] = rng.uniform(0.5, 20.0)
-    K = np.diag(G.sum(axis=1)) - G
-    K[0, 0] += 3.0                                        # one link to a boundary at 0 degC
+    C, K = _random_network(rng, n, (20.0, 500.0), 20.0, 0.4, 3.0)
     solver = HeldInputSolver(n, C)
     free = np.arange(n)
     item = solver.modes(None, K, free)
@@ -288,14 +295,7 @@ def test_coupled_modes_match_the_matrix_exponential():
     from firmware_model.overheat import TTL_QUANTUM_S, HeldInputSolver
     rng = np.random.default_rng(3)
     n = 8
-    C = rng.uniform(50.0, 400.0, n)
-    G = np.zeros((n, n))
-    for i in range(n):
-        for j in range(i + 1, n):
-            if rng.random() < 0.5 or j == i + 1:
-                G[i, j] = G[j, i] = rng.uniform(0.5, 10.0)
-    K = np.diag(G.sum(axis=1)) - G
-    K[0, 0] += 4.0                                        # node 0 (the "sump") to a boundary at 0 degC
+    C, K = _random_network(rng, n, (50.0, 400.0), 10.0, 0.5, 4.0)    # node 0 (the "sump") to the boundary
     u = np.zeros(n)
     u[[2, 5]] = -10.0                                     # node 0 cools nodes 2 and 5 as it warms ...
     u[0] = 20.0                                           # ... and gets that heat back
