@@ -194,7 +194,6 @@ SPEED_BIN_MIN_RAD_S = 1.0          # below ~10 rpm the conductances are evaluate
 OIL_BIN_C = 0.5
 #: the step clips the oil-system inlet drop (sump minus cooler outlet) to +- this [K]
 INLET_DROP_MAX_K = 30.0
-_DT_MAX = INLET_DROP_MAX_K
 _LN_BIN = math.log1p(SPEED_BIN_REL)
 
 
@@ -655,7 +654,7 @@ def step_scalar(state: SensorState, inputs: SensorInputs, sp: SensorParams):
         Q, mcp = _cooler_scalar(rp, tb, float(T[c, rp.i_oil]), w_ls, w_in, used[I_COOL], used[I_AMB],
                                 used[I_VKMH], rho_cp)
         d = Q / mcp if mcp > 0 else 0.0
-        Qc[c], dTin[c] = Q, (-_DT_MAX if d < -_DT_MAX else (_DT_MAX if d > _DT_MAX else d))
+        Qc[c], dTin[c] = Q, min(max(d, -INLET_DROP_MAX_K), INLET_DROP_MAX_K)
     q2 = q + np.array(dTin)[:, None] * it.sv                  # = np.outer(dTin, sv), without its overhead
     q2[:, rp.i_oil] -= Qc
 
@@ -956,7 +955,7 @@ def _ttl_solve(sp, T_main, src, G, Gs, dT_in, Q_cool, measured, row, w_in, T_oil
         if T_op != T_oil and not measured:
             mcp = rho_cp * _oil_flow_m3_s(sp, row, w_in)
             d = (Q_cool + sbin * SLOPE_BIN_W_PER_K * (T_op - T_oil)) / mcp if mcp > 0.0 else 0.0
-            dT_in = -_DT_MAX if d < -_DT_MAX else (_DT_MAX if d > _DT_MAX else d)
+            dT_in = min(max(d, -INLET_DROP_MAX_K), INLET_DROP_MAX_K)
         b_in = (Gs * dT_in) @ h.stream_scatter
     b = src @ rp.src_matrix + b_in + np.bincount(h.ea, G[h.ext_idx] * T_bc[h.eb], minlength=n)
     if measured:
