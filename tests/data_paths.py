@@ -1,0 +1,23 @@
+"""Where the tests find the real J1939 truck captures.
+
+They are public captures that this project did not record and does not redistribute. The tests look for them in
+``$GVS_REAL_J1939`` (a directory holding the ``*.candump.log`` files), else in the project's development layout
+(``shared/data/real-j1939`` beside the checkout). Without them the tests that need them skip and say this.
+"""
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+SKIP_REASON = ("real J1939 captures not found: set GVS_REAL_J1939 to a directory with normal.candump.log, "
+               "tsc1.candump.log, fuzz_1ms_ID_and_Data.candump.log and utulsa_logger2_drive.candump.log")
+
+
+def real_capture_dir() -> Path | None:
+    env = os.environ.get("GVS_REAL_J1939")
+    cands = [Path(env)] if env else []
+    cands.append(Path(__file__).resolve().parents[1].parent / "shared" / "data" / "real-j1939")
+    for c in cands:
+        if (c / "normal.candump.log").is_file():
+            return c
+    return None
