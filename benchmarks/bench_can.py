@@ -22,13 +22,13 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 import can  # noqa: E402
 
 from can_dbc.adapter import can_id_of, pgn_of  # noqa: E402
-from firmware_model.can_service import SensorService, ServiceOptions, can_filters  # noqa: E402
+from firmware_model.service import SensorService, ServiceOptions, can_filters  # noqa: E402
 from firmware_model.config import load_config  # noqa: E402
-from firmware_model.sensor import SensorInputs, VirtualSensor  # noqa: E402
-from tools.cycles import get_cycle  # noqa: E402
-from tools.logsynth import synth_frames, write_can_log  # noqa: E402
-from tools.plant import ReferencePlant  # noqa: E402
-from tools.replay_log import replay_log  # noqa: E402
+from firmware_model.onboard.sensor import SensorInputs, VirtualSensor  # noqa: E402
+from tools.cycles.named import get_cycle  # noqa: E402
+from tools.can.logsynth import synth_frames, write_can_log  # noqa: E402
+from tools.plant.reference import ReferencePlant  # noqa: E402
+from tools.can.replay_log import replay_log  # noqa: E402
 from tools.runtable import RunTable  # noqa: E402
 
 
@@ -77,7 +77,7 @@ def bench_logsynth_and_replay(hours: float, workdir: Path, sensor) -> Path:
         frames, _ = synth_frames(big, out)
         n = min(len(frames), 200_000)
         sub = type(frames)(frames.timestamp_s[:n], frames.can_id[:n], frames.data[:n])
-        from tools.logsynth import write_frames
+        from tools.can.logsynth import write_frames
         t0 = time.perf_counter()
         write_frames(sub, workdir / f"part{suffix}")
         print(f"logsynth {suffix} via python-can's writer: {n / (time.perf_counter() - t0) / 1e3:.0f} k frames/s")

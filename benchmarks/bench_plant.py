@@ -10,8 +10,8 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from firmware_model.parameters import load_parameters  # noqa: E402
-from tools.cycles import get_cycle  # noqa: E402
-from tools.plant import ReferencePlant  # noqa: E402
+from tools.cycles.named import get_cycle  # noqa: E402
+from tools.plant.reference import ReferencePlant  # noqa: E402
 
 
 def main():

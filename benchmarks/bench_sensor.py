@@ -36,10 +36,10 @@ import numpy as np  # noqa: E402
 
 from firmware_model.components import PUBLISHED  # noqa: E402
 from firmware_model.parameters import Parameters, load_parameters  # noqa: E402
-from firmware_model.sensor import SensorInputs, VirtualSensor  # noqa: E402
-from tools.cmd_replay import replay_table  # noqa: E402
-from tools.cycles import get_cycle  # noqa: E402
-from tools.plant import ReferencePlant  # noqa: E402
+from firmware_model.onboard.sensor import SensorInputs, VirtualSensor  # noqa: E402
+from tools.cli.replay import replay_table  # noqa: E402
+from tools.cycles.named import get_cycle  # noqa: E402
+from tools.plant.reference import ReferencePlant  # noqa: E402
 from tools.runtable import RunTable  # noqa: E402
 
 CYCLES = ("steady", "all_gears", "long_haul", "uphill", "mining")
@@ -138,7 +138,7 @@ MERGES = (("RI", "oil"), ("IS@bulk", "IS@BIF"), ("MS@RM", "MS@CM"), ("H2", "H1")
 
 
 def section_partitions(params, cycles):
-    from firmware_model.reduced import PARTITIONS
+    from firmware_model.onboard.reduce import PARTITIONS
     print("\n(a2) how far the network can be aggregated: worst component per cycle, as a share of the budget "
           f"max(max/{MAX_TOL}, RMS/{RMS_TOL}) (1 = at the tolerance)")
     names = [c for c in ("uphill", "mining") if c in cycles]
@@ -223,8 +223,8 @@ def _step_pieces(sensor, inp):
     wall), against the 10 us target. Uses the step's private helpers: a measurement, not an API."""
     import timeit
 
-    from firmware_model import reduced as R
-    from firmware_model import sensor as S
+    from firmware_model.onboard import reduce as R
+    from firmware_model.onboard import sensor as S
     sp = sensor.sp
     rp = sp.reduced
     h = R.helpers(rp)

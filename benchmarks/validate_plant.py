@@ -18,10 +18,10 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from firmware_model.components import PUBLISHED  # noqa: E402
-from firmware_model.gearbox_losses import GearboxLosses  # noqa: E402
+from firmware_model.physics.gearbox_losses import GearboxLosses  # noqa: E402
 from firmware_model.parameters import load_parameters  # noqa: E402
-from tools.cycles import CYCLE_NAMES, get_cycle  # noqa: E402
-from tools.plant import ReferencePlant  # noqa: E402
+from tools.cycles.named import CYCLE_NAMES, get_cycle  # noqa: E402
+from tools.plant.reference import ReferencePlant  # noqa: E402
 from tools.plots import plot_heat_budget, plot_temperatures  # noqa: E402
 from tools.runtable import RunTable  # noqa: E402
 

@@ -26,7 +26,7 @@ import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from .errors import ParameterError
+from firmware_model.errors import ParameterError
 
 ALLOWED = {
     "gearbox": {"variant", "params"},
@@ -51,7 +51,7 @@ class Config:
     origin: str = "defaults"
 
     def load_params(self):
-        from .parameters import load_parameters
+        from firmware_model.parameters import load_parameters
         p = load_parameters(self.params_path or self.variant)
         if self.boundary:
             p = p.with_overrides({f"boundary.{k}": float(v) for k, v in self.boundary.items()})

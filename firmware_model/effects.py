@@ -2,13 +2,13 @@
 
 Each effect is a physically parameterised term with one bounded parameter. All are off by default; a model switches
 one on with its parameter (`retarder_heat:fraction=0.05`). The reference plant implements every effect; the onboard
-model implements those that change its network (see firmware_model.reduced), which is what the gap diagnosis fits.
+model implements those that change its network (see firmware_model.onboard.reduce), which is what the gap diagnosis fits.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
 
-from .errors import InputError
+from firmware_model.errors import InputError
 
 
 @dataclass(frozen=True)

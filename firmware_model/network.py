@@ -15,13 +15,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import heat_transfer as ht
-from . import oil as oilprops
-from .components import IDLE_WHEELS, LAYSHAFT_WHEELS, PAIRS, SHAFT_BEARINGS, WHEEL_BEARINGS
-from .errors import ParameterError
-from .kinematics import MESHES, SPEED_NAMES
-from .losses import mesh_geometry
-from .parameters import Parameters
+from firmware_model.physics import heat_transfer as ht
+from firmware_model.physics import oil as oilprops
+from firmware_model.components import IDLE_WHEELS, LAYSHAFT_WHEELS, PAIRS, SHAFT_BEARINGS, WHEEL_BEARINGS
+from firmware_model.errors import ParameterError
+from firmware_model.physics.kinematics import MESHES, SPEED_NAMES
+from firmware_model.physics.losses import mesh_geometry
+from firmware_model.parameters import Parameters
 
 #: boundary temperatures (seed section 3, boundary conditions)
 BOUNDARIES = ("engine_shaft", "flywheel_cover", "support_beam", "end_yoke", "hot_surroundings",

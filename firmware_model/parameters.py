@@ -19,8 +19,8 @@ import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from .errors import ParameterError
-from .kinematics import KinematicTable, Teeth, build_table
+from firmware_model.errors import ParameterError
+from firmware_model.physics.kinematics import KinematicTable, Teeth, build_table
 
 PARAM_DIR = Path(__file__).resolve().parent / "params"
 VARIANTS = ("GRS905", "GRSO905")

@@ -41,7 +41,7 @@ from pathlib import Path
 import numpy as np
 
 from firmware_model.errors import InputError
-from firmware_model.kinematics import GEAR_MAX, GEAR_MIN
+from firmware_model.physics.kinematics import GEAR_MAX, GEAR_MIN
 
 #: the input columns a drive cycle must have (CONTRACTS.md section 3)
 REQUIRED = ("time_s", "engine_speed_rpm", "engine_torque_nm", "gear")

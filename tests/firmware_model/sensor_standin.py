@@ -1,4 +1,4 @@
-"""A tiny stand-in for firmware_model.sensor.VirtualSensor (agreed API), used by the CAN tests only while the real
+"""A tiny stand-in for firmware_model.onboard.sensor.VirtualSensor (agreed API), used by the CAN tests only while the real
 sensor is not importable. Deterministic, cheap, and it reacts to every input so that wrong inputs show."""
 from __future__ import annotations
 
@@ -67,7 +67,7 @@ class VirtualSensor:
 
 def real_sensor_available() -> bool:
     try:
-        import firmware_model.sensor  # noqa: F401
+        import firmware_model.onboard.sensor  # noqa: F401
     except ImportError:
         return False
     return True
@@ -79,7 +79,7 @@ def make_sensor():
     keeps no state of its own (its step is pure), so one instance serves every test."""
     if real_sensor_available():
         from firmware_model.config import load_config
-        from firmware_model.sensor import VirtualSensor as Real
+        from firmware_model.onboard.sensor import VirtualSensor as Real
         cfg = load_config(None)
         return Real(cfg.load_params(), config=cfg)
     return VirtualSensor()

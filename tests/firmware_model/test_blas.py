@@ -1,11 +1,11 @@
-"""The onboard core pins BLAS to one thread even when numpy was imported first (firmware_model.blas)."""
+"""The onboard core pins BLAS to one thread even when numpy was imported first (firmware_model.onboard.blas)."""
 import ctypes
 import subprocess
 import sys
 
 import numpy as np
 
-from firmware_model.blas import _openblas_paths, limit_blas_threads
+from firmware_model.onboard.blas import _openblas_paths, limit_blas_threads
 
 
 def test_limit_blas_threads_sets_the_loaded_openblas():
@@ -27,14 +27,14 @@ def test_limit_blas_threads_sets_the_loaded_openblas():
 def test_building_a_sensor_pins_blas_after_numpy_was_imported_first():
     code = ("import os; os.environ.pop('OPENBLAS_NUM_THREADS', None)\n"
             "import numpy, ctypes\n"
-            "from firmware_model import blas\n"
+            "from firmware_model.onboard import blas\n"
             "paths = blas._openblas_paths()\n"
             "lib = ctypes.CDLL(next(iter(paths))) if paths else None\n"
             "get = next((getattr(lib, g) for g in ('openblas_get_num_threads', 'openblas_get_num_threads64_',"
             " 'scipy_openblas_get_num_threads64_') if lib is not None and hasattr(lib, g)), None)\n"
             "print(-1 if get is None else get(), end=' ')\n"
             "from firmware_model.parameters import load_parameters\n"
-            "from firmware_model.sensor import VirtualSensor\n"
+            "from firmware_model.onboard.sensor import VirtualSensor\n"
             "VirtualSensor(load_parameters('GRS905'))\n"
             "print(-1 if get is None else get())\n")
     env = {"PATH": "/usr/bin:/bin", "OMP_NUM_THREADS": "2"}

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from can_dbc.adapter import REJECT_REASONS, can_id_of, decode_outputs, pgn_of
-from firmware_model.can_service import (STEP_S, WANTED_PGNS, SensorService, ServiceOptions, can_filters)
+from firmware_model.service import (STEP_S, WANTED_PGNS, SensorService, ServiceOptions, can_filters)
 from firmware_model.components import PUBLISHED
 from firmware_model.errors import ParameterError
 
@@ -435,8 +435,8 @@ def test_status_fast_path_equals_the_generic_lookup():
     import types
 
     from firmware_model.parameters import load_parameters
-    from firmware_model.sensor import SensorInputs
-    from firmware_model.sensor import VirtualSensor as Real
+    from firmware_model.onboard.sensor import SensorInputs
+    from firmware_model.onboard.sensor import VirtualSensor as Real
     sensor = Real(load_parameters("GRS905"))
     svc = SensorService(sensor, ServiceOptions())
     st = sensor.initial_state(T_oil_c=70.0)

@@ -4,7 +4,7 @@ import math
 import numpy as np
 import pytest
 
-from firmware_model import heat_transfer as H
+from firmware_model.physics import heat_transfer as H
 from firmware_model.errors import ParameterError
 
 SIGMA = 5.670374419e-8

@@ -4,7 +4,7 @@ import math
 import numpy as np
 import pytest
 
-from firmware_model import losses as L
+from firmware_model.physics import losses as L
 from firmware_model.errors import ParameterError
 
 DEG = math.pi / 180.0

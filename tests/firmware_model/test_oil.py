@@ -4,8 +4,7 @@ import math
 import numpy as np
 import pytest
 
-from firmware_model import oil
-
+from firmware_model.physics import oil
 ROWS_T = [-20.0, 0.0, 20.0, 40.0, 60.0, 80.0, 100.0, 120.0, 140.0]
 ROWS_RHO = [896.438, 885.902, 875.366, 864.830, 854.294, 843.758, 833.222, 822.686, 812.150]
 ROWS_NU_CST = [9486.0, 1397.0, 337.6, 115.0, 49.9, 25.8, 15.2, 9.84, 6.84]

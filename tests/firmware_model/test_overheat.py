@@ -6,9 +6,9 @@ import pytest
 
 from firmware_model.components import GROUP, PUBLISHED
 from firmware_model.errors import ParameterError
-from firmware_model.overheat import LIMITS_PATH, load_limits, update_levels
+from firmware_model.onboard.overheat import LIMITS_PATH, load_limits, update_levels
 from firmware_model.parameters import load_parameters
-from firmware_model.sensor import SensorInputs, VirtualSensor
+from firmware_model.onboard.sensor import SensorInputs, VirtualSensor
 
 I = {c: i for i, c in enumerate(PUBLISHED)}
 
@@ -238,7 +238,7 @@ def _random_network(rng, n, C_range, G_max, p_link, G_boundary):
 def test_first_crossing_search_is_exact_on_a_random_network():
     """HeldInputSolver.time_to_limit against a brute-force search of the modal solution: every first crossing to
     the search quantum (7.8 ms), a node starting above its limit, limits never reached."""
-    from firmware_model.overheat import TTL_QUANTUM_S, HeldInputSolver
+    from firmware_model.onboard.overheat import TTL_QUANTUM_S, HeldInputSolver
     rng = np.random.default_rng(7)
     n = 12
     C, K = _random_network(rng, n, (20.0, 500.0), 20.0, 0.4, 3.0)
@@ -292,7 +292,7 @@ def test_coupled_modes_match_the_matrix_exponential():
     search quantum."""
     from scipy.linalg import expm
 
-    from firmware_model.overheat import TTL_QUANTUM_S, HeldInputSolver
+    from firmware_model.onboard.overheat import TTL_QUANTUM_S, HeldInputSolver
     rng = np.random.default_rng(3)
     n = 8
     C, K = _random_network(rng, n, (50.0, 400.0), 10.0, 0.5, 4.0)    # node 0 (the "sump") to the boundary
@@ -337,7 +337,7 @@ def test_time_to_limit_follows_the_cooler_outlet_as_the_sump_warms(params, monke
     planetary above the sump temperature. As the sump warms that excess shrinks and the sun wheel settles below its
     limit. The prediction, re-linearised at the sump temperature it predicts, says "never", as the sensor's own step
     with the inputs held shows; frozen at the current inlet (no re-linearisation) it predicted a crossing."""
-    import firmware_model.sensor as S
+    import firmware_model.onboard.sensor as S
     inp = SensorInputs(1150.0, 1000.0, 8, 88.0, 20.0, 100.0, 20.0, 0.0)
 
     def predict_then_hold(relinearise):
@@ -368,7 +368,7 @@ def test_time_to_limit_couples_the_oil_inlet_to_the_warming_sump(params, monkeyp
     step with the inputs held (sump modelled): at 2120 Nm the sun wheel peaks just under its limit and the prediction
     says never; at 2180 Nm it crosses and the prediction is within 15 %. With the inlet frozen at each
     re-linearisation instead (the coupling off) the first predicted a crossing and the second was >40 % late."""
-    import firmware_model.sensor as S
+    import firmware_model.onboard.sensor as S
     inp = SensorInputs(1178.0, torque_nm, 8, 89.5, 25.0, 92.8, 19.3, 0.0)
     i = I["PS"]
 
@@ -402,7 +402,7 @@ def test_time_to_limit_couples_the_oil_inlet_to_the_warming_sump(params, monkeyp
 def test_coupled_modes_fall_back_to_the_symmetric_ones_when_unstable():
     """A coupling that would make the held system unstable (an eigenvalue without a positive real part) is dropped:
     the item is the symmetric decomposition of K, marked not coupled, so the caller freezes the inlet instead."""
-    from firmware_model.overheat import HeldInputSolver
+    from firmware_model.onboard.overheat import HeldInputSolver
     n = 4
     C = np.array([100.0, 50.0, 80.0, 60.0])
     G = np.array([[0, 2.0, 0, 1.0], [2.0, 0, 3.0, 0], [0, 3.0, 0, 1.5], [1.0, 0, 1.5, 0]])

@@ -4,11 +4,11 @@ import math
 import numpy as np
 import pytest
 
-from firmware_model import reduced as R
+from firmware_model.onboard import reduce as R
 from firmware_model.components import PUBLISHED
 from firmware_model.errors import ParameterError, StabilityError
-from firmware_model.gearbox_losses import GearboxLosses
-from firmware_model.kinematics import GEAR_MIN
+from firmware_model.physics.gearbox_losses import GearboxLosses
+from firmware_model.physics.kinematics import GEAR_MIN
 from firmware_model.network import BOUNDARIES, ConductanceEvaluator, build_network
 from firmware_model.parameters import load_parameters
 

@@ -8,7 +8,7 @@ import pytest
 from firmware_model.components import PUBLISHED
 from firmware_model.errors import InputError, ParameterError
 from firmware_model.parameters import load_parameters
-from firmware_model.sensor import (MODE_HOLDING, MODE_NORMAL, MODE_OIL_MODEL, REJECT_REASONS, SensorInputs,
+from firmware_model.onboard.sensor import (MODE_HOLDING, MODE_NORMAL, MODE_OIL_MODEL, REJECT_REASONS, SensorInputs,
                                    VirtualSensor, cool_down, slowest_time_constant_s, step_scalar, step_vector,
                                    refresh_ttl)
 from tools.runtable import RunTable
@@ -62,8 +62,8 @@ def short_cycle(rate_hz=10.0, seed=3):
 
 @pytest.fixture(scope="module")
 def plant_vs_sensor(params, sensor):
-    from tools.cmd_replay import replay_table
-    from tools.plant import ReferencePlant
+    from tools.cli.replay import replay_table
+    from tools.plant.reference import ReferencePlant
     tab = short_cycle()
     res = ReferencePlant(params, cooler="liquid").run(tab, initial_temp_c=70.0)
     ref = res.table

@@ -43,24 +43,24 @@ def _table_arrays(table) -> dict:
 
 
 def plant_case(cycle: str) -> dict:
-    from tools.cycles import get_cycle
-    from tools.plant import ReferencePlant
+    from tools.cycles.named import get_cycle
+    from tools.plant.reference import ReferencePlant
     res = ReferencePlant(_params()).run(get_cycle(cycle), progress=False)
     return _table_arrays(res.table)
 
 
 def sensor_case(cycle: str) -> dict:
     """The onboard sensor over the plant's run table of ``cycle`` (inputs and the plant's sump as the oil sensor)."""
-    from tools.cycles import get_cycle
-    from tools.plant import ReferencePlant
-    from tools.cmd_replay import replay_table
-    from firmware_model.sensor import VirtualSensor
+    from tools.cycles.named import get_cycle
+    from tools.plant.reference import ReferencePlant
+    from tools.cli.replay import replay_table
+    from firmware_model.onboard.sensor import VirtualSensor
     from firmware_model.config import load_config
     params = _params()
     plant = ReferencePlant(params).run(get_cycle(cycle), progress=False).table
     with tempfile.TemporaryDirectory() as d:
         from tools.runtable import write_run_table
-        from tools.cmd_replay import read_inputs_table
+        from tools.cli.replay import read_inputs_table
         p = Path(d) / "plant.csv"
         write_run_table(plant, p)
         table = read_inputs_table(p)
@@ -70,8 +70,8 @@ def sensor_case(cycle: str) -> dict:
 
 def batch_case() -> dict:
     """Three vehicles stepped as one batch (the batch API), 20 min of the uphill cycle with different oils."""
-    from tools.cycles import get_cycle
-    from firmware_model.sensor import VirtualSensor
+    from tools.cycles.named import get_cycle
+    from firmware_model.onboard.sensor import VirtualSensor
     params = _params()
     sensor = VirtualSensor(params)
     tb = get_cycle("uphill")
@@ -97,8 +97,8 @@ def batch_case() -> dict:
 
 def capture_case(name: str) -> dict:
     """A real capture through the CAN service (decoder, freshness, step) with its output frames."""
-    from tools.replay_log import replay_log
-    from tools.cmd_run import build_service
+    from tools.can.replay_log import replay_log
+    from tools.cli.run import build_service
     d = capture_dir()
     if d is None:
         raise FileNotFoundError("real captures not found")
@@ -117,7 +117,7 @@ def capture_case(name: str) -> dict:
 
 def bench_case(index: int) -> dict:
     """One bench-diagnosis scenario (plant model, 900 s cycles): the diagnosis JSON, flattened to numbers + text."""
-    from tools.diagnosis_bench import run_bench
+    from tools.diagnosis.bench import run_bench
     with tempfile.TemporaryDirectory() as d:
         run_bench(40, 1, d, model="plant", train_s=900.0, test_s=900.0, only={index}, progress=lambda m: None)
         js = json.loads((Path(d) / f"scenario_{index:02d}.json").read_text())

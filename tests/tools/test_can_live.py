@@ -16,10 +16,10 @@ import numpy as np
 import pytest
 
 from can_dbc.adapter import decode_outputs, pgn_of
-from firmware_model.can_service import SensorService, ServiceOptions, can_filters, serve
+from firmware_model.service import SensorService, ServiceOptions, can_filters, serve
 from firmware_model.components import PUBLISHED
-from tools.logsynth import write_can_log
-from tools.replay_log import play_log, read_log, replay_log
+from tools.can.logsynth import write_can_log
+from tools.can.replay_log import play_log, read_log, replay_log
 
 from ..firmware_model.sensor_standin import make_sensor, real_sensor_available
 
@@ -31,8 +31,8 @@ GBX_PGNS = set(range(0xFF40, 0xFF50)) | {0xFECA}
 def drive_log(tmp_path_factory):
     """40 s of the uphill cycle through the reference plant, as a J1939 + rig log."""
     from firmware_model.config import load_config
-    from tools.cycles import get_cycle
-    from tools.plant import ReferencePlant
+    from tools.cycles.named import get_cycle
+    from tools.plant.reference import ReferencePlant
     from tools.runtable import RunTable
     table = get_cycle("uphill")
     keep = table["time_s"] <= 40.0
@@ -125,7 +125,7 @@ def test_twenty_times_real_time_with_log_timestamps_equals_offline(drive_log):
     assert len(frames) > 390 * 16
 
 
-needs_sensor = pytest.mark.skipif(not real_sensor_available(), reason="firmware_model.sensor is not there yet")
+needs_sensor = pytest.mark.skipif(not real_sensor_available(), reason="firmware_model.onboard.sensor is not there yet")
 
 
 @needs_sensor
@@ -207,7 +207,7 @@ def _sigterm_when_ready(code: str, channel: str, ready: str, stream: str, what: 
 def test_run_exits_on_sigterm_on_a_silent_bus_even_when_signal_handling_is_slow():
     # CPython 3.11's queue.SimpleQueue.get(timeout) waits forever when a signal handler that runs inside it outlasts
     # the timeout (it then waits with a negative, i.e. infinite, timeout until a frame arrives): the main loop's
-    # 50 ms poll must not be where SIGTERM is handled (seen as a hang after SIGTERM in the QEMU VM, tools/vcan_vm.py)
+    # 50 ms poll must not be where SIGTERM is handled (seen as a hang after SIGTERM in the QEMU VM, tools/vcan_vm/harness.py)
     rc, _, err = _sigterm_when_ready(_SLOW_SIGNAL_RUN, f"slow-signal-{uuid.uuid4()}", "listening on virtual", "stderr",
                                      "`run`")
     assert rc == 0, err
@@ -227,9 +227,9 @@ def test_run_bad_interface_is_one_sentence_exit_2():
 _SLOW_HANDLER_SERVE = """
 import signal, sys, threading, time
 import can
-from firmware_model.can_service import SensorService, serve
+from firmware_model.service import SensorService, serve
 from firmware_model.parameters import load_parameters
-from firmware_model.sensor import VirtualSensor
+from firmware_model.onboard.sensor import VirtualSensor
 stop = threading.Event()
 def slow(signum, frame):
     time.sleep(0.2)          # outlasts serve()'s 50 ms wait for frames

@@ -4,9 +4,9 @@ import pytest
 
 from firmware_model.components import PUBLISHED
 from firmware_model.parameters import load_parameters
-from firmware_model.sensor import SensorInputs, VirtualSensor
+from firmware_model.onboard.sensor import SensorInputs, VirtualSensor
 from tools.cli import main
-from tools.cmd_replay import read_inputs_table, replay_records, replay_table, table_records
+from tools.cli.replay import read_inputs_table, replay_records, replay_table, table_records
 from tools.runtable import RunTable, read_run_table, write_run_table
 
 

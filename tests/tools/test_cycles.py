@@ -3,8 +3,8 @@ import numpy as np
 import pytest
 
 from firmware_model.errors import InputError
-from firmware_model.kinematics import GEAR_NAMES
-from tools.cycles import (BC_COLUMNS, COLUMNS, CYCLE_HELP, CYCLE_NAMES, TABLE11_LC1, TABLE11_LC2, Vehicle,
+from firmware_model.physics.kinematics import GEAR_NAMES
+from tools.cycles.named import (BC_COLUMNS, COLUMNS, CYCLE_HELP, CYCLE_NAMES, TABLE11_LC1, TABLE11_LC2, Vehicle,
                           get_cycle, parse_steady_spec, road_profile, summarize, total_ratios)
 from tools.runtable import read_run_table, write_run_table
 

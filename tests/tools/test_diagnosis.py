@@ -16,8 +16,8 @@ from firmware_model.effects import CATALOG, EFFECT_IDS
 from firmware_model.errors import InputError
 from firmware_model.parameters import load_parameters
 from tools.cli import main
-from tools.diagnosis import diagnose, lag_filter
-from tools.diagnosis_bench import make_scenario, mixed_cycle
+from tools.diagnosis.core import diagnose, lag_filter
+from tools.diagnosis.bench import make_scenario, mixed_cycle
 from tools.runtable import RunTable, write_run_table
 
 SHORT_S = 600.0
@@ -251,10 +251,10 @@ def test_diagnose_api_raises_input_error(params):
 # backends and inputs
 
 def test_onboard_backend_runs_effects_as_vehicles(params):
-    from tools.diagnosis import Options, prepare
-    from tools.diagnosis_models import OnboardModel, PlantModel, Run, onboard_available
+    from tools.diagnosis.core import Options, prepare
+    from tools.diagnosis.models import OnboardModel, PlantModel, Run, onboard_available
     if not onboard_available():
-        pytest.skip("the onboard model (firmware_model.sensor) is not installed")
+        pytest.skip("the onboard model (firmware_model.onboard.sensor) is not installed")
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
         sc = make_scenario(2, 13, "rig", None, None, params, n_train=1, train_s=240.0, test_s=60.0)
@@ -278,8 +278,8 @@ def test_onboard_backend_runs_effects_as_vehicles(params):
 
 
 def test_can_logs_as_input(tmp_path, params):
-    from tools.logsynth import write_can_log
-    from tools.plant import ReferencePlant
+    from tools.can.logsynth import write_can_log
+    from tools.plant.reference import ReferencePlant
     paths = []
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)

@@ -11,7 +11,7 @@ import pytest
 from can_dbc.adapter import J1939Decoder, decode_rig, pgn_of
 from firmware_model.components import PUBLISHED
 from firmware_model.errors import InputError, ParameterError
-from tools.logsynth import synth_frames, write_can_log, write_frames
+from tools.can.logsynth import synth_frames, write_can_log, write_frames
 from tools.runtable import RunTable
 
 

@@ -7,7 +7,7 @@ import pytest
 from firmware_model.effects import CATALOG, EFFECT_IDS
 from firmware_model.errors import InputError
 from firmware_model.parameters import load_parameters
-from tools.plant import ReferencePlant
+from tools.plant.reference import ReferencePlant
 from tools.runtable import RunTable
 
 
@@ -140,7 +140,7 @@ def test_bad_inputs_are_one_sentence_errors(params):
 @pytest.mark.parametrize("cycle", ["steady", "all_gears", "long_haul", "uphill", "mining"])
 def test_energy_closes_on_every_named_cycle(params, cycle):
     """Generated heat = stored + rejected within 0.1 % on every named (synthetic) cycle, at its own settings."""
-    from tools.cycles import get_cycle
+    from tools.cycles.named import get_cycle
     tab = get_cycle(cycle, rate_hz=2)
     res = ReferencePlant(params, dt_s=1.0).run(tab, out_dt_s=10.0)
     eb = res.energy_balance()

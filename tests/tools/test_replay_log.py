@@ -6,11 +6,11 @@ import sys
 import numpy as np
 import pytest
 
-from firmware_model.can_service import SensorService, ServiceOptions
+from firmware_model.service import SensorService, ServiceOptions
 from firmware_model.components import PUBLISHED
 from firmware_model.errors import InputError
-from tools.logsynth import synth_frames, write_frames
-from tools.replay_log import is_can_log, read_log, replay_log
+from tools.can.logsynth import synth_frames, write_frames
+from tools.can.replay_log import is_can_log, read_log, replay_log
 from tools.runtable import RunTable, read_run_table, write_run_table
 
 from ..firmware_model.sensor_standin import make_sensor
@@ -132,7 +132,7 @@ def messy_log(path):
 
 
 def test_two_process_replay_equals_one_process_bit_for_bit(tmp_path):
-    from tools.replay_log import pipeline_available
+    from tools.can.replay_log import pipeline_available
     path = messy_log(tmp_path / "messy.log")
     sensor = make_sensor()
     tables, services = [], []
@@ -173,7 +173,7 @@ class _Failing:
 
 
 def test_two_process_replay_reports_a_failure_in_the_sensor_process(tmp_path, frames):
-    from firmware_model.sensor import SensorInputs
+    from firmware_model.onboard.sensor import SensorInputs
     path = write_frames(frames[1], tmp_path / "drive.log")
     failing = _Failing(make_sensor())
     failing.Inputs = SensorInputs

@@ -1,4 +1,4 @@
-"""End to end on a real Linux SocketCAN vcan0 (QEMU VM, tools/vcan_vm.py): canplayer replays a synthesized drive
+"""End to end on a real Linux SocketCAN vcan0 (QEMU VM, tools/vcan_vm/harness.py): canplayer replays a synthesized drive
 into vcan0 while `gearbox-vsensor run --interface socketcan --channel vcan0` runs; candump -L records everything.
 
 What must hold, allowing one step at the very end (the last frame may land on either side of a 100 ms boundary):
@@ -22,7 +22,7 @@ default 130 degC it is "never" throughout since the prediction follows the coole
 to answer the drive's last steps (a second candump counts its GBX_STATUS frames) instead of a fixed sleep, and every
 wait in it is bounded: a service that does not exit 60 s after SIGTERM is sent SIGABRT and its threads' stacks
 (`python -X faulthandler`) land in run.err, instead of the run hanging until the VM timeout (that hang was a real bug,
-fixed in tools/cmd_run.py: SignalWatcher). The script prints its phases (`@ <uptime> <phase>`), the test a summary
+fixed in tools/cli/run.py: SignalWatcher). The script prints its phases (`@ <uptime> <phase>`), the test a summary
 (`-s`). Measured on the 2-core development machine (docs/vcan-vm.md): ~2 min for the whole test on a quiet host (boot
 6 s, service start-up 49-51 s, canplayer 60 s, catch-up 0.1 s, shutdown 4 s); 3-3.5 min with 1-4 CPU-bound processes
 beside it (start-up 89-118 s). Marked `vcan`; skipped, naming what is missing, when QEMU, the Debian kernel,
@@ -40,8 +40,7 @@ import numpy as np
 import pytest
 
 from can_dbc.adapter import SENSOR_SOURCE_ADDRESS, decode_outputs, pgn_of
-from tools import vcan_vm
-
+from tools.vcan_vm import harness as vcan_vm
 from ..firmware_model.sensor_standin import real_sensor_available
 
 
@@ -121,7 +120,7 @@ PHASES = (("service start-up", "script start", "service listening"),
 
 def _skip_reason() -> str | None:
     if not real_sensor_available():
-        return "firmware_model.sensor (the onboard sensor) is not there yet"
+        return "firmware_model.onboard.sensor (the onboard sensor) is not there yet"
     missing = vcan_vm.vm_prerequisites()
     if missing:
         return "vcan VM prerequisites missing: " + "; ".join(missing) + f" ({vcan_vm.INSTALL_HINT})"
@@ -146,8 +145,8 @@ INPUTS = ("engine_speed_rpm", "engine_torque_nm", "gear", "oil_temp_c", "ambient
 
 
 def _offline(path):
-    from tools.cmd_run import build_service
-    from tools.replay_log import replay_log
+    from tools.cli.run import build_service
+    from tools.can.replay_log import replay_log
     frames = []
     table = replay_log(path, build_service(path.parent / "vm.toml", record=True), on_frames=frames.extend)
     return table, [(m.arbitration_id, bytes(m.data)) for m in frames]
@@ -172,7 +171,7 @@ def vm_run(tmp_path_factory):
     if reason:
         pytest.skip(reason)
     import time
-    from tools.cycles import get_cycle
+    from tools.cycles.named import get_cycle
     from tools.runtable import RunTable, write_run_table
     t0 = time.monotonic()
     share = tmp_path_factory.mktemp("vcan-e2e")

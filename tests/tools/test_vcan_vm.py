@@ -1,4 +1,4 @@
-"""The QEMU vcan harness (tools/vcan_vm.py) against a real Linux vcan0.
+"""The QEMU vcan harness (tools/vcan_vm/harness.py) against a real Linux vcan0.
 
 One VM boot (module fixture) runs every check and leaves its results in the shared directory;
 the tests below read them on the host.  Skipped, naming what is missing, when QEMU, the Debian
@@ -14,8 +14,7 @@ from pathlib import Path
 
 import pytest
 
-from tools import vcan_vm
-
+from tools.vcan_vm import harness as vcan_vm
 pytestmark = pytest.mark.vcan
 
 N_GEN = 20

@@ -3,7 +3,7 @@ explicit step, with a stability guarantee checked when the parameters load.
 
 Everything here is derived by code from the same description the reference plant integrates
 (:func:`firmware_model.network.build_network`, :class:`~firmware_model.network.ConductanceEvaluator`,
-:class:`~firmware_model.gearbox_losses.GearboxLosses`): no number is copied by hand.
+:class:`~firmware_model.physics.gearbox_losses.GearboxLosses`): no number is copied by hand.
 
 Reduction (docs/sensor.md, "Reduction")
 ---------------------------------------
@@ -45,18 +45,18 @@ from dataclasses import dataclass, field, fields
 
 import numpy as np
 
-from . import heat_transfer as ht
-from . import losses as L
-from . import oil as oilprops
-from .components import PUBLISHED, SHAFT_BEARINGS
-from .effects import CATALOG, effect_value
-from .errors import ParameterError, StabilityError
-from .gearbox_losses import GearboxLosses
-from .kinematics import GEAR_MIN, MESHES, N_GEARS, SPEED_NAMES
-from .network import (BOUNDARIES, K_BRG_SPLASH, K_CONST, K_CONTACT, K_EXT_CONV, K_EXT_RAD, K_IMM_BRG, K_IMM_GEAR,
+from firmware_model.physics import heat_transfer as ht
+from firmware_model.physics import losses as L
+from firmware_model.physics import oil as oilprops
+from firmware_model.components import PUBLISHED, SHAFT_BEARINGS
+from firmware_model.effects import CATALOG, effect_value
+from firmware_model.errors import ParameterError, StabilityError
+from firmware_model.physics.gearbox_losses import GearboxLosses
+from firmware_model.physics.kinematics import GEAR_MIN, MESHES, N_GEARS, SPEED_NAMES
+from firmware_model.network import (BOUNDARIES, K_BRG_SPLASH, K_CONST, K_CONTACT, K_EXT_CONV, K_EXT_RAD, K_IMM_BRG, K_IMM_GEAR,
                       K_RING, K_SPLASH, K_STREAM, S_CHANNEL, S_IMPOSED, SHAFT_SEGMENTS, ConductanceEvaluator,
                       HeatTransferScales, Network, build_network)
-from .parameters import Parameters
+from firmware_model.parameters import Parameters
 
 RPM = 2.0 * math.pi / 60.0
 #: fixed step of the onboard model [s]
@@ -983,7 +983,7 @@ def cooler_heat(rp: ReducedParams, T_oil_c, w_ls, w_eng, T_coolant_c, T_ambient_
     return Q, mcp, hA
 
 
-#: recirculated air at the air cooler (seed 3.4; same table as tools.plant)
+#: recirculated air at the air cooler (seed 3.4; same table as tools.plant.reference)
 _AIR_RECIRC = (np.array([0.0, 15.0, 50.0, 85.0, 200.0]), np.array([12.0, 9.0, 2.0, 0.5, 0.0]))
 
 

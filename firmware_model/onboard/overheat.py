@@ -26,10 +26,10 @@ from pathlib import Path
 
 import numpy as np
 
-from .components import GROUP, PUBLISHED
-from .errors import ParameterError
+from firmware_model.components import GROUP, PUBLISHED
+from firmware_model.errors import ParameterError
 
-LIMITS_PATH = Path(__file__).resolve().parent / "params" / "limits.toml"
+LIMITS_PATH = Path(__file__).resolve().parents[1] / "params" / "limits.toml"
 GROUPS = ("gear", "sun", "planetary", "bearing", "oil")
 LEVEL_NORMAL, LEVEL_WARNING, LEVEL_CRITICAL, LEVEL_NA = 0, 1, 2, 3
 _KEYS = {"warning": "degC", "critical": "degC", "hysteresis": "K"}

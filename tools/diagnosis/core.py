@@ -34,8 +34,8 @@ import numpy as np
 from firmware_model.effects import CATALOG, EFFECT_IDS
 from firmware_model.errors import InputError
 
-from .diagnosis_models import Q_OUT, Run
-from .runtable import REQUIRED, RunTable, read_run_table, validate_run_table
+from tools.diagnosis.models import Q_OUT, Run
+from tools.runtable import REQUIRED, RunTable, read_run_table, validate_run_table
 
 SCHEMA = "gap-diagnosis/1"
 J1939_RES_C = 0.03125
@@ -115,17 +115,17 @@ def channel_columns(table: RunTable) -> dict:
 
 def load_table(path, config_path=None) -> RunTable:
     """A measured run table from a CSV file, or from a CAN log (candump -L .log, .asc, .blf, .mf4) decoded through
-    the sensor's own CAN service (tools.replay_log): the decoded inputs, the oil sensor (TRF1) and the rig
+    the sensor's own CAN service (tools.can.replay_log): the decoded inputs, the oil sensor (TRF1) and the rig
     thermocouple frames (meas_T_<id>_c); the sensor's own estimates are dropped."""
     p = Path(path)
     if not p.exists():
         raise InputError(f"{path}: no such file")
     if p.suffix.lower() in LOG_SUFFIXES:
         try:
-            from tools.cmd_run import build_service
-            from tools.replay_log import is_can_log, replay_log
+            from tools.cli.run import build_service
+            from tools.can.replay_log import is_can_log, replay_log
         except ImportError:
-            raise InputError(f"{path}: CAN logs need the log decoder (tools/replay_log.py), which is not installed; "
+            raise InputError(f"{path}: CAN logs need the log decoder (tools/can/replay_log.py), which is not installed; "
                              f"convert the log to a CSV run table first") from None
         if not is_can_log(p):
             raise InputError(f"{path}: {p.suffix} logs are not supported; use .log, .asc, .blf or .mf4")
@@ -344,7 +344,7 @@ def _speed_bin(rpm):
 
 def regime_labels(ds: Dataset, ch: Channel, base_out: dict, params, cooler: str, opts: Options) -> dict:
     """Partition name -> label per cell of channel `ch`."""
-    from firmware_model.kinematics import GEAR_NAMES
+    from firmware_model.physics.kinematics import GEAR_NAMES
     tin = ds.inputs["time_s"]
     ct = ch.cell_t
     idx = np.clip(np.searchsorted(tin, ct, side="right") - 1, 0, tin.size - 1)
@@ -1244,7 +1244,7 @@ def _r(x, nd=4):
 # entry point
 
 def make_model(kind: str, params, cooler: str | None, opts: Options):
-    from .diagnosis_models import OnboardModel, PlantModel, onboard_available
+    from tools.diagnosis.models import OnboardModel, PlantModel, onboard_available
     plant = PlantModel(params, cooler=cooler, dt_s=opts.plant_dt_s, out_dt_s=opts.out_dt_s, workers=opts.workers)
     note = None
     if kind == "plant":
@@ -1252,7 +1252,7 @@ def make_model(kind: str, params, cooler: str | None, opts: Options):
     if kind != "onboard":
         raise InputError(f"--model {kind!r} must be onboard or plant")
     if not onboard_available():
-        note = ("the onboard model (firmware_model.sensor) is not available yet; the reference plant was diagnosed "
+        note = ("the onboard model (firmware_model.onboard.sensor) is not available yet; the reference plant was diagnosed "
                 "instead")
         return plant, note
     return OnboardModel(params, cooler=cooler, fallback=plant, out_dt_s=opts.out_dt_s, workers=opts.workers), note

@@ -42,12 +42,12 @@ def run(args) -> int:
     import can
 
     from can_dbc.adapter import decode_outputs
-    from firmware_model.can_service import SensorService, ServiceOptions, serve
+    from firmware_model.service import SensorService, ServiceOptions, serve
     from firmware_model.parameters import load_parameters
-    from firmware_model.sensor import VirtualSensor
-    from tools.cycles import get_cycle
-    from tools.logsynth import synth_frames, write_frames
-    from tools.plant import ReferencePlant
+    from firmware_model.onboard.sensor import VirtualSensor
+    from tools.cycles.named import get_cycle
+    from tools.can.logsynth import synth_frames, write_frames
+    from tools.plant.reference import ReferencePlant
     from tools.runtable import RunTable, write_run_table
 
     if not 1.0 <= args.minutes <= 600.0:

@@ -4,9 +4,9 @@
 effect values, see :class:`Run`) and returns, per run and per data set, the model's output columns on its own output
 grid (``time_s`` plus ``oil_temp_c``, ``T_oil_c``, ``T_<id>_c`` ...).
 
-* :class:`PlantModel`: the reference plant (tools.plant), every catalog effect, runs farmed out to a process pool
+* :class:`PlantModel`: the reference plant (tools.plant.reference), every catalog effect, runs farmed out to a process pool
   (the machine has two cores; a 25-minute cycle takes about 0.4 s at the default 1 s step).
-* :class:`OnboardModel`: the onboard reduced model (firmware_model.sensor), run with ``oil_temp_c = NaN`` so that it
+* :class:`OnboardModel`: the onboard reduced model (firmware_model.onboard.sensor), run with ``oil_temp_c = NaN`` so that it
   predicts the oil itself; effect values are batched as "vehicles" of one vectorised pass. Effects the onboard model
   cannot represent are delegated to a fallback plant (reported per effect).
 
@@ -95,7 +95,7 @@ def _init_worker(params, cooler, dt_s, out_dt_s, full_dt_s, coarse_dt_s):
 
 def _plant_job(job):
     table, run, columns = job
-    from tools.plant import ReferencePlant
+    from tools.plant.reference import ReferencePlant
     w = _WORKER
     plant = ReferencePlant(w["params"], run.effect_dict, cooler=w["cooler"],
                            dt_s=w["coarse_dt_s"] if run.coarse else (0.5 * w["dt_s"] if run.fine else w["dt_s"]))
@@ -176,7 +176,7 @@ class PlantModel(DiagnosisModel):
 # onboard model
 
 def onboard_available() -> bool:
-    return importlib.util.find_spec("firmware_model.sensor") is not None
+    return importlib.util.find_spec("firmware_model.onboard.sensor") is not None
 
 
 class OnboardModel(DiagnosisModel):
@@ -184,7 +184,7 @@ class OnboardModel(DiagnosisModel):
 
     Runs the sensor's pure step over each file at its own 10 Hz with the oil input absent (NaN), so the sensor
     integrates the sump with its cooler model. The runs of one call are the vehicles of one vectorised pass per
-    file (the onboard model's per-vehicle effect hooks, firmware_model.reduced.EFFECT_HOOKS); ``oil_level_low`` is
+    file (the onboard model's per-vehicle effect hooks, firmware_model.onboard.reduce.EFFECT_HOOKS); ``oil_level_low`` is
     one build per volume, ``oil_sensor_lag`` a filter on the sump output. Other effects are delegated to `fallback`
     (a PlantModel) and listed in `delegated`. Passes are spread over a process pool (one file per process).
     """
@@ -193,7 +193,7 @@ class OnboardModel(DiagnosisModel):
     def __init__(self, params, cooler: str | None = None, fallback: PlantModel | None = None,
                  out_dt_s: float = 1.0, config=None, workers: int | None = None):
         if not onboard_available():
-            raise InputError("the onboard model (firmware_model.sensor) is not available in this installation; "
+            raise InputError("the onboard model (firmware_model.onboard.sensor) is not available in this installation; "
                              "use --model plant")
         self.params = params
         self.cooler = cooler
@@ -202,7 +202,7 @@ class OnboardModel(DiagnosisModel):
         self.fallback = fallback
         self.workers = max(1, int(workers if workers is not None else min(2, os.cpu_count() or 1)))
         self._pool = None
-        red = importlib.import_module("firmware_model.reduced")
+        red = importlib.import_module("firmware_model.onboard.reduce")
         self.native_effects = tuple(getattr(red, "EFFECT_HOOKS", ())) + tuple(getattr(red, "BUILD_EFFECTS", ())) + (
             "oil_sensor_lag",)
         self.delegated = []
@@ -300,7 +300,7 @@ def _onboard_build(volume_l: float):
     vs = _ONB["builds"].get(volume_l)
     if vs is None:
         from firmware_model.config import Config
-        from firmware_model.sensor import VirtualSensor
+        from firmware_model.onboard.sensor import VirtualSensor
         eff = {} if volume_l == CATALOG["oil_level_low"].neutral else {"oil_level_low": volume_l}
         params = _ONB["params"]
         if _ONB["cooler"]:
@@ -322,8 +322,8 @@ def _with_cooler_kind(params, kind):
 def run_onboard_pass(ds, runs, columns, volume_l: float) -> list:
     """Run the onboard step over `ds` once, one vehicle per run (effect values as per-vehicle arrays, the oil input
     absent so that the sensor integrates its sump), and return each run's output columns every `out_dt_s`."""
-    from firmware_model import reduced as R
-    from firmware_model import sensor as S
+    from firmware_model.onboard import reduce as R
+    from firmware_model.onboard import sensor as S
     from firmware_model.effects import CATALOG
     vs = _onboard_build(volume_l)
     out_dt_s = _ONB["out_dt_s"]

@@ -15,7 +15,7 @@ import numpy as np
 
 from firmware_model.effects import CATALOG
 
-from .diagnosis import OIL, PRIMARY, _gear_group, _speed_bin, _torque_bin
+from tools.diagnosis.core import OIL, PRIMARY, _gear_group, _speed_bin, _torque_bin
 
 GROUPS = ("low range", "high range", "reverse", "neutral")
 TORQUES = ("engine braking (torque < 0)", "torque 0-800 Nm", "torque 800-1500 Nm", "torque > 1500 Nm")

@@ -4,7 +4,7 @@
 into J1939 frames at the rates a truck sends them, plus the plant's true component temperatures as rig thermocouple
 frames, and writes them as a CAN log (``.log`` candump -L, ``.asc``, ``.blf`` by suffix). ``gearbox-vsensor simulate
 --can-log RUN.log`` calls it; ``gearbox-vsensor replay RUN.log`` reads such a log back through the onboard sensor.
-:func:`synth_frames` gives the same frames as arrays (for the HIL plant, tools/cmd_plant.py).
+:func:`synth_frames` gives the same frames as arrays (for the HIL plant, tools/cli/plant.py).
 
 What is sent (CONTRACTS.md section 1; source addresses from ``[can]`` of the config, defaults in brackets):
 
@@ -400,7 +400,7 @@ def write_can_log(input_table, plant_output_table, path: str | os.PathLike, para
 
 def _bench(argv=None) -> None:  # pragma: no cover - a benchmark, run by benchmarks/bench_can.py too
     import time
-    from tools.cycles import get_cycle
+    from tools.cycles.named import get_cycle
     from tools.runtable import RunTable
     table = get_cycle("long_haul")
     t = np.asarray(table["time_s"])

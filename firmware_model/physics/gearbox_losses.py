@@ -16,12 +16,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import losses as L
-from . import oil as oilprops
-from .components import IDLE_WHEELS, LAYSHAFT_WHEELS, PAIRS, SHAFT_BEARINGS
-from .kinematics import GEAR_MIN, GEARS, MESHES, SPEED_NAMES, SYNCS, gear_state
-from .network import SHAFT_OF_BEARING, build_geometry
-from .parameters import Parameters
+from firmware_model.physics import losses as L
+from firmware_model.physics import oil as oilprops
+from firmware_model.components import IDLE_WHEELS, LAYSHAFT_WHEELS, PAIRS, SHAFT_BEARINGS
+from firmware_model.physics.kinematics import GEAR_MIN, GEARS, MESHES, SPEED_NAMES, SYNCS, gear_state
+from firmware_model.network import SHAFT_OF_BEARING, build_geometry
+from firmware_model.parameters import Parameters
 
 #: loss sources in reporting order; "mesh:<m>" for the nine meshes, then the lumped ones
 SOURCES = tuple(f"mesh:{m}" for m in MESHES[:7]) + ("planetary",) + tuple(f"bearing:{b}" for b in SHAFT_BEARINGS) + (

@@ -1,13 +1,13 @@
 """Replay of CAN logs through the onboard sensor: the log half of `gearbox-vsensor replay`.
 
 - :func:`replay_log` reads a log (``.log`` candump -L, ``.asc``, ``.blf``, ``.mf4``; python-can's ``LogReader`` by
-  suffix) as fast as it can through the *same* :class:`~firmware_model.can_service.SensorService` that runs live
+  suffix) as fast as it can through the *same* :class:`~firmware_model.service.SensorService` that runs live
   (``gearbox-vsensor run``), and returns the sensor output run table (CONTRACTS.md section 3, 10 Hz): the decoded
   inputs, ``T_<id>_c``, ``W_<id>``, ``ttl_<id>_s``, the status and ``meas_T_<id>_c`` from rig thermocouple frames.
   Outputs are bit-identical to a live run on the same traffic: the service keeps time by frame timestamps only.
 - :func:`play_log` plays a log onto a bus with its original timing (python-can ``MessageSync``, like canplayer),
   optionally faster (``speed``).
-- :func:`add_log_options` / :func:`run_log` are the CLI pieces that ``tools/cmd_replay.py`` hooks in for log files.
+- :func:`add_log_options` / :func:`run_log` are the CLI pieces that ``tools/cli/replay.py`` hooks in for log files.
 
 ``.mf4`` needs ``asammdf`` (``pip install 'gearbox-vsensor[mf4]'``); without it the error says so.
 """
@@ -79,7 +79,7 @@ def replay_log(path: str | os.PathLike, sensor_or_service, *, config=None, optio
     """Replay a CAN log through the sensor service; returns the sensor output run table (10 Hz).
 
     ``sensor_or_service``: a ``VirtualSensor`` (a service is built from ``options`` or the ``config``'s ``[can]``)
-    or a :class:`~firmware_model.can_service.SensorService` built with ``record=True``. ``on_frames(frames)``
+    or a :class:`~firmware_model.service.SensorService` built with ``record=True``. ``on_frames(frames)``
     receives the frames the service would send, in order (for comparisons with a live run). The table's ``meta``
     holds the counters (``meta["counters"]``). Raises InputError when the log holds no usable J1939 traffic.
 
@@ -88,7 +88,7 @@ def replay_log(path: str | os.PathLike, sensor_or_service, *, config=None, optio
     (:func:`pipeline_available` says when it can); 1 runs both in this process; None (default) picks 2 for a log of
     at least ``PIPELINE_MIN_BYTES`` when nothing stands against it (``on_frames`` needs the frames in order here).
     """
-    from firmware_model.can_service import SensorService, ServiceOptions
+    from firmware_model.service import SensorService, ServiceOptions
     from tools.runtable import RunTable
     if isinstance(sensor_or_service, SensorService):
         service = sensor_or_service
@@ -256,7 +256,7 @@ def play_log(path: str | os.PathLike, bus, *, speed: float = 1.0, stop: threadin
 
 
 # ---------------------------------------------------------------------------------------------------------------
-# CLI pieces for tools/cmd_replay.py
+# CLI pieces for tools/cli/replay.py
 # ---------------------------------------------------------------------------------------------------------------
 
 def add_log_options(p: argparse.ArgumentParser) -> None:
@@ -284,7 +284,7 @@ def run_log(args) -> int:
     if getattr(args, "realtime", False):
         if not args.interface or not args.channel:
             raise InputError("--realtime needs --interface and --channel (the bus to play the log onto)")
-        from tools.cmd_run import open_bus
+        from tools.cli.run import open_bus
         _check_log(args.log if hasattr(args, "log") else args.input)
         bus = open_bus(args.interface, args.channel, args.bitrate)
         stop = threading.Event()
@@ -297,7 +297,7 @@ def run_log(args) -> int:
             bus.shutdown()
         print(f"played {n} frames onto {args.interface} {args.channel}")
         return 0
-    from tools.cmd_run import build_service
+    from tools.cli.run import build_service
     from tools.runtable import write_run_table
     path = args.log if hasattr(args, "log") else args.input
     if not getattr(args, "out", None):
@@ -327,7 +327,7 @@ def run_log(args) -> int:
             writer.stop()
     out = write_run_table(table, args.out)
     if getattr(args, "plot", None):
-        from tools.cmd_replay import plot_replay
+        from tools.cli.replay import plot_replay
         plot_replay(table, args.plot, f"onboard sensor, replay of {Path(path).name}")
     d = service.decoder.counters
     rejected = ", ".join(f"{k} {v}" for k, v in sorted(d["rejected"].items())) or "none"

@@ -6,8 +6,7 @@ import sys
 
 from firmware_model.errors import VSensorError
 
-SUBCOMMANDS = ("cmd_simulate", "cmd_replay", "cmd_run", "cmd_plant", "cmd_diagnose", "cmd_bench_diagnosis",
-               "cmd_demo")
+SUBCOMMANDS = ("simulate", "replay", "run", "plant", "diagnose", "bench_diagnosis", "demo")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -20,9 +19,9 @@ def build_parser() -> argparse.ArgumentParser:
     import importlib
     for name in SUBCOMMANDS:
         try:
-            mod = importlib.import_module(f"tools.{name}")
+            mod = importlib.import_module(f"tools.cli.{name}")
         except ModuleNotFoundError as exc:
-            if exc.name == f"tools.{name}":
+            if exc.name == f"tools.cli.{name}":
                 continue
             raise
         mod.add_subparser(sub)

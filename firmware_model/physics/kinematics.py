@@ -20,8 +20,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .components import IDLE_WHEELS, LAYSHAFT_WHEELS, PAIRS
-from .errors import InputError, ParameterError
+from firmware_model.components import IDLE_WHEELS, LAYSHAFT_WHEELS, PAIRS
+from firmware_model.errors import InputError, ParameterError
 
 GEAR_MIN, GEAR_MAX = -2, 14
 GEARS = tuple(range(GEAR_MIN, GEAR_MAX + 1))

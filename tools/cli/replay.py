@@ -3,7 +3,7 @@
 The reading is split from the stepping so that any input source plugs in: a source is an iterator of
 ``(t_s, SensorInputs)`` records on the sensor's 0.1 s grid (:func:`table_records` for run tables); the stepping,
 output columns and status are :func:`replay_records`. CAN logs (``.log .asc .blf .mf4``) go through the live CAN
-service (tools/replay_log.py), so a log replays bit-identically to a live run.
+service (tools/can/replay_log.py), so a log replays bit-identically to a live run.
 
 Output (CONTRACTS.md section 3): ``time_s`` (end of each 0.1 s step), the inputs the sensor read (empty when absent),
 ``T_<id>_c``, ``W_<id>``, ``ttl_<id>_s`` (empty when never) for every published component, then the status:
@@ -58,7 +58,7 @@ def add_subparser(sub):
                    help="initial temperature of every node when the first row has no oil temperature")
     p.add_argument("--quiet", action="store_true", help="no summary")
     try:
-        from tools.replay_log import add_log_options
+        from tools.can.replay_log import add_log_options
         add_log_options(p)
     except ImportError:  # pragma: no cover - the log half is optional
         pass
@@ -69,7 +69,7 @@ def add_subparser(sub):
 def run(args) -> int:
     path = Path(args.input)
     try:
-        from tools.replay_log import is_can_log, run_log
+        from tools.can.replay_log import is_can_log, run_log
     except ImportError:  # pragma: no cover
         is_can_log = None
     if is_can_log is not None and is_can_log(path):
@@ -80,7 +80,7 @@ def run(args) -> int:
     if not args.out:
         raise InputError("--out EST.csv is required")
     from firmware_model.config import load_config
-    from firmware_model.sensor import VirtualSensor
+    from firmware_model.onboard.sensor import VirtualSensor
     from tools.runtable import write_run_table
     cfg = load_config(args.config)
     params = cfg.load_params()
@@ -135,7 +135,7 @@ def table_records(table, dt_s: float = 0.1) -> Iterator[tuple]:
     grid from the first row (values held from the last row at or before the step's start; an absent column is NaN).
     A gap longer than MAX_HOLD_GAP_S between rows is a time jump: no records inside it, the next record carries the
     jump in its ``t_s``. This is the plug point for other sources (a CAN log decoder yields the same records)."""
-    from firmware_model.sensor import SensorInputs
+    from firmware_model.onboard.sensor import SensorInputs
     t = np.asarray(table["time_s"], dtype=float)
     if t.size == 0:
         return
@@ -183,7 +183,7 @@ def replay_records(records: Iterable[tuple], sensor, initial_oil_c: float | None
         rows_st.append((int(st.degraded_mode != 0), int(st.degraded_mode), bool(st.speed_valid),
                         bool(st.torque_valid), bool(st.gear_valid), bool(st.oil_valid), float(st.oil_innovation_c),
                         float(st.model_oil_temp_c), *np.asarray(st.rejects).tolist()))
-    from firmware_model.sensor import REJECT_REASONS
+    from firmware_model.onboard.sensor import REJECT_REASONS
     n = len(times)
     cols = {"time_s": np.asarray(times, dtype=float)}
     ins = np.asarray(rows_in, dtype=float).reshape(n, 8)

@@ -1,7 +1,7 @@
 """Plot the named synthetic drive cycles to docs/img/cycles_<name>.png and print their summary table.
 
-    python -m tools.plot_cycles                 # every cycle, into docs/img/
-    python -m tools.plot_cycles uphill --out /tmp --seed 1
+    python -m tools.cycles.plot                 # every cycle, into docs/img/
+    python -m tools.cycles.plot uphill --out /tmp --seed 1
 """
 from __future__ import annotations
 
@@ -10,10 +10,10 @@ from pathlib import Path
 
 import numpy as np
 
-from firmware_model.kinematics import GEAR_NAMES
-from tools.cycles import BC_COLUMNS, CYCLE_NAMES, get_cycle, road_profile, summarize
+from firmware_model.physics.kinematics import GEAR_NAMES
+from tools.cycles.named import BC_COLUMNS, CYCLE_NAMES, get_cycle, road_profile, summarize
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 DEFAULT_SPEC = {"steady": "steady:gear=4L,rpm=1300,nm=2000,s=3600"}
 
 

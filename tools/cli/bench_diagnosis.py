@@ -1,4 +1,4 @@
-"""`gearbox-vsensor bench-diagnosis`: the withheld-effect benchmark of the gap diagnosis (tools/diagnosis_bench.py)."""
+"""`gearbox-vsensor bench-diagnosis`: the withheld-effect benchmark of the gap diagnosis (tools/diagnosis/bench.py)."""
 from __future__ import annotations
 
 import argparse
@@ -46,7 +46,7 @@ def add_subparser(sub):
 def run(args) -> int:
     import warnings
     from firmware_model.effects import parse_effect
-    from tools import diagnosis_bench as B
+    from tools.diagnosis import bench as B
     warnings.filterwarnings("ignore", category=RuntimeWarning)
     if args.scenarios < 1:
         raise InputError(f"--scenarios {args.scenarios} must be at least 1")

@@ -3,7 +3,7 @@
 The cycle is run through the reference plant *before* streaming starts (the plant is deterministic and its inputs
 are known in advance, so precomputing costs one plant run, a few seconds per simulated hour, and removes every
 real-time risk from the solver); then the truck's J1939 inputs (the same frames as ``simulate --can-log``,
-tools/logsynth.py) and the plant's true temperatures (RIG_TC_1..7) are sent on the bus in real time, or ``--speed``
+tools/can/logsynth.py) and the plant's true temperatures (RIG_TC_1..7) are sent on the bus in real time, or ``--speed``
 times faster. SIGINT / SIGTERM stop it cleanly (exit 0).
 """
 from __future__ import annotations
@@ -18,7 +18,7 @@ from firmware_model.errors import InputError
 
 
 def add_subparser(sub):
-    from tools.cycles import CYCLE_NAMES
+    from tools.cycles.named import CYCLE_NAMES
     p = sub.add_parser(
         "plant", help="HIL: stream a cycle's J1939 inputs and the plant's true temperatures onto a CAN bus",
         formatter_class=argparse.RawDescriptionHelpFormatter,
@@ -54,9 +54,9 @@ def prepare(cycle: str, config_path=None, effects=(), *, duration_s: float | Non
     """Run the plant over the cycle and synthesize its frames; returns (SynthFrames, per-message counts)."""
     from firmware_model.config import load_config
     from firmware_model.effects import parse_effect
-    from tools.cycles import get_cycle
-    from tools.logsynth import synth_frames
-    from tools.plant import ReferencePlant
+    from tools.cycles.named import get_cycle
+    from tools.can.logsynth import synth_frames
+    from tools.plant.reference import ReferencePlant
     from tools.runtable import RunTable
     cfg = load_config(config_path)
     params = cfg.load_params()
@@ -104,7 +104,7 @@ def stream(frames, bus, *, speed: float = 1.0, stop: threading.Event | None = No
 
 
 def run(args) -> int:
-    from tools.cmd_run import open_bus
+    from tools.cli.run import open_bus
     if not args.speed > 0:
         raise InputError(f"--speed {args.speed} must be positive")
     if args.duration is not None and not args.duration > 0:

@@ -1,7 +1,7 @@
 """The live CAN service core: J1939 frames in, the virtual sensor stepped on frame time, GBX_* frames out.
 
 :class:`SensorService` owns time and is pure of threads, clocks and I/O: ``feed(msg)`` takes one received frame and
-returns the frames to send. Live (``gearbox-vsensor run``, :func:`serve`), replay of a log (tools/cmd_replay.py) and
+returns the frames to send. Live (``gearbox-vsensor run``, :func:`serve`), replay of a log (tools/cli/replay.py) and
 the tests all call the same ``feed``, so the same traffic gives bit-identical outputs at any replay speed.
 
 Timing model (docs/can.md "Service"):
@@ -181,7 +181,7 @@ def _gear_map(raw) -> dict[int, int]:
 
 
 # ---------------------------------------------------------------------------------------------------------------
-# the sensor seen through its agreed API (firmware_model/sensor.py)
+# the sensor seen through its agreed API (firmware_model/onboard/sensor.py)
 # ---------------------------------------------------------------------------------------------------------------
 
 def _inputs_factory(sensor) -> Callable[..., object]:
@@ -318,7 +318,7 @@ class SensorService:
                 self._meas_seen[j] = True
         return out
 
-    # -- the two halves of a step, for a replay that runs them in two processes (tools/replay_log.py) -----------
+    # -- the two halves of a step, for a replay that runs them in two processes (tools/can/replay_log.py) -----------
 
     def split_steps(self, sink: Callable[[tuple], None] | None) -> None:
         """From now on hand each step's frame-half request to ``sink`` instead of stepping the sensor (None: step
@@ -476,7 +476,7 @@ class SensorService:
     # A step has two halves: _gather (frame side: which inputs are fresh, the reference torque, initialisation,
     # the run-table head) and _apply (sensor side: the sensor's step, status, frames, the recorded outputs). _gather
     # never depends on what _apply computed, so an offline replay can run the halves in two processes
-    # (tools/replay_log.py) and get the same outputs.
+    # (tools/can/replay_log.py) and get the same outputs.
 
     def _step(self, t_step: float, send: bool = True) -> list:
         req = self._gather(t_step)
@@ -572,7 +572,7 @@ class SensorService:
 
     def _status(self, st, vals, ref) -> dict:
         """The GBX_STATUS keys of a step; ``vals``: the inputs given to the sensor (SENSOR_INPUTS order)."""
-        if type(st).__name__ == "SensorStatus" and type(st).__module__ == "firmware_model.sensor":
+        if type(st).__name__ == "SensorStatus" and type(st).__module__ == "firmware_model.onboard.sensor":
             # the onboard sensor's own record: the generic lookups below, without their per-field probing
             return {"speed_valid": bool(st.speed_valid), "torque_valid": bool(st.torque_valid),
                     "gear_valid": bool(st.gear_valid), "oil_valid": bool(st.oil_valid),

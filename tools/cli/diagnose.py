@@ -68,7 +68,7 @@ def write_json_atomic(obj, path) -> Path:
 
 
 def run(args) -> int:
-    from tools.diagnosis import Options, diagnose
+    from tools.diagnosis.core import Options, diagnose
     cfg = load_config(args.config)
     params = cfg.load_params()
     cooler = args.cooler or cfg.cooler or params.strings.get("cooler.kind", "liquid")
@@ -91,7 +91,7 @@ def run(args) -> int:
                       progress=progress, keep=True, config_path=args.config)
     # render the report first (staged), then the JSON: both complete or nothing new
     if args.report:
-        from tools.diagnosis_report import write_report
+        from tools.diagnosis.report import write_report
         write_report(res, d, args.report)
     write_json_atomic(res, args.json)
     if not args.quiet:

@@ -11,7 +11,7 @@ from firmware_model.errors import InputError
 
 
 def add_subparser(sub):
-    from tools.cycles import CYCLE_NAMES
+    from tools.cycles.named import CYCLE_NAMES
     effects = "; ".join(f"{e.id}:{e.param}=<{e.low:g}..{e.high:g} {e.unit}>" for e in CATALOG.values())
     p = sub.add_parser(
         "simulate", help="run the reference plant (the thesis's full network) over a drive cycle",
@@ -50,8 +50,8 @@ def add_subparser(sub):
 
 
 def run(args) -> int:
-    from tools.cycles import get_cycle
-    from tools.plant import ReferencePlant
+    from tools.cycles.named import get_cycle
+    from tools.plant.reference import ReferencePlant
     from tools.runtable import write_run_table
     cfg = load_config(args.config)
     if args.variant:
@@ -72,7 +72,7 @@ def run(args) -> int:
                     progress=None if not args.quiet else False)
     out = write_run_table(res.table, args.out)
     if args.can_log:
-        from tools.logsynth import write_can_log
+        from tools.can.logsynth import write_can_log
         write_can_log(table, res.table, args.can_log, params, config=cfg)
     if args.plot:
         from tools.plots import plot_heat_budget, plot_temperatures

@@ -1,7 +1,7 @@
 """`gearbox-vsensor run`: the onboard sensor live on a CAN bus (any python-can interface).
 
 J1939 frames in (receive filters on the needed PGNs), the sensor stepped every 100 ms of frame time, GBX_* frames
-and DM1 out (firmware_model/can_service.py, docs/can.md). SIGINT and SIGTERM stop it cleanly: the loop drains the
+and DM1 out (firmware_model/service.py, docs/can.md). SIGINT and SIGTERM stop it cleanly: the loop drains the
 frames already received, stops the notifier, shuts the bus down and exits 0. The signals are taken by a thread of
 their own (:class:`SignalWatcher`), never inside the loop's wait for frames, which could then hang on a silent bus.
 """
@@ -79,9 +79,9 @@ def build_service(config_path, *, record: bool = False, emit_frames: bool = True
 
     ``sensor_options``: VirtualSensor options (oil_mode, initial_temp_c ...); ``overrides``: ServiceOptions fields.
     """
-    from firmware_model.can_service import SensorService, ServiceOptions
+    from firmware_model.service import SensorService, ServiceOptions
     from firmware_model.config import load_config
-    from firmware_model.sensor import VirtualSensor
+    from firmware_model.onboard.sensor import VirtualSensor
     cfg = load_config(config_path)
     params = cfg.load_params()
     sensor = VirtualSensor(params, config=cfg, **(sensor_options or {}))
@@ -151,7 +151,7 @@ def set_realtime_priority(priority: int) -> None:
 
 
 def run(args) -> int:
-    from firmware_model.can_service import can_filters, serve
+    from firmware_model.service import can_filters, serve
     if args.duration is not None and not args.duration > 0:
         raise InputError(f"--duration {args.duration} must be a positive number of seconds")
     if args.bitrate is not None and not 10_000 <= args.bitrate <= 1_000_000:

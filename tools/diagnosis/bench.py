@@ -22,13 +22,13 @@ import numpy as np
 
 from firmware_model.effects import CATALOG, EFFECT_IDS
 
-from .runtable import RunTable
+from tools.runtable import RunTable
 
 #: the J1939 temperature resolution (TRF1 SPN 177, rig thermocouples)
 J1939_TEMP_RES_C = 0.03125
 #: thermocouples of the rig set-up (seed section 4.3 measured a main-shaft wheel; the sun wheel is the hottest)
 RIG_CHANNELS = ("PS", "LI.teeth", "BLR")
-#: vehicle (assumed, as in tools/cycles.py): final drive, wheel radius
+#: vehicle (assumed, as in tools/cycles/named.py): final drive, wheel radius
 FINAL_DRIVE = 3.07
 WHEEL_RADIUS_M = 0.5
 _RPM = 2.0 * math.pi / 60.0
@@ -38,7 +38,7 @@ _RPM = 2.0 * math.pi / 60.0
 # synthetic cycles
 
 def _ratios():
-    from tools.cycles import total_ratios
+    from tools.cycles.named import total_ratios
     return total_ratios()
 
 
@@ -195,7 +195,7 @@ def planted_value(eid: str, rng: np.random.Generator, min_frac: float = 0.3) -> 
 def measure(truth: RunTable, cycle: RunTable, setup: str, rng: np.random.Generator, sensor: dict) -> RunTable:
     """Turn a plant output into what a truck or a rig logs: lagged, noisy, quantised, a few dropped samples, noisy
     inputs; only the channels of the set-up."""
-    from tools.diagnosis import lag_filter
+    from tools.diagnosis.core import lag_filter
     t = cycle["time_s"]
     n = t.size
     cols = {"time_s": t}
@@ -228,7 +228,7 @@ def make_scenario(index: int, seed: int, setup: str, effect: str | None, value: 
                   truth_dt_s: float = 0.5) -> Scenario:
     """Generate one scenario: truth by the reference plant (fine step) with the withheld effect."""
     import warnings
-    from tools.plant import ReferencePlant
+    from tools.plant.reference import ReferencePlant
     rng = np.random.default_rng([int(seed), int(index), 0xBE7C])
     sensor = {"oil_temp_c": (float(rng.uniform(1.0, 5.0)), float(rng.uniform(0.1, 0.2)))}
     if setup == "rig":
@@ -396,7 +396,7 @@ def run_bench(n: int = 40, seed: int = 0, out_dir=None, params=None, progress=pr
     and with `write_scenarios` each scenario's measured run tables."""
     import json
     from pathlib import Path
-    from tools.diagnosis import diagnose
+    from tools.diagnosis.core import diagnose
     if params is None:
         from firmware_model.parameters import load_parameters
         params = load_parameters("GRS905")

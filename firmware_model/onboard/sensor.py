@@ -1,4 +1,4 @@
-"""The onboard virtual temperature sensor: a pure fixed-step core over the onboard network (firmware_model.reduced).
+"""The onboard virtual temperature sensor: a pure fixed-step core over the onboard network (firmware_model.onboard.reduce).
 
     sensor = VirtualSensor(load_parameters("GRS905"))
     state = sensor.initial_state(T_oil_c=62.0)
@@ -8,7 +8,7 @@
 ``step(state, inputs, params) -> (state, outputs)`` is pure: no I/O, no clock, nothing that grows; every array has
 a fixed shape. The same function serves the live CAN service, offline replay and a fleet batch: give it a state of
 shape ``(n_vehicles, ...)`` (``initial_state(..., n_vehicles=V)``) and input fields that are arrays of shape (V,).
-Step: dt = 0.1 s, forward Euler (stability proven when the parameters load, see firmware_model.reduced).
+Step: dt = 0.1 s, forward Euler (stability proven when the parameters load, see firmware_model.onboard.reduce).
 
 Per step (docs/sensor.md):
 
@@ -24,7 +24,7 @@ Per step (docs/sensor.md):
    ``measured - twin sump`` is the published oil innovation, the live view of the sim-to-real gap;
 6. warning levels (two levels, hysteresis, debounce), with the time to limit of the last refresh counted down;
 7. every ``ttl_period_s``, the refresh of the time to limit from the new state with the inputs held (exact modal
-   solution of the frozen linear network, firmware_model.overheat): :func:`refresh_ttl`, which :func:`step` runs at
+   solution of the frozen linear network, firmware_model.onboard.overheat): :func:`refresh_ttl`, which :func:`step` runs at
    its end and the CAN service runs after sending the step's frames (:func:`step_deferred`); same outputs either way.
 """
 from __future__ import annotations
@@ -37,14 +37,14 @@ from typing import NamedTuple
 
 import numpy as np
 
-from . import reduced as R
-from .blas import limit_blas_threads
-from .components import PUBLISHED
-from .errors import InputError, ParameterError
-from .kinematics import GEAR_MAX, GEAR_MIN
-from .network import BOUNDARIES
-from .overheat import LEVEL_NA, HeldInputSolver, Limits, load_limits, update_levels
-from .parameters import Parameters
+from firmware_model.onboard import reduce as R
+from firmware_model.onboard.blas import limit_blas_threads
+from firmware_model.components import PUBLISHED
+from firmware_model.errors import InputError, ParameterError
+from firmware_model.physics.kinematics import GEAR_MAX, GEAR_MIN
+from firmware_model.network import BOUNDARIES
+from firmware_model.onboard.overheat import LEVEL_NA, HeldInputSolver, Limits, load_limits, update_levels
+from firmware_model.parameters import Parameters
 
 N_PUB = len(PUBLISHED)
 #: input fields in the order of the state's hold / age arrays
@@ -1089,7 +1089,7 @@ class VirtualSensor:
     ``params``: a validated gearbox :class:`~firmware_model.parameters.Parameters`; ``limits``: a :class:`Limits`,
     the path of a limits TOML, or None (config [sensor] limits, else params/limits.toml); ``config``: a
     :class:`~firmware_model.config.Config` (its [sensor] section: oil_mode, limits, debounce_s, hysteresis_c);
-    ``effects``: {effect id: value or per-vehicle array} for the effects in firmware_model.reduced.EFFECT_HOOKS
+    ``effects``: {effect id: value or per-vehicle array} for the effects in firmware_model.onboard.reduce.EFFECT_HOOKS
     (and oil_level_low, scalar); ``partition``: "fine" (default) or "compact"; ``options``: SensorOptions overrides.
     Raises StabilityError when the parameter set is unsafe for the 0.1 s explicit step.
     """
@@ -1098,7 +1098,7 @@ class VirtualSensor:
 
     def __init__(self, params: Parameters, limits=None, config=None, effects: dict | None = None,
                  partition: str | dict = "fine", **options):
-        limit_blas_threads()         # firmware_model.blas: one BLAS thread (the small eigh is 25x slower with more)
+        limit_blas_threads()         # firmware_model.onboard.blas: one BLAS thread (the small eigh is 25x slower with more)
         sensor_cfg = dict(getattr(config, "sensor", None) or {}) if config is not None else {}
         if isinstance(limits, Limits):
             lim = limits

@@ -56,9 +56,9 @@ from pathlib import Path
 import numpy as np
 
 from firmware_model.errors import InputError
-from firmware_model.kinematics import GEAR_MIN, GEAR_NAMES, GEARS, KinematicTable, Teeth, build_table, parse_gear
+from firmware_model.physics.kinematics import GEAR_MIN, GEAR_NAMES, GEARS, KinematicTable, Teeth, build_table, parse_gear
 
-from .runtable import RunTable, read_run_table
+from tools.runtable import RunTable, read_run_table
 
 CYCLE_NAMES = ("steady", "all_gears", "long_haul", "uphill", "mining")
 CYCLE_HELP = {

@@ -18,18 +18,18 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from firmware_model import heat_transfer as ht
-from firmware_model import oil as oilprops
+from firmware_model.physics import heat_transfer as ht
+from firmware_model.physics import oil as oilprops
 from firmware_model.components import IDLE_WHEELS
 from firmware_model.effects import effect_value
 from firmware_model.errors import InputError
-from firmware_model.gearbox_losses import SOURCES, GearboxLosses, LossScales
-from firmware_model.kinematics import GEAR_MAX, GEAR_MIN, SPEED_NAMES, gear_state
+from firmware_model.physics.gearbox_losses import SOURCES, GearboxLosses, LossScales
+from firmware_model.physics.kinematics import GEAR_MAX, GEAR_MIN, SPEED_NAMES, gear_state
 from firmware_model.network import (BOUNDARIES, K_EXT_CONV, K_EXT_RAD, K_STREAM, ConductanceEvaluator,
                                     HeatTransferScales, Network, build_network)
 from firmware_model.parameters import Parameters
 
-from .runtable import RunTable
+from tools.runtable import RunTable
 
 RPM = 2.0 * math.pi / 60.0
 #: run-table column -> boundary name (bc_<name>_c columns, plus the contract's ambient and coolant columns)

@@ -1,0 +1,1 @@
+"""Synthetic named drive cycles (modelled on the thesis load cases) and their plots."""

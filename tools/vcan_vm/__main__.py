@@ -1,0 +1,5 @@
+import sys
+
+from tools.vcan_vm.harness import main
+
+sys.exit(main())
