@@ -48,3 +48,15 @@ for _c in PUBLISHED:
     else:
         GROUP[_c] = "oil"
 del _c
+
+#: the onboard sensor's fixed step (10 Hz): one owner, used by the onboard build, the service and the cycles
+STEP_S = 0.1
+
+#: warning level of a published component (the W_<id> columns and GBX_Warn signals)
+LEVEL_NORMAL, LEVEL_WARNING, LEVEL_CRITICAL, LEVEL_NA = 0, 1, 2, 3
+LEVEL_NAMES = {LEVEL_NORMAL: "normal", LEVEL_WARNING: "warning", LEVEL_CRITICAL: "critical", LEVEL_NA: "n/a"}
+
+#: degraded mode of the sensor (status frame, degraded_mode column)
+MODE_NORMAL, MODE_OIL_MODEL, MODE_HOLDING, MODE_NOT_INITIALISED = 0, 1, 2, 3
+MODE_NAMES = {MODE_NORMAL: "normal", MODE_OIL_MODEL: "oil modelled", MODE_HOLDING: "holding inputs",
+              MODE_NOT_INITIALISED: "not initialised"}
