@@ -188,7 +188,7 @@ def _read_header(path: Path, name: str) -> list[str]:
     return names
 
 
-def _parse_fast(path: Path, names: list[str]) -> np.ndarray | None:
+def parse_numeric_csv(path: Path, names: list[str]) -> np.ndarray | None:
     """numpy's C parser; None when the file needs the careful path (quotes, bad cells, ragged rows)."""
     ncol = len(names)
     try:
@@ -344,7 +344,7 @@ def read_run_table(path: str | os.PathLike, required: Iterable[str] = REQUIRED) 
     name = os.fspath(path)
     p = Path(path)
     names = _read_header(p, name)
-    arr = _parse_fast(p, names)
+    arr = parse_numeric_csv(p, names)
     if arr is None:
         arr = _parse_careful(p, names, name)
     if arr.shape[0] == 0:

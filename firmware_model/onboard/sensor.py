@@ -1094,6 +1094,11 @@ class VirtualSensor:
     Raises StabilityError when the parameter set is unsafe for the 0.1 s explicit step.
     """
     Inputs = SensorInputs
+    Status = SensorStatus
+    Outputs = SensorOutputs
+    #: names of the reject counters (SensorStatus.rejects), in order
+    reject_reasons = REJECT_REASONS
+    input_fields = INPUT_FIELDS
     dt_s = R.DT_S
 
     def __init__(self, params: Parameters, limits=None, config=None, effects: dict | None = None,

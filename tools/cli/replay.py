@@ -119,7 +119,7 @@ def read_inputs_table(path):
     if not p.is_file():
         raise InputError(f"{name}: the run table does not exist")
     names = rt._read_header(p, name)
-    arr = rt._parse_fast(p, names)
+    arr = rt.parse_numeric_csv(p, names)
     if arr is None:
         arr = rt._parse_careful(p, names, name)
     for col in rt.REQUIRED:
