@@ -1,4 +1,4 @@
-"""Run tables: the CSV files every tool reads and writes (CONTRACTS.md section 3).
+"""Run tables: the CSV files every tool reads and writes.
 
 A run table is one row per sample with a header row, comma-separated, ``.`` as the decimal point, an empty cell for a
 missing value and the unit in every column name (``time_s``, ``engine_speed_rpm``, ``T_PS_c``). In memory it is a
@@ -43,7 +43,7 @@ import numpy as np
 from firmware_model.errors import InputError
 from firmware_model.physics.kinematics import GEAR_MAX, GEAR_MIN
 
-#: the input columns a drive cycle must have (CONTRACTS.md section 3)
+#: the input columns a drive cycle must have
 REQUIRED = ("time_s", "engine_speed_rpm", "engine_torque_nm", "gear")
 #: optional input columns with a contract meaning
 OPTIONAL_INPUTS = ("oil_temp_c", "ambient_temp_c", "coolant_temp_c", "vehicle_speed_kmh", "retarder_torque_nm")
