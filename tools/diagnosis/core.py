@@ -61,7 +61,7 @@ class Diagnosis:
         return self.ctx.sim.n_sims
 
     def run(self) -> dict:
-        t_start = time.perf_counter()
+        wall0_s = time.perf_counter()
         ctx, train, test = self.ctx, self.train, self.test
         p = ctx.params
         stage = iter(STAGES)
@@ -85,7 +85,7 @@ class Diagnosis:
         regs = regimes_before_after(test, base.base_te, res.test_before, res.test_after, p, ctx.cooler, ctx.opts)
         self.outcome = Outcome(base, where, heat, crit, ident, verdict, conf, sugg, res, regs)
         self.plot_data = plot_data(self.outcome)
-        return build_json(ctx, self.outcome, time.perf_counter() - t_start)
+        return build_json(ctx, self.outcome, time.perf_counter() - wall0_s)
 
 
 def make_model(kind: str, params, cooler: str | None, opts: Options):

@@ -49,25 +49,25 @@ def oil_heat_capacity_j_per_k(params) -> float:
     return C["oil"] + C["H1"] + C["H2"] + C["H3"]
 
 
-def _heat_series(ds, ch, p: np.ndarray, C_eff: float, G_eff: float, grid_dt_s: float) -> HeatSeries:
+def _heat_series(ds, ch, p: np.ndarray, C_eff_j_per_k: float, G_eff_w_per_k: float, grid_dt_s: float) -> HeatSeries:
     from scipy.signal import savgol_filter
-    r = ch.cell_y - p
-    tg = np.arange(ds.t_start, ds.t_end + 1e-9, grid_dt_s)
-    rg = np.interp(tg, ch.cell_t, r)
+    r = ch.cell_y_c - p
+    tg = np.arange(ds.t_start_s, ds.t_end_s + 1e-9, grid_dt_s)
+    rg = np.interp(tg, ch.cell_t_s, r)
     win = max(int(round(SMOOTHING_S / grid_dt_s)) | 1, 5)
     if rg.size > win:
         rs = savgol_filter(rg, win, 2)
         drs = savgol_filter(rg, win, 2, deriv=1, delta=grid_dt_s)
     else:
         rs, drs = rg, np.gradient(rg, tg)
-    Q = C_eff * drs + (G_eff if math.isfinite(G_eff) else 0.0) * rs
+    Q = C_eff_j_per_k * drs + (G_eff_w_per_k if math.isfinite(G_eff_w_per_k) else 0.0) * rs
     return HeatSeries(ds, tg, Q, rs)
 
 
 def unexplained_heat(params, datasets: list, pair: HeatPair, preds: list, grid_dt_s: float) -> UnexplainedHeat:
     """Oil channel: the heat flow the residual implies, Q = C_eff dr/dt + G_eff r (smoothed)."""
-    C_eff = oil_heat_capacity_j_per_k(params)
-    G = effective_conductance_w_per_k(pair)
+    C_eff_j_per_k = oil_heat_capacity_j_per_k(params)
+    G_eff_w_per_k = effective_conductance_w_per_k(pair)
     files, series = [], []
     k = 0
     for ds in datasets:
@@ -76,13 +76,13 @@ def unexplained_heat(params, datasets: list, pair: HeatPair, preds: list, grid_d
             k += 1
             if cid != OIL:
                 continue
-            hs = _heat_series(ds, ch, p, C_eff, G, grid_dt_s)
+            hs = _heat_series(ds, ch, p, C_eff_j_per_k, G_eff_w_per_k, grid_dt_s)
             series.append(hs)
             Q = hs.Q_w
             files.append({"file": ds.name, "role": ds.role, "mean_w": json_number(float(np.mean(Q)), 1),
                           "p5_w": json_number(float(np.percentile(Q, 5)), 1),
                           "p95_w": json_number(float(np.percentile(Q, 95)), 1)})
-    return UnexplainedHeat({"C_eff_j_per_k": json_number(C_eff, 1), "G_eff_w_per_k": json_number(G, 2),
-                            "smoothing_s": SMOOTHING_S,
+    return UnexplainedHeat({"C_eff_j_per_k": json_number(C_eff_j_per_k, 1),
+                            "G_eff_w_per_k": json_number(G_eff_w_per_k, 2), "smoothing_s": SMOOTHING_S,
                             "sign": "positive = heat entering the oil that the model does not have", "files": files},
                            series)

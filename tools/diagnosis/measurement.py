@@ -41,14 +41,14 @@ def model_at_cells(out: dict, ch: Channel, tau_s: float, source: str | None = No
     dt = float(np.median(np.diff(tm))) if tm.size > 1 else 1.0
     if tau_s > 0:
         x = lag_filter(x, tau_s, dt)
-    return np.interp(ch.cell_t, tm, x)
+    return np.interp(ch.cell_t_s, tm, x)
 
 
 def raw_noise(ch: Channel, out: dict) -> float:
     """Per-sample noise from the high-frequency content of the residual (robust, floored at quantisation)."""
-    r = ch.y - np.interp(ch.t, out["time_s"], out[ch.model_column])
+    r = ch.y_c - np.interp(ch.t_s, out["time_s"], out[ch.model_column])
     d = np.diff(r)
-    dtt = np.diff(ch.t)
+    dtt = np.diff(ch.t_s)
     d = d[dtt <= 3 * np.median(dtt)]
     q = J1939_RES_C / math.sqrt(12)
     if d.size < 5:
@@ -88,7 +88,7 @@ def fit_nuisance_lags(train: list, base_tr: list, opts: Options) -> dict:
             ch = ds.channels.get(cid)
             if ch is not None:
                 tm = out["time_s"]
-                items.append((highpass(ch.cell_y, n), ch.cell_t, tm, np.asarray(out[ch.model_column], float),
+                items.append((highpass(ch.cell_y_c, n), ch.cell_t_s, tm, np.asarray(out[ch.model_column], float),
                               float(np.median(np.diff(tm)))))
 
         def cost(tau):

@@ -32,10 +32,10 @@ class Channel:
     id: str                 # 'oil' or component id
     column: str             # measured column
     model_column: str       # model column predicting it
-    t: np.ndarray           # raw valid sample times
-    y: np.ndarray           # raw valid values
-    cell_t: np.ndarray      # mean sample time per grid cell
-    cell_y: np.ndarray      # mean value per grid cell
+    t_s: np.ndarray         # raw valid sample times
+    y_c: np.ndarray         # raw valid values
+    cell_t_s: np.ndarray    # mean sample time per grid cell
+    cell_y_c: np.ndarray    # mean value per grid cell
     cell_n: np.ndarray      # samples per grid cell
 
 
@@ -47,8 +47,8 @@ class Dataset:
     inputs: RunTable        # the drive inputs (and the oil when it is an input), meta['initial_temp_c']
     channels: dict          # channel id -> Channel
     initial_temp_c: float
-    t_start: float
-    t_end: float
+    t_start_s: float
+    t_end_s: float
     warnings: tuple = ()
 
 
@@ -220,8 +220,8 @@ def _check_time(t: np.ndarray, name: str, opts: Options) -> None:
 
 class ValidSamples(NamedTuple):
     """The valid samples of a measured column, and a warning about it ('' when none)."""
-    t: np.ndarray
-    y: np.ndarray
+    t_s: np.ndarray
+    y_c: np.ndarray
     warning: str
 
 
@@ -271,26 +271,26 @@ def _valid_samples(table: RunTable, t: np.ndarray, name: str, col: str, opts: Op
     return ValidSamples(tv, yv, warning)
 
 
-def grid_channel(cid: str, cols: ChannelColumns, s: ValidSamples, t_start: float, grid_dt_s: float) -> Channel:
-    """A channel with its samples averaged onto the analysis grid (cells of grid_dt_s from t_start)."""
-    k = np.floor((s.t - t_start) / grid_dt_s + 0.5).astype(np.int64)
+def grid_channel(cid: str, cols: ChannelColumns, s: ValidSamples, t_start_s: float, grid_dt_s: float) -> Channel:
+    """A channel with its samples averaged onto the analysis grid (cells of grid_dt_s from t_start_s)."""
+    k = np.floor((s.t_s - t_start_s) / grid_dt_s + 0.5).astype(np.int64)
     _uk, inv, cnt = np.unique(k, return_inverse=True, return_counts=True)
-    return Channel(cid, cols.column, cols.model_column, s.t, s.y, cell_t=np.bincount(inv, s.t) / cnt,
-                   cell_y=np.bincount(inv, s.y) / cnt, cell_n=cnt.astype(float))
+    return Channel(cid, cols.column, cols.model_column, s.t_s, s.y_c, cell_t_s=np.bincount(inv, s.t_s) / cnt,
+                   cell_y_c=np.bincount(inv, s.y_c) / cnt, cell_n=cnt.astype(float))
 
 
 def _initial_temp_c(table: RunTable, t: np.ndarray, channels: dict, oil_is_input: bool) -> float:
     """The oil (or the earliest measured channel) at the start: the mean of its first 5 s (a first-order sensor
     starts at the sump's value); the remaining error is a nuisance fitted per file (see scoring.Scorer.adjust)."""
     src = channels.get(OIL)
-    src_t, src_y = (src.t, src.y) if src is not None else (None, None)
+    src_t, src_y = (src.t_s, src.y_c) if src is not None else (None, None)
     if oil_is_input and table.has("oil_temp_c"):
         y = np.asarray(table["oil_temp_c"], dtype=float)
         ok = np.isfinite(y)
         src_t, src_y = (t[ok], y[ok]) if ok.any() else (None, None)
     if src_t is None:
-        first = min(channels.values(), key=lambda c: c.t[0])
-        src_t, src_y = first.t, first.y
+        first = min(channels.values(), key=lambda c: c.t_s[0])
+        src_t, src_y = first.t_s, first.y_c
     sel = src_t <= src_t[0] + 5.0
     return float(np.mean(src_y[sel])) if sel.any() else float(src_y[0])
 

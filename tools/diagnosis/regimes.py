@@ -42,10 +42,10 @@ def speed_bin(rpm):
 def cell_inputs(ds: Dataset, ch: Channel):
     """Gear (held), engine torque and engine speed (interpolated) at the cells of channel `ch`."""
     tin = ds.inputs["time_s"]
-    idx = np.clip(np.searchsorted(tin, ch.cell_t, side="right") - 1, 0, tin.size - 1)
+    idx = np.clip(np.searchsorted(tin, ch.cell_t_s, side="right") - 1, 0, tin.size - 1)
     gear = ds.inputs["gear"][idx].astype(int)
-    tq = np.interp(ch.cell_t, tin, ds.inputs["engine_torque_nm"])
-    rpm = np.interp(ch.cell_t, tin, ds.inputs["engine_speed_rpm"])
+    tq = np.interp(ch.cell_t_s, tin, ds.inputs["engine_torque_nm"])
+    rpm = np.interp(ch.cell_t_s, tin, ds.inputs["engine_speed_rpm"])
     return gear, tq, rpm
 
 
@@ -89,7 +89,7 @@ def regime_labels(ds: Dataset, ch: Channel, base_out: dict, params, cooler: str,
     """Partition name -> label per cell of channel `ch`."""
     from firmware_model.physics.kinematics import GEAR_NAMES
     tin = ds.inputs["time_s"]
-    ct = ch.cell_t
+    ct = ch.cell_t_s
     gear, tq, rpm = cell_inputs(ds, ch)
     lab = {PRIMARY: np.char.add(np.char.add(gear_group(gear).astype(str), ", "), torque_bin(tq).astype(str))}
     lab[PRIMARY] = np.where(gear == 0, "neutral", lab[PRIMARY])
@@ -101,7 +101,7 @@ def regime_labels(ds: Dataset, ch: Channel, base_out: dict, params, cooler: str,
     oil = np.interp(ct, base_out["time_s"], base_out["oil_temp_c"])
     if OIL in ds.channels:
         o = ds.channels[OIL]
-        oil = np.interp(ct, o.t, o.y)
+        oil = np.interp(ct, o.t_s, o.y_c)
     lab["cold / warm"] = np.where(oil < opts.cold_c, f"cold (oil < {opts.cold_c:g} degC)", "warm")
     if ds.inputs.has("retarder_torque_nm"):
         ret = np.interp(ct, tin, np.nan_to_num(ds.inputs["retarder_torque_nm"]))
@@ -152,10 +152,10 @@ def _by_regime(datasets, outs, resid, params, cooler, opts) -> tuple:
                     a.cells += int(m.sum())
                     a.sum_c += float(np.sum(r[m]))
             w = EPISODE_S
-            kk = np.floor((ch.cell_t - ds.t_start) / w).astype(int)
+            kk = np.floor((ch.cell_t_s - ds.t_start_s) / w).astype(int)
             e2 = np.bincount(kk, r ** 2)
             for j in np.flatnonzero(e2):
-                ep.append(Episode(cid, ds.name, ds.t_start + j * w, min(ds.t_start + (j + 1) * w, ds.t_end),
+                ep.append(Episode(cid, ds.name, ds.t_start_s + j * w, min(ds.t_start_s + (j + 1) * w, ds.t_end_s),
                                   float(e2[j]), float(np.sum(r[kk == j]) / max((kk == j).sum(), 1))))
     return parts, ep
 

@@ -69,9 +69,9 @@ def plot_residuals(pd: PlotData, path):
         for row in rows:
             if row.ds is not ds:
                 continue
-            ax.plot((row.ch.cell_t - ds.t_start) / 60.0, row.r0, lw=0.8, label=f"{row.cid} before")
+            ax.plot((row.ch.cell_t_s - ds.t_start_s) / 60.0, row.r0, lw=0.8, label=f"{row.cid} before")
             if row.r1 is not None:
-                ax.plot((row.ch.cell_t - ds.t_start) / 60.0, row.r1, lw=0.8, ls="--", label=f"{row.cid} after")
+                ax.plot((row.ch.cell_t_s - ds.t_start_s) / 60.0, row.r1, lw=0.8, ls="--", label=f"{row.cid} after")
         ax.axhline(0, color="k", lw=0.5)
         ax.set_title(f"{ds.name} ({ds.role})", fontsize=9)
         ax.set_ylabel("measured - model [degC]", fontsize=8)
@@ -186,8 +186,8 @@ def plot_test(pd: PlotData, res, path):
     rows = _series(pd, "test")
     fig, axes = plt.subplots(len(rows), 1, figsize=(11, 2.6 * len(rows)), squeeze=False)
     for ax, row in zip(axes[:, 0], rows):
-        tm = (row.ch.cell_t - row.ds.t_start) / 60.0
-        ax.plot(tm, row.ch.cell_y, color="k", lw=0.8, label="measured")
+        tm = (row.ch.cell_t_s - row.ds.t_start_s) / 60.0
+        ax.plot(tm, row.ch.cell_y_c, color="k", lw=0.8, label="measured")
         ax.plot(tm, row.p0, lw=0.9, label="model before")
         if row.p1 is not None:
             ax.plot(tm, row.p1, lw=0.9, ls="--", label=f"model with {res['verdict']['effect']}")
@@ -207,7 +207,7 @@ def plot_heat(pd: PlotData, path) -> bool:
     fig, ax = plt.subplots(figsize=(11, 3.2))
     for hs in pd.heat_series:
         ds = hs.dataset
-        ax.plot((hs.t_s - ds.t_start) / 60.0, hs.Q_w / 1000.0, lw=0.9, label=f"{ds.name} ({ds.role})")
+        ax.plot((hs.t_s - ds.t_start_s) / 60.0, hs.Q_w / 1000.0, lw=0.9, label=f"{ds.name} ({ds.role})")
     ax.axhline(0, color="k", lw=0.5)
     ax.set_xlabel("time [min]")
     ax.set_ylabel("unexplained heat into the oil [kW]")
@@ -266,8 +266,8 @@ def _md_verdict(res: dict) -> list:
 
 def _md_channels(res: dict) -> list:
     L = ["## Channels\n"]
-    L.append("| channel | noise per sample | sensor lag (nuisance) | systematic (train) | 'none' threshold | train RMS / max "
-             "| test RMS / max | test RMS after |\n|---|---|---|---|---|---|---|---|")
+    L.append("| channel | noise per sample | sensor lag (nuisance) | systematic (train) | 'none' threshold "
+             "| train RMS / max | test RMS / max | test RMS after |\n|---|---|---|---|---|---|---|---|")
     for cid, c in res["channels"].items():
         L.append(f"| {_chan_label(cid)} | {_fmt(c['noise_c'])} | {_fmt(c['sensor_lag_s'], 1)} s | "
                  f"{_fmt(c['systematic_train_c'])} | {_fmt(c['none_threshold_c'])} | {_fmt(c['train_rms_c'])} / "

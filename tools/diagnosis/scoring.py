@@ -26,7 +26,7 @@ def predictions(datasets: list, outs: list, lags: dict, effect: str | None = Non
 
 def observations(datasets: list) -> list:
     """The measured cell values per (dataset, channel)."""
-    return [ch.cell_y for ds in datasets for ch in ds.channels.values()]
+    return [ch.cell_y_c for ds in datasets for ch in ds.channels.values()]
 
 
 def weights(datasets: list, sigma: dict, floor: dict, opts: Options) -> list:
@@ -118,7 +118,7 @@ class Scorer:
                 for c, ch in ds.channels.items():
                     if c == cid:
                         tm = outs[i]["time_s"]
-                        items.append((obs[k], w[k], ch.cell_t, tm, np.asarray(outs[i][ch.model_column], float),
+                        items.append((obs[k], w[k], ch.cell_t_s, tm, np.asarray(outs[i][ch.model_column], float),
                                       float(np.median(np.diff(tm)))))
                     k += 1
 
