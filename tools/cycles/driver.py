@@ -110,7 +110,7 @@ def speed_target(route: Route, st: DriverState, v_allow_m_s: float, lookahead_s:
 # ----------------------------------------------------------------------------------------------------------------
 # the modes
 
-def step_stopped(st: DriverState, dt: Drivetrain, grade: float, route: Route) -> None:
+def step_stopped(st: DriverState, drivetrain: Drivetrain, grade: float, route: Route) -> None:
     """Idle for the dwell; then load/unload and pull away (or idle to the end at the end of the route)."""
     st.idle()
     st.v_m_s = 0.0
@@ -118,7 +118,7 @@ def step_stopped(st: DriverState, dt: Drivetrain, grade: float, route: Route) ->
     if st.dwell_s <= 0:
         if st.pending_stop is not None and st.pending_stop.mass_after_kg:
             st.mass_kg = st.pending_stop.mass_after_kg
-        g0 = st.next_start_gear if st.next_start_gear else dt.start_gear_for(grade, st.mass_kg)
+        g0 = st.next_start_gear if st.next_start_gear else drivetrain.start_gear_for(grade, st.mass_kg)
         st.next_start_gear = None
         st.pending_stop = None
         if st.x_m >= route.length_m - 1.0:
@@ -127,9 +127,9 @@ def step_stopped(st: DriverState, dt: Drivetrain, grade: float, route: Route) ->
             st.mode, st.gear, st.since_shift_s = "launch", g0, 0.0
 
 
-def step_reverse(st: DriverState, dt: Drivetrain) -> bool:
+def step_reverse(st: DriverState, drivetrain: Drivetrain) -> bool:
     """One sample of the reversing manoeuvre; True on a pause in neutral (the truck does not move this step)."""
-    veh = dt.vehicle
+    veh = drivetrain.vehicle
     item = st.reverse.pop(0)
     if item is None:   # a pause in neutral before and after reversing
         st.idle()
@@ -141,65 +141,73 @@ def step_reverse(st: DriverState, dt: Drivetrain) -> bool:
     st.gear = REVERSE_GEAR
     f = st.mass_kg * (1.0 + veh.rotating_mass_factor) * ar + st.mass_kg * G_M_S2 * veh.crr \
         + 0.5 * veh.rho_air_kg_m3 * veh.cda_m2 * vr * vr
-    st.torque_nm = max(dt.torque_for_nm(f, REVERSE_GEAR), 0.0) if f > 0 else 0.0
-    st.rpm = max(dt.sync_rpm(REVERSE_GEAR, vr), 800.0)
+    st.torque_nm = max(drivetrain.torque_for_nm(f, REVERSE_GEAR), 0.0) if f > 0 else 0.0
+    st.rpm = max(drivetrain.sync_rpm(REVERSE_GEAR, vr), 800.0)
     st.v_m_s, st.retarder_nm = vr, 0.0
     if not st.reverse:
         st.mode = "stopped"
     return False
 
 
-def step_launch(st: DriverState, dt: Drivetrain, grade: float, v_allow_m_s: float) -> None:
+def step_launch(st: DriverState, drivetrain: Drivetrain, grade: float, v_allow_m_s: float) -> None:
     """Clutch slipping: engine held at LAUNCH_RPM until the gear's synchronous speed catches up."""
     v, gear = st.v_m_s, st.gear
-    f_road = dt.road_force_n(v, grade, st.mass_kg)
+    f_road = drivetrain.road_force_n(v, grade, st.mass_kg)
     a_des = min(0.5, max(0.05, (v_allow_m_s - v) * 0.5))
-    m_eq = dt.equivalent_mass_kg(None, st.mass_kg)
-    t_req = dt.torque_for_nm(m_eq * a_des + f_road, gear)
+    m_eq = drivetrain.equivalent_mass_kg(None, st.mass_kg)
+    t_req = drivetrain.torque_for_nm(m_eq * a_des + f_road, gear)
     st.torque_nm = min(max(t_req, 200.0), engine_max_torque_nm(LAUNCH_RPM, gear))
-    a = (dt.wheel_force_n(st.torque_nm, gear) - f_road) / dt.equivalent_mass_kg(None, st.mass_kg)
+    a = (drivetrain.wheel_force_n(st.torque_nm, gear) - f_road) / drivetrain.equivalent_mass_kg(None, st.mass_kg)
     st.v_m_s = max(v + a * VEHICLE_STEP_S, 0.0)
     st.retarder_nm = 0.0
-    s = dt.sync_rpm(gear, st.v_m_s)
+    s = drivetrain.sync_rpm(gear, st.v_m_s)
     st.rpm = max(s, LAUNCH_RPM)
     if s >= LAUNCH_RPM:
         st.mode = "drive"
     st.since_shift_s = 0.0
 
 
-def _shift_torque(st: DriverState, dt: Drivetrain, route: Route, sh: Shift, p: float, f_road: float,
-                  v_allow_m_s: float) -> tuple[int | None, float]:
-    """Engaged gear (None: none) and engine torque in the interruption: ramp down, zero, ramp up to the demand."""
+class Engaged(NamedTuple):
+    """The gear that carries engine torque in a shift (None: none) and that torque."""
+    gear: int | None
+    torque_nm: float
+
+
+def _shift_torque(st: DriverState, drivetrain: Drivetrain, route: Route, sh: Shift, p: float, f_road: float,
+                  v_allow_m_s: float) -> Engaged:
+    """Engaged gear and engine torque in the interruption: ramp down, zero, ramp up to the demand."""
     if p < 0.25:
-        return sh.gear_from, sh.torque0_nm * (1.0 - p / 0.25)
+        return Engaged(sh.gear_from, sh.torque0_nm * (1.0 - p / 0.25))
     if p < 0.75:
-        return None, 0.0
+        return Engaged(None, 0.0)
     v = st.v_m_s
     target = speed_target(route, st, v_allow_m_s, 1.0)
-    t_req = dt.torque_for_nm(dt.equivalent_mass_kg(sh.gear_to, st.mass_kg) * target.a_des_m_s2 + f_road, sh.gear_to)
-    s = dt.sync_rpm(sh.gear_to, v)
+    m_eq = drivetrain.equivalent_mass_kg(sh.gear_to, st.mass_kg)
+    t_req = drivetrain.torque_for_nm(m_eq * target.a_des_m_s2 + f_road, sh.gear_to)
+    s = drivetrain.sync_rpm(sh.gear_to, v)
     t_req = min(max(t_req, engine_min_torque_nm(s)), engine_max_torque_nm(s, sh.gear_to))
-    return sh.gear_to, t_req * (p - 0.75) / 0.25
+    return Engaged(sh.gear_to, t_req * (p - 0.75) / 0.25)
 
 
-def step_shift(st: DriverState, dt: Drivetrain, route: Route, grade: float, v_allow_m_s: float) -> None:
+def step_shift(st: DriverState, drivetrain: Drivetrain, route: Route, grade: float, v_allow_m_s: float) -> None:
     """One step of the torque interruption; the gear signal changes half way, the engine moves between the two
     synchronous speeds; the retarder and the service brakes keep working."""
     sh = st.shift
     sh = sh._replace(elapsed_s=sh.elapsed_s + VEHICLE_STEP_S)
     p = sh.elapsed_s / sh.duration_s
     v = st.v_m_s
-    f_road = dt.road_force_n(v, grade, st.mass_kg)
-    g_eng, st.torque_nm = _shift_torque(st, dt, route, sh, p, f_road, v_allow_m_s)
-    f = dt.wheel_force_n(st.torque_nm, g_eng) if g_eng else 0.0
-    meq = dt.equivalent_mass_kg(g_eng, st.mass_kg)
+    f_road = drivetrain.road_force_n(v, grade, st.mass_kg)
+    g_eng, st.torque_nm = _shift_torque(st, drivetrain, route, sh, p, f_road, v_allow_m_s)
+    f = drivetrain.wheel_force_n(st.torque_nm, g_eng) if g_eng else 0.0
+    meq = drivetrain.equivalent_mass_kg(g_eng, st.mass_kg)
     target = speed_target(route, st, v_allow_m_s, 1.5)
     f_brk = max(f - f_road - meq * target.a_des_m_s2, 0.0)
-    st.retarder_nm = min(f_brk * dt.vehicle.wheel_radius_m / dt.vehicle.final_drive, dt.retarder_available_nm(v))
+    veh = drivetrain.vehicle
+    st.retarder_nm = min(f_brk * veh.wheel_radius_m / veh.final_drive, drivetrain.retarder_available_nm(v))
     a = (f - f_road - f_brk) / meq
     v = max(v + a * VEHICLE_STEP_S, 0.0)
     st.v_m_s = v
-    s0, s1 = dt.sync_rpm(sh.gear_from, v), dt.sync_rpm(sh.gear_to, v)
+    s0, s1 = drivetrain.sync_rpm(sh.gear_from, v), drivetrain.sync_rpm(sh.gear_to, v)
     rpm = s0 if p < 0.25 else (s1 if p >= 0.75 else s0 + (s1 - s0) * (p - 0.25) / 0.5)
     st.rpm = max(rpm, IDLE_RPM)
     st.gear = sh.gear_from if p < 0.5 else sh.gear_to
@@ -208,12 +216,12 @@ def step_shift(st: DriverState, dt: Drivetrain, route: Route, grade: float, v_al
         st.mode, st.shift, st.since_shift_s = "drive", None, 0.0
 
 
-def step_coast(st: DriverState, dt: Drivetrain, grade: float, target: SpeedTarget, x_stop_m: float) -> None:
+def step_coast(st: DriverState, drivetrain: Drivetrain, grade: float, target: SpeedTarget, x_stop_m: float) -> None:
     """Neutral on the brakes towards the stop point; pull away again when the road ahead allows it."""
     st.idle()
     v = st.v_m_s
     if x_stop_m - st.x_m > 30.0 and target.v_target_m_s > v + 0.5:
-        st.mode, st.gear, st.since_shift_s = "launch", dt.start_gear_for(grade, st.mass_kg), 0.0
+        st.mode, st.gear, st.since_shift_s = "launch", drivetrain.start_gear_for(grade, st.mass_kg), 0.0
     else:
         # creep on to the stop point on the brakes
         v_c = max(target.v_target_m_s, 0.8) if x_stop_m - st.x_m > 2.0 else 0.0
@@ -228,30 +236,30 @@ class Traction(NamedTuple):
     deficit_n: float         # f_need - engine force (< 0: braking needed)
 
 
-def step_drive(st: DriverState, dt: Drivetrain, grade: float, target: SpeedTarget) -> Traction:
+def step_drive(st: DriverState, drivetrain: Drivetrain, grade: float, target: SpeedTarget) -> Traction:
     """Track the target with engine torque; brake with the retarder first, then the service brakes."""
-    veh = dt.vehicle
+    veh = drivetrain.vehicle
     gear, v = st.gear, st.v_m_s
-    f_road = dt.road_force_n(v, grade, st.mass_kg)
-    meq = dt.equivalent_mass_kg(gear, st.mass_kg)
+    f_road = drivetrain.road_force_n(v, grade, st.mass_kg)
+    meq = drivetrain.equivalent_mass_kg(gear, st.mass_kg)
     f_need = meq * target.a_des_m_s2 + f_road
-    t_req = dt.torque_for_nm(f_need, gear)
-    rpm = dt.sync_rpm(gear, v)
+    t_req = drivetrain.torque_for_nm(f_need, gear)
+    rpm = drivetrain.sync_rpm(gear, v)
     t_hi = engine_max_torque_nm(rpm, gear)
     t_lo = engine_min_torque_nm(rpm)
     st.torque_nm = min(max(t_req, t_lo), t_hi)
-    f_eng = dt.wheel_force_n(st.torque_nm, gear)
+    f_eng = drivetrain.wheel_force_n(st.torque_nm, gear)
     deficit = f_need - f_eng
     ret_nm, f_brake = 0.0, 0.0
     if deficit < 0:
-        f_ret = min(-deficit, dt.retarder_available_nm(v) * veh.final_drive / veh.wheel_radius_m)
+        f_ret = min(-deficit, drivetrain.retarder_available_nm(v) * veh.final_drive / veh.wheel_radius_m)
         ret_nm = f_ret * veh.wheel_radius_m / veh.final_drive
         f_brake = -deficit - f_ret
     st.retarder_nm = ret_nm
     a = (f_eng - ret_nm * veh.final_drive / veh.wheel_radius_m - f_brake - f_road) / meq
     st.v_m_s = max(v + a * VEHICLE_STEP_S, 0.0)
     st.since_shift_s += VEHICLE_STEP_S
-    st.rpm = max(dt.sync_rpm(gear, st.v_m_s), 0.0)
+    st.rpm = max(drivetrain.sync_rpm(gear, st.v_m_s), 0.0)
     return Traction(f_need, t_req, t_hi, deficit)
 
 
@@ -261,10 +269,10 @@ class GearChoice(NamedTuple):
     coast: bool
 
 
-def _upshift(dt: Drivetrain, gear: int, tr: Traction, cand: dict) -> int | None:
+def _upshift(drivetrain: Drivetrain, gear: int, tr: Traction, cand: dict) -> int | None:
     """The highest of up to two gears up that carries the demand with margin at a comfortable speed."""
     for g in range(min(gear + 2, 14), gear, -1):
-        tg = dt.torque_for_nm(tr.f_need_n, g)
+        tg = drivetrain.torque_for_nm(tr.f_need_n, g)
         tmax_g = engine_max_torque_nm(cand[g], g)
         if tg <= 0.85 * tmax_g and tg >= engine_min_torque_nm(cand[g]) \
                 and cand[g] >= downshift_rpm(max(tg, 0.0) / tmax_g) + 100.0:
@@ -272,33 +280,34 @@ def _upshift(dt: Drivetrain, gear: int, tr: Traction, cand: dict) -> int | None:
     return None
 
 
-def _downshift(dt: Drivetrain, gear: int, rpm: float, tr: Traction, cand: dict) -> GearChoice:
+def _downshift(drivetrain: Drivetrain, gear: int, rpm: float, tr: Traction, cand: dict) -> GearChoice:
     """The highest lower road gear that carries the demand, else the strongest; coast below 650 rpm when none is
     left."""
     lower = [g for g in ROAD_GEARS if g < gear and cand[g] <= 1800.0]
-    ok = [g for g in lower if dt.torque_for_nm(tr.f_need_n, g) <= 0.95 * engine_max_torque_nm(cand[g], g)]
+    ok = [g for g in lower if drivetrain.torque_for_nm(tr.f_need_n, g) <= 0.95 * engine_max_torque_nm(cand[g], g)]
     if ok:
         return GearChoice(max(ok), False)
     if lower:
-        return GearChoice(max(lower, key=lambda g: dt.wheel_force_n(engine_max_torque_nm(cand[g], g), g)), False)
+        strongest = max(lower, key=lambda g: drivetrain.wheel_force_n(engine_max_torque_nm(cand[g], g), g))
+        return GearChoice(strongest, False)
     return GearChoice(None, rpm < 650.0)
 
 
-def choose_gear(st: DriverState, dt: Drivetrain, grade: float, target: SpeedTarget, tr: Traction) -> GearChoice:
+def choose_gear(st: DriverState, drivetrain: Drivetrain, grade: float, target: SpeedTarget, tr: Traction) -> GearChoice:
     """The automated shift strategy, at most every 2 s unless the engine speed leaves 800..1950 rpm."""
     rpm, gear, v = st.rpm, st.gear, st.v_m_s
     new, coast = None, False
     load = st.torque_nm / tr.t_max_nm if st.torque_nm > 0 else 0.0
     if not (st.since_shift_s > 2.0 or rpm > 1950.0 or rpm < 800.0):
         return GearChoice(None, False)
-    cand = {g: dt.sync_rpm(g, v) for g in range(1, 15)}
+    cand = {g: drivetrain.sync_rpm(g, v) for g in range(1, 15)}
     if rpm > 1950.0:
         new = min(gear + 1, 14)
     if new is None and rpm > upshift_rpm(load) and gear < 14:
-        new = _upshift(dt, gear, tr, cand)
+        new = _upshift(drivetrain, gear, tr, cand)
     if new is None and (rpm < downshift_rpm(load)
                         or (tr.t_req_nm > 0.98 * tr.t_max_nm and rpm < 1500.0 and target.v_target_m_s > v + 0.3)):
-        new, coast = _downshift(dt, gear, rpm, tr, cand)
+        new, coast = _downshift(drivetrain, gear, rpm, tr, cand)
     if new is None and tr.deficit_n < -1.0 and grade < -0.02 and gear > 3:
         # long descent: a lower gear for more engine brake, if the engine can take the speed
         if cand[gear - 1] <= 1750.0:
@@ -306,15 +315,15 @@ def choose_gear(st: DriverState, dt: Drivetrain, grade: float, target: SpeedTarg
     return GearChoice(new, coast)
 
 
-def step_drive_or_coast(st: DriverState, dt: Drivetrain, route: Route, grade: float, v_allow_m_s: float,
+def step_drive_or_coast(st: DriverState, drivetrain: Drivetrain, route: Route, grade: float, v_allow_m_s: float,
                         x_stop_m: float) -> None:
     """Drive (and perhaps start a shift or drop to coasting), or coast towards a stop."""
     target = speed_target(route, st, v_allow_m_s, 1.5)     # the allowed speed here and a second and a half ahead
     if st.mode == "coast":
-        step_coast(st, dt, grade, target, x_stop_m)
+        step_coast(st, drivetrain, grade, target, x_stop_m)
         return
-    tr = step_drive(st, dt, grade, target)
-    choice = choose_gear(st, dt, grade, target, tr)
+    tr = step_drive(st, drivetrain, grade, target)
+    choice = choose_gear(st, drivetrain, grade, target, tr)
     if choice.coast:
         st.mode = "coast"
     if choice.gear is not None and choice.gear != st.gear and st.mode == "drive":
@@ -366,21 +375,21 @@ def advance(st: DriverState, route: Route, stop: Stop | None) -> None:
         st.idle()
 
 
-def step(st: DriverState, dt: Drivetrain, route: Route) -> None:
+def step(st: DriverState, drivetrain: Drivetrain, route: Route) -> None:
     """One VEHICLE_STEP_S of the driver in its current mode, then the move along the route."""
     road = route.at(st.x_m)
     stop = route.stop_after(st.stop_index)
     if st.mode == "stopped":
-        step_stopped(st, dt, road.grade, route)
+        step_stopped(st, drivetrain, road.grade, route)
     elif st.mode == "reverse":
-        if step_reverse(st, dt):
+        if step_reverse(st, drivetrain):
             return          # a pause in neutral: the truck stands
     elif st.mode == "launch":
-        step_launch(st, dt, road.grade, road.v_allow_m_s)
+        step_launch(st, drivetrain, road.grade, road.v_allow_m_s)
     elif st.mode == "shift":
-        step_shift(st, dt, route, road.grade, road.v_allow_m_s)
+        step_shift(st, drivetrain, route, road.grade, road.v_allow_m_s)
     elif st.mode in ("drive", "coast"):
-        step_drive_or_coast(st, dt, route, road.grade, road.v_allow_m_s, stop.x_m if stop else math.inf)
+        step_drive_or_coast(st, drivetrain, route, road.grade, road.v_allow_m_s, stop.x_m if stop else math.inf)
     advance(st, route, stop)
 
 
@@ -388,12 +397,12 @@ def drive(segments: list[Segment], vehicle: Vehicle, duration_s: float, rng: np.
           idle_start_s: float = 20.0, first_gear: int | None = None) -> DriveTrace:
     """Drive along the route for `duration_s`, starting with `idle_start_s` idling; the trace at VEHICLE_STEP_S."""
     route = Route(segments, rng)
-    dt = Drivetrain.of(vehicle)
+    drivetrain = Drivetrain.of(vehicle)
     n = int(round(duration_s / VEHICLE_STEP_S))
     rpm, tq, gear, v, ret, x = (np.empty(n) for _ in range(6))
     st = DriverState(mass_kg=vehicle.mass_kg, dwell_s=idle_start_s, next_start_gear=first_gear)
     for k in range(n):
-        step(st, dt, route)
+        step(st, drivetrain, route)
         rpm[k], tq[k], gear[k], v[k], ret[k], x[k] = st.rpm, st.torque_nm, st.gear, st.v_m_s, st.retarder_nm, st.x_m
     return DriveTrace(time_s=np.arange(n) / round(1.0 / VEHICLE_STEP_S), engine_speed_rpm=rpm, engine_torque_nm=tq,
                       gear=gear, vehicle_speed_kmh=v * KMH_PER_M_S, retarder_torque_nm=ret, distance_m=x,
