@@ -152,7 +152,7 @@ class RunTable:
 # ----------------------------------------------------------------------------------------------------------------
 # reading
 
-def _read_header(path: Path, name: str) -> list[str]:
+def read_header(path: Path, name: str) -> list[str]:
     """Return the column names of the header row (checked: none empty, none twice)."""
     try:
         with open(path, "rb") as f:
@@ -225,7 +225,7 @@ def parse_numeric_csv(path: Path, names: list[str]) -> np.ndarray | None:
     return arr
 
 
-def _parse_careful(path: Path, names: list[str], name: str) -> np.ndarray:
+def parse_careful(path: Path, names: list[str], name: str) -> np.ndarray:
     """csv module, cell by cell: slower, but names the first bad row and cell precisely."""
     ncol = len(names)
     rows: list[list[float]] = []
@@ -347,10 +347,10 @@ def read_run_table(path: str | os.PathLike, required: Iterable[str] = REQUIRED) 
     """Read and validate a CSV run table; extra columns are kept. Raises InputError (one sentence) on bad input."""
     name = os.fspath(path)
     p = Path(path)
-    names = _read_header(p, name)
+    names = read_header(p, name)
     arr = parse_numeric_csv(p, names)
     if arr is None:
-        arr = _parse_careful(p, names, name)
+        arr = parse_careful(p, names, name)
     if arr.shape[0] == 0:
         required = tuple(required)
         for col in required:
@@ -361,6 +361,11 @@ def read_run_table(path: str | os.PathLike, required: Iterable[str] = REQUIRED) 
     for j, c in enumerate(names):
         table._cols[c] = np.ascontiguousarray(arr[:, j])
     return validate_run_table(table, required, name)
+
+
+#: the former private names, for tools/cli/replay.py until it imports read_header and parse_careful
+_read_header = read_header
+_parse_careful = parse_careful
 
 
 # ----------------------------------------------------------------------------------------------------------------
