@@ -1,4 +1,4 @@
-"""Run tables: the CSV files every tool reads and writes (CONTRACTS.md section 3).
+"""Run tables: the CSV files every tool reads and writes.
 
 A run table is one row per sample with a header row, comma-separated, ``.`` as the decimal point, an empty cell for a
 missing value and the unit in every column name (``time_s``, ``engine_speed_rpm``, ``T_PS_c``). In memory it is a
@@ -43,7 +43,7 @@ import numpy as np
 from firmware_model.errors import InputError
 from firmware_model.physics.kinematics import GEAR_MAX, GEAR_MIN
 
-#: the input columns a drive cycle must have (CONTRACTS.md section 3)
+#: the input columns a drive cycle must have
 REQUIRED = ("time_s", "engine_speed_rpm", "engine_torque_nm", "gear")
 #: optional input columns with a contract meaning
 OPTIONAL_INPUTS = ("oil_temp_c", "ambient_temp_c", "coolant_temp_c", "vehicle_speed_kmh", "retarder_torque_nm")
@@ -152,7 +152,7 @@ class RunTable:
 # ----------------------------------------------------------------------------------------------------------------
 # reading
 
-def _read_header(path: Path, name: str) -> list[str]:
+def read_header(path: Path, name: str) -> list[str]:
     """Return the column names of the header row (checked: none empty, none twice)."""
     try:
         with open(path, "rb") as f:
@@ -225,7 +225,7 @@ def parse_numeric_csv(path: Path, names: list[str]) -> np.ndarray | None:
     return arr
 
 
-def _parse_careful(path: Path, names: list[str], name: str) -> np.ndarray:
+def parse_careful(path: Path, names: list[str], name: str) -> np.ndarray:
     """csv module, cell by cell: slower, but names the first bad row and cell precisely."""
     ncol = len(names)
     rows: list[list[float]] = []
@@ -276,6 +276,42 @@ def _first(mask: np.ndarray) -> int | None:
     return int(idx[0]) if idx.size else None
 
 
+def _need(name: str, col: str, arr: np.ndarray, what: str, required: tuple) -> None:
+    """A required column has no empty cell."""
+    if col in required:
+        r = _first(np.isnan(arr))
+        if r is not None:
+            raise InputError(f'{name}: column "{col}" row {r + 1}: the cell is empty (NaN); {what} is required '
+                             f"in every row")
+
+
+def _finite_column(table: RunTable, col: str, name: str, required: tuple, what: str, noun: str) -> np.ndarray | None:
+    """Column `col` when the table has it, checked: no empty cell when required, no infinite value."""
+    if not table.has(col):
+        return None
+    arr = table[col]
+    _need(name, col, arr, what, required)
+    r = _first(np.isinf(arr))
+    if r is not None:
+        raise InputError(f'{name}: column "{col}" row {r + 1}: {arr[r]} is not a finite {noun}')
+    return arr
+
+
+def _check_time_increasing(name: str, t: np.ndarray) -> None:
+    ok = ~np.isnan(t)
+    tv, rows = t[ok], np.flatnonzero(ok)
+    if tv.size > 1:
+        d = np.diff(tv)
+        k = _first(d <= 0)
+        if k is not None:
+            r0, r1 = rows[k] + 1, rows[k + 1] + 1
+            if d[k] == 0:
+                raise InputError(f'{name}: column "time_s" row {r1}: {tv[k + 1]:.10g} s is duplicated '
+                                 f"(row {r0} has the same time); time must strictly increase")
+            raise InputError(f'{name}: column "time_s" row {r1}: {tv[k + 1]:.10g} s goes backwards from '
+                             f"{tv[k]:.10g} s at row {r0}; time must strictly increase")
+
+
 def validate_run_table(table: RunTable, required: Iterable[str] = REQUIRED, name: str | None = None) -> RunTable:
     """Check the contract rules on a table in memory; raise InputError naming column and 1-based row."""
     name = name or table.source or "run table"
@@ -286,51 +322,19 @@ def validate_run_table(table: RunTable, required: Iterable[str] = REQUIRED, name
                              f'{", ".join(table.columns) or "(none)"}')
     if table.n == 0:
         raise InputError(f"{name}: has a header but no data rows")
-
-    def need(col: str, arr: np.ndarray, what: str) -> None:
-        if col in required:
-            r = _first(np.isnan(arr))
-            if r is not None:
-                raise InputError(f'{name}: column "{col}" row {r + 1}: the cell is empty (NaN); {what} is required '
-                                 f"in every row")
-
-    if table.has("time_s"):
-        t = table["time_s"]
-        need("time_s", t, "time")
-        r = _first(np.isinf(t))
-        if r is not None:
-            raise InputError(f'{name}: column "time_s" row {r + 1}: {t[r]} is not a finite time')
-        ok = ~np.isnan(t)
-        tv, rows = t[ok], np.flatnonzero(ok)
-        if tv.size > 1:
-            d = np.diff(tv)
-            k = _first(d <= 0)
-            if k is not None:
-                r0, r1 = rows[k] + 1, rows[k + 1] + 1
-                if d[k] == 0:
-                    raise InputError(f'{name}: column "time_s" row {r1}: {tv[k + 1]:.10g} s is duplicated '
-                                     f"(row {r0} has the same time); time must strictly increase")
-                raise InputError(f'{name}: column "time_s" row {r1}: {tv[k + 1]:.10g} s goes backwards from '
-                                 f"{tv[k]:.10g} s at row {r0}; time must strictly increase")
-    if table.has("engine_speed_rpm"):
-        n = table["engine_speed_rpm"]
-        need("engine_speed_rpm", n, "engine speed")
-        r = _first(np.isinf(n))
-        if r is not None:
-            raise InputError(f'{name}: column "engine_speed_rpm" row {r + 1}: {n[r]} is not a finite speed')
+    t = _finite_column(table, "time_s", name, required, "time", "time")
+    if t is not None:
+        _check_time_increasing(name, t)
+    n = _finite_column(table, "engine_speed_rpm", name, required, "engine speed", "speed")
+    if n is not None:
         r = _first(n < 0)
         if r is not None:
             raise InputError(f'{name}: column "engine_speed_rpm" row {r + 1}: {n[r]:.10g} rpm is negative; '
                              f"engine speed must be >= 0")
-    if table.has("engine_torque_nm"):
-        tq = table["engine_torque_nm"]
-        need("engine_torque_nm", tq, "engine torque")
-        r = _first(np.isinf(tq))
-        if r is not None:
-            raise InputError(f'{name}: column "engine_torque_nm" row {r + 1}: {tq[r]} is not a finite torque')
+    _finite_column(table, "engine_torque_nm", name, required, "engine torque", "torque")
     if table.has("gear"):
         g = table["gear"]
-        need("gear", g, "the gear")
+        _need(name, "gear", g, "the gear", required)
         bad = ~np.isnan(g) & ((g != np.round(g)) | (g < GEAR_MIN) | (g > GEAR_MAX))
         r = _first(bad)
         if r is not None:
@@ -343,10 +347,10 @@ def read_run_table(path: str | os.PathLike, required: Iterable[str] = REQUIRED) 
     """Read and validate a CSV run table; extra columns are kept. Raises InputError (one sentence) on bad input."""
     name = os.fspath(path)
     p = Path(path)
-    names = _read_header(p, name)
+    names = read_header(p, name)
     arr = parse_numeric_csv(p, names)
     if arr is None:
-        arr = _parse_careful(p, names, name)
+        arr = parse_careful(p, names, name)
     if arr.shape[0] == 0:
         required = tuple(required)
         for col in required:
@@ -357,6 +361,11 @@ def read_run_table(path: str | os.PathLike, required: Iterable[str] = REQUIRED) 
     for j, c in enumerate(names):
         table._cols[c] = np.ascontiguousarray(arr[:, j])
     return validate_run_table(table, required, name)
+
+
+#: the former private names, for tools/cli/replay.py until it imports read_header and parse_careful
+_read_header = read_header
+_parse_careful = parse_careful
 
 
 # ----------------------------------------------------------------------------------------------------------------

@@ -260,3 +260,43 @@ def test_written_cycle_reads_back_valid(tmp_path):
     back = read_run_table(p)
     assert back.columns == COLUMNS and back.meta == {}
     np.testing.assert_allclose(back["gear"], tb["gear"])
+
+
+# ----------------------------------------------------------------------------------------------------------------
+# the vehicle model's pieces
+
+def test_driveline_relations_are_inverse():
+    from tools.cycles.vehicle import Drivetrain, vehicle_speed_kmh
+    dt = Drivetrain.of(Vehicle())
+    for gear in (3, 9, 14, -2):
+        rpm = dt.sync_rpm(gear, 10.0)
+        assert vehicle_speed_kmh(np.array([gear]), np.array([rpm]))[0] == pytest.approx(36.0, rel=1e-12)
+        for torque_nm in (800.0, -300.0):
+            assert dt.torque_for_nm(dt.wheel_force_n(torque_nm, gear), gear) == pytest.approx(torque_nm, rel=1e-12)
+    # the engine's inertia counts through the ratio: more in a low gear, none in neutral
+    m = 40000.0
+    assert dt.equivalent_mass_kg(3, m) > dt.equivalent_mass_kg(14, m) > dt.equivalent_mass_kg(None, m) == m * 1.03
+
+
+def test_reversing_manoeuvre_covers_its_distance():
+    from tools.cycles.driver import VEHICLE_STEP_S, reverse_profile
+    prof = reverse_profile(30.0)
+    moving = [p for p in prof if p is not None]
+    assert prof[0] is None and prof[-1] is None                 # pauses in neutral before and after
+    assert sum(v for v, _ in moving) * VEHICLE_STEP_S == pytest.approx(30.0, abs=0.2)
+    assert max(v for v, _ in moving) == pytest.approx(4.0 / 3.6)
+
+
+def test_shift_strategy_upshifts_an_overrevving_engine():
+    from tools.cycles.driver import DriverState, SpeedTarget, Traction, choose_gear
+    from tools.cycles.vehicle import Drivetrain
+    dt = Drivetrain.of(Vehicle())
+    st = DriverState(mass_kg=40000.0, dwell_s=0.0, next_start_gear=None, mode="drive", gear=10, torque_nm=500.0,
+                     since_shift_s=5.0)
+    st.v_m_s = 1960.0 / dt.sync_rpm(10, 1.0)
+    st.rpm = dt.sync_rpm(10, st.v_m_s)
+    choice = choose_gear(st, dt, 0.0, SpeedTarget(st.v_m_s, 0.0), Traction(2000.0, 500.0, 2500.0, 0.0))
+    assert choice.gear == 11 and not choice.coast
+    # right after a shift and in the engine's comfortable range: keep the gear
+    st.since_shift_s, st.rpm = 0.5, 1300.0
+    assert choose_gear(st, dt, 0.0, SpeedTarget(st.v_m_s, 0.0), Traction(2000.0, 500.0, 2500.0, 0.0)).gear is None

@@ -16,8 +16,9 @@ from firmware_model.effects import CATALOG, EFFECT_IDS
 from firmware_model.errors import InputError
 from firmware_model.parameters import load_parameters
 from tools.cli import main
-from tools.diagnosis.core import diagnose, lag_filter
+from tools.diagnosis.core import diagnose
 from tools.diagnosis.bench import make_scenario, mixed_cycle
+from tools.diagnosis.measurement import lag_filter
 from tools.runtable import RunTable, write_run_table
 
 SHORT_S = 600.0
@@ -145,6 +146,41 @@ def test_lag_filter_matches_exponential():
     assert lag_filter(x, 0.0, 1.0) is x
 
 
+def test_regime_bins():
+    from tools.diagnosis.regimes import gear_group, speed_bin, torque_bin
+    assert list(gear_group([0, -2, 1, 8, 9, 14])) == ["neutral", "reverse", "low range", "low range", "high range",
+                                                      "high range"]
+    assert list(torque_bin(np.array([-1.0, 0.0, 799.0, 800.0, 1500.0]))) == [
+        "engine braking (torque < 0)", "torque 0-800 Nm", "torque 0-800 Nm", "torque 800-1500 Nm", "torque > 1500 Nm"]
+    assert list(speed_bin(np.array([999.0, 1000.0, 1400.0, 1800.0]))) == [
+        "speed < 1000 rpm", "speed 1000-1400 rpm", "speed 1400-1800 rpm", "speed > 1800 rpm"]
+
+
+def test_initial_temperature_nuisance_is_solved_and_bounded():
+    """The per-file initial-temperature shift is the weighted least-squares one, clipped to initial_offset_max_c."""
+    from tools.diagnosis.options import Options
+    from tools.diagnosis.scoring import RoleData, Scorer
+    obs = [np.full(5, 1.0), np.full(5, 10.0)]
+    rd = RoleData(datasets=[], obs=obs, w=[np.ones(5), np.ones(5)], sens=[np.ones(5), np.ones(5)], files=[[0], [1]])
+    sc = Scorer(rd, rd, lag={}, opts=Options(initial_offset_max_c=0.25))
+    out = sc.adjust([np.full(5, 0.9), np.full(5, 9.0)], "train")
+    assert np.allclose(out[0], 1.0)             # a 0.1 K offset: solved exactly
+    assert np.allclose(out[1], 9.25)            # a 1 K offset: only +-0.25 K is a nuisance
+    assert sc.S(out) == pytest.approx(5 * 0.75 ** 2)
+
+
+def test_prepare_puts_channels_on_the_grid(params):
+    from tools.diagnosis.options import Options
+    from tools.diagnosis.prepare import prepare
+    cols = _table(n=120)
+    ds = prepare(RunTable(cols), "t.csv", "train", Options(grid_dt_s=2.0))
+    ch = ds.channels["oil"]
+    assert ds.t_start_s == 0.0 and ds.t_end_s == 119.0
+    assert ch.cell_t_s.size == 61 and ch.cell_n.sum() == 120      # cells centred on 0, 2, 4, ... s
+    assert np.allclose(ch.cell_y_c[1:-1], 0.5 * (ch.y_c[1:-2:2] + ch.y_c[2:-1:2]))
+    assert ds.initial_temp_c == pytest.approx(np.mean(cols["oil_temp_c"][:6]))
+
+
 # ---------------------------------------------------------------------------------------------------------------
 # bad input: one sentence, exit 2, nothing written
 
@@ -251,7 +287,8 @@ def test_diagnose_api_raises_input_error(params):
 # backends and inputs
 
 def test_onboard_backend_runs_effects_as_vehicles(params):
-    from tools.diagnosis.core import Options, prepare
+    from tools.diagnosis.options import Options
+    from tools.diagnosis.prepare import prepare
     from tools.diagnosis.models import OnboardModel, PlantModel, Run, onboard_available
     if not onboard_available():
         pytest.skip("the onboard model (firmware_model.onboard.sensor) is not installed")

@@ -65,9 +65,11 @@ def run(args) -> int:
         else:
             eid, val = parse_effect(args.effect)
             custom = (args.setup, eid, val, args.cooler)
+    from tqdm import tqdm
+    # one result line per scenario on stderr, above the progress bar (shown on a terminal)
     rows, summary = B.run_bench(args.scenarios, args.seed, args.out, model=args.model, train_s=args.train_s,
                                 test_s=args.test_s, only=only, custom=custom, write_scenarios=args.write_scenarios,
-                                progress=lambda m: print(m, file=sys.stderr, flush=True))
+                                progress=lambda line: tqdm.write(line, file=sys.stderr))
     print(B.format_table(rows, summary))
     if args.out:
         print(f"\n-> {Path(args.out) / 'bench.md'}", file=sys.stderr)

@@ -17,11 +17,12 @@ def add_subparser(sub):
         "diagnose", help="sim-to-real gap diagnosis: where the model misses, which unmodelled effect explains it",
         formatter_class=argparse.RawDescriptionHelpFormatter,
         description=(
-            "Compare measured run tables with the model and diagnose the gap (CONTRACTS section 4).\n\n"
-            "Measured channels: oil_temp_c (the vehicle's oil sensor) and meas_T_<id>_c (rig thermocouples, ids of "
-            "CONTRACTS section 5). The model predicts the oil itself with its cooler model, and every component "
-            "follows the model's oil (see docs/diagnosis.md for why); with cooler kind 'measured' or 'hold' the "
-            "oil is an input and only thermocouples are diagnosed.\n\n"
+            "Compare measured run tables with the model and diagnose the gap (JSON schema gap-diagnosis/1, see "
+            "docs/diagnosis.md).\n\n"
+            "Measured channels: oil_temp_c (the vehicle's oil sensor) and meas_T_<id>_c (rig thermocouples, "
+            "component ids of firmware_model.components). The model predicts the oil itself with its cooler model, "
+            "and every component follows the model's oil (see docs/diagnosis.md for why); with cooler kind "
+            "'measured' or 'hold' the oil is an input and only thermocouples are diagnosed.\n\n"
             "1. where: residual (measured - model) per channel, its share by regime and episode, and for the oil "
             "the unexplained heat flow it implies;\n"
             "2. which: every catalog effect fitted on the TRAINING files by re-simulation and ranked by "
@@ -32,7 +33,7 @@ def add_subparser(sub):
         epilog="examples:\n"
                "  gearbox-vsensor diagnose --train run1.csv run2.csv --test run3.csv --json gap.json\n"
                "  gearbox-vsensor diagnose --train rig_a.csv --test rig_b.csv --model plant --json gap.json "
-               "--report gap.md\n\neffects (CONTRACTS section 6):\n" + effects)
+               "--report gap.md\n\neffects (firmware_model.effects):\n" + effects)
     p.add_argument("--train", nargs="+", required=True, metavar="FILE",
                    help="training runs: run tables (.csv) or CAN logs (.log candump -L, .asc, .blf, .mf4; decoded "
                         "with the sensor's CAN service: TRF1 oil temperature and rig thermocouple frames)")
@@ -52,7 +53,7 @@ def add_subparser(sub):
                    help="time step of the plant's re-simulations [s] (default 1)")
     p.add_argument("--workers", type=int, metavar="N", help="processes for the re-simulations (default: 2 or the "
                                                             "number of cores)")
-    p.add_argument("--quiet", action="store_true", help="no progress or summary on stderr/stdout")
+    p.add_argument("--quiet", action="store_true", help="no progress bar or summary on stderr/stdout")
     p.set_defaults(func=run)
     return p
 
@@ -69,6 +70,8 @@ def write_json_atomic(obj, path) -> Path:
 
 def run(args) -> int:
     from tools.diagnosis.core import Options, diagnose
+    from tools.diagnosis.options import STAGES
+    from tools.progress import progress
     cfg = load_config(args.config)
     params = cfg.load_params()
     cooler = args.cooler or cfg.cooler or params.strings.get("cooler.kind", "liquid")
@@ -83,16 +86,17 @@ def run(args) -> int:
         if any(Path(f).resolve() == o.resolve() for o in outs):
             raise InputError(f"{f} is an input and an output; choose another --json/--report path")
     opts = Options(grid_dt_s=args.grid_dt, plant_dt_s=args.plant_dt, workers=args.workers)
-
-    def progress(msg):
-        if not args.quiet:
-            print(f"  diagnose: {msg} ...", file=sys.stderr, flush=True)
-    res, d = diagnose(args.train, args.test, params, model=args.model, cooler=cooler, opts=opts,
-                      progress=progress, keep=True, config_path=args.config)
+    with progress(len(STAGES), "diagnose", enabled=False if args.quiet else None, unit="stage") as bar:
+        def stage(name):
+            bar.update(STAGES.index(name) - bar.n)
+            bar.set_postfix_str(name)
+        res, d = diagnose(args.train, args.test, params, model=args.model, cooler=cooler, opts=opts,
+                          progress=stage, keep=True, config_path=args.config)
+        bar.update(len(STAGES) - bar.n)
     # render the report first (staged), then the JSON: both complete or nothing new
     if args.report:
         from tools.diagnosis.report import write_report
-        write_report(res, d, args.report)
+        write_report(res, d.plot_data, args.report)
     write_json_atomic(res, args.json)
     if not args.quiet:
         v = res["verdict"]

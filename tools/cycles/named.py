@@ -25,7 +25,10 @@ The road cycles (long_haul, uphill, mining) come from a simple longitudinal vehi
 route: driving resistance (rolling, aero, grade), a speed-tracking driver, an automated gear shift strategy working on
 the gearbox's real total ratios (from the parameter set's kinematics), engine full-load and engine-brake curves, a
 hydraulic retarder on the output shaft and 0.6 s (range shifts 1.0 s) torque interruptions at every shift. So engine
-speed, torque, gear and vehicle speed are consistent with each other. The vehicle is assumed (not from the seed):
+speed, torque, gear and vehicle speed are consistent with each other. The truck and its driveline are in
+:mod:`tools.cycles.vehicle`, the roads in :mod:`tools.cycles.route`, the driver (route following, shifting, stops,
+reversing) in :mod:`tools.cycles.driver`; this module defines the named cycles on top of them. The vehicle is assumed
+(not from the seed):
 
 * 40 t gross combination (uphill: a 60 t Nordic combination; mining: 22 t empty / 50 t loaded tipper),
 * rolling resistance 0.0055 (highway; mining gravel 0.012), C_d A = 5.5 m2, air 1.2 kg/m3,
@@ -45,20 +48,24 @@ torque 2 % + 5 Nm, engine speed 3 rpm, vehicle speed 0.1 km/h (1 sigma).
 """
 from __future__ import annotations
 
-import bisect
-import importlib.util
 import math
 import os
-from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
 
 from firmware_model.errors import InputError
-from firmware_model.physics.kinematics import GEAR_MIN, GEAR_NAMES, GEARS, KinematicTable, Teeth, build_table, parse_gear
+from firmware_model.physics.kinematics import GEAR_NAMES, parse_gear
 
+from tools.cycles.driver import DriveTrace, drive
+from tools.cycles.route import Segment
+from tools.cycles.vehicle import KMH_PER_M_S, Vehicle, gearbox_kinematics, total_ratios, vehicle_speed_kmh
 from tools.runtable import RunTable, read_run_table
+
+__all__ = ["BC_COLUMNS", "COLUMNS", "CYCLE_HELP", "CYCLE_NAMES", "TABLE11_LC1", "TABLE11_LC2", "AMBIENT_C", "Segment",
+           "Vehicle", "all_gears", "get_cycle", "gearbox_kinematics", "long_haul", "mining", "parse_steady_spec",
+           "road_profile", "steady", "summarize", "total_ratios", "uphill"]
 
 CYCLE_NAMES = ("steady", "all_gears", "long_haul", "uphill", "mining")
 CYCLE_HELP = {
@@ -83,409 +90,6 @@ TABLE11_LC1 = (90.0, 90.0, 80.0, 80.0, 90.0, 40.0)
 TABLE11_LC2 = (100.0, 100.0, 90.0, 90.0, 100.0, 60.0)
 #: ambient air (seed Table 8)
 AMBIENT_C = 25.0
-#: internal time step of the vehicle model; the output is resampled to the requested rate
-DT_S = 0.1
-_RPM = 60.0 / (2.0 * math.pi)
-G_M_S2 = 9.81
-
-#: tooth numbers used when no parameter loader is available (GRS905, as in the parameter file)
-_FALLBACK_TEETH = Teeth(idle={"LI": 28, "3M": 31, "2M": 35, "1M": 38, "CM": 42, "RM": 42},
-                        layshaft={"LL": 38, "3L": 34, "2L": 24, "1L": 17, "CL": 13, "RL": 14},
-                        z_RI=23, z_sun=32, z_planet=28, z_ring=88, n_planets=5)
-
-
-@lru_cache(maxsize=1)
-def gearbox_kinematics() -> KinematicTable:
-    """The GRS905 kinematics: from `firmware_model.parameters` when it exists, else the seed's tooth numbers."""
-    if importlib.util.find_spec("firmware_model.parameters") is not None:
-        from firmware_model.parameters import load_parameters
-        return load_parameters("GRS905").kinematics
-    return build_table(_FALLBACK_TEETH)
-
-
-def total_ratios() -> dict[int, float]:
-    """Gear -> |input speed / output speed| (inf in neutral)."""
-    kin = gearbox_kinematics()
-    return {g: abs(float(kin.ratio[g - GEAR_MIN])) for g in GEARS}
-
-
-# ----------------------------------------------------------------------------------------------------------------
-# vehicle, engine, route
-
-@dataclass(frozen=True)
-class Vehicle:
-    """Longitudinal model of the truck (all values assumed, see the module docstring)."""
-    mass_kg: float = 40000.0
-    crr: float = 0.0055
-    cda_m2: float = 5.5
-    rho_air_kg_m3: float = 1.2
-    wheel_radius_m: float = 0.5
-    final_drive: float = 3.07
-    driveline_eff: float = 0.95
-    engine_inertia_kg_m2: float = 3.5          # engine, flywheel, clutch
-    rotating_mass_factor: float = 0.03         # wheels, axles, propeller shaft as a fraction of the mass
-    retarder_max_nm: float = 3500.0            # on the output shaft
-    retarder_full_rpm: float = 800.0           # output-shaft speed from which the full retarder torque is available
-
-
-#: engine full-load torque (rpm, Nm): 3000 Nm 1000-1300 rpm, ~430 kW at 1900 rpm
-_TMAX_RPM = (500.0, 600.0, 800.0, 1000.0, 1300.0, 1900.0, 2100.0, 2300.0)
-_TMAX_NM = (900.0, 1400.0, 2400.0, 3000.0, 3000.0, 2150.0, 1750.0, 0.0)
-IDLE_RPM = 600.0
-MAX_RPM = 2100.0
-#: engine torque cap in the gears below 4L and in reverse (propeller-shaft limit, seed 2.4; value assumed)
-LOW_GEAR_CAP_NM = 2700.0
-
-
-def engine_max_torque_nm(rpm: float, gear: int) -> float:
-    x = min(max(rpm, _TMAX_RPM[0]), _TMAX_RPM[-1])
-    k = min(bisect.bisect_right(_TMAX_RPM, x), len(_TMAX_RPM) - 1)
-    x0, x1, y0, y1 = _TMAX_RPM[k - 1], _TMAX_RPM[k], _TMAX_NM[k - 1], _TMAX_NM[k]
-    t = y0 + (y1 - y0) * (x - x0) / (x1 - x0)
-    if gear < 9:
-        t = min(t, LOW_GEAR_CAP_NM)
-    return t
-
-
-def engine_min_torque_nm(rpm: float) -> float:
-    """Friction plus engine brake (exhaust brake / compression release): -150 Nm at idle, -600 Nm at 2100 rpm."""
-    return -(150.0 + 450.0 * min(max((rpm - IDLE_RPM) / (MAX_RPM - IDLE_RPM), 0.0), 1.0))
-
-
-@dataclass(frozen=True)
-class Segment:
-    """A stretch of synthetic road. Grade is rise/run (+ uphill). A stop, if any, is at the end of the segment."""
-    length_m: float
-    grade: float = 0.0
-    limit_kmh: float = 80.0
-    hills: float = 0.0               # amplitude of superposed small hills (grade, rise/run)
-    stop_s: float = 0.0              # dwell at the end (engine idling in neutral)
-    reverse_m: float = 0.0           # reversing manoeuvre (RL) before the dwell, e.g. to the loader or tipping point
-    mass_after_kg: float | None = None   # loading / unloading during the dwell
-    start_gear: int | None = None    # gear to pull away in after the stop
-
-
-class _Route:
-    """Grade, speed limit and stops on a 5 m grid along the driven path."""
-
-    DX = 5.0
-
-    def __init__(self, segments: list[Segment], rng: np.random.Generator, a_dec: float = 0.4):
-        ends = np.cumsum([s.length_m for s in segments])
-        starts = ends - np.array([s.length_m for s in segments])
-        self.length_m = float(ends[-1])
-        x = np.arange(0.0, self.length_m + self.DX, self.DX)
-        idx = np.minimum(np.searchsorted(ends, x, side="right"), len(segments) - 1)
-        g_seg = np.array([s.grade for s in segments])
-        # grade changes over ~150 m (a road has no kinks): smooth the piecewise-constant grade
-        g = g_seg[idx]
-        w = int(150 / self.DX)
-        kern = np.ones(w) / w
-        g = np.convolve(np.pad(g, (w // 2, w - 1 - w // 2), mode="edge"), kern, mode="valid")
-        # small hills: a sum of three sinusoids of 1.5-6 km wavelength, seeded phases
-        amp = np.array([s.hills for s in segments])[idx]
-        if np.any(amp > 0):
-            hill = np.zeros_like(x)
-            for lam, a in ((6000.0, 0.5), (2900.0, 0.35), (1500.0, 0.25)):
-                hill += a * np.sin(2 * np.pi * x / (lam * rng.uniform(0.8, 1.25)) + rng.uniform(0, 2 * np.pi))
-            g = g + amp * hill / 1.1
-        self.x = x
-        self.grade = g
-        self.altitude_m = np.concatenate([[0.0], np.cumsum(g[:-1] * self.DX)])
-        lim = np.array([s.limit_kmh for s in segments])[idx] / 3.6
-        self.stops = [(float(ends[i]), s) for i, s in enumerate(segments) if s.stop_s > 0]
-        self.seg_starts = starts
-        # speed the driver allows: limits ahead braked down at a_dec; zero at every stop
-        v = lim.copy()
-        for xs, _ in self.stops:
-            v[min(int(round(xs / self.DX)), len(v) - 1)] = 0.0
-        v[-1] = 0.0
-        step = 2.0 * a_dec * self.DX
-        for i in range(len(v) - 2, -1, -1):
-            vb = math.sqrt(v[i + 1] * v[i + 1] + step)
-            if vb < v[i]:
-                v[i] = vb
-        self.v_allow = v
-        self._v_list = v.tolist()
-        self._g_list = g.tolist()
-
-    def at(self, x_m: float) -> tuple[float, float]:
-        i = min(int(x_m / self.DX), len(self._g_list) - 1)
-        return self._g_list[i], self._v_list[i]
-
-
-# ----------------------------------------------------------------------------------------------------------------
-# the driver, shift strategy and vehicle dynamics
-
-def _drive(segments: list[Segment], veh: Vehicle, duration_s: float, rng: np.random.Generator,
-           idle_start_s: float = 20.0, first_gear: int | None = None) -> dict:
-    """Drive along the route for `duration_s`; returns arrays at DT_S (time, rpm, torque, gear, v, retarder, ...)."""
-    route = _Route(segments, rng)
-    ratio = total_ratios()
-    fd, r, eta = veh.final_drive, veh.wheel_radius_m, veh.driveline_eff
-    n = int(round(duration_s / DT_S))
-    out_rpm = np.empty(n)
-    out_tq = np.empty(n)
-    out_gear = np.empty(n)
-    out_v = np.empty(n)
-    out_ret = np.empty(n)
-    out_x = np.empty(n)
-
-    mass = veh.mass_kg
-    x, v = 0.0, 0.0
-    mode = "stopped"
-    dwell = idle_start_s
-    gear, tq, rpm, ret_nm = 0, 0.0, IDLE_RPM, 0.0
-    next_start_gear = first_gear
-    stop_i = 0                # index of the next stop on the route
-    pending_stop: Segment | None = None
-    since_shift = 10.0
-    shift = None              # (from, to, t, dur, T0)
-    reverse = None            # list of (v, a) samples of a reversing manoeuvre
-    fwd = tuple(range(3, 15))  # gears the shift strategy uses on the road (crawler only to pull away)
-
-    def sync_rpm(g: int, v_ms: float) -> float:
-        return v_ms / r * fd * ratio[g] * _RPM
-
-    def road_force(v_ms: float, grade: float) -> float:
-        c = 1.0 / math.sqrt(1.0 + grade * grade)
-        return mass * G_M_S2 * (veh.crr * c + grade * c) + 0.5 * veh.rho_air_kg_m3 * veh.cda_m2 * v_ms * v_ms
-
-    def m_eq(g: int | None) -> float:
-        m = mass * (1.0 + veh.rotating_mass_factor)
-        if g:
-            i = ratio[g] * fd / r
-            m += veh.engine_inertia_kg_m2 * i * i
-        return m
-
-    def torque_for(force: float, g: int) -> float:
-        i = ratio[g] * fd / r
-        return force / (i * eta) if force >= 0 else force * eta / i
-
-    def wheel_force(t_nm: float, g: int) -> float:
-        i = ratio[g] * fd / r
-        return t_nm * i * eta if t_nm >= 0 else t_nm * i / eta
-
-    def start_gear_for(grade: float) -> int:
-        # highest of 1L..2H that pulls away at 0.4 m/s2 on half the capped torque
-        need = road_force(0.0, grade) + mass * 0.4
-        best = 1
-        for g in (3, 4, 5, 6):
-            if wheel_force(0.5 * LOW_GEAR_CAP_NM, g) >= need:
-                best = g
-        if best == 1 and wheel_force(0.5 * LOW_GEAR_CAP_NM, 3) < need:
-            best = 1 if wheel_force(0.5 * LOW_GEAR_CAP_NM, 2) < need else 2
-        return best
-
-    def n_up(load: float) -> float:
-        """upshift above this engine speed (light load early, full load late)"""
-        return 1150.0 + 500.0 * load
-
-    def n_down(load: float) -> float:
-        """downshift below this engine speed: the strategy keeps a loaded engine above ~1200 rpm"""
-        return 850.0 + 350.0 * load
-
-    def a_max(v_ms: float) -> float:
-        return max(0.15, 0.6 - 0.4 * v_ms / 25.0)
-
-    for k in range(n):
-        grade, v_allow = route.at(x)
-        if stop_i < len(route.stops):
-            x_stop, seg_stop = route.stops[stop_i]
-        else:
-            x_stop, seg_stop = math.inf, None
-
-        if mode == "stopped":
-            gear, tq, rpm, ret_nm, v = 0, 0.0, IDLE_RPM, 0.0, 0.0
-            dwell -= DT_S
-            if dwell <= 0:
-                if pending_stop is not None and pending_stop.mass_after_kg:
-                    mass = pending_stop.mass_after_kg
-                g0 = next_start_gear if next_start_gear else start_gear_for(grade)
-                next_start_gear = None
-                pending_stop = None
-                if x >= route.length_m - 1.0:
-                    dwell = math.inf   # end of the route: idle until the end
-                else:
-                    mode, gear, since_shift = "launch", g0, 0.0
-        elif mode == "reverse":
-            item = reverse.pop(0)
-            if item is None:   # a pause in neutral before and after reversing
-                gear, tq, rpm, ret_nm, v = 0, 0.0, IDLE_RPM, 0.0, 0.0
-                if not reverse:
-                    mode = "stopped"
-                out_rpm[k], out_tq[k], out_gear[k], out_v[k], out_ret[k], out_x[k] = rpm, tq, gear, v, ret_nm, x
-                continue
-            vr, ar = item
-            gear = -2
-            f = mass * (1.0 + veh.rotating_mass_factor) * ar + mass * G_M_S2 * veh.crr \
-                + 0.5 * veh.rho_air_kg_m3 * veh.cda_m2 * vr * vr
-            tq = max(torque_for(f, -2), 0.0) if f > 0 else 0.0
-            rpm = max(sync_rpm(-2, vr), 800.0)
-            v, ret_nm = vr, 0.0
-            if not reverse:
-                mode = "stopped"
-        elif mode == "launch":
-            # clutch slipping: engine held at ~1000 rpm until the gear's synchronous speed catches up
-            f_road = road_force(v, grade)
-            a_des = min(0.5, max(0.05, (v_allow - v) * 0.5))
-            t_req = torque_for(m_eq(None) * a_des + f_road, gear)
-            rpm_launch = 1000.0
-            tq = min(max(t_req, 200.0), engine_max_torque_nm(rpm_launch, gear))
-            a = (wheel_force(tq, gear) - f_road) / m_eq(None)
-            v = max(v + a * DT_S, 0.0)
-            ret_nm = 0.0
-            s = sync_rpm(gear, v)
-            rpm = max(s, rpm_launch)
-            if s >= rpm_launch:
-                mode = "drive"
-            since_shift = 0.0
-        elif mode == "shift":
-            g_from, g_to, ts, dur, t0 = shift
-            ts += DT_S
-            p = ts / dur
-            f_road = road_force(v, grade)
-            if p < 0.25:
-                g_eng, tq = g_from, t0 * (1.0 - p / 0.25)
-            elif p < 0.75:
-                g_eng, tq = None, 0.0
-            else:
-                v_t = min(v_allow, route.at(x + v)[1])
-                a_des = min(max((v_t - v) * 0.4, -0.8), a_max(v))
-                t_req = torque_for(m_eq(g_to) * a_des + f_road, g_to)
-                s = sync_rpm(g_to, v)
-                t_req = min(max(t_req, engine_min_torque_nm(s)), engine_max_torque_nm(s, g_to))
-                g_eng, tq = g_to, t_req * (p - 0.75) / 0.25
-            f = wheel_force(tq, g_eng) if g_eng else 0.0
-            meq = m_eq(g_eng)
-            # the retarder (on the output shaft) and the service brakes keep working during the interruption
-            v_t = min(v_allow, route.at(x + v * 1.5)[1])
-            a_des = min(max((v_t - v) * 0.4, -0.8), a_max(v))
-            f_brk = max(f - f_road - meq * a_des, 0.0)
-            n_os = v / r * fd * _RPM
-            ret_nm = min(f_brk * r / fd, veh.retarder_max_nm * min(1.0, n_os / veh.retarder_full_rpm))
-            a = (f - f_road - f_brk) / meq
-            v = max(v + a * DT_S, 0.0)
-            s0, s1 = sync_rpm(g_from, v), sync_rpm(g_to, v)
-            rpm = s0 if p < 0.25 else (s1 if p >= 0.75 else s0 + (s1 - s0) * (p - 0.25) / 0.5)
-            rpm = max(rpm, IDLE_RPM)
-            gear = g_from if p < 0.5 else g_to
-            shift = (g_from, g_to, ts, dur, t0)
-            if ts >= dur - 1e-9:
-                mode, shift, since_shift = "drive", None, 0.0
-        elif mode in ("drive", "coast"):
-            # target: the allowed speed here and a second ahead
-            v_t = min(v_allow, route.at(x + v * 1.5)[1])
-            a_des = min(max((v_t - v) * 0.4, -0.8), a_max(v))
-            f_road = road_force(v, grade)
-            if mode == "coast":
-                # below the lowest gear's speed while stopping: neutral, idling, service brakes
-                gear, tq, rpm, ret_nm = 0, 0.0, IDLE_RPM, 0.0
-                if x_stop - x > 30.0 and v_t > v + 0.5:
-                    mode, gear, since_shift = "launch", start_gear_for(grade), 0.0
-                else:
-                    # creep on to the stop point on the brakes
-                    v_c = max(v_t, 0.8) if x_stop - x > 2.0 else 0.0
-                    v = max(v + min(max((v_c - v) * 0.5, -1.0), 0.3) * DT_S, 0.0)
-            else:
-                meq = m_eq(gear)
-                f_need = meq * a_des + f_road
-                t_req = torque_for(f_need, gear)
-                rpm = sync_rpm(gear, v)
-                t_hi = engine_max_torque_nm(rpm, gear)
-                t_lo = engine_min_torque_nm(rpm)
-                tq = min(max(t_req, t_lo), t_hi)
-                f_eng = wheel_force(tq, gear)
-                deficit = f_need - f_eng
-                ret_nm, f_brake = 0.0, 0.0
-                if deficit < 0:
-                    n_os = v / r * fd * _RPM
-                    ret_max = veh.retarder_max_nm * min(1.0, n_os / veh.retarder_full_rpm)
-                    f_ret = min(-deficit, ret_max * fd / r)
-                    ret_nm = f_ret * r / fd
-                    f_brake = -deficit - f_ret
-                a = (f_eng - ret_nm * fd / r - f_brake - f_road) / meq
-                v = max(v + a * DT_S, 0.0)
-                since_shift += DT_S
-                rpm = max(sync_rpm(gear, v), 0.0)
-                # ---- shift strategy
-                new = None
-                load = tq / t_hi if tq > 0 else 0.0
-                if since_shift > 2.0 or rpm > 1950.0 or rpm < 800.0:
-                    cand = {g: sync_rpm(g, v) for g in range(1, 15)}
-                    if rpm > 1950.0:
-                        new = min(gear + 1, 14)
-                    if new is None and rpm > n_up(load) and gear < 14:
-                        for g in range(min(gear + 2, 14), gear, -1):
-                            tg = torque_for(f_need, g)
-                            tmax_g = engine_max_torque_nm(cand[g], g)
-                            if tg <= 0.85 * tmax_g and tg >= engine_min_torque_nm(cand[g]) \
-                                    and cand[g] >= n_down(max(tg, 0.0) / tmax_g) + 100.0:
-                                new = g
-                                break
-                    if new is None and (rpm < n_down(load)
-                                        or (t_req > 0.98 * t_hi and rpm < 1500.0 and v_t > v + 0.3)):
-                        lower = [g for g in fwd if g < gear and cand[g] <= 1800.0]
-                        ok = [g for g in lower if torque_for(f_need, g) <= 0.95 * engine_max_torque_nm(cand[g], g)]
-                        if ok:
-                            new = max(ok)
-                        elif lower:
-                            new = max(lower, key=lambda g: wheel_force(engine_max_torque_nm(cand[g], g), g))
-                        elif rpm < 650.0:
-                            mode = "coast"
-                    if new is None and deficit < -1.0 and grade < -0.02 and gear > 3:
-                        # long descent: a lower gear for more engine brake, if the engine can take the speed
-                        if cand[gear - 1] <= 1750.0:
-                            new = gear - 1
-                if new is not None and new != gear and mode == "drive":
-                    dur = 1.0 if (new >= 9) != (gear >= 9) else 0.6
-                    mode, shift = "shift", (gear, new, 0.0, dur, tq)
-                if mode == "coast":
-                    gear, tq, rpm, ret_nm = 0, 0.0, IDLE_RPM, 0.0
-        # advance along the route; arrive at stops
-        x += v * DT_S
-        if mode in ("drive", "coast", "shift") and x_stop - x < 3.0 and v < 1.5 and seg_stop is not None:
-            x, v = x_stop, 0.0
-            mode, shift, gear, tq, rpm, ret_nm = "stopped", None, 0, 0.0, IDLE_RPM, 0.0
-            dwell = seg_stop.stop_s
-            pending_stop = seg_stop
-            next_start_gear = seg_stop.start_gear
-            stop_i += 1
-            if seg_stop.reverse_m > 0:
-                reverse = _reverse_profile(seg_stop.reverse_m)
-                mode = "reverse"
-        elif x >= route.length_m - 1.0 and mode != "stopped":
-            mode, dwell, v, gear, tq, rpm, ret_nm = "stopped", math.inf, 0.0, 0, 0.0, IDLE_RPM, 0.0
-        out_rpm[k], out_tq[k], out_gear[k], out_v[k], out_ret[k], out_x[k] = rpm, tq, gear, v, ret_nm, x
-    g_arr = np.interp(out_x, route.x, route.grade)
-    alt = np.interp(out_x, route.x, route.altitude_m)
-    return {"time_s": np.arange(n) / round(1.0 / DT_S), "engine_speed_rpm": out_rpm, "engine_torque_nm": out_tq,
-            "gear": out_gear, "vehicle_speed_kmh": out_v * 3.6, "retarder_torque_nm": out_ret,
-            "distance_m": out_x, "grade": g_arr, "altitude_m": alt}
-
-
-def _reverse_profile(distance_m: float, v_kmh: float = 4.0, a_ms2: float = 0.3) -> list:
-    """(speed, acceleration) samples at DT_S of a trapezoidal reversing manoeuvre over `distance_m`, with 3 s in
-    neutral (None samples) before and after."""
-    vmax = v_kmh / 3.6
-    t_ramp = vmax / a_ms2
-    d_ramps = vmax * t_ramp
-    t_const = max(distance_m - d_ramps, 0.0) / vmax
-    total = 2 * t_ramp + t_const
-    pause = [None] * int(round(3.0 / DT_S))
-    out = list(pause)
-    for i in range(int(math.ceil(total / DT_S))):
-        t = i * DT_S
-        if t < t_ramp:
-            out.append((a_ms2 * t, a_ms2))
-        elif t < t_ramp + t_const:
-            out.append((vmax, 0.0))
-        else:
-            out.append((max(vmax - a_ms2 * (t - t_ramp - t_const), 0.0), -a_ms2))
-    out.append((0.0, 0.0))
-    return out + pause
-
-
 # ----------------------------------------------------------------------------------------------------------------
 # routes of the named cycles
 
@@ -561,11 +165,11 @@ _ROAD = {
 
 
 @lru_cache(maxsize=8)
-def _road_cycle(name: str, seed: int) -> dict:
+def _road_cycle(name: str, seed: int) -> DriveTrace:
     build, duration, idle, _ = _ROAD[name]
     rng = np.random.default_rng([seed, sum(map(ord, name))])
     segs, veh = build(rng)
-    return _drive(segs, veh, duration, rng, idle_start_s=idle)
+    return drive(segs, veh, duration, rng, idle_start_s=idle)
 
 
 # ----------------------------------------------------------------------------------------------------------------
@@ -610,13 +214,14 @@ def _out_time(duration_s: float, rate_hz: float) -> np.ndarray:
     return np.arange(n) / rate_hz
 
 
-def _resample(src: dict, t_out: np.ndarray) -> dict:
-    t = src["time_s"]
+def _resample(src: DriveTrace, t_out: np.ndarray) -> dict:
+    """The driven trace at the output times: speeds and torques interpolated, the gear held."""
+    t = src.time_s
     idx = np.clip(np.searchsorted(t, t_out + 1e-9, side="right") - 1, 0, t.size - 1)
     out = {"time_s": t_out}
     for c in ("engine_speed_rpm", "engine_torque_nm", "vehicle_speed_kmh", "retarder_torque_nm"):
-        out[c] = np.interp(t_out, t, src[c])
-    out["gear"] = src["gear"][idx]
+        out[c] = np.interp(t_out, t, getattr(src, c))
+    out["gear"] = src.gear[idx]
     return out
 
 
@@ -637,12 +242,6 @@ def _table(name: str, cols: dict, meta: dict, rate_hz: float, noise: bool, seed:
     meta = dict(meta, cycle=meta.get("cycle", name), rate_hz=float(rate_hz), noise=bool(noise), seed=int(seed),
                 synthetic=True)
     return RunTable({c: cols[c] for c in COLUMNS}, meta=meta)
-
-
-def _vehicle_speed_kmh(gear: np.ndarray, rpm: np.ndarray, veh: Vehicle = Vehicle()) -> np.ndarray:
-    ratio = total_ratios()
-    rt = np.array([ratio[int(g)] for g in gear])
-    return np.where(np.isfinite(rt), rpm / _RPM / (rt * veh.final_drive) * veh.wheel_radius_m * 3.6, 0.0)
 
 
 STEADY_KEYS = {"gear": "gear number or Table 1 name", "rpm": "engine speed", "nm": "engine torque",
@@ -692,7 +291,7 @@ def steady(gear=9, rpm: float = 1300.0, nm: float = 2000.0, s: float = 3600.0, o
     g = np.full(t.size, float(gear))
     n_rpm = np.full(t.size, float(rpm))
     cols = {"time_s": t, "engine_speed_rpm": n_rpm, "engine_torque_nm": np.full(t.size, float(nm)), "gear": g,
-            "vehicle_speed_kmh": _vehicle_speed_kmh(g, n_rpm), "retarder_torque_nm": np.zeros(t.size)}
+            "vehicle_speed_kmh": vehicle_speed_kmh(g, n_rpm), "retarder_torque_nm": np.zeros(t.size)}
     init_c = init if init is not None else (oil if oil is not None else 20.0)
     spec = spec or f"steady:gear={GEAR_NAMES[gear]},rpm={rpm:g},nm={nm:g},s={s:g}" + (
         f",oil={oil:g}" if oil is not None else "")
@@ -725,7 +324,7 @@ def all_gears(rate_hz: float = 10.0, noise: bool = False, seed: int = 0, rpm: fl
     del ts
     n_rpm = np.full(t.size, float(rpm))
     cols = {"time_s": t, "engine_speed_rpm": n_rpm, "engine_torque_nm": tq, "gear": g,
-            "vehicle_speed_kmh": _vehicle_speed_kmh(g, n_rpm), "retarder_torque_nm": np.zeros(t.size)}
+            "vehicle_speed_kmh": vehicle_speed_kmh(g, n_rpm), "retarder_torque_nm": np.zeros(t.size)}
     return _table("all_gears", cols, {"initial_temp_c": float(hold_oil_c), "hold_oil_c": float(hold_oil_c)},
                   rate_hz, noise, seed)
 
@@ -756,11 +355,11 @@ def mining(rate_hz: float = 10.0, noise: bool = False, seed: int = 0) -> RunTabl
 
 
 def road_profile(name: str, seed: int = 0) -> dict:
-    """Distance, grade and altitude of a road cycle at the internal 10 Hz (for plots and docs)."""
+    """Distance, grade and altitude of a road cycle at the vehicle model's 10 Hz (for plots and docs)."""
     if name not in _ROAD:
         raise InputError(f"{name!r} has no road profile; road cycles are {', '.join(_ROAD)}")
     src = _road_cycle(name, int(seed))
-    return {k: src[k].copy() for k in ("time_s", "distance_m", "grade", "altitude_m")}
+    return {k: getattr(src, k).copy() for k in ("time_s", "distance_m", "grade", "altitude_m")}
 
 
 def _check_rate(rate_hz) -> float:
@@ -812,5 +411,5 @@ def summarize(table: RunTable) -> dict:
     if table.has("retarder_torque_nm"):
         res["retarder_share"] = float(dt[table["retarder_torque_nm"] > 1.0].sum() / total)
     if table.has("vehicle_speed_kmh"):
-        res["distance_km"] = float(np.sum(table["vehicle_speed_kmh"] / 3.6 * dt) / 1000.0)
+        res["distance_km"] = float(np.sum(table["vehicle_speed_kmh"] / KMH_PER_M_S * dt) / 1000.0)
     return res

@@ -18,10 +18,8 @@ DEFAULT_SPEC = {"steady": "steady:gear=4L,rpm=1300,nm=2000,s=3600"}
 
 
 def plot_cycle(name: str, out_dir: Path, seed: int = 0) -> Path:
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+    from tools.plots import pyplot
+    plt = pyplot()
     spec = DEFAULT_SPEC.get(name, name)
     tb = get_cycle(spec, seed=seed)
     t = tb.time_s

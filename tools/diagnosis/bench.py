@@ -14,39 +14,35 @@ idling in neutral. They are NOT measurements.
 """
 from __future__ import annotations
 
-import math
 import time
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from firmware_model.effects import CATALOG, EFFECT_IDS
+from firmware_model.units import RAD_S_PER_RPM
 
+from tools.cycles.vehicle import KMH_PER_M_S, total_ratios
 from tools.runtable import RunTable
 
 #: the J1939 temperature resolution (TRF1 SPN 177, rig thermocouples)
 J1939_TEMP_RES_C = 0.03125
 #: thermocouples of the rig set-up (seed section 4.3 measured a main-shaft wheel; the sun wheel is the hottest)
 RIG_CHANNELS = ("PS", "LI.teeth", "BLR")
-#: vehicle (assumed, as in tools/cycles/named.py): final drive, wheel radius
+#: vehicle (assumed, as in tools/cycles/vehicle.py): final drive, wheel radius
 FINAL_DRIVE = 3.07
 WHEEL_RADIUS_M = 0.5
-_RPM = 2.0 * math.pi / 60.0
 
 
 # ----------------------------------------------------------------------------------------------------------------
 # synthetic cycles
 
-def _ratios():
-    from tools.cycles.named import total_ratios
-    return total_ratios()
-
-
 def _vehicle_kmh(gear: np.ndarray, rpm: np.ndarray) -> np.ndarray:
-    r = _ratios()
+    r = total_ratios()
     rt = np.array([r[int(g)] for g in gear])
     with np.errstate(divide="ignore", invalid="ignore"):
-        v = np.where(np.isfinite(rt) & (rt != 0), rpm * _RPM / (np.abs(rt) * FINAL_DRIVE) * WHEEL_RADIUS_M * 3.6, 0.0)
+        v = np.where(np.isfinite(rt) & (rt != 0),
+                     rpm * RAD_S_PER_RPM / (np.abs(rt) * FINAL_DRIVE) * WHEEL_RADIUS_M * KMH_PER_M_S, 0.0)
     return v
 
 
@@ -195,7 +191,7 @@ def planted_value(eid: str, rng: np.random.Generator, min_frac: float = 0.3) -> 
 def measure(truth: RunTable, cycle: RunTable, setup: str, rng: np.random.Generator, sensor: dict) -> RunTable:
     """Turn a plant output into what a truck or a rig logs: lagged, noisy, quantised, a few dropped samples, noisy
     inputs; only the channels of the set-up."""
-    from tools.diagnosis.core import lag_filter
+    from tools.diagnosis.measurement import lag_filter
     t = cycle["time_s"]
     n = t.size
     cols = {"time_s": t}
@@ -388,57 +384,76 @@ def format_table(rows: list, summary: dict) -> str:
     return head + "\n".join(lines) + foot
 
 
+def _write_scenario(outp, i: int, sc: Scenario, res: dict, row: Row, write_scenarios: bool) -> None:
+    """The scenario's JSON (with what was planted) and, with `write_scenarios`, its measured run tables."""
+    import json
+    from tools.runtable import write_run_table
+    if write_scenarios:
+        d = outp / f"scenario_{i:02d}"
+        d.mkdir(exist_ok=True)
+        for k, tb in enumerate(sc.train):
+            write_run_table(tb, d / f"train{k + 1}.csv")
+        for k, tb in enumerate(sc.test):
+            write_run_table(tb, d / f"test{k + 1}.csv")
+    res["bench"] = {"setup": sc.setup, "withheld_effect": sc.effect, "value": sc.value, "cooler": sc.cooler,
+                    "sensor": sc.sensor, "status": row.status}
+    (outp / f"scenario_{i:02d}.json").write_text(json.dumps(res, indent=1))
+
+
+def _write_summary(outp, rows: list, summary: dict) -> None:
+    """bench.md (the table) and bench.csv (the rows)."""
+    import csv
+    (outp / "bench.md").write_text(format_table(rows, summary))
+    with open(outp / "bench.csv", "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(["index", "setup", "cooler", "effect", "value", "frac", "verdict", "fitted", "confusable",
+                    "shrink", "rms_before_c", "rms_after_c", "status", "ok", "diag_s", "truth_s"])
+        for r in rows:
+            w.writerow([r.index, r.setup, r.cooler, r.effect or "none", r.value, r.frac, r.verdict, r.fitted,
+                        ";".join(r.confusable), r.shrink, r.rms_before, r.rms_after, r.status, r.ok, r.diag_s,
+                        r.truth_s])
+
+
+def result_line(i: int, n: int, row: Row) -> str:
+    """The printed result of one scenario."""
+    val = row.value
+    return (f"[{i + 1}/{n}] {row.setup:5s} {row.cooler:6s} {row.effect or 'none':27s} "
+            f"{'' if val is None else f'{val:8.4g}':8s} -> {row.verdict:27s} shrink {100 * row.shrink:4.0f} % "
+            f"{row.diag_s:5.1f} s  {row.status}")
+
+
 def run_bench(n: int = 40, seed: int = 0, out_dir=None, params=None, progress=print, model: str = "plant",
               train_s: float = 1500.0, test_s: float = 1500.0, only=None, opts=None, custom=None,
-              write_scenarios: bool = False) -> tuple:
+              write_scenarios: bool = False, bar: bool | None = None) -> tuple:
     """Generate and diagnose `n` scenarios (or the one `custom` = (setup, effect, value, cooler)); returns
     (rows, summary). Writes per-scenario JSON, the table (Markdown) and a CSV of the rows into `out_dir` when given,
-    and with `write_scenarios` each scenario's measured run tables."""
-    import json
+    and with `write_scenarios` each scenario's measured run tables. `progress` receives each scenario's result line
+    (:func:`result_line`); `bar`: a progress bar over the scenarios (None: when stderr is a terminal)."""
     from pathlib import Path
     from tools.diagnosis.core import diagnose
+    from tools.progress import progress as progress_bar
     if params is None:
         from firmware_model.parameters import load_parameters
         params = load_parameters("GRS905")
     items = [custom] if custom is not None else plan(n, seed)
+    chosen = [i for i in range(len(items)) if only is None or i in only]
     rows = []
     outp = Path(out_dir) if out_dir else None
     if outp:
         outp.mkdir(parents=True, exist_ok=True)
-    for i, (setup, eid, val, cooler) in enumerate(items):
-        if only is not None and i not in only:
-            continue
-        sc = make_scenario(i, seed, setup, eid, val, params, cooler=cooler, train_s=train_s, test_s=test_s)
-        t0 = time.perf_counter()
-        res = diagnose(sc.train, sc.test, params, model=model, cooler=cooler, opts=opts)
-        dt = time.perf_counter() - t0
-        row = score_row(sc, res, dt)
-        if outp and write_scenarios:
-            from tools.runtable import write_run_table
-            d = outp / f"scenario_{i:02d}"
-            d.mkdir(exist_ok=True)
-            for k, tb in enumerate(sc.train):
-                write_run_table(tb, d / f"train{k + 1}.csv")
-            for k, tb in enumerate(sc.test):
-                write_run_table(tb, d / f"test{k + 1}.csv")
-        rows.append(row)
-        if outp:
-            res["bench"] = {"setup": setup, "withheld_effect": eid, "value": val, "cooler": cooler,
-                            "sensor": sc.sensor, "status": row.status}
-            (outp / f"scenario_{i:02d}.json").write_text(json.dumps(res, indent=1))
-        progress(f"[{i + 1}/{len(items)}] {setup:5s} {cooler:6s} {eid or 'none':27s} "
-                 f"{'' if val is None else f'{val:8.4g}':8s} -> {row.verdict:27s} shrink {100 * row.shrink:4.0f} % "
-                 f"{dt:5.1f} s  {row.status}")
+    with progress_bar(len(chosen), "bench-diagnosis", enabled=bar, unit="scenario") as pbar:
+        for i in chosen:
+            setup, eid, val, cooler = items[i]
+            sc = make_scenario(i, seed, setup, eid, val, params, cooler=cooler, train_s=train_s, test_s=test_s)
+            t0 = time.perf_counter()
+            res = diagnose(sc.train, sc.test, params, model=model, cooler=cooler, opts=opts)
+            row = score_row(sc, res, time.perf_counter() - t0)
+            rows.append(row)
+            if outp:
+                _write_scenario(outp, i, sc, res, row, write_scenarios)
+            pbar.update(1)
+            progress(result_line(i, len(items), row))
     summary = summarize(rows)
     if outp:
-        (outp / "bench.md").write_text(format_table(rows, summary))
-        import csv
-        with open(outp / "bench.csv", "w", newline="") as fh:
-            w = csv.writer(fh)
-            w.writerow(["index", "setup", "cooler", "effect", "value", "frac", "verdict", "fitted", "confusable",
-                        "shrink", "rms_before_c", "rms_after_c", "status", "ok", "diag_s", "truth_s"])
-            for r in rows:
-                w.writerow([r.index, r.setup, r.cooler, r.effect or "none", r.value, r.frac, r.verdict, r.fitted,
-                            ";".join(r.confusable), r.shrink, r.rms_before, r.rms_after, r.status, r.ok, r.diag_s,
-                            r.truth_s])
+        _write_summary(outp, rows, summary)
     return rows, summary

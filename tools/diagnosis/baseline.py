@@ -1,0 +1,129 @@
+"""Stage 2 of the diagnosis: the unmodified model on every file, and the measurement model fitted around it.
+
+One batch per training file: the baseline, a 2 K warmer start (the sensitivity to the initial temperature; the oil's
+effective conductance to the outside), the baseline at half the step (the model's own numerical error, plant only)
+and the candidates' grid (bounds, at the coarse step where the backend has one, see :func:`fit.grid_plan`). Then
+the noise per channel, the nuisance sensor lags, the model error floor, the weights, and the baseline's
+predictions with the initial-temperature nuisance solved per file.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import NamedTuple
+
+import numpy as np
+
+from tools.diagnosis.context import Context
+from tools.diagnosis.measurement import fit_nuisance_lags, noise_per_channel
+from tools.diagnosis.models import Run
+from tools.diagnosis.scoring import RoleData, Scorer, file_groups, observations, predictions, weights
+
+
+class GridPlan(NamedTuple):
+    """The candidates' grid re-simulations: the runs and, per run, (effect, value) (None: the coarse baseline)."""
+    runs: list
+    keys: list
+
+
+class HeatPair(NamedTuple):
+    """Baseline and 2 K warmer start of the same files (for the oil's effective conductance to the outside)."""
+    base: list
+    warmer: list
+
+
+@dataclass(frozen=True)
+class Baseline:
+    base_tr: list            # model outputs per training file
+    base_te: list            # model outputs per test file
+    heat_pair: HeatPair
+    grid_outs: list          # outputs of the GridPlan's runs (training files)
+    sigma: dict              # noise per sample, per channel
+    floor: dict              # model error floor, per channel
+    lag0: dict               # nuisance lags refitted on the full misfit of the baseline
+    scorer: Scorer
+    p0_hp: list              # baseline predictions with the high-pass nuisance lags, no initial-temperature shift
+    p0_tr: list              # baseline predictions as scored (lag0, initial temperature solved), training files
+    p0_te: list              # the same on the test files
+    S0: float                # misfit of the baseline (training files)
+    S_noise: float           # the part of S the noise and the model error floor explain
+
+    @property
+    def train(self) -> RoleData:
+        return self.scorer.train
+
+    @property
+    def test(self) -> RoleData:
+        return self.scorer.test
+
+
+class Sims(NamedTuple):
+    base_tr: list
+    warm_tr: list
+    fine_tr: list | None
+    grid_outs: list
+    base_te: list
+    warm_te: list
+    heat_pair: HeatPair
+
+
+def _simulate(ctx: Context, train: list, test: list, grid: GridPlan) -> Sims:
+    head = [Run.of(), Run.of(initial_offset_c=2.0)] + ([Run.of(fine=True)] if ctx.is_plant else [])
+    out_tr = ctx.sim.run(train, head + grid.runs)
+    out_te = ctx.sim.run(test, head[:2])
+    if ctx.is_plant:
+        pair = HeatPair(out_tr[0], out_tr[1])
+    elif getattr(ctx.model, "fallback", None) is not None:
+        pp = ctx.model.fallback.simulate(train[:1], [Run.of(), Run.of(initial_offset_c=2.0)], [])
+        ctx.sim.count(2)
+        pair = HeatPair(pp[0], pp[1])
+    else:
+        pair = HeatPair([], [])
+    return Sims(out_tr[0], out_tr[1], out_tr[2] if ctx.is_plant else None, out_tr[len(head):], out_te[0], out_te[1],
+                pair)
+
+
+def model_error_floor(ctx: Context, train: list, sims: Sims, lag: dict, channels) -> dict:
+    """Per channel, the numerical error of the model's step (BDF2: error ~ dt^2, so the full step's error is about
+    4/3 of its difference to the half step), at least model_floor_c."""
+    o = ctx.opts
+    floor = {c: o.model_floor_c for c in channels}
+    if sims.fine_tr is None:
+        return floor
+    pb, pf = predictions(train, sims.base_tr, lag), predictions(train, sims.fine_tr, lag)
+    acc = {}
+    for (cid, _), a, b in zip([(c, h) for ds in train for c, h in ds.channels.items()], pb, pf):
+        x = acc.setdefault(cid, [0.0, 0])
+        x[0] += float(np.sum((a - b) ** 2))
+        x[1] += a.size
+    for cid, (ss, n) in acc.items():
+        floor[cid] = max(o.model_floor_c, 4.0 / 3.0 * math.sqrt(ss / max(n, 1)))
+    return floor
+
+
+def _role(datasets: list, base: list, warm: list, lag: dict, sigma: dict, floor: dict, ctx: Context) -> RoleData:
+    """The measurements of one role and the sensitivity of every prediction to the initial temperature."""
+    sb, sp = predictions(datasets, base, lag), predictions(datasets, warm, lag)
+    return RoleData(datasets, observations(datasets), weights(datasets, sigma, floor, ctx.opts),
+                    [(q - p) / 2.0 for p, q in zip(sb, sp)], file_groups(datasets))
+
+
+def establish_baseline(ctx: Context, train: list, test: list, grid: GridPlan) -> Baseline:
+    """Simulate the baseline batch and fit the measurement model around it."""
+    sims = _simulate(ctx, train, test, grid)
+    # noise per channel (pooled median over the files), nuisance lags
+    sigma = noise_per_channel(train + test, sims.base_tr + sims.base_te)
+    lag = fit_nuisance_lags(train, sims.base_tr, ctx.opts)
+    floor = model_error_floor(ctx, train, sims, lag, sigma)
+    scorer = Scorer(_role(train, sims.base_tr, sims.warm_tr, lag, sigma, floor, ctx),
+                    _role(test, sims.base_te, sims.warm_te, lag, sigma, floor, ctx), lag, ctx.opts)
+    lag0 = scorer.refit_lags(sims.base_tr)
+    p0_tr = scorer.adjust(scorer.preds(train, sims.base_tr, lags=lag0), "train")
+    p0_te = scorer.adjust(scorer.preds(test, sims.base_te, lags=lag0), "test")
+    S0 = scorer.S(p0_tr)
+    # noise-expected part of S (for the explained share of the excess)
+    S_noise = float(sum(np.sum(wi * (sigma[cid] ** 2 / ch.cell_n + floor[cid] ** 2))
+                        for wi, (cid, ch) in zip(scorer.train.w,
+                                                 [(c, h) for ds in train for c, h in ds.channels.items()])))
+    return Baseline(sims.base_tr, sims.base_te, sims.heat_pair, sims.grid_outs, sigma, floor, lag0, scorer,
+                    scorer.preds(train, sims.base_tr), p0_tr, p0_te, S0, S_noise)

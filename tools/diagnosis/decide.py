@@ -1,0 +1,265 @@
+"""Stage 4 of the diagnosis: the verdict, the confusable candidates and what would separate them, and how far the
+verdict shrinks the residual on the held-out test files.
+
+Verdict: "none" when the systematic residual (noise removed) stays within the 'none' threshold on every channel;
+else the best candidate when it has strong evidence, explains enough of the excess, sits far enough from neutral
+and does not sit at its bound with a gap left; else "unexplained" when a real gap remains, "none" when not.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import NamedTuple
+
+import numpy as np
+
+from firmware_model.effects import CATALOG
+
+from tools.diagnosis.baseline import Baseline
+from tools.diagnosis.context import Context
+from tools.diagnosis.fit import Candidate, Criterion, Fit
+from tools.diagnosis.models import Run
+from tools.diagnosis.options import OIL, Options, json_number
+
+NO_EFFECT = ("none", "unexplained")
+
+
+class Systematic(NamedTuple):
+    """Per channel: the RMS of the residual with the noise removed, and the 'none' threshold."""
+    rms_c: dict
+    none_thr_c: dict
+
+
+@dataclass(frozen=True)
+class Verdict:
+    effect: str              # "none", "unexplained" or the effect id
+    reason: str
+    systematic: Systematic   # of the baseline on the training files
+    gap_thr_c: dict          # per channel: what a real gap must exceed
+    post_c: dict             # per channel: the systematic residual left after the best candidate
+
+    @property
+    def is_effect(self) -> bool:
+        return self.effect not in NO_EFFECT
+
+    def remaining_gap_c(self) -> dict:
+        return {c: v for c, v in self.post_c.items() if v > self.gap_thr_c[c]}
+
+
+def systematic(base: Baseline, preds: list, opts: Options) -> Systematic:
+    """Per channel: RMS of the training residual with the noise removed, and the 'none' threshold."""
+    rd = base.train
+    acc = {}
+    k = 0
+    for ds in rd.datasets:
+        for cid, ch in ds.channels.items():
+            r = rd.obs[k] - preds[k]
+            k += 1
+            a = acc.setdefault(cid, [0.0, 0.0, 0])
+            a[0] += float(np.sum(r ** 2))
+            a[1] += float(np.sum(base.sigma[cid] ** 2 / ch.cell_n))
+            a[2] += r.size
+    sys_rms = {c: math.sqrt(max(a[0] - a[1], 0.0) / max(a[2], 1)) for c, a in acc.items()}
+    thr = {c: max(opts.none_k * base.sigma[c], opts.none_floor_c, base.floor[c]) for c in acc}
+    return Systematic(sys_rms, thr)
+
+
+def _fraction_of_range(f: Fit) -> float:
+    """How far the fitted value sits from neutral towards the bound on its side (0..1)."""
+    e = CATALOG[f.effect]
+    bound = e.high if f.value >= e.neutral else e.low
+    return (f.value - e.neutral) / (bound - e.neutral) if bound != e.neutral else 0.0
+
+
+def _why_not(top: Candidate, gap_left: bool, opts: Options) -> str:
+    """Why the best candidate is not the verdict ('' when it is)."""
+    f = top.fit
+    e = CATALOG[f.effect]
+    frac = _fraction_of_range(f)
+    if top.score < opts.evidence_min:
+        return f"no candidate has strong evidence (best {f.effect}: score {top.score:.1f} < {opts.evidence_min:g})"
+    if top.explained < opts.explain_min:
+        return (f"the best candidate {f.effect} explains only {100 * top.explained:.0f} % of the excess squared "
+                f"residual (< {100 * opts.explain_min:.0f} %)")
+    if abs(frac) < opts.min_frac:
+        return (f"the best candidate {f.effect} fits at {e.param} = {f.value:g} {e.unit}, only "
+                f"{100 * abs(frac):.0f} % of the way from neutral to its bound (< {100 * opts.min_frac:.0f} %)")
+    if f.at_bound and gap_left:
+        return (f"the best candidate {f.effect} sits at the bound of its plausible range ({e.param} = "
+                f"{f.value:g} {e.unit}) and a gap remains")
+    return ""
+
+
+def _listing(values: dict, thr: dict, op: str, keys) -> str:
+    return ", ".join(f"{c} {values[c]:.3f} {op} {thr[c]:.3f} degC" for c in keys)
+
+
+def decide(ctx: Context, base: Baseline, crit: Criterion) -> Verdict:
+    """The verdict and its reason (one sentence the report and the CLI print)."""
+    o = ctx.opts
+    sy = systematic(base, base.p0_tr, o)
+    sys_rms, thr = sy.rms_c, sy.none_thr_c
+    gap_thr = {c: max(o.gap_k * base.sigma[c], o.gap_floor_c, 2.0 * base.floor[c]) for c in sys_rms}
+    top = crit.candidates[0]
+    post = systematic(base, top.fit.preds_train, o).rms_c
+    gap_left = any(post[c] > gap_thr[c] for c in post)
+    real_gap = [c for c in sys_rms if sys_rms[c] > gap_thr[c]]
+    if all(sys_rms[c] <= thr[c] for c in sys_rms):
+        return Verdict("none", "the model agrees with the measurement within its noise on every channel (systematic "
+                       "residual " + _listing(sys_rms, thr, "<=", sys_rms) + ")", sy, gap_thr, post)
+    why_not = _why_not(top, gap_left, o)
+    if not why_not:
+        reason = (f"{top.fit.effect} has the strongest evidence (score {top.score:.0f}) and explains "
+                  f"{100 * min(top.explained, 1.0):.0f} % of the excess squared residual")
+        if gap_left:
+            reason += ("; a gap remains after it (systematic residual "
+                       + _listing(post, gap_thr, ">", [c for c in post if post[c] > gap_thr[c]])
+                       + "): a second effect, or one outside the catalog")
+        return Verdict(top.fit.effect, reason, sy, gap_thr, post)
+    if real_gap:
+        return Verdict("unexplained", why_not + "; a real gap remains (systematic residual "
+                       + _listing(sys_rms, gap_thr, ">", real_gap) + ")", sy, gap_thr, post)
+    return Verdict("none", why_not + "; the systematic residual stays below the measurement noise ("
+                   + _listing(sys_rms, gap_thr, "<=", sys_rms) + ")", sy, gap_thr, post)
+
+
+# ----------------------------------------------------------------------------------------------------------------
+# confusable candidates
+
+def _confusable(a: Candidate, b: Candidate, sigs: dict, opts: Options) -> bool:
+    """Both strong, their signatures correlated >= confusable_corr, their explained shares close."""
+    if a.score < opts.evidence_min or b.score < opts.evidence_min:
+        return False
+    sa, sb = sigs[a.fit.effect], sigs[b.fit.effect]
+    na, nb = np.linalg.norm(sa), np.linalg.norm(sb)
+    if na == 0 or nb == 0:
+        return False
+    corr = float(np.dot(sa, sb) / (na * nb))
+    return corr >= opts.confusable_corr and abs(a.explained - b.explained) <= opts.confusable_share
+
+
+def confusable_with(crit: Criterion, opts: Options) -> dict:
+    """Effect -> the effects it is confusable with (pairwise over the ranked candidates)."""
+    cands = crit.candidates
+    conf = {c.fit.effect: [] for c in cands}
+    for i, a in enumerate(cands):
+        for b in cands[i + 1:]:
+            if _confusable(a, b, crit.signatures, opts):
+                conf[a.fit.effect].append(b.fit.effect)
+                conf[b.fit.effect].append(a.fit.effect)
+    return conf
+
+
+#: the key of the cooler's heat among the node differences
+COOLER_HEAT = "__cooler"
+
+
+class NodeDifference(NamedTuple):
+    sq: float                # sum of squared differences (degC^2, W^2 for the cooler's heat)
+    samples: int
+
+
+def _accumulate(diffs: dict, key: str, a: np.ndarray, b: np.ndarray) -> None:
+    d = diffs.get(key, NodeDifference(0.0, 0))
+    diffs[key] = NodeDifference(d.sq + float(np.sum((a - b) ** 2)), d.samples + a.size)
+
+
+def _node_differences(outs_a: list, outs_b: list) -> dict:
+    """Node (and COOLER_HEAT) -> the squared difference of two full-output runs over the files."""
+    from firmware_model.components import HOUSINGS, PUBLISHED
+    nodes = [n for n in PUBLISHED if n != OIL] + list(HOUSINGS) + [OIL]
+    diffs = {}
+    for oa, ob in zip(outs_a, outs_b):
+        fa_, fb_ = oa["full"], ob["full"]
+        for n in nodes:
+            c = f"T_{n}_c"
+            if c in fa_ and c in fb_:
+                _accumulate(diffs, n, fa_[c], fb_[c])
+        if "Q_out_cooler_w" in fa_:
+            _accumulate(diffs, COOLER_HEAT, fa_["Q_out_cooler_w"], fb_["Q_out_cooler_w"])
+    return diffs
+
+
+def suggest(ctx: Context, train: list, fa: Fit, fb: Fit) -> dict:
+    """Which extra measurement separates two confusable effects: simulate both at their fitted values with every
+    node and rank the nodes (and the cooler heat) by the RMS difference."""
+    outs = ctx.sim.run(train, [Run.of({fa.effect: fa.value}, full=True), Run.of({fb.effect: fb.value}, full=True)])
+    measured = {cid for ds in train for cid in ds.channels}
+    diffs = _node_differences(outs[0], outs[1])
+    ranked = []
+    for n, d in diffs.items():
+        rms = math.sqrt(d.sq / max(d.samples, 1))
+        if n == COOLER_HEAT or n in measured:
+            continue
+        label = ("a second, fast oil sensor in the sump" if n == OIL else
+                 f"a thermocouple on {n}" + (" (sun wheel)" if n == "PS" else ""))
+        ranked.append({"measurement": label, "node": n, "difference_rms_c": json_number(rms)})
+    ranked.sort(key=lambda x: -x["difference_rms_c"])
+    cool = diffs.get(COOLER_HEAT)
+    cool_rms = math.sqrt(cool.sq / max(cool.samples, 1)) if cool else 0.0
+    best = ranked[0] if ranked else None
+    text = (f"{fa.effect} and {fb.effect} explain the data alike; " +
+            (f"{best['measurement']} would separate them (predicted difference {best['difference_rms_c']:.2f} "
+             f"degC rms)" if best else "no single extra temperature separates them"))
+    if cool_rms > 300:
+        text += (f"; so would the cooler's heat (oil temperatures at the cooler inlet and outlet, or the coolant "
+                 f"temperature): {cool_rms:.0f} W rms apart")
+    return {"effects": [fa.effect, fb.effect], "best": ranked[:3],
+            "cooler_heat_difference_rms_w": json_number(cool_rms, 1), "text": text}
+
+
+def suggestions(ctx: Context, train: list, verdict: Verdict, crit: Criterion, conf: dict) -> list:
+    """For an effect verdict: what separates it from each effect it is confusable with."""
+    if not verdict.is_effect:
+        return []
+    top = crit.candidates[0]
+    by_effect = {c.fit.effect: c for c in crit.candidates}
+    return [suggest(ctx, train, top.fit, by_effect[other].fit) for other in conf[top.fit.effect]]
+
+
+# ----------------------------------------------------------------------------------------------------------------
+# the held-out shrink
+
+def pooled_rms(res: list) -> float:
+    n = sum(r.size for r in res)
+    return math.sqrt(sum(float(np.sum(r ** 2)) for r in res) / n) if n else float("nan")
+
+
+def max_abs(res: list) -> float:
+    return max((float(np.max(np.abs(r))) for r in res if r.size), default=float("nan"))
+
+
+@dataclass(frozen=True)
+class Residuals:
+    """Measured - model per (dataset, channel), before and after the verdict, training and test files."""
+    train_before: list
+    train_after: list
+    test_before: list
+    test_after: list
+
+    @property
+    def test_rms_before_c(self) -> float:
+        return pooled_rms(self.test_before)
+
+    @property
+    def test_rms_after_c(self) -> float:
+        return pooled_rms(self.test_after)
+
+    @property
+    def shrink(self) -> float:
+        """1 - RMS after / RMS before on the test files (0 without a residual)."""
+        rms_b = self.test_rms_before_c
+        return 1.0 - self.test_rms_after_c / rms_b if rms_b > 0 else 0.0
+
+
+def residuals(base: Baseline, verdict: Verdict, crit: Criterion) -> Residuals:
+    """The residuals before the verdict (the baseline as scored) and after it (the verdict's fit; unchanged for
+    'none' and 'unexplained')."""
+    obs_tr, obs_te = base.train.obs, base.test.obs
+    res_tr0 = [y - p for y, p in zip(obs_tr, base.p0_tr)]
+    res_te0 = [y - p for y, p in zip(obs_te, base.p0_te)]
+    if not verdict.is_effect:
+        return Residuals(res_tr0, res_tr0, res_te0, res_te0)
+    top = crit.candidates[0]
+    return Residuals(res_tr0, [y - p for y, p in zip(obs_tr, top.fit.preds_train)], res_te0,
+                     [y - p for y, p in zip(obs_te, top.p_te)])

@@ -1,0 +1,56 @@
+"""Settings and constants of the gap diagnosis, shared by its stages, and how it writes a number into its JSON."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+SCHEMA = "gap-diagnosis/1"
+#: J1939 temperature resolution (TRF1 SPN 177, rig thermocouples): the noise floor of a measured channel
+J1939_RES_C = 0.03125
+#: channel id of the vehicle's oil sensor (oil_temp_c)
+OIL = "oil"
+#: channel id of a rig thermocouple in the sump (meas_T_oil_c): not the vehicle's oil sensor
+OIL_RIG = "oil@rig"
+INPUT_COLUMNS = ("time_s", "engine_speed_rpm", "engine_torque_nm", "gear", "ambient_temp_c", "coolant_temp_c",
+                 "vehicle_speed_kmh", "retarder_torque_nm")
+#: effects whose prediction is exact from the baseline (no simulation needed before the check)
+ANALYTIC = ("oil_sensor_lag",)
+LOG_SUFFIXES = (".log", ".asc", ".blf", ".mf4")
+#: the stages of one diagnosis, in order (what the progress callback is told)
+STAGES = ("baseline and candidate grid", "where", "fit", "test", "verdict")
+
+
+@dataclass
+class Options:
+    grid_dt_s: float = 2.0            # analysis grid
+    plant_dt_s: float = 1.0           # re-simulation step of the plant
+    out_dt_s: float = 1.0             # model output interval (before the nuisance lag and the grid)
+    sensor_lag_max_s: float = 10.0    # normal sensor dynamics: a nuisance, never an effect
+    model_floor_c: float = 0.05       # model error floor added to the noise in the weights
+    initial_offset_max_c: float = 0.25  # the initial temperature nuisance: within this of the first reading
+    none_k: float = 0.3               # "none" at once: systematic residual <= none_k x noise (per sample) ...
+    none_floor_c: float = 0.03        # ... or this, on every channel
+    gap_k: float = 1.0                # a real gap: systematic residual > gap_k x noise ...
+    gap_floor_c: float = 0.1          # ... and this, on some channel
+    ident_k: float = 0.5              # identifiable: the effect can move a channel by ident_k x noise (RMS)
+    min_frac: float = 0.1             # a verdict's effect must sit >= 10 % of the way from neutral to its bound
+    evidence_min: float = 10.0        # score (-dBIC) for strong evidence
+    explain_min: float = 0.5          # share of the excess squared residual the verdict must explain
+    confusable_corr: float = 0.95
+    confusable_share: float = 0.1     # explained shares within this of the best
+    refine: int = 2                   # refinement re-simulations per candidate
+    coarse_grid: bool = True          # surrogate grid at the plant's coarse step (2 s), differences only
+    dense: int = 161                  # dense parameter grid of the surrogate
+    workers: int | None = None
+    cold_c: float = 60.0
+    max_time_gap_s: float = 60.0
+    max_channel_gap_frac: float = 0.25
+
+
+def json_number(x, nd=4):
+    """A JSON number: rounded to `nd` decimals; None for None, NaN and infinities."""
+    if x is None:
+        return None
+    x = float(x)
+    if x != x or x in (float("inf"), float("-inf")):
+        return None
+    return round(x, nd)

@@ -1,0 +1,324 @@
+"""Stage 1 of the diagnosis: load the measured runs, validate them and put their channels on the analysis grid.
+
+Input: measured run tables (CSV) or CAN logs with the oil sensor ``oil_temp_c`` and/or rig thermocouples
+``meas_T_<id>_c``. Every problem is an InputError of one sentence naming the file and the column.
+"""
+from __future__ import annotations
+
+import hashlib
+import os
+from dataclasses import dataclass
+from pathlib import Path
+from typing import NamedTuple
+
+import numpy as np
+
+from firmware_model.components import HOUSINGS, PUBLISHED
+from firmware_model.errors import InputError
+
+from tools.diagnosis.options import INPUT_COLUMNS, J1939_RES_C, LOG_SUFFIXES, OIL, OIL_RIG, Options
+from tools.runtable import REQUIRED, RunTable, read_run_table, validate_run_table
+
+
+class ChannelColumns(NamedTuple):
+    """The measured column of a channel and the model column that predicts it."""
+    column: str
+    model_column: str
+
+
+@dataclass(frozen=True, eq=False)
+class Channel:
+    """One measured channel of one file: its valid raw samples and their averages on the analysis grid."""
+    id: str                 # 'oil' or component id
+    column: str             # measured column
+    model_column: str       # model column predicting it
+    t_s: np.ndarray         # raw valid sample times
+    y_c: np.ndarray         # raw valid values
+    cell_t_s: np.ndarray    # mean sample time per grid cell
+    cell_y_c: np.ndarray    # mean value per grid cell
+    cell_n: np.ndarray      # samples per grid cell
+
+
+@dataclass(frozen=True, eq=False)
+class Dataset:
+    """One measured file, ready for the diagnosis."""
+    name: str
+    role: str               # 'train' or 'test'
+    inputs: RunTable        # the drive inputs (and the oil when it is an input), meta['initial_temp_c']
+    channels: dict          # channel id -> Channel
+    initial_temp_c: float
+    t_start_s: float
+    t_end_s: float
+    warnings: tuple = ()
+
+
+class Runs(NamedTuple):
+    """The prepared training and test files."""
+    train: list
+    test: list
+
+
+def channel_columns(table: RunTable) -> dict:
+    """Channel id -> ChannelColumns of every measured channel in `table`."""
+    out = {}
+    if table.has("oil_temp_c"):
+        out[OIL] = ChannelColumns("oil_temp_c", "oil_temp_c")
+    for c in table.columns:
+        if c.startswith("meas_T_") and c.endswith("_c"):
+            cid = c[len("meas_T_"):-2]
+            # a rig thermocouple in the sump is not the vehicle's oil sensor (no sensor lag effect on it)
+            out[cid if cid != OIL else OIL_RIG] = ChannelColumns(c, f"T_{cid}_c")
+    return out
+
+
+# ----------------------------------------------------------------------------------------------------------------
+# loading
+
+def _table_from_can_log(p: Path, path, config_path) -> RunTable:
+    """The measured run table of a CAN log, decoded through the sensor's own CAN service."""
+    try:
+        from tools.cli.run import build_service
+        from tools.can.replay_log import is_can_log, replay_log
+    except ImportError:
+        raise InputError(f"{path}: CAN logs need the log decoder (tools/can/replay_log.py), which is not installed; "
+                         f"convert the log to a CSV run table first") from None
+    if not is_can_log(p):
+        raise InputError(f"{path}: {p.suffix} logs are not supported; use .log, .asc, .blf or .mf4")
+    rec = replay_log(p, build_service(config_path, record=True, emit_frames=False))
+    keep = [c for c in INPUT_COLUMNS + ("oil_temp_c",) if rec.has(c)] + [
+        c for c in rec.columns if c.startswith("meas_T_") and c.endswith("_c")]
+    cols = {c: np.asarray(rec[c], dtype=float) for c in keep}
+    # the first steps before every drive signal has arrived carry no input: drop them
+    ok = np.ones(rec.n, dtype=bool)
+    for c in REQUIRED:
+        if c not in cols:
+            raise InputError(f"{path}: the log never carries {c} (its J1939 message is missing or from another "
+                             f"source address); check the [can] section of the configuration")
+        ok &= np.isfinite(cols[c])
+    if not ok.any():
+        raise InputError(f"{path}: no step of the log has engine speed, torque and gear together")
+    first = int(np.argmax(ok))
+    t = RunTable({c: v[first:] for c, v in cols.items()}, source=os.fspath(path))
+    # a drive signal that drops out later is held (the sensor does the same)
+    for c in REQUIRED[1:]:
+        v = t[c]
+        bad = ~np.isfinite(v)
+        if bad.any():
+            idx = np.maximum.accumulate(np.where(bad, 0, np.arange(v.size)))
+            t[c] = v[idx]
+    return t
+
+
+def load_table(path, config_path=None) -> RunTable:
+    """A measured run table from a CSV file, or from a CAN log (candump -L .log, .asc, .blf, .mf4) decoded through
+    the sensor's own CAN service (tools.can.replay_log): the decoded inputs, the oil sensor (TRF1) and the rig
+    thermocouple frames (meas_T_<id>_c); the sensor's own estimates are dropped."""
+    p = Path(path)
+    if not p.exists():
+        raise InputError(f"{path}: no such file")
+    if p.suffix.lower() in LOG_SUFFIXES:
+        return _table_from_can_log(p, path, config_path)
+    t = read_run_table(p)
+    t.source = os.fspath(path)
+    return t
+
+
+def fingerprint(table: RunTable) -> str:
+    """A hash of the drive and the measured channels: the same run given twice has the same fingerprint."""
+    h = hashlib.sha1()
+    for c in ("time_s", "engine_speed_rpm", "engine_torque_nm", "gear"):
+        h.update(np.ascontiguousarray(table[c]).tobytes())
+    for c in channel_columns(table).values():
+        h.update(np.ascontiguousarray(table[c.column]).tobytes())
+    return h.hexdigest()
+
+
+class Loaded(NamedTuple):
+    name: str
+    table: RunTable
+    source: object          # the RunTable or the path it came from
+
+
+def _load_all(items, names, role: str, config_path) -> list:
+    out = []
+    for i, it in enumerate(items):
+        if isinstance(it, RunTable):
+            tb = it
+            nm = (names[i] if names else None) or it.source or f"{role}{i + 1}"
+        else:
+            tb = load_table(it, config_path)
+            nm = (names[i] if names else None) or os.fspath(it)
+        out.append(Loaded(nm, tb, it))
+    return out
+
+
+def _check_distinct(train: list, test: list) -> None:
+    """Train and test must be different runs, and no run given twice (same path or same data)."""
+    seen = {}
+    for role, items in (("train", train), ("test", test)):
+        for item in items:
+            keys = [("data", fingerprint(item.table))]
+            if not isinstance(item.source, RunTable):
+                keys.insert(0, ("path", os.path.realpath(item.source)))
+            for k in keys:
+                if k in seen:
+                    other, orole = seen[k]
+                    if orole != role:
+                        raise InputError(f"{item.name} is both a training and a test file (same data as {other}); "
+                                         f"the test files must be different runs")
+                    raise InputError(f"{item.name} is given twice as a {role} file (same data as {other}); give "
+                                     f"each run once")
+                seen[k] = (item.name, role)
+
+
+def prepare_runs(train_tables, test_tables, opts: Options, oil_is_input: bool, train_names=None, test_names=None,
+                 config_path=None) -> Runs:
+    """Load (RunTables or paths), check that train and test differ, prepare every file; the test files may only
+    measure channels that some training file measures."""
+    if not train_tables:
+        raise InputError("give at least one training file (--train)")
+    if not test_tables:
+        raise InputError("give at least one test file (--test)")
+    tr = _load_all(train_tables, train_names, "train", config_path)
+    te = _load_all(test_tables, test_names, "test", config_path)
+    _check_distinct(tr, te)
+    train = [prepare(x.table, x.name, "train", opts, oil_is_input) for x in tr]
+    test = [prepare(x.table, x.name, "test", opts, oil_is_input) for x in te]
+    ch_tr = {c for ds in train for c in ds.channels}
+    missing = sorted({c for ds in test for c in ds.channels} - ch_tr)
+    if missing:
+        raise InputError(f"channel(s) {', '.join(missing)} are measured in the test files but in no training file; "
+                         f"the diagnosis can only test what it was trained on")
+    return Runs(train, test)
+
+
+# ----------------------------------------------------------------------------------------------------------------
+# validation and the analysis grid
+
+def _longest_nan_run(t, valid):
+    """Longest time span [s] without a valid sample (start, length)."""
+    tv = t[valid]
+    if tv.size == 0:
+        return t[0], t[-1] - t[0]
+    edges = np.concatenate([[t[0]], tv, [t[-1]]])
+    d = np.diff(edges)
+    k = int(np.argmax(d))
+    return float(edges[k]), float(d[k])
+
+
+def _check_time(t: np.ndarray, name: str, opts: Options) -> None:
+    if t.size < 10:
+        raise InputError(f"{name}: has only {t.size} rows; the diagnosis needs at least 10 samples")
+    dt = np.diff(t)
+    med = float(np.median(dt))
+    gap_lim = max(opts.max_time_gap_s, 50 * med)
+    k = int(np.argmax(dt))
+    if dt[k] > gap_lim:
+        raise InputError(f"{name}: column time_s jumps from {t[k]:.10g} s to {t[k + 1]:.10g} s (a gap of "
+                         f"{dt[k]:.0f} s, more than {gap_lim:.0f} s); split the file at the gap")
+
+
+class ValidSamples(NamedTuple):
+    """The valid samples of a measured column, and a warning about it ('' when none)."""
+    t_s: np.ndarray
+    y_c: np.ndarray
+    warning: str
+
+
+def _check_values(y: np.ndarray, ok: np.ndarray, name: str, col: str, dur_s: float) -> None:
+    """Refuse infinite, dead, stuck and implausible columns."""
+    if np.any(np.isinf(y)):
+        raise InputError(f'{name}: column "{col}" row {int(np.flatnonzero(np.isinf(y))[0]) + 1}: infinite value')
+    if not ok.any():
+        raise InputError(f'{name}: column "{col}" has no valid value (a dead sensor); remove the column or fix '
+                         f"the logging")
+    if ok.sum() < max(10, 0.2 * y.size):
+        raise InputError(f'{name}: column "{col}" has only {int(ok.sum())} valid values of {y.size} (a dead '
+                         f"sensor); remove the column or fix the logging")
+    yv = y[ok]
+    if np.ptp(yv) <= J1939_RES_C * 1.01 and dur_s > 60:
+        raise InputError(f'{name}: column "{col}" stays at {yv[0]:.5g} degC for the whole {dur_s:.0f} s (a stuck '
+                         f"sensor); remove the column or the file")
+    if np.any((yv < -60) | (yv > 300)):
+        bad = yv[(yv < -60) | (yv > 300)][0]
+        raise InputError(f'{name}: column "{col}" holds {bad:.5g} degC, outside -60..300 degC (not a plausible '
+                         f"temperature)")
+
+
+def _valid_samples(table: RunTable, t: np.ndarray, name: str, col: str, opts: Options) -> ValidSamples:
+    """The valid samples of a measured column; refuses dead, stuck, implausible and long-missing ones and warns
+    about a sensor frozen for a long stretch."""
+    dur = t[-1] - t[0]
+    y = np.asarray(table[col], dtype=float)
+    ok = np.isfinite(y)
+    _check_values(y, ok, name, col, dur)
+    yv = y[ok]
+    g0, glen = _longest_nan_run(t, ok)
+    if glen > max(opts.max_channel_gap_frac * dur, 300.0):
+        raise InputError(f'{name}: column "{col}" has no valid value for {glen:.0f} s from t = {g0:.10g} s '
+                         f"(more than a quarter of the run); cut the file or drop the column")
+    # a sensor frozen for a long stretch while the rest of the run varies
+    same = np.flatnonzero(np.diff(yv) != 0)
+    tv = t[ok]
+    warning = ""
+    if same.size:
+        bounds = np.concatenate([[0], same + 1, [yv.size]])
+        lens = tv[np.minimum(bounds[1:], yv.size) - 1] - tv[bounds[:-1]]
+        j = int(np.argmax(lens))
+        if lens[j] > max(600.0, 0.3 * dur):
+            warning = (f'column "{col}" is frozen at {yv[bounds[j]]:.5g} degC for {lens[j]:.0f} s from '
+                       f"t = {tv[bounds[j]]:.0f} s")
+    return ValidSamples(tv, yv, warning)
+
+
+def grid_channel(cid: str, cols: ChannelColumns, s: ValidSamples, t_start_s: float, grid_dt_s: float) -> Channel:
+    """A channel with its samples averaged onto the analysis grid (cells of grid_dt_s from t_start_s)."""
+    k = np.floor((s.t_s - t_start_s) / grid_dt_s + 0.5).astype(np.int64)
+    _uk, inv, cnt = np.unique(k, return_inverse=True, return_counts=True)
+    return Channel(cid, cols.column, cols.model_column, s.t_s, s.y_c, cell_t_s=np.bincount(inv, s.t_s) / cnt,
+                   cell_y_c=np.bincount(inv, s.y_c) / cnt, cell_n=cnt.astype(float))
+
+
+def _initial_temp_c(table: RunTable, t: np.ndarray, channels: dict, oil_is_input: bool) -> float:
+    """The oil (or the earliest measured channel) at the start: the mean of its first 5 s (a first-order sensor
+    starts at the sump's value); the remaining error is a nuisance fitted per file (see scoring.Scorer.adjust)."""
+    src = channels.get(OIL)
+    src_t, src_y = (src.t_s, src.y_c) if src is not None else (None, None)
+    if oil_is_input and table.has("oil_temp_c"):
+        y = np.asarray(table["oil_temp_c"], dtype=float)
+        ok = np.isfinite(y)
+        src_t, src_y = (t[ok], y[ok]) if ok.any() else (None, None)
+    if src_t is None:
+        first = min(channels.values(), key=lambda c: c.t_s[0])
+        src_t, src_y = first.t_s, first.y_c
+    sel = src_t <= src_t[0] + 5.0
+    return float(np.mean(src_y[sel])) if sel.any() else float(src_y[0])
+
+
+def prepare(table: RunTable, name: str, role: str, opts: Options, oil_is_input: bool = False) -> Dataset:
+    """Validate a measured run table and put its channels on the analysis grid. Raises InputError (one sentence)."""
+    validate_run_table(table, REQUIRED, name)
+    t = np.asarray(table["time_s"], dtype=float)
+    _check_time(t, name, opts)
+    cols = channel_columns(table)
+    if oil_is_input:
+        cols.pop(OIL, None)
+    if not cols:
+        raise InputError(f"{name}: has no measured channel; the diagnosis needs oil_temp_c or a meas_T_<id>_c column "
+                         f"to compare with the model")
+    channels = {}
+    warn = []
+    for cid, cc in cols.items():
+        if cid not in (OIL, OIL_RIG) and cid not in PUBLISHED and cid not in HOUSINGS:
+            raise InputError(f'{name}: column "{cc.column}" names component "{cid}", which is not a component id '
+                             f"(firmware_model.components)")
+        s = _valid_samples(table, t, name, cc.column, opts)
+        if s.warning:
+            warn.append(s.warning)
+        channels[cid] = grid_channel(cid, cc, s, float(t[0]), opts.grid_dt_s)
+    T0 = _initial_temp_c(table, t, channels, oil_is_input)
+    inputs = RunTable({c: table[c] for c in INPUT_COLUMNS if table.has(c)} |
+                      ({"oil_temp_c": table["oil_temp_c"]} if oil_is_input and table.has("oil_temp_c") else {}) |
+                      {c: table[c] for c in table.columns if c.startswith("bc_")},
+                      meta={"initial_temp_c": T0})
+    return Dataset(name, role, inputs, channels, T0, float(t[0]), float(t[-1]), tuple(warn))

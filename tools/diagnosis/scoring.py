@@ -1,0 +1,133 @@
+"""How a model run is scored against the measurements: predictions on the grid cells with the nuisance sensor lags,
+the initial-temperature nuisance solved per file, and the weighted misfit S."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from tools.diagnosis.measurement import lag_filter, model_at_cells
+from tools.diagnosis.options import OIL, Options
+
+
+def predictions(datasets: list, outs: list, lags: dict, effect: str | None = None,
+                value: float | None = None) -> list:
+    """Predictions on cells per (dataset, channel) with the nuisance lags (the lag candidate replaces the oil
+    nuisance by its own lag on the sump)."""
+    res = []
+    for i, ds in enumerate(datasets):
+        for cid, ch in ds.channels.items():
+            if cid == OIL and effect == "oil_sensor_lag" and value:
+                res.append(model_at_cells(outs[i], ch, value, source="T_oil_c"))
+            else:
+                res.append(model_at_cells(outs[i], ch, lags.get(cid, 0.0)))
+    return res
+
+
+def observations(datasets: list) -> list:
+    """The measured cell values per (dataset, channel)."""
+    return [ch.cell_y_c for ds in datasets for ch in ds.channels.values()]
+
+
+def weights(datasets: list, sigma: dict, floor: dict, opts: Options) -> list:
+    """Per (dataset, channel) cell: 1 / (noise of the cell mean + model error)."""
+    w = []
+    for ds in datasets:
+        for cid, ch in ds.channels.items():
+            s = sigma.get(cid, 0.1)
+            f = floor.get(cid, opts.model_floor_c)
+            w.append(1.0 / (s * s / ch.cell_n + f * f))
+    return w
+
+
+def misfit(preds: list, obs: list, w: list) -> float:
+    """S: the weighted sum of squared residuals."""
+    return float(sum(np.sum(wi * (yi - pi) ** 2) for pi, yi, wi in zip(preds, obs, w)))
+
+
+def file_groups(datasets: list) -> list:
+    """Per file: the indices of its (dataset, channel) entries."""
+    grp, k = [], 0
+    for ds in datasets:
+        grp.append(list(range(k, k + len(ds.channels))))
+        k += len(ds.channels)
+    return grp
+
+
+@dataclass(frozen=True)
+class RoleData:
+    """The measurements of the training or the test files, per (dataset, channel), and what scoring needs."""
+    datasets: list
+    obs: list                # measured cell values
+    w: list                  # weights
+    sens: list               # sensitivity of each prediction to a uniform initial offset [K/K]
+    files: list              # per file, the indices of its entries
+
+
+@dataclass(frozen=True)
+class Scorer:
+    """Scores model runs: predictions with the nuisance lags, the initial-temperature nuisance, the misfit."""
+    train: RoleData
+    test: RoleData
+    lag: dict                # the nuisance sensor lag per channel (high-pass fit on the baseline)
+    opts: Options
+
+    def role(self, role: str) -> RoleData:
+        return self.train if role == "train" else self.test
+
+    def preds(self, datasets: list, outs: list, effect: str | None = None, value: float | None = None,
+              lags: dict | None = None) -> list:
+        return predictions(datasets, outs, self.lag if lags is None else lags, effect, value)
+
+    def adjust(self, preds: list, role: str) -> list:
+        """The initial temperature of every file is a nuisance (state, not model): shift each file's predictions by
+        delta x (sensitivity to a uniform initial offset), delta by weighted least squares within
+        +-initial_offset_max_c of the first reading."""
+        rd = self.role(role)
+        sens, obs, w = rd.sens, rd.obs, rd.w
+        out = list(preds)
+        dmax = self.opts.initial_offset_max_c
+        for idx in rd.files:
+            num = sum(float(np.sum(w[k] * (obs[k] - preds[k]) * sens[k])) for k in idx)
+            den = sum(float(np.sum(w[k] * sens[k] ** 2)) for k in idx)
+            d = min(max(num / den, -dmax), dmax) if den > 0 else 0.0
+            for k in idx:
+                out[k] = preds[k] + d * sens[k]
+        return out
+
+    def S(self, preds: list, role: str = "train") -> float:
+        rd = self.role(role)
+        return misfit(preds, rd.obs, rd.w)
+
+    def S_adj(self, preds: list, role: str = "train") -> float:
+        return self.S(self.adjust(preds, role), role)
+
+    def refit_lags(self, outs: list, effect: str | None = None) -> dict:
+        """The nuisance lags (0..sensor_lag_max_s) that minimise the full weighted misfit of a given model run on
+        the training files, per channel (every model, the baseline included, is scored with its best nuisance
+        lags)."""
+        from scipy.optimize import minimize_scalar
+        datasets, obs, w = self.train.datasets, self.train.obs, self.train.w
+        lags = {}
+        for cid in sorted({c for ds in datasets for c in ds.channels}):
+            if cid == OIL and effect == "oil_sensor_lag":
+                continue
+            items = []
+            k = 0
+            for i, ds in enumerate(datasets):
+                for c, ch in ds.channels.items():
+                    if c == cid:
+                        tm = outs[i]["time_s"]
+                        items.append((obs[k], w[k], ch.cell_t_s, tm, np.asarray(outs[i][ch.model_column], float),
+                                      float(np.median(np.diff(tm)))))
+                    k += 1
+
+            def cost(tau):
+                return sum(float(np.sum(wk * (y - np.interp(ct, tm, lag_filter(x, tau, dt))) ** 2))
+                           for y, wk, ct, tm, x, dt in items)
+            t0 = self.lag.get(cid, 0.0)
+            lo, hi = max(t0 - 2.0, 0.0), min(t0 + 2.0, self.opts.sensor_lag_max_s)
+            r = minimize_scalar(cost, bounds=(lo, hi), method="bounded", options={"xatol": 0.02})
+            best = float(r.x) if r.fun <= cost(t0) else t0
+            lags[cid] = round(best, 3)
+        return lags
