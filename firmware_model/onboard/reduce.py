@@ -48,19 +48,21 @@ import numpy as np
 from firmware_model.physics import heat_transfer as ht
 from firmware_model.physics import losses as L
 from firmware_model.physics import oil as oilprops
-from firmware_model.components import PUBLISHED, SHAFT_BEARINGS
-from firmware_model.effects import CATALOG, effect_value
+from firmware_model.components import PUBLISHED, SHAFT_BEARINGS, STEP_S
+from firmware_model.effects import CATALOG, FIELD_OF_EFFECT, EffectScales, effect_value, with_oil_volume
 from firmware_model.errors import ParameterError, StabilityError
 from firmware_model.physics.gearbox_losses import GearboxLosses
 from firmware_model.physics.kinematics import GEAR_MIN, MESHES, N_GEARS, SPEED_NAMES
-from firmware_model.network import (BOUNDARIES, K_BRG_SPLASH, K_CONST, K_CONTACT, K_EXT_CONV, K_EXT_RAD, K_IMM_BRG, K_IMM_GEAR,
-                      K_RING, K_SPLASH, K_STREAM, S_CHANNEL, S_IMPOSED, SHAFT_SEGMENTS, ConductanceEvaluator,
-                      HeatTransferScales, Network, build_network)
+from firmware_model.network import (BOUNDARIES, K_BRG_SPLASH, K_CONST, K_CONTACT, K_EXT_CONV, K_EXT_RAD, K_IMM_BRG,
+                                    K_IMM_GEAR, K_RING, K_SPLASH, K_STREAM, S_CHANNEL, S_IMPOSED, SHAFT_SEGMENTS,
+                                    ConductanceEvaluator, NamedNodes, Network, build_network)
 from firmware_model.parameters import Parameters
+from firmware_model.units import KELVIN_OFFSET_K, RAD_S_PER_RPM, RPM_PER_RAD_S, SIGMA_W_PER_M2K4
 
-RPM = 2.0 * math.pi / 60.0
-#: fixed step of the onboard model [s]
-DT_S = 0.1
+#: rpm -> rad/s (firmware_model.units)
+RPM = RAD_S_PER_RPM
+#: fixed step of the onboard model [s] (firmware_model.components.STEP_S)
+DT_S = STEP_S
 #: the stability check requires dt <= STABILITY_MARGIN x min_i C_i / max sum_j G_ij
 STABILITY_MARGIN = 0.8
 #: oil temperature range over which stability is guaranteed [degC]
@@ -128,7 +130,7 @@ def _ro(a, dtype=float) -> np.ndarray:
 
 
 @dataclass(frozen=True)
-class ReducedParams:
+class ReducedParams(NamedNodes):
     """Everything the onboard step needs, as read-only arrays (a frozen, typed record; dynamax style).
 
     Shapes: n nodes, nl links, nb boundaries (network.BOUNDARIES), ns sources (SRC_NAMES), 17 gears (row =
@@ -217,13 +219,6 @@ class ReducedParams:
     max_torque_nm: float
     stability: dict = field(default_factory=dict)
 
-    @property
-    def n(self) -> int:
-        return len(self.nodes)
-
-    def index(self, name: str) -> int:
-        return self.nodes.index(name)
-
     def footprint(self, dtype=np.float32) -> dict:
         """Bytes an ECU would hold for these parameters: every float table as ``dtype``, index arrays as int16.
         (The dense scatter helpers numpy uses are implementation detail, not counted.)"""
@@ -243,23 +238,14 @@ class ReducedParams:
         return {"float_values": floats, "index_values": ints, "bytes": floats * fb + ints * 2}
 
 
-@dataclass(frozen=True)
-class Effects:
-    """Effect values the onboard model applies at run time; each a float or an array over vehicles (V,)."""
-    src_scale: np.ndarray = None       # (..., ns) multiplier on each source's heat
-    teeth_oil_h: object = 1.0
-    planet_oil_h: object = 1.0
-    housing_air_h: object = 1.0
-    cooler_scale: object = 1.0
-    thermostat_offset_c: object = 0.0
-    hot_offset_c: object = 0.0
-    retarder_frac: object = 0.0
-    churn_scale: object = 1.0
-    needle_scale: object = 1.0
+#: the effect values the onboard model applies at run time (the one effect record, firmware_model.effects); its
+#: ``src_scale`` (..., N_SRC) multiplies each loss source's heat
+Effects = EffectScales
 
 
 def make_effects(effects: dict | None = None) -> Effects:
-    """Effects record from {effect id: value or array of per-vehicle values}; unknown or unsupported ids raise."""
+    """Effects record from {effect id: value or array of per-vehicle values}; unknown or unsupported ids raise.
+    Each value is a float or an array over vehicles (V,)."""
     effects = dict(effects or {})
     for eid, v in effects.items():
         if eid not in CATALOG:
@@ -287,11 +273,7 @@ def make_effects(effects: dict | None = None) -> Effects:
     s[..., I_SRC_BEARING:I_SRC_OIL] = br[..., None] if br.ndim else br
     s[..., I_SRC_OIL] = 1.0            # the lumped oil source carries its own scales (churning, needle bearings)
     s.setflags(write=False)
-    return Effects(src_scale=s, teeth_oil_h=val("teeth_oil_h_scale"), planet_oil_h=val("planet_oil_h_scale"),
-                   housing_air_h=val("housing_air_h_scale"), cooler_scale=val("cooler_effectiveness_scale"),
-                   thermostat_offset_c=val("thermostat_offset"), hot_offset_c=val("hot_surroundings_offset"),
-                   retarder_frac=val("retarder_heat"), churn_scale=val("churning_scale"),
-                   needle_scale=val("bearing_loss_scale"))
+    return Effects(src_scale=s, **{FIELD_OF_EFFECT[eid]: val(eid) for eid in EFFECT_HOOKS})
 
 
 # ---------------------------------------------------------------------------------------------------------------
@@ -387,9 +369,7 @@ def build_reduced(p: Parameters, partition: str | dict = "fine", effects: dict |
 
     ``effects``: only the build-time effect oil_level_low is used here (the others are applied at run time through
     :func:`make_effects`)."""
-    vol_l = effect_value(effects, "oil_level_low")
-    if vol_l < CATALOG["oil_level_low"].neutral:
-        p = p.with_overrides({"oil.volume": vol_l * 1e-3})
+    p = with_oil_volume(p, effect_value(effects, "oil_level_low"))
     if not 0.0 < dt_s <= 1.0:
         raise ParameterError(f"dt_s = {dt_s} s must be in (0, 1] s")
     if not 0.0 < margin <= 1.0:
@@ -404,11 +384,11 @@ def build_reduced(p: Parameters, partition: str | dict = "fine", effects: dict |
     n = len(agg.nodes)
     kin = p.kinematics
     n_links_full = len(net.link_a)
-    w_in_max = p["engine.max_speed"]                 # rad/s
+    w_in_max = p["engine.max_speed_rad_s"]
     speed_abs = np.abs(kin.speed)                    # (17, 14)
 
     # ---- conductance laws: tabulate every link at its own shaft speed w (all shafts at w) x oil temperature
-    ev = ConductanceEvaluator(net, p, HeatTransferScales())
+    ev = ConductanceEvaluator(net, p, EffectScales())
     T_grid = T_GRID_C
     T2 = T_grid[::T2_STRIDE]
     u = np.linspace(0.0, 1.0, N_U)
@@ -492,7 +472,7 @@ def build_reduced(p: Parameters, partition: str | dict = "fine", effects: dict |
                     alpha, beta = net.link_G0[k] * ht.NU_CHANNEL / float(_link_param(net, k, "D")), 0.0  # Eq 77-80
                 else:
                     alpha, beta = 0.0, net.link_G0[k] * float(_link_param(net, k, "h"))
-                ef.append((r, frac * p["oil_system.flow_per_ls_rpm"], alpha, beta, 2 if sub == S_IMPOSED else 0))
+                ef.append((r, frac * p["oil_system.flow_m3_per_rad"], alpha, beta, 2 if sub == S_IMPOSED else 0))
                 continue
             wmax = w_src_max[s]
             eff = 1 if (name.startswith("splash:") and name.endswith(".teeth")) else 0
@@ -594,10 +574,10 @@ def build_reduced(p: Parameters, partition: str | dict = "fine", effects: dict |
         pump_coef=_ro(pump_coef), churn_w_max=float(churn_w_max), churn_table=_ro(churn_table),
         churn_heat_sf=float(p["scale.churn_to_heat"]), src_matrix=_ro(S),
         heat_lag_tau_s=float(p["scale.heat_lag_tau"]), cooler_code=cooler_code, cooler=cooler,
-        flow_m3_per_rad=float(p["oil_system.flow_per_ls_rpm"]), bc_default_c=_ro(bc),
+        flow_m3_per_rad=float(p["oil_system.flow_m3_per_rad"]), bc_default_c=_ro(bc),
         i_ambient=BOUNDARIES.index("ambient"), i_coolant=BOUNDARIES.index("coolant"),
         i_hot=BOUNDARIES.index("hot_surroundings"),
-        max_speed_rpm=float(p["engine.max_speed"] / RPM), min_torque_nm=float(p["engine.min_torque"]),
+        max_speed_rpm=float(p["engine.max_speed_rad_s"] / RPM), min_torque_nm=float(p["engine.min_torque"]),
         max_torque_nm=float(p["engine.max_torque"]))
     if check:
         object.__setattr__(rp, "stability", check_stability(rp))
@@ -895,9 +875,9 @@ def radiation_conductances(rp: ReducedParams, T_nodes_c, T_bc_c, h: Helpers | No
     """Linearised radiation conductance of every radiation link [W/K] (Eq 81), housing temperatures clipped."""
     h = h or helpers(rp)
     T1 = np.minimum(np.maximum(np.take(T_nodes_c, h.rad_node, axis=-1), RAD_T_RANGE_C[0]), RAD_T_RANGE_C[1]) \
-        + ht.KELVIN_OFFSET
-    T2 = np.take(T_bc_c, h.rad_bc, axis=-1) + ht.KELVIN_OFFSET
-    return rp.rad_area_eps * ht.SIGMA_W_PER_M2K4 * (T1 * T1 + T2 * T2) * (T1 + T2)  # Eq 81
+        + KELVIN_OFFSET_K
+    T2 = np.take(T_bc_c, h.rad_bc, axis=-1) + KELVIN_OFFSET_K
+    return rp.rad_area_eps * SIGMA_W_PER_M2K4 * (T1 * T1 + T2 * T2) * (T1 + T2)  # Eq 81
 
 
 def heat_sources(rp: ReducedParams, row, w_in, torque_abs_nm, prop, x_T, src_scale=None, churn_scale=1.0,
@@ -927,12 +907,12 @@ def heat_sources(rp: ReducedParams, row, w_in, torque_abs_nm, prop, x_T, src_sca
     # shaft bearings (Eq 35-40)
     wb = rp.bear_speed[row] * w_
     nu = np.exp(prop[..., P_LN_NU_CST, None])
-    M0 = rp.bear_c * np.maximum(nu * wb * (30.0 / math.pi), L.PALMGREN_NU_N_MIN) ** (2.0 / 3.0)
+    M0 = rp.bear_c * np.maximum(nu * wb * RPM_PER_RAD_S, L.PALMGREN_NU_N_MIN) ** (2.0 / 3.0)
     P_bear = (M0 + rp.bear_load[row] * Tq[..., None]) * wb
     # lumped into the sump: needle bearings (Eq 36-37 on relative speed), synchronizers (Eq 41), pump (Eq 42),
     # churning (Eq 23-34, table)
     rel = rp.needle_rel[row] * w_
-    Mn = rp.needle_c * np.maximum(nu * rel * (30.0 / math.pi), L.PALMGREN_NU_N_MIN) ** (2.0 / 3.0)
+    Mn = rp.needle_c * np.maximum(nu * rel * RPM_PER_RAD_S, L.PALMGREN_NU_N_MIN) ** (2.0 / 3.0)
     P_needle = np.sum(Mn * rel, axis=-1)
     w2in = w * w
     P_sync = np.exp(prop[..., P_LN_MU]) * w2in * rp.sync_coef[row]
@@ -1030,9 +1010,9 @@ def max_conductances(rp: ReducedParams) -> dict:
         Gc = rp.cyl_c * pr[:, P_K, None] * _cyl_nusselt(ln_re, pr[:, P_LN_PR, None])
         np.add.at(G, rp.cyl_link, 1.02 * Gc.max(axis=0))
     if rp.rad_link.size:
-        T1 = RAD_T_RANGE_C[1] + ht.KELVIN_OFFSET
-        T2 = 250.0 + ht.KELVIN_OFFSET
-        G[rp.rad_link] = rp.rad_area_eps * ht.SIGMA_W_PER_M2K4 * (T1 * T1 + T2 * T2) * (T1 + T2)
+        T1 = RAD_T_RANGE_C[1] + KELVIN_OFFSET_K
+        T2 = 250.0 + KELVIN_OFFSET_K
+        G[rp.rad_link] = rp.rad_area_eps * SIGMA_W_PER_M2K4 * (T1 * T1 + T2 * T2) * (T1 + T2)
     # cooler: the largest slope dQ/dT_oil (hA at the highest flows, effectiveness scale at its maximum)
     c = rp.cooler
     inner = (w_ls_max / c["ref_ls_speed"]) ** c["exp_inner"]

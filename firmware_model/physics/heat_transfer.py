@@ -16,10 +16,10 @@ from typing import NamedTuple
 import numpy as np
 
 from firmware_model.errors import ParameterError
+from firmware_model.units import KELVIN_OFFSET_K, SIGMA_W_PER_M2K4
 
-#: Stefan-Boltzmann constant [W/(m2 K4)] (CODATA 2018)
-SIGMA_W_PER_M2K4 = 5.670374419e-8
-KELVIN_OFFSET = 273.15
+#: degC -> K (owned by firmware_model.units, as is SIGMA_W_PER_M2K4; both names kept here for their readers)
+KELVIN_OFFSET = KELVIN_OFFSET_K
 
 #: Eq 46/47 validity limits; between them the two correlations are bridged (see nusselt_rotating_cylinder)
 RE_LAMINAR_MAX = 2.5e5

@@ -24,7 +24,7 @@ def test_si_conversion():
     assert p["gear.3.width1"] == pytest.approx(0.040)              # mm -> m
     assert p["oil.volume"] == pytest.approx(13.5e-3)               # L -> m3
     assert p["gear.alpha_n"] == pytest.approx(math.radians(20))    # deg -> rad
-    assert p["heat.N_nom"] == pytest.approx(1000 * 2 * math.pi / 60)
+    assert p["heat.omega_nom_rad_s"] == pytest.approx(1000 * 2 * math.pi / 60)
     assert p["cooler.liquid_Qmax_cool"] == pytest.approx(14e3)     # kW -> W
     assert p.provenance("heat.h_nom") == "seed" and p["heat.h_nom"] == 325
 

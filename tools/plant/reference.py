@@ -21,12 +21,12 @@ import numpy as np
 from firmware_model.physics import heat_transfer as ht
 from firmware_model.physics import oil as oilprops
 from firmware_model.components import IDLE_WHEELS
-from firmware_model.effects import effect_value
+from firmware_model.effects import effect_scales, effect_value, with_oil_volume
 from firmware_model.errors import InputError
-from firmware_model.physics.gearbox_losses import SOURCES, GearboxLosses, LossScales
+from firmware_model.physics.gearbox_losses import SOURCES, GearboxLosses
 from firmware_model.physics.kinematics import GEAR_MAX, GEAR_MIN, SPEED_NAMES, gear_state
 from firmware_model.network import (BOUNDARIES, K_EXT_CONV, K_EXT_RAD, K_STREAM, ConductanceEvaluator,
-                                    HeatTransferScales, Network, build_network)
+                                    Network, build_network)
 from firmware_model.parameters import Parameters
 
 from tools.runtable import RunTable
@@ -63,10 +63,7 @@ class ReferencePlant:
     def __init__(self, params: Parameters, effects: dict | None = None, cooler: str | None = None,
                  dt_s: float = 0.5):
         self.effects = dict(effects or {})
-        vol_l = effect_value(self.effects, "oil_level_low")
-        if vol_l < 13.5:
-            params = params.with_overrides({"oil.volume": vol_l * 1e-3})
-        self.p = params
+        self.p = params = with_oil_volume(params, effect_value(self.effects, "oil_level_low"))
         self.kind = cooler or params.strings.get("cooler.kind", "liquid")
         if self.kind not in ("none", "liquid", "air", "hold", "measured"):
             raise InputError(f"cooler {self.kind!r} must be one of none, liquid, air, hold, measured")
@@ -75,14 +72,8 @@ class ReferencePlant:
         self.dt = float(dt_s)
         self.net: Network = build_network(params)
         self.losses = GearboxLosses(params, self.net.geometry)
-        self.loss_scales = LossScales(effect_value(self.effects, "gear_friction_scale"),
-                                      effect_value(self.effects, "planetary_loss_scale"),
-                                      effect_value(self.effects, "churning_scale"),
-                                      effect_value(self.effects, "bearing_loss_scale"))
-        self.ev = ConductanceEvaluator(self.net, params, HeatTransferScales(
-            teeth_oil_h=effect_value(self.effects, "teeth_oil_h_scale"),
-            planet_oil_h=effect_value(self.effects, "planet_oil_h_scale"),
-            housing_air_h=effect_value(self.effects, "housing_air_h_scale")))
+        self.scales = effect_scales(self.effects)
+        self.ev = ConductanceEvaluator(self.net, params, self.scales)
         n = self.net.n
         self.n = n
         self.i_oil = self.net.index("oil")
@@ -240,7 +231,7 @@ class ReferencePlant:
             T_oil_losses = T[self.i_oil]
             loss = self.losses.evaluate(w_in[sl], trq[sl], gear[sl], T_oil_losses, churn_validity=True)
             churn_ok = loss.pop("churning_valid")
-            heat = self.losses.heat(loss, self.loss_scales)
+            heat = self.losses.heat(loss, self.scales)
             P_src = np.zeros((i1 - i0, len(self.src_names)))
             for j, nm in enumerate(SOURCES):
                 P_src[:, j] = heat[nm]
@@ -477,7 +468,7 @@ def _validate_inputs(t, spd, trq, gear, p: Parameters):
         raise InputError(f"column time_s row {first_bad(np.append(np.diff(t) <= 0, False)) + 1}: time must increase")
     if np.any(spd < 0):
         raise InputError(f"column engine_speed_rpm row {first_bad(spd < 0)}: negative speed {spd[spd < 0][0]:g} rpm")
-    vmax = p["engine.max_speed"] / RPM
+    vmax = p["engine.max_speed_rad_s"] / RPM
     if np.any(spd > vmax):
         raise InputError(f"column engine_speed_rpm row {first_bad(spd > vmax)}: {spd[spd > vmax][0]:g} rpm exceeds "
                          f"{vmax:.0f} rpm")
