@@ -51,6 +51,8 @@ from firmware_model.physics import oil as oilprops
 from firmware_model.components import PUBLISHED, SHAFT_BEARINGS, STEP_S
 from firmware_model.effects import CATALOG, FIELD_OF_EFFECT, EffectScales, effect_value, with_oil_volume
 from firmware_model.errors import ParameterError, StabilityError
+from firmware_model.physics.cooler import (COOLER_KINDS, cooler_hA_bound_w_per_k, cooler_params, cooler_values,
+                                           oil_cooler_heat)
 from firmware_model.physics.gearbox_losses import GearboxLosses
 from firmware_model.physics.kinematics import GEAR_MIN, MESHES, N_GEARS, SPEED_NAMES
 from firmware_model.network import (BOUNDARIES, K_BRG_SPLASH, K_CONST, K_CONTACT, K_EXT_CONV, K_EXT_RAD, K_IMM_BRG,
@@ -116,7 +118,10 @@ N_SRC = len(SRC_NAMES)
 I_SRC_BEARING = len(MESHES)
 I_SRC_OIL = I_SRC_BEARING + len(SHAFT_BEARINGS)
 I_SRC_RET = I_SRC_OIL + 1
-COOLER_CODES = {"none": 0, "liquid": 1, "air": 2}
+#: cooler kind -> cooler_code (hold and measured sumps have no cooler: 0)
+COOLER_CODES = {kind: code for code, kind in enumerate(COOLER_KINDS)}
+#: vehicle speed the cooler model takes when none is known [km/h]
+DEFAULT_VEHICLE_SPEED_KMH = 50.0
 
 # columns of the oil property table (logarithms where the property spans decades: interpolated in the log)
 P_LOG10_MU, P_LN_NU_CST, P_LN_MU, P_LN_ROLL, P_RHO, P_CP, P_K, P_LN_PR = range(8)
@@ -537,9 +542,7 @@ def build_reduced(p: Parameters, partition: str | dict = "fine", effects: dict |
     # ---- cooler
     kind = p.strings.get("cooler.kind", "liquid")
     cooler_code = COOLER_CODES.get(kind, 0)
-    cooler = {k: p[f"cooler.{k}"] for k in (
-        "liquid_hA_ref", "liquid_Qmax_cool", "liquid_Qmax_heat", "air_hA_ref", "air_Qmax_cool", "thermostat_open",
-        "thermostat_full", "ref_ls_speed", "ref_engine_speed", "exp_inner", "exp_outer", "air_flow_min_frac")}
+    cooler = cooler_values(p)
 
     bc = np.array([p[f"boundary.{b}"] for b in BOUNDARIES])
     published = np.array([agg.nodes.index(c) for c in PUBLISHED])
@@ -757,6 +760,7 @@ class Helpers:
         self.pub_rows_all = pub.copy()
         # published components whose crossing re-linearises the time to limit (not the sump itself)
         self.ttl_relin_pub = pub != rp.i_oil
+        self.cooler = cooler_params(rp.cooler)
 
 
 _HELPERS: dict = {}
@@ -938,33 +942,21 @@ def heat_sources(rp: ReducedParams, row, w_in, torque_abs_nm, prop, x_T, src_sca
 
 def cooler_heat(rp: ReducedParams, T_oil_c, w_ls, w_eng, T_coolant_c, T_ambient_c, v_kmh, rho_cp,
                 scale=1.0, thermostat_offset_c=0.0):
-    """Heat from the sump to the cooler [W] (Eq 83), the oil-system flow capacity mdot cp [W/K] and the cooler's
-    maximum slope dQ/dT_oil [W/K] at this operating point; the same model as the reference plant."""
-    c = rp.cooler
-    w_ls = np.asarray(w_ls, dtype=float)
-    mcp = rho_cp * rp.flow_m3_per_rad * w_ls
+    """Heat from the sump to the cooler [W] (Eq 83), the oil-system flow capacity mdot cp [W/K] and the cooler's hA
+    [W/K] at this operating point: :func:`firmware_model.physics.cooler.oil_cooler_heat`, the plant's model, with
+    the oil flow from the layshaft speed ``w_ls`` [rad/s] and a missing vehicle speed taken as
+    DEFAULT_VEHICLE_SPEED_KMH."""
+    omega_ls_rad_s = np.asarray(w_ls, dtype=float)
+    mcp_w_per_k = rho_cp * rp.flow_m3_per_rad * omega_ls_rad_s
     if rp.cooler_code == 0:
-        z = np.zeros(np.broadcast(T_oil_c, w_ls).shape)
-        return z, mcp, z
-    inner = (w_ls / c["ref_ls_speed"]) ** c["exp_inner"]
-    if rp.cooler_code == 1:
-        outer = (np.maximum(w_eng, 0.0) / c["ref_engine_speed"]) ** c["exp_outer"]
-        hA = c["liquid_hA_ref"] * inner * outer * scale
-        Q = np.clip(hA * (T_oil_c - T_coolant_c), -c["liquid_Qmax_heat"], c["liquid_Qmax_cool"])   # Eq 83
-    else:
-        fmin = c["air_flow_min_frac"]
-        v = np.clip(np.nan_to_num(v_kmh, nan=50.0), 0.0, None)
-        outer = (fmin + (1.0 - fmin) * np.minimum(v / 85.0, 1.5)) ** c["exp_outer"]
-        hA = c["air_hA_ref"] * inner * outer * scale
-        T_air = T_ambient_c + np.interp(v, _AIR_RECIRC[0], _AIR_RECIRC[1])
-        Q = ht.cooler_heat_w("air", hA, T_oil_c, T_air, np.where(mcp > 0, mcp, 0.0), 1.0, c["air_Qmax_cool"], 0.0,
-                             c["thermostat_open"] + thermostat_offset_c, c["thermostat_full"] + thermostat_offset_c)
-    Q = np.where(mcp > 0.0, Q, 0.0)
-    return Q, mcp, hA
-
-
-#: recirculated air at the air cooler (seed 3.4; same table as tools.plant.reference)
-_AIR_RECIRC = (np.array([0.0, 15.0, 50.0, 85.0, 200.0]), np.array([12.0, 9.0, 2.0, 0.5, 0.0]))
+        z = np.zeros(np.broadcast(T_oil_c, omega_ls_rad_s).shape)
+        return z, mcp_w_per_k, z
+    c = helpers(rp).cooler
+    Q_w, hA_w_per_k = oil_cooler_heat(c, COOLER_KINDS[rp.cooler_code], T_oil_c, omega_ls_rad_s / c.ref_ls_speed_rad_s,
+                                      w_eng, T_coolant_c, T_ambient_c,
+                                      np.nan_to_num(v_kmh, nan=DEFAULT_VEHICLE_SPEED_KMH), mcp_w_per_k, scale,
+                                      thermostat_offset_c)
+    return Q_w, mcp_w_per_k, hA_w_per_k
 
 
 # ---------------------------------------------------------------------------------------------------------------
@@ -1014,15 +1006,8 @@ def max_conductances(rp: ReducedParams) -> dict:
         T2 = 250.0 + KELVIN_OFFSET_K
         G[rp.rad_link] = rp.rad_area_eps * SIGMA_W_PER_M2K4 * (T1 * T1 + T2 * T2) * (T1 + T2)
     # cooler: the largest slope dQ/dT_oil (hA at the highest flows, effectiveness scale at its maximum)
-    c = rp.cooler
-    inner = (w_ls_max / c["ref_ls_speed"]) ** c["exp_inner"]
-    smax = CATALOG["cooler_effectiveness_scale"].high
-    if rp.cooler_code == 1:
-        hA = c["liquid_hA_ref"] * inner * (w_max / c["ref_engine_speed"]) ** c["exp_outer"] * smax
-    elif rp.cooler_code == 2:
-        hA = c["air_hA_ref"] * inner * 1.5 ** c["exp_outer"] * smax
-    else:
-        hA = 0.0
+    hA = cooler_hA_bound_w_per_k(cooler_params(rp.cooler), COOLER_KINDS[rp.cooler_code], w_ls_max, w_max,
+                                 CATALOG["cooler_effectiveness_scale"].high)
     return {"G": G, "cooler_hA": float(hA)}
 
 

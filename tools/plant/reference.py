@@ -18,11 +18,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from firmware_model.physics import heat_transfer as ht
 from firmware_model.physics import oil as oilprops
 from firmware_model.components import IDLE_WHEELS
 from firmware_model.effects import effect_scales, effect_value, with_oil_volume
 from firmware_model.errors import InputError
+from firmware_model.physics.cooler import cooler_params, cooler_values, inlet_drop_k, oil_cooler_heat
 from firmware_model.physics.gearbox_losses import SOURCES, GearboxLosses
 from firmware_model.physics.kinematics import GEAR_MAX, GEAR_MIN, SPEED_NAMES, gear_state
 from firmware_model.network import (BOUNDARIES, K_EXT_CONV, K_EXT_RAD, K_STREAM, ConductanceEvaluator,
@@ -34,9 +34,8 @@ from tools.runtable import RunTable
 RPM = 2.0 * math.pi / 60.0
 #: run-table column -> boundary name (bc_<name>_c columns, plus the contract's ambient and coolant columns)
 BC_COLUMNS = {**{f"bc_{b}_c": b for b in BOUNDARIES}, "ambient_temp_c": "ambient", "coolant_temp_c": "coolant"}
-#: recirculated air at the air cooler is warmer than ambient at low vehicle speed (seed 3.4: +9 K at 15 km/h,
-#: +2 K at 50 km/h, < 1 K at 85 km/h)
-_AIR_RECIRC = (np.array([0.0, 15.0, 50.0, 85.0, 200.0]), np.array([12.0, 9.0, 2.0, 0.5, 0.0]))
+#: step of the forward difference that linearises the cooler around the sump temperature [K]
+COOLER_SLOPE_DT_K = 0.05
 
 HEAT_OUT_NAMES = ("cooler", "housing_convection", "housing_radiation", "supports_conduction", "shafts_conduction",
                   "oil_boundary")
@@ -99,8 +98,7 @@ class ReferencePlant:
         self.tau_lag = params["scale.heat_lag_tau"]
         self.bc_default = np.array([params[f"boundary.{b}"] for b in BOUNDARIES])
         self.bc_default[BOUNDARIES.index("hot_surroundings")] += effect_value(self.effects, "hot_surroundings_offset")
-        self.cool_scale = effect_value(self.effects, "cooler_effectiveness_scale")
-        self.thermo_off = effect_value(self.effects, "thermostat_offset")
+        self.cooler = cooler_params(cooler_values(params))
         self.retarder_frac = effect_value(self.effects, "retarder_heat")
         self.shift_energy = effect_value(self.effects, "synchronizer_shift_heat")
         self.sensor_tau = effect_value(self.effects, "oil_sensor_lag")
@@ -108,36 +106,26 @@ class ReferencePlant:
 
     # ------------------------------------------------------------------ cooler (seed 3.4, Eq 82-83)
     def cooler_heat(self, T_oil, w_ls, w_eng, T_cool, T_amb, v_kmh):
-        """Heat from the sump to the cooler [W] and its derivative with respect to the sump temperature."""
-        p = self.p
+        """Heat from the sump to the cooler [W] (physics.cooler.oil_cooler_heat, the onboard model's cooler) and its
+        derivative with respect to the sump temperature (forward difference over COOLER_SLOPE_DT_K)."""
         if self.kind not in ("liquid", "air"):
             return 0.0, 0.0
         op = oilprops.oil_properties(T_oil)
-        mdot = self.ev.oil_mass_flow_kg_s(w_ls, op.rho_kg_m3)
-        mdot_ref = self.ev.oil_mass_flow_kg_s(p["cooler.ref_ls_speed"], op.rho_kg_m3)
-        inner = (mdot / mdot_ref) ** p["cooler.exp_inner"] if mdot > 0 else 0.0
-        if self.kind == "liquid":
-            outer = (max(w_eng, 0.0) / p["cooler.ref_engine_speed"]) ** p["cooler.exp_outer"]
-            hA = p["cooler.liquid_hA_ref"] * inner * outer * self.cool_scale
-            args = ("liquid", hA, None, T_cool, mdot, op.cp_j_per_kgk, p["cooler.liquid_Qmax_cool"],
-                    p["cooler.liquid_Qmax_heat"], 0.0, 1.0)
-        else:
-            fmin = p["cooler.air_flow_min_frac"]
-            outer = (fmin + (1 - fmin) * min(max(v_kmh, 0.0) / 85.0, 1.5)) ** p["cooler.exp_outer"]
-            hA = p["cooler.air_hA_ref"] * inner * outer * self.cool_scale
-            T_air = T_amb + float(np.interp(v_kmh, *_AIR_RECIRC))
-            args = ("air", hA, None, T_air, mdot, op.cp_j_per_kgk, p["cooler.air_Qmax_cool"], 0.0,
-                    p["cooler.thermostat_open"] + self.thermo_off, p["cooler.thermostat_full"] + self.thermo_off)
-        if hA <= 0 or mdot <= 0:
+        mdot_kg_s = self.ev.oil_mass_flow_kg_s(w_ls, op.rho_kg_m3)
+        if mdot_kg_s <= 0:
             return 0.0, 0.0
+        flow_ratio = mdot_kg_s / self.ev.oil_mass_flow_kg_s(self.cooler.ref_ls_speed_rad_s, op.rho_kg_m3)
+        mcp_w_per_k = mdot_kg_s * op.cp_j_per_kgk
+        sc = self.scales
 
         def q(T):
-            a = list(args)
-            a[2] = T
-            return float(ht.cooler_heat_w(*a))
+            return oil_cooler_heat(self.cooler, self.kind, T, flow_ratio, w_eng, T_cool, T_amb, v_kmh, mcp_w_per_k,
+                                   sc.cooler_scale, sc.thermostat_offset_c)
         q0 = q(T_oil)
-        slope = (q(T_oil + 0.05) - q0) / 0.05
-        return q0, max(slope, 0.0)
+        if q0.hA_w_per_k <= 0:
+            return 0.0, 0.0
+        slope = (float(q(T_oil + COOLER_SLOPE_DT_K).Q_w) - float(q0.Q_w)) / COOLER_SLOPE_DT_K
+        return float(q0.Q_w), max(slope, 0.0)
 
     # ------------------------------------------------------------------ main loop
     def run(self, table: RunTable, initial_temp_c: float | None = None, hold_oil_c: float | None = None,
@@ -289,7 +277,7 @@ class ReferencePlant:
                 if kind in ("liquid", "air") and q0 != 0.0:
                     op = oilprops.oil_properties(T[self.i_oil])
                     mdot = self.ev.oil_mass_flow_kg_s(speeds[SPEED_NAMES.index("LS")], op.rho_kg_m3)
-                    dT_cool_oil = float(np.clip(q0 / (mdot * op.cp_j_per_kgk), -30, 30)) if mdot > 0 else 0.0
+                    dT_cool_oil = float(inlet_drop_k(q0, mdot * op.cp_j_per_kgk)) if mdot > 0 else 0.0
                 else:
                     dT_cool_oil = 0.0
                 Gs = G[self.stream_idx]
