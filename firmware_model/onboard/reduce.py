@@ -51,8 +51,9 @@ from firmware_model.physics import oil as oilprops
 from firmware_model.components import PUBLISHED, SHAFT_BEARINGS, STEP_S
 from firmware_model.effects import CATALOG, FIELD_OF_EFFECT, EffectScales, effect_value, with_oil_volume
 from firmware_model.errors import ParameterError, StabilityError
-from firmware_model.physics.cooler import (COOLER_KINDS, cooler_hA_bound_w_per_k, cooler_params, cooler_values,
-                                           oil_cooler_heat)
+from firmware_model.physics.conductance_matrix import link_topology, node_conductance_w_per_k
+from firmware_model.physics.cooler import (COOLER_KINDS, DEFAULT_VEHICLE_SPEED_KMH, cooler_hA_bound_w_per_k,
+                                           cooler_params, cooler_values, oil_cooler_heat)
 from firmware_model.physics.gearbox_losses import GearboxLosses
 from firmware_model.physics.kinematics import GEAR_MIN, MESHES, N_GEARS, SPEED_NAMES
 from firmware_model.network import (BOUNDARIES, K_BRG_SPLASH, K_CONST, K_CONTACT, K_EXT_CONV, K_EXT_RAD, K_IMM_BRG,
@@ -120,8 +121,7 @@ I_SRC_OIL = I_SRC_BEARING + len(SHAFT_BEARINGS)
 I_SRC_RET = I_SRC_OIL + 1
 #: cooler kind -> cooler_code (hold and measured sumps have no cooler: 0)
 COOLER_CODES = {kind: code for code, kind in enumerate(COOLER_KINDS)}
-#: vehicle speed the cooler model takes when none is known [km/h]
-DEFAULT_VEHICLE_SPEED_KMH = 50.0
+
 
 # columns of the oil property table (logarithms where the property spans decades: interpolated in the log)
 P_LOG10_MU, P_LN_NU_CST, P_LN_MU, P_LN_ROLL, P_RHO, P_CP, P_K, P_LN_PR = range(8)
@@ -707,13 +707,10 @@ class Helpers:
         self.ef_scatter[np.arange(len(rp.ef_link)), rp.ef_link] = 1.0
         self.cyl_scatter = np.zeros((len(rp.cyl_link), nl))
         self.cyl_scatter[np.arange(len(rp.cyl_link)), rp.cyl_link] = 1.0
-        self.internal = rp.link_b < n
-        self.ia = rp.link_a[self.internal]
-        self.ib = rp.link_b[self.internal]
-        self.int_idx = np.flatnonzero(self.internal)
-        self.ext_idx = np.flatnonzero(~self.internal)
-        self.ea = rp.link_a[~self.internal]
-        self.eb = rp.link_b[~self.internal] - n
+        # which links join which nodes (physics.conductance_matrix: K = conductance_matrix(G, topology).K_w_per_k)
+        self.topology = topo = link_topology(rp.link_a, rp.link_b, n)
+        self.internal, self.int_idx, self.ext_idx = topo.internal, topo.int_idx, topo.ext_idx
+        self.ia, self.ib, self.ea, self.eb = topo.ia, topo.ib, topo.ea, topo.eb
         # flux -> node rate: q_nodes = flux_int @ B_int + flux_ext @ B_ext (flux = G (T_a - T_b), from a to b)
         self.B_int = np.zeros((self.ia.size, n))
         self.B_int[np.arange(self.ia.size), self.ia] = -1.0
@@ -1015,11 +1012,8 @@ def check_stability(rp: ReducedParams) -> dict:
     """Prove dt <= margin x C_i / max sum_j G_ij for every node (module doc); raise StabilityError naming the node."""
     h = helpers(rp)
     mc = max_conductances(rp)
-    G = mc["G"]
     n = rp.n
-    rowsum = np.bincount(rp.link_a, G, minlength=n)
-    inner = rp.link_b < n
-    rowsum = rowsum + np.bincount(rp.link_b[inner], G[inner], minlength=n)
+    rowsum = node_conductance_w_per_k(mc["G"], h.topology)
     hA = mc["cooler_hA"]
     # the cooler on the sump, and its inlet-temperature drop dT_in = Q / (mdot cp): a stream term moves G_s dT_in
     # from its component to the sump and |d(G_s dT_in)/dT_oil| <= G_s hA / (mdot cp) <= frac_s hA

@@ -27,6 +27,8 @@ AIR_RECIRC_DT_K = np.array([12.0, 9.0, 2.0, 0.5, 0.0])
 #: vehicle speed of the air cooler's reference outer flow [km/h], and the largest outer flow (x reference)
 AIR_REF_SPEED_KMH = 85.0
 AIR_FLOW_MAX_REL = 1.5
+#: vehicle speed the cooler model takes when none is known [km/h]
+DEFAULT_VEHICLE_SPEED_KMH = 50.0
 #: the oil-system inlet drop (sump minus cooler outlet, Q / (mdot cp)) is clipped to +- this [K]
 INLET_DROP_MAX_K = 30.0
 #: parameter names (``cooler.<name>``) of the cooler model, in the order of CoolerParams

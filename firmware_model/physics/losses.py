@@ -437,16 +437,3 @@ def planetary_heat_split(Q_w):
     Q = np.asarray(Q_w, dtype=float)
     return Q * PLANETARY_HEAT_SPLIT["PS"], Q * PLANETARY_HEAT_SPLIT["PP"], Q * PLANETARY_HEAT_SPLIT["PR"]
 
-
-def first_order_lag_step(y, u, dt_s, tau_s):
-    """One exact (zero-order-hold) step of ``tau dy/dt = u - y``: ``u + (y - u) exp(-dt/tau)``.
-
-    The seed (section 3.2) low-passes the loss-to-heat signals with a first-order lag to keep gear-change
-    loss spikes out of the thermal network. tau <= 0 means no lag (y follows u). Vectorised.
-    """
-    y = np.asarray(y, dtype=float)
-    u = np.asarray(u, dtype=float)
-    tau = np.asarray(tau_s, dtype=float)
-    with np.errstate(divide="ignore", over="ignore", invalid="ignore"):
-        a = np.where(tau > 0.0, np.exp(-dt_s / np.where(tau > 0.0, tau, 1.0)), 0.0)
-    return u + (y - u) * a
