@@ -42,6 +42,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, fields
+from typing import NamedTuple
 
 import numpy as np
 
@@ -368,6 +369,282 @@ def _link_param(net: Network, k: int, key: str):
     return net.kind_params[kind][key][j]
 
 
+class PowerTerm(NamedTuple):
+    """G = gear_coef[gear] w_in^exp (phi[T_oil, col] or 1) x effect scale."""
+    link: int
+    exp: float
+    gear_coef: np.ndarray      # (17,)
+    col: int                   # column of the phi table, -1 for none
+    effect: int                # 0 none, 1 teeth_oil_h, 2 planet_oil_h, 3 housing_air_h
+
+
+class TableTerm(NamedTuple):
+    """G = table(sqrt(w / w_max), T_oil), w = speed_coef[gear] w_in."""
+    link: int
+    speed_coef: np.ndarray     # (17,)
+    w_max_rad_s: float
+    table: np.ndarray          # (N_U, nT2) W/K
+    stream: bool               # an oil-system stream (the cooler's inlet drop applies)
+    frac: float                # its share of the oil flow
+    effect: int
+
+
+class StreamTerm(NamedTuple):
+    """Closed-form stream G = m (1 - exp(-hA / m)), m = flow_m3_per_rad rho cp |w_LS|, hA = alpha k_oil + beta."""
+    link: int
+    flow_m3_per_rad: float
+    alpha_m: float
+    beta_w_per_k: float
+    effect: int
+
+
+class CylinderTerm(NamedTuple):
+    """Immersed wheel, Nusselt part: G = c k_oil Nu(Re, Pr), Re = R_p^2 w / nu, w = speed_coef[gear] w_in."""
+    link: int
+    speed_coef: np.ndarray     # (17,)
+    c_m: float                 # area / R_p
+    ln_rp2: float              # ln(R_p^2 [m2])
+
+
+class LawGrid(NamedTuple):
+    """Every link tabulated from the full evaluator at its own shaft speed w x oil temperature (T_GRID_C)."""
+    tables: dict               # speed source -> (N_U, nT, n_links) W/K at w = u^2 w_max
+    src_of_link: np.ndarray    # speed source of every variable link (-1: constant)
+    w_src_max: np.ndarray      # max speed of every speed source over all gears [rad/s]
+    u: np.ndarray              # (N_U,) sqrt(w / w_max)
+    G_ring_low: np.ndarray     # every link at low range, standstill, 60 degC (the ring gear's low-range value)
+
+
+def _law_grid(net: Network, p: Parameters) -> LawGrid:
+    """Tabulate every speed- or oil-dependent link with all shafts at the same speed (each link reads its own)."""
+    ev = ConductanceEvaluator(net, p, EffectScales())
+    speed_abs = np.abs(p.kinematics.speed)                      # (17, 14)
+    w_src_max = speed_abs.max(axis=0) * p["engine.max_speed_rad_s"]
+    u = np.linspace(0.0, 1.0, N_U)
+    n_links = len(net.link_a)
+    variable = (K_SPLASH, K_IMM_GEAR, K_IMM_BRG, K_BRG_SPLASH, K_STREAM, K_RING)
+    src_of_link = np.full(n_links, -1)
+    for k in range(n_links):
+        if int(net.link_kind[k]) in variable:
+            src_of_link[k] = _speed_of_link(net, k)
+    zero_mt = np.zeros(len(MESHES))
+    T_dummy = np.full(net.n, 60.0)
+    bc_dummy = np.full(len(BOUNDARIES), 40.0)
+
+    def eval_all(w, T, low_range=False):
+        sp = np.full(len(SPEED_NAMES), float(w))
+        return ev.evaluate(float(T), sp, 0, zero_mt, low_range, T_dummy, bc_dummy).copy()
+
+    tables = {}
+    for s in sorted(set(src_of_link[src_of_link >= 0].tolist())):
+        wmax = max(w_src_max[s], 1e-6)
+        tab = np.empty((N_U, T_GRID_C.size, n_links))
+        for i, ui in enumerate(u):
+            for j, Tj in enumerate(T_GRID_C):
+                tab[i, j] = eval_all(ui * ui * wmax, Tj)
+        tables[s] = tab
+    return LawGrid(tables, src_of_link, w_src_max, u, eval_all(0.0, 60.0, low_range=True))
+
+
+class _Laws:
+    """The conductance law of every reduced link, collected link by link of the full network (module doc)."""
+
+    def __init__(self, net: Network, agg: Aggregation, p: Parameters, grid: LawGrid):
+        self.net, self.agg, self.p, self.grid = net, agg, p, grid
+        self.kin = p.kinematics
+        self.speed_abs = np.abs(self.kin.speed)
+        self.G_const = np.zeros(len(agg.link_a))
+        self.pw: list = []
+        self.t2: list = []
+        self.ef: list = []
+        self.cyl: list = []
+        self.rad: dict = {}              # reduced link -> area x emissivity
+        self.phi_cols: list = []
+
+    def phi_col(self, values) -> int:
+        for c, v in enumerate(self.phi_cols):
+            if np.allclose(v, values, rtol=1e-12, atol=0):
+                return c
+        self.phi_cols.append(values)
+        return len(self.phi_cols) - 1
+
+    def phi_table(self) -> np.ndarray:
+        pw_phi = np.ones((T_GRID_C.size, max(len(self.phi_cols), 1)))
+        for c, v in enumerate(self.phi_cols):
+            pw_phi[:, c] = v
+        return pw_phi
+
+    def add_link(self, k: int) -> None:
+        r = int(self.agg.link_of_full[k])
+        if r < 0:
+            return                                   # inside a group
+        net, p = self.net, self.p
+        kind = int(net.link_kind[k])
+        if kind == K_CONST:
+            self.G_const[r] += net.link_G0[k]
+        elif kind == K_CONTACT:
+            mask = (self.kin.mesh_torque[:, int(_link_param(net, k, "mesh"))] != 0).astype(float)
+            self.pw.append(PowerTerm(r, 0.0, net.link_G0[k] * mask, -1, 0))
+        elif kind == K_EXT_CONV:
+            self.pw.append(PowerTerm(r, 0.0, np.full(N_GEARS, net.link_G0[k] * p["housing.h_air"]), -1, 3))
+        elif kind == K_EXT_RAD:
+            # housings merged into one node: their radiation areas add (same boundary, same law)
+            area_eps = net.link_G0[k] * p["housing.emissivity"]
+            self.rad[r] = self.rad[r] + area_eps if r in self.rad else area_eps
+        elif kind == K_IMM_GEAR:
+            self._immersed_wheel(k, r)
+        elif kind == K_STREAM and int(_link_param(net, k, "sub")) in (S_CHANNEL, S_IMPOSED):
+            self._closed_form_stream(k, r)
+        else:
+            self._tabulated(k, r, kind)
+
+    def _immersed_wheel(self, k: int, r: int) -> None:
+        """Nusselt (Eq 46-48, closed form) plus fling-off (Eq 54-58, an exact sqrt(w) power law)."""
+        net, s = self.net, self.grid.src_of_link[k]
+        w = self.grid.u * self.grid.u * self.grid.w_src_max[s]
+        R_p = float(_link_param(net, k, "R_p"))
+        fo = _fling_off_table(net, k, w, T_GRID_C)
+        law = _separable_power_law(fo, w)
+        nus = _cyl_table(net.link_G0[k] / R_p, R_p, w, T_GRID_C)
+        tab = self.grid.tables[s][:, :, k]
+        if law is None or np.max(np.abs(nus + fo - tab)) > 1e-9 * np.abs(tab).max():
+            raise ParameterError(f"link {net.link_name[k]}: the immersed-wheel conductance is not Nusselt (Eq 46-48) "
+                                 f"plus fling-off (Eq 54-58) as the onboard model assumes")
+        e, a, phi = law
+        self.pw.append(PowerTerm(r, e, a * self.speed_abs[:, s] ** e, self.phi_col(phi), 0))
+        self.cyl.append(CylinderTerm(r, self.speed_abs[:, s], net.link_G0[k] / R_p, math.log(R_p * R_p)))
+
+    def _closed_form_stream(self, k: int, r: int) -> None:
+        """Channel flows (Eq 77-80: 7.54 k / D_h x area) and the planetary's imposed h, through the NTU law."""
+        net = self.net
+        sub = int(_link_param(net, k, "sub"))
+        frac = float(_link_param(net, k, "frac"))
+        if sub == S_CHANNEL:
+            alpha, beta = net.link_G0[k] * ht.NU_CHANNEL / float(_link_param(net, k, "D")), 0.0  # Eq 77-80
+        else:
+            alpha, beta = 0.0, net.link_G0[k] * float(_link_param(net, k, "h"))
+        self.ef.append(StreamTerm(r, frac * self.p["oil_system.flow_m3_per_rad"], alpha, beta,
+                                  2 if sub == S_IMPOSED else 0))
+
+    def _tabulated(self, k: int, r: int, kind: int) -> None:
+        """A power law where the table is separable (splash Eq 59, Harris Eq 63, immersed bearings Eq 52), else a
+        bilinear table; the ring gear is a splash law at high range and a constant at low range."""
+        net, s = self.net, self.grid.src_of_link[k]
+        tab = self.grid.tables[s][:, :, k]                      # (N_U, nT)
+        wmax = self.grid.w_src_max[s]
+        name = net.link_name[k]
+        law = _separable_power_law(tab, self.grid.u * self.grid.u * wmax)
+        if kind == K_RING:
+            # low range: housing-like constant h (seed 3.3); high range: the ring turns with the sun (splash)
+            G_low = float(self.grid.G_ring_low[k])
+            if law is not None:
+                self.pw.append(PowerTerm(r, 0.0, G_low * self.kin.low_range.astype(float), -1, 0))
+            elif not np.allclose(tab[0, :], G_low, rtol=1e-9):
+                raise ParameterError("ring-gear conductance: the high-range law at standstill differs from the "
+                                     "low-range value; the onboard tables cannot represent it")
+            # else: the table at zero ring speed (the ring does not turn at low range) is the low-range value
+        if law is not None:
+            e, a, phi = law
+            col = -1 if np.allclose(phi, 1.0, rtol=1e-12) else self.phi_col(phi)
+            coef = a * self.speed_abs[:, s] ** e
+            if kind == K_RING:
+                coef = coef * (~self.kin.low_range)
+            eff = 1 if (name.startswith("splash:") and name.endswith(".teeth")) else 0
+            self.pw.append(PowerTerm(r, e, coef, col, eff))
+        else:
+            frac = float(_link_param(net, k, "frac")) if kind == K_STREAM else 0.0
+            self.t2.append(TableTerm(r, self.speed_abs[:, s], wmax, tab[:, ::T2_STRIDE], kind == K_STREAM, frac, 0))
+
+
+class LossMaps(NamedTuple):
+    """The loss model as the onboard step evaluates it (module doc, "Loss maps")."""
+    mesh_x0: np.ndarray
+    mesh_phi: np.ndarray
+    mesh_roll_k: np.ndarray
+    mesh_heat_sf: np.ndarray
+    bear_speed: np.ndarray
+    bear_c: np.ndarray
+    bear_load: np.ndarray
+    needle_c: np.ndarray
+    sync_coef: np.ndarray
+    pump_coef: np.ndarray
+    churn_w_max: float
+    churn_table: np.ndarray
+
+
+def _loss_maps(p: Parameters, net: Network, w_ls_max_rad_s: float) -> LossMaps:
+    """Mesh slip tables and rolling constants (Eq 7-22), Palmgren coefficients of the shaft and needle bearings
+    (Eq 35-40), synchronizer (Eq 41) and pump (Eq 42) coefficients per gear, churning table (Eq 23-34)."""
+    kin = p.kinematics
+    gl = GearboxLosses(p, net.geometry)
+    mesh_x0, mesh_phi_rows, roll_k = _mesh_tables(gl)
+    speed_abs = np.abs(kin.speed)
+    bear_speed = np.zeros((N_GEARS, len(SHAFT_BEARINGS)))
+    for j, b in enumerate(SHAFT_BEARINGS):
+        if b == "BIM":
+            bear_speed[:, j] = np.abs(kin.speed[:, SPEED_NAMES.index("IS")] - kin.speed[:, SPEED_NAMES.index("MS")])
+        else:
+            bear_speed[:, j] = speed_abs[:, gl.bearing_speed_idx[j]]
+    sync_c = np.array([n_r * 2.0 * math.pi * R ** 3 * p["sync.w_ring"] / (J * math.sin(p["sync.theta_ring"]))
+                       for n_r, R, J in gl.sync_geo])
+    u_ch = np.linspace(0.0, 1.0, N_U_CHURN)
+    heat_sf = np.array([p["scale.planet_to_heat"] if m in ("PSP", "PPR") else p["scale.gear_contact_to_heat"]
+                        for m in MESHES])
+    return LossMaps(mesh_x0, mesh_phi_rows, roll_k, heat_sf, bear_speed, L.PALMGREN_SEED_C * gl.f0 * gl.Dm ** 3,
+                    gl.load_torque_coef, L.PALMGREN_SEED_C * gl.needle_f0 * gl.needle_Dm ** 3,
+                    (kin.sync_rel ** 2) @ sync_c, gl.pump_k * kin.speed[:, SPEED_NAMES.index("LS")] ** 2,
+                    w_ls_max_rad_s, _churn_table(gl, u_ch * u_ch * w_ls_max_rad_s, T_GRID_C, kin))
+
+
+def _source_matrix(net: Network, agg: Aggregation) -> np.ndarray:
+    """(N_SRC, n): where each source's heat goes, in reduced nodes."""
+    S = np.zeros((N_SRC, len(agg.nodes)))
+    for j, nm in enumerate(SRC_NAMES):
+        if nm.startswith("mesh:") and nm[5:] in ("PSP", "PPR"):
+            dist = net.sources["planetary"]
+        elif nm == "oil_lumped":
+            dist = net.sources["churning"]
+        else:
+            dist = net.sources[nm]
+        for node, frac in dist:
+            S[j, agg.node_of_full[node]] += frac
+    return S
+
+
+def _resolve_partition(partition: str | dict) -> tuple[str, dict]:
+    if not isinstance(partition, str):
+        return "custom", partition
+    if partition not in PARTITIONS:
+        raise ParameterError(f"unknown partition {partition!r}; known: {', '.join(PARTITIONS)}")
+    return partition, PARTITIONS[partition]
+
+
+def _law_fields(laws: _Laws) -> dict:
+    """The ReducedParams fields of the conductance laws (read-only arrays)."""
+    pw, t2, ef, cyl = laws.pw, laws.t2, laws.ef, laws.cyl
+    nT2 = T_GRID_C[::T2_STRIDE].size
+
+    def col(rows, name, dtype=float):
+        return _ro(np.array([getattr(r, name) for r in rows], dtype=dtype), dtype)
+
+    def per_gear(rows, name):
+        return _ro(np.array([getattr(r, name) for r in rows]).T.reshape(N_GEARS, len(rows)))
+
+    return dict(
+        G_const_w_per_k=_ro(laws.G_const),
+        pw_link=col(pw, "link", np.int64), pw_exp=col(pw, "exp"), pw_gear_coef=per_gear(pw, "gear_coef"),
+        pw_col=col(pw, "col", np.int64), pw_phi=_ro(laws.phi_table()), pw_effect=col(pw, "effect", np.int64),
+        t2_link=col(t2, "link", np.int64), t2_speed_coef=per_gear(t2, "speed_coef"), t2_w_max=col(t2, "w_max_rad_s"),
+        t2_table=_ro(np.array([r.table for r in t2]).reshape(len(t2), N_U, nT2)), t2_stream=col(t2, "stream", bool),
+        t2_frac=col(t2, "frac"), t2_effect=col(t2, "effect", np.int64),
+        cyl_link=col(cyl, "link", np.int64), cyl_speed_coef=per_gear(cyl, "speed_coef"), cyl_c=col(cyl, "c_m"),
+        cyl_ln_rp2=col(cyl, "ln_rp2"),
+        ef_link=col(ef, "link", np.int64), ef_mcp=col(ef, "flow_m3_per_rad"), ef_alpha=col(ef, "alpha_m"),
+        ef_beta=col(ef, "beta_w_per_k"), ef_effect=col(ef, "effect", np.int64),
+        rad_link=_ro(np.array(list(laws.rad), dtype=np.int64), np.int64),
+        rad_area_eps=_ro(np.array(list(laws.rad.values()), dtype=float)))
+
+
 def build_reduced(p: Parameters, partition: str | dict = "fine", effects: dict | None = None,
                   dt_s: float = DT_S, margin: float = STABILITY_MARGIN, check: bool = True) -> ReducedParams:
     """Build the onboard model from a validated parameter set; raises StabilityError if dt is unsafe.
@@ -379,205 +656,33 @@ def build_reduced(p: Parameters, partition: str | dict = "fine", effects: dict |
         raise ParameterError(f"dt_s = {dt_s} s must be in (0, 1] s")
     if not 0.0 < margin <= 1.0:
         raise ParameterError(f"stability margin = {margin} must be in (0, 1]")
-    part_name = partition if isinstance(partition, str) else "custom"
-    if isinstance(partition, str):
-        if partition not in PARTITIONS:
-            raise ParameterError(f"unknown partition {partition!r}; known: {', '.join(PARTITIONS)}")
-        partition = PARTITIONS[partition]
+    part_name, partition = _resolve_partition(partition)
     net = build_network(p)
     agg = aggregate(net, partition)
-    n = len(agg.nodes)
     kin = p.kinematics
-    n_links_full = len(net.link_a)
-    w_in_max = p["engine.max_speed_rad_s"]
-    speed_abs = np.abs(kin.speed)                    # (17, 14)
-
-    # ---- conductance laws: tabulate every link at its own shaft speed w (all shafts at w) x oil temperature
-    ev = ConductanceEvaluator(net, p, EffectScales())
-    T_grid = T_GRID_C
-    T2 = T_grid[::T2_STRIDE]
-    u = np.linspace(0.0, 1.0, N_U)
-    src_of_link = np.full(n_links_full, -1)
-    variable_kinds = (K_SPLASH, K_IMM_GEAR, K_IMM_BRG, K_BRG_SPLASH, K_STREAM, K_RING)
-    for k in range(n_links_full):
-        if int(net.link_kind[k]) in variable_kinds:
-            src_of_link[k] = _speed_of_link(net, k)
-    # max shaft speed per speed source over all gears
-    w_src_max = speed_abs.max(axis=0) * w_in_max
-    zero_mt = np.zeros(len(MESHES))
-    T_dummy = np.full(net.n, 60.0)
-    bc_dummy = np.full(len(BOUNDARIES), 40.0)
-
-    def eval_all(w, T, low_range=False):
-        sp = np.full(len(SPEED_NAMES), float(w))
-        return ev.evaluate(float(T), sp, 0, zero_mt, low_range, T_dummy, bc_dummy).copy()
-
-    # table per speed source: G[src](w_i = u_i^2 w_max, T_j) for every link (on the fine T grid)
-    tables = {}
-    for s in sorted(set(src_of_link[src_of_link >= 0].tolist())):
-        wmax = max(w_src_max[s], 1e-6)
-        tab = np.empty((N_U, T_grid.size, n_links_full))
-        for i, ui in enumerate(u):
-            for j, Tj in enumerate(T_grid):
-                tab[i, j] = eval_all(ui * ui * wmax, Tj)
-        tables[s] = tab
-
-    G_const = np.zeros(len(agg.link_a))
-    pw, t2, rad, ef, cyl = [], [], [], [], []
-    phi_cols: list = []
-
-    def phi_col(values):
-        for c, v in enumerate(phi_cols):
-            if np.allclose(v, values, rtol=1e-12, atol=0):
-                return c
-        phi_cols.append(values)
-        return len(phi_cols) - 1
-
-    for k in range(n_links_full):
-        r = agg.link_of_full[k]
-        if r < 0:
-            continue
-        kind = int(net.link_kind[k])
-        name = net.link_name[k]
-        if kind == K_CONST:
-            G_const[r] += net.link_G0[k]
-        elif kind == K_CONTACT:
-            mesh = int(_link_param(net, k, "mesh"))
-            mask = (kin.mesh_torque[:, mesh] != 0).astype(float)
-            pw.append((r, 0.0, net.link_G0[k] * mask, -1, 0))
-        elif kind == K_EXT_CONV:
-            pw.append((r, 0.0, np.full(N_GEARS, net.link_G0[k] * p["housing.h_air"]), -1, 3))
-        elif kind == K_EXT_RAD:
-            # housings merged into one node: their radiation areas add (same boundary, same law)
-            for i, (rr, a) in enumerate(rad):
-                if rr == r:
-                    rad[i] = (rr, a + net.link_G0[k] * p["housing.emissivity"])
-                    break
-            else:
-                rad.append((r, net.link_G0[k] * p["housing.emissivity"]))
-        else:
-            s = src_of_link[k]
-            tab = tables[s][:, :, k]                     # (N_U, nT)
-            if kind == K_IMM_GEAR:
-                R_p = float(_link_param(net, k, "R_p"))
-                fo = _fling_off_table(net, k, u * u * w_src_max[s], T_grid)
-                law = _separable_power_law(fo, u * u * w_src_max[s])
-                nus = _cyl_table(net.link_G0[k] / R_p, R_p, u * u * w_src_max[s], T_grid)
-                if law is None or np.max(np.abs(nus + fo - tab)) > 1e-9 * np.abs(tab).max():
-                    raise ParameterError(f"link {name}: the immersed-wheel conductance is not Nusselt (Eq 46-48) "
-                                         f"plus fling-off (Eq 54-58) as the onboard model assumes")
-                e, a, phi = law
-                pw.append((r, e, a * speed_abs[:, s] ** e, phi_col(phi), 0))
-                cyl.append((r, speed_abs[:, s], net.link_G0[k] / R_p, math.log(R_p * R_p)))
-                continue
-            if kind == K_STREAM and int(_link_param(net, k, "sub")) in (S_CHANNEL, S_IMPOSED):
-                sub = int(_link_param(net, k, "sub"))
-                frac = float(_link_param(net, k, "frac"))
-                if sub == S_CHANNEL:
-                    alpha, beta = net.link_G0[k] * ht.NU_CHANNEL / float(_link_param(net, k, "D")), 0.0  # Eq 77-80
-                else:
-                    alpha, beta = 0.0, net.link_G0[k] * float(_link_param(net, k, "h"))
-                ef.append((r, frac * p["oil_system.flow_m3_per_rad"], alpha, beta, 2 if sub == S_IMPOSED else 0))
-                continue
-            wmax = w_src_max[s]
-            eff = 1 if (name.startswith("splash:") and name.endswith(".teeth")) else 0
-            law = _separable_power_law(tab, u * u * wmax)
-            if kind == K_RING:
-                # low range: housing-like constant h (seed 3.3); high range: the ring turns with the sun (splash)
-                G_low = float(eval_all(0.0, 60.0, low_range=True)[k])
-                if law is not None:
-                    pw.append((r, 0.0, G_low * kin.low_range.astype(float), -1, 0))
-                elif not np.allclose(tab[0, :], G_low, rtol=1e-9):
-                    raise ParameterError("ring-gear conductance: the high-range law at standstill differs from the "
-                                         "low-range value; the onboard tables cannot represent it")
-                # else: the table at zero ring speed (the ring does not turn at low range) is the low-range value
-            if law is not None:
-                e, a, phi = law
-                col = -1 if np.allclose(phi, 1.0, rtol=1e-12) else phi_col(phi)
-                coef = a * speed_abs[:, s] ** e
-                if kind == K_RING:
-                    coef = coef * (~kin.low_range)
-                pw.append((r, e, coef, col, eff))
-            else:
-                frac = float(_link_param(net, k, "frac")) if kind == K_STREAM else 0.0
-                t2.append((r, speed_abs[:, s], wmax, tab[:, ::T2_STRIDE], kind == K_STREAM, frac, 0))
-    ncol = max(len(phi_cols), 1)
-    pw_phi = np.ones((T_grid.size, ncol))
-    for c, v in enumerate(phi_cols):
-        pw_phi[:, c] = v
-
-    # ---- losses
-    gl = GearboxLosses(p, net.geometry)
-    mesh_x0, mesh_phi_rows, roll_k = _mesh_tables(gl)
-    bear_speed = np.zeros((N_GEARS, len(SHAFT_BEARINGS)))
-    for j, b in enumerate(SHAFT_BEARINGS):
-        if b == "BIM":
-            bear_speed[:, j] = np.abs(kin.speed[:, SPEED_NAMES.index("IS")] - kin.speed[:, SPEED_NAMES.index("MS")])
-        else:
-            bear_speed[:, j] = speed_abs[:, gl.bearing_speed_idx[j]]
-    bear_c = L.PALMGREN_SEED_C * gl.f0 * gl.Dm ** 3
-    needle_c = L.PALMGREN_SEED_C * gl.needle_f0 * gl.needle_Dm ** 3
-    sync_c = np.array([n_r * 2.0 * math.pi * R ** 3 * p["sync.w_ring"] / (J * math.sin(p["sync.theta_ring"]))
-                       for n_r, R, J in gl.sync_geo])
-    sync_coef = (kin.sync_rel ** 2) @ sync_c
-    i_ls = SPEED_NAMES.index("LS")
-    pump_coef = gl.pump_k * kin.speed[:, i_ls] ** 2
-    churn_w_max = w_src_max[i_ls]
-    u_ch = np.linspace(0.0, 1.0, N_U_CHURN)
-    churn_table = _churn_table(gl, u_ch * u_ch * churn_w_max, T_grid, kin)
-    # where each source's heat goes (reduced nodes)
-    S = np.zeros((N_SRC, n))
-    for j, nm in enumerate(SRC_NAMES):
-        if nm.startswith("mesh:") and nm[5:] in ("PSP", "PPR"):
-            dist = net.sources["planetary"]
-        elif nm == "oil_lumped":
-            dist = net.sources["churning"]
-        else:
-            dist = net.sources[nm]
-        for node, frac in dist:
-            S[j, agg.node_of_full[node]] += frac
-    heat_sf = np.array([p["scale.planet_to_heat"] if m in ("PSP", "PPR") else p["scale.gear_contact_to_heat"]
-                        for m in MESHES])
-
-    # ---- cooler
+    grid = _law_grid(net, p)
+    laws = _Laws(net, agg, p, grid)
+    for k in range(len(net.link_a)):
+        laws.add_link(k)
+    lm = _loss_maps(p, net, float(grid.w_src_max[SPEED_NAMES.index("LS")]))
     kind = p.strings.get("cooler.kind", "liquid")
-    cooler_code = COOLER_CODES.get(kind, 0)
-    cooler = cooler_values(p)
-
-    bc = np.array([p[f"boundary.{b}"] for b in BOUNDARIES])
-    published = np.array([agg.nodes.index(c) for c in PUBLISHED])
-
-    def arr(rows, i, dtype=float):
-        return np.array([r[i] for r in rows], dtype=dtype)
-
     rp = ReducedParams(
         variant=p.variant, partition=part_name, nodes=agg.nodes, dt_s=float(dt_s), margin=float(margin),
-        C_j_per_k=_ro(agg.C), i_oil=agg.nodes.index("oil"), published_index=_ro(published, np.int64),
-        members=agg.members,
-        link_a=_ro(agg.link_a, np.int64), link_b=_ro(agg.link_b, np.int64), link_name=agg.link_name, G_const_w_per_k=_ro(G_const),
-        pw_link=_ro(arr(pw, 0, np.int64), np.int64), pw_exp=_ro(arr(pw, 1)),
-        pw_gear_coef=_ro(np.array([r[2] for r in pw]).T.reshape(N_GEARS, len(pw))),
-        pw_col=_ro(arr(pw, 3, np.int64), np.int64), pw_phi=_ro(pw_phi), pw_effect=_ro(arr(pw, 4, np.int64), np.int64),
-        t2_link=_ro(arr(t2, 0, np.int64), np.int64),
-        t2_speed_coef=_ro(np.array([r[1] for r in t2]).T.reshape(N_GEARS, len(t2))),
-        t2_w_max=_ro(arr(t2, 2)), t2_table=_ro(np.array([r[3] for r in t2]).reshape(len(t2), N_U, T2.size)),
-        t2_stream=_ro([r[4] for r in t2], bool), t2_frac=_ro(arr(t2, 5)),
-        t2_effect=_ro(arr(t2, 6, np.int64), np.int64),
-        cyl_link=_ro(arr(cyl, 0, np.int64), np.int64),
-        cyl_speed_coef=_ro(np.array([r[1] for r in cyl]).T.reshape(N_GEARS, len(cyl))),
-        cyl_c=_ro(arr(cyl, 2)), cyl_ln_rp2=_ro(arr(cyl, 3)),
-        ef_link=_ro(arr(ef, 0, np.int64), np.int64), ef_mcp=_ro(arr(ef, 1)), ef_alpha=_ro(arr(ef, 2)),
-        ef_beta=_ro(arr(ef, 3)), ef_effect=_ro(arr(ef, 4, np.int64), np.int64),
-        rad_link=_ro(arr(rad, 0, np.int64), np.int64), rad_area_eps=_ro(arr(rad, 1)),
-        prop=_ro(oil_property_table(T_grid)),
+        C_j_per_k=_ro(agg.C), i_oil=agg.nodes.index("oil"),
+        published_index=_ro(np.array([agg.nodes.index(c) for c in PUBLISHED]), np.int64), members=agg.members,
+        link_a=_ro(agg.link_a, np.int64), link_b=_ro(agg.link_b, np.int64), link_name=agg.link_name,
+        **_law_fields(laws),
+        prop=_ro(oil_property_table(T_GRID_C)),
         speed_coef=_ro(kin.speed), mesh_torque=_ro(kin.mesh_torque), mesh_omega2=_ro(kin.mesh_omega2),
-        mesh_x0=_ro(mesh_x0), mesh_phi=_ro(mesh_phi_rows), mesh_roll_k=_ro(roll_k), mesh_heat_sf=_ro(heat_sf),
-        bear_speed=_ro(bear_speed), bear_c=_ro(bear_c), bear_load=_ro(gl.load_torque_coef),
-        needle_rel=_ro(kin.wheel_bearing_rel), needle_c=_ro(needle_c), sync_coef=_ro(sync_coef),
-        pump_coef=_ro(pump_coef), churn_w_max=float(churn_w_max), churn_table=_ro(churn_table),
-        churn_heat_sf=float(p["scale.churn_to_heat"]), src_matrix=_ro(S),
-        heat_lag_tau_s=float(p["scale.heat_lag_tau"]), cooler_code=cooler_code, cooler=cooler,
-        flow_m3_per_rad=float(p["oil_system.flow_m3_per_rad"]), bc_default_c=_ro(bc),
+        mesh_x0=_ro(lm.mesh_x0), mesh_phi=_ro(lm.mesh_phi), mesh_roll_k=_ro(lm.mesh_roll_k),
+        mesh_heat_sf=_ro(lm.mesh_heat_sf), bear_speed=_ro(lm.bear_speed), bear_c=_ro(lm.bear_c),
+        bear_load=_ro(lm.bear_load), needle_rel=_ro(kin.wheel_bearing_rel), needle_c=_ro(lm.needle_c),
+        sync_coef=_ro(lm.sync_coef), pump_coef=_ro(lm.pump_coef), churn_w_max=float(lm.churn_w_max),
+        churn_table=_ro(lm.churn_table), churn_heat_sf=float(p["scale.churn_to_heat"]),
+        src_matrix=_ro(_source_matrix(net, agg)), heat_lag_tau_s=float(p["scale.heat_lag_tau"]),
+        cooler_code=COOLER_CODES.get(kind, 0), cooler=cooler_values(p),
+        flow_m3_per_rad=float(p["oil_system.flow_m3_per_rad"]),
+        bc_default_c=_ro(np.array([p[f"boundary.{b}"] for b in BOUNDARIES])),
         i_ambient=BOUNDARIES.index("ambient"), i_coolant=BOUNDARIES.index("coolant"),
         i_hot=BOUNDARIES.index("hot_surroundings"),
         max_speed_rpm=float(p["engine.max_speed_rad_s"] / RPM), min_torque_nm=float(p["engine.min_torque"]),
