@@ -502,8 +502,8 @@ class ConductanceEvaluator:
         return self.h_nom * (omega_rad_s / self.omega_nom_rad_s) ** self.exp_splash
 
     def _speeds(self, kind: int, speeds: np.ndarray, floor: float | None = None) -> np.ndarray:
-        w = speeds[self.kp[kind]["speed"].astype(int)]
-        return w if floor is None else np.maximum(w, floor)
+        omega_rad_s = speeds[self.kp[kind]["speed"].astype(int)]
+        return omega_rad_s if floor is None else np.maximum(omega_rad_s, floor)
 
     def _oil_side(self, G, op, speeds, low_range):
         """Splash (Eq 59), immersed wheels (Eq 46-51, fling-off Eq 54-58), immersed bearings (Eq 52-53), bearing
@@ -516,10 +516,11 @@ class ConductanceEvaluator:
         i = self.idx[K_IMM_GEAR]
         if i.size:
             k = kp[K_IMM_GEAR]
-            w = self._speeds(K_IMM_GEAR, speeds, 1e-3)
-            h = ht.nusselt_rotating_cylinder(ht.reynolds_gear(k["R_p"], w, op.nu_m2_s), op.pr) * op.k_w_per_mk / k["R_p"]
-            fo = ht.fling_off_hA(k["z"], k["width"], k["h_t"], k["R_p"], k["h_i"], w, op.k_w_per_mk, op.alpha_m2_s,
-                                 op.nu_m2_s)
+            omega_rad_s = self._speeds(K_IMM_GEAR, speeds, 1e-3)
+            h = ht.nusselt_rotating_cylinder(ht.reynolds_gear(k["R_p"], omega_rad_s, op.nu_m2_s), op.pr) \
+                * op.k_w_per_mk / k["R_p"]
+            fo = ht.fling_off_hA(k["z"], k["width"], k["h_t"], k["R_p"], k["h_i"], omega_rad_s, op.k_w_per_mk,
+                                 op.alpha_m2_s, op.nu_m2_s)
             G[i] = G0[i] * h + fo.hA_w_per_k
         i = self.idx[K_IMM_BRG]
         if i.size:

@@ -906,16 +906,16 @@ def conductances(rp: ReducedParams, row, w_in, x_T, prop, phi, T_nodes_c, T_bc_c
     row: gear row (gear - GEAR_MIN), w_in: input speed [rad/s] >= 0, (x_T, prop, phi): :func:`oil_row` at the oil
     temperature; T_nodes_c / T_bc_c: node and boundary temperatures (radiation, Eq 81)."""
     h = h or helpers(rp)
-    w = np.asarray(w_in, dtype=float)
+    omega_in_rad_s = np.asarray(w_in, dtype=float)
     # power laws: coef(gear) w^e phi(T)
     ph = np.where(h.pw_has_col, np.take(phi, h.pw_colc, axis=-1), 1.0)
-    Gp = rp.pw_gear_coef[row] * np.power(w[..., None], rp.pw_exp) * ph
+    Gp = rp.pw_gear_coef[row] * np.power(omega_in_rad_s[..., None], rp.pw_exp) * ph
     if eff is not None:
         Gp = _scaled(Gp, h.pw_eff[1], eff.teeth_oil_h)
         Gp = _scaled(Gp, h.pw_eff[3], eff.housing_air_h)
     # bilinear tables over (sqrt(w_t / w_max), T)
-    wt = rp.t2_speed_coef[row] * w[..., None]
-    uu = np.sqrt(np.minimum(wt / rp.t2_w_max, 1.0)) * (N_U - 1)
+    omega_t_rad_s = rp.t2_speed_coef[row] * omega_in_rad_s[..., None]
+    uu = np.sqrt(np.minimum(omega_t_rad_s / rp.t2_w_max, 1.0)) * (N_U - 1)
     iu = np.minimum(uu.astype(np.int64), N_U - 2)
     fu = uu - iu
     xT2 = np.asarray(x_T) / T2_STRIDE
@@ -926,18 +926,18 @@ def conductances(rp: ReducedParams, row, w_in, x_T, prop, phi, T_nodes_c, T_bc_c
     lo = tf[base] * (1.0 - fT) + tf[base + 1] * fT
     hi = tf[base + h.nT2] * (1.0 - fT) + tf[base + h.nT2 + 1] * fT
     G2 = lo + (hi - lo) * fu
-    # closed-form streams: m (1 - exp(-hA / m))  (NTU effectiveness, Eq 69-80)
-    w_ls = np.abs(rp.speed_coef[row, 1]) * w
-    m = rp.ef_mcp * (prop[..., P_RHO] * prop[..., P_CP] * w_ls)[..., None]
+    # closed-form streams: m (1 - exp(-hA / m)), m = mdot cp  (NTU effectiveness, Eq 69-80)
+    omega_ls_rad_s = np.abs(rp.speed_coef[row, 1]) * omega_in_rad_s
+    mcp_w_per_k = rp.ef_mcp * (prop[..., P_RHO] * prop[..., P_CP] * omega_ls_rad_s)[..., None]
     beta = rp.ef_beta
     if eff is not None and h.ef_planet.size and not (np.ndim(eff.planet_oil_h) == 0 and eff.planet_oil_h == 1.0):
-        beta = _scaled(np.broadcast_to(beta, m.shape), h.ef_planet, eff.planet_oil_h)
+        beta = _scaled(np.broadcast_to(beta, mcp_w_per_k.shape), h.ef_planet, eff.planet_oil_h)
     hA = rp.ef_alpha * prop[..., P_K, None] + beta
-    ms = np.where(m > 0.0, m, 1.0)
-    Ge = np.where(m > 0.0, -ms * np.expm1(-hA / ms), 0.0)
+    mcp_safe_w_per_k = np.where(mcp_w_per_k > 0.0, mcp_w_per_k, 1.0)
+    Ge = np.where(mcp_w_per_k > 0.0, -mcp_safe_w_per_k * np.expm1(-hA / mcp_safe_w_per_k), 0.0)
     # immersed wheels: Nusselt (Eq 46-48) in closed form
-    wc = np.maximum(rp.cyl_speed_coef[row] * w[..., None], 1e-3)
-    ln_re = rp.cyl_ln_rp2 + np.log(wc) - (prop[..., P_LN_NU_CST, None] + _LN_1E6)
+    omega_c_rad_s = np.maximum(rp.cyl_speed_coef[row] * omega_in_rad_s[..., None], 1e-3)
+    ln_re = rp.cyl_ln_rp2 + np.log(omega_c_rad_s) - (prop[..., P_LN_NU_CST, None] + _LN_1E6)
     Gc = rp.cyl_c * prop[..., P_K, None] * _cyl_nusselt(ln_re, prop[..., P_LN_PR, None])
     G = rp.G_const_w_per_k + Gp @ h.pw_scatter + G2 @ h.t2_scatter + Ge @ h.ef_scatter + Gc @ h.cyl_scatter
     if radiation and rp.rad_link.size:
@@ -991,15 +991,15 @@ def heat_sources(rp: ReducedParams, row, w_in, torque_abs_nm, prop, x_T, src_sca
     """Heat of every source [W], shape (..., N_SRC): meshes (Eq 7-22, x seed heat factors), shaft bearings
     (Eq 35-40), the oil-lumped sources (churning x 1.33, needle bearings, synchronizers, pump) and the retarder."""
     h = h or helpers(rp)
-    w = np.asarray(w_in, dtype=float)
-    Tq = np.asarray(torque_abs_nm, dtype=float)
-    w_ = w[..., None]
-    T1 = rp.mesh_torque[row] * Tq[..., None]
-    w2 = rp.mesh_omega2[row] * w_
-    on = (T1 > 0.0) & (w2 > 0.0)
+    omega_in_rad_s = np.asarray(w_in, dtype=float)
+    torque_nm = np.asarray(torque_abs_nm, dtype=float)
+    omega_in_col = omega_in_rad_s[..., None]
+    T1 = rp.mesh_torque[row] * torque_nm[..., None]
+    omega2_rad_s = rp.mesh_omega2[row] * omega_in_col
+    on = (T1 > 0.0) & (omega2_rad_s > 0.0)
     T1s = np.where(on, T1, 1.0)
-    w2s = np.where(on, w2, 1.0)
-    lT, lw = np.log10(T1s), np.log10(w2s)
+    omega2_safe = np.where(on, omega2_rad_s, 1.0)
+    lT, lw = np.log10(T1s), np.log10(omega2_safe)
     x = (lT - prop[..., P_LOG10_MU, None] - 3.0 * lw - rp.mesh_x0) / X_STEP
     x = np.clip(x, 0.0, h.nx - 1.000001)
     ix = x.astype(np.int64)
@@ -1008,23 +1008,24 @@ def heat_sources(rp: ReducedParams, row, w_in, torque_abs_nm, prop, x_T, src_sca
     b = h.mesh_base + ix
     phi = mf[b] * (1.0 - fx) + mf[b + 1] * fx
     # slip: T1 w2 phi; rolling: K mu^0.7 a^0.54 w2^1.7 T1^-0.13 (Eq 18: exact power law)
-    P = T1s * w2s * (phi + rp.mesh_roll_k * np.exp(prop[..., P_LN_ROLL, None] + math.log(10.0) * (0.7 * lw - 1.13 * lT)))
+    P = T1s * omega2_safe * (phi + rp.mesh_roll_k * np.exp(prop[..., P_LN_ROLL, None]
+                                                           + math.log(10.0) * (0.7 * lw - 1.13 * lT)))
     P_mesh = np.where(on, P, 0.0) * rp.mesh_heat_sf
     # shaft bearings (Eq 35-40)
-    wb = rp.bear_speed[row] * w_
+    omega_b_rad_s = rp.bear_speed[row] * omega_in_col
     nu = np.exp(prop[..., P_LN_NU_CST, None])
-    M0 = rp.bear_c * np.maximum(nu * wb * RPM_PER_RAD_S, L.PALMGREN_NU_N_MIN) ** (2.0 / 3.0)
-    P_bear = (M0 + rp.bear_load[row] * Tq[..., None]) * wb
+    M0 = rp.bear_c * np.maximum(nu * omega_b_rad_s * RPM_PER_RAD_S, L.PALMGREN_NU_N_MIN) ** (2.0 / 3.0)
+    P_bear = (M0 + rp.bear_load[row] * torque_nm[..., None]) * omega_b_rad_s
     # lumped into the sump: needle bearings (Eq 36-37 on relative speed), synchronizers (Eq 41), pump (Eq 42),
     # churning (Eq 23-34, table)
-    rel = rp.needle_rel[row] * w_
+    rel = rp.needle_rel[row] * omega_in_col
     Mn = rp.needle_c * np.maximum(nu * rel * RPM_PER_RAD_S, L.PALMGREN_NU_N_MIN) ** (2.0 / 3.0)
     P_needle = np.sum(Mn * rel, axis=-1)
-    w2in = w * w
-    P_sync = np.exp(prop[..., P_LN_MU]) * w2in * rp.sync_coef[row]
-    P_pump = rp.pump_coef[row] * w2in
-    w_ls = np.abs(rp.speed_coef[row, 1]) * w
-    uu = np.sqrt(np.minimum(w_ls / rp.churn_w_max, 1.0)) * (N_U_CHURN - 1)
+    omega_in_sq = omega_in_rad_s * omega_in_rad_s
+    P_sync = np.exp(prop[..., P_LN_MU]) * omega_in_sq * rp.sync_coef[row]
+    P_pump = rp.pump_coef[row] * omega_in_sq
+    omega_ls_rad_s = np.abs(rp.speed_coef[row, 1]) * omega_in_rad_s
+    uu = np.sqrt(np.minimum(omega_ls_rad_s / rp.churn_w_max, 1.0)) * (N_U_CHURN - 1)
     iu = np.minimum(np.asarray(uu).astype(np.int64), N_U_CHURN - 2)
     fu = uu - iu
     xT = np.asarray(x_T)

@@ -151,18 +151,19 @@ def oil_cooler_heat(c: CoolerParams, kind: str, T_oil_c, inner_flow_ratio, omega
     mcp_w_per_k: the oil-system flow capacity mdot cp (no flow: no heat); the liquid cooler exchanges with the
     coolant, the air cooler with ambient air warmed by recirculation (air_temperature_c). ``scale`` and
     ``thermostat_offset_c``: the cooler_effectiveness_scale and thermostat_offset effects."""
-    mcp = np.where(mcp_w_per_k > 0.0, mcp_w_per_k, 0.0)
+    flow_capacity_w_per_k = np.where(mcp_w_per_k > 0.0, mcp_w_per_k, 0.0)
     if kind == "none":
-        z = np.zeros(np.broadcast(T_oil_c, inner_flow_ratio, mcp).shape)
+        z = np.zeros(np.broadcast(T_oil_c, inner_flow_ratio, flow_capacity_w_per_k).shape)
         return CoolerHeat(z, z)
     hA = cooler_hA_w_per_k(c, kind, inner_flow_ratio, omega_engine_rad_s, v_kmh, scale)
     if kind == "liquid":
-        Q = cooler_heat_w("liquid", hA, T_oil_c, T_coolant_c, mcp, 1.0, c.liquid_Q_max_cool_w, c.liquid_Q_max_heat_w,
-                          0.0, 1.0)
+        Q = cooler_heat_w("liquid", hA, T_oil_c, T_coolant_c, flow_capacity_w_per_k, 1.0, c.liquid_Q_max_cool_w,
+                          c.liquid_Q_max_heat_w, 0.0, 1.0)
     else:
-        Q = cooler_heat_w("air", hA, T_oil_c, air_temperature_c(T_ambient_c, v_kmh), mcp, 1.0, c.air_Q_max_cool_w,
-                          0.0, c.thermostat_open_c + thermostat_offset_c, c.thermostat_full_c + thermostat_offset_c)
-    return CoolerHeat(np.where(mcp > 0.0, Q, 0.0), hA)
+        Q = cooler_heat_w("air", hA, T_oil_c, air_temperature_c(T_ambient_c, v_kmh), flow_capacity_w_per_k, 1.0,
+                          c.air_Q_max_cool_w, 0.0, c.thermostat_open_c + thermostat_offset_c,
+                          c.thermostat_full_c + thermostat_offset_c)
+    return CoolerHeat(np.where(flow_capacity_w_per_k > 0.0, Q, 0.0), hA)
 
 
 def inlet_drop_k(Q_w, mcp_w_per_k):

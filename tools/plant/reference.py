@@ -218,8 +218,8 @@ class ReferencePlant:
         elif inp.kind == "measured":
             T[self.i_oil] = inp.oil_meas_c[0]
         state = StepState(T, T.copy(), None, np.zeros(len(self.src_names)), int(inp.gear[0]))
-        ledger = Ledger(np.empty((n_steps + 1, self.n)), np.zeros((n_steps + 1, len(SOURCES) + 4 + len(HEAT_OUT_NAMES))),
-                        out_j=np.zeros(len(HEAT_OUT_NAMES)))
+        n_q = len(SOURCES) + 4 + len(HEAT_OUT_NAMES)
+        ledger = Ledger(np.empty((n_steps + 1, self.n)), np.zeros((n_steps + 1, n_q)), out_j=np.zeros(len(HEAT_OUT_NAMES)))
         ledger.T_c[0] = T
         lag_dt = heat_lag(self.tau_lag, dt)
         i_ret = self.src_names.index("retarder")
