@@ -7,7 +7,6 @@ number from matching, the document says so.
 """
 from __future__ import annotations
 
-import math
 import sys
 import time
 from pathlib import Path
@@ -24,8 +23,8 @@ from tools.cycles.named import CYCLE_NAMES, get_cycle  # noqa: E402
 from tools.plant.reference import ReferencePlant  # noqa: E402
 from tools.plots import plot_heat_budget, plot_temperatures  # noqa: E402
 from tools.runtable import RunTable  # noqa: E402
+from firmware_model.units import RAD_S_PER_RPM as RPM  # noqa: E402
 
-RPM = 2 * math.pi / 60
 IMG = ROOT / "docs" / "img"
 
 

@@ -5,6 +5,11 @@ The loader converts every value to SI (temperatures stay in degC), checks the un
 value lies in its allowed range (ranges live here, in code, so a file cannot widen its own), and keeps the provenance
 of every value. A variant file may `inherit` another and override entries.
 
+Renamed keys (RENAMED_KEYS) are migrated in the shipped files; a file that still uses an old name
+(``oil_system.flow_per_ls_rpm``, ``engine.max_speed``, ``heat.N_nom``) loads with a FutureWarning naming the new key
+(``oil_system.flow_m3_per_rad``, ``engine.max_speed_rad_s``, ``heat.omega_nom_rad_s``), its value converted by its unit
+as before; so does ``Parameters.with_overrides`` with an old name.
+
     >>> p = load_parameters("GRS905")
     >>> round(p["gear.3.width1"], 3)          # SI: metres
     0.04
@@ -175,7 +180,7 @@ def _renamed(entries: dict, path: Path) -> dict:
     for key, e in entries.items():
         new = RENAMED_KEYS.get(key)
         if new is not None:
-            warnings.warn(f"{path.name}: parameter {key} is deprecated, use {new} (same value and unit)",
+            warnings.warn(f"{path.name}: parameter {key} is deprecated, use {new} (it is read as {new})",
                           FutureWarning, stacklevel=4)
             if new in entries:
                 raise ParameterError(f"{path.name}: {key} and {new} are the same parameter; keep only {new}")
