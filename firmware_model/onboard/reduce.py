@@ -56,6 +56,7 @@ from firmware_model.physics.conductance_matrix import link_topology, node_conduc
 from firmware_model.physics.cooler import (COOLER_KINDS, DEFAULT_VEHICLE_SPEED_KMH, cooler_hA_bound_w_per_k,
                                            cooler_params, cooler_values, oil_cooler_heat)
 from firmware_model.physics.gearbox_losses import GearboxLosses
+from firmware_model.physics.heat_lag import heat_lag
 from firmware_model.physics.kinematics import GEAR_MIN, MESHES, N_GEARS, SPEED_NAMES
 from firmware_model.network import (BOUNDARIES, K_BRG_SPLASH, K_CONST, K_CONTACT, K_EXT_CONV, K_EXT_RAD, K_IMM_BRG,
                                     K_IMM_GEAR, K_RING, K_SPLASH, K_STREAM, S_CHANNEL, S_IMPOSED, SHAFT_SEGMENTS,
@@ -863,6 +864,8 @@ class Helpers:
         # published components whose crossing re-linearises the time to limit (not the sump itself)
         self.ttl_relin_pub = pub != rp.i_oil
         self.cooler = cooler_params(rp.cooler)
+        # the heat lag's coefficients at the onboard step (physics.heat_lag.heat_lag_step(lag_w, src, h.heat_lag))
+        self.heat_lag = heat_lag(rp.heat_lag_tau_s, rp.dt_s)
 
 
 _HELPERS: dict = {}

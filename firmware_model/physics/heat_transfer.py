@@ -224,27 +224,34 @@ def h_from_nusselt_w_per_m2k(nusselt, k_w_per_mk, D_m):
     return np.asarray(nusselt, dtype=float) * k_w_per_mk / D_m
 
 
-def needle_channel_inner(r1i_m, r2i_m, r_r_m, n_roller):
+class Channel(NamedTuple):
+    """Cross-section of one oil channel of a bearing."""
+    area_m2: np.ndarray | float         # flow area
+    perimeter_m: np.ndarray | float     # wetted perimeter
+
+
+def _needle_channel(r1_m, r2_m, r_r_m, n_roller) -> Channel:
+    """The annular gap r1..r2 between two rollers minus the roller's segment: the inner (Eq 69, 70, 73) and the
+    outer (Eq 71, 72, 74) channels have the same form."""
+    gap = np.asarray(r2_m, dtype=float) - r1_m
+    a = np.arccos(np.clip((r_r_m - gap) / r_r_m, -1.0, 1.0))                                            # Eq 73 / 74
+    area = math.pi / n_roller * (np.asarray(r2_m, dtype=float) ** 2 - np.asarray(r1_m, dtype=float) ** 2) \
+        - (a * r_r_m ** 2 - r_r_m * np.sin(a) * (r_r_m - gap))                                         # Eq 69 / 71
+    perim = 2.0 * math.pi / n_roller * (np.asarray(r1_m, dtype=float) + r2_m) + 2.0 * r_r_m * (a - np.sin(a))  # Eq 70 / 72
+    return Channel(area, perim)
+
+
+def needle_channel_inner(r1i_m, r2i_m, r_r_m, n_roller) -> Channel:
     """Flow area [m2] and wetted perimeter [m] of one inner needle-bearing channel (Eq 69, 70, 73)."""
-    gap = np.asarray(r2i_m, dtype=float) - r1i_m
-    a = np.arccos(np.clip((r_r_m - gap) / r_r_m, -1.0, 1.0))                                            # Eq 73
-    area = math.pi / n_roller * (np.asarray(r2i_m, dtype=float) ** 2 - np.asarray(r1i_m, dtype=float) ** 2) \
-        - (a * r_r_m ** 2 - r_r_m * np.sin(a) * (r_r_m - gap))                                         # Eq 69
-    perim = 2.0 * math.pi / n_roller * (np.asarray(r1i_m, dtype=float) + r2i_m) + 2.0 * r_r_m * (a - np.sin(a))  # Eq 70
-    return area, perim
+    return _needle_channel(r1i_m, r2i_m, r_r_m, n_roller)
 
 
-def needle_channel_outer(r1o_m, r2o_m, r_r_m, n_roller):
+def needle_channel_outer(r1o_m, r2o_m, r_r_m, n_roller) -> Channel:
     """Flow area [m2] and wetted perimeter [m] of one outer needle-bearing channel (Eq 71, 72, 74)."""
-    gap = np.asarray(r2o_m, dtype=float) - r1o_m
-    b = np.arccos(np.clip((r_r_m - gap) / r_r_m, -1.0, 1.0))                                            # Eq 74
-    area = math.pi / n_roller * (np.asarray(r2o_m, dtype=float) ** 2 - np.asarray(r1o_m, dtype=float) ** 2) \
-        - (b * r_r_m ** 2 - r_r_m * np.sin(b) * (r_r_m - gap))                                         # Eq 71
-    perim = 2.0 * math.pi / n_roller * (np.asarray(r1o_m, dtype=float) + r2o_m) + 2.0 * r_r_m * (b - np.sin(b))  # Eq 72
-    return area, perim
+    return _needle_channel(r1o_m, r2o_m, r_r_m, n_roller)
 
 
-def shaft_bearing_channel(r_i_m, r_o_m, r_r_m, n_roller):
+def shaft_bearing_channel(r_i_m, r_o_m, r_r_m, n_roller) -> Channel:
     """Flow area [m2] and wetted perimeter [m] of one shaft-bearing channel (Eq 75, 76)."""
     r_i = np.asarray(r_i_m, dtype=float)
     r_o = np.asarray(r_o_m, dtype=float)
@@ -252,7 +259,7 @@ def shaft_bearing_channel(r_i_m, r_o_m, r_r_m, n_roller):
     perim = 2.0 * math.pi / n_roller * (r_i + r_o) + 2.0 * math.pi * r_r_m    # Eq 76
     if np.any(~(area > 0.0)):
         raise ParameterError("shaft bearing channel flow area (Eq 75) must be > 0; check r_i, r_o, r_r and n_roller")
-    return area, perim
+    return Channel(area, perim)
 
 
 def hydraulic_diameter_m(area_m2, perimeter_m):

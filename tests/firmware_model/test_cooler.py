@@ -74,19 +74,17 @@ def test_cooler_air_satisfies_eq82_eq83():
 
 
 @pytest.fixture(scope="module")
-def params():
-    return load_parameters("GRS905")
-
-
-@pytest.fixture(scope="module")
-def rp(params):
-    return R.build_reduced(params)
+def models():
+    """(parameters, onboard model) of the default gearbox."""
+    p = load_parameters("GRS905")
+    return p, R.build_reduced(p)
 
 
 @pytest.mark.parametrize("kind", ["liquid", "air"])
-def test_plant_and_onboard_use_the_same_cooler(params, rp, kind):
+def test_plant_and_onboard_use_the_same_cooler(models, kind):
     """The plant (mass flows, exact oil properties) and the onboard model (layshaft speed, the same rho cp) give the
     same heat at the same operating point, up to the last bits of the flow ratio."""
+    params, rp = models
     plant = ReferencePlant(params, cooler=kind)
     rpk = dataclasses.replace(rp, cooler_code=R.COOLER_CODES[kind])
     rng = np.random.default_rng(4)
@@ -106,8 +104,8 @@ def test_air_cooler_sees_recirculated_air():
     assert CO.air_temperature_c(25.0, 300.0) == pytest.approx(25.0)
 
 
-def test_no_oil_flow_no_heat_and_the_inlet_drop_is_clipped(params):
-    c = CO.cooler_params(CO.cooler_values(params))
+def test_no_oil_flow_no_heat_and_the_inlet_drop_is_clipped(models):
+    c = CO.cooler_params(CO.cooler_values(models[0]))
     for kind in CO.COOLER_KINDS:
         q = CO.oil_cooler_heat(c, kind, 110.0, 0.0, 150.0, 80.0, 25.0, 50.0, 0.0)
         assert float(q.Q_w) == 0.0
@@ -117,8 +115,8 @@ def test_no_oil_flow_no_heat_and_the_inlet_drop_is_clipped(params):
     assert float(CO.inlet_drop_k(500.0, 0.0)) == 0.0
 
 
-def test_liquid_cooler_hA_follows_its_flows(params):
-    c = CO.cooler_params(CO.cooler_values(params))
+def test_liquid_cooler_hA_follows_its_flows(models):
+    c = CO.cooler_params(CO.cooler_values(models[0]))
     ref = CO.cooler_hA_w_per_k(c, "liquid", 1.0, c.ref_engine_speed_rad_s, 50.0)
     assert ref == pytest.approx(c.liquid_hA_ref_w_per_k)
     assert CO.cooler_hA_w_per_k(c, "liquid", 4.0, c.ref_engine_speed_rad_s, 50.0) == pytest.approx(
