@@ -56,6 +56,9 @@ SEGMENT_OF_IDLE_WHEEL = {"LI": "IS@LI", **{w: f"MS@{w}" for w in IDLE_WHEELS[1:]
 HOUSING_MATERIAL = {"H1": "aluminium", "H2": "cast_iron", "H3": "aluminium"}
 #: shortest shaft segment [m] (a numerical floor: two neighbouring parts at one position)
 MIN_SEGMENT_M = 1e-3
+#: speed floor of the rotating-part correlations (immersed wheels and bearings, bearing splash) [rad/s]: they are
+#: evaluated at this speed at standstill (a conductance below 0.3 % of its value at 100 rpm)
+MIN_SPEED_RAD_S = 1e-3
 
 
 class NamedNodes:
@@ -516,7 +519,7 @@ class ConductanceEvaluator:
         i = self.idx[K_IMM_GEAR]
         if i.size:
             k = kp[K_IMM_GEAR]
-            omega_rad_s = self._speeds(K_IMM_GEAR, speeds, 1e-3)
+            omega_rad_s = self._speeds(K_IMM_GEAR, speeds, MIN_SPEED_RAD_S)
             h = ht.nusselt_rotating_cylinder(ht.reynolds_gear(k["R_p"], omega_rad_s, op.nu_m2_s), op.pr) \
                 * op.k_w_per_mk / k["R_p"]
             fo = ht.fling_off_hA(k["z"], k["width"], k["h_t"], k["R_p"], k["h_i"], omega_rad_s, op.k_w_per_mk,
@@ -525,12 +528,12 @@ class ConductanceEvaluator:
         i = self.idx[K_IMM_BRG]
         if i.size:
             Dm = kp[K_IMM_BRG]["Dm"]
-            re = ht.reynolds_bearing(Dm, self._speeds(K_IMM_BRG, speeds, 1e-3), op.nu_m2_s)
+            re = ht.reynolds_bearing(Dm, self._speeds(K_IMM_BRG, speeds, MIN_SPEED_RAD_S), op.nu_m2_s)
             G[i] = G0[i] * (ht.nusselt_rotating_cylinder(re, op.pr) * op.k_w_per_mk / (Dm / 2))
         i = self.idx[K_BRG_SPLASH]
         if i.size:
             k = kp[K_BRG_SPLASH]
-            G[i] = G0[i] * ht.harris_bearing_h_w_per_m2k(self._speeds(K_BRG_SPLASH, speeds, 1e-3), op.nu_m2_s,
+            G[i] = G0[i] * ht.harris_bearing_h_w_per_m2k(self._speeds(K_BRG_SPLASH, speeds, MIN_SPEED_RAD_S), op.nu_m2_s,
                                                          k["d_roller"], k["Dm"], op.k_w_per_mk, op.pr)
         i = self.idx[K_RING]
         if i.size:

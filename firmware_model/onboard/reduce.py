@@ -3,7 +3,10 @@ explicit step, with a stability guarantee checked when the parameters load.
 
 Everything here is derived by code from the same description the reference plant integrates
 (:func:`firmware_model.network.build_network`, :class:`~firmware_model.network.ConductanceEvaluator`,
-:class:`~firmware_model.physics.gearbox_losses.GearboxLosses`): no number is copied by hand.
+:class:`~firmware_model.physics.gearbox_losses.GearboxLosses`): no number is copied by hand. The cooler
+(:func:`cooler_heat` over :func:`firmware_model.physics.cooler.oil_cooler_heat`), the heat lag
+(:mod:`firmware_model.physics.heat_lag`, coefficients in ``helpers(rp).heat_lag``) and the conductance matrix
+(:func:`firmware_model.physics.conductance_matrix.conductance_matrix` of ``helpers(rp).topology``) are the plant's.
 
 Reduction (docs/sensor.md, "Reduction")
 ---------------------------------------
@@ -60,7 +63,7 @@ from firmware_model.physics.heat_lag import heat_lag
 from firmware_model.physics.kinematics import GEAR_MIN, MESHES, N_GEARS, SPEED_NAMES
 from firmware_model.network import (BOUNDARIES, K_BRG_SPLASH, K_CONST, K_CONTACT, K_EXT_CONV, K_EXT_RAD, K_IMM_BRG,
                                     K_IMM_GEAR, K_RING, K_SPLASH, K_STREAM, S_CHANNEL, S_IMPOSED, SHAFT_SEGMENTS,
-                                    ConductanceEvaluator, NamedNodes, Network, build_network)
+                                    MIN_SPEED_RAD_S, ConductanceEvaluator, NamedNodes, Network, build_network)
 from firmware_model.parameters import Parameters
 from firmware_model.units import KELVIN_OFFSET_K, RAD_S_PER_RPM, RPM_PER_RAD_S, SIGMA_W_PER_M2K4
 
@@ -173,7 +176,7 @@ class ReducedParams(NamedNodes):
     t2_frac: np.ndarray              # (n2,) oil-flow fraction of a stream (for the stability bound)
     t2_effect: np.ndarray            # (n2,) 0 none (pipe flows and immersed wheels)
     # immersed wheels, Nusselt part in closed form (Eq 46-48 with the bridge of heat_transfer.nusselt_rotating_cylinder):
-    # G = c[t] k_oil Nu(Re, Pr), Re = R_p^2 w_t / nu, w_t = max(|speed coef[gear, t]| w_in, 1e-3)
+    # G = c[t] k_oil Nu(Re, Pr), Re = R_p^2 w_t / nu, w_t = max(|speed coef[gear, t]| w_in, MIN_SPEED_RAD_S)
     # (their fling-off part, Eq 54-58, is an exact sqrt(w) power law among the pw terms)
     cyl_link: np.ndarray             # (nc,)
     cyl_speed_coef: np.ndarray       # (17, nc)
@@ -696,8 +699,8 @@ def build_reduced(p: Parameters, partition: str | dict = "fine", effects: dict |
 def _separable_power_law(tab: np.ndarray, w: np.ndarray):
     """(exponent e, a, phi(T)) with tab[i, j] = a w_i^e phi_j to SEPARABLE_RTOL for every w_i > 0, else None.
 
-    phi is normalised to 1 at 60 degC. At w = 0 the law gives 0 (the full evaluator floors some speeds at 1e-3 rad/s,
-    a conductance below 0.3 % of its value at 100 rpm)."""
+    phi is normalised to 1 at 60 degC. At w = 0 the law gives 0 (the full evaluator floors some speeds at
+    MIN_SPEED_RAD_S, a conductance below 0.3 % of its value at 100 rpm)."""
     if not np.all(np.isfinite(tab)) or np.any(tab < 0):
         return None
     pos = np.flatnonzero(w > 0)
@@ -733,7 +736,7 @@ _LN_1E6 = math.log(1e-6)
 
 def _cyl_table(c, R_p, w, T):
     op = oilprops.oil_properties(T)
-    wf = np.maximum(w, 1e-3)[:, None]
+    wf = np.maximum(w, MIN_SPEED_RAD_S)[:, None]
     re = R_p * R_p * wf / op.nu_m2_s[None, :]
     return c * op.k_w_per_mk[None, :] * ht.nusselt_rotating_cylinder(re, op.pr[None, :])
 
@@ -741,7 +744,7 @@ def _cyl_table(c, R_p, w, T):
 def _fling_off_table(net: Network, k: int, w, T):
     kp = {key: float(_link_param(net, k, key)) for key in ("z", "width", "h_t", "R_p", "h_i")}
     op = oilprops.oil_properties(T)
-    wf = np.maximum(w, 1e-3)[:, None]
+    wf = np.maximum(w, MIN_SPEED_RAD_S)[:, None]
     return ht.fling_off_hA(kp["z"], kp["width"], kp["h_t"], kp["R_p"], kp["h_i"], wf, op.k_w_per_mk[None, :],
                            op.alpha_m2_s[None, :], op.nu_m2_s[None, :]).hA_w_per_k
 
@@ -939,7 +942,7 @@ def conductances(rp: ReducedParams, row, w_in, x_T, prop, phi, T_nodes_c, T_bc_c
     mcp_safe_w_per_k = np.where(mcp_w_per_k > 0.0, mcp_w_per_k, 1.0)
     Ge = np.where(mcp_w_per_k > 0.0, -mcp_safe_w_per_k * np.expm1(-hA / mcp_safe_w_per_k), 0.0)
     # immersed wheels: Nusselt (Eq 46-48) in closed form
-    omega_c_rad_s = np.maximum(rp.cyl_speed_coef[row] * omega_in_rad_s[..., None], 1e-3)
+    omega_c_rad_s = np.maximum(rp.cyl_speed_coef[row] * omega_in_rad_s[..., None], MIN_SPEED_RAD_S)
     ln_re = rp.cyl_ln_rp2 + np.log(omega_c_rad_s) - (prop[..., P_LN_NU_CST, None] + _LN_1E6)
     Gc = rp.cyl_c * prop[..., P_K, None] * _cyl_nusselt(ln_re, prop[..., P_LN_PR, None])
     G = rp.G_const_w_per_k + Gp @ h.pw_scatter + G2 @ h.t2_scatter + Ge @ h.ef_scatter + Gc @ h.cyl_scatter
@@ -1104,7 +1107,7 @@ def max_conductances(rp: ReducedParams) -> dict:
         f = (x - i)[:, None]
         pr = rp.prop[i] * (1.0 - f) + rp.prop[i + 1] * f
         wc = np.max(rp.cyl_speed_coef, axis=0) * w_max
-        ln_re = rp.cyl_ln_rp2 + np.log(np.maximum(wc, 1e-3)) - (pr[:, P_LN_NU_CST, None] + _LN_1E6)
+        ln_re = rp.cyl_ln_rp2 + np.log(np.maximum(wc, MIN_SPEED_RAD_S)) - (pr[:, P_LN_NU_CST, None] + _LN_1E6)
         Gc = rp.cyl_c * pr[:, P_K, None] * _cyl_nusselt(ln_re, pr[:, P_LN_PR, None])
         np.add.at(G, rp.cyl_link, 1.02 * Gc.max(axis=0))
     if rp.rad_link.size:

@@ -93,7 +93,7 @@ def test_plant_and_onboard_use_the_same_cooler(models, kind):
         T_cool, T_amb, v = rng.uniform(60, 95), rng.uniform(-10, 40), rng.uniform(0, 130)
         op = oilprops.oil_properties(T)
         q_plant, _ = plant.cooler_heat(T, w_ls, w_eng, T_cool, T_amb, v)
-        q_onboard, mcp, _ = R.cooler_heat(rpk, T, w_ls, w_eng, T_cool, T_amb, v, op.rho_kg_m3 * op.cp_j_per_kgk)
+        q_onboard, _, _ = R.cooler_heat(rpk, T, w_ls, w_eng, T_cool, T_amb, v, op.rho_kg_m3 * op.cp_j_per_kgk)
         assert float(q_onboard) == pytest.approx(q_plant, rel=1e-12, abs=1e-9)
 
 

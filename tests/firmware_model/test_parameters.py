@@ -2,11 +2,10 @@
 import math
 import re
 
-import numpy as np
 import pytest
 
 from firmware_model.errors import InputError, ParameterError
-from firmware_model.physics.kinematics import GEAR_BY_NAME, build_table, gear_state, parse_gear
+from firmware_model.physics.kinematics import GEAR_BY_NAME, gear_state, parse_gear
 from firmware_model.parameters import PARAM_DIR, load_parameters
 
 
