@@ -11,8 +11,14 @@ import sys
 from tqdm import tqdm
 
 
+class _Bar(tqdm):
+    #: no monitor thread (tqdm starts one even for a disabled bar): a process that forks workers, such as replay
+    #: --processes, must not run other threads
+    monitor_interval = 0
+
+
 def progress(total: int | None, desc: str, enabled: bool | None = None, unit: str = "it", **kw) -> tqdm:
     """A tqdm bar on stderr, shown when ``enabled`` or (None) when stderr is a terminal."""
     show = sys.stderr.isatty() if enabled is None else bool(enabled)
-    return tqdm(total=total, desc=desc, unit=unit, disable=not show, file=sys.stderr, leave=False,
+    return _Bar(total=total, desc=desc, unit=unit, disable=not show, file=sys.stderr, leave=False,
                 dynamic_ncols=True, mininterval=0.2, **kw)

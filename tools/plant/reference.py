@@ -107,9 +107,9 @@ class Ledger:
     """Histories and the energy books of a run."""
     T_c: np.ndarray              # (n_steps + 1, n)
     Q_w: np.ndarray              # (n_steps + 1, n_q) the Q_ columns of the output
+    out_j: np.ndarray            # (len(HEAT_OUT_NAMES),) heat out by each path
     generated_j: float = 0.0
     stored_j: float = 0.0
-    out_j: np.ndarray = None
     mechanical_j: float = 0.0
     churn_invalid_s: float = 0.0
 
@@ -219,7 +219,7 @@ class ReferencePlant:
             T[self.i_oil] = inp.oil_meas_c[0]
         state = StepState(T, T.copy(), None, np.zeros(len(self.src_names)), int(inp.gear[0]))
         n_q = len(SOURCES) + 4 + len(HEAT_OUT_NAMES)
-        ledger = Ledger(np.empty((n_steps + 1, self.n)), np.zeros((n_steps + 1, n_q)), out_j=np.zeros(len(HEAT_OUT_NAMES)))
+        ledger = Ledger(np.empty((n_steps + 1, self.n)), np.zeros((n_steps + 1, n_q)), np.zeros(len(HEAT_OUT_NAMES)))
         ledger.T_c[0] = T
         lag_dt = heat_lag(self.tau_lag, dt)
         i_ret = self.src_names.index("retarder")
