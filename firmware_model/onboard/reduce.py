@@ -58,7 +58,7 @@ from firmware_model.errors import ParameterError, StabilityError
 from firmware_model.physics.conductance_matrix import link_topology, node_conductance_w_per_k
 from firmware_model.physics.cooler import (COOLER_KINDS, DEFAULT_VEHICLE_SPEED_KMH, cooler_hA_bound_w_per_k,
                                            cooler_params, cooler_values, oil_cooler_heat)
-from firmware_model.physics.gearbox_losses import GearboxLosses
+from firmware_model.physics.gearbox_losses import ROLL_POINTS, GearboxLosses
 from firmware_model.physics.heat_lag import heat_lag
 from firmware_model.physics.kinematics import GEAR_MIN, MESHES, N_GEARS, SPEED_NAMES
 from firmware_model.network import (BOUNDARIES, K_BRG_SPLASH, K_CONST, K_CONTACT, K_EXT_CONV, K_EXT_RAD, K_IMM_BRG,
@@ -85,8 +85,6 @@ N_U_CHURN = 33
 T2_STRIDE = 2
 #: spacing of the mesh slip-loss tables in x = log10(T1 / (mu w2^3))
 X_STEP = 0.125
-#: quadrature points of the rolling loss (the same as GearboxLosses: ~1 W terms)
-ROLL_POINTS = 4
 #: separability tolerance for power-law conductances (relative)
 SEPARABLE_RTOL = 1e-7
 #: linearised radiation is evaluated with housing temperatures clipped to this range [degC]

@@ -26,7 +26,8 @@ from firmware_model.parameters import Parameters
 #: loss sources in reporting order; "mesh:<m>" for the nine meshes, then the lumped ones
 SOURCES = tuple(f"mesh:{m}" for m in MESHES[:7]) + ("planetary",) + tuple(f"bearing:{b}" for b in SHAFT_BEARINGS) + (
     "churning", "wheel_bearings", "synchronizers", "pump")
-
+#: Gauss-Legendre points on each side of the pitch point for the rolling loss (~1 W terms, seed 3.2: coarse is plenty)
+ROLL_POINTS = 4
 
 
 class GearboxLosses:
@@ -170,7 +171,7 @@ class GearboxLosses:
                     T1 = T1 / self.n_planets
                 # rolling losses are ~1 W (seed 3.2): a coarse quadrature is plenty for them
                 P = L.gear_slip_loss_w(mesh, T1, mw[:, j], rho, mu) + L.gear_rolling_loss_w(
-                    mesh, T1, mw[:, j], mu, piezo, self.E, self.E, self.poisson, self.poisson, n_points=4)
+                    mesh, T1, mw[:, j], mu, piezo, self.E, self.E, self.poisson, self.poisson, n_points=ROLL_POINTS)
                 P = np.where(T1 > 0, P, 0.0)
                 if m in ("PSP", "PPR"):
                     P = P * self.n_planets
