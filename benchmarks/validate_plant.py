@@ -7,7 +7,6 @@ number from matching, the document says so.
 """
 from __future__ import annotations
 
-import math
 import sys
 import time
 from pathlib import Path
@@ -24,8 +23,8 @@ from tools.cycles.named import CYCLE_NAMES, get_cycle  # noqa: E402
 from tools.plant.reference import ReferencePlant  # noqa: E402
 from tools.plots import plot_heat_budget, plot_temperatures  # noqa: E402
 from tools.runtable import RunTable  # noqa: E402
+from firmware_model.units import RAD_S_PER_RPM as RPM  # noqa: E402
 
-RPM = 2 * math.pi / 60
 IMG = ROOT / "docs" / "img"
 
 
@@ -137,7 +136,7 @@ def main():
     r40 = ReferencePlant(p, cooler="liquid").run(steady(9, 1300, 2000, 3600), initial_temp_c=20.0)
     segs = ["LS@BLF", "LS@LL", "LS@3L", "LS@2L", "LS@1L", "LS@CL", "LS@RL", "LS@BLR"]
     geo = ReferencePlant(p).net.geometry
-    xs = [p["shaft.LS.x_BLF"]] + [geo["wheels"][w].x for w in ("LL", "3L", "2L", "1L", "CL", "RL")] + [p["shaft.LS.x_BLR"]]
+    xs = [p["shaft.LS.x_BLF"]] + [geo.wheels[w].x for w in ("LL", "3L", "2L", "1L", "CL", "RL")] + [p["shaft.LS.x_BLR"]]
     xs = (np.array(xs) - xs[0]) * 1000
     fig, ax = plt.subplots(figsize=(8, 4))
     for tt in (300, 900, 1800, 3600):

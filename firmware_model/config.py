@@ -22,11 +22,11 @@ Example::
 """
 from __future__ import annotations
 
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from firmware_model.errors import ParameterError
+from firmware_model.parameters import Parameters, load_parameters, read_toml
 
 ALLOWED = {
     "gearbox": {"variant", "params"},
@@ -50,8 +50,7 @@ class Config:
     sensor: dict = field(default_factory=dict)
     origin: str = "defaults"
 
-    def load_params(self):
-        from firmware_model.parameters import load_parameters
+    def load_params(self) -> Parameters:
         p = load_parameters(self.params_path or self.variant)
         if self.boundary:
             p = p.with_overrides({f"boundary.{k}": float(v) for k, v in self.boundary.items()})
@@ -64,13 +63,7 @@ def load_config(path: str | Path | None) -> Config:
     if path is None:
         return Config()
     path = Path(path)
-    try:
-        with open(path, "rb") as fh:
-            doc = tomllib.load(fh)
-    except FileNotFoundError:
-        raise ParameterError(f"config file {path} does not exist") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise ParameterError(f"config file {path} is not valid TOML: {exc}") from None
+    doc = read_toml(path, f"config file {path}")
     for sec, body in doc.items():
         if sec not in ALLOWED:
             raise ParameterError(f"config {path.name}: unknown section [{sec}]; known: {', '.join(ALLOWED)}")

@@ -1,14 +1,16 @@
-"""Catalog of candidate unmodelled effects (CONTRACTS.md section 6).
+"""Catalog of candidate unmodelled effects, and the one record of effect values the models apply.
 
 Each effect is a physically parameterised term with one bounded parameter. All are off by default; a model switches
 one on with its parameter (`retarder_heat:fraction=0.05`). The reference plant implements every effect; the onboard
 model implements those that change its network (see firmware_model.onboard.reduce), which is what the gap diagnosis fits.
+Both read the values through :class:`EffectScales` (:func:`effect_scales` from an ``{effect id: value}`` dict).
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
 
 from firmware_model.errors import InputError
+from firmware_model.units import L_PER_M3
 
 
 @dataclass(frozen=True)
@@ -43,6 +45,8 @@ CATALOG = {e.id: e for e in (
 )}
 
 EFFECT_IDS = tuple(CATALOG)
+#: where the retarder_heat effect deposits its heat (node -> share; the catalog's description)
+RETARDER_HEAT_SPLIT = {"oil": 0.8, "H3": 0.2}
 
 
 def parse_effect(spec: str) -> tuple[str, float]:
@@ -86,3 +90,69 @@ def effect_value(effects: dict | None, eid: str) -> float:
     if effects and eid in effects:
         return float(effects[eid])
     return CATALOG[eid].neutral
+
+
+#: effect id -> field of EffectScales that carries its value
+FIELD_OF_EFFECT = {
+    "retarder_heat": "retarder_frac",
+    "synchronizer_shift_heat": "shift_energy_j",
+    "churning_scale": "churn_scale",
+    "gear_friction_scale": "gear_friction_scale",
+    "planetary_loss_scale": "planetary_scale",
+    "bearing_loss_scale": "bearing_scale",
+    "teeth_oil_h_scale": "teeth_oil_h",
+    "planet_oil_h_scale": "planet_oil_h",
+    "housing_air_h_scale": "housing_air_h",
+    "cooler_effectiveness_scale": "cooler_scale",
+    "thermostat_offset": "thermostat_offset_c",
+    "hot_surroundings_offset": "hot_offset_c",
+    "oil_sensor_lag": "oil_sensor_tau_s",
+    "oil_level_low": "oil_volume_l",
+}
+
+
+@dataclass(frozen=True)
+class EffectScales:
+    """The effect values as the models apply them: multipliers (1.0 = as the seed's model), offsets and amounts,
+    neutral by default. Each is a float, or in the onboard model an array of per-vehicle values (V,).
+
+    Losses (heat of each family): gear contacts, planetary meshes, churning, bearings (shaft and needle). Heat
+    transfer: splash h of the idle-wheel teeth, oil-system h in the planetary, external housing h. Cooler: its hA
+    and its thermostat. Boundaries: the hot surroundings. Sources: retarder heat (fraction of its braking power),
+    synchronizer heat per shift. The oil sensor's lag and the sump volume. ``src_scale`` is the onboard model's
+    multiplier per loss-source column (firmware_model.onboard.reduce.make_effects fills it; None elsewhere).
+    """
+    gear_friction_scale: object = 1.0
+    planetary_scale: object = 1.0
+    churn_scale: object = 1.0
+    bearing_scale: object = 1.0
+    teeth_oil_h: object = 1.0
+    planet_oil_h: object = 1.0
+    housing_air_h: object = 1.0
+    cooler_scale: object = 1.0
+    thermostat_offset_c: object = 0.0
+    hot_offset_c: object = 0.0
+    retarder_frac: object = 0.0
+    shift_energy_j: object = 0.0
+    oil_sensor_tau_s: object = 0.0
+    oil_volume_l: object = CATALOG["oil_level_low"].neutral
+    src_scale: object = None
+
+    @property
+    def needle_scale(self):
+        """Multiplier on the needle (idle-wheel) bearing heat: the bearing-loss scale."""
+        return self.bearing_scale
+
+
+def effect_scales(effects: dict | None = None) -> EffectScales:
+    """EffectScales of an {effect id: value} dict (ids not given take their neutral value)."""
+    return EffectScales(**{FIELD_OF_EFFECT[eid]: effect_value(effects, eid) for eid in EFFECT_IDS})
+
+
+
+def with_oil_volume(params, volume_l: float):
+    """The parameter set with the sump holding ``volume_l`` litres when that is below nominal (effect
+    oil_level_low: less immersion, less thermal mass); the set itself otherwise."""
+    if volume_l < CATALOG["oil_level_low"].neutral:
+        return params.with_overrides({"oil.volume": volume_l * (1.0 / L_PER_M3)})
+    return params

@@ -5,6 +5,11 @@ The loader converts every value to SI (temperatures stay in degC), checks the un
 value lies in its allowed range (ranges live here, in code, so a file cannot widen its own), and keeps the provenance
 of every value. A variant file may `inherit` another and override entries.
 
+Renamed keys (RENAMED_KEYS) are migrated in the shipped files; a file that still uses an old name
+(``oil_system.flow_per_ls_rpm``, ``engine.max_speed``, ``heat.N_nom``) loads with a FutureWarning naming the new key
+(``oil_system.flow_m3_per_rad``, ``engine.max_speed_rad_s``, ``heat.omega_nom_rad_s``), its value converted by its unit
+as before; so does ``Parameters.with_overrides`` with an old name.
+
     >>> p = load_parameters("GRS905")
     >>> round(p["gear.3.width1"], 3)          # SI: metres
     0.04
@@ -15,33 +20,45 @@ from __future__ import annotations
 
 import fnmatch
 import math
-import tomllib
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from firmware_model.errors import ParameterError
 from firmware_model.physics.kinematics import KinematicTable, Teeth, build_table
+from firmware_model.units import L_PER_M3, RAD_S_PER_RPM, S_PER_MIN
+
+try:
+    import tomllib
+except ModuleNotFoundError:          # Python 3.10
+    import tomli as tomllib
 
 PARAM_DIR = Path(__file__).resolve().parent / "params"
 VARIANTS = ("GRS905", "GRSO905")
 PROVENANCES = ("seed", "derived", "assumed")
 
-_RPM = 2.0 * math.pi / 60.0
 #: unit string in a file -> (SI dimension, factor to SI)
 UNITS = {
     "-": ("1", 1.0),
     "m": ("m", 1.0), "mm": ("m", 1e-3),
     "m2": ("m2", 1.0),
-    "L": ("m3", 1e-3), "m3": ("m3", 1.0),
+    "L": ("m3", 1.0 / L_PER_M3), "m3": ("m3", 1.0),
     "deg": ("rad", math.pi / 180.0), "rad": ("rad", 1.0),
     "kg": ("kg", 1.0), "kg/m3": ("kg/m3", 1.0),
     "W/(m K)": ("W/(m K)", 1.0), "J/(kg K)": ("J/(kg K)", 1.0), "W/(m2 K)": ("W/(m2 K)", 1.0),
     "W/K": ("W/K", 1.0), "W": ("W", 1.0), "kW": ("W", 1e3),
     "Pa": ("Pa", 1.0), "N": ("N", 1.0), "Nm": ("N m", 1.0),
     "s": ("s", 1.0), "degC": ("degC", 1.0),
-    "rpm": ("rad/s", _RPM), "rad/s": ("rad/s", 1.0),
-    "Nm/rpm": ("N m s/rad", 1.0 / _RPM),           # torque per speed
-    "L/min/rpm": ("m3/rad", 1e-3 / 60.0 / _RPM),   # volume flow per speed
+    "rpm": ("rad/s", RAD_S_PER_RPM), "rad/s": ("rad/s", 1.0),
+    "Nm/rpm": ("N m s/rad", 1.0 / RAD_S_PER_RPM),           # torque per speed
+    "L/min/rpm": ("m3/rad", 1.0 / L_PER_M3 / S_PER_MIN / RAD_S_PER_RPM),   # volume flow per speed
+    "m3/rad": ("m3/rad", 1.0),
+}
+#: renamed keys (old -> new): a file that still uses an old key is read with a deprecation warning
+RENAMED_KEYS = {
+    "oil_system.flow_per_ls_rpm": "oil_system.flow_m3_per_rad",
+    "engine.max_speed": "engine.max_speed_rad_s",
+    "heat.N_nom": "heat.omega_nom_rad_s",
 }
 
 #: allowed SI range per dimension (inclusive); specific keys are narrowed below
@@ -66,7 +83,7 @@ KEY_RULES = [
     ("gear.alpha_n", math.radians(14), math.radians(30), False),
     ("bearing.f0_*", 0.5, 10.0, False), ("wheel_bearing.f0_*", 0.5, 10.0, False),
     ("bearing.f1_*", 0.0, 0.01, False), ("wheel.hub_mass_factor", 1.0, 3.0, False),
-    ("engine.max_speed", 100.0, 1000.0, False),
+    ("engine.max_speed_rad_s", 100.0, 1000.0, False),
 ]
 
 
@@ -121,6 +138,9 @@ class Parameters:
         """A copy with SI values replaced (keys must exist); used by effects and parameter studies."""
         vals = dict(self.values)
         for k, v in overrides.items():
+            if k in RENAMED_KEYS:
+                warnings.warn(f"parameter {k} is deprecated, use {RENAMED_KEYS[k]}", FutureWarning, stacklevel=2)
+                k = RENAMED_KEYS[k]
             if k not in vals:
                 raise ParameterError(f"cannot override unknown parameter {k!r}")
             vals[k] = float(v)
@@ -142,15 +162,36 @@ def _flatten(d: dict, prefix: str = ""):
             yield key, v
 
 
-def _read(path: Path, seen=()) -> dict:
+def read_toml(path: str | Path, label: str, label_invalid: str | None = None) -> dict:
+    """The TOML document at ``path``; a missing file or invalid TOML is a ParameterError that starts with ``label``
+    (e.g. "parameter file GRS905.toml"; ``label_invalid`` for the second case if it differs)."""
     try:
         with open(path, "rb") as fh:
-            doc = tomllib.load(fh)
+            return tomllib.load(fh)
     except FileNotFoundError:
-        raise ParameterError(f"parameter file {path.name} does not exist") from None
+        raise ParameterError(f"{label} does not exist") from None
     except tomllib.TOMLDecodeError as exc:
-        raise ParameterError(f"parameter file {path.name} is not valid TOML: {exc}") from None
-    entries = dict(_flatten(doc))
+        raise ParameterError(f"{label_invalid or label} is not valid TOML: {exc}") from None
+
+
+def _renamed(entries: dict, path: Path) -> dict:
+    """Entries with old key names (RENAMED_KEYS) moved to their new names, each with a deprecation warning."""
+    out = {}
+    for key, e in entries.items():
+        new = RENAMED_KEYS.get(key)
+        if new is not None:
+            warnings.warn(f"{path.name}: parameter {key} is deprecated, use {new} (it is read as {new})",
+                          FutureWarning, stacklevel=4)
+            if new in entries:
+                raise ParameterError(f"{path.name}: {key} and {new} are the same parameter; keep only {new}")
+            key = new
+        out[key] = e
+    return out
+
+
+def _read(path: Path, seen=()) -> dict:
+    doc = read_toml(path, f"parameter file {path.name}")
+    entries = _renamed(dict(_flatten(doc)), path)
     parent = doc.get("meta", {}).get("inherit")
     if parent:
         if parent in seen:
@@ -211,7 +252,7 @@ COOLER_KINDS = ("none", "liquid", "air", "hold", "measured")
 REQUIRED = [
     "gear.center_distance", "gear.alpha_n", "oil.volume", "heat.h_nom", "heat.TCC", "planetary.z_sun",
     "scale.gear_contact_to_heat", "scale.planet_to_heat", "scale.churn_to_heat", "housing.h_oil",
-    "cooler.liquid_hA_ref", "boundary.ambient", "engine.max_torque", "engine.max_speed",
+    "cooler.liquid_hA_ref", "boundary.ambient", "engine.max_torque", "engine.max_speed_rad_s",
 ] + [f"gear.{p}.{k}" for p in ("L", "3", "2", "1", "C", "R") for k in ("z1", "z2", "m_n", "beta", "width1", "width2")]
 
 

@@ -3,7 +3,10 @@ explicit step, with a stability guarantee checked when the parameters load.
 
 Everything here is derived by code from the same description the reference plant integrates
 (:func:`firmware_model.network.build_network`, :class:`~firmware_model.network.ConductanceEvaluator`,
-:class:`~firmware_model.physics.gearbox_losses.GearboxLosses`): no number is copied by hand.
+:class:`~firmware_model.physics.gearbox_losses.GearboxLosses`): no number is copied by hand. The cooler
+(:func:`cooler_heat` over :func:`firmware_model.physics.cooler.oil_cooler_heat`), the heat lag
+(:mod:`firmware_model.physics.heat_lag`, coefficients in ``helpers(rp).heat_lag``) and the conductance matrix
+(:func:`firmware_model.physics.conductance_matrix.conductance_matrix` of ``helpers(rp).topology``) are the plant's.
 
 Reduction (docs/sensor.md, "Reduction")
 ---------------------------------------
@@ -42,25 +45,32 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, fields
+from typing import NamedTuple
 
 import numpy as np
 
 from firmware_model.physics import heat_transfer as ht
 from firmware_model.physics import losses as L
 from firmware_model.physics import oil as oilprops
-from firmware_model.components import PUBLISHED, SHAFT_BEARINGS
-from firmware_model.effects import CATALOG, effect_value
+from firmware_model.components import PUBLISHED, SHAFT_BEARINGS, STEP_S
+from firmware_model.effects import CATALOG, FIELD_OF_EFFECT, EffectScales, effect_value, with_oil_volume
 from firmware_model.errors import ParameterError, StabilityError
-from firmware_model.physics.gearbox_losses import GearboxLosses
+from firmware_model.physics.conductance_matrix import link_topology, node_conductance_w_per_k
+from firmware_model.physics.cooler import (COOLER_KINDS, DEFAULT_VEHICLE_SPEED_KMH, cooler_hA_bound_w_per_k,
+                                           cooler_params, cooler_values, oil_cooler_heat)
+from firmware_model.physics.gearbox_losses import ROLL_POINTS, GearboxLosses
+from firmware_model.physics.heat_lag import heat_lag
 from firmware_model.physics.kinematics import GEAR_MIN, MESHES, N_GEARS, SPEED_NAMES
-from firmware_model.network import (BOUNDARIES, K_BRG_SPLASH, K_CONST, K_CONTACT, K_EXT_CONV, K_EXT_RAD, K_IMM_BRG, K_IMM_GEAR,
-                      K_RING, K_SPLASH, K_STREAM, S_CHANNEL, S_IMPOSED, SHAFT_SEGMENTS, ConductanceEvaluator,
-                      HeatTransferScales, Network, build_network)
+from firmware_model.network import (BOUNDARIES, K_BRG_SPLASH, K_CONST, K_CONTACT, K_EXT_CONV, K_EXT_RAD, K_IMM_BRG,
+                                    K_IMM_GEAR, K_RING, K_SPLASH, K_STREAM, S_CHANNEL, S_IMPOSED, SHAFT_SEGMENTS,
+                                    MIN_SPEED_RAD_S, ConductanceEvaluator, NamedNodes, Network, build_network)
 from firmware_model.parameters import Parameters
+from firmware_model.units import KELVIN_OFFSET_K, RAD_S_PER_RPM, RPM_PER_RAD_S, SIGMA_W_PER_M2K4
 
-RPM = 2.0 * math.pi / 60.0
-#: fixed step of the onboard model [s]
-DT_S = 0.1
+#: rpm -> rad/s (firmware_model.units)
+RPM = RAD_S_PER_RPM
+#: fixed step of the onboard model [s] (firmware_model.components.STEP_S)
+DT_S = STEP_S
 #: the stability check requires dt <= STABILITY_MARGIN x min_i C_i / max sum_j G_ij
 STABILITY_MARGIN = 0.8
 #: oil temperature range over which stability is guaranteed [degC]
@@ -75,8 +85,6 @@ N_U_CHURN = 33
 T2_STRIDE = 2
 #: spacing of the mesh slip-loss tables in x = log10(T1 / (mu w2^3))
 X_STEP = 0.125
-#: quadrature points of the rolling loss (the same as GearboxLosses: ~1 W terms)
-ROLL_POINTS = 4
 #: separability tolerance for power-law conductances (relative)
 SEPARABLE_RTOL = 1e-7
 #: linearised radiation is evaluated with housing temperatures clipped to this range [degC]
@@ -114,7 +122,9 @@ N_SRC = len(SRC_NAMES)
 I_SRC_BEARING = len(MESHES)
 I_SRC_OIL = I_SRC_BEARING + len(SHAFT_BEARINGS)
 I_SRC_RET = I_SRC_OIL + 1
-COOLER_CODES = {"none": 0, "liquid": 1, "air": 2}
+#: cooler kind -> cooler_code (hold and measured sumps have no cooler: 0)
+COOLER_CODES = {kind: code for code, kind in enumerate(COOLER_KINDS)}
+
 
 # columns of the oil property table (logarithms where the property spans decades: interpolated in the log)
 P_LOG10_MU, P_LN_NU_CST, P_LN_MU, P_LN_ROLL, P_RHO, P_CP, P_K, P_LN_PR = range(8)
@@ -128,7 +138,7 @@ def _ro(a, dtype=float) -> np.ndarray:
 
 
 @dataclass(frozen=True)
-class ReducedParams:
+class ReducedParams(NamedNodes):
     """Everything the onboard step needs, as read-only arrays (a frozen, typed record; dynamax style).
 
     Shapes: n nodes, nl links, nb boundaries (network.BOUNDARIES), ns sources (SRC_NAMES), 17 gears (row =
@@ -164,7 +174,7 @@ class ReducedParams:
     t2_frac: np.ndarray              # (n2,) oil-flow fraction of a stream (for the stability bound)
     t2_effect: np.ndarray            # (n2,) 0 none (pipe flows and immersed wheels)
     # immersed wheels, Nusselt part in closed form (Eq 46-48 with the bridge of heat_transfer.nusselt_rotating_cylinder):
-    # G = c[t] k_oil Nu(Re, Pr), Re = R_p^2 w_t / nu, w_t = max(|speed coef[gear, t]| w_in, 1e-3)
+    # G = c[t] k_oil Nu(Re, Pr), Re = R_p^2 w_t / nu, w_t = max(|speed coef[gear, t]| w_in, MIN_SPEED_RAD_S)
     # (their fling-off part, Eq 54-58, is an exact sqrt(w) power law among the pw terms)
     cyl_link: np.ndarray             # (nc,)
     cyl_speed_coef: np.ndarray       # (17, nc)
@@ -217,13 +227,6 @@ class ReducedParams:
     max_torque_nm: float
     stability: dict = field(default_factory=dict)
 
-    @property
-    def n(self) -> int:
-        return len(self.nodes)
-
-    def index(self, name: str) -> int:
-        return self.nodes.index(name)
-
     def footprint(self, dtype=np.float32) -> dict:
         """Bytes an ECU would hold for these parameters: every float table as ``dtype``, index arrays as int16.
         (The dense scatter helpers numpy uses are implementation detail, not counted.)"""
@@ -243,23 +246,14 @@ class ReducedParams:
         return {"float_values": floats, "index_values": ints, "bytes": floats * fb + ints * 2}
 
 
-@dataclass(frozen=True)
-class Effects:
-    """Effect values the onboard model applies at run time; each a float or an array over vehicles (V,)."""
-    src_scale: np.ndarray = None       # (..., ns) multiplier on each source's heat
-    teeth_oil_h: object = 1.0
-    planet_oil_h: object = 1.0
-    housing_air_h: object = 1.0
-    cooler_scale: object = 1.0
-    thermostat_offset_c: object = 0.0
-    hot_offset_c: object = 0.0
-    retarder_frac: object = 0.0
-    churn_scale: object = 1.0
-    needle_scale: object = 1.0
+#: the effect values the onboard model applies at run time (the one effect record, firmware_model.effects); its
+#: ``src_scale`` (..., N_SRC) multiplies each loss source's heat
+Effects = EffectScales
 
 
 def make_effects(effects: dict | None = None) -> Effects:
-    """Effects record from {effect id: value or array of per-vehicle values}; unknown or unsupported ids raise."""
+    """Effects record from {effect id: value or array of per-vehicle values}; unknown or unsupported ids raise.
+    Each value is a float or an array over vehicles (V,)."""
     effects = dict(effects or {})
     for eid, v in effects.items():
         if eid not in CATALOG:
@@ -287,11 +281,7 @@ def make_effects(effects: dict | None = None) -> Effects:
     s[..., I_SRC_BEARING:I_SRC_OIL] = br[..., None] if br.ndim else br
     s[..., I_SRC_OIL] = 1.0            # the lumped oil source carries its own scales (churning, needle bearings)
     s.setflags(write=False)
-    return Effects(src_scale=s, teeth_oil_h=val("teeth_oil_h_scale"), planet_oil_h=val("planet_oil_h_scale"),
-                   housing_air_h=val("housing_air_h_scale"), cooler_scale=val("cooler_effectiveness_scale"),
-                   thermostat_offset_c=val("thermostat_offset"), hot_offset_c=val("hot_surroundings_offset"),
-                   retarder_frac=val("retarder_heat"), churn_scale=val("churning_scale"),
-                   needle_scale=val("bearing_loss_scale"))
+    return Effects(src_scale=s, **{FIELD_OF_EFFECT[eid]: val(eid) for eid in EFFECT_HOOKS})
 
 
 # ---------------------------------------------------------------------------------------------------------------
@@ -381,44 +371,64 @@ def _link_param(net: Network, k: int, key: str):
     return net.kind_params[kind][key][j]
 
 
-def build_reduced(p: Parameters, partition: str | dict = "fine", effects: dict | None = None,
-                  dt_s: float = DT_S, margin: float = STABILITY_MARGIN, check: bool = True) -> ReducedParams:
-    """Build the onboard model from a validated parameter set; raises StabilityError if dt is unsafe.
+class PowerTerm(NamedTuple):
+    """G = gear_coef[gear] w_in^exp (phi[T_oil, col] or 1) x effect scale."""
+    link: int
+    exp: float
+    gear_coef: np.ndarray      # (17,)
+    col: int                   # column of the phi table, -1 for none
+    effect: int                # 0 none, 1 teeth_oil_h, 2 planet_oil_h, 3 housing_air_h
 
-    ``effects``: only the build-time effect oil_level_low is used here (the others are applied at run time through
-    :func:`make_effects`)."""
-    vol_l = effect_value(effects, "oil_level_low")
-    if vol_l < CATALOG["oil_level_low"].neutral:
-        p = p.with_overrides({"oil.volume": vol_l * 1e-3})
-    if not 0.0 < dt_s <= 1.0:
-        raise ParameterError(f"dt_s = {dt_s} s must be in (0, 1] s")
-    if not 0.0 < margin <= 1.0:
-        raise ParameterError(f"stability margin = {margin} must be in (0, 1]")
-    part_name = partition if isinstance(partition, str) else "custom"
-    if isinstance(partition, str):
-        if partition not in PARTITIONS:
-            raise ParameterError(f"unknown partition {partition!r}; known: {', '.join(PARTITIONS)}")
-        partition = PARTITIONS[partition]
-    net = build_network(p)
-    agg = aggregate(net, partition)
-    n = len(agg.nodes)
-    kin = p.kinematics
-    n_links_full = len(net.link_a)
-    w_in_max = p["engine.max_speed"]                 # rad/s
-    speed_abs = np.abs(kin.speed)                    # (17, 14)
 
-    # ---- conductance laws: tabulate every link at its own shaft speed w (all shafts at w) x oil temperature
-    ev = ConductanceEvaluator(net, p, HeatTransferScales())
-    T_grid = T_GRID_C
-    T2 = T_grid[::T2_STRIDE]
+class TableTerm(NamedTuple):
+    """G = table(sqrt(w / w_max), T_oil), w = speed_coef[gear] w_in."""
+    link: int
+    speed_coef: np.ndarray     # (17,)
+    w_max_rad_s: float
+    table: np.ndarray          # (N_U, nT2) W/K
+    stream: bool               # an oil-system stream (the cooler's inlet drop applies)
+    frac: float                # its share of the oil flow
+    effect: int
+
+
+class StreamTerm(NamedTuple):
+    """Closed-form stream G = m (1 - exp(-hA / m)), m = flow_m3_per_rad rho cp |w_LS|, hA = alpha k_oil + beta."""
+    link: int
+    flow_m3_per_rad: float
+    alpha_m: float
+    beta_w_per_k: float
+    effect: int
+
+
+class CylinderTerm(NamedTuple):
+    """Immersed wheel, Nusselt part: G = c k_oil Nu(Re, Pr), Re = R_p^2 w / nu, w = speed_coef[gear] w_in."""
+    link: int
+    speed_coef: np.ndarray     # (17,)
+    c_m: float                 # area / R_p
+    ln_rp2: float              # ln(R_p^2 [m2])
+
+
+class LawGrid(NamedTuple):
+    """Every link tabulated from the full evaluator at its own shaft speed w x oil temperature (T_GRID_C)."""
+    tables: dict               # speed source -> (N_U, nT, n_links) W/K at w = u^2 w_max
+    src_of_link: np.ndarray    # speed source of every variable link (-1: constant)
+    w_src_max: np.ndarray      # max speed of every speed source over all gears [rad/s]
+    u: np.ndarray              # (N_U,) sqrt(w / w_max)
+    G_ring_low: np.ndarray     # every link at low range, standstill, 60 degC (the ring gear's low-range value)
+
+
+def _law_grid(net: Network, p: Parameters) -> LawGrid:
+    """Tabulate every speed- or oil-dependent link with all shafts at the same speed (each link reads its own)."""
+    ev = ConductanceEvaluator(net, p, EffectScales())
+    speed_abs = np.abs(p.kinematics.speed)                      # (17, 14)
+    w_src_max = speed_abs.max(axis=0) * p["engine.max_speed_rad_s"]
     u = np.linspace(0.0, 1.0, N_U)
-    src_of_link = np.full(n_links_full, -1)
-    variable_kinds = (K_SPLASH, K_IMM_GEAR, K_IMM_BRG, K_BRG_SPLASH, K_STREAM, K_RING)
-    for k in range(n_links_full):
-        if int(net.link_kind[k]) in variable_kinds:
+    n_links = len(net.link_a)
+    variable = (K_SPLASH, K_IMM_GEAR, K_IMM_BRG, K_BRG_SPLASH, K_STREAM, K_RING)
+    src_of_link = np.full(n_links, -1)
+    for k in range(n_links):
+        if int(net.link_kind[k]) in variable:
             src_of_link[k] = _speed_of_link(net, k)
-    # max shaft speed per speed source over all gears
-    w_src_max = speed_abs.max(axis=0) * w_in_max
     zero_mt = np.zeros(len(MESHES))
     T_dummy = np.full(net.n, 60.0)
     bc_dummy = np.full(len(BOUNDARIES), 40.0)
@@ -427,121 +437,170 @@ def build_reduced(p: Parameters, partition: str | dict = "fine", effects: dict |
         sp = np.full(len(SPEED_NAMES), float(w))
         return ev.evaluate(float(T), sp, 0, zero_mt, low_range, T_dummy, bc_dummy).copy()
 
-    # table per speed source: G[src](w_i = u_i^2 w_max, T_j) for every link (on the fine T grid)
     tables = {}
     for s in sorted(set(src_of_link[src_of_link >= 0].tolist())):
         wmax = max(w_src_max[s], 1e-6)
-        tab = np.empty((N_U, T_grid.size, n_links_full))
+        tab = np.empty((N_U, T_GRID_C.size, n_links))
         for i, ui in enumerate(u):
-            for j, Tj in enumerate(T_grid):
+            for j, Tj in enumerate(T_GRID_C):
                 tab[i, j] = eval_all(ui * ui * wmax, Tj)
         tables[s] = tab
+    return LawGrid(tables, src_of_link, w_src_max, u, eval_all(0.0, 60.0, low_range=True))
 
-    G_const = np.zeros(len(agg.link_a))
-    pw, t2, rad, ef, cyl = [], [], [], [], []
-    phi_cols: list = []
 
-    def phi_col(values):
-        for c, v in enumerate(phi_cols):
+class _Laws:
+    """The conductance law of every reduced link, collected link by link of the full network (module doc)."""
+
+    def __init__(self, net: Network, agg: Aggregation, p: Parameters, grid: LawGrid):
+        self.net, self.agg, self.p, self.grid = net, agg, p, grid
+        self.kin = p.kinematics
+        self.speed_abs = np.abs(self.kin.speed)
+        self.G_const = np.zeros(len(agg.link_a))
+        self.pw: list = []
+        self.t2: list = []
+        self.ef: list = []
+        self.cyl: list = []
+        self.rad: dict = {}              # reduced link -> area x emissivity
+        self.phi_cols: list = []
+
+    def phi_col(self, values) -> int:
+        for c, v in enumerate(self.phi_cols):
             if np.allclose(v, values, rtol=1e-12, atol=0):
                 return c
-        phi_cols.append(values)
-        return len(phi_cols) - 1
+        self.phi_cols.append(values)
+        return len(self.phi_cols) - 1
 
-    for k in range(n_links_full):
-        r = agg.link_of_full[k]
+    def phi_table(self) -> np.ndarray:
+        pw_phi = np.ones((T_GRID_C.size, max(len(self.phi_cols), 1)))
+        for c, v in enumerate(self.phi_cols):
+            pw_phi[:, c] = v
+        return pw_phi
+
+    def add_link(self, k: int) -> None:
+        r = int(self.agg.link_of_full[k])
         if r < 0:
-            continue
+            return                                   # inside a group
+        net, p = self.net, self.p
         kind = int(net.link_kind[k])
-        name = net.link_name[k]
         if kind == K_CONST:
-            G_const[r] += net.link_G0[k]
+            self.G_const[r] += net.link_G0[k]
         elif kind == K_CONTACT:
-            mesh = int(_link_param(net, k, "mesh"))
-            mask = (kin.mesh_torque[:, mesh] != 0).astype(float)
-            pw.append((r, 0.0, net.link_G0[k] * mask, -1, 0))
+            mask = (self.kin.mesh_torque[:, int(_link_param(net, k, "mesh"))] != 0).astype(float)
+            self.pw.append(PowerTerm(r, 0.0, net.link_G0[k] * mask, -1, 0))
         elif kind == K_EXT_CONV:
-            pw.append((r, 0.0, np.full(N_GEARS, net.link_G0[k] * p["housing.h_air"]), -1, 3))
+            self.pw.append(PowerTerm(r, 0.0, np.full(N_GEARS, net.link_G0[k] * p["housing.h_air"]), -1, 3))
         elif kind == K_EXT_RAD:
             # housings merged into one node: their radiation areas add (same boundary, same law)
-            for i, (rr, a) in enumerate(rad):
-                if rr == r:
-                    rad[i] = (rr, a + net.link_G0[k] * p["housing.emissivity"])
-                    break
-            else:
-                rad.append((r, net.link_G0[k] * p["housing.emissivity"]))
+            area_eps = net.link_G0[k] * p["housing.emissivity"]
+            self.rad[r] = self.rad[r] + area_eps if r in self.rad else area_eps
+        elif kind == K_IMM_GEAR:
+            self._immersed_wheel(k, r)
+        elif kind == K_STREAM and int(_link_param(net, k, "sub")) in (S_CHANNEL, S_IMPOSED):
+            self._closed_form_stream(k, r)
         else:
-            s = src_of_link[k]
-            tab = tables[s][:, :, k]                     # (N_U, nT)
-            if kind == K_IMM_GEAR:
-                R_p = float(_link_param(net, k, "R_p"))
-                fo = _fling_off_table(net, k, u * u * w_src_max[s], T_grid)
-                law = _separable_power_law(fo, u * u * w_src_max[s])
-                nus = _cyl_table(net.link_G0[k] / R_p, R_p, u * u * w_src_max[s], T_grid)
-                if law is None or np.max(np.abs(nus + fo - tab)) > 1e-9 * np.abs(tab).max():
-                    raise ParameterError(f"link {name}: the immersed-wheel conductance is not Nusselt (Eq 46-48) "
-                                         f"plus fling-off (Eq 54-58) as the onboard model assumes")
-                e, a, phi = law
-                pw.append((r, e, a * speed_abs[:, s] ** e, phi_col(phi), 0))
-                cyl.append((r, speed_abs[:, s], net.link_G0[k] / R_p, math.log(R_p * R_p)))
-                continue
-            if kind == K_STREAM and int(_link_param(net, k, "sub")) in (S_CHANNEL, S_IMPOSED):
-                sub = int(_link_param(net, k, "sub"))
-                frac = float(_link_param(net, k, "frac"))
-                if sub == S_CHANNEL:
-                    alpha, beta = net.link_G0[k] * ht.NU_CHANNEL / float(_link_param(net, k, "D")), 0.0  # Eq 77-80
-                else:
-                    alpha, beta = 0.0, net.link_G0[k] * float(_link_param(net, k, "h"))
-                ef.append((r, frac * p["oil_system.flow_per_ls_rpm"], alpha, beta, 2 if sub == S_IMPOSED else 0))
-                continue
-            wmax = w_src_max[s]
-            eff = 1 if (name.startswith("splash:") and name.endswith(".teeth")) else 0
-            law = _separable_power_law(tab, u * u * wmax)
-            if kind == K_RING:
-                # low range: housing-like constant h (seed 3.3); high range: the ring turns with the sun (splash)
-                G_low = float(eval_all(0.0, 60.0, low_range=True)[k])
-                if law is not None:
-                    pw.append((r, 0.0, G_low * kin.low_range.astype(float), -1, 0))
-                elif not np.allclose(tab[0, :], G_low, rtol=1e-9):
-                    raise ParameterError("ring-gear conductance: the high-range law at standstill differs from the "
-                                         "low-range value; the onboard tables cannot represent it")
-                # else: the table at zero ring speed (the ring does not turn at low range) is the low-range value
-            if law is not None:
-                e, a, phi = law
-                col = -1 if np.allclose(phi, 1.0, rtol=1e-12) else phi_col(phi)
-                coef = a * speed_abs[:, s] ** e
-                if kind == K_RING:
-                    coef = coef * (~kin.low_range)
-                pw.append((r, e, coef, col, eff))
-            else:
-                frac = float(_link_param(net, k, "frac")) if kind == K_STREAM else 0.0
-                t2.append((r, speed_abs[:, s], wmax, tab[:, ::T2_STRIDE], kind == K_STREAM, frac, 0))
-    ncol = max(len(phi_cols), 1)
-    pw_phi = np.ones((T_grid.size, ncol))
-    for c, v in enumerate(phi_cols):
-        pw_phi[:, c] = v
+            self._tabulated(k, r, kind)
 
-    # ---- losses
+    def _immersed_wheel(self, k: int, r: int) -> None:
+        """Nusselt (Eq 46-48, closed form) plus fling-off (Eq 54-58, an exact sqrt(w) power law)."""
+        net, s = self.net, self.grid.src_of_link[k]
+        w = self.grid.u * self.grid.u * self.grid.w_src_max[s]
+        R_p = float(_link_param(net, k, "R_p"))
+        fo = _fling_off_table(net, k, w, T_GRID_C)
+        law = _separable_power_law(fo, w)
+        nus = _cyl_table(net.link_G0[k] / R_p, R_p, w, T_GRID_C)
+        tab = self.grid.tables[s][:, :, k]
+        if law is None or np.max(np.abs(nus + fo - tab)) > 1e-9 * np.abs(tab).max():
+            raise ParameterError(f"link {net.link_name[k]}: the immersed-wheel conductance is not Nusselt (Eq 46-48) "
+                                 f"plus fling-off (Eq 54-58) as the onboard model assumes")
+        e, a, phi = law
+        self.pw.append(PowerTerm(r, e, a * self.speed_abs[:, s] ** e, self.phi_col(phi), 0))
+        self.cyl.append(CylinderTerm(r, self.speed_abs[:, s], net.link_G0[k] / R_p, math.log(R_p * R_p)))
+
+    def _closed_form_stream(self, k: int, r: int) -> None:
+        """Channel flows (Eq 77-80: 7.54 k / D_h x area) and the planetary's imposed h, through the NTU law."""
+        net = self.net
+        sub = int(_link_param(net, k, "sub"))
+        frac = float(_link_param(net, k, "frac"))
+        if sub == S_CHANNEL:
+            alpha, beta = net.link_G0[k] * ht.NU_CHANNEL / float(_link_param(net, k, "D")), 0.0  # Eq 77-80
+        else:
+            alpha, beta = 0.0, net.link_G0[k] * float(_link_param(net, k, "h"))
+        self.ef.append(StreamTerm(r, frac * self.p["oil_system.flow_m3_per_rad"], alpha, beta,
+                                  2 if sub == S_IMPOSED else 0))
+
+    def _tabulated(self, k: int, r: int, kind: int) -> None:
+        """A power law where the table is separable (splash Eq 59, Harris Eq 63, immersed bearings Eq 52), else a
+        bilinear table; the ring gear is a splash law at high range and a constant at low range."""
+        net, s = self.net, self.grid.src_of_link[k]
+        tab = self.grid.tables[s][:, :, k]                      # (N_U, nT)
+        wmax = self.grid.w_src_max[s]
+        name = net.link_name[k]
+        law = _separable_power_law(tab, self.grid.u * self.grid.u * wmax)
+        if kind == K_RING:
+            # low range: housing-like constant h (seed 3.3); high range: the ring turns with the sun (splash)
+            G_low = float(self.grid.G_ring_low[k])
+            if law is not None:
+                self.pw.append(PowerTerm(r, 0.0, G_low * self.kin.low_range.astype(float), -1, 0))
+            elif not np.allclose(tab[0, :], G_low, rtol=1e-9):
+                raise ParameterError("ring-gear conductance: the high-range law at standstill differs from the "
+                                     "low-range value; the onboard tables cannot represent it")
+            # else: the table at zero ring speed (the ring does not turn at low range) is the low-range value
+        if law is not None:
+            e, a, phi = law
+            col = -1 if np.allclose(phi, 1.0, rtol=1e-12) else self.phi_col(phi)
+            coef = a * self.speed_abs[:, s] ** e
+            if kind == K_RING:
+                coef = coef * (~self.kin.low_range)
+            eff = 1 if (name.startswith("splash:") and name.endswith(".teeth")) else 0
+            self.pw.append(PowerTerm(r, e, coef, col, eff))
+        else:
+            frac = float(_link_param(net, k, "frac")) if kind == K_STREAM else 0.0
+            self.t2.append(TableTerm(r, self.speed_abs[:, s], wmax, tab[:, ::T2_STRIDE], kind == K_STREAM, frac, 0))
+
+
+class LossMaps(NamedTuple):
+    """The loss model as the onboard step evaluates it (module doc, "Loss maps")."""
+    mesh_x0: np.ndarray
+    mesh_phi: np.ndarray
+    mesh_roll_k: np.ndarray
+    mesh_heat_sf: np.ndarray
+    bear_speed: np.ndarray
+    bear_c: np.ndarray
+    bear_load: np.ndarray
+    needle_c: np.ndarray
+    sync_coef: np.ndarray
+    pump_coef: np.ndarray
+    churn_w_max: float
+    churn_table: np.ndarray
+
+
+def _loss_maps(p: Parameters, net: Network, w_ls_max_rad_s: float) -> LossMaps:
+    """Mesh slip tables and rolling constants (Eq 7-22), Palmgren coefficients of the shaft and needle bearings
+    (Eq 35-40), synchronizer (Eq 41) and pump (Eq 42) coefficients per gear, churning table (Eq 23-34)."""
+    kin = p.kinematics
     gl = GearboxLosses(p, net.geometry)
     mesh_x0, mesh_phi_rows, roll_k = _mesh_tables(gl)
+    speed_abs = np.abs(kin.speed)
     bear_speed = np.zeros((N_GEARS, len(SHAFT_BEARINGS)))
     for j, b in enumerate(SHAFT_BEARINGS):
         if b == "BIM":
             bear_speed[:, j] = np.abs(kin.speed[:, SPEED_NAMES.index("IS")] - kin.speed[:, SPEED_NAMES.index("MS")])
         else:
             bear_speed[:, j] = speed_abs[:, gl.bearing_speed_idx[j]]
-    bear_c = L.PALMGREN_SEED_C * gl.f0 * gl.Dm ** 3
-    needle_c = L.PALMGREN_SEED_C * gl.needle_f0 * gl.needle_Dm ** 3
     sync_c = np.array([n_r * 2.0 * math.pi * R ** 3 * p["sync.w_ring"] / (J * math.sin(p["sync.theta_ring"]))
                        for n_r, R, J in gl.sync_geo])
-    sync_coef = (kin.sync_rel ** 2) @ sync_c
-    i_ls = SPEED_NAMES.index("LS")
-    pump_coef = gl.pump_k * kin.speed[:, i_ls] ** 2
-    churn_w_max = w_src_max[i_ls]
     u_ch = np.linspace(0.0, 1.0, N_U_CHURN)
-    churn_table = _churn_table(gl, u_ch * u_ch * churn_w_max, T_grid, kin)
-    # where each source's heat goes (reduced nodes)
-    S = np.zeros((N_SRC, n))
+    heat_sf = np.array([p["scale.planet_to_heat"] if m in ("PSP", "PPR") else p["scale.gear_contact_to_heat"]
+                        for m in MESHES])
+    return LossMaps(mesh_x0, mesh_phi_rows, roll_k, heat_sf, bear_speed, L.PALMGREN_SEED_C * gl.f0 * gl.Dm ** 3,
+                    gl.load_torque_coef, L.PALMGREN_SEED_C * gl.needle_f0 * gl.needle_Dm ** 3,
+                    (kin.sync_rel ** 2) @ sync_c, gl.pump_k * kin.speed[:, SPEED_NAMES.index("LS")] ** 2,
+                    w_ls_max_rad_s, _churn_table(gl, u_ch * u_ch * w_ls_max_rad_s, T_GRID_C, kin))
+
+
+def _source_matrix(net: Network, agg: Aggregation) -> np.ndarray:
+    """(N_SRC, n): where each source's heat goes, in reduced nodes."""
+    S = np.zeros((N_SRC, len(agg.nodes)))
     for j, nm in enumerate(SRC_NAMES):
         if nm.startswith("mesh:") and nm[5:] in ("PSP", "PPR"):
             dist = net.sources["planetary"]
@@ -551,53 +610,84 @@ def build_reduced(p: Parameters, partition: str | dict = "fine", effects: dict |
             dist = net.sources[nm]
         for node, frac in dist:
             S[j, agg.node_of_full[node]] += frac
-    heat_sf = np.array([p["scale.planet_to_heat"] if m in ("PSP", "PPR") else p["scale.gear_contact_to_heat"]
-                        for m in MESHES])
+    return S
 
-    # ---- cooler
+
+def _resolve_partition(partition: str | dict) -> tuple[str, dict]:
+    if not isinstance(partition, str):
+        return "custom", partition
+    if partition not in PARTITIONS:
+        raise ParameterError(f"unknown partition {partition!r}; known: {', '.join(PARTITIONS)}")
+    return partition, PARTITIONS[partition]
+
+
+def _law_fields(laws: _Laws) -> dict:
+    """The ReducedParams fields of the conductance laws (read-only arrays)."""
+    pw, t2, ef, cyl = laws.pw, laws.t2, laws.ef, laws.cyl
+    nT2 = T_GRID_C[::T2_STRIDE].size
+
+    def col(rows, name, dtype=float):
+        return _ro(np.array([getattr(r, name) for r in rows], dtype=dtype), dtype)
+
+    def per_gear(rows, name):
+        return _ro(np.array([getattr(r, name) for r in rows]).T.reshape(N_GEARS, len(rows)))
+
+    return dict(
+        G_const_w_per_k=_ro(laws.G_const),
+        pw_link=col(pw, "link", np.int64), pw_exp=col(pw, "exp"), pw_gear_coef=per_gear(pw, "gear_coef"),
+        pw_col=col(pw, "col", np.int64), pw_phi=_ro(laws.phi_table()), pw_effect=col(pw, "effect", np.int64),
+        t2_link=col(t2, "link", np.int64), t2_speed_coef=per_gear(t2, "speed_coef"), t2_w_max=col(t2, "w_max_rad_s"),
+        t2_table=_ro(np.array([r.table for r in t2]).reshape(len(t2), N_U, nT2)), t2_stream=col(t2, "stream", bool),
+        t2_frac=col(t2, "frac"), t2_effect=col(t2, "effect", np.int64),
+        cyl_link=col(cyl, "link", np.int64), cyl_speed_coef=per_gear(cyl, "speed_coef"), cyl_c=col(cyl, "c_m"),
+        cyl_ln_rp2=col(cyl, "ln_rp2"),
+        ef_link=col(ef, "link", np.int64), ef_mcp=col(ef, "flow_m3_per_rad"), ef_alpha=col(ef, "alpha_m"),
+        ef_beta=col(ef, "beta_w_per_k"), ef_effect=col(ef, "effect", np.int64),
+        rad_link=_ro(np.array(list(laws.rad), dtype=np.int64), np.int64),
+        rad_area_eps=_ro(np.array(list(laws.rad.values()), dtype=float)))
+
+
+def build_reduced(p: Parameters, partition: str | dict = "fine", effects: dict | None = None,
+                  dt_s: float = DT_S, margin: float = STABILITY_MARGIN, check: bool = True) -> ReducedParams:
+    """Build the onboard model from a validated parameter set; raises StabilityError if dt is unsafe.
+
+    ``effects``: only the build-time effect oil_level_low is used here (the others are applied at run time through
+    :func:`make_effects`)."""
+    p = with_oil_volume(p, effect_value(effects, "oil_level_low"))
+    if not 0.0 < dt_s <= 1.0:
+        raise ParameterError(f"dt_s = {dt_s} s must be in (0, 1] s")
+    if not 0.0 < margin <= 1.0:
+        raise ParameterError(f"stability margin = {margin} must be in (0, 1]")
+    part_name, partition = _resolve_partition(partition)
+    net = build_network(p)
+    agg = aggregate(net, partition)
+    kin = p.kinematics
+    grid = _law_grid(net, p)
+    laws = _Laws(net, agg, p, grid)
+    for k in range(len(net.link_a)):
+        laws.add_link(k)
+    lm = _loss_maps(p, net, float(grid.w_src_max[SPEED_NAMES.index("LS")]))
     kind = p.strings.get("cooler.kind", "liquid")
-    cooler_code = COOLER_CODES.get(kind, 0)
-    cooler = {k: p[f"cooler.{k}"] for k in (
-        "liquid_hA_ref", "liquid_Qmax_cool", "liquid_Qmax_heat", "air_hA_ref", "air_Qmax_cool", "thermostat_open",
-        "thermostat_full", "ref_ls_speed", "ref_engine_speed", "exp_inner", "exp_outer", "air_flow_min_frac")}
-
-    bc = np.array([p[f"boundary.{b}"] for b in BOUNDARIES])
-    published = np.array([agg.nodes.index(c) for c in PUBLISHED])
-
-    def arr(rows, i, dtype=float):
-        return np.array([r[i] for r in rows], dtype=dtype)
-
     rp = ReducedParams(
         variant=p.variant, partition=part_name, nodes=agg.nodes, dt_s=float(dt_s), margin=float(margin),
-        C_j_per_k=_ro(agg.C), i_oil=agg.nodes.index("oil"), published_index=_ro(published, np.int64),
-        members=agg.members,
-        link_a=_ro(agg.link_a, np.int64), link_b=_ro(agg.link_b, np.int64), link_name=agg.link_name, G_const_w_per_k=_ro(G_const),
-        pw_link=_ro(arr(pw, 0, np.int64), np.int64), pw_exp=_ro(arr(pw, 1)),
-        pw_gear_coef=_ro(np.array([r[2] for r in pw]).T.reshape(N_GEARS, len(pw))),
-        pw_col=_ro(arr(pw, 3, np.int64), np.int64), pw_phi=_ro(pw_phi), pw_effect=_ro(arr(pw, 4, np.int64), np.int64),
-        t2_link=_ro(arr(t2, 0, np.int64), np.int64),
-        t2_speed_coef=_ro(np.array([r[1] for r in t2]).T.reshape(N_GEARS, len(t2))),
-        t2_w_max=_ro(arr(t2, 2)), t2_table=_ro(np.array([r[3] for r in t2]).reshape(len(t2), N_U, T2.size)),
-        t2_stream=_ro([r[4] for r in t2], bool), t2_frac=_ro(arr(t2, 5)),
-        t2_effect=_ro(arr(t2, 6, np.int64), np.int64),
-        cyl_link=_ro(arr(cyl, 0, np.int64), np.int64),
-        cyl_speed_coef=_ro(np.array([r[1] for r in cyl]).T.reshape(N_GEARS, len(cyl))),
-        cyl_c=_ro(arr(cyl, 2)), cyl_ln_rp2=_ro(arr(cyl, 3)),
-        ef_link=_ro(arr(ef, 0, np.int64), np.int64), ef_mcp=_ro(arr(ef, 1)), ef_alpha=_ro(arr(ef, 2)),
-        ef_beta=_ro(arr(ef, 3)), ef_effect=_ro(arr(ef, 4, np.int64), np.int64),
-        rad_link=_ro(arr(rad, 0, np.int64), np.int64), rad_area_eps=_ro(arr(rad, 1)),
-        prop=_ro(oil_property_table(T_grid)),
+        C_j_per_k=_ro(agg.C), i_oil=agg.nodes.index("oil"),
+        published_index=_ro(np.array([agg.nodes.index(c) for c in PUBLISHED]), np.int64), members=agg.members,
+        link_a=_ro(agg.link_a, np.int64), link_b=_ro(agg.link_b, np.int64), link_name=agg.link_name,
+        **_law_fields(laws),
+        prop=_ro(oil_property_table(T_GRID_C)),
         speed_coef=_ro(kin.speed), mesh_torque=_ro(kin.mesh_torque), mesh_omega2=_ro(kin.mesh_omega2),
-        mesh_x0=_ro(mesh_x0), mesh_phi=_ro(mesh_phi_rows), mesh_roll_k=_ro(roll_k), mesh_heat_sf=_ro(heat_sf),
-        bear_speed=_ro(bear_speed), bear_c=_ro(bear_c), bear_load=_ro(gl.load_torque_coef),
-        needle_rel=_ro(kin.wheel_bearing_rel), needle_c=_ro(needle_c), sync_coef=_ro(sync_coef),
-        pump_coef=_ro(pump_coef), churn_w_max=float(churn_w_max), churn_table=_ro(churn_table),
-        churn_heat_sf=float(p["scale.churn_to_heat"]), src_matrix=_ro(S),
-        heat_lag_tau_s=float(p["scale.heat_lag_tau"]), cooler_code=cooler_code, cooler=cooler,
-        flow_m3_per_rad=float(p["oil_system.flow_per_ls_rpm"]), bc_default_c=_ro(bc),
+        mesh_x0=_ro(lm.mesh_x0), mesh_phi=_ro(lm.mesh_phi), mesh_roll_k=_ro(lm.mesh_roll_k),
+        mesh_heat_sf=_ro(lm.mesh_heat_sf), bear_speed=_ro(lm.bear_speed), bear_c=_ro(lm.bear_c),
+        bear_load=_ro(lm.bear_load), needle_rel=_ro(kin.wheel_bearing_rel), needle_c=_ro(lm.needle_c),
+        sync_coef=_ro(lm.sync_coef), pump_coef=_ro(lm.pump_coef), churn_w_max=float(lm.churn_w_max),
+        churn_table=_ro(lm.churn_table), churn_heat_sf=float(p["scale.churn_to_heat"]),
+        src_matrix=_ro(_source_matrix(net, agg)), heat_lag_tau_s=float(p["scale.heat_lag_tau"]),
+        cooler_code=COOLER_CODES.get(kind, 0), cooler=cooler_values(p),
+        flow_m3_per_rad=float(p["oil_system.flow_m3_per_rad"]),
+        bc_default_c=_ro(np.array([p[f"boundary.{b}"] for b in BOUNDARIES])),
         i_ambient=BOUNDARIES.index("ambient"), i_coolant=BOUNDARIES.index("coolant"),
         i_hot=BOUNDARIES.index("hot_surroundings"),
-        max_speed_rpm=float(p["engine.max_speed"] / RPM), min_torque_nm=float(p["engine.min_torque"]),
+        max_speed_rpm=float(p["engine.max_speed_rad_s"] / RPM), min_torque_nm=float(p["engine.min_torque"]),
         max_torque_nm=float(p["engine.max_torque"]))
     if check:
         object.__setattr__(rp, "stability", check_stability(rp))
@@ -607,8 +697,8 @@ def build_reduced(p: Parameters, partition: str | dict = "fine", effects: dict |
 def _separable_power_law(tab: np.ndarray, w: np.ndarray):
     """(exponent e, a, phi(T)) with tab[i, j] = a w_i^e phi_j to SEPARABLE_RTOL for every w_i > 0, else None.
 
-    phi is normalised to 1 at 60 degC. At w = 0 the law gives 0 (the full evaluator floors some speeds at 1e-3 rad/s,
-    a conductance below 0.3 % of its value at 100 rpm)."""
+    phi is normalised to 1 at 60 degC. At w = 0 the law gives 0 (the full evaluator floors some speeds at
+    MIN_SPEED_RAD_S, a conductance below 0.3 % of its value at 100 rpm)."""
     if not np.all(np.isfinite(tab)) or np.any(tab < 0):
         return None
     pos = np.flatnonzero(w > 0)
@@ -644,7 +734,7 @@ _LN_1E6 = math.log(1e-6)
 
 def _cyl_table(c, R_p, w, T):
     op = oilprops.oil_properties(T)
-    wf = np.maximum(w, 1e-3)[:, None]
+    wf = np.maximum(w, MIN_SPEED_RAD_S)[:, None]
     re = R_p * R_p * wf / op.nu_m2_s[None, :]
     return c * op.k_w_per_mk[None, :] * ht.nusselt_rotating_cylinder(re, op.pr[None, :])
 
@@ -652,7 +742,7 @@ def _cyl_table(c, R_p, w, T):
 def _fling_off_table(net: Network, k: int, w, T):
     kp = {key: float(_link_param(net, k, key)) for key in ("z", "width", "h_t", "R_p", "h_i")}
     op = oilprops.oil_properties(T)
-    wf = np.maximum(w, 1e-3)[:, None]
+    wf = np.maximum(w, MIN_SPEED_RAD_S)[:, None]
     return ht.fling_off_hA(kp["z"], kp["width"], kp["h_t"], kp["R_p"], kp["h_i"], wf, op.k_w_per_mk[None, :],
                            op.alpha_m2_s[None, :], op.nu_m2_s[None, :]).hA_w_per_k
 
@@ -724,13 +814,10 @@ class Helpers:
         self.ef_scatter[np.arange(len(rp.ef_link)), rp.ef_link] = 1.0
         self.cyl_scatter = np.zeros((len(rp.cyl_link), nl))
         self.cyl_scatter[np.arange(len(rp.cyl_link)), rp.cyl_link] = 1.0
-        self.internal = rp.link_b < n
-        self.ia = rp.link_a[self.internal]
-        self.ib = rp.link_b[self.internal]
-        self.int_idx = np.flatnonzero(self.internal)
-        self.ext_idx = np.flatnonzero(~self.internal)
-        self.ea = rp.link_a[~self.internal]
-        self.eb = rp.link_b[~self.internal] - n
+        # which links join which nodes (physics.conductance_matrix: K = conductance_matrix(G, topology).K_w_per_k)
+        self.topology = topo = link_topology(rp.link_a, rp.link_b, n)
+        self.internal, self.int_idx, self.ext_idx = topo.internal, topo.int_idx, topo.ext_idx
+        self.ia, self.ib, self.ea, self.eb = topo.ia, topo.ib, topo.ea, topo.eb
         # flux -> node rate: q_nodes = flux_int @ B_int + flux_ext @ B_ext (flux = G (T_a - T_b), from a to b)
         self.B_int = np.zeros((self.ia.size, n))
         self.B_int[np.arange(self.ia.size), self.ia] = -1.0
@@ -777,6 +864,9 @@ class Helpers:
         self.pub_rows_all = pub.copy()
         # published components whose crossing re-linearises the time to limit (not the sump itself)
         self.ttl_relin_pub = pub != rp.i_oil
+        self.cooler = cooler_params(rp.cooler)
+        # the heat lag's coefficients at the onboard step (physics.heat_lag.heat_lag_step(lag_w, src, h.heat_lag))
+        self.heat_lag = heat_lag(rp.heat_lag_tau_s, rp.dt_s)
 
 
 _HELPERS: dict = {}
@@ -820,16 +910,16 @@ def conductances(rp: ReducedParams, row, w_in, x_T, prop, phi, T_nodes_c, T_bc_c
     row: gear row (gear - GEAR_MIN), w_in: input speed [rad/s] >= 0, (x_T, prop, phi): :func:`oil_row` at the oil
     temperature; T_nodes_c / T_bc_c: node and boundary temperatures (radiation, Eq 81)."""
     h = h or helpers(rp)
-    w = np.asarray(w_in, dtype=float)
+    omega_in_rad_s = np.asarray(w_in, dtype=float)
     # power laws: coef(gear) w^e phi(T)
     ph = np.where(h.pw_has_col, np.take(phi, h.pw_colc, axis=-1), 1.0)
-    Gp = rp.pw_gear_coef[row] * np.power(w[..., None], rp.pw_exp) * ph
+    Gp = rp.pw_gear_coef[row] * np.power(omega_in_rad_s[..., None], rp.pw_exp) * ph
     if eff is not None:
         Gp = _scaled(Gp, h.pw_eff[1], eff.teeth_oil_h)
         Gp = _scaled(Gp, h.pw_eff[3], eff.housing_air_h)
     # bilinear tables over (sqrt(w_t / w_max), T)
-    wt = rp.t2_speed_coef[row] * w[..., None]
-    uu = np.sqrt(np.minimum(wt / rp.t2_w_max, 1.0)) * (N_U - 1)
+    omega_t_rad_s = rp.t2_speed_coef[row] * omega_in_rad_s[..., None]
+    uu = np.sqrt(np.minimum(omega_t_rad_s / rp.t2_w_max, 1.0)) * (N_U - 1)
     iu = np.minimum(uu.astype(np.int64), N_U - 2)
     fu = uu - iu
     xT2 = np.asarray(x_T) / T2_STRIDE
@@ -840,18 +930,18 @@ def conductances(rp: ReducedParams, row, w_in, x_T, prop, phi, T_nodes_c, T_bc_c
     lo = tf[base] * (1.0 - fT) + tf[base + 1] * fT
     hi = tf[base + h.nT2] * (1.0 - fT) + tf[base + h.nT2 + 1] * fT
     G2 = lo + (hi - lo) * fu
-    # closed-form streams: m (1 - exp(-hA / m))  (NTU effectiveness, Eq 69-80)
-    w_ls = np.abs(rp.speed_coef[row, 1]) * w
-    m = rp.ef_mcp * (prop[..., P_RHO] * prop[..., P_CP] * w_ls)[..., None]
+    # closed-form streams: m (1 - exp(-hA / m)), m = mdot cp  (NTU effectiveness, Eq 69-80)
+    omega_ls_rad_s = np.abs(rp.speed_coef[row, 1]) * omega_in_rad_s
+    mcp_w_per_k = rp.ef_mcp * (prop[..., P_RHO] * prop[..., P_CP] * omega_ls_rad_s)[..., None]
     beta = rp.ef_beta
     if eff is not None and h.ef_planet.size and not (np.ndim(eff.planet_oil_h) == 0 and eff.planet_oil_h == 1.0):
-        beta = _scaled(np.broadcast_to(beta, m.shape), h.ef_planet, eff.planet_oil_h)
+        beta = _scaled(np.broadcast_to(beta, mcp_w_per_k.shape), h.ef_planet, eff.planet_oil_h)
     hA = rp.ef_alpha * prop[..., P_K, None] + beta
-    ms = np.where(m > 0.0, m, 1.0)
-    Ge = np.where(m > 0.0, -ms * np.expm1(-hA / ms), 0.0)
+    mcp_safe_w_per_k = np.where(mcp_w_per_k > 0.0, mcp_w_per_k, 1.0)
+    Ge = np.where(mcp_w_per_k > 0.0, -mcp_safe_w_per_k * np.expm1(-hA / mcp_safe_w_per_k), 0.0)
     # immersed wheels: Nusselt (Eq 46-48) in closed form
-    wc = np.maximum(rp.cyl_speed_coef[row] * w[..., None], 1e-3)
-    ln_re = rp.cyl_ln_rp2 + np.log(wc) - (prop[..., P_LN_NU_CST, None] + _LN_1E6)
+    omega_c_rad_s = np.maximum(rp.cyl_speed_coef[row] * omega_in_rad_s[..., None], MIN_SPEED_RAD_S)
+    ln_re = rp.cyl_ln_rp2 + np.log(omega_c_rad_s) - (prop[..., P_LN_NU_CST, None] + _LN_1E6)
     Gc = rp.cyl_c * prop[..., P_K, None] * _cyl_nusselt(ln_re, prop[..., P_LN_PR, None])
     G = rp.G_const_w_per_k + Gp @ h.pw_scatter + G2 @ h.t2_scatter + Ge @ h.ef_scatter + Gc @ h.cyl_scatter
     if radiation and rp.rad_link.size:
@@ -895,9 +985,9 @@ def radiation_conductances(rp: ReducedParams, T_nodes_c, T_bc_c, h: Helpers | No
     """Linearised radiation conductance of every radiation link [W/K] (Eq 81), housing temperatures clipped."""
     h = h or helpers(rp)
     T1 = np.minimum(np.maximum(np.take(T_nodes_c, h.rad_node, axis=-1), RAD_T_RANGE_C[0]), RAD_T_RANGE_C[1]) \
-        + ht.KELVIN_OFFSET
-    T2 = np.take(T_bc_c, h.rad_bc, axis=-1) + ht.KELVIN_OFFSET
-    return rp.rad_area_eps * ht.SIGMA_W_PER_M2K4 * (T1 * T1 + T2 * T2) * (T1 + T2)  # Eq 81
+        + KELVIN_OFFSET_K
+    T2 = np.take(T_bc_c, h.rad_bc, axis=-1) + KELVIN_OFFSET_K
+    return rp.rad_area_eps * SIGMA_W_PER_M2K4 * (T1 * T1 + T2 * T2) * (T1 + T2)  # Eq 81
 
 
 def heat_sources(rp: ReducedParams, row, w_in, torque_abs_nm, prop, x_T, src_scale=None, churn_scale=1.0,
@@ -905,15 +995,15 @@ def heat_sources(rp: ReducedParams, row, w_in, torque_abs_nm, prop, x_T, src_sca
     """Heat of every source [W], shape (..., N_SRC): meshes (Eq 7-22, x seed heat factors), shaft bearings
     (Eq 35-40), the oil-lumped sources (churning x 1.33, needle bearings, synchronizers, pump) and the retarder."""
     h = h or helpers(rp)
-    w = np.asarray(w_in, dtype=float)
-    Tq = np.asarray(torque_abs_nm, dtype=float)
-    w_ = w[..., None]
-    T1 = rp.mesh_torque[row] * Tq[..., None]
-    w2 = rp.mesh_omega2[row] * w_
-    on = (T1 > 0.0) & (w2 > 0.0)
+    omega_in_rad_s = np.asarray(w_in, dtype=float)
+    torque_nm = np.asarray(torque_abs_nm, dtype=float)
+    omega_in_col = omega_in_rad_s[..., None]
+    T1 = rp.mesh_torque[row] * torque_nm[..., None]
+    omega2_rad_s = rp.mesh_omega2[row] * omega_in_col
+    on = (T1 > 0.0) & (omega2_rad_s > 0.0)
     T1s = np.where(on, T1, 1.0)
-    w2s = np.where(on, w2, 1.0)
-    lT, lw = np.log10(T1s), np.log10(w2s)
+    omega2_safe = np.where(on, omega2_rad_s, 1.0)
+    lT, lw = np.log10(T1s), np.log10(omega2_safe)
     x = (lT - prop[..., P_LOG10_MU, None] - 3.0 * lw - rp.mesh_x0) / X_STEP
     x = np.clip(x, 0.0, h.nx - 1.000001)
     ix = x.astype(np.int64)
@@ -922,23 +1012,24 @@ def heat_sources(rp: ReducedParams, row, w_in, torque_abs_nm, prop, x_T, src_sca
     b = h.mesh_base + ix
     phi = mf[b] * (1.0 - fx) + mf[b + 1] * fx
     # slip: T1 w2 phi; rolling: K mu^0.7 a^0.54 w2^1.7 T1^-0.13 (Eq 18: exact power law)
-    P = T1s * w2s * (phi + rp.mesh_roll_k * np.exp(prop[..., P_LN_ROLL, None] + math.log(10.0) * (0.7 * lw - 1.13 * lT)))
+    P = T1s * omega2_safe * (phi + rp.mesh_roll_k * np.exp(prop[..., P_LN_ROLL, None]
+                                                           + math.log(10.0) * (0.7 * lw - 1.13 * lT)))
     P_mesh = np.where(on, P, 0.0) * rp.mesh_heat_sf
     # shaft bearings (Eq 35-40)
-    wb = rp.bear_speed[row] * w_
+    omega_b_rad_s = rp.bear_speed[row] * omega_in_col
     nu = np.exp(prop[..., P_LN_NU_CST, None])
-    M0 = rp.bear_c * np.maximum(nu * wb * (30.0 / math.pi), L.PALMGREN_NU_N_MIN) ** (2.0 / 3.0)
-    P_bear = (M0 + rp.bear_load[row] * Tq[..., None]) * wb
+    M0 = rp.bear_c * np.maximum(nu * omega_b_rad_s * RPM_PER_RAD_S, L.PALMGREN_NU_N_MIN) ** (2.0 / 3.0)
+    P_bear = (M0 + rp.bear_load[row] * torque_nm[..., None]) * omega_b_rad_s
     # lumped into the sump: needle bearings (Eq 36-37 on relative speed), synchronizers (Eq 41), pump (Eq 42),
     # churning (Eq 23-34, table)
-    rel = rp.needle_rel[row] * w_
-    Mn = rp.needle_c * np.maximum(nu * rel * (30.0 / math.pi), L.PALMGREN_NU_N_MIN) ** (2.0 / 3.0)
+    rel = rp.needle_rel[row] * omega_in_col
+    Mn = rp.needle_c * np.maximum(nu * rel * RPM_PER_RAD_S, L.PALMGREN_NU_N_MIN) ** (2.0 / 3.0)
     P_needle = np.sum(Mn * rel, axis=-1)
-    w2in = w * w
-    P_sync = np.exp(prop[..., P_LN_MU]) * w2in * rp.sync_coef[row]
-    P_pump = rp.pump_coef[row] * w2in
-    w_ls = np.abs(rp.speed_coef[row, 1]) * w
-    uu = np.sqrt(np.minimum(w_ls / rp.churn_w_max, 1.0)) * (N_U_CHURN - 1)
+    omega_in_sq = omega_in_rad_s * omega_in_rad_s
+    P_sync = np.exp(prop[..., P_LN_MU]) * omega_in_sq * rp.sync_coef[row]
+    P_pump = rp.pump_coef[row] * omega_in_sq
+    omega_ls_rad_s = np.abs(rp.speed_coef[row, 1]) * omega_in_rad_s
+    uu = np.sqrt(np.minimum(omega_ls_rad_s / rp.churn_w_max, 1.0)) * (N_U_CHURN - 1)
     iu = np.minimum(np.asarray(uu).astype(np.int64), N_U_CHURN - 2)
     fu = uu - iu
     xT = np.asarray(x_T)
@@ -958,33 +1049,21 @@ def heat_sources(rp: ReducedParams, row, w_in, torque_abs_nm, prop, x_T, src_sca
 
 def cooler_heat(rp: ReducedParams, T_oil_c, w_ls, w_eng, T_coolant_c, T_ambient_c, v_kmh, rho_cp,
                 scale=1.0, thermostat_offset_c=0.0):
-    """Heat from the sump to the cooler [W] (Eq 83), the oil-system flow capacity mdot cp [W/K] and the cooler's
-    maximum slope dQ/dT_oil [W/K] at this operating point; the same model as the reference plant."""
-    c = rp.cooler
-    w_ls = np.asarray(w_ls, dtype=float)
-    mcp = rho_cp * rp.flow_m3_per_rad * w_ls
+    """Heat from the sump to the cooler [W] (Eq 83), the oil-system flow capacity mdot cp [W/K] and the cooler's hA
+    [W/K] at this operating point: :func:`firmware_model.physics.cooler.oil_cooler_heat`, the plant's model, with
+    the oil flow from the layshaft speed ``w_ls`` [rad/s] and a missing vehicle speed taken as
+    DEFAULT_VEHICLE_SPEED_KMH."""
+    omega_ls_rad_s = np.asarray(w_ls, dtype=float)
+    mcp_w_per_k = rho_cp * rp.flow_m3_per_rad * omega_ls_rad_s
     if rp.cooler_code == 0:
-        z = np.zeros(np.broadcast(T_oil_c, w_ls).shape)
-        return z, mcp, z
-    inner = (w_ls / c["ref_ls_speed"]) ** c["exp_inner"]
-    if rp.cooler_code == 1:
-        outer = (np.maximum(w_eng, 0.0) / c["ref_engine_speed"]) ** c["exp_outer"]
-        hA = c["liquid_hA_ref"] * inner * outer * scale
-        Q = np.clip(hA * (T_oil_c - T_coolant_c), -c["liquid_Qmax_heat"], c["liquid_Qmax_cool"])   # Eq 83
-    else:
-        fmin = c["air_flow_min_frac"]
-        v = np.clip(np.nan_to_num(v_kmh, nan=50.0), 0.0, None)
-        outer = (fmin + (1.0 - fmin) * np.minimum(v / 85.0, 1.5)) ** c["exp_outer"]
-        hA = c["air_hA_ref"] * inner * outer * scale
-        T_air = T_ambient_c + np.interp(v, _AIR_RECIRC[0], _AIR_RECIRC[1])
-        Q = ht.cooler_heat_w("air", hA, T_oil_c, T_air, np.where(mcp > 0, mcp, 0.0), 1.0, c["air_Qmax_cool"], 0.0,
-                             c["thermostat_open"] + thermostat_offset_c, c["thermostat_full"] + thermostat_offset_c)
-    Q = np.where(mcp > 0.0, Q, 0.0)
-    return Q, mcp, hA
-
-
-#: recirculated air at the air cooler (seed 3.4; same table as tools.plant.reference)
-_AIR_RECIRC = (np.array([0.0, 15.0, 50.0, 85.0, 200.0]), np.array([12.0, 9.0, 2.0, 0.5, 0.0]))
+        z = np.zeros(np.broadcast(T_oil_c, omega_ls_rad_s).shape)
+        return z, mcp_w_per_k, z
+    c = helpers(rp).cooler
+    Q_w, hA_w_per_k = oil_cooler_heat(c, COOLER_KINDS[rp.cooler_code], T_oil_c, omega_ls_rad_s / c.ref_ls_speed_rad_s,
+                                      w_eng, T_coolant_c, T_ambient_c,
+                                      np.nan_to_num(v_kmh, nan=DEFAULT_VEHICLE_SPEED_KMH), mcp_w_per_k, scale,
+                                      thermostat_offset_c)
+    return Q_w, mcp_w_per_k, hA_w_per_k
 
 
 # ---------------------------------------------------------------------------------------------------------------
@@ -1026,23 +1105,16 @@ def max_conductances(rp: ReducedParams) -> dict:
         f = (x - i)[:, None]
         pr = rp.prop[i] * (1.0 - f) + rp.prop[i + 1] * f
         wc = np.max(rp.cyl_speed_coef, axis=0) * w_max
-        ln_re = rp.cyl_ln_rp2 + np.log(np.maximum(wc, 1e-3)) - (pr[:, P_LN_NU_CST, None] + _LN_1E6)
+        ln_re = rp.cyl_ln_rp2 + np.log(np.maximum(wc, MIN_SPEED_RAD_S)) - (pr[:, P_LN_NU_CST, None] + _LN_1E6)
         Gc = rp.cyl_c * pr[:, P_K, None] * _cyl_nusselt(ln_re, pr[:, P_LN_PR, None])
         np.add.at(G, rp.cyl_link, 1.02 * Gc.max(axis=0))
     if rp.rad_link.size:
-        T1 = RAD_T_RANGE_C[1] + ht.KELVIN_OFFSET
-        T2 = 250.0 + ht.KELVIN_OFFSET
-        G[rp.rad_link] = rp.rad_area_eps * ht.SIGMA_W_PER_M2K4 * (T1 * T1 + T2 * T2) * (T1 + T2)
+        T1 = RAD_T_RANGE_C[1] + KELVIN_OFFSET_K
+        T2 = 250.0 + KELVIN_OFFSET_K
+        G[rp.rad_link] = rp.rad_area_eps * SIGMA_W_PER_M2K4 * (T1 * T1 + T2 * T2) * (T1 + T2)
     # cooler: the largest slope dQ/dT_oil (hA at the highest flows, effectiveness scale at its maximum)
-    c = rp.cooler
-    inner = (w_ls_max / c["ref_ls_speed"]) ** c["exp_inner"]
-    smax = CATALOG["cooler_effectiveness_scale"].high
-    if rp.cooler_code == 1:
-        hA = c["liquid_hA_ref"] * inner * (w_max / c["ref_engine_speed"]) ** c["exp_outer"] * smax
-    elif rp.cooler_code == 2:
-        hA = c["air_hA_ref"] * inner * 1.5 ** c["exp_outer"] * smax
-    else:
-        hA = 0.0
+    hA = cooler_hA_bound_w_per_k(cooler_params(rp.cooler), COOLER_KINDS[rp.cooler_code], w_ls_max, w_max,
+                                 CATALOG["cooler_effectiveness_scale"].high)
     return {"G": G, "cooler_hA": float(hA)}
 
 
@@ -1050,11 +1122,8 @@ def check_stability(rp: ReducedParams) -> dict:
     """Prove dt <= margin x C_i / max sum_j G_ij for every node (module doc); raise StabilityError naming the node."""
     h = helpers(rp)
     mc = max_conductances(rp)
-    G = mc["G"]
     n = rp.n
-    rowsum = np.bincount(rp.link_a, G, minlength=n)
-    inner = rp.link_b < n
-    rowsum = rowsum + np.bincount(rp.link_b[inner], G[inner], minlength=n)
+    rowsum = node_conductance_w_per_k(mc["G"], h.topology)
     hA = mc["cooler_hA"]
     # the cooler on the sump, and its inlet-temperature drop dT_in = Q / (mdot cp): a stream term moves G_s dT_in
     # from its component to the sump and |d(G_s dT_in)/dT_oil| <= G_s hA / (mdot cp) <= frac_s hA

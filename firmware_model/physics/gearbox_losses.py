@@ -12,39 +12,32 @@ The same model generates the onboard sensor's loss maps, so plant and sensor sha
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 
 import numpy as np
 
 from firmware_model.physics import losses as L
 from firmware_model.physics import oil as oilprops
 from firmware_model.components import IDLE_WHEELS, LAYSHAFT_WHEELS, PAIRS, SHAFT_BEARINGS
+from firmware_model.effects import EffectScales
+from firmware_model.physics.geometry import SHAFT_OF_BEARING, Geometry, build_geometry
 from firmware_model.physics.kinematics import GEAR_MIN, GEARS, MESHES, SPEED_NAMES, SYNCS, gear_state
-from firmware_model.network import SHAFT_OF_BEARING, build_geometry
 from firmware_model.parameters import Parameters
 
 #: loss sources in reporting order; "mesh:<m>" for the nine meshes, then the lumped ones
 SOURCES = tuple(f"mesh:{m}" for m in MESHES[:7]) + ("planetary",) + tuple(f"bearing:{b}" for b in SHAFT_BEARINGS) + (
     "churning", "wheel_bearings", "synchronizers", "pump")
-
-# Bearing loads: for every gear, radial and axial load per newton-metre of input torque on each shaft bearing.
-
-
-@dataclass
-class LossScales:
-    """Effect multipliers on the heat of each loss family (1.0 = as the seed's model)."""
-    gear_friction: float = 1.0
-    planetary: float = 1.0
-    churning: float = 1.0
-    bearing: float = 1.0
+#: Gauss-Legendre points on each side of the pitch point for the rolling loss (~1 W terms, seed 3.2: coarse is plenty)
+ROLL_POINTS = 4
 
 
 class GearboxLosses:
-    def __init__(self, p: Parameters, geometry: dict | None = None):
+    """The loss model of one parameter set and its geometry."""
+
+    def __init__(self, p: Parameters, geometry: Geometry | None = None):
         self.p = p
         self.kin = p.kinematics
         self.geo = geometry or build_geometry(p)
-        self.meshes = [self.geo["meshes"][m] for m in MESHES]
+        self.meshes = [self.geo.meshes[m] for m in MESHES]
         self.n_planets = int(p["planetary.n_planets"])
         self.E = p["material.steel.E"]
         self.poisson = p["material.steel.poisson"]
@@ -72,7 +65,7 @@ class GearboxLosses:
     # ------------------------------------------------------------------ geometry-derived tables
     def _bearing_tables(self):
         """Radial and axial load coefficients [N per N m of input torque], per gear and shaft bearing."""
-        p, W = self.p, self.geo["wheels"]
+        p, W = self.p, self.geo.wheels
         nG = len(GEARS)
         self.Fr_coef = np.zeros((nG, len(SHAFT_BEARINGS)))
         self.Fa_coef = np.zeros((nG, len(SHAFT_BEARINGS)))
@@ -86,7 +79,7 @@ class GearboxLosses:
                 continue
             forces = {"IS": [], "LS": [], "MS": []}   # (x, Fy, Fz, Fa) per unit input torque
             iw, lw = PAIRS[st.split_pair]
-            mesh = self.geo["meshes"][st.split_pair]
+            mesh = self.geo.meshes[st.split_pair]
             Ft = 1.0 / mesh.R_w1_m
             Fr, Fa = Ft * math.tan(mesh.alpha_tw_rad), Ft * math.tan(mesh.beta_rad)
             shaft_i = "IS" if iw == "LI" else "MS"
@@ -95,7 +88,7 @@ class GearboxLosses:
             T_ls = W[lw].z / W[iw].z
             mp = st.main_pair
             miw, mlw = PAIRS[mp]
-            mesh = self.geo["meshes"]["R" if mp == "R" else mp]
+            mesh = self.geo.meshes["R" if mp == "R" else mp]
             Ft = T_ls / (mesh.R_w1_m if mp == "R" else mesh.R_w2_m)
             Fr, Fa = Ft * math.tan(mesh.alpha_tw_rad), Ft * math.tan(mesh.beta_rad)
             forces["LS"].append((W[mlw].x, +Ft, -Fr, -Fa))     # opposite hand: axial forces partly cancel
@@ -130,12 +123,12 @@ class GearboxLosses:
         self.bearing_speed_idx = [SPEED_NAMES.index(SHAFT_OF_BEARING[b]) for b in SHAFT_BEARINGS]
         # needle bearings
         d_r = p["wheel_bearing.d_roller"]
-        R_s = {"LI": self.geo["R_shaft"]["IS"]}
-        self.needle_Dm = np.array([2 * (R_s.get(w, self.geo["R_shaft"]["MS"])) + d_r for w in IDLE_WHEELS])
+        R_s = {"LI": self.geo.R_shaft_m["IS"]}
+        self.needle_Dm = np.array([2 * (R_s.get(w, self.geo.R_shaft_m["MS"])) + d_r for w in IDLE_WHEELS])
         self.needle_f0 = p["wheel_bearing.f0_needle"]
 
     def _churn_geometry(self):
-        W, imm = self.geo["wheels"], self.geo["immersion_m"]
+        W, imm = self.geo.wheels, self.geo.immersion_m
         rows = []
         for w in LAYSHAFT_WHEELS + ("RI",):
             g = W[w]
@@ -178,7 +171,7 @@ class GearboxLosses:
                     T1 = T1 / self.n_planets
                 # rolling losses are ~1 W (seed 3.2): a coarse quadrature is plenty for them
                 P = L.gear_slip_loss_w(mesh, T1, mw[:, j], rho, mu) + L.gear_rolling_loss_w(
-                    mesh, T1, mw[:, j], mu, piezo, self.E, self.E, self.poisson, self.poisson, n_points=4)
+                    mesh, T1, mw[:, j], mu, piezo, self.E, self.E, self.poisson, self.poisson, n_points=ROLL_POINTS)
                 P = np.where(T1 > 0, P, 0.0)
                 if m in ("PSP", "PPR"):
                     P = P * self.n_planets
@@ -224,19 +217,19 @@ class GearboxLosses:
         out["pump"] = self.pump_k * w_ls * w_ls
         return out
 
-    def heat(self, loss: dict, scales: LossScales | None = None) -> dict:
+    def heat(self, loss: dict, scales: EffectScales | None = None) -> dict:
         """Heat [W] per source: the seed's loss-to-heat scale factors times the effect scales."""
-        sc = scales or LossScales()
+        sc = scales or EffectScales()
         h = {}
         for k, v in loss.items():
             if k.startswith("mesh:"):
-                h[k] = v * self.sf_gear * sc.gear_friction
+                h[k] = v * self.sf_gear * sc.gear_friction_scale
             elif k == "planetary":
-                h[k] = v * self.sf_planet * sc.planetary
+                h[k] = v * self.sf_planet * sc.planetary_scale
             elif k == "churning":
-                h[k] = v * self.sf_churn * sc.churning
+                h[k] = v * self.sf_churn * sc.churn_scale
             elif k.startswith("bearing:") or k == "wheel_bearings":
-                h[k] = v * sc.bearing
+                h[k] = v * sc.bearing_scale
             elif k in ("synchronizers", "pump"):
                 h[k] = v
         return h

@@ -1,4 +1,5 @@
-"""Heat paths of the gearbox thermal network (seed sections 3.3 and 3.4, Eq 43-83, Eq 6).
+"""Heat paths of the gearbox thermal network (seed section 3.3, Eq 43-81, Eq 6; the oil cooler of section 3.4 is
+firmware_model.physics.cooler).
 
 Pure, vectorised functions of floats or numpy arrays. Conductances are returned in W/K (``G_w_per_k``),
 heat transfer coefficients in W/(m2 K), areas in m2; temperatures are degC and converted to kelvin only for
@@ -6,7 +7,7 @@ radiation.
 
 Interpretations (see each function): Eq 46/47 bridge between Re = 2.5e5 and 3.2e5; Blok's fling-off
 (Eq 54-55) held at psi = 1.5 beyond its range; pipe-flow transition 2300..1e4 (Eq 66/67); flow-stream
-effectiveness for oil-system conductances; exact solution of the implicit thermostat coupling Eq 82/83.
+effectiveness for oil-system conductances.
 """
 from __future__ import annotations
 
@@ -16,10 +17,10 @@ from typing import NamedTuple
 import numpy as np
 
 from firmware_model.errors import ParameterError
+from firmware_model.units import KELVIN_OFFSET_K, SIGMA_W_PER_M2K4
 
-#: Stefan-Boltzmann constant [W/(m2 K4)] (CODATA 2018)
-SIGMA_W_PER_M2K4 = 5.670374419e-8
-KELVIN_OFFSET = 273.15
+#: degC -> K (owned by firmware_model.units, as is SIGMA_W_PER_M2K4; both names kept here for their readers)
+KELVIN_OFFSET = KELVIN_OFFSET_K
 
 #: Eq 46/47 validity limits; between them the two correlations are bridged (see nusselt_rotating_cylinder)
 RE_LAMINAR_MAX = 2.5e5
@@ -36,8 +37,6 @@ W_HZ_DEFAULT_M = 0.8e-3
 CONTACT_LENGTH_FACTOR = 0.9
 #: seed's nominal splash speed (Eq 59) [rpm]
 N_NOM_RPM = 1000.0
-
-COOLER_KINDS = ("none", "liquid", "air")
 
 
 def _pos(name, value):
@@ -225,27 +224,34 @@ def h_from_nusselt_w_per_m2k(nusselt, k_w_per_mk, D_m):
     return np.asarray(nusselt, dtype=float) * k_w_per_mk / D_m
 
 
-def needle_channel_inner(r1i_m, r2i_m, r_r_m, n_roller):
+class Channel(NamedTuple):
+    """Cross-section of one oil channel of a bearing."""
+    area_m2: np.ndarray | float         # flow area
+    perimeter_m: np.ndarray | float     # wetted perimeter
+
+
+def _needle_channel(r1_m, r2_m, r_r_m, n_roller) -> Channel:
+    """The annular gap r1..r2 between two rollers minus the roller's segment: the inner (Eq 69, 70, 73) and the
+    outer (Eq 71, 72, 74) channels have the same form."""
+    gap = np.asarray(r2_m, dtype=float) - r1_m
+    a = np.arccos(np.clip((r_r_m - gap) / r_r_m, -1.0, 1.0))                                            # Eq 73 / 74
+    area = math.pi / n_roller * (np.asarray(r2_m, dtype=float) ** 2 - np.asarray(r1_m, dtype=float) ** 2) \
+        - (a * r_r_m ** 2 - r_r_m * np.sin(a) * (r_r_m - gap))                                         # Eq 69 / 71
+    perim = 2.0 * math.pi / n_roller * (np.asarray(r1_m, dtype=float) + r2_m) + 2.0 * r_r_m * (a - np.sin(a))  # Eq 70 / 72
+    return Channel(area, perim)
+
+
+def needle_channel_inner(r1i_m, r2i_m, r_r_m, n_roller) -> Channel:
     """Flow area [m2] and wetted perimeter [m] of one inner needle-bearing channel (Eq 69, 70, 73)."""
-    gap = np.asarray(r2i_m, dtype=float) - r1i_m
-    a = np.arccos(np.clip((r_r_m - gap) / r_r_m, -1.0, 1.0))                                            # Eq 73
-    area = math.pi / n_roller * (np.asarray(r2i_m, dtype=float) ** 2 - np.asarray(r1i_m, dtype=float) ** 2) \
-        - (a * r_r_m ** 2 - r_r_m * np.sin(a) * (r_r_m - gap))                                         # Eq 69
-    perim = 2.0 * math.pi / n_roller * (np.asarray(r1i_m, dtype=float) + r2i_m) + 2.0 * r_r_m * (a - np.sin(a))  # Eq 70
-    return area, perim
+    return _needle_channel(r1i_m, r2i_m, r_r_m, n_roller)
 
 
-def needle_channel_outer(r1o_m, r2o_m, r_r_m, n_roller):
+def needle_channel_outer(r1o_m, r2o_m, r_r_m, n_roller) -> Channel:
     """Flow area [m2] and wetted perimeter [m] of one outer needle-bearing channel (Eq 71, 72, 74)."""
-    gap = np.asarray(r2o_m, dtype=float) - r1o_m
-    b = np.arccos(np.clip((r_r_m - gap) / r_r_m, -1.0, 1.0))                                            # Eq 74
-    area = math.pi / n_roller * (np.asarray(r2o_m, dtype=float) ** 2 - np.asarray(r1o_m, dtype=float) ** 2) \
-        - (b * r_r_m ** 2 - r_r_m * np.sin(b) * (r_r_m - gap))                                         # Eq 71
-    perim = 2.0 * math.pi / n_roller * (np.asarray(r1o_m, dtype=float) + r2o_m) + 2.0 * r_r_m * (b - np.sin(b))  # Eq 72
-    return area, perim
+    return _needle_channel(r1o_m, r2o_m, r_r_m, n_roller)
 
 
-def shaft_bearing_channel(r_i_m, r_o_m, r_r_m, n_roller):
+def shaft_bearing_channel(r_i_m, r_o_m, r_r_m, n_roller) -> Channel:
     """Flow area [m2] and wetted perimeter [m] of one shaft-bearing channel (Eq 75, 76)."""
     r_i = np.asarray(r_i_m, dtype=float)
     r_o = np.asarray(r_o_m, dtype=float)
@@ -253,7 +259,7 @@ def shaft_bearing_channel(r_i_m, r_o_m, r_r_m, n_roller):
     perim = 2.0 * math.pi / n_roller * (r_i + r_o) + 2.0 * math.pi * r_r_m    # Eq 76
     if np.any(~(area > 0.0)):
         raise ParameterError("shaft bearing channel flow area (Eq 75) must be > 0; check r_i, r_o, r_r and n_roller")
-    return area, perim
+    return Channel(area, perim)
 
 
 def hydraulic_diameter_m(area_m2, perimeter_m):
@@ -300,55 +306,3 @@ def radiation_heat_w(eps, area_m2, T1_c, T2_c):
     T1 = np.asarray(T1_c, dtype=float) + KELVIN_OFFSET
     T2 = np.asarray(T2_c, dtype=float) + KELVIN_OFFSET
     return eps * SIGMA_W_PER_M2K4 * np.asarray(area_m2, dtype=float) * (T1 ** 4 - T2 ** 4)  # Eq 6
-
-
-# --- oil cooler (section 3.4) ----------------------------------------------------------------------------
-
-def thermostat_fraction(T_c, T_open_c, T_full_c):
-    """Thermostat opening 0..1, linear between T_open and T_full (section 3.4)."""
-    if not T_full_c > T_open_c:
-        raise ParameterError(f"thermostat T_full_c = {T_full_c} must exceed T_open_c = {T_open_c} [degC]")
-    return np.clip((np.asarray(T_c, dtype=float) - T_open_c) / (T_full_c - T_open_c), 0.0, 1.0)
-
-
-def thermostat_temperature_c(T_oil_sump_c, Q_cooler_w, mdot_kg_s, cp_j_per_kgk):
-    """Temperature seen by the thermostat T_sump - Q / (mdot cp) [degC] (Eq 82); no flow gives T_sump."""
-    C = np.abs(np.asarray(mdot_kg_s, dtype=float)) * cp_j_per_kgk
-    with np.errstate(divide="ignore", invalid="ignore"):
-        return np.asarray(T_oil_sump_c, dtype=float) - np.where(C > 0.0, np.asarray(Q_cooler_w, dtype=float) / np.where(C > 0.0, C, 1.0), 0.0)
-
-
-def cooler_heat_w(kind, hA_w_per_k, T_oil_c, T_medium_c, mdot_kg_s, cp_j_per_kgk, Q_max_cool_w, Q_max_heat_w,
-                  T_open_c, T_full_c):
-    """Heat flow from the oil to the cooler [W] (Eq 83; positive cools the oil).
-
-    * ``"none"``: 0.
-    * ``"liquid"``: Q = hA_eff (T_oil - T_medium), saturated to -Q_max_heat .. Q_max_cool (can heat the oil);
-      no thermostat (sf = 1). mdot, cp, T_open, T_full are not used.
-    * ``"air"``: Q = hA_eff (T_oil - T_air) sf(T_th), 0 <= Q <= Q_max_cool (cannot heat), with the thermostat
-      input T_th = T_oil - Q / (mdot cp) (Eq 82). The coupling is solved exactly: with dT = T_oil - T_air > 0,
-      a = hA dT, D = T_full - T_open and C = mdot cp, the right-hand side is non-increasing in Q, so the fixed
-      point is unique; on the open ramp Q = a (T_oil - T_open - Q/C)/D gives
-      ``Q_lin = a (T_oil - T_open) / (D + a/C)``, the thermostat limits it to ``clip(Q_lin, 0, a)`` and the
-      cooler saturation to ``min(., Q_max_cool)`` (at Q_max_cool the ramp still asks for more). No oil flow
-      (C = 0) gives 0.
-    hA_eff is the cooler's effective conductance (data-sheet output / temperature difference) at the
-    current inner and outer flows.
-    """
-    if kind not in COOLER_KINDS:
-        raise ParameterError(f"cooler kind = {kind!r} must be one of {COOLER_KINDS}")
-    hA = np.asarray(hA_w_per_k, dtype=float)
-    dT = np.asarray(T_oil_c, dtype=float) - np.asarray(T_medium_c, dtype=float)
-    if kind == "none":
-        return np.zeros(np.broadcast(hA, dT).shape) if np.ndim(hA) or np.ndim(dT) else 0.0
-    if kind == "liquid":
-        return np.clip(hA * dT, -np.asarray(Q_max_heat_w, dtype=float), np.asarray(Q_max_cool_w, dtype=float))  # Eq 83
-    if not np.all(np.asarray(T_full_c) > np.asarray(T_open_c)):      # arrays: a thermostat per vehicle
-        raise ParameterError(f"cooler T_full_c = {T_full_c} must exceed T_open_c = {T_open_c} [degC]")
-    a = hA * np.maximum(dT, 0.0)
-    C = np.abs(np.asarray(mdot_kg_s, dtype=float)) * cp_j_per_kgk
-    D = T_full_c - T_open_c
-    with np.errstate(divide="ignore", invalid="ignore"):
-        q_lin = a * (np.asarray(T_oil_c, dtype=float) - T_open_c) / (D + a / np.where(C > 0.0, C, 1.0))
-    q = np.minimum(np.clip(q_lin, 0.0, a), np.asarray(Q_max_cool_w, dtype=float))  # Eq 82/83
-    return np.where((C > 0.0) & (a > 0.0), q, 0.0)

@@ -17,6 +17,7 @@ pair and "high split" the L pair (seed section 4.3 and 5.2).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -139,105 +140,144 @@ class KinematicTable:
 SPEED_NAMES = ("IS", "LS", "MS", "OS", "LI", "3M", "2M", "1M", "CM", "RM", "RI", "PS", "PP_rel", "PR")
 
 
-def build_table(teeth: Teeth, split_inverted: bool = False) -> KinematicTable:
-    """Evaluate the kinematics of every gear for unit input speed and unit input torque."""
-    z_i, z_l = teeth.idle, teeth.layshaft
+class GearSpeeds(NamedTuple):
+    """Every speed of one gear per rad/s of input speed."""
+    w_is: float
+    w_ls: float
+    w_ms: float
+    w_os: float
+    w_idle: dict          # idle wheel -> speed
+    w_ri: float
+    w_ring: float
+    w_carrier: float
+    w_planet_rel: float   # planets relative to the carrier
+    low_range: bool
+
+
+class GearRow(NamedTuple):
+    """One row of the KinematicTable (one gear)."""
+    speed: list
+    mesh_torque: np.ndarray
+    mesh_omega2: np.ndarray
+    wheel_bearing_rel: np.ndarray
+    sync_rel: np.ndarray
+    active_pair: np.ndarray
+    ratio: float
+
+
+def _check_teeth(teeth: Teeth) -> None:
     for w in IDLE_WHEELS:
-        if w not in z_i:
+        if w not in teeth.idle:
             raise ParameterError(f"teeth of idle wheel {w} are missing from the parameter set")
     for w in LAYSHAFT_WHEELS:
-        if w not in z_l:
+        if w not in teeth.layshaft:
             raise ParameterError(f"teeth of layshaft wheel {w} are missing from the parameter set")
-    R = teeth.range_ratio
-    n_sp = len(SPEED_NAMES)
-    speed = np.zeros((N_GEARS, n_sp))
-    mtq = np.zeros((N_GEARS, len(MESHES)))
-    mw2 = np.zeros((N_GEARS, len(MESHES)))
-    wbr = np.zeros((N_GEARS, 6))
-    syn = np.zeros((N_GEARS, len(SYNCS)))
-    act = np.zeros((N_GEARS, 6), dtype=bool)
-    ratio = np.full(N_GEARS, np.inf)
-    lowr = np.zeros(N_GEARS, dtype=bool)
-    pair_keys = tuple(PAIRS)
-    for g in GEARS:
-        st = gear_state(g, split_inverted)
-        r = g - GEAR_MIN
-        w_is = 1.0
-        # layshaft speed from the engaged split pair (the idle wheel of that pair is locked to the input shaft)
-        iw, lw = PAIRS[st.split_pair]
-        w_ls = w_is * z_i[iw] / z_l[lw]
-        # every idle wheel meshes permanently with its layshaft wheel
-        w_idle = {}
-        for p, (iw_, lw_) in PAIRS.items():
-            if p == "R":
-                w_idle[iw_] = -w_ls * z_l[lw_] / z_i[iw_]   # through the idler: reversed
-            else:
-                w_idle[iw_] = w_ls * z_l[lw_] / z_i[iw_]
-        w_ri = -w_ls * z_l["RL"] / teeth.z_RI
-        if st.main_pair is None:
-            w_ms = 0.0
+
+
+def gear_speeds(teeth: Teeth, st: GearState) -> GearSpeeds:
+    """Speeds of a gear for unit input speed: the engaged split pair drives the layshaft, every idle wheel meshes
+    permanently with its layshaft wheel, the main pair (or direct drive) drives the main shaft, the range planetary
+    the output (low range: ring fixed, carrier = output; high range: locked 1:1)."""
+    z_i, z_l = teeth.idle, teeth.layshaft
+    w_is = 1.0
+    iw, lw = PAIRS[st.split_pair]
+    w_ls = w_is * z_i[iw] / z_l[lw]
+    w_idle = {}
+    for p, (iw_, lw_) in PAIRS.items():
+        if p == "R":
+            w_idle[iw_] = -w_ls * z_l[lw_] / z_i[iw_]   # through the idler: reversed
         else:
-            w_ms = w_idle[PAIRS[st.main_pair][0]]
-        if st.direct:
-            w_ms = w_is
-        low = st.range == "low"
-        lowr[r] = low
-        w_os = w_ms / R if low else w_ms
-        # planetary (low range: ring fixed, carrier = output)
-        w_ring = 0.0 if low else w_ms
-        w_carrier = w_os
-        w_sun_rel = w_ms - w_carrier
-        w_planet_rel = -w_sun_rel * teeth.z_sun / teeth.z_planet
-        speed[r] = [w_is, w_ls, w_ms, w_os, *(w_idle[w] for w in IDLE_WHEELS), w_ri, w_ms, w_planet_rel, w_ring]
-        if st.main_pair is not None and w_os != 0:
-            ratio[r] = w_is / w_os
-        # torques (unit input torque) on the driving wheel of each loaded mesh
-        T_is = 1.0
-        if st.main_pair is not None:
-            if st.direct:
-                T_ms = T_is
-            else:
-                T_ls = T_is * z_l[lw] / z_i[iw]
-                # split mesh: idle wheel (on input shaft) drives layshaft wheel
-                mtq[r, MESHES.index(st.split_pair)] = T_is
-                mw2[r, MESHES.index(st.split_pair)] = abs(w_ls)
-                act[r, pair_keys.index(st.split_pair)] = True
-                mp = st.main_pair
-                miw, mlw = PAIRS[mp]
-                if mp == "R":
-                    # layshaft RL drives RI, RI drives RM
-                    mtq[r, MESHES.index("R")] = T_ls
-                    mw2[r, MESHES.index("R")] = abs(w_ri)
-                    mtq[r, MESHES.index("RI")] = T_ls * teeth.z_RI / z_l["RL"]
-                    mw2[r, MESHES.index("RI")] = abs(w_idle["RM"])
-                else:
-                    # mesh geometry has the idle wheel as wheel 1 and the layshaft wheel as wheel 2 whatever the
-                    # power direction: torque on wheel 1, speed of wheel 2 (same tangential force either way)
-                    mtq[r, MESHES.index(mp)] = T_ls * z_i[miw] / z_l[mlw]
-                    mw2[r, MESHES.index(mp)] = abs(w_ls)
-                act[r, pair_keys.index(mp)] = True
-                T_ms = T_ls * z_i[miw] / z_l[mlw]
-            if low:
-                # sun drives the planets (torque per planet is applied by the loss model: it sums n_planets meshes)
-                mtq[r, MESHES.index("PSP")] = T_ms
-                mw2[r, MESHES.index("PSP")] = abs(w_planet_rel)
-                mtq[r, MESHES.index("PPR")] = T_ms * teeth.z_planet / teeth.z_sun
-                mw2[r, MESHES.index("PPR")] = abs(w_carrier)   # ring relative to the carrier
-        # needle bearings: relative speed between each idle wheel and the shaft it sits on
-        shaft_under = {"LI": w_is, "3M": w_ms, "2M": w_ms, "1M": w_ms, "CM": w_ms, "RM": w_ms}
-        for k, w in enumerate(IDLE_WHEELS):
-            wbr[r, k] = abs(w_idle[w] - shaft_under[w])
-        # synchronizer rings: open interfaces drag at the relative speed; the engaged one is locked
-        sync_pairs = {"LI/IS": (w_idle["LI"], w_is), "3M/IS": (w_idle["3M"], w_is), "3M/MS": (w_idle["3M"], w_ms),
-                      "2M/MS": (w_idle["2M"], w_ms), "1M/MS": (w_idle["1M"], w_ms)}
-        for k, s in enumerate(SYNCS):
-            if s == "PR/range":
-                # open side of the range synchronizer: ring vs sun at low range, ring vs housing at high range
-                syn[r, k] = abs(w_ms) if low else abs(w_ring)
-            else:
-                a, b = sync_pairs[s]
-                syn[r, k] = abs(a - b)
-    return KinematicTable(SPEED_NAMES, speed, mtq, mw2, wbr, syn, act, ratio, lowr, split_inverted)
+            w_idle[iw_] = w_ls * z_l[lw_] / z_i[iw_]
+    w_ri = -w_ls * z_l["RL"] / teeth.z_RI
+    w_ms = 0.0 if st.main_pair is None else w_idle[PAIRS[st.main_pair][0]]
+    if st.direct:
+        w_ms = w_is
+    low = st.range == "low"
+    w_os = w_ms / teeth.range_ratio if low else w_ms
+    w_ring = 0.0 if low else w_ms
+    w_carrier = w_os
+    w_sun_rel = w_ms - w_carrier
+    w_planet_rel = -w_sun_rel * teeth.z_sun / teeth.z_planet
+    return GearSpeeds(w_is, w_ls, w_ms, w_os, w_idle, w_ri, w_ring, w_carrier, w_planet_rel, low)
+
+
+def _mesh_loads(teeth: Teeth, st: GearState, s: GearSpeeds):
+    """(torque on wheel 1 per unit input torque, speed of wheel 2, pair carries torque) of every mesh."""
+    z_i, z_l = teeth.idle, teeth.layshaft
+    mtq = np.zeros(len(MESHES))
+    mw2 = np.zeros(len(MESHES))
+    act = np.zeros(len(PAIRS), dtype=bool)
+    pair_keys = tuple(PAIRS)
+    T_is = 1.0
+    if st.main_pair is None:
+        return mtq, mw2, act
+    if st.direct:
+        T_ms = T_is
+    else:
+        iw, lw = PAIRS[st.split_pair]
+        T_ls = T_is * z_l[lw] / z_i[iw]
+        # split mesh: idle wheel (on input shaft) drives layshaft wheel
+        mtq[MESHES.index(st.split_pair)] = T_is
+        mw2[MESHES.index(st.split_pair)] = abs(s.w_ls)
+        act[pair_keys.index(st.split_pair)] = True
+        mp = st.main_pair
+        miw, mlw = PAIRS[mp]
+        if mp == "R":
+            # layshaft RL drives RI, RI drives RM
+            mtq[MESHES.index("R")] = T_ls
+            mw2[MESHES.index("R")] = abs(s.w_ri)
+            mtq[MESHES.index("RI")] = T_ls * teeth.z_RI / z_l["RL"]
+            mw2[MESHES.index("RI")] = abs(s.w_idle["RM"])
+        else:
+            # mesh geometry has the idle wheel as wheel 1 and the layshaft wheel as wheel 2 whatever the
+            # power direction: torque on wheel 1, speed of wheel 2 (same tangential force either way)
+            mtq[MESHES.index(mp)] = T_ls * z_i[miw] / z_l[mlw]
+            mw2[MESHES.index(mp)] = abs(s.w_ls)
+        act[pair_keys.index(mp)] = True
+        T_ms = T_ls * z_i[miw] / z_l[mlw]
+    if s.low_range:
+        # sun drives the planets (torque per planet is applied by the loss model: it sums n_planets meshes)
+        mtq[MESHES.index("PSP")] = T_ms
+        mw2[MESHES.index("PSP")] = abs(s.w_planet_rel)
+        mtq[MESHES.index("PPR")] = T_ms * teeth.z_planet / teeth.z_sun
+        mw2[MESHES.index("PPR")] = abs(s.w_carrier)   # ring relative to the carrier
+    return mtq, mw2, act
+
+
+def _gear_row(teeth: Teeth, st: GearState) -> GearRow:
+    s = gear_speeds(teeth, st)
+    mtq, mw2, act = _mesh_loads(teeth, st, s)
+    # needle bearings: relative speed between each idle wheel and the shaft it sits on
+    shaft_under = {"LI": s.w_is, "3M": s.w_ms, "2M": s.w_ms, "1M": s.w_ms, "CM": s.w_ms, "RM": s.w_ms}
+    wbr = np.array([abs(s.w_idle[w] - shaft_under[w]) for w in IDLE_WHEELS])
+    # synchronizer rings: open interfaces drag at the relative speed; the engaged one is locked
+    sync_pairs = {"LI/IS": (s.w_idle["LI"], s.w_is), "3M/IS": (s.w_idle["3M"], s.w_is),
+                  "3M/MS": (s.w_idle["3M"], s.w_ms), "2M/MS": (s.w_idle["2M"], s.w_ms),
+                  "1M/MS": (s.w_idle["1M"], s.w_ms)}
+    syn = np.zeros(len(SYNCS))
+    for k, name in enumerate(SYNCS):
+        if name == "PR/range":
+            # open side of the range synchronizer: ring vs sun at low range, ring vs housing at high range
+            syn[k] = abs(s.w_ms) if s.low_range else abs(s.w_ring)
+        else:
+            a, b = sync_pairs[name]
+            syn[k] = abs(a - b)
+    speed = [s.w_is, s.w_ls, s.w_ms, s.w_os, *(s.w_idle[w] for w in IDLE_WHEELS), s.w_ri, s.w_ms, s.w_planet_rel,
+             s.w_ring]
+    ratio = s.w_is / s.w_os if st.main_pair is not None and s.w_os != 0 else np.inf
+    return GearRow(speed, mtq, mw2, wbr, syn, act, ratio)
+
+
+def build_table(teeth: Teeth, split_inverted: bool = False) -> KinematicTable:
+    """Evaluate the kinematics of every gear for unit input speed and unit input torque."""
+    _check_teeth(teeth)
+    states = [gear_state(g, split_inverted) for g in GEARS]
+    rows = [_gear_row(teeth, st) for st in states]
+    return KinematicTable(SPEED_NAMES, np.array([r.speed for r in rows], dtype=float),
+                          np.array([r.mesh_torque for r in rows]), np.array([r.mesh_omega2 for r in rows]),
+                          np.array([r.wheel_bearing_rel for r in rows]), np.array([r.sync_rel for r in rows]),
+                          np.array([r.active_pair for r in rows]), np.array([r.ratio for r in rows], dtype=float),
+                          np.array([st.range == "low" for st in states]), split_inverted)
 
 
 def total_ratio(table: KinematicTable, gear: int) -> float:

@@ -56,6 +56,7 @@ from typing import NamedTuple
 import numpy as np
 
 from firmware_model.errors import ParameterError
+from firmware_model.units import RPM_PER_RAD_S
 
 #: gravitational acceleration [m/s2] (Eq 27)
 G_M_S2 = 9.80665
@@ -117,6 +118,24 @@ class GearMesh:
     eps_alpha: float        # transverse contact ratio L_a / p_bt [-]
 
 
+def _check_mesh_inputs(z1: int, z2: int, m_n: float, a_n: float, beta: float, a: float, b: float, internal: bool):
+    """One-sentence ParameterError for an impossible mesh (teeth, module, angles, width, centre distance)."""
+    if z1 < 5 or z2 < 5:
+        raise ParameterError(f"mesh teeth numbers z1 = {z1}, z2 = {z2} must both be >= 5 [-]")
+    if not m_n > 0.0:
+        raise ParameterError(f"mesh m_n_m = {m_n} must be > 0 [m]")
+    if not 0.0 < a_n < math.pi / 2:
+        raise ParameterError(f"mesh alpha_n_rad = {a_n} must be in (0, pi/2) [rad]")
+    if not abs(beta) < math.pi / 2:
+        raise ParameterError(f"mesh beta_rad = {beta} must be in (-pi/2, pi/2) [rad]")
+    if not b > 0.0:
+        raise ParameterError(f"mesh face_width_m = {b} must be > 0 [m]")
+    if not a > 0.0:
+        raise ParameterError(f"mesh center_distance_m = {a} must be > 0 [m]")
+    if internal and z2 <= z1:
+        raise ParameterError(f"internal mesh ring z2 = {z2} must exceed planet z1 = {z1} [-]")
+
+
 def mesh_geometry(z1, z2, m_n_m, alpha_n_rad, beta_rad, center_distance_m, face_width_m,
                   internal=False, x1=0.0, x2=0.0) -> GearMesh:
     """Build the geometry of a mesh (Eq 11-13, 17), wheel 1 driving wheel 2.
@@ -136,20 +155,7 @@ def mesh_geometry(z1, z2, m_n_m, alpha_n_rad, beta_rad, center_distance_m, face_
     b = float(face_width_m)
     x1 = float(x1)
     x2 = float(x2)
-    if z1 < 5 or z2 < 5:
-        raise ParameterError(f"mesh teeth numbers z1 = {z1}, z2 = {z2} must both be >= 5 [-]")
-    if not m_n > 0.0:
-        raise ParameterError(f"mesh m_n_m = {m_n} must be > 0 [m]")
-    if not 0.0 < a_n < math.pi / 2:
-        raise ParameterError(f"mesh alpha_n_rad = {a_n} must be in (0, pi/2) [rad]")
-    if not abs(beta) < math.pi / 2:
-        raise ParameterError(f"mesh beta_rad = {beta} must be in (-pi/2, pi/2) [rad]")
-    if not b > 0.0:
-        raise ParameterError(f"mesh face_width_m = {b} must be > 0 [m]")
-    if not a > 0.0:
-        raise ParameterError(f"mesh center_distance_m = {a} must be > 0 [m]")
-    if internal and z2 <= z1:
-        raise ParameterError(f"internal mesh ring z2 = {z2} must exceed planet z1 = {z1} [-]")
+    _check_mesh_inputs(z1, z2, m_n, a_n, beta, a, b, internal)
     beta = abs(beta)
     m_t = m_n / math.cos(beta)
     alpha_t = math.atan(math.tan(a_n) / math.cos(beta))
@@ -383,7 +389,7 @@ def _palmgren_oil_torque_nm(f0, Dm_m, nu_m2_s, omega_rad_s):
     # Palmgren: M0 = 1e-7 f0 (nu n)^(2/3) dm^3 N mm (dm in mm) = 0.1 f0 (nu n)^(2/3) Dm^3 N m; the seed's
     # constant is 2.2 % below Palmgren's 0.1 and is kept as printed.
     nu_n = (np.asarray(nu_m2_s, dtype=float) * 1e6) * (np.abs(np.asarray(omega_rad_s, dtype=float))
-                                                        * (30.0 / math.pi))
+                                                        * RPM_PER_RAD_S)
     return PALMGREN_SEED_C * f0 * np.asarray(Dm_m, dtype=float) ** 3 * np.maximum(nu_n, PALMGREN_NU_N_MIN) ** (2.0 / 3.0)
 
 
@@ -437,16 +443,3 @@ def planetary_heat_split(Q_w):
     Q = np.asarray(Q_w, dtype=float)
     return Q * PLANETARY_HEAT_SPLIT["PS"], Q * PLANETARY_HEAT_SPLIT["PP"], Q * PLANETARY_HEAT_SPLIT["PR"]
 
-
-def first_order_lag_step(y, u, dt_s, tau_s):
-    """One exact (zero-order-hold) step of ``tau dy/dt = u - y``: ``u + (y - u) exp(-dt/tau)``.
-
-    The seed (section 3.2) low-passes the loss-to-heat signals with a first-order lag to keep gear-change
-    loss spikes out of the thermal network. tau <= 0 means no lag (y follows u). Vectorised.
-    """
-    y = np.asarray(y, dtype=float)
-    u = np.asarray(u, dtype=float)
-    tau = np.asarray(tau_s, dtype=float)
-    with np.errstate(divide="ignore", over="ignore", invalid="ignore"):
-        a = np.where(tau > 0.0, np.exp(-dt_s / np.where(tau > 0.0, tau, 1.0)), 0.0)
-    return u + (y - u) * a

@@ -30,11 +30,11 @@ from typing import NamedTuple
 
 import numpy as np
 
+from firmware_model.units import KELVIN_OFFSET_K
+
 #: clip range of the input temperature [degC]
 T_MIN_C = -40.0
 T_MAX_C = 200.0
-#: 0 degC in kelvin
-KELVIN_OFFSET = 273.15
 
 # --- Appendix 2 table -------------------------------------------------------------------------------------
 #: table temperatures [degC]
@@ -59,7 +59,7 @@ _RHO_SLOPE_KG_M3K = (TABLE_RHO_KG_M3[-1] - TABLE_RHO_KG_M3[0]) / (TABLE_T_C[-1] 
 
 # Walther (ASTM D341): W = log10(log10(nu_cSt + 0.7)), X = log10(T_K); W is piecewise linear in X.
 _WALTHER_C = 0.7
-_X_ROWS = np.log10(TABLE_T_C + KELVIN_OFFSET)
+_X_ROWS = np.log10(TABLE_T_C + KELVIN_OFFSET_K)
 _W_ROWS = np.log10(np.log10(TABLE_NU_CST + _WALTHER_C))
 _W_SLOPE_FIRST = (_W_ROWS[1] - _W_ROWS[0]) / (_X_ROWS[1] - _X_ROWS[0])
 _W_SLOPE_LAST = (_W_ROWS[-1] - _W_ROWS[-2]) / (_X_ROWS[-1] - _X_ROWS[-2])
@@ -101,7 +101,7 @@ def _density(Tc):
 
 
 def _kinematic(Tc):
-    x = np.log10(Tc + KELVIN_OFFSET)
+    x = np.log10(Tc + KELVIN_OFFSET_K)
     # np.interp holds the end rows; add the end-segment slopes outside the table (linear extrapolation of W)
     w = (np.interp(x, _X_ROWS, _W_ROWS)
          + _W_SLOPE_FIRST * np.minimum(x - _X_FIRST, 0.0)

@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 
 from firmware_model.physics import losses as L
+from firmware_model.physics.heat_lag import first_order_lag_step, heat_lag, heat_lag_step
 from firmware_model.errors import ParameterError
 
 DEG = math.pi / 180.0
@@ -315,10 +316,30 @@ def test_first_order_lag_exact():
     tau, dt, u, y0 = 2.0, 0.37, 5.0, -1.0
     y = y0
     for _ in range(20):
-        y = L.first_order_lag_step(y, u, dt, tau)
+        y = first_order_lag_step(y, u, dt, tau)
     assert y == pytest.approx(u + (y0 - u) * math.exp(-20 * dt / tau), rel=1e-12)
-    one = L.first_order_lag_step(y0, u, 2 * dt, tau)
-    two = L.first_order_lag_step(L.first_order_lag_step(y0, u, dt, tau), u, dt, tau)
+    one = first_order_lag_step(y0, u, 2 * dt, tau)
+    two = first_order_lag_step(first_order_lag_step(y0, u, dt, tau), u, dt, tau)
     assert one == pytest.approx(two, rel=1e-12)
-    v = L.first_order_lag_step(np.array([0.0, 0.0, 1.0]), np.array([1.0, 1.0, 3.0]), 0.1, np.array([0.0, 1.0, 1e9]))
+    v = first_order_lag_step(np.array([0.0, 0.0, 1.0]), np.array([1.0, 1.0, 3.0]), 0.1, np.array([0.0, 1.0, 1e9]))
     np.testing.assert_allclose(v, [1.0, 1.0 - math.exp(-0.1), 1.0 + 2.0 * (1 - math.exp(-1e-10))], rtol=1e-12)
+
+
+def test_heat_lag_step_is_exact_and_books_every_joule():
+    """The lag's state follows the exact first-order response; the delivered heat is the input minus what the lag
+    stores (tau dy / dt), so delivered energy + tau y = input energy; tau <= 0 delivers the input."""
+    tau, dt = 1.0, 0.1
+    lag = heat_lag(tau, dt)
+    rng = np.random.default_rng(5)
+    y, stored_in, delivered = np.zeros(3), 0.0, 0.0
+    for _ in range(500):
+        u = rng.uniform(0.0, 2000.0, 3)
+        ref = first_order_lag_step(y, u, dt, tau)
+        y_new, d = heat_lag_step(y, u, lag)
+        np.testing.assert_allclose(y_new, ref, rtol=1e-12)
+        stored_in += u.sum() * dt
+        delivered += d.sum() * dt
+        y = y_new
+    assert delivered + tau * y.sum() == pytest.approx(stored_in, rel=1e-12)
+    none = heat_lag(0.0, dt)
+    assert heat_lag_step(np.array([5.0]), np.array([7.0]), none).delivered_w[0] == 7.0

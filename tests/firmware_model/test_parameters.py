@@ -2,11 +2,10 @@
 import math
 import re
 
-import numpy as np
 import pytest
 
 from firmware_model.errors import InputError, ParameterError
-from firmware_model.physics.kinematics import GEAR_BY_NAME, build_table, gear_state, parse_gear
+from firmware_model.physics.kinematics import GEAR_BY_NAME, gear_state, parse_gear
 from firmware_model.parameters import PARAM_DIR, load_parameters
 
 
@@ -24,7 +23,7 @@ def test_si_conversion():
     assert p["gear.3.width1"] == pytest.approx(0.040)              # mm -> m
     assert p["oil.volume"] == pytest.approx(13.5e-3)               # L -> m3
     assert p["gear.alpha_n"] == pytest.approx(math.radians(20))    # deg -> rad
-    assert p["heat.N_nom"] == pytest.approx(1000 * 2 * math.pi / 60)
+    assert p["heat.omega_nom_rad_s"] == pytest.approx(1000 * 2 * math.pi / 60)
     assert p["cooler.liquid_Qmax_cool"] == pytest.approx(14e3)     # kW -> W
     assert p.provenance("heat.h_nom") == "seed" and p["heat.h_nom"] == 325
 
@@ -101,3 +100,48 @@ def test_overrides_are_checked():
     with pytest.raises(ParameterError):
         p.with_overrides({"no.such.key": 1.0})
     assert p.with_overrides({"housing.h_air": 12.0})["housing.h_air"] == 12.0
+
+
+def test_renamed_keys_still_load_with_a_deprecation_warning(tmp_path):
+    """A file written with the old key names (values in their old units) gives bit-identical SI values."""
+    new = load_parameters()
+    src = (PARAM_DIR / "GRS905.toml").read_text()
+    old = re.sub(r'flow_m3_per_rad = \{ v = [^,]+, u = "m3/rad"', 'flow_per_ls_rpm = { v = 0.005, u = "L/min/rpm"', src)
+    old = re.sub(r'max_speed_rad_s = \{ v = [^,]+, u = "rad/s"', 'max_speed = { v = 4000, u = "rpm"', old)
+    old = re.sub(r'omega_nom_rad_s = \{ v = [^,]+, u = "rad/s"', 'N_nom = { v = 1000, u = "rpm"', old)
+    assert "flow_per_ls_rpm = {" in old and "max_speed = {" in old and "N_nom = {" in old
+    assert "flow_m3_per_rad = {" not in old and "max_speed_rad_s = {" not in old and "omega_nom_rad_s = {" not in old
+    f = tmp_path / "old.toml"
+    f.write_text(old)
+    with pytest.warns(FutureWarning) as rec:
+        p = load_parameters(f)
+    msgs = sorted(str(w.message) for w in rec)
+    assert msgs == [f"old.toml: parameter {o} is deprecated, use {n} (it is read as {n})" for o, n in (
+        ("engine.max_speed", "engine.max_speed_rad_s"), ("heat.N_nom", "heat.omega_nom_rad_s"),
+        ("oil_system.flow_per_ls_rpm", "oil_system.flow_m3_per_rad"))]
+    for key in ("oil_system.flow_m3_per_rad", "engine.max_speed_rad_s", "heat.omega_nom_rad_s"):
+        assert p[key] == new[key]
+    with pytest.warns(FutureWarning, match="engine.max_speed_rad_s"):
+        assert new.with_overrides({"engine.max_speed": 400.0})["engine.max_speed_rad_s"] == 400.0
+    both = tmp_path / "both.toml"
+    both.write_text(old.replace("[engine]\n", '[engine]\nmax_speed_rad_s = { v = 400, u = "rad/s", src = "assumed" }\n'))
+    with pytest.warns(FutureWarning) as rec, pytest.raises(ParameterError, match="same parameter"):
+        load_parameters(both)
+    assert rec
+
+
+def test_geometry_factors_live_in_the_parameter_file():
+    p = load_parameters()
+    for key in ("wheel.bore_RI", "planetary.planet_bore_frac", "shaft.LS.overhang_front", "shaft.OS.overhang_rear",
+                "heat.shaft_inner_diameter_frac", "heat.seat_outer_diameter_factor", "oil.capacity_temp"):
+        assert p.provenance(key) in ("seed", "derived", "assumed") and p.units[key]
+
+
+def test_toml_errors_are_one_sentence(tmp_path):
+    from firmware_model.parameters import read_toml
+    with pytest.raises(ParameterError, match="^limits file x.toml does not exist$"):
+        read_toml(tmp_path / "x.toml", "limits file x.toml")
+    bad = tmp_path / "bad.toml"
+    bad.write_text("a = [")
+    with pytest.raises(ParameterError, match="^config file bad.toml is not valid TOML"):
+        read_toml(bad, "config file bad.toml")

@@ -1,4 +1,5 @@
 """The onboard network: derived from the full one (aggregation, laws, loss maps), explicit step, stability proof."""
+import dataclasses
 import math
 
 import numpy as np
@@ -11,6 +12,8 @@ from firmware_model.physics.gearbox_losses import GearboxLosses
 from firmware_model.physics.kinematics import GEAR_MIN
 from firmware_model.network import BOUNDARIES, ConductanceEvaluator, build_network
 from firmware_model.parameters import load_parameters
+from firmware_model.effects import CATALOG, FIELD_OF_EFFECT, EffectScales, effect_scales
+from firmware_model.physics.conductance_matrix import boundary_heat_w, conductance_matrix, node_conductance_w_per_k
 
 
 @pytest.fixture(scope="module")
@@ -216,6 +219,38 @@ def test_effects_record_validates_and_broadcasts():
         R.make_effects({"gear_friction_scale": 9.0})
     with pytest.raises(ParameterError):
         R.make_effects({"oil_sensor_lag": 10.0})
+
+
+def test_one_effect_record_for_plant_and_onboard_model():
+    """Every catalogued effect has its field in the one record; neutral values change nothing; the onboard model's
+    record is the same type, with its per-source scales."""
+    assert set(FIELD_OF_EFFECT) == set(CATALOG)
+    assert set(FIELD_OF_EFFECT.values()) <= {f.name for f in dataclasses.fields(EffectScales)}
+    neutral = effect_scales(None)
+    assert all(getattr(neutral, f) == CATALOG[eid].neutral for eid, f in FIELD_OF_EFFECT.items())
+    assert effect_scales({"churning_scale": 1.4}).churn_scale == 1.4
+    e = R.make_effects({"bearing_loss_scale": [1.0, 2.0]})
+    assert isinstance(e, EffectScales) and R.Effects is EffectScales
+    np.testing.assert_array_equal(e.needle_scale, [1.0, 2.0])
+    np.testing.assert_array_equal(e.src_scale[:, R.I_SRC_BEARING], [1.0, 2.0])
+
+
+def test_conductance_matrix_is_the_network_laplacian(rp):
+    """K of physics.conductance_matrix: symmetric, K 1 = the boundary links at each node, its diagonal the total
+    conductance at each node (what the stability bound sums), and the plant's implicit matrix adds a0 C / h."""
+    h = R.helpers(rp)
+    G = np.random.default_rng(2).uniform(0.1, 10.0, len(rp.link_a))
+    K, Ge = conductance_matrix(G, h.topology)
+    np.testing.assert_allclose(K, K.T, rtol=0, atol=0)
+    np.testing.assert_allclose(K @ np.ones(rp.n), np.bincount(h.ea, Ge, minlength=rp.n), atol=1e-12)
+    np.testing.assert_allclose(np.diag(K), node_conductance_w_per_k(G, h.topology), rtol=1e-14)
+    extra = np.full(rp.n, 5.0)
+    np.testing.assert_allclose(conductance_matrix(G, h.topology, extra).K_w_per_k, K + np.diag(extra), rtol=1e-14)
+    T = np.random.default_rng(3).uniform(20, 100, rp.n)
+    T_bc = np.asarray(rp.bc_default_c, dtype=float)
+    rate = R.explicit_step(T, np.zeros(rp.n), G[h.int_idx], G[h.ext_idx], T_bc, h.ia, h.ib, h.ea, h.eb,
+                           np.ones(rp.n)) - T
+    np.testing.assert_allclose(rate, -K @ T + boundary_heat_w(Ge, h.topology, T_bc), atol=1e-9)
 
 
 def test_radiation_and_boundaries_are_those_of_the_plant(rp):

@@ -146,3 +146,14 @@ def test_energy_closes_on_every_named_cycle(params, cycle):
     eb = res.energy_balance()
     assert eb["generated_j"] > 1e6
     assert eb["closure_rel"] < 1e-3
+
+
+@pytest.mark.parametrize("show", [False, True])
+def test_progress_bar_starts_no_thread(params, show, capsys):
+    """The plant's progress bar (tools.progress) leaves the process single-threaded: replay --processes forks."""
+    import threading
+    before = threading.active_count()
+    ReferencePlant(params, cooler="none").run(steady(9, 1300, 2000, 60), progress=show)
+    assert threading.active_count() == before
+    err = capsys.readouterr().err
+    assert ("plant" in err) == show

@@ -7,36 +7,40 @@ commercial tool crawled on them, seed chapter 7). The network is integrated with
 implicit Euler on the first step and after a step-size change) with conductances evaluated once per step from the
 step's mean shaft speeds, its dominant gear and the sump temperature; radiation and the cooler are linearised
 around the current temperatures. Every joule is booked: generated heat = stored + rejected (+ what a held or
-measured sump absorbs), checked by `SimResult.energy_balance()`.
+measured sump absorbs), checked by `SimResult.energy_balance()`. `ReferencePlant.run` is the driver (chunks of
+steps: losses of every input sample, averaged over each step); `ReferencePlant._step` is one thermal step.
 """
 from __future__ import annotations
 
 import math
-import sys
 import time
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 
-from firmware_model.physics import heat_transfer as ht
-from firmware_model.physics import oil as oilprops
 from firmware_model.components import IDLE_WHEELS
-from firmware_model.effects import effect_value
+from firmware_model.effects import effect_scales, with_oil_volume
 from firmware_model.errors import InputError
-from firmware_model.physics.gearbox_losses import SOURCES, GearboxLosses, LossScales
+from firmware_model.network import (BOUNDARIES, K_EXT_CONV, K_EXT_RAD, K_STREAM, ConductanceEvaluator, Network,
+                                    build_network)
+from firmware_model.parameters import COOLER_KINDS, Parameters
+from firmware_model.physics import oil as oilprops
+from firmware_model.physics.conductance_matrix import boundary_heat_w, conductance_matrix, link_topology
+from firmware_model.physics.cooler import (DEFAULT_VEHICLE_SPEED_KMH, cooler_params, cooler_values, inlet_drop_k,
+                                           oil_cooler_heat)
+from firmware_model.physics.gearbox_losses import SOURCES, GearboxLosses
+from firmware_model.physics.heat_lag import HeatLag, first_order_lag_step, heat_lag, heat_lag_step
 from firmware_model.physics.kinematics import GEAR_MAX, GEAR_MIN, SPEED_NAMES, gear_state
-from firmware_model.network import (BOUNDARIES, K_EXT_CONV, K_EXT_RAD, K_STREAM, ConductanceEvaluator,
-                                    HeatTransferScales, Network, build_network)
-from firmware_model.parameters import Parameters
+from firmware_model.units import RAD_S_PER_RPM
 
+from tools.progress import progress as progress_bar
 from tools.runtable import RunTable
 
-RPM = 2.0 * math.pi / 60.0
 #: run-table column -> boundary name (bc_<name>_c columns, plus the contract's ambient and coolant columns)
 BC_COLUMNS = {**{f"bc_{b}_c": b for b in BOUNDARIES}, "ambient_temp_c": "ambient", "coolant_temp_c": "coolant"}
-#: recirculated air at the air cooler is warmer than ambient at low vehicle speed (seed 3.4: +9 K at 15 km/h,
-#: +2 K at 50 km/h, < 1 K at 85 km/h)
-_AIR_RECIRC = (np.array([0.0, 15.0, 50.0, 85.0, 200.0]), np.array([12.0, 9.0, 2.0, 0.5, 0.0]))
+#: step of the forward difference that linearises the cooler around the sump temperature [K]
+COOLER_SLOPE_DT_K = 0.05
 
 HEAT_OUT_NAMES = ("cooler", "housing_convection", "housing_radiation", "supports_conduction", "shafts_conduction",
                   "oil_boundary")
@@ -57,44 +61,104 @@ class SimResult:
         return {**e, "closure_j": closure, "closure_rel": abs(closure) / max(abs(gen), 1e-9)}
 
 
+class RunInputs(NamedTuple):
+    """A run table as the integrator reads it (SI; boundary and oil signals interpolated onto the input times)."""
+    t_s: np.ndarray
+    omega_in_rad_s: np.ndarray
+    torque_nm: np.ndarray
+    gear: np.ndarray                 # int64
+    v_kmh: np.ndarray | None
+    retarder_nm: np.ndarray | None   # NaN taken as 0
+    bc_c: dict                       # boundary index -> its temperature at every input time
+    oil_meas_c: np.ndarray | None    # measured sump (cooler 'measured')
+    kind: str                        # none | liquid | air | hold | measured
+    hold_oil_c: float | None
+    initial_temp_c: float
+
+
+class ChunkSources(NamedTuple):
+    """The sources of a chunk of thermal steps: exact averages over each step of the held input samples."""
+    edges_s: np.ndarray          # (k + 1,) step edges
+    P_src_w: np.ndarray          # (n_src, k) heat of every source
+    P_mech_w: np.ndarray         # (k,) mechanical loss
+    omega_rad_s: np.ndarray      # (n_speeds, k) |shaft speeds|
+    churn_invalid: np.ndarray    # (k,) share of the step outside the churning correlations' range
+
+
+@dataclass
+class StepState:
+    """The integrator's state between thermal steps."""
+    T_c: np.ndarray
+    T_prev_c: np.ndarray
+    dt_prev_s: float | None
+    lag_w: np.ndarray            # heat-lag state of every source
+    gear_prev: int               # gear of the last step (synchronizer shift heat)
+
+
+class StepResult(NamedTuple):
+    T_new_c: np.ndarray
+    generated_w: float           # heat delivered by all sources
+    stored_w: float              # d(stored energy)/dt over the step
+    out_w: np.ndarray            # (len(HEAT_OUT_NAMES),) heat leaving by each path
+
+
+@dataclass
+class Ledger:
+    """Histories and the energy books of a run."""
+    T_c: np.ndarray              # (n_steps + 1, n)
+    Q_w: np.ndarray              # (n_steps + 1, n_q) the Q_ columns of the output
+    out_j: np.ndarray            # (len(HEAT_OUT_NAMES),) heat out by each path
+    generated_j: float = 0.0
+    stored_j: float = 0.0
+    mechanical_j: float = 0.0
+    churn_invalid_s: float = 0.0
+
+    def book(self, step: int, res: StepResult, cs: ChunkSources, k: int, h_s: float, i_retarder: int) -> None:
+        """Books thermal step ``step`` (the k-th of its chunk, length h_s)."""
+        self.generated_j += res.generated_w * h_s
+        self.stored_j += res.stored_w * h_s
+        self.out_j += res.out_w * h_s
+        self.mechanical_j += cs.P_mech_w[k] * h_s
+        self.churn_invalid_s += cs.churn_invalid[k] * h_s
+        ns, no = len(SOURCES), len(HEAT_OUT_NAMES)
+        q = self.Q_w[step + 1]
+        q[:ns] = cs.P_src_w[:ns, k]
+        q[ns] = cs.P_mech_w[k]
+        q[ns + 1] = res.generated_w
+        q[ns + 2:ns + 2 + no] = res.out_w
+        q[-2] = cs.P_src_w[i_retarder, k]
+        q[-1] = res.stored_w
+        self.T_c[step + 1] = res.T_new_c
+
+    def energy(self) -> dict:
+        return {"generated_j": self.generated_j, "stored_j": self.stored_j, "rejected_j": float(self.out_j.sum()),
+                "mechanical_loss_j": self.mechanical_j,
+                **{f"{nm}_j": float(v) for nm, v in zip(HEAT_OUT_NAMES, self.out_j)}}
+
+
 class ReferencePlant:
     """Build once per parameter set and effect set, then `run()` any number of run tables."""
 
     def __init__(self, params: Parameters, effects: dict | None = None, cooler: str | None = None,
                  dt_s: float = 0.5):
         self.effects = dict(effects or {})
-        vol_l = effect_value(self.effects, "oil_level_low")
-        if vol_l < 13.5:
-            params = params.with_overrides({"oil.volume": vol_l * 1e-3})
-        self.p = params
+        self.scales = effect_scales(self.effects)
+        self.p = params = with_oil_volume(params, self.scales.oil_volume_l)
         self.kind = cooler or params.strings.get("cooler.kind", "liquid")
-        if self.kind not in ("none", "liquid", "air", "hold", "measured"):
-            raise InputError(f"cooler {self.kind!r} must be one of none, liquid, air, hold, measured")
+        if self.kind not in COOLER_KINDS:
+            raise InputError(f"cooler {self.kind!r} must be one of {', '.join(COOLER_KINDS)}")
         if not 0.01 <= dt_s <= 5.0:
             raise InputError(f"plant time step {dt_s} s is outside 0.01..5 s")
         self.dt = float(dt_s)
         self.net: Network = build_network(params)
         self.losses = GearboxLosses(params, self.net.geometry)
-        self.loss_scales = LossScales(effect_value(self.effects, "gear_friction_scale"),
-                                      effect_value(self.effects, "planetary_loss_scale"),
-                                      effect_value(self.effects, "churning_scale"),
-                                      effect_value(self.effects, "bearing_loss_scale"))
-        self.ev = ConductanceEvaluator(self.net, params, HeatTransferScales(
-            teeth_oil_h=effect_value(self.effects, "teeth_oil_h_scale"),
-            planet_oil_h=effect_value(self.effects, "planet_oil_h_scale"),
-            housing_air_h=effect_value(self.effects, "housing_air_h_scale")))
-        n = self.net.n
-        self.n = n
+        self.ev = ConductanceEvaluator(self.net, params, self.scales)
+        self.n = n = self.net.n
         self.i_oil = self.net.index("oil")
-        a, b = self.net.link_a, self.net.link_b
-        self.internal = b < n
-        self.ia, self.ib = a[self.internal], b[self.internal]
-        self.ea, self.eb = a[~self.internal], b[~self.internal] - n
-        self.lap_idx = np.concatenate([self.ia * n + self.ia, self.ib * n + self.ib, self.ia * n + self.ib,
-                                       self.ib * n + self.ia])
+        self.topo = link_topology(self.net.link_a, self.net.link_b, n)
         # classify boundary links for the heat budget
-        kinds = self.net.link_kind[~self.internal]
-        bname = np.array(BOUNDARIES)[self.eb]
+        kinds = self.net.link_kind[self.topo.ext_idx]
+        bname = np.array(BOUNDARIES)[self.topo.eb]
         self.ext_group = np.where(kinds == K_EXT_CONV, 1, np.where(kinds == K_EXT_RAD, 2, np.where(
             np.isin(bname, ["flywheel_cover", "support_beam"]), 3, 4)))
         # source distribution matrix: node heat = S @ source heat
@@ -105,53 +169,85 @@ class ReferencePlant:
                 self.S[node, j] += frac
         self.stream_idx = self.net.links_of_kind(K_STREAM)
         self.stream_nodes = self.net.link_a[self.stream_idx]
+        ia, ib = self.topo.ia, self.topo.ib
+        self.oil_links = np.flatnonzero((ia == self.i_oil) | (ib == self.i_oil))      # internal links at the sump
+        self.oil_other = np.where(ia[self.oil_links] == self.i_oil, ib[self.oil_links], ia[self.oil_links])
         self.tau_lag = params["scale.heat_lag_tau"]
         self.bc_default = np.array([params[f"boundary.{b}"] for b in BOUNDARIES])
-        self.bc_default[BOUNDARIES.index("hot_surroundings")] += effect_value(self.effects, "hot_surroundings_offset")
-        self.cool_scale = effect_value(self.effects, "cooler_effectiveness_scale")
-        self.thermo_off = effect_value(self.effects, "thermostat_offset")
-        self.retarder_frac = effect_value(self.effects, "retarder_heat")
-        self.shift_energy = effect_value(self.effects, "synchronizer_shift_heat")
-        self.sensor_tau = effect_value(self.effects, "oil_sensor_lag")
-        self.rho_cp_oil_flow = None
+        self.bc_default[BOUNDARIES.index("hot_surroundings")] += self.scales.hot_offset_c
+        self.cooler = cooler_params(cooler_values(params))
 
     # ------------------------------------------------------------------ cooler (seed 3.4, Eq 82-83)
     def cooler_heat(self, T_oil, w_ls, w_eng, T_cool, T_amb, v_kmh):
-        """Heat from the sump to the cooler [W] and its derivative with respect to the sump temperature."""
-        p = self.p
+        """Heat from the sump to the cooler [W] (physics.cooler.oil_cooler_heat, the onboard model's cooler) and its
+        derivative with respect to the sump temperature (forward difference over COOLER_SLOPE_DT_K)."""
         if self.kind not in ("liquid", "air"):
             return 0.0, 0.0
         op = oilprops.oil_properties(T_oil)
-        mdot = self.ev.oil_mass_flow_kg_s(w_ls, op.rho_kg_m3)
-        mdot_ref = self.ev.oil_mass_flow_kg_s(p["cooler.ref_ls_speed"], op.rho_kg_m3)
-        inner = (mdot / mdot_ref) ** p["cooler.exp_inner"] if mdot > 0 else 0.0
-        if self.kind == "liquid":
-            outer = (max(w_eng, 0.0) / p["cooler.ref_engine_speed"]) ** p["cooler.exp_outer"]
-            hA = p["cooler.liquid_hA_ref"] * inner * outer * self.cool_scale
-            args = ("liquid", hA, None, T_cool, mdot, op.cp_j_per_kgk, p["cooler.liquid_Qmax_cool"],
-                    p["cooler.liquid_Qmax_heat"], 0.0, 1.0)
-        else:
-            fmin = p["cooler.air_flow_min_frac"]
-            outer = (fmin + (1 - fmin) * min(max(v_kmh, 0.0) / 85.0, 1.5)) ** p["cooler.exp_outer"]
-            hA = p["cooler.air_hA_ref"] * inner * outer * self.cool_scale
-            T_air = T_amb + float(np.interp(v_kmh, *_AIR_RECIRC))
-            args = ("air", hA, None, T_air, mdot, op.cp_j_per_kgk, p["cooler.air_Qmax_cool"], 0.0,
-                    p["cooler.thermostat_open"] + self.thermo_off, p["cooler.thermostat_full"] + self.thermo_off)
-        if hA <= 0 or mdot <= 0:
+        mdot_kg_s = self.ev.oil_mass_flow_kg_s(w_ls, op.rho_kg_m3)
+        if mdot_kg_s <= 0:
             return 0.0, 0.0
+        flow_ratio = mdot_kg_s / self.ev.oil_mass_flow_kg_s(self.cooler.ref_ls_speed_rad_s, op.rho_kg_m3)
+        mcp_w_per_k = mdot_kg_s * op.cp_j_per_kgk
+        sc = self.scales
 
         def q(T):
-            a = list(args)
-            a[2] = T
-            return float(ht.cooler_heat_w(*a))
+            return oil_cooler_heat(self.cooler, self.kind, T, flow_ratio, w_eng, T_cool, T_amb, v_kmh, mcp_w_per_k,
+                                   sc.cooler_scale, sc.thermostat_offset_c)
         q0 = q(T_oil)
-        slope = (q(T_oil + 0.05) - q0) / 0.05
-        return q0, max(slope, 0.0)
+        if q0.hA_w_per_k <= 0:
+            return 0.0, 0.0
+        slope = (float(q(T_oil + COOLER_SLOPE_DT_K).Q_w) - float(q0.Q_w)) / COOLER_SLOPE_DT_K
+        return float(q0.Q_w), max(slope, 0.0)
 
-    # ------------------------------------------------------------------ main loop
+    # ------------------------------------------------------------------ driver
     def run(self, table: RunTable, initial_temp_c: float | None = None, hold_oil_c: float | None = None,
             out_dt_s: float = 1.0, progress: bool | None = None, chunk_s: float = 20.0) -> SimResult:
+        """Integrate the network over the run table; node temperatures and heat flows every ``out_dt_s``."""
         wall0 = time.perf_counter()
+        inp = self._inputs(table, initial_temp_c, hold_oil_c)
+        t = inp.t_s
+        dt = self.dt
+        t0, t_end = float(t[0]), float(t[-1])
+        n_steps = int(math.ceil((t_end - t0) / dt - 1e-9))
+        step_t = np.minimum(t0 + dt * np.arange(n_steps + 1), t_end)
+        dts = np.diff(t, append=t[-1])            # sample durations (zero-order hold; the last has none)
+        T = np.full(self.n, float(inp.initial_temp_c))
+        if inp.kind == "hold":
+            T[self.i_oil] = inp.hold_oil_c
+        elif inp.kind == "measured":
+            T[self.i_oil] = inp.oil_meas_c[0]
+        state = StepState(T, T.copy(), None, np.zeros(len(self.src_names)), int(inp.gear[0]))
+        n_q = len(SOURCES) + 4 + len(HEAT_OUT_NAMES)
+        ledger = Ledger(np.empty((n_steps + 1, self.n)), np.zeros((n_steps + 1, n_q)), np.zeros(len(HEAT_OUT_NAMES)))
+        ledger.T_c[0] = T
+        lag_dt = heat_lag(self.tau_lag, dt)
+        i_ret = self.src_names.index("retarder")
+        k_chunk = max(1, int(round(chunk_s / dt)))
+        with progress_bar(n_steps, "plant", progress, unit="step") as bar:
+            for s0 in range(0, n_steps, k_chunk):
+                s1 = min(s0 + k_chunk, n_steps)
+                cs = self._chunk_sources(inp, dts, step_t[s0:s1 + 1], state.T_c[self.i_oil])
+                for k in range(s1 - s0):
+                    h = cs.edges_s[k + 1] - cs.edges_s[k]
+                    if h <= 0:
+                        ledger.T_c[s0 + k + 1] = state.T_c
+                        continue
+                    res = self._step(state, inp, cs, k, lag_dt if abs(h - dt) < 1e-12 else heat_lag(self.tau_lag, h))
+                    ledger.book(s0 + k, res, cs, k, h, i_ret)
+                    if not np.all(np.isfinite(res.T_new_c)):
+                        raise InputError(f"the plant diverged at t = {cs.edges_s[k + 1]:.1f} s (non-finite "
+                                         f"temperature); check the inputs and parameters")
+                bar.update(s1 - s0)
+        warnings = []
+        if ledger.churn_invalid_s > 0:
+            warnings.append(f"churning correlations (Eq 28-34) used outside their validity range (Eq 33-34) for "
+                            f"{ledger.churn_invalid_s:.0f} s of {t_end - t0:.0f} s (the seed's model shares this)")
+        res = self._output(table, t, step_t, ledger.T_c, ledger.Q_w, out_dt_s, inp.kind)
+        return SimResult(res, self.net.nodes, ledger.energy(), warnings, time.perf_counter() - wall0)
+
+    def _inputs(self, table: RunTable, initial_temp_c, hold_oil_c) -> RunInputs:
+        """The run table checked and read (columns of the run-table contract; bc_ columns override the defaults)."""
         t = np.asarray(table["time_s"], dtype=float)
         if t.size < 2:
             raise InputError("the run table needs at least two samples")
@@ -159,9 +255,6 @@ class ReferencePlant:
         trq = np.asarray(table["engine_torque_nm"], dtype=float)
         gear = np.asarray(table["gear"], dtype=float)
         _validate_inputs(t, spd, trq, gear, self.p)
-        gear = gear.astype(np.int64)
-        w_in = spd * RPM
-        n_s = t.size
         meta = getattr(table, "meta", {}) or {}
         if initial_temp_c is None:
             initial_temp_c = meta.get("initial_temp_c")
@@ -176,6 +269,7 @@ class ReferencePlant:
             kind = "hold"
         if kind == "hold" and hold_oil_c is None:
             hold_oil_c = self.p["cooler.hold_temp"]
+        oil_meas = None
         if kind == "measured":
             if not table.has("oil_temp_c"):
                 raise InputError("cooler 'measured' needs an oil_temp_c column in the run table")
@@ -184,214 +278,140 @@ class ReferencePlant:
             if ok.sum() < 2:
                 raise InputError("cooler 'measured': column oil_temp_c has fewer than two valid values")
             oil_meas = np.interp(t, t[ok], oil_meas[ok])
-        # boundary temperature signals (constant defaults unless the table carries them)
-        bc_cols = {}
+        bc_c = {}
         for col, b in BC_COLUMNS.items():
             if table.has(col):
                 v = np.asarray(table[col], dtype=float)
                 ok = np.isfinite(v)
                 if ok.any():
-                    bc_cols[BOUNDARIES.index(b)] = np.interp(t, t[ok], v[ok]) + (
-                        effect_value(self.effects, "hot_surroundings_offset") if b == "hot_surroundings" else 0.0)
+                    bc_c[BOUNDARIES.index(b)] = np.interp(t, t[ok], v[ok]) + (
+                        self.scales.hot_offset_c if b == "hot_surroundings" else 0.0)
         v_kmh = np.asarray(table["vehicle_speed_kmh"], dtype=float) if table.has("vehicle_speed_kmh") else None
         ret_nm = np.asarray(table["retarder_torque_nm"], dtype=float) if table.has("retarder_torque_nm") else None
         if ret_nm is not None:
             ret_nm = np.nan_to_num(ret_nm, nan=0.0)
+        return RunInputs(t, spd * RAD_S_PER_RPM, trq, gear.astype(np.int64), v_kmh, ret_nm, bc_c, oil_meas, kind,
+                         hold_oil_c, initial_temp_c)
 
-        n, dt = self.n, self.dt
-        t0, t_end = float(t[0]), float(t[-1])
-        n_steps = int(math.ceil((t_end - t0) / dt - 1e-9))
-        step_t = np.minimum(t0 + dt * np.arange(n_steps + 1), t_end)
-        # sample durations (zero-order hold; the last sample has no duration)
-        dts = np.diff(t, append=t[-1])
+    def _chunk_sources(self, inp: RunInputs, dts: np.ndarray, edges: np.ndarray, T_oil_c: float) -> ChunkSources:
+        """Losses of every input sample of a chunk of steps (oil properties at the chunk's start sump temperature),
+        their heat, and their exact averages over each step."""
+        t, n_s = inp.t_s, inp.t_s.size
+        i0 = max(int(np.searchsorted(t, edges[0], side="right")) - 1, 0)
+        i1 = min(int(np.searchsorted(t, edges[-1], side="left")) + 1, n_s)
+        sl = slice(i0, i1)
+        w_in, gear = inp.omega_in_rad_s[sl], inp.gear[sl]
+        loss = self.losses.evaluate(w_in, inp.torque_nm[sl], gear, T_oil_c, churn_validity=True)
+        churn_ok = loss.pop("churning_valid")
+        heat = self.losses.heat(loss, self.scales)
+        P_src = np.zeros((i1 - i0, len(self.src_names)))
+        for j, nm in enumerate(SOURCES):
+            P_src[:, j] = heat[nm]
+        P_mech = np.sum([loss[k] for k in SOURCES], axis=0)
+        sp = self.losses.kin.speed[gear - GEAR_MIN] * w_in[:, None]
+        if inp.retarder_nm is not None and self.scales.retarder_frac > 0:
+            P_src[:, self.src_names.index("retarder")] = self.scales.retarder_frac * np.maximum(
+                inp.retarder_nm[sl], 0) * np.abs(sp[:, SPEED_NAMES.index("OS")])
+        avg = _StepAverager(t[sl], dts[sl], edges)
+        return ChunkSources(edges, avg(P_src), avg(P_mech)[0], avg(np.abs(sp)), avg((~churn_ok).astype(float))[0])
 
-        C = self.net.C_j_per_k
-        T = np.full(n, float(initial_temp_c))
-        if kind == "hold":
-            T[self.i_oil] = hold_oil_c
-        elif kind == "measured":
-            T[self.i_oil] = oil_meas[0]
-        T_prev = T.copy()
-        dt_prev = None
-        lag_y = np.zeros(len(self.src_names))
-        lag_a = 1.0 - math.exp(-dt / self.tau_lag) if self.tau_lag > 0 else 1.0
+    # ------------------------------------------------------------------ one thermal step
+    def _step(self, state: StepState, inp: RunInputs, cs: ChunkSources, k: int, lag: HeatLag) -> StepResult:
+        """One BDF2 step (implicit Euler on the first step and after a change of step size) of
+        (a0 C / h + K) T_new = C (history) / h + sources, with the cooler linearised around the sump temperature;
+        updates ``state``."""
+        t = inp.t_s
+        t_a, t_b = cs.edges_s[k], cs.edges_s[k + 1]
+        h = t_b - t_a
+        t_mid = 0.5 * (t_a + t_b)
+        im = min(max(int(np.searchsorted(t, t_mid, side="right")) - 1, 0), t.size - 1)
+        gear = int(inp.gear[im])
+        row = gear - GEAR_MIN
+        omega = cs.omega_rad_s[:, k]
+        T, i_oil = state.T_c, self.i_oil
+        T_bc = self.bc_default.copy()                 # boundary temperatures at the step end
+        for j, arr in inp.bc_c.items():
+            T_bc[j] = float(np.interp(t_b, t, arr))
+        delivered = self._delivered_heat(state, cs.P_src_w[:, k].copy(), gear, h, lag)
         kin = self.losses.kin
+        G = self.ev.evaluate_cached(T[i_oil], omega, row, kin.mesh_torque[row], bool(kin.low_range[row]), T, T_bc)
+        v_kmh = float(np.interp(t_mid, t, inp.v_kmh)) if inp.v_kmh is not None else DEFAULT_VEHICLE_SPEED_KMH
+        q0, gc = self.cooler_heat(T[i_oil], omega[SPEED_NAMES.index("LS")], omega[SPEED_NAMES.index("IS")],
+                                  T_bc[BOUNDARIES.index("coolant")], T_bc[BOUNDARIES.index("ambient")], v_kmh)
+        q_nodes = self._stream_transfer(self.S @ delivered, G, q0, omega, T[i_oil], inp.kind)
+        bdf2 = state.dt_prev_s is not None and abs(state.dt_prev_s - h) < 1e-12
+        C = self.net.C_j_per_k
+        if bdf2:
+            a0 = 1.5
+            hist_term = C * (2.0 * T - 0.5 * state.T_prev_c) / h
+        else:
+            a0 = 1.0
+            hist_term = C * T / h
+        A, Ge = conductance_matrix(G, self.topo, a0 * C / h)
+        rhs = hist_term + q_nodes + boundary_heat_w(Ge, self.topo, T_bc)
+        A[i_oil, i_oil] += gc                         # cooler linearised: Q = q0 + gc (T_oil_new - T_oil)
+        rhs[i_oil] += gc * T[i_oil] - q0
+        prescribed = None
+        if inp.kind == "hold":
+            prescribed = inp.hold_oil_c
+        elif inp.kind == "measured":
+            prescribed = float(np.interp(t_b, t, inp.oil_meas_c))
+        if prescribed is not None:
+            A[i_oil, :] = 0.0
+            A[i_oil, i_oil] = 1.0
+            rhs[i_oil] = prescribed
+        T_new = np.linalg.solve(A, rhs)
+        if bdf2:
+            dstore = C * (1.5 * T_new - 2.0 * T + 0.5 * state.T_prev_c) / h
+        else:
+            dstore = C * (T_new - T) / h
+        out = self._heat_out(G, Ge, T, T_new, T_bc, q0, gc, q_nodes, dstore, inp.kind, prescribed)
+        state.T_prev_c, state.T_c, state.dt_prev_s = T, T_new, h
+        return StepResult(T_new, delivered.sum(), dstore.sum(), out)
 
-        hist_T = np.empty((n_steps + 1, n))
-        hist_T[0] = T
-        n_out_q = len(SOURCES) + 2 + len(HEAT_OUT_NAMES) + 2
-        hist_Q = np.zeros((n_steps + 1, n_out_q))
-        E_gen = E_stored = 0.0
-        E_out = np.zeros(len(HEAT_OUT_NAMES))
-        E_mech = 0.0
-        churn_invalid_s = 0.0
-        dT_cool_oil = 0.0     # oil-system inlet below the sump by the cooler's drop (Eq 82 idea)
-        prog = _Progress(n_steps, progress)
+    def _delivered_heat(self, state: StepState, u_w: np.ndarray, gear: int, h: float, lag: HeatLag) -> np.ndarray:
+        """The sources' heat through the heat lag (exact for an input held over the step), with the synchronizer's
+        shift heat (effect synchronizer_shift_heat) released over the step of a gear change; updates ``state``."""
+        shift_energy = self.scales.shift_energy_j
+        if gear != state.gear_prev:
+            if shift_energy > 0:
+                target = _shift_target(state.gear_prev, gear, self.p.split_inverted)
+                if target is not None:
+                    u_w[self.src_names.index(target)] += shift_energy / h
+            state.gear_prev = gear
+        state.lag_w, delivered = heat_lag_step(state.lag_w, u_w, lag)
+        return delivered
 
-        step = 0
-        k_chunk = max(1, int(round(chunk_s / dt)))
-        shift_gear_prev = int(gear[0])
-        while step < n_steps:
-            s0, s1 = step, min(step + k_chunk, n_steps)
-            ta, tb = step_t[s0], step_t[s1]
-            i0 = max(int(np.searchsorted(t, ta, side="right")) - 1, 0)
-            i1 = min(int(np.searchsorted(t, tb, side="left")) + 1, n_s)
-            sl = slice(i0, i1)
-            T_oil_losses = T[self.i_oil]
-            loss = self.losses.evaluate(w_in[sl], trq[sl], gear[sl], T_oil_losses, churn_validity=True)
-            churn_ok = loss.pop("churning_valid")
-            heat = self.losses.heat(loss, self.loss_scales)
-            P_src = np.zeros((i1 - i0, len(self.src_names)))
-            for j, nm in enumerate(SOURCES):
-                P_src[:, j] = heat[nm]
-            P_mech = np.sum([loss[k] for k in SOURCES], axis=0)
-            sp = kin.speed[gear[sl] - GEAR_MIN] * w_in[sl, None]
-            if ret_nm is not None and self.retarder_frac > 0:
-                P_src[:, self.src_names.index("retarder")] = self.retarder_frac * np.maximum(ret_nm[sl], 0) * np.abs(
-                    sp[:, SPEED_NAMES.index("OS")])
-            # exact averages over each step of the held samples (cumulative integrals at the step edges)
-            seg_t = step_t[s0:s1 + 1]
-            dur = np.diff(seg_t)
-            avg = _StepAverager(t[sl], dts[sl], seg_t)
-            Psrc_avg = avg(P_src)          # (n_src, k)
-            Pmech_avg = avg(P_mech)[0]
-            sp_avg = avg(np.abs(sp))       # (n_speeds, k)
-            churn_bad_avg = avg((~churn_ok).astype(float))[0]
-            for k in range(s1 - s0):
-                st = s0 + k
-                h = dur[k]
-                if h <= 0:
-                    hist_T[st + 1] = T
-                    continue
-                tm = 0.5 * (seg_t[k] + seg_t[k + 1])
-                im = min(max(int(np.searchsorted(t, tm, side="right")) - 1, 0), n_s - 1)
-                g = int(gear[im])
-                row = g - GEAR_MIN
-                speeds = sp_avg[:, k]
-                # boundary temperatures at the step end
-                T_bc = self.bc_default.copy()
-                for j, arr in bc_cols.items():
-                    T_bc[j] = float(np.interp(seg_t[k + 1], t, arr))
-                # sources (with the heat lag, exact for a held input over the step)
-                u = Psrc_avg[:, k].copy()
-                if self.shift_energy > 0 and g != shift_gear_prev:
-                    tgt = _shift_target(shift_gear_prev, g, self.p.split_inverted)
-                    if tgt is not None:
-                        u[self.src_names.index(tgt)] += self.shift_energy / h
-                    shift_gear_prev = g
-                elif g != shift_gear_prev:
-                    shift_gear_prev = g
-                a_lag = lag_a if abs(h - dt) < 1e-12 else (1.0 - math.exp(-h / self.tau_lag) if self.tau_lag > 0 else 1.0)
-                y_new = lag_y + (u - lag_y) * a_lag
-                delivered = u - (self.tau_lag * (y_new - lag_y) / h if self.tau_lag > 0 else 0.0)
-                lag_y = y_new
-                q_nodes = self.S @ delivered
-                # conductances at the current state
-                G = self.ev.evaluate_cached(T[self.i_oil], speeds, row, kin.mesh_torque[row],
-                                            bool(kin.low_range[row]), T, T_bc)
-                # cooler
-                w_eng = speeds[SPEED_NAMES.index("IS")]
-                vk = float(np.interp(tm, t, v_kmh)) if v_kmh is not None else 50.0
-                q0, gc = self.cooler_heat(T[self.i_oil], speeds[SPEED_NAMES.index("LS")], w_eng,
-                                          T_bc[BOUNDARIES.index("coolant")], T_bc[BOUNDARIES.index("ambient")], vk)
-                # oil-system inlet temperature below the sump by the cooler's drop: zero-sum transfer stream->sump
-                if kind in ("liquid", "air") and q0 != 0.0:
-                    op = oilprops.oil_properties(T[self.i_oil])
-                    mdot = self.ev.oil_mass_flow_kg_s(speeds[SPEED_NAMES.index("LS")], op.rho_kg_m3)
-                    dT_cool_oil = float(np.clip(q0 / (mdot * op.cp_j_per_kgk), -30, 30)) if mdot > 0 else 0.0
-                else:
-                    dT_cool_oil = 0.0
-                Gs = G[self.stream_idx]
-                xfer = Gs * dT_cool_oil
-                q_nodes = q_nodes.copy()
-                np.subtract.at(q_nodes, self.stream_nodes, xfer)    # component loses G (T_i - T_in) = G (T_i - T_s) + G dT
-                q_nodes[self.i_oil] += xfer.sum()                   # ... which the returning oil brings to the sump
-                # assemble (a0 C / h + L) T_new = rhs  (BDF2, implicit Euler when the step size changed)
-                bdf2 = dt_prev is not None and abs(dt_prev - h) < 1e-12
-                Gi = G[self.internal]
-                Ge = G[~self.internal]
-                Lflat = np.bincount(self.lap_idx, np.concatenate([Gi, Gi, -Gi, -Gi]), minlength=n * n)
-                A = Lflat.reshape(n, n)
-                diag_bc = np.bincount(self.ea, Ge, minlength=n)
-                if bdf2:
-                    a0 = 1.5
-                    hist_term = C * (2.0 * T - 0.5 * T_prev) / h
-                else:
-                    a0 = 1.0
-                    hist_term = C * T / h
-                A[np.diag_indices(n)] += a0 * C / h + diag_bc
-                rhs = hist_term + q_nodes + np.bincount(self.ea, Ge * T_bc[self.eb], minlength=n)
-                # cooler linearised: Q = q0 + gc (T_oil_new - T_oil)
-                A[self.i_oil, self.i_oil] += gc
-                rhs[self.i_oil] += gc * T[self.i_oil] - q0
-                prescribed = None
-                if kind == "hold":
-                    prescribed = hold_oil_c
-                elif kind == "measured":
-                    prescribed = float(np.interp(seg_t[k + 1], t, oil_meas))
-                if prescribed is not None:
-                    A[self.i_oil, :] = 0.0
-                    A[self.i_oil, self.i_oil] = 1.0
-                    rhs[self.i_oil] = prescribed
-                T_new = np.linalg.solve(A, rhs)
-                # ---- energy ledger (powers over this step)
-                if bdf2:
-                    dstore = C * (1.5 * T_new - 2.0 * T + 0.5 * T_prev) / h
-                else:
-                    dstore = C * (T_new - T) / h
-                q_bc = Ge * (T_new[self.ea] - T_bc[self.eb])
-                Q_cool = q0 + gc * (T_new[self.i_oil] - T[self.i_oil]) if kind in ("liquid", "air") else 0.0
-                outs = np.zeros(len(HEAT_OUT_NAMES))
-                outs[0] = Q_cool
-                for grp in (1, 2, 3, 4):
-                    outs[grp] = q_bc[self.ext_group == grp].sum()
-                gen = delivered.sum()
-                if prescribed is not None:
-                    # what the held/measured sump absorbs = its net inflow minus its own storage change
-                    om, other = self._oil_links()
-                    inflow = q_nodes[self.i_oil] + float(np.dot(Gi[om], T_new[other] - T_new[self.i_oil]))
-                    outs[5] = inflow - dstore[self.i_oil]
-                    dstore_sum = dstore.sum()
-                else:
-                    dstore_sum = dstore.sum()
-                E_gen += gen * h
-                E_stored += dstore_sum * h
-                E_out += outs * h
-                E_mech += Pmech_avg[k] * h
-                churn_invalid_s += churn_bad_avg[k] * h
-                hist_Q[st + 1, :len(SOURCES)] = Psrc_avg[:len(SOURCES), k]
-                hist_Q[st + 1, len(SOURCES)] = Pmech_avg[k]
-                hist_Q[st + 1, len(SOURCES) + 1] = gen
-                hist_Q[st + 1, len(SOURCES) + 2:len(SOURCES) + 2 + len(HEAT_OUT_NAMES)] = outs
-                hist_Q[st + 1, -2] = Psrc_avg[self.src_names.index("retarder"), k]
-                hist_Q[st + 1, -1] = dstore_sum
-                T_prev, T = T, T_new
-                dt_prev = h
-                hist_T[st + 1] = T
-                if not np.all(np.isfinite(T)):
-                    raise InputError(f"the plant diverged at t = {seg_t[k + 1]:.1f} s (non-finite temperature); "
-                                     f"check the inputs and parameters")
-            step = s1
-            prog.update(step)
-        prog.close()
-        warnings = []
-        if churn_invalid_s > 0:
-            warnings.append(f"churning correlations (Eq 28-34) used outside their validity range (Eq 33-34) for "
-                            f"{churn_invalid_s:.0f} s of {t_end - t0:.0f} s (the seed's model shares this)")
-        res = self._output(table, t, step_t, hist_T, hist_Q, out_dt_s, kind)
-        energy = {"generated_j": E_gen, "stored_j": E_stored, "rejected_j": float(E_out.sum()),
-                  "mechanical_loss_j": E_mech,
-                  **{f"{nm}_j": float(v) for nm, v in zip(HEAT_OUT_NAMES, E_out)}}
-        return SimResult(res, self.net.nodes, energy, warnings, time.perf_counter() - wall0)
+    def _stream_transfer(self, q_nodes: np.ndarray, G: np.ndarray, q0: float, omega: np.ndarray, T_oil_c: float,
+                         kind: str) -> np.ndarray:
+        """The oil-system inlet lies below the sump by the cooler's drop (Eq 82 idea): a stream component loses
+        G (T_i - T_in) = G (T_i - T_s) + G dT, which the returning oil brings to the sump (zero-sum)."""
+        dT_in = 0.0
+        if kind in ("liquid", "air") and q0 != 0.0:
+            op = oilprops.oil_properties(T_oil_c)
+            mdot = self.ev.oil_mass_flow_kg_s(omega[SPEED_NAMES.index("LS")], op.rho_kg_m3)
+            dT_in = float(inlet_drop_k(q0, mdot * op.cp_j_per_kgk)) if mdot > 0 else 0.0
+        xfer_w = G[self.stream_idx] * dT_in
+        q_nodes = q_nodes.copy()
+        np.subtract.at(q_nodes, self.stream_nodes, xfer_w)
+        q_nodes[self.i_oil] += xfer_w.sum()
+        return q_nodes
 
-    def _oil_links(self):
-        cache = getattr(self, "_oil_link_cache", None)
-        if cache is None:
-            om = np.flatnonzero((self.ia == self.i_oil) | (self.ib == self.i_oil))
-            other = np.where(self.ia[om] == self.i_oil, self.ib[om], self.ia[om])
-            cache = self._oil_link_cache = (om, other)
-        return cache
+    def _heat_out(self, G, Ge, T, T_new, T_bc, q0, gc, q_nodes, dstore, kind, prescribed) -> np.ndarray:
+        """Heat leaving by each path of HEAT_OUT_NAMES over the step [W]; a held or measured sump's absorption is
+        its net inflow minus its own storage change."""
+        out = np.zeros(len(HEAT_OUT_NAMES))
+        out[0] = q0 + gc * (T_new[self.i_oil] - T[self.i_oil]) if kind in ("liquid", "air") else 0.0
+        q_bc = Ge * (T_new[self.topo.ea] - T_bc[self.topo.eb])
+        for grp in (1, 2, 3, 4):
+            out[grp] = q_bc[self.ext_group == grp].sum()
+        if prescribed is not None:
+            Gi = G[self.topo.int_idx]
+            inflow = q_nodes[self.i_oil] + float(np.dot(Gi[self.oil_links], T_new[self.oil_other] - T_new[self.i_oil]))
+            out[5] = inflow - dstore[self.i_oil]
+        return out
 
+    # ------------------------------------------------------------------ output
     def _output(self, table, t, step_t, hist_T, hist_Q, out_dt_s, kind) -> RunTable:
         t_out = np.arange(step_t[0], step_t[-1] + 1e-9, out_dt_s) if out_dt_s > 0 else step_t
         if t_out[-1] < step_t[-1] - 1e-9:
@@ -406,20 +426,10 @@ class ReferencePlant:
         T_out = np.empty((t_out.size, self.n))
         for j in range(self.n):
             T_out[:, j] = np.interp(t_out, step_t, hist_T[:, j])
-        oil = T_out[:, self.i_oil]
-        if self.sensor_tau > 0:
-            # the vehicle's oil sensor lags the sump (effect oil_sensor_lag)
-            oil_s = np.interp(step_t, step_t, hist_T[:, self.i_oil])
-            y = np.empty_like(oil_s)
-            y[0] = oil_s[0]
-            for i in range(1, oil_s.size):
-                a = 1.0 - math.exp(-(step_t[i] - step_t[i - 1]) / self.sensor_tau)
-                y[i] = y[i - 1] + (oil_s[i] - y[i - 1]) * a
-            oil = np.interp(t_out, step_t, y)
         if kind == "measured" and table.has("oil_temp_c"):
             cols["oil_temp_c"] = np.interp(t_out, t, np.asarray(table["oil_temp_c"], dtype=float))
         else:
-            cols["oil_temp_c"] = oil
+            cols["oil_temp_c"] = self._oil_sensor(t_out, step_t, hist_T[:, self.i_oil], T_out[:, self.i_oil])
         for j, nm in enumerate(self.net.nodes):
             cols[f"T_{nm}_c"] = T_out[:, j]
         # heat flows: step averages, each output sample shows the step that ends at or after it
@@ -429,8 +439,19 @@ class ReferencePlant:
                 [f"Q_out_{nm}_w" for nm in HEAT_OUT_NAMES] + ["Q_heat_retarder_w", "Q_stored_w"]
         for j, nm in enumerate(names):
             cols[nm] = hist_Q[qi, j]
-        out = RunTable(cols)
-        return out
+        return RunTable(cols)
+
+    def _oil_sensor(self, t_out, step_t, T_oil_steps, T_oil_out):
+        """The vehicle's oil sensor: the sump, or the sump through a first-order lag (effect oil_sensor_lag)."""
+        tau = self.scales.oil_sensor_tau_s
+        if not tau > 0:
+            return T_oil_out
+        oil_s = np.interp(step_t, step_t, T_oil_steps)
+        y = np.empty_like(oil_s)
+        y[0] = oil_s[0]
+        for i in range(1, oil_s.size):
+            y[i] = first_order_lag_step(y[i - 1], oil_s[i], step_t[i] - step_t[i - 1], tau)
+        return np.interp(t_out, step_t, y)
 
 
 class _StepAverager:
@@ -477,7 +498,7 @@ def _validate_inputs(t, spd, trq, gear, p: Parameters):
         raise InputError(f"column time_s row {first_bad(np.append(np.diff(t) <= 0, False)) + 1}: time must increase")
     if np.any(spd < 0):
         raise InputError(f"column engine_speed_rpm row {first_bad(spd < 0)}: negative speed {spd[spd < 0][0]:g} rpm")
-    vmax = p["engine.max_speed"] / RPM
+    vmax = p["engine.max_speed_rad_s"] / RAD_S_PER_RPM
     if np.any(spd > vmax):
         raise InputError(f"column engine_speed_rpm row {first_bad(spd > vmax)}: {spd[spd > vmax][0]:g} rpm exceeds "
                          f"{vmax:.0f} rpm")
@@ -490,32 +511,3 @@ def _validate_inputs(t, spd, trq, gear, p: Parameters):
     if bad.any():
         raise InputError(f"column gear row {first_bad(bad)}: {gear[bad][0]:g} is not a gear in {GEAR_MIN}..{GEAR_MAX} "
                          f"(seed Table 1)")
-
-
-class _Progress:
-    """A plain progress bar on stderr for long runs (only when attached to a terminal, or forced)."""
-
-    def __init__(self, total: int, enabled: bool | None):
-        self.total = max(total, 1)
-        self.enabled = sys.stderr.isatty() if enabled is None else enabled
-        self.t0 = time.perf_counter()
-        self.last = 0.0
-
-    def update(self, done: int):
-        if not self.enabled:
-            return
-        now = time.perf_counter()
-        if now - self.last < 0.2 and done < self.total:
-            return
-        self.last = now
-        frac = done / self.total
-        bar = "#" * int(30 * frac)
-        el = now - self.t0
-        eta = el / frac - el if frac > 0 else 0.0
-        sys.stderr.write(f"\r  plant [{bar:<30}] {100 * frac:5.1f} %  {el:5.1f} s elapsed, {eta:5.1f} s left")
-        sys.stderr.flush()
-
-    def close(self):
-        if self.enabled:
-            sys.stderr.write("\n")
-            sys.stderr.flush()

@@ -1,0 +1,186 @@
+"""The oil cooler (seed section 3.4, Eq 82-83): one model for the reference plant and the onboard sensor.
+
+Kinds: ``none``; ``liquid`` (plate oil/coolant cooler, can also heat the oil); ``air`` (oil/air cooler behind a
+thermostat, recirculated air warmer than ambient at low vehicle speed). The cooler's effective conductance follows
+its data sheet from the reference flows: ``hA = hA_ref (inner flow ratio)^exp_inner (outer flow ratio)^exp_outer``,
+the inner (oil) flow linear in the layshaft speed, the outer flow linear in engine speed (liquid) or a fan share plus
+the ram air of the vehicle speed (air). :func:`oil_cooler_heat` is the whole model; the plant
+(tools.plant.reference) and the onboard model (firmware_model.onboard.reduce.cooler_heat) both call it.
+
+Every function takes floats or numpy arrays and does its arithmetic in what it is given (Python floats stay
+scalars), so both callers keep their own last bits.
+"""
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+from firmware_model.errors import ParameterError
+
+#: kinds the cooler model knows; the index is the onboard model's cooler code (0 none, 1 liquid, 2 air)
+COOLER_KINDS = ("none", "liquid", "air")
+#: recirculated air at the air cooler is warmer than ambient at low vehicle speed (seed 3.4: +9 K at 15 km/h,
+#: +2 K at 50 km/h, < 1 K at 85 km/h): vehicle speed [km/h] -> excess temperature [K]
+AIR_RECIRC_V_KMH = np.array([0.0, 15.0, 50.0, 85.0, 200.0])
+AIR_RECIRC_DT_K = np.array([12.0, 9.0, 2.0, 0.5, 0.0])
+#: vehicle speed of the air cooler's reference outer flow [km/h], and the largest outer flow (x reference)
+AIR_REF_SPEED_KMH = 85.0
+AIR_FLOW_MAX_REL = 1.5
+#: vehicle speed the cooler model takes when none is known [km/h]
+DEFAULT_VEHICLE_SPEED_KMH = 50.0
+#: the oil-system inlet drop (sump minus cooler outlet, Q / (mdot cp)) is clipped to +- this [K]
+INLET_DROP_MAX_K = 30.0
+#: parameter names (``cooler.<name>``) of the cooler model, in the order of CoolerParams
+COOLER_KEYS = ("liquid_hA_ref", "liquid_Qmax_cool", "liquid_Qmax_heat", "air_hA_ref", "air_Qmax_cool",
+               "thermostat_open", "thermostat_full", "ref_ls_speed", "ref_engine_speed", "exp_inner", "exp_outer",
+               "air_flow_min_frac")
+
+
+class CoolerParams(NamedTuple):
+    """The cooler's data sheet (SI; parameter names in COOLER_KEYS)."""
+    liquid_hA_ref_w_per_k: float
+    liquid_Q_max_cool_w: float
+    liquid_Q_max_heat_w: float
+    air_hA_ref_w_per_k: float
+    air_Q_max_cool_w: float
+    thermostat_open_c: float
+    thermostat_full_c: float
+    ref_ls_speed_rad_s: float        # layshaft speed of the reference inner (oil) flow
+    ref_engine_speed_rad_s: float    # engine speed of the liquid cooler's reference outer (coolant) flow
+    exp_inner: float
+    exp_outer: float
+    air_flow_min_frac: float         # air outer flow at standstill (fan) relative to the reference
+
+
+class CoolerHeat(NamedTuple):
+    Q_w: np.ndarray | float           # heat from the sump to the cooler (positive cools the oil)
+    hA_w_per_k: np.ndarray | float    # the cooler's effective conductance at these flows
+
+
+def cooler_values(p) -> dict:
+    """{name: SI value} of the cooler parameters (COOLER_KEYS) of a parameter set."""
+    return {k: p[f"cooler.{k}"] for k in COOLER_KEYS}
+
+
+def cooler_params(values: dict) -> CoolerParams:
+    """CoolerParams from {name: SI value} (cooler_values, or the onboard model's stored copy)."""
+    return CoolerParams(*(values[k] for k in COOLER_KEYS))
+
+
+# --- Eq 82-83 ----------------------------------------------------------------------------------------------
+
+def thermostat_fraction(T_c, T_open_c, T_full_c):
+    """Thermostat opening 0..1, linear between T_open and T_full (section 3.4)."""
+    if not T_full_c > T_open_c:
+        raise ParameterError(f"thermostat T_full_c = {T_full_c} must exceed T_open_c = {T_open_c} [degC]")
+    return np.clip((np.asarray(T_c, dtype=float) - T_open_c) / (T_full_c - T_open_c), 0.0, 1.0)
+
+
+def thermostat_temperature_c(T_oil_sump_c, Q_cooler_w, mdot_kg_s, cp_j_per_kgk):
+    """Temperature seen by the thermostat T_sump - Q / (mdot cp) [degC] (Eq 82); no flow gives T_sump."""
+    C = np.abs(np.asarray(mdot_kg_s, dtype=float)) * cp_j_per_kgk
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.asarray(T_oil_sump_c, dtype=float) - np.where(C > 0.0, np.asarray(Q_cooler_w, dtype=float) / np.where(C > 0.0, C, 1.0), 0.0)
+
+
+def cooler_heat_w(kind, hA_w_per_k, T_oil_c, T_medium_c, mdot_kg_s, cp_j_per_kgk, Q_max_cool_w, Q_max_heat_w,
+                  T_open_c, T_full_c):
+    """Heat flow from the oil to the cooler [W] (Eq 83; positive cools the oil).
+
+    * ``"none"``: 0.
+    * ``"liquid"``: Q = hA_eff (T_oil - T_medium), saturated to -Q_max_heat .. Q_max_cool (can heat the oil);
+      no thermostat (sf = 1). mdot, cp, T_open, T_full are not used.
+    * ``"air"``: Q = hA_eff (T_oil - T_air) sf(T_th), 0 <= Q <= Q_max_cool (cannot heat), with the thermostat
+      input T_th = T_oil - Q / (mdot cp) (Eq 82). The coupling is solved exactly: with dT = T_oil - T_air > 0,
+      a = hA dT, D = T_full - T_open and C = mdot cp, the right-hand side is non-increasing in Q, so the fixed
+      point is unique; on the open ramp Q = a (T_oil - T_open - Q/C)/D gives
+      ``Q_lin = a (T_oil - T_open) / (D + a/C)``, the thermostat limits it to ``clip(Q_lin, 0, a)`` and the
+      cooler saturation to ``min(., Q_max_cool)`` (at Q_max_cool the ramp still asks for more). No oil flow
+      (C = 0) gives 0.
+    hA_eff is the cooler's effective conductance (data-sheet output / temperature difference) at the
+    current inner and outer flows.
+    """
+    if kind not in COOLER_KINDS:
+        raise ParameterError(f"cooler kind = {kind!r} must be one of {COOLER_KINDS}")
+    hA = np.asarray(hA_w_per_k, dtype=float)
+    dT = np.asarray(T_oil_c, dtype=float) - np.asarray(T_medium_c, dtype=float)
+    if kind == "none":
+        return np.zeros(np.broadcast(hA, dT).shape) if np.ndim(hA) or np.ndim(dT) else 0.0
+    if kind == "liquid":
+        return np.clip(hA * dT, -np.asarray(Q_max_heat_w, dtype=float), np.asarray(Q_max_cool_w, dtype=float))  # Eq 83
+    if not np.all(np.asarray(T_full_c) > np.asarray(T_open_c)):      # arrays: a thermostat per vehicle
+        raise ParameterError(f"cooler T_full_c = {T_full_c} must exceed T_open_c = {T_open_c} [degC]")
+    a = hA * np.maximum(dT, 0.0)
+    C = np.abs(np.asarray(mdot_kg_s, dtype=float)) * cp_j_per_kgk
+    D = T_full_c - T_open_c
+    with np.errstate(divide="ignore", invalid="ignore"):
+        q_lin = a * (np.asarray(T_oil_c, dtype=float) - T_open_c) / (D + a / np.where(C > 0.0, C, 1.0))
+    q = np.minimum(np.clip(q_lin, 0.0, a), np.asarray(Q_max_cool_w, dtype=float))  # Eq 82/83
+    return np.where((C > 0.0) & (a > 0.0), q, 0.0)
+
+
+# --- the cooler at an operating point ------------------------------------------------------------------------
+
+def air_temperature_c(T_ambient_c, v_kmh):
+    """Air temperature at the air cooler: ambient plus the recirculation excess at this vehicle speed (seed 3.4)."""
+    return T_ambient_c + np.interp(np.maximum(v_kmh, 0.0), AIR_RECIRC_V_KMH, AIR_RECIRC_DT_K)
+
+
+def cooler_hA_w_per_k(c: CoolerParams, kind: str, inner_flow_ratio, omega_engine_rad_s, v_kmh, scale=1.0):
+    """The cooler's effective conductance at the current flows [W/K] (data sheet scaled by the flow ratios).
+
+    inner_flow_ratio: oil flow / reference oil flow (= layshaft speed / ref_ls_speed: the flow is linear in it);
+    liquid: outer flow linear in the engine speed; air: a fan share plus the ram air, linear in the vehicle speed up
+    to AIR_FLOW_MAX_REL x the reference (v_kmh must be a number: callers substitute their default for a missing
+    one). ``scale``: the cooler_effectiveness_scale effect."""
+    inner = inner_flow_ratio ** c.exp_inner
+    if kind == "liquid":
+        outer = (np.maximum(omega_engine_rad_s, 0.0) / c.ref_engine_speed_rad_s) ** c.exp_outer
+        return c.liquid_hA_ref_w_per_k * inner * outer * scale
+    fmin = c.air_flow_min_frac
+    rel = np.minimum(np.maximum(v_kmh, 0.0) / AIR_REF_SPEED_KMH, AIR_FLOW_MAX_REL)
+    return c.air_hA_ref_w_per_k * inner * (fmin + (1.0 - fmin) * rel) ** c.exp_outer * scale
+
+
+def oil_cooler_heat(c: CoolerParams, kind: str, T_oil_c, inner_flow_ratio, omega_engine_rad_s, T_coolant_c,
+                    T_ambient_c, v_kmh, mcp_w_per_k, scale=1.0, thermostat_offset_c=0.0) -> CoolerHeat:
+    """Heat from the sump to the cooler [W] (Eq 83, the air cooler's thermostat coupled through Eq 82) and the
+    cooler's hA, for kind none | liquid | air.
+
+    mcp_w_per_k: the oil-system flow capacity mdot cp (no flow: no heat); the liquid cooler exchanges with the
+    coolant, the air cooler with ambient air warmed by recirculation (air_temperature_c). ``scale`` and
+    ``thermostat_offset_c``: the cooler_effectiveness_scale and thermostat_offset effects."""
+    flow_capacity_w_per_k = np.where(mcp_w_per_k > 0.0, mcp_w_per_k, 0.0)
+    if kind == "none":
+        z = np.zeros(np.broadcast(T_oil_c, inner_flow_ratio, flow_capacity_w_per_k).shape)
+        return CoolerHeat(z, z)
+    hA = cooler_hA_w_per_k(c, kind, inner_flow_ratio, omega_engine_rad_s, v_kmh, scale)
+    if kind == "liquid":
+        Q = cooler_heat_w("liquid", hA, T_oil_c, T_coolant_c, flow_capacity_w_per_k, 1.0, c.liquid_Q_max_cool_w,
+                          c.liquid_Q_max_heat_w, 0.0, 1.0)
+    else:
+        Q = cooler_heat_w("air", hA, T_oil_c, air_temperature_c(T_ambient_c, v_kmh), flow_capacity_w_per_k, 1.0,
+                          c.air_Q_max_cool_w, 0.0, c.thermostat_open_c + thermostat_offset_c,
+                          c.thermostat_full_c + thermostat_offset_c)
+    return CoolerHeat(np.where(flow_capacity_w_per_k > 0.0, Q, 0.0), hA)
+
+
+def inlet_drop_k(Q_w, mcp_w_per_k):
+    """The oil-system inlet lies below the sump by the cooler's drop Q / (mdot cp) (the returning cooled oil, Eq 82),
+    clipped to +- INLET_DROP_MAX_K; 0 without flow."""
+    m = np.asarray(mcp_w_per_k, dtype=float)
+    return np.clip(np.where(m > 0.0, Q_w / np.where(m > 0.0, m, 1.0), 0.0), -INLET_DROP_MAX_K, INLET_DROP_MAX_K)
+
+
+def cooler_hA_bound_w_per_k(c: CoolerParams, kind: str, omega_ls_max_rad_s: float, omega_engine_max_rad_s: float,
+                            scale_max: float) -> float:
+    """An upper bound of the cooler's hA over the operating range (the stability proof): the highest flows, the
+    effect scale at its maximum; the air cooler's outer flow factor bounded by AIR_FLOW_MAX_REL^exp_outer."""
+    inner = (omega_ls_max_rad_s / c.ref_ls_speed_rad_s) ** c.exp_inner
+    if kind == "liquid":
+        return c.liquid_hA_ref_w_per_k * inner * (omega_engine_max_rad_s / c.ref_engine_speed_rad_s) ** c.exp_outer \
+            * scale_max
+    if kind == "air":
+        return c.air_hA_ref_w_per_k * inner * AIR_FLOW_MAX_REL ** c.exp_outer * scale_max
+    return 0.0
