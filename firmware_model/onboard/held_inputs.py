@@ -98,36 +98,39 @@ def _held_propagate(sp: SensorParams, state: SensorState, v: tuple, copy: int, t
     copy keeps a measured sump at its last reading, the twin integrates its own."""
     rp, h, e = sp.reduced, sp.helpers, sp.effects
     hold = np.array(state.hold[v], dtype=float)
-    T0 = np.array(state.T_c[v + (copy,)], dtype=float)
+    T0_c = np.array(state.T_c[v + (copy,)], dtype=float)
     speed_rpm, torque_nm = _held(hold, I_SPEED, 0.0), abs(_held(hold, I_TORQUE, 0.0))
     row = int(_held(hold, I_GEAR, 0.0)) - GEAR_MIN
-    T_amb, T_cool = _held(hold, I_AMB, float(sp.aux_default[0])), _held(hold, I_COOL, float(sp.aux_default[1]))
+    T_amb_c, T_cool_c = _held(hold, I_AMB, float(sp.aux_default[0])), _held(hold, I_COOL, float(sp.aux_default[1]))
     v_kmh, retarder_nm = _held(hold, I_VKMH, float(sp.aux_default[2])), abs(_held(hold, I_RET, 0.0))
-    omega_in = speed_rpm * RAD_S_PER_RPM
+    omega_in_rad_s = speed_rpm * RAD_S_PER_RPM
     measured = (copy == MAIN and sp.options.oil_mode == "measured" and float(np.asarray(state.age_s)[v + (I_OIL,)])
                 == 0.0 and math.isfinite(hold[I_OIL]))
-    T_oil = float(hold[I_OIL]) if measured else float(T0[rp.i_oil])
-    T0[rp.i_oil] = T_oil
-    x, prop, phi = R.oil_row(rp, T_oil, h)
-    T_bc = np.array(np.asarray(sp.T_bc_default_c, dtype=float).reshape(-1, len(BOUNDARIES))[0])
-    T_bc[rp.i_ambient], T_bc[rp.i_coolant] = T_amb, T_cool
-    retarder_w = first_value(e.retarder_frac) * retarder_nm * abs(rp.speed_coef[row, 3]) * omega_in
-    src = R.heat_sources(rp, row, omega_in, torque_nm, prop, x, first_row(e.src_scale), first_value(e.churn_scale),
-                         first_value(e.needle_scale), retarder_w, h=h)
-    G, Gs = R.conductances(rp, row, omega_in, x, prop, phi, T0, T_bc, e if sp.scalar_effects else None, h)
-    rho_cp = float(prop[R.P_RHO] * prop[R.P_CP])
-    omega_ls = abs(rp.speed_coef[row, 1]) * omega_in
-    used = np.array([speed_rpm, torque_nm, row + GEAR_MIN, T_oil, T_amb, T_cool, v_kmh, retarder_nm])
-    Q, mcp, _ = R.cooler_heat(rp, T_oil, omega_ls, omega_in, T_cool, T_amb, v_kmh, rho_cp,
-                              first_value(e.cooler_scale), first_value(e.thermostat_offset_c))
-    dT_in = float(np.clip(Q / mcp, -INLET_DROP_MAX_K, INLET_DROP_MAX_K)) if mcp > 0 else 0.0
-    slope = 0.0 if measured else cooler_slope_w_per_k(sp, T_oil, omega_in, row, used, rho_cp)
-    ls = linear_system(sp, G, src @ rp.src_matrix, (Gs * dT_in) @ h.stream_scatter, T_bc, T_oil, float(Q), measured,
-                       slope)
-    modes = decompose(ls.K_w_per_k, ls.free, sp.sqrt_C)
-    T_inf = modes.steady(ls.b_w[ls.free])
-    out = T0.copy()
-    out[ls.free] = modes.propagate(T0[ls.free], T_inf, t_s)
+    T_oil_c = float(hold[I_OIL]) if measured else float(T0_c[rp.i_oil])
+    T0_c[rp.i_oil] = T_oil_c
+    x, prop, phi = R.oil_row(rp, T_oil_c, h)
+    T_bc_c = np.array(np.asarray(sp.T_bc_default_c, dtype=float).reshape(-1, len(BOUNDARIES))[0])
+    T_bc_c[rp.i_ambient], T_bc_c[rp.i_coolant] = T_amb_c, T_cool_c
+    retarder_w = first_value(e.retarder_frac) * retarder_nm * abs(rp.speed_coef[row, 3]) * omega_in_rad_s
+    src_w = R.heat_sources(rp, row, omega_in_rad_s, torque_nm, prop, x, first_row(e.src_scale),
+                           first_value(e.churn_scale), first_value(e.needle_scale), retarder_w, h=h)
+    G_w_per_k, G_streams_w_per_k = R.conductances(rp, row, omega_in_rad_s, x, prop, phi, T0_c, T_bc_c,
+                                                  e if sp.scalar_effects else None, h)
+    rho_cp_j_per_m3k = float(prop[R.P_RHO] * prop[R.P_CP])
+    omega_ls_rad_s = abs(rp.speed_coef[row, 1]) * omega_in_rad_s
+    used = np.array([speed_rpm, torque_nm, row + GEAR_MIN, T_oil_c, T_amb_c, T_cool_c, v_kmh, retarder_nm])
+    Q_cool_w, mcp_w_per_k, _ = R.cooler_heat(rp, T_oil_c, omega_ls_rad_s, omega_in_rad_s, T_cool_c, T_amb_c, v_kmh,
+                                             rho_cp_j_per_m3k, first_value(e.cooler_scale),
+                                             first_value(e.thermostat_offset_c))
+    dT_in_k = float(np.clip(Q_cool_w / mcp_w_per_k, -INLET_DROP_MAX_K, INLET_DROP_MAX_K)) if mcp_w_per_k > 0 \
+        else 0.0
+    slope_w_per_k = 0.0 if measured else cooler_slope_w_per_k(sp, T_oil_c, omega_in_rad_s, row, used, rho_cp_j_per_m3k)
+    system = linear_system(sp, G_w_per_k, src_w @ rp.src_matrix, (G_streams_w_per_k * dT_in_k) @ h.stream_scatter,
+                           T_bc_c, T_oil_c, float(Q_cool_w), measured, slope_w_per_k)
+    modes = decompose(system.K_w_per_k, system.free, sp.sqrt_C)
+    T_inf_c = modes.steady(system.b_w[system.free])
+    out = T0_c.copy()
+    out[system.free] = modes.propagate(T0_c[system.free], T_inf_c, t_s)
     return out
 
 
@@ -137,11 +140,11 @@ def engine_off_modes(sp: SensorParams, cache: StepCache, ambient_c: float) -> He
     modes = cache.modes.get(key)
     if modes is None:
         rp, h = sp.reduced, sp.helpers
-        T_bc = np.full(len(BOUNDARIES), float(ambient_c))
+        T_bc_c = np.full(len(BOUNDARIES), float(ambient_c))
         x, prop, phi = R.oil_row(rp, ambient_c, h)
-        G, _ = R.conductances(rp, 0 - GEAR_MIN, 0.0, x, prop, phi, np.full(rp.n, ambient_c), T_bc, None, h)
-        ls = linear_system(sp, G, np.zeros(rp.n), np.zeros(rp.n), T_bc, ambient_c, 0.0, False, 0.0)
-        modes = cache.modes.put(key, decompose(ls.K_w_per_k, ls.free, sp.sqrt_C))
+        G_w_per_k, _ = R.conductances(rp, 0 - GEAR_MIN, 0.0, x, prop, phi, np.full(rp.n, ambient_c), T_bc_c, None, h)
+        system = linear_system(sp, G_w_per_k, np.zeros(rp.n), np.zeros(rp.n), T_bc_c, ambient_c, 0.0, False, 0.0)
+        modes = cache.modes.put(key, decompose(system.K_w_per_k, system.free, sp.sqrt_C))
     return modes
 
 

@@ -17,6 +17,10 @@ from firmware_model.onboard.records import (I_AMB, I_GEAR, I_OIL, I_RET, I_SPEED
 _INPUT_REASONS = ("speed_missing", "speed_clamped", "torque_missing", "torque_clamped", "gear_missing",
                   "gear_unknown", "oil_missing", "oil_implausible", "oil_frozen", "drive_frozen", "aux_missing")
 assert tuple(REJECT_INDEX[r] for r in _INPUT_REASONS) == tuple(range(len(_INPUT_REASONS)))
+_MISSING_COLUMNS = [REJECT_INDEX[r] for r in ("speed_missing", "torque_missing", "gear_missing", "oil_missing")]
+_CLAMPED_COLUMNS = [REJECT_INDEX[r] for r in ("speed_clamped", "torque_clamped")]
+_GEAR_UNKNOWN, _OIL_IMPLAUSIBLE, _OIL_FROZEN, _DRIVE_FROZEN, _AUX_MISSING = (REJECT_INDEX[r] for r in (
+    "gear_unknown", "oil_implausible", "oil_frozen", "drive_frozen", "aux_missing"))
 
 
 class InputCheck(NamedTuple):
@@ -66,11 +70,14 @@ def check_inputs(state: SensorState, raw: np.ndarray, sp: SensorParams) -> Input
     fallback[..., I_AMB:] = sp.aux_default      # auxiliary inputs are not held: a missing one takes its default
     used = np.where(ok, fixed, fallback)
     age = np.where(ok, 0.0, state.age_s + dt)
-    missing = ~finite
-    counts = np.stack([missing[..., I_SPEED], clamped[..., I_SPEED], missing[..., I_TORQUE], clamped[..., I_TORQUE],
-                       missing[..., I_GEAR], finite[..., I_GEAR] & ~gear_ok, missing[..., I_OIL],
-                       (finite[..., I_OIL] & ~oil_in_range) | jumpy, oil_frozen, drive_frozen,
-                       np.add.reduce(~ok[..., I_AMB:], axis=-1)], axis=-1).astype(np.int64)
+    counts = np.zeros(ok.shape[:-1] + (len(_INPUT_REASONS),), dtype=np.int64)
+    counts[..., _MISSING_COLUMNS] = ~finite[..., :I_AMB]          # speed, torque, gear, oil missing
+    counts[..., _CLAMPED_COLUMNS] = clamped[..., :I_GEAR]         # speed, torque clamped
+    counts[..., _GEAR_UNKNOWN] = finite[..., I_GEAR] & ~gear_ok
+    counts[..., _OIL_IMPLAUSIBLE] = (finite[..., I_OIL] & ~oil_in_range) | jumpy
+    counts[..., _OIL_FROZEN] = oil_frozen
+    counts[..., _DRIVE_FROZEN] = drive_frozen
+    counts[..., _AUX_MISSING] = np.add.reduce(~ok[..., I_AMB:], axis=-1)
     measured = oil_ok if opt.oil_mode == "measured" else np.zeros(oil_ok.shape, dtype=bool)
     drive_ok = ok[..., I_SPEED] & ok[..., I_TORQUE] & ok[..., I_GEAR]
     drive_age = np.maximum(np.maximum(age[..., I_SPEED], age[..., I_TORQUE]), age[..., I_GEAR])

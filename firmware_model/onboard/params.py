@@ -77,7 +77,8 @@ class SensorParams:
                                   options.default_vehicle_speed_kmh, 0.0]),
             cooler_scale=_per_vehicle(eff.cooler_scale), thermostat_offset_c=_per_vehicle(eff.thermostat_offset_c),
             warning_rest_c=np.asarray(limits.warning_c - limits.hysteresis_k),
-            **_input_bounds(rp, options), ttl_every=max(int(round(options.ttl_period_s / dt_s)), 1), scalar_effects=scalar_effects)
+            **_input_bounds(rp, options), ttl_every=max(int(round(options.ttl_period_s / dt_s)), 1),
+            scalar_effects=scalar_effects)
 
 
 def _input_bounds(rp: R.ReducedParams, opt: SensorOptions) -> dict:

@@ -49,6 +49,8 @@ from firmware_model.physics.kinematics import GEAR_MIN
 from firmware_model.units import RAD_S_PER_RPM
 
 _I_TIME_JUMP, _I_TIME_BACKWARD = REJECT_INDEX["time_jump"], REJECT_INDEX["time_backward"]
+#: degraded mode by [drive inputs good, oil measured]
+_MODE_OF = np.array([[MODE_HOLDING, MODE_HOLDING], [MODE_OIL_MODEL, MODE_NORMAL]], dtype=np.int8)
 
 
 class Network(NamedTuple):
@@ -86,22 +88,22 @@ def step_deferred(state: SensorState, inputs: SensorInputs, sp: SensorParams, ca
     B = state.t_last_s.shape
     raw = _raw_inputs(inputs, B)                                                 # B + (8,)
     t_now = np.broadcast_to(np.asarray(inputs.t_s, dtype=float), B)
-    time_counts = np.zeros(B + (2,), dtype=np.int64)                             # time_jump, time_backward
+    counts = np.zeros(B + (N_REJECT,), dtype=np.int64)
     if np.isfinite(t_now).any() or state.t_last_s.size == 0:
         gap = t_now - state.t_last_s
         known = np.isfinite(gap)
         backward = known & (gap < 0.5 * sp.dt_s)
         jump = known & (gap > 1.5 * sp.dt_s)
-        time_counts[..., 0] = jump
-        time_counts[..., 1] = backward
+        counts[..., _I_TIME_JUMP] = jump
+        counts[..., _I_TIME_BACKWARD] = backward
         if backward.any():
-            return _skip(state, np.concatenate([np.zeros(B + (N_REJECT - 2,), dtype=np.int64), time_counts], -1),
-                         backward, sp)
+            return _skip(state, counts, backward, sp)
         if jump.any():
             state = jump_state(state, np.where(jump, gap - sp.dt_s, 0.0), sp, cache)
     chk = check_inputs(state, raw, sp)
+    counts[..., :chk.counts.shape[-1]] = chk.counts
     net = _network_step(state, chk, raw[..., I_OIL], sp, cache)
-    return _finish(state, raw, t_now, chk, net, np.concatenate([chk.counts, time_counts], -1), sp)
+    return _finish(state, raw, t_now, chk, net, counts, sp)
 
 
 def _raw_inputs(inputs: SensorInputs, B: tuple) -> np.ndarray:
@@ -115,14 +117,14 @@ def _raw_inputs(inputs: SensorInputs, B: tuple) -> np.ndarray:
 
 
 def _conductances(sp: SensorParams, cache: StepCache, row, omega_in_rad_s, T_oil_c):
-    """(G, stream G, G of the node-node links, G of the boundary links) at the centre of the operating point's bin:
-    from the cache for one vehicle, evaluated for a batch (the same numbers)."""
+    """(G, stream G, G of the node-node links, G of the boundary links) [W/K] at the centre of the operating point's
+    bin: from the cache for one vehicle, evaluated for a batch (the same numbers)."""
     h = sp.helpers
     if row.ndim == 0 and sp.scalar_effects:
         return cache.bins.get(sp, int(row), *bin_centre(float(omega_in_rad_s), float(T_oil_c)))
     omega_q, T_q, _ = quantise(omega_in_rad_s, T_oil_c)
-    G, Gs = bin_conductances(sp, row, omega_q, T_q)
-    return G, Gs, G[..., h.int_idx], G[..., h.ext_idx]
+    G_w_per_k, G_streams_w_per_k = bin_conductances(sp, row, omega_q, T_q)
+    return G_w_per_k, G_streams_w_per_k, G_w_per_k[..., h.int_idx], G_w_per_k[..., h.ext_idx]
 
 
 def _network_step(state: SensorState, chk: InputCheck, oil_c, sp: SensorParams, cache: StepCache) -> Network:
@@ -131,53 +133,58 @@ def _network_step(state: SensorState, chk: InputCheck, oil_c, sp: SensorParams, 
     rp, h, eff = sp.reduced, sp.helpers, sp.effects
     used, measured = chk.used, chk.measured
     # ---- operating point
-    omega_in = used[..., I_SPEED] * RAD_S_PER_RPM
+    omega_in_rad_s = used[..., I_SPEED] * RAD_S_PER_RPM
     torque_nm = np.abs(used[..., I_TORQUE])
     row = used[..., I_GEAR].astype(np.int64) - GEAR_MIN
-    T = np.array(state.T_c, dtype=float)
-    T_oil_main = np.where(measured, oil_c, T[..., MAIN, rp.i_oil])
-    T[..., MAIN, rp.i_oil] = T_oil_main
-    x, prop, _ = R.oil_row(rp, T_oil_main, h)
-    T_bc = np.empty(used.shape[:-1] + sp.T_bc_default_c.shape[-1:])
-    T_bc[...] = sp.T_bc_default_c
-    T_bc[..., rp.i_ambient] = used[..., I_AMB]
-    T_bc[..., rp.i_coolant] = used[..., I_COOL]
+    T_c = np.array(state.T_c, dtype=float)
+    T_oil_main_c = np.where(measured, oil_c, T_c[..., MAIN, rp.i_oil])
+    T_c[..., MAIN, rp.i_oil] = T_oil_main_c
+    x_T, prop, _ = R.oil_row(rp, T_oil_main_c, h)
+    T_bc_c = np.empty(used.shape[:-1] + sp.T_bc_default_c.shape[-1:])
+    T_bc_c[...] = sp.T_bc_default_c
+    T_bc_c[..., rp.i_ambient] = used[..., I_AMB]
+    T_bc_c[..., rp.i_coolant] = used[..., I_COOL]
     # ---- heat (loss maps) through the heat lag (exact step average for a held input)
-    retarder_w = eff.retarder_frac * used[..., I_RET] * np.abs(rp.speed_coef[row, 3]) * omega_in
-    src = R.heat_sources(rp, row, omega_in, torque_nm, prop, x, eff.src_scale, eff.churn_scale, eff.needle_scale,
-                         retarder_w, h)
-    lag = state.lag_w + (src - state.lag_w) * sp.lag_fraction
-    q = (src - sp.lag_ratio * (lag - state.lag_w)) @ rp.src_matrix                # B + (n,)
+    retarder_w = eff.retarder_frac * used[..., I_RET] * np.abs(rp.speed_coef[row, 3]) * omega_in_rad_s
+    src_w = R.heat_sources(rp, row, omega_in_rad_s, torque_nm, prop, x_T, eff.src_scale, eff.churn_scale,
+                           eff.needle_scale, retarder_w, h)
+    lag_w = state.lag_w + (src_w - state.lag_w) * sp.lag_fraction
+    q_nodes_w = (src_w - sp.lag_ratio * (lag_w - state.lag_w)) @ rp.src_matrix        # B + (n,)
     # ---- conductances (at the centre of the operating-point bin), cooler, inlet drop of both copies
-    G, Gs, G_int, G_ext = _conductances(sp, cache, row, omega_in, T_oil_main)
-    omega_ls = np.abs(rp.speed_coef[row, 1]) * omega_in
-    rho_cp = prop[..., R.P_RHO] * prop[..., R.P_CP]
-    Q_cool, mcp, _ = R.cooler_heat(rp, T[..., :, rp.i_oil], omega_ls[..., None], omega_in[..., None],
-                                   used[..., I_COOL, None], used[..., I_AMB, None], used[..., I_VKMH, None],
-                                   rho_cp[..., None], sp.cooler_scale, sp.thermostat_offset_c)
-    dT_in = np.minimum(np.maximum(np.where(mcp > 0, Q_cool / np.where(mcp > 0, mcp, 1.0), 0.0), -INLET_DROP_MAX_K),
-                       INLET_DROP_MAX_K)
-    q2 = q[..., None, :] + (Gs[..., None, :] * dT_in[..., :, None]) @ h.stream_scatter   # B + (2, n)
-    q2[..., rp.i_oil] -= Q_cool
+    G_w_per_k, G_streams_w_per_k, G_int, G_ext = _conductances(sp, cache, row, omega_in_rad_s, T_oil_main_c)
+    omega_ls_rad_s = np.abs(rp.speed_coef[row, 1]) * omega_in_rad_s
+    rho_cp_j_per_m3k = prop[..., R.P_RHO] * prop[..., R.P_CP]
+    Q_cool_w, mcp_w_per_k, _ = R.cooler_heat(
+        rp, T_c[..., :, rp.i_oil], omega_ls_rad_s[..., None], omega_in_rad_s[..., None], used[..., I_COOL, None],
+        used[..., I_AMB, None], used[..., I_VKMH, None], rho_cp_j_per_m3k[..., None], sp.cooler_scale,
+        sp.thermostat_offset_c)
+    flow = mcp_w_per_k > 0
+    dT_in_k = np.minimum(np.maximum(np.where(flow, Q_cool_w / np.where(flow, mcp_w_per_k, 1.0), 0.0),
+                                    -INLET_DROP_MAX_K), INLET_DROP_MAX_K)
+    q_copies_w = q_nodes_w[..., None, :] + (G_streams_w_per_k[..., None, :] * dT_in_k[..., :, None]) \
+        @ h.stream_scatter                                                         # B + (2, n)
+    q_copies_w[..., rp.i_oil] -= Q_cool_w
     # ---- one explicit (forward Euler) step of both copies; copies first, (2, ..., n), so that the per-vehicle
     # conductances broadcast over one leading axis
-    batch = T.ndim > 2
-    T_new = R.explicit_step(np.moveaxis(T, -2, 0) if batch else T, np.moveaxis(q2, -2, 0) if batch else q2, G_int,
-                            G_ext, T_bc, h.ia, h.ib, h.ea, h.eb, sp.dt_over_C_s_k_per_j, h.B_int, h.B_ext)
-    T_new = np.moveaxis(T_new, 0, -2) if batch else T_new
-    T_new[..., MAIN, rp.i_oil] = np.where(measured, oil_c, T_new[..., MAIN, rp.i_oil])
-    return Network(T_new, lag, src, G, Gs, dT_in, Q_cool, T_oil_main, T_bc, row, omega_in, rho_cp)
+    batch = T_c.ndim > 2
+    T_new_c = R.explicit_step(np.moveaxis(T_c, -2, 0) if batch else T_c,
+                              np.moveaxis(q_copies_w, -2, 0) if batch else q_copies_w, G_int, G_ext, T_bc_c, h.ia,
+                              h.ib, h.ea, h.eb, sp.dt_over_C_s_k_per_j, h.B_int, h.B_ext)
+    T_new_c = np.moveaxis(T_new_c, 0, -2) if batch else T_new_c
+    T_new_c[..., MAIN, rp.i_oil] = np.where(measured, oil_c, T_new_c[..., MAIN, rp.i_oil])
+    return Network(T_new_c, lag_w, src_w, G_w_per_k, G_streams_w_per_k, dT_in_k, Q_cool_w, T_oil_main_c, T_bc_c, row,
+                   omega_in_rad_s, rho_cp_j_per_m3k)
 
 
 def _levels(state: SensorState, T_pub_c, available, ttl_now_s, sp: SensorParams):
-    """(level, pending_s) after this step. Nothing near a limit (every vehicle available, every level normal, no
-    timer running, every component below warning - hysteresis, no early warning due): the state machine rests, the
-    same result without the work."""
+    """(level, pending_s, resting) after this step. Nothing near a limit (every vehicle available, every level
+    normal, no timer running, every component below warning - hysteresis, no early warning due): the state machine
+    rests (every level normal, no timer), the result of :func:`update_levels` without the work."""
     lim = sp.limits
-    if (available.all() and not state.level.any() and not state.pending_s.any()
-            and (T_pub_c < sp.warning_rest_c).all() and (lim.lead_s <= 0 or ttl_now_s.min() > 2.0 * lim.lead_s)):
-        return np.zeros(T_pub_c.shape, dtype=np.int8), np.zeros(T_pub_c.shape)
-    return update_levels(state.level, state.pending_s, T_pub_c, available, lim, sp.dt_s, ttl_now_s)
+    if (available.all() and (T_pub_c < sp.warning_rest_c).all() and not (state.level.any() or state.pending_s.any())
+            and (lim.lead_s <= 0 or ttl_now_s.min() > 2.0 * lim.lead_s)):
+        return np.zeros(T_pub_c.shape, dtype=np.int8), np.zeros(T_pub_c.shape), True
+    return (*update_levels(state.level, state.pending_s, T_pub_c, available, lim, sp.dt_s, ttl_now_s), False)
 
 
 def _ttl_job(state: SensorState, chk: InputCheck, net: Network, sp: SensorParams) -> TtlJob | None:
@@ -198,30 +205,30 @@ def _finish(state: SensorState, raw, t_now, chk: InputCheck, net: Network, count
     """Steps 6-7 of the module doc: published temperatures, warnings, time to limit counted down, status, the new
     state and the time-to-limit job."""
     rp, lim, dt = sp.reduced, sp.limits, sp.dt_s
-    T_pub = net.T_c[..., MAIN, rp.published_index]
+    T_pub_c = net.T_c[..., MAIN, rp.published_index]
     available = chk.drive_age_s <= sp.options.hold_s
     k = state.k
     steps_since_refresh = np.where(k == 0, 0, (k - 1) % sp.ttl_every + 1)
-    ttl_now = np.maximum(state.ttl_s - (steps_since_refresh * dt)[..., None], 0.0)
-    level, pending = _levels(state, T_pub, available, ttl_now, sp)
-    at_limit = T_pub >= lim.warning_c
-    if level.any() or at_limit.any():
-        ttl_out = np.where(level == LEVEL_NA, np.nan, np.where(at_limit, 0.0, ttl_now))
+    ttl_now_s = np.maximum(state.ttl_s - (steps_since_refresh * dt)[..., None], 0.0)
+    level, pending_s, resting = _levels(state, T_pub_c, available, ttl_now_s, sp)
+    at_limit = T_pub_c >= lim.warning_c
+    if not resting and (level.any() or at_limit.any()):
+        ttl_out_s = np.where(level == LEVEL_NA, np.nan, np.where(at_limit, 0.0, ttl_now_s))
     else:
-        ttl_out = ttl_now
+        ttl_out_s = ttl_now_s
     measured, ok = chk.measured, chk.ok
     oil_ok = ok[..., I_OIL]
-    mode = np.where(~chk.drive_ok, MODE_HOLDING, np.where(measured, MODE_NORMAL, MODE_OIL_MODEL)).astype(np.int8)
-    twin_oil = net.T_c[..., TWIN, rp.i_oil]
-    innovation = np.where(oil_ok, raw[..., I_OIL] - twin_oil, np.nan)
+    mode = _MODE_OF[chk.drive_ok.astype(np.intp), measured.astype(np.intp)]
+    T_twin_oil_c = net.T_c[..., TWIN, rp.i_oil].copy()
+    oil_innovation_c = np.where(oil_ok, raw[..., I_OIL] - T_twin_oil_c, np.nan)
     frozen_bits = (chk.drive_frozen * DRIVE_FROZEN_BITS) | (chk.oil_frozen * OIL_FROZEN_BITS)
     rejects = state.rejects + counts
     status = SensorStatus(mode, ok[..., I_SPEED], ok[..., I_TORQUE], ok[..., I_GEAR], oil_ok, ok @ INPUT_BITS,
-                          twin_oil, innovation, (~measured).astype(np.int8), frozen_bits, rejects)
+                          T_twin_oil_c, oil_innovation_c, (~measured).astype(np.int8), frozen_bits, rejects)
     new_state = SensorState(net.T_c, net.lag_w, np.where(ok, chk.used, state.hold), chk.age_s, chk.same_s, raw,
-                            chk.oil_ref_c, level, pending, state.ttl_s,
+                            chk.oil_ref_c, level, pending_s, state.ttl_s,
                             np.where(np.isfinite(t_now), t_now, state.t_last_s), state.k + 1, rejects)
-    return new_state, SensorOutputs(T_pub, level, ttl_out, status), _ttl_job(state, chk, net, sp)
+    return new_state, SensorOutputs(T_pub_c, level, ttl_out_s, status), _ttl_job(state, chk, net, sp)
 
 
 def _skip(state: SensorState, counts, skip_mask, sp: SensorParams):

@@ -147,43 +147,45 @@ def _held_modes(sp: SensorParams, cache: StepCache, p: TtlPoint, G_w_per_k, meas
     bin (1 % in speed, 2 K in oil, the cooler slope at the centre in 10 W/K), cached; per-vehicle effects: the
     vehicle's own conductances, not cached."""
     rp, h = sp.reduced, sp.helpers
-    omega, key = p.omega_in_rad_s, None
+    omega_in_rad_s, key = p.omega_in_rad_s, None
     if sp.scalar_effects:
-        wb = round(math.log(omega) / LN_TTL_SPEED_BIN) if omega >= SPEED_BIN_MIN_RAD_S else None
-        T_b = round(T_op_c / TTL_OIL_BIN_C) * TTL_OIL_BIN_C
-        omega_c = math.exp(wb * LN_TTL_SPEED_BIN) if wb is not None else 0.0
-        slope = 0.0 if measured else cooler_slope_w_per_k(sp, T_b, omega_c, p.row, p.used, p.rho_cp_j_per_m3k)
+        wb = round(math.log(omega_in_rad_s) / LN_TTL_SPEED_BIN) if omega_in_rad_s >= SPEED_BIN_MIN_RAD_S else None
+        T_b_c = round(T_op_c / TTL_OIL_BIN_C) * TTL_OIL_BIN_C
+        omega_c_rad_s = math.exp(wb * LN_TTL_SPEED_BIN) if wb is not None else 0.0
+        T_lin_c, omega_lin_rad_s = T_b_c, omega_c_rad_s
     else:
-        slope = 0.0 if measured else cooler_slope_w_per_k(sp, p.T_oil_c, omega, p.row, p.used, p.rho_cp_j_per_m3k)
-    sbin = 0 if measured else int(round(slope / SLOPE_BIN_W_PER_K))
-    slope_q = sbin * SLOPE_BIN_W_PER_K
-    couple = _inlet_follows_sump(sp, p, measured, slope_q, T_op_c)
+        T_lin_c, omega_lin_rad_s = p.T_oil_c, omega_in_rad_s
+    slope_w_per_k = 0.0 if measured else cooler_slope_w_per_k(sp, T_lin_c, omega_lin_rad_s, p.row, p.used,
+                                                              p.rho_cp_j_per_m3k)
+    sbin = 0 if measured else int(round(slope_w_per_k / SLOPE_BIN_W_PER_K))
+    slope_q_w_per_k = sbin * SLOPE_BIN_W_PER_K
+    couple = _inlet_follows_sump(sp, p, measured, slope_q_w_per_k, T_op_c)
     if sp.scalar_effects:
-        key = (p.row, wb, T_b, bool(measured), sbin, couple)
+        key = (p.row, wb, T_b_c, bool(measured), sbin, couple)
         modes = cache.modes.get(key)
         if modes is not None:
-            return modes, slope_q
-        bins = cache.bins.get(sp, p.row, *_bin_centre(omega_c, T_b))
-        G_w_per_k, G_streams = bins.G_w_per_k, bins.G_streams_w_per_k
-        # the inlet-coupling column at the bin centre (oil density and heat capacity at T_b)
-        prop = R.oil_row(rp, T_b, h)[1]
-        mcp_c = _oil_flow_m3_s(sp, p.row, omega_c) * float(prop[R.P_RHO] * prop[R.P_CP])
+            return modes, slope_q_w_per_k
+        bins = cache.bins.get(sp, p.row, *_bin_centre(omega_c_rad_s, T_b_c))
+        G_w_per_k, G_streams_w_per_k = bins.G_w_per_k, bins.G_streams_w_per_k
+        # the inlet-coupling column at the bin centre (oil density and heat capacity at T_b_c)
+        prop = R.oil_row(rp, T_b_c, h)[1]
+        mcp_c_w_per_k = _oil_flow_m3_s(sp, p.row, omega_c_rad_s) * float(prop[R.P_RHO] * prop[R.P_CP])
     else:
-        G_streams = p.G_streams_w_per_k
-        mcp_c = _oil_flow_m3_s(sp, p.row, omega) * p.rho_cp_j_per_m3k
+        G_streams_w_per_k = p.G_streams_w_per_k
+        mcp_c_w_per_k = _oil_flow_m3_s(sp, p.row, omega_in_rad_s) * p.rho_cp_j_per_m3k
     K, _ = conductance_matrix(G_w_per_k, h, rp.n)
     coupling = None
     if measured:
         free = np.flatnonzero(np.arange(rp.n) != rp.i_oil)
     else:
         free = np.arange(rp.n)
-        K[rp.i_oil, rp.i_oil] += slope_q
-        if couple and mcp_c > 0.0:
+        K[rp.i_oil, rp.i_oil] += slope_q_w_per_k
+        if couple and mcp_c_w_per_k > 0.0:
             # the oil-system inlet follows the sump through the linearised cooler: inlet drop
             # (Q0 + slope (T_sump - T0)) / (mdot cp) moves sv (T_sump - T0) slope / (mdot cp) into the streams
-            coupling = ((G_streams @ h.stream_scatter) * (slope_q / mcp_c), rp.i_oil)
+            coupling = ((G_streams_w_per_k @ h.stream_scatter) * (slope_q_w_per_k / mcp_c_w_per_k), rp.i_oil)
     modes = decompose(K, free, sp.sqrt_C, coupling)
-    return (cache.modes.put(key, modes) if key is not None else modes), slope_q
+    return (cache.modes.put(key, modes) if key is not None else modes), slope_q_w_per_k
 
 
 def _solve(sp: SensorParams, cache: StepCache, p: TtlPoint, src_w, G_w_per_k, G_streams_w_per_k,
@@ -193,33 +195,34 @@ def _solve(sp: SensorParams, cache: StepCache, p: TtlPoint, src_w, G_w_per_k, G_
     boundaries, inlet drop, the measured sump) at the actual operating point."""
     rp, h = sp.reduced, sp.helpers
     measured = p.measured and sp.options.ttl_sump != "model"   # "model": the sump heats with the held load
-    modes, slope_q = _held_modes(sp, cache, p, G_w_per_k, measured, T_op_c)
-    T_oil = p.T_oil_c
+    modes, slope_q_w_per_k = _held_modes(sp, cache, p, G_w_per_k, measured, T_op_c)
+    T_oil_c = p.T_oil_c
     if modes.coupled:
         # the inlet drop is dT_in at the current sump and follows it (the coupling column): its part at the
         # current sump goes into b
-        b_in = (G_streams_w_per_k * p.dT_in_k) @ h.stream_scatter - modes.coupling_u * T_oil
+        b_in_w = (G_streams_w_per_k * p.dT_in_k) @ h.stream_scatter - modes.coupling_u * T_oil_c
     else:
         # frozen inlet drop, at the operating point's sump T_op through the linearised cooler
-        dT_in = p.dT_in_k
-        if T_op_c != T_oil and not measured:
-            mcp = p.rho_cp_j_per_m3k * _oil_flow_m3_s(sp, p.row, p.omega_in_rad_s)
-            d = (p.Q_cool_w + slope_q * (T_op_c - T_oil)) / mcp if mcp > 0.0 else 0.0
-            dT_in = min(max(d, -INLET_DROP_MAX_K), INLET_DROP_MAX_K)
-        b_in = (G_streams_w_per_k * dT_in) @ h.stream_scatter
-    b = src_w @ rp.src_matrix + b_in + np.bincount(h.ea, G_w_per_k[h.ext_idx] * p.T_bc_c[h.eb], minlength=rp.n)
+        dT_in_k = p.dT_in_k
+        if T_op_c != T_oil_c and not measured:
+            mcp_w_per_k = p.rho_cp_j_per_m3k * _oil_flow_m3_s(sp, p.row, p.omega_in_rad_s)
+            dT_lin_k = (p.Q_cool_w + slope_q_w_per_k * (T_op_c - T_oil_c)) / mcp_w_per_k if mcp_w_per_k > 0.0 \
+                else 0.0
+            dT_in_k = min(max(dT_lin_k, -INLET_DROP_MAX_K), INLET_DROP_MAX_K)
+        b_in_w = (G_streams_w_per_k * dT_in_k) @ h.stream_scatter
+    b_w = src_w @ rp.src_matrix + b_in_w + np.bincount(h.ea, G_w_per_k[h.ext_idx] * p.T_bc_c[h.eb], minlength=rp.n)
     if measured:
         # links to the (held) measured sump enter b
-        b = b + np.bincount(h.oil_other, G_w_per_k[h.int_idx][h.oil_links] * T_oil, minlength=rp.n)
+        b_w = b_w + np.bincount(h.oil_other, G_w_per_k[h.int_idx][h.oil_links] * T_oil_c, minlength=rp.n)
     else:
         # cooler linearised at the current sump: Q = Q0 + g (T - T0)
-        b[rp.i_oil] += slope_q * T_oil - p.Q_cool_w
+        b_w[rp.i_oil] += slope_q_w_per_k * T_oil_c - p.Q_cool_w
     free = modes.free
-    T_inf = modes.steady(b[free])
+    T_inf_c = modes.steady(b_w[free])
     pub_free, rows = (h.pub_free_meas, h.pub_rows_meas) if measured else (h.pub_free_all, h.pub_rows_all)
     warning_c = sp.limits.warning_c
     out = np.full(N_PUB, np.inf)
-    out[pub_free] = modes.time_to_limit(p.T_main_c[free], T_inf, rows, warning_c[pub_free])
+    out[pub_free] = modes.time_to_limit(p.T_main_c[free], T_inf_c, rows, warning_c[pub_free])
     if measured:
-        out[I_PUB_OIL] = 0.0 if T_oil >= warning_c[I_PUB_OIL] else np.inf
-    return _Solution(out, modes, T_inf)
+        out[I_PUB_OIL] = 0.0 if T_oil_c >= warning_c[I_PUB_OIL] else np.inf
+    return _Solution(out, modes, T_inf_c)
