@@ -50,7 +50,7 @@ def check_inputs(state: SensorState, raw: np.ndarray, sp: SensorParams) -> Input
     fixed[..., I_RET] = np.abs(raw[..., I_RET])
     clamped = finite & (fixed != raw)
     gear = raw[..., I_GEAR]
-    gear_ok = in_range[..., I_GEAR] & (gear == np.round(gear))
+    gear_ok = in_range[..., I_GEAR] & (gear == np.rint(gear))
     # oil: plausible range, no implausible step from a recent good value, not frozen while the twin's sump moves
     oil = raw[..., I_OIL]
     oil_in_range = in_range[..., I_OIL]

@@ -87,7 +87,8 @@ def step_deferred(state: SensorState, inputs: SensorInputs, sp: SensorParams, ca
     the work is done, not a single output bit."""
     B = state.t_last_s.shape
     raw = _raw_inputs(inputs, B)                                                 # B + (8,)
-    t_now = np.broadcast_to(np.asarray(inputs.t_s, dtype=float), B)
+    t_now = np.asarray(inputs.t_s, dtype=float)
+    t_now = t_now if t_now.shape == B else np.broadcast_to(t_now, B)
     counts = np.zeros(B + (N_REJECT,), dtype=np.int64)
     if np.isfinite(t_now).any() or state.t_last_s.size == 0:
         gap = t_now - state.t_last_s
@@ -208,7 +209,7 @@ def _finish(state: SensorState, raw, t_now, chk: InputCheck, net: Network, count
     T_pub_c = net.T_c[..., MAIN, rp.published_index]
     available = chk.drive_age_s <= sp.options.hold_s
     k = state.k
-    steps_since_refresh = np.where(k == 0, 0, (k - 1) % sp.ttl_every + 1)
+    steps_since_refresh = np.minimum(k, (k - 1) % sp.ttl_every + 1)          # 0 at k = 0
     ttl_now_s = np.maximum(state.ttl_s - (steps_since_refresh * dt)[..., None], 0.0)
     level, pending_s, resting = _levels(state, T_pub_c, available, ttl_now_s, sp)
     at_limit = T_pub_c >= lim.warning_c
