@@ -64,9 +64,9 @@ def cooler_slope_w_per_k(sp: SensorParams, T_oil_c: float, omega_in_rad_s: float
         Q, _, hA = R.cooler_heat(rp, T_oil_c, *args)
         c = rp.cooler
         return float(hA) if -c["liquid_Qmax_heat"] < float(Q) < c["liquid_Qmax_cool"] else 0.0
-    q1 = R.cooler_heat(rp, T_oil_c + 0.05, *args)[0]
-    q0 = R.cooler_heat(rp, T_oil_c - 0.05, *args)[0]
-    return max(float((q1 - q0) / 0.1), 0.0)
+    Q_hi_w, _, _ = R.cooler_heat(rp, T_oil_c + 0.05, *args)
+    Q_lo_w, _, _ = R.cooler_heat(rp, T_oil_c - 0.05, *args)
+    return max(float((Q_hi_w - Q_lo_w) / 0.1), 0.0)
 
 
 def jump_state(state: SensorState, gap_s, sp: SensorParams, cache: StepCache) -> SensorState:

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 from collections import OrderedDict
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -33,6 +34,12 @@ TTL_QUANTUM_S = 2.0 ** -7
 TTL_HORIZON_S = float(TTL_GRID_S[-1])
 #: held-input decompositions a ModeCache keeps
 MODE_CACHE_SIZE = 64
+
+
+class Coupling(NamedTuple):
+    """A node that drives others through a column: ``C dT/dt = -(K - u e_node^T) T + b``."""
+    u_w_per_k: np.ndarray      # (n,) the column u [W/K]
+    node: int                  # the driving node (the modelled sump)
 
 
 def _re(x):
@@ -126,10 +133,10 @@ def _refine_crossings(Wc, lam, f0, g, f_lo, f_hi):
     return hi
 
 
-def decompose(K: np.ndarray, free: np.ndarray, sqrt_C: np.ndarray, coupling=None) -> HeldModes:
+def decompose(K: np.ndarray, free: np.ndarray, sqrt_C: np.ndarray, coupling: Coupling | None = None) -> HeldModes:
     """Eigen-decomposition of C^-1/2 K C^-1/2 over the free nodes (``sqrt_C``: C^1/2 of every node).
 
-    ``coupling = (u, j)``: the system is ``C dT/dt = -(K - u e_j^T) T + b``, a node j (the modelled sump) that
+    ``coupling`` (u, j): the system is ``C dT/dt = -(K - u e_j^T) T + b``, a node j (the modelled sump) that
     drives the others through the column u (the oil-system inlet follows the sump through the cooler). That matrix
     is not symmetric: its modes come from a general eigen-decomposition, ``V^-1`` is kept with them, and the record
     says ``coupled`` (and keeps u). Its modes may include a complex pair: the temperatures are then the real parts of
@@ -148,10 +155,10 @@ def decompose(K: np.ndarray, free: np.ndarray, sqrt_C: np.ndarray, coupling=None
     return HeldModes(lam, V, s, free, np.exp(-np.outer(lam, TTL_GRID_S)))
 
 
-def _coupled_modes(M, s, free, coupling) -> HeldModes | None:
+def _coupled_modes(M, s, free, coupling: Coupling) -> HeldModes | None:
     """The general eigen-decomposition of the coupled system (see :func:`decompose`); None when unusable."""
-    u, j = coupling
-    jf = int(np.searchsorted(free, j))
+    u = coupling.u_w_per_k
+    jf = int(np.searchsorted(free, coupling.node))
     Mc = M.copy()
     Mc[:, jf] -= np.asarray(u, dtype=float)[free] / (s * s[jf])
     try:

@@ -6,7 +6,7 @@ Nothing in it changes after :meth:`SensorParams.build`; what the step memoises l
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
 import numpy as np
 
@@ -66,7 +66,7 @@ class SensorParams:
         scalar_effects = all(np.ndim(v) == 0 for v in (
             eff.teeth_oil_h, eff.planet_oil_h, eff.housing_air_h, eff.cooler_scale, eff.thermostat_offset_c,
             eff.hot_offset_c, eff.retarder_frac, eff.churn_scale, eff.needle_scale)) and np.ndim(eff.src_scale) <= 1
-        return cls(
+        sp = cls(
             reduced=rp, limits=limits, effects=eff, options=options, helpers=R.helpers(rp),
             lag_fraction=-math.expm1(-dt_s / tau_s) if tau_s > 0 else 1.0,
             lag_ratio=tau_s / dt_s if tau_s > 0 else 0.0,
@@ -79,6 +79,11 @@ class SensorParams:
             warning_rest_c=np.asarray(limits.warning_c - limits.hysteresis_k),
             **_input_bounds(rp, options), ttl_every=max(int(round(options.ttl_period_s / dt_s)), 1),
             scalar_effects=scalar_effects)
+        for f in fields(sp):
+            value = getattr(sp, f.name)
+            if isinstance(value, np.ndarray) and value.flags.writeable:
+                value.setflags(write=False)          # derived once; nothing writes to them
+        return sp
 
 
 def _input_bounds(rp: R.ReducedParams, opt: SensorOptions) -> dict:

@@ -20,7 +20,7 @@ from firmware_model.components import PUBLISHED
 from firmware_model.onboard import reduce as R
 from firmware_model.onboard.conductance_bins import LN_SPEED_BIN, OIL_BIN_C, SPEED_BIN_MIN_RAD_S, conductance_matrix
 from firmware_model.onboard.held_inputs import INLET_DROP_MAX_K, cooler_slope_w_per_k
-from firmware_model.onboard.held_modes import HeldModes, decompose
+from firmware_model.onboard.held_modes import Coupling, HeldModes, decompose
 from firmware_model.onboard.params import SensorParams
 from firmware_model.onboard.records import I_RET, I_TORQUE, N_PUB, SensorState
 from firmware_model.onboard.step_cache import StepCache
@@ -168,7 +168,7 @@ def _held_modes(sp: SensorParams, cache: StepCache, p: TtlPoint, G_w_per_k, meas
         bins = cache.bins.get(sp, p.row, *_bin_centre(omega_c_rad_s, T_b_c))
         G_w_per_k, G_streams_w_per_k = bins.G_w_per_k, bins.G_streams_w_per_k
         # the inlet-coupling column at the bin centre (oil density and heat capacity at T_b_c)
-        prop = R.oil_row(rp, T_b_c, h)[1]
+        _, prop, _ = R.oil_row(rp, T_b_c, h)
         mcp_c_w_per_k = _oil_flow_m3_s(sp, p.row, omega_c_rad_s) * float(prop[R.P_RHO] * prop[R.P_CP])
     else:
         G_streams_w_per_k = p.G_streams_w_per_k
@@ -183,7 +183,8 @@ def _held_modes(sp: SensorParams, cache: StepCache, p: TtlPoint, G_w_per_k, meas
         if couple and mcp_c_w_per_k > 0.0:
             # the oil-system inlet follows the sump through the linearised cooler: inlet drop
             # (Q0 + slope (T_sump - T0)) / (mdot cp) moves sv (T_sump - T0) slope / (mdot cp) into the streams
-            coupling = ((G_streams_w_per_k @ h.stream_scatter) * (slope_q_w_per_k / mcp_c_w_per_k), rp.i_oil)
+            coupling = Coupling((G_streams_w_per_k @ h.stream_scatter) * (slope_q_w_per_k / mcp_c_w_per_k),
+                                rp.i_oil)
     modes = decompose(K, free, sp.sqrt_C, coupling)
     return (cache.modes.put(key, modes) if key is not None else modes), slope_q_w_per_k
 

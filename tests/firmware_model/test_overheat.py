@@ -292,7 +292,7 @@ def test_coupled_modes_match_the_matrix_exponential():
     search quantum."""
     from scipy.linalg import expm
 
-    from firmware_model.onboard.held_modes import TTL_QUANTUM_S, decompose
+    from firmware_model.onboard.held_modes import TTL_QUANTUM_S, Coupling, decompose
     rng = np.random.default_rng(3)
     n = 8
     C, K = _random_network(rng, n, (50.0, 400.0), 10.0, 0.5, 4.0)    # node 0 (the "sump") to the boundary
@@ -300,7 +300,7 @@ def test_coupled_modes_match_the_matrix_exponential():
     u[[2, 5]] = -10.0                                     # node 0 cools nodes 2 and 5 as it warms ...
     u[0] = 20.0                                           # ... and gets that heat back
     free = np.arange(n)
-    modes = decompose(K, free, np.sqrt(C), (u, 0))
+    modes = decompose(K, free, np.sqrt(C), Coupling(u, 0))
     assert modes.coupled and np.iscomplexobj(modes.lam_per_s)
     Keff = K.copy()
     Keff[:, 0] -= u
@@ -402,14 +402,14 @@ def test_time_to_limit_couples_the_oil_inlet_to_the_warming_sump(params, monkeyp
 def test_coupled_modes_fall_back_to_the_symmetric_ones_when_unstable():
     """A coupling that would make the held system unstable (an eigenvalue without a positive real part) is dropped:
     the item is the symmetric decomposition of K, marked not coupled, so the caller freezes the inlet instead."""
-    from firmware_model.onboard.held_modes import decompose
+    from firmware_model.onboard.held_modes import Coupling, decompose
     n = 4
     C = np.array([100.0, 50.0, 80.0, 60.0])
     G = np.array([[0, 2.0, 0, 1.0], [2.0, 0, 3.0, 0], [0, 3.0, 0, 1.5], [1.0, 0, 1.5, 0]])
     K = np.diag(G.sum(axis=1)) - G
     K[0, 0] += 1.0
     u = np.array([50.0, 0.0, 0.0, 0.0])                    # the sump would feed itself: K_00 - 50 < 0
-    modes = decompose(K, np.arange(n), np.sqrt(C), (u, 0))
+    modes = decompose(K, np.arange(n), np.sqrt(C), Coupling(u, 0))
     assert not modes.coupled
     sym = decompose(K, np.arange(n), np.sqrt(C))
     assert np.array_equal(modes.lam_per_s, sym.lam_per_s) and np.array_equal(modes.V, sym.V)
