@@ -152,7 +152,7 @@ def decompose(K: np.ndarray, free: np.ndarray, sqrt_C: np.ndarray, coupling: Cou
             return modes
     lam, V = np.linalg.eigh(0.5 * (M + M.T))
     lam = np.maximum(lam, 1e-12)
-    return HeldModes(lam, V, s, free, np.exp(-np.outer(lam, TTL_GRID_S)))
+    return _read_only(HeldModes(lam, V, s, free, np.exp(-np.outer(lam, TTL_GRID_S))))
 
 
 def _coupled_modes(M, s, free, coupling: Coupling) -> HeldModes | None:
@@ -176,7 +176,15 @@ def _coupled_modes(M, s, free, coupling: Coupling) -> HeldModes | None:
         return None
     if not np.abs((V * lam) @ V_inv - Mc).max() <= 1e-9 * np.abs(Mc).max():
         return None
-    return HeldModes(lam, V, s, free, np.exp(-np.outer(lam, TTL_GRID_S)), V_inv, np.asarray(u, dtype=float))
+    return _read_only(HeldModes(lam, V, s, free, np.exp(-np.outer(lam, TTL_GRID_S)), V_inv, np.array(u, dtype=float)))
+
+
+def _read_only(modes: HeldModes) -> HeldModes:
+    """The record with its arrays read-only (it is cached and shared)."""
+    for a in (modes.lam_per_s, modes.V, modes.sqrt_C, modes.free, modes.decay_grid, modes.V_inv, modes.coupling_u):
+        if a is not None:
+            a.setflags(write=False)
+    return modes
 
 
 class ModeCache:

@@ -53,7 +53,7 @@ _I_TIME_JUMP, _I_TIME_BACKWARD = REJECT_INDEX["time_jump"], REJECT_INDEX["time_b
 _MODE_OF = np.array([[MODE_HOLDING, MODE_HOLDING], [MODE_OIL_MODEL, MODE_NORMAL]], dtype=np.int8)
 
 
-class Network(NamedTuple):
+class NetworkStep(NamedTuple):
     """The network part of a step (arrays of the batch shape B)."""
     T_c: np.ndarray                # B + (2, n): both copies after the step [degC]
     lag_w: np.ndarray              # B + (ns,): heat-lag state [W]
@@ -128,7 +128,8 @@ def _conductances(sp: SensorParams, cache: StepCache, row, omega_in_rad_s, T_oil
     return G_w_per_k, G_streams_w_per_k, G_w_per_k[..., h.int_idx], G_w_per_k[..., h.ext_idx]
 
 
-def _network_step(state: SensorState, chk: InputCheck, oil_c, sp: SensorParams, cache: StepCache) -> Network:
+def _network_step(state: SensorState, chk: InputCheck, oil_c, sp: SensorParams,
+                  cache: StepCache) -> NetworkStep:
     """Steps 2-5 of the module doc: operating point, heat through the lag, conductances, cooler and inlet drop, one
     explicit step of both copies."""
     rp, h, eff = sp.reduced, sp.helpers, sp.effects
@@ -173,8 +174,8 @@ def _network_step(state: SensorState, chk: InputCheck, oil_c, sp: SensorParams, 
                               h.ib, h.ea, h.eb, sp.dt_over_C_s_k_per_j, h.B_int, h.B_ext)
     T_new_c = np.moveaxis(T_new_c, 0, -2) if batch else T_new_c
     T_new_c[..., MAIN, rp.i_oil] = np.where(measured, oil_c, T_new_c[..., MAIN, rp.i_oil])
-    return Network(T_new_c, lag_w, src_w, G_w_per_k, G_streams_w_per_k, dT_in_k, Q_cool_w, T_oil_main_c, T_bc_c, row,
-                   omega_in_rad_s, rho_cp_j_per_m3k)
+    return NetworkStep(T_new_c, lag_w, src_w, G_w_per_k, G_streams_w_per_k, dT_in_k, Q_cool_w, T_oil_main_c, T_bc_c,
+                       row, omega_in_rad_s, rho_cp_j_per_m3k)
 
 
 def _levels(state: SensorState, T_pub_c, available, ttl_now_s, sp: SensorParams):
@@ -188,7 +189,7 @@ def _levels(state: SensorState, T_pub_c, available, ttl_now_s, sp: SensorParams)
     return (*update_levels(state.level, state.pending_s, T_pub_c, available, lim, sp.dt_s, ttl_now_s), False)
 
 
-def _ttl_job(state: SensorState, chk: InputCheck, net: Network, sp: SensorParams) -> TtlJob | None:
+def _ttl_job(state: SensorState, chk: InputCheck, net: NetworkStep, sp: SensorParams) -> TtlJob | None:
     """The time-to-limit refreshes due after this step (after the steps k = 0, every, 2 every...)."""
     due = state.k % sp.ttl_every == 0
     if not due.any():
@@ -202,7 +203,7 @@ def _ttl_job(state: SensorState, chk: InputCheck, net: Network, sp: SensorParams
     return TtlJob(vehicles, points)
 
 
-def _finish(state: SensorState, raw, t_now, chk: InputCheck, net: Network, counts, sp: SensorParams):
+def _finish(state: SensorState, raw, t_now, chk: InputCheck, net: NetworkStep, counts, sp: SensorParams):
     """Steps 6-7 of the module doc: published temperatures, warnings, time to limit counted down, status, the new
     state and the time-to-limit job."""
     rp, lim, dt = sp.reduced, sp.limits, sp.dt_s
