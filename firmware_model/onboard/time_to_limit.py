@@ -92,23 +92,24 @@ def time_to_limit(sp: SensorParams, cache: StepCache, p: TtlPoint) -> np.ndarray
     if sp.options.ttl_sump != "model" or not sp.scalar_effects:
         return sol.ttl_s
     rp, h, e = sp.reduced, sp.helpers, sp.effects
-    T_op = p.T_oil_c
+    T_op_c = p.T_oil_c
     for _ in range(TTL_RELINEARISE_STEPS):
-        cand = sol.ttl_s[h.ttl_relin_pub]
-        cand = cand[(cand > 0.0) & np.isfinite(cand)]
-        if cand.size == 0:
+        ttl_cand_s = sol.ttl_s[h.ttl_relin_pub]
+        ttl_cand_s = ttl_cand_s[(ttl_cand_s > 0.0) & np.isfinite(ttl_cand_s)]
+        if ttl_cand_s.size == 0:
             break
-        T_next = float(sol.modes.propagate(p.T_main_c[sol.modes.free], sol.T_inf_c, float(cand.min()))[rp.i_oil])
-        if abs(T_next - T_op) < TTL_RELINEARISE_TOL_K:
+        T_free_c = sol.modes.propagate(p.T_main_c[sol.modes.free], sol.T_inf_c, float(ttl_cand_s.min()))
+        T_next_c = float(T_free_c[rp.i_oil])           # every node is free with the sump modelled
+        if abs(T_next_c - T_op_c) < TTL_RELINEARISE_TOL_K:
             break
-        T_op = T_next
-        x, prop, _ = R.oil_row(rp, T_op, h)
+        T_op_c = T_next_c
+        x, prop, _ = R.oil_row(rp, T_op_c, h)
         retarder_w = float(e.retarder_frac) * float(p.used[I_RET]) * abs(float(rp.speed_coef[p.row, 3])) \
             * p.omega_in_rad_s
-        src_op = R.heat_sources(rp, p.row, p.omega_in_rad_s, abs(float(p.used[I_TORQUE])), prop, x, e.src_scale,
+        src_op_w = R.heat_sources(rp, p.row, p.omega_in_rad_s, abs(float(p.used[I_TORQUE])), prop, x, e.src_scale,
                                 e.churn_scale, e.needle_scale, retarder_w, h)
-        bins = cache.bins.get(sp, p.row, *_bin_centre(p.omega_in_rad_s, T_op))
-        sol = _solve(sp, cache, p, src_op, bins.G_w_per_k, bins.G_streams_w_per_k, T_op)
+        bins = cache.bins.get(sp, p.row, *_bin_centre(p.omega_in_rad_s, T_op_c))
+        sol = _solve(sp, cache, p, src_op_w, bins.G_w_per_k, bins.G_streams_w_per_k, T_op_c)
     return sol.ttl_s
 
 
