@@ -219,41 +219,59 @@ def section_speed(params, batch_vehicles, batch_steps, full_batch):
 
 
 def _step_pieces(sensor, inp):
-    """Where a median step's time goes: the step's own arithmetic pieces, each timed alone (best of 5 x 20000 calls,
-    wall), against the 10 us target. Uses the step's private helpers: a measurement, not an API."""
+    """Where a median step's time goes: the step's pieces (public functions of firmware_model.onboard), each timed
+    alone on one vehicle (best of 5 x 5000 calls, wall), against the 10 us target."""
     import timeit
 
     from firmware_model.onboard import reduce as R
-    from firmware_model.onboard import sensor as S
-    sp = sensor.sp
-    rp = sp.reduced
-    h = R.helpers(rp)
-    tb = S._scalar_tables(sp)
-    row = int(inp.gear) - S.GEAR_MIN
-    w = float(inp.speed_rpm) * R.RPM
-    Tq = abs(float(inp.torque_nm))
+    from firmware_model.onboard.conductance_bins import bin_centre
+    from firmware_model.onboard.input_check import check_inputs
+    from firmware_model.onboard.step import step_deferred
+    from firmware_model.onboard.warning_levels import update_levels
+    from firmware_model.physics.kinematics import GEAR_MIN
+    from firmware_model.units import RAD_S_PER_RPM
+    sp, cache = sensor.sp, sensor.cache
+    rp, h, eff = sp.reduced, sp.helpers, sp.effects
+    state = sensor.initial_state(T_oil_c=85.0)
+    state, _, _ = step_deferred(state, inp, sp, cache)
+    raw = np.array(inp[:8], dtype=float)
+    row = int(inp.gear) - GEAR_MIN
+    omega = float(inp.speed_rpm) * RAD_S_PER_RPM
+    torque = abs(float(inp.torque_nm))
     T_oil = 85.0
-    xT, pr = S._oil_props_scalar(tb, T_oil)
-    it = S._key_item(sp, row, w, T_oil, h)
-    src = np.array(S._heat_scalar(tb, row, w, Tq, pr, xT, 0.0))
-    g = dict(S=S, R=R, sp=sp, rp=rp, h=h, tb=tb, row=row, w=w, Tq=Tq, T_oil=T_oil, xT=xT, pr=pr, it=it, src=src,
-             lag0=0.9 * src, T=np.full((2, rp.n), T_oil), q2=np.zeros((2, rp.n)), a=np.ones(rp.n), b=np.ones(rp.n))
+    x, prop, _ = R.oil_row(rp, T_oil, h)
+    src = R.heat_sources(rp, row, omega, torque, prop, x, eff.src_scale, eff.churn_scale, eff.needle_scale, 0.0, h)
+    bins = cache.bins.get(sp, row, *bin_centre(omega, T_oil))
+    T_pub = state.T_c[0, rp.published_index]
+    g = dict(R=R, sp=sp, rp=rp, h=h, eff=eff, cache=cache, row=row, omega=omega, torque=torque, T_oil=T_oil, x=x,
+             prop=prop, src=src, lag0=0.9 * src, bins=bins, T=np.full((2, rp.n), T_oil), q2=np.zeros((2, rp.n)),
+             T_bc=np.array(sp.T_bc_default_c), state=state, raw=raw, inp=inp, T_pub=T_pub, a=np.ones(rp.n),
+             b=np.ones(rp.n), bin_centre=bin_centre, check_inputs=check_inputs, update_levels=update_levels,
+             step_deferred=step_deferred)
     pieces = [
-        ("oil properties (one interpolated row)", "S._oil_props_scalar(tb, T_oil)"),
-        ("loss sources (meshes, bearings, sump terms)", "S._heat_scalar(tb, row, w, Tq, pr, xT, 0.0)"),
-        ("heat lag and sources to nodes", "lag = lag0 + (src - lag0) * sp.a_lag\n"
+        ("input checks and holds", "check_inputs(state, raw, sp)"),
+        ("oil properties (one interpolated row)", "R.oil_row(rp, T_oil, h)"),
+        ("loss sources (meshes, bearings, sump terms)",
+         "R.heat_sources(rp, row, omega, torque, prop, x, eff.src_scale, eff.churn_scale, eff.needle_scale, 0.0, h)"),
+        ("heat lag and sources to nodes", "lag = lag0 + (src - lag0) * sp.lag_fraction\n"
                                           "q = (src - sp.lag_ratio * (lag - lag0)) @ rp.src_matrix"),
-        ("conductance bin lookup (cache hit)", "S._key_item(sp, row, w, T_oil, h)"),
-        ("network update, both copies (T M + c)", "T @ it.M + (it.c_dt + sp.dt_inv_C * q2)"),
+        ("conductance bin lookup (cache hit)", "cache.bins.get(sp, row, *bin_centre(omega, T_oil))"),
+        ("network update, both copies (explicit_step)",
+         "R.explicit_step(T, q2, bins.G_int_w_per_k, bins.G_ext_w_per_k, T_bc, h.ia, h.ib, h.ea, h.eb, "
+         "sp.dt_over_C_s_k_per_j, h.B_int, h.B_ext)"),
+        ("warning levels (state machine)",
+         "update_levels(state.level, state.pending_s, T_pub, True, sp.limits, sp.dt_s, state.ttl_s)"),
     ]
     us = {}
     for label, stmt in pieces:
-        us[label] = min(timeit.repeat(stmt, number=20000, repeat=5, globals=g)) / 20000 * 1e6
+        us[label] = min(timeit.repeat(stmt, number=5000, repeat=5, globals=g)) / 5000 * 1e6
+    whole = min(timeit.repeat("step_deferred(state, inp, sp, cache)", number=2000, repeat=5, globals=g)) / 2000 * 1e6
     one = min(timeit.repeat("a + b", number=50000, repeat=5, globals=g)) / 50000 * 1e6
-    print("  where a median step's time goes, the step's own arithmetic timed alone (wall, best of 5):")
+    print("  where a median step's time goes, the step's pieces timed alone (wall, best of 5):")
     for label, v in us.items():
         print(f"    {label:<46}{v:6.2f} us")
-    print(f"    {'sum of the arithmetic alone':<46}{sum(us.values()):6.2f} us (target for the whole step 10 us)")
+    print(f"    {'sum of the pieces':<46}{sum(us.values()):6.2f} us; the whole step without its time to limit "
+          f"{whole:.2f} us (target 10 us)")
     print(f"    one numpy call on a {rp.n}-vector costs {one:.2f} us: the 10 us budget is ~{10 / one:.0f} numpy calls "
           f"for everything, before input checks, warnings, outputs and state")
 

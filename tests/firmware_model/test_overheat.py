@@ -1,4 +1,5 @@
-"""Warning limits, the two-level warning state machine (hysteresis, debounce) and time to limit."""
+"""Warning limits, the two-level warning state machine (hysteresis, debounce) and time to limit
+(firmware_model.onboard.warning_levels, held_modes, time_to_limit)."""
 import math
 
 import numpy as np
@@ -6,7 +7,7 @@ import pytest
 
 from firmware_model.components import GROUP, PUBLISHED
 from firmware_model.errors import ParameterError
-from firmware_model.onboard.overheat import LIMITS_PATH, load_limits, update_levels
+from firmware_model.onboard.warning_levels import LIMITS_PATH, load_limits, update_levels
 from firmware_model.parameters import load_parameters
 from firmware_model.onboard.sensor import SensorInputs, VirtualSensor
 
@@ -236,36 +237,35 @@ def _random_network(rng, n, C_range, G_max, p_link, G_boundary):
 
 
 def test_first_crossing_search_is_exact_on_a_random_network():
-    """HeldInputSolver.time_to_limit against a brute-force search of the modal solution: every first crossing to
+    """HeldModes.time_to_limit against a brute-force search of the modal solution: every first crossing to
     the search quantum (7.8 ms), a node starting above its limit, limits never reached."""
-    from firmware_model.onboard.overheat import TTL_QUANTUM_S, HeldInputSolver
+    from firmware_model.onboard.held_modes import TTL_QUANTUM_S, decompose
     rng = np.random.default_rng(7)
     n = 12
     C, K = _random_network(rng, n, (20.0, 500.0), 20.0, 0.4, 3.0)
-    solver = HeldInputSolver(n, C)
     free = np.arange(n)
-    item = solver.modes(None, K, free)
+    modes = decompose(K, free, np.sqrt(C))
     b = np.zeros(n)
     b[5] = 400.0                                          # heat into node 5
-    T_inf = HeldInputSolver.steady(item, b)
+    T_inf = modes.steady(b)
     assert np.allclose(K @ T_inf, b)
     T0 = rng.uniform(20.0, 40.0, n)
     T0[5] = 10.0
     T0[6] = T_inf[6] + 30.0                               # starts hot: cools below, then the limit is below
     rows = np.arange(n)
     limit = T_inf - rng.uniform(-3.0, 8.0, n)             # some above the steady state (never), some below
-    got = HeldInputSolver.time_to_limit(item, T0, T_inf, rows, limit)
+    got = modes.time_to_limit(T0, T_inf, rows, limit)
     assert np.isfinite(got).sum() >= 4 and np.isinf(got).sum() >= 2 and (got == 0).sum() >= 1
 
     def temp(i, t):
-        return HeldInputSolver.propagate(item, T0, T_inf, t)[i]
+        return modes.propagate(T0, T_inf, t)[i]
 
     for i in range(n):
         if T0[i] >= limit[i]:
             assert got[i] == 0.0
             continue
         t_grid = np.concatenate([np.linspace(0.0, 50.0, 5001)[1:], np.geomspace(50.0, 2.0e6, 20000)[1:]])
-        T_grid = np.array([HeldInputSolver.propagate(item, T0, T_inf, t)[i] for t in t_grid[::50]])
+        T_grid = np.array([modes.propagate(T0, T_inf, t)[i] for t in t_grid[::50]])
         # a dense scan (every 50th point first, then the bracket) for the first crossing
         above = np.flatnonzero(T_grid >= limit[i])
         if above.size == 0 and temp(i, 2.0e6) < limit[i]:
@@ -282,17 +282,17 @@ def test_first_crossing_search_is_exact_on_a_random_network():
         # the first multiple of the search quantum at or after the crossing
         assert hi - 1e-9 <= got[i] <= hi + TTL_QUANTUM_S + 1e-9, (i, got[i], hi)
     # the result rests on comparisons, not on the last bits of exp(): inputs 1 ulp apart give the same times
-    again = HeldInputSolver.time_to_limit(item, np.nextafter(T0, np.inf), np.nextafter(T_inf, -np.inf), rows, limit)
+    again = modes.time_to_limit(np.nextafter(T0, np.inf), np.nextafter(T_inf, -np.inf), rows, limit)
     assert np.array_equal(again, got)
 
 
 def test_coupled_modes_match_the_matrix_exponential():
-    """HeldInputSolver with a coupling column (a node that drives others, K - u e_j^T: not symmetric, here with a
+    """Held-input modes with a coupling column (a node that drives others, K - u e_j^T: not symmetric, here with a
     complex mode pair) against scipy's matrix exponential: steady state, propagation, and first crossings to the
     search quantum."""
     from scipy.linalg import expm
 
-    from firmware_model.onboard.overheat import TTL_QUANTUM_S, HeldInputSolver
+    from firmware_model.onboard.held_modes import TTL_QUANTUM_S, Coupling, decompose
     rng = np.random.default_rng(3)
     n = 8
     C, K = _random_network(rng, n, (50.0, 400.0), 10.0, 0.5, 4.0)    # node 0 (the "sump") to the boundary
@@ -300,22 +300,22 @@ def test_coupled_modes_match_the_matrix_exponential():
     u[[2, 5]] = -10.0                                     # node 0 cools nodes 2 and 5 as it warms ...
     u[0] = 20.0                                           # ... and gets that heat back
     free = np.arange(n)
-    item = HeldInputSolver(n, C).modes(None, K, free, (u, 0))
-    assert HeldInputSolver.coupled(item) and np.iscomplexobj(item[0])
+    modes = decompose(K, free, np.sqrt(C), Coupling(u, 0))
+    assert modes.coupled and np.iscomplexobj(modes.lam_per_s)
     Keff = K.copy()
     Keff[:, 0] -= u
     b = np.zeros(n)
     b[4] = 300.0
-    T_inf = HeldInputSolver.steady(item, b)
+    T_inf = modes.steady(b)
     assert np.allclose(Keff @ T_inf, b)
     T0 = T_inf - rng.uniform(5.0, 20.0, n)                # every node warms toward its steady state
     A = -Keff / C[:, None]
     for t in (1.0, 30.0, 300.0, 3000.0):
         want = T_inf + expm(A * t) @ (T0 - T_inf)
-        assert np.allclose(HeldInputSolver.propagate(item, T0, T_inf, t), want, atol=1e-9)
+        assert np.allclose(modes.propagate(T0, T_inf, t), want, atol=1e-9)
     rows = np.arange(n)
     limit = T0 + (T_inf - T0) * rng.uniform(0.3, 1.2, n)  # some reached, some beyond the steady state
-    got = HeldInputSolver.time_to_limit(item, T0, T_inf, rows, limit)
+    got = modes.time_to_limit(T0, T_inf, rows, limit)
     t_grid = np.linspace(0.0, 20000.0, 200001)[1:]
     traj = np.array([T_inf + expm(A * t) @ (T0 - T_inf) for t in t_grid[::100]])    # every 10 s
     for i in range(n):
@@ -337,7 +337,7 @@ def test_time_to_limit_follows_the_cooler_outlet_as_the_sump_warms(params, monke
     planetary above the sump temperature. As the sump warms that excess shrinks and the sun wheel settles below its
     limit. The prediction, re-linearised at the sump temperature it predicts, says "never", as the sensor's own step
     with the inputs held shows; frozen at the current inlet (no re-linearisation) it predicted a crossing."""
-    import firmware_model.onboard.sensor as S
+    import firmware_model.onboard.time_to_limit as S
     inp = SensorInputs(1150.0, 1000.0, 8, 88.0, 20.0, 100.0, 20.0, 0.0)
 
     def predict_then_hold(relinearise):
@@ -368,7 +368,7 @@ def test_time_to_limit_couples_the_oil_inlet_to_the_warming_sump(params, monkeyp
     step with the inputs held (sump modelled): at 2120 Nm the sun wheel peaks just under its limit and the prediction
     says never; at 2180 Nm it crosses and the prediction is within 15 %. With the inlet frozen at each
     re-linearisation instead (the coupling off) the first predicted a crossing and the second was >40 % late."""
-    import firmware_model.onboard.sensor as S
+    import firmware_model.onboard.time_to_limit as S
     inp = SensorInputs(1178.0, torque_nm, 8, 89.5, 25.0, 92.8, 19.3, 0.0)
     i = I["PS"]
 
@@ -402,16 +402,15 @@ def test_time_to_limit_couples_the_oil_inlet_to_the_warming_sump(params, monkeyp
 def test_coupled_modes_fall_back_to_the_symmetric_ones_when_unstable():
     """A coupling that would make the held system unstable (an eigenvalue without a positive real part) is dropped:
     the item is the symmetric decomposition of K, marked not coupled, so the caller freezes the inlet instead."""
-    from firmware_model.onboard.overheat import HeldInputSolver
+    from firmware_model.onboard.held_modes import Coupling, decompose
     n = 4
     C = np.array([100.0, 50.0, 80.0, 60.0])
     G = np.array([[0, 2.0, 0, 1.0], [2.0, 0, 3.0, 0], [0, 3.0, 0, 1.5], [1.0, 0, 1.5, 0]])
     K = np.diag(G.sum(axis=1)) - G
     K[0, 0] += 1.0
     u = np.array([50.0, 0.0, 0.0, 0.0])                    # the sump would feed itself: K_00 - 50 < 0
-    solver = HeldInputSolver(n, C)
-    item = solver.modes(None, K, np.arange(n), (u, 0))
-    assert not HeldInputSolver.coupled(item)
-    sym = solver.modes(None, K, np.arange(n))
-    assert np.array_equal(item[0], sym[0]) and np.array_equal(item[1], sym[1])
-    assert np.all(item[0] > 0)
+    modes = decompose(K, np.arange(n), np.sqrt(C), Coupling(u, 0))
+    assert not modes.coupled
+    sym = decompose(K, np.arange(n), np.sqrt(C))
+    assert np.array_equal(modes.lam_per_s, sym.lam_per_s) and np.array_equal(modes.V, sym.V)
+    assert np.all(modes.lam_per_s > 0)

@@ -5,12 +5,14 @@ import math
 import numpy as np
 import pytest
 
-from firmware_model.components import PUBLISHED
+from firmware_model.components import MODE_HOLDING, MODE_NORMAL, MODE_OIL_MODEL, PUBLISHED
 from firmware_model.errors import InputError, ParameterError
 from firmware_model.parameters import load_parameters
-from firmware_model.onboard.sensor import (MODE_HOLDING, MODE_NORMAL, MODE_OIL_MODEL, REJECT_REASONS, SensorInputs,
-                                   VirtualSensor, cool_down, slowest_time_constant_s, step_scalar, step_vector,
-                                   refresh_ttl)
+from firmware_model.onboard.held_inputs import slowest_time_constant_s
+from firmware_model.onboard.sensor import REJECT_REASONS, SensorInputs, VirtualSensor
+from firmware_model.onboard.step import step_deferred
+from firmware_model.onboard.step_cache import StepCache
+from firmware_model.onboard.time_to_limit import refresh_ttl
 from tools.runtable import RunTable
 
 RJ = {k: i for i, k in enumerate(REJECT_REASONS)}
@@ -121,8 +123,12 @@ def test_batch_equals_single(params):
     np.testing.assert_array_equal(batch.rejects[1], states[1].rejects)
 
 
-def test_scalar_and_vector_paths_agree_on_bad_input(sensor):
-    a = b = sensor.initial_state(T_oil_c=70.0)
+def test_one_vehicle_and_a_batch_of_one_agree_bit_for_bit_on_bad_input(sensor):
+    # one step for both: one vehicle (shape (), conductances from the step cache) and a batch of one (shape (1,),
+    # conductances evaluated), each with its own cache
+    a = sensor.initial_state(T_oil_c=70.0)
+    b = sensor.initial_state(T_oil_c=np.array([70.0]), n_vehicles=1)
+    cache_a, cache_b = StepCache(), StepCache()
     rng = np.random.default_rng(9)
     for k in range(800):
         vals = [1300 + 200 * rng.standard_normal(), 2000 + 900 * rng.standard_normal(), 9.0, 70 + k * 0.01, 25.0,
@@ -130,14 +136,13 @@ def test_scalar_and_vector_paths_agree_on_bad_input(sensor):
         j = k % 11
         if j < 8 and k % 3 == 0:
             vals[j] = [np.nan, np.inf, -np.inf, 1e9, -5.0, 7.5, 300.0][k % 7]
-        inp = SensorInputs(*vals)
-        a, oa, ja = step_scalar(a, inp, sensor.sp)
-        b, ob, jb = step_vector(b, inp, sensor.sp)
-        a, b = refresh_ttl(a, ja), refresh_ttl(b, jb)
-        np.testing.assert_allclose(oa.T_c, ob.T_c, atol=1e-9)
-        np.testing.assert_array_equal(oa.level, ob.level)
-        np.testing.assert_allclose(oa.ttl_s, ob.ttl_s, rtol=1e-6)
-    np.testing.assert_array_equal(a.rejects, b.rejects)
+        a, oa, ja = step_deferred(a, SensorInputs(*vals), sensor.sp, cache_a)
+        b, ob, jb = step_deferred(b, SensorInputs(*(np.array([v]) for v in vals)), sensor.sp, cache_b)
+        a, b = refresh_ttl(a, ja, sensor.sp, cache_a), refresh_ttl(b, jb, sensor.sp, cache_b)
+        for x, y in zip(oa[:3], ob[:3]):
+            np.testing.assert_array_equal(x, y[0])
+    np.testing.assert_array_equal(a.rejects, b.rejects[0])
+    np.testing.assert_array_equal(a.T_c, b.T_c[0])
 
 
 def test_deferred_time_to_limit_gives_the_same_outputs_bit_for_bit(sensor):
@@ -200,11 +205,11 @@ def test_snapshot_cools_toward_ambient_with_the_slowest_mode_last(sensor):
     week = sensor.initial_state(snapshot=st, elapsed_s=7 * 86400.0, ambient_c=20.0)
     assert np.all(one_h.T_c[0] < hot.max()) and np.all(one_h.T_c[0] > 20.0)
     np.testing.assert_allclose(week.T_c, 20.0, atol=0.05)
-    tau = slowest_time_constant_s(sensor.sp, 20.0)
+    tau = slowest_time_constant_s(sensor.sp, sensor.cache, 20.0)
     assert 1800.0 < tau < 24 * 3600.0      # no natural convection in the seed's model: the slowest mode is slow
     # long after: the excess decays with the slowest mode (where that mode dominates)
-    T1 = cool_down(sensor.sp, hot, 5 * tau, 20.0) - 20.0
-    T2 = cool_down(sensor.sp, hot, 6 * tau, 20.0) - 20.0
+    T1 = sensor.cool_down(hot, 5 * tau, 20.0) - 20.0
+    T2 = sensor.cool_down(hot, 6 * tau, 20.0) - 20.0
     big = T1 > 0.2 * T1.max()
     np.testing.assert_allclose(T2[big], T1[big] * math.exp(-1.0), rtol=0.02)
 

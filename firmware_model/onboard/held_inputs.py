@@ -1,0 +1,166 @@
+"""The onboard network with its inputs held: the linear system, and what the sensor does with it besides the time to
+limit (firmware_model.onboard.time_to_limit): propagate the state over a forward time jump (held inputs, then engine
+off) and cool a snapshot down on restart (engine off), both with the exact modal solution
+(firmware_model.onboard.held_modes).
+"""
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+
+from firmware_model.network import BOUNDARIES
+from firmware_model.onboard import reduce as R
+from firmware_model.onboard.conductance_bins import conductance_matrix
+from firmware_model.onboard.held_modes import HeldModes, decompose
+from firmware_model.onboard.params import SensorParams, first_row, first_value
+from firmware_model.onboard.records import (I_AMB, I_COOL, I_GEAR, I_OIL, I_RET, I_SPEED, I_TORQUE, I_VKMH, MAIN,
+                                            TWIN, SensorState)
+from firmware_model.onboard.step_cache import StepCache
+from firmware_model.physics.kinematics import GEAR_MIN
+from firmware_model.units import RAD_S_PER_RPM
+
+#: the step clips the oil-system inlet drop (sump minus cooler outlet) to +- this [K]
+INLET_DROP_MAX_K = 30.0
+
+
+class LinearSystem(NamedTuple):
+    """``C dT/dt = -K T + b`` over the ``free`` nodes (the others held)."""
+    K_w_per_k: np.ndarray      # (n, n)
+    b_w: np.ndarray            # (n,)
+    free: np.ndarray           # indices of the free nodes
+
+
+def linear_system(sp: SensorParams, G_w_per_k, q_nodes_w, xfer_nodes_w, T_bc_c, T_oil_c, Q_cool_w, measured: bool,
+                  cooler_slope_w_per_k) -> LinearSystem:
+    """The main network with everything held: a measured sump is held (its links enter b), a modelled one is free
+    with the cooler linearised at the current sump (Q = Q0 + slope (T - T0))."""
+    rp, h = sp.reduced, sp.helpers
+    n = rp.n
+    K, G_ext = conductance_matrix(G_w_per_k, h, n)
+    b = q_nodes_w + xfer_nodes_w + np.bincount(h.ea, G_ext * T_bc_c[h.eb], minlength=n)
+    if measured:
+        free = np.flatnonzero(np.arange(n) != rp.i_oil)
+        b = b - K[:, rp.i_oil] * T_oil_c
+    else:
+        free = np.arange(n)
+        K[rp.i_oil, rp.i_oil] += cooler_slope_w_per_k
+        b[rp.i_oil] += cooler_slope_w_per_k * T_oil_c - Q_cool_w
+    return LinearSystem(K, b, free)
+
+
+def cooler_slope_w_per_k(sp: SensorParams, T_oil_c: float, omega_in_rad_s: float, row: int, used,
+                         rho_cp_j_per_m3k: float) -> float:
+    """dQ_cooler/dT_oil [W/K] at this operating point (liquid: its hA unless saturated; air: a finite difference),
+    from firmware_model.onboard.reduce.cooler_heat; ``used``: the step's inputs (INPUT_FIELDS order)."""
+    rp = sp.reduced
+    omega_ls = abs(rp.speed_coef[row, 1]) * omega_in_rad_s
+    if rp.cooler_code == R.COOLER_CODES["none"] or omega_ls <= 0.0:
+        return 0.0
+    args = (omega_ls, omega_in_rad_s, used[I_COOL], used[I_AMB], used[I_VKMH], rho_cp_j_per_m3k,
+            first_value(sp.effects.cooler_scale), first_value(sp.effects.thermostat_offset_c))
+    if rp.cooler_code == R.COOLER_CODES["liquid"]:
+        Q, _, hA = R.cooler_heat(rp, T_oil_c, *args)
+        c = rp.cooler
+        return float(hA) if -c["liquid_Qmax_heat"] < float(Q) < c["liquid_Qmax_cool"] else 0.0
+    Q_hi_w, _, _ = R.cooler_heat(rp, T_oil_c + 0.05, *args)
+    Q_lo_w, _, _ = R.cooler_heat(rp, T_oil_c - 0.05, *args)
+    return max(float((Q_hi_w - Q_lo_w) / 0.1), 0.0)
+
+
+def jump_state(state: SensorState, gap_s, sp: SensorParams, cache: StepCache) -> SensorState:
+    """Propagate over a forward time jump of ``gap_s`` (per vehicle; <= 0: none): held inputs for up to
+    time_jump_hold_s, then engine off."""
+    B = state.t_last_s.shape
+    T = np.array(state.T_c, dtype=float, copy=True)
+    for v in (np.ndindex(B) if B else [()]):
+        g = float(np.asarray(gap_s)[v])
+        if g <= 0:
+            continue
+        held = min(g, sp.options.time_jump_hold_s)
+        for c in (MAIN, TWIN):
+            T[v + (c,)] = _held_propagate(sp, state, v, c, held)
+        if g > held:
+            amb = float(state.hold[v + (I_AMB,)])
+            amb = amb if math.isfinite(amb) else float(sp.reduced.bc_default_c[sp.reduced.i_ambient])
+            for c in (MAIN, TWIN):
+                T[v + (c,)] = cool_down(sp, cache, T[v + (c,)], g - held, amb)
+    return state._replace(T_c=T)
+
+
+def _held(hold, i: int, default: float) -> float:
+    return float(hold[i]) if math.isfinite(hold[i]) else default
+
+
+def _held_propagate(sp: SensorParams, state: SensorState, v: tuple, copy: int, t_s: float):
+    """Temperatures of one copy after t_s seconds with the last good inputs held (exact modal solution): the main
+    copy keeps a measured sump at its last reading, the twin integrates its own."""
+    rp, h, e = sp.reduced, sp.helpers, sp.effects
+    hold = np.array(state.hold[v], dtype=float)
+    T0_c = np.array(state.T_c[v + (copy,)], dtype=float)
+    speed_rpm, torque_nm = _held(hold, I_SPEED, 0.0), abs(_held(hold, I_TORQUE, 0.0))
+    row = int(_held(hold, I_GEAR, 0.0)) - GEAR_MIN
+    T_amb_c, T_cool_c = _held(hold, I_AMB, float(sp.aux_default[0])), _held(hold, I_COOL, float(sp.aux_default[1]))
+    v_kmh, retarder_nm = _held(hold, I_VKMH, float(sp.aux_default[2])), abs(_held(hold, I_RET, 0.0))
+    omega_in_rad_s = speed_rpm * RAD_S_PER_RPM
+    measured = (copy == MAIN and sp.options.oil_mode == "measured" and float(np.asarray(state.age_s)[v + (I_OIL,)])
+                == 0.0 and math.isfinite(hold[I_OIL]))
+    T_oil_c = float(hold[I_OIL]) if measured else float(T0_c[rp.i_oil])
+    T0_c[rp.i_oil] = T_oil_c
+    x, prop, phi = R.oil_row(rp, T_oil_c, h)
+    T_bc_c = np.array(np.asarray(sp.T_bc_default_c, dtype=float).reshape(-1, len(BOUNDARIES))[0])
+    T_bc_c[rp.i_ambient], T_bc_c[rp.i_coolant] = T_amb_c, T_cool_c
+    retarder_w = first_value(e.retarder_frac) * retarder_nm * abs(rp.speed_coef[row, 3]) * omega_in_rad_s
+    src_w = R.heat_sources(rp, row, omega_in_rad_s, torque_nm, prop, x, first_row(e.src_scale),
+                           first_value(e.churn_scale), first_value(e.needle_scale), retarder_w, h=h)
+    G_w_per_k, G_streams_w_per_k = R.conductances(rp, row, omega_in_rad_s, x, prop, phi, T0_c, T_bc_c,
+                                                  e if sp.scalar_effects else None, h)
+    rho_cp_j_per_m3k = float(prop[R.P_RHO] * prop[R.P_CP])
+    omega_ls_rad_s = abs(rp.speed_coef[row, 1]) * omega_in_rad_s
+    used = np.array([speed_rpm, torque_nm, row + GEAR_MIN, T_oil_c, T_amb_c, T_cool_c, v_kmh, retarder_nm])
+    Q_cool_w, mcp_w_per_k, _ = R.cooler_heat(rp, T_oil_c, omega_ls_rad_s, omega_in_rad_s, T_cool_c, T_amb_c, v_kmh,
+                                             rho_cp_j_per_m3k, first_value(e.cooler_scale),
+                                             first_value(e.thermostat_offset_c))
+    dT_in_k = float(np.clip(Q_cool_w / mcp_w_per_k, -INLET_DROP_MAX_K, INLET_DROP_MAX_K)) if mcp_w_per_k > 0 \
+        else 0.0
+    slope_w_per_k = 0.0 if measured else cooler_slope_w_per_k(sp, T_oil_c, omega_in_rad_s, row, used, rho_cp_j_per_m3k)
+    system = linear_system(sp, G_w_per_k, src_w @ rp.src_matrix, (G_streams_w_per_k * dT_in_k) @ h.stream_scatter,
+                           T_bc_c, T_oil_c, float(Q_cool_w), measured, slope_w_per_k)
+    modes = decompose(system.K_w_per_k, system.free, sp.sqrt_C)
+    T_inf_c = modes.steady(system.b_w[system.free])
+    out = T0_c.copy()
+    out[system.free] = modes.propagate(T0_c[system.free], T_inf_c, t_s)
+    return out
+
+
+def engine_off_modes(sp: SensorParams, cache: StepCache, ambient_c: float) -> HeldModes:
+    """Modes of the engine-off network (no heat, no flow, no cooler, every boundary at ambient), cached per 0.1 K."""
+    key = ("off", round(ambient_c, 1))
+    modes = cache.modes.get(key)
+    if modes is None:
+        rp, h = sp.reduced, sp.helpers
+        T_bc_c = np.full(len(BOUNDARIES), float(ambient_c))
+        x, prop, phi = R.oil_row(rp, ambient_c, h)
+        G_w_per_k, _ = R.conductances(rp, 0 - GEAR_MIN, 0.0, x, prop, phi, np.full(rp.n, ambient_c), T_bc_c, None, h)
+        system = linear_system(sp, G_w_per_k, np.zeros(rp.n), np.zeros(rp.n), T_bc_c, ambient_c, 0.0, False, 0.0)
+        modes = cache.modes.put(key, decompose(system.K_w_per_k, system.free, sp.sqrt_C))
+    return modes
+
+
+def cool_down(sp: SensorParams, cache: StepCache, T0_c, elapsed_s: float, ambient_c: float):
+    """Node temperatures after ``elapsed_s`` with the engine off: no heat, no flow, no cooler, every boundary at
+    ambient (the engine bay cools too). Exact for the linear engine-off network (every mode, the slowest last)."""
+    T0 = np.asarray(T0_c, dtype=float)
+    if elapsed_s <= 0:
+        return T0.copy()
+    modes = engine_off_modes(sp, cache, ambient_c)
+    free = modes.free
+    out = T0.copy()
+    out[free] = modes.propagate(T0[free], np.full(len(free), float(ambient_c)), float(elapsed_s))
+    return out
+
+
+def slowest_time_constant_s(sp: SensorParams, cache: StepCache, ambient_c: float = 25.0) -> float:
+    """Time constant of the slowest engine-off mode [s] (how fast a parked gearbox forgets)."""
+    return float(1.0 / engine_off_modes(sp, cache, ambient_c).lam_per_s.min())

@@ -1,0 +1,230 @@
+"""Time to limit: how long until each published component reaches its warning limit if the current inputs are held.
+
+Every ``ttl_period_s`` the step leaves a :class:`TtlJob` (one :class:`TtlPoint` per vehicle due: the state after
+the step and the operating point it used); :func:`refresh_ttl` solves it after the step's outputs are out. The
+held-input network is linear (firmware_model.onboard.held_inputs); its modes are cached per quantised operating
+point (1 % in speed, 2 K in oil, the cooler slope in 10 W/K bins) in the step cache, the steady state and modal
+coefficients come from the actual heat, boundaries and inlet drop, and the first crossing of each limit from
+:meth:`firmware_model.onboard.held_modes.HeldModes.time_to_limit`. With the sump modelled the sump warms or cools
+under the held load, and the losses and the oil-side conductances move with it: the system is re-linearised at the
+sump temperature the previous solution predicts at the earliest crossing (docs/sensor.md).
+"""
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+
+from firmware_model.components import PUBLISHED
+from firmware_model.onboard import reduce as R
+from firmware_model.onboard.conductance_bins import LN_SPEED_BIN, OIL_BIN_C, SPEED_BIN_MIN_RAD_S, conductance_matrix
+from firmware_model.onboard.held_inputs import INLET_DROP_MAX_K, cooler_slope_w_per_k
+from firmware_model.onboard.held_modes import Coupling, HeldModes, decompose
+from firmware_model.onboard.params import SensorParams
+from firmware_model.onboard.records import I_RET, I_TORQUE, N_PUB, SensorState
+from firmware_model.onboard.step_cache import StepCache
+
+#: bin of the cooler slope dQ/dT_oil in the cached held-input modes (model-oil mode) [W/K]
+SLOPE_BIN_W_PER_K = 10.0
+#: operating-point bins of the cached held-input modes: 1 % in speed (4 % made the coupled inlet ~4 % slow on the
+#: uphill cycle: the coupling column scales with speed), 2 K in oil temperature
+TTL_SPEED_BIN_REL = 0.01
+TTL_OIL_BIN_C = 2.0
+LN_TTL_SPEED_BIN = math.log1p(TTL_SPEED_BIN_REL)
+#: with the sump modelled: re-linearise the held-input system this many times at the sump temperature the last
+#: solution predicts at the earliest crossing (the losses and oil-side conductances follow the sump; docs/sensor.md)
+TTL_RELINEARISE_STEPS = 2
+#: with the sump modelled: the oil-system inlet follows the sump through the linearised cooler in the held-input
+#: system (a non-symmetric coupling, general eigen-decomposition; docs/sensor.md), unless the step clips it
+TTL_INLET_COUPLING = True
+#: ... until the operating point's sump temperature moves less than this [K]
+TTL_RELINEARISE_TOL_K = 0.5
+#: the published sump's column
+I_PUB_OIL = PUBLISHED.index("oil")
+
+
+class TtlPoint(NamedTuple):
+    """One vehicle's state after a step and the operating point the step used: what the time to limit holds."""
+    T_main_c: np.ndarray           # (n,) main copy after the step [degC]
+    src_w: np.ndarray              # (ns,) heat of every loss source (before the lag) [W]
+    G_w_per_k: np.ndarray          # (nl,) link conductances (the step's bin)
+    G_streams_w_per_k: np.ndarray  # (nst,) oil-system stream conductances
+    dT_in_k: float                 # inlet drop of the main copy [K]
+    Q_cool_w: float                # cooler heat of the main copy [W]
+    measured: bool                 # the main copy's sump was the measured oil
+    row: int                       # gear row (gear - GEAR_MIN)
+    omega_in_rad_s: float          # input speed
+    T_oil_c: float                 # the main copy's sump at the step [degC]
+    T_bc_c: np.ndarray             # (nb,) boundary temperatures [degC]
+    used: np.ndarray               # (8,) the inputs the step used (INPUT_FIELDS order)
+    rho_cp_j_per_m3k: float        # oil volumetric heat capacity at T_oil_c
+
+
+class TtlJob(NamedTuple):
+    """The time-to-limit refreshes a step leaves: the batch index of each vehicle due and its point."""
+    vehicles: tuple
+    points: tuple
+
+
+class _Solution(NamedTuple):
+    ttl_s: np.ndarray        # (28,) time to limit per published component [s]
+    modes: HeldModes
+    T_inf_c: np.ndarray      # steady state over the free nodes [degC]
+
+
+def refresh_ttl(state: SensorState, job: TtlJob | None, sp: SensorParams, cache: StepCache) -> SensorState:
+    """Run the time-to-limit refresh a step left (``job`` from the step; None: nothing due)."""
+    if job is None:
+        return state
+    ttl = np.array(state.ttl_s, dtype=float, copy=True)
+    for v, point in zip(job.vehicles, job.points):
+        ttl[v] = time_to_limit(sp, cache, point)
+    return state._replace(ttl_s=ttl)
+
+
+def time_to_limit(sp: SensorParams, cache: StepCache, p: TtlPoint) -> np.ndarray:
+    """Time [s] until each published component reaches its warning limit if the current inputs are held.
+
+    With the sump modelled (``ttl_sump = "model"``) the system is re-linearised at the sump temperature the
+    previous solution predicts at the earliest crossing (from the same state), up to TTL_RELINEARISE_STEPS times."""
+    sol = _solve(sp, cache, p, p.src_w, p.G_w_per_k, p.G_streams_w_per_k, p.T_oil_c)
+    if sp.options.ttl_sump != "model" or not sp.scalar_effects:
+        return sol.ttl_s
+    rp, h, e = sp.reduced, sp.helpers, sp.effects
+    T_op_c = p.T_oil_c
+    for _ in range(TTL_RELINEARISE_STEPS):
+        ttl_cand_s = sol.ttl_s[h.ttl_relin_pub]
+        ttl_cand_s = ttl_cand_s[(ttl_cand_s > 0.0) & np.isfinite(ttl_cand_s)]
+        if ttl_cand_s.size == 0:
+            break
+        T_free_c = sol.modes.propagate(p.T_main_c[sol.modes.free], sol.T_inf_c, float(ttl_cand_s.min()))
+        T_next_c = float(T_free_c[rp.i_oil])           # every node is free with the sump modelled
+        if abs(T_next_c - T_op_c) < TTL_RELINEARISE_TOL_K:
+            break
+        T_op_c = T_next_c
+        x, prop, _ = R.oil_row(rp, T_op_c, h)
+        retarder_w = float(e.retarder_frac) * float(p.used[I_RET]) * abs(float(rp.speed_coef[p.row, 3])) \
+            * p.omega_in_rad_s
+        src_op_w = R.heat_sources(rp, p.row, p.omega_in_rad_s, abs(float(p.used[I_TORQUE])), prop, x, e.src_scale,
+                                e.churn_scale, e.needle_scale, retarder_w, h)
+        bins = cache.bins.get(sp, p.row, *_bin_centre(p.omega_in_rad_s, T_op_c))
+        sol = _solve(sp, cache, p, src_op_w, bins.G_w_per_k, bins.G_streams_w_per_k, T_op_c)
+    return sol.ttl_s
+
+
+def _bin_centre(omega_in_rad_s: float, T_oil_c: float) -> tuple[float, float]:
+    """The conductance bin centre as the time to limit computes it: math.log and math.exp (numpy's differ from them
+    in the last bit for a few % of the bins, and a last-bit change of the cached modes can move a crossing by one
+    search quantum)."""
+    if omega_in_rad_s >= SPEED_BIN_MIN_RAD_S:
+        omega_q = math.exp(round(math.log(omega_in_rad_s) / LN_SPEED_BIN) * LN_SPEED_BIN)
+    else:
+        omega_q = 0.0
+    return omega_q, round(T_oil_c / OIL_BIN_C) * OIL_BIN_C
+
+
+def _inlet_follows_sump(sp: SensorParams, p: TtlPoint, measured: bool, slope_w_per_k: float, T_op_c: float) -> bool:
+    """Whether the held-input system couples the oil-system inlet to the sump: the sump is modelled, the cooler has
+    a slope, and the inlet drop is inside the step's clip both now and, on the linearised cooler, at the operating
+    point's sump T_op (a clipped inlet drop does not follow the sump)."""
+    if not TTL_INLET_COUPLING or measured or slope_w_per_k == 0 or not abs(p.dT_in_k) < INLET_DROP_MAX_K:
+        return False
+    mcp = p.rho_cp_j_per_m3k * _oil_flow_m3_s(sp, p.row, p.omega_in_rad_s)
+    if not mcp > 0.0:
+        return False
+    return abs((p.Q_cool_w + slope_w_per_k * (T_op_c - p.T_oil_c)) / mcp) < INLET_DROP_MAX_K
+
+
+def _oil_flow_m3_s(sp: SensorParams, row: int, omega_in_rad_s: float) -> float:
+    """Oil-system volume flow [m3/s] at this gear and input speed (the pump turns with the layshaft)."""
+    rp = sp.reduced
+    return rp.flow_m3_per_rad * abs(float(rp.speed_coef[row, 1])) * omega_in_rad_s
+
+
+def _held_modes(sp: SensorParams, cache: StepCache, p: TtlPoint, G_w_per_k, measured: bool,
+                T_op_c: float) -> tuple[HeldModes, float]:
+    """(modes, binned cooler slope [W/K]) of the held-input system. Scalar effects: K at the centre of the modes' own
+    bin (1 % in speed, 2 K in oil, the cooler slope at the centre in 10 W/K), cached; per-vehicle effects: the
+    vehicle's own conductances, not cached."""
+    rp, h = sp.reduced, sp.helpers
+    omega_in_rad_s, key = p.omega_in_rad_s, None
+    if sp.scalar_effects:
+        wb = round(math.log(omega_in_rad_s) / LN_TTL_SPEED_BIN) if omega_in_rad_s >= SPEED_BIN_MIN_RAD_S else None
+        T_b_c = round(T_op_c / TTL_OIL_BIN_C) * TTL_OIL_BIN_C
+        omega_c_rad_s = math.exp(wb * LN_TTL_SPEED_BIN) if wb is not None else 0.0
+        T_lin_c, omega_lin_rad_s = T_b_c, omega_c_rad_s
+    else:
+        T_lin_c, omega_lin_rad_s = p.T_oil_c, omega_in_rad_s
+    slope_w_per_k = 0.0 if measured else cooler_slope_w_per_k(sp, T_lin_c, omega_lin_rad_s, p.row, p.used,
+                                                              p.rho_cp_j_per_m3k)
+    sbin = 0 if measured else int(round(slope_w_per_k / SLOPE_BIN_W_PER_K))
+    slope_q_w_per_k = sbin * SLOPE_BIN_W_PER_K
+    couple = _inlet_follows_sump(sp, p, measured, slope_q_w_per_k, T_op_c)
+    if sp.scalar_effects:
+        key = (p.row, wb, T_b_c, bool(measured), sbin, couple)
+        modes = cache.modes.get(key)
+        if modes is not None:
+            return modes, slope_q_w_per_k
+        bins = cache.bins.get(sp, p.row, *_bin_centre(omega_c_rad_s, T_b_c))
+        G_w_per_k, G_streams_w_per_k = bins.G_w_per_k, bins.G_streams_w_per_k
+        # the inlet-coupling column at the bin centre (oil density and heat capacity at T_b_c)
+        _, prop, _ = R.oil_row(rp, T_b_c, h)
+        mcp_c_w_per_k = _oil_flow_m3_s(sp, p.row, omega_c_rad_s) * float(prop[R.P_RHO] * prop[R.P_CP])
+    else:
+        G_streams_w_per_k = p.G_streams_w_per_k
+        mcp_c_w_per_k = _oil_flow_m3_s(sp, p.row, omega_in_rad_s) * p.rho_cp_j_per_m3k
+    K, _ = conductance_matrix(G_w_per_k, h, rp.n)
+    coupling = None
+    if measured:
+        free = np.flatnonzero(np.arange(rp.n) != rp.i_oil)
+    else:
+        free = np.arange(rp.n)
+        K[rp.i_oil, rp.i_oil] += slope_q_w_per_k
+        if couple and mcp_c_w_per_k > 0.0:
+            # the oil-system inlet follows the sump through the linearised cooler: inlet drop
+            # (Q0 + slope (T_sump - T0)) / (mdot cp) moves sv (T_sump - T0) slope / (mdot cp) into the streams
+            coupling = Coupling((G_streams_w_per_k @ h.stream_scatter) * (slope_q_w_per_k / mcp_c_w_per_k),
+                                rp.i_oil)
+    modes = decompose(K, free, sp.sqrt_C, coupling)
+    return (cache.modes.put(key, modes) if key is not None else modes), slope_q_w_per_k
+
+
+def _solve(sp: SensorParams, cache: StepCache, p: TtlPoint, src_w, G_w_per_k, G_streams_w_per_k,
+           T_op_c: float) -> _Solution:
+    """One held-input solution at the operating point's oil temperature T_op (bins, losses, conductances), the
+    cooler linearised at the step's sump ``p.T_oil_c``: K (and its modes) from :func:`_held_modes`, b (heat,
+    boundaries, inlet drop, the measured sump) at the actual operating point."""
+    rp, h = sp.reduced, sp.helpers
+    measured = p.measured and sp.options.ttl_sump != "model"   # "model": the sump heats with the held load
+    modes, slope_q_w_per_k = _held_modes(sp, cache, p, G_w_per_k, measured, T_op_c)
+    T_oil_c = p.T_oil_c
+    if modes.coupled:
+        # the inlet drop is dT_in at the current sump and follows it (the coupling column): its part at the
+        # current sump goes into b
+        b_in_w = (G_streams_w_per_k * p.dT_in_k) @ h.stream_scatter - modes.coupling_u * T_oil_c
+    else:
+        # frozen inlet drop, at the operating point's sump T_op through the linearised cooler
+        dT_in_k = p.dT_in_k
+        if T_op_c != T_oil_c and not measured:
+            mcp_w_per_k = p.rho_cp_j_per_m3k * _oil_flow_m3_s(sp, p.row, p.omega_in_rad_s)
+            dT_lin_k = (p.Q_cool_w + slope_q_w_per_k * (T_op_c - T_oil_c)) / mcp_w_per_k if mcp_w_per_k > 0.0 \
+                else 0.0
+            dT_in_k = min(max(dT_lin_k, -INLET_DROP_MAX_K), INLET_DROP_MAX_K)
+        b_in_w = (G_streams_w_per_k * dT_in_k) @ h.stream_scatter
+    b_w = src_w @ rp.src_matrix + b_in_w + np.bincount(h.ea, G_w_per_k[h.ext_idx] * p.T_bc_c[h.eb], minlength=rp.n)
+    if measured:
+        # links to the (held) measured sump enter b
+        b_w = b_w + np.bincount(h.oil_other, G_w_per_k[h.int_idx][h.oil_links] * T_oil_c, minlength=rp.n)
+    else:
+        # cooler linearised at the current sump: Q = Q0 + g (T - T0)
+        b_w[rp.i_oil] += slope_q_w_per_k * T_oil_c - p.Q_cool_w
+    free = modes.free
+    T_inf_c = modes.steady(b_w[free])
+    pub_free, rows = (h.pub_free_meas, h.pub_rows_meas) if measured else (h.pub_free_all, h.pub_rows_all)
+    warning_c = sp.limits.warning_c
+    out = np.full(N_PUB, np.inf)
+    out[pub_free] = modes.time_to_limit(p.T_main_c[free], T_inf_c, rows, warning_c[pub_free])
+    if measured:
+        out[I_PUB_OIL] = 0.0 if T_oil_c >= warning_c[I_PUB_OIL] else np.inf
+    return _Solution(out, modes, T_inf_c)

@@ -1,0 +1,152 @@
+"""Warning limits and the warning-level state machine of the onboard sensor.
+
+* :func:`load_limits` reads ``params/limits.toml`` (per component group, optional per-component overrides) into a
+  frozen :class:`Limits` record with one value per published component.
+* :func:`update_levels` is the warning state machine: two levels (warning, critical) with hysteresis and a debounce
+  time, plus level 3 "not available" (the ``LEVEL_*`` codes of firmware_model.components); vectorised over vehicles.
+"""
+from __future__ import annotations
+
+import math
+import tomllib
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from firmware_model.components import GROUP, LEVEL_CRITICAL, LEVEL_NA, LEVEL_NORMAL, LEVEL_WARNING, PUBLISHED
+from firmware_model.errors import ParameterError
+
+LIMITS_PATH = Path(__file__).resolve().parents[1] / "params" / "limits.toml"
+GROUPS = ("gear", "sun", "planetary", "bearing", "oil")
+_KEYS = {"warning": "degC", "critical": "degC", "hysteresis": "K"}
+
+
+@dataclass(frozen=True)
+class Limits:
+    """Per published component (PUBLISHED order): warning and critical limits [degC], hysteresis [K]; debounce [s]."""
+    warning_c: np.ndarray
+    critical_c: np.ndarray
+    hysteresis_k: np.ndarray
+    debounce_s: float
+    provenance: dict
+    origin: str = "default"
+    #: a warning also fires when the component will reach its warning limit within lead_s at the current load
+    #: (and clears only when that is more than 2 lead_s away); 0 switches the early warning off
+    lead_s: float = 0.0
+
+    def of(self, component: str) -> tuple:
+        i = PUBLISHED.index(component)
+        return float(self.warning_c[i]), float(self.critical_c[i]), float(self.hysteresis_k[i])
+
+
+def _value(entry, where: str, unit: str) -> tuple:
+    if not isinstance(entry, dict) or "v" not in entry:
+        raise ParameterError(f"{where} must be a table {{ v = ..., u = \"{unit}\", src = ... }}")
+    if entry.get("u") != unit:
+        raise ParameterError(f"{where} has unit {entry.get('u')!r}; it must be {unit!r}")
+    if entry.get("src") not in ("seed", "derived", "assumed"):
+        raise ParameterError(f"{where} has provenance {entry.get('src')!r}; it must be seed, derived or assumed")
+    v = entry["v"]
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+        raise ParameterError(f"{where} = {v!r} is not a finite number")
+    return float(v), entry["src"]
+
+
+def load_limits(path: str | Path | None = None, debounce_s: float | None = None,
+                hysteresis_k: float | None = None, lead_s: float | None = None) -> Limits:
+    """Limits from a TOML file (default params/limits.toml); ``debounce_s`` / ``hysteresis_k`` override the file
+    (config [sensor] debounce_s, hysteresis_c)."""
+    path = Path(path) if path is not None else LIMITS_PATH
+    try:
+        with open(path, "rb") as fh:
+            doc = tomllib.load(fh)
+    except FileNotFoundError:
+        raise ParameterError(f"limits file {path} does not exist") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise ParameterError(f"limits file {path.name} is not valid TOML: {exc}") from None
+    known = set(GROUPS) | {"meta", "timing", "component"}
+    for k in doc:
+        if k not in known:
+            raise ParameterError(f"{path.name}: unknown section [{k}]; known: {', '.join(sorted(known))}")
+    prov = {}
+    per = {}
+    for g in GROUPS:
+        sec = doc.get(g)
+        if not isinstance(sec, dict):
+            raise ParameterError(f"{path.name}: section [{g}] is missing")
+        for key, unit in _KEYS.items():
+            if key not in sec:
+                raise ParameterError(f"{path.name}: {g}.{key} is missing")
+            per[(g, key)], prov[f"{g}.{key}"] = _value(sec[key], f"{path.name}: {g}.{key}", unit)
+        for key in sec:
+            if key not in _KEYS:
+                raise ParameterError(f"{path.name}: unknown key {g}.{key}; known: {', '.join(_KEYS)}")
+    timing = doc.get("timing", {})
+    deb, prov["timing.debounce"] = _value(timing.get("debounce", {"v": 1.0, "u": "s", "src": "assumed"}),
+                                          f"{path.name}: timing.debounce", "s")
+    lead, prov["timing.lead"] = _value(timing.get("lead", {"v": 0.0, "u": "s", "src": "assumed"}),
+                                       f"{path.name}: timing.lead", "s")
+    for k in timing:
+        if k not in ("debounce", "lead"):
+            raise ParameterError(f"{path.name}: unknown key timing.{k}; known: debounce, lead")
+    n = len(PUBLISHED)
+    arr = {key: np.array([per[(GROUP[c], key)] for c in PUBLISHED]) for key in _KEYS}
+    for comp, sec in (doc.get("component") or {}).items():
+        if comp not in PUBLISHED:
+            raise ParameterError(f"{path.name}: [component.{comp!r}] is not a published component")
+        i = PUBLISHED.index(comp)
+        for key, entry in sec.items():
+            if key not in _KEYS:
+                raise ParameterError(f"{path.name}: unknown key component.{comp}.{key}")
+            arr[key][i], prov[f"component.{comp}.{key}"] = _value(entry, f"{path.name}: component.{comp}.{key}",
+                                                                   _KEYS[key])
+    if debounce_s is not None:
+        deb = float(debounce_s)
+    if hysteresis_k is not None:
+        arr["hysteresis"] = np.full(n, float(hysteresis_k))
+    w, c, hy = arr["warning"], arr["critical"], arr["hysteresis"]
+    for i, comp in enumerate(PUBLISHED):
+        if not -40.0 <= w[i] < c[i] <= 250.0:
+            raise ParameterError(f"limits of {comp}: warning {w[i]:g} degC must be below critical {c[i]:g} degC, "
+                                 f"both in -40..250 degC")
+        if not 0.0 <= hy[i] < c[i] - w[i]:
+            raise ParameterError(f"limits of {comp}: hysteresis {hy[i]:g} K must be in 0..(critical - warning) = "
+                                 f"{c[i] - w[i]:g} K")
+    if not 0.0 <= deb <= 60.0:
+        raise ParameterError(f"debounce = {deb:g} s must be in 0..60 s")
+    if lead_s is not None:
+        lead = float(lead_s)
+    if not 0.0 <= lead <= 3600.0:
+        raise ParameterError(f"lead = {lead:g} s must be in 0..3600 s")
+    for a in (w, c, hy):
+        a.setflags(write=False)
+    return Limits(w, c, hy, deb, prov, str(path.name), lead)
+
+
+def update_levels(level, pending_s, T_c, available, limits: Limits, dt_s: float, ttl_s=None):
+    """One step of the warning state machine, vectorised: returns (level, pending_s).
+
+    Target level: critical while T >= critical (or, once critical, while T > critical - hysteresis); else warning
+    while T >= warning or the time to the warning limit is at most ``lead_s`` (or, once at warning or above, while
+    T > warning - hysteresis or the time to limit is at most 2 lead_s); else normal. A change to the target is
+    taken when it has been pending for ``debounce`` seconds (the timer restarts whenever the target equals the
+    current level). Level 3 (not available) is entered and left at once: it reports the sensor, not the part.
+    """
+    T = np.asarray(T_c)
+    lv = np.asarray(level)
+    crit = (T >= limits.critical_c) | ((lv == LEVEL_CRITICAL) & (T > limits.critical_c - limits.hysteresis_k))
+    held = (lv >= LEVEL_WARNING) & (lv <= LEVEL_CRITICAL)
+    warn = (T >= limits.warning_c) | (held & (T > limits.warning_c - limits.hysteresis_k))
+    if ttl_s is not None and limits.lead_s > 0:
+        ttl = np.asarray(ttl_s, dtype=float)          # NaN (not available) compares False, like inf
+        warn = warn | (ttl <= limits.lead_s) | (held & (ttl <= 2.0 * limits.lead_s))
+    target = np.where(crit, LEVEL_CRITICAL, np.where(warn, LEVEL_WARNING, LEVEL_NORMAL))
+    avail = np.asarray(available)[..., None] if np.ndim(available) == np.ndim(T) - 1 else np.asarray(available)
+    target = np.where(avail, target, LEVEL_NA)
+    change = target != lv
+    pend = np.where(change, pending_s + dt_s, 0.0)
+    immediate = (target == LEVEL_NA) | (lv == LEVEL_NA)
+    take = change & (immediate | (pend >= limits.debounce_s - 1e-9))
+    new = np.where(take, target, lv).astype(np.int8)
+    return new, np.where(take, 0.0, pend)
