@@ -19,7 +19,7 @@ from can_dbc.adapter import decode_outputs, pgn_of
 from firmware_model.service import SensorService, ServiceOptions, can_filters, serve
 from firmware_model.components import PUBLISHED
 from tools.can.logsynth import write_can_log
-from tools.can.replay_log import play_log, read_log, replay_log
+from tools.replay.log import play_log, read_log, replay_log
 
 from ..firmware_model.sensor_standin import make_sensor, real_sensor_available
 
@@ -62,7 +62,7 @@ def live(path, *, speed, preserve):
     worker = threading.Thread(target=lambda: result.update(r=serve(svc_bus, service, stop=stop)), daemon=True)
     worker.start()
     try:
-        play_log(path, player, speed=speed)
+        play_log(path, player, speedup=speed)
         deadline = time.monotonic() + 10.0
         n_in = sum(1 for _ in read_log(path))
         while time.monotonic() < deadline and service.decoder.counters["frames_seen"] < n_in:
@@ -128,29 +128,18 @@ def test_twenty_times_real_time_with_log_timestamps_equals_offline(drive_log):
 needs_sensor = pytest.mark.skipif(not real_sensor_available(), reason="firmware_model.onboard.sensor is not there yet")
 
 
+#: `gearbox-vsensor run` as the command line starts it, on a silent bus
+_RUN = """
+import sys
+from tools.cli import main
+sys.exit(main(["run", "--interface", "virtual", "--channel", sys.argv[1], "--log-level", "INFO"]))
+"""
+
+
 @needs_sensor
 def test_run_subcommand_starts_and_exits_0_on_sigterm():
-    env = {**os.environ, "PYTHONPATH": str(REPO) + os.pathsep + os.environ.get("PYTHONPATH", "")}
-    proc = subprocess.Popen([sys.executable, "-m", "tools.cli", "run", "--interface", "virtual", "--channel",
-                             f"sigterm-{uuid.uuid4()}", "--log-level", "INFO"], cwd=REPO, env=env,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    try:
-        lines = []
-        deadline = time.monotonic() + 60
-        while time.monotonic() < deadline:
-            line = proc.stderr.readline()
-            if not line:
-                break
-            lines.append(line)
-            if "listening on virtual" in line:
-                break
-        assert any("listening on virtual" in ln for ln in lines), "".join(lines)
-        proc.send_signal(signal.SIGTERM)
-        _, err = proc.communicate(timeout=30)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-    assert proc.returncode == 0, err
+    rc, _, err = _sigterm_when_ready(_RUN, f"sigterm-{uuid.uuid4()}", "listening on virtual", "stderr", "`run`")
+    assert rc == 0, err
     assert "stopped (signal)" in err and "frames seen 0" in err
 
 

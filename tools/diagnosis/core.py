@@ -122,8 +122,8 @@ def load_table(path, config_path=None) -> RunTable:
         raise InputError(f"{path}: no such file")
     if p.suffix.lower() in LOG_SUFFIXES:
         try:
-            from tools.cli.run import build_service
-            from tools.can.replay_log import is_can_log, replay_log
+            from firmware_model.service import build_service
+            from tools.replay.log import is_can_log, replay_log
         except ImportError:
             raise InputError(f"{path}: CAN logs need the log decoder (tools/can/replay_log.py), which is not installed; "
                              f"convert the log to a CSV run table first") from None
