@@ -35,14 +35,18 @@ DM1_OCCURRENCE_MAX = 126
 TTL_NEVER = "never"
 
 
+def _as_float(value: object, field: str, what: str) -> float:
+    try:
+        return float(value)
+    except (TypeError, ValueError):
+        raise EncodeError(f"{field} = {value!r} is not {what}") from None
+
+
 def _raw16(value: object, scale: float, offset: float, field: str) -> int:
     """16-bit J1939 raw value; None, NaN and +-inf -> 0xFFFF (no valid value); else rounded, clamped to data."""
     if value is None:
         return RAW16_NOT_AVAILABLE
-    try:
-        x = float(value)
-    except (TypeError, ValueError):
-        raise EncodeError(f"{field} = {value!r} is not a number or None") from None
+    x = _as_float(value, field, "a number or None")
     if not math.isfinite(x):
         return RAW16_NOT_AVAILABLE
     raw = round((x - offset) / scale)
@@ -53,10 +57,7 @@ def _raw_ttl(value: object, never_raw: int, field: str) -> int:
     """Time to limit: None/NaN not available, +inf never, else whole seconds clamped to 0..never_raw - 1."""
     if value is None:
         return RAW16_NOT_AVAILABLE
-    try:
-        x = float(value)
-    except (TypeError, ValueError):
-        raise EncodeError(f"{field} = {value!r} is not a number of seconds, math.inf or None") from None
+    x = _as_float(value, field, "a number of seconds, math.inf or None")
     if x != x:
         return RAW16_NOT_AVAILABLE
     if x == math.inf:
@@ -118,8 +119,10 @@ def _pack_temperatures(frames: tuple[ComponentFrame, ...], temps_c: Mapping[str,
 class OutputEncoder:
     """Encodes the sensor's outputs into GBX_TEMP_1..7, GBX_WARN, GBX_TTL_1..7, GBX_STATUS (and GBX_DM1).
 
-    ``source_address``: None = the DBC's (0xE5); ConfigError outside 0..253. ``components``: the component ids in
-    the order of every per-component signal (the DBC's ``ComponentId`` attributes).
+    ``source_address``: None = the DBC's (0xE5); ConfigError outside 0..253. Attributes: ``components``, the
+    component ids in the order of every per-component signal (the DBC's ``ComponentId`` attributes);
+    ``degraded_modes``, the DegradedMode value table without "not available"; ``dm1_spns``, the DTC SPN of each
+    component.
     """
 
     def __init__(self, source_address: int | None = None) -> None:

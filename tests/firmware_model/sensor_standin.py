@@ -3,6 +3,7 @@
 input so that wrong inputs show."""
 from __future__ import annotations
 
+import collections
 import functools
 import math
 from typing import NamedTuple
@@ -10,19 +11,13 @@ from typing import NamedTuple
 import numpy as np
 
 from firmware_model.components import MODE_HOLDING, MODE_NORMAL, MODE_OIL_MODEL, PUBLISHED, STEP_S
+from firmware_model.service import StepInputs
 from firmware_model.units import RAD_S_PER_RPM
 
 
-class SensorInputs(NamedTuple):
-    speed_rpm: float = math.nan
-    torque_nm: float = math.nan
-    gear: float = math.nan
-    oil_temp_c: float = math.nan
-    ambient_temp_c: float = math.nan
-    coolant_temp_c: float = math.nan
-    vehicle_speed_kmh: float = math.nan
-    retarder_torque_nm: float = math.nan
-    t_s: float = math.nan
+#: the stand-in's inputs: the service's input fields (NaN = not available), then the step's frame time
+SensorInputs = collections.namedtuple("SensorInputs", (*StepInputs._fields, "t_s"),
+                                      defaults=(math.nan,) * (len(StepInputs._fields) + 1))
 
 
 class Status(NamedTuple):

@@ -1,12 +1,13 @@
-"""A python-can bus for the command line: the bus options every CAN subcommand shares (:func:`add_bus_options`),
-opening a bus with one-sentence errors (:func:`open_bus`) and a stop flag set by SIGINT/SIGTERM
-(:func:`stop_on_signals`)."""
+"""What the CAN subcommands (run, plant, replay) share: their argparse shape (:func:`can_subcommand`) and bus
+options (:func:`add_bus_options`), opening a python-can bus with one-sentence errors (:func:`open_bus`) and a stop
+flag set by SIGINT/SIGTERM (:func:`stop_on_signals`)."""
 from __future__ import annotations
 
+import argparse
 import contextlib
 import signal
 import threading
-from typing import Iterator
+from typing import Iterator, Sequence
 
 from firmware_model.errors import InputError
 
@@ -14,6 +15,14 @@ from firmware_model.errors import InputError
 STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
 #: CAN bit rates a --bitrate may name [bit/s]
 BITRATE_RANGE_BIT_S = (10_000, 1_000_000)
+
+
+def can_subcommand(sub, name: str, *, summary: str, description: str, examples: Sequence[str], notes: str = ""):
+    """A subcommand parser on ``sub``: ``summary`` in the command list, ``description`` on top of its help, then
+    the ``examples`` (command lines, shown as written) and ``notes``."""
+    epilog = "examples:\n" + "\n".join(f"  {e}" for e in examples) + (f"\n{notes}" if notes else "")
+    return sub.add_parser(name, help=summary, description=description, epilog=epilog,
+                          formatter_class=argparse.RawDescriptionHelpFormatter)
 
 
 def add_bus_options(parser, *, required: bool = True, purpose: str = "") -> None:

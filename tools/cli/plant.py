@@ -1,29 +1,26 @@
 """`gearbox-vsensor plant`: the reference plant as a HIL simulator on a CAN bus (tools/can/hil.py)."""
 from __future__ import annotations
 
-import argparse
 import sys
 import time
 
 from firmware_model.errors import InputError
-from tools.can.bus import add_bus_options
+from tools.can.bus import add_bus_options, can_subcommand
 
 
 def add_subparser(sub):
     from tools.cycles.named import CYCLE_NAMES
-    p = sub.add_parser(
-        "plant", help="HIL: stream a cycle's J1939 inputs and the plant's true temperatures onto a CAN bus",
-        formatter_class=argparse.RawDescriptionHelpFormatter,
+    p = can_subcommand(
+        sub, "plant", summary="HIL: stream a cycle's J1939 inputs and the plant's true temperatures onto a CAN bus",
         description="Run the reference plant over a drive cycle and play it onto a CAN bus as a truck and a rig "
                     "would: EEC1 every 10-20 ms, ETC2 100 ms, TRF1/ET1/AMB/CCVS1 1 s, ERC1 100 ms (if the cycle has "
                     "retarder torque), EC1 by TP.BAM every 5 s, RIG_TC_1..7 (the plant's true component "
                     "temperatures) every 100 ms. The plant run is computed first (a few seconds), then the frames "
                     "are streamed with their timing, --speed times faster. Named cycles: " + ", ".join(CYCLE_NAMES)
                     + ", 'steady:...', or a CSV run table.",
-        epilog="examples:\n"
-               "  gearbox-vsensor plant --interface socketcan --channel vcan0 --cycle uphill\n"
-               "  gearbox-vsensor plant --interface virtual --channel hil --cycle mining --speed 10 --duration 60\n"
-               "and on the same bus:  gearbox-vsensor run --interface socketcan --channel vcan0")
+        examples=["gearbox-vsensor plant --interface socketcan --channel vcan0 --cycle uphill",
+                  "gearbox-vsensor plant --interface virtual --channel hil --cycle mining --speed 10 --duration 60"],
+        notes="and on the same bus:  gearbox-vsensor run --interface socketcan --channel vcan0")
     add_bus_options(p)
     p.add_argument("--cycle", required=True, metavar="NAME_OR_CSV", help="named cycle, steady:... spec, or a CSV")
     p.add_argument("--config", metavar="TOML", help="project configuration (variant, cooler, [can] addresses, "

@@ -9,13 +9,12 @@ import argparse
 from pathlib import Path
 
 from firmware_model.errors import InputError
-from tools.can.bus import add_bus_options
+from tools.can.bus import add_bus_options, can_subcommand
 
 
 def add_subparser(sub):
-    p = sub.add_parser(
-        "replay", help="run the onboard sensor offline over a run table or a CAN log (10 Hz estimates)",
-        formatter_class=argparse.RawDescriptionHelpFormatter,
+    p = can_subcommand(
+        sub, "replay", summary="run the onboard sensor offline over a run table or a CAN log (10 Hz estimates)",
         description="Run the onboard virtual sensor (the same pure step as in the truck) over a recorded drive: a "
                     "run table (CSV, CONTRACTS section 3: time_s, engine_speed_rpm, engine_torque_nm, gear, "
                     "optional oil_temp_c, ambient_temp_c, coolant_temp_c, vehicle_speed_kmh, retarder_torque_nm) "
@@ -25,9 +24,9 @@ def add_subparser(sub):
                     "never) for the 28 published components, and the status (degraded, degraded_mode, input "
                     "validity, oil_innovation_c = measured - model oil, model_oil_temp_c, reject counters). Bad "
                     "input values are not errors: the sensor holds, clamps or degrades and counts them.",
-        epilog="examples:\n  gearbox-vsensor replay uphill.csv --out est.csv --plot est.png\n"
-               "  gearbox-vsensor replay truck.blf --config truck.toml --out est.csv\n"
-               "  gearbox-vsensor replay uphill.csv --oil-mode model --out est_model_oil.csv")
+        examples=["gearbox-vsensor replay uphill.csv --out est.csv --plot est.png",
+                  "gearbox-vsensor replay truck.blf --config truck.toml --out est.csv",
+                  "gearbox-vsensor replay uphill.csv --oil-mode model --out est_model_oil.csv"])
     p.add_argument("input", metavar="LOG_OR_CSV", help="run table (.csv) or CAN log (.log .asc .blf .mf4)")
     p.add_argument("--config", metavar="TOML", help="project configuration (gearbox variant, cooler, [sensor], [can])")
     p.add_argument("--out", metavar="EST.csv", help="sensor output run table (10 Hz)")

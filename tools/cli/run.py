@@ -1,19 +1,17 @@
 """`gearbox-vsensor run`: the onboard sensor live on a CAN bus (any python-can interface); tools/can/live.py."""
 from __future__ import annotations
 
-import argparse
 import logging
 import sys
 
-from tools.can.bus import add_bus_options
+from tools.can.bus import add_bus_options, can_subcommand
 
 LOG_LEVELS = ("DEBUG", "INFO", "WARNING", "ERROR")
 
 
 def add_subparser(sub):
-    p = sub.add_parser(
-        "run", help="run the onboard sensor live on a CAN bus (J1939 in, GBX_* frames out)",
-        formatter_class=argparse.RawDescriptionHelpFormatter,
+    p = can_subcommand(
+        sub, "run", summary="run the onboard sensor live on a CAN bus (J1939 in, GBX_* frames out)",
         description="Run the onboard virtual sensor on a CAN bus: decode the J1939 inputs (EEC1, EC1 by TP.BAM, "
                     "ETC2, TRF1, ET1, AMB, CCVS1, ERC1; source addresses from --config [can]), step the sensor every "
                     "100 ms of frame time (frame timestamps, never the wall clock) and send GBX_TEMP_1..7, GBX_WARN, "
@@ -21,14 +19,14 @@ def add_subparser(sub):
                     "stops arriving for 3x its period is 'not available' to the sensor (degraded mode) until it "
                     "returns. Counters of frames seen, used and rejected (by reason) are logged every "
                     "[can] counter_log_period_s (60 s) of frame time. Stop with Ctrl-C or SIGTERM (exit 0).",
-        epilog="examples:\n"
-               "  gearbox-vsensor run --interface socketcan --channel can0\n"
-               "  gearbox-vsensor run --interface socketcan --channel vcan0 --config truck.toml --log-level DEBUG\n"
-               "  gearbox-vsensor run --interface pcan --channel PCAN_USBBUS1 --bitrate 250000 --duration 3600\n\n"
-               "config [can] keys: sensor_source_address, engine_source_address, transmission_source_address,\n"
-               "retarder_source_address, ambient_source_address, engine_reference_torque_nm (used until EC1 arrives),\n"
-               "retarder_reference_torque_nm, gear_map, output_period_s, stale_factor, counter_log_period_s.\n"
-               "Watch the outputs: python -m cantools monitor -c vcan0 can_dbc/gearbox_vsensor.dbc")
+        examples=["gearbox-vsensor run --interface socketcan --channel can0",
+                  "gearbox-vsensor run --interface socketcan --channel vcan0 --config truck.toml --log-level DEBUG",
+                  "gearbox-vsensor run --interface pcan --channel PCAN_USBBUS1 --bitrate 250000 --duration 3600"],
+        notes="\nconfig [can] keys: sensor_source_address, engine_source_address, transmission_source_address,\n"
+              "retarder_source_address, ambient_source_address, engine_reference_torque_nm (used until EC1 "
+              "arrives),\nretarder_reference_torque_nm, gear_map, output_period_s, stale_factor, "
+              "counter_log_period_s.\nWatch the outputs: python -m cantools monitor -c vcan0 "
+              "can_dbc/gearbox_vsensor.dbc")
     add_bus_options(p)
     p.add_argument("--config", metavar="TOML", help="project configuration (gearbox variant, [can], [sensor])")
     p.add_argument("--duration", type=float, metavar="S", help="stop after this many seconds of wall time")
