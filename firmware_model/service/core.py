@@ -173,7 +173,7 @@ class SensorService:
                      s["steps_sent"], s["catchup_steps"], s["time_jumps"], stale, s["frames_sent"])
 
     def recorded(self) -> dict[str, np.ndarray]:
-        """The recorded steps (``record=True``) as columns of a sensor output run table (CONTRACTS.md section 3):
+        """The recorded steps (``record=True``) as columns of a sensor output run table (tools/runtable.py):
         time_s, the decoded inputs, T_/W_/ttl_ per published component, the status, and meas_T_<id>_c for the rig
         thermocouples that were received. ``can_time_s`` is the step's frame time."""
         values = self.latest.value

@@ -20,7 +20,7 @@ from firmware_model.service.records import StepInputs
 NOMINAL_PERIOD_S = {"EEC1": 0.02, "ETC2": 0.1, "TRF1": 1.0, "ET1": 1.0, "AMB": 1.0, "CCVS1": 1.0, "ERC1": 0.1,
                     "RIG": 0.1}
 #: the decoder signal of each sensor input field (StepInputs order); it is also the input's run-table column
-#: (CONTRACTS.md section 3)
+#: (the run-table column names, tools/runtable.py)
 INPUT_SIGNALS = ("engine_speed_rpm", "engine_torque_nm", "gear", "oil_temp_c", "ambient_temp_c", "coolant_temp_c",
                  "vehicle_speed_kmh", "retarder_torque_nm")
 #: (sensor input field, decoder signal) pairs

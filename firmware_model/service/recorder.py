@@ -71,7 +71,7 @@ class StepRecorder:
         self._outs = []
 
     def columns(self, meas_seen: tuple[bool, ...]) -> dict[str, np.ndarray]:
-        """The recorded steps as run-table columns (CONTRACTS.md section 3): the head, T_/W_/ttl_ per published
+        """The recorded steps as run-table columns (tools/runtable.py): the head, T_/W_/ttl_ per published
         component ("never" is an empty ttl cell), the status tail, and meas_T_<id>_c for each thermocouple seen."""
         k = len(self._heads)
         head = np.array(self._heads, dtype=float).reshape(k, len(HEAD_COLUMNS))
@@ -80,7 +80,7 @@ class StepRecorder:
         if out.T_c.shape[0] != k:
             raise RuntimeError(f"recorded {k} step heads but {out.T_c.shape[0]} sensor outputs")
         ttl = out.ttl_s.copy()
-        ttl[np.isinf(ttl)] = np.nan  # CONTRACTS 3: "never" is an empty cell
+        ttl[np.isinf(ttl)] = np.nan  # a run table writes "never" as an empty cell
         for block, (prefix, suffix) in zip((out.T_c, out.level, ttl), (("T_", "_c"), ("W_", ""), ("ttl_", "_s"))):
             for j, c in enumerate(self.components):
                 cols[f"{prefix}{c}{suffix}"] = block[:, j]

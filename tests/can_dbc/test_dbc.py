@@ -1,4 +1,4 @@
-"""The project DBC: loads strictly, survives dump-then-reload, matches CONTRACTS.md and round-trips every output."""
+"""The project DBC: loads strictly, survives dump-then-reload, matches the input contract and round-trips every output."""
 from __future__ import annotations
 
 import math
@@ -16,7 +16,7 @@ from firmware_model.components import PUBLISHED
 DBC = Path(adapter.__file__).with_name(adapter.DBC_NAME)
 REPO = Path(__file__).resolve().parents[2]
 
-#: CONTRACTS.md section 1, written out by hand: message -> (PGN, default SA, {SPN: (first byte 1-based, bits,
+#: the J1939 inputs of docs/can.md, written out by hand: message -> (PGN, default SA, {SPN: (first byte 1-based, bits,
 #: scale, offset)})
 CONTRACT_INPUTS = {
     "EEC1": (61444, 0x00, {190: (4, 16, 0.125, 0.0), 513: (3, 8, 1.0, -125.0)}),

@@ -6,7 +6,7 @@ frames, and writes them as a CAN log (``.log`` candump -L, ``.asc``, ``.blf`` by
 --can-log RUN.log`` calls it; ``gearbox-vsensor replay RUN.log`` reads such a log back through the onboard sensor.
 :func:`synth_frames` gives the same frames as arrays (for the HIL plant, tools/can/hil.py).
 
-What is sent (CONTRACTS.md section 1; source addresses from ``[can]`` of the config, defaults in brackets):
+What is sent (docs/can.md "Inputs"; source addresses from ``[can]`` of the config, defaults in brackets):
 
 ======== ================== ================ ====================================================================
 message  period             source           content
@@ -68,7 +68,7 @@ EC1_PERIOD_S = 5.0
 TP_DT_SPACING_S = 0.050
 #: the largest engine reference torque SPN 544 carries [Nm]
 REF_TORQUE_MAX_NM = 64255
-#: default J1939 source addresses (CONTRACTS.md section 1); the rig logger's is the DBC's
+#: default J1939 source addresses (docs/can.md "Inputs"); the rig logger's is the DBC's
 DEFAULT_SOURCES = {"engine": 0x00, "transmission": 0x03, "retarder": 0x10, "ambient": 0x00}
 #: EEC1 bytes the DBC does not describe: engine torque mode (low idle governor / no request; bits 5-8 reserved),
 #: driver's demand percent torque (byte 2, sent equal to the actual), source address of the controlling device

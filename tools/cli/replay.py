@@ -16,7 +16,7 @@ def add_subparser(sub):
     p = can_subcommand(
         sub, "replay", summary="run the onboard sensor offline over a run table or a CAN log (10 Hz estimates)",
         description="Run the onboard virtual sensor (the same pure step as in the truck) over a recorded drive: a "
-                    "run table (CSV, CONTRACTS section 3: time_s, engine_speed_rpm, engine_torque_nm, gear, "
+                    "run table (CSV: time_s, engine_speed_rpm, engine_torque_nm, gear, "
                     "optional oil_temp_c, ambient_temp_c, coolant_temp_c, vehicle_speed_kmh, retarder_torque_nm) "
                     "or a CAN log (.log candump -L, .asc, .blf, .mf4) decoded like the live service. Writes the "
                     "sensor's output at 10 Hz: the inputs it read, T_<id>_c, W_<id> (0 normal, 1 warning, 2 "

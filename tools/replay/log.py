@@ -2,7 +2,7 @@
 
 - :func:`replay_log` reads a log (``.log`` candump -L, ``.asc``, ``.blf``, ``.mf4``; python-can's ``LogReader`` by
   suffix) as fast as it can through the *same* :class:`~firmware_model.service.SensorService` that runs live
-  (``gearbox-vsensor run``), and returns the sensor output run table (CONTRACTS.md section 3, 10 Hz): the decoded
+  (``gearbox-vsensor run``), and returns the sensor output run table (tools/runtable.py, 10 Hz): the decoded
   inputs, ``T_<id>_c``, ``W_<id>``, ``ttl_<id>_s``, the status and ``meas_T_<id>_c`` from rig thermocouple frames.
   Outputs are bit-identical to a live run on the same traffic: the service keeps time by frame timestamps only.
   Big logs are replayed in two processes (tools/replay/pipeline.py), with the same outputs.

@@ -5,7 +5,7 @@ The reading is split from the stepping so that any input source plugs in: a sour
 tables); the stepping, output columns and status are :func:`replay_records`. CAN logs go through the live CAN
 service instead (tools/replay/log.py), so a log replays bit-identically to a live run.
 
-Output (CONTRACTS.md section 3): ``time_s`` (end of each 0.1 s step), the inputs the sensor read (empty when absent),
+Output (a run table, tools/runtable.py): ``time_s`` (end of each 0.1 s step), the inputs the sensor read (empty when absent),
 ``T_<id>_c``, ``W_<id>``, ``ttl_<id>_s`` (empty when never) for every published component, then the status:
 ``degraded`` (0/1), ``degraded_mode`` (0 normal, 1 oil model only, 2 inputs missing - holding), ``speed_valid``,
 ``torque_valid``, ``gear_valid``, ``oil_valid``, ``oil_innovation_c`` (measured - model oil, empty without a
@@ -55,7 +55,7 @@ class ReplaySummary(NamedTuple):
 
 
 def _sensor_inputs():
-    """(field, run-table column) of each sensor input (the CAN service's wiring, CONTRACTS.md section 3)."""
+    """(field, run-table column) of each sensor input (the CAN service's wiring)."""
     from firmware_model.service.options import SENSOR_INPUTS
     return SENSOR_INPUTS
 
@@ -135,7 +135,7 @@ def _output_table(times: list, rows_in: list, rows_out: dict, rows_st: list, rej
     for (prefix, suffix), rows in rows_out.items():
         block = np.asarray(rows, dtype=float).reshape(n, len(PUBLISHED))
         if prefix == "ttl_":
-            block = np.where(np.isinf(block), np.nan, block)     # CONTRACTS 3: never = empty cell
+            block = np.where(np.isinf(block), np.nan, block)     # never = an empty cell
         for j, c in enumerate(PUBLISHED):
             cols[f"{prefix}{c}{suffix}"] = block[:, j]
     names = [*STATUS_COLUMNS, *(f"rejects_{r}" for r in reject_reasons)]
