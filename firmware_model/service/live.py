@@ -90,18 +90,18 @@ def serve(bus, service: SensorService, *, stop: threading.Event | None = None, d
     stop = stop or threading.Event()
     listener = QueueListener()
     result = ServeResult()
-    wall0, cpu0 = time.perf_counter(), time.process_time()
-    deadline = None if duration_s is None else wall0 + duration_s
+    wall0_s, cpu0_s = time.perf_counter(), time.process_time()
+    deadline_s = None if duration_s is None else wall0_s + duration_s
     notifier = can.Notifier(bus, [listener], timeout=0.1)
     if on_ready is not None:
         on_ready()
-    last_err_log = -math.inf
+    last_err_log_s = -math.inf
     q = listener.queue
 
     latencies = result.step_latency_s
 
     def handle(msg) -> None:
-        nonlocal last_err_log
+        nonlocal last_err_log_s
         result.frames_in += 1
         frames = service.feed(msg)
         if not frames:
@@ -114,9 +114,9 @@ def serve(bus, service: SensorService, *, stop: threading.Event | None = None, d
                     on_sent(frame)
             except can.CanError as exc:
                 result.send_errors += 1
-                now = time.perf_counter()
-                if now - last_err_log > SEND_ERROR_LOG_PERIOD_S:
-                    last_err_log = now
+                now_s = time.perf_counter()
+                if now_s - last_err_log_s > SEND_ERROR_LOG_PERIOD_S:
+                    last_err_log_s = now_s
                     service.log.warning("cannot send %08X: %s (%d send errors so far)", frame.arbitration_id, exc,
                                         result.send_errors)
         if len(latencies) >= LATENCY_KEEP_STEPS:
@@ -126,7 +126,7 @@ def serve(bus, service: SensorService, *, stop: threading.Event | None = None, d
 
     try:
         while not stop.is_set():
-            if deadline is not None and time.perf_counter() >= deadline:
+            if deadline_s is not None and time.perf_counter() >= deadline_s:
                 result.reason = "duration"
                 break
             try:
@@ -145,6 +145,6 @@ def serve(bus, service: SensorService, *, stop: threading.Event | None = None, d
                 handle(q.get_nowait())
             except queue.Empty:
                 break
-        result.wall_s = time.perf_counter() - wall0
-        result.cpu_s = time.process_time() - cpu0
+        result.wall_s = time.perf_counter() - wall0_s
+        result.cpu_s = time.process_time() - cpu0_s
     return result

@@ -166,18 +166,18 @@ def _positive(name: str, value) -> float:
     return float(value)
 
 
-def _zoh(t_table: np.ndarray, values: np.ndarray, t: np.ndarray) -> np.ndarray:
-    """Zero-order hold of a table column at times t (before the first sample: the first sample)."""
-    idx = np.searchsorted(t_table, t, side="right") - 1
-    return values[np.clip(idx, 0, t_table.size - 1)]
+def _zoh(t_table_s: np.ndarray, values: np.ndarray, t_s: np.ndarray) -> np.ndarray:
+    """Zero-order hold of a table column at times t_s (before the first sample: the first sample)."""
+    idx = np.searchsorted(t_table_s, t_s, side="right") - 1
+    return values[np.clip(idx, 0, t_table_s.size - 1)]
 
 
-def _lin(t_table: np.ndarray, values: np.ndarray, t: np.ndarray) -> np.ndarray:
+def _lin(t_table_s: np.ndarray, values: np.ndarray, t_s: np.ndarray) -> np.ndarray:
     """Linear interpolation ignoring NaN samples; all NaN -> NaN."""
     ok = np.isfinite(values)
     if not ok.any():
-        return np.full(t.shape, np.nan)
-    return np.interp(t, t_table[ok], values[ok])
+        return np.full(t_s.shape, np.nan)
+    return np.interp(t_s, t_table_s[ok], values[ok])
 
 
 def _raw8(x: np.ndarray, scale: float, offset: float) -> np.ndarray:
@@ -218,27 +218,29 @@ def _empty(n: int) -> np.ndarray:
     return np.full((n, 8), 0xFF, dtype=np.uint8)
 
 
-def _slots(t0: float, t1: float, schedule: Schedule, rng: np.random.Generator) -> np.ndarray:
-    n = int(np.floor((t1 - t0 - schedule.phase_s) / schedule.period_s)) + 1
+def _slots(t0_s: float, t1_s: float, schedule: Schedule, rng: np.random.Generator) -> np.ndarray:
+    """Frame times of a periodic message from t0_s to t1_s, with +-1 ms of uniform jitter."""
+    n = int(np.floor((t1_s - t0_s - schedule.phase_s) / schedule.period_s)) + 1
     if n <= 0:
         return np.empty(0)
-    t = t0 + schedule.phase_s + schedule.period_s * np.arange(n)
-    return t + rng.uniform(-_PERIODIC_JITTER_S, _PERIODIC_JITTER_S, n)
+    t_s = t0_s + schedule.phase_s + schedule.period_s * np.arange(n)
+    return t_s + rng.uniform(-_PERIODIC_JITTER_S, _PERIODIC_JITTER_S, n)
 
 
-def _eec1_times(t_table: np.ndarray, rpm: np.ndarray, t0: float, t1: float, rng: np.random.Generator) -> np.ndarray:
-    """EEC1 every 20 ms at idle (600 rpm) down to 10 ms at 2100 rpm, with gaussian jitter; first frame at t0."""
+def _eec1_times(t_table_s: np.ndarray, speed_rpm: np.ndarray, t0_s: float, t1_s: float,
+                rng: np.random.Generator) -> np.ndarray:
+    """EEC1 every 20 ms at idle (600 rpm) down to 10 ms at 2100 rpm, with gaussian jitter; first frame at t0_s."""
     # the period as a function of time on a 10 ms grid, then the frame times by accumulating it
-    grid = np.arange(t0, t1 + EEC1_GRID_S, EEC1_GRID_S)
-    speed = _zoh(t_table, rpm, grid)
-    period = np.clip(EEC1_PERIOD_IDLE_S - (speed - EEC1_IDLE_RPM) / (EEC1_FAST_RPM - EEC1_IDLE_RPM)
-                     * (EEC1_PERIOD_IDLE_S - EEC1_PERIOD_FAST_S), EEC1_PERIOD_FAST_S, EEC1_PERIOD_IDLE_S)
+    grid_s = np.arange(t0_s, t1_s + EEC1_GRID_S, EEC1_GRID_S)
+    grid_rpm = _zoh(t_table_s, speed_rpm, grid_s)
+    period_s = np.clip(EEC1_PERIOD_IDLE_S - (grid_rpm - EEC1_IDLE_RPM) / (EEC1_FAST_RPM - EEC1_IDLE_RPM)
+                       * (EEC1_PERIOD_IDLE_S - EEC1_PERIOD_FAST_S), EEC1_PERIOD_FAST_S, EEC1_PERIOD_IDLE_S)
     # cumulative "phase" in frames: integral of 1/period; frame k is where the phase crosses k
-    phase = np.concatenate([[0.0], np.cumsum(EEC1_GRID_S / period[:-1])])
+    phase = np.concatenate([[0.0], np.cumsum(EEC1_GRID_S / period_s[:-1])])
     k = np.arange(0, int(phase[-1]) + 1)
-    t = np.interp(k, phase, grid)
-    t[1:] += rng.normal(0.0, _EEC1_JITTER_S, t.size - 1).clip(-3 * _EEC1_JITTER_S, 3 * _EEC1_JITTER_S)
-    return np.sort(t[t <= t1])
+    t_s = np.interp(k, phase, grid_s)
+    t_s[1:] += rng.normal(0.0, _EEC1_JITTER_S, t_s.size - 1).clip(-3 * _EEC1_JITTER_S, 3 * _EEC1_JITTER_S)
+    return np.sort(t_s[t_s <= t1_s])
 
 
 class _Synth:
@@ -457,13 +459,13 @@ def _write_candump(frames: SynthFrames, target: Path, channel: str, chunk: int =
     """candump -L lines exactly as python-can's CanutilsLogWriter writes them (extended 8-byte data, " R")."""
     hexdigits = np.frombuffer(b"0123456789ABCDEF", dtype=np.uint8)
     with open(target, "w", encoding="ascii", newline="\n") as fh:
-        last = None
+        last_s = None
         for i in range(0, len(frames), chunk):
-            ts = frames.timestamp_s[i:i + chunk]
-            if last is None:
-                last = float(ts[0]) if ts.size else 0.0
-            ts = np.maximum.accumulate(np.maximum(ts, last))  # CanutilsLogWriter never writes a time backwards
-            last = float(ts[-1]) if ts.size else last
+            t_s = frames.timestamp_s[i:i + chunk]
+            if last_s is None:
+                last_s = float(t_s[0]) if t_s.size else 0.0
+            t_s = np.maximum.accumulate(np.maximum(t_s, last_s))  # CanutilsLogWriter never writes a time backwards
+            last_s = float(t_s[-1]) if t_s.size else last_s
             ids = frames.can_id[i:i + chunk]
             d = frames.data[i:i + chunk]
             hexd = np.empty((d.shape[0], 16), dtype=np.uint8)
@@ -471,7 +473,7 @@ def _write_candump(frames: SynthFrames, target: Path, channel: str, chunk: int =
             hexd[:, 1::2] = hexdigits[d & 0xF]
             hex_rows = hexd.view("S16").ravel()
             lines = [f"({t:f}) {channel} {cid:08X}#{h.decode()} R\n"
-                     for t, cid, h in zip(ts.tolist(), ids.tolist(), hex_rows.tolist())]
+                     for t, cid, h in zip(t_s.tolist(), ids.tolist(), hex_rows.tolist())]
             fh.write("".join(lines))
 
 

@@ -81,12 +81,18 @@ def read_inputs_table(path):
     return table
 
 
-def _segments_s(t_s: np.ndarray) -> Iterator[tuple[float, float]]:
-    """(first, last) time of each stretch of the table between time jumps (gaps longer than MAX_HOLD_GAP_S)."""
+class _Segment(NamedTuple):
+    """A stretch of the table between time jumps: its first and last time [s]."""
+    first_s: float
+    last_s: float
+
+
+def _segments(t_s: np.ndarray) -> list[_Segment]:
+    """The stretches of the table between time jumps (gaps longer than MAX_HOLD_GAP_S)."""
     gaps = np.flatnonzero(np.diff(t_s) > MAX_HOLD_GAP_S)
-    starts = [t_s[0]] + [t_s[g + 1] for g in gaps]
-    ends = [t_s[g] for g in gaps] + [t_s[-1]]
-    return zip(starts, ends)
+    starts_s = [t_s[0]] + [t_s[g + 1] for g in gaps]
+    ends_s = [t_s[g] for g in gaps] + [t_s[-1]]
+    return [_Segment(a, b) for a, b in zip(starts_s, ends_s)]
 
 
 def table_records(table, inputs_type=None, dt_s: float = STEP_S) -> Iterator[TableRecord]:
@@ -97,23 +103,24 @@ def table_records(table, inputs_type=None, dt_s: float = STEP_S) -> Iterator[Tab
     point for other sources (a CAN log decoder yields the same records)."""
     if inputs_type is None:
         from firmware_model.onboard.sensor import SensorInputs as inputs_type
-    t = np.asarray(table["time_s"], dtype=float)
-    if t.size == 0:
+    t_s = np.asarray(table["time_s"], dtype=float)
+    if t_s.size == 0:
         return
-    if not np.all(np.isfinite(t)) or np.any(np.diff(t) <= 0):
+    if not np.all(np.isfinite(t_s)) or np.any(np.diff(t_s) <= 0):
         raise InputError("column time_s must be finite and strictly increasing")
-    cols = [np.asarray(table[col], dtype=float) if table.has(col) else np.full(t.size, np.nan)
+    cols = [np.asarray(table[col], dtype=float) if table.has(col) else np.full(t_s.size, np.nan)
             for _, col in _sensor_inputs()]
     data = np.stack(cols, axis=1)
-    for a, b in _segments_s(t):
-        n = int(math.floor((b - a) / dt_s + 1e-9))
+    for first_s, last_s in _segments(t_s):
+        n = int(math.floor((last_s - first_s) / dt_s + 1e-9))
         if n <= 0:
             continue
-        starts = a + dt_s * np.arange(n)
-        idx = np.clip(np.searchsorted(t, starts + 1e-9, side="right") - 1, 0, t.size - 1)
+        starts_s = first_s + dt_s * np.arange(n)
+        idx = np.clip(np.searchsorted(t_s, starts_s + 1e-9, side="right") - 1, 0, t_s.size - 1)
         for k in range(n):
             row = data[idx[k]]
-            yield TableRecord(float(starts[k] + dt_s), inputs_type(*row.tolist(), t_s=float(starts[k] + dt_s)))
+            end_s = float(starts_s[k] + dt_s)
+            yield TableRecord(end_s, inputs_type(*row.tolist(), t_s=end_s))
 
 
 def _status_row(st) -> tuple:
