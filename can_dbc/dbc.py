@@ -14,7 +14,7 @@ from typing import NamedTuple
 import cantools
 
 from can_dbc.errors import DecodeError
-from can_dbc.j1939 import pgn_of, with_source
+from can_dbc.j1939 import pgn_of, source_address, with_source
 
 DBC_NAME = "gearbox_vsensor.dbc"
 #: signal attribute naming the published component a per-component signal carries
@@ -58,7 +58,7 @@ def message_pgn(name: str) -> int:
 
 def default_source(name: str) -> int:
     """The source address the DBC gives message ``name`` (the last byte of its frame id)."""
-    return message(name).frame_id & 0xFF
+    return source_address(message(name).frame_id)
 
 
 def message_id(name: str, source: int) -> int:

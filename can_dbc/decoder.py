@@ -19,7 +19,8 @@ from can_dbc import dbc
 from can_dbc.errors import ConfigError, DecodeError
 from can_dbc.j1939 import (EC1_MIN_SIZE_BYTES, EC1_PGN, EC1_REF_TORQUE_BYTE0, GLOBAL_ADDRESS, ID_MAX,
                            RAW8_DATA_MAX, RAW16_DATA_MAX, TP_BAM_CONTROL, TP_DT_DATA_BYTES, TP_MAX_SIZE_BYTES,
-                           TP_TIMEOUT_S, check_source_address, pgn_key, raw_reason)
+                           TP_TIMEOUT_S, check_source_address, pdu_specific, pgn_key, raw_reason,
+                           source_key)
 
 #: SPN -> decoder signal name of every J1939 parameter the sensor uses (message, PGN, position, scaling: the DBC)
 INPUT_SPNS = {190: "engine_speed_rpm", 513: "engine_torque_pct", 523: "gear", 177: "oil_temp_c",
@@ -148,7 +149,8 @@ def input_messages() -> tuple[InputMessage, ...]:
     for message in dbc.load_database().messages:
         used = tuple((INPUT_SPNS[s.spn], s) for s in message.signals if s.spn in INPUT_SPNS)
         if used:
-            out.append(InputMessage(message.name, dbc.message_pgn(message.name), message.frame_id & 0xFF, used))
+            out.append(InputMessage(message.name, dbc.message_pgn(message.name), dbc.default_source(message.name),
+                                    used))
     found = {name for m in out for name, _ in m.signals}
     if found != set(INPUT_SPNS.values()):
         raise DecodeError(f"the DBC lacks the SPNs of {sorted(set(INPUT_SPNS.values()) - found)}")
@@ -298,7 +300,7 @@ class J1939Decoder:
         if msg.is_fd:
             return "fd_frame"
         pgn = pgn_key(can_id)
-        sa = can_id & 0xFF
+        sa = source_key(can_id)
         data = msg.data
         eight = len(data) == 8 and msg.dlc == 8
         if pgn == self._tp_cm_pgn:
@@ -357,7 +359,7 @@ class J1939Decoder:
         self.counters["tp"]["aborted"] += 1
 
     def _tp_cm(self, can_id: int, sa: int, data: bytearray, eight: bool, timestamp_s: float) -> str | None:
-        if (can_id >> 8) & 0xFF != GLOBAL_ADDRESS:
+        if pdu_specific(can_id) != GLOBAL_ADDRESS:
             return "tp_not_broadcast"
         if not eight:
             return "wrong_dlc"
@@ -385,7 +387,7 @@ class J1939Decoder:
 
     def _tp_dt(self, can_id: int, sa: int, data: bytearray, eight: bool, timestamp_s: float,
                latest: LatestValues) -> str | None:
-        if (can_id >> 8) & 0xFF != GLOBAL_ADDRESS:
+        if pdu_specific(can_id) != GLOBAL_ADDRESS:
             return "tp_not_broadcast"
         if not eight:
             return "wrong_dlc"  # the transfer stays open; its next packet will be out of sequence

@@ -60,6 +60,18 @@ def is_pdu1(pgn: int) -> bool:
     return (pgn >> 8) & 0xFF < PDU2_MIN_PF
 
 
+def source_key(can_id: int) -> int:
+    """The source address of an identifier already known to be 29-bit (no check): :func:`source_address` for the
+    per-frame paths."""
+    return can_id & 0xFF
+
+
+def pdu_specific(can_id: int) -> int:
+    """The PS byte of an identifier already known to be 29-bit (no check): a PDU1 destination, a PDU2 group
+    extension."""
+    return (can_id >> 8) & 0xFF
+
+
 def pgn_key(can_id: int) -> int:
     """The PGN of an identifier already known to be 29-bit (no check): :func:`pgn_of` for the per-frame paths."""
     pgn = (can_id >> 8) & PGN_MAX
@@ -77,7 +89,7 @@ def pgn_of(can_id: int) -> int:
 def source_address(can_id: int) -> int:
     """Source address: the last byte of the identifier."""
     check_id(can_id)
-    return can_id & 0xFF
+    return source_key(can_id)
 
 
 def priority(can_id: int) -> int:
@@ -89,7 +101,7 @@ def priority(can_id: int) -> int:
 def destination_address(can_id: int) -> int:
     """Destination of a PDU1 identifier (its PS byte); 0xFF (global) for PDU2."""
     check_id(can_id)
-    return (can_id >> 8) & 0xFF if is_pdu1((can_id >> 8) & PGN_MAX) else GLOBAL_ADDRESS
+    return pdu_specific(can_id) if is_pdu1((can_id >> 8) & PGN_MAX) else GLOBAL_ADDRESS
 
 
 def can_id_of(pgn: int, source: int, prio: int = DEFAULT_PRIORITY, destination: int = GLOBAL_ADDRESS) -> int:

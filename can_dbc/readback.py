@@ -12,7 +12,7 @@ from cantools.database.namedsignalvalue import NamedSignalValue
 from can_dbc import dbc
 from can_dbc.encoder import STATUS_FLAG_SIGNALS, TTL_NEVER
 from can_dbc.errors import DecodeError
-from can_dbc.j1939 import pgn_of
+from can_dbc.j1939 import pgn_of, source_key
 
 
 def _messages_by_pgn(prefixes: tuple[str, ...]) -> dict[int, object]:
@@ -31,7 +31,7 @@ def _decoded(msgs: Iterable[can.Message], prefixes: tuple[str, ...], source_addr
         if not msg.is_extended_id or msg.is_error_frame or msg.is_remote_frame:
             continue
         message = messages.get(pgn_of(msg.arbitration_id))
-        if message is None or (source_address is not None and msg.arbitration_id & 0xFF != source_address):
+        if message is None or (source_address is not None and source_key(msg.arbitration_id) != source_address):
             continue
         try:
             values = message.decode(bytes(msg.data), decode_choices=True)

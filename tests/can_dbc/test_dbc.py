@@ -1,4 +1,5 @@
-"""The project DBC: loads strictly, survives dump-then-reload, matches the input contract and round-trips every output."""
+"""The project DBC: loads strictly, survives dump-then-reload, matches the J1939 inputs of docs/can.md, names the
+component of every per-component signal and round-trips every output."""
 from __future__ import annotations
 
 import math

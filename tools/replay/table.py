@@ -5,11 +5,11 @@ The reading is split from the stepping so that any input source plugs in: a sour
 tables); the stepping, output columns and status are :func:`replay_records`. CAN logs go through the live CAN
 service instead (tools/replay/log.py), so a log replays bit-identically to a live run.
 
-Output (a run table, tools/runtable.py): ``time_s`` (end of each 0.1 s step), the inputs the sensor read (empty when absent),
-``T_<id>_c``, ``W_<id>``, ``ttl_<id>_s`` (empty when never) for every published component, then the status:
-``degraded`` (0/1), ``degraded_mode`` (0 normal, 1 oil model only, 2 inputs missing - holding), ``speed_valid``,
-``torque_valid``, ``gear_valid``, ``oil_valid``, ``oil_innovation_c`` (measured - model oil, empty without a
-measurement), ``model_oil_temp_c`` and the cumulative reject counters ``rejects_<reason>``.
+Output (a run table, tools/runtable.py): ``time_s`` (end of each 0.1 s step), the inputs the sensor read (empty
+when absent), ``T_<id>_c``, ``W_<id>``, ``ttl_<id>_s`` (empty when never) for every published component, then the
+status: ``degraded`` (0/1), ``degraded_mode`` (0 normal, 1 oil model only, 2 inputs missing - holding),
+``speed_valid``, ``torque_valid``, ``gear_valid``, ``oil_valid``, ``oil_innovation_c`` (measured - model oil, empty
+without a measurement), ``model_oil_temp_c`` and the cumulative reject counters ``rejects_<reason>``.
 """
 from __future__ import annotations
 
