@@ -37,7 +37,7 @@ import numpy as np  # noqa: E402
 from firmware_model.components import PUBLISHED  # noqa: E402
 from firmware_model.parameters import Parameters, load_parameters  # noqa: E402
 from firmware_model.onboard.sensor import SensorInputs, VirtualSensor  # noqa: E402
-from tools.cli.replay import replay_table  # noqa: E402
+from tools.replay.table import replay_table  # noqa: E402
 from tools.cycles.named import get_cycle  # noqa: E402
 from tools.plant.reference import ReferencePlant  # noqa: E402
 from tools.runtable import RunTable  # noqa: E402

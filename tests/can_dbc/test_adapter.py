@@ -10,7 +10,7 @@ import pytest
 from can_dbc import adapter
 from can_dbc.adapter import J1939Decoder, OutputEncoder, SignalUpdate
 from firmware_model.components import PUBLISHED
-from firmware_model.errors import DecodeError, InputError, ParameterError
+from can_dbc.errors import ConfigError, DecodeError, EncodeError
 
 
 def frame(pgn, sa, data, *, prio=6, da=0xFF, ts=0.0, **kwargs):
@@ -67,6 +67,34 @@ def test_can_id_of_round_trips_and_puts_the_destination_in_pdu1():
         adapter.can_id_of(0xEC23, 0x00)
     with pytest.raises(DecodeError, match="29-bit"):
         adapter.pgn_of(1 << 29)
+
+
+def test_j1939_helpers_source_filter_and_value_ranges():
+    from can_dbc import j1939
+    assert j1939.with_source(0x18FF40E5, 0x80) == 0x18FF4080
+    f = j1939.receive_filter(60416)
+    assert f == {"can_id": 60416 << 8, "can_mask": 0x3FF0000, "extended": True}
+    assert j1939.receive_filter(65272)["can_mask"] == 0x3FFFF00
+    assert j1939.check_source_address("sa", 0x10) == 0x10
+    for bad in (254, -1, True, "3"):
+        with pytest.raises(ConfigError, match="sa"):
+            j1939.check_source_address("sa", bad)
+    assert [j1939.raw_reason(r, 1) for r in (0xFA, 0xFB, 0xFE, 0xFF)] == \
+        [None, "out_of_range", "error_value", "not_available"]
+    assert [j1939.raw_reason(r, 2) for r in (0xFAFF, 0xFB00, 0xFE00, 0xFF00)] == \
+        [None, "out_of_range", "error_value", "not_available"]
+
+
+def test_feed_into_keeps_the_latest_values_and_forget_makes_them_stale():
+    d = J1939Decoder(configured_ref_torque_nm=2000.0)
+    latest = adapter.LatestValues()
+    d.feed_into(frame(61444, 0x00, [0xF0, 0x7D, 0x91, 0x40, 0x38, 0, 0xF0, 0xFF], prio=3, ts=1.5), latest)
+    d.feed_into(frame(61444, 0x00, [0xF0, 0x7D, 0x92, 0x40, 0x38, 0, 0xF0, 0xFF], prio=3, ts=1.6), latest)
+    assert latest.value == {"engine_torque_pct": 21, "engine_torque_nm": 420.0, "engine_speed_rpm": 1800.0}
+    assert set(latest.time_s.values()) == {1.6}
+    latest.forget()
+    assert set(latest.time_s.values()) == {-math.inf} and latest.value["engine_speed_rpm"] == 1800.0
+    assert adapter.signal_messages()["engine_torque_nm"] == "EEC1" and "RIG" in adapter.message_names()
 
 
 # ---- single-frame messages ---------------------------------------------------------------------------------------
@@ -134,9 +162,9 @@ def test_plausibility_limits_are_applied_and_configurable():
     assert only(J1939Decoder(), frame(65272, 3, hot))[1] == "out_of_range"
     values, reason = only(J1939Decoder(limits={"oil_temp_c": (-60.0, 400.0)}), frame(65272, 3, hot))
     assert reason is None and values == {"oil_temp_c": 300.0}
-    with pytest.raises(ParameterError, match="limits"):
+    with pytest.raises(ConfigError, match="limits"):
         J1939Decoder(limits={"oil_temp_c": (5.0, 1.0)})
-    with pytest.raises(ParameterError, match="limits"):
+    with pytest.raises(ConfigError, match="limits"):
         J1939Decoder(limits={"oil_temperature": (0.0, 1.0)})
 
 
@@ -157,11 +185,11 @@ def test_source_address_is_checked_per_message_and_configurable():
 
 
 def test_bad_configuration_raises_parameter_error():
-    with pytest.raises(ParameterError, match="expected_sa"):
+    with pytest.raises(ConfigError, match="expected_sa"):
         J1939Decoder(expected_sa={"EEC2": 0})
-    with pytest.raises(ParameterError, match="source address"):
+    with pytest.raises(ConfigError, match="source address"):
         J1939Decoder(expected_sa={"EEC1": 255})
-    with pytest.raises(ParameterError, match="configured_ref_torque_nm"):
+    with pytest.raises(ConfigError, match="configured_ref_torque_nm"):
         J1939Decoder(configured_ref_torque_nm=-5.0)
 
 
@@ -454,15 +482,15 @@ def test_rolling_counter_increments_and_wraps_unless_given():
     (({}, {}, {}, {"counter": 256}), "counter"),
 ])
 def test_encode_rejects_values_it_cannot_represent(args, match):
-    with pytest.raises(InputError, match=match):
+    with pytest.raises(EncodeError, match=match):
         OutputEncoder().encode(*args)
 
 
-def test_bad_source_address_is_a_parameter_error():
+def test_bad_source_address_is_a_config_error():
     for sa in (-1, 254, 255, 0x1E5, "E5"):
-        with pytest.raises(ParameterError, match="source_address"):
+        with pytest.raises(ConfigError, match="source_address"):
             OutputEncoder(source_address=sa)
-    with pytest.raises(ParameterError, match="source_address"):
+    with pytest.raises(ConfigError, match="source_address"):
         adapter.RigEncoder(source_address=300)
 
 

@@ -1,4 +1,5 @@
-"""The project DBC: loads strictly, survives dump-then-reload, matches CONTRACTS.md and round-trips every output."""
+"""The project DBC: loads strictly, survives dump-then-reload, matches the J1939 inputs of docs/can.md, names the
+component of every per-component signal and round-trips every output."""
 from __future__ import annotations
 
 import math
@@ -10,13 +11,13 @@ from pathlib import Path
 import cantools
 import pytest
 
-from can_dbc import adapter
+from can_dbc import adapter, dbc
 from firmware_model.components import PUBLISHED
 
 DBC = Path(adapter.__file__).with_name(adapter.DBC_NAME)
 REPO = Path(__file__).resolve().parents[2]
 
-#: CONTRACTS.md section 1, written out by hand: message -> (PGN, default SA, {SPN: (first byte 1-based, bits,
+#: the J1939 inputs of docs/can.md, written out by hand: message -> (PGN, default SA, {SPN: (first byte 1-based, bits,
 #: scale, offset)})
 CONTRACT_INPUTS = {
     "EEC1": (61444, 0x00, {190: (4, 16, 0.125, 0.0), 513: (3, 8, 1.0, -125.0)}),
@@ -91,7 +92,8 @@ def test_inputs_match_contracts_section_1(db, name):
 def test_transport_protocol_frames_describe_the_ec1_bam(db):
     cm = db.get_message_by_name("TP_CM")
     dt = db.get_message_by_name("TP_DT")
-    assert adapter.pgn_of(cm.frame_id) == adapter.TP_CM_PGN and adapter.pgn_of(dt.frame_id) == adapter.TP_DT_PGN
+    assert adapter.pgn_of(cm.frame_id) == dbc.message_pgn("TP_CM") == 0xEC00
+    assert adapter.pgn_of(dt.frame_id) == dbc.message_pgn("TP_DT") == 0xEB00
     assert adapter.destination_address(cm.frame_id) == 0xFF
     bam = bytes.fromhex("20220005FFE3FE00")  # the BAM announcing EC1 in normal.candump.log
     decoded = cm.decode(bam, decode_choices=False)
@@ -105,7 +107,7 @@ def test_output_ids_priority_and_source(db, name):
     message = db.get_message_by_name(name)
     assert adapter.pgn_of(message.frame_id) == OUTPUT_PGNS[name]
     assert adapter.priority(message.frame_id) == 6
-    expected_sa = adapter.RIG_SOURCE_ADDRESS if name.startswith("RIG_") else adapter.SENSOR_SOURCE_ADDRESS
+    expected_sa = 0xF0 if name.startswith("RIG_") else 0xE5
     assert adapter.source_address(message.frame_id) == expected_sa
 
 
@@ -125,6 +127,31 @@ def test_per_component_signals_follow_published_order(db):
         for signal in db.get_message_by_name(f"GBX_TTL_{k + 1}").signals:
             assert signal.unit == "s"
             assert str(signal.choices[0xFAFF]) == "never" and str(signal.choices[0xFFFF]) == "not available"
+
+
+def test_every_per_component_signal_names_its_component(db, tmp_path):
+    assert dbc.published_components() == PUBLISHED
+    for prefix, kinds in (("GBX_TEMP_", "T_"), ("GBX_TTL_", "TTL_"), ("RIG_TC_", "TC_"), ("GBX_WARN", "W_")):
+        names = dbc.numbered_messages(prefix) or (prefix,)
+        got = [(s.name, dbc.component_of(s)) for n in names for s in db.get_message_by_name(n).signals]
+        assert got == [(kinds + c.replace(".", "_"), c) for c in PUBLISHED], prefix
+    assert dbc.component_of(db.get_message_by_name("GBX_STATUS").signals[0]) is None
+    dumped = tmp_path / "dumped.dbc"
+    cantools.database.dump_file(db, str(dumped))
+    reloaded = cantools.database.load_file(str(dumped), strict=True)
+    assert [dbc.component_of(s) for s in reloaded.get_message_by_name("GBX_TEMP_7").signals] == list(PUBLISHED[-4:])
+
+
+def test_message_helpers_read_the_dbc():
+    assert dbc.numbered_messages("GBX_TEMP_") == tuple(f"GBX_TEMP_{k}" for k in range(1, 8))
+    assert dbc.message_pgn("EEC1") == 61444 and dbc.default_source("ERC1") == 0x10
+    assert dbc.message_id("GBX_STATUS", 0x80) == 0x18FF4F80
+    assert dbc.signal_layout("TRF1", "TransOilTemp", 16) == (32, 0.03125, -273.0)
+    with pytest.raises(adapter.DecodeError, match="8-bit"):
+        dbc.signal_layout("TRF1", "TransOilTemp", 8)
+    assert dbc.not_available_raw("GBX_STATUS", "DegradedMode") == 15
+    assert dbc.data_choices("GBX_STATUS", "DegradedMode") == {0: "normal", 1: "oil model only",
+                                                             2: "inputs missing - holding", 3: "not initialised"}
 
 
 def _random_outputs(rng):
@@ -186,7 +213,7 @@ def test_fast_encoder_matches_cantools_encode(db):
             message = db.get_message_by_frame_id(msg.arbitration_id)
             raw = message.decode(bytes(msg.data), decode_choices=False, scaling=False)
             reference = message.encode(raw, scaling=False, strict=True)
-            unused = int.from_bytes(adapter._fill_mask(db, message.name).to_bytes(8, "little"), "little")
+            unused = int.from_bytes(dbc.fill_mask(message.name).to_bytes(8, "little"), "little")
             ours = int.from_bytes(bytes(msg.data), "little")
             assert ours & ~unused == int.from_bytes(reference, "little"), message.name
             assert ours & unused == unused, f"{message.name}: unused bits must be sent as 1"

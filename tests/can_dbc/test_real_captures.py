@@ -1,20 +1,20 @@
-"""The decoder on real truck captures (../shared/data/real-j1939, candump -L): the ranges its README lists."""
+"""The decoder on real truck captures (candump -L; where: tests/data_paths.py): the ranges their README lists."""
 from __future__ import annotations
 
 import functools
 from collections import defaultdict
-from pathlib import Path
 
 import can
 import pytest
 
+from tests.data_paths import SKIP_REASON, real_capture_dir
+
 from can_dbc.adapter import REJECT_REASONS, J1939Decoder, pgn_of
 
-DATA = Path(__file__).resolve().parents[2].parent / "shared" / "data" / "real-j1939"
+DATA = real_capture_dir()
 FILES = ("normal", "tsc1", "fuzz_1ms_ID_and_Data", "utulsa_logger2_drive")
 
-pytestmark = pytest.mark.skipif(not all((DATA / f"{f}.candump.log").is_file() for f in FILES),
-                                reason=f"the real J1939 captures are not at {DATA}")
+pytestmark = pytest.mark.skipif(DATA is None, reason=SKIP_REASON)
 
 # README.md "What a correct decoder finds": (low, high) as printed there; the tolerance is half a unit of the
 # last printed digit (integers 0.5, one decimal 0.05). None: the file has no valid value of that signal.

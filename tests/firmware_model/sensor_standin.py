@@ -1,36 +1,50 @@
-"""A tiny stand-in for firmware_model.onboard.sensor.VirtualSensor (agreed API), used by the CAN tests only while the real
-sensor is not importable. Deterministic, cheap, and it reacts to every input so that wrong inputs show."""
+"""A tiny stand-in for firmware_model.onboard.sensor.VirtualSensor with the API the CAN service expects
+(firmware_model.service.protocol.StepSensor), used by the CAN tests. Deterministic, cheap, and it reacts to every
+input so that wrong inputs show."""
 from __future__ import annotations
 
+import collections
 import functools
 import math
 from typing import NamedTuple
 
 import numpy as np
 
-from firmware_model.components import PUBLISHED
+from firmware_model.components import MODE_HOLDING, MODE_NORMAL, MODE_OIL_MODEL, PUBLISHED, STEP_S
+from firmware_model.service import StepInputs
+from firmware_model.units import RAD_S_PER_RPM
 
 
-class SensorInputs(NamedTuple):
-    speed_rpm: float
-    torque_nm: float
-    gear: float
-    oil_temp_c: float
-    ambient_temp_c: float
-    coolant_temp_c: float
-    vehicle_speed_kmh: float
-    retarder_torque_nm: float
+#: the stand-in's inputs: the service's input fields (NaN = not available), then the step's frame time
+SensorInputs = collections.namedtuple("SensorInputs", (*StepInputs._fields, "t_s"),
+                                      defaults=(math.nan,) * (len(StepInputs._fields) + 1))
+
+
+class Status(NamedTuple):
+    degraded_mode: int
+    speed_valid: bool
+    torque_valid: bool
+    gear_valid: bool
+    oil_valid: bool
+    oil_innovation_c: float
+    model_oil_temp_c: float
+    rejects: np.ndarray
 
 
 class Outputs(NamedTuple):
     T_c: np.ndarray
     level: np.ndarray
     ttl_s: np.ndarray
-    status: dict
+    status: Status
 
 
 class VirtualSensor:
-    dt_s = 0.1
+    Inputs = SensorInputs
+    Status = Status
+    Outputs = Outputs
+    reject_reasons: tuple[str, ...] = ()
+    input_fields = SensorInputs._fields[:-1]
+    dt_s = STEP_S
 
     def __init__(self, params=None, limits=None, config=None):
         self.warn_c = 95.0 if limits is None else limits
@@ -42,27 +56,38 @@ class VirtualSensor:
         return (25.0 if T_oil_c is None or not math.isfinite(T_oil_c) else float(T_oil_c), 0.0)
 
     def step(self, state, inputs):
-        oil, load = state
-        p_kw = 0.0
-        if math.isfinite(inputs.speed_rpm) and math.isfinite(inputs.torque_nm):
-            p_kw = abs(inputs.speed_rpm * inputs.torque_nm) * 2 * math.pi / 60 / 1000
-        load += (p_kw / 100.0 - load) * 0.01
-        if math.isfinite(inputs.oil_temp_c):
-            innov = inputs.oil_temp_c - oil
-            oil += 0.05 * innov
-            mode = 0
+        oil_c, load = state
+        power_kw = 0.0
+        speed_ok, torque_ok = math.isfinite(inputs.speed_rpm), math.isfinite(inputs.torque_nm)
+        if speed_ok and torque_ok:
+            power_kw = abs(inputs.speed_rpm * inputs.torque_nm) * RAD_S_PER_RPM / 1000
+        load += (power_kw / 100.0 - load) * 0.01
+        oil_ok = math.isfinite(inputs.oil_temp_c)
+        if oil_ok:
+            innovation_c = inputs.oil_temp_c - oil_c
+            oil_c += 0.05 * innovation_c
+            mode = MODE_NORMAL
         else:
-            innov = math.nan
-            oil += 0.001 * load
-            mode = 1
-        if not (math.isfinite(inputs.speed_rpm) and math.isfinite(inputs.torque_nm) and math.isfinite(inputs.gear)):
-            mode = 2
-        T = oil + self.rise * load * 10.0
-        T[-1] = oil
-        level = np.where(T > self.warn_c + 10, 2, np.where(T > self.warn_c, 1, 0))
-        ttl = np.where(T > self.warn_c, 0.0, np.where(load > 0.5, (self.warn_c - T) * 60.0, np.inf))
-        status = {"degraded_mode": mode, "oil_innovation_c": innov, "model_oil_temp_c": oil}
-        return (oil, load), Outputs(T, level, ttl, status)
+            innovation_c = math.nan
+            oil_c += 0.001 * load
+            mode = MODE_OIL_MODEL
+        gear_ok = math.isfinite(inputs.gear)
+        if not (speed_ok and torque_ok and gear_ok):
+            mode = MODE_HOLDING
+        T_c = oil_c + self.rise * load * 10.0
+        T_c[-1] = oil_c
+        level = np.where(T_c > self.warn_c + 10, 2, np.where(T_c > self.warn_c, 1, 0))
+        ttl_s = np.where(T_c > self.warn_c, 0.0, np.where(load > 0.5, (self.warn_c - T_c) * 60.0, np.inf))
+        status = Status(mode, speed_ok, torque_ok, gear_ok, oil_ok, innovation_c, oil_c, np.zeros(0))
+        return (oil_c, load), Outputs(T_c, level, ttl_s, status)
+
+    def step_deferred(self, state, inputs):
+        state, outputs = self.step(state, inputs)
+        return state, outputs, None
+
+    @staticmethod
+    def refresh_ttl(state, job):
+        return state
 
 
 def real_sensor_available() -> bool:

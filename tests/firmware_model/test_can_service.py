@@ -1,23 +1,24 @@
 """SensorService: time from frame timestamps, staleness, catch-up and time jumps, outputs, counters, robustness,
-and the real truck captures of ../shared/data/real-j1939 through the whole service."""
+and the real truck captures (tests/data_paths.py) through the whole service."""
 from __future__ import annotations
 
 import logging
-from pathlib import Path
 
 import can
 import numpy as np
 import pytest
 
-from can_dbc.adapter import REJECT_REASONS, can_id_of, decode_outputs, pgn_of
-from firmware_model.service import (STEP_S, WANTED_PGNS, SensorService, ServiceOptions, can_filters)
-from firmware_model.components import PUBLISHED
+from tests.data_paths import SKIP_REASON, real_capture_dir
+
+from can_dbc.adapter import REJECT_REASONS, STATUS_KEYS, can_id_of, decode_outputs, pgn_of
+from firmware_model.service import SensorService, ServiceOptions, can_filters, wanted_pgns
+from firmware_model.components import PUBLISHED, STEP_S
 from firmware_model.errors import ParameterError
 
 from .sensor_standin import VirtualSensor as StandIn
 from .sensor_standin import make_sensor
 
-DATA = Path(__file__).resolve().parents[2].parent / "shared" / "data" / "real-j1939"
+DATA = real_capture_dir()
 CAPTURES = ("normal", "tsc1", "fuzz_1ms_ID_and_Data", "utulsa_logger2_drive")
 
 
@@ -217,19 +218,15 @@ def test_output_period_and_source_address():
     assert {m.arbitration_id & 0xFF for m in out} == {0x80}
 
 
-class _Levels:
+class _Levels(StandIn):
     """A sensor whose warning levels the test sets."""
-    from .sensor_standin import SensorInputs as Inputs
 
     def __init__(self):
-        self.inner = StandIn()
+        super().__init__()
         self.levels = np.zeros(len(PUBLISHED), dtype=int)
 
-    def initial_state(self, **kw):
-        return self.inner.initial_state(**kw)
-
     def step(self, state, inputs):
-        state, out = self.inner.step(state, inputs)
+        state, out = super().step(state, inputs)
         return state, out._replace(level=self.levels.copy())
 
 
@@ -257,12 +254,12 @@ def test_counters_are_logged_every_period_of_frame_time(caplog):
 
 def test_filters_mask_priority_and_source_address():
     filters = can_filters()
-    assert len(filters) == len(WANTED_PGNS)
+    assert len(filters) == len(wanted_pgns())
 
     def passes(can_id):
         return any((can_id & f["can_mask"]) == (f["can_id"] & f["can_mask"]) for f in filters)
 
-    for pgn in WANTED_PGNS.values():
+    for pgn in wanted_pgns().values():
         for prio in (0, 3, 7):
             for sa in (0x00, 0x03, 0x31, 0xFE):
                 dest = 0xFF if (pgn >> 8) & 0xFF < 240 else 0xFF
@@ -270,7 +267,7 @@ def test_filters_mask_priority_and_source_address():
     assert passes(can_id_of(0xEC00, 0x00, 7, destination=0x21))  # TP.CM to a node: received, counted as rejected
     for pgn in (0xFECA, 0xFF40, 0xFEF2, 0xF003):
         assert not passes(can_id_of(pgn, 0x00, 6))
-    assert len(can_filters(rig=True)) == len(WANTED_PGNS) + 7
+    assert len(can_filters(rig=True)) == len(wanted_pgns()) + 7
 
 
 # --------------------------------------------------------------------------------------------------- robustness
@@ -279,7 +276,7 @@ def random_frames(n, seed=1):
     """Wrong lengths, remote and error frames, random and 11-bit IDs, random and out-of-range data, FD, time
     going backwards a little, valid frames between."""
     rng = np.random.default_rng(seed)
-    wanted = list(WANTED_PGNS.values())
+    wanted = list(wanted_pgns().values())
     t = 0.0
     for i in range(n):
         t += float(rng.exponential(0.0005))
@@ -334,9 +331,8 @@ def test_100k_hostile_frames_through_the_service_no_exception_every_rejection_ex
 
 # --------------------------------------------------------------------------------------------------- real captures
 
-needs_captures = pytest.mark.skipif(not all((DATA / f"{f}.candump.log").is_file() for f in CAPTURES),
-                                    reason=f"the real J1939 captures are not at {DATA}")
-
+needs_captures = pytest.mark.skipif(DATA is None, reason=SKIP_REASON)
+    
 # README "What a correct decoder finds", at 10 Hz sampling: the sampled range lies inside the README's (half a unit
 # of its last digit of slack) and covers most of it
 EXPECTED = {
@@ -430,9 +426,8 @@ def test_real_capture_fuzz_and_tsc1_no_crash_no_warning(name):
     assert all(decode_outputs([m])["dm1"]["dtc"] is None for m in dm1)
 
 
-def test_status_fast_path_equals_the_generic_lookup():
+def test_status_comes_from_the_sensors_status_record():
     import math
-    import types
 
     from firmware_model.parameters import load_parameters
     from firmware_model.onboard.sensor import SensorInputs
@@ -440,10 +435,36 @@ def test_status_fast_path_equals_the_generic_lookup():
     sensor = Real(load_parameters("GRS905"))
     svc = SensorService(sensor, ServiceOptions())
     st = sensor.initial_state(T_oil_c=70.0)
-    values = (1200.0, None, 9, 70.0, 20.0, 85.0, 50.0, 0.0)      # SENSOR_INPUTS order
     for inp in (SensorInputs(1200.0, math.nan, 9.0, 70.0, 20.0, 85.0, 50.0, 0.0),
                 SensorInputs(1200.0, 900.0, 9.0, math.nan, 20.0, 85.0, 50.0, 0.0)):
         st, out = sensor.step(st, inp)
-        generic = types.SimpleNamespace(**out.status._asdict())        # not a SensorStatus: the generic path
         for ref in (None, 2400.0):
-            assert svc._status(out.status, values, ref) == svc._status(generic, values, ref)
+            status = svc._status(out.status, ref)
+            assert status.torque_valid == bool(out.status.torque_valid)
+            assert status.oil_valid == bool(out.status.oil_valid)
+            assert status.degraded_mode == int(out.status.degraded_mode)
+            assert status.ref_torque_valid == (ref is not None)
+            innovation = float(out.status.oil_innovation_c)
+            assert status.oil_innovation_c == (innovation if math.isfinite(innovation) else None)
+    assert set(status._asdict()) <= set(STATUS_KEYS)   # what the encoder takes
+
+
+def test_a_sensor_without_the_service_api_is_refused():
+    class Wrong(StandIn):
+        input_fields = ("speed_rpm", "torque_nm")
+
+    with pytest.raises(ParameterError, match="input_fields"):
+        SensorService(Wrong())
+
+    class Slow(StandIn):
+        dt_s = 0.2
+
+    with pytest.raises(ParameterError, match="every 0.2 s"):
+        SensorService(Slow())
+
+
+def test_bad_can_settings_are_parameter_errors():
+    with pytest.raises(ParameterError, match="source address"):
+        SensorService(StandIn(), ServiceOptions(sensor_source_address=300))
+    with pytest.raises(ParameterError, match="expected_sa"):
+        SensorService(StandIn(), ServiceOptions(expected_sa={"XYZ": 1}))

@@ -64,7 +64,7 @@ def short_cycle(rate_hz=10.0, seed=3):
 
 @pytest.fixture(scope="module")
 def plant_vs_sensor(params, sensor):
-    from tools.cli.replay import replay_table
+    from tools.replay.table import replay_table
     from tools.plant.reference import ReferencePlant
     tab = short_cycle()
     res = ReferencePlant(params, cooler="liquid").run(tab, initial_temp_c=70.0)

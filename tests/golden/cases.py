@@ -53,14 +53,14 @@ def sensor_case(cycle: str) -> dict:
     """The onboard sensor over the plant's run table of ``cycle`` (inputs and the plant's sump as the oil sensor)."""
     from tools.cycles.named import get_cycle
     from tools.plant.reference import ReferencePlant
-    from tools.cli.replay import replay_table
+    from tools.replay.table import replay_table
     from firmware_model.onboard.sensor import VirtualSensor
     from firmware_model.config import load_config
     params = _params()
     plant = ReferencePlant(params).run(get_cycle(cycle), progress=False).table
     with tempfile.TemporaryDirectory() as d:
         from tools.runtable import write_run_table
-        from tools.cli.replay import read_inputs_table
+        from tools.replay.table import read_inputs_table
         p = Path(d) / "plant.csv"
         write_run_table(plant, p)
         table = read_inputs_table(p)
@@ -97,8 +97,8 @@ def batch_case() -> dict:
 
 def capture_case(name: str) -> dict:
     """A real capture through the CAN service (decoder, freshness, step) with its output frames."""
-    from tools.can.replay_log import replay_log
-    from tools.cli.run import build_service
+    from tools.replay.log import replay_log
+    from firmware_model.service import build_service
     d = capture_dir()
     if d is None:
         raise FileNotFoundError("real captures not found")

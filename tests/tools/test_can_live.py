@@ -19,7 +19,7 @@ from can_dbc.adapter import decode_outputs, pgn_of
 from firmware_model.service import SensorService, ServiceOptions, can_filters, serve
 from firmware_model.components import PUBLISHED
 from tools.can.logsynth import write_can_log
-from tools.can.replay_log import play_log, read_log, replay_log
+from tools.replay.log import play_log, read_log, replay_log
 
 from ..firmware_model.sensor_standin import make_sensor, real_sensor_available
 
@@ -62,7 +62,7 @@ def live(path, *, speed, preserve):
     worker = threading.Thread(target=lambda: result.update(r=serve(svc_bus, service, stop=stop)), daemon=True)
     worker.start()
     try:
-        play_log(path, player, speed=speed)
+        play_log(path, player, speedup=speed)
         deadline = time.monotonic() + 10.0
         n_in = sum(1 for _ in read_log(path))
         while time.monotonic() < deadline and service.decoder.counters["frames_seen"] < n_in:
@@ -128,30 +128,12 @@ def test_twenty_times_real_time_with_log_timestamps_equals_offline(drive_log):
 needs_sensor = pytest.mark.skipif(not real_sensor_available(), reason="firmware_model.onboard.sensor is not there yet")
 
 
-@needs_sensor
-def test_run_subcommand_starts_and_exits_0_on_sigterm():
-    env = {**os.environ, "PYTHONPATH": str(REPO) + os.pathsep + os.environ.get("PYTHONPATH", "")}
-    proc = subprocess.Popen([sys.executable, "-m", "tools.cli", "run", "--interface", "virtual", "--channel",
-                             f"sigterm-{uuid.uuid4()}", "--log-level", "INFO"], cwd=REPO, env=env,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    try:
-        lines = []
-        deadline = time.monotonic() + 60
-        while time.monotonic() < deadline:
-            line = proc.stderr.readline()
-            if not line:
-                break
-            lines.append(line)
-            if "listening on virtual" in line:
-                break
-        assert any("listening on virtual" in ln for ln in lines), "".join(lines)
-        proc.send_signal(signal.SIGTERM)
-        _, err = proc.communicate(timeout=30)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-    assert proc.returncode == 0, err
-    assert "stopped (signal)" in err and "frames seen 0" in err
+#: `gearbox-vsensor run` as the command line starts it, on a silent bus
+_RUN = """
+import sys
+from tools.cli import main
+sys.exit(main(["run", "--interface", "virtual", "--channel", sys.argv[1], "--log-level", "INFO"]))
+"""
 
 
 #: `run` with slow signal handling (the stop flag set 0.2 s late, as on a slow or emulated CPU), on a silent bus
@@ -164,6 +146,27 @@ def slow_set(self):
 threading.Event.set = slow_set
 from tools.cli import main
 sys.exit(main(["run", "--interface", "virtual", "--channel", sys.argv[1], "--log-level", "INFO"]))
+"""
+
+
+#: serve() in the main thread with a slow signal handler and no SignalWatcher, on a silent bus
+_SLOW_HANDLER_SERVE = """
+import signal, sys, threading, time
+import can
+from firmware_model.service import SensorService, serve
+from firmware_model.parameters import load_parameters
+from firmware_model.onboard.sensor import VirtualSensor
+stop = threading.Event()
+def slow(signum, frame):
+    time.sleep(0.2)          # outlasts serve()'s 50 ms wait for frames
+    stop.set()
+signal.signal(signal.SIGTERM, slow)
+bus = can.Bus(interface="virtual", channel=sys.argv[1])
+svc = SensorService(VirtualSensor(load_parameters("GRS905")))
+print("serving", flush=True)
+r = serve(bus, svc, stop=stop)
+bus.shutdown()
+print("stopped", r.reason, flush=True)
 """
 
 
@@ -204,14 +207,22 @@ def _sigterm_when_ready(code: str, channel: str, ready: str, stream: str, what: 
 
 
 @needs_sensor
-def test_run_exits_on_sigterm_on_a_silent_bus_even_when_signal_handling_is_slow():
+@pytest.mark.parametrize("code, ready, stream, what, expected", [
+    (_RUN, "listening on virtual", "stderr", "`run`", ("stopped (signal)", "frames seen 0")),
     # CPython 3.11's queue.SimpleQueue.get(timeout) waits forever when a signal handler that runs inside it outlasts
     # the timeout (it then waits with a negative, i.e. infinite, timeout until a frame arrives): the main loop's
-    # 50 ms poll must not be where SIGTERM is handled (seen as a hang after SIGTERM in the QEMU VM, tools/vcan_vm/harness.py)
-    rc, _, err = _sigterm_when_ready(_SLOW_SIGNAL_RUN, f"slow-signal-{uuid.uuid4()}", "listening on virtual", "stderr",
-                                     "`run`")
+    # 50 ms poll must not be where SIGTERM is handled (seen as a hang after SIGTERM in the QEMU VM,
+    # tools/vcan_vm/harness.py)
+    (_SLOW_SIGNAL_RUN, "listening on virtual", "stderr", "`run`", ("stopped (signal)",)),
+    # the root cause of the hang the SignalWatcher of `run` avoids: serve() waits on a queue whose timed get must
+    # keep its deadline when a signal handler runs inside it (CPython 3.11's SimpleQueue does not)
+    (_SLOW_HANDLER_SERVE, "serving", "stdout", "serve()", ("stopped stop",)),
+], ids=["run", "run-with-slow-signal-handling", "serve-with-a-slow-signal-handler"])
+def test_stops_cleanly_on_sigterm_on_a_silent_bus(code, ready, stream, what, expected):
+    rc, out, err = _sigterm_when_ready(code, f"sigterm-{uuid.uuid4()}", ready, stream, what)
     assert rc == 0, err
-    assert "stopped (signal)" in err
+    text = out if stream == "stdout" else err
+    assert all(e in text for e in expected), text
 
 
 @needs_sensor
@@ -221,34 +232,3 @@ def test_run_bad_interface_is_one_sentence_exit_2():
                        cwd=REPO, env=env, capture_output=True, text=True, timeout=60)
     assert p.returncode == 2
     assert p.stderr.count("\n") == 1 and "nosuchbus" in p.stderr and "error:" in p.stderr
-
-
-#: serve() in the main thread with a slow signal handler and no SignalWatcher, on a silent bus
-_SLOW_HANDLER_SERVE = """
-import signal, sys, threading, time
-import can
-from firmware_model.service import SensorService, serve
-from firmware_model.parameters import load_parameters
-from firmware_model.onboard.sensor import VirtualSensor
-stop = threading.Event()
-def slow(signum, frame):
-    time.sleep(0.2)          # outlasts serve()'s 50 ms wait for frames
-    stop.set()
-signal.signal(signal.SIGTERM, slow)
-bus = can.Bus(interface="virtual", channel=sys.argv[1])
-svc = SensorService(VirtualSensor(load_parameters("GRS905")))
-print("serving", flush=True)
-r = serve(bus, svc, stop=stop)
-bus.shutdown()
-print("stopped", r.reason, flush=True)
-"""
-
-
-@needs_sensor
-def test_serve_itself_stops_when_a_slow_signal_handler_runs_inside_its_wait():
-    # the root cause of the hang the SignalWatcher of `run` avoids: serve() waits on a queue whose timed get must
-    # keep its deadline when a signal handler runs inside it (CPython 3.11's SimpleQueue does not)
-    rc, out, err = _sigterm_when_ready(_SLOW_HANDLER_SERVE, f"slow-handler-{uuid.uuid4()}", "serving", "stdout",
-                                       "serve()")
-    assert rc == 0, err
-    assert "stopped stop" in out

@@ -6,7 +6,7 @@ from firmware_model.components import PUBLISHED
 from firmware_model.parameters import load_parameters
 from firmware_model.onboard.sensor import SensorInputs, VirtualSensor
 from tools.cli import main
-from tools.cli.replay import read_inputs_table, replay_records, replay_table, table_records
+from tools.replay.table import TableRecord, read_inputs_table, replay_records, replay_table, table_records
 from tools.runtable import RunTable, read_run_table, write_run_table
 
 
@@ -74,11 +74,12 @@ def test_a_gap_in_the_table_is_a_time_jump(sensor):
 
 
 def test_records_are_the_plug_point_for_other_sources(sensor):
-    recs = [(0.1 * (k + 1), SensorInputs(1300.0, 2000.0, 9.0, 80.0, t_s=0.1 * (k + 1))) for k in range(50)]
+    recs = [TableRecord(0.1 * (k + 1), SensorInputs(1300.0, 2000.0, 9.0, 80.0, t_s=0.1 * (k + 1)))
+            for k in range(50)]
     out = replay_records(iter(recs), sensor)
     assert out.n == 50 and out["T_PS_c"][-1] > 80.0
     first = next(table_records(_table(1.0)))
-    assert isinstance(first[1], SensorInputs) and first[0] == pytest.approx(0.1)
+    assert isinstance(first.inputs, SensorInputs) and first.t_s == pytest.approx(0.1)
 
 
 @pytest.mark.parametrize("content, words", [

@@ -14,6 +14,8 @@ from firmware_model.errors import InputError, ParameterError
 from tools.can.logsynth import synth_frames, write_can_log, write_frames
 from tools.runtable import RunTable
 
+from .can_fixtures import plant_output
+
 
 def cycle(seconds=30.0, rate_hz=10.0):
     t = np.arange(0.0, seconds, 1.0 / rate_hz)
@@ -24,18 +26,10 @@ def cycle(seconds=30.0, rate_hz=10.0):
                      "vehicle_speed_kmh": np.linspace(0.0, 80.0, n), "retarder_torque_nm": np.where(t > 20, 700.0, 0.0)})
 
 
-def plant_out(inputs, step=1.0):
-    t = np.arange(inputs["time_s"][0], inputs["time_s"][-1] + step / 2, step)
-    cols = {"time_s": t, "oil_temp_c": 70.0 + 0.1 * t}
-    for i, c in enumerate(PUBLISHED):
-        cols[f"T_{c}_c"] = 60.0 + i + 0.5 * t
-    return RunTable(cols)
-
-
 @pytest.fixture(scope="module")
 def frames():
     inp = cycle()
-    return inp, synth_frames(inp, plant_out(inp))
+    return inp, synth_frames(inp, plant_output(inp))
 
 
 def test_rates_sources_and_priorities(frames):
@@ -118,7 +112,7 @@ def test_reference_torque_clipping_and_sources_from_config():
 
 def test_candump_text_is_exactly_python_cans_writer(tmp_path, frames):
     inp, _ = frames
-    out = plant_out(inp)
+    out = plant_output(inp)
     s = write_can_log(inp, out, tmp_path / "a.log")
     fr, _ = synth_frames(inp, out)
     with can.Logger(tmp_path / "b.log") as w:

@@ -10,10 +10,11 @@ from firmware_model.service import SensorService, ServiceOptions
 from firmware_model.components import PUBLISHED
 from firmware_model.errors import InputError
 from tools.can.logsynth import synth_frames, write_frames
-from tools.can.replay_log import is_can_log, read_log, replay_log
+from tools.replay.log import is_can_log, read_log, replay_log
 from tools.runtable import RunTable, read_run_table, write_run_table
 
 from ..firmware_model.sensor_standin import make_sensor
+from .can_fixtures import plant_output
 
 
 def cycle(seconds=20.0):
@@ -26,17 +27,13 @@ def cycle(seconds=20.0):
 
 
 def plant(inputs):
-    t = np.arange(0.0, inputs["time_s"][-1] + 0.5, 1.0)
-    cols = {"time_s": t, "oil_temp_c": 60.0 + 0.2 * t}
-    for i, c in enumerate(PUBLISHED):
-        cols[f"T_{c}_c"] = 61.0 + i + 0.3 * t
-    return RunTable(cols)
+    return plant_output(inputs, oil0_c=60.0, oil_rate_k_s=0.2, T0_c=61.0, T_rate_k_s=0.3)
 
 
 @pytest.fixture(scope="module")
 def frames():
     inp = cycle()
-    return inp, synth_frames(inp, plant(inp))[0]
+    return inp, synth_frames(inp, plant(inp)).frames
 
 
 def replay(path):
@@ -118,7 +115,7 @@ def messy_log(path):
     initialised), EEC1 missing for 2 s (stale inputs), a forward and a backward time jump, rig thermocouples."""
     from can_dbc.adapter import pgn_of
     inp = cycle(60.0)
-    fr = synth_frames(inp, plant(inp))[0]
+    fr = synth_frames(inp, plant(inp)).frames
     t, ids, data = fr.timestamp_s.copy(), fr.can_id.copy(), fr.data.copy()
     pgn = np.array([pgn_of(int(i)) for i in ids])
     keep = ~((pgn == 65272) & (t < 3.0)) & ~((pgn == 61444) & (t > 20.0) & (t < 22.0))
@@ -132,7 +129,7 @@ def messy_log(path):
 
 
 def test_two_process_replay_equals_one_process_bit_for_bit(tmp_path):
-    from tools.can.replay_log import pipeline_available
+    from tools.replay.pipeline import pipeline_available
     path = messy_log(tmp_path / "messy.log")
     sensor = make_sensor()
     tables, services = [], []
@@ -159,25 +156,28 @@ class _Failing:
 
     def __init__(self, real):
         self.real = real
-        self.Inputs = type(real).__module__ and real.Inputs if hasattr(real, "Inputs") else None
+        self.Inputs, self.Status, self.Outputs = real.Inputs, real.Status, real.Outputs
+        self.reject_reasons, self.input_fields, self.dt_s = real.reject_reasons, real.input_fields, real.dt_s
 
     def initial_state(self, **kw):
         return (0, self.real.initial_state(**kw))
 
-    def step(self, state, inputs):
+    def step_deferred(self, state, inputs):
         k, st = state
         if k >= 50:
             raise ValueError("deliberate failure at step 50")
         st, out = self.real.step(st, inputs)
-        return (k + 1, st), out
+        return (k + 1, st), out, None
+
+    @staticmethod
+    def refresh_ttl(state, job):
+        return state
 
 
 def test_two_process_replay_reports_a_failure_in_the_sensor_process(tmp_path, frames):
-    from firmware_model.onboard.sensor import SensorInputs
     path = write_frames(frames[1], tmp_path / "drive.log")
-    failing = _Failing(make_sensor())
-    failing.Inputs = SensorInputs
-    svc = SensorService(failing, ServiceOptions(configured_ref_torque_nm=None), record=True, emit_frames=False)
+    svc = SensorService(_Failing(make_sensor()), ServiceOptions(configured_ref_torque_nm=None), record=True,
+                        emit_frames=False)
     with pytest.raises(RuntimeError, match="deliberate failure at step 50"):
         replay_log(path, svc, processes=2)
 

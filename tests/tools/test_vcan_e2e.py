@@ -22,7 +22,7 @@ default 130 degC it is "never" throughout since the prediction follows the coole
 to answer the drive's last steps (a second candump counts its GBX_STATUS frames) instead of a fixed sleep, and every
 wait in it is bounded: a service that does not exit 60 s after SIGTERM is sent SIGABRT and its threads' stacks
 (`python -X faulthandler`) land in run.err, instead of the run hanging until the VM timeout (that hang was a real bug,
-fixed in tools/cli/run.py: SignalWatcher). The script prints its phases (`@ <uptime> <phase>`), the test a summary
+fixed in tools/can/live.py: SignalWatcher). The script prints its phases (`@ <uptime> <phase>`), the test a summary
 (`-s`). Measured on the 2-core development machine (docs/vcan-vm.md): ~2 min for the whole test on a quiet host (boot
 6 s, service start-up 49-51 s, canplayer 60 s, catch-up 0.1 s, shutdown 4 s); 3-3.5 min with 1-4 CPU-bound processes
 beside it (start-up 89-118 s). Marked `vcan`; skipped, naming what is missing, when QEMU, the Debian kernel,
@@ -39,9 +39,12 @@ import can
 import numpy as np
 import pytest
 
-from can_dbc.adapter import SENSOR_SOURCE_ADDRESS, decode_outputs, pgn_of
+from can_dbc.adapter import decode_outputs, default_source, pgn_of
 from tools.vcan_vm import harness as vcan_vm
 from ..firmware_model.sensor_standin import real_sensor_available
+
+#: the sensor's source address (the DBC's)
+SENSOR_SA = default_source("GBX_STATUS")
 
 
 pytestmark = pytest.mark.vcan
@@ -145,8 +148,8 @@ INPUTS = ("engine_speed_rpm", "engine_torque_nm", "gear", "oil_temp_c", "ambient
 
 
 def _offline(path):
-    from tools.cli.run import build_service
-    from tools.can.replay_log import replay_log
+    from firmware_model.service import build_service
+    from tools.replay.log import replay_log
     frames = []
     table = replay_log(path, build_service(path.parent / "vm.toml", record=True), on_frames=frames.extend)
     return table, [(m.arbitration_id, bytes(m.data)) for m in frames]
@@ -192,7 +195,7 @@ def vm_run(tmp_path_factory):
     assert p.returncode == 0, p.stderr
     offline = _offline(share / "drive.log")  # the log's replay: also tells the VM how many steps to wait for
     n_steps = len(_groups(offline[1]))
-    vm_env = {"STATUS_FRAMES": str(max(n_steps - 2, 1)), "STATUS_ID": f"18{STATUS_PGN:04X}{SENSOR_SOURCE_ADDRESS:02X}",
+    vm_env = {"STATUS_FRAMES": str(max(n_steps - 2, 1)), "STATUS_ID": f"18{STATUS_PGN:04X}{SENSOR_SA:02X}",
               "START_TIMEOUT_S": str(START_TIMEOUT_S), "CATCH_UP_TIMEOUT_S": str(CATCH_UP_TIMEOUT_S),
               "EXIT_TIMEOUT_S": str(EXIT_TIMEOUT_S)}
     t1 = time.monotonic()
@@ -219,8 +222,8 @@ def test_bus_outputs_are_bit_identical_to_the_offline_replay(vm_run):
     share, res, (table, offline) = vm_run
     recorded = list(can.LogReader(share / "rec.log"))
     live = [(m.arbitration_id, bytes(m.data)) for m in recorded
-            if pgn_of(m.arbitration_id) in GBX_PGNS and m.arbitration_id & 0xFF == SENSOR_SOURCE_ADDRESS]
-    inputs = [m for m in recorded if m.arbitration_id & 0xFF != SENSOR_SOURCE_ADDRESS]
+            if pgn_of(m.arbitration_id) in GBX_PGNS and m.arbitration_id & 0xFF == SENSOR_SA]
+    inputs = [m for m in recorded if m.arbitration_id & 0xFF != SENSOR_SA]
     n_log = sum(1 for _ in can.LogReader(share / "drive.log"))
     assert len(inputs) == n_log, "candump lost input frames"
     rec_table, offline_recorded = _offline(share / "rec.log")

@@ -1,1 +1,2 @@
-"""CAN logs offline: log synthesis from run tables, log replay through the live service, the HIL plant on a bus."""
+"""CAN on the tools side: log synthesis from run tables (``logsynth``), the HIL plant on a bus (``hil``), the live
+sensor on a bus (``live``) and the bus options and signal handling the CAN subcommands share (``bus``)."""

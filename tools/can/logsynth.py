@@ -4,9 +4,9 @@
 into J1939 frames at the rates a truck sends them, plus the plant's true component temperatures as rig thermocouple
 frames, and writes them as a CAN log (``.log`` candump -L, ``.asc``, ``.blf`` by suffix). ``gearbox-vsensor simulate
 --can-log RUN.log`` calls it; ``gearbox-vsensor replay RUN.log`` reads such a log back through the onboard sensor.
-:func:`synth_frames` gives the same frames as arrays (for the HIL plant, tools/cli/plant.py).
+:func:`synth_frames` gives the same frames as arrays (for the HIL plant, tools/can/hil.py).
 
-What is sent (CONTRACTS.md section 1; source addresses from ``[can]`` of the config, defaults in brackets):
+What is sent (docs/can.md "Inputs"; source addresses from ``[can]`` of the config, defaults in brackets):
 
 ======== ================== ================ ====================================================================
 message  period             source           content
@@ -47,12 +47,13 @@ from __future__ import annotations
 import os
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Iterator
+from typing import Iterator, NamedTuple
 
 import numpy as np
 
-from can_dbc.adapter import (EC1_PGN, RIG_SOURCE_ADDRESS, TP_BAM_CONTROL, TP_CM_PGN, TP_DT_PGN, can_id_of,
-                             load_database)
+from can_dbc import dbc
+from can_dbc.j1939 import (EC1_PGN, EC1_REF_TORQUE_BYTE0, RAW8_DATA_MAX, RAW8_NOT_AVAILABLE, RAW16_DATA_MAX,
+                           RAW16_NOT_AVAILABLE, TP_BAM_CONTROL, TP_DT_DATA_BYTES)
 from firmware_model.components import PUBLISHED
 from firmware_model.errors import InputError, ParameterError
 
@@ -60,27 +61,48 @@ from firmware_model.errors import InputError, ParameterError
 DEFAULT_REF_TORQUE_NM = 3000.0
 #: default retarder reference torque used to express the cycle's retarder torque in percent [Nm]; assumed
 DEFAULT_RETARDER_REF_TORQUE_NM = 3500.0
-#: EC1 transfer: size (J1939-71 EC1, 39 bytes as on the utulsa truck), period, TP.DT spacing
+#: EC1 transfer: size (J1939-71 EC1, 39 bytes as on the utulsa truck), packets, period, TP.DT spacing
 EC1_SIZE_BYTES = 39
+EC1_PACKETS = 6
 EC1_PERIOD_S = 5.0
 TP_DT_SPACING_S = 0.050
-#: default J1939 source addresses (CONTRACTS.md section 1)
-DEFAULT_SOURCES = {"engine": 0x00, "transmission": 0x03, "retarder": 0x10, "ambient": 0x00, "rig": RIG_SOURCE_ADDRESS}
+#: the largest engine reference torque SPN 544 carries [Nm]
+REF_TORQUE_MAX_NM = 64255
+#: default J1939 source addresses (docs/can.md "Inputs"); the rig logger's is the DBC's
+DEFAULT_SOURCES = {"engine": 0x00, "transmission": 0x03, "retarder": 0x10, "ambient": 0x00}
+#: EEC1 bytes the DBC does not describe: engine torque mode (low idle governor / no request; bits 5-8 reserved),
+#: driver's demand percent torque (byte 2, sent equal to the actual), source address of the controlling device
+EEC1_TORQUE_MODE = 0xF0
+EEC1_DEMAND_BYTE0 = 1
+EEC1_CONTROLLER_SA_BYTE0 = 5
+#: ETC2 byte 1 selected gear (not in the DBC; sent equal to the current gear); ERC1 byte 1 retarder torque mode
+ETC2_SELECTED_GEAR_BYTE0 = 0
+ERC1_TORQUE_MODE = 0xF0
+#: percent torque range of SPN 513/520
+PCT_RANGE = (-125, 125)
+#: EEC1 period: 20 ms at idle (600 rpm) down to 10 ms at 2100 rpm, on a 10 ms grid
+EEC1_PERIOD_IDLE_S, EEC1_PERIOD_FAST_S = 0.020, 0.010
+EEC1_IDLE_RPM, EEC1_FAST_RPM = 600.0, 2100.0
+EEC1_GRID_S = 0.01
 
-#: message -> (PGN, priority, period s, phase s inside the 100 ms slot); EEC1 has its own rpm-dependent schedule
-_PERIODIC = {
-    "ETC2": (61445, 3, 0.1, 0.050),
-    "ERC1": (61440, 6, 0.1, 0.055),
-    "RIG": (None, 6, 0.1, 0.075),
-    "TRF1": (65272, 6, 1.0, 0.045),
-    "ET1": (65262, 6, 1.0, 0.050),
-    "AMB": (65269, 6, 1.0, 0.060),
-    "CCVS1": (65265, 6, 1.0, 0.040),
-}
+
+class Schedule(NamedTuple):
+    """A periodic message: its period and its phase inside each slot of that period [s]."""
+    period_s: float
+    phase_s: float
+
+
+#: message -> schedule; EEC1 has its own rpm-dependent schedule, EC1 its BAM
+SCHEDULES = {"ETC2": Schedule(0.1, 0.050), "ERC1": Schedule(0.1, 0.055), "RIG": Schedule(0.1, 0.075),
+             "TRF1": Schedule(1.0, 0.045), "ET1": Schedule(1.0, 0.050), "AMB": Schedule(1.0, 0.060),
+             "CCVS1": Schedule(1.0, 0.040)}
 _PERIODIC_JITTER_S = 0.001
 _EEC1_JITTER_S = 0.0003
 #: EC1 BAM: TP.CM at this phase of each 5 s period; the last of its 6 TP.DT completes 300 ms later (phase 0.35)
 _EC1_PHASE_S = 0.050
+#: order of the messages at equal timestamps (RIG_TC_k: RIG_ORDER + k - 1)
+_ORDER = {"EEC1": 0, "ETC2": 1, "TRF1": 2, "ET1": 3, "AMB": 4, "CCVS1": 5, "ERC1": 6, "EC1": 7}
+RIG_ORDER = 8
 
 
 @dataclass
@@ -101,6 +123,12 @@ class SynthFrames:
                               channel=channel, check=False)
 
 
+class SynthResult(NamedTuple):
+    """The synthesized frames and the number of frames per message."""
+    frames: SynthFrames
+    counts: dict
+
+
 @dataclass
 class LogSummary:
     path: Path
@@ -109,8 +137,16 @@ class LogSummary:
     per_message: dict
 
 
+class _Part(NamedTuple):
+    """The frames of one message: times [s], identifiers, payloads, and its order at equal times."""
+    timestamp_s: np.ndarray
+    can_id: np.ndarray
+    data: np.ndarray
+    order: int
+
+
 def _sources(config) -> dict:
-    src = dict(DEFAULT_SOURCES)
+    src = {**DEFAULT_SOURCES, "rig": dbc.default_source(dbc.numbered_messages("RIG_TC_")[0])}
     can_cfg = getattr(config, "can", None) or {}
     for key, name in (("engine_source_address", "engine"), ("transmission_source_address", "transmission"),
                       ("retarder_source_address", "retarder"), ("ambient_source_address", "ambient")):
@@ -130,33 +166,33 @@ def _positive(name: str, value) -> float:
     return float(value)
 
 
-def _zoh(t_table: np.ndarray, values: np.ndarray, t: np.ndarray) -> np.ndarray:
-    """Zero-order hold of a table column at times t (before the first sample: the first sample)."""
-    idx = np.searchsorted(t_table, t, side="right") - 1
-    return values[np.clip(idx, 0, t_table.size - 1)]
+def _zoh(t_table_s: np.ndarray, values: np.ndarray, t_s: np.ndarray) -> np.ndarray:
+    """Zero-order hold of a table column at times t_s (before the first sample: the first sample)."""
+    idx = np.searchsorted(t_table_s, t_s, side="right") - 1
+    return values[np.clip(idx, 0, t_table_s.size - 1)]
 
 
-def _lin(t_table: np.ndarray, values: np.ndarray, t: np.ndarray) -> np.ndarray:
+def _lin(t_table_s: np.ndarray, values: np.ndarray, t_s: np.ndarray) -> np.ndarray:
     """Linear interpolation ignoring NaN samples; all NaN -> NaN."""
     ok = np.isfinite(values)
     if not ok.any():
-        return np.full(t.shape, np.nan)
-    return np.interp(t, t_table[ok], values[ok])
+        return np.full(t_s.shape, np.nan)
+    return np.interp(t_s, t_table_s[ok], values[ok])
 
 
 def _raw8(x: np.ndarray, scale: float, offset: float) -> np.ndarray:
     """J1939 8-bit raw: NaN -> 0xFF not available, else rounded and clamped to the data range 0..250."""
     raw = np.rint((np.nan_to_num(x, nan=0.0) - offset) / scale)
-    raw = np.clip(raw, 0, 250).astype(np.uint8)
-    raw[~np.isfinite(x)] = 0xFF
+    raw = np.clip(raw, 0, RAW8_DATA_MAX).astype(np.uint8)
+    raw[~np.isfinite(x)] = RAW8_NOT_AVAILABLE
     return raw
 
 
 def _raw16(x: np.ndarray, scale: float, offset: float) -> np.ndarray:
     """J1939 16-bit raw: NaN -> 0xFFFF not available, else rounded and clamped to 0..0xFAFF."""
     raw = np.rint((np.nan_to_num(x, nan=0.0) - offset) / scale)
-    raw = np.clip(raw, 0, 0xFAFF).astype(np.uint16)
-    raw[~np.isfinite(x)] = 0xFFFF
+    raw = np.clip(raw, 0, RAW16_DATA_MAX).astype(np.uint16)
+    raw[~np.isfinite(x)] = RAW16_NOT_AVAILABLE
     return raw
 
 
@@ -165,175 +201,236 @@ def _put16(data: np.ndarray, byte0: int, raw: np.ndarray) -> None:
     data[:, byte0 + 1] = raw >> 8
 
 
-def _slots(t0: float, t1: float, period_s: float, phase_s: float, rng: np.random.Generator) -> np.ndarray:
-    n = int(np.floor((t1 - t0 - phase_s) / period_s)) + 1
+def _put(data: np.ndarray, message: str, signal: str, x: np.ndarray) -> np.ndarray:
+    """Quantise ``x`` as the DBC's byte-aligned 8- or 16-bit ``message.signal`` into ``data``; returns the raw."""
+    sig = dbc.message(message).get_signal_by_name(signal)
+    if sig.length == 8:
+        raw = _raw8(x, float(sig.scale), float(sig.offset))
+        data[:, sig.start // 8] = raw
+        return raw
+    raw = _raw16(x, float(sig.scale), float(sig.offset))
+    _put16(data, sig.start // 8, raw)
+    return raw
+
+
+def _empty(n: int) -> np.ndarray:
+    """n payloads with every byte 0xFF (J1939: not available / unused bits 1)."""
+    return np.full((n, 8), 0xFF, dtype=np.uint8)
+
+
+def _slots(t0_s: float, t1_s: float, schedule: Schedule, rng: np.random.Generator) -> np.ndarray:
+    """Frame times of a periodic message from t0_s to t1_s, with +-1 ms of uniform jitter."""
+    n = int(np.floor((t1_s - t0_s - schedule.phase_s) / schedule.period_s)) + 1
     if n <= 0:
         return np.empty(0)
-    t = t0 + phase_s + period_s * np.arange(n)
-    return t + rng.uniform(-_PERIODIC_JITTER_S, _PERIODIC_JITTER_S, n)
+    t_s = t0_s + schedule.phase_s + schedule.period_s * np.arange(n)
+    return t_s + rng.uniform(-_PERIODIC_JITTER_S, _PERIODIC_JITTER_S, n)
 
 
-def _eec1_times(t_table: np.ndarray, rpm: np.ndarray, t0: float, t1: float, rng: np.random.Generator) -> np.ndarray:
-    """EEC1 every 20 ms at idle (600 rpm) down to 10 ms at 2100 rpm, with gaussian jitter; first frame at t0."""
+def _eec1_times(t_table_s: np.ndarray, speed_rpm: np.ndarray, t0_s: float, t1_s: float,
+                rng: np.random.Generator) -> np.ndarray:
+    """EEC1 every 20 ms at idle (600 rpm) down to 10 ms at 2100 rpm, with gaussian jitter; first frame at t0_s."""
     # the period as a function of time on a 10 ms grid, then the frame times by accumulating it
-    grid = np.arange(t0, t1 + 0.01, 0.01)
-    speed = _zoh(t_table, rpm, grid)
-    period = np.clip(0.020 - (speed - 600.0) / 1500.0 * 0.010, 0.010, 0.020)
+    grid_s = np.arange(t0_s, t1_s + EEC1_GRID_S, EEC1_GRID_S)
+    grid_rpm = _zoh(t_table_s, speed_rpm, grid_s)
+    period_s = np.clip(EEC1_PERIOD_IDLE_S - (grid_rpm - EEC1_IDLE_RPM) / (EEC1_FAST_RPM - EEC1_IDLE_RPM)
+                       * (EEC1_PERIOD_IDLE_S - EEC1_PERIOD_FAST_S), EEC1_PERIOD_FAST_S, EEC1_PERIOD_IDLE_S)
     # cumulative "phase" in frames: integral of 1/period; frame k is where the phase crosses k
-    phase = np.concatenate([[0.0], np.cumsum(0.01 / period[:-1])])
+    phase = np.concatenate([[0.0], np.cumsum(EEC1_GRID_S / period_s[:-1])])
     k = np.arange(0, int(phase[-1]) + 1)
-    t = np.interp(k, phase, grid)
-    t[1:] += rng.normal(0.0, _EEC1_JITTER_S, t.size - 1).clip(-3 * _EEC1_JITTER_S, 3 * _EEC1_JITTER_S)
-    return np.sort(t[t <= t1])
+    t_s = np.interp(k, phase, grid_s)
+    t_s[1:] += rng.normal(0.0, _EEC1_JITTER_S, t_s.size - 1).clip(-3 * _EEC1_JITTER_S, 3 * _EEC1_JITTER_S)
+    return np.sort(t_s[t_s <= t1_s])
 
 
-def synth_frames(input_table, plant_output_table=None, *, config=None, ref_torque_nm: float | None = None,
-                 retarder_ref_torque_nm: float | None = None, seed: int = 0, sample_delay_s: float = 0.05,
-                 start_timestamp_s: float = 0.0, rig: bool = True) -> tuple[SynthFrames, dict]:
-    """The J1939 and rig frames of a drive cycle (see the module doc); returns the frames and a count per message.
+class _Synth:
+    """The frames of one drive cycle, message by message (the module doc); ``parts`` and ``counts`` fill up. The
+    random generator is drawn from in a fixed order (EEC1, ETC2, TRF1, ET1, AMB, CCVS1, ERC1, RIG): the same seed
+    gives the same frames."""
 
-    ``input_table``: the plant's input run table (time_s, engine_speed_rpm, engine_torque_nm, gear, optional
-    inputs). ``plant_output_table``: the plant's output (T_<id>_c columns for the rig frames, oil_temp_c for TRF1);
-    None sends no rig frames. ``ref_torque_nm`` / ``retarder_ref_torque_nm``: default from the config's ``[can]``
-    (engine_reference_torque_nm, retarder_reference_torque_nm), else 3000 Nm / 3500 Nm.
-    """
+    def __init__(self, input_table, plant_output_table, src: dict, seed: int, sample_delay_s: float) -> None:
+        self.inputs = input_table
+        self.plant = plant_output_table
+        self.src = src
+        self.sample_delay_s = sample_delay_s
+        self.t_in_s = np.asarray(input_table["time_s"], dtype=float)
+        self.t0_s, self.t1_s = float(self.t_in_s[0]), float(self.t_in_s[-1])
+        self.t_plant_s = None if plant_output_table is None else np.asarray(plant_output_table["time_s"], float)
+        self.rng = np.random.default_rng(seed)
+        self.parts: list[_Part] = []
+        self.counts: dict[str, int] = {}
+
+    def add(self, name: str, order: int, t_s: np.ndarray, can_id, data: np.ndarray) -> None:
+        ids = np.broadcast_to(np.asarray(can_id, dtype=np.uint32), t_s.shape)
+        self.parts.append(_Part(t_s, ids, data, order))
+        self.counts[name] = self.counts.get(name, 0) + int(t_s.size)
+
+    def column(self, name: str) -> np.ndarray:
+        return np.asarray(self.inputs[name], dtype=float)
+
+    def at(self, name: str, t_s: np.ndarray) -> np.ndarray:
+        """The cycle's column ``name`` sample_delay_s before each time, held between samples."""
+        return _zoh(self.t_in_s, self.column(name), t_s - self.sample_delay_s)
+
+    def slots(self, name: str) -> np.ndarray:
+        return _slots(self.t0_s, self.t1_s, SCHEDULES[name], self.rng)
+
+    def eec1(self, ref_torque_nm: float) -> None:
+        """EEC1: actual percent torque = torque / reference x 100 (rounded to 1 %), engine speed."""
+        t_s = _eec1_times(self.t_in_s, self.column("engine_speed_rpm"), self.t0_s, self.t1_s, self.rng)
+        pct = np.clip(np.rint(self.at("engine_torque_nm", t_s) / ref_torque_nm * 100.0), *PCT_RANGE)
+        data = _empty(t_s.size)
+        data[:, 0] = EEC1_TORQUE_MODE
+        data[:, EEC1_DEMAND_BYTE0] = _put(data, "EEC1", "ActualEngPercentTorque", pct)
+        speed_max_rpm = float(dbc.message("EEC1").get_signal_by_name("EngSpeed").maximum)
+        _put(data, "EEC1", "EngSpeed", np.clip(self.at("engine_speed_rpm", t_s), 0.0, speed_max_rpm))
+        data[:, EEC1_CONTROLLER_SA_BYTE0] = self.src["engine"]
+        self.add("EEC1", _ORDER["EEC1"], t_s, dbc.message_id("EEC1", self.src["engine"]), data)
+
+    def etc2(self) -> None:
+        """ETC2: current gear (and the selected gear, equal)."""
+        t_s = self.slots("ETC2")
+        data = _empty(t_s.size)
+        data[:, ETC2_SELECTED_GEAR_BYTE0] = _put(data, "ETC2", "TransCurrentGear", self.at("gear", t_s))
+        self.add("ETC2", _ORDER["ETC2"], t_s, dbc.message_id("ETC2", self.src["transmission"]), data)
+
+    def trf1(self) -> None:
+        """TRF1: oil temperature from the plant's sensor (oil_temp_c, else its sump T_oil_c), else the cycle's."""
+        t_s = self.slots("TRF1")
+        oil_c = None
+        if self.plant is not None:
+            for name in ("oil_temp_c", "T_oil_c"):
+                if self.plant.has(name):
+                    oil_c = _lin(self.t_plant_s, np.asarray(self.plant[name], float), t_s - self.sample_delay_s)
+                    break
+        if oil_c is None and self.inputs.has("oil_temp_c"):
+            oil_c = self.at("oil_temp_c", t_s)
+        if oil_c is not None:
+            data = _empty(t_s.size)
+            _put(data, "TRF1", "TransOilTemp", oil_c)
+            self.add("TRF1", _ORDER["TRF1"], t_s, dbc.message_id("TRF1", self.src["transmission"]), data)
+
+    def engine_1s(self) -> None:
+        """ET1 coolant, AMB ambient, CCVS1 vehicle speed, each if the cycle has its column."""
+        for name, col, signal, source in (("ET1", "coolant_temp_c", "EngCoolantTemp", "engine"),
+                                          ("AMB", "ambient_temp_c", "AmbientAirTemp", "ambient"),
+                                          ("CCVS1", "vehicle_speed_kmh", "WheelBasedVehicleSpeed", "engine")):
+            if not self.inputs.has(col):
+                continue
+            t_s = self.slots(name)
+            x = self.at(col, t_s)
+            data = _empty(t_s.size)
+            _put(data, name, signal, np.clip(x, 0.0, None) if name == "CCVS1" else x)
+            self.add(name, _ORDER[name], t_s, dbc.message_id(name, self.src[source]), data)
+
+    def erc1(self, retarder_ref_torque_nm: float) -> None:
+        """ERC1: actual retarder percent torque; braking is negative in J1939."""
+        if not self.inputs.has("retarder_torque_nm"):
+            return
+        t_s = self.slots("ERC1")
+        x = np.nan_to_num(self.at("retarder_torque_nm", t_s), nan=0.0)
+        pct = np.clip(np.rint(-np.abs(x) / retarder_ref_torque_nm * 100.0), *PCT_RANGE)
+        data = _empty(t_s.size)
+        data[:, 0] = ERC1_TORQUE_MODE
+        _put(data, "ERC1", "ActualRetarderPercentTorque", pct)
+        self.add("ERC1", _ORDER["ERC1"], t_s, dbc.message_id("ERC1", self.src["retarder"]), data)
+
+    def ec1(self, ref_torque_nm: float) -> None:
+        """EC1 by TP.BAM every 5 s: TP.CM BAM to global, then 6 TP.DT 50 ms apart; SPN 544 in bytes 20-21."""
+        n_ec1 = int(np.floor((self.t1_s - self.t0_s - _EC1_PHASE_S) / EC1_PERIOD_S)) + 1
+        if n_ec1 <= 0:
+            return
+        payload = np.full(EC1_PACKETS * TP_DT_DATA_BYTES, 0xFF, dtype=np.uint8)
+        payload[EC1_REF_TORQUE_BYTE0] = int(round(ref_torque_nm)) & 0xFF
+        payload[EC1_REF_TORQUE_BYTE0 + 1] = int(round(ref_torque_nm)) >> 8
+        cm = np.array([TP_BAM_CONTROL, EC1_SIZE_BYTES & 0xFF, EC1_SIZE_BYTES >> 8, EC1_PACKETS, 0xFF,
+                       EC1_PGN & 0xFF, (EC1_PGN >> 8) & 0xFF, EC1_PGN >> 16], dtype=np.uint8)
+        start_s = self.t0_s + _EC1_PHASE_S + EC1_PERIOD_S * np.arange(n_ec1)
+        n = TP_DT_DATA_BYTES
+        rows = [cm] + [np.concatenate([[k + 1], payload[n * k:n * k + n]]).astype(np.uint8)
+                       for k in range(EC1_PACKETS)]
+        t_s = (start_s[:, None] + TP_DT_SPACING_S * np.arange(EC1_PACKETS + 1)[None, :]).ravel()
+        engine = self.src["engine"]
+        ids = np.tile(np.array([dbc.message_id("TP_CM", engine)] + [dbc.message_id("TP_DT", engine)] * EC1_PACKETS,
+                               dtype=np.uint32), n_ec1)
+        data = np.tile(np.stack(rows), (n_ec1, 1))
+        keep = t_s <= self.t1_s + EC1_PACKETS * TP_DT_SPACING_S  # a transfer started inside the cycle is finished
+        self.add("EC1", _ORDER["EC1"], t_s[keep], ids[keep], data[keep])
+
+    def rig(self) -> None:
+        """RIG_TC_1..7: the plant's true temperatures of the published components, linearly interpolated."""
+        if self.plant is None or not any(self.plant.has(f"T_{c}_c") for c in PUBLISHED):
+            return
+        t_s = self.slots("RIG")
+        for k, name in enumerate(dbc.numbered_messages("RIG_TC_")):
+            data = _empty(t_s.size)
+            for component, signal, _ in dbc.component_signals(name, 16):
+                col = f"T_{component}_c"
+                x = (_lin(self.t_plant_s, np.asarray(self.plant[col], float), t_s - self.sample_delay_s)
+                     if self.plant.has(col) else np.full(t_s.shape, np.nan))
+                _put(data, name, signal, x)
+            self.add(name, RIG_ORDER + k, t_s, dbc.message_id(name, self.src["rig"]), data)
+
+    def frames(self, start_timestamp_s: float) -> SynthFrames:
+        """Every part merged and sorted by time (then message order), in whole microseconds from
+        ``start_timestamp_s``."""
+        parts = self.parts
+        t_all = np.concatenate([p.timestamp_s for p in parts])
+        t_all = np.round((t_all - self.t0_s + start_timestamp_s) * 1e6) / 1e6  # whole microseconds, like candump -L
+        order = np.concatenate([np.full(p.timestamp_s.size, p.order, dtype=np.int16) for p in parts])
+        ids = np.concatenate([p.can_id for p in parts]).astype(np.uint32)
+        data = np.concatenate([p.data for p in parts])
+        idx = np.lexsort((order, t_all))
+        return SynthFrames(t_all[idx], ids[idx], data[idx])
+
+
+def _reference_torques_nm(config, ref_torque_nm, retarder_ref_torque_nm) -> tuple[float, float]:
+    """The engine and retarder reference torques: given, else the config's ``[can]``, else the defaults."""
     can_cfg = getattr(config, "can", None) or {}
     if ref_torque_nm is None:
         ref_torque_nm = can_cfg.get("engine_reference_torque_nm", DEFAULT_REF_TORQUE_NM)
     ref = _positive("engine reference torque", ref_torque_nm)
-    if ref > 64255:
+    if ref > REF_TORQUE_MAX_NM:
         raise ParameterError(f"engine reference torque = {ref:g} Nm is above the J1939 SPN 544 range 0..64255 Nm")
     if retarder_ref_torque_nm is None:
         retarder_ref_torque_nm = can_cfg.get("retarder_reference_torque_nm", DEFAULT_RETARDER_REF_TORQUE_NM)
-    ret_ref = _positive("retarder reference torque", retarder_ref_torque_nm)
-    if not 0.0 <= sample_delay_s < 1.0:
-        raise InputError(f"sample_delay_s = {sample_delay_s!r} must be in 0..1 s")
-    src = _sources(config)
+    return ref, _positive("retarder reference torque", retarder_ref_torque_nm)
+
+
+def _check_cycle(input_table) -> None:
     for col in ("time_s", "engine_speed_rpm", "engine_torque_nm", "gear"):
         if not input_table.has(col):
             raise InputError(f'the drive cycle has no column "{col}"; a J1939 log needs it')
     t_in = np.asarray(input_table["time_s"], dtype=float)
     if t_in.size < 2 or not np.all(np.diff(t_in) > 0):
         raise InputError("the drive cycle needs at least two samples with strictly increasing time_s")
-    t0, t1 = float(t_in[0]), float(t_in[-1])
-    rng = np.random.default_rng(seed)
-    out_t = None
-    if plant_output_table is not None:
-        out_t = np.asarray(plant_output_table["time_s"], dtype=float)
 
-    def col_in(name: str) -> np.ndarray | None:
-        return np.asarray(input_table[name], dtype=float) if input_table.has(name) else None
 
-    def at(name: str, t: np.ndarray) -> np.ndarray:
-        return _zoh(t_in, col_in(name), t - sample_delay_s)
+def synth_frames(input_table, plant_output_table=None, *, config=None, ref_torque_nm: float | None = None,
+                 retarder_ref_torque_nm: float | None = None, seed: int = 0, sample_delay_s: float = 0.05,
+                 start_timestamp_s: float = 0.0, rig: bool = True) -> SynthResult:
+    """The J1939 and rig frames of a drive cycle (see the module doc) and a count per message.
 
-    parts: list[tuple[np.ndarray, np.ndarray, np.ndarray, int]] = []  # (t, id, data, message order)
-    counts: dict[str, int] = {}
-
-    def add(name: str, order: int, t: np.ndarray, can_id, data: np.ndarray) -> None:
-        ids = np.broadcast_to(np.asarray(can_id, dtype=np.uint32), t.shape)
-        parts.append((t, ids, data, order))
-        counts[name] = counts.get(name, 0) + int(t.size)
-
-    # EEC1 (PGN 61444): byte 3 actual percent torque, bytes 4-5 speed; byte 2 driver's demand = actual
-    t = _eec1_times(t_in, col_in("engine_speed_rpm"), t0, t1, rng)
-    pct = np.clip(np.rint(at("engine_torque_nm", t) / ref * 100.0), -125, 125)
-    data = np.full((t.size, 8), 0xFF, dtype=np.uint8)
-    data[:, 0] = 0xF0  # torque mode 0 "low idle governor/no request"; bits 5-8 reserved
-    data[:, 1] = data[:, 2] = _raw8(pct, 1.0, -125.0)
-    _put16(data, 3, _raw16(np.clip(at("engine_speed_rpm", t), 0.0, 8031.875), 0.125, 0.0))
-    data[:, 5] = src["engine"]  # source address of the controlling device
-    add("EEC1", 0, t, can_id_of(61444, src["engine"], 3), data)
-
-    # ETC2 (PGN 61445): byte 1 selected gear, byte 4 current gear (offset -125)
-    t = _slots(t0, t1, *_PERIODIC["ETC2"][2:], rng)
-    gear = _raw8(at("gear", t), 1.0, -125.0)
-    data = np.full((t.size, 8), 0xFF, dtype=np.uint8)
-    data[:, 0] = data[:, 3] = gear
-    add("ETC2", 1, t, can_id_of(61445, src["transmission"], 6), data)
-
-    # TRF1 (PGN 65272): bytes 5-6 oil temperature, from the plant's sensor if it has one
-    t = _slots(t0, t1, *_PERIODIC["TRF1"][2:], rng)
-    oil = None
-    if plant_output_table is not None:
-        for name in ("oil_temp_c", "T_oil_c"):
-            if plant_output_table.has(name):
-                oil = _lin(out_t, np.asarray(plant_output_table[name], float), t - sample_delay_s)
-                break
-    if oil is None and input_table.has("oil_temp_c"):
-        oil = at("oil_temp_c", t)
-    if oil is not None:
-        data = np.full((t.size, 8), 0xFF, dtype=np.uint8)
-        _put16(data, 4, _raw16(oil, 0.03125, -273.0))
-        add("TRF1", 2, t, can_id_of(65272, src["transmission"], 6), data)
-
-    # ET1 byte 1 coolant; AMB bytes 4-5 ambient; CCVS1 bytes 2-3 vehicle speed
-    for name, col, order, fill in (("ET1", "coolant_temp_c", 3, None), ("AMB", "ambient_temp_c", 4, None),
-                                   ("CCVS1", "vehicle_speed_kmh", 5, None)):
-        if not input_table.has(col):
-            continue
-        pgn, prio, period, phase = _PERIODIC[name]
-        t = _slots(t0, t1, period, phase, rng)
-        x = at(col, t)
-        data = np.full((t.size, 8), 0xFF, dtype=np.uint8)
-        if name == "ET1":
-            data[:, 0] = _raw8(x, 1.0, -40.0)
-        elif name == "AMB":
-            _put16(data, 3, _raw16(x, 0.03125, -273.0))
-        else:
-            _put16(data, 1, _raw16(np.clip(x, 0.0, None), 1.0 / 256.0, 0.0))
-        add(name, order, t, can_id_of(pgn, src["ambient" if name == "AMB" else "engine"], prio), data)
-
-    # ERC1 byte 2 actual retarder percent torque; braking is negative in J1939
-    if input_table.has("retarder_torque_nm"):
-        t = _slots(t0, t1, *_PERIODIC["ERC1"][2:], rng)
-        x = np.nan_to_num(at("retarder_torque_nm", t), nan=0.0)
-        pct = np.clip(np.rint(-np.abs(x) / ret_ref * 100.0), -125, 125)
-        data = np.full((t.size, 8), 0xFF, dtype=np.uint8)
-        data[:, 0] = 0xF0
-        data[:, 1] = _raw8(pct, 1.0, -125.0)
-        add("ERC1", 6, t, can_id_of(61440, src["retarder"], 6), data)
-
-    # EC1 by TP.BAM every 5 s: TP.CM BAM to global, then 6 TP.DT 50 ms apart
-    n_ec1 = int(np.floor((t1 - t0 - _EC1_PHASE_S) / EC1_PERIOD_S)) + 1
-    if n_ec1 > 0:
-        payload = np.full(6 * 7, 0xFF, dtype=np.uint8)
-        payload[19] = int(round(ref)) & 0xFF
-        payload[20] = int(round(ref)) >> 8
-        cm = np.array([TP_BAM_CONTROL, EC1_SIZE_BYTES & 0xFF, EC1_SIZE_BYTES >> 8, 6, 0xFF,
-                       EC1_PGN & 0xFF, (EC1_PGN >> 8) & 0xFF, EC1_PGN >> 16], dtype=np.uint8)
-        start = t0 + _EC1_PHASE_S + EC1_PERIOD_S * np.arange(n_ec1)
-        rows = [cm] + [np.concatenate([[k + 1], payload[7 * k:7 * k + 7]]).astype(np.uint8) for k in range(6)]
-        t = (start[:, None] + TP_DT_SPACING_S * np.arange(7)[None, :]).ravel()
-        ids = np.tile(np.array([can_id_of(TP_CM_PGN, src["engine"], 7)] + [can_id_of(TP_DT_PGN, src["engine"], 7)]
-                               * 6, dtype=np.uint32), n_ec1)
-        data = np.tile(np.stack(rows), (n_ec1, 1))
-        keep = t <= t1 + 6 * TP_DT_SPACING_S  # a transfer started inside the cycle is finished
-        add("EC1", 7, t[keep], ids[keep], data[keep])
-
-    # rig thermocouples: RIG_TC_1..7, 4 published components each, J1939 temperatures
-    if rig and plant_output_table is not None:
-        cols = [f"T_{c}_c" for c in PUBLISHED]
-        if any(plant_output_table.has(c) for c in cols):
-            t = _slots(t0, t1, *_PERIODIC["RIG"][2:], rng)
-            db = load_database()
-            for k in range(0, len(PUBLISHED), 4):
-                msg = db.get_message_by_name(f"RIG_TC_{k // 4 + 1}")
-                data = np.full((t.size, 8), 0xFF, dtype=np.uint8)
-                for j, c in enumerate(PUBLISHED[k:k + 4]):
-                    sig = msg.get_signal_by_name("TC_" + c.replace(".", "_"))
-                    x = (_lin(out_t, np.asarray(plant_output_table[f"T_{c}_c"], float), t - sample_delay_s)
-                         if plant_output_table.has(f"T_{c}_c") else np.full(t.shape, np.nan))
-                    _put16(data, sig.start // 8, _raw16(x, float(sig.scale), float(sig.offset)))
-                add(f"RIG_TC_{k // 4 + 1}", 8 + k // 4, t, (msg.frame_id & ~0xFF) | src["rig"], data)
-
-    t_all = np.concatenate([p[0] for p in parts])
-    t_all = np.round((t_all - t0 + start_timestamp_s) * 1e6) / 1e6  # whole microseconds, like candump -L
-    order = np.concatenate([np.full(p[0].size, p[3], dtype=np.int16) for p in parts])
-    ids = np.concatenate([p[1] for p in parts]).astype(np.uint32)
-    data = np.concatenate([p[2] for p in parts])
-    idx = np.lexsort((order, t_all))
-    return SynthFrames(t_all[idx], ids[idx], data[idx]), counts
+    ``input_table``: the plant's input run table (time_s, engine_speed_rpm, engine_torque_nm, gear, optional
+    inputs). ``plant_output_table``: the plant's output (T_<id>_c columns for the rig frames, oil_temp_c for TRF1);
+    None sends no rig frames. ``ref_torque_nm`` / ``retarder_ref_torque_nm``: default from the config's ``[can]``
+    (engine_reference_torque_nm, retarder_reference_torque_nm), else 3000 Nm / 3500 Nm.
+    """
+    ref_nm, retarder_ref_nm = _reference_torques_nm(config, ref_torque_nm, retarder_ref_torque_nm)
+    if not 0.0 <= sample_delay_s < 1.0:
+        raise InputError(f"sample_delay_s = {sample_delay_s!r} must be in 0..1 s")
+    src = _sources(config)
+    _check_cycle(input_table)
+    synth = _Synth(input_table, plant_output_table, src, seed, sample_delay_s)
+    synth.eec1(ref_nm)
+    synth.etc2()
+    synth.trf1()
+    synth.engine_1s()
+    synth.erc1(retarder_ref_nm)
+    synth.ec1(ref_nm)
+    if rig:
+        synth.rig()
+    return SynthResult(synth.frames(start_timestamp_s), synth.counts)
 
 
 #: formats by suffix (python-can's Logger choice); .log is written by the fast formatter
@@ -362,13 +459,13 @@ def _write_candump(frames: SynthFrames, target: Path, channel: str, chunk: int =
     """candump -L lines exactly as python-can's CanutilsLogWriter writes them (extended 8-byte data, " R")."""
     hexdigits = np.frombuffer(b"0123456789ABCDEF", dtype=np.uint8)
     with open(target, "w", encoding="ascii", newline="\n") as fh:
-        last = None
+        last_s = None
         for i in range(0, len(frames), chunk):
-            ts = frames.timestamp_s[i:i + chunk]
-            if last is None:
-                last = float(ts[0]) if ts.size else 0.0
-            ts = np.maximum.accumulate(np.maximum(ts, last))  # CanutilsLogWriter never writes a time backwards
-            last = float(ts[-1]) if ts.size else last
+            t_s = frames.timestamp_s[i:i + chunk]
+            if last_s is None:
+                last_s = float(t_s[0]) if t_s.size else 0.0
+            t_s = np.maximum.accumulate(np.maximum(t_s, last_s))  # CanutilsLogWriter never writes a time backwards
+            last_s = float(t_s[-1]) if t_s.size else last_s
             ids = frames.can_id[i:i + chunk]
             d = frames.data[i:i + chunk]
             hexd = np.empty((d.shape[0], 16), dtype=np.uint8)
@@ -376,7 +473,7 @@ def _write_candump(frames: SynthFrames, target: Path, channel: str, chunk: int =
             hexd[:, 1::2] = hexdigits[d & 0xF]
             hex_rows = hexd.view("S16").ravel()
             lines = [f"({t:f}) {channel} {cid:08X}#{h.decode()} R\n"
-                     for t, cid, h in zip(ts.tolist(), ids.tolist(), hex_rows.tolist())]
+                     for t, cid, h in zip(t_s.tolist(), ids.tolist(), hex_rows.tolist())]
             fh.write("".join(lines))
 
 

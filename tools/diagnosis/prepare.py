@@ -77,10 +77,10 @@ def channel_columns(table: RunTable) -> dict:
 def _table_from_can_log(p: Path, path, config_path) -> RunTable:
     """The measured run table of a CAN log, decoded through the sensor's own CAN service."""
     try:
-        from tools.cli.run import build_service
-        from tools.can.replay_log import is_can_log, replay_log
+        from firmware_model.service import build_service
+        from tools.replay.log import is_can_log, replay_log
     except ImportError:
-        raise InputError(f"{path}: CAN logs need the log decoder (tools/can/replay_log.py), which is not installed; "
+        raise InputError(f"{path}: CAN logs need the log decoder (tools/replay/log.py), which is not installed; "
                          f"convert the log to a CSV run table first") from None
     if not is_can_log(p):
         raise InputError(f"{path}: {p.suffix} logs are not supported; use .log, .asc, .blf or .mf4")
@@ -111,7 +111,7 @@ def _table_from_can_log(p: Path, path, config_path) -> RunTable:
 
 def load_table(path, config_path=None) -> RunTable:
     """A measured run table from a CSV file, or from a CAN log (candump -L .log, .asc, .blf, .mf4) decoded through
-    the sensor's own CAN service (tools.can.replay_log): the decoded inputs, the oil sensor (TRF1) and the rig
+    the sensor's own CAN service (tools.replay.log): the decoded inputs, the oil sensor (TRF1) and the rig
     thermocouple frames (meas_T_<id>_c); the sensor's own estimates are dropped."""
     p = Path(path)
     if not p.exists():

@@ -1,0 +1,415 @@
+"""The CAN service core, :class:`SensorService`: J1939 frames in, the sensor stepped on frame time, GBX_* frames out.
+Pure of threads, clocks and I/O; the timing model is in the package doc (``firmware_model.service``)."""
+from __future__ import annotations
+
+import logging
+import math
+from typing import Callable, Iterable
+
+import numpy as np
+
+from can_dbc.decoder import J1939Decoder, LatestValues, signal_messages
+from can_dbc.encoder import OutputEncoder
+from can_dbc.errors import ConfigError
+from can_dbc.j1939 import ID_MAX, pgn_key
+from firmware_model.components import MODE_NOT_INITIALISED, PUBLISHED, STEP_S
+from firmware_model.errors import ParameterError
+from firmware_model.service.options import (GEAR_RANGE, NOMINAL_PERIOD_S, SENSOR_INPUTS, ServiceOptions,
+                                            wanted_pgns)
+from firmware_model.service.protocol import StepSensor, check_sensor
+from firmware_model.service.recorder import StepRecorder
+from firmware_model.service.records import GbxStatus, RecordedOutputs, StepInputs, StepKind, StepRequest
+
+log = logging.getLogger("gearbox_vsensor.can_service")
+
+#: GBX_DM1 is sent at least every this many steps (1 s), and whenever its content changes
+DM1_PERIOD_STEPS = 10
+#: at most this many CAN ids are remembered as driving time or not (random ids, e.g. fuzzing, must not grow it)
+_TIMING_ID_CACHE_MAX = 65536
+
+
+def _opt_float(x) -> float | None:
+    if x is None:
+        return None
+    x = float(x)
+    return x if math.isfinite(x) else None
+
+
+def _codecs(options: ServiceOptions) -> tuple[J1939Decoder, OutputEncoder]:
+    """The decoder and encoder the options describe; their ConfigErrors become ParameterErrors."""
+    try:
+        decoder = J1939Decoder(expected_sa=options.expected_sa, retarder_ref_torque_nm=options.retarder_ref_torque_nm,
+                               configured_ref_torque_nm=options.configured_ref_torque_nm, rig=options.rig)
+        encoder = OutputEncoder(options.sensor_source_address)
+    except ConfigError as exc:
+        raise ParameterError(f"can: {exc}") from None
+    if encoder.components != PUBLISHED:
+        raise ParameterError("the DBC's per-component signals (ComponentId) are not the published components "
+                             "(firmware_model.components.PUBLISHED)")
+    return decoder, encoder
+
+
+class SensorService:
+    """Frames in, sensor stepped on frame time, frames out; see the package doc.
+
+    ``sensor``: a :class:`~firmware_model.service.protocol.StepSensor` (the onboard ``VirtualSensor``);
+    ``options``: :class:`ServiceOptions`; ``record``: keep one row per step for :meth:`recorded` (replay);
+    ``emit_frames=False`` skips encoding the output frames (an offline replay to a run table that nobody sends: the
+    steps, inputs and outputs are the same, ``feed`` returns nothing); ``logger``: where counters and events go.
+    """
+
+    def __init__(self, sensor: StepSensor, options: ServiceOptions | None = None, *, record: bool = False,
+                 emit_frames: bool = True, logger: logging.Logger | None = None) -> None:
+        check_sensor(sensor)
+        self.sensor = sensor
+        self.options = options or ServiceOptions()
+        self.decoder, self.encoder = _codecs(self.options)
+        self.log = logger or log
+        self.record = record
+        self.emit_frames = emit_frames
+        #: the latest value and frame time of every decoded signal
+        self.latest = LatestValues()
+        self.counters: dict = {"steps": 0, "steps_sent": 0, "catchup_steps": 0, "time_jumps": 0,
+                               "frames_not_timing": 0, "frames_sent": 0, "dm1_sent": 0, "stale_steps": {},
+                               "uninitialised_steps": 0}
+        self._wanted = frozenset(wanted_pgns().values())
+        self._timing_ids: dict[int, bool] = {}
+        self._max_age_s = {m: self.options.stale_factor * p for m, p in NOMINAL_PERIOD_S.items()}
+        messages = signal_messages()
+        self._input_ages_s = tuple((signal, self._max_age_s[messages[signal]]) for _, signal in SENSOR_INPUTS)
+        self._init_time()
+        # the sensor: a step leaves its slow time-to-limit refresh to finish_pending(), which the live loop runs
+        # after the step's frames are sent and every step runs first (so outputs never depend on when)
+        self.state = None
+        self._pending = None
+        self._initialised = False
+        self._last_dm1: bytes | None = None
+        self._steps_since_dm1 = 0
+        #: None, or a callable that takes each step's request instead of the sensor half (two-process replay)
+        self._sink: Callable[[StepRequest], None] | None = None
+        self._meas_names = tuple(f"meas_T_{c}_c" for c in PUBLISHED)
+        self._recorder = StepRecorder(PUBLISHED, self._meas_names, self.sensor.reject_reasons)
+        self._names_checked = 0
+        self._rig_seen = False
+
+    def _init_time(self) -> None:
+        self._t0_s: float | None = None       # grid anchor (frame time)
+        self._k = 0                           # steps done since the anchor
+        self._first_t_s: float | None = None  # frame time of the very first anchor (run-table time 0)
+        self._time_offset_s = 0.0             # run-table time added after a backward restart
+        self._next_log_t_s: float | None = None
+        self._ref_warned = False
+
+    # -- public -------------------------------------------------------------------------------------------------
+
+    def feed(self, msg) -> list:
+        """Use one received frame; returns the frames to send now (possibly none). Never raises on frame content."""
+        out: list = []
+        timestamp_s = msg.timestamp
+        if self._drives_time(msg):
+            if self._t0_s is None:
+                self._anchor(timestamp_s)
+            elif timestamp_s >= self._next_boundary_s:
+                due = self._due(timestamp_s)
+                if due > self.options.max_catchup_steps:
+                    self._time_jump(timestamp_s, "forward")
+                else:
+                    self._steps(due, out)
+            elif timestamp_s < self._next_boundary_s - STEP_S - self.options.backward_tolerance_s:
+                self._time_jump(timestamp_s, "backward")
+        else:
+            self.counters["frames_not_timing"] += 1
+        self.decoder.feed_into(msg, self.latest)
+        return out
+
+    def feed_all(self, msgs: Iterable) -> list:
+        out: list = []
+        for msg in msgs:
+            out.extend(self.feed(msg))
+        return out
+
+    # -- the two halves of a step, for a replay that runs them in two processes (tools/replay/pipeline.py) ---------
+
+    def split_steps(self, sink: Callable[[StepRequest], None] | None) -> None:
+        """From now on hand each step's frame-half request to ``sink`` instead of stepping the sensor (None: step
+        again). The sensor half runs elsewhere: :meth:`apply_request` on a copy of this service."""
+        self._sink = sink
+
+    def apply_request(self, req: StepRequest) -> None:
+        """Run the sensor half of a step that :meth:`split_steps` handed out (not sent: offline)."""
+        self._apply(req, False)
+
+    def adopt_outputs(self, outputs: RecordedOutputs, state) -> None:
+        """Take the sensor half's results from the copy that ran them: :meth:`recorded_outputs` and its final state
+        (its time-to-limit refresh done)."""
+        self._recorder.adopt(outputs)
+        self.state = state
+        self._pending = None
+
+    def finish_pending(self) -> None:
+        """Run the work the last step left for after its frames were sent (the sensor's time-to-limit refresh).
+        Idempotent; the next step runs it anyway, so calling it or not never changes an output."""
+        if self._pending is not None:
+            job, self._pending = self._pending, None
+            self.state = self.sensor.refresh_ttl(self.state, job)
+
+    @property
+    def frame_time_s(self) -> float | None:
+        """Frame time of the last step boundary (None before the first frame)."""
+        return None if self._t0_s is None else self._t0_s + self._k * STEP_S
+
+    def all_counters(self) -> dict:
+        """The decoder's counters and the service's, in one dict."""
+        return {"decoder": self.decoder.counters, "service": self.counters}
+
+    def log_counters(self, level: int = logging.INFO) -> None:
+        d = self.decoder.counters
+        s = self.counters
+        rejected = ", ".join(f"{k} {v}" for k, v in sorted(d["rejected"].items())) or "none"
+        stale = ", ".join(f"{k} {v}" for k, v in sorted(s["stale_steps"].items())) or "none"
+        self.log.log(level, "frames seen %d, used %d, rejected: %s; EC1 received %d; steps %d (sent %d, catch-up "
+                     "%d), time jumps %d; stale steps per input: %s; frames sent %d",
+                     d["frames_seen"], d["frames_used"], rejected, d["tp"]["ec1_received"], s["steps"],
+                     s["steps_sent"], s["catchup_steps"], s["time_jumps"], stale, s["frames_sent"])
+
+    def recorded(self) -> dict[str, np.ndarray]:
+        """The recorded steps (``record=True``) as columns of a sensor output run table (tools/runtable.py):
+        time_s, the decoded inputs, T_/W_/ttl_ per published component, the status, and meas_T_<id>_c for the rig
+        thermocouples that were received. ``can_time_s`` is the step's frame time."""
+        values = self.latest.value
+        return self._recorder.columns(tuple(name in values for name in self._meas_names))
+
+    def recorded_outputs(self) -> RecordedOutputs:
+        """The sensor half of the recorded rows as arrays (T_c, level, ttl_s: steps x 28; tail: steps x status)."""
+        return self._recorder.outputs()
+
+    # -- time ---------------------------------------------------------------------------------------------------
+
+    def _drives_time(self, msg) -> bool:
+        """Only data frames of the PGNs the service listens to move time."""
+        if not msg.is_extended_id or msg.is_error_frame or msg.is_remote_frame:
+            return False
+        can_id = msg.arbitration_id
+        known = self._timing_ids.get(can_id)
+        if known is None:
+            known = 0 <= can_id <= ID_MAX and pgn_key(can_id) in self._wanted
+            if len(self._timing_ids) < _TIMING_ID_CACHE_MAX:
+                self._timing_ids[can_id] = known
+        return known
+
+    @property
+    def _next_boundary_s(self) -> float:
+        return self._t0_s + (self._k + 1) * STEP_S
+
+    def _due(self, timestamp_s: float) -> int:
+        """Number of boundaries ``t0 + n x STEP_S`` (n > k) at or before the frame; exact in the float sums used."""
+        t0_s, k = self._t0_s, self._k
+        n = math.floor((timestamp_s - t0_s) / STEP_S)
+        while n > k and t0_s + n * STEP_S > timestamp_s:
+            n -= 1
+        while t0_s + (n + 1) * STEP_S <= timestamp_s:
+            n += 1
+        return max(n - k, 0)
+
+    def _anchor(self, timestamp_s: float) -> None:
+        if self._first_t_s is None:
+            self._first_t_s = timestamp_s
+        self._t0_s = timestamp_s
+        self._k = 0
+        if self._next_log_t_s is None:
+            self._next_log_t_s = timestamp_s + self.options.counter_log_period_s
+
+    def _time_jump(self, timestamp_s: float, direction: str) -> None:
+        last_s = self._t0_s + self._k * STEP_S
+        self.counters["time_jumps"] += 1
+        self.log.warning("frame time jumped %s by %.3f s (from %.6f to %.6f): restarting the step grid, inputs "
+                         "dropped, the sensor resumes from its state", direction, timestamp_s - last_s, last_s,
+                         timestamp_s)
+        if direction == "backward":
+            self._time_offset_s += last_s - timestamp_s + STEP_S
+            self._next_log_t_s = timestamp_s + self.options.counter_log_period_s
+        self.latest.forget()
+        # the sensor sees the gap in the frame time of its next step (Inputs.t_s) and propagates over it
+        self._anchor(timestamp_s)
+
+    def _steps(self, due: int, out: list) -> None:
+        for i in range(due):
+            self._k += 1
+            t_step_s = self._t0_s + self._k * STEP_S
+            last = i == due - 1
+            if not last:
+                self.counters["catchup_steps"] += 1
+            frames = self._step(t_step_s, send=last)
+            if last and frames:
+                out.extend(frames)
+                self.counters["steps_sent"] += 1
+                self.counters["frames_sent"] += len(frames)
+            if self._next_log_t_s is not None and t_step_s >= self._next_log_t_s:
+                period_s = self.options.counter_log_period_s
+                self._next_log_t_s += period_s * (1 + math.floor((t_step_s - self._next_log_t_s) / period_s))
+                self.log_counters()
+
+    # -- one step -----------------------------------------------------------------------------------------------
+    #
+    # A step has two halves: _gather (frame side: which inputs are fresh, the reference torque, initialisation,
+    # the run-table head) and _apply (sensor side: the sensor's step, status, frames, the recorded outputs). _gather
+    # never depends on what _apply computed, so an offline replay can run the halves in two processes
+    # (tools/replay/pipeline.py) and get the same outputs.
+
+    def _step(self, t_step_s: float, send: bool = True) -> list:
+        req = self._gather(t_step_s)
+        if self._sink is not None:
+            self._sink(req)
+            return []
+        return self._apply(req, send)
+
+    def _gather(self, t_step_s: float) -> StepRequest:
+        """The frame half of a step."""
+        self.counters["steps"] += 1
+        inputs = self._fresh_inputs(t_step_s)
+        ref_torque_nm = self.decoder.ref_torque_nm
+        if ref_torque_nm is None:
+            self._warn_no_ref_torque(t_step_s)
+        kind = StepKind.STEP if self._initialised else self._initialisation(t_step_s, inputs.oil_temp_c)
+        t_s = t_step_s - self._first_t_s + self._time_offset_s
+        if self.record:
+            self._record_head(t_s, t_step_s, inputs, ref_torque_nm)
+        return StepRequest(kind, t_step_s, inputs, ref_torque_nm, t_s)
+
+    def _fresh_inputs(self, t_step_s: float) -> StepInputs:
+        """The sensor's inputs at a boundary: the latest values not older than their staleness limit (counted as
+        stale otherwise), the gear mapped to the model's, the retarder torque as a magnitude."""
+        stale = self.counters["stale_steps"]
+        times, values = self.latest.time_s, self.latest.value
+        fresh = []
+        for name, max_age_s in self._input_ages_s:
+            t_s = times.get(name)
+            if t_s is None or t_step_s - t_s > max_age_s:
+                stale[name] = stale.get(name, 0) + 1
+                fresh.append(None)
+            else:
+                fresh.append(values[name])
+        inputs = StepInputs._make(fresh)
+        retarder_nm = inputs.retarder_torque_nm
+        return inputs._replace(gear=self._model_gear(inputs.gear),  # J1939 reports retarder braking negative
+                               retarder_torque_nm=None if retarder_nm is None else abs(retarder_nm))
+
+    def _model_gear(self, gear):
+        """The J1939 gear number as a seed Table 1 gear (``gear_map``), None outside the model's range."""
+        if gear is None:
+            return None
+        if self.options.gear_map is not None:
+            gear = self.options.gear_map.get(int(gear))
+        if gear is not None and not GEAR_RANGE[0] <= gear <= GEAR_RANGE[1]:
+            return None
+        return gear
+
+    def _warn_no_ref_torque(self, t_step_s: float) -> None:
+        if not self._ref_warned and self._first_t_s is not None \
+                and t_step_s - self._first_t_s >= self.options.no_ref_torque_warning_s:
+            self._ref_warned = True
+            self.log.warning("no EC1 (engine reference torque, SPN 544) received in %.0f s of traffic and no "
+                             "[can] engine_reference_torque_nm configured: engine torque is not available, the "
+                             "sensor runs degraded", t_step_s - self._first_t_s)
+
+    def _initialisation(self, t_step_s: float, oil_temp_c: float | None) -> StepKind:
+        """Before the first step: wait up to ``init_wait_s`` for a measured oil temperature."""
+        if oil_temp_c is None and t_step_s - self._first_t_s < self.options.init_wait_s - 1e-9:
+            self.counters["uninitialised_steps"] += 1
+            return StepKind.NOT_INITIALISED
+        self._initialised = True
+        self.log.info("sensor initialised at frame time %.3f s with oil temperature %s", t_step_s,
+                      "not available" if oil_temp_c is None else f"{oil_temp_c:.2f} degC")
+        return StepKind.INITIALISE
+
+    def _record_head(self, t_s: float, t_step_s: float, inputs: StepInputs, ref_torque_nm: float | None) -> None:
+        nan = math.nan
+        pct = self._fresh("engine_torque_pct", t_step_s)
+        row = (t_s, t_step_s, *[nan if v is None else v for v in inputs], nan if pct is None else pct,
+               nan if ref_torque_nm is None else ref_torque_nm)
+        self._recorder.add_head(row, self._rig_row(t_step_s) if self._rig_values_seen() else None)
+
+    def _fresh(self, name: str, t_step_s: float):
+        """The latest value of ``name`` if still fresh at ``t_step_s``, else None."""
+        t_s = self.latest.time_s.get(name)
+        if t_s is None:
+            return None
+        max_age_s = self._max_age_s[signal_messages().get(name, "RIG")]
+        return self.latest.value[name] if t_step_s - t_s <= max_age_s else None
+
+    def _rig_values_seen(self) -> bool:
+        """True once any rig thermocouple was decoded (looked up again only when a new signal name appears)."""
+        values = self.latest.value
+        if len(values) != self._names_checked:
+            self._names_checked = len(values)
+            self._rig_seen = any(name in values for name in self._meas_names)
+        return self._rig_seen
+
+    def _rig_row(self, t_step_s: float) -> np.ndarray:
+        times, values = self.latest.time_s, self.latest.value
+        max_age_s = self._max_age_s["RIG"]
+        return np.array([values[name] if t_step_s - times.get(name, -math.inf) <= max_age_s else math.nan
+                         for name in self._meas_names])
+
+    def _apply(self, req: StepRequest, send: bool = True) -> list:
+        """The sensor half of a step (``req`` from :meth:`_gather`); returns the frames to send."""
+        if req.kind == StepKind.NOT_INITIALISED:
+            return self._not_initialised(req, send)
+        if req.kind == StepKind.INITIALISE:
+            self.state = self.sensor.initial_state(T_oil_c=req.inputs.oil_temp_c)
+        nan = math.nan
+        fields = {f: (nan if v is None else float(v)) for f, v in zip(StepInputs._fields, req.inputs)}
+        inputs = self.sensor.Inputs(**fields, t_s=req.t_s)
+        self.finish_pending()
+        self.state, outputs, self._pending = self.sensor.step_deferred(self.state, inputs)
+        T_c = np.asarray(outputs.T_c, dtype=float)
+        level = np.asarray(outputs.level)
+        ttl_s = np.asarray(outputs.ttl_s, dtype=float)
+        status = self._status(outputs.status, req.ref_torque_nm)
+        frames = []
+        if self.emit_frames:
+            frames = self._encode(req.t_step_s, dict(zip(PUBLISHED, T_c.tolist())),
+                                  dict(zip(PUBLISHED, level.astype(int).tolist())),
+                                  dict(zip(PUBLISHED, ttl_s.tolist())), status, send)
+        if self.record:
+            self._recorder.add_outputs(T_c, level, ttl_s, status, outputs.status.rejects)
+        return frames
+
+    @staticmethod
+    def _status(st, ref_torque_nm: float | None) -> GbxStatus:
+        """The GBX_STATUS content of a step from the sensor's status record."""
+        return GbxStatus(degraded_mode=int(st.degraded_mode), speed_valid=bool(st.speed_valid),
+                         torque_valid=bool(st.torque_valid), gear_valid=bool(st.gear_valid),
+                         oil_valid=bool(st.oil_valid), ref_torque_valid=ref_torque_nm is not None,
+                         oil_innovation_c=_opt_float(st.oil_innovation_c),
+                         model_oil_temp_c=_opt_float(st.model_oil_temp_c))
+
+    def _not_initialised(self, req: StepRequest, send: bool) -> list:
+        inputs = req.inputs
+        status = GbxStatus(degraded_mode=MODE_NOT_INITIALISED, speed_valid=inputs.speed_rpm is not None,
+                           torque_valid=inputs.torque_nm is not None, gear_valid=inputs.gear is not None,
+                           oil_valid=False, ref_torque_valid=req.ref_torque_nm is not None,
+                           oil_innovation_c=None, model_oil_temp_c=None)
+        frames = self._encode(req.t_step_s, {}, {}, {}, status, send)
+        if self.record:
+            n = len(PUBLISHED)
+            self._recorder.add_outputs(np.full(n, np.nan), np.full(n, 3), np.full(n, np.nan), status)
+        return frames
+
+    def _encode(self, t_step_s: float, temps_c: dict, levels: dict, ttl_s: dict, status: GbxStatus,
+                send: bool) -> list:
+        """The step's frames; a catch-up step that is not sent leaves the DM1 schedule untouched."""
+        if not self.emit_frames:
+            return []
+        frames = []
+        if self._k % self.options.output_every_steps == 0:
+            frames = self.encoder.encode(temps_c, levels, ttl_s, status._asdict(), timestamp_s=t_step_s)
+        dm1 = self.encoder.encode_dm1(levels, timestamp_s=t_step_s)
+        self._steps_since_dm1 += 1
+        payload = bytes(dm1.data)
+        if send and (payload != self._last_dm1 or self._steps_since_dm1 >= DM1_PERIOD_STEPS):
+            frames.append(dm1)
+            self._last_dm1 = payload
+            self._steps_since_dm1 = 0
+            self.counters["dm1_sent"] += 1
+        return frames

@@ -1,0 +1,140 @@
+"""Settings of the CAN service (:class:`ServiceOptions`, the config's ``[can]`` section) and the wiring between the
+J1939 decoder's signals, the sensor's inputs and the run table: which message each input comes from, how long a
+value stays fresh, which PGNs the service listens to."""
+from __future__ import annotations
+
+import functools
+from dataclasses import dataclass, field
+from typing import Mapping
+
+from can_dbc.dbc import default_source, message_pgn, numbered_messages
+from can_dbc.decoder import input_messages
+from can_dbc.j1939 import receive_filter
+from firmware_model.components import STEP_S
+from firmware_model.errors import ParameterError
+from firmware_model.service.records import StepInputs
+
+#: nominal transmission period of each input message [s], the service's staleness clock: J1939-71 defaults (EEC1 is
+#: engine-speed dependent, 10-20 ms: its upper bound), except CCVS1 taken as 1 s (synthesized logs and some trucks
+#: send it every second; the DBC's cycle time is J1939's 100 ms); RIG = the rig thermocouple frames
+NOMINAL_PERIOD_S = {"EEC1": 0.02, "ETC2": 0.1, "TRF1": 1.0, "ET1": 1.0, "AMB": 1.0, "CCVS1": 1.0, "ERC1": 0.1,
+                    "RIG": 0.1}
+#: the decoder signal of each sensor input field (StepInputs order); it is also the input's run-table column
+#: (the run-table column names, tools/runtable.py)
+INPUT_SIGNALS = ("engine_speed_rpm", "engine_torque_nm", "gear", "oil_temp_c", "ambient_temp_c", "coolant_temp_c",
+                 "vehicle_speed_kmh", "retarder_torque_nm")
+#: (sensor input field, decoder signal) pairs
+SENSOR_INPUTS = tuple(zip(StepInputs._fields, INPUT_SIGNALS))
+#: run-table columns of the decoded inputs (StepInputs order) and the two extra decoded columns
+INPUT_COLUMNS = (*INPUT_SIGNALS, "engine_torque_pct", "engine_ref_torque_nm")
+#: the model's gear range (seed Table 1); other J1939 gear numbers (after gear_map) are not available to the sensor
+GEAR_RANGE = (-2, 14)
+#: config [can] source-address keys -> the messages they set
+SOURCE_ADDRESS_KEYS = (("engine_source_address", ("EEC1", "EC1", "ET1", "CCVS1", "AMB")),
+                       ("transmission_source_address", ("ETC2", "TRF1")),
+                       ("retarder_source_address", ("ERC1",)),
+                       ("ambient_source_address", ("AMB",)))
+
+
+@functools.cache
+def wanted_pgns() -> dict[str, int]:
+    """Message name -> PGN of every message the service listens to (the input messages, TP.CM and TP.DT), from the
+    DBC; PDU1 PGNs (TP.CM, TP.DT) without their destination byte."""
+    return {**{m.name: m.pgn for m in input_messages()}, "TP_CM": message_pgn("TP_CM"),
+            "TP_DT": message_pgn("TP_DT")}
+
+
+@functools.cache
+def rig_pgns() -> tuple[int, ...]:
+    """PGNs of the rig thermocouple frames RIG_TC_1..7, from the DBC."""
+    return tuple(message_pgn(name) for name in numbered_messages("RIG_TC_"))
+
+
+def can_filters(rig: bool = False) -> list[dict]:
+    """python-can receive filters for the wanted PGNs: the mask covers the PGN bits only (no priority, no source
+    address; for PDU1 PGNs no destination either); ``rig`` adds the rig thermocouple PGNs."""
+    return [receive_filter(pgn) for pgn in (*wanted_pgns().values(), *(rig_pgns() if rig else ()))]
+
+
+def _positive(name: str, value) -> None:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not value > 0:
+        raise ParameterError(f"can.{name} = {value!r} must be a positive number")
+
+
+@dataclass(frozen=True)
+class ServiceOptions:
+    """Service settings; :meth:`from_config` reads the config's ``[can]`` section. ``sensor_source_address``
+    defaults to the DBC's (0xE5)."""
+    expected_sa: Mapping[str, int | None] = field(default_factory=dict)
+    sensor_source_address: int = field(default_factory=lambda: default_source("GBX_STATUS"))
+    configured_ref_torque_nm: float | None = None
+    retarder_ref_torque_nm: float | None = None
+    gear_map: Mapping[int, int] | None = None
+    stale_factor: float = 3.0
+    output_period_s: float = STEP_S
+    counter_log_period_s: float = 60.0
+    max_catchup_steps: int = 50
+    backward_tolerance_s: float = 1.0
+    init_wait_s: float = 3.0
+    no_ref_torque_warning_s: float = 10.0
+    rig: bool = True
+
+    def __post_init__(self) -> None:
+        _positive("stale_factor", self.stale_factor)
+        _positive("counter_log_period_s", self.counter_log_period_s)
+        _positive("backward_tolerance_s", self.backward_tolerance_s)
+        if self.stale_factor < 1.0:
+            raise ParameterError(f"can.stale_factor = {self.stale_factor!r} must be >= 1 (a multiple of the "
+                                 f"nominal period)")
+        ratio = self.output_period_s / STEP_S
+        if not (abs(ratio - round(ratio)) < 1e-9 and round(ratio) >= 1):
+            raise ParameterError(f"can.output_period_s = {self.output_period_s!r} must be a whole multiple of the "
+                                 f"sensor step {STEP_S} s")
+        if not (isinstance(self.max_catchup_steps, int) and self.max_catchup_steps >= 1):
+            raise ParameterError(f"max_catchup_steps = {self.max_catchup_steps!r} must be an integer >= 1")
+        if not 0.0 <= self.init_wait_s <= 60.0:
+            raise ParameterError(f"init_wait_s = {self.init_wait_s!r} must be in 0..60 s")
+
+    @property
+    def output_every_steps(self) -> int:
+        """Steps per sent set of periodic frames."""
+        return int(round(self.output_period_s / STEP_S))
+
+    @classmethod
+    def from_config(cls, config=None, **overrides) -> "ServiceOptions":
+        """Options from a config's ``[can]`` section (None: defaults); ``overrides``: fields set directly."""
+        c = dict(getattr(config, "can", None) or {})
+        sa: dict[str, int] = {}
+        for key, names in SOURCE_ADDRESS_KEYS:
+            if key in c:
+                for n in names:
+                    sa[n] = c[key]
+        kw: dict = {"expected_sa": sa}
+        for key, name in (("sensor_source_address", "sensor_source_address"),
+                          ("engine_reference_torque_nm", "configured_ref_torque_nm"),
+                          ("retarder_reference_torque_nm", "retarder_ref_torque_nm"),
+                          ("stale_factor", "stale_factor"), ("output_period_s", "output_period_s"),
+                          ("counter_log_period_s", "counter_log_period_s")):
+            if key in c:
+                kw[name] = c[key]
+        if "gear_map" in c:
+            kw["gear_map"] = parse_gear_map(c["gear_map"])
+        kw.update(overrides)
+        return cls(**kw)
+
+
+def parse_gear_map(raw) -> dict[int, int]:
+    """``gear_map = {"1" = 3, "2" = 4}`` (TOML keys are strings): J1939 gear number -> seed Table 1 gear."""
+    if not isinstance(raw, Mapping):
+        raise ParameterError(f"can.gear_map = {raw!r} must be a table of J1939 gear -> seed gear")
+    out = {}
+    for k, v in raw.items():
+        try:
+            j = int(k)
+        except (TypeError, ValueError):
+            raise ParameterError(f"can.gear_map key {k!r} is not an integer J1939 gear number") from None
+        if isinstance(v, bool) or not isinstance(v, int) or not GEAR_RANGE[0] <= v <= GEAR_RANGE[1]:
+            raise ParameterError(f"can.gear_map[{k!r}] = {v!r} is not a seed Table 1 gear "
+                                 f"{GEAR_RANGE[0]}..{GEAR_RANGE[1]}")
+        out[j] = v
+    return out

@@ -1,0 +1,79 @@
+"""What the CAN subcommands (run, plant, replay) share: their argparse shape (:func:`can_subcommand`) and bus
+options (:func:`add_bus_options`), opening a python-can bus with one-sentence errors (:func:`open_bus`) and a stop
+flag set by SIGINT/SIGTERM (:func:`stop_on_signals`)."""
+from __future__ import annotations
+
+import argparse
+import contextlib
+import signal
+import threading
+from typing import Iterator, Sequence
+
+from firmware_model.errors import InputError
+
+#: the signals that stop a CAN subcommand cleanly
+STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
+#: CAN bit rates a --bitrate may name [bit/s]
+BITRATE_RANGE_BIT_S = (10_000, 1_000_000)
+
+
+def can_subcommand(sub, name: str, *, summary: str, description: str, examples: Sequence[str], notes: str = ""):
+    """A subcommand parser on ``sub``: ``summary`` in the command list, ``description`` on top of its help, then
+    the ``examples`` (command lines, shown as written) and ``notes``."""
+    epilog = "examples:\n" + "\n".join(f"  {e}" for e in examples) + (f"\n{notes}" if notes else "")
+    return sub.add_parser(name, help=summary, description=description, epilog=epilog,
+                          formatter_class=argparse.RawDescriptionHelpFormatter)
+
+
+def add_bus_options(parser, *, required: bool = True, purpose: str = "") -> None:
+    """--interface, --channel and --bitrate on ``parser`` (or an argument group); ``purpose`` ends their help
+    ("for --realtime")."""
+    tail = f" {purpose}" if purpose else ""
+    parser.add_argument("--interface", required=required, metavar="NAME",
+                        help=f"python-can interface: socketcan, virtual, pcan, kvaser, vector, slcan, udp_multicast "
+                             f"...{tail}")
+    parser.add_argument("--channel", required=required, metavar="NAME",
+                        help=f"channel of that interface, e.g. can0, vcan0{tail}")
+    parser.add_argument("--bitrate", type=int, metavar="BIT_S",
+                        help=f"bit rate for interfaces that set it (J1939: 250000 or 500000); socketcan takes the "
+                             f"link's{tail}")
+
+
+def check_bitrate(bitrate_bit_s: int | None) -> None:
+    """InputError for a --bitrate outside the CAN range."""
+    low, high = BITRATE_RANGE_BIT_S
+    if bitrate_bit_s is not None and not low <= bitrate_bit_s <= high:
+        raise InputError(f"--bitrate {bitrate_bit_s} must be a CAN bit rate in {low}..{high} bit/s")
+
+
+def open_bus(interface: str, channel: str, bitrate: int | None = None, can_filters=None, **kwargs):
+    """A python-can bus; configuration problems become one-sentence InputErrors. ``bitrate`` in bit/s."""
+    import can
+    kw = dict(kwargs)
+    if bitrate is not None:
+        kw["bitrate"] = bitrate
+    if can_filters is not None:
+        kw["can_filters"] = can_filters
+    try:
+        return can.Bus(interface=interface, channel=channel, **kw)
+    except can.CanInterfaceNotImplementedError as exc:
+        raise InputError(f"--interface {interface!r} is not available here: {exc}") from None
+    except (can.CanError, OSError, ValueError, ImportError) as exc:
+        raise InputError(f"cannot open CAN channel {channel!r} on interface {interface!r}: {exc}") from None
+
+
+@contextlib.contextmanager
+def stop_on_signals(stop: threading.Event | None = None) -> Iterator[threading.Event]:
+    """While inside, SIGINT and SIGTERM only set ``stop`` (a new Event if None), which the block's loop watches;
+    the previous handlers come back on exit."""
+    stop = stop or threading.Event()
+
+    def on_signal(signum, frame):  # only sets a flag: the loop drains and shuts down
+        stop.set()
+
+    previous = {s: signal.signal(s, on_signal) for s in STOP_SIGNALS}
+    try:
+        yield stop
+    finally:
+        for s, handler in previous.items():
+            signal.signal(s, handler)

@@ -1,0 +1,214 @@
+"""Replay of CAN logs through the onboard sensor: the library behind `gearbox-vsensor replay LOG`.
+
+- :func:`replay_log` reads a log (``.log`` candump -L, ``.asc``, ``.blf``, ``.mf4``; python-can's ``LogReader`` by
+  suffix) as fast as it can through the *same* :class:`~firmware_model.service.SensorService` that runs live
+  (``gearbox-vsensor run``), and returns the sensor output run table (tools/runtable.py, 10 Hz): the decoded
+  inputs, ``T_<id>_c``, ``W_<id>``, ``ttl_<id>_s``, the status and ``meas_T_<id>_c`` from rig thermocouple frames.
+  Outputs are bit-identical to a live run on the same traffic: the service keeps time by frame timestamps only.
+  Big logs are replayed in two processes (tools/replay/pipeline.py), with the same outputs.
+- :func:`replay_log_file` is the offline command: a log to a run table CSV (and the frames the sensor would send).
+- :func:`play_log` plays a log onto a bus with its original timing (python-can ``MessageSync``, like canplayer),
+  optionally faster (``speedup``); :func:`play_log_on` opens the bus for it.
+
+``.mf4`` needs ``asammdf`` (``pip install 'gearbox-vsensor[mf4]'``); without it the error says so.
+"""
+from __future__ import annotations
+
+import os
+import threading
+from pathlib import Path
+from typing import Any, Iterator, NamedTuple
+
+from firmware_model.errors import InputError
+from tools.replay.pipeline import PIPELINE_MIN_BYTES, feed_pipelined, pipeline_available
+
+#: CAN log suffixes read by python-can's LogReader
+LOG_SUFFIXES = {".log": "candump -L", ".asc": "Vector ASC", ".blf": "Vector BLF", ".mf4": "ASAM MDF 4"}
+#: suffixes --frames-out writes (python-can's Logger)
+FRAMES_OUT_SUFFIXES = (".log", ".asc", ".blf")
+#: gaps between frames longer than this are cut short when a log is played onto a bus [s]
+PLAY_SKIP_S = 60.0
+
+
+class LogReplay(NamedTuple):
+    """An offline log replay: the sensor output run table, where it was written, the decoder's and the service's
+    counters."""
+    table: Any
+    path: Path
+    decoder_counters: dict
+    service_counters: dict
+
+
+def is_can_log(path: str | os.PathLike) -> bool:
+    """True for a path whose suffix is a CAN log format (not a CSV run table)."""
+    return Path(path).suffix.lower() in LOG_SUFFIXES
+
+
+def check_log(path: str | os.PathLike) -> Path:
+    """The log's path, checked: a known suffix, an existing file, asammdf installed for .mf4; else InputError."""
+    p = Path(path)
+    suffix = p.suffix.lower()
+    if suffix not in LOG_SUFFIXES:
+        raise InputError(f"{p}: unknown log suffix {suffix!r}; CAN logs are "
+                         + ", ".join(f"{s} ({n})" for s, n in LOG_SUFFIXES.items()) + ", run tables .csv")
+    if not p.is_file():
+        raise InputError(f"{p}: the log file does not exist")
+    if suffix == ".mf4":
+        try:
+            import asammdf  # noqa: F401
+        except ImportError:
+            raise InputError(f"{p}: reading .mf4 needs the optional package asammdf; install it with "
+                             f"pip install 'gearbox-vsensor[mf4]'") from None
+    return p
+
+
+def read_log(path: str | os.PathLike) -> Iterator:
+    """The frames of a CAN log in file order (``can.Message``); problems raise InputError naming the file."""
+    import can
+    p = check_log(path)
+    try:
+        reader = can.LogReader(p)
+    except Exception as exc:  # python-can raises a variety of errors for a broken file
+        raise InputError(f"{p}: cannot open as a {LOG_SUFFIXES[p.suffix.lower()]} log: {exc}") from None
+    n = 0
+    try:
+        with reader:
+            for msg in reader:
+                n += 1
+                yield msg
+    except InputError:
+        raise
+    except Exception as exc:
+        raise InputError(f"{p}: frame {n + 1} cannot be read as a {LOG_SUFFIXES[p.suffix.lower()]} log: "
+                         f"{exc}") from None
+
+
+def _processes(path, service, on_frames, processes: int | None) -> int:
+    """1 or 2: what was asked, or for None two processes for a big log when nothing stands against it."""
+    if processes not in (None, 1, 2):
+        raise InputError(f"processes = {processes!r}: use 1, 2 or None (automatic)")
+    reason = pipeline_available(service, on_frames)
+    if processes == 2 and reason is not None:
+        raise InputError(f"cannot replay in two processes: {reason}")
+    if processes is None:
+        p = Path(path)
+        big = p.is_file() and p.stat().st_size >= PIPELINE_MIN_BYTES
+        processes = 2 if reason is None and big and (os.cpu_count() or 1) >= 2 else 1
+    return processes
+
+
+def replay_log(path: str | os.PathLike, sensor_or_service, *, config=None, options=None,
+               on_frames=None, processes: int | None = None):
+    """Replay a CAN log through the sensor service; returns the sensor output run table (10 Hz).
+
+    ``sensor_or_service``: a ``VirtualSensor`` (a service is built from ``options`` or the ``config``'s ``[can]``)
+    or a :class:`~firmware_model.service.SensorService` built with ``record=True``. ``on_frames(frames)``
+    receives the frames the service would send, in order (for comparisons with a live run). The table's ``meta``
+    holds the counters (``meta["counters"]``). Raises InputError when the log holds no usable J1939 traffic.
+
+    ``processes``: 2 runs the frame half of every step (reading, decoding, which inputs are fresh) and the sensor
+    half (the step, status, outputs) in two processes, a pipeline over two cores with the same outputs bit for bit
+    (``tools.replay.pipeline.pipeline_available`` says when it can); 1 runs both in this process; None (default)
+    picks 2 for a log of at least ``PIPELINE_MIN_BYTES`` when nothing stands against it (``on_frames`` needs the
+    frames in order here).
+    """
+    from firmware_model.service import SensorService, ServiceOptions
+    from tools.runtable import RunTable
+    if isinstance(sensor_or_service, SensorService):
+        service = sensor_or_service
+        if not service.record:
+            raise InputError("replay_log needs a SensorService built with record=True")
+    else:
+        service = SensorService(sensor_or_service, options or ServiceOptions.from_config(config), record=True,
+                                emit_frames=on_frames is not None)
+    if _processes(path, service, on_frames, processes) == 2:
+        feed_pipelined(read_log(path), service)
+    else:
+        feed = service.feed
+        for msg in read_log(path):
+            frames = feed(msg)
+            if frames and on_frames is not None:
+                on_frames(frames)
+    columns = service.recorded()
+    if not len(columns["time_s"]):
+        d = service.decoder.counters
+        raise InputError(f"{path}: no sensor step in {d['frames_seen']} frames: the log holds less than 100 ms of "
+                         f"J1939 input traffic (EEC1, ETC2, TRF1, ET1, AMB, CCVS1, ERC1, TP) from the expected "
+                         f"sources")
+    return RunTable(columns, meta={"counters": service.all_counters(), "log": os.fspath(path)},
+                    source=os.fspath(path))
+
+
+def replay_log_file(path, out, *, config_path=None, sensor_options=None, frames_out=None,
+                    processes: int | None = None) -> LogReplay:
+    """Replay a CAN log offline through the onboard sensor of ``config_path`` and write the run table to ``out``;
+    ``frames_out``: also write the frames the sensor would send as a CAN log (.log, .asc, .blf)."""
+    import can
+    from firmware_model.service import build_service
+    from tools.runtable import write_run_table
+    service = build_service(config_path, record=True, sensor_options=sensor_options, emit_frames=bool(frames_out))
+    writer = None
+    on_frames = None
+    if frames_out:
+        if Path(frames_out).suffix.lower() not in FRAMES_OUT_SUFFIXES:
+            raise InputError(f"--frames-out {frames_out}: use a .log, .asc or .blf file")
+        writer = can.Logger(frames_out)
+
+        def on_frames(frames):
+            for f in frames:
+                writer.on_message_received(f)
+    try:
+        table = replay_log(path, service, on_frames=on_frames, processes=processes)
+    finally:
+        if writer is not None:
+            writer.stop()
+    return LogReplay(table, write_run_table(table, out), service.decoder.counters, service.counters)
+
+
+def play_log(path: str | os.PathLike, bus, *, speedup: float = 1.0, stop: threading.Event | None = None,
+             skip_s: float = PLAY_SKIP_S) -> int:
+    """Send the frames of a log onto ``bus`` with their original timing (``speedup`` x faster), like canplayer.
+
+    Uses python-can's ``MessageSync`` (gaps longer than ``skip_s`` are cut short); the frames keep their original
+    timestamps (a bus with ``preserve_timestamps`` passes them on). Error frames in the log are not sent. Returns
+    the number of frames sent.
+    """
+    import collections
+    import can
+    if not speedup > 0:
+        raise InputError(f"--speed {speedup} must be positive")
+    originals: collections.deque = collections.deque()
+
+    def timed(msgs):
+        t0_s = None
+        for msg in msgs:
+            originals.append(msg.timestamp)
+            if t0_s is None:
+                t0_s = msg.timestamp
+            if speedup != 1.0:
+                msg.timestamp = t0_s + (msg.timestamp - t0_s) / speedup
+            yield msg
+
+    sent = 0
+    for msg in can.MessageSync(timed(read_log(path)), timestamps=True, gap=0.0, skip=skip_s / speedup):
+        msg.timestamp = originals.popleft()
+        if stop is not None and stop.is_set():
+            break
+        if msg.is_error_frame:
+            continue
+        bus.send(msg)
+        sent += 1
+    return sent
+
+
+def play_log_on(path, interface: str, channel: str, bitrate_bit_s: int | None = None, *,
+                speedup: float = 1.0) -> int:
+    """:func:`play_log` onto a bus it opens (and shuts down); SIGINT/SIGTERM stop it. Returns the frames sent."""
+    from tools.can.bus import open_bus, stop_on_signals
+    check_log(path)
+    bus = open_bus(interface, channel, bitrate_bit_s)
+    try:
+        with stop_on_signals() as stop:
+            return play_log(path, bus, speedup=speedup, stop=stop)
+    finally:
+        bus.shutdown()

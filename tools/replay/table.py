@@ -1,0 +1,212 @@
+"""Replay of a run table (CSV) through the onboard sensor at 10 Hz: the library behind `gearbox-vsensor replay RUN.csv`.
+
+The reading is split from the stepping so that any input source plugs in: a source is an iterator of
+:class:`TableRecord` (``t_s``, the sensor's ``Inputs``) on the sensor's 0.1 s grid (:func:`table_records` for run
+tables); the stepping, output columns and status are :func:`replay_records`. CAN logs go through the live CAN
+service instead (tools/replay/log.py), so a log replays bit-identically to a live run.
+
+Output (a run table, tools/runtable.py): ``time_s`` (end of each 0.1 s step), the inputs the sensor read (empty
+when absent), ``T_<id>_c``, ``W_<id>``, ``ttl_<id>_s`` (empty when never) for every published component, then the
+status: ``degraded`` (0/1), ``degraded_mode`` (0 normal, 1 oil model only, 2 inputs missing - holding),
+``speed_valid``, ``torque_valid``, ``gear_valid``, ``oil_valid``, ``oil_innovation_c`` (measured - model oil, empty
+without a measurement), ``model_oil_temp_c`` and the cumulative reject counters ``rejects_<reason>``.
+"""
+from __future__ import annotations
+
+import math
+import os
+from pathlib import Path
+from typing import Any, Iterable, Iterator, NamedTuple
+
+import numpy as np
+
+from firmware_model.components import PUBLISHED, STEP_S
+from firmware_model.errors import InputError
+
+#: a gap in the table's time longer than this is a time jump for the sensor (like the CAN service's 5 s catch-up)
+MAX_HOLD_GAP_S = 5.0
+#: the status columns of a table replay, in order (then rejects_<reason>)
+STATUS_COLUMNS = ("degraded", "degraded_mode", "speed_valid", "torque_valid", "gear_valid", "oil_valid",
+                  "oil_innovation_c", "model_oil_temp_c")
+
+
+class TableRecord(NamedTuple):
+    """One step of a replay source: the end of the step on the run-table clock [s] and the sensor's inputs."""
+    t_s: float
+    inputs: Any
+
+
+class CsvReplay(NamedTuple):
+    """A run-table replay: the sensor output RunTable and the gearbox variant it ran with."""
+    table: Any
+    variant: str
+
+
+class ReplaySummary(NamedTuple):
+    """What a replay found, for the command line: its span, the hottest component and its peak, the highest
+    warning level, the share of degraded steps and the reject counters that are not zero."""
+    span_s: float
+    steps: int
+    hottest: str
+    hottest_c: float
+    max_level: int
+    degraded_share: float
+    rejects: dict
+
+
+def _sensor_inputs():
+    """(field, run-table column) of each sensor input (the CAN service's wiring)."""
+    from firmware_model.service.options import SENSOR_INPUTS
+    return SENSOR_INPUTS
+
+
+def read_inputs_table(path):
+    """Read a run table for the sensor: the structure is checked (header, numbers, the required columns, time_s
+    strictly increasing) but not the *values* of the inputs: a NaN, a gear 7.5 or a negative speed is data for
+    the sensor, which holds, clamps or degrades and counts it (docs/sensor.md "Bad input")."""
+    from tools import runtable as rt
+    name = os.fspath(path)
+    p = Path(path)
+    if not p.is_file():
+        raise InputError(f"{name}: the run table does not exist")
+    names = rt._read_header(p, name)  # TODO(merge): a public runtable reader without the value checks
+    arr = rt.parse_numeric_csv(p, names)
+    if arr is None:
+        arr = rt._parse_careful(p, names, name)
+    for col in rt.REQUIRED:
+        if col not in names:
+            raise InputError(f'{name}: required column "{col}" is missing; the columns are {", ".join(names)}')
+    table = rt.RunTable({c: arr[:, j] for j, c in enumerate(names)}, source=name)
+    rt.validate_run_table(rt.RunTable({"time_s": table["time_s"]}, source=name), ("time_s",), name)
+    return table
+
+
+class _Segment(NamedTuple):
+    """A stretch of the table between time jumps: its first and last time [s]."""
+    first_s: float
+    last_s: float
+
+
+def _segments(t_s: np.ndarray) -> list[_Segment]:
+    """The stretches of the table between time jumps (gaps longer than MAX_HOLD_GAP_S)."""
+    gaps = np.flatnonzero(np.diff(t_s) > MAX_HOLD_GAP_S)
+    starts_s = [t_s[0]] + [t_s[g + 1] for g in gaps]
+    ends_s = [t_s[g] for g in gaps] + [t_s[-1]]
+    return [_Segment(a, b) for a, b in zip(starts_s, ends_s)]
+
+
+def table_records(table, inputs_type=None, dt_s: float = STEP_S) -> Iterator[TableRecord]:
+    """The sensor's per-step inputs from a run table: a :class:`TableRecord` for every step of the 0.1 s grid from
+    the first row (values held from the last row at or before the step's start; an absent column is NaN). A gap
+    longer than MAX_HOLD_GAP_S between rows is a time jump: no records inside it, the next record carries the jump
+    in its ``t_s``. ``inputs_type``: the sensor's ``Inputs`` (None: the onboard ``SensorInputs``). This is the plug
+    point for other sources (a CAN log decoder yields the same records)."""
+    if inputs_type is None:
+        from firmware_model.onboard.sensor import SensorInputs as inputs_type
+    t_s = np.asarray(table["time_s"], dtype=float)
+    if t_s.size == 0:
+        return
+    if not np.all(np.isfinite(t_s)) or np.any(np.diff(t_s) <= 0):
+        raise InputError("column time_s must be finite and strictly increasing")
+    cols = [np.asarray(table[col], dtype=float) if table.has(col) else np.full(t_s.size, np.nan)
+            for _, col in _sensor_inputs()]
+    data = np.stack(cols, axis=1)
+    for first_s, last_s in _segments(t_s):
+        n = int(math.floor((last_s - first_s) / dt_s + 1e-9))
+        if n <= 0:
+            continue
+        starts_s = first_s + dt_s * np.arange(n)
+        idx = np.clip(np.searchsorted(t_s, starts_s + 1e-9, side="right") - 1, 0, t_s.size - 1)
+        for k in range(n):
+            row = data[idx[k]]
+            end_s = float(starts_s[k] + dt_s)
+            yield TableRecord(end_s, inputs_type(*row.tolist(), t_s=end_s))
+
+
+def _status_row(st) -> tuple:
+    """The status columns of one step (STATUS_COLUMNS, then the reject counters)."""
+    return (int(st.degraded_mode != 0), int(st.degraded_mode), bool(st.speed_valid), bool(st.torque_valid),
+            bool(st.gear_valid), bool(st.oil_valid), float(st.oil_innovation_c), float(st.model_oil_temp_c),
+            *np.asarray(st.rejects).tolist())
+
+
+def _output_table(times: list, rows_in: list, rows_out: dict, rows_st: list, reject_reasons, state):
+    """The replay's run table from its per-step rows."""
+    from tools.runtable import RunTable
+    n = len(times)
+    cols = {"time_s": np.asarray(times, dtype=float)}
+    inputs = _sensor_inputs()
+    ins = np.asarray(rows_in, dtype=float).reshape(n, len(inputs))
+    for j, (_, col) in enumerate(inputs):
+        cols[col] = ins[:, j]
+    for (prefix, suffix), rows in rows_out.items():
+        block = np.asarray(rows, dtype=float).reshape(n, len(PUBLISHED))
+        if prefix == "ttl_":
+            block = np.where(np.isinf(block), np.nan, block)     # never = an empty cell
+        for j, c in enumerate(PUBLISHED):
+            cols[f"{prefix}{c}{suffix}"] = block[:, j]
+    names = [*STATUS_COLUMNS, *(f"rejects_{r}" for r in reject_reasons)]
+    st = np.asarray(rows_st, dtype=float).reshape(n, len(names))
+    for j, nm in enumerate(names):
+        cols[nm] = st[:, j]
+    return RunTable(cols, meta={"final_state": state})
+
+
+def replay_records(records: Iterable[TableRecord], sensor, initial_oil_c: float | None = None,
+                   t0_s: float | None = None):
+    """Step ``sensor`` through :class:`TableRecord` records; returns the output RunTable (one row per step)."""
+    fields = [f for f, _ in _sensor_inputs()]
+    times, rows_in, rows_st = [], [], []
+    rows_out: dict = {("T_", "_c"): [], ("W_", ""): [], ("ttl_", "_s"): []}
+    T_rows, W_rows, ttl_rows = rows_out.values()
+    state = None
+    for t_s, inputs in records:
+        if state is None:
+            oil0_c = inputs.oil_temp_c if initial_oil_c is None else initial_oil_c
+            state = sensor.initial_state(T_oil_c=oil0_c if oil0_c is not None and math.isfinite(oil0_c) else None)
+            if t0_s is None:
+                t0_s = t_s - sensor.dt_s
+        state, out = sensor.step(state, inputs)
+        times.append(t_s)
+        named = inputs._asdict()
+        rows_in.append([named[f] for f in fields])
+        T_rows.append(out.T_c)
+        W_rows.append(out.level)
+        ttl_rows.append(out.ttl_s)
+        rows_st.append(_status_row(out.status))
+    return _output_table(times, rows_in, rows_out, rows_st, sensor.reject_reasons, state)
+
+
+def replay_table(table, sensor, initial_oil_c: float | None = None):
+    """Run ``sensor`` over a run table at 10 Hz (see :func:`table_records`); returns the sensor output RunTable."""
+    if table.n == 0:
+        raise InputError("the run table has no rows")
+    if initial_oil_c is None:
+        meta = getattr(table, "meta", {}) or {}
+        if meta.get("initial_temp_c") is not None and not (table.has("oil_temp_c")
+                                                           and np.isfinite(table["oil_temp_c"][0])):
+            initial_oil_c = float(meta["initial_temp_c"])
+    return replay_records(table_records(table, sensor.Inputs, sensor.dt_s), sensor, initial_oil_c)
+
+
+def replay_csv(path, config_path=None, sensor_options=None) -> "CsvReplay":
+    """Read a run table (CSV) and replay it through the onboard sensor of ``config_path`` (None: defaults);
+    ``sensor_options``: VirtualSensor options (oil_mode, initial_temp_c)."""
+    from firmware_model.config import load_config
+    from firmware_model.onboard.sensor import VirtualSensor
+    cfg = load_config(config_path)
+    params = cfg.load_params()
+    sensor = VirtualSensor(params, config=cfg, **(sensor_options or {}))
+    return CsvReplay(replay_table(read_inputs_table(path), sensor), params.variant)
+
+
+def summarize(out) -> ReplaySummary:
+    """The figures the command line prints after a table replay."""
+    n = out.n
+    hottest = max(PUBLISHED, key=lambda c: np.nanmax(out[f"T_{c}_c"]))
+    rejects = {k[len("rejects_"):]: int(out[k][-1]) for k in out.columns
+               if k.startswith("rejects_") and n and out[k][-1] > 0}
+    return ReplaySummary(span_s=out["time_s"][-1] - out["time_s"][0] + STEP_S if n else 0.0, steps=n,
+                         hottest=hottest, hottest_c=float(np.nanmax(out[f"T_{hottest}_c"])),
+                         max_level=max(int(np.nanmax(out[f"W_{c}"])) for c in PUBLISHED),
+                         degraded_share=float(np.mean(out["degraded"])) if n else 0.0, rejects=rejects)
