@@ -35,6 +35,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 import numpy as np  # noqa: E402
 
 from firmware_model.components import PUBLISHED  # noqa: E402
+from firmware_model.physics.heat_lag import heat_lag_step  # noqa: E402
 from firmware_model.parameters import Parameters, load_parameters  # noqa: E402
 from firmware_model.onboard.sensor import SensorInputs, VirtualSensor  # noqa: E402
 from tools.replay.table import replay_table  # noqa: E402
@@ -247,14 +248,13 @@ def _step_pieces(sensor, inp):
              prop=prop, src=src, lag0=0.9 * src, bins=bins, T=np.full((2, rp.n), T_oil), q2=np.zeros((2, rp.n)),
              T_bc=np.array(sp.T_bc_default_c), state=state, raw=raw, inp=inp, T_pub=T_pub, a=np.ones(rp.n),
              b=np.ones(rp.n), bin_centre=bin_centre, check_inputs=check_inputs, update_levels=update_levels,
-             step_deferred=step_deferred)
+             step_deferred=step_deferred, heat_lag_step=heat_lag_step)
     pieces = [
         ("input checks and holds", "check_inputs(state, raw, sp)"),
         ("oil properties (one interpolated row)", "R.oil_row(rp, T_oil, h)"),
         ("loss sources (meshes, bearings, sump terms)",
          "R.heat_sources(rp, row, omega, torque, prop, x, eff.src_scale, eff.churn_scale, eff.needle_scale, 0.0, h)"),
-        ("heat lag and sources to nodes", "lag = lag0 + (src - lag0) * sp.lag_fraction\n"
-                                          "q = (src - sp.lag_ratio * (lag - lag0)) @ rp.src_matrix"),
+        ("heat lag and sources to nodes", "q = heat_lag_step(lag0, src, h.heat_lag).delivered_w @ rp.src_matrix"),
         ("conductance bin lookup (cache hit)", "cache.bins.get(sp, row, *bin_centre(omega, T_oil))"),
         ("network update, both copies (explicit_step)",
          "R.explicit_step(T, q2, bins.G_int_w_per_k, bins.G_ext_w_per_k, T_bc, h.ia, h.ib, h.ea, h.eb, "

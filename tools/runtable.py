@@ -363,9 +363,6 @@ def read_run_table(path: str | os.PathLike, required: Iterable[str] = REQUIRED) 
     return validate_run_table(table, required, name)
 
 
-#: the former private names, for tools/cli/replay.py until it imports read_header and parse_careful
-_read_header = read_header
-_parse_careful = parse_careful
 
 
 # ----------------------------------------------------------------------------------------------------------------

@@ -12,7 +12,8 @@ import numpy as np
 
 from firmware_model.network import BOUNDARIES
 from firmware_model.onboard import reduce as R
-from firmware_model.onboard.conductance_bins import conductance_matrix
+from firmware_model.physics.conductance_matrix import conductance_matrix
+from firmware_model.physics.cooler import inlet_drop_k
 from firmware_model.onboard.held_modes import HeldModes, decompose
 from firmware_model.onboard.params import SensorParams, first_row, first_value
 from firmware_model.onboard.records import (I_AMB, I_COOL, I_GEAR, I_OIL, I_RET, I_SPEED, I_TORQUE, I_VKMH, MAIN,
@@ -20,9 +21,6 @@ from firmware_model.onboard.records import (I_AMB, I_COOL, I_GEAR, I_OIL, I_RET,
 from firmware_model.onboard.step_cache import StepCache
 from firmware_model.physics.kinematics import GEAR_MIN
 from firmware_model.units import RAD_S_PER_RPM
-
-#: the step clips the oil-system inlet drop (sump minus cooler outlet) to +- this [K]
-INLET_DROP_MAX_K = 30.0
 
 
 class LinearSystem(NamedTuple):
@@ -38,7 +36,7 @@ def linear_system(sp: SensorParams, G_w_per_k, q_nodes_w, xfer_nodes_w, T_bc_c, 
     with the cooler linearised at the current sump (Q = Q0 + slope (T - T0))."""
     rp, h = sp.reduced, sp.helpers
     n = rp.n
-    K, G_ext = conductance_matrix(G_w_per_k, h, n)
+    K, G_ext = conductance_matrix(G_w_per_k, h.topology)
     b = q_nodes_w + xfer_nodes_w + np.bincount(h.ea, G_ext * T_bc_c[h.eb], minlength=n)
     if measured:
         free = np.flatnonzero(np.arange(n) != rp.i_oil)
@@ -122,8 +120,7 @@ def _held_propagate(sp: SensorParams, state: SensorState, v: tuple, copy: int, t
     Q_cool_w, mcp_w_per_k, _ = R.cooler_heat(rp, T_oil_c, omega_ls_rad_s, omega_in_rad_s, T_cool_c, T_amb_c, v_kmh,
                                              rho_cp_j_per_m3k, first_value(e.cooler_scale),
                                              first_value(e.thermostat_offset_c))
-    dT_in_k = float(np.clip(Q_cool_w / mcp_w_per_k, -INLET_DROP_MAX_K, INLET_DROP_MAX_K)) if mcp_w_per_k > 0 \
-        else 0.0
+    dT_in_k = float(inlet_drop_k(Q_cool_w, mcp_w_per_k))
     slope_w_per_k = 0.0 if measured else cooler_slope_w_per_k(sp, T_oil_c, omega_in_rad_s, row, used, rho_cp_j_per_m3k)
     system = linear_system(sp, G_w_per_k, src_w @ rp.src_matrix, (G_streams_w_per_k * dT_in_k) @ h.stream_scatter,
                            T_bc_c, T_oil_c, float(Q_cool_w), measured, slope_w_per_k)

@@ -27,8 +27,6 @@ class SensorParams:
     effects: R.Effects
     options: SensorOptions
     helpers: R.Helpers                   # index splits and scatter matrices of the network (reduce.helpers)
-    lag_fraction: float                  # 1 - exp(-dt / tau): the heat lag's step response after one step
-    lag_ratio: float                     # tau / dt
     dt_over_C_s_k_per_j: np.ndarray      # (n,) dt / C of every node
     sqrt_C: np.ndarray                   # (n,) C^1/2 (held-input modes)
     T_bc_default_c: np.ndarray           # (nb,) or (V, nb): boundary temperatures, hot-side offset applied
@@ -54,7 +52,7 @@ class SensorParams:
               options: SensorOptions) -> SensorParams:
         """Derive the step's constants once."""
         rp, eff = reduced, effects
-        tau_s, dt_s = rp.heat_lag_tau_s, rp.dt_s
+        dt_s = rp.dt_s
         hot = eff.hot_offset_c
         if np.ndim(hot) == 0:
             bc = np.array(rp.bc_default_c, dtype=float)
@@ -68,8 +66,6 @@ class SensorParams:
             eff.hot_offset_c, eff.retarder_frac, eff.churn_scale, eff.needle_scale)) and np.ndim(eff.src_scale) <= 1
         sp = cls(
             reduced=rp, limits=limits, effects=eff, options=options, helpers=R.helpers(rp),
-            lag_fraction=-math.expm1(-dt_s / tau_s) if tau_s > 0 else 1.0,
-            lag_ratio=tau_s / dt_s if tau_s > 0 else 0.0,
             dt_over_C_s_k_per_j=dt_s / np.asarray(rp.C_j_per_k, dtype=float),
             sqrt_C=np.sqrt(np.asarray(rp.C_j_per_k, dtype=float)),
             T_bc_default_c=bc,

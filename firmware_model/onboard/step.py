@@ -35,7 +35,9 @@ from firmware_model.components import LEVEL_NA, MODE_HOLDING, MODE_NORMAL, MODE_
 from firmware_model.errors import InputError
 from firmware_model.onboard import reduce as R
 from firmware_model.onboard.conductance_bins import bin_centre, bin_conductances, quantise
-from firmware_model.onboard.held_inputs import INLET_DROP_MAX_K, jump_state
+from firmware_model.onboard.held_inputs import jump_state
+from firmware_model.physics.cooler import inlet_drop_k
+from firmware_model.physics.heat_lag import heat_lag_step
 from firmware_model.onboard.input_check import (DRIVE_FROZEN_BITS, INPUT_BITS, OIL_FROZEN_BITS, InputCheck,
                                                 check_inputs)
 from firmware_model.onboard.params import SensorParams
@@ -150,8 +152,9 @@ def _network_step(state: SensorState, chk: InputCheck, oil_c, sp: SensorParams,
     retarder_w = eff.retarder_frac * used[..., I_RET] * np.abs(rp.speed_coef[row, 3]) * omega_in_rad_s
     src_w = R.heat_sources(rp, row, omega_in_rad_s, torque_nm, prop, x_T, eff.src_scale, eff.churn_scale,
                            eff.needle_scale, retarder_w, h)
-    lag_w = state.lag_w + (src_w - state.lag_w) * sp.lag_fraction
-    q_nodes_w = (src_w - sp.lag_ratio * (lag_w - state.lag_w)) @ rp.src_matrix        # B + (n,)
+    lag = heat_lag_step(state.lag_w, src_w, h.heat_lag)
+    lag_w = lag.state_w
+    q_nodes_w = lag.delivered_w @ rp.src_matrix                                      # B + (n,)
     # ---- conductances (at the centre of the operating-point bin), cooler, inlet drop of both copies
     G_w_per_k, G_streams_w_per_k, G_int, G_ext = _conductances(sp, cache, row, omega_in_rad_s, T_oil_main_c)
     omega_ls_rad_s = np.abs(rp.speed_coef[row, 1]) * omega_in_rad_s
@@ -160,9 +163,7 @@ def _network_step(state: SensorState, chk: InputCheck, oil_c, sp: SensorParams,
         rp, T_c[..., :, rp.i_oil], omega_ls_rad_s[..., None], omega_in_rad_s[..., None], used[..., I_COOL, None],
         used[..., I_AMB, None], used[..., I_VKMH, None], rho_cp_j_per_m3k[..., None], sp.cooler_scale,
         sp.thermostat_offset_c)
-    flow = mcp_w_per_k > 0
-    dT_in_k = np.minimum(np.maximum(np.where(flow, Q_cool_w / np.where(flow, mcp_w_per_k, 1.0), 0.0),
-                                    -INLET_DROP_MAX_K), INLET_DROP_MAX_K)
+    dT_in_k = inlet_drop_k(Q_cool_w, mcp_w_per_k)
     q_copies_w = q_nodes_w[..., None, :] + (G_streams_w_per_k[..., None, :] * dT_in_k[..., :, None]) \
         @ h.stream_scatter                                                         # B + (2, n)
     q_copies_w[..., rp.i_oil] -= Q_cool_w

@@ -18,8 +18,10 @@ import numpy as np
 
 from firmware_model.components import PUBLISHED
 from firmware_model.onboard import reduce as R
-from firmware_model.onboard.conductance_bins import LN_SPEED_BIN, OIL_BIN_C, SPEED_BIN_MIN_RAD_S, conductance_matrix
-from firmware_model.onboard.held_inputs import INLET_DROP_MAX_K, cooler_slope_w_per_k
+from firmware_model.onboard.conductance_bins import LN_SPEED_BIN, OIL_BIN_C, SPEED_BIN_MIN_RAD_S
+from firmware_model.physics.conductance_matrix import conductance_matrix
+from firmware_model.onboard.held_inputs import cooler_slope_w_per_k
+from firmware_model.physics.cooler import INLET_DROP_MAX_K
 from firmware_model.onboard.held_modes import Coupling, HeldModes, decompose
 from firmware_model.onboard.params import SensorParams
 from firmware_model.onboard.records import I_RET, I_TORQUE, N_PUB, SensorState
@@ -174,7 +176,7 @@ def _held_modes(sp: SensorParams, cache: StepCache, p: TtlPoint, G_w_per_k, meas
     else:
         G_streams_w_per_k = p.G_streams_w_per_k
         mcp_c_w_per_k = _oil_flow_m3_s(sp, p.row, omega_in_rad_s) * p.rho_cp_j_per_m3k
-    K, _ = conductance_matrix(G_w_per_k, h, rp.n)
+    K, _ = conductance_matrix(G_w_per_k, h.topology)
     coupling = None
     if measured:
         free = np.flatnonzero(np.arange(rp.n) != rp.i_oil)

@@ -8,7 +8,6 @@
 from __future__ import annotations
 
 import math
-import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -16,6 +15,7 @@ import numpy as np
 
 from firmware_model.components import GROUP, LEVEL_CRITICAL, LEVEL_NA, LEVEL_NORMAL, LEVEL_WARNING, PUBLISHED
 from firmware_model.errors import ParameterError
+from firmware_model.parameters import read_toml
 
 LIMITS_PATH = Path(__file__).resolve().parents[1] / "params" / "limits.toml"
 GROUPS = ("gear", "sun", "planetary", "bearing", "oil")
@@ -58,13 +58,7 @@ def load_limits(path: str | Path | None = None, debounce_s: float | None = None,
     """Limits from a TOML file (default params/limits.toml); ``debounce_s`` / ``hysteresis_k`` override the file
     (config [sensor] debounce_s, hysteresis_c)."""
     path = Path(path) if path is not None else LIMITS_PATH
-    try:
-        with open(path, "rb") as fh:
-            doc = tomllib.load(fh)
-    except FileNotFoundError:
-        raise ParameterError(f"limits file {path} does not exist") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise ParameterError(f"limits file {path.name} is not valid TOML: {exc}") from None
+    doc = read_toml(path, f"limits file {path}", f"limits file {path.name}")
     known = set(GROUPS) | {"meta", "timing", "component"}
     for k in doc:
         if k not in known:

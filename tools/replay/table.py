@@ -69,10 +69,10 @@ def read_inputs_table(path):
     p = Path(path)
     if not p.is_file():
         raise InputError(f"{name}: the run table does not exist")
-    names = rt._read_header(p, name)  # TODO(merge): a public runtable reader without the value checks
+    names = rt.read_header(p, name)
     arr = rt.parse_numeric_csv(p, names)
     if arr is None:
-        arr = rt._parse_careful(p, names, name)
+        arr = rt.parse_careful(p, names, name)
     for col in rt.REQUIRED:
         if col not in names:
             raise InputError(f'{name}: required column "{col}" is missing; the columns are {", ".join(names)}')
