@@ -1,4 +1,4 @@
-"""Component ids (CONTRACTS.md section 5) and the list the onboard sensor publishes.
+"""Component ids (docs/interfaces.md section 5; every code spelled out in docs/glossary.md) and the list the onboard sensor publishes.
 
 The order of PUBLISHED is the order of every per-component CAN signal, run-table column block and array
 in the onboard model. Extend at the end only: CAN layouts depend on it.

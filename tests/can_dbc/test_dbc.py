@@ -75,7 +75,7 @@ def test_dump_then_reload_is_identical(db, tmp_path):
 
 
 @pytest.mark.parametrize("name", sorted(CONTRACT_INPUTS))
-def test_inputs_match_contracts_section_1(db, name):
+def test_inputs_match_interfaces_section_1(db, name):
     pgn, sa, spns = CONTRACT_INPUTS[name]
     message = db.get_message_by_name(name)
     assert adapter.pgn_of(message.frame_id) == pgn

@@ -1,4 +1,4 @@
-"""Gap diagnosis (`gearbox-vsensor diagnose`): the JSON of CONTRACTS section 4, a planted effect found, a null
+"""Gap diagnosis (`gearbox-vsensor diagnose`): the JSON of docs/interfaces.md section 4, a planted effect found, a null
 scenario answered "none", and every bad input refused with one sentence and nothing written.
 
 The scenarios are short (10-minute synthetic cycles) so that each diagnosis takes well under a minute.

@@ -1,4 +1,4 @@
-"""Run tables (CONTRACTS.md section 3): write-then-read, every validation rule, atomic writes."""
+"""Run tables (docs/interfaces.md section 3): write-then-read, every validation rule, atomic writes."""
 import os
 from pathlib import Path
 

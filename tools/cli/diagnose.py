@@ -20,8 +20,9 @@ def add_subparser(sub):
             "Compare measured run tables with the model and diagnose the gap (JSON schema gap-diagnosis/1, see "
             "docs/diagnosis.md).\n\n"
             "Measured channels: oil_temp_c (the vehicle's oil sensor) and meas_T_<id>_c (rig thermocouples, "
-            "component ids of firmware_model.components). The model predicts the oil itself with its cooler model, "
-            "and every component follows the model's oil (see docs/diagnosis.md for why); with cooler kind "
+            "component ids of docs/interfaces.md section 5, spelled out in docs/glossary.md). The model predicts "
+            "the oil itself with its cooler model, and every component follows the model's oil (see "
+            "docs/diagnosis.md for why); with cooler kind "
             "'measured' or 'hold' the oil is an input and only thermocouples are diagnosed.\n\n"
             "1. where: residual (measured - model) per channel, its share by regime and episode, and for the oil "
             "the unexplained heat flow it implies;\n"
@@ -33,7 +34,7 @@ def add_subparser(sub):
         epilog="examples:\n"
                "  gearbox-vsensor diagnose --train run1.csv run2.csv --test run3.csv --json gap.json\n"
                "  gearbox-vsensor diagnose --train rig_a.csv --test rig_b.csv --model plant --json gap.json "
-               "--report gap.md\n\neffects (firmware_model.effects):\n" + effects)
+               "--report gap.md\n\neffects (docs/interfaces.md section 6):\n" + effects)
     p.add_argument("--train", nargs="+", required=True, metavar="FILE",
                    help="training runs: run tables (.csv) or CAN logs (.log candump -L, .asc, .blf, .mf4; decoded "
                         "with the sensor's CAN service: TRF1 oil temperature and rig thermocouple frames)")

@@ -20,11 +20,12 @@ def add_subparser(sub):
                     "over a drive cycle and write a run table with every node temperature, every loss and every "
                     "heat flow to the outside.\n\nNamed cycles are SYNTHETIC, modelled on the thesis's load cases: "
                     + ", ".join(CYCLE_NAMES) + "; or 'steady:gear=4L,rpm=1300,nm=2000,s=3600,oil=100'; or a CSV "
-                    "run table (tools/runtable.py).",
+                    "run table (docs/interfaces.md section 3). Component codes (PS, BLR, LS@1L ...): "
+                    "docs/glossary.md.",
         epilog="examples:\n  gearbox-vsensor simulate --cycle uphill --out uphill.csv --plot uphill.png\n"
                "  gearbox-vsensor simulate --cycle steady:gear=4L,rpm=1300,nm=2000,s=3600 --cooler hold --out s.csv\n"
                "  gearbox-vsensor simulate --cycle mining --effect retarder_heat:fraction=0.05 --out m.csv\n\n"
-               "effects (firmware_model.effects): " + effects)
+               "effects (docs/interfaces.md section 6): " + effects)
     p.add_argument("--cycle", required=True, metavar="NAME_OR_CSV", help="named cycle, steady:... spec, or a CSV run table")
     p.add_argument("--config", metavar="TOML", help="project configuration (gearbox variant, cooler, boundaries, CAN)")
     p.add_argument("--variant", choices=("GRS905", "GRSO905"), help="gearbox variant (overrides --config)")
