@@ -112,3 +112,12 @@ def test_the_data_lookup_of_the_tests_is_the_only_place_that_names_data_outside_
     hits = [p for p in (ROOT / "tests").rglob("*.py") if "__pycache__" not in p.parts and p.name != Path(__file__).name
             and NOT_SHIPPED.search(p.read_text(encoding="utf-8"))]
     assert hits == [], hits
+
+
+def test_the_readme_shows_the_component_codes():
+    readme = (ROOT / "README.md").read_text(encoding="utf-8")
+    assert "](docs/glossary.md)" in readme and "](docs/img/gearbox_codes.png)" in readme
+    from firmware_model.components import PUBLISHED
+    codes = {c.split(".")[0] for c in PUBLISHED}
+    missing = sorted(c for c in codes if f"`{c}`" not in readme and f" {c} " not in readme)
+    assert not missing, f"the README's table of codes misses {missing}"

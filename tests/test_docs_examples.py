@@ -38,3 +38,33 @@ def test_docs_example_runs(code, tmp_path):
     res = subprocess.run([sys.executable, str(script)], cwd=tmp_path, env=env, capture_output=True, text=True,
                          timeout=300)
     assert res.returncode == 0, res.stderr[-3000:]
+
+
+#: a `cantools decode --single-line` line of the docs: "(t) channel ID#DATA :: decoded"
+DECODED = re.compile(r"^(\(\d+\.\d+\) \w+ [0-9A-F]{8}#[0-9A-F]+) :: (.+)$", re.M)
+#: the plausibility limits of a temperature on the bus (docs/interfaces.md section 1.3: oil -60..250 degC)
+PLAUSIBLE_DEGC = (-60.0, 250.0)
+
+
+def _decode_lines():
+    return [pytest.param(m.group(1), m.group(2), id=f"{md.name}:{m.group(1).split()[-1]}")
+            for md in sorted([ROOT / "README.md", *(ROOT / "docs").glob("*.md")])
+            for m in DECODED.finditer(md.read_text(encoding="utf-8"))]
+
+
+@pytest.mark.parametrize("frame, shown", _decode_lines())
+def test_docs_decode_examples_are_what_cantools_prints_of_plausible_frames(frame, shown):
+    import cantools
+    res = subprocess.run([sys.executable, "-m", "cantools", "decode", "--single-line",
+                          str(ROOT / "can_dbc" / "gearbox_vsensor.dbc")], input=frame + "\n", capture_output=True,
+                         text=True, cwd=ROOT, timeout=120, check=True)
+    assert res.stdout.strip() == f"{frame} :: {shown}"
+    db = cantools.database.load_file(str(ROOT / "can_dbc" / "gearbox_vsensor.dbc"))
+    can_id, data = frame.split()[-1].split("#")
+    message = db.get_message_by_frame_id(int(can_id, 16))
+    values = message.decode(bytes.fromhex(data))
+    low, high = PLAUSIBLE_DEGC
+    for signal in message.signals:
+        value = values[signal.name]
+        if signal.unit == "degC" and isinstance(value, float):
+            assert low <= value <= high, f"{signal.name} = {value} degC is no gearbox temperature"

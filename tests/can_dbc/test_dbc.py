@@ -249,6 +249,27 @@ def test_dm1_round_trip_spn_fmi_lamps_and_occurrence_count():
     assert encoder.encode_dm1({}).data[6:] == b"\xff\xff"
 
 
+def test_dm1_without_an_active_dtc_reads_as_no_active_dtc(db):
+    """SPN 0 / FMI 0 / OC 0 is J1939's "no DTC": cantools must not show it as a most severe fault."""
+    encoder = adapter.OutputEncoder()
+    nothing, warning, critical = (db.decode_message(m.arbitration_id, m.data) for m in (
+        encoder.encode_dm1({}), encoder.encode_dm1({"PS": 1}), encoder.encode_dm1({"PS": 2})))
+    assert str(nothing["DTC1_OccurrenceCount"]) == "no active DTC"
+    assert str(nothing["DTC1_FMI"]).startswith("no active DTC")
+    assert nothing["DTC1_SPN_Low"] + 65536 * nothing["DTC1_SPN_High"] == 0
+    assert "warning" in str(warning["DTC1_FMI"]) and "critical" in str(critical["DTC1_FMI"])
+    assert warning["DTC1_OccurrenceCount"] == 1 and critical["DTC1_OccurrenceCount"] == 1
+
+
+def test_per_component_signal_comments_spell_out_the_component(db):
+    from firmware_model.components import describe
+    for message in db.messages:
+        for signal in message.signals:
+            component = dbc.component_of(signal)
+            if component is not None:
+                assert describe(component) in (signal.comment or ""), (message.name, signal.name)
+
+
 def _run_cli(*args, stdin=""):
     return subprocess.run([sys.executable, "-m", "cantools", *args], input=stdin, capture_output=True, text=True,
                           cwd=REPO, timeout=120, check=True).stdout

@@ -65,3 +65,15 @@ def test_missing_column_unknown_effect_bad_config(tmp_path, capsys):
 def test_missing_output_directory_fails_before_simulating(tmp_path, capsys):
     rc = main(["simulate", "--cycle", "mining", "--out", str(tmp_path / "no" / "run.csv"), "--quiet"])
     assert rc == 2 and "does not exist" in capsys.readouterr().err
+
+
+def test_the_summary_spells_out_the_component_codes(tmp_path, capsys):
+    from firmware_model.components import meaning
+    rc = main(["simulate", "--cycle", "steady:gear=4L,rpm=1300,nm=2000,s=60", "--out", str(tmp_path / "s.csv")])
+    out = capsys.readouterr().out.splitlines()
+    assert rc == 0
+    rows = out[out.index("hottest:") + 1:][:5]
+    assert len(rows) == 5
+    for row in rows:
+        code = row.split()[0]
+        assert meaning(code) and row.endswith(meaning(code)), row

@@ -110,3 +110,13 @@ def test_help_explains_every_option(capsys):
     text = capsys.readouterr().out
     for opt in ("--config", "--out", "--plot", "--oil-mode", "--initial-temp"):
         assert opt in text
+
+
+def test_the_summary_spells_out_the_hottest_component(tmp_path, capsys):
+    from firmware_model.components import describe
+    from tools.replay.table import summarize
+    src = write_run_table(_table(10.0), tmp_path / "run.csv")
+    assert main(["replay", str(src), "--out", str(tmp_path / "est.csv")]) == 0
+    hottest = summarize(read_run_table(tmp_path / "est.csv", required=("time_s",))).hottest
+    line = next(s for s in capsys.readouterr().out.splitlines() if s.startswith("hottest:"))
+    assert line.startswith(f"hottest: {describe(hottest)} ") and "(" in describe(hottest)

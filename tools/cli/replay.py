@@ -8,6 +8,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from firmware_model.components import describe
 from firmware_model.errors import InputError
 from tools.can.bus import add_bus_options, can_subcommand
 
@@ -87,7 +88,7 @@ def run(args) -> int:
     if not args.quiet:
         s = summarize(out)
         print(f"replayed {s.span_s:.1f} s in {s.steps} steps -> {dest}")
-        print(f"hottest: {s.hottest} {s.hottest_c:.1f} degC; highest warning level {s.max_level}; "
+        print(f"hottest: {describe(s.hottest)} {s.hottest_c:.1f} degC; highest warning level {s.max_level}; "
               f"degraded {100 * s.degraded_share:.1f} % of steps; rejected inputs: "
               + (", ".join(f"{k} {v}" for k, v in s.rejects.items()) or "none"))
     return 0

@@ -5,6 +5,7 @@ import argparse
 import sys
 from pathlib import Path
 
+from firmware_model.components import meaning
 from firmware_model.config import load_config
 from firmware_model.effects import CATALOG, parse_effect
 from firmware_model.errors import InputError
@@ -88,7 +89,7 @@ def run(args) -> int:
                      reverse=True)[:5]
         print(f"simulated {tb['time_s'][-1] - tb['time_s'][0]:.0f} s of '{args.cycle}' in {res.wall_s:.1f} s "
               f"-> {out}")
-        print("hottest: " + ", ".join(f"{n} {v:.1f} degC" for v, n in hot))
+        print("hottest:\n" + "\n".join(f"  {n:10s} {v:6.1f} degC  {meaning(n) or ''}" for v, n in hot))
         print(f"energy: generated {eb['generated_j'] / 1e6:.2f} MJ = stored {eb['stored_j'] / 1e6:.2f} MJ + rejected "
               f"{eb['rejected_j'] / 1e6:.2f} MJ (closure {eb['closure_rel']:.1e})")
         for w in res.warnings:
