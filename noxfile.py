@@ -4,6 +4,7 @@
     nox -s tests-3.10         # one of them
     nox -s tests-3.12 -- tests/firmware_model -x   # extra arguments go to pytest
 
+With pyenv, make the versions visible first, e.g. ``PYENV_VERSION=3.11.7:3.10.13:3.12.1:3.13.0 nox``.
 Each session installs the package with its test extra and runs the README's test command (without the slow VM test).
 """
 import nox
