@@ -9,8 +9,33 @@ from firmware_model.errors import VSensorError
 SUBCOMMANDS = ("simulate", "replay", "run", "plant", "diagnose", "bench_diagnosis", "demo")
 
 
+class CommandParser(argparse.ArgumentParser):
+    """The top-level parser. What a subcommand does not know is rejected by that subcommand's parser, with its own
+    usage and a suggestion (``unrecognized arguments: --outt (did you mean --out?)``), not with the top-level usage.
+    ``subcommands``: name -> parser, filled by :func:`build_parser`."""
+
+    subcommands: dict = {}
+
+    def parse_known_args(self, args=None, namespace=None):
+        namespace, extras = super().parse_known_args(args, namespace)
+        sub = self.subcommands.get(getattr(namespace, "subcommand", None))
+        if extras and sub is not None:
+            sub.error("unrecognized arguments: " + " ".join(with_suggestion(sub, a) for a in extras))
+        return namespace, extras
+
+
+def with_suggestion(parser: argparse.ArgumentParser, arg: str) -> str:
+    """``arg``, followed by the closest option of ``parser`` when it looks like a mistyped option."""
+    import difflib
+    if not arg.startswith("--"):
+        return arg
+    options = [o for action in parser._actions for o in action.option_strings if o.startswith("--")]
+    close = difflib.get_close_matches(arg.split("=", 1)[0], options, n=1, cutoff=0.6)
+    return f"{arg} (did you mean {close[0]}?)" if close else arg
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = CommandParser(
         prog="gearbox-vsensor",
         description="Virtual temperature sensor for Scania GRS905-type range-splitter gearboxes: the reference "
                     "thermal plant (simulate), the onboard sensor (replay, run), the HIL plant on CAN (plant) and "
@@ -25,6 +50,7 @@ def build_parser() -> argparse.ArgumentParser:
                 continue
             raise
         mod.add_subparser(sub)
+    parser.subcommands = dict(sub.choices)
     return parser
 
 

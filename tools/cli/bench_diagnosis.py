@@ -23,7 +23,7 @@ def add_subparser(sub):
         epilog="examples:\n  gearbox-vsensor bench-diagnosis --scenarios 40 --seed 1 --out bench/\n"
                "  gearbox-vsensor bench-diagnosis --effect planetary_loss_scale:factor=1.3 --setup rig "
                "--write-scenarios --out ex/")
-    p.add_argument("--scenarios", type=int, default=40, metavar="N", help="number of scenarios (default 40: 8 null)")
+    p.add_argument("--scenarios", type=int, metavar="N", help="number of scenarios (default 40: 8 null)")
     p.add_argument("--seed", type=int, default=1, metavar="S", help="random seed (default 1)")
     p.add_argument("--out", metavar="DIR", help="write bench.md, bench.csv and one JSON per scenario here")
     p.add_argument("--model", choices=("plant", "onboard"), default="plant",
@@ -34,8 +34,9 @@ def add_subparser(sub):
     p.add_argument("--only", metavar="I,J,...", help="run only these scenario indices of the plan")
     p.add_argument("--effect", metavar="ID:PARAM=VALUE|none", help="one custom scenario with this effect instead of "
                                                                   "the plan")
-    p.add_argument("--setup", choices=("truck", "rig"), default="rig", help="set-up of the custom scenario")
-    p.add_argument("--cooler", choices=("liquid", "air"), default="liquid", help="cooler of the custom scenario")
+    p.add_argument("--setup", choices=("truck", "rig"), help="set-up of the custom scenario (--effect; default rig)")
+    p.add_argument("--cooler", choices=("liquid", "air"),
+                   help="cooler of the custom scenario (--effect; default liquid)")
     p.add_argument("--write-scenarios", action="store_true",
                    help="also write each scenario's measured run tables (train1.csv, train2.csv, test1.csv) under "
                         "DIR/scenario_NN/, to run `diagnose` on them by hand")
@@ -48,6 +49,16 @@ def run(args) -> int:
     from firmware_model.effects import parse_effect
     from tools.diagnosis import bench as B
     warnings.filterwarnings("ignore", category=RuntimeWarning)
+    plan_only = [o for o, v in (("--scenarios", args.scenarios), ("--only", args.only)) if v is not None]
+    custom_only = [o for o, v in (("--setup", args.setup), ("--cooler", args.cooler)) if v is not None]
+    if args.effect and plan_only:
+        raise InputError(f"{', '.join(plan_only)} {'selects' if len(plan_only) == 1 else 'select'} scenarios of the "
+                         f"plan, which --effect replaces by one custom scenario")
+    if not args.effect and custom_only:
+        raise InputError(f"{', '.join(custom_only)} {'applies' if len(custom_only) == 1 else 'apply'} only to the "
+                         f"custom scenario of --effect")
+    args.scenarios = 40 if args.scenarios is None else args.scenarios
+    args.setup, args.cooler = args.setup or "rig", args.cooler or "liquid"
     if args.scenarios < 1:
         raise InputError(f"--scenarios {args.scenarios} must be at least 1")
     if args.write_scenarios and not args.out:

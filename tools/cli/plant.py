@@ -15,9 +15,9 @@ def add_subparser(sub):
         description="Run the reference plant over a drive cycle and play it onto a CAN bus as a truck and a rig "
                     "would: EEC1 every 10-20 ms, ETC2 100 ms, TRF1/ET1/AMB/CCVS1 1 s, ERC1 100 ms (if the cycle has "
                     "retarder torque), EC1 by TP.BAM every 5 s, RIG_TC_1..7 (the plant's true component "
-                    "temperatures) every 100 ms. The plant run is computed first (a few seconds), then the frames "
-                    "are streamed with their timing, --speed times faster. Named cycles: " + ", ".join(CYCLE_NAMES)
-                    + ", 'steady:...', or a CSV run table.",
+                    "temperatures) every 100 ms. The bus is opened first, then the plant run is computed (a few "
+                    "seconds), then the frames are streamed with their timing, --speed times faster. Named "
+                    "cycles: " + ", ".join(CYCLE_NAMES) + ", 'steady:...', or a CSV run table.",
         examples=["gearbox-vsensor plant --interface socketcan --channel vcan0 --cycle uphill",
                   "gearbox-vsensor plant --interface virtual --channel hil --cycle mining --speed 10 --duration 60"],
         notes="and on the same bus:  gearbox-vsensor run --interface socketcan --channel vcan0")
@@ -47,16 +47,16 @@ def run(args) -> int:
         raise InputError(f"--speed {args.speed} must be positive")
     if args.duration is not None and not args.duration > 0:
         raise InputError(f"--duration {args.duration} must be a positive number of seconds")
-    t0_s = time.perf_counter()
-    frames, _ = prepare(args.cycle, args.config, args.effect, duration_s=args.duration, seed=args.seed,
-                        rig=not args.no_rig)
-    span_s = float(frames.timestamp_s[-1] - frames.timestamp_s[0]) if len(frames) else 0.0
-    if not args.quiet:
-        _say(f"{len(frames)} frames over {span_s:.1f} s of '{args.cycle}' prepared in "
-             f"{time.perf_counter() - t0_s:.1f} s; streaming at {args.speed:g}x")
-    bus = open_bus(args.interface, args.channel, args.bitrate)
+    bus = open_bus(args.interface, args.channel, args.bitrate)   # before the plant run: a bad bus fails at once
     progress = None if args.quiet else (lambda t_s, n: _say(f"{t_s:.0f} s of cycle time, {n} frames sent"))
     try:
+        t0_s = time.perf_counter()
+        frames, _ = prepare(args.cycle, args.config, args.effect, duration_s=args.duration, seed=args.seed,
+                            rig=not args.no_rig)
+        span_s = float(frames.timestamp_s[-1] - frames.timestamp_s[0]) if len(frames) else 0.0
+        if not args.quiet:
+            _say(f"{len(frames)} frames over {span_s:.1f} s of '{args.cycle}' prepared in "
+                 f"{time.perf_counter() - t0_s:.1f} s; streaming at {args.speed:g}x")
         with stop_on_signals() as stop:
             n = stream(frames, bus, speedup=args.speed, stop=stop, progress=progress)
     finally:

@@ -1,7 +1,8 @@
 """`gearbox-vsensor replay`: run the onboard sensor offline over a run table (CSV) or a CAN log, at 10 Hz.
 
 Run tables: tools/replay/table.py; CAN logs (``.log .asc .blf .mf4``) go through the live CAN service,
-tools/replay/log.py, so a log replays bit-identically to a live run.
+tools/replay/log.py, so a log replays bit-identically to a live run. An option that does nothing in the mode given
+(``--speed`` on a run table, ``--out`` with ``--realtime``) is an error, not silently ignored.
 """
 from __future__ import annotations
 
@@ -11,6 +12,17 @@ from pathlib import Path
 from firmware_model.components import describe
 from firmware_model.errors import InputError
 from tools.can.bus import add_bus_options, can_subcommand
+
+
+#: the three ways to call replay; every option is in one of them (tests/tools/test_cli_options.py)
+USAGE = ("%(prog)s CSV --out EST.csv [--config TOML] [--plot PNG] [--oil-mode {measured,model}]\n"
+         "                              [--initial-temp DEGC] [--quiet]\n"
+         "       %(prog)s LOG --out EST.csv [those options] [--processes {1,2}] [--frames-out OUT.log]\n"
+         "       %(prog)s LOG --realtime --interface NAME --channel NAME [--bitrate BIT_S] [--speed X] [--quiet]")
+#: options per mode, by argparse dest: those of the offline replay, those of CAN logs offline, those of --realtime
+OFFLINE_OPTIONS = ("out", "plot", "config", "oil_mode", "initial_temp")
+LOG_OPTIONS = ("processes", "frames_out")
+REALTIME_OPTIONS = ("realtime", "interface", "channel", "bitrate", "speed")
 
 
 def add_subparser(sub):
@@ -24,13 +36,15 @@ def add_subparser(sub):
                     "critical, 3 not available), ttl_<id>_s (time to the warning limit with held inputs, empty when "
                     "never) for the 28 published components, and the status (degraded, degraded_mode, input "
                     "validity, oil_innovation_c = measured - model oil, model_oil_temp_c, reject counters). Bad "
-                    "input values are not errors: the sensor holds, clamps or degrades and counts them.",
+                    "input values are not errors: the sensor holds, clamps or degrades and counts them. Run tables: "
+                    "docs/interfaces.md section 3; component codes: docs/glossary.md.",
         examples=["gearbox-vsensor replay uphill.csv --out est.csv --plot est.png",
                   "gearbox-vsensor replay truck.blf --config truck.toml --out est.csv",
                   "gearbox-vsensor replay uphill.csv --oil-mode model --out est_model_oil.csv"])
+    p.usage = USAGE
     p.add_argument("input", metavar="LOG_OR_CSV", help="run table (.csv) or CAN log (.log .asc .blf .mf4)")
     p.add_argument("--config", metavar="TOML", help="project configuration (gearbox variant, cooler, [sensor], [can])")
-    p.add_argument("--out", metavar="EST.csv", help="sensor output run table (10 Hz)")
+    p.add_argument("--out", metavar="EST.csv", help="sensor output run table (10 Hz); required, except with --realtime")
     p.add_argument("--plot", metavar="PNG", help="plot of the estimates, warnings and oil innovation")
     p.add_argument("--oil-mode", choices=("measured", "model"),
                    help="measured (default): a valid oil_temp_c is the sump; model: always the modelled sump")
@@ -49,7 +63,7 @@ def _add_log_options(p: argparse.ArgumentParser) -> None:
                    help="play the log onto a bus (--interface/--channel) with its original timing, like canplayer, "
                         "instead of computing the outputs here (run `gearbox-vsensor run` on that bus)")
     add_bus_options(g, required=False, purpose="(--realtime)")
-    g.add_argument("--speed", type=float, default=1.0, metavar="X",
+    g.add_argument("--speed", type=float, metavar="X",
                    help="--realtime: play X times faster (default 1)")
     g.add_argument("--processes", type=int, choices=(1, 2), default=None,
                    help="offline: 2 reads and decodes the log in one process while the sensor steps in a second "
@@ -68,6 +82,16 @@ def _sensor_options(args) -> dict:
     return opts
 
 
+def _given(args, dests) -> list[str]:
+    """The options among ``dests`` that the command line set, as written (``--speed``)."""
+    return ["--" + d.replace("_", "-") for d in dests if getattr(args, d) not in (None, False)]
+
+
+def _refuse(given: list[str], why: str) -> None:
+    if given:
+        raise InputError(f"{', '.join(given)} {'does' if len(given) == 1 else 'do'} nothing {why}")
+
+
 def run(args) -> int:
     from tools.replay.log import is_can_log
     path = Path(args.input)
@@ -76,6 +100,7 @@ def run(args) -> int:
     if path.suffix.lower() != ".csv":
         raise InputError(f"{path}: unknown input type {path.suffix!r}; replay reads run tables (.csv) and CAN logs "
                          f"(.log, .asc, .blf, .mf4)")
+    _refuse(_given(args, LOG_OPTIONS + REALTIME_OPTIONS), f"on a run table ({path.name}), only on a CAN log")
     if not args.out:
         raise InputError("--out EST.csv is required")
     from tools.replay.plot import plot_replay
@@ -98,11 +123,16 @@ def _run_log(args, path: Path) -> int:
     """`gearbox-vsensor replay LOG ...`: offline (``--out``) or ``--realtime`` onto a bus."""
     from tools.replay.log import play_log_on, replay_log_file
     if args.realtime:
+        _refuse(_given(args, OFFLINE_OPTIONS + LOG_OPTIONS), "with --realtime, which only plays the log onto the "
+                "bus (run `gearbox-vsensor run` on that bus for the sensor's outputs)")
         if not args.interface or not args.channel:
             raise InputError("--realtime needs --interface and --channel (the bus to play the log onto)")
-        n = play_log_on(path, args.interface, args.channel, args.bitrate, speedup=args.speed)
-        print(f"played {n} frames onto {args.interface} {args.channel}")
+        n = play_log_on(path, args.interface, args.channel, args.bitrate,
+                        speedup=1.0 if args.speed is None else args.speed)
+        if not args.quiet:
+            print(f"played {n} frames onto {args.interface} {args.channel}")
         return 0
+    _refuse(_given(args, REALTIME_OPTIONS[1:]), "without --realtime (only --realtime plays the log onto a bus)")
     if not args.out:
         raise InputError("--out EST.csv is required to replay a log offline (or use --realtime)")
     result = replay_log_file(path, args.out, config_path=args.config, sensor_options=_sensor_options(args),

@@ -37,9 +37,9 @@ def add_subparser(sub):
                         "sump); default from the parameters (liquid)")
     p.add_argument("--hold-oil", type=float, metavar="DEGC", help="hold the sump at this temperature")
     p.add_argument("--initial-temp", type=float, metavar="DEGC", help="initial temperature of every node")
-    p.add_argument("--rate", type=float, default=10.0, metavar="HZ", help="sample rate of named cycles (default 10)")
+    p.add_argument("--rate", type=float, metavar="HZ", help="sample rate of named cycles (default 10)")
     p.add_argument("--noise", action="store_true", help="add measurement-like noise to named cycles")
-    p.add_argument("--seed", type=int, default=0, help="random seed of the named cycles (default 0)")
+    p.add_argument("--seed", type=int, help="random seed of the named cycles (default 0)")
     p.add_argument("--dt", type=float, default=0.5, metavar="S", help="plant time step (default 0.5 s, BDF2)")
     p.add_argument("--out-dt", type=float, default=1.0, metavar="S", help="output sample period (default 1 s)")
     p.add_argument("--out", required=True, metavar="RUN.csv", help="output run table")
@@ -51,8 +51,26 @@ def add_subparser(sub):
     return p
 
 
+def refuse_unused_options(args) -> None:
+    """InputError for an option that would do nothing: --rate/--noise/--seed on a CSV run table, --hold-oil with
+    another --cooler than hold. Then the defaults of --rate and --seed."""
+    from tools.cycles.named import CYCLE_NAMES
+    named = args.cycle.strip().lower().split(":")[0] in CYCLE_NAMES
+    given = [o for o, v in (("--rate", args.rate), ("--noise", args.noise or None), ("--seed", args.seed))
+             if v is not None]
+    if given and not named:
+        raise InputError(f"{', '.join(given)} {'applies' if len(given) == 1 else 'apply'} only to named cycles; "
+                         f"{args.cycle} is a run table, simulated as it is")
+    if args.hold_oil is not None and args.cooler not in (None, "hold"):
+        raise InputError(f"--hold-oil holds the sump, which --cooler {args.cooler} does not: use --cooler hold or "
+                         f"leave --cooler out")
+    args.rate = 10.0 if args.rate is None else args.rate
+    args.seed = 0 if args.seed is None else args.seed
+
+
 def run(args) -> int:
     from tools.cycles.named import get_cycle
+    refuse_unused_options(args)
     from tools.plant.reference import ReferencePlant
     from tools.runtable import write_run_table
     cfg = load_config(args.config)

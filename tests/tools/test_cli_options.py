@@ -1,0 +1,129 @@
+"""The command line's options: a mistyped option is refused by its subcommand with a suggestion, usages are honest,
+an option that would do nothing in the mode given is an error (nothing written), and `plant` checks its bus before
+it computes the drive."""
+from __future__ import annotations
+
+import re
+
+import pytest
+
+from tools.cli import build_parser, main
+
+#: the shortest command line each subcommand accepts
+MINIMAL = {
+    "simulate": ["--cycle", "uphill", "--out", "r.csv"],
+    "replay": ["r.csv", "--out", "e.csv"],
+    "run": ["--interface", "virtual", "--channel", "x"],
+    "plant": ["--interface", "virtual", "--channel", "x", "--cycle", "uphill"],
+    "diagnose": ["--train", "a.csv", "--test", "b.csv", "--json", "g.json"],
+    "bench-diagnosis": [],
+    "demo": [],
+}
+SUBCOMMANDS = build_parser().subcommands
+
+
+def long_options(parser) -> list[str]:
+    return [o for a in parser._actions for o in a.option_strings if o.startswith("--") and o != "--help"]
+
+
+def test_every_subcommand_has_a_minimal_command_line():
+    assert set(MINIMAL) == set(SUBCOMMANDS)
+    for name, argv in MINIMAL.items():
+        build_parser().parse_args([name, *argv])
+
+
+@pytest.mark.parametrize("name", sorted(MINIMAL))
+def test_a_mistyped_option_is_refused_by_its_subcommand_with_a_suggestion(name, capsys):
+    option = long_options(SUBCOMMANDS[name])[-1]
+    typo = option[:-1] + option[-1] * 2 + "x"
+    with pytest.raises(SystemExit) as exc:
+        build_parser().parse_args([name, *MINIMAL[name], typo])
+    err = capsys.readouterr().err
+    assert exc.value.code == 2
+    assert err.startswith(f"usage: gearbox-vsensor {name} ")
+    assert f"gearbox-vsensor {name}: error: unrecognized arguments: {typo} (did you mean {option}?)" in err
+
+
+def test_an_extra_argument_is_refused_by_its_subcommand(capsys):
+    with pytest.raises(SystemExit):
+        build_parser().parse_args(["replay", "a.csv", "b.csv", "--out", "e.csv"])
+    err = capsys.readouterr().err
+    assert err.startswith("usage: gearbox-vsensor replay ") and "unrecognized arguments: b.csv" in err
+    assert "did you mean" not in err
+
+
+def test_replay_usage_is_honest_and_complete():
+    usage = SUBCOMMANDS["replay"].format_usage()
+    assert "[--out" not in usage and usage.count("--out EST.csv") == 2
+    assert re.search(r"LOG --realtime --interface NAME --channel NAME", usage)
+    for option in long_options(SUBCOMMANDS["replay"]):
+        assert option in usage, option
+
+
+@pytest.fixture
+def files(tmp_path):
+    from tools.runtable import RunTable, write_run_table
+    csv = write_run_table(RunTable({"time_s": [0.0, 1.0], "engine_speed_rpm": [800.0, 800.0],
+                                    "engine_torque_nm": [100.0, 100.0], "gear": [9.0, 9.0]}), tmp_path / "run.csv")
+    log = tmp_path / "run.log"
+    log.write_text("(0.000000) vcan0 0CF00400#FFFF7D803EFFFFFF\n")
+    return tmp_path, csv, log
+
+
+@pytest.mark.parametrize("kind, extra, named", [
+    ("csv", ["--speed", "10"], "--speed"),
+    ("csv", ["--processes", "1"], "--processes"),
+    ("csv", ["--realtime", "--interface", "virtual", "--channel", "x"], "--realtime, --interface, --channel"),
+    ("log", ["--interface", "virtual"], "--interface"),
+    ("log", ["--speed", "3"], "--speed"),
+    ("log_rt", ["--out", "OUT", "--plot", "P.png"], "--out, --plot"),
+    ("log_rt", ["--frames-out", "F.log"], "--frames-out"),
+    ("log_rt", ["--oil-mode", "model"], "--oil-mode"),
+])
+def test_replay_refuses_options_that_would_do_nothing(files, capsys, kind, extra, named):
+    d, csv, log = files
+    out = d / "est.csv"
+    argv = {"csv": [str(csv), "--out", str(out)], "log": [str(log), "--out", str(out)],
+            "log_rt": [str(log), "--realtime", "--interface", "virtual", "--channel", "x"]}[kind]
+    extra = [str(out) if a == "OUT" else a for a in extra]
+    assert main(["replay", *argv, *extra]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith(f"gearbox-vsensor replay: error: {named} do") and err.count("\n") == 0
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("extra, named", [(["--seed", "3"], "--seed"), (["--rate", "5", "--noise"], "--rate, --noise")])
+def test_simulate_refuses_cycle_options_on_a_run_table(files, capsys, extra, named):
+    d, csv, _ = files
+    assert main(["simulate", "--cycle", str(csv), "--out", str(d / "s.csv"), *extra]) == 2
+    assert f"error: {named} appl" in capsys.readouterr().err and not (d / "s.csv").exists()
+
+
+def test_simulate_refuses_a_held_sump_with_another_cooler(tmp_path, capsys):
+    argv = ["simulate", "--cycle", "steady:gear=4L,rpm=1300,nm=2000,s=20", "--out", str(tmp_path / "s.csv"),
+            "--quiet", "--hold-oil", "100"]
+    assert main([*argv, "--cooler", "liquid"]) == 2
+    assert "--hold-oil" in capsys.readouterr().err and not (tmp_path / "s.csv").exists()
+    assert main([*argv, "--cooler", "hold", "--seed", "1"]) == 0
+
+
+@pytest.mark.parametrize("argv, named", [(["--setup", "truck"], "--setup"), (["--cooler", "air"], "--cooler"),
+                                         (["--effect", "none", "--scenarios", "3"], "--scenarios"),
+                                         (["--effect", "none", "--only", "1"], "--only")])
+def test_bench_diagnosis_refuses_options_of_the_other_mode(tmp_path, capsys, argv, named):
+    assert main(["bench-diagnosis", "--out", str(tmp_path / "b"), *argv]) == 2
+    assert f"error: {named} " in capsys.readouterr().err and not (tmp_path / "b").exists()
+
+
+def test_plant_checks_the_bus_before_it_computes_the_drive(monkeypatch, capsys):
+    import tools.can.hil
+    calls = []
+
+    def prepare(*args, **kwargs):
+        calls.append(args)
+        raise AssertionError("the drive was computed before the bus was opened")
+
+    monkeypatch.setattr(tools.can.hil, "prepare", prepare)
+    rc = main(["plant", "--interface", "no_such_interface", "--channel", "x", "--cycle", "uphill", "--quiet"])
+    err = capsys.readouterr().err
+    assert rc == 2 and calls == [] and "no_such_interface" in err and err.count("\n") == 1
