@@ -9,8 +9,12 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-SKIP_REASON = ("real J1939 captures not found: set GVS_REAL_J1939 to a directory with normal.candump.log, "
-               "tsc1.candump.log, fuzz_1ms_ID_and_Data.candump.log and utulsa_logger2_drive.candump.log")
+#: the captures the tests read, in the directory $GVS_REAL_J1939
+CAPTURE_FILES = ("normal.candump.log", "tsc1.candump.log", "fuzz_1ms_ID_and_Data.candump.log",
+                 "utulsa_logger2_drive.candump.log")
+SKIP_REASON = ("real J1939 captures not found: the repository does not ship these public truck captures (what they "
+               "are: docs/can.md, 'Real truck captures'); put " + ", ".join(CAPTURE_FILES) + " in a directory and "
+               "run the tests with GVS_REAL_J1939=<that directory>")
 
 
 def real_capture_dir() -> Path | None:

@@ -40,6 +40,21 @@ GBX_PGNS = range(0xFF40, 0xFF50)
 SEND_BURST_FRAMES = 20000
 #: how long the demo waits at most for the service to consume the frames [s]
 DRAIN_TIMEOUT_S = 120.0
+#: the demo's run tables (plant.csv, sensor.csv) keep one row per this many seconds: the 10 Hz tables of a 40-min
+#: drive are 44 MB, the 1 s rows 4.5 MB (drive.log keeps every frame: `gearbox-vsensor replay` gives 10 Hz again)
+CSV_ROW_S = 1.0
+#: what the demo writes into its --out-dir
+DEMO_FILES = ("plant.csv", "drive.log", "sensor.csv", "demo.png")
+
+
+def every(table: RunTable, seconds: float = CSV_ROW_S) -> RunTable:
+    """The rows of ``table`` at whole multiples of ``seconds`` of its time; without such rows (irregular time), the
+    first row of each ``seconds`` interval."""
+    x = np.asarray(table["time_s"], dtype=float) / seconds
+    on_grid = np.abs(x - np.round(x)) < 1e-6
+    if on_grid.sum() < 2:
+        on_grid = np.r_[True, np.diff(np.floor(x + 1e-6)) > 0] if x.size else on_grid
+    return table.select(on_grid)
 
 
 @dataclass(frozen=True)
@@ -269,7 +284,7 @@ def run_demo(opts: DemoOptions, echo: Callable[[str], None] | None = None) -> Bu
     params = load_parameters("GRS905")
     echo(f"[1/4] reference plant: {opts.minutes:.0f} min of the synthetic '{opts.cycle}' drive ...")
     truth = simulate_truth(params, opts.cycle, opts.minutes)
-    write_run_table(truth.table, out / "plant.csv")
+    write_run_table(every(truth.table), out / "plant.csv")
     echo(f"      done in {truth.wall_s:.1f} s; truth written to {out / 'plant.csv'}")
     echo("[2/4] J1939 frames of the drive (inputs) and rig thermocouple frames (truth) ...")
     frames = drive_frames(truth, out / "drive.log")
@@ -282,8 +297,10 @@ def run_demo(opts: DemoOptions, echo: Callable[[str], None] | None = None) -> Bu
     echo(f"[4/4] what the sensor published (decoded from the bus with can_dbc/gearbox_vsensor.dbc), every "
          f"{opts.print_every_s:.0f} s of drive time:")
     print_published(bus.outputs, opts.print_every_s, echo)
-    write_run_table(bus.recorded, out / "sensor.csv")
+    write_run_table(every(bus.recorded), out / "sensor.csv")
     print_accuracy(bus.recorded, echo)
     plot_demo(bus.recorded, truth.table, out / "demo.png")
     echo(f"plots: {out / 'demo.png'}; sensor outputs: {out / 'sensor.csv'}")
+    size_mb = sum(f.stat().st_size for f in out.glob("*") if f.name in DEMO_FILES) / 1e6
+    echo(f"wrote {size_mb:.0f} MB to {out.resolve()}: {', '.join(DEMO_FILES)} (run tables with {CSV_ROW_S:g} s rows)")
     return bus
