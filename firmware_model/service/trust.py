@@ -124,8 +124,8 @@ class ForeignSourceFinding:
     @property
     def sentence(self) -> str:
         data = "" if self.with_data == self.frames else f" ({self.with_data} with data)"
-        where = (f"[can] {self.config_key} expects SA 0x{self.expected:02X}" if self.configured else
-                 f"the DBC's default SA 0x{self.expected:02X} is expected ([can] {self.config_key})")
+        where = (f"[can] expects SA 0x{self.expected:02X} ({self.config_key})" if self.configured else
+                 f"the DBC's default SA 0x{self.expected:02X} is expected (set [can] {self.config_key})")
         what = f"{self.message} (PGN {self.pgn})" if self.message != EC1_KEY else f"{self.message} (PGN {self.pgn}, " \
                                                                                   f"TP.BAM transfers)"
         tail = ": check the source addresses"
@@ -264,11 +264,11 @@ class TimeBaseCheck:
 
 
 def _config_keys() -> dict[str, str]:
-    """Message -> the [can] key that sets its source address (the last key wins, as in ServiceOptions)."""
-    out = {}
+    """Message -> the [can] keys that set its source address ("engine_source_address or ambient_source_address")."""
+    out: dict[str, str] = {}
     for key, names in SOURCE_ADDRESS_KEYS:
         for name in names:
-            out[name] = key
+            out[name] = f"{out[name]} or {key}" if name in out else key
     return out
 
 
