@@ -241,6 +241,7 @@ class J1939Decoder:
                                "tp": {"started": 0, "completed": 0, "aborted": 0, "ec1_received": 0},
                                "arrivals": {}, "foreign_source": {}, "foreign_source_data": {}}
         self._arrivals: dict[str, int] = self.counters["arrivals"]
+        self._arrivals.update({route.key: 0 for route in self._routes.values()})
 
     @staticmethod
     def _sources(expected_sa: Mapping[str, int | None]) -> dict[str, int | None]:
@@ -331,8 +332,7 @@ class J1939Decoder:
         if expected is not None and sa != expected:
             self._count_foreign(key, sa, eight and _carries_data(route.params, data))
             return "wrong_source_address"
-        arrivals = self._arrivals
-        arrivals[key] = arrivals.get(key, 0) + 1
+        self._arrivals[key] += 1
         if not eight:
             return "wrong_dlc"
         return self._decode_params(route.params, data, msg.timestamp, latest)
