@@ -204,3 +204,23 @@ def test_other_options_out_of_range_are_one_sentence_errors(tmp_path, monkeypatc
     assert main(argv) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and words in err
+
+
+def test_the_diagnosis_refuses_a_log_recorded_on_a_wrong_clock(tmp_path):
+    """A log recorded from a bus replayed 10x faster with arrival stamps: 400 s of drive in 40 s of frame time."""
+    from firmware_model.errors import InputError
+    from tools.can.logsynth import write_can_log
+    from tools.cycles.named import get_cycle
+    from tools.diagnosis.prepare import load_table
+    from .can_fixtures import plant_output
+    cycle = get_cycle("steady:gear=4L,rpm=1300,nm=2000,s=400", rate_hz=10.0)
+    real = tmp_path / "real.log"
+    write_can_log(cycle, plant_output(cycle), real)
+    fast = tmp_path / "fast.log"
+    with can.Logger(fast) as out:
+        for m in can.LogReader(real):
+            m.timestamp /= 10.0
+            out.on_message_received(m)
+    assert load_table(real).n > 3000
+    with pytest.raises(InputError, match="time base suspect: the input messages arrive about 10.0x faster"):
+        load_table(fast)
