@@ -17,7 +17,7 @@ from tools.can.bus import add_bus_options, can_subcommand
 
 #: the three ways to call replay; every option is in one of them (tests/tools/test_cli_options.py)
 USAGE = ("%(prog)s CSV --out EST.csv [--config TOML] [--plot PNG] [--oil-mode {measured,model}]\n"
-         "                              [--initial-temp DEGC] [--quiet]\n"
+         "                              [--initial-temp DEGC] [--allow-untrusted] [--quiet]\n"
          "       %(prog)s LOG --out EST.csv [those options] [--processes {1,2}] [--frames-out OUT.log]\n"
          "       %(prog)s LOG --realtime --interface NAME --channel NAME [--bitrate BIT_S] [--speed X] [--quiet]")
 #: options per mode, by argparse dest: those of the offline replay, those of CAN logs offline, those of --realtime
