@@ -176,6 +176,16 @@ def signal_messages() -> dict[str, str]:
     return out
 
 
+def _carries_data(params: tuple[Param, ...], data: bytearray) -> bool:
+    """True when at least one parameter of an 8-byte frame is a value the decoder would use (J1939 data, within the
+    limits); a frame of 0xFF bytes (every value "not available") carries none."""
+    for name, b0, nbytes, scale, offset, integer, low, high, data_max, derived in params:
+        raw = data[b0] if nbytes == 1 else data[b0] | (data[b0 + 1] << 8)
+        if raw <= data_max and low <= raw * scale + offset <= high:
+            return True
+    return False
+
+
 def _check_ref_torque(field_name: str, value) -> float | None:
     if value is not None and (isinstance(value, bool) or not isinstance(value, (int, float))
                               or not (math.isfinite(value) and value > 0)):
@@ -193,8 +203,12 @@ class J1939Decoder:
     ConfigError.
 
     ``counters``: ``frames_seen``, ``frames_used``, ``rejected`` (reason -> frames; seen = used + rejected),
-    ``signal_rejected`` (name -> reason -> values not used, also from frames that were used) and ``tp``
-    (BAM transfers started, completed, aborted; EC1 received).
+    ``signal_rejected`` (name -> reason -> values not used, also from frames that were used), ``tp``
+    (BAM transfers started, completed, aborted; EC1 received), ``arrivals`` (message -> frames from the expected
+    source address, whatever their content: the service's time-base check counts them), ``foreign_source``
+    (message -> source address -> frames, or EC1 announces, from another source address than expected) and
+    ``foreign_source_data`` (the same, only those with at least one usable value: a source-address mistake, not a
+    node that sends "not available").
     """
 
     def __init__(self, expected_sa: Mapping[str, int | None] | None = None,
@@ -224,7 +238,10 @@ class J1939Decoder:
                 self._routes[dbc.message_pgn(name)] = _Route(RIG_KEY, params)
         self._sessions: dict[int, _Bam] = {}
         self.counters: dict = {"frames_seen": 0, "frames_used": 0, "rejected": {}, "signal_rejected": {},
-                               "tp": {"started": 0, "completed": 0, "aborted": 0, "ec1_received": 0}}
+                               "tp": {"started": 0, "completed": 0, "aborted": 0, "ec1_received": 0},
+                               "arrivals": {}, "foreign_source": {}, "foreign_source_data": {}}
+        self._arrivals: dict[str, int] = self.counters["arrivals"]
+        self._arrivals.update({route.key: 0 for route in self._routes.values()})
 
     @staticmethod
     def _sources(expected_sa: Mapping[str, int | None]) -> dict[str, int | None]:
@@ -310,12 +327,22 @@ class J1939Decoder:
         route = self._routes.get(pgn)
         if route is None:
             return "unknown_pgn"
-        expected = self.expected_sa[route.key]
+        key = route.key
+        expected = self.expected_sa[key]
         if expected is not None and sa != expected:
+            self._count_foreign(key, sa, eight and _carries_data(route.params, data))
             return "wrong_source_address"
+        self._arrivals[key] += 1
         if not eight:
             return "wrong_dlc"
         return self._decode_params(route.params, data, msg.timestamp, latest)
+
+    def _count_foreign(self, key: str, sa: int, with_data: bool) -> None:
+        """A frame (or an EC1 announce) of a used message from another source address than the one expected."""
+        for counter, counted in (("foreign_source", True), ("foreign_source_data", with_data)):
+            if counted:
+                per_sa = self.counters[counter].setdefault(key, {})
+                per_sa[sa] = per_sa.get(sa, 0) + 1
 
     def _count_rejected_value(self, name: str, reason: str) -> None:
         per_signal = self.counters["signal_rejected"].setdefault(name, {})
@@ -377,6 +404,7 @@ class J1939Decoder:
             reason: str | None = "tp_other_pgn"
         elif expected is not None and sa != expected:
             reason = "wrong_source_address"
+            self._count_foreign(EC1_KEY, sa, size_bytes >= EC1_MIN_SIZE_BYTES)
         elif size_bytes < EC1_MIN_SIZE_BYTES:
             return "tp_bad_announce"
         else:

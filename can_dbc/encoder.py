@@ -20,11 +20,12 @@ from can_dbc.j1939 import RAW16_DATA_MAX, RAW16_NOT_AVAILABLE, check_source_addr
 #: GBX_STATUS input keys; a missing key is sent as "not available" (max_warning_level: computed from levels,
 #: counter: the encoder's own rolling counter)
 STATUS_KEYS = ("speed_valid", "torque_valid", "gear_valid", "oil_valid", "ref_torque_valid", "degraded_mode",
-               "oil_innovation_c", "model_oil_temp_c", "max_warning_level", "counter")
+               "oil_innovation_c", "model_oil_temp_c", "max_warning_level", "counter", "time_base_suspect")
 _STATUS_KEY_SET = frozenset(STATUS_KEYS)
 #: status key -> its two-bit GBX_STATUS signal
 STATUS_FLAG_SIGNALS = (("speed_valid", "SpeedValid"), ("torque_valid", "TorqueValid"), ("gear_valid", "GearValid"),
-                       ("oil_valid", "OilValid"), ("ref_torque_valid", "RefTorqueValid"))
+                       ("oil_valid", "OilValid"), ("ref_torque_valid", "RefTorqueValid"),
+                       ("time_base_suspect", "TimeBaseSuspect"))
 #: warning level "not available" (two-bit J1939 state)
 LEVEL_NOT_AVAILABLE = 3
 #: DM1 (J1939-73): FMI per warning level (16 above normal, moderately severe; 0 above normal, most severe), the

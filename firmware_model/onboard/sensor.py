@@ -34,6 +34,7 @@ from firmware_model.onboard.step_cache import StepCache
 from firmware_model.onboard.time_to_limit import TtlJob, refresh_ttl
 from firmware_model.onboard.warning_levels import Limits, load_limits
 from firmware_model.parameters import Parameters
+from firmware_model.physics.oil import check_temperature_c
 
 __all__ = ["VirtualSensor", "SensorInputs", "SensorOutputs", "SensorState", "SensorStatus", "SensorOptions",
            "SensorParams", "StepCache", "INPUT_FIELDS", "REJECT_REASONS", "MAIN", "TWIN", "step"]
@@ -75,6 +76,8 @@ class VirtualSensor:
             opts = SensorOptions(oil_mode=oil_mode, **options)
         except TypeError as exc:
             raise ParameterError(f"unknown sensor option: {exc}") from None
+        if opts.initial_temp_c is not None:
+            check_temperature_c("sensor option initial_temp_c", opts.initial_temp_c)
         self.params = params
         self.reduced = R.build_reduced(params, partition=partition, effects=effects)
         self.effects = R.make_effects({k: v for k, v in (effects or {}).items() if k in R.EFFECT_HOOKS})

@@ -26,15 +26,28 @@ Provenance of each property
 """
 from __future__ import annotations
 
+import math
 from typing import NamedTuple
 
 import numpy as np
 
+from firmware_model.errors import InputError
 from firmware_model.units import KELVIN_OFFSET_K
 
 #: clip range of the input temperature [degC]
 T_MIN_C = -40.0
 T_MAX_C = 200.0
+
+
+def check_temperature_c(label: str, value_c) -> float:
+    """A temperature a user sets for the gearbox (an initial or a held temperature), checked: a finite number within
+    T_MIN_C..T_MAX_C, the range the oil model describes (outside it every property is clipped; no gearbox in use
+    is colder or hotter). InputError naming ``label`` (e.g. ``"--initial-temp"``) otherwise."""
+    if isinstance(value_c, bool) or not isinstance(value_c, (int, float, np.floating, np.integer)) \
+            or not (math.isfinite(value_c) and T_MIN_C <= value_c <= T_MAX_C):
+        raise InputError(f"{label} {value_c!r} degC is not a plausible gearbox temperature: use "
+                         f"{T_MIN_C:g}..{T_MAX_C:g} degC (the oil model's range)")
+    return float(value_c)
 
 # --- Appendix 2 table -------------------------------------------------------------------------------------
 #: table temperatures [degC]

@@ -28,9 +28,13 @@ Counters (:attr:`SensorService.counters`, logged every ``counter_log_period_s`` 
 (frames seen = used + rejected per reason; values rejected per signal; TP.BAM) plus the service's (steps, steps
 sent, catch-up steps, time jumps, frames that did not drive time, steps with each input stale, frames sent).
 
+Trust (``trust``, docs/can.md "Trust findings"): a time base that runs several times too fast or too slow (the
+input messages' arrival rates in frame time; GBX_STATUS TimeBaseSuspect), inputs from unexpected source
+addresses and a large degraded share are logged as findings with their likely cause (:meth:`SensorService.findings`).
+
 Modules: ``options`` (settings, the signal wiring, receive filters), ``records`` (the typed records of a step),
 ``protocol`` (the sensor the service expects), ``core`` (:class:`SensorService`), ``recorder`` (run-table rows),
-``live`` (:func:`serve`), ``build`` (:func:`build_service` from a config). Only the standard library, numpy and
+``trust`` (the findings), ``live`` (:func:`serve`), ``build`` (:func:`build_service` from a config). Only the standard library, numpy and
 the CAN edge (``can_dbc``: python-can, cantools) are imported by the service itself (docs/CONVENTIONS.md).
 """
 from __future__ import annotations

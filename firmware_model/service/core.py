@@ -2,6 +2,7 @@
 Pure of threads, clocks and I/O; the timing model is in the package doc (``firmware_model.service``)."""
 from __future__ import annotations
 
+import dataclasses
 import logging
 import math
 from typing import Callable, Iterable
@@ -19,6 +20,7 @@ from firmware_model.service.options import (GEAR_RANGE, NOMINAL_PERIOD_S, SENSOR
 from firmware_model.service.protocol import StepSensor, check_sensor
 from firmware_model.service.recorder import StepRecorder
 from firmware_model.service.records import GbxStatus, RecordedOutputs, StepInputs, StepKind, StepRequest
+from firmware_model.service.trust import Severity, TimeBaseCheck, trust_findings
 
 log = logging.getLogger("gearbox_vsensor.can_service")
 
@@ -71,7 +73,11 @@ class SensorService:
         self.latest = LatestValues()
         self.counters: dict = {"steps": 0, "steps_sent": 0, "catchup_steps": 0, "time_jumps": 0,
                                "frames_not_timing": 0, "frames_sent": 0, "dm1_sent": 0, "stale_steps": {},
-                               "uninitialised_steps": 0}
+                               "uninitialised_steps": 0, "mode_steps": {},
+                               "time_base": {"windows_checked": 0, "windows_suspect": 0, "suspect": False,
+                                             "finding": None}}
+        self._time_base = TimeBaseCheck(self.options.time_base_window_s, self.options.time_base_windows)
+        self._findings_logged: dict[tuple, int] = {}
         self._wanted = frozenset(wanted_pgns().values())
         self._timing_ids: dict[int, bool] = {}
         self._max_age_s = {m: self.options.stale_factor * p for m, p in NOMINAL_PERIOD_S.items()}
@@ -141,8 +147,11 @@ class SensorService:
 
     def adopt_outputs(self, outputs: RecordedOutputs, state) -> None:
         """Take the sensor half's results from the copy that ran them: :meth:`recorded_outputs` and its final state
-        (its time-to-limit refresh done)."""
+        (its time-to-limit refresh done); the steps per degraded mode are counted from them."""
         self._recorder.adopt(outputs)
+        modes = outputs.tail[:, self._recorder.tail_names.index("degraded_mode")]
+        values, counts = np.unique(modes[np.isfinite(modes)].astype(int), return_counts=True)
+        self.counters["mode_steps"] = dict(zip(values.tolist(), counts.tolist()))
         self.state = state
         self._pending = None
 
@@ -171,6 +180,21 @@ class SensorService:
                      "%d), time jumps %d; stale steps per input: %s; frames sent %d",
                      d["frames_seen"], d["frames_used"], rejected, d["tp"]["ec1_received"], s["steps"],
                      s["steps_sent"], s["catchup_steps"], s["time_jumps"], stale, s["frames_sent"])
+
+    def findings(self) -> list:
+        """What the run must not keep quiet about (``firmware_model.service.trust.trust_findings``): a suspect time
+        base, inputs from unexpected source addresses, a large degraded share; most severe first."""
+        return trust_findings(self.all_counters(), self.decoder.expected_sa, self.options.expected_sa)
+
+    def log_findings(self, only_new: bool = False) -> None:
+        """Log the findings (WARNING, or INFO for notes); ``only_new``: only those not logged yet, or more severe
+        than when they were."""
+        for f in self.findings():
+            key = (f.kind, getattr(f, "message", ""), getattr(f, "source", -1))
+            if only_new and self._findings_logged.get(key, -1) >= f.severity:
+                continue
+            self._findings_logged[key] = f.severity
+            self.log.log(logging.WARNING if f.severity >= Severity.WARNING else logging.INFO, "%s", f.sentence)
 
     def recorded(self) -> dict[str, np.ndarray]:
         """The recorded steps (``record=True``) as columns of a sensor output run table (tools/runtable.py):
@@ -216,6 +240,7 @@ class SensorService:
             self._first_t_s = timestamp_s
         self._t0_s = timestamp_s
         self._k = 0
+        self._time_base.restart(timestamp_s, self.decoder.counters["arrivals"])
         if self._next_log_t_s is None:
             self._next_log_t_s = timestamp_s + self.options.counter_log_period_s
 
@@ -244,10 +269,32 @@ class SensorService:
                 out.extend(frames)
                 self.counters["steps_sent"] += 1
                 self.counters["frames_sent"] += len(frames)
+            self._check_time_base(t_step_s)
             if self._next_log_t_s is not None and t_step_s >= self._next_log_t_s:
                 period_s = self.options.counter_log_period_s
                 self._next_log_t_s += period_s * (1 + math.floor((t_step_s - self._next_log_t_s) / period_s))
                 self.log_counters()
+                if self.options.log_findings:
+                    self.log_findings(only_new=True)
+
+    def _check_time_base(self, t_step_s: float) -> None:
+        """Close the time-base check's window when due (firmware_model.service.trust); log when it turns."""
+        check = self._time_base
+        event = check.update(t_step_s, self.decoder.counters["arrivals"])
+        tb = self.counters["time_base"]
+        tb.update(windows_checked=check.windows_checked, windows_suspect=check.windows_suspect,
+                  suspect=check.suspect)
+        if event is None:
+            return
+        if event == "cleared":
+            if self.options.log_findings:
+                self.log.info("time base plausible again at frame time %.3f s: the input messages arrive at their "
+                              "J1939 periods", t_step_s)
+            return
+        if tb["finding"] is None:
+            tb["finding"] = dataclasses.asdict(event)
+        if self.options.log_findings:
+            self.log.warning("%s", event.sentence)
 
     # -- one step -----------------------------------------------------------------------------------------------
     #
@@ -274,7 +321,7 @@ class SensorService:
         t_s = t_step_s - self._first_t_s + self._time_offset_s
         if self.record:
             self._record_head(t_s, t_step_s, inputs, ref_torque_nm)
-        return StepRequest(kind, t_step_s, inputs, ref_torque_nm, t_s)
+        return StepRequest(kind, t_step_s, inputs, ref_torque_nm, t_s, self._time_base.suspect)
 
     def _fresh_inputs(self, t_step_s: float) -> StepInputs:
         """The sensor's inputs at a boundary: the latest values not older than their staleness limit (counted as
@@ -366,11 +413,12 @@ class SensorService:
         level = np.asarray(outputs.level)
         ttl_s = np.asarray(outputs.ttl_s, dtype=float)
         status = self._status(outputs.status, req.ref_torque_nm)
+        self._count_mode(status.degraded_mode)
         frames = []
         if self.emit_frames:
             frames = self._encode(req.t_step_s, dict(zip(PUBLISHED, T_c.tolist())),
                                   dict(zip(PUBLISHED, level.astype(int).tolist())),
-                                  dict(zip(PUBLISHED, ttl_s.tolist())), status, send)
+                                  dict(zip(PUBLISHED, ttl_s.tolist())), status, send, req.time_base_suspect)
         if self.record:
             self._recorder.add_outputs(T_c, level, ttl_s, status, outputs.status.rejects)
         return frames
@@ -390,20 +438,30 @@ class SensorService:
                            torque_valid=inputs.torque_nm is not None, gear_valid=inputs.gear is not None,
                            oil_valid=False, ref_torque_valid=req.ref_torque_nm is not None,
                            oil_innovation_c=None, model_oil_temp_c=None)
-        frames = self._encode(req.t_step_s, {}, {}, {}, status, send)
+        self._count_mode(MODE_NOT_INITIALISED)
+        frames = self._encode(req.t_step_s, {}, {}, {}, status, send, req.time_base_suspect)
         if self.record:
             n = len(PUBLISHED)
             self._recorder.add_outputs(np.full(n, np.nan), np.full(n, 3), np.full(n, np.nan), status)
         return frames
 
+    def _count_mode(self, mode: int | None) -> None:
+        counts = self.counters["mode_steps"]
+        counts[mode] = counts.get(mode, 0) + 1
+
     def _encode(self, t_step_s: float, temps_c: dict, levels: dict, ttl_s: dict, status: GbxStatus,
-                send: bool) -> list:
-        """The step's frames; a catch-up step that is not sent leaves the DM1 schedule untouched."""
+                send: bool, time_base_suspect: bool = False) -> list:
+        """The step's frames; a catch-up step that is not sent leaves the DM1 schedule untouched. GBX_STATUS
+        TimeBaseSuspect is 1 while the time base is suspect, else 3 ("no finding"; never 0: a rate check cannot
+        prove a time base right)."""
         if not self.emit_frames:
             return []
         frames = []
         if self._k % self.options.output_every_steps == 0:
-            frames = self.encoder.encode(temps_c, levels, ttl_s, status._asdict(), timestamp_s=t_step_s)
+            st = status._asdict()
+            if time_base_suspect:
+                st["time_base_suspect"] = True
+            frames = self.encoder.encode(temps_c, levels, ttl_s, st, timestamp_s=t_step_s)
         dm1 = self.encoder.encode_dm1(levels, timestamp_s=t_step_s)
         self._steps_since_dm1 += 1
         payload = bytes(dm1.data)

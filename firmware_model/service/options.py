@@ -27,6 +27,9 @@ INPUT_SIGNALS = ("engine_speed_rpm", "engine_torque_nm", "gear", "oil_temp_c", "
 SENSOR_INPUTS = tuple(zip(StepInputs._fields, INPUT_SIGNALS))
 #: run-table columns of the decoded inputs (StepInputs order) and the two extra decoded columns
 INPUT_COLUMNS = (*INPUT_SIGNALS, "engine_torque_pct", "engine_ref_torque_nm")
+#: the time-base check (``firmware_model.service.trust``): windows of this much frame time, this many in a row
+TIME_BASE_WINDOW_S = 10.0
+TIME_BASE_WINDOWS = 3
 #: the model's gear range (seed Table 1); other J1939 gear numbers (after gear_map) are not available to the sensor
 GEAR_RANGE = (-2, 14)
 #: config [can] source-address keys -> the messages they set
@@ -64,7 +67,9 @@ def _positive(name: str, value) -> None:
 @dataclass(frozen=True)
 class ServiceOptions:
     """Service settings; :meth:`from_config` reads the config's ``[can]`` section. ``sensor_source_address``
-    defaults to the DBC's (0xE5)."""
+    defaults to the DBC's (0xE5). ``time_base_window_s``/``time_base_windows``: the time-base check
+    (``firmware_model.service.trust``); ``log_findings`` False: the trust findings are not logged while running
+    (an offline replay prints them once at the end)."""
     expected_sa: Mapping[str, int | None] = field(default_factory=dict)
     sensor_source_address: int = field(default_factory=lambda: default_source("GBX_STATUS"))
     configured_ref_torque_nm: float | None = None
@@ -78,11 +83,17 @@ class ServiceOptions:
     init_wait_s: float = 3.0
     no_ref_torque_warning_s: float = 10.0
     rig: bool = True
+    time_base_window_s: float = TIME_BASE_WINDOW_S
+    time_base_windows: int = TIME_BASE_WINDOWS
+    log_findings: bool = True
 
     def __post_init__(self) -> None:
         _positive("stale_factor", self.stale_factor)
         _positive("counter_log_period_s", self.counter_log_period_s)
         _positive("backward_tolerance_s", self.backward_tolerance_s)
+        _positive("time_base_window_s", self.time_base_window_s)
+        if not (isinstance(self.time_base_windows, int) and self.time_base_windows >= 1):
+            raise ParameterError(f"time_base_windows = {self.time_base_windows!r} must be an integer >= 1")
         if self.stale_factor < 1.0:
             raise ParameterError(f"can.stale_factor = {self.stale_factor!r} must be >= 1 (a multiple of the "
                                  f"nominal period)")

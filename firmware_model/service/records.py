@@ -33,13 +33,14 @@ class StepInputs(NamedTuple):
 
 class StepRequest(NamedTuple):
     """One step from the frame half: what to do, the step's frame time (the outputs' timestamp), the inputs, the
-    engine reference torque in use (None: none known) and the step's run-table time (continuous across time jumps;
-    the sensor's ``Inputs.t_s``)."""
+    engine reference torque in use (None: none known), the step's run-table time (continuous across time jumps;
+    the sensor's ``Inputs.t_s``) and whether the time base is suspect (GBX_STATUS TimeBaseSuspect)."""
     kind: StepKind
     t_step_s: float
     inputs: StepInputs
     ref_torque_nm: float | None
     t_s: float
+    time_base_suspect: bool = False
 
 
 class GbxStatus(NamedTuple):

@@ -449,7 +449,8 @@ def test_encode_returns_the_16_periodic_frames_in_order_with_the_configured_sour
     assert set(empty["ttl_s"].values()) == {None}
     assert empty["status"] == {"speed_valid": None, "torque_valid": None, "gear_valid": None, "oil_valid": None,
                                "ref_torque_valid": None, "degraded_mode": None, "max_warning_level": 3,
-                               "oil_innovation_c": None, "model_oil_temp_c": None, "counter": 0}
+                               "oil_innovation_c": None, "model_oil_temp_c": None, "counter": 0,
+                               "time_base_suspect": None}
     assert adapter.decode_outputs(frames, source_address=0xE5) == {}
 
 

@@ -163,7 +163,8 @@ def _random_outputs(rng):
               "gear_valid": rng.choice([True, False, None]), "oil_valid": rng.choice([True, False, None]),
               "ref_torque_valid": rng.choice([True, False, None]), "degraded_mode": rng.choice([0, 1, 2, 3, None]),
               "oil_innovation_c": rng.choice([None, rng.uniform(-1100, 1100)]),
-              "model_oil_temp_c": rng.choice([None, rng.uniform(-40, 150)])}
+              "model_oil_temp_c": rng.choice([None, rng.uniform(-40, 150)]),
+              "time_base_suspect": rng.choice([True, False, None])}
     return temps, levels, ttl, status
 
 
@@ -191,7 +192,8 @@ def test_output_round_trip_of_every_signal_including_not_available_and_never():
                 assert got["ttl_s"][c] == math.inf
             else:
                 assert got["ttl_s"][c] == min(max(round(value), 0), 64254)
-        for key in ("speed_valid", "torque_valid", "gear_valid", "oil_valid", "ref_torque_valid", "degraded_mode"):
+        for key in ("speed_valid", "torque_valid", "gear_valid", "oil_valid", "ref_torque_valid", "degraded_mode",
+                    "time_base_suspect"):
             assert got["status"][key] == status[key], key
         innovation = status["oil_innovation_c"]
         expected = None if innovation is None else _expected_temp(innovation, -1000.0, 1007.96875)

@@ -1,6 +1,7 @@
 """What the CAN subcommands (run, plant, replay) share: their argparse shape (:func:`can_subcommand`) and bus
-options (:func:`add_bus_options`), opening a python-can bus with one-sentence errors (:func:`open_bus`) and a stop
-flag set by SIGINT/SIGTERM (:func:`stop_on_signals`)."""
+options (:func:`add_bus_options`), opening a python-can bus with one-sentence errors (:func:`open_bus`,
+:func:`open_player` for a bus that sends recorded frames), the warning for a player faster or slower than real time
+(:func:`speed_warning`) and a stop flag set by SIGINT/SIGTERM (:func:`stop_on_signals`)."""
 from __future__ import annotations
 
 import argparse
@@ -15,6 +16,11 @@ from firmware_model.errors import InputError
 STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
 #: CAN bit rates a --bitrate may name [bit/s]
 BITRATE_RANGE_BIT_S = (10_000, 1_000_000)
+#: interfaces on which a receiver gets the timestamp the sender put in the frame: python-can's in-process virtual
+#: bus, when the sender's bus preserves timestamps (:func:`open_player` asks for it). Every other interface stamps
+#: a frame when it arrives (socketcan's kernel, udp_multicast's socket, the adapters' hardware clocks), so a player
+#: at --speed X gives the receivers X times too little elapsed time.
+SENDER_TIMESTAMP_INTERFACES = ("virtual",)
 
 
 def can_subcommand(sub, name: str, *, summary: str, description: str, examples: Sequence[str], notes: str = ""):
@@ -60,6 +66,27 @@ def open_bus(interface: str, channel: str, bitrate: int | None = None, can_filte
         raise InputError(f"--interface {interface!r} is not available here: {exc}") from None
     except (can.CanError, OSError, ValueError, ImportError) as exc:
         raise InputError(f"cannot open CAN channel {channel!r} on interface {interface!r}: {exc}") from None
+
+
+def open_player(interface: str, channel: str, bitrate: int | None = None):
+    """:func:`open_bus` for a player of recorded or precomputed frames (`plant`, `replay --realtime`): on an
+    interface of SENDER_TIMESTAMP_INTERFACES the frames keep their own timestamps, so a sensor on the bus runs on
+    the player's frame time at any --speed."""
+    extra = {"preserve_timestamps": True} if interface in SENDER_TIMESTAMP_INTERFACES else {}
+    return open_bus(interface, channel, bitrate, **extra)
+
+
+def speed_warning(interface: str, speed: float) -> str | None:
+    """One sentence when frames played ``speed`` times faster than real time onto ``interface`` reach a sensor on
+    a wrong time base (the interface stamps frames on arrival); None at --speed 1 or on a bus that passes the
+    player's timestamps."""
+    if speed == 1.0 or interface in SENDER_TIMESTAMP_INTERFACES:
+        return None
+    return (f"--speed {speed:g} on {interface}: the receivers stamp frames on arrival, so a sensor on this bus "
+            f"(gearbox-vsensor run) counts {1.0 / speed:.3g} s for every second of the drive and its temperatures "
+            f"and warnings are wrong; use --speed 1 for a sensor on the bus, or give the sensor the plant's own "
+            f"frame time: gearbox-vsensor simulate --can-log RUN.log, then gearbox-vsensor replay RUN.log (offline, "
+            f"any speed) or gearbox-vsensor demo (plant and sensor on one in-process virtual bus)")
 
 
 @contextlib.contextmanager

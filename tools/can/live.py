@@ -100,8 +100,9 @@ class LiveSettings:
 
 
 def run_live(settings: LiveSettings):
-    """Run the service with the onboard sensor on the bus until SIGINT/SIGTERM or the duration; logs the counters
-    and a summary; returns the ``ServeResult``."""
+    """Run the service with the onboard sensor on the bus until SIGINT/SIGTERM or the duration; logs the counters,
+    the trust findings (WARNING when the outputs should not be trusted) and a summary; returns the
+    ``ServeResult``."""
     from firmware_model.service import build_service, can_filters, serve
     settings.check()
     service = build_service(settings.config_path)
@@ -121,6 +122,7 @@ def run_live(settings: LiveSettings):
     finally:
         bus.shutdown()
     service.log_counters()
+    service.log_findings()   # firmware_model.service.trust: time base, source addresses, degraded share
     log.info("stopped (%s): %d frames in, %d frames out, %d send errors, %.1f s, CPU %.1f %% of one core",
              {"stop": "signal", "duration": "--duration"}.get(result.reason, result.reason), result.frames_in,
              result.frames_out, result.send_errors, result.wall_s, 100.0 * result.cpu_share)

@@ -61,6 +61,11 @@ def run(args) -> int:
     args.setup, args.cooler = args.setup or "rig", args.cooler or "liquid"
     if args.scenarios < 1:
         raise InputError(f"--scenarios {args.scenarios} must be at least 1")
+    if args.seed < 0:
+        raise InputError(f"--seed {args.seed} must be a non-negative integer")
+    for opt, value_s in (("--train-s", args.train_s), ("--test-s", args.test_s)):
+        if not 60.0 <= value_s <= 86400.0:
+            raise InputError(f"{opt} {value_s} must be within 60..86400 s")
     if args.write_scenarios and not args.out:
         raise InputError("--write-scenarios needs --out DIR")
     only = None

@@ -31,7 +31,10 @@ def add_subparser(sub):
 
 
 def run(args) -> int:
+    from firmware_model.errors import InputError
     from tools.demo import DemoOptions, run_demo
+    if not 0 < args.print_every <= 36000:
+        raise InputError(f"--print-every {args.print_every} must be within (0, 36000] s of drive time")
     bus = run_demo(DemoOptions(cycle=args.cycle, minutes=args.minutes, out_dir=Path(args.out_dir),
                                print_every_s=args.print_every))
     if bus.send_errors:

@@ -27,7 +27,10 @@ def add_subparser(sub):
                                                     "engine_reference_torque_nm sent in EC1)")
     p.add_argument("--effect", action="append", default=[], metavar="ID:PARAM=VALUE",
                    help="switch an unmodelled effect on in the plant (repeatable)")
-    p.add_argument("--speed", type=float, default=1.0, metavar="X", help="play X times faster than real time")
+    p.add_argument("--speed", type=float, default=1.0, metavar="X",
+                   help="play X times faster than real time; only on --interface virtual (frames keep the plant's "
+                        "timestamps) does a sensor on the bus keep time at X != 1: socketcan, udp_multicast and "
+                        "hardware interfaces stamp frames on arrival (a warning says so)")
     p.add_argument("--duration", type=float, metavar="S", help="stop after S seconds of cycle time")
     p.add_argument("--seed", type=int, default=0, help="random seed of the frame timing jitter (default 0)")
     p.add_argument("--no-rig", action="store_true", help="do not send the rig thermocouple frames")
@@ -41,13 +44,18 @@ def _say(text: str) -> None:
 
 
 def run(args) -> int:
-    from tools.can.bus import open_bus, stop_on_signals
+    from tools.can.bus import open_player, speed_warning, stop_on_signals
     from tools.can.hil import prepare, stream
     if not args.speed > 0:
         raise InputError(f"--speed {args.speed} must be positive")
+    warning = speed_warning(args.interface, args.speed)
+    if warning:
+        _say(f"warning: {warning}")
     if args.duration is not None and not args.duration > 0:
         raise InputError(f"--duration {args.duration} must be a positive number of seconds")
-    bus = open_bus(args.interface, args.channel, args.bitrate)   # before the plant run: a bad bus fails at once
+    if args.seed < 0:
+        raise InputError(f"--seed {args.seed} must be a non-negative integer")
+    bus = open_player(args.interface, args.channel, args.bitrate)   # before the plant run: a bad bus fails at once
     progress = None if args.quiet else (lambda t_s, n: _say(f"{t_s:.0f} s of cycle time, {n} frames sent"))
     try:
         t0_s = time.perf_counter()

@@ -7,6 +7,7 @@ tools/replay/log.py, so a log replays bit-identically to a live run. An option t
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 
 from firmware_model.components import describe
@@ -16,7 +17,7 @@ from tools.can.bus import add_bus_options, can_subcommand
 
 #: the three ways to call replay; every option is in one of them (tests/tools/test_cli_options.py)
 USAGE = ("%(prog)s CSV --out EST.csv [--config TOML] [--plot PNG] [--oil-mode {measured,model}]\n"
-         "                              [--initial-temp DEGC] [--quiet]\n"
+         "                              [--initial-temp DEGC] [--allow-untrusted] [--quiet]\n"
          "       %(prog)s LOG --out EST.csv [those options] [--processes {1,2}] [--frames-out OUT.log]\n"
          "       %(prog)s LOG --realtime --interface NAME --channel NAME [--bitrate BIT_S] [--speed X] [--quiet]")
 #: options per mode, by argparse dest: those of the offline replay, those of CAN logs offline, those of --realtime
@@ -50,7 +51,12 @@ def add_subparser(sub):
                    help="measured (default): a valid oil_temp_c is the sump; model: always the modelled sump")
     p.add_argument("--initial-temp", type=float, metavar="DEGC",
                    help="initial temperature of every node when the first row has no oil temperature")
-    p.add_argument("--quiet", action="store_true", help="no summary")
+    p.add_argument("--quiet", action="store_true", help="no summary (warnings that the outputs are not to be "
+                                                         "trusted are still printed)")
+    p.add_argument("--allow-untrusted", action="store_true",
+                   help="exit 0 even when the outputs should not be trusted: the sensor degraded on more than half "
+                        "of the steps, a suspect time base, or a needed message only from unexpected source "
+                        "addresses (default: warn on stderr and exit 3, outputs written)")
     _add_log_options(p)
     p.set_defaults(func=run)
     return p
@@ -64,7 +70,8 @@ def _add_log_options(p: argparse.ArgumentParser) -> None:
                         "instead of computing the outputs here (run `gearbox-vsensor run` on that bus)")
     add_bus_options(g, required=False, purpose="(--realtime)")
     g.add_argument("--speed", type=float, metavar="X",
-                   help="--realtime: play X times faster (default 1)")
+                   help="--realtime: play X times faster (default 1; a sensor on a bus that stamps frames on "
+                        "arrival, all but virtual, then sees a wrong time base: a warning says so)")
     g.add_argument("--processes", type=int, choices=(1, 2), default=None,
                    help="offline: 2 reads and decodes the log in one process while the sensor steps in a second "
                         "(same outputs bit for bit, about 2x faster on 2+ cores); 1 does both in one. Default: 2 "
@@ -74,11 +81,12 @@ def _add_log_options(p: argparse.ArgumentParser) -> None:
 
 
 def _sensor_options(args) -> dict:
+    from firmware_model.physics.oil import check_temperature_c
     opts = {}
     if args.oil_mode:
         opts["oil_mode"] = args.oil_mode
     if args.initial_temp is not None:
-        opts["initial_temp_c"] = args.initial_temp
+        opts["initial_temp_c"] = check_temperature_c("--initial-temp", args.initial_temp)
     return opts
 
 
@@ -104,7 +112,7 @@ def run(args) -> int:
     if not args.out:
         raise InputError("--out EST.csv is required")
     from tools.replay.plot import plot_replay
-    from tools.replay.table import replay_csv, summarize
+    from tools.replay.table import replay_csv, summarize, table_findings
     from tools.runtable import write_run_table
     out, variant = replay_csv(path, args.config, _sensor_options(args))
     dest = write_run_table(out, args.out)
@@ -116,6 +124,20 @@ def run(args) -> int:
         print(f"hottest: {describe(s.hottest)} {s.hottest_c:.1f} degC; highest warning level {s.max_level}; "
               f"degraded {100 * s.degraded_share:.1f} % of steps; rejected inputs: "
               + (", ".join(f"{k} {v}" for k, v in s.rejects.items()) or "none"))
+    return _report_trust(args, table_findings(out))
+
+
+def _report_trust(args, findings) -> int:
+    """Print the trust findings (firmware_model.service.trust) on stderr, warnings even with --quiet; returns 3 when
+    the outputs should not be trusted (unless --allow-untrusted), else 0."""
+    from firmware_model.service.trust import Severity, untrusted
+    for f in findings:
+        if f.severity >= Severity.WARNING or not args.quiet:
+            print(f"{'warning' if f.severity >= Severity.WARNING else 'note'}: {f.sentence}", file=sys.stderr)
+    if untrusted(findings) and not args.allow_untrusted:
+        print("gearbox-vsensor replay: the outputs are written but should not be trusted (warnings above): exit "
+              "status 3 (--allow-untrusted exits 0)", file=sys.stderr)
+        return 3
     return 0
 
 
@@ -127,8 +149,12 @@ def _run_log(args, path: Path) -> int:
                 "bus (run `gearbox-vsensor run` on that bus for the sensor's outputs)")
         if not args.interface or not args.channel:
             raise InputError("--realtime needs --interface and --channel (the bus to play the log onto)")
-        n = play_log_on(path, args.interface, args.channel, args.bitrate,
-                        speedup=1.0 if args.speed is None else args.speed)
+        from tools.can.bus import speed_warning
+        speedup = 1.0 if args.speed is None else args.speed
+        warning = speed_warning(args.interface, speedup)
+        if warning:
+            print(f"warning: {warning}", file=sys.stderr)
+        n = play_log_on(path, args.interface, args.channel, args.bitrate, speedup=speedup)
         if not args.quiet:
             print(f"played {n} frames onto {args.interface} {args.channel}")
         return 0
@@ -148,4 +174,4 @@ def _run_log(args, path: Path) -> int:
               f"{table.n} steps of {table['time_s'][-1]:.1f} s -> {result.path}")
         if result.service_counters["time_jumps"]:
             print(f"note: {result.service_counters['time_jumps']} time jumps in the log (see the log messages)")
-    return 0
+    return _report_trust(args, result.findings)

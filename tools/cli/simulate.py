@@ -9,6 +9,7 @@ from firmware_model.components import meaning
 from firmware_model.config import load_config
 from firmware_model.effects import CATALOG, parse_effect
 from firmware_model.errors import InputError
+from firmware_model.physics.oil import check_temperature_c
 
 
 def add_subparser(sub):
@@ -81,8 +82,13 @@ def run(args) -> int:
     effects = dict(parse_effect(e) for e in args.effect)
     if args.rate <= 0 or args.rate > 1000:
         raise InputError(f"--rate {args.rate} must be in (0, 1000] Hz")
-    if args.out_dt <= 0:
-        raise InputError(f"--out-dt {args.out_dt} must be positive")
+    if not 0.01 <= args.out_dt <= 3600:
+        raise InputError(f"--out-dt {args.out_dt} must be within 0.01..3600 s")
+    if args.seed < 0:
+        raise InputError(f"--seed {args.seed} must be a non-negative integer")
+    for opt, value_c in (("--initial-temp", args.initial_temp), ("--hold-oil", args.hold_oil)):
+        if value_c is not None:
+            check_temperature_c(opt, value_c)
     for opt, path in (("--out", args.out), ("--plot", args.plot), ("--can-log", args.can_log)):
         if path and not Path(path).resolve().parent.is_dir():
             raise InputError(f"{opt} {path}: the directory {Path(path).resolve().parent} does not exist")

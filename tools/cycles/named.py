@@ -57,6 +57,7 @@ import numpy as np
 
 from firmware_model.errors import InputError
 from firmware_model.physics.kinematics import GEAR_NAMES, parse_gear
+from firmware_model.physics.oil import check_temperature_c
 
 from tools.cycles.driver import DriveTrace, drive
 from tools.cycles.route import Segment
@@ -278,6 +279,9 @@ def parse_steady_spec(spec: str) -> dict:
         raise InputError(f"steady cycle spec {spec!r}: nm={out['nm']:g} must be within -4200..4200 Nm")
     if out["s"] <= 0 or out["s"] > 7 * 86400:
         raise InputError(f"steady cycle spec {spec!r}: s={out['s']:g} must be a positive duration up to a week")
+    for key in ("oil", "init"):
+        if out[key] is not None:
+            check_temperature_c(f"steady cycle spec {spec!r}: {key}", out[key])
     return out
 
 

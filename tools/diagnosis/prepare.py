@@ -78,13 +78,22 @@ def _table_from_can_log(p: Path, path, config_path) -> RunTable:
     """The measured run table of a CAN log, decoded through the sensor's own CAN service."""
     try:
         from firmware_model.service import build_service
+        from firmware_model.service.trust import Severity
         from tools.replay.log import is_can_log, replay_log
     except ImportError:
         raise InputError(f"{path}: CAN logs need the log decoder (tools/replay/log.py), which is not installed; "
                          f"convert the log to a CSV run table first") from None
     if not is_can_log(p):
         raise InputError(f"{path}: {p.suffix} logs are not supported; use .log, .asc, .blf or .mf4")
-    rec = replay_log(p, build_service(config_path, record=True, emit_frames=False))
+    service = build_service(config_path, record=True, emit_frames=False, log_findings=False)
+    rec = replay_log(p, service)
+    # what the sensor's service found untrustworthy (firmware_model.service.trust): a wrong clock makes every rate
+    # and lag of the diagnosis wrong; inputs from unexpected source addresses explain missing channels
+    untrusted = [f for f in service.findings() if f.kind != "degraded" and f.severity >= Severity.UNTRUSTED]
+    for f in untrusted:
+        if f.kind == "time_base":
+            raise InputError(f"{path}: {f.sentence}")
+    hint = "".join(f"; {f.sentence}" for f in untrusted)
     keep = [c for c in INPUT_COLUMNS + ("oil_temp_c",) if rec.has(c)] + [
         c for c in rec.columns if c.startswith("meas_T_") and c.endswith("_c")]
     cols = {c: np.asarray(rec[c], dtype=float) for c in keep}
@@ -93,10 +102,10 @@ def _table_from_can_log(p: Path, path, config_path) -> RunTable:
     for c in REQUIRED:
         if c not in cols:
             raise InputError(f"{path}: the log never carries {c} (its J1939 message is missing or from another "
-                             f"source address); check the [can] section of the configuration")
+                             f"source address); check the [can] section of the configuration{hint}")
         ok &= np.isfinite(cols[c])
     if not ok.any():
-        raise InputError(f"{path}: no step of the log has engine speed, torque and gear together")
+        raise InputError(f"{path}: no step of the log has engine speed, torque and gear together{hint}")
     first = int(np.argmax(ok))
     t = RunTable({c: v[first:] for c, v in cols.items()}, source=os.fspath(path))
     # a drive signal that drops out later is held (the sensor does the same)

@@ -203,8 +203,12 @@ class ReferencePlant:
     # ------------------------------------------------------------------ driver
     def run(self, table: RunTable, initial_temp_c: float | None = None, hold_oil_c: float | None = None,
             out_dt_s: float = 1.0, progress: bool | None = None, chunk_s: float = 20.0) -> SimResult:
-        """Integrate the network over the run table; node temperatures and heat flows every ``out_dt_s``."""
+        """Integrate the network over the run table; node temperatures and heat flows every ``out_dt_s``.
+        ``initial_temp_c``/``hold_oil_c`` given: within the oil model's range (InputError otherwise)."""
         wall0 = time.perf_counter()
+        for label, value_c in (("initial_temp_c", initial_temp_c), ("hold_oil_c", hold_oil_c)):
+            if value_c is not None:
+                oilprops.check_temperature_c(label, value_c)
         inp = self._inputs(table, initial_temp_c, hold_oil_c)
         t = inp.t_s
         dt = self.dt

@@ -32,11 +32,13 @@ PLAY_SKIP_S = 60.0
 
 class LogReplay(NamedTuple):
     """An offline log replay: the sensor output run table, where it was written, the decoder's and the service's
-    counters."""
+    counters, and the trust findings (``firmware_model.service.trust``: time base, source addresses, degraded
+    share; most severe first)."""
     table: Any
     path: Path
     decoder_counters: dict
     service_counters: dict
+    findings: tuple = ()
 
 
 def is_can_log(path: str | os.PathLike) -> bool:
@@ -146,7 +148,8 @@ def replay_log_file(path, out, *, config_path=None, sensor_options=None, frames_
     import can
     from firmware_model.service import build_service
     from tools.runtable import write_run_table
-    service = build_service(config_path, record=True, sensor_options=sensor_options, emit_frames=bool(frames_out))
+    service = build_service(config_path, record=True, sensor_options=sensor_options, emit_frames=bool(frames_out),
+                            log_findings=False)
     writer = None
     on_frames = None
     if frames_out:
@@ -162,7 +165,8 @@ def replay_log_file(path, out, *, config_path=None, sensor_options=None, frames_
     finally:
         if writer is not None:
             writer.stop()
-    return LogReplay(table, write_run_table(table, out), service.decoder.counters, service.counters)
+    return LogReplay(table, write_run_table(table, out), service.decoder.counters, service.counters,
+                     tuple(service.findings()))
 
 
 def play_log(path: str | os.PathLike, bus, *, speedup: float = 1.0, stop: threading.Event | None = None,
@@ -203,10 +207,11 @@ def play_log(path: str | os.PathLike, bus, *, speedup: float = 1.0, stop: thread
 
 def play_log_on(path, interface: str, channel: str, bitrate_bit_s: int | None = None, *,
                 speedup: float = 1.0) -> int:
-    """:func:`play_log` onto a bus it opens (and shuts down); SIGINT/SIGTERM stop it. Returns the frames sent."""
-    from tools.can.bus import open_bus, stop_on_signals
+    """:func:`play_log` onto a bus it opens (and shuts down; on python-can's virtual bus the frames keep the log's
+    timestamps, ``tools.can.bus.open_player``); SIGINT/SIGTERM stop it. Returns the frames sent."""
+    from tools.can.bus import open_player, stop_on_signals
     check_log(path)
-    bus = open_bus(interface, channel, bitrate_bit_s)
+    bus = open_player(interface, channel, bitrate_bit_s)
     try:
         with stop_on_signals() as stop:
             return play_log(path, bus, speedup=speedup, stop=stop)

@@ -200,6 +200,18 @@ def replay_csv(path, config_path=None, sensor_options=None) -> "CsvReplay":
     return CsvReplay(replay_table(read_inputs_table(path), sensor), params.variant)
 
 
+def table_findings(out) -> list:
+    """The trust findings of a run-table replay (``firmware_model.service.trust``): the degraded share when it is at
+    least DEGRADED_WARN_SHARE, with the inputs that were missing (the validity columns)."""
+    from firmware_model.service.trust import Severity, degraded_finding
+    modes = np.asarray(out["degraded_mode"], dtype=float) if out.n else np.zeros(0)
+    values, counts = np.unique(modes[np.isfinite(modes)].astype(int), return_counts=True)
+    missing = {c: int(np.sum(np.asarray(out[c]) == 0)) for c in ("speed_valid", "torque_valid", "gear_valid",
+                                                                 "oil_valid") if out.has(c)}
+    finding = degraded_finding(dict(zip(values.tolist(), counts.tolist())), missing)
+    return [finding] if finding.severity >= Severity.WARNING else []
+
+
 def summarize(out) -> ReplaySummary:
     """The figures the command line prints after a table replay."""
     n = out.n

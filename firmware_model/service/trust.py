@@ -1,0 +1,332 @@
+"""Whether the CAN service's outputs can be trusted: what a replay or a live run must say out loud instead of
+publishing wrong numbers in silence (docs/can.md "Trust findings").
+
+Three findings, each a typed record with a :class:`Severity` and one sentence (``.sentence``):
+
+- :class:`TimeBaseFinding`: the input messages keep arriving several times faster (or slower) than their J1939
+  periods *in frame time*, so the service's clock (frame time) is not the vehicle's: typically a bus replayed
+  faster than real time whose frames are stamped on arrival (socketcan, udp_multicast). Found by
+  :class:`TimeBaseCheck`, which the service runs at its step boundaries.
+- :class:`ForeignSourceFinding`: frames of a message the sensor uses, carrying data, came from another source
+  address than the one configured (``[can] *_source_address``, else the DBC's), and none from the configured one:
+  almost always a wrong address in the config.
+- :class:`DegradedFinding`: the sensor ran degraded (``degraded_mode`` not 0) on a large share of its steps.
+
+:func:`trust_findings` derives them from the service's counters (``SensorService.all_counters()``);
+:func:`degraded_finding` also serves a run-table replay, which has no CAN counters. The thresholds are the constants
+below; ``gearbox-vsensor replay`` exits 3 when a finding is :attr:`Severity.UNTRUSTED` (docs/interfaces.md 7.2).
+"""
+from __future__ import annotations
+
+import enum
+import math
+from dataclasses import dataclass, field
+from typing import ClassVar, Mapping
+
+from can_dbc.decoder import EC1_KEY, signal_messages
+from can_dbc.j1939 import EC1_PGN
+from firmware_model.components import MODE_NAMES, MODE_NORMAL
+from firmware_model.service.options import (SOURCE_ADDRESS_KEYS, TIME_BASE_WINDOW_S, TIME_BASE_WINDOWS,
+                                            wanted_pgns)
+
+#: the transmission periods a real J1939 bus uses for each input message, (fastest, slowest) [s]: EEC1 is engine
+#: speed dependent (J1939-71: 10-20 ms); CCVS1 is 100 ms in J1939 but 1 s on some trucks and in synthesized logs;
+#: ERC1 50-100 ms. The slowest is the service's staleness period (``NOMINAL_PERIOD_S``, checked by a test).
+PERIOD_RANGE_S = {"EEC1": (0.01, 0.02), "ETC2": (0.1, 0.1), "TRF1": (1.0, 1.0), "ET1": (1.0, 1.0),
+                  "AMB": (1.0, 1.0), "CCVS1": (0.1, 1.0), "ERC1": (0.05, 0.1)}
+#: the time base is suspect when the messages agree on arriving at least this many times faster (or slower) than
+#: their periods ...
+TIME_BASE_FACTOR = 3.0
+#: ... over TIME_BASE_WINDOWS (3) consecutive windows of TIME_BASE_WINDOW_S (10 s) of frame time (defaults of
+#: ServiceOptions; 30 s: a burst of buffered frames, a gap or the jitter of one window does not make it) ...
+#: ... counting only the messages with at least this many frames in a window (a rate needs a few frames), each
+#: allowed this much error either way (jitter, a frame more or less at the window's edges)
+TIME_BASE_MIN_FRAMES = 5
+TIME_BASE_TOLERANCE = 1.3
+#: degraded on at least this share of the steps: a loud warning; above the second share: untrusted (`replay`
+#: exits 3). Not initialised counts as degraded (it lasts at most 3 s of a run: 10 % of a 30 s capture).
+DEGRADED_WARN_SHARE = 0.2
+DEGRADED_UNTRUSTED_SHARE = 0.5
+#: frames with data from one foreign source address before it is a finding (a stray frame of a fuzzer is not)
+FOREIGN_MIN_FRAMES = 10
+#: the signals whose absence degrades the sensor (speed, torque, gear, oil, reference torque): a message that
+#: carries one is primary; the others (ambient, coolant, vehicle speed, retarder) have defaults
+PRIMARY_SIGNALS = ("engine_speed_rpm", "engine_torque_pct", "gear", "oil_temp_c", "engine_ref_torque_nm")
+#: the inputs whose absence degrades the sensor, by their ``stale_steps`` name (the decoder signal) or run-table
+#: validity column, and their readable names (the others have defaults and are not listed as a cause)
+INPUT_NAMES = {"engine_speed_rpm": "engine speed", "engine_torque_nm": "engine torque", "gear": "gear",
+               "oil_temp_c": "oil temperature", "speed_valid": "engine speed", "torque_valid": "engine torque",
+               "gear_valid": "gear", "oil_valid": "oil temperature"}
+#: the likely cause of a suspect time base, by direction
+TIME_BASE_CAUSES = {"faster": "the bus is replayed faster than real time, and frames are stamped on arrival",
+                    "slower": "the bus is replayed slower than real time (or its frames are held back), and frames "
+                              "are stamped on arrival"}
+
+
+class Severity(enum.IntEnum):
+    """How loud a finding is: NOTE (worth a line), WARNING (loud: the outputs are less accurate than they look),
+    UNTRUSTED (loud, and `replay` exits 3: the outputs should not be used)."""
+    NOTE = 0
+    WARNING = 1
+    UNTRUSTED = 2
+
+
+@dataclass(frozen=True)
+class TimeBaseFinding:
+    """The frames of the input messages arrived about ``ratio`` times ``direction`` ("faster"/"slower") than their
+    J1939 periods in frame time, over ``windows`` windows of ``window_s``; ``periods_s``: message -> mean period
+    seen in the window that raised it."""
+    kind: ClassVar[str] = "time_base"
+    direction: str
+    ratio: float
+    windows: int
+    window_s: float
+    periods_s: dict = field(default_factory=dict)
+
+    @property
+    def severity(self) -> Severity:
+        return Severity.UNTRUSTED
+
+    @property
+    def sentence(self) -> str:
+        shown = [m for m in PERIOD_RANGE_S if m in self.periods_s][:3]
+        seen = ", ".join(f"{m} every {_ms(self.periods_s[m])} against {_period_range(m)}" for m in shown)
+        clock = "slow" if self.direction == "faster" else "fast"
+        return (f"time base suspect: the input messages arrive about {self.ratio:.1f}x {self.direction} than their "
+                f"J1939 periods in frame time ({seen}), for {self.windows * self.window_s:.0f} s of frame time; "
+                f"likely cause: {TIME_BASE_CAUSES[self.direction]}; the sensor's clock runs about "
+                f"{self.ratio:.1f}x too {clock}, so its temperatures and warnings are wrong")
+
+
+@dataclass(frozen=True)
+class ForeignSourceFinding:
+    """``frames`` frames of ``message`` (``with_data`` of them carrying a usable value) came from source address
+    ``source``, while ``expected`` is configured (``config_key``; ``configured`` False: the DBC's default) and
+    ``expected_frames`` came from it; ``primary``: the message carries an input whose absence degrades the sensor."""
+    kind: ClassVar[str] = "foreign_source"
+    message: str
+    pgn: int
+    source: int
+    frames: int
+    with_data: int
+    expected: int
+    expected_frames: int
+    config_key: str
+    configured: bool
+    primary: bool
+
+    @property
+    def severity(self) -> Severity:
+        if self.expected_frames == 0:
+            return Severity.UNTRUSTED if self.primary else Severity.NOTE
+        return Severity.NOTE
+
+    @property
+    def sentence(self) -> str:
+        data = "" if self.with_data == self.frames else f" ({self.with_data} with data)"
+        where = (f"[can] expects SA 0x{self.expected:02X} ({self.config_key})" if self.configured else
+                 f"the DBC's default SA 0x{self.expected:02X} is expected (set [can] {self.config_key})")
+        what = f"{self.message} (PGN {self.pgn})" if self.message != EC1_KEY else f"{self.message} (PGN {self.pgn}, " \
+                                                                                  f"TP.BAM transfers)"
+        tail = ": check the source addresses"
+        if self.expected_frames:
+            tail = f" (and {self.expected_frames} times from SA 0x{self.expected:02X}): a second sender"
+        elif not self.primary:
+            tail += " (an auxiliary input: the sensor uses its default instead)"
+        return f"{what} arrived {self.frames} times from SA 0x{self.source:02X}{data} but {where}{tail}"
+
+
+@dataclass(frozen=True)
+class DegradedFinding:
+    """The sensor ran degraded on ``degraded`` of ``steps`` steps; ``by_mode``: degraded mode -> steps;
+    ``missing``: input -> steps it was missing (stale, not available or invalid)."""
+    kind: ClassVar[str] = "degraded"
+    steps: int
+    degraded: int
+    by_mode: dict = field(default_factory=dict)
+    missing: dict = field(default_factory=dict)
+
+    @property
+    def share(self) -> float:
+        return self.degraded / self.steps if self.steps else 0.0
+
+    @property
+    def severity(self) -> Severity:
+        if self.share > DEGRADED_UNTRUSTED_SHARE:
+            return Severity.UNTRUSTED
+        return Severity.WARNING if self.share >= DEGRADED_WARN_SHARE else Severity.NOTE
+
+    @property
+    def sentence(self) -> str:
+        modes = ", ".join(f"{MODE_NAMES.get(m, f'mode {m}')} {_pct(n, self.steps)}"
+                          for m, n in sorted(self.by_mode.items(), key=lambda kv: -kv[1]) if m != MODE_NORMAL and n)
+        worst = sorted(((n, INPUT_NAMES[k]) for k, n in self.missing.items() if n and k in INPUT_NAMES),
+                       reverse=True)
+        inputs = ("; missing most: " + ", ".join(f"{name} {_pct(n, self.steps)}" for n, name in worst)) if worst else ""
+        return (f"the sensor ran degraded on {_pct(self.degraded, self.steps)} of {self.steps} steps ({modes}){inputs}: "
+                f"its temperatures rest on held, modelled or default inputs")
+
+
+Finding = TimeBaseFinding | ForeignSourceFinding | DegradedFinding
+
+
+def _pct(n: int, total: int) -> str:
+    share = 100.0 * n / total if total else 0.0
+    return f"{share:.0f} %" if share >= 1.0 or share == 0.0 else f"{share:.1f} %"
+
+
+def _ms(period_s: float) -> str:
+    return f"{period_s * 1e3:.3g} ms" if period_s < 1.0 else f"{period_s:.3g} s"
+
+
+def _period_range(message: str) -> str:
+    lo, hi = PERIOD_RANGE_S[message]
+    if lo == hi:
+        return _ms(lo)
+    return f"{lo * 1e3:.3g}-{hi * 1e3:.3g} ms" if hi < 1.0 else f"{_ms(lo)}-{_ms(hi)}"
+
+
+# -- the time-base check ----------------------------------------------------------------------------------------
+
+
+def window_ratio(counts: Mapping[str, int], span_s: float) -> tuple[float, float, dict] | None:
+    """How many times faster than nominal the messages arrived in a window of ``span_s`` frame time (``counts``:
+    message -> frames in the window): the (low, high) bounds all judged messages agree on and their mean periods;
+    None when no message has TIME_BASE_MIN_FRAMES frames or the messages disagree (a single odd sender)."""
+    low, high, periods = 0.0, math.inf, {}
+    for message, (fastest_s, slowest_s) in PERIOD_RANGE_S.items():
+        n = counts.get(message, 0)
+        if n < TIME_BASE_MIN_FRAMES or span_s <= 0:
+            continue
+        period_s = span_s / n
+        periods[message] = period_s
+        low = max(low, fastest_s / period_s / TIME_BASE_TOLERANCE)
+        high = min(high, slowest_s / period_s * TIME_BASE_TOLERANCE)
+    if not periods or low > high:
+        return None
+    return low, high, periods
+
+
+class TimeBaseCheck:
+    """Counts the input messages' frames (``arrivals``: message -> frames from the expected source, cumulative)
+    over windows of ``window_s`` frame time; after ``windows`` consecutive windows that agree on "at least
+    ``factor`` times faster" (or slower) the time base is :attr:`suspect` until a window agrees on neither.
+
+    ``restart`` at the first frame and after a time jump; ``update`` at every step boundary returns a new
+    :class:`TimeBaseFinding` when the time base becomes suspect, ``"cleared"`` when it stops being suspect, else
+    None. ``windows_checked`` and ``windows_suspect`` count the windows judged and found suspect."""
+
+    def __init__(self, window_s: float = TIME_BASE_WINDOW_S, windows: int = TIME_BASE_WINDOWS,
+                 factor: float = TIME_BASE_FACTOR) -> None:
+        self.window_s, self.windows, self.factor = window_s, windows, factor
+        self.suspect = False
+        self.finding: TimeBaseFinding | None = None
+        self.windows_checked = 0
+        self.windows_suspect = 0
+        self._start_s: float | None = None
+        self._start: dict[str, int] = {}
+        self._run: list[str] = []
+
+    def restart(self, t_s: float, arrivals: Mapping[str, int]) -> None:
+        self._start_s = t_s
+        self._start = dict(arrivals)
+        self._run = []
+
+    def update(self, t_s: float, arrivals: Mapping[str, int]):
+        if self._start_s is None or t_s - self._start_s < self.window_s:
+            return None
+        span_s = t_s - self._start_s
+        counts = {m: arrivals.get(m, 0) - self._start.get(m, 0) for m in PERIOD_RANGE_S}
+        self._start_s, self._start = t_s, dict(arrivals)
+        judged = window_ratio(counts, span_s)
+        if judged is None:
+            return None
+        self.windows_checked += 1
+        low, high, periods = judged
+        direction = "faster" if low >= self.factor else "slower" if high <= 1.0 / self.factor else None
+        if direction is None:
+            self._run = []
+            if self.suspect:
+                self.suspect = False
+                return "cleared"
+            return None
+        self.windows_suspect += 1
+        self._run = [d for d in self._run if d == direction] + [direction]
+        if self.suspect or len(self._run) < self.windows:
+            return None
+        self.suspect = True
+        ratio = math.sqrt(low * high) if direction == "faster" else 1.0 / math.sqrt(low * high)
+        self.finding = TimeBaseFinding(direction, ratio, len(self._run), self.window_s, periods)
+        return self.finding
+
+
+# -- findings from the counters ----------------------------------------------------------------------------------
+
+
+def _config_keys() -> dict[str, str]:
+    """Message -> the [can] keys that set its source address ("engine_source_address or ambient_source_address")."""
+    out: dict[str, str] = {}
+    for key, names in SOURCE_ADDRESS_KEYS:
+        for name in names:
+            out[name] = f"{out[name]} or {key}" if name in out else key
+    return out
+
+
+def foreign_findings(decoder_counters: Mapping, expected_sa: Mapping[str, int | None],
+                     configured: Mapping[str, int] | None = None) -> list[ForeignSourceFinding]:
+    """A finding per (message, foreign source address) that sent at least FOREIGN_MIN_FRAMES frames with data;
+    ``expected_sa``: the decoder's, ``configured``: the messages whose address the config set."""
+    pgns = {**wanted_pgns(), EC1_KEY: EC1_PGN}
+    messages = signal_messages()
+    primary = {messages[s] for s in PRIMARY_SIGNALS}
+    keys = _config_keys()
+    arrivals = decoder_counters.get("arrivals", {})
+    with_data = decoder_counters.get("foreign_source_data", {})
+    ec1_received = decoder_counters.get("tp", {}).get("ec1_received", 0)
+    out = []
+    for message, per_sa in sorted(decoder_counters.get("foreign_source", {}).items()):
+        expected = expected_sa.get(message)
+        if expected is None or message not in pgns:
+            continue
+        for sa, frames in sorted(per_sa.items()):
+            n_data = with_data.get(message, {}).get(sa, 0)
+            if n_data < FOREIGN_MIN_FRAMES:
+                continue
+            expected_frames = ec1_received if message == EC1_KEY else arrivals.get(message, 0)
+            out.append(ForeignSourceFinding(message, pgns[message], sa, frames, n_data, expected, expected_frames,
+                                            keys.get(message, "?"), message in (configured or {}),
+                                            message in primary))
+    return out
+
+
+def degraded_finding(mode_steps: Mapping[int, int], missing: Mapping[str, int] | None = None) -> DegradedFinding:
+    """The degraded share of a run from its steps per degraded mode (and the steps each input was missing)."""
+    steps = int(sum(mode_steps.values()))
+    degraded = steps - int(mode_steps.get(MODE_NORMAL, 0))
+    return DegradedFinding(steps, degraded, {int(m): int(n) for m, n in mode_steps.items()},
+                           dict(missing or {}))
+
+
+def trust_findings(counters: Mapping, expected_sa: Mapping[str, int | None],
+                   configured: Mapping[str, int] | None = None) -> list[Finding]:
+    """The findings of a CAN run, most severe first: ``counters`` = ``SensorService.all_counters()``. The degraded
+    share is a finding from DEGRADED_WARN_SHARE on; foreign source addresses are findings when a message came only
+    from them, or when the run was degraded that much (then they are the likely cause)."""
+    service = counters["service"]
+    out: list[Finding] = []
+    raised = service.get("time_base", {}).get("finding")
+    if raised is not None:
+        out.append(TimeBaseFinding(**raised))
+    degraded = degraded_finding(service.get("mode_steps", {}), service.get("stale_steps", {}))
+    loud = degraded.severity >= Severity.WARNING
+    for f in foreign_findings(counters["decoder"], expected_sa, configured):
+        if loud or f.expected_frames == 0:
+            out.append(f)
+    if loud:
+        out.append(degraded)
+    return sorted(out, key=lambda f: -f.severity)
+
+
+def untrusted(findings) -> bool:
+    """True when a finding says the outputs should not be used."""
+    return any(f.severity >= Severity.UNTRUSTED for f in findings)

@@ -1,0 +1,156 @@
+"""The CAN service says when its outputs cannot be trusted (firmware_model/service/trust.py): a time base that runs
+several times too fast or too slow, inputs that come from unexpected source addresses, a large degraded share."""
+from __future__ import annotations
+
+import logging
+
+import can
+import pytest
+
+from can_dbc.adapter import decode_outputs, pgn_of
+from firmware_model.service import NOMINAL_PERIOD_S
+from firmware_model.service.trust import (DEGRADED_UNTRUSTED_SHARE, DEGRADED_WARN_SHARE, PERIOD_RANGE_S,
+                                          DegradedFinding, ForeignSourceFinding, Severity, TimeBaseFinding,
+                                          degraded_finding, untrusted, window_ratio)
+
+from .test_can_service import frame, service, traffic, trf1
+
+STATUS_PGN = 0xFF4F
+LOGGER = "gearbox_vsensor.can_service"
+
+
+def scaled(frames, factor, t0=0.0):
+    """The frames with their time since ``t0`` divided by ``factor`` (a bus replayed ``factor`` x faster whose
+    frames are stamped on arrival)."""
+    out = []
+    for m in frames:
+        out.append(can.Message(timestamp=t0 + (m.timestamp - t0) / factor, arbitration_id=m.arbitration_id,
+                               is_extended_id=True, data=m.data))
+    return out
+
+
+def statuses(out):
+    """(timestamp, time_base_suspect) of every GBX_STATUS frame sent."""
+    return [(m.timestamp, decode_outputs([m])["status"]["time_base_suspect"]) for m in out
+            if pgn_of(m.arbitration_id) == STATUS_PGN]
+
+
+def test_the_slowest_periods_are_the_services_staleness_periods():
+    assert {m: hi for m, (_, hi) in PERIOD_RANGE_S.items()} == {m: NOMINAL_PERIOD_S[m] for m in PERIOD_RANGE_S}
+
+
+def test_real_time_traffic_is_not_suspect_and_the_status_bit_stays_no_finding(caplog):
+    svc = service()
+    with caplog.at_level(logging.INFO, logger=LOGGER):
+        out = svc.feed_all(traffic(0.0, 45.0))
+    tb = svc.counters["time_base"]
+    assert tb["windows_checked"] >= 4 and tb["windows_suspect"] == 0 and not tb["suspect"]
+    assert not [f for f in svc.findings() if f.kind == "time_base"]
+    assert {s for _, s in statuses(out)} == {None}
+    status = [m for m in out if pgn_of(m.arbitration_id) == STATUS_PGN][-1]
+    assert status.data[6] == 0xFF                     # byte 7 as before the signal existed
+    assert not [r for r in caplog.records if "time base" in r.getMessage()]
+
+
+def test_traffic_ten_times_too_fast_is_flagged_once_with_the_ratio_and_the_likely_cause(caplog):
+    svc = service()
+    with caplog.at_level(logging.INFO, logger=LOGGER):
+        out = svc.feed_all(scaled(traffic(0.0, 450.0), 10.0))   # 45 s of frame time
+    tb = svc.counters["time_base"]
+    assert tb["suspect"] and tb["windows_suspect"] >= 3
+    lines = [r for r in caplog.records if "time base suspect" in r.getMessage()]
+    assert len(lines) == 1 and lines[0].levelno == logging.WARNING
+    text = lines[0].getMessage()
+    assert "10.0x faster" in text and "the bus is replayed faster than real time, and frames are stamped on arrival" \
+        in text
+    found = [f for f in svc.findings() if isinstance(f, TimeBaseFinding)]
+    assert len(found) == 1 and found[0].severity == Severity.UNTRUSTED and found[0].direction == "faster"
+    assert found[0].ratio == pytest.approx(10.0, rel=0.05)
+    # GBX_STATUS: "no finding" for the first 30 s of frame time (three windows), "suspect" from then on
+    marks = statuses(out)
+    assert {s for t, s in marks if t < 29.9} == {None}
+    assert {s for t, s in marks if t > 30.1} == {True}
+    suspect = [m for m in out if pgn_of(m.arbitration_id) == STATUS_PGN][-1]
+    assert suspect.data[6] == 0xFD
+
+
+def test_traffic_four_times_too_slow_is_flagged_as_slower():
+    svc = service()
+    svc.feed_all(scaled(traffic(0.0, 12.0), 0.25))             # 48 s of frame time
+    found = [f for f in svc.findings() if isinstance(f, TimeBaseFinding)]
+    assert len(found) == 1 and found[0].direction == "slower" and found[0].ratio == pytest.approx(4.0, rel=0.1)
+    assert "replayed slower than real time" in found[0].sentence
+
+
+def test_a_burst_of_buffered_frames_is_not_a_wrong_time_base():
+    """100 s of traffic delivered within 10 s of frame time (a logger flushing its buffer), real time around it:
+    at most two windows look fast, three in a row are needed."""
+    before = traffic(0.0, 20.0)
+    burst = scaled([m for m in traffic(20.0, 120.0)], 10.0, t0=20.0)
+    after = [can.Message(timestamp=m.timestamp - 90.0, arbitration_id=m.arbitration_id, is_extended_id=True,
+                         data=m.data) for m in traffic(120.0, 170.0)]
+    svc = service()
+    svc.feed_all(before + burst + after)
+    tb = svc.counters["time_base"]
+    assert 1 <= tb["windows_suspect"] <= 2 and not tb["suspect"] and tb["finding"] is None
+
+
+def test_a_single_odd_sender_is_no_verdict():
+    # ETC2 five times too fast while EEC1 and TRF1 keep their periods: the messages disagree, nothing is judged
+    assert window_ratio({"EEC1": 1000, "ETC2": 500, "TRF1": 10}, 10.0) is None
+    low, high, periods = window_ratio({"EEC1": 1000, "ETC2": 100, "TRF1": 10}, 10.0)
+    assert low <= 1.0 <= high and periods["ETC2"] == pytest.approx(0.1)
+    assert window_ratio({"EEC1": 3, "TRF1": 2}, 10.0) is None   # too few frames for a rate
+
+
+def test_a_wrong_engine_source_address_is_named_with_the_degraded_share(caplog):
+    """EEC1 from 0x00 while [can] expects 0x01: the sensor holds its inputs the whole run; the finding names the
+    message, PGN, both addresses and the config key; the cab node's frames of 0xFF bytes are not a finding."""
+    frames = traffic(0.0, 30.0) + [frame(t + 0.5, 65272, 0x31, [0xFF] * 8) for t in range(30)]
+    frames.sort(key=lambda m: m.timestamp)
+    svc = service(expected_sa={"EEC1": 0x01}, counter_log_period_s=10.0)
+    with caplog.at_level(logging.INFO, logger=LOGGER):
+        svc.feed_all(frames)
+    d = svc.decoder.counters
+    assert d["foreign_source"] == {"EEC1": {0x00: 3000}, "TRF1": {0x31: 30}}
+    assert d["foreign_source_data"] == {"EEC1": {0x00: 3000}} and d["arrivals"]["TRF1"] == 30
+    findings = svc.findings()
+    assert untrusted(findings)
+    foreign = [f for f in findings if isinstance(f, ForeignSourceFinding)]
+    assert len(foreign) == 1 and foreign[0].severity == Severity.UNTRUSTED
+    assert foreign[0].sentence.startswith("EEC1 (PGN 61444) arrived 3000 times from SA 0x00 but [can] expects "
+                                          "SA 0x01 (engine_source_address): check the source addresses")
+    degraded = [f for f in findings if isinstance(f, DegradedFinding)]
+    assert len(degraded) == 1 and degraded[0].share > 0.95 and "engine speed 100 %" in degraded[0].sentence
+    # logged while running, each finding once although three counter periods passed
+    warned = [r.getMessage() for r in caplog.records if r.levelno == logging.WARNING]
+    assert sum(m.startswith("EEC1 (PGN 61444)") for m in warned) == 1
+    assert sum(m.startswith("the sensor ran degraded") for m in warned) == 1
+
+
+def test_the_right_addresses_give_no_finding():
+    frames = traffic(0.0, 30.0) + [frame(t + 0.5, 65272, 0x31, [0xFF] * 8) for t in range(30)]
+    svc = service()
+    svc.feed_all(sorted(frames, key=lambda m: m.timestamp))
+    assert svc.findings() == []
+
+
+def test_a_second_sender_beside_the_expected_one_is_only_a_note():
+    frames = traffic(0.0, 30.0, oil=80.0) + [trf1(t + 0.5, 60.0) for t in range(30)]
+    for m in frames[-30:]:
+        m.arbitration_id = (m.arbitration_id & ~0xFF) | 0x05
+    svc = service()
+    svc.feed_all(sorted(frames, key=lambda m: m.timestamp))
+    # the run is fine: no finding at all (a second sender is only reported when the run was degraded)
+    assert svc.findings() == []
+    assert svc.decoder.counters["foreign_source_data"] == {"TRF1": {0x05: 30}}
+
+
+@pytest.mark.parametrize("modes, severity", [({0: 90, 3: 10}, Severity.NOTE),
+                                             ({0: 70, 1: 30}, Severity.WARNING),
+                                             ({0: 40, 2: 60}, Severity.UNTRUSTED)])
+def test_degraded_share_thresholds(modes, severity):
+    f = degraded_finding(modes, {"gear": modes.get(2, 0)})
+    assert f.severity == severity
+    assert DEGRADED_WARN_SHARE < DEGRADED_UNTRUSTED_SHARE
+    assert f"of {sum(modes.values())} steps" in f.sentence
