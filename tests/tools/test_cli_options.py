@@ -79,6 +79,7 @@ def files(tmp_path):
     ("log_rt", ["--out", "OUT", "--plot", "P.png"], "--out, --plot"),
     ("log_rt", ["--frames-out", "F.log"], "--frames-out"),
     ("log_rt", ["--oil-mode", "model"], "--oil-mode"),
+    ("log_rt", ["--allow-untrusted"], "--allow-untrusted"),
 ])
 def test_replay_refuses_options_that_would_do_nothing(files, capsys, kind, extra, named):
     d, csv, log = files

@@ -21,7 +21,7 @@ USAGE = ("%(prog)s CSV --out EST.csv [--config TOML] [--plot PNG] [--oil-mode {m
          "       %(prog)s LOG --out EST.csv [those options] [--processes {1,2}] [--frames-out OUT.log]\n"
          "       %(prog)s LOG --realtime --interface NAME --channel NAME [--bitrate BIT_S] [--speed X] [--quiet]")
 #: options per mode, by argparse dest: those of the offline replay, those of CAN logs offline, those of --realtime
-OFFLINE_OPTIONS = ("out", "plot", "config", "oil_mode", "initial_temp")
+OFFLINE_OPTIONS = ("out", "plot", "config", "oil_mode", "initial_temp", "allow_untrusted")
 LOG_OPTIONS = ("processes", "frames_out")
 REALTIME_OPTIONS = ("realtime", "interface", "channel", "bitrate", "speed")
 
