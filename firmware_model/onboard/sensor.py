@@ -23,6 +23,7 @@ from firmware_model.components import STEP_S
 from firmware_model.errors import ParameterError
 from firmware_model.onboard import reduce as R
 from firmware_model.onboard.blas import limit_blas_threads
+from firmware_model.onboard.core_select import select_core, step_table_numpy
 from firmware_model.onboard.held_inputs import cool_down
 from firmware_model.onboard.params import SensorParams
 from firmware_model.onboard.records import (I_AMB, I_GEAR, I_OIL, I_SPEED, I_TORQUE, INPUT_FIELDS, MAIN, N_INPUTS,
@@ -47,8 +48,10 @@ class VirtualSensor:
     the path of a limits TOML, or None (config [sensor] limits, else params/limits.toml); ``config``: a
     :class:`~firmware_model.config.Config` (its [sensor] section: oil_mode, limits, debounce_s, hysteresis_c);
     ``effects``: {effect id: value or per-vehicle array} for the effects in firmware_model.onboard.reduce.EFFECT_HOOKS
-    (and oil_level_low, scalar); ``partition``: "fine" (default) or "compact"; ``options``: SensorOptions overrides.
-    Raises StabilityError when the parameter set is unsafe for the 0.1 s explicit step.
+    (and oil_level_low, scalar); ``partition``: "fine" (default) or "compact"; ``core``: "auto" (default: the
+    compiled C kernel when it loads, else the numpy step), "c" (the kernel or an error saying why) or "numpy" (the
+    readable reference); ``options``: SensorOptions overrides. Raises StabilityError when the parameter set is
+    unsafe for the 0.1 s explicit step. ``core_name`` says which core steps and, for "auto", why not the kernel.
     """
     Inputs = SensorInputs
     Status = SensorStatus
@@ -59,7 +62,7 @@ class VirtualSensor:
     dt_s = STEP_S
 
     def __init__(self, params: Parameters, limits=None, config=None, effects: dict | None = None,
-                 partition: str | dict = "fine", **options):
+                 partition: str | dict = "fine", core: str = "auto", **options):
         limit_blas_threads()     # firmware_model.onboard.blas: one BLAS thread (the small eigh is 25x slower with more)
         sensor_cfg = dict(getattr(config, "sensor", None) or {}) if config is not None else {}
         lim = limits if isinstance(limits, Limits) else _limits_of(limits, config, sensor_cfg)
@@ -85,6 +88,7 @@ class VirtualSensor:
         self.cache = StepCache()
         self.limits = lim
         self.options = opts
+        self.compiled, self.core_name = select_core(core, self.sp)
 
     # -- state
 
@@ -144,18 +148,36 @@ class VirtualSensor:
     # -- the step
 
     def step(self, state: SensorState, inputs: SensorInputs):
-        """``(state, outputs)``: one step (:func:`firmware_model.onboard.step.step`) with this sensor's parameters
-        and cache."""
-        return step(state, inputs, self.sp, self.cache)
+        """``(state, outputs)``: one step (:func:`firmware_model.onboard.step.step`, or the compiled kernel) with
+        this sensor's parameters and cache."""
+        if self.compiled is None:
+            return step(state, inputs, self.sp, self.cache)
+        state, outputs, job = self.compiled.step_deferred(state, inputs, self.cache)
+        return self.compiled.refresh_ttl(state, job, self.cache), outputs
 
     def step_deferred(self, state: SensorState, inputs: SensorInputs):
         """``(state, outputs, job)``: the step without the time-to-limit refresh; call :meth:`refresh_ttl` before
         the next step (same outputs as :meth:`step`, bit for bit)."""
-        return step_deferred(state, inputs, self.sp, self.cache)
+        if self.compiled is None:
+            return step_deferred(state, inputs, self.sp, self.cache)
+        return self.compiled.step_deferred(state, inputs, self.cache)
 
     def refresh_ttl(self, state: SensorState, job: TtlJob | None) -> SensorState:
         """The time-to-limit refresh a :meth:`step_deferred` left (None: nothing due)."""
-        return refresh_ttl(state, job, self.sp, self.cache)
+        if self.compiled is None:
+            return refresh_ttl(state, job, self.sp, self.cache)
+        return self.compiled.refresh_ttl(state, job, self.cache)
+
+    def step_table(self, state: SensorState, raw, t_s=None):
+        """``(state, TableOutputs)``: one vehicle stepped through a table of inputs: ``raw`` (N, 8) in INPUT_FIELDS
+        order (NaN missing), ``t_s`` (N,) frame times (None or NaN: the 0.1 s grid). The compiled core runs the
+        table in as few calls as the time-to-limit refreshes allow; the numpy core steps row by row (same
+        outputs)."""
+        raw = np.ascontiguousarray(raw, dtype=float).reshape(-1, N_INPUTS)
+        t = np.full(raw.shape[0], np.nan) if t_s is None else np.asarray(t_s, dtype=float).reshape(-1)
+        if self.compiled is not None:
+            return self.compiled.step_table(state, raw, t, self.cache)
+        return step_table_numpy(self, state, raw, t)
 
     def cool_down(self, T0_c, elapsed_s: float, ambient_c: float):
         """Node temperatures of one network copy after ``elapsed_s`` with the engine off (held_inputs.cool_down)."""

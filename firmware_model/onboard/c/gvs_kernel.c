@@ -1,0 +1,571 @@
+/* gearbox-vsensor onboard step: the generic C99 kernel (see gvs_kernel.h). Each block names the function of the
+ * numpy reference it mirrors (firmware_model/onboard/...) and the seed's equations. */
+#include <math.h>
+#include <string.h>
+#include <stdint.h>
+
+#include "gvs_kernel.h"
+
+#ifndef GVS_SOURCE_ID
+#define GVS_SOURCE_ID "unknown"
+#endif
+/* the SHA-256 prefix of the sources this build was made from (the Python loader refuses a stale build) */
+const char *const gvs_source_id_str = GVS_SOURCE_ID;
+
+#ifdef GVS_REAL_FLOAT
+#define R_(x) ((float)(x))
+#define EXP expf
+#define EXPM1 expm1f
+#define LOG logf
+#define LOG10 log10f
+#define POW powf
+#define SQRT sqrtf
+#define FABS fabsf
+#define RINT rintf
+#else
+#define R_(x) ((double)(x))
+#define EXP exp
+#define EXPM1 expm1
+#define LOG log
+#define LOG10 log10
+#define POW pow
+#define SQRT sqrt
+#define FABS fabs
+#define RINT rint
+#endif
+
+enum { P_LOG10_MU, P_LN_NU_CST, P_LN_MU, P_LN_ROLL, P_RHO, P_CP, P_K, P_LN_PR, N_PROP };
+enum { LEVEL_NORMAL, LEVEL_WARNING, LEVEL_CRITICAL, LEVEL_NA };
+enum { MODE_NORMAL, MODE_OIL_MODEL, MODE_HOLDING };
+enum { MAIN, TWIN };
+/* reject counters (REJECT_REASONS order) */
+enum { RJ_SPEED_MISSING, RJ_SPEED_CLAMPED, RJ_TORQUE_MISSING, RJ_TORQUE_CLAMPED, RJ_GEAR_MISSING, RJ_GEAR_UNKNOWN,
+       RJ_OIL_MISSING, RJ_OIL_IMPLAUSIBLE, RJ_OIL_FROZEN, RJ_DRIVE_FROZEN, RJ_AUX_MISSING, RJ_TIME_JUMP,
+       RJ_TIME_BACKWARD };
+
+static gvs_real min_r(gvs_real a, gvs_real b) { return a < b ? a : b; }
+static gvs_real max_r(gvs_real a, gvs_real b) { return a > b ? a : b; }
+static gvs_real clip_r(gvs_real x, gvs_real lo, gvs_real hi) { return x < lo ? lo : (x > hi ? hi : x); }
+static int finite_r(double x) { return x == x && x - x == 0.0; }
+
+/* ---- oil properties at a temperature (reduce.oil_row) --------------------------------------------------- */
+typedef struct {
+    gvs_real x;                 /* fractional index on the temperature grid */
+    gvs_real prop[N_PROP];
+} oil_row_t;
+
+static void oil_row(const gvs_tables *tb, gvs_real T_c, oil_row_t *o, gvs_real *phi)
+{
+    gvs_real T_hi = tb->T_grid0_c + tb->T_grid_step_k * (gvs_real)(tb->nT - 1);
+    gvs_real x = (clip_r(T_c, tb->T_grid0_c, T_hi) - tb->T_grid0_c) / tb->T_grid_step_k;
+    int32_t i = (int32_t)x, j;
+    gvs_real f;
+    if (i > tb->nT - 2) i = tb->nT - 2;
+    f = x - (gvs_real)i;
+    o->x = x;
+    for (j = 0; j < N_PROP; ++j)
+        o->prop[j] = tb->prop[i * N_PROP + j] * (R_(1.0) - f) + tb->prop[(i + 1) * N_PROP + j] * f;
+    if (phi)
+        for (j = 0; j < tb->ncol; ++j)
+            phi[j] = tb->pw_phi[i * tb->ncol + j] * (R_(1.0) - f) + tb->pw_phi[(i + 1) * tb->ncol + j] * f;
+}
+
+/* ---- Nusselt of a rotating cylinder, Eq 46/47 with the bridge (reduce._cyl_nusselt) ---------------------- */
+static gvs_real cyl_nusselt(const gvs_tables *tb, gvs_real ln_re, gvs_real ln_pr)
+{
+    gvs_real ln46 = tb->ln_04 + R_(0.5) * ln_re + ln_pr / R_(3.0);
+    gvs_real ln47 = tb->ln_0238 + R_(0.8) * ln_re + R_(0.6) * ln_pr;
+    gvs_real s = clip_r((ln_re - tb->ln_re_lam) / tb->ln_re_bridge, R_(0.0), R_(1.0));
+    return EXP(ln46 + s * (ln47 - ln46));
+}
+
+/* ---- conductance of every link at a bin centre (conductance_bins.bin_conductances -> reduce.conductances) ---
+ * G [W/K] of every link and of the oil-system streams at (gear row, speed omega_q, oil T_q): radiation (Eq 81)
+ * with every node at T_q and the boundaries at their defaults. */
+static void bin_conductances(const gvs_tables *tb, const gvs_vehicle *veh, int32_t row, gvs_real w, gvs_real T_q,
+                             gvs_real *G, gvs_real *G_streams)
+{
+    gvs_real phi[64], G2[64], Ge[64];
+    oil_row_t o;
+    int32_t t;
+    gvs_real w_ls, rho_cp_w;
+    oil_row(tb, T_q, &o, phi);
+    memcpy(G, tb->G_const, (size_t)tb->nl * sizeof(gvs_real));
+    for (t = 0; t < tb->npw; ++t) {                          /* power laws */
+        gvs_real g = tb->pw_gear_coef[row * tb->npw + t] * POW(w, tb->pw_exp[t]);
+        if (tb->pw_col[t] >= 0) g *= phi[tb->pw_col[t]];
+        if (tb->pw_effect[t] == 1) g *= veh->teeth_oil_h;
+        else if (tb->pw_effect[t] == 3) g *= veh->housing_air_h;
+        G[tb->pw_link[t]] += g;
+    }
+    {                                                        /* bilinear tables */
+        gvs_real xT2 = o.x / (gvs_real)tb->t2_stride;
+        int32_t jT = (int32_t)xT2;
+        gvs_real fT;
+        if (jT > tb->nT2 - 2) jT = tb->nT2 - 2;
+        fT = xT2 - (gvs_real)jT;
+        for (t = 0; t < tb->n2; ++t) {
+            gvs_real wt = tb->t2_speed_coef[row * tb->n2 + t] * w;
+            gvs_real uu = SQRT(min_r(wt / tb->t2_w_max[t], R_(1.0))) * (gvs_real)(tb->n_u - 1);
+            int32_t iu = (int32_t)uu;
+            gvs_real fu, lo, hi;
+            const gvs_real *tab;
+            if (iu > tb->n_u - 2) iu = tb->n_u - 2;
+            fu = uu - (gvs_real)iu;
+            tab = tb->t2_table + ((int64_t)t * tb->n_u + iu) * tb->nT2 + jT;
+            lo = tab[0] * (R_(1.0) - fT) + tab[1] * fT;
+            hi = tab[tb->nT2] * (R_(1.0) - fT) + tab[tb->nT2 + 1] * fT;
+            G2[t] = lo + (hi - lo) * fu;
+            G[tb->t2_link[t]] += G2[t];
+        }
+    }
+    w_ls = FABS(tb->speed_coef[row * tb->n_speed + 1]) * w;   /* closed-form streams, NTU (Eq 69-80) */
+    rho_cp_w = o.prop[P_RHO] * o.prop[P_CP] * w_ls;
+    for (t = 0; t < tb->ne; ++t) {
+        gvs_real mcp = tb->ef_mcp[t] * rho_cp_w;
+        gvs_real beta = tb->ef_beta[t] * (tb->ef_effect[t] == 2 ? veh->planet_oil_h : R_(1.0));
+        gvs_real hA = tb->ef_alpha[t] * o.prop[P_K] + beta;
+        Ge[t] = mcp > R_(0.0) ? -mcp * EXPM1(-hA / mcp) : R_(0.0);
+        G[tb->ef_link[t]] += Ge[t];
+    }
+    for (t = 0; t < tb->nc; ++t) {                           /* immersed wheels (Eq 46-48) */
+        gvs_real wc = max_r(tb->cyl_speed_coef[row * tb->nc + t] * w, tb->min_speed);
+        gvs_real ln_re = tb->cyl_ln_rp2[t] + LOG(wc) - (o.prop[P_LN_NU_CST] + tb->ln_1e6);
+        G[tb->cyl_link[t]] += tb->cyl_c[t] * o.prop[P_K] * cyl_nusselt(tb, ln_re, o.prop[P_LN_PR]);
+    }
+    for (t = 0; t < tb->nrad; ++t) {                         /* radiation, linearised (Eq 81) */
+        gvs_real T1 = clip_r(T_q, tb->rad_T_lo_c, tb->rad_T_hi_c) + tb->kelvin;
+        gvs_real T2 = veh->T_bc_default_c[tb->rad_bc[t]] + tb->kelvin;
+        G[tb->rad_link[t]] = tb->rad_area_eps[t] * tb->sigma * (T1 * T1 + T2 * T2) * (T1 + T2);
+    }
+    for (t = 0; t < tb->nst - tb->ne; ++t) G_streams[t] = G2[tb->t2_stream_term[t]];
+    for (t = 0; t < tb->ne; ++t) G_streams[tb->nst - tb->ne + t] = Ge[t];
+}
+
+/* ---- heat of every loss source (reduce.heat_sources): meshes Eq 7-22, bearings Eq 35-40, oil-lumped sources
+ * Eq 23-34, 36-37, 41, 42, and the retarder ---------------------------------------------------------------- */
+static void heat_sources(const gvs_tables *tb, const gvs_vehicle *veh, int32_t row, gvs_real w, gvs_real torque,
+                         const oil_row_t *o, gvs_real retarder_w, gvs_real *src)
+{
+    int32_t m, b, i = 0;
+    gvs_real nu = EXP(o->prop[P_LN_NU_CST]), P_needle = R_(0.0), w_sq, w_ls, uu, fu, xT, fT, lo, hi, P_churn;
+    int32_t iu, jT;
+    for (m = 0; m < tb->n_mesh; ++m, ++i) {
+        gvs_real T1 = tb->mesh_torque[row * tb->n_mesh + m] * torque;
+        gvs_real w2 = tb->mesh_omega2[row * tb->n_mesh + m] * w;
+        gvs_real lT, lw, x, fx, phi, P;
+        int32_t ix;
+        if (!(T1 > R_(0.0) && w2 > R_(0.0))) { src[i] = R_(0.0); continue; }
+        lT = LOG10(T1);
+        lw = LOG10(w2);
+        x = (lT - o->prop[P_LOG10_MU] - R_(3.0) * lw - tb->mesh_x0[m]) / tb->x_step;
+        x = clip_r(x, R_(0.0), (gvs_real)tb->nx - R_(1.000001));
+        ix = (int32_t)x;
+        fx = x - (gvs_real)ix;
+        phi = tb->mesh_phi[m * tb->nx + ix] * (R_(1.0) - fx) + tb->mesh_phi[m * tb->nx + ix + 1] * fx;
+        /* slip T1 w2 phi; rolling K mu^0.7 a^0.54 w2^1.7 T1^-0.13 (Eq 18) */
+        P = T1 * w2 * (phi + tb->mesh_roll_k[m] * EXP(o->prop[P_LN_ROLL] + tb->ln10 * (R_(0.7) * lw - R_(1.13) * lT)));
+        src[i] = P * tb->mesh_heat_sf[m];
+    }
+    for (b = 0; b < tb->n_bear; ++b, ++i) {                  /* shaft bearings, Palmgren (Eq 35-40) */
+        gvs_real wb = tb->bear_speed[row * tb->n_bear + b] * w;
+        gvs_real M0 = tb->bear_c[b] * POW(max_r(nu * wb * tb->rpm_per_rad_s, tb->palmgren_min), R_(2.0) / R_(3.0));
+        src[i] = (M0 + tb->bear_load[row * tb->n_bear + b] * torque) * wb;
+    }
+    for (b = 0; b < tb->n_bear; ++b) {                       /* needle bearings on relative speed (Eq 36-37) */
+        gvs_real rel = tb->needle_rel[row * tb->n_bear + b] * w;
+        gvs_real Mn = tb->needle_c[b] * POW(max_r(nu * rel * tb->rpm_per_rad_s, tb->palmgren_min), R_(2.0) / R_(3.0));
+        P_needle += Mn * rel;
+    }
+    w_sq = w * w;
+    w_ls = FABS(tb->speed_coef[row * tb->n_speed + 1]) * w;
+    uu = SQRT(min_r(w_ls / tb->churn_w_max, R_(1.0))) * (gvs_real)(tb->n_u_churn - 1);   /* churning table */
+    iu = (int32_t)uu;
+    if (iu > tb->n_u_churn - 2) iu = tb->n_u_churn - 2;
+    fu = uu - (gvs_real)iu;
+    xT = o->x;
+    jT = (int32_t)xT;
+    if (jT > tb->nT - 2) jT = tb->nT - 2;
+    fT = xT - (gvs_real)jT;
+    lo = tb->churn_table[iu * tb->nT + jT] * (R_(1.0) - fT) + tb->churn_table[iu * tb->nT + jT + 1] * fT;
+    hi = tb->churn_table[(iu + 1) * tb->nT + jT] * (R_(1.0) - fT) + tb->churn_table[(iu + 1) * tb->nT + jT + 1] * fT;
+    P_churn = lo + (hi - lo) * fu;
+    src[i++] = P_churn * tb->churn_heat_sf * veh->churn_scale + P_needle * veh->needle_scale
+        + EXP(o->prop[P_LN_MU]) * w_sq * tb->sync_coef[row] + tb->pump_coef[row] * w_sq;   /* Eq 41, 42 */
+    src[i++] = retarder_w;
+    for (m = 0; m < tb->ns; ++m) src[m] *= veh->src_scale[m];
+}
+
+/* ---- the oil cooler (physics.cooler.oil_cooler_heat, seed 3.4, Eq 82-83) --------------------------------- */
+static gvs_real interp_r(gvs_real x, const gvs_real *xp, const gvs_real *fp, int32_t n)
+{
+    int32_t i;
+    if (x <= xp[0]) return fp[0];
+    if (x >= xp[n - 1]) return fp[n - 1];
+    for (i = 1; i < n - 1 && x >= xp[i]; ++i) {}
+    /* as numpy.interp: slope (x - xp[j]) + fp[j] */
+    return ((fp[i] - fp[i - 1]) / (xp[i] - xp[i - 1])) * (x - xp[i - 1]) + fp[i - 1];
+}
+
+static gvs_real cooler_heat(const gvs_tables *tb, const gvs_vehicle *veh, gvs_real T_oil, gvs_real w_ls,
+                            gvs_real w_eng, gvs_real T_cool, gvs_real T_amb, gvs_real v_kmh, gvs_real mcp)
+{
+    gvs_real cap = mcp > R_(0.0) ? mcp : R_(0.0), inner, hA, Q;
+    if (tb->cooler_code == 0) return R_(0.0);
+    if (v_kmh != v_kmh) v_kmh = tb->default_vkmh;
+    inner = POW(w_ls / tb->ref_ls_speed, tb->exp_inner);
+    if (tb->cooler_code == 1) {                              /* liquid: can heat the oil, no thermostat */
+        gvs_real outer = POW(max_r(w_eng, R_(0.0)) / tb->ref_engine_speed, tb->exp_outer);
+        hA = tb->liquid_hA_ref * inner * outer * veh->cooler_scale;
+        Q = clip_r(hA * (T_oil - T_cool), -tb->liquid_Qmax_heat, tb->liquid_Qmax_cool);        /* Eq 83 */
+    } else {                                                 /* air, behind a thermostat (Eq 82 coupled) */
+        gvs_real fmin = tb->air_flow_min_frac;
+        gvs_real rel = min_r(max_r(v_kmh, R_(0.0)) / tb->air_ref_speed_kmh, tb->air_flow_max_rel);
+        gvs_real T_air = T_amb + interp_r(max_r(v_kmh, R_(0.0)), tb->recirc_v_kmh, tb->recirc_dT_k, tb->n_recirc);
+        gvs_real T_open = tb->thermostat_open_c + veh->thermostat_offset_c;
+        gvs_real T_full = tb->thermostat_full_c + veh->thermostat_offset_c;
+        gvs_real a, D, q_lin, q;
+        hA = tb->air_hA_ref * inner * POW(fmin + (R_(1.0) - fmin) * rel, tb->exp_outer) * veh->cooler_scale;
+        a = hA * max_r(T_oil - T_air, R_(0.0));
+        D = T_full - T_open;
+        q_lin = a * (T_oil - T_open) / (D + a / (cap > R_(0.0) ? cap : R_(1.0)));
+        q = min_r(clip_r(q_lin, R_(0.0), a), tb->air_Qmax_cool);
+        Q = (cap > R_(0.0) && a > R_(0.0)) ? q : R_(0.0);
+    }
+    return cap > R_(0.0) ? Q : R_(0.0);
+}
+
+static gvs_real inlet_drop_k(const gvs_tables *tb, gvs_real Q, gvs_real mcp)
+{
+    return clip_r(mcp > R_(0.0) ? Q / mcp : R_(0.0), -tb->inlet_drop_max_k, tb->inlet_drop_max_k);
+}
+
+/* ---- input checks (input_check.check_inputs) --------------------------------------------------------------- */
+typedef struct {
+    int ok[GVS_N_INPUTS];
+    gvs_real used[GVS_N_INPUTS];
+    int measured, drive_ok, drive_frozen, oil_frozen;
+    gvs_real drive_age_s;
+} check_t;
+
+static void check_inputs(const gvs_tables *tb, gvs_state *st, const double *raw_d, int64_t *counts, check_t *c)
+{
+    gvs_real raw[GVS_N_INPUTS], fixed[GVS_N_INPUTS], same[GVS_N_INPUTS], age[GVS_N_INPUTS];
+    int finite[GVS_N_INPUTS], in_range[GVS_N_INPUTS], clamped[GVS_N_INPUTS], i, jumpy, oil_in_range, gear_ok;
+    gvs_real dt = tb->dt_s, twin_oil, oil_ref;
+    for (i = 0; i < GVS_N_INPUTS; ++i) {
+        raw[i] = (gvs_real)raw_d[i];
+        finite[i] = finite_r(raw_d[i]) && finite_r((double)raw[i]);
+        in_range[i] = finite[i] && raw[i] >= tb->input_lo[i] && raw[i] <= tb->input_hi[i];
+        fixed[i] = finite[i] ? min_r(max_r(raw[i], tb->clamp_lo[i]), tb->clamp_hi[i]) : raw[i];
+    }
+    fixed[GVS_I_RET] = FABS(raw[GVS_I_RET]);
+    for (i = 0; i < GVS_N_INPUTS; ++i) clamped[i] = finite[i] && fixed[i] != raw[i];
+    gear_ok = in_range[GVS_I_GEAR] && raw[GVS_I_GEAR] == RINT(raw[GVS_I_GEAR]);
+    oil_in_range = in_range[GVS_I_OIL];
+    jumpy = oil_in_range && st->age_s[GVS_I_OIL] <= R_(1.0)
+        && FABS(raw[GVS_I_OIL] - st->hold[GVS_I_OIL]) > tb->oil_step_c;
+    for (i = 0; i < GVS_N_INPUTS; ++i)
+        same[i] = (finite[i] && raw[i] == st->raw_prev[i]) ? st->same_s[i] + dt : R_(0.0);
+    twin_oil = st->T_c[TWIN][tb->i_oil];
+    oil_ref = same[GVS_I_OIL] > R_(0.0) ? st->oil_ref_c : twin_oil;
+    c->oil_frozen = oil_in_range && same[GVS_I_OIL] >= tb->oil_frozen_s
+        && FABS(twin_oil - oil_ref) >= tb->oil_frozen_drift_c;
+    c->drive_frozen = same[GVS_I_SPEED] >= tb->drive_frozen_s && same[GVS_I_TORQUE] >= tb->drive_frozen_s
+        && finite[GVS_I_SPEED] && fixed[GVS_I_SPEED] > R_(0.0);
+    for (i = 0; i < GVS_N_INPUTS; ++i) c->ok[i] = in_range[i];
+    c->ok[GVS_I_GEAR] = gear_ok;
+    c->ok[GVS_I_OIL] = oil_in_range && !jumpy && !c->oil_frozen;
+    for (i = 0; i < GVS_N_INPUTS; ++i) {
+        /* auxiliary inputs are not held: a missing one takes its default */
+        gvs_real fallback = i >= GVS_I_AMB ? tb->aux_default[i - GVS_I_AMB] : st->hold[i];
+        c->used[i] = c->ok[i] ? fixed[i] : fallback;
+        age[i] = c->ok[i] ? R_(0.0) : st->age_s[i] + dt;
+    }
+    counts[RJ_SPEED_MISSING] = !finite[GVS_I_SPEED];
+    counts[RJ_TORQUE_MISSING] = !finite[GVS_I_TORQUE];
+    counts[RJ_GEAR_MISSING] = !finite[GVS_I_GEAR];
+    counts[RJ_OIL_MISSING] = !finite[GVS_I_OIL];
+    counts[RJ_SPEED_CLAMPED] = clamped[GVS_I_SPEED];
+    counts[RJ_TORQUE_CLAMPED] = clamped[GVS_I_TORQUE];
+    counts[RJ_GEAR_UNKNOWN] = finite[GVS_I_GEAR] && !gear_ok;
+    counts[RJ_OIL_IMPLAUSIBLE] = (finite[GVS_I_OIL] && !oil_in_range) || jumpy;
+    counts[RJ_OIL_FROZEN] = c->oil_frozen;
+    counts[RJ_DRIVE_FROZEN] = c->drive_frozen;
+    counts[RJ_AUX_MISSING] = !c->ok[GVS_I_AMB] + !c->ok[GVS_I_COOL] + !c->ok[GVS_I_VKMH] + !c->ok[GVS_I_RET];
+    c->measured = tb->oil_mode_measured ? c->ok[GVS_I_OIL] : 0;
+    c->drive_ok = c->ok[GVS_I_SPEED] && c->ok[GVS_I_TORQUE] && c->ok[GVS_I_GEAR];
+    c->drive_age_s = max_r(max_r(age[GVS_I_SPEED], age[GVS_I_TORQUE]), age[GVS_I_GEAR]);
+    /* the state's part of the checks (written back by the caller's step) */
+    for (i = 0; i < GVS_N_INPUTS; ++i) {
+        st->same_s[i] = same[i];
+        st->age_s[i] = age[i];
+        st->raw_prev[i] = raw[i];
+        if (c->ok[i]) st->hold[i] = c->used[i];
+    }
+    st->oil_ref_c = oil_ref;
+}
+
+/* ---- the conductance bin of the operating point (conductance_bins.bin_centre) ------------------------------ */
+static gvs_real speed_bin_centre(const gvs_tables *tb, gvs_real w)
+{
+    if (!(w >= tb->speed_bin_min)) return R_(0.0);
+    return EXP(RINT(LOG(w) / tb->ln_speed_bin) * tb->ln_speed_bin);
+}
+
+/* ---- warning levels (warning_levels.update_levels; step._levels) ------------------------------------------ */
+static void update_levels(const gvs_tables *tb, gvs_state *st, const gvs_real *T_pub, int available,
+                          const gvs_real *ttl_now)
+{
+    int i, rest = available;
+    for (i = 0; i < GVS_N_PUB && rest; ++i)
+        rest = T_pub[i] < tb->warning_rest_c[i] && st->level[i] == 0 && st->pending_s[i] == R_(0.0)
+            && (tb->lead_s <= R_(0.0) || ttl_now[i] > R_(2.0) * tb->lead_s);
+    if (rest) {            /* nothing near a limit: the state machine rests */
+        for (i = 0; i < GVS_N_PUB; ++i) { st->level[i] = LEVEL_NORMAL; st->pending_s[i] = R_(0.0); }
+        return;
+    }
+    for (i = 0; i < GVS_N_PUB; ++i) {
+        int lv = st->level[i], target, held, crit, warn, change, take;
+        gvs_real T = T_pub[i], pend;
+        crit = T >= tb->critical_c[i] || (lv == LEVEL_CRITICAL && T > tb->critical_c[i] - tb->hysteresis_k[i]);
+        held = lv >= LEVEL_WARNING && lv <= LEVEL_CRITICAL;
+        warn = T >= tb->warning_c[i] || (held && T > tb->warning_c[i] - tb->hysteresis_k[i]);
+        if (tb->lead_s > R_(0.0))      /* NaN (not available) compares false, like inf */
+            warn = warn || ttl_now[i] <= tb->lead_s || (held && ttl_now[i] <= R_(2.0) * tb->lead_s);
+        target = crit ? LEVEL_CRITICAL : (warn ? LEVEL_WARNING : LEVEL_NORMAL);
+        if (!available) target = LEVEL_NA;
+        change = target != lv;
+        pend = change ? st->pending_s[i] + tb->dt_s : R_(0.0);
+        take = change && (target == LEVEL_NA || lv == LEVEL_NA || pend >= tb->debounce_s - R_(1e-9));
+        st->level[i] = (int8_t)(take ? target : lv);
+        st->pending_s[i] = take ? R_(0.0) : pend;
+    }
+}
+
+/* ---- a step whose time went backwards (step._skip) ----------------------------------------------------------- */
+static int skip_step(const gvs_tables *tb, gvs_state *st, gvs_outputs *out)
+{
+    int i;
+    st->rejects[RJ_TIME_BACKWARD] += 1;
+    for (i = 0; i < GVS_N_PUB; ++i) {
+        out->T_c[i] = st->T_c[MAIN][tb->published_index[i]];
+        out->level[i] = st->level[i];
+        out->ttl_s[i] = st->ttl_s[i];
+    }
+    out->degraded_mode = MODE_HOLDING;
+    out->speed_valid = out->torque_valid = out->gear_valid = out->oil_valid = 0;
+    out->valid_flags = 0;
+    out->frozen_flags = 0;
+    out->model_oil_temp_c = st->T_c[TWIN][tb->i_oil];
+    out->oil_innovation_c = (gvs_real)NAN;
+    out->oil_source = 1;
+    memcpy(out->rejects, st->rejects, sizeof st->rejects);
+    return GVS_SKIPPED;
+}
+
+int gvs_check_tables(const gvs_tables *tb)
+{
+    if (tb->n > GVS_MAX_NODES || tb->nl > GVS_MAX_LINKS || tb->ns > GVS_MAX_SRC || tb->nb > GVS_MAX_BC
+        || tb->nst > GVS_MAX_STREAMS || tb->n2 > 64 || tb->ne > 64 || tb->ncol > 64 || tb->n_gears != GVS_N_GEARS
+        || tb->nT < 2 || tb->nT2 < 2 || tb->n_u < 2 || tb->n_u_churn < 2 || tb->nx < 2)
+        return GVS_BAD_TABLES;
+    return GVS_OK;
+}
+
+/* ---- network part of the step (step._network_step) --------------------------------------------------------
+ * operating point, heat through the lag, conductances of the bin, cooler and inlet drop, one explicit step of
+ * both copies; T holds both copies on entry (main sump already replaced) and after the step on return. */
+typedef struct {
+    gvs_real src[GVS_MAX_SRC], G[GVS_MAX_LINKS], Gs[GVS_MAX_STREAMS], T_bc[GVS_MAX_BC];
+    gvs_real dT_in[2], Q_cool[2], rho_cp, omega_in, T_oil_main;
+    int32_t row;
+} net_t;
+
+static void network_step(const gvs_tables *tb, const gvs_vehicle *veh, gvs_state *st, const check_t *c,
+                         double oil_raw, net_t *nt)
+{
+    gvs_real q[GVS_MAX_NODES], rate[GVS_MAX_NODES], delivered[GVS_MAX_SRC], (*T)[GVS_MAX_NODES] = st->T_c;
+    gvs_real w = c->used[GVS_I_SPEED] * tb->rad_s_per_rpm, torque = FABS(c->used[GVS_I_TORQUE]);
+    gvs_real retarder_w, w_ls, mcp;
+    oil_row_t o;
+    int32_t i, k, cp;
+    nt->omega_in = w;
+    nt->row = (int32_t)c->used[GVS_I_GEAR] - tb->gear_min;
+    nt->T_oil_main = c->measured ? (gvs_real)oil_raw : T[MAIN][tb->i_oil];
+    T[MAIN][tb->i_oil] = nt->T_oil_main;
+    oil_row(tb, nt->T_oil_main, &o, NULL);
+    for (i = 0; i < tb->nb; ++i) nt->T_bc[i] = veh->T_bc_default_c[i];
+    nt->T_bc[tb->i_ambient] = c->used[GVS_I_AMB];
+    nt->T_bc[tb->i_coolant] = c->used[GVS_I_COOL];
+    /* heat (loss maps) through the first-order heat lag, exact step average (physics.heat_lag) */
+    retarder_w = veh->retarder_frac * c->used[GVS_I_RET] * FABS(tb->speed_coef[nt->row * tb->n_speed + 3]) * w;
+    heat_sources(tb, veh, nt->row, w, torque, &o, retarder_w, nt->src);
+    for (i = 0; i < tb->ns; ++i) {
+        gvs_real y = st->lag_w[i] + (nt->src[i] - st->lag_w[i]) * tb->lag_gain;
+        delivered[i] = nt->src[i] - tb->lag_tau_over_dt * (y - st->lag_w[i]);
+        st->lag_w[i] = y;
+    }
+    for (i = 0; i < tb->n; ++i) q[i] = R_(0.0);
+    for (k = 0; k < tb->nsrc_nz; ++k) q[tb->src_nz_node[k]] += delivered[tb->src_nz_src[k]] * tb->src_nz_w[k];
+    /* conductances at the centre of the operating point's bin: 1 % in speed, 0.5 K in oil */
+    bin_conductances(tb, veh, nt->row, speed_bin_centre(tb, w), RINT(nt->T_oil_main / tb->oil_bin_c) * tb->oil_bin_c,
+                     nt->G, nt->Gs);
+    w_ls = FABS(tb->speed_coef[nt->row * tb->n_speed + 1]) * w;
+    nt->rho_cp = o.prop[P_RHO] * o.prop[P_CP];
+    mcp = nt->rho_cp * tb->flow_m3_per_rad * w_ls;
+    for (cp = 0; cp < 2; ++cp) {
+        nt->Q_cool[cp] = cooler_heat(tb, veh, T[cp][tb->i_oil], w_ls, w, c->used[GVS_I_COOL], c->used[GVS_I_AMB],
+                                     c->used[GVS_I_VKMH], mcp);
+        nt->dT_in[cp] = inlet_drop_k(tb, nt->Q_cool[cp], mcp);
+    }
+    /* one explicit (forward Euler) step of both copies */
+    for (cp = 0; cp < 2; ++cp) {
+        for (i = 0; i < tb->n; ++i) rate[i] = q[i];
+        for (k = 0; k < tb->nst; ++k) {
+            gvs_real f = nt->Gs[k] * nt->dT_in[cp];
+            rate[tb->stream_node[k]] -= f;
+            rate[tb->i_oil] += f;
+        }
+        rate[tb->i_oil] -= nt->Q_cool[cp];
+        for (k = 0; k < tb->nl; ++k) {
+            int32_t a = tb->link_a[k], b = tb->link_b[k];
+            if (b < tb->n) {
+                gvs_real f = nt->G[k] * (T[cp][a] - T[cp][b]);      /* heat from a to b */
+                rate[a] -= f;
+                rate[b] += f;
+            } else {
+                rate[a] -= nt->G[k] * (T[cp][a] - nt->T_bc[b - tb->n]);
+            }
+        }
+        for (i = 0; i < tb->n; ++i) T[cp][i] += tb->dt_over_C[i] * rate[i];
+    }
+    if (c->measured) T[MAIN][tb->i_oil] = (gvs_real)oil_raw;
+}
+
+static void ttl_point(const gvs_tables *tb, const gvs_state *st, const check_t *c, const net_t *nt,
+                      gvs_ttl_point *p)
+{
+    int32_t i;
+    for (i = 0; i < tb->n; ++i) p->T_main_c[i] = st->T_c[MAIN][i];
+    for (i = 0; i < tb->ns; ++i) p->src_w[i] = nt->src[i];
+    for (i = 0; i < tb->nl; ++i) p->G_w_per_k[i] = nt->G[i];
+    for (i = 0; i < tb->nst; ++i) p->G_streams_w_per_k[i] = nt->Gs[i];
+    for (i = 0; i < tb->nb; ++i) p->T_bc_c[i] = nt->T_bc[i];
+    for (i = 0; i < GVS_N_INPUTS; ++i) p->used[i] = c->used[i];
+    p->dT_in_k = nt->dT_in[MAIN];
+    p->Q_cool_w = nt->Q_cool[MAIN];
+    p->omega_in_rad_s = nt->omega_in;
+    p->T_oil_c = nt->T_oil_main;
+    p->rho_cp_j_per_m3k = nt->rho_cp;
+    p->measured = c->measured;
+    p->row = nt->row;
+    p->due = 1;
+}
+
+/* ---- the step (step.step_deferred; step._finish) ------------------------------------------------------------- */
+int gvs_step(const gvs_tables *tb, const gvs_vehicle *veh, gvs_state *st, const gvs_inputs *in, int jump_done,
+             gvs_outputs *out, gvs_ttl_point *ttl)
+{
+    int64_t counts[GVS_N_REJECT];
+    gvs_real T_pub[GVS_N_PUB], ttl_now[GVS_N_PUB];
+    int64_t k = st->k, since;
+    int i, available, any = 0, due;
+    check_t c;
+    net_t nt;
+    if (ttl) ttl->due = 0;
+    if (gvs_check_tables(tb) != GVS_OK) return GVS_BAD_TABLES;
+    memset(counts, 0, sizeof counts);
+    if (finite_r(in->t_s)) {
+        double gap = in->t_s - st->t_last_s;
+        if (finite_r(gap)) {
+            if (gap < 0.5 * (double)tb->dt_s) return skip_step(tb, st, out);
+            if (gap > 1.5 * (double)tb->dt_s) {
+                if (!jump_done) return GVS_NEED_JUMP;
+                counts[RJ_TIME_JUMP] = 1;
+            }
+        }
+    }
+    check_inputs(tb, st, in->raw, counts, &c);
+    network_step(tb, veh, st, &c, in->raw[GVS_I_OIL], &nt);
+    /* published temperatures, warnings, the time to limit counted down */
+    for (i = 0; i < GVS_N_PUB; ++i) T_pub[i] = st->T_c[MAIN][tb->published_index[i]];
+    available = c.drive_age_s <= tb->hold_s;
+    since = k == 0 ? 0 : ((k - 1) % tb->ttl_every + 1);
+    for (i = 0; i < GVS_N_PUB; ++i) {
+        gvs_real t = st->ttl_s[i] - (gvs_real)since * tb->dt_s;
+        ttl_now[i] = t != t ? t : max_r(t, R_(0.0));
+    }
+    update_levels(tb, st, T_pub, available, ttl_now);
+    for (i = 0; i < GVS_N_PUB; ++i) any |= st->level[i] != 0 || T_pub[i] >= tb->warning_c[i];
+    for (i = 0; i < GVS_N_PUB; ++i) {
+        out->T_c[i] = T_pub[i];
+        out->level[i] = st->level[i];
+        if (any && st->level[i] == LEVEL_NA) out->ttl_s[i] = (gvs_real)NAN;
+        else if (any && T_pub[i] >= tb->warning_c[i]) out->ttl_s[i] = R_(0.0);
+        else out->ttl_s[i] = ttl_now[i];
+    }
+    /* status and degraded mode */
+    out->degraded_mode = (int8_t)(c.drive_ok ? (c.measured ? MODE_NORMAL : MODE_OIL_MODEL) : MODE_HOLDING);
+    out->speed_valid = (int8_t)c.ok[GVS_I_SPEED];
+    out->torque_valid = (int8_t)c.ok[GVS_I_TORQUE];
+    out->gear_valid = (int8_t)c.ok[GVS_I_GEAR];
+    out->oil_valid = (int8_t)c.ok[GVS_I_OIL];
+    out->valid_flags = 0;
+    for (i = 0; i < GVS_N_INPUTS; ++i) out->valid_flags |= c.ok[i] ? (1 << i) : 0;
+    out->frozen_flags = (c.drive_frozen ? (1 << GVS_I_SPEED) | (1 << GVS_I_TORQUE) : 0)
+        | (c.oil_frozen ? (1 << GVS_I_OIL) : 0);
+    out->model_oil_temp_c = st->T_c[TWIN][tb->i_oil];
+    out->oil_innovation_c = c.ok[GVS_I_OIL] ? (gvs_real)in->raw[GVS_I_OIL] - out->model_oil_temp_c : (gvs_real)NAN;
+    out->oil_source = (int8_t)!c.measured;
+    for (i = 0; i < GVS_N_REJECT; ++i) st->rejects[i] += counts[i];
+    memcpy(out->rejects, st->rejects, sizeof st->rejects);
+    if (finite_r(in->t_s)) st->t_last_s = in->t_s;
+    due = k % tb->ttl_every == 0;
+    if (due && ttl) ttl_point(tb, st, &c, &nt, ttl);
+    st->k = k + 1;
+    return GVS_OK;
+}
+
+int64_t gvs_run(const gvs_tables *tb, const gvs_vehicle *veh, gvs_state *st, const gvs_inputs *in, int64_t n_steps,
+                int stop_on_ttl, gvs_outputs *out, gvs_ttl_point *ttl, int *status)
+{
+    int64_t j;
+    int rc = GVS_OK;
+    for (j = 0; j < n_steps; ++j) {
+        rc = gvs_step(tb, veh, st, in + j, 0, out + j, ttl);
+        if (rc == GVS_NEED_JUMP || rc == GVS_BAD_TABLES) break;
+        if (stop_on_ttl && ttl && ttl->due) { ++j; break; }
+    }
+    if (status) *status = rc;
+    return j;
+}
+
+int gvs_step_batch(const gvs_tables *tb, const gvs_vehicle *veh, int64_t veh_stride, int64_t n_vehicles,
+                   gvs_state *st, const gvs_inputs *in, const int8_t *jump_done, gvs_outputs *out,
+                   gvs_ttl_point *ttl, int32_t *codes)
+{
+    int64_t v;
+    int worst = GVS_OK;
+    for (v = 0; v < n_vehicles; ++v) {
+        int rc = gvs_step(tb, veh + v * veh_stride, st + v, in + v, jump_done ? jump_done[v] : 0, out + v,
+                          ttl ? ttl + v : NULL);
+        if (codes) codes[v] = rc;
+        if (rc != GVS_OK && (worst == GVS_OK || rc < 0)) worst = rc;
+    }
+    return worst;
+}
+
+int64_t gvs_sizeof(int which)
+{
+    switch (which) {
+    case 0: return (int64_t)sizeof(gvs_tables);
+    case 1: return (int64_t)sizeof(gvs_vehicle);
+    case 2: return (int64_t)sizeof(gvs_state);
+    case 3: return (int64_t)sizeof(gvs_inputs);
+    case 4: return (int64_t)sizeof(gvs_outputs);
+    case 5: return (int64_t)sizeof(gvs_ttl_point);
+    case 6: return (int64_t)sizeof(gvs_real);
+    default: return -1;
+    }
+}

@@ -1,0 +1,253 @@
+"""The onboard step on the compiled C kernel: the same records in and out as the numpy step
+(firmware_model.onboard.step), bit for bit in the integer outputs and within rounding in the temperatures.
+
+:class:`CompiledCore` holds the kernel's tables for one :class:`~firmware_model.onboard.params.SensorParams`
+(firmware_model.onboard.kernel_tables) and steps :class:`~firmware_model.onboard.records.SensorState` records:
+
+* :meth:`CompiledCore.step_deferred` / :meth:`CompiledCore.refresh_ttl`: one step of one vehicle (batch shape ())
+  or of a batch (V,) in one call into C;
+* :meth:`CompiledCore.step_table`: a whole table of one vehicle's inputs in as few calls as the time-to-limit
+  refreshes allow (the kernel stops after each step that leaves one; docs/sensor.md).
+
+The states it returns are :class:`BufferedState` records: their arrays are views into one buffer of the kernel's
+``gvs_state`` structs, so that the next step hands that buffer to C without packing. Everything else (the numpy
+step, snapshots, the service) reads them as any SensorState. Two parts stay on the host, in numpy, as the kernel's
+header says: the time-to-limit refresh (firmware_model.onboard.time_to_limit) and the propagation of the state over
+a forward time jump (firmware_model.onboard.held_inputs.jump_state).
+"""
+from __future__ import annotations
+
+import ctypes as C
+from typing import NamedTuple
+
+import numpy as np
+
+from firmware_model.errors import InputError
+from firmware_model.onboard.ckernel import NEED_JUMP, TABLE_FIELDS, CoreUnavailable, load
+from firmware_model.onboard.held_inputs import jump_state
+from firmware_model.onboard.kernel_tables import VEHICLE_EFFECTS, table_arrays, vehicle_arrays
+from firmware_model.onboard.params import SensorParams
+from firmware_model.onboard.records import N_INPUTS, N_PUB, SensorInputs, SensorOutputs, SensorState, SensorStatus
+from firmware_model.onboard.step_cache import StepCache
+from firmware_model.onboard.time_to_limit import TtlJob, TtlPoint, time_to_limit
+
+
+class BufferedState(SensorState):
+    """A SensorState whose arrays are views into ``buf`` (the kernel's gvs_state structs, batch shape B)."""
+    buf: np.ndarray
+
+
+class TableOutputs(NamedTuple):
+    """The outputs of every step of a table (N rows)."""
+    T_c: np.ndarray             # (N, 28)
+    level: np.ndarray           # (N, 28) int8
+    ttl_s: np.ndarray           # (N, 28)
+    degraded_mode: np.ndarray   # (N,) int8
+    valid: np.ndarray           # (N, 4) bool: speed, torque, gear, oil valid
+    oil_innovation_c: np.ndarray
+    model_oil_temp_c: np.ndarray
+    rejects: np.ndarray         # (N, 13) cumulative counters after each step
+
+
+class CompiledCore:
+    """The kernel's tables for one sensor's parameters, and its steps on SensorState records."""
+
+    def __init__(self, sp: SensorParams, real: str = "double"):
+        self.lib, self.S = load(real)
+        self.sp, self.real = sp, real
+        rp = sp.reduced
+        self.n, self.ns, self.nl, self.nb = rp.n, rp.src_matrix.shape[0], len(rp.link_a), len(rp.bc_default_c)
+        arrays = table_arrays(sp)
+        self.nst = int(arrays["nst"])
+        self._keep, self.tables = [], self.S["Tables"]()
+        for name, kind in TABLE_FIELDS:
+            setattr(self.tables, name, self._field(arrays[name], kind))
+        self._tables_p = C.byref(self.tables)
+        if self.lib.gvs_check_tables(self._tables_p) != 0:
+            raise CoreUnavailable("this gearbox's onboard network exceeds the C kernel's capacities")
+        self._vehicles: dict = {}
+
+    def _field(self, value, kind: str):
+        if kind == "i":
+            return int(value)
+        if kind == "r":
+            return float(value)
+        dtype, ctype = (self.S["real"], C.c_double if self.real == "double" else C.c_float) if kind == "pr" \
+            else (np.int32, C.c_int32)
+        a = np.ascontiguousarray(value, dtype=dtype)
+        if a.size == 0:
+            a = np.zeros(1, dtype=dtype)           # a valid pointer for an empty table
+        self._keep.append(a)
+        return a.ctypes.data_as(C.POINTER(ctype))
+
+    def vehicles(self, V: int | None) -> np.ndarray:
+        """The gvs_vehicle records (V,) of a batch (None: one vehicle), built once per batch size."""
+        key = V
+        if key not in self._vehicles:
+            arr = vehicle_arrays(self.sp, V)
+            rec = np.zeros(arr["src_scale"].shape[0], dtype=self.S["Vehicle_dtype"])
+            rec["src_scale"][:, :arr["src_scale"].shape[1]] = arr["src_scale"]
+            for k in VEHICLE_EFFECTS:
+                rec[k] = arr[k]
+            rec["T_bc_default_c"][:, :self.nb] = arr["T_bc_default_c"]
+            self._vehicles[key] = rec
+        return self._vehicles[key]
+
+    # -- records <-> structs
+
+    def pack(self, state: SensorState) -> np.ndarray:
+        """A fresh gvs_state buffer (batch shape B) holding ``state``."""
+        buf = getattr(state, "buf", None)
+        if isinstance(state, BufferedState) and buf is not None:
+            return buf.copy()
+        B = np.shape(state.t_last_s)
+        buf = np.zeros(B, dtype=self.S["State_dtype"])
+        buf["T_c"][..., :self.n] = state.T_c
+        buf["lag_w"][..., :state.lag_w.shape[-1]] = state.lag_w
+        for f in ("hold", "age_s", "same_s", "raw_prev", "oil_ref_c", "pending_s", "ttl_s", "t_last_s", "k",
+                  "rejects", "level"):
+            buf[f] = getattr(state, f)
+        return buf
+
+    def unpack(self, buf: np.ndarray) -> BufferedState:
+        """A SensorState of views into ``buf``."""
+        st = BufferedState(buf["T_c"][..., :self.n], buf["lag_w"][..., :self.ns], buf["hold"], buf["age_s"],
+                           buf["same_s"], buf["raw_prev"], buf["oil_ref_c"], buf["level"], buf["pending_s"],
+                           buf["ttl_s"], buf["t_last_s"], buf["k"], buf["rejects"])
+        st.buf = buf
+        return st
+
+    def inputs(self, inputs: SensorInputs, B: tuple) -> np.ndarray:
+        rec = np.empty(B, dtype=self.S["Inputs_dtype"])
+        raw = rec["raw"]
+        for i in range(N_INPUTS):
+            raw[..., i] = inputs[i]
+        rec["t_s"] = inputs.t_s
+        return rec
+
+    def outputs(self, out: np.ndarray) -> SensorOutputs:
+        status = SensorStatus(out["degraded_mode"].copy(), out["speed_valid"] != 0, out["torque_valid"] != 0,
+                              out["gear_valid"] != 0, out["oil_valid"] != 0, out["valid_flags"].astype(np.int64),
+                              out["model_oil_temp_c"].astype(float), out["oil_innovation_c"].astype(float),
+                              out["oil_source"].copy(), out["frozen_flags"].astype(np.int64), out["rejects"].copy())
+        return SensorOutputs(out["T_c"].astype(float), out["level"].copy(), out["ttl_s"].astype(float), status)
+
+    def ttl_job(self, pts: np.ndarray) -> TtlJob | None:
+        """The time-to-limit refreshes the kernel's points ask for (None: none due)."""
+        due = pts["due"] != 0
+        if not due.any():
+            return None
+        vehicles = tuple(v for v in (np.ndindex(pts.shape) if pts.shape else [()]) if due[v])
+        n, ns, nl, nst, nb = self.n, self.ns, self.nl, self.nst, self.nb
+        points = tuple(TtlPoint(
+            p["T_main_c"][:n].astype(float), p["src_w"][:ns].astype(float), p["G_w_per_k"][:nl].astype(float),
+            p["G_streams_w_per_k"][:nst].astype(float), float(p["dT_in_k"]), float(p["Q_cool_w"]),
+            bool(p["measured"]), int(p["row"]), float(p["omega_in_rad_s"]), float(p["T_oil_c"]),
+            p["T_bc_c"][:nb].astype(float), p["used"].astype(float), float(p["rho_cp_j_per_m3k"]))
+            for p in (pts[v] for v in vehicles))
+        return TtlJob(vehicles, points)
+
+    # -- steps
+
+    def step_deferred(self, state: SensorState, inputs: SensorInputs, cache: StepCache):
+        """``(state, outputs, job)`` as firmware_model.onboard.step.step_deferred, in C."""
+        buf = self.pack(state)
+        B = buf.shape
+        if not B:
+            return self._step_one(buf, inputs, cache)
+        rec = self.inputs(inputs, B)
+        jump = self._jumps(buf, rec, cache)
+        out = np.zeros(B, dtype=self.S["Outputs_dtype"])
+        pts = np.zeros(B, dtype=self.S["TtlPoint_dtype"])
+        veh = self.vehicles(B[0])
+        self.lib.gvs_step_batch(self._tables_p, veh.ctypes.data, 1 if veh.shape[0] > 1 else 0,
+                                int(np.prod(B, dtype=np.int64)), buf.ctypes.data, rec.ctypes.data, jump.ctypes.data,
+                                out.ctypes.data, pts.ctypes.data, None)
+        return self.unpack(buf), self.outputs(out), self.ttl_job(pts)
+
+    def _step_one(self, buf: np.ndarray, inputs: SensorInputs, cache: StepCache):
+        """One vehicle: one gvs_step (a second one after a forward jump propagated on the host)."""
+        rec = self.inputs(inputs, ())
+        out = np.zeros((), dtype=self.S["Outputs_dtype"])
+        pts = np.zeros((), dtype=self.S["TtlPoint_dtype"])
+        args = (self._tables_p, self.vehicles(None).ctypes.data_as(C.POINTER(self.S["Vehicle"])), buf.ctypes.data,
+                rec.ctypes.data)
+        if self.lib.gvs_step(*args, 0, out.ctypes.data, pts.ctypes.data) == NEED_JUMP:
+            gap = float(rec["t_s"]) - float(buf["t_last_s"])
+            buf["T_c"][:, :self.n] = jump_state(self.unpack(buf), gap - self.sp.dt_s, self.sp, cache).T_c
+            self.lib.gvs_step(*args, 1, out.ctypes.data, pts.ctypes.data)
+        return self.unpack(buf), self.outputs(out), self.ttl_job(pts)
+
+    def _jumps(self, buf: np.ndarray, rec: np.ndarray, cache: StepCache) -> np.ndarray:
+        """Forward time jumps propagated on the host (held_inputs.jump_state, in place in ``buf``); the flags the
+        kernel takes. A batch whose time went backwards for some vehicles only is refused (as the numpy step)."""
+        dt = self.sp.dt_s
+        with np.errstate(invalid="ignore"):
+            gap = rec["t_s"] - buf["t_last_s"]
+        known = np.isfinite(gap)
+        backward = known & (gap < 0.5 * dt)
+        if backward.any() and not backward.all():
+            raise InputError("time went backwards for some vehicles of a batch only; step the batch on one time grid")
+        jump = known & (gap > 1.5 * dt) & ~backward
+        if jump.any():
+            st = jump_state(self.unpack(buf), np.where(jump, gap - dt, 0.0), self.sp, cache)
+            buf["T_c"][..., :self.n] = st.T_c
+        return np.ascontiguousarray(jump, dtype=np.int8).reshape(-1)
+
+    def refresh_ttl(self, state: SensorState, job: TtlJob | None, cache: StepCache) -> SensorState:
+        """The time-to-limit refresh a step left (numpy, firmware_model.onboard.time_to_limit), into a new state."""
+        if job is None:
+            return state
+        buf = self.pack(state)
+        for v, point in zip(job.vehicles, job.points):
+            buf["ttl_s"][v] = time_to_limit(self.sp, cache, point)
+        return self.unpack(buf)
+
+    def step_table(self, state: SensorState, raw: np.ndarray, t_s: np.ndarray, cache: StepCache):
+        """``(state, TableOutputs)``: one vehicle stepped through N rows of inputs (raw (N, 8) in INPUT_FIELDS
+        order, t_s (N,) frame times or NaN), each time-to-limit refresh and time jump handled between kernel calls."""
+        N = raw.shape[0]
+        rec = np.empty(N, dtype=self.S["Inputs_dtype"])
+        rec["raw"] = raw
+        rec["t_s"] = t_s
+        out = np.zeros(N, dtype=self.S["Outputs_dtype"])
+        buf = self.pack(state)
+        pt = np.zeros((), dtype=self.S["TtlPoint_dtype"])
+        veh = self.vehicles(None)
+        status = C.c_int(0)
+        j = 0
+        while j < N:
+            done = self.lib.gvs_run(self._tables_p, veh.ctypes.data_as(C.POINTER(self.S["Vehicle"])),
+                                    buf.ctypes.data, rec[j:].ctypes.data, N - j, 1, out[j:].ctypes.data,
+                                    pt.ctypes.data, C.byref(status))
+            j = self._after_run(buf, rec, out, pt, j, done, status.value, cache)
+        return self.unpack(buf), self._table_outputs(out)
+
+    def _after_run(self, buf, rec, out, pt, j: int, done: int, status: int, cache: StepCache) -> int:
+        """After a gvs_run of ``done`` rows from row j: a jump to propagate, then a due refresh; the next row."""
+        if status < 0:
+            raise CoreUnavailable(f"the C kernel refused its tables (code {status})")
+        j += done
+        if status == NEED_JUMP:
+            gap = rec["t_s"][j] - float(buf["t_last_s"])
+            st = jump_state(self.unpack(buf), gap - self.sp.dt_s, self.sp, cache)
+            buf["T_c"][:, :self.n] = st.T_c
+            one = np.zeros((), dtype=self.S["TtlPoint_dtype"])
+            self.lib.gvs_step(self._tables_p, self.vehicles(None).ctypes.data_as(C.POINTER(self.S["Vehicle"])),
+                              buf.ctypes.data, rec[j:].ctypes.data, 1, out[j:].ctypes.data, one.ctypes.data)
+            pt[...] = one
+            j += 1
+        if pt["due"]:
+            job = self.ttl_job(pt)
+            buf["ttl_s"] = time_to_limit(self.sp, cache, job.points[0])
+            pt["due"] = 0
+        return j
+
+    def _table_outputs(self, out: np.ndarray) -> TableOutputs:
+        valid = np.stack([out[k] != 0 for k in ("speed_valid", "torque_valid", "gear_valid", "oil_valid")], axis=-1)
+        return TableOutputs(out["T_c"].astype(float), out["level"].copy(), out["ttl_s"].astype(float),
+                            out["degraded_mode"].copy(), valid, out["oil_innovation_c"].astype(float),
+                            out["model_oil_temp_c"].astype(float), out["rejects"].copy())
+
+
+__all__ = ["CompiledCore", "BufferedState", "TableOutputs", "N_PUB"]
