@@ -82,13 +82,19 @@ class SensorParams:
         return sp
 
 
+#: plausible retarder torque magnitude [N m]: the data range of the J1939 retarder reference torque (SPN 1085,
+#: 0..64255 N m), so that a percent of it can never exceed it; beyond it the input is not plausible (aux_missing)
+RETARDER_TORQUE_MAX_NM = 64255.0
+
+
 def _input_bounds(rp: R.ReducedParams, opt: SensorOptions) -> dict:
     """Plausible range and clamp of every input field (docs/sensor.md "Bad input")."""
     inf = math.inf
     aux_lo, aux_hi = opt.aux_range_c
+    ret = RETARDER_TORQUE_MAX_NM
     return dict(
-        input_lo=np.array([-inf, -inf, GEAR_MIN, opt.oil_range_c[0], aux_lo, aux_lo, 0.0, -inf]),
-        input_hi=np.array([inf, inf, GEAR_MAX, opt.oil_range_c[1], aux_hi, aux_hi, opt.max_vehicle_speed_kmh, inf]),
+        input_lo=np.array([-inf, -inf, GEAR_MIN, opt.oil_range_c[0], aux_lo, aux_lo, 0.0, -ret]),
+        input_hi=np.array([inf, inf, GEAR_MAX, opt.oil_range_c[1], aux_hi, aux_hi, opt.max_vehicle_speed_kmh, ret]),
         clamp_lo=np.array([0.0, rp.min_torque_nm, -inf, -inf, -inf, -inf, -inf, -inf]),
         clamp_hi=np.array([rp.max_speed_rpm, rp.max_torque_nm, inf, inf, inf, inf, inf, inf]))
 

@@ -1,0 +1,264 @@
+"""The compiled C kernel equals the numpy reference step (issue: the onboard step compiled).
+
+* hostile random input sequences (NaN, inf, 1e308, out of range, frozen signals, gear changes every step, time jumps
+  both ways, per-vehicle effects) stepped as batches through both cores: temperatures within 1e-9 K, levels,
+  status and reject counters identical, the time-to-limit points identical, never a NaN temperature;
+* a named cycle through ``replay_table`` on both cores (the golden cases pin the others against the recorded
+  reference);
+* the float build (an ECU's single precision) within 0.05 K;
+* the C sources compile with ``-std=c99 -Wall -Wextra -Wpedantic -Werror`` under gcc and clang, and the random
+  sequences run under ``-fsanitize=address,undefined`` without a finding.
+"""
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from firmware_model.onboard import ckernel
+from firmware_model.onboard.records import SensorInputs
+from firmware_model.onboard.sensor import VirtualSensor
+from firmware_model.parameters import load_parameters
+
+REPO = Path(__file__).resolve().parents[2]
+C_OK, C_WHY = ckernel.availability()
+needs_c = pytest.mark.skipif(not C_OK, reason=f"the compiled core is not available here: {C_WHY}")
+
+
+@pytest.fixture(scope="module")
+def params():
+    return load_parameters("GRS905")
+
+
+def hostile_inputs(rng: np.random.Generator, V: int, L: int):
+    """(raw (L, V, 8), t_s (L, V)): plausible driving mixed with every kind of bad value."""
+    bad = np.array([np.nan, np.inf, -np.inf, 1e308, -1e308])
+    speed = rng.uniform(0.0, 2600.0, (L, V))
+    torque = rng.uniform(-800.0, 3200.0, (L, V))
+    gear = rng.integers(-3, 16, (L, V)).astype(float)
+    gear[rng.random((L, V)) < 0.05] = 2.5
+    oil = 60.0 + np.cumsum(rng.normal(0.0, 1.0, (L, V)), axis=0)
+    oil[rng.random((L, V)) < 0.05] += rng.choice([-30.0, 30.0, 400.0])        # implausible steps and values
+    aux = [rng.uniform(-70.0, 160.0, (L, V)), rng.uniform(-70.0, 160.0, (L, V)), rng.uniform(-10.0, 300.0, (L, V)),
+           rng.uniform(-3000.0, 3000.0, (L, V))]
+    raw = np.stack([speed, torque, gear, oil, *aux], axis=-1)
+    holes = rng.random(raw.shape) < 0.08
+    raw[holes] = rng.choice(bad, size=int(holes.sum()))
+    frozen = rng.random((L, V)) < 0.3                                           # frozen signals: repeat the last row
+    for j in range(1, L):
+        raw[j, frozen[j]] = raw[j - 1, frozen[j]]
+    dt = np.full((L, V), 0.1)
+    dt[rng.random((L, V)) < 0.01] = rng.choice([0.3, 7.0, 95.0, 4000.0])        # forward jumps, per vehicle
+    lost = rng.random((L, V)) < 0.02                                            # frames without a time
+    # every vehicle at once (a batch shares its time grid): time goes back by 0.3 s, three steps are skipped
+    back = slice(L // 2 - 2, L // 2 + 5)
+    dt[back], lost[back] = 0.1, False
+    t_s = np.cumsum(dt, axis=0)
+    t_s[L // 2:] -= 0.3
+    t_s[lost] = np.nan
+    return raw, t_s
+
+
+def random_effects(rng: np.random.Generator, V: int) -> dict:
+    from firmware_model.effects import CATALOG
+    ids = ("churning_scale", "bearing_loss_scale", "teeth_oil_h_scale", "housing_air_h_scale",
+           "cooler_effectiveness_scale", "thermostat_offset", "hot_surroundings_offset", "retarder_heat")
+    return {e: rng.uniform(CATALOG[e].low, CATALOG[e].high, V) for e in ids}
+
+
+def _compare_outputs(o_np, o_c, where: str):
+    assert np.all(np.isfinite(o_c.T_c)), f"{where}: a non-finite temperature"
+    np.testing.assert_allclose(o_c.T_c, o_np.T_c, rtol=0, atol=1e-9, err_msg=where)
+    np.testing.assert_array_equal(o_c.level, o_np.level, err_msg=where)
+    a, b = o_np.status, o_c.status
+    for f in ("degraded_mode", "speed_valid", "torque_valid", "gear_valid", "oil_valid", "valid_flags",
+              "oil_source", "frozen_flags", "rejects"):
+        np.testing.assert_array_equal(np.asarray(getattr(b, f)), np.asarray(getattr(a, f)), err_msg=f"{where} {f}")
+    np.testing.assert_allclose(b.oil_innovation_c, a.oil_innovation_c, rtol=0, atol=1e-9, err_msg=where)
+    np.testing.assert_allclose(b.model_oil_temp_c, a.model_oil_temp_c, rtol=0, atol=1e-9, err_msg=where)
+    np.testing.assert_allclose(o_c.ttl_s, o_np.ttl_s, rtol=1e-3, atol=0.1, err_msg=where)
+
+
+def _compare_jobs(j_np, j_c, where: str):
+    assert (j_np is None) == (j_c is None), where
+    if j_np is None:
+        return
+    assert j_np.vehicles == j_c.vehicles, where
+    for p, q in zip(j_np.points, j_c.points):
+        for f in p._fields:
+            np.testing.assert_allclose(np.asarray(getattr(q, f), dtype=float), np.asarray(getattr(p, f),
+                                       dtype=float), rtol=1e-12, atol=1e-9, err_msg=f"{where} ttl point {f}")
+
+
+@needs_c
+@pytest.mark.parametrize("per_vehicle_effects", [False, True])
+def test_random_hostile_sequences_match_the_numpy_step(params, per_vehicle_effects):
+    """10,000 random sequences (5 batches of 1000 vehicles x 40 steps per case, both effect kinds)."""
+    rng = np.random.default_rng(12 + per_vehicle_effects)
+    V, L, batches = 1000, 40, 5
+    for b in range(batches):
+        eff = random_effects(rng, V) if per_vehicle_effects else None
+        ref = VirtualSensor(params, effects=eff, core="numpy", ttl_period_s=10.0)
+        cc = VirtualSensor(params, effects=eff, core="c", ttl_period_s=10.0)
+        raw, t_s = hostile_inputs(rng, V, L)
+        s_np = ref.initial_state(T_oil_c=rng.uniform(-30.0, 120.0, V), n_vehicles=V)
+        s_c = s_np
+        for j in range(L):
+            inp = SensorInputs(*(raw[j, :, i] for i in range(8)), t_s=t_s[j])
+            s_np, o_np, j_np = ref.step_deferred(s_np, inp)
+            s_c, o_c, j_c = cc.step_deferred(s_c, inp)
+            where = f"batch {b} step {j}"
+            _compare_outputs(o_np, o_c, where)
+            _compare_jobs(j_np, j_c, where)
+            s_np, s_c = ref.refresh_ttl(s_np, j_np), cc.refresh_ttl(s_c, j_c)
+        np.testing.assert_allclose(s_c.T_c, s_np.T_c, rtol=0, atol=1e-9)
+        np.testing.assert_array_equal(s_c.rejects, s_np.rejects)
+
+
+@needs_c
+def test_one_vehicle_table_matches_step_by_step(params):
+    """``step_table`` (whole table per kernel call, refreshes and jumps between calls) equals the numpy core row by
+    row on one hostile vehicle, including forward and backward time jumps."""
+    rng = np.random.default_rng(7)
+    raw, t_s = hostile_inputs(rng, 1, 3000)
+    ref = VirtualSensor(params, core="numpy")
+    cc = VirtualSensor(params, core="c")
+    st0 = ref.initial_state(T_oil_c=55.0)
+    _, a = ref.step_table(st0, raw[:, 0], t_s[:, 0])
+    _, b = cc.step_table(st0, raw[:, 0], t_s[:, 0])
+    np.testing.assert_allclose(b.T_c, a.T_c, rtol=0, atol=1e-9)
+    for f in ("level", "degraded_mode", "valid", "rejects"):
+        np.testing.assert_array_equal(getattr(b, f), getattr(a, f), err_msg=f)
+    np.testing.assert_allclose(b.ttl_s, a.ttl_s, rtol=1e-3, atol=0.1)
+    assert b.rejects[-1].sum() > 0 and np.isfinite(b.T_c).all()
+
+
+@needs_c
+def test_named_cycle_replay_matches(params):
+    """The uphill cycle's plant table replayed by both cores (10 Hz, 2 h: warnings and early warnings fire)."""
+    from tools.cycles.named import get_cycle
+    from tools.plant.reference import ReferencePlant
+    from tools.replay.table import replay_table
+    plant = ReferencePlant(params).run(get_cycle("uphill"), progress=False).table
+    a = replay_table(plant, VirtualSensor(params, core="numpy"))
+    b = replay_table(plant, VirtualSensor(params, core="c"))
+    assert a.columns == b.columns
+    for col in a.columns:
+        x, y = np.asarray(a[col], dtype=float), np.asarray(b[col], dtype=float)
+        if col.startswith("ttl_"):
+            np.testing.assert_allclose(y, x, rtol=1e-3, atol=0.1, err_msg=col)
+        elif col.startswith(("W_", "rejects_", "degraded")) or col.endswith("_valid"):
+            np.testing.assert_array_equal(y, x, err_msg=col)
+        else:
+            np.testing.assert_allclose(y, x, rtol=0, atol=1e-9, err_msg=col)
+    assert np.nanmax(np.asarray(a["W_PS"], dtype=float)) >= 1, "the cycle should raise a warning"
+
+
+@needs_c
+def test_float_build_within_50_mK(params):
+    """The single-precision build (an ECU's) stays within 0.05 K of the reference on a named cycle's first 40
+    minutes; warning levels differ only within 0.05 K of a threshold."""
+    from firmware_model.onboard.compiled import CompiledCore
+    from tools.cycles.named import get_cycle
+    from tools.plant.reference import ReferencePlant
+    from tools.replay.table import replay_table
+    try:
+        CompiledCore(VirtualSensor(params, core="numpy").sp, real="float")
+    except ckernel.CoreUnavailable as exc:
+        pytest.skip(f"no float build: {exc}")
+    plant = ReferencePlant(params).run(get_cycle("uphill"), progress=False).table
+    a = replay_table(plant, VirtualSensor(params, core="numpy"))
+    sf = VirtualSensor(params, core="numpy")
+    sf.compiled, sf.core_name = CompiledCore(sf.sp, real="float"), "c (float)"
+    b = replay_table(plant, sf)
+    worst = max(float(np.max(np.abs(np.asarray(b[c]) - np.asarray(a[c])))) for c in a.columns
+                if c.startswith("T_") and c.endswith("_c"))
+    assert worst <= 0.05, worst
+
+
+def _compile(cc: str, flags: list, out: Path, real: str = "double"):
+    src = REPO / "firmware_model" / "onboard" / "c" / "gvs_kernel.c"
+    defs = ["-DGVS_REAL_FLOAT"] if real == "float" else []
+    return subprocess.run([cc, "-std=c99", "-Wall", "-Wextra", "-Wpedantic", "-Werror", *flags, *defs, "-c",
+                           str(src), "-o", str(out)], capture_output=True, text=True)
+
+
+@pytest.mark.parametrize("cc", ["gcc", "clang"])
+@pytest.mark.parametrize("real", ["double", "float"])
+def test_kernel_compiles_strict_c99(cc, real, tmp_path):
+    if shutil.which(cc) is None:
+        pytest.skip(f"{cc} is not installed (apt install {cc}; .ci/run installs it)")
+    res = _compile(cc, ["-O2"], tmp_path / "k.o", real)
+    assert res.returncode == 0, res.stderr
+
+
+def test_kernel_uses_only_allowed_headers_and_no_mutable_globals():
+    src = (REPO / "firmware_model" / "onboard" / "c" / "gvs_kernel.c").read_text()
+    hdr = (REPO / "firmware_model" / "onboard" / "c" / "gvs_kernel.h").read_text()
+    includes = {line.split()[1] for line in (src + hdr).splitlines() if line.startswith("#include")}
+    assert includes <= {"<math.h>", "<string.h>", "<stdint.h>", '"gvs_kernel.h"'}, includes
+    for call in ("malloc(", "calloc(", "realloc(", "free(", "printf(", "fopen(", "exit("):
+        assert call not in src, call
+    # file-scope declarations that are not functions, types or macros: only read-only data
+    depth, data = 0, []
+    for line in src.splitlines():
+        if depth == 0 and line and not line[0].isspace() and line.rstrip().endswith(";") and "(" not in line \
+                and not line.startswith(("#", "typedef", "enum", "}", "/*", " *")):
+            data.append(line)
+        depth += line.count("{") - line.count("}")
+    assert all("const" in d for d in data), data
+
+
+SANITIZE_SCRIPT = """
+import json, sys
+import numpy as np
+sys.path.insert(0, {repo!r})
+from tests.firmware_model.test_kernel import hostile_inputs
+from firmware_model.parameters import load_parameters
+from firmware_model.onboard.sensor import VirtualSensor
+rng = np.random.default_rng(3)
+cc = VirtualSensor(load_parameters("GRS905"), core="c")
+raw, t_s = hostile_inputs(rng, 200, 60)
+st = cc.initial_state(T_oil_c=50.0, n_vehicles=200)
+from firmware_model.onboard.records import SensorInputs
+for j in range(60):
+    st, out = cc.step(st, SensorInputs(*(raw[j, :, i] for i in range(8)), t_s=t_s[j]))
+_, tab = cc.step_table(cc.initial_state(T_oil_c=50.0), raw[:, 0], t_s[:, 0])
+print(json.dumps({{"finite": bool(np.isfinite(out.T_c).all() and np.isfinite(tab.T_c).all())}}))
+"""
+
+
+def test_kernel_under_address_and_undefined_behaviour_sanitizers(tmp_path):
+    """The random hostile sequences through a -fsanitize=address,undefined build: no finding (the sanitizers abort
+    the process on one)."""
+    if shutil.which("gcc") is None:
+        pytest.skip("gcc is not installed")
+    libasan = subprocess.run(["gcc", "-print-file-name=libasan.so"], capture_output=True, text=True).stdout.strip()
+    if not libasan or not Path(libasan).exists():
+        pytest.skip("gcc has no libasan here (apt install libasan8 / gcc)")
+    lib = tmp_path / "gvs_kernel_asan.so"
+    ckernel.build(lib, "double", ("-O1", "-g", "-fsanitize=address,undefined", "-fno-sanitize-recover=all",
+                                  "-fno-omit-frame-pointer"), cc="gcc")
+    env = dict(os.environ, GVS_KERNEL_LIB=str(lib), LD_PRELOAD=libasan, ASAN_OPTIONS="detect_leaks=0",
+               UBSAN_OPTIONS="halt_on_error=1:print_stacktrace=1", XDG_CACHE_HOME=str(tmp_path / "cache"),
+               GVS_CORE="c")
+    res = subprocess.run([sys.executable, "-c", SANITIZE_SCRIPT.format(repo=str(REPO))], env=env,
+                         capture_output=True, text=True, cwd=str(tmp_path), timeout=600)
+    assert res.returncode == 0, res.stderr[-3000:]
+    assert "runtime error" not in res.stderr and "AddressSanitizer" not in res.stderr, res.stderr[-3000:]
+    assert json.loads(res.stdout.strip().splitlines()[-1]) == {"finite": True}
+
+
+def test_core_selection_says_which_and_why(params, monkeypatch):
+    assert VirtualSensor(params, core="numpy").core_name.startswith("numpy")
+    monkeypatch.setenv("GVS_CORE", "numpy")
+    s = VirtualSensor(params)
+    assert s.compiled is None and s.core_name.startswith("numpy")
+    with pytest.raises(Exception, match="core"):
+        VirtualSensor(params, core="fortran")
