@@ -243,6 +243,29 @@ class CompiledCore:
             pt["due"] = 0
         return j
 
+    def run_batch(self, state: SensorState, raw: np.ndarray, keep: np.ndarray, nodes: np.ndarray,
+                  rec: np.ndarray) -> np.ndarray:
+        """V vehicles (per-vehicle effects as in ``self.sp``) stepped through the same inputs ``raw`` (n, 8) on the
+        0.1 s grid, one kernel call per step and no time-to-limit refresh (the diagnosis needs only temperatures):
+        ``rec[j]`` = the main copy's temperatures of ``nodes`` after step ``keep[j]`` (rec[0]: given)."""
+        buf = self.pack(state)
+        V = buf.shape[0]
+        inp = np.empty((raw.shape[0], V), dtype=self.S["Inputs_dtype"])
+        inp["raw"] = raw[:, None, :]
+        inp["t_s"] = np.nan
+        out = np.zeros(V, dtype=self.S["Outputs_dtype"])
+        veh = self.vehicles(V)
+        stride = 1 if veh.shape[0] > 1 else 0
+        step_batch, tables, nbytes = self.lib.gvs_step_batch, self._tables_p, inp.strides[0]
+        base, veh_p, buf_p, out_p = inp.ctypes.data, veh.ctypes.data, buf.ctypes.data, out.ctypes.data
+        j = 1
+        for k in range(raw.shape[0] - 1):
+            step_batch(tables, veh_p, stride, V, buf_p, base + k * nbytes, None, out_p, None, None)
+            if j < keep.size and k + 1 == keep[j]:
+                rec[j] = buf["T_c"][:, 0, nodes]
+                j += 1
+        return rec
+
     def _table_outputs(self, out: np.ndarray) -> TableOutputs:
         valid = np.stack([out[k] != 0 for k in ("speed_valid", "torque_valid", "gear_valid", "oil_valid")], axis=-1)
         return TableOutputs(out["T_c"].astype(float), out["level"].copy(), out["ttl_s"].astype(float),

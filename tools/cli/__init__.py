@@ -34,12 +34,29 @@ def with_suggestion(parser: argparse.ArgumentParser, arg: str) -> str:
     return f"{arg} (did you mean {close[0]}?)" if close else arg
 
 
+class VersionAction(argparse.Action):
+    """``--version``: the package version and the active onboard core (loading the kernel only when asked)."""
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        from importlib.metadata import PackageNotFoundError, version
+        from tools.cli.core_option import active_core
+        try:
+            v = version("gearbox-vsensor")
+        except PackageNotFoundError:
+            v = "(not installed)"
+        print(f"gearbox-vsensor {v}\nonboard core: {active_core()}")
+        parser.exit()
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = CommandParser(
         prog="gearbox-vsensor",
         description="Virtual temperature sensor for Scania GRS905-type range-splitter gearboxes: the reference "
                     "thermal plant (simulate), the onboard sensor (replay, run), the HIL plant on CAN (plant) and "
                     "the sim-to-real gap diagnosis (diagnose, bench-diagnosis).")
+    parser.add_argument("--version", action=VersionAction, nargs=0,
+                        help="print the version and the onboard core this machine runs (the compiled C kernel or "
+                             "numpy), then exit")
     sub = parser.add_subparsers(title="subcommands", dest="subcommand", metavar="SUBCOMMAND")
     import importlib
     for name in SUBCOMMANDS:

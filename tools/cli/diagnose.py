@@ -8,6 +8,7 @@ from pathlib import Path
 
 from firmware_model.config import load_config
 from firmware_model.errors import InputError
+from tools.cli.core_option import add_core_option, apply_core
 
 
 def add_subparser(sub):
@@ -54,6 +55,7 @@ def add_subparser(sub):
                    help="time step of the plant's re-simulations [s] (default 1)")
     p.add_argument("--workers", type=int, metavar="N", help="processes for the re-simulations (default: 2 or the "
                                                             "number of cores)")
+    add_core_option(p)
     p.add_argument("--quiet", action="store_true", help="no progress bar or summary on stderr/stdout")
     p.set_defaults(func=run)
     return p
@@ -71,6 +73,9 @@ def write_json_atomic(obj, path) -> Path:
 
 def run(args) -> int:
     from tools.diagnosis.core import Options, diagnose
+    core_line = apply_core(args)
+    if not args.quiet:
+        print(f"{core_line} (the onboard backend, --model onboard)", file=sys.stderr)
     from tools.diagnosis.options import STAGES
     from tools.progress import progress
     cfg = load_config(args.config)

@@ -12,6 +12,7 @@ from pathlib import Path
 
 from firmware_model.components import describe
 from firmware_model.errors import InputError
+from tools.cli.core_option import add_core_option, apply_core
 from tools.can.bus import add_bus_options, can_subcommand
 
 
@@ -51,6 +52,7 @@ def add_subparser(sub):
                    help="measured (default): a valid oil_temp_c is the sump; model: always the modelled sump")
     p.add_argument("--initial-temp", type=float, metavar="DEGC",
                    help="initial temperature of every node when the first row has no oil temperature")
+    add_core_option(p)
     p.add_argument("--quiet", action="store_true", help="no summary (warnings that the outputs are not to be "
                                                          "trusted are still printed)")
     p.add_argument("--allow-untrusted", action="store_true",
@@ -102,6 +104,9 @@ def _refuse(given: list[str], why: str) -> None:
 
 def run(args) -> int:
     from tools.replay.log import is_can_log
+    core_line = apply_core(args)
+    if not args.quiet and not args.realtime:
+        print(core_line)
     path = Path(args.input)
     if is_can_log(path):
         return _run_log(args, path)

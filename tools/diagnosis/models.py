@@ -319,6 +319,26 @@ def _with_cooler_kind(params, kind):
     return p
 
 
+def _onboard_steps(vs, sp, state, raw: np.ndarray, keep: np.ndarray, wi: np.ndarray) -> np.ndarray:
+    """The main copy's temperatures of nodes ``wi`` at the steps ``keep`` (V vehicles, the same inputs ``raw``
+    (n, 8) for all): the compiled kernel when the sensor has it (one call per step for the whole batch), else the
+    numpy step."""
+    from firmware_model.onboard import sensor as S
+    V = state.T_c.shape[0]
+    rec = np.empty((keep.size, V, len(wi)))
+    rec[0] = state.T_c[:, S.MAIN, :][:, wi]
+    if getattr(vs, "compiled", None) is not None:
+        from firmware_model.onboard.compiled import CompiledCore
+        return CompiledCore(sp).run_batch(state, raw, keep, wi, rec)
+    j = 1
+    for k in range(raw.shape[0] - 1):
+        state, _ = S.step(state, S.SensorInputs(*raw[k].tolist()), sp)
+        if j < keep.size and k + 1 == keep[j]:
+            rec[j] = state.T_c[:, S.MAIN, :][:, wi]
+            j += 1
+    return rec
+
+
 def run_onboard_pass(ds, runs, columns, volume_l: float) -> list:
     """Run the onboard step over `ds` once, one vehicle per run (effect values as per-vehicle arrays, the oil input
     absent so that the sensor integrates its sump), and return each run's output columns every `out_dt_s`."""
@@ -353,16 +373,8 @@ def run_onboard_pass(ds, runs, columns, volume_l: float) -> list:
     want = sorted({c[2:-2] for c in columns if c.startswith("T_") and c.endswith("_c") and c[2:-2] in nodes}
                   | {"oil"})
     wi = np.array([nodes.index(w) for w in want])
-    rec = np.empty((keep.size, V, len(wi)))
-    rec[0] = state.T_c[:, S.MAIN, :][:, wi]
-    j = 1
-    nan = math.nan
-    step = S.step
-    for k in range(n - 1):
-        state, _ = step(state, S.SensorInputs(spd[k], tq[k], gear[k], nan, amb[k], cool[k], vk[k], ret[k]), sp)
-        if j < keep.size and k + 1 == keep[j]:
-            rec[j] = state.T_c[:, S.MAIN, :][:, wi]
-            j += 1
+    raw = np.stack([spd, tq, gear, np.full(n, math.nan), amb, cool, vk, ret], axis=-1)
+    rec = _onboard_steps(vs, sp, state, raw, keep, wi)
     t_out = ts[keep]
     outs = []
     for v, r in enumerate(runs):
