@@ -95,32 +95,41 @@ def _segments(t_s: np.ndarray) -> list[_Segment]:
     return [_Segment(a, b) for a, b in zip(starts_s, ends_s)]
 
 
-def table_records(table, inputs_type=None, dt_s: float = STEP_S) -> Iterator[TableRecord]:
-    """The sensor's per-step inputs from a run table: a :class:`TableRecord` for every step of the 0.1 s grid from
-    the first row (values held from the last row at or before the step's start; an absent column is NaN). A gap
-    longer than MAX_HOLD_GAP_S between rows is a time jump: no records inside it, the next record carries the jump
-    in its ``t_s``. ``inputs_type``: the sensor's ``Inputs`` (None: the onboard ``SensorInputs``). This is the plug
-    point for other sources (a CAN log decoder yields the same records)."""
-    if inputs_type is None:
-        from firmware_model.onboard.sensor import SensorInputs as inputs_type
+def table_steps(table, dt_s: float = STEP_S) -> tuple[np.ndarray, np.ndarray]:
+    """``(t_s (N,), inputs (N, 8))``: the sensor's per-step frame times and inputs (INPUT_FIELDS order) from a run
+    table, vectorised: every step of the 0.1 s grid from the first row, values held from the last row at or before
+    the step's start (an absent column is NaN). A gap longer than MAX_HOLD_GAP_S between rows is a time jump: no
+    steps inside it, the next step carries the jump in its time."""
     t_s = np.asarray(table["time_s"], dtype=float)
     if t_s.size == 0:
-        return
+        return np.zeros(0), np.zeros((0, len(_sensor_inputs())))
     if not np.all(np.isfinite(t_s)) or np.any(np.diff(t_s) <= 0):
         raise InputError("column time_s must be finite and strictly increasing")
     cols = [np.asarray(table[col], dtype=float) if table.has(col) else np.full(t_s.size, np.nan)
             for _, col in _sensor_inputs()]
     data = np.stack(cols, axis=1)
+    ends, rows = [], []
     for first_s, last_s in _segments(t_s):
         n = int(math.floor((last_s - first_s) / dt_s + 1e-9))
         if n <= 0:
             continue
         starts_s = first_s + dt_s * np.arange(n)
-        idx = np.clip(np.searchsorted(t_s, starts_s + 1e-9, side="right") - 1, 0, t_s.size - 1)
-        for k in range(n):
-            row = data[idx[k]]
-            end_s = float(starts_s[k] + dt_s)
-            yield TableRecord(end_s, inputs_type(*row.tolist(), t_s=end_s))
+        rows.append(np.clip(np.searchsorted(t_s, starts_s + 1e-9, side="right") - 1, 0, t_s.size - 1))
+        ends.append(starts_s + dt_s)
+    if not ends:
+        return np.zeros(0), np.zeros((0, data.shape[1]))
+    return np.concatenate(ends), data[np.concatenate(rows)]
+
+
+def table_records(table, inputs_type=None, dt_s: float = STEP_S) -> Iterator[TableRecord]:
+    """:func:`table_steps` as :class:`TableRecord` records (``inputs_type``: the sensor's ``Inputs``; None: the
+    onboard ``SensorInputs``). This is the plug point for other sources (a CAN log decoder yields the same
+    records)."""
+    if inputs_type is None:
+        from firmware_model.onboard.sensor import SensorInputs as inputs_type
+    t_end, data = table_steps(table, dt_s)
+    for end_s, row in zip(t_end.tolist(), data.tolist()):
+        yield TableRecord(end_s, inputs_type(*row, t_s=end_s))
 
 
 def _status_row(st) -> tuple:
@@ -154,23 +163,17 @@ def _output_table(times: list, rows_in: list, rows_out: dict, rows_st: list, rej
 
 def replay_records(records: Iterable[TableRecord], sensor, initial_oil_c: float | None = None,
                    t0_s: float | None = None):
-    """Step ``sensor`` through :class:`TableRecord` records; returns the output RunTable (one row per step). A
-    sensor with ``step_table`` (VirtualSensor) steps the whole table in one call (the compiled core: in C)."""
+    """Step ``sensor`` through :class:`TableRecord` records; returns the output RunTable (one row per step)."""
     fields = [f for f, _ in _sensor_inputs()]
     recs = list(records)
     if not recs:
         raise InputError("the run table has no rows")
-    first = recs[0].inputs
-    oil0_c = first.oil_temp_c if initial_oil_c is None else initial_oil_c
-    state = sensor.initial_state(T_oil_c=oil0_c if oil0_c is not None and math.isfinite(oil0_c) else None)
-    times = [r.t_s for r in recs]
-    rows_in = [[r.inputs._asdict()[f] for f in fields] for r in recs]
+    times = np.array([r.t_s for r in recs], dtype=float)
+    data = np.array([[r.inputs._asdict()[f] for f in fields] for r in recs], dtype=float)
     if hasattr(sensor, "step_table"):
-        raw = np.array([r.inputs[:len(sensor.input_fields)] for r in recs], dtype=float)
-        state, out = sensor.step_table(state, raw, np.array([r.inputs.t_s for r in recs], dtype=float))
-        rows_out = {("T_", "_c"): out.T_c, ("W_", ""): out.level, ("ttl_", "_s"): out.ttl_s}
-        rows_st = _status_rows(out)
-        return _output_table(times, rows_in, rows_out, rows_st, sensor.reject_reasons, state)
+        return replay_steps(times, data, sensor, initial_oil_c, [r.inputs.t_s for r in recs])
+    oil0_c = recs[0].inputs.oil_temp_c if initial_oil_c is None else initial_oil_c
+    state = sensor.initial_state(T_oil_c=oil0_c if oil0_c is not None and math.isfinite(oil0_c) else None)
     rows_st = []
     rows_out: dict = {("T_", "_c"): [], ("W_", ""): [], ("ttl_", "_s"): []}
     T_rows, W_rows, ttl_rows = rows_out.values()
@@ -180,7 +183,21 @@ def replay_records(records: Iterable[TableRecord], sensor, initial_oil_c: float 
         W_rows.append(out.level)
         ttl_rows.append(out.ttl_s)
         rows_st.append(_status_row(out.status))
-    return _output_table(times, rows_in, rows_out, rows_st, sensor.reject_reasons, state)
+    return _output_table(times, data, rows_out, rows_st, sensor.reject_reasons, state)
+
+
+def replay_steps(times: np.ndarray, data: np.ndarray, sensor, initial_oil_c: float | None = None, frame_t_s=None):
+    """Step a sensor with ``step_table`` (VirtualSensor) through per-step inputs ``data`` (N, 8) ending at
+    ``times`` (the frame times, unless ``frame_t_s`` gives others): the whole table in one call (the compiled
+    core: in C). Returns the output RunTable."""
+    if times.size == 0:
+        raise InputError("the run table has no rows")
+    oil0_c = float(data[0, 3]) if initial_oil_c is None else initial_oil_c
+    state = sensor.initial_state(T_oil_c=oil0_c if oil0_c is not None and math.isfinite(oil0_c) else None)
+    t_frames = times if frame_t_s is None else np.asarray(frame_t_s, dtype=float)
+    state, out = sensor.step_table(state, data[:, :len(sensor.input_fields)], t_frames)
+    rows_out = {("T_", "_c"): out.T_c, ("W_", ""): out.level, ("ttl_", "_s"): out.ttl_s}
+    return _output_table(times, data, rows_out, _status_rows(out), sensor.reject_reasons, state)
 
 
 def _status_rows(out) -> np.ndarray:
@@ -199,6 +216,9 @@ def replay_table(table, sensor, initial_oil_c: float | None = None):
         if meta.get("initial_temp_c") is not None and not (table.has("oil_temp_c")
                                                            and np.isfinite(table["oil_temp_c"][0])):
             initial_oil_c = float(meta["initial_temp_c"])
+    if hasattr(sensor, "step_table"):
+        times, data = table_steps(table, sensor.dt_s)
+        return replay_steps(times, data, sensor, initial_oil_c)
     return replay_records(table_records(table, sensor.Inputs, sensor.dt_s), sensor, initial_oil_c)
 
 
