@@ -107,7 +107,9 @@ def structs(real) -> dict:
         _fields_ = [("T_c", (R * MAX_NODES) * 2), ("lag_w", R * MAX_SRC), ("hold", R * N_INPUTS),
                     ("age_s", R * N_INPUTS), ("same_s", R * N_INPUTS), ("raw_prev", R * N_INPUTS), ("oil_ref_c", R),
                     ("pending_s", R * N_PUB), ("ttl_s", R * N_PUB), ("t_last_s", _F64), ("k", _I64),
-                    ("rejects", _I64 * N_REJECT), ("level", _I8 * N_PUB)]
+                    ("rejects", _I64 * N_REJECT), ("memo_G", R * MAX_LINKS), ("memo_Gs", R * MAX_STREAMS),
+                    ("memo_omega_q", R), ("memo_T_q", R), ("memo_row", _I32), ("memo_valid", _I32),
+                    ("level", _I8 * N_PUB)]
 
     class Inputs(C.Structure):
         _fields_ = [("raw", _F64 * N_INPUTS), ("t_s", _F64)]

@@ -33,8 +33,10 @@ from firmware_model.onboard.time_to_limit import TtlJob, TtlPoint, time_to_limit
 
 
 class BufferedState(SensorState):
-    """A SensorState whose arrays are views into ``buf`` (the kernel's gvs_state structs, batch shape B)."""
+    """A SensorState whose arrays are views into ``buf`` (the kernel's gvs_state structs, batch shape B), made by
+    the CompiledCore ``owner``."""
     buf: np.ndarray
+    owner: object
 
 
 class TableOutputs(NamedTuple):
@@ -99,7 +101,10 @@ class CompiledCore:
         """A fresh gvs_state buffer (batch shape B) holding ``state``."""
         buf = getattr(state, "buf", None)
         if isinstance(state, BufferedState) and buf is not None:
-            return buf.copy()
+            buf = buf.copy()
+            if getattr(state, "owner", None) is not self:
+                buf["memo_valid"] = 0          # another sensor's conductance memo: not this one's
+            return buf
         B = np.shape(state.t_last_s)
         buf = np.zeros(B, dtype=self.S["State_dtype"])
         buf["T_c"][..., :self.n] = state.T_c
@@ -114,7 +119,7 @@ class CompiledCore:
         st = BufferedState(buf["T_c"][..., :self.n], buf["lag_w"][..., :self.ns], buf["hold"], buf["age_s"],
                            buf["same_s"], buf["raw_prev"], buf["oil_ref_c"], buf["level"], buf["pending_s"],
                            buf["ttl_s"], buf["t_last_s"], buf["k"], buf["rejects"])
-        st.buf = buf
+        st.buf, st.owner = buf, self
         return st
 
     def inputs(self, inputs: SensorInputs, B: tuple) -> np.ndarray:

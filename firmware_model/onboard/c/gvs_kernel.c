@@ -409,8 +409,18 @@ static void network_step(const gvs_tables *tb, const gvs_vehicle *veh, gvs_state
     for (i = 0; i < tb->n; ++i) q[i] = R_(0.0);
     for (k = 0; k < tb->nsrc_nz; ++k) q[tb->src_nz_node[k]] += delivered[tb->src_nz_src[k]] * tb->src_nz_w[k];
     /* conductances at the centre of the operating point's bin: 1 % in speed, 0.5 K in oil */
-    bin_conductances(tb, veh, nt->row, speed_bin_centre(tb, w), RINT(nt->T_oil_main / tb->oil_bin_c) * tb->oil_bin_c,
-                     nt->G, nt->Gs);
+    {
+        gvs_real w_q = speed_bin_centre(tb, w), T_q = RINT(nt->T_oil_main / tb->oil_bin_c) * tb->oil_bin_c;
+        if (!(st->memo_valid && st->memo_row == nt->row && st->memo_omega_q == w_q && st->memo_T_q == T_q)) {
+            bin_conductances(tb, veh, nt->row, w_q, T_q, st->memo_G, st->memo_Gs);
+            st->memo_row = nt->row;
+            st->memo_omega_q = w_q;
+            st->memo_T_q = T_q;
+            st->memo_valid = 1;
+        }
+        memcpy(nt->G, st->memo_G, (size_t)tb->nl * sizeof(gvs_real));
+        memcpy(nt->Gs, st->memo_Gs, (size_t)tb->nst * sizeof(gvs_real));
+    }
     w_ls = FABS(tb->speed_coef[nt->row * tb->n_speed + 1]) * w;
     nt->rho_cp = o.prop[P_RHO] * o.prop[P_CP];
     mcp = nt->rho_cp * tb->flow_m3_per_rad * w_ls;

@@ -131,6 +131,10 @@ typedef struct {
     double t_last_s;                  /* frame time of the last step (NaN unknown) */
     int64_t k;                        /* steps done */
     int64_t rejects[GVS_N_REJECT];
+    /* memo of the last conductance bin (a pure function of its key: the outputs never depend on it; a state
+     * packed from elsewhere starts with memo_valid = 0) */
+    gvs_real memo_G[GVS_MAX_LINKS], memo_Gs[GVS_MAX_STREAMS], memo_omega_q, memo_T_q;
+    int32_t memo_row, memo_valid;
     int8_t level[GVS_N_PUB];
 } gvs_state;
 

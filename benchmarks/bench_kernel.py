@@ -1,0 +1,139 @@
+"""The compiled C kernel against the numpy reference step, side by side in one run (issue: the onboard step compiled).
+
+    python benchmarks/bench_kernel.py              # everything (~3 minutes)
+    python benchmarks/bench_kernel.py --only step
+
+(a) step: one step of one vehicle. The kernel alone (gvs_run over a table without time-to-limit refreshes: the
+    cost per step in C), the same through the Python API (VirtualSensor.step, what the live service calls), and the
+    numpy step; medians of timeit repeats. "with ttl": the mean per step including the time-to-limit refresh every
+    1 s (numpy on the host for both cores).
+(b) table: `gearbox-vsensor replay` of a 3 h run table (the mining cycle's plant table) as a whole process,
+    reading and writing included, --core c and --core numpy (wall time of the subprocess).
+(c) batch: 1000 vehicles x 3 h at 10 Hz, one call per step for the whole batch, measured over --batch-steps steps
+    and extrapolated: without the time to limit, and with it refreshed every 1 s.
+Timings are wall clock on a machine that may be shared (2 cores); OpenBLAS is limited to one thread.
+"""
+import os
+
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+
+import argparse  # noqa: E402
+import ctypes  # noqa: E402
+import subprocess  # noqa: E402
+import sys  # noqa: E402
+import tempfile  # noqa: E402
+import time  # noqa: E402
+import timeit  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO))
+
+import numpy as np  # noqa: E402
+
+from firmware_model.onboard.records import SensorInputs  # noqa: E402
+from firmware_model.onboard.sensor import VirtualSensor  # noqa: E402
+from firmware_model.parameters import load_parameters  # noqa: E402
+
+
+def drive_inputs(n: int, seed: int = 0) -> np.ndarray:
+    """(n, 8) plausible driving: speed, torque and gear moving, oil measured and drifting."""
+    k = np.arange(n)
+    rng = np.random.default_rng(seed)
+    return np.stack([1300 + 400 * np.sin(k / 900), 1500 + 900 * np.sin(k / 170) + rng.normal(0, 30, n),
+                     9 + (k // 3000) % 4, 70 + 20 * np.sin(k / 20000), np.full(n, 20.0), np.full(n, 85.0),
+                     np.full(n, 60.0), np.zeros(n)], axis=1)
+
+
+def bench_step(params) -> None:
+    print("(a) one step of one vehicle [us]")
+    c = VirtualSensor(params, core="c")
+    ref = VirtualSensor(params, core="numpy")
+    raw = drive_inputs(36000)
+    core = c.compiled
+    rec = np.empty(raw.shape[0], dtype=core.S["Inputs_dtype"])
+    rec["raw"], rec["t_s"] = raw, np.nan
+    out = np.zeros(raw.shape[0], dtype=core.S["Outputs_dtype"])
+    veh = core.vehicles(None).ctypes.data_as(ctypes.POINTER(core.S["Vehicle"]))
+    status = ctypes.c_int()
+
+    def kernel_run():
+        buf = core.pack(c.initial_state(T_oil_c=60.0))
+        core.lib.gvs_run(core._tables_p, veh, buf.ctypes.data, rec.ctypes.data, raw.shape[0], 0, out.ctypes.data,
+                         None, ctypes.byref(status))
+    per_run = sorted(timeit.repeat(kernel_run, number=1, repeat=7))
+    kernel_us = per_run[len(per_run) // 2] / raw.shape[0] * 1e6
+    inp = SensorInputs(*raw[100])
+    st_c, st_n = c.initial_state(T_oil_c=60.0), ref.initial_state(T_oil_c=60.0)
+    g = dict(c=c, ref=ref, inp=inp, st_c=st_c, st_n=st_n)
+    api_us = np.median(timeit.repeat("c.step_deferred(st_c, inp)", number=500, repeat=7, globals=g)) / 500 * 1e6
+    np_us = np.median(timeit.repeat("ref.step_deferred(st_n, inp)", number=100, repeat=7, globals=g)) / 100 * 1e6
+    n = 6000
+    t0 = time.perf_counter()
+    c.step_table(st_c, raw[:n])
+    with_ttl_c = (time.perf_counter() - t0) / n * 1e6
+    t0 = time.perf_counter()
+    ref.step_table(st_n, raw[:n])
+    with_ttl_np = (time.perf_counter() - t0) / n * 1e6
+    print(f"  C kernel alone (gvs_run, mean over a 1 h table, median of 7): {kernel_us:8.2f}   (target <= 2 median)")
+    print(f"  C kernel through VirtualSensor.step_deferred (live path):       {api_us:8.2f}")
+    print(f"  numpy step_deferred:                                            {np_us:8.2f}")
+    print(f"  mean per step with the 1 s time-to-limit refresh: C {with_ttl_c:8.2f}, numpy {with_ttl_np:8.2f}"
+          "   (target <= 5 with refreshes)")
+
+
+def bench_table(params) -> None:
+    print("(b) gearbox-vsensor replay of a 3 h run table (mining), whole process [s]")
+    from tools.cycles.named import get_cycle
+    from tools.plant.reference import ReferencePlant
+    from tools.runtable import write_run_table
+    with tempfile.TemporaryDirectory() as tmp:
+        table = ReferencePlant(params).run(get_cycle("mining"), progress=False).table
+        src = write_run_table(table, Path(tmp) / "mining.csv")
+        for core in ("c", "numpy"):
+            t0 = time.perf_counter()
+            subprocess.run([sys.executable, "-m", "tools.cli", "replay", str(src), "--out",
+                            str(Path(tmp) / f"est_{core}.csv"), "--quiet", "--core", core], check=True, cwd=REPO,
+                           env=dict(os.environ, PYTHONPATH=str(REPO)))
+            print(f"  --core {core:5s}: {time.perf_counter() - t0:6.2f} s   ({table['time_s'][-1] / 3600:.1f} h "
+                  f"at 10 Hz; target <= 2 s)")
+
+
+def bench_batch(params, steps: int) -> None:
+    print(f"(c) 1000 vehicles x 3 h at 10 Hz, batched (measured over {steps} steps, extrapolated) [s]")
+    V, total = 1000, 3 * 36000
+    raw = drive_inputs(steps, seed=1)
+    for label, period in (("without time to limit", 1e9), ("time to limit every 1 s", 1.0)):
+        for core in ("c", "numpy"):
+            s = VirtualSensor(params, core=core, ttl_period_s=period)
+            st = s.initial_state(T_oil_c=np.linspace(40, 90, V), n_vehicles=V)
+            n = steps if core == "c" else max(steps // 10, 20)
+            t0 = time.perf_counter()
+            for j in range(n):
+                st, _ = s.step(st, SensorInputs(*(np.full(V, x) for x in raw[j])))
+            dt = time.perf_counter() - t0
+            print(f"  {label:24s} {core:5s}: {dt / n * total:9.0f} s   ({dt / n * 1e3:.2f} ms per step; "
+                  "target <= 60 s with the time to limit)")
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--only", choices=("step", "table", "batch"))
+    ap.add_argument("--batch-steps", type=int, default=200)
+    a = ap.parse_args()
+    params = load_parameters("GRS905")
+    c = VirtualSensor(params)
+    print(f"onboard core available here: {c.core_name}")
+    if c.compiled is None:
+        sys.exit("the compiled core is not available; nothing to compare")
+    if a.only in (None, "step"):
+        bench_step(params)
+    if a.only in (None, "table"):
+        bench_table(params)
+    if a.only in (None, "batch"):
+        bench_batch(params, a.batch_steps)
+
+
+if __name__ == "__main__":
+    main()
