@@ -6,7 +6,7 @@ import sys
 
 from firmware_model.errors import VSensorError
 
-SUBCOMMANDS = ("simulate", "replay", "run", "plant", "diagnose", "bench_diagnosis", "demo")
+SUBCOMMANDS = ("simulate", "replay", "run", "plant", "diagnose", "bench_diagnosis", "demo", "export_c")
 
 
 class CommandParser(argparse.ArgumentParser):

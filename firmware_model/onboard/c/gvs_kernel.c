@@ -85,7 +85,7 @@ static gvs_real cyl_nusselt(const gvs_tables *tb, gvs_real ln_re, gvs_real ln_pr
 static void bin_conductances(const gvs_tables *tb, const gvs_vehicle *veh, int32_t row, gvs_real w, gvs_real T_q,
                              gvs_real *G, gvs_real *G_streams)
 {
-    gvs_real phi[64], G2[64], Ge[64];
+    gvs_real phi[GVS_MAX_TERMS], G2[GVS_MAX_TERMS], Ge[GVS_MAX_TERMS];
     oil_row_t o;
     int32_t t;
     gvs_real w_ls, rho_cp_w;
@@ -253,14 +253,16 @@ static void check_inputs(const gvs_tables *tb, gvs_state *st, const double *raw_
     gvs_real raw[GVS_N_INPUTS], fixed[GVS_N_INPUTS], same[GVS_N_INPUTS], age[GVS_N_INPUTS];
     int finite[GVS_N_INPUTS], in_range[GVS_N_INPUTS], clamped[GVS_N_INPUTS], i, jumpy, oil_in_range, gear_ok;
     gvs_real dt = tb->dt_s, twin_oil, oil_ref;
+    /* the checks and the clamp on the double value (a float build must judge 1e308 as the reference does) */
     for (i = 0; i < GVS_N_INPUTS; ++i) {
-        raw[i] = (gvs_real)raw_d[i];
-        finite[i] = finite_r(raw_d[i]) && finite_r((double)raw[i]);
-        in_range[i] = finite[i] && raw[i] >= tb->input_lo[i] && raw[i] <= tb->input_hi[i];
-        fixed[i] = finite[i] ? min_r(max_r(raw[i], tb->clamp_lo[i]), tb->clamp_hi[i]) : raw[i];
+        double r = raw_d[i], lo = (double)tb->clamp_lo[i], hi = (double)tb->clamp_hi[i], f;
+        raw[i] = (gvs_real)r;
+        finite[i] = finite_r(r);
+        in_range[i] = finite[i] && r >= (double)tb->input_lo[i] && r <= (double)tb->input_hi[i];
+        f = i == GVS_I_RET ? fabs(r) : (r < lo ? lo : (r > hi ? hi : r));
+        clamped[i] = finite[i] && f != r;
+        fixed[i] = finite[i] ? (gvs_real)f : raw[i];
     }
-    fixed[GVS_I_RET] = FABS(raw[GVS_I_RET]);
-    for (i = 0; i < GVS_N_INPUTS; ++i) clamped[i] = finite[i] && fixed[i] != raw[i];
     gear_ok = in_range[GVS_I_GEAR] && raw[GVS_I_GEAR] == RINT(raw[GVS_I_GEAR]);
     oil_in_range = in_range[GVS_I_OIL];
     jumpy = oil_in_range && st->age_s[GVS_I_OIL] <= R_(1.0)
@@ -367,7 +369,8 @@ static int skip_step(const gvs_tables *tb, gvs_state *st, gvs_outputs *out)
 int gvs_check_tables(const gvs_tables *tb)
 {
     if (tb->n > GVS_MAX_NODES || tb->nl > GVS_MAX_LINKS || tb->ns > GVS_MAX_SRC || tb->nb > GVS_MAX_BC
-        || tb->nst > GVS_MAX_STREAMS || tb->n2 > 64 || tb->ne > 64 || tb->ncol > 64 || tb->n_gears != GVS_N_GEARS
+        || tb->nst > GVS_MAX_STREAMS || tb->n2 > GVS_MAX_TERMS || tb->ne > GVS_MAX_TERMS
+        || tb->ncol > GVS_MAX_TERMS || tb->n_gears != GVS_N_GEARS
         || tb->nT < 2 || tb->nT2 < 2 || tb->n_u < 2 || tb->n_u_churn < 2 || tb->nx < 2)
         return GVS_BAD_TABLES;
     return GVS_OK;

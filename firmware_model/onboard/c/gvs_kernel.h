@@ -34,12 +34,27 @@ typedef float gvs_real;
 typedef double gvs_real;
 #endif
 
-/* capacities of the plain structs (the tables give the actual sizes; gvs_check_tables() refuses larger ones) */
+/* capacities of the plain structs (the tables give the actual sizes; gvs_check_tables() refuses larger ones);
+ * an ECU build sets them to the exported variant's sizes (-DGVS_MAX_NODES=61 ...) to save RAM */
+#ifndef GVS_MAX_NODES
 #define GVS_MAX_NODES 96
+#endif
+#ifndef GVS_MAX_LINKS
 #define GVS_MAX_LINKS 192
+#endif
+#ifndef GVS_MAX_SRC
 #define GVS_MAX_SRC 32
+#endif
+#ifndef GVS_MAX_BC
 #define GVS_MAX_BC 8
+#endif
+#ifndef GVS_MAX_STREAMS
 #define GVS_MAX_STREAMS 32
+#endif
+/* the most terms of one kind of conductance law (tables, closed-form streams) and oil-factor columns */
+#ifndef GVS_MAX_TERMS
+#define GVS_MAX_TERMS 64
+#endif
 #define GVS_N_PUB 28
 #define GVS_N_INPUTS 8
 #define GVS_N_REJECT 13

@@ -1,0 +1,62 @@
+"""`gearbox-vsensor export-c`: the bundle builds and its test vectors pass on the host (double and float) and on an
+emulated ARM Cortex-M4F (QEMU mps2-an386), within the footprint an ECU allows (issue: deploy the sensor)."""
+from __future__ import annotations
+
+import re
+import shutil
+import subprocess
+
+import pytest
+
+from tools.cli import main
+
+HAVE_CC = shutil.which("make") is not None and (shutil.which("cc") or shutil.which("gcc")) is not None
+ARM_TOOLS = ("arm-none-eabi-gcc", "arm-none-eabi-size", "qemu-system-arm")
+HAVE_ARM = all(shutil.which(t) for t in ARM_TOOLS)
+
+
+@pytest.fixture(scope="module")
+def bundles(tmp_path_factory):
+    out = {}
+    for real in ("double", "float"):
+        d = tmp_path_factory.mktemp(f"export_{real}")
+        assert main(["export-c", "--real", real, "--out", str(d), "--quiet"]) == 0
+        out[real] = d
+    return out
+
+
+def test_bundle_files(bundles):
+    names = {p.name for p in bundles["float"].iterdir()}
+    assert {"gvs_kernel.c", "gvs_kernel.h", "gvs_tables.c", "gvs_sensor.h", "gvs_sensor.c", "gvs_vectors.c",
+            "gvs_test.c", "Makefile", "README.md", "cortex-m4"} <= names
+    tables = (bundles["float"] / "gvs_tables.c").read_text()
+    assert "const gvs_tables GVS_TABLES" in tables and ".lead_s = 0.0f" in tables
+
+
+@pytest.mark.skipif(not HAVE_CC, reason="no make or C compiler on this machine")
+@pytest.mark.parametrize("real, tol", [("double", 1e-9), ("float", 0.05)])
+def test_make_test_on_the_host(bundles, real, tol):
+    res = subprocess.run(["make", "-s", "test"], cwd=bundles[real], capture_output=True, text=True, timeout=300)
+    assert res.returncode == 0, res.stdout + res.stderr
+    m = re.search(r"max \|T - reference\| (\S+) K", res.stdout)
+    assert m and float(m.group(1)) <= tol and "PASS" in res.stdout
+    assert "level mismatches 0 " in res.stdout and "mode mismatches 0" in res.stdout
+
+
+@pytest.mark.skipif(not HAVE_ARM, reason="needs " + ", ".join(ARM_TOOLS) + " (apt install gcc-arm-none-eabi "
+                    "libnewlib-arm-none-eabi qemu-system-arm; .ci/run installs them)")
+def test_cortex_m4_on_qemu_equals_the_reference_and_fits(bundles):
+    d = bundles["float"]
+    run = subprocess.run(["make", "-s", "qemu-test"], cwd=d, capture_output=True, text=True, timeout=600)
+    assert run.returncode == 0 and "PASS" in run.stdout, run.stdout + run.stderr
+    host = subprocess.run(["make", "-s", "test"], cwd=d, capture_output=True, text=True, timeout=300).stdout
+    pick = re.compile(r"max \|T - reference\| (\S+) K")
+    assert pick.search(run.stdout).group(1) == pick.search(host).group(1), "the Cortex-M4F build differs from the host"
+    size = subprocess.run(["make", "-s", "size"], cwd=d, capture_output=True, text=True, timeout=600)
+    assert size.returncode == 0, size.stdout + size.stderr
+    text, data, bss = (int(x) for x in re.search(r"^\s*(\d+)\s+(\d+)\s+(\d+)", size.stdout, re.M).groups())
+    stack = int(re.search(r"stack used by the steps: (\d+) bytes", size.stdout).group(1))
+    state = int(re.search(r"state: (\d+) bytes", size.stdout).group(1))
+    assert text + data <= 64 * 1024, f"flash {text + data} B"
+    assert state + stack <= 4096, f"the sensor's RAM: state {state} B + stack {stack} B"
+    print(f"Cortex-M4F: flash {text + data} B, RAM data+bss {data + bss} B + stack {stack} B (state {state} B)")

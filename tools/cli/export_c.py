@@ -1,0 +1,35 @@
+"""`gearbox-vsensor export-c`: the onboard sensor as C sources for an ECU or gateway build (tools.export)."""
+from __future__ import annotations
+
+import argparse
+
+
+def add_subparser(sub):
+    p = sub.add_parser(
+        "export-c", help="write the onboard sensor as C sources for an ECU build (kernel, tables, test vectors)",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        description="Write the compiled onboard step as C99 sources an integrator drops into an ECU or gateway build: "
+                    "the generic kernel, the generated tables of one gearbox variant and configuration (const "
+                    "arrays), an API header, test vectors from the Python reference, a Makefile (`make test` builds "
+                    "a host program that checks them) and an integrator's README.\n\nThe exported sensor has no "
+                    "time-to-limit refresh (it needs an eigen-decomposition, kept on a host): its time to limit is "
+                    "not available and the early warning is off; everything else is the full onboard step.",
+        epilog="example:\n  gearbox-vsensor export-c --variant GRS905 --real float --out vsensor_c && make -C vsensor_c test")
+    p.add_argument("--variant", default="GRS905", help="gearbox variant (parameter file name; default GRS905)")
+    p.add_argument("--config", metavar="TOML", help="project configuration (variant, cooler, [sensor] limits); "
+                                                    "overrides --variant")
+    p.add_argument("--real", choices=("float", "double"), default="float",
+                   help="the real type of the build: float (an ECU's single-precision FPU; default) or double "
+                        "(parity with the Python reference)")
+    p.add_argument("--out", required=True, metavar="DIR", help="directory to write (created)")
+    p.add_argument("--quiet", action="store_true", help="no summary")
+    p.set_defaults(func=run)
+
+
+def run(args) -> int:
+    from tools.export.c_bundle import export_c
+    out = export_c(args.out, variant=args.variant, config_path=args.config, real=args.real)
+    if not args.quiet:
+        files = sorted(p.name for p in out.iterdir())
+        print(f"wrote {len(files)} files to {out}: {', '.join(files)}\nnext: make -C {out} test")
+    return 0

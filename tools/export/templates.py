@@ -1,0 +1,315 @@
+"""Text of the files `export-c` writes besides the kernel and the generated tables (tools.export.c_bundle)."""
+
+API_HEADER = """/* gearbox-vsensor: the onboard virtual temperature sensor of a {variant} gearbox, exported for an ECU build
+ * ({real} build). See README.md. */
+#ifndef GVS_SENSOR_H
+#define GVS_SENSOR_H
+
+#include "gvs_kernel.h"
+
+/* the generated tables of this variant and configuration (gvs_tables.c) and its vehicle (no effects) */
+extern const gvs_tables GVS_TABLES;
+extern const gvs_vehicle GVS_VEHICLE;
+
+/* Cold start: every node at the measured oil temperature T_oil_c (NaN: the ambient default). */
+void gvs_sensor_init(gvs_state *st, double T_oil_c);
+
+/* One 0.1 s step: call every 100 ms with the latest inputs (NaN = not available). A forward time jump in
+ * in->t_s is counted (rejects time_jump) and the state continues from before the gap (this build does not
+ * propagate over gaps; the host build does). Returns GVS_OK, or GVS_SKIPPED when t_s went backwards. */
+int gvs_sensor_step(gvs_state *st, const gvs_inputs *in, gvs_outputs *out);
+
+#endif
+"""
+
+SENSOR_SOURCE = """/* gearbox-vsensor: start and step of the exported sensor (see gvs_sensor.h). */
+#include <math.h>
+#include <string.h>
+#include "gvs_sensor.h"
+
+void gvs_sensor_init(gvs_state *st, double T_oil_c)
+{
+    int i, c;
+    gvs_real T0 = (gvs_real)(T_oil_c == T_oil_c ? T_oil_c : (double)GVS_TABLES.aux_default[0]);
+    memset(st, 0, sizeof *st);
+    for (c = 0; c < 2; ++c)
+        for (i = 0; i < GVS_TABLES.n; ++i) st->T_c[c][i] = T0;
+    for (i = 0; i < GVS_N_INPUTS; ++i) { st->hold[i] = (gvs_real)NAN; st->raw_prev[i] = (gvs_real)NAN; }
+    st->hold[GVS_I_SPEED] = st->hold[GVS_I_TORQUE] = st->hold[GVS_I_GEAR] = 0;
+    st->hold[GVS_I_OIL] = T0;
+    st->oil_ref_c = T0;
+    for (i = 0; i < GVS_N_PUB; ++i) st->ttl_s[i] = (gvs_real)NAN;
+    st->t_last_s = NAN;
+}
+
+int gvs_sensor_step(gvs_state *st, const gvs_inputs *in, gvs_outputs *out)
+{
+    int rc = gvs_step(&GVS_TABLES, &GVS_VEHICLE, st, in, 0, out, 0);
+    if (rc == GVS_NEED_JUMP)
+        rc = gvs_step(&GVS_TABLES, &GVS_VEHICLE, st, in, 1, out, 0);
+    return rc;
+}
+"""
+
+TEST_PROGRAM = """/* gearbox-vsensor export-c: replay the test vectors through the exported sensor and compare with the Python
+ * reference's outputs. Exit status 0 when every kept step matches. */
+#include <math.h>
+#include <stdio.h>
+#include "gvs_sensor.h"
+
+extern const int32_t GVS_VEC_STEPS, GVS_VEC_KEPT, GVS_VEC_EVERY;
+extern const double GVS_VEC_INPUTS[], GVS_VEC_T_C[];
+extern const int32_t GVS_VEC_LEVEL[], GVS_VEC_MODE[];
+
+static gvs_state state;
+
+static int near_threshold(int i, double T)
+{
+    const gvs_tables *tb = &GVS_TABLES;
+    double lim[4] = {tb->warning_c[i], tb->critical_c[i], tb->warning_c[i] - tb->hysteresis_k[i],
+                     tb->critical_c[i] - tb->hysteresis_k[i]};
+    int k;
+    for (k = 0; k < 4; ++k)
+        if (fabs(T - lim[k]) <= @TOL@) return 1;
+    return 0;
+}
+
+int main(void)
+{
+    const double tol = @TOL@;
+    double worst = 0.0;
+    int j, i, kept = 0, level_bad = 0, level_near = 0, mode_bad = 0, nan_out = 0;
+    gvs_outputs out;
+    gvs_sensor_init(&state, GVS_VEC_INPUTS[3]);
+    for (j = 0; j < GVS_VEC_STEPS; ++j) {
+        gvs_inputs in;
+        for (i = 0; i < GVS_N_INPUTS; ++i) in.raw[i] = GVS_VEC_INPUTS[j * GVS_N_INPUTS + i];
+        in.t_s = NAN;
+        gvs_sensor_step(&state, &in, &out);
+        for (i = 0; i < GVS_N_PUB; ++i) nan_out += !(out.T_c[i] == out.T_c[i]);
+        if ((j + 1) % GVS_VEC_EVERY != 0 || kept >= GVS_VEC_KEPT) continue;
+        for (i = 0; i < GVS_N_PUB; ++i) {
+            double e = GVS_VEC_T_C[kept * GVS_N_PUB + i], d = fabs((double)out.T_c[i] - e);
+            if (d > worst) worst = d;
+            if (out.level[i] != GVS_VEC_LEVEL[kept * GVS_N_PUB + i]) {
+                if (near_threshold(i, e)) ++level_near; else ++level_bad;
+            }
+        }
+        mode_bad += out.degraded_mode != GVS_VEC_MODE[kept];
+        ++kept;
+    }
+    printf("steps %d, kept %d: max |T - reference| %.3g K (tolerance %g), level mismatches %d (+%d within the "
+           "tolerance of a threshold), mode mismatches %d, NaN outputs %d, counters",
+           (int)GVS_VEC_STEPS, kept, worst, tol, level_bad, level_near, mode_bad, nan_out);
+    for (i = 0; i < GVS_N_REJECT; ++i) printf(" %ld", (long)state.rejects[i]);
+    printf("\\n%s\\n", (worst <= tol && level_bad == 0 && mode_bad == 0 && nan_out == 0) ? "PASS" : "FAIL");
+    return (worst <= tol && level_bad == 0 && mode_bad == 0 && nan_out == 0) ? 0 : 1;
+}
+"""
+
+MAKEFILE = """# gearbox-vsensor export-c: `make test` builds a host program that replays the test vectors and checks them;
+# `make cortex-m4 qemu-test size` does the same on an emulated ARM Cortex-M4F (arm-none-eabi-gcc, qemu-system-arm).
+CC ?= cc
+CFLAGS ?= -std=c99 -O2 -Wall -Wextra -Wpedantic -Werror
+REAL = @REAL_FLAG@
+# the struct capacities of this variant (RAM: the state and the step's stack hold exactly these)
+CAPS = @CAPS@
+SENSOR = gvs_kernel.c gvs_sensor.c gvs_tables.c
+
+test: gvs_test
+\t./gvs_test
+
+gvs_test: $(SENSOR) gvs_vectors.c gvs_test.c gvs_kernel.h gvs_sensor.h
+\t$(CC) $(CFLAGS) $(REAL) $(CAPS) -o $@ $(SENSOR) gvs_vectors.c gvs_test.c -lm
+
+# --- ARM Cortex-M4F (hard float, single precision), run on QEMU's mps2-an386 board with semihosting
+ARM_CC ?= arm-none-eabi-gcc
+ARM_SIZE ?= arm-none-eabi-size
+M4 = -mcpu=cortex-m4 -mthumb -mfloat-abi=hard -mfpu=fpv4-sp-d16
+M4_CFLAGS = -std=c99 -Os -Wall -Wextra -ffunction-sections -fdata-sections -DGVS_REAL_FLOAT $(CAPS) -I.
+
+cortex-m4: gvs_test_m4.elf gvs_footprint_m4.elf
+
+gvs_test_m4.elf: $(SENSOR) gvs_vectors.c gvs_test.c cortex-m4/startup.c cortex-m4/mps2_an386.ld
+\t$(ARM_CC) $(M4) $(M4_CFLAGS) --specs=rdimon.specs -T cortex-m4/mps2_an386.ld -o $@ cortex-m4/startup.c \\
+\t\t$(SENSOR) gvs_vectors.c gvs_test.c -lm
+
+# the sensor alone (one state, one step) for the footprint: flash = text + data, RAM = data + bss + stack
+gvs_footprint_m4.elf: $(SENSOR) cortex-m4/footprint.c cortex-m4/startup.c
+\t$(ARM_CC) $(M4) $(M4_CFLAGS) -fstack-usage --specs=nano.specs --specs=nosys.specs -Wl,--gc-sections \\
+\t\t-T cortex-m4/mps2_an386.ld -o $@ cortex-m4/startup.c $(SENSOR) cortex-m4/footprint.c -lm
+
+qemu-test: gvs_test_m4.elf
+\tqemu-system-arm -M mps2-an386 -nographic -semihosting-config enable=on,target=native -kernel gvs_test_m4.elf
+
+gvs_stack_m4.elf: $(SENSOR) cortex-m4/footprint.c cortex-m4/startup.c
+\t$(ARM_CC) $(M4) $(M4_CFLAGS) -DGVS_STACK_PROBE --specs=rdimon.specs -T cortex-m4/mps2_an386.ld -o $@ \\
+\t\tcortex-m4/startup.c $(SENSOR) cortex-m4/footprint.c -lm
+
+# flash = text + data; RAM = data + bss (the state) + the stack high-water mark the probe prints
+size: gvs_footprint_m4.elf gvs_stack_m4.elf
+\t$(ARM_SIZE) gvs_footprint_m4.elf
+\tqemu-system-arm -M mps2-an386 -nographic -semihosting-config enable=on,target=native -kernel gvs_stack_m4.elf
+
+clean:
+\trm -f gvs_test *.o *.su *.elf
+
+.PHONY: test cortex-m4 qemu-test size clean
+"""
+
+README = """# gearbox-vsensor onboard sensor, {variant}, exported for an ECU ({real} build)
+
+Kernel sources {source_id}. `make test` builds a host program that steps the test vectors (the uphill cycle, 5 min at
+10 Hz with 20 s of hostile inputs) and compares temperatures (tolerance {tol} K), warning levels and degraded modes
+with the Python reference (gearbox-vsensor's numpy step).
+
+## Files
+
+| file | what |
+|---|---|
+| `gvs_kernel.c`, `gvs_kernel.h` | the generic C99 kernel: one 0.1 s step of the sensor; no allocation, no I/O, no mutable globals; only `<math.h>`, `<string.h>`, `<stdint.h>` |
+| `gvs_tables.c` | the generated tables of {variant} ({n} thermal nodes): loss maps, conductance laws, cooler, limits, options (`const`, flash) |
+| `gvs_sensor.h`, `gvs_sensor.c` | the API below |
+| `gvs_vectors.c`, `gvs_test.c`, `Makefile` | the test |
+
+Compile with `-DGVS_REAL_FLOAT` for single precision (as `make` does for a float export); never with fast-math
+(`-ffast-math` breaks the NaN checks of the input validation).
+
+## Calling it
+
+```c
+#include "gvs_sensor.h"
+static gvs_state state;                 /* RAM: sizeof(gvs_state); keep it across calls */
+gvs_sensor_init(&state, oil_temp_c);    /* at start-up (NaN when no oil reading yet) */
+/* every 100 ms: */
+gvs_inputs in = {{{{speed_rpm, torque_nm, gear, oil_temp_c, ambient_c, coolant_c, vehicle_speed_kmh,
+                   retarder_torque_nm}}, NAN}};      /* NaN = not available; t_s NaN: on the 100 ms grid */
+gvs_outputs out;
+gvs_sensor_step(&state, &in, &out);
+```
+
+Inputs: engine speed [rpm], engine torque [N m] (net, signed), selected gear (-2..14; 0 neutral), measured sump oil
+[degC], ambient and coolant [degC], vehicle speed [km/h], retarder torque [N m]. Outputs (`gvs_outputs`): `T_c[28]`
+the published component temperatures [degC] (order: the CAN outputs' component ids), `level[28]` 0 normal,
+1 warning, 2 critical, 3 not available, `degraded_mode` 0 normal, 1 oil modelled, 2 drive inputs missing (holding),
+the validity bits, the modelled sump and the oil innovation (measured - model) [K], and `rejects[13]` the cumulative
+counters of rejected or repaired inputs (speed_missing, speed_clamped, torque_missing, torque_clamped,
+gear_missing, gear_unknown, oil_missing, oil_implausible, oil_frozen, drive_frozen, aux_missing, time_jump,
+time_backward).
+
+Bad input never produces a NaN temperature: a missing or implausible value is held, clamped or replaced by its
+default and counted; drive inputs missing for more than 10 s make every level 3 (not available).
+
+**Time to limit**: not computed in this build (it needs an eigen-decomposition of the held-input network, done on a
+host); `ttl_s` is NaN and the early warning is off (warnings fire at the limits themselves, with hysteresis and
+debounce).
+
+Thread safety: the functions keep no global state; one `gvs_state` per sensor, not shared between threads without
+a lock. Persisting the state across ignition cycles: `gvs_state` is plain data; write it (with a CRC and the kernel
+source id above) on shutdown and restore it at start-up, or start cold with `gvs_sensor_init`.
+"""
+
+STARTUP = """/* Minimal start-up of an ARM Cortex-M4F as QEMU's mps2-an386 board emulates it: the vector table, the FPU
+ * switched on, then newlib's _start (with semihosting, printf and the exit status reach the host). */
+#include <stdint.h>
+extern void _start(void);
+extern uint32_t __stack;
+void Reset_Handler(void);
+void Default_Handler(void);
+
+void Default_Handler(void) { for (;;) {} }
+
+void Reset_Handler(void)
+{
+    *(volatile uint32_t *)0xE000ED88u |= 0xFu << 20;   /* CPACR: CP10 and CP11 full access (the FPU) */
+    __asm volatile ("dsb\\n\\tisb");
+    _start();
+    for (;;) {}
+}
+
+typedef void (*vector_t)(void);
+__attribute__((section(".isr_vector"), used))
+const uintptr_t vector_table[16] = {
+    (uintptr_t)&__stack, (uintptr_t)Reset_Handler, (uintptr_t)Default_Handler, (uintptr_t)Default_Handler,
+    (uintptr_t)Default_Handler, (uintptr_t)Default_Handler, (uintptr_t)Default_Handler, 0, 0, 0, 0,
+    (uintptr_t)Default_Handler, (uintptr_t)Default_Handler, 0, (uintptr_t)Default_Handler, (uintptr_t)Default_Handler,
+};
+"""
+
+LINKER_SCRIPT = """/* ARM MPS2 AN386 (Cortex-M4) as QEMU emulates it: 4 MB code memory at 0, 4 MB data memory at 0x20000000 */
+MEMORY
+{
+  FLASH (rx)  : ORIGIN = 0x00000000, LENGTH = 4M
+  RAM   (rwx) : ORIGIN = 0x20000000, LENGTH = 4M
+}
+ENTRY(Reset_Handler)
+SECTIONS
+{
+  .isr_vector : { KEEP(*(.isr_vector)) } > FLASH
+  .text : { *(.text*) KEEP(*(.init)) KEEP(*(.fini)) *(.rodata*) . = ALIGN(4); } > FLASH
+  .ARM.exidx : { *(.ARM.exidx* .gnu.linkonce.armexidx.*) } > FLASH
+  .preinit_array : { PROVIDE_HIDDEN(__preinit_array_start = .); KEEP(*(.preinit_array))
+                     PROVIDE_HIDDEN(__preinit_array_end = .); } > FLASH
+  .init_array : { PROVIDE_HIDDEN(__init_array_start = .); KEEP(*(SORT(.init_array.*))) KEEP(*(.init_array))
+                  PROVIDE_HIDDEN(__init_array_end = .); } > FLASH
+  .fini_array : { PROVIDE_HIDDEN(__fini_array_start = .); KEEP(*(.fini_array))
+                  PROVIDE_HIDDEN(__fini_array_end = .); } > FLASH
+  .data : { *(.data*) . = ALIGN(4); } > RAM
+  .bss (NOLOAD) : { __bss_start__ = .; *(.bss*) *(COMMON) . = ALIGN(4); __bss_end__ = .; } > RAM
+  end = .;
+  __end__ = .;
+  __stack = ORIGIN(RAM) + LENGTH(RAM);
+}
+"""
+
+FOOTPRINT = """/* The sensor linked alone for its footprint: one state, steps. With -DGVS_STACK_PROBE (semihosting build) it
+ * also measures the stack the step uses: the region below the caller's frame is painted, the steps run, and the
+ * deepest word written is the high-water mark (the step, the maths library and everything they call). */
+#include <math.h>
+#include <stdint.h>
+#include "gvs_sensor.h"
+#ifdef GVS_STACK_PROBE
+#include <stdio.h>
+#endif
+static gvs_state state;
+volatile double in_speed = 1300.0, in_oil = 80.0;
+volatile float sink;
+
+static void steps(void)
+{
+    gvs_inputs in;
+    gvs_outputs out;
+    int i, k;
+    for (i = 0; i < GVS_N_INPUTS; ++i) in.raw[i] = 20.0;
+    in.raw[GVS_I_GEAR] = 9.0;
+    in.t_s = NAN;
+    for (k = 0; k < 50; ++k) {        /* moving speed and oil: new conductance bins, every law evaluated */
+        in.raw[GVS_I_SPEED] = in_speed + 37.0 * k;
+        in.raw[GVS_I_TORQUE] = 100.0 * k;
+        in.raw[GVS_I_OIL] = k == 20 ? NAN : in_oil + 0.3 * k;
+        gvs_sensor_step(&state, &in, &out);
+    }
+    sink = out.T_c[0];
+}
+
+int main(void)
+{
+    gvs_sensor_init(&state, in_oil);
+#ifdef GVS_STACK_PROBE
+    {
+        enum { PAINT_WORDS = 2048 };
+        volatile uint32_t *top = (volatile uint32_t *)__builtin_frame_address(0) - 64, *p;
+        uint32_t used;
+        for (p = top - PAINT_WORDS; p < top; ++p) *p = 0xDEADBEEFu;
+        steps();
+        for (p = top - PAINT_WORDS; p < top && *p == 0xDEADBEEFu; ++p) {}
+        used = (uint32_t)((top - p) * 4u);
+        printf("stack used by the steps: %lu bytes (high-water mark)\\nstate: %lu bytes\\n", (unsigned long)used,
+               (unsigned long)sizeof state);
+    }
+#else
+    steps();
+#endif
+    return 0;
+}
+"""
