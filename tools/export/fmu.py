@@ -1,0 +1,182 @@
+"""`gearbox-vsensor export-fmu`: the onboard sensor as an FMI 2.0 co-simulation FMU for HIL and SIL rigs.
+
+Built from the same C as the ECU export (tools.export.c_bundle): the kernel, the variant's generated tables (double)
+and a small FMI wrapper (tools.export.fmu_source). Inside the FMU: ``modelDescription.xml``, the binary for this
+platform (compiled here with the C compiler on the PATH) and the sources (an importer can rebuild it for another
+platform). Communication step: 0.1 s or a multiple of it. Variables are named as the run-table columns
+(docs/interfaces.md section 3): inputs ``engine_speed_rpm`` ... ``retarder_torque_nm``; outputs ``T_<id>_c``,
+``W_<id>``, ``ttl_<id>_s`` for every published component, ``degraded_mode``, ``valid_flags``, ``frozen_flags``,
+``model_oil_temp_c``, ``oil_innovation_c``, ``rejects_<reason>``; parameters ``variant``, ``initial_temp_c`` and the
+limits ``limit_warning_<id>_c`` / ``limit_critical_<id>_c``. The FMI 2 headers come from FMPy (``pip install fmpy``,
+the optional extra ``fmu``), which also validates and simulates the FMU in the tests.
+
+The time to limit is not computed by the compiled kernel (docs/sensor.md): ``ttl_<id>_s`` is NaN and the early
+warning is off in the FMU.
+"""
+from __future__ import annotations
+
+import hashlib
+import os
+import platform
+import shutil
+import subprocess
+import sys
+import tempfile
+import zipfile
+from pathlib import Path
+from xml.sax.saxutils import escape
+
+from firmware_model.components import PUBLISHED, describe
+from firmware_model.errors import InputError
+from firmware_model.onboard.ckernel import SOURCE_DIR, compiler
+from firmware_model.onboard.records import REJECT_REASONS
+from tools.export.fmu_source import FMU_C
+
+MODEL_ID = "gearbox_vsensor"
+#: value-reference blocks (the C wrapper gets the same numbers through @BLOCKS@)
+VR = dict(VR_INPUT=0, VR_T=100, VR_TTL=200, VR_MODEL_OIL=300, VR_INNOVATION=301, VR_LEVEL=400, VR_MODE=500,
+          VR_VALID=501, VR_FROZEN=502, VR_REJECT=510, VR_WARNING=600, VR_CRITICAL=700, VR_INITIAL_TEMP=800,
+          VR_VARIANT=900)
+#: start values of the inputs (speed, torque and gear 0; oil and the auxiliary inputs not available)
+INPUT_START = (0.0, 0.0, 0.0) + (float("nan"),) * 5
+
+
+def _fmi_headers() -> Path:
+    try:
+        import fmpy
+    except ImportError:
+        raise InputError("export-fmu needs FMPy for the FMI 2 headers: pip install fmpy (or the extra "
+                         "gearbox-vsensor[fmu])") from None
+    return Path(fmpy.__file__).resolve().parent / "c-code"
+
+
+def _platform_dir() -> str:
+    bits = "64" if sys.maxsize > 2 ** 32 else "32"
+    return {"Linux": "linux", "Darwin": "darwin", "Windows": "win"}.get(platform.system(), "linux") + bits
+
+
+def _variables(limits) -> list[tuple]:
+    """(name, vr, type, causality, variability, start or None, description) of every variable."""
+    from firmware_model.service.options import SENSOR_INPUTS
+    v = [(col, VR["VR_INPUT"] + i, "Real", "input", "continuous", INPUT_START[i], f"sensor input {field}")
+         for i, (field, col) in enumerate(SENSOR_INPUTS)]
+    for i, c in enumerate(PUBLISHED):
+        v.append((f"T_{c}_c", VR["VR_T"] + i, "Real", "output", "discrete", None, f"{describe(c)} [degC]"))
+    for i, c in enumerate(PUBLISHED):
+        v.append((f"W_{c}", VR["VR_LEVEL"] + i, "Integer", "output", "discrete", None,
+                  f"warning level of {c}: 0 normal, 1 warning, 2 critical, 3 not available"))
+    for i, c in enumerate(PUBLISHED):
+        v.append((f"ttl_{c}_s", VR["VR_TTL"] + i, "Real", "output", "discrete", None,
+                  f"time to the warning limit of {c} [s] (NaN: not computed by the compiled core)"))
+    v += [("model_oil_temp_c", VR["VR_MODEL_OIL"], "Real", "output", "discrete", None, "the open-loop twin's sump"),
+          ("oil_innovation_c", VR["VR_INNOVATION"], "Real", "output", "discrete", None, "measured - model oil [K]"),
+          ("degraded_mode", VR["VR_MODE"], "Integer", "output", "discrete", None,
+           "0 normal, 1 oil modelled, 2 drive inputs missing (holding)"),
+          ("valid_flags", VR["VR_VALID"], "Integer", "output", "discrete", None, "bit i: input i valid this step"),
+          ("frozen_flags", VR["VR_FROZEN"], "Integer", "output", "discrete", None, "bit i: input i frozen")]
+    v += [(f"rejects_{r}", VR["VR_REJECT"] + i, "Integer", "output", "discrete", None,
+           f"inputs rejected or repaired so far: {r}") for i, r in enumerate(REJECT_REASONS)]
+    for i, c in enumerate(PUBLISHED):
+        v.append((f"limit_warning_{c}_c", VR["VR_WARNING"] + i, "Real", "parameter", "fixed",
+                  float(limits.warning_c[i]), f"warning limit of {c} [degC]"))
+        v.append((f"limit_critical_{c}_c", VR["VR_CRITICAL"] + i, "Real", "parameter", "fixed",
+                  float(limits.critical_c[i]), f"critical limit of {c} [degC]"))
+    v.append(("initial_temp_c", VR["VR_INITIAL_TEMP"], "Real", "parameter", "fixed", float("nan"),
+              "start temperature of every node [degC] (NaN: the first oil input, else ambient)"))
+    return v
+
+
+def _xml_value(x: float) -> str:
+    return "NaN" if x != x else repr(float(x))
+
+
+def model_description(variant: str, limits, guid: str) -> str:
+    rows, outputs = [], []
+    for k, (name, vr, typ, caus, var, start, desc) in enumerate(_variables(limits), start=1):
+        attrs = f'name="{escape(name)}" valueReference="{vr}" causality="{caus}" variability="{var}"'
+        if caus == "parameter":
+            attrs += ' initial="exact"'
+        inner = f'<{typ} start="{_xml_value(start)}"/>' if start is not None else f"<{typ}/>"
+        rows.append(f'    <ScalarVariable {attrs} description="{escape(desc)}">{inner}</ScalarVariable>')
+        if caus == "output":
+            outputs.append(k)
+    rows.append(f'    <ScalarVariable name="variant" valueReference="{VR["VR_VARIANT"]}" causality="parameter" '
+                f'variability="fixed" initial="exact" description="gearbox variant of the tables">'
+                f'<String start="{escape(variant)}"/></ScalarVariable>')
+    unknowns = "\n".join(f'      <Unknown index="{k}"/>' for k in outputs)
+    return f"""<?xml version="1.0" encoding="UTF-8"?>
+<fmiModelDescription fmiVersion="2.0" modelName="gearbox-vsensor {escape(variant)}" guid="{guid}"
+  description="Onboard virtual temperature sensor of a {escape(variant)} range-splitter gearbox (0.1 s step)"
+  generationTool="gearbox-vsensor export-fmu" variableNamingConvention="flat" numberOfEventIndicators="0">
+  <CoSimulation modelIdentifier="{MODEL_ID}" canHandleVariableCommunicationStepSize="true"
+    canBeInstantiatedOnlyOncePerProcess="false" canNotUseMemoryManagementFunctions="false"/>
+  <DefaultExperiment startTime="0" stepSize="0.1"/>
+  <ModelVariables>
+{chr(10).join(rows)}
+  </ModelVariables>
+  <ModelStructure>
+    <Outputs>
+{unknowns}
+    </Outputs>
+    <InitialUnknowns>
+{unknowns}
+    </InitialUnknowns>
+  </ModelStructure>
+</fmiModelDescription>
+"""
+
+
+def _blocks(variant: str, guid: str) -> str:
+    lines = [f"#define {k} {v}u" for k, v in VR.items()]
+    start = ", ".join("NAN" if x != x else repr(x) for x in INPUT_START)
+    lines += [f"static const double INPUT_START[GVS_N_INPUTS] = {{{start}}};",
+              f'#define GVS_GUID "{guid}"', f'#define GVS_VARIANT "{variant}"']
+    return "\n".join(lines)
+
+
+def export_fmu(out_path, variant: str = "GRS905", config_path=None) -> Path:
+    """Build the FMU at ``out_path`` (a .fmu file, written atomically). Needs a C compiler and FMPy's headers."""
+    from tools.export.c_bundle import export_c
+    headers = _fmi_headers()
+    cc = compiler()
+    if cc is None:
+        raise InputError("export-fmu needs a C compiler (cc, gcc or clang) to build the FMU's binary")
+    out = Path(out_path)
+    if out.suffix != ".fmu":
+        raise InputError(f"{out}: the FMU file name must end in .fmu")
+    with tempfile.TemporaryDirectory() as tmp:
+        bundle = export_c(Path(tmp) / "c", variant=variant, config_path=config_path, real="double")
+        src = Path(tmp) / "fmu" / "sources"
+        src.mkdir(parents=True)
+        for name in ("gvs_kernel.c", "gvs_kernel.h", "gvs_tables.c", "gvs_sensor.c", "gvs_sensor.h"):
+            shutil.copyfile(bundle / name, src / name)
+        guid = "{" + hashlib.sha256((src / "gvs_tables.c").read_bytes()).hexdigest()[:32] + "}"
+        variant_name, limits = _variant_and_limits(variant, config_path)
+        (src / "fmu.c").write_text(FMU_C.replace("@BLOCKS@", _blocks(variant_name, guid)))
+        (Path(tmp) / "fmu" / "modelDescription.xml").write_text(model_description(variant_name, limits, guid))
+        binaries = Path(tmp) / "fmu" / "binaries" / _platform_dir()
+        binaries.mkdir(parents=True)
+        suffix = {"Windows": ".dll", "Darwin": ".dylib"}.get(platform.system(), ".so")
+        cmd = [cc, "-std=c99", "-O2", "-fPIC", "-shared", "-fno-fast-math", f"-I{headers}", f"-I{src}",
+               *(str(src / n) for n in ("gvs_kernel.c", "gvs_tables.c", "gvs_sensor.c", "fmu.c")), "-o",
+               str(binaries / (MODEL_ID + suffix)), "-lm"]
+        res = subprocess.run(cmd, capture_output=True, text=True)
+        if res.returncode != 0:
+            raise InputError(f"the FMU's binary did not compile: {res.stderr.strip()[:400]}")
+        tmp_fmu = out.with_name(out.name + ".tmp")
+        with zipfile.ZipFile(tmp_fmu, "w", zipfile.ZIP_DEFLATED) as z:
+            for p in sorted((Path(tmp) / "fmu").rglob("*")):
+                if p.is_file():
+                    z.write(p, p.relative_to(Path(tmp) / "fmu").as_posix())
+        os.replace(tmp_fmu, out)
+    return out
+
+
+def _variant_and_limits(variant: str, config_path):
+    """The variant name and the warning limits the export uses (as tools.export.c_bundle.export_c)."""
+    from firmware_model.config import load_config
+    from firmware_model.onboard.sensor import VirtualSensor
+    from firmware_model.parameters import load_parameters
+    cfg = load_config(config_path)
+    params = cfg.load_params() if config_path else load_parameters(variant)
+    return params.variant, VirtualSensor(params, config=cfg, core="numpy").limits
