@@ -103,7 +103,7 @@ def _refuse(given: list[str], why: str) -> None:
 
 
 def run(args) -> int:
-    from tools.replay.log import is_can_log
+    from tools.replay.formats import is_can_log
     core_line = apply_core(args)
     if not args.quiet and not args.realtime:
         print(core_line)

@@ -79,7 +79,8 @@ def _table_from_can_log(p: Path, path, config_path) -> RunTable:
     try:
         from firmware_model.service import build_service
         from firmware_model.service.trust import Severity
-        from tools.replay.log import is_can_log, replay_log
+        from tools.replay.formats import is_can_log
+        from tools.replay.log import replay_log
     except ImportError:
         raise InputError(f"{path}: CAN logs need the log decoder (tools/replay/log.py), which is not installed; "
                          f"convert the log to a CSV run table first") from None

@@ -12,6 +12,7 @@
 
 ``.mf4`` needs ``asammdf`` (``pip install 'gearbox-vsensor[mf4]'``); without it the error says so.
 """
+from tools.replay.formats import LOG_SUFFIXES, is_can_log  # noqa: F401 (re-exported)
 from __future__ import annotations
 
 import os
@@ -23,7 +24,6 @@ from firmware_model.errors import InputError
 from tools.replay.pipeline import PIPELINE_MIN_BYTES, feed_pipelined, pipeline_available
 
 #: CAN log suffixes read by python-can's LogReader
-LOG_SUFFIXES = {".log": "candump -L", ".asc": "Vector ASC", ".blf": "Vector BLF", ".mf4": "ASAM MDF 4"}
 #: suffixes --frames-out writes (python-can's Logger)
 FRAMES_OUT_SUFFIXES = (".log", ".asc", ".blf")
 #: gaps between frames longer than this are cut short when a log is played onto a bus [s]
@@ -39,11 +39,6 @@ class LogReplay(NamedTuple):
     decoder_counters: dict
     service_counters: dict
     findings: tuple = ()
-
-
-def is_can_log(path: str | os.PathLike) -> bool:
-    """True for a path whose suffix is a CAN log format (not a CSV run table)."""
-    return Path(path).suffix.lower() in LOG_SUFFIXES
 
 
 def check_log(path: str | os.PathLike) -> Path:
