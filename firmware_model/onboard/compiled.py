@@ -38,6 +38,10 @@ class BufferedState(SensorState):
     buf: np.ndarray
     owner: object
 
+    def __reduce__(self):
+        """Pickled (sent to another process) as a plain SensorState of copies: the buffer and its core stay here."""
+        return SensorState, tuple(np.array(a) for a in self)
+
 
 class TableOutputs(NamedTuple):
     """The outputs of every step of a table (N rows)."""
@@ -68,6 +72,10 @@ class CompiledCore:
         if self.lib.gvs_check_tables(self._tables_p) != 0:
             raise CoreUnavailable("this gearbox's onboard network exceeds the C kernel's capacities")
         self._vehicles: dict = {}
+
+    def __reduce__(self):
+        """Pickled as what it is built from (the library and its pointers are rebuilt in the other process)."""
+        return CompiledCore, (self.sp, self.real)
 
     def _field(self, value, kind: str):
         if kind == "i":

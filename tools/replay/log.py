@@ -12,7 +12,6 @@
 
 ``.mf4`` needs ``asammdf`` (``pip install 'gearbox-vsensor[mf4]'``); without it the error says so.
 """
-from tools.replay.formats import LOG_SUFFIXES, is_can_log  # noqa: F401 (re-exported)
 from __future__ import annotations
 
 import os
@@ -21,6 +20,7 @@ from pathlib import Path
 from typing import Any, Iterator, NamedTuple
 
 from firmware_model.errors import InputError
+from tools.replay.formats import LOG_SUFFIXES, is_can_log  # noqa: F401 (re-exported)
 from tools.replay.pipeline import PIPELINE_MIN_BYTES, feed_pipelined, pipeline_available
 
 #: CAN log suffixes read by python-can's LogReader
