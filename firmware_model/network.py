@@ -505,7 +505,7 @@ class ConductanceEvaluator:
         return self.h_nom * (omega_rad_s / self.omega_nom_rad_s) ** self.exp_splash
 
     def _speeds(self, kind: int, speeds: np.ndarray, floor: float | None = None) -> np.ndarray:
-        omega_rad_s = speeds[self.kp[kind]["speed"].astype(int)]
+        omega_rad_s = speeds[..., self.kp[kind]["speed"].astype(int)]
         return omega_rad_s if floor is None else np.maximum(omega_rad_s, floor)
 
     def _oil_side(self, G, op, speeds, low_range):
@@ -515,7 +515,7 @@ class ConductanceEvaluator:
         i = self.idx[K_SPLASH]            # idle-wheel teeth (group 0) and the output shaft (group 1)
         if i.size:
             h = self._splash_h(self._speeds(K_SPLASH, speeds))
-            G[i] = G0[i] * (h * np.where(kp[K_SPLASH]["group"] == 0, sc.teeth_oil_h, 1.0))
+            G[..., i] = G0[i] * (h * np.where(kp[K_SPLASH]["group"] == 0, sc.teeth_oil_h, 1.0))
         i = self.idx[K_IMM_GEAR]
         if i.size:
             k = kp[K_IMM_GEAR]
@@ -524,25 +524,25 @@ class ConductanceEvaluator:
                 * op.k_w_per_mk / k["R_p"]
             fo = ht.fling_off_hA(k["z"], k["width"], k["h_t"], k["R_p"], k["h_i"], omega_rad_s, op.k_w_per_mk,
                                  op.alpha_m2_s, op.nu_m2_s)
-            G[i] = G0[i] * h + fo.hA_w_per_k
+            G[..., i] = G0[i] * h + fo.hA_w_per_k
         i = self.idx[K_IMM_BRG]
         if i.size:
             Dm = kp[K_IMM_BRG]["Dm"]
             re = ht.reynolds_bearing(Dm, self._speeds(K_IMM_BRG, speeds, MIN_SPEED_RAD_S), op.nu_m2_s)
-            G[i] = G0[i] * (ht.nusselt_rotating_cylinder(re, op.pr) * op.k_w_per_mk / (Dm / 2))
+            G[..., i] = G0[i] * (ht.nusselt_rotating_cylinder(re, op.pr) * op.k_w_per_mk / (Dm / 2))
         i = self.idx[K_BRG_SPLASH]
         if i.size:
             k = kp[K_BRG_SPLASH]
-            G[i] = G0[i] * ht.harris_bearing_h_w_per_m2k(self._speeds(K_BRG_SPLASH, speeds, MIN_SPEED_RAD_S), op.nu_m2_s,
-                                                         k["d_roller"], k["Dm"], op.k_w_per_mk, op.pr)
+            G[..., i] = G0[i] * ht.harris_bearing_h_w_per_m2k(self._speeds(K_BRG_SPLASH, speeds, MIN_SPEED_RAD_S),
+                                                              op.nu_m2_s, k["d_roller"], k["Dm"], op.k_w_per_mk, op.pr)
         i = self.idx[K_RING]
         if i.size:
             if low_range:
-                G[i] = G0[i] * self.h_house
+                G[..., i] = G0[i] * self.h_house
             else:
                 # rotating with the sun at high range: splash (Eq 59), never below the stationary housing value
                 # (the ring always sits in oil; at standstill it must not be thermally isolated)
-                G[i] = G0[i] * np.maximum(self._splash_h(self._speeds(K_RING, speeds)), self.h_house)
+                G[..., i] = G0[i] * np.maximum(self._splash_h(self._speeds(K_RING, speeds)), self.h_house)
 
     def _streams(self, G, op, speeds):
         """Oil-system streams (Eq 65-80): flow linear in layshaft speed, effectiveness-limited."""
@@ -550,37 +550,45 @@ class ConductanceEvaluator:
         if not i.size:
             return
         kp = self.kp[K_STREAM]
-        mdot_tot = self.oil_mass_flow_kg_s(speeds[SPEED_NAMES.index("LS")], op.rho_kg_m3)
+        omega_ls_rad_s = speeds[..., SPEED_NAMES.index("LS")]
+        if np.ndim(omega_ls_rad_s):
+            omega_ls_rad_s = omega_ls_rad_s[..., None]       # a batch of operating points (evaluate)
+        mdot_tot = self.oil_mass_flow_kg_s(omega_ls_rad_s, op.rho_kg_m3)
         mdot = np.maximum(mdot_tot * kp["frac"], 1e-9)
         sub = kp["sub"]
-        h = np.empty(i.size)
+        h = np.empty(np.shape(mdot))
         pipe = sub == S_PIPE
         if pipe.any():
             D = kp["D"][pipe]
-            re = ht.pipe_reynolds(mdot[pipe], op.mu_pa_s, D)
-            h[pipe] = ht.h_from_nusselt_w_per_m2k(ht.pipe_nusselt(re, op.pr, kp["L"][pipe], D), op.k_w_per_mk, D)
+            re = ht.pipe_reynolds(mdot[..., pipe], op.mu_pa_s, D)
+            h[..., pipe] = ht.h_from_nusselt_w_per_m2k(ht.pipe_nusselt(re, op.pr, kp["L"][pipe], D), op.k_w_per_mk, D)
         ch = sub == S_CHANNEL
         if ch.any():
-            h[ch] = ht.channel_h_w_per_m2k(op.k_w_per_mk, kp["D"][ch])
+            h[..., ch] = ht.channel_h_w_per_m2k(op.k_w_per_mk, kp["D"][ch])
         imp = sub == S_IMPOSED
         if imp.any():
-            h[imp] = kp["h"][imp] * self.scales.planet_oil_h
+            h[..., imp] = kp["h"][imp] * self.scales.planet_oil_h
         hA = self.net.link_G0[i] * h
-        G[i] = np.where(mdot_tot > 0, ht.oil_system_conductance_w_per_k(hA, mdot, op.cp_j_per_kgk), 0.0)
+        G[..., i] = np.where(mdot_tot > 0, ht.oil_system_conductance_w_per_k(hA, mdot, op.cp_j_per_kgk), 0.0)
 
     def evaluate(self, T_oil_c: float, speeds: np.ndarray, gear_row: int, mesh_torque_row: np.ndarray,
                  low_range: bool, T_nodes_c: np.ndarray | None = None, T_bc_c: np.ndarray | None = None) -> np.ndarray:
-        """Conductance of every link [W/K]. speeds: |rad/s| per SPEED_NAMES; T_nodes/T_bc for radiation."""
-        G = self.G
+        """Conductance of every link [W/K]. speeds: |rad/s| per SPEED_NAMES; T_nodes/T_bc for radiation.
+
+        ``speeds`` may be a batch (..., len(SPEED_NAMES)) of operating points at the one oil temperature, gear and
+        range: then a new array (..., n_links) is returned, equal element by element to one call per point (the
+        oil properties stay scalars as in a single call; the onboard build tabulates its laws this way)."""
+        speeds = np.asarray(speeds)
+        G = self.G if speeds.ndim < 2 else np.broadcast_to(self.net.link_G0, speeds.shape[:-1] + self.G.shape).copy()
         op = oilprops.oil_properties(T_oil_c)
         i = self.idx[K_CONTACT]           # contacts: active when the mesh carries torque (Eq 45)
         if i.size:
-            G[i] = self.net.link_G0[i] * (mesh_torque_row[self.kp[K_CONTACT]["mesh"].astype(int)] != 0)
+            G[..., i] = self.net.link_G0[i] * (mesh_torque_row[self.kp[K_CONTACT]["mesh"].astype(int)] != 0)
         self._oil_side(G, op, speeds, low_range)
         self._streams(G, op, speeds)
         i = self.idx[K_EXT_CONV]
         if i.size:
-            G[i] = self.net.link_G0[i] * self.h_air * self.scales.housing_air_h
+            G[..., i] = self.net.link_G0[i] * self.h_air * self.scales.housing_air_h
         self._update_radiation(G, T_nodes_c, T_bc_c)
         return G
 
@@ -591,8 +599,8 @@ class ConductanceEvaluator:
             if T_nodes_c is None or T_bc_c is None:
                 h = ht.radiation_h_w_per_m2k(self.eps, 60.0, 40.0)
             else:
-                h = ht.radiation_h_w_per_m2k(self.eps, T_nodes_c[self.ext_rad_a], T_bc_c[self.ext_rad_b])
-            G[i] = self.net.link_G0[i] * h
+                h = ht.radiation_h_w_per_m2k(self.eps, T_nodes_c[..., self.ext_rad_a], T_bc_c[..., self.ext_rad_b])
+            G[..., i] = self.net.link_G0[i] * h
 
     def evaluate_cached(self, T_oil_c, speeds, gear_row, mesh_torque_row, low_range, T_nodes_c, T_bc_c,
                         speed_rtol=0.01, oil_atol_c=0.25):

@@ -417,8 +417,12 @@ class LawGrid(NamedTuple):
     G_ring_low: np.ndarray     # every link at low range, standstill, 60 degC (the ring gear's low-range value)
 
 
-def _law_grid(net: Network, p: Parameters) -> LawGrid:
-    """Tabulate every speed- or oil-dependent link with all shafts at the same speed (each link reads its own)."""
+def law_grid(net: Network, p: Parameters, batched: bool = True) -> LawGrid:
+    """Tabulate every speed- or oil-dependent link with all shafts at the same speed (each link reads its own).
+
+    The full evaluator is called once per oil temperature with every grid speed as a batch; ``batched=False``
+    calls it once per grid point instead (the same numbers bit for bit, ~50x slower; kept as the reference the
+    tests and benchmarks/bench_build.py compare with)."""
     ev = ConductanceEvaluator(net, p, EffectScales())
     speed_abs = np.abs(p.kinematics.speed)                      # (17, 14)
     w_src_max = speed_abs.max(axis=0) * p["engine.max_speed_rad_s"]
@@ -434,17 +438,21 @@ def _law_grid(net: Network, p: Parameters) -> LawGrid:
     bc_dummy = np.full(len(BOUNDARIES), 40.0)
 
     def eval_all(w, T, low_range=False):
-        sp = np.full(len(SPEED_NAMES), float(w))
+        """Every link with all shafts at the speed w (an array of speeds: a batch, see evaluate) [W/K]."""
+        sp = np.repeat(np.asarray(w, dtype=float)[..., None], len(SPEED_NAMES), axis=-1)
         return ev.evaluate(float(T), sp, 0, zero_mt, low_range, T_dummy, bc_dummy).copy()
 
-    tables = {}
-    for s in sorted(set(src_of_link[src_of_link >= 0].tolist())):
-        wmax = max(w_src_max[s], 1e-6)
-        tab = np.empty((N_U, T_GRID_C.size, n_links))
-        for i, ui in enumerate(u):
-            for j, Tj in enumerate(T_GRID_C):
-                tab[i, j] = eval_all(ui * ui * wmax, Tj)
-        tables[s] = tab
+    sources = sorted(set(src_of_link[src_of_link >= 0].tolist()))
+    # one batch per oil temperature: every source's speeds u^2 w_max (the oil properties are scalars per call)
+    w = np.array([[ui * ui * max(w_src_max[s], 1e-6) for ui in u] for s in sources]).reshape(-1)
+    tab = np.empty((len(sources), N_U, T_GRID_C.size, n_links))
+    for j, Tj in enumerate(T_GRID_C):
+        if batched:
+            tab[:, :, j] = eval_all(w, Tj).reshape(len(sources), N_U, n_links)
+        else:
+            for k, wk in enumerate(w):
+                tab[k // N_U, k % N_U, j] = eval_all(wk, Tj)
+    tables = {s: tab[k] for k, s in enumerate(sources)}
     return LawGrid(tables, src_of_link, w_src_max, u, eval_all(0.0, 60.0, low_range=True))
 
 
@@ -662,7 +670,7 @@ def build_reduced(p: Parameters, partition: str | dict = "fine", effects: dict |
     net = build_network(p)
     agg = aggregate(net, partition)
     kin = p.kinematics
-    grid = _law_grid(net, p)
+    grid = law_grid(net, p)
     laws = _Laws(net, agg, p, grid)
     for k in range(len(net.link_a)):
         laws.add_link(k)
