@@ -407,6 +407,8 @@ def write_run_table(table: RunTable, path: str | os.PathLike, formats: Mapping[s
     cols = table.columns
     if not cols:
         raise InputError(f"{os.fspath(path)}: cannot write a run table without columns")
+    if target.suffix.lower() == ".parquet":
+        return write_parquet(table, target)
     fmts = []
     for c in cols:
         f = (formats or {}).get(c) or (TIME_FORMAT if c == "time_s" else DEFAULT_FORMAT)
@@ -428,6 +430,30 @@ def write_run_table(table: RunTable, path: str | os.PathLike, formats: Mapping[s
                 # numbers never contain the letters "nan": every occurrence is a whole NaN cell
                 text = text.replace("nan", "")
             f.write(text)
+    return target
+
+
+def write_parquet(table: RunTable, path: str | os.PathLike) -> Path:
+    """Write ``table`` as Parquet (pyarrow; float64 columns, NaN kept), atomically: several times faster than CSV
+    for the 10 Hz outputs of a long drive. Needs pyarrow (``pip install pyarrow``)."""
+    try:
+        import pyarrow as pa
+        import pyarrow.parquet as pq
+    except ImportError:
+        raise InputError(f"{os.fspath(path)}: writing Parquet needs pyarrow (pip install pyarrow); or write .csv") \
+            from None
+    target = Path(path)
+    directory = target.parent if str(target.parent) else Path(".")
+    if not directory.is_dir():
+        raise InputError(f"{os.fspath(path)}: the directory {os.fspath(directory)} does not exist")
+    arrow = pa.table({c: np.asarray(table[c], dtype=float) for c in table.columns})
+    tmp = target.with_name(f".{target.name}.{os.getpid()}.tmp")
+    try:
+        pq.write_table(arrow, tmp)
+        os.replace(tmp, target)
+    finally:
+        if tmp.exists():
+            tmp.unlink()
     return target
 
 

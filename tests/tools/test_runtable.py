@@ -323,3 +323,15 @@ def test_written_files_get_the_usual_permissions_not_mkstemps_0600(tmp_path):
     finally:
         os.umask(umask)
     assert p.stat().st_mode & 0o777 == 0o644
+
+
+def test_parquet_output_holds_the_same_numbers(tmp_path):
+    """`write_run_table` to .parquet keeps every column at full precision (CSV keeps 10 significant digits)."""
+    pq = pytest.importorskip("pyarrow.parquet", reason="pyarrow is the optional extra `parquet`")
+    from tools.runtable import RunTable, write_run_table
+    t = RunTable({"time_s": np.arange(5) * 0.1, "T_PS_c": np.array([1.0 / 3.0, np.nan, 2.0, -1e-300, 1e300])})
+    path = write_run_table(t, tmp_path / "o.parquet")
+    back = pq.read_table(path)
+    assert back.column_names == ["time_s", "T_PS_c"]
+    np.testing.assert_array_equal(back.column("T_PS_c").to_numpy(), t["T_PS_c"])
+    assert not list(tmp_path.glob(".*tmp"))

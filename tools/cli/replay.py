@@ -46,7 +46,8 @@ def add_subparser(sub):
     p.usage = USAGE
     p.add_argument("input", metavar="LOG_OR_CSV", help="run table (.csv) or CAN log (.log .asc .blf .mf4)")
     p.add_argument("--config", metavar="TOML", help="project configuration (gearbox variant, cooler, [sensor], [can])")
-    p.add_argument("--out", metavar="EST.csv", help="sensor output run table (10 Hz); required, except with --realtime")
+    p.add_argument("--out", metavar="EST.csv", help="sensor output run table (10 Hz; .csv, or .parquet with pyarrow: "
+                                                    "several times faster to write); required, except with --realtime")
     p.add_argument("--plot", metavar="PNG", help="plot of the estimates, warnings and oil innovation")
     p.add_argument("--oil-mode", choices=("measured", "model"),
                    help="measured (default): a valid oil_temp_c is the sump; model: always the modelled sump")
