@@ -91,13 +91,13 @@ def bench_table(params) -> None:
     with tempfile.TemporaryDirectory() as tmp:
         table = ReferencePlant(params).run(get_cycle("mining"), progress=False).table
         src = write_run_table(table, Path(tmp) / "mining.csv")
-        for core in ("c", "numpy"):
+        for core, fmt in (("c", "csv"), ("c", "parquet"), ("numpy", "csv")):
             t0 = time.perf_counter()
             subprocess.run([sys.executable, "-m", "tools.cli", "replay", str(src), "--out",
-                            str(Path(tmp) / f"est_{core}.csv"), "--quiet", "--core", core], check=True, cwd=REPO,
+                            str(Path(tmp) / f"est_{core}.{fmt}"), "--quiet", "--core", core], check=True, cwd=REPO,
                            env=dict(os.environ, PYTHONPATH=str(REPO)))
-            print(f"  --core {core:5s}: {time.perf_counter() - t0:6.2f} s   ({table['time_s'][-1] / 3600:.1f} h "
-                  f"at 10 Hz; target <= 2 s)")
+            print(f"  --core {core:5s} --out .{fmt:7s}: {time.perf_counter() - t0:6.2f} s   "
+                  f"({table['time_s'][-1] / 3600:.1f} h at 10 Hz; target <= 2 s)")
 
 
 def bench_batch(params, steps: int) -> None:
