@@ -169,42 +169,87 @@ def run_on_virtual_bus(params, frames) -> BusRun:
                   r.send_errors if r is not None else 0, RunTable(service.recorded()))
 
 
-def _status_line(t_s: float, d: dict, warn: dict) -> str:
-    """One printed line of what the sensor published at drive time `t_s` (`d`: decoded outputs of one step)."""
+def _ttl_words(ttl_s) -> str:
+    """A time to limit as words: over the limit (0), never (inf), not available (NaN or absent), else seconds."""
+    if ttl_s is None or (isinstance(ttl_s, float) and math.isnan(ttl_s)):
+        return "not available"
+    if ttl_s == math.inf:
+        return "never at this load"
+    if ttl_s <= 0.0:
+        return "over the limit now"
+    return f"{ttl_s:.0f} s to its limit"
+
+
+def _status_line(t_s: float, d: dict, warn: dict, limits) -> str:
+    """One printed line of what the sensor published at drive time `t_s` (`d`: decoded outputs of one step): the
+    components closest to their own warning limits (the limits differ: bearings, sun wheel, gears), with the margin."""
     temps = d.get("temps_c", {})
     ttl = d.get("ttl_s", {})
-    hot = sorted(((v, c) for c, v in temps.items() if v is not None and not math.isnan(v)), reverse=True)[:4]
+    margins = sorted((limits.of(c)[0] - v, c, v) for c, v in temps.items() if c in PUBLISHED and v is not None
+                     and not math.isnan(v))[:3]
     st = d.get("status", {})
-    line = (f"  t={t_s:6.0f} s  oil {temps.get('oil', float('nan')):6.1f} C  hottest: " +
-            ", ".join(f"{c} {v:5.1f}" for v, c in hot))
-    ps_ttl = ttl.get("PS")
-    line += f" | sun TTL {'never' if ps_ttl is None or ps_ttl == math.inf else f'{ps_ttl:.0f} s'}"
-    line += f" | warnings: {', '.join(f'{c}={LEVEL_LABEL[v]}' for c, v in warn.items()) or 'none'}"
+    line = (f"  t={t_s:6.0f} s  oil {temps.get('oil', float('nan')):5.1f} C | closest to their limits: "
+            + ", ".join(f"{c} {v:5.1f} C ({'%.1f K below' % m if m > 0 else '%.1f K OVER' % -m} "
+                        f"{limits.of(c)[0]:.0f})" for m, c, v in margins))
+    if margins:
+        c = margins[0][1]
+        line += f" | {c}: {_ttl_words(ttl.get(c))}"
+    line += f" | warnings: {', '.join(f'{c} {LEVEL_LABEL[v]}' for c, v in warn.items()) or 'none'}"
     if st.get("degraded_mode"):
         dm = st.get("degraded_mode")
         line += f" | degraded: {DEGRADED_LABEL.get(dm, dm)}"
     return line
 
 
-def print_published(outs: list, print_every_s: float, echo: Callable[[str], None]) -> dict:
-    """Decode the sensor's frames per 100 ms step, print a line every `print_every_s` of drive time and the first
-    warnings; returns component -> drive time of its first warning."""
+def _level_events(t_s: float, d: dict, last: dict, limits) -> list[str]:
+    """Lines for every component whose warning level changed at this step, with why (limit, early warning,
+    hysteresis); ``last`` (component -> level) is updated."""
+    from firmware_model.components import describe
+    lines = []
+    temps, ttl = d.get("temps_c", {}), d.get("ttl_s", {})
+    for c, lv in d.get("levels", {}).items():
+        before = last.get(c, LEVEL_NORMAL)
+        if lv == before or lv == LEVEL_NA or before == LEVEL_NA:
+            last[c] = lv
+            continue
+        warn_c, crit_c, hyst_k = limits.of(c)
+        T = temps.get(c, float("nan"))
+        if lv > before:
+            why = (f"at or above its critical limit {crit_c:.0f} C" if lv == LEVEL_CRITICAL else
+                   f"at or above its warning limit {warn_c:.0f} C" if T >= warn_c else
+                   f"early warning: {_ttl_words(ttl.get(c))} of {warn_c:.0f} C at this load")
+            lines.append(f"  t={t_s:6.0f} s  {LEVEL_LABEL[lv]} raised: {describe(c)} {T:.1f} C, {why}")
+        else:
+            edge = (crit_c if before == LEVEL_CRITICAL else warn_c) - hyst_k
+            lines.append(f"  t={t_s:6.0f} s  {LEVEL_LABEL[before]} cleared: {c} {T:.1f} C, below "
+                         f"{edge + hyst_k:.0f} - {hyst_k:g} K hysteresis = {edge:.0f} C")
+        last[c] = lv
+    return lines
+
+
+def print_published(outs: list, print_every_s: float, echo: Callable[[str], None], limits=None) -> dict:
+    """Decode the sensor's frames per 100 ms step; print a line every `print_every_s` of drive time and at the end
+    of the drive, and a line whenever a warning is raised or cleared (with why); returns component -> drive time of
+    its first warning."""
     from can_dbc.adapter import decode_outputs
+    from firmware_model.onboard.warning_levels import load_limits
+    limits = limits or load_limits()
     by_t: dict = {}
     for m in outs:
         by_t.setdefault(round(m.timestamp, 3), []).append(m)
     times = sorted(by_t)
     t_first = times[0] if times else 0.0
-    next_print = 0.0
-    first_warn = {}
-    for ts in times:
+    next_print, first_warn, last_level = 0.0, {}, {}
+    for k, ts in enumerate(times):
         d = decode_outputs(by_t[ts])
         warn = {c: v for c, v in d.get("levels", {}).items() if v in (LEVEL_WARNING, LEVEL_CRITICAL)}
         for c in warn:
             first_warn.setdefault(c, ts - t_first)
-        if ts - t_first + 1e-9 >= next_print:
+        for line in _level_events(ts - t_first, d, last_level, limits):
+            echo(line)
+        if ts - t_first + 1e-9 >= next_print or k == len(times) - 1:
             next_print += print_every_s
-            echo(_status_line(ts - t_first, d, warn))
+            echo(_status_line(ts - t_first, d, warn, limits))
     if first_warn:
         echo("  first warnings (drive time): " + ", ".join(f"{c} at {t:.0f} s" for c, t in sorted(
             first_warn.items(), key=lambda kv: kv[1])))
@@ -244,33 +289,59 @@ def print_accuracy(est: RunTable, echo: Callable[[str], None]) -> None:
 
 
 def plot_demo(est: RunTable, truth: RunTable, path) -> Path:
-    """Sensor estimates (solid) against the plant's truth (dashed), and the worst warning level."""
-    from tools.plots import pyplot, save_figure
+    """The demo's figure: the inputs; sensor estimates (solid) with the plant's truth on top (black dashed) and each
+    component's warning limit (dotted), in two panels; the error sensor - truth; the warning level of every component
+    that raised one, as words."""
+    from firmware_model.components import describe
+    from firmware_model.onboard.warning_levels import load_limits
+    from tools.plots import level_axis, outside_legend, pyplot, save_figure, time_axis
+    from tools.replay.plot import input_panel
+    limits = load_limits()
     plt = pyplot()
-    t = np.asarray(est["time_s"]) / 60.0
-    tt = np.asarray(truth["time_s"]) / 60.0
-    fig, axes = plt.subplots(3, 1, figsize=(12, 10), sharex=True, gridspec_kw={"height_ratios": [3, 3, 1.3]})
-    for ax, comps in zip(axes[:2], (("PS", "PP", "PR", "oil"), ("LI.teeth", "1M.teeth", "2M.teeth", "LL", "BLR"))):
+    t, t_label = time_axis(est["time_s"])
+    tt = time_axis(truth["time_s"])[0] if truth.n else t
+    fig, axes = plt.subplots(5, 1, figsize=(16, 15), sharex=True,
+                             gridspec_kw={"height_ratios": [1.2, 3, 3, 1.5, 1.3]})
+    input_panel(axes[0], tt, truth)
+    axes[0].set_title("Virtual sensor on the CAN bus (solid) vs the reference plant's truth (black dashed); "
+                      "dotted: warning limits")
+    groups = (("PS", "PP", "PR", "oil"), ("LI.teeth", "1M.teeth", "2M.teeth", "LB", "BLR"))
+    for ax, comps in zip(axes[1:3], groups):
         for i, c in enumerate(comps):
-            col = f"C{i}"
             if est.has(f"T_{c}_c"):
-                ax.plot(t, est[f"T_{c}_c"], color=col, lw=1.4, label=f"{c} sensor")
+                ax.plot(t, est[f"T_{c}_c"], color=f"C{i}", lw=1.8, label=f"{describe(c)}: sensor")
             if truth.has(f"T_{c}_c"):
-                ax.plot(tt, truth[f"T_{c}_c"], color=col, lw=0.8, ls="--", label=f"{c} plant (truth)")
+                ax.plot(tt, truth[f"T_{c}_c"], color="k", lw=0.9, ls="--", zorder=5,
+                        label="plant truth" if i == 0 else None)
+            if c != "oil":
+                ax.axhline(limits.of(c)[0], color=f"C{i}", lw=0.8, ls=":")
         ax.set_ylabel("degC")
         ax.grid(alpha=0.3)
-        ax.legend(fontsize=7, ncol=2)
-    axes[0].set_title("Virtual sensor on the CAN bus (solid) vs reference plant truth (dashed)")
-    lv = np.array([np.asarray(est[f"W_{c}"]) for c in PUBLISHED if est.has(f"W_{c}")])
-    if lv.size:
-        m = np.where(lv == LEVEL_NA, LEVEL_NORMAL, lv).max(axis=0)
-        axes[2].step(t, m, where="post", color="crimson")
-        axes[2].set_yticks([LEVEL_NORMAL, LEVEL_WARNING, LEVEL_CRITICAL])
-        axes[2].set_yticklabels(["normal", "warning", "critical"])
-        axes[2].set_ylabel("worst level")
-    axes[2].set_xlabel("drive time [min]")
-    axes[2].grid(alpha=0.3)
-    return save_figure(fig, path, dpi=100)
+        outside_legend(ax)
+    ax = axes[3]
+    for i, c in enumerate(groups[0][:3] + groups[1]):
+        if est.has(f"T_{c}_c") and est.has(f"meas_T_{c}_c"):
+            ax.plot(t, np.asarray(est[f"T_{c}_c"]) - np.asarray(est[f"meas_T_{c}_c"]), lw=0.9, color=f"C{i % 10}",
+                    label=c)
+    ax.axhline(0.0, color="k", lw=0.5)
+    ax.set_ylabel("sensor - truth [K]")
+    ax.grid(alpha=0.3)
+    outside_legend(ax, ncol=2)
+    ax = axes[4]
+    raised = [c for c in PUBLISHED if est.has(f"W_{c}") and np.any(np.isin(est[f"W_{c}"], (LEVEL_WARNING,
+                                                                                           LEVEL_CRITICAL)))]
+    for i, c in enumerate(raised[:8]):
+        lv = np.where(np.asarray(est[f"W_{c}"]) == LEVEL_NA, -1, est[f"W_{c}"])
+        ax.step(t, lv, where="post", lw=1.4, color=f"C{i}", label=describe(c))
+    if raised:
+        outside_legend(ax)
+    else:
+        ax.text(0.5, 0.5, "no warning on this drive", transform=ax.transAxes, ha="center", va="center")
+    level_axis(ax)
+    ax.set_ylabel("warning level")
+    ax.set_xlabel(t_label)
+    ax.grid(alpha=0.3)
+    return save_figure(fig, path, dpi=90)
 
 
 def run_demo(opts: DemoOptions, echo: Callable[[str], None] | None = None) -> BusRun:

@@ -26,6 +26,32 @@ def pyplot():
     return plt
 
 
+#: the time axis of every plot: minutes for drives up to TIME_IN_HOURS_FROM_S, hours beyond
+TIME_IN_HOURS_FROM_S = 2 * 3600.0
+#: warning levels as words on every plot's level axis
+LEVEL_WORDS = {-1: "n/a", 0: "normal", 1: "warning", 2: "critical"}
+
+
+def time_axis(time_s) -> tuple[np.ndarray, str]:
+    """(time values, axis label) for a plot: minutes up to 2 h of drive, hours beyond (the same rule everywhere)."""
+    t = np.asarray(time_s, dtype=float)
+    span = float(np.nanmax(t) - np.nanmin(t)) if t.size else 0.0
+    if span > TIME_IN_HOURS_FROM_S:
+        return t / 3600.0, "time [h]"
+    return t / 60.0, "time [min]"
+
+
+def level_axis(ax) -> None:
+    """Warning levels as words on a y axis (n/a below normal)."""
+    ax.set_yticks(list(LEVEL_WORDS), list(LEVEL_WORDS.values()))
+    ax.set_ylim(-1.4, 2.4)
+
+
+def outside_legend(ax, **kw) -> None:
+    """A legend to the right of the panel, where it hides no curve."""
+    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0, fontsize=7, **kw)
+
+
 def save_figure(fig, path, dpi: int = 110) -> Path:
     """Lay out, write and close a figure; returns the path."""
     fig.tight_layout()
@@ -37,8 +63,8 @@ def save_figure(fig, path, dpi: int = 110) -> Path:
 def plot_temperatures(table, path, title="", prefix="T_"):
     """One panel per component group, the oil in every panel for reference."""
     plt = pyplot()
-    t_h = np.asarray(table["time_s"]) / 3600.0
-    fig, axes = plt.subplots(3, 2, figsize=(13, 10), sharex=True)
+    t_h, t_label = time_axis(table["time_s"])
+    fig, axes = plt.subplots(3, 2, figsize=(15, 10), sharex=True)
     oil = table[f"{prefix}oil_c"] if table.has(f"{prefix}oil_c") else None
     for ax, (grp, ids) in zip(axes.flat, GROUPS.items()):
         for c in ids:
@@ -50,9 +76,9 @@ def plot_temperatures(table, path, title="", prefix="T_"):
         ax.set_title(grp, fontsize=10)
         ax.set_ylabel("degC")
         ax.grid(alpha=0.3)
-        ax.legend(fontsize=7, ncol=4, loc="upper left")
+        outside_legend(ax, ncol=1)
     for ax in axes[-1]:
-        ax.set_xlabel("time [h]")
+        ax.set_xlabel(t_label)
     fig.suptitle(title)
     return save_figure(fig, path)
 
@@ -79,21 +105,21 @@ def plot_heat_budget(table, path, title=""):
     out_cols = {"cooler": "Q_out_cooler_w", "housing convection": "Q_out_housing_convection_w",
                 "housing radiation": "Q_out_housing_radiation_w", "supports": "Q_out_supports_conduction_w",
                 "shafts": "Q_out_shafts_conduction_w", "held/measured sump": "Q_out_oil_boundary_w"}
-    fig, (a1, a2) = plt.subplots(2, 1, figsize=(12, 8), sharex=True)
-    th = t / 3600
+    fig, (a1, a2) = plt.subplots(2, 1, figsize=(14, 8), sharex=True)
+    th, t_label = time_axis(t)
     stack = [smooth(sum(np.asarray(table[c]) for c in cols if table.has(c))) if any(table.has(c) for c in cols)
              else np.zeros_like(t) for cols in gen_groups.values()]
     a1.stackplot(th, np.maximum(np.array(stack), 0) / 1e3, labels=list(gen_groups), alpha=0.85)
     a1.set_ylabel("heat generated [kW]")
-    a1.legend(fontsize=8, loc="upper right")
+    outside_legend(a1)
     a1.grid(alpha=0.3)
     for lab, c in out_cols.items():
         if table.has(c) and np.any(np.asarray(table[c]) != 0):
             a2.plot(th, smooth(table[c]) / 1e3, label=lab)
     a2.axhline(0, color="k", lw=0.5)
     a2.set_ylabel("heat rejected [kW]")
-    a2.set_xlabel("time [h]")
-    a2.legend(fontsize=8)
+    a2.set_xlabel(t_label)
+    outside_legend(a2)
     a2.grid(alpha=0.3)
     fig.suptitle(title)
     return save_figure(fig, path)

@@ -125,11 +125,11 @@ def run(args) -> int:
     if args.plot:
         plot_replay(out, args.plot, f"{variant} onboard sensor, replay of {path.name}")
     if not args.quiet:
+        from tools.replay.summary import summary_lines
         s = summarize(out)
         print(f"replayed {s.span_s:.1f} s in {s.steps} steps -> {dest}")
-        print(f"hottest: {describe(s.hottest)} {s.hottest_c:.1f} degC; highest warning level {s.max_level}; "
-              f"degraded {100 * s.degraded_share:.1f} % of steps; rejected inputs: "
-              + (", ".join(f"{k} {v}" for k, v in s.rejects.items()) or "none"))
+        for line in summary_lines(out):
+            print(line)
     return _report_trust(args, table_findings(out))
 
 
@@ -180,4 +180,8 @@ def _run_log(args, path: Path) -> int:
               f"{table.n} steps of {table['time_s'][-1]:.1f} s -> {result.path}")
         if result.service_counters["time_jumps"]:
             print(f"note: {result.service_counters['time_jumps']} time jumps in the log (see the log messages)")
+        if table.n:
+            from tools.replay.summary import summary_lines
+            for line in summary_lines(table):
+                print(line)
     return _report_trust(args, result.findings)

@@ -18,13 +18,12 @@ DEFAULT_SPEC = {"steady": "steady:gear=4L,rpm=1300,nm=2000,s=3600"}
 
 
 def plot_cycle(name: str, out_dir: Path, seed: int = 0) -> Path:
-    from tools.plots import pyplot
+    from tools.plots import pyplot, time_axis
     plt = pyplot()
     spec = DEFAULT_SPEC.get(name, name)
     tb = get_cycle(spec, seed=seed)
     t = tb.time_s
-    tx = t / 60.0
-    xlabel = "time [min]"
+    tx, xlabel = time_axis(t)
     road = name in ("long_haul", "uphill", "mining")
     n_ax = 5 if road else 4
     fig, axs = plt.subplots(n_ax, 1, figsize=(11, 2.0 * n_ax + 0.6), sharex=True, constrained_layout=True)

@@ -1,43 +1,75 @@
-"""The plot of a sensor replay: the hottest estimates, the highest warning level, the oil innovation."""
+"""The plot of a sensor replay: inputs, the estimates closest to their limits with the limits drawn, the warning
+level of every component that left normal (as words), the oil innovation."""
 from __future__ import annotations
 
 import numpy as np
 
-from firmware_model.components import LEVEL_NA, PUBLISHED
-from firmware_model.units import S_PER_MIN
+from firmware_model.components import LEVEL_NA, PUBLISHED, describe
+
+#: components drawn in the temperature panel: the closest to their own warning limits, this many
+PLOT_CLOSEST = 6
 
 
-#: components drawn in the temperature panel: the hottest this many
-PLOT_HOTTEST = 8
+def _closest_to_limits(out, limits) -> list[str]:
+    """Components ordered by their smallest margin to their own warning limit over the drive."""
+    margin = {c: float(np.nanmin(limits.of(c)[0] - np.asarray(out[f"T_{c}_c"], dtype=float)))
+              for c in PUBLISHED if out.has(f"T_{c}_c") and np.any(np.isfinite(out[f"T_{c}_c"]))}
+    return sorted(margin, key=margin.get)[:PLOT_CLOSEST]
 
 
-def plot_replay(out, path, title: str = "") -> None:
-    """Write a PNG of a sensor output run table: the PLOT_HOTTEST hottest estimates and the measured oil, the
-    highest warning level per step (n/a when no level is available), the oil innovation."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    t_min = out["time_s"] / S_PER_MIN
-    fig, axes = plt.subplots(3, 1, figsize=(11, 9), sharex=True, gridspec_kw={"height_ratios": [3, 1, 1]})
-    ax = axes[0]
-    hottest = sorted(PUBLISHED, key=lambda c: -np.nanmax(out[f"T_{c}_c"]))[:PLOT_HOTTEST]
-    for c in hottest:
-        ax.plot(t_min, out[f"T_{c}_c"], lw=1, label=c)
-    if out.has("oil_temp_c") and np.any(np.isfinite(out["oil_temp_c"])):
-        ax.plot(t_min, out["oil_temp_c"], "k:", lw=1, label="oil (measured)")
-    ax.set_ylabel("temperature [degC]")
-    ax.legend(ncol=3, fontsize=8)
-    ax.set_title(title)
+def input_panel(ax, t, table) -> None:
+    """Engine speed and torque, and the gear on a second axis, with one legend outside the panel."""
+    if table.has("engine_speed_rpm"):
+        ax.plot(t, table["engine_speed_rpm"], lw=0.7, color="tab:blue", label="engine speed [rpm]")
+    if table.has("engine_torque_nm"):
+        ax.plot(t, table["engine_torque_nm"], lw=0.7, color="tab:red", label="engine torque [N m]")
+    ax.set_ylabel("speed, torque")
     ax.grid(alpha=0.3)
-    lev = np.max(np.stack([np.where(out[f"W_{c}"] == LEVEL_NA, -1, out[f"W_{c}"]) for c in PUBLISHED]), axis=0)
-    axes[1].step(t_min, lev, where="post", color="tab:red")
-    axes[1].set_ylabel("max warning")
-    axes[1].set_yticks([-1, 0, 1, 2], ["n/a", "0", "1", "2"])
-    axes[1].grid(alpha=0.3)
-    axes[2].plot(t_min, out["oil_innovation_c"], color="tab:purple", lw=1)
-    axes[2].set_ylabel("oil meas - model [K]")
-    axes[2].set_xlabel("time [min]")
-    axes[2].grid(alpha=0.3)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    handles, labels = ax.get_legend_handles_labels()
+    if table.has("gear"):
+        g = ax.twinx()
+        g.step(t, table["gear"], where="post", lw=0.7, color="tab:green", label="gear (right axis)")
+        g.set_ylabel("gear", color="tab:green")
+        h2, l2 = g.get_legend_handles_labels()
+        handles, labels = handles + h2, labels + l2
+    ax.legend(handles, labels, loc="upper left", bbox_to_anchor=(1.06, 1.0), borderaxespad=0.0, fontsize=7)
+
+
+def plot_replay(out, path, title: str = "", limits=None) -> None:
+    """Write a PNG of a sensor output run table: the inputs; the PLOT_CLOSEST estimates closest to their own warning
+    limits, each with its limit dashed, and the measured oil; the level of every component that left normal, as
+    words; the oil innovation (measured - model)."""
+    from firmware_model.onboard.warning_levels import load_limits
+    from tools.plots import level_axis, outside_legend, pyplot, save_figure, time_axis
+    limits = limits or load_limits()
+    plt = pyplot()
+    t, t_label = time_axis(out["time_s"])
+    fig, axes = plt.subplots(4, 1, figsize=(13, 11), sharex=True, gridspec_kw={"height_ratios": [1.2, 3, 1.3, 1]})
+    input_panel(axes[0], t, out)
+    axes[0].set_title(title)
+    ax = axes[1]
+    for i, c in enumerate(_closest_to_limits(out, limits)):
+        ax.plot(t, out[f"T_{c}_c"], lw=1.1, color=f"C{i}", label=describe(c))
+        ax.axhline(limits.of(c)[0], color=f"C{i}", lw=0.8, ls="--")
+    if out.has("oil_temp_c") and np.any(np.isfinite(out["oil_temp_c"])):
+        ax.plot(t, out["oil_temp_c"], "k:", lw=1, label="oil (measured)")
+    ax.set_ylabel("temperature [degC]\n(dashed: warning limits)")
+    outside_legend(ax)
+    ax.grid(alpha=0.3)
+    ax = axes[2]
+    raised = [c for c in PUBLISHED if out.has(f"W_{c}") and np.any(np.isin(out[f"W_{c}"], (1, 2)))]
+    for i, c in enumerate(raised[:8]):
+        lv = np.where(np.asarray(out[f"W_{c}"]) == LEVEL_NA, -1, out[f"W_{c}"])
+        ax.step(t, lv, where="post", lw=1.2, color=f"C{i}", label=describe(c))
+    if not raised:
+        ax.text(0.5, 0.5, "no warning on this drive", transform=ax.transAxes, ha="center", va="center")
+    level_axis(ax)
+    ax.set_ylabel("warning level")
+    if raised:
+        outside_legend(ax)
+    ax.grid(alpha=0.3)
+    axes[3].plot(t, out["oil_innovation_c"], color="tab:purple", lw=1)
+    axes[3].set_ylabel("oil measured -\nmodel [K]")
+    axes[3].set_xlabel(t_label)
+    axes[3].grid(alpha=0.3)
+    save_figure(fig, path)

@@ -1,0 +1,83 @@
+"""What `gearbox-vsensor replay` prints after a replay, the same for a run table and a CAN log: the component
+closest to its own warning limit (limits differ by component), the warnings raised and for how long, the degraded
+share, and the rejected inputs in words (a table without the auxiliary columns is not an error: defaults are used)."""
+from __future__ import annotations
+
+import numpy as np
+
+from firmware_model.components import LEVEL_CRITICAL, LEVEL_WARNING, PUBLISHED, STEP_S, describe
+
+#: the auxiliary input columns (their absence means defaults, docs/sensor.md "Bad input")
+AUX_COLUMNS = ("ambient_temp_c", "coolant_temp_c", "vehicle_speed_kmh", "retarder_torque_nm")
+#: reject counters in words
+REJECT_WORDS = {
+    "drive_frozen": "speed and torque bit-identical for over 120 s while turning (flagged, still used)",
+    "oil_frozen": "oil reading frozen while the model's sump moved (modelled instead)",
+    "oil_implausible": "oil reading out of range or jumping (modelled instead)",
+    "oil_missing": "oil reading missing (modelled instead)",
+    "speed_clamped": "engine speed outside the engine's range (clamped)",
+    "torque_clamped": "engine torque outside the engine's range (clamped)",
+    "gear_unknown": "gear not an integer in -2..14 (last good gear held)",
+    "time_jump": "forward time jumps (state propagated over the gap)",
+    "time_backward": "frames whose time went back (step skipped)",
+}
+
+
+def _minutes(steps: int) -> str:
+    return f"{steps * STEP_S / 60.0:.1f} min"
+
+
+def _closest_line(out, limits) -> str:
+    margins = {c: float(np.nanmin(limits.of(c)[0] - np.asarray(out[f"T_{c}_c"], dtype=float)))
+               for c in PUBLISHED if out.has(f"T_{c}_c") and np.any(np.isfinite(out[f"T_{c}_c"]))}
+    if not margins:
+        return "closest to its limit: no temperature estimated"
+    c = min(margins, key=margins.get)
+    T = np.asarray(out[f"T_{c}_c"], dtype=float)
+    k = int(np.nanargmax(T))
+    t_min = (out["time_s"][k] - out["time_s"][0]) / 60.0
+    m = margins[c]
+    rel = f"{m:.1f} K below" if m > 0 else f"{-m:.1f} K over"
+    return (f"closest to its limit: {describe(c)}, peak {T[k]:.1f} degC at {t_min:.1f} min, {rel} its warning "
+            f"limit {limits.of(c)[0]:.0f} degC")
+
+
+def _warning_line(out) -> str:
+    parts = []
+    for c in PUBLISHED:
+        if not out.has(f"W_{c}"):
+            continue
+        w = np.asarray(out[f"W_{c}"])
+        n_warn, n_crit = int(np.sum(w == LEVEL_WARNING)), int(np.sum(w == LEVEL_CRITICAL))
+        if n_warn or n_crit:
+            first = int(np.argmax(np.isin(w, (LEVEL_WARNING, LEVEL_CRITICAL))))
+            t0 = (out["time_s"][first] - out["time_s"][0]) / 60.0
+            crit = f", critical {_minutes(n_crit)}" if n_crit else ""
+            parts.append(f"{c} warning {_minutes(n_warn)}{crit} (first at {t0:.1f} min)")
+    return "warnings: " + ("; ".join(parts) if parts else "none")
+
+
+def _reject_line(out) -> str:
+    n = out.n
+    counts = {k[len("rejects_"):]: int(out[k][-1]) for k in out.columns
+              if k.startswith("rejects_") and n and out[k][-1] > 0}
+    words = []
+    aux = counts.pop("aux_missing", 0)
+    if aux:
+        absent = [c for c in AUX_COLUMNS if not out.has(c) or not np.any(np.isfinite(out[c]))]
+        if absent:
+            words.append(f"auxiliary inputs not given ({', '.join(absent)}): defaults used, as documented")
+        else:
+            words.append(f"auxiliary inputs missing or out of range on {aux} steps: defaults used")
+    for k, v in counts.items():
+        words.append(f"{REJECT_WORDS.get(k, k.replace('_', ' '))}: {v} steps")
+    return "rejected or repaired inputs: " + ("; ".join(words) if words else "none")
+
+
+def summary_lines(out, limits=None) -> list[str]:
+    """The lines printed after a replay of ``out`` (the sensor output run table)."""
+    from firmware_model.onboard.warning_levels import load_limits
+    limits = limits or load_limits()
+    degraded = float(np.mean(np.asarray(out["degraded"]) != 0)) if out.n and out.has("degraded") else 0.0
+    return [_closest_line(out, limits), _warning_line(out), f"degraded: {100 * degraded:.1f} % of steps",
+            _reject_line(out)]
