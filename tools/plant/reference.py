@@ -46,10 +46,11 @@ HEAT_OUT_NAMES = ("cooler", "housing_convection", "housing_radiation", "supports
                   "oil_boundary")
 
 
-@dataclass
 #: a run notes the churning correlations' validity only when they left their range for less than this share of it
 CHURN_NOTE_SHARE = 0.99
 
+
+@dataclass
 class SimResult:
     table: RunTable
     nodes: tuple
