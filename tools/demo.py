@@ -188,6 +188,9 @@ def _status_line(t_s: float, d: dict, warn: dict, limits) -> str:
     margins = sorted((limits.of(c)[0] - v, c, v) for c, v in temps.items() if c in PUBLISHED and v is not None
                      and not math.isnan(v))[:3]
     st = d.get("status", {})
+    if st.get("degraded_mode") in (MODE_HOLDING, MODE_NOT_INITIALISED) and t_s < 1.0:
+        return (f"  t={t_s:6.0f} s  starting: no engine speed, torque and gear received yet "
+                f"(degraded: {DEGRADED_LABEL.get(st.get('degraded_mode'))})")
     line = (f"  t={t_s:6.0f} s  oil {temps.get('oil', float('nan')):5.1f} C | closest to their limits: "
             + ", ".join(f"{c} {v:5.1f} C ({'%.1f K below' % m if m > 0 else '%.1f K OVER' % -m} "
                         f"{limits.of(c)[0]:.0f})" for m, c, v in margins))
