@@ -18,6 +18,8 @@ MINIMAL = {
     "diagnose": ["--train", "a.csv", "--test", "b.csv", "--json", "g.json"],
     "bench-diagnosis": [],
     "demo": [],
+    "export-c": ["--out", "d"],
+    "export-fmu": ["--out", "v.fmu"],
 }
 SUBCOMMANDS = build_parser().subcommands
 

@@ -16,7 +16,8 @@ CORE_HELP = ("which onboard step: auto (default: the compiled C kernel when it i
 
 
 def add_core_option(parser) -> None:
-    parser.add_argument("--core", choices=("auto", "c", "numpy"), default="auto", help=CORE_HELP)
+    """``--core`` (default None: auto, so that a command can tell whether it was given)."""
+    parser.add_argument("--core", choices=("auto", "c", "numpy"), default=None, help=CORE_HELP)
 
 
 def apply_core(args) -> str:

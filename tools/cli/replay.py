@@ -18,11 +18,11 @@ from tools.can.bus import add_bus_options, can_subcommand
 
 #: the three ways to call replay; every option is in one of them (tests/tools/test_cli_options.py)
 USAGE = ("%(prog)s CSV --out EST.csv [--config TOML] [--plot PNG] [--oil-mode {measured,model}]\n"
-         "                              [--initial-temp DEGC] [--allow-untrusted] [--quiet]\n"
+         "                              [--initial-temp DEGC] [--core {auto,c,numpy}] [--allow-untrusted] [--quiet]\n"
          "       %(prog)s LOG --out EST.csv [those options] [--processes {1,2}] [--frames-out OUT.log]\n"
          "       %(prog)s LOG --realtime --interface NAME --channel NAME [--bitrate BIT_S] [--speed X] [--quiet]")
 #: options per mode, by argparse dest: those of the offline replay, those of CAN logs offline, those of --realtime
-OFFLINE_OPTIONS = ("out", "plot", "config", "oil_mode", "initial_temp", "allow_untrusted")
+OFFLINE_OPTIONS = ("out", "plot", "config", "oil_mode", "initial_temp", "core", "allow_untrusted")
 LOG_OPTIONS = ("processes", "frames_out")
 REALTIME_OPTIONS = ("realtime", "interface", "channel", "bitrate", "speed")
 
@@ -105,10 +105,11 @@ def _refuse(given: list[str], why: str) -> None:
 
 def run(args) -> int:
     from tools.replay.formats import is_can_log
-    core_line = apply_core(args)
-    if not args.quiet and not args.realtime:
-        print(core_line)
     path = Path(args.input)
+    if not args.realtime:
+        core_line = apply_core(args)
+        if not args.quiet:
+            print(core_line)
     if is_can_log(path):
         return _run_log(args, path)
     if path.suffix.lower() != ".csv":
