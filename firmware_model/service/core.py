@@ -14,7 +14,7 @@ from can_dbc.encoder import OutputEncoder
 from can_dbc.errors import ConfigError
 from can_dbc.j1939 import ID_MAX, pgn_key
 from firmware_model.components import MODE_NOT_INITIALISED, PUBLISHED, STEP_S
-from firmware_model.errors import ParameterError
+from firmware_model.errors import InputError, ParameterError
 from firmware_model.service.options import (GEAR_RANGE, NOMINAL_PERIOD_S, SENSOR_INPUTS, ServiceOptions,
                                             wanted_pgns)
 from firmware_model.service.protocol import StepSensor, check_sensor
@@ -87,6 +87,8 @@ class SensorService:
         # the sensor: a step leaves its slow time-to-limit refresh to finish_pending(), which the live loop runs
         # after the step's frames are sent and every step runs first (so outputs never depend on when)
         self.state = None
+        #: a saved state to start from: (snapshot, wall time off [s]) (firmware_model.service.persist), or None
+        self.restore: tuple | None = None
         self._pending = None
         self._initialised = False
         self._last_dm1: bytes | None = None
@@ -403,7 +405,7 @@ class SensorService:
         if req.kind == StepKind.NOT_INITIALISED:
             return self._not_initialised(req, send)
         if req.kind == StepKind.INITIALISE:
-            self.state = self.sensor.initial_state(T_oil_c=req.inputs.oil_temp_c)
+            self.state = self._initial_state(req.inputs.oil_temp_c)
         nan = math.nan
         fields = {f: (nan if v is None else float(v)) for f, v in zip(StepInputs._fields, req.inputs)}
         inputs = self.sensor.Inputs(**fields, t_s=req.t_s)
@@ -431,6 +433,22 @@ class SensorService:
                          oil_valid=bool(st.oil_valid), ref_torque_valid=ref_torque_nm is not None,
                          oil_innovation_c=_opt_float(st.oil_innovation_c),
                          model_oil_temp_c=_opt_float(st.model_oil_temp_c))
+
+    def _initial_state(self, oil_temp_c):
+        """The first state: the saved one (``restore`` = (snapshot, elapsed wall time), firmware_model.service.
+        persist) cooled for the time off and reconciled with the oil reading, else a cold start from the oil."""
+        restore, self.restore = self.restore, None
+        if restore is not None:
+            snapshot, elapsed_s = restore
+            try:
+                state = self.sensor.initial_state(T_oil_c=oil_temp_c, snapshot=snapshot, elapsed_s=elapsed_s)
+                self.counters["state_restored"] = True
+                self.log.info("sensor state restored, cooled for %.0f s off", elapsed_s)
+                return state
+            except (InputError, ValueError, KeyError, TypeError) as exc:
+                self.counters["state_cold_start"] = str(exc)
+                self.log.warning("saved state not usable (%s): cold start from the oil temperature", exc)
+        return self.sensor.initial_state(T_oil_c=oil_temp_c)
 
     def _not_initialised(self, req: StepRequest, send: bool) -> list:
         inputs = req.inputs

@@ -79,13 +79,15 @@ class LatencyFigures(NamedTuple):
 
 def serve(bus, service: SensorService, *, stop: threading.Event | None = None, duration_s: float | None = None,
           poll_s: float = 0.05, on_sent: Callable | None = None,
-          on_ready: Callable[[], None] | None = None) -> ServeResult:
+          on_ready: Callable[[], None] | None = None, on_tick: Callable[[], None] | None = None) -> ServeResult:
     """Run ``service`` on ``bus`` until ``stop`` is set or ``duration_s`` of wall time passed.
 
     A ``can.Notifier`` thread receives and queues frames (:class:`QueueListener`); this loop, in the calling thread,
     takes them in order, feeds the service and sends what it returns. On stop it drains the queue, stops the
     notifier and returns (the caller shuts the bus down). Send errors (a full transmit queue) are counted and logged
     once per 10 s, never fatal. The wall clock is only used for ``duration_s`` and the CPU figure.
+    ``on_tick``: called after every frame and every empty wait (at least every ``poll_s``): the periodic state save,
+    the health file and the systemd watchdog (firmware_model.service.persist), which check the time themselves.
     """
     stop = stop or threading.Event()
     listener = QueueListener()
@@ -134,8 +136,12 @@ def serve(bus, service: SensorService, *, stop: threading.Event | None = None, d
             except queue.Empty:
                 if listener.errors:
                     raise listener.errors[0]
+                if on_tick is not None:
+                    on_tick()
                 continue
             handle(msg)
+            if on_tick is not None:
+                on_tick()
         else:
             result.reason = "stop"
     finally:

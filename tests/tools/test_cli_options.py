@@ -20,6 +20,8 @@ MINIMAL = {
     "demo": [],
     "export-c": ["--out", "d"],
     "export-fmu": ["--out", "v.fmu"],
+    "status": [],
+    "service-unit": [],
 }
 SUBCOMMANDS = build_parser().subcommands
 

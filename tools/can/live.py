@@ -8,6 +8,7 @@ their own (:class:`SignalWatcher`), never inside the loop's wait for frames, whi
 from __future__ import annotations
 
 import logging
+import os
 import signal
 import threading
 from dataclasses import dataclass
@@ -92,11 +93,63 @@ class LiveSettings:
     filters: bool = True
     rig: bool = False
     rt_priority: int | None = None
+    state_file: str | None = None       # the sensor state across restarts (None: cold start every time)
+    state_period_s: float = 60.0        # save the state this often [s] of wall time (and on shutdown)
+    health_file: str | None = None      # the health `gearbox-vsensor status` reads (None: none written)
 
     def check(self) -> None:
         if self.duration_s is not None and not self.duration_s > 0:
             raise InputError(f"--duration {self.duration_s} must be a positive number of seconds")
+        if not 1.0 <= self.state_period_s <= 86400.0:
+            raise InputError(f"--state-period {self.state_period_s:g} must be within 1..86400 s")
+        for opt, f in (("--state-file", self.state_file), ("--health-file", self.health_file)):
+            if f is not None and not os.path.isdir(os.path.dirname(os.path.abspath(f))):
+                raise InputError(f"{opt} {f}: its directory does not exist")
         check_bitrate(self.bitrate_bit_s)
+
+
+class GatewayHooks:
+    """What a gateway does besides the sensor, from the serve loop's ticks (firmware_model.service.persist): save
+    the state every ``state_period_s`` and at the end, rewrite the health file every second, and keep systemd's
+    watchdog fed (READY=1 once listening, WATCHDOG=1 at half its interval, STOPPING=1 at the end)."""
+
+    def __init__(self, settings: LiveSettings, service):
+        from firmware_model.service.persist import HealthFile, StateStore, watchdog_period_s
+        self.service = service
+        self.store = StateStore(settings.state_file, settings.state_period_s) if settings.state_file else None
+        self.health = HealthFile(settings.health_file) if settings.health_file else None
+        self.watchdog_s = watchdog_period_s()
+        self._last_watchdog = 0.0
+        if self.store is not None:
+            restore = self.store.load(service.sensor)
+            if restore is not None:
+                service.restore = restore
+
+    def ready(self) -> None:
+        from firmware_model.service.persist import sd_notify
+        sd_notify("READY=1")
+
+    def tick(self) -> None:
+        import time
+        from firmware_model.service.persist import sd_notify
+        if self.store is not None:
+            self.store.maybe_save(self.service)
+        if self.health is not None:
+            self.health.maybe_write(self.service, self.store)
+        if self.watchdog_s is not None:
+            now = time.monotonic()
+            if now - self._last_watchdog >= self.watchdog_s:
+                self._last_watchdog = now
+                sd_notify("WATCHDOG=1")
+
+    def finish(self) -> None:
+        from firmware_model.service.persist import sd_notify
+        sd_notify("STOPPING=1")
+        if self.store is not None and self.store.save(self.service):
+            log.info("sensor state saved to %s", self.store.path)
+        if self.health is not None:
+            self.health.last_write_s = None
+            self.health.maybe_write(self.service, self.store)
 
 
 def run_live(settings: LiveSettings):
@@ -111,16 +164,21 @@ def run_live(settings: LiveSettings):
         set_realtime_priority(settings.rt_priority)
     bus = open_bus(settings.interface, settings.channel, settings.bitrate_bit_s, filters)
 
+    hooks = GatewayHooks(settings, service)
+
     def ready():
         log.info("listening on %s %s (%s); sending as source address 0x%02X", settings.interface, settings.channel,
                  "no receive filters" if filters is None else f"{len(filters)} receive filters",
                  service.encoder.source_address)
+        hooks.ready()
 
     try:
         with stop_on_signals() as stop, SignalWatcher(stop):
-            result = serve(bus, service, stop=stop, duration_s=settings.duration_s, on_ready=ready)
+            result = serve(bus, service, stop=stop, duration_s=settings.duration_s, on_ready=ready,
+                           on_tick=hooks.tick)
     finally:
         bus.shutdown()
+        hooks.finish()
     service.log_counters()
     service.log_findings()   # firmware_model.service.trust: time base, source addresses, degraded share
     log.info("stopped (%s): %d frames in, %d frames out, %d send errors, %.1f s, CPU %.1f %% of one core",

@@ -39,6 +39,16 @@ def add_subparser(sub):
                    help="run the receive and step threads with Linux real-time scheduling (SCHED_FIFO, priority "
                         "1..99; needs root or CAP_SYS_NICE), as on a gateway: keeps the step latency low on a busy "
                         "machine")
+    p.add_argument("--state-file", metavar="PATH",
+                   help="keep the sensor state across restarts and ignition cycles: saved every --state-period "
+                        "seconds and on shutdown (atomically), restored at start cooled for the time off and "
+                        "reconciled with the first oil reading; missing, corrupt or another gearbox's: cold start, "
+                        "logged (docs/gateway.md)")
+    p.add_argument("--state-period", type=float, default=60.0, metavar="S",
+                   help="seconds of wall time between state saves (default 60: flash wear)")
+    p.add_argument("--health-file", metavar="PATH",
+                   help="rewrite a health file every second for `gearbox-vsensor status` (uptime, last step, "
+                        "degraded state, counters, age of the last state save)")
     p.set_defaults(func=run)
     return p
 
@@ -47,7 +57,8 @@ def run(args) -> int:
     from tools.can.live import LiveSettings, run_live
     settings = LiveSettings(interface=args.interface, channel=args.channel, bitrate_bit_s=args.bitrate,
                             config_path=args.config, duration_s=args.duration, filters=not args.no_filters,
-                            rig=args.rig, rt_priority=args.rt_priority)
+                            rig=args.rig, rt_priority=args.rt_priority, state_file=args.state_file,
+                            state_period_s=args.state_period, health_file=args.health_file)
     settings.check()
     logging.basicConfig(level=getattr(logging, args.log_level), stream=sys.stderr,
                         format="%(asctime)s %(levelname)s %(name)s: %(message)s")

@@ -1,0 +1,155 @@
+"""The gateway keeps the sensor state across ignition cycles and shows its health (issue: in-vehicle gateway).
+
+State saves are atomic and rate-bounded; a restart restores the state cooled for the time off and reconciled with
+the first oil reading; a missing, corrupt, truncated or foreign file means a cold start, logged and counted; the
+health file feeds `gearbox-vsensor status`; systemd gets READY=1 / WATCHDOG=1 over its notify socket."""
+from __future__ import annotations
+
+import json
+import shutil
+import socket
+import subprocess
+
+import numpy as np
+import pytest
+
+from firmware_model.onboard.sensor import VirtualSensor
+from firmware_model.parameters import load_parameters
+from firmware_model.service import SensorService, ServiceOptions
+from firmware_model.service.persist import HealthFile, StateStore, read_health, sd_notify
+from tests.firmware_model.test_can_service import traffic
+
+
+class Clock:
+    def __init__(self, t=1.0e9):
+        self.t = t
+
+    def __call__(self):
+        return self.t
+
+
+@pytest.fixture(scope="module")
+def params():
+    return load_parameters("GRS905")
+
+
+def _service(params):
+    return SensorService(VirtualSensor(params), ServiceOptions(configured_ref_torque_nm=2000.0))
+
+
+def _drive(svc, t0, t1, oil=80.0):
+    svc.feed_all(traffic(t0, t1, rpm=1500.0, oil=oil, gear=9))
+    svc.finish_pending()
+
+
+def test_saved_state_is_restored_cooled_and_reconciled(params, tmp_path):
+    clock = Clock()
+    first = _service(params)
+    _drive(first, 0.0, 120.0)                                # two minutes of driving: components above the oil
+    store = StateStore(tmp_path / "state.json", period_s=60.0, clock=clock)
+    assert store.save(first) and store.counters["saves"] == 1
+    saved_T = np.array(first.state.T_c)
+    # the gateway restarts 10 minutes later
+    clock.t += 600.0
+    second = _service(params)
+    restore = StateStore(tmp_path / "state.json", clock=clock).load(second.sensor)
+    assert restore is not None and restore[1] == pytest.approx(600.0)
+    second.restore = restore
+    _drive(second, 5000.0, 5001.0, oil=79.0)
+    assert second.counters.get("state_restored") is True
+    cooled = second.sensor.cool_down(saved_T[0], 600.0, 25.0)
+    spread_saved = np.ptp(saved_T[0])
+    assert spread_saved > 2.0                                  # the drive left gradients to keep
+    # after the restart the main copy starts from the cooled state (the oil replaced by the reading), not flat
+    assert np.ptp(np.array(second.state.T_c)[0]) > 0.2 * np.ptp(cooled)
+
+
+@pytest.mark.parametrize("content, reason", [
+    (None, "no saved state"),
+    (b"{\"schema\": \"vsensor-state/1\", \"snap", "unreadable or truncated"),
+    (b"\x00\xff garbage", "unreadable or truncated"),
+    (json.dumps({"schema": "vsensor-state/1", "variant": "GRSO905", "nodes": ["a"]}).encode(), "another gearbox"),
+    (json.dumps({"schema": "something/else"}).encode(), "schema"),
+])
+def test_unusable_state_means_a_counted_cold_start(params, tmp_path, content, reason, caplog):
+    path = tmp_path / "state.json"
+    if content is not None:
+        path.write_bytes(content)
+    store = StateStore(path)
+    svc = _service(params)
+    assert store.load(svc.sensor) is None
+    assert store.counters["cold_starts"] == 1 and reason in store.counters["reason"]
+    assert "cold start" in caplog.text
+    _drive(svc, 0.0, 2.0)                                     # and the sensor starts from the oil as always
+    assert svc.state is not None and np.allclose(np.array(svc.state.T_c)[0, :3], 80.0, atol=1.0)
+
+
+def test_saves_are_atomic_and_rate_bounded(params, tmp_path):
+    clock = Clock()
+    svc = _service(params)
+    store = StateStore(tmp_path / "state.json", period_s=60.0, clock=clock)
+    assert not store.maybe_save(svc)                          # not initialised yet: nothing to save
+    _drive(svc, 0.0, 3.0)
+    assert store.maybe_save(svc)
+    for _ in range(100):                                      # the loop ticks often: at most one write a period
+        clock.t += 0.5
+        store.maybe_save(svc)
+    assert store.counters["saves"] == 1                        # 50 s of ticks: still the first save only
+    clock.t += 20.0
+    assert store.maybe_save(svc) and store.counters["saves"] == 2
+    assert [p.name for p in tmp_path.iterdir()] == ["state.json"]   # no temporary file left behind
+    json.loads((tmp_path / "state.json").read_bytes())
+
+
+def test_a_failing_save_is_counted_not_fatal(params, tmp_path, caplog):
+    svc = _service(params)
+    _drive(svc, 0.0, 3.0)
+    (tmp_path / "state.json").mkdir()                         # the path is a directory: the rename fails
+    store = StateStore(tmp_path / "state.json")
+    assert not store.save(svc) and not store.save(svc)
+    assert store.counters["save_errors"] == 2
+    assert caplog.text.count("cannot save the state") == 1
+
+
+def test_health_file_and_status_command(params, tmp_path, capsys):
+    from tools.cli import main
+    svc = _service(params)
+    _drive(svc, 0.0, 5.0)
+    store = StateStore(tmp_path / "state.json")
+    store.save(svc)
+    health = HealthFile(tmp_path / "health.json")
+    assert health.maybe_write(svc, store)
+    doc = read_health(tmp_path / "health.json")
+    assert doc["steps"] == svc.counters["steps"] and doc["initialised"] and doc["state"]["saves"] == 1
+    assert main(["status", "--health-file", str(tmp_path / "health.json")]) == 0
+    out = capsys.readouterr().out
+    assert "service: running" in out and "sensor: initialised" in out and "1 saves" in out
+    doc["written_wall_s"] -= 60.0
+    (tmp_path / "health.json").write_text(json.dumps(doc))
+    assert main(["status", "--health-file", str(tmp_path / "health.json")]) == 1
+    assert "NOT RUNNING" in capsys.readouterr().out
+    assert main(["status", "--health-file", str(tmp_path / "missing.json")]) == 2
+
+
+def test_sd_notify_reaches_a_notify_socket(tmp_path, monkeypatch):
+    addr = str(tmp_path / "notify")
+    with socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM) as srv:
+        srv.bind(addr)
+        monkeypatch.setenv("NOTIFY_SOCKET", addr)
+        assert sd_notify("READY=1") and sd_notify("WATCHDOG=1")
+        assert srv.recv(64) == b"READY=1" and srv.recv(64) == b"WATCHDOG=1"
+    monkeypatch.delenv("NOTIFY_SOCKET")
+    assert not sd_notify("READY=1")
+
+
+def test_service_unit_passes_systemd_analyze_verify(tmp_path):
+    if shutil.which("systemd-analyze") is None:
+        pytest.skip("systemd-analyze is not installed (apt install systemd)")
+    from tools.can.systemd import unit_text
+    unit = tmp_path / "gearbox-vsensor.service"
+    unit.write_text(unit_text("socketcan", "can0"))
+    res = subprocess.run(["systemd-analyze", "verify", str(unit)], capture_output=True, text=True, timeout=120)
+    assert res.returncode == 0, res.stderr
+    text = unit.read_text()
+    for key in ("Type=notify", "WatchdogSec=", "Restart=on-failure", "DynamicUser=yes", "CapabilityBoundingSet="):
+        assert key in text

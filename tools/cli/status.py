@@ -1,0 +1,63 @@
+"""`gearbox-vsensor status`: the health of a running sensor service, for a technician (docs/gateway.md)."""
+from __future__ import annotations
+
+import argparse
+import time
+
+from firmware_model.errors import InputError
+
+DEFAULT_HEALTH = "/run/gearbox-vsensor/health.json"
+#: a health file older than this says the service is not running (it is rewritten every second) [s]
+STALE_S = 5.0
+
+
+def add_subparser(sub):
+    p = sub.add_parser(
+        "status", help="show the health of a running `gearbox-vsensor run` (uptime, last step, degraded, counters)",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        description="Read the health file a running service rewrites every second (`run --health-file`) and print "
+                    "uptime, the last step's frame time, whether the sensor is initialised, the degraded modes, "
+                    "frame counters, time jumps, the state saves (count, errors, age of the last) and whether the "
+                    "saved state was restored at start. Exit status 0 when the service is running, 1 when the file "
+                    "is stale or missing.")
+    p.add_argument("--health-file", default=DEFAULT_HEALTH, metavar="PATH",
+                   help=f"the service's health file (default {DEFAULT_HEALTH}, as the systemd unit writes it)")
+    p.add_argument("--json", action="store_true", help="print the health document as JSON")
+    p.set_defaults(func=run)
+
+
+def run(args) -> int:
+    import json
+    from firmware_model.service.persist import read_health
+    try:
+        doc = read_health(args.health_file)
+    except FileNotFoundError:
+        raise InputError(f"{args.health_file}: no health file; is `gearbox-vsensor run --health-file "
+                         f"{args.health_file}` running?") from None
+    except (OSError, ValueError) as exc:
+        raise InputError(f"{args.health_file}: not a gearbox-vsensor health file ({exc})") from None
+    age_s = time.time() - float(doc.get("written_wall_s", 0.0))
+    if args.json:
+        print(json.dumps(doc, indent=2))
+    else:
+        for line in status_lines(doc, age_s):
+            print(line)
+    return 0 if age_s <= STALE_S else 1
+
+
+def status_lines(doc: dict, age_s: float) -> list[str]:
+    state = doc.get("state") or {}
+    last = doc.get("last_step_frame_time_s")
+    lines = [f"service: {'running' if age_s <= STALE_S else f'NOT RUNNING (health {age_s:.0f} s old)'}, "
+             f"pid {doc.get('pid')}, uptime {doc.get('uptime_s', 0.0):.0f} s",
+             f"sensor: {'initialised' if doc.get('initialised') else 'waiting for inputs'}, {doc.get('steps', 0)} "
+             f"steps, last step at frame time {'-' if last is None else f'{last:.1f} s'}",
+             f"degraded modes (steps): {doc.get('degraded_mode_steps') or 'none'}; time jumps "
+             f"{doc.get('time_jumps', 0)}; frames sent {doc.get('frames_sent', 0)}",
+             "frames: " + ", ".join(f"{k.replace('_', ' ')} {v}" for k, v in (doc.get("decoder") or {}).items())]
+    if state:
+        age = state.get("last_save_age_s")
+        lines.append(f"state: {state.get('path')}, {state.get('saves', 0)} saves ({state.get('save_errors', 0)} "
+                     f"errors), last {'never' if age is None else f'{age:.0f} s ago'}; cold starts "
+                     f"{state.get('cold_starts', 0)}{' (' + str(state.get('reason')) + ')' if state.get('reason') else ''}")
+    return lines
