@@ -19,6 +19,8 @@ from firmware_model.service.core import SensorService
 LATENCY_KEEP_STEPS = 100_000
 #: send errors are logged at most once per this many seconds of wall time
 SEND_ERROR_LOG_PERIOD_S = 10.0
+#: back-off between attempts to reopen a bus after a receive error [s]: doubling from the first to the last
+REOPEN_BACKOFF_S = (0.5, 30.0)
 
 
 class QueueListener:
@@ -44,6 +46,63 @@ class QueueListener:
         pass
 
 
+class BusLink:
+    """The bus and the notifier that feeds the listener. After a receive error (the interface went down, the
+    controller went bus-off, a read failed) the bus is closed and reopened with ``reopen`` (a factory), with a
+    doubling back-off while it fails; without ``reopen`` the error is raised as before. Each outage is logged once
+    (warning when it starts, info when the bus is back) and counted (``events``); the loop never spins."""
+
+    def __init__(self, bus, listener: QueueListener, reopen: Callable | None = None, log=None):
+        self.bus, self.listener, self.reopen, self.log = bus, listener, reopen, log
+        self.events = {"read_errors": 0, "reopens": 0, "reopen_failures": 0}
+        self.opened_here = False
+        self.notifier = can.Notifier(bus, [listener], timeout=0.1)
+
+    def check(self, stop: threading.Event) -> None:
+        """Raise, or recover from, a receive error the notifier reported."""
+        if not self.listener.errors:
+            return
+        exc = self.listener.errors[0]
+        self.listener.errors.clear()
+        if self.reopen is None:
+            raise exc
+        self.events["read_errors"] += 1
+        if self.log is not None:
+            self.log.warning("CAN receive error (%s): the sensor is blind; reopening the bus with back-off", exc)
+        self.close()
+        try:
+            self.bus.shutdown()           # the failed bus, whoever opened it (a second shutdown is harmless)
+        except (can.CanError, OSError, RuntimeError, ValueError):
+            pass
+        delay_s = REOPEN_BACKOFF_S[0]
+        while not stop.is_set():
+            try:
+                self.bus = self.reopen()
+            except (can.CanError, OSError, ValueError) as err:
+                self.events["reopen_failures"] += 1
+                if self.events["reopen_failures"] == 1 and self.log is not None:
+                    self.log.warning("cannot reopen the bus yet (%s); retrying (failures counted)", err)
+                stop.wait(delay_s)
+                delay_s = min(2.0 * delay_s, REOPEN_BACKOFF_S[1])
+                continue
+            self.opened_here = True
+            self.notifier = can.Notifier(self.bus, [self.listener], timeout=0.1)
+            self.events["reopens"] += 1
+            if self.log is not None:
+                self.log.info("bus reopened after a receive error (%d reopens so far)", self.events["reopens"])
+            return
+
+    def close(self) -> None:
+        """Stop the notifier and shut down a bus this link opened itself (the caller shuts its own down)."""
+        for action in (lambda: self.notifier.stop(timeout=1.0), self.bus.shutdown if self.opened_here else None):
+            if action is None:
+                continue
+            try:
+                action()
+            except (can.CanError, OSError, RuntimeError):
+                pass
+
+
 @dataclass
 class ServeResult:
     """What :func:`serve` did. ``step_latency_s``: per sent step, wall time from the receive timestamp of the frame
@@ -56,6 +115,7 @@ class ServeResult:
     cpu_s: float = 0.0
     reason: str = ""
     step_latency_s: list = field(default_factory=list)
+    bus_events: dict = field(default_factory=dict)
 
     @property
     def cpu_share(self) -> float:
@@ -79,7 +139,8 @@ class LatencyFigures(NamedTuple):
 
 def serve(bus, service: SensorService, *, stop: threading.Event | None = None, duration_s: float | None = None,
           poll_s: float = 0.05, on_sent: Callable | None = None,
-          on_ready: Callable[[], None] | None = None, on_tick: Callable[[], None] | None = None) -> ServeResult:
+          on_ready: Callable[[], None] | None = None, on_tick: Callable[[], None] | None = None,
+          reopen: Callable | None = None) -> ServeResult:
     """Run ``service`` on ``bus`` until ``stop`` is set or ``duration_s`` of wall time passed.
 
     A ``can.Notifier`` thread receives and queues frames (:class:`QueueListener`); this loop, in the calling thread,
@@ -88,13 +149,15 @@ def serve(bus, service: SensorService, *, stop: threading.Event | None = None, d
     once per 10 s, never fatal. The wall clock is only used for ``duration_s`` and the CPU figure.
     ``on_tick``: called after every frame and every empty wait (at least every ``poll_s``): the periodic state save,
     the health file and the systemd watchdog (firmware_model.service.persist), which check the time themselves.
+    ``reopen``: a bus factory; with it a receive error closes and reopens the bus with back-off (:class:`BusLink`)
+    instead of ending the loop.
     """
     stop = stop or threading.Event()
     listener = QueueListener()
     result = ServeResult()
     wall0_s, cpu0_s = time.perf_counter(), time.process_time()
     deadline_s = None if duration_s is None else wall0_s + duration_s
-    notifier = can.Notifier(bus, [listener], timeout=0.1)
+    link = BusLink(bus, listener, reopen, service.log)
     if on_ready is not None:
         on_ready()
     last_err_log_s = -math.inf
@@ -110,7 +173,7 @@ def serve(bus, service: SensorService, *, stop: threading.Event | None = None, d
             return
         for frame in frames:
             try:
-                bus.send(frame)
+                link.bus.send(frame)
                 result.frames_out += 1
                 if on_sent is not None:
                     on_sent(frame)
@@ -134,8 +197,7 @@ def serve(bus, service: SensorService, *, stop: threading.Event | None = None, d
             try:
                 msg = q.get(timeout=poll_s)
             except queue.Empty:
-                if listener.errors:
-                    raise listener.errors[0]
+                link.check(stop)
                 if on_tick is not None:
                     on_tick()
                 continue
@@ -145,7 +207,8 @@ def serve(bus, service: SensorService, *, stop: threading.Event | None = None, d
         else:
             result.reason = "stop"
     finally:
-        notifier.stop(timeout=1.0)
+        link.close()
+        result.bus_events = dict(link.events)
         while True:  # drain what was received before the notifier stopped
             try:
                 handle(q.get_nowait())

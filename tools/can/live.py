@@ -175,15 +175,22 @@ def run_live(settings: LiveSettings):
     try:
         with stop_on_signals() as stop, SignalWatcher(stop):
             result = serve(bus, service, stop=stop, duration_s=settings.duration_s, on_ready=ready,
-                           on_tick=hooks.tick)
+                           on_tick=hooks.tick, reopen=lambda: open_bus(settings.interface, settings.channel,
+                                                                       settings.bitrate_bit_s, filters))
     finally:
-        bus.shutdown()
+        try:
+            bus.shutdown()
+        except (OSError, RuntimeError, ValueError):
+            pass                          # already shut down after a receive error
         hooks.finish()
     service.log_counters()
     service.log_findings()   # firmware_model.service.trust: time base, source addresses, degraded share
     log.info("stopped (%s): %d frames in, %d frames out, %d send errors, %.1f s, CPU %.1f %% of one core",
              {"stop": "signal", "duration": "--duration"}.get(result.reason, result.reason), result.frames_in,
              result.frames_out, result.send_errors, result.wall_s, 100.0 * result.cpu_share)
+    if result.bus_events.get("read_errors"):
+        log.warning("bus: %d receive errors, %d reopens, %d failed reopen attempts", result.bus_events["read_errors"],
+                    result.bus_events["reopens"], result.bus_events["reopen_failures"])
     latency = result.latency()
     if latency is not None:
         log.info("step latency (completing frame received -> its outputs sent): median %.2f ms, p99 %.2f ms, "
