@@ -35,7 +35,10 @@ ALLOWED = {
                  "hot_surroundings", "cold_surroundings", "coolant"},
     "can": {"sensor_source_address", "engine_source_address", "transmission_source_address",
             "retarder_source_address", "ambient_source_address", "engine_reference_torque_nm",
-            "retarder_reference_torque_nm", "gear_map", "output_period_s", "stale_factor", "counter_log_period_s"},
+            "retarder_reference_torque_nm", "gear_map", "output_period_s", "stale_factor", "counter_log_period_s",
+            "name_identity_number", "name_manufacturer_code", "name_ecu_instance", "name_function_instance",
+            "name_function", "name_vehicle_system", "name_vehicle_system_instance", "name_industry_group",
+            "arbitrary_address_capable"},
     "sensor": {"oil_mode", "limits", "debounce_s", "hysteresis_c", "snapshot"},
 }
 

@@ -15,6 +15,7 @@ from can_dbc.errors import ConfigError
 from can_dbc.j1939 import ID_MAX, pgn_key
 from firmware_model.components import MODE_NOT_INITIALISED, PUBLISHED, STEP_S
 from firmware_model.errors import InputError, ParameterError
+from firmware_model.service.netmgmt import AddressClaim
 from firmware_model.service.options import (GEAR_RANGE, NOMINAL_PERIOD_S, SENSOR_INPUTS, ServiceOptions,
                                             wanted_pgns)
 from firmware_model.service.protocol import StepSensor, check_sensor
@@ -92,7 +93,12 @@ class SensorService:
         self._pending = None
         self._initialised = False
         self._last_dm1: bytes | None = None
+        self._last_dm1_frame = None
         self._steps_since_dm1 = 0
+        #: J1939 address claim and requests (live runs: options.address_claim); None: not a network node
+        self.netmgmt = AddressClaim(self.options.j1939_name, self.options.sensor_source_address, self.log) \
+            if self.options.address_claim else None
+        self._claim_started = False
         #: None, or a callable that takes each step's request instead of the sensor half (two-process replay)
         self._sink: Callable[[StepRequest], None] | None = None
         self._meas_names = tuple(f"meas_T_{c}_c" for c in PUBLISHED)
@@ -114,6 +120,8 @@ class SensorService:
         """Use one received frame; returns the frames to send now (possibly none). Never raises on frame content."""
         out: list = []
         timestamp_s = msg.timestamp
+        if self.netmgmt is not None:
+            out.extend(self._network_management(msg))
         if self._drives_time(msg):
             if self._t0_s is None:
                 self._anchor(timestamp_s)
@@ -122,12 +130,30 @@ class SensorService:
                 if due > self.options.max_catchup_steps:
                     self._time_jump(timestamp_s, "forward")
                 else:
+                    n0 = len(out)
                     self._steps(due, out)
+                    if self.netmgmt is not None and not self.netmgmt.can_transmit(timestamp_s):
+                        self.counters["frames_held_no_address"] = self.counters.get("frames_held_no_address", 0) \
+                            + len(out) - n0
+                        del out[n0:]
             elif timestamp_s < self._next_boundary_s - STEP_S - self.options.backward_tolerance_s:
                 self._time_jump(timestamp_s, "backward")
         else:
             self.counters["frames_not_timing"] += 1
         self.decoder.feed_into(msg, self.latest)
+        return out
+
+    def _network_management(self, msg) -> list:
+        """J1939-81/-21 (firmware_model.service.netmgmt): the claim at the first frame, replies to requests and to
+        another node's claim; a new address (arbitrary-address capable) re-addresses the output frames."""
+        out = []
+        if not self._claim_started:
+            self._claim_started = True
+            out.extend(self.netmgmt.start(msg.timestamp))
+        out.extend(self.netmgmt.on_frame(msg, lambda: self._last_dm1_frame))
+        address = self.netmgmt.address
+        if address is not None and address != self.encoder.source_address:
+            self.encoder = OutputEncoder(address)
         return out
 
     def feed_all(self, msgs: Iterable) -> list:
@@ -481,6 +507,7 @@ class SensorService:
                 st["time_base_suspect"] = True
             frames = self.encoder.encode(temps_c, levels, ttl_s, st, timestamp_s=t_step_s)
         dm1 = self.encoder.encode_dm1(levels, timestamp_s=t_step_s)
+        self._last_dm1_frame = dm1
         self._steps_since_dm1 += 1
         payload = bytes(dm1.data)
         if send and (payload != self._last_dm1 or self._steps_since_dm1 >= DM1_PERIOD_STEPS):

@@ -12,6 +12,7 @@ from can_dbc.decoder import input_messages
 from can_dbc.j1939 import receive_filter
 from firmware_model.components import STEP_S
 from firmware_model.errors import ParameterError
+from firmware_model.service.netmgmt import PGN_ADDRESS_CLAIMED, PGN_REQUEST, J1939Name
 from firmware_model.service.records import StepInputs
 
 #: nominal transmission period of each input message [s], the service's staleness clock: J1939-71 defaults (EEC1 is
@@ -53,10 +54,20 @@ def rig_pgns() -> tuple[int, ...]:
     return tuple(message_pgn(name) for name in numbered_messages("RIG_TC_"))
 
 
-def can_filters(rig: bool = False) -> list[dict]:
+def can_filters(rig: bool = False, network: bool = True) -> list[dict]:
     """python-can receive filters for the wanted PGNs: the mask covers the PGN bits only (no priority, no source
-    address; for PDU1 PGNs no destination either); ``rig`` adds the rig thermocouple PGNs."""
-    return [receive_filter(pgn) for pgn in (*wanted_pgns().values(), *(rig_pgns() if rig else ()))]
+    address; for PDU1 PGNs no destination either); ``rig`` adds the rig thermocouple PGNs, ``network`` the J1939
+    network management (Request, Address Claimed)."""
+    extra = (PGN_REQUEST, PGN_ADDRESS_CLAIMED) if network else ()
+    return [receive_filter(pgn) for pgn in (*wanted_pgns().values(), *(rig_pgns() if rig else ()), *extra)]
+
+
+#: config [can] keys of the sensor's J1939 NAME -> J1939Name fields
+NAME_KEYS = {"name_identity_number": "identity_number", "name_manufacturer_code": "manufacturer_code",
+             "name_ecu_instance": "ecu_instance", "name_function_instance": "function_instance",
+             "name_function": "function", "name_vehicle_system": "vehicle_system",
+             "name_vehicle_system_instance": "vehicle_system_instance", "name_industry_group": "industry_group",
+             "arbitrary_address_capable": "arbitrary_address_capable"}
 
 
 def _positive(name: str, value) -> None:
@@ -86,6 +97,9 @@ class ServiceOptions:
     time_base_window_s: float = TIME_BASE_WINDOW_S
     time_base_windows: int = TIME_BASE_WINDOWS
     log_findings: bool = True
+    #: J1939-81 address claim and J1939-21 requests (a live node on a bus; offline replays send nothing)
+    address_claim: bool = False
+    j1939_name: J1939Name = field(default_factory=J1939Name)
 
     def __post_init__(self) -> None:
         _positive("stale_factor", self.stale_factor)
@@ -130,6 +144,16 @@ class ServiceOptions:
                 kw[name] = c[key]
         if "gear_map" in c:
             kw["gear_map"] = parse_gear_map(c["gear_map"])
+        name = {}
+        for key, field_ in NAME_KEYS.items():
+            if key not in c:
+                continue
+            v, flag = c[key], key == "arbitrary_address_capable"
+            if isinstance(v, bool) != flag or (not flag and (not isinstance(v, int) or v < 0)):
+                raise ParameterError(f"can.{key} = {v!r} must be {'true or false' if flag else 'an integer >= 0'}")
+            name[field_] = v
+        if name:
+            kw["j1939_name"] = J1939Name(**name)
         kw.update(overrides)
         return cls(**kw)
 

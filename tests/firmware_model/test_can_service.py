@@ -253,8 +253,9 @@ def test_counters_are_logged_every_period_of_frame_time(caplog):
 
 
 def test_filters_mask_priority_and_source_address():
+    assert len(can_filters(network=False)) == len(wanted_pgns())
     filters = can_filters()
-    assert len(filters) == len(wanted_pgns())
+    assert len(filters) == len(wanted_pgns()) + 2           # + J1939 Request and Address Claimed
 
     def passes(can_id):
         return any((can_id & f["can_mask"]) == (f["can_id"] & f["can_mask"]) for f in filters)
@@ -267,7 +268,7 @@ def test_filters_mask_priority_and_source_address():
     assert passes(can_id_of(0xEC00, 0x00, 7, destination=0x21))  # TP.CM to a node: received, counted as rejected
     for pgn in (0xFECA, 0xFF40, 0xFEF2, 0xF003):
         assert not passes(can_id_of(pgn, 0x00, 6))
-    assert len(can_filters(rig=True)) == len(wanted_pgns()) + 7
+    assert len(can_filters(rig=True, network=False)) == len(wanted_pgns()) + 7
 
 
 # --------------------------------------------------------------------------------------------------- robustness

@@ -158,7 +158,7 @@ def run_live(settings: LiveSettings):
     ``ServeResult``."""
     from firmware_model.service import build_service, can_filters, serve
     settings.check()
-    service = build_service(settings.config_path)
+    service = build_service(settings.config_path, address_claim=True)   # a node on the bus: J1939-81
     filters = can_filters(rig=settings.rig) if settings.filters else None
     if settings.rt_priority is not None:
         set_realtime_priority(settings.rt_priority)
