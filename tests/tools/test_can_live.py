@@ -21,7 +21,7 @@ from firmware_model.components import PUBLISHED
 from tools.can.logsynth import write_can_log
 from tools.replay.log import play_log, read_log, replay_log
 
-from ..firmware_model.sensor_standin import make_sensor, real_sensor_available
+from ..firmware_model.sensor_standin import make_sensor
 
 REPO = Path(__file__).resolve().parents[2]
 GBX_PGNS = set(range(0xFF40, 0xFF50)) | {0xFECA}
@@ -125,7 +125,6 @@ def test_twenty_times_real_time_with_log_timestamps_equals_offline(drive_log):
     assert len(frames) > 390 * 16
 
 
-needs_sensor = pytest.mark.skipif(not real_sensor_available(), reason="firmware_model.onboard.sensor is not there yet")
 
 
 #: `gearbox-vsensor run` as the command line starts it, on a silent bus
@@ -206,7 +205,6 @@ def _sigterm_when_ready(code: str, channel: str, ready: str, stream: str, what: 
     return proc.returncode, out, err
 
 
-@needs_sensor
 @pytest.mark.parametrize("code, ready, stream, what, expected", [
     (_RUN, "listening on virtual", "stderr", "`run`", ("stopped (signal)", "frames seen 0")),
     # CPython 3.11's queue.SimpleQueue.get(timeout) waits forever when a signal handler that runs inside it outlasts
@@ -225,7 +223,6 @@ def test_stops_cleanly_on_sigterm_on_a_silent_bus(code, ready, stream, what, exp
     assert all(e in text for e in expected), text
 
 
-@needs_sensor
 def test_run_bad_interface_is_one_sentence_exit_2():
     env = {**os.environ, "PYTHONPATH": str(REPO) + os.pathsep + os.environ.get("PYTHONPATH", "")}
     p = subprocess.run([sys.executable, "-m", "tools.cli", "run", "--interface", "nosuchbus", "--channel", "x"],

@@ -12,10 +12,6 @@ from can_dbc.adapter import decode_outputs, pgn_of
 from tools.cli import build_parser, main
 from tools.runtable import read_run_table
 
-from ..firmware_model.sensor_standin import real_sensor_available
-
-pytestmark = pytest.mark.skipif(not real_sensor_available(), reason="firmware_model.onboard.sensor is not there yet")
-
 STEADY = "steady:gear=4L,rpm=1300,nm=2000,s=30"
 
 

@@ -10,7 +10,6 @@ import argparse
 import sys
 from pathlib import Path
 
-from firmware_model.components import describe
 from firmware_model.errors import InputError
 from tools.cli.core_option import add_core_option, apply_core
 from tools.can.bus import add_bus_options, can_subcommand

@@ -28,7 +28,7 @@ from xml.sax.saxutils import escape
 
 from firmware_model.components import PUBLISHED, describe
 from firmware_model.errors import InputError
-from firmware_model.onboard.ckernel import SOURCE_DIR, compiler
+from firmware_model.onboard.ckernel import compiler
 from firmware_model.onboard.records import REJECT_REASONS
 from tools.export.fmu_source import FMU_C
 
