@@ -82,8 +82,10 @@ def jump_state(state: SensorState, gap_s, sp: SensorParams, cache: StepCache) ->
         if g > held:
             amb = float(state.hold[v + (I_AMB,)])
             amb = amb if math.isfinite(amb) else float(sp.reduced.bc_default_c[sp.reduced.i_ambient])
+            bc = shutdown_boundaries_c(sp, np.asarray(state.hold[v], dtype=float))
+            bc[sp.reduced.i_ambient] = amb
             for c in (MAIN, TWIN):
-                T[v + (c,)] = cool_down(sp, cache, T[v + (c,)], g - held, amb)
+                T[v + (c,)] = cool_down(sp, cache, T[v + (c,)], g - held, amb, bc)
     return state._replace(T_c=T)
 
 
@@ -132,30 +134,60 @@ def _held_propagate(sp: SensorParams, state: SensorState, v: tuple, copy: int, t
 
 
 def engine_off_modes(sp: SensorParams, cache: StepCache, ambient_c: float) -> HeldModes:
-    """Modes of the engine-off network (no heat, no flow, no cooler, every boundary at ambient), cached per 0.1 K."""
+    """Modes of the engine-off network (no heat, no flow, no cooler; conductances at ambient), cached per 0.1 K."""
     key = ("off", round(ambient_c, 1))
     modes = cache.modes.get(key)
     if modes is None:
-        rp, h = sp.reduced, sp.helpers
-        T_bc_c = np.full(len(BOUNDARIES), float(ambient_c))
-        x, prop, phi = R.oil_row(rp, ambient_c, h)
-        G_w_per_k, _ = R.conductances(rp, 0 - GEAR_MIN, 0.0, x, prop, phi, np.full(rp.n, ambient_c), T_bc_c, None, h)
-        system = linear_system(sp, G_w_per_k, np.zeros(rp.n), np.zeros(rp.n), T_bc_c, ambient_c, 0.0, False, 0.0)
+        system = _engine_off_system(sp, ambient_c, np.full(len(BOUNDARIES), float(ambient_c)))
         modes = cache.modes.put(key, decompose(system.K_w_per_k, system.free, sp.sqrt_C))
     return modes
 
 
-def cool_down(sp: SensorParams, cache: StepCache, T0_c, elapsed_s: float, ambient_c: float):
-    """Node temperatures after ``elapsed_s`` with the engine off: no heat, no flow, no cooler, every boundary at
-    ambient (the engine bay cools too). Exact for the linear engine-off network (every mode, the slowest last)."""
+def _engine_off_system(sp: SensorParams, ambient_c: float, T_bc_c) -> LinearSystem:
+    rp, h = sp.reduced, sp.helpers
+    T_amb_bc_c = np.full(len(BOUNDARIES), float(ambient_c))
+    x, prop, phi = R.oil_row(rp, ambient_c, h)
+    G_w_per_k, _ = R.conductances(rp, 0 - GEAR_MIN, 0.0, x, prop, phi, np.full(rp.n, ambient_c), T_amb_bc_c, None, h)
+    return linear_system(sp, G_w_per_k, np.zeros(rp.n), np.zeros(rp.n), np.asarray(T_bc_c, dtype=float), ambient_c,
+                         0.0, False, 0.0)
+
+
+def cool_down(sp: SensorParams, cache: StepCache, T0_c, elapsed_s: float, ambient_c: float, boundaries_c=None):
+    """Node temperatures after ``elapsed_s`` with the engine off: no heat, no flow, no cooler. The boundaries start
+    at ``boundaries_c`` (their temperatures when the engine stopped, BOUNDARIES order; None: all at ambient) and
+    relax to ambient with the engine's cool-down time constant tau (``boundary.engine_off_tau``): the engine and its
+    coolant stay hot for a short stop and are at ambient after a night.
+
+    Exact for the linear engine-off network: with e = T - T_amb, ``C de/dt = -K e + K d exp(-t/tau)`` (d: the
+    steady excess that the boundaries at shutdown would hold), the particular solution is ``P exp(-t/tau)`` with
+    ``(K - C/tau) P = K d``, and ``T(t) = T_amb + P exp(-t/tau) + Phi(t) (T0 - T_amb - P)`` (Phi: every mode)."""
     T0 = np.asarray(T0_c, dtype=float)
     if elapsed_s <= 0:
         return T0.copy()
     modes = engine_off_modes(sp, cache, ambient_c)
     free = modes.free
+    amb = np.full(len(free), float(ambient_c))
     out = T0.copy()
-    out[free] = modes.propagate(T0[free], np.full(len(free), float(ambient_c)), float(elapsed_s))
+    P = np.zeros(len(free))
+    tau_s = float(sp.reduced.engine_off_tau_s)
+    if boundaries_c is not None and math.isfinite(tau_s) and tau_s > 0:
+        system = _engine_off_system(sp, ambient_c, boundaries_c)
+        K = system.K_w_per_k[np.ix_(free, free)]
+        d = modes.steady(system.b_w[free]) - amb
+        C = (sp.sqrt_C[free] ** 2)
+        P = np.linalg.solve(K - np.diag(C / tau_s), K @ d)
+    out[free] = modes.propagate(T0[free] - P, amb, float(elapsed_s)) + P * math.exp(-float(elapsed_s) / tau_s)
     return out
+
+
+def shutdown_boundaries_c(sp: SensorParams, hold) -> np.ndarray:
+    """The boundary temperatures (BOUNDARIES order) the step used when the engine stopped: the defaults of the
+    parameter file with the last ambient and coolant readings (``hold``: the state's held inputs of one vehicle)."""
+    T_bc_c = np.array(np.asarray(sp.T_bc_default_c, dtype=float).reshape(-1, len(BOUNDARIES))[0])
+    rp = sp.reduced
+    T_bc_c[rp.i_ambient] = _held(hold, I_AMB, float(sp.aux_default[0]))
+    T_bc_c[rp.i_coolant] = _held(hold, I_COOL, float(sp.aux_default[1]))
+    return T_bc_c
 
 
 def slowest_time_constant_s(sp: SensorParams, cache: StepCache, ambient_c: float = 25.0) -> float:

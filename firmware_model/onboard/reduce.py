@@ -71,6 +71,9 @@ from firmware_model.units import KELVIN_OFFSET_K, RAD_S_PER_RPM, RPM_PER_RAD_S, 
 RPM = RAD_S_PER_RPM
 #: fixed step of the onboard model [s] (firmware_model.components.STEP_S)
 DT_S = STEP_S
+#: engine-off relaxation of the boundary temperatures to ambient [s] when the parameter file has no
+#: boundary.engine_off_tau (assumed: a heavy diesel's block and coolant, ~0.65 MJ/K, losing ~180 W/K at rest)
+ENGINE_OFF_TAU_S = 3600.0
 #: the stability check requires dt <= STABILITY_MARGIN x min_i C_i / max sum_j G_ij
 STABILITY_MARGIN = 0.8
 #: oil temperature range over which stability is guaranteed [degC]
@@ -218,6 +221,7 @@ class ReducedParams(NamedNodes):
     flow_m3_per_rad: float           # oil-system flow per radian of layshaft rotation
     # --- boundaries
     bc_default_c: np.ndarray         # (nb,)
+    engine_off_tau_s: float          # with the engine off, the boundaries relax to ambient with this time constant
     i_ambient: int
     i_coolant: int
     i_hot: int
@@ -693,6 +697,7 @@ def build_reduced(p: Parameters, partition: str | dict = "fine", effects: dict |
         cooler_code=COOLER_CODES.get(kind, 0), cooler=cooler_values(p),
         flow_m3_per_rad=float(p["oil_system.flow_m3_per_rad"]),
         bc_default_c=_ro(np.array([p[f"boundary.{b}"] for b in BOUNDARIES])),
+        engine_off_tau_s=float(p.get("boundary.engine_off_tau", ENGINE_OFF_TAU_S)),
         i_ambient=BOUNDARIES.index("ambient"), i_coolant=BOUNDARIES.index("coolant"),
         i_hot=BOUNDARIES.index("hot_surroundings"),
         max_speed_rpm=float(p["engine.max_speed_rad_s"] / RPM), min_torque_nm=float(p["engine.min_torque"]),

@@ -24,7 +24,7 @@ from firmware_model.errors import ParameterError
 from firmware_model.onboard import reduce as R
 from firmware_model.onboard.blas import limit_blas_threads
 from firmware_model.onboard.core_select import select_core, step_table_numpy
-from firmware_model.onboard.held_inputs import cool_down
+from firmware_model.onboard.held_inputs import cool_down, shutdown_boundaries_c
 from firmware_model.onboard.params import SensorParams
 from firmware_model.onboard.records import (I_AMB, I_GEAR, I_OIL, I_SPEED, I_TORQUE, INPUT_FIELDS, MAIN, N_INPUTS,
                                             N_PUB, N_REJECT, REJECT_REASONS, TWIN, SensorInputs, SensorOptions,
@@ -133,8 +133,10 @@ class VirtualSensor:
         T = np.array(st.T_c, dtype=float, copy=True)
         if elapsed_s and elapsed_s > 0:
             for v in np.ndindex(T.shape[:-2]):
+                bc = shutdown_boundaries_c(self.sp, np.asarray(st.hold[v], dtype=float))
+                bc[rp.i_ambient] = amb
                 for c in (MAIN, TWIN):
-                    T[v + (c,)] = cool_down(self.sp, self.cache, T[v + (c,)], float(elapsed_s), amb)
+                    T[v + (c,)] = cool_down(self.sp, self.cache, T[v + (c,)], float(elapsed_s), amb, bc)
         if T_oil_c is not None and np.all(np.isfinite(np.asarray(T_oil_c, dtype=float))):
             meas = np.broadcast_to(np.asarray(T_oil_c, dtype=float), T.shape[:-2])
             off = np.abs(T[..., MAIN, rp.i_oil] - meas) > 10.0
@@ -179,9 +181,9 @@ class VirtualSensor:
             return self.compiled.step_table(state, raw, t, self.cache)
         return step_table_numpy(self, state, raw, t)
 
-    def cool_down(self, T0_c, elapsed_s: float, ambient_c: float):
+    def cool_down(self, T0_c, elapsed_s: float, ambient_c: float, boundaries_c=None):
         """Node temperatures of one network copy after ``elapsed_s`` with the engine off (held_inputs.cool_down)."""
-        return cool_down(self.sp, self.cache, T0_c, elapsed_s, ambient_c)
+        return cool_down(self.sp, self.cache, T0_c, elapsed_s, ambient_c, boundaries_c)
 
     # -- snapshots and figures
 

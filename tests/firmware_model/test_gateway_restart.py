@@ -1,0 +1,33 @@
+"""Hot restart against the reference plant (issue: in-vehicle gateway): a climb, the ignition off for 10 minutes
+(the service's state saved, the plant computing on with the engine stopped and the engine-side boundaries cooling),
+then the service restarts. The first temperatures it publishes, restored from the saved state, must be within 2 K of
+the plant's on every component, and far better than a cold start from the oil reading. benchmarks/bench_restart.py
+prints the same comparison (longer drives and stops)."""
+from __future__ import annotations
+
+import importlib.util
+from pathlib import Path
+
+import numpy as np
+
+BENCH = Path(__file__).resolve().parents[2] / "benchmarks" / "bench_restart.py"
+
+
+def _bench():
+    spec = importlib.util.spec_from_file_location("bench_restart", BENCH)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def test_restored_state_is_within_2_k_of_the_plant_after_a_10_minute_stop():
+    r = _bench().run_restart(drive_s=600.0, off_s=600.0)
+    restored = np.abs(r.restored_err_k)
+    cold = np.abs(r.cold_err_k)
+    print(f"\nhot restart after 600 s off: worst restored {restored.max():.2f} K "
+          f"({r.components[int(restored.argmax())]}), worst cold start {cold.max():.2f} K "
+          f"({r.components[int(cold.argmax())]})")
+    assert any("restored" in line for line in r.restored_log.splitlines())
+    assert np.all(np.isfinite(r.restored_c)) and np.all(np.isfinite(r.cold_c))
+    assert restored.max() <= 2.0
+    assert cold.max() > 5.0 * restored.max()      # the climb left gradients that a cold start cannot know
