@@ -19,8 +19,15 @@ from firmware_model.service.core import SensorService
 LATENCY_KEEP_STEPS = 100_000
 #: send errors are logged at most once per this many seconds of wall time
 SEND_ERROR_LOG_PERIOD_S = 10.0
-#: back-off between attempts to reopen a bus after a receive error [s]: doubling from the first to the last
+#: back-off between attempts to reopen a bus that cannot be opened [s]: doubling from the first to the last
 REOPEN_BACKOFF_S = (0.5, 30.0)
+#: after a receive error the loop first resumes reading the same bus after this delay [s], doubling while errors
+#: follow each other without a frame; after RESUME_LIMIT such errors it closes and reopens the bus
+RESUME_DELAY_S = 0.1
+RESUME_LIMIT = 3
+#: an outage that stays silent (no frame, no error) is treated as a dead handle: the bus is reopened after the
+#: first of these [s], then with the delay doubling up to the second
+SILENT_REOPEN_S = (1.0, 30.0)
 
 
 class QueueListener:
@@ -32,11 +39,14 @@ class QueueListener:
         # QEMU VM); Queue waits on a lock whose timed acquire keeps its deadline. ~2 us more per frame.
         self.queue: queue.Queue = queue.Queue()
         self.errors: list[BaseException] = []
+        #: frames received so far (only the Notifier's thread writes it)
+        self.received = 0
 
     def __call__(self, msg) -> None:
-        self.queue.put(msg)
+        self.on_message_received(msg)
 
     def on_message_received(self, msg) -> None:
+        self.received += 1
         self.queue.put(msg)
 
     def on_error(self, exc: BaseException) -> None:
@@ -46,30 +56,94 @@ class QueueListener:
         pass
 
 
+@dataclass
+class Outage:
+    """A receive outage of :class:`BusLink`: from the first receive error to the first frame after it."""
+    start_s: float                # monotonic clock
+    frames_at_start: int
+    next_reopen_s: float          # when a silent outage reopens the bus next
+    reopen_delay_s: float
+    consecutive: int = 0          # receive errors since the last frame or reopen
+    errors: int = 0
+
+
 class BusLink:
-    """The bus and the notifier that feeds the listener. After a receive error (the interface went down, the
-    controller went bus-off, a read failed) the bus is closed and reopened with ``reopen`` (a factory), with a
-    doubling back-off while it fails; without ``reopen`` the error is raised as before. Each outage is logged once
-    (warning when it starts, info when the bus is back) and counted (``events``); the loop never spins."""
+    """The bus and the notifier that feeds the listener, and what the loop does when receiving fails (the interface
+    went down, the controller went bus-off, a read failed): it is an *outage* until the next frame arrives, logged
+    once when it starts (warning) and once when it ends (info), and counted (``events``). Within an outage:
+
+    - after a receive error the loop resumes reading the same bus after RESUME_DELAY_S, doubling while errors follow
+      each other without a frame (SocketCAN reports an interface going down once per socket: the socket then waits
+      and receives again as soon as the interface is up, with no frame lost to a reopen);
+    - after RESUME_LIMIT such errors, or when the outage stays silent for SILENT_REOPEN_S (doubling to 30 s: a dead
+      handle), the bus is closed and reopened with ``reopen`` (a factory), with a doubling back-off while it cannot
+      be opened.
+
+    Never a busy loop, never a crash; without ``reopen`` the first error is raised as before."""
 
     def __init__(self, bus, listener: QueueListener, reopen: Callable | None = None, log=None):
         self.bus, self.listener, self.reopen, self.log = bus, listener, reopen, log
-        self.events = {"read_errors": 0, "reopens": 0, "reopen_failures": 0}
+        self.events = {"read_errors": 0, "outages": 0, "resumes": 0, "reopens": 0, "reopen_failures": 0}
         self.opened_here = False
+        self.outage: Outage | None = None
         self.notifier = can.Notifier(bus, [listener], timeout=0.1)
 
     def check(self, stop: threading.Event) -> None:
-        """Raise, or recover from, a receive error the notifier reported."""
-        if not self.listener.errors:
-            return
+        """Raise, or recover from, a receive error the notifier reported; end or escalate an outage."""
+        if self.listener.errors:
+            self._on_error(stop)
+        elif self.outage is not None:
+            self._watch_outage(stop)
+
+    def _on_error(self, stop: threading.Event) -> None:
         exc = self.listener.errors[0]
         self.listener.errors.clear()
         if self.reopen is None:
             raise exc
         self.events["read_errors"] += 1
-        if self.log is not None:
-            self.log.warning("CAN receive error (%s): the sensor is blind; reopening the bus with back-off", exc)
-        self.close()
+        now = time.monotonic()
+        o = self.outage
+        if o is None:
+            o = self.outage = Outage(now, self.listener.received, now + SILENT_REOPEN_S[0], SILENT_REOPEN_S[0])
+            self.events["outages"] += 1
+            if self.log is not None:
+                self.log.warning("CAN receive error (%s): the sensor is blind until frames return; resuming, and "
+                                 "reopening the bus with back-off if it keeps failing", exc)
+        o.errors += 1
+        o.consecutive += 1
+        self._stop_notifier()
+        if o.consecutive >= RESUME_LIMIT:
+            self._reopen(stop)
+        else:
+            stop.wait(RESUME_DELAY_S * 2 ** (o.consecutive - 1))
+            self.events["resumes"] += 1
+        self.notifier = can.Notifier(self.bus, [self.listener], timeout=0.1)
+
+    def _watch_outage(self, stop: threading.Event) -> None:
+        o = self.outage
+        now = time.monotonic()
+        if self.listener.received > o.frames_at_start:
+            self.outage = None
+            if self.log is not None:
+                self.log.info("CAN bus back after %.1f s (%d receive errors, %d reopens so far)", now - o.start_s,
+                              o.errors, self.events["reopens"])
+        elif now >= o.next_reopen_s:
+            self._stop_notifier()
+            self._reopen(stop)
+            self.notifier = can.Notifier(self.bus, [self.listener], timeout=0.1)
+            o.reopen_delay_s = min(2.0 * o.reopen_delay_s, SILENT_REOPEN_S[1])
+            o.next_reopen_s = time.monotonic() + o.reopen_delay_s
+
+    def _stop_notifier(self) -> None:
+        try:
+            self.notifier.stop(timeout=1.0)
+        except (can.CanError, OSError, RuntimeError):
+            pass
+
+    def _reopen(self, stop: threading.Event) -> None:
+        """Close the bus and open a new one, with a doubling back-off while that fails (or until ``stop``)."""
+        if self.outage is not None:
+            self.outage.consecutive = 0
         try:
             self.bus.shutdown()           # the failed bus, whoever opened it (a second shutdown is harmless)
         except (can.CanError, OSError, RuntimeError, ValueError):
@@ -86,19 +160,17 @@ class BusLink:
                 delay_s = min(2.0 * delay_s, REOPEN_BACKOFF_S[1])
                 continue
             self.opened_here = True
-            self.notifier = can.Notifier(self.bus, [self.listener], timeout=0.1)
             self.events["reopens"] += 1
             if self.log is not None:
-                self.log.info("bus reopened after a receive error (%d reopens so far)", self.events["reopens"])
+                self.log.debug("bus reopened (%d reopens so far)", self.events["reopens"])
             return
 
     def close(self) -> None:
         """Stop the notifier and shut down a bus this link opened itself (the caller shuts its own down)."""
-        for action in (lambda: self.notifier.stop(timeout=1.0), self.bus.shutdown if self.opened_here else None):
-            if action is None:
-                continue
+        self._stop_notifier()
+        if self.opened_here:
             try:
-                action()
+                self.bus.shutdown()
             except (can.CanError, OSError, RuntimeError):
                 pass
 
@@ -202,6 +274,8 @@ def serve(bus, service: SensorService, *, stop: threading.Event | None = None, d
                     on_tick()
                 continue
             handle(msg)
+            if link.outage is not None:    # frames again: the outage ends (logged with its length)
+                link.check(stop)
             if on_tick is not None:
                 on_tick()
         else:

@@ -189,7 +189,8 @@ def run_live(settings: LiveSettings):
              {"stop": "signal", "duration": "--duration"}.get(result.reason, result.reason), result.frames_in,
              result.frames_out, result.send_errors, result.wall_s, 100.0 * result.cpu_share)
     if result.bus_events.get("read_errors"):
-        log.warning("bus: %d receive errors, %d reopens, %d failed reopen attempts", result.bus_events["read_errors"],
+        log.warning("bus: %d receive outages, %d receive errors, %d resumes, %d reopens, %d failed reopen attempts",
+                    result.bus_events["outages"], result.bus_events["read_errors"], result.bus_events["resumes"],
                     result.bus_events["reopens"], result.bus_events["reopen_failures"])
     latency = result.latency()
     if latency is not None:

@@ -72,6 +72,7 @@ MODULES = (
     "netfs", "fscache", "9pnet", "9pnet_virtio", "9p",
     "can", "can-raw", "can-dev", "vcan",
     "overlay",  # optional: keeps the host's /tmp visible under the VM's writable /tmp
+    "sch_tbf",  # optional: a token-bucket qdisc on vcan0 makes its transmit queue overflow (ENOBUFS) in a test
 )
 #: Modules without which the VM cannot do its job (the rest may be built in or optional).
 REQUIRED_MODULES = ("9pnet_virtio", "9p", "can", "can-raw", "vcan")
