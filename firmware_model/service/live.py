@@ -221,8 +221,7 @@ def serve(bus, service: SensorService, *, stop: threading.Event | None = None, d
     once per 10 s, never fatal. The wall clock is only used for ``duration_s`` and the CPU figure.
     ``on_tick``: called after every frame and every empty wait (at least every ``poll_s``): the periodic state save,
     the health file and the systemd watchdog (firmware_model.service.persist), which check the time themselves.
-    ``reopen``: a bus factory; with it a receive error closes and reopens the bus with back-off (:class:`BusLink`)
-    instead of ending the loop.
+    ``reopen``: a bus factory; with it a receive error is an outage that :class:`BusLink` rides out.
     """
     stop = stop or threading.Event()
     listener = QueueListener()
@@ -274,8 +273,7 @@ def serve(bus, service: SensorService, *, stop: threading.Event | None = None, d
                     on_tick()
                 continue
             handle(msg)
-            if link.outage is not None:    # frames again: the outage ends (logged with its length)
-                link.check(stop)
+            link.check(stop) if link.outage is not None else None   # frames again: the outage ends
             if on_tick is not None:
                 on_tick()
         else:
