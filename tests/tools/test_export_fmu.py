@@ -1,5 +1,5 @@
-"""`gearbox-vsensor export-fmu`: FMPy validates the FMU and simulates it; its outputs equal the Python reference
-(the numpy step, early warning off as in the compiled export) on 10 minutes of the uphill cycle."""
+"""`gearbox-vsensor export-fmu`: FMPy validates the FMU (FMI 2 and FMI 3) and simulates it; its outputs equal the
+Python reference (the numpy step, early warning off as in the compiled export) on 10 minutes of the uphill cycle."""
 from __future__ import annotations
 
 import shutil
@@ -15,10 +15,10 @@ pytestmark = pytest.mark.skipif(not any(shutil.which(c) for c in ("cc", "gcc", "
                                 reason="export-fmu compiles the FMU's binary: no C compiler here")
 
 
-@pytest.fixture(scope="module")
-def fmu(tmp_path_factory):
-    path = tmp_path_factory.mktemp("fmu") / "vsensor.fmu"
-    assert main(["export-fmu", "--out", str(path), "--quiet"]) == 0
+@pytest.fixture(scope="module", params=["2", "3"], ids=["fmi2", "fmi3"])
+def fmu(request, tmp_path_factory):
+    path = tmp_path_factory.mktemp("fmu") / f"vsensor{request.param}.fmu"
+    assert main(["export-fmu", "--fmi", request.param, "--out", str(path), "--quiet"]) == 0
     return path
 
 
@@ -26,6 +26,7 @@ def test_fmpy_validates_it(fmu):
     from fmpy.validation import validate_fmu
     assert validate_fmu(str(fmu)) == []
     md = fmpy.read_model_description(str(fmu))
+    assert md.fmiVersion == ("3.0" if fmu.stem.endswith("3") else "2.0")
     names = {v.name for v in md.modelVariables}
     assert {"engine_speed_rpm", "T_PS_c", "W_PS", "ttl_PS_s", "degraded_mode", "limit_warning_PS_c",
             "variant"} <= names

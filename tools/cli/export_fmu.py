@@ -1,4 +1,4 @@
-"""`gearbox-vsensor export-fmu`: the onboard sensor as an FMI 2.0 co-simulation FMU (tools.export.fmu)."""
+"""`gearbox-vsensor export-fmu`: the onboard sensor as an FMI 2.0 or 3.0 co-simulation FMU (tools.export.fmu)."""
 from __future__ import annotations
 
 import argparse
@@ -6,9 +6,9 @@ import argparse
 
 def add_subparser(sub):
     p = sub.add_parser(
-        "export-fmu", help="write the onboard sensor as an FMI 2.0 co-simulation FMU for HIL/SIL rigs",
+        "export-fmu", help="write the onboard sensor as an FMI 2.0 or 3.0 co-simulation FMU for HIL/SIL rigs",
         formatter_class=argparse.RawDescriptionHelpFormatter,
-        description="Build an FMI 2.0 co-simulation FMU of the onboard sensor from the compiled C kernel and the "
+        description="Build an FMI 2.0 (default) or FMI 3.0 co-simulation FMU of the onboard sensor from the compiled C kernel and the "
                     "variant's generated tables: the binary for this platform plus its sources. Communication step "
                     "0.1 s (or a multiple). Variables are named as the run-table columns (docs/interfaces.md "
                     "section 3): inputs engine_speed_rpm ... retarder_torque_nm, outputs T_<id>_c, W_<id>, "
@@ -17,10 +17,12 @@ def add_subparser(sub):
                     "limit_critical_<id>_c.\n\nThe time to limit is not computed by the compiled kernel: ttl_<id>_s "
                     "is NaN and the early warning is off. Needs a C compiler and FMPy (pip install fmpy) for the "
                     "FMI headers.",
-        epilog="example:\n  gearbox-vsensor export-fmu --out vsensor.fmu && python -m fmpy info vsensor.fmu")
+        epilog="examples:\n  gearbox-vsensor export-fmu --out vsensor.fmu && python -m fmpy info vsensor.fmu\n"
+               "  gearbox-vsensor export-fmu --fmi 3 --out vsensor3.fmu && python -m fmpy validate vsensor3.fmu")
     p.add_argument("--variant", default="GRS905", help="gearbox variant (default GRS905)")
     p.add_argument("--config", metavar="TOML", help="project configuration (variant, cooler, [sensor] limits)")
-    p.add_argument("--fmi", choices=("2",), default="2", help="FMI version (2; FMI 3 is not built yet)")
+    p.add_argument("--fmi", choices=("2", "3"), default="2",
+                   help="FMI version: 2 (default; most rigs import it) or 3 (Float64/Int32 variables)")
     p.add_argument("--out", required=True, metavar="FILE.fmu", help="the FMU to write")
     p.add_argument("--quiet", action="store_true", help="no summary")
     p.set_defaults(func=run)
@@ -28,7 +30,7 @@ def add_subparser(sub):
 
 def run(args) -> int:
     from tools.export.fmu import export_fmu
-    out = export_fmu(args.out, variant=args.variant, config_path=args.config)
+    out = export_fmu(args.out, variant=args.variant, config_path=args.config, fmi_version=int(args.fmi))
     if not args.quiet:
-        print(f"wrote {out} ({out.stat().st_size // 1024} KiB, FMI 2.0 co-simulation, step 0.1 s)")
+        print(f"wrote {out} ({out.stat().st_size // 1024} KiB, FMI {args.fmi}.0 co-simulation, step 0.1 s)")
     return 0

@@ -1,13 +1,14 @@
-"""`gearbox-vsensor export-fmu`: the onboard sensor as an FMI 2.0 co-simulation FMU for HIL and SIL rigs.
+"""`gearbox-vsensor export-fmu`: the onboard sensor as an FMI 2.0 or 3.0 co-simulation FMU for HIL and SIL rigs.
 
 Built from the same C as the ECU export (tools.export.c_bundle): the kernel, the variant's generated tables (double)
-and a small FMI wrapper (tools.export.fmu_source). Inside the FMU: ``modelDescription.xml``, the binary for this
+and a small FMI wrapper (tools.export.fmu_source; FMI 2 or 3 over one shared instance). Inside the FMU: ``modelDescription.xml``, the binary for this
 platform (compiled here with the C compiler on the PATH) and the sources (an importer can rebuild it for another
 platform). Communication step: 0.1 s or a multiple of it. Variables are named as the run-table columns
 (docs/interfaces.md section 3): inputs ``engine_speed_rpm`` ... ``retarder_torque_nm``; outputs ``T_<id>_c``,
 ``W_<id>``, ``ttl_<id>_s`` for every published component, ``degraded_mode``, ``valid_flags``, ``frozen_flags``,
 ``model_oil_temp_c``, ``oil_innovation_c``, ``rejects_<reason>``; parameters ``variant``, ``initial_temp_c`` and the
-limits ``limit_warning_<id>_c`` / ``limit_critical_<id>_c``. The FMI 2 headers come from FMPy (``pip install fmpy``,
+limits ``limit_warning_<id>_c`` / ``limit_critical_<id>_c``. FMI 2 types them Real / Integer / String, FMI 3
+Float64 / Int32 / String (the reject counters Int64). The FMI headers come from FMPy (``pip install fmpy``,
 the optional extra ``fmu``), which also validates and simulates the FMU in the tests.
 
 The time to limit is not computed by the compiled kernel (docs/sensor.md): ``ttl_<id>_s`` is NaN and the early
@@ -30,13 +31,13 @@ from firmware_model.components import PUBLISHED, describe
 from firmware_model.errors import InputError
 from firmware_model.onboard.ckernel import compiler
 from firmware_model.onboard.records import REJECT_REASONS
-from tools.export.fmu_source import FMU_C
+from tools.export.fmu_source import fmu_c
 
 MODEL_ID = "gearbox_vsensor"
 #: value-reference blocks (the C wrapper gets the same numbers through @BLOCKS@)
 VR = dict(VR_INPUT=0, VR_T=100, VR_TTL=200, VR_MODEL_OIL=300, VR_INNOVATION=301, VR_LEVEL=400, VR_MODE=500,
           VR_VALID=501, VR_FROZEN=502, VR_REJECT=510, VR_WARNING=600, VR_CRITICAL=700, VR_INITIAL_TEMP=800,
-          VR_VARIANT=900)
+          VR_VARIANT=900, VR_TIME=1000)
 #: start values of the inputs (speed, torque and gear 0; oil and the auxiliary inputs not available)
 INPUT_START = (0.0, 0.0, 0.0) + (float("nan"),) * 5
 
@@ -45,14 +46,19 @@ def _fmi_headers() -> Path:
     try:
         import fmpy
     except ImportError:
-        raise InputError("export-fmu needs FMPy for the FMI 2 headers: pip install fmpy (or the extra "
+        raise InputError("export-fmu needs FMPy for the FMI headers: pip install fmpy (or the extra "
                          "gearbox-vsensor[fmu])") from None
     return Path(fmpy.__file__).resolve().parent / "c-code"
 
 
-def _platform_dir() -> str:
+def _platform_dir(fmi_version: int = 2) -> str:
+    """The binaries folder: FMI 2's ``linux64``, FMI 3's platform tuple ``x86_64-linux``."""
+    system = platform.system()
+    if fmi_version == 3:
+        machine = {"amd64": "x86_64", "arm64": "aarch64"}.get(platform.machine().lower(), platform.machine().lower())
+        return f"{machine}-" + {"Linux": "linux", "Darwin": "darwin", "Windows": "windows"}.get(system, "linux")
     bits = "64" if sys.maxsize > 2 ** 32 else "32"
-    return {"Linux": "linux", "Darwin": "darwin", "Windows": "win"}.get(platform.system(), "linux") + bits
+    return {"Linux": "linux", "Darwin": "darwin", "Windows": "win"}.get(system, "linux") + bits
 
 
 def _variables(limits) -> list[tuple]:
@@ -90,7 +96,10 @@ def _xml_value(x: float) -> str:
     return "NaN" if x != x else repr(float(x))
 
 
-def model_description(variant: str, limits, guid: str) -> str:
+def model_description(variant: str, limits, guid: str, fmi_version: int = 2) -> str:
+    """modelDescription.xml of the FMU (FMI ``fmi_version``)."""
+    if fmi_version == 3:
+        return _model_description_3(variant, limits, guid)
     rows, outputs = [], []
     for k, (name, vr, typ, caus, var, start, desc) in enumerate(_variables(limits), start=1):
         attrs = f'name="{escape(name)}" valueReference="{vr}" causality="{caus}" variability="{var}"'
@@ -126,6 +135,44 @@ def model_description(variant: str, limits, guid: str) -> str:
 """
 
 
+#: FMI 3 type of each FMI 2 type (the reject counters are Int64 in FMI 3: they count a whole life)
+_FMI3_TYPE = {"Real": "Float64", "Integer": "Int32", "String": "String"}
+
+
+def _model_description_3(variant: str, limits, guid: str) -> str:
+    rows, outputs = [], []
+    for name, vr, typ, caus, var, start, desc in _variables(limits):
+        t3 = "Int64" if name.startswith("rejects_") else _FMI3_TYPE[typ]
+        attrs = f'name="{escape(name)}" valueReference="{vr}" causality="{caus}" variability="{var}"'
+        if start is not None:
+            attrs += f' start="{_xml_value(start)}"'
+        rows.append(f'    <{t3} {attrs} description="{escape(desc)}"/>')
+        if caus == "output":
+            outputs.append(vr)
+    rows.append(f'    <String name="variant" valueReference="{VR["VR_VARIANT"]}" causality="parameter" '
+                f'variability="fixed" description="gearbox variant of the tables"><Start value="{escape(variant)}"/>'
+                f'</String>')
+    rows.insert(0, f'    <Float64 name="time" valueReference="{VR["VR_TIME"]}" causality="independent" '
+                   f'variability="continuous" description="simulation time [s]"/>')
+    structure = "\n".join(f'    <Output valueReference="{vr}"/>' for vr in outputs)
+    structure += "\n" + "\n".join(f'    <InitialUnknown valueReference="{vr}"/>' for vr in outputs)
+    return f"""<?xml version="1.0" encoding="UTF-8"?>
+<fmiModelDescription fmiVersion="3.0" modelName="gearbox-vsensor {escape(variant)}" instantiationToken="{guid}"
+  description="Onboard virtual temperature sensor of a {escape(variant)} range-splitter gearbox (0.1 s step)"
+  generationTool="gearbox-vsensor export-fmu" variableNamingConvention="flat">
+  <CoSimulation modelIdentifier="{MODEL_ID}" canHandleVariableCommunicationStepSize="true"
+    fixedInternalStepSize="0.1" canGetAndSetFMUState="false" canSerializeFMUState="false"/>
+  <DefaultExperiment startTime="0" stepSize="0.1"/>
+  <ModelVariables>
+{chr(10).join(rows)}
+  </ModelVariables>
+  <ModelStructure>
+{structure}
+  </ModelStructure>
+</fmiModelDescription>
+"""
+
+
 def _blocks(variant: str, guid: str) -> str:
     lines = [f"#define {k} {v}u" for k, v in VR.items()]
     start = ", ".join("NAN" if x != x else repr(x) for x in INPUT_START)
@@ -134,14 +181,17 @@ def _blocks(variant: str, guid: str) -> str:
     return "\n".join(lines)
 
 
-def export_fmu(out_path, variant: str = "GRS905", config_path=None) -> Path:
-    """Build the FMU at ``out_path`` (a .fmu file, written atomically). Needs a C compiler and FMPy's headers."""
+def export_fmu(out_path, variant: str = "GRS905", config_path=None, fmi_version: int = 2) -> Path:
+    """Build the FMU (FMI ``fmi_version``, 2 or 3) at ``out_path`` (a .fmu file, written atomically). Needs a C
+    compiler and FMPy's headers."""
     from tools.export.c_bundle import export_c
     headers = _fmi_headers()
     cc = compiler()
     if cc is None:
         raise InputError("export-fmu needs a C compiler (cc, gcc or clang) to build the FMU's binary")
     out = Path(out_path)
+    if fmi_version not in (2, 3):
+        raise InputError(f"--fmi {fmi_version}: the FMU is built for FMI 2 or 3")
     if out.suffix != ".fmu":
         raise InputError(f"{out}: the FMU file name must end in .fmu")
     with tempfile.TemporaryDirectory() as tmp:
@@ -152,9 +202,10 @@ def export_fmu(out_path, variant: str = "GRS905", config_path=None) -> Path:
             shutil.copyfile(bundle / name, src / name)
         guid = "{" + hashlib.sha256((src / "gvs_tables.c").read_bytes()).hexdigest()[:32] + "}"
         variant_name, limits = _variant_and_limits(variant, config_path)
-        (src / "fmu.c").write_text(FMU_C.replace("@BLOCKS@", _blocks(variant_name, guid)))
-        (Path(tmp) / "fmu" / "modelDescription.xml").write_text(model_description(variant_name, limits, guid))
-        binaries = Path(tmp) / "fmu" / "binaries" / _platform_dir()
+        (src / "fmu.c").write_text(fmu_c(fmi_version, _blocks(variant_name, guid)))
+        (Path(tmp) / "fmu" / "modelDescription.xml").write_text(
+            model_description(variant_name, limits, guid, fmi_version))
+        binaries = Path(tmp) / "fmu" / "binaries" / _platform_dir(fmi_version)
         binaries.mkdir(parents=True)
         suffix = {"Windows": ".dll", "Darwin": ".dylib"}.get(platform.system(), ".so")
         cmd = [cc, "-std=c99", "-O2", "-fPIC", "-shared", "-fno-fast-math", f"-I{headers}", f"-I{src}",
