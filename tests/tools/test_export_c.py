@@ -60,3 +60,38 @@ def test_cortex_m4_on_qemu_equals_the_reference_and_fits(bundles):
     assert text + data <= 64 * 1024, f"flash {text + data} B"
     assert state + stack <= 4096, f"the sensor's RAM: state {state} B + stack {stack} B"
     print(f"Cortex-M4F: flash {text + data} B, RAM data+bss {data + bss} B + stack {stack} B (state {state} B)")
+
+
+@pytest.mark.skipif(not (HAVE_ARM and HAVE_CC), reason="needs make, a C compiler and " + ", ".join(ARM_TOOLS) +
+                    " (apt install gcc-arm-none-eabi libnewlib-arm-none-eabi qemu-system-arm; .ci/run installs them)")
+def test_cortex_m4_replays_a_3_h_cycle_like_the_host_float_build(bundles):
+    """The mining cycle (3 h, 108,000 steps) through the host's float build and the Cortex-M4F build on QEMU: every
+    temperature within 0.05 K, identical warning levels and modes; instructions per step counted by the emulator."""
+    import numpy as np
+    from firmware_model.components import PUBLISHED
+    from firmware_model.parameters import load_parameters
+    from tools.cycles.named import get_cycle
+    from tools.plant.reference import ReferencePlant
+    from tools.replay.table import table_steps
+    d = bundles["float"]
+    plant = ReferencePlant(load_parameters("GRS905")).run(get_cycle("mining"), progress=False).table
+    _, data = table_steps(plant, 0.1)
+    np.ascontiguousarray(data[:, :8], dtype="<f8").tofile(d / "drive.bin")
+    host = subprocess.run(["make", "-s", "replay", "IN=drive.bin"], cwd=d, capture_output=True, text=True, timeout=600)
+    assert host.returncode == 0, host.stdout + host.stderr
+    m4 = subprocess.run(["make", "-s", "qemu-replay", "IN=drive.bin", "ICOUNT_SHIFT=3"], cwd=d, capture_output=True,
+                        text=True, timeout=1200)
+    assert m4.returncode == 0, m4.stdout + m4.stderr
+    n = len(PUBLISHED)
+    rec = np.dtype([("T", "<f4", (n,)), ("level", "i1", (n,)), ("mode", "i1")])
+    a, b = np.fromfile(d / "host.out", dtype=rec), np.fromfile(d / "m4.out", dtype=rec)
+    assert len(a) == len(b) == len(data) >= 107_000
+    assert np.isfinite(a["T"]).all() and np.isfinite(b["T"]).all()
+    worst = float(np.abs(a["T"].astype(float) - b["T"]).max())
+    assert worst <= 0.05
+    assert np.array_equal(a["level"], b["level"]) and np.array_equal(a["mode"], b["mode"])
+    assert (a["level"] == 1).any()            # the drive reaches warnings: the levels are a real comparison
+    mean_cycles, max_cycles = (float(x) for x in re.search(r"mean (\S+), max (\S+)", m4.stdout).groups())
+    # -icount shift=3: 8 ns of emulated time per instruction; the SysTick counts the 25 MHz processor clock
+    print(f"\nCortex-M4F over 3 h of mining ({len(a)} steps): max |T_m4 - T_host| {worst:.2g} K, levels identical; "
+          f"instructions per step mean {mean_cycles * 40 / 8:.0f}, max {max_cycles * 40 / 8:.0f}")

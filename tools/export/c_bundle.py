@@ -21,8 +21,8 @@ import numpy as np
 from firmware_model.errors import InputError
 from firmware_model.onboard.ckernel import SOURCE_DIR, TABLE_FIELDS, source_id
 from firmware_model.onboard.kernel_tables import VEHICLE_EFFECTS, table_arrays, vehicle_arrays
-from tools.export.templates import (API_HEADER, FOOTPRINT, LINKER_SCRIPT, MAKEFILE, README, SENSOR_SOURCE,
-                                    STARTUP, TEST_PROGRAM)
+from tools.export.templates import (API_HEADER, FOOTPRINT, LINKER_SCRIPT, MAKEFILE, README, REPLAY_PROGRAM,
+                                    SENSOR_SOURCE, STARTUP, TEST_PROGRAM)
 
 #: test vectors: steps of the uphill cycle's plant table at 10 Hz, with a stretch of hostile inputs
 VECTOR_STEPS = 3000
@@ -146,6 +146,7 @@ def export_c(out_dir, variant: str = "GRS905", config_path=None, real: str = "fl
     (out / "gvs_tables.c").write_text(tables_source(sensor.sp, real, params.variant))
     (out / "gvs_vectors.c").write_text(vectors_source(reference_vectors(sensor, params), real))
     (out / "gvs_test.c").write_text(TEST_PROGRAM.replace("@TOL@", tol))
+    (out / "gvs_replay.c").write_text(REPLAY_PROGRAM)
     (out / "Makefile").write_text(MAKEFILE.replace("@REAL_FLAG@", real_flag).replace("@CAPS@", capacities(sensor.sp)))
     m4 = out / "cortex-m4"
     m4.mkdir(exist_ok=True)

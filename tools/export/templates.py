@@ -107,6 +107,88 @@ int main(void)
 }
 """
 
+REPLAY_PROGRAM = r"""/* gearbox-vsensor export-c: `gvs_replay IN OUT` steps the exported sensor over a whole drive and writes every
+ * step's outputs, to compare two builds of the same sources (the host's and the Cortex-M4F's, `make replay` and
+ * `make qemu-replay`). IN: per step 8 little-endian float64 inputs (the order of gvs_inputs.raw; NaN = not
+ * available), 0.1 s apart. OUT: per step float32 T_c[GVS_N_PUB], int8 level[GVS_N_PUB], int8 degraded_mode.
+ * Built with -DGVS_SYSTICK (the Cortex-M4F build), it also counts the processor clock cycles of each step with the
+ * SysTick timer: under QEMU with -icount the emulated clock advances a fixed time per instruction, so the cycles
+ * count instructions (`make qemu-replay` prints both). */
+#include <math.h>
+#include <stdint.h>
+#include <stdio.h>
+#include "gvs_sensor.h"
+
+#ifdef GVS_SYSTICK
+#define SYST_CSR (*(volatile uint32_t *)0xE000E010u)
+#define SYST_RVR (*(volatile uint32_t *)0xE000E014u)
+#define SYST_CVR (*(volatile uint32_t *)0xE000E018u)
+#endif
+
+static gvs_state state;
+
+int main(int argc, char **argv)
+{
+    FILE *fi, *fo;
+    double raw[GVS_N_INPUTS];
+    long steps = 0;
+    int i;
+    gvs_outputs out;
+#ifdef GVS_SYSTICK
+    uint64_t total = 0;
+    uint32_t worst = 0;
+    SYST_RVR = 0xFFFFFFu;
+    SYST_CVR = 0u;
+    SYST_CSR = 5u;                      /* enabled, processor clock, no interrupt */
+#endif
+    if (argc < 3) {
+        fprintf(stderr, "usage: gvs_replay IN OUT\n");
+        return 2;
+    }
+    fi = fopen(argv[1], "rb");
+    fo = fopen(argv[2], "wb");
+    if (!fi || !fo) {
+        fprintf(stderr, "gvs_replay: cannot open %s or %s\n", argv[1], argv[2]);
+        return 2;
+    }
+    while (fread(raw, sizeof raw, 1, fi) == 1) {
+        gvs_inputs in;
+        float T[GVS_N_PUB];
+        int8_t lv[GVS_N_PUB + 1];
+#ifdef GVS_SYSTICK
+        uint32_t t0, d;
+#endif
+        if (steps == 0) gvs_sensor_init(&state, raw[GVS_I_OIL]);
+        for (i = 0; i < GVS_N_INPUTS; ++i) in.raw[i] = raw[i];
+        in.t_s = NAN;
+#ifdef GVS_SYSTICK
+        t0 = SYST_CVR;
+        gvs_sensor_step(&state, &in, &out);
+        d = (t0 - SYST_CVR) & 0xFFFFFFu;    /* a down-counter: wraps after 2^24 cycles, far more than a step */
+        total += d;
+        if (d > worst) worst = d;
+#else
+        gvs_sensor_step(&state, &in, &out);
+#endif
+        for (i = 0; i < GVS_N_PUB; ++i) { T[i] = (float)out.T_c[i]; lv[i] = (int8_t)out.level[i]; }
+        lv[GVS_N_PUB] = (int8_t)out.degraded_mode;
+        if (fwrite(T, sizeof T, 1, fo) != 1 || fwrite(lv, sizeof lv, 1, fo) != 1) {
+            fprintf(stderr, "gvs_replay: cannot write %s\n", argv[2]);
+            return 2;
+        }
+        ++steps;
+    }
+    fclose(fi);
+    fclose(fo);
+    printf("steps %ld\n", steps);
+#ifdef GVS_SYSTICK
+    if (steps > 0)
+        printf("SysTick cycles per step: mean %.1f, max %lu\n", (double)total / (double)steps, (unsigned long)worst);
+#endif
+    return 0;
+}
+"""
+
 MAKEFILE = """# gearbox-vsensor export-c: `make test` builds a host program that replays the test vectors and checks them;
 # `make cortex-m4 qemu-test size` does the same on an emulated ARM Cortex-M4F (arm-none-eabi-gcc, qemu-system-arm).
 CC ?= cc
@@ -151,10 +233,29 @@ size: gvs_footprint_m4.elf gvs_stack_m4.elf
 \t$(ARM_SIZE) gvs_footprint_m4.elf
 \tqemu-system-arm -M mps2-an386 -nographic -semihosting-config enable=on,target=native -kernel gvs_stack_m4.elf
 
-clean:
-\trm -f gvs_test *.o *.su *.elf
+# a whole drive through both builds: `make replay qemu-replay IN=drive.bin` (gvs_replay.c says the formats); QEMU
+# runs with -icount shift=$(ICOUNT_SHIFT): 2^shift ns of emulated time per instruction, so that the SysTick's
+# 25 MHz cycles count instructions (instructions per step = cycles x 40 / 2^shift)
+IN ?= drive.bin
+ICOUNT_SHIFT ?= 3
+replay: gvs_replay
+\t./gvs_replay $(IN) host.out
 
-.PHONY: test cortex-m4 qemu-test size clean
+gvs_replay: $(SENSOR) gvs_replay.c gvs_kernel.h gvs_sensor.h
+\t$(CC) $(CFLAGS) $(REAL) $(CAPS) -o $@ $(SENSOR) gvs_replay.c -lm
+
+gvs_replay_m4.elf: $(SENSOR) gvs_replay.c cortex-m4/startup.c cortex-m4/mps2_an386.ld
+\t$(ARM_CC) $(M4) $(M4_CFLAGS) -DGVS_SYSTICK --specs=rdimon.specs -T cortex-m4/mps2_an386.ld -o $@ \\
+\t\tcortex-m4/startup.c $(SENSOR) gvs_replay.c -lm
+
+qemu-replay: gvs_replay_m4.elf
+\tqemu-system-arm -M mps2-an386 -nographic -icount shift=$(ICOUNT_SHIFT) \\
+\t\t-semihosting-config enable=on,target=native,arg=gvs_replay,arg=$(IN),arg=m4.out -kernel gvs_replay_m4.elf
+
+clean:
+\trm -f gvs_test gvs_replay *.o *.su *.elf host.out m4.out
+
+.PHONY: test cortex-m4 qemu-test size replay qemu-replay clean
 """
 
 README = """# gearbox-vsensor onboard sensor, {variant}, exported for an ECU ({real} build)
@@ -171,6 +272,7 @@ with the Python reference (gearbox-vsensor's numpy step).
 | `gvs_tables.c` | the generated tables of {variant} ({n} thermal nodes): loss maps, conductance laws, cooler, limits, options (`const`, flash) |
 | `gvs_sensor.h`, `gvs_sensor.c` | the API below |
 | `gvs_vectors.c`, `gvs_test.c`, `Makefile` | the test |
+| `gvs_replay.c` | a whole drive through a build (`make replay IN=drive.bin`, `make qemu-replay` on the emulated Cortex-M4F, which also counts instructions per step); the formats are in the file |
 
 Compile with `-DGVS_REAL_FLOAT` for single precision (as `make` does for a float export); never with fast-math
 (`-ffast-math` breaks the NaN checks of the input validation).
