@@ -114,8 +114,9 @@ def run(args) -> int:
         print(f"simulated {tb['time_s'][-1] - tb['time_s'][0]:.0f} s of '{args.cycle}' in {res.wall_s:.1f} s "
               f"-> {out}")
         print("hottest:\n" + "\n".join(f"  {n:10s} {v:6.1f} degC  {meaning(n) or ''}" for v, n in hot))
+        net_in = " (negative: the cooler and boundaries heated the gearbox on balance)" if eb["rejected_j"] < 0 else ""
         print(f"energy: generated {eb['generated_j'] / 1e6:.2f} MJ = stored {eb['stored_j'] / 1e6:.2f} MJ + rejected "
-              f"{eb['rejected_j'] / 1e6:.2f} MJ (closure {eb['closure_rel']:.1e})")
+              f"{eb['rejected_j'] / 1e6:.2f} MJ{net_in} (closure {eb['closure_rel']:.1e})")
         for w in res.warnings:
             print(f"note: {w}", file=sys.stderr)
     return 0
