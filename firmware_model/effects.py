@@ -42,9 +42,18 @@ CATALOG = {e.id: e for e in (
     Effect("hot_surroundings_offset", "offset_c", "degC", 0.0, 40.0, 0.0, "the hot surroundings are hotter"),
     Effect("oil_sensor_lag", "tau_s", "s", 0.0, 300.0, 0.0, "the oil sensor lags the sump (placement, filtering)"),
     Effect("oil_level_low", "volume_l", "L", 8.0, 13.5, 13.5, "less oil than nominal (less immersion, less thermal mass)"),
+    Effect("oil_sensor_offset", "offset_c", "degC", -5.0, 5.0, 0.0,
+           "the oil sensor reads a constant offset from the sump (calibration, or placed in a warmer or colder spot)"),
+    Effect("oil_sensor_gain", "factor", "-", 0.9, 1.1, 1.0,
+           "the oil sensor's gain is off: it reads gain x the sump temperature in degC (scaling or calibration)"),
 )}
 
 EFFECT_IDS = tuple(CATALOG)
+#: effects on the measurement, not on the gearbox: the models' temperatures are unchanged, the sensor reads them
+#: differently (the gap diagnosis applies them to its predictions without re-simulating)
+MEASUREMENT_EFFECTS = ("oil_sensor_offset", "oil_sensor_gain")
+#: the effects that change the gearbox's physics (the single-effect benchmark plants these)
+PHYSICAL_EFFECT_IDS = tuple(e for e in EFFECT_IDS if e not in MEASUREMENT_EFFECTS)
 #: where the retarder_heat effect deposits its heat (node -> share; the catalog's description)
 RETARDER_HEAT_SPLIT = {"oil": 0.8, "H3": 0.2}
 
@@ -108,6 +117,8 @@ FIELD_OF_EFFECT = {
     "hot_surroundings_offset": "hot_offset_c",
     "oil_sensor_lag": "oil_sensor_tau_s",
     "oil_level_low": "oil_volume_l",
+    "oil_sensor_offset": "oil_sensor_offset_c",
+    "oil_sensor_gain": "oil_sensor_gain",
 }
 
 
@@ -119,7 +130,7 @@ class EffectScales:
     Losses (heat of each family): gear contacts, planetary meshes, churning, bearings (shaft and needle). Heat
     transfer: splash h of the idle-wheel teeth, oil-system h in the planetary, external housing h. Cooler: its hA
     and its thermostat. Boundaries: the hot surroundings. Sources: retarder heat (fraction of its braking power),
-    synchronizer heat per shift. The oil sensor's lag and the sump volume. ``src_scale`` is the onboard model's
+    synchronizer heat per shift. The oil sensor's lag, offset and gain, and the sump volume. ``src_scale`` is the onboard model's
     multiplier per loss-source column (firmware_model.onboard.reduce.make_effects fills it; None elsewhere).
     """
     gear_friction_scale: object = 1.0
@@ -136,6 +147,8 @@ class EffectScales:
     shift_energy_j: object = 0.0
     oil_sensor_tau_s: object = 0.0
     oil_volume_l: object = CATALOG["oil_level_low"].neutral
+    oil_sensor_offset_c: object = 0.0
+    oil_sensor_gain: object = 1.0
     src_scale: object = None
 
     @property

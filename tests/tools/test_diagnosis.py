@@ -16,7 +16,7 @@ from firmware_model.effects import CATALOG, EFFECT_IDS
 from firmware_model.errors import InputError
 from firmware_model.parameters import load_parameters
 from tools.cli import main
-from tools.diagnosis.core import diagnose
+from tools.diagnosis.core import Options, diagnose
 from tools.diagnosis.bench import make_scenario, mixed_cycle
 from tools.diagnosis.measurement import lag_filter
 from tools.runtable import RunTable, write_run_table
@@ -330,3 +330,81 @@ def test_can_logs_as_input(tmp_path, params):
     assert res["train"] == [str(paths[0])] and res["test"] == [str(paths[1])]
     assert {"oil", "oil@rig", "PS", "BLR"} <= set(res["channels"])       # TRF1 and the rig thermocouple frames
     assert res["verdict"]["effect"] in ("none", "unexplained", "planetary_loss_scale", "oil_sensor_lag")
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# sensor faults: the oil sensor's offset and gain, and the residual's regime structure
+
+def test_initial_shift_follows_the_sensor_reading():
+    from tools.diagnosis.scoring import initial_shift_c
+    assert initial_shift_c("oil_sensor_offset", 2.0, 60.0) == -2.0        # read 62 for a 60 degC sump: start 2 K lower
+    assert math.isclose(initial_shift_c("oil_sensor_gain", 1.05, 63.0), 60.0 - 63.0)
+    assert initial_shift_c("planetary_loss_scale", 1.2, 60.0) == 0.0
+    assert initial_shift_c("oil_sensor_offset", None, 60.0) == 0.0
+
+
+@pytest.mark.parametrize("setup,value", [("truck", 2.3), ("rig", -3.0)])
+def test_oil_sensor_offset_is_named_with_its_constant_signature(params, setup, value):
+    """A sensor reading the sump + a constant offset: the verdict is the sensor (the offset, or the gain it is
+    confusable with on a narrow temperature range), and the reason says the residual is the same in every regime."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        sc = make_scenario(0, 11, setup, "oil_sensor_offset", value, params, train_s=SHORT_S, test_s=SHORT_S)
+        res = diagnose(sc.train, sc.test, params, model="plant")
+    v = res["verdict"]
+    assert v["effect"] in ("oil_sensor_offset", "oil_sensor_gain"), v["reason"]
+    if v["effect"] == "oil_sensor_offset":
+        assert abs(v["parameters"]["offset_c"] - value) < 0.3
+    st = v["residual_structure"]["oil"]
+    assert st["kind"] == "constant" and abs(st["mean_c"] - value) < 0.5
+    assert "constant offset" in v["reason"] and "sensor or placement fault" in v["reason"]
+    assert v["shrink"] > 0.5
+
+
+def test_a_heat_flow_effect_is_load_dependent(planted):
+    """Planetary heat 35 % high: where the baseline misses, it misses by load, and no sensor effect is named."""
+    v = planted[0]["verdict"]
+    assert v["effect"] not in ("oil_sensor_offset", "oil_sensor_gain")
+    st = v["residual_structure"]
+    assert st, "no channel with a gap"
+    assert all(s["kind"] == "load-dependent" for s in st.values()), st
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# several effects at once (forward selection)
+
+@pytest.fixture(scope="module")
+def two_effects(params):
+    """A rig whose bearings lose twice the correlation's heat and whose cooler works at half its effectiveness."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        sc = make_scenario(1, 5, "rig", "bearing_loss_scale", 2.0, params, train_s=900.0, test_s=900.0,
+                           also={"cooler_effectiveness_scale": 0.5})
+        single = diagnose(sc.train, sc.test, params, model="plant", opts=Options(max_effects=1))
+        pair = diagnose(sc.train, sc.test, params, model="plant")
+    return single, pair
+
+
+def test_two_effects_are_found_together(two_effects):
+    single, pair = two_effects
+    v = pair["verdict"]
+    found = {e["effect"]: e for e in v["effects"]}
+    assert set(found) == {"bearing_loss_scale", "cooler_effectiveness_scale"}, v["reason"]
+    assert abs(found["bearing_loss_scale"]["parameters"]["factor"] - 2.0) < 0.15
+    assert abs(found["cooler_effectiveness_scale"]["parameters"]["factor"] - 0.5) < 0.05
+    assert v["effect"] == v["effects"][0]["effect"]                      # the leading effect stays verdict.effect
+    assert v["parameters"] == v["effects"][0]["parameters"]
+    assert math.isclose(sum(e["share"] for e in v["effects"]), 1.0, abs_tol=1e-3)
+    assert all(e["share"] > 0 for e in v["effects"])
+    second = v["effects"][1]
+    assert second["score_added"] >= 10.0 and isinstance(second["confusable_with"], list)
+    # the pair holds on the test file the fit never saw, better than the best single effect
+    assert v["shrink"] > 0.8
+    assert v["test_rms_after_c"] < single["verdict"]["test_rms_after_c"]
+    assert "2 effects together" in v["reason"]
+
+
+def test_one_effect_alone_gets_no_partner(planted):
+    """A single planted effect: no second effect pays for its parameter."""
+    v = planted[0]["verdict"]
+    assert "effects" not in v, v.get("effects")

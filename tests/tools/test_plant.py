@@ -157,3 +157,16 @@ def test_progress_bar_starts_no_thread(params, show, capsys):
     assert threading.active_count() == before
     err = capsys.readouterr().err
     assert ("plant" in err) == show
+
+
+@pytest.mark.parametrize("eid,value", [("oil_sensor_offset", 2.5), ("oil_sensor_gain", 0.95)])
+def test_measurement_effects_change_the_reading_not_the_gearbox(params, eid, value):
+    """The oil sensor's offset and gain act on oil_temp_c only: every temperature of the gearbox is unchanged."""
+    tab = steady(3, 1500, 1800, 600, coolant_temp_c=80.0, ambient_temp_c=25.0)
+    base = ReferencePlant(params).run(tab, initial_temp_c=60.0).table
+    eff = ReferencePlant(params, {eid: value}).run(tab, initial_temp_c=60.0).table
+    for c in base.columns:
+        if c.startswith("T_"):
+            assert np.array_equal(base[c], eff[c]), c
+    want = base["oil_temp_c"] + value if eid == "oil_sensor_offset" else value * base["oil_temp_c"]
+    np.testing.assert_allclose(eff["oil_temp_c"], want, rtol=0, atol=1e-12)

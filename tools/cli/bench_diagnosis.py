@@ -32,6 +32,9 @@ def add_subparser(sub):
                                                                             "cycles (default 1500 s)")
     p.add_argument("--test-s", type=float, default=1500.0, metavar="S", help="length of the test cycle (default 1500 s)")
     p.add_argument("--only", metavar="I,J,...", help="run only these scenario indices of the plan")
+    p.add_argument("--family", choices=("single", "sensor"),
+                   help="the plan's scenario family: single (default: one physical catalog effect, or none) or "
+                        "sensor (the oil sensor's offset or gain, or none)")
     p.add_argument("--effect", metavar="ID:PARAM=VALUE|none", help="one custom scenario with this effect instead of "
                                                                   "the plan")
     p.add_argument("--setup", choices=("truck", "rig"), help="set-up of the custom scenario (--effect; default rig)")
@@ -49,7 +52,8 @@ def run(args) -> int:
     from firmware_model.effects import parse_effect
     from tools.diagnosis import bench as B
     warnings.filterwarnings("ignore", category=RuntimeWarning)
-    plan_only = [o for o, v in (("--scenarios", args.scenarios), ("--only", args.only)) if v is not None]
+    plan_only = [o for o, v in (("--scenarios", args.scenarios), ("--only", args.only), ("--family", args.family))
+                 if v is not None]
     custom_only = [o for o, v in (("--setup", args.setup), ("--cooler", args.cooler)) if v is not None]
     if args.effect and plan_only:
         raise InputError(f"{', '.join(plan_only)} {'selects' if len(plan_only) == 1 else 'select'} scenarios of the "
@@ -85,7 +89,7 @@ def run(args) -> int:
     # one result line per scenario on stderr, above the progress bar (shown on a terminal)
     rows, summary = B.run_bench(args.scenarios, args.seed, args.out, model=args.model, train_s=args.train_s,
                                 test_s=args.test_s, only=only, custom=custom, write_scenarios=args.write_scenarios,
-                                progress=lambda line: tqdm.write(line, file=sys.stderr))
+                                progress=lambda line: tqdm.write(line, file=sys.stderr), family=args.family or "single")
     print(B.format_table(rows, summary))
     if args.out:
         print(f"\n-> {Path(args.out) / 'bench.md'}", file=sys.stderr)

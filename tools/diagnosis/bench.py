@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from firmware_model.effects import CATALOG, EFFECT_IDS
+from firmware_model.effects import CATALOG, MEASUREMENT_EFFECTS, PHYSICAL_EFFECT_IDS
 from firmware_model.units import RAD_S_PER_RPM
 
 from tools.cycles.vehicle import KMH_PER_M_S, total_ratios
@@ -221,8 +221,9 @@ def measure(truth: RunTable, cycle: RunTable, setup: str, rng: np.random.Generat
 
 def make_scenario(index: int, seed: int, setup: str, effect: str | None, value: float | None, params,
                   cooler: str = "liquid", n_train: int = 2, train_s: float = 1500.0, test_s: float = 1500.0,
-                  truth_dt_s: float = 0.5) -> Scenario:
-    """Generate one scenario: truth by the reference plant (fine step) with the withheld effect."""
+                  truth_dt_s: float = 0.5, also: dict | None = None) -> Scenario:
+    """Generate one scenario: truth by the reference plant (fine step) with the withheld effect (and the effects
+    `also` = {id: value} at the same time)."""
     import warnings
     from tools.plant.reference import ReferencePlant
     rng = np.random.default_rng([int(seed), int(index), 0xBE7C])
@@ -231,7 +232,8 @@ def make_scenario(index: int, seed: int, setup: str, effect: str | None, value: 
         for c in RIG_CHANNELS:
             sensor[f"meas_T_{c}_c"] = (float(rng.uniform(0.5, 3.0)), float(rng.uniform(0.1, 0.2)))
     sc = Scenario(index, seed, setup, effect, value, cooler, sensor=sensor)
-    plant = ReferencePlant(params, {effect: value} if effect else {}, cooler=cooler, dt_s=truth_dt_s)
+    plant = ReferencePlant(params, ({effect: value} if effect else {}) | dict(also or {}), cooler=cooler,
+                           dt_s=truth_dt_s)
     t0 = time.perf_counter()
     cyc_seeds = rng.integers(0, 2 ** 31, size=n_train + 1)
     for k, cs in enumerate(cyc_seeds):
@@ -256,14 +258,19 @@ def make_scenario(index: int, seed: int, setup: str, effect: str | None, value: 
 # ----------------------------------------------------------------------------------------------------------------
 # the benchmark
 
-def plan(n: int, seed: int, null_frac: float = 0.2) -> list:
-    """The scenario list: about `null_frac` null scenarios (at least 8 when n >= 40), the effects in turn, half truck
-    and half rig (alternating within every effect), the air cooler for thermostat_offset and a third of the others."""
-    rng = np.random.default_rng([int(seed), 0x91A])
+#: scenario families of the benchmark: which effects each plants (nulls are planted in every family)
+FAMILIES = {"single": PHYSICAL_EFFECT_IDS, "sensor": MEASUREMENT_EFFECTS}
+
+
+def plan(n: int, seed: int, null_frac: float = 0.2, family: str = "single") -> list:
+    """The scenario list: about `null_frac` null scenarios (at least 8 when n >= 40), the family's effects in turn
+    (``single``: the physical effects; ``sensor``: the oil sensor's offset and gain), half truck and half rig
+    (alternating within every effect), the air cooler for thermostat_offset and a third of the others."""
+    rng = np.random.default_rng([int(seed), 0x91A] + ([] if family == "single" else [len(family), ord(family[0])]))
     n_null = max(int(round(null_frac * n)), min(8, n // 5) if n >= 10 else 1)
     n_eff = n - n_null
     items = []
-    effects = list(EFFECT_IDS)
+    effects = list(FAMILIES[family])
     for k in range(n_eff):
         eid = effects[k % len(effects)]
         setup = "truck" if (k // len(effects) + k) % 2 == 0 else "rig"
@@ -424,7 +431,7 @@ def result_line(i: int, n: int, row: Row) -> str:
 
 def run_bench(n: int = 40, seed: int = 0, out_dir=None, params=None, progress=print, model: str = "plant",
               train_s: float = 1500.0, test_s: float = 1500.0, only=None, opts=None, custom=None,
-              write_scenarios: bool = False, bar: bool | None = None) -> tuple:
+              write_scenarios: bool = False, bar: bool | None = None, family: str = "single") -> tuple:
     """Generate and diagnose `n` scenarios (or the one `custom` = (setup, effect, value, cooler)); returns
     (rows, summary). Writes per-scenario JSON, the table (Markdown) and a CSV of the rows into `out_dir` when given,
     and with `write_scenarios` each scenario's measured run tables. `progress` receives each scenario's result line
@@ -435,7 +442,7 @@ def run_bench(n: int = 40, seed: int = 0, out_dir=None, params=None, progress=pr
     if params is None:
         from firmware_model.parameters import load_parameters
         params = load_parameters("GRS905")
-    items = [custom] if custom is not None else plan(n, seed)
+    items = [custom] if custom is not None else plan(n, seed, family=family)
     chosen = [i for i in range(len(items)) if only is None or i in only]
     rows = []
     outp = Path(out_dir) if out_dir else None

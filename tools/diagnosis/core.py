@@ -28,15 +28,17 @@ from firmware_model.effects import EFFECT_IDS
 from firmware_model.errors import InputError
 
 from tools.diagnosis.baseline import establish_baseline
+from tools.diagnosis.combine import forward_select
 from tools.diagnosis.context import Context, Simulator
-from tools.diagnosis.decide import confusable_with, decide, residuals, suggestions
+from tools.diagnosis.decide import (confusable_with, decide, residuals, suggestions, with_combination,
+                                    with_structure)
 from tools.diagnosis.fit import fit_all, grid_plan, rank, simulate_test_files
 from tools.diagnosis.heat import unexplained_heat
 from tools.diagnosis.identify import identifiability
 from tools.diagnosis.measurement import lag_filter
-from tools.diagnosis.options import STAGES, Options
+from tools.diagnosis.options import OIL, STAGES, Options
 from tools.diagnosis.prepare import load_table, prepare, prepare_runs
-from tools.diagnosis.regimes import regimes_before_after, where_residual
+from tools.diagnosis.regimes import regimes_before_after, residual_structure, where_residual
 from tools.diagnosis.result import Outcome, PlotData, build_json, plot_data
 
 __all__ = ["Diagnosis", "Options", "diagnose", "lag_filter", "load_table", "make_model", "prepare"]
@@ -79,13 +81,32 @@ class Diagnosis:
         ident = identifiability(ctx, base, fits)
         self.progress(next(stage))              # verdict
         verdict = decide(ctx, base, crit)
+        combo = forward_select(ctx, base, crit, fits, verdict.gap_thr_c) if verdict.is_effect else None
+        verdict = with_combination(ctx, base, verdict, combo)
+        structure = self._structure(base, fits, verdict)
+        verdict = with_structure(verdict, structure)
         conf = confusable_with(crit, ctx.opts)
         sugg = suggestions(ctx, train, verdict, crit, conf)
-        res = residuals(base, verdict, crit)
+        res = residuals(base, verdict, crit, combo)
         regs = regimes_before_after(test, base.base_te, res.test_before, res.test_after, p, ctx.cooler, ctx.opts)
-        self.outcome = Outcome(base, where, heat, crit, ident, verdict, conf, sugg, res, regs)
+        self.outcome = Outcome(base, where, heat, crit, ident, verdict, conf, sugg, res, regs, structure, combo)
         self.plot_data = plot_data(self.outcome)
         return build_json(ctx, self.outcome, time.perf_counter() - wall0_s)
+
+
+    def _structure(self, base, fits: list, verdict) -> dict:
+        """The regime structure of the training residual (regimes.residual_structure) per channel with a gap, with
+        the model started from the sump that the fitted oil-sensor offset implies: a sensor offset leaves the same
+        residual in every regime, a heat-flow effect does not."""
+        ctx, train = self.ctx, self.train
+        gap = [c for c, v in verdict.systematic.rms_c.items() if v > verdict.gap_thr_c[c]]
+        off = next((f.value for f in fits if f.effect == "oil_sensor_offset"), 0.0)
+        preds = base.scorer.adjust(base.scorer.preds(base.train.datasets, base.base_tr, "oil_sensor_offset", off),
+                                   "train")
+        chans = [c for ds in base.train.datasets for c in ds.channels]
+        resid = [y - q + (off if c == OIL else 0.0) for y, q, c in zip(base.train.obs, preds, chans)]
+        where = where_residual(train, base.base_tr, resid, ctx.params, ctx.cooler, ctx.opts)
+        return residual_structure(where.where_by, gap)
 
 
 def make_model(kind: str, params, cooler: str | None, opts: Options):

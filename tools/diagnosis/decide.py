@@ -123,6 +123,38 @@ def decide(ctx: Context, base: Baseline, crit: Criterion) -> Verdict:
                    + _listing(sys_rms, gap_thr, "<=", sys_rms) + ")", sy, gap_thr, post)
 
 
+def with_combination(ctx: Context, base: Baseline, v: Verdict, combo) -> Verdict:
+    """The verdict when several effects were found together (combine.forward_select): the leading effect stays
+    ``effect``; the reason names the set with each member's share, and the gap left is the set's."""
+    from dataclasses import replace
+    if combo is None:
+        return v
+    post = systematic(base, combo.preds_train, ctx.opts).rms_c
+    members = ", ".join(f"{e} {CATALOG[e].param} = {x:.4g} ({100 * combo.shares[e]:.0f} %)"
+                        for e, x in combo.members.items())
+    reason = (f"{len(combo.members)} effects together have the strongest evidence (score {combo.score:.0f}) and "
+              f"explain {100 * min(combo.explained, 1.0):.0f} % of the excess squared residual: {members} (share of "
+              f"the explained residual); each further effect paid for its parameter on the training files")
+    left = [c for c in post if post[c] > v.gap_thr_c[c]]
+    if left:
+        reason += ("; a gap remains after them (systematic residual " + _listing(post, v.gap_thr_c, ">", left)
+                   + ")")
+    return replace(v, reason=reason, post_c=post)
+
+
+def with_structure(v: Verdict, structure: dict) -> Verdict:
+    """The verdict with the residual's regime structure as evidence in its reason (regimes.residual_structure):
+    said for a sensor fault, and for a verdict of "unexplained" (where a constant offset points at the sensor)."""
+    from dataclasses import replace
+    from firmware_model.effects import MEASUREMENT_EFFECTS
+    from tools.diagnosis.regimes import structure_sentence
+    if not structure or not (v.effect in MEASUREMENT_EFFECTS or v.effect == "unexplained"):
+        return v
+    cids = [OIL] if v.effect in MEASUREMENT_EFFECTS and OIL in structure else sorted(structure)
+    said = "; ".join(structure_sentence(c, structure[c]) for c in cids if c in structure)
+    return replace(v, reason=v.reason + "; " + said) if said else v
+
+
 # ----------------------------------------------------------------------------------------------------------------
 # confusable candidates
 
@@ -252,14 +284,14 @@ class Residuals:
         return 1.0 - self.test_rms_after_c / rms_b if rms_b > 0 else 0.0
 
 
-def residuals(base: Baseline, verdict: Verdict, crit: Criterion) -> Residuals:
-    """The residuals before the verdict (the baseline as scored) and after it (the verdict's fit; unchanged for
-    'none' and 'unexplained')."""
+def residuals(base: Baseline, verdict: Verdict, crit: Criterion, combo=None) -> Residuals:
+    """The residuals before the verdict (the baseline as scored) and after it (the verdict's fit, or the set of
+    effects found together; unchanged for 'none' and 'unexplained')."""
     obs_tr, obs_te = base.train.obs, base.test.obs
     res_tr0 = [y - p for y, p in zip(obs_tr, base.p0_tr)]
     res_te0 = [y - p for y, p in zip(obs_te, base.p0_te)]
     if not verdict.is_effect:
         return Residuals(res_tr0, res_tr0, res_te0, res_te0)
-    top = crit.candidates[0]
-    return Residuals(res_tr0, [y - p for y, p in zip(obs_tr, top.fit.preds_train)], res_te0,
-                     [y - p for y, p in zip(obs_te, top.p_te)])
+    p_tr, p_te = (combo.preds_train, combo.p_te) if combo is not None else (crit.candidates[0].fit.preds_train,
+                                                                            crit.candidates[0].p_te)
+    return Residuals(res_tr0, [y - p for y, p in zip(obs_tr, p_tr)], res_te0, [y - p for y, p in zip(obs_te, p_te)])

@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from firmware_model.effects import CATALOG
+from firmware_model.effects import CATALOG, MEASUREMENT_EFFECTS
 
 from tools.diagnosis.baseline import Baseline, GridPlan
 from tools.diagnosis.context import Context
@@ -113,16 +113,17 @@ def grid_predictions(ctx: Context, base: Baseline, grid: GridPlan) -> dict:
 # the surrogate
 
 def _surrogate_min_analytic(ctx: Context, base: Baseline, eid: str) -> tuple:
-    """oil_sensor_lag: exact filter of the model's sump temperature; other channels unaffected."""
+    """The oil sensor's lag (an exact filter of the model's sump temperature), offset or gain (exact transforms of
+    its prediction): the oil channel only, other channels unaffected."""
     from scipy.optimize import minimize_scalar
     e = CATALOG[eid]
     sc, train = base.scorer, base.train.datasets
     base_p = sc.preds(train, base.base_tr)
 
-    def cost(tau):
-        return sc.S_adj(sc.preds(train, base.base_tr, eid, tau) if tau else base_p)
-    dense = np.unique(np.concatenate([np.linspace(0, min(20.0, e.high), 41), np.linspace(e.low, e.high,
-                                                                                         ctx.opts.dense)]))
+    def cost(v):
+        return sc.S_adj(sc.preds(train, base.base_tr, eid, v) if v != e.neutral else base_p)
+    fine = [np.linspace(0, min(20.0, e.high), 41)] if eid == "oil_sensor_lag" else []   # short lags, finely
+    dense = np.unique(np.concatenate(fine + [np.linspace(e.low, e.high, ctx.opts.dense)]))
     c = np.array([cost(t) for t in dense])
     i = int(np.argmin(c))
     lo, hi = dense[max(i - 1, 0)], dense[min(i + 1, dense.size - 1)]
@@ -221,7 +222,10 @@ def _search_round(ctx: Context, base: Baseline, grids: dict, state: dict) -> boo
         keys.append(eid)
     if not runs:
         return False
-    outs = ctx.sim.run(train, runs)
+    # the measurement effects read the baseline run differently: nothing to simulate
+    to_sim = [r for r, k in zip(runs, keys) if k not in MEASUREMENT_EFFECTS]
+    sims = iter(ctx.sim.run(train, to_sim) if to_sim else [])
+    outs = [base.base_tr if k in MEASUREMENT_EFFECTS else next(sims) for k in keys]
     for eid, out in zip(keys, outs):
         st = state[eid]
         v = st.value
@@ -295,9 +299,9 @@ def effective_n(datasets: list, resid: list) -> tuple:
 
 def simulate_test_files(ctx: Context, base: Baseline, fits: list) -> list:
     """Per fit, the test files re-simulated at its fitted value (the baseline where it fitted neutral)."""
-    moved = [f for f in fits if f.value != CATALOG[f.effect].neutral]
+    moved = [f for f in fits if f.value != CATALOG[f.effect].neutral and f.effect not in MEASUREMENT_EFFECTS]
     touts_m = dict(zip([f.effect for f in moved],
-                       ctx.sim.run(base.test.datasets, [Run.of({f.effect: f.value}) for f in moved])))
+                       ctx.sim.run(base.test.datasets, [Run.of({f.effect: f.value}) for f in moved]) if moved else []))
     return [touts_m.get(f.effect, base.base_te) for f in fits]
 
 

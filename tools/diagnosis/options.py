@@ -12,8 +12,9 @@ OIL = "oil"
 OIL_RIG = "oil@rig"
 INPUT_COLUMNS = ("time_s", "engine_speed_rpm", "engine_torque_nm", "gear", "ambient_temp_c", "coolant_temp_c",
                  "vehicle_speed_kmh", "retarder_torque_nm")
-#: effects whose prediction is exact from the baseline (no simulation needed before the check)
-ANALYTIC = ("oil_sensor_lag",)
+#: effects whose prediction is exact from the baseline (no simulation needed before the check): the oil sensor's
+#: lag (a filter of the model's sump), offset and gain (firmware_model.effects.MEASUREMENT_EFFECTS)
+ANALYTIC = ("oil_sensor_lag", "oil_sensor_offset", "oil_sensor_gain")
 LOG_SUFFIXES = (".log", ".asc", ".blf", ".mf4")
 #: the stages of one diagnosis, in order (what the progress callback is told)
 STAGES = ("baseline and candidate grid", "where", "fit", "test", "verdict")
@@ -38,6 +39,9 @@ class Options:
     confusable_corr: float = 0.95
     confusable_share: float = 0.1     # explained shares within this of the best
     refine: int = 2                   # refinement re-simulations per candidate
+    max_effects: int = 3              # forward selection: at most this many effects found together (1: off)
+    combine_check: int = 2            # forward selection: candidates re-simulated per step
+    add_explain_min: float = 0.2      # forward selection: share of the set's unexplained excess a new effect must explain
     coarse_grid: bool = True          # surrogate grid at the plant's coarse step (2 s), differences only
     dense: int = 161                  # dense parameter grid of the surrogate
     workers: int | None = None

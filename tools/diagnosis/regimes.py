@@ -226,3 +226,44 @@ def regimes_before_after(datasets: list, outs: list, res0: list, res1: list, par
             "max_after_c": json_number(a[4]), "cells": a[2]} for (c, p, L), a in acc.items()]
     out.sort(key=lambda x: (x["channel"] != OIL, x["channel"], x["partition"], -x["rms_before_c"]))
     return out
+
+
+#: regimes that hold less than this share of a channel's time are left out of its residual structure
+STRUCTURE_MIN_TIME_SHARE = 0.05
+#: a residual is "the same everywhere" when its regime means spread by at most this share of its overall mean
+STRUCTURE_CONSTANT_SPREAD = 0.5
+
+
+def residual_structure(where_by: dict, gap_channels) -> dict:
+    """Per channel with a real gap: how the baseline residual (measured - model) varies over the operating regimes
+    of the primary partition. ``constant``: every regime's mean has the sign of the overall mean and they spread by
+    at most STRUCTURE_CONSTANT_SPREAD of it (a sensor offset or placement looks like this: the same error whatever
+    the load); ``load-dependent`` otherwise (a heat-flow effect grows with the load or the speed)."""
+    out = {}
+    for cid in gap_channels:
+        regs = [r for r in where_by.get(cid, {}).get(PRIMARY, [])
+                if (r.get("time_share") or 0.0) >= STRUCTURE_MIN_TIME_SHARE and r.get("mean_c") is not None]
+        if not regs:
+            continue
+        w = np.array([r["time_share"] for r in regs])
+        means = np.array([r["mean_c"] for r in regs])
+        overall = float(np.sum(w * means) / np.sum(w))
+        spread = float(means.max() - means.min())
+        same_sign = bool(np.all(np.sign(means) == np.sign(overall))) and overall != 0.0
+        kind = "constant" if same_sign and spread <= STRUCTURE_CONSTANT_SPREAD * abs(overall) else "load-dependent"
+        out[cid] = {"kind": kind, "mean_c": json_number(overall), "spread_c": json_number(spread),
+                    "regimes": [{"regime": r["regime"], "mean_c": r["mean_c"], "time_share": r["time_share"]}
+                                for r in sorted(regs, key=lambda r: -r["time_share"])]}
+    return out
+
+
+def structure_sentence(cid: str, st: dict) -> str:
+    """One sentence on a channel's residual structure, with the evidence (the largest regimes' means)."""
+    name = "oil sensor" if cid == "oil" else f"{cid} thermocouple"
+    regs = ", ".join(f"{r['mean_c']:+.1f} K in {r['regime']}" for r in st["regimes"][:3])
+    if st["kind"] == "constant":
+        return (f"the {name}'s residual is about the same in every operating regime ({regs}; spread "
+                f"{st['spread_c']:.1f} K around {st['mean_c']:+.1f} K): a constant offset, the signature of a sensor "
+                f"or placement fault rather than of a heat flow")
+    return (f"the {name}'s residual depends on the operating regime ({regs}; spread {st['spread_c']:.1f} K): a "
+            f"heat-flow effect rather than a sensor offset")

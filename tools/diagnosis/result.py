@@ -27,6 +27,8 @@ class Outcome:
     suggestions: list        # the JSON's measurement_suggestions
     residuals: Residuals
     test_regimes: list       # the JSON's test_regimes
+    structure: dict          # channel -> the baseline residual's regime structure (regimes.residual_structure)
+    combination: object = None   # the effects found together (combine.Combination), None for one effect
 
 
 @dataclass(frozen=True)
@@ -107,7 +109,30 @@ def _verdict_json(out: Outcome, cand_json: list) -> dict:
                    "remaining_gap_c": {c: _r(x) for c, x in v.remaining_gap_c().items()}})
     if v.effect == "unexplained":
         js["closest_candidate"] = cand_json[0]["effect"]
+    if out.combination is not None:
+        js.update(_effects_json(out))
+    js["residual_structure"] = out.structure
     return js
+
+
+def _effects_json(out: Outcome) -> dict:
+    """verdict.effects (each member with its share of the explained residual and its confusable alternatives) and
+    the set's score; ``parameters`` become the leading effect's value in the set."""
+    cb = out.combination
+    steps = {s.effect: s for s in cb.steps}
+    lead = next(iter(cb.members))
+    effects = []
+    for eid, x in cb.members.items():
+        e = CATALOG[eid]
+        item = {"effect": eid, "parameters": {e.param: _r(x, 6)}, "share": _r(cb.shares[eid], 4)}
+        if eid in steps:
+            item.update({"score_added": _r(steps[eid].score, 3), "explained_added": _r(steps[eid].explained, 4),
+                         "confusable_with": list(steps[eid].alternatives)})
+        else:
+            item["confusable_with"] = list(out.confusable[eid])
+        effects.append(item)
+    return {"effects": effects, "parameters": {CATALOG[lead].param: _r(cb.members[lead], 6)},
+            "effects_score": _r(cb.score, 3), "effects_explained_share": _r(min(max(cb.explained, -1.0), 1.0), 4)}
 
 
 def _criterion_json(ctx: Context, out: Outcome) -> dict:

@@ -10,17 +10,40 @@ from tools.diagnosis.measurement import lag_filter, model_at_cells
 from tools.diagnosis.options import OIL, Options
 
 
+def initial_shift_c(effect: str | None, value: float | None, T0_meas_c: float) -> float:
+    """The model's initial temperature moves with a measurement effect: it starts from the oil sensor's first reading,
+    and a sensor reading sump + offset (or gain x sump in degC) started it off the true sump by this much [K]."""
+    if value is None:
+        return 0.0
+    if effect == "oil_sensor_offset":
+        return -float(value)
+    if effect == "oil_sensor_gain" and value > 0:
+        return T0_meas_c / float(value) - T0_meas_c
+    return 0.0
+
+
 def predictions(datasets: list, outs: list, lags: dict, effect: str | None = None,
-                value: float | None = None) -> list:
+                value: float | None = None, sens: list | None = None) -> list:
     """Predictions on cells per (dataset, channel) with the nuisance lags (the lag candidate replaces the oil
-    nuisance by its own lag on the sump)."""
-    res = []
+    nuisance by its own lag on the sump; the offset and gain candidates read the oil channel through them and, with
+    `sens` (each entry's sensitivity to the initial temperature), start the model from the sump their reading implies,
+    to first order)."""
+    res, k = [], 0
     for i, ds in enumerate(datasets):
+        shift_c = initial_shift_c(effect, value, ds.initial_temp_c) if sens is not None and OIL in ds.channels else 0.0
         for cid, ch in ds.channels.items():
             if cid == OIL and effect == "oil_sensor_lag" and value:
-                res.append(model_at_cells(outs[i], ch, value, source="T_oil_c"))
+                p = model_at_cells(outs[i], ch, value, source="T_oil_c")
             else:
-                res.append(model_at_cells(outs[i], ch, lags.get(cid, 0.0)))
+                p = model_at_cells(outs[i], ch, lags.get(cid, 0.0))
+            if shift_c:
+                p = p + shift_c * sens[k]
+            if cid == OIL and effect == "oil_sensor_offset" and value is not None:
+                p = p + value                 # the sensor reads the (lagged) sump plus an offset
+            elif cid == OIL and effect == "oil_sensor_gain" and value is not None:
+                p = p * value                 # ... or gain x the sump in degC
+            res.append(p)
+            k += 1
     return res
 
 
@@ -77,7 +100,9 @@ class Scorer:
 
     def preds(self, datasets: list, outs: list, effect: str | None = None, value: float | None = None,
               lags: dict | None = None) -> list:
-        return predictions(datasets, outs, self.lag if lags is None else lags, effect, value)
+        rd = next((r for r in (self.train, self.test) if r.datasets is datasets), None)
+        return predictions(datasets, outs, self.lag if lags is None else lags, effect, value,
+                           rd.sens if rd is not None else None)
 
     def adjust(self, preds: list, role: str) -> list:
         """The initial temperature of every file is a nuisance (state, not model): shift each file's predictions by

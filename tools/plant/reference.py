@@ -454,16 +454,22 @@ class ReferencePlant:
         return RunTable(cols)
 
     def _oil_sensor(self, t_out, step_t, T_oil_steps, T_oil_out):
-        """The vehicle's oil sensor: the sump, or the sump through a first-order lag (effect oil_sensor_lag)."""
+        """The vehicle's oil sensor: the sump, or the sump through a first-order lag (effect oil_sensor_lag), read
+        with a gain in degC and an offset (effects oil_sensor_gain, oil_sensor_offset)."""
         tau = self.scales.oil_sensor_tau_s
+        gain, offset_c = float(self.scales.oil_sensor_gain), float(self.scales.oil_sensor_offset_c)
         if not tau > 0:
-            return T_oil_out
-        oil_s = np.interp(step_t, step_t, T_oil_steps)
-        y = np.empty_like(oil_s)
-        y[0] = oil_s[0]
-        for i in range(1, oil_s.size):
-            y[i] = first_order_lag_step(y[i - 1], oil_s[i], step_t[i] - step_t[i - 1], tau)
-        return np.interp(t_out, step_t, y)
+            y_out = T_oil_out
+        else:
+            oil_s = np.interp(step_t, step_t, T_oil_steps)
+            y = np.empty_like(oil_s)
+            y[0] = oil_s[0]
+            for i in range(1, oil_s.size):
+                y[i] = first_order_lag_step(y[i - 1], oil_s[i], step_t[i] - step_t[i - 1], tau)
+            y_out = np.interp(t_out, step_t, y)
+        if gain == 1.0 and offset_c == 0.0:
+            return y_out
+        return gain * np.asarray(y_out) + offset_c
 
 
 class _StepAverager:

@@ -1,0 +1,269 @@
+"""Stage 4b of the diagnosis: several effects at once, by forward selection.
+
+After the best single effect, the next one is sought on top of it: every other candidate's change (from its own
+single-effect grid, or exactly for the oil sensor's lag, offset and gain) is added to the current set's run and its
+parameter searched on a dense grid; the two best are re-simulated together with the set; the best joins when the
+held-in evidence still pays for one more parameter (the same criterion as for one effect: an increment of
+``-dBIC = -(n_eff ln(S_new / S_set) + ln n_eff)`` of at least ``evidence_min``), it explains at least
+``add_explain_min`` of what the set left unexplained, and a real gap was left. Then all chosen parameters are refitted
+jointly (a coordinate pass on the same surrogates, re-simulated and kept when it lowers the misfit). At most
+``max_effects`` effects; at most one of the exact sensor effects (lag, offset, gain) in a set.
+
+Each member's share of the explained residual: for a pair, the average of its two orders of entry (its share does not
+depend on which was found first); for three, in the order found. The joint set is re-simulated on the test files:
+its held-out shrink is the verdict's.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from firmware_model.effects import CATALOG
+
+from tools.diagnosis.baseline import Baseline
+from tools.diagnosis.context import Context
+from tools.diagnosis.fit import Criterion, Fit
+from tools.diagnosis.models import Run
+from tools.diagnosis.options import ANALYTIC
+
+
+@dataclass(frozen=True, eq=False)
+class Step:
+    """One effect added to the set: its incremental evidence and the other effects nearly as good at that step."""
+    effect: str
+    score: float              # incremental -dBIC
+    explained: float          # share of what the set before it left unexplained
+    alternatives: tuple       # effects whose increment came within confusable_share of this one's
+
+
+@dataclass(frozen=True, eq=False)
+class Combination:
+    """Effects fitted together on the training files and re-simulated together on the test files."""
+    members: dict             # effect -> value, leading effect first
+    S: float                  # joint misfit (training files, own nuisance lags, initial temperature solved)
+    preds_train: list
+    p_te: list
+    score: float              # -dBIC against the baseline, k = number of members
+    explained: float          # share of the excess squared residual the set explains
+    shares: dict              # effect -> share of the explained part
+    steps: list = field(default_factory=list)   # the forward steps after the leading effect
+
+
+class _State:
+    """The set being grown: its members, its training run and its raw (unadjusted) predictions."""
+
+    def __init__(self, base: Baseline, members: dict, out: list):
+        self.base, self.members, self.out = base, dict(members), out
+        self.raw = preds_of(base, base.train.datasets, out, members)
+        self.S = base.scorer.S_adj(self.raw)
+
+
+def preds_of(base: Baseline, datasets: list, outs: list, members: dict, lags: dict | None = None) -> list:
+    """Predictions of a set's run: its (at most one) exact sensor effect applied to the model outputs."""
+    exact = [(e, v) for e, v in members.items() if e in ANALYTIC]
+    e, v = exact[0] if exact else (None, None)
+    return base.scorer.preds(datasets, outs, e, v, lags=lags)
+
+
+def _fraction(eid: str, v: float) -> float:
+    """How far `v` sits from neutral towards the bound on its side (0..1)."""
+    e = CATALOG[eid]
+    bound = e.high if v >= e.neutral else e.low
+    return (v - e.neutral) / (bound - e.neutral) if bound != e.neutral else 0.0
+
+
+def _dense(eid: str, n: int = 41) -> np.ndarray:
+    e = CATALOG[eid]
+    return np.linspace(e.low, e.high, n)
+
+
+def _delta_fn(base: Baseline, fit: Fit):
+    """v -> per-entry change of the predictions from the effect's single-effect grid (quadratic spline)."""
+    from scipy.interpolate import make_interp_spline
+    xs = np.array(sorted(fit.grid))
+    if xs.size < 2:
+        return None
+    kk = min(2, xs.size - 1)
+    n = len(base.p0_hp)
+    splines = [make_interp_spline(xs, np.array([fit.grid[x][k] for x in xs]), k=kk, axis=0) for k in range(n)]
+    return lambda v: [s(v) - p for s, p in zip(splines, base.p0_hp)]
+
+
+def _surrogate_on_top(ctx: Context, base: Baseline, st: _State, eid: str, fit: Fit, deltas: dict) -> tuple:
+    """(value, surrogate misfit) of effect `eid` added to the set: exact for a sensor effect, else the set's run plus
+    the effect's single-effect change."""
+    sc, train = base.scorer, base.train.datasets
+    best = (CATALOG[eid].neutral, st.S)
+    for v in _dense(eid):
+        if eid in ANALYTIC:
+            S = sc.S_adj(preds_of(base, train, st.out, {**st.members, eid: float(v)}))
+        else:
+            S = sc.S_adj([a + d for a, d in zip(st.raw, deltas[eid](float(v)))])
+        if S < best[1]:
+            best = (float(v), S)
+    return best
+
+
+def _eligible(ctx: Context, st: _State, fits: dict, deltas: dict) -> list:
+    has_exact = any(e in ANALYTIC for e in st.members)
+    out = []
+    for eid, f in fits.items():
+        if eid in st.members or (eid in ANALYTIC and has_exact):
+            continue
+        if eid not in ANALYTIC and (deltas.get(eid) is None or ctx.backend_of(eid) != ctx.model.name):
+            continue                      # no grid, or fitted by the fallback plant (cannot be combined)
+        out.append(eid)
+    return out
+
+
+def _simulate_sets(ctx: Context, base: Baseline, sets: list, cur: _State) -> list:
+    """Training runs of candidate sets (the current run where a set adds only an exact sensor effect)."""
+    phys = [{e: v for e, v in m.items() if e not in ANALYTIC} for m in sets]
+    need = [i for i, m in enumerate(phys) if m != {e: v for e, v in cur.members.items() if e not in ANALYTIC}]
+    sims = ctx.sim.run(base.train.datasets, [Run.of(phys[i]) for i in need]) if need else []
+    outs = [cur.out] * len(sets)
+    for i, o in zip(need, sims):
+        outs[i] = o
+    return outs
+
+
+def _refit_jointly(ctx: Context, base: Baseline, st: _State, deltas: dict, passes: int = 3) -> _State:
+    """Coordinate passes over the members on the surrogates around the joint run, each re-simulated and kept while
+    it lowers the misfit."""
+    for _ in range(passes):
+        new = _coordinate_pass(ctx, base, st, deltas)
+        if new is st:
+            break
+        st = new
+    return st
+
+
+def _coordinate_pass(ctx: Context, base: Baseline, st: _State, deltas: dict) -> _State:
+    """One coordinate pass over the members on the surrogates around the joint run, re-simulated; kept if better."""
+    sc, train = base.scorer, base.train.datasets
+    members = dict(st.members)
+    raw = st.raw
+    for eid in list(members):
+        v0 = members[eid]
+        best_v, best_S = v0, sc.S_adj(raw)
+        d0 = None if eid in ANALYTIC else deltas[eid](v0)
+        for v in _dense(eid):
+            v = float(v)
+            if eid in ANALYTIC:
+                S = sc.S_adj(preds_of(base, train, st.out, {**members, eid: v}))
+            else:
+                S = sc.S_adj([a + d - d_0 for a, d, d_0 in zip(raw, deltas[eid](v), d0)])
+            if S < best_S:
+                best_v, best_S = v, S
+        if best_v != v0:
+            members[eid] = best_v
+            if eid not in ANALYTIC:
+                raw = [a + d - d_0 for a, d, d_0 in zip(raw, deltas[eid](best_v), d0)]
+            else:
+                raw = preds_of(base, train, st.out, members)
+    if members == st.members:
+        return st
+    out = _simulate_sets(ctx, base, [members], st)[0]
+    new = _State(base, members, out)
+    return new if new.S < st.S else st
+
+
+def _step(ctx: Context, base: Baseline, crit: Criterion, st: _State, fits: dict, deltas: dict):
+    """(the set with one more effect, its Step), or None when nothing pays for one more parameter."""
+    o = ctx.opts
+    cands = []
+    for eid in _eligible(ctx, st, fits, deltas):
+        v, S = _surrogate_on_top(ctx, base, st, eid, fits[eid], deltas)
+        if v != CATALOG[eid].neutral:
+            cands.append((S, eid, v))
+    if not cands:
+        return None
+    cands.sort()
+    checked = []
+    sets = [{**st.members, eid: v} for _S, eid, v in cands[:o.combine_check]]
+    for m, out in zip(sets, _simulate_sets(ctx, base, sets, st)):
+        checked.append(_State(base, m, out))
+    checked.sort(key=lambda s: s.S)
+    best = _refit_jointly(ctx, base, checked[0], deltas)
+    excess = max(st.S - base.S_noise, 0.02 * st.S, 1e-12)
+    gain = (st.S - best.S) / excess
+    score = -(crit.n_eff * math.log(max(best.S, 1e-12) / max(st.S, 1e-12)) + math.log(max(crit.n_eff, 2.0)))
+    added = next(e for e in best.members if e not in st.members)
+    if score < o.evidence_min or gain < o.add_explain_min or abs(_fraction(added, best.members[added])) < o.min_frac:
+        return None
+    # alternatives: other effects whose (surrogate, then checked) increment came within confusable_share
+    alts = tuple(e for S, e, _v in cands if e != added
+                 and (st.S - S) / excess >= gain - o.confusable_share)
+    return best, Step(added, float(score), float(gain), alts)
+
+
+def _shares(base: Baseline, fits: dict, members: dict, chain: list) -> dict:
+    """Each member's share of the explained misfit (pairs: averaged over both orders; else in the order found)."""
+    S0 = base.S0
+    total = max(S0 - chain[-1], 1e-12)
+    ids = list(members)
+    if len(ids) == 2:
+        a, b = ids
+        Sa, Sb, Sab = fits[a].S, fits[b].S, chain[-1]
+        sa = 0.5 * ((S0 - Sa) + (Sb - Sab)) / total
+        return {a: float(sa), b: float(1.0 - sa)}
+    prev, out = S0, {}
+    for eid, S in zip(ids, chain):
+        out[eid] = float((prev - S) / total)
+        prev = S
+    return out
+
+
+def _gap_left(ctx: Context, base: Baseline, st: _State, gap_thr_c: dict) -> bool:
+    """Does a real gap remain after the set (systematic residual above the gap threshold on some channel)?"""
+    from tools.diagnosis.decide import systematic
+    post = systematic(base, base.scorer.adjust(st.raw, "train"), ctx.opts).rms_c
+    return any(post[c] > gap_thr_c[c] for c in post)
+
+
+def forward_select(ctx: Context, base: Baseline, crit: Criterion, fits: list, gap_thr_c: dict):
+    """The set of effects found together, starting from the best single candidate, grown while a real gap remains
+    (above `gap_thr_c` on some channel) and the next effect pays for itself; None when no second effect joins (then
+    the verdict stays one effect)."""
+    o = ctx.opts
+    top = crit.candidates[0].fit
+    if o.max_effects < 2 or top.value == CATALOG[top.effect].neutral:
+        return None
+    by_id = {f.effect: f for f in fits}
+    deltas = {eid: (None if eid in ANALYTIC else _delta_fn(base, f)) for eid, f in by_id.items()}
+    st = _State(base, {top.effect: top.value}, top.out_train)
+    chain, steps = [st.S], []
+    while len(st.members) < o.max_effects and _gap_left(ctx, base, st, gap_thr_c):
+        nxt = _step(ctx, base, crit, st, by_id, deltas)
+        if nxt is None:
+            break
+        st, step = nxt
+        chain.append(st.S)
+        steps.append(step)
+    if len(st.members) < 2:
+        return None
+    return _finish(ctx, base, crit, by_id, st, chain, steps)
+
+
+def _finish(ctx: Context, base: Baseline, crit: Criterion, fits: dict, st: _State, chain: list,
+            steps: list) -> Combination:
+    """The chosen set with its own nuisance lags, scored, and re-simulated on the test files."""
+    sc = base.scorer
+    exact = next((e for e in st.members if e in ANALYTIC), None)
+    lags = sc.refit_lags(st.out, exact)
+    pr = sc.adjust(preds_of(base, base.train.datasets, st.out, st.members, lags), "train")
+    if sc.S(pr) > st.S:                 # the refitted lags did not help: keep the scorer's
+        lags = dict(sc.lag)
+        pr = sc.adjust(st.raw, "train")
+    S = sc.S(pr)
+    chain[-1] = S
+    k = len(st.members)
+    score = -(crit.n_eff * math.log(max(S, 1e-12) / max(base.S0, 1e-12)) + k * math.log(max(crit.n_eff, 2.0)))
+    explained = (base.S0 - S) / max(base.S0 - base.S_noise, 0.02 * base.S0, 1e-12)
+    phys = {e: v for e, v in st.members.items() if e not in ANALYTIC}
+    tout = ctx.sim.run(base.test.datasets, [Run.of(phys)])[0] if phys else base.base_te
+    p_te = sc.adjust(preds_of(base, base.test.datasets, tout, st.members, lags), "test")
+    return Combination(dict(st.members), S, pr, p_te, float(score), float(explained),
+                       _shares(base, fits, st.members, chain), steps)
