@@ -35,7 +35,7 @@ except ModuleNotFoundError:          # Python 3.10
 
 PARAM_DIR = Path(__file__).resolve().parent / "params"
 VARIANTS = ("GRS905", "GRSO905")
-PROVENANCES = ("seed", "derived", "assumed")
+PROVENANCES = ("seed", "derived", "assumed", "fitted")
 
 #: unit string in a file -> (SI dimension, factor to SI)
 UNITS = {
@@ -96,6 +96,8 @@ class Parameters:
     units: dict
     strings: dict = field(default_factory=dict)
     origin: str = ""
+    #: plausible (low, high) bounds in SI of the keys whose entry declares ``lo`` and ``hi`` (what calibrate may fit)
+    bounds: dict = field(default_factory=dict)
 
     def __getitem__(self, key: str) -> float:
         try:
@@ -144,7 +146,8 @@ class Parameters:
             if k not in vals:
                 raise ParameterError(f"cannot override unknown parameter {k!r}")
             vals[k] = float(v)
-        new = Parameters(self.variant, vals, dict(self.sources), dict(self.units), dict(self.strings), self.origin)
+        new = Parameters(self.variant, vals, dict(self.sources), dict(self.units), dict(self.strings), self.origin,
+                         dict(self.bounds))
         _check_values(new)
         return new
 
@@ -202,18 +205,44 @@ def _read(path: Path, seen=()) -> dict:
     return entries
 
 
-def load_parameters(variant_or_path: str | Path = "GRS905") -> Parameters:
-    """Load a variant by name (GRS905, GRSO905) or a TOML file by path."""
+def parameter_path(variant_or_path: str | Path) -> Path:
+    """The TOML file of a variant name (GRS905, GRSO905) or a path."""
     p = Path(variant_or_path)
     if p.suffix.lower() == ".toml":
-        path = p
-    elif str(variant_or_path) in VARIANTS:
-        path = PARAM_DIR / f"{variant_or_path}.toml"
-    else:
-        raise ParameterError(f"unknown gearbox variant {variant_or_path!r}: use one of {', '.join(VARIANTS)} "
-                             f"or the path of a .toml parameter file")
+        return p
+    if str(variant_or_path) in VARIANTS:
+        return PARAM_DIR / f"{variant_or_path}.toml"
+    raise ParameterError(f"unknown gearbox variant {variant_or_path!r}: use one of {', '.join(VARIANTS)} "
+                         f"or the path of a .toml parameter file")
+
+
+def read_entries(variant_or_path: str | Path) -> dict:
+    """The raw entries of a parameter file by dotted key (inheritance resolved): {v, u, src, ...} tables, as written."""
+    return _read(parameter_path(variant_or_path))
+
+
+def _bounds(path: Path, key: str, e: dict, fac: float, v: float):
+    """(lo, hi) in SI of an entry that declares them (both or neither), with lo <= v <= hi."""
+    if "lo" not in e and "hi" not in e:
+        return None
+    try:
+        lo, hi = float(e["lo"]) * fac, float(e["hi"]) * fac
+    except KeyError:
+        raise ParameterError(f"{path.name}: {key} declares only one of lo and hi; give both or neither") from None
+    except (TypeError, ValueError):
+        raise ParameterError(f"{path.name}: {key} has bounds lo = {e.get('lo')!r}, hi = {e.get('hi')!r}, which are "
+                             f"not numbers") from None
+    if not lo <= v <= hi or not lo < hi:
+        raise ParameterError(f"{path.name}: {key} = {e['v']} must lie within its bounds lo = {e['lo']} .. hi = "
+                             f"{e['hi']}")
+    return lo, hi
+
+
+def load_parameters(variant_or_path: str | Path = "GRS905") -> Parameters:
+    """Load a variant by name (GRS905, GRSO905) or a TOML file by path."""
+    path = parameter_path(variant_or_path)
     entries = _read(path)
-    values, sources, units, strings = {}, {}, {}, {}
+    values, sources, units, strings, bounds = {}, {}, {}, {}, {}
     for key, e in entries.items():
         if key in ("meta.variant", "meta.inherit"):
             strings[key] = str(e)
@@ -238,7 +267,10 @@ def load_parameters(variant_or_path: str | Path = "GRS905") -> Parameters:
         values[key] = v
         sources[key] = src
         units[key] = dim
-    params = Parameters(strings.get("meta.variant", path.stem), values, sources, units, strings, path.name)
+        b = _bounds(path, key, e, fac, v)
+        if b is not None:
+            bounds[key] = b
+    params = Parameters(strings.get("meta.variant", path.stem), values, sources, units, strings, path.name, bounds)
     _check_values(params)
     _check_required(params)
     kind = params.strings.get("cooler.kind", "liquid")

@@ -106,7 +106,9 @@ def test_renamed_keys_still_load_with_a_deprecation_warning(tmp_path):
     """A file written with the old key names (values in their old units) gives bit-identical SI values."""
     new = load_parameters()
     src = (PARAM_DIR / "GRS905.toml").read_text()
-    old = re.sub(r'flow_m3_per_rad = \{ v = [^,]+, u = "m3/rad"', 'flow_per_ls_rpm = { v = 0.005, u = "L/min/rpm"', src)
+    # (an old file: the old key in its old unit, and no calibration bounds, which came later)
+    old = re.sub(r'flow_m3_per_rad = \{ v = [^,]+, u = "m3/rad"(, lo = [^,]+, hi = [^,]+)?',
+                 'flow_per_ls_rpm = { v = 0.005, u = "L/min/rpm"', src)
     old = re.sub(r'max_speed_rad_s = \{ v = [^,]+, u = "rad/s"', 'max_speed = { v = 4000, u = "rpm"', old)
     old = re.sub(r'omega_nom_rad_s = \{ v = [^,]+, u = "rad/s"', 'N_nom = { v = 1000, u = "rpm"', old)
     assert "flow_per_ls_rpm = {" in old and "max_speed = {" in old and "N_nom = {" in old

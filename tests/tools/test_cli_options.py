@@ -16,6 +16,7 @@ MINIMAL = {
     "run": ["--interface", "virtual", "--channel", "x"],
     "plant": ["--interface", "virtual", "--channel", "x", "--cycle", "uphill"],
     "diagnose": ["--train", "a.csv", "--test", "b.csv", "--json", "g.json"],
+    "calibrate": ["--train", "a.csv", "--test", "b.csv", "--auto", "--out", "c.toml"],
     "bench-diagnosis": [],
     "demo": [],
     "export-c": ["--out", "d"],

@@ -32,9 +32,10 @@ def add_subparser(sub):
                                                                             "cycles (default 1500 s)")
     p.add_argument("--test-s", type=float, default=1500.0, metavar="S", help="length of the test cycle (default 1500 s)")
     p.add_argument("--only", metavar="I,J,...", help="run only these scenario indices of the plan")
-    p.add_argument("--family", choices=("single", "sensor"),
-                   help="the plan's scenario family: single (default: one physical catalog effect, or none) or "
-                        "sensor (the oil sensor's offset or gain, or none)")
+    p.add_argument("--family", choices=("single", "sensor", "pair"),
+                   help="the plan's scenario family: single (default: one physical catalog effect, or none), "
+                        "sensor (the oil sensor's offset or gain, or none) or pair (two effects at once, a physical "
+                        "one and a physical or sensor one, each at least half-way to a bound; or none)")
     p.add_argument("--effect", metavar="ID:PARAM=VALUE|none", help="one custom scenario with this effect instead of "
                                                                   "the plan")
     p.add_argument("--setup", choices=("truck", "rig"), help="set-up of the custom scenario (--effect; default rig)")

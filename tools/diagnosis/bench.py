@@ -177,6 +177,7 @@ class Scenario:
     sensor: dict = field(default_factory=dict)
     truth_s: float = 0.0
     initial_temps_c: list = field(default_factory=list)
+    also: dict = field(default_factory=dict)   # further effects planted at the same time (family "pair")
 
 
 def planted_value(eid: str, rng: np.random.Generator, min_frac: float = 0.3) -> float:
@@ -231,7 +232,7 @@ def make_scenario(index: int, seed: int, setup: str, effect: str | None, value: 
     if setup == "rig":
         for c in RIG_CHANNELS:
             sensor[f"meas_T_{c}_c"] = (float(rng.uniform(0.5, 3.0)), float(rng.uniform(0.1, 0.2)))
-    sc = Scenario(index, seed, setup, effect, value, cooler, sensor=sensor)
+    sc = Scenario(index, seed, setup, effect, value, cooler, sensor=sensor, also=dict(also or {}))
     plant = ReferencePlant(params, ({effect: value} if effect else {}) | dict(also or {}), cooler=cooler,
                            dt_s=truth_dt_s)
     t0 = time.perf_counter()
@@ -258,8 +259,22 @@ def make_scenario(index: int, seed: int, setup: str, effect: str | None, value: 
 # ----------------------------------------------------------------------------------------------------------------
 # the benchmark
 
-#: scenario families of the benchmark: which effects each plants (nulls are planted in every family)
-FAMILIES = {"single": PHYSICAL_EFFECT_IDS, "sensor": MEASUREMENT_EFFECTS}
+#: scenario families of the benchmark: which effects each plants (nulls are planted in every family); "pair" plants
+#: two at once: a physical effect and another physical or sensor effect (PAIR_SECOND)
+FAMILIES = {"single": PHYSICAL_EFFECT_IDS, "sensor": MEASUREMENT_EFFECTS,
+            "pair": tuple(e for e in PHYSICAL_EFFECT_IDS if e not in ("synchronizer_shift_heat", "oil_sensor_lag"))}
+PAIR_SECOND = FAMILIES["pair"] + MEASUREMENT_EFFECTS
+
+
+def _pair_item(eid: str, setup: str, rng: np.random.Generator) -> tuple:
+    """A two-effect scenario: `eid` and a second effect (not the same family of heat), both at least half-way to a
+    bound so that each matters."""
+    second = [e for e in PAIR_SECOND if e != eid and not (eid == "thermostat_offset" and e == "cooler_effectiveness_scale")]
+    e2 = second[int(rng.integers(len(second)))]
+    cooler = "air" if "thermostat_offset" in (eid, e2) or rng.random() < 1 / 3 else "liquid"
+    if e2 == "thermostat_offset" and cooler != "air":
+        cooler = "air"
+    return (setup, eid, planted_value(eid, rng, 0.5), cooler, {e2: planted_value(e2, rng, 0.5)})
 
 
 def plan(n: int, seed: int, null_frac: float = 0.2, family: str = "single") -> list:
@@ -274,10 +289,13 @@ def plan(n: int, seed: int, null_frac: float = 0.2, family: str = "single") -> l
     for k in range(n_eff):
         eid = effects[k % len(effects)]
         setup = "truck" if (k // len(effects) + k) % 2 == 0 else "rig"
+        if family == "pair":
+            items.append(_pair_item(eid, setup, rng))
+            continue
         cooler = "air" if eid == "thermostat_offset" or rng.random() < 1 / 3 else "liquid"
-        items.append((setup, eid, planted_value(eid, rng), cooler))
+        items.append((setup, eid, planted_value(eid, rng), cooler, {}))
     for k in range(n_null):
-        items.append(("truck" if k % 2 == 0 else "rig", None, None, "air" if rng.random() < 1 / 3 else "liquid"))
+        items.append(("truck" if k % 2 == 0 else "rig", None, None, "air" if rng.random() < 1 / 3 else "liquid", {}))
     order = rng.permutation(len(items))
     return [items[i] for i in order]
 
@@ -303,8 +321,44 @@ class Row:
     note: str = ""
 
 
+def found_set(v: dict) -> tuple:
+    """(the effects a verdict names: the set, or the one effect; every effect declared confusable with one of them)."""
+    if "effects" in v:
+        found = [e["effect"] for e in v["effects"]]
+        conf = [c for e in v["effects"] for c in e.get("confusable_with", [])]
+        return found, conf
+    return ([v["effect"]] if v["effect"] in CATALOG else []), list(v.get("confusable_with", []))
+
+
+def _score_set(sc: Scenario, res: dict) -> tuple:
+    """(ok, status) of a scenario with several planted effects: every identifiable one named (in the set, or declared
+    confusable with a member); None when none of them is identifiable with the scenario's channels."""
+    truth = [sc.effect] + list(sc.also)
+    found, conf = found_set(res["verdict"])
+    ident = {e: res["identifiability"].get(e, {}).get("identifiable", True) for e in truth}
+    need = [e for e in truth if ident[e]]
+    if not need:
+        return None, "not identifiable"
+    missed = [e for e in need if e not in found and e not in conf]
+    if not missed:
+        exact = set(found) == set(truth)
+        return True, "both named" if exact else "named (" + ", ".join(
+            e if e in found else f"{e} as confusable" for e in truth) + ")"
+    return False, "missed: " + ", ".join(missed) + f" (found {' + '.join(found) or res['verdict']['effect']})"
+
+
 def score_row(sc: Scenario, res: dict, diag_s: float) -> Row:
     v = res["verdict"]
+    if sc.also:
+        ok, status = _score_set(sc, res)
+        found, conf = found_set(v)
+        e = CATALOG[sc.effect]
+        bound = e.high if sc.value > e.neutral else e.low
+        return Row(sc.index, sc.setup, sc.cooler, " + ".join([sc.effect] + list(sc.also)), sc.value,
+                   (sc.value - e.neutral) / (bound - e.neutral), " + ".join(found) or v["effect"], None, conf,
+                   float(v["shrink"] or 0.0), float(v["test_rms_before_c"] or 0.0), float(v["test_rms_after_c"] or 0.0),
+                   status, ok, diag_s, sc.truth_s, "planted " + ", ".join(
+                       f"{k} {x:.4g}" for k, x in ({sc.effect: sc.value} | sc.also).items()))
     eff = sc.effect
     conf = list(v.get("confusable_with", []))
     fitted = None
@@ -348,7 +402,7 @@ def summarize(rows: list) -> dict:
     scored = [r for r in eff_rows if r.ok is not None]
     excluded = [r for r in eff_rows if r.ok is None]
     hits = [r for r in scored if r.ok]
-    shrinks = [r.shrink for r in eff_rows if r.verdict in CATALOG]
+    shrinks = [r.shrink for r in eff_rows if r.verdict.split(" + ")[0] in CATALOG]
     shr_all = [r.shrink for r in eff_rows if r.ok is not None]
     return {
         "scenarios": len(rows), "effect_scenarios": len(eff_rows), "null_scenarios": len(null_rows),
@@ -450,8 +504,9 @@ def run_bench(n: int = 40, seed: int = 0, out_dir=None, params=None, progress=pr
         outp.mkdir(parents=True, exist_ok=True)
     with progress_bar(len(chosen), "bench-diagnosis", enabled=bar, unit="scenario") as pbar:
         for i in chosen:
-            setup, eid, val, cooler = items[i]
-            sc = make_scenario(i, seed, setup, eid, val, params, cooler=cooler, train_s=train_s, test_s=test_s)
+            setup, eid, val, cooler, also = (tuple(items[i]) + ({},))[:5]
+            sc = make_scenario(i, seed, setup, eid, val, params, cooler=cooler, train_s=train_s, test_s=test_s,
+                               also=also)
             t0 = time.perf_counter()
             res = diagnose(sc.train, sc.test, params, model=model, cooler=cooler, opts=opts)
             row = score_row(sc, res, time.perf_counter() - t0)

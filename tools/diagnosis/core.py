@@ -30,8 +30,8 @@ from firmware_model.errors import InputError
 from tools.diagnosis.baseline import establish_baseline
 from tools.diagnosis.combine import forward_select
 from tools.diagnosis.context import Context, Simulator
-from tools.diagnosis.decide import (confusable_with, decide, residuals, suggestions, with_combination,
-                                    with_structure)
+from tools.diagnosis.decide import (confusable_with, decide, held_out_check, residuals, suggestions,
+                                    with_combination, with_structure)
 from tools.diagnosis.fit import fit_all, grid_plan, rank, simulate_test_files
 from tools.diagnosis.heat import unexplained_heat
 from tools.diagnosis.identify import identifiability
@@ -83,11 +83,15 @@ class Diagnosis:
         verdict = decide(ctx, base, crit)
         combo = forward_select(ctx, base, crit, fits, verdict.gap_thr_c) if verdict.is_effect else None
         verdict = with_combination(ctx, base, verdict, combo)
+        res = residuals(base, verdict, crit, combo)
+        checked = held_out_check(ctx, base, verdict, res, where.where)
+        if checked is not verdict:
+            verdict, combo = checked, None
+            res = residuals(base, verdict, crit)
         structure = self._structure(base, fits, verdict)
         verdict = with_structure(verdict, structure)
         conf = confusable_with(crit, ctx.opts)
         sugg = suggestions(ctx, train, verdict, crit, conf)
-        res = residuals(base, verdict, crit, combo)
         regs = regimes_before_after(test, base.base_te, res.test_before, res.test_after, p, ctx.cooler, ctx.opts)
         self.outcome = Outcome(base, where, heat, crit, ident, verdict, conf, sugg, res, regs, structure, combo)
         self.plot_data = plot_data(self.outcome)

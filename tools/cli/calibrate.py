@@ -1,0 +1,102 @@
+"""`gearbox-vsensor calibrate`: fit the model's assumed parameters to measured runs, checked on held-out runs."""
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from firmware_model.config import load_config
+from firmware_model.errors import InputError
+
+
+def add_subparser(sub):
+    p = sub.add_parser(
+        "calibrate", help="fit assumed parameters of the parameter file to measured runs (held-out check)",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        description=(
+            "Calibrate the model to a gearbox: fit chosen parameters of the parameter file (each must declare "
+            "plausible bounds lo/hi there) to the TRAINING files with the reference plant, and check the result on "
+            "the TEST files it never saw (see docs/diagnosis.md, 'Calibration').\n\n"
+            "1. identifiability: each parameter's signature on every measured channel over half its plausible range, "
+            "and which parameters the channels cannot separate;\n"
+            "2. fit: bounded least squares of measured - model on every channel; one-sigma uncertainty;\n"
+            "3. held-out RMS before and after;\n"
+            "4. OUT.toml: the whole parameter file with the fitted values, provenance \"fitted\" and the data they "
+            "came from; use it with --config (params = \"OUT.toml\") for replay, simulate or diagnose.\n\n"
+            "An unknown key, a key without bounds or a key the data cannot identify is refused (one sentence, exit "
+            "2, nothing written); --auto fits every bounded key the data can identify and lists the others."),
+        epilog="examples:\n"
+               "  gearbox-vsensor calibrate --train rig1.csv rig2.csv --test rig3.csv --auto --out my_gearbox.toml "
+               "--report cal/report.md\n"
+               "  gearbox-vsensor calibrate --train a.csv --test b.csv --params oil_system.flow_m3_per_rad,"
+               "housing.hot_frac --out my_gearbox.toml")
+    p.add_argument("--train", nargs="+", required=True, metavar="FILE", help="training runs (.csv or CAN logs)")
+    p.add_argument("--test", nargs="+", required=True, metavar="FILE", help="held-out runs, never used by the fit")
+    keys = p.add_mutually_exclusive_group(required=True)
+    keys.add_argument("--params", metavar="KEY,KEY,...", help="dotted keys of the parameter file to fit (each with "
+                                                               "lo/hi bounds)")
+    keys.add_argument("--auto", action="store_true", help="fit every key with bounds that the data can identify")
+    p.add_argument("--out", required=True, metavar="OUT.toml", help="the calibrated parameter file (written "
+                                                                    "atomically)")
+    p.add_argument("--report", metavar="OUT.md", help="also write a Markdown report with a held-out plot next to it")
+    p.add_argument("--config", metavar="TOML", help="project configuration (gearbox variant or parameter file, "
+                                                   "cooler kind)")
+    p.add_argument("--cooler", choices=("none", "liquid", "air", "hold", "measured"),
+                   help="cooler kind of the vehicle or rig (overrides --config; default liquid)")
+    p.add_argument("--workers", type=int, metavar="N", help="processes for the simulations (default: 2 or the "
+                                                            "number of cores)")
+    p.add_argument("--quiet", action="store_true", help="no progress or summary")
+    p.set_defaults(func=run)
+    return p
+
+
+def run(args) -> int:
+    import datetime as dt
+    from firmware_model.parameters import parameter_path
+    from tools.diagnosis.calibrate import calibrate, calibrated_toml, plot_held_out, report_markdown
+    from tools.diagnosis.options import Options
+    from tools.runtable import atomic_text_file
+    cfg = load_config(args.config)
+    params = cfg.load_params()
+    cooler = args.cooler or cfg.cooler or params.strings.get("cooler.kind", "liquid")
+    if args.workers is not None and args.workers < 1:
+        raise InputError(f"--workers {args.workers} must be at least 1")
+    if Path(args.out).suffix.lower() != ".toml":
+        raise InputError(f"--out {args.out} must be a .toml file")
+    outs = [Path(args.out)] + ([Path(args.report)] if args.report else [])
+    for f in args.train + args.test:
+        if any(Path(f).resolve() == o.resolve() for o in outs):
+            raise InputError(f"{f} is an input and an output; choose another --out/--report path")
+    keys = [k.strip() for k in (args.params or "").split(",") if k.strip()]
+    n = [0]
+
+    def tick():
+        n[0] += 1
+        if not args.quiet:
+            print(f"\rcalibrate: fit, {n[0]} evaluations", end="", file=sys.stderr, flush=True)
+    cal = calibrate(args.train, args.test, params, keys, auto=args.auto, cooler=cooler,
+                    opts=Options(workers=args.workers), progress=tick, config_path=args.config)
+    if not args.quiet:
+        print(file=sys.stderr)
+    base = parameter_path(cfg.params_path or cfg.variant)
+    stamp = dt.date.today().isoformat()
+    if args.report:
+        rep = Path(args.report)
+        rep.parent.mkdir(parents=True, exist_ok=True)
+        fig = rep.with_suffix(".png")
+        has_fig = plot_held_out(cal, fig)
+        with atomic_text_file(rep) as fh:
+            fh.write(report_markdown(cal, params, fig.name if has_fig else None))
+    Path(args.out).parent.mkdir(parents=True, exist_ok=True)
+    with atomic_text_file(args.out) as fh:
+        fh.write(calibrated_toml(base, params, cal, stamp))
+    if not args.quiet:
+        for x in cal.ident:
+            if not x.identifiable:
+                print(f"not fitted: {x.key}: {x.reason}")
+        for k in cal.keys:
+            print(f"{k}: {cal.start[k]:.6g} -> {cal.fitted[k]:.6g} +- {cal.sigma[k]:.2g} (SI)"
+                  + (" at a bound" if cal.at_bound[k] else ""))
+        print(f"held-out RMS {cal.test_rms_c[0]:.3f} -> {cal.test_rms_c[1]:.3f} degC "
+              f"({100 * (1 - cal.test_rms_c[1] / max(cal.test_rms_c[0], 1e-12)):.0f} % down) -> {args.out}")
+    return 0
