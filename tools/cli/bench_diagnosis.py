@@ -32,10 +32,12 @@ def add_subparser(sub):
                                                                             "cycles (default 1500 s)")
     p.add_argument("--test-s", type=float, default=1500.0, metavar="S", help="length of the test cycle (default 1500 s)")
     p.add_argument("--only", metavar="I,J,...", help="run only these scenario indices of the plan")
-    p.add_argument("--family", choices=("single", "sensor", "pair"),
+    p.add_argument("--family", choices=("single", "sensor", "pair", "model-form"),
                    help="the plan's scenario family: single (default: one physical catalog effect, or none), "
-                        "sensor (the oil sensor's offset or gain, or none) or pair (two effects at once, a physical "
-                        "one and a physical or sensor one, each at least half-way to a bound; or none)")
+                        "sensor (the oil sensor's offset or gain, or none), pair (two effects at once, a physical "
+                        "one and a physical or sensor one, each at least half-way to a bound; or none) or model-form "
+                        "(four assumed values of the parameter file moved within their bounds: the diagnosis, then "
+                        "calibrate --auto, on the same files)")
     p.add_argument("--effect", metavar="ID:PARAM=VALUE|none", help="one custom scenario with this effect instead of "
                                                                   "the plan")
     p.add_argument("--setup", choices=("truck", "rig"), help="set-up of the custom scenario (--effect; default rig)")
@@ -87,6 +89,8 @@ def run(args) -> int:
             eid, val = parse_effect(args.effect)
             custom = (args.setup, eid, val, args.cooler)
     from tqdm import tqdm
+    if args.family == "model-form":
+        return _model_form(args, only)
     # one result line per scenario on stderr, above the progress bar (shown on a terminal)
     rows, summary = B.run_bench(args.scenarios, args.seed, args.out, model=args.model, train_s=args.train_s,
                                 test_s=args.test_s, only=only, custom=custom, write_scenarios=args.write_scenarios,
@@ -94,4 +98,20 @@ def run(args) -> int:
     print(B.format_table(rows, summary))
     if args.out:
         print(f"\n-> {Path(args.out) / 'bench.md'}", file=sys.stderr)
+    return 0
+
+
+def _model_form(args, only) -> int:
+    """The model-form family: its own rows (diagnosis and calibration on the same files)."""
+    from firmware_model.parameters import load_parameters
+    from tools.diagnosis.bench_model_form import format_rows, run_model_form_bench
+    rows = run_model_form_bench(args.scenarios, args.seed, load_parameters("GRS905"), model=args.model,
+                                train_s=args.train_s, only=only, progress=lambda line: print(line, file=sys.stderr))
+    table = format_rows(rows)
+    print(table)
+    if args.out:
+        out = Path(args.out)
+        out.mkdir(parents=True, exist_ok=True)
+        (out / "bench.md").write_text(table)
+        print(f"\n-> {out / 'bench.md'}", file=sys.stderr)
     return 0

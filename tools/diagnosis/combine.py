@@ -191,7 +191,9 @@ def _step(ctx: Context, base: Baseline, crit: Criterion, st: _State, fits: dict,
     gain = (st.S - best.S) / excess
     score = -(crit.n_eff * math.log(max(best.S, 1e-12) / max(st.S, 1e-12)) + math.log(max(crit.n_eff, 2.0)))
     added = next(e for e in best.members if e not in st.members)
-    if score < o.evidence_min or gain < o.add_explain_min or abs(_fraction(added, best.members[added])) < o.min_frac:
+    share = (st.S - best.S) / max(base.S0 - best.S, 1e-12)      # of everything the set now explains
+    if (score < o.evidence_min or gain < o.add_explain_min or share < o.add_share_min
+            or abs(_fraction(added, best.members[added])) < o.min_frac):
         return None
     # alternatives: other effects whose (surrogate, then checked) increment came within confusable_share
     alts = tuple(e for S, e, _v in cands if e != added
@@ -223,12 +225,12 @@ def _gap_left(ctx: Context, base: Baseline, st: _State, gap_thr_c: dict) -> bool
     return any(post[c] > gap_thr_c[c] for c in post)
 
 
-def forward_select(ctx: Context, base: Baseline, crit: Criterion, fits: list, gap_thr_c: dict):
-    """The set of effects found together, starting from the best single candidate, grown while a real gap remains
-    (above `gap_thr_c` on some channel) and the next effect pays for itself; None when no second effect joins (then
-    the verdict stays one effect)."""
+def forward_select(ctx: Context, base: Baseline, crit: Criterion, fits: list, gap_thr_c: dict, start=None):
+    """The set of effects found together, starting from the best single candidate (or the Fit `start`), grown while
+    a real gap remains (above `gap_thr_c` on some channel) and the next effect pays for itself; None when no second
+    effect joins (then the verdict stays one effect)."""
     o = ctx.opts
-    top = crit.candidates[0].fit
+    top = start if start is not None else crit.candidates[0].fit
     if o.max_effects < 2 or top.value == CATALOG[top.effect].neutral:
         return None
     by_id = {f.effect: f for f in fits}
@@ -267,3 +269,35 @@ def _finish(ctx: Context, base: Baseline, crit: Criterion, fits: dict, st: _Stat
     p_te = sc.adjust(preds_of(base, base.test.datasets, tout, st.members, lags), "test")
     return Combination(dict(st.members), S, pr, p_te, float(score), float(explained),
                        _shares(base, fits, st.members, chain), steps)
+
+
+def rescue(ctx: Context, base: Baseline, crit: Criterion, fits: list, gap_thr_c: dict):
+    """When no single effect passes (the best one pinned at a bound with a gap left, or too weak alone), several
+    effects may explain the gap together: forward selection from each of the two strongest candidates; a set is
+    accepted when, as a whole, it has strong evidence (score >= evidence_min with k = its size), explains at least
+    explain_min of the excess, every member sits at least min_frac from neutral, and none is pinned at a bound while a
+    gap remains. The best accepted set (by score), or None."""
+    o = ctx.opts
+    best = None
+    for cand in crit.candidates[:2]:
+        f = cand.fit
+        if abs(_fraction(f.effect, f.value)) < o.min_frac:
+            continue
+        combo = forward_select(ctx, base, crit, fits, gap_thr_c, start=f)
+        if combo is None or combo.score < o.evidence_min or combo.explained < o.explain_min:
+            continue
+        if any(abs(_fraction(e, v)) < o.min_frac for e, v in combo.members.items()):
+            continue
+        pinned = any(abs(_fraction(e, v)) > 0.98 for e, v in combo.members.items())
+        if pinned and combo_gap_left(ctx, base, combo, gap_thr_c):
+            continue
+        if best is None or combo.score > best.score:
+            best = combo
+    return best
+
+
+def combo_gap_left(ctx: Context, base: Baseline, combo: Combination, gap_thr_c: dict) -> bool:
+    """Does a real gap remain after the set (its own predictions)?"""
+    from tools.diagnosis.decide import systematic
+    post = systematic(base, combo.preds_train, ctx.opts).rms_c
+    return any(post[c] > gap_thr_c[c] for c in post)

@@ -28,7 +28,7 @@ from firmware_model.effects import EFFECT_IDS
 from firmware_model.errors import InputError
 
 from tools.diagnosis.baseline import establish_baseline
-from tools.diagnosis.combine import forward_select
+from tools.diagnosis.combine import forward_select, rescue
 from tools.diagnosis.context import Context, Simulator
 from tools.diagnosis.decide import (confusable_with, decide, held_out_check, residuals, suggestions,
                                     with_combination, with_structure)
@@ -81,7 +81,11 @@ class Diagnosis:
         ident = identifiability(ctx, base, fits)
         self.progress(next(stage))              # verdict
         verdict = decide(ctx, base, crit)
-        combo = forward_select(ctx, base, crit, fits, verdict.gap_thr_c) if verdict.is_effect else None
+        combo = None
+        if verdict.is_effect:
+            combo = forward_select(ctx, base, crit, fits, verdict.gap_thr_c)
+        elif verdict.effect == "unexplained":
+            combo = rescue(ctx, base, crit, fits, verdict.gap_thr_c)
         verdict = with_combination(ctx, base, verdict, combo)
         res = residuals(base, verdict, crit, combo)
         checked = held_out_check(ctx, base, verdict, res, where.where)

@@ -139,7 +139,9 @@ def with_combination(ctx: Context, base: Baseline, v: Verdict, combo) -> Verdict
     if left:
         reason += ("; a gap remains after them (systematic residual " + _listing(post, v.gap_thr_c, ">", left)
                    + ")")
-    return replace(v, reason=reason, post_c=post)
+    if not v.is_effect:                 # no single effect passed (the reason why), the set does
+        reason += f" (alone: {v.reason.split(';')[0]})"
+    return replace(v, effect=next(iter(combo.members)), reason=reason, post_c=post)
 
 
 def with_structure(v: Verdict, structure: dict) -> Verdict:
@@ -244,8 +246,8 @@ def suggestions(ctx: Context, train: list, verdict: Verdict, crit: Criterion, co
     """For an effect verdict: what separates it from each effect it is confusable with."""
     if not verdict.is_effect:
         return []
-    top = crit.candidates[0]
     by_effect = {c.fit.effect: c for c in crit.candidates}
+    top = by_effect.get(verdict.effect, crit.candidates[0])
     return [suggest(ctx, train, top.fit, by_effect[other].fit) for other in conf[top.fit.effect]]
 
 

@@ -42,6 +42,7 @@ class Options:
     max_effects: int = 3              # forward selection: at most this many effects found together (1: off)
     combine_check: int = 2            # forward selection: candidates re-simulated per step
     shrink_min: float = 0.3           # a verdict's effect must shrink a real held-out gap by this much
+    add_share_min: float = 0.02       # forward selection: a new effect's least share of all the set explains
     add_explain_min: float = 0.2      # forward selection: share of the set's unexplained excess a new effect must explain
     coarse_grid: bool = True          # surrogate grid at the plant's coarse step (2 s), differences only
     dense: int = 161                  # dense parameter grid of the surrogate
