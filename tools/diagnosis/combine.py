@@ -191,7 +191,8 @@ def _step(ctx: Context, base: Baseline, crit: Criterion, st: _State, fits: dict,
     gain = (st.S - best.S) / excess
     score = -(crit.n_eff * math.log(max(best.S, 1e-12) / max(st.S, 1e-12)) + math.log(max(crit.n_eff, 2.0)))
     added = next(e for e in best.members if e not in st.members)
-    share = (st.S - best.S) / max(base.S0 - best.S, 1e-12)      # of everything the set now explains
+    # its share of all the set now explains, averaged over entering last and entering alone (its single fit)
+    share = 0.5 * ((st.S - best.S) + max(base.S0 - fits[added].S, 0.0)) / max(base.S0 - best.S, 1e-12)
     if (score < o.evidence_min or gain < o.add_explain_min or share < o.add_share_min
             or abs(_fraction(added, best.members[added])) < o.min_frac):
         return None
