@@ -24,7 +24,32 @@ class Effect:
     description: str
 
 
-CATALOG = {e.id: e for e in (
+class _Catalog(dict):
+    """The catalog by id. A channel effect (CHANNEL_EFFECTS) is one effect per measured channel, ``ID:CHANNEL``
+    (``thermocouple_offset:PS``): looked up as the family's record under that id."""
+
+    def __missing__(self, key):
+        fam, sep, cid = str(key).partition(":")
+        if sep and cid and fam in CHANNEL_EFFECTS and dict.__contains__(self, fam):
+            from dataclasses import replace
+            e = dict.__getitem__(self, fam)
+            return replace(e, id=key, description=f"{e.description} ({cid})")
+        raise KeyError(key)
+
+    def __contains__(self, key):
+        if dict.__contains__(self, key):
+            return True
+        fam, sep, cid = str(key).partition(":")
+        return bool(sep and cid) and fam in CHANNEL_EFFECTS and dict.__contains__(self, fam)
+
+    def get(self, key, default=None):
+        return self[key] if key in self else default
+
+
+#: effects that exist once per measured channel: ``thermocouple_offset:PS``
+CHANNEL_EFFECTS = ("thermocouple_offset",)
+
+CATALOG = _Catalog({e.id: e for e in (
     Effect("retarder_heat", "fraction", "-", 0.0, 0.1, 0.0,
            "part of the retarder's braking power (retarder torque x output shaft speed) reaching the oil (80 %) and "
            "the rear bearing housing H3 (20 %)"),
@@ -46,12 +71,36 @@ CATALOG = {e.id: e for e in (
            "the oil sensor reads a constant offset from the sump (calibration, or placed in a warmer or colder spot)"),
     Effect("oil_sensor_gain", "factor", "-", 0.9, 1.1, 1.0,
            "the oil sensor's gain is off: it reads gain x the sump temperature in degC (scaling or calibration)"),
-)}
+    Effect("thermocouple_offset", "offset_c", "degC", -5.0, 5.0, 0.0,
+           "a rig thermocouple reads a constant offset (calibration, or placed off the component's mean)"),
+)})
 
-EFFECT_IDS = tuple(CATALOG)
+#: the effects a model can switch on by id (channel effects are instances, ``thermocouple_offset:PS``)
+EFFECT_IDS = tuple(e for e in CATALOG if e not in CHANNEL_EFFECTS)
+class IdFamilies(tuple):
+    """A tuple of effect ids that also contains every channel instance (``thermocouple_offset:PS``) of its channel
+    families."""
+
+    def __contains__(self, key):
+        return tuple.__contains__(self, key) or str(key).partition(":")[0] in CHANNEL_EFFECTS and \
+            tuple.__contains__(self, str(key).partition(":")[0])
+
+
 #: effects on the measurement, not on the gearbox: the models' temperatures are unchanged, the sensor reads them
-#: differently (the gap diagnosis applies them to its predictions without re-simulating)
-MEASUREMENT_EFFECTS = ("oil_sensor_offset", "oil_sensor_gain")
+#: differently (the gap diagnosis applies them to its predictions without re-simulating); thermocouple_offset:<id>
+#: per rig thermocouple
+MEASUREMENT_EFFECTS = IdFamilies(("oil_sensor_offset", "oil_sensor_gain", "thermocouple_offset"))
+
+
+def channel_effect(family: str, cid: str) -> str:
+    """The id of a channel effect on one channel: ``thermocouple_offset:PS``."""
+    return f"{family}:{cid}"
+
+
+def effect_channel(eid: str) -> str | None:
+    """The channel of a channel effect's id (None for other effects)."""
+    fam, sep, cid = str(eid).partition(":")
+    return cid if sep and fam in CHANNEL_EFFECTS else None
 #: the effects that change the gearbox's physics (the single-effect benchmark plants these)
 PHYSICAL_EFFECT_IDS = tuple(e for e in EFFECT_IDS if e not in MEASUREMENT_EFFECTS)
 #: where the retarder_heat effect deposits its heat (node -> share; the catalog's description)
@@ -72,8 +121,18 @@ def parse_effect(spec: str) -> tuple[str, float]:
     else:
         raise InputError(f"effect {spec!r} must look like ID:PARAM=VALUE, e.g. retarder_heat:fraction=0.05")
     eid = eid.strip()
+    if eid in CHANNEL_EFFECTS:
+        if pname is None or ":" not in pname:
+            raise InputError(f"effect {spec!r}: {eid} acts on one measured channel: {eid}:CHANNEL:PARAM=VALUE, e.g. "
+                             f"{eid}:PS:{CATALOG[eid].param}=1.5")
+        cid, pname = pname.split(":", 1)
+        from firmware_model.components import HOUSINGS, PUBLISHED
+        if cid.strip() not in PUBLISHED + tuple(HOUSINGS) + ("oil@rig",):
+            raise InputError(f"effect {spec!r}: {cid.strip()!r} is not a component id (docs/interfaces.md section 5) "
+                             f"or oil@rig")
+        eid = channel_effect(eid, cid.strip())
     if eid not in CATALOG:
-        raise InputError(f"unknown effect id {eid!r}; known effects: {', '.join(EFFECT_IDS)}")
+        raise InputError(f"unknown effect id {eid!r}; known effects: {', '.join(EFFECT_IDS + CHANNEL_EFFECTS)}")
     e = CATALOG[eid]
     if pname is not None and pname.strip() != e.param:
         raise InputError(f"effect {eid} has parameter {e.param!r}, not {pname.strip()!r}")
@@ -158,7 +217,13 @@ class EffectScales:
 
 
 def effect_scales(effects: dict | None = None) -> EffectScales:
-    """EffectScales of an {effect id: value} dict (ids not given take their neutral value)."""
+    """EffectScales of an {effect id: value} dict (ids not given take their neutral value). A channel effect
+    (thermocouple_offset:ID) is refused: it acts on a rig's reading, and a model writes the true temperatures."""
+    bad = [e for e in (effects or {}) if effect_channel(e) is not None]
+    if bad:
+        raise InputError(f"effect {bad[0]} acts on a rig thermocouple's reading, not on the gearbox: a model writes "
+                         f"the true temperatures, so there is nothing to offset (the gap diagnosis fits it; "
+                         f"bench-diagnosis plants it)")
     return EffectScales(**{FIELD_OF_EFFECT[eid]: effect_value(effects, eid) for eid in EFFECT_IDS})
 
 

@@ -12,7 +12,7 @@ from firmware_model.physics.gearbox_losses import GearboxLosses
 from firmware_model.physics.kinematics import GEAR_MIN
 from firmware_model.network import BOUNDARIES, ConductanceEvaluator, build_network
 from firmware_model.parameters import load_parameters
-from firmware_model.effects import CATALOG, FIELD_OF_EFFECT, EffectScales, effect_scales
+from firmware_model.effects import EFFECT_IDS, CATALOG, FIELD_OF_EFFECT, EffectScales, effect_scales
 from firmware_model.physics.conductance_matrix import boundary_heat_w, conductance_matrix, node_conductance_w_per_k
 
 
@@ -224,7 +224,7 @@ def test_effects_record_validates_and_broadcasts():
 def test_one_effect_record_for_plant_and_onboard_model():
     """Every catalogued effect has its field in the one record; neutral values change nothing; the onboard model's
     record is the same type, with its per-source scales."""
-    assert set(FIELD_OF_EFFECT) == set(CATALOG)
+    assert set(FIELD_OF_EFFECT) == set(EFFECT_IDS)        # the channel effects act on a rig's readings only
     assert set(FIELD_OF_EFFECT.values()) <= {f.name for f in dataclasses.fields(EffectScales)}
     neutral = effect_scales(None)
     assert all(getattr(neutral, f) == CATALOG[eid].neutral for eid, f in FIELD_OF_EFFECT.items())

@@ -80,7 +80,9 @@ def test_json_schema_exactly_as_contract(planted):
     for cid in res["channels"]:
         assert math.isclose(sum(w["share"] for w in res["where"] if w["channel"] == cid), 1.0, abs_tol=2e-3)
     cands = res["candidates"]
-    assert sorted(c["effect"] for c in cands) == sorted(EFFECT_IDS)
+    # every catalog effect, and an offset of each rig thermocouple measured (channel effects)
+    tcs = [f"thermocouple_offset:{c}" for c in res["channels"] if c != "oil"]
+    assert sorted(c["effect"] for c in cands) == sorted(EFFECT_IDS + tuple(tcs))
     scores = [c["score"] for c in cands]
     assert scores == sorted(scores, reverse=True), "candidates must be best first"
     for c in cands:
@@ -408,3 +410,29 @@ def test_one_effect_alone_gets_no_partner(planted):
     """A single planted effect: no second effect pays for its parameter."""
     v = planted[0]["verdict"]
     assert "effects" not in v, v.get("effects")
+
+
+def test_a_rig_thermocouple_offset_is_named_on_its_channel(params):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        sc = make_scenario(0, 11, "rig", "thermocouple_offset:BLR", -1.5, params, train_s=SHORT_S, test_s=SHORT_S)
+        res = diagnose(sc.train, sc.test, params, model="plant")
+    v = res["verdict"]
+    assert v["effect"] == "thermocouple_offset:BLR", v["reason"]
+    assert abs(v["parameters"]["offset_c"] + 1.5) < 0.2
+    assert v["residual_structure"]["BLR"]["kind"] == "constant"
+    assert "BLR thermocouple's residual is about the same in every operating regime" in v["reason"]
+    # one candidate per measured thermocouple, none for the vehicle's oil sensor
+    ids = {c["effect"] for c in res["candidates"]}
+    assert {"thermocouple_offset:PS", "thermocouple_offset:LI.teeth", "thermocouple_offset:BLR"} <= ids
+    assert "thermocouple_offset:oil" not in ids
+
+
+def test_a_model_refuses_a_thermocouple_offset(tmp_path, capsys):
+    rc = main(["simulate", "--cycle", "steady", "--effect", "thermocouple_offset:PS:offset_c=1", "--out",
+               str(tmp_path / "r.csv")])
+    err = capsys.readouterr().err
+    assert rc == 2 and "acts on a rig thermocouple's reading" in err and not (tmp_path / "r.csv").exists()
+    rc = main(["simulate", "--cycle", "steady", "--effect", "thermocouple_offset:XX:offset_c=1", "--out",
+               str(tmp_path / "r.csv")])
+    assert rc == 2 and "is not a component id" in capsys.readouterr().err

@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from firmware_model.effects import CATALOG, MEASUREMENT_EFFECTS, PHYSICAL_EFFECT_IDS
+from firmware_model.effects import CATALOG, CHANNEL_EFFECTS, PHYSICAL_EFFECT_IDS, channel_effect, effect_channel
 from firmware_model.units import RAD_S_PER_RPM
 
 from tools.cycles.vehicle import KMH_PER_M_S, total_ratios
@@ -189,9 +189,10 @@ def planted_value(eid: str, rng: np.random.Generator, min_frac: float = 0.3) -> 
     return float(e.neutral + frac * (bound - e.neutral))
 
 
-def measure(truth: RunTable, cycle: RunTable, setup: str, rng: np.random.Generator, sensor: dict) -> RunTable:
+def measure(truth: RunTable, cycle: RunTable, setup: str, rng: np.random.Generator, sensor: dict,
+            offsets_c: dict | None = None) -> RunTable:
     """Turn a plant output into what a truck or a rig logs: lagged, noisy, quantised, a few dropped samples, noisy
-    inputs; only the channels of the set-up."""
+    inputs; only the channels of the set-up; `offsets_c`: {measured column: offset} of miscalibrated thermocouples."""
     from tools.diagnosis.measurement import lag_filter
     t = cycle["time_s"]
     n = t.size
@@ -211,7 +212,7 @@ def measure(truth: RunTable, cycle: RunTable, setup: str, rng: np.random.Generat
         lag_s, sig = sensor[col]
         x = lag_filter(np.asarray(truth[src], float), lag_s, dt)
         x = np.interp(t, truth["time_s"], x)
-        y = x + rng.standard_normal(n) * sig
+        y = x + rng.standard_normal(n) * sig + (offsets_c or {}).get(col, 0.0)
         y = np.round(y / J1939_TEMP_RES_C) * J1939_TEMP_RES_C
         drop = rng.random(n) < 0.005
         drop[0] = False
@@ -233,7 +234,10 @@ def make_scenario(index: int, seed: int, setup: str, effect: str | None, value: 
         for c in RIG_CHANNELS:
             sensor[f"meas_T_{c}_c"] = (float(rng.uniform(0.5, 3.0)), float(rng.uniform(0.1, 0.2)))
     sc = Scenario(index, seed, setup, effect, value, cooler, sensor=sensor, also=dict(also or {}))
-    plant = ReferencePlant(params, ({effect: value} if effect else {}) | dict(also or {}), cooler=cooler,
+    planted = ({effect: value} if effect else {}) | dict(also or {})
+    # a thermocouple's offset is in the measurement, not in the plant
+    offsets = {f"meas_T_{effect_channel(e)}_c": v for e, v in planted.items() if effect_channel(e) is not None}
+    plant = ReferencePlant(params, {e: v for e, v in planted.items() if effect_channel(e) is None}, cooler=cooler,
                            dt_s=truth_dt_s)
     t0 = time.perf_counter()
     cyc_seeds = rng.integers(0, 2 ** 31, size=n_train + 1)
@@ -249,7 +253,7 @@ def make_scenario(index: int, seed: int, setup: str, effect: str | None, value: 
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", RuntimeWarning)
             truth = plant.run(cyc, out_dt_s=1.0, progress=False).table
-        meas = measure(truth, cyc, setup, rng, sensor)
+        meas = measure(truth, cyc, setup, rng, sensor, offsets)
         meas.source = f"s{index:02d}_{role}{k + 1 if role == 'train' else 1}.csv"
         (sc.train if role == "train" else sc.test).append(meas)
     sc.truth_s = time.perf_counter() - t0
@@ -261,9 +265,9 @@ def make_scenario(index: int, seed: int, setup: str, effect: str | None, value: 
 
 #: scenario families of the benchmark: which effects each plants (nulls are planted in every family); "pair" plants
 #: two at once: a physical effect and another physical or sensor effect (PAIR_SECOND)
-FAMILIES = {"single": PHYSICAL_EFFECT_IDS, "sensor": MEASUREMENT_EFFECTS,
+FAMILIES = {"single": PHYSICAL_EFFECT_IDS, "sensor": ("oil_sensor_offset", "oil_sensor_gain", "thermocouple_offset"),
             "pair": tuple(e for e in PHYSICAL_EFFECT_IDS if e not in ("synchronizer_shift_heat", "oil_sensor_lag"))}
-PAIR_SECOND = FAMILIES["pair"] + MEASUREMENT_EFFECTS
+PAIR_SECOND = FAMILIES["pair"] + ("oil_sensor_offset", "oil_sensor_gain")
 
 
 def _pair_item(eid: str, setup: str, rng: np.random.Generator) -> tuple:
@@ -292,6 +296,9 @@ def plan(n: int, seed: int, null_frac: float = 0.2, family: str = "single") -> l
         if family == "pair":
             items.append(_pair_item(eid, setup, rng))
             continue
+        if eid in CHANNEL_EFFECTS:       # a rig thermocouple's offset: on a rig, on one of its channels
+            setup = "rig"
+            eid = channel_effect(eid, RIG_CHANNELS[int(rng.integers(len(RIG_CHANNELS)))])
         cooler = "air" if eid == "thermostat_offset" or rng.random() < 1 / 3 else "liquid"
         items.append((setup, eid, planted_value(eid, rng), cooler, {}))
     for k in range(n_null):

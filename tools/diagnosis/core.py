@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import time
 
-from firmware_model.effects import EFFECT_IDS
+from firmware_model.effects import EFFECT_IDS, channel_effect
 from firmware_model.errors import InputError
 
 from tools.diagnosis.baseline import establish_baseline
@@ -44,6 +44,12 @@ from tools.diagnosis.result import Outcome, PlotData, build_json, plot_data
 __all__ = ["Diagnosis", "Options", "diagnose", "lag_filter", "load_table", "make_model", "prepare"]
 
 
+def default_candidates(train: list) -> tuple:
+    """Every catalog effect, and an offset of every rig thermocouple the training files measure."""
+    tcs = sorted({c for ds in train for c in ds.channels if c != OIL})
+    return EFFECT_IDS + tuple(channel_effect("thermocouple_offset", c) for c in tcs)
+
+
 class Diagnosis:
     """One diagnosis run of prepared training and test files. `run()` returns the JSON-ready dict; afterwards
     `outcome` holds every stage's records and `plot_data` what the report plots."""
@@ -53,7 +59,7 @@ class Diagnosis:
         self.train, self.test = train, test
         opts = opts or Options()
         cooler = cooler or params.strings.get("cooler.kind", "liquid")
-        self.ctx = Context(model, params, opts, cooler, tuple(candidates or EFFECT_IDS), Simulator(model))
+        self.ctx = Context(model, params, opts, cooler, tuple(candidates or default_candidates(train)), Simulator(model))
         self.progress = progress or (lambda msg: None)
         self.outcome: Outcome | None = None
         self.plot_data: PlotData | None = None

@@ -148,11 +148,12 @@ def with_structure(v: Verdict, structure: dict) -> Verdict:
     """The verdict with the residual's regime structure as evidence in its reason (regimes.residual_structure):
     said for a sensor fault, and for a verdict of "unexplained" (where a constant offset points at the sensor)."""
     from dataclasses import replace
-    from firmware_model.effects import MEASUREMENT_EFFECTS
+    from firmware_model.effects import MEASUREMENT_EFFECTS, effect_channel
     from tools.diagnosis.regimes import structure_sentence
     if not structure or not (v.effect in MEASUREMENT_EFFECTS or v.effect == "unexplained"):
         return v
-    cids = [OIL] if v.effect in MEASUREMENT_EFFECTS and OIL in structure else sorted(structure)
+    own = effect_channel(v.effect) or (OIL if v.effect in MEASUREMENT_EFFECTS else None)
+    cids = [own] if own in structure else sorted(structure)
     said = "; ".join(structure_sentence(c, structure[c]) for c in cids if c in structure)
     return replace(v, reason=v.reason + "; " + said) if said else v
 

@@ -96,7 +96,8 @@ def identifiability(ctx: Context, base: Baseline, fits: list) -> dict:
         grid = dict(f.grid)
         if f.effect in ANALYTIC:
             # the lag half-way and at its bound, exact on the baseline sump
-            grid = {v: base.scorer.preds(train, base.base_tr, f.effect, v) for v in (0.5 * e.high, e.high)}
+            grid = {v: base.scorer.preds(train, base.base_tr, f.effect, v)
+                    for v in (e.neutral + 0.5 * (e.high - e.neutral), e.high)}
         sig = _signature(f.effect, grid, pairs, base.p0_hp, thr)
         seen = {c: (sig.max_rms_c.get(c, 0.0) >= thr[c]) for c in thr if c in pairs}
         identifiable = any(seen.values())

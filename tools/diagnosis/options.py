@@ -3,6 +3,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from firmware_model.effects import IdFamilies
+
 SCHEMA = "gap-diagnosis/1"
 #: J1939 temperature resolution (TRF1 SPN 177, rig thermocouples): the noise floor of a measured channel
 J1939_RES_C = 0.03125
@@ -13,8 +15,8 @@ OIL_RIG = "oil@rig"
 INPUT_COLUMNS = ("time_s", "engine_speed_rpm", "engine_torque_nm", "gear", "ambient_temp_c", "coolant_temp_c",
                  "vehicle_speed_kmh", "retarder_torque_nm")
 #: effects whose prediction is exact from the baseline (no simulation needed before the check): the oil sensor's
-#: lag (a filter of the model's sump), offset and gain (firmware_model.effects.MEASUREMENT_EFFECTS)
-ANALYTIC = ("oil_sensor_lag", "oil_sensor_offset", "oil_sensor_gain")
+#: lag (a filter of the model's sump), offset and gain, and a rig thermocouple's offset (thermocouple_offset:ID)
+ANALYTIC = IdFamilies(("oil_sensor_lag", "oil_sensor_offset", "oil_sensor_gain", "thermocouple_offset"))
 LOG_SUFFIXES = (".log", ".asc", ".blf", ".mf4")
 #: the stages of one diagnosis, in order (what the progress callback is told)
 STAGES = ("baseline and candidate grid", "where", "fit", "test", "verdict")

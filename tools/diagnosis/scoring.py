@@ -6,6 +6,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from firmware_model.effects import effect_channel
+
 from tools.diagnosis.measurement import lag_filter, model_at_cells
 from tools.diagnosis.options import OIL, Options
 
@@ -42,6 +44,8 @@ def predictions(datasets: list, outs: list, lags: dict, effect: str | None = Non
                 p = p + value                 # the sensor reads the (lagged) sump plus an offset
             elif cid == OIL and effect == "oil_sensor_gain" and value is not None:
                 p = p * value                 # ... or gain x the sump in degC
+            elif value is not None and effect_channel(effect) == cid:
+                p = p + value                 # a rig thermocouple reading its component plus an offset
             res.append(p)
             k += 1
     return res
