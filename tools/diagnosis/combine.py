@@ -196,9 +196,10 @@ def _step(ctx: Context, base: Baseline, crit: Criterion, st: _State, fits: dict,
     if (score < o.evidence_min or gain < o.add_explain_min or share < o.add_share_min
             or abs(_fraction(added, best.members[added])) < o.min_frac):
         return None
-    # alternatives: other effects whose (surrogate, then checked) increment came within confusable_share
-    alts = tuple(e for S, e, _v in cands if e != added
-                 and (st.S - S) / excess >= gain - o.confusable_share)
+    # alternatives: other effects whose surrogate increment came within confusable_share of the added one's (both
+    # on the same surrogate footing; the checked increment of the added effect is higher after its joint refit)
+    sur = {e: (st.S - S) / excess for S, e, _v in cands}
+    alts = tuple(e for _S, e, _v in cands if e != added and sur[e] >= sur.get(added, gain) - o.confusable_share)
     return best, Step(added, float(score), float(gain), alts)
 
 
