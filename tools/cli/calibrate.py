@@ -43,6 +43,8 @@ def add_subparser(sub):
                                                    "cooler kind)")
     p.add_argument("--cooler", choices=("none", "liquid", "air", "hold", "measured"),
                    help="cooler kind of the vehicle or rig (overrides --config; default liquid)")
+    p.add_argument("--plant-dt", type=float, default=2.0, metavar="S",
+                   help="time step of the plant's simulations [s] (default 2: slow thermal fits lose nothing)")
     p.add_argument("--workers", type=int, metavar="N", help="processes for the simulations (default: 2 or the "
                                                             "number of cores)")
     p.add_argument("--quiet", action="store_true", help="no progress or summary")
@@ -59,6 +61,8 @@ def run(args) -> int:
     cfg = load_config(args.config)
     params = cfg.load_params()
     cooler = args.cooler or cfg.cooler or params.strings.get("cooler.kind", "liquid")
+    if not 0.05 <= args.plant_dt <= 5:
+        raise InputError(f"--plant-dt {args.plant_dt} must be within 0.05..5 s")
     if args.workers is not None and args.workers < 1:
         raise InputError(f"--workers {args.workers} must be at least 1")
     if Path(args.out).suffix.lower() != ".toml":
@@ -75,7 +79,7 @@ def run(args) -> int:
         if not args.quiet:
             print(f"\rcalibrate: fit, {n[0]} evaluations", end="", file=sys.stderr, flush=True)
     cal = calibrate(args.train, args.test, params, keys, auto=args.auto, cooler=cooler,
-                    opts=Options(workers=args.workers), progress=tick, config_path=args.config)
+                    opts=Options(workers=args.workers), progress=tick, config_path=args.config, dt_s=args.plant_dt)
     if not args.quiet:
         print(file=sys.stderr)
     base = parameter_path(cfg.params_path or cfg.variant)
