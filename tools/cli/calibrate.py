@@ -76,11 +76,11 @@ def run(args) -> int:
 
     def tick():
         n[0] += 1
-        if not args.quiet:
+        if not args.quiet and sys.stderr.isatty():
             print(f"\rcalibrate: fit, {n[0]} evaluations", end="", file=sys.stderr, flush=True)
     cal = calibrate(args.train, args.test, params, keys, auto=args.auto, cooler=cooler,
                     opts=Options(workers=args.workers), progress=tick, config_path=args.config, dt_s=args.plant_dt)
-    if not args.quiet:
+    if not args.quiet and sys.stderr.isatty():
         print(file=sys.stderr)
     base = parameter_path(cfg.params_path or cfg.variant)
     stamp = dt.date.today().isoformat()

@@ -396,11 +396,11 @@ def report_markdown(cal: Calibration, params: Parameters, figure: str | None) ->
         sig = " | ".join(f"{x.signature_c.get(c, float('nan')):.2f}" for c in chans)
         out.append(f"| `{x.key}` | {sig} | {x.max_cos:.3f} {x.with_key} | "
                    f"{'yes' if x.identifiable else 'no: ' + x.reason} |")
-    out += ["", "## Fitted values", "", "| parameter | file value | fitted | 1 sigma (statistical) | note |",
+    out += ["", "## Fitted values", "", "| parameter | file value | fitted | 1 sigma (statistical) | SI unit |",
             "|---|---|---|---|---|"]
     for k in cal.keys:
         unit = params.units.get(k, "")
-        out.append(f"| `{k}` | {cal.start[k]:.6g} | {cal.fitted[k]:.6g} | {cal.sigma[k]:.2g} | {unit} (SI)"
+        out.append(f"| `{k}` | {cal.start[k]:.6g} | {cal.fitted[k]:.6g} | {cal.sigma[k]:.2g} | {unit}"
                    + ("; at a bound" if cal.at_bound[k] else "") + " |")
     out += ["", "The one-sigma figures are statistical (the residual's autocorrelation accounted for); they do not "
             "include the model's own form error, which is usually larger: judge the fit by the held-out files.", "",
@@ -435,6 +435,6 @@ def plot_held_out(cal: Calibration, path) -> bool:
     axes[0, 0].legend(loc="upper right", fontsize=8)
     axes[-1, 0].set_xlabel("time [min]")
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    fig.savefig(path, dpi=80)
     plt.close(fig)
     return True
