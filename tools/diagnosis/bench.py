@@ -223,7 +223,7 @@ def measure(truth: RunTable, cycle: RunTable, setup: str, rng: np.random.Generat
 
 def make_scenario(index: int, seed: int, setup: str, effect: str | None, value: float | None, params,
                   cooler: str = "liquid", n_train: int = 2, train_s: float = 1500.0, test_s: float = 1500.0,
-                  truth_dt_s: float = 0.5, also: dict | None = None) -> Scenario:
+                  truth_dt_s: float = 0.5, also: dict | None = None, rate_hz: float = 1.0) -> Scenario:
     """Generate one scenario: truth by the reference plant (fine step) with the withheld effect (and the effects
     `also` = {id: value} at the same time)."""
     import warnings
@@ -248,7 +248,7 @@ def make_scenario(index: int, seed: int, setup: str, effect: str | None, value: 
             t_init = float(rng.uniform(55, 75)) if k == 0 else float(rng.uniform(72, 88))
         else:
             t_init = float(rng.uniform(15, 35)) if k == 0 else float(rng.uniform(45, 80))
-        cyc = mixed_cycle(int(cs), train_s if role == "train" else test_s, rate_hz=1.0, initial_temp_c=t_init)
+        cyc = mixed_cycle(int(cs), train_s if role == "train" else test_s, rate_hz=rate_hz, initial_temp_c=t_init)
         sc.initial_temps_c.append(t_init)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", RuntimeWarning)
