@@ -258,8 +258,12 @@ def _best_checked(ctx: Context, base: Baseline, eid: str, st: Search, grid: dict
             best = Fit(eid, float(v_), S_, pr_, chk.out, False, st.surrogate_S, grid, lags_)
     span = e.high - e.low
     v = best.value
-    at_bound = (abs(v - e.low) < 0.02 * span and e.low != e.neutral) or (
-        abs(v - e.high) < 0.02 * span and e.high != e.neutral)
+    near = [b for b in (e.low, e.high) if b != e.neutral and abs(v - b) < 0.02 * span]
+    at_bound = bool(near)
+    if near and eid in ANALYTIC and v != near[0]:
+        # an exact effect can be scored at the bound itself: a minimum inside the range is not pinned there
+        S_b = sc.S(sc.adjust(sc.preds(train, base.base_tr, eid, near[0], lags=best.lags), "train"))
+        at_bound = not S_b > best.S
     return Fit(eid, v, best.S, best.preds_train, best.out_train, bool(at_bound), st.surrogate_S, grid, best.lags)
 
 
