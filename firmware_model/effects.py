@@ -153,6 +153,13 @@ def check_effect(eid: str, value: float) -> None:
                          f"{e.low:g}..{e.high:g} {e.unit}")
 
 
+def fraction_of_range(eid: str, value: float) -> float:
+    """How far `value` sits from the effect's neutral value towards the bound on its side (0..1)."""
+    e = CATALOG[eid]
+    bound = e.high if value >= e.neutral else e.low
+    return (value - e.neutral) / (bound - e.neutral) if bound != e.neutral else 0.0
+
+
 def effect_value(effects: dict | None, eid: str) -> float:
     """The effect's parameter, or its neutral value when the effect is off."""
     if effects and eid in effects:

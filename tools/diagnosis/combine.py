@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from firmware_model.effects import CATALOG
+from firmware_model.effects import CATALOG, fraction_of_range
 
 from tools.diagnosis.baseline import Baseline
 from tools.diagnosis.context import Context
@@ -65,13 +65,6 @@ def preds_of(base: Baseline, datasets: list, outs: list, members: dict, lags: di
     exact = [(e, v) for e, v in members.items() if e in ANALYTIC]
     e, v = exact[0] if exact else (None, None)
     return base.scorer.preds(datasets, outs, e, v, lags=lags)
-
-
-def _fraction(eid: str, v: float) -> float:
-    """How far `v` sits from neutral towards the bound on its side (0..1)."""
-    e = CATALOG[eid]
-    bound = e.high if v >= e.neutral else e.low
-    return (v - e.neutral) / (bound - e.neutral) if bound != e.neutral else 0.0
 
 
 def _dense(eid: str, n: int = 41) -> np.ndarray:
@@ -194,7 +187,7 @@ def _step(ctx: Context, base: Baseline, crit: Criterion, st: _State, fits: dict,
     # its share of all the set now explains, averaged over entering last and entering alone (its single fit)
     share = 0.5 * ((st.S - best.S) + max(base.S0 - fits[added].S, 0.0)) / max(base.S0 - best.S, 1e-12)
     if (score < o.evidence_min or gain < o.add_explain_min or share < o.add_share_min
-            or abs(_fraction(added, best.members[added])) < o.min_frac):
+            or abs(fraction_of_range(added, best.members[added])) < o.min_frac):
         return None
     # alternatives: other effects whose surrogate increment came within confusable_share of the added one's (both
     # on the same surrogate footing; the checked increment of the added effect is higher after its joint refit)
@@ -220,10 +213,11 @@ def _shares(base: Baseline, fits: dict, members: dict, chain: list) -> dict:
     return out
 
 
-def _gap_left(ctx: Context, base: Baseline, st: _State, gap_thr_c: dict) -> bool:
-    """Does a real gap remain after the set (systematic residual above the gap threshold on some channel)?"""
+def gap_left(ctx: Context, base: Baseline, preds: list, gap_thr_c: dict) -> bool:
+    """Does a real gap remain after predictions `preds` (systematic residual above the gap threshold on some
+    channel)?"""
     from tools.diagnosis.decide import systematic
-    post = systematic(base, base.scorer.adjust(st.raw, "train"), ctx.opts).rms_c
+    post = systematic(base, preds, ctx.opts).rms_c
     return any(post[c] > gap_thr_c[c] for c in post)
 
 
@@ -239,7 +233,8 @@ def forward_select(ctx: Context, base: Baseline, crit: Criterion, fits: list, ga
     deltas = {eid: (None if eid in ANALYTIC else _delta_fn(base, f)) for eid, f in by_id.items()}
     st = _State(base, {top.effect: top.value}, top.out_train)
     chain, steps = [st.S], []
-    while len(st.members) < o.max_effects and _gap_left(ctx, base, st, gap_thr_c):
+    while len(st.members) < o.max_effects and gap_left(ctx, base, base.scorer.adjust(st.raw, "train"),
+                                                                gap_thr_c):
         nxt = _step(ctx, base, crit, st, by_id, deltas)
         if nxt is None:
             break
@@ -283,23 +278,16 @@ def rescue(ctx: Context, base: Baseline, crit: Criterion, fits: list, gap_thr_c:
     best = None
     for cand in crit.candidates[:2]:
         f = cand.fit
-        if abs(_fraction(f.effect, f.value)) < o.min_frac:
+        if abs(fraction_of_range(f.effect, f.value)) < o.min_frac:
             continue
         combo = forward_select(ctx, base, crit, fits, gap_thr_c, start=f)
         if combo is None or combo.score < o.evidence_min or combo.explained < o.explain_min:
             continue
-        if any(abs(_fraction(e, v)) < o.min_frac for e, v in combo.members.items()):
+        if any(abs(fraction_of_range(e, v)) < o.min_frac for e, v in combo.members.items()):
             continue
-        pinned = any(abs(_fraction(e, v)) > 0.98 for e, v in combo.members.items())
-        if pinned and combo_gap_left(ctx, base, combo, gap_thr_c):
+        pinned = any(abs(fraction_of_range(e, v)) > 0.98 for e, v in combo.members.items())
+        if pinned and gap_left(ctx, base, combo.preds_train, gap_thr_c):
             continue
         if best is None or combo.score > best.score:
             best = combo
     return best
-
-
-def combo_gap_left(ctx: Context, base: Baseline, combo: Combination, gap_thr_c: dict) -> bool:
-    """Does a real gap remain after the set (its own predictions)?"""
-    from tools.diagnosis.decide import systematic
-    post = systematic(base, combo.preds_train, ctx.opts).rms_c
-    return any(post[c] > gap_thr_c[c] for c in post)

@@ -13,7 +13,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from firmware_model.effects import CATALOG
+from firmware_model.effects import CATALOG, fraction_of_range
 
 from tools.diagnosis.baseline import Baseline
 from tools.diagnosis.context import Context
@@ -64,18 +64,11 @@ def systematic(base: Baseline, preds: list, opts: Options) -> Systematic:
     return Systematic(sys_rms, thr)
 
 
-def _fraction_of_range(f: Fit) -> float:
-    """How far the fitted value sits from neutral towards the bound on its side (0..1)."""
-    e = CATALOG[f.effect]
-    bound = e.high if f.value >= e.neutral else e.low
-    return (f.value - e.neutral) / (bound - e.neutral) if bound != e.neutral else 0.0
-
-
 def _why_not(top: Candidate, gap_left: bool, opts: Options) -> str:
     """Why the best candidate is not the verdict ('' when it is)."""
     f = top.fit
     e = CATALOG[f.effect]
-    frac = _fraction_of_range(f)
+    frac = fraction_of_range(f.effect, f.value)
     if top.score < opts.evidence_min:
         return f"no candidate has strong evidence (best {f.effect}: score {top.score:.1f} < {opts.evidence_min:g})"
     if top.explained < opts.explain_min:
