@@ -295,6 +295,22 @@ class J1939Decoder:
             rejected = counters["rejected"]
             rejected[reason] = rejected.get(reason, 0) + 1
 
+    def dispatch(self, msg: can.Message, latest: LatestValues) -> str | None:
+        """Decode one frame into ``latest`` and return None (used) or its one reject reason, without counting it in
+        ``frames_seen``/``frames_used``/``rejected`` (the caller does: the whole-log path, ``can_dbc.columnar``).
+        The other counters (signal, TP, arrivals, foreign sources) are kept as by :meth:`feed_into`."""
+        return self._dispatch(msg, latest)
+
+    @property
+    def routes(self) -> dict[int, tuple[str, tuple[Param, ...]]]:
+        """PGN -> (the ``expected_sa`` key checked, the parameters decoded) of every single-frame message used."""
+        return {pgn: (route.key, route.params) for pgn, route in self._routes.items()}
+
+    @property
+    def tp_pgns(self) -> tuple[int, int]:
+        """The PGNs of TP.CM and TP.DT (PDU1, without their destination byte)."""
+        return self._tp_cm_pgn, self._tp_dt_pgn
+
     def feed_all(self, msgs: Iterable[can.Message]) -> list[SignalUpdate]:
         """Decode every frame of an iterable (a ``can.LogReader``, a list) and return all updates in order."""
         out: list[SignalUpdate] = []

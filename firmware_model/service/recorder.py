@@ -30,10 +30,18 @@ class StepRecorder:
         self._meas_rows: dict[int, np.ndarray] = {}   # step -> rig thermocouples (when any were seen)
         self._outs: list[OutputRow] = []
         self._adopted: RecordedOutputs | None = None
+        self._head_block: np.ndarray | None = None    # every head at once (the whole-log path)
+        self._meas_block: np.ndarray | None = None
+
+    def adopt_heads(self, head: np.ndarray, meas_c: np.ndarray) -> None:
+        """Every step's frame half at once (``firmware_model.service.columnar``): ``head`` (steps x HEAD_COLUMNS)
+        and ``meas_c`` (steps x thermocouples, NaN where none is fresh or none was seen yet)."""
+        self._head_block, self._meas_block = head, meas_c
+        self._heads, self._meas_rows = [], {}
 
     @property
     def steps(self) -> int:
-        return len(self._heads)
+        return len(self._heads) if self._head_block is None else self._head_block.shape[0]
 
     def add_head(self, row: tuple[float, ...], meas_c: np.ndarray | None = None) -> None:
         """The frame half of a step: a row of HEAD_COLUMNS and, when rig thermocouples were seen, their values."""
@@ -73,8 +81,9 @@ class StepRecorder:
     def columns(self, meas_seen: tuple[bool, ...]) -> dict[str, np.ndarray]:
         """The recorded steps as run-table columns (tools/runtable.py): the head, T_/W_/ttl_ per published
         component ("never" is an empty ttl cell), the status tail, and meas_T_<id>_c for each thermocouple seen."""
-        k = len(self._heads)
-        head = np.array(self._heads, dtype=float).reshape(k, len(HEAD_COLUMNS))
+        k = self.steps
+        head = np.array(self._heads, dtype=float).reshape(k, len(HEAD_COLUMNS)) if self._head_block is None \
+            else self._head_block
         cols = {name: head[:, j] for j, name in enumerate(HEAD_COLUMNS)}
         out = self.outputs()
         if out.T_c.shape[0] != k:
@@ -87,7 +96,7 @@ class StepRecorder:
         for j, name in enumerate(self.tail_names):
             cols[name] = out.tail[:, j]
         if any(meas_seen):
-            meas = np.full((k, len(self.meas_names)), np.nan)
+            meas = np.full((k, len(self.meas_names)), np.nan) if self._meas_block is None else self._meas_block
             for i, row in self._meas_rows.items():
                 meas[i] = row
             for j, name in enumerate(self.meas_names):

@@ -227,6 +227,11 @@ class TimeBaseCheck:
         self._start: dict[str, int] = {}
         self._run: list[str] = []
 
+    @property
+    def window_start_s(self) -> float | None:
+        """Frame time the current window started at (None before :meth:`restart`)."""
+        return self._start_s
+
     def restart(self, t_s: float, arrivals: Mapping[str, int]) -> None:
         self._start_s = t_s
         self._start = dict(arrivals)

@@ -95,7 +95,7 @@ def _processes(path, service, on_frames, processes: int | None) -> int:
 
 
 def replay_log(path: str | os.PathLike, sensor_or_service, *, config=None, options=None,
-               on_frames=None, processes: int | None = None):
+               on_frames=None, processes: int | None = None, columnar: bool | None = None):
     """Replay a CAN log through the sensor service; returns the sensor output run table (10 Hz).
 
     ``sensor_or_service``: a ``VirtualSensor`` (a service is built from ``options`` or the ``config``'s ``[can]``)
@@ -108,6 +108,12 @@ def replay_log(path: str | os.PathLike, sensor_or_service, *, config=None, optio
     (``tools.replay.pipeline.pipeline_available`` says when it can); 1 runs both in this process; None (default)
     picks 2 for a log of at least ``PIPELINE_MIN_BYTES`` when nothing stands against it (``on_frames`` needs the
     frames in order here).
+
+    ``columnar``: True reads and decodes the whole log at once and steps the sensor over the whole table
+    (``firmware_model.service.columnar``: the same table and counters bit for bit, several times faster); False
+    feeds the frames one by one; None (default) takes the whole-log path whenever no frames are to be sent
+    (``on_frames`` None, a service built with ``emit_frames=False``) and ``processes`` is None. ``meta["reader"]``
+    says which ran.
     """
     from firmware_model.service import SensorService, ServiceOptions
     from tools.runtable import RunTable
@@ -118,7 +124,10 @@ def replay_log(path: str | os.PathLike, sensor_or_service, *, config=None, optio
     else:
         service = SensorService(sensor_or_service, options or ServiceOptions.from_config(config), record=True,
                                 emit_frames=on_frames is not None)
-    if _processes(path, service, on_frames, processes) == 2:
+    reader = "python-can"
+    if _columnar(service, on_frames, False if columnar is None and processes is not None else columnar):
+        columns, reader = _replay_columns(path, service)
+    elif _processes(path, service, on_frames, processes) == 2:
         feed_pipelined(read_log(path), service)
     else:
         feed = service.feed
@@ -126,14 +135,39 @@ def replay_log(path: str | os.PathLike, sensor_or_service, *, config=None, optio
             frames = feed(msg)
             if frames and on_frames is not None:
                 on_frames(frames)
-    columns = service.recorded()
+    if reader == "python-can":
+        columns = service.recorded()
     if not len(columns["time_s"]):
         d = service.decoder.counters
         raise InputError(f"{path}: no sensor step in {d['frames_seen']} frames: the log holds less than 100 ms of "
                          f"J1939 input traffic (EEC1, ETC2, TRF1, ET1, AMB, CCVS1, ERC1, TP) from the expected "
                          f"sources")
-    return RunTable(columns, meta={"counters": service.all_counters(), "log": os.fspath(path)},
+    return RunTable(columns, meta={"counters": service.all_counters(), "log": os.fspath(path), "reader": reader},
                     source=os.fspath(path))
+
+
+def _columnar(service, on_frames, columnar: bool | None) -> bool:
+    """Whether the whole-log path runs: asked for, or by default when nothing needs the frames one by one (frames
+    to send, a service already fed, a sensor without ``step_table``)."""
+    possible = on_frames is None and not service.emit_frames and hasattr(service.sensor, "step_table") \
+        and service.counters["steps"] == 0 \
+        and service.decoder.counters["frames_seen"] == 0
+    if columnar and not possible:
+        raise InputError("the whole-log replay needs a fresh service that sends no frames (no --frames-out)")
+    return possible if columnar is None else bool(columnar)
+
+
+def _replay_columns(path, service) -> tuple[dict, str]:
+    """The whole-log path (firmware_model.service.columnar): the run-table columns and which reader read the log;
+    a log it cannot reproduce bit for bit (non-finite frame times) is fed frame by frame instead."""
+    from firmware_model.service.columnar import ColumnarUnsupported, run_columns
+    from tools.replay.columns import read_columns
+    read = read_columns(path)
+    try:
+        return run_columns(service, read.columns), f"{read.reader}, whole log"
+    except ColumnarUnsupported:
+        service.feed_all(read.columns.message(i) for i in range(len(read.columns)))
+        return service.recorded(), f"{read.reader}, frame by frame"
 
 
 def replay_log_file(path, out, *, config_path=None, sensor_options=None, frames_out=None,

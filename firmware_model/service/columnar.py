@@ -1,0 +1,329 @@
+"""The CAN service over a whole log at once: the same run table, bit for bit, as feeding its frames one by one.
+
+:func:`run_columns` takes a service built for an offline replay (``record=True``, ``emit_frames=False``) and the
+frames of a log as columns (``can_dbc.columnar.FrameColumns``) and does what :meth:`SensorService.feed` does frame
+by frame, with numpy over the columns:
+
+1. the decoder's half: ``can_dbc.columnar.decode_columns`` (every value, time and counter of ``feed_into``);
+2. the frame half of every step: the step grid on frame time (anchored at the first frame of a wanted PGN, one
+   step per 0.1 s boundary a frame passes, a catch-up of up to ``max_catchup_steps``, a forward or backward time
+   jump restarting the grid and forgetting every input), which inputs are fresh at each boundary (the latest value
+   of the frames *before* the one that passes it, not older than ``stale_factor`` periods), the gear map, the
+   reference torque, initialisation, the time-base check;
+3. the sensor half: the sensor's ``step_table`` over every initialised step (the compiled core: in C, its time to
+   limit refreshed between kernel calls), the status and the recorded columns.
+
+The counters (``service.counters``, ``service.decoder.counters``) end as the frame path leaves them; what only a
+live run does (frames sent, DM1, logging every minute) is not done. Timestamps that are not finite are refused
+(:class:`ColumnarUnsupported`): the caller replays such a log frame by frame.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+from typing import NamedTuple
+
+import numpy as np
+
+from can_dbc.columnar import FLAG_ERROR, FLAG_EXTENDED, FLAG_REMOTE, DecodedColumns, FrameColumns, decode_columns, pgn_keys
+from can_dbc.decoder import signal_messages
+from can_dbc.j1939 import ID_MAX
+from firmware_model.components import MODE_NOT_INITIALISED, PUBLISHED, STEP_S
+from firmware_model.service.options import GEAR_RANGE, NOMINAL_PERIOD_S, SENSOR_INPUTS, wanted_pgns
+from firmware_model.service.recorder import StepRecorder
+from firmware_model.service.records import RecordedOutputs, StepKind
+from firmware_model.service.trust import TimeBaseCheck
+
+#: timing frames examined per vectorised pass of the step grid (fewer right after a time jump)
+_GRID_CHUNK_MAX = 65536
+_GRID_CHUNK_MIN = 256
+
+
+class ColumnarUnsupported(ValueError):
+    """The log holds something the whole-log path does not reproduce (non-finite timestamps): replay it frame by
+    frame."""
+
+
+class Grid(NamedTuple):
+    """The steps of a log: the frame that triggered each (its index), its boundary time, its run-table time; the
+    anchors (frame index, frame time; the first, then one per time jump) and which of them were time jumps."""
+    trigger: np.ndarray
+    t_step_s: np.ndarray
+    t_s: np.ndarray
+    anchor_frame: np.ndarray
+    anchor_t_s: np.ndarray
+    jump_frames: np.ndarray
+    catchup_steps: int
+
+
+def _boundaries(t_s: np.ndarray, t0_s: float) -> np.ndarray:
+    """Per frame the largest n with ``t0 + n x STEP_S <= t`` in the same float sums as the service."""
+    n = np.floor((t_s - t0_s) / STEP_S).astype(np.int64)
+    while True:
+        over = t0_s + n * STEP_S > t_s
+        if not over.any():
+            break
+        n -= over
+    while True:
+        under = t0_s + (n + 1) * STEP_S <= t_s
+        if not under.any():
+            break
+        n += under
+    return n
+
+
+def step_grid(t_frame_s: np.ndarray, timing: np.ndarray, max_catchup: int, backward_tol_s: float) -> Grid:
+    """The service's step grid over the timing frames ``timing`` (indices, file order) of frame times
+    ``t_frame_s`` (``SensorService.feed``: anchor, due steps, forward and backward time jumps)."""
+    ts = t_frame_s[timing]
+    trig, tstep, toff = [], [], []
+    anchors, anchor_t, jumps = [], [], []
+    t0 = first = None
+    k, offset, catchup, pos, size = 0, 0.0, 0, 0, _GRID_CHUNK_MIN
+    while pos < ts.size:
+        if t0 is None:
+            t0 = first = float(ts[pos])
+            anchors.append(int(timing[pos]))
+            anchor_t.append(t0)
+            pos += 1
+            continue
+        c = ts[pos:pos + size]
+        n = _boundaries(c, t0)
+        cm = np.maximum.accumulate(np.maximum(n, k))
+        kprev = np.concatenate([[k], cm[:-1]])
+        nb = t0 + (kprev + 1) * STEP_S
+        stepping = c >= nb
+        fwd = stepping & (n - kprev > max_catchup)
+        bwd = ~stepping & (c < nb - STEP_S - backward_tol_s)
+        events = np.flatnonzero(fwd | bwd)
+        stop = int(events[0]) if events.size else c.size
+        s = np.flatnonzero(stepping[:stop])
+        due = n[s] - kprev[s]
+        total = int(due.sum())
+        if total:
+            rep = np.repeat(s, due)
+            within = np.arange(total) - np.repeat(np.cumsum(due) - due, due)
+            kk = np.repeat(kprev[s], due) + within + 1
+            trig.append(timing[pos + rep])
+            tstep.append(t0 + kk * STEP_S)
+            toff.append(np.full(total, offset))
+            catchup += total - s.size
+        if events.size:
+            j = stop
+            t_j = float(c[j])
+            if bwd[j]:
+                offset += t0 + int(kprev[j]) * STEP_S - t_j + STEP_S
+            jumps.append(int(timing[pos + j]))
+            anchors.append(int(timing[pos + j]))
+            anchor_t.append(t_j)
+            t0, k = t_j, 0
+            pos += j + 1
+            size = _GRID_CHUNK_MIN
+        else:
+            k = int(cm[-1])
+            pos += c.size
+            size = min(2 * size, _GRID_CHUNK_MAX)
+    cat = (lambda parts, dt: np.concatenate(parts) if parts else np.zeros(0, dtype=dt))
+    t_step_s = cat(tstep, float)
+    t_s = t_step_s - (first if first is not None else 0.0) + cat(toff, float)
+    return Grid(cat(trig, np.int64), t_step_s, t_s, np.array(anchors, dtype=np.int64), np.array(anchor_t),
+                np.array(jumps, dtype=np.int64), catchup)
+
+
+class _Fresh:
+    """Which value of each signal is fresh at each step: the latest from a frame before the step's trigger, not
+    forgotten by a time jump since, not older than its limit."""
+
+    def __init__(self, decoded: DecodedColumns, grid: Grid) -> None:
+        self.tracks, self.grid = decoded.tracks, grid
+        jumps = grid.jump_frames
+        at = np.searchsorted(jumps, grid.trigger, side="right") - 1
+        self.forgot = np.where(at >= 0, jumps[np.maximum(at, 0)] if jumps.size else -1, -1)
+
+    def values(self, name: str, max_age_s: float) -> np.ndarray:
+        """The fresh value of ``name`` at every step, NaN where there is none."""
+        n = self.grid.trigger.size
+        track = self.tracks.get(name)
+        if track is None or not track.frame.size:
+            return np.full(n, np.nan)
+        j = np.searchsorted(track.frame, self.grid.trigger, side="left") - 1
+        jj = np.maximum(j, 0)
+        fresh = (j >= 0) & (track.frame[jj] >= self.forgot) & (self.grid.t_step_s - track.time_s[jj] <= max_age_s)
+        return np.where(fresh, track.value[jj], np.nan)
+
+
+def _model_gear(gear: np.ndarray, gear_map) -> np.ndarray:
+    """The service's gear mapping (``gear_map``, then the model's range) over an array; NaN = not available."""
+    out = gear.copy()
+    if gear_map is not None:
+        known = np.isfinite(gear)
+        mapped = np.full(gear.shape, np.nan)
+        for g in np.unique(gear[known]).tolist():
+            m = gear_map.get(int(g))
+            if m is not None:
+                mapped[gear == g] = m
+        out = mapped
+    return np.where((out >= GEAR_RANGE[0]) & (out <= GEAR_RANGE[1]), out, np.nan)
+
+
+def _time_base(service, grid: Grid, decoded: DecodedColumns) -> np.ndarray:
+    """The time-base check at every step (``TimeBaseCheck`` at each window close and anchor); the suspect flag each
+    step's request carries; ``service.counters["time_base"]`` as the frame path leaves it."""
+    opts = service.options
+    check = TimeBaseCheck(opts.time_base_window_s, opts.time_base_windows)
+    keys = tuple(service.decoder.counters["arrivals"])
+
+    def arrivals(frame: int) -> dict:
+        return {k: int(np.searchsorted(decoded.arrivals[k], frame)) if k in decoded.arrivals else 0 for k in keys}
+
+    n = grid.t_step_s.size
+    suspect = np.zeros(n, dtype=bool)
+    tb = service.counters["time_base"]
+    epoch = np.searchsorted(grid.anchor_frame, grid.trigger, side="right") - 1
+    starts = np.searchsorted(epoch, np.arange(grid.anchor_frame.size))
+    ends = np.append(starts[1:], n)
+    for a in range(grid.anchor_frame.size):
+        check.restart(float(grid.anchor_t_s[a]), arrivals(int(grid.anchor_frame[a])))
+        i, end = int(starts[a]), int(ends[a])
+        while i < end:
+            suspect[i:end] = check.suspect
+            span = grid.t_step_s[i:end] - check.window_start_s
+            due = np.flatnonzero(span >= check.window_s)
+            if not due.size:
+                break
+            i += int(due[0])
+            suspect[i] = check.suspect
+            event = check.update(float(grid.t_step_s[i]), arrivals(int(grid.trigger[i])))
+            if event is not None and event != "cleared" and tb["finding"] is None:
+                tb["finding"] = dataclasses.asdict(event)
+            i += 1
+    if n:
+        tb.update(windows_checked=check.windows_checked, windows_suspect=check.windows_suspect,
+                  suspect=check.suspect)
+    return suspect
+
+
+class FrameHalf(NamedTuple):
+    """Every step's frame half: kind, the inputs (steps x 8, NaN = not available), percent and reference torque,
+    the rig thermocouples (NaN where none is fresh) and which thermocouples were ever received."""
+    grid: Grid
+    kind: np.ndarray
+    inputs: np.ndarray
+    pct: np.ndarray
+    ref_nm: np.ndarray
+    meas_c: np.ndarray
+    meas_seen: tuple
+
+
+def frame_half(service, cols: FrameColumns, decoded: DecodedColumns, meas_names: tuple) -> FrameHalf:
+    """The service's frame half over a decoded log; updates ``service.counters`` as the frame path does."""
+    opts = service.options
+    flags = cols.flags
+    ext_ok = ((flags & FLAG_EXTENDED) != 0) & ((flags & (FLAG_ERROR | FLAG_REMOTE)) == 0) \
+        & (cols.can_id >= 0) & (cols.can_id <= ID_MAX)
+    timing = np.flatnonzero(ext_ok & np.isin(np.where(ext_ok, pgn_keys(np.where(ext_ok, cols.can_id, 0)), -1),
+                                             list(wanted_pgns().values())))
+    grid = step_grid(cols.timestamp_s, timing, opts.max_catchup_steps, opts.backward_tolerance_s)
+    counters = service.counters
+    counters["frames_not_timing"] += len(cols) - timing.size
+    counters["steps"] += grid.t_step_s.size
+    counters["catchup_steps"] += grid.catchup_steps
+    counters["time_jumps"] += grid.jump_frames.size
+    fresh = _Fresh(decoded, grid)
+    max_age = {m: opts.stale_factor * p for m, p in NOMINAL_PERIOD_S.items()}
+    messages = signal_messages()
+    n = grid.t_step_s.size
+    inputs = np.empty((n, len(SENSOR_INPUTS)))
+    stale = counters["stale_steps"]
+    for j, (_, signal) in enumerate(SENSOR_INPUTS):
+        inputs[:, j] = fresh.values(signal, max_age[messages[signal]])
+        missing = int(np.count_nonzero(np.isnan(inputs[:, j])))
+        if missing:
+            stale[signal] = stale.get(signal, 0) + missing
+    inputs[:, 2] = _model_gear(inputs[:, 2], opts.gear_map)
+    inputs[:, 7] = np.abs(inputs[:, 7])     # J1939 reports retarder braking negative
+    pct = fresh.values("engine_torque_pct", max_age[messages["engine_torque_pct"]])
+    k = np.searchsorted(decoded.ec1_frame, grid.trigger, side="left") - 1
+    configured = np.nan if opts.configured_ref_torque_nm is None else opts.configured_ref_torque_nm
+    ref_nm = np.where(k >= 0, decoded.ec1_ref_torque_nm[np.maximum(k, 0)] if decoded.ec1_frame.size else configured,
+                      configured)
+    meas_c = np.stack([fresh.values(m, max_age["RIG"]) for m in meas_names], axis=1) if n \
+        else np.zeros((0, len(meas_names)))
+    first_s = grid.anchor_t_s[0] if grid.anchor_t_s.size else 0.0
+    waiting = np.isnan(inputs[:, 3]) & (grid.t_step_s - first_s < opts.init_wait_s - 1e-9)
+    ready = np.flatnonzero(~waiting)
+    kind = np.full(n, int(StepKind.NOT_INITIALISED), dtype=np.int8)
+    if ready.size:
+        kind[ready[0]] = int(StepKind.INITIALISE)
+        kind[ready[0] + 1:] = int(StepKind.STEP)
+    counters["uninitialised_steps"] += int(ready[0]) if ready.size else n
+    return FrameHalf(grid, kind, inputs, pct, ref_nm, meas_c, tuple(m in decoded.tracks for m in meas_names))
+
+
+def _opt(x: np.ndarray) -> np.ndarray:
+    return np.where(np.isfinite(x), x, np.nan)
+
+
+def sensor_half(service, half: FrameHalf) -> RecordedOutputs:
+    """The sensor's step over every initialised step (``step_table``); the not-initialised steps as the service
+    records them. Updates ``service.state`` and the steps per degraded mode."""
+    n = half.kind.size
+    n_pub, sensor = len(PUBLISHED), service.sensor
+    n_rej = len(sensor.reject_reasons)
+    T = np.full((n, n_pub), np.nan)
+    level = np.full((n, n_pub), 3.0)
+    ttl = np.full((n, n_pub), np.nan)
+    tail = np.zeros((n, 9 + n_rej))
+    ready = np.flatnonzero(half.kind != int(StepKind.NOT_INITIALISED))
+    i0 = int(ready[0]) if ready.size else n
+    ins, ref_ok = half.inputs, np.isfinite(half.ref_nm).astype(float)
+    nan = math.nan
+    tail[:i0, 0] = float(MODE_NOT_INITIALISED != 0)
+    tail[:i0, 1] = MODE_NOT_INITIALISED
+    tail[:i0, 2:5] = np.isfinite(ins[:i0, :3])
+    tail[:i0, 5] = 0.0
+    tail[:i0, 6] = ref_ok[:i0]
+    tail[:i0, 7:9] = nan
+    if i0 < n:
+        oil0 = ins[i0, 3]
+        state = sensor.initial_state(T_oil_c=None if math.isnan(oil0) else float(oil0))
+        state, out = sensor.step_table(state, np.ascontiguousarray(ins[i0:]), half.grid.t_s[i0:])
+        service.state = state
+        T[i0:], level[i0:], ttl[i0:] = out.T_c, out.level, out.ttl_s
+        mode = out.degraded_mode.astype(float)
+        tail[i0:, 0] = (mode != 0)
+        tail[i0:, 1] = mode
+        tail[i0:, 2:6] = out.valid
+        tail[i0:, 6] = ref_ok[i0:]
+        tail[i0:, 7] = _opt(out.oil_innovation_c)
+        tail[i0:, 8] = _opt(out.model_oil_temp_c)
+        tail[i0:, 9:] = out.rejects[:, :n_rej]
+    values, counts = np.unique(tail[:, 1].astype(int), return_counts=True)
+    service.counters["mode_steps"] = dict(zip(values.tolist(), counts.tolist()))
+    return RecordedOutputs(T, level, ttl, tail)
+
+
+def run_columns(service, cols: FrameColumns) -> dict[str, np.ndarray]:
+    """A whole log through ``service`` (fresh, ``record=True``, ``emit_frames=False``): the run-table columns of
+    ``service.recorded()`` after feeding the frames one by one, bit for bit, and the same counters."""
+    if not service.record or service.emit_frames:
+        raise ValueError("run_columns needs a fresh SensorService built with record=True, emit_frames=False")
+    if service.counters["steps"] or service.decoder.counters["frames_seen"]:
+        raise ValueError("run_columns needs a fresh SensorService (no frame fed yet)")
+    if not np.all(np.isfinite(cols.timestamp_s)):
+        raise ColumnarUnsupported("frame times that are not finite numbers")
+    meas_names = tuple(f"meas_T_{c}_c" for c in PUBLISHED)
+    decoded = decode_columns(cols, service.decoder)
+    half = frame_half(service, cols, decoded, meas_names)
+    _time_base(service, half.grid, decoded)
+    outputs = sensor_half(service, half)
+    recorder = StepRecorder(PUBLISHED, meas_names, service.sensor.reject_reasons)
+    g = half.grid
+    head = np.column_stack([g.t_s, g.t_step_s, half.inputs, half.pct, half.ref_nm]) if g.t_s.size \
+        else np.zeros((0, 12))
+    recorder.adopt_heads(head, half.meas_c)
+    recorder.adopt(outputs)
+    return recorder.columns(half.meas_seen)
+
+
+__all__ = ["ColumnarUnsupported", "FrameHalf", "Grid", "frame_half", "run_columns", "sensor_half", "step_grid"]

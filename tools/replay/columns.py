@@ -1,0 +1,213 @@
+"""A CAN log read into :class:`~can_dbc.columnar.FrameColumns` at once: the fast path's reader.
+
+- candump -L text (``.log``): parsed with numpy over the whole file. Each line is checked to have the form python-
+  can's ``CanutilsLogReader`` writes and reads (``(seconds) channel ID#HEX`` with an optional `` R``/`` T``); a file
+  with any other line (remote or FD frames, comments, odd hex, other whitespace, a truncated last line) is read by
+  python-can instead, so every frame is what ``LogReader`` gives, its errors included. Timestamps are exact: a
+  decimal of at most 15 significant digits is an integer divided by a power of ten, one correctly rounded IEEE
+  division, the same double as Python's ``float()``; longer ones go through ``float()``.
+- other formats (``.asc``, ``.blf``, ``.mf4``): python-can's ``LogReader`` into columns (no columnar reader is
+  used for them yet: the same frames, at python-can's speed).
+
+:func:`read_columns` says which reader ran (``ColumnRead.reader``).
+"""
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from typing import NamedTuple
+
+import numpy as np
+
+from can_dbc.columnar import FLAG_ERROR, FLAG_EXTENDED, FrameColumns
+
+#: linux/can/error.h, as python-can's candump reader uses them
+_CAN_ERR_FLAG = 0x20000000
+_CAN_ERR_BUSERROR = 0x00000080
+#: hex digit value per byte, 255 for a byte that is not a hex digit
+_HEX = np.full(256, 255, dtype=np.uint8)
+for _i, _c in enumerate(b"0123456789abcdef"):
+    _HEX[_c] = _i
+for _i, _c in enumerate(b"ABCDEF"):
+    _HEX[_c] = 10 + _i
+_DIGIT = np.full(256, 255, dtype=np.uint8)
+_DIGIT[48:58] = np.arange(10, dtype=np.uint8)
+
+
+class ColumnRead(NamedTuple):
+    """The frames of a log and which reader produced them ("numpy candump" or "python-can")."""
+    columns: FrameColumns
+    reader: str
+
+
+def read_columns(path: str | os.PathLike) -> ColumnRead:
+    """The frames of a CAN log (checked by ``tools.replay.log.check_log``) as columns."""
+    from tools.replay.log import check_log, read_log
+    p = check_log(path)
+    if p.suffix.lower() == ".log":
+        cols = parse_candump(p.read_bytes())
+        if cols is not None:
+            return ColumnRead(cols, "numpy candump")
+    return ColumnRead(FrameColumns.from_messages(read_log(p)), "python-can")
+
+
+class _Lines(NamedTuple):
+    buf: np.ndarray
+    start: np.ndarray
+    end: np.ndarray
+
+
+def _lines(raw: bytes) -> _Lines | None:
+    """Start and end (exclusive) of every non-empty line; None when a byte other than printable ASCII and newline
+    appears (python-can would see other whitespace or characters: it reads those files itself)."""
+    buf = np.frombuffer(raw, dtype=np.uint8)
+    if buf.size and (np.any((buf < 32) & (buf != 10)) or np.any(buf >= 127)):
+        return None
+    nl = np.flatnonzero(buf == 10)
+    start = np.concatenate([[0], nl + 1])
+    end = np.concatenate([nl, [buf.size]])
+    keep = end > start
+    return _Lines(buf, start[keep], end[keep])
+
+
+def _per_line(flag: np.ndarray, lines: _Lines) -> np.ndarray:
+    """How many of the flagged bytes each line holds."""
+    return np.add.reduceat(flag.astype(np.int32), lines.start) if lines.start.size else np.zeros(0, np.int32)
+
+
+def _k_per_line(pos: np.ndarray, lines: _Lines, k: int) -> bool:
+    """True when the sorted positions ``pos`` are exactly ``k`` in every line (a check without a search)."""
+    if pos.size != k * lines.start.size:
+        return False
+    return all(bool(np.all((pos[j::k] >= lines.start) & (pos[j::k] < lines.end))) for j in range(k))
+
+
+def _one_per_line(buf: np.ndarray, char: int, lines: _Lines) -> np.ndarray | None:
+    """The position of ``char`` in each line when every line holds exactly one, else None."""
+    pos = np.flatnonzero(buf == char)
+    return pos if _k_per_line(pos, lines, 1) else None
+
+
+def _number(buf: np.ndarray, first: np.ndarray, length: np.ndarray, table: np.ndarray, base: int) -> np.ndarray | None:
+    """The numbers written in ``buf[first:first + length]`` (one per row, digit values from ``table``, int64; an
+    empty field is 0); None when a character is not a digit. Rows are grouped by length: a gather and a Horner sum
+    per group."""
+    out = np.zeros(first.size, dtype=np.int64)
+    for n_digits in np.flatnonzero(np.bincount(length)).tolist():
+        if n_digits == 0:
+            continue
+        rows = np.flatnonzero(length == n_digits)
+        d = table[buf[first[rows, None] + np.arange(n_digits)]]
+        if np.any(d == 255):
+            return None
+        acc = np.zeros(rows.size, dtype=np.int64)
+        for j in range(n_digits):
+            acc = acc * base + d[:, j]
+        out[rows] = acc
+    return out
+
+
+def _dots(buf: np.ndarray, lines: _Lines, close_pos: np.ndarray) -> np.ndarray | None:
+    """Per line the position of the decimal point inside its ``(...)``, -1 without one; None for two."""
+    n = lines.start.size
+    dot = np.full(n, -1, dtype=np.int64)
+    pos = np.flatnonzero(buf == ord("."))
+    if _k_per_line(pos, lines, 1):    # the usual file: one dot per line
+        inside = pos < close_pos
+        dot[inside] = pos[inside]
+        return dot
+    line = np.searchsorted(lines.start, pos, side="right") - 1
+    inside = (line >= 0) & (pos < close_pos[np.maximum(line, 0)])
+    pos, line = pos[inside], line[inside]
+    if line.size > 1 and np.any(np.diff(line) == 0):
+        return None
+    dot[line] = pos
+    return dot
+
+
+def _timestamps(buf: np.ndarray, lines: _Lines, close_pos: np.ndarray) -> np.ndarray | None:
+    """Exact timestamps of ``(digits[.digits])``: python-can's float(); None for any other form."""
+    open_pos = lines.start
+    dot = _dots(buf, lines, close_pos)
+    if dot is None:
+        return None
+    has_dot = dot >= 0
+    int_end = np.where(has_dot, dot, close_pos)
+    frac_start = np.where(has_dot, dot + 1, close_pos)
+    int_len, frac_len = int_end - open_pos - 1, close_pos - frac_start
+    if np.any(int_len + frac_len < 1) or (int_len + frac_len).max() > 18:
+        return None
+    whole = _number(buf, open_pos + 1, int_len, _DIGIT, 10)
+    frac = _number(buf, frac_start, frac_len, _DIGIT, 10)
+    if whole is None or frac is None:
+        return None
+    mant = whole * (10 ** frac_len) + frac
+    exact = mant < (1 << 53)
+    t = mant.astype(np.float64) / (10.0 ** frac_len.astype(np.float64))
+    for i in np.flatnonzero(~exact).tolist():   # more than 2**53: Python's correctly rounded float()
+        t[i] = float(bytes(buf[open_pos[i] + 1:close_pos[i]]))
+    return t
+
+
+def parse_candump(raw: bytes) -> FrameColumns | None:
+    """candump -L text as columns, exactly as python-can's reader sees it; None when a line has another form."""
+    lines = _lines(raw)
+    if lines is None:
+        return None
+    buf, start, end = lines
+    n = start.size
+    if n == 0:
+        return FrameColumns(np.zeros(0), np.zeros(0, np.int64), np.zeros(0, np.uint8), np.zeros(0, np.int64),
+                            np.zeros(0, np.int64), np.zeros((0, 8), np.uint8))
+    close = _one_per_line(buf, ord(")"), lines)
+    hash_pos = _one_per_line(buf, ord("#"), lines)
+    if close is None or hash_pos is None or np.any(buf[start] != ord("(")):
+        return None
+    is_space = buf == 32
+    spaces = np.flatnonzero(is_space)
+    for k in (2, 3):     # the usual files: every line without, or every line with, the direction flag
+        if _k_per_line(spaces, lines, k):
+            count = np.full(n, k)
+            break
+    else:
+        count = _per_line(is_space, lines)
+    if np.any((count != 2) & (count != 3)):
+        return None
+    first_space = np.cumsum(count) - count
+    s1, s2 = spaces[first_space], spaces[first_space + 1]
+    data_end = np.where(count == 3, spaces[np.minimum(first_space + 2, spaces.size - 1)], end)
+    if np.any(s1 != close + 1) or np.any(s2 <= s1 + 1) or np.any(hash_pos <= s2 + 1) or np.any(hash_pos >= data_end):
+        return None
+    three = count == 3
+    if three.any():   # the " R" / " T" direction flag: one letter at the end
+        flag_ok = (end[three] - data_end[three] == 2) & np.isin(buf[np.minimum(end[three] - 1, buf.size - 1)],
+                                                                  np.frombuffer(b"RrTt", np.uint8))
+        if not flag_ok.all():
+            return None
+    t = _timestamps(buf, lines, close)
+    id_len = hash_pos - s2 - 1
+    ids = _number(buf, s2 + 1, id_len, _HEX, 16) if id_len.max() <= 8 else None
+    if t is None or ids is None:
+        return None
+    n_hex = data_end - hash_pos - 1
+    if np.any(n_hex % 2) or np.any(n_hex > 16):
+        return None   # odd digits, FD or longer frames, remote frames: python-can reads them
+    data = np.zeros((n, 8), dtype=np.uint8)
+    for b in range(8):
+        live = n_hex >= 2 * (b + 1)
+        p = np.where(live, hash_pos + 1 + 2 * b, 0)
+        hi, lo = _HEX[buf[p]], _HEX[buf[np.minimum(p + 1, buf.size - 1)]]
+        if np.any(live & ((hi == 255) | (lo == 255))):
+            return None
+        data[:, b] = np.where(live, (hi << 4) | lo, 0)
+    length = n_hex // 2
+    extended = (hash_pos - s2 - 1) > 3
+    error = ((ids & _CAN_ERR_FLAG) != 0) & ((ids & _CAN_ERR_BUSERROR) != 0)
+    flags = np.where(error, FLAG_ERROR | FLAG_EXTENDED, np.where(extended, FLAG_EXTENDED, 0)).astype(np.uint8)
+    can_id = np.where(error, 0, ids & 0x1FFFFFFF)
+    length = np.where(error, 0, length)
+    data[error] = 0
+    return FrameColumns(t, can_id.astype(np.int64), flags, length.astype(np.int64), length.astype(np.int64), data)
+
+
+__all__ = ["ColumnRead", "parse_candump", "read_columns"]
