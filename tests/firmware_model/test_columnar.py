@@ -1,0 +1,172 @@
+"""The whole-log path (can_dbc.columnar, firmware_model.service.columnar, tools.replay.columns) against the frame
+path: the same run table bit for bit and the same counters, on real captures, on synthesized logs with every fault
+the service handles, and on hostile traffic."""
+from __future__ import annotations
+
+import can
+import numpy as np
+import pytest
+
+from can_dbc.columnar import FrameColumns, decode_columns
+from can_dbc.decoder import J1939Decoder
+from firmware_model.errors import InputError
+from firmware_model.service import build_service
+from firmware_model.service.columnar import run_columns
+from tests.data_paths import CAPTURE_FILES, SKIP_REASON, real_capture_dir
+from tools.can.logfaults import FAULT_KINDS, inject
+from tools.can.logsynth import synth_frames
+from tools.replay.columns import parse_candump, read_columns
+from tools.replay.log import replay_log
+from tools.runtable import RunTable
+
+from .test_can_service import random_frames
+
+
+def _service(**overrides):
+    return build_service(None, record=True, emit_frames=False, log_findings=False, **overrides)
+
+
+def assert_same(path, **overrides):
+    """The frame path and the whole-log path on one log: every column and counter equal."""
+    s_frames, s_cols = _service(**overrides), _service(**overrides)
+    ref = replay_log(path, s_frames, columnar=False)
+    fast = replay_log(path, s_cols, columnar=True)
+    assert "whole log" in fast.meta["reader"]
+    assert list(ref.columns) == list(fast.columns)
+    for c in ref.columns:
+        assert np.array_equal(np.asarray(ref[c]), np.asarray(fast[c]), equal_nan=True), c
+    assert s_frames.counters == s_cols.counters
+    assert s_frames.decoder.counters == s_cols.decoder.counters
+    return ref, s_frames
+
+
+def _cycle(seconds=240.0):
+    t = np.arange(0.0, seconds, 0.1)
+    return RunTable({"time_s": t, "engine_speed_rpm": 1100.0 + 500.0 * np.sin(t / 9.0),
+                     "engine_torque_nm": 900.0 + 700.0 * np.cos(t / 13.0),
+                     "gear": np.clip(8 + np.round(3 * np.sin(t / 30.0)), 1, 12),
+                     "ambient_temp_c": np.full(t.size, 20.0), "coolant_temp_c": np.full(t.size, 85.0),
+                     "vehicle_speed_kmh": np.full(t.size, 60.0),
+                     "retarder_torque_nm": np.where((t > 100) & (t < 130), 800.0, 0.0)})
+
+
+@pytest.fixture(scope="module")
+def drive():
+    from tests.tools.can_fixtures import plant_output
+    inp = _cycle()
+    return synth_frames(inp, plant_output(inp, oil0_c=60.0, oil_rate_k_s=0.05), start_timestamp_s=1.7e9).frames
+
+
+def _write(msgs, path):
+    with can.Logger(path) as w:
+        for m in msgs:
+            w.on_message_received(m)
+    return path
+
+
+@pytest.mark.parametrize("kind", FAULT_KINDS)
+def test_each_fault_gives_the_same_table_and_counters(tmp_path, drive, kind):
+    path = _write(inject(drive, [kind], seed=3), tmp_path / f"{kind}.log")
+    ref, svc = assert_same(path)
+    assert ref.n > 1000
+    if kind.startswith("jump_"):
+        assert svc.counters["time_jumps"] == 1
+
+
+def test_every_fault_at_once_with_other_settings(tmp_path, drive):
+    path = _write(inject(drive, FAULT_KINDS, seed=5), tmp_path / "all.log")
+    ref, svc = assert_same(path)
+    counters = svc.decoder.counters
+    assert svc.counters["time_jumps"] >= 1 and svc.counters["stale_steps"]
+    for reason in ("error_frame", "remote_frame", "not_extended_id", "fd_frame", "wrong_source_address",
+                   "wrong_dlc", "unknown_pgn"):
+        assert counters["rejected"].get(reason, 0) > 0, reason
+    assert {"not_available", "error_value", "out_of_range"} <= {r for v in counters["signal_rejected"].values()
+                                                                 for r in v}
+    assert counters["tp"]["ec1_received"] > 0
+    assert_same(path, gear_map={g: g - 1 for g in range(2, 13)}, configured_ref_torque_nm=2600.0,
+                max_catchup_steps=5, stale_factor=1.5, init_wait_s=0.5)
+    assert_same(path, expected_sa={"EEC1": None, "TRF1": 0x03})
+
+
+def test_hostile_traffic_through_both_paths(tmp_path):
+    msgs = list(random_frames(30_000, seed=7))
+    cols = FrameColumns.from_messages(msgs)
+    s_frames = _service(configured_ref_torque_nm=2500.0)
+    s_frames.feed_all(msgs)
+    s_cols = _service(configured_ref_torque_nm=2500.0)
+    out = run_columns(s_cols, cols)
+    ref = s_frames.recorded()
+    assert list(ref) == list(out)
+    for c in ref:
+        assert np.array_equal(ref[c], out[c], equal_nan=True), c
+    assert s_frames.counters == s_cols.counters and s_frames.decoder.counters == s_cols.decoder.counters
+
+
+def test_the_decoder_over_columns_gives_every_value_of_the_frame_path(drive):
+    msgs = inject(drive, ("hostile", "foreign_source", "not_available", "jitter"), seed=1)
+    one = J1939Decoder(rig=True)
+    by_frame: dict = {}
+    for i, m in enumerate(msgs):
+        for u in one.feed(m):
+            by_frame.setdefault(u.name, []).append((i, u.timestamp_s, float(u.value)))
+    other = J1939Decoder(rig=True)
+    decoded = decode_columns(FrameColumns.from_messages(msgs), other)
+    assert one.counters == other.counters
+    assert one.ec1_ref_torque_nm == other.ec1_ref_torque_nm
+    assert set(by_frame) == set(decoded.tracks)
+    for name, rows in by_frame.items():
+        track = decoded.tracks[name]
+        assert np.array_equal(np.array(rows), np.column_stack([track.frame, track.time_s, track.value])), name
+
+
+@pytest.mark.parametrize("name", CAPTURE_FILES)
+def test_real_captures_give_the_same_table_and_counters(name):
+    d = real_capture_dir()
+    if d is None:
+        pytest.skip(SKIP_REASON)
+    assert read_columns(d / name).reader == "numpy candump"
+    assert_same(d / name)
+
+
+LINES = [b"(1543509533.000838) can0 18FEF100#FFFF07FFFFFFFFFF\n",
+         b"(0.5) vcan0 0CF00400#1122334455667788 R\n",
+         b"(12) can1 123#0102\n",
+         b"(.25) x 18FEEE00# T\n",
+         b"(99999999999.999999) can0 18FEF8E5#aabbccddeeff0011\n",
+         b"(3.14159265358979323) can0 18FEF8E5#AABBCCDDEEFF0011\n",
+         b"(7.000001) can0 20000080#0000000000000000\n",
+         b"(7.5) can0 1FFFFFFF#00\n"]
+
+
+@pytest.mark.parametrize("line", LINES)
+def test_candump_lines_parse_exactly_as_python_can_reads_them(tmp_path, line):
+    path = tmp_path / "one.log"
+    path.write_bytes(line * 3)
+    cols = parse_candump(path.read_bytes())
+    assert cols is not None
+    ref = FrameColumns.from_messages(can.LogReader(path))
+    for field in ("timestamp_s", "can_id", "flags", "dlc", "length", "data"):
+        assert np.array_equal(getattr(cols, field), getattr(ref, field)), field
+
+
+@pytest.mark.parametrize("text", [b"(1.0) can0 18FEF100#1122 R\n(1.1) can0 0CF00400#R\n",
+                                  b"(1.0) can0 18FEF100##1112233\n", b"(1.0)\tcan0 18FEF100#11\n",
+                                  b"(1.0) can0 18FEF100#112\n", b"(1e3) can0 18FEF100#11\n",
+                                  b"(1.0) can0 18FEF100#1122\r\n", b"# a comment\n(1.0) can0 18FEF100#11\n",
+                                  b"(1.0) can0 18FEF100#11\n(2.0) can0 18FE"])
+def test_other_candump_forms_are_left_to_python_can(tmp_path, text):
+    """Remote and FD frames, tabs, odd hex, exponents, CRLF, comments, a truncated last line: python-can reads the
+    file (its frames, or its error as the frame path reports it)."""
+    assert parse_candump(text) is None
+    path = tmp_path / "odd.log"
+    path.write_bytes(text)
+    try:
+        ref = FrameColumns.from_messages(can.LogReader(path))
+    except Exception:
+        with pytest.raises(InputError):
+            read_columns(path)
+        return
+    got = read_columns(path)
+    assert got.reader == "python-can"
+    assert np.array_equal(got.columns.timestamp_s, ref.timestamp_s)
