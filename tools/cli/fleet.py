@@ -1,0 +1,94 @@
+"""`gearbox-vsensor fleet`: the onboard sensor over a fleet's CAN logs on Dask; one summary row per log (Parquet)."""
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+
+from firmware_model.errors import InputError
+
+
+def add_subparser(sub):
+    p = sub.add_parser(
+        "fleet", help="run the sensor over many trucks' CAN logs on Dask (one summary row per log, Parquet)",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        description=(
+            "Replay every CAN log (.log candump -L, .asc, .blf, .mf4) through the onboard sensor exactly as "
+            "`gearbox-vsensor replay` does, and write per log one summary row: vehicle, log, start and end, "
+            "duration, per component the peak and when, the time above the warning and the critical level, the "
+            "warnings raised and the shortest time to limit, the degraded share, the rejected frames by reason, "
+            "the oil innovation mean and RMS (columns: docs/fleet.md).\n\n"
+            "Output in DIR: summary/vehicle=V/date=D/*.parquet (Hive partitions), errors/*.parquet (a log that "
+            "cannot be read: its reason; the run goes on), estimates/ (with --estimates: the 10 Hz outputs), "
+            "health/ (with --diagnose) and report.md with its plots. Every file is complete or absent; a re-run "
+            "skips the logs already done and never writes a row twice.\n\n"
+            "Runs on a Dask LocalCluster on this machine (no set-up; --workers N processes, default one per "
+            "core) or on an existing cluster (--scheduler tcp://HOST:PORT; the workers need gearbox-vsensor "
+            "installed)."),
+        epilog=("examples:\n"
+                "  gearbox-vsensor fleet logs/ --out fleet_out           # vehicle = the folder holding each log\n"
+                "  gearbox-vsensor fleet --manifest fleet.csv --out fleet_out --workers 2\n"
+                "  gearbox-vsensor fleet --manifest fleet.csv --out fleet_out --scheduler tcp://10.0.0.5:8786\n"
+                "  gearbox-vsensor fleet logs/ --out fleet_out --diagnose  # + cooler and oil-level health per week\n"
+                "  gearbox-vsensor fleet logs/ --out o --vehicle-pattern '(?P<vehicle>truck\\d+)_(?P<date>[-\\d]+)'"))
+    p.add_argument("logs", nargs="*", metavar="LOGS", help="CAN log files and folders (searched for log suffixes)")
+    p.add_argument("--out", required=True, metavar="DIR", help="output folder (created; re-runs resume into it)")
+    p.add_argument("--manifest", metavar="CSV", help="CSV with columns log,vehicle and optional variant,config,date "
+                                                     "(paths relative to the manifest)")
+    p.add_argument("--vehicle-pattern", metavar="REGEX",
+                   help="regular expression on each log's path with a group (?P<vehicle>...) and optional "
+                        "(?P<variant>...), (?P<date>...); default: the folder holding the log")
+    p.add_argument("--scheduler", metavar="ADDRESS", help="an existing Dask scheduler, tcp://HOST:PORT")
+    p.add_argument("--workers", type=int, metavar="N", help="local worker processes (default: one per core)")
+    p.add_argument("--estimates", action="store_true", help="also write each log's 10 Hz sensor outputs")
+    p.add_argument("--diagnose", action="store_true",
+                   help="fleet health: per vehicle and week, fit the effects the oil channel alone identifies "
+                        "(cooler effectiveness, oil level) with their uncertainty; flag drifting vehicles")
+    p.add_argument("--period-days", type=float, default=7.0, metavar="DAYS",
+                   help="the --diagnose period (default 7 days)")
+    p.add_argument("--no-report", action="store_true", help="skip report.md and its plots")
+    p.set_defaults(func=run)
+    return p
+
+
+def _entries(args):
+    from tools.fleet.manifest import entries_from_paths, read_manifest
+    if args.manifest and args.logs:
+        raise InputError("give either --manifest or LOGS, not both")
+    if args.manifest:
+        if args.vehicle_pattern:
+            raise InputError("--vehicle-pattern reads vehicles from paths; a manifest names them itself")
+        return read_manifest(args.manifest)
+    if not args.logs:
+        raise InputError("no logs: give LOGS (files or folders) or --manifest CSV")
+    return entries_from_paths(args.logs, args.vehicle_pattern)
+
+
+def run(args) -> int:
+    from tools.fleet.run import run_fleet
+    entries = _entries(args)
+    if not args.period_days > 0:
+        raise InputError(f"--period-days {args.period_days} must be positive")
+    t0 = time.perf_counter()
+    res = run_fleet(entries, args.out, scheduler=args.scheduler, workers=args.workers, estimates=args.estimates)
+    wall_s = time.perf_counter() - t0
+    print(f"fleet: {res.logs} logs of {len({e.vehicle for e in entries})} vehicles; {res.skipped} done before, "
+          f"{res.summarised} summarised, {res.failed} in the errors table; {res.tasks} tasks on {res.workers} "
+          f"workers in {wall_s:.1f} s")
+    from tools.fleet.store import ERRORS, read_table
+    errors = read_table(args.out, ERRORS)
+    if errors is not None and errors.num_rows:
+        for r in errors.slice(0, 5).to_pylist():
+            print(f"  error ({r['stage']}): {r['reason']}", file=sys.stderr)
+        if errors.num_rows > 5:
+            print(f"  ... {errors.num_rows - 5} more in {args.out}/errors", file=sys.stderr)
+    if args.diagnose:
+        from tools.fleet.health import fleet_health
+        health = fleet_health(args.out, period_days=args.period_days)
+        print(f"health: {health.periods} vehicle-periods fitted; flagged: "
+              + (", ".join(f"{f.vehicle} ({f.effect})" for f in health.flags) or "none"))
+    if not args.no_report:
+        from tools.fleet.report import write_report
+        path = write_report(args.out)
+        print(f"report: {path}")
+    return 0

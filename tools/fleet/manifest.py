@@ -1,0 +1,129 @@
+"""Which logs belong to which vehicle: a manifest CSV (``log,vehicle`` and optional ``variant,config,date``) or the
+logs' paths (the vehicle from a regular expression, by default the name of the folder that holds the log).
+
+Every problem with the list itself (a manifest naming missing files, a vehicle with two variants or configurations,
+a log listed twice, no log at all) is an :class:`~firmware_model.errors.InputError` before anything runs; a log that
+exists but cannot be read is not: it lands in the fleet's errors table.
+"""
+from __future__ import annotations
+
+import csv
+import hashlib
+import os
+import re
+from pathlib import Path
+from typing import NamedTuple
+
+from firmware_model.errors import InputError
+from tools.replay.formats import LOG_SUFFIXES
+
+#: the manifest's columns: required, then optional
+MANIFEST_REQUIRED = ("log", "vehicle")
+MANIFEST_OPTIONAL = ("variant", "config", "date")
+#: the default vehicle pattern: the name of the folder holding the log
+DEFAULT_VEHICLE_PATTERN = r"(?P<vehicle>[^/]+)/[^/]+$"
+
+
+class LogEntry(NamedTuple):
+    """One log of the fleet: its path, vehicle, gearbox variant and configuration (None: the defaults), a date
+    (YYYY-MM-DD; None: from the log's first frame time) and its key (what a re-run recognises it by)."""
+    log: Path
+    vehicle: str
+    variant: str | None
+    config: str | None
+    date: str | None
+    key: str
+
+
+def log_key(path: Path) -> str:
+    """A log's key: a hash of its absolute path (a re-run skips a log whose key is in the output)."""
+    return hashlib.sha1(os.fspath(path.resolve()).encode()).hexdigest()[:16]
+
+
+def _entry(path: Path, vehicle: str, variant=None, config=None, date=None) -> LogEntry:
+    if not vehicle or not vehicle.strip():
+        raise InputError(f"{path}: no vehicle name")
+    if date is not None and not re.fullmatch(r"\d{4}-\d{2}-\d{2}", date):
+        raise InputError(f"{path}: date {date!r} is not YYYY-MM-DD")
+    return LogEntry(path, vehicle.strip(), variant or None, config or None, date or None, log_key(path))
+
+
+def read_manifest(manifest: str | os.PathLike) -> list[LogEntry]:
+    """The logs a manifest CSV lists; paths relative to the manifest's folder."""
+    m = Path(manifest)
+    if not m.is_file():
+        raise InputError(f"manifest {m} does not exist")
+    with open(m, newline="", encoding="utf-8") as fh:
+        reader = csv.DictReader(fh)
+        header = [h.strip() for h in (reader.fieldnames or [])]
+        missing = [c for c in MANIFEST_REQUIRED if c not in header]
+        if missing:
+            raise InputError(f"manifest {m} has no column {' or '.join(missing)}; it needs columns log,vehicle "
+                             f"(optional: {','.join(MANIFEST_OPTIONAL)})")
+        unknown = [c for c in header if c not in MANIFEST_REQUIRED + MANIFEST_OPTIONAL]
+        if unknown:
+            raise InputError(f"manifest {m} has unknown column(s) {', '.join(unknown)}; use log,vehicle and "
+                             f"optionally {','.join(MANIFEST_OPTIONAL)}")
+        rows = [{k.strip(): (v or "").strip() for k, v in r.items() if k} for r in reader]
+    entries = []
+    for r in rows:
+        p = Path(r["log"])
+        if not p.is_absolute():
+            p = m.parent / p
+        entries.append(_entry(p, r["vehicle"], r.get("variant"), r.get("config"), r.get("date")))
+    absent = [e.log for e in entries if not e.log.is_file()]
+    if absent:
+        more = f" and {len(absent) - 3} more" if len(absent) > 3 else ""
+        raise InputError(f"manifest {m} names {len(absent)} log file(s) that do not exist: "
+                         f"{', '.join(map(str, absent[:3]))}{more}")
+    return check_entries(entries, f"manifest {m}")
+
+
+def entries_from_paths(paths, pattern: str | None = None) -> list[LogEntry]:
+    """The logs among ``paths`` (files, and folders searched for CAN log suffixes) with the vehicle from
+    ``pattern`` (a regular expression with a group ``vehicle`` searched in the path, optional groups ``variant``
+    and ``date``; default: the folder holding the log)."""
+    try:
+        rx = re.compile(pattern or DEFAULT_VEHICLE_PATTERN)
+    except re.error as exc:
+        raise InputError(f"--vehicle-pattern {pattern!r} is not a regular expression: {exc}") from None
+    if "vehicle" not in rx.groupindex:
+        raise InputError(f"--vehicle-pattern {pattern!r} has no group (?P<vehicle>...)")
+    files: list[Path] = []
+    for given in paths:
+        p = Path(given)
+        if p.is_dir():
+            files.extend(sorted(f for f in p.rglob("*") if f.is_file() and f.suffix.lower() in LOG_SUFFIXES))
+        elif p.exists():
+            files.append(p)
+        else:
+            raise InputError(f"{p} does not exist")
+    entries = []
+    for f in files:
+        match = rx.search(f.resolve().as_posix())
+        if match is None:
+            raise InputError(f"{f}: --vehicle-pattern {rx.pattern!r} finds no vehicle in its path")
+        groups = match.groupdict()
+        entries.append(_entry(f, groups["vehicle"], groups.get("variant"), None, groups.get("date")))
+    return check_entries(entries, "the logs given")
+
+
+def check_entries(entries: list[LogEntry], where: str) -> list[LogEntry]:
+    """InputError for no log, a log twice, a vehicle with two variants or two configurations."""
+    if not entries:
+        raise InputError(f"{where}: no CAN log ({', '.join(LOG_SUFFIXES)}) to run")
+    seen: dict[str, Path] = {}
+    per_vehicle: dict[str, LogEntry] = {}
+    for e in entries:
+        if e.key in seen:
+            raise InputError(f"{where}: the log {e.log} is listed twice")
+        seen[e.key] = e.log
+        first = per_vehicle.setdefault(e.vehicle, e)
+        for field in ("variant", "config"):
+            if getattr(first, field) != getattr(e, field):
+                raise InputError(f"{where}: vehicle {e.vehicle} has two {field}s, {getattr(first, field)} and "
+                                 f"{getattr(e, field)}; a vehicle is one gearbox (give the other a new vehicle name)")
+    return entries
+
+
+__all__ = ["DEFAULT_VEHICLE_PATTERN", "LogEntry", "check_entries", "entries_from_paths", "log_key", "read_manifest"]

@@ -1,0 +1,178 @@
+"""The fleet run: every log through the onboard sensor on a Dask cluster, one summary row each (docs/fleet.md).
+
+:func:`run_fleet` connects to a Dask scheduler (``scheduler``: ``tcp://HOST:PORT``) or starts a ``LocalCluster`` on
+this machine (``workers`` processes, one thread each), sends the logs in batches (a few per worker for a small fleet,
+at most :data:`BATCH_MAX_LOGS` per task for a big one, so that 100 000 logs are ~1600 tasks), and writes each batch's
+rows as it completes (tools/fleet/store.py). Workers only compute: they read, replay and summarise
+(:func:`process_batch`, the whole-log path of ``tools.replay.log``) and return rows; this process alone writes. A
+worker that dies mid-run (its tasks go to another worker: Dask) costs time, never a row twice; a log that cannot be
+read becomes an error row with its reason; a re-run skips the logs already written.
+"""
+from __future__ import annotations
+
+import hashlib
+import math
+import os
+from pathlib import Path
+from typing import NamedTuple
+
+from firmware_model.errors import InputError
+from tools.fleet.manifest import LogEntry
+from tools.fleet.store import ESTIMATES, FleetStore, partition_dir
+
+#: logs per task at most; a small fleet gets about TASKS_PER_WORKER tasks per worker
+BATCH_MAX_LOGS = 64
+TASKS_PER_WORKER = 4
+#: how long to wait for a scheduler given by address [s]
+CONNECT_TIMEOUT_S = 10.0
+
+_SENSORS: dict = {}
+
+
+class FleetRun(NamedTuple):
+    """What a run did: logs given, skipped (done before), summarised, failed; the tasks; the workers."""
+    logs: int
+    skipped: int
+    summarised: int
+    failed: int
+    tasks: int
+    workers: int
+
+
+def _sensor(variant: str | None, config: str | None):
+    """The onboard sensor and service options of a (variant, config), built once per worker process."""
+    key = (variant, config)
+    if key not in _SENSORS:
+        import dataclasses
+        from firmware_model.config import load_config
+        from firmware_model.onboard.sensor import VirtualSensor
+        from firmware_model.service import ServiceOptions
+        cfg = load_config(config)
+        if variant is not None:
+            cfg = dataclasses.replace(cfg, variant=variant, params_path=None)
+        _SENSORS[key] = (VirtualSensor(cfg.load_params(), config=cfg),
+                         ServiceOptions.from_config(cfg, log_findings=False))
+    return _SENSORS[key]
+
+
+def _estimates(table, entry: LogEntry, out: Path, date: str) -> None:
+    import pyarrow as pa
+    from tools.fleet.store import write_atomic
+    cols = {c: table[c] for c in table.columns}
+    write_atomic(pa.table(cols), partition_dir(out / ESTIMATES, entry.vehicle, date)
+                 / f"{entry.log.stem}-{entry.key}.parquet")
+
+
+def process_log(entry: LogEntry, out: str | None = None, estimates: bool = False) -> tuple[str, dict]:
+    """One log: ("ok", summary row) or ("error", error row); never raises for a bad log."""
+    from firmware_model.service import SensorService
+    from tools.fleet.summary import summarize
+    from tools.replay.log import replay_log
+    base = {"vehicle": entry.vehicle, "log": os.fspath(entry.log), "log_key": entry.key}
+    stage = "sensor"
+    try:
+        sensor, options = _sensor(entry.variant, entry.config)
+        stage = "replay"
+        if entry.log.is_file() and entry.log.stat().st_size == 0:
+            raise InputError(f"{entry.log}: the log file is empty")
+        table = replay_log(entry.log, SensorService(sensor, options, record=True, emit_frames=False))
+        stage = "summary"
+        row = summarize(table, table.meta["counters"], vehicle=entry.vehicle, log=os.fspath(entry.log),
+                        key=entry.key, date=entry.date)
+        if estimates and out is not None:
+            stage = "estimates"
+            _estimates(table, entry, Path(out), row["date"])
+        return "ok", row
+    except (InputError, OSError, ValueError) as exc:
+        return "error", {**base, "stage": stage, "reason": str(exc)}
+    except Exception as exc:   # a bug must not stop a fleet: the reason names it
+        return "error", {**base, "stage": stage, "reason": f"{type(exc).__name__}: {exc}"}
+
+
+def process_batch(entries: list[LogEntry], out: str | None = None, estimates: bool = False) -> list:
+    """The logs of one task, in order (a Dask task runs this on a worker)."""
+    return [process_log(e, out, estimates) for e in entries]
+
+
+def batches(entries: list[LogEntry], workers: int, max_logs: int = BATCH_MAX_LOGS) -> list[list[LogEntry]]:
+    """Tasks of whole logs, by vehicle: about TASKS_PER_WORKER per worker, at most ``max_logs`` logs each."""
+    if not entries:
+        return []
+    size = max(1, min(max_logs, math.ceil(len(entries) / (TASKS_PER_WORKER * max(workers, 1)))))
+    ordered = sorted(entries, key=lambda e: (e.vehicle, os.fspath(e.log)))
+    return [ordered[i:i + size] for i in range(0, len(ordered), size)]
+
+
+def batch_id(batch: list[LogEntry]) -> str:
+    return hashlib.sha1(",".join(e.key for e in batch).encode()).hexdigest()[:16]
+
+
+def connect(scheduler: str | None, workers: int | None):
+    """(client, cluster or None): a Dask client of the scheduler at ``scheduler``, or of a new LocalCluster."""
+    try:
+        from dask.distributed import Client, LocalCluster
+    except ImportError:
+        raise InputError("the fleet command needs dask.distributed: pip install 'gearbox-vsensor[fleet]'") from None
+    if workers is not None and workers < 1:
+        raise InputError(f"--workers {workers} must be at least 1")
+    if scheduler:
+        if workers is not None:
+            raise InputError("--workers starts a local cluster; with --scheduler the cluster's own workers run")
+        try:
+            return Client(scheduler, timeout=f"{CONNECT_TIMEOUT_S}s"), None
+        except (OSError, TimeoutError, ValueError) as exc:
+            raise InputError(f"the Dask scheduler at {scheduler} does not answer within {CONNECT_TIMEOUT_S:.0f} s "
+                             f"({type(exc).__name__})") from None
+    n = workers or max(1, os.cpu_count() or 1)
+    cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None,
+                           silence_logs=40)
+    return Client(cluster), cluster
+
+
+def _worker_count(client) -> int:
+    return max(1, len(client.scheduler_info().get("workers", {})))
+
+
+def run_fleet(entries: list[LogEntry], out: str | os.PathLike, *, scheduler: str | None = None,
+              workers: int | None = None, estimates: bool = False, show_progress: bool | None = None,
+              max_logs: int = BATCH_MAX_LOGS, on_batch=None) -> FleetRun:
+    """Summarise every log of ``entries`` into ``out`` (tools/fleet/store.py); see the module doc. ``on_batch(n)``
+    is called after each batch is written (tests kill a worker from it)."""
+    from dask.distributed import as_completed
+    from tools.progress import progress
+    client, cluster = connect(scheduler, workers)
+    try:
+        store = FleetStore(out)
+        store.prepare()
+        done = store.done_keys()
+        todo = [e for e in entries if e.key not in done]
+        n_workers = _worker_count(client)
+        tasks = batches(todo, n_workers, max_logs)
+        futures = {client.submit(process_batch, b, os.fspath(out), estimates, pure=False,
+                                 key=f"gvs-fleet-{batch_id(b)}"): b for b in tasks}
+        ok = failed = written = 0
+        with progress(len(todo), "fleet", show_progress, unit="log") as bar:
+            for fut in as_completed(futures):
+                batch = futures[fut]
+                try:
+                    results = fut.result()
+                except Exception as exc:   # e.g. KilledWorker: the task's logs killed every worker that ran them
+                    results = [("error", {"vehicle": e.vehicle, "log": os.fspath(e.log), "log_key": e.key,
+                                          "stage": "worker", "reason": f"{type(exc).__name__}: {exc}"})
+                               for e in batch]
+                rows = [r for kind, r in results if kind == "ok"]
+                errors = [r for kind, r in results if kind == "error"]
+                store.write_batch(batch_id(batch), rows, errors)
+                ok, failed, written = ok + len(rows), failed + len(errors), written + 1
+                bar.update(len(batch))
+                if on_batch is not None:
+                    on_batch(written)
+        return FleetRun(len(entries), len(entries) - len(todo), ok, failed, len(tasks), n_workers)
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
+
+
+__all__ = ["BATCH_MAX_LOGS", "FleetRun", "batch_id", "batches", "connect", "process_batch", "process_log",
+           "run_fleet"]

@@ -1,0 +1,97 @@
+"""The fleet's output folder: Parquet tables written by one process only, each file complete or absent.
+
+``DIR/summary/vehicle=<V>/date=<YYYY-MM-DD>/part-<batch>.parquet``: one row per log (tools/fleet/summary.py), Hive
+partitions by vehicle and date (any Parquet reader: ``pyarrow.dataset.dataset(DIR/"summary",
+partitioning="hive")``, ``dask.dataframe.read_parquet``, pandas). ``DIR/errors/part-<batch>.parquet``: one row per
+log that could not be read, with the reason. ``DIR/estimates/vehicle=<V>/date=<D>/<log>-<key>.parquet`` (with
+``--estimates``): the 10 Hz sensor output of each log. Every file is written under a temporary name and renamed:
+a run killed at any moment leaves whole files only, and a re-run skips the logs whose key is in a file already
+(:meth:`FleetStore.done_keys`), so no log ever has two rows.
+"""
+from __future__ import annotations
+
+import os
+import uuid
+from pathlib import Path
+from urllib.parse import quote
+
+from firmware_model.errors import InputError
+
+SUMMARY, ERRORS, ESTIMATES, HEALTH = "summary", "errors", "estimates", "health"
+ERROR_COLUMNS = ("vehicle", "log", "log_key", "stage", "reason")
+
+
+def _pa():
+    try:
+        import pyarrow as pa
+        import pyarrow.parquet as pq
+    except ImportError:
+        raise InputError("the fleet's Parquet output needs pyarrow: pip install 'gearbox-vsensor[fleet]'") from None
+    return pa, pq
+
+
+def write_atomic(table, path: Path) -> Path:
+    """Write a pyarrow table as Parquet under a temporary name in the same folder, then rename it."""
+    _, pq = _pa()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.{uuid.uuid4().hex[:8]}.tmp")
+    pq.write_table(table, tmp)
+    os.replace(tmp, path)
+    return path
+
+
+def partition_dir(root: Path, vehicle: str, date: str) -> Path:
+    return root / f"vehicle={quote(vehicle, safe='')}" / f"date={quote(date, safe='')}"
+
+
+class FleetStore:
+    """The output folder ``out``."""
+
+    def __init__(self, out: str | os.PathLike) -> None:
+        self.out = Path(out)
+
+    def prepare(self) -> None:
+        if self.out.exists() and not self.out.is_dir():
+            raise InputError(f"--out {self.out} is a file, not a folder")
+        self.out.mkdir(parents=True, exist_ok=True)
+
+    def done_keys(self) -> set[str]:
+        """The keys of the logs that have a summary or an error row already."""
+        _, pq = _pa()
+        keys: set[str] = set()
+        for sub in (SUMMARY, ERRORS):
+            for f in (self.out / sub).rglob("*.parquet") if (self.out / sub).is_dir() else ():
+                keys.update(pq.read_table(f, columns=["log_key"]).column("log_key").to_pylist())
+        return keys
+
+    def write_batch(self, batch_id: str, rows: list[dict], errors: list[dict]) -> None:
+        """One batch's summary rows (a file per vehicle and date) and error rows."""
+        pa, _ = _pa()
+        groups: dict[tuple[str, str], list[dict]] = {}
+        for r in rows:
+            groups.setdefault((r["vehicle"], r["date"]), []).append(r)
+        for (vehicle, date), part in groups.items():
+            body = [{k: v for k, v in r.items() if k not in ("vehicle", "date")} for r in part]
+            write_atomic(pa.Table.from_pylist(body), partition_dir(self.out / SUMMARY, vehicle, date)
+                         / f"part-{batch_id}.parquet")
+        if errors:
+            table = pa.table({c: [str(e.get(c, "")) for e in errors] for c in ERROR_COLUMNS})
+            write_atomic(table, self.out / ERRORS / f"part-{batch_id}.parquet")
+
+
+def read_table(out: str | os.PathLike, which: str = SUMMARY):
+    """A table of a fleet folder as one pyarrow table (vehicle and date from the partitions, as strings); None when
+    it has no file."""
+    pa, _ = _pa()
+    import pyarrow.dataset as ds
+    root = Path(out) / which
+    if not root.is_dir() or not any(root.rglob("*.parquet")):
+        return None
+    if which == ERRORS:
+        return ds.dataset(root, format="parquet").to_table()
+    part = ds.partitioning(pa.schema([("vehicle", pa.string()), ("date", pa.string())]), flavor="hive")
+    return ds.dataset(root, format="parquet", partitioning=part).to_table()
+
+
+__all__ = ["ERRORS", "ERROR_COLUMNS", "ESTIMATES", "HEALTH", "SUMMARY", "FleetStore", "partition_dir", "read_table",
+           "write_atomic"]

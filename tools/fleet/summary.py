@@ -1,0 +1,76 @@
+"""One row per log: what a fleet engineer asks of a day's driving (tools/fleet; docs/fleet.md lists the columns).
+
+From the sensor output run table of a log (``tools.replay.log.replay_log``) and its counters: when and how long it
+ran; per published component the peak temperature and when, the time above the warning and the critical level, the
+warnings raised and the shortest time to its limit; the degraded share; the rejected frames by reason; the oil
+innovation (measured - modelled sump) mean and RMS.
+"""
+from __future__ import annotations
+
+import datetime as dt
+import math
+
+import numpy as np
+
+from can_dbc.decoder import REJECT_REASONS
+from firmware_model.components import PUBLISHED, STEP_S
+
+#: a log's frame time at or above this is taken as Unix time (after 1973): its date is the log's date
+EPOCH_MIN_S = 1e8
+#: per component, the summary's columns (with the component id in place of {c})
+COMPONENT_COLUMNS = ("peak_{c}_c", "peak_{c}_t_s", "above_warning_{c}_s", "above_critical_{c}_s",
+                     "warnings_{c}", "min_ttl_{c}_s")
+
+
+def log_date(start_s: float) -> str | None:
+    """The UTC date of a frame time that is Unix time, else None."""
+    if not (math.isfinite(start_s) and start_s >= EPOCH_MIN_S):
+        return None
+    return dt.datetime.fromtimestamp(start_s, tz=dt.timezone.utc).date().isoformat()
+
+
+def _component(row: dict, c: str, table) -> None:
+    T = np.asarray(table[f"T_{c}_c"], dtype=float)
+    level = np.asarray(table[f"W_{c}"], dtype=float)
+    ttl = np.asarray(table[f"ttl_{c}_s"], dtype=float)
+    t = np.asarray(table["time_s"], dtype=float)
+    finite = np.isfinite(T)
+    if finite.any():
+        i = int(np.nanargmax(np.where(finite, T, -np.inf)))
+        row[f"peak_{c}_c"], row[f"peak_{c}_t_s"] = float(T[i]), float(t[i])
+    else:
+        row[f"peak_{c}_c"] = row[f"peak_{c}_t_s"] = math.nan
+    known = level <= 2
+    row[f"above_warning_{c}_s"] = float(np.count_nonzero(known & (level >= 1)) * STEP_S)
+    row[f"above_critical_{c}_s"] = float(np.count_nonzero(known & (level >= 2)) * STEP_S)
+    warn = (known & (level >= 1)).astype(np.int8)
+    row[f"warnings_{c}"] = int(np.count_nonzero(np.diff(np.concatenate([[0], warn])) == 1))
+    # "never" is NaN in the table; the shortest known time to limit, +inf when every refresh said never
+    ok = known & (level < 3)
+    row[f"min_ttl_{c}_s"] = float(np.nanmin(ttl[ok])) if np.isfinite(ttl[ok]).any() else \
+        (math.inf if ok.any() else math.nan)
+
+
+def summarize(table, counters: dict, *, vehicle: str, log: str, key: str, date: str | None = None) -> dict:
+    """The summary row of one replayed log (``table`` from ``replay_log``, ``counters`` its ``meta["counters"]``)."""
+    can_t = np.asarray(table["can_time_s"], dtype=float)
+    start_s, end_s = float(can_t[0]), float(can_t[-1])
+    innov = np.asarray(table["oil_innovation_c"], dtype=float) if table.has("oil_innovation_c") else np.zeros(0)
+    innov = innov[np.isfinite(innov)]
+    rejected = counters.get("decoder", {}).get("rejected", {})
+    row = {"vehicle": vehicle, "log": log, "log_key": key, "date": date or log_date(start_s) or "unknown",
+           "start_s": start_s, "end_s": end_s, "duration_s": float(table.n * STEP_S), "steps": int(table.n),
+           "degraded_share": float(np.mean(np.asarray(table["degraded"], dtype=float) != 0)),
+           "frames": int(counters.get("decoder", {}).get("frames_seen", 0)),
+           "time_jumps": int(counters.get("service", {}).get("time_jumps", 0)),
+           "oil_innovation_mean_c": float(np.mean(innov)) if innov.size else math.nan,
+           "oil_innovation_rms_c": float(np.sqrt(np.mean(innov ** 2))) if innov.size else math.nan,
+           "oil_measured_share": float(innov.size / table.n) if table.n else 0.0}
+    for reason in REJECT_REASONS:
+        row[f"rejected_{reason}"] = int(rejected.get(reason, 0))
+    for c in PUBLISHED:
+        _component(row, c, table)
+    return row
+
+
+__all__ = ["COMPONENT_COLUMNS", "EPOCH_MIN_S", "log_date", "summarize"]
