@@ -70,7 +70,8 @@ def run(args) -> int:
     if not args.period_days > 0:
         raise InputError(f"--period-days {args.period_days} must be positive")
     t0 = time.perf_counter()
-    res = run_fleet(entries, args.out, scheduler=args.scheduler, workers=args.workers, estimates=args.estimates)
+    res = run_fleet(entries, args.out, scheduler=args.scheduler, workers=args.workers, estimates=args.estimates,
+                    diagnose=args.diagnose)
     wall_s = time.perf_counter() - t0
     print(f"fleet: {res.logs} logs of {len({e.vehicle for e in entries})} vehicles; {res.skipped} done before, "
           f"{res.summarised} summarised, {res.failed} in the errors table; {res.tasks} tasks on {res.workers} "

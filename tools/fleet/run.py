@@ -63,8 +63,10 @@ def _estimates(table, entry: LogEntry, out: Path, date: str) -> None:
                  / f"{entry.log.stem}-{entry.key}.parquet")
 
 
-def process_log(entry: LogEntry, out: str | None = None, estimates: bool = False) -> tuple[str, dict]:
-    """One log: ("ok", summary row) or ("error", error row); never raises for a bad log."""
+def process_log(entry: LogEntry, out: str | None = None, estimates: bool = False,
+                diagnose: bool = False) -> tuple[str, dict]:
+    """One log: ("ok", summary row) or ("error", error row); never raises for a bad log. ``diagnose``: the row
+    carries the log's health fit under "_fit" (tools/fleet/health.py; None when the log cannot be fitted)."""
     from firmware_model.service import SensorService
     from tools.fleet.summary import summarize
     from tools.replay.log import replay_log
@@ -82,6 +84,10 @@ def process_log(entry: LogEntry, out: str | None = None, estimates: bool = False
         if estimates and out is not None:
             stage = "estimates"
             _estimates(table, entry, Path(out), row["date"])
+        if diagnose:
+            from tools.fleet.health import fit_log
+            stage = "health fit"
+            row["_fit"] = fit_log(table, entry.variant, entry.config)
         return "ok", row
     except (InputError, OSError, ValueError) as exc:
         return "error", {**base, "stage": stage, "reason": str(exc)}
@@ -89,9 +95,10 @@ def process_log(entry: LogEntry, out: str | None = None, estimates: bool = False
         return "error", {**base, "stage": stage, "reason": f"{type(exc).__name__}: {exc}"}
 
 
-def process_batch(entries: list[LogEntry], out: str | None = None, estimates: bool = False) -> list:
+def process_batch(entries: list[LogEntry], out: str | None = None, estimates: bool = False,
+                  diagnose: bool = False) -> list:
     """The logs of one task, in order (a Dask task runs this on a worker)."""
-    return [process_log(e, out, estimates) for e in entries]
+    return [process_log(e, out, estimates, diagnose) for e in entries]
 
 
 def batches(entries: list[LogEntry], workers: int, max_logs: int = BATCH_MAX_LOGS) -> list[list[LogEntry]]:
@@ -134,7 +141,8 @@ def _worker_count(client) -> int:
 
 
 def run_fleet(entries: list[LogEntry], out: str | os.PathLike, *, scheduler: str | None = None,
-              workers: int | None = None, estimates: bool = False, show_progress: bool | None = None,
+              workers: int | None = None, estimates: bool = False, diagnose: bool = False,
+              show_progress: bool | None = None,
               max_logs: int = BATCH_MAX_LOGS, on_batch=None) -> FleetRun:
     """Summarise every log of ``entries`` into ``out`` (tools/fleet/store.py); see the module doc. ``on_batch(n)``
     is called after each batch is written (tests kill a worker from it)."""
@@ -148,7 +156,7 @@ def run_fleet(entries: list[LogEntry], out: str | os.PathLike, *, scheduler: str
         todo = [e for e in entries if e.key not in done]
         n_workers = _worker_count(client)
         tasks = batches(todo, n_workers, max_logs)
-        futures = {client.submit(process_batch, b, os.fspath(out), estimates, pure=False,
+        futures = {client.submit(process_batch, b, os.fspath(out), estimates, diagnose, pure=False,
                                  key=f"gvs-fleet-{batch_id(b)}"): b for b in tasks}
         ok = failed = written = 0
         with progress(len(todo), "fleet", show_progress, unit="log") as bar:

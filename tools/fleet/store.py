@@ -5,7 +5,8 @@ partitions by vehicle and date (any Parquet reader: ``pyarrow.dataset.dataset(DI
 partitioning="hive")``, ``dask.dataframe.read_parquet``, pandas). ``DIR/errors/part-<batch>.parquet``: one row per
 log that could not be read, with the reason. ``DIR/estimates/vehicle=<V>/date=<D>/<log>-<key>.parquet`` (with
 ``--estimates``): the 10 Hz sensor output of each log. Every file is written under a temporary name and renamed:
-a run killed at any moment leaves whole files only, and a re-run skips the logs whose key is in a file already
+``DIR/fits/...`` (with ``--diagnose``): each log's health fit (tools/fleet/health.py). A run killed at any moment
+leaves whole files only, and a re-run skips the logs whose key is in a file already
 (:meth:`FleetStore.done_keys`), so no log ever has two rows.
 """
 from __future__ import annotations
@@ -17,7 +18,7 @@ from urllib.parse import quote
 
 from firmware_model.errors import InputError
 
-SUMMARY, ERRORS, ESTIMATES, HEALTH = "summary", "errors", "estimates", "health"
+SUMMARY, ERRORS, ESTIMATES, HEALTH, FITS = "summary", "errors", "estimates", "health", "fits"
 ERROR_COLUMNS = ("vehicle", "log", "log_key", "stage", "reason")
 
 
@@ -68,8 +69,16 @@ class FleetStore:
         """One batch's summary rows (a file per vehicle and date) and error rows."""
         pa, _ = _pa()
         groups: dict[tuple[str, str], list[dict]] = {}
+        fits: dict[tuple[str, str], list[dict]] = {}
         for r in rows:
+            fit = r.pop("_fit", None)
+            if fit is not None:
+                fits.setdefault((r["vehicle"], r["date"]), []).append({"log_key": r["log_key"], **fit})
             groups.setdefault((r["vehicle"], r["date"]), []).append(r)
+        # fits first: the summary row is what marks a log done
+        for (vehicle, date), part in fits.items():
+            write_atomic(pa.Table.from_pylist(part), partition_dir(self.out / FITS, vehicle, date)
+                         / f"part-{batch_id}.parquet")
         for (vehicle, date), part in groups.items():
             body = [{k: v for k, v in r.items() if k not in ("vehicle", "date")} for r in part]
             write_atomic(pa.Table.from_pylist(body), partition_dir(self.out / SUMMARY, vehicle, date)
@@ -93,5 +102,5 @@ def read_table(out: str | os.PathLike, which: str = SUMMARY):
     return ds.dataset(root, format="parquet", partitioning=part).to_table()
 
 
-__all__ = ["ERRORS", "ERROR_COLUMNS", "ESTIMATES", "HEALTH", "SUMMARY", "FleetStore", "partition_dir", "read_table",
+__all__ = ["ERRORS", "ERROR_COLUMNS", "ESTIMATES", "FITS", "HEALTH", "SUMMARY", "FleetStore", "partition_dir", "read_table",
            "write_atomic"]

@@ -1,0 +1,205 @@
+"""Fleet health: per vehicle and period, the effects the oil channel alone identifies, fitted with their uncertainty,
+and the vehicles that drift or sit outside the fleet's spread (``gearbox-vsensor fleet --diagnose``).
+
+Per log (:func:`fit_log`, on the worker): the onboard model (the diagnosis's onboard backend, tools/diagnosis/models)
+re-runs the log's decoded inputs open loop (its own sump, from the first measured oil) on a grid of the two effects
+of the catalog that move the oil reading of a truck on the road: ``cooler_effectiveness_scale`` (fouling, bypass)
+and ``oil_level_low`` (a leak). The sum of squared differences to the measured oil over the grid is the log's
+evidence; it is kept (DIR/fits). Per vehicle and period (:func:`fleet_health`): the logs' grids add up (independent
+days), the minimum (refined by a parabola along each axis) is the period's estimate and the curvature its standard
+error, the residual variance inflated by the autocorrelation of the residual (one independent point per
+:data:`DECORRELATION_S`). A vehicle is flagged when :data:`CONSECUTIVE` periods in a row sit below its own first
+:data:`BASELINE_PERIODS` periods by more than :data:`DRIFT_MIN` and 3 standard errors, in the direction of the
+fault (less cooler, less oil), or outside the fleet's spread in that period (median -/+ 4 x 1.4826 MAD).
+"""
+from __future__ import annotations
+
+import datetime as dt
+import math
+from pathlib import Path
+from typing import NamedTuple
+
+import numpy as np
+
+#: the grid of the per-log fit: cooler effectiveness scale [-] and oil volume [L] (catalog ranges)
+COOLER_GRID = (0.2, 0.35, 0.5, 0.65, 0.8, 1.0, 1.2)
+VOLUME_GRID_L = (8.5, 10.0, 11.5, 13.5)
+#: the fit compares the oil every this many seconds; one independent residual per DECORRELATION_S
+FIT_DT_S = 5.0
+DECORRELATION_S = 120.0
+#: drift: periods of baseline, periods in a row, smallest drop that counts (per effect)
+BASELINE_PERIODS = 2
+CONSECUTIVE = 2
+DRIFT_MIN = {"cooler_effectiveness_scale": 0.15, "oil_level_low": 1.0}
+#: a log contributes to the fit only with at least this share of measured oil
+MIN_OIL_SHARE = 0.8
+_MODELS: dict = {}
+
+
+def _model(variant: str | None, config: str | None):
+    key = (variant, config)
+    if key not in _MODELS:
+        import dataclasses
+        from firmware_model.config import load_config
+        from tools.diagnosis.models import OnboardModel
+        cfg = load_config(config)
+        if variant is not None:
+            cfg = dataclasses.replace(cfg, variant=variant, params_path=None)
+        _MODELS[key] = OnboardModel(cfg.load_params(), config=cfg, out_dt_s=FIT_DT_S, workers=1)
+    return _MODELS[key]
+
+
+class _Data(NamedTuple):
+    inputs: object
+    initial_temp_c: float
+
+
+def fit_log(table, variant: str | None = None, config: str | None = None) -> dict | None:
+    """The SSE grid of one replayed log (rows: VOLUME_GRID_L, columns: COOLER_GRID) against its measured oil, the
+    number of compared points and the log's span; None when the log has too little measured oil."""
+    from tools.diagnosis.models import Run
+    from tools.runtable import RunTable
+    oil = np.asarray(table["oil_temp_c"], dtype=float)
+    if table.n < 2 * int(DECORRELATION_S / 0.1) or np.mean(np.isfinite(oil)) < MIN_OIL_SHARE:
+        return None
+    t = np.asarray(table["time_s"], dtype=float)
+    cols = {"time_s": t - t[0]}
+    for c in ("engine_speed_rpm", "engine_torque_nm", "gear", "ambient_temp_c", "coolant_temp_c",
+              "vehicle_speed_kmh", "retarder_torque_nm"):
+        cols[c] = np.asarray(table[c], dtype=float)
+    first = int(np.flatnonzero(np.isfinite(oil))[0])
+    runs = [Run.of({"cooler_effectiveness_scale": c, "oil_level_low": v}) for v in VOLUME_GRID_L for c in COOLER_GRID]
+    outs = _model(variant, config).simulate([_Data(RunTable(cols), float(oil[first]))], runs, ["oil_temp_c"])
+    t_fit = outs[0][0]["time_s"]
+    meas = np.interp(t_fit, cols["time_s"], np.where(np.isfinite(oil), oil, np.nan))
+    ok = np.isfinite(meas)
+    sse = np.array([float(np.sum((o[0]["oil_temp_c"][ok] - meas[ok]) ** 2)) for o in outs])
+    return {"sse": sse.reshape(len(VOLUME_GRID_L), len(COOLER_GRID)).ravel().tolist(), "points": int(ok.sum()),
+            "span_s": float(cols["time_s"][-1])}
+
+
+def _parabola(x: np.ndarray, y: np.ndarray, i: int) -> tuple[float, float]:
+    """Vertex and curvature (d2y/dx2) of the parabola through the minimum ``i`` and its neighbours."""
+    if i == 0 or i == x.size - 1:
+        j = 1 if i == 0 else x.size - 2
+        xs, ys = x[j - 1:j + 2], y[j - 1:j + 2]
+    else:
+        xs, ys = x[i - 1:i + 2], y[i - 1:i + 2]
+    a, b, _ = np.polyfit(xs, ys, 2)
+    if a <= 0:
+        return float(x[i]), 0.0
+    return float(np.clip(-b / (2 * a), x[0], x[-1])), float(2 * a)
+
+
+class PeriodFit(NamedTuple):
+    vehicle: str
+    period: int
+    start: str
+    logs: int
+    cooler_scale: float
+    cooler_se: float
+    oil_volume_l: float
+    oil_volume_se: float
+    rms_c: float
+
+
+def fit_period(vehicle: str, period: int, start: str, fits: list[dict]) -> PeriodFit:
+    """The estimate of one vehicle-period from its logs' SSE grids."""
+    sse = np.sum([np.asarray(f["sse"]) for f in fits], axis=0).reshape(len(VOLUME_GRID_L), len(COOLER_GRID))
+    points = sum(f["points"] for f in fits)
+    n_eff = max(sum(f["span_s"] for f in fits) / DECORRELATION_S, 3.0)
+    iv, ic = np.unravel_index(int(np.argmin(sse)), sse.shape)
+    s2 = float(sse[iv, ic]) / max(points - 2, 1)
+    # a point's squared residual counts points / n_eff times: the curvature is divided by that inflation
+    infl = points / n_eff
+    c_hat, c_curv = _parabola(np.array(COOLER_GRID), sse[iv, :], ic)
+    v_hat, v_curv = _parabola(np.array(VOLUME_GRID_L), sse[:, ic], iv)
+
+    def se(curv):
+        return math.sqrt(2 * s2 * infl / curv) if curv > 0 else math.inf
+    return PeriodFit(vehicle, period, start, len(fits), c_hat, se(c_curv), v_hat, se(v_curv), math.sqrt(s2))
+
+
+class Flag(NamedTuple):
+    vehicle: str
+    effect: str
+    period: int
+    start: str
+    value: float
+    baseline: float
+    reason: str
+
+
+class Health(NamedTuple):
+    periods: int
+    fits: list
+    flags: list
+
+
+def _drift_flags(per_vehicle: dict, fleet_median: dict, fleet_mad: dict) -> list[Flag]:
+    flags = []
+    for vehicle, rows in per_vehicle.items():
+        rows = sorted(rows, key=lambda r: r.period)
+        for effect, attr, se_attr in (("cooler_effectiveness_scale", "cooler_scale", "cooler_se"),
+                                      ("oil_level_low", "oil_volume_l", "oil_volume_se")):
+            base_rows = rows[:BASELINE_PERIODS]
+            if len(rows) <= BASELINE_PERIODS:
+                continue
+            baseline = float(np.median([getattr(r, attr) for r in base_rows]))
+            run = 0
+            for r in rows[BASELINE_PERIODS:]:
+                value, se = getattr(r, attr), getattr(r, se_attr)
+                drop = baseline - value
+                drifting = drop > DRIFT_MIN[effect] and drop > 3 * se
+                outside = value < fleet_median[(effect, r.period)] - 4 * fleet_mad[(effect, r.period)] \
+                    and drop > DRIFT_MIN[effect]
+                run = run + 1 if (drifting or outside) else 0
+                if run >= CONSECUTIVE:
+                    flags.append(Flag(vehicle, effect, r.period, r.start, value, baseline,
+                                      "drift from its own baseline" if drifting else "outside the fleet's spread"))
+                    break
+    return flags
+
+
+def fleet_health(out: str | Path, period_days: float = 7.0) -> Health:
+    """Fit every vehicle-period from DIR/fits, flag drifting vehicles; writes DIR/health/periods.parquet and
+    DIR/health/flags.parquet. Returns the fits and the flags."""
+    import pyarrow as pa
+    from tools.fleet.store import HEALTH, read_table, write_atomic
+    fits = read_table(out, "fits")
+    summary = read_table(out)
+    if fits is None or summary is None:
+        return Health(0, [], [])
+    dates = dict(zip(summary.column("log_key").to_pylist(), summary.column("date").to_pylist()))
+    unique = {r["log_key"]: r for r in fits.to_pylist()}     # a log fitted twice (a run killed between files)
+    rows = [r for r in unique.values() if dates.get(r["log_key"], "unknown") != "unknown"]
+    if not rows:
+        return Health(0, [], [])
+    day0 = min(dt.date.fromisoformat(dates[r["log_key"]]) for r in rows)
+    groups: dict = {}
+    for r in rows:
+        d = dt.date.fromisoformat(dates[r["log_key"]])
+        p = int((d - day0).days // period_days)
+        groups.setdefault((r["vehicle"], p), []).append(r)
+    period_fits = [fit_period(v, p, (day0 + dt.timedelta(days=p * period_days)).isoformat(), g)
+                   for (v, p), g in sorted(groups.items())]
+    per_vehicle: dict = {}
+    stats_med, stats_mad = {}, {}
+    for f in period_fits:
+        per_vehicle.setdefault(f.vehicle, []).append(f)
+    for effect, attr in (("cooler_effectiveness_scale", "cooler_scale"), ("oil_level_low", "oil_volume_l")):
+        for p in {f.period for f in period_fits}:
+            vals = np.array([getattr(f, attr) for f in period_fits if f.period == p])
+            med = float(np.median(vals))
+            stats_med[(effect, p)] = med
+            stats_mad[(effect, p)] = max(1.4826 * float(np.median(np.abs(vals - med))), 1e-6)
+    flags = _drift_flags(per_vehicle, stats_med, stats_mad)
+    root = Path(out) / HEALTH
+    write_atomic(pa.Table.from_pylist([f._asdict() for f in period_fits]), root / "periods.parquet")
+    write_atomic(pa.Table.from_pylist([f._asdict() for f in flags], schema=pa.schema(
+        [("vehicle", pa.string()), ("effect", pa.string()), ("period", pa.int64()), ("start", pa.string()),
+         ("value", pa.float64()), ("baseline", pa.float64()), ("reason", pa.string())])), root / "flags.parquet")
+    return Health(len(period_fits), period_fits, flags)
+
+
+__all__ = ["COOLER_GRID", "VOLUME_GRID_L", "Flag", "Health", "PeriodFit", "fit_log", "fit_period", "fleet_health"]

@@ -1,0 +1,165 @@
+"""The fleet report: DIR/report.md with its plots (DIR/report_*.png), from the Parquet tables of a fleet run.
+
+Hottest vehicles and components, the distribution of the per-log peaks, the time above the warning level by
+component and by vehicle, the degraded share and rejected frames, the logs that could not be read, and (after
+``--diagnose``) the drifting vehicles with their fitted cooler effectiveness and oil volume per period.
+"""
+from __future__ import annotations
+
+import math
+import os
+from pathlib import Path
+
+import numpy as np
+
+from firmware_model.components import PUBLISHED
+from tools.fleet.store import ERRORS, HEALTH, read_table
+
+
+def _plt():
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    return plt
+
+
+def _cols(table) -> dict:
+    return {n: table.column(n).to_pylist() for n in table.column_names}
+
+
+def _fmt_s(s: float) -> str:
+    return f"{s / 3600:.2f} h" if s >= 3600 else f"{s / 60:.1f} min" if s >= 60 else f"{s:.0f} s"
+
+
+def _hottest(c: dict, lines: list) -> None:
+    n = len(c["log"])
+    peaks = np.array([[c[f"peak_{k}_c"][i] for k in PUBLISHED] for i in range(n)], dtype=float)
+    best = np.nanargmax(np.where(np.isfinite(peaks), peaks, -np.inf), axis=1)
+    per_vehicle: dict = {}
+    for i in range(n):
+        v, comp, T = c["vehicle"][i], PUBLISHED[best[i]], peaks[i, best[i]]
+        if np.isfinite(T) and (v not in per_vehicle or T > per_vehicle[v][0]):
+            per_vehicle[v] = (T, comp, c["date"][i], os.path.basename(c["log"][i]))
+    lines += ["## Hottest vehicles", "", "| vehicle | peak | component | date | log |", "|---|---|---|---|---|"]
+    for v, (T, comp, date, log) in sorted(per_vehicle.items(), key=lambda kv: -kv[1][0])[:10]:
+        lines.append(f"| {v} | {T:.1f} degC | {comp} | {date} | {log} |")
+    lines += ["", "## Hottest components (peak over the fleet, median of the per-log peaks)", "",
+              "| component | fleet peak | median peak | time above warning | time above critical |",
+              "|---|---|---|---|---|"]
+    order = np.argsort(-np.nanmax(np.where(np.isfinite(peaks), peaks, -np.inf), axis=0))
+    for j in order[:10]:
+        k = PUBLISHED[j]
+        lines.append(f"| {k} | {np.nanmax(peaks[:, j]):.1f} degC | {np.nanmedian(peaks[:, j]):.1f} degC | "
+                     f"{_fmt_s(float(np.sum(c[f'above_warning_{k}_s'])))} | "
+                     f"{_fmt_s(float(np.sum(c[f'above_critical_{k}_s'])))} |")
+    lines.append("")
+
+
+def _plots(c: dict, out: Path, lines: list) -> None:
+    plt = _plt()
+    n = len(c["log"])
+    peaks = {k: np.array(c[f"peak_{k}_c"], dtype=float) for k in PUBLISHED}
+    top = sorted(PUBLISHED, key=lambda k: -np.nanmax(np.where(np.isfinite(peaks[k]), peaks[k], -np.inf)))[:6]
+    fig, ax = plt.subplots(figsize=(8, 4.5))
+    ax.boxplot([peaks[k][np.isfinite(peaks[k])] for k in top])
+    ax.set_xticks(range(1, len(top) + 1), top)
+    ax.set_ylabel("peak per log [degC]")
+    ax.set_title(f"Distribution of the per-log peaks, the 6 hottest components ({n} logs)")
+    fig.tight_layout()
+    fig.savefig(out / "report_peaks.png", dpi=100)
+    plt.close(fig)
+    above = {k: float(np.sum(c[f"above_warning_{k}_s"])) for k in PUBLISHED}
+    vehicles = sorted(set(c["vehicle"]))
+    per_v = {v: sum(max(c[f"above_warning_{k}_s"][i] for k in PUBLISHED) for i in range(n) if c["vehicle"][i] == v)
+             for v in vehicles}
+    fig, (a1, a2) = plt.subplots(1, 2, figsize=(12, 4.5))
+    ks = [k for k in PUBLISHED if above[k] > 0] or PUBLISHED[:5]
+    a1.barh(ks, [above[k] / 60 for k in ks])
+    a1.set_xlabel("time above warning, all logs [min]")
+    a1.set_title("By component")
+    vs = sorted(per_v, key=lambda v: -per_v[v])[:15]
+    a2.barh(vs, [per_v[v] / 60 for v in vs])
+    a2.set_xlabel("time with any component above warning [min]")
+    a2.set_title("By vehicle (15 most)")
+    fig.tight_layout()
+    fig.savefig(out / "report_above_warning.png", dpi=100)
+    plt.close(fig)
+    lines += ["## Peaks and time above the warning level", "", "![peaks](report_peaks.png)", "",
+              "![time above warning](report_above_warning.png)", ""]
+
+
+def _health(out: Path, lines: list) -> None:
+    flags = None
+    p = out / HEALTH / "flags.parquet"
+    if p.is_file():
+        import pyarrow.parquet as pq
+        flags = pq.read_table(p)
+    p = out / HEALTH / "periods.parquet"
+    if not p.is_file():
+        return
+    import pyarrow.parquet as pq
+    periods = _cols(pq.read_table(p))
+    fl = _cols(flags) if flags is not None else {"vehicle": []}
+    lines += ["## Fleet health (--diagnose)", "",
+              f"{len(set(periods['vehicle']))} vehicles, {len(periods['vehicle'])} vehicle-periods fitted. "
+              f"Flagged: {len(fl['vehicle'])}.", ""]
+    if fl["vehicle"]:
+        lines += ["| vehicle | effect | flagged in the period from | value | own baseline | why |",
+                  "|---|---|---|---|---|---|"]
+        for i in range(len(fl["vehicle"])):
+            lines.append(f"| {fl['vehicle'][i]} | {fl['effect'][i]} | {fl['start'][i]} | {fl['value'][i]:.2f} | "
+                         f"{fl['baseline'][i]:.2f} | {fl['reason'][i]} |")
+        lines.append("")
+    plt = _plt()
+    fig, axes = plt.subplots(1, 2, figsize=(12, 4.5))
+    for ax, attr, se, label in ((axes[0], "cooler_scale", "cooler_se", "cooler effectiveness scale [-]"),
+                                (axes[1], "oil_volume_l", "oil_volume_se", "oil volume [L]")):
+        per = sorted(set(periods["period"]))
+        med = [np.median([periods[attr][i] for i in range(len(periods["period"])) if periods["period"][i] == q])
+               for q in per]
+        ax.plot(per, med, "k--", label="fleet median")
+        for v in sorted(set(fl["vehicle"]))[:8]:
+            idx = [i for i in range(len(periods["vehicle"])) if periods["vehicle"][i] == v]
+            ax.errorbar([periods["period"][i] for i in idx], [periods[attr][i] for i in idx],
+                        yerr=[min(periods[se][i], 1.0) if math.isfinite(periods[se][i]) else 0 for i in idx],
+                        marker="o", capsize=2, label=v)
+        ax.set_xlabel("period")
+        ax.set_ylabel(label)
+        ax.legend(fontsize=7, loc="center left", bbox_to_anchor=(1.0, 0.5))
+    fig.suptitle("Flagged vehicles: fitted values per period (1 standard error)")
+    fig.tight_layout()
+    fig.savefig(out / "report_health.png", dpi=100)
+    plt.close(fig)
+    lines += ["![health](report_health.png)", ""]
+
+
+def write_report(out: str | os.PathLike) -> Path:
+    """Write DIR/report.md (and its plots) from the tables in DIR; returns its path."""
+    out = Path(out)
+    summary = read_table(out)
+    errors = read_table(out, ERRORS)
+    lines = ["# Fleet report", ""]
+    if summary is None:
+        lines += ["No log was summarised."]
+    else:
+        c = _cols(summary)
+        hours = float(np.sum(c["duration_s"])) / 3600
+        lines += [f"{len(c['log'])} logs, {len(set(c['vehicle']))} vehicles, {hours:.1f} truck-hours; "
+                  f"dates {min(c['date'])} to {max(c['date'])}. Mean degraded share "
+                  f"{100 * float(np.mean(c['degraded_share'])):.1f} %; frames rejected: "
+                  f"{sum(sum(c[k]) for k in c if k.startswith('rejected_'))} of {sum(c['frames'])}.", ""]
+        _hottest(c, lines)
+        _plots(c, out, lines)
+    _health(out, lines)
+    if errors is not None and errors.num_rows:
+        e = _cols(errors)
+        lines += ["## Logs that could not be read", "", "| log | stage | reason |", "|---|---|---|"]
+        lines += [f"| {os.path.basename(e['log'][i])} | {e['stage'][i]} | {e['reason'][i]} |"
+                  for i in range(min(len(e["log"]), 50))]
+        lines.append("")
+    path = out / "report.md"
+    path.write_text("\n".join(lines))
+    return path
+
+
+__all__ = ["write_report"]

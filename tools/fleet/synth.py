@@ -1,0 +1,152 @@
+"""A synthetic fleet for tests and benchmarks: N trucks, a daily candump log each, some with effects that grow.
+
+Each truck has a payload (a factor on the engine torque), a home climate and a drive type (long haul, uphill,
+mining: the named cycles with the truck's own route seeds); each day's log is a window of ``minutes`` of one of its
+drives, started warm (the logger caught the truck mid-shift: the oil at 55-85 degC), on that day's ambient. The
+reference plant (tools/plant) gives the true temperatures with the truck's effects of that day, and the log is its
+J1939 traffic (tools/can/logsynth; no rig thermocouples: a truck has one oil sensor). Effects start at a random
+day and grow linearly to their final value over ``growth_days`` (a fouling cooler, an oil leak). The truth (effects,
+onsets, values per day) is written beside the manifest as ``truth.json``; the fleet command never reads it.
+"""
+from __future__ import annotations
+
+import datetime as dt
+import json
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from firmware_model.errors import InputError
+
+DRIVES = ("long_haul", "uphill", "mining")
+#: the effects a synthetic fleet injects: (effect id, its parameter at full growth range)
+FAULT_RANGES = {"cooler_effectiveness_scale": (0.35, 0.5), "oil_level_low": (9.0, 10.0)}
+START_DATE = dt.date(2026, 1, 5)
+
+
+@dataclass
+class FleetSpec:
+    """How many trucks and days, how long each day's log, which trucks get which effect (chosen at random)."""
+    vehicles: int = 10
+    days: int = 7
+    minutes: float = 10.0
+    fouling: int = 0
+    low_oil: int = 0
+    growth_days: float = 21.0
+    seed: int = 0
+    start_date: dt.date = START_DATE
+    faults: dict = field(default_factory=dict)     # vehicle -> (effect, onset day, final value); filled by plan()
+
+    def plan(self) -> "FleetSpec":
+        if self.fouling + self.low_oil > self.vehicles:
+            raise InputError("more faulty trucks than trucks")
+        rng = np.random.default_rng(self.seed + 7919)
+        chosen = rng.choice(self.vehicles, self.fouling + self.low_oil, replace=False).tolist()
+        for j, v in enumerate(chosen):
+            effect = "cooler_effectiveness_scale" if j < self.fouling else "oil_level_low"
+            lo, hi = FAULT_RANGES[effect]
+            onset = int(rng.integers(max(1, self.days // 4), max(2, self.days // 2)))
+            self.faults[vehicle_name(v)] = (effect, onset, float(rng.uniform(lo, hi)))
+        return self
+
+
+def vehicle_name(i: int) -> str:
+    return f"truck{i:03d}"
+
+
+def effect_on_day(fault, day: int, growth_days: float) -> dict:
+    """The effect dict of a truck on ``day`` (empty before the onset)."""
+    if fault is None or day < fault[1]:
+        return {}
+    effect, onset, final = fault
+    from firmware_model.effects import CATALOG
+    neutral = CATALOG[effect].neutral
+    frac = min(1.0, (day - onset + 1) / growth_days)
+    return {effect: neutral + frac * (final - neutral)}
+
+
+def _truck(spec: FleetSpec, v: int) -> dict:
+    rng = np.random.default_rng(spec.seed * 1000 + v)
+    return {"payload": float(rng.uniform(0.7, 1.25)), "climate_c": float(rng.uniform(2.0, 22.0)),
+            "drive": DRIVES[int(rng.integers(len(DRIVES)))], "route_seed": int(rng.integers(0, 4))}
+
+
+def _day_job(job) -> tuple[str, dict]:
+    """One truck-day: plant with that day's effects, J1939 log; returns (log path, truth row)."""
+    spec, v, day, out = job
+    from firmware_model.config import load_config
+    from tools.can.logsynth import write_can_log
+    from tools.cycles.named import get_cycle
+    from tools.plant.reference import ReferencePlant
+    from tools.runtable import RunTable
+    truck = _truck(spec, v)
+    rng = np.random.default_rng(spec.seed * 100000 + v * 1000 + day)
+    cyc = get_cycle(truck["drive"], seed=truck["route_seed"] + int(rng.integers(0, 3)))
+    t = np.asarray(cyc["time_s"], dtype=float)
+    span_s = spec.minutes * 60.0
+    off = float(rng.uniform(0.0, max(t[-1] - span_s, 0.0)))
+    keep = (t >= off) & (t < off + span_s)
+    cols = {c: np.asarray(cyc[c])[keep] for c in cyc.columns}
+    cols["time_s"] = cols["time_s"] - cols["time_s"][0]
+    cols["engine_torque_nm"] = cols["engine_torque_nm"] * truck["payload"]
+    season = 8.0 * np.sin(2 * np.pi * (day + 20) / 365.0)
+    amb = truck["climate_c"] + season + float(rng.normal(0.0, 3.0))
+    cols["ambient_temp_c"] = np.full(cols["time_s"].size, amb)
+    cols["coolant_temp_c"] = np.full(cols["time_s"].size, float(rng.uniform(82.0, 90.0)))
+    table = RunTable(cols)
+    name = vehicle_name(v)
+    effects = effect_on_day(spec.faults.get(name), day, spec.growth_days)
+    oil0 = float(rng.uniform(55.0, 85.0))
+    plant = ReferencePlant(load_config(None).load_params(), effects=effects, dt_s=1.0).run(
+        table, initial_temp_c=oil0, progress=False)
+    date = spec.start_date + dt.timedelta(days=day)
+    start = dt.datetime(date.year, date.month, date.day, 6, tzinfo=dt.timezone.utc).timestamp() \
+        + float(rng.uniform(0, 8 * 3600))
+    path = Path(out) / name / f"{name}_{date.isoformat()}.log"
+    path.parent.mkdir(parents=True, exist_ok=True)
+    write_can_log(table, plant.table, path, rig=False, start_timestamp_s=start, seed=day)
+    return os.fspath(path), {"vehicle": name, "day": day, "date": date.isoformat(), "effects": effects,
+                             "drive": truck["drive"], "payload": truck["payload"], "ambient_c": amb}
+
+
+def synth_fleet(out: str | os.PathLike, spec: FleetSpec, processes: int | None = None,
+                show_progress: bool | None = None) -> Path:
+    """Write the fleet's logs under ``out/<vehicle>/``, ``out/manifest.csv`` and ``out/truth.json``; returns the
+    manifest's path."""
+    import multiprocessing as mp
+    from tools.progress import progress
+    spec.plan()
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    jobs = [(spec, v, d, os.fspath(out)) for v in range(spec.vehicles) for d in range(spec.days)]
+    n = processes or min(len(jobs), os.cpu_count() or 1)
+    results = []
+    with progress(len(jobs), "synthetic fleet", show_progress, unit="log") as bar:
+        if n <= 1:
+            for j in jobs:
+                results.append(_day_job(j))
+                bar.update(1)
+        else:
+            ctx = mp.get_context("spawn")
+            with ctx.Pool(n) as pool:
+                for r in pool.imap(_day_job, jobs, chunksize=4):
+                    results.append(r)
+                    bar.update(1)
+    manifest = out / "manifest.csv"
+    with open(manifest, "w", encoding="utf-8") as fh:
+        fh.write("log,vehicle\n")
+        for path, truth in results:
+            fh.write(f"{Path(path).relative_to(out).as_posix()},{truth['vehicle']}\n")
+    truth = {"spec": {"vehicles": spec.vehicles, "days": spec.days, "minutes": spec.minutes,
+                      "growth_days": spec.growth_days, "seed": spec.seed, "start_date": spec.start_date.isoformat()},
+             "faults": {v: {"effect": f[0], "onset_day": f[1],
+                            "onset_date": (spec.start_date + dt.timedelta(days=f[1])).isoformat(), "final": f[2]}
+                        for v, f in spec.faults.items()},
+             "days": [t for _, t in results]}
+    (out / "truth.json").write_text(json.dumps(truth, indent=1))
+    return manifest
+
+
+__all__ = ["DRIVES", "FAULT_RANGES", "FleetSpec", "effect_on_day", "synth_fleet", "vehicle_name"]
