@@ -131,7 +131,7 @@ def connect(scheduler: str | None, workers: int | None):
             raise InputError(f"the Dask scheduler at {scheduler} does not answer within {CONNECT_TIMEOUT_S:.0f} s "
                              f"({type(exc).__name__})") from None
     n = workers or max(1, os.cpu_count() or 1)
-    cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None,
+    cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0",
                            silence_logs=40)
     return Client(cluster), cluster
 

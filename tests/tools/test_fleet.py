@@ -1,0 +1,178 @@
+"""`gearbox-vsensor fleet` on Dask: a real multi-process cluster, a worker killed mid-run, bad logs, re-runs, bad
+input. Needs dask.distributed and pyarrow (pip install '.[fleet]'); without them these tests skip and say so."""
+from __future__ import annotations
+
+import os
+import shutil
+import signal
+import socket
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+pytest.importorskip("dask.distributed", reason="the fleet tests need dask.distributed: pip install '.[fleet]'")
+pytest.importorskip("pyarrow", reason="the fleet tests need pyarrow: pip install '.[fleet]'")
+
+import pyarrow.parquet as pq  # noqa: E402
+
+from firmware_model.errors import InputError  # noqa: E402
+from firmware_model.service import build_service  # noqa: E402
+from tools.cli import main  # noqa: E402
+from tools.fleet.manifest import read_manifest  # noqa: E402
+from tools.fleet.run import run_fleet  # noqa: E402
+from tools.fleet.store import ERRORS, read_table  # noqa: E402
+from tools.fleet.summary import summarize  # noqa: E402
+from tools.fleet.synth import FleetSpec, synth_fleet  # noqa: E402
+from tools.replay.log import replay_log  # noqa: E402
+
+ENV = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[2])}
+
+
+@pytest.fixture(scope="module")
+def fleet(tmp_path_factory):
+    """3 trucks x 3 days of 2-minute logs, one with a fouling cooler."""
+    root = tmp_path_factory.mktemp("fleet")
+    manifest = synth_fleet(root / "logs", FleetSpec(vehicles=3, days=3, minutes=2.0, fouling=1, seed=2), processes=1)
+    return manifest
+
+
+def _rows(out) -> dict:
+    t = read_table(out)
+    rows = t.to_pylist()
+    return {r["log_key"]: r for r in rows}
+
+
+def _same(a: dict, b: dict) -> None:
+    assert a.keys() == b.keys()
+    for k in a:
+        for col, va in a[k].items():
+            vb = b[k][col]
+            assert va == vb or (isinstance(va, float) and np.isnan(va) and np.isnan(vb)), (col, va, vb)
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def _wait_workers(address: str, n: int, timeout_s: float = 60.0) -> None:
+    from dask.distributed import Client
+    with Client(address, timeout="30s") as c:
+        c.wait_for_workers(n, timeout=timeout_s)
+
+
+@pytest.fixture()
+def cluster(tmp_path):
+    """`dask scheduler` and two `dask worker` processes (no nanny: a SIGKILL kills the worker itself)."""
+    port = _free_port()
+    address = f"tcp://127.0.0.1:{port}"
+    dask = [sys.executable, "-m", "distributed.cli.dask_scheduler"]
+    procs = [subprocess.Popen([*dask, "--host", "127.0.0.1", "--port", str(port), "--no-dashboard"], env=ENV,
+                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, cwd=tmp_path)]
+    time.sleep(1.0)
+    for _ in range(2):
+        procs.append(subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_worker", address, "--nthreads",
+                                       "1", "--no-nanny", "--no-dashboard"], env=ENV, stdout=subprocess.DEVNULL,
+                                      stderr=subprocess.DEVNULL, cwd=tmp_path))
+    try:
+        _wait_workers(address, 2)
+        yield address, procs[1:]
+    finally:
+        for p in procs:
+            if p.poll() is None:
+                p.kill()
+            p.wait(timeout=30)
+
+
+def test_a_real_cluster_gives_the_local_clusters_rows_and_per_log_replay(tmp_path, fleet, cluster):
+    address, _ = cluster
+    entries = read_manifest(fleet)
+    run_fleet(entries, tmp_path / "remote", scheduler=address, estimates=True)
+    run_fleet(entries, tmp_path / "local", workers=1)
+    remote, local = _rows(tmp_path / "remote"), _rows(tmp_path / "local")
+    assert len(remote) == len(entries)
+    _same(remote, local)
+    # per-log replay: the same table as the fleet's estimates and the same summary row
+    e = entries[4]
+    est = pq.read_table(next((tmp_path / "remote" / "estimates").rglob(f"*{e.key}.parquet")))
+    assert main(["replay", str(e.log), "--out", str(tmp_path / "one.parquet"), "--quiet"]) == 0
+    one = pq.read_table(tmp_path / "one.parquet")
+    assert est.column_names == one.column_names
+    for c in one.column_names:
+        assert np.array_equal(est.column(c).to_numpy(), one.column(c).to_numpy(), equal_nan=True), c
+    table = replay_log(e.log, build_service(None, record=True, emit_frames=False, log_findings=False))
+    row = summarize(table, table.meta["counters"], vehicle=e.vehicle, log=os.fspath(e.log), key=e.key)
+    _same({e.key: {k: v for k, v in row.items()}}, {e.key: remote[e.key]})
+
+
+def test_a_worker_killed_mid_run_every_log_once(tmp_path, fleet, cluster):
+    address, workers = cluster
+    entries = read_manifest(fleet)
+    killed = []
+
+    def kill_one(done_batches):
+        if not killed:
+            workers[0].send_signal(signal.SIGKILL)
+            killed.append(done_batches)
+
+    run_fleet(entries, tmp_path / "out", scheduler=address, max_logs=1, on_batch=kill_one)
+    assert killed and workers[0].wait(timeout=10) == -signal.SIGKILL
+    rows = read_table(tmp_path / "out").to_pylist()
+    keys = [r["log_key"] for r in rows]
+    assert sorted(keys) == sorted(e.key for e in entries)       # every log, exactly once
+    assert read_table(tmp_path / "out", ERRORS) is None
+
+
+def test_bad_logs_land_in_the_errors_table_and_reruns_skip(tmp_path, fleet):
+    logs = tmp_path / "logs" / "truckX"
+    logs.mkdir(parents=True)
+    good = read_manifest(fleet)[0].log
+    shutil.copy(good, logs / "good.log")
+    raw = good.read_bytes()
+    (logs / "truncated.log").write_bytes(raw[:len(raw) // 2 - 7])
+    (logs / "empty.log").write_bytes(b"")
+    (logs / "notes.txt").write_text("not a log\n")
+    (logs / "picture.log").write_bytes(bytes(range(256)) * 8)
+    out = tmp_path / "out"
+    args = ["fleet", str(logs), str(logs / "notes.txt"), "--out", str(out), "--workers", "1", "--no-report"]
+    assert main(args) == 0
+    errors = {Path(r["log"]).name: r["reason"] for r in read_table(out, ERRORS).to_pylist()}
+    assert set(errors) == {"empty.log", "notes.txt", "picture.log"} | ({"truncated.log"} if "truncated.log" in errors
+                                                                     else set())
+    assert "empty" in errors["empty.log"] and "unknown log suffix" in errors["notes.txt"]
+    assert "cannot be read" in errors["picture.log"]
+    summarised = {Path(r["log"]).name for r in read_table(out).to_pylist()}
+    # a log cut in the middle of a line: python-can reads the frames before the cut; either way it is accounted
+    assert summarised | set(errors) == {"good.log", "truncated.log", "empty.log", "notes.txt", "picture.log"}
+    before = sorted(str(p) for p in out.rglob("*.parquet"))
+    assert main(args) == 0                                   # a re-run: everything done, nothing written twice
+    assert sorted(str(p) for p in out.rglob("*.parquet")) == before
+    assert len(read_table(out).to_pylist()) == len(summarised)
+
+
+def _error(capsys, args) -> str:
+    assert main(args) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and "error:" in err
+    return err
+
+
+def test_bad_input_is_one_sentence_and_writes_nothing(tmp_path, fleet, capsys):
+    out = tmp_path / "out"
+    m = tmp_path / "m.csv"
+    m.write_text("log,vehicle\nnowhere/a.log,t1\nnowhere/b.log,t2\n")
+    assert "do not exist" in _error(capsys, ["fleet", "--manifest", str(m), "--out", str(out)])
+    logs = [e.log for e in read_manifest(fleet)]
+    m.write_text(f"log,vehicle,variant\n{logs[0]},t1,GRS905\n{logs[1]},t1,GRSO905\n")
+    assert "two variants" in _error(capsys, ["fleet", "--manifest", str(m), "--out", str(out)])
+    port = _free_port()
+    err = _error(capsys, ["fleet", str(logs[0]), "--out", str(out), "--scheduler", f"tcp://127.0.0.1:{port}"])
+    assert "does not answer" in err
+    assert not out.exists()
+    with pytest.raises(InputError):
+        read_manifest(tmp_path / "absent.csv")
