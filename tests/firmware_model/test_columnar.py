@@ -170,3 +170,16 @@ def test_other_candump_forms_are_left_to_python_can(tmp_path, text):
     got = read_columns(path)
     assert got.reader == "python-can"
     assert np.array_equal(got.columns.timestamp_s, ref.timestamp_s)
+
+
+def test_mf4_columns_are_python_cans_frames_and_the_replay_is_the_same(tmp_path, drive):
+    pytest.importorskip("asammdf", reason="the optional package asammdf (pip install .[mf4]) is not installed")
+    msgs = inject(drive, ("hostile", "not_available", "dropout"), seed=2)
+    msgs.sort(key=lambda m: m.timestamp)           # an MF4 group is written in time order
+    path = _write(msgs, tmp_path / "drive.mf4")
+    got = read_columns(path)
+    assert got.reader == "asammdf columns"
+    ref = FrameColumns.from_messages(can.LogReader(path))
+    for field in ("timestamp_s", "can_id", "flags", "dlc", "length", "data"):
+        assert np.array_equal(getattr(got.columns, field), getattr(ref, field)), field
+    assert_same(path)

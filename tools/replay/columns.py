@@ -6,20 +6,23 @@
   python-can instead, so every frame is what ``LogReader`` gives, its errors included. Timestamps are exact: a
   decimal of at most 15 significant digits is an integer divided by a power of ten, one correctly rounded IEEE
   division, the same double as Python's ``float()``; longer ones go through ``float()``.
-- other formats (``.asc``, ``.blf``, ``.mf4``): python-can's ``LogReader`` into columns (no columnar reader is
-  used for them yet: the same frames, at python-can's speed).
+- ASAM MDF 4 (``.mf4``): asammdf's columnar reader, each bus-event channel group (CAN data, remote and error frames)
+  as whole arrays, with python-can's ``MF4Reader`` rules (start time added, identifier masked, groups merged by
+  time); a file it cannot read that way (a group out of time order, another layout) goes through python-can.
+- ``.asc`` and ``.blf``: python-can's ``LogReader`` into columns (no columnar reader exists for them: the same
+  frames, at python-can's speed).
 
 :func:`read_columns` says which reader ran (``ColumnRead.reader``).
 """
 from __future__ import annotations
 
 import os
-from pathlib import Path
 from typing import NamedTuple
 
 import numpy as np
 
-from can_dbc.columnar import FLAG_ERROR, FLAG_EXTENDED, FrameColumns
+from can_dbc.columnar import FLAG_ERROR, FLAG_EXTENDED, FLAG_FD, FLAG_REMOTE, FrameColumns
+from tools.replay.formats import check_log, read_log
 
 #: linux/can/error.h, as python-can's candump reader uses them
 _CAN_ERR_FLAG = 0x20000000
@@ -42,12 +45,15 @@ class ColumnRead(NamedTuple):
 
 def read_columns(path: str | os.PathLike) -> ColumnRead:
     """The frames of a CAN log (checked by ``tools.replay.log.check_log``) as columns."""
-    from tools.replay.log import check_log, read_log
     p = check_log(path)
     if p.suffix.lower() == ".log":
         cols = parse_candump(p.read_bytes())
         if cols is not None:
             return ColumnRead(cols, "numpy candump")
+    if p.suffix.lower() == ".mf4":
+        cols = read_mf4(p)
+        if cols is not None:
+            return ColumnRead(cols, "asammdf columns")
     return ColumnRead(FrameColumns.from_messages(read_log(p)), "python-can")
 
 
@@ -210,4 +216,89 @@ def parse_candump(raw: bytes) -> FrameColumns | None:
     return FrameColumns(t, can_id.astype(np.int64), flags, length.astype(np.int64), length.astype(np.int64), data)
 
 
-__all__ = ["ColumnRead", "parse_candump", "read_columns"]
+def _mf4_group(mdf, index: int, name: str, start_s: float) -> FrameColumns | None:
+    """One bus-event channel group of CAN frames as columns (python-can's MF4Reader field by field)."""
+    sig = mdf.get(name, index, raw=False)
+    rec = sig.samples
+    names = rec.dtype.names or ()
+    n = rec.shape[0]
+
+    def field(suffix, default=None):
+        key = f"{name}.{suffix}"
+        return np.asarray(rec[key]) if key in names else default
+    t = np.asarray(sig.timestamps, dtype=float) + start_s
+    ide = field("IDE")
+    flags = np.where(ide.astype(bool), FLAG_EXTENDED, 0) if ide is not None else np.full(n, FLAG_EXTENDED)
+    edl = field("EDL")
+    if edl is not None:
+        flags = flags | np.where(edl.astype(bool), FLAG_FD, 0)
+    ids = field("ID")
+    can_id = (ids.astype(np.int64) & 0x1FFFFFFF) if ids is not None else np.zeros(n, np.int64)
+    data = np.zeros((n, 8), dtype=np.uint8)
+    length = np.zeros(n, dtype=np.int64)
+    dlc = np.zeros(n, dtype=np.int64)
+    if name == "CAN_RemoteFrame":
+        flags = flags | FLAG_REMOTE
+        dlc = field("DLC").astype(np.int64)
+    else:
+        raw, dl = field("DataBytes"), field("DataLength")
+        if raw is not None and dl is not None:
+            raw = np.asarray(raw, dtype=np.uint8).reshape(n, -1)
+            length = np.minimum(dl.astype(np.int64), raw.shape[1])
+            w = min(8, raw.shape[1])
+            data[:, :w] = np.where(np.arange(w) < length[:, None], raw[:, :w], 0)
+            dlc = length.copy()
+        if name == "CAN_ErrorFrame":
+            flags = (flags if ide is not None else np.full(n, FLAG_EXTENDED)) | FLAG_ERROR
+            rtr = field("RTR")
+            if rtr is not None:
+                flags = flags | np.where(rtr.astype(bool), FLAG_REMOTE, 0)
+    if np.any(np.diff(t) < 0):
+        return None
+    return FrameColumns(t, can_id, flags.astype(np.uint8), dlc, length, data)
+
+
+def read_mf4(path) -> FrameColumns | None:
+    """The CAN frames of an MDF 4 bus log as columns, as python-can's MF4Reader gives them; None when a group is not
+    in time order or not of a known layout (the caller reads the file with python-can)."""
+    try:
+        from asammdf import MDF
+        from asammdf.blocks.v4_constants import FLAG_CG_BUS_EVENT
+        from asammdf.blocks.source_utils import Source
+    except ImportError:
+        return None
+    try:
+        mdf = MDF(path)
+    except Exception:
+        return None
+    try:
+        start_s = mdf.header.start_time.timestamp()
+        parts = []
+        for index, group in enumerate(mdf.groups):
+            cg = group.channel_group
+            src = cg.acq_source
+            if not cg.flags & FLAG_CG_BUS_EVENT or cg.cycles_nr == 0 or src is None \
+                    or not src.source_type & Source.SOURCE_BUS or src.bus_type != Source.BUS_TYPE_CAN:
+                continue
+            names = [c.name for c in group.channels]
+            kind = next((k for k in ("CAN_DataFrame", "CAN_ErrorFrame", "CAN_RemoteFrame") if k in names), None)
+            if kind is None:
+                continue
+            part = _mf4_group(mdf, index, kind, start_s)
+            if part is None:
+                return None
+            parts.append(part)
+    except Exception:
+        return None
+    finally:
+        mdf.close()
+    if not parts:
+        return None
+    t = np.concatenate([p.timestamp_s for p in parts])
+    order = np.argsort(t, kind="stable")    # heapq.merge of time-ordered groups, ties in group order
+    cat = {f: np.concatenate([getattr(p, f) for p in parts])[order] for f in
+           ("timestamp_s", "can_id", "flags", "dlc", "length", "data")}
+    return FrameColumns(**cat)
+
+
+__all__ = ["ColumnRead", "parse_candump", "read_columns", "read_mf4"]

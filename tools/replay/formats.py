@@ -4,6 +4,9 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
+from typing import Iterator
+
+from firmware_model.errors import InputError
 
 #: CAN log formats python-can reads, by suffix
 LOG_SUFFIXES = {".log": "candump -L", ".asc": "Vector ASC", ".blf": "Vector BLF", ".mf4": "ASAM MDF 4"}
@@ -12,3 +15,42 @@ LOG_SUFFIXES = {".log": "candump -L", ".asc": "Vector ASC", ".blf": "Vector BLF"
 def is_can_log(path: str | os.PathLike) -> bool:
     """True for a path whose suffix is a CAN log format (not a CSV run table)."""
     return Path(path).suffix.lower() in LOG_SUFFIXES
+
+
+def check_log(path: str | os.PathLike) -> Path:
+    """The log's path, checked: a known suffix, an existing file, asammdf installed for .mf4; else InputError."""
+    p = Path(path)
+    suffix = p.suffix.lower()
+    if suffix not in LOG_SUFFIXES:
+        raise InputError(f"{p}: unknown log suffix {suffix!r}; CAN logs are "
+                         + ", ".join(f"{s} ({n})" for s, n in LOG_SUFFIXES.items()) + ", run tables .csv")
+    if not p.is_file():
+        raise InputError(f"{p}: the log file does not exist")
+    if suffix == ".mf4":
+        try:
+            import asammdf  # noqa: F401
+        except ImportError:
+            raise InputError(f"{p}: reading .mf4 needs the optional package asammdf; install it with "
+                             f"pip install 'gearbox-vsensor[mf4]'") from None
+    return p
+
+
+def read_log(path: str | os.PathLike) -> Iterator:
+    """The frames of a CAN log in file order (``can.Message``); problems raise InputError naming the file."""
+    import can
+    p = check_log(path)
+    try:
+        reader = can.LogReader(p)
+    except Exception as exc:  # python-can raises a variety of errors for a broken file
+        raise InputError(f"{p}: cannot open as a {LOG_SUFFIXES[p.suffix.lower()]} log: {exc}") from None
+    n = 0
+    try:
+        with reader:
+            for msg in reader:
+                n += 1
+                yield msg
+    except InputError:
+        raise
+    except Exception as exc:
+        raise InputError(f"{p}: frame {n + 1} cannot be read as a {LOG_SUFFIXES[p.suffix.lower()]} log: "
+                         f"{exc}") from None
