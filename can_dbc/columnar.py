@@ -7,7 +7,7 @@ remote, 11-bit, FD, identifier range), the source address, the data length, ever
 limit and the derived torques. Only what is rare and sequential by nature runs frame by frame, through the decoder
 itself (:meth:`~can_dbc.decoder.J1939Decoder.dispatch`): the TP.CM/TP.DT frames of J1939-21 BAM and EC1
 reassembled from them. The decoder passed in ends in the state and with the counters the frame-by-frame path
-leaves (``tests/can_dbc/test_columnar.py`` holds the two equal, real captures and hostile traffic included).
+leaves (``tests/firmware_model/test_columnar.py`` holds the two equal, real captures and hostile traffic included).
 """
 from __future__ import annotations
 

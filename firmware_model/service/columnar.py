@@ -25,7 +25,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-from can_dbc.columnar import FLAG_ERROR, FLAG_EXTENDED, FLAG_REMOTE, DecodedColumns, FrameColumns, decode_columns, pgn_keys
+from can_dbc.columnar import (FLAG_ERROR, FLAG_EXTENDED, FLAG_REMOTE, DecodedColumns, FrameColumns, decode_columns,
+                              pgn_keys)
 from can_dbc.decoder import signal_messages
 from can_dbc.j1939 import ID_MAX
 from firmware_model.components import MODE_NOT_INITIALISED, PUBLISHED, STEP_S

@@ -23,6 +23,7 @@ MINIMAL = {
     "export-fmu": ["--out", "v.fmu"],
     "status": [],
     "service-unit": [],
+    "fleet": ["logs/", "--out", "fleet_out"],
 }
 SUBCOMMANDS = build_parser().subcommands
 

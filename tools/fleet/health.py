@@ -1,7 +1,7 @@
 """Fleet health: per vehicle and period, the effects the oil channel alone identifies, fitted with their uncertainty,
 and the vehicles that drift or sit outside the fleet's spread (``gearbox-vsensor fleet --diagnose``).
 
-Per log (:func:`fit_log`, on the worker): the onboard model (the diagnosis's onboard backend, tools/diagnosis/models)
+Per log (:func:`fit_log`, on the worker): the onboard model (the diagnosis's onboard backend, tools/diagnosis/models.py)
 re-runs the log's decoded inputs open loop (its own sump, from the first measured oil) on a grid of the two effects
 of the catalog that move the oil reading of a truck on the road: ``cooler_effectiveness_scale`` (fouling, bypass)
 and ``oil_level_low`` (a leak). The sum of squared differences to the measured oil over the grid is the log's

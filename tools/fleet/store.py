@@ -102,5 +102,6 @@ def read_table(out: str | os.PathLike, which: str = SUMMARY):
     return ds.dataset(root, format="parquet", partitioning=part).to_table()
 
 
-__all__ = ["ERRORS", "ERROR_COLUMNS", "ESTIMATES", "FITS", "HEALTH", "SUMMARY", "FleetStore", "partition_dir", "read_table",
+__all__ = ["ERRORS", "ERROR_COLUMNS", "ESTIMATES", "FITS", "HEALTH", "SUMMARY", "FleetStore", "partition_dir",
+           "read_table",
            "write_atomic"]

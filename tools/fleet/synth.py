@@ -3,8 +3,8 @@
 Each truck has a payload (a factor on the engine torque), a home climate and a drive type (long haul, uphill,
 mining: the named cycles with the truck's own route seeds); each day's log is a window of ``minutes`` of one of its
 drives, started warm (the logger caught the truck mid-shift: the oil at 55-85 degC), on that day's ambient. The
-reference plant (tools/plant) gives the true temperatures with the truck's effects of that day, and the log is its
-J1939 traffic (tools/can/logsynth; no rig thermocouples: a truck has one oil sensor). Effects start at a random
+reference plant (tools/plant/reference.py) gives the true temperatures with the truck's effects of that day, and the
+log is its J1939 traffic (tools/can/logsynth.py; no rig thermocouples: a truck has one oil sensor). Effects start at a random
 day and grow linearly to their final value over ``growth_days`` (a fouling cooler, an oil leak). The truth (effects,
 onsets, values per day) is written beside the manifest as ``truth.json``; the fleet command never reads it.
 """
