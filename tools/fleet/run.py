@@ -63,6 +63,22 @@ def _estimates(table, entry: LogEntry, out: Path, date: str) -> None:
                  / f"{entry.log.stem}-{entry.key}.parquet")
 
 
+def _check_complete(path: Path) -> None:
+    """InputError for an empty log, or a text log whose last line is cut (a truncated copy, a log still being
+    written): a fleet summarises whole logs only (``replay`` reads the complete lines of such a file)."""
+    if not path.is_file():
+        return
+    size = path.stat().st_size
+    if size == 0:
+        raise InputError(f"{path}: the log file is empty")
+    if path.suffix.lower() in (".log", ".asc"):
+        with open(path, "rb") as fh:
+            text = b"\0" not in fh.read(4096)        # a binary file is the reader's to refuse
+            fh.seek(size - 1)
+            if text and fh.read(1) not in (b"\n", b"\r"):
+                raise InputError(f"{path}: the log ends in the middle of a line (truncated, or still being written)")
+
+
 def process_log(entry: LogEntry, out: str | None = None, estimates: bool = False,
                 diagnose: bool = False) -> tuple[str, dict]:
     """One log: ("ok", summary row) or ("error", error row); never raises for a bad log. ``diagnose``: the row
@@ -75,8 +91,7 @@ def process_log(entry: LogEntry, out: str | None = None, estimates: bool = False
     try:
         sensor, options = _sensor(entry.variant, entry.config)
         stage = "replay"
-        if entry.log.is_file() and entry.log.stat().st_size == 0:
-            raise InputError(f"{entry.log}: the log file is empty")
+        _check_complete(entry.log)
         table = replay_log(entry.log, SensorService(sensor, options, record=True, emit_frames=False))
         stage = "summary"
         row = summarize(table, table.meta["counters"], vehicle=entry.vehicle, log=os.fspath(entry.log),
