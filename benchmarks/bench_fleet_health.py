@@ -26,32 +26,39 @@ from tools.fleet.synth import FleetSpec, synth_fleet  # noqa: E402
 
 def score(truth: dict, health, period_days: float) -> None:
     faults = truth["faults"]
-    flags = {f.vehicle: f for f in health.flags}
+    flags: dict = {}
+    for f in sorted(health.flags, key=lambda f: f.period):
+        flags.setdefault(f.vehicle, []).append(f)
     vehicles = {d["vehicle"] for d in truth["days"]}
     print(f"{len(vehicles)} vehicles over {truth['spec']['days']} days, {len(faults)} with an effect; "
           f"{len(flags)} flagged")
-    print("| vehicle | injected | onset | final | flagged | as | flagged in the period from | weeks after onset |")
-    print("|---|---|---|---|---|---|---|---|")
-    hit = same = 0
+    print("| vehicle | injected | onset | final | flagged as (from the week of) | weeks from onset to the first flag |")
+    print("|---|---|---|---|---|---|")
+    hit = same = extra = 0
     delays = []
     for v, f in sorted(faults.items()):
-        fl = flags.get(v)
-        if fl is None:
-            print(f"| {v} | {f['effect']} | {f['onset_date']} | {f['final']:.2f} | no | | | |")
+        fl = flags.get(v, [])
+        if not fl:
+            print(f"| {v} | {f['effect']} | {f['onset_date']} | {f['final']:.2f} | no | |")
             continue
         hit += 1
-        same += fl.effect == f["effect"]
-        end = dt.date.fromisoformat(fl.start) + dt.timedelta(days=period_days)
+        same += any(x.effect == f["effect"] for x in fl)
+        extra += any(x.effect != f["effect"] for x in fl)
+        end = dt.date.fromisoformat(fl[0].start) + dt.timedelta(days=period_days)
         weeks = (end - dt.date.fromisoformat(f["onset_date"])).days / 7.0
         delays.append(weeks)
-        print(f"| {v} | {f['effect']} | {f['onset_date']} | {f['final']:.2f} | yes | {fl.effect} | {fl.start} | "
-              f"{weeks:.1f} |")
+        print(f"| {v} | {f['effect']} | {f['onset_date']} | {f['final']:.2f} | "
+              + ", ".join(f"{x.effect} ({x.start})" for x in fl) + f" | {weeks:.1f} |")
+    for effect in sorted({f["effect"] for f in faults.values()}):
+        mine = [v for v, f in faults.items() if f["effect"] == effect]
+        print(f"{effect}: {sum(any(x.effect == effect for x in flags.get(v, [])) for v in mine)} of {len(mine)} "
+              f"flagged as {effect}")
     false = sorted(v for v in flags if v not in faults)
-    print(f"flagged {hit}/{len(faults)} injected; attributed to the injected effect {same}/{hit}; "
-          f"weeks from onset to the end of the flagging period: "
+    print(f"flagged {hit}/{len(faults)} injected; with the injected effect among its flags {same}/{hit}; with "
+          f"another effect flagged too {extra}; weeks from onset to the end of the first flagging period: "
           + (f"median {sorted(delays)[len(delays) // 2]:.1f}, max {max(delays):.1f}" if delays else "-"))
-    print(f"false flags: {len(false)}" + (f" ({', '.join(f'{v} as {flags[v].effect}' for v in false)})"
-                                          if false else ""))
+    print(f"false flags: {len(false)}" + (" (" + ", ".join(f"{v} as {'/'.join(x.effect for x in flags[v])}"
+                                                            for v in false) + ")" if false else ""))
 
 
 def main(argv=None) -> None:
