@@ -1,21 +1,26 @@
 """`gearbox-vsensor fleet` on Dask: a real multi-process cluster, a worker killed mid-run, bad logs, re-runs, bad
-input. Needs dask.distributed and pyarrow (pip install '.[fleet]'); without them these tests skip and say so."""
+input. Needs dask.distributed and pyarrow (pip install '.[fleet]'); without them these tests skip and say so.
+
+Every Dask client runs in a child process: a Dask client leaves threads behind in its process, and other tests of
+this session (the two-process replay) must be able to fork this one."""
 from __future__ import annotations
 
+import importlib.util
 import os
 import shutil
 import signal
 import socket
 import subprocess
 import sys
+import textwrap
 import time
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-pytest.importorskip("dask.distributed", reason="the fleet tests need dask.distributed: pip install '.[fleet]'")
-pytest.importorskip("pyarrow", reason="the fleet tests need pyarrow: pip install '.[fleet]'")
+if importlib.util.find_spec("distributed") is None or importlib.util.find_spec("pyarrow") is None:
+    pytest.skip("the fleet tests need dask.distributed and pyarrow: pip install '.[fleet]'", allow_module_level=True)
 
 import pyarrow.parquet as pq  # noqa: E402
 
@@ -23,7 +28,6 @@ from firmware_model.errors import InputError  # noqa: E402
 from firmware_model.service import build_service  # noqa: E402
 from tools.cli import main  # noqa: E402
 from tools.fleet.manifest import read_manifest  # noqa: E402
-from tools.fleet.run import run_fleet  # noqa: E402
 from tools.fleet.store import ERRORS, read_table  # noqa: E402
 from tools.fleet.summary import summarize  # noqa: E402
 from tools.fleet.synth import FleetSpec, synth_fleet  # noqa: E402
@@ -33,7 +37,7 @@ ENV = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[2])}
 
 
 @pytest.fixture(scope="module")
-def fleet(tmp_path_factory):
+def synthetic(tmp_path_factory):
     """3 trucks x 3 days of 2-minute logs, one with a fouling cooler."""
     root = tmp_path_factory.mktemp("fleet")
     manifest = synth_fleet(root / "logs", FleetSpec(vehicles=3, days=3, minutes=2.0, fouling=1, seed=2), processes=1)
@@ -61,9 +65,28 @@ def _free_port() -> int:
 
 
 def _wait_workers(address: str, n: int, timeout_s: float = 60.0) -> None:
-    from dask.distributed import Client
-    with Client(address, timeout="30s") as c:
-        c.wait_for_workers(n, timeout=timeout_s)
+    code = (f"from dask.distributed import Client\nwith Client({address!r}, timeout='30s') as c:\n"
+            f"    c.wait_for_workers({n}, timeout={timeout_s})\n")
+    subprocess.run([sys.executable, "-c", code], env=ENV, check=True, timeout=timeout_s + 30)
+
+
+def fleet(*args: str, check: bool = True) -> subprocess.CompletedProcess:
+    """`gearbox-vsensor fleet ARGS` in a child process."""
+    res = subprocess.run([sys.executable, "-m", "tools.cli", "fleet", *args], env=ENV, capture_output=True,
+                         text=True, timeout=600)
+    if check:
+        assert res.returncode == 0, res.stderr[-3000:]
+    return res
+
+
+def run_fleet_in_child(tmp_path, body: str) -> None:
+    """Run ``body`` (Python using run_fleet, read_manifest, os, signal) as a script in a child process."""
+    script = tmp_path / "child.py"
+    script.write_text("import os, signal\nfrom tools.fleet.manifest import read_manifest\n"
+                      "from tools.fleet.run import run_fleet\n\nif __name__ == '__main__':\n"
+                      + textwrap.indent(textwrap.dedent(body), "    "))
+    res = subprocess.run([sys.executable, str(script)], env=ENV, capture_output=True, text=True, timeout=600)
+    assert res.returncode == 0, res.stderr[-3000:]
 
 
 @pytest.fixture()
@@ -89,11 +112,12 @@ def cluster(tmp_path):
             p.wait(timeout=30)
 
 
-def test_a_real_cluster_gives_the_local_clusters_rows_and_per_log_replay(tmp_path, fleet, cluster):
+def test_a_real_cluster_gives_the_local_clusters_rows_and_per_log_replay(tmp_path, synthetic, cluster):
     address, _ = cluster
-    entries = read_manifest(fleet)
-    run_fleet(entries, tmp_path / "remote", scheduler=address, estimates=True)
-    run_fleet(entries, tmp_path / "local", workers=1)
+    entries = read_manifest(synthetic)
+    fleet("--manifest", str(synthetic), "--out", str(tmp_path / "remote"), "--scheduler", address, "--estimates",
+          "--no-report")
+    fleet("--manifest", str(synthetic), "--out", str(tmp_path / "local"), "--workers", "1", "--no-report")
     remote, local = _rows(tmp_path / "remote"), _rows(tmp_path / "local")
     assert len(remote) == len(entries)
     _same(remote, local)
@@ -110,28 +134,32 @@ def test_a_real_cluster_gives_the_local_clusters_rows_and_per_log_replay(tmp_pat
     _same({e.key: {k: v for k, v in row.items()}}, {e.key: remote[e.key]})
 
 
-def test_a_worker_killed_mid_run_every_log_once(tmp_path, fleet, cluster):
+def test_a_worker_killed_mid_run_every_log_once(tmp_path, synthetic, cluster):
     address, workers = cluster
-    entries = read_manifest(fleet)
-    killed = []
+    entries = read_manifest(synthetic)
+    run_fleet_in_child(tmp_path, f"""
+        killed = []
 
-    def kill_one(done_batches):
-        if not killed:
-            workers[0].send_signal(signal.SIGKILL)
-            killed.append(done_batches)
+        def kill_one(done_batches):
+            if not killed:
+                os.kill({workers[0].pid}, signal.SIGKILL)
+                killed.append(done_batches)
 
-    run_fleet(entries, tmp_path / "out", scheduler=address, max_logs=1, on_batch=kill_one)
-    assert killed and workers[0].wait(timeout=10) == -signal.SIGKILL
+        run_fleet(read_manifest({str(synthetic)!r}), {str(tmp_path / "out")!r}, scheduler={address!r}, max_logs=1,
+                  on_batch=kill_one)
+        assert killed
+        """)
+    assert workers[0].wait(timeout=10) == -signal.SIGKILL
     rows = read_table(tmp_path / "out").to_pylist()
     keys = [r["log_key"] for r in rows]
     assert sorted(keys) == sorted(e.key for e in entries)       # every log, exactly once
     assert read_table(tmp_path / "out", ERRORS) is None
 
 
-def test_bad_logs_land_in_the_errors_table_and_reruns_skip(tmp_path, fleet):
+def test_bad_logs_land_in_the_errors_table_and_reruns_skip(tmp_path, synthetic):
     logs = tmp_path / "logs" / "truckX"
     logs.mkdir(parents=True)
-    good = read_manifest(fleet)[0].log
+    good = read_manifest(synthetic)[0].log
     shutil.copy(good, logs / "good.log")
     raw = good.read_bytes()
     (logs / "truncated.log").write_bytes(raw[:len(raw) // 2 - 7])
@@ -139,8 +167,8 @@ def test_bad_logs_land_in_the_errors_table_and_reruns_skip(tmp_path, fleet):
     (logs / "notes.txt").write_text("not a log\n")
     (logs / "picture.log").write_bytes(bytes(range(256)) * 8)
     out = tmp_path / "out"
-    args = ["fleet", str(logs), str(logs / "notes.txt"), "--out", str(out), "--workers", "1", "--no-report"]
-    assert main(args) == 0
+    args = [str(logs), str(logs / "notes.txt"), "--out", str(out), "--workers", "1", "--no-report"]
+    fleet(*args)
     errors = {Path(r["log"]).name: r["reason"] for r in read_table(out, ERRORS).to_pylist()}
     assert set(errors) == {"empty.log", "notes.txt", "picture.log", "truncated.log"}
     assert "empty" in errors["empty.log"] and "unknown log suffix" in errors["notes.txt"]
@@ -148,24 +176,28 @@ def test_bad_logs_land_in_the_errors_table_and_reruns_skip(tmp_path, fleet):
     summarised = {Path(r["log"]).name for r in read_table(out).to_pylist()}
     assert summarised == {"good.log"}
     before = sorted(str(p) for p in out.rglob("*.parquet"))
-    assert main(args) == 0                                   # a re-run: everything done, nothing written twice
+    fleet(*args)                                             # a re-run: everything done, nothing written twice
     assert sorted(str(p) for p in out.rglob("*.parquet")) == before
     assert len(read_table(out).to_pylist()) == len(summarised)
 
 
 def _error(capsys, args) -> str:
-    assert main(args) == 2
-    err = capsys.readouterr().err.strip()
-    assert err.count("\n") == 0 and "error:" in err
+    if "--scheduler" in args:       # a Dask client: in a child process
+        res = fleet(*args[1:], check=False)
+        rc, err = res.returncode, res.stderr.strip()
+    else:
+        rc, err = main(args), capsys.readouterr().err.strip()
+    assert rc == 2
+    assert err.count("\n") == 0 and "error:" in err, err
     return err
 
 
-def test_bad_input_is_one_sentence_and_writes_nothing(tmp_path, fleet, capsys):
+def test_bad_input_is_one_sentence_and_writes_nothing(tmp_path, synthetic, capsys):
     out = tmp_path / "out"
     m = tmp_path / "m.csv"
     m.write_text("log,vehicle\nnowhere/a.log,t1\nnowhere/b.log,t2\n")
     assert "do not exist" in _error(capsys, ["fleet", "--manifest", str(m), "--out", str(out)])
-    logs = [e.log for e in read_manifest(fleet)]
+    logs = [e.log for e in read_manifest(synthetic)]
     m.write_text(f"log,vehicle,variant\n{logs[0]},t1,GRS905\n{logs[1]},t1,GRSO905\n")
     assert "two variants" in _error(capsys, ["fleet", "--manifest", str(m), "--out", str(out)])
     port = _free_port()

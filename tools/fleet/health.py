@@ -40,14 +40,12 @@ _MODELS: dict = {}
 
 
 def _model(variant: str | None, config: str | None):
+    """The diagnosis's onboard backend for a (variant, config), built once per worker process."""
     key = (variant, config)
     if key not in _MODELS:
-        import dataclasses
-        from firmware_model.config import load_config
         from tools.diagnosis.models import OnboardModel
-        cfg = load_config(config)
-        if variant is not None:
-            cfg = dataclasses.replace(cfg, variant=variant, params_path=None)
+        from tools.fleet.manifest import vehicle_config
+        cfg = vehicle_config(variant, config)
         _MODELS[key] = OnboardModel(cfg.load_params(), config=cfg, out_dt_s=FIT_DT_S, workers=1)
     return _MODELS[key]
 

@@ -35,6 +35,15 @@ class LogEntry(NamedTuple):
     key: str
 
 
+def vehicle_config(variant: str | None, config: str | None):
+    """The project configuration of a vehicle: its ``config`` file (None: the defaults) with its ``variant`` (a
+    parameter file name) in place of the file's, when given."""
+    import dataclasses
+    from firmware_model.config import load_config
+    cfg = load_config(config)
+    return cfg if variant is None else dataclasses.replace(cfg, variant=variant, params_path=None)
+
+
 def log_key(path: Path) -> str:
     """A log's key: a hash of its absolute path (a re-run skips a log whose key is in the output)."""
     return hashlib.sha1(os.fspath(path.resolve()).encode()).hexdigest()[:16]
@@ -126,4 +135,5 @@ def check_entries(entries: list[LogEntry], where: str) -> list[LogEntry]:
     return entries
 
 
-__all__ = ["DEFAULT_VEHICLE_PATTERN", "LogEntry", "check_entries", "entries_from_paths", "log_key", "read_manifest"]
+__all__ = ["DEFAULT_VEHICLE_PATTERN", "LogEntry", "check_entries", "entries_from_paths", "log_key", "read_manifest",
+           "vehicle_config"]

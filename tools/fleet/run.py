@@ -17,7 +17,7 @@ from pathlib import Path
 from typing import NamedTuple
 
 from firmware_model.errors import InputError
-from tools.fleet.manifest import LogEntry
+from tools.fleet.manifest import LogEntry, vehicle_config
 from tools.fleet.store import ESTIMATES, FleetStore, partition_dir
 
 #: logs per task at most; a small fleet gets about TASKS_PER_WORKER tasks per worker
@@ -43,13 +43,9 @@ def _sensor(variant: str | None, config: str | None):
     """The onboard sensor and service options of a (variant, config), built once per worker process."""
     key = (variant, config)
     if key not in _SENSORS:
-        import dataclasses
-        from firmware_model.config import load_config
         from firmware_model.onboard.sensor import VirtualSensor
         from firmware_model.service import ServiceOptions
-        cfg = load_config(config)
-        if variant is not None:
-            cfg = dataclasses.replace(cfg, variant=variant, params_path=None)
+        cfg = vehicle_config(variant, config)
         _SENSORS[key] = (VirtualSensor(cfg.load_params(), config=cfg),
                          ServiceOptions.from_config(cfg, log_findings=False))
     return _SENSORS[key]
