@@ -54,6 +54,7 @@ DEFAULT_LIMITS = {
 
 #: frame-level rejection reasons (counters["rejected"]); every rejected frame has exactly one of these
 REJECT_REASONS = {
+    "bad_timestamp": "a frame time that is not a finite number (NaN, inf): it cannot be placed in time",
     "error_frame": "a CAN error frame",
     "remote_frame": "a remote (RTR) frame; J1939 does not use them",
     "not_extended_id": "an 11-bit identifier; J1939 uses 29-bit identifiers only",
@@ -321,6 +322,8 @@ class J1939Decoder:
     # -- frame dispatch: every path returns None (used) or one reason ------------------------------------------------
 
     def _dispatch(self, msg: can.Message, latest: LatestValues) -> str | None:
+        if not math.isfinite(msg.timestamp):
+            return "bad_timestamp"
         if msg.is_error_frame:
             return "error_frame"
         if msg.is_remote_frame:

@@ -14,8 +14,7 @@ by frame, with numpy over the columns:
    limit refreshed between kernel calls), the status and the recorded columns.
 
 The counters (``service.counters``, ``service.decoder.counters``) end as the frame path leaves them; what only a
-live run does (frames sent, DM1, logging every minute) is not done. Timestamps that are not finite are refused
-(:class:`ColumnarUnsupported`): the caller replays such a log frame by frame.
+live run does (frames sent, DM1, logging every minute) is not done.
 """
 from __future__ import annotations
 
@@ -38,11 +37,6 @@ from firmware_model.service.trust import TimeBaseCheck
 #: timing frames examined per vectorised pass of the step grid (fewer right after a time jump)
 _GRID_CHUNK_MAX = 65536
 _GRID_CHUNK_MIN = 256
-
-
-class ColumnarUnsupported(ValueError):
-    """The log holds something the whole-log path does not reproduce (non-finite timestamps): replay it frame by
-    frame."""
 
 
 class Grid(NamedTuple):
@@ -221,7 +215,7 @@ def frame_half(service, cols: FrameColumns, decoded: DecodedColumns, meas_names:
     opts = service.options
     flags = cols.flags
     ext_ok = ((flags & FLAG_EXTENDED) != 0) & ((flags & (FLAG_ERROR | FLAG_REMOTE)) == 0) \
-        & (cols.can_id >= 0) & (cols.can_id <= ID_MAX)
+        & (cols.can_id >= 0) & (cols.can_id <= ID_MAX) & np.isfinite(cols.timestamp_s)
     timing = np.flatnonzero(ext_ok & np.isin(np.where(ext_ok, pgn_keys(np.where(ext_ok, cols.can_id, 0)), -1),
                                              list(wanted_pgns().values())))
     grid = step_grid(cols.timestamp_s, timing, opts.max_catchup_steps, opts.backward_tolerance_s)
@@ -311,8 +305,6 @@ def run_columns(service, cols: FrameColumns) -> dict[str, np.ndarray]:
         raise ValueError("run_columns needs a fresh SensorService built with record=True, emit_frames=False")
     if service.counters["steps"] or service.decoder.counters["frames_seen"]:
         raise ValueError("run_columns needs a fresh SensorService (no frame fed yet)")
-    if not np.all(np.isfinite(cols.timestamp_s)):
-        raise ColumnarUnsupported("frame times that are not finite numbers")
     meas_names = tuple(f"meas_T_{c}_c" for c in PUBLISHED)
     decoded = decode_columns(cols, service.decoder)
     half = frame_half(service, cols, decoded, meas_names)
@@ -327,4 +319,4 @@ def run_columns(service, cols: FrameColumns) -> dict[str, np.ndarray]:
     return recorder.columns(half.meas_seen)
 
 
-__all__ = ["ColumnarUnsupported", "FrameHalf", "Grid", "frame_half", "run_columns", "sensor_half", "step_grid"]
+__all__ = ["FrameHalf", "Grid", "frame_half", "run_columns", "sensor_half", "step_grid"]

@@ -183,3 +183,18 @@ def test_mf4_columns_are_python_cans_frames_and_the_replay_is_the_same(tmp_path,
     for field in ("timestamp_s", "can_id", "flags", "dlc", "length", "data"):
         assert np.array_equal(getattr(got.columns, field), getattr(ref, field)), field
     assert_same(path)
+
+
+def test_frames_without_a_finite_time_are_rejected_by_both_paths_and_never_move_time(drive):
+    msgs = inject(drive, ("hostile",), seed=4)[:20_000]
+    for i, t in ((500, float("nan")), (900, float("inf")), (1400, float("-inf")), (5000, float("nan"))):
+        msgs[i] = can.Message(timestamp=t, arbitration_id=msgs[i].arbitration_id, data=msgs[i].data, check=False)
+    s_frames, s_cols = _service(), _service()
+    s_frames.feed_all(msgs)
+    out = run_columns(s_cols, FrameColumns.from_messages(msgs))
+    ref = s_frames.recorded()
+    for c in ref:
+        assert np.array_equal(ref[c], out[c], equal_nan=True), c
+    assert s_frames.decoder.counters["rejected"]["bad_timestamp"] == 4
+    assert s_frames.counters == s_cols.counters and s_frames.decoder.counters == s_cols.decoder.counters
+    assert s_frames.counters["time_jumps"] == 0

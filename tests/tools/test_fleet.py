@@ -206,3 +206,10 @@ def test_bad_input_is_one_sentence_and_writes_nothing(tmp_path, synthetic, capsy
     assert not out.exists()
     with pytest.raises(InputError):
         read_manifest(tmp_path / "absent.csv")
+
+
+def test_a_manifest_that_is_not_text_is_one_sentence(tmp_path, capsys):
+    m = tmp_path / "m.csv"
+    m.write_bytes(b"\xff\xfe\x00garbage\n")
+    err = _error(capsys, ["fleet", "--manifest", str(m), "--out", str(tmp_path / "out")])
+    assert "not a UTF-8 CSV" in err and not (tmp_path / "out").exists()

@@ -62,6 +62,13 @@ def read_manifest(manifest: str | os.PathLike) -> list[LogEntry]:
     m = Path(manifest)
     if not m.is_file():
         raise InputError(f"manifest {m} does not exist")
+    try:
+        return _read_manifest(m)
+    except (UnicodeDecodeError, csv.Error) as exc:
+        raise InputError(f"manifest {m} is not a UTF-8 CSV file ({exc})") from None
+
+
+def _read_manifest(m: Path) -> list[LogEntry]:
     with open(m, newline="", encoding="utf-8") as fh:
         reader = csv.DictReader(fh)
         header = [h.strip() for h in (reader.fieldnames or [])]

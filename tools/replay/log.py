@@ -119,16 +119,11 @@ def _columnar(service, on_frames, columnar: bool | None) -> bool:
 
 
 def _replay_columns(path, service) -> tuple[dict, str]:
-    """The whole-log path (firmware_model.service.columnar): the run-table columns and which reader read the log;
-    a log it cannot reproduce bit for bit (non-finite frame times) is fed frame by frame instead."""
-    from firmware_model.service.columnar import ColumnarUnsupported, run_columns
+    """The whole-log path (firmware_model.service.columnar): the run-table columns and which reader read the log."""
+    from firmware_model.service.columnar import run_columns
     from tools.replay.columns import read_columns
     read = read_columns(path)
-    try:
-        return run_columns(service, read.columns), f"{read.reader}, whole log"
-    except ColumnarUnsupported:
-        service.feed_all(read.columns.message(i) for i in range(len(read.columns)))
-        return service.recorded(), f"{read.reader}, frame by frame"
+    return run_columns(service, read.columns), f"{read.reader}, whole log"
 
 
 def replay_log_file(path, out, *, config_path=None, sensor_options=None, frames_out=None,
