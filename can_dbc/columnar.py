@@ -127,16 +127,16 @@ class _Decoding:
         self.parts: dict[str, list] = {}
         self.arrivals: dict[str, list] = {}
         flags, can_id = cols.flags, cols.can_id
-        bad_t = ~np.isfinite(cols.timestamp_s)
-        err = ~bad_t & ((flags & FLAG_ERROR) != 0)
-        rtr = ~bad_t & ~err & ((flags & FLAG_REMOTE) != 0)
-        std = ~bad_t & ~err & ~rtr & ((flags & FLAG_EXTENDED) == 0)
-        bad_id = ~bad_t & ~err & ~rtr & ~std & ((can_id < 0) | (can_id > ID_MAX))
-        fd = ~bad_t & ~err & ~rtr & ~std & ~bad_id & ((flags & FLAG_FD) != 0)
-        for mask, name in ((bad_t, "bad_timestamp"), (err, "error_frame"), (rtr, "remote_frame"), (std, "not_extended_id"),
-                           (bad_id, "invalid_id"), (fd, "fd_frame")):
+        # the decoder's frame checks, in its order: each frame takes the first reason that applies
+        taken = np.zeros(n, dtype=bool)
+        for name, hit in (("bad_timestamp", ~np.isfinite(cols.timestamp_s)), ("error_frame", (flags & FLAG_ERROR) != 0),
+                          ("remote_frame", (flags & FLAG_REMOTE) != 0),
+                          ("not_extended_id", (flags & FLAG_EXTENDED) == 0),
+                          ("invalid_id", (can_id < 0) | (can_id > ID_MAX)), ("fd_frame", (flags & FLAG_FD) != 0)):
+            mask = hit & ~taken
             self.reason[mask] = REASON_CODES[name]
-        self.ok = ~(bad_t | err | rtr | std | bad_id | fd)
+            taken |= mask
+        self.ok = ~taken
         self.pgn = np.where(self.ok, pgn_keys(np.where(self.ok, can_id, 0)), -1)
         self.eight = (cols.length == 8) & (cols.dlc == 8)
 

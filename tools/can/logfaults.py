@@ -26,7 +26,8 @@ from typing import Iterable
 
 import numpy as np
 
-from can_dbc.j1939 import can_id_of, pgn_of, source_address
+from can_dbc.columnar import pgn_keys
+from can_dbc.j1939 import can_id_of, source_address
 from firmware_model.errors import InputError
 
 FAULT_KINDS = ("dropout", "late_oil", "not_available", "error_value", "out_of_range", "foreign_source", "wrong_dlc",
@@ -77,7 +78,7 @@ def inject(frames, kinds: Iterable[str], seed: int = 0) -> list:
     t = frames.timestamp_s.astype(float).copy()
     ids = frames.can_id.astype(np.int64).copy()
     data = frames.data.copy()
-    pgn = np.array([pgn_of(int(i)) for i in ids])
+    pgn = pgn_keys(ids)
     keep = np.ones(t.size, dtype=bool)
     dlc = np.full(t.size, 8)
     if "dropout" in kinds:
