@@ -1,4 +1,6 @@
-"""The documentation's examples that are marked ``<!-- example: runs ... -->`` run as written."""
+"""The documentation's examples that are marked ``<!-- example: runs ... -->`` run as written; ``needs: A B`` in the
+mark names optional packages (import names) without which the example skips and says so."""
+import importlib.util
 import os
 import re
 import subprocess
@@ -8,14 +10,19 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-MARK = re.compile(r"<!-- example: runs[^>]*-->\n```python\n(.*?)\n```", re.S)
+MARK = re.compile(r"<!-- example: runs([^>]*)-->\n```python\n(.*?)\n```", re.S)
+NEEDS = re.compile(r"needs:\s*([\w. ]+)")
 
 
 def _examples():
     out = []
     for md in sorted([ROOT / "README.md", *(ROOT / "docs").glob("*.md")]):
         for k, m in enumerate(MARK.finditer(md.read_text(encoding="utf-8"))):
-            out.append(pytest.param(m.group(1), id=f"{md.name}#{k}"))
+            needs = NEEDS.search(m.group(1))
+            missing = [n for n in (needs.group(1).split() if needs else ()) if importlib.util.find_spec(n) is None]
+            marks = [pytest.mark.skip(reason=f"{md.name} example #{k} needs the optional package(s) "
+                                             f"{', '.join(missing)} (pip install -e '.[fleet]')")] if missing else []
+            out.append(pytest.param(m.group(2), id=f"{md.name}#{k}", marks=marks))
     return out
 
 

@@ -157,9 +157,9 @@ def run_fleet(entries: list[LogEntry], out: str | os.PathLike, *, scheduler: str
               max_logs: int = BATCH_MAX_LOGS, on_batch=None) -> FleetRun:
     """Summarise every log of ``entries`` into ``out`` (tools/fleet/store.py); see the module doc. ``on_batch(n)``
     is called after each batch is written (tests kill a worker from it)."""
-    from dask.distributed import as_completed
     from tools.progress import progress
-    client, cluster = connect(scheduler, workers)
+    client, cluster = connect(scheduler, workers)      # first: without dask it says what to install
+    from dask.distributed import as_completed
     try:
         store = FleetStore(out)
         store.prepare()
