@@ -385,6 +385,20 @@ cp /ctl/run.sh /ctl/script.sh $R/run/vcan-vm/ || fail "copy script"
 ip link set lo up
 chroot $R /bin/sh -c 'ip link add dev vcan0 type vcan && ip link set up vcan0' || fail "create vcan0"
 read -r up _ < /proc/uptime; echo "vcan-vm: vcan0 up at ${up} s uptime"
+if [ "$VM_INIT" = systemd ]; then
+  # systemd as PID 1 in the host root: /var is the host's below, the VM's writes in RAM above (systemd's own state,
+  # services' StateDirectory); the control dir and the script's unit go under /run, which the switch keeps
+  mkdir -p /vmtmp/vupper /vmtmp/vwork
+  mount -t overlay -o lowerdir=$R/var,upperdir=/vmtmp/vupper,workdir=/vmtmp/vwork overlay $R/var || fail "mount /var"
+  mkdir -p $R/run/vcan-vm/ctl $R/run/systemd/system
+  mount -o bind /ctl $R/run/vcan-vm/ctl || fail "bind the control dir"
+  cp /ctl/vcan-vm.service $R/run/systemd/system/ || fail "copy the script's unit"
+  # runtime masks: boot-time tmpfiles would walk (and whiteout) the host's /tmp over 9p for minutes
+  for u in systemd-tmpfiles-setup.service systemd-tmpfiles-clean.timer; do ln -s /dev/null $R/run/systemd/system/$u; done
+  echo "@BEGIN@"
+  exec switch_root $R /lib/systemd/systemd --unit=vcan-vm.service --show-status=error
+  fail "switch_root to systemd"
+fi
 echo "@BEGIN@"
 env -i chroot $R /bin/sh /run/vcan-vm/run.sh </dev/null &
 pid=$!
@@ -538,6 +552,23 @@ def _run_sh(share: Path, env: dict[str, str] | None) -> str:
     return "\n".join(lines)
 
 
+#: the unit systemd (``init="systemd"``) starts instead of a target: the script as a oneshot service after
+#: basic.target (journald, udevd and the rest of the host's early boot), its output on the console, then power-off
+_SYSTEMD_UNIT = """[Unit]
+Description=gearbox-vsensor vcan VM script
+[Service]
+Type=oneshot
+TimeoutStartSec=infinity
+StandardInput=null
+StandardOutput=tty
+StandardError=tty
+TTYPath=/dev/console
+ExecStart=/bin/sh -c 'timeout -s KILL {timeout} /bin/sh /run/vcan-vm/run.sh; rc=$$?; \\
+[ $$rc = 137 ] && echo "{sentinel_timeout} after {timeout} s"; echo $$rc > /run/vcan-vm/ctl/exit_code; sync; \\
+echo "{sentinel_exit}$$rc"; systemctl poweroff --force --force'
+"""
+
+
 def _qemu_cmd(assets: Assets, ctl: Path, share: Path, memory_mb: int, smp: int) -> list[str]:
     def virtfs(path: Path, tag: str, readonly: bool) -> list[str]:
         opts = f"local,path={path},mount_tag={tag},security_model=none,multidevs=remap"
@@ -560,8 +591,12 @@ def _qemu_cmd(assets: Assets, ctl: Path, share: Path, memory_mb: int, smp: int) 
 
 def run_in_vm(script: str, timeout_s: float = 300, share_dir: Path | None = None, *,
               env: dict[str, str] | None = None, assets: Assets | None = None,
-              memory_mb: int = 1024, smp: int = 2, stream: TextIO | None = None) -> VMResult:
+              memory_mb: int = 1024, smp: int = 2, stream: TextIO | None = None, init: str = "sh") -> VMResult:
     """Boot the VM, run ``script`` with ``/bin/sh`` inside the chroot of the host root, power off.
+
+    ``init="systemd"`` boots the host's systemd as PID 1 in the host root instead, and runs the script as a
+    oneshot service after basic.target (as root; the script may start units of its own from /run/systemd/system,
+    see docs/vcan-vm.md). /var is then writable too (in RAM).
 
     ``script`` runs with vcan0 up, cwd = ``$VM_SHARE`` (= ``share_dir``, same absolute path inside
     and outside; a fresh temp dir when None, which the caller then owns), ``$VM_PYTHON`` = host
@@ -586,8 +621,14 @@ def run_in_vm(script: str, timeout_s: float = 300, share_dir: Path | None = None
         ctl = Path(ctl_name)
         (ctl / "script.sh").write_text(script)
         (ctl / "run.sh").write_text(_run_sh(share, env))
+        if init not in ("sh", "systemd"):
+            raise ValueError(f"init must be 'sh' or 'systemd', not {init!r}")
+        if init == "systemd" and not Path("/lib/systemd/systemd").is_file():
+            raise VMUnavailable("init='systemd' needs systemd on the host (apt install systemd udev)")
+        (ctl / "vcan-vm.service").write_text(_SYSTEMD_UNIT.format(
+            timeout=inner_timeout, sentinel_timeout=SENTINEL_TIMEOUT, sentinel_exit=SENTINEL_EXIT))
         (ctl / "params").write_text(f"VM_SHARE={shlex.quote(str(share))}\nVM_TIMEOUT={inner_timeout}\n"
-                                    f"VM_ROOT_9P_OPTS={shlex.quote(_root_9p_opts())}\n")
+                                    f"VM_ROOT_9P_OPTS={shlex.quote(_root_9p_opts())}\nVM_INIT={init}\n")
         cmd = _qemu_cmd(assets, ctl, share, memory_mb, smp)
         output, boot_s, total_s = _run_qemu(cmd, timeout_s, stream)
         exit_file = ctl / "exit_code"
