@@ -438,11 +438,13 @@ def format_table(rows: list, summary: dict) -> str:
         lines.append(f"| {r.index} | {r.setup} | {r.cooler} | {r.effect or 'none'} | {planted} | {verdict} | {fitted} "
                      f"| {r.rms_before:.3f} -> {r.rms_after:.3f} | {100 * r.shrink:.0f} % | {r.diag_s:.0f} | {res} |")
     s = summary
+    pair = any(" + " in (r.effect or "") for r in rows)
+    ident = ("both named (the planted set, or a missed one declared confusable)", ">= 80 %") if pair \
+        else ("top-1 identification (identifiable effects)", ">= 90 %")
     foot = (f"\n\n| figure | measured | target |\n|---|---|---|\n"
             f"| scenarios (effect / null; truck / rig) | {s['scenarios']} ({s['effect_scenarios']} / {s['null_scenarios']}; "
             f"{s['truck']} / {s['rig']}) | >= 40, >= 8 null, half truck |\n"
-            f"| top-1 identification (identifiable effects) | {100 * s['top1']:.0f} % ({s['top1_hits']} of "
-            f"{s['top1_scored']}) | >= 90 % |\n"
+            f"| {ident[0]} | {100 * s['top1']:.0f} % ({s['top1_hits']} of {s['top1_scored']}) | {ident[1]} |\n"
             f"| top-1 over all effect scenarios (not identifiable counted as misses) | {100 * s['top1_all']:.0f} % | - |\n"
             f"| effect scenarios reported as not identifiable with their channels | {s['not_identifiable']} | - |\n"
             f"| false alarms on null scenarios | {s['false_alarms']} of {s['null_scenarios']} | 0 |\n"
