@@ -71,15 +71,18 @@ def main(argv=None) -> None:
     ap.add_argument("--fouling", type=int, default=6)
     ap.add_argument("--low-oil", type=int, default=4)
     ap.add_argument("--seed", type=int, default=3)
+    ap.add_argument("--cold-share", type=float, default=0.5,
+                    help="share of the days whose log starts at key-on after a night parked")
     ap.add_argument("--workers", type=int)
     ap.add_argument("--period-days", type=float, default=7.0)
     a = ap.parse_args(argv)
     if a.fleet:
         root = Path(a.fleet)
     else:
-        root = Path(f"fleet_health_{a.vehicles}x{a.days}")
+        root = Path(f"fleet_health_{a.vehicles}x{a.days}_s{a.seed}")
         t0 = time.perf_counter()
-        synth_fleet(root, FleetSpec(a.vehicles, a.days, a.minutes, a.fouling, a.low_oil, seed=a.seed))
+        synth_fleet(root, FleetSpec(a.vehicles, a.days, a.minutes, a.fouling, a.low_oil, seed=a.seed,
+                                    cold_share=a.cold_share))
         print(f"synthetic fleet in {time.perf_counter() - t0:.0f} s")
     out = Path(a.out) if a.out else root.parent / (root.name + "_out")
     entries = read_manifest(root / "manifest.csv")

@@ -213,3 +213,29 @@ def test_a_manifest_that_is_not_text_is_one_sentence(tmp_path, capsys):
     m.write_bytes(b"\xff\xfe\x00garbage\n")
     err = _error(capsys, ["fleet", "--manifest", str(m), "--out", str(tmp_path / "out")])
     assert "not a UTF-8 CSV" in err and not (tmp_path / "out").exists()
+
+
+def test_synthetic_cold_starts_begin_at_ambient_and_the_log_says_so(tmp_path):
+    """--cold-share: a key-on log starts with the oil 0-4 K above that day's ambient (what its first oil frame
+    reads); a mid-shift log starts warm; the rest of the day does not depend on the share."""
+    import json
+    cold = synth_fleet(tmp_path / "cold", FleetSpec(vehicles=1, days=2, minutes=1.0, seed=4, cold_share=1.0),
+                       processes=1)
+    warm = synth_fleet(tmp_path / "warm", FleetSpec(vehicles=1, days=2, minutes=1.0, seed=4, cold_share=0.0),
+                       processes=1)
+    for manifest, is_cold in ((cold, True), (warm, False)):
+        truth = json.loads((manifest.parent / "truth.json").read_text())
+        for day in truth["days"]:
+            assert day["cold"] is is_cold
+            log = manifest.parent / day["vehicle"] / f"{day['vehicle']}_{day['date']}.log"
+            table = replay_log(log, build_service(None, record=True, emit_frames=False, log_findings=False))
+            oil = np.asarray(table["oil_temp_c"], dtype=float)
+            first = float(oil[np.isfinite(oil)][0])
+            if is_cold:
+                assert 0.0 <= day["oil_start_c"] - day["ambient_c"] <= 4.0
+                assert abs(first - day["oil_start_c"]) < 1.0, (first, day)
+            else:
+                assert first > 50.0, (first, day)
+    days_cold = json.loads((cold.parent / "truth.json").read_text())["days"]
+    days_warm = json.loads((warm.parent / "truth.json").read_text())["days"]
+    assert [d["ambient_c"] for d in days_cold] == [d["ambient_c"] for d in days_warm]

@@ -39,7 +39,7 @@ MIN_OIL_SHARE = 0.8
 _MODELS: dict = {}
 
 
-def _model(variant: str | None, config: str | None):
+def health_model(variant: str | None = None, config: str | None = None):
     """The diagnosis's onboard backend for a (variant, config), built once per worker process."""
     key = (variant, config)
     if key not in _MODELS:
@@ -50,7 +50,8 @@ def _model(variant: str | None, config: str | None):
     return _MODELS[key]
 
 
-class _Data(NamedTuple):
+class LogData(NamedTuple):
+    """One log as the model simulates it: its decoded inputs (a RunTable) and the first measured oil [degC]."""
     inputs: object
     initial_temp_c: float
 
@@ -70,7 +71,7 @@ def fit_log(table, variant: str | None = None, config: str | None = None) -> dic
         cols[c] = np.asarray(table[c], dtype=float)
     first = int(np.flatnonzero(np.isfinite(oil))[0])
     runs = [Run.of({"cooler_effectiveness_scale": c, "oil_level_low": v}) for v in VOLUME_GRID_L for c in COOLER_GRID]
-    outs = _model(variant, config).simulate([_Data(RunTable(cols), float(oil[first]))], runs, ["oil_temp_c"])
+    outs = health_model(variant, config).simulate([LogData(RunTable(cols), float(oil[first]))], runs, ["oil_temp_c"])
     t_fit = outs[0][0]["time_s"]
     meas = np.interp(t_fit, cols["time_s"], np.where(np.isfinite(oil), oil, np.nan))
     ok = np.isfinite(meas)
@@ -206,4 +207,5 @@ def fleet_health(out: str | Path, period_days: float = 7.0) -> Health:
     return Health(len(period_fits), period_fits, flags)
 
 
-__all__ = ["COOLER_GRID", "VOLUME_GRID_L", "Flag", "Health", "PeriodFit", "fit_log", "fit_period", "fleet_health"]
+__all__ = ["COOLER_GRID", "VOLUME_GRID_L", "Flag", "Health", "LogData", "PeriodFit", "fit_log", "fit_period",
+           "fleet_health", "health_model"]

@@ -1,8 +1,12 @@
 """A synthetic fleet for tests and benchmarks: N trucks, a daily candump log each, some with effects that grow.
 
 Each truck has a payload (a factor on the engine torque), a home climate and a drive type (long haul, uphill,
-mining: the named cycles with the truck's own route seeds); each day's log is a window of ``minutes`` of one of its
-drives, started warm (the logger caught the truck mid-shift: the oil at 55-85 degC), on that day's ambient. The
+mining: the named cycles with the truck's own route seeds); each day's log is ``minutes`` of one of its drives on that
+day's ambient: with probability ``cold_share`` the day's first trip from key-on after a night parked (the drive from
+its start, the oil and every part 0-4 K above ambient, the coolant warming from ambient to its thermostat in ~5 min),
+otherwise a window caught mid-shift (started warm: the oil at 55-85 degC, the coolant at 82-90 degC). A cold start
+shows the oil's heat capacity, but weakly: a 4 L leak moves the plant's oil by 0.25-0.37 K rms over 10 minutes from
+cold on the named drives, 0.14-0.24 K in a warm window (docs/fleet.md, benchmarks/bench_oil_level_signal.py). The
 reference plant (tools/plant/reference.py) gives the true temperatures with the truck's effects of that day, and the
 log is its J1939 traffic (tools/can/logsynth.py; no rig thermocouples: a truck has one oil sensor). Effects start at a random
 day and grow linearly to their final value over ``growth_days`` (a fouling cooler, an oil leak). The truth (effects,
@@ -24,6 +28,8 @@ DRIVES = ("long_haul", "uphill", "mining")
 #: the effects a synthetic fleet injects: (effect id, its parameter at full growth range)
 FAULT_RANGES = {"cooler_effectiveness_scale": (0.35, 0.5), "oil_level_low": (9.0, 10.0)}
 START_DATE = dt.date(2026, 1, 5)
+#: time constant of the coolant warming from ambient to its thermostat after a cold start [s]
+COOLANT_WARMUP_S = 300.0
 
 
 @dataclass
@@ -36,6 +42,7 @@ class FleetSpec:
     low_oil: int = 0
     growth_days: float = 21.0
     seed: int = 0
+    cold_share: float = 0.5      # share of the days whose log starts at key-on after a night parked
     start_date: dt.date = START_DATE
     faults: dict = field(default_factory=dict)     # vehicle -> (effect, onset day, final value); filled by plan()
 
@@ -87,6 +94,10 @@ def _day_job(job) -> tuple[str, dict]:
     t = np.asarray(cyc["time_s"], dtype=float)
     span_s = spec.minutes * 60.0
     off = float(rng.uniform(0.0, max(t[-1] - span_s, 0.0)))
+    # cold or warm: its own stream, so that the rest of the day does not depend on cold_share
+    cold = bool(np.random.default_rng([spec.seed, v, day, 0xC01D]).uniform() < spec.cold_share)
+    if cold:
+        off = 0.0
     keep = (t >= off) & (t < off + span_s)
     cols = {c: np.asarray(cyc[c])[keep] for c in cyc.columns}
     cols["time_s"] = cols["time_s"] - cols["time_s"][0]
@@ -94,11 +105,16 @@ def _day_job(job) -> tuple[str, dict]:
     season = 8.0 * np.sin(2 * np.pi * (day + 20) / 365.0)
     amb = truck["climate_c"] + season + float(rng.normal(0.0, 3.0))
     cols["ambient_temp_c"] = np.full(cols["time_s"].size, amb)
-    cols["coolant_temp_c"] = np.full(cols["time_s"].size, float(rng.uniform(82.0, 90.0)))
+    coolant_c = float(rng.uniform(82.0, 90.0))
+    cols["coolant_temp_c"] = np.full(cols["time_s"].size, coolant_c)
     table = RunTable(cols)
     name = vehicle_name(v)
     effects = effect_on_day(spec.faults.get(name), day, spec.growth_days)
     oil0 = float(rng.uniform(55.0, 85.0))
+    if cold:
+        oil0 = amb + float(np.random.default_rng([spec.seed, v, day, 0xC01E]).uniform(0.0, 4.0))
+        cols["coolant_temp_c"] = coolant_c - (coolant_c - oil0) * np.exp(-cols["time_s"] / COOLANT_WARMUP_S)
+        table = RunTable(cols)
     plant = ReferencePlant(load_config(None).load_params(), effects=effects, dt_s=1.0).run(
         table, initial_temp_c=oil0, progress=False)
     date = spec.start_date + dt.timedelta(days=day)
@@ -108,7 +124,8 @@ def _day_job(job) -> tuple[str, dict]:
     path.parent.mkdir(parents=True, exist_ok=True)
     write_can_log(table, plant.table, path, rig=False, start_timestamp_s=start, seed=day)
     return os.fspath(path), {"vehicle": name, "day": day, "date": date.isoformat(), "effects": effects,
-                             "drive": truck["drive"], "payload": truck["payload"], "ambient_c": amb}
+                             "drive": truck["drive"], "payload": truck["payload"], "ambient_c": amb, "cold": cold,
+                             "oil_start_c": oil0}
 
 
 def synth_fleet(out: str | os.PathLike, spec: FleetSpec, processes: int | None = None,
@@ -140,6 +157,7 @@ def synth_fleet(out: str | os.PathLike, spec: FleetSpec, processes: int | None =
         for path, truth in results:
             fh.write(f"{Path(path).relative_to(out).as_posix()},{truth['vehicle']}\n")
     truth = {"spec": {"vehicles": spec.vehicles, "days": spec.days, "minutes": spec.minutes,
+                      "cold_share": spec.cold_share,
                       "growth_days": spec.growth_days, "seed": spec.seed, "start_date": spec.start_date.isoformat()},
              "faults": {v: {"effect": f[0], "onset_day": f[1],
                             "onset_date": (spec.start_date + dt.timedelta(days=f[1])).isoformat(), "final": f[2]}
@@ -164,6 +182,8 @@ def main(argv=None) -> int:
     ap.add_argument("--fouling", type=int, default=0, help="trucks whose cooler fouls from a random day")
     ap.add_argument("--low-oil", type=int, default=0, help="trucks that lose oil from a random day")
     ap.add_argument("--growth-days", type=float, default=21.0, help="days from onset to the final value")
+    ap.add_argument("--cold-share", type=float, default=0.5,
+                    help="share of the days whose log starts at key-on after a night parked (default 0.5)")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--processes", type=int, help="processes (default: one per core)")
     a = ap.parse_args(argv)
@@ -172,7 +192,9 @@ def main(argv=None) -> int:
             ap.error(f"--{name} must be at least 1")
     if not a.minutes > 0:
         ap.error("--minutes must be positive")
-    spec = FleetSpec(a.vehicles, a.days, a.minutes, a.fouling, a.low_oil, a.growth_days, a.seed)
+    if not 0.0 <= a.cold_share <= 1.0:
+        ap.error("--cold-share must be between 0 and 1")
+    spec = FleetSpec(a.vehicles, a.days, a.minutes, a.fouling, a.low_oil, a.growth_days, a.seed, a.cold_share)
     try:
         print(synth_fleet(a.out, spec, a.processes))
     except InputError as exc:
