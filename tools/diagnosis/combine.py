@@ -268,6 +268,41 @@ def _finish(ctx: Context, base: Baseline, crit: Criterion, fits: dict, st: _Stat
                        _shares(base, fits, st.members, chain), steps)
 
 
+def _acceptable(ctx: Context, base: Baseline, combo: Combination, gap_thr_c: dict) -> bool:
+    """A set stands as a verdict: strong evidence as a whole (score >= evidence_min with k = its size), it explains
+    at least explain_min of the excess, every member sits at least min_frac from neutral, and none is pinned at a
+    bound while a gap remains."""
+    o = ctx.opts
+    if combo.score < o.evidence_min or combo.explained < o.explain_min:
+        return False
+    if any(abs(fraction_of_range(e, v)) < o.min_frac for e, v in combo.members.items()):
+        return False
+    pinned = any(abs(fraction_of_range(e, v)) > 0.98 for e, v in combo.members.items())
+    return not (pinned and gap_left(ctx, base, combo.preds_train, gap_thr_c))
+
+
+def select_set(ctx: Context, base: Baseline, crit: Criterion, fits: list, gap_thr_c: dict, confusable: dict):
+    """Forward selection from the best single candidate, and also from each candidate confusable with it (alone the
+    data cannot tell them apart, so either may be the set's first member: a sensor offset and hot surroundings both
+    lift the oil, but only one of them leaves room for a load-dependent second effect). A set grown from another
+    start replaces the best candidate's own result only when it is acceptable as a whole (see :func:`rescue`) and its
+    score beats that result (the set, or the best candidate alone) by at least evidence_min. None: one effect."""
+    o = ctx.opts
+    top = crit.candidates[0]
+    best = forward_select(ctx, base, crit, fits, gap_thr_c)
+    best_score = best.score if best is not None else top.score
+    alts = [c for c in crit.candidates[1:] if c.fit.effect in confusable.get(top.fit.effect, ())][:o.set_starts - 1]
+    for cand in alts:
+        if abs(fraction_of_range(cand.fit.effect, cand.fit.value)) < o.min_frac:
+            continue
+        combo = forward_select(ctx, base, crit, fits, gap_thr_c, start=cand.fit)
+        if combo is None or not _acceptable(ctx, base, combo, gap_thr_c):
+            continue
+        if combo.score >= best_score + o.evidence_min:
+            best, best_score = combo, combo.score
+    return best
+
+
 def rescue(ctx: Context, base: Baseline, crit: Criterion, fits: list, gap_thr_c: dict):
     """When no single effect passes (the best one pinned at a bound with a gap left, or too weak alone), several
     effects may explain the gap together: forward selection from each of the two strongest candidates; a set is
@@ -281,12 +316,7 @@ def rescue(ctx: Context, base: Baseline, crit: Criterion, fits: list, gap_thr_c:
         if abs(fraction_of_range(f.effect, f.value)) < o.min_frac:
             continue
         combo = forward_select(ctx, base, crit, fits, gap_thr_c, start=f)
-        if combo is None or combo.score < o.evidence_min or combo.explained < o.explain_min:
-            continue
-        if any(abs(fraction_of_range(e, v)) < o.min_frac for e, v in combo.members.items()):
-            continue
-        pinned = any(abs(fraction_of_range(e, v)) > 0.98 for e, v in combo.members.items())
-        if pinned and gap_left(ctx, base, combo.preds_train, gap_thr_c):
+        if combo is None or not _acceptable(ctx, base, combo, gap_thr_c):
             continue
         if best is None or combo.score > best.score:
             best = combo

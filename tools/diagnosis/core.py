@@ -28,7 +28,7 @@ from firmware_model.effects import EFFECT_IDS, channel_effect
 from firmware_model.errors import InputError
 
 from tools.diagnosis.baseline import establish_baseline
-from tools.diagnosis.combine import forward_select, rescue
+from tools.diagnosis.combine import rescue, select_set
 from tools.diagnosis.context import Context, Simulator
 from tools.diagnosis.decide import (confusable_with, decide, held_out_check, residuals, suggestions,
                                     with_combination, with_structure)
@@ -88,8 +88,9 @@ class Diagnosis:
         self.progress(next(stage))              # verdict
         verdict = decide(ctx, base, crit)
         combo = None
+        conf = confusable_with(crit, ctx.opts)
         if verdict.is_effect:
-            combo = forward_select(ctx, base, crit, fits, verdict.gap_thr_c)
+            combo = select_set(ctx, base, crit, fits, verdict.gap_thr_c, conf)
         elif verdict.effect == "unexplained":
             combo = rescue(ctx, base, crit, fits, verdict.gap_thr_c)
         verdict = with_combination(ctx, base, verdict, combo)
@@ -100,7 +101,6 @@ class Diagnosis:
             res = residuals(base, verdict, crit)
         structure = self._structure(base, fits, verdict)
         verdict = with_structure(verdict, structure)
-        conf = confusable_with(crit, ctx.opts)
         sugg = suggestions(ctx, train, verdict, crit, conf)
         regs = regimes_before_after(test, base.base_te, res.test_before, res.test_after, p, ctx.cooler, ctx.opts)
         self.outcome = Outcome(base, where, heat, crit, ident, verdict, conf, sugg, res, regs, structure, combo)
