@@ -46,7 +46,10 @@ svc() { systemctl show -p "$1" --value gearbox-vsensor; }
 wait_new_main() {
     t0=$(cut -d' ' -f1 /proc/uptime)
     for i in $(seq 480); do
-        if [ "$(svc ActiveState)" = active ] && [ "$(svc MainPID)" != 0 ] && [ "$(svc MainPID)" != "$1" ]; then
+        # one snapshot of both properties (separate reads raced with the watchdog's kill: state active, then pid 0)
+        snap=$(systemctl show -p ActiveState -p MainPID gearbox-vsensor | sort | tr '\n' ' ')
+        pid=$(echo "$snap" | sed -n 's/.*MainPID=\([0-9]*\).*/\1/p')
+        if echo "$snap" | grep -q "ActiveState=active " && [ "$pid" != 0 ] && [ "$pid" != "$1" ]; then
             awk -v a="$t0" -v b="$(cut -d' ' -f1 /proc/uptime)" 'BEGIN { printf "%.1f\n", b - a }'; return 0
         fi
         sleep 0.5
