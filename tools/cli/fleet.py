@@ -44,7 +44,8 @@ def add_subparser(sub):
     p.add_argument("--diagnose", action="store_true",
                    help="fleet health: per vehicle and week, fit the effects the oil channel alone identifies "
                         "(cooler effectiveness, oil level) with their uncertainty; flag drifting vehicles (on a "
-                        "synthetic fleet cooler flags were reliable, oil-level flags weak: docs/fleet.md)")
+                        "synthetic fleet cooler flags were reliable; oil-level flags are weak: a leak moves the oil temperature "
+                        "less than the model's own error, docs/fleet.md)")
     p.add_argument("--period-days", type=float, default=7.0, metavar="DAYS",
                    help="the --diagnose period (default 7 days)")
     p.add_argument("--no-report", action="store_true", help="skip report.md and its plots")
