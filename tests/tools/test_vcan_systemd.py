@@ -10,9 +10,10 @@ sent READY=1). What must hold:
 - the twice-restarted service decodes a drive played onto vcan0 and publishes GBX_STATUS from its source address,
   and `gearbox-vsensor status` reads its health file as running.
 
-Two drop-ins adapt the machine, not the behaviour under test: the repo on PYTHONPATH, and, when the test's Python
-lives under /root or /home (the unit's ProtectHome=yes hides those, and a dynamic user cannot read them), the
-service runs as root with ProtectHome off; docs/gateway.md tells integrators to install into a system-wide venv.
+Drop-ins adapt the machine, not the behaviour under test: the repo on PYTHONPATH; when the test's Python lives under
+/root or /home (the unit's ProtectHome=yes hides those, and a dynamic user cannot read them), the service runs as
+root with ProtectHome off; when the checkout lives under /tmp (the unit's PrivateTmp=yes hides it), PrivateTmp off.
+docs/gateway.md tells integrators to install into a system-wide venv.
 
 Marked `vcan`; skipped, naming what is missing, without QEMU, the Debian kernel, busybox-static, can-utils or
 systemd and udev on the host. About 3 minutes (the service's start-up under TCG emulation is ~25 s, three times).
@@ -62,6 +63,10 @@ printf '[Service]\nEnvironment=PYTHONPATH=%s\n' "$VM_REPO" > $UNIT.d/repo.conf
 case "$VM_PYTHON" in /root/*|/home/*)
     printf '[Service]\nProtectHome=no\nDynamicUser=no\n' > $UNIT.d/python-under-home.conf
     echo "python_under_home=1" >> result.txt;;
+esac
+case "$VM_REPO" in /tmp/*|/var/tmp/*)
+    printf '[Service]\nPrivateTmp=no\n' > $UNIT.d/repo-under-tmp.conf
+    echo "repo_under_tmp=1" >> result.txt;;
 esac
 systemctl daemon-reload
 systemctl start gearbox-vsensor || { journalctl -u gearbox-vsensor --no-pager > journal.txt; exit 4; }
