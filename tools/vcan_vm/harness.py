@@ -395,7 +395,6 @@ if [ "$VM_INIT" = systemd ]; then
   cp /ctl/vcan-vm.service $R/run/systemd/system/ || fail "copy the script's unit"
   # runtime masks: boot-time tmpfiles would walk (and whiteout) the host's /tmp over 9p for minutes
   for u in systemd-tmpfiles-setup.service systemd-tmpfiles-clean.timer; do ln -s /dev/null $R/run/systemd/system/$u; done
-  echo "@BEGIN@"
   exec switch_root $R /lib/systemd/systemd --unit=vcan-vm.service --show-status=error
   fail "switch_root to systemd"
 fi
@@ -563,7 +562,7 @@ StandardInput=null
 StandardOutput=tty
 StandardError=tty
 TTYPath=/dev/console
-ExecStart=/bin/sh -c 'timeout -s KILL {timeout} /bin/sh /run/vcan-vm/run.sh; rc=$$?; \\
+ExecStart=/bin/sh -c 'echo "{sentinel_begin}"; timeout -s KILL {timeout} /bin/sh /run/vcan-vm/run.sh; rc=$$?; \\
 [ $$rc = 137 ] && echo "{sentinel_timeout} after {timeout} s"; echo $$rc > /run/vcan-vm/ctl/exit_code; sync; \\
 echo "{sentinel_exit}$$rc"; systemctl poweroff --force --force'
 """
@@ -626,7 +625,8 @@ def run_in_vm(script: str, timeout_s: float = 300, share_dir: Path | None = None
         if init == "systemd" and not Path("/lib/systemd/systemd").is_file():
             raise VMUnavailable("init='systemd' needs systemd on the host (apt install systemd udev)")
         (ctl / "vcan-vm.service").write_text(_SYSTEMD_UNIT.format(
-            timeout=inner_timeout, sentinel_timeout=SENTINEL_TIMEOUT, sentinel_exit=SENTINEL_EXIT))
+            timeout=inner_timeout, sentinel_begin=SENTINEL_BEGIN, sentinel_timeout=SENTINEL_TIMEOUT,
+            sentinel_exit=SENTINEL_EXIT))
         (ctl / "params").write_text(f"VM_SHARE={shlex.quote(str(share))}\nVM_TIMEOUT={inner_timeout}\n"
                                     f"VM_ROOT_9P_OPTS={shlex.quote(_root_9p_opts())}\nVM_INIT={init}\n")
         cmd = _qemu_cmd(assets, ctl, share, memory_mb, smp)
@@ -783,7 +783,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
     script = args.command if args.command is not None else sys.stdin.read()
     share = Path(args.share) if args.share else None
     try:
-        res = run_in_vm(script, timeout_s=args.timeout, share_dir=share, stream=sys.stdout if args.verbose else None)
+        res = run_in_vm(script, timeout_s=args.timeout, share_dir=share, stream=sys.stdout if args.verbose else None,
+                        init=args.init)
     except VMUnavailable as exc:
         print(f"vcan_vm: {exc.reason}", file=sys.stderr)
         return 2
@@ -811,6 +812,9 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("-c", dest="command", help="script text (default: read stdin)")
     p.add_argument("--share", help="host directory shared writable as $VM_SHARE (default: temp, removed)")
     p.add_argument("--timeout", type=float, default=300)
+    p.add_argument("--init", choices=("sh", "systemd"), default="sh",
+                   help="sh: the script in a chroot of the host root (default); systemd: the host's systemd as PID 1, "
+                        "the script as a oneshot service (systemctl and journalctl work; docs/vcan-vm.md)")
     p.add_argument("-v", "--verbose", action="store_true", help="stream the whole console")
     p.set_defaults(func=_cmd_run)
     args = parser.parse_args(argv)
