@@ -16,20 +16,16 @@ Marked `vcan`; skipped, naming what is missing, without QEMU, the Debian kernel,
 """
 from __future__ import annotations
 
-import os
-import subprocess
-import sys
-from pathlib import Path
 
 import can
 import pytest
 
 from can_dbc.adapter import default_source, pgn_of
+from tests.tools.vcan_helpers import skip_without_vm, steady_drive_log
 from tools.vcan_vm import harness as vcan_vm
 
 pytestmark = pytest.mark.vcan
 
-REPO = Path(__file__).resolve().parents[2]
 SENSOR_SA = default_source("GBX_STATUS")
 STATUS_PGN = 0xFF4F
 PART_S = 20.0
@@ -91,17 +87,9 @@ stamp script end
 
 @pytest.fixture(scope="module")
 def vm_run(tmp_path_factory):
-    missing = vcan_vm.vm_prerequisites()
-    if missing:
-        pytest.skip("vcan VM prerequisites missing: " + "; ".join(missing) + f" ({vcan_vm.INSTALL_HINT})")
+    skip_without_vm()
     share = tmp_path_factory.mktemp("vcan-faults")
-    env = {**os.environ, "PYTHONPATH": str(REPO) + os.pathsep + os.environ.get("PYTHONPATH", "")}
-    p = subprocess.run([sys.executable, "-m", "tools.cli", "simulate", "--cycle",
-                        f"steady:gear=9,rpm=1400,nm=1800,s={2 * PART_S:.0f}", "--out", str(share / "plant.csv"),
-                        "--can-log", str(share / "drive.log"), "--quiet"],
-                       cwd=REPO, env=env, capture_output=True, text=True, timeout=600)
-    assert p.returncode == 0, p.stderr
-    lines = (share / "drive.log").read_text().splitlines()
+    lines = steady_drive_log(share, 2 * PART_S).read_text().splitlines()
     t = [float(line.split(")")[0].lstrip("(")) for line in lines]
     (share / "part1.log").write_text("\n".join(x for x, ti in zip(lines, t) if ti - t[0] < PART_S) + "\n")
     edges = {"part2a": (PART_S, PART_S + FREE_S), "part2b": (PART_S + FREE_S, PART_S + FREE_S + FULL_S),

@@ -20,20 +20,17 @@ systemd and udev on the host. About 3 minutes (the service's start-up under TCG 
 """
 from __future__ import annotations
 
-import os
 import re
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
 
 from can_dbc.adapter import default_source, pgn_of
+from tests.tools.vcan_helpers import skip_without_vm, steady_drive_log
 from tools.vcan_vm import harness as vcan_vm
 
 pytestmark = pytest.mark.vcan
 
-REPO = Path(__file__).resolve().parents[2]
 SENSOR_SA = default_source("GBX_STATUS")
 STATUS_PGN = 0xFF4F
 DRIVE_S = 12
@@ -102,16 +99,9 @@ def _systemd_missing() -> list[str]:
 
 @pytest.fixture(scope="module")
 def vm_run(tmp_path_factory):
-    missing = vcan_vm.vm_prerequisites() + _systemd_missing()
-    if missing:
-        pytest.skip("vcan VM prerequisites missing: " + "; ".join(missing) + f" ({vcan_vm.INSTALL_HINT})")
+    skip_without_vm(_systemd_missing())
     share = tmp_path_factory.mktemp("vcan-systemd")
-    env = {**os.environ, "PYTHONPATH": str(REPO) + os.pathsep + os.environ.get("PYTHONPATH", "")}
-    p = subprocess.run([sys.executable, "-m", "tools.cli", "simulate", "--cycle",
-                        f"steady:gear=9,rpm=1400,nm=1800,s={DRIVE_S}", "--out", str(share / "plant.csv"),
-                        "--can-log", str(share / "drive.log"), "--quiet"],
-                       cwd=REPO, env=env, capture_output=True, text=True, timeout=600)
-    assert p.returncode == 0, p.stderr
+    steady_drive_log(share, DRIVE_S)
     try:
         res = vcan_vm.run_in_vm(VM_SCRIPT, timeout_s=900, share_dir=share, init="systemd")
     except vcan_vm.VMUnavailable as exc:
