@@ -12,7 +12,8 @@ sent READY=1). What must hold:
 
 Drop-ins adapt the machine, not the behaviour under test: the repo on PYTHONPATH; when the test's Python lives under
 /root or /home (the unit's ProtectHome=yes hides those, and a dynamic user cannot read them), the service runs as
-root with ProtectHome off; when the checkout lives under /tmp (the unit's PrivateTmp=yes hides it), PrivateTmp off.
+root with ProtectHome off (a venv's Python counts where its base interpreter lives); when the checkout or the
+Python lives under /tmp (the unit's PrivateTmp=yes hides it), PrivateTmp off.
 docs/gateway.md tells integrators to install into a system-wide venv.
 
 Marked `vcan`; skipped, naming what is missing, without QEMU, the Debian kernel, busybox-static, can-utils or
@@ -57,11 +58,12 @@ wait_new_main() {
 "$VM_PYTHON" -m tools.cli service-unit --interface socketcan --channel vcan0 > $UNIT || exit 3
 mkdir -p $UNIT.d
 printf '[Service]\nEnvironment=PYTHONPATH=%s\n' "$VM_REPO" > $UNIT.d/repo.conf
-case "$VM_PYTHON" in /root/*|/home/*)
+# the Python as the unit runs it (a venv's python is a symlink to its base interpreter)
+case "$VM_PYTHON $(readlink -f "$VM_PYTHON")" in /root/*|/home/*|*" /root/"*|*" /home/"*)
     printf '[Service]\nProtectHome=no\nDynamicUser=no\n' > $UNIT.d/python-under-home.conf
     echo "python_under_home=1" >> result.txt;;
 esac
-case "$VM_REPO" in /tmp/*|/var/tmp/*)
+case "$VM_REPO $VM_PYTHON" in /tmp/*|/var/tmp/*|*" /tmp/"*|*" /var/tmp/"*)
     printf '[Service]\nPrivateTmp=no\n' > $UNIT.d/repo-under-tmp.conf
     echo "repo_under_tmp=1" >> result.txt;;
 esac
