@@ -86,7 +86,11 @@ TABLE_FIELDS = (
     + [(k, "pr") for k in ("input_lo", "input_hi", "clamp_lo", "clamp_hi", "aux_default")]
     + [(k, "r") for k in ("hold_s", "drive_frozen_s", "oil_frozen_s", "oil_frozen_drift_c", "oil_step_c")]
     + [(k, "pr") for k in ("warning_c", "critical_c", "hysteresis_k", "warning_rest_c")]
-    + [("debounce_s", "r"), ("lead_s", "r")])
+    + [("debounce_s", "r"), ("lead_s", "r")]
+    + [("C_j_per_k", "pr")] + [(k, "pi") for k in ("ldl_perm", "ldl_pos", "ldl_col_ptr", "ldl_row", "ldl_link_slot",
+                                                   "ldl_upd_ptr", "ldl_upd_target", "ldl_upd_a", "ldl_upd_b",
+                                                   "ttl_relin")]
+    + [(k, "i") for k in ("ldl_nnz", "ldl_nupd", "ttl_sump_model", "ttl_relinearise")])
 
 
 def structs(real) -> dict:
@@ -195,6 +199,8 @@ def _open(path: Path, real: str):
     lib.gvs_step_batch.argtypes = [P(S["Tables"]), C.c_void_p, C.c_int64, C.c_int64, C.c_void_p, C.c_void_p,
                                    C.c_void_p, C.c_void_p, C.c_void_p, C.c_void_p]
     lib.gvs_step_batch.restype = C.c_int
+    lib.gvs_ttl_refresh.argtypes = [P(S["Tables"]), C.c_void_p, C.c_void_p, C.c_void_p]
+    lib.gvs_ttl_refresh.restype = C.c_int
     return lib, S
 
 

@@ -29,7 +29,7 @@ from firmware_model.onboard.kernel_tables import VEHICLE_EFFECTS, table_arrays, 
 from firmware_model.onboard.params import SensorParams
 from firmware_model.onboard.records import N_INPUTS, N_PUB, SensorInputs, SensorOutputs, SensorState, SensorStatus
 from firmware_model.onboard.step_cache import StepCache
-from firmware_model.onboard.time_to_limit import TtlJob, TtlPoint, time_to_limit
+from firmware_model.onboard.time_to_limit import TtlJob, TtlPoint
 
 
 class BufferedState(SensorState):
@@ -158,7 +158,7 @@ class CompiledCore:
             bool(p["measured"]), int(p["row"]), float(p["omega_in_rad_s"]), float(p["T_oil_c"]),
             p["T_bc_c"][:nb].astype(float), p["used"].astype(float), float(p["rho_cp_j_per_m3k"]))
             for p in (pts[v] for v in vehicles))
-        return TtlJob(vehicles, points)
+        return TtlJob(vehicles, points, pts)
 
     # -- steps
 
@@ -208,13 +208,35 @@ class CompiledCore:
         return np.ascontiguousarray(jump, dtype=np.int8).reshape(-1)
 
     def refresh_ttl(self, state: SensorState, job: TtlJob | None, cache: StepCache) -> SensorState:
-        """The time-to-limit refresh a step left (numpy, firmware_model.onboard.time_to_limit), into a new state."""
+        """The time-to-limit refresh a step left (the kernel's gvs_ttl_refresh; a job made by the numpy step: its
+        points converted), into a new state."""
         if job is None:
             return state
         buf = self.pack(state)
-        for v, point in zip(job.vehicles, job.points):
-            buf["ttl_s"][v] = time_to_limit(self.sp, cache, point)
+        pts = job.raw if job.raw is not None else self._points(job)
+        V = buf.shape[0] if buf.shape else None
+        veh = self.vehicles(V)
+        ttl = np.zeros(N_PUB, dtype=self.S["real"])
+        for v in job.vehicles:
+            i = int(np.ravel_multi_index(v, pts.shape)) if v else 0
+            self.lib.gvs_ttl_refresh(self._tables_p, veh.ctypes.data + (i if veh.shape[0] > 1 else 0) * veh.itemsize,
+                                     pts.ctypes.data + i * pts.itemsize, ttl.ctypes.data)
+            buf["ttl_s"][v] = ttl
         return self.unpack(buf)
+
+    def _points(self, job: TtlJob) -> np.ndarray:
+        """gvs_ttl_point records of a job's TtlPoint tuples (batch-shaped like its vehicles)."""
+        shape = () if job.vehicles == ((),) else (max(v[0] for v in job.vehicles) + 1,)
+        pts = np.zeros(shape, dtype=self.S["TtlPoint_dtype"])
+        sizes = dict(T_main_c=self.n, src_w=self.ns, G_w_per_k=self.nl, G_streams_w_per_k=self.nst, T_bc_c=self.nb,
+                     used=N_INPUTS)
+        for v, p in zip(job.vehicles, job.points):
+            for k, size in sizes.items():
+                pts[k][v][:size] = getattr(p, k)
+            for k in ("dT_in_k", "Q_cool_w", "omega_in_rad_s", "T_oil_c", "rho_cp_j_per_m3k", "measured", "row"):
+                pts[k][v] = getattr(p, k)
+            pts["due"][v] = 1
+        return pts
 
     def step_table(self, state: SensorState, raw: np.ndarray, t_s: np.ndarray, cache: StepCache):
         """``(state, TableOutputs)``: one vehicle stepped through N rows of inputs (raw (N, 8) in INPUT_FIELDS
@@ -231,7 +253,7 @@ class CompiledCore:
         j = 0
         while j < N:
             done = self.lib.gvs_run(self._tables_p, veh.ctypes.data_as(C.POINTER(self.S["Vehicle"])),
-                                    buf.ctypes.data, rec[j:].ctypes.data, N - j, 1, out[j:].ctypes.data,
+                                    buf.ctypes.data, rec[j:].ctypes.data, N - j, 0, out[j:].ctypes.data,
                                     pt.ctypes.data, C.byref(status))
             j = self._after_run(buf, rec, out, pt, j, done, status.value, cache)
         return self.unpack(buf), self._table_outputs(out)
@@ -251,8 +273,8 @@ class CompiledCore:
             pt[...] = one
             j += 1
         if pt["due"]:
-            job = self.ttl_job(pt)
-            buf["ttl_s"] = time_to_limit(self.sp, cache, job.points[0])
+            self.lib.gvs_ttl_refresh(self._tables_p, self.vehicles(None).ctypes.data, pt.ctypes.data,
+                                     buf["ttl_s"].ctypes.data)
             pt["due"] = 0
         return j
 

@@ -15,7 +15,7 @@ from firmware_model.onboard import reduce as R
 from firmware_model.physics.conductance_matrix import conductance_matrix
 from firmware_model.physics.cooler import inlet_drop_k
 from firmware_model.onboard.held_modes import HeldModes, decompose
-from firmware_model.onboard.params import SensorParams, first_row, first_value
+from firmware_model.onboard.params import SensorParams, first_row, first_value, vehicle_value
 from firmware_model.onboard.records import (I_AMB, I_COOL, I_GEAR, I_OIL, I_RET, I_SPEED, I_TORQUE, I_VKMH, MAIN,
                                             TWIN, SensorState)
 from firmware_model.onboard.step_cache import StepCache
@@ -49,15 +49,16 @@ def linear_system(sp: SensorParams, G_w_per_k, q_nodes_w, xfer_nodes_w, T_bc_c, 
 
 
 def cooler_slope_w_per_k(sp: SensorParams, T_oil_c: float, omega_in_rad_s: float, row: int, used,
-                         rho_cp_j_per_m3k: float) -> float:
+                         rho_cp_j_per_m3k: float, vehicle=None) -> float:
     """dQ_cooler/dT_oil [W/K] at this operating point (liquid: its hA unless saturated; air: a finite difference),
-    from firmware_model.onboard.reduce.cooler_heat; ``used``: the step's inputs (INPUT_FIELDS order)."""
+    from firmware_model.onboard.reduce.cooler_heat; ``used``: the step's inputs (INPUT_FIELDS order); ``vehicle``:
+    the batch index whose effects apply (None: the first vehicle's)."""
     rp = sp.reduced
     omega_ls = abs(rp.speed_coef[row, 1]) * omega_in_rad_s
     if rp.cooler_code == R.COOLER_CODES["none"] or omega_ls <= 0.0:
         return 0.0
     args = (omega_ls, omega_in_rad_s, used[I_COOL], used[I_AMB], used[I_VKMH], rho_cp_j_per_m3k,
-            first_value(sp.effects.cooler_scale), first_value(sp.effects.thermostat_offset_c))
+            vehicle_value(sp.effects.cooler_scale, vehicle), vehicle_value(sp.effects.thermostat_offset_c, vehicle))
     if rp.cooler_code == R.COOLER_CODES["liquid"]:
         Q, _, hA = R.cooler_heat(rp, T_oil_c, *args)
         c = rp.cooler

@@ -14,6 +14,7 @@ import numpy as np
 from firmware_model.onboard import reduce as R
 from firmware_model.onboard.conductance_bins import LN_SPEED_BIN, OIL_BIN_C, SPEED_BIN_MIN_RAD_S
 from firmware_model.onboard.params import SensorParams
+from firmware_model.onboard.sparse_ldl import ldl_pattern
 from firmware_model.physics import heat_transfer as ht
 from firmware_model.physics import losses as L
 from firmware_model.physics.cooler import (AIR_FLOW_MAX_REL, AIR_RECIRC_DT_K, AIR_RECIRC_V_KMH, AIR_REF_SPEED_KMH,
@@ -121,9 +122,22 @@ def _sensor(sp: SensorParams) -> dict:
         lead_s=lim.lead_s)
 
 
+def _time_to_limit(sp: SensorParams) -> dict:
+    """The time to limit's tables: heat capacities, the sparse LDL^T pattern (firmware_model.onboard.sparse_ldl),
+    the components whose crossing re-linearises, the options."""
+    rp, h = sp.reduced, sp.helpers
+    pat = ldl_pattern(rp.link_a, rp.link_b, rp.n, rp.i_oil)
+    return dict(
+        C_j_per_k=_f64(h.C), ldl_perm=_i32(pat.perm), ldl_pos=_i32(pat.pos), ldl_col_ptr=_i32(pat.col_ptr),
+        ldl_row=_i32(pat.row), ldl_link_slot=_i32(pat.link_slot), ldl_upd_ptr=_i32(pat.upd_ptr),
+        ldl_upd_target=_i32(pat.upd_target), ldl_upd_a=_i32(pat.upd_a), ldl_upd_b=_i32(pat.upd_b),
+        ttl_relin=_i32(h.ttl_relin_pub), ldl_nnz=int(pat.row.size), ldl_nupd=int(pat.upd_target.size),
+        ttl_sump_model=int(sp.options.ttl_sump == "model"), ttl_relinearise=int(bool(sp.scalar_effects)))
+
+
 def table_arrays(sp: SensorParams) -> dict:
     """{gvs_tables field: int, float or 1-D array (int32 or float64)} of a sensor's parameters."""
-    return {**_network(sp), **_losses(sp), **_cooler(sp), **_constants(), **_sensor(sp)}
+    return {**_network(sp), **_losses(sp), **_cooler(sp), **_constants(), **_sensor(sp), **_time_to_limit(sp)}
 
 
 #: the per-vehicle effect fields of gvs_vehicle, in order (EffectScales names)

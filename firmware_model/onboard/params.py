@@ -105,6 +105,14 @@ def first_value(value) -> float:
     return float(a) if a.ndim == 0 else float(a.reshape(-1)[0])
 
 
+def vehicle_value(value, vehicle=None) -> float:
+    """One vehicle's value of an effect that may be per vehicle (``vehicle``: its batch index; None: the first)."""
+    a = np.asarray(value, dtype=float)
+    if a.ndim == 0:
+        return float(a)
+    return float(a[vehicle]) if vehicle is not None and len(vehicle) == a.ndim else float(a.reshape(-1)[0])
+
+
 def first_row(value) -> np.ndarray:
     """One row of a per-source effect that may be per vehicle (the first vehicle's)."""
     a = np.asarray(value, dtype=float)

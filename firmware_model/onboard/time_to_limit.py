@@ -2,10 +2,10 @@
 
 Every ``ttl_period_s`` the step leaves a :class:`TtlJob` (one :class:`TtlPoint` per vehicle due: the state after
 the step and the operating point it used); :func:`refresh_ttl` solves it after the step's outputs are out. The
-held-input network is linear (firmware_model.onboard.held_inputs); its modes are cached per quantised operating
-point (1 % in speed, 2 K in oil, the cooler slope in 10 W/K bins) in the step cache, the steady state and modal
-coefficients come from the actual heat, boundaries and inlet drop, and the first crossing of each limit from
-:meth:`firmware_model.onboard.held_modes.HeldModes.time_to_limit`. With the sump modelled the sump warms or cools
+held-input network is linear (:func:`held_system`: K from the step's conductances, the cooler linearised, the
+oil-system inlet following a modelled sump), and the first crossing of each limit comes from marching it
+(:func:`firmware_model.onboard.held_march.march_time_to_limit`: steady state, TR-BDF2 on a geometric grid, no
+eigen-decomposition; the compiled kernel runs the same method). With the sump modelled the sump warms or cools
 under the held load, and the losses and the oil-side conductances move with it: the system is re-linearised at the
 sump temperature the previous solution predicts at the earliest crossing (docs/sensor.md).
 """
@@ -22,18 +22,13 @@ from firmware_model.onboard.conductance_bins import LN_SPEED_BIN, OIL_BIN_C, SPE
 from firmware_model.physics.conductance_matrix import conductance_matrix
 from firmware_model.onboard.held_inputs import cooler_slope_w_per_k
 from firmware_model.physics.cooler import INLET_DROP_MAX_K
-from firmware_model.onboard.held_modes import Coupling, HeldModes, decompose
+from firmware_model.onboard.held_march import HeldSystem, March, march_time_to_limit
 from firmware_model.onboard.params import SensorParams
 from firmware_model.onboard.records import I_RET, I_TORQUE, N_PUB, SensorState
 from firmware_model.onboard.step_cache import StepCache
 
-#: bin of the cooler slope dQ/dT_oil in the cached held-input modes (model-oil mode) [W/K]
-SLOPE_BIN_W_PER_K = 10.0
-#: operating-point bins of the cached held-input modes: 1 % in speed (4 % made the coupled inlet ~4 % slow on the
-#: uphill cycle: the coupling column scales with speed), 2 K in oil temperature
-TTL_SPEED_BIN_REL = 0.01
-TTL_OIL_BIN_C = 2.0
-LN_TTL_SPEED_BIN = math.log1p(TTL_SPEED_BIN_REL)
+#: the coupled held system must keep 1 - e_sump^T K^-1 u above this (else a real mode grows: the inlet is frozen)
+COUPLING_MARGIN = 1.0e-6
 #: with the sump modelled: re-linearise the held-input system this many times at the sump temperature the last
 #: solution predicts at the earliest crossing (the losses and oil-side conductances follow the sump; docs/sensor.md)
 TTL_RELINEARISE_STEPS = 2
@@ -64,15 +59,16 @@ class TtlPoint(NamedTuple):
 
 
 class TtlJob(NamedTuple):
-    """The time-to-limit refreshes a step leaves: the batch index of each vehicle due and its point."""
+    """The time-to-limit refreshes a step leaves: the batch index of each vehicle due and its point (and, from the
+    compiled core, the kernel's own gvs_ttl_point records, which it refreshes from)."""
     vehicles: tuple
     points: tuple
+    raw: object = None
 
 
 class _Solution(NamedTuple):
     ttl_s: np.ndarray        # (28,) time to limit per published component [s]
-    modes: HeldModes
-    T_inf_c: np.ndarray      # steady state over the free nodes [degC]
+    march: March | None      # the march (None: no finite steady state, "not available")
 
 
 def refresh_ttl(state: SensorState, job: TtlJob | None, sp: SensorParams, cache: StepCache) -> SensorState:
@@ -81,27 +77,24 @@ def refresh_ttl(state: SensorState, job: TtlJob | None, sp: SensorParams, cache:
         return state
     ttl = np.array(state.ttl_s, dtype=float, copy=True)
     for v, point in zip(job.vehicles, job.points):
-        ttl[v] = time_to_limit(sp, cache, point)
+        ttl[v] = time_to_limit(sp, cache, point, v)
     return state._replace(ttl_s=ttl)
 
 
-def time_to_limit(sp: SensorParams, cache: StepCache, p: TtlPoint) -> np.ndarray:
+def time_to_limit(sp: SensorParams, cache: StepCache, p: TtlPoint, vehicle=None) -> np.ndarray:
     """Time [s] until each published component reaches its warning limit if the current inputs are held.
 
     With the sump modelled (``ttl_sump = "model"``) the system is re-linearised at the sump temperature the
     previous solution predicts at the earliest crossing (from the same state), up to TTL_RELINEARISE_STEPS times."""
-    sol = _solve(sp, cache, p, p.src_w, p.G_w_per_k, p.G_streams_w_per_k, p.T_oil_c)
+    sol = _solve(sp, p, p.src_w, p.G_w_per_k, p.G_streams_w_per_k, p.T_oil_c, vehicle)
     if sp.options.ttl_sump != "model" or not sp.scalar_effects:
         return sol.ttl_s
     rp, h, e = sp.reduced, sp.helpers, sp.effects
     T_op_c = p.T_oil_c
     for _ in range(TTL_RELINEARISE_STEPS):
-        ttl_cand_s = sol.ttl_s[h.ttl_relin_pub]
-        ttl_cand_s = ttl_cand_s[(ttl_cand_s > 0.0) & np.isfinite(ttl_cand_s)]
-        if ttl_cand_s.size == 0:
+        if sol.march is None or math.isnan(sol.march.watch_T_c):
             break
-        T_free_c = sol.modes.propagate(p.T_main_c[sol.modes.free], sol.T_inf_c, float(ttl_cand_s.min()))
-        T_next_c = float(T_free_c[rp.i_oil])           # every node is free with the sump modelled
+        T_next_c = sol.march.watch_T_c        # the sump at the earliest crossing of a component (not the sump)
         if abs(T_next_c - T_op_c) < TTL_RELINEARISE_TOL_K:
             break
         T_op_c = T_next_c
@@ -111,7 +104,7 @@ def time_to_limit(sp: SensorParams, cache: StepCache, p: TtlPoint) -> np.ndarray
         src_op_w = R.heat_sources(rp, p.row, p.omega_in_rad_s, abs(float(p.used[I_TORQUE])), prop, x, e.src_scale,
                                 e.churn_scale, e.needle_scale, retarder_w, h)
         bins = cache.bins.get(sp, p.row, *_bin_centre(p.omega_in_rad_s, T_op_c))
-        sol = _solve(sp, cache, p, src_op_w, bins.G_w_per_k, bins.G_streams_w_per_k, T_op_c)
+        sol = _solve(sp, p, src_op_w, bins.G_w_per_k, bins.G_streams_w_per_k, T_op_c, vehicle)
     return sol.ttl_s
 
 
@@ -144,73 +137,38 @@ def _oil_flow_m3_s(sp: SensorParams, row: int, omega_in_rad_s: float) -> float:
     return rp.flow_m3_per_rad * abs(float(rp.speed_coef[row, 1])) * omega_in_rad_s
 
 
-def _held_modes(sp: SensorParams, cache: StepCache, p: TtlPoint, G_w_per_k, measured: bool,
-                T_op_c: float) -> tuple[HeldModes, float]:
-    """(modes, binned cooler slope [W/K]) of the held-input system. Scalar effects: K at the centre of the modes' own
-    bin (1 % in speed, 2 K in oil, the cooler slope at the centre in 10 W/K), cached; per-vehicle effects: the
-    vehicle's own conductances, not cached."""
+def held_system(sp: SensorParams, p: TtlPoint, src_w, G_w_per_k, G_streams_w_per_k, T_op_c: float,
+                measured: bool, vehicle=None) -> tuple[HeldSystem, np.ndarray]:
+    """(the held-input system over its free nodes, the free nodes) at the operating point's oil temperature T_op
+    (losses ``src_w`` and conductances ``G_w_per_k`` given for it), the cooler linearised at the step's sump
+    ``p.T_oil_c`` with its slope at T_op: K from the conductances, the inlet coupling when the inlet follows the
+    sump (and the coupled system passes the stability test below), b from the heat, the boundaries, the inlet drop
+    and a measured sump."""
     rp, h = sp.reduced, sp.helpers
-    omega_in_rad_s, key = p.omega_in_rad_s, None
-    if sp.scalar_effects:
-        wb = round(math.log(omega_in_rad_s) / LN_TTL_SPEED_BIN) if omega_in_rad_s >= SPEED_BIN_MIN_RAD_S else None
-        T_b_c = round(T_op_c / TTL_OIL_BIN_C) * TTL_OIL_BIN_C
-        omega_c_rad_s = math.exp(wb * LN_TTL_SPEED_BIN) if wb is not None else 0.0
-        T_lin_c, omega_lin_rad_s = T_b_c, omega_c_rad_s
-    else:
-        T_lin_c, omega_lin_rad_s = p.T_oil_c, omega_in_rad_s
-    slope_w_per_k = 0.0 if measured else cooler_slope_w_per_k(sp, T_lin_c, omega_lin_rad_s, p.row, p.used,
-                                                              p.rho_cp_j_per_m3k)
-    sbin = 0 if measured else int(round(slope_w_per_k / SLOPE_BIN_W_PER_K))
-    slope_q_w_per_k = sbin * SLOPE_BIN_W_PER_K
-    couple = _inlet_follows_sump(sp, p, measured, slope_q_w_per_k, T_op_c)
-    if sp.scalar_effects:
-        key = (p.row, wb, T_b_c, bool(measured), sbin, couple)
-        modes = cache.modes.get(key)
-        if modes is not None:
-            return modes, slope_q_w_per_k
-        bins = cache.bins.get(sp, p.row, *_bin_centre(omega_c_rad_s, T_b_c))
-        G_w_per_k, G_streams_w_per_k = bins.G_w_per_k, bins.G_streams_w_per_k
-        # the inlet-coupling column at the bin centre (oil density and heat capacity at T_b_c)
-        _, prop, _ = R.oil_row(rp, T_b_c, h)
-        mcp_c_w_per_k = _oil_flow_m3_s(sp, p.row, omega_c_rad_s) * float(prop[R.P_RHO] * prop[R.P_CP])
-    else:
-        G_streams_w_per_k = p.G_streams_w_per_k
-        mcp_c_w_per_k = _oil_flow_m3_s(sp, p.row, omega_in_rad_s) * p.rho_cp_j_per_m3k
     K, _ = conductance_matrix(G_w_per_k, h.topology)
-    coupling = None
-    if measured:
-        free = np.flatnonzero(np.arange(rp.n) != rp.i_oil)
-    else:
-        free = np.arange(rp.n)
-        K[rp.i_oil, rp.i_oil] += slope_q_w_per_k
-        if couple and mcp_c_w_per_k > 0.0:
+    T_oil_c = p.T_oil_c
+    slope_w_per_k = 0.0 if measured else cooler_slope_w_per_k(sp, T_op_c, p.omega_in_rad_s, p.row, p.used,
+                                                              p.rho_cp_j_per_m3k, vehicle)
+    mcp_w_per_k = p.rho_cp_j_per_m3k * _oil_flow_m3_s(sp, p.row, p.omega_in_rad_s)
+    u = None
+    if not measured:
+        K[rp.i_oil, rp.i_oil] += slope_w_per_k
+        if _inlet_follows_sump(sp, p, measured, slope_w_per_k, T_op_c):
             # the oil-system inlet follows the sump through the linearised cooler: inlet drop
             # (Q0 + slope (T_sump - T0)) / (mdot cp) moves sv (T_sump - T0) slope / (mdot cp) into the streams
-            coupling = Coupling((G_streams_w_per_k @ h.stream_scatter) * (slope_q_w_per_k / mcp_c_w_per_k),
-                                rp.i_oil)
-    modes = decompose(K, free, sp.sqrt_C, coupling)
-    return (cache.modes.put(key, modes) if key is not None else modes), slope_q_w_per_k
-
-
-def _solve(sp: SensorParams, cache: StepCache, p: TtlPoint, src_w, G_w_per_k, G_streams_w_per_k,
-           T_op_c: float) -> _Solution:
-    """One held-input solution at the operating point's oil temperature T_op (bins, losses, conductances), the
-    cooler linearised at the step's sump ``p.T_oil_c``: K (and its modes) from :func:`_held_modes`, b (heat,
-    boundaries, inlet drop, the measured sump) at the actual operating point."""
-    rp, h = sp.reduced, sp.helpers
-    measured = p.measured and sp.options.ttl_sump != "model"   # "model": the sump heats with the held load
-    modes, slope_q_w_per_k = _held_modes(sp, cache, p, G_w_per_k, measured, T_op_c)
-    T_oil_c = p.T_oil_c
-    if modes.coupled:
+            u = (G_streams_w_per_k @ h.stream_scatter) * (slope_w_per_k / mcp_w_per_k)
+            # K - u e^T has det(K) (1 - e^T K^-1 u): at or below 0 a real mode grows; then the inlet is frozen
+            if not 1.0 - float(np.linalg.solve(K, u)[rp.i_oil]) > COUPLING_MARGIN:
+                u = None
+    if u is not None:
         # the inlet drop is dT_in at the current sump and follows it (the coupling column): its part at the
         # current sump goes into b
-        b_in_w = (G_streams_w_per_k * p.dT_in_k) @ h.stream_scatter - modes.coupling_u * T_oil_c
+        b_in_w = (G_streams_w_per_k * p.dT_in_k) @ h.stream_scatter - u * T_oil_c
     else:
         # frozen inlet drop, at the operating point's sump T_op through the linearised cooler
         dT_in_k = p.dT_in_k
         if T_op_c != T_oil_c and not measured:
-            mcp_w_per_k = p.rho_cp_j_per_m3k * _oil_flow_m3_s(sp, p.row, p.omega_in_rad_s)
-            dT_lin_k = (p.Q_cool_w + slope_q_w_per_k * (T_op_c - T_oil_c)) / mcp_w_per_k if mcp_w_per_k > 0.0 \
+            dT_lin_k = (p.Q_cool_w + slope_w_per_k * (T_op_c - T_oil_c)) / mcp_w_per_k if mcp_w_per_k > 0.0 \
                 else 0.0
             dT_in_k = min(max(dT_lin_k, -INLET_DROP_MAX_K), INLET_DROP_MAX_K)
         b_in_w = (G_streams_w_per_k * dT_in_k) @ h.stream_scatter
@@ -218,15 +176,40 @@ def _solve(sp: SensorParams, cache: StepCache, p: TtlPoint, src_w, G_w_per_k, G_
     if measured:
         # links to the (held) measured sump enter b
         b_w = b_w + np.bincount(h.oil_other, G_w_per_k[h.int_idx][h.oil_links] * T_oil_c, minlength=rp.n)
+        free = np.flatnonzero(np.arange(rp.n) != rp.i_oil)
     else:
         # cooler linearised at the current sump: Q = Q0 + g (T - T0)
-        b_w[rp.i_oil] += slope_q_w_per_k * T_oil_c - p.Q_cool_w
-    free = modes.free
-    T_inf_c = modes.steady(b_w[free])
+        b_w[rp.i_oil] += slope_w_per_k * T_oil_c - p.Q_cool_w
+        free = np.arange(rp.n)
+    metzler = True
+    if u is not None:
+        # the maximum principle with the coupling: no negative entry in -A's sump column, no positive row sum of -A
+        # (the boundary links, the cooler's slope and -u: K's links add up to zero in every row)
+        off = np.flatnonzero(np.arange(rp.n) != rp.i_oil)
+        row_sum = np.bincount(h.ea, G_w_per_k[h.ext_idx], minlength=rp.n) - u
+        row_sum[rp.i_oil] += slope_w_per_k
+        metzler = bool(np.all(-K[off, rp.i_oil] + u[off] >= 0.0) and np.all(row_sum >= 0.0))
+        K[:, rp.i_oil] -= u
+    A = K[np.ix_(free, free)]
+    return HeldSystem(A, h.C[free], b_w[free], u is not None, metzler), free
+
+
+def _solve(sp: SensorParams, p: TtlPoint, src_w, G_w_per_k, G_streams_w_per_k, T_op_c: float,
+           vehicle=None) -> _Solution:
+    """One held-input solution at the operating point's oil temperature T_op (:func:`held_system`), marched
+    (firmware_model.onboard.held_march)."""
+    rp, h = sp.reduced, sp.helpers
+    measured = p.measured and sp.options.ttl_sump != "model"   # "model": the sump heats with the held load
+    system, free = held_system(sp, p, src_w, G_w_per_k, G_streams_w_per_k, T_op_c, measured, vehicle)
     pub_free, rows = (h.pub_free_meas, h.pub_rows_meas) if measured else (h.pub_free_all, h.pub_rows_all)
     warning_c = sp.limits.warning_c
+    # with the sump modelled every node is free: watch the sump at the first crossing of the other components
+    march = march_time_to_limit(system, p.T_main_c[free], rows, warning_c[pub_free],
+                                None if measured else h.ttl_relin_pub, rp.i_oil)
+    if march is None:
+        return _Solution(np.full(N_PUB, np.nan), None)
     out = np.full(N_PUB, np.inf)
-    out[pub_free] = modes.time_to_limit(p.T_main_c[free], T_inf_c, rows, warning_c[pub_free])
+    out[pub_free] = march.ttl_s
     if measured:
-        out[I_PUB_OIL] = 0.0 if T_oil_c >= warning_c[I_PUB_OIL] else np.inf
-    return _Solution(out, modes, T_inf_c)
+        out[I_PUB_OIL] = 0.0 if p.T_oil_c >= warning_c[I_PUB_OIL] else np.inf
+    return _Solution(out, march)

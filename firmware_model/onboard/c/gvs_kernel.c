@@ -208,7 +208,8 @@ static gvs_real interp_r(gvs_real x, const gvs_real *xp, const gvs_real *fp, int
 }
 
 static gvs_real cooler_heat(const gvs_tables *tb, const gvs_vehicle *veh, gvs_real T_oil, gvs_real w_ls,
-                            gvs_real w_eng, gvs_real T_cool, gvs_real T_amb, gvs_real v_kmh, gvs_real mcp)
+                            gvs_real w_eng, gvs_real T_cool, gvs_real T_amb, gvs_real v_kmh, gvs_real mcp,
+                            gvs_real *hA_out)
 {
     gvs_real cap = mcp > R_(0.0) ? mcp : R_(0.0), inner, hA, Q;
     if (tb->cooler_code == 0) return R_(0.0);
@@ -232,6 +233,7 @@ static gvs_real cooler_heat(const gvs_tables *tb, const gvs_vehicle *veh, gvs_re
         q = min_r(clip_r(q_lin, R_(0.0), a), tb->air_Qmax_cool);
         Q = (cap > R_(0.0) && a > R_(0.0)) ? q : R_(0.0);
     }
+    if (hA_out) *hA_out = hA;
     return cap > R_(0.0) ? Q : R_(0.0);
 }
 
@@ -368,7 +370,7 @@ static int skip_step(const gvs_tables *tb, gvs_state *st, gvs_outputs *out)
 
 int gvs_check_tables(const gvs_tables *tb)
 {
-    if (tb->n > GVS_MAX_NODES || tb->nl > GVS_MAX_LINKS || tb->ns > GVS_MAX_SRC || tb->nb > GVS_MAX_BC
+    if (tb->n > GVS_MAX_NODES || tb->nl > GVS_MAX_LINKS || tb->ldl_nnz > GVS_MAX_LNZ || tb->ns > GVS_MAX_SRC || tb->nb > GVS_MAX_BC
         || tb->nst > GVS_MAX_STREAMS || tb->n2 > GVS_MAX_TERMS || tb->ne > GVS_MAX_TERMS
         || tb->ncol > GVS_MAX_TERMS || tb->n_gears != GVS_N_GEARS
         || tb->nT < 2 || tb->nT2 < 2 || tb->n_u < 2 || tb->n_u_churn < 2 || tb->nx < 2)
@@ -429,7 +431,7 @@ static void network_step(const gvs_tables *tb, const gvs_vehicle *veh, gvs_state
     mcp = nt->rho_cp * tb->flow_m3_per_rad * w_ls;
     for (cp = 0; cp < 2; ++cp) {
         nt->Q_cool[cp] = cooler_heat(tb, veh, T[cp][tb->i_oil], w_ls, w, c->used[GVS_I_COOL], c->used[GVS_I_AMB],
-                                     c->used[GVS_I_VKMH], mcp);
+                                     c->used[GVS_I_VKMH], mcp, NULL);
         nt->dT_in[cp] = inlet_drop_k(tb, nt->Q_cool[cp], mcp);
     }
     /* one explicit (forward Euler) step of both copies */
@@ -474,6 +476,364 @@ static void ttl_point(const gvs_tables *tb, const gvs_state *st, const check_t *
     p->measured = c->measured;
     p->row = nt->row;
     p->due = 1;
+}
+
+
+/* ---- time to limit: the held-input system marched (time_to_limit.time_to_limit, held_march) --------------------
+ * C dT/dt = -A T + b with the inputs held, A = K (+ the cooler's slope on the sump) - u e_sump^T when the
+ * oil-system inlet follows a modelled sump; K and C/h + K factorised as a sparse LDL^T (the pattern from the
+ * tables), the coupling column by Sherman-Morrison. */
+#define MARCH_H0_S 1.0
+#define MARCH_RATIO 1.4
+#define TTL_HORIZON_S 2.0e6
+#define TTL_QUANTUM_S 0.0078125                        /* 2^-7 s */
+#define MARCH_D_FRAC 0.29289321881345248               /* 1 - 1/sqrt(2): TR-BDF2 with gamma = 2 - sqrt(2) */
+#define MARCH_A1 1.2071067811865475                    /* 1 / (gamma (2 - gamma)) */
+#define MARCH_A0 0.20710678118654746                   /* (1 - gamma)^2 / (gamma (2 - gamma)) */
+#define HERMITE_SAMPLES 16
+#define HERMITE_BISECTIONS 40
+#define TTL_RELINEARISE_STEPS 2
+#define TTL_RELINEARISE_TOL_K 0.5
+#define COUPLING_MARGIN 1.0e-6
+#define LDL_SLOTS (GVS_MAX_NODES + GVS_MAX_LNZ)
+
+typedef struct {
+    const gvs_real *G;                  /* link conductances [W/K] */
+    gvs_real slope;                     /* cooler slope on the sump's diagonal [W/K] */
+    gvs_real u[GVS_MAX_NODES];          /* coupling column [W/K] */
+    gvs_real w[GVS_MAX_NODES];          /* M^-1 (scale u) of the factorised M (Sherman-Morrison) */
+    gvs_real S[LDL_SLOTS];              /* LDL^T slots */
+    int coupled, held, metzler;         /* metzler: the maximum principle holds (held_march) */
+} held_t;
+
+/* S = c_scale C + d K (held: the sump's row and column identity) */
+static void ldl_assemble(const gvs_tables *tb, held_t *hs, gvs_real c_scale, gvs_real d)
+{
+    int32_t n = tb->n, k;
+    gvs_real *S = hs->S;
+    for (k = 0; k < n + tb->ldl_nnz; ++k) S[k] = R_(0.0);
+    for (k = 0; k < n; ++k) S[tb->ldl_pos[k]] = c_scale * tb->C_j_per_k[k];
+    for (k = 0; k < tb->nl; ++k) {
+        int32_t a = tb->link_a[k], b = tb->link_b[k];
+        gvs_real g = d * hs->G[k];
+        S[tb->ldl_pos[a]] += g;
+        if (b < n) {
+            S[tb->ldl_pos[b]] += g;
+            S[tb->ldl_link_slot[k]] -= g;
+        }
+    }
+    S[tb->ldl_pos[tb->i_oil]] += d * hs->slope;
+    if (hs->held) {
+        for (k = 0; k < tb->nl; ++k)
+            if (tb->link_b[k] < n && (tb->link_a[k] == tb->i_oil || tb->link_b[k] == tb->i_oil))
+                S[tb->ldl_link_slot[k]] = R_(0.0);
+        S[tb->ldl_pos[tb->i_oil]] = R_(1.0);
+    }
+}
+
+static int ldl_factor(const gvs_tables *tb, gvs_real *S)
+{
+    int32_t n = tb->n, k, u, e;
+    for (k = 0; k < n; ++k) {
+        gvs_real dk = S[k];
+        if (!(dk > R_(0.0)) || !finite_r((double)dk)) return -1;
+        for (u = tb->ldl_upd_ptr[k]; u < tb->ldl_upd_ptr[k + 1]; ++u)
+            S[tb->ldl_upd_target[u]] -= S[tb->ldl_upd_a[u]] * S[tb->ldl_upd_b[u]] / dk;
+        for (e = tb->ldl_col_ptr[k]; e < tb->ldl_col_ptr[k + 1]; ++e) S[n + e] /= dk;
+    }
+    return 0;
+}
+
+/* x = (LDL^T)^-1 x, x in node order */
+static void ldl_solve(const gvs_tables *tb, const gvs_real *S, gvs_real *x)
+{
+    gvs_real y[GVS_MAX_NODES];
+    int32_t n = tb->n, k, e;
+    for (k = 0; k < n; ++k) y[k] = x[tb->ldl_perm[k]];
+    for (k = 0; k < n; ++k)
+        for (e = tb->ldl_col_ptr[k]; e < tb->ldl_col_ptr[k + 1]; ++e) y[tb->ldl_row[e]] -= S[n + e] * y[k];
+    for (k = 0; k < n; ++k) y[k] /= S[k];
+    for (k = n - 1; k >= 0; --k)
+        for (e = tb->ldl_col_ptr[k]; e < tb->ldl_col_ptr[k + 1]; ++e) y[k] -= S[n + e] * y[tb->ldl_row[e]];
+    for (k = 0; k < n; ++k) x[tb->ldl_perm[k]] = y[k];
+}
+
+/* factorise M = c_scale C + d K and, coupled, w = M^-1 (d u); -1 when M is not positive definite or the coupled
+ * matrix M - d u e^T is singular */
+static int held_factor(const gvs_tables *tb, held_t *hs, gvs_real c_scale, gvs_real d)
+{
+    int32_t i;
+    ldl_assemble(tb, hs, c_scale, d);
+    if (ldl_factor(tb, hs->S) != 0) return -1;
+    if (hs->coupled) {
+        for (i = 0; i < tb->n; ++i) hs->w[i] = d * hs->u[i];
+        ldl_solve(tb, hs->S, hs->w);
+        if (!(R_(1.0) - hs->w[tb->i_oil] != R_(0.0))) return -1;
+    }
+    return 0;
+}
+
+/* x = (M - d u e_sump^T)^-1 x (Sherman-Morrison over the factorised M) */
+static void held_solve(const gvs_tables *tb, const held_t *hs, gvs_real *x)
+{
+    int32_t i;
+    ldl_solve(tb, hs->S, x);
+    if (hs->coupled) {
+        gvs_real f = x[tb->i_oil] / (R_(1.0) - hs->w[tb->i_oil]);
+        for (i = 0; i < tb->n; ++i) x[i] += hs->w[i] * f;
+    }
+}
+
+/* Ae = A e = K e (+ slope on the sump) - u e_sump (held: the sump's row 0) */
+static void held_apply(const gvs_tables *tb, const held_t *hs, const gvs_real *e, gvs_real *Ae)
+{
+    int32_t n = tb->n, k, i;
+    for (i = 0; i < n; ++i) Ae[i] = R_(0.0);
+    for (k = 0; k < tb->nl; ++k) {
+        int32_t a = tb->link_a[k], b = tb->link_b[k];
+        if (b < n) {
+            gvs_real f = hs->G[k] * (e[a] - e[b]);
+            Ae[a] += f;
+            Ae[b] -= f;
+        } else {
+            Ae[a] += hs->G[k] * e[a];
+        }
+    }
+    Ae[tb->i_oil] += hs->slope * e[tb->i_oil];
+    if (hs->coupled)
+        for (i = 0; i < n; ++i) Ae[i] -= hs->u[i] * e[tb->i_oil];
+    if (hs->held) Ae[tb->i_oil] = R_(0.0);
+}
+
+/* dQ_cooler/dT_oil [W/K] (held_inputs.cooler_slope_w_per_k): liquid its hA unless saturated, air a finite
+ * difference */
+static gvs_real cooler_slope(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl_point *p, gvs_real T)
+{
+    gvs_real w_ls = FABS(tb->speed_coef[p->row * tb->n_speed + 1]) * p->omega_in_rad_s, hA, Q, Q_hi, Q_lo;
+    gvs_real mcp = p->rho_cp_j_per_m3k * tb->flow_m3_per_rad * w_ls;
+    const gvs_real *u = p->used;
+    if (tb->cooler_code == 0 || !(w_ls > R_(0.0))) return R_(0.0);
+    if (tb->cooler_code == 1) {
+        Q = cooler_heat(tb, veh, T, w_ls, p->omega_in_rad_s, u[GVS_I_COOL], u[GVS_I_AMB], u[GVS_I_VKMH], mcp, &hA);
+        return (-tb->liquid_Qmax_heat < Q && Q < tb->liquid_Qmax_cool) ? hA : R_(0.0);
+    }
+    Q_hi = cooler_heat(tb, veh, T + R_(0.05), w_ls, p->omega_in_rad_s, u[GVS_I_COOL], u[GVS_I_AMB], u[GVS_I_VKMH],
+                       mcp, NULL);
+    Q_lo = cooler_heat(tb, veh, T - R_(0.05), w_ls, p->omega_in_rad_s, u[GVS_I_COOL], u[GVS_I_AMB], u[GVS_I_VKMH],
+                       mcp, NULL);
+    return max_r((Q_hi - Q_lo) / R_(0.1), R_(0.0));
+}
+
+/* the held system at the operating point's sump T_op (time_to_limit.held_system): factorise K, decide the
+ * coupling, T_inf = A^-1 b; -1 when there is no finite steady state */
+static int held_build(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl_point *p, const gvs_real *src,
+                      const gvs_real *G, const gvs_real *Gs, gvs_real T_op, int measured, held_t *hs,
+                      gvs_real *T_inf)
+{
+    int32_t n = tb->n, k, i, io = tb->i_oil;
+    gvs_real T_oil = p->T_oil_c, mcp, dT_in;
+    gvs_real w_ls = FABS(tb->speed_coef[p->row * tb->n_speed + 1]) * p->omega_in_rad_s;
+    mcp = p->rho_cp_j_per_m3k * tb->flow_m3_per_rad * w_ls;
+    hs->G = G;
+    hs->held = measured;
+    hs->slope = measured ? R_(0.0) : cooler_slope(tb, veh, p, T_op);
+    hs->coupled = 0;
+    for (i = 0; i < n; ++i) hs->u[i] = R_(0.0);
+    if (!measured && hs->slope != R_(0.0) && FABS(p->dT_in_k) < tb->inlet_drop_max_k && mcp > R_(0.0)
+        && FABS((p->Q_cool_w + hs->slope * (T_op - T_oil)) / mcp) < tb->inlet_drop_max_k) {
+        for (k = 0; k < tb->nst; ++k) {
+            gvs_real f = Gs[k] * (hs->slope / mcp);
+            hs->u[tb->stream_node[k]] -= f;
+            hs->u[io] += f;
+        }
+        hs->coupled = 1;
+    }
+    /* K, and the coupling's stability: det(K - u e^T) = det(K) (1 - e^T K^-1 u) */
+    {
+        int coupled = hs->coupled;
+        hs->coupled = 0;
+        if (held_factor(tb, hs, R_(0.0), R_(1.0)) != 0) return -1;
+        if (coupled) {
+            for (i = 0; i < n; ++i) hs->w[i] = hs->u[i];
+            ldl_solve(tb, hs->S, hs->w);
+            if (R_(1.0) - hs->w[io] > R_(COUPLING_MARGIN)) hs->coupled = 1;
+            else for (i = 0; i < n; ++i) hs->u[i] = R_(0.0);
+        }
+    }
+    /* the maximum principle with the coupling: no negative entry in -A's sump column, no positive row sum of -A */
+    hs->metzler = 1;
+    if (hs->coupled) {
+        gvs_real col[GVS_MAX_NODES], rs[GVS_MAX_NODES];
+        for (i = 0; i < n; ++i) {
+            col[i] = hs->u[i];
+            rs[i] = -hs->u[i];
+        }
+        for (k = 0; k < tb->nl; ++k) {
+            int32_t a = tb->link_a[k], b = tb->link_b[k];
+            if (b >= n) rs[a] += G[k];
+            else if (a == io) col[b] += G[k];
+            else if (b == io) col[a] += G[k];
+        }
+        rs[io] += hs->slope;
+        for (i = 0; i < n; ++i)
+            if ((i != io && col[i] < R_(0.0)) || rs[i] < R_(0.0)) hs->metzler = 0;
+    }
+    /* b: heat, inlet drop, boundaries, the sump */
+    for (i = 0; i < n; ++i) T_inf[i] = R_(0.0);
+    for (k = 0; k < tb->nsrc_nz; ++k) T_inf[tb->src_nz_node[k]] += src[tb->src_nz_src[k]] * tb->src_nz_w[k];
+    dT_in = p->dT_in_k;
+    if (!hs->coupled && T_op != T_oil && !measured)
+        dT_in = clip_r(mcp > R_(0.0) ? (p->Q_cool_w + hs->slope * (T_op - T_oil)) / mcp : R_(0.0),
+                       -tb->inlet_drop_max_k, tb->inlet_drop_max_k);
+    for (k = 0; k < tb->nst; ++k) {
+        gvs_real f = Gs[k] * dT_in;
+        T_inf[tb->stream_node[k]] -= f;
+        T_inf[io] += f;
+    }
+    if (hs->coupled)
+        for (i = 0; i < n; ++i) T_inf[i] -= hs->u[i] * T_oil;
+    for (k = 0; k < tb->nl; ++k) {
+        int32_t a = tb->link_a[k], b = tb->link_b[k];
+        if (b >= n) T_inf[a] += G[k] * p->T_bc_c[b - n];
+        else if (measured && (a == io || b == io)) T_inf[a == io ? b : a] += G[k] * T_oil;
+    }
+    if (measured) T_inf[io] = T_oil;
+    else T_inf[io] += hs->slope * T_oil - p->Q_cool_w;
+    /* T_inf = A^-1 b: the factorised K (w = K^-1 u) with the coupling by Sherman-Morrison */
+    held_solve(tb, hs, T_inf);
+    for (i = 0; i < n; ++i)
+        if (!finite_r((double)T_inf[i])) return -1;
+    return 0;
+}
+
+static gvs_real hermite(gvs_real s, gvs_real h, gvs_real f0, gvs_real g0, gvs_real f1, gvs_real g1)
+{
+    gvs_real s2 = s * s, s3 = s2 * s;
+    return (R_(2.0) * s3 - R_(3.0) * s2 + R_(1.0)) * f0 + (s3 - R_(2.0) * s2 + s) * h * g0
+        + (R_(3.0) * s2 - R_(2.0) * s3) * f1 + (s3 - s2) * h * g1;
+}
+
+static gvs_real first_root(gvs_real h, gvs_real f0, gvs_real g0, gvs_real f1, gvs_real g1)
+{
+    gvs_real lo = R_(0.0), hi = R_(1.0);
+    int j;
+    for (j = 1; j <= HERMITE_SAMPLES; ++j) {
+        gvs_real s = (gvs_real)j / (gvs_real)HERMITE_SAMPLES;
+        if (hermite(s, h, f0, g0, f1, g1) >= R_(0.0)) { hi = s; break; }
+        lo = s;
+    }
+    for (j = 0; j < HERMITE_BISECTIONS; ++j) {
+        gvs_real mid = R_(0.5) * (lo + hi);
+        if (hermite(mid, h, f0, g0, f1, g1) >= R_(0.0)) hi = mid;
+        else lo = mid;
+    }
+    return hi;
+}
+
+/* one held-input solution (time_to_limit._solve + held_march.march_time_to_limit): ttl[28]; *T_watch the sump at
+ * the first crossing of a re-linearising component (NaN: none) */
+static int ttl_solve(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl_point *p, const gvs_real *src,
+                     const gvs_real *G, const gvs_real *Gs, gvs_real T_op, int measured, gvs_real *ttl,
+                     gvs_real *T_watch)
+{
+    held_t hs;
+    gvs_real T_inf[GVS_MAX_NODES], e[GVS_MAX_NODES], de[GVS_MAX_NODES], e_g[GVS_MAX_NODES], e_new[GVS_MAX_NODES];
+    gvs_real de_new[GVS_MAX_NODES], Ae[GVS_MAX_NODES], energy = R_(0.0), energy_new, e_max = R_(0.0);
+    const gvs_real *C = tb->C_j_per_k;
+    int8_t open[GVS_N_PUB];
+    int32_t n = tb->n, i, j, any = 0, io = tb->i_oil;
+    double t = 0.0, h = MARCH_H0_S;
+    *T_watch = (gvs_real)NAN;
+    for (j = 0; j < GVS_N_PUB; ++j) ttl[j] = (gvs_real)NAN;
+    memset(e, 0, sizeof e);
+    memset(de, 0, sizeof de);
+    if (held_build(tb, veh, p, src, G, Gs, T_op, measured, &hs, T_inf) != 0) return -1;
+    for (i = 0; i < n; ++i) e[i] = p->T_main_c[i] - T_inf[i];
+    if (measured) e[io] = R_(0.0);
+    held_apply(tb, &hs, e, Ae);
+    for (i = 0; i < n; ++i) {
+        de[i] = -Ae[i] / C[i];
+        energy += C[i] * e[i] * e[i];
+        if (e[i] > e_max) e_max = e[i];
+    }
+    for (j = 0; j < GVS_N_PUB; ++j) {
+        int32_t r = tb->published_index[j];
+        gvs_real lim = tb->warning_c[j];
+        open[j] = 0;
+        if (measured && r == io) {
+            ttl[j] = p->T_oil_c >= lim ? R_(0.0) : (gvs_real)INFINITY;
+            continue;
+        }
+        ttl[j] = p->T_main_c[r] >= lim ? R_(0.0) : (gvs_real)INFINITY;
+        open[j] = p->T_main_c[r] < lim && (!hs.metzler || T_inf[r] + e_max >= lim)
+            && (hs.coupled || T_inf[r] + SQRT(energy / C[r]) >= lim);
+        any |= open[j];
+    }
+    while (any && t < TTL_HORIZON_S) {
+        double h_step = h < TTL_HORIZON_S - t ? h : TTL_HORIZON_S - t;
+        gvs_real d = (gvs_real)(MARCH_D_FRAC * h_step), s_watch = R_(2.0);
+        if (held_factor(tb, &hs, R_(1.0), d) != 0) return -1;
+        for (i = 0; i < n; ++i) e_g[i] = C[i] * e[i] - d * Ae[i];
+        held_solve(tb, &hs, e_g);
+        for (i = 0; i < n; ++i) e_new[i] = C[i] * (R_(MARCH_A1) * e_g[i] - R_(MARCH_A0) * e[i]);
+        held_solve(tb, &hs, e_new);
+        held_apply(tb, &hs, e_new, Ae);
+        energy_new = R_(0.0);
+        e_max = R_(0.0);
+        for (i = 0; i < n; ++i) {
+            de_new[i] = -Ae[i] / C[i];
+            energy_new += C[i] * e_new[i] * e_new[i];
+            if (e_new[i] > e_max) e_max = e_new[i];
+        }
+        any = 0;
+        for (j = 0; j < GVS_N_PUB; ++j) {
+            int32_t r = tb->published_index[j];
+            gvs_real lim = tb->warning_c[j], f1;
+            if (!open[j]) continue;
+            f1 = T_inf[r] + e_new[r] - lim;
+            if (f1 >= R_(0.0)) {
+                gvs_real s = first_root((gvs_real)h_step, T_inf[r] + e[r] - lim, de[r], f1, de_new[r]);
+                double tc = ceil((t + (double)s * h_step) / TTL_QUANTUM_S) * TTL_QUANTUM_S;
+                ttl[j] = (gvs_real)(tc < TTL_HORIZON_S ? tc : TTL_HORIZON_S);
+                open[j] = 0;
+                if (tb->ttl_relin[j] && s < s_watch) s_watch = s;
+                continue;
+            }
+            if (hs.metzler && T_inf[r] + e_max < lim) open[j] = 0;
+            if ((!hs.coupled || energy_new <= energy) && T_inf[r] + SQRT(energy_new / C[r]) < lim) open[j] = 0;
+            any |= open[j];
+        }
+        if (s_watch <= R_(1.0) && *T_watch != *T_watch && !measured)
+            *T_watch = T_inf[io] + hermite(s_watch, (gvs_real)h_step, e[io], de[io], e_new[io], de_new[io]);
+        memcpy(e, e_new, (size_t)n * sizeof(gvs_real));
+        memcpy(de, de_new, (size_t)n * sizeof(gvs_real));
+        energy = energy_new;
+        t += h_step;
+        h *= MARCH_RATIO;
+    }
+    return 0;
+}
+
+int gvs_ttl_refresh(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl_point *p, gvs_real *ttl_s)
+{
+    gvs_real T_watch, T_op = p->T_oil_c, src[GVS_MAX_SRC], G[GVS_MAX_LINKS], Gs[GVS_MAX_STREAMS];
+    int measured = p->measured && !tb->ttl_sump_model, it;
+    oil_row_t o;
+    if (gvs_check_tables(tb) != GVS_OK) return GVS_BAD_TABLES;
+    if (ttl_solve(tb, veh, p, p->src_w, p->G_w_per_k, p->G_streams_w_per_k, T_op, measured, ttl_s, &T_watch) != 0
+        || !tb->ttl_sump_model || !tb->ttl_relinearise)
+        return GVS_OK;
+    for (it = 0; it < TTL_RELINEARISE_STEPS; ++it) {
+        gvs_real w = p->omega_in_rad_s, retarder_w;
+        if (T_watch != T_watch || FABS(T_watch - T_op) < R_(TTL_RELINEARISE_TOL_K)) break;
+        T_op = T_watch;
+        oil_row(tb, T_op, &o, NULL);
+        retarder_w = veh->retarder_frac * p->used[GVS_I_RET] * FABS(tb->speed_coef[p->row * tb->n_speed + 3]) * w;
+        heat_sources(tb, veh, p->row, w, FABS(p->used[GVS_I_TORQUE]), &o, retarder_w, src);
+        bin_conductances(tb, veh, p->row, speed_bin_centre(tb, w), RINT(T_op / tb->oil_bin_c) * tb->oil_bin_c, G, Gs);
+        if (ttl_solve(tb, veh, p, src, G, Gs, T_op, measured, ttl_s, &T_watch) != 0) break;
+    }
+    return GVS_OK;
 }
 
 /* ---- the step (step.step_deferred; step._finish) ------------------------------------------------------------- */
@@ -548,7 +908,11 @@ int64_t gvs_run(const gvs_tables *tb, const gvs_vehicle *veh, gvs_state *st, con
     for (j = 0; j < n_steps; ++j) {
         rc = gvs_step(tb, veh, st, in + j, 0, out + j, ttl);
         if (rc == GVS_NEED_JUMP || rc == GVS_BAD_TABLES) break;
-        if (stop_on_ttl && ttl && ttl->due) { ++j; break; }
+        if (ttl && ttl->due) {
+            if (stop_on_ttl) { ++j; break; }
+            gvs_ttl_refresh(tb, veh, ttl, st->ttl_s);
+            ttl->due = 0;
+        }
     }
     if (status) *status = rc;
     return j;

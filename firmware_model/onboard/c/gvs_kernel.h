@@ -14,11 +14,12 @@
  * The real type is chosen at compile time: double by default (parity with the numpy reference), float with
  * -DGVS_REAL_FLOAT (an ECU with a single-precision FPU). Time stamps stay double in both builds.
  *
- * Two parts of the sensor are not in this kernel yet and are done by the host around it (docs/sensor.md):
- * the refresh of the time to limit (every ttl_every steps; the kernel hands out the operating point in a
- * gvs_ttl_point and counts down what the host wrote into state->ttl_s) and the propagation of the state over a
- * forward time jump (the kernel returns GVS_NEED_JUMP before touching the state; the host propagates state->T_c
- * and calls again with jump_done = 1).
+ * The time to limit is refreshed every ttl_every steps from the operating point a step hands out in a
+ * gvs_ttl_point: gvs_ttl_refresh() marches the held-input system (no eigen-decomposition: a sparse LDL^T and
+ * TR-BDF2 on a geometric grid; docs/sensor.md), gvs_run() does it in place when asked, and a caller that wants the
+ * step's frames out first calls it after the step. One part of the sensor is left to the host: the propagation of
+ * the state over a forward time jump (the kernel returns GVS_NEED_JUMP before touching the state; the host
+ * propagates state->T_c and calls again with jump_done = 1).
  */
 #ifndef GVS_KERNEL_H
 #define GVS_KERNEL_H
@@ -50,6 +51,10 @@ typedef double gvs_real;
 #endif
 #ifndef GVS_MAX_STREAMS
 #define GVS_MAX_STREAMS 32
+#endif
+/* entries of L below the diagonal in the time to limit's sparse LDL^T (GRS905: 178) */
+#ifndef GVS_MAX_LNZ
+#define GVS_MAX_LNZ 512
 #endif
 /* the most terms of one kind of conductance law (tables, closed-form streams) and oil-factor columns */
 #ifndef GVS_MAX_TERMS
@@ -126,6 +131,15 @@ typedef struct {
     gvs_real hold_s, drive_frozen_s, oil_frozen_s, oil_frozen_drift_c, oil_step_c;
     const gvs_real *warning_c, *critical_c, *hysteresis_k, *warning_rest_c;   /* (28) */
     gvs_real debounce_s, lead_s;
+    /* time to limit (gvs_ttl_refresh; firmware_model.onboard.held_march, time_to_limit): heat capacities, the
+     * sparse LDL^T pattern of C/h + K (firmware_model.onboard.sparse_ldl), the components whose crossing
+     * re-linearises, and the options: the sump heats with the held load (else a measured sump is held), and
+     * re-linearise at the predicted sump (every effect one value for all vehicles) */
+    const gvs_real *C_j_per_k;          /* (n) [J/K] */
+    const int32_t *ldl_perm, *ldl_pos, *ldl_col_ptr, *ldl_row, *ldl_link_slot;   /* (n), (n), (n+1), (nnz), (nl) */
+    const int32_t *ldl_upd_ptr, *ldl_upd_target, *ldl_upd_a, *ldl_upd_b;        /* (n+1), (nupd) x 3 */
+    const int32_t *ttl_relin;           /* (28) */
+    int32_t ldl_nnz, ldl_nupd, ttl_sump_model, ttl_relinearise;
 } gvs_tables;
 
 /* Effect values and boundary defaults of one vehicle (firmware_model.effects; neutral = 1 / 0). */
@@ -191,8 +205,15 @@ int gvs_check_tables(const gvs_tables *tb);
 int gvs_step(const gvs_tables *tb, const gvs_vehicle *veh, gvs_state *st, const gvs_inputs *in, int jump_done,
              gvs_outputs *out, gvs_ttl_point *ttl);
 
-/* Steps over a table of inputs (n_steps rows) for one vehicle, writing one gvs_outputs per step. Stops after a
- * step that leaves a due time-to-limit refresh (when stop_on_ttl) and before a step that needs a jump
+/* The time to limit [s] of every published component (0: at or above its warning limit now; +inf: not within
+ * 2e6 s; NaN: the held system has no finite steady state) from a due refresh's operating point p, into ttl_s[28].
+ * Returns GVS_OK, or GVS_BAD_TABLES. Cost: one sparse factorisation and solve, then up to 65 march steps of one
+ * factorisation and three solves each until every component has crossed or provably cannot. */
+int gvs_ttl_refresh(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl_point *p, gvs_real *ttl_s);
+
+/* Steps over a table of inputs (n_steps rows) for one vehicle, writing one gvs_outputs per step. A step that
+ * leaves a due time-to-limit refresh: with stop_on_ttl the run stops after it (the caller refreshes), else the
+ * refresh runs in place (gvs_ttl_refresh into st->ttl_s) when ttl is given. Stops before a step that needs a jump
  * propagated; returns the number of steps done (the caller resumes from there). *status: the last gvs_step
  * return code. */
 int64_t gvs_run(const gvs_tables *tb, const gvs_vehicle *veh, gvs_state *st, const gvs_inputs *in, int64_t n_steps,

@@ -1,0 +1,175 @@
+"""Time to limit by marching the held-input system: no eigen-decomposition, so an ECU can compute it.
+
+With the inputs held the onboard network is linear, ``C dT/dt = -A T + b`` over its free nodes (``A = K``, or
+``K - u e_sump^T`` when the oil-system inlet follows the modelled sump; firmware_model.onboard.time_to_limit builds
+it). This module finds, for each published component, the first time it reaches its warning limit:
+
+1. the steady state ``T_inf = A^-1 b`` (one linear solve);
+2. the deviation ``e = T - T_inf`` marched with TR-BDF2 (gamma = 2 - sqrt 2: a trapezoidal stage to t + gamma h,
+   then BDF2 to t + h; L-stable and second order, and both stages solve with the same matrix ``C + d A``,
+   ``d = (1 - 1/sqrt 2) h``) on a geometric time grid: the first step MARCH_H0_S, each next one MARCH_RATIO times
+   longer, the last one ending at the horizon (2e6 s, 23 days: 65 steps);
+3. a crossing between two grid points is located on the cubic Hermite interpolant of the two states and their
+   derivatives ``de/dt = -C^-1 A e`` (16 samples for the first sign change, then 40 bisections), and reported as
+   the first multiple of TTL_QUANTUM_S at or after it;
+4. the march stops when every component has crossed or can no longer cross, by two bounds on every later t':
+   the maximum principle, ``e_i(t') <= max_j max(e_j(t), 0)``, exact when ``-C^-1 A`` is a Metzler matrix with no
+   positive row sum (always without the coupling: K is a weighted Laplacian plus boundary terms; with it, checked
+   every time), and the energy: with ``A`` symmetric ``E = sum C e^2`` never grows, so
+   ``|e_i(t')| <= sqrt(E(t) / C_i)``. A component whose ``T_inf_i`` plus a bound stays below its limit never
+   reaches it. With the coupling ``A`` is not symmetric and the energy can grow for a while: there the energy
+   bound also needs the energy to have fallen over the last step (a heuristic, not a proof; docs/sensor.md). At
+   t = 0 the bounds alone settle most refreshes (no limit within reach).
+
+The compiled kernel (firmware_model/onboard/c/gvs_kernel.c, ``gvs_ttl_refresh``) runs the same march, grid,
+interpolation, quantum and stopping rule; it solves with a sparse LDL^T of ``C + d K`` in a fill-reducing order
+generated from the topology (firmware_model.onboard.kernel_tables) and a Sherman-Morrison correction for the
+coupling column, where this reference solves the same systems densely (``numpy.linalg.solve``): the two agree to
+rounding.
+"""
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+
+#: first step of the march [s]
+MARCH_H0_S = 1.0
+#: each step this many times longer than the last
+MARCH_RATIO = 1.4
+#: time to limit beyond this is reported as never (inf) [s]
+TTL_HORIZON_S = 2.0e6
+#: the result is the first multiple of this at or after the crossing [s]
+TTL_QUANTUM_S = 2.0 ** -7
+#: TR-BDF2 with gamma = 2 - sqrt(2): both stages solve with C + d A, d = MARCH_D_FRAC h (Eq. of the scheme:
+#: trapezoid to gamma h, then BDF2 e1 = A1 e_gamma - A0 e0 + d C^-1 (-A e1))
+MARCH_GAMMA = 2.0 - math.sqrt(2.0)
+MARCH_D_FRAC = 1.0 - 1.0 / math.sqrt(2.0)
+MARCH_A1 = 1.0 / (MARCH_GAMMA * (2.0 - MARCH_GAMMA))
+MARCH_A0 = (1.0 - MARCH_GAMMA) ** 2 / (MARCH_GAMMA * (2.0 - MARCH_GAMMA))
+#: samples of the Hermite interpolant that look for the first sign change, then bisections
+HERMITE_SAMPLES = 16
+HERMITE_BISECTIONS = 40
+
+
+def march_grid_s() -> np.ndarray:
+    """The march's time grid [s]: 0, then steps of MARCH_H0_S growing by MARCH_RATIO, the last ending at the
+    horizon (the same additions as the kernel, in the same order)."""
+    t, h, out = 0.0, MARCH_H0_S, [0.0]
+    while t < TTL_HORIZON_S:
+        h_step = min(h, TTL_HORIZON_S - t)
+        t = t + h_step
+        out.append(t)
+        h = h * MARCH_RATIO
+    return np.array(out)
+
+
+class HeldSystem(NamedTuple):
+    """``C dT/dt = -A T + b`` over the free nodes."""
+    A_w_per_k: np.ndarray     # (m, m)
+    C_j_per_k: np.ndarray     # (m,)
+    b_w: np.ndarray           # (m,)
+    coupled: bool             # A is not symmetric (the energy rule needs the energy to fall)
+    metzler: bool = True      # -A has no negative entry off its diagonal and no positive row sum (max principle)
+
+
+class March(NamedTuple):
+    """The first crossings, and a node's temperature at the first crossing of the watched rows."""
+    ttl_s: np.ndarray         # (r,) per row: 0 at or above the limit now, inf never within the horizon
+    T_inf_c: np.ndarray       # (m,) steady state
+    watch_t_s: float          # the first crossing (before the quantum) of a watched row; NaN: none crosses
+    watch_T_c: float          # the watched node's temperature then (the Hermite interpolant of its step)
+
+
+def _hermite(s, h, f0, g0, f1, g1):
+    """Cubic Hermite interpolant at s in [0, 1] of values f0, f1 and derivatives g0, g1 over a step h."""
+    s2 = s * s
+    s3 = s2 * s
+    return (2.0 * s3 - 3.0 * s2 + 1.0) * f0 + (s3 - 2.0 * s2 + s) * h * g0 + (3.0 * s2 - 2.0 * s3) * f1 \
+        + (s3 - s2) * h * g1
+
+
+def _first_root(h, f0, g0, f1, g1) -> float:
+    """The first s in (0, 1] where the Hermite interpolant reaches 0 (f0 < 0 <= f1): the first of HERMITE_SAMPLES
+    samples at or above 0 brackets it, bisection narrows it."""
+    lo, hi = 0.0, 1.0
+    for j in range(1, HERMITE_SAMPLES + 1):
+        s = j / HERMITE_SAMPLES
+        if _hermite(s, h, f0, g0, f1, g1) >= 0.0:
+            hi = s
+            break
+        lo = s
+    for _ in range(HERMITE_BISECTIONS):
+        mid = 0.5 * (lo + hi)
+        if _hermite(mid, h, f0, g0, f1, g1) >= 0.0:
+            hi = mid
+        else:
+            lo = mid
+    return hi
+
+
+def _quantum_ceil(t_s: float) -> float:
+    return math.ceil(t_s / TTL_QUANTUM_S) * TTL_QUANTUM_S
+
+
+def march_time_to_limit(sys: HeldSystem, T0_c: np.ndarray, rows: np.ndarray, limit_c: np.ndarray,
+                        watch: np.ndarray | None = None, watch_node: int = 0) -> March | None:
+    """First time [s] each free node ``rows`` reaches ``limit_c`` with the inputs held (module doc); None when the
+    held system has no finite steady state (the caller publishes "not available"). ``watch`` (bool per row): the
+    temperature of free node ``watch_node`` is recorded at the first crossing of a watched row (the time to limit's
+    re-linearisation)."""
+    A, C, b = sys.A_w_per_k, sys.C_j_per_k, sys.b_w
+    try:
+        T_inf = np.linalg.solve(A, b)
+    except np.linalg.LinAlgError:
+        return None
+    if not np.all(np.isfinite(T_inf)):
+        return None
+    e = T0_c - T_inf
+    de = -(A @ e) / C
+    out = np.full(rows.size, np.inf)
+    T0_rows = T0_c[rows]
+    out[T0_rows >= limit_c] = 0.0
+    lim = limit_c
+    Tinf_rows = T_inf[rows]
+    Crow = C[rows]
+    open_ = T0_rows < lim
+    energy = float(np.sum(C * e * e))
+    if sys.metzler:
+        open_ &= Tinf_rows + max(float(e.max()), 0.0) >= lim
+    if not sys.coupled:
+        open_ &= Tinf_rows + np.sqrt(energy / Crow) >= lim
+    watch = np.zeros(rows.size, dtype=bool) if watch is None else np.asarray(watch, dtype=bool)
+    watch_t, watch_T = math.nan, math.nan
+    t, h = 0.0, MARCH_H0_S
+    while open_.any() and t < TTL_HORIZON_S:
+        h_step = min(h, TTL_HORIZON_S - t)
+        d = MARCH_D_FRAC * h_step
+        M = np.diag(C) + d * A
+        e_g = np.linalg.solve(M, C * e - d * (A @ e))
+        e_new = np.linalg.solve(M, C * (MARCH_A1 * e_g - MARCH_A0 * e))
+        de_new = -(A @ e_new) / C
+        t_new = t + h_step
+        f0 = Tinf_rows + e[rows] - lim
+        f1 = Tinf_rows + e_new[rows] - lim
+        s_watch = math.inf
+        for i in np.flatnonzero(open_ & (f1 >= 0.0)):
+            r = rows[i]
+            s = _first_root(h_step, f0[i], de[r], f1[i], de_new[r])
+            out[i] = min(_quantum_ceil(t + s * h_step), TTL_HORIZON_S)
+            open_[i] = False
+            if watch[i] and s < s_watch:
+                s_watch = s
+        if s_watch < math.inf and math.isnan(watch_t):
+            watch_t = t + s_watch * h_step
+            j = watch_node
+            watch_T = float(T_inf[j] + _hermite(s_watch, h_step, e[j], de[j], e_new[j], de_new[j]))
+        energy_new = float(np.sum(C * e_new * e_new))
+        if sys.metzler:
+            open_ &= Tinf_rows + max(float(e_new.max()), 0.0) >= lim
+        if not sys.coupled or energy_new <= energy:
+            open_ &= Tinf_rows + np.sqrt(energy_new / Crow) >= lim
+        e, de, t, energy = e_new, de_new, t_new, energy_new
+        h = h * MARCH_RATIO
+    return March(out, T_inf, watch_t, watch_T)
