@@ -820,6 +820,10 @@ int gvs_ttl_refresh(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl_
     int measured = p->measured && !tb->ttl_sump_model, it;
     oil_row_t o;
     if (gvs_check_tables(tb) != GVS_OK) return GVS_BAD_TABLES;
+    if (tb->ldl_nnz <= 0) {                       /* a build without the time to limit's tables: not available */
+        for (it = 0; it < GVS_N_PUB; ++it) ttl_s[it] = (gvs_real)NAN;
+        return GVS_OK;
+    }
     if (ttl_solve(tb, veh, p, p->src_w, p->G_w_per_k, p->G_streams_w_per_k, T_op, measured, ttl_s, &T_watch) != 0
         || !tb->ttl_sump_model || !tb->ttl_relinearise)
         return GVS_OK;
