@@ -6,14 +6,15 @@
 
 * :meth:`CompiledCore.step_deferred` / :meth:`CompiledCore.refresh_ttl`: one step of one vehicle (batch shape ())
   or of a batch (V,) in one call into C;
-* :meth:`CompiledCore.step_table`: a whole table of one vehicle's inputs in as few calls as the time-to-limit
-  refreshes allow (the kernel stops after each step that leaves one; docs/sensor.md).
+* :meth:`CompiledCore.step_table`: a whole table of one vehicle's inputs in one call (the kernel refreshes the time
+  to limit in place; it stops only before a forward time jump, which the host propagates; docs/sensor.md).
 
 The states it returns are :class:`BufferedState` records: their arrays are views into one buffer of the kernel's
 ``gvs_state`` structs, so that the next step hands that buffer to C without packing. Everything else (the numpy
-step, snapshots, the service) reads them as any SensorState. Two parts stay on the host, in numpy, as the kernel's
-header says: the time-to-limit refresh (firmware_model.onboard.time_to_limit) and the propagation of the state over
-a forward time jump (firmware_model.onboard.held_inputs.jump_state).
+step, snapshots, the service) reads them as any SensorState. The time-to-limit refresh runs in the kernel
+(``gvs_ttl_refresh``: :meth:`CompiledCore.refresh_ttl` after a step, in place inside a table's ``gvs_run``); one
+part stays on the host, in numpy, as the kernel's header says: the propagation of the state over a forward time
+jump (firmware_model.onboard.held_inputs.jump_state).
 """
 from __future__ import annotations
 

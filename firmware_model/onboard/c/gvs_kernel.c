@@ -535,16 +535,18 @@ static int ldl_factor(const gvs_tables *tb, gvs_real *S)
 {
     int32_t n = tb->n, k, u, e;
     for (k = 0; k < n; ++k) {
-        gvs_real dk = S[k];
+        gvs_real dk = S[k], inv;
         if (!(dk > R_(0.0)) || !finite_r((double)dk)) return -1;
+        inv = R_(1.0) / dk;
         for (u = tb->ldl_upd_ptr[k]; u < tb->ldl_upd_ptr[k + 1]; ++u)
-            S[tb->ldl_upd_target[u]] -= S[tb->ldl_upd_a[u]] * S[tb->ldl_upd_b[u]] / dk;
-        for (e = tb->ldl_col_ptr[k]; e < tb->ldl_col_ptr[k + 1]; ++e) S[n + e] /= dk;
+            S[tb->ldl_upd_target[u]] -= S[tb->ldl_upd_a[u]] * inv * S[tb->ldl_upd_b[u]];
+        for (e = tb->ldl_col_ptr[k]; e < tb->ldl_col_ptr[k + 1]; ++e) S[n + e] *= inv;
+        S[k] = inv;                                  /* the diagonal kept as its inverse */
     }
     return 0;
 }
 
-/* x = (LDL^T)^-1 x, x in node order */
+/* x = (LDL^T)^-1 x, x in node order (S from ldl_factor: L below the diagonal, D^-1 on it) */
 static void ldl_solve(const gvs_tables *tb, const gvs_real *S, gvs_real *x)
 {
     gvs_real y[GVS_MAX_NODES];
@@ -552,7 +554,7 @@ static void ldl_solve(const gvs_tables *tb, const gvs_real *S, gvs_real *x)
     for (k = 0; k < n; ++k) y[k] = x[tb->ldl_perm[k]];
     for (k = 0; k < n; ++k)
         for (e = tb->ldl_col_ptr[k]; e < tb->ldl_col_ptr[k + 1]; ++e) y[tb->ldl_row[e]] -= S[n + e] * y[k];
-    for (k = 0; k < n; ++k) y[k] /= S[k];
+    for (k = 0; k < n; ++k) y[k] *= S[k];          /* D^-1 */
     for (k = n - 1; k >= 0; --k)
         for (e = tb->ldl_col_ptr[k]; e < tb->ldl_col_ptr[k + 1]; ++e) y[k] -= S[n + e] * y[tb->ldl_row[e]];
     for (k = 0; k < n; ++k) x[tb->ldl_perm[k]] = y[k];
