@@ -39,17 +39,30 @@ the CAN edge (``can_dbc``: python-can, cantools) are imported by the service its
 """
 from __future__ import annotations
 
-from firmware_model.service.build import build_service
-from firmware_model.service.core import DM1_PERIOD_STEPS, SensorService
-from firmware_model.service.live import LatencyFigures, QueueListener, ServeResult, serve
-from firmware_model.service.options import (GEAR_RANGE, INPUT_COLUMNS, INPUT_SIGNALS, NOMINAL_PERIOD_S,
-                                            SENSOR_INPUTS, ServiceOptions, can_filters, parse_gear_map, rig_pgns,
-                                            wanted_pgns)
-from firmware_model.service.protocol import StepSensor, check_sensor
-from firmware_model.service.records import (GbxStatus, OutputRow, RecordedOutputs, StepInputs, StepKind,
-                                            StepRequest)
+import importlib
 
-__all__ = ["build_service", "DM1_PERIOD_STEPS", "SensorService", "LatencyFigures", "QueueListener", "ServeResult",
-           "serve", "GEAR_RANGE", "INPUT_COLUMNS", "INPUT_SIGNALS", "NOMINAL_PERIOD_S", "SENSOR_INPUTS",
-           "ServiceOptions", "can_filters", "parse_gear_map", "rig_pgns", "wanted_pgns", "StepSensor",
-           "check_sensor", "GbxStatus", "OutputRow", "RecordedOutputs", "StepInputs", "StepKind", "StepRequest"]
+#: the public names and the submodule each lives in; imported on first use (PEP 562), so that a run-table replay,
+#: which needs only ``options``, does not import python-can (whose MF4 support alone imports asammdf: ~0.5 s)
+_WHERE = {
+    "build_service": "build", "DM1_PERIOD_STEPS": "core", "SensorService": "core", "LatencyFigures": "live",
+    "QueueListener": "live", "ServeResult": "live", "serve": "live", "GEAR_RANGE": "options",
+    "INPUT_COLUMNS": "options", "INPUT_SIGNALS": "records", "NOMINAL_PERIOD_S": "options",
+    "SENSOR_INPUTS": "records", "ServiceOptions": "options", "can_filters": "options", "parse_gear_map": "options",
+    "rig_pgns": "options", "wanted_pgns": "options", "StepSensor": "protocol", "check_sensor": "protocol",
+    "GbxStatus": "records", "OutputRow": "records", "RecordedOutputs": "records", "StepInputs": "records",
+    "StepKind": "records", "StepRequest": "records"}
+
+__all__ = list(_WHERE)
+
+
+def __getattr__(name: str):
+    where = _WHERE.get(name)
+    if where is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(importlib.import_module(f"{__name__}.{where}"), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__():
+    return sorted(list(globals()) + __all__)

@@ -13,19 +13,13 @@ from can_dbc.j1939 import receive_filter
 from firmware_model.components import STEP_S
 from firmware_model.errors import ParameterError
 from firmware_model.service.netmgmt import PGN_ADDRESS_CLAIMED, PGN_REQUEST, J1939Name
-from firmware_model.service.records import StepInputs
+from firmware_model.service.records import INPUT_SIGNALS, SENSOR_INPUTS, StepInputs  # noqa: F401 (re-exported)
 
 #: nominal transmission period of each input message [s], the service's staleness clock: J1939-71 defaults (EEC1 is
 #: engine-speed dependent, 10-20 ms: its upper bound), except CCVS1 taken as 1 s (synthesized logs and some trucks
 #: send it every second; the DBC's cycle time is J1939's 100 ms); RIG = the rig thermocouple frames
 NOMINAL_PERIOD_S = {"EEC1": 0.02, "ETC2": 0.1, "TRF1": 1.0, "ET1": 1.0, "AMB": 1.0, "CCVS1": 1.0, "ERC1": 0.1,
                     "RIG": 0.1}
-#: the decoder signal of each sensor input field (StepInputs order); it is also the input's run-table column
-#: (the run-table column names, tools/runtable.py)
-INPUT_SIGNALS = ("engine_speed_rpm", "engine_torque_nm", "gear", "oil_temp_c", "ambient_temp_c", "coolant_temp_c",
-                 "vehicle_speed_kmh", "retarder_torque_nm")
-#: (sensor input field, decoder signal) pairs
-SENSOR_INPUTS = tuple(zip(StepInputs._fields, INPUT_SIGNALS))
 #: run-table columns of the decoded inputs (StepInputs order) and the two extra decoded columns
 INPUT_COLUMNS = (*INPUT_SIGNALS, "engine_torque_pct", "engine_ref_torque_nm")
 #: the time-base check (``firmware_model.service.trust``): windows of this much frame time, this many in a row

@@ -31,6 +31,14 @@ class StepInputs(NamedTuple):
     retarder_torque_nm: float | None
 
 
+#: the decoder signal of each sensor input field (StepInputs order); it is also the input's run-table column
+#: (the run-table column names, tools/runtable.py)
+INPUT_SIGNALS = ("engine_speed_rpm", "engine_torque_nm", "gear", "oil_temp_c", "ambient_temp_c", "coolant_temp_c",
+                 "vehicle_speed_kmh", "retarder_torque_nm")
+#: (sensor input field, decoder signal) pairs
+SENSOR_INPUTS = tuple(zip(StepInputs._fields, INPUT_SIGNALS))
+
+
 class StepRequest(NamedTuple):
     """One step from the frame half: what to do, the step's frame time (the outputs' timestamp), the inputs, the
     engine reference torque in use (None: none known), the step's run-table time (continuous across time jumps;

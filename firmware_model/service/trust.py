@@ -18,14 +18,15 @@ below; ``gearbox-vsensor replay`` exits 3 when a finding is :attr:`Severity.UNTR
 """
 from __future__ import annotations
 
-import enum
 import math
 from dataclasses import dataclass, field
 from typing import ClassVar, Mapping
 
 from can_dbc.decoder import EC1_KEY, signal_messages
 from can_dbc.j1939 import EC1_PGN
-from firmware_model.components import MODE_NAMES, MODE_NORMAL
+from firmware_model.service.degraded import (DEGRADED_UNTRUSTED_SHARE, DEGRADED_WARN_SHARE,  # noqa: F401 (re-exported)
+                                             INPUT_NAMES, DegradedFinding, Severity, degraded_finding, pct,
+                                             untrusted)
 from firmware_model.service.options import (SOURCE_ADDRESS_KEYS, TIME_BASE_WINDOW_S, TIME_BASE_WINDOWS,
                                             wanted_pgns)
 
@@ -43,32 +44,15 @@ TIME_BASE_FACTOR = 3.0
 #: allowed this much error either way (jitter, a frame more or less at the window's edges)
 TIME_BASE_MIN_FRAMES = 5
 TIME_BASE_TOLERANCE = 1.3
-#: degraded on at least this share of the steps: a loud warning; above the second share: untrusted (`replay`
-#: exits 3). Not initialised counts as degraded (it lasts at most 3 s of a run: 10 % of a 30 s capture).
-DEGRADED_WARN_SHARE = 0.2
-DEGRADED_UNTRUSTED_SHARE = 0.5
 #: frames with data from one foreign source address before it is a finding (a stray frame of a fuzzer is not)
 FOREIGN_MIN_FRAMES = 10
 #: the signals whose absence degrades the sensor (speed, torque, gear, oil, reference torque): a message that
 #: carries one is primary; the others (ambient, coolant, vehicle speed, retarder) have defaults
 PRIMARY_SIGNALS = ("engine_speed_rpm", "engine_torque_pct", "gear", "oil_temp_c", "engine_ref_torque_nm")
-#: the inputs whose absence degrades the sensor, by their ``stale_steps`` name (the decoder signal) or run-table
-#: validity column, and their readable names (the others have defaults and are not listed as a cause)
-INPUT_NAMES = {"engine_speed_rpm": "engine speed", "engine_torque_nm": "engine torque", "gear": "gear",
-               "oil_temp_c": "oil temperature", "speed_valid": "engine speed", "torque_valid": "engine torque",
-               "gear_valid": "gear", "oil_valid": "oil temperature"}
 #: the likely cause of a suspect time base, by direction
 TIME_BASE_CAUSES = {"faster": "the bus is replayed faster than real time, and frames are stamped on arrival",
                     "slower": "the bus is replayed slower than real time (or its frames are held back), and frames "
                               "are stamped on arrival"}
-
-
-class Severity(enum.IntEnum):
-    """How loud a finding is: NOTE (worth a line), WARNING (loud: the outputs are less accurate than they look),
-    UNTRUSTED (loud, and `replay` exits 3: the outputs should not be used)."""
-    NOTE = 0
-    WARNING = 1
-    UNTRUSTED = 2
 
 
 @dataclass(frozen=True)
@@ -136,43 +120,7 @@ class ForeignSourceFinding:
         return f"{what} arrived {self.frames} times from SA 0x{self.source:02X}{data} but {where}{tail}"
 
 
-@dataclass(frozen=True)
-class DegradedFinding:
-    """The sensor ran degraded on ``degraded`` of ``steps`` steps; ``by_mode``: degraded mode -> steps;
-    ``missing``: input -> steps it was missing (stale, not available or invalid)."""
-    kind: ClassVar[str] = "degraded"
-    steps: int
-    degraded: int
-    by_mode: dict = field(default_factory=dict)
-    missing: dict = field(default_factory=dict)
-
-    @property
-    def share(self) -> float:
-        return self.degraded / self.steps if self.steps else 0.0
-
-    @property
-    def severity(self) -> Severity:
-        if self.share > DEGRADED_UNTRUSTED_SHARE:
-            return Severity.UNTRUSTED
-        return Severity.WARNING if self.share >= DEGRADED_WARN_SHARE else Severity.NOTE
-
-    @property
-    def sentence(self) -> str:
-        modes = ", ".join(f"{MODE_NAMES.get(m, f'mode {m}')} {_pct(n, self.steps)}"
-                          for m, n in sorted(self.by_mode.items(), key=lambda kv: -kv[1]) if m != MODE_NORMAL and n)
-        worst = sorted(((n, INPUT_NAMES[k]) for k, n in self.missing.items() if n and k in INPUT_NAMES),
-                       reverse=True)
-        inputs = ("; missing most: " + ", ".join(f"{name} {_pct(n, self.steps)}" for n, name in worst)) if worst else ""
-        return (f"the sensor ran degraded on {_pct(self.degraded, self.steps)} of {self.steps} steps ({modes}){inputs}: "
-                f"its temperatures rest on held, modelled or default inputs")
-
-
 Finding = TimeBaseFinding | ForeignSourceFinding | DegradedFinding
-
-
-def _pct(n: int, total: int) -> str:
-    share = 100.0 * n / total if total else 0.0
-    return f"{share:.0f} %" if share >= 1.0 or share == 0.0 else f"{share:.1f} %"
 
 
 def _ms(period_s: float) -> str:
@@ -304,14 +252,6 @@ def foreign_findings(decoder_counters: Mapping, expected_sa: Mapping[str, int | 
     return out
 
 
-def degraded_finding(mode_steps: Mapping[int, int], missing: Mapping[str, int] | None = None) -> DegradedFinding:
-    """The degraded share of a run from its steps per degraded mode (and the steps each input was missing)."""
-    steps = int(sum(mode_steps.values()))
-    degraded = steps - int(mode_steps.get(MODE_NORMAL, 0))
-    return DegradedFinding(steps, degraded, {int(m): int(n) for m, n in mode_steps.items()},
-                           dict(missing or {}))
-
-
 def trust_findings(counters: Mapping, expected_sa: Mapping[str, int | None],
                    configured: Mapping[str, int] | None = None) -> list[Finding]:
     """The findings of a CAN run, most severe first: ``counters`` = ``SensorService.all_counters()``. The degraded
@@ -330,8 +270,3 @@ def trust_findings(counters: Mapping, expected_sa: Mapping[str, int | None],
     if loud:
         out.append(degraded)
     return sorted(out, key=lambda f: -f.severity)
-
-
-def untrusted(findings) -> bool:
-    """True when a finding says the outputs should not be used."""
-    return any(f.severity >= Severity.UNTRUSTED for f in findings)

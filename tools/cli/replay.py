@@ -136,7 +136,7 @@ def run(args) -> int:
 def _report_trust(args, findings) -> int:
     """Print the trust findings (firmware_model.service.trust) on stderr, warnings even with --quiet; returns 3 when
     the outputs should not be trusted (unless --allow-untrusted), else 0."""
-    from firmware_model.service.trust import Severity, untrusted
+    from firmware_model.service.degraded import Severity, untrusted   # (not trust: that imports python-can)
     for f in findings:
         if f.severity >= Severity.WARNING or not args.quiet:
             print(f"{'warning' if f.severity >= Severity.WARNING else 'note'}: {f.sentence}", file=sys.stderr)

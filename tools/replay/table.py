@@ -56,7 +56,7 @@ class ReplaySummary(NamedTuple):
 
 def _sensor_inputs():
     """(field, run-table column) of each sensor input (the CAN service's wiring)."""
-    from firmware_model.service.options import SENSOR_INPUTS
+    from firmware_model.service.records import SENSOR_INPUTS      # (not options: that imports python-can)
     return SENSOR_INPUTS
 
 
@@ -236,7 +236,7 @@ def replay_csv(path, config_path=None, sensor_options=None) -> "CsvReplay":
 def table_findings(out) -> list:
     """The trust findings of a run-table replay (``firmware_model.service.trust``): the degraded share when it is at
     least DEGRADED_WARN_SHARE, with the inputs that were missing (the validity columns)."""
-    from firmware_model.service.trust import Severity, degraded_finding
+    from firmware_model.service.degraded import Severity, degraded_finding   # (not trust: that imports python-can)
     modes = np.asarray(out["degraded_mode"], dtype=float) if out.n else np.zeros(0)
     values, counts = np.unique(modes[np.isfinite(modes)].astype(int), return_counts=True)
     missing = {c: int(np.sum(np.asarray(out[c]) == 0)) for c in ("speed_valid", "torque_valid", "gear_valid",

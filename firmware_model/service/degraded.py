@@ -1,0 +1,79 @@
+"""The degraded-share finding of a run (how much of it the sensor ran on held, modelled or default inputs), its
+severity scale and :func:`untrusted`: the part of the trust findings (firmware_model.service.trust) that a run-table
+replay needs, without the CAN edge (python-can, cantools), which trust imports for the time-base and source-address
+checks.
+"""
+from __future__ import annotations
+
+import enum
+from dataclasses import dataclass, field
+from typing import ClassVar, Mapping
+
+from firmware_model.components import MODE_NAMES, MODE_NORMAL
+
+#: degraded on at least this share of the steps: a loud warning; above the second share: untrusted (`replay`
+#: exits 3). Not initialised counts as degraded (it lasts at most 3 s of a run: 10 % of a 30 s capture).
+DEGRADED_WARN_SHARE = 0.2
+DEGRADED_UNTRUSTED_SHARE = 0.5
+#: the inputs whose absence degrades the sensor, by their ``stale_steps`` name (the decoder signal) or run-table
+#: validity column, and their readable names (the others have defaults and are not listed as a cause)
+INPUT_NAMES = {"engine_speed_rpm": "engine speed", "engine_torque_nm": "engine torque", "gear": "gear",
+               "oil_temp_c": "oil temperature", "speed_valid": "engine speed", "torque_valid": "engine torque",
+               "gear_valid": "gear", "oil_valid": "oil temperature"}
+
+class Severity(enum.IntEnum):
+    """How loud a finding is: NOTE (worth a line), WARNING (loud: the outputs are less accurate than they look),
+    UNTRUSTED (loud, and `replay` exits 3: the outputs should not be used)."""
+    NOTE = 0
+    WARNING = 1
+    UNTRUSTED = 2
+
+
+@dataclass(frozen=True)
+class DegradedFinding:
+    """The sensor ran degraded on ``degraded`` of ``steps`` steps; ``by_mode``: degraded mode -> steps;
+    ``missing``: input -> steps it was missing (stale, not available or invalid)."""
+    kind: ClassVar[str] = "degraded"
+    steps: int
+    degraded: int
+    by_mode: dict = field(default_factory=dict)
+    missing: dict = field(default_factory=dict)
+
+    @property
+    def share(self) -> float:
+        return self.degraded / self.steps if self.steps else 0.0
+
+    @property
+    def severity(self) -> Severity:
+        if self.share > DEGRADED_UNTRUSTED_SHARE:
+            return Severity.UNTRUSTED
+        return Severity.WARNING if self.share >= DEGRADED_WARN_SHARE else Severity.NOTE
+
+    @property
+    def sentence(self) -> str:
+        modes = ", ".join(f"{MODE_NAMES.get(m, f'mode {m}')} {pct(n, self.steps)}"
+                          for m, n in sorted(self.by_mode.items(), key=lambda kv: -kv[1]) if m != MODE_NORMAL and n)
+        worst = sorted(((n, INPUT_NAMES[k]) for k, n in self.missing.items() if n and k in INPUT_NAMES),
+                       reverse=True)
+        inputs = ("; missing most: " + ", ".join(f"{name} {pct(n, self.steps)}" for n, name in worst)) if worst else ""
+        return (f"the sensor ran degraded on {pct(self.degraded, self.steps)} of {self.steps} steps ({modes}){inputs}: "
+                f"its temperatures rest on held, modelled or default inputs")
+
+
+def pct(n: int, total: int) -> str:
+    share = 100.0 * n / total if total else 0.0
+    return f"{share:.0f} %" if share >= 1.0 or share == 0.0 else f"{share:.1f} %"
+
+
+
+def degraded_finding(mode_steps: Mapping[int, int], missing: Mapping[str, int] | None = None) -> DegradedFinding:
+    """The degraded share of a run from its steps per degraded mode (and the steps each input was missing)."""
+    steps = int(sum(mode_steps.values()))
+    degraded = steps - int(mode_steps.get(MODE_NORMAL, 0))
+    return DegradedFinding(steps, degraded, {int(m): int(n) for m, n in mode_steps.items()},
+                           dict(missing or {}))
+
+
+def untrusted(findings) -> bool:
+    """True when a finding says the outputs should not be used."""
+    return any(f.severity >= Severity.UNTRUSTED for f in findings)
