@@ -37,7 +37,7 @@ kernel = Extension(
     sources=["firmware_model/onboard/c/gvs_kernel.c"],
     include_dirs=["firmware_model/onboard/c"],
     define_macros=[("GVS_SOURCE_ID", f'"{source_id()}"')],
-    extra_compile_args=["-std=c99", "-O2", "-fno-fast-math"],
+    extra_compile_args=["-std=c99", "-O3", "-fno-fast-math"],
     optional=True,
 )
 

@@ -34,7 +34,7 @@ import numpy as np
 SOURCE_DIR = Path(__file__).resolve().parent / "c"
 SOURCES = ("gvs_kernel.c", "gvs_kernel.h")
 #: flags of every build: strict C99, warnings as errors, no fast-math (parity with numpy needs IEEE arithmetic)
-CFLAGS = ("-std=c99", "-O2", "-fPIC", "-Wall", "-Wextra", "-Wpedantic", "-Werror", "-fno-fast-math")
+CFLAGS = ("-std=c99", "-O3", "-fPIC", "-Wall", "-Wextra", "-Wpedantic", "-Werror", "-fno-fast-math")
 #: capacities of the C structs (gvs_kernel.h)
 MAX_NODES, MAX_LINKS, MAX_SRC, MAX_BC, MAX_STREAMS = 96, 192, 32, 8, 32
 N_PUB, N_INPUTS, N_REJECT = 28, 8, 13
