@@ -147,8 +147,11 @@ def march_time_to_limit(sys: HeldSystem, T0_c: np.ndarray, rows: np.ndarray, lim
         h_step = min(h, TTL_HORIZON_S - t)
         d = MARCH_D_FRAC * h_step
         M = np.diag(C) + d * A
-        e_g = np.linalg.solve(M, C * e - d * (A @ e))
-        e_new = np.linalg.solve(M, C * (MARCH_A1 * e_g - MARCH_A0 * e))
+        try:
+            e_g = np.linalg.solve(M, C * e - d * (A @ e))
+            e_new = np.linalg.solve(M, C * (MARCH_A1 * e_g - MARCH_A0 * e))
+        except np.linalg.LinAlgError:        # singular (as the kernel's failed factorisation): not available
+            return None
         de_new = -(A @ e_new) / C
         t_new = t + h_step
         f0 = Tinf_rows + e[rows] - lim

@@ -158,7 +158,10 @@ def held_system(sp: SensorParams, p: TtlPoint, src_w, G_w_per_k, G_streams_w_per
             # (Q0 + slope (T_sump - T0)) / (mdot cp) moves sv (T_sump - T0) slope / (mdot cp) into the streams
             u = (G_streams_w_per_k @ h.stream_scatter) * (slope_w_per_k / mcp_w_per_k)
             # K - u e^T has det(K) (1 - e^T K^-1 u): at or below 0 a real mode grows; then the inlet is frozen
-            if not 1.0 - float(np.linalg.solve(K, u)[rp.i_oil]) > COUPLING_MARGIN:
+            try:
+                if not 1.0 - float(np.linalg.solve(K, u)[rp.i_oil]) > COUPLING_MARGIN:
+                    u = None
+            except np.linalg.LinAlgError:     # K singular: no steady state either (the march says not available)
                 u = None
     if u is not None:
         # the inlet drop is dT_in at the current sump and follows it (the coupling column): its part at the

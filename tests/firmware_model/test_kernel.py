@@ -286,3 +286,37 @@ def test_core_selection_says_which_and_why(params, monkeypatch):
     assert s.compiled is None and s.core_name.startswith("numpy")
     with pytest.raises(Exception, match="core"):
         VirtualSensor(params, core="fortran")
+
+
+@needs_c
+def test_time_to_limit_refresh_on_hostile_operating_points(params):
+    """gvs_ttl_refresh fed points the step never makes (NaN, inf and 1e308 in the state, the losses, the
+    conductances, the speed; a job made by the numpy step, converted): no crash, every time to limit NaN ("not
+    available"), 0, a finite positive time or inf, and "not available" exactly where the numpy reference says so."""
+    from firmware_model.onboard.time_to_limit import TtlJob, time_to_limit
+    ref = VirtualSensor(params, core="numpy")
+    cc = VirtualSensor(params, core="c")
+    st = ref.initial_state(T_oil_c=90.0)
+    job = None
+    for _ in range(30):
+        st, _, j = ref.step_deferred(st, SensorInputs(1500.0, 2400.0, 6, 90.0, 25.0, 85.0, 60.0, 0.0))
+        job = j or job
+    base = job.points[0]
+    hostile = [base,
+               base._replace(T_main_c=np.where(np.arange(base.T_main_c.size) == 3, np.nan, base.T_main_c)),
+               base._replace(T_main_c=np.full_like(base.T_main_c, 1e308)),
+               base._replace(src_w=np.full_like(base.src_w, np.inf)),
+               base._replace(G_w_per_k=np.where(np.arange(base.G_w_per_k.size) == 0, np.nan, base.G_w_per_k)),
+               base._replace(G_w_per_k=np.zeros_like(base.G_w_per_k)),
+               base._replace(omega_in_rad_s=np.nan), base._replace(omega_in_rad_s=1e308),
+               base._replace(T_oil_c=-1e308, dT_in_k=np.inf), base._replace(rho_cp_j_per_m3k=0.0),
+               base._replace(measured=True, T_bc_c=np.full_like(base.T_bc_c, np.nan))]
+    for k, p in enumerate(hostile):
+        with np.errstate(all="ignore"):
+            want = time_to_limit(ref.sp, ref.cache, p)
+        got = cc.refresh_ttl(cc.initial_state(T_oil_c=90.0), TtlJob(((),), (p,))).ttl_s
+        assert np.all(np.isnan(got) | (got >= 0.0)), (k, got)
+        assert np.array_equal(np.isnan(got), np.isnan(want)), (k, got, want)
+    # the first one is an ordinary point: both agree as the parity tests require
+    np.testing.assert_allclose(cc.refresh_ttl(cc.initial_state(T_oil_c=90.0), TtlJob(((),), (base,))).ttl_s,
+                               time_to_limit(ref.sp, ref.cache, base), rtol=1e-3, atol=0.1)
