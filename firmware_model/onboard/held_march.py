@@ -8,7 +8,11 @@ it). This module finds, for each published component, the first time it reaches 
 2. the deviation ``e = T - T_inf`` marched with TR-BDF2 (gamma = 2 - sqrt 2: a trapezoidal stage to t + gamma h,
    then BDF2 to t + h; L-stable and second order, and both stages solve with the same matrix ``C + d A``,
    ``d = (1 - 1/sqrt 2) h``) on a geometric time grid: the first step MARCH_H0_S, each next one MARCH_RATIO times
-   longer, the last one ending at the horizon (2e6 s, 23 days: 65 steps);
+   longer, the last one ending at the horizon (2e6 s, 23 days: 41 steps). The first step may skip ahead: by the
+   maximum principle applied to the derivative (which obeys the same equation), no node warms faster later than the
+   fastest one does now, so no open row can cross before ``min(limit - T) / max(dT/dt, 0)``; the first step then
+   goes straight to the last grid point before that time (the grid after it unchanged; on a warming drive this
+   halves the steps), and when nothing warms now every row is closed at once;
 3. a crossing between two grid points is located on the cubic Hermite interpolant of the two states and their
    derivatives ``de/dt = -C^-1 A e`` (16 samples for the first sign change, then 40 bisections), and reported as
    the first multiple of TTL_QUANTUM_S at or after it;
@@ -113,6 +117,24 @@ def _quantum_ceil(t_s: float) -> float:
     return math.ceil(t_s / TTL_QUANTUM_S) * TTL_QUANTUM_S
 
 
+def _skip_to(open_: np.ndarray, gap_k: np.ndarray, rate_max_k_per_s: float) -> tuple[float, float]:
+    """The first step's end and the step after it (t_skip, h). With the maximum principle applied to the
+    derivative (which obeys the same equation), no node warms faster than ``rate = max_j max(de_j/dt(0), 0)`` at any
+    later time, so no open row crosses before ``t_min = min gap / rate``: the first step goes straight to the last
+    grid point at or before t_min (the grid after it unchanged). ``rate == 0``: nothing warms now, so nothing ever
+    warms and every open row is closed (in place). NaN: no skip."""
+    t_skip, h = 0.0, MARCH_H0_S
+    if not rate_max_k_per_s > 0.0:
+        if rate_max_k_per_s <= 0.0:
+            open_[:] = False
+        return t_skip, h
+    t_min = float(np.min(gap_k[open_])) / rate_max_k_per_s
+    while t_skip + h <= t_min and t_skip + h < TTL_HORIZON_S:
+        t_skip = t_skip + h
+        h = h * MARCH_RATIO
+    return t_skip, h
+
+
 def march_time_to_limit(sys: HeldSystem, T0_c: np.ndarray, rows: np.ndarray, limit_c: np.ndarray,
                         watch: np.ndarray | None = None, watch_node: int = 0) -> March | None:
     """First time [s] each free node ``rows`` reaches ``limit_c`` with the inputs held (module doc); None when the
@@ -143,8 +165,11 @@ def march_time_to_limit(sys: HeldSystem, T0_c: np.ndarray, rows: np.ndarray, lim
     watch = np.zeros(rows.size, dtype=bool) if watch is None else np.asarray(watch, dtype=bool)
     watch_t, watch_T = math.nan, math.nan
     t, h = 0.0, MARCH_H0_S
+    t_skip = 0.0
+    if sys.metzler and open_.any():
+        t_skip, h = _skip_to(open_, lim - T0_rows, float(de.max()))
     while open_.any() and t < TTL_HORIZON_S:
-        h_step = min(h, TTL_HORIZON_S - t)
+        h_step = t_skip if t_skip > 0.0 else min(h, TTL_HORIZON_S - t)
         d = MARCH_D_FRAC * h_step
         M = np.diag(C) + d * A
         try:
@@ -174,5 +199,8 @@ def march_time_to_limit(sys: HeldSystem, T0_c: np.ndarray, rows: np.ndarray, lim
         if not sys.coupled or energy_new <= energy:
             open_ &= Tinf_rows + np.sqrt(energy_new / Crow) >= lim
         e, de, t, energy = e_new, de_new, t_new, energy_new
-        h = h * MARCH_RATIO
+        if t_skip > 0.0:
+            t_skip = 0.0                   # the skip's step was the grid's steps up to t_skip: h is the next one
+        else:
+            h = h * MARCH_RATIO
     return March(out, T_inf, watch_t, watch_T)

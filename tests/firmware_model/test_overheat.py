@@ -310,6 +310,34 @@ def test_the_march_finds_the_first_crossings_of_the_matrix_exponential(coupled):
     assert np.isfinite(got).sum() >= 3 and np.isinf(got).sum() >= 1
 
 
+@pytest.mark.parametrize("seed", range(6))
+def test_the_march_skips_only_where_no_crossing_can_be(seed):
+    """The march's first step may skip to the last grid point before min(gap) / max(dT/dt, 0) (held_march._skip_to):
+    on random networks with some nodes warming fast, the exact solution (matrix exponential) stays below every
+    limit up to the skipped-to time; and where nothing warms every row is closed."""
+    from scipy.linalg import expm
+
+    from firmware_model.onboard.held_march import _skip_to, march_grid_s
+    rng = np.random.default_rng(seed)
+    n = 10
+    C, K = _random_network(rng, n, (20.0, 4000.0), 20.0, 0.4, 4.0)
+    b = np.zeros(n)
+    b[rng.integers(n)] = rng.uniform(200.0, 3000.0)
+    T_inf = np.linalg.solve(K, b)
+    T0 = T_inf + rng.uniform(-30.0, 5.0, n)
+    limit = T0 + rng.uniform(0.2, 15.0, n)
+    M = -K / C[:, None]
+    de = M @ (T0 - T_inf)
+    open_ = np.ones(n, dtype=bool)
+    t_skip, h = _skip_to(open_, limit - T0, float(de.max()))
+    assert open_.all() and t_skip in march_grid_s() and h > 0
+    for t in np.linspace(0.0, t_skip, 400):
+        assert np.all(T_inf + expm(M * t) @ (T0 - T_inf) < limit)
+    assert t_skip > 0.0 or (limit - T0).min() / de.max() < 1.0       # the first grid point is 1 s
+    cooling = np.ones(n, dtype=bool)
+    assert _skip_to(cooling, limit - T0, -1e-3) == (0.0, 1.0) and not cooling.any()
+
+
 def test_time_to_limit_follows_the_cooler_outlet_as_the_sump_warms(params, monkeypatch):
     """Engine coolant hotter than the sump (a climb): the cooler heats the oil and the oil-system stream reaches the
     planetary above the sump temperature. As the sump warms that excess shrinks and the sun wheel settles below its

@@ -732,6 +732,34 @@ static gvs_real first_root(gvs_real h, gvs_real f0, gvs_real g0, gvs_real f1, gv
     return hi;
 }
 
+/* held_march._skip_to: no node warms faster than the largest de/dt now (the maximum principle on the derivative),
+ * so no open row crosses before min gap / rate: the first step ends at the last grid point before that (*t_skip,
+ * *h the step after it). Nothing warming now closes every row (returns 0); NaN: no skip. */
+static int skip_to(const gvs_tables *tb, const gvs_ttl_point *p, const gvs_real *de, int8_t *open, double *t_skip,
+                   double *h)
+{
+    gvs_real rate = de[0], gap = (gvs_real)INFINITY;
+    double t_min;
+    int32_t i, j;
+    for (i = 1; i < tb->n; ++i)
+        if (de[i] > rate || de[i] != de[i]) rate = de[i];
+    if (!(rate > R_(0.0))) {
+        if (rate <= R_(0.0)) {
+            for (j = 0; j < GVS_N_PUB; ++j) open[j] = 0;
+            return 0;
+        }
+        return 1;
+    }
+    for (j = 0; j < GVS_N_PUB; ++j)
+        if (open[j]) gap = min_r(gap, tb->warning_c[j] - p->T_main_c[tb->published_index[j]]);
+    t_min = (double)gap / (double)rate;
+    while (*t_skip + *h <= t_min && *t_skip + *h < TTL_HORIZON_S) {
+        *t_skip += *h;
+        *h *= MARCH_RATIO;
+    }
+    return 1;
+}
+
 /* one held-input solution (time_to_limit._solve + held_march.march_time_to_limit): ttl[28]; *T_watch the sump at
  * the first crossing of a re-linearising component (NaN: none) */
 static int ttl_solve(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl_point *p, const gvs_real *src,
@@ -744,7 +772,7 @@ static int ttl_solve(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl
     const gvs_real *C = tb->C_j_per_k;
     int8_t open[GVS_N_PUB];
     int32_t n = tb->n, i, j, any = 0, io = tb->i_oil;
-    double t = 0.0, h = MARCH_H0_S;
+    double t = 0.0, h = MARCH_H0_S, t_skip = 0.0;
     *T_watch = (gvs_real)NAN;
     for (j = 0; j < GVS_N_PUB; ++j) ttl[j] = (gvs_real)NAN;
     memset(e, 0, sizeof e);
@@ -771,8 +799,10 @@ static int ttl_solve(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl
             && (hs.coupled || T_inf[r] + SQRT(energy / C[r]) >= lim);
         any |= open[j];
     }
+    if (any && hs.metzler)
+        any = skip_to(tb, p, de, open, &t_skip, &h);
     while (any && t < TTL_HORIZON_S) {
-        double h_step = h < TTL_HORIZON_S - t ? h : TTL_HORIZON_S - t;
+        double h_step = t_skip > 0.0 ? t_skip : (h < TTL_HORIZON_S - t ? h : TTL_HORIZON_S - t);
         gvs_real d = (gvs_real)(MARCH_D_FRAC * h_step), s_watch = R_(2.0);
         if (held_factor(tb, &hs, R_(1.0), d) != 0) return -1;
         for (i = 0; i < n; ++i) e_g[i] = C[i] * e[i] - d * Ae[i];
@@ -811,7 +841,8 @@ static int ttl_solve(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl
         memcpy(de, de_new, (size_t)n * sizeof(gvs_real));
         energy = energy_new;
         t += h_step;
-        h *= MARCH_RATIO;
+        if (t_skip > 0.0) t_skip = 0.0;             /* the skip was the grid's steps up to t_skip */
+        else h *= MARCH_RATIO;
     }
     return 0;
 }
