@@ -15,6 +15,7 @@ held_inputs (linear system, time jumps, cool-down), time_to_limit, warning_level
 from __future__ import annotations
 
 import math
+import os
 from pathlib import Path
 
 import numpy as np
@@ -180,6 +181,28 @@ class VirtualSensor:
         if self.compiled is not None:
             return self.compiled.step_table(state, raw, t, self.cache)
         return step_table_numpy(self, state, raw, t)
+
+    def step_tables(self, jobs, workers: int | None = None):
+        """Many vehicles' tables: ``jobs`` an iterable of ``(state, raw)`` or ``(state, raw, t_s)`` (as
+        :meth:`step_table`); yields ``(state, TableOutputs)`` per job, in order. With the compiled core the tables
+        run on ``workers`` threads (default: the CPU count; the kernel call releases the GIL and shares only the
+        read-only tables), at most two per thread in flight, so a fleet's outputs never all sit in memory at once;
+        the numpy core runs them one after the other."""
+        if self.compiled is None or workers == 1:
+            for job in jobs:
+                yield self.step_table(*job)
+            return
+        from collections import deque
+        from concurrent.futures import ThreadPoolExecutor
+        n_workers = max(1, int(workers or os.cpu_count() or 1))
+        with ThreadPoolExecutor(n_workers, thread_name_prefix="gvs-table") as pool:
+            window: deque = deque()
+            for job in jobs:
+                window.append(pool.submit(self.step_table, *job))
+                if len(window) >= 2 * n_workers:
+                    yield window.popleft().result()
+            while window:
+                yield window.popleft().result()
 
     def cool_down(self, T0_c, elapsed_s: float, ambient_c: float, boundaries_c=None):
         """Node temperatures of one network copy after ``elapsed_s`` with the engine off (held_inputs.cool_down)."""

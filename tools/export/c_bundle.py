@@ -134,7 +134,8 @@ def capacities(sp) -> str:
     """The -D flags that size the kernel's structs exactly for this variant (RAM on an ECU)."""
     a = table_arrays(sp)
     caps = dict(GVS_MAX_NODES=a["n"], GVS_MAX_LINKS=a["nl"], GVS_MAX_SRC=a["ns"], GVS_MAX_BC=a["nb"],
-                GVS_MAX_STREAMS=a["nst"], GVS_MAX_TERMS=max(a["n2"], a["ne"], a["ncol"], 1))
+                GVS_MAX_STREAMS=a["nst"], GVS_MAX_TERMS=max(a["n2"], a["ne"], a["ncol"], 1),
+                GVS_MAX_LNZ=max(a["ldl_nnz"], 1))
     return " ".join(f"-D{k}={int(v)}" for k, v in caps.items())
 
 

@@ -503,6 +503,7 @@ typedef struct {
     gvs_real u[GVS_MAX_NODES];          /* coupling column [W/K] */
     gvs_real w[GVS_MAX_NODES];          /* M^-1 (scale u) of the factorised M (Sherman-Morrison) */
     gvs_real S[LDL_SLOTS];              /* LDL^T slots */
+    gvs_real K[LDL_SLOTS];              /* K's slots, unfactorised (held: the sump's row and column identity) */
     int coupled, held, metzler;         /* metzler: the maximum principle holds (held_march) */
 } held_t;
 
@@ -561,11 +562,23 @@ static void ldl_solve(const gvs_tables *tb, const gvs_real *S, gvs_real *x)
 }
 
 /* factorise M = c_scale C + d K and, coupled, w = M^-1 (d u); -1 when M is not positive definite or the coupled
- * matrix M - d u e^T is singular */
+ * matrix M - d u e^T is singular. c_scale 0 (K itself, once per march) assembles from the links and keeps K's slots;
+ * the march's steps then assemble C + d K from those slots (one pass, no link loop) */
 static int held_factor(const gvs_tables *tb, held_t *hs, gvs_real c_scale, gvs_real d)
 {
     int32_t i;
-    ldl_assemble(tb, hs, c_scale, d);
+    if (c_scale == R_(0.0)) {
+        ldl_assemble(tb, hs, c_scale, d);
+        memcpy(hs->K, hs->S, (size_t)(tb->n + tb->ldl_nnz) * sizeof(gvs_real));
+    } else {
+        int32_t k, n = tb->n;
+        for (k = 0; k < n; ++k) {
+            int32_t q = tb->ldl_pos[k];
+            hs->S[q] = c_scale * tb->C_j_per_k[k] + d * hs->K[q];
+        }
+        for (k = n; k < n + tb->ldl_nnz; ++k) hs->S[k] = d * hs->K[k];
+        if (hs->held) hs->S[tb->ldl_pos[tb->i_oil]] = R_(1.0);
+    }
     if (ldl_factor(tb, hs->S) != 0) return -1;
     if (hs->coupled) {
         for (i = 0; i < tb->n; ++i) hs->w[i] = d * hs->u[i];
