@@ -22,8 +22,11 @@ it). This module finds, for each published component, the first time it reaches 
    every time), and the energy: with ``A`` symmetric ``E = sum C e^2`` never grows, so
    ``|e_i(t')| <= sqrt(E(t) / C_i)``. A component whose ``T_inf_i`` plus a bound stays below its limit never
    reaches it. With the coupling ``A`` is not symmetric and the energy can grow for a while: there the energy
-   bound also needs the energy to have fallen over the last step (a heuristic, not a proof; docs/sensor.md). At
-   t = 0 the bounds alone settle most refreshes (no limit within reach).
+   bound also needs the energy to have fallen over the last step (a heuristic, not a proof; docs/sensor.md). Where
+   the coupling breaks the Metzler structure, weights w > 0 with ``B w = 1`` (B: A's diagonal minus the moduli of
+   its off-diagonal entries; they exist when A is an H-matrix) make the w-weighted infinity-norm logarithmic norm of
+   ``-C^-1 A`` negative: ``|e_i(t')| <= w_i max_j |e_j(t)| / w_j``, and the stop and the skip use that
+   (:func:`_bound_scale`). At t = 0 the bounds alone settle most refreshes (no limit within reach).
 
 The compiled kernel (firmware_model/onboard/c/gvs_kernel.c, ``gvs_ttl_refresh``) runs the same march, grid,
 interpolation, quantum and stopping rule; it solves with a sparse LDL^T of ``C + d K`` in a fill-reducing order
@@ -76,6 +79,9 @@ class HeldSystem(NamedTuple):
     b_w: np.ndarray           # (m,)
     coupled: bool             # A is not symmetric (the energy rule needs the energy to fall)
     metzler: bool = True      # -A has no negative entry off its diagonal and no positive row sum (max principle)
+    #: not Metzler: w > 0 with B w = 1, B = A's diagonal minus the moduli of its off-diagonal entries (None: no such
+    #: w); then the w-weighted max norm of every solution never grows (the bounds on |e|, _bound)
+    weights: np.ndarray | None = None
 
 
 class March(NamedTuple):
@@ -117,18 +123,30 @@ def _quantum_ceil(t_s: float) -> float:
     return math.ceil(t_s / TTL_QUANTUM_S) * TTL_QUANTUM_S
 
 
-def _skip_to(open_: np.ndarray, gap_k: np.ndarray, rate_max_k_per_s: float) -> tuple[float, float]:
+def _bound_scale(sys: HeldSystem, x: np.ndarray) -> float:
+    """``c`` such that no component of a solution ``x`` (the deviation, or its derivative: the same equation)
+    exceeds ``c w_i`` at any later time: with -C^-1 A Metzler without a positive row sum ``max_j max(x_j, 0)``
+    (the maximum principle, w = 1); else, with the weights w, ``max_j |x_j| / w_j`` (the w-weighted infinity-norm
+    logarithmic norm of -C^-1 A is ``max_i -(B w)_i / (C_i w_i) < 0``)."""
+    if sys.metzler:
+        return max(float(x.max()), 0.0)
+    return float(np.max(np.abs(x) / sys.weights))
+
+
+def _skip_to(open_: np.ndarray, gap_k: np.ndarray, rate_max_k_per_s: float, w_rows: np.ndarray) -> tuple[float, float]:
     """The first step's end and the step after it (t_skip, h). With the maximum principle applied to the
     derivative (which obeys the same equation), no node warms faster than ``rate = max_j max(de_j/dt(0), 0)`` at any
     later time, so no open row crosses before ``t_min = min gap / rate``: the first step goes straight to the last
     grid point at or before t_min (the grid after it unchanged). ``rate == 0``: nothing warms now, so nothing ever
-    warms and every open row is closed (in place). NaN: no skip."""
+    warms and every open row is closed (in place). NaN: no skip. Without the Metzler structure but with weights
+    (HeldSystem.weights) row i warms no faster than ``rate w_i``, ``rate = max_j |de_j/dt(0)| / w_j``
+    (:func:`_bound_scale`; w_rows: the rows' weights, 1 when Metzler)."""
     t_skip, h = 0.0, MARCH_H0_S
     if not rate_max_k_per_s > 0.0:
         if rate_max_k_per_s <= 0.0:
             open_[:] = False
         return t_skip, h
-    t_min = float(np.min(gap_k[open_])) / rate_max_k_per_s
+    t_min = float(np.min(gap_k[open_] / (rate_max_k_per_s * w_rows[open_])))
     while t_skip + h <= t_min and t_skip + h < TTL_HORIZON_S:
         t_skip = t_skip + h
         h = h * MARCH_RATIO
@@ -158,16 +176,18 @@ def march_time_to_limit(sys: HeldSystem, T0_c: np.ndarray, rows: np.ndarray, lim
     Crow = C[rows]
     open_ = T0_rows < lim
     energy = float(np.sum(C * e * e))
-    if sys.metzler:
-        open_ &= Tinf_rows + max(float(e.max()), 0.0) >= lim
+    bounded = sys.metzler or sys.weights is not None
+    w_rows = np.ones(rows.size) if sys.metzler or sys.weights is None else sys.weights[rows]
+    if bounded:
+        open_ &= Tinf_rows + _bound_scale(sys, e) * w_rows >= lim
     if not sys.coupled:
         open_ &= Tinf_rows + np.sqrt(energy / Crow) >= lim
     watch = np.zeros(rows.size, dtype=bool) if watch is None else np.asarray(watch, dtype=bool)
     watch_t, watch_T = math.nan, math.nan
     t, h = 0.0, MARCH_H0_S
     t_skip = 0.0
-    if sys.metzler and open_.any():
-        t_skip, h = _skip_to(open_, lim - T0_rows, float(de.max()))
+    if bounded and open_.any():
+        t_skip, h = _skip_to(open_, lim - T0_rows, _bound_scale(sys, de), w_rows)
     while open_.any() and t < TTL_HORIZON_S:
         h_step = t_skip if t_skip > 0.0 else min(h, TTL_HORIZON_S - t)
         d = MARCH_D_FRAC * h_step
@@ -194,8 +214,8 @@ def march_time_to_limit(sys: HeldSystem, T0_c: np.ndarray, rows: np.ndarray, lim
             j = watch_node
             watch_T = float(T_inf[j] + _hermite(s_watch, h_step, e[j], de[j], e_new[j], de_new[j]))
         energy_new = float(np.sum(C * e_new * e_new))
-        if sys.metzler:
-            open_ &= Tinf_rows + max(float(e_new.max()), 0.0) >= lim
+        if bounded:
+            open_ &= Tinf_rows + _bound_scale(sys, e_new) * w_rows >= lim
         if not sys.coupled or energy_new <= energy:
             open_ &= Tinf_rows + np.sqrt(energy_new / Crow) >= lim
         e, de, t, energy = e_new, de_new, t_new, energy_new

@@ -184,7 +184,7 @@ def held_system(sp: SensorParams, p: TtlPoint, src_w, G_w_per_k, G_streams_w_per
         # cooler linearised at the current sump: Q = Q0 + g (T - T0)
         b_w[rp.i_oil] += slope_w_per_k * T_oil_c - p.Q_cool_w
         free = np.arange(rp.n)
-    metzler = True
+    metzler, weights = True, None
     if u is not None:
         # the maximum principle with the coupling: no negative entry in -A's sump column, no positive row sum of -A
         # (the boundary links, the cooler's slope and -u: K's links add up to zero in every row)
@@ -193,8 +193,23 @@ def held_system(sp: SensorParams, p: TtlPoint, src_w, G_w_per_k, G_streams_w_per
         row_sum[rp.i_oil] += slope_w_per_k
         metzler = bool(np.all(-K[off, rp.i_oil] + u[off] >= 0.0) and np.all(row_sum >= 0.0))
         K[:, rp.i_oil] -= u
+        if not metzler:
+            weights = _weights(K)
     A = K[np.ix_(free, free)]
-    return HeldSystem(A, h.C[free], b_w[free], u is not None, metzler), free
+    return HeldSystem(A, h.C[free], b_w[free], u is not None, metzler, weights), free
+
+
+def _weights(A: np.ndarray) -> np.ndarray | None:
+    """w > 0 with B w = 1, B = A's (signed) diagonal minus the moduli of its off-diagonal entries; None when B is
+    singular or w is not positive (held_march.HeldSystem.weights; the kernel solves the same with K's factors and
+    Sherman-Morrison, since B differs from K only in the sump's column)."""
+    B = -np.abs(A)
+    np.fill_diagonal(B, np.diag(A))
+    try:
+        w = np.linalg.solve(B, np.ones(A.shape[0]))
+    except np.linalg.LinAlgError:
+        return None
+    return w if bool(np.all(np.isfinite(w)) and np.all(w > 0.0)) else None
 
 
 def _solve(sp: SensorParams, p: TtlPoint, src_w, G_w_per_k, G_streams_w_per_k, T_op_c: float,

@@ -329,13 +329,55 @@ def test_the_march_skips_only_where_no_crossing_can_be(seed):
     M = -K / C[:, None]
     de = M @ (T0 - T_inf)
     open_ = np.ones(n, dtype=bool)
-    t_skip, h = _skip_to(open_, limit - T0, float(de.max()))
+    t_skip, h = _skip_to(open_, limit - T0, float(de.max()), np.ones(n))
     assert open_.all() and t_skip in march_grid_s() and h > 0
     for t in np.linspace(0.0, t_skip, 400):
         assert np.all(T_inf + expm(M * t) @ (T0 - T_inf) < limit)
     assert t_skip > 0.0 or (limit - T0).min() / de.max() < 1.0       # the first grid point is 1 s
     cooling = np.ones(n, dtype=bool)
-    assert _skip_to(cooling, limit - T0, -1e-3) == (0.0, 1.0) and not cooling.any()
+    assert _skip_to(cooling, limit - T0, -1e-3, np.ones(n)) == (0.0, 1.0) and not cooling.any()
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_the_weighted_bound_holds_where_the_coupling_breaks_the_metzler_structure(seed):
+    """A coupling column that makes -C^-1 A non-Metzler (a node whose entry in the sump column turns negative):
+    the weights of time_to_limit._weights (B w = 1) bound every later |e_i| by w_i max_j |e_j(0)| / w_j
+    (held_march._bound_scale), checked against the matrix exponential; the march with them gives the same times to
+    limit as without them (the bounds only stop or skip where nothing can cross)."""
+    from scipy.linalg import expm
+
+    from firmware_model.onboard.held_march import HeldSystem, _bound_scale, march_time_to_limit
+    from firmware_model.onboard.time_to_limit import _weights
+    rng = np.random.default_rng(seed)
+    n = 9
+    C, K = _random_network(rng, n, (50.0, 2000.0), 10.0, 0.4, 6.0)
+    u = np.zeros(n)
+    u[[3, 6]] = -(np.abs(K[[3, 6], 0]) + rng.uniform(0.5, 2.0, 2))          # more than their link to node 0
+    u[0] = -u[[3, 6]].sum() * 0.3
+    A = K.copy()
+    A[:, 0] -= u
+    assert np.any(-A[1:, 0] < 0)                                             # not Metzler
+    w = _weights(A)
+    assert w is not None and np.all(w > 0)
+    B = -np.abs(A)
+    np.fill_diagonal(B, np.diag(A))
+    assert np.allclose(B @ w, 1.0)
+    sys_w = HeldSystem(A, C, np.zeros(n), True, False, w)
+    e0 = rng.normal(0.0, 10.0, n)
+    c = _bound_scale(sys_w, e0)
+    M = -A / C[:, None]
+    for t in np.geomspace(0.1, 1e5, 200):
+        assert np.all(np.abs(expm(M * t) @ e0) <= c * w * (1 + 1e-9))
+    b = rng.uniform(0.0, 400.0, n)
+    T_inf = np.linalg.solve(A, b)
+    T0 = T_inf - rng.uniform(2.0, 25.0, n)
+    limit = T0 + (T_inf - T0) * rng.uniform(0.3, 1.3, n)
+    rows = np.arange(n)
+    with_w = march_time_to_limit(HeldSystem(A, C, b, True, False, w), T0, rows, limit).ttl_s
+    without = march_time_to_limit(HeldSystem(A, C, b, True, False, None), T0, rows, limit).ttl_s
+    assert np.array_equal(np.isinf(with_w), np.isinf(without))
+    fin = np.isfinite(without)
+    np.testing.assert_allclose(with_w[fin], without[fin], rtol=0.01, atol=2 ** -7)
 
 
 def test_time_to_limit_follows_the_cooler_outlet_as_the_sump_warms(params, monkeypatch):

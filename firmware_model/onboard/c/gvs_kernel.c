@@ -505,6 +505,8 @@ typedef struct {
     gvs_real S[LDL_SLOTS];              /* LDL^T slots */
     gvs_real K[LDL_SLOTS];              /* K's slots, unfactorised (held: the sump's row and column identity) */
     int coupled, held, metzler;         /* metzler: the maximum principle holds (held_march) */
+    int weighted;                       /* not metzler: wt > 0 with B wt = 1 (held_march.HeldSystem.weights) */
+    gvs_real wt[GVS_MAX_NODES];
 } held_t;
 
 /* S = c_scale C + d K (held: the sump's row and column identity) */
@@ -639,6 +641,29 @@ static gvs_real cooler_slope(const gvs_tables *tb, const gvs_vehicle *veh, const
     return max_r((Q_hi - Q_lo) / R_(0.1), R_(0.0));
 }
 
+/* time_to_limit._weights: wt = B^-1 1, B = K - u2 e_sump^T (A's diagonal, minus the moduli of its off-diagonal
+ * entries: only the sump's column differs from K's, -|col| instead of -G), by Sherman-Morrison on K's factors in
+ * hs->S; hs->weighted when every wt is finite and positive. u2 is built in the scratch rs. */
+static void held_weights(const gvs_tables *tb, held_t *hs, const gvs_real *col, gvs_real *rs)
+{
+    int32_t n = tb->n, i, io = tb->i_oil;
+    gvs_real den, f;
+    for (i = 0; i < n; ++i) {
+        rs[i] = i != io ? FABS(col[i]) - col[i] + hs->u[i] : hs->u[i];
+        hs->wt[i] = R_(1.0);
+    }
+    ldl_solve(tb, hs->S, rs);
+    ldl_solve(tb, hs->S, hs->wt);
+    den = R_(1.0) - rs[io];
+    if (!(den != R_(0.0))) return;
+    f = hs->wt[io] / den;
+    hs->weighted = 1;
+    for (i = 0; i < n; ++i) {
+        hs->wt[i] += rs[i] * f;
+        if (!(hs->wt[i] > R_(0.0)) || !finite_r((double)hs->wt[i])) hs->weighted = 0;
+    }
+}
+
 /* the held system at the operating point's sump T_op (time_to_limit.held_system): factorise K, decide the
  * coupling, T_inf = A^-1 b; -1 when there is no finite steady state */
 static int held_build(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl_point *p, const gvs_real *src,
@@ -677,6 +702,7 @@ static int held_build(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_tt
     }
     /* the maximum principle with the coupling: no negative entry in -A's sump column, no positive row sum of -A */
     hs->metzler = 1;
+    hs->weighted = 0;
     if (hs->coupled) {
         gvs_real col[GVS_MAX_NODES], rs[GVS_MAX_NODES];
         for (i = 0; i < n; ++i) {
@@ -692,6 +718,7 @@ static int held_build(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_tt
         rs[io] += hs->slope;
         for (i = 0; i < n; ++i)
             if ((i != io && col[i] < R_(0.0)) || rs[i] < R_(0.0)) hs->metzler = 0;
+        if (!hs->metzler) held_weights(tb, hs, col, rs);
     }
     /* b: heat, inlet drop, boundaries, the sump */
     for (i = 0; i < n; ++i) T_inf[i] = R_(0.0);
@@ -745,17 +772,30 @@ static gvs_real first_root(gvs_real h, gvs_real f0, gvs_real g0, gvs_real f1, gv
     return hi;
 }
 
-/* held_march._skip_to: no node warms faster than the largest de/dt now (the maximum principle on the derivative),
- * so no open row crosses before min gap / rate: the first step ends at the last grid point before that (*t_skip,
- * *h the step after it). Nothing warming now closes every row (returns 0); NaN: no skip. */
-static int skip_to(const gvs_tables *tb, const gvs_ttl_point *p, const gvs_real *de, int8_t *open, double *t_skip,
-                   double *h)
+/* one term of held_march._bound_scale: max(m, x_i) when Metzler, max(m, |x_i| / wt_i) when weighted (m from 0) */
+static gvs_real bound_max(const held_t *hs, const gvs_real *x, int32_t i, gvs_real m)
 {
-    gvs_real rate = de[0], gap = (gvs_real)INFINITY;
-    double t_min;
+    gvs_real v;
+    if (hs->metzler) v = x[i];
+    else if (hs->weighted) v = FABS(x[i]) / hs->wt[i];
+    else return m;
+    return v > m ? v : m;
+}
+
+/* held_march._skip_to: no node warms faster than the largest de/dt now (the maximum principle on the derivative;
+ * absolute: the largest |de/dt|, rows diagonally dominant), so no open row crosses before min gap / rate: the first
+ * step ends at the last grid point before that (*t_skip, *h the step after it). Nothing warming now closes every row
+ * (returns 0); NaN: no skip. */
+static int skip_to(const gvs_tables *tb, const gvs_ttl_point *p, const gvs_real *de, const held_t *hs, int8_t *open,
+                   double *t_skip, double *h)
+{
+    gvs_real rate = hs->metzler ? de[0] : FABS(de[0]) / hs->wt[0];
+    double t_min = INFINITY;
     int32_t i, j;
-    for (i = 1; i < tb->n; ++i)
-        if (de[i] > rate || de[i] != de[i]) rate = de[i];
+    for (i = 1; i < tb->n; ++i) {
+        gvs_real x = hs->metzler ? de[i] : FABS(de[i]) / hs->wt[i];
+        if (x > rate || x != x) rate = x;
+    }
     if (!(rate > R_(0.0))) {
         if (rate <= R_(0.0)) {
             for (j = 0; j < GVS_N_PUB; ++j) open[j] = 0;
@@ -764,8 +804,11 @@ static int skip_to(const gvs_tables *tb, const gvs_ttl_point *p, const gvs_real 
         return 1;
     }
     for (j = 0; j < GVS_N_PUB; ++j)
-        if (open[j]) gap = min_r(gap, tb->warning_c[j] - p->T_main_c[tb->published_index[j]]);
-    t_min = (double)gap / (double)rate;
+        if (open[j]) {
+            int32_t r = tb->published_index[j];
+            double tj = (double)(tb->warning_c[j] - p->T_main_c[r]) / ((double)rate * (hs->metzler ? 1.0 : (double)hs->wt[r]));
+            if (tj < t_min) t_min = tj;
+        }
     while (*t_skip + *h <= t_min && *t_skip + *h < TTL_HORIZON_S) {
         *t_skip += *h;
         *h *= MARCH_RATIO;
@@ -781,7 +824,7 @@ static int ttl_solve(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl
 {
     held_t hs;
     gvs_real T_inf[GVS_MAX_NODES], e[GVS_MAX_NODES], de[GVS_MAX_NODES], e_g[GVS_MAX_NODES], e_new[GVS_MAX_NODES];
-    gvs_real de_new[GVS_MAX_NODES], Ae[GVS_MAX_NODES], energy = R_(0.0), energy_new, e_max = R_(0.0);
+    gvs_real de_new[GVS_MAX_NODES], Ae[GVS_MAX_NODES], energy = R_(0.0), energy_new, e_max = R_(0.0), bnd;
     const gvs_real *C = tb->C_j_per_k;
     int8_t open[GVS_N_PUB];
     int32_t n = tb->n, i, j, any = 0, io = tb->i_oil;
@@ -797,8 +840,9 @@ static int ttl_solve(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl
     for (i = 0; i < n; ++i) {
         de[i] = -Ae[i] / C[i];
         energy += C[i] * e[i] * e[i];
-        if (e[i] > e_max) e_max = e[i];
+        e_max = bound_max(&hs, e, i, e_max);
     }
+    bnd = e_max;                                    /* held_march._bound_scale (when metzler or weighted) */
     for (j = 0; j < GVS_N_PUB; ++j) {
         int32_t r = tb->published_index[j];
         gvs_real lim = tb->warning_c[j];
@@ -808,12 +852,13 @@ static int ttl_solve(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl
             continue;
         }
         ttl[j] = p->T_main_c[r] >= lim ? R_(0.0) : (gvs_real)INFINITY;
-        open[j] = p->T_main_c[r] < lim && (!hs.metzler || T_inf[r] + e_max >= lim)
+        open[j] = p->T_main_c[r] < lim
+            && (!(hs.metzler || hs.weighted) || T_inf[r] + bnd * (hs.metzler ? R_(1.0) : hs.wt[r]) >= lim)
             && (hs.coupled || T_inf[r] + SQRT(energy / C[r]) >= lim);
         any |= open[j];
     }
-    if (any && hs.metzler)
-        any = skip_to(tb, p, de, open, &t_skip, &h);
+    if (any && (hs.metzler || hs.weighted))
+        any = skip_to(tb, p, de, &hs, open, &t_skip, &h);
     while (any && t < TTL_HORIZON_S) {
         double h_step = t_skip > 0.0 ? t_skip : (h < TTL_HORIZON_S - t ? h : TTL_HORIZON_S - t);
         gvs_real d = (gvs_real)(MARCH_D_FRAC * h_step), s_watch = R_(2.0);
@@ -828,7 +873,7 @@ static int ttl_solve(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl
         for (i = 0; i < n; ++i) {
             de_new[i] = -Ae[i] / C[i];
             energy_new += C[i] * e_new[i] * e_new[i];
-            if (e_new[i] > e_max) e_max = e_new[i];
+            e_max = bound_max(&hs, e_new, i, e_max);
         }
         any = 0;
         for (j = 0; j < GVS_N_PUB; ++j) {
@@ -844,7 +889,8 @@ static int ttl_solve(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl
                 if (tb->ttl_relin[j] && s < s_watch) s_watch = s;
                 continue;
             }
-            if (hs.metzler && T_inf[r] + e_max < lim) open[j] = 0;
+            if ((hs.metzler || hs.weighted) && T_inf[r] + e_max * (hs.metzler ? R_(1.0) : hs.wt[r]) < lim)
+                open[j] = 0;
             if ((!hs.coupled || energy_new <= energy) && T_inf[r] + SQRT(energy_new / C[r]) < lim) open[j] = 0;
             any |= open[j];
         }
