@@ -135,9 +135,16 @@ def _time_to_limit(sp: SensorParams) -> dict:
         ttl_sump_model=int(sp.options.ttl_sump == "model"), ttl_relinearise=int(bool(sp.scalar_effects)))
 
 
-def table_arrays(sp: SensorParams) -> dict:
-    """{gvs_tables field: int, float or 1-D array (int32 or float64)} of a sensor's parameters."""
-    return {**_network(sp), **_losses(sp), **_cooler(sp), **_constants(), **_sensor(sp), **_time_to_limit(sp)}
+def table_arrays(sp: SensorParams, ttl: bool = True) -> dict:
+    """{gvs_tables field: int, float or 1-D array (int32 or float64)} of a sensor's parameters. ``ttl`` False:
+    without the time to limit's arrays (empty, ``ldl_nnz`` 0: gvs_ttl_refresh then publishes NaN), for a build
+    short of flash (export-c --no-ttl; the caller also turns the early warning off)."""
+    ttl_arrays = _time_to_limit(sp)
+    if not ttl:
+        ttl_arrays = {k: (np.zeros(0, dtype=v.dtype) if isinstance(v, np.ndarray) else v)
+                      for k, v in ttl_arrays.items()}
+        ttl_arrays["ldl_nnz"] = ttl_arrays["ldl_nupd"] = 0
+    return {**_network(sp), **_losses(sp), **_cooler(sp), **_constants(), **_sensor(sp), **ttl_arrays}
 
 
 #: the per-vehicle effect fields of gvs_vehicle, in order (EffectScales names)
