@@ -44,6 +44,10 @@ class BufferedState(SensorState):
         return SensorState, tuple(np.array(a) for a in self)
 
 
+#: rows per kernel call of a table (two reused buffers of this many records instead of one per row)
+TABLE_CHUNK = 8192
+
+
 class TableOutputs(NamedTuple):
     """The outputs of every step of a table (N rows)."""
     T_c: np.ndarray             # (N, 28)
@@ -243,21 +247,25 @@ class CompiledCore:
         """``(state, TableOutputs)``: one vehicle stepped through N rows of inputs (raw (N, 8) in INPUT_FIELDS
         order, t_s (N,) frame times or NaN), each time-to-limit refresh and time jump handled between kernel calls."""
         N = raw.shape[0]
-        rec = np.empty(N, dtype=self.S["Inputs_dtype"])
-        rec["raw"] = raw
-        rec["t_s"] = t_s
-        out = np.zeros(N, dtype=self.S["Outputs_dtype"])
+        m_max = max(1, min(N, TABLE_CHUNK))
+        rec = np.empty(m_max, dtype=self.S["Inputs_dtype"])
+        out = np.zeros(m_max, dtype=self.S["Outputs_dtype"])
+        res = self._table_buffers(N, out.dtype)
         buf = self.pack(state)
         pt = np.zeros((), dtype=self.S["TtlPoint_dtype"])
-        veh = self.vehicles(None)
+        veh = self.vehicles(None).ctypes.data_as(C.POINTER(self.S["Vehicle"]))
         status = C.c_int(0)
-        j = 0
-        while j < N:
-            done = self.lib.gvs_run(self._tables_p, veh.ctypes.data_as(C.POINTER(self.S["Vehicle"])),
-                                    buf.ctypes.data, rec[j:].ctypes.data, N - j, 0, out[j:].ctypes.data,
-                                    pt.ctypes.data, C.byref(status))
-            j = self._after_run(buf, rec, out, pt, j, done, status.value, cache)
-        return self.unpack(buf), self._table_outputs(out)
+        for j0 in range(0, N, m_max):                 # the same kernel steps, in chunks that reuse two buffers
+            m = min(m_max, N - j0)
+            rec["raw"][:m] = raw[j0:j0 + m]
+            rec["t_s"][:m] = t_s[j0:j0 + m]
+            k = 0
+            while k < m:
+                done = self.lib.gvs_run(self._tables_p, veh, buf.ctypes.data, rec[k:].ctypes.data, m - k, 0,
+                                        out[k:].ctypes.data, pt.ctypes.data, C.byref(status))
+                k = self._after_run(buf, rec, out, pt, k, done, status.value, cache)
+            self._fill_table(res, out[:m], j0)
+        return self.unpack(buf), res
 
     def _after_run(self, buf, rec, out, pt, j: int, done: int, status: int, cache: StepCache) -> int:
         """After a gvs_run of ``done`` rows from row j: a jump to propagate, then a due refresh; the next row."""
@@ -302,11 +310,27 @@ class CompiledCore:
                 j += 1
         return rec
 
-    def _table_outputs(self, out: np.ndarray) -> TableOutputs:
-        valid = np.stack([out[k] != 0 for k in ("speed_valid", "torque_valid", "gear_valid", "oil_valid")], axis=-1)
-        return TableOutputs(out["T_c"].astype(float), out["level"].copy(), out["ttl_s"].astype(float),
-                            out["degraded_mode"].copy(), valid, out["oil_innovation_c"].astype(float),
-                            out["model_oil_temp_c"].astype(float), out["rejects"].copy())
+    @staticmethod
+    def _table_buffers(N: int, out_dtype: np.dtype) -> TableOutputs:
+        """Empty TableOutputs for N rows (the kernel's outputs converted: temperatures and times as float64)."""
+        return TableOutputs(np.empty((N, N_PUB)), np.empty((N, N_PUB), dtype=out_dtype["level"].base),
+                            np.empty((N, N_PUB)), np.empty(N, dtype=out_dtype["degraded_mode"]),
+                            np.empty((N, 4), dtype=bool), np.empty(N), np.empty(N),
+                            np.empty((N,) + out_dtype["rejects"].shape, dtype=out_dtype["rejects"].base))
+
+    @staticmethod
+    def _fill_table(res: TableOutputs, out: np.ndarray, j0: int) -> None:
+        """Rows j0.. of ``res`` from the kernel's output records ``out``."""
+        rows = slice(j0, j0 + out.shape[0])
+        res.T_c[rows] = out["T_c"]
+        res.level[rows] = out["level"]
+        res.ttl_s[rows] = out["ttl_s"]
+        res.degraded_mode[rows] = out["degraded_mode"]
+        for i, k in enumerate(("speed_valid", "torque_valid", "gear_valid", "oil_valid")):
+            res.valid[rows, i] = out[k] != 0
+        res.oil_innovation_c[rows] = out["oil_innovation_c"]
+        res.model_oil_temp_c[rows] = out["model_oil_temp_c"]
+        res.rejects[rows] = out["rejects"]
 
 
 __all__ = ["CompiledCore", "BufferedState", "TableOutputs", "N_PUB"]

@@ -141,6 +141,26 @@ def test_one_vehicle_table_matches_step_by_step(params):
 
 
 @needs_c
+def test_a_table_in_chunks_equals_it_in_one_call(params, monkeypatch):
+    """step_table runs the kernel in chunks of TABLE_CHUNK rows over two reused buffers: with chunks of 7 rows
+    (boundaries everywhere: at refreshes, at time jumps) the outputs and the final state are bit-identical to one
+    chunk for the whole hostile table."""
+    from firmware_model.onboard import compiled
+    rng = np.random.default_rng(5)
+    raw, t_s = hostile_inputs(rng, 1, 1200)
+    cc = VirtualSensor(params, core="c")
+    st0 = cc.initial_state(T_oil_c=70.0)
+    monkeypatch.setattr(compiled, "TABLE_CHUNK", 10 ** 6)
+    st_a, a = cc.step_table(st0, raw[:, 0], t_s[:, 0])
+    monkeypatch.setattr(compiled, "TABLE_CHUNK", 7)
+    st_b, b = cc.step_table(st0, raw[:, 0], t_s[:, 0])
+    for f in a._fields:
+        np.testing.assert_array_equal(getattr(b, f), getattr(a, f), err_msg=f)
+    np.testing.assert_array_equal(st_b.T_c, st_a.T_c)
+    assert np.isfinite(a.ttl_s).any() and a.rejects[-1].sum() > 0
+
+
+@needs_c
 def test_many_tables_on_threads_equal_one_at_a_time(params):
     """``step_tables`` (one table per vehicle, on threads with the compiled core) yields, in order, exactly what
     ``step_table`` gives for each vehicle alone: hostile tables with time jumps, each from its own state."""
