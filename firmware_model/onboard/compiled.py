@@ -155,14 +155,17 @@ class CompiledCore:
         due = pts["due"] != 0
         if not due.any():
             return None
-        vehicles = tuple(v for v in (np.ndindex(pts.shape) if pts.shape else [()]) if due[v])
+        vehicles = (((),) if not pts.shape else tuple((int(i),) for i in np.flatnonzero(due)) if pts.ndim == 1
+                    else tuple(v for v in np.ndindex(pts.shape) if due[v]))
         n, ns, nl, nst, nb = self.n, self.ns, self.nl, self.nst, self.nb
-        points = tuple(TtlPoint(
-            p["T_main_c"][:n].astype(float), p["src_w"][:ns].astype(float), p["G_w_per_k"][:nl].astype(float),
-            p["G_streams_w_per_k"][:nst].astype(float), float(p["dT_in_k"]), float(p["Q_cool_w"]),
-            bool(p["measured"]), int(p["row"]), float(p["omega_in_rad_s"]), float(p["T_oil_c"]),
-            p["T_bc_c"][:nb].astype(float), p["used"].astype(float), float(p["rho_cp_j_per_m3k"]))
-            for p in (pts[v] for v in vehicles))
+
+        def points():                  # made only when asked (a numpy refresh, a test): TtlJob
+            return tuple(TtlPoint(
+                p["T_main_c"][:n].astype(float), p["src_w"][:ns].astype(float), p["G_w_per_k"][:nl].astype(float),
+                p["G_streams_w_per_k"][:nst].astype(float), float(p["dT_in_k"]), float(p["Q_cool_w"]),
+                bool(p["measured"]), int(p["row"]), float(p["omega_in_rad_s"]), float(p["T_oil_c"]),
+                p["T_bc_c"][:nb].astype(float), p["used"].astype(float), float(p["rho_cp_j_per_m3k"]))
+                for p in (pts[v] for v in vehicles))
         return TtlJob(vehicles, points, pts)
 
     # -- steps

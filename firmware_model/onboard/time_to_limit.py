@@ -58,12 +58,24 @@ class TtlPoint(NamedTuple):
     rho_cp_j_per_m3k: float        # oil volumetric heat capacity at T_oil_c
 
 
-class TtlJob(NamedTuple):
+class TtlJob:
     """The time-to-limit refreshes a step leaves: the batch index of each vehicle due and its point (and, from the
-    compiled core, the kernel's own gvs_ttl_point records, which it refreshes from)."""
-    vehicles: tuple
-    points: tuple
-    raw: object = None
+    compiled core, the kernel's own gvs_ttl_point records, which it refreshes from). ``points`` may be given as a
+    function of nothing that makes them: the compiled core's jobs make their TtlPoint tuples only when a numpy
+    refresh or a test asks (a batch of 1000 vehicles would otherwise build 1000 of them per refresh, unused)."""
+    __slots__ = ("vehicles", "_points", "raw")
+
+    def __init__(self, vehicles: tuple, points, raw: object = None):
+        self.vehicles, self._points, self.raw = vehicles, points, raw
+
+    @property
+    def points(self) -> tuple:
+        if callable(self._points):
+            self._points = self._points()
+        return self._points
+
+    def __repr__(self) -> str:
+        return f"TtlJob({len(self.vehicles)} vehicles{', kernel records' if self.raw is not None else ''})"
 
 
 class _Solution(NamedTuple):
