@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from firmware_model.components import STEP_S
-from firmware_model.errors import ParameterError
+from firmware_model.errors import InputError, ParameterError
 from firmware_model.onboard import reduce as R
 from firmware_model.onboard.blas import limit_blas_threads
 from firmware_model.onboard.core_select import select_core, step_table_numpy
@@ -176,8 +176,17 @@ class VirtualSensor:
         order (NaN missing), ``t_s`` (N,) frame times (None or NaN: the 0.1 s grid). The compiled core runs the
         table in one call (the time to limit refreshed inside; forward time jumps between calls); the numpy core
         steps row by row (same outputs)."""
-        raw = np.ascontiguousarray(raw, dtype=float).reshape(-1, N_INPUTS)
+        raw = np.ascontiguousarray(raw, dtype=float)
+        if raw.ndim == 1 and raw.size == N_INPUTS:
+            raw = raw.reshape(1, N_INPUTS)
+        if raw.ndim != 2 or raw.shape[1] != N_INPUTS:
+            raise InputError(f"a table of inputs has {N_INPUTS} columns ({', '.join(INPUT_FIELDS)}), "
+                             f"not shape {raw.shape}")
         t = np.full(raw.shape[0], np.nan) if t_s is None else np.asarray(t_s, dtype=float).reshape(-1)
+        if t.shape[0] == 1 and raw.shape[0] != 1:
+            t = np.full(raw.shape[0], t[0])
+        if t.shape[0] != raw.shape[0]:
+            raise InputError(f"t_s has {t.shape[0]} frame times for {raw.shape[0]} rows of inputs")
         if self.compiled is not None:
             return self.compiled.step_table(state, raw, t, self.cache)
         return step_table_numpy(self, state, raw, t)
@@ -188,6 +197,9 @@ class VirtualSensor:
         run on ``workers`` threads (default: the CPU count; the kernel call releases the GIL and shares only the
         read-only tables), at most two per thread in flight, so a fleet's outputs never all sit in memory at once;
         the numpy core runs them one after the other."""
+        if workers is not None and not (isinstance(workers, int) and workers >= 1):
+            raise InputError(f"workers is a number of threads >= 1 (or None: the CPU count), not {workers!r}")
+        jobs = (_table_job(job) for job in jobs)
         if self.compiled is None or workers == 1:
             for job in jobs:
                 yield self.step_table(*job)
@@ -218,6 +230,14 @@ class VirtualSensor:
         """Bytes of one vehicle's state as an ECU would hold it (floats as ``dtype``, levels 1 byte, counters and
         the step count 4 bytes)."""
         return state_bytes(self.initial_state(T_oil_c=40.0), dtype)
+
+
+def _table_job(job) -> tuple:
+    """A step_tables job as step_table's arguments, or a one-sentence InputError."""
+    if not isinstance(job, (tuple, list)) or len(job) not in (2, 3):
+        raise InputError(f"a step_tables job is (state, raw) or (state, raw, t_s), not {type(job).__name__} "
+                         f"of length {len(job) if hasattr(job, '__len__') else '?'}")
+    return tuple(job)
 
 
 def _limits_of(path, config, sensor_cfg: dict) -> Limits:

@@ -398,3 +398,17 @@ def test_oil_mode_model_ignores_the_measurement_but_reports_the_innovation(param
 
 def test_state_fits_in_one_kilobyte(sensor):
     assert sensor.state_bytes(np.float32) <= 1024
+
+
+@pytest.mark.parametrize("call, msg", [
+    (lambda s, st: s.step_table(st, np.zeros((10, 7))), "8 columns"),
+    (lambda s, st: s.step_table(st, np.zeros((4, 2, 8))), "8 columns"),
+    (lambda s, st: s.step_table(st, np.zeros((10, 8)), np.zeros(3)), "3 frame times for 10 rows"),
+    (lambda s, st: list(s.step_tables([(st,)])), "(state, raw) or (state, raw, t_s)"),
+    (lambda s, st: list(s.step_tables([(st, np.zeros((5, 8)))], workers=0)), "threads >= 1"),
+])
+def test_tables_refuse_malformed_input_in_one_sentence(sensor, call, msg):
+    """A table with the wrong number of columns (which a reshape would have silently re-cut into wrong rows), frame
+    times that do not match the rows, a malformed job, no threads: one InputError naming what is wrong."""
+    with pytest.raises(InputError, match=msg.replace("(", r"\(").replace(")", r"\)")):
+        call(sensor, sensor.initial_state(T_oil_c=60.0))
