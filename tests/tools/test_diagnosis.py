@@ -423,6 +423,23 @@ def test_a_set_grows_from_the_leader_the_data_cannot_tell_apart(params):
     assert v["shrink"] > 0.7
 
 
+def test_a_modest_effect_beside_a_large_one_joins_when_it_closes_the_gap(params):
+    """A rig with teeth convection x0.6 and churning x0.55: churning is under 1 % of all the pair explains (the teeth
+    effect dominates the thermocouples), so the 2 % share rule alone kept it out (teeth only, 89 % held-out shrink),
+    although teeth convection alone left a systematic gap 2.6 times the noise. It joins because it closes that gap."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        sc = make_scenario(9, 1, "rig", "churning_scale", 0.5471, params, train_s=900.0, test_s=900.0,
+                           also={"teeth_oil_h_scale": 0.5959})
+        res = diagnose(sc.train, sc.test, params, model="onboard")
+    v = res["verdict"]
+    found = {e["effect"]: e["parameters"] for e in v.get("effects", [])}
+    assert set(found) == {"teeth_oil_h_scale", "churning_scale"}, v["reason"]
+    assert abs(found["churning_scale"]["factor"] - 0.547) < 0.1
+    assert abs(found["teeth_oil_h_scale"]["factor"] - 0.596) < 0.1
+    assert v["shrink"] > 0.9
+
+
 def test_one_effect_alone_gets_no_partner(planted):
     """A single planted effect: no second effect pays for its parameter."""
     v = planted[0]["verdict"]

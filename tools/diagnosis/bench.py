@@ -354,6 +354,20 @@ def _score_set(sc: Scenario, res: dict) -> tuple:
     return False, "missed: " + ", ".join(missed) + f" (found {' + '.join(found) or res['verdict']['effect']})"
 
 
+def _below_detectable(sc: Scenario, res: dict, missed: list) -> str:
+    """A note for each missed effect planted closer to neutral than the fraction of its range from which its own
+    signature clears the detection threshold alone (the identifiability analysis' detectable_from_fraction)."""
+    from firmware_model.effects import fraction_of_range
+    planted = {sc.effect: sc.value, **sc.also}
+    out = []
+    for e in missed:
+        dff = res["identifiability"].get(e, {}).get("detectable_from_fraction")
+        frac = abs(fraction_of_range(e, planted[e]))
+        if dff is not None and frac < dff:
+            out.append(f"{e} planted at {frac:.2f} of its range, detectable alone from {dff:.2f}")
+    return "; ".join(out)
+
+
 def score_row(sc: Scenario, res: dict, diag_s: float) -> Row:
     v = res["verdict"]
     if sc.also:
@@ -361,11 +375,12 @@ def score_row(sc: Scenario, res: dict, diag_s: float) -> Row:
         found, conf = found_set(v)
         e = CATALOG[sc.effect]
         bound = e.high if sc.value > e.neutral else e.low
+        below = _below_detectable(sc, res, [x for x in [sc.effect, *sc.also] if x not in found and x not in conf])
+        note = "planted " + ", ".join(f"{k} {x:.4g}" for k, x in ({sc.effect: sc.value} | sc.also).items())
         return Row(sc.index, sc.setup, sc.cooler, " + ".join([sc.effect] + list(sc.also)), sc.value,
                    (sc.value - e.neutral) / (bound - e.neutral), " + ".join(found) or v["effect"], None, conf,
                    float(v["shrink"] or 0.0), float(v["test_rms_before_c"] or 0.0), float(v["test_rms_after_c"] or 0.0),
-                   status, ok, diag_s, sc.truth_s, "planted " + ", ".join(
-                       f"{k} {x:.4g}" for k, x in ({sc.effect: sc.value} | sc.also).items()))
+                   status, ok, diag_s, sc.truth_s, note + (f" ({below})" if ok is False and below else ""))
     eff = sc.effect
     conf = list(v.get("confusable_with", []))
     fitted = None
@@ -417,6 +432,7 @@ def summarize(rows: list) -> dict:
         "top1": len(hits) / len(scored) if scored else float("nan"),
         "top1_hits": len(hits), "top1_scored": len(scored), "not_identifiable": len(excluded),
         "top1_all": len(hits) / len(eff_rows) if eff_rows else float("nan"),
+        "missed_below_detectable": sum(r.ok is False and "detectable alone from" in r.note for r in eff_rows),
         "false_alarms": sum(not r.ok for r in null_rows),
         "median_shrink_identified": float(np.median(shrinks)) if shrinks else float("nan"),
         "median_shrink_scored": float(np.median(shr_all)) if shr_all else float("nan"),
@@ -447,6 +463,8 @@ def format_table(rows: list, summary: dict) -> str:
             f"| {ident[0]} | {100 * s['top1']:.0f} % ({s['top1_hits']} of {s['top1_scored']}) | {ident[1]} |\n"
             f"| top-1 over all effect scenarios (not identifiable counted as misses) | {100 * s['top1_all']:.0f} % | - |\n"
             f"| effect scenarios reported as not identifiable with their channels | {s['not_identifiable']} | - |\n"
+            + (f"| misses with an effect planted below the fraction of its range it is detectable from alone | "
+               f"{s['missed_below_detectable']} | - |\n" if pair else "") +
             f"| false alarms on null scenarios | {s['false_alarms']} of {s['null_scenarios']} | 0 |\n"
             f"| median test-set RMS shrink (verdict = an effect) | {100 * s['median_shrink_identified']:.0f} % | >= 70 % |\n"
             f"| median diagnosis time per scenario (max) | {s['median_diag_s']:.0f} s ({s['max_diag_s']:.0f} s) | <= 60 s |\n"

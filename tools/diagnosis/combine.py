@@ -163,8 +163,11 @@ def _coordinate_pass(ctx: Context, base: Baseline, st: _State, deltas: dict) -> 
     return new if new.S < st.S else st
 
 
-def _step(ctx: Context, base: Baseline, crit: Criterion, st: _State, fits: dict, deltas: dict):
-    """(the set with one more effect, its Step), or None when nothing pays for one more parameter."""
+def _step(ctx: Context, base: Baseline, crit: Criterion, st: _State, fits: dict, deltas: dict, gap_thr_c: dict):
+    """(the set with one more effect, its Step), or None when nothing pays for one more parameter. A new effect with
+    less than add_share_min of all the set explains joins only when it closes a clear gap (:func:`_closes_clear_gap`):
+    a modest effect beside a large one (churning x0.55 beside teeth convection x0.6 on a rig) is a small share of the
+    whole, yet the gap the large one leaves alone is the evidence for it."""
     o = ctx.opts
     cands = []
     for eid in _eligible(ctx, st, fits, deltas):
@@ -186,14 +189,24 @@ def _step(ctx: Context, base: Baseline, crit: Criterion, st: _State, fits: dict,
     added = next(e for e in best.members if e not in st.members)
     # its share of all the set now explains, averaged over entering last and entering alone (its single fit)
     share = 0.5 * ((st.S - best.S) + max(base.S0 - fits[added].S, 0.0)) / max(base.S0 - best.S, 1e-12)
-    if (score < o.evidence_min or gain < o.add_explain_min or share < o.add_share_min
+    if (score < o.evidence_min or gain < o.add_explain_min
             or abs(fraction_of_range(added, best.members[added])) < o.min_frac):
+        return None
+    if share < o.add_share_min and not _closes_clear_gap(ctx, base, st, best, gap_thr_c):
         return None
     # alternatives: other effects whose surrogate increment came within confusable_share of the added one's (both
     # on the same surrogate footing; the checked increment of the added effect is higher after its joint refit)
     sur = {e: (st.S - S) / excess for S, e, _v in cands}
     alts = tuple(e for _S, e, _v in cands if e != added and sur[e] >= sur.get(added, gain) - o.confusable_share)
     return best, Step(added, float(score), float(gain), alts)
+
+
+def _closes_clear_gap(ctx: Context, base: Baseline, before: _State, after: _State, gap_thr_c: dict) -> bool:
+    """The set before left a clear gap (a systematic residual at least clear_gap_factor times its threshold on some
+    channel: not the model's own error at the threshold) and the set after leaves none."""
+    sc = base.scorer
+    return (gap_ratio(ctx, base, sc.adjust(before.raw, "train"), gap_thr_c) >= ctx.opts.clear_gap_factor
+            and not gap_left(ctx, base, sc.adjust(after.raw, "train"), gap_thr_c))
 
 
 def _shares(base: Baseline, fits: dict, members: dict, chain: list) -> dict:
@@ -213,12 +226,18 @@ def _shares(base: Baseline, fits: dict, members: dict, chain: list) -> dict:
     return out
 
 
+def gap_ratio(ctx: Context, base: Baseline, preds: list, gap_thr_c: dict) -> float:
+    """The largest ratio, over the channels, of the systematic residual after predictions `preds` to its gap
+    threshold (above 1: a real gap remains)."""
+    from tools.diagnosis.decide import systematic
+    post = systematic(base, preds, ctx.opts).rms_c
+    return max((post[c] / gap_thr_c[c] for c in post), default=0.0)
+
+
 def gap_left(ctx: Context, base: Baseline, preds: list, gap_thr_c: dict) -> bool:
     """Does a real gap remain after predictions `preds` (systematic residual above the gap threshold on some
     channel)?"""
-    from tools.diagnosis.decide import systematic
-    post = systematic(base, preds, ctx.opts).rms_c
-    return any(post[c] > gap_thr_c[c] for c in post)
+    return gap_ratio(ctx, base, preds, gap_thr_c) > 1.0
 
 
 def forward_select(ctx: Context, base: Baseline, crit: Criterion, fits: list, gap_thr_c: dict, start=None):
@@ -235,7 +254,7 @@ def forward_select(ctx: Context, base: Baseline, crit: Criterion, fits: list, ga
     chain, steps = [st.S], []
     while len(st.members) < o.max_effects and gap_left(ctx, base, base.scorer.adjust(st.raw, "train"),
                                                                 gap_thr_c):
-        nxt = _step(ctx, base, crit, st, by_id, deltas)
+        nxt = _step(ctx, base, crit, st, by_id, deltas, gap_thr_c)
         if nxt is None:
             break
         st, step = nxt

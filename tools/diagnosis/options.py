@@ -45,7 +45,9 @@ class Options:
     set_starts: int = 3               # forward selection: from the best candidate and up to 2 confusable with it
     combine_check: int = 2            # forward selection: candidates re-simulated per step
     shrink_min: float = 0.3           # a verdict's effect must shrink a real held-out gap by this much
-    add_share_min: float = 0.02       # forward selection: a new effect's least share of all the set explains
+    add_share_min: float = 0.02       # forward selection: a new effect's least share of all the set explains (unless it
+                                      # closes a clear gap)
+    clear_gap_factor: float = 2.0     # a clear gap: a systematic residual at least this many times its threshold
     add_explain_min: float = 0.2      # forward selection: share of the set's unexplained excess a new effect must explain
     coarse_grid: bool = True          # surrogate grid at the plant's coarse step (2 s), differences only
     dense: int = 161                  # dense parameter grid of the surrogate
