@@ -440,6 +440,23 @@ def test_a_modest_effect_beside_a_large_one_joins_when_it_closes_the_gap(params)
     assert v["shrink"] > 0.9
 
 
+def test_a_candidate_is_searched_with_the_set_moving_too(params):
+    """A rig with teeth convection x0.7 and gear friction x0.59: gear friction alone is fitted near x0.72, taking up
+    part of the teeth signature, and on top of it teeth convection looked too weak to be re-simulated (gear friction
+    alone, 80 % held-out shrink). Searched with the set's members moving on the same surrogates, it joins, and both
+    come out below neutral, as planted."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        sc = make_scenario(23, 3, "rig", "teeth_oil_h_scale", 0.6991, params, train_s=900.0, test_s=900.0,
+                           also={"gear_friction_scale": 0.5881})
+        res = diagnose(sc.train, sc.test, params, model="onboard")
+    v = res["verdict"]
+    found = {e["effect"]: e["parameters"]["factor"] for e in v.get("effects", [])}
+    assert {"teeth_oil_h_scale", "gear_friction_scale"} <= set(found), v["reason"]
+    assert found["teeth_oil_h_scale"] < 1.0 and found["gear_friction_scale"] < 1.0
+    assert v["shrink"] > 0.8
+
+
 def test_one_effect_alone_gets_no_partner(planted):
     """A single planted effect: no second effect pays for its parameter."""
     v = planted[0]["verdict"]
