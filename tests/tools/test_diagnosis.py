@@ -406,18 +406,21 @@ def test_two_effects_are_found_together(two_effects):
     assert "2 effects together" in v["reason"]
 
 
+def _diagnose_pair(params, index: int, seed: int, setup: str, effect: str, value: float, also: dict) -> tuple:
+    """(verdict, {effect: parameters} of its set) of a two-effect scenario, 900 s files, the onboard model."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        sc = make_scenario(index, seed, setup, effect, value, params, train_s=900.0, test_s=900.0, also=also)
+        v = diagnose(sc.train, sc.test, params, model="onboard")["verdict"]
+    return v, {e["effect"]: e["parameters"] for e in v.get("effects", [])}
+
+
 def test_a_set_grows_from_the_leader_the_data_cannot_tell_apart(params):
     """A truck (oil only) with hot surroundings (+25 K) and gear friction x1.45: alone, a sensor offset and hot
     surroundings lift the oil equally well (confusable leaders), but only hot surroundings leaves room for the
     load-dependent friction. Grown from the best single candidate alone (set_starts=1) the set was the offset plus
     planetary losses with a 31 % held-out shrink; grown from each confusable leader, the planted pair (84 %)."""
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)
-        sc = make_scenario(10, 2, "truck", "gear_friction_scale", 1.446, params, train_s=900.0, test_s=900.0,
-                           also={"hot_surroundings_offset": 24.92})
-        res = diagnose(sc.train, sc.test, params, model="onboard")
-    v = res["verdict"]
-    found = {e["effect"]: e["parameters"] for e in v.get("effects", [])}
+    v, found = _diagnose_pair(params, 10, 2, "truck", "gear_friction_scale", 1.446, {"hot_surroundings_offset": 24.92})
     assert set(found) == {"hot_surroundings_offset", "gear_friction_scale"}, v["reason"]
     assert abs(found["gear_friction_scale"]["factor"] - 1.446) < 0.15
     assert v["shrink"] > 0.7
@@ -427,13 +430,7 @@ def test_a_modest_effect_beside_a_large_one_joins_when_it_closes_the_gap(params)
     """A rig with teeth convection x0.6 and churning x0.55: churning is under 1 % of all the pair explains (the teeth
     effect dominates the thermocouples), so the 2 % share rule alone kept it out (teeth only, 89 % held-out shrink),
     although teeth convection alone left a systematic gap 2.6 times the noise. It joins because it closes that gap."""
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)
-        sc = make_scenario(9, 1, "rig", "churning_scale", 0.5471, params, train_s=900.0, test_s=900.0,
-                           also={"teeth_oil_h_scale": 0.5959})
-        res = diagnose(sc.train, sc.test, params, model="onboard")
-    v = res["verdict"]
-    found = {e["effect"]: e["parameters"] for e in v.get("effects", [])}
+    v, found = _diagnose_pair(params, 9, 1, "rig", "churning_scale", 0.5471, {"teeth_oil_h_scale": 0.5959})
     assert set(found) == {"teeth_oil_h_scale", "churning_scale"}, v["reason"]
     assert abs(found["churning_scale"]["factor"] - 0.547) < 0.1
     assert abs(found["teeth_oil_h_scale"]["factor"] - 0.596) < 0.1
@@ -445,15 +442,9 @@ def test_a_candidate_is_searched_with_the_set_moving_too(params):
     part of the teeth signature, and on top of it teeth convection looked too weak to be re-simulated (gear friction
     alone, 80 % held-out shrink). Searched with the set's members moving on the same surrogates, it joins, and both
     come out below neutral, as planted."""
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)
-        sc = make_scenario(23, 3, "rig", "teeth_oil_h_scale", 0.6991, params, train_s=900.0, test_s=900.0,
-                           also={"gear_friction_scale": 0.5881})
-        res = diagnose(sc.train, sc.test, params, model="onboard")
-    v = res["verdict"]
-    found = {e["effect"]: e["parameters"]["factor"] for e in v.get("effects", [])}
+    v, found = _diagnose_pair(params, 23, 3, "rig", "teeth_oil_h_scale", 0.6991, {"gear_friction_scale": 0.5881})
     assert {"teeth_oil_h_scale", "gear_friction_scale"} <= set(found), v["reason"]
-    assert found["teeth_oil_h_scale"] < 1.0 and found["gear_friction_scale"] < 1.0
+    assert found["teeth_oil_h_scale"]["factor"] < 1.0 and found["gear_friction_scale"]["factor"] < 1.0
     assert v["shrink"] > 0.8
 
 
