@@ -25,7 +25,7 @@ from firmware_model.errors import InputError, ParameterError
 from firmware_model.onboard import reduce as R
 from firmware_model.onboard.blas import limit_blas_threads
 from firmware_model.onboard.core_select import select_core, step_table_numpy
-from firmware_model.onboard.held_inputs import cool_down, shutdown_boundaries_c
+from firmware_model.onboard.held_inputs import cool_down, jump_state, shutdown_boundaries_c
 from firmware_model.onboard.params import SensorParams
 from firmware_model.onboard.records import (I_AMB, I_GEAR, I_OIL, I_SPEED, I_TORQUE, INPUT_FIELDS, MAIN, N_INPUTS,
                                             N_PUB, N_REJECT, REJECT_REASONS, TWIN, SensorInputs, SensorOptions,
@@ -219,6 +219,14 @@ class VirtualSensor:
     def cool_down(self, T0_c, elapsed_s: float, ambient_c: float, boundaries_c=None):
         """Node temperatures of one network copy after ``elapsed_s`` with the engine off (held_inputs.cool_down)."""
         return cool_down(self.sp, self.cache, T0_c, elapsed_s, ambient_c, boundaries_c)
+
+    def warm_up(self) -> None:
+        """Run, and discard, one time-jump propagation of the initial state (held inputs, then engine off), so that
+        the first time jump on the bus does not also pay for first use (numpy's and LAPACK's code paths, the
+        engine-off modes of the default ambient): about 3 ms instead of 1.3 ms natively, and under emulation the
+        difference is tens of milliseconds of the resume latency. Changes no state and no output."""
+        st = self.initial_state()
+        jump_state(st, self.sp.options.time_jump_hold_s + 60.0, self.sp, self.cache)
 
     # -- snapshots and figures
 

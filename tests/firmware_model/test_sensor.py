@@ -412,3 +412,26 @@ def test_tables_refuse_malformed_input_in_one_sentence(sensor, call, msg):
     times that do not match the rows, a malformed job, no threads: one InputError naming what is wrong."""
     with pytest.raises(InputError, match=msg.replace("(", r"\(").replace(")", r"\)")):
         call(sensor, sensor.initial_state(T_oil_c=60.0))
+
+
+def test_warm_up_changes_no_output(params):
+    """VirtualSensor.warm_up (run by the live service at start-up) only prepares code paths and caches: a table
+    with two forward time jumps (30 s, held inputs; 200 s, past the hold into engine off) gives bit-identical
+    outputs with and without it."""
+    n = 400
+    rng = np.random.default_rng(5)
+    raw = np.column_stack([1200 + 500 * rng.random(n), 2000 * rng.random(n), np.full(n, 9.0), 80 + 0.01 * np.arange(n),
+                           np.full(n, 25.0), np.full(n, 85.0), np.full(n, 50.0), np.zeros(n)])
+    t_s = 0.1 * np.arange(n)
+    t_s[150:] += 30.0
+    t_s[300:] += 200.0
+    outs = []
+    for warm in (False, True):
+        s = VirtualSensor(params)
+        if warm:
+            s.warm_up()
+        _, out = s.step_table(s.initial_state(T_oil_c=80.0), raw, t_s)
+        outs.append(out)
+    for name in outs[0]._fields:
+        a, b = np.asarray(getattr(outs[0], name)), np.asarray(getattr(outs[1], name))
+        assert np.array_equal(a, b, equal_nan=True) if a.dtype.kind == "f" else np.array_equal(a, b), name

@@ -159,6 +159,8 @@ def run_live(settings: LiveSettings):
     from firmware_model.service import build_service, can_filters, serve
     settings.check()
     service = build_service(settings.config_path, address_claim=True)   # a node on the bus: J1939-81
+    if hasattr(service.sensor, "warm_up"):
+        service.sensor.warm_up()      # the first time jump after an outage does not pay for first use on the bus
     filters = can_filters(rig=settings.rig) if settings.filters else None
     if settings.rt_priority is not None:
         set_realtime_priority(settings.rt_priority)
