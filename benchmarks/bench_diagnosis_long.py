@@ -29,8 +29,8 @@ def main(argv=None) -> int:
     ap.add_argument("--rate", type=float, default=10.0, help="rows per second of each file (default 10 Hz)")
     ap.add_argument("--pair", action="store_true", help="plant two effects (teeth convection and gear friction)")
     a = ap.parse_args(argv)
-    if not (a.hours > 0 and a.rate > 0):
-        ap.error("--hours and --rate must be positive")
+    if not (0 < a.hours <= 24 and 0 < a.rate <= 100):
+        ap.error("--hours must be in (0, 24] and --rate in (0, 100] rows per second")
     params = load_parameters("GRS905")
     if a.pair:
         effect, value, also = "teeth_oil_h_scale", 0.7, {"gear_friction_scale": 0.59}
