@@ -3,6 +3,7 @@
     python benchmarks/bench_fleet_health.py                       # 50 trucks x 8 weeks of daily 10-min logs (~1 h)
     python benchmarks/bench_fleet_health.py --vehicles 12 --days 28 --fouling 2 --low-oil 1
     python benchmarks/bench_fleet_health.py --fleet DIR           # a fleet written by python -m tools.fleet.synth
+    python benchmarks/bench_fleet_health.py --level-share 1 --seed 7 --fouling 5 --low-oil 5  # trucks send SPN 124
 
 Prints figures, asserts nothing. Target from the fleet issue: >= 50 vehicles over >= 8 weeks, >= 5 fouling coolers
 and >= 3 low oil levels at random onsets: all flagged (printed: weeks after onset) and no false flag.
@@ -73,16 +74,19 @@ def main(argv=None) -> None:
     ap.add_argument("--seed", type=int, default=3)
     ap.add_argument("--cold-share", type=float, default=0.5,
                     help="share of the days whose log starts at key-on after a night parked")
+    ap.add_argument("--level-share", type=float, default=0.0,
+                    help="share of the trucks whose transmission sends its oil level, J1939 SPN 124 (default 0)")
     ap.add_argument("--workers", type=int)
     ap.add_argument("--period-days", type=float, default=7.0)
     a = ap.parse_args(argv)
     if a.fleet:
         root = Path(a.fleet)
     else:
-        root = Path(f"fleet_health_{a.vehicles}x{a.days}_s{a.seed}")
+        tag = f"_level{a.level_share:g}" if a.level_share else ""
+        root = Path(f"fleet_health_{a.vehicles}x{a.days}_s{a.seed}{tag}")
         t0 = time.perf_counter()
         synth_fleet(root, FleetSpec(a.vehicles, a.days, a.minutes, a.fouling, a.low_oil, seed=a.seed,
-                                    cold_share=a.cold_share))
+                                    cold_share=a.cold_share, level_share=a.level_share))
         print(f"synthetic fleet in {time.perf_counter() - t0:.0f} s")
     out = Path(a.out) if a.out else root.parent / (root.name + "_out")
     entries = read_manifest(root / "manifest.csv")

@@ -15,7 +15,8 @@ EEC1     10-20 ms (rpm)     engine [0x00]    speed (0.125 rpm/bit), actual perce
                                              torque x 100, rounded to 1 %, clipped to -125..125 %
 ETC2     100 ms             gearbox [0x03]   current and selected gear (seed Table 1 numbers, 0 = neutral)
 TRF1     1 s                gearbox [0x03]   oil temperature: the plant's ``oil_temp_c`` (the vehicle's sensor),
-                                             else the cycle's ``oil_temp_c``, else the plant's ``T_oil_c``
+                                             else the cycle's ``oil_temp_c``, else the plant's ``T_oil_c``;
+                                             the oil level (SPN 124) if the cycle has ``oil_level_pct``
 ET1      1 s                engine [0x00]    coolant temperature (1 degC/bit), if the cycle has ``coolant_temp_c``
 AMB      1 s                engine [0x00]    ambient air temperature, if the cycle has ``ambient_temp_c``
 CCVS1    1 s                engine [0x00]    wheel-based vehicle speed, if the cycle has ``vehicle_speed_kmh``
@@ -308,6 +309,8 @@ class _Synth:
         if oil_c is not None:
             data = _empty(t_s.size)
             _put(data, "TRF1", "TransOilTemp", oil_c)
+            if self.inputs.has("oil_level_pct"):     # SPN 124, byte 2; else 0xFF (not available)
+                _put(data, "TRF1", "TransOilLevel", self.at("oil_level_pct", t_s))
             self.add("TRF1", _ORDER["TRF1"], t_s, dbc.message_id("TRF1", self.src["transmission"]), data)
 
     def engine_1s(self) -> None:

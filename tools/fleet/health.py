@@ -14,6 +14,13 @@ fault (less cooler, less oil); the flag also says when the value sits outside th
 (median -/+ 4 x 1.4826 MAD). The fleet's spread alone never flags: trucks of other duties carry other model biases
 (a long-haul truck's fitted oil volume sits ~2 L below a mining truck's on the synthetic fleet), and a flag on it
 alone was a false flag there.
+
+The oil temperature alone does not identify the oil level (docs/fleet.md). A truck whose transmission sends its
+measured level (J1939 SPN 124, TRF1 byte 2; tools/fleet/level.py) gets it read instead: per log the median of its
+readings (kept in DIR/fits beside the grid), per period the median of its logs with the standard error of their
+scatter (:func:`period_level`), and the oil-level flag comes from that measured level against its own baseline
+(:func:`_level_flag`); the oil-volume estimate from the temperature then flags nothing for that truck. Without the
+signal (0xFF, or too few readings) nothing changes.
 """
 from __future__ import annotations
 
@@ -23,6 +30,8 @@ from pathlib import Path
 from typing import NamedTuple
 
 import numpy as np
+
+from firmware_model.effects import CATALOG
 
 #: the grid of the per-log fit: cooler effectiveness scale [-] and oil volume [L] (catalog ranges)
 COOLER_GRID = (0.2, 0.35, 0.5, 0.65, 0.8, 1.0, 1.2)
@@ -34,6 +43,13 @@ DECORRELATION_S = 120.0
 BASELINE_PERIODS = 2
 CONSECUTIVE = 2
 DRIFT_MIN = {"cooler_effectiveness_scale": 0.15, "oil_level_low": 1.0}
+#: the measured level (SPN 124): its baseline is taken as the nominal volume, and a drop counts from the same 1 L
+#: as the estimate's (a share of the baseline); a period's level needs readings from at least LEVEL_MIN_LOGS logs;
+#: its standard error never goes below one bit (0.4 %) over sqrt(logs)
+NOMINAL_VOLUME_L = float(CATALOG["oil_level_low"].neutral)     # the nominal oil volume [L]
+LEVEL_DRIFT_MIN_SHARE = DRIFT_MIN["oil_level_low"] / NOMINAL_VOLUME_L
+LEVEL_MIN_LOGS = 2
+LEVEL_BIT_PCT = 0.4
 #: a log contributes to the fit only with at least this share of measured oil
 MIN_OIL_SHARE = 0.8
 _MODELS: dict = {}
@@ -104,6 +120,8 @@ class PeriodFit(NamedTuple):
     oil_volume_l: float
     oil_volume_se: float
     rms_c: float
+    oil_level_pct: float = math.nan     # the measured level (SPN 124): median over the period's logs
+    oil_level_se: float = math.nan
 
 
 def fit_period(vehicle: str, period: int, start: str, fits: list[dict]) -> PeriodFit:
@@ -122,7 +140,20 @@ def fit_period(vehicle: str, period: int, start: str, fits: list[dict]) -> Perio
 
     def se(curv):
         return math.sqrt(2 * s2 * infl / curv) if curv > 0 else math.inf
-    return PeriodFit(vehicle, period, start, len(fits), c_hat, se(c_curv), v_hat, se(v_curv), math.sqrt(s2))
+    return PeriodFit(vehicle, period, start, len(fits), c_hat, se(c_curv), v_hat, se(v_curv), math.sqrt(s2),
+                     *period_level(fits))
+
+
+def period_level(fits: list[dict]) -> tuple[float, float]:
+    """The period's measured oil level [%] and its standard error: the median of its logs' levels (each the median
+    of that log's SPN 124 readings), the error from their scatter (1.2533 x std / sqrt(n)); NaN without readings in
+    at least :data:`LEVEL_MIN_LOGS` logs."""
+    x = np.array([f.get("level_pct", math.nan) for f in fits], dtype=float)
+    x = x[np.isfinite(x)]
+    if x.size < LEVEL_MIN_LOGS:
+        return math.nan, math.nan
+    se = 1.2533 * float(np.std(x, ddof=1)) / math.sqrt(x.size)
+    return float(np.median(x)), max(se, LEVEL_BIT_PCT / math.sqrt(x.size))
 
 
 class Flag(NamedTuple):
@@ -141,12 +172,43 @@ class Health(NamedTuple):
     flags: list
 
 
+def _level_flag(vehicle: str, rows: list) -> Flag | None:
+    """The oil-level flag from the measured level (SPN 124): :data:`CONSECUTIVE` periods in a row below the
+    vehicle's own first :data:`BASELINE_PERIODS` by more than :data:`LEVEL_DRIFT_MIN_SHARE` of it and 3 standard errors
+    (both combined), the baseline taken as the nominal fill. Value and baseline in litres on that scale."""
+    baseline = float(np.median([r.oil_level_pct for r in rows[:BASELINE_PERIODS]]))
+    base_se = max(r.oil_level_se for r in rows[:BASELINE_PERIODS])
+    run = 0
+    for r in rows[BASELINE_PERIODS:]:
+        if not math.isfinite(r.oil_level_pct):
+            continue                # no level this period: no evidence either way
+        drop = baseline - r.oil_level_pct
+        big = drop > LEVEL_DRIFT_MIN_SHARE * baseline and drop > 3 * math.hypot(r.oil_level_se, base_se)
+        run = run + 1 if big else 0
+        if run >= CONSECUTIVE:
+            return Flag(vehicle, "oil_level_low", r.period, r.start, r.oil_level_pct / baseline * NOMINAL_VOLUME_L,
+                        NOMINAL_VOLUME_L, "the measured oil level (SPN 124) fell from its own baseline")
+    return None
+
+
+def _measures_level(rows: list) -> bool:
+    """Whether the vehicle sends its oil level: measured in its baseline periods and at least once after (then the
+    level is read, not estimated from the oil temperature)."""
+    return (len(rows) > BASELINE_PERIODS and all(math.isfinite(r.oil_level_pct) for r in rows[:BASELINE_PERIODS])
+            and any(math.isfinite(r.oil_level_pct) for r in rows[BASELINE_PERIODS:]))
+
+
 def _drift_flags(per_vehicle: dict, fleet_median: dict, fleet_mad: dict) -> list[Flag]:
     flags = []
     for vehicle, rows in per_vehicle.items():
         rows = sorted(rows, key=lambda r: r.period)
+        measured = _measures_level(rows)
+        if measured and (flag := _level_flag(vehicle, rows)) is not None:
+            flags.append(flag)
         for effect, attr, se_attr in (("cooler_effectiveness_scale", "cooler_scale", "cooler_se"),
                                       ("oil_level_low", "oil_volume_l", "oil_volume_se")):
+            if measured and effect == "oil_level_low":
+                continue            # read from the level sensor: the estimate from the oil temperature is not used
             base_rows = rows[:BASELINE_PERIODS]
             if len(rows) <= BASELINE_PERIODS:
                 continue
@@ -166,10 +228,26 @@ def _drift_flags(per_vehicle: dict, fleet_median: dict, fleet_mad: dict) -> list
     return flags
 
 
+def flag_vehicles(period_fits: list[PeriodFit]) -> list[Flag]:
+    """The drifting vehicles of a fleet's vehicle-period fits (the module doc says how)."""
+    per_vehicle: dict = {}
+    stats_med, stats_mad = {}, {}
+    for f in period_fits:
+        per_vehicle.setdefault(f.vehicle, []).append(f)
+    for effect, attr in (("cooler_effectiveness_scale", "cooler_scale"), ("oil_level_low", "oil_volume_l")):
+        for p in {f.period for f in period_fits}:
+            vals = np.array([getattr(f, attr) for f in period_fits if f.period == p])
+            med = float(np.median(vals))
+            stats_med[(effect, p)] = med
+            stats_mad[(effect, p)] = max(1.4826 * float(np.median(np.abs(vals - med))), 1e-6)
+    return _drift_flags(per_vehicle, stats_med, stats_mad)
+
+
 def fleet_health(out: str | Path, period_days: float = 7.0) -> Health:
     """Fit every vehicle-period from DIR/fits, flag drifting vehicles; writes DIR/health/periods.parquet and
     DIR/health/flags.parquet. Returns the fits and the flags."""
     import pyarrow as pa
+
     from tools.fleet.store import HEALTH, read_table, write_atomic
     fits = read_table(out, "fits")
     summary = read_table(out)
@@ -188,17 +266,7 @@ def fleet_health(out: str | Path, period_days: float = 7.0) -> Health:
         groups.setdefault((r["vehicle"], p), []).append(r)
     period_fits = [fit_period(v, p, (day0 + dt.timedelta(days=p * period_days)).isoformat(), g)
                    for (v, p), g in sorted(groups.items())]
-    per_vehicle: dict = {}
-    stats_med, stats_mad = {}, {}
-    for f in period_fits:
-        per_vehicle.setdefault(f.vehicle, []).append(f)
-    for effect, attr in (("cooler_effectiveness_scale", "cooler_scale"), ("oil_level_low", "oil_volume_l")):
-        for p in {f.period for f in period_fits}:
-            vals = np.array([getattr(f, attr) for f in period_fits if f.period == p])
-            med = float(np.median(vals))
-            stats_med[(effect, p)] = med
-            stats_mad[(effect, p)] = max(1.4826 * float(np.median(np.abs(vals - med))), 1e-6)
-    flags = _drift_flags(per_vehicle, stats_med, stats_mad)
+    flags = flag_vehicles(period_fits)
     root = Path(out) / HEALTH
     write_atomic(pa.Table.from_pylist([f._asdict() for f in period_fits]), root / "periods.parquet")
     write_atomic(pa.Table.from_pylist([f._asdict() for f in flags], schema=pa.schema(
@@ -208,4 +276,4 @@ def fleet_health(out: str | Path, period_days: float = 7.0) -> Health:
 
 
 __all__ = ["COOLER_GRID", "VOLUME_GRID_L", "Flag", "Health", "LogData", "PeriodFit", "fit_log", "fit_period",
-           "fleet_health", "health_model"]
+           "flag_vehicles", "fleet_health", "health_model", "period_level"]

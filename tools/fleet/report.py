@@ -109,14 +109,24 @@ def _health(out: Path, lines: list) -> None:
         for i in range(len(fl["vehicle"])):
             lines.append(f"| {fl['vehicle'][i]} | {fl['effect'][i]} | {fl['start'][i]} | {fl['value'][i]:.2f} | "
                          f"{fl['baseline'][i]:.2f} | {fl['reason'][i]} |")
-        lines += ["", "Oil-level flags are weak evidence: a 4 L leak moves the oil temperature by a few tenths of a "
-                  "kelvin, less than the onboard model's own error, from warm logs and cold starts alike; on the "
-                  "synthetic validation fleets most oil leaks went unflagged and two nominal trucks were flagged "
-                  "(see 'Measured' in the fleet documentation, docs/fleet.md). Cooler flags were reliable there.", ""]
+        from_temperature = [i for i in range(len(fl["vehicle"]))
+                            if fl["effect"][i] == "oil_level_low" and "SPN 124" not in fl["reason"][i]]
+        if from_temperature:
+            lines += ["", "Oil-level flags from the oil temperature are weak evidence: a 4 L leak moves the oil "
+                      "temperature by a few tenths of a kelvin, less than the onboard model's own error, from warm "
+                      "logs and cold starts alike; on the synthetic validation fleets most oil leaks went unflagged "
+                      "and two nominal trucks were flagged (see 'Measured' in the fleet documentation, "
+                      "docs/fleet.md). Cooler flags were reliable there. Oil-level flags marked SPN 124 come from "
+                      "the truck's own level sensor.", ""]
+        else:
+            lines.append("")
     plt = _plt()
-    fig, axes = plt.subplots(1, 2, figsize=(12, 4.5))
-    for ax, attr, se, label in ((axes[0], "cooler_scale", "cooler_se", "cooler effectiveness scale [-]"),
-                                (axes[1], "oil_volume_l", "oil_volume_se", "oil volume [L]")):
+    panels = [("cooler_scale", "cooler_se", "cooler effectiveness scale [-]"),
+              ("oil_volume_l", "oil_volume_se", "oil volume from the oil temperature [L]")]
+    if np.isfinite(np.asarray(periods.get("oil_level_pct", []), dtype=float)).any():
+        panels.append(("oil_level_pct", "oil_level_se", "measured oil level, SPN 124 [%]"))
+    fig, axes = plt.subplots(1, len(panels), figsize=(6 * len(panels), 4.5))
+    for ax, (attr, se, label) in zip(axes, panels):
         per = sorted(set(periods["period"]))
         med = [np.median([periods[attr][i] for i in range(len(periods["period"])) if periods["period"][i] == q])
                for q in per]
@@ -124,7 +134,8 @@ def _health(out: Path, lines: list) -> None:
         for v in sorted(set(fl["vehicle"]))[:8]:
             idx = [i for i in range(len(periods["vehicle"])) if periods["vehicle"][i] == v]
             ax.errorbar([periods["period"][i] for i in idx], [periods[attr][i] for i in idx],
-                        yerr=[min(periods[se][i], 1.0) if math.isfinite(periods[se][i]) else 0 for i in idx],
+                        yerr=[min(periods[se][i], 1.0 if attr != "oil_level_pct" else 10.0)
+                              if math.isfinite(periods[se][i]) else 0 for i in idx],
                         marker="o", capsize=2, label=v)
         ax.set_xlabel("period")
         ax.set_ylabel(label)

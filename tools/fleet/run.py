@@ -59,6 +59,16 @@ def _estimates(table, entry: LogEntry, out: Path, date: str) -> None:
                  / f"{entry.log.stem}-{entry.key}.parquet")
 
 
+def _oil_level(path: Path, options) -> dict:
+    """The log's measured oil level (SPN 124; tools/fleet/level.py) for its health fit: NaN and 0 readings when the
+    truck does not send it."""
+    from can_dbc import dbc
+    from tools.fleet.level import read_log_level
+    sa = options.expected_sa.get("TRF1", dbc.message("TRF1").frame_id & 0xFF)
+    level = read_log_level(path, sa)
+    return {"level_pct": level.level_pct, "level_readings": level.readings}
+
+
 def _check_complete(path: Path) -> None:
     """InputError for an empty log, or a text log whose last line is cut (a truncated copy, a log still being
     written): a fleet summarises whole logs only (``replay`` reads the complete lines of such a file)."""
@@ -98,7 +108,11 @@ def process_log(entry: LogEntry, out: str | None = None, estimates: bool = False
         if diagnose:
             from tools.fleet.health import fit_log
             stage = "health fit"
-            row["_fit"] = fit_log(table, entry.variant, entry.config)
+            fit = fit_log(table, entry.variant, entry.config)
+            if fit is not None:
+                stage = "oil level"
+                fit.update(_oil_level(entry.log, options))
+            row["_fit"] = fit
         return "ok", row
     except (InputError, OSError, ValueError) as exc:
         return "error", {**base, "stage": stage, "reason": str(exc)}

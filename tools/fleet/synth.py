@@ -30,6 +30,14 @@ FAULT_RANGES = {"cooler_effectiveness_scale": (0.35, 0.5), "oil_level_low": (9.0
 START_DATE = dt.date(2026, 1, 5)
 #: time constant of the coolant warming from ambient to its thermostat after a cold start [s]
 COOLANT_WARMUP_S = 300.0
+#: the level sensor (SPN 124) of the trucks that send it: slosh noise at standstill and driving [%], the spread of
+#: each sensor's fixed offset [%], the oil's volumetric expansion [1/K] (mineral gear oil ~7e-4; assumed)
+LEVEL_NOISE_PCT = (0.5, 4.0)
+#: what the sensor reads with the nominal fill at 40 degC [%] (100 % is the top of its range, above the fill plug)
+LEVEL_AT_NOMINAL_PCT = 90.0
+LEVEL_OFFSET_PCT = 2.0
+OIL_EXPANSION_PER_K = 7e-4
+LEVEL_STREAM = 0x1E7E1
 
 
 @dataclass
@@ -43,6 +51,7 @@ class FleetSpec:
     growth_days: float = 21.0
     seed: int = 0
     cold_share: float = 0.5      # share of the days whose log starts at key-on after a night parked
+    level_share: float = 0.0     # share of the trucks whose transmission sends its oil level (SPN 124)
     start_date: dt.date = START_DATE
     faults: dict = field(default_factory=dict)     # vehicle -> (effect, onset day, final value); filled by plan()
 
@@ -78,6 +87,31 @@ def _truck(spec: FleetSpec, v: int) -> dict:
     rng = np.random.default_rng(spec.seed * 1000 + v)
     return {"payload": float(rng.uniform(0.7, 1.25)), "climate_c": float(rng.uniform(2.0, 22.0)),
             "drive": DRIVES[int(rng.integers(len(DRIVES)))], "route_seed": int(rng.integers(0, 4))}
+
+
+def sends_level(spec: FleetSpec, v: int) -> bool:
+    """Whether truck ``v``'s transmission sends its oil level (its own random stream: nothing else moves)."""
+    return bool(np.random.default_rng([spec.seed, v, LEVEL_STREAM]).uniform() < spec.level_share)
+
+
+def oil_level_pct(spec: FleetSpec, v: int, day: int, cols: dict, plant_table, volume_l: float) -> np.ndarray:
+    """What the truck's level sensor reads (SPN 124) at each time of ``cols``: the oil volume as a share of the
+    nominal, the oil's thermal expansion from 40 degC, the sensor's own fixed offset, and the slosh of a moving
+    sump (standstill: :data:`LEVEL_NOISE_PCT` [0], driving: [1], gaussian per sample)."""
+    nominal_l = _nominal_volume_l()
+    truck = np.random.default_rng([spec.seed, v, LEVEL_STREAM + 1])
+    offset_pct = float(truck.normal(0.0, LEVEL_OFFSET_PCT))
+    rng = np.random.default_rng([spec.seed, v, day, LEVEL_STREAM + 2])
+    t = cols["time_s"]
+    oil_c = np.interp(t, np.asarray(plant_table["time_s"], float), np.asarray(plant_table["T_oil_c"], float))
+    moving = np.asarray(cols.get("vehicle_speed_kmh", np.zeros(t.size)), float) > 1.0
+    noise = rng.normal(0.0, 1.0, t.size) * np.where(moving, LEVEL_NOISE_PCT[1], LEVEL_NOISE_PCT[0])
+    return LEVEL_AT_NOMINAL_PCT * volume_l / nominal_l * (1.0 + OIL_EXPANSION_PER_K * (oil_c - 40.0)) + offset_pct + noise
+
+
+def _nominal_volume_l() -> float:
+    from firmware_model.effects import CATALOG
+    return float(CATALOG["oil_level_low"].neutral)
 
 
 def _day_job(job) -> tuple[str, dict]:
@@ -121,11 +155,15 @@ def _day_job(job) -> tuple[str, dict]:
     start = dt.datetime(date.year, date.month, date.day, 6, tzinfo=dt.timezone.utc).timestamp() \
         + float(rng.uniform(0, 8 * 3600))
     path = Path(out) / name / f"{name}_{date.isoformat()}.log"
+    level = sends_level(spec, v)
+    if level:
+        volume_l = float(effects.get("oil_level_low", _nominal_volume_l()))
+        table = RunTable({**cols, "oil_level_pct": oil_level_pct(spec, v, day, cols, plant.table, volume_l)})
     path.parent.mkdir(parents=True, exist_ok=True)
     write_can_log(table, plant.table, path, rig=False, start_timestamp_s=start, seed=day)
     return os.fspath(path), {"vehicle": name, "day": day, "date": date.isoformat(), "effects": effects,
                              "drive": truck["drive"], "payload": truck["payload"], "ambient_c": amb, "cold": cold,
-                             "oil_start_c": oil0}
+                             "oil_start_c": oil0, "level_signal": level}
 
 
 def synth_fleet(out: str | os.PathLike, spec: FleetSpec, processes: int | None = None,
@@ -157,7 +195,7 @@ def synth_fleet(out: str | os.PathLike, spec: FleetSpec, processes: int | None =
         for path, truth in results:
             fh.write(f"{Path(path).relative_to(out).as_posix()},{truth['vehicle']}\n")
     truth = {"spec": {"vehicles": spec.vehicles, "days": spec.days, "minutes": spec.minutes,
-                      "cold_share": spec.cold_share,
+                      "cold_share": spec.cold_share, "level_share": spec.level_share,
                       "growth_days": spec.growth_days, "seed": spec.seed, "start_date": spec.start_date.isoformat()},
              "faults": {v: {"effect": f[0], "onset_day": f[1],
                             "onset_date": (spec.start_date + dt.timedelta(days=f[1])).isoformat(), "final": f[2]}
@@ -167,7 +205,8 @@ def synth_fleet(out: str | os.PathLike, spec: FleetSpec, processes: int | None =
     return manifest
 
 
-__all__ = ["DRIVES", "FAULT_RANGES", "FleetSpec", "effect_on_day", "synth_fleet", "vehicle_name"]
+__all__ = ["DRIVES", "FAULT_RANGES", "FleetSpec", "effect_on_day", "oil_level_pct", "sends_level", "synth_fleet",
+           "vehicle_name"]
 
 
 def main(argv=None) -> int:
@@ -184,6 +223,8 @@ def main(argv=None) -> int:
     ap.add_argument("--growth-days", type=float, default=21.0, help="days from onset to the final value")
     ap.add_argument("--cold-share", type=float, default=0.5,
                     help="share of the days whose log starts at key-on after a night parked (default 0.5)")
+    ap.add_argument("--level-share", type=float, default=0.0,
+                    help="share of the trucks whose transmission sends its oil level, J1939 SPN 124 (default 0)")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--processes", type=int, help="processes (default: one per core)")
     a = ap.parse_args(argv)
@@ -192,9 +233,11 @@ def main(argv=None) -> int:
             ap.error(f"--{name} must be at least 1")
     if not a.minutes > 0:
         ap.error("--minutes must be positive")
-    if not 0.0 <= a.cold_share <= 1.0:
-        ap.error("--cold-share must be between 0 and 1")
-    spec = FleetSpec(a.vehicles, a.days, a.minutes, a.fouling, a.low_oil, a.growth_days, a.seed, a.cold_share)
+    for name in ("cold_share", "level_share"):
+        if not 0.0 <= getattr(a, name) <= 1.0:
+            ap.error(f"--{name.replace('_', '-')} must be between 0 and 1")
+    spec = FleetSpec(a.vehicles, a.days, a.minutes, a.fouling, a.low_oil, a.growth_days, a.seed, a.cold_share,
+                     a.level_share)
     try:
         print(synth_fleet(a.out, spec, a.processes))
     except InputError as exc:
