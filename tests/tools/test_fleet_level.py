@@ -12,6 +12,8 @@ import pytest
 from can_dbc.columnar import FrameColumns
 from tools.fleet.health import NOMINAL_VOLUME_L, PeriodFit, flag_vehicles, period_level
 from tools.fleet.level import MIN_READINGS, level_readings, log_level, read_log_level
+from tools.fleet.manifest import read_manifest
+from tools.fleet.run import process_log
 from tools.fleet.synth import FleetSpec, synth_fleet
 from tools.replay.columns import read_columns
 
@@ -65,6 +67,25 @@ def test_a_synthetic_truck_sends_its_level_a_leak_lowers_it_and_nothing_else_mov
         trf1 = (a.can_id & 0x3FFFF00) == 0x0FEF800
         np.testing.assert_array_equal(a.data[~trf1], b.data[~trf1])
         np.testing.assert_array_equal(np.delete(a.data[trf1], 1, axis=1), np.delete(b.data[trf1], 1, axis=1))
+
+
+def test_a_diagnosed_log_carries_its_level_beside_its_fit(tmp_path):
+    """process_log with diagnose: the log's fit has the level of its SPN 124 readings (NaN and 0 without)."""
+    for share in (1.0, 0.0):
+        manifest = synth_fleet(tmp_path / f"s{share}", FleetSpec(vehicles=1, days=1, minutes=5.0, seed=5,
+                                                                  cold_share=0.0, level_share=share), processes=1)
+        entry = read_manifest(manifest)[0]
+        kind, row = process_log(entry, diagnose=True)
+        assert kind == "ok", row
+        fit = row["_fit"]
+        want = read_log_level(entry.log, 0x03)
+        assert fit["level_readings"] == want.readings
+        if share:
+            assert want.readings >= MIN_READINGS and fit["level_pct"] == want.level_pct
+            assert 80.0 < fit["level_pct"] < 100.0
+        else:
+            assert want.readings == 0 and math.isnan(fit["level_pct"])
+        assert len(fit["sse"]) == len(fit["cooler_grid"]) * len(fit["volume_grid_l"])
 
 
 def _period(vehicle: str, period: int, volume_l: float, level_pct: float, se: float = 0.5) -> PeriodFit:
