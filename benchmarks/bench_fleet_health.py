@@ -79,6 +79,8 @@ def main(argv=None) -> None:
     ap.add_argument("--workers", type=int)
     ap.add_argument("--period-days", type=float, default=7.0)
     a = ap.parse_args(argv)
+    if not 0.0 <= a.level_share <= 1.0:
+        ap.error("--level-share must be between 0 and 1")
     if a.fleet:
         root = Path(a.fleet)
     else:

@@ -18,11 +18,12 @@ DBC = Path(adapter.__file__).with_name(adapter.DBC_NAME)
 REPO = Path(__file__).resolve().parents[2]
 
 #: the J1939 inputs of docs/can.md, written out by hand: message -> (PGN, default SA, {SPN: (first byte 1-based, bits,
-#: scale, offset)})
+#: scale, offset[, first bit in that byte, 1-based])})
 CONTRACT_INPUTS = {
     "EEC1": (61444, 0x00, {190: (4, 16, 0.125, 0.0), 513: (3, 8, 1.0, -125.0)}),
     "ETC2": (61445, 0x03, {523: (4, 8, 1.0, -125.0)}),
-    "TRF1": (65272, 0x03, {177: (5, 16, 0.03125, -273.0), 124: (2, 8, 0.4, 0.0)}),
+    "TRF1": (65272, 0x03, {177: (5, 16, 0.03125, -273.0), 124: (2, 8, 0.4, 0.0),
+                        3026: (8, 4, 1.0, 0.0, 5)}),
     "ET1": (65262, 0x00, {110: (1, 8, 1.0, -40.0)}),
     "AMB": (65269, 0x00, {171: (4, 16, 0.03125, -273.0)}),
     "CCVS1": (65265, 0x00, {84: (2, 16, 1 / 256, 0.0)}),
@@ -82,10 +83,10 @@ def test_inputs_match_interfaces_section_1(db, name):
     assert adapter.source_address(message.frame_id) == sa
     by_spn = {s.spn: s for s in message.signals}
     assert set(by_spn) == set(spns)
-    for spn, (byte1, bits, scale, offset) in spns.items():
+    for spn, (byte1, bits, scale, offset, *bit1) in spns.items():
         signal = by_spn[spn]
         assert (signal.start, signal.length, signal.byte_order, signal.is_signed) == \
-            ((byte1 - 1) * 8, bits, "little_endian", False)
+            ((byte1 - 1) * 8 + (bit1[0] - 1 if bit1 else 0), bits, "little_endian", False)
         assert signal.scale == pytest.approx(scale) and signal.offset == offset
 
 

@@ -20,20 +20,25 @@ from tools.replay.columns import read_columns
 TRF1_FROM_03 = 0x18FEF803
 
 
-def _trf1(byte2: int, can_id: int = TRF1_FROM_03, **kw) -> can.Message:
-    data = bytes([0xFF, byte2, 0xFF, 0xFF, 0x60, 0x2C, 0xFF, 0xFF])   # oil 80.0 degC in bytes 5-6
+def _trf1(byte2: int, can_id: int = TRF1_FROM_03, status: int = 0xF, **kw) -> can.Message:
+    """A TRF1 with the level in byte 2, the oil at 80 degC in bytes 5-6 and the level's status in byte 8 bits 5-8."""
+    data = bytes([0xFF, byte2, 0xFF, 0xFF, 0x60, 0x2C, 0xFF, (status << 4) | 0x0F])
     return can.Message(arbitration_id=can_id, data=kw.pop("data", data), is_extended_id=kw.pop("ext", True), **kw)
 
 
 def test_only_valid_level_bytes_of_the_transmissions_trf1_are_readings():
-    msgs = [_trf1(200),                                  # 80 %: a reading
-            _trf1(250),                                  # 100 %, the top of the data range
+    msgs = [_trf1(200),                                  # 80 %, status not available: a reading
+            _trf1(250, status=0),                        # 100 %, the top of the data range, conditions valid
             _trf1(0xFB), _trf1(0xFE), _trf1(0xFF),       # reserved, error, not available
+            _trf1(200, status=5), _trf1(200, status=14),     # conditions not valid; status error
             _trf1(200, can_id=0x18FEF805),               # another source address
-            _trf1(200, can_id=0x0FEF803 & 0x7FF, ext=False),
+            _trf1(200, ext=False),                       # the same identifier as an 11-bit frame
             _trf1(200, is_error_frame=True),
+            _trf1(200, is_remote_frame=True),
+            _trf1(200, is_fd=True),
             _trf1(200, data=bytes([0xFF, 200, 0xFF, 0xFF])),     # 4 bytes
-            _trf1(200, can_id=0x18FEEE03)]               # another PGN (ET1) with the same byte
+            _trf1(200, timestamp=float("nan")),
+            _trf1(200, can_id=0x18FEEE03)]               # another PGN (ET1) with the same bytes
     cols = FrameColumns.from_messages(msgs)
     assert level_readings(cols, 0x03).tolist() == pytest.approx([80.0, 100.0])
     assert level_readings(cols, None).tolist() == pytest.approx([80.0, 100.0, 80.0])
@@ -93,22 +98,47 @@ def _period(vehicle: str, period: int, volume_l: float, level_pct: float, se: fl
                      level_pct, se)
 
 
+def _flags(levels: dict, volumes: dict | None = None, se: dict | None = None) -> dict:
+    """flag_vehicles over vehicles with the given measured level per period (NaN: none), beside four steady ones."""
+    volumes, se = volumes or {}, se or {}
+    fits = []
+    for v, lv in {**levels, **{f"ok{k}": [90.0] * 6 for k in range(4)}}.items():
+        vol = volumes.get(v, [13.5] * len(lv))
+        fits += [_period(v, p, vol[p], x, se.get(v, 0.5)) for p, x in enumerate(lv)]
+    return {f.vehicle: f for f in flag_vehicles(fits)}
+
+
 def test_the_level_flag_reads_the_sensor_and_the_temperature_estimate_no_longer_flags_its_trucks():
     """leak: the measured level falls 30 % (flagged, as SPN 124); sloshy: the measured level is steady while the
     temperature's volume estimate falls by 4 L (no flag: the level is read); blind: no level signal, the same
     estimate falls (flagged from the temperature, as before)."""
     nan = math.nan
-    fits = []
-    for p in range(6):
-        fits.append(_period("leak", p, 13.5, 90.0 if p < 3 else 63.0))
-        fits.append(_period("sloshy", p, 13.5 if p < 2 else 9.5, 90.0 + (1.0 if p % 2 else -1.0)))
-        fits.append(_period("blind", p, 13.5 if p < 2 else 9.5, nan, nan))
-        fits.extend(_period(f"ok{k}", p, 13.5, 90.0) for k in range(4))
-    flags = {f.vehicle: f for f in flag_vehicles(fits)}
+    falling = [13.5, 13.5, 9.5, 9.5, 9.5, 9.5]
+    flags = _flags({"leak": [90.0, 90.0, 90.0, 63.0, 63.0, 63.0], "sloshy": [89.0, 91.0, 89.0, 91.0, 89.0, 91.0],
+                    "blind": [nan] * 6}, volumes={"sloshy": falling, "blind": falling})
     assert set(flags) == {"leak", "blind"}
     assert "SPN 124" in flags["leak"].reason and flags["leak"].period == 4
     assert flags["leak"].value == pytest.approx(63.0 / 90.0 * NOMINAL_VOLUME_L)
     assert "SPN 124" not in flags["blind"].reason and flags["blind"].effect == "oil_level_low"
+
+
+def test_a_level_drop_must_clear_both_its_share_of_the_baseline_and_three_standard_errors():
+    """5 points below 90 % is less than 1 L's share (6.7 points) however precise; 8 points is more, but not with a
+    standard error of 2 points per period (3 x hypot(2, 2) = 8.5); with 0.5 it is flagged."""
+    small = [90.0, 90.0, 85.0, 85.0, 85.0, 85.0]
+    big = [90.0, 90.0, 82.0, 82.0, 82.0, 82.0]
+    assert "small" not in _flags({"small": small}, se={"small": 0.1})
+    assert "noisy" not in _flags({"noisy": big}, se={"noisy": 2.0})
+    assert "precise" in _flags({"precise": big}, se={"precise": 0.5})
+
+
+def test_the_level_baseline_is_the_first_periods_with_a_level_and_a_gap_breaks_the_run():
+    nan = math.nan
+    late = _flags({"late": [nan, 90.0, 90.0, 63.0, 63.0, 63.0]})["late"]
+    assert "SPN 124" in late.reason and late.period == 4
+    assert "gappy" not in _flags({"gappy": [90.0, 90.0, 63.0, nan, 63.0, 90.0]})
+    # a baseline that is no fill level (a placeholder near 0 %) is not read: the temperature's estimate decides
+    assert not _flags({"zero": [0.8, 0.8, 0.0, 0.0, 0.0, 0.0]})
 
 
 def test_a_period_level_needs_two_logs_and_its_error_follows_their_scatter():
@@ -118,3 +148,16 @@ def test_a_period_level_needs_two_logs_and_its_error_follows_their_scatter():
     assert se == pytest.approx(1.2533 * np.std([88.0, 90.0, 92.0, 90.0], ddof=1) / 2.0)
     assert period_level([{"level_pct": 90.0}] * 4)[1] == pytest.approx(0.4 / 2.0)
     assert all(math.isnan(x) for x in period_level([{"sse": [0.0]}] * 3))
+
+
+def test_fits_of_an_earlier_version_without_the_level_read_together_with_new_ones(tmp_path):
+    """A re-run into an output folder whose first fits lack the level columns: every file's columns are read."""
+    pa = pytest.importorskip("pyarrow")
+    from tools.fleet.store import FITS, partition_dir, read_table, write_atomic
+    old = {"log_key": "a", "sse": [1.0, 2.0], "points": 10, "span_s": 600.0}
+    write_atomic(pa.Table.from_pylist([old]), partition_dir(tmp_path / FITS, "truck000", "2026-01-05") / "p.parquet")
+    write_atomic(pa.Table.from_pylist([{**old, "log_key": "b", "level_pct": 88.0, "level_readings": 600}]),
+                 partition_dir(tmp_path / FITS, "truck001", "2026-01-05") / "p.parquet")
+    rows = {r["log_key"]: r for r in read_table(tmp_path, FITS).to_pylist()}
+    assert rows["b"]["level_pct"] == 88.0 and rows["b"]["level_readings"] == 600
+    assert rows["a"]["level_pct"] is None and rows["a"]["vehicle"] == "truck000"

@@ -44,12 +44,16 @@ BASELINE_PERIODS = 2
 CONSECUTIVE = 2
 DRIFT_MIN = {"cooler_effectiveness_scale": 0.15, "oil_level_low": 1.0}
 #: the measured level (SPN 124): its baseline is taken as the nominal volume, and a drop counts from the same 1 L
-#: as the estimate's (a share of the baseline); a period's level needs readings from at least LEVEL_MIN_LOGS logs;
-#: its standard error never goes below one bit (0.4 %) over sqrt(logs)
+#: as the estimate's, as a share of the baseline (7.4 % of it: 6.7 points at 90 %), and never less than three bits;
+#: a period's level needs readings from at least LEVEL_MIN_LOGS logs; its standard error never goes below one bit
+#: over sqrt(logs); a baseline below LEVEL_PLAUSIBLE_MIN_PCT is not a fill level (a sender's placeholder, a sensor
+#: fault): such a vehicle's level is not read
 NOMINAL_VOLUME_L = float(CATALOG["oil_level_low"].neutral)     # the nominal oil volume [L]
-LEVEL_DRIFT_MIN_SHARE = DRIFT_MIN["oil_level_low"] / NOMINAL_VOLUME_L
-LEVEL_MIN_LOGS = 2
 LEVEL_BIT_PCT = 0.4
+LEVEL_DRIFT_MIN_SHARE = DRIFT_MIN["oil_level_low"] / NOMINAL_VOLUME_L
+LEVEL_DRIFT_MIN_PCT = 3 * LEVEL_BIT_PCT
+LEVEL_PLAUSIBLE_MIN_PCT = 30.0
+LEVEL_MIN_LOGS = 2
 #: a log contributes to the fit only with at least this share of measured oil
 MIN_OIL_SHARE = 0.8
 _MODELS: dict = {}
@@ -172,38 +176,46 @@ class Health(NamedTuple):
     flags: list
 
 
-def _level_flag(vehicle: str, rows: list) -> Flag | None:
-    """The oil-level flag from the measured level (SPN 124): :data:`CONSECUTIVE` periods in a row below the
-    vehicle's own first :data:`BASELINE_PERIODS` by more than :data:`LEVEL_DRIFT_MIN_SHARE` of it and 3 standard errors
-    (both combined), the baseline taken as the nominal fill. Value and baseline in litres on that scale."""
-    baseline = float(np.median([r.oil_level_pct for r in rows[:BASELINE_PERIODS]]))
-    base_se = max(r.oil_level_se for r in rows[:BASELINE_PERIODS])
-    run = 0
-    for r in rows[BASELINE_PERIODS:]:
-        if not math.isfinite(r.oil_level_pct):
-            continue                # no level this period: no evidence either way
+def _level_rows(rows: list) -> list:
+    """The vehicle's periods with a measured level (SPN 124), when it has enough of them to be judged on it: a
+    plausible baseline (the first :data:`BASELINE_PERIODS` with a level, each at least :data:`LEVEL_PLAUSIBLE_MIN_PCT`)
+    and at least :data:`CONSECUTIVE` periods after it; else [] (the level is then not read for this vehicle)."""
+    measured = [r for r in rows if math.isfinite(r.oil_level_pct)]
+    if len(measured) < BASELINE_PERIODS + CONSECUTIVE:
+        return []
+    if any(r.oil_level_pct < LEVEL_PLAUSIBLE_MIN_PCT for r in measured[:BASELINE_PERIODS]):
+        return []
+    return measured
+
+
+def _level_flag(vehicle: str, measured: list) -> Flag | None:
+    """The oil-level flag from the measured level (SPN 124): :data:`CONSECUTIVE` consecutive periods below the
+    baseline (its first :data:`BASELINE_PERIODS` periods with a level, taken as the nominal fill) by more than
+    :data:`LEVEL_DRIFT_MIN_SHARE` of it (at least :data:`LEVEL_DRIFT_MIN_PCT`) and 3 standard errors (the period's and
+    the baseline's combined); a period without a level breaks the run. Value and baseline in litres on that scale."""
+    base_rows = measured[:BASELINE_PERIODS]
+    baseline = float(np.median([r.oil_level_pct for r in base_rows]))
+    base_se = max(r.oil_level_se for r in base_rows)
+    min_drop = max(LEVEL_DRIFT_MIN_SHARE * baseline, LEVEL_DRIFT_MIN_PCT)
+    run, prev = 0, base_rows[-1].period
+    for r in measured[BASELINE_PERIODS:]:
         drop = baseline - r.oil_level_pct
-        big = drop > LEVEL_DRIFT_MIN_SHARE * baseline and drop > 3 * math.hypot(r.oil_level_se, base_se)
-        run = run + 1 if big else 0
+        big = drop > min_drop and drop > 3 * math.hypot(r.oil_level_se, base_se)
+        run = (run + 1 if r.period == prev + 1 else 1) if big else 0
+        prev = r.period
         if run >= CONSECUTIVE:
             return Flag(vehicle, "oil_level_low", r.period, r.start, r.oil_level_pct / baseline * NOMINAL_VOLUME_L,
                         NOMINAL_VOLUME_L, "the measured oil level (SPN 124) fell from its own baseline")
     return None
 
 
-def _measures_level(rows: list) -> bool:
-    """Whether the vehicle sends its oil level: measured in its baseline periods and at least once after (then the
-    level is read, not estimated from the oil temperature)."""
-    return (len(rows) > BASELINE_PERIODS and all(math.isfinite(r.oil_level_pct) for r in rows[:BASELINE_PERIODS])
-            and any(math.isfinite(r.oil_level_pct) for r in rows[BASELINE_PERIODS:]))
-
-
 def _drift_flags(per_vehicle: dict, fleet_median: dict, fleet_mad: dict) -> list[Flag]:
     flags = []
     for vehicle, rows in per_vehicle.items():
         rows = sorted(rows, key=lambda r: r.period)
-        measured = _measures_level(rows)
-        if measured and (flag := _level_flag(vehicle, rows)) is not None:
+        level_rows = _level_rows(rows)
+        measured = bool(level_rows)
+        if measured and (flag := _level_flag(vehicle, level_rows)) is not None:
             flags.append(flag)
         for effect, attr, se_attr in (("cooler_effectiveness_scale", "cooler_scale", "cooler_se"),
                                       ("oil_level_low", "oil_volume_l", "oil_volume_se")):

@@ -7,10 +7,12 @@ of its nominal (maximum required) volume, 0.4 %/bit, 0-100 %. The fleet health (
 the oil temperature: per log the median of the valid readings, which a sloshing sump (driving, braking, grades)
 scatters by a few percent frame to frame but barely moves.
 
-What counts as a reading: an extended 8-byte data frame of PGN 65272 from the configured transmission source address
-(the same check as the oil temperature's, ``[can] transmission_source_address``), byte 2 at most 250 (0xFA); J1939
-"error" (0xFE), "not available" (0xFF) and the reserved 0xFB-0xFD are not readings. A log without a reading has a
-NaN level and 0 readings: the level is then not known, which is not the same as low.
+What counts as a reading: a 29-bit data frame with a finite time and 8 data bytes (DLC 8) of PGN 65272 from the
+configured transmission source address (``[can] transmission_source_address``, as for the oil temperature), byte 2
+at most 250 (0xFA), and the level's measurement status (SPN 3026, byte 8 bits 5-8) 0 "conditions valid" or 15 "not
+available" (a sender without it). J1939 "error" (0xFE), "not available" (0xFF) and the reserved 0xFB-0xFD are not
+readings, nor is a level whose status says the conditions were not valid. A log without a reading has a NaN level
+and 0 readings: the level is then not known, which is not the same as low.
 """
 from __future__ import annotations
 
@@ -29,10 +31,14 @@ from can_dbc.columnar import (
     FrameColumns,
     pgn_keys,
 )
-from can_dbc.j1939 import RAW8_DATA_MAX
+from can_dbc.j1939 import ID_MAX, RAW8_DATA_MAX
 
-#: the DBC's TRF1 level signal (SPN 124)
-LEVEL_MESSAGE, LEVEL_SIGNAL = "TRF1", "TransOilLevel"
+#: the DBC's TRF1 level signal (SPN 124) and its measurement status (SPN 3026)
+LEVEL_MESSAGE, LEVEL_SIGNAL, STATUS_SIGNAL = "TRF1", "TransOilLevel", "TransOilLevelMeasStatus"
+#: the measurement status values under which a level is a reading: 0 conditions valid, 15 not available (a sender
+#: without the status); 1-13 (conditions not valid: settling, in gear, oil too cold or hot, moving ...) and 14 (error)
+#: are not
+STATUS_ACCEPTED = (0, 15)
 #: a log's level counts only with at least this many readings (TRF1 is sent every second)
 MIN_READINGS = 30
 
@@ -45,17 +51,21 @@ class LogLevel(NamedTuple):
 
 def level_readings(cols: FrameColumns, source_address: int | None) -> np.ndarray:
     """Every valid SPN 124 reading of the frames [%], in file order; ``source_address`` None accepts any source."""
-    message = dbc.message(LEVEL_MESSAGE)
-    layout = dbc.signal_layout(LEVEL_MESSAGE, LEVEL_SIGNAL, 8)
+    level = dbc.signal_layout(LEVEL_MESSAGE, LEVEL_SIGNAL, 8)
+    status = dbc.signal_layout(LEVEL_MESSAGE, STATUS_SIGNAL, 4)
     ok = (cols.flags & (FLAG_ERROR | FLAG_REMOTE | FLAG_FD)) == 0
     ok &= (cols.flags & FLAG_EXTENDED) != 0
-    ok &= cols.length == 8
-    ok &= pgn_keys(cols.can_id & 0x1FFFFFFF) == dbc.message_pgn(message.name)
+    ok &= (cols.dlc == 8) & (cols.length == 8)
+    ok &= np.isfinite(cols.timestamp_s)
+    ok &= (cols.can_id >= 0) & (cols.can_id <= ID_MAX)
+    ok &= pgn_keys(cols.can_id & ID_MAX) == dbc.message_pgn(LEVEL_MESSAGE)
     if source_address is not None:
         ok &= (cols.can_id & 0xFF) == source_address
-    raw = cols.data[:, layout.start_bit // 8].astype(np.int64)
+    raw = cols.data[:, level.start_bit // 8].astype(np.int64)
     ok &= raw <= RAW8_DATA_MAX
-    return raw[ok] * layout.scale + layout.offset
+    st = (cols.data[:, status.start_bit // 8].astype(np.int64) >> (status.start_bit % 8)) & 0xF
+    ok &= np.isin(st, STATUS_ACCEPTED)
+    return raw[ok] * level.scale + level.offset
 
 
 def log_level(cols: FrameColumns, source_address: int | None) -> LogLevel:
@@ -72,5 +82,5 @@ def read_log_level(path: str | os.PathLike, source_address: int | None) -> LogLe
     return log_level(read_columns(path).columns, source_address)
 
 
-__all__ = ["LEVEL_MESSAGE", "LEVEL_SIGNAL", "MIN_READINGS", "LogLevel", "level_readings", "log_level",
-           "read_log_level"]
+__all__ = ["LEVEL_MESSAGE", "LEVEL_SIGNAL", "MIN_READINGS", "STATUS_ACCEPTED", "STATUS_SIGNAL", "LogLevel",
+           "level_readings", "log_level", "read_log_level"]

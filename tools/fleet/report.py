@@ -27,6 +27,13 @@ def _cols(table) -> dict:
     return {n: table.column(n).to_pylist() for n in table.column_names}
 
 
+def _nanmedian(x: list) -> float:
+    """The median of the finite values (NaN when none: a period in which no truck sends its level)."""
+    a = np.asarray(x, dtype=float)
+    a = a[np.isfinite(a)]
+    return float(np.median(a)) if a.size else math.nan
+
+
 def _fmt_s(s: float) -> str:
     return f"{s / 3600:.2f} h" if s >= 3600 else f"{s / 60:.1f} min" if s >= 60 else f"{s:.0f} s"
 
@@ -128,7 +135,7 @@ def _health(out: Path, lines: list) -> None:
     fig, axes = plt.subplots(1, len(panels), figsize=(6 * len(panels), 4.5))
     for ax, (attr, se, label) in zip(axes, panels):
         per = sorted(set(periods["period"]))
-        med = [np.median([periods[attr][i] for i in range(len(periods["period"])) if periods["period"][i] == q])
+        med = [_nanmedian([periods[attr][i] for i in range(len(periods["period"])) if periods["period"][i] == q])
                for q in per]
         ax.plot(per, med, "k--", label="fleet median")
         for v in sorted(set(fl["vehicle"]))[:8]:

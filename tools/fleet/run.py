@@ -61,11 +61,14 @@ def _estimates(table, entry: LogEntry, out: Path, date: str) -> None:
 
 def _oil_level(path: Path, options) -> dict:
     """The log's measured oil level (SPN 124; tools/fleet/level.py) for its health fit: NaN and 0 readings when the
-    truck does not send it."""
+    truck does not send it (or, exceptionally, when the second read of the log fails)."""
     from can_dbc import dbc
     from tools.fleet.level import read_log_level
     sa = options.expected_sa.get("TRF1", dbc.message("TRF1").frame_id & 0xFF)
-    level = read_log_level(path, sa)
+    try:
+        level = read_log_level(path, sa)
+    except (InputError, OSError, ValueError):    # the log was read once already: its summary is not lost for this
+        return {"level_pct": math.nan, "level_readings": 0}
     return {"level_pct": level.level_pct, "level_readings": level.readings}
 
 

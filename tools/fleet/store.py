@@ -99,7 +99,14 @@ def read_table(out: str | os.PathLike, which: str = SUMMARY):
     if which == ERRORS:
         return ds.dataset(root, format="parquet").to_table()
     part = ds.partitioning(pa.schema([("vehicle", pa.string()), ("date", pa.string())]), flavor="hive")
-    return ds.dataset(root, format="parquet", partitioning=part).to_table()
+    data = ds.dataset(root, format="parquet", partitioning=part)
+    if which == FITS:
+        # fits written by an earlier version lack the newer columns (the measured level): every file's columns,
+        # not only the first file's, and the missing ones as nulls
+        schema = pa.unify_schemas([data.schema, *(f.physical_schema for f in data.get_fragments())],
+                                  promote_options="permissive")
+        data = ds.dataset(root, format="parquet", partitioning=part, schema=schema)
+    return data.to_table()
 
 
 __all__ = ["ERRORS", "ERROR_COLUMNS", "ESTIMATES", "FITS", "HEALTH", "SUMMARY", "FleetStore", "partition_dir",
