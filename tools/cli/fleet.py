@@ -42,10 +42,12 @@ def add_subparser(sub):
     p.add_argument("--workers", type=int, metavar="N", help="local worker processes (default: one per core)")
     p.add_argument("--estimates", action="store_true", help="also write each log's 10 Hz sensor outputs")
     p.add_argument("--diagnose", action="store_true",
-                   help="fleet health: per vehicle and week, fit the effects the oil channel alone identifies "
-                        "(cooler effectiveness, oil level) with their uncertainty; flag drifting vehicles (on a "
-                        "synthetic fleet cooler flags were reliable; oil-level flags are weak: a leak moves the oil temperature "
-                        "less than the model's own error, docs/fleet.md)")
+                   help="fleet health: per vehicle and week, fit the cooler effectiveness and (weakly) the oil "
+                        "volume from the oil temperature, with their uncertainty, and read the measured oil level "
+                        "(J1939 SPN 124) where a truck sends it; flag drifting vehicles (on synthetic fleets cooler "
+                        "flags were reliable; oil-level flags from the temperature are weak, a leak moves the oil "
+                        "less than the model's own error; trucks that send SPN 124 are judged on their measured "
+                        "level; docs/fleet.md)")
     p.add_argument("--period-days", type=float, default=7.0, metavar="DAYS",
                    help="the --diagnose period (default 7 days)")
     p.add_argument("--no-report", action="store_true", help="skip report.md and its plots")

@@ -120,9 +120,9 @@ def _health(out: Path, lines: list) -> None:
                             if fl["effect"][i] == "oil_level_low" and "SPN 124" not in fl["reason"][i]]
         if from_temperature:
             lines += ["", "Oil-level flags from the oil temperature are weak evidence: a 4 L leak moves the oil "
-                      "temperature by a few tenths of a kelvin, less than the onboard model's own error, from warm "
-                      "logs and cold starts alike; on the synthetic validation fleets most oil leaks went unflagged "
-                      "and two nominal trucks were flagged (see 'Measured' in the fleet documentation, "
+                      "temperature by a few tenths of a kelvin, less than the onboard model's own error in 8 of the "
+                      "9 drives and starts measured; on the synthetic validation fleets most oil leaks went "
+                      "unflagged and two nominal trucks were flagged (see 'Measured' in the fleet documentation, "
                       "docs/fleet.md). Cooler flags were reliable there. Oil-level flags marked SPN 124 come from "
                       "the truck's own level sensor.", ""]
         else:
