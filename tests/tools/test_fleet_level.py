@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from can_dbc.columnar import FrameColumns
+from tests.data_paths import CAPTURE_FILES, SKIP_REASON, real_capture_dir
 from tools.fleet.health import NOMINAL_VOLUME_L, PeriodFit, flag_vehicles, period_level
 from tools.fleet.level import MIN_READINGS, level_readings, log_level, read_log_level
 from tools.fleet.manifest import read_manifest
@@ -161,3 +162,14 @@ def test_fits_of_an_earlier_version_without_the_level_read_together_with_new_one
     rows = {r["log_key"]: r for r in read_table(tmp_path, FITS).to_pylist()}
     assert rows["b"]["level_pct"] == 88.0 and rows["b"]["level_readings"] == 600
     assert rows["a"]["level_pct"] is None and rows["a"]["vehicle"] == "truck000"
+
+
+@pytest.mark.parametrize("name", CAPTURE_FILES)
+def test_the_real_captures_carry_no_level_and_none_is_invented(name):
+    """None of the public truck captures sends SPN 124; the fuzzed one has random bytes in every position: no reading
+    may come out of any of them (the level stays "not known", not "low")."""
+    d = real_capture_dir()
+    if d is None:
+        pytest.skip(SKIP_REASON)
+    got = read_log_level(d / name, 0x03)
+    assert got.readings == 0 and math.isnan(got.level_pct)
