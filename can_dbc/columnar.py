@@ -117,6 +117,23 @@ def _add_count(counter: dict, key, n: int) -> None:
         counter[key] = counter.get(key, 0) + int(n)
 
 
+def frame_reasons(cols: FrameColumns) -> np.ndarray:
+    """The decoder's frame checks, in its order, over all frames: each frame's first reason code that applies
+    (:data:`REASON_CODES`: a bad timestamp, an error or remote frame, an 11-bit or invalid id, a CAN FD frame), 0 for
+    a frame that passes them (its PGN, source and content are checked after)."""
+    flags, can_id = cols.flags, cols.can_id
+    reason = np.zeros(len(cols), dtype=np.int8)
+    taken = np.zeros(len(cols), dtype=bool)
+    for name, hit in (("bad_timestamp", ~np.isfinite(cols.timestamp_s)), ("error_frame", (flags & FLAG_ERROR) != 0),
+                      ("remote_frame", (flags & FLAG_REMOTE) != 0),
+                      ("not_extended_id", (flags & FLAG_EXTENDED) == 0),
+                      ("invalid_id", (can_id < 0) | (can_id > ID_MAX)), ("fd_frame", (flags & FLAG_FD) != 0)):
+        mask = hit & ~taken
+        reason[mask] = REASON_CODES[name]
+        taken |= mask
+    return reason
+
+
 class _Decoding:
     """One decode_columns run: the columns, the decoder and what is found so far."""
 
@@ -126,18 +143,9 @@ class _Decoding:
         self.reason = np.zeros(n, dtype=np.int8)
         self.parts: dict[str, list] = {}
         self.arrivals: dict[str, list] = {}
-        flags, can_id = cols.flags, cols.can_id
-        # the decoder's frame checks, in its order: each frame takes the first reason that applies
-        taken = np.zeros(n, dtype=bool)
-        for name, hit in (("bad_timestamp", ~np.isfinite(cols.timestamp_s)), ("error_frame", (flags & FLAG_ERROR) != 0),
-                          ("remote_frame", (flags & FLAG_REMOTE) != 0),
-                          ("not_extended_id", (flags & FLAG_EXTENDED) == 0),
-                          ("invalid_id", (can_id < 0) | (can_id > ID_MAX)), ("fd_frame", (flags & FLAG_FD) != 0)):
-            mask = hit & ~taken
-            self.reason[mask] = REASON_CODES[name]
-            taken |= mask
-        self.ok = ~taken
-        self.pgn = np.where(self.ok, pgn_keys(np.where(self.ok, can_id, 0)), -1)
+        self.reason[:] = frame_reasons(cols)
+        self.ok = self.reason == 0
+        self.pgn = np.where(self.ok, pgn_keys(np.where(self.ok, cols.can_id, 0)), -1)
         self.eight = (cols.length == 8) & (cols.dlc == 8)
 
     def add_track(self, name: str, idx: np.ndarray, values: np.ndarray) -> None:
@@ -273,4 +281,4 @@ def decode_columns(cols: FrameColumns, decoder: J1939Decoder) -> DecodedColumns:
 
 
 __all__ = ["FLAG_ERROR", "FLAG_EXTENDED", "FLAG_FD", "FLAG_REMOTE", "REASON_CODES", "DecodedColumns",
-           "FrameColumns", "SignalTrack", "decode_columns", "pgn_keys"]
+           "FrameColumns", "SignalTrack", "decode_columns", "frame_reasons", "pgn_keys"]

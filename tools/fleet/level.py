@@ -23,15 +23,8 @@ from typing import NamedTuple
 import numpy as np
 
 from can_dbc import dbc
-from can_dbc.columnar import (
-    FLAG_ERROR,
-    FLAG_EXTENDED,
-    FLAG_FD,
-    FLAG_REMOTE,
-    FrameColumns,
-    pgn_keys,
-)
-from can_dbc.j1939 import ID_MAX, RAW8_DATA_MAX
+from can_dbc.columnar import FrameColumns, frame_reasons, pgn_keys
+from can_dbc.j1939 import RAW8_DATA_MAX
 
 #: the DBC's TRF1 level signal (SPN 124) and its measurement status (SPN 3026)
 LEVEL_MESSAGE, LEVEL_SIGNAL, STATUS_SIGNAL = "TRF1", "TransOilLevel", "TransOilLevelMeasStatus"
@@ -53,12 +46,9 @@ def level_readings(cols: FrameColumns, source_address: int | None) -> np.ndarray
     """Every valid SPN 124 reading of the frames [%], in file order; ``source_address`` None accepts any source."""
     level = dbc.signal_layout(LEVEL_MESSAGE, LEVEL_SIGNAL, 8)
     status = dbc.signal_layout(LEVEL_MESSAGE, STATUS_SIGNAL, 4)
-    ok = (cols.flags & (FLAG_ERROR | FLAG_REMOTE | FLAG_FD)) == 0
-    ok &= (cols.flags & FLAG_EXTENDED) != 0
+    ok = frame_reasons(cols) == 0                    # the decoder's frame checks, as for the oil temperature
     ok &= (cols.dlc == 8) & (cols.length == 8)
-    ok &= np.isfinite(cols.timestamp_s)
-    ok &= (cols.can_id >= 0) & (cols.can_id <= ID_MAX)
-    ok &= pgn_keys(cols.can_id & ID_MAX) == dbc.message_pgn(LEVEL_MESSAGE)
+    ok &= pgn_keys(np.where(ok, cols.can_id, 0)) == dbc.message_pgn(LEVEL_MESSAGE)
     if source_address is not None:
         ok &= (cols.can_id & 0xFF) == source_address
     raw = cols.data[:, level.start_bit // 8].astype(np.int64)

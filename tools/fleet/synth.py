@@ -106,7 +106,8 @@ def oil_level_pct(spec: FleetSpec, v: int, day: int, cols: dict, plant_table, vo
     oil_c = np.interp(t, np.asarray(plant_table["time_s"], float), np.asarray(plant_table["T_oil_c"], float))
     moving = np.asarray(cols.get("vehicle_speed_kmh", np.zeros(t.size)), float) > 1.0
     noise = rng.normal(0.0, 1.0, t.size) * np.where(moving, LEVEL_NOISE_PCT[1], LEVEL_NOISE_PCT[0])
-    return LEVEL_AT_NOMINAL_PCT * volume_l / nominal_l * (1.0 + OIL_EXPANSION_PER_K * (oil_c - 40.0)) + offset_pct + noise
+    expansion = 1.0 + OIL_EXPANSION_PER_K * (oil_c - 40.0)
+    return LEVEL_AT_NOMINAL_PCT * volume_l / nominal_l * expansion + offset_pct + noise
 
 
 def _nominal_volume_l() -> float:
