@@ -153,7 +153,7 @@ def test_a_period_level_needs_two_logs_and_its_error_follows_their_scatter():
 
 def test_fits_of_an_earlier_version_without_the_level_read_together_with_new_ones(tmp_path):
     """A re-run into an output folder whose first fits lack the level columns: every file's columns are read."""
-    pa = pytest.importorskip("pyarrow")
+    pa = pytest.importorskip("pyarrow", reason="the fleet output is Parquet: pip install '.[fleet]' (pyarrow)")
     from tools.fleet.store import FITS, partition_dir, read_table, write_atomic
     old = {"log_key": "a", "sse": [1.0, 2.0], "points": 10, "span_s": 600.0}
     write_atomic(pa.Table.from_pylist([old]), partition_dir(tmp_path / FITS, "truck000", "2026-01-05") / "p.parquet")
