@@ -205,7 +205,7 @@ def vm_run(tmp_path_factory):
         pytest.skip(f"vcan VM unavailable: {exc.reason}")
     phases = _phases(res.script_output)
     print(f"\nvcan e2e timings: host preparation {t1 - t0:.1f} s; VM {res.total_s:.1f} s: "
-          f"boot {res.boot_s or 0:.1f} s, " + ", ".join(f"{k} {v:.1f} s" for k, v in phases.items()))
+          f"boot {res.boot_s or 0:.1f} s ({res.boot_attempts} boot(s)), " + ", ".join(f"{k} {v:.1f} s" for k, v in phases.items()))
     assert res.returncode == 0, res.script_output[-3000:]
     return share, res, offline
 

@@ -97,7 +97,7 @@ def vm_run(tmp_path_factory):
     share = tmp_path_factory.mktemp("vcan_vm_share")
     (share / "roundtrip.py").write_text(ROUNDTRIP_PY)
     result = vcan_vm.run_in_vm(VM_SCRIPT, timeout_s=VM_TIMEOUT_S, share_dir=share)
-    print(f"vcan VM: boot {result.boot_s:.2f} s, whole run {result.total_s:.2f} s")
+    print(f"vcan VM: boot {result.boot_s:.2f} s ({result.boot_attempts} boot(s)), whole run {result.total_s:.2f} s")
     yield result
     shutil.rmtree(share, ignore_errors=True)
 
