@@ -173,3 +173,27 @@ def test_the_real_captures_carry_no_level_and_none_is_invented(name):
         pytest.skip(SKIP_REASON)
     got = read_log_level(d / name, 0x03)
     assert got.readings == 0 and math.isnan(got.level_pct)
+
+
+def test_fits_on_another_grid_are_one_clear_error_not_a_reshape_crash(tmp_path):
+    """An output folder whose fits an older version made on another grid (28 points, no grid stored): fleet health
+    says so in one sentence and writes nothing; the same folder with fits on this version's grid is read."""
+    pa = pytest.importorskip("pyarrow", reason="the fleet output is Parquet: pip install '.[fleet]' (pyarrow)")
+    from firmware_model.errors import InputError
+    from tools.fleet.health import COOLER_GRID, VOLUME_GRID_L, fleet_health
+    from tools.fleet.store import FITS, HEALTH, SUMMARY, partition_dir, write_atomic
+    n = len(COOLER_GRID) * len(VOLUME_GRID_L)
+
+    def store(out, n_points):
+        for i, date in enumerate(("2026-01-05", "2026-01-06", "2026-01-13")):
+            fit = {"log_key": f"k{i}", "sse": [float(abs(j - 17)) for j in range(n_points)], "points": 100,
+                   "span_s": 600.0}
+            write_atomic(pa.Table.from_pylist([fit]), partition_dir(out / FITS, "truck000", date) / "p.parquet")
+            write_atomic(pa.Table.from_pylist([{"log_key": f"k{i}", "log": f"l{i}.log"}]),
+                         partition_dir(out / SUMMARY, "truck000", date) / "p.parquet")
+    store(tmp_path / "old", 28)
+    with pytest.raises(InputError, match=r"3 of 3 log fits are not on this version's grid .*28 points.*new --out"):
+        fleet_health(tmp_path / "old")
+    assert not (tmp_path / "old" / HEALTH).exists()
+    store(tmp_path / "new", n)
+    assert fleet_health(tmp_path / "new").periods == 2

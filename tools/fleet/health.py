@@ -255,6 +255,22 @@ def flag_vehicles(period_fits: list[PeriodFit]) -> list[Flag]:
     return _drift_flags(per_vehicle, stats_med, stats_mad)
 
 
+def _grid(row: dict) -> tuple[tuple, tuple]:
+    return tuple(row.get("cooler_grid") or COOLER_GRID), tuple(row.get("volume_grid_l") or VOLUME_GRID_L)
+
+
+def _check_grids(out: str | Path, rows: list[dict]) -> None:
+    """Every stored log fit must be an SSE grid of this version's shape (a vehicle-period adds its logs' grids)."""
+    here = (COOLER_GRID, VOLUME_GRID_L)
+    bad = [r for r in rows if _grid(r) != here or len(r["sse"]) != len(COOLER_GRID) * len(VOLUME_GRID_L)]
+    if bad:
+        from firmware_model.errors import InputError
+        raise InputError(f"{Path(out) / 'fits'}: {len(bad)} of {len(rows)} log fits are not on this version's grid "
+                         f"({len(VOLUME_GRID_L)} oil volumes x {len(COOLER_GRID)} cooler scales; the first has "
+                         f"{len(bad[0]['sse'])} points): they come from another version of gearbox-vsensor; run "
+                         "`gearbox-vsensor fleet --diagnose` into a new --out folder")
+
+
 def fleet_health(out: str | Path, period_days: float = 7.0) -> Health:
     """Fit every vehicle-period from DIR/fits, flag drifting vehicles; writes DIR/health/periods.parquet and
     DIR/health/flags.parquet. Returns the fits and the flags."""
@@ -267,6 +283,7 @@ def fleet_health(out: str | Path, period_days: float = 7.0) -> Health:
         return Health(0, [], [])
     dates = dict(zip(summary.column("log_key").to_pylist(), summary.column("date").to_pylist()))
     unique = {r["log_key"]: r for r in fits.to_pylist()}     # a log fitted twice (a run killed between files)
+    _check_grids(out, list(unique.values()))
     rows = [r for r in unique.values() if dates.get(r["log_key"], "unknown") != "unknown"]
     if not rows:
         return Health(0, [], [])
