@@ -54,6 +54,10 @@ def score(truth: dict, health, period_days: float) -> None:
         mine = [v for v, f in faults.items() if f["effect"] == effect]
         print(f"{effect}: {sum(any(x.effect == effect for x in flags.get(v, [])) for v in mine)} of {len(mine)} "
               f"flagged as {effect}")
+    watch = {f.vehicle: f for f in health.watch}
+    print(f"to watch (oil level from the oil temperature, no SPN 124): {len(watch)} trucks: "
+          + (", ".join(f"{v} ({faults[v]['effect'] if v in faults else 'nominal'})" for v in sorted(watch))
+             or "none"))
     false = sorted(v for v in flags if v not in faults)
     print(f"flagged {hit}/{len(faults)} injected; with the injected effect among its flags {same}/{hit}; with "
           f"another effect flagged too {extra}; weeks from onset to the end of the first flagging period: "

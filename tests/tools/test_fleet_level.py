@@ -112,7 +112,7 @@ def _flags(levels: dict, volumes: dict | None = None, se: dict | None = None) ->
 def test_the_level_flag_reads_the_sensor_and_the_temperature_estimate_no_longer_flags_its_trucks():
     """leak: the measured level falls 30 % (flagged, as SPN 124); sloshy: the measured level is steady while the
     temperature's volume estimate falls by 4 L (no flag: the level is read); blind: no level signal, the same
-    estimate falls (flagged from the temperature, as before)."""
+    estimate falls (a watch, not a flag: the estimate is not identifiable)."""
     nan = math.nan
     falling = [13.5, 13.5, 9.5, 9.5, 9.5, 9.5]
     flags = _flags({"leak": [90.0, 90.0, 90.0, 63.0, 63.0, 63.0], "sloshy": [89.0, 91.0, 89.0, 91.0, 89.0, 91.0],
@@ -121,6 +121,23 @@ def test_the_level_flag_reads_the_sensor_and_the_temperature_estimate_no_longer_
     assert "SPN 124" in flags["leak"].reason and flags["leak"].period == 4
     assert flags["leak"].value == pytest.approx(63.0 / 90.0 * NOMINAL_VOLUME_L)
     assert "SPN 124" not in flags["blind"].reason and flags["blind"].effect == "oil_level_low"
+    assert flags["leak"].kind == "flag" and flags["blind"].kind == "watch"
+    assert "oil temperature" in flags["blind"].reason
+
+
+def test_a_cooler_drift_is_a_flag_with_or_without_the_level_sensor():
+    """The cooler's estimate is identified from the oil temperature: its drift stays a flag on a truck without SPN 124
+    (and the oil-level watch does not hide it)."""
+    fits = []
+    for v in ("fouled", "fouled_and_low", "ok0", "ok1", "ok2", "ok3"):
+        for p in range(6):
+            cooler = 0.5 if v.startswith("fouled") and p >= 2 else 1.0
+            volume = 9.5 if v == "fouled_and_low" and p >= 2 else 13.5
+            fits.append(PeriodFit(v, p, f"2026-01-{1 + 7 * p:02d}", 7, cooler, 0.02, volume, 0.5, 0.3))
+    found = [(f.vehicle, f.effect, f.kind) for f in flag_vehicles(fits)]
+    assert sorted(found) == [("fouled", "cooler_effectiveness_scale", "flag"),
+                             ("fouled_and_low", "cooler_effectiveness_scale", "flag"),
+                             ("fouled_and_low", "oil_level_low", "watch")]
 
 
 def test_a_level_drop_must_clear_both_its_share_of_the_baseline_and_three_standard_errors():
@@ -196,4 +213,31 @@ def test_fits_on_another_grid_are_one_clear_error_not_a_reshape_crash(tmp_path):
         fleet_health(tmp_path / "old")
     assert not (tmp_path / "old" / HEALTH).exists()
     store(tmp_path / "new", n)
-    assert fleet_health(tmp_path / "new").periods == 2
+    health = fleet_health(tmp_path / "new")
+    assert health.periods == 2 and health.flags == [] and health.watch == []
+    assert (tmp_path / "new" / HEALTH / "flags.parquet").is_file()
+    assert (tmp_path / "new" / HEALTH / "watch.parquet").is_file()
+
+
+def test_the_report_lists_flags_and_watches_apart(tmp_path):
+    """The fleet report counts flags and watches apart and says what a watch is (a dipstick check); the plot shows
+    both vehicles."""
+    pa = pytest.importorskip("pyarrow", reason="the fleet output is Parquet: pip install '.[fleet]' (pyarrow)")
+    pytest.importorskip("matplotlib", reason="the report's plots: pip install '.[fleet]' (matplotlib)")
+    from tools.fleet.health import Flag
+    from tools.fleet.report import write_report
+    from tools.fleet.store import HEALTH, write_atomic
+    periods = [_period(v, p, 13.5 if v != "low" or p < 2 else 9.5, math.nan) for v in ("cool", "low", "ok")
+               for p in range(4)]
+    write_atomic(pa.Table.from_pylist([f._asdict() for f in periods]), tmp_path / HEALTH / "periods.parquet")
+    flag = Flag("cool", "cooler_effectiveness_scale", 3, "2026-01-22", 0.5, 1.0, "drift from its own baseline")
+    watch = Flag("low", "oil_level_low", 3, "2026-01-22", 9.5, 13.5, "the oil volume estimated from the oil "
+                 "temperature (not identifiable: check the level) drifted from its own baseline", "watch")
+    write_atomic(pa.Table.from_pylist([flag._asdict()]), tmp_path / HEALTH / "flags.parquet")
+    write_atomic(pa.Table.from_pylist([watch._asdict()]), tmp_path / HEALTH / "watch.parquet")
+    text = write_report(tmp_path).read_text()
+    assert "Flagged: 1. To watch (oil level from the oil temperature): 1." in text
+    section = text[text.index("### To watch"):]
+    assert "| low | oil_level_low |" in section and "| cool |" not in section
+    assert "A dipstick check, not a diagnosis." in section
+    assert (tmp_path / "report_health.png").is_file()

@@ -45,9 +45,9 @@ def add_subparser(sub):
                    help="fleet health: per vehicle and week, fit the cooler effectiveness and (weakly) the oil "
                         "volume from the oil temperature, with their uncertainty, and read the measured oil level "
                         "(J1939 SPN 124) where a truck sends it; flag drifting vehicles (on synthetic fleets cooler "
-                        "flags were reliable; oil-level flags from the temperature are weak, a leak moves the oil "
-                        "less than the model's own error; trucks that send SPN 124 are judged on their measured "
-                        "level; docs/fleet.md)")
+                        "flags were reliable; trucks that send SPN 124 are flagged on their measured level; on the "
+                        "others a drift of the oil volume from the temperature is only a 'to watch' (a leak moves "
+                        "the oil less than the model's own error); docs/fleet.md)")
     p.add_argument("--period-days", type=float, default=7.0, metavar="DAYS",
                    help="the --diagnose period (default 7 days)")
     p.add_argument("--no-report", action="store_true", help="skip report.md and its plots")
@@ -91,7 +91,9 @@ def run(args) -> int:
         from tools.fleet.health import fleet_health
         health = fleet_health(args.out, period_days=args.period_days)
         print(f"health: {health.periods} vehicle-periods fitted; flagged: "
-              + (", ".join(f"{f.vehicle} ({f.effect})" for f in health.flags) or "none"))
+              + (", ".join(f"{f.vehicle} ({f.effect})" for f in health.flags) or "none")
+              + "; to watch (oil level from the oil temperature, not identifiable: check it): "
+              + (", ".join(f.vehicle for f in health.watch) or "none"))
     if not args.no_report:
         from tools.fleet.report import write_report
         path = write_report(args.out)
