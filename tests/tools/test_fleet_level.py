@@ -241,3 +241,39 @@ def test_the_report_lists_flags_and_watches_apart(tmp_path):
     assert "| low | oil_level_low |" in section and "| cool |" not in section
     assert "A dipstick check, not a diagnosis." in section
     assert (tmp_path / "report_health.png").is_file()
+
+
+def test_fleet_health_writes_a_temperature_oil_drift_to_watch_and_a_cooler_drift_to_flags(tmp_path):
+    """From stored log fits: "low" (no SPN 124) has its SSE minimum move from 13.5 L to 9 L, "fouled" its cooler from
+    1.0 to 0.5, three others stay put: low lands in watch.parquet only, fouled in flags.parquet only."""
+    pa = pytest.importorskip("pyarrow", reason="the fleet output is Parquet: pip install '.[fleet]' (pyarrow)")
+    import datetime as dt
+
+    import pyarrow.parquet as pq
+
+    from tools.fleet.health import COOLER_GRID, VOLUME_GRID_L, fleet_health
+    from tools.fleet.store import FITS, HEALTH, SUMMARY, partition_dir, write_atomic
+    vol, cool = np.array(VOLUME_GRID_L), np.array(COOLER_GRID)
+
+    def sse(v0, c0):    # a bowl with its minimum at (v0, c0): 1 K^2 per L^2, 100 K^2 per (0.1 scale)^2
+        return (((vol[:, None] - v0) ** 2 + 1e4 * (cool[None, :] - c0) ** 2) + 1.0).ravel().tolist()
+    k = 0
+    for vehicle in ("low", "fouled", "ok0", "ok1", "ok2"):
+        for week in range(5):
+            late = week >= 2
+            v0 = 9.0 if vehicle == "low" and late else 13.5
+            c0 = 0.5 if vehicle == "fouled" and late else 1.0
+            for day in (0, 2, 4):
+                date = (dt.date(2026, 1, 5) + dt.timedelta(days=7 * week + day)).isoformat()
+                fit = {"log_key": f"k{k}", "sse": sse(v0, c0), "points": 120, "span_s": 600.0}
+                write_atomic(pa.Table.from_pylist([fit]), partition_dir(tmp_path / FITS, vehicle, date) / "p.parquet")
+                write_atomic(pa.Table.from_pylist([{"log_key": f"k{k}", "log": f"l{k}.log"}]),
+                             partition_dir(tmp_path / SUMMARY, vehicle, date) / "p.parquet")
+                k += 1
+    health = fleet_health(tmp_path)
+    assert [(f.vehicle, f.effect) for f in health.flags] == [("fouled", "cooler_effectiveness_scale")]
+    assert [(f.vehicle, f.effect, f.kind) for f in health.watch] == [("low", "oil_level_low", "watch")]
+    flags = pq.read_table(tmp_path / HEALTH / "flags.parquet").to_pylist()
+    watch = pq.read_table(tmp_path / HEALTH / "watch.parquet").to_pylist()
+    assert [(r["vehicle"], r["kind"]) for r in flags] == [("fouled", "flag")]
+    assert [(r["vehicle"], r["kind"]) for r in watch] == [("low", "watch")]

@@ -282,8 +282,8 @@ def _check_grids(out: str | Path, rows: list[dict]) -> None:
 
 
 def fleet_health(out: str | Path, period_days: float = 7.0) -> Health:
-    """Fit every vehicle-period from DIR/fits, flag drifting vehicles; writes DIR/health/periods.parquet and
-    DIR/health/flags.parquet. Returns the fits and the flags."""
+    """Fit every vehicle-period from DIR/fits, flag drifting vehicles; writes DIR/health/periods.parquet,
+    DIR/health/flags.parquet and DIR/health/watch.parquet. Returns the fits, the flags and the watches."""
     import pyarrow as pa
 
     from tools.fleet.store import HEALTH, read_table, write_atomic

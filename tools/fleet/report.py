@@ -126,14 +126,16 @@ def _health(out: Path, lines: list) -> None:
         lines += _flag_table(fl, range(len(fl["vehicle"])))
     if wt["vehicle"]:
         lines += ["### To watch: check the oil level", "",
-                  "These trucks do not send their measured oil level (J1939 SPN 124), and the oil volume estimated "
-                  "from their oil temperature drifted down. That estimate is not identifiable: a 4 L leak moves the "
+                  "These trucks are not judged on a measured oil level (J1939 SPN 124: not sent, sent in too few "
+                  "periods, or below a plausible fill), and the oil volume estimated from their oil temperature "
+                  "drifted down. That estimate is not identifiable: a 4 L leak moves the "
                   "oil temperature by a few tenths of a kelvin, less than the onboard model's own error in 8 of the "
                   "9 drives and starts measured, and on the synthetic validation fleets such drifts were right 2 "
                   "times in 7 (see 'Measured' in the fleet documentation, docs/fleet.md). A dipstick check, not a "
                   "diagnosis.", ""]
         lines += _flag_table(wt, range(len(wt["vehicle"])))
-    plotted = sorted(set(fl["vehicle"]) | set(wt["vehicle"]))[:8]
+    flagged = sorted(set(fl["vehicle"]))
+    plotted = (flagged + sorted(set(wt["vehicle"]) - set(flagged)))[:8]     # the flagged first
     plt = _plt()
     panels = [("cooler_scale", "cooler_se", "cooler effectiveness scale [-]"),
               ("oil_volume_l", "oil_volume_se", "oil volume from the oil temperature [L]")]

@@ -142,6 +142,7 @@ class VMResult:
     boot_s: float | None = None   # QEMU start -> script start, host wall clock
     total_s: float | None = None  # QEMU start -> QEMU exit
     boot_attempts: int = 1        # 2 or more: the first boot(s) hung before the init and were retried
+    smp: int = 2                  # the CPUs of the boot that ran the script (1 when the last retry ran it)
 
     @property
     def script_output(self) -> str:
@@ -361,7 +362,7 @@ _INIT = r"""#!/bin/busybox sh
 export PATH=/bin
 fail() { echo "@INIT_FAIL@ $*"; echo "@EXIT@255"; sync; poweroff -f; sleep 5; exit 1; }
 mount -t proc proc /proc
-echo 3 > /proc/sys/kernel/printk  # the kernel's boot log went to the console; from here on errors only
+echo 3 > /proc/sys/kernel/printk  # the kernel's boot log went to the console; from here on critical and worse
 mount -t sysfs sysfs /sys
 mount -t devtmpfs devtmpfs /dev 2>/dev/null
 read -r up _ < /proc/uptime; echo "vcan-vm: init started at ${up} s uptime"
@@ -594,8 +595,9 @@ def _qemu_cmd(assets: Assets, ctl: Path, share: Path, memory_mb: int, smp: int) 
         "-nodefaults", "-no-user-config", "-nographic", "-no-reboot",
         "-serial", "stdio", "-monitor", "none",
         "-kernel", str(assets.kernel), "-initrd", str(assets.initramfs),
-        # the kernel's boot log goes to the console (loglevel 6; a hang shows where), the init lowers it to 3 (errors)
-        "-append", "console=ttyS0 quiet loglevel=6 panic=-1 mitigations=off random.trust_cpu=on",
+        # the kernel's boot log, info included, goes to the console (loglevel 7, after quiet: it wins; a hang shows
+        # where), and the init lowers the console level to 3 (critical and worse, as before the watchdog)
+        "-append", "console=ttyS0 quiet loglevel=7 panic=-1 mitigations=off random.trust_cpu=on",
         *virtfs(Path("/"), "hostroot", True),
         *virtfs(ctl, "ctl", False),
         *virtfs(share, "share", False),
@@ -617,8 +619,8 @@ def run_in_vm(script: str, timeout_s: float = 300, share_dir: Path | None = None
     interpreter, ``$VM_REPO`` = repo root (on PYTHONPATH), plus ``env``.  Its stdout and stderr go
     to the console: see :attr:`VMResult.script_output`.  ``stream`` receives the console live.
 
-    A boot whose kernel has not started the init within ``boot_timeout_s`` (a normal one takes ~2 s of VM time,
-    ~6 s of wall time) is killed and retried, up to ``boot_attempts`` boots in all; the last retry boots one CPU
+    A boot whose kernel has not started the init within ``boot_timeout_s`` (a normal one: ~3 s of VM time, under 6 s
+    of wall time; 9-13 s on a loaded host) is killed and retried, up to ``boot_attempts`` boots in all; the last retry boots one CPU
     (``-smp 1``: the hangs reported for TCG happen while the kernel brings up the second CPU).  Each retry is
     reported on stderr; :attr:`VMResult.boot_attempts` counts the boots.
 
@@ -650,7 +652,7 @@ def run_in_vm(script: str, timeout_s: float = 300, share_dir: Path | None = None
             sentinel_exit=SENTINEL_EXIT))
         (ctl / "params").write_text(f"VM_SHARE={shlex.quote(str(share))}\nVM_TIMEOUT={inner_timeout}\n"
                                     f"VM_ROOT_9P_OPTS={shlex.quote(_root_9p_opts())}\nVM_INIT={init}\n")
-        output, boot_s, total_s, attempt = _boot_with_retries(
+        output, boot_s, total_s, attempt, cpus = _boot_with_retries(
             lambda cpus: _qemu_cmd(assets, ctl, share, memory_mb, cpus), smp, timeout_s, boot_timeout_s,
             boot_attempts, stream)
         exit_file = ctl / "exit_code"
@@ -670,21 +672,23 @@ def run_in_vm(script: str, timeout_s: float = 300, share_dir: Path | None = None
         raise VMError(f"VM exited without reporting the script's exit status; console tail:\n{output[-3000:]}",
                       output)
     return VMResult(returncode=rc, output=output, share_dir=share, boot_s=boot_s, total_s=total_s,
-                    boot_attempts=attempt)
+                    boot_attempts=attempt, smp=cpus)
 
 
 def _boot_with_retries(make_cmd, smp: int, timeout_s: float, boot_timeout_s: float, attempts: int,
-                       stream: TextIO | None) -> tuple[str, float | None, float, int]:
-    """Run QEMU; retry a boot that hung before the init (the last retry with one CPU)."""
+                       stream: TextIO | None) -> tuple[str, float | None, float, int, int]:
+    """Run QEMU; retry a boot that hung before the init (the last retry with one CPU). Returns the console, the boot
+    and run times, the boots made and the CPUs of the last."""
     attempts = max(1, int(attempts))
     for attempt in range(1, attempts + 1):
         cpus = 1 if attempt > 1 and attempt == attempts else smp
         try:
             output, boot_s, total_s = _run_qemu(make_cmd(cpus), timeout_s, stream, boot_timeout_s)
-            return output, boot_s, total_s, attempt
+            return output, boot_s, total_s, attempt, cpus
         except VMBootHang as exc:
             if attempt == attempts:
-                raise
+                raise VMBootHang(f"boot {attempt} of {attempts} ({cpus} CPU{'s' if cpus > 1 else ''}): {exc}",
+                                 exc.output) from None
             last = exc.output.strip().splitlines()[-1:] or ["(no console output)"]
             print(f"vcan VM: boot {attempt} of {attempts} hung before the init ({boot_timeout_s:g} s; last console "
                   f"line: {last[0][:200]}); QEMU killed, booting again"
@@ -713,6 +717,16 @@ def _run_qemu(cmd: list[str], timeout_s: float, stream: TextIO | None,
             if boot_deadline is not None and init_marker in buf:
                 boot_deadline = None
             if boot_deadline is not None and time.monotonic() >= boot_deadline:
+                while sel.select(0):                  # what QEMU printed before the deadline counts
+                    chunk = os.read(fd, 65536)
+                    if not chunk:
+                        break
+                    buf += chunk
+                    if stream is not None:
+                        stream.write(chunk.decode("utf-8", "replace").replace("\r", ""))
+                if init_marker in buf:
+                    boot_deadline = None
+                    continue
                 _kill(proc)
                 text = _clean(buf)
                 raise VMBootHang(f"the VM's kernel did not start the init within {boot_timeout_s:g} s; QEMU killed; "
@@ -721,7 +735,8 @@ def _run_qemu(cmd: list[str], timeout_s: float, stream: TextIO | None,
                 _kill(proc)
                 text = _clean(buf)
                 raise VMTimeout(f"VM run exceeded {timeout_s:g} s; QEMU killed; console tail:\n{text[-3000:]}", text)
-            if not sel.select(max(0.0, min(remaining, 1.0))):
+            wait = min(remaining, 1.0, boot_deadline - time.monotonic() if boot_deadline is not None else 1.0)
+            if not sel.select(max(0.0, wait)):
                 continue
             chunk = os.read(fd, 65536)
             if not chunk:
