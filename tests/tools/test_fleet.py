@@ -208,6 +208,16 @@ def test_bad_input_is_one_sentence_and_writes_nothing(tmp_path, synthetic, capsy
         read_manifest(tmp_path / "absent.csv")
 
 
+def test_a_manifest_date_that_is_no_day_is_one_sentence_before_anything_runs(tmp_path, synthetic, capsys):
+    """2026-02-30 has the shape YYYY-MM-DD but is no day: refused when the manifest is read, not when the fleet
+    health (after the whole run) needs the date."""
+    log = read_manifest(synthetic)[0].log
+    m = tmp_path / "m.csv"
+    m.write_text(f"log,vehicle,date\n{log},t1,2026-02-30\n")
+    err = _error(capsys, ["fleet", "--manifest", str(m), "--out", str(tmp_path / "out")])
+    assert "'2026-02-30' is not a day of the calendar" in err and not (tmp_path / "out").exists()
+
+
 def test_a_manifest_that_is_not_text_is_one_sentence(tmp_path, capsys):
     m = tmp_path / "m.csv"
     m.write_bytes(b"\xff\xfe\x00garbage\n")

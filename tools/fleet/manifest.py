@@ -8,6 +8,7 @@ exists but cannot be read is not: it lands in the fleet's errors table.
 from __future__ import annotations
 
 import csv
+import datetime as dt
 import hashlib
 import os
 import re
@@ -54,6 +55,11 @@ def _entry(path: Path, vehicle: str, variant=None, config=None, date=None) -> Lo
         raise InputError(f"{path}: no vehicle name")
     if date is not None and not re.fullmatch(r"\d{4}-\d{2}-\d{2}", date):
         raise InputError(f"{path}: date {date!r} is not YYYY-MM-DD")
+    if date:
+        try:
+            dt.date.fromisoformat(date)
+        except ValueError:
+            raise InputError(f"{path}: date {date!r} is not a day of the calendar") from None
     return LogEntry(path, vehicle.strip(), variant or None, config or None, date or None, log_key(path))
 
 
