@@ -34,6 +34,7 @@ from typing import NamedTuple
 import numpy as np
 
 from firmware_model.effects import CATALOG
+from firmware_model.errors import InputError
 
 #: the grid of the per-log fit: cooler effectiveness scale [-] and oil volume [L] (catalog ranges)
 COOLER_GRID = (0.2, 0.35, 0.5, 0.65, 0.8, 1.0, 1.2)
@@ -272,13 +273,13 @@ def _grid(row: dict) -> tuple[tuple, tuple]:
 def _check_grids(out: str | Path, rows: list[dict]) -> None:
     """Every stored log fit must be an SSE grid of this version's shape (a vehicle-period adds its logs' grids)."""
     here = (COOLER_GRID, VOLUME_GRID_L)
-    bad = [r for r in rows if _grid(r) != here or len(r["sse"]) != len(COOLER_GRID) * len(VOLUME_GRID_L)]
+    n = len(COOLER_GRID) * len(VOLUME_GRID_L)
+    bad = [r for r in rows if _grid(r) != here or len(r.get("sse") or ()) != n]
     if bad:
-        from firmware_model.errors import InputError
         raise InputError(f"{Path(out) / 'fits'}: {len(bad)} of {len(rows)} log fits are not on this version's grid "
                          f"({len(VOLUME_GRID_L)} oil volumes x {len(COOLER_GRID)} cooler scales; the first has "
-                         f"{len(bad[0]['sse'])} points): they come from another version of gearbox-vsensor; run "
-                         "`gearbox-vsensor fleet --diagnose` into a new --out folder")
+                         f"{len(bad[0].get('sse') or ())} points): they come from another version of "
+                         "gearbox-vsensor; run `gearbox-vsensor fleet --diagnose` into a new --out folder")
 
 
 def fleet_health(out: str | Path, period_days: float = 7.0) -> Health:
