@@ -30,7 +30,9 @@ def add_subparser(sub):
             "2. which: every catalog effect fitted on the TRAINING files by re-simulation and ranked by "
             "score = -dBIC with an effective sample size (autocorrelated residuals); confusable candidates and "
             "the extra measurement that separates them; verdict 'none' when the model agrees within the "
-            "measurement noise, 'unexplained' when no candidate explains the gap;\n"
+            "measurement noise, 'unexplained' when no candidate explains the gap; beside an effect verdict, the "
+            "other effects the data cannot rule out (no strong evidence against them, the verdict refitted) and "
+            "those they point to without a claim ('indicated');\n"
             "3. how far it shrinks: RMS and max residual before/after on the TEST files only."),
         epilog="examples:\n"
                "  gearbox-vsensor diagnose --train run1.csv run2.csv --test run3.csv --json gap.json\n"

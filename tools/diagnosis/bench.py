@@ -326,6 +326,9 @@ class Row:
     diag_s: float
     truth_s: float
     note: str = ""
+    declared: bool | None = None   # pair: every missed effect listed as not excluded beside the verdict
+    covered: bool | None = None    # ... with its planted value inside the listed interval
+    n_not_excluded: int = 0        # effects the verdict lists as not excluded beside it
 
 
 def found_set(v: dict) -> tuple:
@@ -354,6 +357,25 @@ def _score_set(sc: Scenario, res: dict) -> tuple:
     return False, "missed: " + ", ".join(missed) + f" (found {' + '.join(found) or res['verdict']['effect']})"
 
 
+def not_excluded_of(v: dict) -> dict:
+    """effect -> (low, high, indicated) of the verdict's not_excluded list (exclude.py)."""
+    return {n["effect"]: (n["range"][0], n["range"][1], n["indicated"]) for n in v.get("not_excluded", [])}
+
+
+def _declared(sc: Scenario, res: dict, missed: list) -> tuple:
+    """(every missed effect listed as not excluded beside the verdict, and each planted value inside its interval;
+    a note) for a pair scenario's misses."""
+    if not missed:
+        return None, None, ""
+    nex = not_excluded_of(res["verdict"])
+    planted = {sc.effect: sc.value, **sc.also}
+    listed = [e for e in missed if e in nex]
+    inside = [e for e in listed if nex[e][0] - 1e-9 <= planted[e] <= nex[e][1] + 1e-9]
+    note = "; ".join(f"{e} {'indicated' if nex[e][2] else 'not excluded'} beside the verdict at {nex[e][0]:.3g}-"
+                     f"{nex[e][1]:.3g} (planted {planted[e]:.3g})" for e in listed)
+    return len(listed) == len(missed), len(inside) == len(missed), note
+
+
 def _below_detectable(sc: Scenario, res: dict, missed: list) -> str:
     """A note for each missed effect planted closer to neutral than the fraction of its range from which its own
     signature clears the detection threshold alone (the identifiability analysis' detectable_from_fraction)."""
@@ -377,10 +399,13 @@ def score_row(sc: Scenario, res: dict, diag_s: float) -> Row:
         bound = e.high if sc.value > e.neutral else e.low
         below = _below_detectable(sc, res, [x for x in [sc.effect, *sc.also] if x not in found and x not in conf])
         note = "planted " + ", ".join(f"{k} {x:.4g}" for k, x in ({sc.effect: sc.value} | sc.also).items())
+        declared, covered, dnote = _declared(sc, res, [x for x in [sc.effect, *sc.also]
+                                                        if x not in found and x not in conf] if ok is False else [])
+        note += "".join(f" ({x})" for x in (below if ok is False else "", dnote) if x)
         return Row(sc.index, sc.setup, sc.cooler, " + ".join([sc.effect] + list(sc.also)), sc.value,
                    (sc.value - e.neutral) / (bound - e.neutral), " + ".join(found) or v["effect"], None, conf,
                    float(v["shrink"] or 0.0), float(v["test_rms_before_c"] or 0.0), float(v["test_rms_after_c"] or 0.0),
-                   status, ok, diag_s, sc.truth_s, note + (f" ({below})" if ok is False and below else ""))
+                   status, ok, diag_s, sc.truth_s, note, declared, covered, len(v.get("not_excluded", [])))
     eff = sc.effect
     conf = list(v.get("confusable_with", []))
     fitted = None
@@ -415,7 +440,7 @@ def score_row(sc: Scenario, res: dict, diag_s: float) -> Row:
                 note = f"planted at {frac:.2f} of its range, detectable from {dff:.2f}"
     return Row(sc.index, sc.setup, sc.cooler, eff, sc.value, frac, v["effect"], fitted, conf, float(v["shrink"] or 0.0),
                float(v["test_rms_before_c"] or 0.0), float(v["test_rms_after_c"] or 0.0), status, ok, diag_s,
-               sc.truth_s, note)
+               sc.truth_s, note, n_not_excluded=len(v.get("not_excluded", [])))
 
 
 def summarize(rows: list) -> dict:
@@ -439,6 +464,10 @@ def summarize(rows: list) -> dict:
         "median_diag_s": float(np.median([r.diag_s for r in rows])) if rows else float("nan"),
         "max_diag_s": float(np.max([r.diag_s for r in rows])) if rows else float("nan"),
         "median_total_s": float(np.median([r.diag_s + r.truth_s for r in rows])) if rows else float("nan"),
+        "declared": sum(r.ok or bool(r.declared) for r in scored),
+        "covered": sum(r.ok or bool(r.covered) for r in scored),
+        "not_excluded_mean": float(np.mean([r.n_not_excluded for r in eff_rows if r.verdict.split(" + ")[0] in CATALOG]
+                                           or [float("nan")])),
     }
 
 
@@ -464,7 +493,11 @@ def format_table(rows: list, summary: dict) -> str:
             f"| top-1 over all effect scenarios (not identifiable counted as misses) | {100 * s['top1_all']:.0f} % | - |\n"
             f"| effect scenarios reported as not identifiable with their channels | {s['not_identifiable']} | - |\n"
             + (f"| misses with an effect planted below the fraction of its range it is detectable from alone | "
-               f"{s['missed_below_detectable']} | - |\n" if pair else "") +
+               f"{s['missed_below_detectable']} | - |\n"
+               f"| both named, or the missed one listed as not excluded beside the verdict (its planted value inside "
+               f"the listed interval) | {s['declared']} of {s['top1_scored']} ({s['covered']}) | - |\n" if pair else "")
+            + f"| effects listed as not excluded beside an effect verdict (mean per verdict) | "
+              f"{s['not_excluded_mean']:.1f} | - |\n" +
             f"| false alarms on null scenarios | {s['false_alarms']} of {s['null_scenarios']} | 0 |\n"
             f"| median test-set RMS shrink (verdict = an effect) | {100 * s['median_shrink_identified']:.0f} % | >= 70 % |\n"
             f"| median diagnosis time per scenario (max) | {s['median_diag_s']:.0f} s ({s['max_diag_s']:.0f} s) | <= 60 s |\n"

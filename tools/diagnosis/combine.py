@@ -51,9 +51,10 @@ class Combination:
     explained: float          # share of the excess squared residual the set explains
     shares: dict              # effect -> share of the explained part
     steps: list = field(default_factory=list)   # the forward steps after the leading effect
+    out_train: list | None = None                # the set's training run (model outputs per file)
 
 
-class _State:
+class SetState:
     """The set being grown: its members, its training run and its raw (unadjusted) predictions."""
 
     def __init__(self, base: Baseline, members: dict, out: list):
@@ -78,7 +79,7 @@ def _dense(eid: str, n: int = 41) -> np.ndarray:
     return np.linspace(e.low, e.high, n)
 
 
-def _delta_fn(base: Baseline, fit: Fit):
+def delta_fn(base: Baseline, fit: Fit):
     """v -> per-entry change of the predictions from the effect's single-effect grid (quadratic spline)."""
     from scipy.interpolate import make_interp_spline
     xs = np.array(sorted(fit.grid))
@@ -90,7 +91,7 @@ def _delta_fn(base: Baseline, fit: Fit):
     return lambda v: [s(v) - p for s, p in zip(splines, base.p0_hp)]
 
 
-def _surrogate_on_top(ctx: Context, base: Baseline, st: _State, eid: str, fit: Fit, deltas: dict) -> tuple:
+def _surrogate_on_top(ctx: Context, base: Baseline, st: SetState, eid: str, fit: Fit, deltas: dict) -> tuple:
     """((members, surrogate misfit) with the set as it is, (members, misfit) with the set moving): effect `eid`'s
     value searched on a dense grid on top of the set (exact for a sensor effect, else the set's run plus the
     effect's single-effect change); then :data:`SURROGATE_PASSES` coordinate passes over the set's members and `eid`
@@ -118,7 +119,7 @@ def _surrogate_on_top(ctx: Context, base: Baseline, st: _State, eid: str, fit: F
     return fixed, (members, best_S)
 
 
-def _surrogate(base: Baseline, st: _State, deltas: dict):
+def _surrogate(base: Baseline, st: SetState, deltas: dict):
     """members -> the surrogate misfit of a set near `st`: the exact sensor effect applied to the set's run, plus the
     changes of the physical members from their values in `st` (their single-effect grids)."""
     sc, train = base.scorer, base.train.datasets
@@ -139,7 +140,7 @@ def _surrogate(base: Baseline, st: _State, deltas: dict):
     return S_of
 
 
-def _eligible(ctx: Context, st: _State, fits: dict, deltas: dict) -> list:
+def eligible(ctx: Context, st: SetState, fits: dict, deltas: dict) -> list:
     has_exact = any(e in ANALYTIC for e in st.members)
     out = []
     for eid, f in fits.items():
@@ -151,7 +152,7 @@ def _eligible(ctx: Context, st: _State, fits: dict, deltas: dict) -> list:
     return out
 
 
-def _simulate_sets(ctx: Context, base: Baseline, sets: list, cur: _State) -> list:
+def simulate_sets(ctx: Context, base: Baseline, sets: list, cur: SetState) -> list:
     """Training runs of candidate sets (the current run where a set adds only an exact sensor effect)."""
     phys = [{e: v for e, v in m.items() if e not in ANALYTIC} for m in sets]
     need = [i for i, m in enumerate(phys) if m != {e: v for e, v in cur.members.items() if e not in ANALYTIC}]
@@ -162,7 +163,7 @@ def _simulate_sets(ctx: Context, base: Baseline, sets: list, cur: _State) -> lis
     return outs
 
 
-def _refit_jointly(ctx: Context, base: Baseline, st: _State, deltas: dict, passes: int = 3) -> _State:
+def _refit_jointly(ctx: Context, base: Baseline, st: SetState, deltas: dict, passes: int = 3) -> SetState:
     """Coordinate passes over the members on the surrogates around the joint run, each re-simulated and kept while
     it lowers the misfit."""
     for _ in range(passes):
@@ -173,7 +174,7 @@ def _refit_jointly(ctx: Context, base: Baseline, st: _State, deltas: dict, passe
     return st
 
 
-def _coordinate_pass(ctx: Context, base: Baseline, st: _State, deltas: dict) -> _State:
+def _coordinate_pass(ctx: Context, base: Baseline, st: SetState, deltas: dict) -> SetState:
     """One coordinate pass over the members on the surrogates around the joint run, re-simulated; kept if better."""
     sc, train = base.scorer, base.train.datasets
     members = dict(st.members)
@@ -198,19 +199,19 @@ def _coordinate_pass(ctx: Context, base: Baseline, st: _State, deltas: dict) -> 
                 raw = preds_of(base, train, st.out, members)
     if members == st.members:
         return st
-    out = _simulate_sets(ctx, base, [members], st)[0]
-    new = _State(base, members, out)
+    out = simulate_sets(ctx, base, [members], st)[0]
+    new = SetState(base, members, out)
     return new if new.S < st.S else st
 
 
-def _step(ctx: Context, base: Baseline, crit: Criterion, st: _State, fits: dict, deltas: dict, gap_thr_c: dict):
+def _step(ctx: Context, base: Baseline, crit: Criterion, st: SetState, fits: dict, deltas: dict, gap_thr_c: dict):
     """(the set with one more effect, its Step), or None when nothing pays for one more parameter. A new effect with
     less than add_share_min of all the set explains joins only when it closes a clear gap (:func:`_closes_clear_gap`):
     a modest effect beside a large one (churning x0.55 beside teeth convection x0.6 on a rig) is a small share of the
     whole, yet the gap the large one leaves alone is the evidence for it."""
     o = ctx.opts
     cands, moving = [], []
-    for eid in _eligible(ctx, st, fits, deltas):
+    for eid in eligible(ctx, st, fits, deltas):
         (m, S), (m2, S2) = _surrogate_on_top(ctx, base, st, eid, fits[eid], deltas)
         if m[eid] != CATALOG[eid].neutral:
             cands.append((S, eid, m))
@@ -224,8 +225,8 @@ def _step(ctx: Context, base: Baseline, crit: Criterion, st: _State, fits: dict,
     # the best few with the set as it is, and the best with the set moving (when it is another set)
     sets = [m for _S, _eid, m in cands[:o.combine_check]]
     sets += [m for _S, _eid, m in moving[:1] if m not in sets]
-    for m, out in zip(sets, _simulate_sets(ctx, base, sets, st)):
-        checked.append(_State(base, m, out))
+    for m, out in zip(sets, simulate_sets(ctx, base, sets, st)):
+        checked.append(SetState(base, m, out))
     checked.sort(key=lambda s: s.S)
     best = _refit_jointly(ctx, base, checked[0], deltas)
     excess = max(st.S - base.S_noise, 0.02 * st.S, 1e-12)
@@ -246,7 +247,7 @@ def _step(ctx: Context, base: Baseline, crit: Criterion, st: _State, fits: dict,
     return best, Step(added, float(score), float(gain), alts)
 
 
-def _closes_clear_gap(ctx: Context, base: Baseline, before: _State, after: _State, gap_thr_c: dict) -> bool:
+def _closes_clear_gap(ctx: Context, base: Baseline, before: SetState, after: SetState, gap_thr_c: dict) -> bool:
     """The set before left a clear gap (a systematic residual at least clear_gap_factor times its threshold on some
     channel: not the model's own error at the threshold) and the set after leaves none."""
     sc = base.scorer
@@ -294,8 +295,8 @@ def forward_select(ctx: Context, base: Baseline, crit: Criterion, fits: list, ga
     if o.max_effects < 2 or top.value == CATALOG[top.effect].neutral:
         return None
     by_id = {f.effect: f for f in fits}
-    deltas = {eid: (None if eid in ANALYTIC else _delta_fn(base, f)) for eid, f in by_id.items()}
-    st = _State(base, {top.effect: top.value}, top.out_train)
+    deltas = {eid: (None if eid in ANALYTIC else delta_fn(base, f)) for eid, f in by_id.items()}
+    st = SetState(base, {top.effect: top.value}, top.out_train)
     chain, steps = [st.S], []
     while len(st.members) < o.max_effects and gap_left(ctx, base, base.scorer.adjust(st.raw, "train"),
                                                                 gap_thr_c):
@@ -310,7 +311,7 @@ def forward_select(ctx: Context, base: Baseline, crit: Criterion, fits: list, ga
     return _finish(ctx, base, crit, by_id, st, chain, steps)
 
 
-def _finish(ctx: Context, base: Baseline, crit: Criterion, fits: dict, st: _State, chain: list,
+def _finish(ctx: Context, base: Baseline, crit: Criterion, fits: dict, st: SetState, chain: list,
             steps: list) -> Combination:
     """The chosen set with its own nuisance lags, scored, and re-simulated on the test files."""
     sc = base.scorer
@@ -329,7 +330,7 @@ def _finish(ctx: Context, base: Baseline, crit: Criterion, fits: dict, st: _Stat
     tout = ctx.sim.run(base.test.datasets, [Run.of(phys)])[0] if phys else base.base_te
     p_te = sc.adjust(preds_of(base, base.test.datasets, tout, st.members, lags), "test")
     return Combination(dict(st.members), S, pr, p_te, float(score), float(explained),
-                       _shares(base, fits, st.members, chain), steps)
+                       _shares(base, fits, st.members, chain), steps, st.out)
 
 
 def _acceptable(ctx: Context, base: Baseline, combo: Combination, gap_thr_c: dict) -> bool:

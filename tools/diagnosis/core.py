@@ -31,7 +31,8 @@ from tools.diagnosis.baseline import establish_baseline
 from tools.diagnosis.combine import rescue, select_set
 from tools.diagnosis.context import Context, Simulator
 from tools.diagnosis.decide import (confusable_with, decide, held_out_check, residuals, suggestions,
-                                    with_combination, with_structure)
+                                    with_combination, with_not_excluded, with_structure)
+from tools.diagnosis.exclude import not_excluded
 from tools.diagnosis.fit import fit_all, grid_plan, rank, simulate_test_files
 from tools.diagnosis.heat import unexplained_heat
 from tools.diagnosis.identify import identifiability
@@ -101,12 +102,29 @@ class Diagnosis:
             res = residuals(base, verdict, crit)
         structure = self._structure(base, fits, verdict)
         verdict = with_structure(verdict, structure)
+        nex = self._not_excluded(base, crit, fits, verdict, combo, ident)
+        verdict = with_not_excluded(verdict, nex)
         sugg = suggestions(ctx, train, verdict, crit, conf)
         regs = regimes_before_after(test, base.base_te, res.test_before, res.test_after, p, ctx.cooler, ctx.opts)
-        self.outcome = Outcome(base, where, heat, crit, ident, verdict, conf, sugg, res, regs, structure, combo)
+        self.outcome = Outcome(base, where, heat, crit, ident, verdict, conf, sugg, res, regs, structure, combo,
+                               tuple(nex))
         self.plot_data = plot_data(self.outcome)
         return build_json(ctx, self.outcome, time.perf_counter() - wall0_s)
 
+
+    def _not_excluded(self, base, crit, fits: list, verdict, combo, ident: dict) -> list:
+        """The effects the training files cannot rule out beside an effect verdict (:mod:`.exclude`)."""
+        if not verdict.is_effect:
+            return []
+        if combo is not None:
+            members, out = combo.members, combo.out_train
+        else:
+            top = crit.candidates[0].fit
+            if top.effect != verdict.effect:
+                return []
+            members, out = {top.effect: top.value}, top.out_train
+        skip = {e for e, i in ident.items() if not i.identifiable}
+        return not_excluded(self.ctx, base, crit, fits, members, out, skip)
 
     def _structure(self, base, fits: list, verdict) -> dict:
         """The regime structure of the training residual (regimes.residual_structure) per channel with a gap, with

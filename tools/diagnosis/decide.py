@@ -137,6 +137,20 @@ def with_combination(ctx: Context, base: Baseline, v: Verdict, combo) -> Verdict
     return replace(v, effect=next(iter(combo.members)), reason=reason, post_c=post)
 
 
+def with_not_excluded(v: Verdict, items: list) -> Verdict:
+    """The verdict whose reason also says which other effects the data cannot rule out beside it (exclude.py)."""
+    from dataclasses import replace
+    if not items:
+        return v
+    def rng(n):
+        e = CATALOG[n.effect]
+        return f"{n.effect} {e.param} {n.low:.3g}-{n.high:.3g}"
+    shown = ", ".join(rng(n) + (" (indicated)" if n.indicated else "") for n in items[:3]) \
+        + (f" and {len(items) - 3} more" if len(items) > 3 else "")
+    return replace(v, reason=v.reason + f"; beside it the data cannot exclude (no strong evidence against, the "
+                                        f"verdict's effects refitted): {shown}")
+
+
 def with_structure(v: Verdict, structure: dict) -> Verdict:
     """The verdict with the residual's regime structure as evidence in its reason (regimes.residual_structure):
     said for a sensor fault, and for a verdict of "unexplained" (where a constant offset points at the sensor)."""

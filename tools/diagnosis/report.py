@@ -241,6 +241,22 @@ def _md_header(res: dict, title: str | None) -> list:
     return L
 
 
+def _md_not_excluded(v: dict) -> list:
+    """A table of the effects the data cannot rule out beside the verdict (verdict.not_excluded)."""
+    items = v.get("not_excluded") or []
+    if not items:
+        return []
+    L = ["Beside the verdict the training files have no strong evidence against these effects over the range given "
+         "(the verdict's effects refitted at each value); *indicated*: neutral is outside the range, the data point "
+         "to the effect although the verdict does not claim it.\n",
+         "| effect | parameter | not excluded over | fits best at | indicated | evidence for adding it |",
+         "|---|---|---|---|---|---|"]
+    for n in items:
+        L.append(f"| {n['effect']} | {n['parameter']} | {n['range'][0]:.4g} .. {n['range'][1]:.4g} | {n['best']:.4g} | "
+                 f"{'yes' if n['indicated'] else 'no'} | {n['evidence']:.0f} |")
+    return L + [""]
+
+
 def _md_verdict(res: dict) -> list:
     v = res["verdict"]
     L = ["## Verdict\n"]
@@ -255,6 +271,7 @@ def _md_verdict(res: dict) -> list:
     L.append(f"\n\nOn the test files the pooled RMS residual goes from **{_fmt(v['test_rms_before_c'])} degC** to "
              f"**{_fmt(v['test_rms_after_c'])} degC** (shrink {100 * (v['shrink'] or 0):.0f} %), the largest "
              f"residual from {_fmt(v['test_max_before_c'])} to {_fmt(v['test_max_after_c'])} degC.\n")
+    L += _md_not_excluded(v)
     for s in res.get("measurement_suggestions", []):
         L.append(f"- {s['text']}.")
     if res.get("measurement_suggestions"):

@@ -29,6 +29,7 @@ class Outcome:
     test_regimes: list       # the JSON's test_regimes
     structure: dict          # channel -> the baseline residual's regime structure (regimes.residual_structure)
     combination: object = None   # the effects found together (combine.Combination), None for one effect
+    not_excluded: tuple = ()     # exclude.NotExcluded: effects the data cannot rule out beside the verdict
 
 
 @dataclass(frozen=True)
@@ -111,6 +112,9 @@ def _verdict_json(out: Outcome, cand_json: list) -> dict:
         js["closest_candidate"] = cand_json[0]["effect"]
     if out.combination is not None:
         js.update(_effects_json(out))
+    if v.is_effect:
+        from tools.diagnosis.exclude import not_excluded_json
+        js["not_excluded"] = not_excluded_json(out.not_excluded)
     js["residual_structure"] = out.structure
     return js
 

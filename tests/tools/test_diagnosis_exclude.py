@@ -1,0 +1,142 @@
+"""What the data cannot rule out beside a verdict (tools/diagnosis/exclude.py): the 95 % profile interval of another
+effect, its ends refined and confirmed by re-simulation, and an effect the data point to but the verdict does not
+claim ("indicated").
+
+The interval logic is tested on a known misfit profile with the re-simulation replaced; a whole diagnosis is tested
+on a truck pair whose second effect hides behind the first.
+"""
+from __future__ import annotations
+
+import math
+from types import SimpleNamespace
+
+import pytest
+
+import tools.diagnosis.exclude as X
+from firmware_model.effects import CATALOG
+from tools.diagnosis.options import Options
+
+CTX = SimpleNamespace(opts=Options())
+EVIDENCE = Options().evidence_min    # a value is excluded on strong evidence against it (-dBIC >= 10)
+EID = "planet_oil_h_scale"           # neutral 1.0, range 0.5 .. 1.5
+N_EFF = 800.0
+
+
+def _quadratic(y: float, y0: float = 0.62, s_min: float = 1000.0, curv: float = 4000.0) -> float:
+    return s_min + curv * (y - y0) ** 2
+
+
+class _FakeProfile:
+    """refit: the members unchanged, the misfit a known function of the held effect's value."""
+
+    def __init__(self, S_of):
+        self.S_of = S_of
+
+    def refit(self, members: dict, held: str):
+        return dict(members), self.S_of(members[held])
+
+
+def _walked(S_of, st):
+    e = CATALOG[EID]
+    pts = []
+    for side, bound in ((-1, e.low), (1, e.high)):
+        side_pts = [(e.neutral + f * (bound - e.neutral), None, None) for f in X.FRACTIONS]
+        side_pts = [(y, {**st.members, EID: y}, S_of(y)) for y, _m, _S in side_pts]
+        pts += side_pts[::-1] if side < 0 else [(e.neutral, dict(st.members), st.S)] + side_pts
+    return pts
+
+
+@pytest.fixture
+def st():
+    return SimpleNamespace(members={"cooler_effectiveness_scale": 1.18}, S=_quadratic(1.0))
+
+
+def test_an_effect_the_data_point_to_is_indicated_with_its_interval(monkeypatch, st):
+    """Misfit lowest at 0.62, far below the verdict's (neutral): neutral is outside the interval, which is the
+    region around the best value where the evidence against is below evidence_min, ends bisected between the tenths."""
+    monkeypatch.setattr(X, "_simulated_S", lambda ctx, base, s, members: _quadratic(members[EID]))
+    ne = X._profile_interval(CTX, None, st, _FakeProfile(_quadratic), EID, _walked(_quadratic, st), N_EFF)
+    thr = _quadratic(0.6) * math.exp(EVIDENCE / N_EFF)
+    half = math.sqrt((thr - 1000.0) / 4000.0)                 # the exact interval is 0.62 -+ half
+    assert ne.indicated and ne.best == pytest.approx(0.6)
+    res = 0.05 / 2 ** X.BISECTIONS                            # the ends land inside, within the resolution
+    assert 0.62 - half <= ne.low <= 0.62 - half + res
+    assert 0.62 + half - res <= ne.high <= 0.62 + half
+    assert not ne.covers(1.0) and ne.covers(0.62)
+    assert ne.frac_low == pytest.approx((1.0 - ne.low) / 0.5) and ne.frac_high == 0.0
+    assert ne.evidence == pytest.approx(N_EFF * math.log(st.S / _quadratic(0.6)) - math.log(N_EFF))
+
+
+def test_the_surrogates_offset_at_the_best_value_is_taken_out(monkeypatch, st):
+    """Surrogates that overstate the misfit by 7 everywhere away from neutral (as superposed changes do) give the
+    interval of the simulated profile, not one cut short by the offset."""
+    monkeypatch.setattr(X, "_simulated_S", lambda ctx, base, s, members: _quadratic(members[EID]))
+    off = lambda y: _quadratic(y) + (7.0 if y != 1.0 else 0.0)     # noqa: E731
+    ne = X._profile_interval(CTX, None, st, _FakeProfile(off), EID, _walked(off, st), N_EFF)
+    thr = _quadratic(0.6) * math.exp(EVIDENCE / N_EFF)
+    half = math.sqrt((thr - 1000.0) / 4000.0)
+    res = 0.05 / 2 ** X.BISECTIONS
+    assert 0.62 - half <= ne.low <= 0.62 - half + res and 0.62 + half - res <= ne.high <= 0.62 + half
+
+
+def test_a_better_fit_the_simulation_refutes_is_not_reported(monkeypatch, st):
+    """The surrogate promises a better fit away from neutral, every re-simulation away from neutral is worse than
+    the verdict alone: the interval collapses on neutral (nothing listed, nothing indicated)."""
+    monkeypatch.setattr(X, "_simulated_S", lambda ctx, base, s, members: 10 * st.S)
+    ne = X._profile_interval(CTX, None, st, _FakeProfile(_quadratic), EID, _walked(_quadratic, st), N_EFF)
+    assert not ne.indicated and ne.reach == 0.0 and ne.low == ne.high == 1.0
+
+
+def test_a_flat_profile_is_not_excluded_to_the_bounds(monkeypatch, st):
+    """An effect the data cannot see beside the verdict (the same misfit at every value): not excluded from bound to
+    bound, not indicated."""
+    flat = lambda y: st.S                                           # noqa: E731
+    monkeypatch.setattr(X, "_simulated_S", lambda ctx, base, s, members: st.S)
+    ne = X._profile_interval(CTX, None, st, _FakeProfile(flat), EID, _walked(flat, st), N_EFF)
+    assert (ne.low, ne.high) == (0.5, 1.5) and ne.reach == 1.0 and not ne.indicated
+
+
+def test_an_end_the_simulation_refutes_moves_inwards(monkeypatch, st):
+    """A profile flat to 1.3, then rising: the upper end's re-simulation fails beyond 1.25, so the end moves in
+    (the bisected end and 1.3 refused, 1.25 confirmed)."""
+    prof = lambda y: st.S if y <= 1.3 + 1e-9 else st.S * 2         # noqa: E731
+    monkeypatch.setattr(X, "_simulated_S", lambda ctx, base, s, members: st.S if members[EID] <= 1.25 + 1e-9
+                        else st.S * 2)
+    ne = X._profile_interval(CTX, None, st, _FakeProfile(prof), EID, _walked(prof, st), N_EFF)
+    assert ne.high == pytest.approx(1.25)
+    assert ne.low == 0.5 and not ne.indicated
+
+
+def test_a_truck_pair_lists_the_hidden_second_effect():
+    """A truck (oil only) whose cooler works at x1.18 and whose planetary oil convection is at x0.65: the cooler
+    alone takes the oil to the expected noise and model error, so no second effect is claimed; beside it the
+    planetary convection is listed, indicated (neutral excluded) and fitted below neutral, as planted."""
+    import warnings
+    from firmware_model.parameters import load_parameters
+    from tools.diagnosis.bench import make_scenario
+    from tools.diagnosis.core import diagnose
+    params = load_parameters("GRS905")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        sc = make_scenario(2, 1, "truck", "planet_oil_h_scale", 0.6505, params, train_s=900.0, test_s=900.0,
+                           also={"cooler_effectiveness_scale": 1.177})
+        v = diagnose(sc.train, sc.test, params, model="onboard")["verdict"]
+    listed = {n["effect"]: n for n in v["not_excluded"]}
+    named = [e["effect"] for e in v.get("effects", [])] or [v["effect"]]
+    assert named == ["cooler_effectiveness_scale"], v["reason"]
+    n = listed["planet_oil_h_scale"]
+    assert n["indicated"] and n["evidence"] >= 10.0 and abs(n["best"] - 0.65) < 0.15, n
+    assert n["range"][0] <= n["best"] <= n["range"][1] < 1.0
+    assert "cannot exclude" in v["reason"] and "planet_oil_h_scale" in v["reason"]
+    for n in v["not_excluded"]:
+        assert n["effect"] not in named and max(n["reach_low"], n["reach_high"]) >= 0.3
+
+
+def test_an_end_whose_tries_are_all_refused_is_bisected_by_simulation(monkeypatch, st):
+    """The surrogates pass up to 1.3, the model only up to 1.12: after three refused values the end is bisected by
+    re-simulation between the best value (neutral) and the innermost refusal, landing inside, near 1.12."""
+    prof = lambda y: st.S if y <= 1.3 + 1e-9 else st.S * 2         # noqa: E731
+    monkeypatch.setattr(X, "_simulated_S", lambda ctx, base, s, members: st.S if members[EID] <= 1.12
+                        else st.S * 2)
+    ne = X._profile_interval(CTX, None, st, _FakeProfile(prof), EID, _walked(prof, st), N_EFF)
+    assert 1.12 - 0.25 / 2 ** X.BISECTIONS <= ne.high <= 1.12

@@ -1,0 +1,249 @@
+"""Stage 4c of the diagnosis: what the data cannot rule out beside the verdict.
+
+A verdict names the effects the evidence pays for. On one oil sensor a second effect can often hide behind the first
+(hot surroundings and a sensor offset both lift the oil; a weaker cooler and larger bearing losses both heat it):
+the named effect, moved a little, takes up the other's signature. Not naming it is right, but silence would read
+as "absent". This stage says, for every other catalog effect, over which values it **cannot be excluded** beside
+the verdict: a profile-likelihood interval.
+
+For an effect ``Y`` held at a value ``y`` the verdict's members are refitted (bounded one-dimensional searches, two
+coordinate passes, on the surrogates of :mod:`.combine`) and the misfit ``S(y)`` compared with the best,
+``S_best``: ``y`` is excluded only when the evidence against it is strong by the standard a verdict needs to claim
+an effect, ``n_eff ln(S(y) / S_best) >= evidence_min`` (10; ``n_eff`` the autocorrelation-aware sample size of the
+criterion). That is a profile-likelihood interval, deliberately wider than a 95 % one (3.84): the model's own error
+is not noise, and a chi-square interval excluded planted values the model, off by its own error, fits a little
+worse. ``y`` walks from neutral towards each bound in tenths of the way; the interval is the run of values that pass
+around the best one, each end bisected between tenths. When the best value is not neutral, it is re-simulated
+first; if neutral lies outside the interval the effect is **indicated**: the data point to it beside the verdict,
+which does not claim it (no gap above the expected noise and model error was left, or it failed another rule of the
+verdict). An effect is listed only when its interval reaches at least ``not_excluded_min_frac`` of the way to a
+bound (an effect that cannot be excluded only close to neutral says nothing), and effects the channels cannot see
+at all are reported as not identifiable instead. Each end is re-simulated with the refitted members (surrogates add
+changes; the model does not quite): kept when the simulated misfit passes too, else the next value inwards is tried
+(three at most per side), and then the end is bisected by re-simulation towards the best value.
+
+This changes no verdict. It is reported as ``verdict.not_excluded`` and in the reason.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from firmware_model.effects import CATALOG, fraction_of_range
+
+from tools.diagnosis.baseline import Baseline
+from tools.diagnosis.combine import SetState, delta_fn, eligible, simulate_sets, preds_of
+from tools.diagnosis.context import Context
+from tools.diagnosis.fit import Criterion
+from tools.diagnosis.options import ANALYTIC
+
+#: fractions of the way from neutral to a bound that are tried
+FRACTIONS = tuple(k / 10 for k in range(1, 11))
+#: re-simulations tried per side before a side's interval is given up
+CONFIRM_TRIES = 3
+
+
+@dataclass(frozen=True)
+class NotExcluded:
+    """No strong evidence against effect `effect` anywhere in [low, high] beside the verdict (its members refitted);
+    frac_low/frac_high: how far that reaches towards each bound (0..1)."""
+    effect: str
+    low: float
+    high: float
+    frac_low: float
+    frac_high: float
+    best: float              # the value that fits best beside the verdict
+    indicated: bool          # neutral lies outside the interval: the data point to the effect (not claimed)
+    evidence: float = 0.0    # -dBIC of adding it at `best` (n_eff ln(S_verdict / S_best) - ln n_eff)
+
+    @property
+    def reach(self) -> float:
+        return max(self.frac_low, self.frac_high)
+
+    def covers(self, value: float) -> bool:
+        return self.low - 1e-12 <= value <= self.high + 1e-12
+
+
+class _Profile:
+    """S(members with Y held) on the surrogates around the verdict's own run, the members refitted."""
+
+    def __init__(self, base: Baseline, st: SetState, deltas: dict):
+        self.base, self.st, self.deltas = base, st, deltas
+        self.cache: dict = {}
+
+    def _delta(self, eid: str, v: float) -> list:
+        key = (eid, float(v))
+        if key not in self.cache:
+            self.cache[key] = self.deltas[eid](v)
+        return self.cache[key]
+
+    def S(self, members: dict) -> float:
+        st, base = self.st, self.base
+        exact0 = {e: v for e, v in st.members.items() if e in ANALYTIC}
+        exact = {e: v for e, v in members.items() if e in ANALYTIC}
+        raw = st.raw if exact == exact0 else preds_of(base, base.train.datasets, st.out, members)
+        for m, v in members.items():
+            v0 = st.members.get(m, CATALOG[m].neutral)
+            if m in ANALYTIC or v == v0:
+                continue
+            d, d0 = self._delta(m, v), self._delta(m, v0)
+            raw = [a + x - x0 for a, x, x0 in zip(raw, d, d0)]
+        return base.scorer.S_adj(raw)
+
+    def refit(self, members: dict, held: str, passes: int = 2) -> tuple:
+        """(members, S) with `held` fixed and every other member moved by bounded 1-D searches."""
+        from scipy.optimize import minimize_scalar
+        members = dict(members)
+        S = self.S(members)
+        for _ in range(passes):
+            moved = False
+            for m in [e for e in members if e != held]:
+                e = CATALOG[m]
+                r = minimize_scalar(lambda x: self.S({**members, m: float(x)}), bounds=(e.low, e.high),
+                                    method="bounded", options={"xatol": 1e-3 * (e.high - e.low)})
+                if r.fun < S - 1e-12 * max(S, 1.0):
+                    members, S, moved = {**members, m: float(r.x)}, float(r.fun), True
+            if not moved:
+                break
+        return members, S
+
+
+def not_excluded(ctx: Context, base: Baseline, crit: Criterion, fits: list, members: dict, out: list,
+                 skip=()) -> list:
+    """[NotExcluded] beside the verdict's effects `members` (effect -> value) whose training run is `out`, most
+    reaching first; effects in `skip` (not identifiable with the channels) are left out."""
+    o = ctx.opts
+    by_id = {f.effect: f for f in fits}
+    deltas = {eid: (None if eid in ANALYTIC else delta_fn(base, f)) for eid, f in by_id.items()}
+    if any(m not in ANALYTIC and deltas.get(m) is None for m in members):
+        return []                        # a member without a grid cannot be moved on the surrogates
+    st = SetState(base, members, out)
+    prof = _Profile(base, st, deltas)
+    n_eff = max(crit.n_eff, 2.0)
+    found = []
+    for eid in eligible(ctx, st, by_id, deltas):
+        if eid in skip:
+            continue
+        pts = _walk(prof, st, eid, -1)[::-1] + [(CATALOG[eid].neutral, dict(st.members), st.S)] \
+            + _walk(prof, st, eid, 1)
+        if not _material(eid, pts, min(p[2] for p in pts) * math.exp(ctx.opts.evidence_min / n_eff), o):
+            continue
+        ne = _profile_interval(ctx, base, st, prof, eid, pts, n_eff)
+        if ne is not None and ne.reach >= o.not_excluded_min_frac:
+            found.append(ne)
+    found.sort(key=lambda n: (-n.reach, n.effect))
+    return found
+
+
+def _walk(prof: _Profile, st: SetState, eid: str, side: int) -> list:
+    """[(y, members, S)] with `eid` held at tenths of the way from neutral to the bound on `side` (outwards), the
+    members refitted from the previous value's."""
+    e = CATALOG[eid]
+    bound = e.high if side > 0 else e.low
+    if bound == e.neutral:
+        return []
+    pts, members = [], dict(st.members)
+    for f in FRACTIONS:
+        y = e.neutral + f * (bound - e.neutral)
+        members, S = prof.refit({**members, eid: y}, eid)
+        pts.append((y, dict(members), S))
+    return pts
+
+
+def _material(eid: str, pts: list, thr: float, o) -> bool:
+    """Does any value passing `thr` on the surrogates reach not_excluded_min_frac of the way to a bound?"""
+    return any(S <= thr and abs(fraction_of_range(eid, y)) >= o.not_excluded_min_frac for y, _m, S in pts)
+
+
+def _profile_interval(ctx: Context, base: Baseline, st: SetState, prof, eid: str, pts: list, n_eff: float):
+    """The profile interval of `eid` from the walked points `pts` (ascending values, neutral among them): the
+    surrogate's best value re-simulated (when it is not neutral) to set the reference misfit, the values around it
+    that pass, each end refined by bisection and confirmed by re-simulation (inwards, CONFIRM_TRIES at most, else the best
+    value)."""
+    factor = math.exp(ctx.opts.evidence_min / n_eff)
+    i_n = next(i for i, p in enumerate(pts) if p[0] == CATALOG[eid].neutral)
+    i_best = min(range(len(pts)), key=lambda i: (pts[i][2], i != i_n))    # ties: neutral
+    S_best, bias = st.S, 0.0
+    if i_best != i_n:
+        S_sim = _simulated_S(ctx, base, st, pts[i_best][1])
+        if S_sim <= min(st.S, pts[i_best][2] * factor):
+            # the surrogates' misfit near the best value is off the simulated one by `bias`: judged with it
+            S_best, bias = S_sim, pts[i_best][2] - S_sim
+        else:
+            i_best = i_n                 # the surrogate's better fit does not hold when simulated
+    thr = S_best * factor
+    thr_sur = thr + bias
+    a = b = i_best
+    while a > 0 and pts[a - 1][2] <= thr_sur:
+        a -= 1
+    while b < len(pts) - 1 and pts[b + 1][2] <= thr_sur:
+        b += 1
+    lo = _confirm_end(ctx, base, st, prof, eid, ([_bisect(prof, eid, pts[a - 1], pts[a], thr_sur)] if a > 0 else [])
+                      + [pts[i] for i in range(a, i_best)], pts[i_best], thr)
+    hi = _confirm_end(ctx, base, st, prof, eid, ([_bisect(prof, eid, pts[b + 1], pts[b], thr_sur)]
+                                                 if b < len(pts) - 1 else [])
+                      + [pts[i] for i in range(b, i_best, -1)], pts[i_best], thr)
+    best = pts[i_best][0]
+    ylo = lo if lo is not None else best
+    yhi = hi if hi is not None else best
+    evidence = n_eff * math.log(max(st.S, 1e-12) / max(S_best, 1e-12)) - math.log(n_eff)
+    return NotExcluded(eid, float(ylo), float(yhi), _frac_toward(eid, ylo, -1), _frac_toward(eid, yhi, 1),
+                       float(best), not (ylo <= CATALOG[eid].neutral <= yhi), float(evidence))
+
+
+#: bisections of an interval's end between the last value passed and the first refused
+BISECTIONS = 4
+
+
+def _bisect(prof, eid: str, out_pt: tuple, in_pt: tuple, thr: float) -> tuple:
+    """The end of the interval between a refused value and a passed one, by bisection on the surrogates."""
+    y_out, y_in, pt = out_pt[0], in_pt[0], in_pt
+    for _ in range(BISECTIONS):
+        y = 0.5 * (y_out + y_in)
+        members, S = prof.refit({**pt[1], eid: y}, eid)
+        if S <= thr:
+            y_in, pt = y, (y, members, S)
+        else:
+            y_out = y
+    return pt
+
+
+def _frac_toward(eid: str, y: float, side: int) -> float:
+    """How far y reaches towards the bound on `side` (0 when it sits on the other side of neutral)."""
+    f = fraction_of_range(eid, y)
+    e = CATALOG[eid]
+    on_side = (y - e.neutral) * side > 0
+    return abs(f) if on_side else 0.0
+
+
+def _simulated_S(ctx: Context, base: Baseline, st: SetState, members: dict) -> float:
+    out = simulate_sets(ctx, base, [members], st)[0]
+    return SetState(base, members, out).S
+
+
+def _confirm_end(ctx: Context, base: Baseline, st: SetState, prof, eid: str, cands: list, best: tuple, thr: float):
+    """The value of the first of `cands` (from the outermost inwards) whose re-simulated misfit passes `thr`. When
+    CONFIRM_TRIES of them are refused, the end is bisected by re-simulation between the best value and the innermost
+    value refused (BISECTIONS steps); None when nothing beyond the best value holds."""
+    refused = None
+    for y, members, _S in cands[:CONFIRM_TRIES]:
+        if members == st.members or _simulated_S(ctx, base, st, members) <= thr:
+            return y
+        refused = y
+    if refused is None:
+        return None
+    y_in, y_out, found = best[0], refused, None
+    for _ in range(BISECTIONS):
+        y = 0.5 * (y_in + y_out)
+        members, _S = prof.refit({**best[1], eid: y}, eid)
+        if _simulated_S(ctx, base, st, members) <= thr:
+            y_in, found = y, y
+        else:
+            y_out = y
+    return found
+
+
+def not_excluded_json(items: list) -> list:
+    return [{"effect": n.effect, "parameter": CATALOG[n.effect].param, "range": [round(n.low, 6), round(n.high, 6)],
+             "best": round(n.best, 6), "indicated": n.indicated, "evidence": round(n.evidence, 2),
+             "reach_low": round(n.frac_low, 3), "reach_high": round(n.frac_high, 3)} for n in items]
