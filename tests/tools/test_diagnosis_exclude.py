@@ -1,4 +1,4 @@
-"""What the data cannot rule out beside a verdict (tools/diagnosis/exclude.py): the 95 % profile interval of another
+"""What the data cannot rule out beside a verdict (tools/diagnosis/exclude.py): the profile interval of another
 effect, its ends refined and confirmed by re-simulation, and an effect the data point to but the verdict does not
 claim ("indicated").
 
@@ -17,7 +17,7 @@ from firmware_model.effects import CATALOG
 from tools.diagnosis.options import Options
 
 CTX = SimpleNamespace(opts=Options())
-EVIDENCE = Options().evidence_min    # a value is excluded on strong evidence against it (-dBIC >= 10)
+EVIDENCE = Options().evidence_min    # a value is excluded on strong evidence against it (-dBIC > 10)
 EID = "planet_oil_h_scale"           # neutral 1.0, range 0.5 .. 1.5
 N_EFF = 800.0
 
@@ -36,12 +36,13 @@ class _FakeProfile:
         return dict(members), self.S_of(members[held])
 
 
-def _walked(S_of, st):
-    e = CATALOG[EID]
+def _walked(S_of, st, eid=EID):
+    """The walk of exclude._walk with a known profile: ascending values, neutral (exact, st.S) among them."""
+    e = CATALOG[eid]
     pts = []
     for side, bound in ((-1, e.low), (1, e.high)):
-        side_pts = [(e.neutral + f * (bound - e.neutral), None, None) for f in X.FRACTIONS]
-        side_pts = [(y, {**st.members, EID: y}, S_of(y)) for y, _m, _S in side_pts]
+        side_pts = [] if bound == e.neutral else [e.neutral + f * (bound - e.neutral) for f in X.FRACTIONS]
+        side_pts = [(y, {**st.members, eid: y}, S_of(y)) for y in side_pts]
         pts += side_pts[::-1] if side < 0 else [(e.neutral, dict(st.members), st.S)] + side_pts
     return pts
 
@@ -56,7 +57,7 @@ def test_an_effect_the_data_point_to_is_indicated_with_its_interval(monkeypatch,
     region around the best value where the evidence against is below evidence_min, ends bisected between the tenths."""
     monkeypatch.setattr(X, "_simulated_S", lambda ctx, base, s, members: _quadratic(members[EID]))
     ne = X._profile_interval(CTX, None, st, _FakeProfile(_quadratic), EID, _walked(_quadratic, st), N_EFF)
-    thr = _quadratic(0.6) * math.exp(EVIDENCE / N_EFF)
+    thr = _quadratic(0.6) * math.exp((EVIDENCE + math.log(N_EFF)) / N_EFF)
     half = math.sqrt((thr - 1000.0) / 4000.0)                 # the exact interval is 0.62 -+ half
     assert ne.indicated and ne.best == pytest.approx(0.6)
     res = 0.05 / 2 ** X.BISECTIONS                            # the ends land inside, within the resolution
@@ -73,7 +74,7 @@ def test_the_surrogates_offset_at_the_best_value_is_taken_out(monkeypatch, st):
     monkeypatch.setattr(X, "_simulated_S", lambda ctx, base, s, members: _quadratic(members[EID]))
     off = lambda y: _quadratic(y) + (7.0 if y != 1.0 else 0.0)     # noqa: E731
     ne = X._profile_interval(CTX, None, st, _FakeProfile(off), EID, _walked(off, st), N_EFF)
-    thr = _quadratic(0.6) * math.exp(EVIDENCE / N_EFF)
+    thr = _quadratic(0.6) * math.exp((EVIDENCE + math.log(N_EFF)) / N_EFF)
     half = math.sqrt((thr - 1000.0) / 4000.0)
     res = 0.05 / 2 ** X.BISECTIONS
     assert 0.62 - half <= ne.low <= 0.62 - half + res and 0.62 + half - res <= ne.high <= 0.62 + half
@@ -140,3 +141,34 @@ def test_an_end_whose_tries_are_all_refused_is_bisected_by_simulation(monkeypatc
                         else st.S * 2)
     ne = X._profile_interval(CTX, None, st, _FakeProfile(prof), EID, _walked(prof, st), N_EFF)
     assert 1.12 - 0.25 / 2 ** X.BISECTIONS <= ne.high <= 1.12
+
+
+def test_neutral_is_judged_on_the_simulated_scale(monkeypatch):
+    """The surrogates overstate the misfit by 45 away from neutral (exact there). Neutral's simulated misfit (1050)
+    exceeds the threshold (1000 x the evidence factor, about 1021) although it sits below threshold + offset: it must
+    be refused, so the effect is indicated."""
+    quad = lambda y: 1000.0 + 20000.0 * (y - 0.95) ** 2           # noqa: E731
+    st = SimpleNamespace(members={"cooler_effectiveness_scale": 1.18}, S=quad(1.0))
+    off = lambda y: quad(y) + (45.0 if y != 1.0 else 0.0)           # noqa: E731
+    monkeypatch.setattr(X, "_simulated_S", lambda ctx, base, s, members: quad(members[EID]))
+    ne = X._profile_interval(CTX, None, st, _FakeProfile(off), EID, _walked(off, st), N_EFF)
+    assert ne.indicated and ne.high < 1.0 and ne.best == pytest.approx(0.95)
+    assert ne.evidence > EVIDENCE
+
+
+def test_a_one_sided_effect(monkeypatch):
+    """hot_surroundings_offset has its neutral (0 K) at its lower bound: walked upwards only; a profile lowest at 12 K
+    gives an interval around it, neutral outside (indicated), nothing below 0."""
+    eid = "hot_surroundings_offset"
+    hi = CATALOG[eid].high
+    quad = lambda y: 1000.0 + 2.0 * (y - 12.0) ** 2                 # noqa: E731
+    st = SimpleNamespace(members={"cooler_effectiveness_scale": 1.18}, S=quad(0.0))
+    monkeypatch.setattr(X, "_simulated_S", lambda ctx, base, s, members: quad(members[eid]))
+    pts = _walked(quad, st, eid)
+    assert pts[0][0] == 0.0 and len(pts) == 11
+    ne = X._profile_interval(CTX, None, st, _FakeProfile(quad), eid, pts, N_EFF)
+    thr = quad(12.0) * math.exp((EVIDENCE + math.log(N_EFF)) / N_EFF)
+    half = math.sqrt((thr - 1000.0) / 2.0)
+    res = 0.1 * hi / 2 ** X.BISECTIONS
+    assert ne.indicated and ne.frac_low == 0.0
+    assert 12.0 - half <= ne.low <= 12.0 - half + res and 12.0 + half - res <= ne.high <= 12.0 + half

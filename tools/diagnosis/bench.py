@@ -399,8 +399,10 @@ def score_row(sc: Scenario, res: dict, diag_s: float) -> Row:
         bound = e.high if sc.value > e.neutral else e.low
         below = _below_detectable(sc, res, [x for x in [sc.effect, *sc.also] if x not in found and x not in conf])
         note = "planted " + ", ".join(f"{k} {x:.4g}" for k, x in ({sc.effect: sc.value} | sc.also).items())
-        declared, covered, dnote = _declared(sc, res, [x for x in [sc.effect, *sc.also]
-                                                        if x not in found and x not in conf] if ok is False else [])
+        ident = res["identifiability"]
+        declared, covered, dnote = _declared(sc, res, [x for x in [sc.effect, *sc.also] if x not in found
+                                                        and x not in conf and ident.get(x, {}).get("identifiable", True)]
+                                             if ok is False else [])
         note += "".join(f" ({x})" for x in (below if ok is False else "", dnote) if x)
         return Row(sc.index, sc.setup, sc.cooler, " + ".join([sc.effect] + list(sc.also)), sc.value,
                    (sc.value - e.neutral) / (bound - e.neutral), " + ".join(found) or v["effect"], None, conf,

@@ -8,9 +8,11 @@ the verdict: a profile-likelihood interval.
 
 For an effect ``Y`` held at a value ``y`` the verdict's members are refitted (bounded one-dimensional searches, two
 coordinate passes, on the surrogates of :mod:`.combine`) and the misfit ``S(y)`` compared with the best,
-``S_best``: ``y`` is excluded only when the evidence against it is strong by the standard a verdict needs to claim
-an effect, ``n_eff ln(S(y) / S_best) >= evidence_min`` (10; ``n_eff`` the autocorrelation-aware sample size of the
-criterion). That is a profile-likelihood interval, deliberately wider than a 95 % one (3.84): the model's own error
+``S_best``: ``y`` is excluded only when the evidence against it is strong, counted as a verdict counts the
+evidence for an effect: ``-dBIC = n_eff ln(S(y) / S_best) - ln n_eff`` exceeds ``evidence_min`` (10; ``n_eff`` the
+autocorrelation-aware sample size of the criterion). So an effect is *indicated* (neutral excluded) exactly when
+adding it at its best value would have the evidence a verdict needs. That is a profile-likelihood interval,
+deliberately wider than a 95 % one (n_eff ln(S/S_best) <= 3.84): the model's own error
 is not noise, and a chi-square interval excluded planted values the model, off by its own error, fits a little
 worse. ``y`` walks from neutral towards each bound in tenths of the way; the interval is the run of values that pass
 around the best one, each end bisected between tenths. When the best value is not neutral, it is re-simulated
@@ -70,12 +72,22 @@ class _Profile:
     def __init__(self, base: Baseline, st: SetState, deltas: dict):
         self.base, self.st, self.deltas = base, st, deltas
         self.cache: dict = {}
+        self.recent: list = []
 
     def _delta(self, eid: str, v: float) -> list:
+        """The effect's change at `v`; kept for the members' values in the verdict (asked at every evaluation) and
+        the last few others (a 1-D search asks each of its values once or twice)."""
         key = (eid, float(v))
-        if key not in self.cache:
-            self.cache[key] = self.deltas[eid](v)
-        return self.cache[key]
+        hit = self.cache.get(key)
+        if hit is None:
+            hit = self.deltas[eid](v)
+            keep = float(v) == float(self.st.members.get(eid, CATALOG[eid].neutral))
+            if not keep and len(self.recent) >= 8:
+                self.cache.pop(self.recent.pop(0), None)
+            if not keep:
+                self.recent.append(key)
+            self.cache[key] = hit
+        return hit
 
     def S(self, members: dict) -> float:
         st, base = self.st, self.base
@@ -88,7 +100,8 @@ class _Profile:
                 continue
             d, d0 = self._delta(m, v), self._delta(m, v0)
             raw = [a + x - x0 for a, x, x0 in zip(raw, d, d0)]
-        return base.scorer.S_adj(raw)
+        S = base.scorer.S_adj(raw)
+        return S if math.isfinite(S) else math.inf      # a run that went bad is refused, never the best
 
     def refit(self, members: dict, held: str, passes: int = 2) -> tuple:
         """(members, S) with `held` fixed and every other member moved by bounded 1-D searches."""
@@ -126,7 +139,7 @@ def not_excluded(ctx: Context, base: Baseline, crit: Criterion, fits: list, memb
             continue
         pts = _walk(prof, st, eid, -1)[::-1] + [(CATALOG[eid].neutral, dict(st.members), st.S)] \
             + _walk(prof, st, eid, 1)
-        if not _material(eid, pts, min(p[2] for p in pts) * math.exp(ctx.opts.evidence_min / n_eff), o):
+        if not _material(eid, pts, min(p[2] for p in pts) * _factor(ctx, n_eff), o):
             continue
         ne = _profile_interval(ctx, base, st, prof, eid, pts, n_eff)
         if ne is not None and ne.reach >= o.not_excluded_min_frac:
@@ -144,10 +157,16 @@ def _walk(prof: _Profile, st: SetState, eid: str, side: int) -> list:
         return []
     pts, members = [], dict(st.members)
     for f in FRACTIONS:
-        y = e.neutral + f * (bound - e.neutral)
+        y = bound if f == 1.0 else e.neutral + f * (bound - e.neutral)
         members, S = prof.refit({**members, eid: y}, eid)
         pts.append((y, dict(members), S))
     return pts
+
+
+def _factor(ctx: Context, n_eff: float) -> float:
+    """A value is excluded when its misfit exceeds the best one by this factor: evidence against it counted as a
+    verdict counts evidence for an effect, -dBIC = n_eff ln(S / S_best) - ln n_eff >= evidence_min."""
+    return math.exp((ctx.opts.evidence_min + math.log(n_eff)) / n_eff)
 
 
 def _material(eid: str, pts: list, thr: float, o) -> bool:
@@ -160,7 +179,7 @@ def _profile_interval(ctx: Context, base: Baseline, st: SetState, prof, eid: str
     surrogate's best value re-simulated (when it is not neutral) to set the reference misfit, the values around it
     that pass, each end refined by bisection and confirmed by re-simulation (inwards, CONFIRM_TRIES at most, else the best
     value)."""
-    factor = math.exp(ctx.opts.evidence_min / n_eff)
+    factor = _factor(ctx, n_eff)
     i_n = next(i for i, p in enumerate(pts) if p[0] == CATALOG[eid].neutral)
     i_best = min(range(len(pts)), key=lambda i: (pts[i][2], i != i_n))    # ties: neutral
     S_best, bias = st.S, 0.0
@@ -173,14 +192,16 @@ def _profile_interval(ctx: Context, base: Baseline, st: SetState, prof, eid: str
             i_best = i_n                 # the surrogate's better fit does not hold when simulated
     thr = S_best * factor
     thr_sur = thr + bias
+    pts = list(pts)
+    pts[i_n] = (pts[i_n][0], pts[i_n][1], st.S + bias)    # neutral is exact: on the surrogates' scale here
     a = b = i_best
     while a > 0 and pts[a - 1][2] <= thr_sur:
         a -= 1
     while b < len(pts) - 1 and pts[b + 1][2] <= thr_sur:
         b += 1
-    lo = _confirm_end(ctx, base, st, prof, eid, ([_bisect(prof, eid, pts[a - 1], pts[a], thr_sur)] if a > 0 else [])
+    lo = _confirm_end(ctx, base, st, prof, eid, (_bisect(prof, eid, pts[a - 1], pts[a], thr_sur) if a > 0 else [])
                       + [pts[i] for i in range(a, i_best)], pts[i_best], thr)
-    hi = _confirm_end(ctx, base, st, prof, eid, ([_bisect(prof, eid, pts[b + 1], pts[b], thr_sur)]
+    hi = _confirm_end(ctx, base, st, prof, eid, (_bisect(prof, eid, pts[b + 1], pts[b], thr_sur)
                                                  if b < len(pts) - 1 else [])
                       + [pts[i] for i in range(b, i_best, -1)], pts[i_best], thr)
     best = pts[i_best][0]
@@ -195,17 +216,18 @@ def _profile_interval(ctx: Context, base: Baseline, st: SetState, prof, eid: str
 BISECTIONS = 4
 
 
-def _bisect(prof, eid: str, out_pt: tuple, in_pt: tuple, thr: float) -> tuple:
-    """The end of the interval between a refused value and a passed one, by bisection on the surrogates."""
-    y_out, y_in, pt = out_pt[0], in_pt[0], in_pt
+def _bisect(prof, eid: str, out_pt: tuple, in_pt: tuple, thr: float) -> list:
+    """[the end of the interval] between a refused value and a passed one, by bisection on the surrogates; [] when
+    no value between them passes (the passed one is the end)."""
+    y_out, y_in, pt = out_pt[0], in_pt[0], None
     for _ in range(BISECTIONS):
         y = 0.5 * (y_out + y_in)
-        members, S = prof.refit({**pt[1], eid: y}, eid)
+        members, S = prof.refit({**(pt or in_pt)[1], eid: y}, eid)
         if S <= thr:
             y_in, pt = y, (y, members, S)
         else:
             y_out = y
-    return pt
+    return [pt] if pt is not None else []
 
 
 def _frac_toward(eid: str, y: float, side: int) -> float:
@@ -227,7 +249,7 @@ def _confirm_end(ctx: Context, base: Baseline, st: SetState, prof, eid: str, can
     value refused (BISECTIONS steps); None when nothing beyond the best value holds."""
     refused = None
     for y, members, _S in cands[:CONFIRM_TRIES]:
-        if members == st.members or _simulated_S(ctx, base, st, members) <= thr:
+        if (st.S if members == st.members else _simulated_S(ctx, base, st, members)) <= thr:
             return y
         refused = y
     if refused is None:
@@ -244,6 +266,7 @@ def _confirm_end(ctx: Context, base: Baseline, st: SetState, prof, eid: str, can
 
 
 def not_excluded_json(items: list) -> list:
-    return [{"effect": n.effect, "parameter": CATALOG[n.effect].param, "range": [round(n.low, 6), round(n.high, 6)],
-             "best": round(n.best, 6), "indicated": n.indicated, "evidence": round(n.evidence, 2),
-             "reach_low": round(n.frac_low, 3), "reach_high": round(n.frac_high, 3)} for n in items]
+    from tools.diagnosis.options import json_number as _r
+    return [{"effect": n.effect, "parameter": CATALOG[n.effect].param, "range": [_r(n.low, 6), _r(n.high, 6)],
+             "best": _r(n.best, 6), "indicated": bool(n.indicated), "evidence": _r(n.evidence, 2),
+             "reach_low": _r(n.frac_low, 3), "reach_high": _r(n.frac_high, 3)} for n in items]

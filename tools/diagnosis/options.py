@@ -43,8 +43,8 @@ class Options:
     refine: int = 2                   # refinement re-simulations per candidate
     max_effects: int = 3              # forward selection: at most this many effects found together (1: off)
     set_starts: int = 3               # forward selection: from the best candidate and up to 2 confusable with it
-    not_excluded_min_frac: float = 0.3  # list an effect not excluded beside the verdict when its 95 % profile
-                                        # interval reaches this far towards a bound
+    not_excluded_min_frac: float = 0.3  # list an effect not excluded beside the verdict when its interval
+                                        # (exclude.py) reaches this far towards a bound
     combine_check: int = 2            # forward selection: candidates re-simulated per step
     shrink_min: float = 0.3           # a verdict's effect must shrink a real held-out gap by this much
     add_share_min: float = 0.02       # forward selection: a new effect's least share of all the set explains (unless it

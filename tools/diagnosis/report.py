@@ -253,7 +253,8 @@ def _md_not_excluded(v: dict) -> list:
          "|---|---|---|---|---|---|"]
     for n in items:
         L.append(f"| {n['effect']} | {n['parameter']} | {n['range'][0]:.4g} .. {n['range'][1]:.4g} | {n['best']:.4g} | "
-                 f"{'yes' if n['indicated'] else 'no'} | {n['evidence']:.0f} |")
+                 f"{'yes' if n['indicated'] else 'no'} | "
+                 f"{'-' if n['evidence'] is None else format(n['evidence'], '.0f')} |")
     return L + [""]
 
 
