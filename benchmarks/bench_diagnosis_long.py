@@ -28,6 +28,8 @@ def main(argv=None) -> int:
     ap.add_argument("--hours", type=float, default=3.0, help="length of each file (default 3 h)")
     ap.add_argument("--rate", type=float, default=10.0, help="rows per second of each file (default 10 Hz)")
     ap.add_argument("--pair", action="store_true", help="plant two effects (teeth convection and gear friction)")
+    ap.add_argument("--without-not-excluded", action="store_true",
+                    help="also diagnose with the not-excluded stage off, to print its cost side by side")
     a = ap.parse_args(argv)
     if not (0 < a.hours <= 24 and 0 < a.rate <= 100):
         ap.error("--hours must be in (0, 24] and --rate in (0, 100] rows per second")
@@ -48,11 +50,22 @@ def main(argv=None) -> int:
         t0 = time.perf_counter()
         res = diagnose(sc.train, sc.test, params, model="onboard")
         took = time.perf_counter() - t0
+        if a.without_not_excluded:
+            from tools.diagnosis.options import Options
+            t0 = time.perf_counter()
+            res_off = diagnose(sc.train, sc.test, params, model="onboard", opts=Options(not_excluded=False))
+            took_off = time.perf_counter() - t0
+            same = res_off["verdict"]["effect"] == res["verdict"]["effect"]
+            print(f"without the not-excluded stage: {took_off:.1f} s ({res_off['timing']['simulations']} "
+                  f"simulations; with it {res['timing']['simulations']}); same verdict: {same}")
     v = res["verdict"]
     found = " + ".join(f"{e['effect']} {next(iter(e['parameters'].values())):.3g}" for e in v["effects"]) \
         if "effects" in v else v["effect"]
     print(f"diagnosis (onboard model): {took:.1f} s (target <= 60 s); verdict {found}, held-out shrink "
           f"{100 * float(v['shrink'] or 0.0):.0f} %")
+    for n in v.get("not_excluded", []):
+        print(f"  not excluded beside it: {n['effect']} {n['parameter']} {n['range'][0]:.4g}..{n['range'][1]:.4g}"
+              f"{' (indicated, evidence ' + format(n['evidence'], '.0f') + ')' if n['indicated'] else ''}")
     return 0
 
 

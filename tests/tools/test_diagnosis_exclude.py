@@ -172,3 +172,14 @@ def test_a_one_sided_effect(monkeypatch):
     res = 0.1 * hi / 2 ** X.BISECTIONS
     assert ne.indicated and ne.frac_low == 0.0
     assert 12.0 - half <= ne.low <= 12.0 - half + res and 12.0 + half - res <= ne.high <= 12.0 + half
+
+
+def test_the_walk_stops_where_the_profile_has_turned_away(st):
+    """A strongly excluded effect (misfit rising steeply from neutral) costs two refits per side; a flat one is
+    walked to the bound."""
+    factor = X._factor(CTX, N_EFF)
+    steep = _FakeProfile(lambda y: st.S * (1.0 + 10.0 * abs(y - 1.0)))
+    assert len(X._walk(steep, st, EID, 1, factor)) == X.STOP_AFTER
+    flat = _FakeProfile(lambda y: st.S)
+    walked = X._walk(flat, st, EID, -1, factor)
+    assert len(walked) == len(X.FRACTIONS) and walked[-1][0] == CATALOG[EID].low

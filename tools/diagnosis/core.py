@@ -114,7 +114,7 @@ class Diagnosis:
 
     def _not_excluded(self, base, crit, fits: list, verdict, combo, ident: dict) -> list:
         """The effects the training files cannot rule out beside an effect verdict (:mod:`.exclude`)."""
-        if not verdict.is_effect:
+        if not verdict.is_effect or not self.ctx.opts.not_excluded:
             return []
         if combo is not None:
             members, out = combo.members, combo.out_train

@@ -137,8 +137,9 @@ def not_excluded(ctx: Context, base: Baseline, crit: Criterion, fits: list, memb
     for eid in eligible(ctx, st, by_id, deltas):
         if eid in skip:
             continue
-        pts = _walk(prof, st, eid, -1)[::-1] + [(CATALOG[eid].neutral, dict(st.members), st.S)] \
-            + _walk(prof, st, eid, 1)
+        factor = _factor(ctx, n_eff)
+        pts = _walk(prof, st, eid, -1, factor)[::-1] + [(CATALOG[eid].neutral, dict(st.members), st.S)] \
+            + _walk(prof, st, eid, 1, factor)
         if not _material(eid, pts, min(p[2] for p in pts) * _factor(ctx, n_eff), o):
             continue
         ne = _profile_interval(ctx, base, st, prof, eid, pts, n_eff)
@@ -148,18 +149,31 @@ def not_excluded(ctx: Context, base: Baseline, crit: Criterion, fits: list, memb
     return found
 
 
-def _walk(prof: _Profile, st: SetState, eid: str, side: int) -> list:
+#: a side's walk stops after this many successive values that are refused by a wide margin and rising
+STOP_AFTER = 2
+#: the wide margin: the misfit above the best so far times the exclusion factor times this
+STOP_MARGIN = 1.05
+
+
+def _walk(prof: _Profile, st: SetState, eid: str, side: int, factor: float) -> list:
     """[(y, members, S)] with `eid` held at tenths of the way from neutral to the bound on `side` (outwards), the
-    members refitted from the previous value's."""
+    members refitted from the previous value's. The walk stops early once STOP_AFTER successive values are refused
+    with a margin (misfit above STOP_MARGIN x factor x the best so far) and rising: the profile has turned away (a
+    strongly excluded effect costs two refits per side, not ten)."""
     e = CATALOG[eid]
     bound = e.high if side > 0 else e.low
     if bound == e.neutral:
         return []
-    pts, members = [], dict(st.members)
+    pts, members, best, prev, rising = [], dict(st.members), st.S, st.S, 0
     for f in FRACTIONS:
         y = bound if f == 1.0 else e.neutral + f * (bound - e.neutral)
         members, S = prof.refit({**members, eid: y}, eid)
         pts.append((y, dict(members), S))
+        best = min(best, S)
+        rising = rising + 1 if (S > STOP_MARGIN * factor * best and S > prev) else 0
+        prev = S
+        if rising >= STOP_AFTER:
+            break
     return pts
 
 
