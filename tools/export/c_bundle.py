@@ -45,7 +45,7 @@ def _c_array(name: str, values, ctype: str, real: str, per_line: int = 6) -> str
     vals = np.asarray(values).reshape(-1)
     if vals.size == 0:
         vals = np.zeros(1)
-    if ctype == "int32_t":
+    if ctype in ("int32_t", "gvs_idx"):
         items = [str(int(v)) for v in vals]
     else:
         items = [_c_number(float(v), real) for v in vals]
@@ -65,7 +65,7 @@ def tables_source(sp, real: str, variant: str, ttl: bool = True) -> str:
     for name, kind in TABLE_FIELDS:
         v = arrays[name]
         if kind in ("pr", "pi"):
-            ctype = "gvs_real" if kind == "pr" else "int32_t"
+            ctype = "gvs_real" if kind == "pr" else "gvs_idx"
             parts.append(_c_array(f"t_{name}", v, ctype, real))
             init.append(f"    .{name} = t_{name},")
         elif kind == "i":
@@ -128,7 +128,14 @@ def capacities(sp) -> str:
     caps = dict(GVS_MAX_NODES=a["n"], GVS_MAX_LINKS=a["nl"], GVS_MAX_SRC=a["ns"], GVS_MAX_BC=a["nb"],
                 GVS_MAX_STREAMS=a["nst"], GVS_MAX_TERMS=max(a["n2"], a["ne"], a["ncol"], 1),
                 GVS_MAX_LNZ=max(a["ldl_nnz"], 1))
-    return " ".join(f"-D{k}={int(v)}" for k, v in caps.items())
+    flags = " ".join(f"-D{k}={int(v)}" for k, v in caps.items())
+    return flags + (" -DGVS_INDEX16" if index16_fits(a) else "")
+
+
+def index16_fits(arrays: dict) -> bool:
+    """Do all the index tables fit int16 (then the export stores them as int16: half their flash)?"""
+    idx = [np.asarray(arrays[name]) for name, kind in TABLE_FIELDS if kind == "pi"]
+    return all(v.size == 0 or (int(v.min()) >= -32768 and int(v.max()) <= 32767) for v in idx)
 
 
 #: the time to limit of the exported build against the Python reference: within this many seconds or this fraction

@@ -261,7 +261,7 @@ gvs_test: $(SENSOR) gvs_vectors.c gvs_test.c gvs_kernel.h gvs_sensor.h
 ARM_CC ?= arm-none-eabi-gcc
 ARM_SIZE ?= arm-none-eabi-size
 M4 = -mcpu=cortex-m4 -mthumb -mfloat-abi=hard -mfpu=fpv4-sp-d16
-M4_CFLAGS = -std=c99 -Os -Wall -Wextra -ffunction-sections -fdata-sections -DGVS_REAL_FLOAT $(CAPS) -I.
+M4_CFLAGS = -std=c99 -Os -flto -Wall -Wextra -ffunction-sections -fdata-sections -DGVS_REAL_FLOAT $(CAPS) -I.
 
 cortex-m4: gvs_test_m4.elf gvs_footprint_m4.elf
 
@@ -425,7 +425,9 @@ FOOTPRINT = """/* The sensor linked alone for its footprint: one state, steps. W
 #include <stdio.h>
 #endif
 static gvs_state state;
-volatile double in_speed = 1300.0, in_oil = 80.0;
+/* the caller's own arithmetic in single precision, as an ECU's would be (CAN signals to double by conversion only):
+ * the footprint is the sensor's, not soft-double maths of the test harness */
+volatile float in_speed = 1300.0f, in_oil = 80.0f;
 volatile float sink;
 
 static void steps(void)
@@ -437,9 +439,9 @@ static void steps(void)
     in.raw[GVS_I_GEAR] = 9.0;
     in.t_s = NAN;
     for (k = 0; k < 50; ++k) {        /* moving speed and oil: new conductance bins, every law evaluated */
-        in.raw[GVS_I_SPEED] = in_speed + 37.0 * k;
-        in.raw[GVS_I_TORQUE] = 100.0 * k;
-        in.raw[GVS_I_OIL] = k == 20 ? NAN : in_oil + 0.3 * k;
+        in.raw[GVS_I_SPEED] = (double)(in_speed + 37.0f * (float)k);
+        in.raw[GVS_I_TORQUE] = (double)(100.0f * (float)k);
+        in.raw[GVS_I_OIL] = k == 20 ? (double)NAN : (double)(in_oil + 0.3f * (float)k);
         gvs_sensor_step(&state, &in, &out);
     }
     sink = out.T_c[0];

@@ -18,10 +18,14 @@ const char *const gvs_source_id_str = GVS_SOURCE_ID;
 #define EXPM1 expm1f
 #define LOG logf
 #define LOG10 log10f
-#define POW powf
+#define POW pow_f
 #define SQRT sqrtf
 #define FABS fabsf
 #define RINT rintf
+#define CEIL ceilf
+/* the time-to-limit march's clock: single precision in the float build (no soft double on an FPU without one;
+ * a crossing moves by far less than the float build's tolerance), double otherwise (bit-identical to numpy) */
+typedef float march_t;
 #else
 #define R_(x) ((double)(x))
 #define EXP exp
@@ -32,7 +36,10 @@ const char *const gvs_source_id_str = GVS_SOURCE_ID;
 #define SQRT sqrt
 #define FABS fabs
 #define RINT rint
+#define CEIL ceil
+typedef double march_t;
 #endif
+#define M_(x) ((march_t)(x))
 
 enum { P_LOG10_MU, P_LN_NU_CST, P_LN_MU, P_LN_ROLL, P_RHO, P_CP, P_K, P_LN_PR, N_PROP };
 enum { LEVEL_NORMAL, LEVEL_WARNING, LEVEL_CRITICAL, LEVEL_NA };
@@ -43,10 +50,35 @@ enum { RJ_SPEED_MISSING, RJ_SPEED_CLAMPED, RJ_TORQUE_MISSING, RJ_TORQUE_CLAMPED,
        RJ_OIL_MISSING, RJ_OIL_IMPLAUSIBLE, RJ_OIL_FROZEN, RJ_DRIVE_FROZEN, RJ_AUX_MISSING, RJ_TIME_JUMP,
        RJ_TIME_BACKWARD };
 
+#ifdef GVS_REAL_FLOAT
+/* a^b for the float build as expf(b logf(a)): libm's powf alone is ~1.9 KB of an ECU's flash (expf and logf are
+ * linked anyway); relative error ~|b ln a| x 2^-24, far inside the float build's tolerance; powf's special cases */
+static float pow_f(float a, float b)
+{
+    if (b == 0.0f) return 1.0f;
+    if (!(a > 0.0f)) return a == 0.0f ? (b > 0.0f ? 0.0f : (float)INFINITY) : (float)NAN;
+    return expf(b * logf(a));
+}
+#endif
+
 static gvs_real min_r(gvs_real a, gvs_real b) { return a < b ? a : b; }
 static gvs_real max_r(gvs_real a, gvs_real b) { return a > b ? a : b; }
 static gvs_real clip_r(gvs_real x, gvs_real lo, gvs_real hi) { return x < lo ? lo : (x > hi ? hi : x); }
 static int finite_r(double x) { return x == x && x - x == 0.0; }
+
+/* k mod m for a step count k >= 0 and m >= 1 without a 64-bit division (none in an FPU-only ECU's hardware: the
+ * C library's would cost flash): 32-bit while k fits (13.6 years of 10 Hz steps), else binary long division */
+static int64_t steps_mod(int64_t k, int32_t m)
+{
+    uint64_t u = (uint64_t)k, r = 0;
+    int b;
+    if (u <= 0xFFFFFFFFu) return (int64_t)((uint32_t)u % (uint32_t)m);
+    for (b = 63; b >= 0; --b) {
+        r = (r << 1) | ((u >> b) & 1u);
+        if (r >= (uint64_t)m) r -= (uint64_t)m;
+    }
+    return (int64_t)r;
+}
 
 /* ---- oil properties at a temperature (reduce.oil_row) --------------------------------------------------- */
 typedef struct {
@@ -373,7 +405,7 @@ int gvs_check_tables(const gvs_tables *tb)
     if (tb->n > GVS_MAX_NODES || tb->nl > GVS_MAX_LINKS || tb->ldl_nnz > GVS_MAX_LNZ || tb->ns > GVS_MAX_SRC || tb->nb > GVS_MAX_BC
         || tb->nst > GVS_MAX_STREAMS || tb->n2 > GVS_MAX_TERMS || tb->ne > GVS_MAX_TERMS
         || tb->ncol > GVS_MAX_TERMS || tb->n_gears != GVS_N_GEARS
-        || tb->nT < 2 || tb->nT2 < 2 || tb->n_u < 2 || tb->n_u_churn < 2 || tb->nx < 2)
+        || tb->nT < 2 || tb->nT2 < 2 || tb->n_u < 2 || tb->n_u_churn < 2 || tb->nx < 2 || tb->ttl_every < 1)
         return GVS_BAD_TABLES;
     return GVS_OK;
 }
@@ -787,10 +819,10 @@ static gvs_real bound_max(const held_t *hs, const gvs_real *x, int32_t i, gvs_re
  * step ends at the last grid point before that (*t_skip, *h the step after it). Nothing warming now closes every row
  * (returns 0); NaN: no skip. */
 static int skip_to(const gvs_tables *tb, const gvs_ttl_point *p, const gvs_real *de, const held_t *hs, int8_t *open,
-                   double *t_skip, double *h)
+                   march_t *t_skip, march_t *h)
 {
     gvs_real rate = hs->metzler ? de[0] : FABS(de[0]) / hs->wt[0];
-    double t_min = INFINITY;
+    march_t t_min = (march_t)INFINITY;
     int32_t i, j;
     for (i = 1; i < tb->n; ++i) {
         gvs_real x = hs->metzler ? de[i] : FABS(de[i]) / hs->wt[i];
@@ -806,12 +838,13 @@ static int skip_to(const gvs_tables *tb, const gvs_ttl_point *p, const gvs_real 
     for (j = 0; j < GVS_N_PUB; ++j)
         if (open[j]) {
             int32_t r = tb->published_index[j];
-            double tj = (double)(tb->warning_c[j] - p->T_main_c[r]) / ((double)rate * (hs->metzler ? 1.0 : (double)hs->wt[r]));
+            march_t tj = (march_t)(tb->warning_c[j] - p->T_main_c[r])
+                / ((march_t)rate * (hs->metzler ? M_(1.0) : (march_t)hs->wt[r]));
             if (tj < t_min) t_min = tj;
         }
-    while (*t_skip + *h <= t_min && *t_skip + *h < TTL_HORIZON_S) {
+    while (*t_skip + *h <= t_min && *t_skip + *h < M_(TTL_HORIZON_S)) {
         *t_skip += *h;
-        *h *= MARCH_RATIO;
+        *h *= M_(MARCH_RATIO);
     }
     return 1;
 }
@@ -828,7 +861,7 @@ static int ttl_solve(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl
     const gvs_real *C = tb->C_j_per_k;
     int8_t open[GVS_N_PUB];
     int32_t n = tb->n, i, j, any = 0, io = tb->i_oil;
-    double t = 0.0, h = MARCH_H0_S, t_skip = 0.0;
+    march_t t = M_(0.0), h = M_(MARCH_H0_S), t_skip = M_(0.0);
     *T_watch = (gvs_real)NAN;
     for (j = 0; j < GVS_N_PUB; ++j) ttl[j] = (gvs_real)NAN;
     memset(e, 0, sizeof e);
@@ -859,9 +892,9 @@ static int ttl_solve(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl
     }
     if (any && (hs.metzler || hs.weighted))
         any = skip_to(tb, p, de, &hs, open, &t_skip, &h);
-    while (any && t < TTL_HORIZON_S) {
-        double h_step = t_skip > 0.0 ? t_skip : (h < TTL_HORIZON_S - t ? h : TTL_HORIZON_S - t);
-        gvs_real d = (gvs_real)(MARCH_D_FRAC * h_step), s_watch = R_(2.0);
+    while (any && t < M_(TTL_HORIZON_S)) {
+        march_t h_step = t_skip > M_(0.0) ? t_skip : (h < M_(TTL_HORIZON_S) - t ? h : M_(TTL_HORIZON_S) - t);
+        gvs_real d = (gvs_real)(M_(MARCH_D_FRAC) * h_step), s_watch = R_(2.0);
         if (held_factor(tb, &hs, R_(1.0), d) != 0) return -1;
         for (i = 0; i < n; ++i) e_g[i] = C[i] * e[i] - d * Ae[i];
         held_solve(tb, &hs, e_g);
@@ -883,8 +916,8 @@ static int ttl_solve(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl
             f1 = T_inf[r] + e_new[r] - lim;
             if (f1 >= R_(0.0)) {
                 gvs_real s = first_root((gvs_real)h_step, T_inf[r] + e[r] - lim, de[r], f1, de_new[r]);
-                double tc = ceil((t + (double)s * h_step) / TTL_QUANTUM_S) * TTL_QUANTUM_S;
-                ttl[j] = (gvs_real)(tc < TTL_HORIZON_S ? tc : TTL_HORIZON_S);
+                march_t tc = CEIL((t + (march_t)s * h_step) / M_(TTL_QUANTUM_S)) * M_(TTL_QUANTUM_S);
+                ttl[j] = (gvs_real)(tc < M_(TTL_HORIZON_S) ? tc : M_(TTL_HORIZON_S));
                 open[j] = 0;
                 if (tb->ttl_relin[j] && s < s_watch) s_watch = s;
                 continue;
@@ -900,8 +933,8 @@ static int ttl_solve(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl
         memcpy(de, de_new, (size_t)n * sizeof(gvs_real));
         energy = energy_new;
         t += h_step;
-        if (t_skip > 0.0) t_skip = 0.0;             /* the skip was the grid's steps up to t_skip */
-        else h *= MARCH_RATIO;
+        if (t_skip > M_(0.0)) t_skip = M_(0.0);     /* the skip was the grid's steps up to t_skip */
+        else h *= M_(MARCH_RATIO);
     }
     return 0;
 }
@@ -960,7 +993,7 @@ int gvs_step(const gvs_tables *tb, const gvs_vehicle *veh, gvs_state *st, const 
     /* published temperatures, warnings, the time to limit counted down */
     for (i = 0; i < GVS_N_PUB; ++i) T_pub[i] = st->T_c[MAIN][tb->published_index[i]];
     available = c.drive_age_s <= tb->hold_s;
-    since = k == 0 ? 0 : ((k - 1) % tb->ttl_every + 1);
+    since = k == 0 ? 0 : (steps_mod(k - 1, tb->ttl_every) + 1);
     for (i = 0; i < GVS_N_PUB; ++i) {
         gvs_real t = st->ttl_s[i] - (gvs_real)since * tb->dt_s;
         ttl_now[i] = t != t ? t : max_r(t, R_(0.0));
@@ -990,7 +1023,7 @@ int gvs_step(const gvs_tables *tb, const gvs_vehicle *veh, gvs_state *st, const 
     for (i = 0; i < GVS_N_REJECT; ++i) st->rejects[i] += counts[i];
     memcpy(out->rejects, st->rejects, sizeof st->rejects);
     if (finite_r(in->t_s)) st->t_last_s = in->t_s;
-    due = k % tb->ttl_every == 0;
+    due = steps_mod(k, tb->ttl_every) == 0;
     if (due && ttl) ttl_point(tb, st, &c, &nt, ttl);
     st->k = k + 1;
     return GVS_OK;

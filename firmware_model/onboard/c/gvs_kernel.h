@@ -35,6 +35,14 @@ typedef float gvs_real;
 typedef double gvs_real;
 #endif
 
+/* the tables' index arrays: int32 (the Python binding's), or int16 in an exported build whose indices all fit
+ * (GVS_INDEX16, set by the export's Makefile: half the flash of the index tables) */
+#ifdef GVS_INDEX16
+typedef int16_t gvs_idx;
+#else
+typedef int32_t gvs_idx;
+#endif
+
 /* capacities of the plain structs (the tables give the actual sizes; gvs_check_tables() refuses larger ones);
  * an ECU build sets them to the exported variant's sizes (-DGVS_MAX_NODES=61 ...) to save RAM */
 #ifndef GVS_MAX_NODES
@@ -78,28 +86,28 @@ typedef struct {
     int32_t i_oil, i_ambient, i_coolant, cooler_code, gear_min, oil_mode_measured, ttl_every;
     /* network */
     const gvs_real *dt_over_C;          /* (n) dt / C [K/J s... s K/J] */
-    const int32_t *link_a, *link_b;     /* (nl) link_b >= n: boundary link_b - n */
+    const gvs_idx *link_a, *link_b;     /* (nl) link_b >= n: boundary link_b - n */
     const gvs_real *G_const;            /* (nl) [W/K] */
-    const int32_t *published_index;     /* (28) */
+    const gvs_idx *published_index;     /* (28) */
     /* power laws: G = coef[row, t] w^exp[t] (phi(T)[col[t]] or 1) x effect */
-    const int32_t *pw_link, *pw_col, *pw_effect;      /* (npw) */
+    const gvs_idx *pw_link, *pw_col, *pw_effect;      /* (npw) */
     const gvs_real *pw_exp, *pw_gear_coef, *pw_phi;   /* (npw), (gears, npw), (nT, ncol) */
     /* bilinear tables over (sqrt(w_t / w_max), T) */
-    const int32_t *t2_link;             /* (n2) */
+    const gvs_idx *t2_link;             /* (n2) */
     const gvs_real *t2_speed_coef, *t2_w_max, *t2_table;  /* (gears, n2), (n2), (n2, n_u, nT2) */
     int32_t t2_stride;
     /* immersed wheels, Nusselt in closed form */
-    const int32_t *cyl_link;
+    const gvs_idx *cyl_link;
     const gvs_real *cyl_speed_coef, *cyl_c, *cyl_ln_rp2;  /* (gears, nc), (nc), (nc) */
     /* oil-system streams in closed form */
-    const int32_t *ef_link, *ef_effect;
+    const gvs_idx *ef_link, *ef_effect;
     const gvs_real *ef_mcp, *ef_alpha, *ef_beta;       /* (ne) */
     /* radiation */
-    const int32_t *rad_link, *rad_node, *rad_bc;
+    const gvs_idx *rad_link, *rad_node, *rad_bc;
     const gvs_real *rad_area_eps;
     /* streams: G_streams = [G2[t2_stream_term], Ge]; stream s moves G dT_in from stream_node[s] to the sump */
-    const int32_t *t2_stream_term;      /* (nst - ne) */
-    const int32_t *stream_node;         /* (nst) */
+    const gvs_idx *t2_stream_term;      /* (nst - ne) */
+    const gvs_idx *stream_node;         /* (nst) */
     /* oil properties on the temperature grid */
     const gvs_real *prop;               /* (nT, 8) */
     gvs_real T_grid0_c, T_grid_step_k;
@@ -112,7 +120,7 @@ typedef struct {
     const gvs_real *churn_table;        /* (n_u_churn, nT) */
     gvs_real churn_w_max, churn_heat_sf, x_step, ln10;
     /* source -> node heat, sparse: node heat[src_nz_node[k]] += delivered[src_nz_src[k]] * src_nz_w[k] */
-    const int32_t *src_nz_src, *src_nz_node;
+    const gvs_idx *src_nz_src, *src_nz_node;
     const gvs_real *src_nz_w;
     gvs_real lag_gain, lag_tau_over_dt;
     /* cooler (seed 3.4, Eq 82-83) */
@@ -136,9 +144,9 @@ typedef struct {
      * re-linearises, and the options: the sump heats with the held load (else a measured sump is held), and
      * re-linearise at the predicted sump (every effect one value for all vehicles) */
     const gvs_real *C_j_per_k;          /* (n) [J/K] */
-    const int32_t *ldl_perm, *ldl_pos, *ldl_col_ptr, *ldl_row, *ldl_link_slot;   /* (n), (n), (n+1), (nnz), (nl) */
-    const int32_t *ldl_upd_ptr, *ldl_upd_target, *ldl_upd_a, *ldl_upd_b;        /* (n+1), (nupd) x 3 */
-    const int32_t *ttl_relin;           /* (28) */
+    const gvs_idx *ldl_perm, *ldl_pos, *ldl_col_ptr, *ldl_row, *ldl_link_slot;   /* (n), (n), (n+1), (nnz), (nl) */
+    const gvs_idx *ldl_upd_ptr, *ldl_upd_target, *ldl_upd_a, *ldl_upd_b;        /* (n+1), (nupd) x 3 */
+    const gvs_idx *ttl_relin;           /* (28) */
     int32_t ldl_nnz, ldl_nupd, ttl_sump_model, ttl_relinearise;
 } gvs_tables;
 
