@@ -100,7 +100,7 @@ def _surrogate_on_top(ctx: Context, base: Baseline, st: SetState, eid: str, fit:
     convection looks weak); the first is kept because the members' surrogates (changes around the baseline, not
     around the set's run) are rougher than the set's own run."""
     members = {**st.members, eid: CATALOG[eid].neutral}
-    S_of = _surrogate(base, st, deltas)
+    S_of = surrogate_misfit(base, st, deltas)
     best_S = S_of(members)
     order = [eid] + [m for m in st.members if m in ANALYTIC or deltas.get(m) is not None]
     fixed = None
@@ -119,7 +119,7 @@ def _surrogate_on_top(ctx: Context, base: Baseline, st: SetState, eid: str, fit:
     return fixed, (members, best_S)
 
 
-def _surrogate(base: Baseline, st: SetState, deltas: dict):
+def surrogate_misfit(base: Baseline, st: SetState, deltas: dict):
     """members -> the surrogate misfit of a set near `st`: the exact sensor effect applied to the set's run, plus the
     changes of the physical members from their values in `st` (their single-effect grids)."""
     sc, train = base.scorer, base.train.datasets

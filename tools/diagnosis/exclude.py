@@ -34,7 +34,7 @@ from dataclasses import dataclass
 from firmware_model.effects import CATALOG, fraction_of_range
 
 from tools.diagnosis.baseline import Baseline
-from tools.diagnosis.combine import SetState, delta_fn, eligible, simulate_sets, preds_of
+from tools.diagnosis.combine import SetState, delta_fn, eligible, simulate_sets, surrogate_misfit
 from tools.diagnosis.context import Context
 from tools.diagnosis.fit import Criterion
 from tools.diagnosis.options import ANALYTIC
@@ -67,40 +67,17 @@ class NotExcluded:
 
 
 class _Profile:
-    """S(members with Y held) on the surrogates around the verdict's own run, the members refitted."""
+    """S(members with Y held) on the surrogates around the verdict's own run (combine.surrogate_misfit), the members
+    refitted. Each effect's change is kept for its last few values: the held effect's value is asked at every
+    evaluation of a refit."""
 
     def __init__(self, base: Baseline, st: SetState, deltas: dict):
-        self.base, self.st, self.deltas = base, st, deltas
-        self.cache: dict = {}
-        self.recent: list = []
-
-    def _delta(self, eid: str, v: float) -> list:
-        """The effect's change at `v`; kept for the members' values in the verdict (asked at every evaluation) and
-        the last few others (a 1-D search asks each of its values once or twice)."""
-        key = (eid, float(v))
-        hit = self.cache.get(key)
-        if hit is None:
-            hit = self.deltas[eid](v)
-            keep = float(v) == float(self.st.members.get(eid, CATALOG[eid].neutral))
-            if not keep and len(self.recent) >= 8:
-                self.cache.pop(self.recent.pop(0), None)
-            if not keep:
-                self.recent.append(key)
-            self.cache[key] = hit
-        return hit
+        from functools import lru_cache
+        cached = {e: (lru_cache(maxsize=8)(fn) if fn is not None else None) for e, fn in deltas.items()}
+        self._S_of = surrogate_misfit(base, st, cached)
 
     def S(self, members: dict) -> float:
-        st, base = self.st, self.base
-        exact0 = {e: v for e, v in st.members.items() if e in ANALYTIC}
-        exact = {e: v for e, v in members.items() if e in ANALYTIC}
-        raw = st.raw if exact == exact0 else preds_of(base, base.train.datasets, st.out, members)
-        for m, v in members.items():
-            v0 = st.members.get(m, CATALOG[m].neutral)
-            if m in ANALYTIC or v == v0:
-                continue
-            d, d0 = self._delta(m, v), self._delta(m, v0)
-            raw = [a + x - x0 for a, x, x0 in zip(raw, d, d0)]
-        S = base.scorer.S_adj(raw)
+        S = self._S_of(members)
         return S if math.isfinite(S) else math.inf      # a run that went bad is refused, never the best
 
     def refit(self, members: dict, held: str, passes: int = 2) -> tuple:
