@@ -52,22 +52,43 @@ class Combination:
     shares: dict              # effect -> share of the explained part
     steps: list = field(default_factory=list)   # the forward steps after the leading effect
     out_train: list | None = None                # the set's training run (model outputs per file)
+    start: tuple = ()                            # the (oil-sensor effect, value) that run started from (Run.start)
 
 
 class SetState:
-    """The set being grown: its members, its training run and its raw (unadjusted) predictions."""
+    """The set being grown: its members, its training run (started from `start`, Run.start) and its raw (unadjusted)
+    predictions."""
 
-    def __init__(self, base: Baseline, members: dict, out: list):
-        self.base, self.members, self.out = base, dict(members), out
-        self.raw = preds_of(base, base.train.datasets, out, members)
+    def __init__(self, base: Baseline, members: dict, out: list, start: tuple = ()):
+        self.base, self.members, self.out, self.start = base, dict(members), out, tuple(start)
+        self.raw = preds_of(base, base.train.datasets, out, members, start=self.start)
         self.S = base.scorer.S_adj(self.raw)
 
 
-def preds_of(base: Baseline, datasets: list, outs: list, members: dict, lags: dict | None = None) -> list:
-    """Predictions of a set's run: its (at most one) exact sensor effect applied to the model outputs."""
+def preds_of(base: Baseline, datasets: list, outs: list, members: dict, lags: dict | None = None,
+             start: tuple = ()) -> list:
+    """Predictions of a set's run (started from `start`): its (at most one) exact sensor effect applied to the model
+    outputs."""
     exact = [(e, v) for e, v in members.items() if e in ANALYTIC]
     e, v = exact[0] if exact else (None, None)
-    return base.scorer.preds(datasets, outs, e, v, lags=lags)
+    return base.scorer.preds(datasets, outs, e, v, lags=lags, start=start)
+
+
+#: the exact sensor effects that move the initial temperature: a set's runs start from the sump their reading implies
+START_EFFECTS = ("oil_sensor_offset", "oil_sensor_gain")
+
+
+def start_of(members: dict) -> tuple:
+    """(effect, value) of a set's oil-sensor offset or gain, () without one: the set's runs start every file from the
+    sump that the first reading implies through it, exactly. To first order (the baseline's sensitivity to its
+    initial temperature) a start several kelvin off is wrong where the model is not linear: an air cooler's
+    thermostat at the first reading (a gain of x1.07 and a thermostat 7.7 K late left 1.45 K of systematic residual
+    on a rig's PS thermocouple to first order, none started exactly)."""
+    return next(((e, float(v)) for e, v in members.items() if e in START_EFFECTS and v != CATALOG[e].neutral), ())
+
+
+def _physical(members: dict) -> dict:
+    return {e: v for e, v in members.items() if e not in ANALYTIC}
 
 
 #: coordinate passes over the set's members and a candidate on the surrogates (:func:`_surrogate_on_top`)
@@ -128,7 +149,7 @@ def surrogate_misfit(base: Baseline, st: SetState, deltas: dict):
 
     def S_of(members: dict) -> float:
         exact = {e: v for e, v in members.items() if e in ANALYTIC}
-        raw = st.raw if exact == exact0 else preds_of(base, train, st.out, members)
+        raw = st.raw if exact == exact0 else preds_of(base, train, st.out, members, start=st.start)
         for m, v in members.items():
             v0 = st.members.get(m, CATALOG[m].neutral)
             if m in ANALYTIC or v == v0:
@@ -153,14 +174,15 @@ def eligible(ctx: Context, st: SetState, fits: dict, deltas: dict) -> list:
 
 
 def simulate_sets(ctx: Context, base: Baseline, sets: list, cur: SetState) -> list:
-    """Training runs of candidate sets (the current run where a set adds only an exact sensor effect)."""
-    phys = [{e: v for e, v in m.items() if e not in ANALYTIC} for m in sets]
-    need = [i for i, m in enumerate(phys) if m != {e: v for e, v in cur.members.items() if e not in ANALYTIC}]
-    sims = ctx.sim.run(base.train.datasets, [Run.of(phys[i]) for i in need]) if need else []
-    outs = [cur.out] * len(sets)
+    """The SetStates of candidate sets, each run started from the sump its oil-sensor offset or gain implies
+    (:func:`start_of`); the current run is reused where a set has the same physical effects and start."""
+    keys = [(_physical(m), start_of(m)) for m in sets]
+    need = [i for i, k in enumerate(keys) if k != (_physical(cur.members), cur.start)]
+    sims = ctx.sim.run(base.train.datasets, [Run.of(keys[i][0], start=keys[i][1]) for i in need]) if need else []
+    outs = [(cur.out, cur.start)] * len(sets)
     for i, o in zip(need, sims):
-        outs[i] = o
-    return outs
+        outs[i] = (o, keys[i][1])
+    return [SetState(base, m, out, start) for m, (out, start) in zip(sets, outs)]
 
 
 def _refit_jointly(ctx: Context, base: Baseline, st: SetState, deltas: dict, passes: int = 3) -> SetState:
@@ -186,7 +208,7 @@ def _coordinate_pass(ctx: Context, base: Baseline, st: SetState, deltas: dict) -
         for v in _dense(eid):
             v = float(v)
             if eid in ANALYTIC:
-                S = sc.S_adj(preds_of(base, train, st.out, {**members, eid: v}))
+                S = sc.S_adj(preds_of(base, train, st.out, {**members, eid: v}, start=st.start))
             else:
                 S = sc.S_adj([a + d - d_0 for a, d, d_0 in zip(raw, deltas[eid](v), d0)])
             if S < best_S:
@@ -196,11 +218,10 @@ def _coordinate_pass(ctx: Context, base: Baseline, st: SetState, deltas: dict) -
             if eid not in ANALYTIC:
                 raw = [a + d - d_0 for a, d, d_0 in zip(raw, deltas[eid](best_v), d0)]
             else:
-                raw = preds_of(base, train, st.out, members)
+                raw = preds_of(base, train, st.out, members, start=st.start)
     if members == st.members:
         return st
-    out = simulate_sets(ctx, base, [members], st)[0]
-    new = SetState(base, members, out)
+    new = simulate_sets(ctx, base, [members], st)[0]
     return new if new.S < st.S else st
 
 
@@ -225,8 +246,7 @@ def _step(ctx: Context, base: Baseline, crit: Criterion, st: SetState, fits: dic
     # the best few with the set as it is, and the best with the set moving (when it is another set)
     sets = [m for _S, _eid, m in cands[:o.combine_check]]
     sets += [m for _S, _eid, m in moving[:1] if m not in sets]
-    for m, out in zip(sets, simulate_sets(ctx, base, sets, st)):
-        checked.append(SetState(base, m, out))
+    checked.extend(simulate_sets(ctx, base, sets, st))
     checked.sort(key=lambda s: s.S)
     best = _refit_jointly(ctx, base, checked[0], deltas)
     excess = max(st.S - base.S_noise, 0.02 * st.S, 1e-12)
@@ -297,6 +317,8 @@ def forward_select(ctx: Context, base: Baseline, crit: Criterion, fits: list, ga
     by_id = {f.effect: f for f in fits}
     deltas = {eid: (None if eid in ANALYTIC else delta_fn(base, f)) for eid, f in by_id.items()}
     st = SetState(base, {top.effect: top.value}, top.out_train)
+    if start_of(st.members):             # an offset or gain leader: its run from the sump its reading implies, so
+        st = simulate_sets(ctx, base, [st.members], st)[0]    # that a partner's increment is not the start's
     chain, steps = [st.S], []
     while len(st.members) < o.max_effects and gap_left(ctx, base, base.scorer.adjust(st.raw, "train"),
                                                                 gap_thr_c):
@@ -317,7 +339,7 @@ def _finish(ctx: Context, base: Baseline, crit: Criterion, fits: dict, st: SetSt
     sc = base.scorer
     exact = next((e for e in st.members if e in ANALYTIC), None)
     lags = sc.refit_lags(st.out, exact)
-    pr = sc.adjust(preds_of(base, base.train.datasets, st.out, st.members, lags), "train")
+    pr = sc.adjust(preds_of(base, base.train.datasets, st.out, st.members, lags, start=st.start), "train")
     if sc.S(pr) > st.S:                 # the refitted lags did not help: keep the scorer's
         lags = dict(sc.lag)
         pr = sc.adjust(st.raw, "train")
@@ -326,11 +348,11 @@ def _finish(ctx: Context, base: Baseline, crit: Criterion, fits: dict, st: SetSt
     k = len(st.members)
     score = -(crit.n_eff * math.log(max(S, 1e-12) / max(base.S0, 1e-12)) + k * math.log(max(crit.n_eff, 2.0)))
     explained = (base.S0 - S) / max(base.S0 - base.S_noise, 0.02 * base.S0, 1e-12)
-    phys = {e: v for e, v in st.members.items() if e not in ANALYTIC}
-    tout = ctx.sim.run(base.test.datasets, [Run.of(phys)])[0] if phys else base.base_te
-    p_te = sc.adjust(preds_of(base, base.test.datasets, tout, st.members, lags), "test")
+    phys = _physical(st.members)
+    tout = ctx.sim.run(base.test.datasets, [Run.of(phys, start=st.start)])[0] if phys or st.start else base.base_te
+    p_te = sc.adjust(preds_of(base, base.test.datasets, tout, st.members, lags, start=st.start), "test")
     return Combination(dict(st.members), S, pr, p_te, float(score), float(explained),
-                       _shares(base, fits, st.members, chain), steps, st.out)
+                       _shares(base, fits, st.members, chain), steps, st.out, st.start)
 
 
 def _acceptable(ctx: Context, base: Baseline, combo: Combination, gap_thr_c: dict) -> bool:

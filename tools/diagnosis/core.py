@@ -116,15 +116,16 @@ class Diagnosis:
         """The effects the training files cannot rule out beside an effect verdict (:mod:`.exclude`)."""
         if not verdict.is_effect or not self.ctx.opts.not_excluded:
             return []
+        start = ()
         if combo is not None:
-            members, out = combo.members, combo.out_train
+            members, out, start = combo.members, combo.out_train, combo.start
         else:
             top = crit.candidates[0].fit
             if top.effect != verdict.effect:
                 return []
             members, out = {top.effect: top.value}, top.out_train
         skip = {e for e, i in ident.items() if not i.identifiable}
-        return not_excluded(self.ctx, base, crit, fits, members, out, skip)
+        return not_excluded(self.ctx, base, crit, fits, members, out, skip, start)
 
     def _structure(self, base, fits: list, verdict) -> dict:
         """The regime structure of the training residual (regimes.residual_structure) per channel with a gap, with

@@ -99,7 +99,7 @@ class _Profile:
 
 
 def not_excluded(ctx: Context, base: Baseline, crit: Criterion, fits: list, members: dict, out: list,
-                 skip=()) -> list:
+                 skip=(), start: tuple = ()) -> list:
     """[NotExcluded] beside the verdict's effects `members` (effect -> value) whose training run is `out`, most
     reaching first; effects in `skip` (not identifiable with the channels) are left out."""
     o = ctx.opts
@@ -107,7 +107,7 @@ def not_excluded(ctx: Context, base: Baseline, crit: Criterion, fits: list, memb
     deltas = {eid: (None if eid in ANALYTIC else delta_fn(base, f)) for eid, f in by_id.items()}
     if any(m not in ANALYTIC and deltas.get(m) is None for m in members):
         return []                        # a member without a grid cannot be moved on the surrogates
-    st = SetState(base, members, out)
+    st = SetState(base, members, out, start)
     prof = _Profile(base, st, deltas)
     n_eff = max(crit.n_eff, 2.0)
     found = []
@@ -230,8 +230,7 @@ def _frac_toward(eid: str, y: float, side: int) -> float:
 
 
 def _simulated_S(ctx: Context, base: Baseline, st: SetState, members: dict) -> float:
-    out = simulate_sets(ctx, base, [members], st)[0]
-    return SetState(base, members, out).S
+    return simulate_sets(ctx, base, [members], st)[0].S
 
 
 def _confirm_end(ctx: Context, base: Baseline, st: SetState, prof, eid: str, cands: list, best: tuple, thr: float):

@@ -36,21 +36,40 @@ Q_OUT = ("Q_out_cooler_w", "Q_out_housing_convection_w", "Q_out_housing_radiatio
          "Q_out_shafts_conduction_w")
 
 
+def initial_shift_c(effect: str | None, value: float | None, T0_meas_c: float) -> float:
+    """The model's initial temperature moves with a measurement effect: it starts from the oil sensor's first reading,
+    and a sensor reading sump + offset (or gain x sump in degC) started it off the true sump by this much [K]."""
+    if value is None:
+        return 0.0
+    if effect == "oil_sensor_offset":
+        return -float(value)
+    if effect == "oil_sensor_gain" and value > 0:
+        return T0_meas_c / float(value) - T0_meas_c
+    return 0.0
+
+
 @dataclass(frozen=True)
 class Run:
     """One re-simulation: effect values (id -> parameter), an offset on the initial temperature, and whether to
-    return every node (decimated to `full_dt_s`) for the measurement suggestions."""
+    return every node (decimated to `full_dt_s`) for the measurement suggestions. `start` = (effect, value) of an
+    oil-sensor offset or gain: every file starts from the sump that its first reading implies through that sensor
+    (:func:`initial_shift_c`), exactly rather than to first order."""
     effects: tuple = ()                 # ((id, value), ...) so that runs hash
     initial_offset_c: float = 0.0
     full: bool = False
     coarse: bool = False                # a cheaper, coarser step where the backend has one (surrogate grids)
     fine: bool = False                  # half the step (the model's own numerical error), where it has one
+    start: tuple = ()                   # (oil-sensor effect, value) the files start from; () the reading itself
 
     @staticmethod
     def of(effects: dict | None = None, initial_offset_c: float = 0.0, full: bool = False,
-           coarse: bool = False, fine: bool = False) -> "Run":
+           coarse: bool = False, fine: bool = False, start: tuple | None = None) -> "Run":
         return Run(tuple(sorted((effects or {}).items())), float(initial_offset_c), bool(full), bool(coarse),
-                   bool(fine))
+                   bool(fine), tuple(start or ()))
+
+    def initial_c(self, T0_meas_c: float) -> float:
+        """The initial temperature of a file whose first oil reading (or initial temperature) is `T0_meas_c`."""
+        return T0_meas_c + self.initial_offset_c + (initial_shift_c(*self.start, T0_meas_c) if self.start else 0.0)
 
     @property
     def effect_dict(self) -> dict:
@@ -100,7 +119,7 @@ def _plant_job(job):
     plant = ReferencePlant(w["params"], run.effect_dict, cooler=w["cooler"],
                            dt_s=w["coarse_dt_s"] if run.coarse else (0.5 * w["dt_s"] if run.fine else w["dt_s"]))
     t0 = table.meta.get("initial_temp_c")
-    res = plant.run(table, initial_temp_c=(t0 + run.initial_offset_c) if t0 is not None else None,
+    res = plant.run(table, initial_temp_c=run.initial_c(t0) if t0 is not None else None,
                     out_dt_s=w["out_dt_s"], progress=False)
     tb = res.table
     out = {"time_s": tb["time_s"]}
@@ -365,7 +384,7 @@ def run_onboard_pass(ds, runs, columns, volume_l: float) -> list:
     spd, tq, gear = col("engine_speed_rpm"), col("engine_torque_nm"), col("gear")
     amb, cool, vk = col("ambient_temp_c"), col("coolant_temp_c"), col("vehicle_speed_kmh")
     ret = np.nan_to_num(col("retarder_torque_nm"), nan=0.0)
-    T0 = ds.initial_temp_c + np.array([r.initial_offset_c for r in runs], dtype=float)
+    T0 = np.array([r.initial_c(ds.initial_temp_c) for r in runs], dtype=float)
     state = vs.initial_state(T_oil_c=T0, n_vehicles=V)
     every = max(int(round(out_dt_s / dt)), 1)
     keep = np.arange(0, n, every)

@@ -9,30 +9,23 @@ import numpy as np
 from firmware_model.effects import effect_channel
 
 from tools.diagnosis.measurement import lag_filter, model_at_cells
+from tools.diagnosis.models import initial_shift_c
 from tools.diagnosis.options import OIL, Options
 
 
-def initial_shift_c(effect: str | None, value: float | None, T0_meas_c: float) -> float:
-    """The model's initial temperature moves with a measurement effect: it starts from the oil sensor's first reading,
-    and a sensor reading sump + offset (or gain x sump in degC) started it off the true sump by this much [K]."""
-    if value is None:
-        return 0.0
-    if effect == "oil_sensor_offset":
-        return -float(value)
-    if effect == "oil_sensor_gain" and value > 0:
-        return T0_meas_c / float(value) - T0_meas_c
-    return 0.0
-
-
 def predictions(datasets: list, outs: list, lags: dict, effect: str | None = None,
-                value: float | None = None, sens: list | None = None) -> list:
+                value: float | None = None, sens: list | None = None, start: tuple = ()) -> list:
     """Predictions on cells per (dataset, channel) with the nuisance lags (the lag candidate replaces the oil
     nuisance by its own lag on the sump; the offset and gain candidates read the oil channel through them and, with
     `sens` (each entry's sensitivity to the initial temperature), start the model from the sump their reading implies,
-    to first order)."""
+    to first order; `start`: the (effect, value) the runs `outs` already started from, Run.start, so that only the
+    difference is taken to first order)."""
     res, k = [], 0
     for i, ds in enumerate(datasets):
-        shift_c = initial_shift_c(effect, value, ds.initial_temp_c) if sens is not None and OIL in ds.channels else 0.0
+        shift_c = 0.0
+        if sens is not None and OIL in ds.channels:
+            shift_c = initial_shift_c(effect, value, ds.initial_temp_c) - (
+                initial_shift_c(*start, ds.initial_temp_c) if start else 0.0)
         for cid, ch in ds.channels.items():
             if cid == OIL and effect == "oil_sensor_lag" and value:
                 p = model_at_cells(outs[i], ch, value, source="T_oil_c")
@@ -103,10 +96,10 @@ class Scorer:
         return self.train if role == "train" else self.test
 
     def preds(self, datasets: list, outs: list, effect: str | None = None, value: float | None = None,
-              lags: dict | None = None) -> list:
+              lags: dict | None = None, start: tuple = ()) -> list:
         rd = next((r for r in (self.train, self.test) if r.datasets is datasets), None)
         return predictions(datasets, outs, self.lag if lags is None else lags, effect, value,
-                           rd.sens if rd is not None else None)
+                           rd.sens if rd is not None else None, start)
 
     def adjust(self, preds: list, role: str) -> list:
         """The initial temperature of every file is a nuisance (state, not model): shift each file's predictions by
