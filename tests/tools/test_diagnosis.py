@@ -363,6 +363,21 @@ def test_oil_sensor_offset_is_named_with_its_constant_signature(params, setup, v
     assert v["shrink"] > 0.5
 
 
+def test_a_set_from_another_start_does_not_win_on_the_exact_start_alone(params):
+    """A rig with an air cooler and an oil sensor reading +3 K. The best candidate, the offset, gets no partner; a
+    set grown from the gain it is confusable with starts from the sump the gain implies, exactly, and was compared
+    with the offset's score to first order: it won on the start alone (gain x1.035 + churning x0.91, which the truth
+    does not have). Scored alone as a set is, from its own exact start, the offset stays the verdict."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        sc = make_scenario(6, 1, "rig", "oil_sensor_offset", 3.0, params, cooler="air", train_s=900.0,
+                           test_s=900.0)
+        v = diagnose(sc.train, sc.test, params, model="onboard", cooler="air")["verdict"]
+    assert v["effect"] == "oil_sensor_offset", v["reason"]
+    assert abs(v["parameters"]["offset_c"] - 3.0) < 0.3
+    assert "churning_scale" not in {e["effect"] for e in v.get("effects", [])}
+
+
 def test_a_heat_flow_effect_is_load_dependent(planted):
     """Planetary heat 35 % high: where the baseline misses, it misses by load, and no sensor effect is named."""
     v = planted[0]["verdict"]

@@ -28,7 +28,7 @@ from tools.diagnosis.baseline import Baseline
 from tools.diagnosis.context import Context
 from tools.diagnosis.fit import Criterion, Fit
 from tools.diagnosis.models import Run
-from tools.diagnosis.options import ANALYTIC
+from tools.diagnosis.options import ANALYTIC, OIL
 
 
 @dataclass(frozen=True, eq=False)
@@ -85,6 +85,12 @@ def start_of(members: dict) -> tuple:
     thermostat at the first reading (a gain of x1.07 and a thermostat 7.7 K late left 1.45 K of systematic residual
     on a rig's PS thermocouple to first order, none started exactly)."""
     return next(((e, float(v)) for e, v in members.items() if e in START_EFFECTS and v != CATALOG[e].neutral), ())
+
+
+def startable(datasets: list) -> bool:
+    """Do all these files start from an oil reading (a file without the oil channel starts from a thermocouple's,
+    which an oil-sensor effect does not move)?"""
+    return all(OIL in ds.channels for ds in datasets)
 
 
 def _physical(members: dict) -> dict:
@@ -176,7 +182,8 @@ def eligible(ctx: Context, st: SetState, fits: dict, deltas: dict) -> list:
 def simulate_sets(ctx: Context, base: Baseline, sets: list, cur: SetState) -> list:
     """The SetStates of candidate sets, each run started from the sump its oil-sensor offset or gain implies
     (:func:`start_of`); the current run is reused where a set has the same physical effects and start."""
-    keys = [(_physical(m), start_of(m)) for m in sets]
+    ok = startable(base.train.datasets)
+    keys = [(_physical(m), start_of(m) if ok else ()) for m in sets]
     need = [i for i, k in enumerate(keys) if k != (_physical(cur.members), cur.start)]
     sims = ctx.sim.run(base.train.datasets, [Run.of(keys[i][0], start=keys[i][1]) for i in need]) if need else []
     outs = [(cur.out, cur.start)] * len(sets)
@@ -349,8 +356,9 @@ def _finish(ctx: Context, base: Baseline, crit: Criterion, fits: dict, st: SetSt
     score = -(crit.n_eff * math.log(max(S, 1e-12) / max(base.S0, 1e-12)) + k * math.log(max(crit.n_eff, 2.0)))
     explained = (base.S0 - S) / max(base.S0 - base.S_noise, 0.02 * base.S0, 1e-12)
     phys = _physical(st.members)
-    tout = ctx.sim.run(base.test.datasets, [Run.of(phys, start=st.start)])[0] if phys or st.start else base.base_te
-    p_te = sc.adjust(preds_of(base, base.test.datasets, tout, st.members, lags, start=st.start), "test")
+    t_start = start_of(st.members) if startable(base.test.datasets) else ()
+    tout = ctx.sim.run(base.test.datasets, [Run.of(phys, start=t_start)])[0] if phys or t_start else base.base_te
+    p_te = sc.adjust(preds_of(base, base.test.datasets, tout, st.members, lags, start=t_start), "test")
     return Combination(dict(st.members), S, pr, p_te, float(score), float(explained),
                        _shares(base, fits, st.members, chain), steps, st.out, st.start)
 
@@ -368,6 +376,17 @@ def _acceptable(ctx: Context, base: Baseline, combo: Combination, gap_thr_c: dic
     return not (pinned and gap_left(ctx, base, combo.preds_train, gap_thr_c))
 
 
+def _alone_score(ctx: Context, base: Baseline, crit: Criterion, cand) -> float:
+    """A candidate's score alone, counted as a set's is: an oil-sensor offset or gain from the sump its reading
+    implies (:func:`start_of`), so that a set grown from another start, which starts so, is not preferred for the
+    start alone (a rig's offset +3 K on an air cooler lost to a gain with a partner the truth does not have)."""
+    members = {cand.fit.effect: cand.fit.value}
+    if not start_of(members):
+        return cand.score
+    st = simulate_sets(ctx, base, [members], SetState(base, members, cand.fit.out_train))[0]
+    return -(crit.n_eff * math.log(max(st.S, 1e-12) / max(base.S0, 1e-12)) + math.log(max(crit.n_eff, 2.0)))
+
+
 def select_set(ctx: Context, base: Baseline, crit: Criterion, fits: list, gap_thr_c: dict, confusable: dict):
     """Forward selection from the best single candidate, and also from each candidate confusable with it (alone the
     data cannot tell them apart, so either may be the set's first member: a sensor offset and hot surroundings both
@@ -377,7 +396,7 @@ def select_set(ctx: Context, base: Baseline, crit: Criterion, fits: list, gap_th
     o = ctx.opts
     top = crit.candidates[0]
     best = forward_select(ctx, base, crit, fits, gap_thr_c)
-    best_score = best.score if best is not None else top.score
+    best_score = best.score if best is not None else _alone_score(ctx, base, crit, top)
     alts = [c for c in crit.candidates[1:] if c.fit.effect in confusable.get(top.fit.effect, ())][:o.set_starts - 1]
     for cand in alts:
         if abs(fraction_of_range(cand.fit.effect, cand.fit.value)) < o.min_frac:
