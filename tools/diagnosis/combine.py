@@ -192,6 +192,12 @@ def simulate_sets(ctx: Context, base: Baseline, sets: list, cur: SetState) -> li
     return [SetState(base, m, out, start) for m, (out, start) in zip(sets, outs)]
 
 
+def at_start(ctx: Context, base: Baseline, st: SetState) -> SetState:
+    """`st` run from the sump its oil-sensor offset or gain implies (:func:`start_of`): re-simulated when it was not,
+    else `st` itself."""
+    return simulate_sets(ctx, base, [st.members], st)[0] if start_of(st.members) != st.start else st
+
+
 def _refit_jointly(ctx: Context, base: Baseline, st: SetState, deltas: dict, passes: int = 3) -> SetState:
     """Coordinate passes over the members on the surrogates around the joint run, each re-simulated and kept while
     it lowers the misfit."""
@@ -323,9 +329,8 @@ def forward_select(ctx: Context, base: Baseline, crit: Criterion, fits: list, ga
         return None
     by_id = {f.effect: f for f in fits}
     deltas = {eid: (None if eid in ANALYTIC else delta_fn(base, f)) for eid, f in by_id.items()}
-    st = SetState(base, {top.effect: top.value}, top.out_train)
-    if start_of(st.members):             # an offset or gain leader: its run from the sump its reading implies, so
-        st = simulate_sets(ctx, base, [st.members], st)[0]    # that a partner's increment is not the start's
+    # an offset or gain leader from the sump its reading implies, so that a partner's increment is not the start's
+    st = at_start(ctx, base, SetState(base, {top.effect: top.value}, top.out_train))
     chain, steps = [st.S], []
     while len(st.members) < o.max_effects and gap_left(ctx, base, base.scorer.adjust(st.raw, "train"),
                                                                 gap_thr_c):
@@ -383,7 +388,7 @@ def _alone_score(ctx: Context, base: Baseline, crit: Criterion, cand) -> float:
     members = {cand.fit.effect: cand.fit.value}
     if not start_of(members):
         return cand.score
-    st = simulate_sets(ctx, base, [members], SetState(base, members, cand.fit.out_train))[0]
+    st = at_start(ctx, base, SetState(base, members, cand.fit.out_train))
     return -(crit.n_eff * math.log(max(st.S, 1e-12) / max(base.S0, 1e-12)) + math.log(max(crit.n_eff, 2.0)))
 
 

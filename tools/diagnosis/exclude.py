@@ -34,7 +34,7 @@ from dataclasses import dataclass
 from firmware_model.effects import CATALOG, fraction_of_range
 
 from tools.diagnosis.baseline import Baseline
-from tools.diagnosis.combine import SetState, delta_fn, eligible, simulate_sets, start_of, surrogate_misfit
+from tools.diagnosis.combine import SetState, at_start, delta_fn, eligible, simulate_sets, surrogate_misfit
 from tools.diagnosis.context import Context
 from tools.diagnosis.fit import Criterion
 from tools.diagnosis.options import ANALYTIC
@@ -107,9 +107,8 @@ def not_excluded(ctx: Context, base: Baseline, crit: Criterion, fits: list, memb
     deltas = {eid: (None if eid in ANALYTIC else delta_fn(base, f)) for eid, f in by_id.items()}
     if any(m not in ANALYTIC and deltas.get(m) is None for m in members):
         return []                        # a member without a grid cannot be moved on the surrogates
-    st = SetState(base, members, out, start)
-    if start_of(members) != st.start:    # a single offset or gain verdict: from the sump its reading implies, as
-        st = simulate_sets(ctx, base, [members], st)[0]   # every re-simulation below starts
+    # a single offset or gain verdict from the sump its reading implies, as every re-simulation below starts
+    st = at_start(ctx, base, SetState(base, members, out, start))
     prof = _Profile(base, st, deltas)
     n_eff = max(crit.n_eff, 2.0)
     found = []
