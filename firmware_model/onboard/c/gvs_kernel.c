@@ -414,7 +414,8 @@ int gvs_check_tables(const gvs_tables *tb)
  * operating point, heat through the lag, conductances of the bin, cooler and inlet drop, one explicit step of
  * both copies; T holds both copies on entry (main sump already replaced) and after the step on return. */
 typedef struct {
-    gvs_real src[GVS_MAX_SRC], G[GVS_MAX_LINKS], Gs[GVS_MAX_STREAMS], T_bc[GVS_MAX_BC];
+    gvs_real src[GVS_MAX_SRC], T_bc[GVS_MAX_BC];
+    const gvs_real *G, *Gs;             /* the bin's conductances: the state's memo, read in place */
     gvs_real dT_in[2], Q_cool[2], rho_cp, omega_in, T_oil_main;
     int32_t row;
 } net_t;
@@ -455,8 +456,8 @@ static void network_step(const gvs_tables *tb, const gvs_vehicle *veh, gvs_state
             st->memo_T_q = T_q;
             st->memo_valid = 1;
         }
-        memcpy(nt->G, st->memo_G, (size_t)tb->nl * sizeof(gvs_real));
-        memcpy(nt->Gs, st->memo_Gs, (size_t)tb->nst * sizeof(gvs_real));
+        nt->G = st->memo_G;
+        nt->Gs = st->memo_Gs;
     }
     w_ls = FABS(tb->speed_coef[nt->row * tb->n_speed + 1]) * w;
     nt->rho_cp = o.prop[P_RHO] * o.prop[P_CP];
