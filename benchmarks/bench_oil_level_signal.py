@@ -44,7 +44,9 @@ def log_table(drive: str, off_s: float, minutes: float, oil0_c: float) -> RunTab
     return RunTable(cols)
 
 
-def main() -> None:
+def main(argv=None) -> None:
+    import argparse
+    argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter).parse_args(argv)
     params = load_config(None).load_params()
     model = health_model(None, None)
     print("| drive | log | oil signal of a 4 L leak: plant 13.5 L vs 9.5 L, rms (max) [K] "

@@ -303,6 +303,9 @@ def test_onboard_backend_runs_effects_as_vehicles(params):
     with OnboardModel(params, cooler="liquid", fallback=plant, workers=1) as onb:
         out = onb.simulate([ds], runs, ["oil_temp_c", "T_PS_c"])
         assert onb.delegated == ["synchronizer_shift_heat"]
+        # runs of every node (the measurement suggestions) come from the plant without being a delegated effect
+        onb.simulate([ds], [Run.of({"oil_sensor_offset": 1.0}, full=True)], ["oil_temp_c"])
+        assert onb.delegated == ["synchronizer_shift_heat"]
     ref = plant.simulate([ds], runs[:1], ["oil_temp_c", "T_PS_c"])[0][0]
     base, hot = out[0][0], out[1][0]
     ps_ref = np.interp(base["time_s"], ref["time_s"], ref["T_PS_c"])

@@ -77,7 +77,9 @@ def run(args) -> int:
     from tools.diagnosis.core import Options, diagnose
     core_line = apply_core(args)
     if not args.quiet:
-        print(f"{core_line} (the onboard backend, --model onboard)", file=sys.stderr)
+        print(f"model: {args.model}" + (f"; {core_line}" if args.model == "onboard" else
+                                         " (the reference plant; the onboard step's core is not used)"),
+              file=sys.stderr)
     from tools.diagnosis.options import STAGES
     from tools.progress import progress
     cfg = load_config(args.config)

@@ -19,7 +19,7 @@ def add_subparser(sub):
                     "uptime, the last step's frame time, whether the sensor is initialised, the degraded modes, "
                     "frame counters, time jumps, the state saves (count, errors, age of the last) and whether the "
                     "saved state was restored at start. Exit status 0 when the service is running, 1 when the file "
-                    "is stale or missing.")
+                    "is stale (not rewritten for 5 s), 2 when it is missing or not a health file.")
     p.add_argument("--health-file", default=DEFAULT_HEALTH, metavar="PATH",
                    help=f"the service's health file (default {DEFAULT_HEALTH}, as the systemd unit writes it)")
     p.add_argument("--json", action="store_true", help="print the health document as JSON")

@@ -260,7 +260,8 @@ class OnboardModel(DiagnosisModel):
                 bad = sorted({e for r in other for e, _ in r.effects if e not in self.native_effects})
                 raise InputError(f"the onboard model cannot represent effect(s) {', '.join(bad)} and no fallback "
                                  f"plant is configured")
-            for e, _ in (x for r in other for x in r.effects):
+            # runs of every node (the measurement suggestions) always come from the plant: not a delegated effect
+            for e, _ in (x for r in other if not r.full for x in r.effects):
                 if e not in self.native_effects and e not in self.delegated:
                     self.delegated.append(e)
             for r, out in zip(other, self.fallback.simulate(datasets, other, columns)):
