@@ -51,6 +51,8 @@ class Options:
     add_share_min: float = 0.02       # forward selection: a new effect's least share of all the set explains (unless it
                                       # closes a clear gap)
     clear_gap_factor: float = 2.0     # a clear gap: a systematic residual at least this many times its threshold
+    clear_gap_cut: float = 2.5        # ... or cut by more than this factor, leaving no clear gap (set between the cases
+                                      # seen: a true second effect cut 3.9 -> 1.2, a stand-in third 2.8 -> 1.4)
     add_explain_min: float = 0.2      # forward selection: share of the set's unexplained excess a new effect must explain
     coarse_grid: bool = True          # surrogate grid at the plant's coarse step (2 s), differences only
     dense: int = 161                  # dense parameter grid of the surrogate
