@@ -239,33 +239,52 @@ static gvs_real interp_r(gvs_real x, const gvs_real *xp, const gvs_real *fp, int
     return ((fp[i] - fp[i - 1]) / (xp[i] - xp[i - 1])) * (x - xp[i - 1]) + fp[i - 1];
 }
 
-static gvs_real cooler_heat(const gvs_tables *tb, const gvs_vehicle *veh, gvs_real T_oil, gvs_real w_ls,
-                            gvs_real w_eng, gvs_real T_cool, gvs_real T_amb, gvs_real v_kmh, gvs_real mcp,
-                            gvs_real *hA_out)
+/* the cooler's operating point: what depends on the speeds and the air, not on the oil temperature (the powers,
+ * computed once per step for both copies) */
+typedef struct {
+    gvs_real hA, T_air;                 /* [W/K], the air at the cooler [degC] (air coolers) */
+    gvs_real T_cool;                    /* the coolant [degC] (liquid coolers) */
+    gvs_real cap;                       /* the oil stream's m cp [W/K], 0 without flow */
+} cooler_op_t;
+
+static void cooler_op(const gvs_tables *tb, const gvs_vehicle *veh, gvs_real w_ls, gvs_real w_eng, gvs_real T_cool,
+                      gvs_real T_amb, gvs_real v_kmh, gvs_real mcp, cooler_op_t *op)
 {
-    gvs_real cap = mcp > R_(0.0) ? mcp : R_(0.0), inner, hA, Q;
-    if (tb->cooler_code == 0) return R_(0.0);
+    gvs_real inner;
+    op->cap = mcp > R_(0.0) ? mcp : R_(0.0);
+    op->T_cool = T_cool;
+    op->hA = op->T_air = R_(0.0);
+    if (tb->cooler_code == 0) return;
     if (v_kmh != v_kmh) v_kmh = tb->default_vkmh;
     inner = POW(w_ls / tb->ref_ls_speed, tb->exp_inner);
-    if (tb->cooler_code == 1) {                              /* liquid: can heat the oil, no thermostat */
+    if (tb->cooler_code == 1) {
         gvs_real outer = POW(max_r(w_eng, R_(0.0)) / tb->ref_engine_speed, tb->exp_outer);
-        hA = tb->liquid_hA_ref * inner * outer * veh->cooler_scale;
-        Q = clip_r(hA * (T_oil - T_cool), -tb->liquid_Qmax_heat, tb->liquid_Qmax_cool);        /* Eq 83 */
-    } else {                                                 /* air, behind a thermostat (Eq 82 coupled) */
+        op->hA = tb->liquid_hA_ref * inner * outer * veh->cooler_scale;
+    } else {
         gvs_real fmin = tb->air_flow_min_frac;
         gvs_real rel = min_r(max_r(v_kmh, R_(0.0)) / tb->air_ref_speed_kmh, tb->air_flow_max_rel);
-        gvs_real T_air = T_amb + interp_r(max_r(v_kmh, R_(0.0)), tb->recirc_v_kmh, tb->recirc_dT_k, tb->n_recirc);
+        op->T_air = T_amb + interp_r(max_r(v_kmh, R_(0.0)), tb->recirc_v_kmh, tb->recirc_dT_k, tb->n_recirc);
+        op->hA = tb->air_hA_ref * inner * POW(fmin + (R_(1.0) - fmin) * rel, tb->exp_outer) * veh->cooler_scale;
+    }
+}
+
+/* the heat the cooler takes from oil at T_oil [W] */
+static gvs_real cooler_heat(const gvs_tables *tb, const gvs_vehicle *veh, const cooler_op_t *op, gvs_real T_oil)
+{
+    gvs_real cap = op->cap, hA = op->hA, Q;
+    if (tb->cooler_code == 0) return R_(0.0);
+    if (tb->cooler_code == 1) {                              /* liquid: can heat the oil, no thermostat */
+        Q = clip_r(hA * (T_oil - op->T_cool), -tb->liquid_Qmax_heat, tb->liquid_Qmax_cool);     /* Eq 83 */
+    } else {                                                 /* air, behind a thermostat (Eq 82 coupled) */
         gvs_real T_open = tb->thermostat_open_c + veh->thermostat_offset_c;
         gvs_real T_full = tb->thermostat_full_c + veh->thermostat_offset_c;
         gvs_real a, D, q_lin, q;
-        hA = tb->air_hA_ref * inner * POW(fmin + (R_(1.0) - fmin) * rel, tb->exp_outer) * veh->cooler_scale;
-        a = hA * max_r(T_oil - T_air, R_(0.0));
+        a = hA * max_r(T_oil - op->T_air, R_(0.0));
         D = T_full - T_open;
         q_lin = a * (T_oil - T_open) / (D + a / (cap > R_(0.0) ? cap : R_(1.0)));
         q = min_r(clip_r(q_lin, R_(0.0), a), tb->air_Qmax_cool);
         Q = (cap > R_(0.0) && a > R_(0.0)) ? q : R_(0.0);
     }
-    if (hA_out) *hA_out = hA;
     return cap > R_(0.0) ? Q : R_(0.0);
 }
 
@@ -423,9 +442,10 @@ typedef struct {
 static void network_step(const gvs_tables *tb, const gvs_vehicle *veh, gvs_state *st, const check_t *c,
                          double oil_raw, net_t *nt)
 {
-    gvs_real q[GVS_MAX_NODES], rate[GVS_MAX_NODES], delivered[GVS_MAX_SRC], (*T)[GVS_MAX_NODES] = st->T_c;
+    gvs_real rate[2][GVS_MAX_NODES], delivered[GVS_MAX_SRC], (*T)[GVS_MAX_NODES] = st->T_c;
     gvs_real w = c->used[GVS_I_SPEED] * tb->rad_s_per_rpm, torque = FABS(c->used[GVS_I_TORQUE]);
     gvs_real retarder_w, w_ls, mcp;
+    cooler_op_t cop;
     oil_row_t o;
     int32_t i, k, cp;
     nt->omega_in = w;
@@ -444,8 +464,9 @@ static void network_step(const gvs_tables *tb, const gvs_vehicle *veh, gvs_state
         delivered[i] = nt->src[i] - tb->lag_tau_over_dt * (y - st->lag_w[i]);
         st->lag_w[i] = y;
     }
-    for (i = 0; i < tb->n; ++i) q[i] = R_(0.0);
-    for (k = 0; k < tb->nsrc_nz; ++k) q[tb->src_nz_node[k]] += delivered[tb->src_nz_src[k]] * tb->src_nz_w[k];
+    for (i = 0; i < tb->n; ++i) rate[MAIN][i] = R_(0.0);       /* the heat into each node, both copies' rates from it */
+    for (k = 0; k < tb->nsrc_nz; ++k)
+        rate[MAIN][tb->src_nz_node[k]] += delivered[tb->src_nz_src[k]] * tb->src_nz_w[k];
     /* conductances at the centre of the operating point's bin: 1 % in speed, 0.5 K in oil */
     {
         gvs_real w_q = speed_bin_centre(tb, w), T_q = RINT(nt->T_oil_main / tb->oil_bin_c) * tb->oil_bin_c;
@@ -462,31 +483,46 @@ static void network_step(const gvs_tables *tb, const gvs_vehicle *veh, gvs_state
     w_ls = FABS(tb->speed_coef[nt->row * tb->n_speed + 1]) * w;
     nt->rho_cp = o.prop[P_RHO] * o.prop[P_CP];
     mcp = nt->rho_cp * tb->flow_m3_per_rad * w_ls;
+    cooler_op(tb, veh, w_ls, w, c->used[GVS_I_COOL], c->used[GVS_I_AMB], c->used[GVS_I_VKMH], mcp, &cop);
     for (cp = 0; cp < 2; ++cp) {
-        nt->Q_cool[cp] = cooler_heat(tb, veh, T[cp][tb->i_oil], w_ls, w, c->used[GVS_I_COOL], c->used[GVS_I_AMB],
-                                     c->used[GVS_I_VKMH], mcp, NULL);
+        nt->Q_cool[cp] = cooler_heat(tb, veh, &cop, T[cp][tb->i_oil]);
         nt->dT_in[cp] = inlet_drop_k(tb, nt->Q_cool[cp], mcp);
     }
-    /* one explicit (forward Euler) step of both copies */
-    for (cp = 0; cp < 2; ++cp) {
-        for (i = 0; i < tb->n; ++i) rate[i] = q[i];
+    /* one explicit (forward Euler) step of both copies, side by side: two independent chains of updates (each
+     * copy's sums in the same order as one copy at a time) */
+    {
+        gvs_real *T0 = T[MAIN], *T1 = T[TWIN], *r0 = rate[MAIN], *r1 = rate[TWIN];
+        gvs_real d0 = nt->dT_in[MAIN], d1 = nt->dT_in[TWIN];
+        for (i = 0; i < tb->n; ++i) r1[i] = r0[i];
         for (k = 0; k < tb->nst; ++k) {
-            gvs_real f = nt->Gs[k] * nt->dT_in[cp];
-            rate[tb->stream_node[k]] -= f;
-            rate[tb->i_oil] += f;
+            int32_t s = tb->stream_node[k];
+            gvs_real f0 = nt->Gs[k] * d0, f1 = nt->Gs[k] * d1;
+            r0[s] -= f0;
+            r0[tb->i_oil] += f0;
+            r1[s] -= f1;
+            r1[tb->i_oil] += f1;
         }
-        rate[tb->i_oil] -= nt->Q_cool[cp];
+        r0[tb->i_oil] -= nt->Q_cool[MAIN];
+        r1[tb->i_oil] -= nt->Q_cool[TWIN];
         for (k = 0; k < tb->nl; ++k) {
             int32_t a = tb->link_a[k], b = tb->link_b[k];
+            gvs_real g = nt->G[k];
             if (b < tb->n) {
-                gvs_real f = nt->G[k] * (T[cp][a] - T[cp][b]);      /* heat from a to b */
-                rate[a] -= f;
-                rate[b] += f;
+                gvs_real f0 = g * (T0[a] - T0[b]), f1 = g * (T1[a] - T1[b]);      /* heat from a to b */
+                r0[a] -= f0;
+                r1[a] -= f1;
+                r0[b] += f0;
+                r1[b] += f1;
             } else {
-                rate[a] -= nt->G[k] * (T[cp][a] - nt->T_bc[b - tb->n]);
+                gvs_real Tb = nt->T_bc[b - tb->n];
+                r0[a] -= g * (T0[a] - Tb);
+                r1[a] -= g * (T1[a] - Tb);
             }
         }
-        for (i = 0; i < tb->n; ++i) T[cp][i] += tb->dt_over_C[i] * rate[i];
+        for (i = 0; i < tb->n; ++i) {
+            T0[i] += tb->dt_over_C[i] * r0[i];
+            T1[i] += tb->dt_over_C[i] * r1[i];
+        }
     }
     if (c->measured) T[MAIN][tb->i_oil] = (gvs_real)oil_raw;
 }
@@ -591,8 +627,11 @@ static void ldl_solve(const gvs_tables *tb, const gvs_real *S, gvs_real *x)
     for (k = 0; k < n; ++k)
         for (e = tb->ldl_col_ptr[k]; e < tb->ldl_col_ptr[k + 1]; ++e) y[tb->ldl_row[e]] -= S[n + e] * y[k];
     for (k = 0; k < n; ++k) y[k] *= S[k];          /* D^-1 */
-    for (k = n - 1; k >= 0; --k)
-        for (e = tb->ldl_col_ptr[k]; e < tb->ldl_col_ptr[k + 1]; ++e) y[k] -= S[n + e] * y[tb->ldl_row[e]];
+    for (k = n - 1; k >= 0; --k) {
+        gvs_real acc = y[k];                       /* in a register: no store-to-load chain through y[k] */
+        for (e = tb->ldl_col_ptr[k]; e < tb->ldl_col_ptr[k + 1]; ++e) acc -= S[n + e] * y[tb->ldl_row[e]];
+        y[k] = acc;
+    }
     for (k = 0; k < n; ++k) x[tb->ldl_perm[k]] = y[k];
 }
 
@@ -659,18 +698,18 @@ static void held_apply(const gvs_tables *tb, const held_t *hs, const gvs_real *e
  * difference */
 static gvs_real cooler_slope(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl_point *p, gvs_real T)
 {
-    gvs_real w_ls = FABS(tb->speed_coef[p->row * tb->n_speed + 1]) * p->omega_in_rad_s, hA, Q, Q_hi, Q_lo;
+    gvs_real w_ls = FABS(tb->speed_coef[p->row * tb->n_speed + 1]) * p->omega_in_rad_s, Q, Q_hi, Q_lo;
     gvs_real mcp = p->rho_cp_j_per_m3k * tb->flow_m3_per_rad * w_ls;
     const gvs_real *u = p->used;
+    cooler_op_t op;
     if (tb->cooler_code == 0 || !(w_ls > R_(0.0))) return R_(0.0);
+    cooler_op(tb, veh, w_ls, p->omega_in_rad_s, u[GVS_I_COOL], u[GVS_I_AMB], u[GVS_I_VKMH], mcp, &op);
     if (tb->cooler_code == 1) {
-        Q = cooler_heat(tb, veh, T, w_ls, p->omega_in_rad_s, u[GVS_I_COOL], u[GVS_I_AMB], u[GVS_I_VKMH], mcp, &hA);
-        return (-tb->liquid_Qmax_heat < Q && Q < tb->liquid_Qmax_cool) ? hA : R_(0.0);
+        Q = cooler_heat(tb, veh, &op, T);
+        return (-tb->liquid_Qmax_heat < Q && Q < tb->liquid_Qmax_cool) ? op.hA : R_(0.0);
     }
-    Q_hi = cooler_heat(tb, veh, T + R_(0.05), w_ls, p->omega_in_rad_s, u[GVS_I_COOL], u[GVS_I_AMB], u[GVS_I_VKMH],
-                       mcp, NULL);
-    Q_lo = cooler_heat(tb, veh, T - R_(0.05), w_ls, p->omega_in_rad_s, u[GVS_I_COOL], u[GVS_I_AMB], u[GVS_I_VKMH],
-                       mcp, NULL);
+    Q_hi = cooler_heat(tb, veh, &op, T + R_(0.05));
+    Q_lo = cooler_heat(tb, veh, &op, T - R_(0.05));
     return max_r((Q_hi - Q_lo) / R_(0.1), R_(0.0));
 }
 
