@@ -307,13 +307,15 @@ def residuals(base: Baseline, verdict: Verdict, crit: Criterion, combo=None) -> 
     return Residuals(res_tr0, [y - p for y, p in zip(obs_tr, p_tr)], res_te0, [y - p for y, p in zip(obs_te, p_te)])
 
 
-def test_gap_c(base: Baseline, res: Residuals) -> dict:
-    """Per channel: the RMS of the test files' baseline residual with the measurement noise removed."""
+def test_gap_c(base: Baseline, res: Residuals, after: bool = False) -> dict:
+    """Per channel: the RMS of the test files' residual with the measurement noise removed: the baseline's, or
+    (``after``) the verdict's."""
     acc = {}
     k = 0
+    resid = res.test_after if after else res.test_before
     for ds in base.test.datasets:
         for cid, ch in ds.channels.items():
-            r = res.test_before[k]
+            r = resid[k]
             k += 1
             a = acc.setdefault(cid, [0.0, 0.0, 0])
             a[0] += float(np.sum(r ** 2))
@@ -326,13 +328,24 @@ def held_out_check(ctx: Context, base: Baseline, v: Verdict, res: Residuals, whe
     """An effect that shrinks a real held-out gap by less than ``shrink_min`` is not the explanation: the verdict
     becomes "unexplained", pointing at the assumed values (model-form error) and at calibration. Where the test files
     hold no real gap (systematic residual within the gap threshold), there is nothing to shrink and the verdict
-    stands."""
+    stands. Where the gap is real but small beside the noise, the RMS shrinks little even when the effect removes the
+    whole gap: the verdict stands when the effect leaves no channel's systematic residual above its threshold and
+    shrinks the systematic part (the noise removed) by ``shrink_min`` or more."""
     if not v.is_effect or res.shrink >= ctx.opts.shrink_min:
         return v
     gap = test_gap_c(base, res)
     real = [c for c in gap if c in v.gap_thr_c and gap[c] > v.gap_thr_c[c]]
     if not real:
         return v
+    left = test_gap_c(base, res, after=True)
+    chans = [c for c in gap if c in v.gap_thr_c]
+    gap_shrink = 1.0 - math.hypot(*(left[c] for c in chans)) / math.hypot(*(gap[c] for c in chans))
+    if all(left[c] <= v.gap_thr_c[c] for c in chans) and gap_shrink >= ctx.opts.shrink_min:
+        note = ("" if v.reason.rstrip().endswith(".") else ".") + (
+            f" On the held-out files the RMS shrinks by only {100 * res.shrink:.0f} % because their gap is small beside "
+            f"the noise; the effect removes {100 * gap_shrink:.0f} % of the gap itself (the noise removed) and leaves no "
+            f"channel above its threshold ({_listing(left, v.gap_thr_c, '<=', chans)}).")
+        return Verdict(v.effect, v.reason + note, v.systematic, v.gap_thr_c, v.post_c)
     top = ", ".join(f"{w['channel']} in {w['regime']} ({100 * w['share']:.0f} %)" for w in where[:3])
     reason = (f"the best candidate {v.effect} fits the training files but shrinks the held-out residual by only "
               f"{100 * res.shrink:.0f} % (< {100 * ctx.opts.shrink_min:.0f} %) although the test files show a real gap "
