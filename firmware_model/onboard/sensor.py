@@ -99,15 +99,15 @@ class VirtualSensor:
 
     def initial_state(self, T_oil_c=None, snapshot=None, elapsed_s: float = 0.0, n_vehicles: int | None = None,
                       ambient_c: float | None = None) -> SensorState:
-        """Start: every node at the measured oil temperature (NaN/None: ``options.initial_temp_c``, else the ambient
-        boundary), or from a snapshot (a SensorState, or the bytes/str/dict of :meth:`snapshot`) cooled down for
+        """Start: every node at the measured oil temperature (NaN/None, or a reading outside the oil input's plausible
+        range, which the step rejects too: ``options.initial_temp_c``, else the ambient boundary), or from a snapshot (a SensorState, or the bytes/str/dict of :meth:`snapshot`) cooled down for
         ``elapsed_s`` with the engine off. With both a snapshot and a measured oil: the measurement wins when the
         cooled snapshot's sump is more than 10 K off (then every node starts at it), else it replaces the sump."""
         if snapshot is not None:
             return self._restored_state(decode_snapshot(snapshot, self.reduced), T_oil_c, elapsed_s, ambient_c)
         rp = self.reduced
         B = () if n_vehicles is None else (int(n_vehicles),)
-        T0 = np.asarray(np.nan if T_oil_c is None else T_oil_c, dtype=float)
+        T0 = self._plausible_oil_c(T_oil_c)
         default = self.options.initial_temp_c
         if default is None:
             default = float(rp.bc_default_c[rp.i_ambient]) if ambient_c is None else float(ambient_c)
@@ -122,6 +122,12 @@ class VirtualSensor:
             level=np.zeros(B + (N_PUB,), dtype=np.int8), pending_s=np.zeros(B + (N_PUB,)),
             ttl_s=np.full(B + (N_PUB,), np.nan), t_last_s=np.full(B, np.nan), k=np.zeros(B, dtype=np.int64),
             rejects=np.zeros(B + (N_REJECT,), dtype=np.int64))
+
+    def _plausible_oil_c(self, T_oil_c) -> np.ndarray:
+        """An oil reading to start from as an array, NaN where absent or outside the oil input's plausible range (a
+        start at 1e308 or below absolute zero would put every node there)."""
+        T = np.asarray(np.nan if T_oil_c is None else T_oil_c, dtype=float)
+        return np.where((T >= self.sp.input_lo[I_OIL]) & (T <= self.sp.input_hi[I_OIL]), T, np.nan)
 
     def _restored_state(self, st: SensorState, T_oil_c, elapsed_s: float, ambient_c) -> SensorState:
         """A restored snapshot cooled down for ``elapsed_s`` (engine off), the measured oil applied (see
@@ -138,8 +144,9 @@ class VirtualSensor:
                 bc[rp.i_ambient] = amb
                 for c in (MAIN, TWIN):
                     T[v + (c,)] = cool_down(self.sp, self.cache, T[v + (c,)], float(elapsed_s), amb, bc)
-        if T_oil_c is not None and np.all(np.isfinite(np.asarray(T_oil_c, dtype=float))):
-            meas = np.broadcast_to(np.asarray(T_oil_c, dtype=float), T.shape[:-2])
+        T_oil_c = self._plausible_oil_c(T_oil_c)
+        if np.all(np.isfinite(T_oil_c)):
+            meas = np.broadcast_to(T_oil_c, T.shape[:-2])
             off = np.abs(T[..., MAIN, rp.i_oil] - meas) > 10.0
             T = np.where(off[..., None, None], meas[..., None, None], T)
             T[..., :, rp.i_oil] = meas[..., None]

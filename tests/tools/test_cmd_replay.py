@@ -132,3 +132,26 @@ def test_the_summary_names_the_component_closest_to_its_own_limit(tmp_path, caps
     assert "aux_missing" not in rejects
     assert not np.any(np.isfinite(est["ambient_temp_c"]))       # the table gave only the required columns
     assert "auxiliary inputs not given" in rejects and "defaults used" in rejects
+
+
+@pytest.mark.parametrize("oil0", [1e308, 1000.0, -300.0])
+def test_an_implausible_first_oil_reading_is_not_the_start(sensor, oil0):
+    """Every node starts at the first oil reading, unless that reading is outside the oil input's plausible range
+    (-40..200 degC), which the step rejects too: then the documented default start (a first row of 1e308 crashed the
+    compiled core, 1000 degC put every node there)."""
+    oil = 80.0 + np.zeros(600)
+    oil[0] = oil0
+    out = replay_table(_table(oil_temp_c=oil), sensor)
+    assert out["rejects_oil_implausible"][-1] >= 1
+    for c in PUBLISHED:
+        T = out[f"T_{c}_c"]
+        assert np.all(np.isfinite(T)) and T.min() > -40.0 and T.max() < 130.0, c
+
+
+def test_an_output_on_the_input_is_refused(tmp_path, capsys):
+    src = write_run_table(_table(), tmp_path / "run.csv")
+    before = src.read_bytes()
+    assert main(["replay", str(src), "--out", str(src), "--quiet"]) == 2
+    assert "destroy that input" in capsys.readouterr().err and src.read_bytes() == before
+    assert main(["replay", str(src), "--out", str(tmp_path / "e.csv"), "--plot", str(tmp_path / "e.txt")]) == 2
+    assert "figure" in capsys.readouterr().err and not (tmp_path / "e.csv").exists()

@@ -270,8 +270,12 @@ class ReferencePlant:
         meta = getattr(table, "meta", {}) or {}
         if initial_temp_c is None:
             initial_temp_c = meta.get("initial_temp_c")
+        if initial_temp_c is not None:
+            oilprops.check_temperature_c("the run table's initial_temp_c", initial_temp_c)
         if initial_temp_c is None and table.has("oil_temp_c") and np.isfinite(table["oil_temp_c"][0]):
-            initial_temp_c = float(table["oil_temp_c"][0])
+            # the start: every node at the first oil reading (the oil model's range, as --initial-temp)
+            initial_temp_c = oilprops.check_temperature_c("column oil_temp_c row 1 (the start temperature):",
+                                                          float(table["oil_temp_c"][0]))
         if initial_temp_c is None:
             initial_temp_c = self.p["boundary.initial"]
         if hold_oil_c is None:
@@ -289,12 +293,14 @@ class ReferencePlant:
             ok = np.isfinite(oil_meas)
             if ok.sum() < 2:
                 raise InputError("cooler 'measured': column oil_temp_c has fewer than two valid values")
+            _check_range("oil_temp_c", oil_meas, ok, oilprops.T_MIN_C, oilprops.T_MAX_C)
             oil_meas = np.interp(t, t[ok], oil_meas[ok])
         bc_c = {}
         for col, b in BC_COLUMNS.items():
             if table.has(col):
                 v = np.asarray(table[col], dtype=float)
                 ok = np.isfinite(v)
+                _check_range(col, v, ok, *BC_RANGE_C)
                 if ok.any():
                     bc_c[BOUNDARIES.index(b)] = np.interp(t, t[ok], v[ok]) + (
                         self.scales.hot_offset_c if b == "hot_surroundings" else 0.0)
@@ -503,6 +509,18 @@ def _shift_target(g_from: int, g_to: int, inverted: bool):
     if b.range != a.range and a.range is not None:
         return "shift:PR"
     return None
+
+
+#: a boundary temperature column's plausible range [degC] (as the [boundary] keys of a configuration)
+BC_RANGE_C = (-60.0, 250.0)
+
+
+def _check_range(col: str, v: np.ndarray, ok: np.ndarray, lo: float, hi: float) -> None:
+    """InputError naming the first row of column ``col`` whose finite value lies outside lo..hi."""
+    bad = ok & ((v < lo) | (v > hi))
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        raise InputError(f"column {col} row {i + 1}: {v[i]:g} degC is outside {lo:g}..{hi:g} degC")
 
 
 def _validate_inputs(t, spd, trq, gear, p: Parameters):

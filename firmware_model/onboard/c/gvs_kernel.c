@@ -90,8 +90,10 @@ static void oil_row(const gvs_tables *tb, gvs_real T_c, oil_row_t *o, gvs_real *
 {
     gvs_real T_hi = tb->T_grid0_c + tb->T_grid_step_k * (gvs_real)(tb->nT - 1);
     gvs_real x = (clip_r(T_c, tb->T_grid0_c, T_hi) - tb->T_grid0_c) / tb->T_grid_step_k;
-    int32_t i = (int32_t)x, j;
+    int32_t i, j;
     gvs_real f;
+    if (x != x) x = R_(0.0);        /* a NaN temperature (a corrupt state) must not become an index */
+    i = (int32_t)x;
     if (i > tb->nT - 2) i = tb->nT - 2;
     f = x - (gvs_real)i;
     o->x = x;
