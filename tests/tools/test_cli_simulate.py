@@ -86,3 +86,37 @@ def test_churning_validity_is_not_a_note_on_every_run(tmp_path, capsys):
     assert main(["simulate", "--cycle", "steady:gear=4L,rpm=1300,nm=2000,s=120", "--out",
                  str(tmp_path / "s.csv")]) == 0
     assert "churning" not in capsys.readouterr().err
+
+
+def test_an_output_on_an_input_or_on_another_output_is_refused(tmp_path, capsys):
+    cyc = _cycle(tmp_path / "c.csv")
+    before = cyc.read_bytes()
+    assert main(["simulate", "--cycle", str(cyc), "--out", str(cyc), "--quiet"]) == 2
+    assert "destroy that input" in capsys.readouterr().err
+    assert cyc.read_bytes() == before
+    out = tmp_path / "run.csv"
+    assert main(["simulate", "--cycle", str(cyc), "--out", str(out), "--plot", str(out), "--quiet"]) == 2
+    assert "would be lost" in capsys.readouterr().err
+    assert main(["simulate", "--cycle", str(cyc), "--out", str(out), "--plot", str(tmp_path / "p.txt"),
+                 "--quiet"]) == 2
+    assert "figure" in capsys.readouterr().err
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("col, value, words", [
+    ("oil_temp_c", 1000.0, "start temperature"),        # the first oil reading is where every node starts
+    ("oil_temp_c", -300.0, "start temperature"),
+    ("bc_hot_surroundings_c", 1e6, "outside -60..250"),
+    ("ambient_temp_c", -100.0, "outside -60..250"),
+])
+def test_implausible_start_or_boundary_temperatures_are_refused(tmp_path, capsys, col, value, words):
+    t = np.arange(0.0, 120.0, 1.0)
+    cols = {"time_s": t, "engine_speed_rpm": np.full(t.size, 1300.0), "engine_torque_nm": np.full(t.size, 1500.0),
+            "gear": np.full(t.size, 9.0), col: np.full(t.size, 40.0)}
+    cols[col][0] = value
+    write_run_table(RunTable(cols), tmp_path / "c.csv")
+    out = tmp_path / "run.csv"
+    assert main(["simulate", "--cycle", str(tmp_path / "c.csv"), "--out", str(out), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert col in err and words in err and "Traceback" not in err
+    assert not out.exists()

@@ -7,6 +7,7 @@ from pathlib import Path
 
 from firmware_model.config import load_config
 from firmware_model.errors import InputError
+from tools.cli.paths import check_paths
 
 
 def add_subparser(sub):
@@ -67,10 +68,8 @@ def run(args) -> int:
         raise InputError(f"--workers {args.workers} must be at least 1")
     if Path(args.out).suffix.lower() != ".toml":
         raise InputError(f"--out {args.out} must be a .toml file")
-    outs = [Path(args.out)] + ([Path(args.report)] if args.report else [])
-    for f in args.train + args.test:
-        if any(Path(f).resolve() == o.resolve() for o in outs):
-            raise InputError(f"{f} is an input and an output; choose another --out/--report path")
+    check_paths({**{f"training file {f}": f for f in args.train}, **{f"test file {f}": f for f in args.test},
+                 "--config": args.config}, {"--out": args.out, "--report": args.report})
     keys = [k.strip() for k in (args.params or "").split(",") if k.strip()]
     n = [0]
 

@@ -9,6 +9,7 @@ from pathlib import Path
 from firmware_model.config import load_config
 from firmware_model.errors import InputError
 from tools.cli.core_option import add_core_option, apply_core
+from tools.cli.paths import check_paths
 
 
 def add_subparser(sub):
@@ -91,10 +92,8 @@ def run(args) -> int:
         raise InputError(f"--plant-dt {args.plant_dt} must be within 0.05..5 s")
     if args.workers is not None and args.workers < 1:
         raise InputError(f"--workers {args.workers} must be at least 1")
-    outs = [Path(args.json)] + ([Path(args.report)] if args.report else [])
-    for f in args.train + args.test:
-        if any(Path(f).resolve() == o.resolve() for o in outs):
-            raise InputError(f"{f} is an input and an output; choose another --json/--report path")
+    check_paths({**{f"training file {f}": f for f in args.train}, **{f"test file {f}": f for f in args.test},
+                 "--config": args.config}, {"--json": args.json, "--report": args.report})
     opts = Options(grid_dt_s=args.grid_dt, plant_dt_s=args.plant_dt, workers=args.workers)
     with progress(len(STAGES), "diagnose", enabled=False if args.quiet else None, unit="stage") as bar:
         def stage(name):

@@ -12,6 +12,7 @@ from pathlib import Path
 
 from firmware_model.errors import InputError
 from tools.cli.core_option import add_core_option, apply_core
+from tools.cli.paths import check_paths
 from tools.can.bus import add_bus_options, can_subcommand
 
 
@@ -105,6 +106,8 @@ def _refuse(given: list[str], why: str) -> None:
 def run(args) -> int:
     from tools.replay.formats import is_can_log
     path = Path(args.input)
+    check_paths({"input": args.input, "--config": args.config},
+                {"--out": args.out, "--plot": args.plot, "--frames-out": args.frames_out}, plots=("--plot",))
     if not args.realtime:
         core_line = apply_core(args)
         if not args.quiet:

@@ -10,6 +10,7 @@ from firmware_model.config import load_config
 from firmware_model.effects import CATALOG, parse_effect
 from firmware_model.errors import InputError
 from firmware_model.physics.oil import check_temperature_c
+from tools.cli.paths import check_paths
 
 
 def add_subparser(sub):
@@ -89,9 +90,9 @@ def run(args) -> int:
     for opt, value_c in (("--initial-temp", args.initial_temp), ("--hold-oil", args.hold_oil)):
         if value_c is not None:
             check_temperature_c(opt, value_c)
-    for opt, path in (("--out", args.out), ("--plot", args.plot), ("--can-log", args.can_log)):
-        if path and not Path(path).resolve().parent.is_dir():
-            raise InputError(f"{opt} {path}: the directory {Path(path).resolve().parent} does not exist")
+    cycle_file = args.cycle if Path(args.cycle).is_file() else None
+    check_paths({"--cycle": cycle_file, "--config": args.config},
+                {"--out": args.out, "--plot": args.plot, "--can-log": args.can_log}, plots=("--plot",))
     table = get_cycle(args.cycle, rate_hz=args.rate, noise=args.noise, seed=args.seed)
     plant = ReferencePlant(params, effects, cooler=args.cooler or cfg.cooler, dt_s=args.dt)
     res = plant.run(table, initial_temp_c=args.initial_temp, hold_oil_c=args.hold_oil, out_dt_s=args.out_dt,

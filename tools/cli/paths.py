@@ -1,0 +1,39 @@
+"""The files a command reads and writes, checked before any work: an output that is also an input (it would be
+destroyed before or after it is read), two outputs on one file (one silently lost), an output whose directory does
+not exist or that is a directory, a plot in a format matplotlib cannot write. Each is one sentence (InputError),
+raised before anything is written."""
+from __future__ import annotations
+
+from pathlib import Path
+
+from firmware_model.errors import InputError
+
+#: the figure formats the plots are written in (matplotlib's raster and vector backends)
+PLOT_SUFFIXES = (".png", ".pdf", ".svg", ".jpg", ".jpeg", ".eps", ".ps", ".tif", ".tiff")
+
+
+def check_paths(inputs: dict, outputs: dict, plots: tuple = ()) -> None:
+    """``inputs`` and ``outputs``: {option or role: path or None (not given)}; ``plots``: the output options that
+    are figures. Raises InputError naming the option and the file."""
+    ins = {opt: Path(p).resolve() for opt, p in inputs.items() if p}
+    seen: dict = {}
+    for opt, p in outputs.items():
+        if not p:
+            continue
+        path = Path(p)
+        full = path.resolve()
+        for in_opt, in_path in ins.items():
+            if full == in_path:
+                raise InputError(f"{opt} {p} is also the {in_opt}: writing it would destroy that input; choose "
+                                 f"another path")
+        if full in seen:
+            raise InputError(f"{opt} {p} is also {seen[full]}: one of the two outputs would be lost; choose another "
+                             f"path")
+        seen[full] = opt
+        if full.is_dir():
+            raise InputError(f"{opt} {p} is a directory, not a file")
+        if not full.parent.is_dir():
+            raise InputError(f"{opt} {p}: the directory {full.parent} does not exist")
+        if opt in plots and path.suffix.lower() not in PLOT_SUFFIXES:
+            raise InputError(f"{opt} {p}: a figure is written as {', '.join(s[1:] for s in PLOT_SUFFIXES)}, not "
+                             f"{path.suffix or 'a file without an extension'}")
