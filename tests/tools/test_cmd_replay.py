@@ -155,3 +155,18 @@ def test_an_output_on_the_input_is_refused(tmp_path, capsys):
     assert "destroy that input" in capsys.readouterr().err and src.read_bytes() == before
     assert main(["replay", str(src), "--out", str(tmp_path / "e.csv"), "--plot", str(tmp_path / "e.txt")]) == 2
     assert "figure" in capsys.readouterr().err and not (tmp_path / "e.csv").exists()
+
+
+def test_a_table_sampled_more_sparsely_than_the_hold_gap_is_replayed_whole(sensor):
+    """Rows every 1 s for 10 s, then every 6 s to 598 s: each 6 s gap is a time jump (longer than the 5 s hold), and
+    each row alone between two jumps is one step. Before, those rows gave no step: the replay stopped at 10 s without
+    a word, and a table with every row 6 s apart had "no rows"."""
+    t = np.concatenate([np.arange(0.0, 10.0, 1.0), np.arange(10.0, 599.0, 6.0)])
+    tab = RunTable({"time_s": t, "engine_speed_rpm": np.full(t.size, 1300.0),
+                    "engine_torque_nm": np.full(t.size, 1500.0), "gear": np.full(t.size, 9.0),
+                    "oil_temp_c": 60.0 + 0.01 * t})
+    out = replay_table(tab, sensor)
+    assert out["time_s"][-1] == pytest.approx(t[-1] + 0.1)
+    assert out.n == 100 + (t.size - 11) and out["rejects_time_jump"][-1] == t.size - 11   # 0..10 s: 100 steps
+    sparse = replay_table(RunTable({k: tab[k][10:] for k in tab.columns}), sensor)
+    assert sparse.n == t.size - 10

@@ -99,7 +99,8 @@ def table_steps(table, dt_s: float = STEP_S) -> tuple[np.ndarray, np.ndarray]:
     """``(t_s (N,), inputs (N, 8))``: the sensor's per-step frame times and inputs (INPUT_FIELDS order) from a run
     table, vectorised: every step of the 0.1 s grid from the first row, values held from the last row at or before
     the step's start (an absent column is NaN). A gap longer than MAX_HOLD_GAP_S between rows is a time jump: no
-    steps inside it, the next step carries the jump in its time."""
+    steps inside it, the next step carries the jump in its time. A row alone between two jumps (a table sampled
+    more sparsely than MAX_HOLD_GAP_S) is one step, not dropped."""
     t_s = np.asarray(table["time_s"], dtype=float)
     if t_s.size == 0:
         return np.zeros(0), np.zeros((0, len(_sensor_inputs())))
@@ -110,9 +111,7 @@ def table_steps(table, dt_s: float = STEP_S) -> tuple[np.ndarray, np.ndarray]:
     data = np.stack(cols, axis=1)
     ends, rows = [], []
     for first_s, last_s in _segments(t_s):
-        n = int(math.floor((last_s - first_s) / dt_s + 1e-9))
-        if n <= 0:
-            continue
+        n = max(1, int(math.floor((last_s - first_s) / dt_s + 1e-9)))
         starts_s = first_s + dt_s * np.arange(n)
         rows.append(np.clip(np.searchsorted(t_s, starts_s + 1e-9, side="right") - 1, 0, t_s.size - 1))
         ends.append(starts_s + dt_s)
