@@ -62,6 +62,32 @@ class Config:
         return p
 
 
+#: the type of each [gearbox] and [sensor] key: a string, or a number with its range (the [boundary] keys are
+#: checked below, [can] by the CAN configuration)
+KEY_TYPES = {
+    "gearbox.variant": str, "gearbox.params": str, "sensor.oil_mode": str, "sensor.limits": str,
+    "sensor.debounce_s": (0.0, 60.0), "sensor.hysteresis_c": (0.0, 50.0),
+}
+
+
+def _check_types(doc: dict, name: str) -> None:
+    """ParameterError naming the key whose value has the wrong type (a number as a string, a list...), and for
+    variant and params given together."""
+    for key, kind in KEY_TYPES.items():
+        sec, k = key.split(".")
+        if k not in doc.get(sec, {}):
+            continue
+        v = doc[sec][k]
+        if kind is str and not isinstance(v, str):
+            raise ParameterError(f"config {name}: {key} = {v!r} must be a string in quotes")
+        if isinstance(kind, tuple) and (isinstance(v, bool) or not isinstance(v, (int, float))
+                                        or not kind[0] <= v <= kind[1]):
+            raise ParameterError(f"config {name}: {key} = {v!r} must be a number in {kind[0]:g}..{kind[1]:g}")
+    if {"variant", "params"} <= set(doc.get("gearbox", {})):
+        raise ParameterError(f"config {name}: give gearbox.variant or gearbox.params, not both (params is a whole "
+                             f"parameter file, variant a built-in one)")
+
+
 def load_config(path: str | Path | None) -> Config:
     if path is None:
         return Config()
@@ -75,6 +101,7 @@ def load_config(path: str | Path | None) -> Config:
         for k in body:
             if k not in ALLOWED[sec]:
                 raise ParameterError(f"config {path.name}: unknown key {sec}.{k}; known: {', '.join(sorted(ALLOWED[sec]))}")
+    _check_types(doc, path.name)
     g = doc.get("gearbox", {})
     params = g.get("params")
     if params is not None and not Path(params).is_absolute():

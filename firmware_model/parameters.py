@@ -175,6 +175,10 @@ def read_toml(path: str | Path, label: str, label_invalid: str | None = None) ->
         raise ParameterError(f"{label} does not exist") from None
     except tomllib.TOMLDecodeError as exc:
         raise ParameterError(f"{label_invalid or label} is not valid TOML: {exc}") from None
+    except UnicodeDecodeError:
+        raise ParameterError(f"{label_invalid or label} is not valid TOML: not UTF-8 text") from None
+    except IsADirectoryError:
+        raise ParameterError(f"{label} is a directory, not a file") from None
 
 
 def _renamed(entries: dict, path: Path) -> dict:

@@ -120,3 +120,23 @@ def test_implausible_start_or_boundary_temperatures_are_refused(tmp_path, capsys
     err = capsys.readouterr().err
     assert col in err and words in err and "Traceback" not in err
     assert not out.exists()
+
+
+@pytest.mark.parametrize("body, words", [
+    ('[gearbox]\nvariant = 905\n', "gearbox.variant = 905 must be a string"),
+    ('[gearbox]\nparams = ["a"]\n', "gearbox.params"),
+    ('[sensor]\nlimits = 5\n', "sensor.limits = 5 must be a string"),
+    ('[sensor]\ndebounce_s = "x"\n', "sensor.debounce_s"),
+    ('[sensor]\nhysteresis_c = "3"\n', "sensor.hysteresis_c"),         # a number in quotes passed silently
+    ('[gearbox]\nvariant = "GRS905"\nparams = "x.toml"\n', "not both"),
+    (b"\xff\xfe\x00garbage", "not UTF-8"),
+])
+def test_a_config_value_of_the_wrong_type_is_one_sentence(tmp_path, capsys, body, words):
+    """From a bad-input audit: these gave TypeError, ValueError or UnicodeDecodeError tracebacks."""
+    cfg = tmp_path / "c.toml"
+    cfg.write_bytes(body if isinstance(body, bytes) else body.encode())
+    out = tmp_path / "run.csv"
+    assert main(["simulate", "--cycle", str(_cycle(tmp_path / "cyc.csv")), "--out", str(out), "--config", str(cfg),
+                 "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert words in err and "Traceback" not in err and not out.exists()
