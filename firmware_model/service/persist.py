@@ -119,6 +119,7 @@ class HealthFile:
         self.clock = clock
         self.started_s = clock()
         self.last_write_s: float | None = None
+        self.errors = 0                       # writes that failed (the first is logged)
 
     def maybe_write(self, service, store: StateStore | None = None, bus_events: dict | None = None) -> bool:
         now = self.clock()
@@ -137,7 +138,13 @@ class HealthFile:
                "bus": bus_events or {}}
         try:
             atomic_write(self.path, json.dumps(doc, default=str).encode("utf-8"))
-        except OSError:
+        except OSError as exc:
+            # not fatal to the sensor, but said: `status` would otherwise report a service that is not running
+            self.errors += 1
+            if self.errors == 1:
+                log.warning("cannot write the health file %s: %s (further errors counted, not logged; `status` "
+                            "will not see this service)", self.path, exc)
+            self.last_write_s = now           # retried after a period, not at every step
             return False
         self.last_write_s = now
         return True

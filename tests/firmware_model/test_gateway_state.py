@@ -129,6 +129,10 @@ def test_health_file_and_status_command(params, tmp_path, capsys):
     assert main(["status", "--health-file", str(tmp_path / "health.json")]) == 1
     assert "NOT RUNNING" in capsys.readouterr().out
     assert main(["status", "--health-file", str(tmp_path / "missing.json")]) == 2
+    for field, bad in (("uptime_s", "long"), ("written_wall_s", None), ("decoder", "x")):   # damaged by hand
+        (tmp_path / "bad.json").write_text(json.dumps({**doc, field: bad}))
+        assert main(["status", "--health-file", str(tmp_path / "bad.json")]) == 2, field
+        assert "not a gearbox-vsensor health file" in capsys.readouterr().err
 
 
 def test_sd_notify_reaches_a_notify_socket(tmp_path, monkeypatch):
@@ -153,3 +157,15 @@ def test_service_unit_passes_systemd_analyze_verify(tmp_path):
     text = unit.read_text()
     for key in ("Type=notify", "WatchdogSec=", "Restart=on-failure", "DynamicUser=yes", "CapabilityBoundingSet="):
         assert key in text
+
+
+def test_a_health_file_that_cannot_be_written_is_said_once(params, tmp_path, caplog):
+    """From a bad-input audit: a health file on a read-only file system was skipped without a word, and `status`
+    then reported a service that was not running."""
+    svc = _service(params)
+    _drive(svc, 0.0, 2.0)
+    health = HealthFile(tmp_path / "no_such_dir" / "health.json", period_s=0.0)
+    with caplog.at_level("WARNING", logger="gearbox_vsensor.state"):
+        assert not health.maybe_write(svc) and not health.maybe_write(svc)
+    assert health.errors == 2
+    assert sum("cannot write the health file" in r.getMessage() for r in caplog.records) == 1

@@ -105,6 +105,12 @@ class LiveSettings:
         for opt, f in (("--state-file", self.state_file), ("--health-file", self.health_file)):
             if f is not None and not os.path.isdir(os.path.dirname(os.path.abspath(f))):
                 raise InputError(f"{opt} {f}: its directory does not exist")
+            if f is not None and os.path.isdir(f):
+                raise InputError(f"{opt} {f} is a directory, not a file")
+        if self.state_file and self.health_file and os.path.abspath(self.state_file) == os.path.abspath(
+                self.health_file):
+            raise InputError(f"--state-file and --health-file are the same file {self.state_file}: one would "
+                             f"overwrite the other")
         check_bitrate(self.bitrate_bit_s)
 
 

@@ -36,11 +36,16 @@ def run(args) -> int:
                          f"{args.health_file}` running?") from None
     except (OSError, ValueError) as exc:
         raise InputError(f"{args.health_file}: not a gearbox-vsensor health file ({exc})") from None
-    age_s = time.time() - float(doc.get("written_wall_s", 0.0))
+    try:        # a health file edited or damaged by hand: its fields of the wrong type are one sentence, exit 2
+        age_s = time.time() - float(doc.get("written_wall_s", 0.0))
+        lines = status_lines(doc, age_s)
+    except (TypeError, ValueError, AttributeError) as exc:
+        raise InputError(f"{args.health_file}: not a gearbox-vsensor health file (a field of the wrong type: "
+                         f"{exc})") from None
     if args.json:
         print(json.dumps(doc, indent=2))
     else:
-        for line in status_lines(doc, age_s):
+        for line in lines:
             print(line)
     return 0 if age_s <= STALE_S else 1
 
