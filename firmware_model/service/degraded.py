@@ -9,7 +9,7 @@ import enum
 from dataclasses import dataclass, field
 from typing import ClassVar, Mapping
 
-from firmware_model.components import MODE_NAMES, MODE_NORMAL
+from firmware_model.components import MODE_NAMES, MODE_NORMAL, MODE_OIL_MODEL
 
 #: degraded on at least this share of the steps: a loud warning; above the second share: untrusted (`replay`
 #: exits 3). Not initialised counts as degraded (it lasts at most 3 s of a run: 10 % of a 30 s capture).
@@ -66,8 +66,15 @@ def pct(n: int, total: int) -> str:
 
 
 
-def degraded_finding(mode_steps: Mapping[int, int], missing: Mapping[str, int] | None = None) -> DegradedFinding:
-    """The degraded share of a run from its steps per degraded mode (and the steps each input was missing)."""
+def degraded_finding(mode_steps: Mapping[int, int], missing: Mapping[str, int] | None = None,
+                     oil_model: bool = False) -> DegradedFinding:
+    """The degraded share of a run from its steps per degraded mode (and the steps each input was missing).
+    ``oil_model``: the sensor was asked to model the oil (oil_mode "model"): its oil-modelled steps are its normal
+    ones, and an absent oil reading is no cause."""
+    if oil_model:
+        mode_steps = dict(mode_steps)
+        mode_steps[MODE_NORMAL] = mode_steps.get(MODE_NORMAL, 0) + mode_steps.pop(MODE_OIL_MODEL, 0)
+        missing = {k: v for k, v in (missing or {}).items() if INPUT_NAMES.get(k) != "oil temperature"}
     steps = int(sum(mode_steps.values()))
     degraded = steps - int(mode_steps.get(MODE_NORMAL, 0))
     return DegradedFinding(steps, degraded, {int(m): int(n) for m, n in mode_steps.items()},

@@ -253,16 +253,17 @@ def foreign_findings(decoder_counters: Mapping, expected_sa: Mapping[str, int | 
 
 
 def trust_findings(counters: Mapping, expected_sa: Mapping[str, int | None],
-                   configured: Mapping[str, int] | None = None) -> list[Finding]:
+                   configured: Mapping[str, int] | None = None, oil_model: bool = False) -> list[Finding]:
     """The findings of a CAN run, most severe first: ``counters`` = ``SensorService.all_counters()``. The degraded
-    share is a finding from DEGRADED_WARN_SHARE on; foreign source addresses are findings when a message came only
+    share is a finding from DEGRADED_WARN_SHARE on (``oil_model``: the sensor models the oil by request, which is
+    not degraded); foreign source addresses are findings when a message came only
     from them, or when the run was degraded that much (then they are the likely cause)."""
     service = counters["service"]
     out: list[Finding] = []
     raised = service.get("time_base", {}).get("finding")
     if raised is not None:
         out.append(TimeBaseFinding(**raised))
-    degraded = degraded_finding(service.get("mode_steps", {}), service.get("stale_steps", {}))
+    degraded = degraded_finding(service.get("mode_steps", {}), service.get("stale_steps", {}), oil_model)
     loud = degraded.severity >= Severity.WARNING
     for f in foreign_findings(counters["decoder"], expected_sa, configured):
         if loud or f.expected_frames == 0:

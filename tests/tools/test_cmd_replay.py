@@ -170,3 +170,15 @@ def test_a_table_sampled_more_sparsely_than_the_hold_gap_is_replayed_whole(senso
     assert out.n == 100 + (t.size - 11) and out["rejects_time_jump"][-1] == t.size - 11   # 0..10 s: 100 steps
     sparse = replay_table(RunTable({k: tab[k][10:] for k in tab.columns}), sensor)
     assert sparse.n == t.size - 10
+
+
+def test_the_oil_modelled_by_request_is_not_degraded(tmp_path, capsys):
+    """`replay in.csv --oil-mode model` (an example of its --help) exited 3, 'should not be trusted', because the
+    requested mode counted as degraded."""
+    src = write_run_table(_table(), tmp_path / "run.csv")
+    assert main(["replay", str(src), "--oil-mode", "model", "--out", str(tmp_path / "e.csv")]) == 0
+    out = capsys.readouterr().out
+    assert "degraded: 0.0 % of steps (the oil modelled by request on 100.0 %)" in out
+    oil = np.full(600, np.nan)                   # measured mode without the oil: degraded, untrusted (exit 3)
+    src = write_run_table(_table(oil_temp_c=oil), tmp_path / "no_oil.csv")
+    assert main(["replay", str(src), "--out", str(tmp_path / "e2.csv"), "--quiet"]) == 3

@@ -123,7 +123,7 @@ def run(args) -> int:
     from tools.replay.plot import plot_replay
     from tools.replay.table import replay_csv, summarize, table_findings
     from tools.runtable import write_run_table
-    out, variant = replay_csv(path, args.config, _sensor_options(args))
+    out, variant, oil_mode = replay_csv(path, args.config, _sensor_options(args))
     dest = write_run_table(out, args.out)
     if args.plot:
         plot_replay(out, args.plot, f"{variant} onboard sensor, replay of {path.name}")
@@ -131,9 +131,9 @@ def run(args) -> int:
         from tools.replay.summary import summary_lines
         s = summarize(out)
         print(f"replayed {s.span_s:.1f} s in {s.steps} steps -> {dest}")
-        for line in summary_lines(out):
+        for line in summary_lines(out, oil_model=oil_mode == "model"):
             print(line)
-    return _report_trust(args, table_findings(out))
+    return _report_trust(args, table_findings(out, oil_model=oil_mode == "model"))
 
 
 def _report_trust(args, findings) -> int:

@@ -74,10 +74,17 @@ def _reject_line(out) -> str:
     return "rejected or repaired inputs: " + ("; ".join(words) if words else "none")
 
 
-def summary_lines(out, limits=None) -> list[str]:
-    """The lines printed after a replay of ``out`` (the sensor output run table)."""
+def summary_lines(out, limits=None, oil_model: bool = False) -> list[str]:
+    """The lines printed after a replay of ``out`` (the sensor output run table); ``oil_model``: the oil modelled by
+    request (--oil-mode model), which is not degraded."""
     from firmware_model.onboard.warning_levels import load_limits
+    from firmware_model.components import MODE_NORMAL, MODE_OIL_MODEL
     limits = limits or load_limits()
-    degraded = float(np.mean(np.asarray(out["degraded"]) != 0)) if out.n and out.has("degraded") else 0.0
-    return [_closest_line(out, limits), _warning_line(out), f"degraded: {100 * degraded:.1f} % of steps",
-            _reject_line(out)]
+    line = "degraded: 0.0 % of steps"
+    if out.n and out.has("degraded_mode"):
+        mode = np.asarray(out["degraded_mode"])
+        normal = (mode == MODE_NORMAL) | ((mode == MODE_OIL_MODEL) if oil_model else False)
+        line = f"degraded: {100 * float(np.mean(~normal)):.1f} % of steps"
+        if oil_model:
+            line += f" (the oil modelled by request on {100 * float(np.mean(mode == MODE_OIL_MODEL)):.1f} %)"
+    return [_closest_line(out, limits), _warning_line(out), line, _reject_line(out)]

@@ -37,9 +37,10 @@ class TableRecord(NamedTuple):
 
 
 class CsvReplay(NamedTuple):
-    """A run-table replay: the sensor output RunTable and the gearbox variant it ran with."""
+    """A run-table replay: the sensor output RunTable, the gearbox variant and the oil mode it ran with."""
     table: Any
     variant: str
+    oil_mode: str = "measured"
 
 
 class ReplaySummary(NamedTuple):
@@ -229,18 +230,19 @@ def replay_csv(path, config_path=None, sensor_options=None) -> "CsvReplay":
     cfg = load_config(config_path)
     params = cfg.load_params()
     sensor = VirtualSensor(params, config=cfg, **(sensor_options or {}))
-    return CsvReplay(replay_table(read_inputs_table(path), sensor), params.variant)
+    return CsvReplay(replay_table(read_inputs_table(path), sensor), params.variant, sensor.options.oil_mode)
 
 
-def table_findings(out) -> list:
+def table_findings(out, oil_model: bool = False) -> list:
     """The trust findings of a run-table replay (``firmware_model.service.trust``): the degraded share when it is at
-    least DEGRADED_WARN_SHARE, with the inputs that were missing (the validity columns)."""
+    least DEGRADED_WARN_SHARE, with the inputs that were missing (the validity columns); ``oil_model``: the sensor
+    modelled the oil by request (not degraded)."""
     from firmware_model.service.degraded import Severity, degraded_finding   # (not trust: that imports python-can)
     modes = np.asarray(out["degraded_mode"], dtype=float) if out.n else np.zeros(0)
     values, counts = np.unique(modes[np.isfinite(modes)].astype(int), return_counts=True)
     missing = {c: int(np.sum(np.asarray(out[c]) == 0)) for c in ("speed_valid", "torque_valid", "gear_valid",
                                                                  "oil_valid") if out.has(c)}
-    finding = degraded_finding(dict(zip(values.tolist(), counts.tolist())), missing)
+    finding = degraded_finding(dict(zip(values.tolist(), counts.tolist())), missing, oil_model)
     return [finding] if finding.severity >= Severity.WARNING else []
 
 
