@@ -200,6 +200,10 @@ def test_bad_input_is_one_sentence_and_writes_nothing(tmp_path, synthetic, capsy
     logs = [e.log for e in read_manifest(synthetic)]
     m.write_text(f"log,vehicle,variant\n{logs[0]},t1,GRS905\n{logs[1]},t1,GRSO905\n")
     assert "two variants" in _error(capsys, ["fleet", "--manifest", str(m), "--out", str(out)])
+    m.write_text(f"log,vehicle,variant\n{logs[0]},t1,GRS999\n")      # every log landed in the errors table, exit 0
+    assert "vehicle t1" in _error(capsys, ["fleet", "--manifest", str(m), "--out", str(out)])
+    m.write_text(f"log,vehicle,config\n{logs[0]},t1,{tmp_path / 'absent.toml'}\n")
+    assert "absent.toml" in _error(capsys, ["fleet", "--manifest", str(m), "--out", str(out)])
     port = _free_port()
     err = _error(capsys, ["fleet", str(logs[0]), "--out", str(out), "--scheduler", f"tcp://127.0.0.1:{port}"])
     assert "does not answer" in err

@@ -145,7 +145,23 @@ def check_entries(entries: list[LogEntry], where: str) -> list[LogEntry]:
             if getattr(first, field) != getattr(e, field):
                 raise InputError(f"{where}: vehicle {e.vehicle} has two {field}s, {getattr(first, field)} and "
                                  f"{getattr(e, field)}; a vehicle is one gearbox (give the other a new vehicle name)")
+    _check_gearboxes(per_vehicle.values(), where)
     return entries
+
+
+def _check_gearboxes(firsts, where: str) -> None:
+    """InputError for a variant or configuration that does not load (an unknown variant, a missing or invalid
+    configuration file): before anything runs, not as every log of the vehicle in the errors table."""
+    from firmware_model.errors import ParameterError
+    done = set()
+    for e in firsts:
+        if (e.variant, e.config) in done:
+            continue
+        done.add((e.variant, e.config))
+        try:
+            vehicle_config(e.variant, e.config).load_params()
+        except (ParameterError, InputError) as exc:
+            raise InputError(f"{where}: vehicle {e.vehicle}: {exc}") from None
 
 
 __all__ = ["DEFAULT_VEHICLE_PATTERN", "LogEntry", "check_entries", "entries_from_paths", "log_key", "read_manifest",
