@@ -159,6 +159,23 @@ def test_service_unit_passes_systemd_analyze_verify(tmp_path):
         assert key in text
 
 
+def test_service_unit_fits_the_interface_and_refuses_what_cannot_stand_in_it(capsys):
+    """From a bad-input audit: a pcan unit was bound to a network device that never exists, udp_multicast was
+    blocked by the address families, a line break in --channel added lines to the unit, a relative --config could
+    not be found by the service."""
+    from tools.can.systemd import unit_text
+    from tools.cli import main
+    pcan = unit_text("pcan", "PCAN_USBBUS1")
+    assert "BindsTo" not in pcan and "sys-subsystem-net-devices" not in pcan and "RestrictAddressFamilies" not in pcan
+    assert "RestrictAddressFamilies=AF_INET AF_INET6" in unit_text("udp_multicast", "239.0.0.1")
+    assert "BindsTo=sys-subsystem-net-devices-can0.device" in unit_text("socketcan", "can0")
+    for args, words in ((["--channel", "can0\nExecStartPre=/bin/true"], "line breaks"),
+                        (["--config", "project.toml"], "absolute path")):
+        assert main(["service-unit", *args]) == 2
+        captured = capsys.readouterr()
+        assert words in captured.err and "[Unit]" not in captured.out
+
+
 def test_a_health_file_that_cannot_be_written_is_said_once(params, tmp_path, caplog):
     """From a bad-input audit: a health file on a read-only file system was skipped without a word, and `status`
     then reported a service that was not running."""

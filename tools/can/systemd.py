@@ -7,13 +7,16 @@ logging with a syslog identifier a journal can filter (``journalctl -t gearbox-v
 """
 from __future__ import annotations
 
+import os
+import re
 import shlex
 import sys
 
+from firmware_model.errors import InputError
+
 UNIT = """[Unit]
 Description=gearbox-vsensor virtual gearbox temperature sensor on {channel}
-After=network.target sys-subsystem-net-devices-{channel}.device
-BindsTo=sys-subsystem-net-devices-{channel}.device
+{device}
 
 [Service]
 Type=notify
@@ -35,22 +38,51 @@ NoNewPrivileges=yes
 ProtectSystem=strict
 ProtectHome=yes
 PrivateTmp=yes
-RestrictAddressFamilies=AF_CAN AF_UNIX AF_NETLINK
+{families}
 {environment}
 [Install]
 WantedBy=multi-user.target
 """
 
 
+#: the address families each interface's sockets need (socketcan: CAN sockets; udp_multicast: IP); other
+#: interfaces (vendor libraries on character devices) get no restriction, since their needs are not known here
+FAMILIES = {"socketcan": "AF_CAN AF_UNIX AF_NETLINK", "udp_multicast": "AF_INET AF_INET6 AF_UNIX AF_NETLINK"}
+#: a channel name that can stand in a unit file and a device name (no spaces, no newlines)
+CHANNEL_RE = re.compile(r"[A-Za-z0-9_.:@/-]+")
+
+
+def check_unit_args(interface: str, channel: str, config: str | None, python: str | None) -> list[str]:
+    """InputError for a channel that cannot stand in a unit file or a relative --config; returns warnings (a
+    Python under /home or /root, which ProtectHome=yes hides from the service)."""
+    for opt, v in (("--interface", interface), ("--channel", channel)):
+        if not CHANNEL_RE.fullmatch(v or ""):
+            raise InputError(f"{opt} {v!r} must be a name of letters, digits and _ . : @ / - (no spaces or line "
+                             f"breaks: it goes into the unit file)")
+    if config is not None and not os.path.isabs(config):
+        raise InputError(f"--config {config} must be an absolute path: the service does not start in this directory")
+    exe = os.path.abspath(python or sys.executable)
+    if exe.startswith(("/home/", "/root/")):
+        return [f"the Python {exe} is under /home or /root, which the unit's ProtectHome=yes hides from the service: "
+                f"install gearbox-vsensor into a virtual environment outside them (e.g. /opt/gearbox-vsensor) and "
+                f"pass its python with --python"]
+    return []
+
+
 def unit_text(interface: str, channel: str, config: str | None = None, python: str | None = None,
               raw: bool = False) -> str:
     """The unit file: `run` on ``interface`` ``channel``, the state in /var/lib/gearbox-vsensor, the health file in
-    /run/gearbox-vsensor (what `gearbox-vsensor status` reads by default)."""
+    /run/gearbox-vsensor (what `gearbox-vsensor status` reads by default). A socketcan channel is a network device
+    the service is bound to; other interfaces have no such device."""
     cmd = [python or sys.executable, "-m", "tools.cli", "run", "--interface", interface, "--channel", channel,
            "--state-file", "/var/lib/gearbox-vsensor/state.json",
            "--health-file", "/run/gearbox-vsensor/health.json"]
     if config:
         cmd += ["--config", config]
     caps = "CAP_NET_RAW" if raw else ""
-    return UNIT.format(channel=channel, exec_start=" ".join(shlex.quote(c) for c in cmd), caps=caps,
-                       environment="Environment=PYTHONUNBUFFERED=1\n")
+    device = (f"After=network.target sys-subsystem-net-devices-{channel}.device\n"
+              f"BindsTo=sys-subsystem-net-devices-{channel}.device") if interface == "socketcan" \
+        else "After=network.target"
+    families = f"RestrictAddressFamilies={FAMILIES[interface]}" if interface in FAMILIES else ""
+    return UNIT.format(channel=channel, device=device, exec_start=" ".join(shlex.quote(c) for c in cmd), caps=caps,
+                       families=families, environment="Environment=PYTHONUNBUFFERED=1\n")

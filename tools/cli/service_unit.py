@@ -25,6 +25,9 @@ def add_subparser(sub):
 
 
 def run(args) -> int:
-    from tools.can.systemd import unit_text
+    import sys
+    from tools.can.systemd import check_unit_args, unit_text
+    for warning in check_unit_args(args.interface, args.channel, args.config, args.python):
+        print(f"warning: {warning}", file=sys.stderr)
     print(unit_text(args.interface, args.channel, args.config, args.python), end="")
     return 0
