@@ -122,6 +122,12 @@ def test_bench_diagnosis_refuses_options_of_the_other_mode(tmp_path, capsys, arg
     assert f"error: {named} " in capsys.readouterr().err and not (tmp_path / "b").exists()
 
 
+def test_bench_diagnosis_refuses_scenarios_outside_the_plan(tmp_path, capsys):
+    """--only 999 of a 2-scenario plan ran nothing and wrote a table of NaN with exit 0 (a bad-input audit)."""
+    assert main(["bench-diagnosis", "--out", str(tmp_path / "b"), "--scenarios", "2", "--only", "1,999"]) == 2
+    assert "no scenario 999 in a plan of 2" in capsys.readouterr().err and not (tmp_path / "b").exists()
+
+
 def test_plant_checks_the_bus_before_it_computes_the_drive(monkeypatch, capsys):
     import tools.can.hil
     calls = []

@@ -81,6 +81,10 @@ def run(args) -> int:
             only = {int(x) for x in args.only.split(",") if x.strip()}
         except ValueError:
             raise InputError(f"--only {args.only!r} must be comma-separated scenario numbers") from None
+        outside = sorted(i for i in only if not 0 <= i < args.scenarios)
+        if outside:
+            raise InputError(f"--only {args.only}: no scenario {', '.join(map(str, outside))} in a plan of "
+                             f"{args.scenarios} (numbered 0..{args.scenarios - 1}; --scenarios sets the plan)")
     custom = None
     if args.effect:
         if args.effect.strip().lower() == "none":
