@@ -100,6 +100,9 @@ def test_errors_name_the_file_and_the_rule(tmp_path, monkeypatch):
     (tmp_path / "bad.log").write_text("(0.0) can0 18FEF100#00\nthis is not candump\n")
     with pytest.raises(InputError, match="bad.log: frame 2 cannot be read"):
         list(read_log(tmp_path / "bad.log"))
+    (tmp_path / "cut.log").write_text("(0.0) can0 18FEF100#00\n(0.1) can0")      # a truncated copy
+    with pytest.raises(InputError, match="cut.log: the log ends in the middle of a line at frame 2"):
+        list(read_log(tmp_path / "cut.log"))
     (tmp_path / "other.log").write_text("(0.000000) can0 18FECA00#0000000000000000\n(0.5) can0 123#00\n")
     with pytest.raises(InputError, match="no sensor step"):
         replay(tmp_path / "other.log")

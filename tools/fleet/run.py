@@ -18,6 +18,7 @@ from typing import NamedTuple
 
 from firmware_model.errors import InputError
 from tools.fleet.manifest import LogEntry, vehicle_config
+from tools.replay.formats import ends_mid_line
 from tools.fleet.store import ESTIMATES, FleetStore, partition_dir
 
 #: logs per task at most; a small fleet gets about TASKS_PER_WORKER tasks per worker
@@ -74,18 +75,14 @@ def _oil_level(path: Path, options) -> dict:
 
 def _check_complete(path: Path) -> None:
     """InputError for an empty log, or a text log whose last line is cut (a truncated copy, a log still being
-    written): a fleet summarises whole logs only (``replay`` reads the complete lines of such a file)."""
+    written): a fleet summarises whole logs only."""
     if not path.is_file():
         return
     size = path.stat().st_size
     if size == 0:
         raise InputError(f"{path}: the log file is empty")
-    if path.suffix.lower() in (".log", ".asc"):
-        with open(path, "rb") as fh:
-            text = b"\0" not in fh.read(4096)        # a binary file is the reader's to refuse
-            fh.seek(size - 1)
-            if text and fh.read(1) not in (b"\n", b"\r"):
-                raise InputError(f"{path}: the log ends in the middle of a line (truncated, or still being written)")
+    if ends_mid_line(path):
+        raise InputError(f"{path}: the log ends in the middle of a line (truncated, or still being written)")
 
 
 def process_log(entry: LogEntry, out: str | None = None, estimates: bool = False,

@@ -52,5 +52,18 @@ def read_log(path: str | os.PathLike) -> Iterator:
     except InputError:
         raise
     except Exception as exc:
+        if ends_mid_line(p):
+            raise InputError(f"{p}: the log ends in the middle of a line at frame {n + 1} (truncated, or still being "
+                             f"written)") from None
         raise InputError(f"{p}: frame {n + 1} cannot be read as a {LOG_SUFFIXES[p.suffix.lower()]} log: "
                          f"{exc}") from None
+
+
+def ends_mid_line(path: Path) -> bool:
+    """Is ``path`` a text log (.log, .asc) whose last line is cut (a truncated copy, a log still being written)?"""
+    if path.suffix.lower() not in (".log", ".asc") or not path.is_file() or path.stat().st_size == 0:
+        return False
+    with open(path, "rb") as fh:
+        text = b"\0" not in fh.read(4096)        # a binary file is the reader's to refuse
+        fh.seek(-1, os.SEEK_END)
+        return text and fh.read(1) not in (b"\n", b"\r")
