@@ -380,7 +380,10 @@ def atomic_text_file(target: str | os.PathLike):
     replaces ``target`` (``os.replace``) only when the block completes; on any error the temporary file is removed and
     ``target`` is untouched. The file gets the usual permissions (0666 less the umask, not mkstemp's 0600)."""
     target = Path(target)
-    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
+    except OSError as exc:          # named after the target, not after the temporary file it could not create
+        raise InputError(f"{os.fspath(target)}: cannot write it ({exc.strerror or exc})") from None
     try:
         with os.fdopen(fd, "w", encoding="utf-8", newline="\n") as f:
             yield f

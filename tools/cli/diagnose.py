@@ -93,7 +93,8 @@ def run(args) -> int:
     if args.workers is not None and args.workers < 1:
         raise InputError(f"--workers {args.workers} must be at least 1")
     check_paths({**{f"training file {f}": f for f in args.train}, **{f"test file {f}": f for f in args.test},
-                 "--config": args.config}, {"--json": args.json, "--report": args.report})
+                 "--config": args.config}, {"--json": args.json, "--report": args.report},
+                makes_dirs=("--json", "--report"))
     opts = Options(grid_dt_s=args.grid_dt, plant_dt_s=args.plant_dt, workers=args.workers)
     with progress(len(STAGES), "diagnose", enabled=False if args.quiet else None, unit="stage") as bar:
         def stage(name):

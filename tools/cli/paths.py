@@ -12,9 +12,10 @@ from firmware_model.errors import InputError
 PLOT_SUFFIXES = (".png", ".pdf", ".svg", ".jpg", ".jpeg", ".eps", ".ps", ".tif", ".tiff")
 
 
-def check_paths(inputs: dict, outputs: dict, plots: tuple = ()) -> None:
+def check_paths(inputs: dict, outputs: dict, plots: tuple = (), makes_dirs: tuple = ()) -> None:
     """``inputs`` and ``outputs``: {option or role: path or None (not given)}; ``plots``: the output options that
-    are figures. Raises InputError naming the option and the file."""
+    are figures; ``makes_dirs``: the output options whose directory the command creates. Raises InputError naming
+    the option and the file."""
     ins = {opt: Path(p).resolve() for opt, p in inputs.items() if p}
     seen: dict = {}
     for opt, p in outputs.items():
@@ -32,7 +33,7 @@ def check_paths(inputs: dict, outputs: dict, plots: tuple = ()) -> None:
         seen[full] = opt
         if full.is_dir():
             raise InputError(f"{opt} {p} is a directory, not a file")
-        if not full.parent.is_dir():
+        if opt not in makes_dirs and not full.parent.is_dir():
             raise InputError(f"{opt} {p}: the directory {full.parent} does not exist")
         if opt in plots and path.suffix.lower() not in PLOT_SUFFIXES:
             raise InputError(f"{opt} {p}: a figure is written as {', '.join(s[1:] for s in PLOT_SUFFIXES)}, not "

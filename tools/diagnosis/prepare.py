@@ -246,13 +246,13 @@ def _check_values(y: np.ndarray, ok: np.ndarray, name: str, col: str, dur_s: flo
         raise InputError(f'{name}: column "{col}" has only {int(ok.sum())} valid values of {y.size} (a dead '
                          f"sensor); remove the column or fix the logging")
     yv = y[ok]
-    if np.ptp(yv) <= J1939_RES_C * 1.01 and dur_s > 60:
-        raise InputError(f'{name}: column "{col}" stays at {yv[0]:.5g} degC for the whole {dur_s:.0f} s (a stuck '
-                         f"sensor); remove the column or the file")
-    if np.any((yv < -60) | (yv > 300)):
+    if np.any((yv < -60) | (yv > 300)):            # before the stuck check: a span of 1e308 overflows to inf
         bad = yv[(yv < -60) | (yv > 300)][0]
         raise InputError(f'{name}: column "{col}" holds {bad:.5g} degC, outside -60..300 degC (not a plausible '
                          f"temperature)")
+    if np.ptp(yv) <= J1939_RES_C * 1.01 and dur_s > 60:
+        raise InputError(f'{name}: column "{col}" stays at {yv[0]:.5g} degC for the whole {dur_s:.0f} s (a stuck '
+                         f"sensor); remove the column or the file")
 
 
 def _valid_samples(table: RunTable, t: np.ndarray, name: str, col: str, opts: Options) -> ValidSamples:
