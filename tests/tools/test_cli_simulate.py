@@ -140,3 +140,13 @@ def test_a_config_value_of_the_wrong_type_is_one_sentence(tmp_path, capsys, body
                  "--quiet"]) == 2
     err = capsys.readouterr().err
     assert words in err and "Traceback" not in err and not out.exists()
+
+
+def test_an_unknown_table_format_or_an_effect_given_twice_is_refused(tmp_path, capsys):
+    """--out x.xlsx was written as CSV under that name; a second --effect of the same id silently won."""
+    cyc = _cycle(tmp_path / "c.csv")
+    assert main(["simulate", "--cycle", str(cyc), "--out", str(tmp_path / "x.xlsx"), "--quiet"]) == 2
+    assert ".csv or .parquet" in capsys.readouterr().err and not (tmp_path / "x.xlsx").exists()
+    assert main(["simulate", "--cycle", str(cyc), "--out", str(tmp_path / "x.csv"), "--quiet",
+                 "--effect", "churning_scale:factor=1.2", "--effect", "churning_scale:factor=1.5"]) == 2
+    assert "given twice" in capsys.readouterr().err and not (tmp_path / "x.csv").exists()

@@ -10,12 +10,14 @@ from firmware_model.errors import InputError
 
 #: the figure formats the plots are written in (matplotlib's raster and vector backends)
 PLOT_SUFFIXES = (".png", ".pdf", ".svg", ".jpg", ".jpeg", ".eps", ".ps", ".tif", ".tiff")
+#: the formats a run table is written in (tools.runtable)
+TABLE_SUFFIXES = (".csv", ".parquet")
 
 
-def check_paths(inputs: dict, outputs: dict, plots: tuple = (), makes_dirs: tuple = ()) -> None:
+def check_paths(inputs: dict, outputs: dict, plots: tuple = (), makes_dirs: tuple = (), tables: tuple = ()) -> None:
     """``inputs`` and ``outputs``: {option or role: path or None (not given)}; ``plots``: the output options that
-    are figures; ``makes_dirs``: the output options whose directory the command creates. Raises InputError naming
-    the option and the file."""
+    are figures; ``makes_dirs``: the output options whose directory the command creates; ``tables``: the output
+    options that are run tables (.csv or .parquet). Raises InputError naming the option and the file."""
     ins = {opt: Path(p).resolve() for opt, p in inputs.items() if p}
     seen: dict = {}
     for opt, p in outputs.items():
@@ -35,6 +37,9 @@ def check_paths(inputs: dict, outputs: dict, plots: tuple = (), makes_dirs: tupl
             raise InputError(f"{opt} {p} is a directory, not a file")
         if opt not in makes_dirs and not full.parent.is_dir():
             raise InputError(f"{opt} {p}: the directory {full.parent} does not exist")
+        if opt in tables and path.suffix.lower() not in TABLE_SUFFIXES:
+            raise InputError(f"{opt} {p}: a run table is written as .csv or .parquet, not "
+                             f"{path.suffix or 'a file without an extension'}")
         if opt in plots and path.suffix.lower() not in PLOT_SUFFIXES:
             raise InputError(f"{opt} {p}: a figure is written as {', '.join(s[1:] for s in PLOT_SUFFIXES)}, not "
                              f"{path.suffix or 'a file without an extension'}")

@@ -107,7 +107,7 @@ def run(args) -> int:
     from tools.replay.formats import is_can_log
     path = Path(args.input)
     check_paths({"input": args.input, "--config": args.config},
-                {"--out": args.out, "--plot": args.plot, "--frames-out": args.frames_out}, plots=("--plot",))
+                {"--out": args.out, "--plot": args.plot, "--frames-out": args.frames_out}, plots=("--plot",), tables=("--out",))
     if not args.realtime:
         core_line = apply_core(args)
         if not args.quiet:

@@ -80,7 +80,11 @@ def run(args) -> int:
         cfg.variant = args.variant
         cfg.params_path = None
     params = cfg.load_params()
-    effects = dict(parse_effect(e) for e in args.effect)
+    parsed = [parse_effect(e) for e in args.effect]
+    effects = dict(parsed)
+    if len(effects) < len(parsed):
+        twice = sorted({e for e, _ in parsed if sum(x == e for x, _ in parsed) > 1})
+        raise InputError(f"--effect {', '.join(twice)} is given twice; give each effect once")
     if args.rate <= 0 or args.rate > 1000:
         raise InputError(f"--rate {args.rate} must be in (0, 1000] Hz")
     if not 0.01 <= args.out_dt <= 3600:
@@ -92,7 +96,7 @@ def run(args) -> int:
             check_temperature_c(opt, value_c)
     cycle_file = args.cycle if Path(args.cycle).is_file() else None
     check_paths({"--cycle": cycle_file, "--config": args.config},
-                {"--out": args.out, "--plot": args.plot, "--can-log": args.can_log}, plots=("--plot",))
+                {"--out": args.out, "--plot": args.plot, "--can-log": args.can_log}, plots=("--plot",), tables=("--out",))
     table = get_cycle(args.cycle, rate_hz=args.rate, noise=args.noise, seed=args.seed)
     plant = ReferencePlant(params, effects, cooler=args.cooler or cfg.cooler, dt_s=args.dt)
     res = plant.run(table, initial_temp_c=args.initial_temp, hold_oil_c=args.hold_oil, out_dt_s=args.out_dt,
