@@ -68,8 +68,8 @@ def run(args) -> int:
         raise InputError(f"--workers {args.workers} must be at least 1")
     if Path(args.out).suffix.lower() != ".toml":
         raise InputError(f"--out {args.out} must be a .toml file")
-    check_paths({**{f"training file {f}": f for f in args.train}, **{f"test file {f}": f for f in args.test},
-                 "--config": args.config}, {"--out": args.out, "--report": args.report},
+    check_paths([*(("a training file", f) for f in args.train), *(("a test file", f) for f in args.test),
+                 ("the --config", args.config)], {"--out": args.out, "--report": args.report},
                 makes_dirs=("--out", "--report"))
     keys = [k.strip() for k in (args.params or "").split(",") if k.strip()]
     n = [0]

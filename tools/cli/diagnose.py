@@ -92,8 +92,8 @@ def run(args) -> int:
         raise InputError(f"--plant-dt {args.plant_dt} must be within 0.05..5 s")
     if args.workers is not None and args.workers < 1:
         raise InputError(f"--workers {args.workers} must be at least 1")
-    check_paths({**{f"training file {f}": f for f in args.train}, **{f"test file {f}": f for f in args.test},
-                 "--config": args.config}, {"--json": args.json, "--report": args.report},
+    check_paths([*(("a training file", f) for f in args.train), *(("a test file", f) for f in args.test),
+                 ("the --config", args.config)], {"--json": args.json, "--report": args.report},
                 makes_dirs=("--json", "--report"))
     opts = Options(grid_dt_s=args.grid_dt, plant_dt_s=args.plant_dt, workers=args.workers)
     with progress(len(STAGES), "diagnose", enabled=False if args.quiet else None, unit="stage") as bar:

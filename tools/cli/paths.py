@@ -14,21 +14,25 @@ PLOT_SUFFIXES = (".png", ".pdf", ".svg", ".jpg", ".jpeg", ".eps", ".ps", ".tif",
 TABLE_SUFFIXES = (".csv", ".parquet")
 
 
-def check_paths(inputs: dict, outputs: dict, plots: tuple = (), makes_dirs: tuple = (), tables: tuple = ()) -> None:
-    """``inputs`` and ``outputs``: {option or role: path or None (not given)}; ``plots``: the output options that
-    are figures; ``makes_dirs``: the output options whose directory the command creates; ``tables``: the output
-    options that are run tables (.csv or .parquet). Raises InputError naming the option and the file."""
-    ins = {opt: Path(p).resolve() for opt, p in inputs.items() if p}
+def check_paths(inputs, outputs: dict, plots: tuple = (), makes_dirs: tuple = (), tables: tuple = ()) -> None:
+    """``inputs``: (role, path or None) pairs ("the input", "a training file", "the --config"); ``outputs``:
+    {option: path or None (not given)}; ``plots``: the output options that are figures; ``makes_dirs``: the output
+    options whose directory the command creates; ``tables``: the output options that are run tables (.csv or
+    .parquet). Raises InputError naming the option and the file."""
+    ins = [(role, p, Path(p).resolve()) for role, p in inputs if p]
+    for role, p, full in ins:
+        if full.is_dir():
+            raise InputError(f"{role} {p} is a directory, not a file")
     seen: dict = {}
     for opt, p in outputs.items():
         if not p:
             continue
         path = Path(p)
         full = path.resolve()
-        for in_opt, in_path in ins.items():
-            if full == in_path:
-                raise InputError(f"{opt} {p} is also the {in_opt}: writing it would destroy that input; choose "
-                                 f"another path")
+        for role, _, in_full in ins:
+            if full == in_full:
+                raise InputError(f"{opt} {p} is also {role}: writing it would destroy that input; choose another "
+                                 f"path")
         if full in seen:
             raise InputError(f"{opt} {p} is also {seen[full]}: one of the two outputs would be lost; choose another "
                              f"path")

@@ -106,8 +106,9 @@ def _refuse(given: list[str], why: str) -> None:
 def run(args) -> int:
     from tools.replay.formats import is_can_log
     path = Path(args.input)
-    check_paths({"input": args.input, "--config": args.config},
-                {"--out": args.out, "--plot": args.plot, "--frames-out": args.frames_out}, plots=("--plot",), tables=("--out",))
+    check_paths([("the input", args.input), ("the --config", args.config)],
+                {"--out": args.out, "--plot": args.plot, "--frames-out": args.frames_out}, plots=("--plot",),
+                tables=("--out",))
     if not args.realtime:
         core_line = apply_core(args)
         if not args.quiet:

@@ -95,8 +95,9 @@ def run(args) -> int:
         if value_c is not None:
             check_temperature_c(opt, value_c)
     cycle_file = args.cycle if Path(args.cycle).is_file() else None
-    check_paths({"--cycle": cycle_file, "--config": args.config},
-                {"--out": args.out, "--plot": args.plot, "--can-log": args.can_log}, plots=("--plot",), tables=("--out",))
+    check_paths([("the --cycle", cycle_file), ("the --config", args.config)],
+                {"--out": args.out, "--plot": args.plot, "--can-log": args.can_log}, plots=("--plot",),
+                tables=("--out",))
     table = get_cycle(args.cycle, rate_hz=args.rate, noise=args.noise, seed=args.seed)
     plant = ReferencePlant(params, effects, cooler=args.cooler or cfg.cooler, dt_s=args.dt)
     res = plant.run(table, initial_temp_c=args.initial_temp, hold_oil_c=args.hold_oil, out_dt_s=args.out_dt,
