@@ -140,3 +140,9 @@ def test_plant_checks_the_bus_before_it_computes_the_drive(monkeypatch, capsys):
     rc = main(["plant", "--interface", "no_such_interface", "--channel", "x", "--cycle", "uphill", "--quiet"])
     err = capsys.readouterr().err
     assert rc == 2 and calls == [] and "no_such_interface" in err and err.count("\n") == 1
+
+
+def test_run_refuses_a_state_period_without_a_state_file(capsys):
+    """--state-period without --state-file did nothing, silently (a bad-input audit)."""
+    assert main(["run", "--interface", "virtual", "--channel", "x", "--state-period", "5"]) == 2
+    assert "give --state-file too" in capsys.readouterr().err

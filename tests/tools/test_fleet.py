@@ -207,6 +207,9 @@ def test_bad_input_is_one_sentence_and_writes_nothing(tmp_path, synthetic, capsy
     port = _free_port()
     err = _error(capsys, ["fleet", str(logs[0]), "--out", str(out), "--scheduler", f"tcp://127.0.0.1:{port}"])
     assert "does not answer" in err
+    err = _error(capsys, ["fleet", str(logs[0]), "--out", str(out), "--scheduler", "notaurl"])
+    assert "is not a scheduler address" in err                   # said 'does not answer within 10 s (ValueError)'
+    assert "only --diagnose" in _error(capsys, ["fleet", str(logs[0]), "--out", str(out), "--period-days", "3"])
     assert not out.exists()
     with pytest.raises(InputError):
         read_manifest(tmp_path / "absent.csv")

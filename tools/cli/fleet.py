@@ -2,10 +2,14 @@
 from __future__ import annotations
 
 import argparse
+import re
 import sys
 import time
 
 from firmware_model.errors import InputError
+
+#: the health fit's period when --period-days is not given [days]
+PERIOD_DAYS_DEFAULT = 7.0
 
 
 def add_subparser(sub):
@@ -48,7 +52,7 @@ def add_subparser(sub):
                         "flags were reliable; trucks that send SPN 124 are flagged on their measured level; on the "
                         "others a drift of the oil volume from the temperature is only a 'to watch' (a leak moves "
                         "the oil less than the model's own error); docs/fleet.md)")
-    p.add_argument("--period-days", type=float, default=7.0, metavar="DAYS",
+    p.add_argument("--period-days", type=float, default=None, metavar="DAYS",
                    help="the --diagnose period (default 7 days)")
     p.add_argument("--no-report", action="store_true", help="skip report.md and its plots")
     p.set_defaults(func=run)
@@ -71,8 +75,14 @@ def _entries(args):
 def run(args) -> int:
     from tools.fleet.run import run_fleet
     entries = _entries(args)
+    if args.period_days is not None and not args.diagnose:
+        raise InputError("--period-days sets the health fit's period, which only --diagnose runs")
+    args.period_days = PERIOD_DAYS_DEFAULT if args.period_days is None else args.period_days
     if not args.period_days > 0:
         raise InputError(f"--period-days {args.period_days} must be positive")
+    if args.scheduler and not re.fullmatch(r"(tcp|tls|inproc|ucx|ws|wss)://[^\s/]+(:\d+)?/?|[\w.-]+:\d+",
+                                           args.scheduler):
+        raise InputError(f"--scheduler {args.scheduler!r} is not a scheduler address; give tcp://HOST:PORT")
     t0 = time.perf_counter()
     res = run_fleet(entries, args.out, scheduler=args.scheduler, workers=args.workers, estimates=args.estimates,
                     diagnose=args.diagnose)

@@ -4,6 +4,7 @@ from __future__ import annotations
 import logging
 import sys
 
+from firmware_model.errors import InputError
 from tools.can.bus import add_bus_options, can_subcommand
 
 LOG_LEVELS = ("DEBUG", "INFO", "WARNING", "ERROR")
@@ -44,7 +45,7 @@ def add_subparser(sub):
                         "seconds and on shutdown (atomically), restored at start cooled for the time off and "
                         "reconciled with the first oil reading; missing, corrupt or another gearbox's: cold start, "
                         "logged (docs/gateway.md)")
-    p.add_argument("--state-period", type=float, default=60.0, metavar="S",
+    p.add_argument("--state-period", type=float, default=None, metavar="S",
                    help="seconds of wall time between state saves (default 60: flash wear)")
     p.add_argument("--health-file", metavar="PATH",
                    help="rewrite a health file every second for `gearbox-vsensor status` (uptime, last step, "
@@ -55,6 +56,9 @@ def add_subparser(sub):
 
 def run(args) -> int:
     from tools.can.live import LiveSettings, run_live
+    if args.state_period is not None and not args.state_file:
+        raise InputError("--state-period sets how often --state-file is saved; give --state-file too")
+    args.state_period = 60.0 if args.state_period is None else args.state_period
     settings = LiveSettings(interface=args.interface, channel=args.channel, bitrate_bit_s=args.bitrate,
                             config_path=args.config, duration_s=args.duration, filters=not args.no_filters,
                             rig=args.rig, rt_priority=args.rt_priority, state_file=args.state_file,

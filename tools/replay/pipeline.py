@@ -27,7 +27,7 @@ def pipeline_available(service: SensorService, on_frames=None) -> str | None:
     """None when ``service`` can replay in two processes, else why not."""
     import multiprocessing
     if on_frames is not None or service.emit_frames:
-        return "the output frames are wanted in order (on_frames / emit_frames)"
+        return "the sensor's output frames are written (--frames-out), which needs them in order in one process"
     if "fork" not in multiprocessing.get_all_start_methods():
         return "this platform cannot fork"
     if threading.active_count() > 1:
