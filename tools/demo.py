@@ -353,7 +353,11 @@ def run_demo(opts: DemoOptions, echo: Callable[[str], None] | None = None) -> Bu
     echo = echo or (lambda line: print(line, flush=True))
     if not 1.0 <= opts.minutes <= 600.0:
         raise InputError(f"--minutes {opts.minutes} must be in 1..600")
+    from tools.cycles.named import get_cycle
+    get_cycle(opts.cycle)             # an unknown cycle is refused before the output directory is made
     out = Path(opts.out_dir)
+    if out.exists() and not out.is_dir():
+        raise InputError(f"--out-dir {out} is a file, not a directory")
     out.mkdir(parents=True, exist_ok=True)
     params = load_parameters("GRS905")
     echo(f"[1/4] reference plant: {opts.minutes:.0f} min of the synthetic '{opts.cycle}' drive ...")
