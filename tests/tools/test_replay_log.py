@@ -101,8 +101,16 @@ def test_errors_name_the_file_and_the_rule(tmp_path, monkeypatch):
     with pytest.raises(InputError, match="bad.log: frame 2 cannot be read"):
         list(read_log(tmp_path / "bad.log"))
     (tmp_path / "cut.log").write_text("(0.0) can0 18FEF100#00\n(0.1) can0")      # a truncated copy
-    with pytest.raises(InputError, match="cut.log: the log ends in the middle of a line at frame 2"):
+    with pytest.raises(InputError, match="cut.log: the log ends in the middle of a line"):
         list(read_log(tmp_path / "cut.log"))
+    import can
+    with can.BLFWriter(tmp_path / "whole.blf") as w:
+        for i in range(3000):
+            w.on_message_received(can.Message(timestamp=i * 0.01, arbitration_id=0x18FEF100, data=bytes(8)))
+    (tmp_path / "cut.blf").write_bytes((tmp_path / "whole.blf").read_bytes()[:6000])   # read to its end silently
+    with pytest.raises(InputError, match="cut.blf: the BLF log is shorter than its header records"):
+        list(read_log(tmp_path / "cut.blf"))
+    assert len(list(read_log(tmp_path / "whole.blf"))) == 3000
     (tmp_path / "other.log").write_text("(0.000000) can0 18FECA00#0000000000000000\n(0.5) can0 123#00\n")
     with pytest.raises(InputError, match="no sensor step"):
         replay(tmp_path / "other.log")

@@ -39,6 +39,9 @@ def read_log(path: str | os.PathLike) -> Iterator:
     """The frames of a CAN log in file order (``can.Message``); problems raise InputError naming the file."""
     import can
     p = check_log(path)
+    cut = truncation(p)
+    if cut:
+        raise InputError(f"{p}: {cut}")
     try:
         reader = can.LogReader(p)
     except Exception as exc:  # python-can raises a variety of errors for a broken file
@@ -57,6 +60,23 @@ def read_log(path: str | os.PathLike) -> Iterator:
                              f"written)") from None
         raise InputError(f"{p}: frame {n + 1} cannot be read as a {LOG_SUFFIXES[p.suffix.lower()]} log: "
                          f"{exc}") from None
+
+
+def truncation(path: Path) -> str | None:
+    """Why ``path`` looks cut short (a truncated copy, a log still being written), or None: a text log whose last
+    line is cut, a BLF file shorter than the size its header records (python-can reads both without a word)."""
+    if ends_mid_line(path):
+        return "the log ends in the middle of a line (truncated, or still being written)"
+    if path.suffix.lower() == ".blf" and path.is_file():
+        with open(path, "rb") as fh:
+            head = fh.read(24)
+        if len(head) == 24 and head[:4] == b"LOGG":
+            recorded = int.from_bytes(head[16:24], "little")
+            size = path.stat().st_size
+            if 0 < size < recorded:
+                return (f"the BLF log is shorter than its header records ({size} of {recorded} bytes: truncated, or "
+                        f"still being written)")
+    return None
 
 
 def ends_mid_line(path: Path) -> bool:
