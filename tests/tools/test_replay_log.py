@@ -196,7 +196,7 @@ def test_two_process_replay_reports_a_failure_in_the_sensor_process(tmp_path, fr
 def test_two_processes_are_refused_with_the_reason(tmp_path, frames):
     path = write_frames(frames[1], tmp_path / "drive.log")
     svc = SensorService(make_sensor(), ServiceOptions(), record=True, emit_frames=True)
-    with pytest.raises(InputError, match="cannot replay in two processes: the output frames"):
+    with pytest.raises(InputError, match="cannot replay in two processes: the sensor's output frames are written"):
         replay_log(path, svc, processes=2)
     with pytest.raises(InputError, match="processes = 3"):
         replay_log(path, svc, processes=3)
