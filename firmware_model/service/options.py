@@ -123,6 +123,7 @@ class ServiceOptions:
     def from_config(cls, config=None, **overrides) -> "ServiceOptions":
         """Options from a config's ``[can]`` section (None: defaults); ``overrides``: fields set directly."""
         c = dict(getattr(config, "can", None) or {})
+        _check_can_keys(c)
         sa: dict[str, int] = {}
         for key, names in SOURCE_ADDRESS_KEYS:
             if key in c:
@@ -150,6 +151,19 @@ class ServiceOptions:
             kw["j1939_name"] = J1939Name(**name)
         kw.update(overrides)
         return cls(**kw)
+
+
+def _check_can_keys(c: dict) -> None:
+    """ParameterError naming the [can] key (not the field it feeds) for a source address outside 0..253 or a
+    reference torque that is not a positive number of Nm."""
+    for key in [k for k, _ in SOURCE_ADDRESS_KEYS] + ["sensor_source_address"]:
+        v = c.get(key)
+        if key in c and (isinstance(v, bool) or not isinstance(v, int) or not 0 <= v <= 253):
+            raise ParameterError(f"can.{key} = {v!r} is not a J1939 source address 0..253")
+    for key in ("engine_reference_torque_nm", "retarder_reference_torque_nm"):
+        v = c.get(key)
+        if key in c and (isinstance(v, bool) or not isinstance(v, (int, float)) or not 0 < v < 1e5):
+            raise ParameterError(f"can.{key} = {v!r} must be a positive number of Nm")
 
 
 def parse_gear_map(raw) -> dict[int, int]:

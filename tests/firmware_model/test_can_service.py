@@ -197,6 +197,10 @@ def test_gear_map_and_gears_outside_the_model_are_not_available():
 
 
 def test_options_are_validated_with_named_errors():
+    for key, value in (("sensor_source_address", 300), ("engine_source_address", True),   # named by their [can]
+                       ("engine_reference_torque_nm", -5), ("retarder_reference_torque_nm", "x")):   # key, not field
+        with pytest.raises(ParameterError, match=rf"can\.{key} = "):
+            ServiceOptions.from_config(type("C", (), {"can": {key: value}})())
     with pytest.raises(ParameterError, match="stale_factor"):
         ServiceOptions(stale_factor=0.5)
     with pytest.raises(ParameterError, match="output_period_s"):
