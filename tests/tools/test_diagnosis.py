@@ -553,3 +553,18 @@ def test_an_effect_that_removes_a_small_held_out_gap_is_not_called_unexplained(p
     assert v["effect"] == "planet_oil_h_scale", v["reason"]
     assert abs(v["parameters"]["factor"] - 1.216) < 0.05
     assert v["shrink"] < 0.3 and "small beside the noise" in v["reason"]
+
+
+def test_a_drive_value_no_engine_produces_names_the_file(tmp_path, capsys):
+    """1e308 rpm in a test file was refused by the plant later as 'column engine_speed_rpm row 6: ...', without the
+    file (a bad-input audit)."""
+    t = np.arange(0.0, 600.0, 1.0)
+    for name in ("a", "b"):
+        spd = np.full(t.size, 1300.0)
+        spd[5] = 1e308 if name == "b" else 1300.0
+        write_run_table(RunTable({"time_s": t, "engine_speed_rpm": spd, "engine_torque_nm": np.full(t.size, 1500.0),
+                                  "gear": np.full(t.size, 9.0), "oil_temp_c": 60.0 + 0.01 * t}), tmp_path / f"{name}.csv")
+    rc = main(["diagnose", "--train", str(tmp_path / "a.csv"), "--test", str(tmp_path / "b.csv"), "--json",
+               str(tmp_path / "j.json"), "--quiet"])
+    err = capsys.readouterr().err
+    assert rc == 2 and "b.csv: column engine_speed_rpm row 6" in err and not (tmp_path / "j.json").exists()

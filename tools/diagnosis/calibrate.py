@@ -307,7 +307,7 @@ def calibrate(train_tables, test_tables, params: Parameters, keys: list | None, 
     if auto and not wanted:
         raise InputError(f"{params.origin} declares no parameter with plausible bounds (lo, hi): nothing to calibrate")
     runs_ = prepare_runs(train_tables, test_tables, opts, cooler in ("measured", "hold"), train_names, test_names,
-                         config_path)
+                         config_path, params)
     train, test = runs_.train, runs_.test
     tick = progress or (lambda: None)
     runs = PlantRuns(params, cooler, dt_s, opts.workers)

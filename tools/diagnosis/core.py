@@ -167,7 +167,7 @@ def diagnose(train_tables, test_tables, params, model: str = "onboard", cooler: 
     opts = opts or Options()
     cooler = cooler or params.strings.get("cooler.kind", "liquid")
     runs = prepare_runs(train_tables, test_tables, opts, cooler in ("measured", "hold"), train_names, test_names,
-                        config_path)
+                        config_path, params)
     m, note = make_model(model, params, cooler, opts)
     try:
         d = Diagnosis(runs.train, runs.test, m, params, opts, cooler, progress, candidates)

@@ -182,9 +182,10 @@ def _check_distinct(train: list, test: list) -> None:
 
 
 def prepare_runs(train_tables, test_tables, opts: Options, oil_is_input: bool, train_names=None, test_names=None,
-                 config_path=None) -> Runs:
+                 config_path=None, params=None) -> Runs:
     """Load (RunTables or paths), check that train and test differ, prepare every file; the test files may only
-    measure channels that some training file measures."""
+    measure channels that some training file measures. ``params``: the drive columns are also checked against its
+    engine and gearbox (what the plant would refuse later), naming the file."""
     if not train_tables:
         raise InputError("give at least one training file (--train)")
     if not test_tables:
@@ -192,6 +193,13 @@ def prepare_runs(train_tables, test_tables, opts: Options, oil_is_input: bool, t
     tr = _load_all(train_tables, train_names, "train", config_path)
     te = _load_all(test_tables, test_names, "test", config_path)
     _check_distinct(tr, te)
+    if params is not None:
+        from tools.plant.reference import validate_drive
+        for x in tr + te:
+            try:
+                validate_drive(x.table, params)
+            except InputError as exc:
+                raise InputError(f"{x.name}: {exc}") from None
     train = [prepare(x.table, x.name, "train", opts, oil_is_input) for x in tr]
     test = [prepare(x.table, x.name, "test", opts, oil_is_input) for x in te]
     ch_tr = {c for ds in train for c in ds.channels}

@@ -523,6 +523,27 @@ def _check_range(col: str, v: np.ndarray, ok: np.ndarray, lo: float, hi: float) 
         raise InputError(f"column {col} row {i + 1}: {v[i]:g} degC is outside {lo:g}..{hi:g} degC")
 
 
+def validate_drive(table: RunTable, p: Parameters) -> None:
+    """InputError (column and row) for a run table's drive values that no engine or gearbox of ``p`` produces:
+    engine speed and torque outside the engine's range, a gear not in seed Table 1 (missing values are left to the
+    caller: a measured file may have gaps)."""
+    cols = {c: np.asarray(table[c], dtype=float) for c in ("engine_speed_rpm", "engine_torque_nm", "gear")
+            if table.has(c)}
+    vmax = p["engine.max_speed_rad_s"] / RAD_S_PER_RPM
+    rules = (("engine_speed_rpm", lambda v: (v < 0) | (v > vmax), f"rpm is outside 0..{vmax:.0f} rpm"),
+             ("engine_torque_nm", lambda v: (v > p["engine.max_torque"]) | (v < p["engine.min_torque"]),
+              f"Nm is outside the engine's range {p['engine.min_torque']:g}..{p['engine.max_torque']:g} Nm"),
+             ("gear", lambda v: (v != np.round(v)) | (v < GEAR_MIN) | (v > GEAR_MAX),
+              f"is not a gear in {GEAR_MIN}..{GEAR_MAX} (seed Table 1)"))
+    for col, bad_of, what in rules:
+        if col in cols:
+            v = cols[col]
+            bad = np.isfinite(v) & bad_of(np.where(np.isfinite(v), v, 0.0))
+            if bad.any():
+                i = int(np.flatnonzero(bad)[0])
+                raise InputError(f"column {col} row {i + 1}: {v[i]:g} {what}")
+
+
 def _validate_inputs(t, spd, trq, gear, p: Parameters):
     def first_bad(mask):
         return int(np.flatnonzero(mask)[0]) + 1
