@@ -637,44 +637,10 @@ static void ldl_solve(const gvs_tables *tb, const gvs_real *S, gvs_real *x)
     for (k = 0; k < n; ++k) x[tb->ldl_perm[k]] = y[k];
 }
 
-/* ldl_solve of two vectors at once: the same operations on each, interleaved (two independent chains) */
-static void ldl_solve_pair(const gvs_tables *tb, const gvs_real *S, gvs_real *x, gvs_real *x2)
-{
-    gvs_real y[GVS_MAX_NODES], y2[GVS_MAX_NODES];
-    int32_t n = tb->n, k, e;
-    for (k = 0; k < n; ++k) {
-        y[k] = x[tb->ldl_perm[k]];
-        y2[k] = x2[tb->ldl_perm[k]];
-    }
-    for (k = 0; k < n; ++k)
-        for (e = tb->ldl_col_ptr[k]; e < tb->ldl_col_ptr[k + 1]; ++e) {
-            y[tb->ldl_row[e]] -= S[n + e] * y[k];
-            y2[tb->ldl_row[e]] -= S[n + e] * y2[k];
-        }
-    for (k = 0; k < n; ++k) {
-        y[k] *= S[k];
-        y2[k] *= S[k];
-    }
-    for (k = n - 1; k >= 0; --k) {
-        gvs_real acc = y[k], acc2 = y2[k];
-        for (e = tb->ldl_col_ptr[k]; e < tb->ldl_col_ptr[k + 1]; ++e) {
-            acc -= S[n + e] * y[tb->ldl_row[e]];
-            acc2 -= S[n + e] * y2[tb->ldl_row[e]];
-        }
-        y[k] = acc;
-        y2[k] = acc2;
-    }
-    for (k = 0; k < n; ++k) {
-        x[tb->ldl_perm[k]] = y[k];
-        x2[tb->ldl_perm[k]] = y2[k];
-    }
-}
-
 /* factorise M = c_scale C + d K and, coupled, w = M^-1 (d u); -1 when M is not positive definite or the coupled
  * matrix M - d u e^T is singular. c_scale 0 (K itself, once per march) assembles from the links and keeps K's slots;
- * the march's steps then assemble C + d K from those slots (one pass, no link loop). x (or NULL): a vector solved by
- * M alongside w (held_correct then finishes it as held_solve would) */
-static int held_factor(const gvs_tables *tb, held_t *hs, gvs_real c_scale, gvs_real d, gvs_real *x)
+ * the march's steps then assemble C + d K from those slots (one pass, no link loop) */
+static int held_factor(const gvs_tables *tb, held_t *hs, gvs_real c_scale, gvs_real d)
 {
     int32_t i;
     if (c_scale == R_(0.0)) {
@@ -692,30 +658,21 @@ static int held_factor(const gvs_tables *tb, held_t *hs, gvs_real c_scale, gvs_r
     if (ldl_factor(tb, hs->S) != 0) return -1;
     if (hs->coupled) {
         for (i = 0; i < tb->n; ++i) hs->w[i] = d * hs->u[i];
-        if (x) ldl_solve_pair(tb, hs->S, hs->w, x);
-        else ldl_solve(tb, hs->S, hs->w);
+        ldl_solve(tb, hs->S, hs->w);
         if (!(R_(1.0) - hs->w[tb->i_oil] != R_(0.0))) return -1;
-    } else if (x) {
-        ldl_solve(tb, hs->S, x);
     }
     return 0;
-}
-
-/* x = M^-1 x (from ldl_solve) -> (M - d u e_sump^T)^-1 x: the Sherman-Morrison correction */
-static void held_correct(const gvs_tables *tb, const held_t *hs, gvs_real *x)
-{
-    int32_t i;
-    if (hs->coupled) {
-        gvs_real f = x[tb->i_oil] / (R_(1.0) - hs->w[tb->i_oil]);
-        for (i = 0; i < tb->n; ++i) x[i] += hs->w[i] * f;
-    }
 }
 
 /* x = (M - d u e_sump^T)^-1 x (Sherman-Morrison over the factorised M) */
 static void held_solve(const gvs_tables *tb, const held_t *hs, gvs_real *x)
 {
+    int32_t i;
     ldl_solve(tb, hs->S, x);
-    held_correct(tb, hs, x);
+    if (hs->coupled) {
+        gvs_real f = x[tb->i_oil] / (R_(1.0) - hs->w[tb->i_oil]);
+        for (i = 0; i < tb->n; ++i) x[i] += hs->w[i] * f;
+    }
 }
 
 /* Ae = A e = K e (+ slope on the sump) - u e_sump (held: the sump's row 0) */
@@ -809,7 +766,7 @@ static int held_build(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_tt
     {
         int coupled = hs->coupled;
         hs->coupled = 0;
-        if (held_factor(tb, hs, R_(0.0), R_(1.0), NULL) != 0) return -1;
+        if (held_factor(tb, hs, R_(0.0), R_(1.0)) != 0) return -1;
         if (coupled) {
             for (i = 0; i < n; ++i) hs->w[i] = hs->u[i];
             ldl_solve(tb, hs->S, hs->w);
@@ -980,9 +937,9 @@ static int ttl_solve(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl
     while (any && t < M_(TTL_HORIZON_S)) {
         march_t h_step = t_skip > M_(0.0) ? t_skip : (h < M_(TTL_HORIZON_S) - t ? h : M_(TTL_HORIZON_S) - t);
         gvs_real d = (gvs_real)(M_(MARCH_D_FRAC) * h_step), s_watch = R_(2.0);
+        if (held_factor(tb, &hs, R_(1.0), d) != 0) return -1;
         for (i = 0; i < n; ++i) e_g[i] = C[i] * e[i] - d * Ae[i];
-        if (held_factor(tb, &hs, R_(1.0), d, e_g) != 0) return -1;     /* e_g solved alongside w */
-        held_correct(tb, &hs, e_g);
+        held_solve(tb, &hs, e_g);
         for (i = 0; i < n; ++i) e_new[i] = C[i] * (R_(MARCH_A1) * e_g[i] - R_(MARCH_A0) * e[i]);
         held_solve(tb, &hs, e_new);
         held_apply(tb, &hs, e_new, Ae);
