@@ -97,9 +97,11 @@ class Diagnosis:
         verdict = with_combination(ctx, base, verdict, combo)
         res = residuals(base, verdict, crit, combo)
         checked = held_out_check(ctx, base, verdict, res, where.where)
-        if checked is not verdict:
+        if checked.effect != verdict.effect:       # refused: "unexplained", the baseline's residuals
             verdict, combo = checked, None
             res = residuals(base, verdict, crit)
+        else:                                      # kept (perhaps with a note in its reason): the set stays
+            verdict = checked
         structure = self._structure(base, fits, verdict)
         verdict = with_structure(verdict, structure)
         nex = self._not_excluded(base, crit, fits, verdict, combo, ident)

@@ -345,7 +345,8 @@ def held_out_check(ctx: Context, base: Baseline, v: Verdict, res: Residuals, whe
             f" On the held-out files the RMS shrinks by only {100 * res.shrink:.0f} % because their gap is small beside "
             f"the noise; the effect removes {100 * gap_shrink:.0f} % of the gap itself (the noise removed) and leaves no "
             f"channel above its threshold ({_listing(left, v.gap_thr_c, '<=', chans)}).")
-        return Verdict(v.effect, v.reason + note, v.systematic, v.gap_thr_c, v.post_c)
+        from dataclasses import replace
+        return replace(v, reason=v.reason + note)
     top = ", ".join(f"{w['channel']} in {w['regime']} ({100 * w['share']:.0f} %)" for w in where[:3])
     reason = (f"the best candidate {v.effect} fits the training files but shrinks the held-out residual by only "
               f"{100 * res.shrink:.0f} % (< {100 * ctx.opts.shrink_min:.0f} %) although the test files show a real gap "
