@@ -103,6 +103,8 @@ def test_errors_name_the_file_and_the_rule(tmp_path, monkeypatch):
     (tmp_path / "cut.log").write_text("(0.0) can0 18FEF100#00\n(0.1) can0")      # a truncated copy
     with pytest.raises(InputError, match="cut.log: the log ends in the middle of a line"):
         list(read_log(tmp_path / "cut.log"))
+    with pytest.raises(InputError, match="cut.log: the log ends in the middle of a line"):
+        replay(tmp_path / "cut.log")                          # the fast candump parser too
     import can
     with can.BLFWriter(tmp_path / "whole.blf") as w:
         for i in range(3000):

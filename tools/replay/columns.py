@@ -22,7 +22,8 @@ from typing import NamedTuple
 import numpy as np
 
 from can_dbc.columnar import FLAG_ERROR, FLAG_EXTENDED, FLAG_FD, FLAG_REMOTE, FrameColumns
-from tools.replay.formats import check_log, read_log
+from firmware_model.errors import InputError
+from tools.replay.formats import check_log, read_log, truncation
 
 #: linux/can/error.h, as python-can's candump reader uses them
 _CAN_ERR_FLAG = 0x20000000
@@ -46,6 +47,9 @@ class ColumnRead(NamedTuple):
 def read_columns(path: str | os.PathLike) -> ColumnRead:
     """The frames of a CAN log (checked by ``tools.replay.log.check_log``) as columns."""
     p = check_log(path)
+    cut = truncation(p)
+    if cut:                           # the fast parsers would read a cut last line as a short frame
+        raise InputError(f"{p}: {cut}")
     if p.suffix.lower() == ".log":
         cols = parse_candump(p.read_bytes())
         if cols is not None:
