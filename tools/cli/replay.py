@@ -185,7 +185,9 @@ def _run_log(args, path: Path) -> int:
         if result.service_counters["time_jumps"]:
             print(f"note: {result.service_counters['time_jumps']} time jumps in the log (see the log messages)")
         if table.n:
+            from firmware_model.config import load_config
             from tools.replay.summary import summary_lines
-            for line in summary_lines(table):
+            oil_mode = args.oil_mode or load_config(args.config).sensor.get("oil_mode", "measured")
+            for line in summary_lines(table, oil_model=oil_mode == "model"):
                 print(line)
     return _report_trust(args, result.findings)
