@@ -29,6 +29,7 @@ from can_dbc.columnar import (FLAG_ERROR, FLAG_EXTENDED, FLAG_REMOTE, DecodedCol
 from can_dbc.decoder import signal_messages
 from can_dbc.j1939 import ID_MAX
 from firmware_model.components import MODE_NOT_INITIALISED, PUBLISHED, STEP_S
+from firmware_model.physics.oil import T_MAX_C as OIL_T_MAX_C, T_MIN_C as OIL_T_MIN_C
 from firmware_model.service.options import GEAR_RANGE, NOMINAL_PERIOD_S, SENSOR_INPUTS, wanted_pgns
 from firmware_model.service.recorder import StepRecorder
 from firmware_model.service.records import RecordedOutputs, StepKind
@@ -245,7 +246,9 @@ def frame_half(service, cols: FrameColumns, decoded: DecodedColumns, meas_names:
     meas_c = np.stack([fresh.values(m, max_age["RIG"]) for m in meas_names], axis=1) if n \
         else np.zeros((0, len(meas_names)))
     first_s = grid.anchor_t_s[0] if grid.anchor_t_s.size else 0.0
-    waiting = np.isnan(inputs[:, 3]) & (grid.t_step_s - first_s < opts.init_wait_s - 1e-9)
+    oil = inputs[:, 3]
+    plausible = (oil >= OIL_T_MIN_C) & (oil <= OIL_T_MAX_C)      # (as SensorService._initialisation; NaN: not)
+    waiting = ~plausible & (grid.t_step_s - first_s < opts.init_wait_s - 1e-9)
     ready = np.flatnonzero(~waiting)
     kind = np.full(n, int(StepKind.NOT_INITIALISED), dtype=np.int8)
     if ready.size:

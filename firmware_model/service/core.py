@@ -15,6 +15,7 @@ from can_dbc.errors import ConfigError
 from can_dbc.j1939 import ID_MAX, pgn_key
 from firmware_model.components import MODE_NOT_INITIALISED, PUBLISHED, STEP_S
 from firmware_model.errors import InputError, ParameterError
+from firmware_model.physics.oil import T_MAX_C as OIL_T_MAX_C, T_MIN_C as OIL_T_MIN_C
 from firmware_model.service.netmgmt import AddressClaim
 from firmware_model.service.options import (GEAR_RANGE, NOMINAL_PERIOD_S, SENSOR_INPUTS, ServiceOptions,
                                             wanted_pgns)
@@ -389,8 +390,10 @@ class SensorService:
                              "sensor runs degraded", t_step_s - self._first_t_s)
 
     def _initialisation(self, t_step_s: float, oil_temp_c: float | None) -> StepKind:
-        """Before the first step: wait up to ``init_wait_s`` for a measured oil temperature."""
-        if oil_temp_c is None and t_step_s - self._first_t_s < self.options.init_wait_s - 1e-9:
+        """Before the first step: wait up to ``init_wait_s`` for a plausible measured oil temperature (one outside
+        the oil model's range is no start: VirtualSensor.initial_state)."""
+        plausible = oil_temp_c is not None and OIL_T_MIN_C <= oil_temp_c <= OIL_T_MAX_C
+        if not plausible and t_step_s - self._first_t_s < self.options.init_wait_s - 1e-9:
             self.counters["uninitialised_steps"] += 1
             return StepKind.NOT_INITIALISED
         self._initialised = True

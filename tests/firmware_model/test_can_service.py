@@ -167,6 +167,18 @@ def test_not_initialised_until_oil_temperature_or_timeout():
     assert set(first["levels"].values()) == {3}
 
 
+def test_an_implausible_first_oil_reading_is_waited_past():
+    """A TRF1 of 240 degC at key-on (the decoder passes up to 250 degC; the oil model ends at 200) put every node at
+    240 degC and raised every warning; then, started at once from the default, it under-warned. The service waits
+    for a plausible reading (up to init_wait_s) and starts from it."""
+    hot = [m for m in traffic(0.0, 1.0, oil=240.0)]
+    svc = service()
+    svc.feed_all(hot + traffic(1.0, 3.0, oil=85.0))
+    rec = svc.recorded()
+    started = np.flatnonzero(rec["degraded_mode"] != 3)[0]
+    assert rec["time_s"][started] > 1.0 and abs(rec["model_oil_temp_c"][started] - 85.0) < 0.5
+
+
 def test_no_ec1_and_no_configured_reference_torque_means_torque_not_available(caplog):
     svc = service(configured_ref_torque_nm=None, no_ref_torque_warning_s=2.0)
     with caplog.at_level(logging.WARNING, logger="gearbox_vsensor.can_service"):

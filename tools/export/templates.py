@@ -15,7 +15,8 @@ API_HEADER = """/* gearbox-vsensor: the onboard virtual temperature sensor of a 
 extern const gvs_tables GVS_TABLES;
 extern const gvs_vehicle GVS_VEHICLE;
 
-/* Cold start: every node at the measured oil temperature T_oil_c (NaN: the ambient default). */
+/* Cold start: every node at the measured oil temperature T_oil_c (NaN, or outside the oil input's plausible
+ * range: the ambient default). */
 void gvs_sensor_init(gvs_state *st, double T_oil_c);
 
 /* One 0.1 s step: call every 100 ms with the latest inputs (NaN = not available). A forward time jump in
@@ -36,7 +37,11 @@ SENSOR_SOURCE = """/* gearbox-vsensor: start and step of the exported sensor (se
 void gvs_sensor_init(gvs_state *st, double T_oil_c)
 {
     int i, c;
-    gvs_real T0 = (gvs_real)(T_oil_c == T_oil_c ? T_oil_c : (double)GVS_TABLES.aux_default[0]);
+    /* a reading outside the oil input's plausible range (or NaN) is no start: the ambient default, as the Python
+     * sensor's initial_state */
+    int plausible = T_oil_c >= (double)GVS_TABLES.input_lo[GVS_I_OIL]
+        && T_oil_c <= (double)GVS_TABLES.input_hi[GVS_I_OIL];
+    gvs_real T0 = (gvs_real)(plausible ? T_oil_c : (double)GVS_TABLES.aux_default[0]);
     memset(st, 0, sizeof *st);
     for (c = 0; c < 2; ++c)
         for (i = 0; i < GVS_TABLES.n; ++i) st->T_c[c][i] = T0;
