@@ -9,7 +9,8 @@ from pathlib import Path
 from firmware_model.errors import InputError
 
 #: the figure formats the plots are written in (matplotlib's raster and vector backends)
-PLOT_SUFFIXES = (".png", ".pdf", ".svg", ".jpg", ".jpeg", ".eps", ".ps", ".tif", ".tiff")
+PLOT_SUFFIXES = (".png", ".pdf", ".svg", ".svgz", ".jpg", ".jpeg", ".eps", ".ps", ".pgf", ".tif", ".tiff", ".webp",
+                 ".raw", ".rgba")
 #: the formats a run table is written in (tools.runtable)
 TABLE_SUFFIXES = (".csv", ".parquet")
 
@@ -41,9 +42,12 @@ def check_paths(inputs, outputs: dict, plots: tuple = (), makes_dirs: tuple = ()
             raise InputError(f"{opt} {p} is a directory, not a file")
         if opt not in makes_dirs and not full.parent.is_dir():
             raise InputError(f"{opt} {p}: the directory {full.parent} does not exist")
+        above = next(a for a in full.parents if a.exists())      # a directory the command would create under it
+        if not above.is_dir():
+            raise InputError(f"{opt} {p}: {above} is a file, so no directory can be made there")
         if opt in tables and path.suffix.lower() not in TABLE_SUFFIXES:
             raise InputError(f"{opt} {p}: a run table is written as .csv or .parquet, not "
                              f"{path.suffix or 'a file without an extension'}")
-        if opt in plots and path.suffix.lower() not in PLOT_SUFFIXES:
+        if opt in plots and path.suffix and path.suffix.lower() not in PLOT_SUFFIXES:     # none: matplotlib's png
             raise InputError(f"{opt} {p}: a figure is written as {', '.join(s[1:] for s in PLOT_SUFFIXES)}, not "
                              f"{path.suffix or 'a file without an extension'}")
