@@ -92,7 +92,10 @@ def _read_manifest(m: Path) -> list[LogEntry]:
         p = Path(r["log"])
         if not p.is_absolute():
             p = m.parent / p
-        entries.append(_entry(p, r["vehicle"], r.get("variant"), r.get("config"), r.get("date")))
+        config = r.get("config") or None
+        if config and not Path(config).is_absolute():         # relative to the manifest, as the logs
+            config = str(m.parent / config)
+        entries.append(_entry(p, r["vehicle"], r.get("variant"), config, r.get("date")))
     absent = [e.log for e in entries if not e.log.is_file()]
     if absent:
         more = f" and {len(absent) - 3} more" if len(absent) > 3 else ""
@@ -159,7 +162,12 @@ def _check_gearboxes(firsts, where: str) -> None:
             continue
         done.add((e.variant, e.config))
         try:
-            vehicle_config(e.variant, e.config).load_params()
+            from firmware_model.service.options import ServiceOptions
+            cfg = vehicle_config(e.variant, e.config)
+            cfg.load_params()
+            ServiceOptions.from_config(cfg)                   # the [can] section
+            if cfg.sensor.get("oil_mode", "measured") not in ("measured", "model"):
+                raise ParameterError(f"sensor.oil_mode = {cfg.sensor['oil_mode']!r} must be 'measured' or 'model'")
         except (ParameterError, InputError) as exc:
             raise InputError(f"{where}: vehicle {e.vehicle}: {exc}") from None
 
