@@ -527,10 +527,15 @@ def validate_drive(table: RunTable, p: Parameters) -> None:
     """InputError (column and row) for a run table's drive values that no engine or gearbox of ``p`` produces:
     engine speed and torque outside the engine's range, a gear not in seed Table 1 (missing values are left to the
     caller: a measured file may have gaps)."""
-    cols = {c: np.asarray(table[c], dtype=float) for c in ("engine_speed_rpm", "engine_torque_nm", "gear")
-            if table.has(c)}
+    _check_drive_ranges({c: np.asarray(table[c], dtype=float) for c in ("engine_speed_rpm", "engine_torque_nm", "gear")
+                         if table.has(c)}, p)
+
+
+def _check_drive_ranges(cols: dict, p: Parameters) -> None:
+    """The range rules of the drive columns, on their finite values (validate_drive, _validate_inputs)."""
     vmax = p["engine.max_speed_rad_s"] / RAD_S_PER_RPM
-    rules = (("engine_speed_rpm", lambda v: (v < 0) | (v > vmax), f"rpm is outside 0..{vmax:.0f} rpm"),
+    rules = (("engine_speed_rpm", lambda v: (v < 0) | (v > vmax),
+              lambda x: "rpm is a negative speed" if x < 0 else f"rpm exceeds {vmax:.0f} rpm"),
              ("engine_torque_nm", lambda v: (v > p["engine.max_torque"]) | (v < p["engine.min_torque"]),
               f"Nm is outside the engine's range {p['engine.min_torque']:g}..{p['engine.max_torque']:g} Nm"),
              ("gear", lambda v: (v != np.round(v)) | (v < GEAR_MIN) | (v > GEAR_MAX),
@@ -541,7 +546,7 @@ def validate_drive(table: RunTable, p: Parameters) -> None:
             bad = np.isfinite(v) & bad_of(np.where(np.isfinite(v), v, 0.0))
             if bad.any():
                 i = int(np.flatnonzero(bad)[0])
-                raise InputError(f"column {col} row {i + 1}: {v[i]:g} {what}")
+                raise InputError(f"column {col} row {i + 1}: {v[i]:g} {what(v[i]) if callable(what) else what}")
 
 
 def _validate_inputs(t, spd, trq, gear, p: Parameters):
@@ -553,18 +558,4 @@ def _validate_inputs(t, spd, trq, gear, p: Parameters):
             raise InputError(f"column {name} row {first_bad(bad)}: value is missing or not a number")
     if np.any(np.diff(t) <= 0):
         raise InputError(f"column time_s row {first_bad(np.append(np.diff(t) <= 0, False)) + 1}: time must increase")
-    if np.any(spd < 0):
-        raise InputError(f"column engine_speed_rpm row {first_bad(spd < 0)}: negative speed {spd[spd < 0][0]:g} rpm")
-    vmax = p["engine.max_speed_rad_s"] / RAD_S_PER_RPM
-    if np.any(spd > vmax):
-        raise InputError(f"column engine_speed_rpm row {first_bad(spd > vmax)}: {spd[spd > vmax][0]:g} rpm exceeds "
-                         f"{vmax:.0f} rpm")
-    tmax, tmin = p["engine.max_torque"], p["engine.min_torque"]
-    bad = (trq > tmax) | (trq < tmin)
-    if bad.any():
-        raise InputError(f"column engine_torque_nm row {first_bad(bad)}: {trq[bad][0]:g} Nm is outside the engine's "
-                         f"range {tmin:g}..{tmax:g} Nm")
-    bad = (gear != np.round(gear)) | (gear < GEAR_MIN) | (gear > GEAR_MAX)
-    if bad.any():
-        raise InputError(f"column gear row {first_bad(bad)}: {gear[bad][0]:g} is not a gear in {GEAR_MIN}..{GEAR_MAX} "
-                         f"(seed Table 1)")
+    _check_drive_ranges({"engine_speed_rpm": spd, "engine_torque_nm": trq, "gear": gear}, p)
