@@ -256,3 +256,17 @@ def test_synthetic_cold_starts_begin_at_ambient_and_the_log_says_so(tmp_path):
     days_cold = json.loads((cold.parent / "truth.json").read_text())["days"]
     days_warm = json.loads((warm.parent / "truth.json").read_text())["days"]
     assert [d["ambient_c"] for d in days_cold] == [d["ambient_c"] for d in days_warm]
+
+
+def test_the_oil_modelled_by_request_is_not_counted_as_degraded(tmp_path, synthetic):
+    """sensor.oil_mode = "model" in a vehicle's config: its oil-model-only steps are its normal mode, so the summary
+    row's degraded_share stays near 0 on a clean log (it was 1.0: every step counted as degraded), as replay's summary."""
+    from tools.fleet.run import process_log
+    entry = read_manifest(synthetic)[0]
+    cfg = tmp_path / "model.toml"
+    cfg.write_text('[sensor]\noil_mode = "model"\n')
+    status, measured = process_log(entry)
+    status_m, modelled = process_log(entry._replace(config=str(cfg)))
+    assert status == status_m == "ok"
+    assert measured["degraded_share"] < 0.01          # the first steps, before the first inputs
+    assert modelled["degraded_share"] <= measured["degraded_share"]

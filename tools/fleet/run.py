@@ -101,7 +101,8 @@ def process_log(entry: LogEntry, out: str | None = None, estimates: bool = False
         table = replay_log(entry.log, SensorService(sensor, options, record=True, emit_frames=False))
         stage = "summary"
         row = summarize(table, table.meta["counters"], vehicle=entry.vehicle, log=os.fspath(entry.log),
-                        key=entry.key, date=entry.date)
+                        key=entry.key, date=entry.date,
+                        oil_model=getattr(sensor.options, "oil_mode", "measured") == "model")
         if estimates and out is not None:
             stage = "estimates"
             _estimates(table, entry, Path(out), row["date"])

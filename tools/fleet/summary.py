@@ -13,7 +13,7 @@ import math
 import numpy as np
 
 from can_dbc.decoder import REJECT_REASONS
-from firmware_model.components import PUBLISHED, STEP_S
+from firmware_model.components import MODE_NORMAL, MODE_OIL_MODEL, PUBLISHED, STEP_S
 
 #: a log's frame time at or above this is taken as Unix time (after 1973): its date is the log's date
 EPOCH_MIN_S = 1e8
@@ -51,8 +51,21 @@ def _component(row: dict, c: str, table) -> None:
         (math.inf if ok.any() else math.nan)
 
 
-def summarize(table, counters: dict, *, vehicle: str, log: str, key: str, date: str | None = None) -> dict:
-    """The summary row of one replayed log (``table`` from ``replay_log``, ``counters`` its ``meta["counters"]``)."""
+def _degraded_share(table, oil_model: bool) -> float:
+    """The share of steps not in normal mode; with the oil modelled by request, oil-model-only steps are normal."""
+    if not table.n:
+        return 0.0
+    if oil_model and table.has("degraded_mode"):
+        mode = np.asarray(table["degraded_mode"])
+        return float(np.mean((mode != MODE_NORMAL) & (mode != MODE_OIL_MODEL)))
+    return float(np.mean(np.asarray(table["degraded"], dtype=float) != 0))
+
+
+def summarize(table, counters: dict, *, vehicle: str, log: str, key: str, date: str | None = None,
+              oil_model: bool = False) -> dict:
+    """The summary row of one replayed log (``table`` from ``replay_log``, ``counters`` its ``meta["counters"]``);
+    ``oil_model``: the sensor models the oil by request (``sensor.oil_mode = "model"``), so its oil-modelled steps
+    are normal, not degraded (as in ``replay``'s summary)."""
     can_t = np.asarray(table["can_time_s"], dtype=float)
     start_s, end_s = float(can_t[0]), float(can_t[-1])
     innov = np.asarray(table["oil_innovation_c"], dtype=float) if table.has("oil_innovation_c") else np.zeros(0)
@@ -60,7 +73,7 @@ def summarize(table, counters: dict, *, vehicle: str, log: str, key: str, date: 
     rejected = counters.get("decoder", {}).get("rejected", {})
     row = {"vehicle": vehicle, "log": log, "log_key": key, "date": date or log_date(start_s) or "unknown",
            "start_s": start_s, "end_s": end_s, "duration_s": float(table.n * STEP_S), "steps": int(table.n),
-           "degraded_share": float(np.mean(np.asarray(table["degraded"], dtype=float) != 0)),
+           "degraded_share": _degraded_share(table, oil_model),
            "frames": int(counters.get("decoder", {}).get("frames_seen", 0)),
            "time_jumps": int(counters.get("service", {}).get("time_jumps", 0)),
            "oil_innovation_mean_c": float(np.mean(innov)) if innov.size else math.nan,
