@@ -116,6 +116,12 @@ def test_errors_name_the_file_and_the_rule(tmp_path, monkeypatch):
     (tmp_path / "other.log").write_text("(0.000000) can0 18FECA00#0000000000000000\n(0.5) can0 123#00\n")
     with pytest.raises(InputError, match="no sensor step"):
         replay(tmp_path / "other.log")
+    lines = "".join(f"(nan) can0 0CF00400#F0C0C0A02800FFFF\n" for _ in range(50))   # every frame time lost
+    (tmp_path / "nan.log").write_text(lines)
+    for columnar in (True, False):
+        with pytest.raises(InputError, match="all 50 frames were rejected as a frame time that is not a finite"):
+            replay_log(tmp_path / "nan.log", SensorService(make_sensor(), ServiceOptions(), record=True, emit_frames=False),
+                       columnar=columnar)
     (tmp_path / "x.mf4").write_bytes(b"\0" * 64)
     monkeypatch.setitem(sys.modules, "asammdf", None)
     with pytest.raises(InputError, match=r"needs the optional package asammdf.*gearbox-vsensor\[mf4\]"):

@@ -99,12 +99,20 @@ def replay_log(path: str | os.PathLike, sensor_or_service, *, config=None, optio
     if reader == "python-can":
         columns = service.recorded()
     if not len(columns["time_s"]):
-        d = service.decoder.counters
-        raise InputError(f"{path}: no sensor step in {d['frames_seen']} frames: the log holds less than 100 ms of "
-                         f"J1939 input traffic (EEC1, ETC2, TRF1, ET1, AMB, CCVS1, ERC1, TP) from the expected "
-                         f"sources")
+        raise InputError(_no_step_reason(path, service.decoder.counters))
     return RunTable(columns, meta={"counters": service.all_counters(), "log": os.fspath(path), "reader": reader},
                     source=os.fspath(path))
+
+
+def _no_step_reason(path, d: dict) -> str:
+    """Why a log gave no sensor step: every frame rejected for one reason (named), or too little input traffic."""
+    from can_dbc.decoder import REJECT_REASONS
+    seen, rejected = d.get("frames_seen", 0), d.get("rejected", {})
+    reason, count = max(rejected.items(), key=lambda kv: kv[1], default=("", 0))
+    if seen and count == seen and reason in REJECT_REASONS:
+        return f"{path}: no sensor step: all {seen} frames were rejected as {REJECT_REASONS[reason]}"
+    return (f"{path}: no sensor step in {seen} frames: the log holds less than 100 ms of J1939 input traffic (EEC1, "
+            f"ETC2, TRF1, ET1, AMB, CCVS1, ERC1, TP) from the expected sources")
 
 
 def _columnar(service, on_frames, columnar: bool | None) -> bool:
