@@ -70,13 +70,16 @@ def cooler_slope_w_per_k(sp: SensorParams, T_oil_c: float, omega_in_rad_s: float
 
 def jump_state(state: SensorState, gap_s, sp: SensorParams, cache: StepCache) -> SensorState:
     """Propagate over a forward time jump of ``gap_s`` (per vehicle; <= 0: none): held inputs for up to
-    time_jump_hold_s, then engine off."""
+    time_jump_hold_s, then engine off. The inputs age by the gap: a value held from before it is no recent good
+    value (the oil's jump check and the drive inputs' hold then treat it as old, as the C kernel does)."""
     B = state.t_last_s.shape
     T = np.array(state.T_c, dtype=float, copy=True)
+    age = np.array(state.age_s, dtype=float, copy=True)
     for v in (np.ndindex(B) if B else [()]):
         g = float(np.asarray(gap_s)[v])
         if g <= 0:
             continue
+        age[v] = age[v] + g
         held = min(g, sp.options.time_jump_hold_s)
         for c in (MAIN, TWIN):
             T[v + (c,)] = _held_propagate(sp, state, v, c, held)
@@ -87,7 +90,7 @@ def jump_state(state: SensorState, gap_s, sp: SensorParams, cache: StepCache) ->
             bc[sp.reduced.i_ambient] = amb
             for c in (MAIN, TWIN):
                 T[v + (c,)] = cool_down(sp, cache, T[v + (c,)], g - held, amb, bc)
-    return state._replace(T_c=T)
+    return state._replace(T_c=T, age_s=age.astype(np.asarray(state.age_s).dtype, copy=False))
 
 
 def _held(hold, i: int, default: float) -> float:

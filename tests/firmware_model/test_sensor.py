@@ -353,6 +353,25 @@ def test_a_forward_time_jump_propagates_the_held_inputs(sensor, warm):
     assert float(jumped.t_last_s) == t0 + 30.0
 
 
+@pytest.mark.parametrize("core", ["numpy", "c"])
+def test_after_a_time_jump_the_first_oil_reading_is_used(params, core):
+    """A logger off for 30 min: the oil read after the gap is 8 K below the last one before it. Held from before the
+    gap, that value is no recent good one, so the new reading is the sump at once (it was rejected as an implausible
+    step for a second, the sensor on its oil model, because the inputs' age did not count the gap)."""
+    try:
+        s = VirtualSensor(params, core=core)
+    except ParameterError as exc:
+        pytest.skip(str(exc))
+    st, _ = run(s, s.initial_state(T_oil_c=80.0), NOMINAL, 50)
+    a, _ = s.step(st, NOMINAL._replace(t_s=100.0))
+    b, out = s.step(a, NOMINAL._replace(t_s=100.0 + 1800.0, oil_temp_c=72.0))
+    assert b.rejects[RJ["time_jump"]] == 1
+    assert b.rejects[RJ["oil_implausible"]] == a.rejects[RJ["oil_implausible"]]
+    assert out.T_c[I["oil"]] == 72.0 and int(out.status.degraded_mode) == MODE_NORMAL
+    c, _ = s.step(b, NOMINAL._replace(t_s=1900.1, oil_temp_c=92.0))    # a step right after it still is one
+    assert c.rejects[RJ["oil_implausible"]] == b.rejects[RJ["oil_implausible"]] + 1
+
+
 def test_a_long_time_jump_cools_the_gearbox(sensor, warm):
     hot, _ = run(sensor, warm, SensorInputs(1400.0, 2600.0, 5, 80.0, 20.0, 85.0, 30.0, 0.0, 0.0), 1)
     st, out = sensor.step(hot, SensorInputs(700.0, 0.0, 0, math.nan, 20.0, 85.0, 0.0, 0.0, 10 * 3600.0))

@@ -1027,6 +1027,8 @@ int gvs_step(const gvs_tables *tb, const gvs_vehicle *veh, gvs_state *st, const 
             if (gap > 1.5 * (double)tb->dt_s) {
                 if (!jump_done) return GVS_NEED_JUMP;
                 counts[RJ_TIME_JUMP] = 1;
+                /* the inputs age by the gap (held_inputs.jump_state): a value from before it is no recent one */
+                for (i = 0; i < GVS_N_INPUTS; ++i) st->age_s[i] += (gvs_real)(gap - (double)tb->dt_s);
             }
         }
     }
