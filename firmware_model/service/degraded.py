@@ -55,7 +55,8 @@ class DegradedFinding:
                           for m, n in sorted(self.by_mode.items(), key=lambda kv: -kv[1]) if m != MODE_NORMAL and n)
         worst = sorted(((n, INPUT_NAMES[k]) for k, n in self.missing.items() if n and k in INPUT_NAMES),
                        reverse=True)
-        inputs = ("; missing most: " + ", ".join(f"{name} {pct(n, self.steps)}" for n, name in worst)) if worst else ""
+        inputs = ("; inputs not usable (missing, stale or rejected as implausible or frozen): "
+                  + ", ".join(f"{name} {pct(n, self.steps)}" for n, name in worst)) if worst else ""
         return (f"the sensor ran degraded on {pct(self.degraded, self.steps)} of {self.steps} steps ({modes}){inputs}: "
                 f"its temperatures rest on held, modelled or default inputs")
 

@@ -117,3 +117,15 @@ def test_run_and_plant_help_explain_every_option(capsys):
         text = capsys.readouterr().out
         for opt in options:
             assert opt in text, (cmd, opt)
+
+
+def test_simulate_says_which_retarder_reference_its_log_uses(tmp_path, capsys):
+    """A cycle with retarder torque written as a log: the note names the reference torque a replay needs."""
+    from tools.runtable import RunTable, write_run_table
+    t = np.arange(0.0, 30.0, 1.0)
+    cyc = RunTable({"time_s": t, "engine_speed_rpm": np.full(t.size, 1200.0), "engine_torque_nm": np.zeros(t.size),
+                    "gear": np.full(t.size, 12.0), "retarder_torque_nm": np.full(t.size, 800.0)})
+    write_run_table(cyc, tmp_path / "down.csv")
+    assert main(["simulate", "--cycle", str(tmp_path / "down.csv"), "--out", str(tmp_path / "r.csv"), "--can-log",
+                 str(tmp_path / "r.log"), "--quiet"]) == 0
+    assert "[can] retarder_reference_torque_nm = 3500" in capsys.readouterr().err

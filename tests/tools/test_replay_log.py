@@ -208,3 +208,19 @@ def test_two_processes_are_refused_with_the_reason(tmp_path, frames):
         replay_log(path, svc, processes=2)
     with pytest.raises(InputError, match="processes = 3"):
         replay_log(path, svc, processes=3)
+
+
+def test_retarder_frames_without_a_reference_torque_are_named(tmp_path):
+    """ERC1 frames arrive but no [can] retarder_reference_torque_nm is set: the summary says so (it said
+    "auxiliary inputs not given (retarder_torque_nm)" as if the log had none); with the reference, nothing is said."""
+    from tools.replay.summary import summary_lines
+    inp = cycle()
+    inp["retarder_torque_nm"] = np.full(inp.n, 700.0)
+    path = write_frames(synth_frames(inp, plant(inp)).frames, tmp_path / "retarder.log")
+    lines = []
+    for ref in (None, 3500.0):
+        service = SensorService(make_sensor(), ServiceOptions(configured_ref_torque_nm=None,
+                                                              retarder_ref_torque_nm=ref), record=True)
+        lines.append(summary_lines(replay_log(path, service))[-1])
+    assert "retarder frames (ERC1) arrived, but without a retarder reference torque" in lines[0]
+    assert "retarder" not in lines[1] and "auxiliary" not in lines[1], lines[1]

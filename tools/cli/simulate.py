@@ -5,6 +5,8 @@ import argparse
 import sys
 from pathlib import Path
 
+import numpy as np
+
 from firmware_model.components import meaning
 from firmware_model.config import load_config
 from firmware_model.effects import CATALOG, parse_effect
@@ -106,6 +108,7 @@ def run(args) -> int:
     if args.can_log:
         from tools.can.logsynth import write_can_log
         write_can_log(table, res.table, args.can_log, params, config=cfg)
+        _retarder_note(table, cfg)
     if args.plot:
         from tools.plots import plot_heat_budget, plot_temperatures
         title = f"{params.variant} reference plant, cycle {args.cycle}" + (f", effects {args.effect}" if effects else "")
@@ -126,3 +129,14 @@ def run(args) -> int:
         for w in res.warnings:
             print(f"note: {w}", file=sys.stderr)
     return 0
+
+
+def _retarder_note(table, cfg) -> None:
+    """A J1939 retarder torque is a percent of the retarder's reference torque, which a replay must be told."""
+    from tools.can.logsynth import DEFAULT_RETARDER_REF_TORQUE_NM
+    can_cfg = getattr(cfg, "can", None) or {}
+    if table.has("retarder_torque_nm") and np.any(np.nan_to_num(np.asarray(table["retarder_torque_nm"], float)) != 0) \
+            and "retarder_reference_torque_nm" not in can_cfg:
+        print(f"note: the log's retarder torque (ERC1) is a percent of {DEFAULT_RETARDER_REF_TORQUE_NM:g} Nm; replay it "
+              f"with [can] retarder_reference_torque_nm = {DEFAULT_RETARDER_REF_TORQUE_NM:g} in the config, or its heat "
+              f"is left out", file=sys.stderr)

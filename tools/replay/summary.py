@@ -57,6 +57,12 @@ def _warning_line(out) -> str:
     return "warnings: " + ("; ".join(parts) if parts else "none")
 
 
+def _arrivals(out) -> dict:
+    """The decoder's frames per input message of a log replay (its meta counters); empty for a run table."""
+    counters = (getattr(out, "meta", None) or {}).get("counters", {})
+    return counters.get("decoder", {}).get("arrivals", {}) if isinstance(counters, dict) else {}
+
+
 def _reject_line(out) -> str:
     n = out.n
     counts = {k[len("rejects_"):]: int(out[k][-1]) for k in out.columns
@@ -65,7 +71,15 @@ def _reject_line(out) -> str:
     aux = counts.pop("aux_missing", 0)
     if aux:
         absent = [c for c in AUX_COLUMNS if not out.has(c) or not np.any(np.isfinite(out[c]))]
-        if absent:
+        erc1 = _arrivals(out).get("ERC1", 0)
+        if "retarder_torque_nm" in absent and erc1:
+            absent.remove("retarder_torque_nm")
+            words.append(f"{erc1} retarder frames (ERC1) arrived, but without a retarder reference torque ([can] "
+                         f"retarder_reference_torque_nm) their percent torque is no torque: the retarder's heat is "
+                         f"left out")
+            if absent:
+                words.append(f"auxiliary inputs not given ({', '.join(absent)}): defaults used, as documented")
+        elif absent:
             words.append(f"auxiliary inputs not given ({', '.join(absent)}): defaults used, as documented")
         else:
             words.append(f"auxiliary inputs missing or out of range on {aux} steps: defaults used")
