@@ -48,6 +48,10 @@ HEAT_OUT_NAMES = ("cooler", "housing_convection", "housing_radiation", "supports
 
 #: a run notes the churning correlations' validity only when they left their range for less than this share of it
 CHURN_NOTE_SHARE = 0.99
+#: the losses of a chunk of steps are evaluated at its starting sump temperature; a chunk ends early when the sump
+#: has moved this far [K] (the oil's viscosity, and with it the losses, changes 2-10 %/K; on a loaded cold start the
+#: sump moves a kelvin a second, and a whole 20-s chunk at its starting viscosity overstated the losses many times)
+CHUNK_OIL_MOVE_K = 0.25
 
 
 @dataclass
@@ -233,9 +237,12 @@ class ReferencePlant:
         i_ret = self.src_names.index("retarder")
         k_chunk = max(1, int(round(chunk_s / dt)))
         with progress_bar(n_steps, "plant", progress, unit="step") as bar:
-            for s0 in range(0, n_steps, k_chunk):
+            s0 = 0
+            while s0 < n_steps:
                 s1 = min(s0 + k_chunk, n_steps)
-                cs = self._chunk_sources(inp, dts, step_t[s0:s1 + 1], state.T_c[self.i_oil])
+                T_chunk_c = float(state.T_c[self.i_oil])
+                cs = self._chunk_sources(inp, dts, step_t[s0:s1 + 1], T_chunk_c)
+                done = s1 - s0
                 for k in range(s1 - s0):
                     h = cs.edges_s[k + 1] - cs.edges_s[k]
                     if h <= 0:
@@ -246,7 +253,11 @@ class ReferencePlant:
                     if not np.all(np.isfinite(res.T_new_c)):
                         raise InputError(f"the plant diverged at t = {cs.edges_s[k + 1]:.1f} s (non-finite "
                                          f"temperature); check the inputs and parameters")
-                bar.update(s1 - s0)
+                    if abs(state.T_c[self.i_oil] - T_chunk_c) > CHUNK_OIL_MOVE_K:
+                        done = k + 1                  # the losses again at the sump's new temperature
+                        break
+                bar.update(done)
+                s0 += done
         warnings = []
         span_s = t_end - t0
         if 0 < ledger.churn_invalid_s < CHURN_NOTE_SHARE * span_s:
