@@ -327,16 +327,22 @@ def test_gap_c(base: Baseline, res: Residuals, after: bool = False) -> dict:
 def held_out_check(ctx: Context, base: Baseline, v: Verdict, res: Residuals, where: list) -> Verdict:
     """An effect that shrinks a real held-out gap by less than ``shrink_min`` is not the explanation: the verdict
     becomes "unexplained", pointing at the assumed values (model-form error) and at calibration. Where the test files
-    hold no real gap (systematic residual within the gap threshold), there is nothing to shrink and the verdict
-    stands. Where the gap is real but small beside the noise, the RMS shrinks little even when the effect removes the
+    hold no real gap (systematic residual within the gap threshold), there is nothing to shrink: the verdict stands
+    and says that the held-out files cannot confirm it. Where the gap is real but small beside the noise, the RMS shrinks little even when the effect removes the
     whole gap: the verdict stands when the effect leaves no channel's systematic residual above its threshold and
     shrinks the systematic part (the noise removed) by ``shrink_min`` or more."""
     if not v.is_effect or res.shrink >= ctx.opts.shrink_min:
         return v
     gap = test_gap_c(base, res)
     real = [c for c in gap if c in v.gap_thr_c and gap[c] > v.gap_thr_c[c]]
+    from dataclasses import replace
     if not real:
-        return v
+        chans = [c for c in gap if c in v.gap_thr_c]
+        note = ("" if v.reason.rstrip().endswith(".") else ".") + (
+            f" The held-out files show no gap above the thresholds ({_listing(gap, v.gap_thr_c, '<=', chans)}), so "
+            f"their RMS shrink of {100 * res.shrink:.0f} % neither confirms nor refutes it: the claim rests on the "
+            f"training files alone.")
+        return replace(v, reason=v.reason + note)
     left = test_gap_c(base, res, after=True)
     chans = [c for c in gap if c in v.gap_thr_c]
     gap_shrink = 1.0 - math.hypot(*(left[c] for c in chans)) / math.hypot(*(gap[c] for c in chans))
@@ -345,7 +351,6 @@ def held_out_check(ctx: Context, base: Baseline, v: Verdict, res: Residuals, whe
             f" On the held-out files the RMS shrinks by only {100 * res.shrink:.0f} % because their gap is small beside "
             f"the noise; the effect removes {100 * gap_shrink:.0f} % of the gap itself (the noise removed) and leaves no "
             f"channel above its threshold ({_listing(left, v.gap_thr_c, '<=', chans)}).")
-        from dataclasses import replace
         return replace(v, reason=v.reason + note)
     top = ", ".join(f"{w['channel']} in {w['regime']} ({100 * w['share']:.0f} %)" for w in where[:3])
     reason = (f"the best candidate {v.effect} fits the training files but shrinks the held-out residual by only "
