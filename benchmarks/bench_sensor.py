@@ -133,22 +133,13 @@ def section_accuracy(params, cycles, per_component):
             print(f"{c:<10}" + "".join(f"{e[c][0]:9.2f}/{e[c][1]:5.3f}" + " " for _, e in rows))
 
 
-def cold_start_cycle(T0_c: float) -> RunTable:
-    """15 min at 10 Hz: two minutes of idle in neutral (600 rpm, 100 Nm), then 4L at 1300 rpm and 1500 Nm; ambient
-    at T0_c, the coolant warming from T0_c to 85 degC (time constant 400 s)."""
-    t = np.arange(0.0, 900.0 + 1e-9, 0.1)
-    load = t >= 120.0
-    return RunTable({"time_s": t, "engine_speed_rpm": np.where(load, 1300.0, 600.0),
-                     "engine_torque_nm": np.where(load, 1500.0, 100.0), "gear": np.where(load, 4.0, 0.0),
-                     "vehicle_speed_kmh": np.where(load, 30.0, 0.0), "ambient_temp_c": np.full(t.size, T0_c),
-                     "coolant_temp_c": 85.0 + (T0_c - 85.0) * np.exp(-t / 400.0)})
-
-
 def section_cold_starts(params):
     """The sensor against the plant on starts from -30 to +20 degC (every node at the ambient), plant oil fed."""
-    print("\ncold starts (cold_start_cycle: 2 min idle in neutral, then 4L 1300 rpm 1500 Nm; start = ambient):")
+    from tools.cycles.named import cold_start
+    print("\ncold starts (tools.cycles.named.cold_start: 2 min idle in neutral, then 4L 1300 rpm 1500 Nm; start = "
+          "ambient):")
     for T0 in (-30.0, -20.0, -10.0, 0.0, 20.0):
-        tab = cold_start_cycle(T0)
+        tab = cold_start(T0, rate_hz=10.0)
         ref = ReferencePlant(params).run(tab, initial_temp_c=T0).table
         fed = RunTable({c: tab[c] for c in tab.columns})
         fed["oil_temp_c"] = np.interp(tab["time_s"], ref["time_s"], ref["oil_temp_c"])

@@ -293,11 +293,8 @@ def _cold_start_section(p) -> list:
     """Section 7b: a -30 degC start, the losses re-evaluated as the oil warms (CHUNK_OIL_MOVE_K) against every
     step; the seed's oil data end at -20 degC."""
     from tools.plant.reference import CHUNK_OIL_MOVE_K
-    t = np.arange(0.0, 900.0 + 1e-9, 1.0)
-    load = t >= 120.0
-    tab = RunTable({"time_s": t, "engine_speed_rpm": np.where(load, 1300.0, 600.0),
-                    "engine_torque_nm": np.where(load, 1500.0, 100.0), "gear": np.where(load, 4.0, 0.0),
-                    "ambient_temp_c": np.full(t.size, -30.0), "coolant_temp_c": 85.0 - 115.0 * np.exp(-t / 400.0)})
+    from tools.cycles.named import cold_start
+    tab = cold_start(-30.0)
     plant = ReferencePlant(p)
     a = plant.run(tab, initial_temp_c=-30.0).table
     b = plant.run(tab, initial_temp_c=-30.0, chunk_s=plant.dt).table

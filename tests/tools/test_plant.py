@@ -81,11 +81,8 @@ def test_a_cold_start_re_evaluates_the_losses_as_the_oil_warms(params):
     """Start at -30 degC, idle in neutral then 4L under load: the losses follow the warming oil, so the default
     20-s chunks agree with losses evaluated every step (chunk_s = dt). A chunk's losses stayed at its starting
     viscosity for 20 s: 37 kW at idle, the sump 21 K too warm, the input-front bearing 16 K."""
-    t = np.arange(0.0, 600.0 + 1e-9, 1.0)
-    load = t >= 120.0
-    tab = RunTable({"time_s": t, "engine_speed_rpm": np.where(load, 1300.0, 600.0),
-                    "engine_torque_nm": np.where(load, 1500.0, 100.0), "gear": np.where(load, 4.0, 0.0),
-                    "ambient_temp_c": np.full(t.size, -30.0), "coolant_temp_c": 85.0 - 115.0 * np.exp(-t / 400.0)})
+    from tools.cycles.named import cold_start
+    tab = cold_start(-30.0, duration_s=600.0)
     plant = ReferencePlant(params)
     chunked = plant.run(tab, initial_temp_c=-30.0).table
     fine = plant.run(tab, initial_temp_c=-30.0, chunk_s=plant.dt).table

@@ -65,7 +65,7 @@ from tools.cycles.vehicle import KMH_PER_M_S, Vehicle, gearbox_kinematics, total
 from tools.runtable import RunTable, read_run_table
 
 __all__ = ["BC_COLUMNS", "COLUMNS", "CYCLE_HELP", "CYCLE_NAMES", "TABLE11_LC1", "TABLE11_LC2", "AMBIENT_C", "Segment",
-           "Vehicle", "all_gears", "get_cycle", "gearbox_kinematics", "long_haul", "mining", "parse_steady_spec",
+           "Vehicle", "all_gears", "cold_start", "get_cycle", "gearbox_kinematics", "long_haul", "mining", "parse_steady_spec",
            "road_profile", "steady", "summarize", "total_ratios", "uphill"]
 
 CYCLE_NAMES = ("steady", "all_gears", "long_haul", "uphill", "mining")
@@ -356,6 +356,19 @@ def mining(rate_hz: float = 10.0, noise: bool = False, seed: int = 0) -> RunTabl
     """SYNTHETIC 3 h of mine haul cycles (seed 5.2): loaded climbs in low gears, empty descents on engine brake and
     retarder, loading and dumping stops in neutral; start 40 degC."""
     return _road("mining", rate_hz, noise, seed)
+
+
+def cold_start(T0_c: float, rate_hz: float = 1.0, duration_s: float = 900.0) -> RunTable:
+    """SYNTHETIC cold start (not a named cycle): two minutes of idle in neutral (600 rpm, 100 Nm), then 4L at
+    1300 rpm and 1500 Nm at 30 km/h; ambient at ``T0_c``, the coolant warming from ``T0_c`` to 85 degC (time
+    constant 400 s). Start the plant at ``T0_c`` (every node at the ambient)."""
+    t = np.arange(0.0, duration_s + 1e-9, 1.0 / rate_hz)
+    load = t >= 120.0
+    return RunTable({"time_s": t, "engine_speed_rpm": np.where(load, 1300.0, 600.0),
+                     "engine_torque_nm": np.where(load, 1500.0, 100.0), "gear": np.where(load, 4.0, 0.0),
+                     "vehicle_speed_kmh": np.where(load, 30.0, 0.0), "ambient_temp_c": np.full(t.size, T0_c),
+                     "coolant_temp_c": 85.0 + (T0_c - 85.0) * np.exp(-t / 400.0)},
+                    meta={"initial_temp_c": float(T0_c), "cycle": f"cold_start:{T0_c:g}", "synthetic": True})
 
 
 def road_profile(name: str, seed: int = 0) -> dict:
