@@ -135,8 +135,8 @@ def _retarder_note(table, cfg) -> None:
     """A J1939 retarder torque is a percent of the retarder's reference torque, which a replay must be told."""
     from tools.can.logsynth import DEFAULT_RETARDER_REF_TORQUE_NM
     can_cfg = getattr(cfg, "can", None) or {}
-    if table.has("retarder_torque_nm") and np.any(np.nan_to_num(np.asarray(table["retarder_torque_nm"], float)) != 0) \
-            and "retarder_reference_torque_nm" not in can_cfg:
-        print(f"note: the log's retarder torque (ERC1) is a percent of {DEFAULT_RETARDER_REF_TORQUE_NM:g} Nm; replay it "
-              f"with [can] retarder_reference_torque_nm = {DEFAULT_RETARDER_REF_TORQUE_NM:g} in the config, or its heat "
-              f"is left out", file=sys.stderr)
+    braking = table.has("retarder_torque_nm") and np.any(np.nan_to_num(np.asarray(table["retarder_torque_nm"], float)))
+    if braking and "retarder_reference_torque_nm" not in can_cfg:
+        ref = DEFAULT_RETARDER_REF_TORQUE_NM
+        print(f"note: the log's retarder torque (ERC1) is a percent of {ref:g} Nm; replay it with [can] "
+              f"retarder_reference_torque_nm = {ref:g} in the config, or its heat is left out", file=sys.stderr)

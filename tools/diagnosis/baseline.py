@@ -60,7 +60,7 @@ class Baseline:
 class Sims(NamedTuple):
     base_tr: list
     warm_tr: list
-    fine_tr: list | None     # plant: the baseline at half the step; onboard: the reference plant's baseline
+    ref_tr: list | None      # the model's error reference: plant, itself at half the step; onboard, the plant
     grid_outs: list
     base_te: list
     warm_te: list
@@ -92,16 +92,16 @@ def _simulate(ctx: Context, train: list, test: list, grid: GridPlan) -> Sims:
 def model_error_floor(ctx: Context, train: list, sims: Sims, lag: dict, channels) -> dict:
     """Per channel, the model's own error, at least model_floor_c: the plant's numerical error (BDF2: error ~ dt^2,
     so the full step's error is about 4/3 of its difference to the half step); the onboard model's reduction error,
-    its RMS difference to the reference plant on the same files (``fine_tr`` holds the plant's baseline then): where
+    its RMS difference to the reference plant on the same files (``ref_tr``): where
     the reduced model departs from the plant no effect is to absorb it (a third effect took up a rig's reduction
     error of 1.2 times the threshold beside a planted pair; an arctic start without any effect was called
     synchronizer heat)."""
     o = ctx.opts
     floor = {c: o.model_floor_c for c in channels}
-    if sims.fine_tr is None:
+    if sims.ref_tr is None:
         return floor
     factor = 4.0 / 3.0 if ctx.is_plant else 1.0
-    pb, pf = predictions(train, sims.base_tr, lag), predictions(train, sims.fine_tr, lag)
+    pb, pf = predictions(train, sims.base_tr, lag), predictions(train, sims.ref_tr, lag)
     acc = {}
     for (cid, _), a, b in zip([(c, h) for ds in train for c, h in ds.channels.items()], pb, pf):
         x = acc.setdefault(cid, [0.0, 0])

@@ -8,7 +8,7 @@ and does not sit at its bound with a gap left; else "unexplained" when a real ga
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import NamedTuple
 
 import numpy as np
@@ -119,7 +119,6 @@ def decide(ctx: Context, base: Baseline, crit: Criterion) -> Verdict:
 def with_combination(ctx: Context, base: Baseline, v: Verdict, combo) -> Verdict:
     """The verdict when several effects were found together (combine.forward_select): the leading effect stays
     ``effect``; the reason names the set with each member's share, and the gap left is the set's."""
-    from dataclasses import replace
     if combo is None:
         return v
     post = systematic(base, combo.preds_train, ctx.opts).rms_c
@@ -139,7 +138,6 @@ def with_combination(ctx: Context, base: Baseline, v: Verdict, combo) -> Verdict
 
 def with_not_excluded(v: Verdict, items: list) -> Verdict:
     """The verdict whose reason also says which other effects the data cannot rule out beside it (exclude.py)."""
-    from dataclasses import replace
     if not items:
         return v
     def rng(n):
@@ -154,7 +152,6 @@ def with_not_excluded(v: Verdict, items: list) -> Verdict:
 def with_structure(v: Verdict, structure: dict) -> Verdict:
     """The verdict with the residual's regime structure as evidence in its reason (regimes.residual_structure):
     said for a sensor fault, and for a verdict of "unexplained" (where a constant offset points at the sensor)."""
-    from dataclasses import replace
     from firmware_model.effects import MEASUREMENT_EFFECTS, effect_channel
     from tools.diagnosis.regimes import structure_sentence
     if not structure or not (v.effect in MEASUREMENT_EFFECTS or v.effect == "unexplained"):
@@ -328,14 +325,14 @@ def held_out_check(ctx: Context, base: Baseline, v: Verdict, res: Residuals, whe
     """An effect that shrinks a real held-out gap by less than ``shrink_min`` is not the explanation: the verdict
     becomes "unexplained", pointing at the assumed values (model-form error) and at calibration. Where the test files
     hold no real gap (systematic residual within the gap threshold), there is nothing to shrink: the verdict stands
-    and says that the held-out files cannot confirm it. Where the gap is real but small beside the noise, the RMS shrinks little even when the effect removes the
-    whole gap: the verdict stands when the effect leaves no channel's systematic residual above its threshold and
-    shrinks the systematic part (the noise removed) by ``shrink_min`` or more."""
+    and says that the held-out files cannot confirm it. Where the gap is real but small beside the noise, the RMS
+    shrinks little even when the effect removes the whole gap: the verdict stands when the effect leaves no channel's
+    systematic residual above its threshold and shrinks the systematic part (the noise removed) by ``shrink_min`` or
+    more."""
     if not v.is_effect or res.shrink >= ctx.opts.shrink_min:
         return v
     gap = test_gap_c(base, res)
     real = [c for c in gap if c in v.gap_thr_c and gap[c] > v.gap_thr_c[c]]
-    from dataclasses import replace
     if not real:
         chans = [c for c in gap if c in v.gap_thr_c]
         note = ("" if v.reason.rstrip().endswith(".") else ".") + (

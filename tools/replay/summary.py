@@ -72,16 +72,15 @@ def _reject_line(out) -> str:
     if aux:
         absent = [c for c in AUX_COLUMNS if not out.has(c) or not np.any(np.isfinite(out[c]))]
         erc1 = _arrivals(out).get("ERC1", 0)
-        if "retarder_torque_nm" in absent and erc1:
+        unreferenced = "retarder_torque_nm" in absent and erc1 > 0
+        if unreferenced:
             absent.remove("retarder_torque_nm")
             words.append(f"{erc1} retarder frames (ERC1) arrived, but without a retarder reference torque ([can] "
                          f"retarder_reference_torque_nm) their percent torque is no torque: the retarder's heat is "
                          f"left out")
-            if absent:
-                words.append(f"auxiliary inputs not given ({', '.join(absent)}): defaults used, as documented")
-        elif absent:
+        if absent:
             words.append(f"auxiliary inputs not given ({', '.join(absent)}): defaults used, as documented")
-        else:
+        elif not unreferenced:
             words.append(f"auxiliary inputs missing or out of range on {aux} steps: defaults used")
     for k, v in counts.items():
         words.append(f"{REJECT_WORDS.get(k, k.replace('_', ' '))}: {v} steps")
