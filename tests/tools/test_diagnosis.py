@@ -252,6 +252,15 @@ def test_stuck_sensor(tmp_path, capsys):
     assert "stuck sensor" in err and "oil_temp_c" in err
 
 
+def test_a_start_below_the_oil_models_range_names_the_file(tmp_path, capsys):
+    """A file whose oil starts at -45 degC (within the -60..300 degC a reading may take): the model cannot start
+    there; one sentence naming the test file (the plant said it later without a file name)."""
+    cols = _table(seed=4)
+    cols["oil_temp_c"] = cols["oil_temp_c"] - 85.0
+    err = _run_bad(tmp_path, capsys, _table(), cols)
+    assert "test.csv: the start" in err and "-40..200 degC" in err
+
+
 def test_dead_sensor(tmp_path, capsys):
     cols = _table()
     cols["meas_T_PS_c"] = np.full(cols["time_s"].size, np.nan)

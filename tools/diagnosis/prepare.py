@@ -15,6 +15,7 @@ import numpy as np
 
 from firmware_model.components import HOUSINGS, PUBLISHED
 from firmware_model.errors import InputError
+from firmware_model.physics.oil import check_temperature_c
 
 from tools.diagnosis.options import INPUT_COLUMNS, J1939_RES_C, LOG_SUFFIXES, OIL, OIL_RIG, Options
 from tools.runtable import REQUIRED, RunTable, read_run_table, validate_run_table
@@ -340,7 +341,10 @@ def prepare(table: RunTable, name: str, role: str, opts: Options, oil_is_input: 
         if s.warning:
             warn.append(s.warning)
         channels[cid] = grid_channel(cid, cc, s, float(t[0]), opts.grid_dt_s)
-    T0 = _initial_temp_c(table, t, channels, oil_is_input)
+    # every node starts there, and the model's oil data span -40..200 degC: said here, with the file's name (the
+    # plant refused it later without one)
+    T0 = check_temperature_c(f"{name}: the start (the first measured temperature, read off its first 5 s)",
+                             float(_initial_temp_c(table, t, channels, oil_is_input)))
     inputs = RunTable({c: table[c] for c in INPUT_COLUMNS if table.has(c)} |
                       ({"oil_temp_c": table["oil_temp_c"]} if oil_is_input and table.has("oil_temp_c") else {}) |
                       {c: table[c] for c in table.columns if c.startswith("bc_")},
