@@ -135,7 +135,7 @@ class HealthFile:
                                                                                      "rejected")},
                "state": None if store is None else {**store.counters, "path": str(store.path),
                                                     "last_save_age_s": store.age_s()},
-               "bus": bus_events or {}}
+               "bus": bus_events or {}, "health_write_errors": self.errors}
         try:
             atomic_write(self.path, json.dumps(doc, default=str).encode("utf-8"))
         except OSError as exc:

@@ -186,3 +186,24 @@ def test_a_health_file_that_cannot_be_written_is_said_once(params, tmp_path, cap
         assert not health.maybe_write(svc) and not health.maybe_write(svc)
     assert health.errors == 2
     assert sum("cannot write the health file" in r.getMessage() for r in caplog.records) == 1
+
+
+def test_failed_health_writes_are_shown_by_status_once_a_write_succeeds(params, tmp_path, capsys):
+    """Writes that failed (a full or read-only disk for a while) are counted in the next health document, and a
+    stale file says the service may be running but unable to rewrite it."""
+    from tools.cli import main
+    svc = _service(params)
+    _drive(svc, 0.0, 2.0)
+    target = tmp_path / "d" / "health.json"
+    health = HealthFile(target, period_s=0.0)
+    assert not health.maybe_write(svc) and not health.maybe_write(svc)
+    target.parent.mkdir()
+    assert health.maybe_write(svc)
+    assert read_health(target)["health_write_errors"] == 2
+    assert main(["status", "--health-file", str(target)]) == 0
+    assert "health file: 2 writes failed" in capsys.readouterr().out
+    doc = read_health(target)
+    doc["written_wall_s"] -= 60.0
+    target.write_text(json.dumps(doc))
+    assert main(["status", "--health-file", str(target)]) == 1
+    assert "unable to rewrite this file" in capsys.readouterr().out

@@ -53,13 +53,18 @@ def run(args) -> int:
 def status_lines(doc: dict, age_s: float) -> list[str]:
     state = doc.get("state") or {}
     last = doc.get("last_step_frame_time_s")
-    lines = [f"service: {'running' if age_s <= STALE_S else f'NOT RUNNING (health {age_s:.0f} s old)'}, "
+    stale = (f"NOT RUNNING (health {age_s:.0f} s old; or running but unable to rewrite this file: its log says "
+             f"'cannot write the health file')")
+    lines = [f"service: {'running' if age_s <= STALE_S else stale}, "
              f"pid {doc.get('pid')}, uptime {doc.get('uptime_s', 0.0):.0f} s",
              f"sensor: {'initialised' if doc.get('initialised') else 'waiting for inputs'}, {doc.get('steps', 0)} "
              f"steps, last step at frame time {'-' if last is None else f'{last:.1f} s'}",
              f"degraded modes (steps): {doc.get('degraded_mode_steps') or 'none'}; time jumps "
              f"{doc.get('time_jumps', 0)}; frames sent {doc.get('frames_sent', 0)}",
              "frames: " + ", ".join(f"{k.replace('_', ' ')} {v}" for k, v in (doc.get("decoder") or {}).items())]
+    if doc.get("health_write_errors"):
+        lines.append(f"health file: {doc['health_write_errors']} writes failed before this one (the service's log "
+                     f"names the first error)")
     if state:
         age = state.get("last_save_age_s")
         lines.append(f"state: {state.get('path')}, {state.get('saves', 0)} saves ({state.get('save_errors', 0)} "
