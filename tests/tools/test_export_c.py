@@ -38,6 +38,21 @@ def test_bundle_files(bundles):
     assert ".lead_s = 0.0f" in bare and ".ldl_nnz = 0," in bare and len(bare) < len(tables)
 
 
+def test_the_summary_names_what_was_written_and_a_file_as_out_is_one_sentence(tmp_path, capsys):
+    """From a newcomer audit: an export into a directory holding other files listed them as written, and --out on
+    a file gave the raw 'File exists'."""
+    from tools.export.c_bundle import BUNDLE_FILES
+    fresh = tmp_path / "fresh"
+    assert main(["export-c", "--out", str(fresh), "--quiet"]) == 0
+    assert sorted(str(p.relative_to(fresh)) for p in fresh.rglob("*") if p.is_file()) == sorted(BUNDLE_FILES)
+    (tmp_path / "keep.txt").write_text("mine")
+    assert main(["export-c", "--out", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert f"wrote {len(BUNDLE_FILES)} files" in out and "keep.txt" not in out and "fresh" not in out
+    assert main(["export-c", "--out", str(tmp_path / "keep.txt")]) == 2
+    assert "is a file, so the bundle's directory cannot be made there" in capsys.readouterr().err
+
+
 @pytest.mark.skipif(not HAVE_CC, reason="no make or C compiler on this machine")
 @pytest.mark.parametrize("real, tol", [("double", 1e-9), ("float", 0.05), ("float_no_ttl", 0.05)])
 def test_make_test_on_the_host(bundles, real, tol):

@@ -30,9 +30,9 @@ def add_subparser(sub):
 
 
 def run(args) -> int:
-    from tools.export.c_bundle import export_c
+    from tools.export.c_bundle import BUNDLE_FILES, export_c
     out = export_c(args.out, variant=args.variant, config_path=args.config, real=args.real, ttl=args.ttl)
     if not args.quiet:
-        files = sorted(p.name for p in out.iterdir())
+        files = sorted(BUNDLE_FILES)           # what was written, not what else the directory holds
         print(f"wrote {len(files)} files to {out}: {', '.join(files)}\nnext: make -C {out} test")
     return 0

@@ -143,6 +143,12 @@ def index16_fits(arrays: dict) -> bool:
 TTL_TOL = {"double": (0.1, 1e-3), "float": (1.0, 0.02)}
 
 
+#: the files export_c writes, relative to its directory
+BUNDLE_FILES = ("gvs_kernel.c", "gvs_kernel.h", "gvs_sensor.h", "gvs_sensor.c", "gvs_tables.c", "gvs_vectors.c",
+                "gvs_test.c", "gvs_replay.c", "Makefile", "cortex-m4/startup.c", "cortex-m4/mps2_an386.ld",
+                "cortex-m4/footprint.c", "README.md")
+
+
 def export_c(out_dir, variant: str = "GRS905", config_path=None, real: str = "float", ttl: bool = True) -> Path:
     """Write the bundle into ``out_dir`` (created; existing files of the bundle are replaced). Returns the directory.
     ``ttl`` False: a build without the time-to-limit refresh (module doc)."""
@@ -159,6 +165,9 @@ def export_c(out_dir, variant: str = "GRS905", config_path=None, real: str = "fl
                                     lim.origin, 0.0)
     sensor = VirtualSensor(params, limits=limits, config=cfg, core="numpy")
     out = Path(out_dir)
+    above = next((a for a in (out, *out.parents) if a.exists()), None)
+    if above is not None and not above.is_dir():
+        raise InputError(f"--out {out_dir}: {above} is a file, so the bundle's directory cannot be made there")
     out.mkdir(parents=True, exist_ok=True)
     for name in ("gvs_kernel.c", "gvs_kernel.h"):
         shutil.copyfile(SOURCE_DIR / name, out / name)
