@@ -207,3 +207,16 @@ def test_failed_health_writes_are_shown_by_status_once_a_write_succeeds(params, 
     target.write_text(json.dumps(doc))
     assert main(["status", "--health-file", str(target)]) == 1
     assert "unable to rewrite this file" in capsys.readouterr().out
+
+
+def test_service_unit_warns_of_every_place_the_sandbox_hides(tmp_path):
+    """From a newcomer audit: a venv in /tmp whose python links to /root passed without a warning (the check looked
+    at the unresolved path and at /home and /root only), and the code of an editable install was not looked at."""
+    from tools.can.systemd import check_unit_args
+    assert check_unit_args("socketcan", "can0", None, "/opt/gvs/bin/python") == []
+    tmp_python = check_unit_args("socketcan", "can0", None, "/tmp/venv/bin/python")
+    assert len(tmp_python) == 1 and "PrivateTmp=yes" in tmp_python[0]
+    link = tmp_path / "python"
+    link.symlink_to("/root/.pyenv/bin/python3")               # need not exist: the link is resolved as text
+    linked = check_unit_args("socketcan", "can0", None, str(link))
+    assert any("ProtectHome=yes" in w and "through its links" in w for w in linked)

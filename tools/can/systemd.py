@@ -11,6 +11,7 @@ import os
 import re
 import shlex
 import sys
+from pathlib import Path
 
 from firmware_model.errors import InputError
 
@@ -52,6 +53,11 @@ FAMILIES = {"socketcan": "AF_CAN AF_UNIX AF_NETLINK", "udp_multicast": "AF_INET 
 CHANNEL_RE = re.compile(r"[A-Za-z0-9_.:@/-]+")
 
 
+#: where the unit's sandboxing hides files from the service, and the setting that does it
+HIDDEN = {"/home/": "ProtectHome=yes", "/root/": "ProtectHome=yes", "/run/user/": "ProtectHome=yes",
+          "/tmp/": "PrivateTmp=yes", "/var/tmp/": "PrivateTmp=yes"}
+
+
 def check_unit_args(interface: str, channel: str, config: str | None, python: str | None) -> list[str]:
     """InputError for a channel that cannot stand in a unit file or a relative --config; returns warnings (a
     Python under /home or /root, which ProtectHome=yes hides from the service)."""
@@ -62,11 +68,20 @@ def check_unit_args(interface: str, channel: str, config: str | None, python: st
     if config is not None and not os.path.isabs(config):
         raise InputError(f"--config {config} must be an absolute path: the service does not start in this directory")
     exe = os.path.abspath(python or sys.executable)
-    if exe.startswith(("/home/", "/root/")):
-        return [f"the Python {exe} is under /home or /root, which the unit's ProtectHome=yes hides from the service: "
-                f"install gearbox-vsensor into a virtual environment outside them (e.g. /opt/gearbox-vsensor) and "
-                f"pass its python with --python"]
-    return []
+    places = [("the Python", exe), ("the Python (through its links)", os.path.realpath(exe))]
+    if python is None:       # this Python's own copy of gearbox-vsensor (an editable install: the source tree)
+        places.append(("the gearbox-vsensor code", str(Path(__file__).resolve().parents[2])))
+    found = []
+    for what, path in places:
+        hidden = next((h for h in HIDDEN if path.startswith(h)), None)
+        if hidden and not any(path == p for _, p, _ in found):
+            found.append((what, path, hidden))
+    if not found:
+        return []
+    where = "; ".join(f"{what} {path} is under {hidden.rstrip('/')} ({HIDDEN[hidden]})" for what, path, hidden in found)
+    return [f"{where}: the unit's sandbox hides it from the service. Install gearbox-vsensor (not editable) into a "
+            f"virtual environment outside /home, /root and /tmp (e.g. /opt/gearbox-vsensor) and pass its python with "
+            f"--python"]
 
 
 def unit_text(interface: str, channel: str, config: str | None = None, python: str | None = None,
