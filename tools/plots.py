@@ -55,7 +55,7 @@ def outside_legend(ax, **kw) -> None:
 def save_figure(fig, path, dpi: int = 110) -> Path:
     """Lay out, write and close a figure; returns the path."""
     fig.tight_layout()
-    fig.savefig(path, dpi=dpi)
+    fig.savefig(path, dpi=dpi, bbox_inches="tight")     # the legends outside the panels too (tight_layout leaves them)
     pyplot().close(fig)
     return Path(path)
 
