@@ -8,7 +8,7 @@
     the sensor get the same inputs (the cycles' bc_* boundary columns are dropped: the sensor cannot see them), the
     plant runs with its own cooler (or the held sump of the rig cycles) and the sensor is fed the plant's oil
     temperature as the measured one; max and RMS |diff| against the issue's 1.5 / 0.3 degC. Extra rows: the uphill
-    cycle with the plant seeing its Table 11 boundaries, and the compact 40-node partition.
+    cycle with the plant seeing its Table 11 boundaries, and the compact 39-node partition.
 (b) speed: one step (median, CPU time), a 3 h run table at 10 Hz (mining), 1000 vehicles x 3 h batched
     (measured over --batch-steps steps and extrapolated unless --full-batch).
 (c) footprint as an ECU would hold it: state bytes and every parameter table as float32.
