@@ -98,7 +98,7 @@ def test_errors_name_the_file_and_the_rule(tmp_path, monkeypatch):
     with pytest.raises(InputError, match="unknown log suffix '.txt'"):
         list(read_log(tmp_path / "x.txt"))
     (tmp_path / "bad.log").write_text("(0.0) can0 18FEF100#00\nthis is not candump\n")
-    with pytest.raises(InputError, match="bad.log: frame 2 cannot be read"):
+    with pytest.raises(InputError, match="bad.log: line 2 is not a candump -L frame"):
         list(read_log(tmp_path / "bad.log"))
     (tmp_path / "cut.log").write_text("(0.0) can0 18FEF100#00\n(0.1) can0")      # a truncated copy
     with pytest.raises(InputError, match="cut.log: the log ends in the middle of a line"):
@@ -224,3 +224,11 @@ def test_retarder_frames_without_a_reference_torque_are_named(tmp_path):
         lines.append(summary_lines(replay_log(path, service))[-1])
     assert "retarder frames (ERC1) arrived, but without a retarder reference torque" in lines[0]
     assert "retarder" not in lines[1] and "auxiliary" not in lines[1], lines[1]
+
+
+def test_a_line_that_is_no_frame_is_named(tmp_path):
+    """From a newcomer audit: a candump -L file with a line that is no frame gave python-can's unpacking error."""
+    log = tmp_path / "mixed.log"
+    log.write_text("(1.000000) can0 18FEF100#0011223344556677\n(1.100000) can0 garbage\n")
+    with pytest.raises(InputError, match=r"line 2 is not a candump -L frame .*'\(1\.100000\) can0 garbage'"):
+        replay(log)

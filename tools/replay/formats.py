@@ -3,6 +3,7 @@ replay should not pay it)."""
 from __future__ import annotations
 
 import os
+import re
 from pathlib import Path
 from typing import Iterator
 
@@ -58,8 +59,28 @@ def read_log(path: str | os.PathLike) -> Iterator:
         if ends_mid_line(p):
             raise InputError(f"{p}: the log ends in the middle of a line at frame {n + 1} (truncated, or still being "
                              f"written)") from None
+        bad = first_bad_candump_line(p) if p.suffix.lower() == ".log" else None
+        if bad is not None:
+            raise InputError(f"{p}: line {bad[0]} is not a candump -L frame '(time) interface ID#DATA': "
+                             f"{bad[1]!r}") from None
         raise InputError(f"{p}: frame {n + 1} cannot be read as a {LOG_SUFFIXES[p.suffix.lower()]} log: "
                          f"{exc}") from None
+
+
+#: a candump -L frame line as python-can reads it: (time) interface ID#DATA (ID##FLAGS DATA for CAN FD, #R remote)
+CANDUMP_LINE = re.compile(r"\s*\(\s*[-+0-9.eE]+\s*\)\s+\S+\s+[0-9A-Fa-f]{1,8}#")
+
+
+def first_bad_candump_line(path: Path, max_lines: int = 10_000_000) -> tuple[int, str] | None:
+    """(line number, text cut to 60 characters) of the first non-empty line of a candump -L log that is not a frame
+    line, or None (the error path of read_log: names the line instead of python-can's unpacking error)."""
+    with open(path, "r", encoding="utf-8", errors="replace") as fh:
+        for i, line in enumerate(fh, start=1):
+            if i > max_lines:
+                break
+            if line.strip() and not CANDUMP_LINE.match(line):
+                return i, line.rstrip("\n")[:60]
+    return None
 
 
 def truncation(path: Path) -> str | None:
