@@ -286,4 +286,6 @@ def main() -> Path:
 
 
 if __name__ == "__main__":
+    import argparse
+    argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter).parse_args()
     print(main().relative_to(ROOT))
