@@ -270,3 +270,13 @@ def test_the_oil_modelled_by_request_is_not_counted_as_degraded(tmp_path, synthe
     assert status == status_m == "ok"
     assert measured["degraded_share"] < 0.01          # the first steps, before the first inputs
     assert modelled["degraded_share"] <= measured["degraded_share"]
+
+
+def test_diagnose_on_logs_too_short_to_fit_says_why_nothing_was_written(synthetic, tmp_path):
+    """From a newcomer audit: --diagnose on 2-minute logs printed '0 vehicle-periods fitted' and wrote no health
+    folder without a word on why."""
+    out = tmp_path / "out"
+    res = fleet("--manifest", str(synthetic), "--out", str(out), "--workers", "1", "--diagnose", "--no-report")
+    assert "0 vehicle-periods fitted" in res.stdout
+    assert "nothing written" in res.stdout and "at least 4 min" in res.stdout, res.stdout
+    assert not (out / "health").exists()

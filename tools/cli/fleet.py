@@ -104,6 +104,8 @@ def run(args) -> int:
               + (", ".join(f"{f.vehicle} ({f.effect})" for f in health.flags) or "none")
               + "; to watch (oil level from the oil temperature, not identifiable: check it): "
               + (", ".join(f.vehicle for f in health.watch) or "none"))
+        if health.why_none:
+            print(f"health: nothing written to {args.out}/health: {health.why_none}")
     if not args.no_report:
         from tools.fleet.report import write_report
         path = write_report(args.out)

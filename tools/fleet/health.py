@@ -181,6 +181,7 @@ class Health(NamedTuple):
     fits: list
     flags: list
     watch: tuple | list = ()    # Flag(kind="watch"): oil-level drifts from the temperature alone
+    why_none: str = ""          # why no vehicle-period was fitted (nothing is written then)
 
 
 def _level_rows(rows: list) -> list:
@@ -282,6 +283,11 @@ def _check_grids(out: str | Path, rows: list[dict]) -> None:
                          "gearbox-vsensor; run `gearbox-vsensor fleet --diagnose` into a new --out folder")
 
 
+#: why no vehicle-period was fitted when no log was (fit_log's conditions)
+NO_FIT = (f"no log was long enough to fit: each needs at least {2 * DECORRELATION_S / 60:.0f} min of replay with the "
+          f"oil temperature measured on {MIN_OIL_SHARE:.0%} of its steps or more")
+
+
 def fleet_health(out: str | Path, period_days: float = 7.0) -> Health:
     """Fit every vehicle-period from DIR/fits, flag drifting vehicles; writes DIR/health/periods.parquet,
     DIR/health/flags.parquet and DIR/health/watch.parquet. Returns the fits, the flags and the watches."""
@@ -290,14 +296,15 @@ def fleet_health(out: str | Path, period_days: float = 7.0) -> Health:
     from tools.fleet.store import HEALTH, read_table, write_atomic
     fits = read_table(out, "fits")
     summary = read_table(out)
-    if fits is None or summary is None:
-        return Health(0, [], [])
+    if fits is None or summary is None or not fits.num_rows:
+        return Health(0, [], [], why_none=NO_FIT)
     dates = dict(zip(summary.column("log_key").to_pylist(), summary.column("date").to_pylist()))
     unique = {r["log_key"]: r for r in fits.to_pylist()}     # a log fitted twice (a run killed between files)
     _check_grids(out, list(unique.values()))
     rows = [r for r in unique.values() if dates.get(r["log_key"], "unknown") != "unknown"]
     if not rows:
-        return Health(0, [], [])
+        return Health(0, [], [], why_none="no fitted log has a date (its frame times are not Unix time and the "
+                                          "manifest gives none), so none falls into a period")
     day0 = min(dt.date.fromisoformat(dates[r["log_key"]]) for r in rows)
     groups: dict = {}
     for r in rows:
