@@ -3,7 +3,7 @@
 ``can_dbc`` is the one package that knows frame layouts. It reads them from ``gearbox_vsensor.dbc`` and stands on
 its own (python-can, cantools and the standard library; nothing of the sensor). Its modules:
 
-- ``can_dbc.j1939``: J1939 identifier arithmetic, value ranges, transport-protocol and EC1 constants;
+- ``can_dbc.j1939``: J1939 identifier arithmetic, value ranges, transport-protocol, EC1 and RC constants;
 - ``can_dbc.dbc``: the DBC, loaded once, and the layouts, PGNs, source addresses and component ids read from it;
 - ``can_dbc.decoder``: :class:`J1939Decoder` (frames -> :class:`SignalUpdate`, every frame counted once);
 - ``can_dbc.encoder``: :class:`OutputEncoder` (the GBX_* frames), :class:`RigEncoder` / :func:`encode_rig`;
@@ -20,7 +20,7 @@ from can_dbc.decoder import (DEFAULT_LIMITS, INPUT_SPNS, REJECT_REASONS, SIGNAL_
                              SignalUpdate, message_names, signal_messages)
 from can_dbc.encoder import STATUS_KEYS, OutputEncoder, RigEncoder, encode_rig
 from can_dbc.errors import CanDbcError, ConfigError, DecodeError, EncodeError
-from can_dbc.j1939 import (EC1_PGN, GLOBAL_ADDRESS, can_id_of, destination_address, pgn_of, priority,
+from can_dbc.j1939 import (EC1_PGN, GLOBAL_ADDRESS, RC_PGN, can_id_of, destination_address, pgn_of, priority,
                            receive_filter, source_address, with_source)
 from can_dbc.readback import decode_outputs, decode_rig
 
@@ -31,7 +31,7 @@ __all__ = [
     "message_names", "signal_messages",
     "STATUS_KEYS", "OutputEncoder", "RigEncoder", "encode_rig",
     "CanDbcError", "ConfigError", "DecodeError", "EncodeError",
-    "EC1_PGN", "GLOBAL_ADDRESS", "can_id_of", "destination_address", "pgn_of", "priority", "receive_filter",
+    "EC1_PGN", "GLOBAL_ADDRESS", "RC_PGN", "can_id_of", "destination_address", "pgn_of", "priority", "receive_filter",
     "source_address", "with_source",
     "decode_outputs", "decode_rig",
 ]

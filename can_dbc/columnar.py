@@ -83,12 +83,15 @@ class SignalTrack(NamedTuple):
 class DecodedColumns(NamedTuple):
     """What :func:`decode_columns` found: per signal its :class:`SignalTrack`; per message key the indices of the
     frames from its expected source (the decoder's ``arrivals``, frame by frame); the index of each frame that
-    completed an EC1 and its reference torque; each frame's reason code (0 used, else :data:`REASON_CODES`)."""
+    completed an EC1 and its reference torque; each frame's reason code (0 used, else :data:`REASON_CODES`); the
+    index of each frame that completed an RC and the retarder's reference torque."""
     tracks: dict
     arrivals: dict
     ec1_frame: np.ndarray
     ec1_ref_torque_nm: np.ndarray
     reason: np.ndarray
+    rc_frame: np.ndarray = np.zeros(0, dtype=np.int64)
+    rc_ref_torque_nm: np.ndarray = np.zeros(0)
 
 
 def pgn_keys(can_id: np.ndarray) -> np.ndarray:
@@ -164,24 +167,30 @@ class _Decoding:
         return out
 
 
-def _transport(dec: _Decoding) -> tuple[np.ndarray, np.ndarray]:
-    """TP.CM/TP.DT frames one by one through the decoder (rare: the EC1 transfers); the EC1 completions."""
+#: the reference torques that arrive by TP.BAM: EC1 (engine), RC (retarder)
+_REFERENCES = ("engine_ref_torque_nm", "retarder_ref_torque_nm")
+
+
+def _transport(dec: _Decoding) -> dict:
+    """TP.CM/TP.DT frames one by one through the decoder (rare: the EC1 and RC transfers); per reference torque the
+    (frames that completed one, values)."""
     cm, dt = dec.decoder.tp_pgns
     idx = np.flatnonzero(dec.ok & ((dec.pgn == cm) | (dec.pgn == dt)))
-    ec1_frame, ec1_value = [], []
+    found: dict = {name: ([], []) for name in _REFERENCES}
     for i in idx.tolist():
         latest = LatestValues()
         reason = dec.decoder.dispatch(dec.cols.message(i), latest)
         dec.reason[i] = 0 if reason is None else REASON_CODES[reason]
-        if "engine_ref_torque_nm" in latest.value:
-            ec1_frame.append(i)
-            ec1_value.append(latest.value["engine_ref_torque_nm"])
+        for name, value in latest.value.items():
+            found[name][0].append(i)
+            found[name][1].append(value)
     dec.ok[idx] = False
-    return np.array(ec1_frame, dtype=np.int64), np.array(ec1_value, dtype=float)
+    return {name: (np.array(f, dtype=np.int64), np.array(v, dtype=float)) for name, (f, v) in found.items()}
 
 
 def _ref_at(idx: np.ndarray, ec1_frame: np.ndarray, ec1_value: np.ndarray, configured: float | None) -> np.ndarray:
-    """The engine reference torque in use when frame ``idx`` arrives (EC1 before it, else configured; NaN: none)."""
+    """The reference torque in use when frame ``idx`` arrives (the last EC1 or RC before it, else configured; NaN:
+    none)."""
     k = np.searchsorted(ec1_frame, idx, side="left") - 1
     fallback = np.nan if configured is None else configured
     return np.where(k >= 0, ec1_value[np.maximum(k, 0)] if ec1_value.size else fallback, fallback)
@@ -205,7 +214,7 @@ def _param_values(p, data: np.ndarray):
     return raw, in_data, value, used
 
 
-def _route(dec: _Decoding, pgn: int, key: str, params: tuple, ec1: tuple) -> None:
+def _route(dec: _Decoding, pgn: int, key: str, params: tuple, refs: dict) -> None:
     """Every frame of one single-frame message: source address, data length, then its parameters."""
     idx = np.flatnonzero(dec.ok & (dec.pgn == pgn))
     if not idx.size:
@@ -246,9 +255,9 @@ def _route(dec: _Decoding, pgn: int, key: str, params: tuple, ec1: tuple) -> Non
             value = np.trunc(value)
         dec.add_track(p.name, idx[used], value[used])
         if p.derived:
-            ref = _ref_at(idx[used], *ec1, decoder.configured_ref_torque_nm) if p.name == "engine_torque_pct" \
-                else np.full(int(used.sum()), np.nan if decoder.retarder_ref_torque_nm is None
-                             else decoder.retarder_ref_torque_nm)
+            ref = _ref_at(idx[used], *refs["engine_ref_torque_nm"], decoder.configured_ref_torque_nm) \
+                if p.name == "engine_torque_pct" \
+                else _ref_at(idx[used], *refs["retarder_ref_torque_nm"], decoder.retarder_ref_torque_nm)
             have = np.isfinite(ref)
             dec.add_track(DERIVED_NM[p.name], idx[used][have], value[used][have] / 100.0 * ref[have])
     codes = np.array([REASON_CODES[r] for r in _VALUE_REASONS], dtype=np.int8)
@@ -256,18 +265,17 @@ def _route(dec: _Decoding, pgn: int, key: str, params: tuple, ec1: tuple) -> Non
 
 
 def decode_columns(cols: FrameColumns, decoder: J1939Decoder) -> DecodedColumns:
-    """Decode every frame of ``cols`` with ``decoder``'s settings; the decoder's counters and EC1 state end as the
+    """Decode every frame of ``cols`` with ``decoder``'s settings; the decoder's counters and EC1/RC state end as the
     frame-by-frame path leaves them (it should be fresh: counters start from its current values)."""
     dec = _Decoding(cols, decoder)
-    ec1 = _transport(dec)
-    ec1_track = (ec1[0], ec1[1])
+    refs = _transport(dec)
     for pgn, (key, params) in decoder.routes.items():
-        _route(dec, pgn, key, params, ec1_track)
+        _route(dec, pgn, key, params, refs)
     unknown = dec.ok & (dec.reason == 0)
     known = np.isin(dec.pgn, list(decoder.routes))
     dec.reason[unknown & ~known] = REASON_CODES["unknown_pgn"]
-    if ec1[0].size:
-        dec.add_track("engine_ref_torque_nm", ec1[0], ec1[1])
+    for name, (frames, values) in refs.items():
+        dec.add_track(name, frames, values)
     counters = decoder.counters
     counters["frames_seen"] += len(cols)
     codes, counts = np.unique(dec.reason, return_counts=True)
@@ -277,7 +285,8 @@ def decode_columns(cols: FrameColumns, decoder: J1939Decoder) -> DecodedColumns:
         else:
             _add_count(counters["rejected"], _REASON_NAMES[code], n)
     arrivals = {k: np.sort(np.concatenate(v)) for k, v in dec.arrivals.items()}
-    return DecodedColumns(dec.tracks(), arrivals, ec1[0], ec1[1], dec.reason)
+    ec1, rc = refs["engine_ref_torque_nm"], refs["retarder_ref_torque_nm"]
+    return DecodedColumns(dec.tracks(), arrivals, ec1[0], ec1[1], dec.reason, rc[0], rc[1])
 
 
 __all__ = ["FLAG_ERROR", "FLAG_EXTENDED", "FLAG_FD", "FLAG_REMOTE", "REASON_CODES", "DecodedColumns",

@@ -4,7 +4,8 @@ The decoder matches a frame on its PGN, then checks the source address, never ra
 every frame exactly once, as used or as rejected with one named reason (:data:`REJECT_REASONS`). Which message
 carries each J1939 parameter, its PGN, byte position and scaling are read from the DBC (by SPN, :data:`INPUT_SPNS`);
 written here is only what a DBC cannot hold: the J1939-21 transport protocol (TP.CM BAM fields, TP.DT sequence) and
-EC1 (PGN 65251) reassembled from it, SPN 544 in bytes 20-21 (constants in ``can_dbc.j1939``). See docs/can.md.
+EC1 (PGN 65251) reassembled from it, SPN 544 in bytes 20-21, and RC (PGN 65249), SPN 556 in bytes 17-18 (constants
+in ``can_dbc.j1939``). See docs/can.md.
 """
 from __future__ import annotations
 
@@ -18,7 +19,7 @@ import can
 from can_dbc import dbc
 from can_dbc.errors import ConfigError, DecodeError
 from can_dbc.j1939 import (EC1_MIN_SIZE_BYTES, EC1_PGN, EC1_REF_TORQUE_BYTE0, GLOBAL_ADDRESS, ID_MAX,
-                           RAW8_DATA_MAX, RAW16_DATA_MAX, TP_BAM_CONTROL, TP_DT_DATA_BYTES, TP_MAX_SIZE_BYTES,
+                           RAW8_DATA_MAX, RAW16_DATA_MAX, RC_MIN_SIZE_BYTES, RC_PGN, RC_REF_TORQUE_BYTE0, TP_BAM_CONTROL, TP_DT_DATA_BYTES, TP_MAX_SIZE_BYTES,
                            TP_TIMEOUT_S, check_source_address, pdu_specific, pgn_key, raw_reason,
                            source_key)
 
@@ -29,14 +30,15 @@ INPUT_SPNS = {190: "engine_speed_rpm", 513: "engine_torque_pct", 523: "gear", 17
 INTEGER_SIGNALS = frozenset({"gear"})
 #: percent torque -> the torque in Nm derived from it (engine: x reference torque, retarder: x its reference)
 DERIVED_NM = {"engine_torque_pct": "engine_torque_nm", "retarder_torque_pct": "retarder_torque_nm"}
-#: the message key of EC1 (by TP.BAM) and of the rig thermocouple frames RIG_TC_1..7 in ``expected_sa``
+#: the message keys of EC1 and RC (by TP.BAM) and of the rig thermocouple frames RIG_TC_1..7 in ``expected_sa``
 EC1_KEY = "EC1"
+RC_KEY = "RC"
 RIG_KEY = "RIG"
 RIG_PREFIX = "RIG_TC_"
 #: what J1939Decoder can emit (plus meas_T_<id>_c when rig decoding is on)
 SIGNAL_NAMES = ("engine_speed_rpm", "engine_torque_pct", "engine_torque_nm", "engine_ref_torque_nm", "gear",
                 "oil_temp_c", "coolant_temp_c", "ambient_temp_c", "vehicle_speed_kmh", "retarder_torque_pct",
-                "retarder_torque_nm")
+                "retarder_torque_nm", "retarder_ref_torque_nm")
 
 #: plausibility limits applied after the J1939 range check (inclusive); overridable with ``limits=``.
 #: Provenance: J1939 = the SPN's data range (no extra restriction); plausible = assumed for a truck gearbox.
@@ -50,6 +52,7 @@ DEFAULT_LIMITS = {
     "vehicle_speed_kmh": (0.0, 250.99609375),    # J1939 SPN 84
     "retarder_torque_pct": (-125.0, 125.0),      # J1939 SPN 520
     "engine_ref_torque_nm": (1.0, 64255.0),      # J1939 SPN 544, 0 Nm would make every torque 0
+    "retarder_ref_torque_nm": (1.0, 64255.0),    # J1939 SPN 556, as SPN 544
 }
 
 #: frame-level rejection reasons (counters["rejected"]); every rejected frame has exactly one of these
@@ -61,20 +64,23 @@ REJECT_REASONS = {
     "invalid_id": "an identifier outside 0..0x1FFFFFFF",
     "fd_frame": "a CAN FD frame; J1939 on classic CAN only",
     "unknown_pgn": "a PGN the sensor does not use",
-    "wrong_source_address": "a used PGN, or an EC1 transfer, from another source address than configured",
+    "wrong_source_address": "a used PGN, or an EC1 or RC transfer, from another source address than configured",
     "wrong_dlc": "not 8 data bytes",
     "not_available": "every value used from the frame is J1939 'not available' (0xFF, 0xFFxx)",
     "error_value": "no value used; at least one is J1939 'error' (0xFE, 0xFExx), none out of range",
     "out_of_range": "no value used; at least one is outside the J1939 data range or the plausibility limits",
     "tp_not_broadcast": "TP.CM/TP.DT to a specific destination (RTS/CTS connection mode); only BAM is received",
     "tp_bad_control": "TP.CM to the global address with another control byte than BAM (32)",
-    "tp_bad_announce": "a BAM announce with an inconsistent size/packet count, or EC1 shorter than 21 bytes",
+    "tp_bad_announce": "a BAM announce with an inconsistent size/packet count, EC1 shorter than 21 bytes or RC "
+                       "shorter than 18",
     "tp_other_pgn": "a BAM announce, or its TP.DT packets, of a PGN the sensor does not use",
     "tp_no_session": "a TP.DT packet with no open BAM transfer from its source address",
     "tp_sequence_error": "a TP.DT packet out of sequence; the transfer is aborted",
     "tp_timeout": "a TP.DT packet more than 750 ms after the previous packet (or time going backwards); aborted",
 }
 _SEVERITY = {"out_of_range": 3, "error_value": 2, "not_available": 1}
+#: the PGNs received by TP.BAM: their ``expected_sa`` key and the fewest bytes that hold their reference torque
+_BAM_PGNS = {EC1_PGN: (EC1_KEY, EC1_MIN_SIZE_BYTES), RC_PGN: (RC_KEY, RC_MIN_SIZE_BYTES)}
 #: how a parameter's value feeds a derived torque in Nm
 _PLAIN, _ENGINE_PCT, _RETARDER_PCT = 0, 1, 2
 
@@ -133,7 +139,8 @@ class _Route(NamedTuple):
 
 @dataclass
 class _Bam:
-    """An open TP.BAM transfer from one source address. ``reason`` None = ours (EC1), else why its packets are not."""
+    """An open TP.BAM transfer from one source address. ``reason`` None = ours (EC1, RC), else why its packets are
+    not."""
     pgn: int
     size_bytes: int
     packets: int
@@ -160,8 +167,8 @@ def input_messages() -> tuple[InputMessage, ...]:
 
 @functools.cache
 def message_names() -> tuple[str, ...]:
-    """The keys of ``expected_sa``: the input messages, EC1 (by TP.BAM) and RIG (RIG_TC_1..7)."""
-    return (*(m.name for m in input_messages()), EC1_KEY, RIG_KEY)
+    """The keys of ``expected_sa``: the input messages, EC1 and RC (by TP.BAM) and RIG (RIG_TC_1..7)."""
+    return (*(m.name for m in input_messages()), EC1_KEY, RC_KEY, RIG_KEY)
 
 
 @functools.cache
@@ -174,6 +181,7 @@ def signal_messages() -> dict[str, str]:
             if name in DERIVED_NM:
                 out[DERIVED_NM[name]] = m.name
     out["engine_ref_torque_nm"] = EC1_KEY
+    out["retarder_ref_torque_nm"] = RC_KEY
     return out
 
 
@@ -199,13 +207,14 @@ class J1939Decoder:
 
     ``expected_sa`` overrides the default source address per message (keys :func:`message_names`; a value of None
     accepts any source). Engine torque in Nm needs a reference torque: EC1 (SPN 544) once received, else
-    ``configured_ref_torque_nm``; retarder torque in Nm needs ``retarder_ref_torque_nm``. ``limits`` overrides
+    ``configured_ref_torque_nm``; retarder torque in Nm likewise: RC (SPN 556, from the retarder's source address)
+    once received, else the configured ``retarder_ref_torque_nm``. ``limits`` overrides
     :data:`DEFAULT_LIMITS`. ``rig=True`` also decodes RIG_TC_* frames into ``meas_T_<id>_c``. Bad settings raise
     ConfigError.
 
     ``counters``: ``frames_seen``, ``frames_used``, ``rejected`` (reason -> frames; seen = used + rejected),
     ``signal_rejected`` (name -> reason -> values not used, also from frames that were used), ``tp``
-    (BAM transfers started, completed, aborted; EC1 received), ``arrivals`` (message -> frames from the expected
+    (BAM transfers started, completed, aborted; EC1 and RC received), ``arrivals`` (message -> frames from the expected
     source address, whatever their content: the service's time-base check counts them), ``foreign_source``
     (message -> source address -> frames, or EC1 announces, from another source address than expected) and
     ``foreign_source_data`` (the same, only those with at least one usable value: a source-address mistake, not a
@@ -218,8 +227,10 @@ class J1939Decoder:
         self.expected_sa: dict[str, int | None] = self._sources(expected_sa or {})
         self.retarder_ref_torque_nm = _check_ref_torque("retarder_ref_torque_nm", retarder_ref_torque_nm)
         self.configured_ref_torque_nm = _check_ref_torque("configured_ref_torque_nm", configured_ref_torque_nm)
-        #: engine reference torque from the last EC1, None until one has arrived
+        #: engine reference torque from the last EC1, retarder reference torque from the last RC; None until one
+        #: has arrived
         self.ec1_ref_torque_nm: float | None = None
+        self.rc_ref_torque_nm: float | None = None
         self.limits = dict(DEFAULT_LIMITS)
         for name, bounds in (limits or {}).items():
             if name not in DEFAULT_LIMITS or len(bounds) != 2 or not bounds[0] <= bounds[1]:
@@ -239,7 +250,8 @@ class J1939Decoder:
                 self._routes[dbc.message_pgn(name)] = _Route(RIG_KEY, params)
         self._sessions: dict[int, _Bam] = {}
         self.counters: dict = {"frames_seen": 0, "frames_used": 0, "rejected": {}, "signal_rejected": {},
-                               "tp": {"started": 0, "completed": 0, "aborted": 0, "ec1_received": 0},
+                               "tp": {"started": 0, "completed": 0, "aborted": 0, "ec1_received": 0,
+                                      "rc_received": 0},
                                "arrivals": {}, "foreign_source": {}, "foreign_source_data": {}}
         self._arrivals: dict[str, int] = self.counters["arrivals"]
         self._arrivals.update({route.key: 0 for route in self._routes.values()})
@@ -249,6 +261,7 @@ class J1939Decoder:
         """The source address checked per message: the DBC's, overridden by ``expected_sa``."""
         source: dict[str, int | None] = {m.name: m.default_source for m in input_messages()}
         source[EC1_KEY] = dbc.default_source("TP_CM")
+        source[RC_KEY] = dbc.default_source("ERC1")     # the retarder's own configuration
         source[RIG_KEY] = dbc.default_source(dbc.numbered_messages(RIG_PREFIX)[0])
         for name, value in expected_sa.items():
             if name not in source:
@@ -276,6 +289,11 @@ class J1939Decoder:
     def ref_torque_nm(self) -> float | None:
         """Engine reference torque in use: EC1 once received, else the configured value, else None."""
         return self.ec1_ref_torque_nm if self.ec1_ref_torque_nm is not None else self.configured_ref_torque_nm
+
+    @property
+    def retarder_ref_in_use_nm(self) -> float | None:
+        """Retarder reference torque in use: RC once received, else the configured value, else None."""
+        return self.rc_ref_torque_nm if self.rc_ref_torque_nm is not None else self.retarder_ref_torque_nm
 
     def feed(self, msg: can.Message) -> list[SignalUpdate]:
         """Decode one frame; returns the values it carries (often none). Never raises on frame content."""
@@ -385,7 +403,7 @@ class J1939Decoder:
                     times[name] = timestamp_s
                     values[name] = value
                     if derived:
-                        ref_nm = self.ref_torque_nm if derived == _ENGINE_PCT else self.retarder_ref_torque_nm
+                        ref_nm = self.ref_torque_nm if derived == _ENGINE_PCT else self.retarder_ref_in_use_nm
                         if ref_nm is not None:
                             times[DERIVED_NM[name]] = timestamp_s
                             values[DERIVED_NM[name]] = value / 100.0 * ref_nm
@@ -418,13 +436,14 @@ class J1939Decoder:
         pgn = data[5] | (data[6] << 8) | (data[7] << 16)
         if not 9 <= size_bytes <= TP_MAX_SIZE_BYTES or packets != (size_bytes + 6) // TP_DT_DATA_BYTES:
             return "tp_bad_announce"
-        expected = self.expected_sa[EC1_KEY]
-        if pgn != EC1_PGN:
+        key, min_size = _BAM_PGNS.get(pgn, (None, 0))
+        expected = self.expected_sa[key] if key else None
+        if key is None:
             reason: str | None = "tp_other_pgn"
         elif expected is not None and sa != expected:
             reason = "wrong_source_address"
-            self._count_foreign(EC1_KEY, sa, size_bytes >= EC1_MIN_SIZE_BYTES)
-        elif size_bytes < EC1_MIN_SIZE_BYTES:
+            self._count_foreign(key, sa, size_bytes >= min_size)
+        elif size_bytes < min_size:
             return "tp_bad_announce"
         else:
             reason = None
@@ -458,18 +477,23 @@ class J1939Decoder:
         self.counters["tp"]["completed"] += 1
         if session.reason is not None:
             return session.reason
-        return self._ec1(session.buf, timestamp_s, latest)
+        return self._reference(session.pgn, session.buf, timestamp_s, latest)
 
-    def _ec1(self, payload: bytearray, timestamp_s: float, latest: LatestValues) -> str | None:
-        raw = payload[EC1_REF_TORQUE_BYTE0] | (payload[EC1_REF_TORQUE_BYTE0 + 1] << 8)
-        name = "engine_ref_torque_nm"
+    def _reference(self, pgn: int, payload: bytearray, timestamp_s: float, latest: LatestValues) -> str | None:
+        """A completed EC1 (SPN 544, engine) or RC (SPN 556, retarder): the reference torque, 1 Nm/bit."""
+        byte0, name, counter = ((EC1_REF_TORQUE_BYTE0, "engine_ref_torque_nm", "ec1_received") if pgn == EC1_PGN
+                                else (RC_REF_TORQUE_BYTE0, "retarder_ref_torque_nm", "rc_received"))
+        raw = payload[byte0] | (payload[byte0 + 1] << 8)
         reason = raw_reason(raw, 2)
         if reason is None:
             value = raw * 1.0 + 0.0
             low, high = self.limits[name]
             if low <= value <= high:
-                self.ec1_ref_torque_nm = value
-                self.counters["tp"]["ec1_received"] += 1
+                if pgn == EC1_PGN:
+                    self.ec1_ref_torque_nm = value
+                else:
+                    self.rc_ref_torque_nm = value
+                self.counters["tp"][counter] += 1
                 latest.time_s[name] = timestamp_s
                 latest.value[name] = value
                 return None

@@ -8,8 +8,8 @@
   filter that matches a PGN only.
 - Value ranges (J1939-71): 8-bit data 0..0xFA, 16-bit data 0..0xFAFF, then indicator/reserved, error (0xFE, 0xFExx)
   and not available (0xFF, 0xFFxx): :func:`raw_reason`.
-- Transport protocol (J1939-21 TP.BAM) and EC1 (J1939-71 PGN 65251, reassembled from it): the constants the decoder
-  and the log synthesis share. The TP.CM and TP.DT PGNs themselves are read from the DBC (``can_dbc.dbc``).
+- Transport protocol (J1939-21 TP.BAM), EC1 (J1939-71 PGN 65251) and RC (PGN 65249), reassembled from it: the
+  constants the decoder and the log synthesis share. The TP.CM and TP.DT PGNs themselves are read from the DBC (``can_dbc.dbc``).
 """
 from __future__ import annotations
 
@@ -47,6 +47,11 @@ TP_DT_DATA_BYTES = 7
 EC1_PGN = 65251
 EC1_REF_TORQUE_BYTE0 = 19  # 0-based index of byte 20
 EC1_MIN_SIZE_BYTES = 21
+#: RC Retarder Configuration (J1939-71, 19 bytes: by TP.BAM, about every 5 s, from the retarder); SPN 556 reference
+#: retarder torque in bytes 17-18 (1-based), 1 Nm/bit: the torque ERC1's actual retarder percent torque refers to
+RC_PGN = 65249
+RC_REF_TORQUE_BYTE0 = 16  # 0-based index of byte 17
+RC_MIN_SIZE_BYTES = 18
 
 
 def check_id(can_id: int) -> None:

@@ -205,9 +205,10 @@ class SensorService:
         s = self.counters
         rejected = ", ".join(f"{k} {v}" for k, v in sorted(d["rejected"].items())) or "none"
         stale = ", ".join(f"{k} {v}" for k, v in sorted(s["stale_steps"].items())) or "none"
-        self.log.log(level, "frames seen %d, used %d, rejected: %s; EC1 received %d; steps %d (sent %d, catch-up "
-                     "%d), time jumps %d; stale steps per input: %s; frames sent %d",
-                     d["frames_seen"], d["frames_used"], rejected, d["tp"]["ec1_received"], s["steps"],
+        self.log.log(level, "frames seen %d, used %d, rejected: %s; EC1 received %d, RC %d; steps %d (sent %d, "
+                     "catch-up %d), time jumps %d; stale steps per input: %s; frames sent %d",
+                     d["frames_seen"], d["frames_used"], rejected, d["tp"]["ec1_received"],
+                     d["tp"].get("rc_received", 0), s["steps"],
                      s["steps_sent"], s["catchup_steps"], s["time_jumps"], stale, s["frames_sent"])
 
     def findings(self) -> list:

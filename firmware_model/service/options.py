@@ -30,7 +30,7 @@ GEAR_RANGE = (-2, 14)
 #: config [can] source-address keys -> the messages they set
 SOURCE_ADDRESS_KEYS = (("engine_source_address", ("EEC1", "EC1", "ET1", "CCVS1", "AMB")),
                        ("transmission_source_address", ("ETC2", "TRF1")),
-                       ("retarder_source_address", ("ERC1",)),
+                       ("retarder_source_address", ("ERC1", "RC")),
                        ("ambient_source_address", ("AMB",)))
 
 

@@ -22,8 +22,8 @@ import math
 from dataclasses import dataclass, field
 from typing import ClassVar, Mapping
 
-from can_dbc.decoder import EC1_KEY, signal_messages
-from can_dbc.j1939 import EC1_PGN
+from can_dbc.decoder import EC1_KEY, RC_KEY, signal_messages
+from can_dbc.j1939 import EC1_PGN, RC_PGN
 from firmware_model.service.degraded import (DEGRADED_UNTRUSTED_SHARE, DEGRADED_WARN_SHARE,  # noqa: F401 (re-exported)
                                              INPUT_NAMES, DegradedFinding, Severity, degraded_finding, pct,
                                              untrusted)
@@ -110,8 +110,8 @@ class ForeignSourceFinding:
         data = "" if self.with_data == self.frames else f" ({self.with_data} with data)"
         where = (f"[can] expects SA 0x{self.expected:02X} ({self.config_key})" if self.configured else
                  f"the DBC's default SA 0x{self.expected:02X} is expected (set [can] {self.config_key})")
-        what = f"{self.message} (PGN {self.pgn})" if self.message != EC1_KEY else f"{self.message} (PGN {self.pgn}, " \
-                                                                                  f"TP.BAM transfers)"
+        what = f"{self.message} (PGN {self.pgn})" if self.message not in (EC1_KEY, RC_KEY) \
+            else f"{self.message} (PGN {self.pgn}, TP.BAM transfers)"
         tail = ": check the source addresses"
         if self.expected_frames:
             tail = f" (and {self.expected_frames} times from SA 0x{self.expected:02X}): a second sender"
@@ -229,13 +229,14 @@ def foreign_findings(decoder_counters: Mapping, expected_sa: Mapping[str, int | 
                      configured: Mapping[str, int] | None = None) -> list[ForeignSourceFinding]:
     """A finding per (message, foreign source address) that sent at least FOREIGN_MIN_FRAMES frames with data;
     ``expected_sa``: the decoder's, ``configured``: the messages whose address the config set."""
-    pgns = {**wanted_pgns(), EC1_KEY: EC1_PGN}
+    pgns = {**wanted_pgns(), EC1_KEY: EC1_PGN, RC_KEY: RC_PGN}
     messages = signal_messages()
     primary = {messages[s] for s in PRIMARY_SIGNALS}
     keys = _config_keys()
     arrivals = decoder_counters.get("arrivals", {})
     with_data = decoder_counters.get("foreign_source_data", {})
-    ec1_received = decoder_counters.get("tp", {}).get("ec1_received", 0)
+    received = {EC1_KEY: decoder_counters.get("tp", {}).get("ec1_received", 0),
+                RC_KEY: decoder_counters.get("tp", {}).get("rc_received", 0)}
     out = []
     for message, per_sa in sorted(decoder_counters.get("foreign_source", {}).items()):
         expected = expected_sa.get(message)
@@ -245,7 +246,7 @@ def foreign_findings(decoder_counters: Mapping, expected_sa: Mapping[str, int | 
             n_data = with_data.get(message, {}).get(sa, 0)
             if n_data < FOREIGN_MIN_FRAMES:
                 continue
-            expected_frames = ec1_received if message == EC1_KEY else arrivals.get(message, 0)
+            expected_frames = received[message] if message in received else arrivals.get(message, 0)
             out.append(ForeignSourceFinding(message, pgns[message], sa, frames, n_data, expected, expected_frames,
                                             keys.get(message, "?"), message in (configured or {}),
                                             message in primary))

@@ -228,6 +228,13 @@ def ec1_payload(ref_nm, size=34):
     return bytes(payload)
 
 
+def rc_payload(ref_nm, size=19):
+    """RC (PGN 65249) as a retarder sends it: 19 bytes, SPN 556 reference retarder torque in bytes 17-18."""
+    payload = bytearray(k % 251 for k in range(1, size + 1))
+    payload[16:18] = ref_nm.to_bytes(2, "little")
+    return bytes(payload)
+
+
 def bam(payload, pgn=adapter.EC1_PGN, sa=0x00, t0=10.0, dt=0.05, packets=None):
     """TP.CM BAM + TP.DT frames, 50 ms apart, last packet padded with 0xFF."""
     n = (len(payload) + 6) // 7 if packets is None else packets
@@ -312,6 +319,33 @@ def test_new_bam_from_the_same_source_replaces_an_unfinished_one():
     assert d.counters["tp"]["aborted"] == 1 and d.counters["tp"]["completed"] == 1
 
 
+def test_the_retarder_reference_torque_arrives_by_rc_and_wins_over_the_configured_one():
+    """RC (PGN 65249, SPN 556 in bytes 17-18) from the retarder's address gives ERC1's percent a torque in Nm (as
+    EC1 does for the engine); the configured reference serves until then. Real trucks send RC every 5 s by TP.BAM
+    (the captures: an exhaust retarder at SA 0x29 with 450 Nm, an engine retarder at SA 0x0F with 1588 Nm)."""
+    erc1 = frame(61440, 0x10, [0xFF, 125 - 40, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF], ts=20.0)
+    d = J1939Decoder()
+    assert feed_all(d, [erc1]) == [("retarder_torque_pct", -40.0)]           # no reference: no Nm
+    assert feed_all(d, bam(rc_payload(1588), pgn=adapter.RC_PGN, sa=0x10)) == [("retarder_ref_torque_nm", 1588.0)]
+    assert d.counters["tp"]["rc_received"] == 1 and d.retarder_ref_in_use_nm == 1588.0
+    assert dict(feed_all(d, [erc1]))["retarder_torque_nm"] == pytest.approx(-0.4 * 1588.0)
+    d = J1939Decoder(retarder_ref_torque_nm=3500.0)
+    assert dict(feed_all(d, [erc1]))["retarder_torque_nm"] == pytest.approx(-1400.0)      # configured, until RC
+    feed_all(d, bam(rc_payload(1588), pgn=adapter.RC_PGN, sa=0x10))
+    assert dict(feed_all(d, [erc1]))["retarder_torque_nm"] == pytest.approx(-0.4 * 1588.0)
+    d = J1939Decoder()                              # an engine retarder's RC: another node, not ours
+    assert feed_all(d, bam(rc_payload(450), pgn=adapter.RC_PGN, sa=0x29)) == []
+    assert d.counters["rejected"] == {"wrong_source_address": 4} and d.counters["foreign_source"] == {"RC": {0x29: 1}}
+    d = J1939Decoder()
+    for bad, reason in ((0xFFFF, "not_available"), (0xFE10, "error_value"), (0, "out_of_range")):
+        assert feed_all(d, bam(rc_payload(bad), pgn=adapter.RC_PGN, sa=0x10)) == []
+        assert d.counters["signal_rejected"]["retarder_ref_torque_nm"][reason] == 1
+    assert d.retarder_ref_in_use_nm is None
+    short = bam(rc_payload(1588)[:17], pgn=adapter.RC_PGN, sa=0x10)   # cut before byte 18
+    assert feed_all(J1939Decoder(), short[:1]) == []
+    assert J1939Decoder().dispatch(short[0], adapter.LatestValues()) == "tp_bad_announce"
+
+
 def test_bams_of_other_pgns_or_sources_and_connection_mode_are_not_used():
     d = J1939Decoder()
     assert feed_all(d, bam(bytes(14), pgn=65226)) == []            # DM1 with two DTCs
@@ -392,9 +426,10 @@ def random_frames(n, seed):
             out.append(can.Message(timestamp=t, arbitration_id=adapter.can_id_of(
                 60160, rng.choice([0, 0, rng.randrange(256)]), 7, rng.choice([0xFF, 0xFF, rng.randrange(256)])),
                 is_extended_id=True, data=bytes([seq]) + data[1:]))
-        elif kind == 10:  # a whole EC1 BAM, sometimes broken (dropped, swapped, late packets)
-            transfer = bam(ec1_payload(rng.choice([1109, 2457, 0, 0xFFFF, 0xFE10])), t0=t,
-                           dt=rng.choice([0.05, 0.05, 0.8]))
+        elif kind == 10:  # a whole EC1 (engine) or RC (retarder) BAM, sometimes broken (dropped, swapped, late)
+            ref_nm, late = rng.choice([1109, 2457, 0, 0xFFFF, 0xFE10]), rng.choice([0.05, 0.05, 0.8])
+            transfer = bam(ec1_payload(ref_nm), t0=t, dt=late) if rng.random() < 0.7 else \
+                bam(rc_payload(ref_nm), pgn=adapter.RC_PGN, sa=0x10, t0=t, dt=late)
             if rng.random() < 0.3:
                 del transfer[rng.randrange(1, len(transfer))]
             if rng.random() < 0.3:
@@ -429,7 +464,7 @@ def test_100000_random_frames_never_raise_and_every_frame_is_counted_once():
     # the generator reaches every reason and the decoder still finds real data in the noise
     assert set(c["rejected"]) == set(adapter.REJECT_REASONS) - {"invalid_id"}
     assert names == set(adapter.SIGNAL_NAMES)
-    assert c["tp"]["ec1_received"] > 0 and c["tp"]["aborted"] > 0
+    assert c["tp"]["ec1_received"] > 0 and c["tp"]["rc_received"] > 0 and c["tp"]["aborted"] > 0
 
 
 def test_every_decoded_value_is_within_its_limits():

@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import sys
 import uuid
+from collections import Counter
 
 import can
 import numpy as np
@@ -100,7 +101,8 @@ def test_plant_streams_inputs_and_rig_frames(capsys):
         pgns[pgn_of(m.arbitration_id)] = pgns.get(pgn_of(m.arbitration_id), 0) + 1
     assert 500 <= pgns[61444] <= 1000 and 95 <= pgns[61445] <= 101 and 9 <= pgns[65272] <= 11
     assert all(95 <= pgns[p] <= 101 for p in range(0xFF50, 0xFF57))
-    assert pgns[0xEC00] == 2
+    bams = Counter(m.arbitration_id & 0xFF for m in got if pgn_of(m.arbitration_id) == 0xEC00)
+    assert bams[0x00] == 2 and bams[0x10] == (2 if 61440 in pgns else 0)      # EC1 every 5 s; RC with ERC1
     # a sensor on the bus gets the same from it as from the log: decode one step of the rig
     from can_dbc.adapter import decode_rig
     rig = decode_rig([m for m in got if 0xFF50 <= pgn_of(m.arbitration_id) <= 0xFF56][-7:])
@@ -119,8 +121,9 @@ def test_run_and_plant_help_explain_every_option(capsys):
             assert opt in text, (cmd, opt)
 
 
-def test_simulate_says_which_retarder_reference_its_log_uses(tmp_path, capsys):
-    """A cycle with retarder torque written as a log: the note names the reference torque a replay needs."""
+def test_a_simulated_log_carries_its_retarder_reference_so_replay_needs_no_config(tmp_path, capsys):
+    """A cycle with retarder torque written as a log: RC (SPN 556) in the log gives the replay the reference torque
+    the ERC1 percent refers to (the log once needed [can] retarder_reference_torque_nm in the replay's config)."""
     from tools.runtable import RunTable, write_run_table
     t = np.arange(0.0, 30.0, 1.0)
     cyc = RunTable({"time_s": t, "engine_speed_rpm": np.full(t.size, 1200.0), "engine_torque_nm": np.zeros(t.size),
@@ -128,4 +131,8 @@ def test_simulate_says_which_retarder_reference_its_log_uses(tmp_path, capsys):
     write_run_table(cyc, tmp_path / "down.csv")
     assert main(["simulate", "--cycle", str(tmp_path / "down.csv"), "--out", str(tmp_path / "r.csv"), "--can-log",
                  str(tmp_path / "r.log"), "--quiet"]) == 0
-    assert "[can] retarder_reference_torque_nm = 3500" in capsys.readouterr().err
+    assert "retarder_reference_torque_nm" not in capsys.readouterr().err
+    main(["replay", str(tmp_path / "r.log"), "--out", str(tmp_path / "e.csv"), "--quiet"])
+    est = np.genfromtxt(tmp_path / "e.csv", delimiter=",", names=True)
+    braking = est["retarder_torque_nm"][est["time_s"] > 6.0]
+    assert np.all(np.abs(braking - 800.0) <= 0.5 * 3500.0 / 100.0), braking      # within half a percent step

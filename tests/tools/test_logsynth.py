@@ -48,7 +48,7 @@ def test_rates_sources_and_priorities(frames):
         assert np.allclose(np.diff(by[name]), period, atol=0.0021), name
     # every frame but EEC1 sits in the middle of a 100 ms slot counted from the first frame
     phase = np.mod(t[ids != 0x0CF00400] - t[0], 0.1)
-    tp = np.isin(ids[ids != 0x0CF00400], [0x1CECFF00, 0x1CEBFF00])
+    tp = np.isin(ids[ids != 0x0CF00400], [0x1CECFF00, 0x1CEBFF00, 0x1CECFF10, 0x1CEBFF10])   # EC1, RC BAMs
     assert ((phase[~tp] > 0.02) & (phase[~tp] < 0.08)).all()
     assert np.all(np.diff(t) >= 0) and np.allclose(t, np.round(t * 1e6) / 1e6)
     assert t[0] == 0.0 and ids[0] == 0x0CF00400
@@ -99,9 +99,11 @@ def test_reference_torque_clipping_and_sources_from_config():
     fr, counts = synth_frames(inp, None, config=cfg)
     assert "RIG_TC_1" not in counts and "TRF1" not in counts  # no plant output, no oil column: no TRF1
     assert {i & 0xFF for i in fr.can_id} == {0x01, 0x05, 0x29}
-    dec = J1939Decoder(expected_sa={"EEC1": 1, "EC1": 1, "ETC2": 5, "ET1": 1, "AMB": 1, "CCVS1": 1, "ERC1": 0x29})
+    dec = J1939Decoder(expected_sa={"EEC1": 1, "EC1": 1, "ETC2": 5, "ET1": 1, "AMB": 1, "CCVS1": 1, "ERC1": 0x29,
+                                    "RC": 0x29})
     pct = [u.value for m in fr.messages() for u in dec.feed(m) if u.name == "engine_torque_pct"]
     assert max(pct) == 125 and min(pct) == -30 and dec.ec1_ref_torque_nm == 1000.0
+    assert dec.rc_ref_torque_nm == 3500.0          # RC from the retarder's address: the default reference
     assert sum(dec.counters["rejected"].values()) == 0
     with pytest.raises(ParameterError, match="reference torque"):
         synth_frames(inp, None, ref_torque_nm=-5)
@@ -146,4 +148,4 @@ def test_counts_per_message(frames):
     _, (fr, counts) = frames
     assert sum(counts.values()) == len(fr)
     c = Counter(pgn_of(i) for i in fr.can_id.tolist())
-    assert c[0xEC00] == 6 and c[0xEB00] == 36
+    assert c[0xEC00] == 6 + 6 and c[0xEB00] == 36 + 18      # EC1 (6 packets) and RC (3) every 5 s of 30 s

@@ -211,19 +211,26 @@ def test_two_processes_are_refused_with_the_reason(tmp_path, frames):
 
 
 def test_retarder_frames_without_a_reference_torque_are_named(tmp_path):
-    """ERC1 frames arrive but no [can] retarder_reference_torque_nm is set: the summary says so (it said
-    "auxiliary inputs not given (retarder_torque_nm)" as if the log had none); with the reference, nothing is said."""
+    """ERC1 frames arrive but neither an RC (the retarder's reference torque, SPN 556) nor [can]
+    retarder_reference_torque_nm: the summary says so (it said "auxiliary inputs not given (retarder_torque_nm)" as
+    if the log had none); with the configured reference, or with RC in the log, nothing is said."""
     from tools.replay.summary import summary_lines
+    from tools.can.logsynth import SynthFrames
     inp = cycle()
     inp["retarder_torque_nm"] = np.full(inp.n, 700.0)
-    path = write_frames(synth_frames(inp, plant(inp)).frames, tmp_path / "retarder.log")
-    lines = []
-    for ref in (None, 3500.0):
+    fr = synth_frames(inp, plant(inp)).frames
+    without_rc = ~np.isin(fr.can_id, [0x1CECFF10, 0x1CEBFF10])
+    paths = {"rc": write_frames(fr, tmp_path / "rc.log"),
+             "no_rc": write_frames(SynthFrames(fr.timestamp_s[without_rc], fr.can_id[without_rc],
+                                               fr.data[without_rc]), tmp_path / "no_rc.log")}
+    lines = {}
+    for log, ref in (("no_rc", None), ("no_rc", 3500.0), ("rc", None)):
         service = SensorService(make_sensor(), ServiceOptions(configured_ref_torque_nm=None,
                                                               retarder_ref_torque_nm=ref), record=True)
-        lines.append(summary_lines(replay_log(path, service))[-1])
-    assert "retarder frames (ERC1) arrived, but without a retarder reference torque" in lines[0]
-    assert "retarder" not in lines[1] and "auxiliary" not in lines[1], lines[1]
+        lines[log, ref] = summary_lines(replay_log(paths[log], service))[-1]
+    assert "retarder frames (ERC1) arrived, but without a retarder reference torque" in lines["no_rc", None]
+    for key in (("no_rc", 3500.0), ("rc", None)):
+        assert "retarder" not in lines[key] and "not given" not in lines[key], lines[key]
 
 
 def test_a_line_that_is_no_frame_is_named(tmp_path):

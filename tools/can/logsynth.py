@@ -24,6 +24,8 @@ ERC1     100 ms             retarder [0x10]  actual retarder percent torque (bra
                                              cycle has ``retarder_torque_nm``
 EC1      5 s, TP.BAM        engine [0x00]    39 bytes, SPN 544 reference torque in bytes 20-21; TP.CM BAM then 6
                                              TP.DT packets 50 ms apart
+RC       5 s, TP.BAM        retarder [0x10]  19 bytes, SPN 556 reference retarder torque in bytes 17-18 (what ERC1's
+                                             percent refers to); TP.CM BAM then 3 TP.DT, with ERC1 only
 RIG_TC_* 100 ms             rig 0xF0         the plant's true temperatures of the 28 published components
 ======== ================== ================ ====================================================================
 
@@ -54,7 +56,7 @@ import numpy as np
 
 from can_dbc import dbc
 from can_dbc.j1939 import (EC1_PGN, EC1_REF_TORQUE_BYTE0, RAW8_DATA_MAX, RAW8_NOT_AVAILABLE, RAW16_DATA_MAX,
-                           RAW16_NOT_AVAILABLE, TP_BAM_CONTROL, TP_DT_DATA_BYTES)
+                           RAW16_NOT_AVAILABLE, RC_PGN, RC_REF_TORQUE_BYTE0, TP_BAM_CONTROL, TP_DT_DATA_BYTES)
 from firmware_model.components import PUBLISHED
 from firmware_model.errors import InputError, ParameterError
 
@@ -101,8 +103,13 @@ _PERIODIC_JITTER_S = 0.001
 _EEC1_JITTER_S = 0.0003
 #: EC1 BAM: TP.CM at this phase of each 5 s period; the last of its 6 TP.DT completes 300 ms later (phase 0.35)
 _EC1_PHASE_S = 0.050
+#: RC (retarder configuration) by BAM: 19 bytes as real retarders send it, in 3 packets, every 5 s at this phase
+#: (after EC1's: the first completes 0.6 s into the log)
+RC_SIZE_BYTES = 19
+RC_PACKETS = 3
+_RC_PHASE_S = 0.450
 #: order of the messages at equal timestamps (RIG_TC_k: RIG_ORDER + k - 1)
-_ORDER = {"EEC1": 0, "ETC2": 1, "TRF1": 2, "ET1": 3, "AMB": 4, "CCVS1": 5, "ERC1": 6, "EC1": 7}
+_ORDER = {"EEC1": 0, "ETC2": 1, "TRF1": 2, "ET1": 3, "AMB": 4, "CCVS1": 5, "ERC1": 6, "EC1": 7, "RC": 7}
 RIG_ORDER = 8
 
 
@@ -340,25 +347,36 @@ class _Synth:
 
     def ec1(self, ref_torque_nm: float) -> None:
         """EC1 by TP.BAM every 5 s: TP.CM BAM to global, then 6 TP.DT 50 ms apart; SPN 544 in bytes 20-21."""
-        n_ec1 = int(np.floor((self.t1_s - self.t0_s - _EC1_PHASE_S) / EC1_PERIOD_S)) + 1
-        if n_ec1 <= 0:
+        self.bam("EC1", EC1_PGN, EC1_SIZE_BYTES, EC1_PACKETS, EC1_REF_TORQUE_BYTE0, ref_torque_nm, _EC1_PHASE_S,
+                 self.src["engine"])
+
+    def rc(self, retarder_ref_torque_nm: float) -> None:
+        """RC by TP.BAM every 5 s from the retarder, with ERC1 only: SPN 556 in bytes 17-18."""
+        if self.inputs.has("retarder_torque_nm"):
+            self.bam("RC", RC_PGN, RC_SIZE_BYTES, RC_PACKETS, RC_REF_TORQUE_BYTE0, retarder_ref_torque_nm,
+                     _RC_PHASE_S, self.src["retarder"])
+
+    def bam(self, name: str, pgn: int, size: int, packets: int, byte0: int, ref_torque_nm: float, phase_s: float,
+            sa: int) -> None:
+        """A reference torque (1 Nm/bit at ``byte0``; every other byte 0xFF) by TP.BAM every EC1_PERIOD_S: TP.CM BAM
+        to global at ``phase_s``, then ``packets`` TP.DT 50 ms apart."""
+        n_bam = int(np.floor((self.t1_s - self.t0_s - phase_s) / EC1_PERIOD_S)) + 1
+        if n_bam <= 0:
             return
-        payload = np.full(EC1_PACKETS * TP_DT_DATA_BYTES, 0xFF, dtype=np.uint8)
-        payload[EC1_REF_TORQUE_BYTE0] = int(round(ref_torque_nm)) & 0xFF
-        payload[EC1_REF_TORQUE_BYTE0 + 1] = int(round(ref_torque_nm)) >> 8
-        cm = np.array([TP_BAM_CONTROL, EC1_SIZE_BYTES & 0xFF, EC1_SIZE_BYTES >> 8, EC1_PACKETS, 0xFF,
-                       EC1_PGN & 0xFF, (EC1_PGN >> 8) & 0xFF, EC1_PGN >> 16], dtype=np.uint8)
-        start_s = self.t0_s + _EC1_PHASE_S + EC1_PERIOD_S * np.arange(n_ec1)
+        payload = np.full(packets * TP_DT_DATA_BYTES, 0xFF, dtype=np.uint8)
+        payload[byte0] = int(round(ref_torque_nm)) & 0xFF
+        payload[byte0 + 1] = int(round(ref_torque_nm)) >> 8
+        cm = np.array([TP_BAM_CONTROL, size & 0xFF, size >> 8, packets, 0xFF, pgn & 0xFF, (pgn >> 8) & 0xFF,
+                       pgn >> 16], dtype=np.uint8)
+        start_s = self.t0_s + phase_s + EC1_PERIOD_S * np.arange(n_bam)
         n = TP_DT_DATA_BYTES
-        rows = [cm] + [np.concatenate([[k + 1], payload[n * k:n * k + n]]).astype(np.uint8)
-                       for k in range(EC1_PACKETS)]
-        t_s = (start_s[:, None] + TP_DT_SPACING_S * np.arange(EC1_PACKETS + 1)[None, :]).ravel()
-        engine = self.src["engine"]
-        ids = np.tile(np.array([dbc.message_id("TP_CM", engine)] + [dbc.message_id("TP_DT", engine)] * EC1_PACKETS,
-                               dtype=np.uint32), n_ec1)
-        data = np.tile(np.stack(rows), (n_ec1, 1))
-        keep = t_s <= self.t1_s + EC1_PACKETS * TP_DT_SPACING_S  # a transfer started inside the cycle is finished
-        self.add("EC1", _ORDER["EC1"], t_s[keep], ids[keep], data[keep])
+        rows = [cm] + [np.concatenate([[k + 1], payload[n * k:n * k + n]]).astype(np.uint8) for k in range(packets)]
+        t_s = (start_s[:, None] + TP_DT_SPACING_S * np.arange(packets + 1)[None, :]).ravel()
+        ids = np.tile(np.array([dbc.message_id("TP_CM", sa)] + [dbc.message_id("TP_DT", sa)] * packets,
+                               dtype=np.uint32), n_bam)
+        data = np.tile(np.stack(rows), (n_bam, 1))
+        keep = t_s <= self.t1_s + packets * TP_DT_SPACING_S  # a transfer started inside the cycle is finished
+        self.add(name, _ORDER[name], t_s[keep], ids[keep], data[keep])
 
     def rig(self) -> None:
         """RIG_TC_1..7: the plant's true temperatures of the published components, linearly interpolated."""
@@ -431,6 +449,7 @@ def synth_frames(input_table, plant_output_table=None, *, config=None, ref_torqu
     synth.engine_1s()
     synth.erc1(retarder_ref_nm)
     synth.ec1(ref_nm)
+    synth.rc(retarder_ref_nm)
     if rig:
         synth.rig()
     return SynthResult(synth.frames(start_timestamp_s), synth.counts)
