@@ -5,6 +5,12 @@ The loader converts every value to SI (temperatures stay in degC), checks the un
 value lies in its allowed range (ranges live here, in code, so a file cannot widen its own), and keeps the provenance
 of every value. A variant file may `inherit` another and override entries.
 
+A file may only hold keys its parent has (a file that inherits nothing: keys of the shipped variants), each in a unit
+of the same dimension as there and a number where the parent has a number (text where it has text, cooler.kind): a
+misspelt key or section, ``u = "-"`` for an angle or ``v = "4200"`` is a ParameterError naming the file and the key.
+Values must be greater than zero unless their dimension takes any sign or the key may be zero or negative
+(SIGN_FREE_DIMS, ZERO_ALLOWED, NOT_POSITIVE); range messages give the value and the range in the unit the file used.
+
 Renamed keys (RENAMED_KEYS) are migrated in the shipped files; a file that still uses an old name
 (``oil_system.flow_per_ls_rpm``, ``engine.max_speed``, ``heat.N_nom``) loads with a FutureWarning naming the new key
 (``oil_system.flow_m3_per_rad``, ``engine.max_speed_rad_s``, ``heat.omega_nom_rad_s``), its value converted by its unit
@@ -18,6 +24,7 @@ as before; so does ``Parameters.with_overrides`` with an old name.
 """
 from __future__ import annotations
 
+import difflib
 import fnmatch
 import math
 import warnings
@@ -54,6 +61,14 @@ UNITS = {
     "L/min/rpm": ("m3/rad", 1.0 / L_PER_M3 / S_PER_MIN / RAD_S_PER_RPM),   # volume flow per speed
     "m3/rad": ("m3/rad", 1.0),
 }
+#: what a quantity of each SI dimension is, for messages
+DIM_NAMES = {
+    "1": "a plain number", "m": "a length", "m2": "an area", "m3": "a volume", "rad": "an angle", "kg": "a mass",
+    "kg/m3": "a density", "W/(m K)": "a thermal conductivity", "J/(kg K)": "a specific heat capacity",
+    "W/(m2 K)": "a heat transfer coefficient", "W/K": "a thermal conductance", "W": "a power",
+    "Pa": "a pressure or elastic modulus", "N": "a force", "N m": "a torque", "s": "a time", "degC": "a temperature",
+    "rad/s": "a speed", "N m s/rad": "a torque per speed", "m3/rad": "a volume flow per speed",
+}
 #: renamed keys (old -> new): a file that still uses an old key is read with a deprecation warning
 RENAMED_KEYS = {
     "oil_system.flow_per_ls_rpm": "oil_system.flow_m3_per_rad",
@@ -85,6 +100,15 @@ KEY_RULES = [
     ("bearing.f1_*", 0.0, 0.01, False), ("wheel.hub_mass_factor", 1.0, 3.0, False),
     ("engine.max_speed_rad_s", 100.0, 1000.0, False),
 ]
+#: sign rule: a value of any dimension but these must be greater than zero (plain numbers and angles are kept
+#: non-negative by DIM_RANGE and KEY_RULES, temperatures in degC take either sign)
+SIGN_FREE_DIMS = ("1", "rad", "degC")
+#: ... except these keys, which may also be zero: positions, bores (0: a solid shaft), overhangs, the bearing preload,
+#: the oil surface at the layshaft axis, an idler not dipping, the heat lag (0: no lag)
+ZERO_ALLOWED = ("*.x", "*.x_*", "*.d_bore", "*.overhang_*", "bearing.P0", "oil.level_below_ls_axis",
+                "gear.R.idler_immersion", "scale.heat_lag_tau")
+#: ... and these, which must be zero or negative (the engine's braking torque)
+NOT_POSITIVE = ("engine.min_torque",)
 
 
 @dataclass
@@ -197,16 +221,88 @@ def _renamed(entries: dict, path: Path) -> dict:
 
 
 def _read(path: Path, seen=()) -> dict:
+    """The entries of a parameter file with its parent's (``meta.inherit``) underneath. The file's own keys are
+    checked against its parent's, or, for a file that inherits nothing, against the shipped variants'
+    (`_check_keys`)."""
     doc = read_toml(path, f"parameter file {path.name}")
     entries = _renamed(dict(_flatten(doc)), path)
-    parent = doc.get("meta", {}).get("inherit")
+    meta = doc.get("meta")
+    parent = meta.get("inherit") if isinstance(meta, dict) else None
     if parent:
         if parent in seen:
             raise ParameterError(f"parameter file {path.name} inherits in a cycle through {parent}")
         base = _read(PARAM_DIR / f"{parent}.toml", seen + (parent,))
+        _check_keys(path, entries, base, f"{parent}.toml")
         base.update({k: v for k, v in entries.items() if k != "meta.inherit"})
-        entries = base
+        return base
+    if not _is_shipped(path):
+        _check_keys(path, entries, _reference_entries(), "the shipped parameter files (" + ", ".join(VARIANTS) + ")")
     return entries
+
+
+def _is_shipped(path: Path) -> bool:
+    """Whether ``path`` is one of the shipped variant files (the reference the other files are checked against)."""
+    return path.resolve() in {(PARAM_DIR / f"{v}.toml").resolve() for v in VARIANTS}
+
+
+def _reference_entries() -> dict:
+    """The entries of the shipped variants by key (the union; the first variant's entry where they share a key):
+    what a parameter file that inherits nothing may contain."""
+    ref = {}
+    for v in VARIANTS:
+        for key, e in _read(PARAM_DIR / f"{v}.toml").items():
+            ref.setdefault(key, e)
+    return ref
+
+
+def _check_keys(path: Path, entries: dict, base: dict, base_name: str) -> None:
+    """ParameterError for a key of ``entries`` that ``base`` does not have (a typo would be silently ignored), a
+    number written as text (or text as a number) and a unit of another dimension than the base entry's."""
+    for key, e in entries.items():
+        if key == "meta.inherit":
+            continue
+        if key not in base:
+            raise ParameterError(_unknown_key(path, key, base, base_name))
+        _check_entry_kind(path, key, e, base[key])
+
+
+def _unknown_key(path: Path, key: str, base: dict, base_name: str) -> str:
+    """The message for a key that the base file does not have, with the closest known key."""
+    table = next((k for k in base if key.startswith(k + ".")), None)
+    if table is not None:
+        return f"{path.name}: entry {table!r} must be a table {{ v = ..., u = ..., src = ... }} with a value v"
+    section, _, name = key.rpartition(".")
+    siblings = [k.rpartition(".")[2] for k in base if k.rpartition(".")[0] == section]
+    has = "have" if base_name.startswith("the ") else "has"
+    if siblings:                         # a known section: the closest key name in it
+        close = [f"{section}.{k}" for k in difflib.get_close_matches(name, siblings, n=1)]
+        what = "no such key"
+    else:                                # an unknown section: the closest dotted key anywhere
+        close = difflib.get_close_matches(key, list(base), n=1)
+        what = f"no section [{section}]" if section else "no such key"
+    hint = f"; did you mean {close[0]}?" if close else ""
+    return f"{path.name}: unknown parameter {key}: {base_name} {has} {what}{hint}"
+
+
+def _check_entry_kind(path: Path, key: str, e, ref) -> None:
+    """An entry must hold text where the base entry does (cooler.kind) and a number elsewhere, in a unit of the
+    base entry's dimension (mm for m is fine, "-" for an angle is not)."""
+    if not (isinstance(e, dict) and "v" in e and isinstance(ref, dict) and "v" in ref):
+        return
+    text, ref_text = isinstance(e["v"], str), isinstance(ref["v"], str)
+    if text and not ref_text:
+        raise ParameterError(f'{path.name}: {key} = "{e["v"]}" is text, not a number: write the value without quotes')
+    if ref_text:
+        if not text:
+            raise ParameterError(f'{path.name}: {key} = {e["v"]!r} must be text in quotes, such as "{ref["v"]}"')
+        return
+    u, ref_u = e.get("u"), ref.get("u")
+    if u not in UNITS or ref_u not in UNITS or UNITS[u][0] == UNITS[ref_u][0]:
+        return                          # an unknown unit is reported by load_parameters
+    dim, ref_dim = UNITS[u][0], UNITS[ref_u][0]
+    allowed = " or ".join(f'u = "{x}"' for x, (d, _) in UNITS.items() if d == ref_dim)
+    raise ParameterError(f"{path.name}: {key} has unit {u!r} ({DIM_NAMES.get(dim, dim)}) but the key is "
+                         f"{DIM_NAMES.get(ref_dim, ref_dim)}: write it with {allowed}")
 
 
 def parameter_path(variant_or_path: str | Path) -> Path:
@@ -247,6 +343,7 @@ def load_parameters(variant_or_path: str | Path = "GRS905") -> Parameters:
     path = parameter_path(variant_or_path)
     entries = _read(path)
     values, sources, units, strings, bounds = {}, {}, {}, {}, {}
+    written = {}                         # key -> (unit, factor to SI) as in the file, for messages
     for key, e in entries.items():
         if key in ("meta.variant", "meta.inherit"):
             strings[key] = str(e)
@@ -271,11 +368,12 @@ def load_parameters(variant_or_path: str | Path = "GRS905") -> Parameters:
         values[key] = v
         sources[key] = src
         units[key] = dim
+        written[key] = (u, fac)
         b = _bounds(path, key, e, fac, v)
         if b is not None:
             bounds[key] = b
     params = Parameters(strings.get("meta.variant", path.stem), values, sources, units, strings, path.name, bounds)
-    _check_values(params)
+    _check_values(params, written)
     _check_required(params)
     kind = params.strings.get("cooler.kind", "liquid")
     if kind not in COOLER_KINDS:
@@ -304,18 +402,47 @@ def _check_required(p: Parameters):
         raise ParameterError(f"planetary range ratio 1 + z_ring/z_sun = {ratio:.2f} is outside 2..6")
 
 
-def _check_values(p: Parameters):
+def _shown(x: float, key: str, dim: str, written: dict | None) -> tuple:
+    """(number, unit suffix) of an SI value in the unit the file wrote the key in (SI when not from a file)."""
+    if written and key in written:
+        u, fac = written[key]
+        return x / fac, "" if u == "-" else f" {u}"
+    return x, "" if dim == "1" else f" {dim}"
+
+
+def _sign_rule(key: str, v: float, dim: str) -> str | None:
+    """What is wrong with the sign of ``v`` (None if nothing): values are greater than zero unless their dimension
+    is sign-free (SIGN_FREE_DIMS) or the key is listed in ZERO_ALLOWED or NOT_POSITIVE."""
+    if dim in SIGN_FREE_DIMS:
+        return None
+    if any(fnmatch.fnmatchcase(key, pat) for pat in NOT_POSITIVE):
+        return None if v <= 0 else "must be zero or negative"
+    if v > 0:
+        return None
+    if any(fnmatch.fnmatchcase(key, pat) for pat in ZERO_ALLOWED):
+        return None if v == 0 else "must not be negative"
+    return "must be greater than zero"
+
+
+def _check_values(p: Parameters, written: dict | None = None):
+    """Every value finite, of the right sign and within its dimension's and its key's range. ``written`` (key ->
+    (unit, factor) as in the file) makes the messages name the file and use its units; without it they are in SI."""
+    where = f"{p.origin}: " if written else ""
     for key, v in p.values.items():
-        if not math.isfinite(v):
-            raise ParameterError(f"{key} = {v} is not a finite number")
         dim = p.units.get(key, "1")
+        x, unit = _shown(v, key, dim, written)
+        if not math.isfinite(v):
+            raise ParameterError(f"{where}{key} = {v} is not a finite number")
+        bad_sign = _sign_rule(key, v, dim)
+        if bad_sign:
+            raise ParameterError(f"{where}{key} = {x:g}{unit} {bad_sign} (the key is {DIM_NAMES.get(dim, dim)})")
         lo, hi = DIM_RANGE.get(dim, (-math.inf, math.inf))
-        if not lo <= v <= hi:
-            raise ParameterError(f"{key} = {v:g} {dim} is outside its allowed range {lo:g}..{hi:g} {dim}")
         for pat, klo, khi, integer in KEY_RULES:
             if fnmatch.fnmatchcase(key, pat):
-                if not klo <= v <= khi:
-                    raise ParameterError(f"{key} = {v:g} is outside its allowed range {klo:g}..{khi:g}")
+                lo, hi = max(lo, klo), min(hi, khi)
                 if integer and v != int(v):
-                    raise ParameterError(f"{key} = {v:g} must be an integer")
+                    raise ParameterError(f"{where}{key} = {x:g}{unit} must be an integer")
                 break
+        if not lo <= v <= hi:
+            (slo, _), (shi, _) = _shown(lo, key, dim, written), _shown(hi, key, dim, written)
+            raise ParameterError(f"{where}{key} = {x:g}{unit} is outside its allowed range {slo:g}..{shi:g}{unit}")
