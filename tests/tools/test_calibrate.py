@@ -104,3 +104,23 @@ def test_bounds_are_checked_when_the_file_is_read(tmp_path):
     p = load_parameters("GRS905")
     assert p.bounds["housing.hot_frac"] == (0.2, 0.8)
     assert np.isclose(p.bounds["oil_system.flow_m3_per_rad"][1], 1.59e-06)
+
+
+def test_a_fit_that_makes_the_held_out_error_worse_writes_no_parameter_file(params, tmp_path, capsys):
+    """From a bad-input audit: training thermocouples in degF gave a 'fitted' file (a value at its bound, the held-out
+    RMS 15 times larger, printed as '-1458 % down') with exit 0."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        sc = make_scenario(1, 7, "rig", None, None, params, train_s=SHORT_S, test_s=SHORT_S)   # the file is right
+    train, test = sc.train[0], sc.test[0]
+    for c in train.columns:
+        if c.startswith("meas_T_"):
+            train[c] = np.asarray(train[c]) * 1.8 + 32.0
+    write_run_table(train, tmp_path / "train_degF.csv")
+    write_run_table(test, tmp_path / "test.csv")
+    out = tmp_path / "bad" / "cal.toml"
+    rc = main(["calibrate", "--train", str(tmp_path / "train_degF.csv"), "--test", str(tmp_path / "test.csv"),
+               "--params", "housing.hot_frac", "--out", str(out), "--quiet"])
+    err = capsys.readouterr().err
+    assert rc == 3 and not out.exists(), err
+    assert "made the held-out error worse" in err and "no parameter file was written" in err

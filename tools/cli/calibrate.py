@@ -25,7 +25,8 @@ def add_subparser(sub):
             "4. OUT.toml: the whole parameter file with the fitted values, provenance \"fitted\" and the data they "
             "came from; use it with --config (params = \"OUT.toml\") for replay, simulate or diagnose.\n\n"
             "An unknown key, a key without bounds or a key the data cannot identify is refused (one sentence, exit "
-            "2, nothing written); --auto fits every bounded key the data can identify and lists the others."),
+            "2, nothing written); --auto fits every bounded key the data can identify and lists the others. A fit "
+            "that makes the held-out RMS worse writes no OUT.toml (exit 3; the report, if asked for, shows why)."),
         epilog="examples:\n"
                "  gearbox-vsensor calibrate --train rig1.csv rig2.csv --test rig3.csv --auto --out my_gearbox.toml "
                "--report cal/report.md\n"
@@ -91,6 +92,15 @@ def run(args) -> int:
         has_fig = plot_held_out(cal, fig)
         with atomic_text_file(rep) as fh:
             fh.write(report_markdown(cal, params, fig.name if has_fig else None))
+    before_c, after_c = cal.test_rms_c
+    if not after_c <= before_c:
+        # a fit that makes the held-out error worse is no calibration (wrong units or channels in the training
+        # files, an effect the keys cannot stand for): said, and no parameter file that would look fitted
+        bound = [k for k in cal.keys if cal.at_bound[k]]
+        print(f"calibrate: the fit made the held-out error worse (RMS {before_c:.3f} -> {after_c:.3f} degC), so no "
+              f"parameter file was written; check the training files' units and channels"
+              + (f" (at a bound: {', '.join(bound)})" if bound else ""), file=sys.stderr)
+        return 3
     Path(args.out).parent.mkdir(parents=True, exist_ok=True)
     with atomic_text_file(args.out) as fh:
         fh.write(calibrated_toml(base, params, cal, stamp))
