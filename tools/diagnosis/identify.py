@@ -42,8 +42,8 @@ def why_invisible(eid: str, cooler: str, train: list, base_tr: list | None = Non
             return (f"the oil stays below {top:.0f} degC in the training files, near or under the air cooler's "
                     f"thermostat ({params['cooler.thermostat_open']:g}-{params['cooler.thermostat_full']:g} degC)")
     if eid == "retarder_heat":
-        used = any(ds.inputs.has("retarder_torque_nm") and np.nanmax(ds.inputs["retarder_torque_nm"]) > 100
-                   for ds in train)
+        used = any(ds.inputs.has("retarder_torque_nm") and np.any(np.nan_to_num(ds.inputs["retarder_torque_nm"]) > 100)
+                   for ds in train)      # an all-NaN column (no retarder frames) is no use, without numpy's warning
         if not used:
             return "the retarder is never used in the training files"
     if eid == "synchronizer_shift_heat":
