@@ -372,6 +372,24 @@ def test_can_logs_as_input(tmp_path, params):
     assert res["verdict"]["effect"] in ("none", "unexplained", "planetary_loss_scale", "oil_sensor_lag")
 
 
+def test_an_oil_sensor_on_another_source_address_is_named_not_called_dead(tmp_path, params):
+    """From a bad-input audit: TRF1 from SA 0x05 instead of 0x03 was reported as 'no valid value (a dead sensor)';
+    replay said 'check the source addresses'. Now diagnose says the same as replay."""
+    from firmware_model.errors import InputError
+    from tools.can.logsynth import write_can_log
+    from tools.plant.reference import ReferencePlant
+    from tools.runtable import write_run_table
+    cyc = mixed_cycle(21, 240.0, rate_hz=1.0, initial_temp_c=50.0)
+    out = ReferencePlant(params).run(cyc, out_dt_s=1.0, progress=False).table
+    write_can_log(cyc, out, tmp_path / "run.log", params)
+    text = (tmp_path / "run.log").read_text().replace(" 18FEF803#", " 18FEF805#")      # TRF1 from SA 0x05
+    (tmp_path / "foreign.log").write_text(text)
+    write_run_table(out, tmp_path / "test.csv")
+    with pytest.raises(InputError, match=r"foreign.log: the log carries no oil temperature from the expected source "
+                                         r"address; TRF1 \(PGN 65272\) arrived .* times from SA 0x05"):
+        diagnose([tmp_path / "foreign.log"], [tmp_path / "test.csv"], params, model="plant")
+
+
 # ---------------------------------------------------------------------------------------------------------------
 # sensor faults: the oil sensor's offset and gain, and the residual's regime structure
 

@@ -99,6 +99,11 @@ def _table_from_can_log(p: Path, path, config_path) -> RunTable:
     keep = [c for c in INPUT_COLUMNS + ("oil_temp_c",) if rec.has(c)] + [
         c for c in rec.columns if c.startswith("meas_T_") and c.endswith("_c")]
     cols = {c: np.asarray(rec[c], dtype=float) for c in keep}
+    foreign = [f for f in service.findings() if f.kind == "foreign_source" and f.message == "TRF1"]
+    if foreign and not np.any(np.isfinite(cols.get("oil_temp_c", np.zeros(0)))):
+        # the oil sensor is there, on another source address: not a dead sensor (what the column check would say)
+        raise InputError(f"{path}: the log carries no oil temperature from the expected source address; "
+                         f"{foreign[0].sentence}")
     # the first steps before every drive signal has arrived carry no input: drop them
     ok = np.ones(rec.n, dtype=bool)
     for c in REQUIRED:
