@@ -194,7 +194,9 @@ def read_toml(path: str | Path, label: str, label_invalid: str | None = None) ->
     (e.g. "parameter file GRS905.toml"; ``label_invalid`` for the second case if it differs)."""
     try:
         with open(path, "rb") as fh:
-            return tomllib.load(fh)
+            raw = fh.read()
+        # a byte-order mark (Windows editors write one) is not TOML, but it is no reason to refuse the file
+        return tomllib.loads(raw.removeprefix(b"\xef\xbb\xbf").decode("utf-8"))
     except FileNotFoundError:
         raise ParameterError(f"{label} does not exist") from None
     except tomllib.TOMLDecodeError as exc:

@@ -123,3 +123,11 @@ def test_range_errors_name_the_file_and_use_its_units(tmp_path):
     with pytest.raises(ParameterError, match=re.escape("oil.volume = 0.03 m3 is outside its allowed range "
                                                        "0.004..0.02 m3")):
         load_parameters("GRS905").with_overrides({"oil.volume": 0.03})
+
+
+def test_a_file_saved_with_a_byte_order_mark_loads(tmp_path):
+    """From a bad-input audit: a TOML saved with a BOM by a Windows editor was 'not valid TOML (line 1, column 1)'."""
+    from firmware_model.parameters import load_parameters
+    p = tmp_path / "bom.toml"
+    p.write_bytes(b'\xef\xbb\xbf[meta]\ninherit = "GRS905"\n')
+    assert load_parameters(p).values == load_parameters("GRS905").values

@@ -280,3 +280,13 @@ def test_diagnose_on_logs_too_short_to_fit_says_why_nothing_was_written(syntheti
     assert "0 vehicle-periods fitted" in res.stdout
     assert "nothing written" in res.stdout and "at least 4 min" in res.stdout, res.stdout
     assert not (out / "health").exists()
+
+
+def test_a_manifest_saved_with_a_byte_order_mark_is_read(synthetic):
+    """From a bad-input audit: a manifest saved by a Windows editor (UTF-8 with a BOM) said 'has no column log'."""
+    beside = Path(synthetic).with_name("bom.csv")       # a manifest's paths are relative to it: keep it beside
+    beside.write_bytes(b"\xef\xbb\xbf" + Path(synthetic).read_text().replace("\n", "\r\n").encode("utf-8"))
+    try:
+        assert [e.log for e in read_manifest(beside)] == [e.log for e in read_manifest(synthetic)]
+    finally:
+        beside.unlink()

@@ -239,3 +239,12 @@ def test_a_line_that_is_no_frame_is_named(tmp_path):
     log.write_text("(1.000000) can0 18FEF100#0011223344556677\n(1.100000) can0 garbage\n")
     with pytest.raises(InputError, match=r"line 2 is not a candump -L frame .*'\(1\.100000\) can0 garbage'"):
         replay(log)
+
+
+def test_a_log_with_a_byte_order_mark_is_one_sentence(tmp_path, frames):
+    _, fr = frames
+    path = write_frames(fr, tmp_path / "drive.log")
+    bom = tmp_path / "bom.log"
+    bom.write_bytes(b"\xef\xbb\xbf" + path.read_bytes())
+    with pytest.raises(InputError, match="starts with a UTF-8 byte-order mark"):
+        replay(bom)

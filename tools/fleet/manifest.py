@@ -75,7 +75,7 @@ def read_manifest(manifest: str | os.PathLike) -> list[LogEntry]:
 
 
 def _read_manifest(m: Path) -> list[LogEntry]:
-    with open(m, newline="", encoding="utf-8") as fh:
+    with open(m, newline="", encoding="utf-8-sig") as fh:       # -sig: a byte-order mark is not part of "log"
         reader = csv.DictReader(fh)
         header = [h.strip() for h in (reader.fieldnames or [])]
         missing = [c for c in MANIFEST_REQUIRED if c not in header]

@@ -60,6 +60,9 @@ def read_log(path: str | os.PathLike) -> Iterator:
             raise InputError(f"{p}: the log ends in the middle of a line at frame {n + 1} (truncated, or still being "
                              f"written)") from None
         bad = first_bad_candump_line(p) if p.suffix.lower() == ".log" else None
+        if bad is not None and bad[1].startswith("\ufeff"):
+            raise InputError(f"{p}: starts with a UTF-8 byte-order mark, which candump never writes (an editor "
+                             f"added it); remove it") from None
         if bad is not None:
             raise InputError(f"{p}: line {bad[0]} is not a candump -L frame '(time) interface ID#DATA': "
                              f"{bad[1]!r}") from None
