@@ -185,6 +185,7 @@ def test_steady_spec():
     ("steady:rpm=fast", ["rpm", "'fast'", "not a number"]),
     ("steady:rpm=-5", ["rpm=-5"]),
     ("steady:s=0", ["s=0"]),
+    ("steady:oil=80,oil=90", ["oil is given twice"]),          # the last one won, silently (bad-input audit)
 ])
 def test_bad_steady_spec(spec, words):
     with pytest.raises(InputError) as ei:

@@ -254,12 +254,16 @@ def parse_steady_spec(spec: str) -> dict:
     """'steady:gear=4L,rpm=1300,nm=2000,s=3600,oil=100' -> dict (defaults gear 4L, 1300 rpm, 2000 Nm, 3600 s)."""
     out = {"gear": 9, "rpm": 1300.0, "nm": 2000.0, "s": 3600.0, "oil": None, "init": None}
     _, _, rest = spec.partition(":")
+    given = set()
     for item in filter(None, (p.strip() for p in rest.split(","))):
         key, eq, val = item.partition("=")
         key = key.strip().lower()
         if not eq or key not in STEADY_KEYS:
             raise InputError(f"steady cycle spec {spec!r}: {item!r} is not one of "
                              + ", ".join(f"{k}=<{v}>" for k, v in STEADY_KEYS.items()))
+        if key in given:
+            raise InputError(f"steady cycle spec {spec!r}: {key} is given twice; give it once")
+        given.add(key)
         if key == "gear":
             try:
                 out["gear"] = parse_gear(val)
