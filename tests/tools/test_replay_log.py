@@ -248,3 +248,17 @@ def test_a_log_with_a_byte_order_mark_is_one_sentence(tmp_path, frames):
     bom.write_bytes(b"\xef\xbb\xbf" + path.read_bytes())
     with pytest.raises(InputError, match="starts with a UTF-8 byte-order mark"):
         replay(bom)
+
+
+def test_a_gzipped_log_and_a_directory_are_one_sentence(tmp_path, frames):
+    """From a bad-input audit: a gzip-compressed log under a .log name dumped binary bytes into the message."""
+    import gzip
+    _, fr = frames
+    path = write_frames(fr, tmp_path / "drive.log")
+    packed = tmp_path / "packed.log"
+    packed.write_bytes(gzip.compress(path.read_bytes()))
+    with pytest.raises(InputError, match=r"packed.log: the file is gzip-compressed; decompress it first"):
+        replay(packed)
+    (tmp_path / "dir.log").mkdir()
+    with pytest.raises(InputError, match="is a directory"):
+        replay(tmp_path / "dir.log")

@@ -18,13 +18,26 @@ def is_can_log(path: str | os.PathLike) -> bool:
     return Path(path).suffix.lower() in LOG_SUFFIXES
 
 
+def _gzipped(path: Path) -> bool:
+    """Whether the file starts with gzip's magic bytes (a compressed log under a log's name)."""
+    try:
+        with open(path, "rb") as fh:
+            return fh.read(2) == b"\x1f\x8b"
+    except OSError:
+        return False
+
+
 def check_log(path: str | os.PathLike) -> Path:
     """The log's path, checked: a known suffix, an existing file, asammdf installed for .mf4; else InputError."""
     p = Path(path)
     suffix = p.suffix.lower()
+    if suffix == ".gz" or (p.is_file() and _gzipped(p)):
+        raise InputError(f"{p}: the file is gzip-compressed; decompress it first (zcat {p.name} > plain{suffix})")
     if suffix not in LOG_SUFFIXES:
         raise InputError(f"{p}: unknown log suffix {suffix!r}; CAN logs are "
                          + ", ".join(f"{s} ({n})" for s, n in LOG_SUFFIXES.items()) + ", run tables .csv")
+    if p.is_dir():
+        raise InputError(f"{p}: is a directory, not a log file")
     if not p.is_file():
         raise InputError(f"{p}: the log file does not exist")
     if suffix == ".mf4":
