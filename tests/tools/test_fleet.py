@@ -166,13 +166,16 @@ def test_bad_logs_land_in_the_errors_table_and_reruns_skip(tmp_path, synthetic):
     (logs / "empty.log").write_bytes(b"")
     (logs / "notes.txt").write_text("not a log\n")
     (logs / "picture.log").write_bytes(bytes(range(256)) * 8)
+    import gzip
+    (logs / "packed.log.gz").write_bytes(gzip.compress(raw))          # was skipped without a word
     out = tmp_path / "out"
     args = [str(logs), str(logs / "notes.txt"), "--out", str(out), "--workers", "1", "--no-report"]
     fleet(*args)
     errors = {Path(r["log"]).name: r["reason"] for r in read_table(out, ERRORS).to_pylist()}
-    assert set(errors) == {"empty.log", "notes.txt", "picture.log", "truncated.log"}
+    assert set(errors) == {"empty.log", "notes.txt", "picture.log", "truncated.log", "packed.log.gz"}
+    assert "gzip-compressed" in errors["packed.log.gz"]
     assert "empty" in errors["empty.log"] and "unknown log suffix" in errors["notes.txt"]
-    assert "cannot be read" in errors["picture.log"] and "truncated" in errors["truncated.log"]
+    assert "binary data" in errors["picture.log"] and "truncated" in errors["truncated.log"]
     summarised = {Path(r["log"]).name for r in read_table(out).to_pylist()}
     assert summarised == {"good.log"}
     before = sorted(str(p) for p in out.rglob("*.parquet"))
@@ -197,6 +200,10 @@ def test_bad_input_is_one_sentence_and_writes_nothing(tmp_path, synthetic, capsy
     m = tmp_path / "m.csv"
     m.write_text("log,vehicle\nnowhere/a.log,t1\nnowhere/b.log,t2\n")
     assert "do not exist" in _error(capsys, ["fleet", "--manifest", str(m), "--out", str(out)])
+    (tmp_path / "adir").mkdir()
+    m.write_text("log,vehicle\nadir,t1\n")
+    assert "names a folder where a log file belongs" in _error(capsys, ["fleet", "--manifest", str(m), "--out",
+                                                                        str(out)])
     logs = [e.log for e in read_manifest(synthetic)]
     m.write_text(f"log,vehicle,variant\n{logs[0]},t1,GRS905\n{logs[1]},t1,GRSO905\n")
     assert "two variants" in _error(capsys, ["fleet", "--manifest", str(m), "--out", str(out)])

@@ -96,6 +96,9 @@ def _read_manifest(m: Path) -> list[LogEntry]:
         if config and not Path(config).is_absolute():         # relative to the manifest, as the logs
             config = str(m.parent / config)
         entries.append(_entry(p, r["vehicle"], r.get("variant"), config, r.get("date")))
+    folders = [e.log for e in entries if e.log.is_dir()]
+    if folders:
+        raise InputError(f"manifest {m} names a folder where a log file belongs: {folders[0]}")
     absent = [e.log for e in entries if not e.log.is_file()]
     if absent:
         more = f" and {len(absent) - 3} more" if len(absent) > 3 else ""
@@ -118,7 +121,10 @@ def entries_from_paths(paths, pattern: str | None = None) -> list[LogEntry]:
     for given in paths:
         p = Path(given)
         if p.is_dir():
-            files.extend(sorted(f for f in p.rglob("*") if f.is_file() and f.suffix.lower() in LOG_SUFFIXES))
+            # a compressed log (drive.log.gz) is taken too: it lands in the errors table saying so, not skipped
+            files.extend(sorted(f for f in p.rglob("*") if f.is_file() and (
+                f.suffix.lower() in LOG_SUFFIXES or (f.suffix.lower() == ".gz" and
+                                                     Path(f.stem).suffix.lower() in LOG_SUFFIXES))))
         elif p.exists():
             files.append(p)
         else:

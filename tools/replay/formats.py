@@ -76,6 +76,8 @@ def read_log(path: str | os.PathLike) -> Iterator:
         if bad is not None and bad[1].startswith("\ufeff"):
             raise InputError(f"{p}: starts with a UTF-8 byte-order mark, which candump never writes (an editor "
                              f"added it); remove it") from None
+        if bad is not None and any((ord(ch) < 32 and ch not in "\t\r") or ch == "\ufffd" for ch in bad[1]):
+            raise InputError(f"{p}: line {bad[0]} holds binary data; this is not a candump -L text log") from None
         if bad is not None:
             raise InputError(f"{p}: line {bad[0]} is not a candump -L frame '(time) interface ID#DATA': "
                              f"{bad[1]!r}") from None
