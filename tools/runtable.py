@@ -42,6 +42,7 @@ import numpy as np
 
 from firmware_model.errors import InputError
 from firmware_model.physics.kinematics import GEAR_MAX, GEAR_MIN
+from tools.outputs import discard, publish, reserve
 
 #: the input columns a drive cycle must have
 REQUIRED = ("time_s", "engine_speed_rpm", "engine_torque_nm", "gear")
@@ -378,26 +379,15 @@ def _header_line(columns: Iterable[str]) -> str:
 def atomic_text_file(target: str | os.PathLike):
     """Write a text file atomically: yields a file object on a temporary file in the target's directory, which
     replaces ``target`` (``os.replace``) only when the block completes; on any error the temporary file is removed and
-    ``target`` is untouched. The file gets the usual permissions (0666 less the umask, not mkstemp's 0600)."""
-    target = Path(target)
-    try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
-    except OSError as exc:          # named after the target, not after the temporary file it could not create
-        raise InputError(f"{os.fspath(target)}: cannot write it ({exc.strerror or exc})") from None
+    ``target`` is untouched. The file gets the usual permissions (0666 less the umask, not mkstemp's 0600). A
+    ``target`` that is a symbolic link is written through (tools.outputs)."""
+    fd, tmp, target = reserve(target)      # errors name the target, not the temporary file
     try:
         with os.fdopen(fd, "w", encoding="utf-8", newline="\n") as f:
             yield f
-            f.flush()
-            os.fsync(f.fileno())
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)
-        os.replace(tmp, target)
+        publish(tmp, target)                # fsync, the usual permissions, os.replace
     except BaseException:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
+        discard(tmp)
         raise
 
 
@@ -452,13 +442,14 @@ def write_parquet(table: RunTable, path: str | os.PathLike) -> Path:
     # from arrays, not pa.table(dict): that checks for a pandas DataFrame and imports pandas (~0.2 s)
     cols = list(table.columns)
     arrow = pa.Table.from_arrays([pa.array(np.asarray(table[c], dtype=float)) for c in cols], names=cols)
-    tmp = target.with_name(f".{target.name}.{os.getpid()}.tmp")
+    fd, tmp, final = reserve(target)
+    os.close(fd)
     try:
         pq.write_table(arrow, tmp)
-        os.replace(tmp, target)
-    finally:
-        if tmp.exists():
-            tmp.unlink()
+        publish(tmp, final)
+    except BaseException:
+        discard(tmp)
+        raise
     return target
 
 

@@ -29,7 +29,10 @@ def add_subparser(sub):
 
 
 def run(args) -> int:
+    from tools.cli.paths import check_paths
     from tools.export.fmu import export_fmu
+    # before the build: --out a directory, in a missing directory, or also the --config
+    check_paths([("the --config", args.config)], {"--out": args.out})
     out = export_fmu(args.out, variant=args.variant, config_path=args.config, fmi_version=int(args.fmi))
     if not args.quiet:
         print(f"wrote {out} ({out.stat().st_size // 1024} KiB, FMI {args.fmi}.0 co-simulation, step 0.1 s)")

@@ -1,7 +1,7 @@
 """The files a command reads and writes, checked before any work: an output that is also an input (it would be
 destroyed before or after it is read), two outputs on one file (one silently lost), an output whose directory does
-not exist or that is a directory, a plot in a format matplotlib cannot write. Each is one sentence (InputError),
-raised before anything is written."""
+not exist or that is a directory, a plot in a format matplotlib cannot write, a CAN log in a format that is not
+written. Each is one sentence (InputError), raised before anything is written."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -13,13 +13,17 @@ PLOT_SUFFIXES = (".png", ".pdf", ".svg", ".svgz", ".jpg", ".jpeg", ".eps", ".ps"
                  ".raw", ".rgba")
 #: the formats a run table is written in (tools.runtable)
 TABLE_SUFFIXES = (".csv", ".parquet")
+#: the formats a CAN log is written in (tools.can.logsynth, python-can's Logger)
+CAN_LOG_SUFFIXES = (".log", ".asc", ".blf")
 
 
-def check_paths(inputs, outputs: dict, plots: tuple = (), makes_dirs: tuple = (), tables: tuple = ()) -> None:
+def check_paths(inputs, outputs: dict, plots: tuple = (), makes_dirs: tuple = (), tables: tuple = (),
+                can_logs: tuple = ()) -> None:
     """``inputs``: (role, path or None) pairs ("the input", "a training file", "the --config"); ``outputs``:
     {option: path or None (not given)}; ``plots``: the output options that are figures; ``makes_dirs``: the output
     options whose directory the command creates; ``tables``: the output options that are run tables (.csv or
-    .parquet). Raises InputError naming the option and the file."""
+    .parquet); ``can_logs``: those that are CAN logs (.log, .asc, .blf). Raises InputError naming the option and
+    the file."""
     ins = [(role, p, Path(p).resolve()) for role, p in inputs if p]
     for role, p, full in ins:
         if full.is_dir():
@@ -48,6 +52,15 @@ def check_paths(inputs, outputs: dict, plots: tuple = (), makes_dirs: tuple = ()
         if opt in tables and path.suffix.lower() not in TABLE_SUFFIXES:
             raise InputError(f"{opt} {p}: a run table is written as .csv or .parquet, not "
                              f"{path.suffix or 'a file without an extension'}")
+        if opt in can_logs and path.suffix.lower() not in CAN_LOG_SUFFIXES:
+            raise InputError(f"{opt} {p}: a CAN log is written as .log (candump -L), .asc or .blf, not "
+                             f"{path.suffix or 'a file without an extension'}")
         if opt in plots and path.suffix and path.suffix.lower() not in PLOT_SUFFIXES:     # none: matplotlib's png
             raise InputError(f"{opt} {p}: a figure is written as {', '.join(s[1:] for s in PLOT_SUFFIXES)}, not "
                              f"{path.suffix or 'a file without an extension'}")
+
+
+def figure_path(plot):
+    """The file matplotlib writes for a --plot path: the path, or with .png appended when it has no suffix (the
+    default format); None for None."""
+    return plot and (plot if Path(plot).suffix else f"{plot}.png")

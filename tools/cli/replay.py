@@ -12,7 +12,8 @@ from pathlib import Path
 
 from firmware_model.errors import InputError
 from tools.cli.core_option import add_core_option, apply_core
-from tools.cli.paths import check_paths
+from tools.cli.paths import check_paths, figure_path
+from tools.outputs import naming, outputs
 from tools.can.bus import add_bus_options, can_subcommand
 
 
@@ -108,7 +109,7 @@ def run(args) -> int:
     path = Path(args.input)
     check_paths([("the input", args.input), ("the --config", args.config)],
                 {"--out": args.out, "--plot": args.plot, "--frames-out": args.frames_out}, plots=("--plot",),
-                tables=("--out",))
+                tables=("--out",), can_logs=("--frames-out",))
     if not args.realtime:
         core_line = apply_core(args)
         if not args.quiet:
@@ -124,10 +125,15 @@ def run(args) -> int:
     from tools.replay.plot import plot_replay
     from tools.replay.table import replay_csv, summarize, table_findings
     from tools.runtable import write_run_table
-    out, variant, oil_mode = replay_csv(path, args.config, _sensor_options(args))
-    dest = write_run_table(out, args.out)
-    if args.plot:
-        plot_replay(out, args.plot, f"{variant} onboard sensor, replay of {path.name}")
+    # the outputs to temporary files first: a failure leaves none of them (tools.outputs)
+    with outputs(("--out", args.out), ("--plot", figure_path(args.plot))) as (out_tmp, plot_tmp):
+        out, variant, oil_mode = replay_csv(path, args.config, _sensor_options(args))
+        with naming(out_tmp):
+            write_run_table(out, out_tmp)
+        if plot_tmp:
+            with naming(plot_tmp):
+                plot_replay(out, plot_tmp, f"{variant} onboard sensor, replay of {path.name}")
+    dest = Path(args.out)
     if not args.quiet:
         from tools.replay.summary import summary_lines
         s = summarize(out)
@@ -171,17 +177,20 @@ def _run_log(args, path: Path) -> int:
     _refuse(_given(args, REALTIME_OPTIONS[1:]), "without --realtime (only --realtime plays the log onto a bus)")
     if not args.out:
         raise InputError("--out EST.csv is required to replay a log offline (or use --realtime)")
-    result = replay_log_file(path, args.out, config_path=args.config, sensor_options=_sensor_options(args),
-                             frames_out=args.frames_out, processes=args.processes)
+    with outputs(("--out", args.out), ("--frames-out", args.frames_out), ("--plot", figure_path(args.plot))) as tmp:
+        out_tmp, frames_tmp, plot_tmp = tmp
+        result = replay_log_file(path, out_tmp, config_path=args.config, sensor_options=_sensor_options(args),
+                                 frames_out=frames_tmp, processes=args.processes)
+        if plot_tmp:
+            from tools.replay.plot import plot_replay
+            with naming(plot_tmp):
+                plot_replay(result.table, plot_tmp, f"onboard sensor, replay of {path.name}")
     table = result.table
-    if args.plot:
-        from tools.replay.plot import plot_replay
-        plot_replay(table, args.plot, f"onboard sensor, replay of {path.name}")
     d = result.decoder_counters
     rejected = ", ".join(f"{k} {v}" for k, v in sorted(d["rejected"].items())) or "none"
     if not args.quiet:
         print(f"replayed {d['frames_seen']} frames ({d['frames_used']} used; rejected: {rejected}) -> "
-              f"{table.n} steps of {table['time_s'][-1]:.1f} s -> {result.path}")
+              f"{table.n} steps of {table['time_s'][-1]:.1f} s -> {Path(args.out)}")
         if result.service_counters["time_jumps"]:
             print(f"note: {result.service_counters['time_jumps']} time jumps in the log (see the log messages)")
         if table.n:

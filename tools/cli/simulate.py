@@ -5,14 +5,14 @@ import argparse
 import sys
 from pathlib import Path
 
-import numpy as np
 
 from firmware_model.components import meaning
 from firmware_model.config import load_config
 from firmware_model.effects import CATALOG, parse_effect
 from firmware_model.errors import InputError
 from firmware_model.physics.oil import check_temperature_c
-from tools.cli.paths import check_paths
+from tools.cli.paths import check_paths, figure_path
+from tools.outputs import naming, outputs
 
 
 def add_subparser(sub):
@@ -76,7 +76,6 @@ def run(args) -> int:
     from tools.cycles.named import get_cycle
     refuse_unused_options(args)
     from tools.plant.reference import ReferencePlant
-    from tools.runtable import write_run_table
     cfg = load_config(args.config)
     if args.variant:
         cfg.variant = args.variant
@@ -99,22 +98,16 @@ def run(args) -> int:
     cycle_file = args.cycle if Path(args.cycle).is_file() else None
     check_paths([("the --cycle", cycle_file), ("the --config", args.config)],
                 {"--out": args.out, "--plot": args.plot, "--can-log": args.can_log}, plots=("--plot",),
-                tables=("--out",))
-    table = get_cycle(args.cycle, rate_hz=args.rate, noise=args.noise, seed=args.seed)
-    plant = ReferencePlant(params, effects, cooler=args.cooler or cfg.cooler, dt_s=args.dt)
-    res = plant.run(table, initial_temp_c=args.initial_temp, hold_oil_c=args.hold_oil, out_dt_s=args.out_dt,
-                    progress=None if not args.quiet else False)
-    out = write_run_table(res.table, args.out)
-    if args.can_log:
-        from tools.can.logsynth import write_can_log
-        write_can_log(table, res.table, args.can_log, params, config=cfg)
-        _retarder_note(table, cfg)
-    if args.plot:
-        from tools.plots import plot_heat_budget, plot_temperatures
-        title = f"{params.variant} reference plant, cycle {args.cycle}" + (f", effects {args.effect}" if effects else "")
-        plot_temperatures(res.table, args.plot, title)
-        pp = Path(args.plot)
-        plot_heat_budget(res.table, pp.with_name(pp.stem + "_heat" + (pp.suffix or ".png")), title)
+                tables=("--out",), can_logs=("--can-log",))
+    plot, heat = plot_paths(args.plot)
+    # every output to a temporary file first: a failure (a full disk, a bad [can] value) leaves none of them
+    with outputs(("--out", args.out), ("--can-log", args.can_log), ("--plot", plot), ("--plot", heat)) as tmp:
+        table = get_cycle(args.cycle, rate_hz=args.rate, noise=args.noise, seed=args.seed)
+        plant = ReferencePlant(params, effects, cooler=args.cooler or cfg.cooler, dt_s=args.dt)
+        res = plant.run(table, initial_temp_c=args.initial_temp, hold_oil_c=args.hold_oil, out_dt_s=args.out_dt,
+                        progress=None if not args.quiet else False)
+        _write_outputs(args, table, res, params, cfg, tmp)
+    out = Path(args.out)
     if not args.quiet:
         eb = res.energy_balance()
         tb = res.table
@@ -131,12 +124,30 @@ def run(args) -> int:
     return 0
 
 
-def _retarder_note(table, cfg) -> None:
-    """A J1939 retarder torque is a percent of the retarder's reference torque, which a replay must be told."""
-    from tools.can.logsynth import DEFAULT_RETARDER_REF_TORQUE_NM
-    can_cfg = getattr(cfg, "can", None) or {}
-    braking = table.has("retarder_torque_nm") and np.any(np.nan_to_num(np.asarray(table["retarder_torque_nm"], float)))
-    if braking and "retarder_reference_torque_nm" not in can_cfg:
-        ref = DEFAULT_RETARDER_REF_TORQUE_NM
-        print(f"note: the log's retarder torque (ERC1) is a percent of {ref:g} Nm; replay it with [can] "
-              f"retarder_reference_torque_nm = {ref:g} in the config, or its heat is left out", file=sys.stderr)
+def plot_paths(plot):
+    """The two figures of --plot: the temperatures (matplotlib appends .png to a name without a suffix) and the
+    heat budget, <stem>_heat<suffix>; (None, None) without --plot."""
+    if not plot:
+        return None, None
+    pp = Path(plot)
+    return figure_path(plot), pp.with_name(pp.stem + "_heat" + (pp.suffix or ".png"))
+
+
+def _write_outputs(args, table, res, params, cfg, tmp) -> None:
+    """The run table, the CAN log and the figures, to the temporary files ``tmp`` (tools.outputs)."""
+    from tools.runtable import write_run_table
+    out_tmp, log_tmp, plot_tmp, heat_tmp = tmp
+    with naming(out_tmp):
+        write_run_table(res.table, out_tmp)
+    if log_tmp:
+        from tools.can.logsynth import write_can_log
+        with naming(log_tmp):
+            write_can_log(table, res.table, log_tmp, params, config=cfg)
+    if plot_tmp:
+        from tools.plots import plot_heat_budget, plot_temperatures
+        title = f"{params.variant} reference plant, cycle {args.cycle}" + (f", effects {args.effect}"
+                                                                          if args.effect else "")
+        with naming(plot_tmp):
+            plot_temperatures(res.table, plot_tmp, title)
+        with naming(heat_tmp):
+            plot_heat_budget(res.table, heat_tmp, title)

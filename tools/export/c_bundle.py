@@ -14,7 +14,6 @@ available" (NaN) and the early warning is off (lead 0 s).
 from __future__ import annotations
 
 import math
-import shutil
 from pathlib import Path
 
 import numpy as np
@@ -24,6 +23,7 @@ from firmware_model.onboard.ckernel import SOURCE_DIR, TABLE_FIELDS, source_id
 from firmware_model.onboard.kernel_tables import VEHICLE_EFFECTS, table_arrays, vehicle_arrays
 from tools.export.templates import (API_HEADER, FOOTPRINT, LINKER_SCRIPT, MAKEFILE, README, REPLAY_PROGRAM,
                                     SENSOR_SOURCE, STARTUP, TEST_PROGRAM)
+from tools.outputs import write_tree
 
 #: test vectors: steps of the uphill cycle's plant table at 10 Hz (1000 s: past its first early warning and
 #: crossing, so that the time to limit is finite for a while), with a stretch of hostile inputs
@@ -168,29 +168,28 @@ def export_c(out_dir, variant: str = "GRS905", config_path=None, real: str = "fl
     above = next((a for a in (out, *out.parents) if a.exists()), None)
     if above is not None and not above.is_dir():
         raise InputError(f"--out {out_dir}: {above} is a file, so the bundle's directory cannot be made there")
-    out.mkdir(parents=True, exist_ok=True)
-    for name in ("gvs_kernel.c", "gvs_kernel.h"):
-        shutil.copyfile(SOURCE_DIR / name, out / name)
     real_flag = "-DGVS_REAL_FLOAT" if real == "float" else ""
     tol = "0.05" if real == "float" else "1e-9"
-    (out / "gvs_sensor.h").write_text(API_HEADER.format(variant=params.variant, real=real, ttl=int(ttl)))
-    (out / "gvs_sensor.c").write_text(SENSOR_SOURCE)
-    (out / "gvs_tables.c").write_text(tables_source(sensor.sp, real, params.variant, ttl))
-    (out / "gvs_vectors.c").write_text(vectors_source(reference_vectors(sensor, params), real, ttl))
     ttl_abs, ttl_rel = TTL_TOL[real]
-    (out / "gvs_test.c").write_text(TEST_PROGRAM.replace("@TOL@", tol).replace("@TTL_ABS@", repr(ttl_abs))
-                                    .replace("@TTL_REL@", repr(ttl_rel)))
-    (out / "gvs_replay.c").write_text(REPLAY_PROGRAM)
-    (out / "Makefile").write_text(MAKEFILE.replace("@REAL_FLAG@", real_flag).replace("@CAPS@", capacities(sensor.sp)))
-    m4 = out / "cortex-m4"
-    m4.mkdir(exist_ok=True)
-    (m4 / "startup.c").write_text(STARTUP)
-    (m4 / "mps2_an386.ld").write_text(LINKER_SCRIPT)
-    (m4 / "footprint.c").write_text(FOOTPRINT)
-    (out / "README.md").write_text(README.format(variant=params.variant, real=real, tol=tol,
-                                                 ttl_text=_ttl_text(ttl, real, float(limits.lead_s)),
-                                                 source_id=source_id(), n=sensor.reduced.n))
-    return out
+    files = {name: (SOURCE_DIR / name).read_bytes() for name in ("gvs_kernel.c", "gvs_kernel.h")}
+    files.update({
+        "gvs_sensor.h": API_HEADER.format(variant=params.variant, real=real, ttl=int(ttl)),
+        "gvs_sensor.c": SENSOR_SOURCE,
+        "gvs_tables.c": tables_source(sensor.sp, real, params.variant, ttl),
+        "gvs_vectors.c": vectors_source(reference_vectors(sensor, params), real, ttl),
+        "gvs_test.c": TEST_PROGRAM.replace("@TOL@", tol).replace("@TTL_ABS@", repr(ttl_abs))
+                                  .replace("@TTL_REL@", repr(ttl_rel)),
+        "gvs_replay.c": REPLAY_PROGRAM,
+        "Makefile": MAKEFILE.replace("@REAL_FLAG@", real_flag).replace("@CAPS@", capacities(sensor.sp)),
+        "cortex-m4/startup.c": STARTUP,
+        "cortex-m4/mps2_an386.ld": LINKER_SCRIPT,
+        "cortex-m4/footprint.c": FOOTPRINT,
+        "README.md": README.format(variant=params.variant, real=real, tol=tol,
+                                   ttl_text=_ttl_text(ttl, real, float(limits.lead_s)), source_id=source_id(),
+                                   n=sensor.reduced.n)})
+    # all or nothing: each file to a temporary one beside it, renamed when all are written; on a failure what this
+    # run wrote and the directories it made are removed, files that were there before untouched (tools.outputs)
+    return write_tree(out, files, "--out")
 
 
 def _variant_params(variant: str):

@@ -32,6 +32,7 @@ from firmware_model.errors import InputError
 from firmware_model.onboard.ckernel import compiler
 from firmware_model.onboard.records import REJECT_REASONS
 from tools.export.fmu_source import fmu_c
+from tools.outputs import OutputError, naming, outputs
 
 MODEL_ID = "gearbox_vsensor"
 #: value-reference blocks (the C wrapper gets the same numbers through @BLOCKS@)
@@ -183,9 +184,8 @@ def _blocks(variant: str, guid: str) -> str:
 
 
 def export_fmu(out_path, variant: str = "GRS905", config_path=None, fmi_version: int = 2) -> Path:
-    """Build the FMU (FMI ``fmi_version``, 2 or 3) at ``out_path`` (a .fmu file, written atomically). Needs a C
-    compiler and FMPy's headers."""
-    from tools.export.c_bundle import export_c
+    """Build the FMU (FMI ``fmi_version``, 2 or 3) at ``out_path`` (a .fmu file, written atomically; a symbolic link
+    is written through). Needs a C compiler and FMPy's headers."""
     headers = _fmi_headers()
     cc = compiler()
     if cc is None:
@@ -195,33 +195,44 @@ def export_fmu(out_path, variant: str = "GRS905", config_path=None, fmi_version:
         raise InputError(f"--fmi {fmi_version}: the FMU is built for FMI 2 or 3")
     if out.suffix != ".fmu":
         raise InputError(f"{out}: the FMU file name must end in .fmu")
-    with tempfile.TemporaryDirectory() as tmp:
-        bundle = export_c(Path(tmp) / "c", variant=variant, config_path=config_path, real="double")
-        src = Path(tmp) / "fmu" / "sources"
-        src.mkdir(parents=True)
-        for name in ("gvs_kernel.c", "gvs_kernel.h", "gvs_tables.c", "gvs_sensor.c", "gvs_sensor.h"):
-            shutil.copyfile(bundle / name, src / name)
-        guid = "{" + hashlib.sha256((src / "gvs_tables.c").read_bytes()).hexdigest()[:32] + "}"
-        variant_name, limits = _variant_and_limits(variant, config_path)
-        (src / "fmu.c").write_text(fmu_c(fmi_version, _blocks(variant_name, guid)))
-        (Path(tmp) / "fmu" / "modelDescription.xml").write_text(
-            model_description(variant_name, limits, guid, fmi_version))
-        binaries = Path(tmp) / "fmu" / "binaries" / _platform_dir(fmi_version)
-        binaries.mkdir(parents=True)
-        suffix = {"Windows": ".dll", "Darwin": ".dylib"}.get(platform.system(), ".so")
-        cmd = [cc, "-std=c99", "-O2", "-fPIC", "-shared", "-fno-fast-math", f"-I{headers}", f"-I{src}",
-               *(str(src / n) for n in ("gvs_kernel.c", "gvs_tables.c", "gvs_sensor.c", "fmu.c")), "-o",
-               str(binaries / (MODEL_ID + suffix)), "-lm"]
-        res = subprocess.run(cmd, capture_output=True, text=True)
-        if res.returncode != 0:
-            raise InputError(f"the FMU's binary did not compile: {res.stderr.strip()[:400]}")
-        tmp_fmu = out.with_name(out.name + ".tmp")
-        with zipfile.ZipFile(tmp_fmu, "w", zipfile.ZIP_DEFLATED) as z:
-            for p in sorted((Path(tmp) / "fmu").rglob("*")):
+    # the FMU to a temporary file beside it (made now: an unwritable directory fails before the build), renamed
+    # onto --out when complete; on any failure it is removed (tools.outputs)
+    with outputs(("--out", out_path)) as (tmp_fmu,), tempfile.TemporaryDirectory() as tmp:
+        try:
+            fmu_dir = _build(Path(tmp), variant, config_path, fmi_version, cc, headers)
+        except (OSError, OutputError) as exc:     # the build directory, not --out: say so
+            cause = exc if isinstance(exc, OSError) else exc.cause
+            raise InputError(f"--out {os.fspath(out_path)}: cannot build the FMU in the temporary directory "
+                             f"{tempfile.gettempdir()} ({cause.strerror or cause})") from None
+        with naming(tmp_fmu), zipfile.ZipFile(tmp_fmu, "w", zipfile.ZIP_DEFLATED) as z:
+            for p in sorted(fmu_dir.rglob("*")):
                 if p.is_file():
-                    z.write(p, p.relative_to(Path(tmp) / "fmu").as_posix())
-        os.replace(tmp_fmu, out)
+                    z.write(p, p.relative_to(fmu_dir).as_posix())
     return out
+
+
+def _build(tmp: Path, variant: str, config_path, fmi_version: int, cc: str, headers) -> Path:
+    """The FMU's tree in ``tmp``/fmu: the sources, modelDescription.xml and the binary compiled for this platform."""
+    from tools.export.c_bundle import export_c
+    bundle = export_c(tmp / "c", variant=variant, config_path=config_path, real="double")
+    src = tmp / "fmu" / "sources"
+    src.mkdir(parents=True)
+    for name in ("gvs_kernel.c", "gvs_kernel.h", "gvs_tables.c", "gvs_sensor.c", "gvs_sensor.h"):
+        shutil.copyfile(bundle / name, src / name)
+    guid = "{" + hashlib.sha256((src / "gvs_tables.c").read_bytes()).hexdigest()[:32] + "}"
+    variant_name, limits = _variant_and_limits(variant, config_path)
+    (src / "fmu.c").write_text(fmu_c(fmi_version, _blocks(variant_name, guid)))
+    (tmp / "fmu" / "modelDescription.xml").write_text(model_description(variant_name, limits, guid, fmi_version))
+    binaries = tmp / "fmu" / "binaries" / _platform_dir(fmi_version)
+    binaries.mkdir(parents=True)
+    suffix = {"Windows": ".dll", "Darwin": ".dylib"}.get(platform.system(), ".so")
+    cmd = [cc, "-std=c99", "-O2", "-fPIC", "-shared", "-fno-fast-math", f"-I{headers}", f"-I{src}",
+           *(str(src / n) for n in ("gvs_kernel.c", "gvs_tables.c", "gvs_sensor.c", "fmu.c")), "-o",
+           str(binaries / (MODEL_ID + suffix)), "-lm"]
+    res = subprocess.run(cmd, capture_output=True, text=True)
+    if res.returncode != 0:
+        raise InputError(f"the FMU's binary did not compile: {res.stderr.strip()[:400]}")
+    return tmp / "fmu"
 
 
 def _variant_and_limits(variant: str, config_path):

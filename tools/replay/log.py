@@ -20,6 +20,7 @@ from pathlib import Path
 from typing import Any, NamedTuple
 
 from firmware_model.errors import InputError
+from tools.outputs import naming
 from tools.replay.formats import LOG_SUFFIXES, check_log, is_can_log, read_log  # noqa: F401 (re-exported)
 from tools.replay.pipeline import PIPELINE_MIN_BYTES, feed_pipelined, pipeline_available
 
@@ -151,15 +152,18 @@ def replay_log_file(path, out, *, config_path=None, sensor_options=None, frames_
         writer = can.Logger(frames_out)
 
         def on_frames(frames):
-            for f in frames:
-                writer.on_message_received(f)
+            with naming(frames_out):      # a full disk while writing: the error names the file
+                for f in frames:
+                    writer.on_message_received(f)
     try:
         table = replay_log(path, service, on_frames=on_frames, processes=processes)
     finally:
         if writer is not None:
-            writer.stop()
-    return LogReplay(table, write_run_table(table, out), service.decoder.counters, service.counters,
-                     tuple(service.findings()))
+            with naming(frames_out):
+                writer.stop()
+    with naming(out):
+        written = write_run_table(table, out)
+    return LogReplay(table, written, service.decoder.counters, service.counters, tuple(service.findings()))
 
 
 def play_log(path: str | os.PathLike, bus, *, speedup: float = 1.0, stop: threading.Event | None = None,
