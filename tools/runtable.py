@@ -166,10 +166,18 @@ def read_header(path: Path, name: str) -> list[str]:
         raise InputError(f"{name}: cannot be read (permission denied)") from None
     except OSError as e:
         raise InputError(f"{name}: cannot be read ({e.strerror or e})") from None
+    if first[:2] == b"\x1f\x8b":
+        raise InputError(f"{name}: the file is gzip-compressed; decompress it first") from None
     try:
         line = first.decode("utf-8-sig")
     except UnicodeDecodeError:
         raise InputError(f"{name}: the header row is not UTF-8 text; is this a CSV run table?") from None
+    if line.lstrip().startswith("#"):
+        raise InputError(f"{name}: line 1 is a comment ({line.strip()[:40]!r}); a run table starts with its header "
+                         f"row: remove the comment lines")
+    if line.lstrip().startswith("(") and "#" in line:
+        raise InputError(f"{name}: holds CAN frames (candump -L), not a run table; a drive cycle or run table is a "
+                         f".csv (replay and diagnose read CAN logs named .log)")
     if not line.strip():
         if not first:
             raise InputError(f"{name}: the file is empty; a run table needs a header row and data rows")
@@ -186,6 +194,9 @@ def read_header(path: Path, name: str) -> list[str]:
     if ";" in line and len(names) == 1:
         raise InputError(f"{name}: the header has no commas but semicolons; run tables are comma-separated "
                          f"with '.' as the decimal point")
+    if "\t" in line and len(names) == 1:
+        raise InputError(f"{name}: the header has no commas but tabs; run tables are comma-separated with '.' as "
+                         f"the decimal point")
     return names
 
 

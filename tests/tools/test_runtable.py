@@ -230,6 +230,17 @@ def test_semicolon_file(tmp_path):
     assert "semicolon" in msg
 
 
+@pytest.mark.parametrize("text, words", [
+    ("time_s\tengine_speed_rpm\n0\t1\n", "no commas but tabs"),
+    ("# logged on the rig\n" + HEADER + "\n", "line 1 is a comment"),
+    ("(0.000000) can0 0CF00400#F0C0C0A02800FFFF\n", "holds CAN frames (candump -L), not a run table"),
+])
+def test_a_tab_separated_file_a_comment_line_or_a_can_log_is_named_as_such(tmp_path, text, words):
+    """From a bad-input audit: the tab-separated header was one column name, the comment line 'a decimal comma?',
+    the candump text a non-numeric cell."""
+    assert words in error_of(write_text(tmp_path, text))
+
+
 def test_duplicate_header_column(tmp_path):
     assert 'column "gear" appears twice' in error_of(write_text(tmp_path, HEADER + ",gear\n0,1,2,3,3\n"))
 
