@@ -82,6 +82,46 @@ def degraded_finding(mode_steps: Mapping[int, int], missing: Mapping[str, int] |
                            dict(missing or {}))
 
 
+#: a table whose rows jump forward in time on more than this share of the steps has the wrong time unit
+TIME_JUMP_UNTRUSTED_SHARE = 0.5
+#: an engine that delivers at least this torque [Nm] cannot turn slower than this [rpm]: a speed column in rad/s
+#: (1300 rpm = 136 rad/s) does; untrusted when it happens on this share of the steps with torque
+STALL_TORQUE_NM, STALL_SPEED_RPM, STALL_UNTRUSTED_SHARE = 500.0, 300.0, 0.2
+
+
+@dataclass(frozen=True)
+class UnitFinding:
+    """A run table whose columns look like another unit than their names say: ``what`` says which and why."""
+    kind: ClassVar[str] = "units"
+    what: str
+
+    @property
+    def severity(self) -> Severity:
+        return Severity.UNTRUSTED
+
+    @property
+    def sentence(self) -> str:
+        return self.what
+
+
+def unit_findings(steps: int, time_jumps: int, speed_rpm, torque_nm) -> list[UnitFinding]:
+    """The unit mistakes a run table shows: time_s in milliseconds (a forward time jump on most steps), engine
+    speed in rad/s (the engine delivering torque far below any idle speed)."""
+    import numpy as np
+    out = []
+    if steps >= 3 and time_jumps > TIME_JUMP_UNTRUSTED_SHARE * steps:
+        out.append(UnitFinding(f"time_s jumps forward on {time_jumps} of {steps} steps (the sensor propagated its "
+                               f"state over each gap): is time_s in milliseconds? run tables give seconds"))
+    speed, torque = np.asarray(speed_rpm, dtype=float), np.asarray(torque_nm, dtype=float)
+    loaded = np.isfinite(speed) & np.isfinite(torque) & (np.abs(torque) >= STALL_TORQUE_NM)
+    slow = loaded & (speed < STALL_SPEED_RPM)
+    if loaded.sum() >= 3 and slow.sum() > STALL_UNTRUSTED_SHARE * loaded.sum():
+        out.append(UnitFinding(f"the engine delivers {STALL_TORQUE_NM:g} Nm or more below {STALL_SPEED_RPM:g} rpm "
+                               f"on {pct(int(slow.sum()), int(loaded.sum()))} of its loaded steps (median "
+                               f"{float(np.median(speed[slow])):.0f} rpm): is engine_speed_rpm in rad/s?"))
+    return out
+
+
 def untrusted(findings) -> bool:
     """True when a finding says the outputs should not be used."""
     return any(f.severity >= Severity.UNTRUSTED for f in findings)

@@ -182,3 +182,17 @@ def test_the_oil_modelled_by_request_is_not_degraded(tmp_path, capsys):
     oil = np.full(600, np.nan)                   # measured mode without the oil: degraded, untrusted (exit 3)
     src = write_run_table(_table(oil_temp_c=oil), tmp_path / "no_oil.csv")
     assert main(["replay", str(src), "--out", str(tmp_path / "e2.csv"), "--quiet"]) == 3
+
+
+@pytest.mark.parametrize("change, words", [
+    ({"time_s": np.arange(0.0, 60.0, 0.1) * 1000.0}, "is time_s in milliseconds?"),
+    ({"engine_speed_rpm": np.full(600, 1300.0 * 2.0 * np.pi / 60.0)}, "is engine_speed_rpm in rad/s?"),
+])
+def test_a_column_in_another_unit_is_untrusted(tmp_path, capsys, change, words):
+    """From a bad-input audit: time_s in ms and engine speed in rad/s replayed with exit 0 and no word (a peak of
+    85 degC instead of 101); a CAN log with the same mistake was flagged. Now: a warning naming the column, exit 3."""
+    src = write_run_table(_table(**change), tmp_path / "run.csv")
+    assert main(["replay", str(src), "--out", str(tmp_path / "est.csv"), "--quiet"]) == 3
+    assert words in capsys.readouterr().err
+    assert main(["replay", str(write_run_table(_table(), tmp_path / "ok.csv")), "--out", str(tmp_path / "e2.csv"),
+                 "--quiet"]) == 0

@@ -234,16 +234,21 @@ def replay_csv(path, config_path=None, sensor_options=None) -> "CsvReplay":
 
 
 def table_findings(out, oil_model: bool = False) -> list:
-    """The trust findings of a run-table replay (``firmware_model.service.trust``): the degraded share when it is at
-    least DEGRADED_WARN_SHARE, with the inputs that were missing (the validity columns); ``oil_model``: the sensor
-    modelled the oil by request (not degraded)."""
-    from firmware_model.service.degraded import Severity, degraded_finding   # (not trust: that imports python-can)
+    """The trust findings of a run-table replay (``firmware_model.service.trust``): columns that look like another
+    unit (time in ms, engine speed in rad/s), the degraded share when it is at least DEGRADED_WARN_SHARE, with the
+    inputs that were missing (the validity columns); ``oil_model``: the sensor modelled the oil by request (not
+    degraded)."""
+    from firmware_model.service.degraded import (Severity, degraded_finding,   # (not trust: that imports python-can)
+                                                 unit_findings)
     modes = np.asarray(out["degraded_mode"], dtype=float) if out.n else np.zeros(0)
     values, counts = np.unique(modes[np.isfinite(modes)].astype(int), return_counts=True)
     missing = {c: int(np.sum(np.asarray(out[c]) == 0)) for c in ("speed_valid", "torque_valid", "gear_valid",
                                                                  "oil_valid") if out.has(c)}
     finding = degraded_finding(dict(zip(values.tolist(), counts.tolist())), missing, oil_model)
-    return [finding] if finding.severity >= Severity.WARNING else []
+    jumps = int(out["rejects_time_jump"][-1]) if out.n and out.has("rejects_time_jump") else 0
+    units = unit_findings(out.n, jumps, out["engine_speed_rpm"] if out.has("engine_speed_rpm") else [],
+                          out["engine_torque_nm"] if out.has("engine_torque_nm") else [])
+    return units + ([finding] if finding.severity >= Severity.WARNING else [])
 
 
 def summarize(out) -> ReplaySummary:
