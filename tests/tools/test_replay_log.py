@@ -262,3 +262,14 @@ def test_a_gzipped_log_and_a_directory_are_one_sentence(tmp_path, frames):
     (tmp_path / "dir.log").mkdir()
     with pytest.raises(InputError, match="is a directory"):
         replay(tmp_path / "dir.log")
+
+
+def test_a_log_of_two_can_channels_is_one_sentence(tmp_path, frames):
+    """From a bad-input audit: can0 and can1 (the same traffic twice) were replayed as one bus: the EC1 transfers
+    collided and the run was 100 % degraded, the warning naming the torque, not the cause."""
+    _, fr = frames
+    text = write_frames(fr, tmp_path / "drive.log").read_text()
+    two = tmp_path / "two.log"
+    two.write_text(text + text.replace(" can0 ", " can1 "))
+    with pytest.raises(InputError, match=r"holds the frames of 2 CAN channels \(can0, can1\)"):
+        replay(two)

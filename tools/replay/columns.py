@@ -23,7 +23,7 @@ import numpy as np
 
 from can_dbc.columnar import FLAG_ERROR, FLAG_EXTENDED, FLAG_FD, FLAG_REMOTE, FrameColumns
 from firmware_model.errors import InputError
-from tools.replay.formats import check_log, read_log, truncation
+from tools.replay.formats import check_log, mixed_channels, read_log, truncation
 
 #: linux/can/error.h, as python-can's candump reader uses them
 _CAN_ERR_FLAG = 0x20000000
@@ -51,7 +51,10 @@ def read_columns(path: str | os.PathLike) -> ColumnRead:
     if cut:                           # the fast parsers would read a cut last line as a short frame
         raise InputError(f"{p}: {cut}")
     if p.suffix.lower() == ".log":
-        cols = parse_candump(p.read_bytes())
+        try:
+            cols = parse_candump(p.read_bytes())
+        except MixedChannels as mixed:
+            raise InputError(mixed_channels(p, mixed.channels)) from None
         if cols is not None:
             return ColumnRead(cols, "numpy candump")
     if p.suffix.lower() == ".mf4":
@@ -159,6 +162,25 @@ def _timestamps(buf: np.ndarray, lines: _Lines, close_pos: np.ndarray) -> np.nda
     return t
 
 
+class MixedChannels(ValueError):
+    """A candump -L log that holds the frames of several CAN channels (``channels``: their names)."""
+
+    def __init__(self, channels: list[str]):
+        super().__init__(", ".join(channels))
+        self.channels = channels
+
+
+def _channels(buf: np.ndarray, s1: np.ndarray, s2: np.ndarray) -> list[str]:
+    """The distinct interface names (the field between the two first spaces of each line), at most 32 bytes each."""
+    length = s2 - s1 - 1
+    width = int(min(length.max(), 32))
+    j = np.arange(width)
+    names = np.where(j < length[:, None], buf[np.minimum(s1[:, None] + 1 + j, buf.size - 1)], 0).astype(np.uint8)
+    if not np.any(names != names[0]):
+        return [bytes(names[0]).rstrip(b"\0").decode("ascii", "replace")]
+    return [bytes(r).rstrip(b"\0").decode("ascii", "replace") for r in np.unique(names, axis=0)]
+
+
 def parse_candump(raw: bytes) -> FrameColumns | None:
     """candump -L text as columns, exactly as python-can's reader sees it; None when a line has another form."""
     lines = _lines(raw)
@@ -188,6 +210,9 @@ def parse_candump(raw: bytes) -> FrameColumns | None:
     data_end = np.where(count == 3, spaces[np.minimum(first_space + 2, spaces.size - 1)], end)
     if np.any(s1 != close + 1) or np.any(s2 <= s1 + 1) or np.any(hash_pos <= s2 + 1) or np.any(hash_pos >= data_end):
         return None
+    channels = _channels(buf, s1, s2)
+    if len(channels) > 1:
+        raise MixedChannels(channels)
     three = count == 3
     if three.any():   # the " R" / " T" direction flag: one letter at the end
         flag_ok = (end[three] - data_end[three] == 2) & np.isin(buf[np.minimum(end[three] - 1, buf.size - 1)],

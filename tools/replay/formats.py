@@ -18,6 +18,13 @@ def is_can_log(path: str | os.PathLike) -> bool:
     return Path(path).suffix.lower() in LOG_SUFFIXES
 
 
+def mixed_channels(path: Path, channels) -> str:
+    """The sentence for a log that holds the frames of several CAN channels (one J1939 bus is replayed at a time)."""
+    names = [str(c) for c in channels]
+    return (f"{path}: holds the frames of {len(names)} CAN channels ({', '.join(names[:4])}); the sensor listens to "
+            f"one bus: keep one channel (grep ' {names[0]} ' {path.name} > {names[0]}.log)")
+
+
 def _gzipped(path: Path) -> bool:
     """Whether the file starts with gzip's magic bytes (a compressed log under a log's name)."""
     try:
@@ -63,8 +70,14 @@ def read_log(path: str | os.PathLike) -> Iterator:
     n = 0
     try:
         with reader:
+            first_channel = None
             for msg in reader:
                 n += 1
+                if msg.channel is not None:
+                    if first_channel is None:
+                        first_channel = msg.channel
+                    elif msg.channel != first_channel:
+                        raise InputError(mixed_channels(p, [first_channel, msg.channel]))
                 yield msg
     except InputError:
         raise
