@@ -11,8 +11,10 @@ from firmware_model.components import LEVEL_CRITICAL, LEVEL_WARNING, PUBLISHED, 
 AUX_COLUMNS = ("ambient_temp_c", "coolant_temp_c", "vehicle_speed_kmh", "retarder_torque_nm")
 #: reject counters in words
 REJECT_WORDS = {
-    "drive_frozen": "speed and torque bit-identical for over 120 s while turning (flagged, still used)",
-    "oil_frozen": "oil reading frozen while the model's sump moved (modelled instead)",
+    "drive_frozen": ("speed and torque bit-identical for over 120 s while turning (flagged, still used: a synthetic "
+                     "cycle without --noise holds them so; on a truck it is a frozen signal)"),
+    "oil_frozen": ("oil reading frozen while the model's sump moved (modelled instead; a rig or plant run that holds "
+                   "the sump at one temperature reads so too)"),
     "oil_implausible": "oil reading out of range or jumping (modelled instead)",
     "oil_missing": "oil reading missing (modelled instead)",
     "speed_clamped": "engine speed outside the engine's range (clamped)",
