@@ -631,3 +631,18 @@ def test_a_drive_value_no_engine_produces_names_the_file(tmp_path, capsys):
                str(tmp_path / "j.json"), "--quiet"])
     err = capsys.readouterr().err
     assert rc == 2 and "b.csv: column engine_speed_rpm row 6" in err and not (tmp_path / "j.json").exists()
+
+
+def test_a_report_that_cannot_be_written_names_the_report(tmp_path, monkeypatch):
+    """From a bad-input audit: a read-only folder gave 'Permission denied: ro/.diag-report-6bihojls', the staging
+    folder's name."""
+    import errno
+    import tempfile
+    from firmware_model.errors import InputError
+    from tools.diagnosis.report import write_report
+
+    def refuse(*args, **kwargs):
+        raise PermissionError(errno.EACCES, "Permission denied", str(tmp_path / ".diag-report-x"))
+    monkeypatch.setattr(tempfile, "mkdtemp", refuse)
+    with pytest.raises(InputError, match=r"--report .*r\.md: cannot write it \(Permission denied\)"):
+        write_report({}, None, tmp_path / "r.md")

@@ -19,6 +19,7 @@ from firmware_model.effects import CATALOG
 from tools.diagnosis.options import OIL
 from tools.diagnosis.regimes import PRIMARY, cell_inputs, gear_group, speed_bin, torque_bin
 from tools.diagnosis.result import PlotData
+from tools.outputs import cannot_write
 from tools.plots import pyplot, save_figure
 
 GROUPS = ("low range", "high range", "reverse", "neutral")
@@ -385,11 +386,14 @@ def write_report(res: dict, pd: PlotData, out, title: str | None = None) -> Path
     if out.suffix.lower() != ".md":
         out = out.with_suffix(out.suffix + ".md") if out.suffix else out.with_suffix(".md")
     parent = out.parent
-    parent.mkdir(parents=True, exist_ok=True)
     stem = out.stem
     names = {"residuals": f"{stem}_residuals.png", "regimes": f"{stem}_regimes.png",
              "ranking": f"{stem}_ranking.png", "test": f"{stem}_test.png", "heat": f"{stem}_heat.png"}
-    stage = Path(tempfile.mkdtemp(prefix=".diag-report-", dir=parent))
+    try:
+        parent.mkdir(parents=True, exist_ok=True)
+        stage = Path(tempfile.mkdtemp(prefix=".diag-report-", dir=parent))
+    except OSError as exc:        # named after the report, not after the staging folder it could not make
+        raise cannot_write("--report", out, exc) from None
     try:
         plot_residuals(pd, stage / names["residuals"])
         plot_regime_map(pd, stage / names["regimes"])
@@ -400,6 +404,8 @@ def write_report(res: dict, pd: PlotData, out, title: str | None = None) -> Path
         (stage / out.name).write_text(render_markdown(res, names, title))
         for n in list(names.values()) + [out.name]:
             os.replace(stage / n, parent / n)
+    except OSError as exc:        # a full disk while staging: the report's name, not the staging folder's
+        raise cannot_write("--report", out, exc) from None
     finally:
         shutil.rmtree(stage, ignore_errors=True)
     return out
