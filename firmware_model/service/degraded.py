@@ -110,8 +110,9 @@ def unit_findings(steps: int, time_jumps: int, speed_rpm, torque_nm) -> list[Uni
     import numpy as np
     out = []
     if steps >= 3 and time_jumps > TIME_JUMP_UNTRUSTED_SHARE * steps:
-        out.append(UnitFinding(f"time_s jumps forward on {time_jumps} of {steps} steps (the sensor propagated its "
-                               f"state over each gap): is time_s in milliseconds? run tables give seconds"))
+        out.append(UnitFinding(f"time_s jumps forward on {time_jumps} of {steps} steps (rows more than 5 s apart; "
+                               f"the sensor propagated its state over each gap): is time_s in milliseconds (run "
+                               f"tables give seconds), or the table sampled too sparsely for a 10 Hz sensor?"))
     speed, torque = np.asarray(speed_rpm, dtype=float), np.asarray(torque_nm, dtype=float)
     loaded = np.isfinite(speed) & np.isfinite(torque) & (np.abs(torque) >= STALL_TORQUE_NM)
     slow = loaded & (speed < STALL_SPEED_RPM)
