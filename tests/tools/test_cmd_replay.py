@@ -185,7 +185,7 @@ def test_the_oil_modelled_by_request_is_not_degraded(tmp_path, capsys):
 
 
 @pytest.mark.parametrize("change, words", [
-    ({"time_s": np.arange(0.0, 60.0, 0.1) * 1000.0}, "is time_s in milliseconds?"),
+    ({"time_s": np.arange(0.0, 60.0, 0.1) * 1000.0}, "is time_s in milliseconds"),
     ({"engine_speed_rpm": np.full(600, 1300.0 * 2.0 * np.pi / 60.0)}, "is engine_speed_rpm in rad/s?"),
 ])
 def test_a_column_in_another_unit_is_untrusted(tmp_path, capsys, change, words):
