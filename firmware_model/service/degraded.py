@@ -104,22 +104,27 @@ class UnitFinding:
         return self.what
 
 
-def unit_findings(steps: int, time_jumps: int, speed_rpm, torque_nm) -> list[UnitFinding]:
-    """The unit mistakes a run table shows: time_s in milliseconds (a forward time jump on most steps), engine
-    speed in rad/s (the engine delivering torque far below any idle speed)."""
+def unit_findings(steps: int, time_jumps: int, step_times_s, speed_rpm, torque_nm,
+                  hold_s: float = 60.0) -> list[UnitFinding]:
+    """The unit mistakes a run table shows: time_s in milliseconds (a forward time jump on most steps, the steps
+    further apart than the ``hold_s`` over which a jump holds the inputs: the sensor took the engine as off for most
+    of the run), engine speed in rad/s (a turning engine delivering torque far below any idle speed)."""
     import numpy as np
     out = []
-    if steps >= 3 and time_jumps > TIME_JUMP_UNTRUSTED_SHARE * steps:
-        out.append(UnitFinding(f"time_s jumps forward on {time_jumps} of {steps} steps (rows more than 5 s apart; "
-                               f"the sensor propagated its state over each gap): is time_s in milliseconds (run "
-                               f"tables give seconds), or the table sampled too sparsely for a 10 Hz sensor?"))
+    t = np.asarray(step_times_s, dtype=float)
+    spacing_s = float(np.median(np.diff(t))) if t.size > 1 else 0.0
+    if steps >= 3 and time_jumps > TIME_JUMP_UNTRUSTED_SHARE * steps and spacing_s > hold_s:
+        out.append(UnitFinding(f"time_s jumps forward on {time_jumps} of {steps} steps, {spacing_s:.0f} s apart (the "
+                               f"sensor held the inputs {hold_s:.0f} s over each gap, then took the engine as off): "
+                               f"is time_s in milliseconds? run tables give seconds"))
     speed, torque = np.asarray(speed_rpm, dtype=float), np.asarray(torque_nm, dtype=float)
-    loaded = np.isfinite(speed) & np.isfinite(torque) & (np.abs(torque) >= STALL_TORQUE_NM)
+    loaded = np.isfinite(speed) & np.isfinite(torque) & (np.abs(torque) >= STALL_TORQUE_NM) & (speed > 1.0)
     slow = loaded & (speed < STALL_SPEED_RPM)
     if loaded.sum() >= 3 and slow.sum() > STALL_UNTRUSTED_SHARE * loaded.sum():
-        out.append(UnitFinding(f"the engine delivers {STALL_TORQUE_NM:g} Nm or more below {STALL_SPEED_RPM:g} rpm "
-                               f"on {pct(int(slow.sum()), int(loaded.sum()))} of its loaded steps (median "
-                               f"{float(np.median(speed[slow])):.0f} rpm): is engine_speed_rpm in rad/s?"))
+        out.append(UnitFinding(f"the turning engine delivers {STALL_TORQUE_NM:g} Nm or more below "
+                               f"{STALL_SPEED_RPM:g} rpm on {pct(int(slow.sum()), int(loaded.sum()))} of its loaded "
+                               f"steps (median {float(np.median(speed[slow])):.0f} rpm): is engine_speed_rpm in "
+                               f"rad/s?"))
     return out
 
 

@@ -194,5 +194,11 @@ def test_a_column_in_another_unit_is_untrusted(tmp_path, capsys, change, words):
     src = write_run_table(_table(**change), tmp_path / "run.csv")
     assert main(["replay", str(src), "--out", str(tmp_path / "est.csv"), "--quiet"]) == 3
     assert words in capsys.readouterr().err
-    assert main(["replay", str(write_run_table(_table(), tmp_path / "ok.csv")), "--out", str(tmp_path / "e2.csv"),
-                 "--quiet"]) == 0
+    t = np.arange(0.0, 3600.0, 10.0)          # telematics every 10 s: held over each gap, no unit mistake
+    stall = np.where(np.arange(600) < 360, 1300.0, 0.0)      # a stalled engine whose torque column keeps its value
+    for name, table in (("ok", _table()), ("sparse", _table(seconds=3600.0, rate=0.1, oil_temp_c=80.0 + 0.001 * t)),
+                        ("stall", _table(engine_speed_rpm=stall))):
+        path = write_run_table(table, tmp_path / f"{name}.csv")
+        assert main(["replay", str(path), "--out", str(tmp_path / f"{name}_est.csv"), "--quiet"]) == 0, name
+        err = capsys.readouterr().err
+        assert "milliseconds" not in err and "rad/s" not in err, (name, err)

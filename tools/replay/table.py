@@ -238,6 +238,7 @@ def table_findings(out, oil_model: bool = False) -> list:
     unit (time in ms, engine speed in rad/s), the degraded share when it is at least DEGRADED_WARN_SHARE, with the
     inputs that were missing (the validity columns); ``oil_model``: the sensor modelled the oil by request (not
     degraded)."""
+    from firmware_model.onboard.records import SensorOptions
     from firmware_model.service.degraded import (Severity, degraded_finding,   # (not trust: that imports python-can)
                                                  unit_findings)
     modes = np.asarray(out["degraded_mode"], dtype=float) if out.n else np.zeros(0)
@@ -246,8 +247,10 @@ def table_findings(out, oil_model: bool = False) -> list:
                                                                  "oil_valid") if out.has(c)}
     finding = degraded_finding(dict(zip(values.tolist(), counts.tolist())), missing, oil_model)
     jumps = int(out["rejects_time_jump"][-1]) if out.n and out.has("rejects_time_jump") else 0
-    units = unit_findings(out.n, jumps, out["engine_speed_rpm"] if out.has("engine_speed_rpm") else [],
-                          out["engine_torque_nm"] if out.has("engine_torque_nm") else [])
+    units = unit_findings(out.n, jumps, out["time_s"] if out.n else [],
+                          out["engine_speed_rpm"] if out.has("engine_speed_rpm") else [],
+                          out["engine_torque_nm"] if out.has("engine_torque_nm") else [],
+                          hold_s=SensorOptions().time_jump_hold_s)
     return units + ([finding] if finding.severity >= Severity.WARNING else [])
 
 
