@@ -171,14 +171,21 @@ class MixedChannels(ValueError):
 
 
 def _channels(buf: np.ndarray, s1: np.ndarray, s2: np.ndarray) -> list[str]:
-    """The distinct interface names (the field between the two first spaces of each line), at most 32 bytes each."""
+    """The distinct interface names (the field between the two first spaces of each line): each line's field is
+    compared with the first line's byte by byte (cheap: one gather per byte of the name), the distinct names are
+    listed only when one differs."""
     length = s2 - s1 - 1
-    width = int(min(length.max(), 32))
-    j = np.arange(width)
-    names = np.where(j < length[:, None], buf[np.minimum(s1[:, None] + 1 + j, buf.size - 1)], 0).astype(np.uint8)
-    if not np.any(names != names[0]):
-        return [bytes(names[0]).rstrip(b"\0").decode("ascii", "replace")]
-    return [bytes(r).rstrip(b"\0").decode("ascii", "replace") for r in np.unique(names, axis=0)]
+    first = bytes(buf[s1[0] + 1:s2[0]])
+    other = length != len(first)
+    for j, byte in enumerate(first):
+        other |= buf[s1 + 1 + j] != byte
+    if not other.any():
+        return [first.decode("ascii", "replace")]
+    rows = np.flatnonzero(other)
+    names = {bytes(buf[s1[i] + 1:s2[i]]) for i in rows[np.unique(length[rows], return_index=True)[1]].tolist()}
+    for i in rows[:1000].tolist():        # names of the same length as another: the first lines that differ
+        names.add(bytes(buf[s1[i] + 1:s2[i]]))
+    return [first.decode("ascii", "replace")] + sorted(n.decode("ascii", "replace") for n in names - {first})
 
 
 def parse_candump(raw: bytes) -> FrameColumns | None:
