@@ -77,9 +77,9 @@ def _reject_line(out) -> str:
         unreferenced = "retarder_torque_nm" in absent and erc1 > 0
         if unreferenced:
             absent.remove("retarder_torque_nm")
-            words.append(f"{erc1} retarder frames (ERC1) arrived, but without a retarder reference torque ([can] "
-                         f"retarder_reference_torque_nm) their percent torque is no torque: the retarder's heat is "
-                         f"left out")
+            words.append(f"{erc1} retarder frames (ERC1) arrived, but without a retarder reference torque (no RC "
+                         f"from the retarder's address, no [can] retarder_reference_torque_nm) their percent torque "
+                         f"is no torque: the retarder's heat is left out")
         if absent:
             words.append(f"auxiliary inputs not given ({', '.join(absent)}): defaults used, as documented")
         elif not unreferenced:
