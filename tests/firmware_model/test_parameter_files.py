@@ -131,3 +131,11 @@ def test_a_file_saved_with_a_byte_order_mark_loads(tmp_path):
     p = tmp_path / "bom.toml"
     p.write_bytes(b'\xef\xbb\xbf[meta]\ninherit = "GRS905"\n')
     assert load_parameters(p).values == load_parameters("GRS905").values
+
+
+def test_a_files_own_description_in_meta_is_allowed(tmp_path):
+    """The check of unknown keys leaves [meta] alone: a description of the file changes no physics (review)."""
+    from firmware_model.parameters import load_parameters
+    p = tmp_path / "mine.toml"
+    p.write_text('[meta]\ninherit = "GRS905"\ndescription = "truck 17, rig-calibrated cooler"\n')
+    assert load_parameters(p).values == load_parameters("GRS905").values

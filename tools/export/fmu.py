@@ -202,8 +202,9 @@ def export_fmu(out_path, variant: str = "GRS905", config_path=None, fmi_version:
             fmu_dir = _build(Path(tmp), variant, config_path, fmi_version, cc, headers)
         except (OSError, OutputError) as exc:     # the build directory, not --out: say so
             cause = exc if isinstance(exc, OSError) else exc.cause
-            raise InputError(f"--out {os.fspath(out_path)}: cannot build the FMU in the temporary directory "
-                             f"{tempfile.gettempdir()} ({cause.strerror or cause})") from None
+            where = f" ({cause.filename})" if getattr(cause, "filename", None) else ""
+            raise InputError(f"--out {os.fspath(out_path)}: cannot build the FMU: {cause.strerror or cause}{where} "
+                             f"(the build runs in the temporary directory {tempfile.gettempdir()})") from None
         with naming(tmp_fmu), zipfile.ZipFile(tmp_fmu, "w", zipfile.ZIP_DEFLATED) as z:
             for p in sorted(fmu_dir.rglob("*")):
                 if p.is_file():
