@@ -261,8 +261,8 @@ def _check_keys(path: Path, entries: dict, base: dict, base_name: str) -> None:
     """ParameterError for a key of ``entries`` that ``base`` does not have (a typo would be silently ignored), a
     number written as text (or text as a number) and a unit of another dimension than the base entry's."""
     for key, e in entries.items():
-        if key.startswith("meta."):      # a file's own description (meta.variant, meta.description ...): no physics
-            continue
+        if key == "meta.inherit" or (key.startswith("meta.") and isinstance(e, str)):
+            continue                     # a file's own description (meta.description ...): text, no physics
         if key not in base:
             raise ParameterError(_unknown_key(path, key, base, base_name))
         _check_entry_kind(path, key, e, base[key])
@@ -347,8 +347,8 @@ def load_parameters(variant_or_path: str | Path = "GRS905") -> Parameters:
     values, sources, units, strings, bounds = {}, {}, {}, {}, {}
     written = {}                         # key -> (unit, factor to SI) as in the file, for messages
     for key, e in entries.items():
-        if key.startswith("meta."):     # meta.variant, meta.inherit, a description of the file: text, no physics
-            strings[key] = str(e)
+        if key in ("meta.variant", "meta.inherit") or (key.startswith("meta.") and isinstance(e, str)):
+            strings[key] = str(e)          # a description of the file (meta.description ...): text, no physics
             continue
         if not isinstance(e, dict) or "v" not in e:
             raise ParameterError(f"{path.name}: entry {key!r} must be a table {{ v = ..., u = ..., src = ... }}")
