@@ -202,3 +202,20 @@ def test_a_column_in_another_unit_is_untrusted(tmp_path, capsys, change, words):
         assert main(["replay", str(path), "--out", str(tmp_path / f"{name}_est.csv"), "--quiet"]) == 0, name
         err = capsys.readouterr().err
         assert "milliseconds" not in err and "rad/s" not in err, (name, err)
+
+
+@pytest.mark.parametrize("spacing_s", [0.1, 10.0, 30.0])
+def test_the_summary_times_warnings_by_the_table_clock(spacing_s):
+    """A table's rows may lie seconds apart (telematics tables): the warning and critical times of the summary are
+    the time the rows stand at that level, not rows x 0.1 s (an audit: 0.5 min printed for 51 min of warning)."""
+    from firmware_model.components import LEVEL_CRITICAL, LEVEL_WARNING
+    from tools.replay.summary import summary_lines
+    t = np.arange(0.0, 3600.0, spacing_s)
+    level = np.zeros(t.size)
+    level[(t >= 600.0) & (t < 1800.0)] = LEVEL_WARNING         # 20 min warning
+    level[(t >= 1800.0) & (t < 2400.0)] = LEVEL_CRITICAL        # then 10 min critical
+    cols = {"time_s": t, **{f"T_{c}_c": np.full(t.size, 50.0) for c in PUBLISHED},
+            **{f"W_{c}": np.zeros(t.size) for c in PUBLISHED}}
+    cols["W_PS"] = level
+    line = summary_lines(RunTable(cols))[1]
+    assert line == "warnings: PS warning 20.0 min, critical 10.0 min (first at 10.0 min)"

@@ -183,3 +183,18 @@ def test_measurement_effects_change_the_reading_not_the_gearbox(params, eid, val
             assert np.array_equal(base[c], eff[c]), c
     want = base["oil_temp_c"] + value if eid == "oil_sensor_offset" else value * base["oil_temp_c"]
     np.testing.assert_allclose(eff["oil_temp_c"], want, rtol=0, atol=1e-12)
+
+
+def test_an_empty_vehicle_speed_cell_does_not_switch_the_air_cooler_off(params):
+    """Empty cells of vehicle_speed_kmh are bridged as the bc_ columns are (an audit: a NaN speed made the air
+    cooler's hA NaN and its heat 0 over the gap, while the sensor kept cooling)."""
+    full = steady(9, 1300, 2000, 1800, vehicle_speed_kmh=60.0, ambient_temp_c=25.0)
+    gap = full.copy()
+    v = gap["vehicle_speed_kmh"].copy()
+    v[600:1200] = np.nan
+    gap["vehicle_speed_kmh"] = v
+    plant = ReferencePlant(params, cooler="air")
+    a, b = plant.run(full, initial_temp_c=90.0), plant.run(gap, initial_temp_c=90.0)
+    q_a, q_b = np.asarray(a.table["Q_out_cooler_w"]), np.asarray(b.table["Q_out_cooler_w"])
+    assert np.all(np.isfinite(q_b)) and q_a.max() > 500.0
+    np.testing.assert_allclose(q_b, q_a, rtol=1e-12, atol=1e-9)

@@ -315,7 +315,11 @@ class ReferencePlant:
                 if ok.any():
                     bc_c[BOUNDARIES.index(b)] = np.interp(t, t[ok], v[ok]) + (
                         self.scales.hot_offset_c if b == "hot_surroundings" else 0.0)
-        v_kmh = np.asarray(table["vehicle_speed_kmh"], dtype=float) if table.has("vehicle_speed_kmh") else None
+        v_kmh = None
+        if table.has("vehicle_speed_kmh"):     # empty cells interpolated as the bc_ columns (a NaN speed would
+            v = np.asarray(table["vehicle_speed_kmh"], dtype=float)    # switch the air cooler off); none: default
+            ok = np.isfinite(v)
+            v_kmh = np.interp(t, t[ok], v[ok]) if ok.any() else None
         ret_nm = np.asarray(table["retarder_torque_nm"], dtype=float) if table.has("retarder_torque_nm") else None
         if ret_nm is not None:
             ret_nm = np.nan_to_num(ret_nm, nan=0.0)

@@ -25,8 +25,18 @@ REJECT_WORDS = {
 }
 
 
-def _minutes(steps: int) -> str:
-    return f"{steps * STEP_S / 60.0:.1f} min"
+def _row_durations_s(time_s) -> np.ndarray:
+    """How long each output row stands [s]: until the next row (a table's rows may lie seconds apart, not one
+    STEP_S), the last row as long as the median spacing (STEP_S for a single row); time going back counts 0."""
+    t = np.asarray(time_s, dtype=float)
+    if t.size < 2:
+        return np.full(t.size, STEP_S)
+    d = np.maximum(np.diff(t), 0.0)
+    return np.append(d, float(np.median(d)))
+
+
+def _minutes(seconds: float) -> str:
+    return f"{seconds / 60.0:.1f} min"
 
 
 def _closest_line(out, limits) -> str:
@@ -46,12 +56,13 @@ def _closest_line(out, limits) -> str:
 
 def _warning_line(out) -> str:
     parts = []
+    dur_s = _row_durations_s(out["time_s"]) if out.n else np.zeros(0)
     for c in PUBLISHED:
         if not out.has(f"W_{c}"):
             continue
         w = np.asarray(out[f"W_{c}"])
-        n_warn, n_crit = int(np.sum(w == LEVEL_WARNING)), int(np.sum(w == LEVEL_CRITICAL))
-        if n_warn or n_crit:
+        n_warn, n_crit = float(np.sum(dur_s[w == LEVEL_WARNING])), float(np.sum(dur_s[w == LEVEL_CRITICAL]))
+        if np.any(w == LEVEL_WARNING) or np.any(w == LEVEL_CRITICAL):
             first = int(np.argmax(np.isin(w, (LEVEL_WARNING, LEVEL_CRITICAL))))
             t0 = (out["time_s"][first] - out["time_s"][0]) / 60.0
             crit = f", critical {_minutes(n_crit)}" if n_crit else ""
