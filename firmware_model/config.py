@@ -88,9 +88,12 @@ def _check_types(doc: dict, name: str) -> None:
                              f"parameter file, variant a built-in one)")
 
 
-def load_config(path: str | Path | None) -> Config:
+def load_config(path: "str | Path | Config | None") -> Config:
+    """The configuration of a TOML file (None: the defaults; a Config: itself, for a caller that changed one)."""
     if path is None:
         return Config()
+    if isinstance(path, Config):
+        return path
     path = Path(path)
     doc = read_toml(path, f"config file {path}")
     for sec, body in doc.items():

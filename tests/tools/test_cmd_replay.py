@@ -219,3 +219,18 @@ def test_the_summary_times_warnings_by_the_table_clock(spacing_s):
     cols["W_PS"] = level
     line = summary_lines(RunTable(cols))[1]
     assert line == "warnings: PS warning 20.0 min, critical 10.0 min (first at 10.0 min)"
+
+
+def test_variant_option_equals_the_config_variant(tmp_path):
+    """`replay --variant GRSO905` runs the sensor of that variant, as a config naming it does (an audit: a GRSO905
+    drive replayed with the default variant was 27 K off without a word, and replay had no --variant)."""
+    src = write_run_table(_table(30.0, gear=np.full(300, 13.0)), tmp_path / "run.csv")
+    (tmp_path / "o.toml").write_text('[gearbox]\nvariant = "GRSO905"\n')
+    runs = {"option": ["--variant", "GRSO905"], "config": ["--config", str(tmp_path / "o.toml")], "default": []}
+    est = {}
+    for name, extra in runs.items():
+        assert main(["replay", str(src), "--out", str(tmp_path / f"{name}.csv"), "--quiet", *extra]) == 0
+        est[name] = read_run_table(tmp_path / f"{name}.csv", required=("time_s",))
+    T = {k: np.array([v[f"T_{c}_c"] for c in PUBLISHED]) for k, v in est.items()}
+    np.testing.assert_array_equal(T["option"], T["config"])
+    assert np.nanmax(np.abs(T["option"] - T["default"])) > 0.01

@@ -18,12 +18,13 @@ from tools.can.bus import add_bus_options, can_subcommand
 
 
 #: the three ways to call replay; every option is in one of them (tests/tools/test_cli_options.py)
-USAGE = ("%(prog)s CSV --out EST.csv [--config TOML] [--plot PNG] [--oil-mode {measured,model}]\n"
+USAGE = ("%(prog)s CSV --out EST.csv [--config TOML] [--variant {GRS905,GRSO905}] [--plot PNG]\n"
+         "                              [--oil-mode {measured,model}]\n"
          "                              [--initial-temp DEGC] [--core {auto,c,numpy}] [--allow-untrusted] [--quiet]\n"
          "       %(prog)s LOG --out EST.csv [those options] [--processes {1,2}] [--frames-out OUT.log]\n"
          "       %(prog)s LOG --realtime --interface NAME --channel NAME [--bitrate BIT_S] [--speed X] [--quiet]")
 #: options per mode, by argparse dest: those of the offline replay, those of CAN logs offline, those of --realtime
-OFFLINE_OPTIONS = ("out", "plot", "config", "oil_mode", "initial_temp", "core", "allow_untrusted")
+OFFLINE_OPTIONS = ("out", "plot", "config", "variant", "oil_mode", "initial_temp", "core", "allow_untrusted")
 LOG_OPTIONS = ("processes", "frames_out")
 REALTIME_OPTIONS = ("realtime", "interface", "channel", "bitrate", "speed")
 
@@ -47,6 +48,9 @@ def add_subparser(sub):
     p.usage = USAGE
     p.add_argument("input", metavar="LOG_OR_CSV", help="run table (.csv) or CAN log (.log .asc .blf .mf4)")
     p.add_argument("--config", metavar="TOML", help="project configuration (gearbox variant, cooler, [sensor], [can])")
+    p.add_argument("--variant", choices=("GRS905", "GRSO905"),
+                   help="gearbox variant (overrides --config; give the variant the drive was made with: another "
+                        "variant's gear ratios and masses give other temperatures without any error)")
     p.add_argument("--out", metavar="EST.csv", help="sensor output run table (10 Hz; .csv, or .parquet with pyarrow: "
                                                     "several times faster to write); required, except with --realtime")
     p.add_argument("--plot", metavar="PNG", help="plot of the estimates, warnings and oil innovation")
@@ -94,6 +98,15 @@ def _sensor_options(args) -> dict:
     return opts
 
 
+def _config(args):
+    """The configuration the replay runs with: --config, its variant replaced by --variant."""
+    from firmware_model.config import load_config
+    cfg = load_config(args.config)
+    if args.variant:
+        cfg.variant, cfg.params_path = args.variant, None
+    return cfg
+
+
 def _given(args, dests) -> list[str]:
     """The options among ``dests`` that the command line set, as written (``--speed``)."""
     return ["--" + d.replace("_", "-") for d in dests if getattr(args, d) not in (None, False)]
@@ -127,7 +140,7 @@ def run(args) -> int:
     from tools.runtable import write_run_table
     # the outputs to temporary files first: a failure leaves none of them (tools.outputs)
     with outputs(("--out", args.out), ("--plot", figure_path(args.plot))) as (out_tmp, plot_tmp):
-        out, variant, oil_mode = replay_csv(path, args.config, _sensor_options(args))
+        out, variant, oil_mode = replay_csv(path, _config(args), _sensor_options(args))
         with naming(out_tmp):
             write_run_table(out, out_tmp)
         if plot_tmp:
@@ -179,7 +192,7 @@ def _run_log(args, path: Path) -> int:
         raise InputError("--out EST.csv is required to replay a log offline (or use --realtime)")
     with outputs(("--out", args.out), ("--frames-out", args.frames_out), ("--plot", figure_path(args.plot))) as tmp:
         out_tmp, frames_tmp, plot_tmp = tmp
-        result = replay_log_file(path, out_tmp, config_path=args.config, sensor_options=_sensor_options(args),
+        result = replay_log_file(path, out_tmp, config_path=_config(args), sensor_options=_sensor_options(args),
                                  frames_out=frames_tmp, processes=args.processes)
         if plot_tmp:
             from tools.replay.plot import plot_replay
@@ -194,9 +207,8 @@ def _run_log(args, path: Path) -> int:
         if result.service_counters["time_jumps"]:
             print(f"note: {result.service_counters['time_jumps']} time jumps in the log (see the log messages)")
         if table.n:
-            from firmware_model.config import load_config
             from tools.replay.summary import summary_lines
-            oil_mode = args.oil_mode or load_config(args.config).sensor.get("oil_mode", "measured")
+            oil_mode = args.oil_mode or _config(args).sensor.get("oil_mode", "measured")
             for line in summary_lines(table, oil_model=oil_mode == "model"):
                 print(line)
     return _report_trust(args, result.findings)
