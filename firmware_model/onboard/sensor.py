@@ -100,7 +100,8 @@ class VirtualSensor:
     def initial_state(self, T_oil_c=None, snapshot=None, elapsed_s: float = 0.0, n_vehicles: int | None = None,
                       ambient_c: float | None = None) -> SensorState:
         """Start: every node at the measured oil temperature (NaN/None, or a reading outside the oil input's plausible
-        range, which the step rejects too: ``options.initial_temp_c``, else the ambient boundary), or from a snapshot (a SensorState, or the bytes/str/dict of :meth:`snapshot`) cooled down for
+        range, which the step rejects too: ``options.initial_temp_c``, else ``ambient_c``, the first ambient reading,
+        when it lies in the ambient input's plausible range, else the parameters' ambient boundary), or from a snapshot (a SensorState, or the bytes/str/dict of :meth:`snapshot`) cooled down for
         ``elapsed_s`` with the engine off. With both a snapshot and a measured oil: the measurement wins when the
         cooled snapshot's sump is more than 10 K off (then every node starts at it), else it replaces the sump."""
         if snapshot is not None:
@@ -109,8 +110,10 @@ class VirtualSensor:
         B = () if n_vehicles is None else (int(n_vehicles),)
         T0 = self._plausible_oil_c(T_oil_c)
         default = self.options.initial_temp_c
-        if default is None:
-            default = float(rp.bc_default_c[rp.i_ambient]) if ambient_c is None else float(ambient_c)
+        if default is None:        # the ambient reading (per vehicle) where plausible (NaN is not)
+            amb = np.asarray(np.nan if ambient_c is None else ambient_c, dtype=float)
+            default = np.where((amb >= self.sp.input_lo[I_AMB]) & (amb <= self.sp.input_hi[I_AMB]), amb,
+                               float(rp.bc_default_c[rp.i_ambient]))
         T0 = np.broadcast_to(np.where(np.isfinite(T0), T0, default), B).astype(float)
         hold = np.full(B + (N_INPUTS,), np.nan)
         hold[..., [I_SPEED, I_TORQUE, I_GEAR]] = 0.0

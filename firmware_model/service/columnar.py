@@ -34,6 +34,7 @@ from firmware_model.service.options import GEAR_RANGE, NOMINAL_PERIOD_S, SENSOR_
 from firmware_model.service.recorder import StepRecorder
 from firmware_model.service.records import RecordedOutputs, StepKind
 from firmware_model.service.trust import TimeBaseCheck
+from firmware_model.service.protocol import start_state
 
 #: timing frames examined per vectorised pass of the step grid (fewer right after a time jump)
 _GRID_CHUNK_MAX = 65536
@@ -284,7 +285,7 @@ def sensor_half(service, half: FrameHalf) -> RecordedOutputs:
     tail[:i0, 7:9] = nan
     if i0 < n:
         oil0 = ins[i0, 3]
-        state = sensor.initial_state(T_oil_c=None if math.isnan(oil0) else float(oil0))
+        state = start_state(sensor, float(oil0), float(ins[i0, sensor.input_fields.index("ambient_temp_c")]))
         state, out = sensor.step_table(state, np.ascontiguousarray(ins[i0:]), half.grid.t_s[i0:])
         service.state = state
         T[i0:], level[i0:], ttl[i0:] = out.T_c, out.level, out.ttl_s

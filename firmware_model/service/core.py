@@ -19,7 +19,7 @@ from firmware_model.physics.oil import T_MAX_C as OIL_T_MAX_C, T_MIN_C as OIL_T_
 from firmware_model.service.netmgmt import AddressClaim
 from firmware_model.service.options import (GEAR_RANGE, NOMINAL_PERIOD_S, SENSOR_INPUTS, ServiceOptions,
                                             wanted_pgns)
-from firmware_model.service.protocol import StepSensor, check_sensor
+from firmware_model.service.protocol import StepSensor, check_sensor, start_state
 from firmware_model.service.recorder import StepRecorder
 from firmware_model.service.records import GbxStatus, RecordedOutputs, StepInputs, StepKind, StepRequest
 from firmware_model.service.trust import Severity, TimeBaseCheck, trust_findings
@@ -436,7 +436,7 @@ class SensorService:
         if req.kind == StepKind.NOT_INITIALISED:
             return self._not_initialised(req, send)
         if req.kind == StepKind.INITIALISE:
-            self.state = self._initial_state(req.inputs.oil_temp_c)
+            self.state = self._initial_state(req.inputs.oil_temp_c, req.inputs.ambient_temp_c)
         nan = math.nan
         fields = {f: (nan if v is None else float(v)) for f, v in zip(StepInputs._fields, req.inputs)}
         inputs = self.sensor.Inputs(**fields, t_s=req.t_s)
@@ -465,9 +465,10 @@ class SensorService:
                          oil_innovation_c=_opt_float(st.oil_innovation_c),
                          model_oil_temp_c=_opt_float(st.model_oil_temp_c))
 
-    def _initial_state(self, oil_temp_c):
+    def _initial_state(self, oil_temp_c, ambient_temp_c):
         """The first state: the saved one (``restore`` = (snapshot, elapsed wall time), firmware_model.service.
-        persist) cooled for the time off and reconciled with the oil reading, else a cold start from the oil."""
+        persist) cooled for the time off and reconciled with the oil reading, else a cold start from the oil (no
+        oil reading: from the ambient reading)."""
         restore, self.restore = self.restore, None
         if restore is not None:
             snapshot, elapsed_s = restore
@@ -479,7 +480,7 @@ class SensorService:
             except (InputError, ValueError, KeyError, TypeError) as exc:
                 self.counters["state_cold_start"] = str(exc)
                 self.log.warning("saved state not usable (%s): cold start from the oil temperature", exc)
-        return self.sensor.initial_state(T_oil_c=oil_temp_c)
+        return start_state(self.sensor, oil_temp_c, ambient_temp_c)
 
     def _not_initialised(self, req: StepRequest, send: bool) -> list:
         inputs = req.inputs

@@ -116,7 +116,9 @@ def unit_findings(steps: int, time_jumps: int, step_times_s, speed_rpm, torque_n
     if steps >= 3 and time_jumps > TIME_JUMP_UNTRUSTED_SHARE * steps and spacing_s > hold_s:
         out.append(UnitFinding(f"time_s jumps forward on {time_jumps} of {steps} steps, {spacing_s:.0f} s apart (the "
                                f"sensor held the inputs {hold_s:.0f} s over each gap, then took the engine as off): "
-                               f"is time_s in milliseconds? run tables give seconds"))
+                               f"if time_s is in milliseconds, give seconds; if the rows really lie "
+                               f"{spacing_s:.0f} s apart, the table is too sparse for the sensor (rows at most "
+                               f"{hold_s:.0f} s apart; resample it)"))
     speed, torque = np.asarray(speed_rpm, dtype=float), np.asarray(torque_nm, dtype=float)
     loaded = np.isfinite(speed) & np.isfinite(torque) & (np.abs(torque) >= STALL_TORQUE_NM) & (speed > 1.0)
     slow = loaded & (speed < STALL_SPEED_RPM)

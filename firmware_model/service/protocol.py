@@ -3,6 +3,8 @@ offers (and the tests' stand-in, tests/firmware_model/sensor_standin.py). The se
 nothing else; :func:`check_sensor` checks them once when a service is built."""
 from __future__ import annotations
 
+import inspect
+import math
 from typing import Any, Protocol
 
 from firmware_model.components import STEP_S
@@ -24,9 +26,11 @@ class StepSensor(Protocol):
     - ``Outputs``: its outputs record type: ``T_c``, ``level``, ``ttl_s`` (per published component) and ``status``;
     - ``reject_reasons``: names of the reject counters; ``input_fields``: :class:`StepInputs` fields, same order;
       ``dt_s``: the step, ``firmware_model.components.STEP_S``;
-    - ``initial_state(T_oil_c=...)``, ``step_deferred(state, inputs) -> (state, outputs, job)`` (the step without
-      its slow time-to-limit refresh) and ``refresh_ttl(state, job) -> state`` (that refresh; ``job`` None: none
-      due). ``step_deferred`` then ``refresh_ttl`` must equal the plain ``step``.
+    - ``initial_state(T_oil_c=...)``, optionally with ``ambient_c=...`` (no oil reading: start at the ambient one;
+      :func:`start_state` passes it to a sensor whose ``initial_state`` takes it),
+      ``step_deferred(state, inputs) -> (state, outputs, job)`` (the step without its slow time-to-limit refresh)
+      and ``refresh_ttl(state, job) -> state`` (that refresh; ``job`` None: none due). ``step_deferred`` then
+      ``refresh_ttl`` must equal the plain ``step``.
     """
     Inputs: type
     Status: type
@@ -53,3 +57,18 @@ def check_sensor(sensor: StepSensor) -> None:
         raise ParameterError(f"the sensor's Inputs/Status records lack the fields {missing}")
     if sensor.dt_s != STEP_S:
         raise ParameterError(f"the sensor steps every {sensor.dt_s} s; the CAN service every {STEP_S} s")
+
+
+def start_state(sensor: StepSensor, T_oil_c, ambient_c=None, **kw):
+    """``sensor.initial_state`` from the first oil reading, with the first ambient reading too when the sensor's
+    ``initial_state`` takes ``ambient_c`` (VirtualSensor: no oil reading, start at the ambient one); a sensor
+    written to the older protocol (``T_oil_c`` only) is called as before."""
+    try:
+        params = inspect.signature(sensor.initial_state).parameters
+    except (TypeError, ValueError):
+        params = {}
+    takes = "ambient_c" in params or any(p.kind is p.VAR_KEYWORD for p in params.values())
+    oil = None if T_oil_c is None or not math.isfinite(T_oil_c) else float(T_oil_c)
+    if takes and ambient_c is not None:
+        kw["ambient_c"] = ambient_c
+    return sensor.initial_state(T_oil_c=oil, **kw)

@@ -198,3 +198,19 @@ def test_frames_without_a_finite_time_are_rejected_by_both_paths_and_never_move_
     assert s_frames.decoder.counters["rejected"]["bad_timestamp"] == 4
     assert s_frames.counters == s_cols.counters and s_frames.decoder.counters == s_cols.decoder.counters
     assert s_frames.counters["time_jumps"] == 0
+
+
+def test_a_log_without_oil_starts_at_the_ambient_reading_on_both_paths(tmp_path):
+    """No oil temperature (no TRF1) at key-on: the sensor starts at the truck's ambient reading (a cold-soaked
+    truck at -25 degC), not at the parameters' 25 degC, on the frame path and the whole-log path alike."""
+    from tests.tools.can_fixtures import plant_output
+    inp = _cycle(60.0)
+    inp["ambient_temp_c"] = np.full(inp.n, -25.0)
+    frames = list(synth_frames(inp, plant_output(inp, oil0_c=-25.0, oil_rate_k_s=0.0),
+                               start_timestamp_s=1.7e9).frames.messages())
+    no_oil = [m for m in frames if (m.arbitration_id >> 8) & 0x3FFFF != 0xFEF8]     # TRF1 (PGN 65272) left out
+    assert len(no_oil) < len(frames)
+    ref, _ = assert_same(_write(no_oil, tmp_path / "no_oil.log"))
+    first = int(np.argmax(np.isfinite(np.asarray(ref["T_PS_c"], dtype=float))))
+    T0 = np.array([ref[c][first] for c in ref.columns if c.startswith("T_") and c.endswith("_c")])
+    assert np.all(np.abs(T0 + 25.0) < 1.0)

@@ -185,7 +185,7 @@ def test_the_oil_modelled_by_request_is_not_degraded(tmp_path, capsys):
 
 
 @pytest.mark.parametrize("change, words", [
-    ({"time_s": np.arange(0.0, 60.0, 0.1) * 1000.0}, "is time_s in milliseconds"),
+    ({"time_s": np.arange(0.0, 60.0, 0.1) * 1000.0}, "if time_s is in milliseconds, give seconds"),
     ({"engine_speed_rpm": np.full(600, 1300.0 * 2.0 * np.pi / 60.0)}, "is engine_speed_rpm in rad/s?"),
 ])
 def test_a_column_in_another_unit_is_untrusted(tmp_path, capsys, change, words):
@@ -234,3 +234,20 @@ def test_variant_option_equals_the_config_variant(tmp_path):
     T = {k: np.array([v[f"T_{c}_c"] for c in PUBLISHED]) for k, v in est.items()}
     np.testing.assert_array_equal(T["option"], T["config"])
     assert np.nanmax(np.abs(T["option"] - T["default"])) > 0.01
+
+
+@pytest.mark.parametrize("ambient, start", [(-30.0, -30.0), (500.0, 25.0), (np.nan, 25.0)])
+def test_a_table_without_oil_starts_at_its_ambient_reading(sensor, ambient, start):
+    """No oil column: the sensor starts at the table's first ambient reading (an audit: a -30 degC table started at
+    +25 degC), the parameters' ambient boundary (25 degC) when that reading is missing or implausible."""
+    tab = _table(2.0, ambient_temp_c=np.full(20, ambient))
+    del tab["oil_temp_c"]
+    out = replay_table(tab, sensor)
+    T0 = np.array([out[f"T_{c}_c"][0] for c in PUBLISHED])
+    assert np.all(np.abs(T0 - start) < 0.5)
+
+
+def test_batched_vehicles_start_at_their_own_ambient(sensor):
+    st = sensor.initial_state(n_vehicles=3, ambient_c=np.array([-30.0, np.nan, 10.0]))
+    np.testing.assert_array_equal(st.T_c[:, 0, 0], [-30.0, 25.0, 10.0])
+    assert sensor.initial_state(T_oil_c=70.0, ambient_c=-30.0).T_c[0, 0] == 70.0     # the oil reading first

@@ -22,6 +22,7 @@ import numpy as np
 
 from firmware_model.components import PUBLISHED, STEP_S
 from firmware_model.errors import InputError
+from firmware_model.service.protocol import start_state      # (not options: that imports python-can)
 
 #: a gap in the table's time longer than this is a time jump for the sensor (like the CAN service's 5 s catch-up)
 MAX_HOLD_GAP_S = 5.0
@@ -173,7 +174,7 @@ def replay_records(records: Iterable[TableRecord], sensor, initial_oil_c: float 
     if hasattr(sensor, "step_table"):
         return replay_steps(times, data, sensor, initial_oil_c, [r.inputs.t_s for r in recs])
     oil0_c = recs[0].inputs.oil_temp_c if initial_oil_c is None else initial_oil_c
-    state = sensor.initial_state(T_oil_c=oil0_c if oil0_c is not None and math.isfinite(oil0_c) else None)
+    state = start_state(sensor, oil0_c, recs[0].inputs.ambient_temp_c)
     rows_st = []
     rows_out: dict = {("T_", "_c"): [], ("W_", ""): [], ("ttl_", "_s"): []}
     T_rows, W_rows, ttl_rows = rows_out.values()
@@ -193,7 +194,7 @@ def replay_steps(times: np.ndarray, data: np.ndarray, sensor, initial_oil_c: flo
     if times.size == 0:
         raise InputError("the run table has no rows")
     oil0_c = float(data[0, 3]) if initial_oil_c is None else initial_oil_c
-    state = sensor.initial_state(T_oil_c=oil0_c if oil0_c is not None and math.isfinite(oil0_c) else None)
+    state = start_state(sensor, oil0_c, float(data[0, sensor.input_fields.index("ambient_temp_c")]))
     t_frames = times if frame_t_s is None else np.asarray(frame_t_s, dtype=float)
     state, out = sensor.step_table(state, data[:, :len(sensor.input_fields)], t_frames)
     rows_out = {("T_", "_c"): out.T_c, ("W_", ""): out.level, ("ttl_", "_s"): out.ttl_s}
