@@ -198,3 +198,13 @@ def test_an_empty_vehicle_speed_cell_does_not_switch_the_air_cooler_off(params):
     q_a, q_b = np.asarray(a.table["Q_out_cooler_w"]), np.asarray(b.table["Q_out_cooler_w"])
     assert np.all(np.isfinite(q_b)) and q_a.max() > 500.0
     np.testing.assert_allclose(q_b, q_a, rtol=1e-12, atol=1e-9)
+
+
+def test_a_held_sump_is_also_the_start_of_a_table_without_one(params):
+    """A run table without a start temperature and a held sump: every node starts at the held temperature, as the
+    named cycles do (an audit: 60 degC with the sump held at 100, 40 K off the sensor's replay of the output)."""
+    res = ReferencePlant(params, cooler="hold").run(steady(9, 1300, 1500, 60), hold_oil_c=95.0)
+    T0 = np.array([res.table[f"T_{n}_c"][0] for n in res.nodes])
+    np.testing.assert_allclose(T0, 95.0, atol=0.05)
+    res = ReferencePlant(params, cooler="hold").run(steady(9, 1300, 1500, 60), hold_oil_c=95.0, initial_temp_c=40.0)
+    assert abs(res.table["T_PS_c"][0] - 40.0) < 0.5

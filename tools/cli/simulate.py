@@ -40,7 +40,9 @@ def add_subparser(sub):
                    help="cooling: none, liquid, air, hold (sump held constant), measured (oil_temp_c column as the "
                         "sump); default from the parameters (liquid)")
     p.add_argument("--hold-oil", type=float, metavar="DEGC", help="hold the sump at this temperature")
-    p.add_argument("--initial-temp", type=float, metavar="DEGC", help="initial temperature of every node")
+    p.add_argument("--initial-temp", type=float, metavar="DEGC",
+                   help="initial temperature of every node (default: the cycle's own, else the first oil reading, "
+                        "else the held sump with --cooler hold, else the parameters' [boundary] initial, 60 degC)")
     p.add_argument("--rate", type=float, metavar="HZ", help="sample rate of named cycles (default 10)")
     p.add_argument("--noise", action="store_true", help="add measurement-like noise to named cycles")
     p.add_argument("--seed", type=int, help="random seed of the named cycles (default 0)")

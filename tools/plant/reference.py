@@ -287,8 +287,6 @@ class ReferencePlant:
             # the start: every node at the first oil reading (the oil model's range, as --initial-temp)
             initial_temp_c = oilprops.check_temperature_c("column oil_temp_c row 1 (the start temperature):",
                                                           float(table["oil_temp_c"][0]))
-        if initial_temp_c is None:
-            initial_temp_c = self.p["boundary.initial"]
         if hold_oil_c is None:
             hold_oil_c = meta.get("hold_oil_c")
         kind = self.kind
@@ -296,6 +294,8 @@ class ReferencePlant:
             kind = "hold"
         if kind == "hold" and hold_oil_c is None:
             hold_oil_c = self.p["cooler.hold_temp"]
+        if initial_temp_c is None:     # a held sump: every node starts there (as the named cycles do), else the default
+            initial_temp_c = float(hold_oil_c) if kind == "hold" else self.p["boundary.initial"]
         oil_meas = None
         if kind == "measured":
             if not table.has("oil_temp_c"):
@@ -452,8 +452,8 @@ class ReferencePlant:
         cols = {"time_s": t_out}
         idx = np.clip(np.searchsorted(t, t_out, side="right") - 1, 0, t.size - 1)
         for c in ("engine_speed_rpm", "engine_torque_nm", "gear", "vehicle_speed_kmh", "ambient_temp_c",
-                  "coolant_temp_c", "retarder_torque_nm"):
-            if table.has(c):
+                  "coolant_temp_c", "retarder_torque_nm", *(c for c in table.columns if c.startswith("bc_"))):
+            if table.has(c):     # the inputs as the plant read them (bc_*: so that the output reproduces the run)
                 cols[c] = np.asarray(table[c], dtype=float)[idx]
         # node temperatures, linear between thermal steps
         T_out = np.empty((t_out.size, self.n))
