@@ -415,7 +415,7 @@ def test_oil_sensor_offset_is_named_with_its_constant_signature(params, setup, v
         assert abs(v["parameters"]["offset_c"] - value) < 0.3
     st = v["residual_structure"]["oil"]
     assert st["kind"] == "constant" and abs(st["mean_c"] - value) < 0.5
-    assert "constant offset" in v["reason"] and "sensor or placement fault" in v["reason"]
+    assert "the same error whatever the load" in v["reason"] and "sensor or placement fault" in v["reason"]
     assert v["shrink"] > 0.5
 
 
@@ -646,3 +646,35 @@ def test_a_report_that_cannot_be_written_names_the_report(tmp_path, monkeypatch)
     monkeypatch.setattr(tempfile, "mkdtemp", refuse)
     with pytest.raises(InputError, match=r"--report .*r\.md: cannot write it \(Permission denied\)"):
         write_report({}, None, tmp_path / "r.md")
+
+
+def test_the_onboard_model_sees_no_boundary_column_in_any_simulation(params):
+    """bc_* columns (a rig's or a named cycle's boundaries) are left out of every simulation of an onboard
+    diagnosis, with a note: the onboard model reads only ambient and coolant, and its plant fallback and error
+    floor knowing more made a delegated effect win (an audit: synchronizer heat for a planted gear friction x1.03)."""
+    from tools.diagnosis.core import without_boundary_columns
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        sc = make_scenario(1, 12, "truck", None, None, params, train_s=SHORT_S, test_s=SHORT_S)
+    from tools.diagnosis.prepare import prepare_runs
+    plain = prepare_runs(sc.train, sc.test, Options(), False)
+    assert without_boundary_columns(plain) == (plain, None)
+    for tb in (*sc.train, *sc.test):
+        tb["bc_end_yoke_c"] = np.full(tb.n, 80.0)
+    stripped, note = without_boundary_columns(prepare_runs(sc.train, sc.test, Options(), False))
+    assert not any(c.startswith("bc_") for ds in (*stripped.train, *stripped.test) for c in ds.inputs.columns)
+    res = diagnose(sc.train, sc.test, params, model="onboard")
+    assert res["model"]["note"] == note and "bc_end_yoke_c" in note and "--model plant" in note
+    assert "note" not in diagnose(sc.train, sc.test, params, model="plant")["model"]
+
+
+def test_a_none_verdict_names_the_model_error_when_that_sets_the_threshold():
+    from types import SimpleNamespace
+    from tools.diagnosis.decide import _none_reason
+    o = Options()
+    base = SimpleNamespace(sigma={"oil": 0.15}, floor={"oil": 1.16})
+    why = _none_reason({"oil": 1.15}, {"oil": 1.16}, base, o, False)
+    assert "within its noise" not in why and "model's own error" in why and "oil 1.160 degC" in why
+    assert "onboard model's difference from the reference plant" in why
+    base = SimpleNamespace(sigma={"oil": 0.15}, floor={"oil": 0.05})       # the fixed floor: the noise's business
+    assert "within its noise" in _none_reason({"oil": 0.05}, {"oil": 0.1}, base, o, True)

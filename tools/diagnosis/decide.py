@@ -83,6 +83,20 @@ def _why_not(top: Candidate, gap_left: bool, opts: Options) -> str:
     return ""
 
 
+def _none_reason(sys_rms: dict, thr: dict, base: Baseline, o: Options, is_plant: bool) -> str:
+    """Why the verdict is none: within the noise, or (an audit: "within its noise" was said of a residual 7.6 times
+    the noise) within the model's own measured error where that sets the threshold."""
+    listing = "systematic residual " + _listing(sys_rms, thr, "<=", sys_rms)
+    by_floor = [c for c in sys_rms
+                if base.floor[c] > max(o.none_k * base.sigma[c], o.none_floor_c, o.model_floor_c)]
+    if not by_floor:
+        return f"the model agrees with the measurement within its noise on every channel ({listing})"
+    what = "the plant's numerical error" if is_plant else "the onboard model's difference from the reference plant"
+    return (f"no gap beyond what this model can resolve: on {', '.join(by_floor)} the threshold is the model's own "
+            f"error ({what} on these drives, {', '.join(f'{c} {base.floor[c]:.3f} degC' for c in by_floor)}), "
+            f"larger than the noise, so an effect smaller than that goes unseen ({listing})")
+
+
 def _listing(values: dict, thr: dict, op: str, keys) -> str:
     return ", ".join(f"{c} {values[c]:.3f} {op} {thr[c]:.3f} degC" for c in keys)
 
@@ -98,8 +112,7 @@ def decide(ctx: Context, base: Baseline, crit: Criterion) -> Verdict:
     gap_left = any(post[c] > gap_thr[c] for c in post)
     real_gap = [c for c in sys_rms if sys_rms[c] > gap_thr[c]]
     if all(sys_rms[c] <= thr[c] for c in sys_rms):
-        return Verdict("none", "the model agrees with the measurement within its noise on every channel (systematic "
-                       "residual " + _listing(sys_rms, thr, "<=", sys_rms) + ")", sy, gap_thr, post)
+        return Verdict("none", _none_reason(sys_rms, thr, base, o, ctx.is_plant), sy, gap_thr, post)
     why_not = _why_not(top, gap_left, o)
     if not why_not:
         reason = (f"{top.fit.effect} has the strongest evidence (score {top.score:.0f}) and explains "

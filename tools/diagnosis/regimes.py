@@ -263,7 +263,8 @@ def structure_sentence(cid: str, st: dict) -> str:
     regs = ", ".join(f"{r['mean_c']:+.1f} K in {r['regime']}" for r in st["regimes"][:3])
     if st["kind"] == "constant":
         return (f"the {name}'s residual is about the same in every operating regime ({regs}; spread "
-                f"{st['spread_c']:.1f} K around {st['mean_c']:+.1f} K): a constant offset, the signature of a sensor "
-                f"or placement fault rather than of a heat flow")
+                f"{st['spread_c']:.1f} K around {st['mean_c']:+.1f} K): the same error whatever the load, the "
+                f"signature of a sensor or placement fault (an offset, or a gain over a narrow span of temperatures) "
+                f"rather than of a heat flow")
     return (f"the {name}'s residual depends on the operating regime ({regs}; spread {st['spread_c']:.1f} K): a "
             f"heat-flow effect rather than a sensor offset")
