@@ -648,24 +648,34 @@ def test_a_report_that_cannot_be_written_names_the_report(tmp_path, monkeypatch)
         write_report({}, None, tmp_path / "r.md")
 
 
-def test_the_onboard_model_sees_no_boundary_column_in_any_simulation(params):
-    """bc_* columns (a rig's or a named cycle's boundaries) are left out of every simulation of an onboard
-    diagnosis, with a note: the onboard model reads only ambient and coolant, and its plant fallback and error
-    floor knowing more made a delegated effect win (an audit: synchronizer heat for a planted gear friction x1.03)."""
-    from tools.diagnosis.core import without_boundary_columns
+def test_the_onboard_model_takes_the_boundary_columns_through_the_plant(params):
+    """bc_* columns (a rig's measured boundaries, a named cycle's) reach the onboard model's runs as the plant's
+    correction (with them minus without them), with a note: before, the onboard model ran without them while its
+    plant fallback and error floor knew them, and a delegated effect won (an audit: synchronizer heat for a planted
+    gear friction x1.03 on two uphill drives)."""
+    from tools.diagnosis.core import boundary_note
+    from tools.diagnosis.models import OnboardModel, PlantModel, Run
+    from tools.diagnosis.prepare import prepare_runs
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
         sc = make_scenario(1, 12, "truck", None, None, params, train_s=SHORT_S, test_s=SHORT_S)
-    from tools.diagnosis.prepare import prepare_runs
-    plain = prepare_runs(sc.train, sc.test, Options(), False)
-    assert without_boundary_columns(plain) == (plain, None)
+    assert boundary_note(prepare_runs(sc.train, sc.test, Options(), False)) is None
     for tb in (*sc.train, *sc.test):
-        tb["bc_end_yoke_c"] = np.full(tb.n, 80.0)
-    stripped, note = without_boundary_columns(prepare_runs(sc.train, sc.test, Options(), False))
-    assert not any(c.startswith("bc_") for ds in (*stripped.train, *stripped.test) for c in ds.inputs.columns)
+        tb["bc_hot_surroundings_c"] = np.full(tb.n, 130.0)       # the parameters' 90 degC + 40 K
+        tb["bc_end_yoke_c"] = np.full(tb.n, 110.0)               # 80 + 30 K
+    runs = prepare_runs(sc.train, sc.test, Options(), False)
+    ds = runs.train[:1]
+    plant = PlantModel(params, workers=1)
+    with OnboardModel(params, fallback=plant, workers=1) as onb:
+        on = onb.simulate(ds, [Run.of()], ("oil_temp_c",))[0][0]
+        bare = OnboardModel(params, workers=1).simulate(ds, [Run.of()], ("oil_temp_c",))[0][0]
+        ref = plant.simulate(ds, [Run.of()], ("oil_temp_c",))[0][0]
+    t = np.asarray(on["time_s"])
+    truth = np.interp(t, ref["time_s"], ref["oil_temp_c"])
+    assert np.max(np.abs(np.asarray(bare["oil_temp_c"]) - truth)) > 0.5      # the boundaries matter here ...
+    assert np.max(np.abs(np.asarray(on["oil_temp_c"]) - truth)) < 0.1        # ... the correction carries them (0.06 K)
     res = diagnose(sc.train, sc.test, params, model="onboard")
-    assert res["model"]["note"] == note and "bc_end_yoke_c" in note and "--model plant" in note
-    assert "note" not in diagnose(sc.train, sc.test, params, model="plant")["model"]
+    assert res["model"]["note"] == boundary_note(runs) and "bc_end_yoke_c" in res["model"]["note"]
 
 
 def test_a_none_verdict_names_the_model_error_when_that_sets_the_threshold():

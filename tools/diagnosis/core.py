@@ -161,25 +161,15 @@ def make_model(kind: str, params, cooler: str | None, opts: Options):
     return OnboardModel(params, cooler=cooler, fallback=plant, out_dt_s=opts.out_dt_s, workers=opts.workers), note
 
 
-def without_boundary_columns(runs):
-    """(runs, note): the files' bc_* boundary columns left out of every simulation, with a note naming them, for
-    the onboard model, which reads only the ambient and coolant (a truck knows no other boundary). Its plant
-    fallback (effects without an onboard hook) and the model-error floor (the onboard model against the plant) then
-    see what it sees: with the columns, the floor swallowed the boundaries' difference and the delegated effects
-    won by knowing them (an audit: synchronizer heat claimed for a planted gear friction x1.03)."""
-    import dataclasses
-    from tools.runtable import RunTable
+def boundary_note(runs) -> str | None:
+    """The note for an onboard diagnosis of files with bc_* boundary columns (OnboardModel.boundary_correction),
+    None without them."""
     cols = sorted({c for ds in (*runs.train, *runs.test) for c in ds.inputs.columns if c.startswith("bc_")})
     if not cols:
-        return runs, None
-
-    def strip(ds):
-        kept = RunTable({c: ds.inputs[c] for c in ds.inputs.columns if not c.startswith("bc_")}, meta=ds.inputs.meta)
-        return dataclasses.replace(ds, inputs=kept)
-    note = (f"the files give boundary temperatures ({', '.join(cols)}) that the onboard model cannot take (it reads "
-            f"the ambient and the coolant only): every simulation of this diagnosis runs without them, so what they "
-            f"change stays in the residual (--model plant uses them)")
-    return type(runs)([strip(ds) for ds in runs.train], [strip(ds) for ds in runs.test]), note
+        return None
+    return (f"the files give boundary temperatures ({', '.join(cols)}) that the onboard model cannot take (a truck "
+            f"sends the ambient and the coolant only): what they change, by the reference plant without any effect, "
+            f"is added to every onboard run")
 
 
 def diagnose(train_tables, test_tables, params, model: str = "onboard", cooler: str | None = None,
@@ -193,8 +183,7 @@ def diagnose(train_tables, test_tables, params, model: str = "onboard", cooler: 
                         config_path, params)
     m, note = make_model(model, params, cooler, opts)
     if m.name == "onboard":
-        runs, bc_note = without_boundary_columns(runs)
-        note = "; ".join(n for n in (note, bc_note) if n) or None
+        note = "; ".join(n for n in (note, boundary_note(runs)) if n) or None
     try:
         d = Diagnosis(runs.train, runs.test, m, params, opts, cooler, progress, candidates)
         res = d.run()

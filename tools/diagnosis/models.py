@@ -226,6 +226,28 @@ class OnboardModel(DiagnosisModel):
             "oil_sensor_lag",)
         self.delegated = []
         self.notes = []
+        self._bc_corrections = {}
+
+    def boundary_correction(self, ds, columns) -> dict | None:
+        """What a file's bc_* boundary columns change, by the reference plant with no effect: per column, the plant
+        with them minus the plant without them on the plant's output grid (with ``time_s``); None without such
+        columns or without a fallback plant. The onboard model reads only the ambient and the coolant (a truck
+        sends no other boundary); offline its runs get this added, so that a rig's measured boundaries (or a named
+        cycle's) neither stay in the residual for a catalog effect to take up nor hide in the model-error floor."""
+        if self.fallback is None or not any(c.startswith("bc_") for c in ds.inputs.columns):
+            return None
+        key = (id(ds), tuple(columns))
+        if key not in self._bc_corrections:
+            from tools.runtable import RunTable
+            bare = _DS(RunTable({c: ds.inputs[c] for c in ds.inputs.columns if not c.startswith("bc_")},
+                                meta=ds.inputs.meta), ds.initial_temp_c)
+            with_bc, without = self.fallback.simulate([ds, bare], [Run.of()], columns)[0]
+            corr = {"time_s": np.asarray(with_bc["time_s"], dtype=float)}
+            for c, v in with_bc.items():
+                if c != "time_s" and c in without and not isinstance(v, dict):
+                    corr[c] = np.asarray(v, dtype=float) - np.asarray(without[c], dtype=float)
+            self._bc_corrections[key] = corr
+        return self._bc_corrections[key]
 
     def simulate(self, datasets, runs, columns):
         native = [r for r in runs if all(e in self.native_effects for e, _ in r.effects) and not r.full]
@@ -253,6 +275,10 @@ class OnboardModel(DiagnosisModel):
             for (j, idx), res in zip(where, outs):
                 for i, o in zip(idx, res):
                     per[j][i] = o
+            for j, ds in enumerate(datasets):
+                corr = self.boundary_correction(ds, columns)
+                if corr is not None:
+                    per[j] = [_corrected(o, corr) for o in per[j]]
             for i, r in enumerate(native):
                 results[r] = [per[j][i] for j in range(len(datasets))]
         if other:
@@ -291,6 +317,13 @@ class OnboardModel(DiagnosisModel):
         if self.delegated:
             d["delegated_to_plant"] = sorted(self.delegated)
         return d
+
+
+def _corrected(out: dict, corr: dict) -> dict:
+    """An onboard run's columns plus a boundary correction (OnboardModel.boundary_correction) on its time grid."""
+    t = np.asarray(out["time_s"], dtype=float)
+    return {c: (np.asarray(v, dtype=float) + np.interp(t, corr["time_s"], corr[c]) if c in corr and c != "time_s"
+                else v) for c, v in out.items()}
 
 
 @dataclass
