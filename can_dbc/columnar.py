@@ -236,6 +236,9 @@ def _route(dec: _Decoding, pgn: int, key: str, params: tuple, refs: dict) -> Non
     dec.arrivals.setdefault(key, []).append(idx)
     decoder.counters["arrivals"][key] = decoder.counters["arrivals"].get(key, 0) + int(idx.size)
     dec.reason[idx[~eight]] = REASON_CODES["wrong_dlc"]
+    n_short = int(idx.size - np.count_nonzero(eight))
+    if n_short:
+        decoder.counters["short_frames"][key] = decoder.counters["short_frames"].get(key, 0) + n_short
     idx = idx[eight]
     data = cols.data[idx]
     any_used = np.zeros(idx.size, dtype=bool)

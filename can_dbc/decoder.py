@@ -218,7 +218,8 @@ class J1939Decoder:
     source address, whatever their content: the service's time-base check counts them), ``foreign_source``
     (message -> source address -> frames, or EC1 announces, from another source address than expected) and
     ``foreign_source_data`` (the same, only those with at least one usable value: a source-address mistake, not a
-    node that sends "not available").
+    node that sends "not available"), ``short_frames`` (message -> frames from the expected source address with
+    fewer than 8 data bytes, none of whose values is used).
     """
 
     def __init__(self, expected_sa: Mapping[str, int | None] | None = None,
@@ -252,7 +253,7 @@ class J1939Decoder:
         self.counters: dict = {"frames_seen": 0, "frames_used": 0, "rejected": {}, "signal_rejected": {},
                                "tp": {"started": 0, "completed": 0, "aborted": 0, "ec1_received": 0,
                                       "rc_received": 0},
-                               "arrivals": {}, "foreign_source": {}, "foreign_source_data": {}}
+                               "arrivals": {}, "foreign_source": {}, "foreign_source_data": {}, "short_frames": {}}
         self._arrivals: dict[str, int] = self.counters["arrivals"]
         self._arrivals.update({route.key: 0 for route in self._routes.values()})
 
@@ -371,6 +372,8 @@ class J1939Decoder:
             return "wrong_source_address"
         self._arrivals[key] += 1
         if not eight:
+            short = self.counters["short_frames"]
+            short[key] = short.get(key, 0) + 1
             return "wrong_dlc"
         return self._decode_params(route.params, data, msg.timestamp, latest)
 

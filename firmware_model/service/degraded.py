@@ -38,6 +38,7 @@ class DegradedFinding:
     degraded: int
     by_mode: dict = field(default_factory=dict)
     missing: dict = field(default_factory=dict)
+    causes: tuple = ()        # why inputs were missing, as far as the CAN decoder's counters tell (trust)
 
     @property
     def share(self) -> float:
@@ -57,8 +58,9 @@ class DegradedFinding:
                        reverse=True)
         inputs = ("; inputs not usable (missing, stale or rejected as implausible or frozen): "
                   + ", ".join(f"{name} {pct(n, self.steps)}" for n, name in worst)) if worst else ""
-        return (f"the sensor ran degraded on {pct(self.degraded, self.steps)} of {self.steps} steps ({modes}){inputs}: "
-                f"its temperatures rest on held, modelled or default inputs")
+        why = f" ({'; '.join(self.causes)})" if self.causes else ""
+        return (f"the sensor ran degraded on {pct(self.degraded, self.steps)} of {self.steps} steps ({modes}){inputs}"
+                f"{why}: its temperatures rest on held, modelled or default inputs")
 
 
 def pct(n: int, total: int) -> str:

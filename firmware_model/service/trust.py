@@ -18,6 +18,7 @@ below; ``gearbox-vsensor replay`` exits 3 when a finding is :attr:`Severity.UNTR
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
 from typing import ClassVar, Mapping
@@ -253,6 +254,72 @@ def foreign_findings(decoder_counters: Mapping, expected_sa: Mapping[str, int | 
     return out
 
 
+#: a J1939 input missing on at least this share of the steps has its cause looked up in the decoder's counters
+CAUSE_MIN_SHARE = 0.2
+#: the inputs whose causes are named, with the words for them
+CAUSE_INPUTS = {"engine_speed_rpm": "engine speed", "engine_torque_nm": "engine torque", "gear": "gear",
+                "oil_temp_c": "oil temperature", "coolant_temp_c": "coolant temperature"}
+
+
+def input_causes(decoder_counters: Mapping, stale_steps: Mapping[str, int], steps: int) -> list[str]:
+    """Why the inputs missing on at least CAUSE_MIN_SHARE of the steps were missing, as far as the decoder's
+    counters tell (an audit: "gear 100 %" alone did not tell a message never sent from one sent with 5 data bytes,
+    and the coolant fell to its default without a word): frames shorter than 8 bytes, no frame at all, values sent
+    as not available or error, no engine reference torque (EC1), EC1 by connection mode. A foreign source address
+    has its own finding (foreign_findings)."""
+    messages = signal_messages()
+    arrivals = decoder_counters.get("arrivals", {})
+    short = decoder_counters.get("short_frames", {})
+    foreign = decoder_counters.get("foreign_source_data", {})
+    sig_rej = decoder_counters.get("signal_rejected", {})
+    tp = decoder_counters.get("tp", {})
+    not_broadcast = decoder_counters.get("rejected", {}).get("tp_not_broadcast", 0)
+    out = []
+    for sig, words in CAUSE_INPUTS.items():
+        if not steps or stale_steps.get(sig, 0) < CAUSE_MIN_SHARE * steps:
+            continue
+        msg = messages.get(sig)
+        if short.get(msg):
+            out.append(f"{words}: {short[msg]} {msg} frames came with fewer than 8 data bytes (J1939 sends 8; none of "
+                       f"a short frame's values is used)")
+        elif not arrivals.get(msg) and not foreign.get(msg):
+            out.append(f"{words}: no {msg} frame arrived")
+        elif sig == "engine_torque_nm" and not tp.get("ec1_received"):
+            cmdt = (f"; {not_broadcast} transport transfers were addressed to one node (TP.CMDT), which the sensor "
+                    f"does not receive: EC1 may have come that way") if not_broadcast else ""
+            out.append(f"{words}: no engine reference torque arrived (EC1, SPN 544, by TP.BAM from the engine){cmdt}; "
+                       f"set [can] engine_reference_torque_nm")
+        else:
+            src = "engine_torque_pct" if sig == "engine_torque_nm" else sig
+            bad = {r: n for r, n in sig_rej.get(src, {}).items() if n}
+            if bad:
+                out.append(f"{words}: {msg} sent it as " + ", ".join(
+                    f"{r.replace('_', ' ')} {n} times" for r, n in sorted(bad.items(), key=lambda kv: -kv[1])))
+    return out
+
+
+@dataclass(frozen=True)
+class CoolantFinding:
+    """ET1 frames arrived, but the coolant temperature was missing on ``missing`` of ``steps`` steps: the liquid
+    cooler's medium took the parameter file's default (a truck that sends no ET1 at all gets the default as
+    documented, without a finding)."""
+    kind: ClassVar[str] = "coolant"
+    steps: int
+    missing: int
+    causes: tuple = ()
+
+    @property
+    def severity(self) -> Severity:
+        return Severity.WARNING
+
+    @property
+    def sentence(self) -> str:
+        why = f" ({'; '.join(self.causes)})" if self.causes else ""
+        return (f"the coolant temperature was not usable on {pct(self.missing, self.steps)} of {self.steps} "
+                f"steps{why}: a liquid cooler exchanged with the parameter file's default coolant instead, which can "
+                f"put the sump and the parts the oil streams feed tens of K off")
+
+
 def trust_findings(counters: Mapping, expected_sa: Mapping[str, int | None],
                    configured: Mapping[str, int] | None = None, oil_model: bool = False) -> list[Finding]:
     """The findings of a CAN run, most severe first: ``counters`` = ``SensorService.all_counters()``. The degraded
@@ -264,11 +331,19 @@ def trust_findings(counters: Mapping, expected_sa: Mapping[str, int | None],
     raised = service.get("time_base", {}).get("finding")
     if raised is not None:
         out.append(TimeBaseFinding(**raised))
-    degraded = degraded_finding(service.get("mode_steps", {}), service.get("stale_steps", {}), oil_model)
+    stale = service.get("stale_steps", {})
+    causes = input_causes(counters["decoder"], stale, int(service.get("steps", 0)))
+    degraded = degraded_finding(service.get("mode_steps", {}), stale, oil_model)
+    degraded = dataclasses.replace(degraded, causes=tuple(c for c in causes if not c.startswith("coolant")))
     loud = degraded.severity >= Severity.WARNING
     for f in foreign_findings(counters["decoder"], expected_sa, configured):
         if loud or f.expected_frames == 0:
             out.append(f)
     if loud:
         out.append(degraded)
+    steps = int(service.get("steps", 0))
+    sent = counters["decoder"].get("arrivals", {}).get(signal_messages()["coolant_temp_c"], 0)
+    if steps and sent and stale.get("coolant_temp_c", 0) >= CAUSE_MIN_SHARE * steps:    # sent, but not usable
+        out.append(CoolantFinding(steps, int(stale["coolant_temp_c"]),
+                                  tuple(c[len("coolant temperature: "):] for c in causes if c.startswith("coolant"))))
     return sorted(out, key=lambda f: -f.severity)

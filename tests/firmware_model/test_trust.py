@@ -154,3 +154,26 @@ def test_degraded_share_thresholds(modes, severity):
     assert f.severity == severity
     assert DEGRADED_WARN_SHARE < DEGRADED_UNTRUSTED_SHARE
     assert f"of {sum(modes.values())} steps" in f.sentence
+
+
+def test_short_frames_and_a_missing_reference_torque_are_named_as_causes():
+    """An audit: "gear 100 %" did not tell ETC2 never sent from ETC2 sent with 5 data bytes; an ET1 with 5 bytes
+    left the coolant at its default with "not given, as documented"; no EC1 was not named in a whole-log replay."""
+    from firmware_model.service.trust import CoolantFinding
+    frames = traffic(0.0, 30.0) + [frame(t + 0.7, 65262, 0x00, [0x78, 0xFF, 0xFF, 0xFF, 0xFF]) for t in range(30)]
+    for m in frames:
+        if pgn_of(m.arbitration_id) == 61445:                 # ETC2 with 5 data bytes (the gear is in byte 4)
+            m.data, m.dlc = m.data[:5], 5
+    svc = service()
+    svc.feed_all(sorted(frames, key=lambda m: m.timestamp))
+    assert svc.decoder.counters["short_frames"]["ETC2"] > 250 and svc.decoder.counters["short_frames"]["ET1"] == 30
+    findings = svc.findings()
+    degraded = next(f for f in findings if isinstance(f, DegradedFinding))
+    assert "gear: " in degraded.sentence and "ETC2 frames came with fewer than 8 data bytes" in degraded.sentence
+    coolant = next(f for f in findings if isinstance(f, CoolantFinding))
+    assert coolant.severity == Severity.WARNING and "30 ET1 frames came with fewer than 8" in coolant.sentence
+    svc = service(configured_ref_torque_nm=None)                 # neither EC1 nor a configured reference
+    svc.feed_all(traffic(0.0, 30.0))
+    degraded = next(f for f in svc.findings() if isinstance(f, DegradedFinding))
+    assert "no engine reference torque arrived (EC1" in degraded.sentence
+    assert "engine_reference_torque_nm" in degraded.sentence

@@ -9,6 +9,9 @@ from firmware_model.components import LEVEL_CRITICAL, LEVEL_WARNING, PUBLISHED, 
 
 #: the auxiliary input columns (their absence means defaults, docs/sensor.md "Bad input")
 AUX_COLUMNS = ("ambient_temp_c", "coolant_temp_c", "vehicle_speed_kmh", "retarder_torque_nm")
+#: the J1939 message of each auxiliary input (a log replay's decoder counts its arrivals)
+AUX_MESSAGES = {"ambient_temp_c": "AMB", "coolant_temp_c": "ET1", "vehicle_speed_kmh": "CCVS1",
+                "retarder_torque_nm": "ERC1"}
 #: reject counters in words
 REJECT_WORDS = {
     "drive_frozen": ("speed and torque bit-identical for over 120 s while turning (flagged, still used: a synthetic "
@@ -91,9 +94,16 @@ def _reject_line(out) -> str:
             words.append(f"{erc1} retarder frames (ERC1) arrived, but without a retarder reference torque (no RC "
                          f"from the retarder's address, no [can] retarder_reference_torque_nm) their percent torque "
                          f"is no torque: the retarder's heat is left out")
+        arrivals = _arrivals(out)
+        rejected = [c for c in absent if arrivals.get(AUX_MESSAGES[c], 0) > 0]    # sent, but no value was usable
+        absent = [c for c in absent if c not in rejected]
+        if rejected:
+            sent = ", ".join(f"{c} ({arrivals[AUX_MESSAGES[c]]} {AUX_MESSAGES[c]} frames)" for c in rejected)
+            words.append(f"auxiliary inputs sent but never usable: {sent}, none with a usable value (short frames, "
+                         f"not available or out of range: the decoder's counters): defaults used")
         if absent:
             words.append(f"auxiliary inputs not given ({', '.join(absent)}): defaults used, as documented")
-        elif not unreferenced:
+        elif not unreferenced and not rejected:
             words.append(f"auxiliary inputs missing or out of range on {aux} steps: defaults used")
     for k, v in counts.items():
         words.append(f"{REJECT_WORDS.get(k, k.replace('_', ' '))}: {v} steps")
