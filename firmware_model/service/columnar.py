@@ -237,7 +237,9 @@ def frame_half(service, cols: FrameColumns, decoded: DecodedColumns, meas_names:
         missing = int(np.count_nonzero(np.isnan(inputs[:, j])))
         if missing:
             stale[signal] = stale.get(signal, 0) + missing
-    inputs[:, 2] = _model_gear(inputs[:, 2], opts.gear_map)
+    j1939_gear = inputs[:, 2].copy()
+    inputs[:, 2] = _model_gear(j1939_gear, opts.gear_map)
+    counters["gear_unmapped_steps"] += int(np.count_nonzero(~np.isnan(j1939_gear) & np.isnan(inputs[:, 2])))
     inputs[:, 7] = np.abs(inputs[:, 7])     # J1939 reports retarder braking negative
     pct = fresh.values("engine_torque_pct", max_age[messages["engine_torque_pct"]])
     k = np.searchsorted(decoded.ec1_frame, grid.trigger, side="left") - 1

@@ -75,7 +75,7 @@ class SensorService:
         self.latest = LatestValues()
         self.counters: dict = {"steps": 0, "steps_sent": 0, "catchup_steps": 0, "time_jumps": 0,
                                "frames_not_timing": 0, "frames_sent": 0, "dm1_sent": 0, "stale_steps": {},
-                               "uninitialised_steps": 0, "mode_steps": {},
+                               "uninitialised_steps": 0, "mode_steps": {}, "gear_unmapped_steps": 0,
                                "time_base": {"windows_checked": 0, "windows_suspect": 0, "suspect": False,
                                              "finding": None}}
         self._time_base = TimeBaseCheck(self.options.time_base_window_s, self.options.time_base_windows)
@@ -369,7 +369,10 @@ class SensorService:
                 fresh.append(values[name])
         inputs = StepInputs._make(fresh)
         retarder_nm = inputs.retarder_torque_nm
-        return inputs._replace(gear=self._model_gear(inputs.gear),  # J1939 reports retarder braking negative
+        gear = self._model_gear(inputs.gear)
+        if gear is None and inputs.gear is not None:       # a gear the map or the model's range leaves out
+            self.counters["gear_unmapped_steps"] += 1
+        return inputs._replace(gear=gear,  # J1939 reports retarder braking negative
                                retarder_torque_nm=None if retarder_nm is None else abs(retarder_nm))
 
     def _model_gear(self, gear):

@@ -261,7 +261,8 @@ CAUSE_INPUTS = {"engine_speed_rpm": "engine speed", "engine_torque_nm": "engine 
                 "oil_temp_c": "oil temperature", "coolant_temp_c": "coolant temperature"}
 
 
-def input_causes(decoder_counters: Mapping, stale_steps: Mapping[str, int], steps: int) -> list[str]:
+def input_causes(decoder_counters: Mapping, stale_steps: Mapping[str, int], steps: int,
+                 gear_unmapped: int = 0) -> list[str]:
     """Why the inputs missing on at least CAUSE_MIN_SHARE of the steps were missing, as far as the decoder's
     counters tell (an audit: "gear 100 %" alone did not tell a message never sent from one sent with 5 data bytes,
     and the coolant fell to its default without a word): frames shorter than 8 bytes, no frame at all, values sent
@@ -279,7 +280,10 @@ def input_causes(decoder_counters: Mapping, stale_steps: Mapping[str, int], step
         if not steps or stale_steps.get(sig, 0) < CAUSE_MIN_SHARE * steps:
             continue
         msg = messages.get(sig)
-        if short.get(msg):
+        if sig == "gear" and gear_unmapped >= CAUSE_MIN_SHARE * steps:
+            out.append(f"gear: on {gear_unmapped} steps {msg} sent a gear that [can] gear_map does not map or that lies "
+                       f"outside the model's -2..14 (seed Table 1): set [can] gear_map for this gearbox")
+        elif short.get(msg):
             out.append(f"{words}: {short[msg]} {msg} frames came with fewer than 8 data bytes (J1939 sends 8; none of "
                        f"a short frame's values is used)")
         elif not arrivals.get(msg) and not foreign.get(msg):
@@ -331,8 +335,11 @@ def trust_findings(counters: Mapping, expected_sa: Mapping[str, int | None],
     raised = service.get("time_base", {}).get("finding")
     if raised is not None:
         out.append(TimeBaseFinding(**raised))
-    stale = service.get("stale_steps", {})
-    causes = input_causes(counters["decoder"], stale, int(service.get("steps", 0)))
+    stale = dict(service.get("stale_steps", {}))
+    unmapped = int(service.get("gear_unmapped_steps", 0))
+    if unmapped:       # a gear that arrived but that [can] gear_map or the model's -2..14 leaves out is missing too
+        stale["gear"] = stale.get("gear", 0) + unmapped
+    causes = input_causes(counters["decoder"], stale, int(service.get("steps", 0)), unmapped)
     degraded = degraded_finding(service.get("mode_steps", {}), stale, oil_model)
     degraded = dataclasses.replace(degraded, causes=tuple(c for c in causes if not c.startswith("coolant")))
     loud = degraded.severity >= Severity.WARNING

@@ -3,6 +3,7 @@ several times too fast or too slow, inputs that come from unexpected source addr
 from __future__ import annotations
 
 import logging
+import re
 
 import can
 import pytest
@@ -177,3 +178,13 @@ def test_short_frames_and_a_missing_reference_torque_are_named_as_causes():
     degraded = next(f for f in svc.findings() if isinstance(f, DegradedFinding))
     assert "no engine reference torque arrived (EC1" in degraded.sentence
     assert "engine_reference_torque_nm" in degraded.sentence
+
+
+def test_a_gear_the_map_leaves_out_is_a_missing_gear_with_its_cause():
+    """An audit: ETC2 gears 14-16 of a 16-speed box, or a gear_map without them, made the sensor degraded while the
+    warning's list of missing inputs had no gear (counted before the mapping)."""
+    svc = service()
+    svc.feed_all(traffic(0.0, 30.0, gear=16))
+    assert svc.counters["gear_unmapped_steps"] > 250 and svc.counters["stale_steps"].get("gear", 0) < 10
+    degraded = next(f for f in svc.findings() if isinstance(f, DegradedFinding))
+    assert re.search(r"frozen\): [^(]*gear \d+ %", degraded.sentence) and "set [can] gear_map" in degraded.sentence
