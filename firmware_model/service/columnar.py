@@ -257,6 +257,7 @@ def frame_half(service, cols: FrameColumns, decoded: DecodedColumns, meas_names:
     if ready.size:
         kind[ready[0]] = int(StepKind.INITIALISE)
         kind[ready[0] + 1:] = int(StepKind.STEP)
+        counters["started_without_oil"] = bool(not plausible[ready[0]]) and getattr(service, "restore", None) is None
     counters["uninitialised_steps"] += int(ready[0]) if ready.size else n
     return FrameHalf(grid, kind, inputs, pct, ref_nm, meas_c, tuple(m in decoded.tracks for m in meas_names))
 

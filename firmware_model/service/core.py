@@ -76,6 +76,7 @@ class SensorService:
         self.counters: dict = {"steps": 0, "steps_sent": 0, "catchup_steps": 0, "time_jumps": 0,
                                "frames_not_timing": 0, "frames_sent": 0, "dm1_sent": 0, "stale_steps": {},
                                "uninitialised_steps": 0, "mode_steps": {}, "gear_unmapped_steps": 0,
+                               "started_without_oil": False,
                                "time_base": {"windows_checked": 0, "windows_suspect": 0, "suspect": False,
                                              "finding": None}}
         self._time_base = TimeBaseCheck(self.options.time_base_window_s, self.options.time_base_windows)
@@ -401,6 +402,7 @@ class SensorService:
             self.counters["uninitialised_steps"] += 1
             return StepKind.NOT_INITIALISED
         self._initialised = True
+        self.counters["started_without_oil"] = not plausible and self.restore is None    # (here: the frame half)
         self.log.info("sensor initialised at frame time %.3f s with oil temperature %s", t_step_s,
                       "not available" if oil_temp_c is None else f"{oil_temp_c:.2f} degC")
         return StepKind.INITIALISE

@@ -324,6 +324,23 @@ class CoolantFinding:
                 f"put the sump and the parts the oil streams feed tens of K off")
 
 
+@dataclass(frozen=True)
+class StartFinding:
+    """The sensor started without a plausible oil reading: at the ambient reading, else the parameters' ambient."""
+    kind: ClassVar[str] = "start"
+
+    @property
+    def severity(self) -> Severity:
+        return Severity.NOTE
+
+    @property
+    def sentence(self) -> str:
+        return ("the sensor started without an oil reading, every part at the ambient reading (else the parameters' "
+                "ambient): if the gearbox was already warm (a log cut mid-drive, a restart), its first temperatures "
+                "are low until the model catches up; replay --initial-temp DEGC sets the start (live: the state "
+                "saved at shutdown)")
+
+
 def trust_findings(counters: Mapping, expected_sa: Mapping[str, int | None],
                    configured: Mapping[str, int] | None = None, oil_model: bool = False) -> list[Finding]:
     """The findings of a CAN run, most severe first: ``counters`` = ``SensorService.all_counters()``. The degraded
@@ -353,4 +370,6 @@ def trust_findings(counters: Mapping, expected_sa: Mapping[str, int | None],
     if steps and sent and stale.get("coolant_temp_c", 0) >= CAUSE_MIN_SHARE * steps:    # sent, but not usable
         out.append(CoolantFinding(steps, int(stale["coolant_temp_c"]),
                                   tuple(c[len("coolant temperature: "):] for c in causes if c.startswith("coolant"))))
+    if service.get("started_without_oil"):
+        out.append(StartFinding())
     return sorted(out, key=lambda f: -f.severity)

@@ -188,3 +188,19 @@ def test_a_gear_the_map_leaves_out_is_a_missing_gear_with_its_cause():
     assert svc.counters["gear_unmapped_steps"] > 250 and svc.counters["stale_steps"].get("gear", 0) < 10
     degraded = next(f for f in svc.findings() if isinstance(f, DegradedFinding))
     assert re.search(r"frozen\): [^(]*gear \d+ %", degraded.sentence) and "set [can] gear_map" in degraded.sentence
+
+
+def test_a_start_without_an_oil_reading_is_a_note_that_names_initial_temp():
+    """An audit: a log cut mid-drive without TRF1 started every part at ambient, 80 K below the truck, and no word
+    said how to give the start."""
+    from firmware_model.service.trust import StartFinding
+    frames = [m for m in traffic(0.0, 30.0) if pgn_of(m.arbitration_id) != 65272]
+    svc = service()
+    svc.feed_all(frames)
+    assert svc.counters["started_without_oil"] is True
+    note = next(f for f in svc.findings() if isinstance(f, StartFinding))
+    assert note.severity == Severity.NOTE and "--initial-temp" in note.sentence
+    svc = service()
+    svc.feed_all(traffic(0.0, 30.0))
+    assert svc.counters["started_without_oil"] is False
+    assert not any(isinstance(f, StartFinding) for f in svc.findings())
