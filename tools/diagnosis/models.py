@@ -237,17 +237,19 @@ class OnboardModel(DiagnosisModel):
         if self.fallback is None or not any(c.startswith("bc_") for c in ds.inputs.columns):
             return None
         key = (id(ds), tuple(columns))
-        if key not in self._bc_corrections:
-            from tools.runtable import RunTable
-            bare = _DS(RunTable({c: ds.inputs[c] for c in ds.inputs.columns if not c.startswith("bc_")},
-                                meta=ds.inputs.meta), ds.initial_temp_c)
-            with_bc, without = self.fallback.simulate([ds, bare], [Run.of()], columns)[0]
-            corr = {"time_s": np.asarray(with_bc["time_s"], dtype=float)}
-            for c, v in with_bc.items():
-                if c != "time_s" and c in without and not isinstance(v, dict):
-                    corr[c] = np.asarray(v, dtype=float) - np.asarray(without[c], dtype=float)
-            self._bc_corrections[key] = corr
-        return self._bc_corrections[key]
+        cached = self._bc_corrections.get(key)
+        if cached is not None and cached[0] is ds:      # (the data set itself kept: an id can be reused)
+            return cached[1]
+        from tools.runtable import RunTable
+        bare = _DS(RunTable({c: ds.inputs[c] for c in ds.inputs.columns if not c.startswith("bc_")},
+                            meta=ds.inputs.meta), ds.initial_temp_c)
+        with_bc, without = self.fallback.simulate([ds, bare], [Run.of()], columns)[0]
+        corr = {"time_s": np.asarray(with_bc["time_s"], dtype=float)}
+        for c, v in with_bc.items():
+            if c != "time_s" and c in without and not isinstance(v, dict):
+                corr[c] = np.asarray(v, dtype=float) - np.asarray(without[c], dtype=float)
+        self._bc_corrections[key] = (ds, corr)
+        return corr
 
     def simulate(self, datasets, runs, columns):
         native = [r for r in runs if all(e in self.native_effects for e, _ in r.effects) and not r.full]
