@@ -84,7 +84,8 @@ TABLE_FIELDS = (
                           "ln_0238", "ln_re_lam", "ln_re_bridge", "ln_1e6", "rad_T_lo_c", "rad_T_hi_c",
                           "speed_bin_min", "ln_speed_bin", "oil_bin_c", "dt_s")]
     + [(k, "pr") for k in ("input_lo", "input_hi", "clamp_lo", "clamp_hi", "aux_default")]
-    + [(k, "r") for k in ("hold_s", "drive_frozen_s", "oil_frozen_s", "oil_frozen_drift_c", "oil_step_c")]
+    + [(k, "r") for k in ("hold_s", "drive_frozen_s", "oil_frozen_s", "oil_frozen_drift_c", "oil_step_c",
+                                          "clock_reset_s")]
     + [(k, "pr") for k in ("warning_c", "critical_c", "hysteresis_k", "warning_rest_c")]
     + [("debounce_s", "r"), ("lead_s", "r")]
     + [("C_j_per_k", "pr")] + [(k, "pi") for k in ("ldl_perm", "ldl_pos", "ldl_col_ptr", "ldl_row", "ldl_link_slot",

@@ -206,7 +206,7 @@ class CompiledCore:
         with np.errstate(invalid="ignore"):
             gap = rec["t_s"] - buf["t_last_s"]
         known = np.isfinite(gap)
-        backward = known & (gap < 0.5 * dt)
+        backward = known & (gap < 0.5 * dt) & ~(gap < -self.sp.options.clock_reset_s)     # not a reset clock
         if backward.any() and not backward.all():
             raise InputError("time went backwards for some vehicles of a batch only; step the batch on one time grid")
         jump = known & (gap > 1.5 * dt) & ~backward

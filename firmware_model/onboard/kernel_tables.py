@@ -117,7 +117,7 @@ def _sensor(sp: SensorParams) -> dict:
         input_lo=_f64(sp.input_lo), input_hi=_f64(sp.input_hi), clamp_lo=_f64(sp.clamp_lo),
         clamp_hi=_f64(sp.clamp_hi), aux_default=_f64(sp.aux_default), hold_s=opt.hold_s,
         drive_frozen_s=opt.drive_frozen_s, oil_frozen_s=opt.oil_frozen_s, oil_frozen_drift_c=opt.oil_frozen_drift_c,
-        oil_step_c=opt.oil_step_c, warning_c=_f64(lim.warning_c), critical_c=_f64(lim.critical_c),
+        oil_step_c=opt.oil_step_c, clock_reset_s=opt.clock_reset_s, warning_c=_f64(lim.warning_c), critical_c=_f64(lim.critical_c),
         hysteresis_k=_f64(lim.hysteresis_k), warning_rest_c=_f64(sp.warning_rest_c), debounce_s=lim.debounce_s,
         lead_s=lim.lead_s)
 

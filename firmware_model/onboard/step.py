@@ -95,10 +95,11 @@ def step_deferred(state: SensorState, inputs: SensorInputs, sp: SensorParams, ca
     if np.isfinite(t_now).any() or state.t_last_s.size == 0:
         gap = t_now - state.t_last_s
         known = np.isfinite(gap)
-        backward = known & (gap < 0.5 * sp.dt_s)
+        reset = known & (gap < -sp.options.clock_reset_s)      # a reset clock: its time is the new base, one step
+        backward = known & (gap < 0.5 * sp.dt_s) & ~reset
         jump = known & (gap > 1.5 * sp.dt_s)
         counts[..., _I_TIME_JUMP] = jump
-        counts[..., _I_TIME_BACKWARD] = backward
+        counts[..., _I_TIME_BACKWARD] = backward | reset
         if backward.any():
             return _skip(state, counts, backward, sp)
         if jump.any():

@@ -62,6 +62,7 @@ def hostile_inputs(rng: np.random.Generator, V: int, L: int):
     dt[back], lost[back] = 0.1, False
     t_s = np.cumsum(dt, axis=0)
     t_s[L // 2:] -= 0.3
+    t_s[3 * L // 4:] -= 50.0                  # every vehicle: the clock reset (back more than clock_reset_s)
     t_s[lost] = np.nan
     return raw, t_s
 

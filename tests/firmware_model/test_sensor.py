@@ -388,6 +388,23 @@ def test_time_going_backwards_does_not_step(sensor, warm):
     np.testing.assert_array_equal(ob.T_c, oa.T_c)
 
 
+def test_a_clock_set_far_back_is_a_new_time_base(sensor, warm):
+    """One corrupt timestamp far ahead, then the real clock again (or a restored state read with an uptime clock):
+    more than clock_reset_s back is a reset clock, stepped once and counted, not a sensor frozen until the old time
+    comes round again."""
+    a, _ = sensor.step(warm, NOMINAL._replace(t_s=100.0))
+    b, _ = sensor.step(a, NOMINAL._replace(t_s=4.0e9))                     # a forward jump (counted)
+    c, oc = sensor.step(b, NOMINAL._replace(t_s=100.1))                    # 4e9 s back: the clock was reset
+    assert c.rejects[RJ["time_backward"]] == b.rejects[RJ["time_backward"]] + 1 and c.k == b.k + 1
+    assert oc.status.degraded_mode == 0 and float(c.t_last_s) == 100.1
+    d, od = sensor.step(c, NOMINAL._replace(t_s=100.2))                    # then on the new base, nothing counted
+    np.testing.assert_array_equal(d.rejects, c.rejects)
+    assert not np.array_equal(d.T_c, c.T_c) and od.status.degraded_mode == 0
+    e, _ = sensor.step(d, NOMINAL._replace(t_s=100.2 - sensor.options.clock_reset_s + 0.5))    # less: skipped
+    np.testing.assert_array_equal(e.T_c, d.T_c)
+    assert e.rejects[RJ["time_backward"]] == d.rejects[RJ["time_backward"]] + 1 and e.k == d.k
+
+
 def test_garbage_never_gives_a_nan_temperature(sensor):
     rng = np.random.default_rng(0)
     st = sensor.initial_state(T_oil_c=70.0)

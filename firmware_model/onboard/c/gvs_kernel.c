@@ -1023,8 +1023,11 @@ int gvs_step(const gvs_tables *tb, const gvs_vehicle *veh, gvs_state *st, const 
     if (finite_r(in->t_s)) {
         double gap = in->t_s - st->t_last_s;
         if (finite_r(gap)) {
-            if (gap < 0.5 * (double)tb->dt_s) return skip_step(tb, st, out);
-            if (gap > 1.5 * (double)tb->dt_s) {
+            /* back by more than clock_reset_s: the clock was reset (a glitch, a restored state, an uptime
+             * counter); its time is the new time base and this is one step (step.step_deferred) */
+            if (gap < -(double)tb->clock_reset_s) counts[RJ_TIME_BACKWARD] = 1;
+            else if (gap < 0.5 * (double)tb->dt_s) return skip_step(tb, st, out);
+            else if (gap > 1.5 * (double)tb->dt_s) {
                 if (!jump_done) return GVS_NEED_JUMP;
                 counts[RJ_TIME_JUMP] = 1;
                 /* the inputs age by the gap (held_inputs.jump_state): a value from before it is no recent one */

@@ -137,6 +137,7 @@ typedef struct {
     gvs_real dt_s;
     const gvs_real *input_lo, *input_hi, *clamp_lo, *clamp_hi, *aux_default;  /* (8), (8), (8), (8), (4) */
     gvs_real hold_s, drive_frozen_s, oil_frozen_s, oil_frozen_drift_c, oil_step_c;
+    gvs_real clock_reset_s;             /* t_s back by more than this: a reset clock (stepped, counted) */
     const gvs_real *warning_c, *critical_c, *hysteresis_k, *warning_rest_c;   /* (28) */
     gvs_real debounce_s, lead_s;
     /* time to limit (gvs_ttl_refresh; firmware_model.onboard.held_march, time_to_limit): heat capacities, the
