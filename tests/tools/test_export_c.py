@@ -203,3 +203,101 @@ def test_index_tables_are_int16_only_when_every_index_fits():
     name = next(n for n, kind in TABLE_FIELDS if kind == "pi")
     arrays[name] = np.append(np.asarray(arrays[name]), 40000)
     assert not index16_fits(arrays)
+
+
+RESUME_PROGRAM = r"""
+#include <math.h>
+#include <stdio.h>
+#include <string.h>
+#include "gvs_sensor.h"
+
+static gvs_state st, saved;
+
+static int run(double t0, int n, double oil, gvs_outputs *out)
+{
+    int k, rc = GVS_OK, skipped = 0;
+    for (k = 0; k < n; ++k) {
+        gvs_inputs in = {{1400.0, 2200.0, 12.0, oil, 20.0, 85.0, 60.0, 0.0}, t0 + 0.1 * k};
+        rc = gvs_sensor_step(&st, &in, out);
+        skipped += rc == GVS_SKIPPED;
+    }
+    return skipped;
+}
+
+int main(void)
+{
+    gvs_outputs out;
+    int i, bad = 0;
+    double T_hot;
+    gvs_sensor_init(&st, 60.0);
+    run(0.0, 3000, NAN, &out);                       /* 300 s hard, the sump modelled: warmer than 60 degC */
+    T_hot = st.T_c[0][GVS_TABLES.i_oil];
+    memcpy(&saved, &st, sizeof st);
+    /* the uptime clock restarts from 0 after the restore: no step is skipped, none counted as time going back */
+    if (gvs_sensor_resume(&st, NAN) != 0) { printf("resume refused a good state\n"); return 1; }
+    if (run(0.0, 50, NAN, &out) != 0 || st.rejects[12] != saved.rejects[12]) { printf("steps skipped\n"); bad = 1; }
+    /* an oil reading 10 K or more below the saved sump: every node starts at it */
+    memcpy(&st, &saved, sizeof st);
+    if (gvs_sensor_resume(&st, T_hot - 30.0) != 0) return 1;
+    for (i = 0; i < GVS_TABLES.n; ++i)
+        if (st.T_c[0][i] != (gvs_real)(T_hot - 30.0) || st.T_c[1][i] != (gvs_real)(T_hot - 30.0)) bad = 2;
+    /* within 10 K: only the sump takes it */
+    memcpy(&st, &saved, sizeof st);
+    if (gvs_sensor_resume(&st, T_hot - 3.0) != 0) return 1;
+    if (st.T_c[0][GVS_TABLES.i_oil] != (gvs_real)(T_hot - 3.0) || st.T_c[0][0] != saved.T_c[0][0]) bad = 3;
+    /* contents that are no sensor state */
+    memset(&st, 0xFF, sizeof st);
+    if (gvs_sensor_resume(&st, 50.0) != -1) bad = 4;
+    memcpy(&st, &saved, sizeof st);
+    st.level[3] = 7;
+    if (gvs_sensor_resume(&st, 50.0) != -1) bad = 5;
+    printf("%s %d key %08x\n", bad ? "FAIL" : "PASS", bad, (unsigned)GVS_STATE_KEY);
+    return bad;
+}
+"""
+
+
+@pytest.mark.skipif(not HAVE_CC, reason="no make or C compiler on this machine")
+def test_restoring_a_saved_state(bundles, tmp_path):
+    """From an integrator audit: the README's 'persist and restore' left the restored time base in place (an
+    uptime clock from 0 skipped the first 1000 s), applied no oil reading (a 12 h soak kept a 120 degC state) and
+    had no key that told one export's state from another's. gvs_sensor_resume restarts the time base, applies the
+    oil as the Python sensor's restore does, and refuses contents that are no state; GVS_STATE_KEY differs between
+    exports."""
+    (tmp_path / "resume.c").write_text(RESUME_PROGRAM)
+    cc = shutil.which("cc") or shutil.which("gcc")
+    keys = {}
+    for name in ("float", "double"):
+        d = bundles[name]
+        exe = tmp_path / f"resume_{name}"
+        build = subprocess.run([cc, "-std=c99", "-Wall", "-Wextra", "-Werror", f"-I{d}", "-o", str(exe),
+                                str(tmp_path / "resume.c"), *(str(d / f) for f in ("gvs_kernel.c", "gvs_sensor.c",
+                                                                                   "gvs_tables.c")), "-lm"],
+                               capture_output=True, text=True)
+        assert build.returncode == 0, build.stderr
+        run = subprocess.run([str(exe)], capture_output=True, text=True, timeout=120)
+        assert run.returncode == 0 and "PASS" in run.stdout, run.stdout
+        keys[name] = run.stdout.split()[-1]
+    other = tmp_path / "grso"
+    assert main(["export-c", "--variant", "GRSO905", "--out", str(other), "--quiet"]) == 0
+    grso = re.search(r"#define GVS_STATE_KEY (0x[0-9a-f]+)u", (other / "gvs_sensor.h").read_text()).group(1)
+    assert len({keys["float"], keys["double"], grso[2:]}) == 3
+
+
+@pytest.mark.skipif(not HAVE_CC, reason="no make or C compiler on this machine")
+def test_a_file_built_with_other_sizes_or_real_type_stops_the_build(bundles, tmp_path):
+    """From an integrator audit: the kernel built with the default sizes and the application with the export's
+    overran a struct (ASan), a double kernel with a float application crashed. The exported header now fixes them:
+    a file built without flags gets the export's; one with other values stops with #error."""
+    cc = shutil.which("cc") or shutil.which("gcc")
+    d = bundles["float"]
+    ok = subprocess.run([cc, "-std=c99", "-c", "-o", str(tmp_path / "k.o"), str(d / "gvs_kernel.c")],
+                        capture_output=True, text=True)
+    assert ok.returncode == 0, ok.stderr
+    for flag, what in (("-DGVS_MAX_NODES=96", "GVS_MAX_NODES of this export is"),):
+        bad = subprocess.run([cc, "-std=c99", flag, "-c", "-o", str(tmp_path / "x.o"), str(d / "gvs_sensor.c")],
+                             capture_output=True, text=True)
+        assert bad.returncode != 0 and what in bad.stderr, bad.stderr
+    bad = subprocess.run([cc, "-std=c99", "-DGVS_REAL_FLOAT", "-c", "-o", str(tmp_path / "y.o"),
+                          str(bundles["double"] / "gvs_kernel.c")], capture_output=True, text=True)
+    assert bad.returncode != 0 and "double build" in bad.stderr, bad.stderr

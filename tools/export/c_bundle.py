@@ -13,6 +13,7 @@ available" (NaN) and the early warning is off (lead 0 s).
 """
 from __future__ import annotations
 
+import hashlib
 import math
 from pathlib import Path
 
@@ -122,14 +123,59 @@ def vectors_source(vec: dict, real: str, ttl: bool = True) -> str:
     return "".join(parts)
 
 
-def capacities(sp) -> str:
-    """The -D flags that size the kernel's structs exactly for this variant (RAM on an ECU)."""
+def capacity_values(sp) -> tuple[dict, bool]:
+    """(the struct capacities that size the kernel's structs exactly for this variant (RAM on an ECU), int16
+    indices?)."""
     a = table_arrays(sp)
     caps = dict(GVS_MAX_NODES=a["n"], GVS_MAX_LINKS=a["nl"], GVS_MAX_SRC=a["ns"], GVS_MAX_BC=a["nb"],
                 GVS_MAX_STREAMS=a["nst"], GVS_MAX_TERMS=max(a["n2"], a["ne"], a["ncol"], 1),
                 GVS_MAX_LNZ=max(a["ldl_nnz"], 1))
-    flags = " ".join(f"-D{k}={int(v)}" for k, v in caps.items())
-    return flags + (" -DGVS_INDEX16" if index16_fits(a) else "")
+    return {k: int(v) for k, v in caps.items()}, index16_fits(a)
+
+
+def capacities(sp) -> str:
+    """The -D flags of :func:`capacity_values`."""
+    caps, index16 = capacity_values(sp)
+    return " ".join(f"-D{k}={v}" for k, v in caps.items()) + (" -DGVS_INDEX16" if index16 else "")
+
+
+def pinned_kernel_header(header: str, sp, real: str, variant: str) -> str:
+    """The kernel's header with this export's build settings fixed in it (struct capacities, index width, real
+    type, source id): every file that includes it shares them, and a file compiled with other values stops with
+    #error instead of overrunning a struct another file sized differently."""
+    caps, index16 = capacity_values(sp)
+    lines = [f"/* ---- fixed by gearbox-vsensor export-c for {variant}, {real}: every file of the build shares these "
+             "(a -D with another value stops the build) */"]
+    for k, v in caps.items():
+        lines += [f"#if defined({k}) && {k} != {v}", f'#error "{k} of this export is {v}: build with its Makefile\'s '
+                  'flags, or none"', "#endif", f"#ifndef {k}", f"#define {k} {v}", "#endif"]
+    if index16:
+        lines += ["#ifndef GVS_INDEX16", "#define GVS_INDEX16 1", "#endif"]
+    else:
+        lines += ["#ifdef GVS_INDEX16", '#error "this export\'s tables use int32 indices: do not set GVS_INDEX16"',
+                  "#endif"]
+    if real == "float":
+        lines += ["#ifndef GVS_REAL_FLOAT", "#define GVS_REAL_FLOAT 1", "#endif"]
+    else:
+        lines += ["#ifdef GVS_REAL_FLOAT", '#error "this export is a double build: do not set GVS_REAL_FLOAT"',
+                  "#endif"]
+    lines += ["#ifndef GVS_SOURCE_ID", f'#define GVS_SOURCE_ID "{source_id()}"', "#endif",
+              "/* ---- end of the export's settings */", ""]
+    anchor = "#include <stdint.h>\n"
+    if anchor not in header:
+        raise RuntimeError("gvs_kernel.h has no '#include <stdint.h>' line to put the export's settings after")
+    return header.replace(anchor, anchor + "\n" + "\n".join(lines), 1)
+
+
+def state_key(files: dict, real: str, ttl: bool) -> int:
+    """A 32-bit key of everything a saved gvs_state depends on: kernel sources, tables (variant and configuration),
+    real type, capacities, time to limit on or off. A state saved by another export has another key."""
+    h = hashlib.sha256()
+    for name in ("gvs_kernel.c", "gvs_kernel.h", "gvs_tables.c"):
+        data = files[name]
+        h.update(data if isinstance(data, bytes) else data.encode())
+    h.update(f"{real} {int(ttl)}".encode())
+    return int.from_bytes(h.digest()[:4], "big")
 
 
 def index16_fits(arrays: dict) -> bool:
@@ -171,11 +217,15 @@ def export_c(out_dir, variant: str = "GRS905", config_path=None, real: str = "fl
     real_flag = "-DGVS_REAL_FLOAT" if real == "float" else ""
     tol = "0.05" if real == "float" else "1e-9"
     ttl_abs, ttl_rel = TTL_TOL[real]
-    files = {name: (SOURCE_DIR / name).read_bytes() for name in ("gvs_kernel.c", "gvs_kernel.h")}
+    reset_s = f"{sensor.options.clock_reset_s:g}"
+    files = {"gvs_kernel.c": (SOURCE_DIR / "gvs_kernel.c").read_bytes(),
+             "gvs_kernel.h": pinned_kernel_header((SOURCE_DIR / "gvs_kernel.h").read_text(), sensor.sp, real,
+                                                  params.variant),
+             "gvs_tables.c": tables_source(sensor.sp, real, params.variant, ttl)}
     files.update({
-        "gvs_sensor.h": API_HEADER.format(variant=params.variant, real=real, ttl=int(ttl)),
+        "gvs_sensor.h": API_HEADER.format(variant=params.variant, real=real, ttl=int(ttl),
+                                          key=f"0x{state_key(files, real, ttl):08x}u", reset=reset_s),
         "gvs_sensor.c": SENSOR_SOURCE,
-        "gvs_tables.c": tables_source(sensor.sp, real, params.variant, ttl),
         "gvs_vectors.c": vectors_source(reference_vectors(sensor, params), real, ttl),
         "gvs_test.c": TEST_PROGRAM.replace("@TOL@", tol).replace("@TTL_ABS@", repr(ttl_abs))
                                   .replace("@TTL_REL@", repr(ttl_rel)),
@@ -186,7 +236,7 @@ def export_c(out_dir, variant: str = "GRS905", config_path=None, real: str = "fl
         "cortex-m4/footprint.c": FOOTPRINT,
         "README.md": README.format(variant=params.variant, real=real, tol=tol,
                                    ttl_text=_ttl_text(ttl, real, float(limits.lead_s)), source_id=source_id(),
-                                   n=sensor.reduced.n)})
+                                   n=sensor.reduced.n, reset=reset_s)})
     # all or nothing: each file to a temporary one beside it, renamed when all are written; on a failure what this
     # run wrote and the directories it made are removed, files that were there before untouched (tools.outputs)
     return write_tree(out, files, "--out")

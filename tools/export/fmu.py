@@ -65,8 +65,9 @@ def _platform_dir(fmi_version: int = 2) -> str:
 def _variables(limits) -> list[tuple]:
     """(name, vr, type, causality, variability, start or None, description) of every variable."""
     from firmware_model.service.options import SENSOR_INPUTS
-    v = [(col, VR["VR_INPUT"] + i, "Real", "input", "continuous", INPUT_START[i], f"sensor input {field}")
-         for i, (field, col) in enumerate(SENSOR_INPUTS)]
+    # the gear is discrete: an importer must hold it between samples, not interpolate it (a gear 8.3 is rejected)
+    v = [(col, VR["VR_INPUT"] + i, "Real", "input", "discrete" if field == "gear" else "continuous", INPUT_START[i],
+          f"sensor input {field}") for i, (field, col) in enumerate(SENSOR_INPUTS)]
     for i, c in enumerate(PUBLISHED):
         v.append((f"T_{c}_c", VR["VR_T"] + i, "Real", "output", "discrete", None, f"{describe(c)} [degC]"))
     for i, c in enumerate(PUBLISHED):

@@ -42,6 +42,25 @@ static void reset(Instance *m)
     m->time_s = 0.0;
     m->initialised = 0;
     memset(&m->out, 0, sizeof m->out);
+    memset(&m->st, 0, sizeof m->st);             /* no counter of the run before a reset reads on */
+}
+
+/* the outputs at the start, before any step: the state as started (levels as kept, the time to limit not yet
+ * refreshed: NaN; nothing stepped: mode 2, no input valid), not zeros */
+static void publish_state(Instance *m)
+{
+    int i;
+    memset(&m->out, 0, sizeof m->out);
+    for (i = 0; i < GVS_N_PUB; ++i) {
+        m->out.T_c[i] = m->st.T_c[0][GVS_TABLES.published_index[i]];
+        m->out.level[i] = m->st.level[i];
+        m->out.ttl_s[i] = (gvs_real)NAN;
+    }
+    m->out.model_oil_temp_c = m->st.T_c[1][GVS_TABLES.i_oil];
+    m->out.oil_innovation_c = (gvs_real)NAN;
+    m->out.degraded_mode = 2;
+    m->out.oil_source = 1;
+    memcpy(m->out.rejects, m->st.rejects, sizeof m->out.rejects);
 }
 
 /* the end of initialisation: the tuned limits checked and taken, the state started; 0 or -1 (logged) */
@@ -58,7 +77,13 @@ static int exit_init(Instance *m)
     m->tb.warning_c = m->warning_c;
     m->tb.critical_c = m->critical_c;
     m->tb.warning_rest_c = m->rest_c;
+    if (m->initial_temp_c == m->initial_temp_c && !(m->initial_temp_c >= (double)GVS_TABLES.input_lo[GVS_I_OIL]
+                                                     && m->initial_temp_c <= (double)GVS_TABLES.input_hi[GVS_I_OIL])) {
+        m->log(m, 1, "initial_temp_c must be NaN (the first oil input) or within the oil input's plausible range");
+        return -1;
+    }
     gvs_sensor_init(&m->st, m->initial_temp_c == m->initial_temp_c ? m->initial_temp_c : m->inputs[GVS_I_OIL]);
+    publish_state(m);
     m->initialised = 1;
     return 0;
 }
@@ -72,6 +97,10 @@ static int do_step(Instance *m, double t, double h)
     int i;
     if (!m->initialised || n < 1 || fabs(n_real - (double)n) > 1e-6) {
         m->log(m, 1, "the communication step must be a positive multiple of 0.1 s");
+        return -1;
+    }
+    if (fabs(t - m->time_s) > 1e-6 * (1.0 + fabs(t))) {
+        m->log(m, 1, "a communication step must start where the last one ended (this FMU cannot skip or go back)");
         return -1;
     }
     for (i = 0; i < GVS_N_INPUTS; ++i) in.raw[i] = m->inputs[i];
@@ -113,6 +142,18 @@ static int int_out(const Instance *m, unsigned r, long *value)
     else if (r == VR_FROZEN) *value = m->out.frozen_flags;
     else if (r >= VR_REJECT && r < VR_REJECT + GVS_N_REJECT) *value = (long)m->st.rejects[r - VR_REJECT];
     else return -1;
+    return 0;
+}
+
+/* the variant parameter: this FMU's tables are of one variant; setting it to that value is accepted (an importer
+ * applying a parameter set), any other refused; 0 or -1 (logged) */
+static int set_variant(Instance *m, unsigned r, const char *value)
+{
+    if (r != VR_VARIANT) return -1;
+    if (value == NULL || strcmp(value, GVS_VARIANT) != 0) {
+        m->log(m, 1, "this FMU holds the tables of variant " GVS_VARIANT "; export an FMU of the other variant");
+        return -1;
+    }
     return 0;
 }
 
@@ -227,7 +268,12 @@ fmi2Status fmi2SetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t
 fmi2Status fmi2SetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t n, const fmi2Boolean v[])
 { (void)c; (void)vr; (void)v; return n ? fmi2Error : fmi2OK; }
 fmi2Status fmi2SetString(fmi2Component c, const fmi2ValueReference vr[], size_t n, const fmi2String v[])
-{ (void)c; (void)vr; (void)v; return n ? fmi2Error : fmi2OK; }
+{
+    size_t i;
+    for (i = 0; i < n; ++i)
+        if (set_variant((Instance *)c, vr[i], v[i]) != 0) return fmi2Error;
+    return fmi2OK;
+}
 
 fmi2Status fmi2GetFMUstate(fmi2Component c, fmi2FMUstate *s) { (void)c; (void)s; return fmi2Error; }
 fmi2Status fmi2SetFMUstate(fmi2Component c, fmi2FMUstate s) { (void)c; (void)s; return fmi2Error; }
@@ -429,7 +475,13 @@ fmi3Status fmi3GetString(fmi3Instance instance, const fmi3ValueReference valueRe
 
 fmi3Status fmi3SetString(fmi3Instance instance, const fmi3ValueReference valueReferences[], size_t nValueReferences,
                          const fmi3String values[], size_t nValues)
-{ (void)valueReferences; (void)values; (void)nValues; return nValueReferences ? unsupported(instance) : fmi3OK; }
+{
+    size_t i;
+    if (nValues != nValueReferences) return fmi3Error;
+    for (i = 0; i < nValueReferences; ++i)
+        if (set_variant((Instance *)instance, valueReferences[i], values[i]) != 0) return fmi3Error;
+    return fmi3OK;
+}
 
 /* the rest of the FMI 3 interface: not supported by a co-simulation FMU without FMU state, clocks or derivatives */
 fmi3Status fmi3EnterEventMode(fmi3Instance instance) { return unsupported(instance); }

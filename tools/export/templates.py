@@ -15,15 +15,30 @@ API_HEADER = """/* gearbox-vsensor: the onboard virtual temperature sensor of a 
 extern const gvs_tables GVS_TABLES;
 extern const gvs_vehicle GVS_VEHICLE;
 
+/* the key of a saved gvs_state: kernel sources, tables (variant, configuration), real type, sizes and the time to
+ * limit of this export; store it with the state and restore only a state saved under the same key */
+#define GVS_STATE_KEY {key}
+
 /* Cold start: every node at the measured oil temperature T_oil_c (NaN, or outside the oil input's plausible
- * range: the ambient default). */
+ * range: the ambient default of the tables, 25 degC unless configured). */
 void gvs_sensor_init(gvs_state *st, double T_oil_c);
 
-/* One 0.1 s step: call every 100 ms with the latest inputs (NaN = not available). A forward time jump in
- * in->t_s is counted (rejects time_jump) and the state continues from before the gap (this build does not
- * propagate over gaps; the host build does). With GVS_EXPORT_TTL the step that is due refreshes the time to limit
- * after its outputs are written (out->ttl_s shows the last refresh counted down, as on the host). Returns GVS_OK,
- * or GVS_SKIPPED when t_s went backwards. */
+/* Warm start from a state saved on shutdown (same GVS_STATE_KEY, CRC checked by the caller): 0, or -1 when its
+ * contents are not a sensor state (a temperature not finite or outside -100..500 degC, a level outside 0..3, a
+ * negative count): then start cold with gvs_sensor_init. Restarts the time base (the next t_s may be anything, an
+ * uptime counter from 0 too) and the step count, forgets the time to limit, and applies a plausible oil reading
+ * T_oil_c (NaN: none) as the host sensor does: more than 10 K from the saved sump, every node starts at it; else
+ * the sump takes it. It does not cool the state over the time the truck stood (the host sensor does): after a long
+ * stop without an oil reading, start cold instead. */
+int gvs_sensor_resume(gvs_state *st, double T_oil_c);
+
+/* One 0.1 s step: call every 100 ms with the latest inputs (NaN = not available). Each accepted call advances the
+ * model by exactly 0.1 s. in->t_s (NaN: on the 100 ms grid) less than 0.05 s after the last step, or back by up to
+ * {reset} s: GVS_SKIPPED (counted as time_backward; nothing integrated, outputs repeat the state). Back by more than
+ * {reset} s: a reset clock, its time the new base (counted, stepped). More than 0.15 s after the last step: counted as
+ * time_jump, and this build continues from the state before the gap (it does not integrate over gaps; the host
+ * build does). With GVS_EXPORT_TTL the step that is due refreshes the time to limit after its outputs are written
+ * (out->ttl_s shows the last refresh counted down, as on the host). Returns GVS_OK or GVS_SKIPPED. */
 int gvs_sensor_step(gvs_state *st, const gvs_inputs *in, gvs_outputs *out);
 
 #endif
@@ -51,6 +66,32 @@ void gvs_sensor_init(gvs_state *st, double T_oil_c)
     st->oil_ref_c = T0;
     for (i = 0; i < GVS_N_PUB; ++i) st->ttl_s[i] = (gvs_real)NAN;
     st->t_last_s = NAN;
+}
+
+int gvs_sensor_resume(gvs_state *st, double T_oil_c)
+{
+    const gvs_tables *tb = &GVS_TABLES;
+    int i, c, io = tb->i_oil;
+    for (c = 0; c < 2; ++c)
+        for (i = 0; i < tb->n; ++i)
+            if (!(st->T_c[c][i] >= (gvs_real)-100.0 && st->T_c[c][i] <= (gvs_real)500.0)) return -1;
+    for (i = 0; i < GVS_N_PUB; ++i)
+        if (st->level[i] < 0 || st->level[i] > 3) return -1;
+    for (i = 0; i < GVS_N_REJECT; ++i)
+        if (st->rejects[i] < 0) return -1;
+    if (st->k < 0) return -1;
+    /* the oil reading (VirtualSensor._restored_state with no time elapsed) */
+    if (T_oil_c >= (double)tb->input_lo[GVS_I_OIL] && T_oil_c <= (double)tb->input_hi[GVS_I_OIL]) {
+        gvs_real T = (gvs_real)T_oil_c;
+        if (fabs((double)st->T_c[0][io] - T_oil_c) > 10.0)
+            for (c = 0; c < 2; ++c)
+                for (i = 0; i < tb->n; ++i) st->T_c[c][i] = T;
+        st->T_c[0][io] = st->T_c[1][io] = T;
+    }
+    st->t_last_s = NAN;
+    st->k = 0;
+    for (i = 0; i < GVS_N_PUB; ++i) st->ttl_s[i] = (gvs_real)NAN;
+    return 0;
 }
 
 int gvs_sensor_step(gvs_state *st, const gvs_inputs *in, gvs_outputs *out)
@@ -358,13 +399,31 @@ gear_missing, gear_unknown, oil_missing, oil_implausible, oil_frozen, drive_froz
 time_backward).
 
 Bad input never produces a NaN temperature: a missing or implausible value is held, clamped or replaced by its
-default and counted; drive inputs missing for more than 10 s make every level 3 (not available).
+default and counted; drive inputs missing for more than 10 s make every level 3 (not available). That promise is
+about the inputs: a state never started with `gvs_sensor_init` (or `gvs_sensor_resume`), or overwritten in RAM, is
+outside it.
+
+Timing: each accepted call advances the model by exactly 0.1 s, so call it from a 100 ms task; a scheduler that
+runs 40 % slow makes the model 40 % slow, and nothing counts that unless you pass `t_s`. With `t_s` (seconds, any
+origin; NaN: on the 100 ms grid): a call less than 0.05 s after the last step, or up to {reset} s back, returns
+`GVS_SKIPPED` (counted as time_backward; outputs repeat the state); more than {reset} s back is a reset clock (counted,
+stepped: its time is the new base); more than 0.15 s after the last step is counted as time_jump and the state
+continues from before the gap (this build does not integrate over gaps: the Python sensor propagates the held
+inputs over them).
 
 {ttl_text}
 
 Thread safety: the functions keep no global state; one `gvs_state` per sensor, not shared between threads without
-a lock. Persisting the state across ignition cycles: `gvs_state` is plain data; write it (with a CRC and the kernel
-source id above) on shutdown and restore it at start-up, or start cold with `gvs_sensor_init`.
+a lock.
+
+Persisting the state across ignition cycles: `gvs_state` is plain data (`sizeof(gvs_state)` bytes in this build).
+On shutdown write it with `GVS_STATE_KEY` (from `gvs_sensor.h`: it changes with the kernel, the variant, the
+configuration, the real type and the sizes, so a state of another export is never taken for this one's) and a CRC
+of your choice. At start-up read it back; if the key or the CRC differs, or `gvs_sensor_resume(&state, oil_temp_c)`
+returns -1 (contents that are no sensor state), start cold with `gvs_sensor_init`. `gvs_sensor_resume` restarts
+the time base (your `t_s` may restart from 0) and applies the oil reading as the Python sensor does. It does not
+cool the saved state over the stop: after a long stop with no oil reading at start-up, `gvs_sensor_init` (the ambient
+default) is closer than the state of the last shutdown.
 """
 
 STARTUP = """/* Minimal start-up of an ARM Cortex-M4F as QEMU's mps2-an386 board emulates it: the vector table, the FPU

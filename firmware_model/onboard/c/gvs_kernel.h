@@ -217,7 +217,7 @@ int gvs_step(const gvs_tables *tb, const gvs_vehicle *veh, gvs_state *st, const 
 /* The time to limit [s] of every published component (0: at or above its warning limit now; +inf: not within
  * 2e6 s; NaN: the held system has no finite steady state, or tables without the time to limit's, ldl_nnz 0)
  * from a due refresh's operating point p, into ttl_s[28].
- * Returns GVS_OK, or GVS_BAD_TABLES. Cost: one sparse factorisation and solve, then up to 65 march steps of one
+ * Returns GVS_OK, or GVS_BAD_TABLES. Cost: one sparse factorisation and solve, then up to 41 march steps of one
  * factorisation and three solves each until every component has crossed or provably cannot. */
 int gvs_ttl_refresh(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl_point *p, gvs_real *ttl_s);
 
