@@ -168,20 +168,93 @@ def test_bad_logs_land_in_the_errors_table_and_reruns_skip(tmp_path, synthetic):
     (logs / "picture.log").write_bytes(bytes(range(256)) * 8)
     import gzip
     (logs / "packed.log.gz").write_bytes(gzip.compress(raw))          # was skipped without a word
+    # a log of another ECU's traffic only (no engine, no gear): summarised, but not trusted, as `replay` says
+    (logs / "nogear.log").write_text("".join(f"({1.7e9 + 0.1 * k:.6f}) can0 18FEF100#FFFFFFFFFFFFFFFF\n"
+                                             for k in range(3000)))
     out = tmp_path / "out"
-    args = [str(logs), str(logs / "notes.txt"), "--out", str(out), "--workers", "1", "--no-report"]
+    args = [str(logs), str(logs / "notes.txt"), "--out", str(out), "--workers", "1"]
     fleet(*args)
     errors = {Path(r["log"]).name: r["reason"] for r in read_table(out, ERRORS).to_pylist()}
     assert set(errors) == {"empty.log", "notes.txt", "picture.log", "truncated.log", "packed.log.gz"}
     assert "gzip-compressed" in errors["packed.log.gz"]
     assert "empty" in errors["empty.log"] and "unknown log suffix" in errors["notes.txt"]
     assert "binary data" in errors["picture.log"] and "truncated" in errors["truncated.log"]
-    summarised = {Path(r["log"]).name for r in read_table(out).to_pylist()}
-    assert summarised == {"good.log"}
-    before = sorted(str(p) for p in out.rglob("*.parquet"))
-    fleet(*args)                                             # a re-run: everything done, nothing written twice
-    assert sorted(str(p) for p in out.rglob("*.parquet")) == before
-    assert len(read_table(out).to_pylist()) == len(summarised)
+    rows = {Path(r["log"]).name: r for r in read_table(out).to_pylist()}
+    assert set(rows) == {"good.log", "nogear.log"}
+    assert rows["good.log"]["trusted"] and not rows["nogear.log"]["trusted"] and rows["nogear.log"]["trust_warnings"]
+    report = (out / "report.md").read_text()
+    assert "should not be trusted (1," in report and "| nogear.log |" in report
+    summary_files = sorted(str(p) for p in (out / "summary").rglob("*.parquet"))
+    fleet(*args)             # a re-run: the summarised logs are not redone, the failed ones tried again, once each
+    assert sorted(str(p) for p in (out / "summary").rglob("*.parquet")) == summary_files
+    assert len(read_table(out).to_pylist()) == len(rows)
+    assert sorted(Path(r["log"]).name for r in read_table(out, ERRORS).to_pylist()) == sorted(errors)
+    assert len(list((out / "errors").glob("*.parquet"))) == 1
+    # from a fleet audit: a log in the errors table was never tried again, even once it was complete
+    (logs / "truncated.log").write_bytes(raw)
+    fleet(*args)
+    assert "truncated.log" in {Path(r["log"]).name for r in read_table(out).to_pylist()}
+    assert "truncated.log" not in {Path(r["log"]).name for r in read_table(out, ERRORS).to_pylist()}
+
+
+POISON_PRELOAD = """
+import os
+
+
+def dask_setup(worker):
+    import tools.fleet.run as run
+    real = run.process_log
+
+    def process_log(entry, *args, **kwargs):
+        if "poison" in str(entry.log):
+            os._exit(1)          # a log that kills its worker (out of memory, a crash in a library)
+        return real(entry, *args, **kwargs)
+    run.process_log = process_log
+"""
+
+
+def test_a_log_that_kills_its_workers_fails_alone(tmp_path, synthetic):
+    """From a fleet audit: the whole batch of a log that killed its workers went to the errors table (up to 64
+    innocent logs, never tried again) without naming the culprit. Now the batch's logs are run one by one and only
+    the culprit fails."""
+    logs = tmp_path / "logs" / "truckP"
+    logs.mkdir(parents=True)
+    src = read_manifest(synthetic)
+    for i, e in enumerate(src[:5]):
+        shutil.copy(e.log, logs / f"good{i}.log")
+    shutil.copy(src[0].log, logs / "poison.log")
+    (tmp_path / "poisonpre.py").write_text(POISON_PRELOAD)
+    out = tmp_path / "out"
+    run_fleet_in_child(tmp_path, f"""
+        import sys
+        sys.path.insert(0, {str(tmp_path)!r})
+        from dask.distributed import LocalCluster
+        from tools.fleet.manifest import entries_from_paths
+        cl = LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=":0",
+                          preload=["poisonpre"], silence_logs=50)
+        try:
+            run_fleet(entries_from_paths([{str(logs)!r}]), {str(out)!r}, scheduler=cl.scheduler_address,
+                      max_logs=8)
+        finally:
+            cl.close()
+        """)
+    assert sorted(Path(r["log"]).name for r in read_table(out).to_pylist()) == [f"good{i}.log" for i in range(5)]
+    errors = read_table(out, ERRORS).to_pylist()
+    assert [Path(r["log"]).name for r in errors] == ["poison.log"] and "died" in errors[0]["reason"]
+
+
+def test_an_asc_log_takes_its_date_from_its_header(tmp_path):
+    """From a fleet audit: python-can reads an ASC log's frame times from its start, so every .asc log was dated
+    'unknown' and --diagnose left it out without a word."""
+    from tools.fleet.summary import asc_date
+    p = tmp_path / "a.asc"
+    p.write_text("date Fri Nov 27 08:10:02.123 2026\nbase hex  timestamps absolute\ninternal events logged\n"
+                 "Begin Triggerblock Mon Jan 05 08:00:00.10 am 2026\n   0.100000 1  18FEF100x  Rx   d 8 FF FF\n")
+    assert asc_date(p) == "2026-01-05"
+    p.write_text("date Mi Okt 07 08:10:02.123 2026\nbase hex  timestamps absolute\n")
+    assert asc_date(p) == "2026-10-07"
+    p.write_text("base hex  timestamps absolute\n")
+    assert asc_date(p) is None
 
 
 def _error(capsys, args) -> str:
@@ -220,6 +293,14 @@ def test_bad_input_is_one_sentence_and_writes_nothing(tmp_path, synthetic, capsy
     assert not out.exists()
     with pytest.raises(InputError):
         read_manifest(tmp_path / "absent.csv")
+
+
+def test_a_period_that_is_no_whole_day_is_one_sentence(tmp_path, synthetic, capsys):
+    """From a fleet audit: --period-days 0.5 numbered the periods 0, 2, 4 ... and the level rule, which needs
+    consecutive periods, never fired."""
+    msg = _error(capsys, ["fleet", "--manifest", str(synthetic), "--out", str(tmp_path / "o"), "--diagnose",
+                          "--period-days", "0.5"])
+    assert "whole number of days" in msg and not (tmp_path / "o").exists()
 
 
 def test_a_manifest_date_that_is_no_day_is_one_sentence_before_anything_runs(tmp_path, synthetic, capsys):

@@ -53,7 +53,8 @@ def add_subparser(sub):
                         "others a drift of the oil volume from the temperature is only a 'to watch' (a leak moves "
                         "the oil less than the model's own error); docs/fleet.md)")
     p.add_argument("--period-days", type=float, default=None, metavar="DAYS",
-                   help="the --diagnose period (default 7 days)")
+                   help="the --diagnose period in whole days (default 7); a drift is flagged after 4 periods at the "
+                        "earliest (2 of baseline, 2 drifting)")
     p.add_argument("--no-report", action="store_true", help="skip report.md and its plots")
     p.set_defaults(func=run)
     return p
@@ -78,8 +79,9 @@ def run(args) -> int:
     if args.period_days is not None and not args.diagnose:
         raise InputError("--period-days sets the health fit's period, which only --diagnose runs")
     args.period_days = PERIOD_DAYS_DEFAULT if args.period_days is None else args.period_days
-    if not args.period_days > 0:
-        raise InputError(f"--period-days {args.period_days} must be positive")
+    if not (args.period_days >= 1 and float(args.period_days).is_integer()):
+        raise InputError(f"--period-days {args.period_days:g} must be a whole number of days, at least 1 (the periods "
+                         f"are counted in days from the first log's date)")
     if args.scheduler and not re.fullmatch(r"(tcp|tls|inproc|ucx|ws|wss)://[^\s/]+(:\d+)?/?|[\w.-]+:\d+",
                                            args.scheduler):
         raise InputError(f"--scheduler {args.scheduler!r} is not a scheduler address; give tcp://HOST:PORT")
@@ -87,7 +89,8 @@ def run(args) -> int:
     res = run_fleet(entries, args.out, scheduler=args.scheduler, workers=args.workers, estimates=args.estimates,
                     diagnose=args.diagnose)
     wall_s = time.perf_counter() - t0
-    print(f"fleet: {res.logs} logs of {len({e.vehicle for e in entries})} vehicles; {res.skipped} done before, "
+    n_vehicles = len({e.vehicle for e in entries})
+    print(f"fleet: {res.logs} logs of {n_vehicles} vehicle{'s' if n_vehicles != 1 else ''}; {res.skipped} done before, "
           f"{res.summarised} summarised, {res.failed} in the errors table; {res.tasks} tasks on {res.workers} "
           f"workers in {wall_s:.1f} s")
     from tools.fleet.store import ERRORS, read_table
@@ -100,6 +103,12 @@ def run(args) -> int:
     if args.diagnose:
         from tools.fleet.health import fleet_health
         health = fleet_health(args.out, period_days=args.period_days)
+        from tools.fleet.health import JUDGED_PERIODS
+        if health.periods:
+            print(f"health: {health.judged} of {health.vehicles} vehicles have the {JUDGED_PERIODS} periods of "
+                  f"{args.period_days:g} days a drift needs before it can be flagged (a baseline, then a run)"
+                  + (f"; {health.undated} fitted logs left out: no date (give one in the manifest's date column)"
+                     if health.undated else ""))
         print(f"health: {health.periods} vehicle-periods fitted; flagged: "
               + (", ".join(f"{f.vehicle} ({f.effect})" for f in health.flags) or "none")
               + "; to watch (oil level from the oil temperature, not identifiable: check it): "

@@ -57,7 +57,8 @@ LEVEL_DRIFT_MIN_SHARE = DRIFT_MIN["oil_level_low"] / NOMINAL_VOLUME_L
 LEVEL_DRIFT_MIN_PCT = 3 * LEVEL_BIT_PCT
 LEVEL_PLAUSIBLE_MIN_PCT = 30.0
 LEVEL_MIN_LOGS = 2
-#: a log contributes to the fit only with at least this share of measured oil
+#: a log contributes to the fit only with at least this share of measured oil (readings the sensor used: a reading
+#: it rejected as frozen or implausible is no measurement)
 MIN_OIL_SHARE = 0.8
 _MODELS: dict = {}
 
@@ -85,6 +86,8 @@ def fit_log(table, variant: str | None = None, config: str | None = None) -> dic
     from tools.diagnosis.models import Run
     from tools.runtable import RunTable
     oil = np.asarray(table["oil_temp_c"], dtype=float)
+    if table.has("oil_valid"):              # the sensor's verdict on each reading (frozen, implausible: not used)
+        oil = np.where(np.asarray(table["oil_valid"], dtype=float) == 1, oil, np.nan)
     if table.n < 2 * int(DECORRELATION_S / 0.1) or np.mean(np.isfinite(oil)) < MIN_OIL_SHARE:
         return None
     t = np.asarray(table["time_s"], dtype=float)
@@ -182,6 +185,9 @@ class Health(NamedTuple):
     flags: list
     watch: tuple | list = ()    # Flag(kind="watch"): oil-level drifts from the temperature alone
     why_none: str = ""          # why no vehicle-period was fitted (nothing is written then)
+    vehicles: int = 0           # vehicles with a fitted period
+    judged: int = 0             # of them, those with the periods a judgement needs (JUDGED_PERIODS)
+    undated: int = 0            # fitted logs left out: no date (frame times not Unix time, none in the manifest)
 
 
 def _level_rows(rows: list) -> list:
@@ -285,7 +291,13 @@ def _check_grids(out: str | Path, rows: list[dict]) -> None:
 
 #: why no vehicle-period was fitted when no log was (fit_log's conditions)
 NO_FIT = (f"no log was long enough to fit: each needs at least {2 * DECORRELATION_S / 60:.0f} min of replay with the "
-          f"oil temperature measured on {MIN_OIL_SHARE:.0%} of its steps or more")
+          f"oil temperature measured (and used by the sensor) on {MIN_OIL_SHARE:.0%} of its steps or more")
+#: why, when the folder's logs were summarised but none has a fit
+NO_FIT_HERE = ("no log in this folder has a health fit: either none was long enough (" + NO_FIT.split(": ", 1)[1]
+               + "), or its logs were summarised by a run without --diagnose, which a re-run skips: run --diagnose "
+               "into a new --out folder")
+#: the periods a vehicle needs before a drift can be flagged: a baseline, then a run of drifting periods
+JUDGED_PERIODS = BASELINE_PERIODS + CONSECUTIVE
 
 
 def fleet_health(out: str | Path, period_days: float = 7.0) -> Health:
@@ -297,14 +309,15 @@ def fleet_health(out: str | Path, period_days: float = 7.0) -> Health:
     fits = read_table(out, "fits")
     summary = read_table(out)
     if fits is None or summary is None or not fits.num_rows:
-        return Health(0, [], [], why_none=NO_FIT)
+        return Health(0, [], [], why_none=NO_FIT_HERE if summary is not None and summary.num_rows else NO_FIT)
     dates = dict(zip(summary.column("log_key").to_pylist(), summary.column("date").to_pylist()))
     unique = {r["log_key"]: r for r in fits.to_pylist()}     # a log fitted twice (a run killed between files)
     _check_grids(out, list(unique.values()))
     rows = [r for r in unique.values() if dates.get(r["log_key"], "unknown") != "unknown"]
+    undated = len(unique) - len(rows)
     if not rows:
         return Health(0, [], [], why_none="no fitted log has a date (its frame times are not Unix time and the "
-                                          "manifest gives none), so none falls into a period")
+                                          "manifest gives none), so none falls into a period", undated=undated)
     day0 = min(dt.date.fromisoformat(dates[r["log_key"]]) for r in rows)
     groups: dict = {}
     for r in rows:
@@ -323,8 +336,14 @@ def fleet_health(out: str | Path, period_days: float = 7.0) -> Health:
                         ("reason", pa.string()), ("kind", pa.string())])
     write_atomic(pa.Table.from_pylist([f._asdict() for f in flags], schema=schema), root / "flags.parquet")
     write_atomic(pa.Table.from_pylist([f._asdict() for f in watch], schema=schema), root / "watch.parquet")
-    return Health(len(period_fits), period_fits, flags, watch)
+    per_vehicle: dict = {}
+    for f in period_fits:
+        per_vehicle[f.vehicle] = per_vehicle.get(f.vehicle, 0) + 1
+    judged = sum(n >= JUDGED_PERIODS for n in per_vehicle.values())
+    return Health(len(period_fits), period_fits, flags, watch, vehicles=len(per_vehicle), judged=judged,
+                  undated=undated)
 
 
-__all__ = ["COOLER_GRID", "VOLUME_GRID_L", "Flag", "Health", "LogData", "PeriodFit", "fit_log", "fit_period",
+__all__ = ["COOLER_GRID", "JUDGED_PERIODS", "VOLUME_GRID_L", "Flag", "Health", "LogData", "PeriodFit", "fit_log",
+           "fit_period",
            "flag_vehicles", "fleet_health", "health_model", "period_level"]

@@ -152,8 +152,9 @@ def check_entries(entries: list[LogEntry], where: str) -> list[LogEntry]:
         first = per_vehicle.setdefault(e.vehicle, e)
         for field in ("variant", "config"):
             if getattr(first, field) != getattr(e, field):
-                raise InputError(f"{where}: vehicle {e.vehicle} has two {field}s, {getattr(first, field)} and "
-                                 f"{getattr(e, field)}; a vehicle is one gearbox (give the other a new vehicle name)")
+                a, b = (getattr(x, field) or f"the default {field} (none given)" for x in (first, e))
+                raise InputError(f"{where}: vehicle {e.vehicle} has two {field}s, {a} and {b}; a vehicle is one "
+                                 f"gearbox (give the other a new vehicle name)")
     _check_gearboxes(per_vehicle.values(), where)
     return entries
 

@@ -16,6 +16,13 @@ from firmware_model.components import PUBLISHED
 from tools.fleet.store import ERRORS, HEALTH, read_table
 
 
+def _save(fig, path: Path) -> None:
+    """A figure written under a temporary name and renamed: complete or absent."""
+    tmp = path.with_name(f".{path.name}.tmp.png")
+    fig.savefig(tmp, dpi=100)
+    os.replace(tmp, path)
+
+
 def _plt():
     import matplotlib
     matplotlib.use("Agg")
@@ -73,7 +80,7 @@ def _plots(c: dict, out: Path, lines: list) -> None:
     ax.set_ylabel("peak per log [degC]")
     ax.set_title(f"Distribution of the per-log peaks, the 6 hottest components ({n} logs)")
     fig.tight_layout()
-    fig.savefig(out / "report_peaks.png", dpi=100)
+    _save(fig, out / "report_peaks.png")
     plt.close(fig)
     above = {k: float(np.sum(c[f"above_warning_{k}_s"])) for k in PUBLISHED}
     vehicles = sorted(set(c["vehicle"]))
@@ -89,10 +96,27 @@ def _plots(c: dict, out: Path, lines: list) -> None:
     a2.set_xlabel("time with any component above warning [min]")
     a2.set_title("By vehicle (15 most)")
     fig.tight_layout()
-    fig.savefig(out / "report_above_warning.png", dpi=100)
+    _save(fig, out / "report_above_warning.png")
     plt.close(fig)
     lines += ["## Peaks and time above the warning level", "", "![peaks](report_peaks.png)", "",
               "![time above warning](report_above_warning.png)", ""]
+
+
+def _trusted_only(c: dict, lines: list) -> dict:
+    """The summary's columns without the logs `replay` would call untrusted (exit status 3), which are listed
+    instead: their peaks are no gearbox's (a log without gearbox messages peaks at its start temperature)."""
+    trusted = [t is not False for t in c.get("trusted", [None] * len(c["log"]))]
+    bad = [i for i, t in enumerate(trusted) if not t]
+    if not bad:
+        return c
+    lines += [f"## Logs whose outputs should not be trusted ({len(bad)}, left out of the peaks and times below)", "",
+              "What `gearbox-vsensor replay` would warn about (exit status 3) for each:", "",
+              "| vehicle | log | warnings |", "|---|---|---|"]
+    lines += [f"| {c['vehicle'][i]} | {os.path.basename(c['log'][i])} | {c['trust_warnings'][i]} |" for i in bad[:50]]
+    if len(bad) > 50:
+        lines.append(f"\n... and {len(bad) - 50} more (the summary's column trusted is false)")
+    lines.append("")
+    return {k: [v[i] for i in range(len(v)) if trusted[i]] for k, v in c.items()}
 
 
 def _flag_table(fl: dict, rows: list) -> list:
@@ -118,10 +142,17 @@ def _health(out: Path, lines: list) -> None:
     periods = _cols(pq.read_table(p))
     fl = _read_flags(out / HEALTH / "flags.parquet")
     wt = _read_flags(out / HEALTH / "watch.parquet")
+    from tools.fleet.health import JUDGED_PERIODS
+    counts: dict = {}
+    for v in periods["vehicle"]:
+        counts[v] = counts.get(v, 0) + 1
+    judged = sum(n >= JUDGED_PERIODS for n in counts.values())
     lines += ["## Fleet health (--diagnose)", "",
-              f"{len(set(periods['vehicle']))} vehicles, {len(periods['vehicle'])} vehicle-periods fitted. "
-              f"Flagged: {len(fl['vehicle'])}. To watch (oil level from the oil temperature): {len(wt['vehicle'])}.",
-              ""]
+              f"{len(counts)} vehicles, {len(periods['vehicle'])} vehicle-periods fitted; {judged} of the "
+              f"{len(counts)} vehicles have the {JUDGED_PERIODS} periods a drift needs before it can be flagged "
+              f"(a baseline, then a run of drifting periods): the others cannot be flagged yet. "
+              f"Flagged: {len(fl['vehicle'])}. To watch (oil level from the oil temperature): {len(wt['vehicle'])}. "
+              f"(From the health tables of the last --diagnose run into this folder.)", ""]
     if fl["vehicle"]:
         lines += _flag_table(fl, range(len(fl["vehicle"])))
     if wt["vehicle"]:
@@ -158,7 +189,7 @@ def _health(out: Path, lines: list) -> None:
         ax.legend(fontsize=7, loc="center left", bbox_to_anchor=(1.0, 0.5))
     fig.suptitle("Flagged and watched vehicles: fitted values per period (1 standard error)")
     fig.tight_layout()
-    fig.savefig(out / "report_health.png", dpi=100)
+    _save(fig, out / "report_health.png")
     plt.close(fig)
     lines += ["![health](report_health.png)", ""]
 
@@ -174,21 +205,32 @@ def write_report(out: str | os.PathLike) -> Path:
     else:
         c = _cols(summary)
         hours = float(np.sum(c["duration_s"])) / 3600
+        dated = sorted(d for d in c["date"] if d != "unknown")
+        undated = len(c["date"]) - len(dated)
+        span = (f"dates {dated[0]} to {dated[-1]}" if dated else "no dates") + (
+            f" ({undated} logs without a date: their frame times are not Unix time and the manifest gives none)"
+            if undated else "")
         lines += [f"{len(c['log'])} logs, {len(set(c['vehicle']))} vehicles, {hours:.1f} truck-hours; "
-                  f"dates {min(c['date'])} to {max(c['date'])}. Mean degraded share "
+                  f"{span}. Mean degraded share "
                   f"{100 * float(np.mean(c['degraded_share'])):.1f} %; frames rejected: "
                   f"{sum(sum(c[k]) for k in c if k.startswith('rejected_'))} of {sum(c['frames'])}.", ""]
-        _hottest(c, lines)
-        _plots(c, out, lines)
+        c = _trusted_only(c, lines)
+        if c["log"]:
+            _hottest(c, lines)
+            _plots(c, out, lines)
     _health(out, lines)
     if errors is not None and errors.num_rows:
         e = _cols(errors)
         lines += ["## Logs that could not be read", "", "| log | stage | reason |", "|---|---|---|"]
         lines += [f"| {os.path.basename(e['log'][i])} | {e['stage'][i]} | {e['reason'][i]} |"
                   for i in range(min(len(e["log"]), 50))]
+        if len(e["log"]) > 50:
+            lines.append(f"\n... and {len(e['log']) - 50} more in the errors table (errors/*.parquet)")
         lines.append("")
     path = out / "report.md"
-    path.write_text("\n".join(lines))
+    tmp = path.with_name(".report.md.tmp")
+    tmp.write_text("\n".join(lines))
+    os.replace(tmp, path)
     return path
 
 

@@ -90,7 +90,8 @@ def process_log(entry: LogEntry, out: str | None = None, estimates: bool = False
     """One log: ("ok", summary row) or ("error", error row); never raises for a bad log. ``diagnose``: the row
     carries the log's health fit under "_fit" (tools/fleet/health.py; None when the log cannot be fitted)."""
     from firmware_model.service import SensorService
-    from tools.fleet.summary import summarize
+    from firmware_model.service.degraded import Severity, untrusted
+    from tools.fleet.summary import asc_date, summarize
     from tools.replay.log import replay_log
     base = {"vehicle": entry.vehicle, "log": os.fspath(entry.log), "log_key": entry.key}
     stage = "sensor"
@@ -98,11 +99,17 @@ def process_log(entry: LogEntry, out: str | None = None, estimates: bool = False
         sensor, options = _sensor(entry.variant, entry.config)
         stage = "replay"
         _check_complete(entry.log)
-        table = replay_log(entry.log, SensorService(sensor, options, record=True, emit_frames=False))
+        service = SensorService(sensor, options, record=True, emit_frames=False)
+        table = replay_log(entry.log, service)
         stage = "summary"
+        date = entry.date or (asc_date(entry.log) if Path(entry.log).suffix.lower() == ".asc" else None)
         row = summarize(table, table.meta["counters"], vehicle=entry.vehicle, log=os.fspath(entry.log),
-                        key=entry.key, date=entry.date,
+                        key=entry.key, date=date,
                         oil_model=getattr(sensor.options, "oil_mode", "measured") == "model")
+        # the verdict `replay` gives this log (exit status 3): its warnings, and whether they make it untrusted
+        findings = service.findings()
+        row["trusted"] = not untrusted(findings)
+        row["trust_warnings"] = " | ".join(f.sentence for f in findings if f.severity >= Severity.WARNING)
         if estimates and out is not None:
             stage = "estimates"
             _estimates(table, entry, Path(out), row["date"])
@@ -182,18 +189,28 @@ def run_fleet(entries: list[LogEntry], out: str | os.PathLike, *, scheduler: str
         todo = [e for e in entries if e.key not in done]
         n_workers = _worker_count(client)
         tasks = batches(todo, n_workers, max_logs)
-        futures = {client.submit(process_batch, b, os.fspath(out), estimates, diagnose, pure=False,
-                                 key=f"gvs-fleet-{batch_id(b)}"): b for b in tasks}
+
+        def submit(b):
+            return client.submit(process_batch, b, os.fspath(out), estimates, diagnose, pure=False,
+                                 key=f"gvs-fleet-{batch_id(b)}")
+        futures = {submit(b): b for b in tasks}
         ok = failed = written = 0
+        queue = as_completed(futures)
         with progress(len(todo), "fleet", show_progress, unit="log") as bar:
-            for fut in as_completed(futures):
-                batch = futures[fut]
+            for fut in queue:
+                batch = futures.pop(fut)
                 try:
                     results = fut.result()
                 except Exception as exc:   # e.g. KilledWorker: the task's logs killed every worker that ran them
+                    if len(batch) > 1:     # one log of the batch, or none: each alone, so only the guilty fails
+                        for e in batch:
+                            f1 = submit([e])
+                            futures[f1] = [e]
+                            queue.add(f1)
+                        continue
                     results = [("error", {"vehicle": e.vehicle, "log": os.fspath(e.log), "log_key": e.key,
-                                          "stage": "worker", "reason": f"{type(exc).__name__}: {exc}"})
-                               for e in batch]
+                                          "stage": "worker", "reason": f"the worker processes running this log "
+                                          f"died ({type(exc).__name__}: {exc})"}) for e in batch]
                 rows = [r for kind, r in results if kind == "ok"]
                 errors = [r for kind, r in results if kind == "error"]
                 store.write_batch(batch_id(batch), rows, errors)
@@ -201,7 +218,8 @@ def run_fleet(entries: list[LogEntry], out: str | os.PathLike, *, scheduler: str
                 bar.update(len(batch))
                 if on_batch is not None:
                     on_batch(written)
-        return FleetRun(len(entries), len(entries) - len(todo), ok, failed, len(tasks), n_workers)
+        store.compact_errors()
+        return FleetRun(len(entries), len(entries) - len(todo), ok, failed, written, n_workers)
     finally:
         client.close()
         if cluster is not None:

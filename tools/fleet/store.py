@@ -6,8 +6,10 @@ partitioning="hive")``, ``dask.dataframe.read_parquet``, pandas). ``DIR/errors/p
 log that could not be read, with the reason. ``DIR/estimates/vehicle=<V>/date=<D>/<log>-<key>.parquet`` (with
 ``--estimates``): the 10 Hz sensor output of each log. Every file is written under a temporary name and renamed:
 ``DIR/fits/...`` (with ``--diagnose``): each log's health fit (tools/fleet/health.py). A run killed at any moment
-leaves whole files only, and a re-run skips the logs whose key is in a file already
-(:meth:`FleetStore.done_keys`), so no log ever has two rows.
+leaves whole files only. A re-run skips the logs that have a summary row (:meth:`FleetStore.done_keys`) and tries
+the logs of the errors table again (a log finished or repaired since); at the end of a run the errors table is
+rewritten with one row per log that still fails (:meth:`FleetStore.compact_errors`), and :func:`read_table` drops
+error rows of logs that have a summary, so no log ever has two rows, even after a run killed in between.
 """
 from __future__ import annotations
 
@@ -56,14 +58,31 @@ class FleetStore:
             raise InputError(f"--out {self.out} is a file, not a folder")
         self.out.mkdir(parents=True, exist_ok=True)
 
-    def done_keys(self) -> set[str]:
-        """The keys of the logs that have a summary or an error row already."""
+    def done_keys(self, which: str = SUMMARY) -> set[str]:
+        """The keys of the logs that have a row in ``which`` (the summary: done; the errors: to try again)."""
         _, pq = _pa()
         keys: set[str] = set()
-        for sub in (SUMMARY, ERRORS):
-            for f in (self.out / sub).rglob("*.parquet") if (self.out / sub).is_dir() else ():
-                keys.update(pq.read_table(f, columns=["log_key"]).column("log_key").to_pylist())
+        for f in (self.out / which).rglob("*.parquet") if (self.out / which).is_dir() else ():
+            keys.update(pq.read_table(f, columns=["log_key"]).column("log_key").to_pylist())
         return keys
+
+    def compact_errors(self) -> int:
+        """Rewrite the errors table as one file: the latest row of each log that has no summary row (the one new
+        file first, then the old ones removed: a kill in between leaves rows that :func:`read_table` drops).
+        Returns the rows kept."""
+        pa, _ = _pa()
+        root = self.out / ERRORS
+        old = sorted(root.glob("*.parquet"), key=lambda f: f.stat().st_mtime_ns) if root.is_dir() else []
+        if not old:
+            return 0
+        table = read_table(self.out, ERRORS)
+        rows = table.to_pylist() if table is not None else []
+        if rows:
+            write_atomic(pa.table({c: [r[c] for r in rows] for c in ERROR_COLUMNS}),
+                         root / f"part-{uuid.uuid4().hex[:12]}.parquet")
+        for f in old:
+            f.unlink(missing_ok=True)
+        return len(rows)
 
     def write_batch(self, batch_id: str, rows: list[dict], errors: list[dict]) -> None:
         """One batch's summary rows (a file per vehicle and date) and error rows."""
@@ -97,12 +116,22 @@ def read_table(out: str | os.PathLike, which: str = SUMMARY):
     if not root.is_dir() or not any(root.rglob("*.parquet")):
         return None
     if which == ERRORS:
-        return ds.dataset(root, format="parquet").to_table()
+        # a log tried again: its latest row only, none once it has a summary row
+        done = FleetStore(out).done_keys()
+        latest: dict = {}
+        for f in sorted(root.glob("*.parquet"), key=lambda f: f.stat().st_mtime_ns):
+            for r in ds.dataset(f, format="parquet").to_table().to_pylist():
+                if r["log_key"] not in done:
+                    latest.pop(r["log_key"], None)
+                    latest[r["log_key"]] = r
+        if not latest:
+            return None
+        return pa.table({c: [str(r.get(c, "")) for r in latest.values()] for c in ERROR_COLUMNS})
     part = ds.partitioning(pa.schema([("vehicle", pa.string()), ("date", pa.string())]), flavor="hive")
     data = ds.dataset(root, format="parquet", partitioning=part)
-    if which == FITS:
-        # fits written by an earlier version lack the newer columns (the measured level): every file's columns,
-        # not only the first file's, and the missing ones as nulls
+    if which in (FITS, SUMMARY):
+        # files written by an earlier version lack the newer columns (the measured level, the trust verdict): every
+        # file's columns, not only the first file's, and the missing ones as nulls
         schema = pa.unify_schemas([data.schema, *(f.physical_schema for f in data.get_fragments())],
                                   promote_options="permissive")
         data = ds.dataset(root, format="parquet", partitioning=part, schema=schema)

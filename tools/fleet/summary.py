@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import datetime as dt
 import math
+import re
 
 import numpy as np
 
@@ -20,6 +21,34 @@ EPOCH_MIN_S = 1e8
 #: per component, the summary's columns (with the component id in place of {c})
 COMPONENT_COLUMNS = ("peak_{c}_c", "peak_{c}_t_s", "above_warning_{c}_s", "above_critical_{c}_s",
                      "warnings_{c}", "min_ttl_{c}_s")
+
+
+_MONTHS = {m: i + 1 for i, m in enumerate(("Jan", "Feb", "Mar", "Apr", "May", "Jun", "Jul", "Aug", "Sep", "Oct",
+                                             "Nov", "Dec"))} | {"Mär": 3, "Mai": 5, "Okt": 10, "Dez": 12}
+_ASC_DATE = re.compile(r"^(date|begin\s+triggerblock)\s+\w+\s+(\w{3})\s+(\d{1,2})\s+[\d:.]+(?:\s*[ap]m)?\s+(\d{4})",
+                       re.IGNORECASE)
+
+
+def asc_date(path) -> str | None:
+    """The start date of a Vector ASC log from its header (python-can reads its frame times relative to the start,
+    so they give none): the first 'Begin Triggerblock' with a date, else the 'date' line; None when neither parses."""
+    found = {}
+    try:
+        with open(path, encoding="utf-8", errors="replace") as fh:
+            for _, line in zip(range(200), fh):
+                m = _ASC_DATE.match(line.strip())
+                if m and m.group(2).capitalize() in _MONTHS:
+                    kind = "trigger" if m.group(1).lower() != "date" else "date"
+                    try:
+                        found.setdefault(kind, dt.date(int(m.group(4)), _MONTHS[m.group(2).capitalize()],
+                                                       int(m.group(3))).isoformat())
+                    except ValueError:
+                        continue
+                    if kind == "trigger":
+                        break
+    except OSError:
+        return None
+    return found.get("trigger") or found.get("date")
 
 
 def log_date(start_s: float) -> str | None:
@@ -86,4 +115,4 @@ def summarize(table, counters: dict, *, vehicle: str, log: str, key: str, date: 
     return row
 
 
-__all__ = ["COMPONENT_COLUMNS", "EPOCH_MIN_S", "log_date", "summarize"]
+__all__ = ["COMPONENT_COLUMNS", "EPOCH_MIN_S", "asc_date", "log_date", "summarize"]
