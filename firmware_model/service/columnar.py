@@ -302,6 +302,8 @@ def sensor_half(service, half: FrameHalf) -> RecordedOutputs:
         tail[i0:, 9:] = out.rejects[:, :n_rej]
     values, counts = np.unique(tail[:, 1].astype(int), return_counts=True)
     service.counters["mode_steps"] = dict(zip(values.tolist(), counts.tolist()))
+    if len(tail):
+        service.counters["mode_now"] = int(tail[-1, 1])
     return RecordedOutputs(T, level, ttl, tail)
 
 

@@ -135,8 +135,10 @@ class SensorService:
                     n0 = len(out)
                     self._steps(due, out)
                     if self.netmgmt is not None and not self.netmgmt.can_transmit(timestamp_s):
+                        held = len(out) - n0         # not sent: not counted as sent
                         self.counters["frames_held_no_address"] = self.counters.get("frames_held_no_address", 0) \
-                            + len(out) - n0
+                            + held
+                        self.counters["frames_sent"] -= held
                         del out[n0:]
             elif timestamp_s < self._next_boundary_s - STEP_S - self.options.backward_tolerance_s:
                 self._time_jump(timestamp_s, "backward")
@@ -180,8 +182,11 @@ class SensorService:
         (its time-to-limit refresh done); the steps per degraded mode are counted from them."""
         self._recorder.adopt(outputs)
         modes = outputs.tail[:, self._recorder.tail_names.index("degraded_mode")]
-        values, counts = np.unique(modes[np.isfinite(modes)].astype(int), return_counts=True)
+        finite = modes[np.isfinite(modes)].astype(int)
+        values, counts = np.unique(finite, return_counts=True)
         self.counters["mode_steps"] = dict(zip(values.tolist(), counts.tolist()))
+        if finite.size:
+            self.counters["mode_now"] = int(finite[-1])
         self.state = state
         self._pending = None
 
@@ -503,6 +508,7 @@ class SensorService:
     def _count_mode(self, mode: int | None) -> None:
         counts = self.counters["mode_steps"]
         counts[mode] = counts.get(mode, 0) + 1
+        self.counters["mode_now"] = mode
 
     def _encode(self, t_step_s: float, temps_c: dict, levels: dict, ttl_s: dict, status: GbxStatus,
                 send: bool, time_base_suspect: bool = False) -> list:

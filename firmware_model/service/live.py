@@ -28,6 +28,49 @@ RESUME_LIMIT = 3
 #: an outage that stays silent (no frame, no error) is treated as a dead handle: the bus is reopened after the
 #: first of these [s], then with the delay doubling up to the second
 SILENT_REOPEN_S = (1.0, 30.0)
+#: a frame time that departs from the monotonic clock by more than this from the reference is a step of the clock
+#: that stamps the frames (FrameClock) [s]; the reference follows slow drift with this gain per frame
+CLOCK_STEP_S = 2.0
+CLOCK_DRIFT_GAIN = 1e-3
+#: linux/can/error.h: the error class bit of an error frame that reports the controller in bus-off
+CAN_ERR_BUSOFF = 0x40
+#: a bus-off error frame this long [s] after the previous one is the same episode (logged once)
+BUS_OFF_EPISODE_S = 10.0
+
+
+class FrameClock:
+    """Frame times on one continuous base. Most interfaces stamp frames with the system's wall clock (SocketCAN's
+    kernel, udp_multicast), which steps when it is set (NTP, GNSS, an RTC read at boot): an hour's step read as
+    an hour without frames would cool a driving gearbox for an hour. Each frame's time is compared with the
+    monotonic clock at its reception: a departure of more than ``step_s`` from the reference is a step of the frame
+    clock, taken out of every later frame time (counted, logged); a real pause of the bus moves both clocks and
+    stays a time jump. The reference follows a slow drift (an adapter's hardware clock). Not for frames that carry
+    their sender's time (python-can's virtual bus replaying a log)."""
+
+    def __init__(self, log=None, step_s: float = CLOCK_STEP_S):
+        self.log, self.step_s = log, step_s
+        self.offset_s: float | None = None        # frame time - monotonic time, the reference
+        self.correction_s = 0.0                   # taken out of every frame time so far
+        self.steps = 0
+
+    def __call__(self, t_frame_s: float, t_mono_s: float) -> float:
+        if not math.isfinite(t_frame_s):
+            return t_frame_s
+        d = t_frame_s - t_mono_s
+        if self.offset_s is None:
+            self.offset_s = d
+        elif abs(d - self.offset_s) > self.step_s:
+            step = d - self.offset_s
+            self.correction_s += step
+            self.offset_s = d
+            self.steps += 1
+            if self.log is not None:
+                self.log.warning("the clock that stamps the frames stepped by %+.1f s against the monotonic clock "
+                                 "(the system clock was set: NTP, GNSS, RTC); the sensor's time continues without "
+                                 "the step (%d clock steps so far)", step, self.steps)
+        else:
+            self.offset_s += CLOCK_DRIFT_GAIN * (d - self.offset_s)
+        return t_frame_s - self.correction_s
 
 
 class QueueListener:
@@ -47,7 +90,7 @@ class QueueListener:
 
     def on_message_received(self, msg) -> None:
         self.received += 1
-        self.queue.put(msg)
+        self.queue.put((msg, time.monotonic()))      # with the monotonic time of reception (FrameClock)
 
     def on_error(self, exc: BaseException) -> None:
         self.errors.append(exc)
@@ -65,6 +108,7 @@ class Outage:
     reopen_delay_s: float
     consecutive: int = 0          # receive errors since the last frame or reopen
     errors: int = 0
+    reopen_failed: bool = False   # a reopen failed in this outage (logged once per outage)
 
 
 class BusLink:
@@ -81,8 +125,9 @@ class BusLink:
 
     Never a busy loop, never a crash; without ``reopen`` the first error is raised as before."""
 
-    def __init__(self, bus, listener: QueueListener, reopen: Callable | None = None, log=None):
-        self.bus, self.listener, self.reopen, self.log = bus, listener, reopen, log
+    def __init__(self, bus, listener: QueueListener, reopen: Callable | None = None, log=None,
+                 on_wait: Callable[[], None] | None = None):
+        self.bus, self.listener, self.reopen, self.log, self.on_wait = bus, listener, reopen, log, on_wait
         self.events = {"read_errors": 0, "outages": 0, "resumes": 0, "reopens": 0, "reopen_failures": 0}
         self.opened_here = False
         self.outage: Outage | None = None
@@ -95,12 +140,25 @@ class BusLink:
         elif self.outage is not None:
             self._watch_outage(stop)
 
+    def _wait(self, stop: threading.Event, seconds: float) -> None:
+        """Wait (until ``stop``) while calling ``on_wait`` at least every second: the watchdog, the health file
+        and the state saves go on while the bus is being reopened."""
+        end = time.monotonic() + seconds
+        while not stop.is_set():
+            left = end - time.monotonic()
+            if left <= 0:
+                return
+            stop.wait(min(left, 1.0))
+            if self.on_wait is not None:
+                self.on_wait()
+
     def _on_error(self, stop: threading.Event) -> None:
         exc = self.listener.errors[0]
+        n_errors = len(self.listener.errors)
         self.listener.errors.clear()
         if self.reopen is None:
             raise exc
-        self.events["read_errors"] += 1
+        self.events["read_errors"] += n_errors
         now = time.monotonic()
         o = self.outage
         if o is None:
@@ -115,7 +173,7 @@ class BusLink:
         if o.consecutive >= RESUME_LIMIT:
             self._reopen(stop)
         else:
-            stop.wait(RESUME_DELAY_S * 2 ** (o.consecutive - 1))
+            self._wait(stop, RESUME_DELAY_S * 2 ** (o.consecutive - 1))
             self.events["resumes"] += 1
         self.notifier = can.Notifier(self.bus, [self.listener], timeout=0.1)
 
@@ -154,9 +212,13 @@ class BusLink:
                 self.bus = self.reopen()
             except (can.CanError, OSError, ValueError) as err:
                 self.events["reopen_failures"] += 1
-                if self.events["reopen_failures"] == 1 and self.log is not None:
-                    self.log.warning("cannot reopen the bus yet (%s); retrying (failures counted)", err)
-                stop.wait(delay_s)
+                first = self.outage is None or not self.outage.reopen_failed
+                if self.outage is not None:
+                    self.outage.reopen_failed = True
+                if first and self.log is not None:      # once per outage
+                    self.log.warning("cannot reopen the bus yet (%s); retrying with back-off up to %.0f s "
+                                     "(failures counted)", err, REOPEN_BACKOFF_S[1])
+                self._wait(stop, delay_s)
                 delay_s = min(2.0 * delay_s, REOPEN_BACKOFF_S[1])
                 continue
             self.opened_here = True
@@ -212,7 +274,7 @@ class LatencyFigures(NamedTuple):
 def serve(bus, service: SensorService, *, stop: threading.Event | None = None, duration_s: float | None = None,
           poll_s: float = 0.05, on_sent: Callable | None = None,
           on_ready: Callable[[], None] | None = None, on_tick: Callable[[], None] | None = None,
-          reopen: Callable | None = None) -> ServeResult:
+          reopen: Callable | None = None, frame_clock: FrameClock | None = None) -> ServeResult:
     """Run ``service`` on ``bus`` until ``stop`` is set or ``duration_s`` of wall time passed.
 
     A ``can.Notifier`` thread receives and queues frames (:class:`QueueListener`); this loop, in the calling thread,
@@ -222,23 +284,44 @@ def serve(bus, service: SensorService, *, stop: threading.Event | None = None, d
     ``on_tick``: called after every frame and every empty wait (at least every ``poll_s``): the periodic state save,
     the health file and the systemd watchdog (firmware_model.service.persist), which check the time themselves.
     ``reopen``: a bus factory; with it a receive error is an outage that :class:`BusLink` rides out.
+    ``frame_clock``: a :class:`FrameClock` for a bus that stamps frames with the system clock (steps taken out).
     """
     stop = stop or threading.Event()
     listener = QueueListener()
     result = ServeResult()
     wall0_s, cpu0_s = time.perf_counter(), time.process_time()
     deadline_s = None if duration_s is None else wall0_s + duration_s
-    link = BusLink(bus, listener, reopen, service.log)
+    link = BusLink(bus, listener, reopen, service.log, on_wait=on_tick)
     if on_ready is not None:
         on_ready()
     last_err_log_s = -math.inf
     q = listener.queue
 
     latencies = result.step_latency_s
+    last_bus_off_s = -math.inf
 
-    def handle(msg) -> None:
+    def bus_off(t_mono_s: float) -> None:
+        """A SocketCAN error frame of the bus-off class: counted, logged once per episode (the frames stop coming;
+        the sensor holds its inputs and its levels become 'not available' after 10 s, as for any silence)."""
+        nonlocal last_bus_off_s
+        service.counters["bus_off"] = service.counters.get("bus_off", 0) + 1
+        if t_mono_s - last_bus_off_s > BUS_OFF_EPISODE_S:
+            service.log.warning("CAN controller bus-off (error frame; %d so far): no frames until it restarts "
+                                "(set the interface's restart-ms); the sensor holds its inputs",
+                                service.counters["bus_off"])
+        last_bus_off_s = t_mono_s
+
+    def handle(item) -> None:
         nonlocal last_err_log_s
+        msg, t_mono_s = item
         result.frames_in += 1
+        if msg.is_error_frame and msg.arbitration_id & CAN_ERR_BUSOFF:
+            bus_off(t_mono_s)
+        received_s = msg.timestamp
+        if frame_clock is not None:
+            msg.timestamp = frame_clock(received_s, t_mono_s)
+            if frame_clock.steps:
+                service.counters["clock_steps"] = frame_clock.steps
         frames = service.feed(msg)
         if not frames:
             return
@@ -257,7 +340,7 @@ def serve(bus, service: SensorService, *, stop: threading.Event | None = None, d
                                         result.send_errors)
         if len(latencies) >= LATENCY_KEEP_STEPS:
             del latencies[:LATENCY_KEEP_STEPS // 2]
-        latencies.append(time.time() - msg.timestamp)
+        latencies.append(time.time() - received_s)
         service.finish_pending()           # the slow part of the step, now that its frames are out
 
     try:

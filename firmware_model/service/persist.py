@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import json
 import logging
+import math
 import os
 import socket
 import time
@@ -44,21 +45,31 @@ def atomic_write(path: Path, data: bytes) -> None:
             tmp.unlink()
 
 
+#: a state saved more than this far in the future of the wall clock at start [s]: the clock is wrong (set back, or
+#: not yet set at boot on a gateway without a real-time clock), so the time off is unknown: a cold start
+FUTURE_TOLERANCE_S = 300.0
+
+
 class StateStore:
     """The sensor state in a file across restarts: :meth:`load` at start, :meth:`maybe_save` from the loop,
-    :meth:`save` at shutdown. ``clock``: wall time [s] (injectable for tests)."""
+    :meth:`save` at shutdown. ``clock``: wall time [s] (stored: the time off between runs); ``timer``: the clock of
+    the save period (monotonic: a wall clock set back must not stop the saves); both injectable for tests."""
 
-    def __init__(self, path, period_s: float = STATE_PERIOD_S, clock=time.time):
+    def __init__(self, path, period_s: float = STATE_PERIOD_S, clock=time.time, timer=time.monotonic):
         self.path = Path(path)
         self.period_s = float(period_s)
-        self.clock = clock
-        self.last_save_s: float | None = None
+        self.clock, self.timer = clock, timer
+        self.last_save_s: float | None = None          # timer: the last attempt
+        self.last_ok_s: float | None = None            # timer: the last save that was written
+        self.stepped_wall_s: float | None = None       # wall time when the state last changed (a step)
+        self._steps_seen: int | None = None
+        self._saved_steps: int | None = None
         self.counters = {"restored": 0, "cold_starts": 0, "saves": 0, "save_errors": 0, "reason": None}
 
     def load(self, sensor) -> tuple | None:
         """``(snapshot, elapsed_s)`` of a usable saved state for ``sensor``, or None (a cold start: the reason is
-        logged and counted). A state is usable when the file parses, has this schema and was taken with the same
-        thermal network (the sensor's own snapshot check)."""
+        logged and counted). A state is usable when the file parses, has this schema, was taken with the same
+        thermal network (the sensor's own snapshot check) and saved at a wall time that is not in the future."""
         reason = None
         try:
             doc = json.loads(self.path.read_bytes())
@@ -66,12 +77,19 @@ class StateStore:
                 reason = "not a saved sensor state (schema)"
             elif doc.get("nodes") != list(sensor.reduced.nodes) or doc.get("variant") != sensor.reduced.variant:
                 reason = f"saved by another gearbox or network ({doc.get('variant')!r})"
+            elif not isinstance(doc.get("snapshot"), (dict, str)):
+                reason = "not a saved sensor state (no snapshot)"
+            elif not (isinstance(doc.get("saved_wall_s"), (int, float)) and math.isfinite(doc["saved_wall_s"])):
+                reason = "not a saved sensor state (no time of saving)"
+            elif doc["saved_wall_s"] > self.clock() + FUTURE_TOLERANCE_S:
+                reason = (f"saved {doc['saved_wall_s'] - self.clock():.0f} s in the future of this clock (the "
+                          f"system clock was set back, or is not yet set): the time off is unknown")
         except FileNotFoundError:
             reason = "no saved state"
         except (OSError, ValueError, UnicodeDecodeError) as exc:
             reason = f"unreadable or truncated ({exc.__class__.__name__})"
         if reason is None:
-            elapsed_s = max(self.clock() - float(doc.get("saved_wall_s", 0.0)), 0.0)
+            elapsed_s = max(self.clock() - float(doc["saved_wall_s"]), 0.0)
             return doc["snapshot"], elapsed_s
         self.cold_start(reason)
         return None
@@ -81,60 +99,105 @@ class StateStore:
         self.counters["reason"] = reason
         log.warning("state %s: %s; cold start from the oil temperature", self.path, reason)
 
+    def _note_steps(self, service) -> int:
+        """The service's step count; the wall time of the call where it last changed is when the state was taken
+        (a bus that fell silent leaves the state as it was: its time is that of the last step, not of a save)."""
+        steps = int(service.counters.get("steps", 0))
+        if steps != self._steps_seen:
+            self._steps_seen = steps
+            self.stepped_wall_s = self.clock()
+        return steps
+
     def maybe_save(self, service) -> bool:
-        """Save when ``period_s`` of wall time has passed since the last save (and the sensor is initialised)."""
-        now = self.clock()
+        """Save when ``period_s`` has passed since the last save attempt (``timer``), the sensor is initialised and
+        it stepped since the last save (an unchanged state is not written again: flash wear)."""
+        steps = self._note_steps(service)
+        now = self.timer()
         if self.last_save_s is not None and now - self.last_save_s < self.period_s:
+            return False
+        if steps == self._saved_steps:
             return False
         return self.save(service)
 
-    def save(self, service) -> bool:
+    def save(self, service, final: bool = False) -> bool:
+        """Write the state now (``final``: at shutdown, a failure is logged whatever came before). A failed write
+        is counted and tried again a period later, not at every tick."""
         if service.state is None:
             return False
+        steps = self._note_steps(service)
         sensor = service.sensor
-        doc = {"schema": STATE_SCHEMA, "saved_wall_s": self.clock(), "frame_time_s": service.frame_time_s,
+        doc = {"schema": STATE_SCHEMA, "saved_wall_s": self.stepped_wall_s, "frame_time_s": service.frame_time_s,
                "variant": sensor.reduced.variant, "nodes": list(sensor.reduced.nodes),
                "snapshot": json.loads(sensor.snapshot(service.state))}
+        self.last_save_s = self.timer()
         try:
             atomic_write(self.path, json.dumps(doc, separators=(",", ":")).encode("utf-8"))
         except OSError as exc:
             self.counters["save_errors"] += 1
-            if self.counters["save_errors"] == 1:
-                log.warning("cannot save the state to %s: %s (further errors counted, not logged)", self.path, exc)
+            if self.counters["save_errors"] == 1 or final:
+                log.warning("cannot save the state to %s%s: %s (%s)", self.path, " at shutdown" if final else "",
+                            exc, "the next start is a cold start" if final else
+                            f"tried again every {self.period_s:g} s; further errors counted, not logged")
             return False
-        self.last_save_s = self.clock()
+        self._saved_steps = steps
+        self.last_ok_s = self.last_save_s
         self.counters["saves"] += 1
         return True
 
     def age_s(self) -> float | None:
-        return None if self.last_save_s is None else self.clock() - self.last_save_s
+        """Seconds since the last save that was written (None: none yet)."""
+        return None if self.last_ok_s is None else self.timer() - self.last_ok_s
+
+
+def boot_id() -> str | None:
+    """This boot's id (Linux): two processes comparing monotonic clocks must be on the same boot."""
+    try:
+        return Path("/proc/sys/kernel/random/boot_id").read_text().strip()
+    except OSError:
+        return None
 
 
 class HealthFile:
-    """The service's health for ``gearbox-vsensor status``: rewritten every ``period_s`` of wall time."""
+    """The service's health for ``gearbox-vsensor status``: rewritten every ``period_s`` (``timer``: monotonic, so
+    a wall clock set back does not stop it). It carries the monotonic time of writing with the boot id, so that
+    `status` judges its age without the wall clock."""
 
-    def __init__(self, path, period_s: float = HEALTH_PERIOD_S, clock=time.time):
+    def __init__(self, path, period_s: float = HEALTH_PERIOD_S, clock=time.time, timer=time.monotonic):
         self.path = Path(path)
         self.period_s = float(period_s)
-        self.clock = clock
-        self.started_s = clock()
+        self.clock, self.timer = clock, timer
+        self.started_s = timer()
         self.last_write_s: float | None = None
         self.errors = 0                       # writes that failed (the first is logged)
+        self.boot_id = boot_id()
 
-    def maybe_write(self, service, store: StateStore | None = None, bus_events: dict | None = None) -> bool:
-        now = self.clock()
-        if self.last_write_s is not None and now - self.last_write_s < self.period_s:
+    def maybe_write(self, service, store: StateStore | None = None, bus_events: dict | None = None,
+                    stopped: bool = False) -> bool:
+        """Rewrite the file when a period has passed (``stopped``: the last write of a clean stop, now)."""
+        now = self.timer()
+        if not stopped and self.last_write_s is not None and now - self.last_write_s < self.period_s:
             return False
         c = service.counters
-        doc = {"schema": HEALTH_SCHEMA, "pid": os.getpid(), "written_wall_s": now,
+        restored = c.get("state_restored") is True
+        doc = {"schema": HEALTH_SCHEMA, "pid": os.getpid(), "written_wall_s": self.clock(),
+               "written_monotonic_s": time.monotonic(), "boot_id": self.boot_id, "stopped": stopped,
                "uptime_s": now - self.started_s, "last_step_frame_time_s": service.frame_time_s,
                "steps": c.get("steps", 0), "initialised": service.state is not None,
+               "degraded_mode_now": c.get("mode_now"),
                "degraded_mode_steps": dict(c.get("mode_steps", {})), "time_jumps": c.get("time_jumps", 0),
+               "clock_steps": c.get("clock_steps", 0),
                "frames_sent": c.get("frames_sent", 0),
+               "frames_held_no_address": c.get("frames_held_no_address", 0),
                "decoder": {k: v for k, v in service.decoder.counters.items() if k in ("frames_seen", "frames_used",
                                                                                      "rejected")},
-               "state": None if store is None else {**store.counters, "path": str(store.path),
-                                                    "last_save_age_s": store.age_s()},
+               "state": None if store is None else {
+                   **store.counters, "restored": int(restored), "path": str(store.path),
+                   "last_save_age_s": store.age_s(),
+                   # a saved state the sensor could not use is a cold start decided at the first step
+                   "cold_starts": store.counters["cold_starts"] + int("state_cold_start" in c),
+                   "reason": c.get("state_cold_start") or store.counters["reason"]},
+               "j1939": None if getattr(service, "netmgmt", None) is None else {
+                   "address": service.netmgmt.address, **service.netmgmt.counters},
                "bus": bus_events or {}, "health_write_errors": self.errors}
         try:
             atomic_write(self.path, json.dumps(doc, default=str).encode("utf-8"))

@@ -72,3 +72,72 @@ def test_without_reopen_a_receive_error_still_ends_the_loop():
     with pytest.raises(can.CanOperationError):
         serve(bus, _service(), poll_s=0.02, duration_s=5.0)
     bus.shutdown()
+
+
+def test_a_step_of_the_frame_clock_is_taken_out_a_pause_is_kept():
+    """From a gateway audit: SocketCAN stamps frames with the system clock, so an NTP or GNSS correction of +1 h
+    60 s into a steady drive was read as an hour without frames: the sensor cooled the driving gearbox (the bearing
+    21.8 K low) and said nothing. The FrameClock compares each frame time with the monotonic clock at reception."""
+    from firmware_model.service.live import FrameClock
+    frames = traffic(0.0, 120.0, rpm=1500.0, gear=9)
+    plain, stepped = _service(), _service()
+    fc = FrameClock()
+    for m in frames:
+        plain.feed(m)
+    for m in traffic(0.0, 120.0, rpm=1500.0, gear=9):
+        t_mono = m.timestamp + 50.0                        # the monotonic clock: no step, another origin
+        if m.timestamp >= 60.0:
+            m.timestamp += 3600.0                          # the wall clock set forward an hour
+        m.timestamp = fc(m.timestamp, t_mono)
+        stepped.feed(m)
+    assert fc.steps == 1 and fc.correction_s == pytest.approx(3600.0)
+    assert stepped.counters["time_jumps"] == plain.counters["time_jumps"] == 0
+    assert stepped.counters["steps"] == plain.counters["steps"]
+    # a real pause: 30 s without frames moves both clocks, and stays a pause
+    fc2 = FrameClock()
+    assert fc2(10.0, 110.0) == 10.0 and fc2(40.0, 140.0) == 40.0 and fc2.steps == 0
+    assert fc2(40.1 - 7200.0, 140.1) == pytest.approx(40.1) and fc2.steps == 1       # set back two hours
+
+
+def test_every_receive_error_is_counted(caplog):
+    """From a gateway audit: 50 malformed frames reported by the notifier counted as one receive error."""
+    from firmware_model.service.live import BusLink, QueueListener
+    listener = QueueListener()
+    bus = FaultyBus([], fail=False)
+    link = BusLink(bus, listener, reopen=lambda: FaultyBus([], fail=False))
+    try:
+        for _ in range(5):
+            listener.on_error(can.CanOperationError("bad frame"))
+        link.check(threading.Event())
+        assert link.events["read_errors"] == 5 and link.events["outages"] == 1
+    finally:
+        link.close()
+        bus.shutdown()
+
+
+def test_sighup_stops_cleanly():
+    """From a gateway audit: SIGHUP killed the service without saving its state, and systemd's Restart=on-failure
+    counts a death by SIGHUP as clean: it stayed down. Now SIGHUP stops like SIGTERM, and the unit restarts always."""
+    import signal
+
+    from tools.can.bus import STOP_SIGNALS
+    from tools.can.systemd import unit_text
+    assert signal.SIGHUP in STOP_SIGNALS
+    assert "Restart=always" in unit_text("socketcan", "can0")
+
+
+def test_a_bus_off_error_frame_is_counted_and_logged_once_per_episode(caplog):
+    """From a gateway audit: on SocketCAN a controller's bus-off arrives as error frames, not as a receive error,
+    and nothing said so."""
+    caplog.set_level(logging.WARNING)
+    errors = [can.Message(timestamp=0.01 * k, arbitration_id=0x40, is_error_frame=True, dlc=8) for k in range(50)]
+    svc = _service()
+    stop = threading.Event()
+    timer = threading.Timer(1.5, stop.set)
+    timer.start()
+    try:
+        serve(FaultyBus(traffic(0.0, 1.0) + errors, fail=False), svc, stop=stop, poll_s=0.02)
+    finally:
+        timer.cancel()
+    assert svc.counters["bus_off"] == 50
+    assert sum("bus-off" in r.getMessage() for r in caplog.records) == 1

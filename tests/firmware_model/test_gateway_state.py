@@ -87,18 +87,87 @@ def test_unusable_state_means_a_counted_cold_start(params, tmp_path, content, re
 def test_saves_are_atomic_and_rate_bounded(params, tmp_path):
     clock = Clock()
     svc = _service(params)
-    store = StateStore(tmp_path / "state.json", period_s=60.0, clock=clock)
+    store = StateStore(tmp_path / "state.json", period_s=60.0, clock=clock, timer=clock)
     assert not store.maybe_save(svc)                          # not initialised yet: nothing to save
     _drive(svc, 0.0, 3.0)
     assert store.maybe_save(svc)
-    for _ in range(100):                                      # the loop ticks often: at most one write a period
+    for k in range(100):                                      # the loop ticks often: at most one write a period
         clock.t += 0.5
+        _drive(svc, 3.0 + 0.5 * k, 3.5 + 0.5 * k)
         store.maybe_save(svc)
     assert store.counters["saves"] == 1                        # 50 s of ticks: still the first save only
     clock.t += 20.0
     assert store.maybe_save(svc) and store.counters["saves"] == 2
+    clock.t += 120.0                                           # the bus fell silent: nothing new to write
+    assert not store.maybe_save(svc) and store.counters["saves"] == 2
     assert [p.name for p in tmp_path.iterdir()] == ["state.json"]   # no temporary file left behind
     json.loads((tmp_path / "state.json").read_bytes())
+
+
+@pytest.mark.parametrize("doc, reason", [
+    ({"snapshot": None}, "no snapshot"),
+    ({"saved_wall_s": None}, "no time of saving"),
+    ({"saved_wall_s": "yesterday"}, "no time of saving"),
+    ({"saved_wall_s": 1.0e9 + 86400.0}, "in the future"),
+])
+def test_a_state_file_with_bad_fields_is_a_cold_start_not_a_crash_loop(params, tmp_path, doc, reason):
+    """From a gateway audit: a file of the right schema and network whose time of saving was null or text, or
+    without its snapshot, crashed the start with a traceback; systemd restarted it into the same crash for ever. A
+    state saved a day ahead of the clock (set back, or not yet set at boot) was restored without cooling."""
+    first = _service(params)
+    _drive(first, 0.0, 10.0)
+    clock = Clock()
+    StateStore(tmp_path / "state.json", clock=clock).save(first)
+    saved = json.loads((tmp_path / "state.json").read_bytes())
+    saved.update(doc)
+    if doc.get("snapshot", 0) is None:
+        del saved["snapshot"]
+    (tmp_path / "state.json").write_text(json.dumps(saved))
+    store = StateStore(tmp_path / "state.json", clock=clock)
+    assert store.load(_service(params).sensor) is None
+    assert store.counters["cold_starts"] == 1 and reason in store.counters["reason"]
+
+
+def test_the_saved_time_is_the_last_steps_and_the_wall_clock_does_not_drive_the_period(params, tmp_path):
+    """From a gateway audit: the periodic save rewrote the time of saving while the bus was silent (a gateway left
+    powered overnight restored a hot gearbox 'cooled for 4 s'); a wall clock set back an hour stopped the saves for
+    an hour. The state's time is that of the last step; the period runs on a monotonic timer."""
+    wall, mono = Clock(), Clock(100.0)
+    svc = _service(params)
+    store = StateStore(tmp_path / "state.json", period_s=60.0, clock=wall, timer=mono)
+    _drive(svc, 0.0, 3.0)
+    assert store.maybe_save(svc)
+    stepped = wall.t
+    for _ in range(10):                 # ten minutes without a frame: no new save, and the saved time stays
+        wall.t += 60.0
+        mono.t += 60.0
+        store.maybe_save(svc)
+    store.save(svc, final=True)
+    assert json.loads((tmp_path / "state.json").read_bytes())["saved_wall_s"] == stepped
+    restore = StateStore(tmp_path / "state.json", clock=wall).load(svc.sensor)
+    assert restore is not None and restore[1] == pytest.approx(600.0)
+    wall.t -= 3600.0                    # the wall clock set back an hour: the saves go on
+    for k in range(3):
+        mono.t += 61.0
+        _drive(svc, 3.0 + k, 4.0 + k)
+        assert store.maybe_save(svc)
+
+
+def test_a_failing_save_is_tried_again_a_period_later_not_at_every_tick(params, tmp_path, caplog):
+    """From a gateway audit: after one failed save (a full or read-only disk) the store tried again at every tick:
+    1961 attempts in 24 s, catch-up steps, a 176 ms p99. Now once a period; the shutdown's failure is logged."""
+    mono = Clock(0.0)
+    svc = _service(params)
+    _drive(svc, 0.0, 3.0)
+    (tmp_path / "state.json").mkdir()
+    store = StateStore(tmp_path / "state.json", period_s=60.0, timer=mono)
+    for k in range(200):                # 100 s of ticks
+        mono.t += 0.5
+        _drive(svc, 3.0 + 0.5 * k, 3.5 + 0.5 * k)
+        store.maybe_save(svc)
+    assert store.counters["save_errors"] == 2
+    assert not store.save(svc, final=True)
+    assert caplog.text.count("cannot save the state") == 2 and "at shutdown" in caplog.text
 
 
 def test_a_failing_save_is_counted_not_fatal(params, tmp_path, caplog):
@@ -125,6 +194,7 @@ def test_health_file_and_status_command(params, tmp_path, capsys):
     out = capsys.readouterr().out
     assert "service: running" in out and "sensor: initialised" in out and "1 saves" in out
     doc["written_wall_s"] -= 60.0
+    doc["written_monotonic_s"] -= 60.0
     (tmp_path / "health.json").write_text(json.dumps(doc))
     assert main(["status", "--health-file", str(tmp_path / "health.json")]) == 1
     assert "NOT RUNNING" in capsys.readouterr().out
@@ -155,7 +225,7 @@ def test_service_unit_passes_systemd_analyze_verify(tmp_path):
     res = subprocess.run(["systemd-analyze", "verify", str(unit)], capture_output=True, text=True, timeout=120)
     assert res.returncode == 0, res.stderr
     text = unit.read_text()
-    for key in ("Type=notify", "WatchdogSec=", "Restart=on-failure", "DynamicUser=yes", "CapabilityBoundingSet="):
+    for key in ("Type=notify", "WatchdogSec=", "Restart=always", "DynamicUser=yes", "CapabilityBoundingSet="):
         assert key in text
 
 
@@ -204,6 +274,7 @@ def test_failed_health_writes_are_shown_by_status_once_a_write_succeeds(params, 
     assert "health file: 2 writes failed" in capsys.readouterr().out
     doc = read_health(target)
     doc["written_wall_s"] -= 60.0
+    doc["written_monotonic_s"] -= 60.0
     target.write_text(json.dumps(doc))
     assert main(["status", "--health-file", str(target)]) == 1
     assert "unable to rewrite this file" in capsys.readouterr().out
@@ -220,3 +291,25 @@ def test_service_unit_warns_of_every_place_the_sandbox_hides(tmp_path):
     link.symlink_to("/root/.pyenv/bin/python3")               # need not exist: the link is resolved as text
     linked = check_unit_args("socketcan", "can0", None, str(link))
     assert any("ProtectHome=yes" in w and "through its links" in w for w in linked)
+
+
+def test_status_says_restored_stopped_and_the_mode_now(params, tmp_path, capsys):
+    """From a gateway audit: `status` never said whether the saved state was restored (its counter stayed 0), said
+    'running' for 5 s after a clean stop, and showed only lifetime totals of the degraded modes."""
+    from tools.cli import main
+    clock = Clock()
+    first = _service(params)
+    _drive(first, 0.0, 60.0)
+    StateStore(tmp_path / "state.json", clock=clock).save(first)
+    second = _service(params)
+    store = StateStore(tmp_path / "state.json", clock=clock)
+    second.restore = store.load(second.sensor)
+    _drive(second, 100.0, 102.0)
+    health = HealthFile(tmp_path / "health.json")
+    assert health.maybe_write(second, store)
+    assert main(["status", "--health-file", str(tmp_path / "health.json")]) == 0
+    out = capsys.readouterr().out
+    assert "restored at start" in out and "mode now 0 (normal)" in out and "service: running" in out
+    assert health.maybe_write(second, store, stopped=True)
+    assert main(["status", "--health-file", str(tmp_path / "health.json")]) == 1
+    assert "stopped cleanly" in capsys.readouterr().out

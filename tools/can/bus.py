@@ -12,8 +12,9 @@ from typing import Iterator, Sequence
 
 from firmware_model.errors import InputError
 
-#: the signals that stop a CAN subcommand cleanly
-STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
+#: the signals that stop a CAN subcommand cleanly (the state saved, the counters logged): SIGHUP too, which would
+#: otherwise kill the process without either (a closed terminal, `systemctl kill -s HUP`)
+STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM) + ((signal.SIGHUP,) if hasattr(signal, "SIGHUP") else ())
 #: CAN bit rates a --bitrate may name [bit/s]
 BITRATE_RANGE_BIT_S = (10_000, 1_000_000)
 #: interfaces on which a receiver gets the timestamp the sender put in the frame: python-can's in-process virtual

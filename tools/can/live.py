@@ -151,11 +151,10 @@ class GatewayHooks:
     def finish(self) -> None:
         from firmware_model.service.persist import sd_notify
         sd_notify("STOPPING=1")
-        if self.store is not None and self.store.save(self.service):
+        if self.store is not None and self.store.save(self.service, final=True):
             log.info("sensor state saved to %s", self.store.path)
         if self.health is not None:
-            self.health.last_write_s = None
-            self.health.maybe_write(self.service, self.store)
+            self.health.maybe_write(self.service, self.store, stopped=True)
 
 
 def run_live(settings: LiveSettings):
@@ -173,6 +172,10 @@ def run_live(settings: LiveSettings):
     bus = open_bus(settings.interface, settings.channel, settings.bitrate_bit_s, filters)
 
     hooks = GatewayHooks(settings, service)
+    # frames stamped with the system clock: its steps (NTP, GNSS) are no time without frames
+    from firmware_model.service.live import FrameClock
+    from tools.can.bus import SENDER_TIMESTAMP_INTERFACES
+    frame_clock = None if settings.interface in SENDER_TIMESTAMP_INTERFACES else FrameClock(service.log)
 
     def ready():
         log.info("listening on %s %s (%s); sending as source address 0x%02X", settings.interface, settings.channel,
@@ -184,7 +187,8 @@ def run_live(settings: LiveSettings):
         with stop_on_signals() as stop, SignalWatcher(stop):
             result = serve(bus, service, stop=stop, duration_s=settings.duration_s, on_ready=ready,
                            on_tick=hooks.tick, reopen=lambda: open_bus(settings.interface, settings.channel,
-                                                                       settings.bitrate_bit_s, filters))
+                                                                       settings.bitrate_bit_s, filters),
+                           frame_clock=frame_clock)
     finally:
         try:
             bus.shutdown()

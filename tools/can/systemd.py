@@ -1,8 +1,9 @@
 """The systemd unit of the gateway service (`gearbox-vsensor service-unit`, docs/gateway.md).
 
 Type=notify with a watchdog (the service sends READY=1 and WATCHDOG=1, firmware_model.service.persist.sd_notify),
-restart on failure, an unprivileged dynamic user, no capabilities beyond CAP_NET_RAW (CAN sockets do not need it
-for plain reading and writing; it is offered only with ``--raw``), a state directory for the saved state, journal
+restart always (a clean stop by a stray SIGHUP too), an unprivileged dynamic user without capabilities (CAN sockets
+need none for plain reading and writing; ``unit_text(raw=True)``, which no command line offers, would grant
+CAP_NET_RAW), a state directory for the saved state, journal
 logging with a syslog identifier a journal can filter (``journalctl -t gearbox-vsensor``).
 """
 from __future__ import annotations
@@ -23,7 +24,7 @@ Description=gearbox-vsensor virtual gearbox temperature sensor on {channel}
 Type=notify
 NotifyAccess=main
 ExecStart={exec_start}
-Restart=on-failure
+Restart=always
 RestartSec=2
 WatchdogSec=10
 TimeoutStopSec=10

@@ -37,37 +37,69 @@ def run(args) -> int:
     except (OSError, ValueError) as exc:
         raise InputError(f"{args.health_file}: not a gearbox-vsensor health file ({exc})") from None
     try:        # a health file edited or damaged by hand: its fields of the wrong type are one sentence, exit 2
-        age_s = time.time() - float(doc.get("written_wall_s", 0.0))
+        age_s = health_age_s(doc)
         lines = status_lines(doc, age_s)
     except (TypeError, ValueError, AttributeError) as exc:
         raise InputError(f"{args.health_file}: not a gearbox-vsensor health file (a field of the wrong type: "
                          f"{exc})") from None
-    if args.json:
-        print(json.dumps(doc, indent=2))
-    else:
-        for line in lines:
-            print(line)
-    return 0 if age_s <= STALE_S else 1
+    try:
+        if args.json:
+            print(json.dumps(doc, indent=2))
+        else:
+            for line in lines:
+                print(line)
+    except BrokenPipeError:       # `status | head -1`: the reader has what it wanted
+        import os
+        import sys
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+    return 0 if age_s <= STALE_S and not doc.get("stopped") else 1
+
+
+def health_age_s(doc: dict) -> float:
+    """How long ago the file was written: by the monotonic clock when it was written on this boot (a wall clock set
+    back or forward says nothing then), else by the wall clock."""
+    from firmware_model.service.persist import boot_id
+    wall_age_s = time.time() - float(doc.get("written_wall_s", 0.0))
+    mono = doc.get("written_monotonic_s")
+    if mono is not None and doc.get("boot_id") and doc.get("boot_id") == boot_id():
+        return time.monotonic() - float(mono)
+    return wall_age_s
 
 
 def status_lines(doc: dict, age_s: float) -> list[str]:
+    from firmware_model.components import MODE_NAMES
     state = doc.get("state") or {}
     last = doc.get("last_step_frame_time_s")
     stale = (f"NOT RUNNING (health {age_s:.0f} s old; or running but unable to rewrite this file: its log says "
              f"'cannot write the health file')")
-    lines = [f"service: {'running' if age_s <= STALE_S else stale}, "
+    if doc.get("stopped"):
+        stale = f"stopped cleanly {age_s:.0f} s ago"
+    now = doc.get("degraded_mode_now")
+    j = doc.get("j1939")
+    lines = [f"service: {'running' if age_s <= STALE_S and not doc.get('stopped') else stale}, "
              f"pid {doc.get('pid')}, uptime {doc.get('uptime_s', 0.0):.0f} s",
              f"sensor: {'initialised' if doc.get('initialised') else 'waiting for inputs'}, {doc.get('steps', 0)} "
-             f"steps, last step at frame time {'-' if last is None else f'{last:.1f} s'}",
-             f"degraded modes (steps): {doc.get('degraded_mode_steps') or 'none'}; time jumps "
-             f"{doc.get('time_jumps', 0)}; frames sent {doc.get('frames_sent', 0)}",
+             f"steps, last step at frame time {'-' if last is None else f'{last:.1f} s'}"
+             + ("" if now is None else f"; mode now {now} ({MODE_NAMES.get(int(now), '?')})"),
+             f"degraded modes (steps since start): {doc.get('degraded_mode_steps') or 'none'}; time jumps "
+             f"{doc.get('time_jumps', 0)}; clock steps {doc.get('clock_steps', 0)}; frames sent "
+             f"{doc.get('frames_sent', 0)}"
+             + (f" ({doc['frames_held_no_address']} held: no J1939 address)"
+                if doc.get("frames_held_no_address") else ""),
              "frames: " + ", ".join(f"{k.replace('_', ' ')} {v}" for k, v in (doc.get("decoder") or {}).items())]
+    if j:
+        a = j.get("address")
+        lines.append("J1939 address: " + (f"0x{int(a):02X}" if a is not None else
+                                          "LOST (Cannot Claim sent: the sensor sends nothing; another node claimed "
+                                          "its address with a higher-priority NAME)")
+                     + f"; contentions won {j.get('contentions_won', 0)}, lost {j.get('contentions_lost', 0)}")
     if doc.get("health_write_errors"):
         lines.append(f"health file: {doc['health_write_errors']} writes failed before this one (the service's log "
                      f"names the first error)")
     if state:
         age = state.get("last_save_age_s")
-        lines.append(f"state: {state.get('path')}, {state.get('saves', 0)} saves ({state.get('save_errors', 0)} "
+        lines.append(f"state: {state.get('path')}, {'restored at start' if state.get('restored') else 'not restored'}"
+                     f", {state.get('saves', 0)} saves ({state.get('save_errors', 0)} "
                      f"errors), last {'never' if age is None else f'{age:.0f} s ago'}; cold starts "
                      f"{state.get('cold_starts', 0)}{' (' + str(state.get('reason')) + ')' if state.get('reason') else ''}")
     return lines
