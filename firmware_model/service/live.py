@@ -271,6 +271,65 @@ class LatencyFigures(NamedTuple):
     steps: int
 
 
+class _FrameHandler:
+    """What :func:`serve` does with one received frame: a bus-off error frame counted and logged once per episode,
+    the frame time put on the :class:`FrameClock`'s base, the service fed, its frames sent (send errors counted,
+    logged once per 10 s), the step's latency kept and the deferred part of the step run."""
+
+    def __init__(self, service: SensorService, link: BusLink, result: ServeResult, on_sent, frame_clock):
+        self.service, self.link, self.result, self.on_sent, self.frame_clock = (service, link, result, on_sent,
+                                                                               frame_clock)
+        self.last_err_log_s = -math.inf
+        self.last_bus_off_s = -math.inf
+
+    def bus_off(self, t_mono_s: float) -> None:
+        """A SocketCAN error frame of the bus-off class: counted, logged once per episode (the frames stop coming;
+        the sensor holds its inputs and its levels become 'not available' after 10 s, as for any silence)."""
+        c = self.service.counters
+        c["bus_off"] = c.get("bus_off", 0) + 1
+        if t_mono_s - self.last_bus_off_s > BUS_OFF_EPISODE_S:
+            self.service.log.warning("CAN controller bus-off (error frame; %d so far): no frames until it restarts "
+                                     "(set the interface's restart-ms); the sensor holds its inputs", c["bus_off"])
+        self.last_bus_off_s = t_mono_s
+
+    def send(self, frame) -> None:
+        result = self.result
+        try:
+            self.link.bus.send(frame)
+            result.frames_out += 1
+            if self.on_sent is not None:
+                self.on_sent(frame)
+        except can.CanError as exc:
+            result.send_errors += 1
+            now_s = time.perf_counter()
+            if now_s - self.last_err_log_s > SEND_ERROR_LOG_PERIOD_S:
+                self.last_err_log_s = now_s
+                self.service.log.warning("cannot send %08X: %s (%d send errors so far)", frame.arbitration_id, exc,
+                                         result.send_errors)
+
+    def __call__(self, item) -> None:
+        msg, t_mono_s = item
+        service, fc = self.service, self.frame_clock
+        self.result.frames_in += 1
+        if msg.is_error_frame and msg.arbitration_id & CAN_ERR_BUSOFF:
+            self.bus_off(t_mono_s)
+        received_s = msg.timestamp
+        if fc is not None:
+            msg.timestamp = fc(received_s, t_mono_s)
+            if fc.steps:
+                service.counters["clock_steps"] = fc.steps
+        frames = service.feed(msg)
+        if not frames:
+            return
+        for frame in frames:
+            self.send(frame)
+        latencies = self.result.step_latency_s
+        if len(latencies) >= LATENCY_KEEP_STEPS:
+            del latencies[:LATENCY_KEEP_STEPS // 2]
+        latencies.append(time.time() - received_s)
+        service.finish_pending()           # the slow part of the step, now that its frames are out
+
+
 def serve(bus, service: SensorService, *, stop: threading.Event | None = None, duration_s: float | None = None,
           poll_s: float = 0.05, on_sent: Callable | None = None,
           on_ready: Callable[[], None] | None = None, on_tick: Callable[[], None] | None = None,
@@ -294,54 +353,8 @@ def serve(bus, service: SensorService, *, stop: threading.Event | None = None, d
     link = BusLink(bus, listener, reopen, service.log, on_wait=on_tick)
     if on_ready is not None:
         on_ready()
-    last_err_log_s = -math.inf
     q = listener.queue
-
-    latencies = result.step_latency_s
-    last_bus_off_s = -math.inf
-
-    def bus_off(t_mono_s: float) -> None:
-        """A SocketCAN error frame of the bus-off class: counted, logged once per episode (the frames stop coming;
-        the sensor holds its inputs and its levels become 'not available' after 10 s, as for any silence)."""
-        nonlocal last_bus_off_s
-        service.counters["bus_off"] = service.counters.get("bus_off", 0) + 1
-        if t_mono_s - last_bus_off_s > BUS_OFF_EPISODE_S:
-            service.log.warning("CAN controller bus-off (error frame; %d so far): no frames until it restarts "
-                                "(set the interface's restart-ms); the sensor holds its inputs",
-                                service.counters["bus_off"])
-        last_bus_off_s = t_mono_s
-
-    def handle(item) -> None:
-        nonlocal last_err_log_s
-        msg, t_mono_s = item
-        result.frames_in += 1
-        if msg.is_error_frame and msg.arbitration_id & CAN_ERR_BUSOFF:
-            bus_off(t_mono_s)
-        received_s = msg.timestamp
-        if frame_clock is not None:
-            msg.timestamp = frame_clock(received_s, t_mono_s)
-            if frame_clock.steps:
-                service.counters["clock_steps"] = frame_clock.steps
-        frames = service.feed(msg)
-        if not frames:
-            return
-        for frame in frames:
-            try:
-                link.bus.send(frame)
-                result.frames_out += 1
-                if on_sent is not None:
-                    on_sent(frame)
-            except can.CanError as exc:
-                result.send_errors += 1
-                now_s = time.perf_counter()
-                if now_s - last_err_log_s > SEND_ERROR_LOG_PERIOD_S:
-                    last_err_log_s = now_s
-                    service.log.warning("cannot send %08X: %s (%d send errors so far)", frame.arbitration_id, exc,
-                                        result.send_errors)
-        if len(latencies) >= LATENCY_KEEP_STEPS:
-            del latencies[:LATENCY_KEEP_STEPS // 2]
-        latencies.append(time.time() - received_s)
-        service.finish_pending()           # the slow part of the step, now that its frames are out
+    handle = _FrameHandler(service, link, result, on_sent, frame_clock)
 
     try:
         while not stop.is_set():
