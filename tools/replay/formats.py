@@ -44,7 +44,9 @@ def check_log(path: str | os.PathLike) -> Path:
     p = Path(path)
     suffix = p.suffix.lower()
     if suffix == ".gz" or (p.is_file() and _gzipped(p)):
-        raise InputError(f"{p}: the file is gzip-compressed; decompress it first (zcat {p.name} > plain{suffix})")
+        inner = Path(p.stem).suffix if suffix == ".gz" else suffix       # short.log.gz holds a .log
+        raise InputError(f"{p}: the file is gzip-compressed; decompress it first (zcat {p.name} > "
+                         f"{Path(p.stem).stem if suffix == '.gz' else p.stem}-plain{inner or '.log'})")
     if suffix not in LOG_SUFFIXES:
         raise InputError(f"{p}: unknown log suffix {suffix!r}; CAN logs are "
                          + ", ".join(f"{s} ({n})" for s, n in LOG_SUFFIXES.items()) + ", run tables .csv")
