@@ -229,6 +229,13 @@ int main(void)
     gvs_outputs out;
     int i, bad = 0;
     double T_hot;
+    /* a cold start without an oil reading starts at a plausible ambient reading, as the Python sensor */
+    gvs_sensor_init_ambient(&st, NAN, -20.0);
+    if (st.T_c[0][0] != (gvs_real)-20.0 || st.T_c[1][GVS_TABLES.n - 1] != (gvs_real)-20.0) bad = 6;
+    gvs_sensor_init_ambient(&st, 50.0, -20.0);
+    if (st.T_c[0][0] != (gvs_real)50.0) bad = 7;
+    gvs_sensor_init_ambient(&st, NAN, 999.0);
+    if (st.T_c[0][0] != GVS_TABLES.aux_default[0]) bad = 8;
     gvs_sensor_init(&st, 60.0);
     run(0.0, 3000, NAN, &out);                       /* 300 s hard, the sump modelled: warmer than 60 degC */
     T_hot = st.T_c[0][GVS_TABLES.i_oil];

@@ -82,7 +82,9 @@ static int exit_init(Instance *m)
         m->log(m, 1, "initial_temp_c must be NaN (the first oil input) or within the oil input's plausible range");
         return -1;
     }
-    gvs_sensor_init(&m->st, m->initial_temp_c == m->initial_temp_c ? m->initial_temp_c : m->inputs[GVS_I_OIL]);
+    gvs_sensor_init_ambient(&m->st, m->initial_temp_c == m->initial_temp_c ? m->initial_temp_c
+                                                                          : m->inputs[GVS_I_OIL],
+                            m->inputs[GVS_I_AMB]);
     publish_state(m);
     m->initialised = 1;
     return 0;

@@ -23,6 +23,10 @@ extern const gvs_vehicle GVS_VEHICLE;
  * range: the ambient default of the tables, 25 degC unless configured). */
 void gvs_sensor_init(gvs_state *st, double T_oil_c);
 
+/* Cold start as the Python sensor makes it: at the oil reading when plausible, else at the ambient reading
+ * T_ambient_c when plausible (a gearbox that stood long is at ambient), else the tables' ambient default. */
+void gvs_sensor_init_ambient(gvs_state *st, double T_oil_c, double T_ambient_c);
+
 /* Warm start from a state saved on shutdown (same GVS_STATE_KEY, CRC checked by the caller): 0, or -1 when its
  * contents are not a sensor state (a temperature not finite or outside -100..500 degC, a level outside 0..3, a
  * negative count): then start cold with gvs_sensor_init. Restarts the time base (the next t_s may be anything, an
@@ -51,12 +55,18 @@ SENSOR_SOURCE = """/* gearbox-vsensor: start and step of the exported sensor (se
 
 void gvs_sensor_init(gvs_state *st, double T_oil_c)
 {
+    gvs_sensor_init_ambient(st, T_oil_c, NAN);
+}
+
+void gvs_sensor_init_ambient(gvs_state *st, double T_oil_c, double T_ambient_c)
+{
     int i, c;
-    /* a reading outside the oil input's plausible range (or NaN) is no start: the ambient default, as the Python
-     * sensor's initial_state */
-    int plausible = T_oil_c >= (double)GVS_TABLES.input_lo[GVS_I_OIL]
-        && T_oil_c <= (double)GVS_TABLES.input_hi[GVS_I_OIL];
-    gvs_real T0 = (gvs_real)(plausible ? T_oil_c : (double)GVS_TABLES.aux_default[0]);
+    /* a reading outside its input's plausible range (or NaN) is no start, as in the Python sensor's
+     * initial_state: the oil, else the ambient reading, else the ambient default */
+    int oil_ok = T_oil_c >= (double)GVS_TABLES.input_lo[GVS_I_OIL] && T_oil_c <= (double)GVS_TABLES.input_hi[GVS_I_OIL];
+    int amb_ok = T_ambient_c >= (double)GVS_TABLES.input_lo[GVS_I_AMB]
+        && T_ambient_c <= (double)GVS_TABLES.input_hi[GVS_I_AMB];
+    gvs_real T0 = (gvs_real)(oil_ok ? T_oil_c : amb_ok ? T_ambient_c : (double)GVS_TABLES.aux_default[0]);
     memset(st, 0, sizeof *st);
     for (c = 0; c < 2; ++c)
         for (i = 0; i < GVS_TABLES.n; ++i) st->T_c[c][i] = T0;
@@ -381,7 +391,7 @@ Compile with `-DGVS_REAL_FLOAT` for single precision (as `make` does for a float
 ```c
 #include "gvs_sensor.h"
 static gvs_state state;                 /* RAM: sizeof(gvs_state); keep it across calls */
-gvs_sensor_init(&state, oil_temp_c);    /* at start-up (NaN when no oil reading yet) */
+gvs_sensor_init_ambient(&state, oil_temp_c, ambient_c);   /* at start-up (NaN: no reading yet) */
 /* every 100 ms: */
 gvs_inputs in = {{{{speed_rpm, torque_nm, gear, oil_temp_c, ambient_c, coolant_c, vehicle_speed_kmh,
                    retarder_torque_nm}}, NAN}};      /* NaN = not available; t_s NaN: on the 100 ms grid */
