@@ -23,7 +23,6 @@ from typing import NamedTuple
 
 import numpy as np
 
-from firmware_model.errors import InputError
 from firmware_model.onboard.ckernel import NEED_JUMP, TABLE_FIELDS, CoreUnavailable, load
 from firmware_model.onboard.held_inputs import jump_state
 from firmware_model.onboard.kernel_tables import VEHICLE_EFFECTS, table_arrays, vehicle_arrays
@@ -201,15 +200,14 @@ class CompiledCore:
 
     def _jumps(self, buf: np.ndarray, rec: np.ndarray, cache: StepCache) -> np.ndarray:
         """Forward time jumps propagated on the host (held_inputs.jump_state, in place in ``buf``); the flags the
-        kernel takes. A batch whose time went backwards for some vehicles only is refused (as the numpy step)."""
+        kernel takes. Vehicles whose time went backwards are skipped by the kernel, each on its own (as the numpy step
+        does)."""
         dt = self.sp.dt_s
         with np.errstate(invalid="ignore"):
             gap = rec["t_s"] - buf["t_last_s"]
         known = np.isfinite(gap)
         backward = known & (gap < 0.5 * dt) & ~(gap < -self.sp.options.clock_reset_s)     # not a reset clock
-        if backward.any() and not backward.all():
-            raise InputError("time went backwards for some vehicles of a batch only; step the batch on one time grid")
-        jump = known & (gap > 1.5 * dt) & ~backward
+        jump = known & (gap > 1.5 * dt) & ~backward           # (the kernel skips the backward ones itself)
         if jump.any():
             st = jump_state(self.unpack(buf), np.where(jump, gap - dt, 0.0), self.sp, cache)
             buf["T_c"][..., :self.n] = st.T_c

@@ -32,7 +32,6 @@ from typing import NamedTuple
 import numpy as np
 
 from firmware_model.components import LEVEL_NA, MODE_HOLDING, MODE_NORMAL, MODE_OIL_MODEL
-from firmware_model.errors import InputError
 from firmware_model.onboard import reduce as R
 from firmware_model.onboard.conductance_bins import bin_centre, bin_conductances, quantise
 from firmware_model.onboard.held_inputs import jump_state
@@ -100,14 +99,37 @@ def step_deferred(state: SensorState, inputs: SensorInputs, sp: SensorParams, ca
         jump = known & (gap > 1.5 * sp.dt_s)
         counts[..., _I_TIME_JUMP] = jump
         counts[..., _I_TIME_BACKWARD] = backward | reset
-        if backward.any():
-            return _skip(state, counts, backward, sp)
-        if jump.any():
-            state = jump_state(state, np.where(jump, gap - sp.dt_s, 0.0), sp, cache)
+        if backward.all():
+            return _skip(state, counts, sp)
+        if backward.any():          # some vehicles of a batch only: they keep their state, the others step
+            skipped = _skip(state, counts.copy(), sp)[:2]
+            new_state, outputs, job = _step_all(state, raw, t_now, counts, jump, gap, sp, cache, backward)
+            new_state, outputs = _merge_skipped(skipped, new_state, outputs, backward)
+            return new_state, outputs, job
+        return _step_all(state, raw, t_now, counts, jump, gap, sp, cache, None)
+    return _step_all(state, raw, t_now, counts, None, None, sp, cache, None)
+
+
+def _step_all(state, raw, t_now, counts, jump, gap, sp: SensorParams, cache: StepCache, skipped):
+    """Steps 1-7 for every vehicle (``skipped``: vehicles whose results will be discarded, left out of the
+    time-to-limit job)."""
+    if jump is not None and jump.any():
+        state = jump_state(state, np.where(jump, gap - sp.dt_s, 0.0), sp, cache)
     chk = check_inputs(state, raw, sp)
     counts[..., :chk.counts.shape[-1]] = chk.counts
     net = _network_step(state, chk, raw[..., I_OIL], sp, cache)
-    return _finish(state, raw, t_now, chk, net, counts, sp)
+    return _finish(state, raw, t_now, chk, net, counts, sp, skipped)
+
+
+def _merge_skipped(skipped, new_state: SensorState, outputs: SensorOutputs, mask: np.ndarray):
+    """(state, outputs) with the vehicles of ``mask`` taken from ``skipped`` (their step skipped: time went back)."""
+    def pick(a, b):
+        a, b = np.asarray(a), np.asarray(b)
+        return np.where(mask.reshape(mask.shape + (1,) * (b.ndim - mask.ndim)), a, b)
+    st, out = skipped
+    return (SensorState(*(pick(a, b) for a, b in zip(st, new_state))),
+            SensorOutputs(pick(out.T_c, outputs.T_c), pick(out.level, outputs.level), pick(out.ttl_s, outputs.ttl_s),
+                          SensorStatus(*(pick(a, b) for a, b in zip(out.status, outputs.status)))))
 
 
 def _raw_inputs(inputs: SensorInputs, B: tuple) -> np.ndarray:
@@ -191,9 +213,13 @@ def _levels(state: SensorState, T_pub_c, available, ttl_now_s, sp: SensorParams)
     return (*update_levels(state.level, state.pending_s, T_pub_c, available, lim, sp.dt_s, ttl_now_s), False)
 
 
-def _ttl_job(state: SensorState, chk: InputCheck, net: NetworkStep, sp: SensorParams) -> TtlJob | None:
-    """The time-to-limit refreshes due after this step (after the steps k = 0, every, 2 every...)."""
+def _ttl_job(state: SensorState, chk: InputCheck, net: NetworkStep, sp: SensorParams,
+             skipped=None) -> TtlJob | None:
+    """The time-to-limit refreshes due after this step (after the steps k = 0, every, 2 every...; not for the
+    vehicles ``skipped``)."""
     due = state.k % sp.ttl_every == 0
+    if skipped is not None:
+        due = due & ~skipped
     if not due.any():
         return None
     B = state.t_last_s.shape
@@ -205,7 +231,8 @@ def _ttl_job(state: SensorState, chk: InputCheck, net: NetworkStep, sp: SensorPa
     return TtlJob(vehicles, points)
 
 
-def _finish(state: SensorState, raw, t_now, chk: InputCheck, net: NetworkStep, counts, sp: SensorParams):
+def _finish(state: SensorState, raw, t_now, chk: InputCheck, net: NetworkStep, counts, sp: SensorParams,
+            skipped=None):
     """Steps 6-7 of the module doc: published temperatures, warnings, time to limit counted down, status, the new
     state and the time-to-limit job."""
     rp, lim, dt = sp.reduced, sp.limits, sp.dt_s
@@ -232,11 +259,12 @@ def _finish(state: SensorState, raw, t_now, chk: InputCheck, net: NetworkStep, c
     new_state = SensorState(net.T_c, net.lag_w, np.where(ok, chk.used, state.hold), chk.age_s, chk.same_s, raw,
                             chk.oil_ref_c, level, pending_s, state.ttl_s,
                             np.where(np.isfinite(t_now), t_now, state.t_last_s), state.k + 1, rejects)
-    return new_state, SensorOutputs(T_pub_c, level, ttl_out_s, status), _ttl_job(state, chk, net, sp)
+    return new_state, SensorOutputs(T_pub_c, level, ttl_out_s, status), _ttl_job(state, chk, net, sp, skipped)
 
 
-def _skip(state: SensorState, counts, skip_mask, sp: SensorParams):
-    """A step whose time went backwards: nothing is integrated; outputs repeat the current state."""
+def _skip(state: SensorState, counts, sp: SensorParams):
+    """A step whose time went backwards: nothing is integrated; outputs repeat the current state (for every vehicle
+    of the batch: :func:`step_deferred` merges them where only some vehicles went back)."""
     rp = sp.reduced
     rejects = state.rejects + counts
     st = state._replace(rejects=rejects)
@@ -246,6 +274,4 @@ def _skip(state: SensorState, counts, skip_mask, sp: SensorParams):
     status = SensorStatus(np.full(B, MODE_HOLDING, dtype=np.int8), z, z, z, z, np.zeros(B, dtype=np.int64),
                           state.T_c[..., TWIN, rp.i_oil], np.full(B, np.nan), np.ones(B, dtype=np.int8),
                           np.zeros(B, dtype=np.int64), rejects)
-    if np.all(skip_mask):
-        return st, SensorOutputs(T_pub, state.level, state.ttl_s, status), None
-    raise InputError("time went backwards for some vehicles of a batch only; step the batch on one time grid")
+    return st, SensorOutputs(T_pub, state.level, state.ttl_s, status), None

@@ -359,3 +359,32 @@ def test_time_to_limit_refresh_on_hostile_operating_points(params):
     # the first one is an ordinary point: both agree as the parity tests require
     np.testing.assert_allclose(cc.refresh_ttl(cc.initial_state(T_oil_c=90.0), TtlJob(((),), (base,))).ttl_s,
                                time_to_limit(ref.sp, ref.cache, base), rtol=1e-3, atol=0.1)
+
+
+@needs_c
+def test_a_batch_whose_vehicles_go_back_differently_matches_the_numpy_step(params):
+    """From a review: vehicles of one batch whose clocks go back by different amounts (some skipped, some on a
+    reset clock, the rest stepping; a NaN time keeps a vehicle's last time, so their gaps differ) raised an error in
+    both cores. Now each vehicle is skipped, reset or stepped on its own, alike in numpy and C."""
+    rng = np.random.default_rng(5)
+    V, L = 60, 40
+    raw, t_s = hostile_inputs(rng, V, L)
+    t_s = np.cumsum(np.full((L, V), 0.1), axis=0)
+    t_s[20:, :20] -= 0.3                          # a third back a little: skipped
+    t_s[20:, 20:40] -= 10.25                      # a third back past clock_reset_s (gap -10.15 s): a reset clock
+    t_s[20:, 40:50] -= 9.95                       # some just short of it (gap -9.85 s): skipped until caught up
+    ref = VirtualSensor(params, core="numpy", ttl_period_s=1.0)
+    cc = VirtualSensor(params, core="c", ttl_period_s=1.0)
+    s_np = s_c = ref.initial_state(T_oil_c=rng.uniform(20.0, 90.0, V), n_vehicles=V)
+    for j in range(L):
+        inp = SensorInputs(*(raw[j, :, i] for i in range(8)), t_s=t_s[j])
+        s_np, o_np, j_np = ref.step_deferred(s_np, inp)
+        s_c, o_c, j_c = cc.step_deferred(s_c, inp)
+        _compare_outputs(o_np, o_c, f"step {j}")
+        _compare_jobs(j_np, j_c, f"step {j}")
+        s_np, s_c = ref.refresh_ttl(s_np, j_np), cc.refresh_ttl(s_c, j_c)
+    np.testing.assert_allclose(s_c.T_c, s_np.T_c, rtol=0, atol=1e-9)
+    np.testing.assert_array_equal(s_c.rejects, s_np.rejects)
+    np.testing.assert_array_equal(s_c.k, s_np.k)
+    k = np.asarray(s_np.k)
+    assert (k[:20] == L - 3).all() and (k[20:40] == L).all() and (k[40:50] == 20).all() and (k[50:] == L).all()
