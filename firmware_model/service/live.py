@@ -14,6 +14,7 @@ import can
 import numpy as np
 
 from firmware_model.service.core import SensorService
+from firmware_model.service.persist import boot_clock
 
 #: a step's latency figures keep the last this many steps (then the older half is dropped)
 LATENCY_KEEP_STEPS = 100_000
@@ -28,10 +29,10 @@ RESUME_LIMIT = 3
 #: an outage that stays silent (no frame, no error) is treated as a dead handle: the bus is reopened after the
 #: first of these [s], then with the delay doubling up to the second
 SILENT_REOPEN_S = (1.0, 30.0)
-#: a frame time that departs from the monotonic clock by more than this from the reference is a step of the clock
-#: that stamps the frames (FrameClock) [s]; the reference follows slow drift with this gain per frame
+#: the wall clock set by more than this is a step of the clock that stamps the frames (FrameClock) [s]; a step the
+#: frames do not show for CLOCK_ADOPT_S of reception time is not theirs (their clock is another)
 CLOCK_STEP_S = 2.0
-CLOCK_DRIFT_GAIN = 1e-3
+CLOCK_ADOPT_S = 10.0
 #: linux/can/error.h: the error class bit of an error frame that reports the controller in bus-off
 CAN_ERR_BUSOFF = 0x40
 #: a bus-off error frame this long [s] after the previous one is the same episode (logged once)
@@ -40,37 +41,53 @@ BUS_OFF_EPISODE_S = 10.0
 
 class FrameClock:
     """Frame times on one continuous base. Most interfaces stamp frames with the system's wall clock (SocketCAN's
-    kernel, udp_multicast), which steps when it is set (NTP, GNSS, an RTC read at boot): an hour's step read as
-    an hour without frames would cool a driving gearbox for an hour. Each frame's time is compared with the
-    monotonic clock at its reception: a departure of more than ``step_s`` from the reference is a step of the frame
-    clock, taken out of every later frame time (counted, logged); a real pause of the bus moves both clocks and
-    stays a time jump. The reference follows a slow drift (an adapter's hardware clock). Not for frames that carry
-    their sender's time (python-can's virtual bus replaying a log)."""
+    kernel, udp_multicast), which steps when it is set (NTP, GNSS, an RTC read at boot): an hour's step read as an
+    hour without frames would cool a driving gearbox for an hour. The wall clock's own offset from the time since
+    boot (:func:`~firmware_model.service.persist.boot_clock`, which counts a suspend: a suspended gateway's time
+    passes) changes only when the clock is set; when it has moved by more than ``step_s`` and the frames' spacing
+    departs from their reception times' by the same amount, the frames stepped with it: the step is taken out of
+    every later frame time (counted, logged). A pause of the bus, a suspend, a backlog of frames received late, or
+    timestamps that are not the wall clock (an adapter's hardware clock, zeros) are left as they are; when the wall
+    clock moved but the frames do not show it for ``adopt_s``, they do not follow it and the new offset is adopted.
+    Not for frames that carry their sender's time (python-can's virtual bus replaying a log)."""
 
-    def __init__(self, log=None, step_s: float = CLOCK_STEP_S):
-        self.log, self.step_s = log, step_s
-        self.offset_s: float | None = None        # frame time - monotonic time, the reference
+    def __init__(self, log=None, step_s: float = CLOCK_STEP_S, adopt_s: float = CLOCK_ADOPT_S,
+                 wall: Callable[[], float] = time.time, boot: Callable[[], float] = boot_clock):
+        self.log, self.step_s, self.adopt_s, self.wall, self.boot = log, step_s, adopt_s, wall, boot
+        self.ref_offset_s: float | None = None    # wall - boot for the frames' base so far
+        self.prev: tuple[float, float] | None = None     # (frame time, reception time) of the last frame
+        self.unseen_since_s: float | None = None  # reception time since the wall clock moved unseen by the frames
         self.correction_s = 0.0                   # taken out of every frame time so far
         self.steps = 0
 
-    def __call__(self, t_frame_s: float, t_mono_s: float) -> float:
+    def __call__(self, t_frame_s: float, t_received_s: float) -> float:
         if not math.isfinite(t_frame_s):
             return t_frame_s
-        d = t_frame_s - t_mono_s
-        if self.offset_s is None:
-            self.offset_s = d
-        elif abs(d - self.offset_s) > self.step_s:
-            step = d - self.offset_s
-            self.correction_s += step
-            self.offset_s = d
-            self.steps += 1
-            if self.log is not None:
-                self.log.warning("the clock that stamps the frames stepped by %+.1f s against the monotonic clock "
-                                 "(the system clock was set: NTP, GNSS, RTC); the sensor's time continues without "
-                                 "the step (%d clock steps so far)", step, self.steps)
-        else:
-            self.offset_s += CLOCK_DRIFT_GAIN * (d - self.offset_s)
+        offset_s = self.wall() - self.boot()
+        if self.ref_offset_s is None:
+            self.ref_offset_s = offset_s
+        moved_s = offset_s - self.ref_offset_s
+        if abs(moved_s) <= self.step_s:
+            self.ref_offset_s = offset_s                  # a slew (NTP's slow corrections) is no step
+            self.unseen_since_s = None
+        elif self.prev is not None:
+            mismatch_s = (t_frame_s - self.prev[0]) - (t_received_s - self.prev[1])
+            if abs(mismatch_s - moved_s) < self.step_s:   # the frames stepped with the wall clock
+                self._step(moved_s, offset_s)
+            elif self.unseen_since_s is None:
+                self.unseen_since_s = t_received_s
+            elif t_received_s - self.unseen_since_s > self.adopt_s:
+                self.ref_offset_s, self.unseen_since_s = offset_s, None    # these frames do not follow it
+        self.prev = (t_frame_s, t_received_s)
         return t_frame_s - self.correction_s
+
+    def _step(self, step_s: float, offset_s: float) -> None:
+        self.correction_s += step_s
+        self.ref_offset_s, self.unseen_since_s = offset_s, None
+        self.steps += 1
+        if self.log is not None:
+            self.log.warning("the system clock that stamps the frames was set by %+.1f s (NTP, GNSS, RTC); the "
+                             "sensor's time continues without the step (%d clock steps so far)", step_s, self.steps)
 
 
 class QueueListener:
@@ -90,7 +107,7 @@ class QueueListener:
 
     def on_message_received(self, msg) -> None:
         self.received += 1
-        self.queue.put((msg, time.monotonic()))      # with the monotonic time of reception (FrameClock)
+        self.queue.put((msg, boot_clock()))          # with the time of reception since boot (FrameClock)
 
     def on_error(self, exc: BaseException) -> None:
         self.errors.append(exc)
@@ -282,15 +299,15 @@ class _FrameHandler:
         self.last_err_log_s = -math.inf
         self.last_bus_off_s = -math.inf
 
-    def bus_off(self, t_mono_s: float) -> None:
+    def bus_off(self, t_received_s: float) -> None:
         """A SocketCAN error frame of the bus-off class: counted, logged once per episode (the frames stop coming;
         the sensor holds its inputs and its levels become 'not available' after 10 s, as for any silence)."""
         c = self.service.counters
         c["bus_off"] = c.get("bus_off", 0) + 1
-        if t_mono_s - self.last_bus_off_s > BUS_OFF_EPISODE_S:
+        if t_received_s - self.last_bus_off_s > BUS_OFF_EPISODE_S:
             self.service.log.warning("CAN controller bus-off (error frame; %d so far): no frames until it restarts "
                                      "(set the interface's restart-ms); the sensor holds its inputs", c["bus_off"])
-        self.last_bus_off_s = t_mono_s
+        self.last_bus_off_s = t_received_s
 
     def send(self, frame) -> None:
         result = self.result
@@ -308,14 +325,14 @@ class _FrameHandler:
                                          result.send_errors)
 
     def __call__(self, item) -> None:
-        msg, t_mono_s = item
+        msg, t_received_s = item
         service, fc = self.service, self.frame_clock
         self.result.frames_in += 1
         if msg.is_error_frame and msg.arbitration_id & CAN_ERR_BUSOFF:
-            self.bus_off(t_mono_s)
+            self.bus_off(t_received_s)
         received_s = msg.timestamp
         if fc is not None:
-            msg.timestamp = fc(received_s, t_mono_s)
+            msg.timestamp = fc(received_s, t_received_s)
             if fc.steps:
                 service.counters["clock_steps"] = fc.steps
         frames = service.feed(msg)
@@ -351,6 +368,7 @@ def serve(bus, service: SensorService, *, stop: threading.Event | None = None, d
     wall0_s, cpu0_s = time.perf_counter(), time.process_time()
     deadline_s = None if duration_s is None else wall0_s + duration_s
     link = BusLink(bus, listener, reopen, service.log, on_wait=on_tick)
+    service.bus_events = link.events          # the outage counters, live, for the health file
     if on_ready is not None:
         on_ready()
     q = listener.queue

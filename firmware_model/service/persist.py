@@ -63,6 +63,7 @@ class StateStore:
         self.last_ok_s: float | None = None            # timer: the last save that was written
         self.stepped_wall_s: float | None = None       # wall time when the state last changed (a step)
         self._steps_seen: int | None = None
+        self.loaded_saved_wall_s = math.nan          # the time of the state :meth:`load` returned
         self._saved_steps: int | None = None
         self.counters = {"restored": 0, "cold_starts": 0, "saves": 0, "save_errors": 0, "reason": None}
 
@@ -89,10 +90,15 @@ class StateStore:
         except (OSError, ValueError, UnicodeDecodeError) as exc:
             reason = f"unreadable or truncated ({exc.__class__.__name__})"
         if reason is None:
-            elapsed_s = max(self.clock() - float(doc["saved_wall_s"]), 0.0)
-            return doc["snapshot"], elapsed_s
+            self.loaded_saved_wall_s = float(doc["saved_wall_s"])
+            return doc["snapshot"], self.elapsed_s()
         self.cold_start(reason)
         return None
+
+    def elapsed_s(self) -> float:
+        """Wall time since the loaded state was taken, now (the restore happens at the first frame, which may come
+        long after the start: :class:`GatewayHooks` refreshes it until then)."""
+        return max(self.clock() - self.loaded_saved_wall_s, 0.0)
 
     def cold_start(self, reason: str) -> None:
         self.counters["cold_starts"] += 1
@@ -149,6 +155,13 @@ class StateStore:
         return None if self.last_ok_s is None else self.timer() - self.last_ok_s
 
 
+def boot_clock() -> float:
+    """Seconds since boot, counting time suspended (Linux CLOCK_BOOTTIME; elsewhere the monotonic clock): the
+    clock against which a step of the wall clock is told from time that passed (a suspended gateway's time
+    passes)."""
+    return time.clock_gettime(time.CLOCK_BOOTTIME) if hasattr(time, "CLOCK_BOOTTIME") else time.monotonic()
+
+
 def boot_id() -> str | None:
     """This boot's id (Linux): two processes comparing monotonic clocks must be on the same boot."""
     try:
@@ -159,8 +172,8 @@ def boot_id() -> str | None:
 
 class HealthFile:
     """The service's health for ``gearbox-vsensor status``: rewritten every ``period_s`` (``timer``: monotonic, so
-    a wall clock set back does not stop it). It carries the monotonic time of writing with the boot id, so that
-    `status` judges its age without the wall clock."""
+    a wall clock set back does not stop it). It carries the time since boot of writing (:func:`boot_clock`) with the
+    boot id, so that `status` judges its age without the wall clock."""
 
     def __init__(self, path, period_s: float = HEALTH_PERIOD_S, clock=time.time, timer=time.monotonic):
         self.path = Path(path)
@@ -180,12 +193,12 @@ class HealthFile:
         c = service.counters
         restored = c.get("state_restored") is True
         doc = {"schema": HEALTH_SCHEMA, "pid": os.getpid(), "written_wall_s": self.clock(),
-               "written_monotonic_s": time.monotonic(), "boot_id": self.boot_id, "stopped": stopped,
+               "written_boottime_s": boot_clock(), "boot_id": self.boot_id, "stopped": stopped,
                "uptime_s": now - self.started_s, "last_step_frame_time_s": service.frame_time_s,
                "steps": c.get("steps", 0), "initialised": service.state is not None,
                "degraded_mode_now": c.get("mode_now"),
                "degraded_mode_steps": dict(c.get("mode_steps", {})), "time_jumps": c.get("time_jumps", 0),
-               "clock_steps": c.get("clock_steps", 0),
+               "clock_steps": c.get("clock_steps", 0), "bus_off": c.get("bus_off", 0),
                "frames_sent": c.get("frames_sent", 0),
                "frames_held_no_address": c.get("frames_held_no_address", 0),
                "decoder": {k: v for k, v in service.decoder.counters.items() if k in ("frames_seen", "frames_used",
@@ -198,7 +211,8 @@ class HealthFile:
                    "reason": c.get("state_cold_start") or store.counters["reason"]},
                "j1939": None if getattr(service, "netmgmt", None) is None else {
                    "address": service.netmgmt.address, **service.netmgmt.counters},
-               "bus": bus_events or {}, "health_write_errors": self.errors}
+               "bus": dict(bus_events or getattr(service, "bus_events", None) or {}),
+               "health_write_errors": self.errors}
         try:
             atomic_write(self.path, json.dumps(doc, default=str).encode("utf-8"))
         except OSError as exc:

@@ -74,29 +74,73 @@ def test_without_reopen_a_receive_error_still_ends_the_loop():
     bus.shutdown()
 
 
+class SimClocks:
+    """The wall clock and the time since boot a FrameClock reads, set by a test."""
+
+    def __init__(self):
+        self.wall_s, self.boot_s = 0.0, 0.0
+
+    def wall(self):
+        return self.wall_s
+
+    def boot(self):
+        return self.boot_s
+
+
+def _clocked(frames, wall_step_at_s=None, wall_step_s=0.0, boot0_s=50.0, stall=None, suspend=None):
+    """Feed ``frames`` (stamped by a wall clock) through a FrameClock: ``wall_step_s`` added to the wall clock from
+    frame time ``wall_step_at_s``; ``stall`` = (t0, t1): the frames stamped then are received at t1 (a backlog);
+    ``suspend`` = (t, s): the system suspended s seconds at frame time t (wall and boot clocks both advance)."""
+    from firmware_model.service.live import FrameClock
+    sim = SimClocks()
+    fc = FrameClock(wall=sim.wall, boot=sim.boot)
+    out = []
+    for m in frames:
+        t = m.timestamp
+        received = t
+        if stall and stall[0] <= t < stall[1]:
+            received = stall[1]
+        if suspend and t >= suspend[0]:
+            t += suspend[1]
+            received += suspend[1]
+        if wall_step_at_s is not None and m.timestamp >= wall_step_at_s:
+            t += wall_step_s
+        sim.boot_s = received + boot0_s
+        sim.wall_s = received + (wall_step_s if wall_step_at_s is not None and received >= wall_step_at_s else 0.0)
+        m.timestamp = fc(t, sim.boot_s)
+        out.append(m)
+    return fc, out
+
+
 def test_a_step_of_the_frame_clock_is_taken_out_a_pause_is_kept():
     """From a gateway audit: SocketCAN stamps frames with the system clock, so an NTP or GNSS correction of +1 h
     60 s into a steady drive was read as an hour without frames: the sensor cooled the driving gearbox (the bearing
-    21.8 K low) and said nothing. The FrameClock compares each frame time with the monotonic clock at reception."""
-    from firmware_model.service.live import FrameClock
-    frames = traffic(0.0, 120.0, rpm=1500.0, gear=9)
+    21.8 K low) and said nothing. The FrameClock takes out a step of the wall clock that the frames show; from a
+    review: a suspend (time since boot counts it) and a backlog received late are no step."""
     plain, stepped = _service(), _service()
-    fc = FrameClock()
-    for m in frames:
-        plain.feed(m)
     for m in traffic(0.0, 120.0, rpm=1500.0, gear=9):
-        t_mono = m.timestamp + 50.0                        # the monotonic clock: no step, another origin
-        if m.timestamp >= 60.0:
-            m.timestamp += 3600.0                          # the wall clock set forward an hour
-        m.timestamp = fc(m.timestamp, t_mono)
+        plain.feed(m)
+    fc, frames = _clocked(traffic(0.0, 120.0, rpm=1500.0, gear=9), wall_step_at_s=60.0, wall_step_s=3600.0)
+    for m in frames:
         stepped.feed(m)
     assert fc.steps == 1 and fc.correction_s == pytest.approx(3600.0)
     assert stepped.counters["time_jumps"] == plain.counters["time_jumps"] == 0
     assert stepped.counters["steps"] == plain.counters["steps"]
-    # a real pause: 30 s without frames moves both clocks, and stays a pause
-    fc2 = FrameClock()
-    assert fc2(10.0, 110.0) == 10.0 and fc2(40.0, 140.0) == 40.0 and fc2.steps == 0
-    assert fc2(40.1 - 7200.0, 140.1) == pytest.approx(40.1) and fc2.steps == 1       # set back two hours
+    fc, frames = _clocked(traffic(0.0, 20.0), wall_step_at_s=10.0, wall_step_s=-7200.0)     # set back two hours
+    assert fc.steps == 1 and frames[-1].timestamp == pytest.approx(19.995, abs=0.01)
+    fc, frames = _clocked(traffic(0.0, 20.0), suspend=(10.0, 36000.0))                        # a night suspended
+    assert fc.steps == 0 and frames[-1].timestamp > 36000.0
+    fc, frames = _clocked(traffic(0.0, 20.0), stall=(5.0, 10.0))                              # a 5 s backlog
+    assert fc.steps == 0 and frames[-1].timestamp == pytest.approx(19.995, abs=0.01)
+    # frames whose clock is not the wall clock (an adapter's): a wall step they do not show is adopted, not applied
+    from firmware_model.service.live import FrameClock
+    sim = SimClocks()
+    fc = FrameClock(wall=sim.wall, boot=sim.boot)
+    for k in range(300):
+        sim.boot_s = 0.1 * k
+        sim.wall_s = sim.boot_s + (3600.0 if k >= 50 else 0.0)
+        assert fc(1000.0 + 0.1 * k, sim.boot_s) == pytest.approx(1000.0 + 0.1 * k)
+    assert fc.steps == 0 and fc.ref_offset_s == pytest.approx(3600.0)
 
 
 def test_every_receive_error_is_counted(caplog):
@@ -141,3 +185,4 @@ def test_a_bus_off_error_frame_is_counted_and_logged_once_per_episode(caplog):
         timer.cancel()
     assert svc.counters["bus_off"] == 50
     assert sum("bus-off" in r.getMessage() for r in caplog.records) == 1
+    assert svc.bus_events == {"read_errors": 0, "outages": 0, "resumes": 0, "reopens": 0, "reopen_failures": 0}

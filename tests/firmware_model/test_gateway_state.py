@@ -194,7 +194,7 @@ def test_health_file_and_status_command(params, tmp_path, capsys):
     out = capsys.readouterr().out
     assert "service: running" in out and "sensor: initialised" in out and "1 saves" in out
     doc["written_wall_s"] -= 60.0
-    doc["written_monotonic_s"] -= 60.0
+    doc["written_boottime_s"] -= 60.0
     (tmp_path / "health.json").write_text(json.dumps(doc))
     assert main(["status", "--health-file", str(tmp_path / "health.json")]) == 1
     assert "NOT RUNNING" in capsys.readouterr().out
@@ -274,7 +274,7 @@ def test_failed_health_writes_are_shown_by_status_once_a_write_succeeds(params, 
     assert "health file: 2 writes failed" in capsys.readouterr().out
     doc = read_health(target)
     doc["written_wall_s"] -= 60.0
-    doc["written_monotonic_s"] -= 60.0
+    doc["written_boottime_s"] -= 60.0
     target.write_text(json.dumps(doc))
     assert main(["status", "--health-file", str(target)]) == 1
     assert "unable to rewrite this file" in capsys.readouterr().out
@@ -313,3 +313,19 @@ def test_status_says_restored_stopped_and_the_mode_now(params, tmp_path, capsys)
     assert health.maybe_write(second, store, stopped=True)
     assert main(["status", "--health-file", str(tmp_path / "health.json")]) == 1
     assert "stopped cleanly" in capsys.readouterr().out
+
+
+def test_a_restored_state_is_cooled_until_the_first_frame(params, tmp_path):
+    """From a review: the time off was measured when the service started, not when the first frame came; a
+    gateway restarted while the truck sleeps restored a state too hot by the whole wait."""
+    from tools.can.live import GatewayHooks, LiveSettings
+    clock = Clock()
+    first = _service(params)
+    _drive(first, 0.0, 60.0)
+    StateStore(tmp_path / "state.json", clock=clock).save(first)
+    second = _service(params)
+    hooks = GatewayHooks(LiveSettings("virtual", "t", state_file=str(tmp_path / "state.json")), second)
+    hooks.store.clock = clock
+    clock.t += 7200.0                                   # two hours until the truck sends its first frame
+    hooks.tick()
+    assert second.restore is not None and second.restore[1] == pytest.approx(7200.0)

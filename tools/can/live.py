@@ -139,7 +139,10 @@ class GatewayHooks:
         import time
         from firmware_model.service.persist import sd_notify
         if self.store is not None:
-            self.store.maybe_save(self.service)
+            svc = self.service
+            if svc.state is None and svc.restore is not None:       # not restored yet: cooled until now
+                svc.restore = (svc.restore[0], self.store.elapsed_s())
+            self.store.maybe_save(svc)
         if self.health is not None:
             self.health.maybe_write(self.service, self.store)
         if self.watchdog_s is not None:

@@ -56,13 +56,13 @@ def run(args) -> int:
 
 
 def health_age_s(doc: dict) -> float:
-    """How long ago the file was written: by the monotonic clock when it was written on this boot (a wall clock set
+    """How long ago the file was written: by the time since boot when it was written on this boot (a wall clock set
     back or forward says nothing then), else by the wall clock."""
-    from firmware_model.service.persist import boot_id
+    from firmware_model.service.persist import boot_clock, boot_id
     wall_age_s = time.time() - float(doc.get("written_wall_s", 0.0))
-    mono = doc.get("written_monotonic_s")
-    if mono is not None and doc.get("boot_id") and doc.get("boot_id") == boot_id():
-        return time.monotonic() - float(mono)
+    boot = doc.get("written_boottime_s")
+    if boot is not None and doc.get("boot_id") and doc.get("boot_id") == boot_id():
+        return boot_clock() - float(boot)
     return wall_age_s
 
 
@@ -93,12 +93,19 @@ def status_lines(doc: dict, age_s: float) -> list[str]:
                                           "LOST (Cannot Claim sent: the sensor sends nothing; another node claimed "
                                           "its address with a higher-priority NAME)")
                      + f"; contentions won {j.get('contentions_won', 0)}, lost {j.get('contentions_lost', 0)}")
+    bus = doc.get("bus") or {}
+    if bus.get("outages") or bus.get("read_errors") or doc.get("bus_off"):
+        lines.append(f"bus: {bus.get('outages', 0)} receive outages, {bus.get('read_errors', 0)} receive errors, "
+                     f"{bus.get('reopens', 0)} reopens ({bus.get('reopen_failures', 0)} failed attempts), "
+                     f"{doc.get('bus_off', 0)} bus-off error frames")
     if doc.get("health_write_errors"):
         lines.append(f"health file: {doc['health_write_errors']} writes failed before this one (the service's log "
                      f"names the first error)")
     if state:
         age = state.get("last_save_age_s")
-        lines.append(f"state: {state.get('path')}, {'restored at start' if state.get('restored') else 'not restored'}"
+        restored = ("restored at start" if state.get("restored") else "not restored") \
+            if "degraded_mode_now" in doc else "restored at start: unknown (a health file of an older version)"
+        lines.append(f"state: {state.get('path')}, {restored}"
                      f", {state.get('saves', 0)} saves ({state.get('save_errors', 0)} "
                      f"errors), last {'never' if age is None else f'{age:.0f} s ago'}; cold starts "
                      f"{state.get('cold_starts', 0)}{' (' + str(state.get('reason')) + ')' if state.get('reason') else ''}")

@@ -102,6 +102,11 @@ def _plots(c: dict, out: Path, lines: list) -> None:
               "![time above warning](report_above_warning.png)", ""]
 
 
+def _cell(text) -> str:
+    """Text for a Markdown table cell: a '|' (the warnings' separator) would split it."""
+    return str(text or "").replace("|", "\\|")
+
+
 def _trusted_only(c: dict, lines: list) -> dict:
     """The summary's columns without the logs `replay` would call untrusted (exit status 3), which are listed
     instead: their peaks are no gearbox's (a log without gearbox messages peaks at its start temperature)."""
@@ -112,7 +117,8 @@ def _trusted_only(c: dict, lines: list) -> dict:
     lines += [f"## Logs whose outputs should not be trusted ({len(bad)}, left out of the peaks and times below)", "",
               "What `gearbox-vsensor replay` would warn about (exit status 3) for each:", "",
               "| vehicle | log | warnings |", "|---|---|---|"]
-    lines += [f"| {c['vehicle'][i]} | {os.path.basename(c['log'][i])} | {c['trust_warnings'][i]} |" for i in bad[:50]]
+    lines += [f"| {c['vehicle'][i]} | {os.path.basename(c['log'][i])} | {_cell(c['trust_warnings'][i])} |"
+              for i in bad[:50]]
     if len(bad) > 50:
         lines.append(f"\n... and {len(bad) - 50} more (the summary's column trusted is false)")
     lines.append("")

@@ -202,15 +202,17 @@ def run_fleet(entries: list[LogEntry], out: str | os.PathLike, *, scheduler: str
                 try:
                     results = fut.result()
                 except Exception as exc:   # e.g. KilledWorker: the task's logs killed every worker that ran them
-                    if len(batch) > 1:     # one log of the batch, or none: each alone, so only the guilty fails
+                    killed = type(exc).__name__ == "KilledWorker"
+                    if killed and len(batch) > 1:   # one log of the batch, or none: each alone, only the guilty fails
                         for e in batch:
                             f1 = submit([e])
                             futures[f1] = [e]
                             queue.add(f1)
                         continue
+                    why = (f"the worker processes running this log died ({type(exc).__name__}: {exc})" if killed
+                           else f"the task failed on its worker ({type(exc).__name__}: {exc})")
                     results = [("error", {"vehicle": e.vehicle, "log": os.fspath(e.log), "log_key": e.key,
-                                          "stage": "worker", "reason": f"the worker processes running this log "
-                                          f"died ({type(exc).__name__}: {exc})"}) for e in batch]
+                                          "stage": "worker", "reason": why}) for e in batch]
                 rows = [r for kind, r in results if kind == "ok"]
                 errors = [r for kind, r in results if kind == "error"]
                 store.write_batch(batch_id(batch), rows, errors)
