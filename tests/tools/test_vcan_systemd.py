@@ -5,7 +5,7 @@ The unit is the one `gearbox-vsensor service-unit --interface socketcan --channe
 integrator would (docs/gateway.md), started with `systemctl start` (Type=notify: it returns when the service has
 sent READY=1). What must hold:
 
-- a crash (SIGSEGV to the main process) is restarted by systemd (Restart=on-failure): a new main process, active;
+- a crash (SIGSEGV to the main process) is restarted by systemd (Restart=always): a new main process, active;
 - a hang (SIGSTOP: no more WATCHDOG=1) is caught by the unit's 10 s watchdog and restarted;
 - the twice-restarted service decodes a drive played onto vcan0 and publishes GBX_STATUS from its source address,
   and `gearbox-vsensor status` reads its health file as running.
