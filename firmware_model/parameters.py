@@ -448,3 +448,20 @@ def _check_values(p: Parameters, written: dict | None = None):
         if not lo <= v <= hi:
             (slo, _), (shi, _) = _shown(lo, key, dim, written), _shown(hi, key, dim, written)
             raise ParameterError(f"{where}{key} = {x:g}{unit} is outside its allowed range {slo:g}..{shi:g}{unit}")
+        _check_bounds(p, key, dim, lo, hi, where, written)
+
+
+def _check_bounds(p: Parameters, key: str, dim: str, lo: float, hi: float, where: str, written: dict | None):
+    """A key's calibration bounds lie within its allowed range and sign: calibrate would otherwise stop half-way
+    through a fit on a start point the user never wrote."""
+    b = p.bounds.get(key)
+    if b is None:
+        return
+    (blo, _), (bhi, unit) = _shown(b[0], key, dim, written), _shown(b[1], key, dim, written)
+    bad = next((x for x in b if _sign_rule(key, x, dim)), None)
+    if not (lo <= b[0] and b[1] <= hi) or bad is not None:
+        (slo, _), (shi, _) = _shown(lo, key, dim, written), _shown(hi, key, dim, written)
+        why = (f"{_sign_rule(key, bad, dim)} (the key is {DIM_NAMES.get(dim, dim)})" if bad is not None
+               else f"reach outside its allowed range {slo:g}..{shi:g}{unit}")
+        raise ParameterError(f"{where}{key}'s bounds lo = {blo:g} .. hi = {bhi:g}{unit} {why}; calibrate would try "
+                             f"values there")

@@ -124,3 +124,33 @@ def test_a_fit_that_makes_the_held_out_error_worse_writes_no_parameter_file(para
     err = capsys.readouterr().err
     assert rc == 3 and not out.exists(), err
     assert "made the held-out error worse" in err and "no parameter file was written" in err
+
+
+def test_a_fit_still_far_off_or_not_pinned_down_is_refused_or_said(params):
+    """From a calibration audit: a training file in degF beside a good one gave a 'fitted' file with exit 0 (training
+    RMS 46 -> 43 K, the pooled held-out RMS 1 % down while three of four channels got worse, a sigma of 13 on a
+    0.2..0.8 range); the equal RMS of a fit that changed nothing was printed as 'worse'."""
+    from tools.cli.calibrate import _cautions, _refusal
+    from tools.diagnosis.calibrate import Calibration
+    k = "housing.hot_frac"
+
+    def cal(train, test, by_channel, sigma, at_bound=False):
+        return Calibration([k], {k: 0.5}, {k: 0.8}, {k: sigma}, {k: at_bound}, [], train, test, by_channel, 10)
+    far = cal((46.4, 43.4), (1.289, 1.273), {"oil": (0.199, 0.271), "PS": (2.0, 1.0)}, 13.0, True)
+    assert "still 43.4 K (RMS) off the training files" in _refusal(far) and "degF" in _refusal(far)
+    assert "did not reduce" in _refusal(cal((2.0, 1.0), (1.263, 1.263), {}, 0.01))
+    ok = cal((2.0, 0.3), (1.289, 0.9), {"oil": (0.199, 0.271), "PS": (2.0, 1.0)}, 0.66)
+    assert _refusal(ok) == ""
+    lines = _cautions(ok, params)
+    assert any("made oil worse" in x for x in lines) and any("not pinned down" in x for x in lines)
+    assert not any("PS" in x for x in lines)
+
+
+def test_bounds_outside_the_allowed_range_are_refused_when_the_file_loads(tmp_path):
+    """From a calibration audit: bounds reaching outside a key's allowed range failed half-way through a fit, naming a
+    Latin-hypercube start the user never wrote."""
+    bad = tmp_path / "b.toml"
+    bad.write_text('[meta]\ninherit = "GRS905"\n[housing]\n'
+                   'hot_frac = { v = 0.5, u = "-", lo = -0.5, hi = 1.5, src = "assumed" }\n')
+    with pytest.raises(ParameterError, match=r"hot_frac's bounds lo = -0.5 .. hi = 1.5 reach outside"):
+        load_parameters(bad)

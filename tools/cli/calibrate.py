@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 from pathlib import Path
 
@@ -54,6 +55,47 @@ def add_subparser(sub):
     return p
 
 
+#: a fit that leaves the training files this far off (pooled RMS) explains nothing a sensor could be off by: a unit,
+#: a column, a variant or a start that is not at rest [degC]
+TRAIN_RMS_REFUSE_C = 5.0
+#: a held-out channel the fit made worse by more than this share (and 0.05 K) is named in a warning
+WORSE_SHARE = 0.10
+
+
+def _refusal(cal) -> str:
+    """Why the fit is no calibration ('' when it is one): the held-out error grew, or the training files are still
+    far off after it."""
+    bound = [k for k in cal.keys if cal.at_bound[k]]
+    at = f" (at a bound: {', '.join(bound)})" if bound else ""
+    (before_c, after_c), (_, train_c) = cal.test_rms_c, cal.train_rms_c
+    if not after_c < before_c:
+        what = "made the held-out error worse" if after_c > before_c else "did not reduce the held-out error"
+        return f"the fit {what} (RMS {before_c:.4g} -> {after_c:.4g} degC); check the training files' units and " \
+               f"channels{at}"
+    if not train_c <= TRAIN_RMS_REFUSE_C:
+        return (f"the fitted model is still {train_c:.3g} K (RMS) off the training files, far more than a sensor is "
+                f"off: check their units (degF?), columns and variant, and that each run starts at rest{at}")
+    return ""
+
+
+def _cautions(cal, params) -> list[str]:
+    """What a written calibration should be read with: held-out channels made worse, parameters the runs do not pin
+    down (one standard deviation wider than a quarter of the plausible range) or left at a bound."""
+    out = []
+    for ch, (b, a) in cal.test_by_channel.items():
+        if a > b * (1.0 + WORSE_SHARE) and a - b > 0.05:
+            out.append(f"the fit made {ch} worse on the held-out files (RMS {b:.3f} -> {a:.3f} degC)")
+    for k in cal.keys:
+        lo, hi = params.bounds.get(k, (math.nan, math.nan))
+        if cal.sigma[k] > 0.25 * (hi - lo):
+            out.append(f"{k} = {cal.fitted[k]:.6g} +- {cal.sigma[k]:.2g} is not pinned down by these runs (its "
+                       f"plausible range is {lo:.6g}..{hi:.6g}): keep the file's value or add runs that excite it")
+        elif cal.at_bound[k]:
+            out.append(f"{k} ended at a bound of its plausible range ({cal.fitted[k]:.6g}): the runs may want a "
+                       f"value outside it, or another parameter's effect")
+    return out
+
+
 def run(args) -> int:
     import datetime as dt
     from firmware_model.parameters import parameter_path
@@ -92,15 +134,14 @@ def run(args) -> int:
         has_fig = plot_held_out(cal, fig)
         with atomic_text_file(rep) as fh:
             fh.write(report_markdown(cal, params, fig.name if has_fig else None))
-    before_c, after_c = cal.test_rms_c
-    if not after_c <= before_c:
-        # a fit that makes the held-out error worse is no calibration (wrong units or channels in the training
-        # files, an effect the keys cannot stand for): said, and no parameter file that would look fitted
-        bound = [k for k in cal.keys if cal.at_bound[k]]
-        print(f"calibrate: the fit made the held-out error worse (RMS {before_c:.3f} -> {after_c:.3f} degC), so no "
-              f"parameter file was written; check the training files' units and channels"
-              + (f" (at a bound: {', '.join(bound)})" if bound else ""), file=sys.stderr)
+    refusal = _refusal(cal)
+    if refusal:
+        # no calibration (wrong units or channels in the training files, an effect the keys cannot stand for):
+        # said, and no parameter file that would look fitted
+        print(f"calibrate: {refusal}, so no parameter file was written", file=sys.stderr)
         return 3
+    for line in _cautions(cal, params):
+        print(f"warning: {line}", file=sys.stderr)
     Path(args.out).parent.mkdir(parents=True, exist_ok=True)
     with atomic_text_file(args.out) as fh:
         fh.write(calibrated_toml(base, params, cal, stamp))
