@@ -688,3 +688,16 @@ def test_a_none_verdict_names_the_model_error_when_that_sets_the_threshold():
     assert "onboard model's difference from the reference plant" in why
     base = SimpleNamespace(sigma={"oil": 0.15}, floor={"oil": 0.05})       # the fixed floor: the noise's business
     assert "within its noise" in _none_reason({"oil": 0.05}, {"oil": 0.1}, base, o, True)
+
+
+def test_a_thermocouple_logged_slower_than_the_table_is_alive(tmp_path):
+    """From a calibration audit: a thermocouple logged every 10 s in a 1 Hz table (10 % of the rows valid, evenly)
+    was refused as a dead sensor, while the same data thinned to 0.1 Hz was accepted."""
+    import numpy as np
+    from tools.diagnosis.prepare import _check_values
+    t = np.arange(600.0)
+    y = np.where(np.arange(600) % 10 == 0, 60.0 + 0.01 * t, np.nan)
+    _check_values(y, np.isfinite(y), "rig.csv", "meas_T_PS_c", 599.0, t)          # alive: no exception
+    y[100:] = np.nan                                                              # 10 values, then nothing
+    with pytest.raises(InputError, match="a dead sensor"):
+        _check_values(y, np.isfinite(y), "rig.csv", "meas_T_PS_c", 599.0, t)

@@ -249,16 +249,23 @@ class ValidSamples(NamedTuple):
     warning: str
 
 
-def _check_values(y: np.ndarray, ok: np.ndarray, name: str, col: str, dur_s: float) -> None:
+#: a column with fewer valid values than a fifth of its rows is still alive when they come at least this often
+#: (a thermocouple logged every 10 s in a 1 Hz table) [s]
+SPARSE_ALIVE_GAP_S = 60.0
+
+
+def _check_values(y: np.ndarray, ok: np.ndarray, name: str, col: str, dur_s: float, t: np.ndarray) -> None:
     """Refuse infinite, dead, stuck and implausible columns."""
     if np.any(np.isinf(y)):
         raise InputError(f'{name}: column "{col}" row {int(np.flatnonzero(np.isinf(y))[0]) + 1}: infinite value')
     if not ok.any():
         raise InputError(f'{name}: column "{col}" has no valid value (a dead sensor); remove the column or fix '
                          f"the logging")
-    if ok.sum() < max(10, 0.2 * y.size):
-        raise InputError(f'{name}: column "{col}" has only {int(ok.sum())} valid values of {y.size} (a dead '
-                         f"sensor); remove the column or fix the logging")
+    if ok.sum() < max(10, 0.2 * y.size) and not (ok.sum() >= 10 and _longest_nan_run(t, ok)[1]
+                                                  <= SPARSE_ALIVE_GAP_S):
+        raise InputError(f'{name}: column "{col}" has only {int(ok.sum())} valid values of {y.size}, with gaps '
+                         f"longer than {SPARSE_ALIVE_GAP_S:.0f} s (a dead sensor); remove the column or fix the "
+                         f"logging")
     yv = y[ok]
     if np.any((yv < -60) | (yv > 300)):            # before the stuck check: a span of 1e308 overflows to inf
         bad = yv[(yv < -60) | (yv > 300)][0]
@@ -275,12 +282,14 @@ def _valid_samples(table: RunTable, t: np.ndarray, name: str, col: str, opts: Op
     dur = t[-1] - t[0]
     y = np.asarray(table[col], dtype=float)
     ok = np.isfinite(y)
-    _check_values(y, ok, name, col, dur)
+    _check_values(y, ok, name, col, dur, t)
     yv = y[ok]
     g0, glen = _longest_nan_run(t, ok)
-    if glen > max(opts.max_channel_gap_frac * dur, 300.0):
+    limit_s = max(opts.max_channel_gap_frac * dur, 300.0)
+    if glen > limit_s:
         raise InputError(f'{name}: column "{col}" has no valid value for {glen:.0f} s from t = {g0:.10g} s '
-                         f"(more than a quarter of the run); cut the file or drop the column")
+                         f"(more than {limit_s:.0f} s: a quarter of the run or 300 s, the longer); cut the file or "
+                         f"drop the column")
     # a sensor frozen for a long stretch while the rest of the run varies
     same = np.flatnonzero(np.diff(yv) != 0)
     tv = t[ok]
