@@ -98,7 +98,9 @@ def load_config(path: "str | Path | Config | None") -> Config:
     doc = read_toml(path, f"config file {path}")
     for sec, body in doc.items():
         if sec not in ALLOWED:
-            raise ParameterError(f"config {path.name}: unknown section [{sec}]; known: {', '.join(ALLOWED)}")
+            hint = (f" ({path.name} looks like a parameter file, e.g. one calibrate wrote: give it in a project "
+                    f"configuration as [gearbox] params = \"{path.name}\")") if sec == "meta" else ""
+            raise ParameterError(f"config {path.name}: unknown section [{sec}]; known: {', '.join(ALLOWED)}{hint}")
         if not isinstance(body, dict):
             raise ParameterError(f"config {path.name}: [{sec}] must be a table")
         for k in body:

@@ -42,8 +42,8 @@ def add_subparser(sub):
     p.add_argument("--out", required=True, metavar="OUT.toml", help="the calibrated parameter file (written "
                                                                     "atomically)")
     p.add_argument("--report", metavar="OUT.md", help="also write a Markdown report with a held-out plot next to it")
-    p.add_argument("--config", metavar="TOML", help="project configuration (gearbox variant or parameter file, "
-                                                   "cooler kind)")
+    p.add_argument("--config", metavar="TOML", help="project configuration: [gearbox] variant or params = a "
+                                                   "parameter file (one calibrate wrote, too), cooler kind")
     p.add_argument("--cooler", choices=("none", "liquid", "air", "hold", "measured"),
                    help="cooler kind of the vehicle or rig (overrides --config; default liquid)")
     p.add_argument("--plant-dt", type=float, default=2.0, metavar="S",
