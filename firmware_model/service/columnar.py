@@ -30,6 +30,7 @@ from can_dbc.decoder import signal_messages
 from can_dbc.j1939 import ID_MAX
 from firmware_model.components import MODE_NOT_INITIALISED, PUBLISHED, STEP_S
 from firmware_model.physics.oil import T_MAX_C as OIL_T_MAX_C, T_MIN_C as OIL_T_MIN_C
+from firmware_model.service.degraded import recorded_mode_counters
 from firmware_model.service.options import GEAR_RANGE, NOMINAL_PERIOD_S, SENSOR_INPUTS, wanted_pgns
 from firmware_model.service.recorder import StepRecorder
 from firmware_model.service.records import RecordedOutputs, StepKind
@@ -300,10 +301,7 @@ def sensor_half(service, half: FrameHalf) -> RecordedOutputs:
         tail[i0:, 7] = _opt(out.oil_innovation_c)
         tail[i0:, 8] = _opt(out.model_oil_temp_c)
         tail[i0:, 9:] = out.rejects[:, :n_rej]
-    values, counts = np.unique(tail[:, 1].astype(int), return_counts=True)
-    service.counters["mode_steps"] = dict(zip(values.tolist(), counts.tolist()))
-    if len(tail):
-        service.counters["mode_now"] = int(tail[-1, 1])
+    service.counters.update(recorded_mode_counters(tail[:, 1]))
     return RecordedOutputs(T, level, ttl, tail)
 
 

@@ -16,6 +16,7 @@ from can_dbc.j1939 import ID_MAX, pgn_key
 from firmware_model.components import MODE_NOT_INITIALISED, PUBLISHED, STEP_S
 from firmware_model.errors import InputError, ParameterError
 from firmware_model.physics.oil import T_MAX_C as OIL_T_MAX_C, T_MIN_C as OIL_T_MIN_C
+from firmware_model.service.degraded import recorded_mode_counters
 from firmware_model.service.netmgmt import AddressClaim
 from firmware_model.service.options import (GEAR_RANGE, NOMINAL_PERIOD_S, SENSOR_INPUTS, ServiceOptions,
                                             wanted_pgns)
@@ -182,11 +183,7 @@ class SensorService:
         (its time-to-limit refresh done); the steps per degraded mode are counted from them."""
         self._recorder.adopt(outputs)
         modes = outputs.tail[:, self._recorder.tail_names.index("degraded_mode")]
-        finite = modes[np.isfinite(modes)].astype(int)
-        values, counts = np.unique(finite, return_counts=True)
-        self.counters["mode_steps"] = dict(zip(values.tolist(), counts.tolist()))
-        if finite.size:
-            self.counters["mode_now"] = int(finite[-1])
+        self.counters.update(recorded_mode_counters(modes))
         self.state = state
         self._pending = None
 

@@ -9,6 +9,8 @@ import enum
 from dataclasses import dataclass, field
 from typing import ClassVar, Mapping
 
+import numpy as np
+
 from firmware_model.components import MODE_NAMES, MODE_NORMAL, MODE_OIL_MODEL
 
 #: degraded on at least this share of the steps: a loud warning; above the second share: untrusted (`replay`
@@ -135,3 +137,15 @@ def unit_findings(steps: int, time_jumps: int, step_times_s, speed_rpm, torque_n
 def untrusted(findings) -> bool:
     """True when a finding says the outputs should not be used."""
     return any(f.severity >= Severity.UNTRUSTED for f in findings)
+
+
+def recorded_mode_counters(modes) -> dict:
+    """The service's mode counters from the degraded modes of recorded steps (the whole-log path and the copy that
+    ran the sensor half): ``mode_steps`` (steps per mode) and ``mode_now`` (the last step's, when there is one)."""
+    finite = np.asarray(modes, dtype=float)
+    finite = finite[np.isfinite(finite)].astype(int)
+    values, counts = np.unique(finite, return_counts=True)
+    out = {"mode_steps": dict(zip(values.tolist(), counts.tolist()))}
+    if finite.size:
+        out["mode_now"] = int(finite[-1])
+    return out

@@ -58,11 +58,11 @@ class FleetStore:
             raise InputError(f"--out {self.out} is a file, not a folder")
         self.out.mkdir(parents=True, exist_ok=True)
 
-    def done_keys(self, which: str = SUMMARY) -> set[str]:
-        """The keys of the logs that have a row in ``which`` (the summary: done; the errors: to try again)."""
+    def done_keys(self) -> set[str]:
+        """The keys of the logs that have a summary row (done; the errors table's logs are tried again)."""
         _, pq = _pa()
         keys: set[str] = set()
-        for f in (self.out / which).rglob("*.parquet") if (self.out / which).is_dir() else ():
+        for f in (self.out / SUMMARY).rglob("*.parquet") if (self.out / SUMMARY).is_dir() else ():
             keys.update(pq.read_table(f, columns=["log_key"]).column("log_key").to_pylist())
         return keys
 
@@ -70,19 +70,16 @@ class FleetStore:
         """Rewrite the errors table as one file: the latest row of each log that has no summary row (the one new
         file first, then the old ones removed: a kill in between leaves rows that :func:`read_table` drops).
         Returns the rows kept."""
-        pa, _ = _pa()
         root = self.out / ERRORS
-        old = sorted(root.glob("*.parquet"), key=lambda f: f.stat().st_mtime_ns) if root.is_dir() else []
+        old = list(root.glob("*.parquet")) if root.is_dir() else []
         if not old:
             return 0
         table = read_table(self.out, ERRORS)
-        rows = table.to_pylist() if table is not None else []
-        if rows:
-            write_atomic(pa.table({c: [r[c] for r in rows] for c in ERROR_COLUMNS}),
-                         root / f"part-{uuid.uuid4().hex[:12]}.parquet")
+        if table is not None:
+            write_atomic(table, root / f"part-{uuid.uuid4().hex[:12]}.parquet")
         for f in old:
             f.unlink(missing_ok=True)
-        return len(rows)
+        return 0 if table is None else table.num_rows
 
     def write_batch(self, batch_id: str, rows: list[dict], errors: list[dict]) -> None:
         """One batch's summary rows (a file per vehicle and date) and error rows."""
