@@ -72,6 +72,10 @@ class VirtualSensor:
             raise ParameterError(f"sensor.oil_mode = {oil_mode!r} must be 'measured' or 'model'")
         if options.get("ttl_sump", "model") not in ("model", "held"):
             raise ParameterError(f"sensor option ttl_sump = {options['ttl_sump']!r} must be 'model' or 'held'")
+        reset_s = options.get("clock_reset_s", 10.0)
+        if not (isinstance(reset_s, (int, float)) and 1.0 <= reset_s < math.inf):
+            raise ParameterError(f"sensor option clock_reset_s = {reset_s!r} must be a number of seconds, at least 1 "
+                                 f"(time back by more than it is a reset clock; less is skipped)")
         if params.strings.get("cooler.kind") in ("hold", "measured"):
             # a rig: the sump is conditioned from outside (no cooler to model, a constant reading is normal)
             params = _with_cooler(params, "none")

@@ -405,6 +405,12 @@ def test_a_clock_set_far_back_is_a_new_time_base(sensor, warm):
     assert e.rejects[RJ["time_backward"]] == d.rejects[RJ["time_backward"]] + 1 and e.k == d.k
 
 
+def test_a_clock_reset_option_that_is_no_duration_is_refused(params):
+    for bad in (-1.0, 0.05, math.nan, math.inf, "10"):
+        with pytest.raises(ParameterError, match="clock_reset_s"):
+            VirtualSensor(params, clock_reset_s=bad, core="numpy")
+
+
 def test_garbage_never_gives_a_nan_temperature(sensor):
     rng = np.random.default_rng(0)
     st = sensor.initial_state(T_oil_c=70.0)
