@@ -221,6 +221,22 @@ def test_the_summary_times_warnings_by_the_table_clock(spacing_s):
     assert line == "warnings: PS warning 20.0 min, critical 10.0 min (first at 10.0 min)"
 
 
+def test_the_summary_says_when_warning_levels_were_not_available():
+    """Level n/a (the inputs held too long) is no all-clear: the warning line says on what share of the
+    component-time no warning could be raised (an audit: a log without torque printed "warnings: none" with n/a on
+    99 % of the cells); a run with every level known says nothing more than "none"."""
+    from firmware_model.components import LEVEL_NA
+    from tools.replay.summary import summary_lines
+    t = np.arange(0.0, 600.0, 0.1)
+    cols = {"time_s": t, **{f"T_{c}_c": np.full(t.size, 50.0) for c in PUBLISHED},
+            **{f"W_{c}": np.zeros(t.size) for c in PUBLISHED}}
+    assert summary_lines(RunTable(cols))[1] == "warnings: none"
+    for c in PUBLISHED:
+        cols[f"W_{c}"] = np.where(t >= 150.0, LEVEL_NA, 0.0)      # n/a on the last three quarters
+    line = summary_lines(RunTable(cols))[1]
+    assert line.startswith("warnings: none (warning levels not available") and "75.0 %" in line, line
+
+
 def test_variant_option_equals_the_config_variant(tmp_path):
     """`replay --variant GRSO905` runs the sensor of that variant, as a config naming it does (an audit: a GRSO905
     drive replayed with the default variant was 27 K off without a word, and replay had no --variant)."""

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from firmware_model.components import LEVEL_CRITICAL, LEVEL_WARNING, PUBLISHED, STEP_S, describe
+from firmware_model.components import LEVEL_CRITICAL, LEVEL_NA, LEVEL_WARNING, PUBLISHED, STEP_S, describe
 
 #: the auxiliary input columns (their absence means defaults, docs/sensor.md "Bad input")
 AUX_COLUMNS = ("ambient_temp_c", "coolant_temp_c", "vehicle_speed_kmh", "retarder_torque_nm")
@@ -70,7 +70,24 @@ def _warning_line(out) -> str:
             t0 = (out["time_s"][first] - out["time_s"][0]) / 60.0
             crit = f", critical {_minutes(n_crit)}" if n_crit else ""
             parts.append(f"{c} warning {_minutes(n_warn)}{crit} (first at {t0:.1f} min)")
-    return "warnings: " + ("; ".join(parts) if parts else "none")
+    line = "warnings: " + ("; ".join(parts) if parts else "none")
+    na = _not_available_share(out, dur_s)
+    if na > 0.0:
+        # "none" alone would read as an all-clear where the sensor could not judge (an audit: a log without torque
+        # printed "warnings: none" with level n/a on 99 % of the cells)
+        line += (f" (warning levels not available, level {LEVEL_NA}, on {100.0 * na:.1f} % of the component-time: "
+                 f"no warning could be raised there; see degraded)")
+    return line
+
+
+def _not_available_share(out, dur_s) -> float:
+    """The share of component-time (the published components' rows weighted by how long each stands) at level
+    n/a."""
+    cols = [np.asarray(out[f"W_{c}"]) for c in PUBLISHED if out.has(f"W_{c}")]
+    total = float(np.sum(dur_s)) * len(cols)
+    if not cols or not total > 0.0:
+        return 0.0
+    return sum(float(np.sum(dur_s[w == LEVEL_NA])) for w in cols) / total
 
 
 def _arrivals(out) -> dict:
