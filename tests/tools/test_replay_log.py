@@ -87,6 +87,28 @@ def test_every_log_format_gives_the_same_table(tmp_path, frames, suffix):
         assert np.array_equal(table[col], ref[col], equal_nan=True), col
 
 
+def test_a_truncated_mf4_or_a_gzip_log_is_one_sentence(tmp_path, frames):
+    """A cut .mf4 is refused in one sentence that says it is truncated, with none of asammdf's "Exception ignored"
+    tracebacks from its finaliser around it; a .log.gz says how to decompress it (a log-replay audit)."""
+    import gzip
+    import subprocess
+    pytest.importorskip("asammdf", reason="the optional package asammdf (pip install .[mf4]) is not installed")
+    import can
+    with can.Logger(tmp_path / "drive.mf4") as w:
+        for m in fr_messages(frames[1]):
+            w.on_message_received(m)
+    raw = (tmp_path / "drive.mf4").read_bytes()
+    (tmp_path / "cut.mf4").write_bytes(raw[: len(raw) // 2])
+    write_frames(frames[1], tmp_path / "drive.log")
+    (tmp_path / "drive.log.gz").write_bytes(gzip.compress((tmp_path / "drive.log").read_bytes()))
+    for name, words in (("cut.mf4", "truncated"), ("drive.log.gz", "gzip-compressed; decompress it first")):
+        run = subprocess.run([sys.executable, "-m", "tools.cli", "replay", str(tmp_path / name), "--out",
+                              str(tmp_path / "o.csv"), "--quiet"], capture_output=True, text=True)
+        assert run.returncode == 2, (name, run.stderr)
+        assert run.stderr.count("\n") == 1 and words in run.stderr, (name, run.stderr)
+        assert not (tmp_path / "o.csv").exists()
+
+
 def fr_messages(fr):
     return fr.messages(channel=0)
 

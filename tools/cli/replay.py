@@ -129,6 +129,9 @@ def run(args) -> int:
             print(core_line)
     if is_can_log(path):
         return _run_log(args, path)
+    if path.suffix.lower() == ".gz":
+        from tools.replay.formats import check_log
+        check_log(path)           # says it is compressed and how to decompress it
     if path.suffix.lower() != ".csv":
         raise InputError(f"{path}: unknown input type {path.suffix!r}; replay reads run tables (.csv) and CAN logs "
                          f"(.log, .asc, .blf, .mf4)")

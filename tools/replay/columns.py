@@ -23,7 +23,7 @@ import numpy as np
 
 from can_dbc.columnar import FLAG_ERROR, FLAG_EXTENDED, FLAG_FD, FLAG_REMOTE, FrameColumns
 from firmware_model.errors import InputError
-from tools.replay.formats import check_log, mixed_channels, read_log, truncation
+from tools.replay.formats import check_log, mixed_channels, quiet_reader_teardown, read_log, truncation
 
 #: linux/can/error.h, as python-can's candump reader uses them
 _CAN_ERR_FLAG = 0x20000000
@@ -303,9 +303,12 @@ def read_mf4(path) -> FrameColumns | None:
         from asammdf.blocks.source_utils import Source
     except ImportError:
         return None
-    try:
-        mdf = MDF(path)
-    except Exception:
+    with quiet_reader_teardown():       # a truncated file: read_log's one sentence, no asammdf finaliser noise
+        try:
+            mdf = MDF(path)
+        except Exception:
+            mdf = None
+    if mdf is None:
         return None
     try:
         start_s = mdf.header.start_time.timestamp()

@@ -2,8 +2,11 @@
 replay should not pay it)."""
 from __future__ import annotations
 
+import contextlib
+import gc
 import os
 import re
+import sys
 from pathlib import Path
 from typing import Iterator
 
@@ -11,6 +14,11 @@ from firmware_model.errors import InputError
 
 #: CAN log formats python-can reads, by suffix
 LOG_SUFFIXES = {".log": "candump -L", ".asc": "Vector ASC", ".blf": "Vector BLF", ".mf4": "ASAM MDF 4"}
+
+
+def _a(name: str) -> str:
+    """The name with its indefinite article ("an ASAM MDF 4", "a Vector BLF")."""
+    return ("an " if name[:1] in "AEIOU" else "a ") + name
 
 
 def is_can_log(path: str | os.PathLike) -> bool:
@@ -63,6 +71,26 @@ def check_log(path: str | os.PathLike) -> Path:
     return p
 
 
+@contextlib.contextmanager
+def quiet_reader_teardown():
+    """Silence the teardown of a log reader whose constructor failed: asammdf's ``MDF4.__del__`` raises on a
+    half-built object (a truncated .mf4), which Python prints as "Exception ignored" with a traceback around the
+    one-sentence error. Only exceptions raised by asammdf's finalisers are dropped; the half-built objects are
+    collected before leaving."""
+    previous = sys.unraisablehook
+
+    def hook(unraisable) -> None:
+        if not str(getattr(unraisable.object, "__module__", "") or "").startswith("asammdf"):
+            previous(unraisable)
+
+    sys.unraisablehook = hook
+    try:
+        yield
+    finally:
+        gc.collect()
+        sys.unraisablehook = previous
+
+
 def read_log(path: str | os.PathLike) -> Iterator:
     """The frames of a CAN log in file order (``can.Message``); problems raise InputError naming the file."""
     import can
@@ -70,10 +98,16 @@ def read_log(path: str | os.PathLike) -> Iterator:
     cut = truncation(p)
     if cut:
         raise InputError(f"{p}: {cut}")
-    try:
-        reader = can.LogReader(p)
-    except Exception as exc:  # python-can raises a variety of errors for a broken file
-        raise InputError(f"{p}: cannot open as a {LOG_SUFFIXES[p.suffix.lower()]} log: {exc}") from None
+    failure = None
+    with quiet_reader_teardown():
+        try:
+            reader = can.LogReader(p)
+        except Exception as exc:  # python-can raises a variety of errors for a broken file
+            failure = f"{p}: cannot open it as {_a(LOG_SUFFIXES[p.suffix.lower()])} log: {exc}"
+            if p.suffix.lower() == ".mf4" and "seek out of range" in str(exc):
+                failure = f"{p}: the MDF 4 log ends before the blocks it refers to (truncated, or still being written)"
+    if failure is not None:       # raised here, not in the handler: the error keeps no half-built reader alive
+        raise InputError(failure)
     n = 0
     try:
         with reader:
@@ -101,7 +135,7 @@ def read_log(path: str | os.PathLike) -> Iterator:
         if bad is not None:
             raise InputError(f"{p}: line {bad[0]} is not a candump -L frame '(time) interface ID#DATA': "
                              f"{bad[1]!r}") from None
-        raise InputError(f"{p}: frame {n + 1} cannot be read as a {LOG_SUFFIXES[p.suffix.lower()]} log: "
+        raise InputError(f"{p}: frame {n + 1} cannot be read as {_a(LOG_SUFFIXES[p.suffix.lower()])} log: "
                          f"{exc}") from None
 
 
