@@ -287,7 +287,15 @@ def input_causes(decoder_counters: Mapping, stale_steps: Mapping[str, int], step
             out.append(f"{words}: {short[msg]} {msg} frames came with fewer than 8 data bytes (J1939 sends 8; none of "
                        f"a short frame's values is used)")
         elif not arrivals.get(msg) and not foreign.get(msg):
-            out.append(f"{words}: no {msg} frame arrived")
+            others = decoder_counters.get("foreign_source", {}).get(msg, {})
+            if others:
+                # frames came, only from other nodes and with nothing in them (an audit: the utulsa capture's 170
+                # all-0xFF TRF1 from 0x31 were reported as "no TRF1 frame arrived")
+                sas = ", ".join(f"0x{sa:02X}" for sa in sorted(others)[:4])
+                out.append(f"{words}: no {msg} frame arrived from its expected source address; "
+                           f"{sum(others.values())} came from {sas} with no usable value (not available)")
+            else:
+                out.append(f"{words}: no {msg} frame arrived")
         elif sig == "engine_torque_nm" and not tp.get("ec1_received"):
             cmdt = (f"; {not_broadcast} transport transfers were addressed to one node (TP.CMDT), which the sensor "
                     f"does not receive: EC1 may have come that way") if not_broadcast else ""

@@ -204,3 +204,15 @@ def test_a_start_without_an_oil_reading_is_a_note_that_names_initial_temp():
     svc.feed_all(traffic(0.0, 30.0))
     assert svc.counters["started_without_oil"] is False
     assert not any(isinstance(f, StartFinding) for f in svc.findings())
+
+
+def test_an_input_sent_only_empty_from_another_node_is_not_called_absent():
+    """The cause of a missing input names frames that came only from other source addresses with nothing in them
+    (a log-replay audit: the real utulsa capture's all-0xFF TRF1 from 0x31 were reported as "no TRF1 frame
+    arrived"); with no frame at all it still says so."""
+    from firmware_model.service.trust import input_causes
+    counters = {"arrivals": {"EEC1": 100}, "foreign_source": {"TRF1": {0x31: 170}}, "foreign_source_data": {}}
+    causes = input_causes(counters, {"oil_temp_c": 100}, 100)
+    assert causes == ["oil temperature: no TRF1 frame arrived from its expected source address; 170 came from 0x31 "
+                      "with no usable value (not available)"]
+    assert input_causes({"arrivals": {}}, {"oil_temp_c": 100}, 100) == ["oil temperature: no TRF1 frame arrived"]
