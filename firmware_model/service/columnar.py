@@ -110,7 +110,7 @@ def step_grid(t_frame_s: np.ndarray, timing: np.ndarray, max_catchup: int, backw
             j = stop
             t_j = float(c[j])
             if bwd[j]:
-                offset += t0 + int(kprev[j]) * STEP_S - t_j + STEP_S
+                offset += t0 + int(kprev[j]) * STEP_S - t_j          # as SensorService._time_jump
             jumps.append(int(timing[pos + j]))
             anchors.append(int(timing[pos + j]))
             anchor_t.append(t_j)
@@ -213,6 +213,26 @@ class FrameHalf(NamedTuple):
     meas_seen: tuple
 
 
+#: the whole-log path logs this many time jumps one by one, then how many more there were
+JUMPS_LOGGED = 20
+
+
+def _log_jumps(log, grid: Grid, t_frame_s: np.ndarray) -> None:
+    """Log the grid's time jumps as the frame path does, one warning each (an audit: the whole-log replay counted
+    them and pointed to log messages it never wrote)."""
+    for i, f in enumerate(grid.jump_frames[:JUMPS_LOGGED]):
+        before = int(np.searchsorted(grid.trigger, f, side="left")) - 1
+        epoch = int(np.searchsorted(grid.anchor_frame, f, side="left")) - 1
+        last_s = float(grid.t_step_s[before]) if before >= 0 and grid.trigger[before] > grid.anchor_frame[epoch] \
+            else float(grid.anchor_t_s[epoch])
+        t_s = float(t_frame_s[f])
+        log.warning("frame time jumped %s by %.3f s (from %.6f to %.6f): restarting the step grid, inputs dropped, "
+                    "the sensor resumes from its state", "backward" if t_s < last_s else "forward", t_s - last_s,
+                    last_s, t_s)
+    if grid.jump_frames.size > JUMPS_LOGGED:
+        log.warning("%d more frame time jumps (not logged one by one)", grid.jump_frames.size - JUMPS_LOGGED)
+
+
 def frame_half(service, cols: FrameColumns, decoded: DecodedColumns, meas_names: tuple) -> FrameHalf:
     """The service's frame half over a decoded log; updates ``service.counters`` as the frame path does."""
     opts = service.options
@@ -227,6 +247,7 @@ def frame_half(service, cols: FrameColumns, decoded: DecodedColumns, meas_names:
     counters["steps"] += grid.t_step_s.size
     counters["catchup_steps"] += grid.catchup_steps
     counters["time_jumps"] += grid.jump_frames.size
+    _log_jumps(service.log, grid, cols.timestamp_s)
     fresh = _Fresh(decoded, grid)
     max_age = {m: opts.stale_factor * p for m, p in NOMINAL_PERIOD_S.items()}
     messages = signal_messages()

@@ -285,7 +285,9 @@ class SensorService:
                          "dropped, the sensor resumes from its state", direction, timestamp_s - last_s, last_s,
                          timestamp_s)
         if direction == "backward":
-            self._time_offset_s += last_s - timestamp_s + STEP_S
+            # the frame that went back stands where the last step stood: the next step comes STEP_S after it, as
+            # on a continuous clock (a STEP_S more here showed the sensor a 0.2 s step, counted as a forward jump)
+            self._time_offset_s += last_s - timestamp_s
             self._next_log_t_s = timestamp_s + self.options.counter_log_period_s
         self.latest.forget()
         # the sensor sees the gap in the frame time of its next step (Inputs.t_s) and propagates over it

@@ -214,3 +214,17 @@ def test_a_log_without_oil_starts_at_the_ambient_reading_on_both_paths(tmp_path)
     first = int(np.argmax(np.isfinite(np.asarray(ref["T_PS_c"], dtype=float))))
     T0 = np.array([ref[c][first] for c in ref.columns if c.startswith("T_") and c.endswith("_c")])
     assert np.all(np.abs(T0 + 25.0) < 1.0)
+
+
+def test_both_paths_log_the_same_time_jumps(tmp_path, drive, caplog):
+    """The whole-log path logs each time jump as the frame path does (an audit: it counted them, and replay's
+    note pointed to log messages that only --processes 1 wrote)."""
+    import logging
+    path = _write(inject(drive, ["jump_forward", "jump_backward"], seed=3), tmp_path / "jumps.log")
+    logged = {}
+    for columnar in (False, True):
+        caplog.clear()
+        with caplog.at_level(logging.WARNING, logger="gearbox_vsensor.can_service"):
+            replay_log(path, _service(), columnar=columnar)
+        logged[columnar] = [r.getMessage() for r in caplog.records if "frame time jumped" in r.getMessage()]
+    assert len(logged[False]) == 2 and logged[True] == logged[False]
