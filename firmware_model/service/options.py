@@ -27,11 +27,14 @@ TIME_BASE_WINDOW_S = 10.0
 TIME_BASE_WINDOWS = 3
 #: the model's gear range (seed Table 1); other J1939 gear numbers (after gear_map) are not available to the sensor
 GEAR_RANGE = (-2, 14)
-#: config [can] source-address keys -> the messages they set
+#: config [can] source-address keys -> the messages they set; a later key overrides an earlier one for its messages
+#: (CCVS1 comes from the tachograph on many trucks, AMB from the body controller: their own keys)
 SOURCE_ADDRESS_KEYS = (("engine_source_address", ("EEC1", "EC1", "ET1", "CCVS1", "AMB")),
                        ("transmission_source_address", ("ETC2", "TRF1")),
                        ("retarder_source_address", ("ERC1", "RC")),
-                       ("ambient_source_address", ("AMB",)))
+                       ("ambient_source_address", ("AMB",)),
+                       ("vehicle_speed_source_address", ("CCVS1",)),
+                       ("coolant_source_address", ("ET1",)))
 
 
 @functools.cache

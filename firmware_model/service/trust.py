@@ -218,11 +218,12 @@ class TimeBaseCheck:
 
 
 def _config_keys() -> dict[str, str]:
-    """Message -> the [can] keys that set its source address ("engine_source_address or ambient_source_address")."""
+    """Message -> the [can] key that sets its source address alone: the most specific one (an audit: a CCVS1 from
+    the tachograph was told to set engine_source_address, which moved the engine's messages too)."""
     out: dict[str, str] = {}
     for key, names in SOURCE_ADDRESS_KEYS:
         for name in names:
-            out[name] = f"{out[name]} or {key}" if name in out else key
+            out[name] = key
     return out
 
 

@@ -216,3 +216,22 @@ def test_an_input_sent_only_empty_from_another_node_is_not_called_absent():
     assert causes == ["oil temperature: no TRF1 frame arrived from its expected source address; 170 came from 0x31 "
                       "with no usable value (not available)"]
     assert input_causes({"arrivals": {}}, {"oil_temp_c": 100}, 100) == ["oil temperature: no TRF1 frame arrived"]
+
+
+def test_a_vehicle_speed_from_the_tachograph_is_set_by_its_own_key():
+    """CCVS1 from the tachograph (0xEE): the finding names vehicle_speed_source_address, which moves CCVS1 alone
+    (a log-replay audit: it named engine_source_address, and following it moved EEC1 and EC1 too)."""
+    from firmware_model.service import ServiceOptions
+    frames = traffic(0.0, 30.0) + [frame(t + 0.3, 65265, 0xEE, [0, 0, 50, 0, 0, 0, 0, 0]) for t in range(30)]
+    frames.sort(key=lambda m: m.timestamp)
+    svc = service(counter_log_period_s=10.0)
+    svc.feed_all(frames)
+    foreign = [f for f in svc.findings() if isinstance(f, ForeignSourceFinding) and f.message == "CCVS1"]
+    assert len(foreign) == 1 and "set [can] vehicle_speed_source_address" in foreign[0].sentence, foreign
+    opts = ServiceOptions.from_config(type("C", (), {"can": {"vehicle_speed_source_address": 0xEE,
+                                                             "coolant_source_address": 0x05}})())
+    assert opts.expected_sa["CCVS1"] == 0xEE and opts.expected_sa["ET1"] == 0x05
+    assert "EEC1" not in opts.expected_sa and "EC1" not in opts.expected_sa
+    opts = ServiceOptions.from_config(type("C", (), {"can": {"engine_source_address": 0x01,
+                                                             "vehicle_speed_source_address": 0xEE}})())
+    assert opts.expected_sa["EEC1"] == 0x01 and opts.expected_sa["CCVS1"] == 0xEE

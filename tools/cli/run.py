@@ -24,7 +24,8 @@ def add_subparser(sub):
                   "gearbox-vsensor run --interface socketcan --channel vcan0 --config truck.toml --log-level DEBUG",
                   "gearbox-vsensor run --interface pcan --channel PCAN_USBBUS1 --bitrate 250000 --duration 3600"],
         notes="\nconfig [can] keys: sensor_source_address, engine_source_address, transmission_source_address,\n"
-              "retarder_source_address, ambient_source_address, engine_reference_torque_nm (used until EC1 "
+              "retarder_source_address, ambient_source_address, vehicle_speed_source_address,\n"
+              "coolant_source_address, engine_reference_torque_nm (used until EC1 "
               "arrives),\nretarder_reference_torque_nm (used until RC arrives), gear_map, output_period_s, "
               "stale_factor, "
               "counter_log_period_s.\nWatch the outputs: python -m cantools monitor -c vcan0 "
