@@ -136,3 +136,23 @@ def test_a_simulated_log_carries_its_retarder_reference_so_replay_needs_no_confi
     est = np.genfromtxt(tmp_path / "e.csv", delimiter=",", names=True)
     braking = est["retarder_torque_nm"][est["time_s"] > 6.0]
     assert np.all(np.abs(braking - 800.0) <= 0.5 * 3500.0 / 100.0), braking      # within half a percent step
+
+
+def test_bus_problems_are_one_sentence_and_virtual_says_it_is_in_process(capsys, monkeypatch):
+    """A HIL audit: a vendor driver without its library (kvaser: NameError) gave a traceback; plant took
+    --bitrate 5; plant on --interface virtual "sent" its frames to no other process without a word."""
+    assert main(["plant", "--interface", "virtual", "--channel", "x", "--cycle", STEADY, "--bitrate", "5"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "--bitrate 5 must be a CAN bit rate" in err
+
+    def broken_driver(**kwargs):
+        raise NameError("name 'canGetNumberOfChannels' is not defined")
+    monkeypatch.setattr(can, "Bus", broken_driver)
+    assert main(["plant", "--interface", "kvaser", "--channel", "0", "--cycle", STEADY]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "its driver failed (NameError" in err
+    monkeypatch.undo()
+    ch = f"hil-{uuid.uuid4()}"
+    assert main(["plant", "--interface", "virtual", "--channel", ch, "--cycle", STEADY, "--speed", "100",
+                 "--duration", "1", "--quiet"]) == 0
+    assert "joins only buses inside this one process" in capsys.readouterr().err

@@ -19,8 +19,10 @@ def add_subparser(sub):
                     "seconds), then the frames are streamed with their timing, --speed times faster. Named "
                     "cycles: " + ", ".join(CYCLE_NAMES) + ", 'steady:...', or a CSV run table.",
         examples=["gearbox-vsensor plant --interface socketcan --channel vcan0 --cycle uphill",
-                  "gearbox-vsensor plant --interface virtual --channel hil --cycle mining --speed 10 --duration 60"],
-        notes="and on the same bus:  gearbox-vsensor run --interface socketcan --channel vcan0")
+                  "gearbox-vsensor plant --interface udp_multicast --channel 239.74.163.2 --cycle mining --duration 60"],
+        notes="and on the same bus:  gearbox-vsensor run --interface socketcan --channel vcan0\n"
+              "(--interface virtual joins only buses of one process: for plant and sensor in one process use "
+              "gearbox-vsensor demo or the Python API)")
     add_bus_options(p)
     p.add_argument("--cycle", required=True, metavar="NAME_OR_CSV", help="named cycle, steady:... spec, or a CSV")
     p.add_argument("--config", metavar="TOML", help="project configuration (variant, cooler, [can] addresses, "
@@ -29,8 +31,9 @@ def add_subparser(sub):
                    help="switch an unmodelled effect on in the plant (repeatable)")
     p.add_argument("--speed", type=float, default=1.0, metavar="X",
                    help="play X times faster than real time; only on --interface virtual (frames keep the plant's "
-                        "timestamps) does a sensor on the bus keep time at X != 1: socketcan, udp_multicast and "
-                        "hardware interfaces stamp frames on arrival (a warning says so)")
+                        "timestamps, for a sensor in the same process: the Python API) does a sensor keep time at "
+                        "X != 1: socketcan, udp_multicast and hardware interfaces stamp frames on arrival (a warning "
+                        "says so)")
     p.add_argument("--duration", type=float, metavar="S", help="stop after S seconds of cycle time")
     p.add_argument("--seed", type=int, default=0, help="random seed of the frame timing jitter (default 0)")
     p.add_argument("--no-rig", action="store_true", help="do not send the rig thermocouple frames")
@@ -44,13 +47,14 @@ def _say(text: str) -> None:
 
 
 def run(args) -> int:
-    from tools.can.bus import open_player, speed_warning, stop_on_signals
+    from tools.can.bus import check_bitrate, open_player, speed_warning, stop_on_signals, virtual_note
     from tools.can.hil import prepare, stream
+    check_bitrate(args.bitrate)
     if not args.speed > 0:
         raise InputError(f"--speed {args.speed} must be positive")
-    warning = speed_warning(args.interface, args.speed)
-    if warning:
-        _say(f"warning: {warning}")
+    for warning in (speed_warning(args.interface, args.speed), virtual_note(args.interface)):
+        if warning:
+            _say(f"warning: {warning}")
     if args.duration is not None and not args.duration > 0:
         raise InputError(f"--duration {args.duration} must be a positive number of seconds")
     if args.seed < 0:

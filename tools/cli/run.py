@@ -66,6 +66,10 @@ def run(args) -> int:
                             rig=args.rig, rt_priority=args.rt_priority, state_file=args.state_file,
                             state_period_s=args.state_period, health_file=args.health_file)
     settings.check()
+    from tools.can.bus import virtual_note
+    note = virtual_note(args.interface)
+    if note:
+        print(f"gearbox-vsensor run: warning: {note}", file=sys.stderr, flush=True)
     logging.basicConfig(level=getattr(logging, args.log_level), stream=sys.stderr,
                         format="%(asctime)s %(levelname)s %(name)s: %(message)s")
     run_live(settings)
