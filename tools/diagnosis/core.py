@@ -23,6 +23,7 @@ the stages, each in its own module, pass typed records:
 from __future__ import annotations
 
 import time
+from dataclasses import replace
 
 from firmware_model.effects import EFFECT_IDS, channel_effect
 from firmware_model.errors import InputError
@@ -88,13 +89,15 @@ class Diagnosis:
         ident = identifiability(ctx, base, fits)
         self.progress(next(stage))              # verdict
         verdict = decide(ctx, base, crit)
-        combo = None
+        combo, set_note = None, ""
         conf = confusable_with(crit, ctx.opts)
         if verdict.is_effect:
-            combo = select_set(ctx, base, crit, fits, verdict.gap_thr_c, conf)
+            combo, set_note = select_set(ctx, base, crit, fits, verdict.gap_thr_c, conf)
         elif verdict.effect == "unexplained":
             combo = rescue(ctx, base, crit, fits, verdict.gap_thr_c)
         verdict = with_combination(ctx, base, verdict, combo)
+        if set_note:
+            verdict = replace(verdict, reason=verdict.reason + set_note)
         res = residuals(base, verdict, crit, combo)
         checked = held_out_check(ctx, base, verdict, res, where.where)
         if checked.effect != verdict.effect:       # refused: "unexplained", the baseline's residuals

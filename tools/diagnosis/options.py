@@ -43,6 +43,8 @@ class Options:
     refine: int = 2                   # refinement re-simulations per candidate
     max_effects: int = 3              # forward selection: at most this many effects found together (1: off)
     set_starts: int = 3               # forward selection: from the best candidate and up to 2 confusable with it
+    set_start_test_tol: float = 0.1   # a set from another start must leave the held-out RMS at most this much above
+                                      # the best candidate's own result (the held-out guard against an overfit)
     not_excluded: bool = True         # say which other effects the data cannot rule out beside the verdict
     not_excluded_min_frac: float = 0.3  # list an effect not excluded beside the verdict when its interval
                                         # (exclude.py) reaches this far towards a bound
