@@ -119,4 +119,6 @@ def run(args) -> int:
         print(f"reason: {v['reason']}")
         if res["model"].get("note"):
             print(f"note: {res['model']['note']}", file=sys.stderr)
+    for w in res.get("warnings", []):       # the data's warnings (a frozen sensor ...), even with --quiet
+        print(f"warning: {w}", file=sys.stderr)
     return 0
