@@ -134,6 +134,18 @@ def test_every_effect_changes_the_plant(params, eid):
     assert eff.energy_balance()["closure_rel"] < 1e-3
 
 
+def test_retarder_braking_in_either_sign_heats_the_plant_alike(params):
+    """J1939 sends retarder braking negative; a table in that sign gave the plant no heat while its own CAN log and
+    the sensor took the magnitude (a drive-cycle audit): the plant takes the magnitude too."""
+    runs = {}
+    for sign in (1.0, -1.0):
+        tab = steady(3, 1500, 1800, 120, coolant_temp_c=80.0, ambient_temp_c=25.0, retarder_torque_nm=sign * 800.0)
+        runs[sign] = ReferencePlant(params, {"retarder_heat": 0.05}).run(tab, initial_temp_c=85.0).table
+    assert runs[1.0]["Q_heat_retarder_w"].max() > 100.0
+    np.testing.assert_array_equal(runs[1.0]["Q_heat_retarder_w"], runs[-1.0]["Q_heat_retarder_w"])
+    np.testing.assert_array_equal(runs[1.0]["T_PS_c"], runs[-1.0]["T_PS_c"])
+
+
 def test_bad_inputs_are_one_sentence_errors(params):
     plant = ReferencePlant(params)
     good = steady(9, 1300, 1000, 10)

@@ -343,8 +343,10 @@ class ReferencePlant:
         P_mech = np.sum([loss[k] for k in SOURCES], axis=0)
         sp = self.losses.kin.speed[gear - GEAR_MIN] * w_in[:, None]
         if inp.retarder_nm is not None and self.scales.retarder_frac > 0:
-            P_src[:, self.src_names.index("retarder")] = self.scales.retarder_frac * np.maximum(
-                inp.retarder_nm[sl], 0) * np.abs(sp[:, SPEED_NAMES.index("OS")])
+            # the braking torque's magnitude, as the onboard sensor and the CAN encoder take it (J1939 sends braking
+            # negative; a table given in that sign gave the plant no heat and its own CAN log 3 kNm: an audit)
+            P_src[:, self.src_names.index("retarder")] = self.scales.retarder_frac * np.abs(
+                inp.retarder_nm[sl]) * np.abs(sp[:, SPEED_NAMES.index("OS")])
         avg = _StepAverager(t[sl], dts[sl], edges)
         return ChunkSources(edges, avg(P_src), avg(P_mech)[0], avg(np.abs(sp)), avg((~churn_ok).astype(float))[0])
 
