@@ -150,3 +150,23 @@ def test_an_unknown_table_format_or_an_effect_given_twice_is_refused(tmp_path, c
     assert main(["simulate", "--cycle", str(cyc), "--out", str(tmp_path / "x.csv"), "--quiet",
                  "--effect", "churning_scale:factor=1.2", "--effect", "churning_scale:factor=1.5"]) == 2
     assert "given twice" in capsys.readouterr().err and not (tmp_path / "x.csv").exists()
+
+
+def test_a_cycle_in_milliseconds_or_rad_s_is_refused_before_it_runs(tmp_path, capsys):
+    """A CSV cycle whose time_s is in milliseconds (10-minute file -> 7 days, a 600 MB table and a 4.3 GB CAN log)
+    or whose engine speed is in rad/s is refused in one sentence before the plant runs, as replay flags both (a
+    drive-cycle audit); --allow-untrusted runs it as it is."""
+    src = _cycle(tmp_path / "c.csv")
+    table = read_run_table(src)
+    ms = RunTable({c: (table[c] * 1000.0 if c == "time_s" else table[c]) for c in table.columns})
+    rads = RunTable({c: (table[c] * 2 * np.pi / 60.0 if c == "engine_speed_rpm" else table[c]) for c in table.columns})
+    for name, tab, words in (("ms", ms, "if time_s is in milliseconds, give seconds"), ("rads", rads, "in rad/s?")):
+        path = write_run_table(tab, tmp_path / f"{name}.csv")
+        out = tmp_path / f"{name}_run.csv"
+        assert main(["simulate", "--cycle", str(path), "--out", str(out), "--quiet"]) == 2
+        err = capsys.readouterr().err.strip()
+        assert len(err.splitlines()) == 1 and words in err and f"{name}.csv" in err, err
+        assert not out.exists()
+    out = tmp_path / "rads_run.csv"
+    assert main(["simulate", "--cycle", str(tmp_path / "rads.csv"), "--out", str(out), "--quiet",
+                 "--allow-untrusted"]) == 0 and out.exists()

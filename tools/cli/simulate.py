@@ -5,6 +5,8 @@ import argparse
 import sys
 from pathlib import Path
 
+import numpy as np
+
 
 from firmware_model.components import meaning
 from firmware_model.config import load_config
@@ -53,6 +55,9 @@ def add_subparser(sub):
     p.add_argument("--can-log", metavar="RUN.log", help="also write the plant's inputs as J1939 frames and its true "
                                                         "temperatures as rig thermocouple frames (candump -L)")
     p.add_argument("--quiet", action="store_true", help="no progress bar or summary")
+    p.add_argument("--allow-untrusted", action="store_true",
+                   help="simulate a CSV cycle whose units look wrong (time_s in milliseconds, engine speed in rad/s) "
+                        "anyway; without it such a cycle is refused before anything runs")
     p.set_defaults(func=run)
     return p
 
@@ -105,9 +110,16 @@ def run(args) -> int:
     # every output to a temporary file first: a failure (a full disk, a bad [can] value) leaves none of them
     with outputs(("--out", args.out), ("--can-log", args.can_log), ("--plot", plot), ("--plot", heat)) as tmp:
         table = get_cycle(args.cycle, rate_hz=args.rate, noise=args.noise, seed=args.seed)
+        if cycle_file is not None and not args.allow_untrusted:
+            _refuse_unit_mistakes(table, cycle_file)
         plant = ReferencePlant(params, effects, cooler=args.cooler or cfg.cooler, dt_s=args.dt)
-        res = plant.run(table, initial_temp_c=args.initial_temp, hold_oil_c=args.hold_oil, out_dt_s=args.out_dt,
-                        progress=None if not args.quiet else False)
+        try:
+            res = plant.run(table, initial_temp_c=args.initial_temp, hold_oil_c=args.hold_oil, out_dt_s=args.out_dt,
+                            progress=None if not args.quiet else False)
+        except InputError as exc:       # the plant checks the rows: name the file they came from (cycles.md)
+            if cycle_file is None or str(cycle_file) in str(exc):
+                raise
+            raise InputError(f"{cycle_file}: {exc}") from None
         _write_outputs(args, table, res, params, cfg, tmp)
     out = Path(args.out)
     if not args.quiet:
@@ -124,6 +136,29 @@ def run(args) -> int:
         for w in res.warnings:
             print(f"note: {w}", file=sys.stderr)
     return 0
+
+
+#: a CSV cycle whose rows lie further apart than this (median) over at least UNIT_CHECK_MIN_ROWS rows is taken for
+#: time_s in milliseconds [s] (the sensor's hold time: rows further apart are too sparse for it anyway)
+SPARSE_ROWS_S = 60.0
+UNIT_CHECK_MIN_ROWS = 20
+
+
+def _refuse_unit_mistakes(table, name: str) -> None:
+    """InputError for a CSV cycle whose units look wrong, before the plant runs (a drive-cycle audit: a 10-minute
+    file with time_s in milliseconds simulated 7 days and wrote a 600 MB table and a 4.3 GB CAN log without a
+    word, and rad/s speed ran as a stalled engine; replay refused both)."""
+    from firmware_model.service.degraded import unit_findings
+    t = np.asarray(table["time_s"], dtype=float)
+    if t.size >= UNIT_CHECK_MIN_ROWS:
+        spacing_s = float(np.median(np.diff(t)))
+        if spacing_s > SPARSE_ROWS_S:
+            raise InputError(f"{name}: its rows lie a median {spacing_s:.0f} s apart ({t[-1] - t[0]:.0f} s in all): "
+                             f"if time_s is in milliseconds, give seconds; if the rows really lie that far apart, "
+                             f"pass --allow-untrusted")
+    speed = unit_findings(0, 0, [], table["engine_speed_rpm"], table["engine_torque_nm"])
+    if speed:
+        raise InputError(f"{name}: {speed[0].sentence} (pass --allow-untrusted to simulate it as it is)")
 
 
 def plot_paths(plot):
