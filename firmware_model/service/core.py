@@ -218,7 +218,8 @@ class SensorService:
         """What the run must not keep quiet about (``firmware_model.service.trust.trust_findings``): a suspect time
         base, inputs from unexpected source addresses, a large degraded share; most severe first."""
         oil_model = getattr(getattr(self.sensor, "options", None), "oil_mode", "measured") == "model"
-        return trust_findings(self.all_counters(), self.decoder.expected_sa, self.options.expected_sa, oil_model)
+        return trust_findings(self.all_counters(), self.decoder.expected_sa, self.options.expected_sa, oil_model,
+                              self.options.stale_factor)
 
     def log_findings(self, only_new: bool = False) -> None:
         """Log the findings (WARNING, or INFO for notes); ``only_new``: only those not logged yet, or more severe

@@ -28,8 +28,9 @@ from can_dbc.j1939 import EC1_PGN, RC_PGN
 from firmware_model.service.degraded import (DEGRADED_UNTRUSTED_SHARE, DEGRADED_WARN_SHARE,  # noqa: F401 (re-exported)
                                              INPUT_NAMES, DegradedFinding, Severity, degraded_finding, pct,
                                              untrusted)
-from firmware_model.service.options import (SOURCE_ADDRESS_KEYS, TIME_BASE_WINDOW_S, TIME_BASE_WINDOWS,
-                                            wanted_pgns)
+from firmware_model.components import STEP_S
+from firmware_model.service.options import (NOMINAL_PERIOD_S, SOURCE_ADDRESS_KEYS, TIME_BASE_WINDOW_S,
+                                            TIME_BASE_WINDOWS, wanted_pgns)
 
 #: the transmission periods a real J1939 bus uses for each input message, (fastest, slowest) [s]: EEC1 is engine
 #: speed dependent (J1939-71: 10-20 ms); CCVS1 is 100 ms in J1939 but 1 s on some trucks and in synthesized logs;
@@ -263,7 +264,7 @@ CAUSE_INPUTS = {"engine_speed_rpm": "engine speed", "engine_torque_nm": "engine 
 
 
 def input_causes(decoder_counters: Mapping, stale_steps: Mapping[str, int], steps: int,
-                 gear_unmapped: int = 0) -> list[str]:
+                 gear_unmapped: int = 0, stale_factor: float = 3.0) -> list[str]:
     """Why the inputs missing on at least CAUSE_MIN_SHARE of the steps were missing, as far as the decoder's
     counters tell (an audit: "gear 100 %" alone did not tell a message never sent from one sent with 5 data bytes,
     and the coolant fell to its default without a word): frames shorter than 8 bytes, no frame at all, values sent
@@ -277,6 +278,7 @@ def input_causes(decoder_counters: Mapping, stale_steps: Mapping[str, int], step
     tp = decoder_counters.get("tp", {})
     not_broadcast = decoder_counters.get("rejected", {}).get("tp_not_broadcast", 0)
     out = []
+    slow_said: set = set()
     for sig, words in CAUSE_INPUTS.items():
         if not steps or stale_steps.get(sig, 0) < CAUSE_MIN_SHARE * steps:
             continue
@@ -308,7 +310,26 @@ def input_causes(decoder_counters: Mapping, stale_steps: Mapping[str, int], step
             if bad:
                 out.append(f"{words}: {msg} sent it as " + ", ".join(
                     f"{r.replace('_', ' ')} {n} times" for r, n in sorted(bad.items(), key=lambda kv: -kv[1])))
+            slow = _slow_message(msg, arrivals.get(msg, 0), steps, stale_factor)
+            if slow:
+                out.append(f"{words}: {slow if msg not in slow_said else f'{msg} as slow (above)'}")
+                slow_said.add(msg)
     return out
+
+
+def _slow_message(msg: str, arrivals: int, steps: int, stale_factor: float) -> str:
+    """The words for a message that arrived, on average, more slowly than the staleness rule allows (a logger that
+    down-samples EEC1 to 10 Hz made 40 % of the steps stale: a log-replay audit), or ''."""
+    nominal_s = NOMINAL_PERIOD_S.get(msg)
+    if not nominal_s or not arrivals or not steps:
+        return ""
+    period_s = steps * STEP_S / arrivals
+    if period_s <= stale_factor * nominal_s:
+        return ""
+    need = math.ceil(1.5 * period_s / nominal_s)
+    return (f"{msg} arrived every {1000 * period_s:.0f} ms on average, while a value older than {stale_factor:g} x "
+            f"its J1939 period ({1000 * nominal_s:.0f} ms) is stale (a logger that down-samples, or a slow node?): "
+            f"[can] stale_factor = {need} accepts it")
 
 
 @dataclass(frozen=True)
@@ -351,7 +372,8 @@ class StartFinding:
 
 
 def trust_findings(counters: Mapping, expected_sa: Mapping[str, int | None],
-                   configured: Mapping[str, int] | None = None, oil_model: bool = False) -> list[Finding]:
+                   configured: Mapping[str, int] | None = None, oil_model: bool = False,
+                   stale_factor: float = 3.0) -> list[Finding]:
     """The findings of a CAN run, most severe first: ``counters`` = ``SensorService.all_counters()``. The degraded
     share is a finding from DEGRADED_WARN_SHARE on (``oil_model``: the sensor models the oil by request, which is
     not degraded); foreign source addresses are findings when a message came only
@@ -365,7 +387,7 @@ def trust_findings(counters: Mapping, expected_sa: Mapping[str, int | None],
     unmapped = int(service.get("gear_unmapped_steps", 0))
     if unmapped:       # a gear that arrived but that [can] gear_map or the model's -2..14 leaves out is missing too
         stale["gear"] = stale.get("gear", 0) + unmapped
-    causes = input_causes(counters["decoder"], stale, int(service.get("steps", 0)), unmapped)
+    causes = input_causes(counters["decoder"], stale, int(service.get("steps", 0)), unmapped, stale_factor)
     degraded = degraded_finding(service.get("mode_steps", {}), stale, oil_model)
     degraded = dataclasses.replace(degraded, causes=tuple(c for c in causes if not c.startswith("coolant")))
     loud = degraded.severity >= Severity.WARNING

@@ -235,3 +235,18 @@ def test_a_vehicle_speed_from_the_tachograph_is_set_by_its_own_key():
     opts = ServiceOptions.from_config(type("C", (), {"can": {"engine_source_address": 0x01,
                                                              "vehicle_speed_source_address": 0xEE}})())
     assert opts.expected_sa["EEC1"] == 0x01 and opts.expected_sa["CCVS1"] == 0xEE
+
+
+def test_a_message_slower_than_the_staleness_rule_is_named_with_the_stale_factor_that_accepts_it():
+    """EEC1 down-sampled to 10 Hz by a logger (J1939: 10-20 ms) made 40 % of the steps stale, and the cause said
+    only "missing, stale" (a log-replay audit): the cause names the mean period and the [can] stale_factor that
+    accepts it, once per message; at its J1939 rate nothing is said."""
+    from firmware_model.service.trust import input_causes
+    counters = {"arrivals": {"EEC1": 1000}, "tp": {"ec1_received": 20}}
+    causes = input_causes(counters, {"engine_speed_rpm": 400, "engine_torque_nm": 400}, 1000)
+    assert causes[0] == ("engine speed: EEC1 arrived every 100 ms on average, while a value older than 3 x its J1939 "
+                         "period (20 ms) is stale (a logger that down-samples, or a slow node?): [can] stale_factor = "
+                         "8 accepts it")
+    assert causes[1] == "engine torque: EEC1 as slow (above)"
+    assert input_causes({"arrivals": {"EEC1": 5000}}, {"engine_speed_rpm": 400}, 1000) == []
+    assert input_causes(counters, {"engine_speed_rpm": 400}, 1000, stale_factor=8.0) == []

@@ -52,14 +52,17 @@ def run(args) -> int:
     check_bitrate(args.bitrate)
     if not args.speed > 0:
         raise InputError(f"--speed {args.speed} must be positive")
-    for warning in (speed_warning(args.interface, args.speed), virtual_note(args.interface)):
-        if warning:
-            _say(f"warning: {warning}")
+    warning = speed_warning(args.interface, args.speed)
+    if warning:
+        _say(f"warning: {warning}")
     if args.duration is not None and not args.duration > 0:
         raise InputError(f"--duration {args.duration} must be a positive number of seconds")
     if args.seed < 0:
         raise InputError(f"--seed {args.seed} must be a non-negative integer")
     bus = open_player(args.interface, args.channel, args.bitrate)   # before the plant run: a bad bus fails at once
+    note = virtual_note(args.interface)
+    if note:
+        _say(f"note: {note}")
     progress = None if args.quiet else (lambda t_s, n: _say(f"{t_s:.0f} s of cycle time, {n} frames sent"))
     try:
         t0_s = time.perf_counter()

@@ -69,7 +69,7 @@ def run(args) -> int:
     from tools.can.bus import virtual_note
     note = virtual_note(args.interface)
     if note:
-        print(f"gearbox-vsensor run: warning: {note}", file=sys.stderr, flush=True)
+        print(f"gearbox-vsensor run: note: {note}", file=sys.stderr, flush=True)
     logging.basicConfig(level=getattr(logging, args.log_level), stream=sys.stderr,
                         format="%(asctime)s %(levelname)s %(name)s: %(message)s")
     run_live(settings)
