@@ -16,6 +16,7 @@
 """
 from __future__ import annotations
 
+import gc
 import os
 from typing import NamedTuple
 
@@ -308,6 +309,8 @@ def read_mf4(path) -> FrameColumns | None:
             mdf = MDF(path)
         except Exception:
             mdf = None
+        if mdf is None:
+            gc.collect()          # the half-built MDF's finaliser runs here, silenced
     if mdf is None:
         return None
     try:
