@@ -18,7 +18,7 @@ from firmware_model.errors import InputError, ParameterError
 from firmware_model.physics.oil import T_MAX_C as OIL_T_MAX_C, T_MIN_C as OIL_T_MIN_C
 from firmware_model.service.degraded import recorded_mode_counters
 from firmware_model.service.netmgmt import AddressClaim
-from firmware_model.service.options import (GEAR_RANGE, NOMINAL_PERIOD_S, SENSOR_INPUTS, ServiceOptions,
+from firmware_model.service.options import (GEAR_RANGE, NOMINAL_PERIOD_S, OUT_OF_ORDER_MAX_S, SENSOR_INPUTS, ServiceOptions,
                                             wanted_pgns)
 from firmware_model.service.protocol import StepSensor, check_sensor, start_state
 from firmware_model.service.recorder import StepRecorder
@@ -77,7 +77,7 @@ class SensorService:
         self.counters: dict = {"steps": 0, "steps_sent": 0, "catchup_steps": 0, "time_jumps": 0,
                                "frames_not_timing": 0, "frames_sent": 0, "dm1_sent": 0, "stale_steps": {},
                                "uninitialised_steps": 0, "mode_steps": {}, "gear_unmapped_steps": 0,
-                               "started_without_oil": False,
+                               "started_without_oil": False, "frames_out_of_order": 0, "out_of_order_max_s": 0.0,
                                "time_base": {"windows_checked": 0, "windows_suspect": 0, "suspect": False,
                                              "finding": None}}
         self._time_base = TimeBaseCheck(self.options.time_base_window_s, self.options.time_base_windows)
@@ -88,6 +88,7 @@ class SensorService:
         messages = signal_messages()
         self._input_ages_s = tuple((signal, self._max_age_s[messages[signal]]) for _, signal in SENSOR_INPUTS)
         self._init_time()
+        self._prev_frame_t_s = -math.inf      # the previous frame's (finite) time: frames out of time order
         # the sensor: a step leaves its slow time-to-limit refresh to finish_pending(), which the live loop runs
         # after the step's frames are sent and every step runs first (so outputs never depend on when)
         self.state = None
@@ -123,6 +124,7 @@ class SensorService:
         """Use one received frame; returns the frames to send now (possibly none). Never raises on frame content."""
         out: list = []
         timestamp_s = msg.timestamp
+        self._check_order(timestamp_s)
         if self.netmgmt is not None:
             out.extend(self._network_management(msg))
         if self._drives_time(msg):
@@ -147,6 +149,18 @@ class SensorService:
             self.counters["frames_not_timing"] += 1
         self.decoder.feed_into(msg, self.latest)
         return out
+
+    def _check_order(self, timestamp_s: float) -> None:
+        """Count a frame earlier than the one before it by at most OUT_OF_ORDER_MAX_S (a log merged from several
+        buffers; further back is a time jump): the decoder takes frames in file order, so its older value replaces
+        a newer one (trust.OrderFinding says so)."""
+        if not math.isfinite(timestamp_s):
+            return
+        back_s = self._prev_frame_t_s - timestamp_s
+        if 0.0 < back_s <= OUT_OF_ORDER_MAX_S:
+            self.counters["frames_out_of_order"] += 1
+            self.counters["out_of_order_max_s"] = max(self.counters["out_of_order_max_s"], back_s)
+        self._prev_frame_t_s = timestamp_s
 
     def _network_management(self, msg) -> list:
         """J1939-81/-21 (firmware_model.service.netmgmt): the claim at the first frame, replies to requests and to

@@ -371,6 +371,27 @@ class StartFinding:
                 "saved at shutdown)")
 
 
+@dataclass(frozen=True)
+class OrderFinding:
+    """Frames out of time order (up to OUT_OF_ORDER_MAX_S earlier than the frame before them): the decoder takes
+    frames in file order, so an older value replaced a newer one (a log-replay audit: every 50th frame 0.1 s late
+    left 4 % of the steps 'missing' without a word)."""
+    kind: ClassVar[str] = "order"
+    frames: int
+    max_back_s: float
+
+    @property
+    def severity(self) -> Severity:
+        return Severity.NOTE
+
+    @property
+    def sentence(self) -> str:
+        return (f"{self.frames} frames came earlier in time than the frame before them (up to "
+                f"{1000 * self.max_back_s:.0f} ms): the log is not in time order (merged from several buffers or "
+                f"channels?), and a frame taken in file order can replace a newer value with an older one, which "
+                f"may leave inputs stale; sort the log by time (candump -L: sort -s -n -k1.2 IN.log > OUT.log)")
+
+
 def trust_findings(counters: Mapping, expected_sa: Mapping[str, int | None],
                    configured: Mapping[str, int] | None = None, oil_model: bool = False,
                    stale_factor: float = 3.0) -> list[Finding]:
@@ -403,4 +424,6 @@ def trust_findings(counters: Mapping, expected_sa: Mapping[str, int | None],
                                   tuple(c[len("coolant temperature: "):] for c in causes if c.startswith("coolant"))))
     if service.get("started_without_oil"):
         out.append(StartFinding())
+    if service.get("frames_out_of_order"):
+        out.append(OrderFinding(int(service["frames_out_of_order"]), float(service.get("out_of_order_max_s", 0.0))))
     return sorted(out, key=lambda f: -f.severity)
