@@ -1,7 +1,10 @@
 """`gearbox-vsensor plant`: the reference plant as a HIL simulator on a CAN bus (tools/can/hil.py)."""
 from __future__ import annotations
 
+import contextlib
+import signal
 import sys
+import threading
 import time
 
 from firmware_model.errors import InputError
@@ -46,6 +49,23 @@ def _say(text: str) -> None:
     print(f"plant: {text}", file=sys.stderr, flush=True)
 
 
+@contextlib.contextmanager
+def _term_interrupts():
+    """SIGTERM raises KeyboardInterrupt inside the block, as Ctrl-C does (a HIL audit: SIGTERM during the plant's
+    computation killed the process without a word or a bus shutdown); the previous handler comes back after."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def interrupt(signum, frame):
+        raise KeyboardInterrupt
+    previous = signal.signal(signal.SIGTERM, interrupt)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
 def run(args) -> int:
     from tools.can.bus import check_bitrate, open_player, speed_warning, stop_on_signals, virtual_note
     from tools.can.hil import prepare, stream
@@ -66,8 +86,9 @@ def run(args) -> int:
     progress = None if args.quiet else (lambda t_s, n: _say(f"{t_s:.0f} s of cycle time, {n} frames sent"))
     try:
         t0_s = time.perf_counter()
-        frames, _ = prepare(args.cycle, args.config, args.effect, duration_s=args.duration, seed=args.seed,
-                            rig=not args.no_rig)
+        with _term_interrupts():        # SIGTERM while the plant computes: "interrupted", the bus shut down
+            frames, _ = prepare(args.cycle, args.config, args.effect, duration_s=args.duration, seed=args.seed,
+                                rig=not args.no_rig)
         span_s = float(frames.timestamp_s[-1] - frames.timestamp_s[0]) if len(frames) else 0.0
         if not args.quiet:
             _say(f"{len(frames)} frames over {span_s:.1f} s of '{args.cycle}' prepared in "
