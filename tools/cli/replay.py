@@ -207,8 +207,9 @@ def _run_log(args, path: Path) -> int:
     if not args.quiet:
         print(f"replayed {d['frames_seen']} frames ({d['frames_used']} used; rejected: {rejected}) -> "
               f"{table.n} steps of {table['time_s'][-1]:.1f} s -> {Path(args.out)}")
-        if result.service_counters["time_jumps"]:
-            print(f"note: {result.service_counters['time_jumps']} time jumps in the log (see the log messages)")
+        jumps = result.service_counters["time_jumps"]
+        if jumps:
+            print(f"note: {jumps} time jump{'s' if jumps > 1 else ''} in the log (the warnings above say where)")
         if table.n:
             from tools.replay.summary import summary_lines
             oil_mode = args.oil_mode or _config(args).sensor.get("oil_mode", "measured")
