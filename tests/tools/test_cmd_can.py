@@ -171,3 +171,16 @@ def test_sigterm_while_the_plant_computes_is_an_interrupt():
             for _ in range(1000):          # the handler runs between bytecodes
                 pass
     assert signal.getsignal(signal.SIGTERM) is before
+
+
+def test_a_bus_that_fails_to_open_leaves_no_teardown_message(capsys, caplog):
+    """A udp_multicast bus with a channel that is no address: one sentence, and none of python-can's "... was not
+    properly shut down" for the half-built bus after it (a HIL audit)."""
+    import logging
+    pytest.importorskip("msgpack", reason="python-can's udp_multicast needs msgpack")
+    with caplog.at_level(logging.WARNING):
+        assert main(["plant", "--interface", "udp_multicast", "--channel", "notanaddress", "--cycle", STEADY,
+                     "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "cannot open CAN channel 'notanaddress'" in err
+    assert not [r for r in caplog.records if "not properly shut down" in r.getMessage()]

@@ -6,6 +6,8 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import gc
+import logging
 import signal
 import threading
 from typing import Iterator, Sequence
@@ -62,15 +64,33 @@ def open_bus(interface: str, channel: str, bitrate: int | None = None, can_filte
     if can_filters is not None:
         kw["can_filters"] = can_filters
     check_bitrate(bitrate)
+    failure = None
+    with _quiet_bus_teardown():
+        try:
+            return can.Bus(interface=interface, channel=channel, **kw)
+        except can.CanInterfaceNotImplementedError as exc:
+            failure = f"--interface {interface!r} is not available here: {exc}"
+        except (can.CanError, OSError, ValueError, ImportError) as exc:
+            failure = f"cannot open CAN channel {channel!r} on interface {interface!r}: {exc}"
+        except Exception as exc:  # a vendor driver without its native library fails in its own way (kvaser: NameError)
+            failure = (f"cannot open CAN channel {channel!r} on interface {interface!r}: its driver failed "
+                       f"({type(exc).__name__}: {exc}); is the vendor's driver library installed?")
+        gc.collect()              # the half-built bus, collected while its teardown message is silenced
+    raise InputError(failure)
+
+
+@contextlib.contextmanager
+def _quiet_bus_teardown():
+    """Silence python-can's ``can.bus`` logger, where BusABC.__del__ logs "... was not properly shut down" for a
+    bus whose constructor failed (a HIL audit: that line followed the one-sentence error); the interfaces' own
+    loggers (a driver's warnings) are untouched."""
+    bus_log = logging.getLogger("can.bus")
+    level = bus_log.level
+    bus_log.setLevel(logging.CRITICAL)
     try:
-        return can.Bus(interface=interface, channel=channel, **kw)
-    except can.CanInterfaceNotImplementedError as exc:
-        raise InputError(f"--interface {interface!r} is not available here: {exc}") from None
-    except (can.CanError, OSError, ValueError, ImportError) as exc:
-        raise InputError(f"cannot open CAN channel {channel!r} on interface {interface!r}: {exc}") from None
-    except Exception as exc:  # a vendor driver whose native library is missing fails in its own way (kvaser: NameError)
-        raise InputError(f"cannot open CAN channel {channel!r} on interface {interface!r}: its driver failed "
-                         f"({type(exc).__name__}: {exc}); is the vendor's driver library installed?") from None
+        yield
+    finally:
+        bus_log.setLevel(level)
 
 
 def virtual_note(interface: str) -> str | None:
