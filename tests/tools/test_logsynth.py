@@ -92,6 +92,23 @@ def test_values_decode_to_the_cycle_quantised(frames):
     assert np.allclose(tc, 60.0 + PUBLISHED.index("PS") + 0.5 * (ts - 0.05), atol=1 / 64 + 1e-6)
 
 
+def test_the_vehicle_speed_and_coolant_source_keys_reach_the_frames_and_the_sensor_reads_them():
+    """[can] vehicle_speed_source_address and coolant_source_address move CCVS1 and ET1 in the synthesized frames
+    (simulate --can-log, plant) as they do in the sensor's decoder: the same config on both ends decodes every frame
+    (a review: the frames kept the engine's address, and the sensor with the same config fell back to defaults)."""
+    from firmware_model.service import ServiceOptions
+    inp = cycle(12.0)
+    cfg = type("C", (), {"can": {"vehicle_speed_source_address": 0xEE, "coolant_source_address": 0x05}})()
+    fr, _ = synth_frames(inp, None, config=cfg)
+    dec = J1939Decoder(expected_sa=ServiceOptions.from_config(cfg).expected_sa)
+    names = [u.name for m in fr.messages() for u in dec.feed(m)]
+    assert "vehicle_speed_kmh" in names and "coolant_temp_c" in names
+    assert sum(dec.counters["rejected"].values()) == 0, dec.counters["rejected"]
+    ids = {dbc_name: {i & 0xFF for i, p in zip(fr.can_id, (pgn_of(int(i)) for i in fr.can_id)) if p == pgn}
+           for dbc_name, pgn in (("CCVS1", 65265), ("ET1", 65262), ("EEC1", 61444))}
+    assert ids == {"CCVS1": {0xEE}, "ET1": {0x05}, "EEC1": {0x00}}
+
+
 def test_reference_torque_clipping_and_sources_from_config():
     inp = cycle(12.0)
     cfg = type("C", (), {"can": {"engine_reference_torque_nm": 1000, "engine_source_address": 0x01,

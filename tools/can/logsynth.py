@@ -157,14 +157,17 @@ def _sources(config) -> dict:
     src = {**DEFAULT_SOURCES, "rig": dbc.default_source(dbc.numbered_messages("RIG_TC_")[0])}
     can_cfg = getattr(config, "can", None) or {}
     for key, name in (("engine_source_address", "engine"), ("transmission_source_address", "transmission"),
-                      ("retarder_source_address", "retarder"), ("ambient_source_address", "ambient")):
+                      ("retarder_source_address", "retarder"), ("ambient_source_address", "ambient"),
+                      ("vehicle_speed_source_address", "vehicle_speed"), ("coolant_source_address", "coolant")):
         if key in can_cfg:
             value = can_cfg[key]
             if isinstance(value, bool) or not isinstance(value, int) or not 0 <= value <= 253:
                 raise ParameterError(f"config can.{key} = {value!r} is not a J1939 source address 0..253")
             src[name] = value
-    if "ambient_source_address" not in can_cfg:
-        src["ambient"] = src["engine"]  # AMB comes from the engine unless configured otherwise
+    for key, name in (("ambient_source_address", "ambient"), ("vehicle_speed_source_address", "vehicle_speed"),
+                      ("coolant_source_address", "coolant")):
+        if key not in can_cfg:
+            src[name] = src["engine"]  # AMB, CCVS1 and ET1 come from the engine unless configured otherwise
     return src
 
 
@@ -322,9 +325,9 @@ class _Synth:
 
     def engine_1s(self) -> None:
         """ET1 coolant, AMB ambient, CCVS1 vehicle speed, each if the cycle has its column."""
-        for name, col, signal, source in (("ET1", "coolant_temp_c", "EngCoolantTemp", "engine"),
+        for name, col, signal, source in (("ET1", "coolant_temp_c", "EngCoolantTemp", "coolant"),
                                           ("AMB", "ambient_temp_c", "AmbientAirTemp", "ambient"),
-                                          ("CCVS1", "vehicle_speed_kmh", "WheelBasedVehicleSpeed", "engine")):
+                                          ("CCVS1", "vehicle_speed_kmh", "WheelBasedVehicleSpeed", "vehicle_speed")):
             if not self.inputs.has(col):
                 continue
             t_s = self.slots(name)
