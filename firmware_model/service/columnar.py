@@ -31,7 +31,7 @@ from can_dbc.j1939 import ID_MAX
 from firmware_model.components import MODE_NOT_INITIALISED, PUBLISHED, STEP_S
 from firmware_model.physics.oil import T_MAX_C as OIL_T_MAX_C, T_MIN_C as OIL_T_MIN_C
 from firmware_model.service.degraded import recorded_mode_counters
-from firmware_model.service.options import GEAR_RANGE, NOMINAL_PERIOD_S, OUT_OF_ORDER_MAX_S, SENSOR_INPUTS, wanted_pgns
+from firmware_model.service.options import GEAR_RANGE, NOMINAL_PERIOD_S, SENSOR_INPUTS, wanted_pgns
 from firmware_model.service.recorder import StepRecorder
 from firmware_model.service.records import RecordedOutputs, StepKind
 from firmware_model.service.trust import TimeBaseCheck
@@ -217,12 +217,12 @@ class FrameHalf(NamedTuple):
 JUMPS_LOGGED = 20
 
 
-def _count_out_of_order(counters: dict, t_frame_s: np.ndarray) -> None:
-    """Frames earlier than the (finite) frame before them by at most OUT_OF_ORDER_MAX_S, as
+def _count_out_of_order(counters: dict, t_frame_s: np.ndarray, max_back_s: float) -> None:
+    """Frames earlier than the (finite) frame before them by at most ``max_back_s``, as
     SensorService._check_order counts them."""
     t = t_frame_s[np.isfinite(t_frame_s)]
     back = -np.diff(t) if t.size > 1 else np.zeros(0)
-    late = back[(back > 0.0) & (back <= OUT_OF_ORDER_MAX_S)]
+    late = back[(back > 0.0) & (back <= max_back_s)]
     counters["frames_out_of_order"] += int(late.size)
     if late.size:
         counters["out_of_order_max_s"] = max(counters["out_of_order_max_s"], float(late.max()))
@@ -258,7 +258,7 @@ def frame_half(service, cols: FrameColumns, decoded: DecodedColumns, meas_names:
     counters["steps"] += grid.t_step_s.size
     counters["catchup_steps"] += grid.catchup_steps
     counters["time_jumps"] += grid.jump_frames.size
-    _count_out_of_order(counters, cols.timestamp_s)
+    _count_out_of_order(counters, cols.timestamp_s, STEP_S + opts.backward_tolerance_s)
     _log_jumps(service.log, grid, cols.timestamp_s)
     fresh = _Fresh(decoded, grid)
     max_age = {m: opts.stale_factor * p for m, p in NOMINAL_PERIOD_S.items()}

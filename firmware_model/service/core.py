@@ -18,7 +18,7 @@ from firmware_model.errors import InputError, ParameterError
 from firmware_model.physics.oil import T_MAX_C as OIL_T_MAX_C, T_MIN_C as OIL_T_MIN_C
 from firmware_model.service.degraded import recorded_mode_counters
 from firmware_model.service.netmgmt import AddressClaim
-from firmware_model.service.options import (GEAR_RANGE, NOMINAL_PERIOD_S, OUT_OF_ORDER_MAX_S, SENSOR_INPUTS, ServiceOptions,
+from firmware_model.service.options import (GEAR_RANGE, NOMINAL_PERIOD_S, SENSOR_INPUTS, ServiceOptions,
                                             wanted_pgns)
 from firmware_model.service.protocol import StepSensor, check_sensor, start_state
 from firmware_model.service.recorder import StepRecorder
@@ -151,13 +151,13 @@ class SensorService:
         return out
 
     def _check_order(self, timestamp_s: float) -> None:
-        """Count a frame earlier than the one before it by at most OUT_OF_ORDER_MAX_S (a log merged from several
-        buffers; further back is a time jump): the decoder takes frames in file order, so its older value replaces
-        a newer one (trust.OrderFinding says so)."""
+        """Count a frame earlier than the one before it by at most the step plus ``backward_tolerance_s`` (a log
+        merged from several buffers; a timing frame further back than that behind the last step is a time jump):
+        the decoder takes frames in file order, so its older value replaces a newer one (trust.OrderFinding)."""
         if not math.isfinite(timestamp_s):
             return
         back_s = self._prev_frame_t_s - timestamp_s
-        if 0.0 < back_s <= OUT_OF_ORDER_MAX_S:
+        if 0.0 < back_s <= STEP_S + self.options.backward_tolerance_s:
             self.counters["frames_out_of_order"] += 1
             self.counters["out_of_order_max_s"] = max(self.counters["out_of_order_max_s"], back_s)
         self._prev_frame_t_s = timestamp_s

@@ -27,9 +27,6 @@ TIME_BASE_WINDOW_S = 10.0
 TIME_BASE_WINDOWS = 3
 #: the model's gear range (seed Table 1); other J1939 gear numbers (after gear_map) are not available to the sensor
 GEAR_RANGE = (-2, 14)
-#: a frame earlier than the frame before it by at most this much is out of time order (counted); further back
-#: is a clock that went back (a time jump, when a timing frame shows it) [s]
-OUT_OF_ORDER_MAX_S = 1.0
 #: config [can] source-address keys -> the messages they set; a later key overrides an earlier one for its messages
 #: (CCVS1 comes from the tachograph on many trucks, AMB from the body controller: their own keys)
 SOURCE_ADDRESS_KEYS = (("engine_source_address", ("EEC1", "EC1", "ET1", "CCVS1", "AMB")),

@@ -310,21 +310,28 @@ def input_causes(decoder_counters: Mapping, stale_steps: Mapping[str, int], step
             if bad:
                 out.append(f"{words}: {msg} sent it as " + ", ".join(
                     f"{r.replace('_', ' ')} {n} times" for r, n in sorted(bad.items(), key=lambda kv: -kv[1])))
-            slow = _slow_message(msg, arrivals.get(msg, 0), steps, stale_factor)
+            slow = _slow_message(msg, arrivals.get(msg, 0), steps, stale_factor, stale_steps.get(sig, 0))
             if slow:
                 out.append(f"{words}: {slow if msg not in slow_said else f'{msg} as slow (above)'}")
                 slow_said.add(msg)
     return out
 
 
-def _slow_message(msg: str, arrivals: int, steps: int, stale_factor: float) -> str:
+#: a message's stale share may differ by this much from the share a steady slow rate gives [-]
+SLOW_SHARE_TOL = 0.15
+
+
+def _slow_message(msg: str, arrivals: int, steps: int, stale_factor: float, stale: int) -> str:
     """The words for a message that arrived, on average, more slowly than the staleness rule allows (a logger that
-    down-samples EEC1 to 10 Hz made 40 % of the steps stale: a log-replay audit), or ''."""
+    down-samples EEC1 to 10 Hz made 40 % of the steps stale: a log-replay audit), or ''. Only when the stale share
+    is what a steady slow rate gives (1 - max age / period, within SLOW_SHARE_TOL): a message at its own rate with
+    long gaps has the same mean period, and a larger stale_factor would not help it (a review)."""
     nominal_s = NOMINAL_PERIOD_S.get(msg)
     if not nominal_s or not arrivals or not steps:
         return ""
     period_s = steps * STEP_S / arrivals
-    if period_s <= stale_factor * nominal_s:
+    max_age_s = stale_factor * nominal_s
+    if period_s <= max_age_s or abs(stale / steps - (1.0 - max_age_s / period_s)) > SLOW_SHARE_TOL:
         return ""
     need = math.ceil(1.5 * period_s / nominal_s)
     return (f"{msg} arrived every {1000 * period_s:.0f} ms on average, while a value older than {stale_factor:g} x "
@@ -387,9 +394,10 @@ class OrderFinding:
     @property
     def sentence(self) -> str:
         return (f"{self.frames} frames came earlier in time than the frame before them (up to "
-                f"{1000 * self.max_back_s:.0f} ms): the log is not in time order (merged from several buffers or "
-                f"channels?), and a frame taken in file order can replace a newer value with an older one, which "
-                f"may leave inputs stale; sort the log by time (candump -L: sort -s -n -k1.2 IN.log > OUT.log)")
+                f"{1000 * self.max_back_s:.0f} ms): the frames are not in time order (a log merged from several "
+                f"buffers or channels?), and a frame taken in arrival order can replace a newer value with an older "
+                f"one, which may leave inputs stale; sort a log by time (candump -L: LC_ALL=C sort -s -n -k1.2 "
+                f"IN.log > OUT.log)")
 
 
 def trust_findings(counters: Mapping, expected_sa: Mapping[str, int | None],

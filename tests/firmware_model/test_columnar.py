@@ -243,7 +243,7 @@ def test_frames_out_of_time_order_are_counted_alike_and_named(tmp_path, drive):
     assert svc.counters["frames_out_of_order"] == n_late > 0
     assert 0.09 < svc.counters["out_of_order_max_s"] <= 0.101      # 0.1 s plus the spacing of neighbours
     notes = [f for f in svc.findings() if isinstance(f, OrderFinding)]
-    assert len(notes) == 1 and "sort the log by time" in notes[0].sentence
+    assert len(notes) == 1 and "sort a log by time" in notes[0].sentence
     svc = _service()
     svc.feed_all(list(drive.messages(channel="can0"))[:500])
     assert svc.counters["frames_out_of_order"] == 0 and not any(isinstance(f, OrderFinding) for f in svc.findings())

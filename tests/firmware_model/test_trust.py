@@ -250,3 +250,6 @@ def test_a_message_slower_than_the_staleness_rule_is_named_with_the_stale_factor
     assert causes[1] == "engine torque: EEC1 as slow (above)"
     assert input_causes({"arrivals": {"EEC1": 5000}}, {"engine_speed_rpm": 400}, 1000) == []
     assert input_causes(counters, {"engine_speed_rpm": 400}, 1000, stale_factor=8.0) == []
+    # at its own 20 ms for a quarter of the run, then absent: the same mean period, but no rate to accept (a review)
+    gaps = input_causes({"arrivals": {"EEC1": 1250}, "tp": {"ec1_received": 20}}, {"engine_speed_rpm": 750}, 1000)
+    assert not any("stale_factor" in c for c in gaps), gaps

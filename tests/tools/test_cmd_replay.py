@@ -235,6 +235,9 @@ def test_the_summary_says_when_warning_levels_were_not_available():
         cols[f"W_{c}"] = np.where(t >= 150.0, LEVEL_NA, 0.0)      # n/a on the last three quarters
     line = summary_lines(RunTable(cols))[1]
     assert line.startswith("warnings: none (warning levels not available") and "75.0 %" in line, line
+    for c in PUBLISHED:                                       # one n/a row of 6000: not "0.0 %" (a review)
+        cols[f"W_{c}"] = np.where(np.arange(t.size) == 10, LEVEL_NA, 0.0)
+    assert "on under 0.1 % of the component-time" in summary_lines(RunTable(cols))[1]
 
 
 def test_variant_option_equals_the_config_variant(tmp_path):

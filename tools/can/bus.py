@@ -93,15 +93,18 @@ def _quiet_bus_teardown():
         bus_log.setLevel(level)
 
 
-def virtual_note(interface: str) -> str | None:
+def virtual_note(interface: str, receiver: bool = False) -> str | None:
     """One sentence for --interface virtual on the command line: python-can's virtual bus joins only the buses of
     the same process, so another gearbox-vsensor process sees none of its frames (an audit: plant on virtual
     "sent" 9452 frames and a run on the same channel saw 0); None for any other interface."""
     if interface != "virtual":
         return None
-    return ("--interface virtual joins only buses inside this one process: another process (gearbox-vsensor run, "
-            "plant, candump) sees none of these frames; between processes use udp_multicast (e.g. --channel "
-            "239.74.163.2) or a vcan interface, or gearbox-vsensor demo for plant and sensor in one process")
+    who = ("this sensor receives no frame from another process (gearbox-vsensor plant, replay --realtime, "
+           "canplayer)" if receiver else
+           "another process (gearbox-vsensor run, candump) sees none of these frames")
+    return (f"--interface virtual joins only buses inside this one process: {who}; between processes use "
+            f"udp_multicast (e.g. --channel 239.74.163.2) or a vcan interface, or gearbox-vsensor demo for plant and "
+            f"sensor in one process")
 
 
 def open_player(interface: str, channel: str, bitrate: int | None = None):

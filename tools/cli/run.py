@@ -67,7 +67,7 @@ def run(args) -> int:
                             state_period_s=args.state_period, health_file=args.health_file)
     settings.check()
     from tools.can.bus import virtual_note
-    note = virtual_note(args.interface)
+    note = virtual_note(args.interface, receiver=True)
     if note:
         print(f"gearbox-vsensor run: note: {note}", file=sys.stderr, flush=True)
     logging.basicConfig(level=getattr(logging, args.log_level), stream=sys.stderr,

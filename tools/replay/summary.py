@@ -75,7 +75,8 @@ def _warning_line(out) -> str:
     if na > 0.0:
         # "none" alone would read as an all-clear where the sensor could not judge (an audit: a log without torque
         # printed "warnings: none" with level n/a on 99 % of the cells)
-        line += (f" (warning levels not available, level {LEVEL_NA}, on {100.0 * na:.1f} % of the component-time: "
+        share = f"{100.0 * na:.1f} %" if na >= 0.001 else "under 0.1 %"
+        line += (f" (warning levels not available, level {LEVEL_NA}, on {share} of the component-time: "
                  f"no warning could be raised there; see degraded)")
     return line
 
