@@ -160,7 +160,11 @@ def test_a_cycle_in_milliseconds_or_rad_s_is_refused_before_it_runs(tmp_path, ca
     table = read_run_table(src)
     ms = RunTable({c: (table[c] * 1000.0 if c == "time_s" else table[c]) for c in table.columns})
     rads = RunTable({c: (table[c] * 2 * np.pi / 60.0 if c == "engine_speed_rpm" else table[c]) for c in table.columns})
-    for name, tab, words in (("ms", ms, "if time_s is in milliseconds, give seconds"), ("rads", rads, "in rad/s?")):
+    t20 = np.arange(0.0, 600.0, 0.05)                   # a 10-minute 20 Hz logger file in milliseconds (a review)
+    ms20 = RunTable({"time_s": t20 * 1000.0, "engine_speed_rpm": np.full(t20.size, 1300.0),
+                     "engine_torque_nm": np.full(t20.size, 1500.0), "gear": np.full(t20.size, 9.0)})
+    for name, tab, words in (("ms", ms, "if time_s is in milliseconds, give seconds"), ("rads", rads, "in rad/s?"),
+                             ("ms20", ms20, "if time_s is in milliseconds, give seconds")):
         path = write_run_table(tab, tmp_path / f"{name}.csv")
         out = tmp_path / f"{name}_run.csv"
         assert main(["simulate", "--cycle", str(path), "--out", str(out), "--quiet"]) == 2
