@@ -275,6 +275,14 @@ def test_a_sensor_frozen_for_minutes_is_left_out_of_the_fit(tmp_path, capsys):
         steady[c][600:1000] = steady[c][600]
     ds = prepare(RunTable(steady), "t.csv", "train", Options())
     assert ds.warnings == () and ds.channels["oil"].t_s.size == 1800
+    coarse = _table(n=1800)                                       # a logger rounding to 1 K: kept (a review)
+    coarse["oil_temp_c"] = np.round(coarse["oil_temp_c"])
+    coarse["oil_temp_c"][600:1000] = coarse["oil_temp_c"][600]
+    ds = prepare(RunTable(coarse), "t.csv", "train", Options())
+    assert ds.channels["oil"].t_s.size == 1800 and not any("left out" in w for w in ds.warnings)
+    coarse["oil_temp_c"][300:1000] = coarse["oil_temp_c"][300]    # 700 s: the long-stretch warning, still kept
+    ds = prepare(RunTable(coarse), "t.csv", "train", Options())
+    assert ds.channels["oil"].t_s.size == 1800 and "kept: the drive was steady or the channel coarse" in ds.warnings[0]
     write_run_table(RunTable(cols), tmp_path / "stuck.csv")
     write_run_table(RunTable(_table(n=900, seed=4)), tmp_path / "test.csv")
     assert main(["diagnose", "--train", str(tmp_path / "stuck.csv"), "--test", str(tmp_path / "test.csv"), "--model",

@@ -301,6 +301,9 @@ FROZEN_S = 300.0
 #: ... the drive moves: engine speed [rpm] or torque [Nm] spans more than this over the stretch (a gearbox held at
 #: one load reaches a steady state that a noise-free or quantised log holds bit for bit: no fault)
 FROZEN_DRIVE_SPAN = {"engine_speed_rpm": 100.0, "engine_torque_nm": 300.0}
+#: ... on a channel whose smallest step between distinct values is under this [K] (J1939: 1/32 K; a logger that
+#: rounds to 1 K holds one value at a thermostat's equilibrium while the drive moves)
+FINE_RESOLUTION_C = 0.25
 
 
 def _drive_moves(table: RunTable, t: np.ndarray, t0_s: float, t1_s: float) -> bool:
@@ -317,11 +320,14 @@ def _drive_moves(table: RunTable, t: np.ndarray, t0_s: float, t1_s: float) -> bo
 
 def _frozen_stretches(table: RunTable, t: np.ndarray, tv: np.ndarray, yv: np.ndarray, dur_s: float, name: str,
                       col: str) -> tuple:
-    """(samples kept, warning): a reading bit-identical for more than FROZEN_S while the drive moves is a frozen
-    sensor: its first sample is kept, the rest left out of the fit and said in the warning (an audit: a sensor
-    stuck for 400 s in each file was fitted as data and diagnosed as a load-dependent heat-flow effect, the 600 s
-    warning threshold never reached). Under a steady drive a constant reading is a steady state, kept (a second
-    audit: a plant log held at equilibrium for 40 min). InputError when less than half the run is left."""
+    """(samples kept, warning): a reading bit-identical for more than FROZEN_S while the drive moves, on a channel
+    of fine resolution (steps under FINE_RESOLUTION_C), is a frozen sensor: its first sample is kept, the rest left
+    out of the fit and said in the warning (an audit: a sensor stuck for 400 s in each file was fitted as data and
+    diagnosed as a load-dependent heat-flow effect, the 600 s warning threshold never reached). Under a steady
+    drive a constant reading is a steady state (a second audit: a plant log held at equilibrium for 40 min), and a
+    coarse channel (1 K steps) holds one value at a thermostat's equilibrium while the drive moves (a review):
+    kept, with only the warning of a stretch longer than max(600 s, 30 % of the run). InputError when less than
+    half the run is left."""
     keep = np.ones(yv.size, dtype=bool)
     change = np.flatnonzero(np.diff(yv) != 0)
     if not change.size:
@@ -329,9 +335,14 @@ def _frozen_stretches(table: RunTable, t: np.ndarray, tv: np.ndarray, yv: np.nda
     bounds = np.concatenate([[0], change + 1, [yv.size]])
     first, last = bounds[:-1], bounds[1:] - 1
     lens = tv[last] - tv[first]
+    fine = float(np.min(np.diff(np.unique(yv)))) < FINE_RESOLUTION_C
     frozen = np.array([j for j in np.flatnonzero(lens > FROZEN_S)
-                       if _drive_moves(table, t, float(tv[first[j]]), float(tv[last[j]]))], dtype=np.int64)
+                       if fine and _drive_moves(table, t, float(tv[first[j]]), float(tv[last[j]]))], dtype=np.int64)
     if not frozen.size:
+        j = int(np.argmax(lens))
+        if lens[j] > max(600.0, 0.3 * dur_s):
+            return keep, (f'column "{col}" is frozen at {yv[first[j]]:.5g} degC for {lens[j]:.0f} s from t = '
+                          f"{tv[first[j]]:.0f} s (kept: the drive was steady or the channel coarse)")
         return keep, ""
     for j in frozen:
         keep[first[j] + 1:last[j] + 1] = False
