@@ -136,8 +136,13 @@ def test_errors_name_the_file_and_the_rule(tmp_path, monkeypatch):
         list(read_log(tmp_path / "cut.blf"))
     assert len(list(read_log(tmp_path / "whole.blf"))) == 3000
     (tmp_path / "other.log").write_text("(0.000000) can0 18FECA00#0000000000000000\n(0.5) can0 123#00\n")
-    with pytest.raises(InputError, match="no sensor step"):
+    with pytest.raises(InputError, match="no sensor step") as few:
         replay(tmp_path / "other.log")
+    assert "time stamps equal" not in str(few.value)
+    # 200 used frames with one time stamp: the message asks about the time stamps (a log-replay audit)
+    (tmp_path / "equal.log").write_text("".join("(5.000000) can0 0CF00400#F07D7DA02800FFFF\n" for _ in range(200)))
+    with pytest.raises(InputError, match="are all time stamps equal"):
+        replay(tmp_path / "equal.log")
     lines = "".join(f"(nan) can0 0CF00400#F0C0C0A02800FFFF\n" for _ in range(50))   # every frame time lost
     (tmp_path / "nan.log").write_text(lines)
     for columnar in (True, False):

@@ -112,8 +112,14 @@ def _no_step_reason(path, d: dict) -> str:
     reason, count = max(rejected.items(), key=lambda kv: kv[1], default=("", 0))
     if seen and count == seen and reason in REJECT_REASONS:
         return f"{path}: no sensor step: all {seen} frames were rejected as {REJECT_REASONS[reason]}"
+    why = ""
+    if seen - sum(rejected.values()) >= 100:
+        # many used frames and still no step: they lie within one step of frame time (a log-replay audit: 190 322
+        # frames with one time stamp were "less than 100 ms of traffic" without a hint)
+        why = ("; yet it holds that many used frames: are all time stamps equal, or in a unit other than seconds "
+               "(candump -L writes seconds)?")
     return (f"{path}: no sensor step in {seen} frames: the log holds less than 100 ms of J1939 input traffic (EEC1, "
-            f"ETC2, TRF1, ET1, AMB, CCVS1, ERC1, TP) from the expected sources")
+            f"ETC2, TRF1, ET1, AMB, CCVS1, ERC1, TP) from the expected sources{why}")
 
 
 def _columnar(service, on_frames, columnar: bool | None) -> bool:
