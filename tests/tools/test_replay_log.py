@@ -67,9 +67,17 @@ def test_replay_table_has_the_contract_columns_and_the_decoded_inputs(tmp_path, 
     assert back.n == table.n and back.has("W_PS")
 
 
-@pytest.mark.parametrize("suffix", [".asc", ".blf", ".mf4"])
+@pytest.mark.parametrize("suffix", [".asc", ".blf", ".mf4", ".trc"])
 def test_every_log_format_gives_the_same_table(tmp_path, frames, suffix):
-    if suffix == ".mf4":
+    """The same frames from every log format replay to the same table (.trc: PEAK's PCAN-View trace, common on
+    other makes' loggers; a log-replay audit found it refused)."""
+    if suffix == ".trc":
+        import can
+        with can.Logger(tmp_path / "drive.trc") as w:
+            for m in fr_messages(frames[1]):
+                w.on_message_received(m)
+        path = tmp_path / "drive.trc"
+    elif suffix == ".mf4":
         pytest.importorskip("asammdf", reason="the optional package asammdf (pip install .[mf4]) is not installed")
         import can
         with can.Logger(tmp_path / "drive.mf4") as w:
@@ -300,3 +308,16 @@ def test_a_log_of_two_can_channels_is_one_sentence(tmp_path, frames):
     two.write_text(text + text.replace(" can0 ", " can1 "))
     with pytest.raises(InputError, match=r"holds the frames of 2 CAN channels \(can0, can1\)"):
         replay(two)
+
+
+def test_a_trc_cut_mid_line_is_refused(tmp_path, frames):
+    """A PCAN-View trace cut in the middle of its last line is refused as the other text logs are (python-can would
+    read the cut line as a shorter frame)."""
+    import can
+    with can.Logger(tmp_path / "drive.trc") as w:
+        for m in fr_messages(frames[1]):
+            w.on_message_received(m)
+    raw = (tmp_path / "drive.trc").read_bytes()
+    (tmp_path / "cut.trc").write_bytes(raw[:-7])
+    with pytest.raises(InputError, match="cut.trc: the log ends in the middle of a line"):
+        replay(tmp_path / "cut.trc")

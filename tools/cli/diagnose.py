@@ -40,7 +40,7 @@ def add_subparser(sub):
                "  gearbox-vsensor diagnose --train rig_a.csv --test rig_b.csv --model plant --json gap.json "
                "--report gap.md\n\neffects (docs/interfaces.md section 6):\n" + effects)
     p.add_argument("--train", nargs="+", required=True, metavar="FILE",
-                   help="training runs: run tables (.csv) or CAN logs (.log candump -L, .asc, .blf, .mf4; decoded "
+                   help="training runs: run tables (.csv) or CAN logs (.log candump -L, .asc, .blf, .mf4, .trc; decoded "
                         "with the sensor's CAN service: TRF1 oil temperature and rig thermocouple frames)")
     p.add_argument("--test", nargs="+", required=True, metavar="FILE", help="test runs (.csv or CAN logs), "
                    "different runs from the training files")

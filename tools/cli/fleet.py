@@ -17,7 +17,7 @@ def add_subparser(sub):
         "fleet", help="run the sensor over many trucks' CAN logs on Dask (one summary row per log, Parquet)",
         formatter_class=argparse.RawDescriptionHelpFormatter,
         description=(
-            "Replay every CAN log (.log candump -L, .asc, .blf, .mf4) through the onboard sensor exactly as "
+            "Replay every CAN log (.log candump -L, .asc, .blf, .mf4, .trc) through the onboard sensor exactly as "
             "`gearbox-vsensor replay` does, and write per log one summary row: vehicle, log, start and end, "
             "duration, per component the peak and when, the time above the warning and the critical level, the "
             "warnings raised and the shortest time to limit, the degraded share, the rejected frames by reason, "

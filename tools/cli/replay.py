@@ -35,7 +35,7 @@ def add_subparser(sub):
         description="Run the onboard virtual sensor (the same pure step as in the truck) over a recorded drive: a "
                     "run table (CSV: time_s, engine_speed_rpm, engine_torque_nm, gear, "
                     "optional oil_temp_c, ambient_temp_c, coolant_temp_c, vehicle_speed_kmh, retarder_torque_nm) "
-                    "or a CAN log (.log candump -L, .asc, .blf, .mf4) decoded like the live service. Writes the "
+                    "or a CAN log (.log candump -L, .asc, .blf, .mf4, .trc) decoded like the live service. Writes the "
                     "sensor's output at 10 Hz: the inputs it read, T_<id>_c, W_<id> (0 normal, 1 warning, 2 "
                     "critical, 3 not available), ttl_<id>_s (time to the warning limit with held inputs, empty when "
                     "never) for the 28 published components, and the status (degraded, degraded_mode, input "
@@ -72,7 +72,7 @@ def add_subparser(sub):
 
 def _add_log_options(p: argparse.ArgumentParser) -> None:
     """Options of `replay` that only apply to CAN logs."""
-    g = p.add_argument_group("CAN logs (.log candump -L, .asc, .blf, .mf4)")
+    g = p.add_argument_group("CAN logs (.log candump -L, .asc, .blf, .mf4, .trc)")
     g.add_argument("--realtime", action="store_true",
                    help="play the log onto a bus (--interface/--channel) with its original timing, like canplayer, "
                         "instead of computing the outputs here (run `gearbox-vsensor run` on that bus)")
@@ -134,7 +134,7 @@ def run(args) -> int:
         check_log(path)           # says it is compressed and how to decompress it
     if path.suffix.lower() != ".csv":
         raise InputError(f"{path}: unknown input type {path.suffix!r}; replay reads run tables (.csv) and CAN logs "
-                         f"(.log, .asc, .blf, .mf4)")
+                         f"(.log, .asc, .blf, .mf4, .trc)")
     _refuse(_given(args, LOG_OPTIONS + REALTIME_OPTIONS), f"on a run table ({path.name}), only on a CAN log")
     if not args.out:
         raise InputError("--out EST.csv is required")

@@ -17,7 +17,7 @@ INPUT_COLUMNS = ("time_s", "engine_speed_rpm", "engine_torque_nm", "gear", "ambi
 #: effects whose prediction is exact from the baseline (no simulation needed before the check): the oil sensor's
 #: lag (a filter of the model's sump), offset and gain, and a rig thermocouple's offset (thermocouple_offset:ID)
 ANALYTIC = IdFamilies(("oil_sensor_lag", "oil_sensor_offset", "oil_sensor_gain", "thermocouple_offset"))
-LOG_SUFFIXES = (".log", ".asc", ".blf", ".mf4")
+LOG_SUFFIXES = (".log", ".asc", ".blf", ".mf4", ".trc")
 #: the stages of one diagnosis, in order (what the progress callback is told)
 STAGES = ("baseline and candidate grid", "where", "fit", "test", "verdict")
 

@@ -86,7 +86,7 @@ def _table_from_can_log(p: Path, path, config_path) -> RunTable:
         raise InputError(f"{path}: CAN logs need the log decoder (tools/replay/log.py), which is not installed; "
                          f"convert the log to a CSV run table first") from None
     if not is_can_log(p):
-        raise InputError(f"{path}: {p.suffix} logs are not supported; use .log, .asc, .blf or .mf4")
+        raise InputError(f"{path}: {p.suffix} logs are not supported; use .log, .asc, .blf, .mf4 or .trc")
     service = build_service(config_path, record=True, emit_frames=False, log_findings=False)
     rec = replay_log(p, service)
     # what the sensor's service found untrustworthy (firmware_model.service.trust): a wrong clock makes every rate
@@ -126,7 +126,7 @@ def _table_from_can_log(p: Path, path, config_path) -> RunTable:
 
 
 def load_table(path, config_path=None) -> RunTable:
-    """A measured run table from a CSV file, or from a CAN log (candump -L .log, .asc, .blf, .mf4) decoded through
+    """A measured run table from a CSV file, or from a CAN log (candump -L .log, .asc, .blf, .mf4, .trc) decoded through
     the sensor's own CAN service (tools.replay.log): the decoded inputs, the oil sensor (TRF1) and the rig
     thermocouple frames (meas_T_<id>_c); the sensor's own estimates are dropped."""
     p = Path(path)

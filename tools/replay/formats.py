@@ -13,7 +13,8 @@ from typing import Iterator
 from firmware_model.errors import InputError
 
 #: CAN log formats python-can reads, by suffix
-LOG_SUFFIXES = {".log": "candump -L", ".asc": "Vector ASC", ".blf": "Vector BLF", ".mf4": "ASAM MDF 4"}
+LOG_SUFFIXES = {".log": "candump -L", ".asc": "Vector ASC", ".blf": "Vector BLF", ".mf4": "ASAM MDF 4",
+                ".trc": "PEAK PCAN-View TRC"}
 
 
 def _a(name: str) -> str:
@@ -175,8 +176,9 @@ def truncation(path: Path) -> str | None:
 
 
 def ends_mid_line(path: Path) -> bool:
-    """Is ``path`` a text log (.log, .asc) whose last line is cut (a truncated copy, a log still being written)?"""
-    if path.suffix.lower() not in (".log", ".asc") or not path.is_file() or path.stat().st_size == 0:
+    """Is ``path`` a text log (.log, .asc, .trc) whose last line is cut (a truncated copy, a log still being
+    written)?"""
+    if path.suffix.lower() not in (".log", ".asc", ".trc") or not path.is_file() or path.stat().st_size == 0:
         return False
     with open(path, "rb") as fh:
         text = b"\0" not in fh.read(4096)        # a binary file is the reader's to refuse
