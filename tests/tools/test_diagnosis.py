@@ -286,9 +286,11 @@ def test_a_sensor_frozen_for_minutes_is_left_out_of_the_fit(tmp_path, capsys):
     write_run_table(RunTable(cols), tmp_path / "stuck.csv")
     write_run_table(RunTable(_table(n=900, seed=4)), tmp_path / "test.csv")
     assert main(["diagnose", "--train", str(tmp_path / "stuck.csv"), "--test", str(tmp_path / "test.csv"), "--model",
-                 "plant", "--json", str(tmp_path / "d.json"), "--quiet"]) == 0
-    assert "warning: " in capsys.readouterr().err and "left out of the fit" in json.loads(
+                 "plant", "--json", str(tmp_path / "d.json")]) == 0
+    printed = capsys.readouterr()
+    assert "warning: " in printed.err and "left out of the fit" in json.loads(
         (tmp_path / "d.json").read_text())["warnings"][0]
+    assert "\ntime: " in printed.out                       # the run time printed (a HIL/diagnosis audit)
     cols["oil_temp_c"][1000:1600] = cols["oil_temp_c"][1000]     # 1000 s of 1800 frozen
     err = _run_bad(tmp_path, capsys, cols)
     assert "is frozen" in err and "a stuck sensor" in err

@@ -117,6 +117,7 @@ def run(args) -> int:
         print(f"verdict: {v['effect']}{extra}; test RMS {v['test_rms_before_c']:.3f} -> {v['test_rms_after_c']:.3f} "
               f"degC (shrink {100 * v['shrink']:.0f} %) -> {args.json}")
         print(f"reason: {v['reason']}")
+        print(f"time: {res['timing']['total_s']:.1f} s (the diagnosis, files read)")
         if res["model"].get("note"):
             print(f"note: {res['model']['note']}", file=sys.stderr)
     for w in res.get("warnings", []):       # the data's warnings (a frozen sensor ...), even with --quiet
