@@ -380,9 +380,9 @@ class StartFinding:
 
 @dataclass(frozen=True)
 class OrderFinding:
-    """Frames out of time order (up to OUT_OF_ORDER_MAX_S earlier than the frame before them): the decoder takes
-    frames in file order, so an older value replaced a newer one (a log-replay audit: every 50th frame 0.1 s late
-    left 4 % of the steps 'missing' without a word)."""
+    """Frames out of time order (up to the step plus backward_tolerance_s earlier than the frame before them,
+    SensorService._check_order): the decoder takes frames in file order, so an older value replaced a newer one (a
+    log-replay audit: every 50th frame 0.1 s late left 4 % of the steps 'missing' without a word)."""
     kind: ClassVar[str] = "order"
     frames: int
     max_back_s: float

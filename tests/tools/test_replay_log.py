@@ -147,6 +147,9 @@ def test_errors_name_the_file_and_the_rule(tmp_path, monkeypatch):
     with pytest.raises(InputError, match="no sensor step") as few:
         replay(tmp_path / "other.log")
     assert "time stamps equal" not in str(few.value)
+    (tmp_path / "empty.trc").write_text("")
+    with pytest.raises(InputError, match="empty.trc: no sensor step: the log holds no CAN frame"):
+        replay(tmp_path / "empty.trc")
     # 200 used frames with one time stamp: the message asks about the time stamps (a log-replay audit)
     (tmp_path / "equal.log").write_text("".join("(5.000000) can0 0CF00400#F07D7DA02800FFFF\n" for _ in range(200)))
     with pytest.raises(InputError, match="are all time stamps equal"):

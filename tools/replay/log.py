@@ -110,7 +110,9 @@ def _no_step_reason(path, d: dict) -> str:
     from can_dbc.decoder import REJECT_REASONS
     seen, rejected = d.get("frames_seen", 0), d.get("rejected", {})
     reason, count = max(rejected.items(), key=lambda kv: kv[1], default=("", 0))
-    if seen and count == seen and reason in REJECT_REASONS:
+    if not seen:
+        return f"{path}: no sensor step: the log holds no CAN frame (an empty log?)"
+    if count == seen and reason in REJECT_REASONS:
         return f"{path}: no sensor step: all {seen} frames were rejected as {REJECT_REASONS[reason]}"
     why = ""
     if seen - sum(rejected.values()) >= 100:
