@@ -88,6 +88,9 @@ N_U_CHURN = 33
 T2_STRIDE = 2
 #: spacing of the mesh slip-loss tables in x = log10(T1 / (mu w2^3))
 X_STEP = 0.125
+#: log10 of the rolling loss's least film torque (physics.losses.ROLL_TORQUE_MIN_NM; the kernel's
+#: GVS_LOG10_ROLL_TORQUE_MIN)
+LOG10_ROLL_TORQUE_MIN = math.log10(L.ROLL_TORQUE_MIN_NM)
 #: separability tolerance for power-law conductances (relative)
 SEPARABLE_RTOL = 1e-7
 #: linearised radiation is evaluated with housing temperatures clipped to this range [degC]
@@ -1024,9 +1027,14 @@ def heat_sources(rp: ReducedParams, row, w_in, torque_abs_nm, prop, x_T, src_sca
     mf = h.mesh_flat
     b = h.mesh_base + ix
     phi = mf[b] * (1.0 - fx) + mf[b + 1] * fx
-    # slip: T1 w2 phi; rolling: K mu^0.7 a^0.54 w2^1.7 T1^-0.13 (Eq 18: exact power law)
-    P = T1s * omega2_safe * (phi + rp.mesh_roll_k * np.exp(prop[..., P_LN_ROLL, None]
-                                                           + math.log(10.0) * (0.7 * lw - 1.13 * lT)))
+    # slip: T1 w2 phi; rolling: K mu^0.7 a^0.54 w2^1.7 T1^-0.13 (Eq 18: exact power law), its film at no less than
+    # L.ROLL_TORQUE_MIN_NM: below it w2 K mu^0.7 a^0.54 w2^0.7 T_min^-0.13 (no T1 / T1, which overflows for a tiny T1)
+    ln_roll = prop[..., P_LN_ROLL, None]
+    with np.errstate(over="ignore", invalid="ignore"):
+        P_film = T1s * omega2_safe * (phi + rp.mesh_roll_k * np.exp(ln_roll + math.log(10.0) * (0.7 * lw - 1.13 * lT)))
+    P_floor = T1s * omega2_safe * phi + omega2_safe * rp.mesh_roll_k * np.exp(
+        ln_roll + math.log(10.0) * (0.7 * lw - 0.13 * LOG10_ROLL_TORQUE_MIN))
+    P = np.where(lT >= LOG10_ROLL_TORQUE_MIN, P_film, P_floor)
     P_mesh = np.where(on, P, 0.0) * rp.mesh_heat_sf
     # shaft bearings (Eq 35-40)
     omega_b_rad_s = rp.bear_speed[row] * omega_in_col

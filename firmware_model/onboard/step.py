@@ -258,7 +258,8 @@ def _finish(state: SensorState, raw, t_now, chk: InputCheck, net: NetworkStep, c
                           T_twin_oil_c, oil_innovation_c, (~measured).astype(np.int8), frozen_bits, rejects)
     new_state = SensorState(net.T_c, net.lag_w, np.where(ok, chk.used, state.hold), chk.age_s, chk.same_s, raw,
                             chk.oil_ref_c, level, pending_s, state.ttl_s,
-                            np.where(np.isfinite(t_now), t_now, state.t_last_s), state.k + 1, rejects)
+                            # no frame time (NaN): the step was on the 0.1 s grid, the last time moves on with it
+                            np.where(np.isfinite(t_now), t_now, state.t_last_s + sp.dt_s), state.k + 1, rejects)
     return new_state, SensorOutputs(T_pub_c, level, ttl_out_s, status), _ttl_job(state, chk, net, sp, skipped)
 
 

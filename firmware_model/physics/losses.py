@@ -68,6 +68,12 @@ BK_A = 0.0127
 BK_C = 0.02912
 #: rolling-force constant of Eq 15 [Pa]
 ROLL_C_PA = 9.0e7
+#: the rolling loss's film thickness (Eq 18, Dowson-Higginson: load^-0.13) is taken at no less than this pinion
+#: torque [N m] (assumed): the elastohydrodynamic law has no lower limit of load and grows without bound as the
+#: load vanishes (a torque of 1e-40 N m gave 1.6e5 times the loss; the onboard step's temperatures ran to 280 degC
+#: or NaN on one such sample), while an unloaded mesh's film is bounded by its geometry; below 1 N m the load is also
+#: far inside the torque signal's resolution (J1939: 1 % of the reference torque, ~30 N m). Zero torque stays 0.
+ROLL_TORQUE_MIN_NM = 1.0
 #: ISO 53 basic rack: addendum and dedendum coefficients [-]
 ADDENDUM_COEF = 1.0
 DEDENDUM_COEF = 1.25
@@ -287,6 +293,7 @@ def gear_rolling_loss_w(mesh: GearMesh, torque1_nm, omega2_rad_s, mu_pa_s, piezo
     ap = np.asarray(piezo_per_pa, dtype=float)[..., None]
     E_eq = equivalent_modulus_pa(E1_pa, E2_pa, nu1, nu2)  # Eq 19
     _, F_nu = _normal_force(mesh, T)
+    F_nu = np.maximum(F_nu, _normal_force(mesh, np.asarray(ROLL_TORQUE_MIN_NM))[1])   # ROLL_TORQUE_MIN_NM
     V_r = w2 * vr_per_w2  # Eq 16
     c = math.cos(mesh.alpha_t_rad) / (math.cos(mesh.beta_rad) * math.cos(mesh.alpha_n_rad))  # = 1/cos(beta_b)
     sin_tw = math.sin(mesh.alpha_tw_rad)

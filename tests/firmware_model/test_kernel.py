@@ -23,7 +23,7 @@ import pytest
 
 from firmware_model.components import PUBLISHED
 from firmware_model.onboard import ckernel
-from firmware_model.onboard.records import SensorInputs
+from firmware_model.onboard.records import REJECT_REASONS, SensorInputs
 from firmware_model.onboard.sensor import VirtualSensor
 from firmware_model.parameters import load_parameters
 
@@ -388,3 +388,25 @@ def test_a_batch_whose_vehicles_go_back_differently_matches_the_numpy_step(param
     np.testing.assert_array_equal(s_c.k, s_np.k)
     k = np.asarray(s_np.k)
     assert (k[:20] == L - 3).all() and (k[20:40] == L).all() and (k[40:50] == 20).all() and (k[50:] == L).all()
+
+
+@pytest.mark.parametrize("core", ["numpy", pytest.param("c", marks=needs_c)])
+def test_tiny_torques_and_a_missing_frame_time(params, core):
+    """From an ECU audit: one torque sample of 1e-40 N m drove every temperature to 280 degC (NaN for good in the
+    float build): the rolling loss's film law (Eq 18, load^-0.13) has no lower limit; it now takes its load at no
+    less than 1 N m. And a step without a frame time (NaN) between two with one counted a time jump: the last time
+    now moves on with the 0.1 s grid. Both cores alike (the parity tests compare them step by step)."""
+    s = VirtualSensor(params, core=core)
+    raw = np.tile([1400.0, 2395.0, 11.0, np.nan, 20.0, 80.0, 60.0, 0.0], (300, 1))
+    _, ref = s.step_table(s.initial_state(T_oil_c=80.0), raw)
+    for k, tq in ((100, 1e-40), (150, 5e-324), (200, 0.3), (250, 1e-3)):
+        raw[k, 1] = tq
+    _, out = s.step_table(s.initial_state(T_oil_c=80.0), raw)
+    assert np.isfinite(out.T_c).all()
+    # four 0.1 s steps with (almost) no torque move no temperature by as much as 1 K (one gave 280 degC)
+    assert np.max(np.abs(out.T_c - ref.T_c)) < 1.0
+    t_s = 0.1 * np.arange(300.0)
+    t_s[[50, 120, 121]] = np.nan                      # frames without a time among timed ones
+    _, timed = s.step_table(s.initial_state(T_oil_c=80.0), raw, t_s)
+    assert timed.rejects[-1, REJECT_REASONS.index("time_jump")] == 0
+    np.testing.assert_allclose(timed.T_c, out.T_c, rtol=0, atol=1e-9)

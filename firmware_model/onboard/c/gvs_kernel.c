@@ -6,6 +6,15 @@
 
 #include "gvs_kernel.h"
 
+/* The kernel's NaN and range checks are comparisons with NaN: -ffast-math (-ffinite-math-only) lets the compiler
+ * assume they never hold, so bad input reads as good and tables are indexed with garbage (a crash under clang). */
+#if defined(__FAST_MATH__) || defined(__FINITE_MATH_ONLY__) && __FINITE_MATH_ONLY__
+#error "gvs_kernel.c must not be compiled with -ffast-math or -ffinite-math-only (its NaN checks would vanish)"
+#endif
+
+/* log10 of the rolling loss's least film torque [N m] (firmware_model.physics.losses.ROLL_TORQUE_MIN_NM = 1) */
+#define GVS_LOG10_ROLL_TORQUE_MIN 0.0
+
 #ifndef GVS_SOURCE_ID
 #define GVS_SOURCE_ID "unknown"
 #endif
@@ -195,10 +204,16 @@ static void heat_sources(const gvs_tables *tb, const gvs_vehicle *veh, int32_t r
         x = (lT - o->prop[P_LOG10_MU] - R_(3.0) * lw - tb->mesh_x0[m]) / tb->x_step;
         x = clip_r(x, R_(0.0), (gvs_real)tb->nx - R_(1.000001));
         ix = (int32_t)x;
+        if (ix > tb->nx - 2) ix = tb->nx - 2;    /* in float nx - 1.000001 rounds to nx - 1: stay in the table */
         fx = x - (gvs_real)ix;
         phi = tb->mesh_phi[m * tb->nx + ix] * (R_(1.0) - fx) + tb->mesh_phi[m * tb->nx + ix + 1] * fx;
-        /* slip T1 w2 phi; rolling K mu^0.7 a^0.54 w2^1.7 T1^-0.13 (Eq 18) */
-        P = T1 * w2 * (phi + tb->mesh_roll_k[m] * EXP(o->prop[P_LN_ROLL] + tb->ln10 * (R_(0.7) * lw - R_(1.13) * lT)));
+        /* slip T1 w2 phi; rolling K mu^0.7 a^0.54 w2^1.7 T1^-0.13 (Eq 18), its film at no less than the least film
+         * torque: below it w2 K mu^0.7 a^0.54 w2^0.7 T_min^-0.13 (no T1 / T1 that overflows for a tiny T1) */
+        if (lT >= R_(GVS_LOG10_ROLL_TORQUE_MIN))
+            P = T1 * w2 * (phi + tb->mesh_roll_k[m] * EXP(o->prop[P_LN_ROLL] + tb->ln10 * (R_(0.7) * lw - R_(1.13) * lT)));
+        else
+            P = T1 * w2 * phi + w2 * tb->mesh_roll_k[m] * EXP(o->prop[P_LN_ROLL] + tb->ln10
+                                                              * (R_(0.7) * lw - R_(0.13) * R_(GVS_LOG10_ROLL_TORQUE_MIN)));
         src[i] = P * tb->mesh_heat_sf[m];
     }
     for (b = 0; b < tb->n_bear; ++b, ++i) {                  /* shaft bearings, Palmgren (Eq 35-40) */
@@ -1069,7 +1084,8 @@ int gvs_step(const gvs_tables *tb, const gvs_vehicle *veh, gvs_state *st, const 
     out->oil_source = (int8_t)!c.measured;
     for (i = 0; i < GVS_N_REJECT; ++i) st->rejects[i] += counts[i];
     memcpy(out->rejects, st->rejects, sizeof st->rejects);
-    if (finite_r(in->t_s)) st->t_last_s = in->t_s;
+    /* no frame time (NaN): the step was on the 0.1 s grid, the last time moves on with it (NaN stays NaN) */
+    st->t_last_s = finite_r(in->t_s) ? in->t_s : st->t_last_s + (double)tb->dt_s;
     due = steps_mod(k, tb->ttl_every) == 0;
     if (due && ttl) ttl_point(tb, st, &c, &nt, ttl);
     st->k = k + 1;
