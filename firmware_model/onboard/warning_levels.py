@@ -20,6 +20,8 @@ from firmware_model.parameters import read_toml
 LIMITS_PATH = Path(__file__).resolve().parents[1] / "params" / "limits.toml"
 GROUPS = ("gear", "sun", "planetary", "bearing", "oil")
 _KEYS = {"warning": "degC", "critical": "degC", "hysteresis": "K"}
+#: every warning and critical limit lies in this range [degC] (the limits file, a configuration, the FMU's parameters)
+LIMIT_RANGE_C = (-40.0, 250.0)
 
 
 @dataclass(frozen=True)
@@ -101,9 +103,9 @@ def load_limits(path: str | Path | None = None, debounce_s: float | None = None,
         arr["hysteresis"] = np.full(n, float(hysteresis_k))
     w, c, hy = arr["warning"], arr["critical"], arr["hysteresis"]
     for i, comp in enumerate(PUBLISHED):
-        if not -40.0 <= w[i] < c[i] <= 250.0:
+        if not LIMIT_RANGE_C[0] <= w[i] < c[i] <= LIMIT_RANGE_C[1]:
             raise ParameterError(f"limits of {comp}: warning {w[i]:g} degC must be below critical {c[i]:g} degC, "
-                                 f"both in -40..250 degC")
+                                 f"both in {LIMIT_RANGE_C[0]:g}..{LIMIT_RANGE_C[1]:g} degC")
         if not 0.0 <= hy[i] < c[i] - w[i]:
             raise ParameterError(f"limits of {comp}: hysteresis {hy[i]:g} K must be in 0..(critical - warning) = "
                                  f"{c[i] - w[i]:g} K")

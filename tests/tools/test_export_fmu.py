@@ -81,7 +81,7 @@ def test_odd_but_legal_use_works_or_is_refused_clearly(fmu):
     (8.3) was rejected 296 times on 33 gear changes; an initial temperature of 1e308 silently became 25 degC."""
     md = fmpy.read_model_description(str(fmu))
     variability = {v.name: v.variability for v in md.modelVariables}
-    assert variability["gear"] == "discrete" and variability["engine_speed_rpm"] == "continuous"
+    assert variability["gear"] == "discrete" and variability["engine_speed_rpm"] == "discrete"
     short = dict(start_time=0.0, stop_time=1.0, output_interval=0.1, output=["T_PS_c", "ttl_PS_s", "W_PS"])
     res = fmpy.simulate_fmu(str(fmu), start_values={"variant": "GRS905", "initial_temp_c": 55.0}, **short)
     assert res["T_PS_c"][0] == pytest.approx(55.0) and np.isnan(res["ttl_PS_s"][0]) and res["W_PS"][0] == 0
@@ -89,3 +89,57 @@ def test_odd_but_legal_use_works_or_is_refused_clearly(fmu):
         fmpy.simulate_fmu(str(fmu), start_values={"variant": "GRSO905"}, **short)
     with pytest.raises(Exception):
         fmpy.simulate_fmu(str(fmu), start_values={"initial_temp_c": 1e308}, **short)
+
+
+def test_a_rig_s_own_sampling_and_life_cycle(fmu):
+    """From a rig audit: inputs at 20 Hz with a gear change between communication points aborted the run (FMPy cut
+    the step at the change: 'canHandleVariableCommunicationStepSize' was true), as did a stop time off the 0.1 s
+    grid; FMPy interpolated the inputs, so the first sample after a NaN gap read as NaN (101 oil_missing for a
+    10 s gap); a NaN communication point was accepted, a step after terminate too; infinite limits were taken;
+    outputs read during initialisation were zeros; fmpy could not rebuild the binary (no SourceFiles, no
+    buildDescription.xml)."""
+    from fmpy import extract, read_model_description
+    from firmware_model.service.options import SENSOR_INPUTS
+    from tools.export.fmu import SOURCE_FILES
+    md = read_model_description(str(fmu))
+    assert md.coSimulation.canHandleVariableCommunicationStepSize is False
+    assert {v.name: v.variability for v in md.modelVariables if v.causality == "input"} == \
+        {col: "discrete" for _, col in SENSOR_INPUTS}
+    units = {v.name: v.unit or v.declaredType for v in md.modelVariables}
+    assert units["T_PS_c"] == "degC" and units["engine_speed_rpm"] == "rpm" and units["ttl_PS_s"] == "s"
+    assert md.buildConfigurations and md.buildConfigurations[0].sourceFileSets[0].sourceFiles == list(SOURCE_FILES)
+    names = [col for _, col in SENSOR_INPUTS]
+    t = np.arange(0.0, 120.0, 0.05)                       # 20 Hz: a gear change at 60.05 s, off the 0.1 s grid
+    sig = np.zeros(t.size, dtype=[("time", float)] + [(c, float) for c in names])
+    sig["time"] = t
+    sig["engine_speed_rpm"], sig["engine_torque_nm"] = 1400.0, 1500.0
+    sig["gear"] = np.where(t < 60.05, 8.0, 9.0)
+    sig["oil_temp_c"] = 80.0
+    sig["oil_temp_c"][(t >= 10.0) & (t < 20.0)] = np.nan    # a 10 s gap: 100 steps without the oil
+    sig["ambient_temp_c"], sig["coolant_temp_c"], sig["vehicle_speed_kmh"] = 20.0, 85.0, 60.0
+    res = fmpy.simulate_fmu(str(fmu), stop_time=99.95, output_interval=0.1, input=sig,
+                            output=["T_PS_c", "rejects_oil_missing", "rejects_gear_unknown"])
+    assert res["time"][-1] == pytest.approx(99.9) and np.isfinite(res["T_PS_c"]).all()
+    assert res["rejects_oil_missing"][-1] == 100 and res["rejects_gear_unknown"][-1] == 0
+    with pytest.raises(Exception):
+        fmpy.simulate_fmu(str(fmu), stop_time=1.0, start_values={"limit_critical_PS_c": float("inf")})
+    if md.fmiVersion != "2.0":
+        return
+    from fmpy.fmi2 import FMU2Slave
+    vr = {v.name: v.valueReference for v in md.modelVariables}
+    slave = FMU2Slave(guid=md.guid, unzipDirectory=extract(str(fmu)), modelIdentifier=md.coSimulation.modelIdentifier,
+                      instanceName="rig")
+    slave.instantiate()
+    slave.setupExperiment(startTime=0.0)
+    slave.enterInitializationMode()
+    slave.setReal([vr["oil_temp_c"]], [70.0])
+    assert slave.getReal([vr["T_PS_c"]]) == [70.0] and np.isnan(slave.getReal([vr["ttl_PS_s"]])[0])
+    slave.exitInitializationMode()
+    with pytest.raises(Exception):
+        slave.doStep(float("nan"), 0.1)
+    slave.doStep(0.0, 0.1)
+    slave.terminate()
+    with pytest.raises(Exception):
+        slave.doStep(0.1, 0.1)
+    assert np.isfinite(slave.getReal([vr["T_PS_c"]])[0])     # the outputs stay readable after terminate
+    slave.freeInstance()

@@ -16,9 +16,9 @@ def add_subparser(sub):
                     "--no-ttl leaves the refresh out (less flash and stack; time to limit not available, no early "
                     "warning).",
         epilog="example:\n  gearbox-vsensor export-c --variant GRS905 --real float --out vsensor_c && make -C vsensor_c test")
-    p.add_argument("--variant", default="GRS905", help="gearbox variant (parameter file name; default GRS905)")
-    p.add_argument("--config", metavar="TOML", help="project configuration (variant, cooler, [sensor] limits); "
-                                                    "overrides --variant")
+    p.add_argument("--variant", help="gearbox variant, GRS905 or GRSO905 (default: the --config's, else GRS905; "
+                                     "given, it replaces the --config's)")
+    p.add_argument("--config", metavar="TOML", help="project configuration (variant, cooler, [sensor] limits)")
     p.add_argument("--real", choices=("float", "double"), default="float",
                    help="the real type of the build: float (an ECU's single-precision FPU; default) or double "
                         "(parity with the Python reference)")

@@ -19,7 +19,8 @@ def add_subparser(sub):
                     "FMI headers.",
         epilog="examples:\n  gearbox-vsensor export-fmu --out vsensor.fmu && python -m fmpy info vsensor.fmu\n"
                "  gearbox-vsensor export-fmu --fmi 3 --out vsensor3.fmu && python -m fmpy validate vsensor3.fmu")
-    p.add_argument("--variant", default="GRS905", help="gearbox variant (default GRS905)")
+    p.add_argument("--variant", help="gearbox variant, GRS905 or GRSO905 (default: the --config's, else GRS905; "
+                                     "given, it replaces the --config's)")
     p.add_argument("--config", metavar="TOML", help="project configuration (variant, cooler, [sensor] limits)")
     p.add_argument("--fmi", choices=("2", "3"), default="2",
                    help="FMI version: 2 (default; most rigs import it) or 3 (Float64/Int32 variables)")

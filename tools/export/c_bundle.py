@@ -195,16 +195,15 @@ BUNDLE_FILES = ("gvs_kernel.c", "gvs_kernel.h", "gvs_sensor.h", "gvs_sensor.c", 
                 "cortex-m4/footprint.c", "README.md")
 
 
-def export_c(out_dir, variant: str = "GRS905", config_path=None, real: str = "float", ttl: bool = True) -> Path:
+def export_c(out_dir, variant: str | None = None, config_path=None, real: str = "float", ttl: bool = True) -> Path:
     """Write the bundle into ``out_dir`` (created; existing files of the bundle are replaced). Returns the directory.
-    ``ttl`` False: a build without the time-to-limit refresh (module doc)."""
-    from firmware_model.config import load_config
+    ``variant``: replaces the configuration's (None: the configuration's, else GRS905). ``ttl`` False: a build
+    without the time-to-limit refresh (module doc)."""
     from firmware_model.onboard.sensor import VirtualSensor
     from firmware_model.onboard.warning_levels import Limits
     if real not in ("float", "double"):
         raise InputError(f"--real {real!r} must be float or double")
-    cfg = load_config(config_path)
-    params = cfg.load_params() if config_path else _variant_params(variant)
+    cfg, params = export_config(variant, config_path)
     probe = VirtualSensor(params, config=cfg, core="numpy")
     lim = probe.limits
     limits = lim if ttl else Limits(lim.warning_c, lim.critical_c, lim.hysteresis_k, lim.debounce_s, lim.provenance,
@@ -236,15 +235,27 @@ def export_c(out_dir, variant: str = "GRS905", config_path=None, real: str = "fl
         "cortex-m4/footprint.c": FOOTPRINT,
         "README.md": README.format(variant=params.variant, real=real, tol=tol,
                                    ttl_text=_ttl_text(ttl, real, float(limits.lead_s)), source_id=source_id(),
-                                   n=sensor.reduced.n, reset=reset_s)})
+                                   n=sensor.reduced.n, reset=reset_s, **_check_text(sensor))})
     # all or nothing: each file to a temporary one beside it, renamed when all are written; on a failure what this
     # run wrote and the directories it made are removed, files that were there before untouched (tools.outputs)
     return write_tree(out, files, "--out")
 
 
-def _variant_params(variant: str):
-    from firmware_model.parameters import load_parameters
-    return load_parameters(variant)
+def _check_text(sensor) -> dict:
+    """The input checks' thresholds the README quotes, from this export's tables."""
+    a = table_arrays(sensor.sp)
+    return dict(drive_frozen=f"{a['drive_frozen_s']:g}", oil_frozen=f"{a['oil_frozen_s']:g}",
+                oil_drift=f"{a['oil_frozen_drift_c']:g}", oil_step=f"{a['oil_step_c']:g}", hold=f"{a['hold_s']:g}")
+
+
+def export_config(variant: str | None, config_path):
+    """(the configuration, its parameters) of an export: ``config_path`` (None: the defaults) with its variant
+    replaced by ``variant`` when one is given, as ``gearbox-vsensor replay`` combines --config and --variant."""
+    from firmware_model.config import load_config
+    cfg = load_config(config_path)
+    if variant:
+        cfg.variant, cfg.params_path = variant, None
+    return cfg, cfg.load_params()
 
 
 def _ttl_text(ttl: bool, real: str, lead_s: float) -> str:

@@ -31,6 +31,7 @@ from firmware_model.components import PUBLISHED, describe
 from firmware_model.errors import InputError
 from firmware_model.onboard.ckernel import compiler
 from firmware_model.onboard.records import REJECT_REASONS
+from firmware_model.onboard.warning_levels import LIMIT_RANGE_C
 from tools.export.fmu_source import fmu_c
 from tools.outputs import OutputError, naming, outputs
 
@@ -39,6 +40,17 @@ MODEL_ID = "gearbox_vsensor"
 VR = dict(VR_INPUT=0, VR_T=100, VR_TTL=200, VR_MODEL_OIL=300, VR_INNOVATION=301, VR_LEVEL=400, VR_MODE=500,
           VR_VALID=501, VR_FROZEN=502, VR_REJECT=510, VR_WARNING=600, VR_CRITICAL=700, VR_INITIAL_TEMP=800,
           VR_VARIANT=900, VR_TIME=1000)
+#: the inputs' descriptions (SENSOR_INPUTS fields)
+INPUT_TEXT = {"speed_rpm": "engine speed [rpm] (NaN: not available, the last good value is held)",
+              "torque_nm": "engine torque [N.m] (NaN: not available, the last good value is held)",
+              "gear": "engaged gear, an integer in -2..14 (0 neutral; another value: the last good gear is held)",
+              "oil_temp_c": "measured transmission oil temperature [degC] (NaN: not measured, the sump is modelled)",
+              "ambient_temp_c": "ambient air temperature [degC] (NaN: the configured default)",
+              "coolant_temp_c": "engine coolant temperature [degC] (NaN: the configured default)",
+              "vehicle_speed_kmh": "vehicle speed [km/h] (NaN: 50 km/h)",
+              "retarder_torque_nm": "retarder torque [N.m] (NaN: 0, not braking)"}
+#: the bits of valid_flags and frozen_flags (bit i: input i)
+_BITS = "bit 0 speed, 1 torque, 2 gear, 3 oil, 4 ambient, 5 coolant, 6 vehicle speed, 7 retarder"
 #: start values of the inputs (speed, torque and gear 0; oil and the auxiliary inputs not available)
 INPUT_START = (0.0, 0.0, 0.0) + (float("nan"),) * 5
 
@@ -65,9 +77,11 @@ def _platform_dir(fmi_version: int = 2) -> str:
 def _variables(limits) -> list[tuple]:
     """(name, vr, type, causality, variability, start or None, description) of every variable."""
     from firmware_model.service.options import SENSOR_INPUTS
-    # the gear is discrete: an importer must hold it between samples, not interpolate it (a gear 8.3 is rejected)
-    v = [(col, VR["VR_INPUT"] + i, "Real", "input", "discrete" if field == "gear" else "continuous", INPUT_START[i],
-          f"sensor input {field}") for i, (field, col) in enumerate(SENSOR_INPUTS)]
+    # every input is discrete: the sensor samples its inputs every 0.1 s and holds them, as a CAN signal is held
+    # between frames; an importer holds them between samples instead of interpolating (an interpolated gear 8.3 is
+    # rejected, and FMPy interpolating 0 x NaN + 1 x value read the first sample after a gap as NaN)
+    v = [(col, VR["VR_INPUT"] + i, "Real", "input", "discrete", INPUT_START[i], INPUT_TEXT[field])
+         for i, (field, col) in enumerate(SENSOR_INPUTS)]
     for i, c in enumerate(PUBLISHED):
         v.append((f"T_{c}_c", VR["VR_T"] + i, "Real", "output", "discrete", None, f"{describe(c)} [degC]"))
     for i, c in enumerate(PUBLISHED):
@@ -81,8 +95,10 @@ def _variables(limits) -> list[tuple]:
           ("oil_innovation_c", VR["VR_INNOVATION"], "Real", "output", "discrete", None, "measured - model oil [K]"),
           ("degraded_mode", VR["VR_MODE"], "Integer", "output", "discrete", None,
            "0 normal, 1 oil modelled, 2 drive inputs missing (holding)"),
-          ("valid_flags", VR["VR_VALID"], "Integer", "output", "discrete", None, "bit i: input i valid this step"),
-          ("frozen_flags", VR["VR_FROZEN"], "Integer", "output", "discrete", None, "bit i: input i frozen")]
+          ("valid_flags", VR["VR_VALID"], "Integer", "output", "discrete", None,
+           "bit i set: input i valid this step (" + _BITS + ")"),
+          ("frozen_flags", VR["VR_FROZEN"], "Integer", "output", "discrete", None,
+           "bit i set: input i frozen (" + _BITS + ")")]
     v += [(f"rejects_{r}", VR["VR_REJECT"] + i, "Integer", "output", "discrete", None,
            f"inputs rejected or repaired so far: {r}") for i, r in enumerate(REJECT_REASONS)]
     for i, c in enumerate(PUBLISHED):
@@ -93,6 +109,47 @@ def _variables(limits) -> list[tuple]:
     v.append(("initial_temp_c", VR["VR_INITIAL_TEMP"], "Real", "parameter", "fixed", float("nan"),
               "start temperature of every node [degC] (NaN: the first oil input, else ambient)"))
     return v
+
+
+def _unit(name: str, typ: str) -> str | None:
+    """The unit of a Real variable, from its name's suffix (the run-table convention); None: no unit."""
+    if typ != "Real":
+        return None
+    if name == "oil_innovation_c":
+        return "K"
+    for suffix, unit in (("_c", "degC"), ("_rpm", "rpm"), ("_nm", "N.m"), ("_kmh", "km/h"), ("_s", "s")):
+        if name.endswith(suffix):
+            return unit
+    return None
+
+
+#: the units the variables use, as FMI BaseUnit attributes (SI exponents, factor and offset to SI)
+UNITS = {"degC": 'K="1" offset="273.15"', "K": 'K="1"', "s": 's="1"',
+         "rpm": 's="-1" rad="1" factor="0.10471975511965977"', "N.m": 'kg="1" m="2" s="-2"',
+         "km/h": 'm="1" s="-1" factor="0.2777777777777778"'}
+
+
+def _unit_definitions() -> str:
+    rows = "\n".join(f'    <Unit name="{escape(u)}"><BaseUnit {base}/></Unit>' for u, base in UNITS.items())
+    return f"  <UnitDefinitions>\n{rows}\n  </UnitDefinitions>"
+
+
+#: the C files an importer compiles (FMI 2 SourceFiles, FMI 3 sources/buildDescription.xml)
+SOURCE_FILES = ("gvs_kernel.c", "gvs_tables.c", "gvs_sensor.c", "fmu.c")
+
+
+def build_description() -> str:
+    """sources/buildDescription.xml of an FMI 3 FMU: how an importer rebuilds the binary from the sources."""
+    files = "\n".join(f'      <SourceFile name="{n}"/>' for n in SOURCE_FILES)
+    return f"""<?xml version="1.0" encoding="UTF-8"?>
+<fmiBuildDescription fmiVersion="3.0">
+  <BuildConfiguration modelIdentifier="{MODEL_ID}">
+    <SourceFileSet language="C99">
+{files}
+    </SourceFileSet>
+  </BuildConfiguration>
+</fmiBuildDescription>
+"""
 
 
 def _xml_value(x: float) -> str:
@@ -108,7 +165,10 @@ def model_description(variant: str, limits, guid: str, fmi_version: int = 2) -> 
         attrs = f'name="{escape(name)}" valueReference="{vr}" causality="{caus}" variability="{var}"'
         if caus == "parameter":
             attrs += ' initial="exact"'
-        inner = f'<{typ} start="{_xml_value(start)}"/>' if start is not None else f"<{typ}/>"
+        unit = _unit(name, typ)
+        type_attrs = (f' unit="{escape(unit)}"' if unit else "") + (f' start="{_xml_value(start)}"' if start is not None
+                                                                    else "")
+        inner = f"<{typ}{type_attrs}/>"
         rows.append(f'    <ScalarVariable {attrs} description="{escape(desc)}">{inner}</ScalarVariable>')
         if caus == "output":
             outputs.append(k)
@@ -116,12 +176,18 @@ def model_description(variant: str, limits, guid: str, fmi_version: int = 2) -> 
                 f'variability="fixed" initial="exact" description="gearbox variant of the tables">'
                 f'<String start="{escape(variant)}"/></ScalarVariable>')
     unknowns = "\n".join(f'      <Unknown index="{k}"/>' for k in outputs)
+    sources = "\n".join(f'      <File name="{n}"/>' for n in SOURCE_FILES)
     return f"""<?xml version="1.0" encoding="UTF-8"?>
 <fmiModelDescription fmiVersion="2.0" modelName="gearbox-vsensor {escape(variant)}" guid="{guid}"
   description="Onboard virtual temperature sensor of a {escape(variant)} range-splitter gearbox (0.1 s step)"
   generationTool="gearbox-vsensor export-fmu" variableNamingConvention="flat" numberOfEventIndicators="0">
-  <CoSimulation modelIdentifier="{MODEL_ID}" canHandleVariableCommunicationStepSize="true"
-    canBeInstantiatedOnlyOncePerProcess="false" canNotUseMemoryManagementFunctions="false"/>
+  <CoSimulation modelIdentifier="{MODEL_ID}" canHandleVariableCommunicationStepSize="false"
+    canBeInstantiatedOnlyOncePerProcess="false" canNotUseMemoryManagementFunctions="false">
+    <SourceFiles>
+{sources}
+    </SourceFiles>
+  </CoSimulation>
+{_unit_definitions()}
   <DefaultExperiment startTime="0" stepSize="0.1"/>
   <ModelVariables>
 {chr(10).join(rows)}
@@ -147,6 +213,9 @@ def _model_description_3(variant: str, limits, guid: str) -> str:
     for name, vr, typ, caus, var, start, desc in _variables(limits):
         t3 = "Int64" if name.startswith("rejects_") else _FMI3_TYPE[typ]
         attrs = f'name="{escape(name)}" valueReference="{vr}" causality="{caus}" variability="{var}"'
+        unit = _unit(name, typ)
+        if unit:
+            attrs += f' unit="{escape(unit)}"'
         if start is not None:
             attrs += f' start="{_xml_value(start)}"'
         rows.append(f'    <{t3} {attrs} description="{escape(desc)}"/>')
@@ -156,15 +225,16 @@ def _model_description_3(variant: str, limits, guid: str) -> str:
                 f'variability="fixed" description="gearbox variant of the tables"><Start value="{escape(variant)}"/>'
                 f'</String>')
     rows.insert(0, f'    <Float64 name="time" valueReference="{VR["VR_TIME"]}" causality="independent" '
-                   f'variability="continuous" description="simulation time [s]"/>')
+                   f'variability="continuous" unit="s" description="simulation time [s]"/>')
     structure = "\n".join(f'    <Output valueReference="{vr}"/>' for vr in outputs)
     structure += "\n" + "\n".join(f'    <InitialUnknown valueReference="{vr}"/>' for vr in outputs)
     return f"""<?xml version="1.0" encoding="UTF-8"?>
 <fmiModelDescription fmiVersion="3.0" modelName="gearbox-vsensor {escape(variant)}" instantiationToken="{guid}"
   description="Onboard virtual temperature sensor of a {escape(variant)} range-splitter gearbox (0.1 s step)"
   generationTool="gearbox-vsensor export-fmu" variableNamingConvention="flat">
-  <CoSimulation modelIdentifier="{MODEL_ID}" canHandleVariableCommunicationStepSize="true"
+  <CoSimulation modelIdentifier="{MODEL_ID}" canHandleVariableCommunicationStepSize="false"
     fixedInternalStepSize="0.1" canGetAndSetFMUState="false" canSerializeFMUState="false"/>
+{_unit_definitions()}
   <DefaultExperiment startTime="0" stepSize="0.1"/>
   <ModelVariables>
 {chr(10).join(rows)}
@@ -179,12 +249,14 @@ def _model_description_3(variant: str, limits, guid: str) -> str:
 def _blocks(variant: str, guid: str) -> str:
     lines = [f"#define {k} {v}u" for k, v in VR.items()]
     start = ", ".join("NAN" if x != x else repr(x) for x in INPUT_START)
+    lo, hi = LIMIT_RANGE_C
+    lines += [f"#define LIMIT_LO_C {lo!r}", f"#define LIMIT_HI_C {hi!r}", f'#define LIMIT_RANGE_TEXT "{lo:g}..{hi:g}"']
     lines += [f"static const double INPUT_START[GVS_N_INPUTS] = {{{start}}};",
               f'#define GVS_GUID "{guid}"', f'#define GVS_VARIANT "{variant}"']
     return "\n".join(lines)
 
 
-def export_fmu(out_path, variant: str = "GRS905", config_path=None, fmi_version: int = 2) -> Path:
+def export_fmu(out_path, variant: str | None = None, config_path=None, fmi_version: int = 2) -> Path:
     """Build the FMU (FMI ``fmi_version``, 2 or 3) at ``out_path`` (a .fmu file, written atomically; a symbolic link
     is written through). Needs a C compiler and FMPy's headers."""
     headers = _fmi_headers()
@@ -228,8 +300,10 @@ def _build(tmp: Path, variant: str, config_path, fmi_version: int, cc: str, head
     binaries = tmp / "fmu" / "binaries" / _platform_dir(fmi_version)
     binaries.mkdir(parents=True)
     suffix = {"Windows": ".dll", "Darwin": ".dylib"}.get(platform.system(), ".so")
+    if fmi_version == 3:
+        (src / "buildDescription.xml").write_text(build_description())
     cmd = [cc, "-std=c99", "-O2", "-fPIC", "-shared", "-fno-fast-math", f"-I{headers}", f"-I{src}",
-           *(str(src / n) for n in ("gvs_kernel.c", "gvs_tables.c", "gvs_sensor.c", "fmu.c")), "-o",
+           *(str(src / n) for n in SOURCE_FILES), "-o",
            str(binaries / (MODEL_ID + suffix)), "-lm"]
     res = subprocess.run(cmd, capture_output=True, text=True)
     if res.returncode != 0:
@@ -239,9 +313,7 @@ def _build(tmp: Path, variant: str, config_path, fmi_version: int, cc: str, head
 
 def _variant_and_limits(variant: str, config_path):
     """The variant name and the warning limits the export uses (as tools.export.c_bundle.export_c)."""
-    from firmware_model.config import load_config
     from firmware_model.onboard.sensor import VirtualSensor
-    from firmware_model.parameters import load_parameters
-    cfg = load_config(config_path)
-    params = cfg.load_params() if config_path else load_parameters(variant)
+    from tools.export.c_bundle import export_config
+    cfg, params = export_config(variant, config_path)
     return params.variant, VirtualSensor(params, config=cfg, core="numpy").limits

@@ -22,12 +22,14 @@ struct Instance_ {
     double inputs[GVS_N_INPUTS];
     double initial_temp_c, time_s;
     gvs_outputs out;
-    int initialised;
+    int initialised;                             /* PHASE_*: stepping only when PHASE_STEPPING */
     const char *name;
     void *env;                                   /* the importer's logger and its environment */
     void (*log)(Instance *m, int error, const char *msg);
     void *logger;
 };
+
+enum { PHASE_SETUP = 0, PHASE_STEPPING = 1, PHASE_TERMINATED = 2 };
 
 static void reset(Instance *m)
 {
@@ -40,7 +42,7 @@ static void reset(Instance *m)
     for (i = 0; i < GVS_N_INPUTS; ++i) m->inputs[i] = INPUT_START[i];
     m->initial_temp_c = NAN;
     m->time_s = 0.0;
-    m->initialised = 0;
+    m->initialised = PHASE_SETUP;
     memset(&m->out, 0, sizeof m->out);
     memset(&m->st, 0, sizeof m->st);             /* no counter of the run before a reset reads on */
 }
@@ -63,11 +65,31 @@ static void publish_state(Instance *m)
     memcpy(m->out.rejects, m->st.rejects, sizeof m->out.rejects);
 }
 
+/* the state as the parameters and inputs set so far start it, and its outputs (publish_state) */
+static void start_state(Instance *m)
+{
+    gvs_sensor_init_ambient(&m->st, m->initial_temp_c == m->initial_temp_c ? m->initial_temp_c
+                                                                          : m->inputs[GVS_I_OIL],
+                            m->inputs[GVS_I_AMB]);
+    publish_state(m);
+}
+
+/* outputs read before the end of initialisation: the state the values set so far would start (not zeros: a time
+ * to limit of 0 would read "at the limit") */
+static void outputs_now(Instance *m)
+{
+    if (m->initialised == PHASE_SETUP) start_state(m);
+}
+
 /* the end of initialisation: the tuned limits checked and taken, the state started; 0 or -1 (logged) */
 static int exit_init(Instance *m)
 {
     int i;
     for (i = 0; i < GVS_N_PUB; ++i) {
+        if (!(m->warning_c[i] >= (gvs_real)LIMIT_LO_C && m->critical_c[i] <= (gvs_real)LIMIT_HI_C)) {
+            m->log(m, 1, "every limit must be a temperature in " LIMIT_RANGE_TEXT " degC (as the limits file)");
+            return -1;
+        }
         if (!(m->warning_c[i] < m->critical_c[i] && m->critical_c[i] - m->warning_c[i] > GVS_TABLES.hysteresis_k[i])) {
             m->log(m, 1, "every warning limit must lie below its critical limit by more than the hysteresis");
             return -1;
@@ -82,11 +104,8 @@ static int exit_init(Instance *m)
         m->log(m, 1, "initial_temp_c must be NaN (the first oil input) or within the oil input's plausible range");
         return -1;
     }
-    gvs_sensor_init_ambient(&m->st, m->initial_temp_c == m->initial_temp_c ? m->initial_temp_c
-                                                                          : m->inputs[GVS_I_OIL],
-                            m->inputs[GVS_I_AMB]);
-    publish_state(m);
-    m->initialised = 1;
+    start_state(m);
+    m->initialised = PHASE_STEPPING;
     return 0;
 }
 
@@ -94,14 +113,24 @@ static int exit_init(Instance *m)
 static int do_step(Instance *m, double t, double h)
 {
     double n_real = h / (double)GVS_TABLES.dt_s;
-    long n = (long)floor(n_real + 0.5), k;
+    long n, k;
     gvs_inputs in;
     int i;
-    if (!m->initialised || n < 1 || fabs(n_real - (double)n) > 1e-6) {
+    if (m->initialised != PHASE_STEPPING) {
+        m->log(m, 1, m->initialised == PHASE_TERMINATED ? "no step after terminate (reset and initialise again)"
+                                                        : "no step before the end of initialisation");
+        return -1;
+    }
+    if (!(n_real >= 0.5 && n_real < 1e12)) {               /* NaN, inf, zero, negative, or beyond any run */
         m->log(m, 1, "the communication step must be a positive multiple of 0.1 s");
         return -1;
     }
-    if (fabs(t - m->time_s) > 1e-3 * (double)GVS_TABLES.dt_s + 1e-12 * fabs(t)) {   /* rounding, not a skip */
+    n = (long)floor(n_real + 0.5);
+    if (fabs(n_real - (double)n) > 1e-6) {
+        m->log(m, 1, "the communication step must be a positive multiple of 0.1 s");
+        return -1;
+    }
+    if (!(fabs(t - m->time_s) <= 1e-3 * (double)GVS_TABLES.dt_s + 1e-12 * fabs(t))) {   /* rounding, not a skip */
         m->log(m, 1, "a communication step must start where the last one ended (this FMU cannot skip or go back)");
         return -1;
     }
@@ -120,9 +149,10 @@ static int do_step(Instance *m, double t, double h)
     return 0;
 }
 
-static double real_out(const Instance *m, unsigned vr, int *ok)
+static double real_out(Instance *m, unsigned vr, int *ok)
 {
     *ok = 1;
+    outputs_now(m);
     if (vr >= VR_T && vr < VR_T + GVS_N_PUB) return (double)m->out.T_c[vr - VR_T];
     if (vr >= VR_TTL && vr < VR_TTL + GVS_N_PUB) return (double)m->out.ttl_s[vr - VR_TTL];
     if (vr == VR_MODEL_OIL) return (double)m->out.model_oil_temp_c;
@@ -136,8 +166,9 @@ static double real_out(const Instance *m, unsigned vr, int *ok)
     return 0.0;
 }
 
-static int int_out(const Instance *m, unsigned r, long *value)
+static int int_out(Instance *m, unsigned r, long *value)
 {
+    outputs_now(m);
     if (r >= VR_LEVEL && r < VR_LEVEL + GVS_N_PUB) *value = m->out.level[r - VR_LEVEL];
     else if (r == VR_MODE) *value = m->out.degraded_mode;
     else if (r == VR_VALID) *value = m->out.valid_flags;
@@ -163,7 +194,7 @@ static int set_variant(Instance *m, unsigned r, const char *value)
 static int set_real(Instance *m, unsigned r, double value)
 {
     if (r >= VR_INPUT && r < VR_INPUT + GVS_N_INPUTS) m->inputs[r - VR_INPUT] = value;
-    else if (m->initialised) return -1;
+    else if (m->initialised != PHASE_SETUP) return -1;
     else if (r >= VR_WARNING && r < VR_WARNING + GVS_N_PUB) m->warning_c[r - VR_WARNING] = (gvs_real)value;
     else if (r >= VR_CRITICAL && r < VR_CRITICAL + GVS_N_PUB) m->critical_c[r - VR_CRITICAL] = (gvs_real)value;
     else if (r == VR_INITIAL_TEMP) m->initial_temp_c = value;
@@ -215,7 +246,7 @@ fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean tolDef, fmi2Real tol
 
 fmi2Status fmi2EnterInitializationMode(fmi2Component c) { (void)c; return fmi2OK; }
 fmi2Status fmi2ExitInitializationMode(fmi2Component c) { return exit_init((Instance *)c) ? fmi2Error : fmi2OK; }
-fmi2Status fmi2Terminate(fmi2Component c) { (void)c; return fmi2OK; }
+fmi2Status fmi2Terminate(fmi2Component c) { ((Instance *)c)->initialised = PHASE_TERMINATED; return fmi2OK; }
 fmi2Status fmi2Reset(fmi2Component c) { reset((Instance *)c); return fmi2OK; }
 
 fmi2Status fmi2DoStep(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean noSetPrior)
@@ -239,7 +270,7 @@ fmi2Status fmi2GetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t
     size_t i;
     long v;
     for (i = 0; i < n; ++i) {
-        if (int_out((const Instance *)c, vr[i], &v)) return fmi2Error;
+        if (int_out((Instance *)c, vr[i], &v)) return fmi2Error;
         value[i] = (fmi2Integer)v;
     }
     return fmi2OK;
@@ -391,7 +422,7 @@ fmi3Status fmi3EnterInitializationMode(fmi3Instance instance, fmi3Boolean tolera
 fmi3Status fmi3ExitInitializationMode(fmi3Instance instance)
 { return exit_init((Instance *)instance) ? fmi3Error : fmi3OK; }
 fmi3Status fmi3EnterStepMode(fmi3Instance instance) { (void)instance; return fmi3OK; }
-fmi3Status fmi3Terminate(fmi3Instance instance) { (void)instance; return fmi3OK; }
+fmi3Status fmi3Terminate(fmi3Instance instance) { ((Instance *)instance)->initialised = PHASE_TERMINATED; return fmi3OK; }
 fmi3Status fmi3Reset(fmi3Instance instance) { reset((Instance *)instance); return fmi3OK; }
 
 fmi3Status fmi3DoStep(fmi3Instance instance, fmi3Float64 currentCommunicationPoint,
@@ -439,7 +470,7 @@ fmi3Status fmi3GetInt32(fmi3Instance instance, const fmi3ValueReference valueRef
     long v;
     if (nValues != nValueReferences) return fmi3Error;
     for (i = 0; i < nValueReferences; ++i) {
-        if (int_out((const Instance *)instance, valueReferences[i], &v)) return fmi3Error;
+        if (int_out((Instance *)instance, valueReferences[i], &v)) return fmi3Error;
         values[i] = (fmi3Int32)v;
     }
     return fmi3OK;
@@ -452,7 +483,7 @@ fmi3Status fmi3GetInt64(fmi3Instance instance, const fmi3ValueReference valueRef
     long v;
     if (nValues != nValueReferences) return fmi3Error;
     for (i = 0; i < nValueReferences; ++i) {
-        if (int_out((const Instance *)instance, valueReferences[i], &v)) return fmi3Error;
+        if (int_out((Instance *)instance, valueReferences[i], &v)) return fmi3Error;
         values[i] = (fmi3Int64)v;
     }
     return fmi3OK;

@@ -29,8 +29,10 @@ void gvs_sensor_init_ambient(gvs_state *st, double T_oil_c, double T_ambient_c);
 
 /* Warm start from a state saved on shutdown (same GVS_STATE_KEY, CRC checked by the caller): 0, or -1 when its
  * contents are not a sensor state (a temperature not finite or outside -100..500 degC, a level outside 0..3, a
- * negative count): then start cold with gvs_sensor_init. Restarts the time base (the next t_s may be anything, an
- * uptime counter from 0 too) and the step count, forgets the time to limit, and applies a plausible oil reading
+ * negative count, another real of the step not finite): then start cold with gvs_sensor_init. Restarts the time
+ * base (the next t_s may be anything, an uptime counter from 0 too) and the step count, forgets the time to limit,
+ * counts every input's last value as old (the stop lay between: the first oil reading is not judged a step from
+ * the one before shutdown; without fresh drive inputs for a step the levels read 3), and applies a plausible oil reading
  * T_oil_c (NaN: none) as the host sensor does: more than 10 K from the saved sump, every node starts at it; else
  * the sump takes it. It does not cool the state over the time the truck stood (the host sensor does): after a long
  * stop without an oil reading, start cold instead. */
@@ -78,6 +80,12 @@ void gvs_sensor_init_ambient(gvs_state *st, double T_oil_c, double T_ambient_c)
     st->t_last_s = NAN;
 }
 
+/* a finite value (a real of the state that may not be NaN) */
+static int finite_value(gvs_real x)
+{
+    return x == x && x - x == x - x;
+}
+
 int gvs_sensor_resume(gvs_state *st, double T_oil_c)
 {
     const gvs_tables *tb = &GVS_TABLES;
@@ -86,10 +94,24 @@ int gvs_sensor_resume(gvs_state *st, double T_oil_c)
         for (i = 0; i < tb->n; ++i)
             if (!(st->T_c[c][i] >= (gvs_real)-100.0 && st->T_c[c][i] <= (gvs_real)500.0)) return -1;
     for (i = 0; i < GVS_N_PUB; ++i)
-        if (st->level[i] < 0 || st->level[i] > 3) return -1;
+        if (st->level[i] < 0 || st->level[i] > 3 || !(st->pending_s[i] >= (gvs_real)0.0)
+            || !finite_value(st->pending_s[i])) return -1;
     for (i = 0; i < GVS_N_REJECT; ++i)
         if (st->rejects[i] < 0) return -1;
     if (st->k < 0) return -1;
+    /* every other real the step reads: finite (the held inputs and their previous raw values may be NaN: none yet) */
+    for (i = 0; i < tb->ns; ++i)
+        if (!finite_value(st->lag_w[i])) return -1;
+    for (i = 0; i < GVS_N_INPUTS; ++i)
+        if (!(st->age_s[i] >= (gvs_real)0.0) || !(st->same_s[i] >= (gvs_real)0.0) || !finite_value(st->same_s[i])
+            || (st->hold[i] == st->hold[i] && !finite_value(st->hold[i]))
+            || (st->raw_prev[i] == st->raw_prev[i] && !finite_value(st->raw_prev[i]))) return -1;
+    if (!finite_value(st->oil_ref_c)) return -1;
+    st->memo_valid = 0;                 /* the conductance memo is recomputed, never trusted from storage */
+    /* an ignition cycle lies between: every input's last value is older than any check's window (the oil reading
+     * after a stop is no 0.1 s step from the one before it: VirtualSensor._restored_state ages them by the stop) */
+    for (i = 0; i < GVS_N_INPUTS; ++i)
+        if (!(st->age_s[i] >= tb->hold_s)) st->age_s[i] = tb->hold_s;
     /* the oil reading (VirtualSensor._restored_state with no time elapsed) */
     if (T_oil_c >= (double)tb->input_lo[GVS_I_OIL] && T_oil_c <= (double)tb->input_hi[GVS_I_OIL]) {
         gvs_real T = (gvs_real)T_oil_c;
@@ -201,10 +223,16 @@ int main(void)
         ++kept;
     }
     printf("steps %d, kept %d: max |T - reference| %.3g K (tolerance %g), level mismatches %d (+%d within the "
-           "tolerance of a threshold), mode mismatches %d, NaN outputs %d, time to limit outside "
-           "max(@TTL_ABS@ s, @TTL_REL@ x) %d (largest difference %.3g s), counters",
-           (int)GVS_VEC_STEPS, kept, worst, tol, level_bad, level_near, mode_bad, nan_out, ttl_bad, ttl_worst);
+           "tolerance of a threshold), mode mismatches %d, NaN outputs %d, ",
+           (int)GVS_VEC_STEPS, kept, worst, tol, level_bad, level_near, mode_bad, nan_out);
+#if GVS_EXPORT_TTL
+    printf("time to limit outside max(@TTL_ABS@ s, @TTL_REL@ x) %d (largest difference %.3g s), ", ttl_bad, ttl_worst);
+#else
+    printf("time to limit not in this build (not checked), ");
+#endif
+    printf("counters");
     for (i = 0; i < GVS_N_REJECT; ++i) printf(" %ld", (long)state.rejects[i]);
+    (void)ttl_worst;
     j = worst <= tol && level_bad == 0 && mode_bad == 0 && nan_out == 0 && ttl_bad == 0;
     printf("\\n%s\\n", j ? "PASS" : "FAIL");
     return j ? 0 : 1;
@@ -317,7 +345,9 @@ gvs_test: $(SENSOR) gvs_vectors.c gvs_test.c gvs_kernel.h gvs_sensor.h
 ARM_CC ?= arm-none-eabi-gcc
 ARM_SIZE ?= arm-none-eabi-size
 M4 = -mcpu=cortex-m4 -mthumb -mfloat-abi=hard -mfpu=fpv4-sp-d16
-M4_CFLAGS = -std=c99 -Os -flto -Wall -Wextra -ffunction-sections -fdata-sections -DGVS_REAL_FLOAT $(CAPS) -I.
+# this export's real type ($(REAL)): a double export runs its double arithmetic in software on the M4F's
+# single-precision FPU (it builds and runs, larger and slower than a float export)
+M4_CFLAGS = -std=c99 -Os -flto -Wall -Wextra -ffunction-sections -fdata-sections $(REAL) $(CAPS) -I.
 
 cortex-m4: gvs_test_m4.elf gvs_footprint_m4.elf
 
@@ -383,8 +413,10 @@ warning levels, degraded modes and the time to limit with the Python reference (
 | `gvs_vectors.c`, `gvs_test.c`, `Makefile` | the test |
 | `gvs_replay.c` | a whole drive through a build (`make replay IN=drive.bin`, `make qemu-replay` on the emulated Cortex-M4F, which also counts instructions per step); the formats are in the file |
 
-Compile with `-DGVS_REAL_FLOAT` for single precision (as `make` does for a float export); never with fast-math
-(`-ffast-math` breaks the NaN checks of the input validation).
+This export's real type ({real}), struct sizes and index width are fixed in `gvs_kernel.h`: compile every file with
+the Makefile's flags or with none of them (another value stops the build with `#error`). Never with fast-math:
+`gvs_kernel.c` stops with `#error` under `-ffast-math` or `-ffinite-math-only`, which would remove the NaN checks of
+the input validation.
 
 ## Calling it
 
@@ -422,6 +454,13 @@ continues from before the gap (this build does not integrate over gaps: the Pyth
 inputs over them).
 
 {ttl_text}
+
+Input checks a bench meets (the counters and `frozen_flags` say which fired): speed and torque bit-identical for
+{drive_frozen} s while the engine turns are flagged as frozen (`frozen_flags` bits 0 and 1, `drive_frozen`; still
+used, the mode stays 0), so a bench feeding constant values sees this after {drive_frozen} s; an oil reading
+bit-identical for {oil_frozen} s while the modelled sump moved {oil_drift} K is frozen (modelled instead, mode 1,
+`oil_frozen`); an oil reading more than {oil_step} K from a good one less than 1 s old is not used that step
+(`oil_implausible`); speed, torque or gear missing for more than {hold} s make every level 3 (not available).
 
 Thread safety: the functions keep no global state; one `gvs_state` per sensor, not shared between threads without
 a lock.
