@@ -334,7 +334,10 @@ def _bounds(path: Path, key: str, e: dict, fac: float, v: float):
     except (TypeError, ValueError):
         raise ParameterError(f"{path.name}: {key} has bounds lo = {e.get('lo')!r}, hi = {e.get('hi')!r}, which are "
                              f"not numbers") from None
-    if not lo <= v <= hi or not lo < hi:
+    if not lo < hi:
+        raise ParameterError(f"{path.name}: {key} has bounds lo = {e['lo']} .. hi = {e['hi']}: lo must be below hi "
+                             f"(reversed or equal bounds)")
+    if not lo <= v <= hi:
         raise ParameterError(f"{path.name}: {key} = {e['v']} must lie within its bounds lo = {e['lo']} .. hi = "
                              f"{e['hi']}")
     return lo, hi

@@ -98,6 +98,11 @@ def test_bounds_are_checked_when_the_file_is_read(tmp_path):
                    'src = "assumed" }\n')
     with pytest.raises(ParameterError, match="must lie within its bounds"):
         load_parameters(bad)
+    # reversed bounds say so (a calibration audit: 'must lie within its bounds lo = 0.8 .. hi = 0.2')
+    bad.write_text('[meta]\ninherit = "GRS905"\n[housing]\nhot_frac = { v = 0.5, u = "-", lo = 0.8, hi = 0.2, '
+                   'src = "assumed" }\n')
+    with pytest.raises(ParameterError, match="lo must be below hi"):
+        load_parameters(bad)
     bad.write_text('[meta]\ninherit = "GRS905"\n[housing]\nhot_frac = { v = 0.5, u = "-", lo = 0.2, src = "assumed" }\n')
     with pytest.raises(ParameterError, match="only one of lo and hi"):
         load_parameters(bad)
@@ -154,3 +159,23 @@ def test_bounds_outside_the_allowed_range_are_refused_when_the_file_loads(tmp_pa
                    'hot_frac = { v = 0.5, u = "-", lo = -0.5, hi = 1.5, src = "assumed" }\n')
     with pytest.raises(ParameterError, match=r"hot_frac's bounds lo = -0.5 .. hi = 1.5 reach outside"):
         load_parameters(bad)
+
+
+def test_a_constant_offset_left_on_a_held_out_channel_is_a_caution():
+    """From a calibration audit: oil read 2 K high gave a written parameter file biased far from the truth
+    (hot_frac 0.54 for 0.35) with no word about the 1.4 K left on the held-out oil. A channel whose held-out
+    residual after the fit is large and nearly constant now gets a caution that names a sensor offset; a channel
+    fitted down to noise, or one with a varying residual, does not."""
+    from types import SimpleNamespace
+
+    import numpy as np
+
+    from tools.cli.calibrate import _offsets_left
+    t = np.arange(0.0, 600.0, 10.0)
+    rng = np.random.default_rng(0)
+    noise = 0.1 * rng.standard_normal(t.size)
+    cal = SimpleNamespace(plot={"test": [("a.csv", "oil", t, None, 1.37 + noise), ("b.csv", "oil", t, None, 1.3 + noise),
+                                         ("a.csv", "PS", t, None, noise),
+                                         ("a.csv", "BLR", t, None, 1.5 * np.sin(t / 60.0))]})
+    lines = _offsets_left(cal)
+    assert len(lines) == 1 and lines[0].startswith("oil is +1.3") and "sensor offset" in lines[0], lines

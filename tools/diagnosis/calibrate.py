@@ -19,6 +19,7 @@ from __future__ import annotations
 import math
 import multiprocessing as mp
 import os
+import signal
 import warnings
 from dataclasses import dataclass, field
 
@@ -88,6 +89,9 @@ _W = {}
 def _init(params, cooler, dt_s):
     _W.update(params=params, cooler=cooler, dt_s=dt_s)
     warnings.filterwarnings("ignore", category=RuntimeWarning)
+    # Ctrl-C is the parent's to handle (it terminates the pool): a worker's own KeyboardInterrupt printed
+    # "Process ForkPoolWorker-2:" and a traceback before the one-sentence "interrupted"
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
 def _job(job):
