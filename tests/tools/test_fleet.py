@@ -192,9 +192,12 @@ def test_bad_logs_land_in_the_errors_table_and_reruns_skip(tmp_path, synthetic):
     assert len(list((out / "errors").glob("*.parquet"))) == 1
     # from a fleet audit: a log in the errors table was never tried again, even once it was complete
     (logs / "truncated.log").write_bytes(raw)
-    fleet(*args)
+    res = fleet(*args)
     assert "truncated.log" in {Path(r["log"]).name for r in read_table(out).to_pylist()}
     assert "truncated.log" not in {Path(r["log"]).name for r in read_table(out, ERRORS).to_pylist()}
+    # it is now a copy of good.log: summarised twice, and said so (a copied log counted its hours twice, silently)
+    assert "look like copies of each other" in res.stderr and "good.log" in res.stderr, res.stderr
+    assert "| good.log, truncated.log |" in (out / "report.md").read_text()
 
 
 POISON_PRELOAD = """

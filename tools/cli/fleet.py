@@ -73,6 +73,21 @@ def _entries(args):
     return entries_from_paths(args.logs, args.vehicle_pattern)
 
 
+def _warn_duplicates(out) -> None:
+    """A warning for logs of one vehicle that look like copies of each other (tools.fleet.report.duplicate_logs)."""
+    from tools.fleet.report import duplicate_logs
+    from tools.fleet.store import read_table
+    summary = read_table(out)
+    if summary is None:
+        return
+    dups = duplicate_logs({n: summary.column(n).to_pylist() for n in ("vehicle", "log", "start_s", "end_s", "frames")})
+    for g in dups[:5]:
+        print(f"warning: {len(g)} logs of one vehicle look like copies of each other (the same first and last frame "
+              f"time and frame count), each summarised and counted: {', '.join(g)}", file=sys.stderr)
+    if len(dups) > 5:
+        print(f"warning: ... {len(dups) - 5} more groups of copies (report.md lists them)", file=sys.stderr)
+
+
 def run(args) -> int:
     from tools.fleet.run import run_fleet
     entries = _entries(args)
@@ -100,6 +115,7 @@ def run(args) -> int:
             print(f"  error ({r['stage']}): {r['reason']}", file=sys.stderr)
         if errors.num_rows > 5:
             print(f"  ... {errors.num_rows - 5} more in {args.out}/errors", file=sys.stderr)
+    _warn_duplicates(args.out)
     if args.diagnose:
         from tools.fleet.health import fleet_health
         health = fleet_health(args.out, period_days=args.period_days)

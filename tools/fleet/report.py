@@ -125,6 +125,30 @@ def _trusted_only(c: dict, lines: list) -> dict:
     return {k: [v[i] for i in range(len(v)) if trusted[i]] for k, v in c.items()}
 
 
+def duplicate_logs(c: dict) -> list[list[str]]:
+    """Groups of logs of one vehicle that look like copies of each other: the same first and last frame time and the
+    same number of frames (a log copied under another name is summarised twice and its hours counted twice)."""
+    groups: dict = {}
+    for i, log in enumerate(c["log"]):
+        if not c["frames"][i]:
+            continue
+        key = (c["vehicle"][i], c["start_s"][i], c["end_s"][i], c["frames"][i])
+        groups.setdefault(key, []).append(log)
+    return [sorted(logs) for logs in groups.values() if len(logs) > 1]
+
+
+def _duplicates(c: dict, lines: list) -> None:
+    dups = duplicate_logs(c)
+    if not dups:
+        return
+    lines += [f"## Logs that look like copies ({len(dups)} groups)", "",
+              "Same vehicle, same first and last frame time, same number of frames: each copy is summarised and its "
+              "hours counted again above. Remove the copies and run again (a re-run skips what is done).", "",
+              "| logs |", "|---|"]
+    lines += ["| " + ", ".join(os.path.basename(x) for x in g) + " |" for g in dups[:50]]
+    lines.append("")
+
+
 def _flag_table(fl: dict, rows: list) -> list:
     lines = ["| vehicle | effect | in the period from | value | own baseline | why |", "|---|---|---|---|---|---|"]
     for i in rows:
@@ -220,6 +244,7 @@ def write_report(out: str | os.PathLike) -> Path:
                   f"{span}. Mean degraded share "
                   f"{100 * float(np.mean(c['degraded_share'])):.1f} %; frames rejected: "
                   f"{sum(sum(c[k]) for k in c if k.startswith('rejected_'))} of {sum(c['frames'])}.", ""]
+        _duplicates(c, lines)
         c = _trusted_only(c, lines)
         if c["log"]:
             _hottest(c, lines)
