@@ -152,13 +152,18 @@ class VirtualSensor:
                 for c in (MAIN, TWIN):
                     T[v + (c,)] = cool_down(self.sp, self.cache, T[v + (c,)], float(elapsed_s), amb, bc)
         T_oil_c = self._plausible_oil_c(T_oil_c)
+        level, pending_s = st.level, st.pending_s
         if np.all(np.isfinite(T_oil_c)):
             meas = np.broadcast_to(T_oil_c, T.shape[:-2])
             off = np.abs(T[..., MAIN, rp.i_oil] - meas) > 10.0
             T = np.where(off[..., None, None], meas[..., None, None], T)
             T[..., :, rp.i_oil] = meas[..., None]
+            # every node restarted at the reading: the warning levels of the saved temperatures go with them (an ECU
+            # audit saw a warning kept for the debounce time on a gearbox restarted at 40 degC)
+            level = np.where(off[..., None], 0, level).astype(np.asarray(st.level).dtype)
+            pending_s = np.where(off[..., None], 0.0, pending_s)
         B = T.shape[:-2]
-        return st._replace(T_c=T, t_last_s=np.full(B, np.nan), age_s=np.where(
+        return st._replace(T_c=T, level=level, pending_s=pending_s, t_last_s=np.full(B, np.nan), age_s=np.where(
             elapsed_s > 0, np.maximum(st.age_s, elapsed_s), st.age_s),
             ttl_s=np.full(B + (N_PUB,), np.nan), k=np.zeros(B, dtype=np.int64))
 

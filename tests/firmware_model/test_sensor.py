@@ -220,6 +220,13 @@ def test_restart_with_a_measured_oil_far_from_the_snapshot_trusts_the_measuremen
     far = sensor.initial_state(T_oil_c=30.0, snapshot=sensor.snapshot(st))
     assert near.T_c[0, sensor.reduced.i_oil] == 89.0 and near.T_c[0].max() > 90.0
     assert np.all(far.T_c == 30.0)
+    # warning levels go with the temperatures they were about (an ECU audit: a warning kept for the debounce time
+    # on a gearbox restarted at 40 degC): kept when the state is kept, cleared when every node restarts
+    warm = st._replace(level=np.full_like(st.level, 1), pending_s=np.full_like(st.pending_s, 0.5))
+    near = sensor.initial_state(T_oil_c=89.0, snapshot=sensor.snapshot(warm))
+    far = sensor.initial_state(T_oil_c=30.0, snapshot=sensor.snapshot(warm))
+    assert np.all(near.level == 1) and np.all(near.pending_s == 0.5)
+    assert np.all(far.level == 0) and np.all(far.pending_s == 0.0) and far.level.dtype == st.level.dtype
 
 
 def test_a_snapshot_of_another_network_is_refused(sensor, params):

@@ -251,6 +251,12 @@ int main(void)
     if (gvs_sensor_resume(&st, T_hot - 30.0) != 0) return 1;
     for (i = 0; i < GVS_TABLES.n; ++i)
         if (st.T_c[0][i] != (gvs_real)(T_hot - 30.0) || st.T_c[1][i] != (gvs_real)(T_hot - 30.0)) bad = 2;
+    /* ... and the warning levels of the saved temperatures go with them */
+    memcpy(&st, &saved, sizeof st);
+    for (i = 0; i < GVS_N_PUB; ++i) { st.level[i] = 1; st.pending_s[i] = (gvs_real)0.5; }
+    if (gvs_sensor_resume(&st, T_hot - 30.0) != 0) return 1;
+    for (i = 0; i < GVS_N_PUB; ++i)
+        if (st.level[i] != 0 || st.pending_s[i] != (gvs_real)0.0) bad = 12;
     /* within 10 K: only the sump takes it */
     memcpy(&st, &saved, sizeof st);
     if (gvs_sensor_resume(&st, T_hot - 3.0) != 0) return 1;

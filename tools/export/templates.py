@@ -115,9 +115,15 @@ int gvs_sensor_resume(gvs_state *st, double T_oil_c)
     /* the oil reading (VirtualSensor._restored_state with no time elapsed) */
     if (T_oil_c >= (double)tb->input_lo[GVS_I_OIL] && T_oil_c <= (double)tb->input_hi[GVS_I_OIL]) {
         gvs_real T = (gvs_real)T_oil_c;
-        if (fabs((double)st->T_c[0][io] - T_oil_c) > 10.0)
+        if (fabs((double)st->T_c[0][io] - T_oil_c) > 10.0) {
             for (c = 0; c < 2; ++c)
                 for (i = 0; i < tb->n; ++i) st->T_c[c][i] = T;
+            /* every node restarted at the reading: the saved warning levels go with the saved temperatures */
+            for (i = 0; i < GVS_N_PUB; ++i) {
+                st->level[i] = 0;
+                st->pending_s[i] = (gvs_real)0.0;
+            }
+        }
         st->T_c[0][io] = st->T_c[1][io] = T;
     }
     st->t_last_s = NAN;
