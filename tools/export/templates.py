@@ -471,7 +471,8 @@ bit-identical for {oil_frozen} s while the modelled sump moved {oil_drift} K is 
 Thread safety: the functions keep no global state; one `gvs_state` per sensor, not shared between threads without
 a lock.
 
-Persisting the state across ignition cycles: `gvs_state` is plain data (`sizeof(gvs_state)` bytes in this build).
+Persisting the state across ignition cycles: `gvs_state` is plain data (`sizeof(gvs_state)` bytes in this build;
+`make size` prints it for the Cortex-M4F build, with the flash and the stack the step uses).
 On shutdown write it with `GVS_STATE_KEY` (from `gvs_sensor.h`: it changes with the kernel, the variant, the
 configuration, the real type and the sizes, so a state of another export is never taken for this one's) and a CRC
 of your choice. At start-up read it back; if the key or the CRC differs, or `gvs_sensor_resume(&state, oil_temp_c)`
