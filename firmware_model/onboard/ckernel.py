@@ -71,7 +71,7 @@ TABLE_FIELDS = (
        ("rad_link", "pi"), ("rad_node", "pi"), ("rad_bc", "pi"), ("rad_area_eps", "pr"), ("t2_stream_term", "pi"),
        ("stream_node", "pi"), ("prop", "pr"), ("T_grid0_c", "r"), ("T_grid_step_k", "r"), ("speed_coef", "pr"),
        ("mesh_torque", "pr"), ("mesh_omega2", "pr"), ("mesh_x0", "pr"), ("mesh_phi", "pr"), ("mesh_roll_k", "pr"),
-       ("mesh_heat_sf", "pr"), ("bear_speed", "pr"), ("bear_c", "pr"), ("bear_load", "pr"), ("needle_rel", "pr"),
+       ("mesh_heat_sf", "pr"), ("mesh_roll_lt_min", "pr"), ("bear_speed", "pr"), ("bear_c", "pr"), ("bear_load", "pr"), ("needle_rel", "pr"),
        ("needle_c", "pr"), ("sync_coef", "pr"), ("pump_coef", "pr"), ("churn_table", "pr")]
     + [(k, "r") for k in ("churn_w_max", "churn_heat_sf", "x_step", "ln10")]
     + [("src_nz_src", "pi"), ("src_nz_node", "pi"), ("src_nz_w", "pr"), ("lag_gain", "r"), ("lag_tau_over_dt", "r")]

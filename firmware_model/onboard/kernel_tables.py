@@ -80,7 +80,7 @@ def _losses(sp: SensorParams) -> dict:
     return dict(
         speed_coef=_f64(rp.speed_coef), mesh_torque=_f64(rp.mesh_torque), mesh_omega2=_f64(rp.mesh_omega2),
         mesh_x0=_f64(rp.mesh_x0), mesh_phi=_f64(rp.mesh_phi), mesh_roll_k=_f64(rp.mesh_roll_k),
-        mesh_heat_sf=_f64(rp.mesh_heat_sf), bear_speed=_f64(rp.bear_speed), bear_c=_f64(rp.bear_c),
+        mesh_heat_sf=_f64(rp.mesh_heat_sf), mesh_roll_lt_min=_f64(rp.mesh_roll_lt_min), bear_speed=_f64(rp.bear_speed), bear_c=_f64(rp.bear_c),
         bear_load=_f64(rp.bear_load), needle_rel=_f64(rp.needle_rel), needle_c=_f64(rp.needle_c),
         sync_coef=_f64(rp.sync_coef), pump_coef=_f64(rp.pump_coef), churn_table=_f64(rp.churn_table),
         churn_w_max=rp.churn_w_max, churn_heat_sf=rp.churn_heat_sf, x_step=R.X_STEP, ln10=math.log(10.0),

@@ -88,9 +88,6 @@ N_U_CHURN = 33
 T2_STRIDE = 2
 #: spacing of the mesh slip-loss tables in x = log10(T1 / (mu w2^3))
 X_STEP = 0.125
-#: log10 of the rolling loss's least film torque (physics.losses.ROLL_TORQUE_MIN_NM; the kernel's
-#: GVS_LOG10_ROLL_TORQUE_MIN)
-LOG10_ROLL_TORQUE_MIN = math.log10(L.ROLL_TORQUE_MIN_NM)
 #: separability tolerance for power-law conductances (relative)
 SEPARABLE_RTOL = 1e-7
 #: linearised radiation is evaluated with housing temperatures clipped to this range [degC]
@@ -206,6 +203,7 @@ class ReducedParams(NamedNodes):
     mesh_phi: np.ndarray             # (9, nx)
     mesh_roll_k: np.ndarray          # (9,)
     mesh_heat_sf: np.ndarray         # (9,) seed loss-to-heat factor (0.75 gear contact, 0.80 planetary)
+    mesh_roll_lt_min: np.ndarray     # (9,) log10 of wheel 1's torque below which the rolling loss ramps to 0
     bear_speed: np.ndarray           # (17, 6) |bearing speed| per unit input speed
     bear_c: np.ndarray               # (6,) Palmgren M0 coefficient 9.78e-2 f0 Dm^3
     bear_load: np.ndarray            # (17, 6) load torque per N m of input torque
@@ -587,6 +585,7 @@ class LossMaps(NamedTuple):
     pump_coef: np.ndarray
     churn_w_max: float
     churn_table: np.ndarray
+    mesh_roll_lt_min: np.ndarray
 
 
 def _loss_maps(p: Parameters, net: Network, w_ls_max_rad_s: float) -> LossMaps:
@@ -594,7 +593,7 @@ def _loss_maps(p: Parameters, net: Network, w_ls_max_rad_s: float) -> LossMaps:
     (Eq 35-40), synchronizer (Eq 41) and pump (Eq 42) coefficients per gear, churning table (Eq 23-34)."""
     kin = p.kinematics
     gl = GearboxLosses(p, net.geometry)
-    mesh_x0, mesh_phi_rows, roll_k = _mesh_tables(gl)
+    mesh_x0, mesh_phi_rows, roll_k, roll_lt_min = _mesh_tables(gl)
     speed_abs = np.abs(kin.speed)
     bear_speed = np.zeros((N_GEARS, len(SHAFT_BEARINGS)))
     for j, b in enumerate(SHAFT_BEARINGS):
@@ -610,7 +609,7 @@ def _loss_maps(p: Parameters, net: Network, w_ls_max_rad_s: float) -> LossMaps:
     return LossMaps(mesh_x0, mesh_phi_rows, roll_k, heat_sf, bear_speed, L.PALMGREN_SEED_C * gl.f0 * gl.Dm ** 3,
                     gl.load_torque_coef, L.PALMGREN_SEED_C * gl.needle_f0 * gl.needle_Dm ** 3,
                     (kin.sync_rel ** 2) @ sync_c, gl.pump_k * kin.speed[:, SPEED_NAMES.index("LS")] ** 2,
-                    w_ls_max_rad_s, _churn_table(gl, u_ch * u_ch * w_ls_max_rad_s, T_GRID_C, kin))
+                    w_ls_max_rad_s, _churn_table(gl, u_ch * u_ch * w_ls_max_rad_s, T_GRID_C, kin), roll_lt_min)
 
 
 def _source_matrix(net: Network, agg: Aggregation) -> np.ndarray:
@@ -692,7 +691,8 @@ def build_reduced(p: Parameters, partition: str | dict = "fine", effects: dict |
         prop=_ro(oil_property_table(T_GRID_C)),
         speed_coef=_ro(kin.speed), mesh_torque=_ro(kin.mesh_torque), mesh_omega2=_ro(kin.mesh_omega2),
         mesh_x0=_ro(lm.mesh_x0), mesh_phi=_ro(lm.mesh_phi), mesh_roll_k=_ro(lm.mesh_roll_k),
-        mesh_heat_sf=_ro(lm.mesh_heat_sf), bear_speed=_ro(lm.bear_speed), bear_c=_ro(lm.bear_c),
+        mesh_heat_sf=_ro(lm.mesh_heat_sf), mesh_roll_lt_min=_ro(lm.mesh_roll_lt_min), bear_speed=_ro(lm.bear_speed),
+        bear_c=_ro(lm.bear_c),
         bear_load=_ro(lm.bear_load), needle_rel=_ro(kin.wheel_bearing_rel), needle_c=_ro(lm.needle_c),
         sync_coef=_ro(lm.sync_coef), pump_coef=_ro(lm.pump_coef), churn_w_max=float(lm.churn_w_max),
         churn_table=_ro(lm.churn_table), churn_heat_sf=float(p["scale.churn_to_heat"]),
@@ -764,9 +764,10 @@ def _fling_off_table(net: Network, k: int, w, T):
 
 
 def _mesh_tables(gl: GearboxLosses):
-    """Per mesh: x0 and phi on x = x0 + X_STEP i (slip loss / (T1 w2)), and the rolling-loss constant."""
+    """Per mesh: x0 and phi on x = x0 + X_STEP i (slip loss / (T1 w2)), the rolling-loss constant and log10 of the
+    torque T1 below which the rolling loss ramps to 0 (the plant's L.ROLL_TORQUE_MIN_NM per contact)."""
     n_pl = gl.n_planets
-    rows, x0s, roll = [], [], []
+    rows, x0s, roll, lt_min = [], [], [], []
     # x range: beyond it f_g is clipped at both ends for every point of the line of action
     xs = np.arange(-16.0, 24.0 + 1e-9, X_STEP)
     for m, mesh in zip(MESHES, gl.meshes):
@@ -790,12 +791,14 @@ def _mesh_tables(gl: GearboxLosses):
         if planetary:
             Pr = Pr * n_pl
         roll.append(float(Pr) / (100.0 ** 1.7 * 1000.0 ** -0.13))
+        # the plant's ramp starts at ROLL_TORQUE_MIN_NM per contact: n_pl times that on the sun's total torque
+        lt_min.append(math.log10((n_pl if planetary else 1.0) * L.ROLL_TORQUE_MIN_NM))
     nx = max(len(r) for r in rows)
     tab = np.empty((len(MESHES), nx))
     for i, r in enumerate(rows):
         tab[i, :len(r)] = r
         tab[i, len(r):] = r[-1]
-    return np.array(x0s), tab, np.array(roll)
+    return np.array(x0s), tab, np.array(roll), np.array(lt_min)
 
 
 def _churn_table(gl: GearboxLosses, w_ls: np.ndarray, T2: np.ndarray, kin) -> np.ndarray:
@@ -1027,14 +1030,12 @@ def heat_sources(rp: ReducedParams, row, w_in, torque_abs_nm, prop, x_T, src_sca
     mf = h.mesh_flat
     b = h.mesh_base + ix
     phi = mf[b] * (1.0 - fx) + mf[b + 1] * fx
-    # slip: T1 w2 phi; rolling: K mu^0.7 a^0.54 w2^1.7 T1^-0.13 (Eq 18: exact power law), its film at no less than
-    # L.ROLL_TORQUE_MIN_NM: below it w2 K mu^0.7 a^0.54 w2^0.7 T_min^-0.13 (no T1 / T1, which overflows for a tiny T1)
-    ln_roll = prop[..., P_LN_ROLL, None]
-    with np.errstate(over="ignore", invalid="ignore"):
-        P_film = T1s * omega2_safe * (phi + rp.mesh_roll_k * np.exp(ln_roll + math.log(10.0) * (0.7 * lw - 1.13 * lT)))
-    P_floor = T1s * omega2_safe * phi + omega2_safe * rp.mesh_roll_k * np.exp(
-        ln_roll + math.log(10.0) * (0.7 * lw - 0.13 * LOG10_ROLL_TORQUE_MIN))
-    P = np.where(lT >= LOG10_ROLL_TORQUE_MIN, P_film, P_floor)
+    # slip: T1 w2 phi; rolling: K mu^0.7 a^0.54 w2^1.7 T1^-0.13 (Eq 18: exact power law) down to the mesh's
+    # T_min (L.ROLL_TORQUE_MIN_NM per contact), below it the loss at T_min scaled by T1 / T_min: the same expression
+    # with T1^-1.13 taken at T_min (continuous at T_min and at 0)
+    lT_roll = np.maximum(lT, rp.mesh_roll_lt_min)
+    P = T1s * omega2_safe * (phi + rp.mesh_roll_k * np.exp(prop[..., P_LN_ROLL, None]
+                                                           + math.log(10.0) * (0.7 * lw - 1.13 * lT_roll)))
     P_mesh = np.where(on, P, 0.0) * rp.mesh_heat_sf
     # shaft bearings (Eq 35-40)
     omega_b_rad_s = rp.bear_speed[row] * omega_in_col

@@ -39,7 +39,9 @@ Reconstructions and interpretations (the seed's text extraction garbles several 
   nodes never fall on the pitch point, so the removable singularity (V log V -> 0) gives no NaN and the sum
   converges with ``n_points`` (points on each side of the pitch point).
 * Eq 15 w_0 is the face width b; the constant 9e7 has units of Pa. Eq 18 is Dowson-Higginson's minimum film
-  thickness with the mean entrainment speed ``V_r / 2``. Eq 20 for an internal mesh uses the concave ring:
+  thickness with the mean entrainment speed ``V_r / 2``. Below ROLL_TORQUE_MIN_NM (assumed) the rolling loss is the
+  loss at that torque scaled linearly to 0: Eq 18's load^-0.13 has no lower limit and grows without bound as the load
+  vanishes, while the seed gives no loss at zero torque. Eq 20 for an internal mesh uses the concave ring:
   ``X_eq = X1 X2 / (X2 - X1)``.
 * Eq 40: implemented literally (``X1 Fr + Y1 Fa`` when ``Fa/Fr >= e``). Note that the seed's Table 7 lists
   the SKF coefficients the other way round (X1=1, Y1=0 is SKF's ``Fa/Fr <= e`` set; X2, Y2 its
@@ -68,11 +70,12 @@ BK_A = 0.0127
 BK_C = 0.02912
 #: rolling-force constant of Eq 15 [Pa]
 ROLL_C_PA = 9.0e7
-#: the rolling loss's film thickness (Eq 18, Dowson-Higginson: load^-0.13) is taken at no less than this pinion
-#: torque [N m] (assumed): the elastohydrodynamic law has no lower limit of load and grows without bound as the
-#: load vanishes (a torque of 1e-40 N m gave 1.6e5 times the loss; the onboard step's temperatures ran to 280 degC
-#: or NaN on one such sample), while an unloaded mesh's film is bounded by its geometry; below 1 N m the load is also
-#: far inside the torque signal's resolution (J1939: 1 % of the reference torque, ~30 N m). Zero torque stays 0.
+#: below this torque on wheel 1 of one contact [N m] (assumed) the rolling loss (Eq 14-22) is the loss at this torque
+#: scaled by T / ROLL_TORQUE_MIN_NM: Dowson-Higginson's film (Eq 18, load^-0.13) has no lower limit of load and grows
+#: without bound as the load vanishes (a torque of 1e-40 N m gave 1.6e5 times the loss, and the onboard step's
+#: temperatures ran to 280 degC or NaN on one such sample), while zero torque gives no loss; the ramp joins the two
+#: continuously. 1 N m is a small fraction of any torque the engine signal resolves (J1939: 1 % of the reference
+#: torque, ~30 N m at the engine, more at the wheels).
 ROLL_TORQUE_MIN_NM = 1.0
 #: ISO 53 basic rack: addendum and dedendum coefficients [-]
 ADDENDUM_COEF = 1.0
@@ -284,7 +287,8 @@ def gear_rolling_loss_w(mesh: GearMesh, torque1_nm, omega2_rad_s, mu_pa_s, piezo
                         n_points=20):
     """Rolling (EHL film) power loss of a loaded mesh [W], Eq 14-22 (order of 1..10 W, negligible).
 
-    Zero torque or speed gives 0. Broadcasts over torque/speed/oil. Planetary meshes: carrier-relative speed.
+    Zero torque or speed gives 0; below ROLL_TORQUE_MIN_NM the loss at that torque scaled by T / ROLL_TORQUE_MIN_NM
+    (Eq 18 alone grows without bound as the load vanishes). Broadcasts over torque/speed/oil. Planetary meshes: carrier-relative speed.
     """
     d, wt, s, _, vr_per_w2 = _mesh_kinematics(mesh, n_points)
     T = np.asarray(torque1_nm, dtype=float)[..., None]
@@ -293,7 +297,7 @@ def gear_rolling_loss_w(mesh: GearMesh, torque1_nm, omega2_rad_s, mu_pa_s, piezo
     ap = np.asarray(piezo_per_pa, dtype=float)[..., None]
     E_eq = equivalent_modulus_pa(E1_pa, E2_pa, nu1, nu2)  # Eq 19
     _, F_nu = _normal_force(mesh, T)
-    F_nu = np.maximum(F_nu, _normal_force(mesh, np.asarray(ROLL_TORQUE_MIN_NM))[1])   # ROLL_TORQUE_MIN_NM
+    F_nu = np.maximum(F_nu, _normal_force(mesh, np.asarray(ROLL_TORQUE_MIN_NM))[1])   # the film at T_min below it
     V_r = w2 * vr_per_w2  # Eq 16
     c = math.cos(mesh.alpha_t_rad) / (math.cos(mesh.beta_rad) * math.cos(mesh.alpha_n_rad))  # = 1/cos(beta_b)
     sin_tw = math.sin(mesh.alpha_tw_rad)
@@ -305,6 +309,7 @@ def gear_rolling_loss_w(mesh: GearMesh, torque1_nm, omega2_rad_s, mu_pa_s, piezo
                * (F_nu / (E_eq * X_eq)) ** -0.13)                      # Eq 18
         F_r = ROLL_C_PA * e_h * mesh.face_width_m / math.cos(mesh.beta_rad)  # Eq 15
         P = np.sum(wt * F_r * V_r, axis=-1)                                # Eq 14
+    P = P * np.minimum(np.abs(T[..., 0]) / ROLL_TORQUE_MIN_NM, 1.0)        # ROLL_TORQUE_MIN_NM: the ramp to 0
     return np.where((T[..., 0] == 0.0) | (w2[..., 0] == 0.0), 0.0, P)
 
 

@@ -290,3 +290,20 @@ def test_law_grid_batched_equals_one_evaluation_per_point(params):
     for s in ref.tables:
         assert np.array_equal(fast.tables[s], ref.tables[s]), s
     assert np.array_equal(fast.G_ring_low, ref.G_ring_low)
+
+
+@pytest.mark.parametrize("tq", [1e-30, 0.05, 0.2, 1.0, 3.0, 8.0, 30.0])
+def test_loss_maps_match_gearbox_losses_at_tiny_torques(rp, full, tq):
+    """The rolling loss's ramp below its least film torque (losses.ROLL_TORQUE_MIN_NM per contact: a review found
+    the onboard reduction applying it to the sun's total torque, 5 planets, where the plant applies it per planet:
+    PSP 70 W against 57 W) and the slip table's low end, plant against reduction, every mesh."""
+    _, _, gl = full
+    h = R.helpers(rp)
+    for g in (-1, 1, 5, 8, 12, 14):
+        for rpm in (600.0, 1400.0, 2200.0):
+            ref = gl.heat(gl.evaluate(rpm * R.RPM, tq, g, 80.0))
+            x, prop, phi = R.oil_row(rp, 80.0, h)
+            Q = R.heat_sources(rp, g - GEAR_MIN, rpm * R.RPM, tq, prop, x, h=h)
+            meshes = [float(ref[f"mesh:{m}"][0]) for m in ("L", "3", "2", "1", "C", "R", "RI")]
+            assert np.allclose(Q[:7], meshes, rtol=0.003, atol=0.05), (g, rpm)
+            assert Q[7] + Q[8] == pytest.approx(float(ref["planetary"][0]), rel=0.003, abs=0.05), (g, rpm)

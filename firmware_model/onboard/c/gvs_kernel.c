@@ -6,14 +6,6 @@
 
 #include "gvs_kernel.h"
 
-/* The kernel's NaN and range checks are comparisons with NaN: -ffast-math (-ffinite-math-only) lets the compiler
- * assume they never hold, so bad input reads as good and tables are indexed with garbage (a crash under clang). */
-#if defined(__FAST_MATH__) || defined(__FINITE_MATH_ONLY__) && __FINITE_MATH_ONLY__
-#error "gvs_kernel.c must not be compiled with -ffast-math or -ffinite-math-only (its NaN checks would vanish)"
-#endif
-
-/* log10 of the rolling loss's least film torque [N m] (firmware_model.physics.losses.ROLL_TORQUE_MIN_NM = 1) */
-#define GVS_LOG10_ROLL_TORQUE_MIN 0.0
 
 #ifndef GVS_SOURCE_ID
 #define GVS_SOURCE_ID "unknown"
@@ -196,7 +188,7 @@ static void heat_sources(const gvs_tables *tb, const gvs_vehicle *veh, int32_t r
     for (m = 0; m < tb->n_mesh; ++m, ++i) {
         gvs_real T1 = tb->mesh_torque[row * tb->n_mesh + m] * torque;
         gvs_real w2 = tb->mesh_omega2[row * tb->n_mesh + m] * w;
-        gvs_real lT, lw, x, fx, phi, P;
+        gvs_real lT, lw, x, fx, phi, P, lT_roll;
         int32_t ix;
         if (!(T1 > R_(0.0) && w2 > R_(0.0))) { src[i] = R_(0.0); continue; }
         lT = LOG10(T1);
@@ -207,13 +199,10 @@ static void heat_sources(const gvs_tables *tb, const gvs_vehicle *veh, int32_t r
         if (ix > tb->nx - 2) ix = tb->nx - 2;    /* in float nx - 1.000001 rounds to nx - 1: stay in the table */
         fx = x - (gvs_real)ix;
         phi = tb->mesh_phi[m * tb->nx + ix] * (R_(1.0) - fx) + tb->mesh_phi[m * tb->nx + ix + 1] * fx;
-        /* slip T1 w2 phi; rolling K mu^0.7 a^0.54 w2^1.7 T1^-0.13 (Eq 18), its film at no less than the least film
-         * torque: below it w2 K mu^0.7 a^0.54 w2^0.7 T_min^-0.13 (no T1 / T1 that overflows for a tiny T1) */
-        if (lT >= R_(GVS_LOG10_ROLL_TORQUE_MIN))
-            P = T1 * w2 * (phi + tb->mesh_roll_k[m] * EXP(o->prop[P_LN_ROLL] + tb->ln10 * (R_(0.7) * lw - R_(1.13) * lT)));
-        else
-            P = T1 * w2 * phi + w2 * tb->mesh_roll_k[m] * EXP(o->prop[P_LN_ROLL] + tb->ln10
-                                                              * (R_(0.7) * lw - R_(0.13) * R_(GVS_LOG10_ROLL_TORQUE_MIN)));
+        /* slip T1 w2 phi; rolling K mu^0.7 a^0.54 w2^1.7 T1^-0.13 (Eq 18) down to the mesh's T_min, below it the loss
+         * at T_min scaled by T1 / T_min (T1^-1.13 taken at T_min: continuous at T_min and at 0) */
+        lT_roll = max_r(lT, tb->mesh_roll_lt_min[m]);
+        P = T1 * w2 * (phi + tb->mesh_roll_k[m] * EXP(o->prop[P_LN_ROLL] + tb->ln10 * (R_(0.7) * lw - R_(1.13) * lT_roll)));
         src[i] = P * tb->mesh_heat_sf[m];
     }
     for (b = 0; b < tb->n_bear; ++b, ++i) {                  /* shaft bearings, Palmgren (Eq 35-40) */
@@ -436,8 +425,19 @@ static int skip_step(const gvs_tables *tb, gvs_state *st, gvs_outputs *out)
     return GVS_SKIPPED;
 }
 
+/* 1 when this build's NaN comparisons work: a compiler told NaN cannot occur (-ffast-math, -ffinite-math-only,
+ * clang's -fno-honor-nans, which defines no macro the #error above could see) folds x != x to false, and the input
+ * checks would take NaN for a value */
+static int nan_checks_work(void)
+{
+    volatile gvs_real zero = R_(0.0);      /* the real type: a double division is soft-float on an M4F (1 KB) */
+    gvs_real x = zero / zero;
+    return x != x;
+}
+
 int gvs_check_tables(const gvs_tables *tb)
 {
+    if (!nan_checks_work()) return GVS_BAD_TABLES;
     if (tb->n > GVS_MAX_NODES || tb->nl > GVS_MAX_LINKS || tb->ldl_nnz > GVS_MAX_LNZ || tb->ns > GVS_MAX_SRC || tb->nb > GVS_MAX_BC
         || tb->nst > GVS_MAX_STREAMS || tb->n2 > GVS_MAX_TERMS || tb->ne > GVS_MAX_TERMS
         || tb->ncol > GVS_MAX_TERMS || tb->n_gears != GVS_N_GEARS

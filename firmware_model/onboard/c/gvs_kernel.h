@@ -26,6 +26,14 @@
 
 #include <stdint.h>
 
+/* The kernel's and the API's NaN and range checks are comparisons with NaN: -ffast-math (-ffinite-math-only) lets
+ * the compiler assume they never hold, so bad input reads as good and tables are indexed with garbage (a crash under
+ * clang). Every file that includes this header stops; gvs_check_tables() also refuses to step a build whose NaN
+ * comparisons do not work (clang's -fno-honor-nans defines no macro). */
+#if defined(__FAST_MATH__) || defined(__FINITE_MATH_ONLY__) && __FINITE_MATH_ONLY__
+#error "gearbox-vsensor's C must not be compiled with -ffast-math or -ffinite-math-only (its NaN checks would vanish)"
+#endif
+
 /* the sources' SHA-256 prefix this build was made from */
 extern const char *const gvs_source_id_str;
 
@@ -115,6 +123,7 @@ typedef struct {
     const gvs_real *speed_coef;         /* (gears, n_speed) */
     const gvs_real *mesh_torque, *mesh_omega2;          /* (gears, n_mesh) */
     const gvs_real *mesh_x0, *mesh_phi, *mesh_roll_k, *mesh_heat_sf;  /* (n_mesh), (n_mesh, nx), ... */
+    const gvs_real *mesh_roll_lt_min;   /* (n_mesh) log10 T1 below which the rolling loss ramps to 0 */
     const gvs_real *bear_speed, *bear_c, *bear_load, *needle_rel, *needle_c;  /* (gears, n_bear), (n_bear) */
     const gvs_real *sync_coef, *pump_coef;              /* (gears) */
     const gvs_real *churn_table;        /* (n_u_churn, nT) */
@@ -205,7 +214,7 @@ typedef struct {
 } gvs_ttl_point;
 
 /* 0 when the tables fit the structs, else GVS_BAD_TABLES. */
-int gvs_check_tables(const gvs_tables *tb);
+int gvs_check_tables(const gvs_tables *tb);     /* also GVS_BAD_TABLES when a build's NaN checks do not work */
 
 /* One 0.1 s step of one vehicle, in place. jump_done: the host has propagated the state over the forward time
  * jump this step's t_s shows (count it and step); 0: return GVS_NEED_JUMP first. ttl: filled when a refresh of the
