@@ -178,4 +178,8 @@ def test_a_constant_offset_left_on_a_held_out_channel_is_a_caution():
                                          ("a.csv", "PS", t, None, noise),
                                          ("a.csv", "BLR", t, None, 1.5 * np.sin(t / 60.0))]})
     lines = _offsets_left(cal)
-    assert len(lines) == 1 and lines[0].startswith("oil is +1.3") and "sensor offset" in lines[0], lines
+    assert len(lines) == 1 and lines[0].startswith("oil reads 1.3") and "above the calibrated model" in lines[0]
+    assert "sensor offset" in lines[0] and "oil_sensor_offset" in lines[0], lines
+    cal.plot["test"] = [("a.csv", "PS", t, None, -0.9 + noise)]
+    lines = _offsets_left(cal)
+    assert len(lines) == 1 and "PS reads 0.8" in lines[0] and "below" in lines[0] and "diagnose" not in lines[0]

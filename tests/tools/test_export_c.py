@@ -276,6 +276,10 @@ int main(void)
     memcpy(&st, &saved, sizeof st);
     st.pending_s[0] = (gvs_real)INFINITY;
     if (gvs_sensor_resume(&st, 50.0) != -1) bad = 11;
+    /* ... but the last raw input as it came (inf, beyond the real type's range) is one the sensor saves itself */
+    memcpy(&st, &saved, sizeof st);
+    st.raw_prev[0] = (gvs_real)INFINITY;
+    if (gvs_sensor_resume(&st, 50.0) != 0) bad = 13;
     /* contents that are no sensor state */
     memset(&st, 0xFF, sizeof st);
     if (gvs_sensor_resume(&st, 50.0) != -1) bad = 4;
@@ -394,11 +398,26 @@ def test_loss_map_edges_under_the_sanitizers(bundles, tmp_path):
 @pytest.mark.skipif(not HAVE_CC, reason="no make or C compiler on this machine")
 def test_fast_math_stops_the_build(bundles, tmp_path):
     """From an ECU audit: -ffast-math removed the NaN checks (NaN inputs read as good under gcc, a crash under
-    clang); the kernel now refuses to compile under it."""
+    clang); the kernel and the sensor's restore now refuse to compile under it, and a build whose NaN comparisons do
+    not work (clang -fno-honor-nans) refuses to step."""
     cc = shutil.which("cc") or shutil.which("gcc")
-    bad = subprocess.run([cc, "-std=c99", "-ffast-math", "-c", "-o", str(tmp_path / "k.o"),
-                          str(bundles["float"] / "gvs_kernel.c")], capture_output=True, text=True)
-    assert bad.returncode != 0 and "fast-math" in bad.stderr, bad.stderr
+    for name in ("gvs_kernel.c", "gvs_sensor.c"):
+        for flag in ("-ffast-math", "-ffinite-math-only"):
+            bad = subprocess.run([cc, "-std=c99", flag, "-c", "-o", str(tmp_path / "k.o"),
+                                  str(bundles["float"] / name)], capture_output=True, text=True)
+            assert bad.returncode != 0 and "fast-math" in bad.stderr, (name, flag, bad.stderr)
+    # clang's -fno-honor-nans defines no macro: the kernel then refuses to step (its NaN checks would not work)
+    clang = shutil.which("clang")
+    if clang:
+        d = bundles["float"]
+        exe = tmp_path / "nonan"
+        build = subprocess.run([clang, "-std=c99", "-O2", "-fno-honor-nans", f"-I{d}", "-o", str(exe),
+                                *(str(d / f) for f in ("gvs_kernel.c", "gvs_sensor.c", "gvs_tables.c",
+                                                       "gvs_vectors.c", "gvs_test.c")), "-lm"],
+                               capture_output=True, text=True)
+        assert build.returncode == 0, build.stderr
+        run = subprocess.run([str(exe)], capture_output=True, text=True, timeout=120)
+        assert run.returncode != 0 and "FAIL" in run.stdout, run.stdout[-500:]
 
 
 def test_variant_replaces_the_configurations(tmp_path):
@@ -406,9 +425,13 @@ def test_variant_replaces_the_configurations(tmp_path):
     status 0. --variant now replaces the configuration's variant (as replay combines them); without it the
     configuration's is used."""
     cfg = tmp_path / "cfg.toml"
-    cfg.write_text('[gearbox]\nvariant = "GRS905"\n[sensor]\ndebounce_s = 2.0\n')
-    for args, want in ((["--variant", "GRSO905", "--config", str(cfg)], "GRSO905"), (["--config", str(cfg)], "GRS905")):
-        out = tmp_path / want
+    cfg.write_text('[sensor]\ndebounce_s = 2.0\n')                       # names no variant (the audit's case)
+    named = tmp_path / "named.toml"
+    named.write_text('[gearbox]\nvariant = "GRSO905"\n')
+    cases = ((["--variant", "GRSO905", "--config", str(cfg)], "GRSO905"), (["--config", str(cfg)], "GRS905"),
+             (["--config", str(named)], "GRSO905"), (["--variant", "GRS905", "--config", str(named)], "GRS905"))
+    for i, (args, want) in enumerate(cases):
+        out = tmp_path / f"export{i}"
         assert main(["export-c", *args, "--out", str(out), "--quiet"]) == 0
         head = (out / "gvs_tables.c").read_text()[:300]
         assert f"the onboard tables of {want} " in head, head

@@ -116,10 +116,12 @@ def _offsets_left(cal) -> list[str]:
             continue
         mean, rms = float(r.mean()), float(np.sqrt(np.mean(r * r)))
         if abs(mean) >= OFFSET_LEFT_C and abs(mean) >= OFFSET_SHARE * rms:
-            out.append(f"{cid} is {mean:+.2f} K off the calibrated model on the held-out files, nearly constant (RMS "
-                       f"{rms:.2f} K): the signature of a sensor offset or placement, which calibrate does not fit "
-                       f"and which biases the fitted values; check it with `gearbox-vsensor diagnose` "
-                       f"(oil_sensor_offset) before using this file")
+            check = ("check it with `gearbox-vsensor diagnose` (it fits oil_sensor_offset)" if cid == "oil" else
+                     "check that sensor's calibration and placement")
+            out.append(f"{cid} reads {abs(mean):.2f} K {'above' if mean > 0 else 'below'} the calibrated model on the "
+                       f"held-out files, nearly constant (RMS {rms:.2f} K): the signature of a sensor offset or "
+                       f"placement, which calibrate does not fit and which biases the fitted values; {check} before "
+                       f"using this file")
     return out
 
 

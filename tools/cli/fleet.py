@@ -85,7 +85,7 @@ def _warn_duplicates(out) -> None:
         print(f"warning: {len(g)} logs of one vehicle look like copies of each other (the same first and last frame "
               f"time and frame count), each summarised and counted: {', '.join(g)}", file=sys.stderr)
     if len(dups) > 5:
-        print(f"warning: ... {len(dups) - 5} more groups of copies (report.md lists them)", file=sys.stderr)
+        print(f"warning: ... {len(dups) - 5} more groups of copies (report.md lists the first 50)", file=sys.stderr)
 
 
 def run(args) -> int:

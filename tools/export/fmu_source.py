@@ -85,6 +85,10 @@ static void outputs_now(Instance *m)
 static int exit_init(Instance *m)
 {
     int i;
+    if (!(m->time_s - m->time_s == 0.0)) {
+        m->log(m, 1, "the start time must be a finite time");
+        return -1;
+    }
     for (i = 0; i < GVS_N_PUB; ++i) {
         if (!(m->warning_c[i] >= (gvs_real)LIMIT_LO_C && m->critical_c[i] <= (gvs_real)LIMIT_HI_C)) {
             m->log(m, 1, "every limit must be a temperature in " LIMIT_RANGE_TEXT " degC (as the limits file)");
@@ -121,13 +125,18 @@ static int do_step(Instance *m, double t, double h)
                                                         : "no step before the end of initialisation");
         return -1;
     }
-    if (!(n_real >= 0.5 && n_real < 1e12)) {               /* NaN, inf, zero, negative, or beyond any run */
+    if (!(n_real >= 0.5 && n_real < 1e9)) {                /* NaN, inf, zero, negative, or beyond any run (and a
+                                                              * long of 32 bits, as on Windows, holds the count) */
         m->log(m, 1, "the communication step must be a positive multiple of 0.1 s");
         return -1;
     }
     n = (long)floor(n_real + 0.5);
     if (fabs(n_real - (double)n) > 1e-6) {
         m->log(m, 1, "the communication step must be a positive multiple of 0.1 s");
+        return -1;
+    }
+    if (!(t - t == 0.0)) {                                  /* NaN or inf */
+        m->log(m, 1, "the communication point must be a finite time");
         return -1;
     }
     if (!(fabs(t - m->time_s) <= 1e-3 * (double)GVS_TABLES.dt_s + 1e-12 * fabs(t))) {   /* rounding, not a skip */

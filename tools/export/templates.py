@@ -104,8 +104,8 @@ int gvs_sensor_resume(gvs_state *st, double T_oil_c)
         if (!finite_value(st->lag_w[i])) return -1;
     for (i = 0; i < GVS_N_INPUTS; ++i)
         if (!(st->age_s[i] >= (gvs_real)0.0) || !(st->same_s[i] >= (gvs_real)0.0) || !finite_value(st->same_s[i])
-            || (st->hold[i] == st->hold[i] && !finite_value(st->hold[i]))
-            || (st->raw_prev[i] == st->raw_prev[i] && !finite_value(st->raw_prev[i]))) return -1;
+            || (st->hold[i] == st->hold[i] && !finite_value(st->hold[i]))) return -1;
+    /* raw_prev holds the last raw input as it came, +-inf and values beyond the real type's range included */
     if (!finite_value(st->oil_ref_c)) return -1;
     st->memo_valid = 0;                 /* the conductance memo is recomputed, never trusted from storage */
     /* an ignition cycle lies between: every input's last value is older than any check's window (the oil reading
@@ -421,8 +421,8 @@ warning levels, degraded modes and the time to limit with the Python reference (
 
 This export's real type ({real}), struct sizes and index width are fixed in `gvs_kernel.h`: compile every file with
 the Makefile's flags or with none of them (another value stops the build with `#error`). Never with fast-math:
-`gvs_kernel.c` stops with `#error` under `-ffast-math` or `-ffinite-math-only`, which would remove the NaN checks of
-the input validation.
+every file that includes `gvs_kernel.h` stops with `#error` under `-ffast-math` or `-ffinite-math-only`, which would
+remove the NaN checks of the input validation (and a build whose NaN comparisons do not work refuses to step).
 
 ## Calling it
 
@@ -465,7 +465,7 @@ Input checks a bench meets (the counters and `frozen_flags` say which fired): sp
 {drive_frozen} s while the engine turns are flagged as frozen (`frozen_flags` bits 0 and 1, `drive_frozen`; still
 used, the mode stays 0), so a bench feeding constant values sees this after {drive_frozen} s; an oil reading
 bit-identical for {oil_frozen} s while the modelled sump moved {oil_drift} K is frozen (modelled instead, mode 1,
-`oil_frozen`); an oil reading more than {oil_step} K from a good one less than 1 s old is not used that step
+`oil_frozen`); an oil reading more than {oil_step} K from a good one at most 1 s old is not used that step
 (`oil_implausible`); speed, torque or gear missing for more than {hold} s make every level 3 (not available).
 
 Thread safety: the functions keep no global state; one `gvs_state` per sensor, not shared between threads without
