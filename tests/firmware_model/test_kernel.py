@@ -42,6 +42,8 @@ def hostile_inputs(rng: np.random.Generator, V: int, L: int):
     bad = np.array([np.nan, np.inf, -np.inf, 1e308, -1e308])
     speed = rng.uniform(0.0, 2600.0, (L, V))
     torque = rng.uniform(-800.0, 3200.0, (L, V))
+    tiny = rng.random((L, V)) < 0.05                     # the rolling loss's ramp: torques down to 1e-320 N m
+    torque[tiny] = 10.0 ** rng.uniform(-320.0, 1.0, int(tiny.sum()))
     gear = rng.integers(-3, 16, (L, V)).astype(float)
     gear[rng.random((L, V)) < 0.05] = 2.5
     oil = 60.0 + np.cumsum(rng.normal(0.0, 1.0, (L, V)), axis=0)
