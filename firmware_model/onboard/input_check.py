@@ -48,7 +48,7 @@ def check_inputs(state: SensorState, raw: np.ndarray, sp: SensorParams) -> Input
     in_range = finite & (raw >= sp.input_lo) & (raw <= sp.input_hi)
     fixed = np.minimum(np.maximum(raw, sp.clamp_lo), sp.clamp_hi)
     fixed[..., I_RET] = np.abs(raw[..., I_RET])
-    clamped = finite & (fixed != raw)
+    clamped = in_range & (fixed != raw)        # beyond the plausible range a speed or torque is missing, not clamped
     gear = raw[..., I_GEAR]
     gear_ok = in_range[..., I_GEAR] & (gear == np.rint(gear))
     # oil: plausible range, no implausible step from a recent good value, not frozen while the twin's sump moves
@@ -72,6 +72,7 @@ def check_inputs(state: SensorState, raw: np.ndarray, sp: SensorParams) -> Input
     age = np.where(ok, 0.0, state.age_s + dt)
     counts = np.zeros(ok.shape[:-1] + (len(_INPUT_REASONS),), dtype=np.int64)
     counts[..., _MISSING_COLUMNS] = ~finite[..., :I_AMB]          # speed, torque, gear, oil missing
+    counts[..., _MISSING_COLUMNS[:2]] = ~in_range[..., :I_GEAR]   # speed, torque: also a value no frame can carry
     counts[..., _CLAMPED_COLUMNS] = clamped[..., :I_GEAR]         # speed, torque clamped
     counts[..., _GEAR_UNKNOWN] = finite[..., I_GEAR] & ~gear_ok
     counts[..., _OIL_IMPLAUSIBLE] = (finite[..., I_OIL] & ~oil_in_range) | jumpy

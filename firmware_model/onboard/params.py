@@ -85,6 +85,12 @@ class SensorParams:
 #: plausible retarder torque magnitude [N m]: the data range of the J1939 retarder reference torque (SPN 1085,
 #: 0..64255 N m), so that a percent of it can never exceed it; beyond it the input is not plausible (aux_missing)
 RETARDER_TORQUE_MAX_NM = 64255.0
+#: the largest engine speed a J1939 frame can carry [rpm] (SPN 190: 0..8031.875 rpm): a value beyond it in either sign
+#: is no reading (garbage such as 1e308 was clamped to 4000 rpm and used as full speed); it is not available (held)
+ENGINE_SPEED_DATA_MAX_RPM = 8031.875
+#: the largest engine torque magnitude a J1939 frame can carry [N m] (SPN 513, -125..125 %, of the reference torque
+#: SPN 544, at most 64255 N m): beyond it no reading (1e308 was clamped to the engine's maximum and raised warnings)
+ENGINE_TORQUE_DATA_MAX_NM = 1.25 * 64255.0
 
 
 def _input_bounds(rp: R.ReducedParams, opt: SensorOptions) -> dict:
@@ -93,8 +99,10 @@ def _input_bounds(rp: R.ReducedParams, opt: SensorOptions) -> dict:
     aux_lo, aux_hi = opt.aux_range_c
     ret = RETARDER_TORQUE_MAX_NM
     return dict(
-        input_lo=np.array([-inf, -inf, GEAR_MIN, opt.oil_range_c[0], aux_lo, aux_lo, 0.0, -ret]),
-        input_hi=np.array([inf, inf, GEAR_MAX, opt.oil_range_c[1], aux_hi, aux_hi, opt.max_vehicle_speed_kmh, ret]),
+        input_lo=np.array([-ENGINE_SPEED_DATA_MAX_RPM, -ENGINE_TORQUE_DATA_MAX_NM, GEAR_MIN, opt.oil_range_c[0], aux_lo,
+                           aux_lo, 0.0, -ret]),
+        input_hi=np.array([ENGINE_SPEED_DATA_MAX_RPM, ENGINE_TORQUE_DATA_MAX_NM, GEAR_MAX, opt.oil_range_c[1], aux_hi,
+                           aux_hi, opt.max_vehicle_speed_kmh, ret]),
         clamp_lo=np.array([0.0, rp.min_torque_nm, -inf, -inf, -inf, -inf, -inf, -inf]),
         clamp_hi=np.array([rp.max_speed_rpm, rp.max_torque_nm, inf, inf, inf, inf, inf, inf]))
 

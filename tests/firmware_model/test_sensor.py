@@ -263,7 +263,7 @@ def test_inf_torque_holds_the_last_good_value(sensor, warm):
 
 def test_speed_above_4000_rpm_is_clamped(sensor, warm):
     a, oa = sensor.step(warm, NOMINAL._replace(speed_rpm=4000.0))
-    b, ob = sensor.step(warm, NOMINAL._replace(speed_rpm=9000.0))
+    b, ob = sensor.step(warm, NOMINAL._replace(speed_rpm=6000.0))
     np.testing.assert_allclose(ob.T_c, oa.T_c, atol=1e-12)
     assert b.rejects[RJ["speed_clamped"]] == 1 and a.rejects[RJ["speed_clamped"]] == 0
     c, oc = sensor.step(warm, NOMINAL._replace(speed_rpm=-50.0))
@@ -275,12 +275,27 @@ def test_speed_above_4000_rpm_is_clamped(sensor, warm):
 def test_torque_beyond_the_engine_range_is_clamped(sensor, warm):
     rp = sensor.reduced
     a, oa = sensor.step(warm, NOMINAL._replace(torque_nm=rp.max_torque_nm))
-    b, ob = sensor.step(warm, NOMINAL._replace(torque_nm=1e6))
+    b, ob = sensor.step(warm, NOMINAL._replace(torque_nm=5e4))
     np.testing.assert_allclose(ob.T_c, oa.T_c, atol=1e-12)
-    c, oc = sensor.step(warm, NOMINAL._replace(torque_nm=-1e6))
+    c, oc = sensor.step(warm, NOMINAL._replace(torque_nm=-5e4))
     d, od = sensor.step(warm, NOMINAL._replace(torque_nm=rp.min_torque_nm))
     np.testing.assert_allclose(oc.T_c, od.T_c, atol=1e-12)
     assert b.rejects[RJ["torque_clamped"]] == 1 and c.rejects[RJ["torque_clamped"]] == 1
+
+
+@pytest.mark.parametrize("field, value", [("speed_rpm", 1e308), ("speed_rpm", 9000.0), ("speed_rpm", -1e308),
+                                          ("torque_nm", 1e308), ("torque_nm", -1e6)])
+def test_a_speed_or_torque_no_j1939_frame_can_carry_is_missing_not_clamped(sensor, warm, field, value):
+    """From an ECU audit: a torque of 1e308 was clamped to the engine's maximum and used in mode 0, raising warnings;
+    beyond the J1939 data range (8031.875 rpm; 125 % of a 64255 N m reference) a value is no reading: held as a
+    missing one, counted as missing, not clamped."""
+    a, oa = sensor.step(warm, NOMINAL)
+    b, ob = sensor.step(warm, NOMINAL._replace(**{field: value}))
+    np.testing.assert_allclose(ob.T_c, oa.T_c, atol=1e-12)               # held: the same as the last good value
+    what = field.split("_")[0]
+    assert b.rejects[RJ[f"{what}_missing"]] == warm.rejects[RJ[f"{what}_missing"]] + 1
+    assert b.rejects[RJ[f"{what}_clamped"]] == warm.rejects[RJ[f"{what}_clamped"]]
+    assert int(ob.status.degraded_mode) == MODE_HOLDING
 
 
 @pytest.mark.parametrize("bad_gear", [7.5, 99.0, -3.0, 251.0])

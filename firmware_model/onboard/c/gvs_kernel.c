@@ -319,7 +319,7 @@ static void check_inputs(const gvs_tables *tb, gvs_state *st, const double *raw_
         finite[i] = finite_r(r);
         in_range[i] = finite[i] && r >= (double)tb->input_lo[i] && r <= (double)tb->input_hi[i];
         f = i == GVS_I_RET ? fabs(r) : (r < lo ? lo : (r > hi ? hi : r));
-        clamped[i] = finite[i] && f != r;
+        clamped[i] = in_range[i] && f != r;    /* beyond the plausible range: missing, not clamped */
         fixed[i] = finite[i] ? (gvs_real)f : raw[i];
     }
     gear_ok = in_range[GVS_I_GEAR] && raw[GVS_I_GEAR] == RINT(raw[GVS_I_GEAR]);
@@ -343,8 +343,8 @@ static void check_inputs(const gvs_tables *tb, gvs_state *st, const double *raw_
         c->used[i] = c->ok[i] ? fixed[i] : fallback;
         age[i] = c->ok[i] ? R_(0.0) : st->age_s[i] + dt;
     }
-    counts[RJ_SPEED_MISSING] = !finite[GVS_I_SPEED];
-    counts[RJ_TORQUE_MISSING] = !finite[GVS_I_TORQUE];
+    counts[RJ_SPEED_MISSING] = !in_range[GVS_I_SPEED];      /* NaN, inf, or a value no J1939 frame can carry */
+    counts[RJ_TORQUE_MISSING] = !in_range[GVS_I_TORQUE];
     counts[RJ_GEAR_MISSING] = !finite[GVS_I_GEAR];
     counts[RJ_OIL_MISSING] = !finite[GVS_I_OIL];
     counts[RJ_SPEED_CLAMPED] = clamped[GVS_I_SPEED];
