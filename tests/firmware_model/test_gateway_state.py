@@ -5,6 +5,7 @@ the first oil reading; a missing, corrupt, truncated or foreign file means a col
 health file feeds `gearbox-vsensor status`; systemd gets READY=1 / WATCHDOG=1 over its notify socket."""
 from __future__ import annotations
 
+import base64
 import json
 import shutil
 import socket
@@ -126,6 +127,48 @@ def test_a_state_file_with_bad_fields_is_a_cold_start_not_a_crash_loop(params, t
     store = StateStore(tmp_path / "state.json", clock=clock)
     assert store.load(_service(params).sensor) is None
     assert store.counters["cold_starts"] == 1 and reason in store.counters["reason"]
+
+
+def _damage_level(snap):
+    a = np.frombuffer(base64.b64decode(snap["level"]["data"]), dtype=np.int8).copy()
+    a[5] = 16                                                  # no warning level: the first step's DM1 failed
+    snap["level"]["data"] = base64.b64encode(a.tobytes()).decode()
+    snap.pop("crc32", None)                                          # (a file from before the checksum)
+
+
+def _flip_bit(snap):
+    a = np.frombuffer(base64.b64decode(snap["T_c"]["data"]), dtype=np.float64).copy()
+    a.view(np.uint64)[7] ^= np.uint64(1 << 53)                 # one exponent bit: a node 100 K hotter or so
+    snap["T_c"]["data"] = base64.b64encode(a.tobytes()).decode()
+
+
+def _short_hold(snap):
+    snap["hold"]["shape"] = [4]
+    snap["hold"]["data"] = base64.b64encode(np.zeros(4).tobytes()).decode()
+    snap.pop("crc32", None)
+
+
+@pytest.mark.parametrize("damage, reason", [
+    (_damage_level, "'level' holds values"), (_flip_bit, "checksum"), (_short_hold, "'hold' has shape")])
+def test_a_damaged_snapshot_is_a_cold_start_at_the_first_step(params, tmp_path, damage, reason):
+    """From a gateway audit: one changed character of the saved warning levels restored as "restored", then stopped
+    the service at its first step, after it had saved the same state again (a crash loop under systemd); an
+    exponent bit flipped in a temperature restored a 420 degC gear teeth node and raised a warning. The snapshot's
+    checksum and its shape, type and range checks make each a counted cold start."""
+    first = _service(params)
+    _drive(first, 0.0, 30.0)
+    clock = Clock()
+    StateStore(tmp_path / "state.json", clock=clock).save(first)
+    saved = json.loads((tmp_path / "state.json").read_bytes())
+    damage(saved["snapshot"])
+    (tmp_path / "state.json").write_text(json.dumps(saved))
+    second = _service(params)
+    second.restore = StateStore(tmp_path / "state.json", clock=clock).load(second.sensor)
+    assert second.restore is not None                          # the file itself parses: the sensor's check decides
+    _drive(second, 5000.0, 5002.0, oil=80.0)
+    assert second.counters.get("state_restored") is not True
+    assert reason in second.counters["state_cold_start"]
+    assert np.all(np.abs(np.array(second.state.T_c) - 80.0) < 5.0)     # started from the oil reading
 
 
 def test_the_saved_time_is_the_last_steps_and_the_wall_clock_does_not_drive_the_period(params, tmp_path):
