@@ -4,6 +4,7 @@ value stays fresh, which PGNs the service listens to."""
 from __future__ import annotations
 
 import functools
+import math
 from dataclasses import dataclass, field
 from typing import Mapping
 
@@ -65,11 +66,17 @@ NAME_KEYS = {"name_identity_number": "identity_number", "name_manufacturer_code"
              "name_function": "function", "name_vehicle_system": "vehicle_system",
              "name_vehicle_system_instance": "vehicle_system_instance", "name_industry_group": "industry_group",
              "arbitrary_address_capable": "arbitrary_address_capable"}
+#: the bits of each NAME field (J1939-81): a larger value would be cut to its low bits on the bus
+NAME_BITS = {"name_identity_number": 21, "name_manufacturer_code": 11, "name_ecu_instance": 3,
+             "name_function_instance": 5, "name_function": 8, "name_vehicle_system": 7,
+             "name_vehicle_system_instance": 4, "name_industry_group": 3}
+#: can.stale_factor at most this many nominal periods (a larger factor never declares an input stale)
+STALE_FACTOR_MAX = 20.0
 
 
 def _positive(name: str, value) -> None:
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not value > 0:
-        raise ParameterError(f"can.{name} = {value!r} must be a positive number")
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0 < value < math.inf:
+        raise ParameterError(f"can.{name} = {value!r} must be a positive finite number")
 
 
 @dataclass(frozen=True)
@@ -105,9 +112,10 @@ class ServiceOptions:
         _positive("time_base_window_s", self.time_base_window_s)
         if not (isinstance(self.time_base_windows, int) and self.time_base_windows >= 1):
             raise ParameterError(f"time_base_windows = {self.time_base_windows!r} must be an integer >= 1")
-        if self.stale_factor < 1.0:
-            raise ParameterError(f"can.stale_factor = {self.stale_factor!r} must be >= 1 (a multiple of the "
-                                 f"nominal period)")
+        if not 1.0 <= self.stale_factor <= STALE_FACTOR_MAX:
+            raise ParameterError(f"can.stale_factor = {self.stale_factor!r} must be in 1..{STALE_FACTOR_MAX:g} (a "
+                                 f"multiple of the nominal period)")
+        _positive("output_period_s", self.output_period_s)
         ratio = self.output_period_s / STEP_S
         if not (abs(ratio - round(ratio)) < 1e-9 and round(ratio) >= 1):
             raise ParameterError(f"can.output_period_s = {self.output_period_s!r} must be a whole multiple of the "
@@ -149,6 +157,9 @@ class ServiceOptions:
             v, flag = c[key], key == "arbitrary_address_capable"
             if isinstance(v, bool) != flag or (not flag and (not isinstance(v, int) or v < 0)):
                 raise ParameterError(f"can.{key} = {v!r} must be {'true or false' if flag else 'an integer >= 0'}")
+            if not flag and v >= 1 << NAME_BITS[key]:
+                raise ParameterError(f"can.{key} = {v!r} does not fit the NAME's {NAME_BITS[key]} bits "
+                                     f"(0..{(1 << NAME_BITS[key]) - 1})")
             name[field_] = v
         if name:
             kw["j1939_name"] = J1939Name(**name)

@@ -3,6 +3,7 @@ and the real truck captures (tests/data_paths.py) through the whole service."""
 from __future__ import annotations
 
 import logging
+import math
 
 import can
 import numpy as np
@@ -221,6 +222,13 @@ def test_options_are_validated_with_named_errors():
         ServiceOptions(stale_factor=0.5)
     with pytest.raises(ParameterError, match="output_period_s"):
         ServiceOptions(output_period_s=0.15)
+    # from a gateway audit: inf and NaN periods ended in a traceback; an infinite stale factor was taken and an
+    # input gone for 5 minutes stayed valid; a NAME field too wide was cut to its low bits on the bus
+    for key, value in (("output_period_s", math.inf), ("output_period_s", math.nan), ("stale_factor", math.inf),
+                       ("stale_factor", 1e300), ("counter_log_period_s", math.inf),
+                       ("name_identity_number", 2097157), ("name_industry_group", 9)):
+        with pytest.raises(ParameterError, match=rf"can\.{key} = "):
+            ServiceOptions.from_config(type("C", (), {"can": {key: value}})())
     opts = ServiceOptions.from_config(type("C", (), {"can": {"engine_source_address": 0x01,
                                                              "transmission_source_address": 0x05,
                                                              "sensor_source_address": 0x80,
