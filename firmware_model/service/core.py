@@ -13,7 +13,7 @@ from can_dbc.decoder import J1939Decoder, LatestValues, signal_messages
 from can_dbc.encoder import OutputEncoder
 from can_dbc.errors import ConfigError
 from can_dbc.j1939 import ID_MAX, pgn_key
-from firmware_model.components import MODE_NOT_INITIALISED, PUBLISHED, STEP_S
+from firmware_model.components import MODE_HOLDING, MODE_NOT_INITIALISED, PUBLISHED, STEP_S
 from firmware_model.errors import InputError, ParameterError
 from firmware_model.physics.oil import T_MAX_C as OIL_T_MAX_C, T_MIN_C as OIL_T_MIN_C
 from firmware_model.service.degraded import recorded_mode_counters
@@ -537,7 +537,7 @@ class SensorService:
             if time_base_suspect:
                 st["time_base_suspect"] = True
             frames = self.encoder.encode(temps_c, levels, ttl_s, st, timestamp_s=t_step_s)
-        dm1 = self.encoder.encode_dm1(levels, timestamp_s=t_step_s)
+        dm1 = self.encoder.encode_dm1(levels, missing_spn=_missing_input_spn(status, levels), timestamp_s=t_step_s)
         self._last_dm1_frame = dm1
         self._steps_since_dm1 += 1
         payload = bytes(dm1.data)
@@ -547,3 +547,20 @@ class SensorService:
             self._steps_since_dm1 = 0
             self.counters["dm1_sent"] += 1
         return frames
+
+
+#: the J1939 SPN of each drive input, in the order a missing one is named in DM1 (engine speed, actual engine
+#: percent torque, or the reference torque without which it has no Nm, current gear)
+_DRIVE_INPUT_SPNS = (("speed_valid", 190), ("ref_torque_valid", 544), ("torque_valid", 513), ("gear_valid", 523))
+
+
+def _missing_input_spn(status: GbxStatus, levels: dict) -> int | None:
+    """The SPN DM1 names while the sensor holds its inputs (degraded mode 2) and no warning level can be evaluated:
+    the first drive input missing (``can_dbc.encoder.OutputEncoder.encode_dm1``); None otherwise."""
+    if status.degraded_mode != MODE_HOLDING or any(v not in (None, 3) for v in levels.values()):
+        return None
+    for key, spn in _DRIVE_INPUT_SPNS:
+        if not getattr(status, key):
+            return spn
+    return None
+

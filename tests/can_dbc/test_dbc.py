@@ -252,6 +252,19 @@ def test_dm1_round_trip_spn_fmi_lamps_and_occurrence_count():
     assert encoder.encode_dm1({}).data[6:] == b"\xff\xff"
 
 
+def test_dm1_names_a_missing_input_only_when_no_component_dtc_is_active(db):
+    encoder = adapter.OutputEncoder()
+    miss = encoder.encode_dm1({}, missing_spn=190)
+    d = adapter.decode_outputs([miss])["dm1"]
+    assert d["amber_warning_lamp"] == 1 and d["red_stop_lamp"] == 0
+    assert d["dtc"]["spn"] == 190 and d["dtc"]["fmi"] == 9 and d["dtc"]["occurrence_count"] == 1
+    assert str(db.decode_message(miss.arbitration_id, miss.data)["DTC1_FMI"]).startswith("abnormal update rate")
+    crit = adapter.decode_outputs([encoder.encode_dm1({"PS": 2}, missing_spn=190)])["dm1"]
+    assert crit["dtc"]["fmi"] == 0 and crit["red_stop_lamp"] == 1          # a component DTC comes first
+    with pytest.raises(adapter.EncodeError, match="missing_spn"):
+        encoder.encode_dm1({}, missing_spn=1 << 19)
+
+
 def test_dm1_without_an_active_dtc_reads_as_no_active_dtc(db):
     """SPN 0 / FMI 0 / OC 0 is J1939's "no DTC": cantools must not show it as a most severe fault."""
     encoder = adapter.OutputEncoder()

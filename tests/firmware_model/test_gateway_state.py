@@ -18,6 +18,7 @@ from firmware_model.onboard.sensor import VirtualSensor
 from firmware_model.parameters import load_parameters
 from firmware_model.service import SensorService, ServiceOptions
 from firmware_model.service.persist import HealthFile, StateStore, read_health, sd_notify
+from can_dbc.adapter import decode_outputs, pgn_of
 from tests.firmware_model.test_can_service import traffic
 
 
@@ -372,3 +373,25 @@ def test_a_restored_state_is_cooled_until_the_first_frame(params, tmp_path):
     clock.t += 7200.0                                   # two hours until the truck sends its first frame
     hooks.tick()
     assert second.restore is not None and second.restore[1] == pytest.approx(7200.0)
+
+
+def test_dm1_names_a_missing_engine_speed_instead_of_clearing(params):
+    """From a gateway audit: with the engine speed gone (EEC1 stopped, ETC2 and TRF1 still there) the levels became
+    not available after the hold time and DM1 went to "no active DTC", lamps off: a service tool read a gearbox at
+    critical as "fault cleared". Now DM1 names SPN 190 with FMI 9 (abnormal update rate) and the amber lamp, and
+    clears again once the speed is back."""
+    svc = SensorService(VirtualSensor(params), ServiceOptions(configured_ref_torque_nm=2000.0))
+
+    def dm1s(frames):
+        return [decode_outputs([m])["dm1"] for m in frames if pgn_of(m.arbitration_id) == 0xFECA]
+
+    before = dm1s(svc.feed_all(traffic(0.0, 20.0, rpm=1500.0, gear=9)))
+    assert before and all(d["dtc"] is None and d["amber_warning_lamp"] == 0 for d in before)
+    no_speed = [m for m in traffic(20.0, 40.0, rpm=1500.0, gear=9) if pgn_of(m.arbitration_id) != 0xF004]
+    during = dm1s(svc.feed_all(no_speed))
+    assert during[0]["dtc"] is None                           # holding: the levels are still evaluated
+    last = during[-1]
+    assert last["dtc"] is not None and last["dtc"]["spn"] == 190 and last["dtc"]["fmi"] == 9
+    assert last["amber_warning_lamp"] == 1 and last["red_stop_lamp"] == 0
+    after = dm1s(svc.feed_all(traffic(40.0, 45.0, rpm=1500.0, gear=9)))
+    assert after[-1]["dtc"] is None and after[-1]["amber_warning_lamp"] == 0
