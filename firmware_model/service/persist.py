@@ -183,6 +183,8 @@ class HealthFile:
         self.last_write_s: float | None = None
         self.errors = 0                       # writes that failed (the first is logged)
         self.boot_id = boot_id()
+        self._steps_seen: int | None = None   # the service's step count at the last write ...
+        self._stepped_s: float | None = None  # ... and the timer when it last changed (None: never stepped)
 
     def maybe_write(self, service, store: StateStore | None = None, bus_events: dict | None = None,
                     stopped: bool = False) -> bool:
@@ -192,10 +194,16 @@ class HealthFile:
             return False
         c = service.counters
         restored = c.get("state_restored") is True
+        steps = c.get("steps", 0)
+        if steps != self._steps_seen:
+            self._steps_seen = steps
+            self._stepped_s = now if steps else None
         doc = {"schema": HEALTH_SCHEMA, "pid": os.getpid(), "written_wall_s": self.clock(),
                "written_boottime_s": boot_clock(), "boot_id": self.boot_id, "stopped": stopped,
                "uptime_s": now - self.started_s, "last_step_frame_time_s": service.frame_time_s,
-               "steps": c.get("steps", 0), "initialised": service.state is not None,
+               "steps": steps, "initialised": service.state is not None,
+               # how long since the step count last moved (a service whose inputs stopped steps no more)
+               "last_step_age_s": None if self._stepped_s is None else now - self._stepped_s,
                "degraded_mode_now": c.get("mode_now"),
                "degraded_mode_steps": dict(c.get("mode_steps", {})), "time_jumps": c.get("time_jumps", 0),
                "clock_steps": c.get("clock_steps", 0), "bus_off": c.get("bus_off", 0),

@@ -249,6 +249,28 @@ def test_health_file_and_status_command(params, tmp_path, capsys):
         assert "not a gearbox-vsensor health file" in capsys.readouterr().err
 
 
+def test_status_says_when_a_running_service_has_stopped_stepping(params, tmp_path, capsys, monkeypatch):
+    """From a gateway audit: with the sensor's input frames gone (other nodes still sending) `status` said
+    "running ... mode now 0 (normal)" with exit 0 for 20 s in which no step ran and nothing was sent."""
+    from tools.cli import main
+    import tools.cli.status as status_cli
+    svc = _service(params)
+    _drive(svc, 0.0, 5.0)
+    timer = Clock(100.0)
+    health = HealthFile(tmp_path / "health.json", period_s=0.0, timer=timer)
+    monkeypatch.setattr(status_cli, "health_age_s", lambda doc: 0.5)     # the file itself is fresh
+    assert health.maybe_write(svc)
+    assert main(["status", "--health-file", str(tmp_path / "health.json")]) == 0
+    assert "(0 s ago)" in capsys.readouterr().out
+    timer.t += 20.0                                            # 20 s without a step: the file is still rewritten
+    assert health.maybe_write(svc)
+    assert main(["status", "--health-file", str(tmp_path / "health.json")]) == 3
+    assert "NO STEP for 20 s" in capsys.readouterr().out
+    _drive(svc, 5.0, 6.0)
+    assert health.maybe_write(svc)
+    assert main(["status", "--health-file", str(tmp_path / "health.json")]) == 0
+
+
 def test_sd_notify_reaches_a_notify_socket(tmp_path, monkeypatch):
     addr = str(tmp_path / "notify")
     with socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM) as srv:

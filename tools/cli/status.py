@@ -9,6 +9,8 @@ from firmware_model.errors import InputError
 DEFAULT_HEALTH = "/run/gearbox-vsensor/health.json"
 #: a health file older than this says the service is not running (it is rewritten every second) [s]
 STALE_S = 5.0
+#: a running service that has not stepped for this long has lost its inputs (it steps every 0.1 s of frame time) [s]
+NO_STEP_S = 5.0
 
 
 def add_subparser(sub):
@@ -18,8 +20,10 @@ def add_subparser(sub):
         description="Read the health file a running service rewrites every second (`run --health-file`) and print "
                     "uptime, the last step's frame time, whether the sensor is initialised, the degraded modes, "
                     "frame counters, time jumps, the state saves (count, errors, age of the last) and whether the "
-                    "saved state was restored at start. Exit status 0 when the service is running, 1 when the file "
-                    "is stale (not rewritten for 5 s), 2 when it is missing or not a health file.")
+                    "saved state was restored at start. Exit status 0 when the service is running and stepping, 1 "
+                    "when the file is stale (not rewritten for 5 s: not running), 2 when it is missing or not a "
+                    "health file, 3 when the service runs but has not stepped for 5 s (its input frames stopped: "
+                    "it publishes nothing).")
     p.add_argument("--health-file", default=DEFAULT_HEALTH, metavar="PATH",
                    help=f"the service's health file (default {DEFAULT_HEALTH}, as the systemd unit writes it)")
     p.add_argument("--json", action="store_true", help="print the health document as JSON")
@@ -52,7 +56,15 @@ def run(args) -> int:
         import os
         import sys
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
-    return 0 if age_s <= STALE_S and not doc.get("stopped") else 1
+    if age_s > STALE_S or doc.get("stopped"):
+        return 1
+    return 3 if not_stepping(doc) else 0
+
+
+def not_stepping(doc: dict) -> bool:
+    """A running service whose step count has not moved for NO_STEP_S (a health file of an older version: never)."""
+    age = doc.get("last_step_age_s")
+    return age is not None and float(age) > NO_STEP_S
 
 
 def health_age_s(doc: dict) -> float:
@@ -76,10 +88,16 @@ def status_lines(doc: dict, age_s: float) -> list[str]:
         stale = f"stopped cleanly {age_s:.0f} s ago"
     now = doc.get("degraded_mode_now")
     j = doc.get("j1939")
-    lines = [f"service: {'running' if age_s <= STALE_S and not doc.get('stopped') else stale}, "
+    running = "running"
+    if not_stepping(doc):
+        running = (f"running, but NO STEP for {float(doc['last_step_age_s']):.0f} s (its input frames stopped: "
+                   f"engine speed or the bus; it publishes nothing)")
+    step_age = doc.get("last_step_age_s")
+    lines = [f"service: {running if age_s <= STALE_S and not doc.get('stopped') else stale}, "
              f"pid {doc.get('pid')}, uptime {doc.get('uptime_s', 0.0):.0f} s",
              f"sensor: {'initialised' if doc.get('initialised') else 'waiting for inputs'}, {doc.get('steps', 0)} "
              f"steps, last step at frame time {'-' if last is None else f'{last:.1f} s'}"
+             + ("" if step_age is None else f" ({float(step_age):.0f} s ago)")
              + ("" if now is None else f"; mode now {now} ({MODE_NAMES.get(int(now), '?')})"),
              f"degraded modes (steps since start): {doc.get('degraded_mode_steps') or 'none'}; time jumps "
              f"{doc.get('time_jumps', 0)}; clock steps {doc.get('clock_steps', 0)}; frames sent "
