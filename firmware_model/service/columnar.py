@@ -238,7 +238,7 @@ def _log_jumps(log, grid: Grid, t_frame_s: np.ndarray) -> None:
             else float(grid.anchor_t_s[epoch])
         t_s = float(t_frame_s[f])
         log.warning("frame time jumped %s by %.3f s (from %.6f to %.6f): restarting the step grid, inputs dropped, "
-                    "the sensor resumes from its state", "backward" if t_s < last_s else "forward", t_s - last_s,
+                    "the sensor resumes from its state", "backward" if t_s < last_s else "forward", abs(t_s - last_s),
                     last_s, t_s)
     if grid.jump_frames.size > JUMPS_LOGGED:
         log.warning("%d more frame time jumps (not logged one by one)", grid.jump_frames.size - JUMPS_LOGGED)

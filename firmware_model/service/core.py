@@ -297,7 +297,7 @@ class SensorService:
         last_s = self._t0_s + self._k * STEP_S
         self.counters["time_jumps"] += 1
         self.log.warning("frame time jumped %s by %.3f s (from %.6f to %.6f): restarting the step grid, inputs "
-                         "dropped, the sensor resumes from its state", direction, timestamp_s - last_s, last_s,
+                         "dropped, the sensor resumes from its state", direction, abs(timestamp_s - last_s), last_s,
                          timestamp_s)
         if direction == "backward":
             # the frame that went back stands where the last step stood: the next step comes STEP_S after it, as

@@ -287,6 +287,10 @@ def test_service_unit_passes_systemd_analyze_verify(tmp_path):
         pytest.skip("systemd-analyze is not installed (apt install systemd)")
     from tools.can.systemd import unit_text
     unit = tmp_path / "gearbox-vsensor.service"
+    # a "-" in the channel and a "%" in the config path too (a gateway audit: a fatal error in verify)
+    unit.write_text(unit_text("socketcan", "can-gw", config="/etc/gvs/truck%Z.toml"))
+    res = subprocess.run(["systemd-analyze", "verify", str(unit)], capture_output=True, text=True, timeout=120)
+    assert res.returncode == 0, res.stderr
     unit.write_text(unit_text("socketcan", "can0"))
     res = subprocess.run(["systemd-analyze", "verify", str(unit)], capture_output=True, text=True, timeout=120)
     assert res.returncode == 0, res.stderr
@@ -305,6 +309,10 @@ def test_service_unit_fits_the_interface_and_refuses_what_cannot_stand_in_it(cap
     assert "BindsTo" not in pcan and "sys-subsystem-net-devices" not in pcan and "RestrictAddressFamilies" not in pcan
     assert "RestrictAddressFamilies=AF_INET AF_INET6" in unit_text("udp_multicast", "239.0.0.1")
     assert "BindsTo=sys-subsystem-net-devices-can0.device" in unit_text("socketcan", "can0")
+    # from a gateway audit: "can-gw" named a device unit that never appears (systemd escapes "-"), and a "%" in the
+    # config path was taken for a specifier
+    assert "BindsTo=sys-subsystem-net-devices-can\\x2dgw.device" in unit_text("socketcan", "can-gw")
+    assert "--config /etc/gvs/truck%%Z.toml" in unit_text("socketcan", "can0", config="/etc/gvs/truck%Z.toml")
     for args, words in ((["--channel", "can0\nExecStartPre=/bin/true"], "line breaks"),
                         (["--config", "project.toml"], "absolute path")):
         assert main(["service-unit", *args]) == 2

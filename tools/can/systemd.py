@@ -68,6 +68,10 @@ def check_unit_args(interface: str, channel: str, config: str | None, python: st
                              f"breaks: it goes into the unit file)")
     if config is not None and not os.path.isabs(config):
         raise InputError(f"--config {config} must be an absolute path: the service does not start in this directory")
+    warnings = []
+    if interface == "virtual":
+        warnings.append("--interface virtual is python-can's bus inside one process: the service would receive no "
+                        "frame from any other program (a test bus, not a gateway's)")
     exe = os.path.abspath(python or sys.executable)
     places = [("the Python", exe), ("the Python (through its links)", os.path.realpath(exe))]
     if python is None:       # this Python's own copy of gearbox-vsensor (an editable install: the source tree)
@@ -78,11 +82,27 @@ def check_unit_args(interface: str, channel: str, config: str | None, python: st
         if hidden and not any(path == p for _, p, _ in found):
             found.append((what, path, hidden))
     if not found:
-        return []
+        return warnings
     where = "; ".join(f"{what} {path} is under {hidden.rstrip('/')} ({HIDDEN[hidden]})" for what, path, hidden in found)
-    return [f"{where}: the unit's sandbox hides it from the service. Install gearbox-vsensor (not editable) into a "
+    return warnings + [f"{where}: the unit's sandbox hides it from the service. Install gearbox-vsensor (not editable) into a "
             f"virtual environment outside /home, /root and /tmp (e.g. /opt/gearbox-vsensor) and pass its python with "
             f"--python"]
+
+
+def device_unit(channel: str) -> str:
+    """The systemd device unit of a network device (``systemd-escape``: "/" becomes "-", every byte other than
+    letters, digits, ":", "_" and "." (a leading "." too) becomes \\xNN: "can-gw" is sys-subsystem-net-devices-can\\x2dgw;
+    a gateway audit found the unescaped name, a device that never appears)."""
+    out = []
+    for i, b in enumerate(channel.encode("utf-8")):
+        c = chr(b)
+        if c == "/":
+            out.append("-")
+        elif (c.isascii() and c.isalnum()) or c in ":_" or (c == "." and i > 0):
+            out.append(c)
+        else:
+            out.append(f"\\x{b:02x}")
+    return f"sys-subsystem-net-devices-{''.join(out)}.device"
 
 
 def unit_text(interface: str, channel: str, config: str | None = None, python: str | None = None,
@@ -96,9 +116,10 @@ def unit_text(interface: str, channel: str, config: str | None = None, python: s
     if config:
         cmd += ["--config", config]
     caps = "CAP_NET_RAW" if raw else ""
-    device = (f"After=network.target sys-subsystem-net-devices-{channel}.device\n"
-              f"BindsTo=sys-subsystem-net-devices-{channel}.device") if interface == "socketcan" \
-        else "After=network.target"
+    device = (f"After=network.target {device_unit(channel)}\n"
+              f"BindsTo={device_unit(channel)}") if interface == "socketcan" else "After=network.target"
     families = f"RestrictAddressFamilies={FAMILIES[interface]}" if interface in FAMILIES else ""
-    return UNIT.format(channel=channel, device=device, exec_start=" ".join(shlex.quote(c) for c in cmd), caps=caps,
+    # "%" starts a systemd specifier: a literal one is "%%" (a --config path with "%" failed systemd-analyze verify)
+    exec_start = " ".join(shlex.quote(c) for c in cmd).replace("%", "%%")
+    return UNIT.format(channel=channel, device=device, exec_start=exec_start, caps=caps,
                        families=families, environment="Environment=PYTHONUNBUFFERED=1\n")
