@@ -149,8 +149,9 @@ def check_effect(eid: str, value: float) -> None:
     if e is None:
         raise InputError(f"unknown effect id {eid!r}; known effects: {', '.join(EFFECT_IDS)}")
     if not (e.low <= value <= e.high):
-        raise InputError(f"effect {eid}: {e.param} = {value:g} {e.unit} is outside its plausible range "
-                         f"{e.low:g}..{e.high:g} {e.unit}")
+        unit = "" if e.unit in ("", "-") else f" {e.unit}"
+        raise InputError(f"effect {eid}: {e.param} = {value:g}{unit} is outside its plausible range "
+                         f"{e.low:g}..{e.high:g}{unit}")
 
 
 def fraction_of_range(eid: str, value: float) -> float:

@@ -224,7 +224,7 @@ def _level_events(t_s: float, d: dict, last: dict, limits) -> list[str]:
             lines.append(f"  t={t_s:6.0f} s  {LEVEL_LABEL[lv]} raised: {describe(c)} {T:.1f} C, {why}")
         else:
             edge = (crit_c if before == LEVEL_CRITICAL else warn_c) - hyst_k
-            lines.append(f"  t={t_s:6.0f} s  {LEVEL_LABEL[before]} cleared: {c} {T:.1f} C, below "
+            lines.append(f"  t={t_s:6.0f} s  {LEVEL_LABEL[before]} cleared: {c} {T:.2f} C, below "
                          f"{edge + hyst_k:.0f} - {hyst_k:g} K hysteresis = {edge:.0f} C")
         last[c] = lv
     return lines
@@ -370,7 +370,8 @@ def run_demo(opts: DemoOptions, echo: Callable[[str], None] | None = None) -> Bu
          f"`gearbox-vsensor replay`)")
     echo("[3/4] sensor service on python-can's virtual bus (frame time drives the 10 Hz steps) ...")
     bus = run_on_virtual_bus(params, frames)
-    echo(f"      {bus.frames_in} frames in, {len(bus.outputs)} sensor frames out on the bus, {bus.steps} steps "
+    echo(f"      {bus.frames_in} frames in, {len(bus.outputs)} GBX frames out on the bus (16 per step; DM1 aside), "
+         f"{bus.steps} steps "
          f"in {bus.wall_s:.1f} s wall")
     echo(f"[4/4] what the sensor published (decoded from the bus with can_dbc/gearbox_vsensor.dbc), every "
          f"{opts.print_every_s:.0f} s of drive time:")

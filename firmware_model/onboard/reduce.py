@@ -270,7 +270,7 @@ def make_effects(effects: dict | None = None) -> Effects:
         e = CATALOG[eid]
         if np.any(~np.isfinite(a)) or np.any(a < e.low) or np.any(a > e.high):
             raise ParameterError(f"effect {eid}: {e.param} = {v} is outside its plausible range "
-                                 f"{e.low:g}..{e.high:g} {e.unit}")
+                                 f"{e.low:g}..{e.high:g}{'' if e.unit in ('', '-') else ' ' + e.unit}")
 
     def val(eid):
         v = effects.get(eid, CATALOG[eid].neutral)

@@ -218,7 +218,7 @@ def test_the_summary_times_warnings_by_the_table_clock(spacing_s):
             **{f"W_{c}": np.zeros(t.size) for c in PUBLISHED}}
     cols["W_PS"] = level
     line = summary_lines(RunTable(cols))[1]
-    assert line == "warnings: PS warning 20.0 min, critical 10.0 min (first at 10.0 min)"
+    assert line == "warnings: PS in warning for 20.0 min in all, critical for 10.0 min (first at 10.0 min)"
 
 
 def test_the_summary_says_when_warning_levels_were_not_available():

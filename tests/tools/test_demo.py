@@ -6,7 +6,7 @@ def test_demo_runs_end_to_end(tmp_path, capsys):
     rc = main(["demo", "--minutes", "3", "--out-dir", str(tmp_path), "--print-every", "60"])
     out = capsys.readouterr().out
     assert rc == 0
-    assert "frames in" in out and "sensor frames out" in out and "closest to their limits" in out
+    assert "frames in" in out and "GBX frames out" in out and "closest to their limits" in out
     assert "t=   180 s" in out, "the table covers the whole drive, its last step included"
     assert "TTL 0 s" not in out
     for f in ("plant.csv", "drive.log", "sensor.csv", "demo.png"):

@@ -20,12 +20,13 @@ def add_subparser(sub):
         "demo", help="run the main job on the bundled drive: plant -> J1939 frames -> sensor on a virtual bus",
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--cycle", default="uphill", help="named cycle or CSV run table (default: uphill, synthetic)")
-    p.add_argument("--minutes", type=float, default=40.0, help="how much of the cycle to run (default 40)")
+    p.add_argument("--minutes", type=float, default=40.0,
+                   help="how much of the cycle to run, 1..600 minutes (default 40)")
     p.add_argument("--out-dir", default="demo_out", metavar="DIR",
                    help="where to write the run tables (1 s rows), the CAN log and the plot (default: demo_out in "
                         "the current directory; about 0.6 MB per minute of drive, 23 MB for the default 40)")
     p.add_argument("--print-every", type=float, default=300.0, metavar="S",
-                   help="print the sensor's outputs every this many seconds of drive time (default 300)")
+                   help="print the sensor's outputs every this many seconds of drive time, (0, 36000] (default 300)")
     p.set_defaults(func=run)
     return p
 

@@ -1,6 +1,6 @@
 """`gearbox-vsensor replay`: run the onboard sensor offline over a run table (CSV) or a CAN log, at 10 Hz.
 
-Run tables: tools/replay/table.py; CAN logs (``.log .asc .blf .mf4``) go through the live CAN service,
+Run tables: tools/replay/table.py; CAN logs (``.log .asc .blf .mf4 .trc``) go through the live CAN service,
 tools/replay/log.py, so a log replays bit-identically to a live run. An option that does nothing in the mode given
 (``--speed`` on a run table, ``--out`` with ``--realtime``) is an error, not silently ignored.
 """
@@ -46,7 +46,7 @@ def add_subparser(sub):
                   "gearbox-vsensor replay truck.blf --config truck.toml --out est.csv",
                   "gearbox-vsensor replay uphill.csv --oil-mode model --out est_model_oil.csv"])
     p.usage = USAGE
-    p.add_argument("input", metavar="LOG_OR_CSV", help="run table (.csv) or CAN log (.log .asc .blf .mf4)")
+    p.add_argument("input", metavar="LOG_OR_CSV", help="run table (.csv) or CAN log (.log .asc .blf .mf4 .trc)")
     p.add_argument("--config", metavar="TOML", help="project configuration (gearbox variant, cooler, [sensor], [can])")
     p.add_argument("--variant", choices=("GRS905", "GRSO905"),
                    help="gearbox variant (overrides --config; give the variant the drive was made with: another "

@@ -10,7 +10,7 @@ import numpy as np
 
 from firmware_model.components import meaning
 from firmware_model.config import load_config
-from firmware_model.effects import CATALOG, parse_effect
+from firmware_model.effects import CATALOG, CHANNEL_EFFECTS, parse_effect
 from firmware_model.errors import InputError
 from firmware_model.physics.oil import check_temperature_c
 from tools.cli.paths import check_paths, figure_path
@@ -19,7 +19,9 @@ from tools.outputs import naming, outputs
 
 def add_subparser(sub):
     from tools.cycles.named import CYCLE_NAMES
-    effects = "; ".join(f"{e.id}:{e.param}=<{e.low:g}..{e.high:g} {e.unit}>" for e in CATALOG.values())
+    # the channel effects (a rig thermocouple's offset) act on a reading: the plant writes true temperatures
+    effects = "; ".join(f"{e.id}:{e.param}=<{e.low:g}..{e.high:g}{'' if e.unit == '-' else ' ' + e.unit}>"
+                        for e in CATALOG.values() if e.id not in CHANNEL_EFFECTS)
     p = sub.add_parser(
         "simulate", help="run the reference plant (the thesis's full network) over a drive cycle",
         formatter_class=argparse.RawDescriptionHelpFormatter,
@@ -41,7 +43,9 @@ def add_subparser(sub):
     p.add_argument("--cooler", choices=("none", "liquid", "air", "hold", "measured"),
                    help="cooling: none, liquid, air, hold (sump held constant), measured (oil_temp_c column as the "
                         "sump); default from the parameters (liquid)")
-    p.add_argument("--hold-oil", type=float, metavar="DEGC", help="hold the sump at this temperature")
+    p.add_argument("--hold-oil", type=float, metavar="DEGC",
+                   help="hold the sump at this temperature, -40..200 degC (implies --cooler hold; the other nodes "
+                        "start as --initial-temp says: a steady: spec's own start is 20 degC unless it has oil=)")
     p.add_argument("--initial-temp", type=float, metavar="DEGC",
                    help="initial temperature of every node (default: the cycle's own, else the first oil reading, "
                         "else the held sump with --cooler hold, else the parameters' [boundary] initial, 60 degC)")

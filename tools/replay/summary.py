@@ -68,8 +68,8 @@ def _warning_line(out) -> str:
         if np.any(w == LEVEL_WARNING) or np.any(w == LEVEL_CRITICAL):
             first = int(np.argmax(np.isin(w, (LEVEL_WARNING, LEVEL_CRITICAL))))
             t0 = (out["time_s"][first] - out["time_s"][0]) / 60.0
-            crit = f", critical {_minutes(n_crit)}" if n_crit else ""
-            parts.append(f"{c} warning {_minutes(n_warn)}{crit} (first at {t0:.1f} min)")
+            crit = f", critical for {_minutes(n_crit)}" if n_crit else ""
+            parts.append(f"{c} in warning for {_minutes(n_warn)} in all{crit} (first at {t0:.1f} min)")
     line = "warnings: " + ("; ".join(parts) if parts else "none")
     na = _not_available_share(out, dur_s)
     if na > 0.0:
