@@ -298,6 +298,37 @@ def test_bad_input_is_one_sentence_and_writes_nothing(tmp_path, synthetic, capsy
         read_manifest(tmp_path / "absent.csv")
 
 
+def test_a_port_that_is_no_scheduler_and_a_scheduler_without_workers_are_one_sentence(tmp_path, monkeypatch):
+    """From a fleet audit: --scheduler at the dashboard's port (a server that answers nothing) hung for ever, and a
+    scheduler without a worker hung silently; each is now one sentence within the connect or worker timeout."""
+    import socket
+    import threading
+    import tools.fleet.run as R
+    monkeypatch.setattr(R, "CONNECT_TIMEOUT_S", 1.0)
+    monkeypatch.setattr(R, "WORKER_WAIT_S", 2.0)
+    with socket.socket() as srv:                        # accepts, then says nothing (as an HTTP server waits)
+        srv.bind(("127.0.0.1", 0))
+        srv.listen()
+        held = []
+        threading.Thread(target=lambda: held.append(srv.accept()), daemon=True).start()
+        with pytest.raises(InputError, match="answered as a Dask scheduler"):
+            R.connect(f"tcp://127.0.0.1:{srv.getsockname()[1]}", None)
+    port = _free_port()
+    sched = subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_scheduler", "--host", "127.0.0.1", "--port",
+                              str(port), "--no-dashboard"], env=ENV, stdout=subprocess.DEVNULL,
+                             stderr=subprocess.DEVNULL, cwd=tmp_path)
+    try:
+        deadline = time.monotonic() + 60.0
+        while R._probe_scheduler(f"tcp://127.0.0.1:{port}") is not None:
+            assert time.monotonic() < deadline, "the scheduler did not start"
+            time.sleep(0.5)
+        with pytest.raises(InputError, match="has no worker"):
+            R.connect(f"tcp://127.0.0.1:{port}", None)
+    finally:
+        sched.kill()
+        sched.wait(timeout=30)
+
+
 def test_a_period_that_is_no_whole_day_is_one_sentence(tmp_path, synthetic, capsys):
     """From a fleet audit: --period-days 0.5 numbered the periods 0, 2, 4 ... and the level rule, which needs
     consecutive periods, never fired."""

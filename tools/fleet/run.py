@@ -26,6 +26,8 @@ BATCH_MAX_LOGS = 64
 TASKS_PER_WORKER = 4
 #: how long to wait for a scheduler given by address [s]
 CONNECT_TIMEOUT_S = 10.0
+#: how long to wait for the first worker of a scheduler given by address [s]
+WORKER_WAIT_S = 30.0
 
 _SENSORS: dict = {}
 
@@ -147,8 +149,70 @@ def batch_id(batch: list[LogEntry]) -> str:
     return hashlib.sha1(",".join(e.key for e in batch).encode()).hexdigest()[:16]
 
 
+def _probe_scheduler(address: str) -> str | None:
+    """Why ``address`` (``tcp://HOST:PORT``) is not a Dask scheduler that answers, or None. A scheduler sends its
+    handshake as soon as a connection opens (8-byte frame length, frame count, msgpack); a port of something else
+    (the scheduler's dashboard, a web server) sends nothing, and Dask's client then waited for ever (a fleet audit,
+    2026-11-27). Other protocols (tls://, ucx://) are not probed."""
+    import socket
+    import struct
+    from urllib.parse import urlsplit
+    if not address.startswith("tcp://"):
+        return None
+    try:
+        u = urlsplit(address)
+        host, port = u.hostname, u.port
+    except ValueError:
+        return f"{address} is not tcp://HOST:PORT"
+    if not host or port is None:
+        return f"{address} is not tcp://HOST:PORT"
+    try:
+        with socket.create_connection((host, port), timeout=CONNECT_TIMEOUT_S) as sock:
+            sock.settimeout(CONNECT_TIMEOUT_S)
+            head = b""
+            while len(head) < 16:
+                chunk = sock.recv(16 - len(head))
+                if not chunk:
+                    break
+                head += chunk
+    except socket.timeout:
+        return f"nothing at {address} answered as a Dask scheduler within {CONNECT_TIMEOUT_S:.0f} s (the " \
+               f"dashboard's port, or another service?)"
+    except OSError as exc:
+        return f"the Dask scheduler at {address} does not answer ({exc.strerror or type(exc).__name__})"
+    if len(head) < 16:
+        return f"{address} closed the connection without a Dask handshake"
+    total, frames = struct.unpack("<QQ", head)
+    if not (0 < total < 1 << 24 and 0 < frames < 64):
+        return f"{address} is not a Dask scheduler (it does not speak Dask's protocol)"
+    return None
+
+
+def _client_within(address: str, timeout_s: float):
+    """A Dask client of ``address``, or InputError when it is not connected within ``timeout_s`` (Dask's own
+    timeout does not bound every handshake: the connection runs in a daemon thread given up after it)."""
+    import threading
+    from dask.distributed import Client
+    box: dict = {}
+
+    def connect_():
+        try:
+            box["client"] = Client(address, timeout=f"{CONNECT_TIMEOUT_S}s")
+        except BaseException as exc:          # handed to the caller
+            box["error"] = exc
+    t = threading.Thread(target=connect_, daemon=True, name="gvs-fleet-connect")
+    t.start()
+    t.join(timeout_s)
+    if "client" in box:
+        return box["client"]
+    exc = box.get("error")
+    raise InputError(f"the Dask scheduler at {address} does not answer within {timeout_s:.0f} s"
+                     + (f" ({type(exc).__name__})" if exc is not None else "")) from None
+
+
 def connect(scheduler: str | None, workers: int | None):
-    """(client, cluster or None): a Dask client of the scheduler at ``scheduler``, or of a new LocalCluster."""
+    """(client, cluster or None): a Dask client of the scheduler at ``scheduler`` (probed first, then waited for up
+    to WORKER_WAIT_S for a worker), or of a new LocalCluster."""
     try:
         from dask.distributed import Client, LocalCluster
     except ImportError:
@@ -158,11 +222,17 @@ def connect(scheduler: str | None, workers: int | None):
     if scheduler:
         if workers is not None:
             raise InputError("--workers starts a local cluster; with --scheduler the cluster's own workers run")
+        why = _probe_scheduler(scheduler)
+        if why is not None:
+            raise InputError(why)
+        client = _client_within(scheduler, 3 * CONNECT_TIMEOUT_S)
         try:
-            return Client(scheduler, timeout=f"{CONNECT_TIMEOUT_S}s"), None
-        except (OSError, TimeoutError, ValueError) as exc:
-            raise InputError(f"the Dask scheduler at {scheduler} does not answer within {CONNECT_TIMEOUT_S:.0f} s "
-                             f"({type(exc).__name__})") from None
+            client.wait_for_workers(1, timeout=WORKER_WAIT_S)
+        except (TimeoutError, OSError):
+            client.close()
+            raise InputError(f"the Dask scheduler at {scheduler} has no worker (none connected within "
+                             f"{WORKER_WAIT_S:.0f} s: start `dask worker {scheduler}`)") from None
+        return client, None
     n = workers or max(1, os.cpu_count() or 1)
     cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0",
                            silence_logs=40)
