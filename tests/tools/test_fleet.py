@@ -54,6 +54,8 @@ def _same(a: dict, b: dict) -> None:
     assert a.keys() == b.keys()
     for k in a:
         for col, va in a[k].items():
+            if col == "replayed_at_s":       # when the row was made
+                continue
             vb = b[k][col]
             assert va == vb or (isinstance(va, float) and np.isnan(va) and np.isnan(vb)), (col, va, vb)
 
@@ -198,6 +200,54 @@ def test_bad_logs_land_in_the_errors_table_and_reruns_skip(tmp_path, synthetic):
     # it is now a copy of good.log: summarised twice, and said so (a copied log counted its hours twice, silently)
     assert "look like copies of each other" in res.stderr and "good.log" in res.stderr, res.stderr
     assert "| good.log, truncated.log |" in (out / "report.md").read_text()
+
+
+def test_changed_moved_and_other_variant_logs_are_not_kept_stale(tmp_path, synthetic):
+    """From a fleet audit: a log still being written kept its partial summary on every re-run (logs were known by
+    their path only); a moved log counted under both paths, and the advice to remove the copies changed nothing; a
+    corrected manifest giving a vehicle another variant kept the rows of the first."""
+    logs = tmp_path / "logs" / "truckY"
+    logs.mkdir(parents=True)
+    good = read_manifest(synthetic)[0].log
+    lines = good.read_text().splitlines(keepends=True)
+    (logs / "day1.log").write_text("".join(lines[:len(lines) // 2]))          # half written
+    out = tmp_path / "out"
+    args = [str(tmp_path / "logs"), "--out", str(out), "--workers", "1", "--no-report"]
+    fleet(*args)
+    half = read_table(out).to_pylist()[0]
+    (logs / "day1.log").write_text("".join(lines))                            # the whole day now
+    res = fleet(*args)
+    assert "0 done before, 1 summarised" in res.stdout, res.stdout
+    rows = read_table(out).to_pylist()
+    assert len(rows) == 1 and rows[0]["frames"] > half["frames"] and rows[0]["variant"] == "GRS905"
+    assert "1 done before" in fleet(*args).stdout                             # unchanged: skipped
+    # moved: said, and --prune removes the old row (the new path is replayed)
+    (logs / "day1.log").rename(logs / "renamed.log")
+    res = fleet(*args)
+    assert "no longer at their path" in res.stderr and "--prune" in res.stderr
+    assert len(read_table(out).to_pylist()) == 2
+    res = fleet(*args, "--prune")
+    assert "prune: 1 logs no longer at their path" in res.stdout
+    assert [Path(r["log"]).name for r in read_table(out).to_pylist()] == ["renamed.log"]
+    # the same vehicle as another gearbox into the same output: one sentence, nothing replayed
+    m = tmp_path / "m.csv"
+    m.write_text(f"log,vehicle,variant\n{logs / 'renamed.log'},truckY,GRSO905\n")
+    res = fleet("--manifest", str(m), "--out", str(out), "--workers", "1", check=False)
+    assert res.returncode == 2 and "a vehicle is one gearbox" in res.stderr, res.stderr
+
+
+def test_a_workers_service_warnings_stay_in_the_row(tmp_path, synthetic, caplog):
+    """From a fleet audit: 'frame time jumped backward' warnings of the workers flooded the console, naming no log."""
+    from tools.fleet.manifest import LogEntry, log_key
+    from tools.fleet.run import process_batch
+    good = read_manifest(synthetic)[0].log
+    lines = good.read_text().splitlines(keepends=True)
+    log = tmp_path / "jumps.log"
+    log.write_text("".join(lines[:4000] + lines[1000:3000]))                 # the clock goes back once
+    with caplog.at_level("WARNING"):
+        [(kind, row)] = process_batch([LogEntry(log, "truckJ", None, None, None, log_key(log))])
+    assert kind == "ok" and row["time_jumps"] >= 1
+    assert not [r for r in caplog.records if "jumped" in r.getMessage()]
 
 
 POISON_PRELOAD = """

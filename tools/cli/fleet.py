@@ -2,9 +2,11 @@
 from __future__ import annotations
 
 import argparse
+import os
 import re
 import sys
 import time
+from pathlib import Path
 
 from firmware_model.errors import InputError
 
@@ -56,6 +58,9 @@ def add_subparser(sub):
                    help="the --diagnose period in whole days (default 7); a drift is flagged after 4 periods at the "
                         "earliest (2 of baseline, 2 drifting)")
     p.add_argument("--no-report", action="store_true", help="skip report.md and its plots")
+    p.add_argument("--prune", action="store_true",
+                   help="first remove from DIR the rows of logs that are no longer at their path (moved, renamed "
+                        "or deleted: a moved log is replayed again under its new path and would count twice)")
     p.set_defaults(func=run)
     return p
 
@@ -88,6 +93,19 @@ def _warn_duplicates(out) -> None:
         print(f"warning: ... {len(dups) - 5} more groups of copies (report.md lists the first 50)", file=sys.stderr)
 
 
+def _warn_gone(out) -> None:
+    """A warning for rows whose log is no longer at its path (``--prune`` removes them)."""
+    from tools.fleet.store import read_table
+    summary = read_table(out)
+    if summary is None:
+        return
+    gone = sorted({p for p in summary.column("log").to_pylist() if not os.path.exists(p)})
+    if gone:
+        print(f"warning: {len(gone)} logs summarised in {out} are no longer at their path (moved, renamed or "
+              f"deleted; a moved log is counted again under its new path): {', '.join(gone[:3])}"
+              f"{' ...' if len(gone) > 3 else ''}; run again with --prune to remove their rows", file=sys.stderr)
+
+
 def run(args) -> int:
     from tools.fleet.run import run_fleet
     entries = _entries(args)
@@ -100,6 +118,12 @@ def run(args) -> int:
     if args.scheduler and not re.fullmatch(r"(tcp|tls|inproc|ucx|ws|wss)://[^\s/]+(:\d+)?/?|[\w.-]+:\d+",
                                            args.scheduler):
         raise InputError(f"--scheduler {args.scheduler!r} is not a scheduler address; give tcp://HOST:PORT")
+    if args.prune:
+        from tools.fleet.store import FleetStore
+        gone = FleetStore(args.out).prune() if (Path(args.out) / "summary").is_dir() else []
+        print(f"prune: {len(gone)} logs no longer at their path, their rows removed"
+              + (": " + ", ".join(gone[:5]) + (f" ... and {len(gone) - 5} more" if len(gone) > 5 else "")
+                 if gone else ""))
     t0 = time.perf_counter()
     res = run_fleet(entries, args.out, scheduler=args.scheduler, workers=args.workers, estimates=args.estimates,
                     diagnose=args.diagnose)
@@ -116,6 +140,7 @@ def run(args) -> int:
         if errors.num_rows > 5:
             print(f"  ... {errors.num_rows - 5} more in {args.out}/errors", file=sys.stderr)
     _warn_duplicates(args.out)
+    _warn_gone(args.out)
     if args.diagnose:
         from tools.fleet.health import fleet_health
         health = fleet_health(args.out, period_days=args.period_days)
@@ -124,7 +149,9 @@ def run(args) -> int:
             print(f"health: {health.judged} of {health.vehicles} vehicles have the {JUDGED_PERIODS} periods of "
                   f"{args.period_days:g} days a drift needs before it can be flagged (a baseline, then a run)"
                   + (f"; {health.undated} fitted logs left out: no date (give one in the manifest's date column)"
-                     if health.undated else ""))
+                     if health.undated else "")
+                  + (f"; {health.far} fitted logs left out: dated more than 60 days before or after the rest of "
+                     f"the fleet (a truck's clock set wrong? give the date in the manifest)" if health.far else ""))
         print(f"health: {health.periods} vehicle-periods fitted; flagged: "
               + (", ".join(f"{f.vehicle} ({f.effect})" for f in health.flags) or "none")
               + "; to watch (oil level from the oil temperature, not identifiable: check it): "

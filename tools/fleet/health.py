@@ -188,6 +188,7 @@ class Health(NamedTuple):
     vehicles: int = 0           # vehicles with a fitted period
     judged: int = 0             # of them, those with the periods a judgement needs (JUDGED_PERIODS)
     undated: int = 0            # fitted logs left out: no date (frame times not Unix time, none in the manifest)
+    far: int = 0                # fitted logs left out: dated far before or after the rest of the fleet
 
 
 def _level_rows(rows: list) -> list:
@@ -300,6 +301,30 @@ NO_FIT_HERE = ("no log in this folder has a health fit: either none was long eno
 JUDGED_PERIODS = BASELINE_PERIODS + CONSECUTIVE
 
 
+#: fitted logs dated more than this before or after the rest of the fleet (and few) are left out of the periods [d]
+FAR_DATE_GAP_DAYS = 60
+#: ... when they are at most this share of the fitted logs
+FAR_DATE_SHARE = 0.05
+
+
+def _drop_far_dates(rows: list, dates: dict) -> tuple[list, int]:
+    """(the rows, how many were left out): the fitted logs dated more than FAR_DATE_GAP_DAYS before (or after) all
+    the others, when they are at most FAR_DATE_SHARE of them (a truck's clock set a year back; a fleet audit saw
+    one such log move every vehicle's periods and give each a one-log first period). Never all of them."""
+    days = sorted(dt.date.fromisoformat(dates[r["log_key"]]).toordinal() for r in rows)
+    lo, hi = 0, len(days)
+    cap = int(FAR_DATE_SHARE * len(days))
+    for i in range(min(cap, len(days) - 1)):
+        if days[i + 1] - days[i] > FAR_DATE_GAP_DAYS:
+            lo = i + 1
+    for i in range(len(days) - 1, max(len(days) - 1 - cap, lo), -1):
+        if days[i] - days[i - 1] > FAR_DATE_GAP_DAYS:
+            hi = i
+    first, last = days[lo], days[hi - 1]
+    keep = [r for r in rows if first <= dt.date.fromisoformat(dates[r["log_key"]]).toordinal() <= last]
+    return keep, len(rows) - len(keep)
+
+
 def fleet_health(out: str | Path, period_days: float = 7.0) -> Health:
     """Fit every vehicle-period from DIR/fits, flag drifting vehicles; writes DIR/health/periods.parquet,
     DIR/health/flags.parquet and DIR/health/watch.parquet. Returns the fits, the flags and the watches."""
@@ -318,6 +343,7 @@ def fleet_health(out: str | Path, period_days: float = 7.0) -> Health:
     if not rows:
         return Health(0, [], [], why_none="no fitted log has a date (its frame times are not Unix time and the "
                                           "manifest gives none), so none falls into a period", undated=undated)
+    rows, far = _drop_far_dates(rows, dates)
     day0 = min(dt.date.fromisoformat(dates[r["log_key"]]) for r in rows)
     groups: dict = {}
     for r in rows:
@@ -341,7 +367,7 @@ def fleet_health(out: str | Path, period_days: float = 7.0) -> Health:
         per_vehicle[f.vehicle] = per_vehicle.get(f.vehicle, 0) + 1
     judged = sum(n >= JUDGED_PERIODS for n in per_vehicle.values())
     return Health(len(period_fits), period_fits, flags, watch, vehicles=len(per_vehicle), judged=judged,
-                  undated=undated)
+                  undated=undated, far=far)
 
 
 __all__ = ["COOLER_GRID", "JUDGED_PERIODS", "VOLUME_GRID_L", "Flag", "Health", "LogData", "PeriodFit", "fit_log",

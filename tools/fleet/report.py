@@ -56,7 +56,7 @@ def _hottest(c: dict, lines: list) -> None:
             per_vehicle[v] = (T, comp, c["date"][i], os.path.basename(c["log"][i]))
     lines += ["## Hottest vehicles", "", "| vehicle | peak | component | date | log |", "|---|---|---|---|---|"]
     for v, (T, comp, date, log) in sorted(per_vehicle.items(), key=lambda kv: -kv[1][0])[:10]:
-        lines.append(f"| {v} | {T:.1f} degC | {comp} | {date} | {log} |")
+        lines.append(f"| {_cell(v)} | {T:.1f} degC | {comp} | {date} | {_cell(log)} |")
     lines += ["", "## Hottest components (peak over the fleet, median of the per-log peaks)", "",
               "| component | fleet peak | median peak | time above warning | time above critical |",
               "|---|---|---|---|---|"]
@@ -107,6 +107,18 @@ def _cell(text) -> str:
     return str(text or "").replace("|", "\\|")
 
 
+def _gone(c: dict, lines: list) -> None:
+    """The logs summarised here that are no longer at their path (their rows still count above)."""
+    gone = sorted({x for x in c["log"] if not os.path.exists(x)})
+    if not gone:
+        return
+    lines += [f"## Logs no longer at their path ({len(gone)})", "",
+              "Moved, renamed or deleted since they were summarised: their rows still count above, and a moved log "
+              "is counted again under its new path. `gearbox-vsensor fleet ... --prune` removes their rows.", "",
+              "| log |", "|---|"]
+    lines += [f"| {_cell(x)} |" for x in gone[:50]] + [""]
+
+
 def _trusted_only(c: dict, lines: list) -> dict:
     """The summary's columns without the logs `replay` would call untrusted (exit status 3), which are listed
     instead: their peaks are no gearbox's (a log without gearbox messages peaks at its start temperature)."""
@@ -117,7 +129,7 @@ def _trusted_only(c: dict, lines: list) -> dict:
     lines += [f"## Logs whose outputs should not be trusted ({len(bad)}, left out of the peaks and times below)", "",
               "What `gearbox-vsensor replay` would warn about (exit status 3) for each:", "",
               "| vehicle | log | warnings |", "|---|---|---|"]
-    lines += [f"| {c['vehicle'][i]} | {os.path.basename(c['log'][i])} | {_cell(c['trust_warnings'][i])} |"
+    lines += [f"| {_cell(c['vehicle'][i])} | {_cell(os.path.basename(c['log'][i]))} | {_cell(c['trust_warnings'][i])} |"
               for i in bad[:50]]
     if len(bad) > 50:
         lines.append(f"\n... and {len(bad) - 50} more (the summary's column trusted is false)")
@@ -143,16 +155,17 @@ def _duplicates(c: dict, lines: list) -> None:
         return
     lines += [f"## Logs that look like copies ({len(dups)} groups)", "",
               "Same vehicle, same first and last frame time, same number of frames: each copy is summarised and its "
-              "hours counted again above. Remove the copies and run again (a re-run skips what is done).", "",
+              "hours counted again above. Remove the copies, then run again with --prune (it removes the rows of logs "
+              "no longer at their path; a re-run skips what is done).", "",
               "| logs |", "|---|"]
-    lines += ["| " + ", ".join(os.path.basename(x) for x in g) + " |" for g in dups[:50]]
+    lines += ["| " + _cell(", ".join(os.path.basename(x) for x in g)) + " |" for g in dups[:50]]
     lines.append("")
 
 
 def _flag_table(fl: dict, rows: list) -> list:
     lines = ["| vehicle | effect | in the period from | value | own baseline | why |", "|---|---|---|---|---|---|"]
     for i in rows:
-        lines.append(f"| {fl['vehicle'][i]} | {fl['effect'][i]} | {fl['start'][i]} | {fl['value'][i]:.2f} | "
+        lines.append(f"| {_cell(fl['vehicle'][i])} | {fl['effect'][i]} | {fl['start'][i]} | {fl['value'][i]:.2f} | "
                      f"{fl['baseline'][i]:.2f} | {fl['reason'][i]} |")
     return lines + [""]
 
@@ -245,6 +258,7 @@ def write_report(out: str | os.PathLike) -> Path:
                   f"{100 * float(np.mean(c['degraded_share'])):.1f} %; frames rejected: "
                   f"{sum(sum(c[k]) for k in c if k.startswith('rejected_'))} of {sum(c['frames'])}.", ""]
         _duplicates(c, lines)
+        _gone(c, lines)
         c = _trusted_only(c, lines)
         if c["log"]:
             _hottest(c, lines)
@@ -253,7 +267,7 @@ def write_report(out: str | os.PathLike) -> Path:
     if errors is not None and errors.num_rows:
         e = _cols(errors)
         lines += ["## Logs that could not be read", "", "| log | stage | reason |", "|---|---|---|"]
-        lines += [f"| {os.path.basename(e['log'][i])} | {e['stage'][i]} | {e['reason'][i]} |"
+        lines += [f"| {_cell(os.path.basename(e['log'][i]))} | {e['stage'][i]} | {_cell(e['reason'][i])} |"
                   for i in range(min(len(e["log"]), 50))]
         if len(e["log"]) > 50:
             lines.append(f"\n... and {len(e['log']) - 50} more in the errors table (errors/*.parquet)")

@@ -10,16 +10,19 @@ read becomes an error row with its reason; a re-run skips the logs already writt
 """
 from __future__ import annotations
 
+import functools
 import hashlib
+import logging
 import math
 import os
+import time
 from pathlib import Path
 from typing import NamedTuple
 
 from firmware_model.errors import InputError
 from tools.fleet.manifest import LogEntry, vehicle_config
 from tools.replay.formats import ends_mid_line
-from tools.fleet.store import ESTIMATES, FleetStore, partition_dir
+from tools.fleet.store import ESTIMATES, LOG_BYTES, LOG_MTIME, REPLAYED, FleetStore, log_stamp, partition_dir
 
 #: logs per task at most; a small fleet gets about TASKS_PER_WORKER tasks per worker
 BATCH_MAX_LOGS = 64
@@ -97,6 +100,7 @@ def process_log(entry: LogEntry, out: str | None = None, estimates: bool = False
     from tools.replay.log import replay_log
     base = {"vehicle": entry.vehicle, "log": os.fspath(entry.log), "log_key": entry.key}
     stage = "sensor"
+    stamp = log_stamp(entry.log)          # before reading: a log that grows while it is read is replayed again
     try:
         sensor, options = _sensor(entry.variant, entry.config)
         stage = "replay"
@@ -110,6 +114,9 @@ def process_log(entry: LogEntry, out: str | None = None, estimates: bool = False
                         oil_model=getattr(sensor.options, "oil_mode", "measured") == "model")
         # the verdict `replay` gives this log (exit status 3): its warnings, and whether they make it untrusted
         findings = service.findings()
+        row["variant"] = gearbox_of(entry.variant, entry.config)
+        row[LOG_BYTES], row[LOG_MTIME] = stamp if stamp is not None else (None, None)
+        row[REPLAYED] = time.time()
         row["trusted"] = not untrusted(findings)
         row["trust_warnings"] = " | ".join(f.sentence for f in findings if f.severity >= Severity.WARNING)
         if estimates and out is not None:
@@ -132,8 +139,17 @@ def process_log(entry: LogEntry, out: str | None = None, estimates: bool = False
 
 def process_batch(entries: list[LogEntry], out: str | None = None, estimates: bool = False,
                   diagnose: bool = False) -> list:
-    """The logs of one task, in order (a Dask task runs this on a worker)."""
-    return [process_log(e, out, estimates, diagnose) for e in entries]
+    """The logs of one task, in order (a Dask task runs this on a worker). The sensor service's own warnings (a
+    frame time jump, a bus finding) are not logged on the worker: each log's row counts them (``time_jumps``) and
+    carries its findings (``trust_warnings``); logged, they flooded the fleet's console without a log's name (a
+    fleet audit)."""
+    logger = logging.getLogger("gearbox_vsensor")
+    level = logger.level
+    logger.setLevel(logging.ERROR)
+    try:
+        return [process_log(e, out, estimates, diagnose) for e in entries]
+    finally:
+        logger.setLevel(level)
 
 
 def batches(entries: list[LogEntry], workers: int, max_logs: int = BATCH_MAX_LOGS) -> list[list[LogEntry]]:
@@ -239,6 +255,30 @@ def connect(scheduler: str | None, workers: int | None):
     return Client(cluster), cluster
 
 
+@functools.lru_cache(maxsize=256)
+def gearbox_of(variant: str | None, config: str | None) -> str:
+    """The gearbox a log is replayed as: its variant, or the parameter file its configuration names."""
+    cfg = vehicle_config(variant, config)
+    return os.fspath(cfg.params_path) if cfg.params_path else cfg.variant
+
+
+def _check_variants(store: FleetStore, entries: list[LogEntry]) -> None:
+    """InputError when a vehicle of ``entries`` already has rows in the output replayed as another gearbox variant
+    (a vehicle is one gearbox: a corrected manifest kept the rows of the wrong variant, a fleet audit found)."""
+    known = store.vehicle_variants()
+    if not known:
+        return
+    for e in entries:
+        have = known.get(e.vehicle)
+        if not have:
+            continue
+        want = gearbox_of(e.variant, e.config)
+        if want not in have:
+            raise InputError(f"vehicle {e.vehicle} has rows in {store.out} replayed as {', '.join(sorted(have))}, "
+                             f"and this run gives it {want}: a vehicle is one gearbox (use another --out, or remove "
+                             f"{store.out / 'summary' / ('vehicle=' + e.vehicle)} to replay it as {want})")
+
+
 def _worker_count(client) -> int:
     return max(1, len(client.scheduler_info().get("workers", {})))
 
@@ -255,8 +295,12 @@ def run_fleet(entries: list[LogEntry], out: str | os.PathLike, *, scheduler: str
     try:
         store = FleetStore(out)
         store.prepare()
+        _check_variants(store, entries)
         done = store.done_keys()
-        todo = [e for e in entries if e.key not in done]
+        # a log not done yet, or changed since its row was written (a log still being written then: its size and
+        # time moved; a fleet audit saw a partial summary kept for good); rows of an earlier version have no stamp
+        todo = [e for e in entries if e.key not in done or (done[e.key] is not None
+                                                             and done[e.key] != log_stamp(e.log))]
         n_workers = _worker_count(client)
         tasks = batches(todo, n_workers, max_logs)
 

@@ -22,6 +22,18 @@ from firmware_model.errors import InputError
 
 SUMMARY, ERRORS, ESTIMATES, HEALTH, FITS = "summary", "errors", "estimates", "health", "fits"
 ERROR_COLUMNS = ("vehicle", "log", "log_key", "stage", "reason")
+#: a summary row's record of the log file it came from (a re-run replays a log whose size or time changed) and when
+#: it was written (a log replayed again: the newest row wins)
+LOG_BYTES, LOG_MTIME, REPLAYED = "log_bytes", "log_mtime_ns", "replayed_at_s"
+
+
+def log_stamp(path) -> tuple[int, int] | None:
+    """(size in bytes, modification time in ns) of a log file; None when it cannot be read."""
+    try:
+        st = os.stat(path)
+    except OSError:
+        return None
+    return int(st.st_size), int(st.st_mtime_ns)
 
 
 def _pa():
@@ -58,13 +70,70 @@ class FleetStore:
             raise InputError(f"--out {self.out} is a file, not a folder")
         self.out.mkdir(parents=True, exist_ok=True)
 
-    def done_keys(self) -> set[str]:
-        """The keys of the logs that have a summary row (done; the errors table's logs are tried again)."""
+    def done_keys(self) -> dict:
+        """The keys of the logs that have a summary row (done; the errors table's logs are tried again), each with
+        the (size, modification time) of the log it was made from (None: a row of an earlier version, which did not
+        record them)."""
         _, pq = _pa()
-        keys: set[str] = set()
+        keys: dict = {}
         for f in (self.out / SUMMARY).rglob("*.parquet") if (self.out / SUMMARY).is_dir() else ():
-            keys.update(pq.read_table(f, columns=["log_key"]).column("log_key").to_pylist())
-        return keys
+            t = pq.read_table(f)
+            names = t.column_names
+            k = t.column("log_key").to_pylist()
+            b = t.column(LOG_BYTES).to_pylist() if LOG_BYTES in names else [None] * len(k)
+            m = t.column(LOG_MTIME).to_pylist() if LOG_MTIME in names else [None] * len(k)
+            r = t.column(REPLAYED).to_pylist() if REPLAYED in names else [None] * len(k)
+            for key, nb, mt, at in zip(k, b, m, r):
+                if key not in keys or (at or 0.0) >= keys[key][1]:
+                    keys[key] = (None if nb is None or mt is None else (int(nb), int(mt)), at or 0.0)
+        return {k: v[0] for k, v in keys.items()}
+
+    def vehicle_variants(self) -> dict:
+        """{vehicle: the gearbox variant its rows were replayed with}, from the rows that record it."""
+        table = read_table(self.out)
+        if table is None or "variant" not in table.column_names:
+            return {}
+        out: dict = {}
+        for v, var in zip(table.column("vehicle").to_pylist(), table.column("variant").to_pylist()):
+            if var:
+                out.setdefault(v, set()).add(var)
+        return out
+
+    def prune(self, exists=os.path.exists) -> list[str]:
+        """Remove the summary, fit and estimate rows of logs that are no longer at their path (moved, renamed,
+        deleted), file by file (each rewritten under a temporary name, or removed when it empties); returns their
+        paths."""
+        pa, pq = _pa()
+        gone: set[str] = set()
+        keys: set[str] = set()
+        root = self.out / SUMMARY
+        for f in sorted(root.rglob("*.parquet")) if root.is_dir() else ():
+            t = pq.read_table(f)
+            logs = t.column("log").to_pylist()
+            keep = [i for i, p in enumerate(logs) if exists(p)]
+            if len(keep) == len(logs):
+                continue
+            drop = set(range(len(logs))) - set(keep)
+            gone.update(logs[i] for i in drop)
+            keys.update(t.column("log_key").to_pylist()[i] for i in drop)
+            if keep:
+                write_atomic(t.take(pa.array(keep)), f)
+            else:
+                f.unlink()
+        fits = self.out / FITS
+        for f in sorted(fits.rglob("*.parquet")) if fits.is_dir() and keys else ():
+            t = pq.read_table(f)
+            keep = [i for i, k in enumerate(t.column("log_key").to_pylist()) if k not in keys]
+            if len(keep) < t.num_rows:
+                if keep:
+                    write_atomic(t.take(pa.array(keep)), f)
+                else:
+                    f.unlink()
+        est = self.out / ESTIMATES
+        for f in sorted(est.rglob("*.parquet")) if est.is_dir() and keys else ():
+            if any(f.stem.endswith(f"-{k}") for k in keys):
+                f.unlink()
+        return sorted(gone)
 
     def compact_errors(self) -> int:
         """Rewrite the errors table as one file: the latest row of each log that has no summary row (the one new
@@ -89,7 +158,8 @@ class FleetStore:
         for r in rows:
             fit = r.pop("_fit", None)
             if fit is not None:
-                fits.setdefault((r["vehicle"], r["date"]), []).append({"log_key": r["log_key"], **fit})
+                fits.setdefault((r["vehicle"], r["date"]), []).append({"log_key": r["log_key"], **fit,
+                                                                       REPLAYED: r.get(REPLAYED)})
             groups.setdefault((r["vehicle"], r["date"]), []).append(r)
         # fits first: the summary row is what marks a log done
         for (vehicle, date), part in fits.items():
@@ -132,9 +202,27 @@ def read_table(out: str | os.PathLike, which: str = SUMMARY):
         schema = pa.unify_schemas([data.schema, *(f.physical_schema for f in data.get_fragments())],
                                   promote_options="permissive")
         data = ds.dataset(root, format="parquet", partitioning=part, schema=schema)
+        return newest_rows(data.to_table())
     return data.to_table()
 
 
-__all__ = ["ERRORS", "ERROR_COLUMNS", "ESTIMATES", "FITS", "HEALTH", "SUMMARY", "FleetStore", "partition_dir",
-           "read_table",
+def newest_rows(table):
+    """One row per log_key: the newest (by replayed_at_s; a log replayed again after it changed, or a run killed
+    between two files); rows of an earlier version, without the time, count as the oldest."""
+    import numpy as np
+    pa, _ = _pa()
+    keys = table.column("log_key").to_pylist()
+    if len(set(keys)) == len(keys):
+        return table
+    at = table.column(REPLAYED).to_pylist() if REPLAYED in table.column_names else [None] * len(keys)
+    best: dict = {}
+    for i, (k, a) in enumerate(zip(keys, at)):
+        a = -np.inf if a is None else float(a)
+        if k not in best or a >= best[k][0]:
+            best[k] = (a, i)
+    return table.take(pa.array(sorted(i for _, i in best.values())))
+
+
+__all__ = ["ERRORS", "ERROR_COLUMNS", "ESTIMATES", "FITS", "HEALTH", "LOG_BYTES", "LOG_MTIME", "REPLAYED", "SUMMARY",
+           "FleetStore", "log_stamp", "newest_rows", "partition_dir", "read_table",
            "write_atomic"]
