@@ -59,6 +59,18 @@ def partition_dir(root: Path, vehicle: str, date: str) -> Path:
     return root / f"vehicle={quote(vehicle, safe='')}" / f"date={quote(date, safe='')}"
 
 
+def _keep_rows(path: Path, table, keep: list[int]) -> None:
+    """Rewrite the Parquet file ``path`` (holding ``table``) with only the rows ``keep``; remove it when none is
+    kept; leave it alone when all are."""
+    pa, _ = _pa()
+    if len(keep) == table.num_rows:
+        return
+    if keep:
+        write_atomic(table.take(pa.array(keep)), path)
+    else:
+        path.unlink()
+
+
 class FleetStore:
     """The output folder ``out``."""
 
@@ -109,26 +121,15 @@ class FleetStore:
         root = self.out / SUMMARY
         for f in sorted(root.rglob("*.parquet")) if root.is_dir() else ():
             t = pq.read_table(f)
-            logs = t.column("log").to_pylist()
-            keep = [i for i, p in enumerate(logs) if exists(p)]
-            if len(keep) == len(logs):
-                continue
-            drop = set(range(len(logs))) - set(keep)
+            logs, file_keys = t.column("log").to_pylist(), t.column("log_key").to_pylist()
+            drop = [i for i, p in enumerate(logs) if not exists(p)]
             gone.update(logs[i] for i in drop)
-            keys.update(t.column("log_key").to_pylist()[i] for i in drop)
-            if keep:
-                write_atomic(t.take(pa.array(keep)), f)
-            else:
-                f.unlink()
+            keys.update(file_keys[i] for i in drop)
+            _keep_rows(f, t, [i for i in range(len(logs)) if i not in set(drop)])
         fits = self.out / FITS
         for f in sorted(fits.rglob("*.parquet")) if fits.is_dir() and keys else ():
             t = pq.read_table(f)
-            keep = [i for i, k in enumerate(t.column("log_key").to_pylist()) if k not in keys]
-            if len(keep) < t.num_rows:
-                if keep:
-                    write_atomic(t.take(pa.array(keep)), f)
-                else:
-                    f.unlink()
+            _keep_rows(f, t, [i for i, k in enumerate(t.column("log_key").to_pylist()) if k not in keys])
         est = self.out / ESTIMATES
         for f in sorted(est.rglob("*.parquet")) if est.is_dir() and keys else ():
             if any(f.stem.endswith(f"-{k}") for k in keys):
