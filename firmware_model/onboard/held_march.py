@@ -98,7 +98,6 @@ class March(NamedTuple):
     ttl_s: np.ndarray         # (r,) per row: 0 at or above the limit now, inf never within the horizon
     T_inf_c: np.ndarray       # (m,) steady state of the last linearisation
     relinearised: int = 0     # how many times the march re-linearised the system along its trajectory
-    steps: int = 0            # the march's steps
 
 
 class Relinearise(NamedTuple):
@@ -248,7 +247,7 @@ def march_time_to_limit(sys: HeldSystem, T0_c: np.ndarray, rows: np.ndarray, lim
     energy = float(np.sum(C * e * e))
     T_op = relin.T_op_c if relin is not None else math.nan
     settled = relin is None or abs(T_inf[relin.node] - T_op) < TTL_SETTLED_K
-    n_relin = n_steps = 0
+    n_relin = 0
     if settled:
         _close_by_bounds(lin, e, energy, False, open_, lim, Crow)
     t, h = 0.0, MARCH_H0_S
@@ -272,7 +271,6 @@ def march_time_to_limit(sys: HeldSystem, T0_c: np.ndarray, rows: np.ndarray, lim
                 if not open_.any():
                     break
         A = sys.A_w_per_k
-        n_steps += 1
         d = MARCH_D_FRAC * h_step
         M = np.diag(C) + d * A
         try:
@@ -296,4 +294,4 @@ def march_time_to_limit(sys: HeldSystem, T0_c: np.ndarray, rows: np.ndarray, lim
             t_skip = 0.0                   # the skip's step was the grid's steps up to t_skip: h is the next one
         else:
             h = h * MARCH_RATIO
-    return March(out, T_inf, n_relin, n_steps)
+    return March(out, T_inf, n_relin)
