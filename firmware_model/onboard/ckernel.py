@@ -89,7 +89,8 @@ TABLE_FIELDS = (
     + [(k, "pr") for k in ("warning_c", "critical_c", "hysteresis_k", "warning_rest_c")]
     + [("debounce_s", "r"), ("lead_s", "r")]
     + [("C_j_per_k", "pr")] + [(k, "pi") for k in ("ldl_perm", "ldl_pos", "ldl_col_ptr", "ldl_row", "ldl_link_slot",
-                                                   "ldl_upd_ptr", "ldl_upd_target", "ldl_upd_a", "ldl_upd_b")]
+                                                   "ldl_upd_ptr", "ldl_upd_target", "ldl_upd_a", "ldl_upd_b",
+                                                   "ttl_relin")]
     + [(k, "i") for k in ("ldl_nnz", "ldl_nupd", "ttl_sump_model", "ttl_relinearise")])
 
 

@@ -28,11 +28,6 @@ it). This module finds, for each published component, the first time it reaches 
    ``-C^-1 A`` negative: ``|e_i(t')| <= w_i max_j |e_j(t)| / w_j``, and the stop and the skip use that
    (:func:`_bound_scale`). At t = 0 the bounds alone settle most refreshes (no limit within reach).
 
-5. with the sump modelled the held system depends on the sump (losses, oil-side conductances, cooler): with a
-   :class:`Relinearise`, the march makes the system again before a step whenever the marched sump has moved
-   TTL_RELINEARISE_TOL_K from the last linearisation (at the sump predicted for the middle of the step), and the
-   bounds of 4. close rows only while that linearisation's own steady sump is within TTL_SETTLED_K of it.
-
 The compiled kernel (firmware_model/onboard/c/gvs_kernel.c, ``gvs_ttl_refresh``) runs the same march, grid,
 interpolation, quantum and stopping rule; it solves with a sparse LDL^T of ``C + d K`` in a fill-reducing order
 generated from the topology (firmware_model.onboard.kernel_tables) and a Sherman-Morrison correction for the
@@ -42,7 +37,7 @@ rounding.
 from __future__ import annotations
 
 import math
-from typing import Callable, NamedTuple
+from typing import NamedTuple
 
 import numpy as np
 
@@ -60,10 +55,6 @@ MARCH_GAMMA = 2.0 - math.sqrt(2.0)
 MARCH_D_FRAC = 1.0 - 1.0 / math.sqrt(2.0)
 MARCH_A1 = 1.0 / (MARCH_GAMMA * (2.0 - MARCH_GAMMA))
 MARCH_A0 = (1.0 - MARCH_GAMMA) ** 2 / (MARCH_GAMMA * (2.0 - MARCH_GAMMA))
-#: with the modelled sump: re-linearise along the march when the sump has moved this far [K]
-TTL_RELINEARISE_TOL_K = 0.5
-#: ... and let the bounds close rows only once the linearisation's steady sump is this close to its own [K]
-TTL_SETTLED_K = 0.5
 #: samples of the Hermite interpolant that look for the first sign change, then bisections
 HERMITE_SAMPLES = 16
 HERMITE_BISECTIONS = 40
@@ -94,18 +85,11 @@ class HeldSystem(NamedTuple):
 
 
 class March(NamedTuple):
-    """The first crossings."""
+    """The first crossings, and a node's temperature at the first crossing of the watched rows."""
     ttl_s: np.ndarray         # (r,) per row: 0 at or above the limit now, inf never within the horizon
-    T_inf_c: np.ndarray       # (m,) steady state of the last linearisation
-    relinearised: int = 0     # how many times the march re-linearised the system along its trajectory
-
-
-class Relinearise(NamedTuple):
-    """The held system depends on one node's temperature (the modelled sump: the losses, the oil-side conductances
-    and the cooler follow it). The march re-linearises it along its own trajectory (:func:`march_time_to_limit`)."""
-    node: int                 # the free node (the sump)
-    T_op_c: float             # the temperature the first system was linearised at
-    build: Callable[[float], "HeldSystem | None"]   # the held system linearised at a temperature of the node
+    T_inf_c: np.ndarray       # (m,) steady state
+    watch_t_s: float          # the first crossing (before the quantum) of a watched row; NaN: none crosses
+    watch_T_c: float          # the watched node's temperature then (the Hermite interpolant of its step)
 
 
 def _hermite(s, h, f0, g0, f1, g1):
@@ -169,108 +153,43 @@ def _skip_to(open_: np.ndarray, gap_k: np.ndarray, rate_max_k_per_s: float, w_ro
     return t_skip, h
 
 
-def _steady(sys: HeldSystem) -> np.ndarray | None:
-    """``T_inf = A^-1 b``; None when there is no finite steady state."""
+def march_time_to_limit(sys: HeldSystem, T0_c: np.ndarray, rows: np.ndarray, limit_c: np.ndarray,
+                        watch: np.ndarray | None = None, watch_node: int = 0) -> March | None:
+    """First time [s] each free node ``rows`` reaches ``limit_c`` with the inputs held (module doc); None when the
+    held system has no finite steady state (the caller publishes "not available"). ``watch`` (bool per row): the
+    temperature of free node ``watch_node`` is recorded at the first crossing of a watched row (the time to limit's
+    re-linearisation)."""
+    A, C, b = sys.A_w_per_k, sys.C_j_per_k, sys.b_w
     try:
-        T_inf = np.linalg.solve(sys.A_w_per_k, sys.b_w)
+        T_inf = np.linalg.solve(A, b)
     except np.linalg.LinAlgError:
         return None
-    return T_inf if np.all(np.isfinite(T_inf)) else None
-
-
-class _Lin(NamedTuple):
-    """One linearisation as the march uses it: the system, its steady state, the rows' steady states, whether the
-    bounds hold and the rows' weights."""
-    sys: HeldSystem
-    T_inf: np.ndarray
-    Tinf_rows: np.ndarray
-    bounded: bool
-    w_rows: np.ndarray
-
-
-def _lin(sys: HeldSystem, T_inf: np.ndarray, rows: np.ndarray) -> _Lin:
-    bounded = sys.metzler or sys.weights is not None
-    w_rows = np.ones(rows.size) if sys.metzler or sys.weights is None else sys.weights[rows]
-    return _Lin(sys, T_inf, T_inf[rows], bounded, w_rows)
-
-
-def _close_by_bounds(lin: _Lin, e: np.ndarray, energy: float, energy_fell: bool, open_: np.ndarray,
-                     lim: np.ndarray, Crow: np.ndarray) -> None:
-    """Close the open rows that provably never reach their limits (module doc, 4.), in place."""
-    if lin.bounded:
-        open_ &= lin.Tinf_rows + _bound_scale(lin.sys, e) * lin.w_rows >= lim
-    if not lin.sys.coupled or energy_fell:
-        open_ &= lin.Tinf_rows + np.sqrt(energy / Crow) >= lim
-
-
-def _relinearised(relin: Relinearise, lin: _Lin, e: np.ndarray, de: np.ndarray, h_step: float, rows: np.ndarray):
-    """(the linearisation, deviation, its derivative, the sump it was made at) of the held system made again at the
-    sump predicted for the middle of the next step (on the current linearisation, not past its steady state), the
-    state carried over; None when it has no finite steady state."""
-    j = relin.node
-    T_s, T_inf_s = lin.T_inf[j] + e[j], lin.T_inf[j]
-    T_mid = min(max(T_s + 0.5 * h_step * de[j], min(T_s, T_inf_s)), max(T_s, T_inf_s))
-    new = relin.build(T_mid)
-    T_inf = None if new is None else _steady(new)
-    if T_inf is None:
+    if not np.all(np.isfinite(T_inf)):
         return None
-    e_new = lin.T_inf + e - T_inf
-    return _lin(new, T_inf, rows), e_new, -(new.A_w_per_k @ e_new) / new.C_j_per_k, T_mid
-
-
-def march_time_to_limit(sys: HeldSystem, T0_c: np.ndarray, rows: np.ndarray, limit_c: np.ndarray,
-                        relin: Relinearise | None = None) -> March | None:
-    """First time [s] each free node ``rows`` reaches ``limit_c`` with the inputs held (module doc); None when the
-    held system has no finite steady state (the caller publishes "not available").
-
-    ``relin`` (the modelled sump): before each step, when the marched sump has moved TTL_RELINEARISE_TOL_K or more
-    from the temperature the system was linearised at, the system is linearised again at the sump predicted for the
-    middle of the step (the state carried over, its deviation taken from the new steady state). The bounds of 4.
-    hold for one linear system only: they close rows (and the first step skips ahead) only while the current
-    linearisation's own steady sump lies within TTL_SETTLED_K of the temperature it was made at (the sump has
-    settled, so the system stays what it is: a heuristic, docs/sensor.md); before that a row closes by its crossing
-    or at the horizon. A re-linearisation without a finite steady state leaves the rows still open not available
-    (NaN)."""
-    C = sys.C_j_per_k
-    T_inf = _steady(sys)
-    if T_inf is None:
-        return None
-    lin = _lin(sys, T_inf, rows)
     e = T0_c - T_inf
-    de = -(sys.A_w_per_k @ e) / C
+    de = -(A @ e) / C
     out = np.full(rows.size, np.inf)
     T0_rows = T0_c[rows]
     out[T0_rows >= limit_c] = 0.0
     lim = limit_c
+    Tinf_rows = T_inf[rows]
     Crow = C[rows]
     open_ = T0_rows < lim
     energy = float(np.sum(C * e * e))
-    T_op = relin.T_op_c if relin is not None else math.nan
-    settled = relin is None or abs(T_inf[relin.node] - T_op) < TTL_SETTLED_K
-    n_relin = 0
-    if settled:
-        _close_by_bounds(lin, e, energy, False, open_, lim, Crow)
+    bounded = sys.metzler or sys.weights is not None
+    w_rows = np.ones(rows.size) if sys.metzler or sys.weights is None else sys.weights[rows]
+    if bounded:
+        open_ &= Tinf_rows + _bound_scale(sys, e) * w_rows >= lim
+    if not sys.coupled:
+        open_ &= Tinf_rows + np.sqrt(energy / Crow) >= lim
+    watch = np.zeros(rows.size, dtype=bool) if watch is None else np.asarray(watch, dtype=bool)
+    watch_t, watch_T = math.nan, math.nan
     t, h = 0.0, MARCH_H0_S
     t_skip = 0.0
-    if settled and lin.bounded and open_.any():
-        t_skip, h = _skip_to(open_, lim - T0_rows, _bound_scale(sys, de), lin.w_rows)
+    if bounded and open_.any():
+        t_skip, h = _skip_to(open_, lim - T0_rows, _bound_scale(sys, de), w_rows)
     while open_.any() and t < TTL_HORIZON_S:
         h_step = t_skip if t_skip > 0.0 else min(h, TTL_HORIZON_S - t)
-        if relin is not None and t > 0.0 and abs(T_inf[relin.node] + e[relin.node] - T_op) >= TTL_RELINEARISE_TOL_K:
-            again = _relinearised(relin, lin, e, de, h_step, rows)
-            if again is None:                   # no steady state there: the rows still open are not available
-                out[open_] = math.nan
-                break
-            lin, e, de, T_op = again
-            sys, T_inf = lin.sys, lin.T_inf
-            energy = float(np.sum(C * e * e))
-            n_relin += 1
-            settled = abs(T_inf[relin.node] - T_op) < TTL_SETTLED_K
-            if settled:
-                _close_by_bounds(lin, e, energy, False, open_, lim, Crow)
-                if not open_.any():
-                    break
-        A = sys.A_w_per_k
         d = MARCH_D_FRAC * h_step
         M = np.diag(C) + d * A
         try:
@@ -279,19 +198,29 @@ def march_time_to_limit(sys: HeldSystem, T0_c: np.ndarray, rows: np.ndarray, lim
         except np.linalg.LinAlgError:        # singular (as the kernel's failed factorisation): not available
             return None
         de_new = -(A @ e_new) / C
-        f0 = lin.Tinf_rows + e[rows] - lim
-        f1 = lin.Tinf_rows + e_new[rows] - lim
+        t_new = t + h_step
+        f0 = Tinf_rows + e[rows] - lim
+        f1 = Tinf_rows + e_new[rows] - lim
+        s_watch = math.inf
         for i in np.flatnonzero(open_ & (f1 >= 0.0)):
             r = rows[i]
             s = _first_root(h_step, f0[i], de[r], f1[i], de_new[r])
             out[i] = min(_quantum_ceil(t + s * h_step), TTL_HORIZON_S)
             open_[i] = False
+            if watch[i] and s < s_watch:
+                s_watch = s
+        if s_watch < math.inf and math.isnan(watch_t):
+            watch_t = t + s_watch * h_step
+            j = watch_node
+            watch_T = float(T_inf[j] + _hermite(s_watch, h_step, e[j], de[j], e_new[j], de_new[j]))
         energy_new = float(np.sum(C * e_new * e_new))
-        if settled:
-            _close_by_bounds(lin, e_new, energy_new, energy_new <= energy, open_, lim, Crow)
-        e, de, t, energy = e_new, de_new, t + h_step, energy_new
+        if bounded:
+            open_ &= Tinf_rows + _bound_scale(sys, e_new) * w_rows >= lim
+        if not sys.coupled or energy_new <= energy:
+            open_ &= Tinf_rows + np.sqrt(energy_new / Crow) >= lim
+        e, de, t, energy = e_new, de_new, t_new, energy_new
         if t_skip > 0.0:
             t_skip = 0.0                   # the skip's step was the grid's steps up to t_skip: h is the next one
         else:
             h = h * MARCH_RATIO
-    return March(out, T_inf, n_relin)
+    return March(out, T_inf, watch_t, watch_T)

@@ -131,7 +131,7 @@ def _time_to_limit(sp: SensorParams) -> dict:
         C_j_per_k=_f64(h.C), ldl_perm=_i32(pat.perm), ldl_pos=_i32(pat.pos), ldl_col_ptr=_i32(pat.col_ptr),
         ldl_row=_i32(pat.row), ldl_link_slot=_i32(pat.link_slot), ldl_upd_ptr=_i32(pat.upd_ptr),
         ldl_upd_target=_i32(pat.upd_target), ldl_upd_a=_i32(pat.upd_a), ldl_upd_b=_i32(pat.upd_b),
-        ldl_nnz=int(pat.row.size), ldl_nupd=int(pat.upd_target.size),
+        ttl_relin=_i32(h.ttl_relin_pub), ldl_nnz=int(pat.row.size), ldl_nupd=int(pat.upd_target.size),
         ttl_sump_model=int(sp.options.ttl_sump == "model"), ttl_relinearise=int(bool(sp.scalar_effects)))
 
 

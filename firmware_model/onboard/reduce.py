@@ -881,6 +881,8 @@ class Helpers:
         self.pub_rows_meas = np.searchsorted(free_meas, pub[self.pub_free_meas])
         self.pub_free_all = np.ones(pub.size, dtype=bool)
         self.pub_rows_all = pub.copy()
+        # published components whose crossing re-linearises the time to limit (not the sump itself)
+        self.ttl_relin_pub = pub != rp.i_oil
         self.cooler = cooler_params(rp.cooler)
         # the heat lag's coefficients at the onboard step (physics.heat_lag.heat_lag_step(lag_w, src, h.heat_lag))
         self.heat_lag = heat_lag(rp.heat_lag_tau_s, rp.dt_s)

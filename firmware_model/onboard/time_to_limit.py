@@ -6,8 +6,8 @@ held-input network is linear (:func:`held_system`: K from the step's conductance
 oil-system inlet following a modelled sump), and the first crossing of each limit comes from marching it
 (:func:`firmware_model.onboard.held_march.march_time_to_limit`: steady state, TR-BDF2 on a geometric grid, no
 eigen-decomposition; the compiled kernel runs the same method). With the sump modelled the sump warms or cools
-under the held load, and the losses, the oil-side conductances and the cooler move with it: the march re-linearises
-the system along its own trajectory as the sump moves (:func:`_point_at`, held_march.Relinearise; docs/sensor.md).
+under the held load, and the losses and the oil-side conductances move with it: the system is re-linearised at the
+sump temperature the previous solution predicts at the earliest crossing (docs/sensor.md).
 """
 from __future__ import annotations
 
@@ -21,17 +21,22 @@ from firmware_model.onboard import reduce as R
 from firmware_model.onboard.conductance_bins import LN_SPEED_BIN, OIL_BIN_C, SPEED_BIN_MIN_RAD_S
 from firmware_model.physics.conductance_matrix import conductance_matrix
 from firmware_model.onboard.held_inputs import cooler_slope_w_per_k
-from firmware_model.physics.cooler import INLET_DROP_MAX_K, inlet_drop_k
-from firmware_model.onboard.held_march import HeldSystem, March, Relinearise, march_time_to_limit
-from firmware_model.onboard.params import SensorParams, vehicle_value
-from firmware_model.onboard.records import I_AMB, I_COOL, I_RET, I_TORQUE, I_VKMH, N_PUB, SensorState
+from firmware_model.physics.cooler import INLET_DROP_MAX_K
+from firmware_model.onboard.held_march import HeldSystem, March, march_time_to_limit
+from firmware_model.onboard.params import SensorParams
+from firmware_model.onboard.records import I_RET, I_TORQUE, N_PUB, SensorState
 from firmware_model.onboard.step_cache import StepCache
 
 #: the coupled held system must keep 1 - e_sump^T K^-1 u above this (else a real mode grows: the inlet is frozen)
 COUPLING_MARGIN = 1.0e-6
+#: with the sump modelled: re-linearise the held-input system this many times at the sump temperature the last
+#: solution predicts at the earliest crossing (the losses and oil-side conductances follow the sump; docs/sensor.md)
+TTL_RELINEARISE_STEPS = 2
 #: with the sump modelled: the oil-system inlet follows the sump through the linearised cooler in the held-input
 #: system (a non-symmetric coupling, general eigen-decomposition; docs/sensor.md), unless the step clips it
 TTL_INLET_COUPLING = True
+#: ... until the operating point's sump temperature moves less than this [K]
+TTL_RELINEARISE_TOL_K = 0.5
 #: the published sump's column
 I_PUB_OIL = PUBLISHED.index("oil")
 
@@ -91,30 +96,28 @@ def refresh_ttl(state: SensorState, job: TtlJob | None, sp: SensorParams, cache:
 def time_to_limit(sp: SensorParams, cache: StepCache, p: TtlPoint, vehicle=None) -> np.ndarray:
     """Time [s] until each published component reaches its warning limit if the current inputs are held.
 
-    With the sump modelled (``ttl_sump = "model"``) and one set of effects, the march re-linearises the held system
-    along its own trajectory as the sump warms or cools (:func:`_point_at`, held_march.Relinearise)."""
-    return _solve(sp, cache, p, vehicle).ttl_s
-
-
-def _point_at(sp: SensorParams, cache: StepCache, p: TtlPoint, T_op_c: float, vehicle=None) -> TtlPoint:
-    """The held operating point re-evaluated at the sump temperature T_op: the losses (the oil's viscosity), the
-    oil-side conductances (their bin), the oil's heat capacity, the cooler's heat and the inlet drop there (as the
-    step computes them at a sump of T_op); the state and the inputs are the point's."""
+    With the sump modelled (``ttl_sump = "model"``) the system is re-linearised at the sump temperature the
+    previous solution predicts at the earliest crossing (from the same state), up to TTL_RELINEARISE_STEPS times."""
+    sol = _solve(sp, p, p.src_w, p.G_w_per_k, p.G_streams_w_per_k, p.T_oil_c, vehicle)
+    if sp.options.ttl_sump != "model" or not sp.scalar_effects:
+        return sol.ttl_s
     rp, h, e = sp.reduced, sp.helpers, sp.effects
-    x, prop, _ = R.oil_row(rp, T_op_c, h)
-    rho_cp_j_per_m3k = float(prop[R.P_RHO] * prop[R.P_CP])
-    w = p.omega_in_rad_s
-    retarder_w = float(e.retarder_frac) * float(p.used[I_RET]) * abs(float(rp.speed_coef[p.row, 3])) * w
-    src_w = R.heat_sources(rp, p.row, w, abs(float(p.used[I_TORQUE])), prop, x, e.src_scale, e.churn_scale,
-                           e.needle_scale, retarder_w, h)
-    bins = cache.bins.get(sp, p.row, *_bin_centre(w, T_op_c))
-    Q_cool_w, mcp_w_per_k, _ = R.cooler_heat(rp, T_op_c, abs(float(rp.speed_coef[p.row, 1])) * w, w, p.used[I_COOL],
-                                             p.used[I_AMB], p.used[I_VKMH], rho_cp_j_per_m3k,
-                                             vehicle_value(sp.cooler_scale, vehicle),
-                                             vehicle_value(sp.thermostat_offset_c, vehicle))
-    return p._replace(src_w=src_w, G_w_per_k=bins.G_w_per_k, G_streams_w_per_k=bins.G_streams_w_per_k,
-                      dT_in_k=float(inlet_drop_k(Q_cool_w, mcp_w_per_k)), Q_cool_w=float(Q_cool_w),
-                      T_oil_c=float(T_op_c), rho_cp_j_per_m3k=rho_cp_j_per_m3k)
+    T_op_c = p.T_oil_c
+    for _ in range(TTL_RELINEARISE_STEPS):
+        if sol.march is None or math.isnan(sol.march.watch_T_c):
+            break
+        T_next_c = sol.march.watch_T_c        # the sump at the earliest crossing of a component (not the sump)
+        if abs(T_next_c - T_op_c) < TTL_RELINEARISE_TOL_K:
+            break
+        T_op_c = T_next_c
+        x, prop, _ = R.oil_row(rp, T_op_c, h)
+        retarder_w = float(e.retarder_frac) * float(p.used[I_RET]) * abs(float(rp.speed_coef[p.row, 3])) \
+            * p.omega_in_rad_s
+        src_op_w = R.heat_sources(rp, p.row, p.omega_in_rad_s, abs(float(p.used[I_TORQUE])), prop, x, e.src_scale,
+                                e.churn_scale, e.needle_scale, retarder_w, h)
+        bins = cache.bins.get(sp, p.row, *_bin_centre(p.omega_in_rad_s, T_op_c))
+        sol = _solve(sp, p, src_op_w, bins.G_w_per_k, bins.G_streams_w_per_k, T_op_c, vehicle)
+    return sol.ttl_s
 
 
 def _bin_centre(omega_in_rad_s: float, T_oil_c: float) -> tuple[float, float]:
@@ -128,12 +131,16 @@ def _bin_centre(omega_in_rad_s: float, T_oil_c: float) -> tuple[float, float]:
     return omega_q, round(T_oil_c / OIL_BIN_C) * OIL_BIN_C
 
 
-def _inlet_follows_sump(p: TtlPoint, measured: bool, slope_w_per_k: float, mcp_w_per_k: float) -> bool:
+def _inlet_follows_sump(sp: SensorParams, p: TtlPoint, measured: bool, slope_w_per_k: float, T_op_c: float) -> bool:
     """Whether the held-input system couples the oil-system inlet to the sump: the sump is modelled, the cooler has
-    a slope, there is a flow, and the step does not clip the inlet drop (a clipped inlet drop does not follow the
-    sump)."""
-    return TTL_INLET_COUPLING and not measured and slope_w_per_k != 0 and mcp_w_per_k > 0.0 \
-        and abs(p.dT_in_k) < INLET_DROP_MAX_K
+    a slope, and the inlet drop is inside the step's clip both now and, on the linearised cooler, at the operating
+    point's sump T_op (a clipped inlet drop does not follow the sump)."""
+    if not TTL_INLET_COUPLING or measured or slope_w_per_k == 0 or not abs(p.dT_in_k) < INLET_DROP_MAX_K:
+        return False
+    mcp = p.rho_cp_j_per_m3k * _oil_flow_m3_s(sp, p.row, p.omega_in_rad_s)
+    if not mcp > 0.0:
+        return False
+    return abs((p.Q_cool_w + slope_w_per_k * (T_op_c - p.T_oil_c)) / mcp) < INLET_DROP_MAX_K
 
 
 def _oil_flow_m3_s(sp: SensorParams, row: int, omega_in_rad_s: float) -> float:
@@ -142,23 +149,23 @@ def _oil_flow_m3_s(sp: SensorParams, row: int, omega_in_rad_s: float) -> float:
     return rp.flow_m3_per_rad * abs(float(rp.speed_coef[row, 1])) * omega_in_rad_s
 
 
-def held_system(sp: SensorParams, p: TtlPoint, measured: bool, vehicle=None) -> tuple[HeldSystem, np.ndarray]:
-    """(the held-input system over its free nodes, the free nodes) at the operating point ``p`` (its losses,
-    conductances, cooler heat and inlet drop at its sump ``p.T_oil_c``; :func:`_point_at` re-evaluates them at
-    another sump), the cooler linearised there: K from the conductances, the inlet coupling when the inlet follows
-    the sump (and the coupled system passes the stability test below), b from the heat, the boundaries, the inlet
-    drop and a measured sump."""
+def held_system(sp: SensorParams, p: TtlPoint, src_w, G_w_per_k, G_streams_w_per_k, T_op_c: float,
+                measured: bool, vehicle=None) -> tuple[HeldSystem, np.ndarray]:
+    """(the held-input system over its free nodes, the free nodes) at the operating point's oil temperature T_op
+    (losses ``src_w`` and conductances ``G_w_per_k`` given for it), the cooler linearised at the step's sump
+    ``p.T_oil_c`` with its slope at T_op: K from the conductances, the inlet coupling when the inlet follows the
+    sump (and the coupled system passes the stability test below), b from the heat, the boundaries, the inlet drop
+    and a measured sump."""
     rp, h = sp.reduced, sp.helpers
-    src_w, G_w_per_k, G_streams_w_per_k = p.src_w, p.G_w_per_k, p.G_streams_w_per_k
     K, _ = conductance_matrix(G_w_per_k, h.topology)
     T_oil_c = p.T_oil_c
-    slope_w_per_k = 0.0 if measured else cooler_slope_w_per_k(sp, T_oil_c, p.omega_in_rad_s, p.row, p.used,
+    slope_w_per_k = 0.0 if measured else cooler_slope_w_per_k(sp, T_op_c, p.omega_in_rad_s, p.row, p.used,
                                                               p.rho_cp_j_per_m3k, vehicle)
     mcp_w_per_k = p.rho_cp_j_per_m3k * _oil_flow_m3_s(sp, p.row, p.omega_in_rad_s)
     u = None
     if not measured:
         K[rp.i_oil, rp.i_oil] += slope_w_per_k
-        if _inlet_follows_sump(p, measured, slope_w_per_k, mcp_w_per_k):
+        if _inlet_follows_sump(sp, p, measured, slope_w_per_k, T_op_c):
             # the oil-system inlet follows the sump through the linearised cooler: inlet drop
             # (Q0 + slope (T_sump - T0)) / (mdot cp) moves sv (T_sump - T0) slope / (mdot cp) into the streams
             u = (G_streams_w_per_k @ h.stream_scatter) * (slope_w_per_k / mcp_w_per_k)
@@ -173,7 +180,13 @@ def held_system(sp: SensorParams, p: TtlPoint, measured: bool, vehicle=None) -> 
         # current sump goes into b
         b_in_w = (G_streams_w_per_k * p.dT_in_k) @ h.stream_scatter - u * T_oil_c
     else:
-        b_in_w = (G_streams_w_per_k * p.dT_in_k) @ h.stream_scatter      # the inlet drop frozen
+        # frozen inlet drop, at the operating point's sump T_op through the linearised cooler
+        dT_in_k = p.dT_in_k
+        if T_op_c != T_oil_c and not measured:
+            dT_lin_k = (p.Q_cool_w + slope_w_per_k * (T_op_c - T_oil_c)) / mcp_w_per_k if mcp_w_per_k > 0.0 \
+                else 0.0
+            dT_in_k = min(max(dT_lin_k, -INLET_DROP_MAX_K), INLET_DROP_MAX_K)
+        b_in_w = (G_streams_w_per_k * dT_in_k) @ h.stream_scatter
     b_w = src_w @ rp.src_matrix + b_in_w + np.bincount(h.ea, G_w_per_k[h.ext_idx] * p.T_bc_c[h.eb], minlength=rp.n)
     if measured:
         # links to the (held) measured sump enter b
@@ -211,21 +224,18 @@ def _weights(A: np.ndarray) -> np.ndarray | None:
     return w if bool(np.all(np.isfinite(w)) and np.all(w > 0.0)) else None
 
 
-def _solve(sp: SensorParams, cache: StepCache, p: TtlPoint, vehicle=None) -> _Solution:
-    """The held-input system at the step's operating point (:func:`held_system`), marched
-    (firmware_model.onboard.held_march); with the sump modelled and one set of effects, re-linearised along the
-    march's trajectory at the sump it reaches (:func:`_point_at`)."""
+def _solve(sp: SensorParams, p: TtlPoint, src_w, G_w_per_k, G_streams_w_per_k, T_op_c: float,
+           vehicle=None) -> _Solution:
+    """One held-input solution at the operating point's oil temperature T_op (:func:`held_system`), marched
+    (firmware_model.onboard.held_march)."""
     rp, h = sp.reduced, sp.helpers
     measured = p.measured and sp.options.ttl_sump != "model"   # "model": the sump heats with the held load
-    system, free = held_system(sp, p, measured, vehicle)
+    system, free = held_system(sp, p, src_w, G_w_per_k, G_streams_w_per_k, T_op_c, measured, vehicle)
     pub_free, rows = (h.pub_free_meas, h.pub_rows_meas) if measured else (h.pub_free_all, h.pub_rows_all)
     warning_c = sp.limits.warning_c
-    relin = None
-    if sp.options.ttl_sump == "model" and sp.scalar_effects:
-        def build(T_op_c: float) -> HeldSystem:
-            return held_system(sp, _point_at(sp, cache, p, T_op_c, vehicle), False, vehicle)[0]
-        relin = Relinearise(rp.i_oil, p.T_oil_c, build)
-    march = march_time_to_limit(system, p.T_main_c[free], rows, warning_c[pub_free], relin)
+    # with the sump modelled every node is free: watch the sump at the first crossing of the other components
+    march = march_time_to_limit(system, p.T_main_c[free], rows, warning_c[pub_free],
+                                None if measured else h.ttl_relin_pub, rp.i_oil)
     if march is None:
         return _Solution(np.full(N_PUB, np.nan), None)
     out = np.full(N_PUB, np.inf)

@@ -383,13 +383,13 @@ def test_the_weighted_bound_holds_where_the_coupling_breaks_the_metzler_structur
 def test_time_to_limit_follows_the_cooler_outlet_as_the_sump_warms(params, monkeypatch):
     """Engine coolant hotter than the sump (a climb): the cooler heats the oil and the oil-system stream reaches the
     planetary above the sump temperature. As the sump warms that excess shrinks and the sun wheel settles below its
-    limit. The prediction, re-linearised along its trajectory as the sump warms, says "never", as the sensor's own
-    step with the inputs held shows; frozen at the current inlet (no re-linearisation) it predicted a crossing."""
-    import firmware_model.onboard.held_march as HM
+    limit. The prediction, re-linearised at the sump temperature it predicts, says "never", as the sensor's own step
+    with the inputs held shows; frozen at the current inlet (no re-linearisation) it predicted a crossing."""
+    import firmware_model.onboard.time_to_limit as S
     inp = SensorInputs(1150.0, 1000.0, 8, 88.0, 20.0, 100.0, 20.0, 0.0)
 
     def predict_then_hold(relinearise):
-        monkeypatch.setattr(HM, "TTL_RELINEARISE_TOL_K", HM.TTL_RELINEARISE_TOL_K if relinearise else math.inf)
+        monkeypatch.setattr(S, "TTL_RELINEARISE_STEPS", relinearise)
         s = VirtualSensor(params, oil_frozen_s=math.inf, core="numpy")   # the patched constant is the reference's
         st = s.initial_state(T_oil_c=88.0)
         for _ in range(3000):
@@ -401,10 +401,10 @@ def test_time_to_limit_follows_the_cooler_outlet_as_the_sump_warms(params, monke
             T_max = max(T_max, float(out.T_c[I["PS"]]))
         return pred, T_max, s.limits.warning_c[I["PS"]]
 
-    pred, T_max, limit = predict_then_hold(True)
+    pred, T_max, limit = predict_then_hold(2)
     assert T_max < limit - 1.0              # 20 min held: the sun wheel never reaches its limit
     assert pred == math.inf
-    frozen, _, _ = predict_then_hold(False)
+    frozen, _, _ = predict_then_hold(0)
     assert frozen < 600.0                   # the frozen linearisation predicted a crossing within 10 min
 
 
@@ -415,7 +415,7 @@ def test_time_to_limit_couples_the_oil_inlet_to_the_warming_sump(params, monkeyp
     carries that as a column coupling the sump to the oil-system nodes (non-symmetric modes). Against the sensor's own
     step with the inputs held (sump modelled): at 2120 Nm the sun wheel peaks just under its limit and the prediction
     says never; at 2180 Nm it crosses and the prediction is within 15 %. With the inlet frozen at each
-    re-linearisation instead (the coupling off) the first predicted a crossing and the second is further off."""
+    re-linearisation instead (the coupling off) the first predicted a crossing and the second was >40 % late."""
     import firmware_model.onboard.time_to_limit as S
     inp = SensorInputs(1178.0, torque_nm, 8, 89.5, 25.0, 92.8, 19.3, 0.0)
     i = I["PS"]
@@ -444,9 +444,7 @@ def test_time_to_limit_couples_the_oil_inlet_to_the_warming_sump(params, monkeyp
     else:
         assert crossed is not None
         assert abs(pred - crossed) <= 0.15 * crossed
-        # frozen at each re-linearisation: the march re-linearises along its trajectory and so re-evaluates the
-        # inlet drop as the sump warms (before that it was 48 % late); the coupling still makes it closer
-        assert abs(pred - crossed) < abs(frozen - crossed)
+        assert frozen - crossed > 0.4 * crossed
 
 
 def test_coupled_modes_fall_back_to_the_symmetric_ones_when_unstable():
@@ -464,27 +462,3 @@ def test_coupled_modes_fall_back_to_the_symmetric_ones_when_unstable():
     sym = decompose(K, np.arange(n), np.sqrt(C))
     assert np.array_equal(modes.lam_per_s, sym.lam_per_s) and np.array_equal(modes.V, sym.V)
     assert np.all(modes.lam_per_s > 0)
-
-
-def test_time_to_limit_is_right_while_the_sump_is_still_warming(params):
-    """From a drive-cycle audit: from a 45 degC start at full load the sun wheel crosses its limit after 183 s, and
-    the earlier time to limit (re-linearised at the sump predicted at the crossing) said "never" for the first 43 s
-    and was within 20 % only from 77 s. The march re-linearised along its trajectory is within 5 % from the first
-    refresh, and says a finite time at every refresh before the crossing."""
-    s = VirtualSensor(params, oil_frozen_s=math.inf, core="numpy")
-    st = s.initial_state(T_oil_c=45.0)
-    inp = SensorInputs(1800.0, 2400.0, 7, math.nan, 45.0, 95.0, 60.0, 0.0)
-    i, limit = I["PS"], s.limits.warning_c[I["PS"]]
-    preds, crossed = [], None
-    for k in range(2500):
-        st, out = s.step(st, inp)
-        t = (k + 1) * 0.1
-        if crossed is None and out.T_c[i] >= limit:
-            crossed = t
-            break
-        if k % 10 == 9:
-            preds.append((t, float(out.ttl_s[i])))
-    assert crossed is not None and 170.0 < crossed < 200.0
-    assert all(math.isfinite(p) for _, p in preds)
-    errors = [abs(p - (crossed - t)) / (crossed - t) for t, p in preds if crossed - t > 5.0]
-    assert max(errors[:10]) < 0.05 and np.median(errors) < 0.05

@@ -578,8 +578,8 @@ static void ttl_point(const gvs_tables *tb, const gvs_state *st, const check_t *
 #define MARCH_A0 0.20710678118654746                   /* (1 - gamma)^2 / (gamma (2 - gamma)) */
 #define HERMITE_SAMPLES 16
 #define HERMITE_BISECTIONS 40
+#define TTL_RELINEARISE_STEPS 2
 #define TTL_RELINEARISE_TOL_K 0.5
-#define TTL_SETTLED_K 0.5
 #define COUPLING_MARGIN 1.0e-6
 #define LDL_SLOTS (GVS_MAX_NODES + GVS_MAX_LNZ)
 
@@ -594,12 +594,6 @@ typedef struct {
     int weighted;                       /* not metzler: wt > 0 with B wt = 1 (held_march.HeldSystem.weights) */
     gvs_real wt[GVS_MAX_NODES];
 } held_t;
-
-/* the held operating point: the step's own, or re-evaluated at another sump (time_to_limit._point_at) */
-typedef struct {
-    gvs_real T_oil, Q_cool, dT_in, rho_cp;  /* the sump the point is at, the cooler's heat and inlet drop there */
-    const gvs_real *src, *G, *Gs;           /* loss heat, link and stream conductances there */
-} held_op_t;
 
 /* S = c_scale C + d K (held: the sump's row and column identity) */
 static void ldl_assemble(const gvs_tables *tb, held_t *hs, gvs_real c_scale, gvs_real d)
@@ -719,11 +713,10 @@ static void held_apply(const gvs_tables *tb, const held_t *hs, const gvs_real *e
 
 /* dQ_cooler/dT_oil [W/K] (held_inputs.cooler_slope_w_per_k): liquid its hA unless saturated, air a finite
  * difference */
-static gvs_real cooler_slope(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl_point *p, gvs_real rho_cp,
-                             gvs_real T)
+static gvs_real cooler_slope(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl_point *p, gvs_real T)
 {
     gvs_real w_ls = FABS(tb->speed_coef[p->row * tb->n_speed + 1]) * p->omega_in_rad_s, Q, Q_hi, Q_lo;
-    gvs_real mcp = rho_cp * tb->flow_m3_per_rad * w_ls;
+    gvs_real mcp = p->rho_cp_j_per_m3k * tb->flow_m3_per_rad * w_ls;
     const gvs_real *u = p->used;
     cooler_op_t op;
     if (tb->cooler_code == 0 || !(w_ls > R_(0.0))) return R_(0.0);
@@ -760,22 +753,23 @@ static void held_weights(const gvs_tables *tb, held_t *hs, const gvs_real *col, 
     }
 }
 
-/* the held system at the operating point op (time_to_limit.held_system): factorise K, decide the coupling,
- * T_inf = A^-1 b; -1 when there is no finite steady state */
-static int held_build(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl_point *p, const held_op_t *op,
-                      int measured, held_t *hs, gvs_real *T_inf)
+/* the held system at the operating point's sump T_op (time_to_limit.held_system): factorise K, decide the
+ * coupling, T_inf = A^-1 b; -1 when there is no finite steady state */
+static int held_build(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl_point *p, const gvs_real *src,
+                      const gvs_real *G, const gvs_real *Gs, gvs_real T_op, int measured, held_t *hs,
+                      gvs_real *T_inf)
 {
     int32_t n = tb->n, k, i, io = tb->i_oil;
-    gvs_real T_oil = op->T_oil, mcp;
-    const gvs_real *G = op->G, *Gs = op->Gs;
+    gvs_real T_oil = p->T_oil_c, mcp, dT_in;
     gvs_real w_ls = FABS(tb->speed_coef[p->row * tb->n_speed + 1]) * p->omega_in_rad_s;
-    mcp = op->rho_cp * tb->flow_m3_per_rad * w_ls;
+    mcp = p->rho_cp_j_per_m3k * tb->flow_m3_per_rad * w_ls;
     hs->G = G;
     hs->held = measured;
-    hs->slope = measured ? R_(0.0) : cooler_slope(tb, veh, p, op->rho_cp, T_oil);
+    hs->slope = measured ? R_(0.0) : cooler_slope(tb, veh, p, T_op);
     hs->coupled = 0;
     for (i = 0; i < n; ++i) hs->u[i] = R_(0.0);
-    if (!measured && hs->slope != R_(0.0) && FABS(op->dT_in) < tb->inlet_drop_max_k && mcp > R_(0.0)) {
+    if (!measured && hs->slope != R_(0.0) && FABS(p->dT_in_k) < tb->inlet_drop_max_k && mcp > R_(0.0)
+        && FABS((p->Q_cool_w + hs->slope * (T_op - T_oil)) / mcp) < tb->inlet_drop_max_k) {
         for (k = 0; k < tb->nst; ++k) {
             gvs_real f = Gs[k] * (hs->slope / mcp);
             hs->u[tb->stream_node[k]] -= f;
@@ -817,9 +811,13 @@ static int held_build(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_tt
     }
     /* b: heat, inlet drop, boundaries, the sump */
     for (i = 0; i < n; ++i) T_inf[i] = R_(0.0);
-    for (k = 0; k < tb->nsrc_nz; ++k) T_inf[tb->src_nz_node[k]] += op->src[tb->src_nz_src[k]] * tb->src_nz_w[k];
+    for (k = 0; k < tb->nsrc_nz; ++k) T_inf[tb->src_nz_node[k]] += src[tb->src_nz_src[k]] * tb->src_nz_w[k];
+    dT_in = p->dT_in_k;
+    if (!hs->coupled && T_op != T_oil && !measured)
+        dT_in = clip_r(mcp > R_(0.0) ? (p->Q_cool_w + hs->slope * (T_op - T_oil)) / mcp : R_(0.0),
+                       -tb->inlet_drop_max_k, tb->inlet_drop_max_k);
     for (k = 0; k < tb->nst; ++k) {
-        gvs_real f = Gs[k] * op->dT_in;
+        gvs_real f = Gs[k] * dT_in;
         T_inf[tb->stream_node[k]] -= f;
         T_inf[io] += f;
     }
@@ -831,7 +829,7 @@ static int held_build(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_tt
         else if (measured && (a == io || b == io)) T_inf[a == io ? b : a] += G[k] * T_oil;
     }
     if (measured) T_inf[io] = T_oil;
-    else T_inf[io] += hs->slope * T_oil - op->Q_cool;
+    else T_inf[io] += hs->slope * T_oil - p->Q_cool_w;
     /* T_inf = A^-1 b: the factorised K (w = K^-1 u) with the coupling by Sherman-Morrison */
     held_solve(tb, hs, T_inf);
     for (i = 0; i < n; ++i)
@@ -908,89 +906,33 @@ static int skip_to(const gvs_tables *tb, const gvs_ttl_point *p, const gvs_real 
     return 1;
 }
 
-/* the held operating point re-evaluated at the sump temperature T (time_to_limit._point_at): losses, the bin's
- * conductances, the oil's heat capacity, the cooler's heat and the inlet drop there, into src, G, Gs */
-static void op_at(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl_point *p, gvs_real T, held_op_t *op,
-                  gvs_real *src, gvs_real *G, gvs_real *Gs)
-{
-    gvs_real w = p->omega_in_rad_s, w_ls = FABS(tb->speed_coef[p->row * tb->n_speed + 1]) * w, mcp;
-    oil_row_t o;
-    cooler_op_t cop;
-    oil_row(tb, T, &o, NULL);
-    heat_sources(tb, veh, p->row, w, FABS(p->used[GVS_I_TORQUE]), &o,
-                 veh->retarder_frac * p->used[GVS_I_RET] * FABS(tb->speed_coef[p->row * tb->n_speed + 3]) * w, src);
-    bin_conductances(tb, veh, p->row, speed_bin_centre(tb, w), RINT(T / tb->oil_bin_c) * tb->oil_bin_c, G, Gs);
-    op->rho_cp = o.prop[P_RHO] * o.prop[P_CP];
-    mcp = op->rho_cp * tb->flow_m3_per_rad * w_ls;
-    cooler_op(tb, veh, w_ls, w, p->used[GVS_I_COOL], p->used[GVS_I_AMB], p->used[GVS_I_VKMH], mcp, &cop);
-    op->Q_cool = cooler_heat(tb, veh, &cop, T);
-    op->dT_in = inlet_drop_k(tb, op->Q_cool, mcp);
-    op->T_oil = T;
-    op->src = src;
-    op->G = G;
-    op->Gs = Gs;
-}
-
-/* held_march._close_by_bounds: close the open rows that provably never reach their limits (bnd: the bound scale of
- * the deviation, energy_ok: the energy rule applies); returns whether any row is still open */
-static int close_by_bounds(const gvs_tables *tb, const held_t *hs, const gvs_real *T_inf, gvs_real bnd,
-                           gvs_real energy, int energy_ok, int8_t *open)
-{
-    int32_t j;
-    int any = 0;
-    for (j = 0; j < GVS_N_PUB; ++j) {
-        int32_t r = tb->published_index[j];
-        gvs_real lim = tb->warning_c[j];
-        if (!open[j]) continue;
-        if ((hs->metzler || hs->weighted) && T_inf[r] + bnd * (hs->metzler ? R_(1.0) : hs->wt[r]) < lim) open[j] = 0;
-        if ((!hs->coupled || energy_ok) && T_inf[r] + SQRT(energy / tb->C_j_per_k[r]) < lim) open[j] = 0;
-        any |= open[j];
-    }
-    return any;
-}
-
-/* de = -C^-1 A e into de (Ae: A e), the energy sum C e^2 and the bound scale (held_march._bound_scale) */
-static void march_rates(const gvs_tables *tb, const held_t *hs, const gvs_real *e, gvs_real *Ae, gvs_real *de,
-                        gvs_real *energy, gvs_real *bnd)
-{
-    int32_t i;
-    held_apply(tb, hs, e, Ae);
-    *energy = R_(0.0);
-    *bnd = R_(0.0);
-    for (i = 0; i < tb->n; ++i) {
-        de[i] = -Ae[i] / tb->C_j_per_k[i];
-        *energy += tb->C_j_per_k[i] * e[i] * e[i];
-        *bnd = bound_max(hs, e, i, *bnd);
-    }
-}
-
-/* the time to limit (time_to_limit._solve + held_march.march_time_to_limit): ttl[28]; relin: re-linearise along
- * the march's trajectory as the modelled sump moves (held_march.Relinearise) */
-static int ttl_solve(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl_point *p, int measured, int relin,
-                     gvs_real *ttl)
+/* one held-input solution (time_to_limit._solve + held_march.march_time_to_limit): ttl[28]; *T_watch the sump at
+ * the first crossing of a re-linearising component (NaN: none) */
+static int ttl_solve(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl_point *p, const gvs_real *src,
+                     const gvs_real *G, const gvs_real *Gs, gvs_real T_op, int measured, gvs_real *ttl,
+                     gvs_real *T_watch)
 {
     held_t hs;
-    held_op_t op;
     gvs_real T_inf[GVS_MAX_NODES], e[GVS_MAX_NODES], de[GVS_MAX_NODES], e_g[GVS_MAX_NODES], e_new[GVS_MAX_NODES];
-    gvs_real de_new[GVS_MAX_NODES], Ae[GVS_MAX_NODES], energy, energy_new, bnd, T_op = p->T_oil_c;
-    gvs_real src[GVS_MAX_SRC], G[GVS_MAX_LINKS], Gs[GVS_MAX_STREAMS];
+    gvs_real de_new[GVS_MAX_NODES], Ae[GVS_MAX_NODES], energy = R_(0.0), energy_new, e_max = R_(0.0), bnd;
     const gvs_real *C = tb->C_j_per_k;
     int8_t open[GVS_N_PUB];
-    int32_t n = tb->n, i, j, io = tb->i_oil;
-    int any = 0, settled = 1;
+    int32_t n = tb->n, i, j, any = 0, io = tb->i_oil;
     march_t t = M_(0.0), h = M_(MARCH_H0_S), t_skip = M_(0.0);
+    *T_watch = (gvs_real)NAN;
     for (j = 0; j < GVS_N_PUB; ++j) ttl[j] = (gvs_real)NAN;
-    op.T_oil = p->T_oil_c;
-    op.Q_cool = p->Q_cool_w;
-    op.dT_in = p->dT_in_k;
-    op.rho_cp = p->rho_cp_j_per_m3k;
-    op.src = p->src_w;
-    op.G = p->G_w_per_k;
-    op.Gs = p->G_streams_w_per_k;
-    if (held_build(tb, veh, p, &op, measured, &hs, T_inf) != 0) return -1;
+    memset(e, 0, sizeof e);
+    memset(de, 0, sizeof de);
+    if (held_build(tb, veh, p, src, G, Gs, T_op, measured, &hs, T_inf) != 0) return -1;
     for (i = 0; i < n; ++i) e[i] = p->T_main_c[i] - T_inf[i];
     if (measured) e[io] = R_(0.0);
-    march_rates(tb, &hs, e, Ae, de, &energy, &bnd);
+    held_apply(tb, &hs, e, Ae);
+    for (i = 0; i < n; ++i) {
+        de[i] = -Ae[i] / C[i];
+        energy += C[i] * e[i] * e[i];
+        e_max = bound_max(&hs, e, i, e_max);
+    }
+    bnd = e_max;                                    /* held_march._bound_scale (when metzler or weighted) */
     for (j = 0; j < GVS_N_PUB; ++j) {
         int32_t r = tb->published_index[j];
         gvs_real lim = tb->warning_c[j];
@@ -1000,39 +942,29 @@ static int ttl_solve(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl
             continue;
         }
         ttl[j] = p->T_main_c[r] >= lim ? R_(0.0) : (gvs_real)INFINITY;
-        open[j] = p->T_main_c[r] < lim;
+        open[j] = p->T_main_c[r] < lim
+            && (!(hs.metzler || hs.weighted) || T_inf[r] + bnd * (hs.metzler ? R_(1.0) : hs.wt[r]) >= lim)
+            && (hs.coupled || T_inf[r] + SQRT(energy / C[r]) >= lim);
         any |= open[j];
     }
-    if (relin) settled = FABS(T_inf[io] - T_op) < R_(TTL_SETTLED_K);
-    if (any && settled) any = close_by_bounds(tb, &hs, T_inf, bnd, energy, 0, open);
-    if (any && settled && (hs.metzler || hs.weighted))
+    if (any && (hs.metzler || hs.weighted))
         any = skip_to(tb, p, de, &hs, open, &t_skip, &h);
     while (any && t < M_(TTL_HORIZON_S)) {
         march_t h_step = t_skip > M_(0.0) ? t_skip : (h < M_(TTL_HORIZON_S) - t ? h : M_(TTL_HORIZON_S) - t);
-        gvs_real d;
-        if (relin && t > M_(0.0) && FABS(T_inf[io] + e[io] - T_op) >= R_(TTL_RELINEARISE_TOL_K)) {
-            /* the sump in the middle of the step, on the current linearisation, not past its steady state */
-            gvs_real Ts = T_inf[io] + e[io];
-            T_op = clip_r(Ts + R_(0.5) * (gvs_real)h_step * de[io], min_r(Ts, T_inf[io]), max_r(Ts, T_inf[io]));
-            for (i = 0; i < n; ++i) e_g[i] = T_inf[i] + e[i];          /* the state */
-            op_at(tb, veh, p, T_op, &op, src, G, Gs);
-            if (held_build(tb, veh, p, &op, 0, &hs, T_inf) != 0) {     /* rows still open: not available */
-                for (j = 0; j < GVS_N_PUB; ++j)
-                    if (open[j]) ttl[j] = (gvs_real)NAN;
-                return 0;
-            }
-            for (i = 0; i < n; ++i) e[i] = e_g[i] - T_inf[i];
-            march_rates(tb, &hs, e, Ae, de, &energy, &bnd);
-            settled = FABS(T_inf[io] - T_op) < R_(TTL_SETTLED_K);
-            if (settled && !close_by_bounds(tb, &hs, T_inf, bnd, energy, 0, open)) break;
-        }
-        d = (gvs_real)(M_(MARCH_D_FRAC) * h_step);
+        gvs_real d = (gvs_real)(M_(MARCH_D_FRAC) * h_step), s_watch = R_(2.0);
         if (held_factor(tb, &hs, R_(1.0), d) != 0) return -1;
         for (i = 0; i < n; ++i) e_g[i] = C[i] * e[i] - d * Ae[i];
         held_solve(tb, &hs, e_g);
         for (i = 0; i < n; ++i) e_new[i] = C[i] * (R_(MARCH_A1) * e_g[i] - R_(MARCH_A0) * e[i]);
         held_solve(tb, &hs, e_new);
-        march_rates(tb, &hs, e_new, Ae, de_new, &energy_new, &bnd);
+        held_apply(tb, &hs, e_new, Ae);
+        energy_new = R_(0.0);
+        e_max = R_(0.0);
+        for (i = 0; i < n; ++i) {
+            de_new[i] = -Ae[i] / C[i];
+            energy_new += C[i] * e_new[i] * e_new[i];
+            e_max = bound_max(&hs, e_new, i, e_max);
+        }
         any = 0;
         for (j = 0; j < GVS_N_PUB; ++j) {
             int32_t r = tb->published_index[j];
@@ -1044,10 +976,16 @@ static int ttl_solve(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl
                 march_t tc = CEIL((t + (march_t)s * h_step) / M_(TTL_QUANTUM_S)) * M_(TTL_QUANTUM_S);
                 ttl[j] = (gvs_real)(tc < M_(TTL_HORIZON_S) ? tc : M_(TTL_HORIZON_S));
                 open[j] = 0;
+                if (tb->ttl_relin[j] && s < s_watch) s_watch = s;
+                continue;
             }
+            if ((hs.metzler || hs.weighted) && T_inf[r] + e_max * (hs.metzler ? R_(1.0) : hs.wt[r]) < lim)
+                open[j] = 0;
+            if ((!hs.coupled || energy_new <= energy) && T_inf[r] + SQRT(energy_new / C[r]) < lim) open[j] = 0;
             any |= open[j];
         }
-        if (any && settled) any = close_by_bounds(tb, &hs, T_inf, bnd, energy_new, energy_new <= energy, open);
+        if (s_watch <= R_(1.0) && *T_watch != *T_watch && !measured)
+            *T_watch = T_inf[io] + hermite(s_watch, (gvs_real)h_step, e[io], de[io], e_new[io], de_new[io]);
         memcpy(e, e_new, (size_t)n * sizeof(gvs_real));
         memcpy(de, de_new, (size_t)n * sizeof(gvs_real));
         energy = energy_new;
@@ -1060,15 +998,27 @@ static int ttl_solve(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl
 
 int gvs_ttl_refresh(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl_point *p, gvs_real *ttl_s)
 {
-    int it;
+    gvs_real T_watch, T_op = p->T_oil_c, src[GVS_MAX_SRC], G[GVS_MAX_LINKS], Gs[GVS_MAX_STREAMS];
+    int measured = p->measured && !tb->ttl_sump_model, it;
+    oil_row_t o;
     if (gvs_check_tables(tb) != GVS_OK) return GVS_BAD_TABLES;
     if (tb->ldl_nnz <= 0) {                       /* a build without the time to limit's tables: not available */
         for (it = 0; it < GVS_N_PUB; ++it) ttl_s[it] = (gvs_real)NAN;
         return GVS_OK;
     }
-    if (ttl_solve(tb, veh, p, p->measured && !tb->ttl_sump_model, tb->ttl_sump_model && tb->ttl_relinearise, ttl_s)
-        != 0)
-        for (it = 0; it < GVS_N_PUB; ++it) ttl_s[it] = (gvs_real)NAN;   /* no steady state: not available */
+    if (ttl_solve(tb, veh, p, p->src_w, p->G_w_per_k, p->G_streams_w_per_k, T_op, measured, ttl_s, &T_watch) != 0
+        || !tb->ttl_sump_model || !tb->ttl_relinearise)
+        return GVS_OK;
+    for (it = 0; it < TTL_RELINEARISE_STEPS; ++it) {
+        gvs_real w = p->omega_in_rad_s, retarder_w;
+        if (T_watch != T_watch || FABS(T_watch - T_op) < R_(TTL_RELINEARISE_TOL_K)) break;
+        T_op = T_watch;
+        oil_row(tb, T_op, &o, NULL);
+        retarder_w = veh->retarder_frac * p->used[GVS_I_RET] * FABS(tb->speed_coef[p->row * tb->n_speed + 3]) * w;
+        heat_sources(tb, veh, p->row, w, FABS(p->used[GVS_I_TORQUE]), &o, retarder_w, src);
+        bin_conductances(tb, veh, p->row, speed_bin_centre(tb, w), RINT(T_op / tb->oil_bin_c) * tb->oil_bin_c, G, Gs);
+        if (ttl_solve(tb, veh, p, src, G, Gs, T_op, measured, ttl_s, &T_watch) != 0) break;
+    }
     return GVS_OK;
 }
 

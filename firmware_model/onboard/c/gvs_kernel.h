@@ -150,12 +150,13 @@ typedef struct {
     const gvs_real *warning_c, *critical_c, *hysteresis_k, *warning_rest_c;   /* (28) */
     gvs_real debounce_s, lead_s;
     /* time to limit (gvs_ttl_refresh; firmware_model.onboard.held_march, time_to_limit): heat capacities, the
-     * sparse LDL^T pattern of C/h + K (firmware_model.onboard.sparse_ldl), and the options: the sump heats with the
-     * held load (else a measured sump is held), and the march re-linearises along its trajectory as the sump moves
-     * (every effect one value for all vehicles) */
+     * sparse LDL^T pattern of C/h + K (firmware_model.onboard.sparse_ldl), the components whose crossing
+     * re-linearises, and the options: the sump heats with the held load (else a measured sump is held), and
+     * re-linearise at the predicted sump (every effect one value for all vehicles) */
     const gvs_real *C_j_per_k;          /* (n) [J/K] */
     const gvs_idx *ldl_perm, *ldl_pos, *ldl_col_ptr, *ldl_row, *ldl_link_slot;   /* (n), (n), (n+1), (nnz), (nl) */
     const gvs_idx *ldl_upd_ptr, *ldl_upd_target, *ldl_upd_a, *ldl_upd_b;        /* (n+1), (nupd) x 3 */
+    const gvs_idx *ttl_relin;           /* (28) */
     int32_t ldl_nnz, ldl_nupd, ttl_sump_model, ttl_relinearise;
 } gvs_tables;
 
