@@ -137,7 +137,10 @@ def test_a_hang_is_caught_by_the_watchdog_and_restarted(vm_run):
 def test_the_restarted_service_publishes_and_reports_running(vm_run):
     share, result, _ = vm_run
     status = (share / "status.txt").read_text()
-    assert result["status_rc"] == "0" and "service: running" in status, status
+    # 0: running and stepping; 3: running, but its input frames stopped (the scenario's traffic may end before
+    # `status` runs: then the first line says so)
+    assert result["status_rc"] == "0" or (result["status_rc"] == "3" and "NO STEP for" in status), status
+    assert status.startswith("service: running"), status
     m = re.search(r"sensor: initialised, (\d+) steps", status)
     assert m and int(m.group(1)) > 0, status
     published = 0

@@ -57,6 +57,11 @@ def _sensor(variant: str | None, config: str | None):
     return _SENSORS[key]
 
 
+#: the logger of the workers' sensor services: errors only (a log's jumps and findings are in its row)
+_QUIET = logging.getLogger("gearbox_vsensor.fleet_worker")
+_QUIET.setLevel(logging.ERROR)
+
+
 def _estimates(table, entry: LogEntry, out: Path, date: str) -> None:
     import pyarrow as pa
     from tools.fleet.store import write_atomic
@@ -105,7 +110,7 @@ def process_log(entry: LogEntry, out: str | None = None, estimates: bool = False
         sensor, options = _sensor(entry.variant, entry.config)
         stage = "replay"
         _check_complete(entry.log)
-        service = SensorService(sensor, options, record=True, emit_frames=False)
+        service = SensorService(sensor, options, record=True, emit_frames=False, logger=_QUIET)
         table = replay_log(entry.log, service)
         stage = "summary"
         date = entry.date or (asc_date(entry.log) if Path(entry.log).suffix.lower() == ".asc" else None)
@@ -143,13 +148,7 @@ def process_batch(entries: list[LogEntry], out: str | None = None, estimates: bo
     frame time jump, a bus finding) are not logged on the worker: each log's row counts them (``time_jumps``) and
     carries its findings (``trust_warnings``); logged, they flooded the fleet's console without a log's name (a
     fleet audit)."""
-    logger = logging.getLogger("gearbox_vsensor")
-    level = logger.level
-    logger.setLevel(logging.ERROR)
-    try:
-        return [process_log(e, out, estimates, diagnose) for e in entries]
-    finally:
-        logger.setLevel(level)
+    return [process_log(e, out, estimates, diagnose) for e in entries]
 
 
 def batches(entries: list[LogEntry], workers: int, max_logs: int = BATCH_MAX_LOGS) -> list[list[LogEntry]]:
