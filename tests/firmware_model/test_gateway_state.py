@@ -269,6 +269,10 @@ def test_status_says_when_a_running_service_has_stopped_stepping(params, tmp_pat
     _drive(svc, 5.0, 6.0)
     assert health.maybe_write(svc)
     assert main(["status", "--health-file", str(tmp_path / "health.json")]) == 0
+    doc = read_health(tmp_path / "health.json")              # damaged by hand: one sentence, exit 2
+    (tmp_path / "health.json").write_text(json.dumps({**doc, "last_step_age_s": "long"}))
+    assert main(["status", "--health-file", str(tmp_path / "health.json")]) == 2
+    assert "not a gearbox-vsensor health file" in capsys.readouterr().err
 
 
 def test_sd_notify_reaches_a_notify_socket(tmp_path, monkeypatch):

@@ -43,6 +43,7 @@ def run(args) -> int:
     try:        # a health file edited or damaged by hand: its fields of the wrong type are one sentence, exit 2
         age_s = health_age_s(doc)
         lines = status_lines(doc, age_s)
+        stepping = not not_stepping(doc)
     except (TypeError, ValueError, AttributeError) as exc:
         raise InputError(f"{args.health_file}: not a gearbox-vsensor health file (a field of the wrong type: "
                          f"{exc})") from None
@@ -58,7 +59,7 @@ def run(args) -> int:
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
     if age_s > STALE_S or doc.get("stopped"):
         return 1
-    return 3 if not_stepping(doc) else 0
+    return 0 if stepping else 3
 
 
 def not_stepping(doc: dict) -> bool:
