@@ -89,8 +89,8 @@ class FleetStore:
         _, pq = _pa()
         keys: dict = {}
         for f in (self.out / SUMMARY).rglob("*.parquet") if (self.out / SUMMARY).is_dir() else ():
-            t = pq.read_table(f)
-            names = t.column_names
+            names = pq.read_schema(f).names      # only the columns needed (a row has ~300)
+            t = pq.read_table(f, columns=[c for c in ("log_key", LOG_BYTES, LOG_MTIME, REPLAYED) if c in names])
             k = t.column("log_key").to_pylist()
             b = t.column(LOG_BYTES).to_pylist() if LOG_BYTES in names else [None] * len(k)
             m = t.column(LOG_MTIME).to_pylist() if LOG_MTIME in names else [None] * len(k)
