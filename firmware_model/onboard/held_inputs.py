@@ -71,7 +71,8 @@ def cooler_slope_w_per_k(sp: SensorParams, T_oil_c: float, omega_in_rad_s: float
 def jump_state(state: SensorState, gap_s, sp: SensorParams, cache: StepCache) -> SensorState:
     """Propagate over a forward time jump of ``gap_s`` (per vehicle; <= 0: none): held inputs for up to
     time_jump_hold_s, then engine off. The inputs age by the gap: a value held from before it is no recent good
-    value (the oil's jump check and the drive inputs' hold then treat it as old, as the C kernel does)."""
+    value (the oil's jump check and the drive inputs' hold then treat it as old, as the C kernel does). A single
+    vehicle's propagation that :func:`prepare_jump` did ahead is taken from ``cache.ahead`` (the same bits)."""
     B = state.t_last_s.shape
     T = np.array(state.T_c, dtype=float, copy=True)
     age = np.array(state.age_s, dtype=float, copy=True)
@@ -80,17 +81,35 @@ def jump_state(state: SensorState, gap_s, sp: SensorParams, cache: StepCache) ->
         if g <= 0:
             continue
         age[v] = age[v] + g
-        held = min(g, sp.options.time_jump_hold_s)
-        for c in (MAIN, TWIN):
-            T[v + (c,)] = _held_propagate(sp, state, v, c, held)
-        if g > held:
-            amb = float(state.hold[v + (I_AMB,)])
-            amb = amb if math.isfinite(amb) else float(sp.reduced.bc_default_c[sp.reduced.i_ambient])
-            bc = shutdown_boundaries_c(sp, np.asarray(state.hold[v], dtype=float))
-            bc[sp.reduced.i_ambient] = amb
-            for c in (MAIN, TWIN):
-                T[v + (c,)] = cool_down(sp, cache, T[v + (c,)], g - held, amb, bc)
+        ahead = cache.ahead.take(cache.ahead.key_of(state, g)) if not B and cache.ahead.key is not None else None
+        T[v] = ahead if ahead is not None else _jump_temperatures(state, v, g, sp, cache)
     return state._replace(T_c=T, age_s=age.astype(np.asarray(state.age_s).dtype, copy=False))
+
+
+def prepare_jump(state: SensorState, gap_s: float, sp: SensorParams, cache: StepCache) -> None:
+    """Propagate one vehicle's state over a forward jump of ``gap_s`` now and keep the temperatures in
+    ``cache.ahead`` for the step that will see the jump (:func:`jump_state` takes them if nothing it reads has
+    changed by then). Changes no state and no output."""
+    g = float(gap_s)
+    if state.t_last_s.shape or not g > 0:
+        return
+    cache.ahead.put(cache.ahead.key_of(state, g), _jump_temperatures(state, (), g, sp, cache))
+
+
+def _jump_temperatures(state: SensorState, v: tuple, g: float, sp: SensorParams, cache: StepCache) -> np.ndarray:
+    """(2, n) temperatures of vehicle ``v`` (both copies) after a forward jump of ``g`` seconds."""
+    T = np.array(state.T_c[v], dtype=float, copy=True)
+    held = min(g, sp.options.time_jump_hold_s)
+    for c in (MAIN, TWIN):
+        T[c] = _held_propagate(sp, state, v, c, held)
+    if g > held:
+        amb = float(state.hold[v + (I_AMB,)])
+        amb = amb if math.isfinite(amb) else float(sp.reduced.bc_default_c[sp.reduced.i_ambient])
+        bc = shutdown_boundaries_c(sp, np.asarray(state.hold[v], dtype=float))
+        bc[sp.reduced.i_ambient] = amb
+        for c in (MAIN, TWIN):
+            T[c] = cool_down(sp, cache, T[c], g - held, amb, bc)
+    return T
 
 
 def _held(hold, i: int, default: float) -> float:

@@ -25,7 +25,7 @@ from firmware_model.errors import InputError, ParameterError
 from firmware_model.onboard import reduce as R
 from firmware_model.onboard.blas import limit_blas_threads
 from firmware_model.onboard.core_select import select_core, step_table_numpy
-from firmware_model.onboard.held_inputs import cool_down, jump_state, shutdown_boundaries_c
+from firmware_model.onboard.held_inputs import cool_down, jump_state, prepare_jump, shutdown_boundaries_c
 from firmware_model.onboard.params import SensorParams
 from firmware_model.onboard.records import (I_AMB, I_GEAR, I_OIL, I_SPEED, I_TORQUE, INPUT_FIELDS, MAIN, N_INPUTS,
                                             N_PUB, N_REJECT, REJECT_REASONS, TWIN, SensorInputs, SensorOptions,
@@ -189,6 +189,20 @@ class VirtualSensor:
         if self.compiled is None:
             return refresh_ttl(state, job, self.sp, self.cache)
         return self.compiled.refresh_ttl(state, job, self.cache)
+
+    def prepare_jump(self, state: SensorState, t_s: float) -> bool:
+        """Do now the propagation over the forward time jump that a step at run time ``t_s`` would see (one vehicle;
+        held_inputs.prepare_jump), so that the step itself is quick: the live service calls it when the first frame
+        after a gap arrives, a step period before the step that publishes. That step's outputs are the same bits
+        with or without it. True when a jump was propagated."""
+        t_last_s = np.asarray(state.t_last_s, dtype=float)
+        if t_last_s.shape:
+            return False
+        gap_s = float(t_s) - float(t_last_s)
+        if not gap_s > 1.5 * self.sp.dt_s:
+            return False
+        prepare_jump(state, gap_s - self.sp.dt_s, self.sp, self.cache)
+        return True
 
     def step_table(self, state: SensorState, raw, t_s=None):
         """``(state, TableOutputs)``: one vehicle stepped through a table of inputs: ``raw`` (N, 8) in INPUT_FIELDS

@@ -8,6 +8,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+import numpy as np
+
 from firmware_model.onboard.conductance_bins import BinCache
 from firmware_model.onboard.held_modes import ModeCache
 
@@ -18,3 +20,36 @@ class StepCache:
     time jumps, cool-down)."""
     bins: BinCache = field(default_factory=BinCache)
     modes: ModeCache = field(default_factory=ModeCache)
+    ahead: "JumpAhead" = field(default_factory=lambda: JumpAhead())
+
+
+@dataclass
+class JumpAhead:
+    """One time-jump propagation done ahead of its step (held_inputs.prepare_jump): the live service propagates the
+    state as soon as the first frame after a gap arrives, and the step that then sees the gap takes the result
+    instead of computing it (the propagation is two eigen-decompositions: milliseconds natively, a few hundred under
+    emulation, which would otherwise all fall between the first frame after an outage and the first output).
+
+    A pure memo like the others: the key is everything the propagation reads (one vehicle's temperatures, held
+    inputs and input ages, and the gap), so a hit is the same bits the step would compute. ``hits`` counts the steps
+    that took a prepared result; an entry is used once."""
+    key: tuple | None = None
+    T_c: np.ndarray | None = None
+    hits: int = 0
+
+    @staticmethod
+    def key_of(state, gap_s: float) -> tuple:
+        """What a single vehicle's jump propagation depends on, as bytes (float64)."""
+        return (float(gap_s),) + tuple(np.asarray(x, dtype=float).tobytes()
+                                       for x in (state.T_c, state.hold, state.age_s))
+
+    def put(self, key: tuple, T_c: np.ndarray) -> None:
+        self.key, self.T_c = key, np.array(T_c, dtype=float, copy=True)
+
+    def take(self, key: tuple) -> np.ndarray | None:
+        """The prepared temperatures for ``key`` (a copy), or None; the entry is dropped on a hit."""
+        if self.key is None or key != self.key:
+            return None
+        T_c, self.key, self.T_c = self.T_c, None, None
+        self.hits += 1
+        return T_c

@@ -307,6 +307,23 @@ class SensorService:
         self.latest.forget()
         # the sensor sees the gap in the frame time of its next step (Inputs.t_s) and propagates over it
         self._anchor(timestamp_s)
+        if direction == "forward":
+            self._propagate_ahead()
+
+    def _propagate_ahead(self) -> None:
+        """Let the sensor propagate its state over a forward gap now, at the first frame after it, rather than in the
+        next step (VirtualSensor.prepare_jump; a sensor without it does it in the step): the first output after a bus
+        outage then waits for one step period, not for a step period plus the propagation. The step's outputs are the
+        same bits either way."""
+        prepare = getattr(self.sensor, "prepare_jump", None)
+        if prepare is None or self._sink is not None or not self._initialised or self.state is None:
+            return
+        self.finish_pending()
+        prepare(self.state, self._run_time_s(self._t0_s + 1 * STEP_S))
+
+    def _run_time_s(self, t_step_s: float) -> float:
+        """The run-table time of a step boundary (the sensor's Inputs.t_s)."""
+        return t_step_s - self._first_t_s + self._time_offset_s
 
     def _steps(self, due: int, out: list) -> None:
         for i in range(due):
@@ -369,7 +386,7 @@ class SensorService:
         if ref_torque_nm is None:
             self._warn_no_ref_torque(t_step_s)
         kind = StepKind.STEP if self._initialised else self._initialisation(t_step_s, inputs.oil_temp_c)
-        t_s = t_step_s - self._first_t_s + self._time_offset_s
+        t_s = self._run_time_s(t_step_s)
         if self.record:
             self._record_head(t_s, t_step_s, inputs, ref_torque_nm)
         return StepRequest(kind, t_step_s, inputs, ref_torque_nm, t_s, self._time_base.suspect)

@@ -157,6 +157,51 @@ def test_time_jumps_restart_the_grid_and_are_counted(caplog):
     assert np.count_nonzero(d > 1.5 * STEP_S) == 1 and np.allclose(d[d <= 1.5 * STEP_S], STEP_S)
 
 
+class _WithoutPrepare:
+    """A VirtualSensor seen without prepare_jump: the service then propagates a gap inside the step."""
+
+    def __init__(self, sensor):
+        self._sensor = sensor
+
+    def __getattr__(self, name):
+        if name == "prepare_jump":
+            raise AttributeError(name)
+        return getattr(self._sensor, name)
+
+
+@pytest.mark.parametrize("core", ["numpy", "c"])
+def test_a_forward_gap_is_propagated_at_its_first_frame_and_the_outputs_are_the_same_bits(core):
+    """The live service propagates the state over a forward gap when the first frame after it arrives
+    (VirtualSensor.prepare_jump), so the first output after an outage waits one step period, not a period plus the
+    propagation; the step then takes the prepared result. Outputs and state bit for bit as without it."""
+    from firmware_model.onboard.sensor import VirtualSensor
+    from firmware_model.parameters import load_parameters
+
+    params = load_parameters()
+    frames = traffic(0.0, 30.0, rpm=1500.0) + traffic(42.0, 50.0, rpm=1500.0) + traffic(400.0, 403.0)
+    runs = {}
+    for prepared in (True, False):
+        sensor = VirtualSensor(params, core=core)
+        if core == "c" and sensor.compiled is None:
+            pytest.skip("the compiled kernel is not built here")
+        svc = SensorService(sensor if prepared else _WithoutPrepare(sensor),
+                            ServiceOptions(configured_ref_torque_nm=2000.0), record=True)
+        sent = svc.feed_all(frames)
+        svc.finish_pending()
+        runs[prepared] = (svc, sent, sensor.cache.ahead.hits)
+    (svc, sent, hits), (plain, plain_sent, plain_hits) = runs[True], runs[False]
+    assert svc.counters["time_jumps"] == plain.counters["time_jumps"] == 2
+    assert (hits, plain_hits) == (2, 0)
+    assert [(m.timestamp, m.arbitration_id, bytes(m.data)) for m in sent] \
+        == [(m.timestamp, m.arbitration_id, bytes(m.data)) for m in plain_sent]
+    rec, ref = svc.recorded(), plain.recorded()
+    assert rec.keys() == ref.keys()
+    for name in rec:
+        assert np.array_equal(rec[name], ref[name], equal_nan=rec[name].dtype.kind == "f"), name
+    for a, b in zip(svc.state, plain.state):
+        assert np.array_equal(np.asarray(a), np.asarray(b), equal_nan=True)
+
+
 def test_not_initialised_until_oil_temperature_or_timeout():
     svc = service()
     out = svc.feed_all(traffic(0.0, 0.3))  # TRF1 at 0.046
