@@ -67,6 +67,42 @@ def test_a_receive_error_reopens_the_bus_and_the_sensor_resumes(caplog):
     assert caplog.text.count("CAN receive error") == 1 and caplog.text.count("CAN bus back after") == 1
 
 
+class DeadBus(can.BusABC):
+    """An adapter whose every read fails at once (and so does every bus the reopen gives)."""
+
+    def __init__(self, **kw):
+        super().__init__(channel="dead", **kw)
+
+    def _recv_internal(self, timeout):
+        raise can.CanOperationError("Network is down [Error Code 100]")
+
+    def send(self, msg, timeout=None):
+        pass
+
+
+def test_a_bus_whose_reads_fail_at_once_is_retried_ever_more_slowly_not_in_a_loop(caplog):
+    """From a gateway audit: python-can's Notifier goes on reading after an error its listener handled, and a read
+    that fails at once made that a busy loop (~40 000 errors a second, ~45 % CPU), with a reopen every 0.3 s. Now the
+    notifier's thread waits for the loop after an error, and the delays double over the whole outage, reopens
+    included (0.1, 0.2, 0.4 s, reopen, ... up to 2 s)."""
+    caplog.set_level(logging.INFO)
+    opened = []
+
+    def reopen():
+        opened.append(DeadBus())
+        return opened[-1]
+
+    stop = threading.Event()
+    timer = threading.Timer(4.0, stop.set)
+    timer.start()
+    result = serve(DeadBus(), _service(), stop=stop, reopen=reopen, poll_s=0.02)
+    timer.cancel()
+    ev = result.bus_events
+    assert 4 <= ev["read_errors"] <= 10, ev        # 0.1 + 0.2 + 0.4 + 0.8 + 1.6 + 2 s of delays in 4 s
+    assert ev["reopens"] == len(opened) and 1 <= len(opened) <= 2, ev
+    assert ev["outages"] == 1 and caplog.text.count("CAN receive error") == 1
+
+
 def test_without_reopen_a_receive_error_still_ends_the_loop():
     bus = FaultyBus(traffic(0.0, 1.0), fail=True)
     with pytest.raises(can.CanOperationError):
