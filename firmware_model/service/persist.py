@@ -2,7 +2,8 @@
 
 * :class:`StateStore`: the sensor state saved to a file every ``period_s`` of wall time and on shutdown (atomic:
   a temporary file in the same directory, fsync, rename; never a half-written file; at most one write per period
-  for flash wear), and restored at start: cooled for the wall time the gateway was off, reconciled with the first
+  for flash wear; with ``background=True`` the periodic writes run in a writer thread, so a slow fsync on an SD card
+  or eMMC does not hold up the outputs, and the shutdown save waits for it), and restored at start: cooled for the wall time the gateway was off, reconciled with the first
   valid oil reading (``VirtualSensor.initial_state(snapshot=..., elapsed_s=..., T_oil_c=...)``). A missing,
   corrupt, truncated or foreign file (another variant or network) means a cold start from the oil, logged and
   counted (``counters["state"]``).
@@ -18,6 +19,7 @@ import logging
 import math
 import os
 import socket
+import threading
 import time
 from pathlib import Path
 
@@ -31,14 +33,16 @@ HEALTH_PERIOD_S = 1.0
 log = logging.getLogger("gearbox_vsensor.state")
 
 
-def atomic_write(path: Path, data: bytes) -> None:
-    """Write ``data`` to ``path`` so that a reader (or a power cut) sees the old file or the new one, never half."""
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+def atomic_write(path: Path, data: bytes, durable: bool = True) -> None:
+    """Write ``data`` to ``path`` so that a reader (or, ``durable``: with fsync, a power cut) sees the old file or
+    the new one, never half."""
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.{threading.get_ident()}.tmp")
     try:
         with open(tmp, "wb") as f:
             f.write(data)
             f.flush()
-            os.fsync(f.fileno())
+            if durable:
+                os.fsync(f.fileno())
         os.replace(tmp, path)
     finally:
         if tmp.exists():
@@ -55,10 +59,14 @@ class StateStore:
     :meth:`save` at shutdown. ``clock``: wall time [s] (stored: the time off between runs); ``timer``: the clock of
     the save period (monotonic: a wall clock set back must not stop the saves); both injectable for tests."""
 
-    def __init__(self, path, period_s: float = STATE_PERIOD_S, clock=time.time, timer=time.monotonic):
+    def __init__(self, path, period_s: float = STATE_PERIOD_S, clock=time.time, timer=time.monotonic,
+                 background: bool = False):
         self.path = Path(path)
         self.period_s = float(period_s)
         self.clock, self.timer = clock, timer
+        #: the periodic saves write in a thread (the live gateway); :meth:`save` itself always writes now
+        self.background = background
+        self._writing: threading.Thread | None = None
         self.last_save_s: float | None = None          # timer: the last attempt
         self.last_ok_s: float | None = None            # timer: the last save that was written
         self.stepped_wall_s: float | None = None       # wall time when the state last changed (a step)
@@ -123,21 +131,51 @@ class StateStore:
             return False
         if steps == self._saved_steps:
             return False
-        return self.save(service)
+        if not self.background:
+            return self.save(service)
+        if self.writing:                  # the last write is still in its fsync: not a second one behind it
+            return False
+        job = self._job(service)
+        if job is None:
+            return False
+        self._writing = threading.Thread(target=self._write, args=job, name="state-save", daemon=True)
+        self._writing.start()
+        return True
+
+    @property
+    def writing(self) -> bool:
+        """True while a background save is being written."""
+        return self._writing is not None and self._writing.is_alive()
+
+    def wait(self, timeout_s: float | None = None) -> bool:
+        """Wait for a background save to finish; False if it is still writing after ``timeout_s``."""
+        if self._writing is not None:
+            self._writing.join(timeout_s)
+        return not self.writing
 
     def save(self, service, final: bool = False) -> bool:
-        """Write the state now (``final``: at shutdown, a failure is logged whatever came before). A failed write
-        is counted and tried again a period later, not at every tick."""
+        """Write the state now (``final``: at shutdown, a failure is logged whatever came before), after a
+        background save still being written. A failed write is counted and tried again a period later, not at every
+        tick."""
+        self.wait()
+        job = self._job(service)
+        return False if job is None else self._write(*job, final=final)
+
+    def _job(self, service) -> tuple | None:
+        """(file content, step count) of the state now, taken in the loop's thread; None before the first step."""
         if service.state is None:
-            return False
+            return None
         steps = self._note_steps(service)
         sensor = service.sensor
         doc = {"schema": STATE_SCHEMA, "saved_wall_s": self.stepped_wall_s, "frame_time_s": service.frame_time_s,
                "variant": sensor.reduced.variant, "nodes": list(sensor.reduced.nodes),
                "snapshot": json.loads(sensor.snapshot(service.state))}
         self.last_save_s = self.timer()
+        return json.dumps(doc, separators=(",", ":")).encode("utf-8"), steps, self.last_save_s
+
+    def _write(self, data: bytes, steps: int, taken_s: float, final: bool = False) -> bool:
         try:
-            atomic_write(self.path, json.dumps(doc, separators=(",", ":")).encode("utf-8"))
+            atomic_write(self.path, data)
         except OSError as exc:
             self.counters["save_errors"] += 1
             if self.counters["save_errors"] == 1 or final:
@@ -146,7 +184,7 @@ class StateStore:
                             f"tried again every {self.period_s:g} s; further errors counted, not logged")
             return False
         self._saved_steps = steps
-        self.last_ok_s = self.last_save_s
+        self.last_ok_s = taken_s
         self.counters["saves"] += 1
         return True
 
@@ -222,7 +260,8 @@ class HealthFile:
                "bus": dict(bus_events or getattr(service, "bus_events", None) or {}),
                "health_write_errors": self.errors}
         try:
-            atomic_write(self.path, json.dumps(doc, default=str).encode("utf-8"))
+            # no fsync: rewritten every second (a power cut loses nothing it needs); the rename stays atomic
+            atomic_write(self.path, json.dumps(doc, default=str).encode("utf-8"), durable=False)
         except OSError as exc:
             # not fatal to the sensor, but said: `status` would otherwise report a service that is not running
             self.errors += 1

@@ -106,6 +106,40 @@ def test_saves_are_atomic_and_rate_bounded(params, tmp_path):
     json.loads((tmp_path / "state.json").read_bytes())
 
 
+def test_a_slow_save_does_not_hold_up_the_loop(params, tmp_path, monkeypatch):
+    """From a gateway audit: the periodic save ran in the frame loop, so an fsync that took a second on an SD card
+    held the outputs back for that second. The gateway's store (background=True) writes in a thread; a save still
+    being written is not doubled, and the shutdown save waits for it and then writes the state of that moment."""
+    import threading
+
+    from firmware_model.service import persist
+    release, writes = threading.Event(), []
+    real = persist.atomic_write
+
+    def slow_write(path, data, durable=True):
+        release.wait(10.0)                      # the fsync of a slow card, until the test lets it go
+        real(path, data, durable)
+        writes.append(json.loads(data)["saved_wall_s"])
+
+    monkeypatch.setattr(persist, "atomic_write", slow_write)
+    clock = Clock()
+    svc = _service(params)
+    store = StateStore(tmp_path / "state.json", period_s=60.0, clock=clock, timer=clock, background=True)
+    _drive(svc, 0.0, 3.0)
+    assert store.maybe_save(svc)                # returned while the write is still blocked
+    assert store.writing and not writes and store.counters["saves"] == 0
+    clock.t += 61.0
+    _drive(svc, 3.0, 4.0)
+    assert not store.maybe_save(svc)            # the first is still writing: not a second one behind it
+    release.set()
+    assert store.wait(10.0) and store.counters["saves"] == 1 and len(writes) == 1
+    clock.t += 5.0
+    _drive(svc, 4.0, 5.0)
+    assert store.save(svc, final=True)          # at shutdown: now, in this thread
+    assert writes == [1.0e9, 1.0e9 + 66.0] and store.counters["saves"] == 2
+    assert json.loads((tmp_path / "state.json").read_text())["saved_wall_s"] == 1.0e9 + 66.0
+
+
 @pytest.mark.parametrize("doc, reason", [
     ({"snapshot": None}, "no snapshot"),
     ({"saved_wall_s": None}, "no time of saving"),

@@ -2,6 +2,7 @@
 (real time, and 20x with the log's timestamps); `gearbox-vsensor run` starts and stops cleanly on SIGTERM."""
 from __future__ import annotations
 
+import json
 import os
 import signal
 import subprocess
@@ -221,6 +222,49 @@ def test_stops_cleanly_on_sigterm_on_a_silent_bus(code, ready, stream, what, exp
     assert rc == 0, err
     text = out if stream == "stdout" else err
     assert all(e in text for e in expected), text
+
+
+#: `run` with a state file on a virtual bus fed 3 s of traffic, then SIGTERM; a second SIGTERM arrives while the
+#: final save is being made (systemd's stop and a user's, or a supervisor that repeats it)
+_SECOND_SIGTERM_RUN = """
+import os, signal, sys, threading, time
+import can
+from tests.firmware_model.test_can_service import traffic
+from tools.can import live
+from tools.cli import main
+channel, state = sys.argv[1], sys.argv[2]
+finish = live.GatewayHooks.finish
+def finish_signalled_again(self):
+    os.kill(os.getpid(), signal.SIGTERM)
+    time.sleep(0.3)
+    finish(self)
+    print("final save done", flush=True)
+live.GatewayHooks.finish = finish_signalled_again
+def feed():
+    time.sleep(3.0)                     # `run` is listening by then
+    bus = can.Bus(interface="virtual", channel=channel)
+    t0, start = None, time.monotonic()
+    for m in traffic(0.0, 3.0):
+        t0 = m.timestamp if t0 is None else t0
+        time.sleep(max(0.0, m.timestamp - t0 - (time.monotonic() - start)))
+        bus.send(m)
+    bus.shutdown()
+    os.kill(os.getpid(), signal.SIGTERM)
+threading.Thread(target=feed, daemon=True).start()
+sys.exit(main(["run", "--interface", "virtual", "--channel", channel, "--state-file", state, "--log-level", "INFO"]))
+"""
+
+
+def test_a_second_sigterm_during_the_final_save_does_not_lose_it(tmp_path):
+    """From a gateway audit: the final state save ran after the signal handlers were restored, so a second SIGTERM
+    during it killed `run` with the last state unsaved. The save now runs while a signal only sets the stop flag."""
+    env = {**os.environ, "PYTHONPATH": str(REPO) + os.pathsep + os.environ.get("PYTHONPATH", "")}
+    state = tmp_path / "state.json"
+    p = subprocess.run([sys.executable, "-c", _SECOND_SIGTERM_RUN, f"second-{uuid.uuid4()}", str(state)], cwd=REPO,
+                       env=env, capture_output=True, text=True, timeout=120)
+    assert p.returncode == 0, p.stderr[-3000:]
+    assert "final save done" in p.stdout and "sensor state saved to" in p.stderr, p.stderr[-3000:]
+    assert json.loads(state.read_text())["schema"] == "vsensor-state/1"
 
 
 def test_run_bad_interface_is_one_sentence_exit_2():

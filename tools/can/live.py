@@ -122,7 +122,9 @@ class GatewayHooks:
     def __init__(self, settings: LiveSettings, service):
         from firmware_model.service.persist import HealthFile, StateStore, watchdog_period_s
         self.service = service
-        self.store = StateStore(settings.state_file, settings.state_period_s) if settings.state_file else None
+        # the periodic saves in a writer thread: a slow fsync (SD card, eMMC) must not hold up the outputs
+        self.store = StateStore(settings.state_file, settings.state_period_s, background=True) \
+            if settings.state_file else None
         self.health = HealthFile(settings.health_file) if settings.health_file else None
         self.watchdog_s = watchdog_period_s()
         self._last_watchdog = 0.0
@@ -186,18 +188,20 @@ def run_live(settings: LiveSettings):
                  service.encoder.source_address)
         hooks.ready()
 
-    try:
-        with stop_on_signals() as stop, SignalWatcher(stop):
+    # the final save runs while the signals still only set `stop`: a second SIGTERM (systemd's, a user's) during
+    # it would otherwise kill the process with the last state unsaved
+    with stop_on_signals() as stop, SignalWatcher(stop):
+        try:
             result = serve(bus, service, stop=stop, duration_s=settings.duration_s, on_ready=ready,
                            on_tick=hooks.tick, reopen=lambda: open_bus(settings.interface, settings.channel,
                                                                        settings.bitrate_bit_s, filters),
                            frame_clock=frame_clock)
-    finally:
-        try:
-            bus.shutdown()
-        except (OSError, RuntimeError, ValueError):
-            pass                          # already shut down after a receive error
-        hooks.finish()
+        finally:
+            try:
+                bus.shutdown()
+            except (OSError, RuntimeError, ValueError):
+                pass                          # already shut down after a receive error
+            hooks.finish()
     service.log_counters()
     service.log_findings()   # firmware_model.service.trust: time base, source addresses, degraded share
     log.info("stopped (%s): %d frames in, %d frames out, %d send errors, %.1f s, CPU %.1f %% of one core",
