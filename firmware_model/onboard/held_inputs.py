@@ -96,12 +96,18 @@ def prepare_jump(state: SensorState, gap_s: float, sp: SensorParams, cache: Step
     cache.ahead.put(cache.ahead.key_of(state, g), _jump_temperatures(state, (), g, sp, cache))
 
 
+def held_temperatures(state: SensorState, v: tuple, t_s: float, sp: SensorParams) -> np.ndarray:
+    """(2, n) temperatures of vehicle ``v`` (both copies) after ``t_s`` seconds with its last good inputs held."""
+    T = np.array(state.T_c[v], dtype=float, copy=True)
+    for c in (MAIN, TWIN):
+        T[c] = _held_propagate(sp, state, v, c, t_s)
+    return T
+
+
 def _jump_temperatures(state: SensorState, v: tuple, g: float, sp: SensorParams, cache: StepCache) -> np.ndarray:
     """(2, n) temperatures of vehicle ``v`` (both copies) after a forward jump of ``g`` seconds."""
-    T = np.array(state.T_c[v], dtype=float, copy=True)
     held = min(g, sp.options.time_jump_hold_s)
-    for c in (MAIN, TWIN):
-        T[c] = _held_propagate(sp, state, v, c, held)
+    T = held_temperatures(state, v, held, sp)
     if g > held:
         amb = float(state.hold[v + (I_AMB,)])
         amb = amb if math.isfinite(amb) else float(sp.reduced.bc_default_c[sp.reduced.i_ambient])

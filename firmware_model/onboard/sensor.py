@@ -25,7 +25,8 @@ from firmware_model.errors import InputError, ParameterError
 from firmware_model.onboard import reduce as R
 from firmware_model.onboard.blas import limit_blas_threads
 from firmware_model.onboard.core_select import select_core, step_table_numpy
-from firmware_model.onboard.held_inputs import cool_down, jump_state, prepare_jump, shutdown_boundaries_c
+from firmware_model.onboard.held_inputs import (cool_down, held_temperatures, jump_state, prepare_jump,
+                                               shutdown_boundaries_c)
 from firmware_model.onboard.params import SensorParams
 from firmware_model.onboard.records import (I_AMB, I_GEAR, I_OIL, I_SPEED, I_TORQUE, INPUT_FIELDS, MAIN, N_INPUTS,
                                             N_PUB, N_REJECT, REJECT_REASONS, TWIN, SensorInputs, SensorOptions,
@@ -102,14 +103,18 @@ class VirtualSensor:
         return self.reduced.nodes
 
     def initial_state(self, T_oil_c=None, snapshot=None, elapsed_s: float = 0.0, n_vehicles: int | None = None,
-                      ambient_c: float | None = None) -> SensorState:
+                      ambient_c: float | None = None, running_s: float = 0.0) -> SensorState:
         """Start: every node at the measured oil temperature (NaN/None, or a reading outside the oil input's plausible
         range, which the step rejects too: ``options.initial_temp_c``, else ``ambient_c``, the first ambient reading,
         when it lies in the ambient input's plausible range, else the parameters' ambient boundary), or from a snapshot (a SensorState, or the bytes/str/dict of :meth:`snapshot`) cooled down for
-        ``elapsed_s`` with the engine off. With both a snapshot and a measured oil: the measurement wins when the
+        ``elapsed_s`` with the engine off. ``running_s``: the first seconds of that time during which the engine
+        ran on with the snapshot's inputs held (a gateway that died while the truck drove: its last state was saved
+        while stepping, not at a clean stop), at most ``options.time_jump_hold_s``, as for a forward time jump;
+        then the engine is off. With both a snapshot and a measured oil: the measurement wins when the
         cooled snapshot's sump is more than 10 K off (then every node starts at it), else it replaces the sump."""
         if snapshot is not None:
-            return self._restored_state(decode_snapshot(snapshot, self.reduced), T_oil_c, elapsed_s, ambient_c)
+            return self._restored_state(decode_snapshot(snapshot, self.reduced), T_oil_c, elapsed_s, ambient_c,
+                                        running_s)
         rp = self.reduced
         B = () if n_vehicles is None else (int(n_vehicles),)
         T0 = self._plausible_oil_c(T_oil_c)
@@ -136,9 +141,9 @@ class VirtualSensor:
         T = np.asarray(np.nan if T_oil_c is None else T_oil_c, dtype=float)
         return np.where((T >= self.sp.input_lo[I_OIL]) & (T <= self.sp.input_hi[I_OIL]), T, np.nan)
 
-    def _restored_state(self, st: SensorState, T_oil_c, elapsed_s: float, ambient_c) -> SensorState:
-        """A restored snapshot cooled down for ``elapsed_s`` (engine off), the measured oil applied (see
-        :meth:`initial_state`)."""
+    def _restored_state(self, st: SensorState, T_oil_c, elapsed_s: float, ambient_c, running_s: float = 0.0):
+        """A restored snapshot propagated over ``elapsed_s`` (its inputs held for ``running_s``, capped, then engine
+        off), the measured oil applied (see :meth:`initial_state`)."""
         rp = self.reduced
         amb = ambient_c
         if amb is None:
@@ -146,11 +151,15 @@ class VirtualSensor:
             amb = float(a.reshape(-1)[0]) if np.all(np.isfinite(a)) else float(rp.bc_default_c[rp.i_ambient])
         T = np.array(st.T_c, dtype=float, copy=True)
         if elapsed_s and elapsed_s > 0:
+            held_s = min(float(running_s), self.sp.options.time_jump_hold_s, float(elapsed_s)) \
+                if running_s and running_s > 0 else 0.0
             for v in np.ndindex(T.shape[:-2]):
+                if held_s > 0:
+                    T[v] = held_temperatures(st, v, held_s, self.sp)
                 bc = shutdown_boundaries_c(self.sp, np.asarray(st.hold[v], dtype=float))
                 bc[rp.i_ambient] = amb
                 for c in (MAIN, TWIN):
-                    T[v + (c,)] = cool_down(self.sp, self.cache, T[v + (c,)], float(elapsed_s), amb, bc)
+                    T[v + (c,)] = cool_down(self.sp, self.cache, T[v + (c,)], float(elapsed_s) - held_s, amb, bc)
         T_oil_c = self._plausible_oil_c(T_oil_c)
         level, pending_s = st.level, st.pending_s
         if np.all(np.isfinite(T_oil_c)):

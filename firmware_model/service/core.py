@@ -507,16 +507,21 @@ class SensorService:
                          model_oil_temp_c=_opt_float(st.model_oil_temp_c))
 
     def _initial_state(self, oil_temp_c, ambient_temp_c):
-        """The first state: the saved one (``restore`` = (snapshot, elapsed wall time), firmware_model.service.
-        persist) cooled for the time off and reconciled with the oil reading, else a cold start from the oil (no
-        oil reading: from the ambient reading)."""
+        """The first state: the saved one (``restore`` = (snapshot, elapsed wall time[, clean stop]),
+        firmware_model.service.persist.Restore) propagated over the time off and reconciled with the oil reading,
+        else a cold start from the oil (no oil reading: from the ambient reading). A state saved while stepping, not
+        at a clean stop (the service died while the truck drove), has its inputs held first, as over a forward time
+        jump (at most ``time_jump_hold_s``), then cools with the engine off."""
         restore, self.restore = self.restore, None
         if restore is not None:
-            snapshot, elapsed_s = restore
+            snapshot, elapsed_s = restore[0], restore[1]
+            clean = bool(getattr(restore, "clean_stop", True))
             try:
-                state = self.sensor.initial_state(T_oil_c=oil_temp_c, snapshot=snapshot, elapsed_s=elapsed_s)
+                kw = {} if clean else {"running_s": elapsed_s}
+                state = self.sensor.initial_state(T_oil_c=oil_temp_c, snapshot=snapshot, elapsed_s=elapsed_s, **kw)
                 self.counters["state_restored"] = True
-                self.log.info("sensor state restored, cooled for %.0f s off", elapsed_s)
+                self.log.info("sensor state restored, %s for %.0f s off", "cooled" if clean else
+                              "saved while stepping (no clean stop): inputs held, then cooled,", elapsed_s)
                 return state
             except (InputError, ValueError, KeyError, TypeError) as exc:
                 self.counters["state_cold_start"] = str(exc)

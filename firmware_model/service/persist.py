@@ -22,6 +22,7 @@ import socket
 import threading
 import time
 from pathlib import Path
+from typing import NamedTuple
 
 STATE_SCHEMA = "vsensor-state/1"
 HEALTH_SCHEMA = "vsensor-health/1"
@@ -54,6 +55,15 @@ def atomic_write(path: Path, data: bytes, durable: bool = True) -> None:
 FUTURE_TOLERANCE_S = 300.0
 
 
+class Restore(NamedTuple):
+    """A saved state to start from (:meth:`StateStore.load`): the snapshot, the wall time since its last step [s],
+    and whether it was saved at a clean stop (False: by a periodic save while stepping, so the service died while
+    the truck drove and the engine is taken to have run on; files from before this field count as clean)."""
+    snapshot: object
+    elapsed_s: float
+    clean_stop: bool = True
+
+
 class StateStore:
     """The sensor state in a file across restarts: :meth:`load` at start, :meth:`maybe_save` from the loop,
     :meth:`save` at shutdown. ``clock``: wall time [s] (stored: the time off between runs); ``timer``: the clock of
@@ -76,7 +86,7 @@ class StateStore:
         self.counters = {"restored": 0, "cold_starts": 0, "saves": 0, "save_errors": 0, "reason": None}
 
     def load(self, sensor) -> tuple | None:
-        """``(snapshot, elapsed_s)`` of a usable saved state for ``sensor``, or None (a cold start: the reason is
+        """The :class:`Restore` of a usable saved state for ``sensor``, or None (a cold start: the reason is
         logged and counted). A state is usable when the file parses, has this schema, was taken with the same
         thermal network (the sensor's own snapshot check) and saved at a wall time that is not in the future."""
         reason = None
@@ -99,7 +109,7 @@ class StateStore:
             reason = f"unreadable or truncated ({exc.__class__.__name__})"
         if reason is None:
             self.loaded_saved_wall_s = float(doc["saved_wall_s"])
-            return doc["snapshot"], self.elapsed_s()
+            return Restore(doc["snapshot"], self.elapsed_s(), doc.get("clean_stop") is not False)
         self.cold_start(reason)
         return None
 
@@ -158,17 +168,19 @@ class StateStore:
         background save still being written. A failed write is counted and tried again a period later, not at every
         tick."""
         self.wait()
-        job = self._job(service)
+        job = self._job(service, clean_stop=final)
         return False if job is None else self._write(*job, final=final)
 
-    def _job(self, service) -> tuple | None:
-        """(file content, step count) of the state now, taken in the loop's thread; None before the first step."""
+    def _job(self, service, clean_stop: bool = False) -> tuple | None:
+        """(file content, step count, timer) of the state now, taken in the loop's thread; None before the first
+        step. ``clean_stop``: the shutdown save (a periodic one is made while stepping: if the service dies, the
+        truck was driving; Restore)."""
         if service.state is None:
             return None
         steps = self._note_steps(service)
         sensor = service.sensor
         doc = {"schema": STATE_SCHEMA, "saved_wall_s": self.stepped_wall_s, "frame_time_s": service.frame_time_s,
-               "variant": sensor.reduced.variant, "nodes": list(sensor.reduced.nodes),
+               "variant": sensor.reduced.variant, "nodes": list(sensor.reduced.nodes), "clean_stop": bool(clean_stop),
                "snapshot": json.loads(sensor.snapshot(service.state))}
         self.last_save_s = self.timer()
         return json.dumps(doc, separators=(",", ":")).encode("utf-8"), steps, self.last_save_s

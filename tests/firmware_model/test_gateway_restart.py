@@ -31,3 +31,16 @@ def test_restored_state_is_within_2_k_of_the_plant_after_a_10_minute_stop():
     assert np.all(np.isfinite(r.restored_c)) and np.all(np.isfinite(r.cold_c))
     assert restored.max() <= 2.0
     assert cold.max() > 5.0 * restored.max()      # the climb left gradients that a cold start cannot know
+
+
+def test_a_crash_mid_climb_is_restored_with_the_inputs_held_not_cooled():
+    """From a gateway audit: a service that died while the truck climbed (systemd restarted it 5 s later, its last
+    periodic save 30 s old) was restored as if the ignition had been off: cooled for 35 s with the engine stopped,
+    several K low on the hot components. A state saved while stepping (not at a clean stop) now has its inputs held
+    over the time off (at most the time-jump hold, 60 s), then cools: as a forward time jump does."""
+    r = _bench().run_crash(drive_s=600.0)
+    held, cooled, never = (np.abs(e) for e in (r.held_err_k, r.cooled_err_k, r.uninterrupted_err_k))
+    print(f"\ncrash restart at 600 s: worst held {held.max():.2f} K, cooled {cooled.max():.2f} K, never died "
+          f"{never.max():.2f} K")
+    assert "saved while stepping" in r.restored_log
+    assert held.max() <= 1.5 and cooled.max() > 3.0 * held.max()

@@ -49,7 +49,7 @@ def test_saved_state_is_restored_cooled_and_reconciled(params, tmp_path):
     first = _service(params)
     _drive(first, 0.0, 120.0)                                # two minutes of driving: components above the oil
     store = StateStore(tmp_path / "state.json", period_s=60.0, clock=clock)
-    assert store.save(first) and store.counters["saves"] == 1
+    assert store.save(first, final=True) and store.counters["saves"] == 1      # SIGTERM at the ignition off
     saved_T = np.array(first.state.T_c)
     # the gateway restarts 10 minutes later
     clock.t += 600.0
@@ -104,6 +104,22 @@ def test_saves_are_atomic_and_rate_bounded(params, tmp_path):
     assert not store.maybe_save(svc) and store.counters["saves"] == 2
     assert [p.name for p in tmp_path.iterdir()] == ["state.json"]   # no temporary file left behind
     json.loads((tmp_path / "state.json").read_bytes())
+
+
+def test_a_save_says_whether_it_was_made_at_a_clean_stop(params, tmp_path):
+    """A periodic save is made while stepping: restored from it, the service died while the truck drove (inputs
+    held first); the shutdown save is a clean stop (cooled); a file from before the field counts as clean."""
+    clock = Clock()
+    svc = _service(params)
+    _drive(svc, 0.0, 3.0)
+    path = tmp_path / "state.json"
+    store = StateStore(path, clock=clock)
+    assert store.save(svc) and StateStore(path, clock=clock).load(svc.sensor).clean_stop is False
+    assert store.save(svc, final=True) and StateStore(path, clock=clock).load(svc.sensor).clean_stop is True
+    doc = json.loads(path.read_text())
+    del doc["clean_stop"]
+    path.write_text(json.dumps(doc))
+    assert StateStore(path, clock=clock).load(svc.sensor).clean_stop is True
 
 
 def test_a_slow_save_does_not_hold_up_the_loop(params, tmp_path, monkeypatch):

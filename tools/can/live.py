@@ -143,7 +143,7 @@ class GatewayHooks:
         if self.store is not None:
             svc = self.service
             if svc.state is None and svc.restore is not None:       # not restored yet: cooled until now
-                svc.restore = (svc.restore[0], self.store.elapsed_s())
+                svc.restore = svc.restore._replace(elapsed_s=self.store.elapsed_s())
             self.store.maybe_save(svc)
         if self.health is not None:
             self.health.maybe_write(self.service, self.store)
