@@ -325,12 +325,22 @@ def test_bad_input_is_one_sentence_and_writes_nothing(tmp_path, synthetic, capsy
     out = tmp_path / "out"
     m = tmp_path / "m.csv"
     m.write_text("log,vehicle\nnowhere/a.log,t1\nnowhere/b.log,t2\n")
-    assert "do not exist" in _error(capsys, ["fleet", "--manifest", str(m), "--out", str(out)])
+    err = _error(capsys, ["fleet", "--manifest", str(m), "--out", str(out)])
+    assert "do not exist" in err and "(line 2)" in err and "(line 3)" in err
     (tmp_path / "adir").mkdir()
     m.write_text("log,vehicle\nadir,t1\n")
     assert "names a folder where a log file belongs" in _error(capsys, ["fleet", "--manifest", str(m), "--out",
                                                                         str(out)])
     logs = [e.log for e in read_manifest(synthetic)]
+    # from a fleet audit: a row with more fields than the header (an unquoted comma in a path) was read without
+    # its extra fields, and a row's own error did not say which row
+    m.write_text(f"log,vehicle\n{logs[0]},t1\n{logs[1]},t2,extra\n")
+    err = _error(capsys, ["fleet", "--manifest", str(m), "--out", str(out)])
+    assert "line 3 has 1 field(s) more than its header" in err and "'extra'" in err
+    m.write_text(f"log,vehicle,date\n{logs[0]},t1,2026-01-05\n{logs[1]},t2,2026-02-30\n")
+    assert "line 3: " in _error(capsys, ["fleet", "--manifest", str(m), "--out", str(out)])
+    m.write_text(f"log,vehicle\n{logs[0]},t1\n{logs[1]},\n")
+    assert "line 3: " in _error(capsys, ["fleet", "--manifest", str(m), "--out", str(out)])
     m.write_text(f"log,vehicle,variant\n{logs[0]},t1,GRS905\n{logs[1]},t1,GRSO905\n")
     assert "two variants" in _error(capsys, ["fleet", "--manifest", str(m), "--out", str(out)])
     m.write_text(f"log,vehicle,variant\n{logs[0]},t1,GRS999\n")      # every log landed in the errors table, exit 0

@@ -86,24 +86,37 @@ def _read_manifest(m: Path) -> list[LogEntry]:
         if unknown:
             raise InputError(f"manifest {m} has unknown column(s) {', '.join(unknown)}; use log,vehicle and "
                              f"optionally {','.join(MANIFEST_OPTIONAL)}")
-        rows = [{k.strip(): (v or "").strip() for k, v in r.items() if k} for r in reader]
-    entries = []
-    for r in rows:
+        rows = []
+        for r in reader:
+            extra = [v for v in (r.get(None) or []) if v and v.strip()]
+            if extra:
+                raise InputError(f"manifest {m} line {reader.line_num} has {len(extra)} field(s) more than its header "
+                                 f"({', '.join(map(repr, extra[:3]))}): a comma in a path must be quoted")
+            rows.append((reader.line_num, {k.strip(): (v or "").strip() for k, v in r.items() if k}))
+    entries, lines = [], {}
+    for line, r in rows:
         p = Path(r["log"])
+        if not r["log"]:
+            raise InputError(f"manifest {m} line {line}: no log file named")
         if not p.is_absolute():
             p = m.parent / p
         config = r.get("config") or None
         if config and not Path(config).is_absolute():         # relative to the manifest, as the logs
             config = str(m.parent / config)
-        entries.append(_entry(p, r["vehicle"], r.get("variant"), config, r.get("date")))
-    folders = [e.log for e in entries if e.log.is_dir()]
+        try:
+            entries.append(_entry(p, r["vehicle"], r.get("variant"), config, r.get("date")))
+        except InputError as exc:
+            raise InputError(f"manifest {m} line {line}: {exc}") from None
+        lines[id(entries[-1])] = line
+    folders = [e for e in entries if e.log.is_dir()]
     if folders:
-        raise InputError(f"manifest {m} names a folder where a log file belongs: {folders[0]}")
-    absent = [e.log for e in entries if not e.log.is_file()]
+        raise InputError(f"manifest {m} line {lines[id(folders[0])]} names a folder where a log file belongs: "
+                         f"{folders[0].log}")
+    absent = [e for e in entries if not e.log.is_file()]
     if absent:
         more = f" and {len(absent) - 3} more" if len(absent) > 3 else ""
         raise InputError(f"manifest {m} names {len(absent)} log file(s) that do not exist: "
-                         f"{', '.join(map(str, absent[:3]))}{more}")
+                         f"{', '.join(f'{e.log} (line {lines[id(e)]})' for e in absent[:3])}{more}")
     return check_entries(entries, f"manifest {m}")
 
 
