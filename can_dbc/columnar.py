@@ -205,6 +205,16 @@ def _foreign(dec: _Decoding, key: str, sa: np.ndarray, with_data: np.ndarray) ->
                 _add_count(per_sa, v, c)
 
 
+def _first_arrivals(decoder, key: str, foreign_idx: np.ndarray, foreign_sa: np.ndarray, expected_idx: np.ndarray):
+    """The decoder's ``foreign_first_arrivals``: per foreign source address, the frames from the expected one
+    before its first frame (frame order)."""
+    first = decoder.counters["foreign_first_arrivals"].setdefault(key, {})
+    before = decoder.counters["arrivals"].get(key, 0)
+    for s in np.unique(foreign_sa).tolist():
+        f = foreign_idx[foreign_sa == s][0]
+        first.setdefault(s, before + int(np.searchsorted(expected_idx, f)))
+
+
 def _param_values(p, data: np.ndarray):
     """(raw, value, used) of one parameter over the rows of ``data``."""
     raw = _raw(data, p.byte0, p.nbytes)
@@ -232,6 +242,7 @@ def _route(dec: _Decoding, pgn: int, key: str, params: tuple, refs: dict) -> Non
                 carries |= _param_values(p, cols.data[w])[3]
             _foreign(dec, key, sa[wrong], eight[wrong] & carries)
             dec.reason[w] = REASON_CODES["wrong_source_address"]
+            _first_arrivals(decoder, key, w, sa[wrong], idx[~wrong])
         idx, eight = idx[~wrong], eight[~wrong]
     dec.arrivals.setdefault(key, []).append(idx)
     decoder.counters["arrivals"][key] = decoder.counters["arrivals"].get(key, 0) + int(idx.size)

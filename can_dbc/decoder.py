@@ -219,7 +219,9 @@ class J1939Decoder:
     (message -> source address -> frames, or EC1 announces, from another source address than expected) and
     ``foreign_source_data`` (the same, only those with at least one usable value: a source-address mistake, not a
     node that sends "not available"), ``short_frames`` (message -> frames from the expected source address with
-    fewer than 8 data bytes, none of whose values is used).
+    fewer than 8 data bytes, none of whose values is used), ``foreign_first_arrivals`` (single-frame message ->
+    foreign source address -> frames from the expected one before its first frame: a sender that moved to another
+    address, when none came after, told from a second sender).
     """
 
     def __init__(self, expected_sa: Mapping[str, int | None] | None = None,
@@ -253,7 +255,8 @@ class J1939Decoder:
         self.counters: dict = {"frames_seen": 0, "frames_used": 0, "rejected": {}, "signal_rejected": {},
                                "tp": {"started": 0, "completed": 0, "aborted": 0, "ec1_received": 0,
                                       "rc_received": 0},
-                               "arrivals": {}, "foreign_source": {}, "foreign_source_data": {}, "short_frames": {}}
+                               "arrivals": {}, "foreign_source": {}, "foreign_source_data": {}, "short_frames": {},
+                               "foreign_first_arrivals": {}}
         self._arrivals: dict[str, int] = self.counters["arrivals"]
         self._arrivals.update({route.key: 0 for route in self._routes.values()})
 
@@ -369,6 +372,7 @@ class J1939Decoder:
         expected = self.expected_sa[key]
         if expected is not None and sa != expected:
             self._count_foreign(key, sa, eight and _carries_data(route.params, data))
+            self.counters["foreign_first_arrivals"].setdefault(key, {}).setdefault(sa, self._arrivals[key])
             return "wrong_source_address"
         self._arrivals[key] += 1
         if not eight:

@@ -100,10 +100,18 @@ class ForeignSourceFinding:
     config_key: str
     configured: bool
     primary: bool
+    #: frames from the expected source address before this one's first (None: not known, TP.BAM transfers)
+    expected_before: int | None = None
+
+    @property
+    def moved(self) -> bool:
+        """The expected address sent before this one started and never after: the sender moved (a new address
+        claim, another ECU fitted), not a second sender beside it."""
+        return self.expected_before is not None and 0 < self.expected_frames == self.expected_before
 
     @property
     def severity(self) -> Severity:
-        if self.expected_frames == 0:
+        if self.expected_frames == 0 or self.moved:
             return Severity.UNTRUSTED if self.primary else Severity.NOTE
         return Severity.NOTE
 
@@ -115,7 +123,11 @@ class ForeignSourceFinding:
         what = f"{self.message} (PGN {self.pgn})" if self.message not in (EC1_KEY, RC_KEY) \
             else f"{self.message} (PGN {self.pgn}, TP.BAM transfers)"
         tail = ": check the source addresses"
-        if self.expected_frames:
+        if self.moved:
+            tail = (f", after {self.expected_frames} from SA 0x{self.expected:02X} and none from it since: the sender "
+                    f"moved to SA 0x{self.source:02X} (a new address claim or another ECU) and the sensor has not "
+                    f"used it since")
+        elif self.expected_frames:
             tail = f" (and {self.expected_frames} times from SA 0x{self.expected:02X}): a second sender"
         elif not self.primary:
             tail += " (an auxiliary input: the sensor uses its default instead)"
@@ -238,6 +250,7 @@ def foreign_findings(decoder_counters: Mapping, expected_sa: Mapping[str, int | 
     keys = _config_keys()
     arrivals = decoder_counters.get("arrivals", {})
     with_data = decoder_counters.get("foreign_source_data", {})
+    first_arrivals = decoder_counters.get("foreign_first_arrivals", {})
     received = {EC1_KEY: decoder_counters.get("tp", {}).get("ec1_received", 0),
                 RC_KEY: decoder_counters.get("tp", {}).get("rc_received", 0)}
     out = []
@@ -252,7 +265,8 @@ def foreign_findings(decoder_counters: Mapping, expected_sa: Mapping[str, int | 
             expected_frames = received[message] if message in received else arrivals.get(message, 0)
             out.append(ForeignSourceFinding(message, pgns[message], sa, frames, n_data, expected, expected_frames,
                                             keys.get(message, "?"), message in (configured or {}),
-                                            message in primary))
+                                            message in primary,
+                                            None if message in received else first_arrivals.get(message, {}).get(sa)))
     return out
 
 
@@ -406,7 +420,7 @@ def trust_findings(counters: Mapping, expected_sa: Mapping[str, int | None],
     """The findings of a CAN run, most severe first: ``counters`` = ``SensorService.all_counters()``. The degraded
     share is a finding from DEGRADED_WARN_SHARE on (``oil_model``: the sensor models the oil by request, which is
     not degraded); foreign source addresses are findings when a message came only
-    from them, or when the run was degraded that much (then they are the likely cause)."""
+    from them or moved to them, or when the run was degraded that much (then they are the likely cause)."""
     service = counters["service"]
     out: list[Finding] = []
     raised = service.get("time_base", {}).get("finding")
@@ -421,7 +435,7 @@ def trust_findings(counters: Mapping, expected_sa: Mapping[str, int | None],
     degraded = dataclasses.replace(degraded, causes=tuple(c for c in causes if not c.startswith("coolant")))
     loud = degraded.severity >= Severity.WARNING
     for f in foreign_findings(counters["decoder"], expected_sa, configured):
-        if loud or f.expected_frames == 0:
+        if loud or f.expected_frames == 0 or f.moved:
             out.append(f)
     if loud:
         out.append(degraded)

@@ -147,6 +147,36 @@ def test_a_second_sender_beside_the_expected_one_is_only_a_note():
     assert svc.decoder.counters["foreign_source_data"] == {"TRF1": {0x05: 30}}
 
 
+def test_a_sender_that_moved_to_another_address_is_not_called_a_second_sender():
+    """From a gateway audit: the transmission controller's TRF1 went from SA 0x03 to 0x04 halfway (a new address
+    claim) and the finding said "a second sender", a note; the oil was not used after the move. Now it says the
+    sender moved, untrusted (a primary input), on both decoders (frame by frame and columnar)."""
+    from can_dbc.columnar import FrameColumns, decode_columns
+    from firmware_model.service.trust import foreign_findings
+    frames = traffic(0.0, 60.0, oil=80.0)
+    for m in frames:
+        if m.timestamp > 30.0 and pgn_of(m.arbitration_id) == 65272:
+            m.arbitration_id = (m.arbitration_id & ~0xFF) | 0x04
+    svc = service()
+    svc.feed_all(frames)
+    moved = [f for f in svc.findings() if f.kind == "foreign_source"]
+    assert len(moved) == 1 and moved[0].moved and moved[0].expected_before == moved[0].expected_frames == 30
+    assert "the sender moved to SA 0x04" in moved[0].sentence and "second sender" not in moved[0].sentence
+    assert moved[0].severity == Severity.UNTRUSTED
+    assert svc.decoder.counters["foreign_first_arrivals"] == {"TRF1": {0x04: 30}}
+    dec = type(svc.decoder)(svc.decoder.expected_sa)          # the columnar decoder counts the same
+    decode_columns(FrameColumns.from_messages(frames), dec)
+    assert dec.counters["foreign_first_arrivals"] == {"TRF1": {0x04: 30}}
+    # both at once: a second sender, as before
+    both = traffic(0.0, 30.0, oil=80.0) + [trf1(t + 0.5, 60.0) for t in range(30)]
+    for m in both[-30:]:
+        m.arbitration_id = (m.arbitration_id & ~0xFF) | 0x05
+    svc = service()
+    svc.feed_all(sorted(both, key=lambda m: m.timestamp))
+    f = foreign_findings(svc.decoder.counters, svc.decoder.expected_sa)
+    assert len(f) == 1 and not f[0].moved and "a second sender" in f[0].sentence
+
+
 @pytest.mark.parametrize("modes, severity", [({0: 90, 3: 10}, Severity.NOTE),
                                              ({0: 70, 1: 30}, Severity.WARNING),
                                              ({0: 40, 2: 60}, Severity.UNTRUSTED)])
