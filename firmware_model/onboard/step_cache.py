@@ -47,9 +47,10 @@ class JumpAhead:
         self.key, self.T_c = key, np.array(T_c, dtype=float, copy=True)
 
     def take(self, key: tuple) -> np.ndarray | None:
-        """The prepared temperatures for ``key`` (a copy), or None; the entry is dropped on a hit."""
-        if self.key is None or key != self.key:
-            return None
+        """The prepared temperatures for ``key``, or None; the entry is dropped either way (one jump, one use)."""
+        hit = self.key is not None and key == self.key
         T_c, self.key, self.T_c = self.T_c, None, None
+        if not hit:
+            return None
         self.hits += 1
         return T_c

@@ -92,7 +92,8 @@ class SensorService:
         # the sensor: a step leaves its slow time-to-limit refresh to finish_pending(), which the live loop runs
         # after the step's frames are sent and every step runs first (so outputs never depend on when)
         self.state = None
-        #: a saved state to start from: (snapshot, wall time off [s]) (firmware_model.service.persist), or None
+        #: a saved state to start from: a firmware_model.service.persist.Restore (snapshot, wall time off [s],
+        #: clean stop), or None
         self.restore: tuple | None = None
         self._pending = None
         self._initialised = False

@@ -23,12 +23,13 @@ SEND_ERROR_LOG_PERIOD_S = 10.0
 #: back-off between attempts to reopen a bus that cannot be opened [s]: doubling from the first to the last
 REOPEN_BACKOFF_S = (0.5, 30.0)
 #: after a receive error the loop first resumes reading the same bus after this delay [s], doubling while errors
-#: follow each other without a frame; after RESUME_LIMIT such errors it closes and reopens the bus
+#: follow each other without a frame (at most twice: 0.1, 0.2 s, so that frames wait at most that long once the bus
+#: is back); after RESUME_LIMIT such errors it closes and reopens the bus ...
 RESUME_DELAY_S = 0.1
 RESUME_LIMIT = 3
-#: ... and the delay doubles with every receive error of one outage, reopens included, up to this [s]: a bus whose
-#: reads fail at once (a dead adapter) is retried and reopened ever more slowly, never in a loop
-RESUME_DELAY_MAX_S = 2.0
+#: ... but within one outage reopens after errors come at least this far apart [s], doubling from the first to the
+#: second: a bus whose reads fail at once (a dead adapter) was reopened every 0.3 s
+ERROR_REOPEN_GAP_S = (0.5, 30.0)
 #: the notifier's thread waits this long after reporting a receive error, unless the loop takes it first [s]:
 #: python-can's Notifier goes on reading after an error a listener handled, and a bus whose reads fail at once
 #: then reported ~40 000 errors a second at ~45 % CPU (a gateway audit)
@@ -143,6 +144,8 @@ class Outage:
     next_reopen_s: float          # when a silent outage reopens the bus next
     reopen_delay_s: float
     consecutive: int = 0          # receive errors since the last frame or reopen
+    next_error_reopen_s: float = 0.0    # the earliest time of the next reopen after errors (monotonic)
+    error_reopen_gap_s: float = ERROR_REOPEN_GAP_S[0]
     errors: int = 0
     reopen_failed: bool = False   # a reopen failed in this outage (logged once per outage)
 
@@ -152,9 +155,9 @@ class BusLink:
     went down, the controller went bus-off, a read failed): it is an *outage* until the next frame arrives, logged
     once when it starts (warning) and once when it ends (info), and counted (``events``). Within an outage:
 
-    - after a receive error the loop resumes reading the same bus after RESUME_DELAY_S, doubling with every error
-      of the outage up to RESUME_DELAY_MAX_S (SocketCAN reports an interface going down once per socket: the socket
-      then waits and receives again as soon as the interface is up, with no frame lost to a reopen);
+    - after a receive error the loop resumes reading the same bus after RESUME_DELAY_S, doubling once while errors
+      follow each other without a frame (SocketCAN reports an interface going down once per socket: the socket then
+      waits and receives again as soon as the interface is up, with no frame lost to a reopen);
     - after RESUME_LIMIT such errors, or when the outage stays silent for SILENT_REOPEN_S (doubling to 30 s: a dead
       handle), the bus is closed and reopened with ``reopen`` (a factory), with a doubling back-off while it cannot
       be opened.
@@ -210,12 +213,15 @@ class BusLink:
         o.errors += 1
         o.consecutive += 1
         self._stop_notifier()
-        self._wait(stop, min(RESUME_DELAY_S * 2 ** (o.errors - 1), RESUME_DELAY_MAX_S))
-        if o.consecutive >= RESUME_LIMIT:
+        if o.consecutive >= RESUME_LIMIT and now >= o.next_error_reopen_s:
             self._reopen(stop)
+            o.next_error_reopen_s = time.monotonic() + o.error_reopen_gap_s
+            o.error_reopen_gap_s = min(2.0 * o.error_reopen_gap_s, ERROR_REOPEN_GAP_S[1])
         else:
+            self._wait(stop, RESUME_DELAY_S * 2 ** (min(o.consecutive, RESUME_LIMIT - 1) - 1))
             self.events["resumes"] += 1
-        self.notifier = self._start_notifier()
+        if not stop.is_set():
+            self.notifier = self._start_notifier()
 
     def _watch_outage(self, stop: threading.Event) -> None:
         o = self.outage

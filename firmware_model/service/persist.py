@@ -30,6 +30,8 @@ HEALTH_SCHEMA = "vsensor-health/1"
 STATE_PERIOD_S = 60.0
 #: the health file is rewritten this often [s]
 HEALTH_PERIOD_S = 1.0
+#: the shutdown save waits this long for a periodic save still being written [s]
+SAVE_WAIT_S = 20.0
 
 log = logging.getLogger("gearbox_vsensor.state")
 
@@ -149,7 +151,12 @@ class StateStore:
         if job is None:
             return False
         self._writing = threading.Thread(target=self._write, args=job, name="state-save", daemon=True)
-        self._writing.start()
+        try:
+            self._writing.start()
+        except RuntimeError as exc:       # no thread to be had: write now rather than not at all
+            self._writing = None
+            log.warning("cannot start the state writer thread (%s): saving in the loop", exc)
+            return self._write(*job)
         return True
 
     @property
@@ -165,9 +172,11 @@ class StateStore:
 
     def save(self, service, final: bool = False) -> bool:
         """Write the state now (``final``: at shutdown, a failure is logged whatever came before), after a
-        background save still being written. A failed write is counted and tried again a period later, not at every
-        tick."""
-        self.wait()
+        background save still being written (waited for up to SAVE_WAIT_S: a write hung in its fsync does not
+        hold the shutdown for ever). A failed write is counted and tried again a period later, not at every tick."""
+        if not self.wait(SAVE_WAIT_S):
+            log.warning("a state save has been writing %s for %.0f s (a hung storage?): writing the state now "
+                        "beside it", self.path, SAVE_WAIT_S)
         job = self._job(service, clean_stop=final)
         return False if job is None else self._write(*job, final=final)
 

@@ -170,6 +170,40 @@ class _WithoutPrepare:
 
 
 @pytest.mark.parametrize("core", ["numpy", "c"])
+@pytest.mark.parametrize("change", ["T_c", "hold", "age_s", "gap"])
+def test_a_propagation_prepared_for_another_state_or_gap_is_not_taken(core, change):
+    """The prepared jump is keyed on all it reads: a state or gap that differs from the prepared one is computed
+    afresh (the same bits as without preparing), and the entry is dropped."""
+    from firmware_model.onboard.records import SensorInputs
+    from firmware_model.onboard.sensor import VirtualSensor
+    from firmware_model.parameters import load_parameters
+
+    params = load_parameters()
+    runs = []
+    for prepare in (True, False):
+        sensor = VirtualSensor(params, core=core)
+        if core == "c" and sensor.compiled is None:
+            pytest.skip("the compiled kernel is not built here")
+        st = sensor.initial_state(T_oil_c=70.0)
+        for k in range(1, 50):
+            st, _ = sensor.step(st, SensorInputs(1500.0, 1800.0, 10, 70.0, 20.0, 85.0, 60.0, 0.0, t_s=0.1 * k))
+        t_s = 4.9 + 12.0
+        if prepare:
+            assert sensor.prepare_jump(st, t_s)
+        if change == "gap":
+            t_s += 0.1
+        else:
+            a = np.array(getattr(st, change), dtype=float, copy=True)
+            a.reshape(-1)[0] += 0.5
+            st = st._replace(**{change: a.astype(np.asarray(getattr(st, change)).dtype)})
+        st, out = sensor.step(st, SensorInputs(1500.0, 1800.0, 10, 70.0, 20.0, 85.0, 60.0, 0.0, t_s=t_s))
+        runs.append((np.array(out.T_c), np.array(st.T_c), sensor.cache.ahead.hits, sensor.cache.ahead.key))
+    (T_out, T_st, hits, key), (ref_out, ref_st, _, _) = runs
+    assert hits == 0 and key is None
+    assert np.array_equal(T_out, ref_out) and np.array_equal(T_st, ref_st)
+
+
+@pytest.mark.parametrize("core", ["numpy", "c"])
 def test_a_forward_gap_is_propagated_at_its_first_frame_and_the_outputs_are_the_same_bits(core):
     """The live service propagates the state over a forward gap when the first frame after it arrives
     (VirtualSensor.prepare_jump), so the first output after an outage waits one step period, not a period plus the

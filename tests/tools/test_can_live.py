@@ -240,8 +240,15 @@ def finish_signalled_again(self):
     finish(self)
     print("final save done", flush=True)
 live.GatewayHooks.finish = finish_signalled_again
+listening = threading.Event()
+ready = live.GatewayHooks.ready
+def ready_and_say(self):
+    ready(self)
+    listening.set()
+live.GatewayHooks.ready = ready_and_say
 def feed():
-    time.sleep(3.0)                     # `run` is listening by then
+    if not listening.wait(120.0):       # `run` is listening (a virtual bus keeps no frame for a later reader)
+        return
     bus = can.Bus(interface="virtual", channel=channel)
     t0, start = None, time.monotonic()
     for m in traffic(0.0, 3.0):

@@ -139,11 +139,12 @@ class GatewayHooks:
 
     def tick(self) -> None:
         import time
-        from firmware_model.service.persist import sd_notify
+        from firmware_model.service.persist import Restore, sd_notify
         if self.store is not None:
             svc = self.service
             if svc.state is None and svc.restore is not None:       # not restored yet: cooled until now
-                svc.restore = svc.restore._replace(elapsed_s=self.store.elapsed_s())
+                r = svc.restore
+                svc.restore = Restore(r[0], self.store.elapsed_s(), getattr(r, "clean_stop", True))
             self.store.maybe_save(svc)
         if self.health is not None:
             self.health.maybe_write(self.service, self.store)
