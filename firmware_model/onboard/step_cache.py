@@ -1,8 +1,8 @@
 """What the onboard step memoises, in one explicit object the sensor owns and passes to the step.
 
-Both memos are bounded and hold pure functions of their keys (the conductances of an operating-point bin, the modes
-of a held-input system), so a step gives the same outputs with a fresh cache, a warm one or one shared by sensors
-built from the same parameters.
+The memos are bounded and hold pure functions of their keys (the conductances of an operating-point bin, the modes
+of a held-input system, one time-jump propagation done ahead of its step), so a step gives the same outputs with a
+fresh cache, a warm one or one shared by sensors built from the same parameters.
 """
 from __future__ import annotations
 
