@@ -342,7 +342,10 @@ def test_bad_input_is_one_sentence_and_writes_nothing(tmp_path, synthetic, capsy
     m.write_text(f"log,vehicle\n{logs[0]},t1\n{logs[1]},\n")
     assert "line 3: " in _error(capsys, ["fleet", "--manifest", str(m), "--out", str(out)])
     m.write_text(f"log,vehicle,variant\n{logs[0]},t1,GRS905\n{logs[1]},t1,GRSO905\n")
-    assert "two variants" in _error(capsys, ["fleet", "--manifest", str(m), "--out", str(out)])
+    err = _error(capsys, ["fleet", "--manifest", str(m), "--out", str(out)])
+    assert "two variants, GRS905 (line 2) and GRSO905 (line 3)" in err
+    m.write_text(f"log,vehicle\n{logs[0]},t1\n{logs[1]},t1\n{logs[0]},t1\n")
+    assert "listed twice (lines 2 and 4)" in _error(capsys, ["fleet", "--manifest", str(m), "--out", str(out)])
     m.write_text(f"log,vehicle,variant\n{logs[0]},t1,GRS999\n")      # every log landed in the errors table, exit 0
     assert "vehicle t1" in _error(capsys, ["fleet", "--manifest", str(m), "--out", str(out)])
     m.write_text(f"log,vehicle,config\n{logs[0]},t1,{tmp_path / 'absent.toml'}\n")

@@ -117,7 +117,7 @@ def _read_manifest(m: Path) -> list[LogEntry]:
         more = f" and {len(absent) - 3} more" if len(absent) > 3 else ""
         raise InputError(f"manifest {m} names {len(absent)} log file(s) that do not exist: "
                          f"{', '.join(f'{e.log} (line {lines[id(e)]})' for e in absent[:3])}{more}")
-    return check_entries(entries, f"manifest {m}")
+    return check_entries(entries, f"manifest {m}", lambda e: str(lines[id(e)]))
 
 
 def entries_from_paths(paths, pattern: str | None = None) -> list[LogEntry]:
@@ -152,20 +152,24 @@ def entries_from_paths(paths, pattern: str | None = None) -> list[LogEntry]:
     return check_entries(entries, "the logs given")
 
 
-def check_entries(entries: list[LogEntry], where: str) -> list[LogEntry]:
-    """InputError for no log, a log twice, a vehicle with two variants or two configurations."""
+def check_entries(entries: list[LogEntry], where: str, at=None) -> list[LogEntry]:
+    """InputError for no log, a log twice, a vehicle with two variants or two configurations; ``at(entry)``: the
+    manifest line an entry was given on, named in those errors."""
+    at = at or (lambda e: "")
     if not entries:
         raise InputError(f"{where}: no CAN log ({', '.join(LOG_SUFFIXES)}) to run")
-    seen: dict[str, Path] = {}
+    seen: dict[str, LogEntry] = {}
     per_vehicle: dict[str, LogEntry] = {}
     for e in entries:
         if e.key in seen:
-            raise InputError(f"{where}: the log {e.log} is listed twice")
-        seen[e.key] = e.log
+            lines = f" (lines {at(seen[e.key])} and {at(e)})" if at(e) else ""
+            raise InputError(f"{where}: the log {e.log} is listed twice{lines}")
+        seen[e.key] = e
         first = per_vehicle.setdefault(e.vehicle, e)
         for field in ("variant", "config"):
             if getattr(first, field) != getattr(e, field):
-                a, b = (getattr(x, field) or f"the default {field} (none given)" for x in (first, e))
+                a, b = (f"{getattr(x, field) or f'the default {field} (none given)'}"
+                        f"{f' (line {at(x)})' if at(x) else ''}" for x in (first, e))
                 raise InputError(f"{where}: vehicle {e.vehicle} has two {field}s, {a} and {b}; a vehicle is one "
                                  f"gearbox (give the other a new vehicle name)")
     _check_gearboxes(per_vehicle.values(), where)
