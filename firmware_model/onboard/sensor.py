@@ -208,7 +208,7 @@ class VirtualSensor:
         if t_last_s.shape:
             return False
         gap_s = float(t_s) - float(t_last_s)
-        if not gap_s > 1.5 * self.sp.dt_s:
+        if not (math.isfinite(gap_s) and gap_s > 1.5 * self.sp.dt_s):    # the step's own test of a forward jump
             return False
         prepare_jump(state, gap_s - self.sp.dt_s, self.sp, self.cache)
         return True

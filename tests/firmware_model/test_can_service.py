@@ -200,6 +200,8 @@ def test_a_propagation_prepared_for_another_state_or_gap_is_not_taken(core, chan
         runs.append((np.array(out.T_c), np.array(st.T_c), sensor.cache.ahead.hits, sensor.cache.ahead.key))
     (T_out, T_st, hits, key), (ref_out, ref_st, _, _) = runs
     assert hits == 0 and key is None
+    assert not sensor.prepare_jump(st, float("inf")) and not sensor.prepare_jump(st, float("nan"))  # no jump the
+    assert sensor.cache.ahead.key is None                                       # step would see: nothing done
     assert np.array_equal(T_out, ref_out) and np.array_equal(T_st, ref_st)
 
 
