@@ -50,6 +50,12 @@ def add_subparser(sub):
                    help="time step of the plant's simulations [s] (default 2: slow thermal fits lose nothing)")
     p.add_argument("--workers", type=int, metavar="N", help="processes for the simulations (default: 2 or the "
                                                             "number of cores)")
+    p.add_argument("--start", choices=("auto", "rest", "running"), default="auto",
+                   help="how the runs start: 'rest' (every part at the oil's first reading: a run from cold or "
+                        "after a long stop, what calibrate assumes by default), 'running' (cut from a longer drive, "
+                        "a warm restart: each run scored after its first 300 s, a thermocouple after 900 s, with "
+                        "its housings' start fitted per run), 'auto' (default: at rest, with a warning for a run "
+                        "that begins with the truck driving and the gearbox warm)")
     p.add_argument("--quiet", action="store_true", help="no progress or summary")
     p.set_defaults(func=run)
     return p
@@ -151,9 +157,13 @@ def run(args) -> int:
         if not args.quiet and sys.stderr.isatty():
             print(f"\rcalibrate: fit, {n[0]} evaluations", end="", file=sys.stderr, flush=True)
     cal = calibrate(args.train, args.test, params, keys, auto=args.auto, cooler=cooler,
-                    opts=Options(workers=args.workers), progress=tick, config_path=args.config, dt_s=args.plant_dt)
+                    opts=Options(workers=args.workers, start=args.start), progress=tick, config_path=args.config,
+                    dt_s=args.plant_dt)
     if not args.quiet and sys.stderr.isatty():
         print(file=sys.stderr)
+    for st in cal.starts:
+        if st.hint:
+            print(f"warning: {st.name}: {st.hint.replace('diagnose with', 'calibrate with')}", file=sys.stderr)
     base = parameter_path(cfg.params_path or cfg.variant)
     stamp = dt.date.today().isoformat()
     if args.report:

@@ -58,6 +58,13 @@ def add_subparser(sub):
                    help="time step of the plant's re-simulations [s] (default 1)")
     p.add_argument("--workers", type=int, metavar="N", help="processes for the re-simulations (default: 2 or the "
                                                             "number of cores)")
+    p.add_argument("--start", choices=("auto", "rest", "running"), default="auto",
+                   help="how the files start: 'rest' (every part at the oil's first reading: a key-on after a night, "
+                        "a rig run from cold), 'running' (cut from a longer drive, a warm restart: each file scored "
+                        "after its first 300 s, a thermocouple's after 900 s, with its housings' start fitted), or "
+                        "'auto' (default: at rest, then running for the files whose first minutes show a real gap "
+                        "and which the housings' start then fits far better; diagnosed again; the JSON's 'starts' "
+                        "says which and why)")
     add_core_option(p)
     p.add_argument("--quiet", action="store_true", help="no progress bar or summary on stderr/stdout")
     p.set_defaults(func=run)
@@ -95,11 +102,15 @@ def run(args) -> int:
     check_paths([*(("a training file", f) for f in args.train), *(("a test file", f) for f in args.test),
                  ("the --config", args.config)], {"--json": args.json, "--report": args.report},
                 makes_dirs=("--json", "--report"))
-    opts = Options(grid_dt_s=args.grid_dt, plant_dt_s=args.plant_dt, workers=args.workers)
+    opts = Options(grid_dt_s=args.grid_dt, plant_dt_s=args.plant_dt, workers=args.workers, start=args.start)
     with progress(len(STAGES), "diagnose", enabled=False if args.quiet else None, unit="stage") as bar:
+        again = []
+
         def stage(name):
+            if STAGES.index(name) < bar.n:      # every stage again: some files started running
+                again.append(name)
             bar.update(STAGES.index(name) - bar.n)
-            bar.set_postfix_str(name)
+            bar.set_postfix_str(f"again (files that started running): {name}" if again else name)
         res, d = diagnose(args.train, args.test, params, model=args.model, cooler=cooler, opts=opts,
                           progress=stage, keep=True, config_path=args.config)
         bar.update(len(STAGES) - bar.n)
@@ -117,6 +128,10 @@ def run(args) -> int:
         print(f"verdict: {v['effect']}{extra}; test RMS {v['test_rms_before_c']:.3f} -> {v['test_rms_after_c']:.3f} "
               f"degC (shrink {100 * v['shrink']:.0f} %) -> {args.json}")
         print(f"reason: {v['reason']}")
+        running = [n for n, st in res.get("starts", {}).items() if st["start"] == "running"]
+        if running:
+            print(f"started running (scored after their first minutes, the housings' start fitted): "
+                  f"{', '.join(running)}")
         print(f"time: {res['timing']['total_s']:.1f} s (the diagnosis, files read)")
         if res["model"].get("note"):
             print(f"note: {res['model']['note']}", file=sys.stderr)

@@ -65,12 +65,19 @@ class Sims(NamedTuple):
     base_te: list
     warm_te: list
     heat_pair: HeatPair
+    house_tr: list | None = None   # the housings' start 2 K warmer (files that start running, tools/diagnosis/start.py)
+    house_te: list | None = None
 
 
 def _simulate(ctx: Context, train: list, test: list, grid: GridPlan) -> Sims:
     head = [Run.of(), Run.of(initial_offset_c=2.0)] + ([Run.of(fine=True)] if ctx.is_plant else [])
     out_tr = ctx.sim.run(train, head + grid.runs)
     out_te = ctx.sim.run(test, head[:2])
+    house = (None, None)
+    if any(ds.start == "running" for ds in train + test):
+        # files that start running (tools/diagnosis/start.py): the housings' start 2 K warmer, their nuisance
+        hr = [Run.of(housing_offset_c=2.0)]
+        house = (ctx.sim.run(train, hr)[0], ctx.sim.run(test, hr)[0])
     ref_tr = None
     if ctx.is_plant:
         pair = HeatPair(out_tr[0], out_tr[1])
@@ -86,7 +93,7 @@ def _simulate(ctx: Context, train: list, test: list, grid: GridPlan) -> Sims:
     else:
         pair = HeatPair([], [])
     return Sims(out_tr[0], out_tr[1], out_tr[2] if ctx.is_plant else ref_tr, out_tr[len(head):], out_te[0],
-                out_te[1], pair)
+                out_te[1], pair, *house)
 
 
 def model_error_floor(ctx: Context, train: list, sims: Sims, lag: dict, channels) -> dict:
@@ -112,22 +119,28 @@ def model_error_floor(ctx: Context, train: list, sims: Sims, lag: dict, channels
     return floor
 
 
-def _role(datasets: list, base: list, warm: list, lag: dict, sigma: dict, floor: dict, ctx: Context) -> RoleData:
-    """The measurements of one role and the sensitivity of every prediction to the initial temperature."""
+def _role(datasets: list, base: list, warm: list, lag: dict, sigma: dict, floor: dict, ctx: Context,
+          house: list | None = None) -> RoleData:
+    """The measurements of one role and the sensitivity of every prediction to the initial temperature (and, for
+    the files that start running, to the housings' start)."""
     sb, sp = predictions(datasets, base, lag), predictions(datasets, warm, lag)
+    sens_h = None
+    if house is not None and any(ds.start == "running" for ds in datasets):
+        sens_h = [(q - p) / 2.0 for p, q in zip(sb, predictions(datasets, house, lag))]
     return RoleData(datasets, observations(datasets), weights(datasets, sigma, floor, ctx.opts),
-                    [(q - p) / 2.0 for p, q in zip(sb, sp)], file_groups(datasets))
+                    [(q - p) / 2.0 for p, q in zip(sb, sp)], file_groups(datasets), sens_h)
 
 
 def establish_baseline(ctx: Context, train: list, test: list, grid: GridPlan) -> Baseline:
-    """Simulate the baseline batch and fit the measurement model around it."""
+    """Simulate the baseline batch and fit the measurement model around it (files that start running,
+    tools/diagnosis/start.py, with their housings' start as a second nuisance)."""
     sims = _simulate(ctx, train, test, grid)
     # noise per channel (pooled median over the files), nuisance lags
     sigma = noise_per_channel(train + test, sims.base_tr + sims.base_te)
     lag = fit_nuisance_lags(train, sims.base_tr, ctx.opts)
     floor = model_error_floor(ctx, train, sims, lag, sigma)
-    scorer = Scorer(_role(train, sims.base_tr, sims.warm_tr, lag, sigma, floor, ctx),
-                    _role(test, sims.base_te, sims.warm_te, lag, sigma, floor, ctx), lag, ctx.opts)
+    scorer = Scorer(_role(train, sims.base_tr, sims.warm_tr, lag, sigma, floor, ctx, sims.house_tr),
+                    _role(test, sims.base_te, sims.warm_te, lag, sigma, floor, ctx, sims.house_te), lag, ctx.opts)
     lag0 = scorer.refit_lags(sims.base_tr)
     p0_tr = scorer.adjust(scorer.preds(train, sims.base_tr, lags=lag0), "train")
     p0_te = scorer.adjust(scorer.preds(test, sims.base_te, lags=lag0), "test")

@@ -78,6 +78,7 @@ class Calibration:
     train: list = field(default_factory=list)
     test: list = field(default_factory=list)
     plot: dict = field(default_factory=dict)   # held-out residuals for the report's figure
+    starts: tuple = ()                         # start.StartOf per file (rest, or running with --start running)
 
 
 # ----------------------------------------------------------------------------------------------------------------
@@ -95,11 +96,13 @@ def _init(params, cooler, dt_s):
 
 
 def _job(job):
+    from firmware_model.components import HOUSINGS
     from tools.plant.reference import ReferencePlant
-    overrides, table, columns = job
+    overrides, table, columns, housing_offset_c = job
     params = _W["params"].with_overrides(overrides) if overrides else _W["params"]
     res = ReferencePlant(params, {}, cooler=_W["cooler"], dt_s=_W["dt_s"]).run(
-        table, initial_temp_c=table.meta.get("initial_temp_c"), out_dt_s=1.0, progress=False)
+        table, initial_temp_c=table.meta.get("initial_temp_c"), out_dt_s=1.0, progress=False,
+        initial_offsets_c={h: housing_offset_c for h in HOUSINGS} if housing_offset_c else None)
     return {c: res.table[c] for c in ("time_s",) + tuple(columns)}
 
 
@@ -112,10 +115,11 @@ class PlantRuns:
         self.n_sims = 0
         self._pool = None
 
-    def run(self, datasets: list, overrides: list) -> list:
-        """Per override dict, per dataset: the plant outputs of the channels' columns."""
+    def run(self, datasets: list, overrides: list, housing_offset_c: float = 0.0) -> list:
+        """Per override dict, per dataset: the plant outputs of the channels' columns (`housing_offset_c`: the
+        housings start that far from the others)."""
         cols = tuple(sorted({ch.model_column for ds in datasets for ch in ds.channels.values()}))
-        jobs = [(ov, ds.inputs, cols) for ov in overrides for ds in datasets]
+        jobs = [(ov, ds.inputs, cols, float(housing_offset_c)) for ov in overrides for ds in datasets]
         self.n_sims += len(jobs)
         if self.workers > 1 and len(jobs) > 1:
             if self._pool is None:
@@ -137,35 +141,54 @@ class PlantRuns:
 # ----------------------------------------------------------------------------------------------------------------
 # residuals
 
-def residual_vector(datasets: list, outs: list) -> np.ndarray:
+def residual_parts(datasets: list, outs: list, sens_h: list | None = None, opts: Options | None = None) -> list:
+    """Measured - model on every (file, channel)'s cells; a file that starts running (tools/diagnosis/start.py) with
+    its housings' start as a nuisance: `sens_h`, per file the sensitivity of each channel to it (None: at rest),
+    the offset fitted per file (each channel's cells weighted alike, as the fit weighs them)."""
+    from tools.diagnosis.scoring import box_lsq
+    opts = opts or Options()
+    out = []
+    for f, (ds, o) in enumerate(zip(datasets, outs)):
+        rs = [ch.cell_y_c - model_at_cells(o, ch, 0.0) for ch in ds.channels.values()]
+        sh = sens_h[f] if sens_h is not None else None
+        if sh is not None and rs:
+            w = np.concatenate([np.full(r.size, 1.0 / max(r.size, 1)) for r in rs])
+            (beta,), _ = box_lsq(np.concatenate(rs), w, np.concatenate(sh)[:, None],
+                                 np.array([opts.housing_offset_lo_c]), np.array([opts.housing_offset_hi_c]))
+            rs = [r - beta * s for r, s in zip(rs, sh)]
+        out.append(rs)
+    return out
+
+
+def housing_sensitivity(runs, datasets: list, base: list, overrides: dict | None = None) -> list:
+    """Per file (None for one at rest) and channel: the model's response to its housings' start [K/K]."""
+    if not any(ds.start == "running" for ds in datasets):
+        return [None] * len(datasets)
+    house = runs.run(datasets, [overrides or {}], housing_offset_c=2.0)[0]
+    return [[(model_at_cells(h, ch, 0.0) - model_at_cells(b, ch, 0.0)) / 2.0 for ch in ds.channels.values()]
+            if ds.start == "running" else None for ds, b, h in zip(datasets, base, house)]
+
+
+def residual_vector(datasets: list, outs: list, sens_h: list | None = None) -> np.ndarray:
     """Measured - model on every channel's cells, each (file, channel) weighted by 1/sqrt(its cell count)."""
-    parts = []
-    for ds, out in zip(datasets, outs):
-        for ch in ds.channels.values():
-            r = ch.cell_y_c - model_at_cells(out, ch, 0.0)
-            parts.append(r / math.sqrt(max(r.size, 1)))
+    parts = [r / math.sqrt(max(r.size, 1)) for rs in residual_parts(datasets, outs, sens_h) for r in rs]
     return np.concatenate(parts) if parts else np.zeros(0)
 
 
-def channel_rms(datasets: list, outs: list) -> dict:
+def channel_rms(datasets: list, outs: list, sens_h: list | None = None) -> dict:
     acc = {}
-    for ds, out in zip(datasets, outs):
-        for cid, ch in ds.channels.items():
-            r = ch.cell_y_c - model_at_cells(out, ch, 0.0)
+    for ds, rs in zip(datasets, residual_parts(datasets, outs, sens_h)):
+        for cid, r in zip(ds.channels, rs):
             a = acc.setdefault(cid, [0.0, 0])
             a[0] += float(np.sum(r * r))
             a[1] += r.size
     return {c: math.sqrt(a[0] / max(a[1], 1)) for c, a in acc.items()}
 
 
-def pooled_rms(datasets: list, outs: list) -> float:
-    sq = n = 0
-    for ds, out in zip(datasets, outs):
-        for ch in ds.channels.values():
-            r = ch.cell_y_c - model_at_cells(out, ch, 0.0)
-            sq += float(np.sum(r * r))
-            n += r.size
-    return math.sqrt(sq / max(n, 1))
+def pooled_rms(datasets: list, outs: list, sens_h: list | None = None) -> float:
+    rs = [r for parts in residual_parts(datasets, outs, sens_h) for r in parts]
+    n = sum(r.size for r in rs)
+    return math.sqrt(sum(float(np.sum(r * r)) for r in rs) / max(n, 1))
 
 
 # ----------------------------------------------------------------------------------------------------------------
@@ -192,9 +215,10 @@ def _columns(datasets: list) -> list:
     return [(i, cid) for i, ds in enumerate(datasets) for cid in ds.channels]
 
 
-def sensitivities(runs: PlantRuns, params: Parameters, datasets: list, keys: list, base: list) -> tuple:
+def sensitivities(runs: PlantRuns, params: Parameters, datasets: list, keys: list, base: list,
+                  sens_h: list | None = None) -> tuple:
     """(J, per key its per-channel signature over half its plausible range): J[:, j] = d residual / d (x_j), x scaled
-    to 0..1 over the bounds."""
+    to 0..1 over the bounds (with the housings' start of running files as a nuisance, `sens_h`)."""
     steps = []
     for k in keys:
         lo, hi = params.bounds[k]
@@ -202,12 +226,12 @@ def sensitivities(runs: PlantRuns, params: Parameters, datasets: list, keys: lis
         h = SENS_STEP * (hi - lo)
         steps.append(h if v + h <= hi else -h)
     outs = runs.run(datasets, [{k: params[k] + h} for k, h in zip(keys, steps)])
-    r0 = residual_vector(datasets, base)
+    r0 = residual_vector(datasets, base, sens_h)
     J = np.empty((r0.size, len(keys)))
     sig = {}
     for j, (k, h, out) in enumerate(zip(keys, steps, outs)):
         lo, hi = params.bounds[k]
-        J[:, j] = (residual_vector(datasets, out) - r0) / (h / (hi - lo))
+        J[:, j] = (residual_vector(datasets, out, sens_h) - r0) / (h / (hi - lo))
         d = {}
         for i, ds in enumerate(datasets):
             for cid, ch in ds.channels.items():
@@ -255,8 +279,10 @@ def _effective_n(r: np.ndarray) -> float:
     return max(x.size * (1 - rho) / (1 + rho), 2.0)
 
 
-def fit(runs: PlantRuns, params: Parameters, datasets: list, keys: list, progress=None) -> tuple:
-    """(fitted SI values, one-sigma SI, at-bound flags): bounded least squares over the keys scaled to 0..1."""
+def fit(runs: PlantRuns, params: Parameters, datasets: list, keys: list, progress=None,
+        sens_h: list | None = None) -> tuple:
+    """(fitted SI values, one-sigma SI, at-bound flags): bounded least squares over the keys scaled to 0..1 (the
+    housings' start of a running file a nuisance, fitted per file: `sens_h`, residual_parts)."""
     from scipy.optimize import least_squares
     lo = np.array([params.bounds[k][0] for k in keys])
     hi = np.array([params.bounds[k][1] for k in keys])
@@ -266,14 +292,14 @@ def fit(runs: PlantRuns, params: Parameters, datasets: list, keys: list, progres
         out = runs.run(datasets, [dict(zip(keys, lo + np.clip(x, 0, 1) * (hi - lo)))])[0]
         if progress:
             progress()
-        return residual_vector(datasets, out)
+        return residual_vector(datasets, out, sens_h)
 
     # starts: the file's values and a Latin hypercube over the bounds (one batch of simulations); the thermal
     # responses are far from linear (the oil-system flow against the sun wheel), a local search from the file's
     # values alone can stop in the wrong valley
     starts = [x0] + list(latin_hypercube(len(keys), START_POINTS_PER_KEY * len(keys)))
     outs = runs.run(datasets, [dict(zip(keys, lo + x * (hi - lo))) for x in starts])
-    costs = [float(np.sum(residual_vector(datasets, o) ** 2)) for o in outs]
+    costs = [float(np.sum(residual_vector(datasets, o, sens_h) ** 2)) for o in outs]
     best = None
     for i in np.argsort(costs)[:LOCAL_SEARCHES]:
         r_ = least_squares(fun, starts[i], bounds=(0.0, 1.0), x_scale=1.0, diff_step=0.02, xtol=1e-3, ftol=1e-4,
@@ -312,12 +338,15 @@ def calibrate(train_tables, test_tables, params: Parameters, keys: list | None, 
         raise InputError(f"{params.origin} declares no parameter with plausible bounds (lo, hi): nothing to calibrate")
     runs_ = prepare_runs(train_tables, test_tables, opts, cooler in ("measured", "hold"), train_names, test_names,
                          config_path, params)
-    train, test = runs_.train, runs_.test
+    from tools.diagnosis.start import decide_starts
+    starts = decide_starts(opts, runs_.train, runs_.test)      # rest, or every file running (--start running)
+    train, test = starts.train, starts.test
     tick = progress or (lambda: None)
     runs = PlantRuns(params, cooler, dt_s, opts.workers)
     try:
         base_tr = runs.run(train, [{}])[0]
-        J, sig = sensitivities(runs, params, train, wanted, base_tr)
+        sh_tr = housing_sensitivity(runs, train, base_tr)
+        J, sig = sensitivities(runs, params, train, wanted, base_tr, sh_tr)
         ident = identifiability(wanted, J, sig)
         bad = [x for x in ident if not x.identifiable]
         if bad and not auto:
@@ -327,17 +356,18 @@ def calibrate(train_tables, test_tables, params: Parameters, keys: list | None, 
         if not keys_ok:
             raise InputError("none of the parameters with plausible bounds can be identified from these files: "
                              + "; ".join(f"{x.key}: {x.reason}" for x in ident))
-        fitted, sd, at_bound = fit(runs, params, train, keys_ok, tick)
+        fitted, sd, at_bound = fit(runs, params, train, keys_ok, tick, sh_tr)
         after_tr, base_te, after_te = runs.run(train, [fitted])[0], *runs.run(test, [{}, fitted])
-        before_c, after_c = channel_rms(test, base_te), channel_rms(test, after_te)
-        plot = {"test": [(ds.name, cid, ch.cell_t_s, ch.cell_y_c - model_at_cells(b, ch, 0.0),
-                          ch.cell_y_c - model_at_cells(a, ch, 0.0))
-                         for ds, b, a in zip(test, base_te, after_te) for cid, ch in ds.channels.items()]}
+        sh_te = housing_sensitivity(runs, test, base_te)
+        before_c, after_c = channel_rms(test, base_te, sh_te), channel_rms(test, after_te, sh_te)
+        rb, ra = residual_parts(test, base_te, sh_te), residual_parts(test, after_te, sh_te)
+        plot = {"test": [(ds.name, cid, ch.cell_t_s, b, a) for ds, bs, as_ in zip(test, rb, ra)
+                         for (cid, ch), b, a in zip(ds.channels.items(), bs, as_)]}
         return Calibration(keys_ok, {k: params[k] for k in keys_ok}, fitted, sd, at_bound, ident,
-                           (pooled_rms(train, base_tr), pooled_rms(train, after_tr)),
-                           (pooled_rms(test, base_te), pooled_rms(test, after_te)),
+                           (pooled_rms(train, base_tr, sh_tr), pooled_rms(train, after_tr, sh_tr)),
+                           (pooled_rms(test, base_te, sh_te), pooled_rms(test, after_te, sh_te)),
                            {c: (before_c[c], after_c[c]) for c in before_c}, runs.n_sims,
-                           [ds.name for ds in train], [ds.name for ds in test], plot)
+                           [ds.name for ds in train], [ds.name for ds in test], plot, starts.records)
     finally:
         runs.close()
 
@@ -389,13 +419,17 @@ def report_markdown(cal: Calibration, params: Parameters, figure: str | None) ->
     chans = sorted({c for x in cal.ident for c in x.signature_c})
     out = ["# Calibration report", "",
            f"Parameter file {params.origin}; training files {', '.join(cal.train)}; held-out {', '.join(cal.test)}; "
-           f"{cal.n_sims} plant simulations.", "",
-           "## Identifiability", "",
-           "Signature: the RMS change of each measured channel when the parameter moves over half its plausible "
-           f"range [K]; identifiable when some channel moves by at least {IDENT_MIN_C:g} K and its sensitivity is "
-           f"not parallel (|cos| >= {COLLINEAR_COS:g}) to a stronger parameter's.", "",
-           "| parameter | " + " | ".join(chans) + " | max abs(cos), with | fitted |",
-           "|---|" + "---|" * len(chans) + "---|---|"]
+           f"{cal.n_sims} plant simulations.", ""]
+    running = [st.name for st in cal.starts if st.start == "running"]
+    if running:
+        out += [f"Runs that start running (scored after their first minutes, each with its housings' start fitted): "
+                f"{', '.join(running)}.", ""]
+    out += ["## Identifiability", "",
+            "Signature: the RMS change of each measured channel when the parameter moves over half its plausible "
+            f"range [K]; identifiable when some channel moves by at least {IDENT_MIN_C:g} K and its sensitivity is "
+            f"not parallel (|cos| >= {COLLINEAR_COS:g}) to a stronger parameter's.", "",
+            "| parameter | " + " | ".join(chans) + " | max abs(cos), with | fitted |",
+            "|---|" + "---|" * len(chans) + "---|---|"]
     for x in cal.ident:
         sig = " | ".join(f"{x.signature_c.get(c, float('nan')):.2f}" for c in chans)
         out.append(f"| `{x.key}` | {sig} | {x.max_cos:.3f} {x.with_key} | "

@@ -6,7 +6,9 @@ thermocouples ``meas_T_<id>_c``, split into TRAINING and TEST files. Output: the
 the stages, each in its own module, pass typed records:
 
 1. **Prepare** (:mod:`.prepare`): load, validate, put each channel on the analysis grid (`grid_dt_s`, default 2 s).
-2. **Baseline** (:mod:`.baseline`, :mod:`.measurement`, :mod:`.scoring`): the model predicts the node temperature,
+2. **Start** (:mod:`.start`): whether each file starts at rest or while the gearbox was running (cut from a longer
+   drive, a warm restart); a running file is scored after its first 300 s, with its housings' start fitted.
+   **Baseline** (:mod:`.baseline`, :mod:`.measurement`, :mod:`.scoring`): the model predicts the node temperature,
    with three nuisances that are state or sensor, never an effect: a first-order sensor lag of 0..10 s per channel,
    the initial temperature of every file (+-0.25 K around the first reading, least squares on its sensitivity), and
    the model's own numerical error (the plant re-simulated with half the step), which floors the weights and the
@@ -42,6 +44,7 @@ from tools.diagnosis.options import OIL, STAGES, Options
 from tools.diagnosis.prepare import load_table, prepare, prepare_runs
 from tools.diagnosis.regimes import regimes_before_after, residual_structure, where_residual
 from tools.diagnosis.result import Outcome, PlotData, build_json, plot_data
+from tools.diagnosis.start import decide_starts, starts_after_verdict
 
 __all__ = ["Diagnosis", "Options", "diagnose", "lag_filter", "load_table", "make_model", "prepare"]
 
@@ -65,14 +68,34 @@ class Diagnosis:
         self.progress = progress or (lambda msg: None)
         self.outcome: Outcome | None = None
         self.plot_data: PlotData | None = None
+        self.starts = None
 
     @property
     def n_sims(self) -> int:
         return self.ctx.sim.n_sims
 
     def run(self) -> dict:
+        """Diagnose (and, with ``Options.start`` auto, again when files turn out to have started running:
+        :mod:`.start`); the JSON-ready dict."""
         wall0_s = time.perf_counter()
-        ctx, train, test = self.ctx, self.train, self.test
+        ctx = self.ctx
+        self.starts = decide_starts(ctx.opts, self.train, self.test)
+        self._run_once(self.starts)
+        if ctx.opts.start == "auto":
+            recs = starts_after_verdict(ctx, self.outcome.base, self.outcome.residuals)
+            running = tuple(r.name for r in recs if r.start == "running")
+            self.starts = decide_starts(ctx.opts, self.train, self.test, running, recs)
+            if self.starts.running:                # every stage again (the progress callback is told so)
+                self._run_once(self.starts)
+        self.plot_data = plot_data(self.outcome)
+        res = build_json(ctx, self.outcome, time.perf_counter() - wall0_s)
+        res["starts"] = {r.name: dict(r.to_json(), role=r.role) for r in self.starts.records}
+        res["warnings"] += [f"{r.name}: {r.hint}" for r in self.starts.records if r.hint]
+        return res
+
+    def _run_once(self, starts) -> None:
+        """One pass of every stage over the files as `starts` scores them; sets ``outcome``."""
+        ctx, train, test = self.ctx, starts.train, starts.test
         p = ctx.params
         stage = iter(STAGES)
         self.progress(next(stage))              # baseline and candidate grid
@@ -113,9 +136,6 @@ class Diagnosis:
         regs = regimes_before_after(test, base.base_te, res.test_before, res.test_after, p, ctx.cooler, ctx.opts)
         self.outcome = Outcome(base, where, heat, crit, ident, verdict, conf, sugg, res, regs, structure, combo,
                                tuple(nex))
-        self.plot_data = plot_data(self.outcome)
-        return build_json(ctx, self.outcome, time.perf_counter() - wall0_s)
-
 
     def _not_excluded(self, base, crit, fits: list, verdict, combo, ident: dict) -> list:
         """The effects the training files cannot rule out beside an effect verdict (:mod:`.exclude`)."""
@@ -136,7 +156,7 @@ class Diagnosis:
         """The regime structure of the training residual (regimes.residual_structure) per channel with a gap, with
         the model started from the sump that the fitted oil-sensor offset implies: a sensor offset leaves the same
         residual in every regime, a heat-flow effect does not."""
-        ctx, train = self.ctx, self.train
+        ctx, train = self.ctx, base.train.datasets
         gap = [c for c, v in verdict.systematic.rms_c.items() if v > verdict.gap_thr_c[c]]
         off = next((f.value for f in fits if f.effect == "oil_sensor_offset"), 0.0)
         preds = base.scorer.adjust(base.scorer.preds(base.train.datasets, base.base_tr, "oil_sensor_offset", off),

@@ -284,6 +284,14 @@ def fit_all(ctx: Context, base: Baseline, grid: GridPlan) -> list:
 # ----------------------------------------------------------------------------------------------------------------
 # the criterion
 
+def lag1_rho(resid: np.ndarray) -> float:
+    """The lag-1 autocorrelation of a residual (its mean removed), in 0..0.999."""
+    r = resid - resid.mean()
+    den = float(np.dot(r, r))
+    rho = float(np.dot(r[1:], r[:-1]) / den) if den > 0 and r.size > 2 else 0.0
+    return min(max(rho, 0.0), 0.999)
+
+
 def effective_n(datasets: list, resid: list) -> tuple:
     """(n_eff, lag-1 autocorrelation per channel): the sample size shrunk by each residual's autocorrelation."""
     rho_ch = {}
@@ -291,13 +299,10 @@ def effective_n(datasets: list, resid: list) -> tuple:
     k = 0
     for ds in datasets:
         for cid, ch in ds.channels.items():
-            r = resid[k] - resid[k].mean()
+            rho = lag1_rho(resid[k])
+            n_eff += resid[k].size * (1 - rho) / (1 + rho)
             k += 1
-            den = float(np.dot(r, r))
-            rho = float(np.dot(r[1:], r[:-1]) / den) if den > 0 and r.size > 2 else 0.0
-            rho = min(max(rho, 0.0), 0.999)
             rho_ch.setdefault(cid, []).append(rho)
-            n_eff += r.size * (1 - rho) / (1 + rho)
     return max(n_eff, 2.0), {c: float(np.mean(v)) for c, v in rho_ch.items()}
 
 

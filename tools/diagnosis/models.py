@@ -60,12 +60,20 @@ class Run:
     coarse: bool = False                # a cheaper, coarser step where the backend has one (surrogate grids)
     fine: bool = False                  # half the step (the model's own numerical error), where it has one
     start: tuple = ()                   # (oil-sensor effect, value) the files start from; () the reading itself
+    housing_offset_c: float = 0.0       # the housings start this far from the others (tools/diagnosis/start.py)
 
     @staticmethod
     def of(effects: dict | None = None, initial_offset_c: float = 0.0, full: bool = False,
-           coarse: bool = False, fine: bool = False, start: tuple | None = None) -> "Run":
+           coarse: bool = False, fine: bool = False, start: tuple | None = None,
+           housing_offset_c: float = 0.0) -> "Run":
         return Run(tuple(sorted((effects or {}).items())), float(initial_offset_c), bool(full), bool(coarse),
-                   bool(fine), tuple(start or ()))
+                   bool(fine), tuple(start or ()), float(housing_offset_c))
+
+    @property
+    def initial_offsets_c(self) -> dict | None:
+        """{node: K} added to the start of the housings (None: none)."""
+        from firmware_model.components import HOUSINGS
+        return {h: self.housing_offset_c for h in HOUSINGS} if self.housing_offset_c else None
 
     def initial_c(self, T0_meas_c: float) -> float:
         """The initial temperature of a file whose first oil reading (or initial temperature) is `T0_meas_c`."""
@@ -120,7 +128,7 @@ def _plant_job(job):
                            dt_s=w["coarse_dt_s"] if run.coarse else (0.5 * w["dt_s"] if run.fine else w["dt_s"]))
     t0 = table.meta.get("initial_temp_c")
     res = plant.run(table, initial_temp_c=run.initial_c(t0) if t0 is not None else None,
-                    out_dt_s=w["out_dt_s"], progress=False)
+                    out_dt_s=w["out_dt_s"], progress=False, initial_offsets_c=run.initial_offsets_c)
     tb = res.table
     out = {"time_s": tb["time_s"]}
     for c in set(columns) | set(ALWAYS):
@@ -422,6 +430,13 @@ def run_onboard_pass(ds, runs, columns, volume_l: float) -> list:
     ret = np.nan_to_num(col("retarder_torque_nm"), nan=0.0)
     T0 = np.array([r.initial_c(ds.initial_temp_c) for r in runs], dtype=float)
     state = vs.initial_state(T_oil_c=T0, n_vehicles=V)
+    dh = np.array([r.housing_offset_c for r in runs], dtype=float)
+    if np.any(dh != 0.0):
+        from firmware_model.components import HOUSINGS
+        T_c = np.array(state.T_c, copy=True)
+        hi = [list(vs.nodes).index(h) for h in HOUSINGS]
+        T_c[:, :, hi] += dh[:, None, None]           # both copies
+        state = state._replace(T_c=T_c)
     every = max(int(round(out_dt_s / dt)), 1)
     keep = np.arange(0, n, every)
     nodes = list(vs.nodes)

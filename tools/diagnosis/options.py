@@ -30,6 +30,13 @@ class Options:
     sensor_lag_max_s: float = 10.0    # normal sensor dynamics: a nuisance, never an effect
     model_floor_c: float = 0.05       # model error floor added to the noise in the weights
     initial_offset_max_c: float = 0.25  # the initial temperature nuisance: within this of the first reading
+    start: str = "auto"               # each file's start: auto, rest or running (tools/diagnosis/start.py)
+    burn_in_s: float = 300.0          # a running start: the oil's first seconds not scored (the components' start
+    burn_in_tc_s: float = 900.0       # unknown), and a rig thermocouple's
+    start_min_span_s: float = 300.0   # ... and at least this much left after them, else it is scored at rest
+    start_tc_k: float = 3.0           # a thermocouple this far from the oil at the start: running
+    housing_offset_lo_c: float = -25.0  # a running start: the housings' start within these of the sump
+    housing_offset_hi_c: float = 5.0
     none_k: float = 0.3               # "none" at once: systematic residual <= none_k x noise (per sample) ...
     none_floor_c: float = 0.03        # ... or this, on every channel
     gap_k: float = 1.0                # a real gap: systematic residual > gap_k x noise ...

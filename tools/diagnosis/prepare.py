@@ -51,6 +51,8 @@ class Dataset:
     t_start_s: float
     t_end_s: float
     warnings: tuple = ()
+    start: str = "rest"            # 'rest', or 'running': scored from scored_from_s (tools/diagnosis/start.py)
+    scored_from_s: float | None = None
 
 
 class Runs(NamedTuple):

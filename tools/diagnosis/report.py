@@ -242,6 +242,19 @@ def _md_header(res: dict, title: str | None) -> list:
     return L
 
 
+def _md_starts(res: dict) -> list:
+    """How each file starts (tools/diagnosis/start.py), when some file started running."""
+    starts = res.get("starts") or {}
+    if not any(st["start"] == "running" for st in starts.values()):
+        return []
+    L = ["Some files began while the gearbox was already running: they are scored after their first minutes, and "
+         "their housings' start is fitted (docs/diagnosis.md, \"Files that start while the gearbox runs\").\n",
+         "| file | role | start | why |", "|---|---|---|---|"]
+    for name, st in starts.items():
+        L.append(f"| `{name}` | {st['role']} | {st['start']} | {st['reason']} |")
+    return L + [""]
+
+
 def _md_not_excluded(v: dict) -> list:
     """A table of the effects the data cannot rule out beside the verdict (verdict.not_excluded)."""
     items = v.get("not_excluded") or []
@@ -375,7 +388,8 @@ def _md_test(res: dict, images: dict) -> list:
 
 def render_markdown(res: dict, images: dict, title: str | None = None) -> str:
     """The report's Markdown from the diagnosis JSON; `images`: plot name -> file name next to it."""
-    return "\n".join(_md_header(res, title) + _md_verdict(res) + _md_channels(res) + _md_where(res, images)
+    return "\n".join(_md_header(res, title) + _md_starts(res) + _md_verdict(res) + _md_channels(res)
+                     + _md_where(res, images)
                      + _md_heat(res, images) + _md_which(res, images) + _md_test(res, images))
 
 

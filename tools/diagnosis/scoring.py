@@ -44,6 +44,35 @@ def predictions(datasets: list, outs: list, lags: dict, effect: str | None = Non
     return res
 
 
+def box_lsq(r: np.ndarray, w: np.ndarray, A: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> tuple:
+    """min_x sum w (r - A x)^2 with lo <= x <= hi (columns of A: at most two): (x, S). The unconstrained solution,
+    else the best over each face with the other variable free (then clipped) and the corners."""
+    k = A.shape[1]
+    sw = np.sqrt(w)
+    Aw, rw = A * sw[:, None], r * sw
+
+    def S(x):
+        return float(np.sum((rw - Aw @ x) ** 2))
+
+    def ok(x):
+        return bool(np.all(x >= lo - 1e-12) and np.all(x <= hi + 1e-12))
+    cands = []
+    x, *_ = np.linalg.lstsq(Aw, rw, rcond=None)
+    if ok(x):
+        return x, S(x)
+    for j in range(k):                       # one variable at a bound, the others free (then clipped)
+        for b in (lo[j], hi[j]):
+            free = [i for i in range(k) if i != j]
+            xx = np.zeros(k)
+            xx[j] = b
+            if free:
+                sub, *_ = np.linalg.lstsq(Aw[:, free], rw - Aw[:, j] * b, rcond=None)
+                xx[free] = np.clip(sub, lo[free], hi[free])
+            cands.append(xx)
+    best = min(cands, key=S)
+    return best, S(best)
+
+
 def observations(datasets: list) -> list:
     """The measured cell values per (dataset, channel)."""
     return [ch.cell_y_c for ds in datasets for ch in ds.channels.values()]
@@ -82,6 +111,7 @@ class RoleData:
     w: list                  # weights
     sens: list               # sensitivity of each prediction to a uniform initial offset [K/K]
     files: list              # per file, the indices of its entries
+    sens_h: list | None = None   # ... to the housings' start [K/K] (None: no file of this role starts running)
 
 
 @dataclass(frozen=True)
@@ -104,18 +134,34 @@ class Scorer:
     def adjust(self, preds: list, role: str) -> list:
         """The initial temperature of every file is a nuisance (state, not model): shift each file's predictions by
         delta x (sensitivity to a uniform initial offset), delta by weighted least squares within
-        +-initial_offset_max_c of the first reading."""
+        +-initial_offset_max_c of the first reading; a file that starts running (tools/diagnosis/start.py) also by
+        beta x (sensitivity to the housings' start), beta within housing_offset_lo_c..hi_c, jointly."""
         rd = self.role(role)
         sens, obs, w = rd.sens, rd.obs, rd.w
         out = list(preds)
         dmax = self.opts.initial_offset_max_c
-        for idx in rd.files:
+        for f, idx in enumerate(rd.files):
+            if rd.sens_h is not None and rd.datasets[f].start == "running":
+                d, b = self._start_pair(preds, rd, idx)
+                for k in idx:
+                    out[k] = preds[k] + d * sens[k] + b * rd.sens_h[k]
+                continue
             num = sum(float(np.sum(w[k] * (obs[k] - preds[k]) * sens[k])) for k in idx)
             den = sum(float(np.sum(w[k] * sens[k] ** 2)) for k in idx)
             d = min(max(num / den, -dmax), dmax) if den > 0 else 0.0
             for k in idx:
                 out[k] = preds[k] + d * sens[k]
         return out
+
+    def _start_pair(self, preds: list, rd: RoleData, idx: list) -> tuple:
+        """(delta, beta) of one running file: the weighted least squares of both start nuisances in their box."""
+        o = self.opts
+        r = np.concatenate([rd.obs[k] - preds[k] for k in idx])
+        w = np.concatenate([np.broadcast_to(rd.w[k], rd.obs[k].shape) for k in idx])
+        A = np.stack([np.concatenate([rd.sens[k] for k in idx]), np.concatenate([rd.sens_h[k] for k in idx])], 1)
+        x, _ = box_lsq(r, w, A, np.array([-o.initial_offset_max_c, o.housing_offset_lo_c]),
+                       np.array([o.initial_offset_max_c, o.housing_offset_hi_c]))
+        return float(x[0]), float(x[1])
 
     def S(self, preds: list, role: str = "train") -> float:
         rd = self.role(role)

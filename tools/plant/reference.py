@@ -210,9 +210,12 @@ class ReferencePlant:
 
     # ------------------------------------------------------------------ driver
     def run(self, table: RunTable, initial_temp_c: float | None = None, hold_oil_c: float | None = None,
-            out_dt_s: float = 1.0, progress: bool | None = None, chunk_s: float = 20.0) -> SimResult:
+            out_dt_s: float = 1.0, progress: bool | None = None, chunk_s: float = 20.0,
+            initial_offsets_c: dict | None = None) -> SimResult:
         """Integrate the network over the run table; node temperatures and heat flows every ``out_dt_s``.
-        ``initial_temp_c``/``hold_oil_c`` given: within the oil model's range (InputError otherwise)."""
+        ``initial_temp_c``/``hold_oil_c`` given: within the oil model's range (InputError otherwise).
+        ``initial_offsets_c``: {node: K} added to those nodes' start (a gearbox that ran before the table began:
+        its housings lag the oil; the diagnosis fits that offset, tools/diagnosis/start.py)."""
         wall0 = time.perf_counter()
         for label, value_c in (("initial_temp_c", initial_temp_c), ("hold_oil_c", hold_oil_c)):
             if value_c is not None:
@@ -225,6 +228,11 @@ class ReferencePlant:
         step_t = np.minimum(t0 + dt * np.arange(n_steps + 1), t_end)
         dts = np.diff(t, append=t[-1])            # sample durations (zero-order hold; the last has none)
         T = np.full(self.n, float(inp.initial_temp_c))
+        for name, dT in (initial_offsets_c or {}).items():
+            if name not in self.net.nodes or name == "oil" or not math.isfinite(float(dT)):
+                raise InputError(f"initial_offsets_c: {name!r} is not a node of the network other than the sump, "
+                                 f"or its offset {dT!r} is not a finite number")
+            T[self.net.nodes.index(name)] += float(dT)
         if inp.kind == "hold":
             T[self.i_oil] = inp.hold_oil_c
         elif inp.kind == "measured":

@@ -1,0 +1,240 @@
+"""Stage 0 of the diagnosis: does each file start at rest, or while the gearbox was already running?
+
+The model starts a file with every node at the file's first temperature (the oil's first reading, within the
+initial-temperature nuisance). That is right for a gearbox that stood long enough: a key-on after a night, a rig run
+from cold, the benchmark's scenarios. It is wrong for a file cut from a longer drive, or logged from a warm restart:
+
+* the **housings** lag the oil while it warms (measured on windows of synthetic drives 15-50 minutes in: 2-11 K
+  below the sump), and a housing several kelvin too warm keeps the model's oil too warm for the whole file: on null
+  truck files (no effect at all) cut 25 minutes into a drive the diagnosis said "unexplained", a real gap of
+  0.5-0.8 degC on the oil, 5-7 degC on a rig's sun wheel;
+* the **components** run above or below the oil by what the load before the file made them (-14 to +40 K in the same
+  windows), which the file cannot tell; their error dies within minutes (the oil's residual with the housings right:
+  0.2-1.4 degC RMS in the first 150 s, under 0.15 degC after 300 s).
+
+So a file that starts running is scored from ``burn_in_s`` (300 s) on (a rig thermocouple from ``burn_in_tc_s``,
+900 s: :func:`scored_from`), and the housings' start is a second initial-state nuisance of that file, fitted with the
+uniform one (``housing_offset_lo_c``..``housing_offset_hi_c`` from the sump). Which files start running
+(``Options.start``: ``auto``, ``rest`` or ``running``; ``--start``):
+
+* ``auto`` (the default) diagnoses every file at rest first. Then, per file, on the residual the verdict leaves (the
+  effect or set it found, else the unmodified model): the file started running when its first minutes (before each
+  channel's burn-in) show a real gap, as the verdict counts one (the noise removed, above max(gap_k sigma,
+  gap_floor_c)), and after them the housings' start lowers the weighted misfit by -dBIC = n_eff ln(S_rest /
+  S_running) - ln n_eff of at least ``evidence_min`` (10, the evidence a verdict needs for an effect). Then the
+  diagnosis runs again with those files scored as such. Both are needed: a gap that builds up over a file (an
+  effect, or the model's own form error) leaves the first minutes at rest fitting, and a slow housings' decay can
+  stand in for part of it. Judged on the verdict's residual, not the unmodified model's: an
+  effect a file truly shows (a rig's bearing losses x2.4 from rest) made the unmodified model fit better with the
+  housings 4-5 K above the oil too, and was taken for a running start;
+* a file whose cells after ``burn_in_s`` span less than ``start_min_span_s`` stays at rest (too short to tell);
+* ``rest`` and ``running`` force every file.
+
+Each file's start, with its reason and evidence, is in the JSON (``starts``) and the report.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from tools.diagnosis.context import Context
+from tools.diagnosis.fit import lag1_rho
+from tools.diagnosis.measurement import model_at_cells
+from tools.diagnosis.models import Run
+from tools.diagnosis.options import OIL, OIL_RIG, Options
+from tools.diagnosis.scoring import box_lsq
+
+#: the sensitivity runs' perturbation of the start [K]
+PERTURB_C = 2.0
+
+
+@dataclass(frozen=True)
+class StartOf:
+    """How one file starts."""
+    name: str
+    role: str
+    start: str                       # 'rest' or 'running'
+    reason: str
+    housing_offset_c: float | None   # the housings' offset fitted when the start was judged (None: not judged)
+    evidence: float | None           # -dBIC of the housings' offset on the cells after the burn-in (None: not tested)
+    hint: str | None = None          # a file kept at rest that looks cut from a drive (:func:`driving_at_start`)
+
+    def to_json(self) -> dict:
+        from tools.diagnosis.options import json_number
+        return {"start": self.start, "reason": self.reason,
+                "housing_offset_c": json_number(self.housing_offset_c, 2),
+                "evidence": json_number(self.evidence, 1), "hint": self.hint}
+
+
+@dataclass(frozen=True)
+class Starts:
+    """The files as the diagnosis scores them (running files trimmed to their cells after the burn-in) and the
+    per-file decisions."""
+    train: list
+    test: list
+    records: tuple
+
+    @property
+    def running(self) -> tuple:
+        return tuple(r.name for r in self.records if r.start == "running")
+
+
+def scored_from(ds, cid: str, opts: Options) -> float:
+    """When a running file's channel is scored from: the oil after ``burn_in_s``; a thermocouple after
+    ``burn_in_tc_s`` (a component's start error dies slower than the oil's: the sun wheel's, with the housings
+    right, 1.5-3 K RMS 300-600 s in and 0.1-0.2 K after 900 s), but never leaving it less than
+    ``start_min_span_s``, nor before the oil's."""
+    t_oil = ds.t_start_s + opts.burn_in_s
+    if cid in (OIL, OIL_RIG):
+        return t_oil
+    return max(t_oil, min(ds.t_start_s + opts.burn_in_tc_s, ds.t_end_s - opts.start_min_span_s))
+
+
+def trimmed(ds, opts: Options):
+    """The running data set, each channel scored from :func:`scored_from` on (the model still runs from the file's
+    start)."""
+    chans = {}
+    for cid, ch in ds.channels.items():
+        t_cut_s = scored_from(ds, cid, opts)
+        raw, cell = ch.t_s >= t_cut_s, ch.cell_t_s >= t_cut_s
+        chans[cid] = replace(ch, t_s=ch.t_s[raw], y_c=ch.y_c[raw], cell_t_s=ch.cell_t_s[cell],
+                             cell_y_c=ch.cell_y_c[cell], cell_n=ch.cell_n[cell])
+    return replace(ds, channels=chans, start="running", scored_from_s=ds.t_start_s + opts.burn_in_s)
+
+
+def _early_gap(ds, resid: list, sigma: dict, opts: Options) -> tuple | None:
+    """(channel, systematic RMS, threshold) of the real gap the oil's residual shows before its burn-in ends (the
+    noise removed; a real gap as the verdict counts one: above max(gap_k sigma, gap_floor_c)), None when there is
+    none. The oil only: an effect on a component shows on its thermocouple within minutes from rest too, while the
+    oil, the heaviest mass, takes up an effect slowly but the components' stored heat at once."""
+    best = None
+    for (cid, ch), r in zip(ds.channels.items(), resid):
+        if cid not in (OIL, OIL_RIG):
+            continue
+        early = ch.cell_t_s < scored_from(ds, cid, opts)
+        if not np.any(early):
+            continue
+        sig = sigma.get(cid, 0.1)
+        sys_c = math.sqrt(max(float(np.mean(r[early] ** 2 - sig * sig / np.maximum(ch.cell_n[early], 1))), 0.0))
+        thr = max(opts.gap_k * sig, opts.gap_floor_c)
+        if sys_c > thr and (best is None or sys_c / thr > best[1] / best[2]):
+            best = (cid, sys_c, thr)
+    return best
+
+
+def judge(ds, resid: list, sens: list, sens_h: list, w: list, sigma: dict, opts: Options) -> StartOf:
+    """The start of one file from the residual a diagnosis left on it (per channel entry: residual, sensitivity to a
+    uniform start, to the housings' start, weights; `sigma`: the noise per channel): running when the first minutes
+    show a real gap (the components' unknown start) and, after them, the housings' start fits far better."""
+    span = ds.t_end_s - (ds.t_start_s + opts.burn_in_s)
+    if span < opts.start_min_span_s:
+        return StartOf(ds.name, ds.role, "rest", f"at rest: after the first {opts.burn_in_s:.0f} s the file keeps "
+                       f"{max(span, 0.0):.0f} s, too short to tell a running start (at least "
+                       f"{opts.start_min_span_s:.0f} s)", None, None)
+    early = _early_gap(ds, resid, sigma, opts)
+    rs, su, sh, ws = [], [], [], []
+    for (cid, ch), r, s_u, s_h, wk in zip(ds.channels.items(), resid, sens, sens_h, w):
+        keep = ch.cell_t_s >= scored_from(ds, cid, opts)
+        if np.any(keep):
+            rs.append(r[keep])
+            su.append(s_u[keep])
+            sh.append(s_h[keep])
+            ws.append(np.broadcast_to(wk, r.shape)[keep])
+    r, wt = np.concatenate(rs), np.concatenate(ws)
+    d = opts.initial_offset_max_c
+    _, S_rest = box_lsq(r, wt, np.concatenate(su)[:, None], np.array([-d]), np.array([d]))
+    A = np.stack([np.concatenate(su), np.concatenate(sh)], axis=1)
+    x2, S_run = box_lsq(r, wt, A, np.array([-d, opts.housing_offset_lo_c]), np.array([d, opts.housing_offset_hi_c]))
+    n_eff = _n_eff(rs)
+    ev = n_eff * math.log(max(S_rest, 1e-12) / max(S_run, 1e-12)) - math.log(max(n_eff, 2.0))
+    beta = float(x2[1])
+    house = (f"the housings starting {abs(beta):.1f} K {'below' if beta < 0 else 'above'} the oil (evidence "
+             f"{ev:.0f})")
+    if ev >= opts.evidence_min and early is not None:
+        return StartOf(ds.name, ds.role, "running", f"running: its first minutes do not fit a start at rest "
+                       f"({early[0]} {early[1]:.2f} > {early[2]:.2f} degC before the burn-in), and after them it is "
+                       f"fitted far better with {house} >= {opts.evidence_min:g}): the gearbox had been running "
+                       f"before the file began", beta, ev)
+    if ev >= opts.evidence_min:
+        return StartOf(ds.name, ds.role, "rest", f"at rest: {house} would fit it better, but its first minutes fit a "
+                       f"start at rest (no real gap before the burn-in); if it begins after a short stop, try "
+                       f"--start running", beta, ev)
+    return StartOf(ds.name, ds.role, "rest", f"at rest: {house} < {opts.evidence_min:g}) does not fit it better",
+                   beta, ev)
+
+
+def _n_eff(resid: list) -> float:
+    """The effective sample size of residual pieces (each shrunk by its autocorrelation, as the criterion counts)."""
+    return max(sum(r.size * (1 - lag1_rho(r)) / (1 + lag1_rho(r)) for r in resid), 2.0)
+
+
+def driving_at_start(ds) -> str | None:
+    """A phrase when the file begins with the truck driving and the gearbox warm (a vehicle speed above 10 km/h, or
+    more than 500 Nm at more than 600 rpm, and the oil's first reading 15 K or more above the ambient): what a file
+    cut from a longer drive looks like; a log from key-on begins standing. None otherwise."""
+    tb = ds.inputs
+
+    def first(col):
+        if not tb.has(col):
+            return math.nan
+        v = np.asarray(tb[col], dtype=float)
+        ok = np.isfinite(v)
+        return float(v[ok][0]) if ok.any() else math.nan
+    v, tq, rpm, amb = (first(c) for c in ("vehicle_speed_kmh", "engine_torque_nm", "engine_speed_rpm",
+                                            "ambient_temp_c"))
+    warm = ds.initial_temp_c - amb if math.isfinite(amb) else math.nan
+    driving = v > 10.0 or (abs(tq) > 500.0 and rpm > 600.0)
+    if not (driving and warm >= 15.0):
+        return None
+    what = f"{v:.0f} km/h" if math.isfinite(v) and v > 10.0 else f"{tq:.0f} Nm at {rpm:.0f} rpm"
+    return f"it begins with the truck driving ({what}) and the oil {warm:.0f} K above the ambient"
+
+
+def decide_starts(opts: Options, train: list, test: list, running: tuple = (), records: tuple = ()) -> Starts:
+    """The data sets as scored: every file at rest, or running as ``opts.start`` forces or as named in `running`
+    (the names the after-verdict test found, with their `records`)."""
+    recs, new = [], {"train": [], "test": []}
+    known = {r.name: r for r in records}
+    for role, dss in (("train", train), ("test", test)):
+        for ds in dss:
+            if opts.start == "running":
+                rec = StartOf(ds.name, role, "running", "running, as asked (--start running)", None, None)
+            elif ds.name in known and (ds.name in running or known[ds.name].start == "rest"):
+                rec = known[ds.name]
+            else:
+                rec = StartOf(ds.name, role, "rest", "at rest, as asked (--start rest)" if opts.start == "rest"
+                              else "at rest", None, None)
+            if rec.start == "running" and ds.t_end_s - (ds.t_start_s + opts.burn_in_s) < opts.start_min_span_s:
+                rec = StartOf(ds.name, role, "rest", f"scored at rest: after its first {opts.burn_in_s:.0f} s the "
+                              f"file keeps less than {opts.start_min_span_s:.0f} s", None, None)
+            hint = driving_at_start(ds) if opts.start == "auto" and rec.start == "rest" else None
+            if hint:
+                rec = replace(rec, hint=f"{hint}: if it was cut from a longer drive or logged after a short stop, "
+                                        f"diagnose with --start running (a running start scored at rest shows a "
+                                        f"false gap)")
+            recs.append(rec)
+            new[role].append(trimmed(ds, opts) if rec.start == "running" else ds)
+    return Starts(new["train"], new["test"], tuple(recs))
+
+
+def starts_after_verdict(ctx: Context, base, res, which: str = "after") -> tuple:
+    """Every file's start judged on a residual of a diagnosis at rest (:func:`judge`): the unmodified model's
+    (``before``) or the verdict's (``after``); the housings' start re-simulated once per file (one run)."""
+    out = []
+    for role, rd, resid in (("train", base.train, getattr(res, f"train_{which}")),
+                            ("test", base.test, getattr(res, f"test_{which}"))):
+        house = ctx.sim.run(rd.datasets, [Run.of(housing_offset_c=PERTURB_C)])[0]
+        base_outs = base.base_tr if role == "train" else base.base_te
+        k = 0
+        for ds, b_out, h_out in zip(rd.datasets, base_outs, house):
+            n = len(ds.channels)
+            idx = list(range(k, k + n))
+            k += n
+            sens_h = [(model_at_cells(h_out, ch, base.lag0.get(cid, 0.0))
+                       - model_at_cells(b_out, ch, base.lag0.get(cid, 0.0))) / PERTURB_C
+                      for cid, ch in ds.channels.items()]
+            out.append(judge(ds, [resid[i] for i in idx], [rd.sens[i] for i in idx], sens_h, [rd.w[i] for i in idx],
+                             base.sigma, ctx.opts))
+    return tuple(out)
