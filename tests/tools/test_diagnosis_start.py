@@ -7,6 +7,7 @@ diagnosis that takes every file at rest calls "unexplained" (the housings lag th
 from __future__ import annotations
 
 import warnings
+from dataclasses import replace
 from types import SimpleNamespace
 
 import numpy as np
@@ -53,7 +54,7 @@ def test_a_channel_is_scored_after_its_burn_in_and_a_short_file_keeps_enough():
     assert ST.scored_from(short, "PS", OPTS) == 1000.0 - OPTS.start_min_span_s
 
 
-def _judged(resid_of, t_end_s: float = 1500.0):
+def _judged(resid_of, t_end_s: float = 2500.0):
     """judge() on an oil residual ``resid_of(t, s_h)`` with noise; s_h: the oil's response to the housings' start
     (nothing at the start, where the oil is its reading, then a rise and a slow decay)."""
     ds = _ds(t_end_s)
@@ -78,7 +79,7 @@ def test_a_running_start_needs_an_early_gap_and_the_housings_evidence():
     # the early gap alone (no housings' signature after it): at rest
     assert _judged(lambda t, s_h: 0.8 * np.exp(-t / 80.0)).start == "rest"
     # too short after the burn-in to tell
-    short = _judged(lambda t, s_h: 0.8 * np.exp(-t / 80.0) - 6.0 * s_h, t_end_s=500.0)
+    short = _judged(lambda t, s_h: 0.8 * np.exp(-t / 80.0) - 6.0 * s_h, t_end_s=800.0)
     assert short.start == "rest" and "too short" in short.reason
 
 
@@ -180,7 +181,7 @@ def cut_rig_runs():
 
 
 def test_calibrate_on_runs_cut_from_a_drive_needs_them_scored_running(cut_rig_runs):
-    """With --start running the fit finds both (0.68, the flow within 1 %) and the held-out RMS falls by more than
+    """With --start running the fit finds both (0.67, the flow within 1 %) and the held-out RMS falls by more than
     60 %. (Taken at rest, measured once, docs/diagnosis.md: 0.54, the flow 15 % low, held-out 3.25 -> 3.18 degC; not
     repeated here, for the suite's time.)"""
     from tools.diagnosis.calibrate import calibrate
@@ -191,3 +192,31 @@ def test_calibrate_on_runs_cut_from_a_drive_needs_them_scored_running(cut_rig_ru
     assert abs(cal.fitted["housing.hot_frac"] - 0.7) < 0.05
     assert cal.fitted["oil_system.flow_m3_per_rad"] == pytest.approx(truth["oil_system.flow_m3_per_rad"], rel=0.05)
     assert cal.test_rms_c[1] < 0.4 * cal.test_rms_c[0]
+
+
+def test_files_of_one_name_keep_their_own_start_and_a_channel_left_empty_is_dropped():
+    """Windows cut from one log share its name: each keeps its own decision (matched by position, not name), and
+    the JSON names them by role; a running file's channel with too few cells after its burn-in is left out of it,
+    with a warning (a review found a thermocouple kept with 0 cells, its 'fit' reported as 0.000 degC)."""
+    t = np.arange(1.0, 1500.0, 2.0)
+    tc = _channel(t[t < 850.0])                       # a thermocouple that died 850 s in
+    tc = replace(tc, id="PS", column="meas_T_PS_c", model_column="T_PS_c")
+    a = _dataclass_like(SimpleNamespace(name="log.csv", role="train", t_start_s=0.0, t_end_s=1500.0,
+                                        channels={OIL: _channel(t), "PS": tc}))
+    b = replace(a, role="test")
+    recs = (ST.StartOf("log.csv", "train", "rest", "at rest", None, 1.0),
+            ST.StartOf("log.csv", "test", "running", "running", -4.0, 50.0))
+    st = ST.decide_starts(Options(), [a], [b], recs)
+    assert [r.start for r in st.records] == ["rest", "running"] and st.train[0] is a
+    assert set(st.test[0].channels) == {OIL} and any("PS has fewer than" in w for w in st.test[0].warnings)
+    assert sorted(ST.starts_json(st.records)) == ["test:log.csv", "train:log.csv"]
+
+
+def test_a_file_without_the_oil_says_why_it_stays_at_rest():
+    """--cooler measured or hold makes the oil an input: no oil channel to judge the first minutes by."""
+    ds = _ds(2500.0, channels=("PS",))
+    t = ds.channels["PS"].cell_t_s
+    s_h = 0.3 * (1 - np.exp(-t / 200.0)) * np.exp(-t / 2000.0)
+    resid = -6.0 * s_h + np.random.default_rng(2).normal(0, 0.02, t.size)
+    rec = ST.judge(ds, [resid], [np.full(t.size, 0.9)], [s_h], [np.full(t.size, 1 / 0.02 ** 2)], {"PS": 0.1}, OPTS)
+    assert rec.start == "rest" and "no oil channel" in rec.reason and rec.evidence >= OPTS.evidence_min

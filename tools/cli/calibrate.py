@@ -53,7 +53,7 @@ def add_subparser(sub):
     p.add_argument("--start", choices=("auto", "rest", "running"), default="auto",
                    help="how the runs start: 'rest' (every part at the oil's first reading: a run from cold or "
                         "after a long stop, what calibrate assumes by default), 'running' (cut from a longer drive, "
-                        "a warm restart: each run scored after its first 300 s, a thermocouple after 900 s, with "
+                        "a warm restart: each run scored after its first 600 s, a thermocouple after 900 s, with "
                         "its housings' start fitted per run), 'auto' (default: at rest, with a warning for a run "
                         "that begins with the truck driving and the gearbox warm)")
     p.add_argument("--quiet", action="store_true", help="no progress or summary")
@@ -84,7 +84,7 @@ def _refusal(cal) -> str:
                f"channels{at}"
     if not train_c <= TRAIN_RMS_REFUSE_C:
         return (f"the fitted model is still {train_c:.3g} K (RMS) off the training files, far more than a sensor is "
-                f"off: check their units (degF?), columns and variant, and that each run starts at rest{at}")
+                f"off: check their units (degF?), columns and variant, and that each run starts at rest (else --start running){at}")
     return ""
 
 

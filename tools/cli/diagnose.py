@@ -61,7 +61,7 @@ def add_subparser(sub):
     p.add_argument("--start", choices=("auto", "rest", "running"), default="auto",
                    help="how the files start: 'rest' (every part at the oil's first reading: a key-on after a night, "
                         "a rig run from cold), 'running' (cut from a longer drive, a warm restart: each file scored "
-                        "after its first 300 s, a thermocouple's after 900 s, with its housings' start fitted), or "
+                        "after its first 600 s, a thermocouple's after 900 s, with its housings' start fitted), or "
                         "'auto' (default: at rest, then running for the files whose first minutes show a real gap "
                         "and which the housings' start then fits far better; diagnosed again; the JSON's 'starts' "
                         "says which and why)")

@@ -17,6 +17,7 @@ import numpy as np
 from tools.diagnosis.context import Context
 from tools.diagnosis.measurement import fit_nuisance_lags, noise_per_channel
 from tools.diagnosis.models import Run
+from tools.diagnosis.options import HOUSING_PERTURB_C
 from tools.diagnosis.scoring import RoleData, Scorer, file_groups, observations, predictions, weights
 
 
@@ -65,7 +66,7 @@ class Sims(NamedTuple):
     base_te: list
     warm_te: list
     heat_pair: HeatPair
-    house_tr: list | None = None   # the housings' start 2 K warmer (files that start running, tools/diagnosis/start.py)
+    house_tr: list | None = None   # the housings' start moved (files that start running, tools/diagnosis/start.py)
     house_te: list | None = None
 
 
@@ -75,8 +76,8 @@ def _simulate(ctx: Context, train: list, test: list, grid: GridPlan) -> Sims:
     out_te = ctx.sim.run(test, head[:2])
     house = (None, None)
     if any(ds.start == "running" for ds in train + test):
-        # files that start running (tools/diagnosis/start.py): the housings' start 2 K warmer, their nuisance
-        hr = [Run.of(housing_offset_c=2.0)]
+        # files that start running (tools/diagnosis/start.py): the housings' start moved, their nuisance
+        hr = [Run.of(housing_offset_c=HOUSING_PERTURB_C)]
         house = (ctx.sim.run(train, hr)[0], ctx.sim.run(test, hr)[0])
     ref_tr = None
     if ctx.is_plant:
@@ -126,7 +127,7 @@ def _role(datasets: list, base: list, warm: list, lag: dict, sigma: dict, floor:
     sb, sp = predictions(datasets, base, lag), predictions(datasets, warm, lag)
     sens_h = None
     if house is not None and any(ds.start == "running" for ds in datasets):
-        sens_h = [(q - p) / 2.0 for p, q in zip(sb, predictions(datasets, house, lag))]
+        sens_h = [(q - p) / HOUSING_PERTURB_C for p, q in zip(sb, predictions(datasets, house, lag))]
     return RoleData(datasets, observations(datasets), weights(datasets, sigma, floor, ctx.opts),
                     [(q - p) / 2.0 for p, q in zip(sb, sp)], file_groups(datasets), sens_h)
 

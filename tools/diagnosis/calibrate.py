@@ -29,7 +29,7 @@ from firmware_model.errors import InputError
 from firmware_model.parameters import Parameters
 
 from tools.diagnosis.measurement import model_at_cells
-from tools.diagnosis.options import Options
+from tools.diagnosis.options import HOUSING_PERTURB_C, Options
 from tools.diagnosis.prepare import prepare_runs
 
 #: a parameter is identifiable when moving it over half its plausible range moves some channel by at least this [K]
@@ -164,8 +164,9 @@ def housing_sensitivity(runs, datasets: list, base: list, overrides: dict | None
     """Per file (None for one at rest) and channel: the model's response to its housings' start [K/K]."""
     if not any(ds.start == "running" for ds in datasets):
         return [None] * len(datasets)
-    house = runs.run(datasets, [overrides or {}], housing_offset_c=2.0)[0]
-    return [[(model_at_cells(h, ch, 0.0) - model_at_cells(b, ch, 0.0)) / 2.0 for ch in ds.channels.values()]
+    house = runs.run(datasets, [overrides or {}], housing_offset_c=HOUSING_PERTURB_C)[0]
+    return [[(model_at_cells(h, ch, 0.0) - model_at_cells(b, ch, 0.0)) / HOUSING_PERTURB_C
+             for ch in ds.channels.values()]
             if ds.start == "running" else None for ds, b, h in zip(datasets, base, house)]
 
 

@@ -44,7 +44,7 @@ from tools.diagnosis.options import OIL, STAGES, Options
 from tools.diagnosis.prepare import load_table, prepare, prepare_runs
 from tools.diagnosis.regimes import regimes_before_after, residual_structure, where_residual
 from tools.diagnosis.result import Outcome, PlotData, build_json, plot_data
-from tools.diagnosis.start import decide_starts, starts_after_verdict
+from tools.diagnosis.start import decide_starts, starts_after_verdict, starts_json
 
 __all__ = ["Diagnosis", "Options", "diagnose", "lag_filter", "load_table", "make_model", "prepare"]
 
@@ -83,13 +83,12 @@ class Diagnosis:
         self._run_once(self.starts)
         if ctx.opts.start == "auto":
             recs = starts_after_verdict(ctx, self.outcome.base, self.outcome.residuals)
-            running = tuple(r.name for r in recs if r.start == "running")
-            self.starts = decide_starts(ctx.opts, self.train, self.test, running, recs)
+            self.starts = decide_starts(ctx.opts, self.train, self.test, recs)
             if self.starts.running:                # every stage again (the progress callback is told so)
                 self._run_once(self.starts)
         self.plot_data = plot_data(self.outcome)
         res = build_json(ctx, self.outcome, time.perf_counter() - wall0_s)
-        res["starts"] = {r.name: dict(r.to_json(), role=r.role) for r in self.starts.records}
+        res["starts"] = starts_json(self.starts.records)
         res["warnings"] += [f"{r.name}: {r.hint}" for r in self.starts.records if r.hint]
         return res
 

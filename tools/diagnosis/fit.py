@@ -20,6 +20,7 @@ from tools.diagnosis.baseline import Baseline, GridPlan
 from tools.diagnosis.context import Context
 from tools.diagnosis.models import Run
 from tools.diagnosis.options import ANALYTIC
+from tools.diagnosis.scoring import box_lsq
 
 
 @dataclass(frozen=True, eq=False)
@@ -146,7 +147,10 @@ def _surrogate_min_spline(ctx: Context, base: Baseline, eid: str, grid: dict) ->
     kk = min(2, xs.size - 1)
     S = np.zeros(dense.size)
     dmax = ctx.opts.initial_offset_max_c
-    for idx in rd.files:
+    for f, idx in enumerate(rd.files):
+        if rd.sens_h is not None and rd.datasets[f].start == "running":
+            S += _running_file_S(ctx, rd, idx, xs, kk, dense, grid)
+            continue
         # per file: S(theta) with the initial-temperature nuisance solved in closed form
         raw = np.zeros(dense.size)
         num = np.zeros(dense.size)
@@ -168,6 +172,21 @@ def _surrogate_min_spline(ctx: Context, base: Baseline, eid: str, grid: dict) ->
     if abs(near - v) < 0.51 * step:
         v = float(near)
     return v, float(S[i])
+
+
+def _running_file_S(ctx: Context, rd, idx: list, xs: np.ndarray, kk: int, dense: np.ndarray, grid: dict) -> np.ndarray:
+    """S(theta) on the dense grid of one file that starts running: both start nuisances (uniform, housings) fitted
+    per value in their box, as Scorer.adjust fits them (tools/diagnosis/start.py)."""
+    from scipy.interpolate import make_interp_spline
+    o = ctx.opts
+    P = np.concatenate([make_interp_spline(xs, np.array([grid[x][k] for x in xs]), k=kk, axis=0)(dense)
+                        for k in idx], axis=1)
+    y = np.concatenate([rd.obs[k] for k in idx])
+    w = np.concatenate([np.broadcast_to(rd.w[k], rd.obs[k].shape) for k in idx])
+    A = np.stack([np.concatenate([rd.sens[k] for k in idx]), np.concatenate([rd.sens_h[k] for k in idx])], 1)
+    lo = np.array([-o.initial_offset_max_c, o.housing_offset_lo_c])
+    hi = np.array([o.initial_offset_max_c, o.housing_offset_hi_c])
+    return np.array([box_lsq(y - P[j], w, A, lo, hi)[1] for j in range(dense.size)])
 
 
 def surrogate_min(ctx: Context, base: Baseline, eid: str, grid: dict) -> tuple:
