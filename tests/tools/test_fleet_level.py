@@ -277,3 +277,27 @@ def test_fleet_health_writes_a_temperature_oil_drift_to_watch_and_a_cooler_drift
     watch = pq.read_table(tmp_path / HEALTH / "watch.parquet").to_pylist()
     assert [(r["vehicle"], r["kind"]) for r in flags] == [("fouled", "flag")]
     assert [(r["vehicle"], r["kind"]) for r in watch] == [("low", "watch")]
+
+
+@pytest.mark.parametrize("n_periods", [3, 60])
+def test_the_health_plot_ticks_whole_periods_by_their_first_day(n_periods):
+    """Few periods gave ticks at 0.5, 1.5 ...; many gave one label per period. Now: whole periods, at most 8
+    labelled ticks, each the period's first day."""
+    pytest.importorskip("matplotlib", reason="the report's plots: pip install '.[fleet]' (matplotlib)")
+    import datetime as dt
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from tools.fleet.report import period_axis
+    periods = {"period": list(range(n_periods)),
+               "start": [(dt.date(2026, 1, 5) + dt.timedelta(days=7 * p)).isoformat() for p in range(n_periods)]}
+    fig, ax = plt.subplots()
+    ax.plot(periods["period"], np.ones(n_periods))
+    period_axis(ax, periods)
+    fig.canvas.draw()
+    ticks = [t for t in ax.get_xticks() if 0 <= t <= n_periods - 1]
+    labels = [t.get_text() for t in ax.get_xticklabels() if t.get_text()]
+    plt.close(fig)
+    assert all(float(t).is_integer() for t in ticks)
+    assert 2 <= len(labels) <= 9
+    assert labels[0] == "2026-01-05" and all(s in periods["start"] for s in labels)

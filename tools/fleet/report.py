@@ -177,6 +177,23 @@ def _read_flags(path: Path) -> dict:
     return _cols(pq.read_table(path))
 
 
+def period_axis(ax, periods: dict) -> None:
+    """Whole periods only, at most 8 ticks, each labelled with its period's first day when the table has it."""
+    from matplotlib.ticker import FuncFormatter, MaxNLocator
+    first = {}
+    for q, d in zip(periods["period"], periods.get("start", [None] * len(periods["period"]))):
+        if d is not None and q not in first:
+            first[q] = str(d)[:10]
+    ax.xaxis.set_major_locator(MaxNLocator(nbins=8, integer=True))
+    if first:
+        ax.xaxis.set_major_formatter(FuncFormatter(lambda x, _pos: first.get(int(round(x)), "")
+                                                   if abs(x - round(x)) < 1e-9 else ""))
+        ax.tick_params(axis="x", labelrotation=30)
+        ax.set_xlabel("period, labelled by its first day")
+    else:
+        ax.set_xlabel("period")
+
+
 def _health(out: Path, lines: list) -> None:
     p = out / HEALTH / "periods.parquet"
     if not p.is_file():
@@ -227,7 +244,7 @@ def _health(out: Path, lines: list) -> None:
                         yerr=[min(periods[se][i], 1.0 if attr != "oil_level_pct" else 10.0)
                               if math.isfinite(periods[se][i]) else 0 for i in idx],
                         marker="o", capsize=2, label=v)
-        ax.set_xlabel("period")
+        period_axis(ax, periods)
         ax.set_ylabel(label)
         ax.legend(fontsize=7, loc="center left", bbox_to_anchor=(1.0, 0.5))
     fig.suptitle("Flagged and watched vehicles: fitted values per period (1 standard error)")
@@ -279,4 +296,4 @@ def write_report(out: str | os.PathLike) -> Path:
     return path
 
 
-__all__ = ["write_report"]
+__all__ = ["period_axis", "write_report"]
