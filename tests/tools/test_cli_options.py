@@ -122,6 +122,23 @@ def test_bench_diagnosis_refuses_options_of_the_other_mode(tmp_path, capsys, arg
     assert f"error: {named} " in capsys.readouterr().err and not (tmp_path / "b").exists()
 
 
+def test_bench_diagnosis_refuses_a_start_for_the_model_form_family(tmp_path, capsys):
+    assert main(["bench-diagnosis", "--out", str(tmp_path / "b"), "--family", "model-form", "--start", "rest"]) == 2
+    assert "error: --start applies to" in capsys.readouterr().err and not (tmp_path / "b").exists()
+
+
+def test_bench_diagnosis_counts_the_files_taken_running():
+    """The bench row counts a scenario's files scored as starting running (the JSON's starts), for its table."""
+    from tools.diagnosis.bench import Scenario, format_table, score_row, summarize
+    res = {"verdict": {"effect": "none", "shrink": 0.0, "test_rms_before_c": 0.1, "test_rms_after_c": 0.1},
+           "identifiability": {},
+           "starts": {"a.csv": {"start": "running"}, "b.csv": {"start": "rest"}, "test:a.csv": {"start": "running"}}}
+    row = score_row(Scenario(0, 1, "truck", None, None, "liquid"), res, 1.0)
+    assert (row.files, row.running, row.ok) == (3, 2, True)
+    assert "| files scored as starting while the gearbox runs (--start) | 2 of 3 |" in format_table([row],
+                                                                                                     summarize([row]))
+
+
 def test_bench_diagnosis_refuses_scenarios_outside_the_plan(tmp_path, capsys):
     """--only 999 of a 2-scenario plan ran nothing and wrote a table of NaN with exit 0 (a bad-input audit)."""
     assert main(["bench-diagnosis", "--out", str(tmp_path / "b"), "--scenarios", "2", "--only", "1,999"]) == 2

@@ -43,6 +43,9 @@ def add_subparser(sub):
     p.add_argument("--setup", choices=("truck", "rig"), help="set-up of the custom scenario (--effect; default rig)")
     p.add_argument("--cooler", choices=("liquid", "air"),
                    help="cooler of the custom scenario (--effect; default liquid)")
+    p.add_argument("--start", choices=("auto", "rest", "running"), default="auto",
+                   help="how each file of a scenario starts, as diagnose's --start (default auto: at rest unless a "
+                        "file's residual shows it began running; the table counts the files taken running)")
     p.add_argument("--write-scenarios", action="store_true",
                    help="also write each scenario's measured run tables (train1.csv, train2.csv, test1.csv) under "
                         "DIR/scenario_NN/, to run `diagnose` on them by hand")
@@ -54,6 +57,7 @@ def run(args) -> int:
     import warnings
     from firmware_model.effects import parse_effect
     from tools.diagnosis import bench as B
+    from tools.diagnosis.options import Options
     warnings.filterwarnings("ignore", category=RuntimeWarning)
     plan_only = [o for o, v in (("--scenarios", args.scenarios), ("--only", args.only), ("--family", args.family))
                  if v is not None]
@@ -73,6 +77,9 @@ def run(args) -> int:
     for opt, value_s in (("--train-s", args.train_s), ("--test-s", args.test_s)):
         if not 60.0 <= value_s <= 86400.0:
             raise InputError(f"{opt} {value_s} must be within 60..86400 s")
+    if args.family == "model-form" and args.start != "auto":
+        raise InputError("--start applies to the diagnosis of the single, sensor and pair families; the model-form "
+                         "family's files start at rest")
     if args.write_scenarios and not args.out:
         raise InputError("--write-scenarios needs --out DIR")
     only = None
@@ -98,7 +105,8 @@ def run(args) -> int:
     # one result line per scenario on stderr, above the progress bar (shown on a terminal)
     rows, summary = B.run_bench(args.scenarios, args.seed, args.out, model=args.model, train_s=args.train_s,
                                 test_s=args.test_s, only=only, custom=custom, write_scenarios=args.write_scenarios,
-                                progress=lambda line: tqdm.write(line, file=sys.stderr), family=args.family or "single")
+                                progress=lambda line: tqdm.write(line, file=sys.stderr), family=args.family or "single",
+                                opts=Options(start=args.start))
     print(B.format_table(rows, summary))
     if args.out:
         print(f"\n-> {Path(args.out) / 'bench.md'}", file=sys.stderr)

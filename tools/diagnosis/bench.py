@@ -329,6 +329,8 @@ class Row:
     declared: bool | None = None   # pair: every missed effect listed as not excluded beside the verdict
     covered: bool | None = None    # ... with its planted value inside the listed interval
     n_not_excluded: int = 0        # effects the verdict lists as not excluded beside it
+    files: int = 0                 # the scenario's files (its JSON's starts)
+    running: int = 0               # ... of them scored as starting while the gearbox runs
 
 
 def found_set(v: dict) -> tuple:
@@ -391,6 +393,14 @@ def _below_detectable(sc: Scenario, res: dict, missed: list) -> str:
 
 
 def score_row(sc: Scenario, res: dict, diag_s: float) -> Row:
+    """The scenario's row: the verdict scored against what was planted; how its files were taken to start."""
+    from dataclasses import replace
+    starts = res.get("starts") or {}
+    return replace(_score_verdict(sc, res, diag_s), files=len(starts),
+                   running=sum(x.get("start") == "running" for x in starts.values()))
+
+
+def _score_verdict(sc: Scenario, res: dict, diag_s: float) -> Row:
     v = res["verdict"]
     if sc.also:
         ok, status = _score_set(sc, res)
@@ -470,6 +480,7 @@ def summarize(rows: list) -> dict:
         "covered": sum(r.ok or bool(r.covered) for r in scored),
         "not_excluded_mean": float(np.mean([r.n_not_excluded for r in eff_rows if r.verdict.split(" + ")[0] in CATALOG]
                                            or [float("nan")])),
+        "files": sum(r.files for r in rows), "running_files": sum(r.running for r in rows),
     }
 
 
@@ -506,6 +517,7 @@ def format_table(rows: list, summary: dict) -> str:
                f"{s['top1_scored']}; listed at all: {s['declared']}) | >= 80 % |\n" if pair else "")
             + f"| effects listed as not excluded beside an effect verdict (mean per verdict) | "
               f"{s['not_excluded_mean']:.1f} | - |\n" +
+            f"| files scored as starting while the gearbox runs (--start) | {s['running_files']} of {s['files']} | - |\n"
             f"| false alarms on null scenarios | {s['false_alarms']} of {s['null_scenarios']} | 0 |\n"
             f"| median test-set RMS shrink (verdict = an effect) | {100 * s['median_shrink_identified']:.0f} % | >= 70 % |\n"
             f"| median diagnosis time per scenario (max) | {s['median_diag_s']:.0f} s ({s['max_diag_s']:.0f} s) | <= 60 s |\n"
