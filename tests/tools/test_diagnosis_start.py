@@ -95,6 +95,16 @@ def test_the_forced_starts_and_a_running_file_is_trimmed():
     assert st.train[0] is ds and st.records[0].start == "rest" and not st.running
 
 
+def test_a_forced_running_start_that_cannot_be_taken_says_so():
+    """--start running on a file too short to score after its burn-in: scored at rest, and the record's hint (a
+    warning of diagnose and calibrate) says that what was asked was not done, and why (it was silent)."""
+    ds = _dataclass_like(SimpleNamespace(name="s.csv", role="train", t_start_s=0.0, t_end_s=800.0, start="rest",
+                                         channels={OIL: _channel(np.arange(1.0, 800.0, 2.0))}))
+    rec = ST.decide_starts(Options(start="running"), [ds], []).records[0]
+    assert rec.start == "rest" and "less than 300 s" in rec.reason
+    assert rec.hint.startswith("--start running was asked, but") and rec.reason in rec.hint
+
+
 def _channel(t):
     from tools.diagnosis.prepare import Channel
     return Channel(OIL, "oil_temp_c", "T_oil_c", t, 60 + 0.01 * t, t, 60 + 0.01 * t, np.ones(t.size, dtype=int))

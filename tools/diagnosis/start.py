@@ -56,7 +56,8 @@ class StartOf:
     reason: str
     housing_offset_c: float | None   # the housings' offset fitted when the start was judged (None: not judged)
     evidence: float | None           # -dBIC of the housings' offset on the cells after the burn-in (None: not tested)
-    hint: str | None = None          # a file kept at rest that looks cut from a drive (:func:`driving_at_start`)
+    hint: str | None = None          # a file kept at rest that looks cut from a drive (:func:`driving_at_start`),
+    #                                  or one that --start running could not take running (why)
 
     def to_json(self) -> dict:
         from tools.diagnosis.options import json_number
@@ -230,6 +231,8 @@ def decide_starts(opts: Options, train: list, test: list, records: tuple = ()) -
                 rec = replace(rec, hint=f"{hint}: if it was cut from a longer drive or logged after a short stop, "
                                         f"diagnose with --start running (a running start scored at rest shows a "
                                         f"false gap)")
+            elif opts.start == "running" and rec.start == "rest":      # asked for, not possible: say so
+                rec = replace(rec, hint=f"--start running was asked, but it is {rec.reason}")
             recs.append(rec)
             new[role].append(cut if cut is not None else ds)
     return Starts(new["train"], new["test"], tuple(recs))
