@@ -20,7 +20,7 @@ from tools.diagnosis.baseline import Baseline, GridPlan
 from tools.diagnosis.context import Context
 from tools.diagnosis.models import Run
 from tools.diagnosis.options import ANALYTIC
-from tools.diagnosis.scoring import box_lsq
+from tools.diagnosis.scoring import box_lsq, start_design
 
 
 @dataclass(frozen=True, eq=False)
@@ -178,14 +178,9 @@ def _running_file_S(ctx: Context, rd, idx: list, xs: np.ndarray, kk: int, dense:
     """S(theta) on the dense grid of one file that starts running: both start nuisances (uniform, housings) fitted
     per value in their box, as Scorer.adjust fits them (tools/diagnosis/start.py)."""
     from scipy.interpolate import make_interp_spline
-    o = ctx.opts
     P = np.concatenate([make_interp_spline(xs, np.array([grid[x][k] for x in xs]), k=kk, axis=0)(dense)
                         for k in idx], axis=1)
-    y = np.concatenate([rd.obs[k] for k in idx])
-    w = np.concatenate([np.broadcast_to(rd.w[k], rd.obs[k].shape) for k in idx])
-    A = np.stack([np.concatenate([rd.sens[k] for k in idx]), np.concatenate([rd.sens_h[k] for k in idx])], 1)
-    lo = np.array([-o.initial_offset_max_c, o.housing_offset_lo_c])
-    hi = np.array([o.initial_offset_max_c, o.housing_offset_hi_c])
+    y, w, A, lo, hi = start_design(rd, idx, ctx.opts)
     return np.array([box_lsq(y - P[j], w, A, lo, hi)[1] for j in range(dense.size)])
 
 

@@ -73,6 +73,17 @@ def box_lsq(r: np.ndarray, w: np.ndarray, A: np.ndarray, lo: np.ndarray, hi: np.
     return best, S(best)
 
 
+def start_design(rd, idx: list, opts) -> tuple:
+    """One file that starts running (tools/diagnosis/start.py), entries `idx` of role data `rd`: (its observations,
+    weights, the sensitivities to both start nuisances (uniform, housings) as the columns of A, their box lo, hi),
+    for :func:`box_lsq`."""
+    y = np.concatenate([rd.obs[k] for k in idx])
+    w = np.concatenate([np.broadcast_to(rd.w[k], rd.obs[k].shape) for k in idx])
+    A = np.stack([np.concatenate([rd.sens[k] for k in idx]), np.concatenate([rd.sens_h[k] for k in idx])], 1)
+    return (y, w, A, np.array([-opts.initial_offset_max_c, opts.housing_offset_lo_c]),
+            np.array([opts.initial_offset_max_c, opts.housing_offset_hi_c]))
+
+
 def observations(datasets: list) -> list:
     """The measured cell values per (dataset, channel)."""
     return [ch.cell_y_c for ds in datasets for ch in ds.channels.values()]
@@ -155,12 +166,8 @@ class Scorer:
 
     def _start_pair(self, preds: list, rd: RoleData, idx: list) -> tuple:
         """(delta, beta) of one running file: the weighted least squares of both start nuisances in their box."""
-        o = self.opts
-        r = np.concatenate([rd.obs[k] - preds[k] for k in idx])
-        w = np.concatenate([np.broadcast_to(rd.w[k], rd.obs[k].shape) for k in idx])
-        A = np.stack([np.concatenate([rd.sens[k] for k in idx]), np.concatenate([rd.sens_h[k] for k in idx])], 1)
-        x, _ = box_lsq(r, w, A, np.array([-o.initial_offset_max_c, o.housing_offset_lo_c]),
-                       np.array([o.initial_offset_max_c, o.housing_offset_hi_c]))
+        y, w, A, lo, hi = start_design(rd, idx, self.opts)
+        x, _ = box_lsq(y - np.concatenate([preds[k] for k in idx]), w, A, lo, hi)
         return float(x[0]), float(x[1])
 
     def S(self, preds: list, role: str = "train") -> float:
