@@ -181,7 +181,8 @@ def judge(ds, resid: list, sens: list, sens_h: list, w: list, sigma: dict, opts:
 
 def _n_eff(resid: list) -> float:
     """The effective sample size of residual pieces (each shrunk by its autocorrelation, as the criterion counts)."""
-    return max(sum(r.size * (1 - lag1_rho(r)) / (1 + lag1_rho(r)) for r in resid), 2.0)
+    rhos = [lag1_rho(r) for r in resid]
+    return max(sum(r.size * (1 - q) / (1 + q) for r, q in zip(resid, rhos)), 2.0)
 
 
 def driving_at_start(ds) -> str | None:
