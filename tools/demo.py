@@ -297,8 +297,7 @@ def plot_demo(est: RunTable, truth: RunTable, path) -> Path:
     that raised one, as words."""
     from firmware_model.components import describe
     from firmware_model.onboard.warning_levels import load_limits
-    from tools.plots import level_axis, outside_legend, pyplot, save_figure, time_axis
-    from tools.replay.plot import input_panel
+    from tools.plots import input_panel, level_axis, outside_legend, pyplot, save_figure, time_axis
     limits = load_limits()
     plt = pyplot()
     t, t_label = time_axis(est["time_s"])

@@ -1,4 +1,5 @@
-"""Plots people would rather look at than read: temperatures by component group and the heat budget; and the two
+"""Plots people would rather look at than read: temperatures by component group and the heat budget; the panels
+`simulate --plot` and `replay --plot` share (the inputs, temperatures with their warning limits); and the two
 helpers every plotting module of the tools uses (:func:`pyplot` without a display, :func:`save_figure`)."""
 from __future__ import annotations
 
@@ -6,7 +7,8 @@ from pathlib import Path
 
 import numpy as np
 
-from firmware_model.components import IDLE_WHEELS, LAYSHAFT_WHEELS, PLANETARY, SHAFT_BEARINGS, WHEEL_BEARINGS
+from firmware_model.components import (IDLE_WHEELS, LAYSHAFT_WHEELS, PLANETARY, PUBLISHED, SHAFT_BEARINGS,
+                                       WHEEL_BEARINGS, describe)
 
 GROUPS = {
     "Input/main-shaft wheel teeth": [f"{w}.teeth" for w in IDLE_WHEELS],
@@ -60,8 +62,92 @@ def save_figure(fig, path, dpi: int = 110) -> Path:
     return Path(path)
 
 
+def input_panel(ax, t, table) -> None:
+    """Engine speed and torque, and the gear on a second axis, with one legend outside the panel."""
+    if table.has("engine_speed_rpm"):
+        ax.plot(t, table["engine_speed_rpm"], lw=0.7, color="tab:blue", label="engine speed [rpm]")
+    if table.has("engine_torque_nm"):
+        ax.plot(t, table["engine_torque_nm"], lw=0.7, color="tab:red", label="engine torque [N m]")
+    ax.set_ylabel("speed, torque")
+    ax.grid(alpha=0.3)
+    handles, labels = ax.get_legend_handles_labels()
+    if table.has("gear"):
+        g = ax.twinx()
+        g.step(t, table["gear"], where="post", lw=0.7, color="tab:green", label="gear (right axis)")
+        g.set_ylabel("gear", color="tab:green")
+        from matplotlib.ticker import MaxNLocator
+        g.yaxis.set_major_locator(MaxNLocator(integer=True, min_n_ticks=1))   # whole gears (9, not 8.6 .. 9.4)
+        h2, l2 = g.get_legend_handles_labels()
+        handles, labels = handles + h2, labels + l2
+    ax.legend(handles, labels, loc="upper left", bbox_to_anchor=(1.06, 1.0), borderaxespad=0.0, fontsize=7)
+
+
+#: the temperatures among a drive's inputs: column -> legend label
+INPUT_TEMPERATURES = {"oil_temp_c": "oil (sensor reading)", "ambient_temp_c": "ambient air",
+                      "coolant_temp_c": "engine coolant"}
+
+
+def input_temperature_panel(ax, t, table) -> None:
+    """The temperatures among the inputs (oil sensor, ambient, coolant), those the table has with a value."""
+    for i, (col, label) in enumerate(INPUT_TEMPERATURES.items()):
+        if table.has(col) and np.any(np.isfinite(np.asarray(table[col], dtype=float))):
+            ax.plot(t, table[col], lw=0.9, color=("k", "tab:cyan", "tab:orange")[i], label=label)
+    ax.set_ylabel("input\ntemperatures [degC]")
+    ax.grid(alpha=0.3)
+    if ax.get_legend_handles_labels()[0]:
+        outside_legend(ax)
+
+
+def temperature_panel(ax, t, table, components, limits, prefix: str = "T_") -> list[str]:
+    """Each component's temperature labelled with its name spelled out (:func:`describe`), and the warning limit of
+    each published one as a dashed line in its colour, named at the right end; one grey line where several share a
+    limit. Returns the components drawn (those the table has)."""
+    drawn = [c for c in components if table.has(f"{prefix}{c}_c")]
+    at_limit: dict[float, list] = {}
+    for i, c in enumerate(drawn):
+        ax.plot(t, table[f"{prefix}{c}_c"], lw=1.1, color=f"C{i % 10}", label=describe(c))
+        if c in PUBLISHED:
+            at_limit.setdefault(limits.of(c)[0], []).append((c, f"C{i % 10}"))
+    for limit_c, comps in at_limit.items():
+        color = comps[0][1] if len(comps) == 1 else "0.35"
+        ax.axhline(limit_c, color=color, lw=0.8, ls="--")
+        who = "" if len(comps) == len(drawn) > 1 else ", ".join(c for c, _ in comps) + ": "
+        ax.annotate(f"{who}warning {limit_c:.0f} degC", xy=(1.0, limit_c), xycoords=("axes fraction", "data"),
+                    xytext=(-3, 2), textcoords="offset points", ha="right", va="bottom", fontsize=7, color=color)
+    return drawn
+
+
+def plot_simulation(table, path, title="", limits=None):
+    """The figure of `simulate --plot`: the inputs (speed, torque, gear; the input temperatures), then one panel per
+    component group with names spelled out, the warning limits dashed and the plant's oil sump for reference."""
+    from firmware_model.onboard.warning_levels import load_limits
+    limits = limits or load_limits()
+    plt = pyplot()
+    t, t_label = time_axis(table["time_s"])
+    fig = plt.figure(figsize=(20, 17))
+    grid = fig.add_gridspec(5, 2, height_ratios=[1.2, 0.9, 2, 2, 2])
+    inputs = fig.add_subplot(grid[0, :])
+    input_panel(inputs, t, table)
+    inputs.set_title(title)
+    input_temperature_panel(fig.add_subplot(grid[1, :], sharex=inputs), t, table)
+    oil = table["T_oil_c"] if table.has("T_oil_c") else None
+    for k, (group, ids) in enumerate(GROUPS.items()):
+        ax = fig.add_subplot(grid[2 + k // 2, k % 2], sharex=inputs)
+        temperature_panel(ax, t, table, ids, limits)
+        if oil is not None:
+            ax.plot(t, oil, "k:", lw=1.2, label="oil sump (plant)")
+        ax.set_title(group, fontsize=10)
+        ax.set_ylabel("degC (dashed:\nwarning limits)" if k % 2 == 0 else "degC")
+        ax.grid(alpha=0.3)
+        outside_legend(ax)
+        if k >= len(GROUPS) - 2:
+            ax.set_xlabel(t_label)
+    return save_figure(fig, path)
+
+
 def plot_temperatures(table, path, title="", prefix="T_"):
-    """One panel per component group, the oil in every panel for reference."""
+    """One panel per component group, the oil in every panel for reference (the validation figures,
+    benchmarks/validate_plant.py; `simulate --plot` draws :func:`plot_simulation`)."""
     plt = pyplot()
     t_h, t_label = time_axis(table["time_s"])
     fig, axes = plt.subplots(3, 2, figsize=(15, 10), sharex=True)

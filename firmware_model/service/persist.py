@@ -234,8 +234,11 @@ class HealthFile:
     a wall clock set back does not stop it). It carries the time since boot of writing (:func:`boot_clock`) with the
     boot id, so that `status` judges its age without the wall clock."""
 
-    def __init__(self, path, period_s: float = HEALTH_PERIOD_S, clock=time.time, timer=time.monotonic):
+    def __init__(self, path, period_s: float = HEALTH_PERIOD_S, clock=time.time, timer=time.monotonic,
+                 interface: str | None = None, channel: str | None = None):
         self.path = Path(path)
+        # the bus it listens on, for `status` to name when no input frame arrives (None: not known)
+        self.interface, self.channel = interface, channel
         self.period_s = float(period_s)
         self.clock, self.timer = clock, timer
         self.started_s = timer()
@@ -259,6 +262,7 @@ class HealthFile:
             self._stepped_s = now if steps else None
         doc = {"schema": HEALTH_SCHEMA, "pid": os.getpid(), "written_wall_s": self.clock(),
                "written_boottime_s": boot_clock(), "boot_id": self.boot_id, "stopped": stopped,
+               "interface": self.interface, "channel": self.channel,
                "uptime_s": now - self.started_s, "last_step_frame_time_s": service.frame_time_s,
                "steps": steps, "initialised": service.state is not None,
                # how long since the step count last moved (a service whose inputs stopped steps no more)

@@ -325,6 +325,44 @@ def test_status_says_when_a_running_service_has_stopped_stepping(params, tmp_pat
     assert "not a gearbox-vsensor health file" in capsys.readouterr().err
 
 
+def test_status_says_when_a_service_has_never_stepped_after_its_grace(params, tmp_path, capsys, monkeypatch):
+    """From a new user's trial (issue 43): a service up for 8 s without a single step (no input frame on its
+    channel) printed "waiting for inputs, 0 steps" with exit 0, where --help and docs/gateway.md promise exit 3
+    when it has not stepped for 5 s. Within its first 5 s it is still only waiting."""
+    from tools.cli import main
+    import tools.cli.status as status_cli
+    path = tmp_path / "health.json"
+    timer = Clock(100.0)
+    health = HealthFile(path, period_s=0.0, timer=timer, interface="socketcan", channel="can0")
+    monkeypatch.setattr(status_cli, "health_age_s", lambda doc: 0.5)     # the file itself is fresh
+    svc = _service(params)                                     # no frame fed: it never steps
+    timer.t += 3.0
+    assert health.maybe_write(svc)
+    assert main(["status", "--health-file", str(path)]) == 0
+    out = capsys.readouterr().out
+    assert "service: running," in out and "waiting for inputs, 0 steps" in out and "NEVER" not in out
+    timer.t += 5.0                                             # started 8 s ago, still no step
+    assert health.maybe_write(svc)
+    doc = read_health(path)
+    assert doc["steps"] == 0 and doc["uptime_s"] == pytest.approx(8.0) and doc["last_step_age_s"] is None
+    assert main(["status", "--health-file", str(path)]) == 3
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[0].startswith("service: running, but NEVER STEPPED in 8 s")
+    assert lines[1].startswith("no step: the service has run 8 s without a single step")
+    assert "0 frames received" in lines[1] and "socketcan can0" in lines[1] and "candump can0" in lines[1]
+    _drive(svc, 0.0, 1.0)                                      # frames come: it steps, exit 0
+    assert health.maybe_write(svc)
+    assert main(["status", "--health-file", str(path)]) == 0
+    assert "NEVER" not in capsys.readouterr().out
+    path.write_text(json.dumps({**doc, "uptime_s": 8.0, "channel": None}))   # an older file: no channel named
+    assert main(["status", "--health-file", str(path)]) == 3
+    assert "its CAN channel (`run --channel`)" in capsys.readouterr().out
+    doc["stopped"] = True                                      # stopped cleanly: not running (1), not "no step"
+    path.write_text(json.dumps(doc))
+    assert main(["status", "--health-file", str(path)]) == 1
+    assert "NEVER" not in capsys.readouterr().out
+
+
 def test_sd_notify_reaches_a_notify_socket(tmp_path, monkeypatch):
     addr = str(tmp_path / "notify")
     with socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM) as srv:

@@ -174,3 +174,56 @@ def test_a_cycle_in_milliseconds_or_rad_s_is_refused_before_it_runs(tmp_path, ca
     out = tmp_path / "rads_run.csv"
     assert main(["simulate", "--cycle", str(tmp_path / "rads.csv"), "--out", str(out), "--quiet",
                  "--allow-untrusted"]) == 0 and out.exists()
+
+
+def _figures(monkeypatch) -> list:
+    """The figures the CLI writes, in order, kept for inspection (tools.plots.save_figure still writes them)."""
+    import tools.plots as plots
+    kept, save = [], plots.save_figure
+
+    def keep(fig, path, *args, **kw):
+        kept.append(fig)
+        return save(fig, path, *args, **kw)
+    monkeypatch.setattr(plots, "save_figure", keep)
+    return kept
+
+
+def _limit_lines(ax) -> set:
+    """The y values of the horizontal lines across an axis (axhline: x from 0 to 1 in axis coordinates)."""
+    return {float(line.get_ydata()[0]) for line in ax.get_lines()
+            if list(line.get_xdata()) == [0, 1] and len(set(line.get_ydata())) == 1 and line.get_linestyle() == "--"}
+
+
+def test_simulate_plot_is_as_readable_as_replays(tmp_path, monkeypatch):
+    """From a new user's trial (issue 43): `simulate --plot` had bare codes in its legends, no warning limits and
+    no input panel, where `replay --plot` and the demo have them. Both plots now draw their temperatures with one
+    function (tools.plots.temperature_panel): names spelled out, each published component's warning limit."""
+    from firmware_model.components import PUBLISHED, describe
+    from firmware_model.onboard.warning_levels import load_limits
+    limits = load_limits()
+    figures = _figures(monkeypatch)
+    out = tmp_path / "run.csv"
+    assert main(["simulate", "--cycle", "steady:gear=4L,rpm=1300,nm=2000,s=300", "--out", str(out), "--quiet",
+                 "--plot", str(tmp_path / "p.png")]) == 0
+    fig = figures[0]                                  # the temperatures (the heat budget comes second)
+    run = read_run_table(out)
+    curves = {line.get_label(): (ax, line) for ax in fig.axes for line in ax.get_lines()}
+    inputs = curves["engine speed [rpm]"][0]
+    assert np.allclose(curves["engine speed [rpm]"][1].get_ydata(), run["engine_speed_rpm"])
+    assert "gear (right axis)" in [t.get_text() for t in inputs.get_legend().get_texts()]
+    assert np.allclose(curves["ambient air"][1].get_ydata(), run["ambient_temp_c"])
+    assert "oil (sensor reading)" in curves and curves["ambient air"][0] is not inputs
+    drawn = [c for c in PUBLISHED if c != "oil" and describe(c) in curves]
+    assert len(drawn) == len(PUBLISHED) - 1           # every published component, each with its name spelled out
+    legends = {t.get_text() for ax in fig.axes if ax.get_legend() for t in ax.get_legend().get_texts()}
+    assert "PS (sun wheel)" in legends and not legends & set(PUBLISHED)
+    for c in drawn:
+        ax = curves[describe(c)][0]
+        assert limits.of(c)[0] in _limit_lines(ax), c
+    figures.clear()                                   # replay's plot: the same panel, the same limits
+    assert main(["replay", str(out), "--out", str(tmp_path / "est.csv"), "--quiet",
+                 "--plot", str(tmp_path / "r.png")]) == 0
+    temps = figures[0].axes[1]
+    shown = [line.get_label() for line in temps.get_lines() if not line.get_label().startswith("_")]
+    codes = [c for c in PUBLISHED if describe(c) in shown]
+    assert codes and {limits.of(c)[0] for c in codes} <= _limit_lines(temps)

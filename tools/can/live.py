@@ -125,7 +125,8 @@ class GatewayHooks:
         # the periodic saves in a writer thread: a slow fsync (SD card, eMMC) must not hold up the outputs
         self.store = StateStore(settings.state_file, settings.state_period_s, background=True) \
             if settings.state_file else None
-        self.health = HealthFile(settings.health_file) if settings.health_file else None
+        self.health = HealthFile(settings.health_file, interface=settings.interface, channel=settings.channel) \
+            if settings.health_file else None
         self.watchdog_s = watchdog_period_s()
         self._last_watchdog = 0.0
         if self.store is not None:

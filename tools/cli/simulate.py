@@ -55,7 +55,9 @@ def add_subparser(sub):
     p.add_argument("--dt", type=float, default=0.5, metavar="S", help="plant time step (default 0.5 s, BDF2)")
     p.add_argument("--out-dt", type=float, default=1.0, metavar="S", help="output sample period (default 1 s)")
     p.add_argument("--out", required=True, metavar="RUN.csv", help="output run table")
-    p.add_argument("--plot", metavar="PNG", help="temperature plot; the heat budget goes to <stem>_heat.png")
+    p.add_argument("--plot", metavar="PNG",
+                   help="temperature plot: the inputs, then the temperatures by component group, names spelled out, "
+                        "warning limits dashed; the heat budget goes to <stem>_heat.png")
     p.add_argument("--can-log", metavar="RUN.log", help="also write the plant's inputs as J1939 frames and its true "
                                                         "temperatures as rig thermocouple frames (candump -L)")
     p.add_argument("--quiet", action="store_true", help="no progress bar or summary")
@@ -188,10 +190,10 @@ def _write_outputs(args, table, res, params, cfg, tmp) -> None:
         with naming(log_tmp):
             write_can_log(table, res.table, log_tmp, params, config=cfg)
     if plot_tmp:
-        from tools.plots import plot_heat_budget, plot_temperatures
+        from tools.plots import plot_heat_budget, plot_simulation
         title = f"{params.variant} reference plant, cycle {args.cycle}" + (f", effects {args.effect}"
                                                                           if args.effect else "")
         with naming(plot_tmp):
-            plot_temperatures(res.table, plot_tmp, title)
+            plot_simulation(res.table, plot_tmp, title)
         with naming(heat_tmp):
             plot_heat_budget(res.table, heat_tmp, title)

@@ -22,8 +22,10 @@ def add_subparser(sub):
                     "frame counters, time jumps, the state saves (count, errors, age of the last) and whether the "
                     "saved state was restored at start. Exit status 0 when the service is running and stepping, 1 "
                     "when the file is stale (not rewritten for 5 s: not running), 2 when it is missing or not a "
-                    "health file, 3 when the service runs but has not stepped for 5 s (its input frames stopped: "
-                    "it publishes nothing).")
+                    "health file, 3 when the service runs but has not stepped for 5 s (its input frames stopped, or "
+                    "none came in its first 5 s: it publishes nothing; the first line says which and what to "
+                    "check). Within its first 5 s a service that has not stepped yet is `waiting for inputs`, "
+                    "exit 0.")
     p.add_argument("--health-file", default=DEFAULT_HEALTH, metavar="PATH",
                    help=f"the service's health file (default {DEFAULT_HEALTH}, as the systemd unit writes it)")
     p.add_argument("--json", action="store_true", help="print the health document as JSON")
@@ -63,9 +65,31 @@ def run(args) -> int:
 
 
 def not_stepping(doc: dict) -> bool:
-    """A running service whose step count has not moved for NO_STEP_S (a health file of an older version: never)."""
+    """A running service whose step count has not moved for NO_STEP_S, or that has not stepped once in the NO_STEP_S
+    since its start (a health file of an older version: only the latter)."""
     age = doc.get("last_step_age_s")
-    return age is not None and float(age) > NO_STEP_S
+    return (age is not None and float(age) > NO_STEP_S) or never_stepped(doc)
+
+
+def never_stepped(doc: dict) -> bool:
+    """A service up for more than its start-up grace (NO_STEP_S) without a single step: it steps on the frame time
+    of its input messages (from any source address), so none of them has reached it."""
+    return int(doc.get("steps") or 0) == 0 and float(doc.get("uptime_s") or 0.0) > NO_STEP_S
+
+
+def never_stepped_sentence(doc: dict) -> str:
+    """What a service that never stepped shows and what to check: the bus it listens on, the frames it saw."""
+    channel = doc.get("channel")
+    bus = f"{doc.get('interface')} {channel}" if channel else "its CAN channel (`run --channel`)"
+    seen = int((doc.get("decoder") or {}).get("frames_seen", 0))
+    name = channel or "CHANNEL"
+    tools = ((f" (`ip -details link show {name}`)", f" (`candump {name}`)")
+             if doc.get("interface") in (None, "socketcan") else ("", ""))
+    return (f"no step: the service has run {float(doc['uptime_s']):.0f} s without a single step, as no frame of its "
+            f"input messages (EEC1 engine speed, ETC2, TRF1, ...) has reached it ({seen} frames received), so it "
+            f"publishes nothing; check that {bus} is the truck's powertrain CAN bus, that the interface is up at the "
+            f"bus's bitrate{tools[0]} and that frames arrive on it{tools[1]}: none means wiring, termination or "
+            f"bitrate")
 
 
 def health_age_s(doc: dict) -> float:
@@ -90,7 +114,9 @@ def status_lines(doc: dict, age_s: float) -> list[str]:
     now = doc.get("degraded_mode_now")
     j = doc.get("j1939")
     running = "running"
-    if not_stepping(doc):
+    if never_stepped(doc):
+        running = f"running, but NEVER STEPPED in {float(doc['uptime_s']):.0f} s"
+    elif not_stepping(doc):
         running = (f"running, but NO STEP for {float(doc['last_step_age_s']):.0f} s (its input frames stopped: "
                    f"engine speed or the bus; it publishes nothing)")
     step_age = doc.get("last_step_age_s")
@@ -106,6 +132,8 @@ def status_lines(doc: dict, age_s: float) -> list[str]:
              + (f" ({doc['frames_held_no_address']} held: no J1939 address)"
                 if doc.get("frames_held_no_address") else ""),
              "frames: " + ", ".join(f"{k.replace('_', ' ')} {v}" for k, v in (doc.get("decoder") or {}).items())]
+    if never_stepped(doc) and age_s <= STALE_S and not doc.get("stopped"):
+        lines.insert(1, never_stepped_sentence(doc))
     if j:
         a = j.get("address")
         lines.append("J1939 address: " + (f"0x{int(a):02X}" if a is not None else

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from firmware_model.components import LEVEL_NA, PUBLISHED, describe
+from tools.plots import input_panel   # the replay's input panel, shared with simulate's and the demo's figures
 
 #: components drawn in the temperature panel: the closest to their own warning limits, this many
 PLOT_CLOSEST = 6
@@ -17,30 +18,12 @@ def _closest_to_limits(out, limits) -> list[str]:
     return sorted(margin, key=margin.get)[:PLOT_CLOSEST]
 
 
-def input_panel(ax, t, table) -> None:
-    """Engine speed and torque, and the gear on a second axis, with one legend outside the panel."""
-    if table.has("engine_speed_rpm"):
-        ax.plot(t, table["engine_speed_rpm"], lw=0.7, color="tab:blue", label="engine speed [rpm]")
-    if table.has("engine_torque_nm"):
-        ax.plot(t, table["engine_torque_nm"], lw=0.7, color="tab:red", label="engine torque [N m]")
-    ax.set_ylabel("speed, torque")
-    ax.grid(alpha=0.3)
-    handles, labels = ax.get_legend_handles_labels()
-    if table.has("gear"):
-        g = ax.twinx()
-        g.step(t, table["gear"], where="post", lw=0.7, color="tab:green", label="gear (right axis)")
-        g.set_ylabel("gear", color="tab:green")
-        h2, l2 = g.get_legend_handles_labels()
-        handles, labels = handles + h2, labels + l2
-    ax.legend(handles, labels, loc="upper left", bbox_to_anchor=(1.06, 1.0), borderaxespad=0.0, fontsize=7)
-
-
 def plot_replay(out, path, title: str = "", limits=None) -> None:
     """Write a PNG of a sensor output run table: the inputs; the PLOT_CLOSEST estimates closest to their own warning
     limits, each with its limit dashed, and the measured oil; the level of every component that left normal, as
     words; the oil innovation (measured - model)."""
     from firmware_model.onboard.warning_levels import load_limits
-    from tools.plots import level_axis, outside_legend, pyplot, save_figure, time_axis
+    from tools.plots import level_axis, outside_legend, pyplot, save_figure, temperature_panel, time_axis
     limits = limits or load_limits()
     plt = pyplot()
     t, t_label = time_axis(out["time_s"])
@@ -48,9 +31,7 @@ def plot_replay(out, path, title: str = "", limits=None) -> None:
     input_panel(axes[0], t, out)
     axes[0].set_title(title)
     ax = axes[1]
-    for i, c in enumerate(_closest_to_limits(out, limits)):
-        ax.plot(t, out[f"T_{c}_c"], lw=1.1, color=f"C{i}", label=describe(c))
-        ax.axhline(limits.of(c)[0], color=f"C{i}", lw=0.8, ls="--")
+    temperature_panel(ax, t, out, _closest_to_limits(out, limits), limits)
     if out.has("oil_temp_c") and np.any(np.isfinite(out["oil_temp_c"])):
         ax.plot(t, out["oil_temp_c"], "k:", lw=1, label="oil (measured)")
     ax.set_ylabel("temperature [degC]\n(dashed: warning limits)")
