@@ -188,3 +188,17 @@ def test_a_real_capture_with_gear_and_oil_from_two_addresses(tmp_path):
     _, (_, svc) = replay_both(log)
     f, = [f for f in foreign(svc) if f.message == "TRF1"]
     assert f.source == 0x21 and "set [can.source_address] TRF1 = 0x21;" in f.sentence, f.sentence
+
+
+def test_fleet_reads_the_table_from_a_logs_config(synth):
+    """fleet (tools/fleet/run.py): the same log untrusted with the finding's advice without the table, trusted with
+    it."""
+    from tools.fleet.manifest import LogEntry, log_key
+    from tools.fleet.run import process_batch
+    log = synth / "navistar.log"
+    rows = {cfg: process_batch([LogEntry(log, "navistar", None, cfg, None, log_key(log))])[0]
+            for cfg in (None, str(synth / "table.toml"))}
+    (kind, bare), (kind2, table) = rows[None], rows[str(synth / "table.toml")]
+    assert kind == kind2 == "ok"
+    assert not bare["trusted"] and "set [can.source_address] TRF1 = 0x21" in bare["trust_warnings"]
+    assert table["trusted"] and table["trust_warnings"] == "" and table["degraded_share"] < bare["degraded_share"]
