@@ -8,8 +8,9 @@ Three findings, each a typed record with a :class:`Severity` and one sentence (`
   faster than real time whose frames are stamped on arrival (socketcan, udp_multicast). Found by
   :class:`TimeBaseCheck`, which the service runs at its step boundaries.
 - :class:`ForeignSourceFinding`: frames of a message the sensor uses, carrying data, came from another source
-  address than the one configured (``[can] *_source_address``, else the DBC's), and none from the configured one:
-  almost always a wrong address in the config.
+  address than the one configured (``[can] *_source_address`` or ``[can.source_address]``, else the DBC's), and
+  none from the configured one: almost always a wrong address in the config; it names the key that fixes it
+  without moving another input.
 - :class:`DegradedFinding`: the sensor ran degraded (``degraded_mode`` not 0) on a large share of its steps.
 
 :func:`trust_findings` derives them from the service's counters (``SensorService.all_counters()``);

@@ -202,3 +202,22 @@ def test_fleet_reads_the_table_from_a_logs_config(synth):
     assert kind == kind2 == "ok"
     assert not bare["trusted"] and "set [can.source_address] TRF1 = 0x21" in bare["trust_warnings"]
     assert table["trusted"] and table["trust_warnings"] == "" and table["degraded_share"] < bare["degraded_share"]
+
+
+def test_the_advice_lists_every_input_the_group_key_would_move():
+    """EEC1 from 0x01 while EC1, ET1 and CCVS1 arrive from the engine's 0x00: engine_source_address would move
+    them all, so EEC1's own key is advised; a message that a narrower key already sets is not moved by it."""
+    from can_dbc.decoder import J1939Decoder
+    from firmware_model.service.trust import foreign_findings
+    counters = {"foreign_source": {"EEC1": {0x01: 500}}, "foreign_source_data": {"EEC1": {0x01: 500}},
+                "arrivals": {"ET1": 10, "CCVS1": 10}, "tp": {"ec1_received": 3}}
+    expected = J1939Decoder().expected_sa
+    f, = foreign_findings(counters, expected)
+    assert "(set [can.source_address] EEC1 = 0x01; setting [can] engine_source_address would also move EC1 " \
+           "(SA 0x00), ET1 (SA 0x00) and CCVS1 (SA 0x00), which arrive as expected)" in f.sentence, f.sentence
+    f, = foreign_findings(counters, {**expected, "CCVS1": 0x00}, {"CCVS1": 0x00},
+                          {"CCVS1": "vehicle_speed_source_address"})
+    assert "would also move EC1 (SA 0x00) and ET1 (SA 0x00), which" in f.sentence, f.sentence
+    counters["arrivals"], counters["tp"] = {}, {}          # nothing else arrives: the group key is fine
+    f, = foreign_findings(counters, expected)
+    assert "(set [can] engine_source_address = 0x01)" in f.sentence, f.sentence
