@@ -44,7 +44,9 @@ SOURCE_ADDRESS_MESSAGES = ("EEC1", "EC1", "ETC2", "TRF1", "ET1", "AMB", "CCVS1",
 
 def _check_address(key: str, value) -> int:
     if isinstance(value, bool) or not isinstance(value, int) or not 0 <= value <= 253:
-        raise ParameterError(f"can.{key} = {value!r} is not a J1939 source address 0..253")
+        shown = f"{value} (0x{value:X})" if isinstance(value, int) and not isinstance(value, bool) and value >= 0 \
+            else repr(value)
+        raise ParameterError(f"can.{key} = {shown} is not a J1939 source address 0..253 (0x00..0xFD)")
     return value
 
 

@@ -81,7 +81,8 @@ def test_the_table_sets_one_message_over_its_group_key():
 @pytest.mark.parametrize("table, match", [
     ({"TRF": 0x21}, r"can\.source_address\.TRF: unknown message 'TRF'; known: EEC1, EC1, ETC2, TRF1, ET1, AMB, "
                     r"CCVS1, ERC1, RC"),
-    ({"TRF1": 254}, r"can\.source_address\.TRF1 = 254 is not a J1939 source address 0\.\.253"),
+    ({"TRF1": 254}, r"can\.source_address\.TRF1 = 254 \(0xFE\) is not a J1939 source address 0\.\.253"),
+    ({"TRF1": 0x121}, r"can\.source_address\.TRF1 = 289 \(0x121\) is not a J1939 source address"),
     ({"TRF1": -1}, r"can\.source_address\.TRF1 = -1 is not a J1939 source address"),
     ({"TRF1": True}, r"can\.source_address\.TRF1 = True is not a J1939 source address"),
     ({"TRF1": "0x21"}, r"can\.source_address\.TRF1 = '0x21' is not a J1939 source address"),
