@@ -69,7 +69,8 @@ def source_addresses(can: Mapping) -> tuple[dict[str, int], dict[str, str]]:
     for name, value in table.items():
         if name not in SOURCE_ADDRESS_MESSAGES:
             raise ParameterError(f"can.{SOURCE_ADDRESS_TABLE}.{name}: unknown message {name!r}; known: "
-                                 f"{', '.join(SOURCE_ADDRESS_MESSAGES)} (e.g. [can.{SOURCE_ADDRESS_TABLE}] TRF1 = 0x21)")
+                                 f"{', '.join(SOURCE_ADDRESS_MESSAGES)} "
+                                 f"(e.g. [can.{SOURCE_ADDRESS_TABLE}] TRF1 = 0x21)")
         sa[name] = _check_address(f"{SOURCE_ADDRESS_TABLE}.{name}", value)
         keys[name] = f"{SOURCE_ADDRESS_TABLE}.{name}"
     return sa, keys
