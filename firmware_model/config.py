@@ -17,6 +17,8 @@ Example::
     retarder_source_address = 0x10
     engine_reference_torque_nm = 2400   # used until EC1 (TP.BAM) has arrived
     retarder_reference_torque_nm = 3500
+    [can.source_address]        # one message's source address alone, over the keys above
+    TRF1 = 0x21                 # e.g. a Navistar: gear (ETC2) from 0x03, transmission oil (TRF1) from 0x21
     [sensor]
     oil_mode = "measured"        # measured | model
 """
@@ -35,7 +37,7 @@ ALLOWED = {
                  "hot_surroundings", "cold_surroundings", "coolant"},
     "can": {"sensor_source_address", "engine_source_address", "transmission_source_address",
             "retarder_source_address", "ambient_source_address", "vehicle_speed_source_address",
-            "coolant_source_address", "engine_reference_torque_nm",
+            "coolant_source_address", "source_address", "engine_reference_torque_nm",
             "retarder_reference_torque_nm", "gear_map", "output_period_s", "stale_factor", "counter_log_period_s",
             "name_identity_number", "name_manufacturer_code", "name_ecu_instance", "name_function_instance",
             "name_function", "name_vehicle_system", "name_vehicle_system_instance", "name_industry_group",

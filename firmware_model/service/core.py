@@ -234,7 +234,7 @@ class SensorService:
         base, inputs from unexpected source addresses, a large degraded share; most severe first."""
         oil_model = getattr(getattr(self.sensor, "options", None), "oil_mode", "measured") == "model"
         return trust_findings(self.all_counters(), self.decoder.expected_sa, self.options.expected_sa, oil_model,
-                              self.options.stale_factor)
+                              self.options.stale_factor, self.options.source_address_keys or None)
 
     def log_findings(self, only_new: bool = False) -> None:
         """Log the findings (WARNING, or INFO for notes); ``only_new``: only those not logged yet, or more severe

@@ -36,6 +36,44 @@ SOURCE_ADDRESS_KEYS = (("engine_source_address", ("EEC1", "EC1", "ET1", "CCVS1",
                        ("ambient_source_address", ("AMB",)),
                        ("vehicle_speed_source_address", ("CCVS1",)),
                        ("coolant_source_address", ("ET1",)))
+#: config ``[can.source_address]``: message name -> its source address alone, over every key above (a Navistar truck
+#: sends ETC2 from 0x03 and TRF1 from 0x21: ``ETC2 = 0x03``, ``TRF1 = 0x21``)
+SOURCE_ADDRESS_TABLE = "source_address"
+SOURCE_ADDRESS_MESSAGES = ("EEC1", "EC1", "ETC2", "TRF1", "ET1", "AMB", "CCVS1", "ERC1", "RC")
+
+
+def _check_address(key: str, value) -> int:
+    if isinstance(value, bool) or not isinstance(value, int) or not 0 <= value <= 253:
+        shown = f"{value} (0x{value:X})" if isinstance(value, int) and not isinstance(value, bool) and value >= 0 \
+            else repr(value)
+        raise ParameterError(f"can.{key} = {shown} is not a J1939 source address 0..253 (0x00..0xFD)")
+    return value
+
+
+def source_addresses(can: Mapping) -> tuple[dict[str, int], dict[str, str]]:
+    """The source addresses a config's ``[can]`` section sets: (message -> address, message -> the key that set it,
+    e.g. ``transmission_source_address`` or ``source_address.TRF1``). The group keys apply in SOURCE_ADDRESS_KEYS
+    order (a later, narrower key wins for its messages), then the ``[can.source_address]`` table per message.
+    ParameterError naming the key for an address outside 0..253 or a message the table does not know."""
+    sa: dict[str, int] = {}
+    keys: dict[str, str] = {}
+    for key, names in SOURCE_ADDRESS_KEYS:
+        if key in can:
+            value = _check_address(key, can[key])
+            for n in names:
+                sa[n], keys[n] = value, key
+    table = can.get(SOURCE_ADDRESS_TABLE, {})
+    if not isinstance(table, Mapping):
+        raise ParameterError(f"can.{SOURCE_ADDRESS_TABLE} = {table!r} must be a table of message = address, e.g. "
+                             f"[can.{SOURCE_ADDRESS_TABLE}] TRF1 = 0x21")
+    for name, value in table.items():
+        if name not in SOURCE_ADDRESS_MESSAGES:
+            raise ParameterError(f"can.{SOURCE_ADDRESS_TABLE}.{name}: unknown message {name!r}; known: "
+                                 f"{', '.join(SOURCE_ADDRESS_MESSAGES)} "
+                                 f"(e.g. [can.{SOURCE_ADDRESS_TABLE}] TRF1 = 0x21)")
+        sa[name] = _check_address(f"{SOURCE_ADDRESS_TABLE}.{name}", value)
+        keys[name] = f"{SOURCE_ADDRESS_TABLE}.{name}"
+    return sa, keys
 
 
 @functools.cache
@@ -86,6 +124,9 @@ class ServiceOptions:
     (``firmware_model.service.trust``); ``log_findings`` False: the trust findings are not logged while running
     (an offline replay prints them once at the end)."""
     expected_sa: Mapping[str, int | None] = field(default_factory=dict)
+    #: message -> the [can] key that set its ``expected_sa`` (``transmission_source_address``,
+    #: ``source_address.TRF1``): the key a foreign-source finding names
+    source_address_keys: Mapping[str, str] = field(default_factory=dict)
     sensor_source_address: int = field(default_factory=lambda: default_source("GBX_STATUS"))
     configured_ref_torque_nm: float | None = None
     retarder_ref_torque_nm: float | None = None
@@ -135,12 +176,8 @@ class ServiceOptions:
         """Options from a config's ``[can]`` section (None: defaults); ``overrides``: fields set directly."""
         c = dict(getattr(config, "can", None) or {})
         _check_can_keys(c)
-        sa: dict[str, int] = {}
-        for key, names in SOURCE_ADDRESS_KEYS:
-            if key in c:
-                for n in names:
-                    sa[n] = c[key]
-        kw: dict = {"expected_sa": sa}
+        sa, sa_keys = source_addresses(c)
+        kw: dict = {"expected_sa": sa, "source_address_keys": sa_keys}
         for key, name in (("sensor_source_address", "sensor_source_address"),
                           ("engine_reference_torque_nm", "configured_ref_torque_nm"),
                           ("retarder_reference_torque_nm", "retarder_ref_torque_nm"),
@@ -171,9 +208,8 @@ def _check_can_keys(c: dict) -> None:
     """ParameterError naming the [can] key (not the field it feeds) for a source address outside 0..253 or a
     reference torque that is not a positive number of Nm."""
     for key in [k for k, _ in SOURCE_ADDRESS_KEYS] + ["sensor_source_address"]:
-        v = c.get(key)
-        if key in c and (isinstance(v, bool) or not isinstance(v, int) or not 0 <= v <= 253):
-            raise ParameterError(f"can.{key} = {v!r} is not a J1939 source address 0..253")
+        if key in c:
+            _check_address(key, c[key])
     for key in ("engine_reference_torque_nm", "retarder_reference_torque_nm"):
         v = c.get(key)
         if key in c and (isinstance(v, bool) or not isinstance(v, (int, float)) or not 0 < v < 1e5):

@@ -8,8 +8,9 @@ Three findings, each a typed record with a :class:`Severity` and one sentence (`
   faster than real time whose frames are stamped on arrival (socketcan, udp_multicast). Found by
   :class:`TimeBaseCheck`, which the service runs at its step boundaries.
 - :class:`ForeignSourceFinding`: frames of a message the sensor uses, carrying data, came from another source
-  address than the one configured (``[can] *_source_address``, else the DBC's), and none from the configured one:
-  almost always a wrong address in the config.
+  address than the one configured (``[can] *_source_address`` or ``[can.source_address]``, else the DBC's), and
+  none from the configured one: almost always a wrong address in the config; it names the key that fixes it
+  without moving another input.
 - :class:`DegradedFinding`: the sensor ran degraded (``degraded_mode`` not 0) on a large share of its steps.
 
 :func:`trust_findings` derives them from the service's counters (``SensorService.all_counters()``);
@@ -29,8 +30,8 @@ from firmware_model.service.degraded import (DEGRADED_UNTRUSTED_SHARE, DEGRADED_
                                              INPUT_NAMES, DegradedFinding, Severity, degraded_finding, pct,
                                              untrusted)
 from firmware_model.components import STEP_S
-from firmware_model.service.options import (NOMINAL_PERIOD_S, SOURCE_ADDRESS_KEYS, TIME_BASE_WINDOW_S,
-                                            TIME_BASE_WINDOWS, wanted_pgns)
+from firmware_model.service.options import (NOMINAL_PERIOD_S, SOURCE_ADDRESS_KEYS, SOURCE_ADDRESS_TABLE,
+                                            TIME_BASE_WINDOW_S, TIME_BASE_WINDOWS, wanted_pgns)
 
 #: the transmission periods a real J1939 bus uses for each input message, (fastest, slowest) [s]: EEC1 is engine
 #: speed dependent (J1939-71: 10-20 ms); CCVS1 is 100 ms in J1939 but 1 s on some trucks and in synthesized logs;
@@ -102,6 +103,10 @@ class ForeignSourceFinding:
     primary: bool
     #: frames from the expected source address before this one's first (None: not known, TP.BAM transfers)
     expected_before: int | None = None
+    #: the key that fixes it without moving another input ("" = ``config_key``): ``source_address.<message>`` when
+    #: ``config_key`` would also move ``also_moved``, (message, source address) pairs that arrive as expected
+    fix_key: str = ""
+    also_moved: tuple[tuple[str, int], ...] = ()
 
     @property
     def moved(self) -> bool:
@@ -116,10 +121,28 @@ class ForeignSourceFinding:
         return Severity.NOTE
 
     @property
+    def advice(self) -> str:
+        """How to set the address this message came from, e.g. "set [can.source_address] TRF1 = 0x21; setting
+        [can] transmission_source_address would also move ETC2, which arrives from SA 0x03 as expected"."""
+        out = f"set {config_key_words(self.fix_key or self.config_key)} = 0x{self.source:02X}"
+        if not self.also_moved:
+            return out
+        if len(self.also_moved) == 1:
+            moved = f"{self.also_moved[0][0]}, which arrives from SA 0x{self.also_moved[0][1]:02X} as expected"
+        else:
+            moved = (", ".join(f"{m} (SA 0x{sa:02X})" for m, sa in self.also_moved[:-1])
+                     + f" and {self.also_moved[-1][0]} (SA 0x{self.also_moved[-1][1]:02X}), which arrive as expected")
+        return f"{out}; {'changing' if self.configured else 'setting'} [can] {self.config_key} would also move {moved}"
+
+    @property
     def sentence(self) -> str:
         data = "" if self.with_data == self.frames else f" ({self.with_data} with data)"
-        where = (f"[can] expects SA 0x{self.expected:02X} ({self.config_key})" if self.configured else
-                 f"the DBC's default SA 0x{self.expected:02X} is expected (set [can] {self.config_key})")
+        if not self.configured:
+            where = f"the DBC's default SA 0x{self.expected:02X} is expected ({self.advice})"
+        elif self.also_moved:
+            where = f"[can] expects SA 0x{self.expected:02X} ({self.config_key}; {self.advice})"
+        else:
+            where = f"[can] expects SA 0x{self.expected:02X} ({config_key_words(self.config_key, bare=True)})"
         what = f"{self.message} (PGN {self.pgn})" if self.message not in (EC1_KEY, RC_KEY) \
             else f"{self.message} (PGN {self.pgn}, TP.BAM transfers)"
         tail = ": check the source addresses"
@@ -135,6 +158,15 @@ class ForeignSourceFinding:
 
 
 Finding = TimeBaseFinding | ForeignSourceFinding | DegradedFinding
+
+
+def config_key_words(key: str, bare: bool = False) -> str:
+    """A [can] source-address key as a config file spells it: ``[can] transmission_source_address`` or
+    ``[can.source_address] TRF1`` (``bare``: the group key without ``[can]``)."""
+    table, _, message = key.partition(".")
+    if message:
+        return f"[can.{table}] {message}"
+    return key if bare else f"[can] {key}"
 
 
 def _ms(period_s: float) -> str:
@@ -240,14 +272,40 @@ def _config_keys() -> dict[str, str]:
     return out
 
 
+def _moved_along(message: str, key: str, set_by: Mapping[str, str]) -> list[str]:
+    """The other messages whose address setting [can] ``key`` would change: those of its group that no narrower
+    key (later in SOURCE_ADDRESS_KEYS) nor the [can.source_address] table sets."""
+    order = [k for k, _ in SOURCE_ADDRESS_KEYS]
+    names = dict(SOURCE_ADDRESS_KEYS).get(key, ())
+    return [m for m in names if m != message
+            and (set_by.get(m) not in order or order.index(set_by[m]) <= order.index(key))]
+
+
+def _fix(message: str, key: str, set_by: Mapping[str, str], expected_sa: Mapping[str, int | None],
+         received: Mapping[str, int]) -> tuple[str, tuple[tuple[str, int], ...]]:
+    """(the key that fixes a foreign address of ``message`` without moving another input, the inputs ``key``
+    would move that arrive as expected): ``key`` when its other messages moved with this one (none arrives from
+    its expected address), else the message's own ``source_address.<message>`` (a Navistar: ETC2 from 0x03, TRF1
+    from 0x21; transmission_source_address for the oil lost the gear)."""
+    if key.startswith(SOURCE_ADDRESS_TABLE + "."):
+        return key, ()
+    working = tuple((m, expected_sa[m]) for m in _moved_along(message, key, set_by)
+                    if received.get(m, 0) > 0 and expected_sa.get(m) is not None)
+    return (f"{SOURCE_ADDRESS_TABLE}.{message}", working) if working else (key, ())
+
+
 def foreign_findings(decoder_counters: Mapping, expected_sa: Mapping[str, int | None],
-                     configured: Mapping[str, int] | None = None) -> list[ForeignSourceFinding]:
+                     configured: Mapping[str, int] | None = None,
+                     config_keys: Mapping[str, str] | None = None) -> list[ForeignSourceFinding]:
     """A finding per (message, foreign source address) that sent at least FOREIGN_MIN_FRAMES frames with data;
-    ``expected_sa``: the decoder's, ``configured``: the messages whose address the config set."""
+    ``expected_sa``: the decoder's, ``configured``: the messages whose address the config set, ``config_keys``:
+    the key that set each (``ServiceOptions.source_address_keys``; None: the most specific group key)."""
     pgns = {**wanted_pgns(), EC1_KEY: EC1_PGN, RC_KEY: RC_PGN}
     messages = signal_messages()
     primary = {messages[s] for s in PRIMARY_SIGNALS}
-    keys = _config_keys()
+    set_by = dict(config_keys) if config_keys is not None else \
+        {m: k for m, k in _config_keys().items() if m in (configured or {})}
+    keys = {**_config_keys(), **set_by}
     arrivals = decoder_counters.get("arrivals", {})
     with_data = decoder_counters.get("foreign_source_data", {})
     first_arrivals = decoder_counters.get("foreign_first_arrivals", {})
@@ -258,15 +316,18 @@ def foreign_findings(decoder_counters: Mapping, expected_sa: Mapping[str, int | 
         expected = expected_sa.get(message)
         if expected is None or message not in pgns:
             continue
+        key = keys.get(message, "?")
+        fix_key, also_moved = _fix(message, key, set_by, expected_sa, {**arrivals, **received})
         for sa, frames in sorted(per_sa.items()):
             n_data = with_data.get(message, {}).get(sa, 0)
             if n_data < FOREIGN_MIN_FRAMES:
                 continue
             expected_frames = received[message] if message in received else arrivals.get(message, 0)
             out.append(ForeignSourceFinding(message, pgns[message], sa, frames, n_data, expected, expected_frames,
-                                            keys.get(message, "?"), message in (configured or {}),
+                                            key, message in (configured or {}),
                                             message in primary,
-                                            None if message in received else first_arrivals.get(message, {}).get(sa)))
+                                            None if message in received else first_arrivals.get(message, {}).get(sa),
+                                            "" if fix_key == key else fix_key, also_moved))
     return out
 
 
@@ -416,7 +477,7 @@ class OrderFinding:
 
 def trust_findings(counters: Mapping, expected_sa: Mapping[str, int | None],
                    configured: Mapping[str, int] | None = None, oil_model: bool = False,
-                   stale_factor: float = 3.0) -> list[Finding]:
+                   stale_factor: float = 3.0, config_keys: Mapping[str, str] | None = None) -> list[Finding]:
     """The findings of a CAN run, most severe first: ``counters`` = ``SensorService.all_counters()``. The degraded
     share is a finding from DEGRADED_WARN_SHARE on (``oil_model``: the sensor models the oil by request, which is
     not degraded); foreign source addresses are findings when a message came only
@@ -434,7 +495,7 @@ def trust_findings(counters: Mapping, expected_sa: Mapping[str, int | None],
     degraded = degraded_finding(service.get("mode_steps", {}), stale, oil_model)
     degraded = dataclasses.replace(degraded, causes=tuple(c for c in causes if not c.startswith("coolant")))
     loud = degraded.severity >= Severity.WARNING
-    for f in foreign_findings(counters["decoder"], expected_sa, configured):
+    for f in foreign_findings(counters["decoder"], expected_sa, configured, config_keys):
         if loud or f.expected_frames == 0 or f.moved:
             out.append(f)
     if loud:

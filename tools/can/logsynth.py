@@ -153,21 +153,32 @@ class _Part(NamedTuple):
     order: int
 
 
+#: the group of _sources that sends each input message unless the config sets the message's own address
+MESSAGE_GROUPS = {"EEC1": "engine", "EC1": "engine", "ETC2": "transmission", "TRF1": "transmission",
+                  "ET1": "coolant", "AMB": "ambient", "CCVS1": "vehicle_speed", "ERC1": "retarder", "RC": "retarder"}
+
+
 def _sources(config) -> dict:
+    """Sender -> source address: the groups (engine, transmission, ..., rig) and each input message by name, from
+    the config's [can] keys and its [can.source_address] table (firmware_model.service.options.source_addresses)."""
+    from firmware_model.service.options import source_addresses
     src = {**DEFAULT_SOURCES, "rig": dbc.default_source(dbc.numbered_messages("RIG_TC_")[0])}
     can_cfg = getattr(config, "can", None) or {}
+    try:
+        per_message, _ = source_addresses(can_cfg)
+    except ParameterError as e:
+        raise ParameterError(f"config {e}") from None
     for key, name in (("engine_source_address", "engine"), ("transmission_source_address", "transmission"),
                       ("retarder_source_address", "retarder"), ("ambient_source_address", "ambient"),
                       ("vehicle_speed_source_address", "vehicle_speed"), ("coolant_source_address", "coolant")):
         if key in can_cfg:
-            value = can_cfg[key]
-            if isinstance(value, bool) or not isinstance(value, int) or not 0 <= value <= 253:
-                raise ParameterError(f"config can.{key} = {value!r} is not a J1939 source address 0..253")
-            src[name] = value
+            src[name] = can_cfg[key]
     for key, name in (("ambient_source_address", "ambient"), ("vehicle_speed_source_address", "vehicle_speed"),
                       ("coolant_source_address", "coolant")):
         if key not in can_cfg:
             src[name] = src["engine"]  # AMB, CCVS1 and ET1 come from the engine unless configured otherwise
+    for message, group in MESSAGE_GROUPS.items():
+        src[message] = per_message.get(message, src[group])
     return src
 
 
@@ -295,15 +306,15 @@ class _Synth:
         data[:, EEC1_DEMAND_BYTE0] = _put(data, "EEC1", "ActualEngPercentTorque", pct)
         speed_max_rpm = float(dbc.message("EEC1").get_signal_by_name("EngSpeed").maximum)
         _put(data, "EEC1", "EngSpeed", np.clip(self.at("engine_speed_rpm", t_s), 0.0, speed_max_rpm))
-        data[:, EEC1_CONTROLLER_SA_BYTE0] = self.src["engine"]
-        self.add("EEC1", _ORDER["EEC1"], t_s, dbc.message_id("EEC1", self.src["engine"]), data)
+        data[:, EEC1_CONTROLLER_SA_BYTE0] = self.src["EEC1"]
+        self.add("EEC1", _ORDER["EEC1"], t_s, dbc.message_id("EEC1", self.src["EEC1"]), data)
 
     def etc2(self) -> None:
         """ETC2: current gear (and the selected gear, equal)."""
         t_s = self.slots("ETC2")
         data = _empty(t_s.size)
         data[:, ETC2_SELECTED_GEAR_BYTE0] = _put(data, "ETC2", "TransCurrentGear", self.at("gear", t_s))
-        self.add("ETC2", _ORDER["ETC2"], t_s, dbc.message_id("ETC2", self.src["transmission"]), data)
+        self.add("ETC2", _ORDER["ETC2"], t_s, dbc.message_id("ETC2", self.src["ETC2"]), data)
 
     def trf1(self) -> None:
         """TRF1: oil temperature from the plant's sensor (oil_temp_c, else its sump T_oil_c), else the cycle's."""
@@ -321,20 +332,20 @@ class _Synth:
             _put(data, "TRF1", "TransOilTemp", oil_c)
             if self.inputs.has("oil_level_pct"):     # SPN 124, byte 2; else 0xFF (not available)
                 _put(data, "TRF1", "TransOilLevel", self.at("oil_level_pct", t_s))
-            self.add("TRF1", _ORDER["TRF1"], t_s, dbc.message_id("TRF1", self.src["transmission"]), data)
+            self.add("TRF1", _ORDER["TRF1"], t_s, dbc.message_id("TRF1", self.src["TRF1"]), data)
 
     def engine_1s(self) -> None:
         """ET1 coolant, AMB ambient, CCVS1 vehicle speed, each if the cycle has its column."""
-        for name, col, signal, source in (("ET1", "coolant_temp_c", "EngCoolantTemp", "coolant"),
-                                          ("AMB", "ambient_temp_c", "AmbientAirTemp", "ambient"),
-                                          ("CCVS1", "vehicle_speed_kmh", "WheelBasedVehicleSpeed", "vehicle_speed")):
+        for name, col, signal in (("ET1", "coolant_temp_c", "EngCoolantTemp"),
+                                  ("AMB", "ambient_temp_c", "AmbientAirTemp"),
+                                  ("CCVS1", "vehicle_speed_kmh", "WheelBasedVehicleSpeed")):
             if not self.inputs.has(col):
                 continue
             t_s = self.slots(name)
             x = self.at(col, t_s)
             data = _empty(t_s.size)
             _put(data, name, signal, np.clip(x, 0.0, None) if name == "CCVS1" else x)
-            self.add(name, _ORDER[name], t_s, dbc.message_id(name, self.src[source]), data)
+            self.add(name, _ORDER[name], t_s, dbc.message_id(name, self.src[name]), data)
 
     def erc1(self, retarder_ref_torque_nm: float) -> None:
         """ERC1: actual retarder percent torque; braking is negative in J1939."""
@@ -346,18 +357,18 @@ class _Synth:
         data = _empty(t_s.size)
         data[:, 0] = ERC1_TORQUE_MODE
         _put(data, "ERC1", "ActualRetarderPercentTorque", pct)
-        self.add("ERC1", _ORDER["ERC1"], t_s, dbc.message_id("ERC1", self.src["retarder"]), data)
+        self.add("ERC1", _ORDER["ERC1"], t_s, dbc.message_id("ERC1", self.src["ERC1"]), data)
 
     def ec1(self, ref_torque_nm: float) -> None:
         """EC1 by TP.BAM every 5 s: TP.CM BAM to global, then 6 TP.DT 50 ms apart; SPN 544 in bytes 20-21."""
         self.bam("EC1", EC1_PGN, EC1_SIZE_BYTES, EC1_PACKETS, EC1_REF_TORQUE_BYTE0, ref_torque_nm, _EC1_PHASE_S,
-                 self.src["engine"])
+                 self.src["EC1"])
 
     def rc(self, retarder_ref_torque_nm: float) -> None:
         """RC by TP.BAM every 5 s from the retarder, with ERC1 only: SPN 556 in bytes 17-18."""
         if self.inputs.has("retarder_torque_nm"):
             self.bam("RC", RC_PGN, RC_SIZE_BYTES, RC_PACKETS, RC_REF_TORQUE_BYTE0, retarder_ref_torque_nm,
-                     _RC_PHASE_S, self.src["retarder"])
+                     _RC_PHASE_S, self.src["RC"])
 
     def bam(self, name: str, pgn: int, size: int, packets: int, byte0: int, ref_torque_nm: float, phase_s: float,
             sa: int) -> None:

@@ -44,7 +44,11 @@ def add_subparser(sub):
                     "docs/interfaces.md section 3; component codes: docs/glossary.md.",
         examples=["gearbox-vsensor replay uphill.csv --out est.csv --plot est.png",
                   "gearbox-vsensor replay truck.blf --config truck.toml --out est.csv",
-                  "gearbox-vsensor replay uphill.csv --oil-mode model --out est_model_oil.csv"])
+                  "gearbox-vsensor replay uphill.csv --oil-mode model --out est_model_oil.csv"],
+        notes="\nA CAN log's source addresses come from --config [can] (docs/can.md): the group keys\n"
+              "(transmission_source_address sets ETC2 and TRF1 ...) and, per message, the table\n"
+              "[can.source_address] (EEC1 EC1 ETC2 TRF1 ET1 AMB CCVS1 ERC1 RC): on a truck that sends the gear\n"
+              "from 0x03 and the transmission oil from 0x21, write [can.source_address] TRF1 = 0x21.")
     p.usage = USAGE
     p.add_argument("input", metavar="LOG_OR_CSV", help="run table (.csv) or CAN log (.log .asc .blf .mf4 .trc)")
     p.add_argument("--config", metavar="TOML", help="project configuration (gearbox variant, cooler, [sensor], [can])")

@@ -25,7 +25,9 @@ def add_subparser(sub):
                   "gearbox-vsensor run --interface pcan --channel PCAN_USBBUS1 --bitrate 250000 --duration 3600"],
         notes="\nconfig [can] keys: sensor_source_address, engine_source_address, transmission_source_address,\n"
               "retarder_source_address, ambient_source_address, vehicle_speed_source_address,\n"
-              "coolant_source_address, engine_reference_torque_nm (used until EC1 "
+              "coolant_source_address, the [can.source_address] table (one message's address alone:\n"
+              "EEC1 EC1 ETC2 TRF1 ET1 AMB CCVS1 ERC1 RC, e.g. TRF1 = 0x21 where the oil comes from another node\n"
+              "than the gear), engine_reference_torque_nm (used until EC1 "
               "arrives),\nretarder_reference_torque_nm (used until RC arrives), gear_map, output_period_s, "
               "stale_factor, "
               "counter_log_period_s.\nWatch the outputs: python -m cantools monitor -c vcan0 "

@@ -8,11 +8,11 @@ the oil temperature: per log the median of the valid readings, which a sloshing 
 scatters by a few percent frame to frame but barely moves.
 
 What counts as a reading: a 29-bit data frame with a finite time and 8 data bytes (DLC 8) of PGN 65272 from the
-configured transmission source address (``[can] transmission_source_address``, as for the oil temperature), byte 2
-at most 250 (0xFA), and the level's measurement status (SPN 3026, byte 8 bits 5-8) 0 "conditions valid" or 15 "not
-available" (a sender without it). J1939 "error" (0xFE), "not available" (0xFF) and the reserved 0xFB-0xFD are not
-readings, nor is a level whose status says the conditions were not valid. A log without a reading has a NaN level
-and 0 readings: the level is then not known, which is not the same as low.
+configured TRF1 source address (``[can.source_address] TRF1``, else ``[can] transmission_source_address``, as for the
+oil temperature), byte 2 at most 250 (0xFA), and the level's measurement status (SPN 3026, byte 8 bits 5-8) 0
+"conditions valid" or 15 "not available" (a sender without it). J1939 "error" (0xFE), "not available" (0xFF) and the
+reserved 0xFB-0xFD are not readings, nor is a level whose status says the conditions were not valid. A log without a
+reading has a NaN level and 0 readings: the level is then not known, which is not the same as low.
 """
 from __future__ import annotations
 
