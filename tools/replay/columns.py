@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import gc
 import os
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -40,29 +40,47 @@ _DIGIT[48:58] = np.arange(10, dtype=np.uint8)
 
 
 class ColumnRead(NamedTuple):
-    """The frames of a log and which reader produced them ("numpy candump" or "python-can")."""
+    """The frames of a log, which reader produced them ("numpy candump" or "python-can") and, read without
+    ``strict``, what was skipped (tools.replay.lines.LogDamage; None when read strictly)."""
     columns: FrameColumns
     reader: str
+    damage: Any = None
 
 
-def read_columns(path: str | os.PathLike) -> ColumnRead:
-    """The frames of a CAN log (checked by ``tools.replay.log.check_log``) as columns."""
+def read_columns(path: str | os.PathLike, strict: bool = True, damage=None) -> ColumnRead:
+    """The frames of a CAN log (checked by ``tools.replay.log.check_log``) as columns. ``strict`` False: the log
+    without its malformed lines (``damage``: ``tools.replay.lines.scan_log``'s, found here when not given), counted
+    in ``ColumnRead.damage``; True: a malformed line or a cut log is an InputError."""
+    from tools.replay.lines import LogDamage, scan_log
     p = check_log(path)
-    cut = truncation(p)
-    if cut:                           # the fast parsers would read a cut last line as a short frame
-        raise InputError(f"{p}: {cut}")
-    if p.suffix.lower() == ".log":
-        try:
-            cols = parse_candump(p.read_bytes())
-        except MixedChannels as mixed:
-            raise InputError(mixed_channels(p, mixed.channels)) from None
-        if cols is not None:
-            return ColumnRead(cols, "numpy candump")
-    if p.suffix.lower() == ".mf4":
+    if strict:
+        cut = truncation(p)
+        if cut:                           # the fast parsers would read a cut last line as a short frame
+            raise InputError(f"{p}: {cut}")
+    suffix = p.suffix.lower()
+    raw = p.read_bytes() if suffix == ".log" and (damage is None or damage.clean is None) else None
+    if raw is not None and (raw.endswith(b"\n") or not raw):
+        cols = _candump(p, raw)
+        if cols is not None:              # every line read: nothing skipped
+            return ColumnRead(cols, "numpy candump", None if strict else LogDamage(lines=len(cols)))
+    if not strict:
+        damage = damage if damage is not None else scan_log(p, raw)
+        if suffix == ".log" and damage.clean is not None:
+            cols = _candump(p, damage.clean)
+            if cols is not None:
+                return ColumnRead(cols, "numpy candump", damage)
+    if suffix == ".mf4":
         cols = read_mf4(p)
         if cols is not None:
-            return ColumnRead(cols, "asammdf columns")
-    return ColumnRead(FrameColumns.from_messages(read_log(p)), "python-can")
+            return ColumnRead(cols, "asammdf columns", damage)
+    return ColumnRead(FrameColumns.from_messages(read_log(p, strict, damage)), "python-can", damage)
+
+
+def _candump(p, raw: bytes) -> FrameColumns | None:
+    try:
+        return parse_candump(raw)
+    except MixedChannels as mixed:
+        raise InputError(mixed_channels(p, mixed.channels)) from None
 
 
 class _Lines(NamedTuple):
