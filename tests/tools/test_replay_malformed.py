@@ -40,7 +40,8 @@ def _both_paths(path):
     """The whole-log path and the frame-by-frame path: their tables, counters and malformed findings."""
     got = []
     for columnar in (True, False):
-        t = replay_log(path, build_service(None, record=True, emit_frames=False, log_findings=False), columnar=columnar, processes=None if columnar else 1)
+        service = build_service(None, record=True, emit_frames=False, log_findings=False)
+        t = replay_log(path, service, columnar=columnar, processes=None if columnar else 1)
         got.append(t)
     a, b = got
     for c in a.columns:
@@ -131,7 +132,7 @@ def test_a_burst_that_leaves_a_primary_input_stale_is_untrusted(tmp_path, drive,
 
 def test_a_cut_blf_keeps_its_frames_and_says_so(tmp_path, drive, capsys):
     import can
-    from tools.replay.lines import scan_log
+    from tools.replay.columns import scan_log
     src = _write(tmp_path / "drive.log", drive)
     with can.Logger(tmp_path / "drive.blf") as w:
         for m in can.LogReader(src):

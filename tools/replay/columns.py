@@ -25,6 +25,7 @@ import numpy as np
 from can_dbc.columnar import FLAG_ERROR, FLAG_EXTENDED, FLAG_FD, FLAG_REMOTE, FrameColumns
 from firmware_model.errors import InputError
 from tools.replay.formats import check_log, mixed_channels, quiet_reader_teardown, read_log, truncation
+from tools.replay.lines import TEXT_READERS, LogDamage, scan_text_log
 
 #: linux/can/error.h, as python-can's candump reader uses them
 _CAN_ERR_FLAG = 0x20000000
@@ -49,9 +50,8 @@ class ColumnRead(NamedTuple):
 
 def read_columns(path: str | os.PathLike, strict: bool = True, damage=None) -> ColumnRead:
     """The frames of a CAN log (checked by ``tools.replay.log.check_log``) as columns. ``strict`` False: the log
-    without its malformed lines (``damage``: ``tools.replay.lines.scan_log``'s, found here when not given), counted
+    without its malformed lines (``damage``: :func:`scan_log`'s, found here when not given), counted
     in ``ColumnRead.damage``; True: a malformed line or a cut log is an InputError."""
-    from tools.replay.lines import LogDamage, scan_log
     p = check_log(path)
     if strict:
         cut = truncation(p)
@@ -73,7 +73,16 @@ def read_columns(path: str | os.PathLike, strict: bool = True, damage=None) -> C
         cols = read_mf4(p)
         if cols is not None:
             return ColumnRead(cols, "asammdf columns", damage)
-    return ColumnRead(FrameColumns.from_messages(read_log(p, strict, damage)), "python-can", damage)
+    return ColumnRead(FrameColumns.from_messages(read_log(p, None if strict else damage)), "python-can", damage)
+
+
+def scan_log(path: Path, raw: bytes | None = None) -> LogDamage:
+    """What reading ``path`` without ``--strict`` skips: the malformed lines of a text log, or the cut of a BLF log
+    shorter than its header records (python-can reads it up to the cut); nothing for the other formats (their
+    library reads the file whole or refuses it in one sentence)."""
+    if path.suffix.lower() in TEXT_READERS:
+        return scan_text_log(path, raw)
+    return LogDamage(note=truncation(path) or "")
 
 
 def _candump(p, raw: bytes) -> FrameColumns | None:

@@ -92,19 +92,17 @@ def quiet_reader_teardown():
         sys.unraisablehook = previous
 
 
-def read_log(path: str | os.PathLike, strict: bool = True, damage=None) -> Iterator:
-    """The frames of a CAN log in file order (``can.Message``); problems raise InputError naming the file.
-    ``strict`` False: the log without its malformed lines (``damage``, tools.replay.lines.LogDamage: from
-    ``scan_log`` when not given), a BLF log up to its cut."""
+def read_log(path: str | os.PathLike, damage=None) -> Iterator:
+    """The frames of a CAN log in file order (``can.Message``); problems raise InputError naming the file, a
+    malformed line or a cut log among them. ``damage`` (tools.replay.lines.LogDamage, from
+    ``tools.replay.columns.scan_log``): the log without its malformed lines instead, a BLF log up to its cut."""
     import can
     p = check_log(path)
+    strict = damage is None
     if strict:
         cut = truncation(p)
         if cut:
             raise InputError(f"{p}: {cut}")
-    elif damage is None:
-        from tools.replay.lines import scan_log
-        damage = scan_log(p)
     failure = None
     with quiet_reader_teardown():
         try:

@@ -227,12 +227,3 @@ def damage_finding(damage: LogDamage | None, cols=None, stale_factor: float = 3.
     return MalformedLinesFinding(damage.lines, damage.skipped, tuple(int(n) for n in damage.bad[:SHOWN_LINES]),
                                  damage.cut_last, broken, damage.note)
 
-
-def scan_log(path: Path, raw: bytes | None = None) -> LogDamage:
-    """What reading ``path`` without ``--strict`` skips: the malformed lines of a text log, or the cut of a BLF log
-    shorter than its header records (python-can reads it up to the cut); nothing for the other formats (their
-    library reads the file whole or refuses it in one sentence)."""
-    from tools.replay.formats import truncation
-    if path.suffix.lower() in TEXT_READERS:
-        return scan_text_log(path, raw)
-    return LogDamage(note=truncation(path) or "")

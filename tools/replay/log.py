@@ -22,7 +22,7 @@ from typing import Any, NamedTuple
 from firmware_model.errors import InputError
 from tools.outputs import naming
 from tools.replay.formats import LOG_SUFFIXES, check_log, is_can_log, read_log  # noqa: F401 (re-exported)
-from tools.replay.lines import damage_finding, scan_log
+from tools.replay.lines import damage_finding
 from tools.replay.pipeline import PIPELINE_MIN_BYTES, feed_pipelined, pipeline_available
 
 #: CAN log suffixes read by python-can's LogReader
@@ -90,6 +90,7 @@ def replay_log(path: str | os.PathLike, sensor_or_service, *, config=None, optio
     else:
         service = SensorService(sensor_or_service, options or ServiceOptions.from_config(config), record=True,
                                 emit_frames=on_frames is not None)
+    from tools.replay.columns import read_columns, scan_log
     reader, kept = "python-can", None
     if strict:              # the first malformed line named, as the line scan finds it in both paths
         first = scan_log(check_log(path))
@@ -100,18 +101,17 @@ def replay_log(path: str | os.PathLike, sensor_or_service, *, config=None, optio
     else:
         damage = None if strict else scan_log(check_log(path))
         if _processes(path, service, on_frames, processes) == 2:
-            feed_pipelined(read_log(path, strict, damage), service)
+            feed_pipelined(read_log(path, damage), service)
         else:
             feed = service.feed
-            for msg in read_log(path, strict, damage):
+            for msg in read_log(path, damage):
                 frames = feed(msg)
                 if frames and on_frames is not None:
                     on_frames(frames)
     if reader == "python-can":
         columns = service.recorded()
     if damage is not None and kept is None and damage.skipped > int(damage.cut_last):
-        from tools.replay.columns import read_columns     # the frames kept, for the sequences the lines broke
-        kept = read_columns(path, False, damage).columns
+        kept = read_columns(path, False, damage).columns     # the frames kept, for the sequences the lines broke
     malformed = damage_finding(damage, kept, service.options.stale_factor)
     if not len(columns["time_s"]):
         raise InputError(_no_step_reason(path, service.decoder.counters)
