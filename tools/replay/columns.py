@@ -80,7 +80,16 @@ def scan_log(path: Path, raw: bytes | None = None) -> LogDamage:
     """What reading ``path`` without ``--strict`` skips: the malformed lines of a text log, or the cut of a BLF log
     shorter than its header records (python-can reads it up to the cut); nothing for the other formats (their
     library reads the file whole or refuses it in one sentence)."""
-    if path.suffix.lower() in TEXT_READERS:
+    suffix = path.suffix.lower()
+    if suffix == ".log":
+        raw = path.read_bytes() if raw is None else raw
+        try:
+            whole = parse_candump(raw) if raw.endswith(b"\n") else None
+        except MixedChannels:      # the reader says so
+            whole = None
+        if whole is not None:      # every line read by the fast parser: none malformed, no line-by-line check
+            return LogDamage(lines=len(whole))
+    if suffix in TEXT_READERS:
         return scan_text_log(path, raw)
     return LogDamage(note=truncation(path) or "")
 

@@ -3,7 +3,8 @@
 A line is malformed when python-can's reader for the format cannot read it as a frame (candump -L: a line that is
 not ``(time) interface ID#DATA``; every format: a last line without its newline, cut short as by a logger unplugged
 mid-write, even where the cut line would still parse as a shorter frame). Both replay paths read the same log without
-those lines (:class:`LogDamage` ``.clean``), so they keep the same frames and give the same counts.
+those lines (:class:`LogDamage` ``.clean``, found by ``tools.replay.columns.scan_log``), so they keep the same frames
+and give the same counts.
 
 :func:`damage_finding` says how many were skipped and where, and whether the outputs can still be trusted: not when
 more than ``MALFORMED_UNTRUSTED_SHARE`` of the lines are malformed, or when a malformed line breaks a frame sequence
@@ -142,7 +143,8 @@ def broken_sequences(damage: LogDamage, cols, stale_factor: float) -> list[str]:
     for c in ec1.tolist():
         n, later = int(data[c, 3]), cm[(cm > c) & (sa[cm] == sa[c])]
         end = int(later[0]) if later.size else len(cols)
-        end = min(end, int(np.searchsorted(t, t[c] + TP_T1_S * (n + 1), side="right")) if t[c] <= t[-1] else end)
+        late = np.flatnonzero(t[c + 1:end] > t[c] + TP_T1_S * (n + 1))    # (frame time, not file order: robust)
+        end = c + 1 + int(late[0]) if late.size else end
         dt = c + 1 + np.flatnonzero((pgn[c + 1:end] == TP_DT_PGN) & (sa[c + 1:end] == sa[c]))
         lost = np.flatnonzero((mid > c) & (mid <= end))
         if lost.size and not set(range(1, n + 1)) <= set(data[dt, 0].tolist()):
@@ -157,7 +159,8 @@ def broken_sequences(damage: LogDamage, cols, stale_factor: float) -> list[str]:
         inside = (pos > 0) & (pos < idx.size)
         gaps, counts = np.unique(pos[inside], return_counts=True)
         span = t[idx[gaps]] - t[idx[gaps - 1]]
-        missing = np.rint(span / float(np.median(np.diff(t[idx])))) - 1
+        with np.errstate(divide="ignore", invalid="ignore"):     # a period of 0 or NaN: no frame counted missing
+            missing = np.rint(span / float(np.median(np.diff(t[idx])))) - 1
         hit = np.flatnonzero((span > stale_factor * NOMINAL_PERIOD_S[name]) & (missing >= 1) & (counts >= missing))
         if hit.size:
             first = int(damage.bad[np.flatnonzero(inside & (pos == gaps[hit[0]]))[0]])
