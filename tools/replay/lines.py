@@ -65,7 +65,8 @@ class LogDamage:
             return (f"{path}: the log ends in the middle of a line (line {n}: truncated, or still being written; "
                     f"without --strict it is skipped and counted)")
         if any((ord(ch) < 32 and ch not in "\t\r") or ch == "\ufffd" for ch in self.first_text):
-            return f"{path}: line {n} holds binary data; this is not a candump -L text log"
+            return (f"{path}: line {n} holds binary data: noise in the log, or not a candump -L text log (without "
+                    f"--strict such lines are skipped and counted)")
         return (f"{path}: line {n} is not a candump -L frame '(time) interface ID#DATA': {self.first_text!r} "
                 f"(without --strict such lines are skipped and counted)")
 
