@@ -12,7 +12,9 @@
 - ``.asc`` and ``.blf``: python-can's ``LogReader`` into columns (no columnar reader exists for them: the same
   frames, at python-can's speed).
 
-:func:`read_columns` says which reader ran (``ColumnRead.reader``).
+:func:`read_columns` says which reader ran (``ColumnRead.reader``). Read without ``strict`` (what ``replay`` does),
+the log's malformed lines and a cut last line are left out first (:func:`scan_log`, tools/replay/lines.py) and
+counted in ``ColumnRead.damage``; the readers above then read what is left.
 """
 from __future__ import annotations
 
