@@ -165,6 +165,8 @@ def test_bad_logs_land_in_the_errors_table_and_reruns_skip(tmp_path, synthetic):
     shutil.copy(good, logs / "good.log")
     raw = good.read_bytes()
     (logs / "truncated.log").write_bytes(raw[:len(raw) // 2 - 7])
+    lines = raw.split(b"\n")      # a log with 2 % garbage lines: summarised, untrusted, as `replay` says
+    (logs / "garbled.log").write_bytes(b"\n".join(b"#garbage" if k % 50 == 7 else x for k, x in enumerate(lines)))
     (logs / "empty.log").write_bytes(b"")
     (logs / "notes.txt").write_text("not a log\n")
     (logs / "picture.log").write_bytes(bytes(range(256)) * 8)
@@ -177,15 +179,24 @@ def test_bad_logs_land_in_the_errors_table_and_reruns_skip(tmp_path, synthetic):
     args = [str(logs), str(logs / "notes.txt"), "--out", str(out), "--workers", "1"]
     fleet(*args)
     errors = {Path(r["log"]).name: r["reason"] for r in read_table(out, ERRORS).to_pylist()}
-    assert set(errors) == {"empty.log", "notes.txt", "picture.log", "truncated.log", "packed.log.gz"}
+    assert set(errors) == {"empty.log", "notes.txt", "picture.log", "packed.log.gz"}
     assert "gzip-compressed" in errors["packed.log.gz"]
     assert "empty" in errors["empty.log"] and "unknown log suffix" in errors["notes.txt"]
-    assert "binary data" in errors["picture.log"] and "truncated" in errors["truncated.log"]
+    assert "binary data" in errors["picture.log"]
     rows = {Path(r["log"]).name: r for r in read_table(out).to_pylist()}
-    assert set(rows) == {"good.log", "nogear.log"}
+    # a log cut mid-line (a logger unplugged): summarised without its cut last line, counted, still trusted
+    assert set(rows) == {"good.log", "nogear.log", "truncated.log", "garbled.log"}
+    garbled = rows["garbled.log"]
+    assert not garbled["trusted"] and garbled["malformed_first_lines"] == "8, 58, 108, 158, 208"
+    assert garbled["malformed_lines"] == sum(1 for k in range(len(lines)) if k % 50 == 7)
+    assert "malformed lines skipped (lines 8, 58, 108, 158, 208 and" in garbled["trust_warnings"]
+    cut_line = raw[:len(raw) // 2 - 7].count(b"\n") + 1
+    assert rows["truncated.log"]["malformed_lines"] == 1 and rows["good.log"]["malformed_lines"] == 0
+    assert rows["truncated.log"]["malformed_first_lines"] == str(cut_line) and rows["truncated.log"]["trusted"]
     assert rows["good.log"]["trusted"] and not rows["nogear.log"]["trusted"] and rows["nogear.log"]["trust_warnings"]
     report = (out / "report.md").read_text()
-    assert "should not be trusted (1," in report and "| nogear.log |" in report
+    assert "should not be trusted (2," in report and "| nogear.log |" in report and "| garbled.log |" in report
+    assert "Logs with malformed lines skipped (2)" in report and f"| truncated.log | 1 | {cut_line} |" in report
     summary_files = sorted(str(p) for p in (out / "summary").rglob("*.parquet"))
     fleet(*args)             # a re-run: the summarised logs are not redone, the failed ones tried again, once each
     assert sorted(str(p) for p in (out / "summary").rglob("*.parquet")) == summary_files

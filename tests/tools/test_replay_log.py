@@ -36,8 +36,9 @@ def frames():
     return inp, synth_frames(inp, plant(inp)).frames
 
 
-def replay(path):
-    return replay_log(path, SensorService(make_sensor(), ServiceOptions(configured_ref_torque_nm=None), record=True))
+def replay(path, **kw):
+    return replay_log(path, SensorService(make_sensor(), ServiceOptions(configured_ref_torque_nm=None), record=True),
+                      **kw)
 
 
 def test_replay_table_has_the_contract_columns_and_the_decoded_inputs(tmp_path, frames):
@@ -134,7 +135,9 @@ def test_errors_name_the_file_and_the_rule(tmp_path, monkeypatch):
     with pytest.raises(InputError, match="cut.log: the log ends in the middle of a line"):
         list(read_log(tmp_path / "cut.log"))
     with pytest.raises(InputError, match="cut.log: the log ends in the middle of a line"):
-        replay(tmp_path / "cut.log")                          # the fast candump parser too
+        replay(tmp_path / "cut.log", strict=True)             # the fast candump parser too
+    with pytest.raises(InputError, match=r"no sensor step.*\(1 malformed line skipped \(line 2, the last, cut"):
+        replay(tmp_path / "cut.log")                          # without strict: skipped, and said
     import can
     with can.BLFWriter(tmp_path / "whole.blf") as w:
         for i in range(3000):
@@ -276,7 +279,7 @@ def test_a_line_that_is_no_frame_is_named(tmp_path):
     log = tmp_path / "mixed.log"
     log.write_text("(1.000000) can0 18FEF100#0011223344556677\n(1.100000) can0 garbage\n")
     with pytest.raises(InputError, match=r"line 2 is not a candump -L frame .*'\(1\.100000\) can0 garbage'"):
-        replay(log)
+        replay(log, strict=True)
 
 
 def test_a_log_with_a_byte_order_mark_is_one_sentence(tmp_path, frames):
@@ -323,4 +326,8 @@ def test_a_trc_cut_mid_line_is_refused(tmp_path, frames):
     raw = (tmp_path / "drive.trc").read_bytes()
     (tmp_path / "cut.trc").write_bytes(raw[:-7])
     with pytest.raises(InputError, match="cut.trc: the log ends in the middle of a line"):
-        replay(tmp_path / "cut.trc")
+        replay(tmp_path / "cut.trc", strict=True)
+    cut = replay(tmp_path / "cut.trc")        # without strict: the cut line skipped, the frames before it kept
+    whole = replay(tmp_path / "drive.trc")
+    assert cut.meta["malformed"].summary.startswith("1 malformed line skipped (line ")
+    assert cut.meta["counters"]["decoder"]["frames_seen"] == whole.meta["counters"]["decoder"]["frames_seen"] - 1

@@ -21,11 +21,11 @@ from tools.can.bus import add_bus_options, can_subcommand
 USAGE = ("%(prog)s CSV --out EST.csv [--config TOML] [--variant {GRS905,GRSO905}] [--plot PNG]\n"
          "                              [--oil-mode {measured,model}]\n"
          "                              [--initial-temp DEGC] [--core {auto,c,numpy}] [--allow-untrusted] [--quiet]\n"
-         "       %(prog)s LOG --out EST.csv [those options] [--processes {1,2}] [--frames-out OUT.log]\n"
+         "       %(prog)s LOG --out EST.csv [those options] [--processes {1,2}] [--frames-out OUT.log] [--strict]\n"
          "       %(prog)s LOG --realtime --interface NAME --channel NAME [--bitrate BIT_S] [--speed X] [--quiet]")
 #: options per mode, by argparse dest: those of the offline replay, those of CAN logs offline, those of --realtime
 OFFLINE_OPTIONS = ("out", "plot", "config", "variant", "oil_mode", "initial_temp", "core", "allow_untrusted")
-LOG_OPTIONS = ("processes", "frames_out")
+LOG_OPTIONS = ("processes", "frames_out", "strict")
 REALTIME_OPTIONS = ("realtime", "interface", "channel", "bitrate", "speed")
 
 
@@ -67,8 +67,9 @@ def add_subparser(sub):
                                                          "trusted are still printed)")
     p.add_argument("--allow-untrusted", action="store_true",
                    help="exit 0 even when the outputs should not be trusted: the sensor degraded on more than half "
-                        "of the steps, a suspect time base, or a needed message only from unexpected source "
-                        "addresses (default: warn on stderr and exit 3, outputs written)")
+                        "of the steps, a suspect time base, a needed message only from unexpected source "
+                        "addresses, or a log's malformed lines (over 1 %% of them, or one breaking a frame sequence "
+                        "the step needs) (default: warn on stderr and exit 3, outputs written)")
     _add_log_options(p)
     p.set_defaults(func=run)
     return p
@@ -90,6 +91,10 @@ def _add_log_options(p: argparse.ArgumentParser) -> None:
                         "for logs of 2 MB or more when the machine has 2+ cores and no --frames-out")
     g.add_argument("--frames-out", metavar="OUT.log",
                    help="also write the frames the sensor would send (GBX_*, DM1) as a CAN log")
+    g.add_argument("--strict", action="store_true",
+                   help="offline: refuse a log with a malformed line or a cut last line, naming the first (default: "
+                        "skip them, count them in the summary; more than 1 %% of the lines, or one that breaks a frame "
+                        "sequence the step needs, makes the outputs untrusted: docs/can.md)")
 
 
 def _sensor_options(args) -> dict:
@@ -200,7 +205,7 @@ def _run_log(args, path: Path) -> int:
     with outputs(("--out", args.out), ("--frames-out", args.frames_out), ("--plot", figure_path(args.plot))) as tmp:
         out_tmp, frames_tmp, plot_tmp = tmp
         result = replay_log_file(path, out_tmp, config_path=_config(args), sensor_options=_sensor_options(args),
-                                 frames_out=frames_tmp, processes=args.processes)
+                                 frames_out=frames_tmp, processes=args.processes, strict=args.strict)
         if plot_tmp:
             from tools.replay.plot import plot_replay
             with naming(plot_tmp):
@@ -211,6 +216,9 @@ def _run_log(args, path: Path) -> int:
     if not args.quiet:
         print(f"replayed {d['frames_seen']} frames ({d['frames_used']} used; rejected: {rejected}) -> "
               f"{table.n} steps of {table['time_s'][-1]:.1f} s -> {Path(args.out)}")
+        malformed = table.meta.get("malformed")
+        if malformed is not None:
+            print(malformed.summary)
         jumps = result.service_counters["time_jumps"]
         if jumps:
             print(f"note: {jumps} time jump{'s' if jumps > 1 else ''} in the log (the warnings above say where)")

@@ -69,7 +69,7 @@ def log_level(cols: FrameColumns, source_address: int | None) -> LogLevel:
 def read_log_level(path: str | os.PathLike, source_address: int | None) -> LogLevel:
     """:func:`log_level` of a CAN log file (any format ``replay`` reads)."""
     from tools.replay.columns import read_columns
-    return log_level(read_columns(path).columns, source_address)
+    return log_level(read_columns(path, strict=False).columns, source_address)   # as the replay read it
 
 
 __all__ = ["LEVEL_MESSAGE", "LEVEL_SIGNAL", "MIN_READINGS", "STATUS_ACCEPTED", "STATUS_SIGNAL", "LogLevel",

@@ -119,6 +119,23 @@ def _gone(c: dict, lines: list) -> None:
     lines += [f"| {_cell(x)} |" for x in gone[:50]] + [""]
 
 
+def _malformed(c: dict, lines: list) -> None:
+    """The logs whose malformed lines were skipped (tools/replay/lines.py): how many and the first line numbers."""
+    counts = [int(n or 0) for n in c.get("malformed_lines", [0] * len(c["log"]))]
+    hit = [i for i, n in enumerate(counts) if n]
+    if not hit:
+        return
+    lines += [f"## Logs with malformed lines skipped ({len(hit)})", "",
+              "Lines no reader could read (garbage, a last line cut by a logger unplugged): skipped and counted; more "
+              "than 1 % of a log's lines, or one that broke a frame sequence the step needs, makes it untrusted.", "",
+              "| vehicle | log | lines skipped | first lines |", "|---|---|---|---|"]
+    lines += [f"| {_cell(c['vehicle'][i])} | {_cell(os.path.basename(c['log'][i]))} | {counts[i]} | "
+              f"{_cell(c['malformed_first_lines'][i])} |" for i in hit[:50]]
+    if len(hit) > 50:
+        lines.append(f"\n... and {len(hit) - 50} more (the summary's column malformed_lines)")
+    lines.append("")
+
+
 def _trusted_only(c: dict, lines: list) -> dict:
     """The summary's columns without the logs `replay` would call untrusted (exit status 3), which are listed
     instead: their peaks are no gearbox's (a log without gearbox messages peaks at its start temperature)."""
@@ -276,6 +293,7 @@ def write_report(out: str | os.PathLike) -> Path:
                   f"{sum(sum(c[k]) for k in c if k.startswith('rejected_'))} of {sum(c['frames'])}.", ""]
         _duplicates(c, lines)
         _gone(c, lines)
+        _malformed(c, lines)
         c = _trusted_only(c, lines)
         if c["log"]:
             _hottest(c, lines)

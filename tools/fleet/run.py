@@ -21,7 +21,6 @@ from typing import NamedTuple
 
 from firmware_model.errors import InputError
 from tools.fleet.manifest import LogEntry, vehicle_config
-from tools.replay.formats import ends_mid_line
 from tools.fleet.store import ESTIMATES, LOG_BYTES, LOG_MTIME, REPLAYED, FleetStore, log_stamp, partition_dir
 
 #: logs per task at most; a small fleet gets about TASKS_PER_WORKER tasks per worker
@@ -84,15 +83,13 @@ def _oil_level(path: Path, options) -> dict:
 
 
 def _check_complete(path: Path) -> None:
-    """InputError for an empty log, or a text log whose last line is cut (a truncated copy, a log still being
-    written): a fleet summarises whole logs only."""
+    """InputError for an empty log. A text log whose last line is cut (a logger unplugged, a log still being
+    written: a re-run replays it again once it changed) is summarised without that line, counted in its row."""
     if not path.is_file():
         return
     size = path.stat().st_size
     if size == 0:
         raise InputError(f"{path}: the log file is empty")
-    if ends_mid_line(path):
-        raise InputError(f"{path}: the log ends in the middle of a line (truncated, or still being written)")
 
 
 def process_log(entry: LogEntry, out: str | None = None, estimates: bool = False,
@@ -102,7 +99,7 @@ def process_log(entry: LogEntry, out: str | None = None, estimates: bool = False
     from firmware_model.service import SensorService
     from firmware_model.service.degraded import Severity, untrusted
     from tools.fleet.summary import asc_date, summarize
-    from tools.replay.log import replay_log
+    from tools.replay.log import replay_log, with_malformed
     base = {"vehicle": entry.vehicle, "log": os.fspath(entry.log), "log_key": entry.key}
     stage = "sensor"
     stamp = log_stamp(entry.log)          # before reading: a log that grows while it is read is replayed again
@@ -118,7 +115,9 @@ def process_log(entry: LogEntry, out: str | None = None, estimates: bool = False
                         key=entry.key, date=date,
                         oil_model=getattr(sensor.options, "oil_mode", "measured") == "model")
         # the verdict `replay` gives this log (exit status 3): its warnings, and whether they make it untrusted
-        findings = service.findings()
+        malformed = table.meta.get("malformed")
+        findings = with_malformed(service.findings(), malformed)
+        row.update(malformed_columns(malformed))
         row["variant"] = gearbox_of(entry.variant, entry.config)
         row[LOG_BYTES], row[LOG_MTIME] = stamp if stamp is not None else (None, None)
         row[REPLAYED] = time.time()
@@ -140,6 +139,15 @@ def process_log(entry: LogEntry, out: str | None = None, estimates: bool = False
         return "error", {**base, "stage": stage, "reason": str(exc)}
     except Exception as exc:   # a bug must not stop a fleet: the reason names it
         return "error", {**base, "stage": stage, "reason": f"{type(exc).__name__}: {exc}"}
+
+
+def malformed_columns(malformed) -> dict:
+    """A summary row's record of the malformed lines skipped in its log (tools/replay/lines.py): how many, the
+    first line numbers ("1045, 20871"), and the sentence."""
+    if malformed is None:
+        return {"malformed_lines": 0, "malformed_first_lines": "", "malformed": ""}
+    return {"malformed_lines": malformed.skipped, "malformed_first_lines": ", ".join(map(str, malformed.first)),
+            "malformed": malformed.summary}
 
 
 def process_batch(entries: list[LogEntry], out: str | None = None, estimates: bool = False,

@@ -12,19 +12,22 @@
 - ``.asc`` and ``.blf``: python-can's ``LogReader`` into columns (no columnar reader exists for them: the same
   frames, at python-can's speed).
 
-:func:`read_columns` says which reader ran (``ColumnRead.reader``).
+:func:`read_columns` says which reader ran (``ColumnRead.reader``). Read without ``strict`` (what ``replay`` does),
+the log's malformed lines and a cut last line are left out first (:func:`scan_log`, tools/replay/lines.py) and
+counted in ``ColumnRead.damage``; the readers above then read what is left.
 """
 from __future__ import annotations
 
 import gc
 import os
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 
 from can_dbc.columnar import FLAG_ERROR, FLAG_EXTENDED, FLAG_FD, FLAG_REMOTE, FrameColumns
 from firmware_model.errors import InputError
 from tools.replay.formats import check_log, mixed_channels, quiet_reader_teardown, read_log, truncation
+from tools.replay.lines import TEXT_READERS, LogDamage, scan_text_log
 
 #: linux/can/error.h, as python-can's candump reader uses them
 _CAN_ERR_FLAG = 0x20000000
@@ -40,29 +43,64 @@ _DIGIT[48:58] = np.arange(10, dtype=np.uint8)
 
 
 class ColumnRead(NamedTuple):
-    """The frames of a log and which reader produced them ("numpy candump" or "python-can")."""
+    """The frames of a log, which reader produced them ("numpy candump" or "python-can") and, read without
+    ``strict``, what was skipped (tools.replay.lines.LogDamage; None when read strictly)."""
     columns: FrameColumns
     reader: str
+    damage: Any = None
 
 
-def read_columns(path: str | os.PathLike) -> ColumnRead:
-    """The frames of a CAN log (checked by ``tools.replay.log.check_log``) as columns."""
+def read_columns(path: str | os.PathLike, strict: bool = True, damage=None) -> ColumnRead:
+    """The frames of a CAN log (checked by ``tools.replay.log.check_log``) as columns. ``strict`` False: the log
+    without its malformed lines (``damage``: :func:`scan_log`'s, found here when not given), counted
+    in ``ColumnRead.damage``; True: a malformed line or a cut log is an InputError."""
     p = check_log(path)
-    cut = truncation(p)
-    if cut:                           # the fast parsers would read a cut last line as a short frame
-        raise InputError(f"{p}: {cut}")
-    if p.suffix.lower() == ".log":
-        try:
-            cols = parse_candump(p.read_bytes())
-        except MixedChannels as mixed:
-            raise InputError(mixed_channels(p, mixed.channels)) from None
-        if cols is not None:
-            return ColumnRead(cols, "numpy candump")
-    if p.suffix.lower() == ".mf4":
+    if strict:
+        cut = truncation(p)
+        if cut:                           # the fast parsers would read a cut last line as a short frame
+            raise InputError(f"{p}: {cut}")
+    suffix = p.suffix.lower()
+    raw = p.read_bytes() if suffix == ".log" and (damage is None or damage.clean is None) else None
+    if raw is not None and (raw.endswith(b"\n") or not raw):
+        cols = _candump(p, raw)
+        if cols is not None:              # every line read: nothing skipped
+            return ColumnRead(cols, "numpy candump", None if strict else LogDamage(lines=len(cols)))
+    if not strict:
+        damage = damage if damage is not None else scan_log(p, raw)
+        if suffix == ".log" and damage.clean is not None:
+            cols = _candump(p, damage.clean)
+            if cols is not None:
+                return ColumnRead(cols, "numpy candump", damage)
+    if suffix == ".mf4":
         cols = read_mf4(p)
         if cols is not None:
-            return ColumnRead(cols, "asammdf columns")
-    return ColumnRead(FrameColumns.from_messages(read_log(p)), "python-can")
+            return ColumnRead(cols, "asammdf columns", damage)
+    return ColumnRead(FrameColumns.from_messages(read_log(p, None if strict else damage)), "python-can", damage)
+
+
+def scan_log(path: Path, raw: bytes | None = None) -> LogDamage:
+    """What reading ``path`` without ``--strict`` skips: the malformed lines of a text log, or the cut of a BLF log
+    shorter than its header records (python-can reads it up to the cut); nothing for the other formats (their
+    library reads the file whole or refuses it in one sentence)."""
+    suffix = path.suffix.lower()
+    if suffix == ".log":
+        raw = path.read_bytes() if raw is None else raw
+        try:
+            whole = parse_candump(raw) if raw.endswith(b"\n") else None
+        except MixedChannels:      # the reader says so
+            whole = None
+        if whole is not None:      # every line read by the fast parser: none malformed, no line-by-line check
+            return LogDamage(lines=len(whole))
+    if suffix in TEXT_READERS:
+        return scan_text_log(path, raw)
+    return LogDamage(note=truncation(path) or "")
+
+
+def _candump(p, raw: bytes) -> FrameColumns | None:
+    try:
+        return parse_candump(raw)
+    except MixedChannels as mixed:
+        raise InputError(mixed_channels(p, mixed.channels)) from None
 
 
 class _Lines(NamedTuple):

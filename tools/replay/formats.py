@@ -92,17 +92,21 @@ def quiet_reader_teardown():
         sys.unraisablehook = previous
 
 
-def read_log(path: str | os.PathLike) -> Iterator:
-    """The frames of a CAN log in file order (``can.Message``); problems raise InputError naming the file."""
+def read_log(path: str | os.PathLike, damage=None) -> Iterator:
+    """The frames of a CAN log in file order (``can.Message``); problems raise InputError naming the file, a
+    malformed line or a cut log among them. ``damage`` (tools.replay.lines.LogDamage, from
+    ``tools.replay.columns.scan_log``): the log without its malformed lines instead, a BLF log up to its cut."""
     import can
     p = check_log(path)
-    cut = truncation(p)
-    if cut:
-        raise InputError(f"{p}: {cut}")
+    strict = damage is None
+    if strict:
+        cut = truncation(p)
+        if cut:
+            raise InputError(f"{p}: {cut}")
     failure = None
     with quiet_reader_teardown():
         try:
-            reader = can.LogReader(p)
+            reader = can.LogReader(p) if strict or damage.clean is None else damage.text_reader(p.suffix.lower())
         except Exception as exc:  # python-can raises a variety of errors for a broken file
             failure = f"{p}: cannot open it as {_a(LOG_SUFFIXES[p.suffix.lower()])} log: {exc}"
             if p.suffix.lower() == ".mf4" and "seek out of range" in str(exc):
@@ -126,7 +130,7 @@ def read_log(path: str | os.PathLike) -> Iterator:
     except InputError:
         raise
     except Exception as exc:
-        if ends_mid_line(p):
+        if strict and ends_mid_line(p):
             raise InputError(f"{p}: the log ends in the middle of a line at frame {n + 1} (truncated, or still being "
                              f"written)") from None
         bad = first_bad_candump_line(p) if p.suffix.lower() == ".log" else None

@@ -22,6 +22,7 @@ from typing import Any, NamedTuple
 from firmware_model.errors import InputError
 from tools.outputs import naming
 from tools.replay.formats import LOG_SUFFIXES, check_log, is_can_log, read_log  # noqa: F401 (re-exported)
+from tools.replay.lines import damage_finding
 from tools.replay.pipeline import PIPELINE_MIN_BYTES, feed_pipelined, pipeline_available
 
 #: CAN log suffixes read by python-can's LogReader
@@ -57,7 +58,7 @@ def _processes(path, service, on_frames, processes: int | None) -> int:
 
 
 def replay_log(path: str | os.PathLike, sensor_or_service, *, config=None, options=None,
-               on_frames=None, processes: int | None = None, columnar: bool | None = None):
+               on_frames=None, processes: int | None = None, columnar: bool | None = None, strict: bool = False):
     """Replay a CAN log through the sensor service; returns the sensor output run table (10 Hz).
 
     ``sensor_or_service``: a ``VirtualSensor`` (a service is built from ``options`` or the ``config``'s ``[can]``)
@@ -76,6 +77,9 @@ def replay_log(path: str | os.PathLike, sensor_or_service, *, config=None, optio
     feeds the frames one by one; None (default) takes the whole-log path whenever no frames are to be sent
     (``on_frames`` None, a service built with ``emit_frames=False``) and ``processes`` is None. ``meta["reader"]``
     says which ran.
+
+    ``strict`` False (default): malformed lines and a cut last line are skipped and counted (tools/replay/lines.py):
+    ``meta["malformed"]`` holds their finding (None when none was skipped); True: refused in one sentence.
     """
     from firmware_model.service import SensorService, ServiceOptions
     from tools.runtable import RunTable
@@ -86,23 +90,34 @@ def replay_log(path: str | os.PathLike, sensor_or_service, *, config=None, optio
     else:
         service = SensorService(sensor_or_service, options or ServiceOptions.from_config(config), record=True,
                                 emit_frames=on_frames is not None)
-    reader = "python-can"
+    from tools.replay.columns import read_columns, scan_log
+    reader, kept = "python-can", None
+    if strict:              # the first malformed line named, as the line scan finds it in both paths
+        first = scan_log(check_log(path))
+        if first.skipped or first.note:
+            raise InputError(first.strict_sentence(path))
     if _columnar(service, on_frames, False if columnar is None and processes is not None else columnar):
-        columns, reader = _replay_columns(path, service)
-    elif _processes(path, service, on_frames, processes) == 2:
-        feed_pipelined(read_log(path), service)
+        columns, reader, damage, kept = _replay_columns(path, service, strict)
     else:
-        feed = service.feed
-        for msg in read_log(path):
-            frames = feed(msg)
-            if frames and on_frames is not None:
-                on_frames(frames)
+        damage = None if strict else scan_log(check_log(path))
+        if _processes(path, service, on_frames, processes) == 2:
+            feed_pipelined(read_log(path, damage), service)
+        else:
+            feed = service.feed
+            for msg in read_log(path, damage):
+                frames = feed(msg)
+                if frames and on_frames is not None:
+                    on_frames(frames)
     if reader == "python-can":
         columns = service.recorded()
+    if damage is not None and kept is None and damage.skipped > int(damage.cut_last):
+        kept = read_columns(path, False, damage).columns     # the frames kept, for the sequences the lines broke
+    malformed = damage_finding(damage, kept, service.options.stale_factor)
     if not len(columns["time_s"]):
-        raise InputError(_no_step_reason(path, service.decoder.counters))
-    return RunTable(columns, meta={"counters": service.all_counters(), "log": os.fspath(path), "reader": reader},
-                    source=os.fspath(path))
+        raise InputError(_no_step_reason(path, service.decoder.counters)
+                         + (f" ({malformed.summary})" if malformed is not None else ""))
+    return RunTable(columns, meta={"counters": service.all_counters(), "log": os.fspath(path), "reader": reader,
+                                   "malformed": malformed}, source=os.fspath(path))
 
 
 def _no_step_reason(path, d: dict) -> str:
@@ -135,18 +150,20 @@ def _columnar(service, on_frames, columnar: bool | None) -> bool:
     return possible if columnar is None else bool(columnar)
 
 
-def _replay_columns(path, service) -> tuple[dict, str]:
-    """The whole-log path (firmware_model.service.columnar): the run-table columns and which reader read the log."""
+def _replay_columns(path, service, strict: bool) -> tuple[dict, str, Any, Any]:
+    """The whole-log path (firmware_model.service.columnar): the run-table columns, which reader read the log, what
+    it skipped and the frames it kept."""
     from firmware_model.service.columnar import run_columns
     from tools.replay.columns import read_columns
-    read = read_columns(path)
-    return run_columns(service, read.columns), f"{read.reader}, whole log"
+    read = read_columns(path, strict)
+    return run_columns(service, read.columns), f"{read.reader}, whole log", read.damage, read.columns
 
 
 def replay_log_file(path, out, *, config_path=None, sensor_options=None, frames_out=None,
-                    processes: int | None = None) -> LogReplay:
+                    processes: int | None = None, strict: bool = False) -> LogReplay:
     """Replay a CAN log offline through the onboard sensor of ``config_path`` and write the run table to ``out``;
-    ``frames_out``: also write the frames the sensor would send as a CAN log (.log, .asc, .blf)."""
+    ``frames_out``: also write the frames the sensor would send as a CAN log (.log, .asc, .blf); ``strict``: refuse
+    a log with a malformed line (else skipped, counted, and among the findings when they make it untrusted)."""
     import can
     from firmware_model.service import build_service
     from tools.runtable import write_run_table
@@ -164,14 +181,24 @@ def replay_log_file(path, out, *, config_path=None, sensor_options=None, frames_
                 for f in frames:
                     writer.on_message_received(f)
     try:
-        table = replay_log(path, service, on_frames=on_frames, processes=processes)
+        table = replay_log(path, service, on_frames=on_frames, processes=processes, strict=strict)
     finally:
         if writer is not None:
             with naming(frames_out):
                 writer.stop()
     with naming(out):
         written = write_run_table(table, out)
-    return LogReplay(table, written, service.decoder.counters, service.counters, tuple(service.findings()))
+    return LogReplay(table, written, service.decoder.counters, service.counters,
+                     tuple(with_malformed(service.findings(), table.meta.get("malformed"))))
+
+
+def with_malformed(findings, malformed) -> list:
+    """The trust findings and, when they make the outputs untrusted, the log's skipped lines (most severe first;
+    below that they are a line of the summary)."""
+    from firmware_model.service.degraded import Severity
+    if malformed is None or malformed.severity < Severity.UNTRUSTED:
+        return list(findings)
+    return sorted([*findings, malformed], key=lambda f: -f.severity)
 
 
 def play_log(path: str | os.PathLike, bus, *, speedup: float = 1.0, stop: threading.Event | None = None,
