@@ -537,6 +537,7 @@ def test_the_vehicles_of_logs_without_a_manifest_are_said(tmp_path, capsys):
     entries, rule = entries_and_rule([tmp_path / "flat"], vehicle_from=r"(?P<vehicle>truck\d+)_(?P<date>[-\d]+)\.")
     assert [(e.vehicle, e.date) for e in entries] == [("truck1", "2026-01-05"), ("truck2", "2026-01-05")]
     (tmp_path / "flat" / "spare.log").write_text("")
-    msg = _error(capsys, ["fleet", str(tmp_path / "flat"), "--out", str(tmp_path / "o"), "--vehicle-from", r"^(truck\d+)_"])
+    msg = _error(capsys, ["fleet", str(tmp_path / "flat"), "--out", str(tmp_path / "o"),
+                          "--vehicle-from", r"^(truck\d+)_"])
     assert "spare.log: --vehicle-from '^(truck\\\\d+)_' finds no vehicle in its file name 'spare.log'" in msg, msg
     assert not (tmp_path / "o").exists()

@@ -33,7 +33,7 @@ def add_subparser(sub):
             "installed)."),
         epilog=("examples:\n"
                 "  gearbox-vsensor fleet logs/ --out fleet_out    # logs/V/*.log: vehicle V; logs/*.log: one per log\n"
-                "  gearbox-vsensor fleet logs/ --out o --vehicle-from '^(truck\\d+)_'  # truck7_2026-01-05.log: truck7\n"
+                "  gearbox-vsensor fleet logs/ --out o --vehicle-from '^(truck\\d+)_'  # truck7_2026-01-05.log\n"
                 "  gearbox-vsensor fleet --manifest fleet.csv --out fleet_out --workers 2\n"
                 "  gearbox-vsensor fleet --manifest fleet.csv --out fleet_out --scheduler tcp://10.0.0.5:8786\n"
                 "  gearbox-vsensor fleet logs/ --out fleet_out --diagnose  # + cooler and oil-level health per week\n"

@@ -299,8 +299,9 @@ def _fitted_tables(periods: dict, order: list, lines: list) -> None:
     at = {(v, q): i for i, (v, q) in enumerate(zip(periods["vehicle"], periods["period"]))}
     shown = order[:TABLE_VEHICLES]
     lines += ["### Fitted values per vehicle and period", "",
-              f"Each vehicle's fitted value per period (columns: the period's first day) +/- its standard error, beside "
-              f"the fleet's median and spread (1.4826 x the median absolute deviation) in that period. **below**: "
+              f"Each vehicle's fitted value per period (columns: the period's first day) +/- its standard error, "
+              f"beside the fleet's median and spread (1.4826 x the median absolute deviation) in that period. "
+              f"**below**: "
               f"more than {SPREAD_OUTSIDE:g} spreads below the median (with at least {SPREAD_MIN_VEHICLES} vehicles "
               f"in the period), where a fouled cooler or a low oil level goes; a flag needs a drift from the "
               f"vehicle's own baseline as well. Flagged and watched vehicles first, then the farthest below the "
