@@ -74,13 +74,12 @@ class DegradedFinding:
 
 
 #: the sensor's input checks that leave an input unused (firmware_model.onboard.records.REJECT_REASONS), in words;
-#: {share}: the share of the run's steps, {at}: " at <the frozen reading> degC"
+#: {share}: the share of the run's steps, {at}: " at <the frozen reading> degC". (A frozen drive is only flagged:
+#: its inputs are still used, so it is no cause of a degraded run.)
 REJECT_WORDS = {"oil_frozen": "oil temperature frozen{at} for {share} of the steps (bit-identical while the model's "
                               "sump moved: the oil was modelled instead)",
                 "oil_implausible": "oil temperature rejected as implausible (out of range, or a jump) on {share} of "
-                                   "the steps",
-                "drive_frozen": "engine speed and torque frozen (bit-identical while turning) for {share} of the "
-                                "steps"}
+                                   "the steps"}
 
 
 def pct(n: int, total: int) -> str:
