@@ -170,8 +170,8 @@ def _vehicle_from(files: list[Path], vehicle_from: str) -> list[tuple[Path, str,
     if unmatched:
         more = f" ({len(unmatched)} of {len(files)} logs: {', '.join(u.name for u in unmatched[:3])}" \
                f"{' ...' if len(unmatched) > 3 else ''})" if len(unmatched) > 1 else ""
-        raise InputError(f"{unmatched[0]}: --vehicle-from {vehicle_from!r} finds no vehicle in its file name "
-                         f"{unmatched[0].name!r}{more}; fix the pattern (the vehicle is its group (?P<vehicle>...) "
+        raise InputError(f"{unmatched[0]}: --vehicle-from '{vehicle_from}' finds no vehicle in its file name "
+                         f"{unmatched[0].name}{more}; fix the pattern (the vehicle is its group (?P<vehicle>...) "
                          f"or its first group), or name each log's vehicle in a --manifest")
     return out
 
@@ -192,7 +192,7 @@ def entries_and_rule(paths, pattern: str | None = None,
         entries = [_entry(f, v, None, None, d) for f, v, d in found]
         n = len({v for _, v, _ in found})
         return check_entries(entries, "the logs given"), \
-            f"vehicles: {n} read from the file names by --vehicle-from {vehicle_from!r}"
+            f"vehicles: {n} read from the file names by --vehicle-from '{vehicle_from}'"
     if pattern:
         try:
             rx = re.compile(pattern)
@@ -221,7 +221,8 @@ def entries_and_rule(paths, pattern: str | None = None,
         names = [e.vehicle for e, (_, n) in zip(entries, listed) if not n]
         parts.append(f"one per log for the {loose} logs not in a vehicle's folder (the file name without its suffix: "
                      f"{', '.join(names[:3])}{' ...' if loose > 3 else ''}; --vehicle-from REGEX reads a vehicle "
-                     f"from the file names, a --manifest names it)")
+                     f"from the file names, --vehicle-pattern '(?P<vehicle>[^/]+)/[^/]+$' makes the folder holding "
+                     f"them one vehicle, a --manifest names each)")
     return entries, f"vehicles: {len({e.vehicle for e in entries})}: " + "; ".join(parts)
 
 
