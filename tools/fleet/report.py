@@ -269,11 +269,17 @@ def _period_spread(periods: dict, attr: str) -> dict:
     return out
 
 
-def _below(x: float, spread: tuple) -> bool:
-    """A value below the fleet's spread in its period (where a fouled cooler or a low oil volume goes)."""
-    from tools.fleet.health import SPREAD_OUTSIDE
+def _below(attr: str, x: float, se: float, spread: tuple) -> bool:
+    """A value below the fleet's spread in its period (where a fouled cooler or a low oil volume goes): more than
+    SPREAD_OUTSIDE spreads, 3 of its standard errors and the smallest drop a flag counts below the median (trucks
+    that fit alike, as simulated ones do, have a spread near 0: a hundredth is no finding)."""
+    from tools.fleet.health import DRIFT_MIN, LEVEL_DRIFT_MIN_SHARE, SPREAD_OUTSIDE
     med, sp, n = spread
-    return n >= SPREAD_MIN_VEHICLES and math.isfinite(x) and x < med - SPREAD_OUTSIDE * sp
+    least = {"cooler_scale": DRIFT_MIN["cooler_effectiveness_scale"], "oil_volume_l": DRIFT_MIN["oil_level_low"],
+             "oil_level_pct": LEVEL_DRIFT_MIN_SHARE * med}[attr]
+    drop = med - x
+    return n >= SPREAD_MIN_VEHICLES and math.isfinite(x) and drop > max(SPREAD_OUTSIDE * sp, least) \
+        and not drop <= 3 * se
 
 
 def _vehicle_order(periods: dict, flagged: list, watched: list) -> list:
@@ -291,7 +297,7 @@ def _vehicle_order(periods: dict, flagged: list, watched: list) -> list:
 
 def _fitted_tables(periods: dict, order: list, lines: list) -> None:
     """Per fitted value a table vehicle x period, with the fleet's median and spread of each period."""
-    from tools.fleet.health import SPREAD_OUTSIDE
+    from tools.fleet.health import DRIFT_MIN, SPREAD_OUTSIDE
     per = sorted(set(periods["period"]))[-TABLE_PERIODS:]
     start = {}
     for q, d in zip(periods["period"], periods["start"]):
@@ -302,9 +308,11 @@ def _fitted_tables(periods: dict, order: list, lines: list) -> None:
               f"Each vehicle's fitted value per period (columns: the period's first day) +/- its standard error, "
               f"beside the fleet's median and spread (1.4826 x the median absolute deviation) in that period. "
               f"**below**: "
-              f"more than {SPREAD_OUTSIDE:g} spreads below the median (with at least {SPREAD_MIN_VEHICLES} vehicles "
-              f"in the period), where a fouled cooler or a low oil level goes; a flag needs a drift from the "
-              f"vehicle's own baseline as well. Flagged and watched vehicles first, then the farthest below the "
+              f"below the median by more than {SPREAD_OUTSIDE:g} spreads, 3 standard errors and the drop a flag "
+              f"needs ({DRIFT_MIN['cooler_effectiveness_scale']:g} cooler, {DRIFT_MIN['oil_level_low']:g} L oil; "
+              f"with at least {SPREAD_MIN_VEHICLES} vehicles in the period), where a "
+              f"fouled cooler or a low oil level goes (a weak cooler also pulls the oil volume's estimate down); a "
+              f"flag needs a drift from the vehicle's own baseline as well. Flagged and watched vehicles first, then the farthest below the "
               f"fleet's cooler median.", ""]
     n_periods = len(set(periods["period"]))
     if len(order) > len(shown) or n_periods > len(per):
@@ -326,7 +334,7 @@ def _fitted_tables(periods: dict, order: list, lines: list) -> None:
                     continue
                 e = periods[se][i]
                 txt = fmt.format(x) + (f" +/- {fmt.format(e)}" if math.isfinite(e) else "")
-                cells.append(f"**{txt} below**" if _below(x, spread[q]) else txt)
+                cells.append(f"**{txt} below**" if _below(attr, x, e, spread[q]) else txt)
             lines.append(f"| {_cell(v)} | " + " | ".join(cells) + " |")
         lines.append("| fleet median | " + " | ".join(fmt.format(spread[q][0]) if spread[q][2] else "-"
                                                      for q in per) + " |")
