@@ -231,6 +231,8 @@ def _health(out: Path, lines: list) -> bool:
               f"(From the health tables of the last --diagnose run into this folder.)", ""]
     if fl["vehicle"]:
         lines += _flag_table(fl, range(len(fl["vehicle"])))
+    order = _vehicle_order(periods, sorted(set(fl["vehicle"])), sorted(set(wt["vehicle"])))
+    _fitted_tables(periods, order, lines)
     if wt["vehicle"]:
         lines += ["### To watch: check the oil level", "",
                   "These trucks are not judged on a measured oil level (J1939 SPN 124: not sent, sent in too few "
@@ -241,8 +243,6 @@ def _health(out: Path, lines: list) -> bool:
                   "times in 7 (see 'Measured' in the fleet documentation, docs/fleet.md). A dipstick check, not a "
                   "diagnosis.", ""]
         lines += _flag_table(wt, range(len(wt["vehicle"])))
-    order = _vehicle_order(periods, sorted(set(fl["vehicle"])), sorted(set(wt["vehicle"])))
-    _fitted_tables(periods, order, lines)
     _health_plot(periods, order, set(fl["vehicle"]) | set(wt["vehicle"]), out, lines)
     return True
 
