@@ -426,9 +426,10 @@ def write_report(out: str | os.PathLike, health_why_none: str = "") -> Path:
             _hottest(c, lines)
             _plots(c, out, lines)
         else:
-            (out / "report_peaks.png").unlink(missing_ok=True)
-            _not_written(out / "report_above_warning.png", "No log is trusted, so no peak or time above a warning "
-                         "is shown: report_peaks.png and", lines)
+            for png in ("report_peaks.png", "report_above_warning.png"):
+                (out / png).unlink(missing_ok=True)
+            lines += ["No log is trusted, so no peak or time above a warning is shown: report_peaks.png and "
+                      "report_above_warning.png not written.", ""]
     if not _health(out, lines) and health_why_none:
         (out / "report_health.png").unlink(missing_ok=True)
         lines += ["## Fleet health (--diagnose)", "", f"Nothing fitted: {health_why_none}; report_health.png not "
