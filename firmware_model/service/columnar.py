@@ -30,7 +30,7 @@ from can_dbc.decoder import signal_messages
 from can_dbc.j1939 import ID_MAX
 from firmware_model.components import MODE_NOT_INITIALISED, PUBLISHED, STEP_S
 from firmware_model.physics.oil import T_MAX_C as OIL_T_MAX_C, T_MIN_C as OIL_T_MIN_C
-from firmware_model.service.degraded import recorded_mode_counters
+from firmware_model.service.degraded import recorded_mode_counters, recorded_reject_counters
 from firmware_model.service.options import GEAR_RANGE, NOMINAL_PERIOD_S, SENSOR_INPUTS, wanted_pgns
 from firmware_model.service.recorder import StepRecorder
 from firmware_model.service.records import RecordedOutputs, StepKind
@@ -320,9 +320,11 @@ def sensor_half(service, half: FrameHalf) -> RecordedOutputs:
     tail[:i0, 5] = 0.0
     tail[:i0, 6] = ref_ok[:i0]
     tail[:i0, 7:9] = nan
+    base = None
     if i0 < n:
         oil0 = ins[i0, 3]
         state = start_state(sensor, float(oil0), float(ins[i0, sensor.input_fields.index("ambient_temp_c")]))
+        base = getattr(state, "rejects", None)
         state, out = sensor.step_table(state, np.ascontiguousarray(ins[i0:]), half.grid.t_s[i0:])
         service.state = state
         T[i0:], level[i0:], ttl[i0:] = out.T_c, out.level, out.ttl_s
@@ -335,6 +337,9 @@ def sensor_half(service, half: FrameHalf) -> RecordedOutputs:
         tail[i0:, 8] = _opt(out.model_oil_temp_c)
         tail[i0:, 9:] = out.rejects[:, :n_rej]
     service.counters.update(recorded_mode_counters(tail[:, 1]))
+    if n_rej:
+        service.counters.update(recorded_reject_counters(tail[i0:, 9:], sensor.reject_reasons[:n_rej],
+                                                         ins[i0:, sensor.input_fields.index("oil_temp_c")], base))
     return RecordedOutputs(T, level, ttl, tail)
 
 

@@ -16,7 +16,7 @@ from can_dbc.j1939 import ID_MAX, pgn_key
 from firmware_model.components import MODE_HOLDING, MODE_NOT_INITIALISED, PUBLISHED, STEP_S
 from firmware_model.errors import InputError, ParameterError
 from firmware_model.physics.oil import T_MAX_C as OIL_T_MAX_C, T_MIN_C as OIL_T_MIN_C
-from firmware_model.service.degraded import recorded_mode_counters
+from firmware_model.service.degraded import recorded_mode_counters, recorded_reject_counters
 from firmware_model.service.netmgmt import AddressClaim
 from firmware_model.service.options import (GEAR_RANGE, NOMINAL_PERIOD_S, SENSOR_INPUTS, ServiceOptions,
                                             wanted_pgns)
@@ -78,6 +78,7 @@ class SensorService:
                                "frames_not_timing": 0, "frames_sent": 0, "dm1_sent": 0, "stale_steps": {},
                                "uninitialised_steps": 0, "mode_steps": {}, "gear_unmapped_steps": 0,
                                "started_without_oil": False, "frames_out_of_order": 0, "out_of_order_max_s": 0.0,
+                               "input_rejects": {}, "oil_frozen_at_c": None,
                                "time_base": {"windows_checked": 0, "windows_suspect": 0, "suspect": False,
                                              "finding": None}}
         self._time_base = TimeBaseCheck(self.options.time_base_window_s, self.options.time_base_windows)
@@ -98,6 +99,9 @@ class SensorService:
         self._pending = None
         self._initialised = False
         self._last_dm1: bytes | None = None
+        self._rejects_prev: np.ndarray | None = None      # the sensor's cumulative reject counters after the last step
+        self._oil_frozen_j = list(getattr(sensor, "reject_reasons", ())).index("oil_frozen") \
+            if "oil_frozen" in getattr(sensor, "reject_reasons", ()) else None
         self._last_dm1_frame = None
         self._steps_since_dm1 = 0
         #: J1939 address claim and requests (live runs: options.address_claim); None: not a network node
@@ -197,8 +201,14 @@ class SensorService:
         """Take the sensor half's results from the copy that ran them: :meth:`recorded_outputs` and its final state
         (its time-to-limit refresh done); the steps per degraded mode are counted from them."""
         self._recorder.adopt(outputs)
-        modes = outputs.tail[:, self._recorder.tail_names.index("degraded_mode")]
+        names = self._recorder.tail_names
+        modes = outputs.tail[:, names.index("degraded_mode")]
         self.counters.update(recorded_mode_counters(modes))
+        reasons = self._recorder.reject_reasons      # (the copy started from a fresh state: offline only)
+        if reasons:
+            j0 = names.index(f"rejects_{reasons[0]}")
+            self.counters.update(recorded_reject_counters(outputs.tail[:, j0:j0 + len(reasons)], reasons,
+                                                          self._recorder.head_column("oil_temp_c")))
         self.state = state
         self._pending = None
 
@@ -479,11 +489,14 @@ class SensorService:
             return self._not_initialised(req, send)
         if req.kind == StepKind.INITIALISE:
             self.state = self._initial_state(req.inputs.oil_temp_c, req.inputs.ambient_temp_c)
+            start = getattr(self.state, "rejects", None)
+            self._rejects_prev = None if start is None else np.array(start, dtype=np.int64).reshape(-1)
         nan = math.nan
         fields = {f: (nan if v is None else float(v)) for f, v in zip(StepInputs._fields, req.inputs)}
         inputs = self.sensor.Inputs(**fields, t_s=req.t_s)
         self.finish_pending()
         self.state, outputs, self._pending = self.sensor.step_deferred(self.state, inputs)
+        self._count_rejects(outputs.status.rejects, fields["oil_temp_c"])
         T_c = np.asarray(outputs.T_c, dtype=float)
         level = np.asarray(outputs.level)
         ttl_s = np.asarray(outputs.ttl_s, dtype=float)
@@ -541,6 +554,21 @@ class SensorService:
             n = len(PUBLISHED)
             self._recorder.add_outputs(np.full(n, np.nan), np.full(n, 3), np.full(n, np.nan), status)
         return frames
+
+    def _count_rejects(self, rejects, oil_c: float) -> None:
+        """The sensor's input checks of this run (counters ``input_rejects``, ``oil_frozen_at_c``) from its cumulative
+        reject counters after a step, counted from those of the state it started from (a restored state carries an
+        earlier run's)."""
+        now = np.asarray(rejects).reshape(-1)
+        prev = self._rejects_prev if self._rejects_prev is not None else np.zeros_like(now)
+        if not np.array_equal(now, prev):
+            counts = self.counters["input_rejects"]
+            reasons = self.sensor.reject_reasons
+            for j in np.flatnonzero(now != prev):
+                counts[reasons[j]] = counts.get(reasons[j], 0) + int(now[j] - prev[j])
+            if self._oil_frozen_j is not None and now[self._oil_frozen_j] > prev[self._oil_frozen_j]:
+                self.counters["oil_frozen_at_c"] = float(oil_c)
+        self._rejects_prev = now.copy()
 
     def _count_mode(self, mode: int | None) -> None:
         counts = self.counters["mode_steps"]

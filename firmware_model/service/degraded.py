@@ -41,6 +41,8 @@ class DegradedFinding:
     by_mode: dict = field(default_factory=dict)
     missing: dict = field(default_factory=dict)
     causes: tuple = ()        # why inputs were missing, as far as the CAN decoder's counters tell (trust)
+    rejected: dict = field(default_factory=dict)   # the sensor's own input checks: reject reason -> steps
+    oil_frozen_at_c: float | None = None           # the oil reading on the last step it was rejected as frozen
 
     @property
     def share(self) -> float:
@@ -56,13 +58,28 @@ class DegradedFinding:
     def sentence(self) -> str:
         modes = ", ".join(f"{MODE_NAMES.get(m, f'mode {m}')} {pct(n, self.steps)}"
                           for m, n in sorted(self.by_mode.items(), key=lambda kv: -kv[1]) if m != MODE_NORMAL and n)
-        worst = sorted(((n, INPUT_NAMES[k]) for k, n in self.missing.items() if n and k in INPUT_NAMES),
-                       reverse=True)
+        worst = sorted(((n, f"{INPUT_NAMES[k]} {pct(n, self.steps)}") for k, n in self.missing.items()
+                        if n and k in INPUT_NAMES), reverse=True)
+        # the sensor's own checks (a frozen or implausible reading) next to the missing inputs, the most steps
+        # first: a frozen oil reading is what degraded such a run, not the few steps a torque came late
+        frozen_at = "" if self.oil_frozen_at_c is None else f" at {self.oil_frozen_at_c:.1f} degC"
+        worst = sorted(worst + [(n, REJECT_WORDS[r].format(at=frozen_at, share=pct(n, self.steps)))
+                                for r, n in self.rejected.items() if n and r in REJECT_WORDS],
+                       key=lambda nw: -nw[0])
         inputs = ("; inputs not usable (missing, stale or rejected as implausible or frozen): "
-                  + ", ".join(f"{name} {pct(n, self.steps)}" for n, name in worst)) if worst else ""
+                  + ", ".join(words for _, words in worst)) if worst else ""
         why = f" ({'; '.join(self.causes)})" if self.causes else ""
         return (f"the sensor ran degraded on {pct(self.degraded, self.steps)} of {self.steps} steps ({modes}){inputs}"
                 f"{why}: its temperatures rest on held, modelled or default inputs")
+
+
+#: the sensor's input checks that leave an input unused (firmware_model.onboard.records.REJECT_REASONS), in words;
+#: {share}: the share of the run's steps, {at}: " at <the frozen reading> degC". (A frozen drive is only flagged:
+#: its inputs are still used, so it is no cause of a degraded run.)
+REJECT_WORDS = {"oil_frozen": "oil temperature frozen{at} for {share} of the steps (bit-identical while the model's "
+                              "sump moved: the oil was modelled instead)",
+                "oil_implausible": "oil temperature rejected as implausible (out of range, or a jump) on {share} of "
+                                   "the steps"}
 
 
 def pct(n: int, total: int) -> str:
@@ -72,18 +89,22 @@ def pct(n: int, total: int) -> str:
 
 
 def degraded_finding(mode_steps: Mapping[int, int], missing: Mapping[str, int] | None = None,
-                     oil_model: bool = False) -> DegradedFinding:
-    """The degraded share of a run from its steps per degraded mode (and the steps each input was missing).
+                     oil_model: bool = False, rejected: Mapping[str, int] | None = None,
+                     oil_frozen_at_c: float | None = None) -> DegradedFinding:
+    """The degraded share of a run from its steps per degraded mode (and the steps each input was missing; the
+    steps the sensor's own checks rejected one, ``rejected``: reason -> steps, with the frozen oil reading).
     ``oil_model``: the sensor was asked to model the oil (oil_mode "model"): its oil-modelled steps are its normal
     ones, and an absent oil reading is no cause."""
+    rejected = dict(rejected or {})
     if oil_model:
         mode_steps = dict(mode_steps)
         mode_steps[MODE_NORMAL] = mode_steps.get(MODE_NORMAL, 0) + mode_steps.pop(MODE_OIL_MODEL, 0)
         missing = {k: v for k, v in (missing or {}).items() if INPUT_NAMES.get(k) != "oil temperature"}
+        rejected = {k: v for k, v in rejected.items() if not k.startswith("oil_")}
     steps = int(sum(mode_steps.values()))
     degraded = steps - int(mode_steps.get(MODE_NORMAL, 0))
     return DegradedFinding(steps, degraded, {int(m): int(n) for m, n in mode_steps.items()},
-                           dict(missing or {}))
+                           dict(missing or {}), rejected=rejected, oil_frozen_at_c=oil_frozen_at_c)
 
 
 #: a table whose rows jump forward in time on more than this share of the steps has the wrong time unit
@@ -137,6 +158,24 @@ def unit_findings(steps: int, time_jumps: int, step_times_s, speed_rpm, torque_n
 def untrusted(findings) -> bool:
     """True when a finding says the outputs should not be used."""
     return any(f.severity >= Severity.UNTRUSTED for f in findings)
+
+
+def recorded_reject_counters(rejects, reasons, oil_c, base=None) -> dict:
+    """The service's counters of the sensor's input checks from recorded steps (the whole-log path, the copy that
+    ran the sensor half; the step path counts them as it goes): ``input_rejects`` (reason -> steps of this run, the
+    reasons with any) and ``oil_frozen_at_c`` (the oil reading on the last step rejected as frozen, else None).
+    ``rejects``: the sensor's cumulative counters after each step (steps x reasons), ``oil_c`` the steps' oil
+    readings, ``base`` the counters the run started from (a restored state's; default zeros)."""
+    r = np.asarray(rejects, dtype=float).reshape(-1, len(reasons))
+    b = np.zeros(len(reasons)) if base is None else np.asarray(base, dtype=float).reshape(-1)[:len(reasons)]
+    total = r[-1] - b if r.shape[0] else np.zeros(len(reasons))
+    out: dict = {"input_rejects": {k: int(n) for k, n in zip(reasons, total) if n > 0}, "oil_frozen_at_c": None}
+    if "oil_frozen" in reasons and r.shape[0]:
+        j = list(reasons).index("oil_frozen")
+        rose = np.flatnonzero(np.diff(np.concatenate([[b[j]], r[:, j]])) > 0)
+        if rose.size:
+            out["oil_frozen_at_c"] = float(np.asarray(oil_c, dtype=float)[rose[-1]])
+    return out
 
 
 def recorded_mode_counters(modes) -> dict:

@@ -43,6 +43,13 @@ class StepRecorder:
     def steps(self) -> int:
         return len(self._heads) if self._head_block is None else self._head_block.shape[0]
 
+    def head_column(self, name: str) -> np.ndarray:
+        """One column of the recorded heads (HEAD_COLUMNS), every step."""
+        j = HEAD_COLUMNS.index(name)
+        if self._head_block is not None:
+            return self._head_block[:, j]
+        return np.array([h[j] for h in self._heads], dtype=float)
+
     def add_head(self, row: tuple[float, ...], meas_c: np.ndarray | None = None) -> None:
         """The frame half of a step: a row of HEAD_COLUMNS and, when rig thermocouples were seen, their values."""
         if meas_c is not None:

@@ -492,7 +492,8 @@ def trust_findings(counters: Mapping, expected_sa: Mapping[str, int | None],
     if unmapped:       # a gear that arrived but that [can] gear_map or the model's -2..14 leaves out is missing too
         stale["gear"] = stale.get("gear", 0) + unmapped
     causes = input_causes(counters["decoder"], stale, int(service.get("steps", 0)), unmapped, stale_factor)
-    degraded = degraded_finding(service.get("mode_steps", {}), stale, oil_model)
+    degraded = degraded_finding(service.get("mode_steps", {}), stale, oil_model, service.get("input_rejects"),
+                                service.get("oil_frozen_at_c"))
     degraded = dataclasses.replace(degraded, causes=tuple(c for c in causes if not c.startswith("coolant")))
     loud = degraded.severity >= Severity.WARNING
     for f in foreign_findings(counters["decoder"], expected_sa, configured, config_keys):

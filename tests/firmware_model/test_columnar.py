@@ -247,3 +247,21 @@ def test_frames_out_of_time_order_are_counted_alike_and_named(tmp_path, drive):
     svc = _service()
     svc.feed_all(list(drive.messages(channel="can0"))[:500])
     assert svc.counters["frames_out_of_order"] == 0 and not any(isinstance(f, OrderFinding) for f in svc.findings())
+
+
+def test_a_frozen_oil_reading_is_named_as_the_cause_of_the_degraded_run_on_both_paths(tmp_path):
+    """Issue 43: a log whose oil reading froze was called degraded (untrusted in a fleet) for "engine torque
+    0.0 %", the 3 steps a torque came late, because only the decoder's stale inputs were named, not the sensor's own
+    checks. The sensor's rejects now count in the service (the same on both paths) and lead the finding's causes."""
+    from firmware_model.service.degraded import DegradedFinding, pct
+    from tests.tools.can_fixtures import plant_output
+    from tools.can.logsynth import write_frames
+    inp = _cycle(480.0)
+    frames = synth_frames(inp, plant_output(inp, oil0_c=80.0, oil_rate_k_s=0.0), start_timestamp_s=1.7e9).frames
+    _, svc = assert_same(write_frames(frames, tmp_path / "frozen_oil.log"))
+    frozen = svc.counters["input_rejects"]["oil_frozen"]
+    assert frozen > 0.3 * svc.counters["steps"] and svc.counters["oil_frozen_at_c"] == 80.0
+    degraded = next(f for f in svc.findings() if isinstance(f, DegradedFinding))
+    causes = degraded.sentence.split("inputs not usable (missing, stale or rejected as implausible or frozen): ")[1]
+    assert causes.startswith(f"oil temperature frozen at 80.0 degC for {pct(frozen, degraded.steps)} of the steps"), \
+        degraded.sentence

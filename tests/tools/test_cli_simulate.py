@@ -227,3 +227,20 @@ def test_simulate_plot_is_as_readable_as_replays(tmp_path, monkeypatch):
     shown = [line.get_label() for line in temps.get_lines() if not line.get_label().startswith("_")]
     codes = [c for c in PUBLISHED if describe(c) in shown]
     assert codes and {limits.of(c)[0] for c in codes} <= _limit_lines(temps)
+
+
+def test_start_time_gives_the_can_log_unix_frame_times(tmp_path, capsys):
+    """Issue 43: `simulate --can-log` logs started at 0 s, so `fleet` could not date them; --start-time ISO starts
+    the frame times at that UTC time; without --can-log, or not a time: one sentence, nothing written."""
+    import datetime as dt
+    log = tmp_path / "run.log"
+    args = ["simulate", "--cycle", str(_cycle(tmp_path / "c.csv")), "--out", str(tmp_path / "run.csv"), "--quiet"]
+    assert main([*args, "--can-log", str(log), "--start-time", "2026-01-05T08:00:00+01:00"]) == 0
+    first_s = float(log.read_text().split(")", 1)[0].strip("("))
+    assert first_s == dt.datetime(2026, 1, 5, 7, tzinfo=dt.timezone.utc).timestamp()
+    for extra, words in ((["--start-time", "2026-01-05"], "only --can-log writes"),
+                         (["--can-log", str(tmp_path / "b.log"), "--start-time", "monday"], "not an ISO 8601")):
+        assert main([*args[:-3], "--out", str(tmp_path / "b.csv"), "--quiet", *extra]) == 2
+        err = capsys.readouterr().err.strip()
+        assert words in err and len(err.splitlines()) == 1, err
+        assert not (tmp_path / "b.csv").exists() and not (tmp_path / "b.log").exists()

@@ -176,7 +176,8 @@ def test_bad_logs_land_in_the_errors_table_and_reruns_skip(tmp_path, synthetic):
     (logs / "nogear.log").write_text("".join(f"({1.7e9 + 0.1 * k:.6f}) can0 18FEF100#FFFFFFFFFFFFFFFF\n"
                                              for k in range(3000)))
     out = tmp_path / "out"
-    args = [str(logs), str(logs / "notes.txt"), "--out", str(out), "--workers", "1"]
+    # the folder holding the vehicle's folder: a log lying directly in a folder given is its own vehicle (issue 43)
+    args = [str(tmp_path / "logs"), str(logs / "notes.txt"), "--out", str(out), "--workers", "1"]
     fleet(*args)
     errors = {Path(r["log"]).name: r["reason"] for r in read_table(out, ERRORS).to_pylist()}
     assert set(errors) == {"empty.log", "notes.txt", "picture.log", "packed.log.gz"}
@@ -486,3 +487,69 @@ def test_a_manifest_saved_with_a_byte_order_mark_is_read(synthetic):
         assert [e.log for e in read_manifest(beside)] == [e.log for e in read_manifest(synthetic)]
     finally:
         beside.unlink()
+
+
+def _simulated_day(tmp_path, name: str, start_s: float, day: str, cooler: float = 1.0) -> Path:
+    """A 6-minute slice of the uphill drive from `simulate --can-log` with its frame times from ``day`` 08:00 UTC
+    (--start-time), the cooler's effectiveness scaled by ``cooler``."""
+    from tools.cycles.named import get_cycle
+    from tools.runtable import RunTable, write_run_table
+    cyc = get_cycle("uphill")
+    t = np.asarray(cyc["time_s"])
+    keep = (t >= start_s) & (t < start_s + 360.0)
+    cols = {c: np.asarray(cyc[c])[keep] for c in cyc.columns}
+    cols["time_s"] = cols["time_s"] - cols["time_s"][0]
+    csv = write_run_table(RunTable(cols), tmp_path / f"{name}_cycle.csv")
+    log = tmp_path / "logs" / f"{name}_{day}.log"
+    log.parent.mkdir(exist_ok=True)
+    assert main(["simulate", "--cycle", str(csv), "--initial-temp", "70", "--quiet", "--out",
+                 str(tmp_path / f"{name}.csv"), "--can-log", str(log), "--start-time", f"{day}T08:00:00Z",
+                 "--effect", f"cooler_effectiveness_scale:factor={cooler}"]) == 0
+    return log
+
+
+def test_a_flat_folder_without_a_manifest_shows_each_trucks_cooler_dated_and_no_empty_plot(tmp_path):
+    """Issue 43: `fleet logs/` on a flat folder of simulated logs made them "N logs of 1 vehicle" with no dates,
+    so --diagnose fitted nothing ("no fitted log has a date"), report_above_warning.png was empty axes, and the
+    fitted coolers that separate the trucks were in periods.parquet only. Now: the dates from the logs' Unix frame
+    times, the vehicle from the file name (--vehicle-from), each truck's fitted cooler in the report's table beside
+    the fleet's median and spread, and a plot with nothing to show not written, the report saying why."""
+    for name, start_s, cooler in (("truck1", 600.0, 1.0), ("truck2", 1200.0, 1.0), ("truck3", 1800.0, 0.4)):
+        _simulated_day(tmp_path, name, start_s, "2026-01-05", cooler)
+    out = tmp_path / "out"
+    res = fleet(str(tmp_path / "logs"), "--out", str(out), "--workers", "1", "--diagnose",
+                "--vehicle-from", r"^(truck\d+)_")
+    assert "vehicles: 3 read from the file names by --vehicle-from" in res.stdout, res.stdout
+    assert "3 logs of 3 vehicles" in res.stdout and "3 vehicle-periods fitted" in res.stdout, res.stdout
+    assert set(read_table(out).column("date").to_pylist()) == {"2026-01-05"}
+    report = (out / "report.md").read_text()
+    table = report.split("Cooler effectiveness scale [-]")[1].split("\n\n")[1]
+    cells = {r.split(" | ")[0].strip("| "): r.split(" | ")[1] for r in table.splitlines()[2:]}
+    cooler = {v: float(c.strip("*").split(" +/- ")[0]) for v, c in cells.items() if v.startswith("truck")}
+    assert set(cooler) == {"truck1", "truck2", "truck3"}, table
+    assert cooler["truck3"] < min(cooler["truck1"], cooler["truck2"]) - 0.3, table
+    assert "below" in cells["truck3"] and "below" not in cells["truck1"] + cells["truck2"], table
+    assert "fleet median" in cells and "fleet spread" in cells
+    for png in ("report_peaks.png", "report_above_warning.png", "report_health.png"):
+        shown = f"]({png})" in report
+        assert shown == (out / png).is_file() and shown != (f"{png} not written" in report), png
+    assert (out / "report_health.png").is_file()
+
+
+def test_the_vehicles_of_logs_without_a_manifest_are_said(tmp_path, capsys):
+    """Issue 43: a flat folder's logs were one vehicle, the folder's; now one vehicle per log (said), a vehicle's
+    folder still names it, and --vehicle-from reads the file name (a file it does not match: one sentence)."""
+    from tools.fleet.manifest import entries_and_rule
+    for rel in ("flat/truck1_2026-01-05.log", "flat/truck2_2026-01-05.log", "nested/truck7/day1.log"):
+        (tmp_path / rel).parent.mkdir(parents=True, exist_ok=True)
+        (tmp_path / rel).write_text("(1767600000.000000) can0 0CF00400#F0C0C0A02800FFFF\n")
+    entries, rule = entries_and_rule([tmp_path / "flat", tmp_path / "nested"])
+    assert sorted(e.vehicle for e in entries) == ["truck1_2026-01-05", "truck2_2026-01-05", "truck7"]
+    assert rule.startswith("vehicles: 3: 1 from the folders holding 1 logs; one per log for the 2 logs"), rule
+    entries, rule = entries_and_rule([tmp_path / "flat"], vehicle_from=r"(?P<vehicle>truck\d+)_(?P<date>[-\d]+)\.")
+    assert [(e.vehicle, e.date) for e in entries] == [("truck1", "2026-01-05"), ("truck2", "2026-01-05")]
+    (tmp_path / "flat" / "spare.log").write_text("")
+    msg = _error(capsys, ["fleet", str(tmp_path / "flat"), "--out", str(tmp_path / "o"),
+                          "--vehicle-from", r"^(truck\d+)_"])
+    assert "spare.log: --vehicle-from '^(truck\\d+)_' finds no vehicle in its file name spare.log" in msg, msg
+    assert not (tmp_path / "o").exists()

@@ -32,7 +32,8 @@ def add_subparser(sub):
             "core) or on an existing cluster (--scheduler tcp://HOST:PORT; the workers need gearbox-vsensor "
             "installed)."),
         epilog=("examples:\n"
-                "  gearbox-vsensor fleet logs/ --out fleet_out           # vehicle = the folder holding each log\n"
+                "  gearbox-vsensor fleet logs/ --out fleet_out    # logs/V/*.log: vehicle V; logs/*.log: one per log\n"
+                "  gearbox-vsensor fleet logs/ --out o --vehicle-from '^(truck\\d+)_'  # truck7_2026-01-05.log\n"
                 "  gearbox-vsensor fleet --manifest fleet.csv --out fleet_out --workers 2\n"
                 "  gearbox-vsensor fleet --manifest fleet.csv --out fleet_out --scheduler tcp://10.0.0.5:8786\n"
                 "  gearbox-vsensor fleet logs/ --out fleet_out --diagnose  # + cooler and oil-level health per week\n"
@@ -41,9 +42,15 @@ def add_subparser(sub):
     p.add_argument("--out", required=True, metavar="DIR", help="output folder (created; re-runs resume into it)")
     p.add_argument("--manifest", metavar="CSV", help="CSV with columns log,vehicle and optional variant,config,date "
                                                      "(paths relative to the manifest)")
+    p.add_argument("--vehicle-from", metavar="REGEX",
+                   help="regular expression searched in each log's file name: the vehicle is its group "
+                        "(?P<vehicle>...), else its first group, else what it matches (optional (?P<date>...)); a "
+                        "file it does not match stops the run naming it. Default without it or --vehicle-pattern: "
+                        "the folder holding the log inside a folder given (logs/V/*.log), else one vehicle per log "
+                        "(its file name without the suffix); the run says which in one line")
     p.add_argument("--vehicle-pattern", metavar="REGEX",
                    help="regular expression on each log's path with a group (?P<vehicle>...) and optional "
-                        "(?P<variant>...), (?P<date>...); default: the folder holding the log")
+                        "(?P<variant>...), (?P<date>...)")
     p.add_argument("--scheduler", metavar="ADDRESS", help="an existing Dask scheduler, tcp://HOST:PORT")
     p.add_argument("--workers", type=int, metavar="N", help="local worker processes (default: one per core)")
     p.add_argument("--estimates", action="store_true", help="also write each log's 10 Hz sensor outputs")
@@ -66,16 +73,18 @@ def add_subparser(sub):
 
 
 def _entries(args):
-    from tools.fleet.manifest import entries_from_paths, read_manifest
+    """(the logs, one sentence on how their vehicles were read: None for a manifest, which names them)."""
+    from tools.fleet.manifest import entries_and_rule, read_manifest
     if args.manifest and args.logs:
         raise InputError("give either --manifest or LOGS, not both")
     if args.manifest:
-        if args.vehicle_pattern:
-            raise InputError("--vehicle-pattern reads vehicles from paths; a manifest names them itself")
-        return read_manifest(args.manifest)
+        for opt, given in (("--vehicle-pattern", args.vehicle_pattern), ("--vehicle-from", args.vehicle_from)):
+            if given:
+                raise InputError(f"{opt} reads vehicles from the logs' names; a manifest names them itself")
+        return read_manifest(args.manifest), None
     if not args.logs:
         raise InputError("no logs: give LOGS (files or folders) or --manifest CSV")
-    return entries_from_paths(args.logs, args.vehicle_pattern)
+    return entries_and_rule(args.logs, args.vehicle_pattern, args.vehicle_from)
 
 
 def _warn_duplicates(out) -> None:
@@ -108,7 +117,7 @@ def _warn_gone(out) -> None:
 
 def run(args) -> int:
     from tools.fleet.run import run_fleet
-    entries = _entries(args)
+    entries, rule = _entries(args)
     if args.period_days is not None and not args.diagnose:
         raise InputError("--period-days sets the health fit's period, which only --diagnose runs")
     args.period_days = PERIOD_DAYS_DEFAULT if args.period_days is None else args.period_days
@@ -124,6 +133,8 @@ def run(args) -> int:
         print(f"prune: {len(gone)} logs no longer at their path, their rows removed"
               + (": " + ", ".join(gone[:5]) + (f" ... and {len(gone) - 5} more" if len(gone) > 5 else "")
                  if gone else ""))
+    if rule:
+        print(rule)
     t0 = time.perf_counter()
     res = run_fleet(entries, args.out, scheduler=args.scheduler, workers=args.workers, estimates=args.estimates,
                     diagnose=args.diagnose)
@@ -141,6 +152,7 @@ def run(args) -> int:
             print(f"  ... {errors.num_rows - 5} more in {args.out}/errors", file=sys.stderr)
     _warn_duplicates(args.out)
     _warn_gone(args.out)
+    why_none = ""
     if args.diagnose:
         from tools.fleet.health import fleet_health
         health = fleet_health(args.out, period_days=args.period_days)
@@ -157,9 +169,10 @@ def run(args) -> int:
               + "; to watch (oil level from the oil temperature, not identifiable: check it): "
               + (", ".join(f.vehicle for f in health.watch) or "none"))
         if health.why_none:
+            why_none = health.why_none
             print(f"health: nothing written to {args.out}/health: {health.why_none}")
     if not args.no_report:
         from tools.fleet.report import write_report
-        path = write_report(args.out)
+        path = write_report(args.out, why_none)
         print(f"report: {path}")
     return 0

@@ -60,6 +60,10 @@ def add_subparser(sub):
                         "warning limits dashed; the heat budget goes to <stem>_heat.png")
     p.add_argument("--can-log", metavar="RUN.log", help="also write the plant's inputs as J1939 frames and its true "
                                                         "temperatures as rig thermocouple frames (candump -L)")
+    p.add_argument("--start-time", metavar="ISO",
+                   help="with --can-log: the UTC time of the log's first frame, e.g. 2026-01-05T08:00:00Z or "
+                        "2026-01-05 (midnight; no zone: UTC); its frame times are then Unix time, as a logger's, "
+                        "and `fleet` takes each log's date from them (default: frame times from 0 s)")
     p.add_argument("--quiet", action="store_true", help="no progress bar or summary")
     p.add_argument("--allow-untrusted", action="store_true",
                    help="simulate a CSV cycle whose units look wrong (time_s in milliseconds, engine speed in rad/s) "
@@ -83,6 +87,27 @@ def refuse_unused_options(args) -> None:
                          f"leave --cooler out")
     args.rate = 10.0 if args.rate is None else args.rate
     args.seed = 0 if args.seed is None else args.seed
+    if args.start_time is not None and not args.can_log:
+        raise InputError("--start-time sets the time stamps of the CAN log, which only --can-log writes")
+    args.start_time = parse_start_time(args.start_time)
+
+
+def parse_start_time(text: str | None) -> float:
+    """Unix time [s] of an ISO 8601 date or date-time (no zone: UTC); 0 for None."""
+    import datetime as dt
+    if text is None:
+        return 0.0
+    try:
+        t = dt.datetime.fromisoformat(text.strip().replace("Z", "+00:00").replace("z", "+00:00"))
+    except ValueError:
+        raise InputError(f"--start-time {text!r} is not an ISO 8601 date or time: give e.g. 2026-01-05T08:00:00Z "
+                         f"or 2026-01-05") from None
+    if t.tzinfo is None:
+        t = t.replace(tzinfo=dt.timezone.utc)
+    stamp = t.timestamp()
+    if not 1e8 <= stamp < 4102444800:     # 1973 .. 2100: what a logger's clock gives (fleet takes >= 1e8 as a date)
+        raise InputError(f"--start-time {text!r} lies outside 1973-2099, where a log's frame times are Unix time")
+    return stamp
 
 
 def run(args) -> int:
@@ -188,7 +213,7 @@ def _write_outputs(args, table, res, params, cfg, tmp) -> None:
     if log_tmp:
         from tools.can.logsynth import write_can_log
         with naming(log_tmp):
-            write_can_log(table, res.table, log_tmp, params, config=cfg)
+            write_can_log(table, res.table, log_tmp, params, config=cfg, start_timestamp_s=args.start_time)
     if plot_tmp:
         from tools.plots import plot_heat_budget, plot_simulation
         title = f"{params.variant} reference plant, cycle {args.cycle}" + (f", effects {args.effect}"

@@ -245,7 +245,7 @@ def _drift_flags(per_vehicle: dict, fleet_median: dict, fleet_mad: dict) -> list
                 value, se = getattr(r, attr), getattr(r, se_attr)
                 drop = baseline - value
                 drifting = drop > DRIFT_MIN[effect] and drop > 3 * se
-                outside = value < fleet_median[(effect, r.period)] - 4 * fleet_mad[(effect, r.period)]
+                outside = value < fleet_median[(effect, r.period)] - SPREAD_OUTSIDE * fleet_mad[(effect, r.period)]
                 run = run + 1 if drifting else 0
                 if run >= CONSECUTIVE:
                     weak = effect == "oil_level_low"    # from the temperature alone (no SPN 124): a watch
@@ -267,11 +267,26 @@ def flag_vehicles(period_fits: list[PeriodFit]) -> list[Flag]:
         per_vehicle.setdefault(f.vehicle, []).append(f)
     for effect, attr in (("cooler_effectiveness_scale", "cooler_scale"), ("oil_level_low", "oil_volume_l")):
         for p in {f.period for f in period_fits}:
-            vals = np.array([getattr(f, attr) for f in period_fits if f.period == p])
-            med = float(np.median(vals))
+            med, spread = fleet_spread([getattr(f, attr) for f in period_fits if f.period == p])
             stats_med[(effect, p)] = med
-            stats_mad[(effect, p)] = max(1.4826 * float(np.median(np.abs(vals - med))), 1e-6)
+            stats_mad[(effect, p)] = spread
     return _drift_flags(per_vehicle, stats_med, stats_mad)
+
+
+#: a vehicle-period's value this many spreads below the fleet's median is "outside the fleet's spread"
+SPREAD_OUTSIDE = 4.0
+
+
+def fleet_spread(values) -> tuple[float, float]:
+    """The fleet's median of a period's values and its spread, 1.4826 x their median absolute deviation (the
+    standard deviation of normal scatter, robust to the outlier it is meant to show); the finite values only, NaN
+    for none; the spread at least 1e-6."""
+    a = np.asarray(values, dtype=float)
+    a = a[np.isfinite(a)]
+    if not a.size:
+        return math.nan, math.nan
+    med = float(np.median(a))
+    return med, max(1.4826 * float(np.median(np.abs(a - med))), 1e-6)
 
 
 def _grid(row: dict) -> tuple[tuple, tuple]:
@@ -370,6 +385,6 @@ def fleet_health(out: str | Path, period_days: float = 7.0) -> Health:
                   undated=undated, far=far)
 
 
-__all__ = ["COOLER_GRID", "JUDGED_PERIODS", "VOLUME_GRID_L", "Flag", "Health", "LogData", "PeriodFit", "fit_log",
-           "fit_period",
+__all__ = ["COOLER_GRID", "JUDGED_PERIODS", "SPREAD_OUTSIDE", "VOLUME_GRID_L", "Flag", "Health", "LogData", "PeriodFit",
+           "fit_log", "fit_period", "fleet_spread",
            "flag_vehicles", "fleet_health", "health_model", "period_level"]

@@ -1,5 +1,6 @@
 """Which logs belong to which vehicle: a manifest CSV (``log,vehicle`` and optional ``variant,config,date``) or the
-logs' paths (the vehicle from a regular expression, by default the name of the folder that holds the log).
+logs' paths (the vehicle from a regular expression on the file name or the path; by default the name of the folder
+that holds the log inside a folder given, else the log's own file name: one vehicle per log of a flat folder).
 
 Every problem with the list itself (a manifest naming missing files, a vehicle with two variants or configurations,
 a log listed twice, no log at all) is an :class:`~firmware_model.errors.InputError` before anything runs; a log that
@@ -21,7 +22,7 @@ from tools.replay.formats import LOG_SUFFIXES
 #: the manifest's columns: required, then optional
 MANIFEST_REQUIRED = ("log", "vehicle")
 MANIFEST_OPTIONAL = ("variant", "config", "date")
-#: the default vehicle pattern: the name of the folder holding the log
+#: the vehicle of a log in a vehicle's folder (logs/<vehicle>/*.log): the name of the folder holding it
 DEFAULT_VEHICLE_PATTERN = r"(?P<vehicle>[^/]+)/[^/]+$"
 
 
@@ -120,36 +121,109 @@ def _read_manifest(m: Path) -> list[LogEntry]:
     return check_entries(entries, f"manifest {m}", lambda e: str(lines[id(e)]))
 
 
-def entries_from_paths(paths, pattern: str | None = None) -> list[LogEntry]:
-    """The logs among ``paths`` (files, and folders searched for CAN log suffixes) with the vehicle from
-    ``pattern`` (a regular expression with a group ``vehicle`` searched in the path, optional groups ``variant``
-    and ``date``; default: the folder holding the log)."""
-    try:
-        rx = re.compile(pattern or DEFAULT_VEHICLE_PATTERN)
-    except re.error as exc:
-        raise InputError(f"--vehicle-pattern {pattern!r} is not a regular expression: {exc}") from None
-    if "vehicle" not in rx.groupindex:
-        raise InputError(f"--vehicle-pattern {pattern!r} has no group (?P<vehicle>...)")
-    files: list[Path] = []
+def entries_from_paths(paths, pattern: str | None = None, vehicle_from: str | None = None) -> list[LogEntry]:
+    """The logs among ``paths`` (files, and folders searched for CAN log suffixes) with their vehicles
+    (:func:`entries_and_rule`)."""
+    return entries_and_rule(paths, pattern, vehicle_from)[0]
+
+
+def _log_files(paths) -> list[tuple[Path, bool]]:
+    """(log file, whether it lies in a subfolder of a folder given) for every log among ``paths``."""
+    files: list[tuple[Path, bool]] = []
     for given in paths:
         p = Path(given)
         if p.is_dir():
             # a compressed log (drive.log.gz) is taken too: it lands in the errors table saying so, not skipped
-            files.extend(sorted(f for f in p.rglob("*") if f.is_file() and (
+            found = sorted(f for f in p.rglob("*") if f.is_file() and (
                 f.suffix.lower() in LOG_SUFFIXES or (f.suffix.lower() == ".gz" and
-                                                     Path(f.stem).suffix.lower() in LOG_SUFFIXES))))
+                                                     Path(f.stem).suffix.lower() in LOG_SUFFIXES)))
+            files.extend((f, f.parent != p) for f in found)
         elif p.exists():
-            files.append(p)
+            files.append((p, False))
         else:
             raise InputError(f"{p} does not exist")
-    entries = []
+    return files
+
+
+def _stem(f: Path) -> str:
+    """A log's name without its log suffix (and .gz): truck7_2026-01-05.log.gz -> truck7_2026-01-05."""
+    name = f.name[:-3] if f.name.lower().endswith(".gz") else f.name
+    return name[:-len(Path(name).suffix)] if Path(name).suffix else name
+
+
+def _vehicle_from(files: list[Path], vehicle_from: str) -> list[tuple[Path, str, str | None]]:
+    """(file, vehicle, date) from ``vehicle_from``, a regular expression searched in each file name: the vehicle is
+    its group ``vehicle``, else its first group, else what it matches; an optional group ``date`` (YYYY-MM-DD)."""
+    try:
+        rx = re.compile(vehicle_from)
+    except re.error as exc:
+        raise InputError(f"--vehicle-from {vehicle_from!r} is not a regular expression: {exc}") from None
+    out, unmatched = [], []
     for f in files:
-        match = rx.search(f.resolve().as_posix())
-        if match is None:
-            raise InputError(f"{f}: --vehicle-pattern {rx.pattern!r} finds no vehicle in its path")
-        groups = match.groupdict()
-        entries.append(_entry(f, groups["vehicle"], groups.get("variant"), None, groups.get("date")))
-    return check_entries(entries, "the logs given")
+        m = rx.search(f.name)
+        vehicle = None if m is None else (m.group("vehicle") if "vehicle" in rx.groupindex
+                                          else m.group(1) if rx.groups else m.group(0))
+        if not vehicle:
+            unmatched.append(f)
+            continue
+        out.append((f, vehicle, m.groupdict().get("date")))
+    if unmatched:
+        more = f" ({len(unmatched)} of {len(files)} logs: {', '.join(u.name for u in unmatched[:3])}" \
+               f"{' ...' if len(unmatched) > 3 else ''})" if len(unmatched) > 1 else ""
+        raise InputError(f"{unmatched[0]}: --vehicle-from '{vehicle_from}' finds no vehicle in its file name "
+                         f"{unmatched[0].name}{more}; fix the pattern (the vehicle is its group (?P<vehicle>...) "
+                         f"or its first group), or name each log's vehicle in a --manifest")
+    return out
+
+
+def entries_and_rule(paths, pattern: str | None = None,
+                     vehicle_from: str | None = None) -> tuple[list[LogEntry], str]:
+    """The logs among ``paths`` with their vehicles, and one sentence saying how the vehicles were read. The
+    vehicle: what ``vehicle_from`` finds in the file name (:func:`_vehicle_from`); or what ``pattern`` finds in the
+    path (a group ``vehicle``, optional groups ``variant`` and ``date``); else the name of the folder holding the log
+    when that folder lies inside a folder given (logs/<vehicle>/*.log), and otherwise the log itself, its file name
+    without the suffix: a flat folder of logs is one vehicle per log (it was one vehicle, the folder's)."""
+    if pattern and vehicle_from:
+        raise InputError("give either --vehicle-pattern (on the path) or --vehicle-from (on the file name), not both")
+    listed = _log_files(paths)
+    files = [f for f, _ in listed]
+    if vehicle_from:
+        found = _vehicle_from(files, vehicle_from)
+        entries = [_entry(f, v, None, None, d) for f, v, d in found]
+        n = len({v for _, v, _ in found})
+        return check_entries(entries, "the logs given"), \
+            f"vehicles: {n} read from the file names by --vehicle-from '{vehicle_from}'"
+    if pattern:
+        try:
+            rx = re.compile(pattern)
+        except re.error as exc:
+            raise InputError(f"--vehicle-pattern {pattern!r} is not a regular expression: {exc}") from None
+        if "vehicle" not in rx.groupindex:
+            raise InputError(f"--vehicle-pattern {pattern!r} has no group (?P<vehicle>...)")
+        entries = []
+        for f in files:
+            match = rx.search(f.resolve().as_posix())
+            if match is None:
+                raise InputError(f"{f}: --vehicle-pattern {rx.pattern!r} finds no vehicle in its path")
+            groups = match.groupdict()
+            entries.append(_entry(f, groups["vehicle"], groups.get("variant"), None, groups.get("date")))
+        return check_entries(entries, "the logs given"), \
+            f"vehicles: {len({e.vehicle for e in entries})} read from the paths by --vehicle-pattern {pattern!r}"
+    entries = [_entry(f, f.parent.resolve().name if nested else _stem(f)) for f, nested in listed]
+    check_entries(entries, "the logs given")
+    n_nested = sum(nested for _, nested in listed)
+    loose = len(listed) - n_nested
+    parts = []
+    if n_nested:
+        parts.append(f"{len({e.vehicle for e, (_, n) in zip(entries, listed) if n})} from the folders holding "
+                     f"{n_nested} logs")
+    if loose:
+        names = [e.vehicle for e, (_, n) in zip(entries, listed) if not n]
+        parts.append(f"one per log for the {loose} logs not in a vehicle's folder (the file name without its suffix: "
+                     f"{', '.join(names[:3])}{' ...' if loose > 3 else ''}; --vehicle-from REGEX reads a vehicle "
+                     f"from the file names, --vehicle-pattern '(?P<vehicle>[^/]+)/[^/]+$' makes the folder holding "
+                     f"them one vehicle, a --manifest names each)")
+    return entries, f"vehicles: {len({e.vehicle for e in entries})}: " + "; ".join(parts)
 
 
 def check_entries(entries: list[LogEntry], where: str, at=None) -> list[LogEntry]:
@@ -196,5 +270,5 @@ def _check_gearboxes(firsts, where: str) -> None:
             raise InputError(f"{where}: vehicle {e.vehicle}: {exc}") from None
 
 
-__all__ = ["DEFAULT_VEHICLE_PATTERN", "LogEntry", "check_entries", "entries_from_paths", "log_key", "read_manifest",
-           "vehicle_config"]
+__all__ = ["DEFAULT_VEHICLE_PATTERN", "LogEntry", "check_entries", "entries_and_rule", "entries_from_paths", "log_key",
+           "read_manifest", "vehicle_config"]

@@ -69,37 +69,52 @@ def _hottest(c: dict, lines: list) -> None:
     lines.append("")
 
 
+def _not_written(path: Path, why: str, lines: list) -> None:
+    """A plot with nothing to show: not written (an earlier run's copy removed, it would show another fleet), and
+    the report says why."""
+    path.unlink(missing_ok=True)
+    lines += [f"{why}: {path.name} not written.", ""]
+
+
 def _plots(c: dict, out: Path, lines: list) -> None:
     plt = _plt()
     n = len(c["log"])
+    lines += ["## Peaks and time above the warning level", ""]
     peaks = {k: np.array(c[f"peak_{k}_c"], dtype=float) for k in PUBLISHED}
-    top = sorted(PUBLISHED, key=lambda k: -np.nanmax(np.where(np.isfinite(peaks[k]), peaks[k], -np.inf)))[:6]
-    fig, ax = plt.subplots(figsize=(8, 4.5))
-    ax.boxplot([peaks[k][np.isfinite(peaks[k])] for k in top])
-    ax.set_xticks(range(1, len(top) + 1), top)
-    ax.set_ylabel("peak per log [degC]")
-    ax.set_title(f"Distribution of the per-log peaks, the 6 hottest components ({n} logs)")
-    fig.tight_layout()
-    _save(fig, out / "report_peaks.png")
-    plt.close(fig)
+    shown = [k for k in PUBLISHED if np.isfinite(peaks[k]).any()]
+    if shown:
+        top = sorted(shown, key=lambda k: -np.nanmax(peaks[k]))[:6]
+        fig, ax = plt.subplots(figsize=(8, 4.5))
+        ax.boxplot([peaks[k][np.isfinite(peaks[k])] for k in top])
+        ax.set_xticks(range(1, len(top) + 1), top)
+        ax.set_ylabel("peak per log [degC]")
+        ax.set_title(f"Distribution of the per-log peaks, the {len(top)} hottest components ({n} logs)")
+        fig.tight_layout()
+        _save(fig, out / "report_peaks.png")
+        plt.close(fig)
+        lines += ["![peaks](report_peaks.png)", ""]
+    else:
+        _not_written(out / "report_peaks.png", "No log has a temperature (the sensor never ran initialised)", lines)
     above = {k: float(np.sum(c[f"above_warning_{k}_s"])) for k in PUBLISHED}
-    vehicles = sorted(set(c["vehicle"]))
-    per_v = {v: sum(max(c[f"above_warning_{k}_s"][i] for k in PUBLISHED) for i in range(n) if c["vehicle"][i] == v)
-             for v in vehicles}
+    ks = [k for k in PUBLISHED if above[k] > 0]
+    if not ks:
+        _not_written(out / "report_above_warning.png", "No log reached a warning limit", lines)
+        return
+    per_v: dict = {}
+    for i in range(n):
+        per_v[c["vehicle"][i]] = per_v.get(c["vehicle"][i], 0.0) + max(c[f"above_warning_{k}_s"][i] for k in PUBLISHED)
     fig, (a1, a2) = plt.subplots(1, 2, figsize=(12, 4.5))
-    ks = [k for k in PUBLISHED if above[k] > 0] or PUBLISHED[:5]
     a1.barh(ks, [above[k] / 60 for k in ks])
     a1.set_xlabel("time above warning, all logs [min]")
     a1.set_title("By component")
-    vs = sorted(per_v, key=lambda v: -per_v[v])[:15]
+    vs = sorted((v for v in per_v if per_v[v] > 0), key=lambda v: -per_v[v])[:15]
     a2.barh(vs, [per_v[v] / 60 for v in vs])
     a2.set_xlabel("time with any component above warning [min]")
-    a2.set_title("By vehicle (15 most)")
+    a2.set_title(f"By vehicle ({len(vs)} of {len(per_v)} reached it)" if len(vs) < 15 else "By vehicle (15 most)")
     fig.tight_layout()
     _save(fig, out / "report_above_warning.png")
     plt.close(fig)
-    lines += ["## Peaks and time above the warning level", "", "![peaks](report_peaks.png)", "",
-              "![time above warning](report_above_warning.png)", ""]
+    lines += ["![time above warning](report_above_warning.png)", ""]
 
 
 def _cell(text) -> str:
@@ -211,10 +226,11 @@ def period_axis(ax, periods: dict) -> None:
         ax.set_xlabel("period")
 
 
-def _health(out: Path, lines: list) -> None:
+def _health(out: Path, lines: list) -> bool:
+    """The fleet health section from DIR/health; False when there is none."""
     p = out / HEALTH / "periods.parquet"
     if not p.is_file():
-        return
+        return False
     import pyarrow.parquet as pq
     periods = _cols(pq.read_table(p))
     fl = _read_flags(out / HEALTH / "flags.parquet")
@@ -232,6 +248,8 @@ def _health(out: Path, lines: list) -> None:
               f"(From the health tables of the last --diagnose run into this folder.)", ""]
     if fl["vehicle"]:
         lines += _flag_table(fl, range(len(fl["vehicle"])))
+    order = _vehicle_order(periods, sorted(set(fl["vehicle"])), sorted(set(wt["vehicle"])))
+    _fitted_tables(periods, order, lines)
     if wt["vehicle"]:
         lines += ["### To watch: check the oil level", "",
                   "These trucks are not judged on a measured oil level (J1939 SPN 124: not sent, sent in too few "
@@ -242,37 +260,163 @@ def _health(out: Path, lines: list) -> None:
                   "times in 7 (see 'Measured' in the fleet documentation, docs/fleet.md). A dipstick check, not a "
                   "diagnosis.", ""]
         lines += _flag_table(wt, range(len(wt["vehicle"])))
-    flagged = sorted(set(fl["vehicle"]))
-    plotted = (flagged + sorted(set(wt["vehicle"]) - set(flagged)))[:8]     # the flagged first
+    _health_plot(periods, order, set(fl["vehicle"]) | set(wt["vehicle"]), out, lines)
+    return True
+
+
+#: the fitted values the report shows per vehicle and period: (column, its standard error, heading, format)
+FITTED = (("cooler_scale", "cooler_se", "Cooler effectiveness scale [-] (1: the parameters' cooler; lower: fouled, "
+                                        "bypassed)", "{:.2f}"),
+          ("oil_volume_l", "oil_volume_se", "Oil volume from the oil temperature [L] (not identifiable from it: a "
+                                            "dipstick check, not a diagnosis)", "{:.1f}"),
+          ("oil_level_pct", "oil_level_se", "Measured oil level, SPN 124 [%]", "{:.1f}"))
+#: the vehicles and the (latest) periods the tables show at most
+TABLE_VEHICLES, TABLE_PERIODS = 30, 8
+#: a period's fleet spread needs at least this many vehicles to mark one outside it
+SPREAD_MIN_VEHICLES = 3
+
+
+def _period_spread(periods: dict, attr: str) -> dict:
+    """Per period: (the fleet's median, its spread, how many vehicles have a value) of column ``attr``."""
+    from tools.fleet.health import fleet_spread
+    out = {}
+    for q in sorted(set(periods["period"])):
+        vals = [x for x, p in zip(periods[attr], periods["period"]) if p == q and math.isfinite(x)]
+        out[q] = (*fleet_spread(vals), len(vals))
+    return out
+
+
+def _below(attr: str, x: float, se: float, spread: tuple) -> bool:
+    """A value below the fleet's spread in its period (where a fouled cooler or a low oil volume goes): more than
+    SPREAD_OUTSIDE spreads, 3 of its standard errors and the smallest drop a flag counts below the median (trucks
+    that fit alike, as simulated ones do, have a spread near 0: a hundredth is no finding)."""
+    from tools.fleet.health import DRIFT_MIN, LEVEL_DRIFT_MIN_SHARE, SPREAD_OUTSIDE
+    med, sp, n = spread
+    least = {"cooler_scale": DRIFT_MIN["cooler_effectiveness_scale"], "oil_volume_l": DRIFT_MIN["oil_level_low"],
+             "oil_level_pct": LEVEL_DRIFT_MIN_SHARE * med}[attr]
+    drop = med - x
+    return n >= SPREAD_MIN_VEHICLES and math.isfinite(x) and drop > max(SPREAD_OUTSIDE * sp, least) \
+        and not drop <= 3 * se
+
+
+def _vehicle_order(periods: dict, flagged: list, watched: list) -> list:
+    """The flagged vehicles, the watched ones, then the others by how far their fitted cooler sits below the fleet's
+    median (in spreads, their worst period), the farthest first."""
+    spread = _period_spread(periods, "cooler_scale")
+    depth: dict = {}
+    for v, q, x in zip(periods["vehicle"], periods["period"], periods["cooler_scale"]):
+        med, sp, _ = spread[q]
+        z = (med - x) / sp if math.isfinite(x) and math.isfinite(sp) else -math.inf
+        depth[v] = max(depth.get(v, -math.inf), z)
+    first = flagged + [v for v in watched if v not in flagged]
+    return first + sorted((v for v in depth if v not in first), key=lambda v: (-depth[v], v))
+
+
+def _fitted_tables(periods: dict, order: list, lines: list) -> None:
+    """Per fitted value a table vehicle x period, with the fleet's median and spread of each period."""
+    from tools.fleet.health import DRIFT_MIN, SPREAD_OUTSIDE
+    per = sorted(set(periods["period"]))[-TABLE_PERIODS:]
+    start = {}
+    for q, d in zip(periods["period"], periods["start"]):
+        start.setdefault(q, str(d)[:10])
+    at = {(v, q): i for i, (v, q) in enumerate(zip(periods["vehicle"], periods["period"]))}
+    shown = order[:TABLE_VEHICLES]
+    lines += ["### Fitted values per vehicle and period", "",
+              f"Each vehicle's fitted value per period (columns: the period's first day) +/- its standard error, "
+              f"beside the fleet's median and spread (1.4826 x the median absolute deviation) in that period. "
+              f"**below**: "
+              f"below the median by more than {SPREAD_OUTSIDE:g} spreads, 3 standard errors and the drop a flag "
+              f"needs ({DRIFT_MIN['cooler_effectiveness_scale']:g} cooler, {DRIFT_MIN['oil_level_low']:g} L oil; "
+              f"with at least {SPREAD_MIN_VEHICLES} vehicles in the period), where a "
+              f"fouled cooler or a low oil level goes (a weak cooler also pulls the oil volume's estimate down); a "
+              f"flag needs a drift from the vehicle's own baseline as well. Flagged and watched vehicles first, then the farthest below the "
+              f"fleet's cooler median.", ""]
+    n_periods = len(set(periods["period"]))
+    if len(order) > len(shown) or n_periods > len(per):
+        lines[-2] += (f" Shown: {len(shown)} of {len(order)} vehicles, the last {len(per)} of {n_periods} periods; "
+                      f"all in health/periods.parquet.")
+    for attr, se, heading, fmt in FITTED:
+        if not np.isfinite(np.asarray(periods.get(attr, []), dtype=float)).any():
+            continue
+        spread = _period_spread(periods, attr)
+        lines += [f"{heading}:", "", "| vehicle | " + " | ".join(start[q] for q in per) + " |",
+                  "|---|" + "---|" * len(per)]
+        for v in shown:
+            cells = []
+            for q in per:
+                i = at.get((v, q))
+                x = periods[attr][i] if i is not None else math.nan
+                if not math.isfinite(x):
+                    cells.append("-")
+                    continue
+                e = periods[se][i]
+                txt = fmt.format(x) + (f" +/- {fmt.format(e)}" if math.isfinite(e) else "")
+                cells.append(f"**{txt} below**" if _below(attr, x, e, spread[q]) else txt)
+            lines.append(f"| {_cell(v)} | " + " | ".join(cells) + " |")
+        lines.append("| fleet median | " + " | ".join(fmt.format(spread[q][0]) if spread[q][2] else "-"
+                                                     for q in per) + " |")
+        lines.append("| fleet spread | " + " | ".join(fmt.format(spread[q][1]) if spread[q][2] >= 2 else "-"
+                                                     for q in per) + " |")
+        lines.append("")
+
+
+def _health_plot(periods: dict, order: list, marked: set, out: Path, lines: list) -> None:
+    """The fitted values per period of at most 8 vehicles (the flagged and watched first, then the farthest below
+    the fleet's cooler median) over the fleet's median and spread."""
+    from tools.fleet.health import SPREAD_OUTSIDE
+    plotted = order[:8]
     plt = _plt()
-    panels = [("cooler_scale", "cooler_se", "cooler effectiveness scale [-]"),
-              ("oil_volume_l", "oil_volume_se", "oil volume from the oil temperature [L]")]
-    if np.isfinite(np.asarray(periods.get("oil_level_pct", []), dtype=float)).any():
-        panels.append(("oil_level_pct", "oil_level_se", "measured oil level, SPN 124 [%]"))
-    fig, axes = plt.subplots(1, len(panels), figsize=(6 * len(panels), 4.5))
-    for ax, (attr, se, label) in zip(axes, panels):
-        per = sorted(set(periods["period"]))
-        med = [_nanmedian([periods[attr][i] for i in range(len(periods["period"])) if periods["period"][i] == q])
-               for q in per]
-        ax.plot(per, med, "k--", label="fleet median")
+    panels = [(a, e, h.split(" (")[0]) for a, e, h, _ in FITTED
+              if np.isfinite(np.asarray(periods.get(a, []), dtype=float)).any()]
+    fig, axes = plt.subplots(1, len(panels), figsize=(6 * len(panels), 4.5), squeeze=False)
+    for ax, (attr, se, label) in zip(axes[0], panels):
+        spread = _period_spread(periods, attr)
+        per = [q for q in sorted(spread) if spread[q][2]]
+        med = np.array([spread[q][0] for q in per])
+        band = np.array([spread[q][1] if spread[q][2] >= SPREAD_MIN_VEHICLES else 0.0 for q in per])
+        ax.fill_between(per, med - SPREAD_OUTSIDE * band, med + SPREAD_OUTSIDE * band, color="0.85",
+                        label=f"fleet median +/- {SPREAD_OUTSIDE:g} spreads")
+        ax.plot(per, med, "k--", marker="." if len(per) == 1 else None, label="fleet median")
         for v in plotted:
             idx = [i for i in range(len(periods["vehicle"])) if periods["vehicle"][i] == v]
             ax.errorbar([periods["period"][i] for i in idx], [periods[attr][i] for i in idx],
                         yerr=[min(periods[se][i], 1.0 if attr != "oil_level_pct" else 10.0)
                               if math.isfinite(periods[se][i]) else 0 for i in idx],
-                        marker="o", capsize=2, label=v)
+                        marker="o", capsize=2, label=v + (" (flagged or watched)" if v in marked else ""))
         period_axis(ax, periods)
         ax.set_ylabel(label)
         ax.legend(fontsize=7, loc="center left", bbox_to_anchor=(1.0, 0.5))
-    fig.suptitle("Flagged and watched vehicles: fitted values per period (1 standard error)")
+    fig.suptitle(f"Fitted values per period (1 standard error) of {len(plotted)} of {len(order)} vehicles: "
+                 f"flagged and watched first, then the farthest below the fleet's cooler median")
     fig.tight_layout()
     _save(fig, out / "report_health.png")
     plt.close(fig)
     lines += ["![health](report_health.png)", ""]
 
 
-def write_report(out: str | os.PathLike) -> Path:
-    """Write DIR/report.md (and its plots) from the tables in DIR; returns its path."""
+def _undated(c: dict, lines: list) -> None:
+    """The logs without a date, and why: they are left out of --diagnose's periods."""
+    from tools.fleet.summary import EPOCH_MIN_S
+    bad = [i for i, d in enumerate(c["date"]) if d == "unknown"]
+    if not bad:
+        return
+    lines += [f"## Logs without a date ({len(bad)}, left out of the fleet health)", "",
+              f"A log's date is the UTC day of its first frame when its frame times are Unix time (at least "
+              f"{EPOCH_MIN_S:.0e} s: candump -L, and .blf, .mf4 and .trc logs that record their start), the date in "
+              f"a Vector .asc header, or the manifest's date column. These logs have none of them: their frame times "
+              f"count from the logger's start. Give their dates in a --manifest (column date) or by "
+              f"--vehicle-from's (?P<date>...) in the file name.", "",
+              "| vehicle | log | first frame time |", "|---|---|---|"]
+    lines += [f"| {_cell(c['vehicle'][i])} | {_cell(os.path.basename(c['log'][i]))} | {c['start_s'][i]:.3f} s |"
+              for i in bad[:50]]
+    if len(bad) > 50:
+        lines.append(f"\n... and {len(bad) - 50} more (the summary's date is 'unknown')")
+    lines.append("")
+
+
+def write_report(out: str | os.PathLike, health_why_none: str = "") -> Path:
+    """Write DIR/report.md (and its plots) from the tables in DIR; returns its path. ``health_why_none``: why a
+    --diagnose run just now fitted nothing (said in the report when no earlier run left health tables)."""
     out = Path(out)
     summary = read_table(out)
     errors = read_table(out, ERRORS)
@@ -285,12 +429,13 @@ def write_report(out: str | os.PathLike) -> Path:
         dated = sorted(d for d in c["date"] if d != "unknown")
         undated = len(c["date"]) - len(dated)
         span = (f"dates {dated[0]} to {dated[-1]}" if dated else "no dates") + (
-            f" ({undated} logs without a date: their frame times are not Unix time and the manifest gives none)"
-            if undated else "")
+            f" ({undated} logs without a date: their frame times are not Unix time and the manifest gives none; "
+            f"listed below)" if undated else "")
         lines += [f"{len(c['log'])} logs, {len(set(c['vehicle']))} vehicles, {hours:.1f} truck-hours; "
                   f"{span}. Mean degraded share "
                   f"{100 * float(np.mean(c['degraded_share'])):.1f} %; frames rejected: "
                   f"{sum(sum(c[k]) for k in c if k.startswith('rejected_'))} of {sum(c['frames'])}.", ""]
+        _undated(c, lines)
         _duplicates(c, lines)
         _gone(c, lines)
         _malformed(c, lines)
@@ -298,7 +443,15 @@ def write_report(out: str | os.PathLike) -> Path:
         if c["log"]:
             _hottest(c, lines)
             _plots(c, out, lines)
-    _health(out, lines)
+        else:
+            for png in ("report_peaks.png", "report_above_warning.png"):
+                (out / png).unlink(missing_ok=True)
+            lines += ["No log is trusted, so no peak or time above a warning is shown: report_peaks.png and "
+                      "report_above_warning.png not written.", ""]
+    if not _health(out, lines) and health_why_none:
+        (out / "report_health.png").unlink(missing_ok=True)
+        lines += ["## Fleet health (--diagnose)", "", f"Nothing fitted: {health_why_none}; report_health.png not "
+                  f"written.", ""]
     if errors is not None and errors.num_rows:
         e = _cols(errors)
         lines += ["## Logs that could not be read", "", "| log | stage | reason |", "|---|---|---|"]
