@@ -173,6 +173,8 @@ def run(args) -> int:
         has_fig = plot_held_out(cal, fig)
         with atomic_text_file(rep) as fh:
             fh.write(report_markdown(cal, params, fig.name if has_fig else None))
+    if cal.thin_evidence():             # too few effective samples: said, with the advice, written or not
+        print(f"warning: {cal.thin_evidence()}", file=sys.stderr)
     refusal = _refusal(cal)
     if refusal:
         # no calibration (wrong units or channels in the training files, an effect the keys cannot stand for):
