@@ -7,12 +7,12 @@ import json
 import pytest
 
 from tools.cli import main
-from tools.diagnosis.options import Options, n_eff_needed
 
 
 def test_the_rule_follows_from_the_decision_statistics():
     """n_eff_needed: the least n at which an effect explaining explain_min of the excess reaches evidence_min."""
     import math
+    from tools.diagnosis.options import Options, n_eff_needed
     o = Options()
     n = n_eff_needed(o)
     assert n == 19
@@ -41,6 +41,7 @@ def test_one_hour_file_with_a_weak_cooler_is_thin_evidence_naming_the_cooler(tmp
     assert v["effect"] == "unexplained" and v["closest_candidate"] == "cooler_effectiveness_scale"
     assert th["best_candidate"] == "cooler_effectiveness_scale"
     assert 0.45 <= th["parameters"]["factor"] <= 0.65
+    from tools.diagnosis.options import Options, n_eff_needed
     assert th["n_eff"] < th["n_eff_needed"] == n_eff_needed(Options())
     assert th["test_rms_after_c"] < 0.25 * th["test_rms_before_c"]
     assert "sensor or placement fault" not in v["reason"]
@@ -71,6 +72,7 @@ def test_a_constant_residual_claims_a_sensor_fault_only_with_evidence_for_one():
 
 def _calibration(n_eff: float):
     from tools.diagnosis.calibrate import Calibration
+    from tools.diagnosis.options import Options, n_eff_needed
     k = "housing.hot_frac"
     return Calibration([k], {k: 0.5}, {k: 0.7}, {k: 0.01}, {k: False}, [], (2.5, 0.2), (2.5, 0.19),
                        {"oil": (2.5, 0.19)}, 10, ["a.csv"], ["b.csv"], n_eff=n_eff,
