@@ -24,7 +24,8 @@ def test_the_rule_follows_from_the_decision_statistics():
 def test_one_hour_file_with_a_weak_cooler_is_thin_evidence_naming_the_cooler(tmp_path, capsys):
     """One training file (the long-haul cycle, 1 h) with the cooler at 0.6 of its effectiveness: its residual drifts
     over the whole file (n_eff 2 of 1801 cells). The verdict was an effect claimed on a score of 12, or "unexplained
-    ... the signature of a sensor or placement fault"; it is thin evidence naming the cooler and its cut."""
+    ... the signature of a sensor or placement fault"; it is thin evidence naming the cooler and its cut. calibrate on
+    the same files says that its fit rests on thin evidence."""
     paths = []
     for name, seed in (("train.csv", "0"), ("test.csv", "1")):
         p = tmp_path / name
@@ -49,6 +50,14 @@ def test_one_hour_file_with_a_weak_cooler_is_thin_evidence_naming_the_cooler(tmp
         assert "thin evidence" in text and "cooler_effectiveness_scale" in text
         assert "more training files, or longer ones" in text
     assert "verdict: unexplained (thin evidence)" in out
+    # calibrate on the same files: the fit (the cooler's hA) is said to rest on thin evidence, with the advice
+    toml, crep = tmp_path / "cal" / "cal.toml", tmp_path / "cal" / "report.md"
+    assert main(["calibrate", "--train", paths[0], "--test", paths[1], "--params", "cooler.liquid_hA_ref", "--out",
+                 str(toml), "--report", str(crep), "--quiet"]) == 0
+    err = capsys.readouterr().err
+    said = next(x for x in err.splitlines() if x.startswith("warning: thin evidence: "))
+    assert "fitting 1 value needs at least 19" in said and "more training files, or longer ones" in said
+    assert "Thin evidence." in crep.read_text() and "# thin evidence: " in toml.read_text()
 
 
 def _structure():
