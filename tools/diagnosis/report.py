@@ -282,7 +282,8 @@ def _md_verdict(res: dict) -> list:
         if v.get("confusable_with"):
             L.append(f" Confusable with: {', '.join(v['confusable_with'])}.")
     elif v.get("evidence") == "thin":
-        L.append(f"**{v['effect']}, thin evidence**: {v['thin_evidence']['text']}.\n\nReason: {v['reason']}.")
+        text = v["thin_evidence"]["text"].removeprefix("thin evidence ")
+        L.append(f"**{v['effect']}, thin evidence** {text}.\n\nReason: {v['reason']}.")
     else:
         L.append(f"**{v['effect']}**: {v['reason']}.")
     L.append(f"\n\nOn the test files the pooled RMS residual goes from **{_fmt(v['test_rms_before_c'])} degC** to "
