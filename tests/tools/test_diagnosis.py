@@ -114,6 +114,16 @@ def test_planted_effect_is_identified_and_shrinks(planted):
     assert res["candidates"][0]["effect"] == "planetary_loss_scale"
 
 
+def test_enough_effective_samples_keep_the_verdict(planted):
+    """Two noisy 10-minute rig files hold enough effective samples: the verdict is the effect, with no thin-evidence
+    qualifier (docs/diagnosis.md, "Thin evidence")."""
+    from tools.diagnosis.options import n_eff_needed
+    res, _, _ = planted
+    assert res["criterion"]["n_eff"] >= n_eff_needed(Options())
+    assert "evidence" not in res["verdict"] and "thin_evidence" not in res["verdict"]
+    assert res["verdict"]["effect"] == "planetary_loss_scale"
+
+
 def test_report_written_with_plots(planted):
     _, rep, _ = planted
     text = rep.read_text()

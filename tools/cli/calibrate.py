@@ -27,7 +27,9 @@ def add_subparser(sub):
             "came from; use it with --config (params = \"OUT.toml\") for replay, simulate or diagnose.\n\n"
             "An unknown key, a key without bounds or a key the data cannot identify is refused (one sentence, exit "
             "2, nothing written); --auto fits every bounded key the data can identify and lists the others. A fit "
-            "that makes the held-out RMS worse writes no OUT.toml (exit 3; the report, if asked for, shows why)."),
+            "that makes the held-out RMS worse writes no OUT.toml (exit 3; the report, if asked for, shows why). A fit "
+            "whose training residual holds too few effective samples to decide (docs/diagnosis.md, 'Thin evidence') "
+            "is said in a warning, the report and the file's header, with the advice: more or longer files."),
         epilog="examples:\n"
                "  gearbox-vsensor calibrate --train rig1.csv rig2.csv --test rig3.csv --auto --out my_gearbox.toml "
                "--report cal/report.md\n"
@@ -173,6 +175,8 @@ def run(args) -> int:
         has_fig = plot_held_out(cal, fig)
         with atomic_text_file(rep) as fh:
             fh.write(report_markdown(cal, params, fig.name if has_fig else None))
+    if cal.thin_evidence():             # too few effective samples: said, with the advice, written or not
+        print(f"warning: {cal.thin_evidence()}", file=sys.stderr)
     refusal = _refusal(cal)
     if refusal:
         # no calibration (wrong units or channels in the training files, an effect the keys cannot stand for):

@@ -31,7 +31,9 @@ def add_subparser(sub):
             "2. which: every catalog effect fitted on the TRAINING files by re-simulation and ranked by "
             "score = -dBIC with an effective sample size (autocorrelated residuals); confusable candidates and "
             "the extra measurement that separates them; verdict 'none' when the model agrees within the "
-            "measurement noise, 'unexplained' when no candidate explains the gap; beside an effect verdict, the "
+            "measurement noise, 'unexplained' when no candidate explains the gap (qualified as thin evidence, with the "
+            "best candidate and what it would cut, when the files hold too few effective samples to decide: add "
+            "more or longer files); beside an effect verdict, the "
             "other effects the data cannot rule out (no strong evidence against them, the verdict refitted) and "
             "those they point to without a claim ('indicated');\n"
             "3. how far it shrinks: RMS and max residual before/after on the TEST files only."),
@@ -125,8 +127,12 @@ def run(args) -> int:
         if v["effect"] not in ("none", "unexplained"):
             (pn, pv), = v["parameters"].items()
             extra = f" ({pn} = {pv:g})"
+        if v.get("evidence") == "thin":
+            extra = " (thin evidence)"
         print(f"verdict: {v['effect']}{extra}; test RMS {v['test_rms_before_c']:.3f} -> {v['test_rms_after_c']:.3f} "
               f"degC (shrink {100 * v['shrink']:.0f} %) -> {args.json}")
+        if v.get("evidence") == "thin":
+            print(v["thin_evidence"]["text"])
         print(f"reason: {v['reason']}")
         running = [n for n, st in res.get("starts", {}).items() if st["start"] == "running"]
         if running:

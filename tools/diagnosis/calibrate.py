@@ -29,7 +29,7 @@ from firmware_model.errors import InputError
 from firmware_model.parameters import Parameters
 
 from tools.diagnosis.measurement import model_at_cells
-from tools.diagnosis.options import HOUSING_PERTURB_C, Options
+from tools.diagnosis.options import HOUSING_PERTURB_C, Options, n_eff_needed
 from tools.diagnosis.prepare import prepare_runs
 
 #: a parameter is identifiable when moving it over half its plausible range moves some channel by at least this [K]
@@ -79,6 +79,21 @@ class Calibration:
     test: list = field(default_factory=list)
     plot: dict = field(default_factory=dict)   # held-out residuals for the report's figure
     starts: tuple = ()                         # start.StartOf per file (rest, or running with --start running)
+    n_eff: float = math.inf                    # effective samples of the training residual after the fit
+    n_eff_needed: int = 0                      # ... needed to decide the fitted values (options.n_eff_needed)
+    n_cells: int = 0                           # cells of the training residual
+    train_s: float = 0.0                       # training time scored [s]
+
+    def thin_evidence(self) -> str:
+        """One sentence when the fitted values rest on too few effective samples ('' otherwise), with the advice."""
+        if not self.n_eff < self.n_eff_needed:
+            return ""
+        (b, a), more = self.test_rms_c, self.n_eff_needed / max(self.n_eff, 1e-9)
+        return (f"thin evidence: the training residual after the fit holds n_eff = {self.n_eff:.0f} effective samples "
+                f"of {self.n_cells} cells and fitting {len(self.keys)} value{'s' if len(self.keys) > 1 else ''} needs "
+                f"at least {self.n_eff_needed}; the fit cuts the held-out RMS {b:.2f} -> {a:.2f} K but rests on too "
+                f"little to trust: add more training files, or longer ones (at this autocorrelation about {more:.0f} "
+                f"times the {self.train_s / 3600.0:.1f} h scored), and calibrate again")
 
 
 # ----------------------------------------------------------------------------------------------------------------
@@ -364,11 +379,15 @@ def calibrate(train_tables, test_tables, params: Parameters, keys: list | None, 
         rb, ra = residual_parts(test, base_te, sh_te), residual_parts(test, after_te, sh_te)
         plot = {"test": [(ds.name, cid, ch.cell_t_s, b, a) for ds, bs, as_ in zip(test, rb, ra)
                          for (cid, ch), b, a in zip(ds.channels.items(), bs, as_)]}
+        r_tr = residual_vector(train, after_tr, sh_tr)
+        train_s = sum(ds.t_end_s - (ds.scored_from_s if ds.scored_from_s is not None else ds.t_start_s)
+                      for ds in train)
         return Calibration(keys_ok, {k: params[k] for k in keys_ok}, fitted, sd, at_bound, ident,
                            (pooled_rms(train, base_tr, sh_tr), pooled_rms(train, after_tr, sh_tr)),
                            (pooled_rms(test, base_te, sh_te), pooled_rms(test, after_te, sh_te)),
                            {c: (before_c[c], after_c[c]) for c in before_c}, runs.n_sims,
-                           [ds.name for ds in train], [ds.name for ds in test], plot, starts.records)
+                           [ds.name for ds in train], [ds.name for ds in test], plot, starts.records,
+                           _effective_n(r_tr), n_eff_needed(opts, len(keys_ok)), int(r_tr.size), train_s)
     finally:
         runs.close()
 
@@ -399,7 +418,10 @@ def calibrated_toml(base_file, params: Parameters, cal: Calibration, stamp: str)
     entries = read_entries(base_file)
     lines = [f"# {params.variant} calibrated by gearbox-vsensor calibrate ({stamp}) to {', '.join(cal.train)};",
              f"# held-out {', '.join(cal.test)}: RMS {cal.test_rms_c[0]:.3f} -> {cal.test_rms_c[1]:.3f} degC.",
-             "# Fitted entries have src = \"fitted\"; every other entry is as in " + str(params.origin) + ".", ""]
+             "# Fitted entries have src = \"fitted\"; every other entry is as in " + str(params.origin) + "."]
+    if cal.thin_evidence():
+        lines.append("# " + cal.thin_evidence() + ".")
+    lines.append("")
     for key, e in entries.items():
         if key in cal.fitted:
             fac = UNITS[e["u"]][1]
@@ -413,6 +435,10 @@ def calibrated_toml(base_file, params: Parameters, cal: Calibration, stamp: str)
             e.pop("ref", None)
         lines.append(f"{_toml_key(key)} = {_toml_value(e)}")
     return "\n".join(lines) + "\n"
+
+
+def _first_up(text: str) -> str:
+    return text[:1].upper() + text[1:]
 
 
 def report_markdown(cal: Calibration, params: Parameters, figure: str | None) -> str:
@@ -441,6 +467,8 @@ def report_markdown(cal: Calibration, params: Parameters, figure: str | None) ->
         unit = params.units.get(k, "")
         out.append(f"| `{k}` | {cal.start[k]:.6g} | {cal.fitted[k]:.6g} | {cal.sigma[k]:.2g} | {unit}"
                    + ("; at a bound" if cal.at_bound[k] else "") + " |")
+    if cal.thin_evidence():
+        out += ["", f"**Thin evidence.** {_first_up(cal.thin_evidence()[len('thin evidence: '):])}."]
     out += ["", "The one-sigma figures are statistical (the residual's autocorrelation accounted for); they do not "
             "include the model's own form error, which is usually larger: judge the fit by the held-out files.", "",
             "## Residual RMS [degC]", "", "| | before (file values) | after (fitted) |", "|---|---|---|",

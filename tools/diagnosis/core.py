@@ -115,7 +115,7 @@ class Diagnosis:
         conf = confusable_with(crit, ctx.opts)
         if verdict.is_effect:
             combo, set_note = select_set(ctx, base, crit, fits, verdict.gap_thr_c, conf)
-        elif verdict.effect == "unexplained":
+        elif verdict.effect == "unexplained" and verdict.thin is None:
             combo = rescue(ctx, base, crit, fits, verdict.gap_thr_c)
         verdict = with_combination(ctx, base, verdict, combo)
         if set_note:
@@ -128,7 +128,7 @@ class Diagnosis:
         else:                                      # kept (perhaps with a note in its reason): the set stays
             verdict = checked
         structure = self._structure(base, fits, verdict)
-        verdict = with_structure(verdict, structure)
+        verdict = with_structure(verdict, structure, crit.candidates[0].fit.effect)
         nex = self._not_excluded(base, crit, fits, verdict, combo, ident)
         verdict = with_not_excluded(verdict, nex)
         sugg = suggestions(ctx, train, verdict, crit, conf)

@@ -3,7 +3,9 @@ verdict shrinks the residual on the held-out test files.
 
 Verdict: "none" when the systematic residual (noise removed) stays within the 'none' threshold on every channel;
 else the best candidate when it has strong evidence, explains enough of the excess, sits far enough from neutral
-and does not sit at its bound with a gap left; else "unexplained" when a real gap remains, "none" when not.
+and does not sit at its bound with a gap left; else "unexplained" when a real gap remains, "none" when not. Before
+the evidence is weighed: too few effective samples to decide (options.n_eff_needed) give "unexplained" (or "none"
+without a real gap) qualified as thin evidence, naming the best candidate and what it would cut.
 """
 from __future__ import annotations
 
@@ -19,7 +21,7 @@ from tools.diagnosis.baseline import Baseline
 from tools.diagnosis.context import Context
 from tools.diagnosis.fit import Candidate, Criterion, Fit
 from tools.diagnosis.models import Run
-from tools.diagnosis.options import OIL, Options, json_number
+from tools.diagnosis.options import OIL, Options, json_number, n_eff_needed
 
 NO_EFFECT = ("none", "unexplained")
 
@@ -31,12 +33,38 @@ class Systematic(NamedTuple):
 
 
 @dataclass(frozen=True)
+class ThinEvidence:
+    """Too few effective samples to decide: how many there are and are needed, the best candidate and what it would
+    do on the test files, and the training time scored (to say how much more driving the decision needs)."""
+    n_eff: float
+    needed: int
+    n: int                   # grid cells of the training files
+    best: Candidate
+    test_rms_before_c: float
+    test_rms_after_c: float
+    train_s: float
+
+    def advice(self) -> str:
+        more = self.needed / max(self.n_eff, 1e-9)
+        return (f"add more training files, or longer ones (at this autocorrelation about {more:.0f} times the "
+                f"{self.train_s / 3600.0:.1f} h scored), and diagnose again")
+
+    def what_it_would_cut(self) -> str:
+        f = self.best.fit
+        e = CATALOG[f.effect]
+        unit = f" {e.unit}" if e.unit != "-" else ""
+        return (f"{f.effect} ({e.param} fitted {f.value:.3g}{unit}) would cut the test RMS "
+                f"{self.test_rms_before_c:.2f} -> {self.test_rms_after_c:.2f} K")
+
+
+@dataclass(frozen=True)
 class Verdict:
     effect: str              # "none", "unexplained" or the effect id
     reason: str
     systematic: Systematic   # of the baseline on the training files
     gap_thr_c: dict          # per channel: what a real gap must exceed
     post_c: dict             # per channel: the systematic residual left after the best candidate
+    thin: ThinEvidence | None = None   # set when too few effective samples to decide
 
     @property
     def is_effect(self) -> bool:
@@ -113,6 +141,8 @@ def decide(ctx: Context, base: Baseline, crit: Criterion) -> Verdict:
     real_gap = [c for c in sys_rms if sys_rms[c] > gap_thr[c]]
     if all(sys_rms[c] <= thr[c] for c in sys_rms):
         return Verdict("none", _none_reason(sys_rms, thr, base, o, ctx.is_plant), sy, gap_thr, post)
+    if crit.n_eff < n_eff_needed(o):
+        return _thin_verdict(base, crit, o, Verdict("unexplained" if real_gap else "none", "", sy, gap_thr, post))
     why_not = _why_not(top, gap_left, o)
     if not why_not:
         reason = (f"{top.fit.effect} has the strongest evidence (score {top.score:.0f}) and explains "
@@ -127,6 +157,30 @@ def decide(ctx: Context, base: Baseline, crit: Criterion) -> Verdict:
                        + _listing(sys_rms, gap_thr, ">", real_gap) + ")", sy, gap_thr, post)
     return Verdict("none", why_not + "; the systematic residual stays below the measurement noise ("
                    + _listing(sys_rms, gap_thr, "<=", sys_rms) + ")", sy, gap_thr, post)
+
+
+def thin_evidence(base: Baseline, crit: Criterion, opts: Options) -> ThinEvidence:
+    """The thin-evidence record of a ranking: n_eff against what the decision needs, the best candidate's cut."""
+    top = crit.candidates[0]
+    before = pooled_rms([y - p for y, p in zip(base.test.obs, base.p0_te)])
+    after = pooled_rms([y - p for y, p in zip(base.test.obs, top.p_te)])
+    train_s = sum(ds.t_end_s - (ds.scored_from_s if ds.scored_from_s is not None else ds.t_start_s)
+                  for ds in base.train.datasets)
+    return ThinEvidence(crit.n_eff, n_eff_needed(opts), crit.n, top, before, after, train_s)
+
+
+def _thin_verdict(base: Baseline, crit: Criterion, o: Options, v: Verdict) -> Verdict:
+    """Too few effective samples to decide: no effect claimed; the reason says so, names the best candidate and what
+    it would cut, and asks for more data. "unexplained" with a real gap, "none" without."""
+    th = thin_evidence(base, crit, o)
+    gap = [c for c in v.systematic.rms_c if v.systematic.rms_c[c] > v.gap_thr_c[c]]
+    listing = _listing(v.systematic.rms_c, v.gap_thr_c, ">" if gap else "<=", gap or list(v.systematic.rms_c))
+    reason = (f"thin evidence, too little to decide: the training residual holds n_eff = {th.n_eff:.0f} effective "
+              f"samples of {th.n} grid cells and the decision needs at least {th.needed}; the best candidate "
+              f"{th.what_it_would_cut()} (score {th.best.score:.1f}, explains "
+              f"{100 * min(max(th.best.explained, 0.0), 1.0):.0f} % of the excess), but that is no claim: "
+              f"{th.advice()} ({'a real gap remains' if gap else 'no real gap'}: systematic residual {listing})")
+    return replace(v, reason=reason, thin=th)
 
 
 def with_combination(ctx: Context, base: Baseline, v: Verdict, combo) -> Verdict:
@@ -162,17 +216,30 @@ def with_not_excluded(v: Verdict, items: list) -> Verdict:
                                         f"verdict's effects refitted): {shown}")
 
 
-def with_structure(v: Verdict, structure: dict) -> Verdict:
+def with_structure(v: Verdict, structure: dict, best: str | None = None) -> Verdict:
     """The verdict with the residual's regime structure as evidence in its reason (regimes.residual_structure):
-    said for a sensor fault, and for a verdict of "unexplained" (where a constant offset points at the sensor)."""
+    said for a sensor fault, and for a verdict of "unexplained" (where a constant offset points at the sensor). A
+    constant residual is called the signature of a sensor or placement fault only with evidence for one: the verdict
+    is that sensor's effect, or `best` (the best-ranked candidate) is; a drive that covers few regimes leaves a heat
+    flow's residual constant too."""
     from firmware_model.effects import MEASUREMENT_EFFECTS, effect_channel
     from tools.diagnosis.regimes import structure_sentence
     if not structure or not (v.effect in MEASUREMENT_EFFECTS or v.effect == "unexplained"):
         return v
     own = effect_channel(v.effect) or (OIL if v.effect in MEASUREMENT_EFFECTS else None)
     cids = [own] if own in structure else sorted(structure)
-    said = "; ".join(structure_sentence(c, structure[c]) for c in cids if c in structure)
+    sensor_of = _sensor_channel(v.effect) if v.effect in MEASUREMENT_EFFECTS else _sensor_channel(best)
+    said = "; ".join(structure_sentence(c, structure[c], None if c == sensor_of else best) for c in cids
+                     if c in structure)
     return replace(v, reason=v.reason + "; " + said) if said else v
+
+
+def _sensor_channel(eid: str | None) -> str | None:
+    """The channel a measurement effect reads (None for a heat flow or None)."""
+    from firmware_model.effects import MEASUREMENT_EFFECTS, effect_channel
+    if eid is None or eid not in MEASUREMENT_EFFECTS:
+        return None
+    return effect_channel(eid) or OIL
 
 
 # ----------------------------------------------------------------------------------------------------------------

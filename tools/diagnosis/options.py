@@ -1,6 +1,7 @@
 """Settings and constants of the gap diagnosis, shared by its stages, and how it writes a number into its JSON."""
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 from firmware_model.effects import IdFamilies
@@ -74,6 +75,18 @@ class Options:
     cold_c: float = 60.0
     max_time_gap_s: float = 60.0
     max_channel_gap_frac: float = 0.25
+
+
+def n_eff_needed(opts: Options, k: int = 1) -> int:
+    """The least effective sample size at which the BIC decision can be made (docs/diagnosis.md, "Thin evidence"):
+    the smallest n at which `k` parameters that explain ``explain_min`` of the excess squared residual reach strong
+    evidence, n ln(1 / (1 - explain_min)) - k ln n >= evidence_min (19 for one parameter with the defaults). Below it
+    a score says how closely a fit follows a few independent pieces of residual, not how many support it."""
+    gain = -math.log(max(1.0 - opts.explain_min, 1e-9))
+    n = 2
+    while n * gain - k * math.log(n) < opts.evidence_min and n < 1_000_000:
+        n += 1
+    return n
 
 
 def json_number(x, nd=4):

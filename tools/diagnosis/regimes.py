@@ -257,10 +257,16 @@ def residual_structure(where_by: dict, gap_channels) -> dict:
     return out
 
 
-def structure_sentence(cid: str, st: dict) -> str:
-    """One sentence on a channel's residual structure, with the evidence (the largest regimes' means)."""
+def structure_sentence(cid: str, st: dict, better: str | None = None) -> str:
+    """One sentence on a channel's residual structure, with the evidence (the largest regimes' means). `better`: the
+    best-ranked candidate when it is not this channel's sensor effect; then a constant residual is no evidence of a
+    sensor fault (a drive over few regimes leaves a heat flow's residual constant too) and none is claimed."""
     name = "oil sensor" if cid == "oil" else f"{cid} thermocouple"
     regs = ", ".join(f"{r['mean_c']:+.1f} K in {r['regime']}" for r in st["regimes"][:3])
+    if st["kind"] == "constant" and better:
+        return (f"the {name}'s residual is about the same in every operating regime met ({regs}; spread "
+                f"{st['spread_c']:.1f} K around {st['mean_c']:+.1f} K), as a sensor offset's would be, but the best "
+                f"candidate is {better}, not this sensor's own effect, so no sensor fault is claimed")
     if st["kind"] == "constant":
         return (f"the {name}'s residual is about the same in every operating regime ({regs}; spread "
                 f"{st['spread_c']:.1f} K around {st['mean_c']:+.1f} K): the same error whatever the load, the "

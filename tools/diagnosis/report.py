@@ -281,6 +281,9 @@ def _md_verdict(res: dict) -> list:
         L.append(f"**{v['effect']}** ({p}): {v['reason']}.")
         if v.get("confusable_with"):
             L.append(f" Confusable with: {', '.join(v['confusable_with'])}.")
+    elif v.get("evidence") == "thin":
+        text = v["thin_evidence"]["text"].removeprefix("thin evidence ")
+        L.append(f"**{v['effect']}, thin evidence** {text}.\n\nReason: {v['reason']}.")
     else:
         L.append(f"**{v['effect']}**: {v['reason']}.")
     L.append(f"\n\nOn the test files the pooled RMS residual goes from **{_fmt(v['test_rms_before_c'])} degC** to "

@@ -110,6 +110,8 @@ def _verdict_json(out: Outcome, cand_json: list) -> dict:
                    "remaining_gap_c": {c: _r(x) for c, x in v.remaining_gap_c().items()}})
     if v.effect == "unexplained":
         js["closest_candidate"] = cand_json[0]["effect"]
+    if v.thin is not None:
+        js.update(_thin_json(v.thin, cand_json[0]))
     if out.combination is not None:
         js.update(_effects_json(out))
     if v.is_effect:
@@ -117,6 +119,19 @@ def _verdict_json(out: Outcome, cand_json: list) -> dict:
         js["not_excluded"] = not_excluded_json(out.not_excluded)
     js["residual_structure"] = out.structure
     return js
+
+
+def _thin_json(th, best: dict) -> dict:
+    """verdict.evidence "thin" and verdict.thin_evidence (only when too few effective samples to decide)."""
+    return {"evidence": "thin",
+            "thin_evidence": {"n_eff": _r(th.n_eff, 2), "n_eff_needed": th.needed, "n": int(th.n),
+                              "train_s": _r(th.train_s, 1), "best_candidate": best["effect"],
+                              "parameters": best["parameters"], "score": best["score"],
+                              "explained_share": best["explained_share"],
+                              "test_rms_before_c": _r(th.test_rms_before_c),
+                              "test_rms_after_c": _r(th.test_rms_after_c),
+                              "text": f"thin evidence (n_eff = {th.n_eff:.0f}, at least {th.needed} needed to decide): "
+                                      f"{th.what_it_would_cut()}; {th.advice()}"}}
 
 
 def _effects_json(out: Outcome) -> dict:
