@@ -41,7 +41,8 @@ typedef float march_t;
 typedef double march_t;
 #endif
 #define M_(x) ((march_t)(x))
-
+/* the constants shared with the numpy reference (march, effect codes, speed columns, ...) are the generated
+ * header's GVS_* (firmware_model/onboard/kernel_interface.py) */
 
 #ifdef GVS_REAL_FLOAT
 /* a^b for the float build as expf(b logf(a)): libm's powf alone is ~1.9 KB of an ECU's flash (expf and logf are
@@ -563,7 +564,7 @@ static void ttl_point(const gvs_tables *tb, const gvs_state *st, const check_t *
 /* ---- time to limit: the held-input system marched (time_to_limit.time_to_limit, held_march) --------------------
  * C dT/dt = -A T + b with the inputs held, A = K (+ the cooler's slope on the sump) - u e_sump^T when the
  * oil-system inlet follows a modelled sump; K and C/h + K factorised as a sparse LDL^T (the pattern from the
- * tables), the coupling column by Sherman-Morrison. */
+ * tables), the coupling column by Sherman-Morrison. The march's settings: GVS_MARCH_*, GVS_TTL_*, GVS_HERMITE_*. */
 #define LDL_SLOTS (GVS_MAX_NODES + GVS_MAX_LNZ)
 
 typedef struct {
