@@ -25,7 +25,7 @@ from typing import NamedTuple
 
 from firmware_model.components import (LEVEL_CRITICAL, LEVEL_NA, LEVEL_NORMAL, LEVEL_WARNING, MODE_HOLDING,
                                        MODE_NORMAL, MODE_OIL_MODEL)
-from firmware_model.onboard.records import INPUT_FIELDS, MAIN, N_INPUTS, N_PUB, N_REJECT, REJECT_REASONS, TWIN
+from firmware_model.onboard.records import MAIN, N_INPUTS, N_PUB, N_REJECT, REJECT_REASONS, TWIN
 from firmware_model.physics.cooler import COOLER_KINDS
 from firmware_model.physics.kinematics import N_GEARS, SPEED_NAMES
 
