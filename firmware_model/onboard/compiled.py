@@ -23,8 +23,9 @@ from typing import NamedTuple
 
 import numpy as np
 
-from firmware_model.onboard.ckernel import NEED_JUMP, TABLE_FIELDS, CoreUnavailable, load
+from firmware_model.onboard.ckernel import TABLE_FIELDS, CoreUnavailable, load
 from firmware_model.onboard.held_inputs import jump_state
+from firmware_model.onboard.kernel_interface import NEED_JUMP
 from firmware_model.onboard.kernel_tables import VEHICLE_EFFECTS, table_arrays, vehicle_arrays
 from firmware_model.onboard.params import SensorParams
 from firmware_model.onboard.records import N_INPUTS, N_PUB, SensorInputs, SensorOutputs, SensorState, SensorStatus

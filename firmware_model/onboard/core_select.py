@@ -13,7 +13,7 @@ import numpy as np
 from firmware_model.errors import ParameterError
 from firmware_model.onboard.ckernel import CoreUnavailable
 from firmware_model.onboard.params import SensorParams
-from firmware_model.onboard.records import N_INPUTS, SensorInputs
+from firmware_model.onboard.records import N_INPUTS, N_PUB, SensorInputs
 
 CORES = ("auto", "c", "numpy")
 
@@ -42,7 +42,7 @@ def step_table_numpy(sensor, state, raw: np.ndarray, t_s: np.ndarray):
     """The numpy core's :meth:`VirtualSensor.step_table`: row by row, the same TableOutputs."""
     from firmware_model.onboard.compiled import TableOutputs
     N = raw.shape[0]
-    T, lev, ttl = np.empty((N, 28)), np.empty((N, 28), dtype=np.int8), np.empty((N, 28))
+    T, lev, ttl = np.empty((N, N_PUB)), np.empty((N, N_PUB), dtype=np.int8), np.empty((N, N_PUB))
     mode, valid = np.empty(N, dtype=np.int8), np.empty((N, 4), dtype=bool)
     innov, model_oil, rejects = np.empty(N), np.empty(N), np.empty((N, len(sensor.reject_reasons)), dtype=np.int64)
     for j in range(N):

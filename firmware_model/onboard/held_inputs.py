@@ -15,6 +15,7 @@ from firmware_model.onboard import reduce as R
 from firmware_model.physics.conductance_matrix import conductance_matrix
 from firmware_model.physics.cooler import inlet_drop_k
 from firmware_model.onboard.held_modes import HeldModes, decompose
+from firmware_model.onboard.kernel_interface import SPEED_COL_LAYSHAFT, SPEED_COL_OUTPUT
 from firmware_model.onboard.params import SensorParams, first_row, first_value, vehicle_value
 from firmware_model.onboard.records import (I_AMB, I_COOL, I_GEAR, I_OIL, I_RET, I_SPEED, I_TORQUE, I_VKMH, MAIN,
                                             TWIN, SensorState)
@@ -54,7 +55,7 @@ def cooler_slope_w_per_k(sp: SensorParams, T_oil_c: float, omega_in_rad_s: float
     from firmware_model.onboard.reduce.cooler_heat; ``used``: the step's inputs (INPUT_FIELDS order); ``vehicle``:
     the batch index whose effects apply (None: the first vehicle's)."""
     rp = sp.reduced
-    omega_ls = abs(rp.speed_coef[row, 1]) * omega_in_rad_s
+    omega_ls = abs(rp.speed_coef[row, SPEED_COL_LAYSHAFT]) * omega_in_rad_s
     if rp.cooler_code == R.COOLER_CODES["none"] or omega_ls <= 0.0:
         return 0.0
     args = (omega_ls, omega_in_rad_s, used[I_COOL], used[I_AMB], used[I_VKMH], rho_cp_j_per_m3k,
@@ -140,13 +141,14 @@ def _held_propagate(sp: SensorParams, state: SensorState, v: tuple, copy: int, t
     x, prop, phi = R.oil_row(rp, T_oil_c, h)
     T_bc_c = np.array(np.asarray(sp.T_bc_default_c, dtype=float).reshape(-1, len(BOUNDARIES))[0])
     T_bc_c[rp.i_ambient], T_bc_c[rp.i_coolant] = T_amb_c, T_cool_c
-    retarder_w = first_value(e.retarder_frac) * retarder_nm * abs(rp.speed_coef[row, 3]) * omega_in_rad_s
+    retarder_w = (first_value(e.retarder_frac) * retarder_nm * abs(rp.speed_coef[row, SPEED_COL_OUTPUT])
+                  * omega_in_rad_s)
     src_w = R.heat_sources(rp, row, omega_in_rad_s, torque_nm, prop, x, first_row(e.src_scale),
                            first_value(e.churn_scale), first_value(e.needle_scale), retarder_w, h=h)
     G_w_per_k, G_streams_w_per_k = R.conductances(rp, row, omega_in_rad_s, x, prop, phi, T0_c, T_bc_c,
                                                   e if sp.scalar_effects else None, h)
     rho_cp_j_per_m3k = float(prop[R.P_RHO] * prop[R.P_CP])
-    omega_ls_rad_s = abs(rp.speed_coef[row, 1]) * omega_in_rad_s
+    omega_ls_rad_s = abs(rp.speed_coef[row, SPEED_COL_LAYSHAFT]) * omega_in_rad_s
     used = np.array([speed_rpm, torque_nm, row + GEAR_MIN, T_oil_c, T_amb_c, T_cool_c, v_kmh, retarder_nm])
     Q_cool_w, mcp_w_per_k, _ = R.cooler_heat(rp, T_oil_c, omega_ls_rad_s, omega_in_rad_s, T_cool_c, T_amb_c, v_kmh,
                                              rho_cp_j_per_m3k, first_value(e.cooler_scale),

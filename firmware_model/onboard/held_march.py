@@ -41,23 +41,10 @@ from typing import NamedTuple
 
 import numpy as np
 
-#: first step of the march [s]
-MARCH_H0_S = 1.0
-#: each step this many times longer than the last
-MARCH_RATIO = 1.4
-#: time to limit beyond this is reported as never (inf) [s]
-TTL_HORIZON_S = 2.0e6
-#: the result is the first multiple of this at or after the crossing [s]
-TTL_QUANTUM_S = 2.0 ** -7
-#: TR-BDF2 with gamma = 2 - sqrt(2): both stages solve with C + d A, d = MARCH_D_FRAC h (Eq. of the scheme:
-#: trapezoid to gamma h, then BDF2 e1 = A1 e_gamma - A0 e0 + d C^-1 (-A e1))
-MARCH_GAMMA = 2.0 - math.sqrt(2.0)
-MARCH_D_FRAC = 1.0 - 1.0 / math.sqrt(2.0)
-MARCH_A1 = 1.0 / (MARCH_GAMMA * (2.0 - MARCH_GAMMA))
-MARCH_A0 = (1.0 - MARCH_GAMMA) ** 2 / (MARCH_GAMMA * (2.0 - MARCH_GAMMA))
-#: samples of the Hermite interpolant that look for the first sign change, then bisections
-HERMITE_SAMPLES = 16
-HERMITE_BISECTIONS = 40
+# the march's settings are the kernel's too: described once, in kernel_interface (the C header's GVS_MARCH_* ...)
+from firmware_model.onboard.kernel_interface import (HERMITE_BISECTIONS, HERMITE_SAMPLES, MARCH_A0, MARCH_A1,
+                                                     MARCH_D_FRAC, MARCH_H0_S, MARCH_RATIO, TTL_HORIZON_S,
+                                                     TTL_QUANTUM_S)
 
 
 def march_grid_s() -> np.ndarray:

@@ -4,6 +4,7 @@ effects) into the named arrays and numbers of the kernel's ``gvs_tables`` struct
 each vehicle's ``gvs_vehicle`` (effects and boundary defaults). The same arrays are handed to the kernel at run time
 (firmware_model.onboard.compiled) and written as C ``const`` arrays for an embedded build (tools, export-c). No
 number is copied by hand: every value comes from the build or from the named constants of the physics modules.
+The fields and their order are the struct's, described once in :mod:`firmware_model.onboard.kernel_interface`.
 """
 from __future__ import annotations
 
@@ -13,6 +14,7 @@ import numpy as np
 
 from firmware_model.onboard import reduce as R
 from firmware_model.onboard.conductance_bins import LN_SPEED_BIN, OIL_BIN_C, SPEED_BIN_MIN_RAD_S
+from firmware_model.onboard.kernel_interface import STRUCT, VEHICLE_EFFECTS, struct_values
 from firmware_model.onboard.params import SensorParams
 from firmware_model.onboard.sparse_ldl import ldl_pattern
 from firmware_model.physics import heat_transfer as ht
@@ -136,7 +138,8 @@ def _time_to_limit(sp: SensorParams) -> dict:
 
 
 def table_arrays(sp: SensorParams, ttl: bool = True) -> dict:
-    """{gvs_tables field: int, float or 1-D array (int32 or float64)} of a sensor's parameters. ``ttl`` False:
+    """{gvs_tables field: int, float or 1-D array (int32 or float64)} of a sensor's parameters, in the struct's order
+    (firmware_model.onboard.kernel_interface: a field left out or one the struct lacks raises). ``ttl`` False:
     without the time to limit's arrays (empty, ``ldl_nnz`` 0: gvs_ttl_refresh then publishes NaN), for a build
     short of flash (export-c --no-ttl; the caller also turns the early warning off)."""
     ttl_arrays = _time_to_limit(sp)
@@ -144,12 +147,8 @@ def table_arrays(sp: SensorParams, ttl: bool = True) -> dict:
         ttl_arrays = {k: (np.zeros(0, dtype=v.dtype) if isinstance(v, np.ndarray) else v)
                       for k, v in ttl_arrays.items()}
         ttl_arrays["ldl_nnz"] = ttl_arrays["ldl_nupd"] = 0
-    return {**_network(sp), **_losses(sp), **_cooler(sp), **_constants(), **_sensor(sp), **ttl_arrays}
-
-
-#: the per-vehicle effect fields of gvs_vehicle, in order (EffectScales names)
-VEHICLE_EFFECTS = ("teeth_oil_h", "planet_oil_h", "housing_air_h", "cooler_scale", "thermostat_offset_c",
-                   "retarder_frac", "churn_scale", "needle_scale")
+    return struct_values(STRUCT["Tables"], {**_network(sp), **_losses(sp), **_cooler(sp), **_constants(),
+                                            **_sensor(sp), **ttl_arrays})
 
 
 def vehicle_arrays(sp: SensorParams, n_vehicles: int | None) -> dict:
@@ -161,4 +160,4 @@ def vehicle_arrays(sp: SensorParams, n_vehicles: int | None) -> dict:
     out["src_scale"] = np.broadcast_to(np.asarray(e.src_scale, dtype=float), (V, R.N_SRC)).copy()
     bc = np.asarray(sp.T_bc_default_c, dtype=float)
     out["T_bc_default_c"] = np.broadcast_to(bc, (V, bc.shape[-1])).copy()
-    return out
+    return struct_values(STRUCT["Vehicle"], out)

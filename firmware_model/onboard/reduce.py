@@ -56,6 +56,9 @@ from firmware_model.components import PUBLISHED, SHAFT_BEARINGS, STEP_S
 from firmware_model.effects import CATALOG, FIELD_OF_EFFECT, EffectScales, effect_value, with_oil_volume
 from firmware_model.errors import ParameterError, StabilityError
 from firmware_model.physics.conductance_matrix import link_topology, node_conductance_w_per_k
+from firmware_model.onboard.kernel_interface import (EFFECT_HOUSING_AIR_H, EFFECT_NONE, EFFECT_PLANET_OIL_H,
+                                                     EFFECT_TEETH_OIL_H, N_PROP, P_CP, P_K, P_LN_MU, P_LN_NU_CST,
+                                                     P_LN_PR, P_LN_ROLL, P_LOG10_MU, P_RHO, SPEED_COL_LAYSHAFT)
 from firmware_model.physics.cooler import (COOLER_KINDS, DEFAULT_VEHICLE_SPEED_KMH, cooler_hA_bound_w_per_k,
                                            cooler_params, cooler_values, oil_cooler_heat)
 from firmware_model.physics.gearbox_losses import ROLL_POINTS, GearboxLosses
@@ -129,9 +132,6 @@ I_SRC_RET = I_SRC_OIL + 1
 COOLER_CODES = {kind: code for code, kind in enumerate(COOLER_KINDS)}
 
 
-# columns of the oil property table (logarithms where the property spans decades: interpolated in the log)
-P_LOG10_MU, P_LN_NU_CST, P_LN_MU, P_LN_ROLL, P_RHO, P_CP, P_K, P_LN_PR = range(8)
-N_PROP = 8
 
 
 def _ro(a, dtype=float) -> np.ndarray:
@@ -167,7 +167,7 @@ class ReducedParams(NamedNodes):
     pw_gear_coef: np.ndarray         # (17, npw) includes |shaft speed / input speed|^exp and gear masks
     pw_col: np.ndarray               # (npw,) column of pw_phi or -1
     pw_phi: np.ndarray               # (nT, ncol) oil-temperature factors
-    pw_effect: np.ndarray            # (npw,) 0 none, 1 teeth_oil_h, 2 planet_oil_h, 3 housing_air_h
+    pw_effect: np.ndarray            # (npw,) EFFECT_* (kernel_interface): none or the vehicle field that scales it
     # bilinear terms: G = table[t](sqrt(w_t / w_max[t]), T_oil), w_t = |speed coef[gear, t]| w_in
     t2_link: np.ndarray              # (n2,)
     t2_speed_coef: np.ndarray        # (17, n2)
@@ -189,7 +189,7 @@ class ReducedParams(NamedNodes):
     ef_mcp: np.ndarray               # (ne,) flow fraction x flow per radian [m3/rad]
     ef_alpha: np.ndarray             # (ne,) [m]
     ef_beta: np.ndarray              # (ne,) [W/K]
-    ef_effect: np.ndarray            # (ne,) 2 = planet_oil_h scales beta
+    ef_effect: np.ndarray            # (ne,) EFFECT_PLANET_OIL_H: planet_oil_h scales beta
     # radiation links: G = area_eps[r] * sigma (T1^2 + T2^2)(T1 + T2)
     rad_link: np.ndarray
     rad_area_eps: np.ndarray
@@ -382,7 +382,7 @@ class PowerTerm(NamedTuple):
     exp: float
     gear_coef: np.ndarray      # (17,)
     col: int                   # column of the phi table, -1 for none
-    effect: int                # 0 none, 1 teeth_oil_h, 2 planet_oil_h, 3 housing_air_h
+    effect: int                # EFFECT_* (kernel_interface)
 
 
 class TableTerm(NamedTuple):
@@ -499,9 +499,10 @@ class _Laws:
             self.G_const[r] += net.link_G0[k]
         elif kind == K_CONTACT:
             mask = (self.kin.mesh_torque[:, int(_link_param(net, k, "mesh"))] != 0).astype(float)
-            self.pw.append(PowerTerm(r, 0.0, net.link_G0[k] * mask, -1, 0))
+            self.pw.append(PowerTerm(r, 0.0, net.link_G0[k] * mask, -1, EFFECT_NONE))
         elif kind == K_EXT_CONV:
-            self.pw.append(PowerTerm(r, 0.0, np.full(N_GEARS, net.link_G0[k] * p["housing.h_air"]), -1, 3))
+            self.pw.append(PowerTerm(r, 0.0, np.full(N_GEARS, net.link_G0[k] * p["housing.h_air"]), -1,
+                                     EFFECT_HOUSING_AIR_H))
         elif kind == K_EXT_RAD:
             # housings merged into one node: their radiation areas add (same boundary, same law)
             area_eps = net.link_G0[k] * p["housing.emissivity"]
@@ -526,7 +527,7 @@ class _Laws:
             raise ParameterError(f"link {net.link_name[k]}: the immersed-wheel conductance is not Nusselt (Eq 46-48) "
                                  f"plus fling-off (Eq 54-58) as the onboard model assumes")
         e, a, phi = law
-        self.pw.append(PowerTerm(r, e, a * self.speed_abs[:, s] ** e, self.phi_col(phi), 0))
+        self.pw.append(PowerTerm(r, e, a * self.speed_abs[:, s] ** e, self.phi_col(phi), EFFECT_NONE))
         self.cyl.append(CylinderTerm(r, self.speed_abs[:, s], net.link_G0[k] / R_p, math.log(R_p * R_p)))
 
     def _closed_form_stream(self, k: int, r: int) -> None:
@@ -539,7 +540,7 @@ class _Laws:
         else:
             alpha, beta = 0.0, net.link_G0[k] * float(_link_param(net, k, "h"))
         self.ef.append(StreamTerm(r, frac * self.p["oil_system.flow_m3_per_rad"], alpha, beta,
-                                  2 if sub == S_IMPOSED else 0))
+                                  EFFECT_PLANET_OIL_H if sub == S_IMPOSED else EFFECT_NONE))
 
     def _tabulated(self, k: int, r: int, kind: int) -> None:
         """A power law where the table is separable (splash Eq 59, Harris Eq 63, immersed bearings Eq 52), else a
@@ -553,7 +554,7 @@ class _Laws:
             # low range: housing-like constant h (seed 3.3); high range: the ring turns with the sun (splash)
             G_low = float(self.grid.G_ring_low[k])
             if law is not None:
-                self.pw.append(PowerTerm(r, 0.0, G_low * self.kin.low_range.astype(float), -1, 0))
+                self.pw.append(PowerTerm(r, 0.0, G_low * self.kin.low_range.astype(float), -1, EFFECT_NONE))
             elif not np.allclose(tab[0, :], G_low, rtol=1e-9):
                 raise ParameterError("ring-gear conductance: the high-range law at standstill differs from the "
                                      "low-range value; the onboard tables cannot represent it")
@@ -564,11 +565,12 @@ class _Laws:
             coef = a * self.speed_abs[:, s] ** e
             if kind == K_RING:
                 coef = coef * (~self.kin.low_range)
-            eff = 1 if (name.startswith("splash:") and name.endswith(".teeth")) else 0
+            eff = EFFECT_TEETH_OIL_H if (name.startswith("splash:") and name.endswith(".teeth")) else EFFECT_NONE
             self.pw.append(PowerTerm(r, e, coef, col, eff))
         else:
             frac = float(_link_param(net, k, "frac")) if kind == K_STREAM else 0.0
-            self.t2.append(TableTerm(r, self.speed_abs[:, s], wmax, tab[:, ::T2_STRIDE], kind == K_STREAM, frac, 0))
+            self.t2.append(TableTerm(r, self.speed_abs[:, s], wmax, tab[:, ::T2_STRIDE], kind == K_STREAM, frac,
+                                     EFFECT_NONE))
 
 
 class LossMaps(NamedTuple):
@@ -864,8 +866,8 @@ class Helpers:
         self.mesh_base = np.arange(len(MESHES)) * self.nx
         self.rad_node = rp.link_a[rp.rad_link]
         self.rad_bc = rp.link_b[rp.rad_link] - n
-        self.pw_eff = [np.flatnonzero(rp.pw_effect == k) for k in range(4)]
-        self.ef_planet = np.flatnonzero(rp.ef_effect == 2)
+        self.pw_eff = {k: np.flatnonzero(rp.pw_effect == k) for k in (EFFECT_TEETH_OIL_H, EFFECT_HOUSING_AIR_H)}
+        self.ef_planet = np.flatnonzero(rp.ef_effect == EFFECT_PLANET_OIL_H)
         self.pw_colc = np.maximum(rp.pw_col, 0)
         self.pw_has_col = rp.pw_col >= 0
         self.C = np.array(rp.C_j_per_k, dtype=float)
@@ -934,8 +936,8 @@ def conductances(rp: ReducedParams, row, w_in, x_T, prop, phi, T_nodes_c, T_bc_c
     ph = np.where(h.pw_has_col, np.take(phi, h.pw_colc, axis=-1), 1.0)
     Gp = rp.pw_gear_coef[row] * np.power(omega_in_rad_s[..., None], rp.pw_exp) * ph
     if eff is not None:
-        Gp = _scaled(Gp, h.pw_eff[1], eff.teeth_oil_h)
-        Gp = _scaled(Gp, h.pw_eff[3], eff.housing_air_h)
+        Gp = _scaled(Gp, h.pw_eff[EFFECT_TEETH_OIL_H], eff.teeth_oil_h)
+        Gp = _scaled(Gp, h.pw_eff[EFFECT_HOUSING_AIR_H], eff.housing_air_h)
     # bilinear tables over (sqrt(w_t / w_max), T)
     omega_t_rad_s = rp.t2_speed_coef[row] * omega_in_rad_s[..., None]
     uu = np.sqrt(np.minimum(omega_t_rad_s / rp.t2_w_max, 1.0)) * (N_U - 1)
@@ -950,7 +952,7 @@ def conductances(rp: ReducedParams, row, w_in, x_T, prop, phi, T_nodes_c, T_bc_c
     hi = tf[base + h.nT2] * (1.0 - fT) + tf[base + h.nT2 + 1] * fT
     G2 = lo + (hi - lo) * fu
     # closed-form streams: m (1 - exp(-hA / m)), m = mdot cp  (NTU effectiveness, Eq 69-80)
-    omega_ls_rad_s = np.abs(rp.speed_coef[row, 1]) * omega_in_rad_s
+    omega_ls_rad_s = np.abs(rp.speed_coef[row, SPEED_COL_LAYSHAFT]) * omega_in_rad_s
     mcp_w_per_k = rp.ef_mcp * (prop[..., P_RHO] * prop[..., P_CP] * omega_ls_rad_s)[..., None]
     beta = rp.ef_beta
     if eff is not None and h.ef_planet.size and not (np.ndim(eff.planet_oil_h) == 0 and eff.planet_oil_h == 1.0):
@@ -1050,7 +1052,7 @@ def heat_sources(rp: ReducedParams, row, w_in, torque_abs_nm, prop, x_T, src_sca
     omega_in_sq = omega_in_rad_s * omega_in_rad_s
     P_sync = np.exp(prop[..., P_LN_MU]) * omega_in_sq * rp.sync_coef[row]
     P_pump = rp.pump_coef[row] * omega_in_sq
-    omega_ls_rad_s = np.abs(rp.speed_coef[row, 1]) * omega_in_rad_s
+    omega_ls_rad_s = np.abs(rp.speed_coef[row, SPEED_COL_LAYSHAFT]) * omega_in_rad_s
     uu = np.sqrt(np.minimum(omega_ls_rad_s / rp.churn_w_max, 1.0)) * (N_U_CHURN - 1)
     iu = np.minimum(np.asarray(uu).astype(np.int64), N_U_CHURN - 2)
     fu = uu - iu
@@ -1102,8 +1104,9 @@ def max_conductances(rp: ReducedParams) -> dict:
     jT = np.convolve(jT.astype(int), [1, 1, 1], mode="same") > 0       # neighbours bound the interpolation
     G = np.array(rp.G_const_w_per_k, dtype=float)
     phi_max = np.max(rp.pw_phi[jT], axis=0)
-    eff_max = {1: CATALOG["teeth_oil_h_scale"].high, 2: CATALOG["planet_oil_h_scale"].high,
-               3: CATALOG["housing_air_h_scale"].high}
+    eff_max = {EFFECT_TEETH_OIL_H: CATALOG["teeth_oil_h_scale"].high,
+               EFFECT_PLANET_OIL_H: CATALOG["planet_oil_h_scale"].high,
+               EFFECT_HOUSING_AIR_H: CATALOG["housing_air_h_scale"].high}
     if np.any(rp.pw_exp < 0):
         raise ParameterError("a conductance law has a negative speed exponent; the stability bound needs >= 0")
     for t in range(len(rp.pw_link)):
@@ -1114,9 +1117,10 @@ def max_conductances(rp: ReducedParams) -> dict:
     for t in range(len(rp.t2_link)):
         G[rp.t2_link[t]] += np.max(rp.t2_table[t][:, jT2])
     prop = rp.prop[jT]
-    w_ls_max = np.max(np.abs(rp.speed_coef[:, 1])) * w_max
+    w_ls_max = np.max(np.abs(rp.speed_coef[:, SPEED_COL_LAYSHAFT])) * w_max
     for t in range(len(rp.ef_link)):
-        hA = rp.ef_alpha[t] * np.max(prop[:, P_K]) + rp.ef_beta[t] * (eff_max[2] if rp.ef_effect[t] == 2 else 1.0)
+        planet = eff_max[EFFECT_PLANET_OIL_H] if rp.ef_effect[t] == EFFECT_PLANET_OIL_H else 1.0
+        hA = rp.ef_alpha[t] * np.max(prop[:, P_K]) + rp.ef_beta[t] * planet
         m = rp.ef_mcp[t] * np.max(prop[:, P_RHO] * prop[:, P_CP]) * w_ls_max
         G[rp.ef_link[t]] += min(hA, m)
     if len(rp.cyl_link):

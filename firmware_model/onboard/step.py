@@ -37,6 +37,7 @@ from firmware_model.onboard.conductance_bins import bin_centre, bin_conductances
 from firmware_model.onboard.held_inputs import jump_state
 from firmware_model.physics.cooler import inlet_drop_k
 from firmware_model.physics.heat_lag import heat_lag_step
+from firmware_model.onboard.kernel_interface import SPEED_COL_LAYSHAFT, SPEED_COL_OUTPUT
 from firmware_model.onboard.input_check import (DRIVE_FROZEN_BITS, INPUT_BITS, OIL_FROZEN_BITS, InputCheck,
                                                 check_inputs)
 from firmware_model.onboard.params import SensorParams
@@ -172,7 +173,8 @@ def _network_step(state: SensorState, chk: InputCheck, oil_c, sp: SensorParams,
     T_bc_c[..., rp.i_ambient] = used[..., I_AMB]
     T_bc_c[..., rp.i_coolant] = used[..., I_COOL]
     # ---- heat (loss maps) through the heat lag (exact step average for a held input)
-    retarder_w = eff.retarder_frac * used[..., I_RET] * np.abs(rp.speed_coef[row, 3]) * omega_in_rad_s
+    retarder_w = (eff.retarder_frac * used[..., I_RET] * np.abs(rp.speed_coef[row, SPEED_COL_OUTPUT])
+                  * omega_in_rad_s)
     src_w = R.heat_sources(rp, row, omega_in_rad_s, torque_nm, prop, x_T, eff.src_scale, eff.churn_scale,
                            eff.needle_scale, retarder_w, h)
     lag = heat_lag_step(state.lag_w, src_w, h.heat_lag)
@@ -180,7 +182,7 @@ def _network_step(state: SensorState, chk: InputCheck, oil_c, sp: SensorParams,
     q_nodes_w = lag.delivered_w @ rp.src_matrix                                      # B + (n,)
     # ---- conductances (at the centre of the operating-point bin), cooler, inlet drop of both copies
     G_w_per_k, G_streams_w_per_k, G_int, G_ext = _conductances(sp, cache, row, omega_in_rad_s, T_oil_main_c)
-    omega_ls_rad_s = np.abs(rp.speed_coef[row, 1]) * omega_in_rad_s
+    omega_ls_rad_s = np.abs(rp.speed_coef[row, SPEED_COL_LAYSHAFT]) * omega_in_rad_s
     rho_cp_j_per_m3k = prop[..., R.P_RHO] * prop[..., R.P_CP]
     Q_cool_w, mcp_w_per_k, _ = R.cooler_heat(
         rp, T_c[..., :, rp.i_oil], omega_ls_rad_s[..., None], omega_in_rad_s[..., None], used[..., I_COOL, None],

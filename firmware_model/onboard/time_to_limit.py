@@ -23,20 +23,15 @@ from firmware_model.physics.conductance_matrix import conductance_matrix
 from firmware_model.onboard.held_inputs import cooler_slope_w_per_k
 from firmware_model.physics.cooler import INLET_DROP_MAX_K
 from firmware_model.onboard.held_march import HeldSystem, March, march_time_to_limit
+from firmware_model.onboard.kernel_interface import (COUPLING_MARGIN, SPEED_COL_LAYSHAFT, SPEED_COL_OUTPUT,
+                                                     TTL_RELINEARISE_STEPS, TTL_RELINEARISE_TOL_K)
 from firmware_model.onboard.params import SensorParams
 from firmware_model.onboard.records import I_RET, I_TORQUE, N_PUB, SensorState
 from firmware_model.onboard.step_cache import StepCache
 
-#: the coupled held system must keep 1 - e_sump^T K^-1 u above this (else a real mode grows: the inlet is frozen)
-COUPLING_MARGIN = 1.0e-6
-#: with the sump modelled: re-linearise the held-input system this many times at the sump temperature the last
-#: solution predicts at the earliest crossing (the losses and oil-side conductances follow the sump; docs/sensor.md)
-TTL_RELINEARISE_STEPS = 2
 #: with the sump modelled: the oil-system inlet follows the sump through the linearised cooler in the held-input
 #: system (a non-symmetric coupling, general eigen-decomposition; docs/sensor.md), unless the step clips it
 TTL_INLET_COUPLING = True
-#: ... until the operating point's sump temperature moves less than this [K]
-TTL_RELINEARISE_TOL_K = 0.5
 #: the published sump's column
 I_PUB_OIL = PUBLISHED.index("oil")
 
@@ -111,8 +106,8 @@ def time_to_limit(sp: SensorParams, cache: StepCache, p: TtlPoint, vehicle=None)
             break
         T_op_c = T_next_c
         x, prop, _ = R.oil_row(rp, T_op_c, h)
-        retarder_w = float(e.retarder_frac) * float(p.used[I_RET]) * abs(float(rp.speed_coef[p.row, 3])) \
-            * p.omega_in_rad_s
+        retarder_w = float(e.retarder_frac) * float(p.used[I_RET]) \
+            * abs(float(rp.speed_coef[p.row, SPEED_COL_OUTPUT])) * p.omega_in_rad_s
         src_op_w = R.heat_sources(rp, p.row, p.omega_in_rad_s, abs(float(p.used[I_TORQUE])), prop, x, e.src_scale,
                                 e.churn_scale, e.needle_scale, retarder_w, h)
         bins = cache.bins.get(sp, p.row, *_bin_centre(p.omega_in_rad_s, T_op_c))
@@ -146,7 +141,7 @@ def _inlet_follows_sump(sp: SensorParams, p: TtlPoint, measured: bool, slope_w_p
 def _oil_flow_m3_s(sp: SensorParams, row: int, omega_in_rad_s: float) -> float:
     """Oil-system volume flow [m3/s] at this gear and input speed (the pump turns with the layshaft)."""
     rp = sp.reduced
-    return rp.flow_m3_per_rad * abs(float(rp.speed_coef[row, 1])) * omega_in_rad_s
+    return rp.flow_m3_per_rad * abs(float(rp.speed_coef[row, SPEED_COL_LAYSHAFT])) * omega_in_rad_s
 
 
 def held_system(sp: SensorParams, p: TtlPoint, src_w, G_w_per_k, G_streams_w_per_k, T_op_c: float,

@@ -41,15 +41,8 @@ typedef float march_t;
 typedef double march_t;
 #endif
 #define M_(x) ((march_t)(x))
-
-enum { P_LOG10_MU, P_LN_NU_CST, P_LN_MU, P_LN_ROLL, P_RHO, P_CP, P_K, P_LN_PR, N_PROP };
-enum { LEVEL_NORMAL, LEVEL_WARNING, LEVEL_CRITICAL, LEVEL_NA };
-enum { MODE_NORMAL, MODE_OIL_MODEL, MODE_HOLDING };
-enum { MAIN, TWIN };
-/* reject counters (REJECT_REASONS order) */
-enum { RJ_SPEED_MISSING, RJ_SPEED_CLAMPED, RJ_TORQUE_MISSING, RJ_TORQUE_CLAMPED, RJ_GEAR_MISSING, RJ_GEAR_UNKNOWN,
-       RJ_OIL_MISSING, RJ_OIL_IMPLAUSIBLE, RJ_OIL_FROZEN, RJ_DRIVE_FROZEN, RJ_AUX_MISSING, RJ_TIME_JUMP,
-       RJ_TIME_BACKWARD };
+/* the constants shared with the numpy reference (march, effect codes, speed columns, ...) are the generated
+ * header's GVS_* (firmware_model/onboard/kernel_interface.py) */
 
 #ifdef GVS_REAL_FLOAT
 /* a^b for the float build as expf(b logf(a)): libm's powf alone is ~1.9 KB of an ECU's flash (expf and logf are
@@ -84,7 +77,7 @@ static int64_t steps_mod(int64_t k, int32_t m)
 /* ---- oil properties at a temperature (reduce.oil_row) --------------------------------------------------- */
 typedef struct {
     gvs_real x;                 /* fractional index on the temperature grid */
-    gvs_real prop[N_PROP];
+    gvs_real prop[GVS_N_PROP];
 } oil_row_t;
 
 static void oil_row(const gvs_tables *tb, gvs_real T_c, oil_row_t *o, gvs_real *phi)
@@ -98,8 +91,8 @@ static void oil_row(const gvs_tables *tb, gvs_real T_c, oil_row_t *o, gvs_real *
     if (i > tb->nT - 2) i = tb->nT - 2;
     f = x - (gvs_real)i;
     o->x = x;
-    for (j = 0; j < N_PROP; ++j)
-        o->prop[j] = tb->prop[i * N_PROP + j] * (R_(1.0) - f) + tb->prop[(i + 1) * N_PROP + j] * f;
+    for (j = 0; j < GVS_N_PROP; ++j)
+        o->prop[j] = tb->prop[i * GVS_N_PROP + j] * (R_(1.0) - f) + tb->prop[(i + 1) * GVS_N_PROP + j] * f;
     if (phi)
         for (j = 0; j < tb->ncol; ++j)
             phi[j] = tb->pw_phi[i * tb->ncol + j] * (R_(1.0) - f) + tb->pw_phi[(i + 1) * tb->ncol + j] * f;
@@ -129,8 +122,8 @@ static void bin_conductances(const gvs_tables *tb, const gvs_vehicle *veh, int32
     for (t = 0; t < tb->npw; ++t) {                          /* power laws */
         gvs_real g = tb->pw_gear_coef[row * tb->npw + t] * POW(w, tb->pw_exp[t]);
         if (tb->pw_col[t] >= 0) g *= phi[tb->pw_col[t]];
-        if (tb->pw_effect[t] == 1) g *= veh->teeth_oil_h;
-        else if (tb->pw_effect[t] == 3) g *= veh->housing_air_h;
+        if (tb->pw_effect[t] == GVS_EFFECT_TEETH_OIL_H) g *= veh->teeth_oil_h;
+        else if (tb->pw_effect[t] == GVS_EFFECT_HOUSING_AIR_H) g *= veh->housing_air_h;
         G[tb->pw_link[t]] += g;
     }
     {                                                        /* bilinear tables */
@@ -154,19 +147,20 @@ static void bin_conductances(const gvs_tables *tb, const gvs_vehicle *veh, int32
             G[tb->t2_link[t]] += G2[t];
         }
     }
-    w_ls = FABS(tb->speed_coef[row * tb->n_speed + 1]) * w;   /* closed-form streams, NTU (Eq 69-80) */
-    rho_cp_w = o.prop[P_RHO] * o.prop[P_CP] * w_ls;
+    /* closed-form streams, NTU (Eq 69-80) */
+    w_ls = FABS(tb->speed_coef[row * tb->n_speed + GVS_SPEED_COL_LAYSHAFT]) * w;
+    rho_cp_w = o.prop[GVS_P_RHO] * o.prop[GVS_P_CP] * w_ls;
     for (t = 0; t < tb->ne; ++t) {
         gvs_real mcp = tb->ef_mcp[t] * rho_cp_w;
-        gvs_real beta = tb->ef_beta[t] * (tb->ef_effect[t] == 2 ? veh->planet_oil_h : R_(1.0));
-        gvs_real hA = tb->ef_alpha[t] * o.prop[P_K] + beta;
+        gvs_real beta = tb->ef_beta[t] * (tb->ef_effect[t] == GVS_EFFECT_PLANET_OIL_H ? veh->planet_oil_h : R_(1.0));
+        gvs_real hA = tb->ef_alpha[t] * o.prop[GVS_P_K] + beta;
         Ge[t] = mcp > R_(0.0) ? -mcp * EXPM1(-hA / mcp) : R_(0.0);
         G[tb->ef_link[t]] += Ge[t];
     }
     for (t = 0; t < tb->nc; ++t) {                           /* immersed wheels (Eq 46-48) */
         gvs_real wc = max_r(tb->cyl_speed_coef[row * tb->nc + t] * w, tb->min_speed);
-        gvs_real ln_re = tb->cyl_ln_rp2[t] + LOG(wc) - (o.prop[P_LN_NU_CST] + tb->ln_1e6);
-        G[tb->cyl_link[t]] += tb->cyl_c[t] * o.prop[P_K] * cyl_nusselt(tb, ln_re, o.prop[P_LN_PR]);
+        gvs_real ln_re = tb->cyl_ln_rp2[t] + LOG(wc) - (o.prop[GVS_P_LN_NU_CST] + tb->ln_1e6);
+        G[tb->cyl_link[t]] += tb->cyl_c[t] * o.prop[GVS_P_K] * cyl_nusselt(tb, ln_re, o.prop[GVS_P_LN_PR]);
     }
     for (t = 0; t < tb->nrad; ++t) {                         /* radiation, linearised (Eq 81) */
         gvs_real T1 = clip_r(T_q, tb->rad_T_lo_c, tb->rad_T_hi_c) + tb->kelvin;
@@ -183,7 +177,7 @@ static void heat_sources(const gvs_tables *tb, const gvs_vehicle *veh, int32_t r
                          const oil_row_t *o, gvs_real retarder_w, gvs_real *src)
 {
     int32_t m, b, i = 0;
-    gvs_real nu = EXP(o->prop[P_LN_NU_CST]), P_needle = R_(0.0), w_sq, w_ls, uu, fu, xT, fT, lo, hi, P_churn;
+    gvs_real nu = EXP(o->prop[GVS_P_LN_NU_CST]), P_needle = R_(0.0), w_sq, w_ls, uu, fu, xT, fT, lo, hi, P_churn;
     int32_t iu, jT;
     for (m = 0; m < tb->n_mesh; ++m, ++i) {
         gvs_real T1 = tb->mesh_torque[row * tb->n_mesh + m] * torque;
@@ -193,7 +187,7 @@ static void heat_sources(const gvs_tables *tb, const gvs_vehicle *veh, int32_t r
         if (!(T1 > R_(0.0) && w2 > R_(0.0))) { src[i] = R_(0.0); continue; }
         lT = LOG10(T1);
         lw = LOG10(w2);
-        x = (lT - o->prop[P_LOG10_MU] - R_(3.0) * lw - tb->mesh_x0[m]) / tb->x_step;
+        x = (lT - o->prop[GVS_P_LOG10_MU] - R_(3.0) * lw - tb->mesh_x0[m]) / tb->x_step;
         x = clip_r(x, R_(0.0), (gvs_real)tb->nx - R_(1.000001));
         ix = (int32_t)x;
         if (ix > tb->nx - 2) ix = tb->nx - 2;    /* in float nx - 1.000001 rounds to nx - 1: stay in the table */
@@ -202,7 +196,8 @@ static void heat_sources(const gvs_tables *tb, const gvs_vehicle *veh, int32_t r
         /* slip T1 w2 phi; rolling K mu^0.7 a^0.54 w2^1.7 T1^-0.13 (Eq 18) down to the mesh's T_min, below it the loss
          * at T_min scaled by T1 / T_min (T1^-1.13 taken at T_min: continuous at T_min and at 0) */
         lT_roll = max_r(lT, tb->mesh_roll_lt_min[m]);
-        P = T1 * w2 * (phi + tb->mesh_roll_k[m] * EXP(o->prop[P_LN_ROLL] + tb->ln10 * (R_(0.7) * lw - R_(1.13) * lT_roll)));
+        P = T1 * w2 * (phi + tb->mesh_roll_k[m]
+                       * EXP(o->prop[GVS_P_LN_ROLL] + tb->ln10 * (R_(0.7) * lw - R_(1.13) * lT_roll)));
         src[i] = P * tb->mesh_heat_sf[m];
     }
     for (b = 0; b < tb->n_bear; ++b, ++i) {                  /* shaft bearings, Palmgren (Eq 35-40) */
@@ -216,7 +211,7 @@ static void heat_sources(const gvs_tables *tb, const gvs_vehicle *veh, int32_t r
         P_needle += Mn * rel;
     }
     w_sq = w * w;
-    w_ls = FABS(tb->speed_coef[row * tb->n_speed + 1]) * w;
+    w_ls = FABS(tb->speed_coef[row * tb->n_speed + GVS_SPEED_COL_LAYSHAFT]) * w;
     uu = SQRT(min_r(w_ls / tb->churn_w_max, R_(1.0))) * (gvs_real)(tb->n_u_churn - 1);   /* churning table */
     iu = (int32_t)uu;
     if (iu > tb->n_u_churn - 2) iu = tb->n_u_churn - 2;
@@ -229,7 +224,7 @@ static void heat_sources(const gvs_tables *tb, const gvs_vehicle *veh, int32_t r
     hi = tb->churn_table[(iu + 1) * tb->nT + jT] * (R_(1.0) - fT) + tb->churn_table[(iu + 1) * tb->nT + jT + 1] * fT;
     P_churn = lo + (hi - lo) * fu;
     src[i++] = P_churn * tb->churn_heat_sf * veh->churn_scale + P_needle * veh->needle_scale
-        + EXP(o->prop[P_LN_MU]) * w_sq * tb->sync_coef[row] + tb->pump_coef[row] * w_sq;   /* Eq 41, 42 */
+        + EXP(o->prop[GVS_P_LN_MU]) * w_sq * tb->sync_coef[row] + tb->pump_coef[row] * w_sq;   /* Eq 41, 42 */
     src[i++] = retarder_w;
     for (m = 0; m < tb->ns; ++m) src[m] *= veh->src_scale[m];
 }
@@ -260,10 +255,10 @@ static void cooler_op(const gvs_tables *tb, const gvs_vehicle *veh, gvs_real w_l
     op->cap = mcp > R_(0.0) ? mcp : R_(0.0);
     op->T_cool = T_cool;
     op->hA = op->T_air = R_(0.0);
-    if (tb->cooler_code == 0) return;
+    if (tb->cooler_code == GVS_COOLER_NONE) return;
     if (v_kmh != v_kmh) v_kmh = tb->default_vkmh;
     inner = POW(w_ls / tb->ref_ls_speed, tb->exp_inner);
-    if (tb->cooler_code == 1) {
+    if (tb->cooler_code == GVS_COOLER_LIQUID) {
         gvs_real outer = POW(max_r(w_eng, R_(0.0)) / tb->ref_engine_speed, tb->exp_outer);
         op->hA = tb->liquid_hA_ref * inner * outer * veh->cooler_scale;
     } else {
@@ -278,8 +273,8 @@ static void cooler_op(const gvs_tables *tb, const gvs_vehicle *veh, gvs_real w_l
 static gvs_real cooler_heat(const gvs_tables *tb, const gvs_vehicle *veh, const cooler_op_t *op, gvs_real T_oil)
 {
     gvs_real cap = op->cap, hA = op->hA, Q;
-    if (tb->cooler_code == 0) return R_(0.0);
-    if (tb->cooler_code == 1) {                              /* liquid: can heat the oil, no thermostat */
+    if (tb->cooler_code == GVS_COOLER_NONE) return R_(0.0);
+    if (tb->cooler_code == GVS_COOLER_LIQUID) {             /* liquid: can heat the oil, no thermostat */
         Q = clip_r(hA * (T_oil - op->T_cool), -tb->liquid_Qmax_heat, tb->liquid_Qmax_cool);     /* Eq 83 */
     } else {                                                 /* air, behind a thermostat (Eq 82 coupled) */
         gvs_real T_open = tb->thermostat_open_c + veh->thermostat_offset_c;
@@ -328,7 +323,7 @@ static void check_inputs(const gvs_tables *tb, gvs_state *st, const double *raw_
         && FABS(raw[GVS_I_OIL] - st->hold[GVS_I_OIL]) > tb->oil_step_c;
     for (i = 0; i < GVS_N_INPUTS; ++i)
         same[i] = (finite[i] && raw[i] == st->raw_prev[i]) ? st->same_s[i] + dt : R_(0.0);
-    twin_oil = st->T_c[TWIN][tb->i_oil];
+    twin_oil = st->T_c[GVS_TWIN][tb->i_oil];
     oil_ref = same[GVS_I_OIL] > R_(0.0) ? st->oil_ref_c : twin_oil;
     c->oil_frozen = oil_in_range && same[GVS_I_OIL] >= tb->oil_frozen_s
         && FABS(twin_oil - oil_ref) >= tb->oil_frozen_drift_c;
@@ -343,17 +338,17 @@ static void check_inputs(const gvs_tables *tb, gvs_state *st, const double *raw_
         c->used[i] = c->ok[i] ? fixed[i] : fallback;
         age[i] = c->ok[i] ? R_(0.0) : st->age_s[i] + dt;
     }
-    counts[RJ_SPEED_MISSING] = !in_range[GVS_I_SPEED];      /* NaN, inf, or a value no J1939 frame can carry */
-    counts[RJ_TORQUE_MISSING] = !in_range[GVS_I_TORQUE];
-    counts[RJ_GEAR_MISSING] = !finite[GVS_I_GEAR];
-    counts[RJ_OIL_MISSING] = !finite[GVS_I_OIL];
-    counts[RJ_SPEED_CLAMPED] = clamped[GVS_I_SPEED];
-    counts[RJ_TORQUE_CLAMPED] = clamped[GVS_I_TORQUE];
-    counts[RJ_GEAR_UNKNOWN] = finite[GVS_I_GEAR] && !gear_ok;
-    counts[RJ_OIL_IMPLAUSIBLE] = (finite[GVS_I_OIL] && !oil_in_range) || jumpy;
-    counts[RJ_OIL_FROZEN] = c->oil_frozen;
-    counts[RJ_DRIVE_FROZEN] = c->drive_frozen;
-    counts[RJ_AUX_MISSING] = !c->ok[GVS_I_AMB] + !c->ok[GVS_I_COOL] + !c->ok[GVS_I_VKMH] + !c->ok[GVS_I_RET];
+    counts[GVS_RJ_SPEED_MISSING] = !in_range[GVS_I_SPEED];      /* NaN, inf, or a value no J1939 frame can carry */
+    counts[GVS_RJ_TORQUE_MISSING] = !in_range[GVS_I_TORQUE];
+    counts[GVS_RJ_GEAR_MISSING] = !finite[GVS_I_GEAR];
+    counts[GVS_RJ_OIL_MISSING] = !finite[GVS_I_OIL];
+    counts[GVS_RJ_SPEED_CLAMPED] = clamped[GVS_I_SPEED];
+    counts[GVS_RJ_TORQUE_CLAMPED] = clamped[GVS_I_TORQUE];
+    counts[GVS_RJ_GEAR_UNKNOWN] = finite[GVS_I_GEAR] && !gear_ok;
+    counts[GVS_RJ_OIL_IMPLAUSIBLE] = (finite[GVS_I_OIL] && !oil_in_range) || jumpy;
+    counts[GVS_RJ_OIL_FROZEN] = c->oil_frozen;
+    counts[GVS_RJ_DRIVE_FROZEN] = c->drive_frozen;
+    counts[GVS_RJ_AUX_MISSING] = !c->ok[GVS_I_AMB] + !c->ok[GVS_I_COOL] + !c->ok[GVS_I_VKMH] + !c->ok[GVS_I_RET];
     c->measured = tb->oil_mode_measured ? c->ok[GVS_I_OIL] : 0;
     c->drive_ok = c->ok[GVS_I_SPEED] && c->ok[GVS_I_TORQUE] && c->ok[GVS_I_GEAR];
     c->drive_age_s = max_r(max_r(age[GVS_I_SPEED], age[GVS_I_TORQUE]), age[GVS_I_GEAR]);
@@ -380,25 +375,25 @@ static void update_levels(const gvs_tables *tb, gvs_state *st, const gvs_real *T
 {
     int i, rest = available;
     for (i = 0; i < GVS_N_PUB && rest; ++i)
-        rest = T_pub[i] < tb->warning_rest_c[i] && st->level[i] == 0 && st->pending_s[i] == R_(0.0)
+        rest = T_pub[i] < tb->warning_rest_c[i] && st->level[i] == GVS_LEVEL_NORMAL && st->pending_s[i] == R_(0.0)
             && (tb->lead_s <= R_(0.0) || ttl_now[i] > R_(2.0) * tb->lead_s);
     if (rest) {            /* nothing near a limit: the state machine rests */
-        for (i = 0; i < GVS_N_PUB; ++i) { st->level[i] = LEVEL_NORMAL; st->pending_s[i] = R_(0.0); }
+        for (i = 0; i < GVS_N_PUB; ++i) { st->level[i] = GVS_LEVEL_NORMAL; st->pending_s[i] = R_(0.0); }
         return;
     }
     for (i = 0; i < GVS_N_PUB; ++i) {
         int lv = st->level[i], target, held, crit, warn, change, take;
         gvs_real T = T_pub[i], pend;
-        crit = T >= tb->critical_c[i] || (lv == LEVEL_CRITICAL && T > tb->critical_c[i] - tb->hysteresis_k[i]);
-        held = lv >= LEVEL_WARNING && lv <= LEVEL_CRITICAL;
+        crit = T >= tb->critical_c[i] || (lv == GVS_LEVEL_CRITICAL && T > tb->critical_c[i] - tb->hysteresis_k[i]);
+        held = lv >= GVS_LEVEL_WARNING && lv <= GVS_LEVEL_CRITICAL;
         warn = T >= tb->warning_c[i] || (held && T > tb->warning_c[i] - tb->hysteresis_k[i]);
         if (tb->lead_s > R_(0.0))      /* NaN (not available) compares false, like inf */
             warn = warn || ttl_now[i] <= tb->lead_s || (held && ttl_now[i] <= R_(2.0) * tb->lead_s);
-        target = crit ? LEVEL_CRITICAL : (warn ? LEVEL_WARNING : LEVEL_NORMAL);
-        if (!available) target = LEVEL_NA;
+        target = crit ? GVS_LEVEL_CRITICAL : (warn ? GVS_LEVEL_WARNING : GVS_LEVEL_NORMAL);
+        if (!available) target = GVS_LEVEL_NA;
         change = target != lv;
         pend = change ? st->pending_s[i] + tb->dt_s : R_(0.0);
-        take = change && (target == LEVEL_NA || lv == LEVEL_NA || pend >= tb->debounce_s - R_(1e-9));
+        take = change && (target == GVS_LEVEL_NA || lv == GVS_LEVEL_NA || pend >= tb->debounce_s - R_(1e-9));
         st->level[i] = (int8_t)(take ? target : lv);
         st->pending_s[i] = take ? R_(0.0) : pend;
     }
@@ -408,17 +403,17 @@ static void update_levels(const gvs_tables *tb, gvs_state *st, const gvs_real *T
 static int skip_step(const gvs_tables *tb, gvs_state *st, gvs_outputs *out)
 {
     int i;
-    st->rejects[RJ_TIME_BACKWARD] += 1;
+    st->rejects[GVS_RJ_TIME_BACKWARD] += 1;
     for (i = 0; i < GVS_N_PUB; ++i) {
-        out->T_c[i] = st->T_c[MAIN][tb->published_index[i]];
+        out->T_c[i] = st->T_c[GVS_MAIN][tb->published_index[i]];
         out->level[i] = st->level[i];
         out->ttl_s[i] = st->ttl_s[i];
     }
-    out->degraded_mode = MODE_HOLDING;
+    out->degraded_mode = GVS_MODE_HOLDING;
     out->speed_valid = out->torque_valid = out->gear_valid = out->oil_valid = 0;
     out->valid_flags = 0;
     out->frozen_flags = 0;
-    out->model_oil_temp_c = st->T_c[TWIN][tb->i_oil];
+    out->model_oil_temp_c = st->T_c[GVS_TWIN][tb->i_oil];
     out->oil_innovation_c = (gvs_real)NAN;
     out->oil_source = 1;
     memcpy(out->rejects, st->rejects, sizeof st->rejects);
@@ -467,23 +462,24 @@ static void network_step(const gvs_tables *tb, const gvs_vehicle *veh, gvs_state
     int32_t i, k, cp;
     nt->omega_in = w;
     nt->row = (int32_t)c->used[GVS_I_GEAR] - tb->gear_min;
-    nt->T_oil_main = c->measured ? (gvs_real)oil_raw : T[MAIN][tb->i_oil];
-    T[MAIN][tb->i_oil] = nt->T_oil_main;
+    nt->T_oil_main = c->measured ? (gvs_real)oil_raw : T[GVS_MAIN][tb->i_oil];
+    T[GVS_MAIN][tb->i_oil] = nt->T_oil_main;
     oil_row(tb, nt->T_oil_main, &o, NULL);
     for (i = 0; i < tb->nb; ++i) nt->T_bc[i] = veh->T_bc_default_c[i];
     nt->T_bc[tb->i_ambient] = c->used[GVS_I_AMB];
     nt->T_bc[tb->i_coolant] = c->used[GVS_I_COOL];
     /* heat (loss maps) through the first-order heat lag, exact step average (physics.heat_lag) */
-    retarder_w = veh->retarder_frac * c->used[GVS_I_RET] * FABS(tb->speed_coef[nt->row * tb->n_speed + 3]) * w;
+    retarder_w = veh->retarder_frac * c->used[GVS_I_RET]
+        * FABS(tb->speed_coef[nt->row * tb->n_speed + GVS_SPEED_COL_OUTPUT]) * w;
     heat_sources(tb, veh, nt->row, w, torque, &o, retarder_w, nt->src);
     for (i = 0; i < tb->ns; ++i) {
         gvs_real y = st->lag_w[i] + (nt->src[i] - st->lag_w[i]) * tb->lag_gain;
         delivered[i] = nt->src[i] - tb->lag_tau_over_dt * (y - st->lag_w[i]);
         st->lag_w[i] = y;
     }
-    for (i = 0; i < tb->n; ++i) rate[MAIN][i] = R_(0.0);       /* the heat into each node, both copies' rates from it */
+    for (i = 0; i < tb->n; ++i) rate[GVS_MAIN][i] = R_(0.0);   /* the heat into each node, both copies' rates from it */
     for (k = 0; k < tb->nsrc_nz; ++k)
-        rate[MAIN][tb->src_nz_node[k]] += delivered[tb->src_nz_src[k]] * tb->src_nz_w[k];
+        rate[GVS_MAIN][tb->src_nz_node[k]] += delivered[tb->src_nz_src[k]] * tb->src_nz_w[k];
     /* conductances at the centre of the operating point's bin: 1 % in speed, 0.5 K in oil */
     {
         gvs_real w_q = speed_bin_centre(tb, w), T_q = RINT(nt->T_oil_main / tb->oil_bin_c) * tb->oil_bin_c;
@@ -497,8 +493,8 @@ static void network_step(const gvs_tables *tb, const gvs_vehicle *veh, gvs_state
         nt->G = st->memo_G;
         nt->Gs = st->memo_Gs;
     }
-    w_ls = FABS(tb->speed_coef[nt->row * tb->n_speed + 1]) * w;
-    nt->rho_cp = o.prop[P_RHO] * o.prop[P_CP];
+    w_ls = FABS(tb->speed_coef[nt->row * tb->n_speed + GVS_SPEED_COL_LAYSHAFT]) * w;
+    nt->rho_cp = o.prop[GVS_P_RHO] * o.prop[GVS_P_CP];
     mcp = nt->rho_cp * tb->flow_m3_per_rad * w_ls;
     cooler_op(tb, veh, w_ls, w, c->used[GVS_I_COOL], c->used[GVS_I_AMB], c->used[GVS_I_VKMH], mcp, &cop);
     for (cp = 0; cp < 2; ++cp) {
@@ -508,8 +504,8 @@ static void network_step(const gvs_tables *tb, const gvs_vehicle *veh, gvs_state
     /* one explicit (forward Euler) step of both copies, side by side: two independent chains of updates (each
      * copy's sums in the same order as one copy at a time) */
     {
-        gvs_real *T0 = T[MAIN], *T1 = T[TWIN], *r0 = rate[MAIN], *r1 = rate[TWIN];
-        gvs_real d0 = nt->dT_in[MAIN], d1 = nt->dT_in[TWIN];
+        gvs_real *T0 = T[GVS_MAIN], *T1 = T[GVS_TWIN], *r0 = rate[GVS_MAIN], *r1 = rate[GVS_TWIN];
+        gvs_real d0 = nt->dT_in[GVS_MAIN], d1 = nt->dT_in[GVS_TWIN];
         for (i = 0; i < tb->n; ++i) r1[i] = r0[i];
         for (k = 0; k < tb->nst; ++k) {
             int32_t s = tb->stream_node[k];
@@ -519,8 +515,8 @@ static void network_step(const gvs_tables *tb, const gvs_vehicle *veh, gvs_state
             r1[s] -= f1;
             r1[tb->i_oil] += f1;
         }
-        r0[tb->i_oil] -= nt->Q_cool[MAIN];
-        r1[tb->i_oil] -= nt->Q_cool[TWIN];
+        r0[tb->i_oil] -= nt->Q_cool[GVS_MAIN];
+        r1[tb->i_oil] -= nt->Q_cool[GVS_TWIN];
         for (k = 0; k < tb->nl; ++k) {
             int32_t a = tb->link_a[k], b = tb->link_b[k];
             gvs_real g = nt->G[k];
@@ -541,21 +537,21 @@ static void network_step(const gvs_tables *tb, const gvs_vehicle *veh, gvs_state
             T1[i] += tb->dt_over_C[i] * r1[i];
         }
     }
-    if (c->measured) T[MAIN][tb->i_oil] = (gvs_real)oil_raw;
+    if (c->measured) T[GVS_MAIN][tb->i_oil] = (gvs_real)oil_raw;
 }
 
 static void ttl_point(const gvs_tables *tb, const gvs_state *st, const check_t *c, const net_t *nt,
                       gvs_ttl_point *p)
 {
     int32_t i;
-    for (i = 0; i < tb->n; ++i) p->T_main_c[i] = st->T_c[MAIN][i];
+    for (i = 0; i < tb->n; ++i) p->T_main_c[i] = st->T_c[GVS_MAIN][i];
     for (i = 0; i < tb->ns; ++i) p->src_w[i] = nt->src[i];
     for (i = 0; i < tb->nl; ++i) p->G_w_per_k[i] = nt->G[i];
     for (i = 0; i < tb->nst; ++i) p->G_streams_w_per_k[i] = nt->Gs[i];
     for (i = 0; i < tb->nb; ++i) p->T_bc_c[i] = nt->T_bc[i];
     for (i = 0; i < GVS_N_INPUTS; ++i) p->used[i] = c->used[i];
-    p->dT_in_k = nt->dT_in[MAIN];
-    p->Q_cool_w = nt->Q_cool[MAIN];
+    p->dT_in_k = nt->dT_in[GVS_MAIN];
+    p->Q_cool_w = nt->Q_cool[GVS_MAIN];
     p->omega_in_rad_s = nt->omega_in;
     p->T_oil_c = nt->T_oil_main;
     p->rho_cp_j_per_m3k = nt->rho_cp;
@@ -568,19 +564,7 @@ static void ttl_point(const gvs_tables *tb, const gvs_state *st, const check_t *
 /* ---- time to limit: the held-input system marched (time_to_limit.time_to_limit, held_march) --------------------
  * C dT/dt = -A T + b with the inputs held, A = K (+ the cooler's slope on the sump) - u e_sump^T when the
  * oil-system inlet follows a modelled sump; K and C/h + K factorised as a sparse LDL^T (the pattern from the
- * tables), the coupling column by Sherman-Morrison. */
-#define MARCH_H0_S 1.0
-#define MARCH_RATIO 1.4
-#define TTL_HORIZON_S 2.0e6
-#define TTL_QUANTUM_S 0.0078125                        /* 2^-7 s */
-#define MARCH_D_FRAC 0.29289321881345248               /* 1 - 1/sqrt(2): TR-BDF2 with gamma = 2 - sqrt(2) */
-#define MARCH_A1 1.2071067811865475                    /* 1 / (gamma (2 - gamma)) */
-#define MARCH_A0 0.20710678118654746                   /* (1 - gamma)^2 / (gamma (2 - gamma)) */
-#define HERMITE_SAMPLES 16
-#define HERMITE_BISECTIONS 40
-#define TTL_RELINEARISE_STEPS 2
-#define TTL_RELINEARISE_TOL_K 0.5
-#define COUPLING_MARGIN 1.0e-6
+ * tables), the coupling column by Sherman-Morrison. The march's settings: GVS_MARCH_*, GVS_TTL_*, GVS_HERMITE_*. */
 #define LDL_SLOTS (GVS_MAX_NODES + GVS_MAX_LNZ)
 
 typedef struct {
@@ -715,13 +699,14 @@ static void held_apply(const gvs_tables *tb, const held_t *hs, const gvs_real *e
  * difference */
 static gvs_real cooler_slope(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl_point *p, gvs_real T)
 {
-    gvs_real w_ls = FABS(tb->speed_coef[p->row * tb->n_speed + 1]) * p->omega_in_rad_s, Q, Q_hi, Q_lo;
+    gvs_real w_ls = FABS(tb->speed_coef[p->row * tb->n_speed + GVS_SPEED_COL_LAYSHAFT]) * p->omega_in_rad_s;
+    gvs_real Q, Q_hi, Q_lo;
     gvs_real mcp = p->rho_cp_j_per_m3k * tb->flow_m3_per_rad * w_ls;
     const gvs_real *u = p->used;
     cooler_op_t op;
-    if (tb->cooler_code == 0 || !(w_ls > R_(0.0))) return R_(0.0);
+    if (tb->cooler_code == GVS_COOLER_NONE || !(w_ls > R_(0.0))) return R_(0.0);
     cooler_op(tb, veh, w_ls, p->omega_in_rad_s, u[GVS_I_COOL], u[GVS_I_AMB], u[GVS_I_VKMH], mcp, &op);
-    if (tb->cooler_code == 1) {
+    if (tb->cooler_code == GVS_COOLER_LIQUID) {
         Q = cooler_heat(tb, veh, &op, T);
         return (-tb->liquid_Qmax_heat < Q && Q < tb->liquid_Qmax_cool) ? op.hA : R_(0.0);
     }
@@ -761,7 +746,7 @@ static int held_build(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_tt
 {
     int32_t n = tb->n, k, i, io = tb->i_oil;
     gvs_real T_oil = p->T_oil_c, mcp, dT_in;
-    gvs_real w_ls = FABS(tb->speed_coef[p->row * tb->n_speed + 1]) * p->omega_in_rad_s;
+    gvs_real w_ls = FABS(tb->speed_coef[p->row * tb->n_speed + GVS_SPEED_COL_LAYSHAFT]) * p->omega_in_rad_s;
     mcp = p->rho_cp_j_per_m3k * tb->flow_m3_per_rad * w_ls;
     hs->G = G;
     hs->held = measured;
@@ -785,7 +770,7 @@ static int held_build(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_tt
         if (coupled) {
             for (i = 0; i < n; ++i) hs->w[i] = hs->u[i];
             ldl_solve(tb, hs->S, hs->w);
-            if (R_(1.0) - hs->w[io] > R_(COUPLING_MARGIN)) hs->coupled = 1;
+            if (R_(1.0) - hs->w[io] > R_(GVS_COUPLING_MARGIN)) hs->coupled = 1;
             else for (i = 0; i < n; ++i) hs->u[i] = R_(0.0);
         }
     }
@@ -848,12 +833,12 @@ static gvs_real first_root(gvs_real h, gvs_real f0, gvs_real g0, gvs_real f1, gv
 {
     gvs_real lo = R_(0.0), hi = R_(1.0);
     int j;
-    for (j = 1; j <= HERMITE_SAMPLES; ++j) {
-        gvs_real s = (gvs_real)j / (gvs_real)HERMITE_SAMPLES;
+    for (j = 1; j <= GVS_HERMITE_SAMPLES; ++j) {
+        gvs_real s = (gvs_real)j / (gvs_real)GVS_HERMITE_SAMPLES;
         if (hermite(s, h, f0, g0, f1, g1) >= R_(0.0)) { hi = s; break; }
         lo = s;
     }
-    for (j = 0; j < HERMITE_BISECTIONS; ++j) {
+    for (j = 0; j < GVS_HERMITE_BISECTIONS; ++j) {
         gvs_real mid = R_(0.5) * (lo + hi);
         if (hermite(mid, h, f0, g0, f1, g1) >= R_(0.0)) hi = mid;
         else lo = mid;
@@ -899,14 +884,14 @@ static int skip_to(const gvs_tables *tb, const gvs_ttl_point *p, const gvs_real 
                 / ((march_t)rate * (hs->metzler ? M_(1.0) : (march_t)hs->wt[r]));
             if (tj < t_min) t_min = tj;
         }
-    while (*t_skip + *h <= t_min && *t_skip + *h < M_(TTL_HORIZON_S)) {
+    while (*t_skip + *h <= t_min && *t_skip + *h < M_(GVS_TTL_HORIZON_S)) {
         *t_skip += *h;
-        *h *= M_(MARCH_RATIO);
+        *h *= M_(GVS_MARCH_RATIO);
     }
     return 1;
 }
 
-/* one held-input solution (time_to_limit._solve + held_march.march_time_to_limit): ttl[28]; *T_watch the sump at
+/* one held-input solution (time_to_limit._solve + held_march.march_time_to_limit): ttl[GVS_N_PUB]; *T_watch the sump at
  * the first crossing of a re-linearising component (NaN: none) */
 static int ttl_solve(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl_point *p, const gvs_real *src,
                      const gvs_real *G, const gvs_real *Gs, gvs_real T_op, int measured, gvs_real *ttl,
@@ -918,7 +903,7 @@ static int ttl_solve(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl
     const gvs_real *C = tb->C_j_per_k;
     int8_t open[GVS_N_PUB];
     int32_t n = tb->n, i, j, any = 0, io = tb->i_oil;
-    march_t t = M_(0.0), h = M_(MARCH_H0_S), t_skip = M_(0.0);
+    march_t t = M_(0.0), h = M_(GVS_MARCH_H0_S), t_skip = M_(0.0);
     *T_watch = (gvs_real)NAN;
     for (j = 0; j < GVS_N_PUB; ++j) ttl[j] = (gvs_real)NAN;
     memset(e, 0, sizeof e);
@@ -949,13 +934,13 @@ static int ttl_solve(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl
     }
     if (any && (hs.metzler || hs.weighted))
         any = skip_to(tb, p, de, &hs, open, &t_skip, &h);
-    while (any && t < M_(TTL_HORIZON_S)) {
-        march_t h_step = t_skip > M_(0.0) ? t_skip : (h < M_(TTL_HORIZON_S) - t ? h : M_(TTL_HORIZON_S) - t);
-        gvs_real d = (gvs_real)(M_(MARCH_D_FRAC) * h_step), s_watch = R_(2.0);
+    while (any && t < M_(GVS_TTL_HORIZON_S)) {
+        march_t h_step = t_skip > M_(0.0) ? t_skip : (h < M_(GVS_TTL_HORIZON_S) - t ? h : M_(GVS_TTL_HORIZON_S) - t);
+        gvs_real d = (gvs_real)(M_(GVS_MARCH_D_FRAC) * h_step), s_watch = R_(2.0);
         if (held_factor(tb, &hs, R_(1.0), d) != 0) return -1;
         for (i = 0; i < n; ++i) e_g[i] = C[i] * e[i] - d * Ae[i];
         held_solve(tb, &hs, e_g);
-        for (i = 0; i < n; ++i) e_new[i] = C[i] * (R_(MARCH_A1) * e_g[i] - R_(MARCH_A0) * e[i]);
+        for (i = 0; i < n; ++i) e_new[i] = C[i] * (R_(GVS_MARCH_A1) * e_g[i] - R_(GVS_MARCH_A0) * e[i]);
         held_solve(tb, &hs, e_new);
         held_apply(tb, &hs, e_new, Ae);
         energy_new = R_(0.0);
@@ -973,8 +958,8 @@ static int ttl_solve(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl
             f1 = T_inf[r] + e_new[r] - lim;
             if (f1 >= R_(0.0)) {
                 gvs_real s = first_root((gvs_real)h_step, T_inf[r] + e[r] - lim, de[r], f1, de_new[r]);
-                march_t tc = CEIL((t + (march_t)s * h_step) / M_(TTL_QUANTUM_S)) * M_(TTL_QUANTUM_S);
-                ttl[j] = (gvs_real)(tc < M_(TTL_HORIZON_S) ? tc : M_(TTL_HORIZON_S));
+                march_t tc = CEIL((t + (march_t)s * h_step) / M_(GVS_TTL_QUANTUM_S)) * M_(GVS_TTL_QUANTUM_S);
+                ttl[j] = (gvs_real)(tc < M_(GVS_TTL_HORIZON_S) ? tc : M_(GVS_TTL_HORIZON_S));
                 open[j] = 0;
                 if (tb->ttl_relin[j] && s < s_watch) s_watch = s;
                 continue;
@@ -991,7 +976,7 @@ static int ttl_solve(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl
         energy = energy_new;
         t += h_step;
         if (t_skip > M_(0.0)) t_skip = M_(0.0);     /* the skip was the grid's steps up to t_skip */
-        else h *= M_(MARCH_RATIO);
+        else h *= M_(GVS_MARCH_RATIO);
     }
     return 0;
 }
@@ -1009,12 +994,13 @@ int gvs_ttl_refresh(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl_
     if (ttl_solve(tb, veh, p, p->src_w, p->G_w_per_k, p->G_streams_w_per_k, T_op, measured, ttl_s, &T_watch) != 0
         || !tb->ttl_sump_model || !tb->ttl_relinearise)
         return GVS_OK;
-    for (it = 0; it < TTL_RELINEARISE_STEPS; ++it) {
+    for (it = 0; it < GVS_TTL_RELINEARISE_STEPS; ++it) {
         gvs_real w = p->omega_in_rad_s, retarder_w;
-        if (T_watch != T_watch || FABS(T_watch - T_op) < R_(TTL_RELINEARISE_TOL_K)) break;
+        if (T_watch != T_watch || FABS(T_watch - T_op) < R_(GVS_TTL_RELINEARISE_TOL_K)) break;
         T_op = T_watch;
         oil_row(tb, T_op, &o, NULL);
-        retarder_w = veh->retarder_frac * p->used[GVS_I_RET] * FABS(tb->speed_coef[p->row * tb->n_speed + 3]) * w;
+        retarder_w = veh->retarder_frac * p->used[GVS_I_RET]
+            * FABS(tb->speed_coef[p->row * tb->n_speed + GVS_SPEED_COL_OUTPUT]) * w;
         heat_sources(tb, veh, p->row, w, FABS(p->used[GVS_I_TORQUE]), &o, retarder_w, src);
         bin_conductances(tb, veh, p->row, speed_bin_centre(tb, w), RINT(T_op / tb->oil_bin_c) * tb->oil_bin_c, G, Gs);
         if (ttl_solve(tb, veh, p, src, G, Gs, T_op, measured, ttl_s, &T_watch) != 0) break;
@@ -1040,11 +1026,11 @@ int gvs_step(const gvs_tables *tb, const gvs_vehicle *veh, gvs_state *st, const 
         if (finite_r(gap)) {
             /* back by more than clock_reset_s: the clock was reset (a glitch, a restored state, an uptime
              * counter); its time is the new time base and this is one step (step.step_deferred) */
-            if (gap < -(double)tb->clock_reset_s) counts[RJ_TIME_BACKWARD] = 1;
+            if (gap < -(double)tb->clock_reset_s) counts[GVS_RJ_TIME_BACKWARD] = 1;
             else if (gap < 0.5 * (double)tb->dt_s) return skip_step(tb, st, out);
             else if (gap > 1.5 * (double)tb->dt_s) {
                 if (!jump_done) return GVS_NEED_JUMP;
-                counts[RJ_TIME_JUMP] = 1;
+                counts[GVS_RJ_TIME_JUMP] = 1;
                 /* the inputs age by the gap (held_inputs.jump_state): a value from before it is no recent one */
                 for (i = 0; i < GVS_N_INPUTS; ++i) st->age_s[i] += (gvs_real)(gap - (double)tb->dt_s);
             }
@@ -1053,7 +1039,7 @@ int gvs_step(const gvs_tables *tb, const gvs_vehicle *veh, gvs_state *st, const 
     check_inputs(tb, st, in->raw, counts, &c);
     network_step(tb, veh, st, &c, in->raw[GVS_I_OIL], &nt);
     /* published temperatures, warnings, the time to limit counted down */
-    for (i = 0; i < GVS_N_PUB; ++i) T_pub[i] = st->T_c[MAIN][tb->published_index[i]];
+    for (i = 0; i < GVS_N_PUB; ++i) T_pub[i] = st->T_c[GVS_MAIN][tb->published_index[i]];
     available = c.drive_age_s <= tb->hold_s;
     since = k == 0 ? 0 : (steps_mod(k - 1, tb->ttl_every) + 1);
     for (i = 0; i < GVS_N_PUB; ++i) {
@@ -1061,16 +1047,16 @@ int gvs_step(const gvs_tables *tb, const gvs_vehicle *veh, gvs_state *st, const 
         ttl_now[i] = t != t ? t : max_r(t, R_(0.0));
     }
     update_levels(tb, st, T_pub, available, ttl_now);
-    for (i = 0; i < GVS_N_PUB; ++i) any |= st->level[i] != 0 || T_pub[i] >= tb->warning_c[i];
+    for (i = 0; i < GVS_N_PUB; ++i) any |= st->level[i] != GVS_LEVEL_NORMAL || T_pub[i] >= tb->warning_c[i];
     for (i = 0; i < GVS_N_PUB; ++i) {
         out->T_c[i] = T_pub[i];
         out->level[i] = st->level[i];
-        if (any && st->level[i] == LEVEL_NA) out->ttl_s[i] = (gvs_real)NAN;
+        if (any && st->level[i] == GVS_LEVEL_NA) out->ttl_s[i] = (gvs_real)NAN;
         else if (any && T_pub[i] >= tb->warning_c[i]) out->ttl_s[i] = R_(0.0);
         else out->ttl_s[i] = ttl_now[i];
     }
     /* status and degraded mode */
-    out->degraded_mode = (int8_t)(c.drive_ok ? (c.measured ? MODE_NORMAL : MODE_OIL_MODEL) : MODE_HOLDING);
+    out->degraded_mode = (int8_t)(c.drive_ok ? (c.measured ? GVS_MODE_NORMAL : GVS_MODE_OIL_MODEL) : GVS_MODE_HOLDING);
     out->speed_valid = (int8_t)c.ok[GVS_I_SPEED];
     out->torque_valid = (int8_t)c.ok[GVS_I_TORQUE];
     out->gear_valid = (int8_t)c.ok[GVS_I_GEAR];
@@ -1079,7 +1065,7 @@ int gvs_step(const gvs_tables *tb, const gvs_vehicle *veh, gvs_state *st, const 
     for (i = 0; i < GVS_N_INPUTS; ++i) out->valid_flags |= c.ok[i] ? (1 << i) : 0;
     out->frozen_flags = (c.drive_frozen ? (1 << GVS_I_SPEED) | (1 << GVS_I_TORQUE) : 0)
         | (c.oil_frozen ? (1 << GVS_I_OIL) : 0);
-    out->model_oil_temp_c = st->T_c[TWIN][tb->i_oil];
+    out->model_oil_temp_c = st->T_c[GVS_TWIN][tb->i_oil];
     out->oil_innovation_c = c.ok[GVS_I_OIL] ? (gvs_real)in->raw[GVS_I_OIL] - out->model_oil_temp_c : (gvs_real)NAN;
     out->oil_source = (int8_t)!c.measured;
     for (i = 0; i < GVS_N_REJECT; ++i) st->rejects[i] += counts[i];
@@ -1128,13 +1114,13 @@ int gvs_step_batch(const gvs_tables *tb, const gvs_vehicle *veh, int64_t veh_str
 int64_t gvs_sizeof(int which)
 {
     switch (which) {
-    case 0: return (int64_t)sizeof(gvs_tables);
-    case 1: return (int64_t)sizeof(gvs_vehicle);
-    case 2: return (int64_t)sizeof(gvs_state);
-    case 3: return (int64_t)sizeof(gvs_inputs);
-    case 4: return (int64_t)sizeof(gvs_outputs);
-    case 5: return (int64_t)sizeof(gvs_ttl_point);
-    case 6: return (int64_t)sizeof(gvs_real);
+    case GVS_SIZEOF_TABLES: return (int64_t)sizeof(gvs_tables);
+    case GVS_SIZEOF_VEHICLE: return (int64_t)sizeof(gvs_vehicle);
+    case GVS_SIZEOF_STATE: return (int64_t)sizeof(gvs_state);
+    case GVS_SIZEOF_INPUTS: return (int64_t)sizeof(gvs_inputs);
+    case GVS_SIZEOF_OUTPUTS: return (int64_t)sizeof(gvs_outputs);
+    case GVS_SIZEOF_TTL_POINT: return (int64_t)sizeof(gvs_ttl_point);
+    case GVS_SIZEOF_REAL: return (int64_t)sizeof(gvs_real);
     default: return -1;
     }
 }
