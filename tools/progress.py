@@ -13,7 +13,7 @@ from tqdm import tqdm
 
 class _Bar(tqdm):
     # no monitor thread: tqdm starts one for every bar and a disabled bar never stops it; a stray thread makes
-    # forking unsafe (the two-process replay refuses to fork then)
+    # forking unsafe (worker processes started by fork)
     monitor_interval = 0
 
 

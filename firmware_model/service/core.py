@@ -5,7 +5,7 @@ from __future__ import annotations
 import dataclasses
 import logging
 import math
-from typing import Callable, Iterable
+from typing import Iterable
 
 import numpy as np
 
@@ -16,13 +16,12 @@ from can_dbc.j1939 import ID_MAX, pgn_key
 from firmware_model.components import MODE_HOLDING, MODE_NOT_INITIALISED, PUBLISHED, STEP_S
 from firmware_model.errors import InputError, ParameterError
 from firmware_model.physics.oil import T_MAX_C as OIL_T_MAX_C, T_MIN_C as OIL_T_MIN_C
-from firmware_model.service.degraded import recorded_mode_counters, recorded_reject_counters
 from firmware_model.service.netmgmt import AddressClaim
 from firmware_model.service.options import (GEAR_RANGE, NOMINAL_PERIOD_S, SENSOR_INPUTS, ServiceOptions,
                                             wanted_pgns)
 from firmware_model.service.protocol import StepSensor, check_sensor, start_state
 from firmware_model.service.recorder import StepRecorder
-from firmware_model.service.records import GbxStatus, RecordedOutputs, StepInputs, StepKind, StepRequest
+from firmware_model.service.records import GbxStatus, StepInputs, StepKind, StepRequest
 from firmware_model.service.trust import Severity, TimeBaseCheck, trust_findings
 
 log = logging.getLogger("gearbox_vsensor.can_service")
@@ -108,8 +107,6 @@ class SensorService:
         self.netmgmt = AddressClaim(self.options.j1939_name, self.options.sensor_source_address, self.log) \
             if self.options.address_claim else None
         self._claim_started = False
-        #: None, or a callable that takes each step's request instead of the sensor half (two-process replay)
-        self._sink: Callable[[StepRequest], None] | None = None
         self._meas_names = tuple(f"meas_T_{c}_c" for c in PUBLISHED)
         self._recorder = StepRecorder(PUBLISHED, self._meas_names, self.sensor.reject_reasons)
         self._names_checked = 0
@@ -186,32 +183,6 @@ class SensorService:
             out.extend(self.feed(msg))
         return out
 
-    # -- the two halves of a step, for a replay that runs them in two processes (tools/replay/pipeline.py) ---------
-
-    def split_steps(self, sink: Callable[[StepRequest], None] | None) -> None:
-        """From now on hand each step's frame-half request to ``sink`` instead of stepping the sensor (None: step
-        again). The sensor half runs elsewhere: :meth:`apply_request` on a copy of this service."""
-        self._sink = sink
-
-    def apply_request(self, req: StepRequest) -> None:
-        """Run the sensor half of a step that :meth:`split_steps` handed out (not sent: offline)."""
-        self._apply(req, False)
-
-    def adopt_outputs(self, outputs: RecordedOutputs, state) -> None:
-        """Take the sensor half's results from the copy that ran them: :meth:`recorded_outputs` and its final state
-        (its time-to-limit refresh done); the steps per degraded mode are counted from them."""
-        self._recorder.adopt(outputs)
-        names = self._recorder.tail_names
-        modes = outputs.tail[:, names.index("degraded_mode")]
-        self.counters.update(recorded_mode_counters(modes))
-        reasons = self._recorder.reject_reasons      # (the copy started from a fresh state: offline only)
-        if reasons:
-            j0 = names.index(f"rejects_{reasons[0]}")
-            self.counters.update(recorded_reject_counters(outputs.tail[:, j0:j0 + len(reasons)], reasons,
-                                                          self._recorder.head_column("oil_temp_c")))
-        self.state = state
-        self._pending = None
-
     def finish_pending(self) -> None:
         """Run the work the last step left for after its frames were sent (the sensor's time-to-limit refresh).
         Idempotent; the next step runs it anyway, so calling it or not never changes an output."""
@@ -262,10 +233,6 @@ class SensorService:
         thermocouples that were received. ``can_time_s`` is the step's frame time."""
         values = self.latest.value
         return self._recorder.columns(tuple(name in values for name in self._meas_names))
-
-    def recorded_outputs(self) -> RecordedOutputs:
-        """The sensor half of the recorded rows as arrays (T_c, level, ttl_s: steps x 28; tail: steps x status)."""
-        return self._recorder.outputs()
 
     # -- time ---------------------------------------------------------------------------------------------------
 
@@ -327,7 +294,7 @@ class SensorService:
         outage then waits for one step period, not for a step period plus the propagation. The step's outputs are the
         same bits either way."""
         prepare = getattr(self.sensor, "prepare_jump", None)
-        if prepare is None or self._sink is not None or not self._initialised or self.state is None:
+        if prepare is None or not self._initialised or self.state is None:
             return
         self.finish_pending()
         prepare(self.state, self._run_time_s(self._t0_s + 1 * STEP_S))
@@ -379,15 +346,11 @@ class SensorService:
     #
     # A step has two halves: _gather (frame side: which inputs are fresh, the reference torque, initialisation,
     # the run-table head) and _apply (sensor side: the sensor's step, status, frames, the recorded outputs). _gather
-    # never depends on what _apply computed, so an offline replay can run the halves in two processes
-    # (tools/replay/pipeline.py) and get the same outputs.
+    # never depends on what _apply computed (the whole-log path, firmware_model.service.columnar, runs all the
+    # frame halves first and the sensor halves over the whole table).
 
     def _step(self, t_step_s: float, send: bool = True) -> list:
-        req = self._gather(t_step_s)
-        if self._sink is not None:
-            self._sink(req)
-            return []
-        return self._apply(req, send)
+        return self._apply(self._gather(t_step_s), send)
 
     def _gather(self, t_step_s: float) -> StepRequest:
         """The frame half of a step."""

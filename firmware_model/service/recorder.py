@@ -1,6 +1,6 @@
 """One run-table row per step of the CAN service (``record=True``): the frame half's head (time, the inputs as the
 sensor got them, percent and reference torque, rig thermocouples) and the sensor half's outputs (temperatures,
-warning levels, time to limit, status). The two halves may be recorded in two processes and joined
+warning levels, time to limit, status). The whole-log replay records the two halves apart and joins them
 (:meth:`StepRecorder.adopt`)."""
 from __future__ import annotations
 
@@ -81,7 +81,7 @@ class StepRecorder:
                                np.array([r.tail for r in outs], dtype=float).reshape(k, m))
 
     def adopt(self, outputs: RecordedOutputs) -> None:
-        """Take the sensor half recorded elsewhere (the sensor process of a two-process replay)."""
+        """Take the sensor half recorded elsewhere (the whole-log replay, firmware_model.service.columnar)."""
         self._adopted = outputs
         self._outs = []
 

@@ -1,7 +1,7 @@
 """The typed records of the CAN service: what one step's frame half hands its sensor half (:class:`StepRequest`),
 what the sensor half gives back (:class:`OutputRow`, :class:`RecordedOutputs`), and the GBX_STATUS content of a
-step (:class:`GbxStatus`). The two halves may run in two processes (tools/replay/pipeline.py): these records are
-what crosses the pipe."""
+step (:class:`GbxStatus`). The whole-log replay (firmware_model.service.columnar) runs the halves apart: these
+records are what passes between them."""
 from __future__ import annotations
 
 import enum

@@ -104,7 +104,7 @@ def capture_case(name: str) -> dict:
         raise FileNotFoundError("real captures not found")
     service = build_service(None, record=True, emit_frames=True)
     frames = []
-    table = replay_log(d / name, service, on_frames=frames.extend, processes=1)
+    table = replay_log(d / name, service, on_frames=frames.extend, columnar=False)
     out = _table_arrays(table)
     out["frames_id"] = np.array([f.arbitration_id for f in frames], dtype=float)
     out["frames_t"] = np.array([f.timestamp for f in frames], dtype=float)

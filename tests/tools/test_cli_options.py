@@ -66,6 +66,17 @@ def test_replay_usage_is_honest_and_complete():
         assert option in usage, option
 
 
+def test_replay_processes_was_removed_and_says_what_replaced_it(tmp_path, capsys):
+    log = tmp_path / "run.log"
+    log.write_text("(0.000000) vcan0 0CF00400#FFFF7D803EFFFFFF\n")
+    with pytest.raises(SystemExit) as exc:
+        main(["replay", str(log), "--out", str(tmp_path / "e.csv"), "--processes", "2"])
+    assert exc.value.code == 2
+    err = capsys.readouterr().err
+    assert "error: --processes was removed: a CAN log without --frames-out is replayed as a whole log" in err
+    assert err.count("error:") == 1 and not (tmp_path / "e.csv").exists()
+
+
 @pytest.fixture
 def files(tmp_path):
     from tools.runtable import RunTable, write_run_table
@@ -78,7 +89,6 @@ def files(tmp_path):
 
 @pytest.mark.parametrize("kind, extra, named", [
     ("csv", ["--speed", "10"], "--speed"),
-    ("csv", ["--processes", "1"], "--processes"),
     ("csv", ["--realtime", "--interface", "virtual", "--channel", "x"], "--realtime, --interface, --channel"),
     ("log", ["--interface", "virtual"], "--interface"),
     ("log", ["--speed", "3"], "--speed"),

@@ -52,19 +52,6 @@ def test_simulate_can_log_then_replay_it(sim, capsys):
     assert abs(last["temps_c"]["PS"] - est["T_PS_c"][-1]) <= 1 / 64
 
 
-def test_replay_processes_option_gives_the_same_csv(sim, capsys):
-    outs = []
-    for n in ("1", "2"):
-        out = sim / f"est{n}.csv"
-        assert main(["replay", str(sim / "run.log"), "--out", str(out), "--processes", n]) == 0
-        outs.append(out.read_bytes())
-    assert outs[0] == outs[1] and len(outs[0]) > 10_000
-    capsys.readouterr()
-    assert main(["replay", str(sim / "run.log"), "--out", str(sim / "x.csv"), "--processes", "2",
-                 "--frames-out", str(sim / "x.log")]) == 2
-    assert "cannot replay in two processes" in capsys.readouterr().err
-
-
 def test_replay_realtime_plays_the_log_onto_a_bus(sim, capsys):
     ch = f"rt-{uuid.uuid4()}"
     mon = can.Bus(interface="virtual", channel=ch)

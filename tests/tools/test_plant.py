@@ -175,7 +175,7 @@ def test_energy_closes_on_every_named_cycle(params, cycle):
 
 @pytest.mark.parametrize("show", [False, True])
 def test_progress_bar_starts_no_thread(params, show, capsys):
-    """The plant's progress bar (tools.progress) leaves the process single-threaded: replay --processes forks."""
+    """The plant's progress bar (tools.progress) leaves the process single-threaded (forking stays safe)."""
     import threading
     before = threading.active_count()
     ReferencePlant(params, cooler="none").run(steady(9, 1300, 2000, 60), progress=show)

@@ -188,67 +188,29 @@ def messy_log(path):
     return path
 
 
-def test_two_process_replay_equals_one_process_bit_for_bit(tmp_path):
-    from tools.replay.pipeline import pipeline_available
+def test_whole_log_replay_equals_frame_by_frame_bit_for_bit(tmp_path):
+    """The two replay paths on a messy log (time jumps, stale inputs, no oil at the start, rig thermocouples): the
+    same table, counters and final state."""
     path = messy_log(tmp_path / "messy.log")
     sensor = make_sensor()
     tables, services = [], []
-    for processes in (1, 2):
+    for columnar in (False, True):
         svc = SensorService(sensor, ServiceOptions(configured_ref_torque_nm=None), record=True, emit_frames=False)
-        assert pipeline_available(svc) is None
-        tables.append(replay_log(path, svc, processes=processes))
+        tables.append(replay_log(path, svc, columnar=columnar))
         services.append(svc)
-    one, two = tables
+    one, whole = tables
+    assert "whole log" in whole.meta["reader"] and "whole log" not in one.meta["reader"]
     c = one.meta["counters"]
     assert c["service"]["time_jumps"] == 2 and c["service"]["uninitialised_steps"] > 0
     assert c["service"]["stale_steps"].get("engine_speed_rpm", 0) > 0
     assert one.has("meas_T_PS_c") and (one["degraded"] == 1).any() and (one["degraded"] == 0).any()
-    assert one.columns == two.columns and one.n == two.n
+    assert one.columns == whole.columns and one.n == whole.n
     for col in one.columns:
-        assert np.array_equal(one[col], two[col], equal_nan=True), col
-    assert two.meta["counters"] == c
+        assert np.array_equal(one[col], whole[col], equal_nan=True), col
+    assert whole.meta["counters"] == c
+    services[0].finish_pending()
     for a, b in zip(services[0].state, services[1].state):
         assert np.array_equal(np.asarray(a), np.asarray(b), equal_nan=True)
-
-
-class _Failing:
-    """A sensor whose step fails after 50 steps (the error must come back from the sensor process)."""
-
-    def __init__(self, real):
-        self.real = real
-        self.Inputs, self.Status, self.Outputs = real.Inputs, real.Status, real.Outputs
-        self.reject_reasons, self.input_fields, self.dt_s = real.reject_reasons, real.input_fields, real.dt_s
-
-    def initial_state(self, **kw):
-        return (0, self.real.initial_state(**kw))
-
-    def step_deferred(self, state, inputs):
-        k, st = state
-        if k >= 50:
-            raise ValueError("deliberate failure at step 50")
-        st, out = self.real.step(st, inputs)
-        return (k + 1, st), out, None
-
-    @staticmethod
-    def refresh_ttl(state, job):
-        return state
-
-
-def test_two_process_replay_reports_a_failure_in_the_sensor_process(tmp_path, frames):
-    path = write_frames(frames[1], tmp_path / "drive.log")
-    svc = SensorService(_Failing(make_sensor()), ServiceOptions(configured_ref_torque_nm=None), record=True,
-                        emit_frames=False)
-    with pytest.raises(RuntimeError, match="deliberate failure at step 50"):
-        replay_log(path, svc, processes=2)
-
-
-def test_two_processes_are_refused_with_the_reason(tmp_path, frames):
-    path = write_frames(frames[1], tmp_path / "drive.log")
-    svc = SensorService(make_sensor(), ServiceOptions(), record=True, emit_frames=True)
-    with pytest.raises(InputError, match="cannot replay in two processes: the sensor's output frames are written"):
-        replay_log(path, svc, processes=2)
-    with pytest.raises(InputError, match="processes = 3"):
-        replay_log(path, svc, processes=3)
 
 
 def test_retarder_frames_without_a_reference_torque_are_named(tmp_path):

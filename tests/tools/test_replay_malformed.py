@@ -41,7 +41,7 @@ def _both_paths(path):
     got = []
     for columnar in (True, False):
         service = build_service(None, record=True, emit_frames=False, log_findings=False)
-        t = replay_log(path, service, columnar=columnar, processes=None if columnar else 1)
+        t = replay_log(path, service, columnar=columnar)
         got.append(t)
     a, b = got
     for c in a.columns:

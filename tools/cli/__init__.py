@@ -12,7 +12,8 @@ SUBCOMMANDS = ("simulate", "replay", "run", "plant", "diagnose", "calibrate", "b
 class CommandParser(argparse.ArgumentParser):
     """The top-level parser. What a subcommand does not know is rejected by that subcommand's parser, with its own
     usage and a suggestion (``unrecognized arguments: --outt (did you mean --out?)``), not with the top-level usage.
-    ``subcommands``: name -> parser, filled by :func:`build_parser`."""
+    An option a subcommand no longer has is refused with the sentence in its parser's ``removed_options`` (option ->
+    what replaced it). ``subcommands``: name -> parser, filled by :func:`build_parser`."""
 
     subcommands: dict = {}
 
@@ -20,6 +21,10 @@ class CommandParser(argparse.ArgumentParser):
         namespace, extras = super().parse_known_args(args, namespace)
         sub = self.subcommands.get(getattr(namespace, "subcommand", None))
         if extras and sub is not None:
+            removed = getattr(sub, "removed_options", {})
+            for arg in extras:
+                if arg.split("=", 1)[0] in removed:
+                    sub.error(removed[arg.split("=", 1)[0]])
             sub.error("unrecognized arguments: " + " ".join(with_suggestion(sub, a) for a in extras))
         return namespace, extras
 

@@ -21,12 +21,17 @@ from tools.can.bus import add_bus_options, can_subcommand
 USAGE = ("%(prog)s CSV --out EST.csv [--config TOML] [--variant {GRS905,GRSO905}] [--plot PNG]\n"
          "                              [--oil-mode {measured,model}]\n"
          "                              [--initial-temp DEGC] [--core {auto,c,numpy}] [--allow-untrusted] [--quiet]\n"
-         "       %(prog)s LOG --out EST.csv [those options] [--processes {1,2}] [--frames-out OUT.log] [--strict]\n"
+         "       %(prog)s LOG --out EST.csv [those options] [--frames-out OUT.log] [--strict]\n"
          "       %(prog)s LOG --realtime --interface NAME --channel NAME [--bitrate BIT_S] [--speed X] [--quiet]")
 #: options per mode, by argparse dest: those of the offline replay, those of CAN logs offline, those of --realtime
 OFFLINE_OPTIONS = ("out", "plot", "config", "variant", "oil_mode", "initial_temp", "core", "allow_untrusted")
-LOG_OPTIONS = ("processes", "frames_out", "strict")
+LOG_OPTIONS = ("frames_out", "strict")
 REALTIME_OPTIONS = ("realtime", "interface", "channel", "bitrate", "speed")
+#: options replay no longer has: the sentence that says what replaced them (tools.cli.CommandParser)
+REMOVED_OPTIONS = {
+    "--processes": "--processes was removed: a CAN log without --frames-out is replayed as a whole log at once, the "
+                   "fast path (same outputs bit for bit as frame by frame); drop the option",
+}
 
 
 def add_subparser(sub):
@@ -50,6 +55,7 @@ def add_subparser(sub):
               "[can.source_address] (EEC1 EC1 ETC2 TRF1 ET1 AMB CCVS1 ERC1 RC): on a truck that sends the gear\n"
               "from 0x03 and the transmission oil from 0x21, write [can.source_address] TRF1 = 0x21.")
     p.usage = USAGE
+    p.removed_options = REMOVED_OPTIONS
     p.add_argument("input", metavar="LOG_OR_CSV", help="run table (.csv) or CAN log (.log .asc .blf .mf4 .trc)")
     p.add_argument("--config", metavar="TOML", help="project configuration (gearbox variant, cooler, [sensor], [can])")
     p.add_argument("--variant", choices=("GRS905", "GRSO905"),
@@ -85,10 +91,6 @@ def _add_log_options(p: argparse.ArgumentParser) -> None:
     g.add_argument("--speed", type=float, metavar="X",
                    help="--realtime: play X times faster (default 1; a sensor on a bus that stamps frames on "
                         "arrival, all but virtual, then sees a wrong time base: a warning says so)")
-    g.add_argument("--processes", type=int, choices=(1, 2), default=None,
-                   help="offline: 2 reads and decodes the log in one process while the sensor steps in a second "
-                        "(same outputs bit for bit, about 2x faster on 2+ cores); 1 does both in one. Default: 2 "
-                        "for logs of 2 MB or more when the machine has 2+ cores and no --frames-out")
     g.add_argument("--frames-out", metavar="OUT.log",
                    help="also write the frames the sensor would send (GBX_*, DM1) as a CAN log")
     g.add_argument("--strict", action="store_true",
@@ -205,7 +207,7 @@ def _run_log(args, path: Path) -> int:
     with outputs(("--out", args.out), ("--frames-out", args.frames_out), ("--plot", figure_path(args.plot))) as tmp:
         out_tmp, frames_tmp, plot_tmp = tmp
         result = replay_log_file(path, out_tmp, config_path=_config(args), sensor_options=_sensor_options(args),
-                                 frames_out=frames_tmp, processes=args.processes, strict=args.strict)
+                                 frames_out=frames_tmp, strict=args.strict)
         if plot_tmp:
             from tools.replay.plot import plot_replay
             with naming(plot_tmp):

@@ -5,7 +5,8 @@
   (``gearbox-vsensor run``), and returns the sensor output run table (tools/runtable.py, 10 Hz): the decoded
   inputs, ``T_<id>_c``, ``W_<id>``, ``ttl_<id>_s``, the status and ``meas_T_<id>_c`` from rig thermocouple frames.
   Outputs are bit-identical to a live run on the same traffic: the service keeps time by frame timestamps only.
-  Big logs are replayed in two processes (tools/replay/pipeline.py), with the same outputs.
+  Two paths give the same table bit for bit: frame by frame (the reference) and the whole log at once (the fast one,
+  ``firmware_model.service.columnar``).
 - :func:`replay_log_file` is the offline command: a log to a run table CSV (and the frames the sensor would send).
 - :func:`play_log` plays a log onto a bus with its original timing (python-can ``MessageSync``, like canplayer),
   optionally faster (``speedup``); :func:`play_log_on` opens the bus for it.
@@ -23,7 +24,6 @@ from firmware_model.errors import InputError
 from tools.outputs import naming
 from tools.replay.formats import LOG_SUFFIXES, check_log, is_can_log, read_log  # noqa: F401 (re-exported)
 from tools.replay.lines import damage_finding
-from tools.replay.pipeline import PIPELINE_MIN_BYTES, feed_pipelined, pipeline_available
 
 #: CAN log suffixes read by python-can's LogReader
 #: suffixes --frames-out writes (python-can's Logger)
@@ -43,22 +43,8 @@ class LogReplay(NamedTuple):
     findings: tuple = ()
 
 
-def _processes(path, service, on_frames, processes: int | None) -> int:
-    """1 or 2: what was asked, or for None two processes for a big log when nothing stands against it."""
-    if processes not in (None, 1, 2):
-        raise InputError(f"processes = {processes!r}: use 1, 2 or None (automatic)")
-    reason = pipeline_available(service, on_frames)
-    if processes == 2 and reason is not None:
-        raise InputError(f"cannot replay in two processes: {reason}")
-    if processes is None:
-        p = Path(path)
-        big = p.is_file() and p.stat().st_size >= PIPELINE_MIN_BYTES
-        processes = 2 if reason is None and big and (os.cpu_count() or 1) >= 2 else 1
-    return processes
-
-
 def replay_log(path: str | os.PathLike, sensor_or_service, *, config=None, options=None,
-               on_frames=None, processes: int | None = None, columnar: bool | None = None, strict: bool = False):
+               on_frames=None, columnar: bool | None = None, strict: bool = False):
     """Replay a CAN log through the sensor service; returns the sensor output run table (10 Hz).
 
     ``sensor_or_service``: a ``VirtualSensor`` (a service is built from ``options`` or the ``config``'s ``[can]``)
@@ -66,17 +52,10 @@ def replay_log(path: str | os.PathLike, sensor_or_service, *, config=None, optio
     receives the frames the service would send, in order (for comparisons with a live run). The table's ``meta``
     holds the counters (``meta["counters"]``). Raises InputError when the log holds no usable J1939 traffic.
 
-    ``processes``: 2 runs the frame half of every step (reading, decoding, which inputs are fresh) and the sensor
-    half (the step, status, outputs) in two processes, a pipeline over two cores with the same outputs bit for bit
-    (``tools.replay.pipeline.pipeline_available`` says when it can); 1 runs both in this process; None (default)
-    picks 2 for a log of at least ``PIPELINE_MIN_BYTES`` when nothing stands against it (``on_frames`` needs the
-    frames in order here).
-
     ``columnar``: True reads and decodes the whole log at once and steps the sensor over the whole table
     (``firmware_model.service.columnar``: the same table and counters bit for bit, several times faster); False
     feeds the frames one by one; None (default) takes the whole-log path whenever no frames are to be sent
-    (``on_frames`` None, a service built with ``emit_frames=False``) and ``processes`` is None. ``meta["reader"]``
-    says which ran.
+    (``on_frames`` None, a service built with ``emit_frames=False``). ``meta["reader"]`` says which ran.
 
     ``strict`` False (default): malformed lines and a cut last line are skipped and counted (tools/replay/lines.py):
     ``meta["malformed"]`` holds their finding (None when none was skipped); True: refused in one sentence.
@@ -96,18 +75,15 @@ def replay_log(path: str | os.PathLike, sensor_or_service, *, config=None, optio
         first = scan_log(check_log(path))
         if first.skipped or first.note:
             raise InputError(first.strict_sentence(path))
-    if _columnar(service, on_frames, False if columnar is None and processes is not None else columnar):
+    if _columnar(service, on_frames, columnar):
         columns, reader, damage, kept = _replay_columns(path, service, strict)
     else:
         damage = None if strict else scan_log(check_log(path))
-        if _processes(path, service, on_frames, processes) == 2:
-            feed_pipelined(read_log(path, damage), service)
-        else:
-            feed = service.feed
-            for msg in read_log(path, damage):
-                frames = feed(msg)
-                if frames and on_frames is not None:
-                    on_frames(frames)
+        feed = service.feed
+        for msg in read_log(path, damage):
+            frames = feed(msg)
+            if frames and on_frames is not None:
+                on_frames(frames)
     if reader == "python-can":
         columns = service.recorded()
     if damage is not None and kept is None and damage.skipped > int(damage.cut_last):
@@ -160,7 +136,7 @@ def _replay_columns(path, service, strict: bool) -> tuple[dict, str, Any, Any]:
 
 
 def replay_log_file(path, out, *, config_path=None, sensor_options=None, frames_out=None,
-                    processes: int | None = None, strict: bool = False) -> LogReplay:
+                    strict: bool = False) -> LogReplay:
     """Replay a CAN log offline through the onboard sensor of ``config_path`` and write the run table to ``out``;
     ``frames_out``: also write the frames the sensor would send as a CAN log (.log, .asc, .blf); ``strict``: refuse
     a log with a malformed line (else skipped, counted, and among the findings when they make it untrusted)."""
@@ -181,7 +157,7 @@ def replay_log_file(path, out, *, config_path=None, sensor_options=None, frames_
                 for f in frames:
                     writer.on_message_received(f)
     try:
-        table = replay_log(path, service, on_frames=on_frames, processes=processes, strict=strict)
+        table = replay_log(path, service, on_frames=on_frames, strict=strict)
     finally:
         if writer is not None:
             with naming(frames_out):
