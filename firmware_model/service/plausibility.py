@@ -207,7 +207,7 @@ def torque_sign_finding(speed_rpm, torque_nm, gear=None, dt_s: float = STEP_S, m
     brake = (f", below the engine's braking limit {min_torque_nm:.0f} Nm on {pct(int(np.sum(t < min_torque_nm)), n)}"
              if beyond >= SIGN_BEYOND_SHARE else "")
     fix = "negate the column (the engine's output torque is positive when it drives)" if source == "table" else \
-        "check [can] engine_ref_torque_nm and the node that sends EEC1"
+        "check the node that sends EEC1 (or a gateway that re-encodes it)"
     return PlausibilityFinding(
         "engine_torque_nm", "negative",
         f"{col} is below {SIGN_NEG_NM:.0f} Nm on {pct(int(np.sum(t < SIGN_NEG_NM)), n)} of the {n} driving steps "
@@ -229,7 +229,7 @@ def torque_percent_finding(speed_rpm, torque_nm, gear=None, dt_s: float = STEP_S
         return None
     col = SOURCES[source]["engine_torque_nm"]
     fix = "give N m (percent / 100 x the engine's reference torque, EC1 SPN 544)" if source == "table" else \
-        "check [can] engine_ref_torque_nm (the reference torque in N m)"
+        "check the reference torque ([can] engine_reference_torque_nm, else EC1 SPN 544 from the engine)"
     return PlausibilityFinding(
         "engine_torque_nm", "percent",
         f"{col} never exceeds {PERCENT_MAX:.0f} over {n * dt_s / 60.0:.1f} min of driving (peak {peak:.0f}, median "

@@ -63,8 +63,10 @@ def add_subparser(sub):
                                                          "trusted are still printed)")
     p.add_argument("--allow-untrusted", action="store_true",
                    help="exit 0 even when the outputs should not be trusted: the sensor degraded on more than half "
-                        "of the steps, a suspect time base, or a needed message only from unexpected source "
-                        "addresses (default: warn on stderr and exit 3, outputs written)")
+                        "of the steps, a suspect time base, a needed message only from unexpected source "
+                        "addresses, a unit or sign mistake of the whole record (oil in degF or kelvin, torque "
+                        "negated or in percent, speed in rad/s), or an input clamped or repaired on more than 5 %% "
+                        "of the steps (default: warn on stderr and exit 3, outputs written)")
     _add_log_options(p)
     p.set_defaults(func=run)
     return p

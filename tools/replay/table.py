@@ -241,8 +241,8 @@ def table_findings(out, oil_model: bool = False) -> list:
     """The trust findings of a run-table replay (``firmware_model.service.trust``): columns that look like another
     unit (time in ms, engine speed in rad/s; oil in degF or kelvin, torque negated or in percent, and clamps or
     repairs on more than 5 % of the steps: ``firmware_model.service.plausibility``), the degraded share when it is
-    at least DEGRADED_WARN_SHARE, with the inputs that were missing (the validity columns); ``oil_model``: the sensor modelled the oil by request (not
-    degraded)."""
+    at least DEGRADED_WARN_SHARE, with the inputs that were missing (the validity columns); ``oil_model``: the
+    sensor modelled the oil by request (not degraded)."""
     from firmware_model.onboard.records import SensorOptions
     from firmware_model.service.degraded import (Severity, degraded_finding,   # (not trust: that imports python-can)
                                                  unit_findings)
