@@ -112,7 +112,8 @@ class SensorService:
         self._names_checked = 0
         self._rig_seen = False
         #: the whole-record rules of a live run (firmware_model.service.plausibility; a replay judges its table)
-        self.record_check = None if record else RecordCheck(min_torque_nm(sensor), self.sensor.reject_reasons)
+        self.record_check = None if record else RecordCheck(min_torque_nm(sensor),
+                                                            getattr(sensor, "reject_reasons", ()))
 
     def _init_time(self) -> None:
         self._t0_s: float | None = None       # grid anchor (frame time)

@@ -174,3 +174,15 @@ def test_the_live_service_names_the_input_in_dm1(sensor):
     assert before["dtc"] is None or before["dtc"]["fmi"] != 2
     assert after["dtc"]["spn"] == 513 and after["dtc"]["fmi"] == 2 and after["amber_warning_lamp"] == 1
     assert math.isfinite(svc.counters["steps"])
+
+
+def test_simulate_refuses_a_cycle_in_the_wrong_unit(tmp_path, capsys):
+    """simulate ran a torque column in percent as a coasting truck, and degF oil with --cooler measured as a sump
+    at 180 degC, without a word."""
+    pct = write_run_table(drive(torque_scale=100.0 / 3000.0), tmp_path / "pct.csv")
+    assert main(["simulate", "--cycle", str(pct), "--out", str(tmp_path / "p.csv"), "--quiet"]) == 2
+    assert "looks like percent" in capsys.readouterr().err
+    oil = write_run_table(drive(oil=degf), tmp_path / "degf.csv")
+    assert main(["simulate", "--cycle", str(oil), "--cooler", "measured", "--out", str(tmp_path / "o.csv"),
+                 "--quiet"]) == 2
+    assert "looks like degF" in capsys.readouterr().err
