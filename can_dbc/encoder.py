@@ -34,6 +34,9 @@ DM1_FMI = {1: 16, 2: 0}
 #: the DM1 DTC while the sensor cannot evaluate because a drive input is missing: FMI 9 (abnormal update rate) on
 #: the missing input's SPN, amber lamp (the gearbox is not monitored; interfaces.md 2.4)
 DM1_FMI_MISSING = 9
+#: FMI of an input whose whole record is implausible (a unit or sign mistake, clamps on many steps): 2, "data erratic,
+#: intermittent or incorrect" (J1939-73); shown when no component DTC and no missing input is active
+DM1_FMI_IMPLAUSIBLE = 2
 DM1_OCCURRENCE_MAX = 126
 #: the sensor's time-to-limit value table name for "never reached within the horizon"
 TTL_NEVER = "never"
@@ -229,7 +232,7 @@ class OutputEncoder:
         return payload | (counter << self._counter_start)
 
     def encode_dm1(self, levels: Mapping[str, int | None], *, missing_spn: int | None = None,
-                   timestamp_s: float = 0.0) -> can.Message:
+                   timestamp_s: float = 0.0, implausible_spn: int | None = None) -> can.Message:
         """GBX_DM1 (J1939-73 DM1, single frame) with the most severe active component DTC; send at 1 s and on change.
 
         DTC: the SPN of the component's GBX_TEMP signal (520192 + published index), FMI 16 (warning) or 0
@@ -237,23 +240,29 @@ class OutputEncoder:
         ``missing_spn``: the SPN of a drive input that is missing while no level can be evaluated: with no
         component DTC active, the DTC is that SPN with FMI 9 (abnormal update rate) and the amber lamp (a sensor that
         lost its inputs is not "no fault": a gateway audit saw a critical DTC and the red stop lamp go out when the
-        engine speed stopped). The occurrence count of an SPN/FMI pair rises by one (max 126) each time it becomes
-        active between two calls.
+        engine speed stopped). ``implausible_spn``: the SPN of an input whose whole record is implausible (the
+        service's plausibility findings: oil in degF, torque negated, clamps on many steps): with neither a component
+        DTC nor a missing input, the DTC is that SPN with FMI 2 (data erratic, intermittent or incorrect) and the
+        amber lamp. The occurrence count of an SPN/FMI pair rises by one (max 126) each time it becomes active between
+        two calls.
         """
         active: list[tuple[int, int, str, int]] = []  # (level, index, component, fmi): sorted by the first two
         for index, component in enumerate(self.components):
             level = _level(levels.get(component), f"levels[{component!r}]")
             if level in DM1_FMI:
                 active.append((level, index, component, DM1_FMI[level]))
-        if missing_spn is not None and not 0 < missing_spn < 1 << 19:
-            raise EncodeError(f"missing_spn = {missing_spn!r} is not a J1939 SPN 1..524287")
+        for name, value in (("missing_spn", missing_spn), ("implausible_spn", implausible_spn)):
+            if value is not None and not 0 < value < 1 << 19:
+                raise EncodeError(f"{name} = {value!r} is not a J1939 SPN 1..524287")
         keys = {(component, fmi) for _, _, component, fmi in active}
-        if not active and missing_spn is not None:
-            keys = {(missing_spn, DM1_FMI_MISSING)}
+        input_dtc = None if active else (missing_spn, DM1_FMI_MISSING) if missing_spn is not None else \
+            (implausible_spn, DM1_FMI_IMPLAUSIBLE) if implausible_spn is not None else None
+        if input_dtc is not None:
+            keys = {input_dtc}
         for key in keys - self._dm1_active:
             self._dm1_occurrences[key] = min(self._dm1_occurrences.get(key, 0) + 1, DM1_OCCURRENCE_MAX)
         self._dm1_active = keys
-        amber = int(any(level == 1 for level, _, _, _ in active) or (not active and missing_spn is not None))
+        amber = int(any(level == 1 for level, _, _, _ in active) or input_dtc is not None)
         red = int(any(level == 2 for level, _, _, _ in active))
         # protect lamp and MIL off, no flashing, bytes 7-8 0xFF (J1939-73); no DTC: SPN 0, FMI 0, OC 0
         at = self._dm1
@@ -262,8 +271,8 @@ class OutputEncoder:
         if active:
             _, _, component, fmi = min(active, key=lambda a: (-a[0], a[1]))
             spn, count = self.dm1_spns[component], self._dm1_occurrences[(component, fmi)]
-        elif missing_spn is not None:
-            spn, fmi, count = missing_spn, DM1_FMI_MISSING, self._dm1_occurrences[(missing_spn, DM1_FMI_MISSING)]
+        elif input_dtc is not None:
+            (spn, fmi), count = input_dtc, self._dm1_occurrences[input_dtc]
         if spn is not None:  # SPN conversion method 4 (CM bit 0): SPN bits 1-16, then bits 17-19 above the FMI
             payload |= ((spn & 0xFFFF) << at["DTC1_SPN_Low"]) | (fmi << at["DTC1_FMI"]) \
                 | ((spn >> 16) << at["DTC1_SPN_High"]) | (count << at["DTC1_OccurrenceCount"])

@@ -17,6 +17,7 @@ from firmware_model.components import MODE_HOLDING, MODE_NOT_INITIALISED, PUBLIS
 from firmware_model.errors import InputError, ParameterError
 from firmware_model.physics.oil import T_MAX_C as OIL_T_MAX_C, T_MIN_C as OIL_T_MIN_C
 from firmware_model.service.netmgmt import AddressClaim
+from firmware_model.service.plausibility import FINDING_SPNS, RecordCheck, min_torque_nm
 from firmware_model.service.options import (GEAR_RANGE, NOMINAL_PERIOD_S, SENSOR_INPUTS, ServiceOptions,
                                             wanted_pgns)
 from firmware_model.service.protocol import StepSensor, check_sensor, start_state
@@ -111,6 +112,9 @@ class SensorService:
         self._recorder = StepRecorder(PUBLISHED, self._meas_names, self.sensor.reject_reasons)
         self._names_checked = 0
         self._rig_seen = False
+        #: the whole-record rules of a live run (firmware_model.service.plausibility; a replay judges its table)
+        self.record_check = None if record else RecordCheck(min_torque_nm(sensor),
+                                                            getattr(sensor, "reject_reasons", ()))
 
     def _init_time(self) -> None:
         self._t0_s: float | None = None       # grid anchor (frame time)
@@ -214,14 +218,17 @@ class SensorService:
         """What the run must not keep quiet about (``firmware_model.service.trust.trust_findings``): a suspect time
         base, inputs from unexpected source addresses, a large degraded share; most severe first."""
         oil_model = getattr(getattr(self.sensor, "options", None), "oil_mode", "measured") == "model"
-        return trust_findings(self.all_counters(), self.decoder.expected_sa, self.options.expected_sa, oil_model,
-                              self.options.stale_factor, self.options.source_address_keys or None)
+        found = trust_findings(self.all_counters(), self.decoder.expected_sa, self.options.expected_sa, oil_model,
+                               self.options.stale_factor, self.options.source_address_keys or None)
+        if self.record_check is not None and self.record_check.findings:
+            found = sorted(found + self.record_check.findings, key=lambda f: -f.severity)
+        return found
 
     def log_findings(self, only_new: bool = False) -> None:
         """Log the findings (WARNING, or INFO for notes); ``only_new``: only those not logged yet, or more severe
         than when they were."""
         for f in self.findings():
-            key = (f.kind, getattr(f, "message", ""), getattr(f, "source", -1))
+            key = (f.kind, getattr(f, "message", ""), getattr(f, "source", -1), getattr(f, "column", ""))
             if only_new and self._findings_logged.get(key, -1) >= f.severity:
                 continue
             self._findings_logged[key] = f.severity
@@ -316,12 +323,24 @@ class SensorService:
                 self.counters["steps_sent"] += 1
                 self.counters["frames_sent"] += len(frames)
             self._check_time_base(t_step_s)
+            self._check_record()
             if self._next_log_t_s is not None and t_step_s >= self._next_log_t_s:
                 period_s = self.options.counter_log_period_s
                 self._next_log_t_s += period_s * (1 + math.floor((t_step_s - self._next_log_t_s) / period_s))
                 self.log_counters()
                 if self.options.log_findings:
                     self.log_findings(only_new=True)
+
+    def _check_record(self) -> None:
+        """Judge the whole record when due (after the first minute, then every minute): the findings go into the
+        counters (the health file's ``findings``), are logged once, and name their input in DM1."""
+        check = self.record_check
+        if check is None or check.update() is None:
+            return
+        self.counters["record_findings"] = [{"kind": f.kind, "severity": f.severity.name.lower(),
+                                             "sentence": f.sentence} for f in check.findings]
+        if self.options.log_findings:
+            self.log_findings(only_new=True)
 
     def _check_time_base(self, t_step_s: float) -> None:
         """Close the time-base check's window when due (firmware_model.service.trust); log when it turns."""
@@ -472,6 +491,9 @@ class SensorService:
                                   dict(zip(PUBLISHED, ttl_s.tolist())), status, send, req.time_base_suspect)
         if self.record:
             self._recorder.add_outputs(T_c, level, ttl_s, status, outputs.status.rejects)
+        if self.record_check is not None:
+            self.record_check.add(fields["oil_temp_c"], fields["speed_rpm"], fields["torque_nm"], fields["gear"],
+                                  getattr(outputs.status, "rejects", None))
         return frames
 
     @staticmethod
@@ -551,7 +573,8 @@ class SensorService:
             if time_base_suspect:
                 st["time_base_suspect"] = True
             frames = self.encoder.encode(temps_c, levels, ttl_s, st, timestamp_s=t_step_s)
-        dm1 = self.encoder.encode_dm1(levels, missing_spn=_missing_input_spn(status, levels), timestamp_s=t_step_s)
+        dm1 = self.encoder.encode_dm1(levels, missing_spn=_missing_input_spn(status, levels), timestamp_s=t_step_s,
+                                      implausible_spn=self._implausible_spn())
         self._last_dm1_frame = dm1
         self._steps_since_dm1 += 1
         payload = bytes(dm1.data)
@@ -561,6 +584,11 @@ class SensorService:
             self._steps_since_dm1 = 0
             self.counters["dm1_sent"] += 1
         return frames
+
+    def _implausible_spn(self) -> int | None:
+        """The SPN DM1 names for the most severe whole-record finding (FINDING_SPNS), or None."""
+        check = self.record_check
+        return FINDING_SPNS.get(check.findings[0].spn_key) if check is not None and check.findings else None
 
 
 #: the J1939 SPN of each drive input, in the order a missing one is named in DM1 (engine speed, actual engine

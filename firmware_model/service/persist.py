@@ -283,6 +283,8 @@ class HealthFile:
                "j1939": None if getattr(service, "netmgmt", None) is None else {
                    "address": service.netmgmt.address, **service.netmgmt.counters},
                "bus": dict(bus_events or getattr(service, "bus_events", None) or {}),
+               # the whole-record findings (firmware_model.service.plausibility), judged after the first minute
+               "findings": list(c.get("record_findings", [])),
                "health_write_errors": self.errors}
         try:
             # no fsync: rewritten every second (a power cut loses nothing it needs); the rename stays atomic

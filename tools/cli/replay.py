@@ -74,8 +74,10 @@ def add_subparser(sub):
     p.add_argument("--allow-untrusted", action="store_true",
                    help="exit 0 even when the outputs should not be trusted: the sensor degraded on more than half "
                         "of the steps, a suspect time base, a needed message only from unexpected source "
-                        "addresses, or a log's malformed lines (over 1 %% of them, or one breaking a frame sequence "
-                        "the step needs) (default: warn on stderr and exit 3, outputs written)")
+                         "addresses, a unit or sign mistake of the whole record (oil in degF or kelvin, torque "
+                         "negated or in percent, speed in rad/s), an input clamped or repaired on more than 5 %% "
+                         "of the steps, or a log's malformed lines (over 1 %% of them, or one breaking a frame "
+                         "sequence the step needs) (default: warn on stderr and exit 3, outputs written)")
     _add_log_options(p)
     p.set_defaults(func=run)
     return p

@@ -142,7 +142,7 @@ def run(args) -> int:
     with outputs(("--out", args.out), ("--can-log", args.can_log), ("--plot", plot), ("--plot", heat)) as tmp:
         table = get_cycle(args.cycle, rate_hz=args.rate, noise=args.noise, seed=args.seed)
         if cycle_file is not None and not args.allow_untrusted:
-            _refuse_unit_mistakes(table, cycle_file)
+            _refuse_unit_mistakes(table, cycle_file, oil_used=(args.cooler or cfg.cooler) == "measured")
         plant = ReferencePlant(params, effects, cooler=args.cooler or cfg.cooler, dt_s=args.dt)
         try:
             res = plant.run(table, initial_temp_c=args.initial_temp, hold_oil_c=args.hold_oil, out_dt_s=args.out_dt,
@@ -178,7 +178,7 @@ UNIT_CHECK_MIN_ROWS = 20
 LONG_CYCLE_S, LONG_ROWS_S = 86400.0, 10.0
 
 
-def _refuse_unit_mistakes(table, name: str) -> None:
+def _refuse_unit_mistakes(table, name: str, oil_used: bool = False) -> None:
     """InputError for a CSV cycle whose units look wrong, before the plant runs (a drive-cycle audit: a 10-minute
     file with time_s in milliseconds simulated 7 days and wrote a 600 MB table and a 4.3 GB CAN log without a
     word, and rad/s speed ran as a stalled engine; replay refused both)."""
@@ -190,9 +190,13 @@ def _refuse_unit_mistakes(table, name: str) -> None:
             raise InputError(f"{name}: its rows lie a median {spacing_s:.0f} s apart ({t[-1] - t[0]:.0f} s in all): "
                              f"if time_s is in milliseconds, give seconds; if the rows really lie that far apart, "
                              f"pass --allow-untrusted")
+    from firmware_model.service.plausibility import record_findings
     speed = unit_findings(0, 0, [], table["engine_speed_rpm"], table["engine_torque_nm"])
-    if speed:
-        raise InputError(f"{name}: {speed[0].sentence} (pass --allow-untrusted to simulate it as it is)")
+    # the whole-record rules (oil only when the plant takes it as its sump: --cooler measured)
+    cols = {c: table[c] for c in table.columns if c != "oil_temp_c" or oil_used}
+    whole = record_findings(cols, float(np.median(np.diff(t)))) if t.size > 1 else []
+    if speed or whole:
+        raise InputError(f"{name}: {(speed + whole)[0].sentence} (pass --allow-untrusted to simulate it as it is)")
 
 
 def plot_paths(plot):

@@ -145,6 +145,8 @@ def status_lines(doc: dict, age_s: float) -> list[str]:
         lines.append(f"bus: {bus.get('outages', 0)} receive outages, {bus.get('read_errors', 0)} receive errors, "
                      f"{bus.get('reopens', 0)} reopens ({bus.get('reopen_failures', 0)} failed attempts), "
                      f"{doc.get('bus_off', 0)} bus-off error frames")
+    for f in doc.get("findings") or []:      # the whole-record findings of the run (after its first minute)
+        lines.append(f"finding ({f.get('severity')}): {f.get('sentence')}")
     if doc.get("health_write_errors"):
         lines.append(f"health file: {doc['health_write_errors']} writes failed before this one (the service's log "
                      f"names the first error)")

@@ -388,11 +388,21 @@ def _initial_temp_c(table: RunTable, t: np.ndarray, channels: dict, oil_is_input
     return float(np.mean(src_y[sel])) if sel.any() else float(src_y[0])
 
 
+def _refuse_implausible(table: RunTable, t: np.ndarray, name: str) -> None:
+    """InputError for a file whose whole record is implausible (firmware_model.service.plausibility: oil in degF
+    or kelvin, torque negated or in percent): a fit to it would explain a unit mistake by a gearbox effect."""
+    from firmware_model.service.plausibility import record_findings
+    found = record_findings(table, float(np.median(np.diff(t))))
+    if found:
+        raise InputError(f"{name}: {found[0].sentence}")
+
+
 def prepare(table: RunTable, name: str, role: str, opts: Options, oil_is_input: bool = False) -> Dataset:
     """Validate a measured run table and put its channels on the analysis grid. Raises InputError (one sentence)."""
     validate_run_table(table, REQUIRED, name)
     t = np.asarray(table["time_s"], dtype=float)
     _check_time(t, name, opts)
+    _refuse_implausible(table, t, name)
     cols = channel_columns(table)
     if oil_is_input:
         cols.pop(OIL, None)

@@ -99,7 +99,7 @@ def process_log(entry: LogEntry, out: str | None = None, estimates: bool = False
     from firmware_model.service import SensorService
     from firmware_model.service.degraded import Severity, untrusted
     from tools.fleet.summary import asc_date, summarize
-    from tools.replay.log import replay_log, with_malformed
+    from tools.replay.log import log_findings, replay_log, with_malformed
     base = {"vehicle": entry.vehicle, "log": os.fspath(entry.log), "log_key": entry.key}
     stage = "sensor"
     stamp = log_stamp(entry.log)          # before reading: a log that grows while it is read is replayed again
@@ -116,7 +116,7 @@ def process_log(entry: LogEntry, out: str | None = None, estimates: bool = False
                         oil_model=getattr(sensor.options, "oil_mode", "measured") == "model")
         # the verdict `replay` gives this log (exit status 3): its warnings, and whether they make it untrusted
         malformed = table.meta.get("malformed")
-        findings = with_malformed(service.findings(), malformed)
+        findings = with_malformed(log_findings(service, table), malformed)
         row.update(malformed_columns(malformed))
         row["variant"] = gearbox_of(entry.variant, entry.config)
         row[LOG_BYTES], row[LOG_MTIME] = stamp if stamp is not None else (None, None)

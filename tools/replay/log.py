@@ -165,7 +165,7 @@ def replay_log_file(path, out, *, config_path=None, sensor_options=None, frames_
     with naming(out):
         written = write_run_table(table, out)
     return LogReplay(table, written, service.decoder.counters, service.counters,
-                     tuple(with_malformed(service.findings(), table.meta.get("malformed"))))
+                     tuple(with_malformed(log_findings(service, table), table.meta.get("malformed"))))
 
 
 def with_malformed(findings, malformed) -> list:
@@ -175,6 +175,14 @@ def with_malformed(findings, malformed) -> list:
     if malformed is None or malformed.severity < Severity.UNTRUSTED:
         return list(findings)
     return sorted([*findings, malformed], key=lambda f: -f.severity)
+
+
+def log_findings(service, table) -> list:
+    """The trust findings of a replayed log: the service's (firmware_model.service.trust) and the whole record's
+    (firmware_model.service.plausibility: unit and sign of the decoded inputs, clamps or repairs on more than 5 % of
+    the steps), most severe first."""
+    from firmware_model.service.plausibility import min_torque_nm, with_record_findings
+    return with_record_findings(service.findings(), table, min_torque_nm(service.sensor), "can")
 
 
 def play_log(path: str | os.PathLike, bus, *, speedup: float = 1.0, stop: threading.Event | None = None,

@@ -228,20 +228,25 @@ def replay_csv(path, config_path=None, sensor_options=None) -> "CsvReplay":
     ``sensor_options``: VirtualSensor options (oil_mode, initial_temp_c)."""
     from firmware_model.config import load_config
     from firmware_model.onboard.sensor import VirtualSensor
+    from firmware_model.service.plausibility import min_torque_nm
     cfg = load_config(config_path)
     params = cfg.load_params()
     sensor = VirtualSensor(params, config=cfg, **(sensor_options or {}))
-    return CsvReplay(replay_table(read_inputs_table(path), sensor), params.variant, sensor.options.oil_mode)
+    out = replay_table(read_inputs_table(path), sensor)
+    out.meta["min_torque_nm"] = min_torque_nm(sensor)
+    return CsvReplay(out, params.variant, sensor.options.oil_mode)
 
 
 def table_findings(out, oil_model: bool = False) -> list:
     """The trust findings of a run-table replay (``firmware_model.service.trust``): columns that look like another
-    unit (time in ms, engine speed in rad/s), the degraded share when it is at least DEGRADED_WARN_SHARE, with the
-    inputs that were missing (the validity columns); ``oil_model``: the sensor modelled the oil by request (not
-    degraded)."""
+    unit (time in ms, engine speed in rad/s; oil in degF or kelvin, torque negated or in percent, and clamps or
+    repairs on more than 5 % of the steps: ``firmware_model.service.plausibility``), the degraded share when it is
+    at least DEGRADED_WARN_SHARE, with the inputs that were missing (the validity columns); ``oil_model``: the
+    sensor modelled the oil by request (not degraded)."""
     from firmware_model.onboard.records import SensorOptions
     from firmware_model.service.degraded import (Severity, degraded_finding,   # (not trust: that imports python-can)
                                                  unit_findings)
+    from firmware_model.service.plausibility import table_record_findings
     modes = np.asarray(out["degraded_mode"], dtype=float) if out.n else np.zeros(0)
     values, counts = np.unique(modes[np.isfinite(modes)].astype(int), return_counts=True)
     missing = {c: int(np.sum(np.asarray(out[c]) == 0)) for c in ("speed_valid", "torque_valid", "gear_valid",
@@ -252,6 +257,7 @@ def table_findings(out, oil_model: bool = False) -> list:
                           out["engine_speed_rpm"] if out.has("engine_speed_rpm") else [],
                           out["engine_torque_nm"] if out.has("engine_torque_nm") else [],
                           hold_s=SensorOptions().time_jump_hold_s)
+    units += table_record_findings(out, (out.meta or {}).get("min_torque_nm"))
     return units + ([finding] if finding.severity >= Severity.WARNING else [])
 
 

@@ -1,0 +1,336 @@
+"""Plausibility of a whole record, not only of each value (docs/can.md "Trust findings"): unit and sign mistakes
+that pass every per-value check of the sensor (docs/sensor.md "Bad input") yet give wrong numbers, and repairs on
+too many steps. Shared by `replay` (run tables and CAN logs), `fleet`, the diagnosis's input preparation and the
+live service (after its first minute).
+
+Each finding is a :class:`PlausibilityFinding` (``kind`` "plausibility", :attr:`Severity.UNTRUSTED`, one
+``.sentence`` naming the column, the likely unit or sign and the fix); :class:`RepairFinding` says that the sensor
+clamped or repaired an input on more than REPAIR_UNTRUSTED_SHARE of its steps. The rules, physically:
+
+- **Oil in degF or kelvin.** A gearbox sump read in degC lies in OIL_ENVELOPE_C (-40 .. 150 degC: its warning limit
+  is 120 degC; oil above 150 degC ages within hours). A record whose oil sits above 150 degC on at least
+  OIL_HOT_SHARE of its readings, while the same readings read as degF ((x - 32) / 1.8) or kelvin (x - 273.15) lie
+  in the envelope on OIL_FIT_SHARE of them and rise no faster than OIL_MAX_RATE_C_PER_MIN over OIL_RATE_WINDOW_S,
+  fits that unit better than degC. Readings of 150-223 fit only degF, 302-423 only kelvin, 223-302 both (a hot
+  gearbox in degF or a cold one in kelvin): then both are named. The rate alone does not decide (a degF rate is
+  1.8x the degC one, but the plant's steady full-load cycle rises 8.1 K/min over 5 min in degC, faster than the
+  uphill drive in degF, 5.8): it only refuses a unit that would make the oil rise faster than any gearbox. Not
+  found: a cold drive in degF that never reads above 150 (-22 .. 140 degF reads as a plausible -22 .. 140 degC).
+- **Torque of the wrong sign.** Driving rows: the engine at DRIVE_MIN_RPM or more with a gear engaged (or no gear
+  column). Engine braking makes the torque negative on a descent (the mining cycle: 31 % of its driving rows), so
+  the finding needs at least SIGN_MIN_DRIVE_S of driving, torque below SIGN_NEG_NM on more than SIGN_SHARE of the
+  driving rows, and either more negative than the engine can brake (its min_torque) on SIGN_BEYOND_SHARE of them or
+  negative on SIGN_ALL_SHARE of them (a flipped gentle drive).
+- **Torque in percent where N m is expected.** J1939 percent torque lies in -125 .. 125 %. A record with at least
+  PERCENT_MIN_DRIVE_S of driving whose torque never exceeds 125 yet reaches PERCENT_MIN_PEAK (a load, not a coast)
+  is percent: a truck gearbox's engines give 1000-3500 N m, and a drive that never passes 125 N m (under 20 kW at
+  1500 rpm) does not move a truck for minutes.
+- **Speed in rad/s**: ``firmware_model.service.degraded.unit_findings`` (an engine delivering torque below idle).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import ClassVar, Mapping
+
+import numpy as np
+
+from firmware_model.components import STEP_S
+from firmware_model.service.degraded import Severity, pct
+
+#: the plausible range of a gearbox sump read in degC [degC]
+OIL_ENVELOPE_C = (-40.0, 150.0)
+#: degC does not fit when at least this share of the readings is above the envelope ...
+OIL_HOT_SHARE = 0.5
+#: ... and another unit fits when this share of its converted readings lies in the envelope ...
+OIL_FIT_SHARE = 0.95
+#: ... and it rises no faster than this over the window [K/min, s] (twice the fastest honest rise of the named
+#: cycles, 8.1 K/min over 5 min at steady full load)
+OIL_MAX_RATE_C_PER_MIN, OIL_RATE_WINDOW_S = 16.0, 300.0
+#: a record needs this much oil reading (or driving) before a whole-record rule judges it [s]
+OIL_MIN_S = 60.0
+#: the other units an oil column is tried in: name, words, conversion to degC, the fix
+OIL_UNITS = (("degF", "degF", lambda x: (x - 32.0) / 1.8, "(degF - 32) / 1.8"),
+             ("K", "kelvin", lambda x: x - 273.15, "K - 273.15"))
+#: a driving row: the engine at least this fast [rpm] with a gear engaged
+DRIVE_MIN_RPM = 500.0
+#: torque sign: below this torque [Nm] on more than SIGN_SHARE of at least SIGN_MIN_DRIVE_S [s] of driving, and
+#: below the engine's min_torque on SIGN_BEYOND_SHARE of it or negative on SIGN_ALL_SHARE of it
+SIGN_NEG_NM, SIGN_SHARE, SIGN_MIN_DRIVE_S, SIGN_BEYOND_SHARE, SIGN_ALL_SHARE = -50.0, 0.5, 300.0, 0.05, 0.9
+#: torque in percent: never above PERCENT_MAX on at least PERCENT_MIN_DRIVE_S [s] of driving, reaching
+#: PERCENT_MIN_PEAK
+PERCENT_MAX, PERCENT_MIN_PEAK, PERCENT_MIN_DRIVE_S = 125.0, 40.0, 300.0
+#: a clamp or repair of an input on more than this share of the steps is untrusted
+REPAIR_UNTRUSTED_SHARE = 0.05
+#: the reject counters that clamp or repair a value the sensor then uses (a missing input is the degraded
+#: finding's; drive_frozen is flagged but used as it is), with their words
+REPAIR_REASONS = {"speed_clamped": "engine speed clamped to the engine's range",
+                  "torque_clamped": "engine torque clamped to the engine's range",
+                  "gear_unknown": "gear not an integer in -2..14 (last good gear held)",
+                  "oil_implausible": "oil reading out of range or jumping (modelled instead)"}
+#: where a column comes from: a run table's column, or a CAN log's decoded signal (the DBC fixes its unit)
+SOURCES = {"table": {"oil_temp_c": "column oil_temp_c", "engine_torque_nm": "column engine_torque_nm"},
+           "can": {"oil_temp_c": "the oil temperature (TRF1 SPN 177, degC by the DBC)",
+                   "engine_torque_nm": "the engine torque (EEC1 SPN 513 x the reference torque)"}}
+
+
+#: the J1939 SPN a live service's DM1 names for a finding on an input (FMI 2, docs/can.md "DM1: decision")
+FINDING_SPNS = {"engine_speed_rpm": 190, "engine_torque_nm": 513, "gear": 523, "oil_temp_c": 177}
+#: the input of each repair reason
+REPAIR_INPUTS = {"speed_clamped": "engine_speed_rpm", "torque_clamped": "engine_torque_nm", "gear_unknown": "gear",
+                 "oil_implausible": "oil_temp_c"}
+
+
+def min_torque_nm(sensor) -> float | None:
+    """The engine's braking limit the sensor clamps the torque to [Nm] (the torque-sign rule's; None: a sensor
+    without SensorParams)."""
+    from firmware_model.onboard.records import I_TORQUE
+    sp = getattr(sensor, "sp", None)
+    return float(sp.clamp_lo[I_TORQUE]) if sp is not None else None
+
+
+@dataclass(frozen=True)
+class PlausibilityFinding:
+    """A whole record whose ``column`` looks like ``likely`` (a unit: "degF", "K", "degF or K", "percent"; or
+    "negative"); ``what`` is its sentence."""
+    kind: ClassVar[str] = "plausibility"
+    column: str
+    likely: str
+    what: str
+
+    @property
+    def severity(self) -> Severity:
+        return Severity.UNTRUSTED
+
+    @property
+    def sentence(self) -> str:
+        return self.what
+
+    @property
+    def spn_key(self) -> str:
+        return self.column
+
+
+@dataclass(frozen=True)
+class RepairFinding:
+    """The sensor clamped or repaired inputs on ``repaired`` (reason -> steps) of ``steps`` steps; untrusted above
+    REPAIR_UNTRUSTED_SHARE for any reason."""
+    kind: ClassVar[str] = "repair"
+    steps: int
+    repaired: dict
+
+    @property
+    def severity(self) -> Severity:
+        return Severity.UNTRUSTED
+
+    @property
+    def spn_key(self) -> str:
+        """The input repaired on the most steps."""
+        return REPAIR_INPUTS[max(self.repaired, key=self.repaired.get)]
+
+    @property
+    def sentence(self) -> str:
+        worst = sorted(((n, r) for r, n in self.repaired.items() if n > REPAIR_UNTRUSTED_SHARE * self.steps),
+                       reverse=True)
+        said = "; ".join(f"{REPAIR_REASONS[r]} on {pct(n, self.steps)}" for n, r in worst)
+        return (f"the sensor clamped or repaired an input on more than {100 * REPAIR_UNTRUSTED_SHARE:.0f} % of its "
+                f"{self.steps} steps ({said}): its temperatures rest on values it had to change, not on the "
+                f"record; check the column's unit and sign (or the sender's scaling)")
+
+
+def _finite(values) -> np.ndarray:
+    return np.asarray(values, dtype=float).ravel()
+
+
+def _max_rate_c_per_min(oil_c: np.ndarray, dt_s: float) -> float:
+    """The fastest rise of the readings over OIL_RATE_WINDOW_S (NaN rows skipped) [K/min]."""
+    lag = max(1, int(round(OIL_RATE_WINDOW_S / dt_s)))
+    if oil_c.size <= lag:
+        return 0.0
+    rise = oil_c[lag:] - oil_c[:-lag]
+    rise = rise[np.isfinite(rise)]
+    return float(rise.max()) / (lag * dt_s / 60.0) if rise.size else 0.0
+
+
+def oil_unit_finding(oil, dt_s: float = STEP_S, source: str = "table") -> PlausibilityFinding | None:
+    """The oil rule (module doc) over the readings of a record, one every ``dt_s``; None when degC fits."""
+    raw = _finite(oil)
+    x = raw[np.isfinite(raw)]
+    lo, hi = OIL_ENVELOPE_C
+    if x.size * dt_s < OIL_MIN_S or np.mean(x > hi) < OIL_HOT_SHARE:
+        return None
+    fits = []
+    for name, words, to_c, fix in OIL_UNITS:
+        c = to_c(x)
+        if np.mean((c >= lo) & (c <= hi)) >= OIL_FIT_SHARE and \
+                _max_rate_c_per_min(to_c(raw), dt_s) <= OIL_MAX_RATE_C_PER_MIN:
+            fits.append((name, words, to_c, fix))
+    if not fits:
+        return None
+    col = SOURCES[source]["oil_temp_c"]
+    as_units = " or ".join(f"as {w} it is {to_c(np.percentile(x, 1)):.0f}-{to_c(np.percentile(x, 99)):.0f} degC"
+                           for _, w, to_c, _ in fits)
+    fix = ("give degC: " + " or ".join(f for *_, f in fits)) if source == "table" else \
+        "the DBC fixes the unit, so check the node that sends it (or a gateway that re-encodes it)"
+    span_min = x.size * dt_s / 60.0
+    return PlausibilityFinding(
+        "oil_temp_c", " or ".join(n for n, *_ in fits),
+        f"{col} reads {np.percentile(x, 1):.0f}-{np.percentile(x, 99):.0f} (median {np.median(x):.0f}) over "
+        f"{span_min:.1f} min, above {hi:.0f} degC on {pct(int(np.sum(x > hi)), x.size)} of the readings, where a "
+        f"gearbox sump in degC does not stay (its warning limit is 120 degC); {as_units}, a plausible drive: the "
+        f"oil looks like {' or '.join(w for _, w, *_ in fits)}, not degC; {fix} (if the sump really ran above "
+        f"{hi:.0f} degC: stop and check the gearbox)")
+
+
+def _driving(speed_rpm, gear, n: int) -> np.ndarray:
+    speed = _finite(speed_rpm) if speed_rpm is not None else np.full(n, np.nan)
+    if gear is None:
+        return np.isfinite(speed) & (speed >= DRIVE_MIN_RPM)
+    g = _finite(gear)
+    return np.isfinite(speed) & (speed >= DRIVE_MIN_RPM) & np.isfinite(g) & (g != 0)
+
+
+def torque_sign_finding(speed_rpm, torque_nm, gear=None, dt_s: float = STEP_S, min_torque_nm: float | None = None,
+                        source: str = "table") -> PlausibilityFinding | None:
+    """The torque-sign rule (module doc); ``min_torque_nm``: the engine's braking limit (None: only the
+    SIGN_ALL_SHARE branch)."""
+    torque = _finite(torque_nm)
+    drive = _driving(speed_rpm, gear, torque.size) & np.isfinite(torque)
+    n = int(drive.sum())
+    if n * dt_s < SIGN_MIN_DRIVE_S:
+        return None
+    t = torque[drive]
+    neg = float(np.mean(t < SIGN_NEG_NM))
+    beyond = float(np.mean(t < min_torque_nm)) if min_torque_nm is not None else 0.0
+    if neg <= SIGN_SHARE or (beyond < SIGN_BEYOND_SHARE and neg < SIGN_ALL_SHARE):
+        return None
+    col = SOURCES[source]["engine_torque_nm"]
+    brake = (f", below the engine's braking limit {min_torque_nm:.0f} Nm on {pct(int(np.sum(t < min_torque_nm)), n)}"
+             if beyond >= SIGN_BEYOND_SHARE else "")
+    fix = "negate the column (the engine's output torque is positive when it drives)" if source == "table" else \
+        "check the node that sends EEC1 (or a gateway that re-encodes it)"
+    return PlausibilityFinding(
+        "engine_torque_nm", "negative",
+        f"{col} is below {SIGN_NEG_NM:.0f} Nm on {pct(int(np.sum(t < SIGN_NEG_NM)), n)} of the {n} driving steps "
+        f"(engine at {DRIVE_MIN_RPM:.0f} rpm or more in gear; median {np.median(t):.0f} Nm{brake}): engine braking "
+        f"does not last a whole drive, so the sign convention looks mixed up; {fix}")
+
+
+def torque_percent_finding(speed_rpm, torque_nm, gear=None, dt_s: float = STEP_S,
+                           source: str = "table") -> PlausibilityFinding | None:
+    """The percent-torque rule (module doc)."""
+    torque = _finite(torque_nm)
+    drive = _driving(speed_rpm, gear, torque.size) & np.isfinite(torque)
+    n = int(drive.sum())
+    if n * dt_s < PERCENT_MIN_DRIVE_S:
+        return None
+    t = torque[drive]
+    peak = float(t.max())
+    if not (PERCENT_MIN_PEAK <= peak <= PERCENT_MAX):
+        return None
+    col = SOURCES[source]["engine_torque_nm"]
+    fix = "give N m (percent / 100 x the engine's reference torque, EC1 SPN 544)" if source == "table" else \
+        "check the reference torque ([can] engine_reference_torque_nm, else EC1 SPN 544 from the engine)"
+    return PlausibilityFinding(
+        "engine_torque_nm", "percent",
+        f"{col} never exceeds {PERCENT_MAX:.0f} over {n * dt_s / 60.0:.1f} min of driving (peak {peak:.0f}, median "
+        f"{np.median(t):.0f}): a truck engine gives 1000-3500 N m and moves no truck for minutes on at most "
+        f"{PERCENT_MAX:.0f} N m, so the torque looks like percent of the reference torque, not N m; {fix}")
+
+
+def record_findings(columns, dt_s: float = STEP_S, min_torque_nm: float | None = None,
+                    source: str = "table") -> list[PlausibilityFinding]:
+    """The unit and sign findings of a whole record: ``columns`` maps run-table names (``oil_temp_c``,
+    ``engine_speed_rpm``, ``engine_torque_nm``, ``gear``) to one value per ``dt_s`` (a RunTable or a dict;
+    an absent column is not judged); ``source``: "table" or "can" (the sentence's words and fix)."""
+    def col(name):
+        has = columns.has(name) if hasattr(columns, "has") else name in columns
+        return columns[name] if has else None
+    out = []
+    oil, speed, torque, gear = (col(c) for c in ("oil_temp_c", "engine_speed_rpm", "engine_torque_nm", "gear"))
+    if oil is not None:
+        out.append(oil_unit_finding(oil, dt_s, source))
+    if speed is not None and torque is not None:
+        out.append(torque_sign_finding(speed, torque, gear, dt_s, min_torque_nm, source))
+        out.append(torque_percent_finding(speed, torque, gear, dt_s, source))
+    return [f for f in out if f is not None]
+
+
+def repair_finding(rejects: Mapping[str, int], steps: int) -> RepairFinding | None:
+    """The clamp/repair finding from the sensor's cumulative reject counters over ``steps`` steps, or None."""
+    repaired = {r: int(rejects.get(r, 0)) for r in REPAIR_REASONS if int(rejects.get(r, 0))}
+    if not steps or not any(n > REPAIR_UNTRUSTED_SHARE * steps for n in repaired.values()):
+        return None
+    return RepairFinding(int(steps), repaired)
+
+
+def table_record_findings(out, min_torque_nm: float | None = None, source: str = "table") -> list:
+    """The plausibility findings of a sensor output run table (a replay's: the inputs it read, one row per step,
+    and the cumulative ``rejects_<reason>`` columns)."""
+    if not out.n:
+        return []
+    found: list = record_findings(out, STEP_S, min_torque_nm, source)
+    rejects = {k[len("rejects_"):]: int(out[k][-1]) for k in out.columns
+               if k.startswith("rejects_") and np.isfinite(out[k][-1])}
+    repair = repair_finding(rejects, out.n)
+    return found + ([repair] if repair is not None else [])
+
+
+#: the kinds of the whole-record findings (an offline replay takes them from its table, not from the service)
+RECORD_KINDS = ("plausibility", "repair")
+
+
+def with_record_findings(findings, out, min_torque_nm: float | None = None, source: str = "can") -> list:
+    """A replay's findings: ``findings`` (the service's, ``firmware_model.service.trust``) with the whole-record
+    ones taken from the output table ``out`` (all its steps, whichever path stepped them); most severe first."""
+    kept = [f for f in findings if f.kind not in RECORD_KINDS]
+    return sorted(kept + table_record_findings(out, min_torque_nm, source), key=lambda f: -f.severity)
+
+
+#: the live check: one sample of the inputs every LIVE_SAMPLE_STEPS steps (1 s), the last LIVE_KEEP samples (2 h),
+#: judged from LIVE_FIRST_S of steps on (the first minute) and again every LIVE_PERIOD_S
+LIVE_SAMPLE_STEPS, LIVE_KEEP, LIVE_FIRST_S, LIVE_PERIOD_S = 10, 7200, 60.0, 60.0
+
+
+class RecordCheck:
+    """The whole-record rules for a running service: :meth:`add` every step (the inputs the step used, None when
+    missing, and the sensor's cumulative reject counters); :meth:`update` returns the findings when a judgement is
+    due (after the first minute, then every minute), else None; :attr:`findings` holds the latest judgement."""
+
+    def __init__(self, min_torque_nm: float | None = None, reject_reasons=(), dt_s: float = STEP_S) -> None:
+        self.min_torque_nm, self.dt_s = min_torque_nm, dt_s
+        self.reasons = tuple(reject_reasons)
+        self._samples = np.full((LIVE_KEEP, 4), np.nan)     # oil, speed, torque, gear
+        self._n = 0                                          # samples taken (the ring's write position mod KEEP)
+        self.steps = 0
+        self._first_rejects = None
+        self._rejects = None
+        self._next_s = LIVE_FIRST_S
+        self.findings: list = []
+
+    def add(self, oil_c, speed_rpm, torque_nm, gear, rejects=None) -> None:
+        if rejects is not None:
+            if self._first_rejects is None:
+                self._first_rejects = np.asarray(rejects, dtype=float).copy()
+            self._rejects = rejects
+        if self.steps % LIVE_SAMPLE_STEPS == 0:
+            self._samples[self._n % LIVE_KEEP] = [np.nan if v is None else float(v)
+                                                  for v in (oil_c, speed_rpm, torque_nm, gear)]
+            self._n += 1
+        self.steps += 1
+
+    def update(self) -> list | None:
+        """The findings when a judgement is due (None otherwise)."""
+        if self.steps * self.dt_s < self._next_s:
+            return None
+        self._next_s += LIVE_PERIOD_S
+        n = min(self._n, LIVE_KEEP)
+        rows = np.roll(self._samples, -(self._n % LIVE_KEEP), axis=0)[-n:] if self._n > LIVE_KEEP \
+            else self._samples[:n]
+        cols = dict(zip(("oil_temp_c", "engine_speed_rpm", "engine_torque_nm", "gear"), rows.T))
+        found: list = record_findings(cols, self.dt_s * LIVE_SAMPLE_STEPS, self.min_torque_nm, "can")
+        if self._rejects is not None and self.reasons:
+            counts = np.asarray(self._rejects, dtype=float) - self._first_rejects
+            repair = repair_finding(dict(zip(self.reasons, counts.astype(int).tolist())), self.steps)
+            found += [repair] if repair is not None else []
+        self.findings = found
+        return found

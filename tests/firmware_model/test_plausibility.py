@@ -1,0 +1,119 @@
+"""The whole-record plausibility rules (firmware_model.service.plausibility): unit and sign mistakes that pass every
+per-value check, and clamps or repairs on more than 5 % of the steps (issue 43)."""
+import numpy as np
+import pytest
+
+from firmware_model.service.degraded import Severity
+from firmware_model.service.plausibility import (RecordCheck, oil_unit_finding, record_findings, repair_finding,
+                                                 torque_percent_finding, torque_sign_finding)
+
+DT = 0.1
+
+
+def _warm_up(t0_c, t1_c, minutes, tau_min=20.0):
+    """A sump warming from t0_c towards t1_c (first order), one reading per 0.1 s."""
+    t = np.arange(0.0, minutes * 60.0, DT)
+    return t1_c + (t0_c - t1_c) * np.exp(-t / (tau_min * 60.0))
+
+
+def _drive(minutes, seed=0):
+    """Engine speed, torque [Nm] and gear of a loaded drive with engine braking now and then."""
+    rng = np.random.default_rng(seed)
+    n = int(minutes * 600)
+    rpm = 1100.0 + 400.0 * rng.random(n)
+    torque = np.clip(1500.0 + 900.0 * np.sin(np.arange(n) / 900.0) + 200.0 * rng.standard_normal(n), -400.0, 2700.0)
+    return rpm, torque, np.full(n, 12.0)
+
+
+def to_degf(c):
+    return c * 1.8 + 32.0
+
+
+@pytest.mark.parametrize("oil_c, why", [
+    (_warm_up(68.0, 92.0, 12.0), "the uphill drive's 12 minutes"),
+    (_warm_up(20.0, 130.0, 90.0, tau_min=30.0), "a hot drive from 20 to 130 degC"),
+    (_warm_up(-30.0, 70.0, 60.0), "a cold start at -30 degC"),
+    (np.full(36000, -30.0), "a gearbox parked at -30 degC"),
+    (np.concatenate([_warm_up(110.0, 148.0, 20.0), _warm_up(148.0, 100.0, 20.0)]), "a drive up to 148 degC"),
+    (_warm_up(80.0, 140.0, 40.0) + np.random.default_rng(1).normal(0.0, 1.0, 24000), "a noisy hot drive"),
+    (np.concatenate([np.full(1200, 160.0), _warm_up(140.0, 90.0, 30.0)]), "2 min above 150 degC, then cooling"),
+])
+def test_honest_oil_in_degc_is_never_flagged(oil_c, why):
+    assert oil_unit_finding(oil_c) is None, why
+
+
+@pytest.mark.parametrize("minutes, t0_c, t1_c", [(12.0, 68.0, 92.0), (30.0, 68.0, 107.0), (60.0, 90.0, 125.0)])
+def test_oil_in_degf_is_found_short_and_long(minutes, t0_c, t1_c):
+    """The 12-minute uphill drive in degF (readings 155-196) replayed as 'degraded 0.0 %', exit 0 (issue 43)."""
+    f = oil_unit_finding(to_degf(_warm_up(t0_c, t1_c, minutes)))
+    assert f is not None and f.likely == "degF" and f.severity == Severity.UNTRUSTED
+    assert "oil_temp_c" in f.sentence and "degF" in f.sentence and "(degF - 32) / 1.8" in f.sentence
+
+
+def test_oil_in_kelvin_is_found_and_the_overlap_names_both():
+    f = oil_unit_finding(_warm_up(68.0, 92.0, 12.0) + 273.15)
+    assert f is not None and f.likely == "K" and "kelvin" in f.sentence and "K - 273.15" in f.sentence
+    both = oil_unit_finding(_warm_up(0.0, 25.0, 30.0) + 273.15)     # 273-298: a cold gearbox in K, a hot one in degF
+    assert both is not None and both.likely == "degF or K"
+
+
+def test_a_cold_drive_in_degf_is_not_claimed():
+    """The documented limit: -22..140 degF reads as a plausible -22..140 degC."""
+    assert oil_unit_finding(to_degf(_warm_up(-30.0, 60.0, 40.0))) is None
+
+
+def test_a_short_record_is_not_judged():
+    assert oil_unit_finding(to_degf(np.full(500, 80.0))) is None       # 50 s
+
+
+def test_negative_torque_on_most_driving_rows_is_found():
+    rpm, torque, gear = _drive(12.0)
+    f = torque_sign_finding(rpm, -torque, gear, min_torque_nm=-1000.0)
+    assert f is not None and f.likely == "negative" and "engine_torque_nm" in f.sentence and "negate" in f.sentence
+    gentle = np.clip(torque, 100.0, 900.0)        # a flipped gentle drive: never beyond the engine's braking
+    assert torque_sign_finding(rpm, -gentle, gear, min_torque_nm=-1000.0) is not None
+
+
+def test_engine_braking_on_a_descent_is_not_a_sign_mistake():
+    rpm, torque, gear = _drive(20.0)
+    descent = np.where(np.arange(rpm.size) < 0.6 * rpm.size, -350.0, torque)  # 60 % of the drive braking
+    assert torque_sign_finding(rpm, descent, gear, min_torque_nm=-1000.0) is None
+    assert torque_sign_finding(rpm, torque, gear, min_torque_nm=-1000.0) is None
+    idle = np.zeros(rpm.size)                      # negative torque in neutral is no driving row
+    assert torque_sign_finding(rpm, -torque, idle, min_torque_nm=-1000.0) is None
+
+
+def test_torque_in_percent_is_found_and_a_coast_is_not():
+    rpm, torque, gear = _drive(12.0)
+    f = torque_percent_finding(rpm, torque / 3000.0 * 100.0, gear)
+    assert f is not None and f.likely == "percent" and "percent" in f.sentence and "SPN 544" in f.sentence
+    assert torque_percent_finding(rpm, torque, gear) is None
+    assert torque_percent_finding(rpm, np.full(rpm.size, 20.0), gear) is None     # a coast: no load to judge
+    assert torque_percent_finding(rpm[:1800], torque[:1800] / 30.0, gear[:1800]) is None    # 3 min: too short
+
+
+def test_record_findings_of_an_honest_drive_in_the_whole_envelope():
+    for seed in range(5):
+        rpm, torque, gear = _drive(30.0, seed)
+        for oil in (_warm_up(-30.0, 80.0, 30.0), _warm_up(40.0, 130.0, 30.0)):
+            cols = {"oil_temp_c": oil, "engine_speed_rpm": rpm, "engine_torque_nm": torque, "gear": gear}
+            assert record_findings(cols, DT, -1000.0) == []
+
+
+def test_a_clamp_on_more_than_5_percent_of_the_steps_is_untrusted():
+    assert repair_finding({"torque_clamped": 50}, 1000) is None
+    f = repair_finding({"torque_clamped": 60, "speed_clamped": 3, "oil_missing": 900}, 1000)
+    assert f is not None and f.severity == Severity.UNTRUSTED and f.spn_key == "engine_torque_nm"
+    assert "engine torque clamped" in f.sentence and "6.0 %" not in f.sentence and "6 %" in f.sentence
+    assert "speed" not in f.sentence and "missing" not in f.sentence
+
+
+def test_the_live_check_judges_after_its_first_minute():
+    check = RecordCheck(-1000.0, ("speed_clamped", "torque_clamped"))
+    for i in range(599):
+        check.add(to_degf(80.0), 1300.0, 1500.0, 12.0, np.array([0, i]))
+        assert check.update() is None
+    check.add(to_degf(80.0), 1300.0, 1500.0, 12.0, np.array([0, 599]))
+    found = check.update()
+    assert {f.kind for f in found} == {"plausibility", "repair"} and check.findings == found
+    assert check.update() is None                   # the next judgement a minute later
