@@ -61,11 +61,17 @@ class TableOutputs(NamedTuple):
 
 
 class CompiledCore:
-    """The kernel's tables for one sensor's parameters, and its steps on SensorState records."""
+    """The kernel's tables for one sensor's parameters, and its steps on SensorState records (the methods of
+    firmware_model.onboard.core_select.NumpyCore, in C)."""
+
+    compiled = True
+    #: the kernel call releases the GIL and shares only read-only tables: tables may run on threads
+    parallel_tables = True
 
     def __init__(self, sp: SensorParams, real: str = "double"):
         self.lib, self.S = load(real)
         self.sp, self.real = sp, real
+        self.name = f"c (the compiled C99 kernel, {real})"
         rp = sp.reduced
         self.n, self.ns, self.nl, self.nb = rp.n, rp.src_matrix.shape[0], len(rp.link_a), len(rp.bc_default_c)
         arrays = table_arrays(sp)
@@ -169,6 +175,11 @@ class CompiledCore:
         return TtlJob(vehicles, points, pts)
 
     # -- steps
+
+    def step(self, state: SensorState, inputs: SensorInputs, cache: StepCache):
+        """``(state, outputs)`` as firmware_model.onboard.step.step, in C."""
+        state, outputs, job = self.step_deferred(state, inputs, cache)
+        return self.refresh_ttl(state, job, cache), outputs
 
     def step_deferred(self, state: SensorState, inputs: SensorInputs, cache: StepCache):
         """``(state, outputs, job)`` as firmware_model.onboard.step.step_deferred, in C."""

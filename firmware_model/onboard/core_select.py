@@ -1,4 +1,10 @@
-"""Which core steps a sensor (the compiled C kernel or the numpy reference) and the numpy core's table loop.
+"""The two cores that step a sensor, behind one interface, and which one a sensor gets.
+
+:class:`NumpyCore` (the readable reference, firmware_model.onboard.step) and
+:class:`~firmware_model.onboard.compiled.CompiledCore` (the C99 kernel) have the same methods: ``step``,
+``step_deferred``, ``refresh_ttl`` and ``step_table``, each taking the sensor's StepCache, and the attributes
+``name`` (one line naming the core), ``compiled`` and ``parallel_tables`` (``step_table`` releases the GIL, so a
+fleet's tables may run on threads). ``VirtualSensor`` holds one core and calls it without asking which.
 
 ``core="auto"`` takes the kernel when it loads (firmware_model.onboard.ckernel: built by ``pip install``, or
 compiled on first use when a C compiler is present) and otherwise the numpy step, saying why; ``"c"`` insists on
@@ -13,13 +19,17 @@ import numpy as np
 from firmware_model.errors import ParameterError
 from firmware_model.onboard.ckernel import CoreUnavailable
 from firmware_model.onboard.params import SensorParams
-from firmware_model.onboard.records import N_INPUTS, N_PUB, SensorInputs
+from firmware_model.onboard.records import N_INPUTS, N_PUB, N_REJECT, SensorInputs, SensorState
+from firmware_model.onboard.step import step, step_deferred
+from firmware_model.onboard.step_cache import StepCache
+from firmware_model.onboard.time_to_limit import TtlJob, refresh_ttl
 
 CORES = ("auto", "c", "numpy")
 
 
 def select_core(core: str, sp: SensorParams):
-    """``(CompiledCore or None, one line naming the core)`` for ``core`` in CORES."""
+    """The core for ``core`` in CORES: a CompiledCore or a NumpyCore, its ``name`` saying which and, for "auto",
+    why not the kernel."""
     if core not in CORES:
         raise ParameterError(f"core = {core!r} must be one of {', '.join(CORES)}")
     if core == "auto":
@@ -27,28 +37,49 @@ def select_core(core: str, sp: SensorParams):
         if core not in CORES:
             raise ParameterError(f"GVS_CORE = {core!r} must be one of {', '.join(CORES)}")
     if core == "numpy":
-        return None, "numpy (the reference step)"
+        return NumpyCore(sp)
     from firmware_model.onboard.compiled import CompiledCore
     try:
-        compiled = CompiledCore(sp)
+        return CompiledCore(sp)
     except CoreUnavailable as exc:
         if core == "c":
             raise ParameterError(f"the compiled core is unavailable: {exc}") from None
-        return None, f"numpy (the compiled core is unavailable: {exc})"
-    return compiled, "c (the compiled C99 kernel, double)"
+        return NumpyCore(sp, f"numpy (the compiled core is unavailable: {exc})")
 
 
-def step_table_numpy(sensor, state, raw: np.ndarray, t_s: np.ndarray):
-    """The numpy core's :meth:`VirtualSensor.step_table`: row by row, the same TableOutputs."""
-    from firmware_model.onboard.compiled import TableOutputs
-    N = raw.shape[0]
-    T, lev, ttl = np.empty((N, N_PUB)), np.empty((N, N_PUB), dtype=np.int8), np.empty((N, N_PUB))
-    mode, valid = np.empty(N, dtype=np.int8), np.empty((N, 4), dtype=bool)
-    innov, model_oil, rejects = np.empty(N), np.empty(N), np.empty((N, len(sensor.reject_reasons)), dtype=np.int64)
-    for j in range(N):
-        state, out = sensor.step(state, SensorInputs(*raw[j, :N_INPUTS].tolist(), t_s=float(t_s[j])))
-        st = out.status
-        T[j], lev[j], ttl[j] = out.T_c, out.level, out.ttl_s
-        mode[j], valid[j] = st.degraded_mode, (st.speed_valid, st.torque_valid, st.gear_valid, st.oil_valid)
-        innov[j], model_oil[j], rejects[j] = st.oil_innovation_c, st.model_oil_temp_c, st.rejects
-    return state, TableOutputs(T, lev, ttl, mode, valid, innov, model_oil, rejects)
+class NumpyCore:
+    """The numpy step (firmware_model.onboard.step) behind the CompiledCore's methods: the reference."""
+
+    compiled = False
+    parallel_tables = False
+
+    def __init__(self, sp: SensorParams, name: str = "numpy (the reference step)"):
+        self.sp, self.name = sp, name
+
+    def step(self, state: SensorState, inputs: SensorInputs, cache: StepCache):
+        """``(state, outputs)``: one step (firmware_model.onboard.step.step)."""
+        return step(state, inputs, self.sp, cache)
+
+    def step_deferred(self, state: SensorState, inputs: SensorInputs, cache: StepCache):
+        """``(state, outputs, job)``: the step without its time-to-limit refresh (:meth:`refresh_ttl` does it)."""
+        return step_deferred(state, inputs, self.sp, cache)
+
+    def refresh_ttl(self, state: SensorState, job: TtlJob | None, cache: StepCache) -> SensorState:
+        """The time-to-limit refresh a :meth:`step_deferred` left (None: nothing due)."""
+        return refresh_ttl(state, job, self.sp, cache)
+
+    def step_table(self, state: SensorState, raw: np.ndarray, t_s: np.ndarray, cache: StepCache):
+        """``(state, TableOutputs)``: one vehicle stepped row by row through ``raw`` (N, 8) at frame times ``t_s``
+        (N,): the same TableOutputs as the compiled core's one call."""
+        from firmware_model.onboard.compiled import TableOutputs
+        N = raw.shape[0]
+        T, lev, ttl = np.empty((N, N_PUB)), np.empty((N, N_PUB), dtype=np.int8), np.empty((N, N_PUB))
+        mode, valid = np.empty(N, dtype=np.int8), np.empty((N, 4), dtype=bool)
+        innov, model_oil, rejects = np.empty(N), np.empty(N), np.empty((N, N_REJECT), dtype=np.int64)
+        for j in range(N):
+            state, out = self.step(state, SensorInputs(*raw[j, :N_INPUTS].tolist(), t_s=float(t_s[j])), cache)
+            st = out.status
+            T[j], lev[j], ttl[j] = out.T_c, out.level, out.ttl_s
+            mode[j], valid[j] = st.degraded_mode, (st.speed_valid, st.torque_valid, st.gear_valid, st.oil_valid)
+            innov[j], model_oil[j], rejects[j] = st.oil_innovation_c, st.model_oil_temp_c, st.rejects
+        return state, TableOutputs(T, lev, ttl, mode, valid, innov, model_oil, rejects)

@@ -24,7 +24,7 @@ from firmware_model.components import STEP_S
 from firmware_model.errors import InputError, ParameterError
 from firmware_model.onboard import reduce as R
 from firmware_model.onboard.blas import limit_blas_threads
-from firmware_model.onboard.core_select import select_core, step_table_numpy
+from firmware_model.onboard.core_select import select_core
 from firmware_model.onboard.held_inputs import (cool_down, held_temperatures, jump_state, prepare_jump,
                                                shutdown_boundaries_c)
 from firmware_model.onboard.params import SensorParams
@@ -32,9 +32,9 @@ from firmware_model.onboard.records import (I_AMB, I_GEAR, I_OIL, I_SPEED, I_TOR
                                             N_PUB, N_REJECT, REJECT_REASONS, TWIN, SensorInputs, SensorOptions,
                                             SensorOutputs, SensorState, SensorStatus)
 from firmware_model.onboard.snapshot import decode_snapshot, encode_snapshot, state_bytes
-from firmware_model.onboard.step import step, step_deferred
+from firmware_model.onboard.step import step
 from firmware_model.onboard.step_cache import StepCache
-from firmware_model.onboard.time_to_limit import TtlJob, refresh_ttl
+from firmware_model.onboard.time_to_limit import TtlJob
 from firmware_model.onboard.warning_levels import Limits, load_limits
 from firmware_model.parameters import Parameters
 from firmware_model.physics.oil import check_temperature_c
@@ -53,7 +53,8 @@ class VirtualSensor:
     (and oil_level_low, scalar); ``partition``: "fine" (default) or "compact"; ``core``: "auto" (default: the
     compiled C kernel when it loads, else the numpy step), "c" (the kernel or an error saying why) or "numpy" (the
     readable reference); ``options``: SensorOptions overrides. Raises StabilityError when the parameter set is
-    unsafe for the 0.1 s explicit step. ``core_name`` says which core steps and, for "auto", why not the kernel.
+    unsafe for the 0.1 s explicit step. ``core`` is the core that steps (firmware_model.onboard.core_select: a
+    NumpyCore or a CompiledCore, the same methods); ``core_name`` says which and, for "auto", why not the kernel.
     """
     Inputs = SensorInputs
     Status = SensorStatus
@@ -94,7 +95,17 @@ class VirtualSensor:
         self.cache = StepCache()
         self.limits = lim
         self.options = opts
-        self.compiled, self.core_name = select_core(core, self.sp)
+        self.core = select_core(core, self.sp)
+
+    @property
+    def core_name(self) -> str:
+        """One line naming the core that steps (and, for core="auto" on numpy, why not the kernel)."""
+        return self.core.name
+
+    @property
+    def compiled(self):
+        """The CompiledCore when the kernel steps, else None (read-only; :attr:`core` is the core either way)."""
+        return self.core if self.core.compiled else None
 
     # -- state
 
@@ -181,23 +192,16 @@ class VirtualSensor:
     def step(self, state: SensorState, inputs: SensorInputs):
         """``(state, outputs)``: one step (:func:`firmware_model.onboard.step.step`, or the compiled kernel) with
         this sensor's parameters and cache."""
-        if self.compiled is None:
-            return step(state, inputs, self.sp, self.cache)
-        state, outputs, job = self.compiled.step_deferred(state, inputs, self.cache)
-        return self.compiled.refresh_ttl(state, job, self.cache), outputs
+        return self.core.step(state, inputs, self.cache)
 
     def step_deferred(self, state: SensorState, inputs: SensorInputs):
         """``(state, outputs, job)``: the step without the time-to-limit refresh; call :meth:`refresh_ttl` before
         the next step (same outputs as :meth:`step`, bit for bit)."""
-        if self.compiled is None:
-            return step_deferred(state, inputs, self.sp, self.cache)
-        return self.compiled.step_deferred(state, inputs, self.cache)
+        return self.core.step_deferred(state, inputs, self.cache)
 
     def refresh_ttl(self, state: SensorState, job: TtlJob | None) -> SensorState:
         """The time-to-limit refresh a :meth:`step_deferred` left (None: nothing due)."""
-        if self.compiled is None:
-            return refresh_ttl(state, job, self.sp, self.cache)
-        return self.compiled.refresh_ttl(state, job, self.cache)
+        return self.core.refresh_ttl(state, job, self.cache)
 
     def prepare_jump(self, state: SensorState, t_s: float) -> bool:
         """Do now the propagation over the forward time jump that a step at run time ``t_s`` would see (one vehicle;
@@ -229,20 +233,18 @@ class VirtualSensor:
             t = np.full(raw.shape[0], t[0])
         if t.shape[0] != raw.shape[0]:
             raise InputError(f"t_s has {t.shape[0]} frame times for {raw.shape[0]} rows of inputs")
-        if self.compiled is not None:
-            return self.compiled.step_table(state, raw, t, self.cache)
-        return step_table_numpy(self, state, raw, t)
+        return self.core.step_table(state, raw, t, self.cache)
 
     def step_tables(self, jobs, workers: int | None = None):
         """Many vehicles' tables: ``jobs`` an iterable of ``(state, raw)`` or ``(state, raw, t_s)`` (as
         :meth:`step_table`); yields ``(state, TableOutputs)`` per job, in order. With the compiled core the tables
         run on ``workers`` threads (default: the CPU count; the kernel call releases the GIL and shares only the
-        read-only tables), at most two per thread in flight, so a fleet's outputs never all sit in memory at once;
-        the numpy core runs them one after the other."""
+        read-only tables: ``core.parallel_tables``), at most two per thread in flight, so a fleet's outputs never all
+        sit in memory at once; the numpy core runs them one after the other."""
         if workers is not None and not (isinstance(workers, int) and workers >= 1):
             raise InputError(f"workers is a number of threads >= 1 (or None: the CPU count), not {workers!r}")
         jobs = (_table_job(job) for job in jobs)
-        if self.compiled is None or workers == 1:
+        if not self.core.parallel_tables or workers == 1:
             for job in jobs:
                 yield self.step_table(*job)
             return

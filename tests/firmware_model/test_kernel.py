@@ -217,7 +217,7 @@ def test_float_build_within_50_mK(params):
     plant = ReferencePlant(params).run(get_cycle("uphill"), progress=False).table
     a = replay_table(plant, VirtualSensor(params, core="numpy"))
     sf = VirtualSensor(params, core="numpy")
-    sf.compiled, sf.core_name = CompiledCore(sf.sp, real="float"), "c (float)"
+    sf.core = CompiledCore(sf.sp, real="float")
     b = replay_table(plant, sf)
     worst = max(float(np.max(np.abs(np.asarray(b[c]) - np.asarray(a[c])))) for c in a.columns
                 if c.startswith("T_") and c.endswith("_c"))
@@ -318,6 +318,31 @@ def test_kernel_under_address_and_undefined_behaviour_sanitizers(tmp_path):
     assert res.returncode == 0, res.stderr[-3000:]
     assert "runtime error" not in res.stderr and "AddressSanitizer" not in res.stderr, res.stderr[-3000:]
     assert json.loads(res.stdout.strip().splitlines()[-1]) == {"finite": True}
+
+
+@needs_c
+def test_both_cores_have_one_interface_and_the_sensor_never_asks_which(params):
+    """The numpy core and the compiled core have the same methods and attributes; VirtualSensor holds one of them
+    and calls it without a branch on which (its source has no ``compiled is None``)."""
+    import inspect
+    from firmware_model.onboard import sensor as sensor_module
+    from firmware_model.onboard.compiled import CompiledCore
+    from firmware_model.onboard.core_select import NumpyCore
+    n, c = VirtualSensor(params, core="numpy"), VirtualSensor(params, core="c")
+    assert isinstance(n.core, NumpyCore) and isinstance(c.core, CompiledCore)
+    for name in ("step", "step_deferred", "refresh_ttl", "step_table"):
+        sig_n = list(inspect.signature(getattr(NumpyCore, name)).parameters)
+        assert sig_n == list(inspect.signature(getattr(CompiledCore, name)).parameters), name
+    for attr in ("name", "compiled", "parallel_tables"):
+        assert hasattr(n.core, attr) and hasattr(c.core, attr), attr
+    assert n.compiled is None and c.compiled is c.core and n.core_name == n.core.name
+    assert "compiled is None" not in inspect.getsource(sensor_module)
+    assert "compiled is not None" not in inspect.getsource(sensor_module)
+    inp = SensorInputs(1500.0, 2400.0, 6, 90.0, 25.0, 85.0, 60.0, 0.0)
+    for s in (n, c):
+        st, out = s.core.step(s.initial_state(T_oil_c=90.0), inp, s.cache)
+        st2, out2 = s.step(s.initial_state(T_oil_c=90.0), inp)
+        assert np.array_equal(out.T_c, out2.T_c) and np.array_equal(out.level, out2.level)
 
 
 def test_core_selection_says_which_and_why(params, monkeypatch):
