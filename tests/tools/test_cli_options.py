@@ -13,6 +13,7 @@ from tools.cli import build_parser, main
 MINIMAL = {
     "simulate": ["--cycle", "uphill", "--out", "r.csv"],
     "replay": ["r.csv", "--out", "e.csv"],
+    "play": ["r.log", "--interface", "virtual", "--channel", "x"],
     "run": ["--interface", "virtual", "--channel", "x"],
     "plant": ["--interface", "virtual", "--channel", "x", "--cycle", "uphill"],
     "diagnose": ["--train", "a.csv", "--test", "b.csv", "--json", "g.json"],
@@ -61,7 +62,7 @@ def test_an_extra_argument_is_refused_by_its_subcommand(capsys):
 def test_replay_usage_is_honest_and_complete():
     usage = SUBCOMMANDS["replay"].format_usage()
     assert "[--out" not in usage and usage.count("--out EST.csv") == 2
-    assert re.search(r"LOG --realtime --interface NAME --channel NAME", usage)
+    assert "--realtime" not in usage and "--interface" not in usage
     for option in long_options(SUBCOMMANDS["replay"]):
         assert option in usage, option
 
@@ -87,26 +88,31 @@ def files(tmp_path):
     return tmp_path, csv, log
 
 
-@pytest.mark.parametrize("kind, extra, named", [
-    ("csv", ["--speed", "10"], "--speed"),
-    ("csv", ["--realtime", "--interface", "virtual", "--channel", "x"], "--realtime, --interface, --channel"),
-    ("log", ["--interface", "virtual"], "--interface"),
-    ("log", ["--speed", "3"], "--speed"),
-    ("log_rt", ["--out", "OUT", "--plot", "P.png"], "--out, --plot"),
-    ("log_rt", ["--frames-out", "F.log"], "--frames-out"),
-    ("log_rt", ["--oil-mode", "model"], "--oil-mode"),
-    ("log_rt", ["--allow-untrusted"], "--allow-untrusted"),
-])
-def test_replay_refuses_options_that_would_do_nothing(files, capsys, kind, extra, named):
-    d, csv, log = files
+@pytest.mark.parametrize("extra, named", [(["--frames-out", "F.log"], "--frames-out"), (["--strict"], "--strict"),
+                                          (["--frames-out", "F.log", "--strict"], "--frames-out, --strict")])
+def test_replay_refuses_log_options_on_a_run_table(files, capsys, extra, named):
+    d, csv, _ = files
     out = d / "est.csv"
-    argv = {"csv": [str(csv), "--out", str(out)], "log": [str(log), "--out", str(out)],
-            "log_rt": [str(log), "--realtime", "--interface", "virtual", "--channel", "x"]}[kind]
-    extra = [str(out) if a == "OUT" else a for a in extra]
-    assert main(["replay", *argv, *extra]) == 2
+    extra = [str(d / a) if a.endswith(".log") else a for a in extra]
+    assert main(["replay", str(csv), "--out", str(out), *extra]) == 2
     err = capsys.readouterr().err.strip()
     assert err.startswith(f"gearbox-vsensor replay: error: {named} do") and err.count("\n") == 0
     assert not out.exists()
+
+
+@pytest.mark.parametrize("extra", [["--realtime", "--interface", "virtual", "--channel", "x"],
+                                   ["--realtime", "--interface", "virtual", "--channel", "x", "--speed", "10"],
+                                   ["--out", "OUT", "--speed", "3"]])
+def test_replay_realtime_points_to_play(files, capsys, extra):
+    """`replay --realtime` became `play`: an old command line exits 2 with one sentence naming the new one."""
+    d, _, log = files
+    extra = [str(d / "est.csv") if a == "OUT" else a for a in extra]
+    with pytest.raises(SystemExit) as exc:
+        main(["replay", str(log), *extra])
+    assert exc.value.code == 2
+    err = capsys.readouterr().err
+    assert "error: replay --realtime is now its own command: gearbox-vsensor play LOG --interface NAME" in err
+    assert err.count("error:") == 1 and not (d / "est.csv").exists()
 
 
 @pytest.mark.parametrize("extra, named", [(["--seed", "3"], "--seed"), (["--rate", "5", "--noise"], "--rate, --noise")])

@@ -1,4 +1,4 @@
-"""The CAN subcommands through the CLI: `simulate --can-log`, `replay LOG`, `replay LOG --realtime`, `plant`, `run`."""
+"""The CAN subcommands through the CLI: `simulate --can-log`, `replay LOG`, `play LOG`, `plant`, `run`."""
 from __future__ import annotations
 
 import sys
@@ -52,11 +52,10 @@ def test_simulate_can_log_then_replay_it(sim, capsys):
     assert abs(last["temps_c"]["PS"] - est["T_PS_c"][-1]) <= 1 / 64
 
 
-def test_replay_realtime_plays_the_log_onto_a_bus(sim, capsys):
+def test_play_plays_the_log_onto_a_bus(sim, capsys):
     ch = f"rt-{uuid.uuid4()}"
     mon = can.Bus(interface="virtual", channel=ch)
-    assert main(["replay", str(sim / "run.log"), "--realtime", "--interface", "virtual", "--channel", ch,
-                 "--speed", "100"]) == 0
+    assert main(["play", str(sim / "run.log"), "--interface", "virtual", "--channel", ch, "--speed", "100"]) == 0
     got = drain(mon)
     mon.shutdown()
     want = list(can.LogReader(sim / "run.log"))
@@ -67,8 +66,9 @@ def test_replay_realtime_plays_the_log_onto_a_bus(sim, capsys):
 def test_replay_errors_are_one_sentence(sim, capsys, monkeypatch):
     assert main(["replay", str(sim / "run.log")]) == 2
     assert "--out" in capsys.readouterr().err
-    assert main(["replay", str(sim / "run.log"), "--realtime"]) == 2
-    assert "--interface and --channel" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as exc:
+        main(["play", str(sim / "run.log")])
+    assert exc.value.code == 2 and "--interface, --channel" in capsys.readouterr().err
     (sim / "x.mf4").write_bytes(b"\0" * 16)
     monkeypatch.setitem(sys.modules, "asammdf", None)
     assert main(["replay", str(sim / "x.mf4"), "--out", str(sim / "o.csv")]) == 2
@@ -100,7 +100,8 @@ def test_run_and_plant_help_explain_every_option(capsys):
     parser = build_parser()
     for cmd, options in (("run", ["--interface", "--channel", "--config", "--bitrate", "--duration", "--log-level"]),
                          ("plant", ["--interface", "--channel", "--cycle", "--speed", "--config", "--effect"]),
-                         ("replay", ["--realtime", "--interface", "--channel", "--speed", "--frames-out"])):
+                         ("play", ["--interface", "--channel", "--bitrate", "--speed", "--quiet"]),
+                         ("replay", ["--frames-out", "--strict"])):
         with pytest.raises(SystemExit):
             parser.parse_args([cmd, "--help"])
         text = capsys.readouterr().out

@@ -36,7 +36,7 @@ def can_subcommand(sub, name: str, *, summary: str, description: str, examples: 
 
 def add_bus_options(parser, *, required: bool = True, purpose: str = "") -> None:
     """--interface, --channel and --bitrate on ``parser`` (or an argument group); ``purpose`` ends their help
-    ("for --realtime")."""
+    ("(the bus to play the log onto)")."""
     tail = f" {purpose}" if purpose else ""
     parser.add_argument("--interface", required=required, metavar="NAME",
                         help=f"python-can interface: socketcan, virtual, pcan, kvaser, vector, slcan, udp_multicast "
@@ -99,8 +99,8 @@ def virtual_note(interface: str, receiver: bool = False) -> str | None:
     "sent" 9452 frames and a run on the same channel saw 0); None for any other interface."""
     if interface != "virtual":
         return None
-    who = ("this sensor receives no frame from another process (gearbox-vsensor plant, replay --realtime, "
-           "canplayer)" if receiver else
+    who = ("this sensor receives no frame from another process (gearbox-vsensor plant, gearbox-vsensor "
+           "play, canplayer)" if receiver else
            "another process (gearbox-vsensor run, candump) sees none of these frames")
     return (f"--interface virtual joins only buses inside this one process: {who}; between processes use "
             f"udp_multicast (e.g. --channel 239.74.163.2) or a vcan interface, or gearbox-vsensor demo for plant and "
@@ -108,7 +108,7 @@ def virtual_note(interface: str, receiver: bool = False) -> str | None:
 
 
 def open_player(interface: str, channel: str, bitrate: int | None = None):
-    """:func:`open_bus` for a player of recorded or precomputed frames (`plant`, `replay --realtime`): on an
+    """:func:`open_bus` for a player of recorded or precomputed frames (`plant`, `play`): on an
     interface of SENDER_TIMESTAMP_INTERFACES the frames keep their own timestamps, so a sensor on the bus runs on
     the player's frame time at any --speed."""
     extra = {"preserve_timestamps": True} if interface in SENDER_TIMESTAMP_INTERFACES else {}

@@ -1,8 +1,9 @@
 """`gearbox-vsensor replay`: run the onboard sensor offline over a run table (CSV) or a CAN log, at 10 Hz.
 
 Run tables: tools/replay/table.py; CAN logs (``.log .asc .blf .mf4 .trc``) go through the live CAN service,
-tools/replay/log.py, so a log replays bit-identically to a live run. An option that does nothing in the mode given
-(``--speed`` on a run table, ``--out`` with ``--realtime``) is an error, not silently ignored.
+tools/replay/log.py, so a log replays bit-identically to a live run. An option of CAN logs on a run table
+(``--frames-out``, ``--strict``) is an error, not silently ignored. Playing a log onto a bus is `gearbox-vsensor
+play` (tools/cli/play.py).
 """
 from __future__ import annotations
 
@@ -14,23 +15,24 @@ from firmware_model.errors import InputError
 from tools.cli.core_option import add_core_option, apply_core
 from tools.cli.paths import check_paths, figure_path
 from tools.outputs import naming, outputs
-from tools.can.bus import add_bus_options, can_subcommand
+from tools.can.bus import can_subcommand
 
 
-#: the three ways to call replay; every option is in one of them (tests/tools/test_cli_options.py)
+#: the two ways to call replay; every option is in one of them (tests/tools/test_cli_options.py)
 USAGE = ("%(prog)s CSV --out EST.csv [--config TOML] [--variant {GRS905,GRSO905}] [--plot PNG]\n"
          "                              [--oil-mode {measured,model}]\n"
          "                              [--initial-temp DEGC] [--core {auto,c,numpy}] [--allow-untrusted] [--quiet]\n"
-         "       %(prog)s LOG --out EST.csv [those options] [--frames-out OUT.log] [--strict]\n"
-         "       %(prog)s LOG --realtime --interface NAME --channel NAME [--bitrate BIT_S] [--speed X] [--quiet]")
-#: options per mode, by argparse dest: those of the offline replay, those of CAN logs offline, those of --realtime
-OFFLINE_OPTIONS = ("out", "plot", "config", "variant", "oil_mode", "initial_temp", "core", "allow_untrusted")
+         "       %(prog)s LOG --out EST.csv [those options] [--frames-out OUT.log] [--strict]")
+#: the options of CAN logs only, by argparse dest
 LOG_OPTIONS = ("frames_out", "strict")
-REALTIME_OPTIONS = ("realtime", "interface", "channel", "bitrate", "speed")
+#: the sentence for each option of replay's --realtime, now `gearbox-vsensor play`
+_PLAY = ("replay --realtime is now its own command: gearbox-vsensor play LOG --interface NAME --channel NAME "
+         "[--bitrate BIT_S] [--speed X] plays a log onto a bus; replay computes the outputs offline")
 #: options replay no longer has: the sentence that says what replaced them (tools.cli.CommandParser)
 REMOVED_OPTIONS = {
     "--processes": "--processes was removed: a CAN log without --frames-out is replayed as a whole log at once, the "
                    "fast path (same outputs bit for bit as frame by frame); drop the option",
+    **{option: _PLAY for option in ("--realtime", "--interface", "--channel", "--bitrate", "--speed")},
 }
 
 
@@ -62,7 +64,7 @@ def add_subparser(sub):
                    help="gearbox variant (overrides --config; give the variant the drive was made with: another "
                         "variant's gear ratios and masses give other temperatures without any error)")
     p.add_argument("--out", metavar="EST.csv", help="sensor output run table (10 Hz; .csv, or .parquet with pyarrow: "
-                                                    "several times faster to write); required, except with --realtime")
+                                                    "several times faster to write); required")
     p.add_argument("--plot", metavar="PNG", help="plot of the estimates, warnings and oil innovation")
     p.add_argument("--oil-mode", choices=("measured", "model"),
                    help="measured (default): a valid oil_temp_c is the sump; model: always the modelled sump")
@@ -86,13 +88,6 @@ def add_subparser(sub):
 def _add_log_options(p: argparse.ArgumentParser) -> None:
     """Options of `replay` that only apply to CAN logs."""
     g = p.add_argument_group("CAN logs (.log candump -L, .asc, .blf, .mf4, .trc)")
-    g.add_argument("--realtime", action="store_true",
-                   help="play the log onto a bus (--interface/--channel) with its original timing, like canplayer, "
-                        "instead of computing the outputs here (run `gearbox-vsensor run` on that bus)")
-    add_bus_options(g, required=False, purpose="(--realtime)")
-    g.add_argument("--speed", type=float, metavar="X",
-                   help="--realtime: play X times faster (default 1; a sensor on a bus that stamps frames on "
-                        "arrival, all but virtual, then sees a wrong time base: a warning says so)")
     g.add_argument("--frames-out", metavar="OUT.log",
                    help="also write the frames the sensor would send (GBX_*, DM1) as a CAN log")
     g.add_argument("--strict", action="store_true",
@@ -136,10 +131,9 @@ def run(args) -> int:
     check_paths([("the input", args.input), ("the --config", args.config)],
                 {"--out": args.out, "--plot": args.plot, "--frames-out": args.frames_out}, plots=("--plot",),
                 tables=("--out",), can_logs=("--frames-out",))
-    if not args.realtime:
-        core_line = apply_core(args)
-        if not args.quiet:
-            print(core_line)
+    core_line = apply_core(args)
+    if not args.quiet:
+        print(core_line)
     if is_can_log(path):
         return _run_log(args, path)
     if path.suffix.lower() == ".gz":
@@ -148,7 +142,7 @@ def run(args) -> int:
     if path.suffix.lower() != ".csv":
         raise InputError(f"{path}: unknown input type {path.suffix!r}; replay reads run tables (.csv) and CAN logs "
                          f"(.log, .asc, .blf, .mf4, .trc)")
-    _refuse(_given(args, LOG_OPTIONS + REALTIME_OPTIONS), f"on a run table ({path.name}), only on a CAN log")
+    _refuse(_given(args, LOG_OPTIONS), f"on a run table ({path.name}), only on a CAN log")
     if not args.out:
         raise InputError("--out EST.csv is required")
     from tools.replay.plot import plot_replay
@@ -187,25 +181,10 @@ def _report_trust(args, findings) -> int:
 
 
 def _run_log(args, path: Path) -> int:
-    """`gearbox-vsensor replay LOG ...`: offline (``--out``) or ``--realtime`` onto a bus."""
-    from tools.replay.log import play_log_on, replay_log_file
-    if args.realtime:
-        _refuse(_given(args, OFFLINE_OPTIONS + LOG_OPTIONS), "with --realtime, which only plays the log onto the "
-                "bus (run `gearbox-vsensor run` on that bus for the sensor's outputs)")
-        if not args.interface or not args.channel:
-            raise InputError("--realtime needs --interface and --channel (the bus to play the log onto)")
-        from tools.can.bus import speed_warning
-        speedup = 1.0 if args.speed is None else args.speed
-        warning = speed_warning(args.interface, speedup)
-        if warning:
-            print(f"warning: {warning}", file=sys.stderr)
-        n = play_log_on(path, args.interface, args.channel, args.bitrate, speedup=speedup)
-        if not args.quiet:
-            print(f"played {n} frames onto {args.interface} {args.channel}")
-        return 0
-    _refuse(_given(args, REALTIME_OPTIONS[1:]), "without --realtime (only --realtime plays the log onto a bus)")
+    """`gearbox-vsensor replay LOG --out EST.csv ...`: the sensor's outputs over a CAN log, offline."""
+    from tools.replay.log import replay_log_file
     if not args.out:
-        raise InputError("--out EST.csv is required to replay a log offline (or use --realtime)")
+        raise InputError("--out EST.csv is required to replay a log (to play it onto a bus: gearbox-vsensor play)")
     with outputs(("--out", args.out), ("--frames-out", args.frames_out), ("--plot", figure_path(args.plot))) as tmp:
         out_tmp, frames_tmp, plot_tmp = tmp
         result = replay_log_file(path, out_tmp, config_path=_config(args), sensor_options=_sensor_options(args),
