@@ -23,8 +23,9 @@ clamped or repaired an input on more than REPAIR_UNTRUSTED_SHARE of its steps. T
   negative on SIGN_ALL_SHARE of them (a flipped gentle drive).
 - **Torque in percent where N m is expected.** J1939 percent torque lies in -125 .. 125 %. A record with at least
   PERCENT_MIN_DRIVE_S of driving whose torque never exceeds 125 yet reaches PERCENT_MIN_PEAK (a load, not a coast)
-  is percent: a truck gearbox's engines give 1000-3500 N m, and a drive that never passes 125 N m (under 20 kW at
-  1500 rpm) does not move a truck for minutes.
+  and varies like a drive (its 10-90 % range at least PERCENT_MIN_SPREAD) is percent: a truck gearbox's engines
+  give 1000-3500 N m, and a drive that never passes 125 N m (under 20 kW at 1500 rpm) does not move a truck for
+  minutes. A held load (a rig's steady point at 60 or 100 N m, its range a few N m of noise) is not judged.
 - **Speed in rad/s**: ``firmware_model.service.degraded.unit_findings`` (an engine delivering torque below idle).
 """
 from __future__ import annotations
@@ -59,6 +60,8 @@ SIGN_NEG_NM, SIGN_SHARE, SIGN_MIN_DRIVE_S, SIGN_BEYOND_SHARE, SIGN_ALL_SHARE = -
 #: torque in percent: never above PERCENT_MAX on at least PERCENT_MIN_DRIVE_S [s] of driving, reaching
 #: PERCENT_MIN_PEAK
 PERCENT_MAX, PERCENT_MIN_PEAK, PERCENT_MIN_DRIVE_S = 125.0, 40.0, 300.0
+#: ... whose 10-90 % range is at least this (a drive's load varies; a rig's held point does not)
+PERCENT_MIN_SPREAD = 30.0
 #: a clamp or repair of an input on more than this share of the steps is untrusted
 REPAIR_UNTRUSTED_SHARE = 0.05
 #: the reject counters that clamp or repair a value the sensor then uses (a missing input is the degraded
@@ -226,6 +229,8 @@ def torque_percent_finding(speed_rpm, torque_nm, gear=None, dt_s: float = STEP_S
     t = torque[drive]
     peak = float(t.max())
     if not (PERCENT_MIN_PEAK <= peak <= PERCENT_MAX):
+        return None
+    if float(np.percentile(t, 90) - np.percentile(t, 10)) < PERCENT_MIN_SPREAD:
         return None
     col = SOURCES[source]["engine_torque_nm"]
     fix = "give N m (percent / 100 x the engine's reference torque, EC1 SPN 544)" if source == "table" else \

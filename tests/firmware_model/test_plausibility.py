@@ -92,6 +92,15 @@ def test_torque_in_percent_is_found_and_a_coast_is_not():
     assert torque_percent_finding(rpm[:1800], torque[:1800] / 30.0, gear[:1800]) is None    # 3 min: too short
 
 
+def test_a_held_low_load_is_not_taken_for_percent():
+    """A rig's steady point at 60 or 100 N m (with a few N m of noise) is an honest light load, not percent: the
+    rule needs a load that varies like a drive."""
+    rpm, _, gear = _drive(12.0)
+    rng = np.random.default_rng(0)
+    for held_nm in (60.0, 100.0):
+        assert torque_percent_finding(rpm, held_nm + rng.normal(0.0, 3.0, rpm.size), gear) is None
+
+
 def test_record_findings_of_an_honest_drive_in_the_whole_envelope():
     for seed in range(5):
         rpm, torque, gear = _drive(30.0, seed)
