@@ -183,7 +183,7 @@ def test_bad_logs_land_in_the_errors_table_and_reruns_skip(tmp_path, synthetic):
     assert set(errors) == {"empty.log", "notes.txt", "picture.log", "packed.log.gz"}
     assert "gzip-compressed" in errors["packed.log.gz"]
     assert "empty" in errors["empty.log"] and "unknown log suffix" in errors["notes.txt"]
-    assert "binary data" in errors["picture.log"]
+    assert "binary data" in errors["picture.log"], errors["picture.log"]
     rows = {Path(r["log"]).name: r for r in read_table(out).to_pylist()}
     # a log cut mid-line (a logger unplugged): summarised without its cut last line, counted, still trusted
     assert set(rows) == {"good.log", "nogear.log", "truncated.log", "garbled.log"}

@@ -162,3 +162,14 @@ def test_a_real_capture_with_a_garbage_line_and_a_cut_last_line(tmp_path, capsys
     rc, out, err = _replay(path, capsys, "--allow-untrusted")
     assert rc == 0
     assert f"2 malformed lines skipped (lines {len(lines) // 2 + 1}, {len(lines)}; the last one cut short" in out
+
+
+def test_a_log_with_no_frame_at_all_is_one_sentence_without_the_strict_hint(tmp_path, capsys):
+    """A file none of whose lines is a frame is not a CAN log: one sentence saying so (exit 2), not the --strict
+    refusal's hint that such lines would be skipped."""
+    path = tmp_path / "notes.log"
+    path.write_text("garbage\nmore garbage\n")
+    assert main(["replay", str(path), "--out", str(tmp_path / "e.csv")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "none of its 2 lines is a CAN frame" in err and "--strict" not in err and len(err.splitlines()) == 1
+    assert not (tmp_path / "e.csv").exists()

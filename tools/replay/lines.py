@@ -56,6 +56,11 @@ class LogDamage:
     def skipped(self) -> int:
         return int(self.bad.size)
 
+    @property
+    def binary(self) -> bool:
+        """The first malformed line holds control bytes or undecodable ones (a binary file, or noise)."""
+        return any((ord(ch) < 32 and ch not in "\t\r") or ch == "\ufffd" for ch in self.first_text)
+
     def strict_sentence(self, path) -> str:
         """The sentence of ``replay --strict``: the first malformed line, named (today's refusal)."""
         if self.note:
@@ -64,7 +69,7 @@ class LogDamage:
         if self.cut_last and self.skipped == 1:
             return (f"{path}: the log ends in the middle of a line (line {n}: truncated, or still being written; "
                     f"without --strict it is skipped and counted)")
-        if any((ord(ch) < 32 and ch not in "\t\r") or ch == "\ufffd" for ch in self.first_text):
+        if self.binary:
             return (f"{path}: line {n} holds binary data: noise in the log, or not a candump -L text log (without "
                     f"--strict such lines are skipped and counted)")
         return (f"{path}: line {n} is not a candump -L frame '(time) interface ID#DATA': {self.first_text!r} "
@@ -115,7 +120,9 @@ def scan_text_log(path: Path, raw: bytes | None = None) -> LogDamage:
     damage = LogDamage(lines, np.array(bad, np.int64), np.array(before, np.int64), cut,
                        b"\n".join(keep) + b"\n" if bad else None, first.decode("utf-8", "replace")[:60])
     if lines and len(bad) == lines:
-        raise InputError(damage.strict_sentence(path))
+        what = "it holds binary data" if damage.binary else f"line {bad[0]}: {damage.first_text!r}"
+        raise InputError(f"{path}: none of its {lines} lines is a CAN frame ({what}): not a {suffix} text CAN log, "
+                         f"or one damaged throughout")
     return damage
 
 
