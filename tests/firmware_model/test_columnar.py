@@ -250,7 +250,7 @@ def test_frames_out_of_time_order_are_counted_alike_and_named(tmp_path, drive):
 
 
 def test_a_frozen_oil_reading_is_named_as_the_cause_of_the_degraded_run_on_both_paths(tmp_path):
-    """Issue 43: a log whose oil reading froze was called degraded (untrusted in a fleet) for "engine torque
+    """a log whose oil reading froze was called degraded (untrusted in a fleet) for "engine torque
     0.0 %", the 3 steps a torque came late, because only the decoder's stale inputs were named, not the sensor's own
     checks. The sensor's rejects now count in the service (the same on both paths) and lead the finding's causes."""
     from firmware_model.service.degraded import DegradedFinding, pct

@@ -326,7 +326,7 @@ def test_status_says_when_a_running_service_has_stopped_stepping(params, tmp_pat
 
 
 def test_status_says_when_a_service_has_never_stepped_after_its_grace(params, tmp_path, capsys, monkeypatch):
-    """From a new user's trial (issue 43): a service up for 8 s without a single step (no input frame on its
+    """a service up for 8 s without a single step (no input frame on its
     channel) printed "waiting for inputs, 0 steps" with exit 0, where --help and docs/gateway.md promise exit 3
     when it has not stepped for 5 s. Within its first 5 s it is still only waiting."""
     from tools.cli import main

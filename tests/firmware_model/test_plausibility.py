@@ -1,5 +1,5 @@
 """The whole-record plausibility rules (firmware_model.service.plausibility): unit and sign mistakes that pass every
-per-value check, and clamps or repairs on more than 5 % of the steps (issue 43)."""
+per-value check, and clamps or repairs on more than 5 % of the steps."""
 import numpy as np
 import pytest
 
@@ -44,7 +44,7 @@ def test_honest_oil_in_degc_is_never_flagged(oil_c, why):
 
 @pytest.mark.parametrize("minutes, t0_c, t1_c", [(12.0, 68.0, 92.0), (30.0, 68.0, 107.0), (60.0, 90.0, 125.0)])
 def test_oil_in_degf_is_found_short_and_long(minutes, t0_c, t1_c):
-    """The 12-minute uphill drive in degF (readings 155-196) replayed as 'degraded 0.0 %', exit 0 (issue 43)."""
+    """The 12-minute uphill drive in degF (readings 155-196) replayed as 'degraded 0.0 %', exit 0."""
     f = oil_unit_finding(to_degf(_warm_up(t0_c, t1_c, minutes)))
     assert f is not None and f.likely == "degF" and f.severity == Severity.UNTRUSTED
     assert "oil_temp_c" in f.sentence and "degF" in f.sentence and "(degF - 32) / 1.8" in f.sentence

@@ -195,7 +195,7 @@ def _limit_lines(ax) -> set:
 
 
 def test_simulate_plot_is_as_readable_as_replays(tmp_path, monkeypatch):
-    """From a new user's trial (issue 43): `simulate --plot` had bare codes in its legends, no warning limits and
+    """`simulate --plot` had bare codes in its legends, no warning limits and
     no input panel, where `replay --plot` and the demo have them. Both plots now draw their temperatures with one
     function (tools.plots.temperature_panel): names spelled out, each published component's warning limit."""
     from firmware_model.components import PUBLISHED, describe
@@ -230,7 +230,7 @@ def test_simulate_plot_is_as_readable_as_replays(tmp_path, monkeypatch):
 
 
 def test_start_time_gives_the_can_log_unix_frame_times(tmp_path, capsys):
-    """Issue 43: `simulate --can-log` logs started at 0 s, so `fleet` could not date them; --start-time ISO starts
+    """`simulate --can-log` logs started at 0 s, so `fleet` could not date them; --start-time ISO starts
     the frame times at that UTC time; without --can-log, or not a time: one sentence, nothing written."""
     import datetime as dt
     log = tmp_path / "run.log"

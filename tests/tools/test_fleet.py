@@ -176,7 +176,7 @@ def test_bad_logs_land_in_the_errors_table_and_reruns_skip(tmp_path, synthetic):
     (logs / "nogear.log").write_text("".join(f"({1.7e9 + 0.1 * k:.6f}) can0 18FEF100#FFFFFFFFFFFFFFFF\n"
                                              for k in range(3000)))
     out = tmp_path / "out"
-    # the folder holding the vehicle's folder: a log lying directly in a folder given is its own vehicle (issue 43)
+    # the folder holding the vehicle's folder: a log lying directly in a folder given is its own vehicle
     args = [str(tmp_path / "logs"), str(logs / "notes.txt"), "--out", str(out), "--workers", "1"]
     fleet(*args)
     errors = {Path(r["log"]).name: r["reason"] for r in read_table(out, ERRORS).to_pylist()}
@@ -509,7 +509,7 @@ def _simulated_day(tmp_path, name: str, start_s: float, day: str, cooler: float 
 
 
 def test_a_flat_folder_without_a_manifest_shows_each_trucks_cooler_dated_and_no_empty_plot(tmp_path):
-    """Issue 43: `fleet logs/` on a flat folder of simulated logs made them "N logs of 1 vehicle" with no dates,
+    """`fleet logs/` on a flat folder of simulated logs made them "N logs of 1 vehicle" with no dates,
     so --diagnose fitted nothing ("no fitted log has a date"), report_above_warning.png was empty axes, and the
     fitted coolers that separate the trucks were in periods.parquet only. Now: the dates from the logs' Unix frame
     times, the vehicle from the file name (--vehicle-from), each truck's fitted cooler in the report's table beside
@@ -537,7 +537,7 @@ def test_a_flat_folder_without_a_manifest_shows_each_trucks_cooler_dated_and_no_
 
 
 def test_the_vehicles_of_logs_without_a_manifest_are_said(tmp_path, capsys):
-    """Issue 43: a flat folder's logs were one vehicle, the folder's; now one vehicle per log (said), a vehicle's
+    """a flat folder's logs were one vehicle, the folder's; now one vehicle per log (said), a vehicle's
     folder still names it, and --vehicle-from reads the file name (a file it does not match: one sentence)."""
     from tools.fleet.manifest import entries_and_rule
     for rel in ("flat/truck1_2026-01-05.log", "flat/truck2_2026-01-05.log", "nested/truck7/day1.log"):

@@ -1,4 +1,4 @@
-"""Malformed lines of a CAN log (issue 43 item 3): skipped, counted and said in both replay paths; untrusted over 1 %
+"""Malformed lines of a CAN log: skipped, counted and said in both replay paths; untrusted over 1 %
 of the lines or where a line breaks a frame sequence the step needs; ``--strict`` refuses the log as before."""
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Each input message's source address set on its own: config ``[can.source_address]`` (issue 43 item 2).
+"""Each input message's source address set on its own: config ``[can.source_address]``.
 
 A Navistar truck sends ETC2 (gear) from SA 0x03 and TRF1 (transmission oil) from SA 0x21; with the group key
 ``transmission_source_address`` alone, setting it for the oil lost the gear. Shown on a real capture whose TRF1 is

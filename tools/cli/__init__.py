@@ -6,7 +6,8 @@ import sys
 
 from firmware_model.errors import VSensorError
 
-SUBCOMMANDS = ("simulate", "replay", "play", "run", "plant", "diagnose", "calibrate", "bench_diagnosis", "demo", "export_c", "export_fmu", "status", "service_unit", "fleet")
+SUBCOMMANDS = ("simulate", "replay", "play", "run", "plant", "diagnose", "calibrate", "bench_diagnosis", "demo",
+               "export_c", "export_fmu", "status", "service_unit", "fleet")
 
 
 class CommandParser(argparse.ArgumentParser):

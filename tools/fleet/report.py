@@ -329,8 +329,8 @@ def _fitted_tables(periods: dict, order: list, lines: list) -> None:
               f"needs ({DRIFT_MIN['cooler_effectiveness_scale']:g} cooler, {DRIFT_MIN['oil_level_low']:g} L oil; "
               f"with at least {SPREAD_MIN_VEHICLES} vehicles in the period), where a "
               f"fouled cooler or a low oil level goes (a weak cooler also pulls the oil volume's estimate down); a "
-              f"flag needs a drift from the vehicle's own baseline as well. Flagged and watched vehicles first, then the farthest below the "
-              f"fleet's cooler median.", ""]
+              f"flag needs a drift from the vehicle's own baseline as well. Flagged and watched vehicles first, "
+              f"then the farthest below the fleet's cooler median.", ""]
     n_periods = len(set(periods["period"]))
     if len(order) > len(shown) or n_periods > len(per):
         lines[-2] += (f" Shown: {len(shown)} of {len(order)} vehicles, the last {len(per)} of {n_periods} periods; "
