@@ -7,6 +7,7 @@
 With pyenv, make the versions visible first, e.g. ``PYENV_VERSION=3.11.7:3.10.13:3.12.1:3.13.0 nox``.
 Each session installs the package with its test extra and runs the README's test command (without the slow VM test).
 """
+
 import nox
 
 nox.options.error_on_missing_interpreters = False

@@ -4,6 +4,7 @@ Everything else is in pyproject.toml. The kernel is plain C99 loaded with ctypes
 ``pip install`` when a C compiler is present; without one (or when the build fails) the install still succeeds and
 the sensor runs its numpy step, saying so (``gearbox-vsensor --version``).
 """
+
 import hashlib
 from pathlib import Path
 

@@ -7,6 +7,7 @@ same ReducedParams bit for bit; the script compares every field and exits 1 if o
 
 Timings are wall-clock (time.perf_counter), best of --repeat, on a machine that may be shared.
 """
+
 import argparse
 import functools
 import sys
@@ -40,8 +41,12 @@ def best_time(fn, repeat: int):
 def same(x, y) -> bool:
     """Equal bit for bit (arrays: dtype, shape and every element; NaN equals NaN), recursively."""
     if isinstance(x, np.ndarray):
-        return isinstance(y, np.ndarray) and x.dtype == y.dtype and x.shape == y.shape \
+        return (
+            isinstance(y, np.ndarray)
+            and x.dtype == y.dtype
+            and x.shape == y.shape
             and np.array_equal(x, y, equal_nan=x.dtype.kind == "f")
+        )
     if isinstance(x, dict):
         return isinstance(y, dict) and x.keys() == y.keys() and all(same(x[k], y[k]) for k in x)
     if isinstance(x, (tuple, list)):
@@ -56,22 +61,28 @@ def main() -> int:
     ap.add_argument("--repeat", type=int, default=5)
     ap.add_argument("--no-reference", action="store_true", help="skip the per-point build (about 2.5 s)")
     a = ap.parse_args()
-    warnings.simplefilter("ignore", RuntimeWarning)          # churning correlations at standstill (known)
+    warnings.simplefilter("ignore", RuntimeWarning)  # churning correlations at standstill (known)
     p = load_parameters(a.variant)
     t_build, rp = best_time(lambda: R.build_reduced(p, a.partition), a.repeat)
     t_sensor, _ = best_time(lambda: VirtualSensor(p, partition=a.partition), a.repeat)
-    print(f"{a.variant} {a.partition}: build_reduced {t_build * 1e3:.0f} ms, VirtualSensor(...) "
-          f"{t_sensor * 1e3:.0f} ms (target <= {TARGET_S * 1e3:.0f} ms: {'ok' if t_sensor <= TARGET_S else 'MISSED'})")
+    print(
+        f"{a.variant} {a.partition}: build_reduced {t_build * 1e3:.0f} ms, VirtualSensor(...) "
+        f"{t_sensor * 1e3:.0f} ms (target <= {TARGET_S * 1e3:.0f} ms: {'ok' if t_sensor <= TARGET_S else 'MISSED'})"
+    )
     if a.no_reference:
         return 0
     per_point = functools.partial(R.law_grid, batched=False)
     with mock.patch.object(R, "law_grid", per_point):
         t_ref, rp_ref = best_time(lambda: R.build_reduced(p, a.partition), 1)
     diff = [f.name for f in fields(rp) if not same(getattr(rp, f.name), getattr(rp_ref, f.name))]
-    print(f"  one evaluator call per grid point (the build before batching): {t_ref * 1e3:.0f} ms "
-          f"({t_ref / t_build:.0f}x the batched build)")
-    print(f"  ReducedParams batched vs per point: {len(fields(rp))} fields compared, "
-          + ("bit-identical" if not diff else f"DIFFERENT: {', '.join(diff)}"))
+    print(
+        f"  one evaluator call per grid point (the build before batching): {t_ref * 1e3:.0f} ms "
+        f"({t_ref / t_build:.0f}x the batched build)"
+    )
+    print(
+        f"  ReducedParams batched vs per point: {len(fields(rp))} fields compared, "
+        + ("bit-identical" if not diff else f"DIFFERENT: {', '.join(diff)}")
+    )
     return 1 if diff else 0
 
 

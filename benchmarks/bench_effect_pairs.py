@@ -9,6 +9,7 @@ RMS residual before, after the best single effect and after the set (the test fi
 
     python benchmarks/bench_effect_pairs.py [--model plant|onboard] [--train-s 1500] [--seed 5]
 """
+
 from __future__ import annotations
 
 import argparse
@@ -33,6 +34,7 @@ CASES = (
 def run_case(index: int, setup: str, effects: dict, params, model: str, train_s: float, seed: int) -> dict:
     from tools.diagnosis.bench import make_scenario
     from tools.diagnosis.core import Options, diagnose
+
     (e1, v1), *rest = effects.items()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
@@ -47,8 +49,9 @@ def run_case(index: int, setup: str, effects: dict, params, model: str, train_s:
 
 def _set_text(v: dict) -> str:
     if "effects" in v:
-        return " + ".join(f"{e['effect']} {next(iter(e['parameters'].values())):g} ({100 * e['share']:.0f} %)"
-                          for e in v["effects"])
+        return " + ".join(
+            f"{e['effect']} {next(iter(e['parameters'].values())):g} ({100 * e['share']:.0f} %)" for e in v["effects"]
+        )
     if v["effect"] in ("none", "unexplained"):
         return v["effect"]
     return f"{v['effect']} {next(iter(v['parameters'].values())):g}"
@@ -61,10 +64,13 @@ def main(argv=None) -> int:
     ap.add_argument("--seed", type=int, default=5)
     args = ap.parse_args(argv)
     from firmware_model.parameters import load_parameters
+
     params = load_parameters("GRS905")
     print(f"model under diagnosis: {args.model}; cycles of {args.train_s:g} s; seed {args.seed}\n")
-    print("| # | set-up | planted | found (share of the explained residual) | test RMS before | best single -> after "
-          "| set -> after | shrink (single / set) | s (single / set) |")
+    print(
+        "| # | set-up | planted | found (share of the explained residual) | test RMS before | best single -> after "
+        "| set -> after | shrink (single / set) | s (single / set) |"
+    )
     print("|---|---|---|---|---|---|---|---|---|")
     hits = 0
     for i, (setup, eff) in enumerate(CASES):
@@ -73,9 +79,12 @@ def main(argv=None) -> int:
         found = {e["effect"] for e in m.get("effects", [])} or {m["effect"]}
         hits += found == set(eff)
         planted = " + ".join(f"{k} {v:g}" for k, v in eff.items())
-        print(f"| {i} | {setup} | {planted} | {_set_text(m)} | {s['test_rms_before_c']:.3f} | {_set_text(s)} -> "
-              f"{s['test_rms_after_c']:.3f} | {m['test_rms_after_c']:.3f} | {100 * s['shrink']:.0f} % / "
-              f"{100 * m['shrink']:.0f} % | {r['single_s']:.0f} / {r['multi_s']:.0f} |", flush=True)
+        print(
+            f"| {i} | {setup} | {planted} | {_set_text(m)} | {s['test_rms_before_c']:.3f} | {_set_text(s)} -> "
+            f"{s['test_rms_after_c']:.3f} | {m['test_rms_after_c']:.3f} | {100 * s['shrink']:.0f} % / "
+            f"{100 * m['shrink']:.0f} % | {r['single_s']:.0f} / {r['multi_s']:.0f} |",
+            flush=True,
+        )
     print(f"\nboth planted effects found as the set: {hits} of {len(CASES)}")
     return 0
 

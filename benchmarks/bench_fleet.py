@@ -7,6 +7,7 @@ Prints figures, asserts nothing. Targets from the fleet issue: the fast log path
 frames) in <= 0.5 x the time LogReader takes merely to read it (side by side, best of two each); the fleet's
 throughput in truck-hours of log per core-second; the speed-up from 1 to 2 workers >= 1.7 x.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -43,7 +44,9 @@ def best(fn, n=2):
 def synth_log(hours: float, path: Path) -> int:
     sys.path.insert(0, str(Path(__file__).resolve().parent))
     from bench_can import drive
+
     from tools.can.logsynth import write_can_log
+
     big, out = drive(hours)
     return write_can_log(big, out, path).frames
 
@@ -57,26 +60,39 @@ def bench_log_path(path: Path) -> None:
         cols = read_columns(path).columns
         dec = decode_columns(cols, svc.decoder)
         return frame_half(svc, cols, dec, tuple(f"meas_T_{c}_c" for c in PUBLISHED))
+
     t_fast, half = best(inputs_only)
-    print(f"whole-log path, read + decode + the service's frame half ({half.kind.size} steps of inputs): "
-          f"{t_fast:.2f} s = {t_fast / t_read:.2f} x LogReader (target <= 0.5)")
+    print(
+        f"whole-log path, read + decode + the service's frame half ({half.kind.size} steps of inputs): "
+        f"{t_fast:.2f} s = {t_fast / t_read:.2f} x LogReader (target <= 0.5)"
+    )
 
     def full(columnar):
-        return replay_log(path, build_service(None, record=True, emit_frames=False, log_findings=False),
-                          columnar=columnar, processes=None if columnar else 1)
+        return replay_log(
+            path,
+            build_service(None, record=True, emit_frames=False, log_findings=False),
+            columnar=columnar,
+            processes=None if columnar else 1,
+        )
+
     t_full, table = best(lambda: full(True))
-    print(f"whole-log replay to the sensor output table (+ the compiled step and its time-to-limit refresh): "
-          f"{t_full:.2f} s = {t_full / t_read:.2f} x LogReader")
+    print(
+        f"whole-log replay to the sensor output table (+ the compiled step and its time-to-limit refresh): "
+        f"{t_full:.2f} s = {t_full / t_read:.2f} x LogReader"
+    )
     t_frames, ref = best(lambda: full(False), 1)
     same = all(np.array_equal(np.asarray(ref[c]), np.asarray(table[c]), equal_nan=True) for c in ref.columns)
-    print(f"frame-by-frame replay (one process): {t_frames:.2f} s = {t_frames / t_read:.2f} x LogReader; the "
-          f"whole-log table is identical: {same}")
+    print(
+        f"frame-by-frame replay (one process): {t_frames:.2f} s = {t_frames / t_read:.2f} x LogReader; the "
+        f"whole-log table is identical: {same}"
+    )
 
 
 def bench_fleet(logs: int, minutes: float, work: Path) -> None:
     from tools.fleet.manifest import read_manifest
     from tools.fleet.run import run_fleet
     from tools.fleet.synth import FleetSpec, synth_fleet
+
     t0 = time.perf_counter()
     manifest = synth_fleet(work / "logs", FleetSpec(vehicles=logs, days=1, minutes=minutes, seed=11))
     print(f"synthetic fleet: {logs} logs of {minutes:g} min in {time.perf_counter() - t0:.1f} s")
@@ -89,8 +105,10 @@ def bench_fleet(logs: int, minutes: float, work: Path) -> None:
         t0 = time.perf_counter()
         res = run_fleet(entries, out, workers=n, max_logs=1)
         wall[n] = time.perf_counter() - t0
-        print(f"fleet, {n} worker(s): {res.summarised} logs ({hours:.1f} truck-hours) in {wall[n]:.1f} s wall = "
-              f"{hours / (wall[n] * n):.2f} truck-hours per core-second (cluster start-up included)")
+        print(
+            f"fleet, {n} worker(s): {res.summarised} logs ({hours:.1f} truck-hours) in {wall[n]:.1f} s wall = "
+            f"{hours / (wall[n] * n):.2f} truck-hours per core-second (cluster start-up included)"
+        )
     print(f"speed-up 1 -> 2 workers: {wall[1] / wall[2]:.2f} x (target >= 1.7; {os.cpu_count()} cores)")
 
 

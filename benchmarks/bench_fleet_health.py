@@ -8,6 +8,7 @@
 Prints figures, asserts nothing. Target from the fleet issue: >= 50 vehicles over >= 8 weeks, >= 5 fouling coolers
 and >= 3 low oil levels at random onsets: all flagged (printed: weeks after onset) and no false flag.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -31,8 +32,10 @@ def score(truth: dict, health, period_days: float) -> None:
     for f in sorted(health.flags, key=lambda f: f.period):
         flags.setdefault(f.vehicle, []).append(f)
     vehicles = {d["vehicle"] for d in truth["days"]}
-    print(f"{len(vehicles)} vehicles over {truth['spec']['days']} days, {len(faults)} with an effect; "
-          f"{len(flags)} flagged")
+    print(
+        f"{len(vehicles)} vehicles over {truth['spec']['days']} days, {len(faults)} with an effect; "
+        f"{len(flags)} flagged"
+    )
     print("| vehicle | injected | onset | final | flagged as (from the week of) | weeks from onset to the first flag |")
     print("|---|---|---|---|---|---|")
     hit = same = extra = 0
@@ -48,22 +51,32 @@ def score(truth: dict, health, period_days: float) -> None:
         end = dt.date.fromisoformat(fl[0].start) + dt.timedelta(days=period_days)
         weeks = (end - dt.date.fromisoformat(f["onset_date"])).days / 7.0
         delays.append(weeks)
-        print(f"| {v} | {f['effect']} | {f['onset_date']} | {f['final']:.2f} | "
-              + ", ".join(f"{x.effect} ({x.start})" for x in fl) + f" | {weeks:.1f} |")
+        print(
+            f"| {v} | {f['effect']} | {f['onset_date']} | {f['final']:.2f} | "
+            + ", ".join(f"{x.effect} ({x.start})" for x in fl)
+            + f" | {weeks:.1f} |"
+        )
     for effect in sorted({f["effect"] for f in faults.values()}):
         mine = [v for v, f in faults.items() if f["effect"] == effect]
-        print(f"{effect}: {sum(any(x.effect == effect for x in flags.get(v, [])) for v in mine)} of {len(mine)} "
-              f"flagged as {effect}")
+        print(
+            f"{effect}: {sum(any(x.effect == effect for x in flags.get(v, [])) for v in mine)} of {len(mine)} "
+            f"flagged as {effect}"
+        )
     watch = {f.vehicle: f for f in health.watch}
-    print(f"to watch (oil level from the oil temperature, no SPN 124): {len(watch)} trucks: "
-          + (", ".join(f"{v} ({faults[v]['effect'] if v in faults else 'nominal'})" for v in sorted(watch))
-             or "none"))
+    print(
+        f"to watch (oil level from the oil temperature, no SPN 124): {len(watch)} trucks: "
+        + (", ".join(f"{v} ({faults[v]['effect'] if v in faults else 'nominal'})" for v in sorted(watch)) or "none")
+    )
     false = sorted(v for v in flags if v not in faults)
-    print(f"flagged {hit}/{len(faults)} injected; with the injected effect among its flags {same}/{hit}; with "
-          f"another effect flagged too {extra}; weeks from onset to the end of the first flagging period: "
-          + (f"median {sorted(delays)[len(delays) // 2]:.1f}, max {max(delays):.1f}" if delays else "-"))
-    print(f"false flags: {len(false)}" + (" (" + ", ".join(f"{v} as {'/'.join(x.effect for x in flags[v])}"
-                                                            for v in false) + ")" if false else ""))
+    print(
+        f"flagged {hit}/{len(faults)} injected; with the injected effect among its flags {same}/{hit}; with "
+        f"another effect flagged too {extra}; weeks from onset to the end of the first flagging period: "
+        + (f"median {sorted(delays)[len(delays) // 2]:.1f}, max {max(delays):.1f}" if delays else "-")
+    )
+    print(
+        f"false flags: {len(false)}"
+        + (" (" + ", ".join(f"{v} as {'/'.join(x.effect for x in flags[v])}" for v in false) + ")" if false else "")
+    )
 
 
 def main(argv=None) -> None:
@@ -76,10 +89,18 @@ def main(argv=None) -> None:
     ap.add_argument("--fouling", type=int, default=6)
     ap.add_argument("--low-oil", type=int, default=4)
     ap.add_argument("--seed", type=int, default=3)
-    ap.add_argument("--cold-share", type=float, default=0.5,
-                    help="share of the days whose log starts at key-on after a night parked")
-    ap.add_argument("--level-share", type=float, default=0.0,
-                    help="share of the trucks whose transmission sends its oil level, J1939 SPN 124 (default 0)")
+    ap.add_argument(
+        "--cold-share",
+        type=float,
+        default=0.5,
+        help="share of the days whose log starts at key-on after a night parked",
+    )
+    ap.add_argument(
+        "--level-share",
+        type=float,
+        default=0.0,
+        help="share of the trucks whose transmission sends its oil level, J1939 SPN 124 (default 0)",
+    )
     ap.add_argument("--workers", type=int)
     ap.add_argument("--period-days", type=float, default=7.0)
     a = ap.parse_args(argv)
@@ -91,16 +112,29 @@ def main(argv=None) -> None:
         tag = f"_level{a.level_share:g}" if a.level_share else ""
         root = Path(f"fleet_health_{a.vehicles}x{a.days}_s{a.seed}{tag}")
         t0 = time.perf_counter()
-        synth_fleet(root, FleetSpec(a.vehicles, a.days, a.minutes, a.fouling, a.low_oil, seed=a.seed,
-                                    cold_share=a.cold_share, level_share=a.level_share))
+        synth_fleet(
+            root,
+            FleetSpec(
+                a.vehicles,
+                a.days,
+                a.minutes,
+                a.fouling,
+                a.low_oil,
+                seed=a.seed,
+                cold_share=a.cold_share,
+                level_share=a.level_share,
+            ),
+        )
         print(f"synthetic fleet in {time.perf_counter() - t0:.0f} s")
     out = Path(a.out) if a.out else root.parent / (root.name + "_out")
     entries = read_manifest(root / "manifest.csv")
     t0 = time.perf_counter()
     res = run_fleet(entries, out, workers=a.workers, diagnose=True)
     wall = time.perf_counter() - t0
-    print(f"fleet --diagnose: {res.summarised} logs ({res.skipped} done before), {res.failed} errors, "
-          f"{wall:.0f} s on {res.workers} workers")
+    print(
+        f"fleet --diagnose: {res.summarised} logs ({res.skipped} done before), {res.failed} errors, "
+        f"{wall:.0f} s on {res.workers} workers"
+    )
     t0 = time.perf_counter()
     health = fleet_health(out, period_days=a.period_days)
     print(f"health: {health.periods} vehicle-periods fitted in {time.perf_counter() - t0:.1f} s")

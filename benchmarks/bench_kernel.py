@@ -18,6 +18,7 @@
     all CPU threads (the benchmark's drive in (a) and (c) is harder than any of them: full torque most of the time).
 Timings are wall clock on a machine that may be shared (2 cores); OpenBLAS is limited to one thread.
 """
+
 import os
 
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
@@ -47,9 +48,19 @@ def drive_inputs(n: int, seed: int = 0) -> np.ndarray:
     """(n, 8) plausible driving: speed, torque and gear moving, oil measured and drifting."""
     k = np.arange(n)
     rng = np.random.default_rng(seed)
-    return np.stack([1300 + 400 * np.sin(k / 900), 1500 + 900 * np.sin(k / 170) + rng.normal(0, 30, n),
-                     9 + (k // 3000) % 4, 70 + 20 * np.sin(k / 20000), np.full(n, 20.0), np.full(n, 85.0),
-                     np.full(n, 60.0), np.zeros(n)], axis=1)
+    return np.stack(
+        [
+            1300 + 400 * np.sin(k / 900),
+            1500 + 900 * np.sin(k / 170) + rng.normal(0, 30, n),
+            9 + (k // 3000) % 4,
+            70 + 20 * np.sin(k / 20000),
+            np.full(n, 20.0),
+            np.full(n, 85.0),
+            np.full(n, 60.0),
+            np.zeros(n),
+        ],
+        axis=1,
+    )
 
 
 def bench_step(params) -> None:
@@ -66,8 +77,18 @@ def bench_step(params) -> None:
 
     def kernel_run():
         buf = core.pack(c.initial_state(T_oil_c=60.0))
-        core.lib.gvs_run(core._tables_p, veh, buf.ctypes.data, rec.ctypes.data, raw.shape[0], 0, out.ctypes.data,
-                         None, ctypes.byref(status))
+        core.lib.gvs_run(
+            core._tables_p,
+            veh,
+            buf.ctypes.data,
+            rec.ctypes.data,
+            raw.shape[0],
+            0,
+            out.ctypes.data,
+            None,
+            ctypes.byref(status),
+        )
+
     per_run = sorted(timeit.repeat(kernel_run, number=1, repeat=7))
     kernel_us = per_run[len(per_run) // 2] / raw.shape[0] * 1e6
     inp = SensorInputs(*raw[100])
@@ -79,19 +100,22 @@ def bench_step(params) -> None:
 
     def with_ttl(sensor, repeat):
         runs = []
-        for _ in range(repeat):                  # the same 600 s from the same state each time
+        for _ in range(repeat):  # the same 600 s from the same state each time
             st = sensor.initial_state(T_oil_c=60.0)
             t0 = time.perf_counter()
             sensor.step_table(st, raw[:n])
             runs.append((time.perf_counter() - t0) / n * 1e6)
         return float(np.median(runs))
+
     with_ttl_c = with_ttl(c, 7)
     with_ttl_np = with_ttl(ref, 1)
     print(f"  C kernel alone (gvs_run, mean over a 1 h table, median of 7): {kernel_us:8.2f}   (target <= 2 median)")
     print(f"  C kernel through VirtualSensor.step_deferred (live path):       {api_us:8.2f}")
     print(f"  numpy step_deferred:                                            {np_us:8.2f}")
-    print(f"  mean per step with the 1 s time-to-limit refresh: C {with_ttl_c:8.2f}, numpy {with_ttl_np:8.2f}"
-          "   (target <= 5 with refreshes)")
+    print(
+        f"  mean per step with the 1 s time-to-limit refresh: C {with_ttl_c:8.2f}, numpy {with_ttl_np:8.2f}"
+        "   (target <= 5 with refreshes)"
+    )
 
 
 def bench_table(params) -> None:
@@ -99,16 +123,33 @@ def bench_table(params) -> None:
     from tools.cycles.named import get_cycle
     from tools.plant.reference import ReferencePlant
     from tools.runtable import write_run_table
+
     with tempfile.TemporaryDirectory() as tmp:
         table = ReferencePlant(params).run(get_cycle("mining"), progress=False).table
         src = write_run_table(table, Path(tmp) / "mining.csv")
         for core, fmt in (("c", "csv"), ("c", "parquet"), ("numpy", "csv")):
             t0 = time.perf_counter()
-            subprocess.run([sys.executable, "-m", "tools.cli", "replay", str(src), "--out",
-                            str(Path(tmp) / f"est_{core}.{fmt}"), "--quiet", "--core", core], check=True, cwd=REPO,
-                           env=dict(os.environ, PYTHONPATH=str(REPO)))
-            print(f"  --core {core:5s} --out .{fmt:7s}: {time.perf_counter() - t0:6.2f} s   "
-                  f"({table['time_s'][-1] / 3600:.1f} h at 10 Hz; target <= 2 s)")
+            subprocess.run(
+                [
+                    sys.executable,
+                    "-m",
+                    "tools.cli",
+                    "replay",
+                    str(src),
+                    "--out",
+                    str(Path(tmp) / f"est_{core}.{fmt}"),
+                    "--quiet",
+                    "--core",
+                    core,
+                ],
+                check=True,
+                cwd=REPO,
+                env=dict(os.environ, PYTHONPATH=str(REPO)),
+            )
+            print(
+                f"  --core {core:5s} --out .{fmt:7s}: {time.perf_counter() - t0:6.2f} s   "
+                f"({table['time_s'][-1] / 3600:.1f} h at 10 Hz; target <= 2 s)"
+            )
 
 
 def bench_batch(params, steps: int) -> None:
@@ -124,8 +165,10 @@ def bench_batch(params, steps: int) -> None:
             for j in range(n):
                 st, _ = s.step(st, SensorInputs(*(np.full(V, x) for x in raw[j])))
             dt = time.perf_counter() - t0
-            print(f"  {label:24s} {core:5s}: {dt / n * total:9.0f} s   ({dt / n * 1e3:.2f} ms per step; "
-                  "target <= 60 s with the time to limit)")
+            print(
+                f"  {label:24s} {core:5s}: {dt / n * total:9.0f} s   ({dt / n * 1e3:.2f} ms per step; "
+                "target <= 60 s with the time to limit)"
+            )
     s = VirtualSensor(params, core="c")
     raw3h = drive_inputs(total, seed=1)
     n_veh = 8
@@ -135,23 +178,37 @@ def bench_batch(params, steps: int) -> None:
         for _ in s.step_tables(jobs, workers=workers):
             pass
         dt = time.perf_counter() - t0
-        print(f"  one table per vehicle (step_tables, time to limit every 1 s), {workers} thread(s): "
-              f"{dt / n_veh * V:6.0f} s   (measured on {n_veh} vehicles x 3 h: {dt:.1f} s; target <= 60 s)")
+        print(
+            f"  one table per vehicle (step_tables, time to limit every 1 s), {workers} thread(s): "
+            f"{dt / n_veh * V:6.0f} s   (measured on {n_veh} vehicles x 3 h: {dt:.1f} s; target <= 60 s)"
+        )
 
 
 def bench_cycles(params) -> None:
     from tools.cycles.named import get_cycle
+
     threads = os.cpu_count() or 1
-    print(f"(d) named cycles through step_table, one vehicle from 40 degC, best of 3 [us per step]; 1000 vehicles x 3 h "
-          f"extrapolated on {threads} thread(s) [s]")
-    names = ("engine_speed_rpm", "engine_torque_nm", "gear", "oil_temp_c", "ambient_temp_c", "coolant_temp_c",
-             "vehicle_speed_kmh", "retarder_torque_nm")
+    print(
+        f"(d) named cycles through step_table, one vehicle from 40 degC, best of 3 [us per step]; 1000 vehicles x 3 h "
+        f"extrapolated on {threads} thread(s) [s]"
+    )
+    names = (
+        "engine_speed_rpm",
+        "engine_torque_nm",
+        "gear",
+        "oil_temp_c",
+        "ambient_temp_c",
+        "coolant_temp_c",
+        "vehicle_speed_kmh",
+        "retarder_torque_nm",
+    )
     for name in ("long_haul", "uphill", "mining"):
         cyc = get_cycle(name, rate_hz=10.0)
         n = cyc["time_s"].size
         # the oil absent (NaN): the sensor integrates its own sump, as without an oil sensor; other absent inputs 0
-        raw = np.stack([cyc[k] if cyc.has(k) else np.full(n, np.nan if k == "oil_temp_c" else 0.0) for k in names],
-                       axis=1)
+        raw = np.stack(
+            [cyc[k] if cyc.has(k) else np.full(n, np.nan if k == "oil_temp_c" else 0.0) for k in names], axis=1
+        )
         per = {}
         for label, period in (("ttl", 1.0), ("none", 1e9)):
             s = VirtualSensor(params, core="c", ttl_period_s=period)
@@ -163,8 +220,10 @@ def bench_cycles(params) -> None:
                 best = min(best, time.perf_counter() - t0)
             per[label] = best / n * 1e6
         fleet = {k: v * 1e-6 * 1000 * 3 * 36000 / threads for k, v in per.items()}
-        print(f"  {name:9s} ({n / 36000:.0f} h): {per['ttl']:5.2f} with the time to limit every 1 s, {per['none']:5.2f} "
-              f"without -> 1000 x 3 h: {fleet['ttl']:4.0f} s, {fleet['none']:4.0f} s   (target <= 60 s with it)")
+        print(
+            f"  {name:9s} ({n / 36000:.0f} h): {per['ttl']:5.2f} with the time to limit every 1 s, {per['none']:5.2f} "
+            f"without -> 1000 x 3 h: {fleet['ttl']:4.0f} s, {fleet['none']:4.0f} s   (target <= 60 s with it)"
+        )
 
 
 def main() -> None:

@@ -8,6 +8,7 @@ For each named drive (route seed 1, 10 degC ambient): a 10-minute and a 60-minut
 against 9.5 L (a 4 L leak), and the onboard model (the fleet health's model) against the plant at 13.5 L. Asserts
 nothing; docs/fleet.md quotes the figures.
 """
+
 from __future__ import annotations
 
 import sys
@@ -27,7 +28,11 @@ from tools.runtable import RunTable  # noqa: E402
 AMBIENT_C = 10.0
 COOLANT_C = 86.0
 COOLANT_WARMUP_S = 300.0
-LOGS = (("10 min from cold", 0.0, 10.0, 12.0), ("60 min from cold", 0.0, 60.0, 12.0), ("10 min warm", 1800.0, 10.0, 70.0))
+LOGS = (
+    ("10 min from cold", 0.0, 10.0, 12.0),
+    ("60 min from cold", 0.0, 60.0, 12.0),
+    ("10 min warm", 1800.0, 10.0, 70.0),
+)
 
 
 def log_table(drive: str, off_s: float, minutes: float, oil0_c: float) -> RunTable:
@@ -46,26 +51,32 @@ def log_table(drive: str, off_s: float, minutes: float, oil0_c: float) -> RunTab
 
 def main(argv=None) -> None:
     import argparse
+
     argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter).parse_args(argv)
     params = load_config(None).load_params()
     model = health_model(None, None)
-    print("| drive | log | oil signal of a 4 L leak: plant 13.5 L vs 9.5 L, rms (max) [K] "
-          "| onboard model's error at 13.5 L, rms [K] |\n|---|---|---|---|")
+    print(
+        "| drive | log | oil signal of a 4 L leak: plant 13.5 L vs 9.5 L, rms (max) [K] "
+        "| onboard model's error at 13.5 L, rms [K] |\n|---|---|---|---|"
+    )
     for drive in ("long_haul", "uphill", "mining"):
         for label, off_s, minutes, oil0_c in LOGS:
             table = log_table(drive, off_s, minutes, oil0_c)
             plant = {}
             for volume_l in (13.5, 9.5):
                 out = ReferencePlant(params, effects={"oil_level_low": volume_l}, dt_s=1.0).run(
-                    table, initial_temp_c=oil0_c, progress=False)
+                    table, initial_temp_c=oil0_c, progress=False
+                )
                 plant[volume_l] = np.asarray(out.table["oil_temp_c"], dtype=float)
             t_plant = np.asarray(out.table["time_s"], dtype=float)
             sim = model.simulate([LogData(table, oil0_c)], [Run.of({})], ["oil_temp_c"])[0][0]
             onboard = np.interp(t_plant, sim["time_s"], sim["oil_temp_c"])
             leak = plant[9.5] - plant[13.5]
             err = onboard - plant[13.5]
-            print(f"| {drive} | {label} | {np.sqrt(np.mean(leak ** 2)):.2f} ({np.abs(leak).max():.2f}) "
-                  f"| {np.sqrt(np.mean(err ** 2)):.2f} |")
+            print(
+                f"| {drive} | {label} | {np.sqrt(np.mean(leak**2)):.2f} ({np.abs(leak).max():.2f}) "
+                f"| {np.sqrt(np.mean(err**2)):.2f} |"
+            )
 
 
 if __name__ == "__main__":

@@ -1,7 +1,8 @@
 """Speed of the reference plant: the 3 h mining cycle with noisy 100 Hz inputs (target: under 30 s).
 
-    python benchmarks/bench_plant.py [--cycle mining] [--rate 100]
+python benchmarks/bench_plant.py [--cycle mining] [--rate 100]
 """
+
 import argparse
 import sys
 import time

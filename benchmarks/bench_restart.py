@@ -12,6 +12,7 @@ versus a cold start from the oil reading.
 Prints per published component the plant's temperature, the restored and the cold-start error, and the worst of each.
 The test tests/firmware_model/test_gateway_restart.py runs the same function on a shorter drive.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -33,6 +34,7 @@ AFTER_S = 1.0
 class RestartResult(NamedTuple):
     """Per published component: the plant's temperatures at the compared step of each restart (restored, cold),
     and the sensor's; ``after_restart_s``: when each compared step was, after the restart's first frame."""
+
     components: tuple
     after_restart_s: tuple
     plant_c: tuple
@@ -59,6 +61,7 @@ def _drive_table(drive_s: float, off_s: float, resume_s: float, true_tau_s: floa
     from firmware_model.parameters import load_parameters
     from tools.cycles.named import get_cycle
     from tools.runtable import RunTable
+
     cyc = get_cycle("uphill")
     p = load_parameters("GRS905")
     t = np.asarray(cyc["time_s"])
@@ -93,14 +96,17 @@ def _drive_table(drive_s: float, off_s: float, resume_s: float, true_tau_s: floa
 
 def _service():
     from firmware_model.service import build_service
+
     return build_service(None, record=True)
 
 
-def run_restart(drive_s: float = 1200.0, off_s: float = 600.0, after_s: float = AFTER_S,
-                true_tau_s: float = TRUE_TAU_S) -> RestartResult:
+def run_restart(
+    drive_s: float = 1200.0, off_s: float = 600.0, after_s: float = AFTER_S, true_tau_s: float = TRUE_TAU_S
+) -> RestartResult:
     """The experiment of the module doc; returns the plant's and both restarts' temperatures ``after_s`` after the
     first frame of the restart."""
     import logging
+
     from firmware_model.components import PUBLISHED
     from firmware_model.parameters import load_parameters
     from firmware_model.service.persist import StateStore
@@ -120,7 +126,7 @@ def run_restart(drive_s: float = 1200.0, off_s: float = 600.0, after_s: float = 
         first = _service()
         first.feed_all(before)
         first.finish_pending()
-        assert StateStore(path, clock=clock).save(first, final=True)      # SIGTERM at the ignition off
+        assert StateStore(path, clock=clock).save(first, final=True)  # SIGTERM at the ignition off
         clock.t += off_s
         restored = _service()
         log = _Capture()
@@ -144,28 +150,37 @@ def run_restart(drive_s: float = 1200.0, off_s: float = 600.0, after_s: float = 
     for t in t_first_s:
         k = int(np.argmin(np.abs(t_plant_s - t)))
         plant_c.append(np.array([float(plant.table[f"T_{c}_c"][k]) for c in PUBLISHED]))
-    return RestartResult(tuple(PUBLISHED), tuple(t - t_resume_s for t in t_first_s), tuple(plant_c), outs[0], outs[1],
-                         "\n".join(log.lines))
+    return RestartResult(
+        tuple(PUBLISHED),
+        tuple(t - t_resume_s for t in t_first_s),
+        tuple(plant_c),
+        outs[0],
+        outs[1],
+        "\n".join(log.lines),
+    )
 
 
 class CrashResult(NamedTuple):
     """Per published component after a crash restart: the plant's temperatures at the compared step, and the
     errors of the restore as made (inputs held, then cooled) and of the same state cooled as if the engine had
     stopped (the restore before it knew a crash from a clean stop)."""
+
     components: tuple
     plant_c: np.ndarray
     held_err_k: np.ndarray
     cooled_err_k: np.ndarray
-    uninterrupted_err_k: np.ndarray      # a service that never died, at the same step (the model's own error)
+    uninterrupted_err_k: np.ndarray  # a service that never died, at the same step (the model's own error)
     restored_log: str
 
 
-def run_crash(drive_s: float = 1200.0, saved_before_s: float = 30.0, down_s: float = 5.0,
-              after_s: float = AFTER_S) -> CrashResult:
+def run_crash(
+    drive_s: float = 1200.0, saved_before_s: float = 30.0, down_s: float = 5.0, after_s: float = AFTER_S
+) -> CrashResult:
     """The gateway dies while the truck climbs: its last periodic save was ``saved_before_s`` before the crash, it
     is back ``down_s`` after it (systemd's restart) and the truck drove on all along (the plant never stops). The
     first published temperatures (+``after_s``) of the restarted service against the plant's."""
     import logging
+
     from firmware_model.components import PUBLISHED
     from firmware_model.parameters import load_parameters
     from firmware_model.service.persist import StateStore
@@ -190,7 +205,7 @@ def run_crash(drive_s: float = 1200.0, saved_before_s: float = 30.0, down_s: flo
         first = _service()
         first.feed_all([m for m, t in zip(msgs, ts) if t <= t_save_s])
         first.finish_pending()
-        assert StateStore(path, clock=clock).save(first)            # a periodic save, while stepping
+        assert StateStore(path, clock=clock).save(first)  # a periodic save, while stepping
         clock.t += saved_before_s + down_s
         log = _Capture()
         for clean in (False, True):
@@ -217,8 +232,9 @@ def run_crash(drive_s: float = 1200.0, saved_before_s: float = 30.0, down_s: flo
     t_plant_s = np.asarray(plant.table["time_s"])
     k = int(np.argmin(np.abs(t_plant_s - (outs[0][1] - t0_s + float(t_plant_s[0])))))
     plant_c = np.array([float(plant.table[f"T_{c}_c"][k]) for c in PUBLISHED])
-    return CrashResult(tuple(PUBLISHED), plant_c, outs[0][0] - plant_c, outs[1][0] - plant_c, T_never - plant_c,
-                       "\n".join(log.lines))
+    return CrashResult(
+        tuple(PUBLISHED), plant_c, outs[0][0] - plant_c, outs[1][0] - plant_c, T_never - plant_c, "\n".join(log.lines)
+    )
 
 
 class _Clock:
@@ -248,44 +264,65 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--drive", type=float, default=1200.0, help="seconds of climbing before the stop (default 1200)")
     ap.add_argument("--off", type=float, default=600.0, help="seconds stopped with the ignition off (default 600)")
-    ap.add_argument("--after", type=float, default=AFTER_S,
-                    help="compare this long after the first published step (default 1 s)")
-    ap.add_argument("--true-tau", type=float, default=TRUE_TAU_S,
-                    help="the truth's engine cool-down time constant during the stop [s] (default 2700; the sensor "
-                         "assumes the parameter file's boundary.engine_off_tau, 3600)")
-    ap.add_argument("--crash", action="store_true",
-                    help="instead: the gateway dies mid-climb after --drive s (last periodic save 30 s before, back "
-                         "5 s after) while the truck drives on; the restore as made (inputs held, then cooled) "
-                         "against the same state cooled as at an ignition off")
+    ap.add_argument(
+        "--after", type=float, default=AFTER_S, help="compare this long after the first published step (default 1 s)"
+    )
+    ap.add_argument(
+        "--true-tau",
+        type=float,
+        default=TRUE_TAU_S,
+        help="the truth's engine cool-down time constant during the stop [s] (default 2700; the sensor "
+        "assumes the parameter file's boundary.engine_off_tau, 3600)",
+    )
+    ap.add_argument(
+        "--crash",
+        action="store_true",
+        help="instead: the gateway dies mid-climb after --drive s (last periodic save 30 s before, back "
+        "5 s after) while the truck drives on; the restore as made (inputs held, then cooled) "
+        "against the same state cooled as at an ignition off",
+    )
     a = ap.parse_args(argv)
     from firmware_model.components import describe
+
     if a.crash:
         return _print_crash(run_crash(a.drive, after_s=a.after), a.drive)
     r = run_restart(a.drive, a.off, a.after, a.true_tau)
-    print(f"hot restart: uphill {a.drive:.0f} s, ignition off {a.off:.0f} s; the first published temperatures "
-          f"(+{a.after:.1f} s) at {r.after_restart_s[0]:.1f} s after the restart's first frame (restored) and "
-          f"{r.after_restart_s[1]:.1f} s (cold start)")
+    print(
+        f"hot restart: uphill {a.drive:.0f} s, ignition off {a.off:.0f} s; the first published temperatures "
+        f"(+{a.after:.1f} s) at {r.after_restart_s[0]:.1f} s after the restart's first frame (restored) and "
+        f"{r.after_restart_s[1]:.1f} s (cold start)"
+    )
     print(f"{'component':40s} {'plant':>8s} {'restored':>9s} {'cold':>9s}   (errors in K)")
     for i, c in enumerate(r.components):
         print(f"{describe(c)[:40]:40s} {r.plant_c[0][i]:8.2f} {r.restored_err_k[i]:+9.2f} {r.cold_err_k[i]:+9.2f}")
     ir, ic = int(np.argmax(np.abs(r.restored_err_k))), int(np.argmax(np.abs(r.cold_err_k)))
-    print(f"worst restored: {r.components[ir]} {r.restored_err_k[ir]:+.2f} K; worst cold start: "
-          f"{r.components[ic]} {r.cold_err_k[ic]:+.2f} K")
-    print(f"RMS restored {np.sqrt(np.mean(r.restored_err_k ** 2)):.2f} K, cold {np.sqrt(np.mean(r.cold_err_k ** 2)):.2f} K")
+    print(
+        f"worst restored: {r.components[ir]} {r.restored_err_k[ir]:+.2f} K; worst cold start: "
+        f"{r.components[ic]} {r.cold_err_k[ic]:+.2f} K"
+    )
+    print(f"RMS restored {np.sqrt(np.mean(r.restored_err_k**2)):.2f} K, cold {np.sqrt(np.mean(r.cold_err_k**2)):.2f} K")
     return 0
 
 
 def _print_crash(r: CrashResult, drive_s: float) -> int:
     from firmware_model.components import describe
-    print(f"crash restart: uphill, the gateway dies at {drive_s:.0f} s (last save 30 s before), back 5 s later, the "
-          f"truck driving on; the first published temperatures against the plant (errors in K)")
+
+    print(
+        f"crash restart: uphill, the gateway dies at {drive_s:.0f} s (last save 30 s before), back 5 s later, the "
+        f"truck driving on; the first published temperatures against the plant (errors in K)"
+    )
     print(f"{'component':40s} {'plant':>8s} {'held':>8s} {'cooled':>8s} {'never died':>11s}")
     for i, c in enumerate(r.components):
-        print(f"{describe(c)[:40]:40s} {r.plant_c[i]:8.2f} {r.held_err_k[i]:+8.2f} {r.cooled_err_k[i]:+8.2f} "
-              f"{r.uninterrupted_err_k[i]:+11.2f}")
-    for name, e in (("held, then cooled (as made)", r.held_err_k), ("cooled as at an ignition off", r.cooled_err_k),
-                    ("a service that never died", r.uninterrupted_err_k)):
-        print(f"{name:30s} worst {np.abs(e).max():.2f} K, RMS {np.sqrt(np.mean(e ** 2)):.2f} K")
+        print(
+            f"{describe(c)[:40]:40s} {r.plant_c[i]:8.2f} {r.held_err_k[i]:+8.2f} {r.cooled_err_k[i]:+8.2f} "
+            f"{r.uninterrupted_err_k[i]:+11.2f}"
+        )
+    for name, e in (
+        ("held, then cooled (as made)", r.held_err_k),
+        ("cooled as at an ignition off", r.cooled_err_k),
+        ("a service that never died", r.uninterrupted_err_k),
+    ):
+        print(f"{name:30s} worst {np.abs(e).max():.2f} K, RMS {np.sqrt(np.mean(e**2)):.2f} K")
     return 0
 
 

@@ -19,6 +19,7 @@
 Timings are CPU time of this process (time.process_time) on a machine that may be shared; OpenBLAS is limited to
 one thread (small matrices).
 """
+
 import os
 
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
@@ -35,12 +36,12 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 import numpy as np  # noqa: E402
 
 from firmware_model.components import PUBLISHED  # noqa: E402
-from firmware_model.physics.heat_lag import heat_lag_step  # noqa: E402
-from firmware_model.parameters import Parameters, load_parameters  # noqa: E402
 from firmware_model.onboard.sensor import SensorInputs, VirtualSensor  # noqa: E402
-from tools.replay.table import replay_table  # noqa: E402
+from firmware_model.parameters import Parameters, load_parameters  # noqa: E402
+from firmware_model.physics.heat_lag import heat_lag_step  # noqa: E402
 from tools.cycles.named import get_cycle  # noqa: E402
 from tools.plant.reference import ReferencePlant  # noqa: E402
+from tools.replay.table import replay_table  # noqa: E402
 from tools.runtable import RunTable  # noqa: E402
 
 CYCLES = ("steady", "all_gears", "long_haul", "uphill", "mining")
@@ -50,8 +51,7 @@ MAX_TOL, RMS_TOL = 1.5, 0.3
 def rig(params: Parameters) -> Parameters:
     s = dict(params.strings)
     s["cooler.kind"] = "hold"
-    return Parameters(params.variant, dict(params.values), dict(params.sources), dict(params.units), s,
-                      params.origin)
+    return Parameters(params.variant, dict(params.values), dict(params.sources), dict(params.units), s, params.origin)
 
 
 def plant_run(params, name, keep_bc=False, cache={}):
@@ -65,7 +65,8 @@ def plant_run(params, name, keep_bc=False, cache={}):
         hold = meta.get("hold_oil_c")
         t0 = time.process_time()
         res = ReferencePlant(params, cooler="hold" if hold is not None else "liquid").run(
-            tab, initial_temp_c=meta.get("initial_temp_c"), hold_oil_c=hold)
+            tab, initial_temp_c=meta.get("initial_temp_c"), hold_oil_c=hold
+        )
         cache[key] = (tab, res.table, time.process_time() - t0)
     return cache[key]
 
@@ -111,11 +112,15 @@ def section_accuracy(params, cycles, per_component):
         wr = max(e.items(), key=lambda kv: kv[1][1])
         ok = all(v[0] <= MAX_TOL and v[1] <= RMS_TOL for v in e.values())
         hours = (tab["time_s"][-1] - tab["time_s"][0]) / 3600
-        print(f"{name:<28} {hours:5.2f} {wm[0]:>14} {wm[1][0]:7.2f} K {wr[0]:>12} {wr[1][1]:7.3f} K  "
-              f"{'PASS' if ok else 'FAIL'}")
-    for label, name, kw in (("uphill, plant sees Table 11", "uphill", {"keep_bc": True}),
-                            ("uphill, compact 39 nodes", "uphill", {"partition": "compact"}),
-                            ("mining, compact 39 nodes", "mining", {"partition": "compact"})):
+        print(
+            f"{name:<28} {hours:5.2f} {wm[0]:>14} {wm[1][0]:7.2f} K {wr[0]:>12} {wr[1][1]:7.3f} K  "
+            f"{'PASS' if ok else 'FAIL'}"
+        )
+    for label, name, kw in (
+        ("uphill, plant sees Table 11", "uphill", {"keep_bc": True}),
+        ("uphill, compact 39 nodes", "uphill", {"partition": "compact"}),
+        ("mining, compact 39 nodes", "mining", {"partition": "compact"}),
+    ):
         if name not in cycles:
             continue
         tab, ref, out, *_ = plant_and_sensor(params, name, **kw)
@@ -123,8 +128,10 @@ def section_accuracy(params, cycles, per_component):
         wm = max(e.items(), key=lambda kv: kv[1][0])
         wr = max(e.items(), key=lambda kv: kv[1][1])
         ok = all(v[0] <= MAX_TOL and v[1] <= RMS_TOL for v in e.values())
-        print(f"{label:<28} {'':>5} {wm[0]:>14} {wm[1][0]:7.2f} K {wr[0]:>12} {wr[1][1]:7.3f} K  "
-              f"{'pass' if ok else 'fail'} (reference rows)")
+        print(
+            f"{label:<28} {'':>5} {wm[0]:>14} {wm[1][0]:7.2f} K {wr[0]:>12} {wr[1][1]:7.3f} K  "
+            f"{'pass' if ok else 'fail'} (reference rows)"
+        )
     section_cold_starts(params)
     if per_component:
         print("\nper component, max / RMS |diff| [K]:")
@@ -136,8 +143,11 @@ def section_accuracy(params, cycles, per_component):
 def section_cold_starts(params):
     """The sensor against the plant on starts from -30 to +20 degC (every node at the ambient), plant oil fed."""
     from tools.cycles.named import cold_start
-    print("\ncold starts (tools.cycles.named.cold_start: 2 min idle in neutral, then 4L 1300 rpm 1500 Nm; start = "
-          "ambient):")
+
+    print(
+        "\ncold starts (tools.cycles.named.cold_start: 2 min idle in neutral, then 4L 1300 rpm 1500 Nm; start = "
+        "ambient):"
+    )
     for T0 in (-30.0, -20.0, -10.0, 0.0, 20.0):
         tab = cold_start(T0, rate_hz=10.0)
         ref = ReferencePlant(params).run(tab, initial_temp_c=T0).table
@@ -147,20 +157,24 @@ def section_cold_starts(params):
         wm = max(e.items(), key=lambda kv: kv[1][0])
         wr = max(e.items(), key=lambda kv: kv[1][1])
         ok = all(v[0] <= MAX_TOL and v[1] <= RMS_TOL for v in e.values())
-        print(f"{f'start {T0:+.0f} degC':<28} {0.25:5.2f} {wm[0]:>14} {wm[1][0]:7.2f} K {wr[0]:>12} {wr[1][1]:7.3f} K  "
-              f"{'PASS' if ok else 'FAIL'}")
+        print(
+            f"{f'start {T0:+.0f} degC':<28} {0.25:5.2f} {wm[0]:>14} {wm[1][0]:7.2f} K {wr[0]:>12} {wr[1][1]:7.3f} K  "
+            f"{'PASS' if ok else 'FAIL'}"
+        )
 
 
 #: the cheapest merges first, as an error-driven greedy search over adjacent non-published nodes found them
 #: (docs/sensor.md, "Reduction"); each row adds one merge to the previous
-MERGES = (("RI", "oil"), ("IS@bulk", "IS@BIF"), ("MS@RM", "MS@CM"), ("H2", "H1"), ("H3", "H1"),
-          ("LS@BLR", "LS@RL"))
+MERGES = (("RI", "oil"), ("IS@bulk", "IS@BIF"), ("MS@RM", "MS@CM"), ("H2", "H1"), ("H3", "H1"), ("LS@BLR", "LS@RL"))
 
 
 def section_partitions(params, cycles):
     from firmware_model.onboard.reduce import PARTITIONS
-    print("\n(a2) how far the network can be aggregated: worst component per cycle, as a share of the budget "
-          f"max(max/{MAX_TOL}, RMS/{RMS_TOL}) (1 = at the tolerance)")
+
+    print(
+        "\n(a2) how far the network can be aggregated: worst component per cycle, as a share of the budget "
+        f"max(max/{MAX_TOL}, RMS/{RMS_TOL}) (1 = at the tolerance)"
+    )
     names = [c for c in ("uphill", "mining") if c in cycles]
     print(f"{'partition':<34}{'nodes':>6}" + "".join(f"{n:>26}" for n in names))
     part = {}
@@ -191,10 +205,24 @@ def section_speed(params, batch_vehicles, batch_steps, full_batch):
     sensor = VirtualSensor(params)
     tab = get_cycle("uphill", rate_hz=10, noise=True)
     n = 3000
-    cols = [np.asarray(tab[c])[:n] for c in ("engine_speed_rpm", "engine_torque_nm", "gear", "coolant_temp_c",
-                                             "ambient_temp_c", "vehicle_speed_kmh", "retarder_torque_nm")]
-    inputs = [SensorInputs(cols[0][k], cols[1][k], cols[2][k], 80.0 + 0.001 * k, cols[4][k], cols[3][k], cols[5][k],
-                           cols[6][k]) for k in range(n)]
+    cols = [
+        np.asarray(tab[c])[:n]
+        for c in (
+            "engine_speed_rpm",
+            "engine_torque_nm",
+            "gear",
+            "coolant_temp_c",
+            "ambient_temp_c",
+            "vehicle_speed_kmh",
+            "retarder_torque_nm",
+        )
+    ]
+    inputs = [
+        SensorInputs(
+            cols[0][k], cols[1][k], cols[2][k], 80.0 + 0.001 * k, cols[4][k], cols[3][k], cols[5][k], cols[6][k]
+        )
+        for k in range(n)
+    ]
     st = sensor.initial_state(T_oil_c=80.0)
     times = np.empty(n)
     step = sensor.step
@@ -207,10 +235,12 @@ def section_speed(params, batch_vehicles, batch_steps, full_batch):
     for k in range(n):
         st2, _ = step(st2, inputs[k])
     cpu = (time.process_time() - c0) / n
-    ttl_steps = times[::sensor.sp.ttl_every]
-    print(f"one step, single vehicle: median {1e6 * np.median(times):.1f} us (wall), mean {1e6 * cpu:.1f} us "
-          f"(CPU, with the time to limit every {sensor.options.ttl_period_s:g} s: median "
-          f"{1e6 * np.median(ttl_steps):.0f} us on those steps); target 10 us")
+    ttl_steps = times[:: sensor.sp.ttl_every]
+    print(
+        f"one step, single vehicle: median {1e6 * np.median(times):.1f} us (wall), mean {1e6 * cpu:.1f} us "
+        f"(CPU, with the time to limit every {sensor.options.ttl_period_s:g} s: median "
+        f"{1e6 * np.median(ttl_steps):.0f} us on those steps); target 10 us"
+    )
     _step_pieces(sensor, inputs[n // 2])
     mining = get_cycle("mining", rate_hz=10)
     fed = RunTable({c: mining[c] for c in mining.columns if not c.startswith("bc_")}, meta=mining.meta)
@@ -234,8 +264,10 @@ def section_speed(params, batch_vehicles, batch_steps, full_batch):
         tb = time.process_time() - c0
         per = tb / steps
         label = "measured" if full_batch else f"measured over {steps} steps, extrapolated"
-        print(f"{V} vehicles x 3 h batched, time to limit every {ttl_period:g} s: {per * 108_000:.0f} s ({label}: "
-              f"{1e3 * per:.2f} ms per batch step, {1e6 * per / V:.2f} us per vehicle-step); target 60 s")
+        print(
+            f"{V} vehicles x 3 h batched, time to limit every {ttl_period:g} s: {per * 108_000:.0f} s ({label}: "
+            f"{1e3 * per:.2f} ms per batch step, {1e6 * per / V:.2f} us per vehicle-step); target 60 s"
+        )
 
 
 def _step_pieces(sensor, inp):
@@ -250,6 +282,7 @@ def _step_pieces(sensor, inp):
     from firmware_model.onboard.warning_levels import update_levels
     from firmware_model.physics.kinematics import GEAR_MIN
     from firmware_model.units import RAD_S_PER_RPM
+
     sp, cache = sensor.sp, sensor.cache
     rp, h, eff = sp.reduced, sp.helpers, sp.effects
     state = sensor.initial_state(T_oil_c=85.0)
@@ -263,23 +296,55 @@ def _step_pieces(sensor, inp):
     src = R.heat_sources(rp, row, omega, torque, prop, x, eff.src_scale, eff.churn_scale, eff.needle_scale, 0.0, h)
     bins = cache.bins.get(sp, row, *bin_centre(omega, T_oil))
     T_pub = state.T_c[0, rp.published_index]
-    g = dict(R=R, sp=sp, rp=rp, h=h, eff=eff, cache=cache, row=row, omega=omega, torque=torque, T_oil=T_oil, x=x,
-             prop=prop, src=src, lag0=0.9 * src, bins=bins, T=np.full((2, rp.n), T_oil), q2=np.zeros((2, rp.n)),
-             T_bc=np.array(sp.T_bc_default_c), state=state, raw=raw, inp=inp, T_pub=T_pub, a=np.ones(rp.n),
-             b=np.ones(rp.n), bin_centre=bin_centre, check_inputs=check_inputs, update_levels=update_levels,
-             step_deferred=step_deferred, heat_lag_step=heat_lag_step)
+    g = dict(
+        R=R,
+        sp=sp,
+        rp=rp,
+        h=h,
+        eff=eff,
+        cache=cache,
+        row=row,
+        omega=omega,
+        torque=torque,
+        T_oil=T_oil,
+        x=x,
+        prop=prop,
+        src=src,
+        lag0=0.9 * src,
+        bins=bins,
+        T=np.full((2, rp.n), T_oil),
+        q2=np.zeros((2, rp.n)),
+        T_bc=np.array(sp.T_bc_default_c),
+        state=state,
+        raw=raw,
+        inp=inp,
+        T_pub=T_pub,
+        a=np.ones(rp.n),
+        b=np.ones(rp.n),
+        bin_centre=bin_centre,
+        check_inputs=check_inputs,
+        update_levels=update_levels,
+        step_deferred=step_deferred,
+        heat_lag_step=heat_lag_step,
+    )
     pieces = [
         ("input checks and holds", "check_inputs(state, raw, sp)"),
         ("oil properties (one interpolated row)", "R.oil_row(rp, T_oil, h)"),
-        ("loss sources (meshes, bearings, sump terms)",
-         "R.heat_sources(rp, row, omega, torque, prop, x, eff.src_scale, eff.churn_scale, eff.needle_scale, 0.0, h)"),
+        (
+            "loss sources (meshes, bearings, sump terms)",
+            "R.heat_sources(rp, row, omega, torque, prop, x, eff.src_scale, eff.churn_scale, eff.needle_scale, 0.0, h)",
+        ),
         ("heat lag and sources to nodes", "q = heat_lag_step(lag0, src, h.heat_lag).delivered_w @ rp.src_matrix"),
         ("conductance bin lookup (cache hit)", "cache.bins.get(sp, row, *bin_centre(omega, T_oil))"),
-        ("network update, both copies (explicit_step)",
-         "R.explicit_step(T, q2, bins.G_int_w_per_k, bins.G_ext_w_per_k, T_bc, h.ia, h.ib, h.ea, h.eb, "
-         "sp.dt_over_C_s_k_per_j, h.B_int, h.B_ext)"),
-        ("warning levels (state machine)",
-         "update_levels(state.level, state.pending_s, T_pub, True, sp.limits, sp.dt_s, state.ttl_s)"),
+        (
+            "network update, both copies (explicit_step)",
+            "R.explicit_step(T, q2, bins.G_int_w_per_k, bins.G_ext_w_per_k, T_bc, h.ia, h.ib, h.ea, h.eb, "
+            "sp.dt_over_C_s_k_per_j, h.B_int, h.B_ext)",
+        ),
+        (
+            "warning levels (state machine)",
+            "update_levels(state.level, state.pending_s, T_pub, True, sp.limits, sp.dt_s, state.ttl_s)",
+        ),
     ]
     us = {}
     for label, stmt in pieces:
@@ -289,20 +354,28 @@ def _step_pieces(sensor, inp):
     print("  where a median step's time goes, the step's pieces timed alone (wall, best of 5):")
     for label, v in us.items():
         print(f"    {label:<46}{v:6.2f} us")
-    print(f"    {'sum of the pieces':<46}{sum(us.values()):6.2f} us; the whole step without its time to limit "
-          f"{whole:.2f} us (target 10 us)")
-    print(f"    one numpy call on a {rp.n}-vector costs {one:.2f} us: the 10 us budget is ~{10 / one:.0f} numpy calls "
-          f"for everything, before input checks, warnings, outputs and state")
+    print(
+        f"    {'sum of the pieces':<46}{sum(us.values()):6.2f} us; the whole step without its time to limit "
+        f"{whole:.2f} us (target 10 us)"
+    )
+    print(
+        f"    one numpy call on a {rp.n}-vector costs {one:.2f} us: the 10 us budget is ~{10 / one:.0f} numpy calls "
+        f"for everything, before input checks, warnings, outputs and state"
+    )
 
 
 def section_footprint(params):
     print("\n(c) footprint as an ECU would hold it (float32)")
     s = VirtualSensor(params)
     fp = s.reduced.footprint(np.float32)
-    print(f"state: {s.state_bytes(np.float32)} bytes per vehicle (target 1024): two copies of {s.reduced.n} node "
-          f"temperatures, heat lag, input holds, warning state, counters")
-    print(f"parameters incl. loss maps and conductance laws: {fp['bytes']} bytes = {fp['bytes'] / 1024:.1f} KiB "
-          f"({fp['float_values']} floats + {fp['index_values']} int16 indices; target 64 KiB)")
+    print(
+        f"state: {s.state_bytes(np.float32)} bytes per vehicle (target 1024): two copies of {s.reduced.n} node "
+        f"temperatures, heat lag, input holds, warning state, counters"
+    )
+    print(
+        f"parameters incl. loss maps and conductance laws: {fp['bytes']} bytes = {fp['bytes'] / 1024:.1f} KiB "
+        f"({fp['float_values']} floats + {fp['index_values']} int16 indices; target 64 KiB)"
+    )
 
 
 def _episodes(mask):
@@ -317,8 +390,10 @@ def section_warnings(params, cycles):
         w, crit, hy = sensor.limits.of("PS")
         tp, Tp = ref["time_s"], ref["T_PS_c"]
         ts, lev = out["time_s"], out["W_PS"]
-        print(f"uphill, sun wheel PS (warning {w:g} degC, hysteresis {hy:g} K, debounce "
-              f"{sensor.limits.debounce_s:g} s, early warning {sensor.limits.lead_s:g} s before the limit):")
+        print(
+            f"uphill, sun wheel PS (warning {w:g} degC, hysteresis {hy:g} K, debounce "
+            f"{sensor.limits.debounce_s:g} s, early warning {sensor.limits.lead_s:g} s before the limit):"
+        )
         sensor_eps = [(ts[a], ts[min(b, ts.size - 1)]) for a, b in _episodes(lev >= 1)]
         prev_end = -math.inf
         for a, b in _episodes(Tp >= w):
@@ -329,19 +404,27 @@ def section_warnings(params, cycles):
             else:
                 s0 = ep[0][0]
                 note = "" if s0 > prev_end else " (the warning of an earlier crossing, still on)"
-                print(f"  plant PS >= {w:g} degC from {t_cross:7.1f} s to {t_end:7.1f} s; sensor warning from "
-                      f"{s0:7.1f} s: lead {t_cross - s0:+6.1f} s{note}")
+                print(
+                    f"  plant PS >= {w:g} degC from {t_cross:7.1f} s to {t_end:7.1f} s; sensor warning from "
+                    f"{s0:7.1f} s: lead {t_cross - s0:+6.1f} s{note}"
+                )
             prev_end = t_end
         on = _episodes(lev >= 1)
-        print(f"  sensor PS warning episodes: {len(on)}; cleared: "
-              + ", ".join(f"{ts[min(b, ts.size - 1)]:.0f} s (plant PS then {np.interp(ts[min(b, ts.size - 1)], tp, Tp):.1f} degC)"
-                          for a, b in on))
+        print(
+            f"  sensor PS warning episodes: {len(on)}; cleared: "
+            + ", ".join(
+                f"{ts[min(b, ts.size - 1)]:.0f} s (plant PS then {np.interp(ts[min(b, ts.size - 1)], tp, Tp):.1f} degC)"
+                for a, b in on
+            )
+        )
         _ttl_report(tab, ref, out, sensor, "PS")
     if "long_haul" in cycles:
         tab, ref, out, *_ = plant_and_sensor(params, "long_haul")
         n = sum(int(np.any(out[f"W_{c}"] >= 1)) for c in PUBLISHED)
-        print(f"long_haul: components that ever warned: {n} (plant hottest "
-              f"{max(float(ref[f'T_{c}_c'].max()) for c in PUBLISHED):.1f} degC)")
+        print(
+            f"long_haul: components that ever warned: {n} (plant hottest "
+            f"{max(float(ref[f'T_{c}_c'].max()) for c in PUBLISHED):.1f} degC)"
+        )
 
 
 def _ttl_report(tab, ref, out, sensor, comp):
@@ -360,8 +443,13 @@ def _ttl_report(tab, ref, out, sensor, comp):
         seg = slice(i0, i1 + 1)
         gg, q, s = g[seg], tq[seg], sp[seg]
         mq, ms = np.mean(q), np.mean(s)
-        return (np.all(gg == gg[0]) and mq > 100 and np.all(np.abs(q - mq) <= 0.05 * abs(mq))
-                and np.all(np.abs(s - ms) <= 0.03 * ms))
+        return (
+            np.all(gg == gg[0])
+            and mq > 100
+            and np.all(np.abs(q - mq) <= 0.05 * abs(mq))
+            and np.all(np.abs(s - ms) <= 0.03 * ms)
+        )
+
     tp, Tp = ref["time_s"], ref[f"T_{comp}_c"]
     ts, ttl = out["time_s"], out[f"ttl_{comp}_s"]
     loose, strict, last = [], [], []
@@ -385,19 +473,25 @@ def _ttl_report(tab, ref, out, sensor, comp):
         if cand:
             last.append(cand[-1])
         prev_end = tp[min(b, tp.size - 1)]
-    for label, lst in (("steady 60 s before the prediction", loose),
-                       ("steady from 60 s before the prediction until the crossing", strict)):
+    for label, lst in (
+        ("steady 60 s before the prediction", loose),
+        ("steady from 60 s before the prediction until the crossing", strict),
+    ):
         if not lst:
             print(f"  time to limit, {label}: no such moment before a crossing in this cycle")
             continue
         e = np.array([x[2] for x in lst])
-        print(f"  time to limit, {label}: {len(lst)} predictions; |error| of the remaining time median "
-              f"{100 * np.median(np.abs(e)):.0f} %, within 20 % for {100 * np.mean(np.abs(e) <= 0.2):.0f} %")
+        print(
+            f"  time to limit, {label}: {len(lst)} predictions; |error| of the remaining time median "
+            f"{100 * np.median(np.abs(e)):.0f} %, within 20 % for {100 * np.mean(np.abs(e) <= 0.2):.0f} %"
+        )
     if loose:
         _held_oracle(tab, ref, out, sensor, comp, loose)
     for t_cross, t, e in last:
-        print(f"    last steady moment before the crossing at {t_cross:.0f} s: {t:.0f} s, predicted "
-              f"{t_cross + e * (t_cross - t):.0f} s ({100 * e:+.0f} % of the remaining {t_cross - t:.0f} s)")
+        print(
+            f"    last steady moment before the crossing at {t_cross:.0f} s: {t:.0f} s, predicted "
+            f"{t_cross + e * (t_cross - t):.0f} s ({100 * e:+.0f} % of the remaining {t_cross - t:.0f} s)"
+        )
     # a held steady load where the definition holds by construction
     params = sensor.params
     spec = "steady:gear=5,rpm=1400,nm=2600,s=1200"
@@ -407,13 +501,18 @@ def _ttl_report(tab, ref, out, sensor, comp):
     fed = tab2.copy()
     fed["oil_temp_c"] = np.interp(tab2["time_s"], res.table["time_s"], res.table["oil_temp_c"])
     o2 = replay_table(fed, VirtualSensor(params))
-    tc = float(np.interp(w, res.table[f"T_{comp}_c"], res.table["time_s"])) if res.table[f"T_{comp}_c"].max() >= w \
+    tc = (
+        float(np.interp(w, res.table[f"T_{comp}_c"], res.table["time_s"]))
+        if res.table[f"T_{comp}_c"].max() >= w
         else math.nan
+    )
     for t in (60.0, 120.0):
         j = int(np.searchsorted(o2["time_s"], t))
         pred = t + o2[f"ttl_{comp}_s"][j]
-        print(f"  {spec} from 90 degC, plant {comp} crosses {w:g} degC at {tc:.1f} s; predicted at {t:.0f} s: "
-              f"{pred:.1f} s (error {100 * (pred - tc) / (tc - t):+.1f} % of the remaining time)")
+        print(
+            f"  {spec} from 90 degC, plant {comp} crosses {w:g} degC at {tc:.1f} s; predicted at {t:.0f} s: "
+            f"{pred:.1f} s (error {100 * (pred - tc) / (tc - t):+.1f} % of the remaining time)"
+        )
 
 
 def _held_oracle(tab, ref, out, sensor, comp, moments):
@@ -433,10 +532,14 @@ def _held_oracle(tab, ref, out, sensor, comp, moments):
         cols = {}
         for c in tab.columns:
             a = np.asarray(tab[c], dtype=float)
-            cols[c] = np.concatenate([a[:i + 1], (t_in[i] + 0.1 * np.arange(1, n_tail + 1)) if c == "time_s"
-                                      else np.full(n_tail, a[i])])
-        held = ReferencePlant(sensor.params, cooler="liquid").run(
-            RunTable(cols, meta=tab.meta), initial_temp_c=tab.meta.get("initial_temp_c")).table
+            cols[c] = np.concatenate(
+                [a[: i + 1], (t_in[i] + 0.1 * np.arange(1, n_tail + 1)) if c == "time_s" else np.full(n_tail, a[i])]
+            )
+        held = (
+            ReferencePlant(sensor.params, cooler="liquid")
+            .run(RunTable(cols, meta=tab.meta), initial_temp_c=tab.meta.get("initial_temp_c"))
+            .table
+        )
         tt, TT = held["time_s"], held[f"T_{comp}_c"]
         after = np.flatnonzero((tt >= t) & (TT >= w))
         if after.size == 0:
@@ -447,16 +550,24 @@ def _held_oracle(tab, ref, out, sensor, comp, moments):
         t_held = float(np.interp(w, [TT[k - 1], TT[k]], [tt[k - 1], tt[k]])) if TT[k - 1] < w else float(tt[k])
         errs.append((t + pred - t_held) / max(t_held - t, 1e-9))
     e = np.abs(np.array(errs))
-    print(f"  time to limit against the plant with the inputs held from each of those {len(moments)} moments "
-          f"({time.process_time() - c0:.0f} s of plant runs): {len(errs)} held runs crossed"
-          + (f", median |error| {100 * np.median(e):.1f} % of the remaining time, within 20 % for "
-             f"{100 * np.mean(e <= 0.2):.0f} %, worst {100 * e.max():.0f} %" if errs else "")
-          + f"; {missing} never crossed within max(3 x the prediction, 600 s), although the sensor predicted a "
-            f"crossing" * bool(missing))
+    print(
+        f"  time to limit against the plant with the inputs held from each of those {len(moments)} moments "
+        f"({time.process_time() - c0:.0f} s of plant runs): {len(errs)} held runs crossed"
+        + (
+            f", median |error| {100 * np.median(e):.1f} % of the remaining time, within 20 % for "
+            f"{100 * np.mean(e <= 0.2):.0f} %, worst {100 * e.max():.0f} %"
+            if errs
+            else ""
+        )
+        + f"; {missing} never crossed within max(3 x the prediction, 600 s), although the sensor predicted a "
+        f"crossing" * bool(missing)
+    )
     if peaks:
-        print(f"    in those {missing} held runs the plant's {comp} peaks at {min(peaks):.2f}..{max(peaks):.2f} degC, "
-              f"{w - max(peaks):.2f}..{w - min(peaks):.2f} K under the {w:g} degC limit: the predicted approach is "
-              f"asymptotic there, so a sub-kelvin model error decides whether and when it crosses")
+        print(
+            f"    in those {missing} held runs the plant's {comp} peaks at {min(peaks):.2f}..{max(peaks):.2f} degC, "
+            f"{w - max(peaks):.2f}..{w - min(peaks):.2f} K under the {w:g} degC limit: the predicted approach is "
+            f"asymptotic there, so a sub-kelvin model error decides whether and when it crosses"
+        )
 
 
 def main():
@@ -473,7 +584,7 @@ def main():
     print(f"onboard sensor benchmark: {params.variant}, python {sys.version.split()[0]}, numpy {np.__version__}")
     if args.only in (None, "accuracy"):
         section_accuracy(params, cycles, args.per_component)
-    if args.only == "partitions":            # slow (a few minutes): not part of the default run
+    if args.only == "partitions":  # slow (a few minutes): not part of the default run
         section_partitions(params, cycles)
     if args.only in (None, "speed"):
         section_speed(params, args.batch_vehicles, args.batch_steps, args.full_batch)

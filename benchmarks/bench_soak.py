@@ -8,6 +8,7 @@ rejected; steps = 10 per second of traffic; no drift).
     python benchmarks/bench_soak.py --hours 24      # the issue's day (about 4 h of wall time here: a core's worth)
     python benchmarks/bench_soak.py --hours 1       # a quick check
 """
+
 from __future__ import annotations
 
 import argparse
@@ -46,6 +47,7 @@ def hour_of_frames(seed: int):
     """One hour of the long-haul cycle's J1939 inputs (the plant's oil in TRF1)."""
     from firmware_model.parameters import load_parameters
     from tools.plant.reference import ReferencePlant
+
     cyc = get_cycle("long_haul", seed=seed)
     plant = ReferencePlant(load_parameters("GRS905")).run(cyc, progress=False).table
     return synth_frames(cyc, plant, seed=seed, rig=False).frames
@@ -54,9 +56,18 @@ def hour_of_frames(seed: int):
 def filler(t0: float, t1: float, k: int):
     """``FILLER_PER_FRAME`` frames of other nodes spread between two input frames."""
     import can
+
     dt = (t1 - t0) / (FILLER_PER_FRAME + 1)
-    return [can.Message(timestamp=t0 + dt * (i + 1), arbitration_id=FILLER_IDS[(k + i) % len(FILLER_IDS)],
-                        is_extended_id=True, data=bytes(8), check=False) for i in range(FILLER_PER_FRAME)]
+    return [
+        can.Message(
+            timestamp=t0 + dt * (i + 1),
+            arbitration_id=FILLER_IDS[(k + i) % len(FILLER_IDS)],
+            is_extended_id=True,
+            data=bytes(8),
+            check=False,
+        )
+        for i in range(FILLER_PER_FRAME)
+    ]
 
 
 def main() -> None:
@@ -86,18 +97,23 @@ def main() -> None:
             for f in filler(m.timestamp, t_next, k):
                 frames_out += len(service.feed(f))
             service.finish_pending()
-            clock["t"] = m.timestamp          # frame time as the gateway's wall clock (accelerated)
+            clock["t"] = m.timestamp  # frame time as the gateway's wall clock (accelerated)
             store.maybe_save(service)
             health.maybe_write(service, store)
         c = service.counters
         d = service.decoder.counters
-        print(f"hour {h + 1}: RSS {rss_mb():.1f} MB, steps {c['steps']}, frames seen {d['frames_seen']} "
-              f"(used {d['frames_used']}, rejected {sum(d['rejected'].values())}), frames out {frames_out}, "
-              f"time jumps {c['time_jumps']}, state saves {store.counters['saves']}, "
-              f"wall {time.perf_counter() - wall0:.0f} s", flush=True)
+        print(
+            f"hour {h + 1}: RSS {rss_mb():.1f} MB, steps {c['steps']}, frames seen {d['frames_seen']} "
+            f"(used {d['frames_used']}, rejected {sum(d['rejected'].values())}), frames out {frames_out}, "
+            f"time jumps {c['time_jumps']}, state saves {store.counters['saves']}, "
+            f"wall {time.perf_counter() - wall0:.0f} s",
+            flush=True,
+        )
     hours = int(a.hours + 0.999)
-    print(f"{hours} h of traffic in {time.perf_counter() - wall0:.0f} s of wall time "
-          f"({hours * 3600 / (time.perf_counter() - wall0):.1f}x real time)")
+    print(
+        f"{hours} h of traffic in {time.perf_counter() - wall0:.0f} s of wall time "
+        f"({hours * 3600 / (time.perf_counter() - wall0):.1f}x real time)"
+    )
 
 
 if __name__ == "__main__":

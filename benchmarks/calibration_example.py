@@ -6,6 +6,7 @@ share 0.7 and the cooler's flow exponent 0.65; two 10-minute training runs and o
 
     python benchmarks/calibration_example.py [--out docs/calibration]
 """
+
 from __future__ import annotations
 
 import argparse
@@ -25,9 +26,16 @@ def main(argv=None) -> int:
     from tools.cli import main as cli
     from tools.diagnosis.bench import make_scenario
     from tools.runtable import write_run_table
+
     p = load_parameters("GRS905")
-    truth = p.with_overrides({"oil_system.flow_m3_per_rad": 1.6 * p["oil_system.flow_m3_per_rad"],
-                              "wheel.side_width_in_frac": 0.4, "housing.hot_frac": 0.7, "cooler.exp_inner": 0.65})
+    truth = p.with_overrides(
+        {
+            "oil_system.flow_m3_per_rad": 1.6 * p["oil_system.flow_m3_per_rad"],
+            "wheel.side_width_in_frac": 0.4,
+            "housing.hot_frac": 0.7,
+            "cooler.exp_inner": 0.65,
+        }
+    )
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
         sc = make_scenario(2, 7, "rig", None, None, truth, train_s=600.0, test_s=600.0)
@@ -37,11 +45,25 @@ def main(argv=None) -> int:
             write_run_table(tb, d / name)
         out = Path(args.out).resolve()
         import os
+
         cwd = os.getcwd()
-        os.chdir(d)              # the report names the files as given
+        os.chdir(d)  # the report names the files as given
         try:
-            return cli(["calibrate", "--train", "train1.csv", "train2.csv", "--test", "test1.csv", "--auto",
-                        "--out", str(d / "my_gearbox.toml"), "--report", str(out / "report.md")])
+            return cli(
+                [
+                    "calibrate",
+                    "--train",
+                    "train1.csv",
+                    "train2.csv",
+                    "--test",
+                    "test1.csv",
+                    "--auto",
+                    "--out",
+                    str(d / "my_gearbox.toml"),
+                    "--report",
+                    str(out / "report.md"),
+                ]
+            )
         finally:
             os.chdir(cwd)
 

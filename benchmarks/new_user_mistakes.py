@@ -8,6 +8,7 @@ the first sentence said about the mistake. None may exit 0 with wrong numbers.
 
     python benchmarks/new_user_mistakes.py [--captures DIR] [--keep DIR]
 """
+
 from __future__ import annotations
 
 import argparse
@@ -29,8 +30,9 @@ REF_TORQUE_NM = 2400.0
 
 
 def cli(*args: str, timeout_s: float = 600.0) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "tools.cli", *args], cwd=REPO, capture_output=True, text=True,
-                          timeout=timeout_s)
+    return subprocess.run(
+        [sys.executable, "-m", "tools.cli", *args], cwd=REPO, capture_output=True, text=True, timeout=timeout_s
+    )
 
 
 def rewrite_table(src: Path, dst: Path, column: str, fn, rows: int | None = None) -> None:
@@ -79,10 +81,12 @@ def table_cases(work: Path, drive: Path) -> list[tuple[str, str, Path]]:
         rewrite_table(drive, degf, "oil_temp_c", lambda c: c * 1.8 + 32.0, rows)
         cases.append((label, "oil in degF", degf))
     short = work / "drive_720.csv"
-    for mistake, column, fn in (("oil in kelvin", "oil_temp_c", lambda c: c + 273.15),
-                                ("torque sign flipped", "engine_torque_nm", lambda t: -t),
-                                ("torque in percent", "engine_torque_nm", lambda t: 100.0 * t / REF_TORQUE_NM),
-                                ("speed in rad/s", "engine_speed_rpm", lambda n: n * RAD_S_PER_RPM)):
+    for mistake, column, fn in (
+        ("oil in kelvin", "oil_temp_c", lambda c: c + 273.15),
+        ("torque sign flipped", "engine_torque_nm", lambda t: -t),
+        ("torque in percent", "engine_torque_nm", lambda t: 100.0 * t / REF_TORQUE_NM),
+        ("speed in rad/s", "engine_speed_rpm", lambda n: n * RAD_S_PER_RPM),
+    ):
         for label, src in (("12 min", short), ("2 h (bundled)", drive)):
             dst = work / f"{column}_{len(cases)}.csv"
             rewrite_table(src, dst, column, fn)
@@ -103,8 +107,12 @@ def log_cases(work: Path, logs: dict[str, Path]) -> list[tuple[str, str, Path]]:
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--captures", type=Path, default=os.environ.get("GVS_REAL_J1939"),
-                    help="directory holding normal.candump.log (a real truck capture); default $GVS_REAL_J1939")
+    ap.add_argument(
+        "--captures",
+        type=Path,
+        default=os.environ.get("GVS_REAL_J1939"),
+        help="directory holding normal.candump.log (a real truck capture); default $GVS_REAL_J1939",
+    )
     ap.add_argument("--keep", type=Path, help="keep the spoiled files in this directory")
     args = ap.parse_args()
     work = args.keep or Path(tempfile.mkdtemp(prefix="gvs_mistakes_"))

@@ -12,26 +12,86 @@ its own (python-can, cantools and the standard library; nothing of the sensor). 
 
 See docs/can.md.
 """
+
 from __future__ import annotations
 
-from can_dbc.dbc import (DBC_NAME, ComponentSignal, SignalLayout, default_source, fill_mask, load_database,
-                         message_id, message_pgn, numbered_messages, published_components)
-from can_dbc.decoder import (DEFAULT_LIMITS, INPUT_SPNS, REJECT_REASONS, SIGNAL_NAMES, J1939Decoder, LatestValues,
-                             SignalUpdate, message_names, signal_messages)
+from can_dbc.dbc import (
+    DBC_NAME,
+    ComponentSignal,
+    SignalLayout,
+    default_source,
+    fill_mask,
+    load_database,
+    message_id,
+    message_pgn,
+    numbered_messages,
+    published_components,
+)
+from can_dbc.decoder import (
+    DEFAULT_LIMITS,
+    INPUT_SPNS,
+    REJECT_REASONS,
+    SIGNAL_NAMES,
+    J1939Decoder,
+    LatestValues,
+    SignalUpdate,
+    message_names,
+    signal_messages,
+)
 from can_dbc.encoder import STATUS_KEYS, OutputEncoder, RigEncoder, encode_rig
 from can_dbc.errors import CanDbcError, ConfigError, DecodeError, EncodeError
-from can_dbc.j1939 import (EC1_PGN, GLOBAL_ADDRESS, RC_PGN, can_id_of, destination_address, pgn_of, priority,
-                           receive_filter, source_address, with_source)
+from can_dbc.j1939 import (
+    EC1_PGN,
+    GLOBAL_ADDRESS,
+    RC_PGN,
+    can_id_of,
+    destination_address,
+    pgn_of,
+    priority,
+    receive_filter,
+    source_address,
+    with_source,
+)
 from can_dbc.readback import decode_outputs, decode_rig
 
 __all__ = [
-    "DBC_NAME", "ComponentSignal", "SignalLayout", "default_source", "fill_mask", "load_database", "message_id",
-    "message_pgn", "numbered_messages", "published_components",
-    "DEFAULT_LIMITS", "INPUT_SPNS", "REJECT_REASONS", "SIGNAL_NAMES", "J1939Decoder", "LatestValues", "SignalUpdate",
-    "message_names", "signal_messages",
-    "STATUS_KEYS", "OutputEncoder", "RigEncoder", "encode_rig",
-    "CanDbcError", "ConfigError", "DecodeError", "EncodeError",
-    "EC1_PGN", "GLOBAL_ADDRESS", "RC_PGN", "can_id_of", "destination_address", "pgn_of", "priority", "receive_filter",
-    "source_address", "with_source",
-    "decode_outputs", "decode_rig",
+    "DBC_NAME",
+    "ComponentSignal",
+    "SignalLayout",
+    "default_source",
+    "fill_mask",
+    "load_database",
+    "message_id",
+    "message_pgn",
+    "numbered_messages",
+    "published_components",
+    "DEFAULT_LIMITS",
+    "INPUT_SPNS",
+    "REJECT_REASONS",
+    "SIGNAL_NAMES",
+    "J1939Decoder",
+    "LatestValues",
+    "SignalUpdate",
+    "message_names",
+    "signal_messages",
+    "STATUS_KEYS",
+    "OutputEncoder",
+    "RigEncoder",
+    "encode_rig",
+    "CanDbcError",
+    "ConfigError",
+    "DecodeError",
+    "EncodeError",
+    "EC1_PGN",
+    "GLOBAL_ADDRESS",
+    "RC_PGN",
+    "can_id_of",
+    "destination_address",
+    "pgn_of",
+    "priority",
+    "receive_filter",
+    "source_address",
+    "with_source",
+    "decode_outputs",
+    "decode_rig",
 ]

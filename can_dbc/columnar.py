@@ -9,16 +9,25 @@ itself (:meth:`~can_dbc.decoder.J1939Decoder.dispatch`): the TP.CM/TP.DT frames 
 reassembled from them. The decoder passed in ends in the state and with the counters the frame-by-frame path
 leaves (``tests/firmware_model/test_columnar.py`` holds the two equal, real captures and hostile traffic included).
 """
+
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass
-from typing import Iterable, NamedTuple
+from typing import NamedTuple
 
 import numpy as np
 
 from can_dbc.decoder import DERIVED_NM, REJECT_REASONS, J1939Decoder, LatestValues
-from can_dbc.j1939 import ID_MAX, PDU2_MIN_PF, PGN_MAX, RAW8_ERROR, RAW8_NOT_AVAILABLE, RAW16_ERROR_MIN, \
-    RAW16_NOT_AVAILABLE_MIN
+from can_dbc.j1939 import (
+    ID_MAX,
+    PDU2_MIN_PF,
+    PGN_MAX,
+    RAW8_ERROR,
+    RAW8_NOT_AVAILABLE,
+    RAW16_ERROR_MIN,
+    RAW16_NOT_AVAILABLE_MIN,
+)
 
 #: FrameColumns.flags bits
 FLAG_EXTENDED, FLAG_ERROR, FLAG_REMOTE, FLAG_FD = 1, 2, 4, 8
@@ -34,6 +43,7 @@ class FrameColumns:
     """The frames of a log as arrays, in file order: ``timestamp_s`` (float64), ``can_id`` (int64, the arbitration
     id as read), ``flags`` (FLAG_* bits), ``dlc``, ``length`` (data bytes), ``data`` (N x 8 uint8: the first 8 data
     bytes, zero-padded)."""
+
     timestamp_s: np.ndarray
     can_id: np.ndarray
     flags: np.ndarray
@@ -45,36 +55,55 @@ class FrameColumns:
         return int(self.timestamp_s.shape[0])
 
     @classmethod
-    def from_messages(cls, msgs: Iterable) -> "FrameColumns":
+    def from_messages(cls, msgs: Iterable) -> FrameColumns:
         """Columns of ``can.Message`` objects (python-can's readers, a list in a test)."""
         t, ids, flags, dlc, length, rows = [], [], [], [], [], []
         for m in msgs:
             t.append(m.timestamp)
             ids.append(m.arbitration_id)
-            flags.append(FLAG_EXTENDED * bool(m.is_extended_id) | FLAG_ERROR * bool(m.is_error_frame)
-                         | FLAG_REMOTE * bool(m.is_remote_frame) | FLAG_FD * bool(m.is_fd))
+            flags.append(
+                FLAG_EXTENDED * bool(m.is_extended_id)
+                | FLAG_ERROR * bool(m.is_error_frame)
+                | FLAG_REMOTE * bool(m.is_remote_frame)
+                | FLAG_FD * bool(m.is_fd)
+            )
             dlc.append(m.dlc)
             d = bytes(m.data or b"")
             length.append(len(d))
             rows.append(d[:8].ljust(8, b"\0"))
         n = len(t)
         data = np.frombuffer(b"".join(rows), dtype=np.uint8).reshape(n, 8) if n else np.zeros((0, 8), np.uint8)
-        return cls(np.array(t, dtype=float), np.array(ids, dtype=np.int64), np.array(flags, dtype=np.uint8),
-                   np.array(dlc, dtype=np.int64), np.array(length, dtype=np.int64), data.copy())
+        return cls(
+            np.array(t, dtype=float),
+            np.array(ids, dtype=np.int64),
+            np.array(flags, dtype=np.uint8),
+            np.array(dlc, dtype=np.int64),
+            np.array(length, dtype=np.int64),
+            data.copy(),
+        )
 
     def message(self, i: int):
         """Frame ``i`` as a ``can.Message`` (for the rare frames decoded one by one)."""
         import can
+
         f = int(self.flags[i])
         n = int(min(self.length[i], 8))
-        return can.Message(timestamp=float(self.timestamp_s[i]), arbitration_id=int(self.can_id[i]),
-                           is_extended_id=bool(f & FLAG_EXTENDED), is_error_frame=bool(f & FLAG_ERROR),
-                           is_remote_frame=bool(f & FLAG_REMOTE), is_fd=bool(f & FLAG_FD), dlc=int(self.dlc[i]),
-                           data=bytes(self.data[i, :n]), check=False)
+        return can.Message(
+            timestamp=float(self.timestamp_s[i]),
+            arbitration_id=int(self.can_id[i]),
+            is_extended_id=bool(f & FLAG_EXTENDED),
+            is_error_frame=bool(f & FLAG_ERROR),
+            is_remote_frame=bool(f & FLAG_REMOTE),
+            is_fd=bool(f & FLAG_FD),
+            dlc=int(self.dlc[i]),
+            data=bytes(self.data[i, :n]),
+            check=False,
+        )
 
 
 class SignalTrack(NamedTuple):
     """Every value a signal received, in file order: the frame's index, its timestamp and the value."""
+
     frame: np.ndarray
     time_s: np.ndarray
     value: np.ndarray
@@ -85,6 +114,7 @@ class DecodedColumns(NamedTuple):
     frames from its expected source (the decoder's ``arrivals``, frame by frame); the index of each frame that
     completed an EC1 and its reference torque; each frame's reason code (0 used, else :data:`REASON_CODES`); the
     index of each frame that completed an RC and the retarder's reference torque."""
+
     tracks: dict
     arrivals: dict
     ec1_frame: np.ndarray
@@ -127,10 +157,14 @@ def frame_reasons(cols: FrameColumns) -> np.ndarray:
     flags, can_id = cols.flags, cols.can_id
     reason = np.zeros(len(cols), dtype=np.int8)
     taken = np.zeros(len(cols), dtype=bool)
-    for name, hit in (("bad_timestamp", ~np.isfinite(cols.timestamp_s)), ("error_frame", (flags & FLAG_ERROR) != 0),
-                      ("remote_frame", (flags & FLAG_REMOTE) != 0),
-                      ("not_extended_id", (flags & FLAG_EXTENDED) == 0),
-                      ("invalid_id", (can_id < 0) | (can_id > ID_MAX)), ("fd_frame", (flags & FLAG_FD) != 0)):
+    for name, hit in (
+        ("bad_timestamp", ~np.isfinite(cols.timestamp_s)),
+        ("error_frame", (flags & FLAG_ERROR) != 0),
+        ("remote_frame", (flags & FLAG_REMOTE) != 0),
+        ("not_extended_id", (flags & FLAG_EXTENDED) == 0),
+        ("invalid_id", (can_id < 0) | (can_id > ID_MAX)),
+        ("fd_frame", (flags & FLAG_FD) != 0),
+    ):
         mask = hit & ~taken
         reason[mask] = REASON_CODES[name]
         taken |= mask
@@ -269,9 +303,11 @@ def _route(dec: _Decoding, pgn: int, key: str, params: tuple, refs: dict) -> Non
             value = np.trunc(value)
         dec.add_track(p.name, idx[used], value[used])
         if p.derived:
-            ref = _ref_at(idx[used], *refs["engine_ref_torque_nm"], decoder.configured_ref_torque_nm) \
-                if p.name == "engine_torque_pct" \
+            ref = (
+                _ref_at(idx[used], *refs["engine_ref_torque_nm"], decoder.configured_ref_torque_nm)
+                if p.name == "engine_torque_pct"
                 else _ref_at(idx[used], *refs["retarder_ref_torque_nm"], decoder.retarder_ref_torque_nm)
+            )
             have = np.isfinite(ref)
             dec.add_track(DERIVED_NM[p.name], idx[used][have], value[used][have] / 100.0 * ref[have])
     codes = np.array([REASON_CODES[r] for r in _VALUE_REASONS], dtype=np.int8)
@@ -303,5 +339,16 @@ def decode_columns(cols: FrameColumns, decoder: J1939Decoder) -> DecodedColumns:
     return DecodedColumns(dec.tracks(), arrivals, ec1[0], ec1[1], dec.reason, rc[0], rc[1])
 
 
-__all__ = ["FLAG_ERROR", "FLAG_EXTENDED", "FLAG_FD", "FLAG_REMOTE", "REASON_CODES", "DecodedColumns",
-           "FrameColumns", "SignalTrack", "decode_columns", "frame_reasons", "pgn_keys"]
+__all__ = [
+    "FLAG_ERROR",
+    "FLAG_EXTENDED",
+    "FLAG_FD",
+    "FLAG_REMOTE",
+    "REASON_CODES",
+    "DecodedColumns",
+    "FrameColumns",
+    "SignalTrack",
+    "decode_columns",
+    "frame_reasons",
+    "pgn_keys",
+]

@@ -5,6 +5,7 @@ or sends comes from the DBC through this module. Per-component signals (GBX_TEMP
 name their component in the ``ComponentId`` signal attribute (``LI.teeth`` for ``T_LI_teeth``), so the DBC alone
 says which component a signal carries; :func:`published_components` is their order (GBX_TEMP_1..7).
 """
+
 from __future__ import annotations
 
 import functools
@@ -26,6 +27,7 @@ NOT_AVAILABLE = "not available"
 class SignalLayout(NamedTuple):
     """Where an unsigned little-endian signal sits in the 64-bit payload and how it scales (physical = raw x scale +
     offset)."""
+
     start_bit: int
     scale: float
     offset: float
@@ -33,6 +35,7 @@ class SignalLayout(NamedTuple):
 
 class ComponentSignal(NamedTuple):
     """A per-component signal: the component id (``ComponentId``), the DBC signal name and its layout."""
+
     component: str
     signal_name: str
     layout: SignalLayout
@@ -68,9 +71,8 @@ def message_id(name: str, source: int) -> int:
 
 def numbered_messages(prefix: str) -> tuple[str, ...]:
     """Names of the messages ``<prefix>1``, ``<prefix>2`` ... in the DBC, in number order."""
-    names = [m.name for m in load_database().messages
-             if m.name.startswith(prefix) and m.name[len(prefix):].isdigit()]
-    return tuple(sorted(names, key=lambda n: int(n[len(prefix):])))
+    names = [m.name for m in load_database().messages if m.name.startswith(prefix) and m.name[len(prefix) :].isdigit()]
+    return tuple(sorted(names, key=lambda n: int(n[len(prefix) :])))
 
 
 def signal_layout(message_name: str, signal_name: str, length: int) -> SignalLayout:

@@ -7,25 +7,52 @@ written here is only what a DBC cannot hold: the J1939-21 transport protocol (TP
 EC1 (PGN 65251) reassembled from it, SPN 544 in bytes 20-21, and RC (PGN 65249), SPN 556 in bytes 17-18 (constants
 in ``can_dbc.j1939``). See docs/can.md.
 """
+
 from __future__ import annotations
 
 import functools
 import math
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
-from typing import Iterable, Mapping, NamedTuple
+from typing import NamedTuple
 
 import can
 
 from can_dbc import dbc
 from can_dbc.errors import ConfigError, DecodeError
-from can_dbc.j1939 import (EC1_MIN_SIZE_BYTES, EC1_PGN, EC1_REF_TORQUE_BYTE0, GLOBAL_ADDRESS, ID_MAX,
-                           RAW8_DATA_MAX, RAW16_DATA_MAX, RC_MIN_SIZE_BYTES, RC_PGN, RC_REF_TORQUE_BYTE0, TP_BAM_CONTROL, TP_DT_DATA_BYTES, TP_MAX_SIZE_BYTES,
-                           TP_TIMEOUT_S, check_source_address, pdu_specific, pgn_key, raw_reason,
-                           source_key)
+from can_dbc.j1939 import (
+    EC1_MIN_SIZE_BYTES,
+    EC1_PGN,
+    EC1_REF_TORQUE_BYTE0,
+    GLOBAL_ADDRESS,
+    ID_MAX,
+    RAW8_DATA_MAX,
+    RAW16_DATA_MAX,
+    RC_MIN_SIZE_BYTES,
+    RC_PGN,
+    RC_REF_TORQUE_BYTE0,
+    TP_BAM_CONTROL,
+    TP_DT_DATA_BYTES,
+    TP_MAX_SIZE_BYTES,
+    TP_TIMEOUT_S,
+    check_source_address,
+    pdu_specific,
+    pgn_key,
+    raw_reason,
+    source_key,
+)
 
 #: SPN -> decoder signal name of every J1939 parameter the sensor uses (message, PGN, position, scaling: the DBC)
-INPUT_SPNS = {190: "engine_speed_rpm", 513: "engine_torque_pct", 523: "gear", 177: "oil_temp_c",
-              110: "coolant_temp_c", 171: "ambient_temp_c", 84: "vehicle_speed_kmh", 520: "retarder_torque_pct"}
+INPUT_SPNS = {
+    190: "engine_speed_rpm",
+    513: "engine_torque_pct",
+    523: "gear",
+    177: "oil_temp_c",
+    110: "coolant_temp_c",
+    171: "ambient_temp_c",
+    84: "vehicle_speed_kmh",
+    520: "retarder_torque_pct",
+}
 #: decoder signals emitted as int
 INTEGER_SIGNALS = frozenset({"gear"})
 #: percent torque -> the torque in Nm derived from it (engine: x reference torque, retarder: x its reference)
@@ -36,23 +63,34 @@ RC_KEY = "RC"
 RIG_KEY = "RIG"
 RIG_PREFIX = "RIG_TC_"
 #: what J1939Decoder can emit (plus meas_T_<id>_c when rig decoding is on)
-SIGNAL_NAMES = ("engine_speed_rpm", "engine_torque_pct", "engine_torque_nm", "engine_ref_torque_nm", "gear",
-                "oil_temp_c", "coolant_temp_c", "ambient_temp_c", "vehicle_speed_kmh", "retarder_torque_pct",
-                "retarder_torque_nm", "retarder_ref_torque_nm")
+SIGNAL_NAMES = (
+    "engine_speed_rpm",
+    "engine_torque_pct",
+    "engine_torque_nm",
+    "engine_ref_torque_nm",
+    "gear",
+    "oil_temp_c",
+    "coolant_temp_c",
+    "ambient_temp_c",
+    "vehicle_speed_kmh",
+    "retarder_torque_pct",
+    "retarder_torque_nm",
+    "retarder_ref_torque_nm",
+)
 
 #: plausibility limits applied after the J1939 range check (inclusive); overridable with ``limits=``.
 #: Provenance: J1939 = the SPN's data range (no extra restriction); plausible = assumed for a truck gearbox.
 DEFAULT_LIMITS = {
-    "engine_speed_rpm": (0.0, 8031.875),         # J1939 SPN 190
-    "engine_torque_pct": (-125.0, 125.0),        # J1939 SPN 513
-    "gear": (-125, 125),                         # J1939 SPN 523 (251 park is rejected as out of range)
-    "oil_temp_c": (-60.0, 250.0),                # plausible: a gearbox sump, well outside normal use
-    "coolant_temp_c": (-40.0, 210.0),            # J1939 SPN 110
-    "ambient_temp_c": (-60.0, 100.0),            # plausible: ambient air, a hot engine bay included
-    "vehicle_speed_kmh": (0.0, 250.99609375),    # J1939 SPN 84
-    "retarder_torque_pct": (-125.0, 125.0),      # J1939 SPN 520
-    "engine_ref_torque_nm": (1.0, 64255.0),      # J1939 SPN 544, 0 Nm would make every torque 0
-    "retarder_ref_torque_nm": (1.0, 64255.0),    # J1939 SPN 556, as SPN 544
+    "engine_speed_rpm": (0.0, 8031.875),  # J1939 SPN 190
+    "engine_torque_pct": (-125.0, 125.0),  # J1939 SPN 513
+    "gear": (-125, 125),  # J1939 SPN 523 (251 park is rejected as out of range)
+    "oil_temp_c": (-60.0, 250.0),  # plausible: a gearbox sump, well outside normal use
+    "coolant_temp_c": (-40.0, 210.0),  # J1939 SPN 110
+    "ambient_temp_c": (-60.0, 100.0),  # plausible: ambient air, a hot engine bay included
+    "vehicle_speed_kmh": (0.0, 250.99609375),  # J1939 SPN 84
+    "retarder_torque_pct": (-125.0, 125.0),  # J1939 SPN 520
+    "engine_ref_torque_nm": (1.0, 64255.0),  # J1939 SPN 544, 0 Nm would make every torque 0
+    "retarder_ref_torque_nm": (1.0, 64255.0),  # J1939 SPN 556, as SPN 544
 }
 
 #: frame-level rejection reasons (counters["rejected"]); every rejected frame has exactly one of these
@@ -72,7 +110,7 @@ REJECT_REASONS = {
     "tp_not_broadcast": "TP.CM/TP.DT to a specific destination (RTS/CTS connection mode); only BAM is received",
     "tp_bad_control": "TP.CM to the global address with another control byte than BAM (32)",
     "tp_bad_announce": "a BAM announce with an inconsistent size/packet count, EC1 shorter than 21 bytes or RC "
-                       "shorter than 18",
+    "shorter than 18",
     "tp_other_pgn": "a BAM announce, or its TP.DT packets, of a PGN the sensor does not use",
     "tp_no_session": "a TP.DT packet with no open BAM transfer from its source address",
     "tp_sequence_error": "a TP.DT packet out of sequence; the transfer is aborted",
@@ -87,6 +125,7 @@ _PLAIN, _ENGINE_PCT, _RETARDER_PCT = 0, 1, 2
 
 class SignalUpdate(NamedTuple):
     """One decoded value: the frame's timestamp, a name from :data:`SIGNAL_NAMES`, the physical value."""
+
     timestamp_s: float
     name: str
     value: float
@@ -96,6 +135,7 @@ class SignalUpdate(NamedTuple):
 class LatestValues:
     """The latest value of every decoded signal and the frame time it came with; :meth:`J1939Decoder.feed_into`
     keeps it up to date (the service's per-frame path: no record per value)."""
+
     time_s: dict[str, float] = field(default_factory=dict)
     value: dict[str, float] = field(default_factory=dict)
 
@@ -110,6 +150,7 @@ class Param(NamedTuple):
     """One byte-aligned J1939 parameter of a single-frame message, ready for the per-frame path: its signal name,
     position, scaling, the plausibility limits (+-inf without), the largest raw data value and how it feeds a
     derived torque."""
+
     name: str
     byte0: int
     nbytes: int
@@ -125,6 +166,7 @@ class Param(NamedTuple):
 class InputMessage(NamedTuple):
     """A single-frame input message: its DBC name, PGN, default source address and the signals used from it as
     ``(signal name, cantools signal)``."""
+
     name: str
     pgn: int
     default_source: int
@@ -133,6 +175,7 @@ class InputMessage(NamedTuple):
 
 class _Route(NamedTuple):
     """What a PGN is decoded as: the ``expected_sa`` key checked and the parameters."""
+
     key: str
     params: tuple[Param, ...]
 
@@ -141,6 +184,7 @@ class _Route(NamedTuple):
 class _Bam:
     """An open TP.BAM transfer from one source address. ``reason`` None = ours (EC1, RC), else why its packets are
     not."""
+
     pgn: int
     size_bytes: int
     packets: int
@@ -157,8 +201,9 @@ def input_messages() -> tuple[InputMessage, ...]:
     for message in dbc.load_database().messages:
         used = tuple((INPUT_SPNS[s.spn], s) for s in message.signals if s.spn in INPUT_SPNS)
         if used:
-            out.append(InputMessage(message.name, dbc.message_pgn(message.name), dbc.default_source(message.name),
-                                    used))
+            out.append(
+                InputMessage(message.name, dbc.message_pgn(message.name), dbc.default_source(message.name), used)
+            )
     found = {name for m in out for name, _ in m.signals}
     if found != set(INPUT_SPNS.values()):
         raise DecodeError(f"the DBC lacks the SPNs of {sorted(set(INPUT_SPNS.values()) - found)}")
@@ -196,8 +241,9 @@ def _carries_data(params: tuple[Param, ...], data: bytearray) -> bool:
 
 
 def _check_ref_torque(field_name: str, value) -> float | None:
-    if value is not None and (isinstance(value, bool) or not isinstance(value, (int, float))
-                              or not (math.isfinite(value) and value > 0)):
+    if value is not None and (
+        isinstance(value, bool) or not isinstance(value, (int, float)) or not (math.isfinite(value) and value > 0)
+    ):
         raise ConfigError(f"{field_name} = {value!r} must be a positive number of Nm or None")
     return value
 
@@ -224,9 +270,15 @@ class J1939Decoder:
     address, when none came after, told from a second sender).
     """
 
-    def __init__(self, expected_sa: Mapping[str, int | None] | None = None,
-                 retarder_ref_torque_nm: float | None = None, configured_ref_torque_nm: float | None = None,
-                 *, limits: Mapping[str, tuple[float, float]] | None = None, rig: bool = False) -> None:
+    def __init__(
+        self,
+        expected_sa: Mapping[str, int | None] | None = None,
+        retarder_ref_torque_nm: float | None = None,
+        configured_ref_torque_nm: float | None = None,
+        *,
+        limits: Mapping[str, tuple[float, float]] | None = None,
+        rig: bool = False,
+    ) -> None:
         self.expected_sa: dict[str, int | None] = self._sources(expected_sa or {})
         self.retarder_ref_torque_nm = _check_ref_torque("retarder_ref_torque_nm", retarder_ref_torque_nm)
         self.configured_ref_torque_nm = _check_ref_torque("configured_ref_torque_nm", configured_ref_torque_nm)
@@ -237,8 +289,10 @@ class J1939Decoder:
         self.limits = dict(DEFAULT_LIMITS)
         for name, bounds in (limits or {}).items():
             if name not in DEFAULT_LIMITS or len(bounds) != 2 or not bounds[0] <= bounds[1]:
-                raise ConfigError(f"limits[{name!r}] = {bounds!r} must be (low, high) with low <= high for one "
-                                  f"of {', '.join(DEFAULT_LIMITS)}")
+                raise ConfigError(
+                    f"limits[{name!r}] = {bounds!r} must be (low, high) with low <= high for one "
+                    f"of {', '.join(DEFAULT_LIMITS)}"
+                )
             self.limits[name] = (bounds[0], bounds[1])
         self._tp_cm_pgn = dbc.message_pgn("TP_CM")
         self._tp_dt_pgn = dbc.message_pgn("TP_DT")
@@ -248,15 +302,24 @@ class J1939Decoder:
         if rig:
             for name in dbc.numbered_messages(RIG_PREFIX):
                 message = dbc.message(name)
-                params = tuple(self._param(name, message.get_signal_by_name(c.signal_name), f"meas_T_{c.component}_c")
-                               for c in dbc.component_signals(name, 16))
+                params = tuple(
+                    self._param(name, message.get_signal_by_name(c.signal_name), f"meas_T_{c.component}_c")
+                    for c in dbc.component_signals(name, 16)
+                )
                 self._routes[dbc.message_pgn(name)] = _Route(RIG_KEY, params)
         self._sessions: dict[int, _Bam] = {}
-        self.counters: dict = {"frames_seen": 0, "frames_used": 0, "rejected": {}, "signal_rejected": {},
-                               "tp": {"started": 0, "completed": 0, "aborted": 0, "ec1_received": 0,
-                                      "rc_received": 0},
-                               "arrivals": {}, "foreign_source": {}, "foreign_source_data": {}, "short_frames": {},
-                               "foreign_first_arrivals": {}}
+        self.counters: dict = {
+            "frames_seen": 0,
+            "frames_used": 0,
+            "rejected": {},
+            "signal_rejected": {},
+            "tp": {"started": 0, "completed": 0, "aborted": 0, "ec1_received": 0, "rc_received": 0},
+            "arrivals": {},
+            "foreign_source": {},
+            "foreign_source_data": {},
+            "short_frames": {},
+            "foreign_first_arrivals": {},
+        }
         self._arrivals: dict[str, int] = self.counters["arrivals"]
         self._arrivals.update({route.key: 0 for route in self._routes.values()})
 
@@ -265,27 +328,39 @@ class J1939Decoder:
         """The source address checked per message: the DBC's, overridden by ``expected_sa``."""
         source: dict[str, int | None] = {m.name: m.default_source for m in input_messages()}
         source[EC1_KEY] = dbc.default_source("TP_CM")
-        source[RC_KEY] = dbc.default_source("ERC1")     # the retarder's own configuration
+        source[RC_KEY] = dbc.default_source("ERC1")  # the retarder's own configuration
         source[RIG_KEY] = dbc.default_source(dbc.numbered_messages(RIG_PREFIX)[0])
         for name, value in expected_sa.items():
             if name not in source:
-                raise ConfigError(f"expected_sa[{name!r}] names no input message; use one of "
-                                  f"{', '.join(message_names())}")
+                raise ConfigError(
+                    f"expected_sa[{name!r}] names no input message; use one of {', '.join(message_names())}"
+                )
             source[name] = None if value is None else check_source_address(f"expected_sa[{name!r}]", value)
         return source
 
     def _param(self, message: str, signal, name: str) -> Param:
-        if (signal.byte_order != "little_endian" or signal.is_signed or signal.start % 8
-                or signal.length not in (8, 16)):
-            raise DecodeError(f"DBC signal {message}.{signal.name} must be a byte-aligned little-endian unsigned "
-                              f"8- or 16-bit J1939 parameter")
+        if signal.byte_order != "little_endian" or signal.is_signed or signal.start % 8 or signal.length not in (8, 16):
+            raise DecodeError(
+                f"DBC signal {message}.{signal.name} must be a byte-aligned little-endian unsigned "
+                f"8- or 16-bit J1939 parameter"
+            )
         low, high = self.limits.get(name, (-math.inf, math.inf))
         nbytes = signal.length // 8
-        derived = _ENGINE_PCT if name == "engine_torque_pct" else (_RETARDER_PCT if name == "retarder_torque_pct"
-                                                                   else _PLAIN)
-        return Param(name, signal.start // 8, nbytes, float(signal.scale), float(signal.offset),
-                     name in INTEGER_SIGNALS, float(low), float(high),
-                     RAW8_DATA_MAX if nbytes == 1 else RAW16_DATA_MAX, derived)
+        derived = (
+            _ENGINE_PCT if name == "engine_torque_pct" else (_RETARDER_PCT if name == "retarder_torque_pct" else _PLAIN)
+        )
+        return Param(
+            name,
+            signal.start // 8,
+            nbytes,
+            float(signal.scale),
+            float(signal.offset),
+            name in INTEGER_SIGNALS,
+            float(low),
+            float(high),
+            RAW8_DATA_MAX if nbytes == 1 else RAW16_DATA_MAX,
+            derived,
+        )
 
     # -- public ---------------------------------------------------------------------------------------------------
 
@@ -392,8 +467,9 @@ class J1939Decoder:
         per_signal = self.counters["signal_rejected"].setdefault(name, {})
         per_signal[reason] = per_signal.get(reason, 0) + 1
 
-    def _decode_params(self, params: tuple[Param, ...], data: bytearray, timestamp_s: float,
-                       latest: LatestValues) -> str | None:
+    def _decode_params(
+        self, params: tuple[Param, ...], data: bytearray, timestamp_s: float, latest: LatestValues
+    ) -> str | None:
         """Values of a single-frame message into ``latest``; None (used) or the worst reason no value was used.
         Runs for nearly every frame on the bus: the parameters are unpacked, not looked up."""
         times, values = latest.time_s, latest.value
@@ -458,8 +534,9 @@ class J1939Decoder:
         self.counters["tp"]["started"] += 1
         return reason
 
-    def _tp_dt(self, can_id: int, sa: int, data: bytearray, eight: bool, timestamp_s: float,
-               latest: LatestValues) -> str | None:
+    def _tp_dt(
+        self, can_id: int, sa: int, data: bytearray, eight: bool, timestamp_s: float, latest: LatestValues
+    ) -> str | None:
         if pdu_specific(can_id) != GLOBAL_ADDRESS:
             return "tp_not_broadcast"
         if not eight:
@@ -488,8 +565,11 @@ class J1939Decoder:
 
     def _reference(self, pgn: int, payload: bytearray, timestamp_s: float, latest: LatestValues) -> str | None:
         """A completed EC1 (SPN 544, engine) or RC (SPN 556, retarder): the reference torque, 1 Nm/bit."""
-        byte0, name, counter = ((EC1_REF_TORQUE_BYTE0, "engine_ref_torque_nm", "ec1_received") if pgn == EC1_PGN
-                                else (RC_REF_TORQUE_BYTE0, "retarder_ref_torque_nm", "rc_received"))
+        byte0, name, counter = (
+            (EC1_REF_TORQUE_BYTE0, "engine_ref_torque_nm", "ec1_received")
+            if pgn == EC1_PGN
+            else (RC_REF_TORQUE_BYTE0, "retarder_ref_torque_nm", "rc_received")
+        )
         raw = payload[byte0] | (payload[byte0 + 1] << 8)
         reason = raw_reason(raw, 2)
         if reason is None:

@@ -6,10 +6,12 @@ construction; :meth:`OutputEncoder.encode` then only packs integers (``test_fast
 checks it bit for bit against cantools). Written here: the J1939 rules for values that are not data (not
 available, clamping to the data range) and the J1939-73 DM1 policy (one DTC, lamps, occurrence count).
 """
+
 from __future__ import annotations
 
 import math
-from typing import Mapping, NamedTuple
+from collections.abc import Mapping
+from typing import NamedTuple
 
 import can
 
@@ -19,13 +21,29 @@ from can_dbc.j1939 import RAW16_DATA_MAX, RAW16_NOT_AVAILABLE, check_source_addr
 
 #: GBX_STATUS input keys; a missing key is sent as "not available" (max_warning_level: computed from levels,
 #: counter: the encoder's own rolling counter)
-STATUS_KEYS = ("speed_valid", "torque_valid", "gear_valid", "oil_valid", "ref_torque_valid", "degraded_mode",
-               "oil_innovation_c", "model_oil_temp_c", "max_warning_level", "counter", "time_base_suspect")
+STATUS_KEYS = (
+    "speed_valid",
+    "torque_valid",
+    "gear_valid",
+    "oil_valid",
+    "ref_torque_valid",
+    "degraded_mode",
+    "oil_innovation_c",
+    "model_oil_temp_c",
+    "max_warning_level",
+    "counter",
+    "time_base_suspect",
+)
 _STATUS_KEY_SET = frozenset(STATUS_KEYS)
 #: status key -> its two-bit GBX_STATUS signal
-STATUS_FLAG_SIGNALS = (("speed_valid", "SpeedValid"), ("torque_valid", "TorqueValid"), ("gear_valid", "GearValid"),
-                       ("oil_valid", "OilValid"), ("ref_torque_valid", "RefTorqueValid"),
-                       ("time_base_suspect", "TimeBaseSuspect"))
+STATUS_FLAG_SIGNALS = (
+    ("speed_valid", "SpeedValid"),
+    ("torque_valid", "TorqueValid"),
+    ("gear_valid", "GearValid"),
+    ("oil_valid", "OilValid"),
+    ("ref_torque_valid", "RefTorqueValid"),
+    ("time_base_suspect", "TimeBaseSuspect"),
+)
 #: warning level "not available" (two-bit J1939 state)
 LEVEL_NOT_AVAILABLE = 3
 #: DM1 (J1939-73): FMI per warning level (16 above normal, moderately severe; 0 above normal, most severe), the
@@ -90,12 +108,18 @@ def _flag(value: object, field: str) -> int:
 
 
 def _frame(can_id: int, payload: int, timestamp_s: float) -> can.Message:
-    return can.Message(timestamp=timestamp_s, arbitration_id=can_id, is_extended_id=True,
-                       data=payload.to_bytes(8, "little"), check=False)
+    return can.Message(
+        timestamp=timestamp_s,
+        arbitration_id=can_id,
+        is_extended_id=True,
+        data=payload.to_bytes(8, "little"),
+        check=False,
+    )
 
 
 class ComponentFrame(NamedTuple):
     """A per-component message ready for packing: its frame id, the bits no signal covers and its signals."""
+
     can_id: int
     fill_mask: int
     signals: tuple[dbc.ComponentSignal, ...]
@@ -103,8 +127,9 @@ class ComponentFrame(NamedTuple):
 
 def component_frame(name: str, source_address: int, length: int) -> ComponentFrame:
     """Message ``name`` sent by ``source_address``, with its ``length``-bit per-component signals."""
-    return ComponentFrame(dbc.message_id(name, source_address), dbc.fill_mask(name),
-                          dbc.component_signals(name, length))
+    return ComponentFrame(
+        dbc.message_id(name, source_address), dbc.fill_mask(name), dbc.component_signals(name, length)
+    )
 
 
 def component_frames(prefix: str, source_address: int, length: int = 16) -> tuple[ComponentFrame, ...]:
@@ -112,8 +137,9 @@ def component_frames(prefix: str, source_address: int, length: int = 16) -> tupl
     return tuple(component_frame(name, source_address, length) for name in dbc.numbered_messages(prefix))
 
 
-def _pack_temperatures(frames: tuple[ComponentFrame, ...], temps_c: Mapping[str, float | None],
-                       timestamp_s: float) -> list[can.Message]:
+def _pack_temperatures(
+    frames: tuple[ComponentFrame, ...], temps_c: Mapping[str, float | None], timestamp_s: float
+) -> list[can.Message]:
     out = []
     for can_id, fill, signals in frames:
         payload = fill
@@ -145,8 +171,9 @@ class OutputEncoder:
             if any((c.layout.scale, c.layout.offset) != (1.0, 0.0) for c in frame.signals):
                 raise DecodeError("DBC messages GBX_TTL_* must scale 1 s/bit with offset 0")
         first_ttl = self._ttl[0].signals[0].signal_name
-        self._ttl_never_raw = next(raw for raw, name in dbc.choices("GBX_TTL_1", first_ttl).items()
-                                   if name == TTL_NEVER)
+        self._ttl_never_raw = next(
+            raw for raw, name in dbc.choices("GBX_TTL_1", first_ttl).items() if name == TTL_NEVER
+        )
         self._warn = component_frame("GBX_WARN", self.source_address, 2)
         self._init_status()
         self._init_dm1()
@@ -154,8 +181,9 @@ class OutputEncoder:
     def _init_status(self) -> None:
         self._status_id = dbc.message_id("GBX_STATUS", self.source_address)
         self._status_fill = dbc.fill_mask("GBX_STATUS")
-        self._status_flags = tuple((key, dbc.signal_layout("GBX_STATUS", sig, 2).start_bit)
-                                   for key, sig in STATUS_FLAG_SIGNALS)
+        self._status_flags = tuple(
+            (key, dbc.signal_layout("GBX_STATUS", sig, 2).start_bit) for key, sig in STATUS_FLAG_SIGNALS
+        )
         self._max_level_start = dbc.signal_layout("GBX_STATUS", "MaxWarnLevel", 2).start_bit
         self._mode_start = dbc.signal_layout("GBX_STATUS", "DegradedMode", 4).start_bit
         self._innovation = dbc.signal_layout("GBX_STATUS", "OilInnovation", 16)
@@ -166,18 +194,32 @@ class OutputEncoder:
     def _init_dm1(self) -> None:
         self._dm1_id = dbc.message_id("GBX_DM1", self.source_address)
         self._dm1_fill = dbc.fill_mask("GBX_DM1") | (0xFF << 8)  # + byte 2: do not flash
-        self._dm1 = {sig: dbc.signal_layout("GBX_DM1", sig, length).start_bit for sig, length in (
-            ("AmberWarningLampStatus", 2), ("RedStopLampStatus", 2), ("DTC1_SPN_Low", 16), ("DTC1_FMI", 5),
-            ("DTC1_SPN_High", 3), ("DTC1_OccurrenceCount", 7))}
+        self._dm1 = {
+            sig: dbc.signal_layout("GBX_DM1", sig, length).start_bit
+            for sig, length in (
+                ("AmberWarningLampStatus", 2),
+                ("RedStopLampStatus", 2),
+                ("DTC1_SPN_Low", 16),
+                ("DTC1_FMI", 5),
+                ("DTC1_SPN_High", 3),
+                ("DTC1_OccurrenceCount", 7),
+            )
+        }
         #: the DTC SPN of each component: the SPN the DBC gives its GBX_TEMP signal
         temp_spns = {s.name: s.spn for name in dbc.numbered_messages("GBX_TEMP_") for s in dbc.message(name).signals}
         self.dm1_spns = {c.component: temp_spns[c.signal_name] for frame in self._temp for c in frame.signals}
         self._dm1_occurrences: dict[tuple[str, int], int] = {}
         self._dm1_active: set[tuple[str, int]] = set()
 
-    def encode(self, temps_c: Mapping[str, float | None], levels: Mapping[str, int | None],
-               ttl_s: Mapping[str, float | None], status: Mapping[str, object], *,
-               timestamp_s: float = 0.0) -> list[can.Message]:
+    def encode(
+        self,
+        temps_c: Mapping[str, float | None],
+        levels: Mapping[str, int | None],
+        ttl_s: Mapping[str, float | None],
+        status: Mapping[str, object],
+        *,
+        timestamp_s: float = 0.0,
+    ) -> list[can.Message]:
         """The 16 periodic frames: GBX_TEMP_1..7, GBX_WARN, GBX_TTL_1..7, GBX_STATUS.
 
         ``temps_c``: component -> degC, None/NaN when there is no valid estimate. ``levels``: 0 normal,
@@ -231,8 +273,14 @@ class OutputEncoder:
             raise EncodeError(f"status['counter'] = {counter!r} is not an integer 0..255 or None")
         return payload | (counter << self._counter_start)
 
-    def encode_dm1(self, levels: Mapping[str, int | None], *, missing_spn: int | None = None,
-                   timestamp_s: float = 0.0, implausible_spn: int | None = None) -> can.Message:
+    def encode_dm1(
+        self,
+        levels: Mapping[str, int | None],
+        *,
+        missing_spn: int | None = None,
+        timestamp_s: float = 0.0,
+        implausible_spn: int | None = None,
+    ) -> can.Message:
         """GBX_DM1 (J1939-73 DM1, single frame) with the most severe active component DTC; send at 1 s and on change.
 
         DTC: the SPN of the component's GBX_TEMP signal (520192 + published index), FMI 16 (warning) or 0
@@ -255,8 +303,15 @@ class OutputEncoder:
             if value is not None and not 0 < value < 1 << 19:
                 raise EncodeError(f"{name} = {value!r} is not a J1939 SPN 1..524287")
         keys = {(component, fmi) for _, _, component, fmi in active}
-        input_dtc = None if active else (missing_spn, DM1_FMI_MISSING) if missing_spn is not None else \
-            (implausible_spn, DM1_FMI_IMPLAUSIBLE) if implausible_spn is not None else None
+        input_dtc = (
+            None
+            if active
+            else (missing_spn, DM1_FMI_MISSING)
+            if missing_spn is not None
+            else (implausible_spn, DM1_FMI_IMPLAUSIBLE)
+            if implausible_spn is not None
+            else None
+        )
         if input_dtc is not None:
             keys = {input_dtc}
         for key in keys - self._dm1_active:
@@ -274,8 +329,12 @@ class OutputEncoder:
         elif input_dtc is not None:
             (spn, fmi), count = input_dtc, self._dm1_occurrences[input_dtc]
         if spn is not None:  # SPN conversion method 4 (CM bit 0): SPN bits 1-16, then bits 17-19 above the FMI
-            payload |= ((spn & 0xFFFF) << at["DTC1_SPN_Low"]) | (fmi << at["DTC1_FMI"]) \
-                | ((spn >> 16) << at["DTC1_SPN_High"]) | (count << at["DTC1_OccurrenceCount"])
+            payload |= (
+                ((spn & 0xFFFF) << at["DTC1_SPN_Low"])
+                | (fmi << at["DTC1_FMI"])
+                | ((spn >> 16) << at["DTC1_SPN_High"])
+                | (count << at["DTC1_OccurrenceCount"])
+            )
         return _frame(self._dm1_id, payload, timestamp_s)
 
 
@@ -293,7 +352,8 @@ class RigEncoder:
         return _pack_temperatures(self._frames, temps_c, timestamp_s)
 
 
-def encode_rig(temps_c: Mapping[str, float | None], source_address: int | None = None, *,
-               timestamp_s: float = 0.0) -> list[can.Message]:
+def encode_rig(
+    temps_c: Mapping[str, float | None], source_address: int | None = None, *, timestamp_s: float = 0.0
+) -> list[can.Message]:
     """RIG_TC_1..7 frames for one sample of rig thermocouple temperatures."""
     return RigEncoder(source_address).encode(temps_c, timestamp_s=timestamp_s)

@@ -4,6 +4,7 @@
 packages, so it has its own error types. They are ``ValueError``s; the CAN service (``firmware_model.service``)
 turns a :class:`ConfigError` from its configuration into the project's ``ParameterError``.
 """
+
 from __future__ import annotations
 
 

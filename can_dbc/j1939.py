@@ -11,6 +11,7 @@
 - Transport protocol (J1939-21 TP.BAM), EC1 (J1939-71 PGN 65251) and RC (PGN 65249), reassembled from it: the
   constants the decoder and the log synthesis share. The TP.CM and TP.DT PGNs themselves are read from the DBC (``can_dbc.dbc``).
 """
+
 from __future__ import annotations
 
 from can_dbc.errors import ConfigError, DecodeError

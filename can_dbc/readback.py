@@ -1,9 +1,10 @@
 """Reading the sensor's own frames back through cantools: the inverse of the encoders, an independent check of
 them, for tests and tools (``decode_outputs``, ``decode_rig``)."""
+
 from __future__ import annotations
 
 import math
-from typing import Iterable
+from collections.abc import Iterable
 
 import can
 import cantools
@@ -68,11 +69,19 @@ def _dm1(values, component_of_spn: dict[int, str]) -> dict:
     spn = raw["DTC1_SPN_Low"] + (raw["DTC1_SPN_High"] << 16)
     dtc = None
     if spn:
-        dtc = {"spn": spn, "fmi": raw["DTC1_FMI"], "occurrence_count": raw["DTC1_OccurrenceCount"],
-               "component": component_of_spn.get(spn)}
-    return {"amber_warning_lamp": raw["AmberWarningLampStatus"], "red_stop_lamp": raw["RedStopLampStatus"],
-            "protect_lamp": raw["ProtectLampStatus"], "malfunction_lamp": raw["MalfunctionIndLampStatus"],
-            "dtc": dtc}
+        dtc = {
+            "spn": spn,
+            "fmi": raw["DTC1_FMI"],
+            "occurrence_count": raw["DTC1_OccurrenceCount"],
+            "component": component_of_spn.get(spn),
+        }
+    return {
+        "amber_warning_lamp": raw["AmberWarningLampStatus"],
+        "red_stop_lamp": raw["RedStopLampStatus"],
+        "protect_lamp": raw["ProtectLampStatus"],
+        "malfunction_lamp": raw["MalfunctionIndLampStatus"],
+        "dtc": dtc,
+    }
 
 
 def decode_outputs(msgs: Iterable[can.Message], source_address: int | None = None) -> dict:
@@ -84,14 +93,16 @@ def decode_outputs(msgs: Iterable[can.Message], source_address: int | None = Non
     one whose GBX_TEMP signal has the DTC's SPN). The last frame of a kind wins. Raises DecodeError for a frame of a
     GBX PGN that cantools cannot decode.
     """
-    component_of_spn = {s.spn: dbc.component_of(s) for name in dbc.numbered_messages("GBX_TEMP_")
-                        for s in dbc.message(name).signals}
+    component_of_spn = {
+        s.spn: dbc.component_of(s) for name in dbc.numbered_messages("GBX_TEMP_") for s in dbc.message(name).signals
+    }
     result: dict = {}
     for message, values in _decoded(msgs, ("GBX_",), source_address):
         name = message.name
         if name.startswith("GBX_TEMP_"):
             result.setdefault("temps_c", {}).update(
-                {c: _temperature(v) for c, v in _by_component(message, values).items()})
+                {c: _temperature(v) for c, v in _by_component(message, values).items()}
+            )
         elif name == "GBX_WARN":
             result["levels"] = {c: int(v.value) for c, v in _by_component(message, values).items()}
         elif name.startswith("GBX_TTL_"):

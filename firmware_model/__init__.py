@@ -1,5 +1,6 @@
 """What runs onboard: the physics the sensor needs, the reduced thermal network and its fixed step,
 warnings, and the CAN service. Depends on numpy and the standard library only."""
+
 import os as _os
 
 # The onboard core is single-threaded by design (an ECU has one core for it). numpy's multi-threaded BLAS makes the

@@ -22,6 +22,7 @@ Example::
     [sensor]
     oil_mode = "measured"        # measured | model
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -33,15 +34,42 @@ from firmware_model.parameters import Parameters, load_parameters, read_toml
 ALLOWED = {
     "gearbox": {"variant", "params"},
     "cooler": {"kind"},
-    "boundary": {"initial", "ambient", "engine_shaft", "flywheel_cover", "support_beam", "end_yoke",
-                 "hot_surroundings", "cold_surroundings", "coolant"},
-    "can": {"sensor_source_address", "engine_source_address", "transmission_source_address",
-            "retarder_source_address", "ambient_source_address", "vehicle_speed_source_address",
-            "coolant_source_address", "source_address", "engine_reference_torque_nm",
-            "retarder_reference_torque_nm", "gear_map", "output_period_s", "stale_factor", "counter_log_period_s",
-            "name_identity_number", "name_manufacturer_code", "name_ecu_instance", "name_function_instance",
-            "name_function", "name_vehicle_system", "name_vehicle_system_instance", "name_industry_group",
-            "arbitrary_address_capable"},
+    "boundary": {
+        "initial",
+        "ambient",
+        "engine_shaft",
+        "flywheel_cover",
+        "support_beam",
+        "end_yoke",
+        "hot_surroundings",
+        "cold_surroundings",
+        "coolant",
+    },
+    "can": {
+        "sensor_source_address",
+        "engine_source_address",
+        "transmission_source_address",
+        "retarder_source_address",
+        "ambient_source_address",
+        "vehicle_speed_source_address",
+        "coolant_source_address",
+        "source_address",
+        "engine_reference_torque_nm",
+        "retarder_reference_torque_nm",
+        "gear_map",
+        "output_period_s",
+        "stale_factor",
+        "counter_log_period_s",
+        "name_identity_number",
+        "name_manufacturer_code",
+        "name_ecu_instance",
+        "name_function_instance",
+        "name_function",
+        "name_vehicle_system",
+        "name_vehicle_system_instance",
+        "name_industry_group",
+        "arbitrary_address_capable",
+    },
     "sensor": {"oil_mode", "limits", "debounce_s", "hysteresis_c", "snapshot"},
 }
 
@@ -68,8 +96,12 @@ class Config:
 #: the type of each [gearbox] and [sensor] key: a string, or a number with its range (the [boundary] keys are
 #: checked below, [can] by the CAN configuration)
 KEY_TYPES = {
-    "gearbox.variant": str, "gearbox.params": str, "sensor.oil_mode": str, "sensor.limits": str,
-    "sensor.debounce_s": (0.0, 60.0), "sensor.hysteresis_c": (0.0, 50.0),
+    "gearbox.variant": str,
+    "gearbox.params": str,
+    "sensor.oil_mode": str,
+    "sensor.limits": str,
+    "sensor.debounce_s": (0.0, 60.0),
+    "sensor.hysteresis_c": (0.0, 50.0),
 }
 
 
@@ -83,15 +115,18 @@ def _check_types(doc: dict, name: str) -> None:
         v = doc[sec][k]
         if kind is str and not isinstance(v, str):
             raise ParameterError(f"config {name}: {key} = {v!r} must be a string in quotes")
-        if isinstance(kind, tuple) and (isinstance(v, bool) or not isinstance(v, (int, float))
-                                        or not kind[0] <= v <= kind[1]):
+        if isinstance(kind, tuple) and (
+            isinstance(v, bool) or not isinstance(v, (int, float)) or not kind[0] <= v <= kind[1]
+        ):
             raise ParameterError(f"config {name}: {key} = {v!r} must be a number in {kind[0]:g}..{kind[1]:g}")
     if {"variant", "params"} <= set(doc.get("gearbox", {})):
-        raise ParameterError(f"config {name}: give gearbox.variant or gearbox.params, not both (params is a whole "
-                             f"parameter file, variant a built-in one)")
+        raise ParameterError(
+            f"config {name}: give gearbox.variant or gearbox.params, not both (params is a whole "
+            f"parameter file, variant a built-in one)"
+        )
 
 
-def load_config(path: "str | Path | Config | None") -> Config:
+def load_config(path: str | Path | Config | None) -> Config:
     """The configuration of a TOML file (None: the defaults; a Config: itself, for a caller that changed one)."""
     if path is None:
         return Config()
@@ -101,14 +136,22 @@ def load_config(path: "str | Path | Config | None") -> Config:
     doc = read_toml(path, f"config file {path}")
     for sec, body in doc.items():
         if sec not in ALLOWED:
-            hint = (f" ({path.name} looks like a parameter file, e.g. one calibrate wrote: give it in a project "
-                    f"configuration as [gearbox] params = \"{path.name}\")") if sec == "meta" else ""
+            hint = (
+                (
+                    f" ({path.name} looks like a parameter file, e.g. one calibrate wrote: give it in a project "
+                    f'configuration as [gearbox] params = "{path.name}")'
+                )
+                if sec == "meta"
+                else ""
+            )
             raise ParameterError(f"config {path.name}: unknown section [{sec}]; known: {', '.join(ALLOWED)}{hint}")
         if not isinstance(body, dict):
             raise ParameterError(f"config {path.name}: [{sec}] must be a table")
         for k in body:
             if k not in ALLOWED[sec]:
-                raise ParameterError(f"config {path.name}: unknown key {sec}.{k}; known: {', '.join(sorted(ALLOWED[sec]))}")
+                raise ParameterError(
+                    f"config {path.name}: unknown key {sec}.{k}; known: {', '.join(sorted(ALLOWED[sec]))}"
+                )
     _check_types(doc, path.name)
     g = doc.get("gearbox", {})
     params = g.get("params")
@@ -116,9 +159,18 @@ def load_config(path: "str | Path | Config | None") -> Config:
         params = str((path.parent / params).resolve())
     cooler = doc.get("cooler", {}).get("kind")
     if cooler is not None and cooler not in ("none", "liquid", "air", "hold", "measured"):
-        raise ParameterError(f"config {path.name}: cooler.kind = {cooler!r} must be none, liquid, air, hold or measured")
+        raise ParameterError(
+            f"config {path.name}: cooler.kind = {cooler!r} must be none, liquid, air, hold or measured"
+        )
     for k, v in doc.get("boundary", {}).items():
         if not isinstance(v, (int, float)) or not -60 <= v <= 250:
             raise ParameterError(f"config {path.name}: boundary.{k} = {v!r} must be a temperature in -60..250 degC")
-    return Config(g.get("variant", "GRS905"), params, cooler, dict(doc.get("boundary", {})), dict(doc.get("can", {})),
-                  dict(doc.get("sensor", {})), str(path))
+    return Config(
+        g.get("variant", "GRS905"),
+        params,
+        cooler,
+        dict(doc.get("boundary", {})),
+        dict(doc.get("can", {})),
+        dict(doc.get("sensor", {})),
+        str(path),
+    )

@@ -5,6 +5,7 @@ one on with its parameter (`retarder_heat:fraction=0.05`). The reference plant i
 model implements those that change its network (see firmware_model.onboard.reduce), which is what the gap diagnosis fits.
 Both read the values through :class:`EffectScales` (:func:`effect_scales` from an ``{effect id: value}`` dict).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -20,7 +21,7 @@ class Effect:
     unit: str
     low: float
     high: float
-    neutral: float          # the value at which the effect does nothing
+    neutral: float  # the value at which the effect does nothing
     description: str
 
 
@@ -32,6 +33,7 @@ class _Catalog(dict):
         fam, sep, cid = str(key).partition(":")
         if sep and cid and fam in CHANNEL_EFFECTS and dict.__contains__(self, fam):
             from dataclasses import replace
+
             e = dict.__getitem__(self, fam)
             return replace(e, id=key, description=f"{e.description} ({cid})")
         raise KeyError(key)
@@ -49,41 +51,160 @@ class _Catalog(dict):
 #: effects that exist once per measured channel: ``thermocouple_offset:PS``
 CHANNEL_EFFECTS = ("thermocouple_offset",)
 
-CATALOG = _Catalog({e.id: e for e in (
-    Effect("retarder_heat", "fraction", "-", 0.0, 0.1, 0.0,
-           "part of the retarder's braking power (retarder torque x output shaft speed) reaching the oil (80 %) and "
-           "the rear bearing housing H3 (20 %)"),
-    Effect("synchronizer_shift_heat", "energy_j", "J", 0.0, 5000.0, 0.0,
-           "friction work released in the engaging synchronizer at every gear change (into the engaged wheel)"),
-    Effect("churning_scale", "factor", "-", 0.5, 2.0, 1.0, "churning losses differ from the correlations"),
-    Effect("gear_friction_scale", "factor", "-", 0.5, 1.5, 1.0, "gear-contact heat differs from the 0.75-scaled correlation"),
-    Effect("planetary_loss_scale", "factor", "-", 0.5, 1.5, 1.0, "planetary heat differs from the 0.80-scaled correlation"),
-    Effect("bearing_loss_scale", "factor", "-", 0.5, 3.0, 1.0, "bearing losses differ (e.g. preload from thermal expansion)"),
-    Effect("teeth_oil_h_scale", "factor", "-", 0.5, 1.5, 1.0, "splash convection of input/main-shaft wheels differs from h_nom"),
-    Effect("planet_oil_h_scale", "factor", "-", 0.5, 1.5, 1.0, "oil-system convection in the planetary differs from 750 W/(m2 K)"),
-    Effect("housing_air_h_scale", "factor", "-", 0.3, 3.0, 1.0, "external housing convection differs from 10 W/(m2 K)"),
-    Effect("cooler_effectiveness_scale", "factor", "-", 0.2, 1.2, 1.0, "cooler hA lower or higher than its data sheet"),
-    Effect("thermostat_offset", "offset_c", "degC", -10.0, 10.0, 0.0, "the air cooler's thermostat opens at other temperatures"),
-    Effect("hot_surroundings_offset", "offset_c", "degC", 0.0, 40.0, 0.0, "the hot surroundings are hotter"),
-    Effect("oil_sensor_lag", "tau_s", "s", 0.0, 300.0, 0.0, "the oil sensor lags the sump (placement, filtering)"),
-    Effect("oil_level_low", "volume_l", "L", 8.0, 13.5, 13.5, "less oil than nominal (less immersion, less thermal mass)"),
-    Effect("oil_sensor_offset", "offset_c", "degC", -5.0, 5.0, 0.0,
-           "the oil sensor reads a constant offset from the sump (calibration, or placed in a warmer or colder spot)"),
-    Effect("oil_sensor_gain", "factor", "-", 0.9, 1.1, 1.0,
-           "the oil sensor's gain is off: it reads gain x the sump temperature in degC (scaling or calibration)"),
-    Effect("thermocouple_offset", "offset_c", "degC", -5.0, 5.0, 0.0,
-           "a rig thermocouple reads a constant offset (calibration, or placed off the component's mean)"),
-)})
+CATALOG = _Catalog(
+    {
+        e.id: e
+        for e in (
+            Effect(
+                "retarder_heat",
+                "fraction",
+                "-",
+                0.0,
+                0.1,
+                0.0,
+                "part of the retarder's braking power (retarder torque x output shaft speed) reaching the oil (80 %) and "
+                "the rear bearing housing H3 (20 %)",
+            ),
+            Effect(
+                "synchronizer_shift_heat",
+                "energy_j",
+                "J",
+                0.0,
+                5000.0,
+                0.0,
+                "friction work released in the engaging synchronizer at every gear change (into the engaged wheel)",
+            ),
+            Effect("churning_scale", "factor", "-", 0.5, 2.0, 1.0, "churning losses differ from the correlations"),
+            Effect(
+                "gear_friction_scale",
+                "factor",
+                "-",
+                0.5,
+                1.5,
+                1.0,
+                "gear-contact heat differs from the 0.75-scaled correlation",
+            ),
+            Effect(
+                "planetary_loss_scale",
+                "factor",
+                "-",
+                0.5,
+                1.5,
+                1.0,
+                "planetary heat differs from the 0.80-scaled correlation",
+            ),
+            Effect(
+                "bearing_loss_scale",
+                "factor",
+                "-",
+                0.5,
+                3.0,
+                1.0,
+                "bearing losses differ (e.g. preload from thermal expansion)",
+            ),
+            Effect(
+                "teeth_oil_h_scale",
+                "factor",
+                "-",
+                0.5,
+                1.5,
+                1.0,
+                "splash convection of input/main-shaft wheels differs from h_nom",
+            ),
+            Effect(
+                "planet_oil_h_scale",
+                "factor",
+                "-",
+                0.5,
+                1.5,
+                1.0,
+                "oil-system convection in the planetary differs from 750 W/(m2 K)",
+            ),
+            Effect(
+                "housing_air_h_scale",
+                "factor",
+                "-",
+                0.3,
+                3.0,
+                1.0,
+                "external housing convection differs from 10 W/(m2 K)",
+            ),
+            Effect(
+                "cooler_effectiveness_scale",
+                "factor",
+                "-",
+                0.2,
+                1.2,
+                1.0,
+                "cooler hA lower or higher than its data sheet",
+            ),
+            Effect(
+                "thermostat_offset",
+                "offset_c",
+                "degC",
+                -10.0,
+                10.0,
+                0.0,
+                "the air cooler's thermostat opens at other temperatures",
+            ),
+            Effect("hot_surroundings_offset", "offset_c", "degC", 0.0, 40.0, 0.0, "the hot surroundings are hotter"),
+            Effect(
+                "oil_sensor_lag", "tau_s", "s", 0.0, 300.0, 0.0, "the oil sensor lags the sump (placement, filtering)"
+            ),
+            Effect(
+                "oil_level_low",
+                "volume_l",
+                "L",
+                8.0,
+                13.5,
+                13.5,
+                "less oil than nominal (less immersion, less thermal mass)",
+            ),
+            Effect(
+                "oil_sensor_offset",
+                "offset_c",
+                "degC",
+                -5.0,
+                5.0,
+                0.0,
+                "the oil sensor reads a constant offset from the sump (calibration, or placed in a warmer or colder spot)",
+            ),
+            Effect(
+                "oil_sensor_gain",
+                "factor",
+                "-",
+                0.9,
+                1.1,
+                1.0,
+                "the oil sensor's gain is off: it reads gain x the sump temperature in degC (scaling or calibration)",
+            ),
+            Effect(
+                "thermocouple_offset",
+                "offset_c",
+                "degC",
+                -5.0,
+                5.0,
+                0.0,
+                "a rig thermocouple reads a constant offset (calibration, or placed off the component's mean)",
+            ),
+        )
+    }
+)
 
 #: the effects a model can switch on by id (channel effects are instances, ``thermocouple_offset:PS``)
 EFFECT_IDS = tuple(e for e in CATALOG if e not in CHANNEL_EFFECTS)
+
+
 class IdFamilies(tuple):
     """A tuple of effect ids that also contains every channel instance (``thermocouple_offset:PS``) of its channel
     families."""
 
     def __contains__(self, key):
-        return tuple.__contains__(self, key) or str(key).partition(":")[0] in CHANNEL_EFFECTS and \
-            tuple.__contains__(self, str(key).partition(":")[0])
+        return (
+            tuple.__contains__(self, key)
+            or str(key).partition(":")[0] in CHANNEL_EFFECTS
+            and tuple.__contains__(self, str(key).partition(":")[0])
+        )
 
 
 #: effects on the measurement, not on the gearbox: the models' temperatures are unchanged, the sensor reads them
@@ -101,6 +222,8 @@ def effect_channel(eid: str) -> str | None:
     """The channel of a channel effect's id (None for other effects)."""
     fam, sep, cid = str(eid).partition(":")
     return cid if sep and fam in CHANNEL_EFFECTS else None
+
+
 #: the effects that change the gearbox's physics (the single-effect benchmark plants these)
 PHYSICAL_EFFECT_IDS = tuple(e for e in EFFECT_IDS if e not in MEASUREMENT_EFFECTS)
 #: where the retarder_heat effect deposits its heat (node -> share; the catalog's description)
@@ -123,13 +246,17 @@ def parse_effect(spec: str) -> tuple[str, float]:
     eid = eid.strip()
     if eid in CHANNEL_EFFECTS:
         if pname is None or ":" not in pname:
-            raise InputError(f"effect {spec!r}: {eid} acts on one measured channel: {eid}:CHANNEL:PARAM=VALUE, e.g. "
-                             f"{eid}:PS:{CATALOG[eid].param}=1.5")
+            raise InputError(
+                f"effect {spec!r}: {eid} acts on one measured channel: {eid}:CHANNEL:PARAM=VALUE, e.g. "
+                f"{eid}:PS:{CATALOG[eid].param}=1.5"
+            )
         cid, pname = pname.split(":", 1)
         from firmware_model.components import HOUSINGS, PUBLISHED
+
         if cid.strip() not in PUBLISHED + tuple(HOUSINGS) + ("oil@rig",):
-            raise InputError(f"effect {spec!r}: {cid.strip()!r} is not a component id (docs/interfaces.md section 5) "
-                             f"or oil@rig")
+            raise InputError(
+                f"effect {spec!r}: {cid.strip()!r} is not a component id (docs/interfaces.md section 5) or oil@rig"
+            )
         eid = channel_effect(eid, cid.strip())
     if eid not in CATALOG:
         raise InputError(f"unknown effect id {eid!r}; known effects: {', '.join(EFFECT_IDS + CHANNEL_EFFECTS)}")
@@ -150,8 +277,9 @@ def check_effect(eid: str, value: float) -> None:
         raise InputError(f"unknown effect id {eid!r}; known effects: {', '.join(EFFECT_IDS)}")
     if not (e.low <= value <= e.high):
         unit = "" if e.unit in ("", "-") else f" {e.unit}"
-        raise InputError(f"effect {eid}: {e.param} = {value:g}{unit} is outside its plausible range "
-                         f"{e.low:g}..{e.high:g}{unit}")
+        raise InputError(
+            f"effect {eid}: {e.param} = {value:g}{unit} is outside its plausible range {e.low:g}..{e.high:g}{unit}"
+        )
 
 
 def fraction_of_range(eid: str, value: float) -> float:
@@ -200,6 +328,7 @@ class EffectScales:
     synchronizer heat per shift. The oil sensor's lag, offset and gain, and the sump volume. ``src_scale`` is the onboard model's
     multiplier per loss-source column (firmware_model.onboard.reduce.make_effects fills it; None elsewhere).
     """
+
     gear_friction_scale: object = 1.0
     planetary_scale: object = 1.0
     churn_scale: object = 1.0
@@ -229,11 +358,12 @@ def effect_scales(effects: dict | None = None) -> EffectScales:
     (thermocouple_offset:ID) is refused: it acts on a rig's reading, and a model writes the true temperatures."""
     bad = [e for e in (effects or {}) if effect_channel(e) is not None]
     if bad:
-        raise InputError(f"effect {bad[0]} acts on a rig thermocouple's reading, not on the gearbox: a model writes "
-                         f"the true temperatures, so there is nothing to offset (the gap diagnosis fits it; "
-                         f"bench-diagnosis plants it)")
+        raise InputError(
+            f"effect {bad[0]} acts on a rig thermocouple's reading, not on the gearbox: a model writes "
+            f"the true temperatures, so there is nothing to offset (the gap diagnosis fits it; "
+            f"bench-diagnosis plants it)"
+        )
     return EffectScales(**{FIELD_OF_EFFECT[eid]: effect_value(effects, eid) for eid in EFFECT_IDS})
-
 
 
 def with_oil_volume(params, volume_l: float):

@@ -10,6 +10,7 @@ the physics never imports it.
 
 All in SI; temperatures in degC.
 """
+
 from __future__ import annotations
 
 import math
@@ -24,19 +25,36 @@ from firmware_model.errors import ParameterError
 from firmware_model.parameters import Parameters
 from firmware_model.physics import heat_transfer as ht
 from firmware_model.physics import oil as oilprops
-from firmware_model.physics.geometry import (CUT_WHEELS, HOUSING_OF_BEARING, SHAFT_OF_BEARING, Geometry,
-                                             build_geometry)
+from firmware_model.physics.geometry import CUT_WHEELS, HOUSING_OF_BEARING, SHAFT_OF_BEARING, Geometry, build_geometry
 from firmware_model.physics.kinematics import MESHES, SPEED_NAMES
 from firmware_model.physics.losses import ADDENDUM_COEF, DEDENDUM_COEF, PLANETARY_HEAT_SPLIT
 
 #: boundary temperatures (seed section 3, boundary conditions)
-BOUNDARIES = ("engine_shaft", "flywheel_cover", "support_beam", "end_yoke", "hot_surroundings",
-              "cold_surroundings", "coolant", "ambient")
+BOUNDARIES = (
+    "engine_shaft",
+    "flywheel_cover",
+    "support_beam",
+    "end_yoke",
+    "hot_surroundings",
+    "cold_surroundings",
+    "coolant",
+    "ambient",
+)
 
 # link kinds
 K_CONST, K_CONTACT, K_SPLASH, K_IMM_GEAR, K_IMM_BRG, K_BRG_SPLASH, K_STREAM, K_RING, K_EXT_CONV, K_EXT_RAD = range(10)
-KIND_NAMES = ("conduction", "gear_contact", "splash", "immersed_gear", "immersed_bearing", "bearing_splash",
-              "oil_system", "ring_oil", "external_convection", "external_radiation")
+KIND_NAMES = (
+    "conduction",
+    "gear_contact",
+    "splash",
+    "immersed_gear",
+    "immersed_bearing",
+    "bearing_splash",
+    "oil_system",
+    "ring_oil",
+    "external_convection",
+    "external_radiation",
+)
 N_KINDS = len(KIND_NAMES)
 # oil-system stream sub-kinds
 S_PIPE, S_CHANNEL, S_IMPOSED = range(3)
@@ -48,8 +66,14 @@ SHAFT_SEGMENTS = {
     "OS": ("OS@carrier", "OS@bulk", "OS@BO", "OS@EY"),
 }
 #: the shaft segment under each shaft bearing
-SEGMENT_OF_BEARING = {"BIF": "IS@BIF", "BLF": "LS@BLF", "BLR": "LS@BLR", "BIM": "MS@BIM", "BMR": "MS@BMR",
-                      "BO": "OS@BO"}
+SEGMENT_OF_BEARING = {
+    "BIF": "IS@BIF",
+    "BLF": "LS@BLF",
+    "BLR": "LS@BLR",
+    "BIM": "MS@BIM",
+    "BMR": "MS@BMR",
+    "BO": "OS@BO",
+}
 #: the shaft segment under each idle wheel
 SEGMENT_OF_IDLE_WHEEL = {"LI": "IS@LI", **{w: f"MS@{w}" for w in IDLE_WHEELS[1:]}}
 #: housing material
@@ -63,6 +87,7 @@ MIN_SPEED_RAD_S = 1e-3
 
 class NamedNodes:
     """Node names and their indices (the full network and the onboard model's reduced one)."""
+
     nodes: tuple
 
     @property
@@ -75,6 +100,7 @@ class NamedNodes:
 
 class Share(NamedTuple):
     """A share of a heat source deposited into one node."""
+
     node: int
     frac: float
 
@@ -87,7 +113,7 @@ class Network(NamedNodes):
     link_a: np.ndarray
     link_b: np.ndarray
     link_kind: np.ndarray
-    link_G0: np.ndarray          # constant part / area-like factor, meaning depends on kind
+    link_G0: np.ndarray  # constant part / area-like factor, meaning depends on kind
     link_name: tuple
     # per-kind parameters (arrays aligned with the links of that kind, in link order)
     kind_params: dict
@@ -142,8 +168,19 @@ class _Builder:
             if lst:
                 keys = sorted({kk for d in lst for kk in d})
                 kind_params[k] = {kk: np.array([d.get(kk, 0.0) for d in lst], dtype=float) for kk in keys}
-        return Network(tuple(self.nodes), np.array(self.C), np.array(self.la), np.array(self.lb), np.array(self.lk),
-                       np.array(self.lg), tuple(self.lname), kind_params, sources, self.geo, self.seg_len)
+        return Network(
+            tuple(self.nodes),
+            np.array(self.C),
+            np.array(self.la),
+            np.array(self.lb),
+            np.array(self.lk),
+            np.array(self.lg),
+            tuple(self.lname),
+            kind_params,
+            sources,
+            self.geo,
+            self.seg_len,
+        )
 
 
 def _segment_lengths(xs: list, x_front: float, x_rear: float) -> list:
@@ -173,7 +210,7 @@ def _shaft_nodes(b: _Builder, pos: dict, ends: dict) -> None:
         ro, ri = p[f"shaft.{s}.d_out"] / 2, p[f"shaft.{s}.d_bore"] / 2
         for nm, L in zip(names, _segment_lengths(pos[s], *ends[s])):
             b.seg_len[nm] = L
-            m = b.st_rho * math.pi * (ro ** 2 - ri ** 2) * L
+            m = b.st_rho * math.pi * (ro**2 - ri**2) * L
             if nm == "OS@carrier":
                 m = p["shaft.OS.carrier_mass"]
             b.add(nm, m * b.st_cp)
@@ -188,14 +225,14 @@ def _wheel_nodes(b: _Builder) -> None:
     for w in IDLE_WHEELS:
         g = W[w]
         R_sh = g.R_f - shell * g.m_n
-        m_teeth = b.st_rho * g.width * (math.pi * (g.R_f ** 2 - R_sh ** 2) + 0.5 * math.pi * (g.R_a ** 2 - g.R_f ** 2))
-        m_bulk = b.st_rho * g.width * math.pi * (R_sh ** 2 - g.R_in ** 2) * hub
+        m_teeth = b.st_rho * g.width * (math.pi * (g.R_f**2 - R_sh**2) + 0.5 * math.pi * (g.R_a**2 - g.R_f**2))
+        m_bulk = b.st_rho * g.width * math.pi * (R_sh**2 - g.R_in**2) * hub
         b.add(f"{w}.teeth", m_teeth * b.st_cp)
         b.add(f"{w}.bulk", m_bulk * b.st_cp)
     for w in LAYSHAFT_WHEELS + ("RI",):
         g = W[w]
         R_inner = b.geo.R_shaft_m["LS"] if w != "RI" else g.R_in
-        m = b.st_rho * g.width * (math.pi * (g.R_f ** 2 - R_inner ** 2) + 0.5 * math.pi * (g.R_a ** 2 - g.R_f ** 2))
+        m = b.st_rho * g.width * (math.pi * (g.R_f**2 - R_inner**2) + 0.5 * math.pi * (g.R_a**2 - g.R_f**2))
         b.add(w, m * b.st_cp)
 
 
@@ -222,7 +259,7 @@ def _conduction_links(b: _Builder, pos: dict) -> None:
     p = b.p
     for s, names in SHAFT_SEGMENTS.items():
         ro, ri = p[f"shaft.{s}.d_out"] / 2, p[f"shaft.{s}.d_bore"] / 2
-        A = math.pi * (ro ** 2 - ri ** 2)
+        A = math.pi * (ro**2 - ri**2)
         for i in range(len(names) - 1):
             G = ht.linear_conductance_w_per_k(b.st_k, A, pos[s][i], pos[s][i + 1])
             b.link(names[i], names[i + 1], K_CONST, G, f"cond:{names[i]}-{names[i + 1]}")
@@ -245,10 +282,9 @@ def _wheel_radial_links(b: _Builder) -> None:
     d_roll = p["wheel_bearing.d_roller"]
     for w, wb in zip(IDLE_WHEELS, WHEEL_BEARINGS):
         g = W[w]
-        D_teeth = g.R_a + g.R_f                      # mean of tip and root diameters
-        D_bulk = g.R_b + g.R_in                      # mean of base and inner diameters
-        b.link(f"{w}.teeth", f"{w}.bulk", K_CONST, b.radial(k, g.width, D_teeth, D_bulk, sf_tb),
-               f"rad:{w}.teeth-bulk")
+        D_teeth = g.R_a + g.R_f  # mean of tip and root diameters
+        D_bulk = g.R_b + g.R_in  # mean of base and inner diameters
+        b.link(f"{w}.teeth", f"{w}.bulk", K_CONST, b.radial(k, g.width, D_teeth, D_bulk, sf_tb), f"rad:{w}.teeth-bulk")
         sf_b = p["wheel_bearing.sf_radial_tapered"] if wb == "3B" else p["wheel_bearing.sf_radial_needle"]
         D_shaft = 2 * b.geo.R_shaft_m["IS" if w == "LI" else "MS"]
         Dm = D_shaft + d_roll
@@ -285,11 +321,20 @@ def _bearing_radial_links(b: _Builder) -> None:
             b.link(brg, h, K_CONST, b.radial(min(k_h, k), wdt, f_seat * d_out, Dm, sf), f"rad:{brg}-{h}")
     gp, gs = b.W["PP"], b.W["PS"]
     n_pl = int(p["planetary.n_planets"])
-    b.link("PP", "OS@carrier", K_CONST,
-           n_pl * b.radial(k, gp.width, gp.R_b + gp.R_f, 2 * gp.R_in, p["planetary.sf_planet_carrier"]),
-           "rad:PP-OS@carrier")
-    b.link("PS", "MS@PS", K_CONST,
-           b.radial(k, gs.width, gs.R_b + gs.R_in, f_in * 2 * gs.R_in, p["planetary.sf_sun_spline"]), "rad:PS-MS@PS")
+    b.link(
+        "PP",
+        "OS@carrier",
+        K_CONST,
+        n_pl * b.radial(k, gp.width, gp.R_b + gp.R_f, 2 * gp.R_in, p["planetary.sf_planet_carrier"]),
+        "rad:PP-OS@carrier",
+    )
+    b.link(
+        "PS",
+        "MS@PS",
+        K_CONST,
+        b.radial(k, gs.width, gs.R_b + gs.R_in, f_in * 2 * gs.R_in, p["planetary.sf_sun_spline"]),
+        "rad:PS-MS@PS",
+    )
     # ring gear held by the range synchronizer to the housing: no conduction path modelled (seed lists none)
 
 
@@ -328,12 +373,26 @@ def _immersed_links(b: _Builder) -> None:
         w_in = 0.0 if w in CUT_WHEELS else p["wheel.side_width_in_frac"] * g.width
         h_i_p = min(h_i, 2 * g.R_p)
         A = float(ht.immersed_gear_area_m2(g.R_p, g.width, g.R_in, w_in, h_i_p, g.z, g.h_t, g.beta))
-        b.link(w, "oil", K_IMM_GEAR, A, f"imm:{w}", speed=spd("RI" if w == "RI" else "LS"), R_p=g.R_p, z=g.z,
-               width=g.width, h_t=g.h_t, h_i=h_i_p)
+        b.link(
+            w,
+            "oil",
+            K_IMM_GEAR,
+            A,
+            f"imm:{w}",
+            speed=spd("RI" if w == "RI" else "LS"),
+            R_p=g.R_p,
+            z=g.z,
+            width=g.width,
+            h_t=g.h_t,
+            h_i=h_i_p,
+        )
     for brg in ("BLF", "BLR"):
         _, _, wdt, dr, Dm = _bearing_dims(p, brg)
-        A = float(ht.immersed_bearing_area_m2(Dm - dr, Dm + dr, p[f"bearing.{brg}.n_rollers"], dr, wdt,
-                                              p[f"bearing.{brg}.immersion"]))
+        A = float(
+            ht.immersed_bearing_area_m2(
+                Dm - dr, Dm + dr, p[f"bearing.{brg}.n_rollers"], dr, wdt, p[f"bearing.{brg}.immersion"]
+            )
+        )
         b.link(brg, "oil", K_IMM_BRG, A, f"imm:{brg}", speed=spd("LS"), Dm=Dm)
 
 
@@ -346,11 +405,11 @@ def _splash_links(b: _Builder) -> None:
     for w in IDLE_WHEELS:
         g = W[w]
         if w in ("CM", "RM") or not covered:
-            A = float(ht.wheel_area_free_sides_m2(g.R_p, g.width, g.z, g.h_t, g.beta, g.R_in))     # Eq 61
+            A = float(ht.wheel_area_free_sides_m2(g.R_p, g.width, g.z, g.h_t, g.beta, g.R_in))  # Eq 61
         else:
-            A = float(ht.wheel_area_covered_sides_m2(g.R_p, g.width, g.z, g.h_t, g.beta))          # Eq 60
+            A = float(ht.wheel_area_covered_sides_m2(g.R_p, g.width, g.z, g.h_t, g.beta))  # Eq 60
         b.link(f"{w}.teeth", "oil", K_SPLASH, A, f"splash:{w}.teeth", speed=spd(w), group=0)
-    A_os = float(ht.cylinder_area_m2(p["shaft.OS.d_out"], p["shaft.OS.oil_wetted_length"]))        # Eq 62
+    A_os = float(ht.cylinder_area_m2(p["shaft.OS.d_out"], p["shaft.OS.oil_wetted_length"]))  # Eq 62
     b.link("OS@bulk", "oil", K_SPLASH, A_os, "splash:OS", speed=spd("OS"), group=1)
     # ring gear: splash at high range, 200 W/(m2 K) like the housing at low range (seed 3.3)
     b.link("PR", "oil", K_RING, p["planetary.ring_outer_area"], "ring:PR", speed=spd("PR"))
@@ -375,7 +434,7 @@ def _bore_and_bearing_streams(b: _Builder) -> None:
             continue
         for nm in SHAFT_SEGMENTS[s]:
             if nm == "IS@bulk":
-                continue      # oil enters the input shaft behind its front bearing
+                continue  # oil enters the input shaft behind its front bearing
             L = b.seg_len[nm]
             b.link(nm, "oil", K_STREAM, math.pi * D * L, f"oilsys:{nm}", sub=S_PIPE, frac=frac, D=D, L=L, h=0.0)
     r_r = p["wheel_bearing.d_roller"] / 2
@@ -388,15 +447,35 @@ def _bore_and_bearing_streams(b: _Builder) -> None:
         A_o, P_o = ht.needle_channel_outer(R_s + 2 * r_r - cd, R_s + 2 * r_r, r_r, n_r)
         A_heat = float(ht.channel_heat_area_m2(P_i, L_r, n_r) + ht.channel_heat_area_m2(P_o, L_r, n_r))
         Dh = float(0.5 * (ht.hydraulic_diameter_m(A_i, P_i) + ht.hydraulic_diameter_m(A_o, P_o)))
-        b.link(wb, "oil", K_STREAM, A_heat, f"oilsys:{wb}", sub=S_CHANNEL, frac=p["oil_system.frac_needle_each"],
-               D=Dh, L=0.0, h=0.0)
+        b.link(
+            wb,
+            "oil",
+            K_STREAM,
+            A_heat,
+            f"oilsys:{wb}",
+            sub=S_CHANNEL,
+            frac=p["oil_system.frac_needle_each"],
+            D=Dh,
+            L=0.0,
+            h=0.0,
+        )
     for brg in ("BIM", "BMR"):
         _, _, wdt, dr, Dm = _bearing_dims(p, brg)
         n_r = p[f"bearing.{brg}.n_rollers"]
         A_f, P_f = ht.shaft_bearing_channel(Dm / 2 - dr / 2, Dm / 2 + dr / 2, dr / 2, n_r)
         A_heat = float(ht.channel_heat_area_m2(P_f, wdt, n_r))
-        b.link(brg, "oil", K_STREAM, A_heat, f"oilsys:{brg}", sub=S_CHANNEL, frac=p[f"oil_system.frac_{brg}"],
-               D=float(ht.hydraulic_diameter_m(A_f, P_f)), L=0.0, h=0.0)
+        b.link(
+            brg,
+            "oil",
+            K_STREAM,
+            A_heat,
+            f"oilsys:{brg}",
+            sub=S_CHANNEL,
+            frac=p[f"oil_system.frac_{brg}"],
+            D=float(ht.hydraulic_diameter_m(A_f, P_f)),
+            L=0.0,
+            h=0.0,
+        )
 
 
 def _planetary_streams(b: _Builder) -> None:
@@ -407,14 +486,26 @@ def _planetary_streams(b: _Builder) -> None:
     m_n = p["planetary.m_n"]
     h_t = (ADDENDUM_COEF + DEDENDUM_COEF) * m_n
     pl_area = {}
-    for nm, z, R_p, mult in (("PS", int(p["planetary.z_sun"]), W["PS"].R_p, 1),
-                             ("PP", int(p["planetary.z_planet"]), W["PP"].R_p, n_pl),
-                             ("PR", int(p["planetary.z_ring"]), m_n * p["planetary.z_ring"] / 2, 1)):
+    for nm, z, R_p, mult in (
+        ("PS", int(p["planetary.z_sun"]), W["PS"].R_p, 1),
+        ("PP", int(p["planetary.z_planet"]), W["PP"].R_p, n_pl),
+        ("PR", int(p["planetary.z_ring"]), m_n * p["planetary.z_ring"] / 2, 1),
+    ):
         pl_area[nm] = mult * p["planetary.width"] * (2 * math.pi * R_p + 2 * z * h_t)
     tot = sum(pl_area.values())
     for nm, A in pl_area.items():
-        b.link(nm, "oil", K_STREAM, A, f"oilsys:{nm}", sub=S_IMPOSED, frac=p["oil_system.frac_planetary"] * A / tot,
-               D=0.0, L=0.0, h=p["planetary.h_oil"])
+        b.link(
+            nm,
+            "oil",
+            K_STREAM,
+            A,
+            f"oilsys:{nm}",
+            sub=S_IMPOSED,
+            frac=p["oil_system.frac_planetary"] * A / tot,
+            D=0.0,
+            L=0.0,
+            h=p["planetary.h_oil"],
+        )
 
 
 def _external_links(b: _Builder) -> None:
@@ -422,7 +513,10 @@ def _external_links(b: _Builder) -> None:
     p = b.p
     for h in HOUSINGS:
         A_ext = p[f"housing.area_{h}"] * p["housing.external_frac"]
-        for side, frac in (("hot_surroundings", p["housing.hot_frac"]), ("cold_surroundings", 1 - p["housing.hot_frac"])):
+        for side, frac in (
+            ("hot_surroundings", p["housing.hot_frac"]),
+            ("cold_surroundings", 1 - p["housing.hot_frac"]),
+        ):
             b.link(h, side, K_EXT_CONV, A_ext * frac, f"extconv:{h}-{side.split('_')[0]}")
             b.link(h, side, K_EXT_RAD, A_ext * frac, f"extrad:{h}-{side.split('_')[0]}")
 
@@ -490,7 +584,7 @@ class ConductanceEvaluator:
         self.h_house = p["housing.h_oil"]
         self.h_air = p["housing.h_air"]
         self.eps = p["housing.emissivity"]
-        self.flow_m3_per_rad = p["oil_system.flow_m3_per_rad"]   # oil volume per radian of layshaft rotation
+        self.flow_m3_per_rad = p["oil_system.flow_m3_per_rad"]  # oil volume per radian of layshaft rotation
         self.n_nodes = net.n
         self.ext_rad_idx = self.idx[K_EXT_RAD]
         self.ext_rad_a = net.link_a[self.ext_rad_idx]
@@ -512,7 +606,7 @@ class ConductanceEvaluator:
         """Splash (Eq 59), immersed wheels (Eq 46-51, fling-off Eq 54-58), immersed bearings (Eq 52-53), bearing
         splash (Eq 63-64) and the ring gear."""
         G0, kp, sc = self.net.link_G0, self.kp, self.scales
-        i = self.idx[K_SPLASH]            # idle-wheel teeth (group 0) and the output shaft (group 1)
+        i = self.idx[K_SPLASH]  # idle-wheel teeth (group 0) and the output shaft (group 1)
         if i.size:
             h = self._splash_h(self._speeds(K_SPLASH, speeds))
             G[..., i] = G0[i] * (h * np.where(kp[K_SPLASH]["group"] == 0, sc.teeth_oil_h, 1.0))
@@ -520,10 +614,14 @@ class ConductanceEvaluator:
         if i.size:
             k = kp[K_IMM_GEAR]
             omega_rad_s = self._speeds(K_IMM_GEAR, speeds, MIN_SPEED_RAD_S)
-            h = ht.nusselt_rotating_cylinder(ht.reynolds_gear(k["R_p"], omega_rad_s, op.nu_m2_s), op.pr) \
-                * op.k_w_per_mk / k["R_p"]
-            fo = ht.fling_off_hA(k["z"], k["width"], k["h_t"], k["R_p"], k["h_i"], omega_rad_s, op.k_w_per_mk,
-                                 op.alpha_m2_s, op.nu_m2_s)
+            h = (
+                ht.nusselt_rotating_cylinder(ht.reynolds_gear(k["R_p"], omega_rad_s, op.nu_m2_s), op.pr)
+                * op.k_w_per_mk
+                / k["R_p"]
+            )
+            fo = ht.fling_off_hA(
+                k["z"], k["width"], k["h_t"], k["R_p"], k["h_i"], omega_rad_s, op.k_w_per_mk, op.alpha_m2_s, op.nu_m2_s
+            )
             G[..., i] = G0[i] * h + fo.hA_w_per_k
         i = self.idx[K_IMM_BRG]
         if i.size:
@@ -533,8 +631,14 @@ class ConductanceEvaluator:
         i = self.idx[K_BRG_SPLASH]
         if i.size:
             k = kp[K_BRG_SPLASH]
-            G[..., i] = G0[i] * ht.harris_bearing_h_w_per_m2k(self._speeds(K_BRG_SPLASH, speeds, MIN_SPEED_RAD_S),
-                                                              op.nu_m2_s, k["d_roller"], k["Dm"], op.k_w_per_mk, op.pr)
+            G[..., i] = G0[i] * ht.harris_bearing_h_w_per_m2k(
+                self._speeds(K_BRG_SPLASH, speeds, MIN_SPEED_RAD_S),
+                op.nu_m2_s,
+                k["d_roller"],
+                k["Dm"],
+                op.k_w_per_mk,
+                op.pr,
+            )
         i = self.idx[K_RING]
         if i.size:
             if low_range:
@@ -552,7 +656,7 @@ class ConductanceEvaluator:
         kp = self.kp[K_STREAM]
         omega_ls_rad_s = speeds[..., SPEED_NAMES.index("LS")]
         if np.ndim(omega_ls_rad_s):
-            omega_ls_rad_s = omega_ls_rad_s[..., None]       # a batch of operating points (evaluate)
+            omega_ls_rad_s = omega_ls_rad_s[..., None]  # a batch of operating points (evaluate)
         mdot_tot = self.oil_mass_flow_kg_s(omega_ls_rad_s, op.rho_kg_m3)
         mdot = np.maximum(mdot_tot * kp["frac"], 1e-9)
         sub = kp["sub"]
@@ -571,8 +675,16 @@ class ConductanceEvaluator:
         hA = self.net.link_G0[i] * h
         G[..., i] = np.where(mdot_tot > 0, ht.oil_system_conductance_w_per_k(hA, mdot, op.cp_j_per_kgk), 0.0)
 
-    def evaluate(self, T_oil_c: float, speeds: np.ndarray, gear_row: int, mesh_torque_row: np.ndarray,
-                 low_range: bool, T_nodes_c: np.ndarray | None = None, T_bc_c: np.ndarray | None = None) -> np.ndarray:
+    def evaluate(
+        self,
+        T_oil_c: float,
+        speeds: np.ndarray,
+        gear_row: int,
+        mesh_torque_row: np.ndarray,
+        low_range: bool,
+        T_nodes_c: np.ndarray | None = None,
+        T_bc_c: np.ndarray | None = None,
+    ) -> np.ndarray:
         """Conductance of every link [W/K]. speeds: |rad/s| per SPEED_NAMES; T_nodes/T_bc for radiation.
 
         ``speeds`` may be a batch (..., len(SPEED_NAMES)) of operating points at the one oil temperature, gear and
@@ -581,7 +693,7 @@ class ConductanceEvaluator:
         speeds = np.asarray(speeds)
         G = self.G if speeds.ndim < 2 else np.broadcast_to(self.net.link_G0, speeds.shape[:-1] + self.G.shape).copy()
         op = oilprops.oil_properties(T_oil_c)
-        i = self.idx[K_CONTACT]           # contacts: active when the mesh carries torque (Eq 45)
+        i = self.idx[K_CONTACT]  # contacts: active when the mesh carries torque (Eq 45)
         if i.size:
             G[..., i] = self.net.link_G0[i] * (mesh_torque_row[self.kp[K_CONTACT]["mesh"].astype(int)] != 0)
         self._oil_side(G, op, speeds, low_range)
@@ -602,14 +714,19 @@ class ConductanceEvaluator:
                 h = ht.radiation_h_w_per_m2k(self.eps, T_nodes_c[..., self.ext_rad_a], T_bc_c[..., self.ext_rad_b])
             G[..., i] = self.net.link_G0[i] * h
 
-    def evaluate_cached(self, T_oil_c, speeds, gear_row, mesh_torque_row, low_range, T_nodes_c, T_bc_c,
-                        speed_rtol=0.01, oil_atol_c=0.25):
+    def evaluate_cached(
+        self, T_oil_c, speeds, gear_row, mesh_torque_row, low_range, T_nodes_c, T_bc_c, speed_rtol=0.01, oil_atol_c=0.25
+    ):
         """Like `evaluate`, but reuses the speed- and oil-dependent conductances while the gear is the same, the
         speeds are within `speed_rtol` and the oil within `oil_atol_c` of the last full evaluation (radiation is
         always updated). The error this allows is below 1 % on any conductance."""
         c = getattr(self, "_cache", None)
-        if c is not None and c[0] == gear_row and abs(T_oil_c - c[1]) < oil_atol_c and np.all(
-                np.abs(speeds - c[2]) <= speed_rtol * np.maximum(c[2], 1.0)):
+        if (
+            c is not None
+            and c[0] == gear_row
+            and abs(T_oil_c - c[1]) < oil_atol_c
+            and np.all(np.abs(speeds - c[2]) <= speed_rtol * np.maximum(c[2], 1.0))
+        ):
             G = c[3]
             self._update_radiation(G, T_nodes_c, T_bc_c)
             return G

@@ -22,6 +22,7 @@ as before; so does ``Parameters.with_overrides`` with an old name.
     >>> p.provenance("heat.h_nom")
     'seed'
 """
+
 from __future__ import annotations
 
 import difflib
@@ -37,7 +38,7 @@ from firmware_model.units import L_PER_M3, RAD_S_PER_RPM, S_PER_MIN
 
 try:
     import tomllib
-except ModuleNotFoundError:          # Python 3.10
+except ModuleNotFoundError:  # Python 3.10
     import tomli as tomllib
 
 PARAM_DIR = Path(__file__).resolve().parent / "params"
@@ -47,27 +48,54 @@ PROVENANCES = ("seed", "derived", "assumed", "fitted")
 #: unit string in a file -> (SI dimension, factor to SI)
 UNITS = {
     "-": ("1", 1.0),
-    "m": ("m", 1.0), "mm": ("m", 1e-3),
+    "m": ("m", 1.0),
+    "mm": ("m", 1e-3),
     "m2": ("m2", 1.0),
-    "L": ("m3", 1.0 / L_PER_M3), "m3": ("m3", 1.0),
-    "deg": ("rad", math.pi / 180.0), "rad": ("rad", 1.0),
-    "kg": ("kg", 1.0), "kg/m3": ("kg/m3", 1.0),
-    "W/(m K)": ("W/(m K)", 1.0), "J/(kg K)": ("J/(kg K)", 1.0), "W/(m2 K)": ("W/(m2 K)", 1.0),
-    "W/K": ("W/K", 1.0), "W": ("W", 1.0), "kW": ("W", 1e3),
-    "Pa": ("Pa", 1.0), "N": ("N", 1.0), "Nm": ("N m", 1.0),
-    "s": ("s", 1.0), "degC": ("degC", 1.0),
-    "rpm": ("rad/s", RAD_S_PER_RPM), "rad/s": ("rad/s", 1.0),
-    "Nm/rpm": ("N m s/rad", 1.0 / RAD_S_PER_RPM),           # torque per speed
-    "L/min/rpm": ("m3/rad", 1.0 / L_PER_M3 / S_PER_MIN / RAD_S_PER_RPM),   # volume flow per speed
+    "L": ("m3", 1.0 / L_PER_M3),
+    "m3": ("m3", 1.0),
+    "deg": ("rad", math.pi / 180.0),
+    "rad": ("rad", 1.0),
+    "kg": ("kg", 1.0),
+    "kg/m3": ("kg/m3", 1.0),
+    "W/(m K)": ("W/(m K)", 1.0),
+    "J/(kg K)": ("J/(kg K)", 1.0),
+    "W/(m2 K)": ("W/(m2 K)", 1.0),
+    "W/K": ("W/K", 1.0),
+    "W": ("W", 1.0),
+    "kW": ("W", 1e3),
+    "Pa": ("Pa", 1.0),
+    "N": ("N", 1.0),
+    "Nm": ("N m", 1.0),
+    "s": ("s", 1.0),
+    "degC": ("degC", 1.0),
+    "rpm": ("rad/s", RAD_S_PER_RPM),
+    "rad/s": ("rad/s", 1.0),
+    "Nm/rpm": ("N m s/rad", 1.0 / RAD_S_PER_RPM),  # torque per speed
+    "L/min/rpm": ("m3/rad", 1.0 / L_PER_M3 / S_PER_MIN / RAD_S_PER_RPM),  # volume flow per speed
     "m3/rad": ("m3/rad", 1.0),
 }
 #: what a quantity of each SI dimension is, for messages
 DIM_NAMES = {
-    "1": "a plain number", "m": "a length", "m2": "an area", "m3": "a volume", "rad": "an angle", "kg": "a mass",
-    "kg/m3": "a density", "W/(m K)": "a thermal conductivity", "J/(kg K)": "a specific heat capacity",
-    "W/(m2 K)": "a heat transfer coefficient", "W/K": "a thermal conductance", "W": "a power",
-    "Pa": "a pressure or elastic modulus", "N": "a force", "N m": "a torque", "s": "a time", "degC": "a temperature",
-    "rad/s": "a speed", "N m s/rad": "a torque per speed", "m3/rad": "a volume flow per speed",
+    "1": "a plain number",
+    "m": "a length",
+    "m2": "an area",
+    "m3": "a volume",
+    "rad": "an angle",
+    "kg": "a mass",
+    "kg/m3": "a density",
+    "W/(m K)": "a thermal conductivity",
+    "J/(kg K)": "a specific heat capacity",
+    "W/(m2 K)": "a heat transfer coefficient",
+    "W/K": "a thermal conductance",
+    "W": "a power",
+    "Pa": "a pressure or elastic modulus",
+    "N": "a force",
+    "N m": "a torque",
+    "s": "a time",
+    "degC": "a temperature",
+    "rad/s": "a speed",
+    "N m s/rad": "a torque per speed",
+    "m3/rad": "a volume flow per speed",
 }
 #: renamed keys (old -> new): a file that still uses an old key is read with a deprecation warning
 RENAMED_KEYS = {
@@ -78,26 +106,56 @@ RENAMED_KEYS = {
 
 #: allowed SI range per dimension (inclusive); specific keys are narrowed below
 DIM_RANGE = {
-    "1": (0.0, 1e6), "m": (0.0, 3.0), "m2": (0.0, 50.0), "m3": (0.0, 0.1), "rad": (0.0, math.radians(45)),
-    "kg": (0.0, 1000.0), "kg/m3": (500.0, 20000.0), "W/(m K)": (0.01, 500.0), "J/(kg K)": (100.0, 5000.0),
-    "W/(m2 K)": (0.0, 1e7), "W/K": (0.0, 1e5), "W": (0.0, 1e6), "Pa": (1e6, 1e13), "N": (0.0, 1e7),
-    "N m": (-1e5, 1e5), "s": (0.0, 1e5), "degC": (-60.0, 250.0), "rad/s": (0.0, 1000.0),
-    "N m s/rad": (0.0, 1.0), "m3/rad": (0.0, 1e-4),
+    "1": (0.0, 1e6),
+    "m": (0.0, 3.0),
+    "m2": (0.0, 50.0),
+    "m3": (0.0, 0.1),
+    "rad": (0.0, math.radians(45)),
+    "kg": (0.0, 1000.0),
+    "kg/m3": (500.0, 20000.0),
+    "W/(m K)": (0.01, 500.0),
+    "J/(kg K)": (100.0, 5000.0),
+    "W/(m2 K)": (0.0, 1e7),
+    "W/K": (0.0, 1e5),
+    "W": (0.0, 1e6),
+    "Pa": (1e6, 1e13),
+    "N": (0.0, 1e7),
+    "N m": (-1e5, 1e5),
+    "s": (0.0, 1e5),
+    "degC": (-60.0, 250.0),
+    "rad/s": (0.0, 1000.0),
+    "N m s/rad": (0.0, 1.0),
+    "m3/rad": (0.0, 1e-4),
 }
 #: (glob pattern, low, high, integer?) checked after the dimension range, first match wins
 KEY_RULES = [
-    ("gear.*.z*", 8, 200, True), ("planetary.z_*", 8, 250, True), ("planetary.n_planets", 2, 8, True),
-    ("*.n_rollers*", 4, 100, True), ("sync.n_ring_*", 0, 6, True), ("meta.split_inverted", 0, 1, True),
+    ("gear.*.z*", 8, 200, True),
+    ("planetary.z_*", 8, 250, True),
+    ("planetary.n_planets", 2, 8, True),
+    ("*.n_rollers*", 4, 100, True),
+    ("sync.n_ring_*", 0, 6, True),
+    ("meta.split_inverted", 0, 1, True),
     ("wheel.covered_sides", 0, 1, True),
-    ("*frac*", 0.0, 1.0, False), ("housing.internal_split_*", 0.0, 1.0, False), ("*.immersion", 0.0, 1.0, False),
-    ("housing.emissivity", 0.0, 1.0, False), ("material.*.poisson", 0.0, 0.5, False),
-    ("scale.*_to_heat", 0.1, 3.0, False), ("bearing.sf_*", 0.0, 1.0, False), ("*.sf_*", 0.0, 1.0, False),
-    ("oil.volume", 4e-3, 20e-3, False), ("heat.h_nom", 10.0, 5000.0, False), ("heat.TCC", 1e3, 1e6, False),
-    ("heat.splash_exponent", 0.0, 2.0, False), ("planetary.h_oil", 10.0, 1e4, False),
-    ("housing.h_oil", 10.0, 5000.0, False), ("housing.h_air", 1.0, 200.0, False),
+    ("*frac*", 0.0, 1.0, False),
+    ("housing.internal_split_*", 0.0, 1.0, False),
+    ("*.immersion", 0.0, 1.0, False),
+    ("housing.emissivity", 0.0, 1.0, False),
+    ("material.*.poisson", 0.0, 0.5, False),
+    ("scale.*_to_heat", 0.1, 3.0, False),
+    ("bearing.sf_*", 0.0, 1.0, False),
+    ("*.sf_*", 0.0, 1.0, False),
+    ("oil.volume", 4e-3, 20e-3, False),
+    ("heat.h_nom", 10.0, 5000.0, False),
+    ("heat.TCC", 1e3, 1e6, False),
+    ("heat.splash_exponent", 0.0, 2.0, False),
+    ("planetary.h_oil", 10.0, 1e4, False),
+    ("housing.h_oil", 10.0, 5000.0, False),
+    ("housing.h_air", 1.0, 200.0, False),
     ("gear.alpha_n", math.radians(14), math.radians(30), False),
-    ("bearing.f0_*", 0.5, 10.0, False), ("wheel_bearing.f0_*", 0.5, 10.0, False),
-    ("bearing.f1_*", 0.0, 0.01, False), ("wheel.hub_mass_factor", 1.0, 3.0, False),
+    ("bearing.f0_*", 0.5, 10.0, False),
+    ("wheel_bearing.f0_*", 0.5, 10.0, False),
+    ("bearing.f1_*", 0.0, 0.01, False),
+    ("wheel.hub_mass_factor", 1.0, 3.0, False),
     ("engine.max_speed_rad_s", 100.0, 1000.0, False),
 ]
 #: sign rule: a value of any dimension but these must be greater than zero (plain numbers and angles are kept
@@ -105,8 +163,16 @@ KEY_RULES = [
 SIGN_FREE_DIMS = ("1", "rad", "degC")
 #: ... except these keys, which may also be zero: positions, bores (0: a solid shaft), overhangs, the bearing preload,
 #: the oil surface at the layshaft axis, an idler not dipping, the heat lag (0: no lag)
-ZERO_ALLOWED = ("*.x", "*.x_*", "*.d_bore", "*.overhang_*", "bearing.P0", "oil.level_below_ls_axis",
-                "gear.R.idler_immersion", "scale.heat_lag_tau")
+ZERO_ALLOWED = (
+    "*.x",
+    "*.x_*",
+    "*.d_bore",
+    "*.overhang_*",
+    "bearing.P0",
+    "oil.level_below_ls_axis",
+    "gear.R.idler_immersion",
+    "scale.heat_lag_tau",
+)
 #: ... and these, which must be zero or negative (the engine's braking torque)
 NOT_POSITIVE = ("engine.min_torque",)
 
@@ -114,6 +180,7 @@ NOT_POSITIVE = ("engine.min_torque",)
 @dataclass
 class Parameters:
     """A validated parameter set: SI values and provenance by dotted key, plus the kinematics."""
+
     variant: str
     values: dict
     sources: dict
@@ -145,12 +212,31 @@ class Parameters:
     @property
     def teeth(self) -> Teeth:
         z = self.values
-        idle = {"LI": int(z["gear.L.z1"]), "3M": int(z["gear.3.z1"]), "2M": int(z["gear.2.z1"]),
-                "1M": int(z["gear.1.z1"]), "CM": int(z["gear.C.z1"]), "RM": int(z["gear.R.z1"])}
-        lay = {"LL": int(z["gear.L.z2"]), "3L": int(z["gear.3.z2"]), "2L": int(z["gear.2.z2"]),
-               "1L": int(z["gear.1.z2"]), "CL": int(z["gear.C.z2"]), "RL": int(z["gear.R.z2"])}
-        return Teeth(idle, lay, int(z["gear.R.z_idler"]), int(z["planetary.z_sun"]), int(z["planetary.z_planet"]),
-                     int(z["planetary.z_ring"]), int(z["planetary.n_planets"]))
+        idle = {
+            "LI": int(z["gear.L.z1"]),
+            "3M": int(z["gear.3.z1"]),
+            "2M": int(z["gear.2.z1"]),
+            "1M": int(z["gear.1.z1"]),
+            "CM": int(z["gear.C.z1"]),
+            "RM": int(z["gear.R.z1"]),
+        }
+        lay = {
+            "LL": int(z["gear.L.z2"]),
+            "3L": int(z["gear.3.z2"]),
+            "2L": int(z["gear.2.z2"]),
+            "1L": int(z["gear.1.z2"]),
+            "CL": int(z["gear.C.z2"]),
+            "RL": int(z["gear.R.z2"]),
+        }
+        return Teeth(
+            idle,
+            lay,
+            int(z["gear.R.z_idler"]),
+            int(z["planetary.z_sun"]),
+            int(z["planetary.z_planet"]),
+            int(z["planetary.z_ring"]),
+            int(z["planetary.n_planets"]),
+        )
 
     @property
     def kinematics(self) -> KinematicTable:
@@ -160,7 +246,7 @@ class Parameters:
             self.__dict__["_kin"] = kin
         return kin
 
-    def with_overrides(self, overrides: dict) -> "Parameters":
+    def with_overrides(self, overrides: dict) -> Parameters:
         """A copy with SI values replaced (keys must exist); used by effects and parameter studies."""
         vals = dict(self.values)
         for k, v in overrides.items():
@@ -170,8 +256,9 @@ class Parameters:
             if k not in vals:
                 raise ParameterError(f"cannot override unknown parameter {k!r}")
             vals[k] = float(v)
-        new = Parameters(self.variant, vals, dict(self.sources), dict(self.units), dict(self.strings), self.origin,
-                         dict(self.bounds))
+        new = Parameters(
+            self.variant, vals, dict(self.sources), dict(self.units), dict(self.strings), self.origin, dict(self.bounds)
+        )
         _check_values(new)
         return new
 
@@ -213,8 +300,11 @@ def _renamed(entries: dict, path: Path) -> dict:
     for key, e in entries.items():
         new = RENAMED_KEYS.get(key)
         if new is not None:
-            warnings.warn(f"{path.name}: parameter {key} is deprecated, use {new} (it is read as {new})",
-                          FutureWarning, stacklevel=4)
+            warnings.warn(
+                f"{path.name}: parameter {key} is deprecated, use {new} (it is read as {new})",
+                FutureWarning,
+                stacklevel=4,
+            )
             if new in entries:
                 raise ParameterError(f"{path.name}: {key} and {new} are the same parameter; keep only {new}")
             key = new
@@ -262,7 +352,7 @@ def _check_keys(path: Path, entries: dict, base: dict, base_name: str) -> None:
     number written as text (or text as a number) and a unit of another dimension than the base entry's."""
     for key, e in entries.items():
         if key == "meta.inherit" or (key.startswith("meta.") and isinstance(e, str)):
-            continue                     # a file's own description (meta.description ...): text, no physics
+            continue  # a file's own description (meta.description ...): text, no physics
         if key not in base:
             raise ParameterError(_unknown_key(path, key, base, base_name))
         _check_entry_kind(path, key, e, base[key])
@@ -276,10 +366,10 @@ def _unknown_key(path: Path, key: str, base: dict, base_name: str) -> str:
     section, _, name = key.rpartition(".")
     siblings = [k.rpartition(".")[2] for k in base if k.rpartition(".")[0] == section]
     has = "have" if base_name.startswith("the ") else "has"
-    if siblings:                         # a known section: the closest key name in it
+    if siblings:  # a known section: the closest key name in it
         close = [f"{section}.{k}" for k in difflib.get_close_matches(name, siblings, n=1)]
         what = "no such key"
-    else:                                # an unknown section: the closest dotted key anywhere
+    else:  # an unknown section: the closest dotted key anywhere
         close = difflib.get_close_matches(key, list(base), n=1)
         what = f"no section [{section}]" if section else "no such key"
     hint = f"; did you mean {close[0]}?" if close else ""
@@ -300,11 +390,13 @@ def _check_entry_kind(path: Path, key: str, e, ref) -> None:
         return
     u, ref_u = e.get("u"), ref.get("u")
     if u not in UNITS or ref_u not in UNITS or UNITS[u][0] == UNITS[ref_u][0]:
-        return                          # an unknown unit is reported by load_parameters
+        return  # an unknown unit is reported by load_parameters
     dim, ref_dim = UNITS[u][0], UNITS[ref_u][0]
     allowed = " or ".join(f'u = "{x}"' for x, (d, _) in UNITS.items() if d == ref_dim)
-    raise ParameterError(f"{path.name}: {key} has unit {u!r} ({DIM_NAMES.get(dim, dim)}) but the key is "
-                         f"{DIM_NAMES.get(ref_dim, ref_dim)}: write it with {allowed}")
+    raise ParameterError(
+        f"{path.name}: {key} has unit {u!r} ({DIM_NAMES.get(dim, dim)}) but the key is "
+        f"{DIM_NAMES.get(ref_dim, ref_dim)}: write it with {allowed}"
+    )
 
 
 def parameter_path(variant_or_path: str | Path) -> Path:
@@ -314,8 +406,10 @@ def parameter_path(variant_or_path: str | Path) -> Path:
         return p
     if str(variant_or_path) in VARIANTS:
         return PARAM_DIR / f"{variant_or_path}.toml"
-    raise ParameterError(f"unknown gearbox variant {variant_or_path!r}: use one of {', '.join(VARIANTS)} "
-                         f"or the path of a .toml parameter file")
+    raise ParameterError(
+        f"unknown gearbox variant {variant_or_path!r}: use one of {', '.join(VARIANTS)} "
+        f"or the path of a .toml parameter file"
+    )
 
 
 def read_entries(variant_or_path: str | Path) -> dict:
@@ -332,14 +426,18 @@ def _bounds(path: Path, key: str, e: dict, fac: float, v: float):
     except KeyError:
         raise ParameterError(f"{path.name}: {key} declares only one of lo and hi; give both or neither") from None
     except (TypeError, ValueError):
-        raise ParameterError(f"{path.name}: {key} has bounds lo = {e.get('lo')!r}, hi = {e.get('hi')!r}, which are "
-                             f"not numbers") from None
+        raise ParameterError(
+            f"{path.name}: {key} has bounds lo = {e.get('lo')!r}, hi = {e.get('hi')!r}, which are not numbers"
+        ) from None
     if not lo < hi:
-        raise ParameterError(f"{path.name}: {key} has bounds lo = {e['lo']} .. hi = {e['hi']}: lo must be below hi "
-                             f"(reversed or equal bounds)")
+        raise ParameterError(
+            f"{path.name}: {key} has bounds lo = {e['lo']} .. hi = {e['hi']}: lo must be below hi "
+            f"(reversed or equal bounds)"
+        )
     if not lo <= v <= hi:
-        raise ParameterError(f"{path.name}: {key} = {e['v']} must lie within its bounds lo = {e['lo']} .. hi = "
-                             f"{e['hi']}")
+        raise ParameterError(
+            f"{path.name}: {key} = {e['v']} must lie within its bounds lo = {e['lo']} .. hi = {e['hi']}"
+        )
     return lo, hi
 
 
@@ -348,10 +446,10 @@ def load_parameters(variant_or_path: str | Path = "GRS905") -> Parameters:
     path = parameter_path(variant_or_path)
     entries = _read(path)
     values, sources, units, strings, bounds = {}, {}, {}, {}, {}
-    written = {}                         # key -> (unit, factor to SI) as in the file, for messages
+    written = {}  # key -> (unit, factor to SI) as in the file, for messages
     for key, e in entries.items():
         if key in ("meta.variant", "meta.inherit") or (key.startswith("meta.") and isinstance(e, str)):
-            strings[key] = str(e)          # a description of the file (meta.description ...): text, no physics
+            strings[key] = str(e)  # a description of the file (meta.description ...): text, no physics
             continue
         if not isinstance(e, dict) or "v" not in e:
             raise ParameterError(f"{path.name}: entry {key!r} must be a table {{ v = ..., u = ..., src = ... }}")
@@ -389,9 +487,20 @@ def load_parameters(variant_or_path: str | Path = "GRS905") -> Parameters:
 COOLER_KINDS = ("none", "liquid", "air", "hold", "measured")
 
 REQUIRED = [
-    "gear.center_distance", "gear.alpha_n", "oil.volume", "heat.h_nom", "heat.TCC", "planetary.z_sun",
-    "scale.gear_contact_to_heat", "scale.planet_to_heat", "scale.churn_to_heat", "housing.h_oil",
-    "cooler.liquid_hA_ref", "boundary.ambient", "engine.max_torque", "engine.max_speed_rad_s",
+    "gear.center_distance",
+    "gear.alpha_n",
+    "oil.volume",
+    "heat.h_nom",
+    "heat.TCC",
+    "planetary.z_sun",
+    "scale.gear_contact_to_heat",
+    "scale.planet_to_heat",
+    "scale.churn_to_heat",
+    "housing.h_oil",
+    "cooler.liquid_hA_ref",
+    "boundary.ambient",
+    "engine.max_torque",
+    "engine.max_speed_rad_s",
 ] + [f"gear.{p}.{k}" for p in ("L", "3", "2", "1", "C", "R") for k in ("z1", "z2", "m_n", "beta", "width1", "width2")]
 
 
@@ -401,8 +510,10 @@ def _check_required(p: Parameters):
             raise ParameterError(f"parameter {k!r} is missing from {p.origin}")
     ratio = 1.0 + p["planetary.z_ring"] / p["planetary.z_sun"]
     if abs((p["planetary.z_ring"] - p["planetary.z_sun"]) / 2.0 - p["planetary.z_planet"]) > 0.5:
-        raise ParameterError(f"planetary.z_planet = {p['planetary.z_planet']:.0f} does not fit between sun and ring "
-                             f"(must be (z_ring - z_sun) / 2)")
+        raise ParameterError(
+            f"planetary.z_planet = {p['planetary.z_planet']:.0f} does not fit between sun and ring "
+            f"(must be (z_ring - z_sun) / 2)"
+        )
     if not 2.0 < ratio < 6.0:
         raise ParameterError(f"planetary range ratio 1 + z_ring/z_sun = {ratio:.2f} is outside 2..6")
 
@@ -464,7 +575,11 @@ def _check_bounds(p: Parameters, key: str, dim: str, lo: float, hi: float, where
     bad = next((x for x in b if _sign_rule(key, x, dim)), None)
     if not (lo <= b[0] and b[1] <= hi) or bad is not None:
         (slo, _), (shi, _) = _shown(lo, key, dim, written), _shown(hi, key, dim, written)
-        why = (f"{_sign_rule(key, bad, dim)} (the key is {DIM_NAMES.get(dim, dim)})" if bad is not None
-               else f"reach outside its allowed range {slo:g}..{shi:g}{unit}")
-        raise ParameterError(f"{where}{key}'s bounds lo = {blo:g} .. hi = {bhi:g}{unit} {why}; calibrate would try "
-                             f"values there")
+        why = (
+            f"{_sign_rule(key, bad, dim)} (the key is {DIM_NAMES.get(dim, dim)})"
+            if bad is not None
+            else f"reach outside its allowed range {slo:g}..{shi:g}{unit}"
+        )
+        raise ParameterError(
+            f"{where}{key}'s bounds lo = {blo:g} .. hi = {bhi:g}{unit} {why}; calibrate would try values there"
+        )

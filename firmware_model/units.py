@@ -4,6 +4,7 @@ Names say both units: ``RAD_S_PER_RPM`` turns rpm into rad/s (``omega_rad_s = sp
 ``RPM_PER_RAD_S`` the other way. Bit-for-bit the same numbers as the expressions they replace: 2 pi / 60 and pi / 30
 round to the same double, and so do 60 / (2 pi) and 30 / pi.
 """
+
 from __future__ import annotations
 
 import math

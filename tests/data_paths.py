@@ -4,17 +4,24 @@ They are public captures that this project did not record and does not redistrib
 ``$GVS_REAL_J1939`` (a directory holding the ``*.candump.log`` files), else in the project's development layout
 (``shared/data/real-j1939`` beside the checkout). Without them the tests that need them skip and say this.
 """
+
 from __future__ import annotations
 
 import os
 from pathlib import Path
 
 #: the captures the tests read, in the directory $GVS_REAL_J1939
-CAPTURE_FILES = ("normal.candump.log", "tsc1.candump.log", "fuzz_1ms_ID_and_Data.candump.log",
-                 "utulsa_logger2_drive.candump.log")
-SKIP_REASON = ("real J1939 captures not found: the repository does not ship these public truck captures (what they "
-               "are: docs/can.md, 'Real truck captures'); put " + ", ".join(CAPTURE_FILES) + " in a directory and "
-               "run the tests with GVS_REAL_J1939=<that directory>")
+CAPTURE_FILES = (
+    "normal.candump.log",
+    "tsc1.candump.log",
+    "fuzz_1ms_ID_and_Data.candump.log",
+    "utulsa_logger2_drive.candump.log",
+)
+SKIP_REASON = (
+    "real J1939 captures not found: the repository does not ship these public truck captures (what they "
+    "are: docs/can.md, 'Real truck captures'); put " + ", ".join(CAPTURE_FILES) + " in a directory and "
+    "run the tests with GVS_REAL_J1939=<that directory>"
+)
 
 
 def real_capture_dir() -> Path | None:

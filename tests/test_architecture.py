@@ -4,6 +4,7 @@ private names reached across modules, no function longer than 80 lines outside t
 Imports are read from the source text (ast), at any depth (function-level imports count too), so the rules hold for
 what the code can reach, not only for what it imports at load time.
 """
+
 from __future__ import annotations
 
 import ast
@@ -19,8 +20,12 @@ MAX_FUNCTION_LINES = 80
 FORBIDDEN = {
     "can_dbc": ("firmware_model", "tools"),
     "firmware_model": ("tools",),
-    "firmware_model.physics": ("firmware_model.onboard", "firmware_model.service", "firmware_model.network",
-                               "firmware_model.config"),
+    "firmware_model.physics": (
+        "firmware_model.onboard",
+        "firmware_model.service",
+        "firmware_model.network",
+        "firmware_model.config",
+    ),
     "firmware_model.onboard": ("firmware_model.service", "can_dbc"),
     "firmware_model.units": ("firmware_model.", "can_dbc", "tools"),
     "firmware_model.components": ("firmware_model.", "can_dbc", "tools"),
@@ -57,7 +62,7 @@ def _imports(name: str, tree: ast.AST) -> list[tuple[str, list[str], int]]:
             mod = node.module or ""
             if node.level:
                 base = pkg.split(".")
-                base = base[:len(base) - (node.level - 1)]
+                base = base[: len(base) - (node.level - 1)]
                 mod = ".".join(base + ([mod] if mod else []))
             names = [a.name for a in node.names]
             # "from pkg import module" imports a module
@@ -82,15 +87,21 @@ def test_rooms_import_only_what_they_may():
         for room, banned in _room_rules(name):
             for mod, _, line in imps:
                 for b in banned:
-                    if (mod == b.rstrip(".") or mod.startswith(b if b.endswith(".") else b + ".") or mod == b) \
-                            and not mod.startswith(room):
+                    if (
+                        mod == b.rstrip(".") or mod.startswith(b if b.endswith(".") else b + ".") or mod == b
+                    ) and not mod.startswith(room):
                         bad.append(f"{name}:{line} imports {mod} ({room} may not import {b})")
     assert not bad, "\n".join(bad)
 
 
 def test_only_the_cli_imports_the_cli():
-    bad = [f"{name}:{line} imports {mod}" for name, imps in IMPORTS.items() if not name.startswith(CLI)
-           for mod, _, line in imps if mod == CLI or mod.startswith(CLI + ".")]
+    bad = [
+        f"{name}:{line} imports {mod}"
+        for name, imps in IMPORTS.items()
+        if not name.startswith(CLI)
+        for mod, _, line in imps
+        if mod == CLI or mod.startswith(CLI + ".")
+    ]
     assert not bad, "libraries must not import the CLI modules:\n" + "\n".join(bad)
 
 
@@ -167,8 +178,13 @@ def test_no_private_names_across_modules():
                     if a.name in MODULES and a.asname:
                         aliases[a.asname] = a.name
         for node in ast.walk(tree):
-            if isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name) and node.value.id in aliases \
-                    and node.attr.startswith("_") and not node.attr.startswith("__"):
+            if (
+                isinstance(node, ast.Attribute)
+                and isinstance(node.value, ast.Name)
+                and node.value.id in aliases
+                and node.attr.startswith("_")
+                and not node.attr.startswith("__")
+            ):
                 bad.append(f"{name}:{node.lineno} uses {aliases[node.value.id]}.{node.attr}")
     assert not bad, "private names used across modules:\n" + "\n".join(bad)
 

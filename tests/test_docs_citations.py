@@ -9,6 +9,7 @@ and benchmarks (their docstrings, comments and --help texts). In them:
 - a bare upper-case Markdown name (``CONVENTIONS.md``) is a file of the repository;
 - nothing cites the design notes of the project's development set-up, which are not shipped.
 """
+
 from __future__ import annotations
 
 import re
@@ -33,8 +34,11 @@ INTERFACES_SECTION = re.compile(r"interfaces(?:\.md)?[^\n(]{0,30}?\bsections? (\
 def user_facing_files() -> list[Path]:
     files = {ROOT / "README.md", ROOT / "pyproject.toml", *ROOT.glob("docs/**/*.md")}
     for pkg in ("firmware_model", "can_dbc", "tools", "benchmarks", "docs"):
-        files.update(p for p in (ROOT / pkg).rglob("*")
-                     if p.suffix in (".py", ".dbc", ".toml", ".md") and "__pycache__" not in p.parts)
+        files.update(
+            p
+            for p in (ROOT / pkg).rglob("*")
+            if p.suffix in (".py", ".dbc", ".toml", ".md") and "__pycache__" not in p.parts
+        )
     return sorted(files)
 
 
@@ -54,20 +58,27 @@ def interfaces_sections() -> set[str]:
 
 
 def _path_exists(cited: str) -> bool:
-    cited = re.sub(r"<[^>]*>", "*", cited.split("<br")[0])   # placeholders (<name>) and table line breaks
+    cited = re.sub(r"<[^>]*>", "*", cited.split("<br")[0])  # placeholders (<name>) and table line breaks
     return any(ROOT.glob(cited)) if "*" in cited else (ROOT / cited).exists()
 
 
 def citation_problems(text: str, where: Path) -> list[str]:
     """What ``text`` (the content of the file ``where``) cites that the repository does not ship."""
     problems = [f"cites {m.group(0)!r}, which is not part of the repository" for m in NOT_SHIPPED.finditer(text)]
-    problems += [f"cites {m.group(1)}, which does not exist" for m in REPO_PATH.finditer(text)
-                 if not _path_exists(m.group(1))]
-    problems += [f"cites {m.group(1)}, which is no file of the repository" for m in BARE_MD.finditer(text)
-                 if m.group(1) not in PLACEHOLDERS and not any(ROOT.rglob(m.group(1)))]
+    problems += [
+        f"cites {m.group(1)}, which does not exist" for m in REPO_PATH.finditer(text) if not _path_exists(m.group(1))
+    ]
+    problems += [
+        f"cites {m.group(1)}, which is no file of the repository"
+        for m in BARE_MD.finditer(text)
+        if m.group(1) not in PLACEHOLDERS and not any(ROOT.rglob(m.group(1)))
+    ]
     sections = interfaces_sections()
-    problems += [f"cites section {m.group(1)} of docs/interfaces.md, which has no such section"
-                 for m in INTERFACES_SECTION.finditer(text) if m.group(1) not in sections]
+    problems += [
+        f"cites section {m.group(1)} of docs/interfaces.md, which has no such section"
+        for m in INTERFACES_SECTION.finditer(text)
+        if m.group(1) not in sections
+    ]
     if where.suffix == ".md":
         for m in MD_LINK.finditer(text):
             target = m.group(1)
@@ -91,9 +102,16 @@ def test_user_facing_file_cites_only_what_the_repository_ships(path):
     assert not problems, f"{path.relative_to(ROOT)}: " + "; ".join(problems)
 
 
-BAD_CITATIONS = ("Run tables: " + "CONTR" + "ACTS section 3.", "Style: see STY" + "LE.md.",
-                 "Data in ../" + "shared/data.", "See docs/nowhere.md.", "[the sensor](sensor.md#no-such-heading)", "[x](missing.md)",
-                 "docs/interfaces.md section 9", "as the CONVENTIONS_OLD.md say")
+BAD_CITATIONS = (
+    "Run tables: " + "CONTR" + "ACTS section 3.",
+    "Style: see STY" + "LE.md.",
+    "Data in ../" + "shared/data.",
+    "See docs/nowhere.md.",
+    "[the sensor](sensor.md#no-such-heading)",
+    "[x](missing.md)",
+    "docs/interfaces.md section 9",
+    "as the CONVENTIONS_OLD.md say",
+)
 
 
 @pytest.mark.parametrize("text", BAD_CITATIONS)
@@ -102,15 +120,22 @@ def test_the_check_finds_a_citation_of_what_is_not_shipped(text):
 
 
 def test_the_check_accepts_citations_of_what_is_shipped():
-    good = ("Run tables: docs/interfaces.md section 3 ([interfaces](interfaces.md#3-run-tables-csv)); codes: "
-            "[glossary](glossary.md#gears), docs/img/cycles_<name>.png, firmware_model/params/*.toml, "
-            "docs/CONVENTIONS.md, interfaces section 2.4, `--report OUT.md`.")
+    good = (
+        "Run tables: docs/interfaces.md section 3 ([interfaces](interfaces.md#3-run-tables-csv)); codes: "
+        "[glossary](glossary.md#gears), docs/img/cycles_<name>.png, firmware_model/params/*.toml, "
+        "docs/CONVENTIONS.md, interfaces section 2.4, `--report OUT.md`."
+    )
     assert citation_problems(good, ROOT / "docs" / "example.md") == []
 
 
 def test_the_data_lookup_of_the_tests_is_the_only_place_that_names_data_outside_the_checkout():
-    hits = [p for p in (ROOT / "tests").rglob("*.py") if "__pycache__" not in p.parts and p.name != Path(__file__).name
-            and NOT_SHIPPED.search(p.read_text(encoding="utf-8"))]
+    hits = [
+        p
+        for p in (ROOT / "tests").rglob("*.py")
+        if "__pycache__" not in p.parts
+        and p.name != Path(__file__).name
+        and NOT_SHIPPED.search(p.read_text(encoding="utf-8"))
+    ]
     assert hits == [], hits
 
 
@@ -118,6 +143,7 @@ def test_the_readme_shows_the_component_codes():
     readme = (ROOT / "README.md").read_text(encoding="utf-8")
     assert "](docs/glossary.md)" in readme and "](docs/img/gearbox_codes.png)" in readme
     from firmware_model.components import PUBLISHED
+
     codes = {c.split(".")[0] for c in PUBLISHED}
     missing = sorted(c for c in codes if f"`{c}`" not in readme and f" {c} " not in readme)
     assert not missing, f"the README's table of codes misses {missing}"

@@ -1,5 +1,6 @@
 """The documentation's examples that are marked ``<!-- example: runs ... -->`` run as written; ``needs: A B`` in the
 mark names optional packages (import names) without which the example skips and says so."""
+
 import importlib.util
 import os
 import re
@@ -20,8 +21,16 @@ def _examples():
         for k, m in enumerate(MARK.finditer(md.read_text(encoding="utf-8"))):
             needs = NEEDS.search(m.group(1))
             missing = [n for n in (needs.group(1).split() if needs else ()) if importlib.util.find_spec(n) is None]
-            marks = [pytest.mark.skip(reason=f"{md.name} example #{k} needs the optional package(s) "
-                                             f"{', '.join(missing)} (pip install -e '.[fleet]')")] if missing else []
+            marks = (
+                [
+                    pytest.mark.skip(
+                        reason=f"{md.name} example #{k} needs the optional package(s) "
+                        f"{', '.join(missing)} (pip install -e '.[fleet]')"
+                    )
+                ]
+                if missing
+                else []
+            )
             out.append(pytest.param(m.group(2), id=f"{md.name}#{k}", marks=marks))
     return out
 
@@ -42,8 +51,9 @@ def test_docs_example_runs(code, tmp_path):
     script = tmp_path / "example.py"
     script.write_text(code, encoding="utf-8")
     env = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
-    res = subprocess.run([sys.executable, str(script)], cwd=tmp_path, env=env, capture_output=True, text=True,
-                         timeout=300)
+    res = subprocess.run(
+        [sys.executable, str(script)], cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300
+    )
     assert res.returncode == 0, res.stderr[-3000:]
 
 
@@ -54,17 +64,26 @@ PLAUSIBLE_DEGC = (-60.0, 250.0)
 
 
 def _decode_lines():
-    return [pytest.param(m.group(1), m.group(2), id=f"{md.name}:{m.group(1).split()[-1]}")
-            for md in sorted([ROOT / "README.md", *(ROOT / "docs").glob("*.md")])
-            for m in DECODED.finditer(md.read_text(encoding="utf-8"))]
+    return [
+        pytest.param(m.group(1), m.group(2), id=f"{md.name}:{m.group(1).split()[-1]}")
+        for md in sorted([ROOT / "README.md", *(ROOT / "docs").glob("*.md")])
+        for m in DECODED.finditer(md.read_text(encoding="utf-8"))
+    ]
 
 
 @pytest.mark.parametrize("frame, shown", _decode_lines())
 def test_docs_decode_examples_are_what_cantools_prints_of_plausible_frames(frame, shown):
     import cantools
-    res = subprocess.run([sys.executable, "-m", "cantools", "decode", "--single-line",
-                          str(ROOT / "can_dbc" / "gearbox_vsensor.dbc")], input=frame + "\n", capture_output=True,
-                         text=True, cwd=ROOT, timeout=120, check=True)
+
+    res = subprocess.run(
+        [sys.executable, "-m", "cantools", "decode", "--single-line", str(ROOT / "can_dbc" / "gearbox_vsensor.dbc")],
+        input=frame + "\n",
+        capture_output=True,
+        text=True,
+        cwd=ROOT,
+        timeout=120,
+        check=True,
+    )
     assert res.stdout.strip() == f"{frame} :: {shown}"
     db = cantools.database.load_file(str(ROOT / "can_dbc" / "gearbox_vsensor.dbc"))
     can_id, data = frame.split()[-1].split("#")

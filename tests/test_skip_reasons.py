@@ -1,4 +1,5 @@
 """A default `python -m pytest` run says why tests skip, and each reason says how to get what is missing."""
+
 from __future__ import annotations
 
 import subprocess
@@ -13,9 +14,25 @@ ROOT = Path(__file__).resolve().parents[1]
 def test_the_default_run_prints_the_skip_reasons(tmp_path):
     probe = tmp_path / "test_probe.py"
     probe.write_text("import pytest\n\n\ndef test_probe():\n    pytest.skip('PROBE: get it with `make probe`')\n")
-    res = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "-c",
-                          str(ROOT / "pyproject.toml"), "--rootdir", str(tmp_path), str(probe)],
-                         capture_output=True, text=True, cwd=tmp_path, timeout=120)
+    res = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "pytest",
+            "-q",
+            "-p",
+            "no:cacheprovider",
+            "-c",
+            str(ROOT / "pyproject.toml"),
+            "--rootdir",
+            str(tmp_path),
+            str(probe),
+        ],
+        capture_output=True,
+        text=True,
+        cwd=tmp_path,
+        timeout=120,
+    )
     assert res.returncode == 0, res.stdout + res.stderr
     assert "SKIPPED [1]" in res.stdout and "PROBE: get it with `make probe`" in res.stdout
 
@@ -25,4 +42,3 @@ def test_the_real_captures_reason_says_how_to_provide_them():
     can_md = (ROOT / "docs" / "can.md").read_text(encoding="utf-8")
     assert "\n### Real truck captures\n" in can_md and "'Real truck captures'" in SKIP_REASON
     assert all(f"`{f}`" in can_md for f in CAPTURE_FILES)
-

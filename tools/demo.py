@@ -12,28 +12,40 @@
 
 :func:`run_demo` does it all; every step prints through ``echo`` (stdout by default).
 """
+
 from __future__ import annotations
 
 import math
 import threading
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable, NamedTuple
+from typing import NamedTuple
 
 import numpy as np
 
-from firmware_model.components import (LEVEL_CRITICAL, LEVEL_NA, LEVEL_NORMAL, LEVEL_WARNING, MODE_HOLDING,
-                                       MODE_NOT_INITIALISED, MODE_OIL_MODEL, PUBLISHED)
+from firmware_model.components import (
+    LEVEL_CRITICAL,
+    LEVEL_NA,
+    LEVEL_NORMAL,
+    LEVEL_WARNING,
+    MODE_HOLDING,
+    MODE_NOT_INITIALISED,
+    MODE_OIL_MODEL,
+    PUBLISHED,
+)
 from firmware_model.errors import InputError
-
 from tools.progress import progress
 from tools.runtable import RunTable, write_run_table
 
 #: how the demo prints a warning level and a degraded mode
 LEVEL_LABEL = {LEVEL_NORMAL: "ok", LEVEL_WARNING: "WARNING", LEVEL_CRITICAL: "CRITICAL", LEVEL_NA: "n/a"}
-DEGRADED_LABEL = {MODE_OIL_MODEL: "oil from the model", MODE_HOLDING: "inputs missing, holding",
-                  MODE_NOT_INITIALISED: "not initialised"}
+DEGRADED_LABEL = {
+    MODE_OIL_MODEL: "oil from the model",
+    MODE_HOLDING: "inputs missing, holding",
+    MODE_NOT_INITIALISED: "not initialised",
+}
 #: the PGNs (PDU2, data page 0) of the sensor's GBX_* output frames: GBX_TEMP_1 .. GBX_STATUS
 GBX_PGNS = range(0xFF40, 0xFF50)
 #: frames played onto the virtual bus between two short pauses that let the service's notifier keep up
@@ -59,14 +71,15 @@ def every(table: RunTable, seconds: float = CSV_ROW_S) -> RunTable:
 
 @dataclass(frozen=True)
 class DemoOptions:
-    cycle: str = "uphill"           # named cycle or CSV run table
-    minutes: float = 40.0           # how much of the cycle to run
+    cycle: str = "uphill"  # named cycle or CSV run table
+    minutes: float = 40.0  # how much of the cycle to run
     out_dir: Path = Path("demo_out")
-    print_every_s: float = 300.0    # print the sensor's outputs every this many seconds of drive time
+    print_every_s: float = 300.0  # print the sensor's outputs every this many seconds of drive time
 
 
 class Truth(NamedTuple):
     """The drive (inputs) and the reference plant's run over it."""
+
     cycle: RunTable
     table: RunTable
     wall_s: float
@@ -74,18 +87,20 @@ class Truth(NamedTuple):
 
 class BusRun(NamedTuple):
     """What happened on the virtual bus."""
-    outputs: list            # the sensor's GBX_* frames the monitor received
+
+    outputs: list  # the sensor's GBX_* frames the monitor received
     frames_in: int
     steps: int
     wall_s: float
     send_errors: int
-    recorded: RunTable       # the service's recorded outputs (its run table)
+    recorded: RunTable  # the service's recorded outputs (its run table)
 
 
 def simulate_truth(params, cycle_spec: str, minutes: float) -> Truth:
     """The first `minutes` of a cycle through the reference plant at 10 Hz."""
     from tools.cycles.named import get_cycle
     from tools.plant.reference import ReferencePlant
+
     cyc = get_cycle(cycle_spec)
     keep = cyc["time_s"] <= minutes * 60.0
     cyc = RunTable({c: np.asarray(cyc[c])[keep] for c in cyc.columns}, meta=dict(getattr(cyc, "meta", {}) or {}))
@@ -96,6 +111,7 @@ def simulate_truth(params, cycle_spec: str, minutes: float) -> Truth:
 def drive_frames(truth: Truth, log_path: Path):
     """J1939 frames of the drive (inputs) and rig thermocouple frames (truth), also written as a candump -L log."""
     from tools.can.logsynth import synth_frames, write_frames
+
     frames, _counts = synth_frames(truth.cycle, truth.table, rig=True)
     write_frames(frames, log_path)
     return frames
@@ -103,11 +119,13 @@ def drive_frames(truth: Truth, log_path: Path):
 
 def _monitor(bus, outs: list, stop: threading.Event) -> threading.Thread:
     """A thread that collects the sensor's GBX_* frames from `bus` until `stop` is set."""
+
     def loop():
         while not stop.is_set():
             m = bus.recv(timeout=0.1)
             if m is not None and (m.arbitration_id >> 8) & 0xFFFF in GBX_PGNS:
                 outs.append(m)
+
     th = threading.Thread(target=loop, daemon=True)
     th.start()
     return th
@@ -122,7 +140,7 @@ def _send_all(bus, frames, channel: str) -> int:
             n_sent += 1
             if n_sent % SEND_BURST_FRAMES == 0:
                 bar.update(SEND_BURST_FRAMES)
-                time.sleep(0.01)   # let the service's notifier keep up (bounded memory)
+                time.sleep(0.01)  # let the service's notifier keep up (bounded memory)
         bar.update(n_sent - bar.n)
     return n_sent
 
@@ -142,11 +160,14 @@ def _wait_until_consumed(service, timeout_s: float = DRAIN_TIMEOUT_S) -> None:
 def run_on_virtual_bus(params, frames) -> BusRun:
     """The sensor's CAN service on a python-can virtual bus fed with `frames`; a monitor collects its outputs."""
     import can
+
     from firmware_model.onboard.sensor import VirtualSensor
     from firmware_model.service import SensorService, ServiceOptions, serve
+
     channel = f"gbx-demo-{id(frames)}"
-    sender, svc_bus, monitor = (can.Bus(interface="virtual", channel=channel, preserve_timestamps=True)
-                                for _ in range(3))
+    sender, svc_bus, monitor = (
+        can.Bus(interface="virtual", channel=channel, preserve_timestamps=True) for _ in range(3)
+    )
     service = SensorService(VirtualSensor(params), ServiceOptions.from_config(None), record=True)
     stop, mon_stop = threading.Event(), threading.Event()
     result = {}
@@ -158,15 +179,21 @@ def run_on_virtual_bus(params, frames) -> BusRun:
     n_sent = _send_all(sender, frames, channel)
     _wait_until_consumed(service)
     stop.set()
-    th.join(timeout=300)      # serve() drains its queue and sends the last outputs before it returns
+    th.join(timeout=300)  # serve() drains its queue and sends the last outputs before it returns
     time.sleep(0.5)
     mon_stop.set()
     mth.join(timeout=5)
     for b in (sender, svc_bus, monitor):
         b.shutdown()
     r = result.get("r")
-    return BusRun(outs, n_sent, service.counters["steps"], time.perf_counter() - t0,
-                  r.send_errors if r is not None else 0, RunTable(service.recorded()))
+    return BusRun(
+        outs,
+        n_sent,
+        service.counters["steps"],
+        time.perf_counter() - t0,
+        r.send_errors if r is not None else 0,
+        RunTable(service.recorded()),
+    )
 
 
 def _ttl_words(ttl_s) -> str:
@@ -185,15 +212,19 @@ def _status_line(t_s: float, d: dict, warn: dict, limits) -> str:
     components closest to their own warning limits (the limits differ: bearings, sun wheel, gears), with the margin."""
     temps = d.get("temps_c", {})
     ttl = d.get("ttl_s", {})
-    margins = sorted((limits.of(c)[0] - v, c, v) for c, v in temps.items() if c in PUBLISHED and v is not None
-                     and not math.isnan(v))[:3]
+    margins = sorted(
+        (limits.of(c)[0] - v, c, v) for c, v in temps.items() if c in PUBLISHED and v is not None and not math.isnan(v)
+    )[:3]
     st = d.get("status", {})
     if st.get("degraded_mode") in (MODE_HOLDING, MODE_NOT_INITIALISED) and t_s < 1.0:
-        return (f"  t={t_s:6.0f} s  starting: no engine speed, torque and gear received yet "
-                f"(degraded: {DEGRADED_LABEL.get(st.get('degraded_mode'))})")
-    line = (f"  t={t_s:6.0f} s  oil {temps.get('oil', float('nan')):5.1f} C | closest to their limits: "
-            + ", ".join(f"{c} {v:5.1f} C ({'%.1f K below' % m if m > 0 else '%.1f K OVER' % -m} "
-                        f"{limits.of(c)[0]:.0f})" for m, c, v in margins))
+        return (
+            f"  t={t_s:6.0f} s  starting: no engine speed, torque and gear received yet "
+            f"(degraded: {DEGRADED_LABEL.get(st.get('degraded_mode'))})"
+        )
+    line = f"  t={t_s:6.0f} s  oil {temps.get('oil', float('nan')):5.1f} C | closest to their limits: " + ", ".join(
+        f"{c} {v:5.1f} C ({'%.1f K below' % m if m > 0 else '%.1f K OVER' % -m} {limits.of(c)[0]:.0f})"
+        for m, c, v in margins
+    )
     if margins:
         c = margins[0][1]
         line += f" | {c}: {_ttl_words(ttl.get(c))}"
@@ -208,6 +239,7 @@ def _level_events(t_s: float, d: dict, last: dict, limits) -> list[str]:
     """Lines for every component whose warning level changed at this step, with why (limit, early warning,
     hysteresis); ``last`` (component -> level) is updated."""
     from firmware_model.components import describe
+
     lines = []
     temps, ttl = d.get("temps_c", {}), d.get("ttl_s", {})
     for c, lv in d.get("levels", {}).items():
@@ -218,14 +250,20 @@ def _level_events(t_s: float, d: dict, last: dict, limits) -> list[str]:
         warn_c, crit_c, hyst_k = limits.of(c)
         T = temps.get(c, float("nan"))
         if lv > before:
-            why = (f"at or above its critical limit {crit_c:.0f} C" if lv == LEVEL_CRITICAL else
-                   f"at or above its warning limit {warn_c:.0f} C" if T >= warn_c else
-                   f"early warning: {_ttl_words(ttl.get(c))} of {warn_c:.0f} C at this load")
+            why = (
+                f"at or above its critical limit {crit_c:.0f} C"
+                if lv == LEVEL_CRITICAL
+                else f"at or above its warning limit {warn_c:.0f} C"
+                if T >= warn_c
+                else f"early warning: {_ttl_words(ttl.get(c))} of {warn_c:.0f} C at this load"
+            )
             lines.append(f"  t={t_s:6.0f} s  {LEVEL_LABEL[lv]} raised: {describe(c)} {T:.1f} C, {why}")
         else:
             edge = (crit_c if before == LEVEL_CRITICAL else warn_c) - hyst_k
-            lines.append(f"  t={t_s:6.0f} s  {LEVEL_LABEL[before]} cleared: {c} {T:.2f} C, below "
-                         f"{edge + hyst_k:.0f} - {hyst_k:g} K hysteresis = {edge:.0f} C")
+            lines.append(
+                f"  t={t_s:6.0f} s  {LEVEL_LABEL[before]} cleared: {c} {T:.2f} C, below "
+                f"{edge + hyst_k:.0f} - {hyst_k:g} K hysteresis = {edge:.0f} C"
+            )
         last[c] = lv
     return lines
 
@@ -236,6 +274,7 @@ def print_published(outs: list, print_every_s: float, echo: Callable[[str], None
     its first warning."""
     from can_dbc.adapter import decode_outputs
     from firmware_model.onboard.warning_levels import load_limits
+
     limits = limits or load_limits()
     by_t: dict = {}
     for m in outs:
@@ -254,8 +293,10 @@ def print_published(outs: list, print_every_s: float, echo: Callable[[str], None
             next_print += print_every_s
             echo(_status_line(ts - t_first, d, warn, limits))
     if first_warn:
-        echo("  first warnings (drive time): " + ", ".join(f"{c} at {t:.0f} s" for c, t in sorted(
-            first_warn.items(), key=lambda kv: kv[1])))
+        echo(
+            "  first warnings (drive time): "
+            + ", ".join(f"{c} at {t:.0f} s" for c, t in sorted(first_warn.items(), key=lambda kv: kv[1]))
+        )
     else:
         echo("  no warnings on this drive")
     return first_warn
@@ -275,7 +316,7 @@ def component_errors(est: RunTable) -> list[ComponentError]:
             e = np.asarray(est[f"T_{c}_c"]) - np.asarray(est[f"meas_T_{c}_c"])
             e = e[np.isfinite(e)]
             if e.size:
-                errs.append(ComponentError(float(np.max(np.abs(e))), float(np.sqrt(np.mean(e ** 2))), c))
+                errs.append(ComponentError(float(np.max(np.abs(e))), float(np.sqrt(np.mean(e**2))), c))
     return errs
 
 
@@ -285,10 +326,14 @@ def print_accuracy(est: RunTable, echo: Callable[[str], None]) -> None:
         return
     worst = max(errs)
     worst_rms = max(errs, key=lambda e: e.rms_k)
-    echo(f"  sensor vs plant truth over {len(errs)} components: worst max |error| {worst.max_abs_k:.2f} K "
-         f"({worst.component}), worst RMS {worst_rms.rms_k:.2f} K ({worst_rms.component})")
-    echo("  (the plant also sees engine-side boundary temperatures, seed Table 11, that no CAN signal carries: "
-         "the bearings next to the engine and end yoke show that gap; set [boundary] in --config when known)")
+    echo(
+        f"  sensor vs plant truth over {len(errs)} components: worst max |error| {worst.max_abs_k:.2f} K "
+        f"({worst.component}), worst RMS {worst_rms.rms_k:.2f} K ({worst_rms.component})"
+    )
+    echo(
+        "  (the plant also sees engine-side boundary temperatures, seed Table 11, that no CAN signal carries: "
+        "the bearings next to the engine and end yoke show that gap; set [boundary] in --config when known)"
+    )
 
 
 def plot_demo(est: RunTable, truth: RunTable, path) -> Path:
@@ -298,23 +343,25 @@ def plot_demo(est: RunTable, truth: RunTable, path) -> Path:
     from firmware_model.components import describe
     from firmware_model.onboard.warning_levels import load_limits
     from tools.plots import input_panel, level_axis, outside_legend, pyplot, save_figure, time_axis
+
     limits = load_limits()
     plt = pyplot()
     t, t_label = time_axis(est["time_s"])
     tt = time_axis(truth["time_s"])[0] if truth.n else t
-    fig, axes = plt.subplots(5, 1, figsize=(16, 15), sharex=True,
-                             gridspec_kw={"height_ratios": [1.2, 3, 3, 1.5, 1.3]})
+    fig, axes = plt.subplots(5, 1, figsize=(16, 15), sharex=True, gridspec_kw={"height_ratios": [1.2, 3, 3, 1.5, 1.3]})
     input_panel(axes[0], tt, truth)
-    axes[0].set_title("Virtual sensor on the CAN bus (solid) vs the reference plant's truth (black dashed); "
-                      "dotted: warning limits")
+    axes[0].set_title(
+        "Virtual sensor on the CAN bus (solid) vs the reference plant's truth (black dashed); dotted: warning limits"
+    )
     groups = (("PS", "PP", "PR", "oil"), ("LI.teeth", "1M.teeth", "2M.teeth", "LB", "BLR"))
     for ax, comps in zip(axes[1:3], groups):
         for i, c in enumerate(comps):
             if est.has(f"T_{c}_c"):
                 ax.plot(t, est[f"T_{c}_c"], color=f"C{i}", lw=1.8, label=f"{describe(c)}: sensor")
             if truth.has(f"T_{c}_c"):
-                ax.plot(tt, truth[f"T_{c}_c"], color="k", lw=0.9, ls="--", zorder=5,
-                        label="plant truth" if i == 0 else None)
+                ax.plot(
+                    tt, truth[f"T_{c}_c"], color="k", lw=0.9, ls="--", zorder=5, label="plant truth" if i == 0 else None
+                )
             if c != "oil":
                 ax.axhline(limits.of(c)[0], color=f"C{i}", lw=0.8, ls=":")
         ax.set_ylabel("degC")
@@ -323,15 +370,17 @@ def plot_demo(est: RunTable, truth: RunTable, path) -> Path:
     ax = axes[3]
     for i, c in enumerate(groups[0][:3] + groups[1]):
         if est.has(f"T_{c}_c") and est.has(f"meas_T_{c}_c"):
-            ax.plot(t, np.asarray(est[f"T_{c}_c"]) - np.asarray(est[f"meas_T_{c}_c"]), lw=0.9, color=f"C{i % 10}",
-                    label=c)
+            ax.plot(
+                t, np.asarray(est[f"T_{c}_c"]) - np.asarray(est[f"meas_T_{c}_c"]), lw=0.9, color=f"C{i % 10}", label=c
+            )
     ax.axhline(0.0, color="k", lw=0.5)
     ax.set_ylabel("sensor - truth [K]")
     ax.grid(alpha=0.3)
     outside_legend(ax, ncol=2)
     ax = axes[4]
-    raised = [c for c in PUBLISHED if est.has(f"W_{c}") and np.any(np.isin(est[f"W_{c}"], (LEVEL_WARNING,
-                                                                                           LEVEL_CRITICAL)))]
+    raised = [
+        c for c in PUBLISHED if est.has(f"W_{c}") and np.any(np.isin(est[f"W_{c}"], (LEVEL_WARNING, LEVEL_CRITICAL)))
+    ]
     for i, c in enumerate(raised[:8]):
         lv = np.where(np.asarray(est[f"W_{c}"]) == LEVEL_NA, -1, est[f"W_{c}"])
         ax.step(t, lv, where="post", lw=1.4, color=f"C{i}", label=describe(c))
@@ -349,11 +398,13 @@ def plot_demo(est: RunTable, truth: RunTable, path) -> Path:
 def run_demo(opts: DemoOptions, echo: Callable[[str], None] | None = None) -> BusRun:
     """The four steps, printed through `echo`; writes plant.csv, drive.log, sensor.csv and demo.png to out_dir."""
     from firmware_model.parameters import load_parameters
+
     echo = echo or (lambda line: print(line, flush=True))
     if not 1.0 <= opts.minutes <= 600.0:
         raise InputError(f"--minutes {opts.minutes} must be in 1..600")
     from tools.cycles.named import get_cycle
-    get_cycle(opts.cycle)             # an unknown cycle is refused before the output directory is made
+
+    get_cycle(opts.cycle)  # an unknown cycle is refused before the output directory is made
     out = Path(opts.out_dir)
     if out.exists() and not out.is_dir():
         raise InputError(f"--out-dir {out} is a file, not a directory")
@@ -365,15 +416,21 @@ def run_demo(opts: DemoOptions, echo: Callable[[str], None] | None = None) -> Bu
     echo(f"      done in {truth.wall_s:.1f} s; truth written to {out / 'plant.csv'}")
     echo("[2/4] J1939 frames of the drive (inputs) and rig thermocouple frames (truth) ...")
     frames = drive_frames(truth, out / "drive.log")
-    echo(f"      {len(frames)} frames -> {out / 'drive.log'} (candump -L; replay it with canplayer or "
-         f"`gearbox-vsensor replay`)")
+    echo(
+        f"      {len(frames)} frames -> {out / 'drive.log'} (candump -L; replay it with canplayer or "
+        f"`gearbox-vsensor replay`)"
+    )
     echo("[3/4] sensor service on python-can's virtual bus (frame time drives the 10 Hz steps) ...")
     bus = run_on_virtual_bus(params, frames)
-    echo(f"      {bus.frames_in} frames in, {len(bus.outputs)} GBX frames out on the bus (16 per step; DM1 aside), "
-         f"{bus.steps} steps "
-         f"in {bus.wall_s:.1f} s wall")
-    echo(f"[4/4] what the sensor published (decoded from the bus with can_dbc/gearbox_vsensor.dbc), every "
-         f"{opts.print_every_s:.0f} s of drive time:")
+    echo(
+        f"      {bus.frames_in} frames in, {len(bus.outputs)} GBX frames out on the bus (16 per step; DM1 aside), "
+        f"{bus.steps} steps "
+        f"in {bus.wall_s:.1f} s wall"
+    )
+    echo(
+        f"[4/4] what the sensor published (decoded from the bus with can_dbc/gearbox_vsensor.dbc), every "
+        f"{opts.print_every_s:.0f} s of drive time:"
+    )
     print_published(bus.outputs, opts.print_every_s, echo)
     write_run_table(every(bus.recorded), out / "sensor.csv")
     print_accuracy(bus.recorded, echo)

@@ -15,6 +15,7 @@
 
 An output that is a symbolic link is written through the link: the link stays, the file it points to is replaced.
 """
+
 from __future__ import annotations
 
 import contextlib
@@ -90,6 +91,7 @@ def naming(path):
 class Pending(NamedTuple):
     """One output of :func:`outputs`: its option, the path as the user gave it, the file it lands on, the
     temporary file it is written to, and whether that file existed before."""
+
     option: str
     path: str
     target: Path
@@ -103,7 +105,7 @@ def reserve(path, option: str | None = None) -> tuple[int, Path, Path]:
     target = target_of(path)
     try:
         fd, tmp = temp_beside(target)
-    except OSError as exc:          # named after the output, not after the temporary file it could not create
+    except OSError as exc:  # named after the output, not after the temporary file it could not create
         raise cannot_write(option, path, exc) from None
     return fd, tmp, target
 
@@ -131,8 +133,9 @@ def _publish_all(pending: list[Pending]) -> None:
 
 def _mentions(exc: OSError, tmp: Path) -> bool:
     """Is the error about ``tmp`` (or a writer's own temporary file next to it, named after it)?"""
-    names = [Path(os.fsdecode(f)).name for f in (exc.filename, exc.filename2)
-             if isinstance(f, (str, bytes, os.PathLike))]
+    names = [
+        Path(os.fsdecode(f)).name for f in (exc.filename, exc.filename2) if isinstance(f, (str, bytes, os.PathLike))
+    ]
     return any(tmp.name in n for n in names)
 
 
@@ -180,7 +183,7 @@ def write_tree(out_dir, files: dict, option: str = "--out") -> Path:
     run wrote is left, the directories it created are removed again and files that were there before are
     untouched. Text is written as ``Path.write_text`` writes it. Errors name ``option`` and the user's path."""
     out = Path(out_dir)
-    made = []          # directories this run creates, outermost first
+    made = []  # directories this run creates, outermost first
     for rel in sorted({str(Path(r).parent) for r in files}):
         for d in reversed([Path(out, rel), *Path(out, rel).parents]):
             if not d.exists() and d not in made:
@@ -201,7 +204,8 @@ def write_tree(out_dir, files: dict, option: str = "--out") -> Path:
             with contextlib.suppress(OSError):
                 d.rmdir()
         if isinstance(exc, OSError) and exc.filename and Path(os.fsdecode(exc.filename)) in made:
-            raise OutputError(f"{option} {os.fspath(out_dir)}: cannot make the directory {exc.filename} "
-                              f"({exc.strerror or exc})", exc) from None
+            raise OutputError(
+                f"{option} {os.fspath(out_dir)}: cannot make the directory {exc.filename} ({exc.strerror or exc})", exc
+            ) from None
         raise
     return out

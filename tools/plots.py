@@ -1,14 +1,22 @@
 """Plots people would rather look at than read: temperatures by component group and the heat budget; the panels
 `simulate --plot` and `replay --plot` share (the inputs, temperatures with their warning limits); and the two
 helpers every plotting module of the tools uses (:func:`pyplot` without a display, :func:`save_figure`)."""
+
 from __future__ import annotations
 
 from pathlib import Path
 
 import numpy as np
 
-from firmware_model.components import (IDLE_WHEELS, LAYSHAFT_WHEELS, PLANETARY, PUBLISHED, SHAFT_BEARINGS,
-                                       WHEEL_BEARINGS, describe)
+from firmware_model.components import (
+    IDLE_WHEELS,
+    LAYSHAFT_WHEELS,
+    PLANETARY,
+    PUBLISHED,
+    SHAFT_BEARINGS,
+    WHEEL_BEARINGS,
+    describe,
+)
 
 GROUPS = {
     "Input/main-shaft wheel teeth": [f"{w}.teeth" for w in IDLE_WHEELS],
@@ -23,8 +31,10 @@ GROUPS = {
 def pyplot():
     """matplotlib.pyplot on the Agg backend (files only, no display needed)."""
     import matplotlib
+
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+
     return plt
 
 
@@ -57,7 +67,7 @@ def outside_legend(ax, **kw) -> None:
 def save_figure(fig, path, dpi: int = 110) -> Path:
     """Lay out, write and close a figure; returns the path."""
     fig.tight_layout()
-    fig.savefig(path, dpi=dpi, bbox_inches="tight")     # the legends outside the panels too (tight_layout leaves them)
+    fig.savefig(path, dpi=dpi, bbox_inches="tight")  # the legends outside the panels too (tight_layout leaves them)
     pyplot().close(fig)
     return Path(path)
 
@@ -76,15 +86,19 @@ def input_panel(ax, t, table) -> None:
         g.step(t, table["gear"], where="post", lw=0.7, color="tab:green", label="gear (right axis)")
         g.set_ylabel("gear", color="tab:green")
         from matplotlib.ticker import MaxNLocator
-        g.yaxis.set_major_locator(MaxNLocator(integer=True, min_n_ticks=1))   # whole gears (9, not 8.6 .. 9.4)
+
+        g.yaxis.set_major_locator(MaxNLocator(integer=True, min_n_ticks=1))  # whole gears (9, not 8.6 .. 9.4)
         h2, l2 = g.get_legend_handles_labels()
         handles, labels = handles + h2, labels + l2
     ax.legend(handles, labels, loc="upper left", bbox_to_anchor=(1.06, 1.0), borderaxespad=0.0, fontsize=7)
 
 
 #: the temperatures among a drive's inputs: column -> legend label
-INPUT_TEMPERATURES = {"oil_temp_c": "oil (sensor reading)", "ambient_temp_c": "ambient air",
-                      "coolant_temp_c": "engine coolant"}
+INPUT_TEMPERATURES = {
+    "oil_temp_c": "oil (sensor reading)",
+    "ambient_temp_c": "ambient air",
+    "coolant_temp_c": "engine coolant",
+}
 
 
 def input_temperature_panel(ax, t, table) -> None:
@@ -112,8 +126,17 @@ def temperature_panel(ax, t, table, components, limits, prefix: str = "T_") -> l
         color = comps[0][1] if len(comps) == 1 else "0.35"
         ax.axhline(limit_c, color=color, lw=0.8, ls="--")
         who = "" if len(comps) == len(drawn) > 1 else ", ".join(c for c, _ in comps) + ": "
-        ax.annotate(f"{who}warning {limit_c:.0f} degC", xy=(1.0, limit_c), xycoords=("axes fraction", "data"),
-                    xytext=(-3, 2), textcoords="offset points", ha="right", va="bottom", fontsize=7, color=color)
+        ax.annotate(
+            f"{who}warning {limit_c:.0f} degC",
+            xy=(1.0, limit_c),
+            xycoords=("axes fraction", "data"),
+            xytext=(-3, 2),
+            textcoords="offset points",
+            ha="right",
+            va="bottom",
+            fontsize=7,
+            color=color,
+        )
     return drawn
 
 
@@ -121,6 +144,7 @@ def plot_simulation(table, path, title="", limits=None):
     """The figure of `simulate --plot`: the inputs (speed, torque, gear; the input temperatures), then one panel per
     component group with names spelled out, the warning limits dashed and the plant's oil sump for reference."""
     from firmware_model.onboard.warning_levels import load_limits
+
     limits = limits or load_limits()
     plt = pyplot()
     t, t_label = time_axis(table["time_s"])
@@ -180,6 +204,7 @@ def plot_heat_budget(table, path, title=""):
         if win <= 1 or x.size < win:
             return x
         return np.convolve(x, np.ones(win) / win, mode="same")
+
     gen_groups = {
         "gear contact": [c for c in table.columns if c.startswith("Q_heat_mesh_")],
         "planetary": ["Q_heat_planetary_w"],
@@ -188,13 +213,22 @@ def plot_heat_budget(table, path, title=""):
         "wheel bearings + syncs + pump": ["Q_heat_wheel_bearings_w", "Q_heat_synchronizers_w", "Q_heat_pump_w"],
         "retarder (effect)": ["Q_heat_retarder_w"],
     }
-    out_cols = {"cooler": "Q_out_cooler_w", "housing convection": "Q_out_housing_convection_w",
-                "housing radiation": "Q_out_housing_radiation_w", "supports": "Q_out_supports_conduction_w",
-                "shafts": "Q_out_shafts_conduction_w", "held/measured sump": "Q_out_oil_boundary_w"}
+    out_cols = {
+        "cooler": "Q_out_cooler_w",
+        "housing convection": "Q_out_housing_convection_w",
+        "housing radiation": "Q_out_housing_radiation_w",
+        "supports": "Q_out_supports_conduction_w",
+        "shafts": "Q_out_shafts_conduction_w",
+        "held/measured sump": "Q_out_oil_boundary_w",
+    }
     fig, (a1, a2) = plt.subplots(2, 1, figsize=(14, 8), sharex=True)
     th, t_label = time_axis(t)
-    stack = [smooth(sum(np.asarray(table[c]) for c in cols if table.has(c))) if any(table.has(c) for c in cols)
-             else np.zeros_like(t) for cols in gen_groups.values()]
+    stack = [
+        smooth(sum(np.asarray(table[c]) for c in cols if table.has(c)))
+        if any(table.has(c) for c in cols)
+        else np.zeros_like(t)
+        for cols in gen_groups.values()
+    ]
     a1.stackplot(th, np.maximum(np.array(stack), 0) / 1e3, labels=list(gen_groups), alpha=0.85)
     a1.set_ylabel("heat generated [kW]")
     outside_legend(a1)

@@ -4,6 +4,7 @@
 stderr is a terminal, so logs, pipes and CI stay clean; ``True`` forces it, ``False`` silences it. Use it as a context
 manager and call ``update(n)``; ``set_postfix_str`` for a short status.
 """
+
 from __future__ import annotations
 
 import sys
@@ -20,5 +21,14 @@ class _Bar(tqdm):
 def progress(total: int | None, desc: str, enabled: bool | None = None, unit: str = "it", **kw) -> tqdm:
     """A tqdm bar on stderr, shown when ``enabled`` or (None) when stderr is a terminal."""
     show = sys.stderr.isatty() if enabled is None else bool(enabled)
-    return _Bar(total=total, desc=desc, unit=unit, disable=not show, file=sys.stderr, leave=False,
-                dynamic_ncols=True, mininterval=0.2, **kw)
+    return _Bar(
+        total=total,
+        desc=desc,
+        unit=unit,
+        disable=not show,
+        file=sys.stderr,
+        leave=False,
+        dynamic_ncols=True,
+        mininterval=0.2,
+        **kw,
+    )

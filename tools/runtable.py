@@ -27,6 +27,7 @@ empty cell.
 Speed (``python -m tools.runtable --bench``, development machine, 2 shared cores): reading 1 M rows x 8 columns
 takes about 2.0 s (2.3 s with empty cells), writing 108 k rows x 150 columns about 3.5 s.
 """
+
 from __future__ import annotations
 
 import contextlib
@@ -71,8 +72,9 @@ class RunTable:
 
     __slots__ = ("_cols", "meta", "source")
 
-    def __init__(self, columns: Mapping[str, Iterable[float]] | None = None, meta: dict | None = None,
-                 source: str | None = None):
+    def __init__(
+        self, columns: Mapping[str, Iterable[float]] | None = None, meta: dict | None = None, source: str | None = None
+    ):
         self._cols: dict[str, np.ndarray] = {}
         self.meta: dict = dict(meta) if meta else {}
         self.source = source
@@ -85,8 +87,9 @@ class RunTable:
             return self._cols[name]
         except KeyError:
             where = f"{self.source}: " if self.source else ""
-            raise ColumnError(f'{where}the run table has no column "{name}"; its columns are '
-                              f'{", ".join(self._cols) or "(none)"}') from None
+            raise ColumnError(
+                f'{where}the run table has no column "{name}"; its columns are {", ".join(self._cols) or "(none)"}'
+            ) from None
 
     def __setitem__(self, name: str, values) -> None:
         if not isinstance(name, str) or not name or name != name.strip():
@@ -142,16 +145,17 @@ class RunTable:
     def time_s(self) -> np.ndarray:
         return self["time_s"]
 
-    def copy(self) -> "RunTable":
+    def copy(self) -> RunTable:
         return RunTable(self._cols, meta=dict(self.meta), source=self.source)
 
-    def select(self, rows) -> "RunTable":
+    def select(self, rows) -> RunTable:
         """A new table with the rows picked by a slice, a boolean mask or an index array (meta is copied)."""
         return RunTable({k: v[rows] for k, v in self._cols.items()}, meta=dict(self.meta), source=self.source)
 
 
 # ----------------------------------------------------------------------------------------------------------------
 # reading
+
 
 def read_header(path: Path, name: str) -> list[str]:
     """Return the column names of the header row (checked: none empty, none twice)."""
@@ -173,11 +177,15 @@ def read_header(path: Path, name: str) -> list[str]:
     except UnicodeDecodeError:
         raise InputError(f"{name}: the header row is not UTF-8 text; is this a CSV run table?") from None
     if line.lstrip().startswith("#"):
-        raise InputError(f"{name}: line 1 is a comment ({line.strip()[:40]!r}); a run table starts with its header "
-                         f"row: remove the comment lines")
+        raise InputError(
+            f"{name}: line 1 is a comment ({line.strip()[:40]!r}); a run table starts with its header "
+            f"row: remove the comment lines"
+        )
     if line.lstrip().startswith("(") and "#" in line:
-        raise InputError(f"{name}: holds CAN frames (candump -L), not a run table; a drive cycle or run table is a "
-                         f".csv (replay and diagnose read CAN logs named .log)")
+        raise InputError(
+            f"{name}: holds CAN frames (candump -L), not a run table; a drive cycle or run table is a "
+            f".csv (replay and diagnose read CAN logs named .log)"
+        )
     if not line.strip():
         if not first:
             raise InputError(f"{name}: the file is empty; a run table needs a header row and data rows")
@@ -192,11 +200,14 @@ def read_header(path: Path, name: str) -> list[str]:
             raise InputError(f'{name}: column "{c}" appears twice in the header')
         seen.add(c)
     if ";" in line and len(names) == 1:
-        raise InputError(f"{name}: the header has no commas but semicolons; run tables are comma-separated "
-                         f"with '.' as the decimal point")
+        raise InputError(
+            f"{name}: the header has no commas but semicolons; run tables are comma-separated "
+            f"with '.' as the decimal point"
+        )
     if "\t" in line and len(names) == 1:
-        raise InputError(f"{name}: the header has no commas but tabs; run tables are comma-separated with '.' as "
-                         f"the decimal point")
+        raise InputError(
+            f"{name}: the header has no commas but tabs; run tables are comma-separated with '.' as the decimal point"
+        )
     return names
 
 
@@ -208,18 +219,17 @@ def parse_numeric_csv(path: Path, names: list[str]) -> np.ndarray | None:
     except UnicodeDecodeError:
         return None
     nl = text.find("\n")
-    body = text[nl + 1:] if nl >= 0 else ""
+    body = text[nl + 1 :] if nl >= 0 else ""
     del text
     if "\r" in body:
         body = body.replace("\r\n", "\n").replace("\r", "\n")
     empty_cells = ",," in body or ",\n" in body or "\n," in body or body.startswith(",") or body.endswith(",")
     try:
         with warnings.catch_warnings():
-            warnings.simplefilter("ignore")   # "input contained no data" for a header-only file
+            warnings.simplefilter("ignore")  # "input contained no data" for a header-only file
             if not empty_cells:
                 del body
-                arr = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2, dtype=float, comments=None,
-                                 encoding="utf-8")
+                arr = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2, dtype=float, comments=None, encoding="utf-8")
             else:
                 if ncol == 1:
                     return None
@@ -252,13 +262,13 @@ def parse_careful(path: Path, names: list[str], name: str) -> np.ndarray:
         try:
             for cells in reader:
                 if not cells or all(not c.strip() for c in cells) and len(cells) <= 1:
-                    continue   # blank line
+                    continue  # blank line
                 row_no += 1
                 if len(cells) != ncol:
-                    hint = (" (a decimal comma? run tables use '.' as the decimal point)"
-                            if len(cells) > ncol else "")
-                    raise InputError(f"{name}: row {row_no} has {len(cells)} cells but the header has {ncol} "
-                                     f"columns{hint}")
+                    hint = " (a decimal comma? run tables use '.' as the decimal point)" if len(cells) > ncol else ""
+                    raise InputError(
+                        f"{name}: row {row_no} has {len(cells)} cells but the header has {ncol} columns{hint}"
+                    )
                 vals = []
                 for j, c in enumerate(cells):
                     s = c.strip()
@@ -270,9 +280,11 @@ def parse_careful(path: Path, names: list[str], name: str) -> np.ndarray:
                             raise ValueError
                         vals.append(float(s))
                     except ValueError:
-                        raise InputError(f'{name}: column "{names[j]}" row {row_no}: {s!r} is not a number '
-                                         f"(cells hold a number with '.' as the decimal point, or are empty "
-                                         f"when missing)") from None
+                        raise InputError(
+                            f'{name}: column "{names[j]}" row {row_no}: {s!r} is not a number '
+                            f"(cells hold a number with '.' as the decimal point, or are empty "
+                            f"when missing)"
+                        ) from None
                 rows.append(vals)
         except UnicodeDecodeError:
             raise InputError(f"{name}: row {row_no + 1} is not UTF-8 text") from None
@@ -293,8 +305,9 @@ def _need(name: str, col: str, arr: np.ndarray, what: str, required: tuple) -> N
     if col in required:
         r = _first(np.isnan(arr))
         if r is not None:
-            raise InputError(f'{name}: column "{col}" row {r + 1}: the cell is empty (NaN); {what} is required '
-                             f"in every row")
+            raise InputError(
+                f'{name}: column "{col}" row {r + 1}: the cell is empty (NaN); {what} is required in every row'
+            )
 
 
 def _finite_column(table: RunTable, col: str, name: str, required: tuple, what: str, noun: str) -> np.ndarray | None:
@@ -318,10 +331,14 @@ def _check_time_increasing(name: str, t: np.ndarray) -> None:
         if k is not None:
             r0, r1 = rows[k] + 1, rows[k + 1] + 1
             if d[k] == 0:
-                raise InputError(f'{name}: column "time_s" row {r1}: {tv[k + 1]:.10g} s is duplicated '
-                                 f"(row {r0} has the same time); time must strictly increase")
-            raise InputError(f'{name}: column "time_s" row {r1}: {tv[k + 1]:.10g} s goes backwards from '
-                             f"{tv[k]:.10g} s at row {r0}; time must strictly increase")
+                raise InputError(
+                    f'{name}: column "time_s" row {r1}: {tv[k + 1]:.10g} s is duplicated '
+                    f"(row {r0} has the same time); time must strictly increase"
+                )
+            raise InputError(
+                f'{name}: column "time_s" row {r1}: {tv[k + 1]:.10g} s goes backwards from '
+                f"{tv[k]:.10g} s at row {r0}; time must strictly increase"
+            )
 
 
 def validate_run_table(table: RunTable, required: Iterable[str] = REQUIRED, name: str | None = None) -> RunTable:
@@ -330,8 +347,9 @@ def validate_run_table(table: RunTable, required: Iterable[str] = REQUIRED, name
     required = tuple(required)
     for col in required:
         if not table.has(col):
-            raise InputError(f'{name}: required column "{col}" is missing; the columns are '
-                             f'{", ".join(table.columns) or "(none)"}')
+            raise InputError(
+                f'{name}: required column "{col}" is missing; the columns are {", ".join(table.columns) or "(none)"}'
+            )
     if table.n == 0:
         raise InputError(f"{name}: has a header but no data rows")
     t = _finite_column(table, "time_s", name, required, "time", "time")
@@ -341,8 +359,9 @@ def validate_run_table(table: RunTable, required: Iterable[str] = REQUIRED, name
     if n is not None:
         r = _first(n < 0)
         if r is not None:
-            raise InputError(f'{name}: column "engine_speed_rpm" row {r + 1}: {n[r]:.10g} rpm is negative; '
-                             f"engine speed must be >= 0")
+            raise InputError(
+                f'{name}: column "engine_speed_rpm" row {r + 1}: {n[r]:.10g} rpm is negative; engine speed must be >= 0'
+            )
     _finite_column(table, "engine_torque_nm", name, required, "engine torque", "torque")
     if table.has("gear"):
         g = table["gear"]
@@ -350,8 +369,10 @@ def validate_run_table(table: RunTable, required: Iterable[str] = REQUIRED, name
         bad = ~np.isnan(g) & ((g != np.round(g)) | (g < GEAR_MIN) | (g > GEAR_MAX))
         r = _first(bad)
         if r is not None:
-            raise InputError(f'{name}: column "gear" row {r + 1}: {g[r]:.10g} is not an integer gear in '
-                             f"{GEAR_MIN}..{GEAR_MAX} (seed Table 1)")
+            raise InputError(
+                f'{name}: column "gear" row {r + 1}: {g[r]:.10g} is not an integer gear in '
+                f"{GEAR_MIN}..{GEAR_MAX} (seed Table 1)"
+            )
     return table
 
 
@@ -375,10 +396,9 @@ def read_run_table(path: str | os.PathLike, required: Iterable[str] = REQUIRED) 
     return validate_run_table(table, required, name)
 
 
-
-
 # ----------------------------------------------------------------------------------------------------------------
 # writing
+
 
 def _header_line(columns: Iterable[str]) -> str:
     buf = io.StringIO()
@@ -392,11 +412,11 @@ def atomic_text_file(target: str | os.PathLike):
     replaces ``target`` (``os.replace``) only when the block completes; on any error the temporary file is removed and
     ``target`` is untouched. The file gets the usual permissions (0666 less the umask, not mkstemp's 0600). A
     ``target`` that is a symbolic link is written through (tools.outputs)."""
-    fd, tmp, target = reserve(target)      # errors name the target, not the temporary file
+    fd, tmp, target = reserve(target)  # errors name the target, not the temporary file
     try:
         with os.fdopen(fd, "w", encoding="utf-8", newline="\n") as f:
             yield f
-        publish(tmp, target)                # fsync, the usual permissions, os.replace
+        publish(tmp, target)  # fsync, the usual permissions, os.replace
     except BaseException:
         discard(tmp)
         raise
@@ -426,7 +446,7 @@ def write_run_table(table: RunTable, path: str | os.PathLike, formats: Mapping[s
         f.write(_header_line(cols))
         block_fmt = (row_fmt + "\n") * _CHUNK_ROWS
         for i in range(0, data.shape[0], _CHUNK_ROWS):
-            block = data[i:i + _CHUNK_ROWS]
+            block = data[i : i + _CHUNK_ROWS]
             fmt = block_fmt if block.shape[0] == _CHUNK_ROWS else (row_fmt + "\n") * block.shape[0]
             # one % over the whole block: far less Python overhead than one format per row
             text = fmt % tuple(block.ravel().tolist())
@@ -444,8 +464,9 @@ def write_parquet(table: RunTable, path: str | os.PathLike) -> Path:
         import pyarrow as pa
         import pyarrow.parquet as pq
     except ImportError:
-        raise InputError(f"{os.fspath(path)}: writing Parquet needs pyarrow (pip install pyarrow); or write .csv") \
-            from None
+        raise InputError(
+            f"{os.fspath(path)}: writing Parquet needs pyarrow (pip install pyarrow); or write .csv"
+        ) from None
     target = Path(path)
     directory = target.parent if str(target.parent) else Path(".")
     if not directory.is_dir():
@@ -476,10 +497,18 @@ def _bench() -> None:  # pragma: no cover - a benchmark script, not a test
     rng = np.random.default_rng(0)
     with tempfile.TemporaryDirectory() as d:
         n = 1_000_000
-        t = RunTable({"time_s": np.arange(n) * 0.01, "engine_speed_rpm": rng.uniform(600, 2100, n),
-                      "engine_torque_nm": rng.uniform(-600, 3000, n), "gear": rng.integers(-2, 15, n),
-                      "oil_temp_c": rng.normal(80, 5, n), "ambient_temp_c": rng.normal(20, 1, n),
-                      "coolant_temp_c": rng.normal(80, 1, n), "vehicle_speed_kmh": rng.uniform(0, 90, n)})
+        t = RunTable(
+            {
+                "time_s": np.arange(n) * 0.01,
+                "engine_speed_rpm": rng.uniform(600, 2100, n),
+                "engine_torque_nm": rng.uniform(-600, 3000, n),
+                "gear": rng.integers(-2, 15, n),
+                "oil_temp_c": rng.normal(80, 5, n),
+                "ambient_temp_c": rng.normal(20, 1, n),
+                "coolant_temp_c": rng.normal(80, 1, n),
+                "vehicle_speed_kmh": rng.uniform(0, 90, n),
+            }
+        )
         p = Path(d) / "big.csv"
         timed("write 1M rows x 8 columns", lambda: write_run_table(t, p))
         timed("read 1M rows x 8 columns", lambda: read_run_table(p))
@@ -497,5 +526,6 @@ def _bench() -> None:  # pragma: no cover - a benchmark script, not a test
 
 if __name__ == "__main__":  # pragma: no cover
     import sys
+
     if "--bench" in sys.argv:
         _bench()

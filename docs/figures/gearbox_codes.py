@@ -10,6 +10,7 @@ firmware_model/params/GRS905.toml, checked below), and the wheels of each pair a
 that meshing wheels touch; everything else (lengths, wall thicknesses, housing split lines, oil level) is drawn for
 readability. Before saving, the script checks that every component id and shaft segment of the model is labelled.
 """
+
 from __future__ import annotations
 
 import sys
@@ -25,8 +26,15 @@ ROOT = Path(__file__).resolve().parents[2]
 OUT = ROOT / "docs" / "img" / "gearbox_codes.png"
 sys.path.insert(0, str(ROOT))
 
-from firmware_model.components import (HOUSINGS, IDLE_WHEELS, LAYSHAFT_WHEELS, PLANETARY,  # noqa: E402
-                                       REVERSE_IDLER, SHAFT_BEARINGS, WHEEL_BEARINGS)
+from firmware_model.components import (
+    HOUSINGS,
+    IDLE_WHEELS,
+    LAYSHAFT_WHEELS,
+    PLANETARY,  # noqa: E402
+    REVERSE_IDLER,
+    SHAFT_BEARINGS,
+    WHEEL_BEARINGS,
+)
 from firmware_model.network import SHAFT_SEGMENTS  # noqa: E402
 
 try:
@@ -44,16 +52,33 @@ C_OIL = "#6fa8dc"
 C_BC = "#6b6b6b"
 
 # ---- layout (schematic units); y: shaft axes, x: axial stations in the model's order
-Y_UP, Y_LS = 38.0, 16.0          # input/main/output shaft axis, layshaft axis
-GAP = Y_UP - Y_LS                # centre distance: meshing wheels touch
-X = {"IS@bulk": 3.5, "BIF": 9.5, "BLF": 11.0, "LI": 16.0, "BIM": 23.5, "3M": 31.0, "2M": 40.0, "1M": 49.0,
-     "CM": 58.0, "RM": 67.0, "RI": 72.0, "BLR": 76.0, "BMR": 76.0, "PS": 84.0, "carrier": 88.0, "OS@bulk": 94.0,
-     "BO": 99.5, "EY": 105.5}
+Y_UP, Y_LS = 38.0, 16.0  # input/main/output shaft axis, layshaft axis
+GAP = Y_UP - Y_LS  # centre distance: meshing wheels touch
+X = {
+    "IS@bulk": 3.5,
+    "BIF": 9.5,
+    "BLF": 11.0,
+    "LI": 16.0,
+    "BIM": 23.5,
+    "3M": 31.0,
+    "2M": 40.0,
+    "1M": 49.0,
+    "CM": 58.0,
+    "RM": 67.0,
+    "RI": 72.0,
+    "BLR": 76.0,
+    "BMR": 76.0,
+    "PS": 84.0,
+    "carrier": 88.0,
+    "OS@bulk": 94.0,
+    "BO": 99.5,
+    "EY": 105.5,
+}
 #: tooth counts (GRS905.toml): input/main-shaft wheel, layshaft wheel
 TEETH = {"L": (28, 38), "3": (31, 34), "2": (35, 24), "1": (38, 17), "C": (42, 13), "R": (42, 14)}
 #: face widths [mm] (GRS905.toml) -> drawn width / 10
 WIDTH = {"L": 45, "3": 40, "2": 48, "1": 58, "C": 55, "R": 45}
-HOUSING_SPAN = {"H1": (6.0, 45.0), "H2": (45.0, 90.0), "H3": (90.0, 100.5)}   # split lines approximate
+HOUSING_SPAN = {"H1": (6.0, 45.0), "H2": (45.0, 90.0), "H3": (90.0, 100.5)}  # split lines approximate
 TOP, BOTTOM, WALL = 58.0, 0.0, 2.0
 
 LABELLED: set[str] = set()
@@ -83,23 +108,39 @@ def draw_housing(ax):
         fc = C_FE if h == "H2" else C_AL
         for y0 in (BOTTOM, TOP):
             ax.add_patch(Rectangle((x0, y0), x1 - x0, WALL, fc=fc, ec="#555555", lw=1.0, zorder=3))
-        name = {"H1": "H1  front housing (aluminium)", "H2": "H2  rear housing (cast iron)",
-                "H3": "H3  bearing\nhousing (Al)"}[h]
+        name = {
+            "H1": "H1  front housing (aluminium)",
+            "H2": "H2  rear housing (cast iron)",
+            "H3": "H3  bearing\nhousing (Al)",
+        }[h]
         text(ax, (x0 + x1) / 2, TOP + WALL + (3.4 if h == "H3" else 2.2), name, size=11.5, box=False)
-    for x0, x1, fc in ((6.0, 8.0, C_AL), (98.5, 100.5, C_AL), (75.2, 76.8, C_FE)):   # front, rear walls, H2 web
+    for x0, x1, fc in ((6.0, 8.0, C_AL), (98.5, 100.5, C_AL), (75.2, 76.8, C_FE)):  # front, rear walls, H2 web
         ax.add_patch(Rectangle((x0, BOTTOM), x1 - x0, TOP + WALL - BOTTOM, fc=fc, ec="#555555", lw=1.0, zorder=3))
-    for xs in (45.0, 90.0):                                                               # split lines
+    for xs in (45.0, 90.0):  # split lines
         ax.plot([xs, xs], [BOTTOM - 1.0, BOTTOM + WALL + 0.5], color="black", lw=1.6, zorder=4)
         ax.plot([xs, xs], [TOP - 0.5, TOP + WALL + 1.0], color="black", lw=1.6, zorder=4)
     # oil sump: surface below the layshaft axis, rising to the rear (5 deg powertrain angle)
-    ax.add_patch(Polygon([(8.0, WALL), (98.5, WALL), (98.5, 14.3), (8.0, 8.2)], closed=True, fc=C_OIL,
-                         ec="#2f6fa8", lw=1.0, alpha=0.40, zorder=2))
+    ax.add_patch(
+        Polygon(
+            [(8.0, WALL), (98.5, WALL), (98.5, 14.3), (8.0, 8.2)],
+            closed=True,
+            fc=C_OIL,
+            ec="#2f6fa8",
+            lw=1.0,
+            alpha=0.40,
+            zorder=2,
+        )
+    )
     text(ax, 23.3, 5.0, "oil\n(sump)", size=11, color="#1d4f80")
 
 
 def draw_shafts(ax):
-    spans = {"IS": (1.0, Y_UP, 25.0, 2.6), "MS": (22.0, Y_UP, 86.0, 2.2), "LS": (9.5, Y_LS, 78.0, 2.6),
-             "OS": (87.0, Y_UP, 109.0, 3.0)}
+    spans = {
+        "IS": (1.0, Y_UP, 25.0, 2.6),
+        "MS": (22.0, Y_UP, 86.0, 2.2),
+        "LS": (9.5, Y_LS, 78.0, 2.6),
+        "OS": (87.0, Y_UP, 109.0, 3.0),
+    }
     for name, (x0, y, x1, th) in spans.items():
         ax.add_patch(Rectangle((x0, y - th / 2), x1 - x0, th, fc=C_SHAFT, ec="#444444", lw=0.8, zorder=5))
     # segment boundaries as ticks on the shafts (the model's shaft discretisation)
@@ -140,55 +181,96 @@ def layshaft_wheel(ax, wid, pair):
 
 def reverse_idler(ax):
     r, w, y = 4.2, 3.4, Y_LS + GAP * 14 / 56
-    ax.add_patch(Rectangle((X["RI"] - w / 2, y - r), w, 2 * r, fc=C_LAY, ec=C_LAY_EDGE, lw=1.2, ls="--",
-                           zorder=7))
+    ax.add_patch(Rectangle((X["RI"] - w / 2, y - r), w, 2 * r, fc=C_LAY, ec=C_LAY_EDGE, lw=1.2, ls="--", zorder=7))
     text(ax, X["RI"], y, "RI", size=12)
-    ax.annotate("", xy=(X["RI"] - w / 2, y + 1.5), xytext=(X["RM"] + 2.3, y + 2.5),
-                arrowprops=dict(arrowstyle="-", ls=":", color=C_LAY_EDGE, lw=1.2), zorder=6)
-    ax.annotate("", xy=(X["RI"] - w / 2, y - 1.5), xytext=(X["RM"] + 2.3, Y_LS + 3.0),
-                arrowprops=dict(arrowstyle="-", ls=":", color=C_LAY_EDGE, lw=1.2), zorder=6)
+    ax.annotate(
+        "",
+        xy=(X["RI"] - w / 2, y + 1.5),
+        xytext=(X["RM"] + 2.3, y + 2.5),
+        arrowprops=dict(arrowstyle="-", ls=":", color=C_LAY_EDGE, lw=1.2),
+        zorder=6,
+    )
+    ax.annotate(
+        "",
+        xy=(X["RI"] - w / 2, y - 1.5),
+        xytext=(X["RM"] + 2.3, Y_LS + 3.0),
+        arrowprops=dict(arrowstyle="-", ls=":", color=C_LAY_EDGE, lw=1.2),
+        zorder=6,
+    )
 
 
 def planetary(ax):
     """Sun on the main shaft, planets on the carrier (front of the output shaft), ring around them."""
     x, w = X["PS"], 4.5
     r_s = 5.0
-    r_r = r_s * 88 / 32                      # ring / sun tooth counts
+    r_r = r_s * 88 / 32  # ring / sun tooth counts
     r_p = (r_r - r_s) / 2
     ax.add_patch(Rectangle((x - w / 2, Y_UP - r_s), w, 2 * r_s, fc=C_PS, ec="#5b2f73", lw=1.1, zorder=9))
     text(ax, x, Y_UP + 2.9, "PS", size=12)
     for s in (1, -1):
         yc = Y_UP + s * (r_s + r_p)
         ax.add_patch(Rectangle((x - w / 2, yc - r_p), w, 2 * r_p, fc=C_PP, ec="#5b2f73", lw=1.1, zorder=9))
-        ax.add_patch(Rectangle((x - w / 2 - 0.6, yc - 0.35), X["carrier"] - x + w / 2 + 0.6, 0.7, fc="#555555",
-                               ec="none", zorder=10))                                   # planet pin
+        ax.add_patch(
+            Rectangle(
+                (x - w / 2 - 0.6, yc - 0.35), X["carrier"] - x + w / 2 + 0.6, 0.7, fc="#555555", ec="none", zorder=10
+            )
+        )  # planet pin
         text(ax, x - 0.6, yc + s * 1.8, "PP", size=12)
-        ax.add_patch(Rectangle((x - w / 2 - 0.3, Y_UP + s * r_r - (0 if s > 0 else 1.8)), w + 0.6, 1.8,
-                               fc=C_PR, ec="#3d1f4d", lw=1.1, zorder=9))
+        ax.add_patch(
+            Rectangle(
+                (x - w / 2 - 0.3, Y_UP + s * r_r - (0 if s > 0 else 1.8)),
+                w + 0.6,
+                1.8,
+                fc=C_PR,
+                ec="#3d1f4d",
+                lw=1.1,
+                zorder=9,
+            )
+        )
         text(ax, x - w / 2 - 2.4, Y_UP + s * (r_r + 0.9), "PR", size=12)
     yc = r_s + r_p
-    ax.add_patch(Rectangle((X["carrier"] - 0.6, Y_UP - yc - 1.0), 1.2, 2 * yc + 2.0, fc="#7a7a7a", ec="#333333",
-                           lw=0.8, zorder=8))                                            # carrier plate
+    ax.add_patch(
+        Rectangle(
+            (X["carrier"] - 0.6, Y_UP - yc - 1.0), 1.2, 2 * yc + 2.0, fc="#7a7a7a", ec="#333333", lw=0.8, zorder=8
+        )
+    )  # carrier plate
     text(ax, X["carrier"] + 0.2, Y_UP + yc + 3.2, "carrier", size=9.5, weight="normal", box=False)
 
 
 def boundaries(ax):
     kw = dict(size=9.5, color=C_BC, weight="normal", style="italic")
     for label, y_text, y_tip in (("LI.teeth", 55.0, Y_UP + 8.4), ("LI.bulk", 50.0, Y_UP + 5.0)):
-        ax.annotate(label, xy=(X["LI"] - 1.6, y_tip), xytext=(-0.5, y_text), fontsize=10, fontweight="bold",
-                    color="#27466e", va="center", zorder=21,
-                    arrowprops=dict(arrowstyle="->", color="#27466e", lw=1.0, shrinkA=2, shrinkB=0))
+        ax.annotate(
+            label,
+            xy=(X["LI"] - 1.6, y_tip),
+            xytext=(-0.5, y_text),
+            fontsize=10,
+            fontweight="bold",
+            color="#27466e",
+            va="center",
+            zorder=21,
+            arrowprops=dict(arrowstyle="->", color="#27466e", lw=1.0, shrinkA=2, shrinkB=0),
+        )
     text(ax, -0.6, Y_UP - 4.6, "engine_shaft\n(clutch side)", ha="left", box=False, **kw)
     text(ax, 4.3, 14.0, "flywheel_cover", rotation=90, box=False, **kw)
     text(ax, 60.0, TOP + WALL + 5.4, "support_beam (on top of H2)", box=False, **kw)
     ax.add_patch(Rectangle((103.5, Y_UP - 6.0), 4.0, 12.0, fc="#bdbdbd", ec="#444444", lw=1.0, zorder=4))
     text(ax, 105.5, Y_UP + 8.6, "EY end yoke\n(end_yoke)", size=9.5, color=C_BC, weight="normal", box=False)
-    text(ax, 105.5, 14.0, "hot_surroundings,\ncold_surroundings:\nair around\nH1, H2, H3", size=9, color=C_BC,
-         weight="normal", style="italic", box=False)
+    text(
+        ax,
+        105.5,
+        14.0,
+        "hot_surroundings,\ncold_surroundings:\nair around\nH1, H2, H3",
+        size=9,
+        color=C_BC,
+        weight="normal",
+        style="italic",
+        box=False,
+    )
 
 
 def segment_bounds(shaft):
-    lay_to_idle = dict(zip(LAYSHAFT_WHEELS, IDLE_WHEELS))        # a layshaft wheel sits below its pair partner
+    lay_to_idle = dict(zip(LAYSHAFT_WHEELS, IDLE_WHEELS))  # a layshaft wheel sits below its pair partner
     pos = []
     for n in SHAFT_SEGMENTS[shaft]:
         where = n.split("@")[1]
@@ -206,24 +288,34 @@ def segment_strips(ax):
         for nm, x0, x1 in zip(SHAFT_SEGMENTS[shaft], b, b[1:]):
             ax.add_patch(Rectangle((x0, y - 5.0), x1 - x0, 5.0, fc="#eeeeee", ec="#555555", lw=0.8, zorder=3))
             s, where = nm.split("@")
-            text(ax, (x0 + x1) / 2, y - 2.5, f"{s}@\n{where}", size=8.6, weight="normal", box=False,
-                 linespacing=0.95)
+            text(ax, (x0 + x1) / 2, y - 2.5, f"{s}@\n{where}", size=8.6, weight="normal", box=False, linespacing=0.95)
             LABELLED.add(nm)
-        if shaft == "IS":                             # row name right of the IS strip, left of the others
+        if shaft == "IS":  # row name right of the IS strip, left of the others
             text(ax, b[-1] + 0.8, y - 2.5, f"{shaft}  {names[shaft]}", size=10, ha="left", box=False)
         else:
             text(ax, b[0] - 0.8, y - 2.5, f"{shaft}  {names[shaft]}", size=10, ha="right", box=False)
         y -= 5.8
-    text(ax, 44.0, y - 0.6, "shaft segments <shaft>@<what it sits under>, aligned with the section above "
-         "(ticks on the shafts mark their boundaries)", size=10, weight="normal", box=False)
+    text(
+        ax,
+        44.0,
+        y - 0.6,
+        "shaft segments <shaft>@<what it sits under>, aligned with the section above "
+        "(ticks on the shafts mark their boundaries)",
+        size=10,
+        weight="normal",
+        box=False,
+    )
 
 
 def legend(ax):
     y = -35.0
-    items = [((C_BULK, C_TEETH), "input/main-shaft wheel:  X.teeth = dark outer band,  X.bulk = hub/web"),
-             ((C_LAY, None), "layshaft wheel, reverse idler RI (dashed: beside the layshaft, out of this plane)"),
-             ((C_BRG, None), "bearing: shaft bearings BIF ... BO, wheel bearings LB ... RB"),
-             ((C_PS, None), "planetary range unit"), ((C_OIL, None), "oil sump")]
+    items = [
+        ((C_BULK, C_TEETH), "input/main-shaft wheel:  X.teeth = dark outer band,  X.bulk = hub/web"),
+        ((C_LAY, None), "layshaft wheel, reverse idler RI (dashed: beside the layshaft, out of this plane)"),
+        ((C_BRG, None), "bearing: shaft bearings BIF ... BO, wheel bearings LB ... RB"),
+        ((C_PS, None), "planetary range unit"),
+        ((C_OIL, None), "oil sump"),
+    ]
     pos = [(1.0, y), (1.0, y - 3.6), (62.0, y), (62.0, y - 3.6), (88.0, y - 3.6)]
     for ((fc, band), label), (x, yy) in zip(items, pos):
         ax.add_patch(Rectangle((x, yy - 1.3), 2.2, 2.6, fc=fc, ec="#444444", lw=0.8, alpha=0.9, zorder=3))
@@ -238,9 +330,14 @@ def check_axial_order() -> None:
         p = tomllib.load(fh)
     real = {w: p["wheel"][f"x_{w}"]["v"] for w in IDLE_WHEELS}
     real |= {b: p["bearing"][b]["x"]["v"] for b in ("BIF", "BIM", "BMR", "BO")}
-    real |= {"BLF": p["shaft"]["LS"]["x_BLF"]["v"], "BLR": p["shaft"]["LS"]["x_BLR"]["v"],
-             "PS": p["shaft"]["MS"]["x_PS"]["v"], "carrier": p["shaft"]["OS"]["x_carrier"]["v"],
-             "OS@bulk": p["shaft"]["OS"]["x_bulk"]["v"], "EY": p["shaft"]["OS"]["x_EY"]["v"]}
+    real |= {
+        "BLF": p["shaft"]["LS"]["x_BLF"]["v"],
+        "BLR": p["shaft"]["LS"]["x_BLR"]["v"],
+        "PS": p["shaft"]["MS"]["x_PS"]["v"],
+        "carrier": p["shaft"]["OS"]["x_carrier"]["v"],
+        "OS@bulk": p["shaft"]["OS"]["x_bulk"]["v"],
+        "EY": p["shaft"]["OS"]["x_EY"]["v"],
+    }
     by_real = sorted(real, key=lambda k: (real[k], k))
     by_drawn = sorted(real, key=lambda k: (X[k], k))
     if by_real != by_drawn:
@@ -270,11 +367,16 @@ def main() -> Path:
     boundaries(ax)
     segment_strips(ax)
     legend(ax)
-    ax.set_title("GRS905 range-splitter gearbox: where each component code sits\n"
-                 "vertical section, engine (front) at the left — schematic, NOT to scale "
-                 "(axial order and tooth-count ratios as in the model)", fontsize=13, fontweight="bold")
-    expected = set(IDLE_WHEELS + LAYSHAFT_WHEELS + PLANETARY + SHAFT_BEARINGS + WHEEL_BEARINGS + HOUSINGS
-                   + (REVERSE_IDLER, "oil")) | {s for segs in SHAFT_SEGMENTS.values() for s in segs}
+    ax.set_title(
+        "GRS905 range-splitter gearbox: where each component code sits\n"
+        "vertical section, engine (front) at the left — schematic, NOT to scale "
+        "(axial order and tooth-count ratios as in the model)",
+        fontsize=13,
+        fontweight="bold",
+    )
+    expected = set(
+        IDLE_WHEELS + LAYSHAFT_WHEELS + PLANETARY + SHAFT_BEARINGS + WHEEL_BEARINGS + HOUSINGS + (REVERSE_IDLER, "oil")
+    ) | {s for segs in SHAFT_SEGMENTS.values() for s in segs}
     missing = expected - LABELLED
     if missing:
         raise SystemExit(f"not labelled in the figure: {sorted(missing)}")
@@ -287,5 +389,6 @@ def main() -> Path:
 
 if __name__ == "__main__":
     import argparse
+
     argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter).parse_args()
     print(main().relative_to(ROOT))

@@ -11,6 +11,7 @@ firmware_model is imported before numpy (the ``gearbox-vsensor`` command). :func
 threadpoolctl does, so that a script importing numpy first gets it too. A thread count the user chose in
 ``OPENBLAS_NUM_THREADS`` before starting Python is respected.
 """
+
 from __future__ import annotations
 
 import ctypes
@@ -19,17 +20,24 @@ import os
 #: the user's own OPENBLAS_NUM_THREADS at import time (None: not set, the sensor uses 1)
 USER_SETTING = os.environ.get("OPENBLAS_NUM_THREADS")
 
-_SETTERS = ("openblas_set_num_threads", "openblas_set_num_threads64_", "scipy_openblas_set_num_threads64_",
-            "scipy_openblas_set_num_threads")
+_SETTERS = (
+    "openblas_set_num_threads",
+    "openblas_set_num_threads64_",
+    "scipy_openblas_set_num_threads64_",
+    "scipy_openblas_set_num_threads",
+)
 _done: set = set()
 
 
 def _openblas_paths() -> set:
     try:
         with open("/proc/self/maps", encoding="ascii", errors="replace") as f:
-            return {line.split()[-1] for line in f
-                    if "openblas" in line.lower() and line.split()[-1].startswith("/") and ".so" in line.split()[-1]}
-    except OSError:                 # not Linux: leave it to the environment variable
+            return {
+                line.split()[-1]
+                for line in f
+                if "openblas" in line.lower() and line.split()[-1].startswith("/") and ".so" in line.split()[-1]
+            }
+    except OSError:  # not Linux: leave it to the environment variable
         return set()
 
 

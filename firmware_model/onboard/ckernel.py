@@ -17,6 +17,7 @@ Where the library comes from, first found wins (:func:`load`):
 A library built from other sources than the ones shipped (a stale build) is never loaded: every build carries the
 SHA-256 of its sources (``gvs_source_id``). Set ``GVS_CORE=numpy`` to never load it.
 """
+
 from __future__ import annotations
 
 import ctypes as C
@@ -68,6 +69,7 @@ def structs(real) -> dict:
 
 # --- finding and loading the library ---------------------------------------------------------------------------
 
+
 def _cache_dir() -> Path:
     base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
     return Path(base) / "gearbox-vsensor"
@@ -91,13 +93,13 @@ def build(out: Path, real: str = "double", extra_flags: tuple = (), cc: str | No
     out.parent.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(dir=out.parent) as tmp:
         tmp_lib = Path(tmp) / out.name
-        cmd = [cc, *CFLAGS, *extra_flags, "-shared", *defs, str(SOURCE_DIR / "gvs_kernel.c"), "-o", str(tmp_lib),
-               "-lm"]
+        cmd = [cc, *CFLAGS, *extra_flags, "-shared", *defs, str(SOURCE_DIR / "gvs_kernel.c"), "-o", str(tmp_lib), "-lm"]
         res = subprocess.run(cmd, capture_output=True, text=True)
         if res.returncode != 0:
-            raise CoreUnavailable(f"the C kernel did not compile ({' '.join(cmd[:2])} ...): "
-                                  f"{(res.stderr or res.stdout).strip()[:400]}")
-        os.replace(tmp_lib, out)              # atomic: a concurrent loader never sees half a library
+            raise CoreUnavailable(
+                f"the C kernel did not compile ({' '.join(cmd[:2])} ...): {(res.stderr or res.stdout).strip()[:400]}"
+            )
+        os.replace(tmp_lib, out)  # atomic: a concurrent loader never sees half a library
     return out
 
 
@@ -115,19 +117,38 @@ def _open(path: Path, real: str):
     for i, s in enumerate(STRUCTS):
         size = lib.gvs_sizeof(i)
         if C.sizeof(S[s.py_name]) != size:
-            raise CoreUnavailable(f"{path.name}: struct {s.c_name} is {size} bytes in C, {C.sizeof(S[s.py_name])} "
-                                  "in the binding")
+            raise CoreUnavailable(
+                f"{path.name}: struct {s.c_name} is {size} bytes in C, {C.sizeof(S[s.py_name])} in the binding"
+            )
     if lib.gvs_sizeof(SIZEOF_IDS.index("real")) != S["real"].itemsize:
         raise CoreUnavailable(f"{path.name} is not a {real} build")
     P = C.POINTER
-    lib.gvs_step.argtypes = [P(S["Tables"]), P(S["Vehicle"]), C.c_void_p, C.c_void_p, C.c_int, C.c_void_p,
-                             C.c_void_p]
+    lib.gvs_step.argtypes = [P(S["Tables"]), P(S["Vehicle"]), C.c_void_p, C.c_void_p, C.c_int, C.c_void_p, C.c_void_p]
     lib.gvs_step.restype = C.c_int
-    lib.gvs_run.argtypes = [P(S["Tables"]), P(S["Vehicle"]), C.c_void_p, C.c_void_p, C.c_int64, C.c_int,
-                            C.c_void_p, C.c_void_p, P(C.c_int)]
+    lib.gvs_run.argtypes = [
+        P(S["Tables"]),
+        P(S["Vehicle"]),
+        C.c_void_p,
+        C.c_void_p,
+        C.c_int64,
+        C.c_int,
+        C.c_void_p,
+        C.c_void_p,
+        P(C.c_int),
+    ]
     lib.gvs_run.restype = C.c_int64
-    lib.gvs_step_batch.argtypes = [P(S["Tables"]), C.c_void_p, C.c_int64, C.c_int64, C.c_void_p, C.c_void_p,
-                                   C.c_void_p, C.c_void_p, C.c_void_p, C.c_void_p]
+    lib.gvs_step_batch.argtypes = [
+        P(S["Tables"]),
+        C.c_void_p,
+        C.c_int64,
+        C.c_int64,
+        C.c_void_p,
+        C.c_void_p,
+        C.c_void_p,
+        C.c_void_p,
+        C.c_void_p,
+        C.c_void_p,
+    ]
     lib.gvs_step_batch.restype = C.c_int
     lib.gvs_ttl_refresh.argtypes = [P(S["Tables"]), C.c_void_p, C.c_void_p, C.c_void_p]
     lib.gvs_ttl_refresh.restype = C.c_int
@@ -181,5 +202,5 @@ def availability(real: str = "double") -> tuple[bool, str]:
     return True, f"C kernel ({real}, {Path(lib._name).name})"
 
 
-if __name__ == "__main__":     # python -m firmware_model.onboard.ckernel: build (if needed) and say which core
+if __name__ == "__main__":  # python -m firmware_model.onboard.ckernel: build (if needed) and say which core
     print(availability()[1])

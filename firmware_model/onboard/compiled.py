@@ -16,6 +16,7 @@ step, snapshots, the service) reads them as any SensorState. The time-to-limit r
 part stays on the host, in numpy, as the kernel's header says: the propagation of the state over a forward time
 jump (firmware_model.onboard.held_inputs.jump_state).
 """
+
 from __future__ import annotations
 
 import ctypes as C
@@ -36,6 +37,7 @@ from firmware_model.onboard.time_to_limit import TtlJob, TtlPoint
 class BufferedState(SensorState):
     """A SensorState whose arrays are views into ``buf`` (the kernel's gvs_state structs, batch shape B), made by
     the CompiledCore ``owner``."""
+
     buf: np.ndarray
     owner: object
 
@@ -50,14 +52,15 @@ TABLE_CHUNK = 8192
 
 class TableOutputs(NamedTuple):
     """The outputs of every step of a table (N rows)."""
-    T_c: np.ndarray             # (N, 28)
-    level: np.ndarray           # (N, 28) int8
-    ttl_s: np.ndarray           # (N, 28)
-    degraded_mode: np.ndarray   # (N,) int8
-    valid: np.ndarray           # (N, 4) bool: speed, torque, gear, oil valid
+
+    T_c: np.ndarray  # (N, 28)
+    level: np.ndarray  # (N, 28) int8
+    ttl_s: np.ndarray  # (N, 28)
+    degraded_mode: np.ndarray  # (N,) int8
+    valid: np.ndarray  # (N, 4) bool: speed, torque, gear, oil valid
     oil_innovation_c: np.ndarray
     model_oil_temp_c: np.ndarray
-    rejects: np.ndarray         # (N, 13) cumulative counters after each step
+    rejects: np.ndarray  # (N, 13) cumulative counters after each step
 
 
 class CompiledCore:
@@ -93,11 +96,14 @@ class CompiledCore:
             return int(value)
         if kind == "r":
             return float(value)
-        dtype, ctype = (self.S["real"], C.c_double if self.real == "double" else C.c_float) if kind == "pr" \
+        dtype, ctype = (
+            (self.S["real"], C.c_double if self.real == "double" else C.c_float)
+            if kind == "pr"
             else (np.int32, C.c_int32)
+        )
         a = np.ascontiguousarray(value, dtype=dtype)
         if a.size == 0:
-            a = np.zeros(1, dtype=dtype)           # a valid pointer for an empty table
+            a = np.zeros(1, dtype=dtype)  # a valid pointer for an empty table
         self._keep.append(a)
         return a.ctypes.data_as(C.POINTER(ctype))
 
@@ -107,10 +113,10 @@ class CompiledCore:
         if key not in self._vehicles:
             arr = vehicle_arrays(self.sp, V)
             rec = np.zeros(arr["src_scale"].shape[0], dtype=self.S["Vehicle_dtype"])
-            rec["src_scale"][:, :arr["src_scale"].shape[1]] = arr["src_scale"]
+            rec["src_scale"][:, : arr["src_scale"].shape[1]] = arr["src_scale"]
             for k in VEHICLE_EFFECTS:
                 rec[k] = arr[k]
-            rec["T_bc_default_c"][:, :self.nb] = arr["T_bc_default_c"]
+            rec["T_bc_default_c"][:, : self.nb] = arr["T_bc_default_c"]
             self._vehicles[key] = rec
         return self._vehicles[key]
 
@@ -122,22 +128,45 @@ class CompiledCore:
         if isinstance(state, BufferedState) and buf is not None:
             buf = buf.copy()
             if getattr(state, "owner", None) is not self:
-                buf["memo_valid"] = 0          # another sensor's conductance memo: not this one's
+                buf["memo_valid"] = 0  # another sensor's conductance memo: not this one's
             return buf
         B = np.shape(state.t_last_s)
         buf = np.zeros(B, dtype=self.S["State_dtype"])
-        buf["T_c"][..., :self.n] = state.T_c
-        buf["lag_w"][..., :state.lag_w.shape[-1]] = state.lag_w
-        for f in ("hold", "age_s", "same_s", "raw_prev", "oil_ref_c", "pending_s", "ttl_s", "t_last_s", "k",
-                  "rejects", "level"):
+        buf["T_c"][..., : self.n] = state.T_c
+        buf["lag_w"][..., : state.lag_w.shape[-1]] = state.lag_w
+        for f in (
+            "hold",
+            "age_s",
+            "same_s",
+            "raw_prev",
+            "oil_ref_c",
+            "pending_s",
+            "ttl_s",
+            "t_last_s",
+            "k",
+            "rejects",
+            "level",
+        ):
             buf[f] = getattr(state, f)
         return buf
 
     def unpack(self, buf: np.ndarray) -> BufferedState:
         """A SensorState of views into ``buf``."""
-        st = BufferedState(buf["T_c"][..., :self.n], buf["lag_w"][..., :self.ns], buf["hold"], buf["age_s"],
-                           buf["same_s"], buf["raw_prev"], buf["oil_ref_c"], buf["level"], buf["pending_s"],
-                           buf["ttl_s"], buf["t_last_s"], buf["k"], buf["rejects"])
+        st = BufferedState(
+            buf["T_c"][..., : self.n],
+            buf["lag_w"][..., : self.ns],
+            buf["hold"],
+            buf["age_s"],
+            buf["same_s"],
+            buf["raw_prev"],
+            buf["oil_ref_c"],
+            buf["level"],
+            buf["pending_s"],
+            buf["ttl_s"],
+            buf["t_last_s"],
+            buf["k"],
+            buf["rejects"],
+        )
         st.buf, st.owner = buf, self
         return st
 
@@ -150,10 +179,19 @@ class CompiledCore:
         return rec
 
     def outputs(self, out: np.ndarray) -> SensorOutputs:
-        status = SensorStatus(out["degraded_mode"].copy(), out["speed_valid"] != 0, out["torque_valid"] != 0,
-                              out["gear_valid"] != 0, out["oil_valid"] != 0, out["valid_flags"].astype(np.int64),
-                              out["model_oil_temp_c"].astype(float), out["oil_innovation_c"].astype(float),
-                              out["oil_source"].copy(), out["frozen_flags"].astype(np.int64), out["rejects"].copy())
+        status = SensorStatus(
+            out["degraded_mode"].copy(),
+            out["speed_valid"] != 0,
+            out["torque_valid"] != 0,
+            out["gear_valid"] != 0,
+            out["oil_valid"] != 0,
+            out["valid_flags"].astype(np.int64),
+            out["model_oil_temp_c"].astype(float),
+            out["oil_innovation_c"].astype(float),
+            out["oil_source"].copy(),
+            out["frozen_flags"].astype(np.int64),
+            out["rejects"].copy(),
+        )
         return SensorOutputs(out["T_c"].astype(float), out["level"].copy(), out["ttl_s"].astype(float), status)
 
     def ttl_job(self, pts: np.ndarray) -> TtlJob | None:
@@ -161,17 +199,35 @@ class CompiledCore:
         due = pts["due"] != 0
         if not due.any():
             return None
-        vehicles = (((),) if not pts.shape else tuple((int(i),) for i in np.flatnonzero(due)) if pts.ndim == 1
-                    else tuple(v for v in np.ndindex(pts.shape) if due[v]))
+        vehicles = (
+            ((),)
+            if not pts.shape
+            else tuple((int(i),) for i in np.flatnonzero(due))
+            if pts.ndim == 1
+            else tuple(v for v in np.ndindex(pts.shape) if due[v])
+        )
         n, ns, nl, nst, nb = self.n, self.ns, self.nl, self.nst, self.nb
 
-        def points():                  # made only when asked (a numpy refresh, a test): TtlJob
-            return tuple(TtlPoint(
-                p["T_main_c"][:n].astype(float), p["src_w"][:ns].astype(float), p["G_w_per_k"][:nl].astype(float),
-                p["G_streams_w_per_k"][:nst].astype(float), float(p["dT_in_k"]), float(p["Q_cool_w"]),
-                bool(p["measured"]), int(p["row"]), float(p["omega_in_rad_s"]), float(p["T_oil_c"]),
-                p["T_bc_c"][:nb].astype(float), p["used"].astype(float), float(p["rho_cp_j_per_m3k"]))
-                for p in (pts[v] for v in vehicles))
+        def points():  # made only when asked (a numpy refresh, a test): TtlJob
+            return tuple(
+                TtlPoint(
+                    p["T_main_c"][:n].astype(float),
+                    p["src_w"][:ns].astype(float),
+                    p["G_w_per_k"][:nl].astype(float),
+                    p["G_streams_w_per_k"][:nst].astype(float),
+                    float(p["dT_in_k"]),
+                    float(p["Q_cool_w"]),
+                    bool(p["measured"]),
+                    int(p["row"]),
+                    float(p["omega_in_rad_s"]),
+                    float(p["T_oil_c"]),
+                    p["T_bc_c"][:nb].astype(float),
+                    p["used"].astype(float),
+                    float(p["rho_cp_j_per_m3k"]),
+                )
+                for p in (pts[v] for v in vehicles)
+            )
+
         return TtlJob(vehicles, points, pts)
 
     # -- steps
@@ -192,9 +248,18 @@ class CompiledCore:
         out = np.zeros(B, dtype=self.S["Outputs_dtype"])
         pts = np.zeros(B, dtype=self.S["TtlPoint_dtype"])
         veh = self.vehicles(B[0])
-        self.lib.gvs_step_batch(self._tables_p, veh.ctypes.data, 1 if veh.shape[0] > 1 else 0,
-                                int(np.prod(B, dtype=np.int64)), buf.ctypes.data, rec.ctypes.data, jump.ctypes.data,
-                                out.ctypes.data, pts.ctypes.data, None)
+        self.lib.gvs_step_batch(
+            self._tables_p,
+            veh.ctypes.data,
+            1 if veh.shape[0] > 1 else 0,
+            int(np.prod(B, dtype=np.int64)),
+            buf.ctypes.data,
+            rec.ctypes.data,
+            jump.ctypes.data,
+            out.ctypes.data,
+            pts.ctypes.data,
+            None,
+        )
         return self.unpack(buf), self.outputs(out), self.ttl_job(pts)
 
     def _step_one(self, buf: np.ndarray, inputs: SensorInputs, cache: StepCache):
@@ -202,11 +267,15 @@ class CompiledCore:
         rec = self.inputs(inputs, ())
         out = np.zeros((), dtype=self.S["Outputs_dtype"])
         pts = np.zeros((), dtype=self.S["TtlPoint_dtype"])
-        args = (self._tables_p, self.vehicles(None).ctypes.data_as(C.POINTER(self.S["Vehicle"])), buf.ctypes.data,
-                rec.ctypes.data)
+        args = (
+            self._tables_p,
+            self.vehicles(None).ctypes.data_as(C.POINTER(self.S["Vehicle"])),
+            buf.ctypes.data,
+            rec.ctypes.data,
+        )
         if self.lib.gvs_step(*args, 0, out.ctypes.data, pts.ctypes.data) == NEED_JUMP:
             gap = float(rec["t_s"]) - float(buf["t_last_s"])
-            buf["T_c"][:, :self.n] = jump_state(self.unpack(buf), gap - self.sp.dt_s, self.sp, cache).T_c
+            buf["T_c"][:, : self.n] = jump_state(self.unpack(buf), gap - self.sp.dt_s, self.sp, cache).T_c
             self.lib.gvs_step(*args, 1, out.ctypes.data, pts.ctypes.data)
         return self.unpack(buf), self.outputs(out), self.ttl_job(pts)
 
@@ -218,11 +287,11 @@ class CompiledCore:
         with np.errstate(invalid="ignore"):
             gap = rec["t_s"] - buf["t_last_s"]
         known = np.isfinite(gap)
-        backward = known & (gap < 0.5 * dt) & ~(gap < -self.sp.options.clock_reset_s)     # not a reset clock
-        jump = known & (gap > 1.5 * dt) & ~backward           # (the kernel skips the backward ones itself)
+        backward = known & (gap < 0.5 * dt) & ~(gap < -self.sp.options.clock_reset_s)  # not a reset clock
+        jump = known & (gap > 1.5 * dt) & ~backward  # (the kernel skips the backward ones itself)
         if jump.any():
             st = jump_state(self.unpack(buf), np.where(jump, gap - dt, 0.0), self.sp, cache)
-            buf["T_c"][..., :self.n] = st.T_c
+            buf["T_c"][..., : self.n] = st.T_c
         return np.ascontiguousarray(jump, dtype=np.int8).reshape(-1)
 
     def refresh_ttl(self, state: SensorState, job: TtlJob | None, cache: StepCache) -> SensorState:
@@ -237,8 +306,12 @@ class CompiledCore:
         ttl = np.zeros(N_PUB, dtype=self.S["real"])
         for v in job.vehicles:
             i = int(np.ravel_multi_index(v, pts.shape)) if v else 0
-            self.lib.gvs_ttl_refresh(self._tables_p, veh.ctypes.data + (i if veh.shape[0] > 1 else 0) * veh.itemsize,
-                                     pts.ctypes.data + i * pts.itemsize, ttl.ctypes.data)
+            self.lib.gvs_ttl_refresh(
+                self._tables_p,
+                veh.ctypes.data + (i if veh.shape[0] > 1 else 0) * veh.itemsize,
+                pts.ctypes.data + i * pts.itemsize,
+                ttl.ctypes.data,
+            )
             buf["ttl_s"][v] = ttl
         return self.unpack(buf)
 
@@ -246,8 +319,9 @@ class CompiledCore:
         """gvs_ttl_point records of a job's TtlPoint tuples (batch-shaped like its vehicles)."""
         shape = () if job.vehicles == ((),) else (max(v[0] for v in job.vehicles) + 1,)
         pts = np.zeros(shape, dtype=self.S["TtlPoint_dtype"])
-        sizes = dict(T_main_c=self.n, src_w=self.ns, G_w_per_k=self.nl, G_streams_w_per_k=self.nst, T_bc_c=self.nb,
-                     used=N_INPUTS)
+        sizes = dict(
+            T_main_c=self.n, src_w=self.ns, G_w_per_k=self.nl, G_streams_w_per_k=self.nst, T_bc_c=self.nb, used=N_INPUTS
+        )
         for v, p in zip(job.vehicles, job.points):
             for k, size in sizes.items():
                 pts[k][v][:size] = getattr(p, k)
@@ -268,14 +342,23 @@ class CompiledCore:
         pt = np.zeros((), dtype=self.S["TtlPoint_dtype"])
         veh = self.vehicles(None).ctypes.data_as(C.POINTER(self.S["Vehicle"]))
         status = C.c_int(0)
-        for j0 in range(0, N, m_max):                 # the same kernel steps, in chunks that reuse two buffers
+        for j0 in range(0, N, m_max):  # the same kernel steps, in chunks that reuse two buffers
             m = min(m_max, N - j0)
-            rec["raw"][:m] = raw[j0:j0 + m]
-            rec["t_s"][:m] = t_s[j0:j0 + m]
+            rec["raw"][:m] = raw[j0 : j0 + m]
+            rec["t_s"][:m] = t_s[j0 : j0 + m]
             k = 0
             while k < m:
-                done = self.lib.gvs_run(self._tables_p, veh, buf.ctypes.data, rec[k:].ctypes.data, m - k, 0,
-                                        out[k:].ctypes.data, pt.ctypes.data, C.byref(status))
+                done = self.lib.gvs_run(
+                    self._tables_p,
+                    veh,
+                    buf.ctypes.data,
+                    rec[k:].ctypes.data,
+                    m - k,
+                    0,
+                    out[k:].ctypes.data,
+                    pt.ctypes.data,
+                    C.byref(status),
+                )
                 k = self._after_run(buf, rec, out, pt, k, done, status.value, cache)
             self._fill_table(res, out[:m], j0)
         return self.unpack(buf), res
@@ -288,20 +371,29 @@ class CompiledCore:
         if status == NEED_JUMP:
             gap = rec["t_s"][j] - float(buf["t_last_s"])
             st = jump_state(self.unpack(buf), gap - self.sp.dt_s, self.sp, cache)
-            buf["T_c"][:, :self.n] = st.T_c
+            buf["T_c"][:, : self.n] = st.T_c
             one = np.zeros((), dtype=self.S["TtlPoint_dtype"])
-            self.lib.gvs_step(self._tables_p, self.vehicles(None).ctypes.data_as(C.POINTER(self.S["Vehicle"])),
-                              buf.ctypes.data, rec[j:].ctypes.data, 1, out[j:].ctypes.data, one.ctypes.data)
+            self.lib.gvs_step(
+                self._tables_p,
+                self.vehicles(None).ctypes.data_as(C.POINTER(self.S["Vehicle"])),
+                buf.ctypes.data,
+                rec[j:].ctypes.data,
+                1,
+                out[j:].ctypes.data,
+                one.ctypes.data,
+            )
             pt[...] = one
             j += 1
         if pt["due"]:
-            self.lib.gvs_ttl_refresh(self._tables_p, self.vehicles(None).ctypes.data, pt.ctypes.data,
-                                     buf["ttl_s"].ctypes.data)
+            self.lib.gvs_ttl_refresh(
+                self._tables_p, self.vehicles(None).ctypes.data, pt.ctypes.data, buf["ttl_s"].ctypes.data
+            )
             pt["due"] = 0
         return j
 
-    def run_batch(self, state: SensorState, raw: np.ndarray, keep: np.ndarray, nodes: np.ndarray,
-                  rec: np.ndarray) -> np.ndarray:
+    def run_batch(
+        self, state: SensorState, raw: np.ndarray, keep: np.ndarray, nodes: np.ndarray, rec: np.ndarray
+    ) -> np.ndarray:
         """V vehicles (per-vehicle effects as in ``self.sp``) stepped through the same inputs ``raw`` (n, 8) on the
         0.1 s grid, one kernel call per step and no time-to-limit refresh (the diagnosis needs only temperatures):
         ``rec[j]`` = the main copy's temperatures of ``nodes`` after step ``keep[j]`` (rec[0]: given)."""
@@ -326,10 +418,16 @@ class CompiledCore:
     @staticmethod
     def _table_buffers(N: int, out_dtype: np.dtype) -> TableOutputs:
         """Empty TableOutputs for N rows (the kernel's outputs converted: temperatures and times as float64)."""
-        return TableOutputs(np.empty((N, N_PUB)), np.empty((N, N_PUB), dtype=out_dtype["level"].base),
-                            np.empty((N, N_PUB)), np.empty(N, dtype=out_dtype["degraded_mode"]),
-                            np.empty((N, 4), dtype=bool), np.empty(N), np.empty(N),
-                            np.empty((N,) + out_dtype["rejects"].shape, dtype=out_dtype["rejects"].base))
+        return TableOutputs(
+            np.empty((N, N_PUB)),
+            np.empty((N, N_PUB), dtype=out_dtype["level"].base),
+            np.empty((N, N_PUB)),
+            np.empty(N, dtype=out_dtype["degraded_mode"]),
+            np.empty((N, 4), dtype=bool),
+            np.empty(N),
+            np.empty(N),
+            np.empty((N,) + out_dtype["rejects"].shape, dtype=out_dtype["rejects"].base),
+        )
 
     @staticmethod
     def _fill_table(res: TableOutputs, out: np.ndarray, j0: int) -> None:

@@ -6,6 +6,7 @@ in oil temperature, radiation linearised at the bin's oil temperature. The condu
 firmware_model.onboard.reduce, and a :class:`BinCache` (part of the sensor's step cache) memoises them for one
 vehicle at a time, keyed by the bin centre itself, so that a cached value is the value the batch computes.
 """
+
 from __future__ import annotations
 
 import math
@@ -18,7 +19,7 @@ from firmware_model.onboard.params import SensorParams
 
 #: operating-point quantisation of the conductances: 1 % in speed, 0.5 K in oil temperature
 SPEED_BIN_REL = 0.01
-SPEED_BIN_MIN_RAD_S = 1.0          # below ~10 rpm the conductances are evaluated at 0
+SPEED_BIN_MIN_RAD_S = 1.0  # below ~10 rpm the conductances are evaluated at 0
 OIL_BIN_C = 0.5
 LN_SPEED_BIN = math.log1p(SPEED_BIN_REL)
 #: bins a BinCache keeps (a bounded memo; the oldest entry goes first)
@@ -46,10 +47,11 @@ def bin_centre(omega_in_rad_s: float, T_oil_c: float) -> tuple[float, float]:
 
 class BinConductances(NamedTuple):
     """Conductances at one bin centre [W/K]."""
-    G_w_per_k: np.ndarray          # (nl,) every link
+
+    G_w_per_k: np.ndarray  # (nl,) every link
     G_streams_w_per_k: np.ndarray  # (nst,) the oil-system stream terms
-    G_int_w_per_k: np.ndarray      # (n_int,) the node-node links (helpers.int_idx)
-    G_ext_w_per_k: np.ndarray      # (n_ext,) the node-boundary links (helpers.ext_idx)
+    G_int_w_per_k: np.ndarray  # (n_int,) the node-node links (helpers.int_idx)
+    G_ext_w_per_k: np.ndarray  # (n_ext,) the node-boundary links (helpers.ext_idx)
 
 
 def bin_conductances(sp: SensorParams, row, omega_q_rad_s, T_q_c):

@@ -10,6 +10,7 @@ fleet's tables may run on threads). ``VirtualSensor`` holds one core and calls i
 compiled on first use when a C compiler is present) and otherwise the numpy step, saying why; ``"c"`` insists on
 the kernel; ``"numpy"`` is the readable reference. ``GVS_CORE=numpy|c`` in the environment overrides "auto".
 """
+
 from __future__ import annotations
 
 import os
@@ -39,6 +40,7 @@ def select_core(core: str, sp: SensorParams):
     if core == "numpy":
         return NumpyCore(sp)
     from firmware_model.onboard.compiled import CompiledCore
+
     try:
         return CompiledCore(sp)
     except CoreUnavailable as exc:
@@ -72,6 +74,7 @@ class NumpyCore:
         """``(state, TableOutputs)``: one vehicle stepped row by row through ``raw`` (N, 8) at frame times ``t_s``
         (N,): the same TableOutputs as the compiled core's one call."""
         from firmware_model.onboard.compiled import TableOutputs
+
         N = raw.shape[0]
         T, lev, ttl = np.empty((N, N_PUB)), np.empty((N, N_PUB), dtype=np.int8), np.empty((N, N_PUB))
         mode, valid = np.empty(N, dtype=np.int8), np.empty((N, 4), dtype=bool)

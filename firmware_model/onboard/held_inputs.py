@@ -3,6 +3,7 @@ limit (firmware_model.onboard.time_to_limit): propagate the state over a forward
 off) and cool a snapshot down on restart (engine off), both with the exact modal solution
 (firmware_model.onboard.held_modes).
 """
+
 from __future__ import annotations
 
 import math
@@ -12,27 +13,48 @@ import numpy as np
 
 from firmware_model.network import BOUNDARIES
 from firmware_model.onboard import reduce as R
-from firmware_model.physics.conductance_matrix import conductance_matrix
-from firmware_model.physics.cooler import inlet_drop_k
 from firmware_model.onboard.held_modes import HeldModes, decompose
 from firmware_model.onboard.kernel_interface import SPEED_COL_LAYSHAFT, SPEED_COL_OUTPUT
 from firmware_model.onboard.params import SensorParams, first_row, first_value, vehicle_value
-from firmware_model.onboard.records import (I_AMB, I_COOL, I_GEAR, I_OIL, I_RET, I_SPEED, I_TORQUE, I_VKMH, MAIN,
-                                            TWIN, SensorState)
+from firmware_model.onboard.records import (
+    I_AMB,
+    I_COOL,
+    I_GEAR,
+    I_OIL,
+    I_RET,
+    I_SPEED,
+    I_TORQUE,
+    I_VKMH,
+    MAIN,
+    TWIN,
+    SensorState,
+)
 from firmware_model.onboard.step_cache import StepCache
+from firmware_model.physics.conductance_matrix import conductance_matrix
+from firmware_model.physics.cooler import inlet_drop_k
 from firmware_model.physics.kinematics import GEAR_MIN
 from firmware_model.units import RAD_S_PER_RPM
 
 
 class LinearSystem(NamedTuple):
     """``C dT/dt = -K T + b`` over the ``free`` nodes (the others held)."""
-    K_w_per_k: np.ndarray      # (n, n)
-    b_w: np.ndarray            # (n,)
-    free: np.ndarray           # indices of the free nodes
+
+    K_w_per_k: np.ndarray  # (n, n)
+    b_w: np.ndarray  # (n,)
+    free: np.ndarray  # indices of the free nodes
 
 
-def linear_system(sp: SensorParams, G_w_per_k, q_nodes_w, xfer_nodes_w, T_bc_c, T_oil_c, Q_cool_w, measured: bool,
-                  cooler_slope_w_per_k) -> LinearSystem:
+def linear_system(
+    sp: SensorParams,
+    G_w_per_k,
+    q_nodes_w,
+    xfer_nodes_w,
+    T_bc_c,
+    T_oil_c,
+    Q_cool_w,
+    measured: bool,
+    cooler_slope_w_per_k,
+) -> LinearSystem:
     """The main network with everything held: a measured sump is held (its links enter b), a modelled one is free
     with the cooler linearised at the current sump (Q = Q0 + slope (T - T0))."""
     rp, h = sp.reduced, sp.helpers
@@ -49,8 +71,9 @@ def linear_system(sp: SensorParams, G_w_per_k, q_nodes_w, xfer_nodes_w, T_bc_c, 
     return LinearSystem(K, b, free)
 
 
-def cooler_slope_w_per_k(sp: SensorParams, T_oil_c: float, omega_in_rad_s: float, row: int, used,
-                         rho_cp_j_per_m3k: float, vehicle=None) -> float:
+def cooler_slope_w_per_k(
+    sp: SensorParams, T_oil_c: float, omega_in_rad_s: float, row: int, used, rho_cp_j_per_m3k: float, vehicle=None
+) -> float:
     """dQ_cooler/dT_oil [W/K] at this operating point (liquid: its hA unless saturated; air: a finite difference),
     from firmware_model.onboard.reduce.cooler_heat; ``used``: the step's inputs (INPUT_FIELDS order); ``vehicle``:
     the batch index whose effects apply (None: the first vehicle's)."""
@@ -58,8 +81,16 @@ def cooler_slope_w_per_k(sp: SensorParams, T_oil_c: float, omega_in_rad_s: float
     omega_ls = abs(rp.speed_coef[row, SPEED_COL_LAYSHAFT]) * omega_in_rad_s
     if rp.cooler_code == R.COOLER_CODES["none"] or omega_ls <= 0.0:
         return 0.0
-    args = (omega_ls, omega_in_rad_s, used[I_COOL], used[I_AMB], used[I_VKMH], rho_cp_j_per_m3k,
-            vehicle_value(sp.effects.cooler_scale, vehicle), vehicle_value(sp.effects.thermostat_offset_c, vehicle))
+    args = (
+        omega_ls,
+        omega_in_rad_s,
+        used[I_COOL],
+        used[I_AMB],
+        used[I_VKMH],
+        rho_cp_j_per_m3k,
+        vehicle_value(sp.effects.cooler_scale, vehicle),
+        vehicle_value(sp.effects.thermostat_offset_c, vehicle),
+    )
     if rp.cooler_code == R.COOLER_CODES["liquid"]:
         Q, _, hA = R.cooler_heat(rp, T_oil_c, *args)
         c = rp.cooler
@@ -77,7 +108,7 @@ def jump_state(state: SensorState, gap_s, sp: SensorParams, cache: StepCache) ->
     B = state.t_last_s.shape
     T = np.array(state.T_c, dtype=float, copy=True)
     age = np.array(state.age_s, dtype=float, copy=True)
-    for v in (np.ndindex(B) if B else [()]):
+    for v in np.ndindex(B) if B else [()]:
         g = float(np.asarray(gap_s)[v])
         if g <= 0:
             continue
@@ -134,29 +165,62 @@ def _held_propagate(sp: SensorParams, state: SensorState, v: tuple, copy: int, t
     T_amb_c, T_cool_c = _held(hold, I_AMB, float(sp.aux_default[0])), _held(hold, I_COOL, float(sp.aux_default[1]))
     v_kmh, retarder_nm = _held(hold, I_VKMH, float(sp.aux_default[2])), abs(_held(hold, I_RET, 0.0))
     omega_in_rad_s = speed_rpm * RAD_S_PER_RPM
-    measured = (copy == MAIN and sp.options.oil_mode == "measured" and float(np.asarray(state.age_s)[v + (I_OIL,)])
-                == 0.0 and math.isfinite(hold[I_OIL]))
+    measured = (
+        copy == MAIN
+        and sp.options.oil_mode == "measured"
+        and float(np.asarray(state.age_s)[v + (I_OIL,)]) == 0.0
+        and math.isfinite(hold[I_OIL])
+    )
     T_oil_c = float(hold[I_OIL]) if measured else float(T0_c[rp.i_oil])
     T0_c[rp.i_oil] = T_oil_c
     x, prop, phi = R.oil_row(rp, T_oil_c, h)
     T_bc_c = np.array(np.asarray(sp.T_bc_default_c, dtype=float).reshape(-1, len(BOUNDARIES))[0])
     T_bc_c[rp.i_ambient], T_bc_c[rp.i_coolant] = T_amb_c, T_cool_c
-    retarder_w = (first_value(e.retarder_frac) * retarder_nm * abs(rp.speed_coef[row, SPEED_COL_OUTPUT])
-                  * omega_in_rad_s)
-    src_w = R.heat_sources(rp, row, omega_in_rad_s, torque_nm, prop, x, first_row(e.src_scale),
-                           first_value(e.churn_scale), first_value(e.needle_scale), retarder_w, h=h)
-    G_w_per_k, G_streams_w_per_k = R.conductances(rp, row, omega_in_rad_s, x, prop, phi, T0_c, T_bc_c,
-                                                  e if sp.scalar_effects else None, h)
+    retarder_w = first_value(e.retarder_frac) * retarder_nm * abs(rp.speed_coef[row, SPEED_COL_OUTPUT]) * omega_in_rad_s
+    src_w = R.heat_sources(
+        rp,
+        row,
+        omega_in_rad_s,
+        torque_nm,
+        prop,
+        x,
+        first_row(e.src_scale),
+        first_value(e.churn_scale),
+        first_value(e.needle_scale),
+        retarder_w,
+        h=h,
+    )
+    G_w_per_k, G_streams_w_per_k = R.conductances(
+        rp, row, omega_in_rad_s, x, prop, phi, T0_c, T_bc_c, e if sp.scalar_effects else None, h
+    )
     rho_cp_j_per_m3k = float(prop[R.P_RHO] * prop[R.P_CP])
     omega_ls_rad_s = abs(rp.speed_coef[row, SPEED_COL_LAYSHAFT]) * omega_in_rad_s
     used = np.array([speed_rpm, torque_nm, row + GEAR_MIN, T_oil_c, T_amb_c, T_cool_c, v_kmh, retarder_nm])
-    Q_cool_w, mcp_w_per_k, _ = R.cooler_heat(rp, T_oil_c, omega_ls_rad_s, omega_in_rad_s, T_cool_c, T_amb_c, v_kmh,
-                                             rho_cp_j_per_m3k, first_value(e.cooler_scale),
-                                             first_value(e.thermostat_offset_c))
+    Q_cool_w, mcp_w_per_k, _ = R.cooler_heat(
+        rp,
+        T_oil_c,
+        omega_ls_rad_s,
+        omega_in_rad_s,
+        T_cool_c,
+        T_amb_c,
+        v_kmh,
+        rho_cp_j_per_m3k,
+        first_value(e.cooler_scale),
+        first_value(e.thermostat_offset_c),
+    )
     dT_in_k = float(inlet_drop_k(Q_cool_w, mcp_w_per_k))
     slope_w_per_k = 0.0 if measured else cooler_slope_w_per_k(sp, T_oil_c, omega_in_rad_s, row, used, rho_cp_j_per_m3k)
-    system = linear_system(sp, G_w_per_k, src_w @ rp.src_matrix, (G_streams_w_per_k * dT_in_k) @ h.stream_scatter,
-                           T_bc_c, T_oil_c, float(Q_cool_w), measured, slope_w_per_k)
+    system = linear_system(
+        sp,
+        G_w_per_k,
+        src_w @ rp.src_matrix,
+        (G_streams_w_per_k * dT_in_k) @ h.stream_scatter,
+        T_bc_c,
+        T_oil_c,
+        float(Q_cool_w),
+        measured,
+        slope_w_per_k,
+    )
     modes = decompose(system.K_w_per_k, system.free, sp.sqrt_C)
     T_inf_c = modes.steady(system.b_w[system.free])
     out = T0_c.copy()
@@ -179,8 +243,9 @@ def _engine_off_system(sp: SensorParams, ambient_c: float, T_bc_c) -> LinearSyst
     T_amb_bc_c = np.full(len(BOUNDARIES), float(ambient_c))
     x, prop, phi = R.oil_row(rp, ambient_c, h)
     G_w_per_k, _ = R.conductances(rp, 0 - GEAR_MIN, 0.0, x, prop, phi, np.full(rp.n, ambient_c), T_amb_bc_c, None, h)
-    return linear_system(sp, G_w_per_k, np.zeros(rp.n), np.zeros(rp.n), np.asarray(T_bc_c, dtype=float), ambient_c,
-                         0.0, False, 0.0)
+    return linear_system(
+        sp, G_w_per_k, np.zeros(rp.n), np.zeros(rp.n), np.asarray(T_bc_c, dtype=float), ambient_c, 0.0, False, 0.0
+    )
 
 
 def cool_down(sp: SensorParams, cache: StepCache, T0_c, elapsed_s: float, ambient_c: float, boundaries_c=None):
@@ -205,7 +270,7 @@ def cool_down(sp: SensorParams, cache: StepCache, T0_c, elapsed_s: float, ambien
         system = _engine_off_system(sp, ambient_c, boundaries_c)
         K = system.K_w_per_k[np.ix_(free, free)]
         d = modes.steady(system.b_w[free]) - amb
-        C = (sp.sqrt_C[free] ** 2)
+        C = sp.sqrt_C[free] ** 2
         P = np.linalg.solve(K - np.diag(C / tau_s), K @ d)
     out[free] = modes.propagate(T0[free] - P, amb, float(elapsed_s)) + P * math.exp(-float(elapsed_s) / tau_s)
     return out

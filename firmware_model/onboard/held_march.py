@@ -34,6 +34,7 @@ generated from the topology (firmware_model.onboard.kernel_tables) and a Sherman
 coupling column, where this reference solves the same systems densely (``numpy.linalg.solve``): the two agree to
 rounding.
 """
+
 from __future__ import annotations
 
 import math
@@ -42,9 +43,17 @@ from typing import NamedTuple
 import numpy as np
 
 # the march's settings are the kernel's too: described once, in kernel_interface (the C header's GVS_MARCH_* ...)
-from firmware_model.onboard.kernel_interface import (HERMITE_BISECTIONS, HERMITE_SAMPLES, MARCH_A0, MARCH_A1,
-                                                     MARCH_D_FRAC, MARCH_H0_S, MARCH_RATIO, TTL_HORIZON_S,
-                                                     TTL_QUANTUM_S)
+from firmware_model.onboard.kernel_interface import (
+    HERMITE_BISECTIONS,
+    HERMITE_SAMPLES,
+    MARCH_A0,
+    MARCH_A1,
+    MARCH_D_FRAC,
+    MARCH_H0_S,
+    MARCH_RATIO,
+    TTL_HORIZON_S,
+    TTL_QUANTUM_S,
+)
 
 
 def march_grid_s() -> np.ndarray:
@@ -61,11 +70,12 @@ def march_grid_s() -> np.ndarray:
 
 class HeldSystem(NamedTuple):
     """``C dT/dt = -A T + b`` over the free nodes."""
-    A_w_per_k: np.ndarray     # (m, m)
-    C_j_per_k: np.ndarray     # (m,)
-    b_w: np.ndarray           # (m,)
-    coupled: bool             # A is not symmetric (the energy rule needs the energy to fall)
-    metzler: bool = True      # -A has no negative entry off its diagonal and no positive row sum (max principle)
+
+    A_w_per_k: np.ndarray  # (m, m)
+    C_j_per_k: np.ndarray  # (m,)
+    b_w: np.ndarray  # (m,)
+    coupled: bool  # A is not symmetric (the energy rule needs the energy to fall)
+    metzler: bool = True  # -A has no negative entry off its diagonal and no positive row sum (max principle)
     #: not Metzler: w > 0 with B w = 1, B = A's diagonal minus the moduli of its off-diagonal entries (None: no such
     #: w); then the w-weighted max norm of every solution never grows (the bounds on |e|, _bound)
     weights: np.ndarray | None = None
@@ -73,18 +83,23 @@ class HeldSystem(NamedTuple):
 
 class March(NamedTuple):
     """The first crossings, and a node's temperature at the first crossing of the watched rows."""
-    ttl_s: np.ndarray         # (r,) per row: 0 at or above the limit now, inf never within the horizon
-    T_inf_c: np.ndarray       # (m,) steady state
-    watch_t_s: float          # the first crossing (before the quantum) of a watched row; NaN: none crosses
-    watch_T_c: float          # the watched node's temperature then (the Hermite interpolant of its step)
+
+    ttl_s: np.ndarray  # (r,) per row: 0 at or above the limit now, inf never within the horizon
+    T_inf_c: np.ndarray  # (m,) steady state
+    watch_t_s: float  # the first crossing (before the quantum) of a watched row; NaN: none crosses
+    watch_T_c: float  # the watched node's temperature then (the Hermite interpolant of its step)
 
 
 def _hermite(s, h, f0, g0, f1, g1):
     """Cubic Hermite interpolant at s in [0, 1] of values f0, f1 and derivatives g0, g1 over a step h."""
     s2 = s * s
     s3 = s2 * s
-    return (2.0 * s3 - 3.0 * s2 + 1.0) * f0 + (s3 - 2.0 * s2 + s) * h * g0 + (3.0 * s2 - 2.0 * s3) * f1 \
+    return (
+        (2.0 * s3 - 3.0 * s2 + 1.0) * f0
+        + (s3 - 2.0 * s2 + s) * h * g0
+        + (3.0 * s2 - 2.0 * s3) * f1
         + (s3 - s2) * h * g1
+    )
 
 
 def _first_root(h, f0, g0, f1, g1) -> float:
@@ -140,8 +155,14 @@ def _skip_to(open_: np.ndarray, gap_k: np.ndarray, rate_max_k_per_s: float, w_ro
     return t_skip, h
 
 
-def march_time_to_limit(sys: HeldSystem, T0_c: np.ndarray, rows: np.ndarray, limit_c: np.ndarray,
-                        watch: np.ndarray | None = None, watch_node: int = 0) -> March | None:
+def march_time_to_limit(
+    sys: HeldSystem,
+    T0_c: np.ndarray,
+    rows: np.ndarray,
+    limit_c: np.ndarray,
+    watch: np.ndarray | None = None,
+    watch_node: int = 0,
+) -> March | None:
     """First time [s] each free node ``rows`` reaches ``limit_c`` with the inputs held (module doc); None when the
     held system has no finite steady state (the caller publishes "not available"). ``watch`` (bool per row): the
     temperature of free node ``watch_node`` is recorded at the first crossing of a watched row (the time to limit's
@@ -182,7 +203,7 @@ def march_time_to_limit(sys: HeldSystem, T0_c: np.ndarray, rows: np.ndarray, lim
         try:
             e_g = np.linalg.solve(M, C * e - d * (A @ e))
             e_new = np.linalg.solve(M, C * (MARCH_A1 * e_g - MARCH_A0 * e))
-        except np.linalg.LinAlgError:        # singular (as the kernel's failed factorisation): not available
+        except np.linalg.LinAlgError:  # singular (as the kernel's failed factorisation): not available
             return None
         de_new = -(A @ e_new) / C
         t_new = t + h_step
@@ -207,7 +228,7 @@ def march_time_to_limit(sys: HeldSystem, T0_c: np.ndarray, rows: np.ndarray, lim
             open_ &= Tinf_rows + np.sqrt(energy_new / Crow) >= lim
         e, de, t, energy = e_new, de_new, t_new, energy_new
         if t_skip > 0.0:
-            t_skip = 0.0                   # the skip's step was the grid's steps up to t_skip: h is the next one
+            t_skip = 0.0  # the skip's step was the grid's steps up to t_skip: h is the next one
         else:
             h = h * MARCH_RATIO
     return March(out, T_inf, watch_t, watch_T)

@@ -11,6 +11,7 @@ bounded LRU owned by the sensor's step cache) per quantised operating point; ``T
 recomputed from the current temperatures and heat every time. The time to limit does not use these modes: it marches
 the held-input system (firmware_model.onboard.held_march), which an ECU can do without an eigen-solver.
 """
+
 from __future__ import annotations
 
 from collections import OrderedDict
@@ -25,8 +26,9 @@ MODE_CACHE_SIZE = 64
 
 class Coupling(NamedTuple):
     """A node that drives others through a column: ``C dT/dt = -(K - u e_node^T) T + b``."""
-    u_w_per_k: np.ndarray      # (n,) the column u [W/K]
-    node: int                  # the driving node (the modelled sump)
+
+    u_w_per_k: np.ndarray  # (n,) the column u [W/K]
+    node: int  # the driving node (the modelled sump)
 
 
 def _re(x):
@@ -37,11 +39,12 @@ def _re(x):
 @dataclass(frozen=True, eq=False)
 class HeldModes:
     """Modes of ``C dT/dt = -K T + b`` over the free nodes, in the coordinates ``C^1/2 T``."""
-    lam_per_s: np.ndarray          # (m,) eigenvalues [1/s] (a complex pair possible when coupled)
-    V: np.ndarray                  # (m, m) eigenvectors (columns)
-    sqrt_C: np.ndarray             # (m,) C^1/2 of the free nodes [sqrt(J/K)]
-    free: np.ndarray               # indices of the free nodes in the network
-    V_inv: np.ndarray | None = None      # V^-1 of coupled modes; None: symmetric (V^-1 = V^T)
+
+    lam_per_s: np.ndarray  # (m,) eigenvalues [1/s] (a complex pair possible when coupled)
+    V: np.ndarray  # (m, m) eigenvectors (columns)
+    sqrt_C: np.ndarray  # (m,) C^1/2 of the free nodes [sqrt(J/K)]
+    free: np.ndarray  # indices of the free nodes in the network
+    V_inv: np.ndarray | None = None  # V^-1 of coupled modes; None: symmetric (V^-1 = V^T)
     coupling_u: np.ndarray | None = None  # the coupling column u [W/K] (coupled modes only)
 
     @property
@@ -95,7 +98,7 @@ def _coupled_modes(M, s, free, coupling: Coupling) -> HeldModes | None:
     Mc[:, jf] -= np.asarray(u, dtype=float)[free] / (s * s[jf])
     try:
         lam, V = np.linalg.eig(Mc)
-    except (np.linalg.LinAlgError, ValueError):      # no convergence (or not finite): symmetric modes
+    except (np.linalg.LinAlgError, ValueError):  # no convergence (or not finite): symmetric modes
         return None
     if np.all(lam.imag == 0.0):
         lam, V = lam.real.copy(), np.ascontiguousarray(V.real)

@@ -3,6 +3,7 @@
 Hold the last good value, clamp, or degrade; every rejection counted (REJECT_REASONS). Vectorised over any batch
 shape (one vehicle: shape ()).
 """
+
 from __future__ import annotations
 
 from typing import NamedTuple
@@ -10,32 +11,55 @@ from typing import NamedTuple
 import numpy as np
 
 from firmware_model.onboard.params import SensorParams
-from firmware_model.onboard.records import (I_AMB, I_GEAR, I_OIL, I_RET, I_SPEED, I_TORQUE, N_INPUTS,
-                                            REJECT_INDEX, TWIN, SensorState)
+from firmware_model.onboard.records import (
+    I_AMB,
+    I_GEAR,
+    I_OIL,
+    I_RET,
+    I_SPEED,
+    I_TORQUE,
+    N_INPUTS,
+    REJECT_INDEX,
+    TWIN,
+    SensorState,
+)
 
 #: reject counters of the input checks, in REJECT_REASONS order (the time checks come after them)
-_INPUT_REASONS = ("speed_missing", "speed_clamped", "torque_missing", "torque_clamped", "gear_missing",
-                  "gear_unknown", "oil_missing", "oil_implausible", "oil_frozen", "drive_frozen", "aux_missing")
+_INPUT_REASONS = (
+    "speed_missing",
+    "speed_clamped",
+    "torque_missing",
+    "torque_clamped",
+    "gear_missing",
+    "gear_unknown",
+    "oil_missing",
+    "oil_implausible",
+    "oil_frozen",
+    "drive_frozen",
+    "aux_missing",
+)
 assert tuple(REJECT_INDEX[r] for r in _INPUT_REASONS) == tuple(range(len(_INPUT_REASONS)))
 _MISSING_COLUMNS = [REJECT_INDEX[r] for r in ("speed_missing", "torque_missing", "gear_missing", "oil_missing")]
 _CLAMPED_COLUMNS = [REJECT_INDEX[r] for r in ("speed_clamped", "torque_clamped")]
-_GEAR_UNKNOWN, _OIL_IMPLAUSIBLE, _OIL_FROZEN, _DRIVE_FROZEN, _AUX_MISSING = (REJECT_INDEX[r] for r in (
-    "gear_unknown", "oil_implausible", "oil_frozen", "drive_frozen", "aux_missing"))
+_GEAR_UNKNOWN, _OIL_IMPLAUSIBLE, _OIL_FROZEN, _DRIVE_FROZEN, _AUX_MISSING = (
+    REJECT_INDEX[r] for r in ("gear_unknown", "oil_implausible", "oil_frozen", "drive_frozen", "aux_missing")
+)
 
 
 class InputCheck(NamedTuple):
     """What the checks decided this step (arrays of the batch shape B, or B + (8,) per input field)."""
-    ok: np.ndarray            # B + (8,): the raw input is good
-    used: np.ndarray          # B + (8,): the value the step uses (good, clamped, held or the auxiliary default)
-    age_s: np.ndarray         # B + (8,): time since each input was last good [s]
-    same_s: np.ndarray        # B + (8,): time each raw input has been bit-identical [s]
-    oil_ref_c: np.ndarray     # B: twin sump when the measured oil last changed [degC]
-    measured: np.ndarray      # B: the measured oil is the main copy's sump this step
-    drive_ok: np.ndarray      # B: speed, torque and gear all good
-    drive_age_s: np.ndarray   # B: age of the oldest of them [s]
+
+    ok: np.ndarray  # B + (8,): the raw input is good
+    used: np.ndarray  # B + (8,): the value the step uses (good, clamped, held or the auxiliary default)
+    age_s: np.ndarray  # B + (8,): time since each input was last good [s]
+    same_s: np.ndarray  # B + (8,): time each raw input has been bit-identical [s]
+    oil_ref_c: np.ndarray  # B: twin sump when the measured oil last changed [degC]
+    measured: np.ndarray  # B: the measured oil is the main copy's sump this step
+    drive_ok: np.ndarray  # B: speed, torque and gear all good
+    drive_age_s: np.ndarray  # B: age of the oldest of them [s]
     drive_frozen: np.ndarray  # B: speed and torque bit-identical too long while turning
-    oil_frozen: np.ndarray    # B: the measured oil bit-identical too long while the twin's sump moved
-    counts: np.ndarray        # B + (11,): rejections this step, REJECT_REASONS order up to aux_missing
+    oil_frozen: np.ndarray  # B: the measured oil bit-identical too long while the twin's sump moved
+    counts: np.ndarray  # B + (11,): rejections this step, REJECT_REASONS order up to aux_missing
 
 
 def check_inputs(state: SensorState, raw: np.ndarray, sp: SensorParams) -> InputCheck:
@@ -48,7 +72,7 @@ def check_inputs(state: SensorState, raw: np.ndarray, sp: SensorParams) -> Input
     in_range = finite & (raw >= sp.input_lo) & (raw <= sp.input_hi)
     fixed = np.minimum(np.maximum(raw, sp.clamp_lo), sp.clamp_hi)
     fixed[..., I_RET] = np.abs(raw[..., I_RET])
-    clamped = in_range & (fixed != raw)        # beyond the plausible range a speed or torque is missing, not clamped
+    clamped = in_range & (fixed != raw)  # beyond the plausible range a speed or torque is missing, not clamped
     gear = raw[..., I_GEAR]
     gear_ok = in_range[..., I_GEAR] & (gear == np.rint(gear))
     # oil: plausible range, no implausible step from a recent good value, not frozen while the twin's sump moves
@@ -58,22 +82,26 @@ def check_inputs(state: SensorState, raw: np.ndarray, sp: SensorParams) -> Input
     same = np.where(finite & (raw == state.raw_prev), state.same_s + dt, 0.0)
     twin_oil = state.T_c[..., TWIN, sp.reduced.i_oil]
     oil_ref = np.where(same[..., I_OIL] > 0, state.oil_ref_c, twin_oil)
-    oil_frozen = oil_in_range & (same[..., I_OIL] >= opt.oil_frozen_s) & (
-        np.abs(twin_oil - oil_ref) >= opt.oil_frozen_drift_c)
+    oil_frozen = (
+        oil_in_range & (same[..., I_OIL] >= opt.oil_frozen_s) & (np.abs(twin_oil - oil_ref) >= opt.oil_frozen_drift_c)
+    )
     oil_ok = oil_in_range & ~jumpy & ~oil_frozen
-    drive_frozen = (same[..., I_SPEED] >= opt.drive_frozen_s) & (same[..., I_TORQUE] >= opt.drive_frozen_s) & (
-        fixed[..., I_SPEED] > 0)
+    drive_frozen = (
+        (same[..., I_SPEED] >= opt.drive_frozen_s)
+        & (same[..., I_TORQUE] >= opt.drive_frozen_s)
+        & (fixed[..., I_SPEED] > 0)
+    )
     ok = in_range.copy()
     ok[..., I_GEAR] = gear_ok
     ok[..., I_OIL] = oil_ok
     fallback = np.array(state.hold, dtype=float)
-    fallback[..., I_AMB:] = sp.aux_default      # auxiliary inputs are not held: a missing one takes its default
+    fallback[..., I_AMB:] = sp.aux_default  # auxiliary inputs are not held: a missing one takes its default
     used = np.where(ok, fixed, fallback)
     age = np.where(ok, 0.0, state.age_s + dt)
     counts = np.zeros(ok.shape[:-1] + (len(_INPUT_REASONS),), dtype=np.int64)
-    counts[..., _MISSING_COLUMNS] = ~finite[..., :I_AMB]          # speed, torque, gear, oil missing
-    counts[..., _MISSING_COLUMNS[:2]] = ~in_range[..., :I_GEAR]   # speed, torque: also a value no frame can carry
-    counts[..., _CLAMPED_COLUMNS] = clamped[..., :I_GEAR]         # speed, torque clamped
+    counts[..., _MISSING_COLUMNS] = ~finite[..., :I_AMB]  # speed, torque, gear, oil missing
+    counts[..., _MISSING_COLUMNS[:2]] = ~in_range[..., :I_GEAR]  # speed, torque: also a value no frame can carry
+    counts[..., _CLAMPED_COLUMNS] = clamped[..., :I_GEAR]  # speed, torque clamped
     counts[..., _GEAR_UNKNOWN] = finite[..., I_GEAR] & ~gear_ok
     counts[..., _OIL_IMPLAUSIBLE] = (finite[..., I_OIL] & ~oil_in_range) | jumpy
     counts[..., _OIL_FROZEN] = oil_frozen

@@ -14,6 +14,7 @@ The numpy reference imports the shared constants from here (the march, the effec
 oil-property columns); the ones another module owns (published components, input fields, reject reasons, warning
 levels, modes, cooler kinds, gears) are read from that module, so each number is written once.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -23,8 +24,15 @@ import sys
 from pathlib import Path
 from typing import NamedTuple
 
-from firmware_model.components import (LEVEL_CRITICAL, LEVEL_NA, LEVEL_NORMAL, LEVEL_WARNING, MODE_HOLDING,
-                                       MODE_NORMAL, MODE_OIL_MODEL)
+from firmware_model.components import (
+    LEVEL_CRITICAL,
+    LEVEL_NA,
+    LEVEL_NORMAL,
+    LEVEL_WARNING,
+    MODE_HOLDING,
+    MODE_NORMAL,
+    MODE_OIL_MODEL,
+)
 from firmware_model.onboard.records import MAIN, N_INPUTS, N_PUB, N_REJECT, REJECT_REASONS, TWIN
 from firmware_model.physics.cooler import COOLER_KINDS
 from firmware_model.physics.kinematics import N_GEARS, SPEED_NAMES
@@ -55,7 +63,7 @@ MARCH_RATIO = 1.4
 #: time to limit beyond this is reported as never (inf) [s]
 TTL_HORIZON_S = 2.0e6
 #: the result is the first multiple of this at or after the crossing [s]
-TTL_QUANTUM_S = 2.0 ** -7
+TTL_QUANTUM_S = 2.0**-7
 #: TR-BDF2 with gamma = 2 - sqrt(2): both stages solve with C + d A, d = MARCH_D_FRAC h (trapezoid to gamma h, then
 #: BDF2 e1 = A1 e_gamma - A0 e0 + d C^-1 (-A e1))
 MARCH_GAMMA = 2.0 - math.sqrt(2.0)
@@ -75,12 +83,15 @@ TTL_RELINEARISE_TOL_K = 0.5
 #: the C names of the input fields (records.INPUT_FIELDS, same order)
 INPUT_C_NAMES = ("SPEED", "TORQUE", "GEAR", "OIL", "AMB", "COOL", "VKMH", "RET")
 if len(INPUT_C_NAMES) != N_INPUTS:
-    raise ImportError(f"kernel_interface.INPUT_C_NAMES names {len(INPUT_C_NAMES)} inputs, INPUT_FIELDS has "
-                      f"{N_INPUTS}: name the new input's C enum there")
+    raise ImportError(
+        f"kernel_interface.INPUT_C_NAMES names {len(INPUT_C_NAMES)} inputs, INPUT_FIELDS has "
+        f"{N_INPUTS}: name the new input's C enum there"
+    )
 
 
 class Constant(NamedTuple):
     """One #define of the header: C name (without GVS_), value, doc."""
+
     name: str
     value: int | float
     doc: str = ""
@@ -88,6 +99,7 @@ class Constant(NamedTuple):
 
 class Enum(NamedTuple):
     """One enum of the header: doc, (C name without GVS_, value) pairs."""
+
     doc: str
     items: tuple
 
@@ -99,12 +111,18 @@ def _enum(doc: str, prefix: str, names, values=None) -> Enum:
 
 #: capacities: #ifndef-guarded so that a build can size the structs (the export pins them)
 CAPACITIES = (
-    Constant("MAX_NODES", MAX_NODES, "nodes of the network"), Constant("MAX_LINKS", MAX_LINKS, "links"),
-    Constant("MAX_SRC", MAX_SRC, "heat sources"), Constant("MAX_BC", MAX_BC, "boundary temperatures"),
+    Constant("MAX_NODES", MAX_NODES, "nodes of the network"),
+    Constant("MAX_LINKS", MAX_LINKS, "links"),
+    Constant("MAX_SRC", MAX_SRC, "heat sources"),
+    Constant("MAX_BC", MAX_BC, "boundary temperatures"),
     Constant("MAX_STREAMS", MAX_STREAMS, "oil-system streams"),
     Constant("MAX_LNZ", MAX_LNZ, "entries of L below the diagonal in the time to limit's sparse LDL^T (GRS905: 178)"),
-    Constant("MAX_TERMS", MAX_TERMS, "the most terms of one kind of conductance law (tables, closed-form streams) "
-             "and oil-factor columns"))
+    Constant(
+        "MAX_TERMS",
+        MAX_TERMS,
+        "the most terms of one kind of conductance law (tables, closed-form streams) and oil-factor columns",
+    ),
+)
 #: fixed sizes and numbers of the kernel and the numpy reference
 DEFINES = (
     Constant("N_PUB", N_PUB, "published components (firmware_model.components.PUBLISHED)"),
@@ -125,33 +143,50 @@ DEFINES = (
     Constant("HERMITE_BISECTIONS", HERMITE_BISECTIONS, "then bisections"),
     Constant("TTL_RELINEARISE_STEPS", TTL_RELINEARISE_STEPS, "re-linearisations at the predicted sump"),
     Constant("TTL_RELINEARISE_TOL_K", TTL_RELINEARISE_TOL_K, "... until the sump moves less than this [K]"),
-    Constant("COUPLING_MARGIN", COUPLING_MARGIN, "the coupled held system needs 1 - e^T K^-1 u above this"))
+    Constant("COUPLING_MARGIN", COUPLING_MARGIN, "the coupled held system needs 1 - e^T K^-1 u above this"),
+)
 #: the structs gvs_sizeof() measures, in its argument's order ("real": sizeof(gvs_real))
 SIZEOF_IDS = ("tables", "vehicle", "state", "inputs", "outputs", "ttl_point", "real")
 ENUMS = (
     _enum("input fields (records.INPUT_FIELDS order)", "I_", INPUT_C_NAMES),
-    Enum("return codes of gvs_step", (("OK", OK), ("SKIPPED", SKIPPED), ("NEED_JUMP", NEED_JUMP),
-                                      ("BAD_TABLES", BAD_TABLES))),
+    Enum(
+        "return codes of gvs_step",
+        (("OK", OK), ("SKIPPED", SKIPPED), ("NEED_JUMP", NEED_JUMP), ("BAD_TABLES", BAD_TABLES)),
+    ),
     _enum("reject counters (records.REJECT_REASONS order)", "RJ_", REJECT_REASONS),
-    _enum("warning levels (firmware_model.components)", "LEVEL_", ("normal", "warning", "critical", "na"),
-          (LEVEL_NORMAL, LEVEL_WARNING, LEVEL_CRITICAL, LEVEL_NA)),
-    _enum("degraded modes (firmware_model.components)", "MODE_", ("normal", "oil_model", "holding"),
-          (MODE_NORMAL, MODE_OIL_MODEL, MODE_HOLDING)),
+    _enum(
+        "warning levels (firmware_model.components)",
+        "LEVEL_",
+        ("normal", "warning", "critical", "na"),
+        (LEVEL_NORMAL, LEVEL_WARNING, LEVEL_CRITICAL, LEVEL_NA),
+    ),
+    _enum(
+        "degraded modes (firmware_model.components)",
+        "MODE_",
+        ("normal", "oil_model", "holding"),
+        (MODE_NORMAL, MODE_OIL_MODEL, MODE_HOLDING),
+    ),
     _enum("the two copies of the network in the state (records)", "", ("main", "twin"), (MAIN, TWIN)),
     _enum("columns of the oil property table (tables.prop)", "P_", PROP_COLUMNS),
-    _enum("the vehicle effect that scales a conductance law (pw_effect, ef_effect)", "EFFECT_",
-          ("none", "teeth_oil_h", "planet_oil_h", "housing_air_h"),
-          (EFFECT_NONE, EFFECT_TEETH_OIL_H, EFFECT_PLANET_OIL_H, EFFECT_HOUSING_AIR_H)),
+    _enum(
+        "the vehicle effect that scales a conductance law (pw_effect, ef_effect)",
+        "EFFECT_",
+        ("none", "teeth_oil_h", "planet_oil_h", "housing_air_h"),
+        (EFFECT_NONE, EFFECT_TEETH_OIL_H, EFFECT_PLANET_OIL_H, EFFECT_HOUSING_AIR_H),
+    ),
     _enum("cooler kinds (tables.cooler_code; firmware_model.physics.cooler.COOLER_KINDS)", "COOLER_", COOLER_KINDS),
-    _enum("the argument of gvs_sizeof", "SIZEOF_", SIZEOF_IDS))
+    _enum("the argument of gvs_sizeof", "SIZEOF_", SIZEOF_IDS),
+)
 
 
 # --- the structs -------------------------------------------------------------------------------------------------
+
 
 class Field(NamedTuple):
     """One struct field. ``ctype``: int32_t, int64_t, int8_t, double, gvs_real, or a read-only table
     ``const gvs_real *`` / ``const gvs_idx *``. ``shape``: of a plain array its C dimensions (numbers or capacity
     names), of a table the sizes its length is made of (tables fields, ``gears`` = N_GEARS)."""
+
     name: str
     ctype: str
     shape: tuple = ()
@@ -161,6 +196,7 @@ class Field(NamedTuple):
 
 class Struct(NamedTuple):
     """One struct: its C name, the binding's class name, doc, and items (Field, or a str: a comment line)."""
+
     c_name: str
     py_name: str
     doc: str
@@ -171,8 +207,15 @@ class Struct(NamedTuple):
         return tuple(i for i in self.items if isinstance(i, Field))
 
 
-I32, I64, I8, F64, REAL, PREAL, PIDX = "int32_t", "int64_t", "int8_t", "double", "gvs_real", "const gvs_real *", \
-    "const gvs_idx *"
+I32, I64, I8, F64, REAL, PREAL, PIDX = (
+    "int32_t",
+    "int64_t",
+    "int8_t",
+    "double",
+    "gvs_real",
+    "const gvs_real *",
+    "const gvs_idx *",
+)
 
 
 def _f(names: str, ctype: str, shape: tuple = (), unit: str = "", doc: str = "") -> list:
@@ -185,68 +228,103 @@ _TABLES = (
     "streams, source non-zeros; then the tables' axes",
     *_f("n nl nb ns npw n2 nc ne nrad nst nsrc_nz", I32),
     *_f("nT ncol n_u nT2 n_u_churn nx n_mesh n_bear n_speed n_gears", I32),
-    Field("i_oil", I32, doc="the sump node"), Field("i_ambient", I32, doc="the ambient boundary"),
-    Field("i_coolant", I32, doc="the coolant boundary"), Field("cooler_code", I32, doc="GVS_COOLER_*"),
-    Field("gear_min", I32, doc="gear of row 0"), Field("oil_mode_measured", I32, doc="1: a measured sump is used"),
+    Field("i_oil", I32, doc="the sump node"),
+    Field("i_ambient", I32, doc="the ambient boundary"),
+    Field("i_coolant", I32, doc="the coolant boundary"),
+    Field("cooler_code", I32, doc="GVS_COOLER_*"),
+    Field("gear_min", I32, doc="gear of row 0"),
+    Field("oil_mode_measured", I32, doc="1: a measured sump is used"),
     Field("ttl_every", I32, doc="steps between time-to-limit refreshes"),
     "network",
     Field("dt_over_C", PREAL, ("n",), "s K/J", "dt / C"),
-    Field("link_a", PIDX, ("nl",)), Field("link_b", PIDX, ("nl",), doc="link_b >= n: boundary link_b - n"),
+    Field("link_a", PIDX, ("nl",)),
+    Field("link_b", PIDX, ("nl",), doc="link_b >= n: boundary link_b - n"),
     Field("G_const", PREAL, ("nl",), "W/K"),
     Field("published_index", PIDX, ("N_PUB",), doc="node of each published component"),
     "power laws: G = coef[row, t] w^exp[t] (phi(T)[col[t]] or 1) x effect",
     *_f("pw_link pw_col pw_effect", PIDX, ("npw",)),
-    Field("pw_exp", PREAL, ("npw",)), Field("pw_gear_coef", PREAL, ("gears", "npw")),
+    Field("pw_exp", PREAL, ("npw",)),
+    Field("pw_gear_coef", PREAL, ("gears", "npw")),
     Field("pw_phi", PREAL, ("nT", "ncol")),
     "bilinear tables over (sqrt(w_t / w_max), T)",
-    Field("t2_link", PIDX, ("n2",)), Field("t2_speed_coef", PREAL, ("gears", "n2")),
-    Field("t2_w_max", PREAL, ("n2",), "rad/s"), Field("t2_table", PREAL, ("n2", "n_u", "nT2"), "W/K"),
+    Field("t2_link", PIDX, ("n2",)),
+    Field("t2_speed_coef", PREAL, ("gears", "n2")),
+    Field("t2_w_max", PREAL, ("n2",), "rad/s"),
+    Field("t2_table", PREAL, ("n2", "n_u", "nT2"), "W/K"),
     Field("t2_stride", I32, doc="the tables use every t2_stride-th temperature of the grid"),
     "immersed wheels, Nusselt in closed form",
-    Field("cyl_link", PIDX, ("nc",)), Field("cyl_speed_coef", PREAL, ("gears", "nc")),
-    Field("cyl_c", PREAL, ("nc",), "m"), Field("cyl_ln_rp2", PREAL, ("nc",), doc="ln(R_p^2 [m2])"),
+    Field("cyl_link", PIDX, ("nc",)),
+    Field("cyl_speed_coef", PREAL, ("gears", "nc")),
+    Field("cyl_c", PREAL, ("nc",), "m"),
+    Field("cyl_ln_rp2", PREAL, ("nc",), doc="ln(R_p^2 [m2])"),
     "oil-system streams in closed form",
-    *_f("ef_link ef_effect", PIDX, ("ne",)), *_f("ef_mcp ef_alpha ef_beta", PREAL, ("ne",)),
+    *_f("ef_link ef_effect", PIDX, ("ne",)),
+    *_f("ef_mcp ef_alpha ef_beta", PREAL, ("ne",)),
     "radiation",
-    *_f("rad_link rad_node rad_bc", PIDX, ("nrad",)), Field("rad_area_eps", PREAL, ("nrad",), "m2"),
+    *_f("rad_link rad_node rad_bc", PIDX, ("nrad",)),
+    Field("rad_area_eps", PREAL, ("nrad",), "m2"),
     "streams: G_streams = [G2[t2_stream_term], Ge]; stream s moves G dT_in from stream_node[s] to the sump",
-    Field("t2_stream_term", PIDX, ("nst - ne",)), Field("stream_node", PIDX, ("nst",)),
+    Field("t2_stream_term", PIDX, ("nst - ne",)),
+    Field("stream_node", PIDX, ("nst",)),
     "oil properties on the temperature grid",
     Field("prop", PREAL, ("nT", "N_PROP"), doc="columns GVS_P_*"),
-    Field("T_grid0_c", REAL, (), "degC"), Field("T_grid_step_k", REAL, (), "K"),
+    Field("T_grid0_c", REAL, (), "degC"),
+    Field("T_grid_step_k", REAL, (), "K"),
     "losses",
     Field("speed_coef", PREAL, ("gears", "n_speed"), doc="every speed per unit input speed"),
     *_f("mesh_torque mesh_omega2", PREAL, ("gears", "n_mesh")),
-    Field("mesh_x0", PREAL, ("n_mesh",)), Field("mesh_phi", PREAL, ("n_mesh", "nx")),
+    Field("mesh_x0", PREAL, ("n_mesh",)),
+    Field("mesh_phi", PREAL, ("n_mesh", "nx")),
     *_f("mesh_roll_k mesh_heat_sf", PREAL, ("n_mesh",)),
     Field("mesh_roll_lt_min", PREAL, ("n_mesh",), doc="log10 T1 below which the rolling loss ramps to 0"),
-    *_f("bear_speed bear_c bear_load", PREAL, ("gears", "n_bear")), *_f("needle_rel needle_c", PREAL, ("n_bear",)),
-    *_f("sync_coef pump_coef", PREAL, ("gears",)), Field("churn_table", PREAL, ("n_u_churn", "nT"), "W"),
-    *_f("churn_w_max", REAL, (), "rad/s"), *_f("churn_heat_sf x_step ln10", REAL),
+    *_f("bear_speed bear_c bear_load", PREAL, ("gears", "n_bear")),
+    *_f("needle_rel needle_c", PREAL, ("n_bear",)),
+    *_f("sync_coef pump_coef", PREAL, ("gears",)),
+    Field("churn_table", PREAL, ("n_u_churn", "nT"), "W"),
+    *_f("churn_w_max", REAL, (), "rad/s"),
+    *_f("churn_heat_sf x_step ln10", REAL),
     "source -> node heat, sparse: node heat[src_nz_node[k]] += delivered[src_nz_src[k]] * src_nz_w[k]",
-    *_f("src_nz_src src_nz_node", PIDX, ("nsrc_nz",)), Field("src_nz_w", PREAL, ("nsrc_nz",)),
-    Field("lag_gain", REAL), Field("lag_tau_over_dt", REAL),
+    *_f("src_nz_src src_nz_node", PIDX, ("nsrc_nz",)),
+    Field("src_nz_w", PREAL, ("nsrc_nz",)),
+    Field("lag_gain", REAL),
+    Field("lag_tau_over_dt", REAL),
     "cooler (seed 3.4, Eq 82-83)",
-    Field("flow_m3_per_rad", REAL, (), "m3/rad"), *_f("liquid_hA_ref", REAL, (), "W/K"),
-    *_f("liquid_Qmax_cool liquid_Qmax_heat", REAL, (), "W"), Field("air_hA_ref", REAL, (), "W/K"),
-    Field("air_Qmax_cool", REAL, (), "W"), *_f("thermostat_open_c thermostat_full_c", REAL, (), "degC"),
-    *_f("ref_ls_speed ref_engine_speed", REAL, (), "rad/s"), *_f("exp_inner exp_outer air_flow_min_frac", REAL),
-    Field("air_ref_speed_kmh", REAL, (), "km/h"), Field("air_flow_max_rel", REAL),
-    Field("inlet_drop_max_k", REAL, (), "K"), Field("default_vkmh", REAL, (), "km/h"),
-    Field("recirc_v_kmh", PREAL, ("n_recirc",), "km/h"), Field("recirc_dT_k", PREAL, ("n_recirc",), "K"),
+    Field("flow_m3_per_rad", REAL, (), "m3/rad"),
+    *_f("liquid_hA_ref", REAL, (), "W/K"),
+    *_f("liquid_Qmax_cool liquid_Qmax_heat", REAL, (), "W"),
+    Field("air_hA_ref", REAL, (), "W/K"),
+    Field("air_Qmax_cool", REAL, (), "W"),
+    *_f("thermostat_open_c thermostat_full_c", REAL, (), "degC"),
+    *_f("ref_ls_speed ref_engine_speed", REAL, (), "rad/s"),
+    *_f("exp_inner exp_outer air_flow_min_frac", REAL),
+    Field("air_ref_speed_kmh", REAL, (), "km/h"),
+    Field("air_flow_max_rel", REAL),
+    Field("inlet_drop_max_k", REAL, (), "K"),
+    Field("default_vkmh", REAL, (), "km/h"),
+    Field("recirc_v_kmh", PREAL, ("n_recirc",), "km/h"),
+    Field("recirc_dT_k", PREAL, ("n_recirc",), "K"),
     Field("n_recirc", I32),
     "constants of the laws",
-    Field("sigma", REAL, (), "W/m2K4"), Field("kelvin", REAL, (), "K"), Field("rpm_per_rad_s", REAL),
-    Field("rad_s_per_rpm", REAL), Field("palmgren_min", REAL), Field("min_speed", REAL, (), "rad/s"),
-    *_f("ln_04 ln_0238 ln_re_lam ln_re_bridge ln_1e6", REAL), *_f("rad_T_lo_c rad_T_hi_c", REAL, (), "degC"),
-    Field("speed_bin_min", REAL, (), "rad/s"), Field("ln_speed_bin", REAL), Field("oil_bin_c", REAL, (), "degC"),
+    Field("sigma", REAL, (), "W/m2K4"),
+    Field("kelvin", REAL, (), "K"),
+    Field("rpm_per_rad_s", REAL),
+    Field("rad_s_per_rpm", REAL),
+    Field("palmgren_min", REAL),
+    Field("min_speed", REAL, (), "rad/s"),
+    *_f("ln_04 ln_0238 ln_re_lam ln_re_bridge ln_1e6", REAL),
+    *_f("rad_T_lo_c rad_T_hi_c", REAL, (), "degC"),
+    Field("speed_bin_min", REAL, (), "rad/s"),
+    Field("ln_speed_bin", REAL),
+    Field("oil_bin_c", REAL, (), "degC"),
     "sensor: inputs, options, limits",
     Field("dt_s", REAL, (), "s"),
     *_f("input_lo input_hi clamp_lo clamp_hi", PREAL, ("N_INPUTS",)),
     Field("aux_default", PREAL, ("N_INPUTS - I_AMB",), doc="ambient, coolant, vehicle speed, retarder"),
-    *_f("hold_s drive_frozen_s oil_frozen_s", REAL, (), "s"), *_f("oil_frozen_drift_c oil_step_c", REAL, (), "K"),
+    *_f("hold_s drive_frozen_s oil_frozen_s", REAL, (), "s"),
+    *_f("oil_frozen_drift_c oil_step_c", REAL, (), "K"),
     Field("clock_reset_s", REAL, (), "s", "t_s back by more than this: a reset clock (stepped, counted)"),
-    *_f("warning_c critical_c", PREAL, ("N_PUB",), "degC"), Field("hysteresis_k", PREAL, ("N_PUB",), "K"),
+    *_f("warning_c critical_c", PREAL, ("N_PUB",), "degC"),
+    Field("hysteresis_k", PREAL, ("N_PUB",), "K"),
     Field("warning_rest_c", PREAL, ("N_PUB",), "degC"),
     *_f("debounce_s lead_s", REAL, (), "s"),
     "time to limit (gvs_ttl_refresh; firmware_model.onboard.held_march, time_to_limit): heat capacities, the sparse "
@@ -254,9 +332,12 @@ _TABLES = (
     "the options: the sump heats with the held load (else a measured sump is held), and re-linearise at the "
     "predicted sump (every effect one value for all vehicles)",
     Field("C_j_per_k", PREAL, ("n",), "J/K"),
-    *_f("ldl_perm ldl_pos", PIDX, ("n",)), Field("ldl_col_ptr", PIDX, ("n + 1",)),
-    Field("ldl_row", PIDX, ("ldl_nnz",)), Field("ldl_link_slot", PIDX, ("nl",)),
-    Field("ldl_upd_ptr", PIDX, ("n + 1",)), *_f("ldl_upd_target ldl_upd_a ldl_upd_b", PIDX, ("ldl_nupd",)),
+    *_f("ldl_perm ldl_pos", PIDX, ("n",)),
+    Field("ldl_col_ptr", PIDX, ("n + 1",)),
+    Field("ldl_row", PIDX, ("ldl_nnz",)),
+    Field("ldl_link_slot", PIDX, ("nl",)),
+    Field("ldl_upd_ptr", PIDX, ("n + 1",)),
+    *_f("ldl_upd_target ldl_upd_a ldl_upd_b", PIDX, ("ldl_nupd",)),
     Field("ttl_relin", PIDX, ("N_PUB",)),
     *_f("ldl_nnz ldl_nupd ttl_sump_model ttl_relinearise", I32),
 )
@@ -273,51 +354,85 @@ _VEHICLE = (
 _STATE = (
     Field("T_c", REAL, (2, "GVS_MAX_NODES"), "degC", "main copy, open-loop twin"),
     Field("lag_w", REAL, ("GVS_MAX_SRC",), "W"),
-    *_f("hold", REAL, ("GVS_N_INPUTS",), doc="held inputs"), *_f("age_s same_s", REAL, ("GVS_N_INPUTS",), "s"),
-    Field("raw_prev", REAL, ("GVS_N_INPUTS",)), Field("oil_ref_c", REAL, (), "degC"),
+    *_f("hold", REAL, ("GVS_N_INPUTS",), doc="held inputs"),
+    *_f("age_s same_s", REAL, ("GVS_N_INPUTS",), "s"),
+    Field("raw_prev", REAL, ("GVS_N_INPUTS",)),
+    Field("oil_ref_c", REAL, (), "degC"),
     *_f("pending_s ttl_s", REAL, ("GVS_N_PUB",), "s"),
     Field("t_last_s", F64, (), "s", "frame time of the last step (NaN unknown)"),
-    Field("k", I64, doc="steps done"), Field("rejects", I64, ("GVS_N_REJECT",)),
+    Field("k", I64, doc="steps done"),
+    Field("rejects", I64, ("GVS_N_REJECT",)),
     "memo of the last conductance bin (a pure function of its key: the outputs never depend on it; a state packed "
     "from elsewhere starts with memo_valid = 0)",
-    Field("memo_G", REAL, ("GVS_MAX_LINKS",), "W/K"), Field("memo_Gs", REAL, ("GVS_MAX_STREAMS",), "W/K"),
-    Field("memo_omega_q", REAL, (), "rad/s"), Field("memo_T_q", REAL, (), "degC"),
-    *_f("memo_row memo_valid", I32), Field("level", I8, ("GVS_N_PUB",), doc="GVS_LEVEL_*"),
+    Field("memo_G", REAL, ("GVS_MAX_LINKS",), "W/K"),
+    Field("memo_Gs", REAL, ("GVS_MAX_STREAMS",), "W/K"),
+    Field("memo_omega_q", REAL, (), "rad/s"),
+    Field("memo_T_q", REAL, (), "degC"),
+    *_f("memo_row memo_valid", I32),
+    Field("level", I8, ("GVS_N_PUB",), doc="GVS_LEVEL_*"),
 )
 
-_INPUTS = (Field("raw", F64, ("GVS_N_INPUTS",), doc="GVS_I_* order (NaN: not available)"),
-           Field("t_s", F64, (), "s", "frame time (NaN: the caller keeps the grid)"))
+_INPUTS = (
+    Field("raw", F64, ("GVS_N_INPUTS",), doc="GVS_I_* order (NaN: not available)"),
+    Field("t_s", F64, (), "s", "frame time (NaN: the caller keeps the grid)"),
+)
 
 _OUTPUTS = (
-    Field("T_c", REAL, ("GVS_N_PUB",), "degC"), Field("ttl_s", REAL, ("GVS_N_PUB",), "s"),
-    *_f("model_oil_temp_c", REAL, (), "degC"), Field("oil_innovation_c", REAL, (), "K"),
+    Field("T_c", REAL, ("GVS_N_PUB",), "degC"),
+    Field("ttl_s", REAL, ("GVS_N_PUB",), "s"),
+    *_f("model_oil_temp_c", REAL, (), "degC"),
+    Field("oil_innovation_c", REAL, (), "K"),
     Field("rejects", I64, ("GVS_N_REJECT",), doc="the cumulative reject counters after this step"),
     *_f("valid_flags frozen_flags", I32, doc="bit GVS_I_* per input"),
     Field("level", I8, ("GVS_N_PUB",), doc="GVS_LEVEL_*"),
-    Field("degraded_mode", I8, doc="GVS_MODE_*"), *_f("speed_valid torque_valid gear_valid oil_valid oil_source", I8),
+    Field("degraded_mode", I8, doc="GVS_MODE_*"),
+    *_f("speed_valid torque_valid gear_valid oil_valid oil_source", I8),
 )
 
 _TTL_POINT = (
-    Field("T_main_c", REAL, ("GVS_MAX_NODES",), "degC"), Field("src_w", REAL, ("GVS_MAX_SRC",), "W"),
-    Field("G_w_per_k", REAL, ("GVS_MAX_LINKS",), "W/K"), Field("G_streams_w_per_k", REAL, ("GVS_MAX_STREAMS",), "W/K"),
-    Field("T_bc_c", REAL, ("GVS_MAX_BC",), "degC"), Field("used", REAL, ("GVS_N_INPUTS",), doc="inputs used"),
-    Field("dT_in_k", REAL, (), "K"), Field("Q_cool_w", REAL, (), "W"), Field("omega_in_rad_s", REAL, (), "rad/s"),
-    Field("T_oil_c", REAL, (), "degC"), Field("rho_cp_j_per_m3k", REAL, (), "J/m3K"),
+    Field("T_main_c", REAL, ("GVS_MAX_NODES",), "degC"),
+    Field("src_w", REAL, ("GVS_MAX_SRC",), "W"),
+    Field("G_w_per_k", REAL, ("GVS_MAX_LINKS",), "W/K"),
+    Field("G_streams_w_per_k", REAL, ("GVS_MAX_STREAMS",), "W/K"),
+    Field("T_bc_c", REAL, ("GVS_MAX_BC",), "degC"),
+    Field("used", REAL, ("GVS_N_INPUTS",), doc="inputs used"),
+    Field("dT_in_k", REAL, (), "K"),
+    Field("Q_cool_w", REAL, (), "W"),
+    Field("omega_in_rad_s", REAL, (), "rad/s"),
+    Field("T_oil_c", REAL, (), "degC"),
+    Field("rho_cp_j_per_m3k", REAL, (), "J/m3K"),
     *_f("due measured row", I32),
 )
 
 STRUCTS = (
-    Struct("gvs_tables", "Tables", "The generated tables of one gearbox variant and sensor configuration (read only; "
-           "firmware_model.onboard.kernel_tables). Table shapes in the comments; 2-D arrays are row-major; \"gears\" "
-           "rows are gear - gear_min.", _TABLES),
-    Struct("gvs_vehicle", "Vehicle", "Effect values and boundary defaults of one vehicle (firmware_model.effects; "
-           "neutral = 1 / 0).", _VEHICLE),
+    Struct(
+        "gvs_tables",
+        "Tables",
+        "The generated tables of one gearbox variant and sensor configuration (read only; "
+        'firmware_model.onboard.kernel_tables). Table shapes in the comments; 2-D arrays are row-major; "gears" '
+        "rows are gear - gear_min.",
+        _TABLES,
+    ),
+    Struct(
+        "gvs_vehicle",
+        "Vehicle",
+        "Effect values and boundary defaults of one vehicle (firmware_model.effects; neutral = 1 / 0).",
+        _VEHICLE,
+    ),
     Struct("gvs_state", "State", "Everything the sensor remembers (SensorState of the numpy reference).", _STATE),
     Struct("gvs_inputs", "Inputs", "One step's inputs.", _INPUTS),
-    Struct("gvs_outputs", "Outputs", "One step's outputs (SensorOutputs and SensorStatus of the numpy reference).",
-           _OUTPUTS),
-    Struct("gvs_ttl_point", "TtlPoint", "The operating point of a due time-to-limit refresh (TtlPoint of the numpy "
-           "reference).", _TTL_POINT),
+    Struct(
+        "gvs_outputs",
+        "Outputs",
+        "One step's outputs (SensorOutputs and SensorStatus of the numpy reference).",
+        _OUTPUTS,
+    ),
+    Struct(
+        "gvs_ttl_point",
+        "TtlPoint",
+        "The operating point of a due time-to-limit refresh (TtlPoint of the numpy reference).",
+        _TTL_POINT,
+    ),
 )
 STRUCT = {s.py_name: s for s in STRUCTS}
 #: the per-vehicle effect fields of gvs_vehicle (its plain scalars, in order)
@@ -335,8 +450,15 @@ DIMENSIONS = {"GVS_" + c.name: c.value for c in CAPACITIES + DEFINES}
 def ctypes_fields(struct: Struct, real) -> list:
     """``_fields_`` of the ctypes class of ``struct`` for a real type (c_double or c_float); the binding's index
     tables are int32 (gvs_idx of a build without GVS_INDEX16)."""
-    scalars = {I32: C.c_int32, I64: C.c_int64, I8: C.c_int8, F64: C.c_double, REAL: real,
-               PREAL: C.POINTER(real), PIDX: C.POINTER(C.c_int32)}
+    scalars = {
+        I32: C.c_int32,
+        I64: C.c_int64,
+        I8: C.c_int8,
+        F64: C.c_double,
+        REAL: real,
+        PREAL: C.POINTER(real),
+        PIDX: C.POINTER(C.c_int32),
+    }
     out = []
     for f in struct.fields:
         t = scalars[f.ctype]
@@ -358,11 +480,13 @@ def struct_values(struct: Struct, values: dict) -> dict:
     missing = [n for n in names if n not in values]
     extra = [k for k in values if k not in names]
     if missing or extra:
-        raise KeyError(f"{struct.c_name}: the table builder "
-                       + (f"fills no {', '.join(missing)}" if missing else "")
-                       + ("; " if missing and extra else "")
-                       + (f"fills {', '.join(extra)}, which the struct does not have" if extra else "")
-                       + f" (kernel_interface.py describes the struct; {REGENERATE} after changing it)")
+        raise KeyError(
+            f"{struct.c_name}: the table builder "
+            + (f"fills no {', '.join(missing)}" if missing else "")
+            + ("; " if missing and extra else "")
+            + (f"fills {', '.join(extra)}, which the struct does not have" if extra else "")
+            + f" (kernel_interface.py describes the struct; {REGENERATE} after changing it)"
+        )
     return {n: values[n] for n in names}
 
 
@@ -481,9 +605,11 @@ def _c_number(v) -> str:
 
 
 def _constants_text() -> list:
-    out = ["/* capacities of the plain structs (the tables give the actual sizes; gvs_check_tables() refuses larger "
-           "ones);", " * an ECU build sets them to the exported variant's sizes (-DGVS_MAX_NODES=61 ...) to save RAM "
-           "*/"]
+    out = [
+        "/* capacities of the plain structs (the tables give the actual sizes; gvs_check_tables() refuses larger "
+        "ones);",
+        " * an ECU build sets them to the exported variant's sizes (-DGVS_MAX_NODES=61 ...) to save RAM */",
+    ]
     for c in CAPACITIES:
         out += [f"#ifndef GVS_{c.name}"] + _comment(c.doc) + [f"#define GVS_{c.name} {c.value}", "#endif"]
     out.append("")
@@ -522,7 +648,7 @@ def _group_text(group: list) -> list:
     shape = f"({' x '.join(str(d) for d in f.shape)}) " if f.shape and f.ctype in (PREAL, PIDX) else ""
     note = (shape + (f"[{f.unit}] " if f.unit else "") + f.doc).strip()
     decls, part = [], []
-    for g in group:                                     # long groups: one declaration per line that fits
+    for g in group:  # long groups: one declaration per line that fits
         if part and len(_decl(part + [g])) > WIDTH:
             decls.append(_decl(part))
             part = []
@@ -550,8 +676,11 @@ def _struct_text(s: Struct) -> list:
 
 def header_text() -> str:
     """The whole of gvs_kernel.h, generated from this module."""
-    banner = ["/* GENERATED from firmware_model/onboard/kernel_interface.py: do not edit. Regenerate with",
-              f" * `{REGENERATE}`", " * (tests/firmware_model/test_kernel_interface.py compares). */"]
+    banner = [
+        "/* GENERATED from firmware_model/onboard/kernel_interface.py: do not edit. Regenerate with",
+        f" * `{REGENERATE}`",
+        " * (tests/firmware_model/test_kernel_interface.py compares). */",
+    ]
     lines = banner + HEADER_TOP.splitlines() + [""] + _constants_text()
     for s in STRUCTS:
         lines += _struct_text(s)
@@ -565,16 +694,22 @@ def first_difference(current: str, generated: str) -> str | None:
     a, b = current.splitlines(), generated.splitlines()
     for i, (x, y) in enumerate(zip(a, b)):
         if x != y:
-            return (f"{HEADER_PATH.name} line {i + 1} differs from what kernel_interface.py generates: has {x!r}, "
-                    f"expected {y!r}; do not edit the header: change kernel_interface.py and run `{REGENERATE}`")
+            return (
+                f"{HEADER_PATH.name} line {i + 1} differs from what kernel_interface.py generates: has {x!r}, "
+                f"expected {y!r}; do not edit the header: change kernel_interface.py and run `{REGENERATE}`"
+            )
     n = min(len(a), len(b))
-    return (f"{HEADER_PATH.name} has {len(a)} lines, kernel_interface.py generates {len(b)} (first difference at line "
-            f"{n + 1}); run `{REGENERATE}`")
+    return (
+        f"{HEADER_PATH.name} has {len(a)} lines, kernel_interface.py generates {len(b)} (first difference at line "
+        f"{n + 1}); run `{REGENERATE}`"
+    )
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m firmware_model.onboard.kernel_interface",
-                                 description="Generate the C kernel's header from its one description.")
+    ap = argparse.ArgumentParser(
+        prog="python -m firmware_model.onboard.kernel_interface",
+        description="Generate the C kernel's header from its one description.",
+    )
     ap.add_argument("--write", action="store_true", help="write firmware_model/onboard/c/gvs_kernel.h")
     ap.add_argument("--check", action="store_true", help="exit 1 when the header is not what would be generated")
     args = ap.parse_args(argv)

@@ -6,12 +6,14 @@ each vehicle's ``gvs_vehicle`` (effects and boundary defaults). The same arrays 
 number is copied by hand: every value comes from the build or from the named constants of the physics modules.
 The fields and their order are the struct's, described once in :mod:`firmware_model.onboard.kernel_interface`.
 """
+
 from __future__ import annotations
 
 import math
 
 import numpy as np
 
+from firmware_model.network import MIN_SPEED_RAD_S
 from firmware_model.onboard import reduce as R
 from firmware_model.onboard.conductance_bins import LN_SPEED_BIN, OIL_BIN_C, SPEED_BIN_MIN_RAD_S
 from firmware_model.onboard.kernel_interface import STRUCT, VEHICLE_EFFECTS, struct_values
@@ -19,10 +21,15 @@ from firmware_model.onboard.params import SensorParams
 from firmware_model.onboard.sparse_ldl import ldl_pattern
 from firmware_model.physics import heat_transfer as ht
 from firmware_model.physics import losses as L
-from firmware_model.physics.cooler import (AIR_FLOW_MAX_REL, AIR_RECIRC_DT_K, AIR_RECIRC_V_KMH, AIR_REF_SPEED_KMH,
-                                           DEFAULT_VEHICLE_SPEED_KMH, INLET_DROP_MAX_K)
+from firmware_model.physics.cooler import (
+    AIR_FLOW_MAX_REL,
+    AIR_RECIRC_DT_K,
+    AIR_RECIRC_V_KMH,
+    AIR_REF_SPEED_KMH,
+    DEFAULT_VEHICLE_SPEED_KMH,
+    INLET_DROP_MAX_K,
+)
 from firmware_model.physics.kinematics import GEAR_MIN, N_GEARS
-from firmware_model.network import MIN_SPEED_RAD_S
 from firmware_model.units import KELVIN_OFFSET_K, RAD_S_PER_RPM, RPM_PER_RAD_S, SIGMA_W_PER_M2K4
 
 
@@ -51,77 +58,181 @@ def _streams(sp: SensorParams) -> tuple[np.ndarray, np.ndarray]:
 def _sources(rp: R.ReducedParams) -> dict:
     """The source -> node matrix as its non-zeros (the kernel loops over them)."""
     src, node = np.nonzero(np.asarray(rp.src_matrix))
-    return dict(nsrc_nz=int(src.size), src_nz_src=_i32(src), src_nz_node=_i32(node),
-                src_nz_w=_f64(np.asarray(rp.src_matrix)[src, node]))
+    return dict(
+        nsrc_nz=int(src.size),
+        src_nz_src=_i32(src),
+        src_nz_node=_i32(node),
+        src_nz_w=_f64(np.asarray(rp.src_matrix)[src, node]),
+    )
 
 
 def _network(sp: SensorParams) -> dict:
     rp, h = sp.reduced, sp.helpers
     t2_stream_term, stream_node = _streams(sp)
     return dict(
-        n=rp.n, nl=len(rp.link_a), nb=len(rp.bc_default_c), ns=R.N_SRC, npw=len(rp.pw_link), n2=len(rp.t2_link),
-        nc=len(rp.cyl_link), ne=len(rp.ef_link), nrad=len(rp.rad_link), nst=int(stream_node.size),
-        nT=h.nT, ncol=rp.pw_phi.shape[1], n_u=R.N_U, nT2=h.nT2, n_u_churn=R.N_U_CHURN, nx=h.nx,
-        n_mesh=rp.mesh_torque.shape[1], n_bear=rp.bear_c.size, n_speed=rp.speed_coef.shape[1], n_gears=N_GEARS,
-        i_oil=rp.i_oil, i_ambient=rp.i_ambient, i_coolant=rp.i_coolant, cooler_code=rp.cooler_code,
-        gear_min=GEAR_MIN, dt_over_C=_f64(sp.dt_over_C_s_k_per_j), link_a=_i32(rp.link_a), link_b=_i32(rp.link_b),
-        G_const=_f64(rp.G_const_w_per_k), published_index=_i32(rp.published_index),
-        pw_link=_i32(rp.pw_link), pw_col=_i32(rp.pw_col), pw_effect=_i32(rp.pw_effect), pw_exp=_f64(rp.pw_exp),
-        pw_gear_coef=_f64(rp.pw_gear_coef), pw_phi=_f64(rp.pw_phi), t2_link=_i32(rp.t2_link),
-        t2_speed_coef=_f64(rp.t2_speed_coef), t2_w_max=_f64(rp.t2_w_max), t2_table=_f64(rp.t2_table),
-        t2_stride=R.T2_STRIDE, cyl_link=_i32(rp.cyl_link), cyl_speed_coef=_f64(rp.cyl_speed_coef),
-        cyl_c=_f64(rp.cyl_c), cyl_ln_rp2=_f64(rp.cyl_ln_rp2), ef_link=_i32(rp.ef_link),
-        ef_effect=_i32(rp.ef_effect), ef_mcp=_f64(rp.ef_mcp), ef_alpha=_f64(rp.ef_alpha), ef_beta=_f64(rp.ef_beta),
-        rad_link=_i32(rp.rad_link), rad_node=_i32(h.rad_node), rad_bc=_i32(h.rad_bc),
-        rad_area_eps=_f64(rp.rad_area_eps), t2_stream_term=t2_stream_term, stream_node=stream_node,
-        prop=_f64(rp.prop), T_grid0_c=h.T0, T_grid_step_k=h.dT)
+        n=rp.n,
+        nl=len(rp.link_a),
+        nb=len(rp.bc_default_c),
+        ns=R.N_SRC,
+        npw=len(rp.pw_link),
+        n2=len(rp.t2_link),
+        nc=len(rp.cyl_link),
+        ne=len(rp.ef_link),
+        nrad=len(rp.rad_link),
+        nst=int(stream_node.size),
+        nT=h.nT,
+        ncol=rp.pw_phi.shape[1],
+        n_u=R.N_U,
+        nT2=h.nT2,
+        n_u_churn=R.N_U_CHURN,
+        nx=h.nx,
+        n_mesh=rp.mesh_torque.shape[1],
+        n_bear=rp.bear_c.size,
+        n_speed=rp.speed_coef.shape[1],
+        n_gears=N_GEARS,
+        i_oil=rp.i_oil,
+        i_ambient=rp.i_ambient,
+        i_coolant=rp.i_coolant,
+        cooler_code=rp.cooler_code,
+        gear_min=GEAR_MIN,
+        dt_over_C=_f64(sp.dt_over_C_s_k_per_j),
+        link_a=_i32(rp.link_a),
+        link_b=_i32(rp.link_b),
+        G_const=_f64(rp.G_const_w_per_k),
+        published_index=_i32(rp.published_index),
+        pw_link=_i32(rp.pw_link),
+        pw_col=_i32(rp.pw_col),
+        pw_effect=_i32(rp.pw_effect),
+        pw_exp=_f64(rp.pw_exp),
+        pw_gear_coef=_f64(rp.pw_gear_coef),
+        pw_phi=_f64(rp.pw_phi),
+        t2_link=_i32(rp.t2_link),
+        t2_speed_coef=_f64(rp.t2_speed_coef),
+        t2_w_max=_f64(rp.t2_w_max),
+        t2_table=_f64(rp.t2_table),
+        t2_stride=R.T2_STRIDE,
+        cyl_link=_i32(rp.cyl_link),
+        cyl_speed_coef=_f64(rp.cyl_speed_coef),
+        cyl_c=_f64(rp.cyl_c),
+        cyl_ln_rp2=_f64(rp.cyl_ln_rp2),
+        ef_link=_i32(rp.ef_link),
+        ef_effect=_i32(rp.ef_effect),
+        ef_mcp=_f64(rp.ef_mcp),
+        ef_alpha=_f64(rp.ef_alpha),
+        ef_beta=_f64(rp.ef_beta),
+        rad_link=_i32(rp.rad_link),
+        rad_node=_i32(h.rad_node),
+        rad_bc=_i32(h.rad_bc),
+        rad_area_eps=_f64(rp.rad_area_eps),
+        t2_stream_term=t2_stream_term,
+        stream_node=stream_node,
+        prop=_f64(rp.prop),
+        T_grid0_c=h.T0,
+        T_grid_step_k=h.dT,
+    )
 
 
 def _losses(sp: SensorParams) -> dict:
     rp = sp.reduced
     return dict(
-        speed_coef=_f64(rp.speed_coef), mesh_torque=_f64(rp.mesh_torque), mesh_omega2=_f64(rp.mesh_omega2),
-        mesh_x0=_f64(rp.mesh_x0), mesh_phi=_f64(rp.mesh_phi), mesh_roll_k=_f64(rp.mesh_roll_k),
-        mesh_heat_sf=_f64(rp.mesh_heat_sf), mesh_roll_lt_min=_f64(rp.mesh_roll_lt_min), bear_speed=_f64(rp.bear_speed), bear_c=_f64(rp.bear_c),
-        bear_load=_f64(rp.bear_load), needle_rel=_f64(rp.needle_rel), needle_c=_f64(rp.needle_c),
-        sync_coef=_f64(rp.sync_coef), pump_coef=_f64(rp.pump_coef), churn_table=_f64(rp.churn_table),
-        churn_w_max=rp.churn_w_max, churn_heat_sf=rp.churn_heat_sf, x_step=R.X_STEP, ln10=math.log(10.0),
-        lag_gain=sp.helpers.heat_lag.gain, lag_tau_over_dt=sp.helpers.heat_lag.tau_over_dt, **_sources(rp))
+        speed_coef=_f64(rp.speed_coef),
+        mesh_torque=_f64(rp.mesh_torque),
+        mesh_omega2=_f64(rp.mesh_omega2),
+        mesh_x0=_f64(rp.mesh_x0),
+        mesh_phi=_f64(rp.mesh_phi),
+        mesh_roll_k=_f64(rp.mesh_roll_k),
+        mesh_heat_sf=_f64(rp.mesh_heat_sf),
+        mesh_roll_lt_min=_f64(rp.mesh_roll_lt_min),
+        bear_speed=_f64(rp.bear_speed),
+        bear_c=_f64(rp.bear_c),
+        bear_load=_f64(rp.bear_load),
+        needle_rel=_f64(rp.needle_rel),
+        needle_c=_f64(rp.needle_c),
+        sync_coef=_f64(rp.sync_coef),
+        pump_coef=_f64(rp.pump_coef),
+        churn_table=_f64(rp.churn_table),
+        churn_w_max=rp.churn_w_max,
+        churn_heat_sf=rp.churn_heat_sf,
+        x_step=R.X_STEP,
+        ln10=math.log(10.0),
+        lag_gain=sp.helpers.heat_lag.gain,
+        lag_tau_over_dt=sp.helpers.heat_lag.tau_over_dt,
+        **_sources(rp),
+    )
 
 
 def _cooler(sp: SensorParams) -> dict:
     rp = sp.reduced
     c = sp.helpers.cooler
     return dict(
-        flow_m3_per_rad=rp.flow_m3_per_rad, liquid_hA_ref=c.liquid_hA_ref_w_per_k,
-        liquid_Qmax_cool=c.liquid_Q_max_cool_w, liquid_Qmax_heat=c.liquid_Q_max_heat_w,
-        air_hA_ref=c.air_hA_ref_w_per_k, air_Qmax_cool=c.air_Q_max_cool_w, thermostat_open_c=c.thermostat_open_c,
-        thermostat_full_c=c.thermostat_full_c, ref_ls_speed=c.ref_ls_speed_rad_s,
-        ref_engine_speed=c.ref_engine_speed_rad_s, exp_inner=c.exp_inner, exp_outer=c.exp_outer,
-        air_flow_min_frac=c.air_flow_min_frac, air_ref_speed_kmh=AIR_REF_SPEED_KMH,
-        air_flow_max_rel=AIR_FLOW_MAX_REL, inlet_drop_max_k=INLET_DROP_MAX_K, default_vkmh=DEFAULT_VEHICLE_SPEED_KMH,
-        recirc_v_kmh=_f64(AIR_RECIRC_V_KMH), recirc_dT_k=_f64(AIR_RECIRC_DT_K), n_recirc=AIR_RECIRC_V_KMH.size)
+        flow_m3_per_rad=rp.flow_m3_per_rad,
+        liquid_hA_ref=c.liquid_hA_ref_w_per_k,
+        liquid_Qmax_cool=c.liquid_Q_max_cool_w,
+        liquid_Qmax_heat=c.liquid_Q_max_heat_w,
+        air_hA_ref=c.air_hA_ref_w_per_k,
+        air_Qmax_cool=c.air_Q_max_cool_w,
+        thermostat_open_c=c.thermostat_open_c,
+        thermostat_full_c=c.thermostat_full_c,
+        ref_ls_speed=c.ref_ls_speed_rad_s,
+        ref_engine_speed=c.ref_engine_speed_rad_s,
+        exp_inner=c.exp_inner,
+        exp_outer=c.exp_outer,
+        air_flow_min_frac=c.air_flow_min_frac,
+        air_ref_speed_kmh=AIR_REF_SPEED_KMH,
+        air_flow_max_rel=AIR_FLOW_MAX_REL,
+        inlet_drop_max_k=INLET_DROP_MAX_K,
+        default_vkmh=DEFAULT_VEHICLE_SPEED_KMH,
+        recirc_v_kmh=_f64(AIR_RECIRC_V_KMH),
+        recirc_dT_k=_f64(AIR_RECIRC_DT_K),
+        n_recirc=AIR_RECIRC_V_KMH.size,
+    )
 
 
 def _constants() -> dict:
     return dict(
-        sigma=SIGMA_W_PER_M2K4, kelvin=KELVIN_OFFSET_K, rpm_per_rad_s=RPM_PER_RAD_S, rad_s_per_rpm=RAD_S_PER_RPM,
-        palmgren_min=L.PALMGREN_NU_N_MIN, min_speed=MIN_SPEED_RAD_S, ln_04=math.log(0.4), ln_0238=math.log(0.238),
-        ln_re_lam=math.log(ht.RE_LAMINAR_MAX), ln_re_bridge=math.log(ht.RE_TURBULENT_MIN / ht.RE_LAMINAR_MAX),
-        ln_1e6=math.log(1e-6), rad_T_lo_c=R.RAD_T_RANGE_C[0], rad_T_hi_c=R.RAD_T_RANGE_C[1],
-        speed_bin_min=SPEED_BIN_MIN_RAD_S, ln_speed_bin=LN_SPEED_BIN, oil_bin_c=OIL_BIN_C)
+        sigma=SIGMA_W_PER_M2K4,
+        kelvin=KELVIN_OFFSET_K,
+        rpm_per_rad_s=RPM_PER_RAD_S,
+        rad_s_per_rpm=RAD_S_PER_RPM,
+        palmgren_min=L.PALMGREN_NU_N_MIN,
+        min_speed=MIN_SPEED_RAD_S,
+        ln_04=math.log(0.4),
+        ln_0238=math.log(0.238),
+        ln_re_lam=math.log(ht.RE_LAMINAR_MAX),
+        ln_re_bridge=math.log(ht.RE_TURBULENT_MIN / ht.RE_LAMINAR_MAX),
+        ln_1e6=math.log(1e-6),
+        rad_T_lo_c=R.RAD_T_RANGE_C[0],
+        rad_T_hi_c=R.RAD_T_RANGE_C[1],
+        speed_bin_min=SPEED_BIN_MIN_RAD_S,
+        ln_speed_bin=LN_SPEED_BIN,
+        oil_bin_c=OIL_BIN_C,
+    )
 
 
 def _sensor(sp: SensorParams) -> dict:
     opt, lim = sp.options, sp.limits
     return dict(
-        oil_mode_measured=int(opt.oil_mode == "measured"), ttl_every=sp.ttl_every, dt_s=sp.dt_s,
-        input_lo=_f64(sp.input_lo), input_hi=_f64(sp.input_hi), clamp_lo=_f64(sp.clamp_lo),
-        clamp_hi=_f64(sp.clamp_hi), aux_default=_f64(sp.aux_default), hold_s=opt.hold_s,
-        drive_frozen_s=opt.drive_frozen_s, oil_frozen_s=opt.oil_frozen_s, oil_frozen_drift_c=opt.oil_frozen_drift_c,
-        oil_step_c=opt.oil_step_c, clock_reset_s=opt.clock_reset_s, warning_c=_f64(lim.warning_c), critical_c=_f64(lim.critical_c),
-        hysteresis_k=_f64(lim.hysteresis_k), warning_rest_c=_f64(sp.warning_rest_c), debounce_s=lim.debounce_s,
-        lead_s=lim.lead_s)
+        oil_mode_measured=int(opt.oil_mode == "measured"),
+        ttl_every=sp.ttl_every,
+        dt_s=sp.dt_s,
+        input_lo=_f64(sp.input_lo),
+        input_hi=_f64(sp.input_hi),
+        clamp_lo=_f64(sp.clamp_lo),
+        clamp_hi=_f64(sp.clamp_hi),
+        aux_default=_f64(sp.aux_default),
+        hold_s=opt.hold_s,
+        drive_frozen_s=opt.drive_frozen_s,
+        oil_frozen_s=opt.oil_frozen_s,
+        oil_frozen_drift_c=opt.oil_frozen_drift_c,
+        oil_step_c=opt.oil_step_c,
+        clock_reset_s=opt.clock_reset_s,
+        warning_c=_f64(lim.warning_c),
+        critical_c=_f64(lim.critical_c),
+        hysteresis_k=_f64(lim.hysteresis_k),
+        warning_rest_c=_f64(sp.warning_rest_c),
+        debounce_s=lim.debounce_s,
+        lead_s=lim.lead_s,
+    )
 
 
 def _time_to_limit(sp: SensorParams) -> dict:
@@ -130,11 +241,22 @@ def _time_to_limit(sp: SensorParams) -> dict:
     rp, h = sp.reduced, sp.helpers
     pat = ldl_pattern(rp.link_a, rp.link_b, rp.n, rp.i_oil)
     return dict(
-        C_j_per_k=_f64(h.C), ldl_perm=_i32(pat.perm), ldl_pos=_i32(pat.pos), ldl_col_ptr=_i32(pat.col_ptr),
-        ldl_row=_i32(pat.row), ldl_link_slot=_i32(pat.link_slot), ldl_upd_ptr=_i32(pat.upd_ptr),
-        ldl_upd_target=_i32(pat.upd_target), ldl_upd_a=_i32(pat.upd_a), ldl_upd_b=_i32(pat.upd_b),
-        ttl_relin=_i32(h.ttl_relin_pub), ldl_nnz=int(pat.row.size), ldl_nupd=int(pat.upd_target.size),
-        ttl_sump_model=int(sp.options.ttl_sump == "model"), ttl_relinearise=int(bool(sp.scalar_effects)))
+        C_j_per_k=_f64(h.C),
+        ldl_perm=_i32(pat.perm),
+        ldl_pos=_i32(pat.pos),
+        ldl_col_ptr=_i32(pat.col_ptr),
+        ldl_row=_i32(pat.row),
+        ldl_link_slot=_i32(pat.link_slot),
+        ldl_upd_ptr=_i32(pat.upd_ptr),
+        ldl_upd_target=_i32(pat.upd_target),
+        ldl_upd_a=_i32(pat.upd_a),
+        ldl_upd_b=_i32(pat.upd_b),
+        ttl_relin=_i32(h.ttl_relin_pub),
+        ldl_nnz=int(pat.row.size),
+        ldl_nupd=int(pat.upd_target.size),
+        ttl_sump_model=int(sp.options.ttl_sump == "model"),
+        ttl_relinearise=int(bool(sp.scalar_effects)),
+    )
 
 
 def table_arrays(sp: SensorParams, ttl: bool = True) -> dict:
@@ -144,11 +266,13 @@ def table_arrays(sp: SensorParams, ttl: bool = True) -> dict:
     short of flash (export-c --no-ttl; the caller also turns the early warning off)."""
     ttl_arrays = _time_to_limit(sp)
     if not ttl:
-        ttl_arrays = {k: (np.zeros(0, dtype=v.dtype) if isinstance(v, np.ndarray) else v)
-                      for k, v in ttl_arrays.items()}
+        ttl_arrays = {
+            k: (np.zeros(0, dtype=v.dtype) if isinstance(v, np.ndarray) else v) for k, v in ttl_arrays.items()
+        }
         ttl_arrays["ldl_nnz"] = ttl_arrays["ldl_nupd"] = 0
-    return struct_values(STRUCT["Tables"], {**_network(sp), **_losses(sp), **_cooler(sp), **_constants(),
-                                            **_sensor(sp), **ttl_arrays})
+    return struct_values(
+        STRUCT["Tables"], {**_network(sp), **_losses(sp), **_cooler(sp), **_constants(), **_sensor(sp), **ttl_arrays}
+    )
 
 
 def vehicle_arrays(sp: SensorParams, n_vehicles: int | None) -> dict:

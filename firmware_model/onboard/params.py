@@ -3,6 +3,7 @@
 Nothing in it changes after :meth:`SensorParams.build`; what the step memoises lives in a separate
 :class:`~firmware_model.onboard.step_cache.StepCache` that the sensor owns and passes to the step.
 """
+
 from __future__ import annotations
 
 import math
@@ -22,25 +23,26 @@ class SensorParams:
 
     Effects may be per vehicle (arrays over the batch): then ``T_bc_default_c``, ``cooler_scale`` and
     ``thermostat_offset_c`` carry the batch axis and ``scalar_effects`` is False."""
+
     reduced: R.ReducedParams
     limits: Limits
     effects: R.Effects
     options: SensorOptions
-    helpers: R.Helpers                   # index splits and scatter matrices of the network (reduce.helpers)
-    dt_over_C_s_k_per_j: np.ndarray      # (n,) dt / C of every node
-    sqrt_C: np.ndarray                   # (n,) C^1/2 (held-input modes)
-    T_bc_default_c: np.ndarray           # (nb,) or (V, nb): boundary temperatures, hot-side offset applied
-    aux_default: np.ndarray              # (4,) defaults of ambient, coolant [degC], vehicle speed [km/h], retarder
-    cooler_scale: float | np.ndarray     # cooler effectiveness scale (per vehicle: (V, 1))
+    helpers: R.Helpers  # index splits and scatter matrices of the network (reduce.helpers)
+    dt_over_C_s_k_per_j: np.ndarray  # (n,) dt / C of every node
+    sqrt_C: np.ndarray  # (n,) C^1/2 (held-input modes)
+    T_bc_default_c: np.ndarray  # (nb,) or (V, nb): boundary temperatures, hot-side offset applied
+    aux_default: np.ndarray  # (4,) defaults of ambient, coolant [degC], vehicle speed [km/h], retarder
+    cooler_scale: float | np.ndarray  # cooler effectiveness scale (per vehicle: (V, 1))
     thermostat_offset_c: float | np.ndarray
-    warning_rest_c: np.ndarray           # (28,) warning limit minus hysteresis: below it with every level normal,
+    warning_rest_c: np.ndarray  # (28,) warning limit minus hysteresis: below it with every level normal,
     #                                      the warning state machine rests
-    input_lo: np.ndarray                 # (8,) plausible range of every input (INPUT_FIELDS order) ...
+    input_lo: np.ndarray  # (8,) plausible range of every input (INPUT_FIELDS order) ...
     input_hi: np.ndarray
-    clamp_lo: np.ndarray                 # (8,) ... and the clamp of the value used (speed, torque: engine range)
+    clamp_lo: np.ndarray  # (8,) ... and the clamp of the value used (speed, torque: engine range)
     clamp_hi: np.ndarray
-    ttl_every: int                       # steps between time-to-limit refreshes
-    scalar_effects: bool                 # every effect one value for the whole batch (the caches apply)
+    ttl_every: int  # steps between time-to-limit refreshes
+    scalar_effects: bool  # every effect one value for the whole batch (the caches apply)
 
     @property
     def dt_s(self) -> float:
@@ -48,8 +50,9 @@ class SensorParams:
         return self.reduced.dt_s
 
     @classmethod
-    def build(cls, reduced: R.ReducedParams, limits: Limits, effects: R.Effects,
-              options: SensorOptions) -> SensorParams:
+    def build(
+        cls, reduced: R.ReducedParams, limits: Limits, effects: R.Effects, options: SensorOptions
+    ) -> SensorParams:
         """Derive the step's constants once."""
         rp, eff = reduced, effects
         dt_s = rp.dt_s
@@ -59,26 +62,50 @@ class SensorParams:
             bc[rp.i_hot] = bc[rp.i_hot] + np.asarray(hot).reshape(-1)[0]
         else:
             n_bc = len(rp.bc_default_c)
-            bc = np.broadcast_to(rp.bc_default_c, np.shape(hot) + (n_bc,)) + np.eye(n_bc)[rp.i_hot] \
-                * np.asarray(hot)[..., None]
-        scalar_effects = all(np.ndim(v) == 0 for v in (
-            eff.teeth_oil_h, eff.planet_oil_h, eff.housing_air_h, eff.cooler_scale, eff.thermostat_offset_c,
-            eff.hot_offset_c, eff.retarder_frac, eff.churn_scale, eff.needle_scale)) and np.ndim(eff.src_scale) <= 1
+            bc = (
+                np.broadcast_to(rp.bc_default_c, np.shape(hot) + (n_bc,))
+                + np.eye(n_bc)[rp.i_hot] * np.asarray(hot)[..., None]
+            )
+        scalar_effects = (
+            all(
+                np.ndim(v) == 0
+                for v in (
+                    eff.teeth_oil_h,
+                    eff.planet_oil_h,
+                    eff.housing_air_h,
+                    eff.cooler_scale,
+                    eff.thermostat_offset_c,
+                    eff.hot_offset_c,
+                    eff.retarder_frac,
+                    eff.churn_scale,
+                    eff.needle_scale,
+                )
+            )
+            and np.ndim(eff.src_scale) <= 1
+        )
         sp = cls(
-            reduced=rp, limits=limits, effects=eff, options=options, helpers=R.helpers(rp),
+            reduced=rp,
+            limits=limits,
+            effects=eff,
+            options=options,
+            helpers=R.helpers(rp),
             dt_over_C_s_k_per_j=dt_s / np.asarray(rp.C_j_per_k, dtype=float),
             sqrt_C=np.sqrt(np.asarray(rp.C_j_per_k, dtype=float)),
             T_bc_default_c=bc,
-            aux_default=np.array([rp.bc_default_c[rp.i_ambient], rp.bc_default_c[rp.i_coolant],
-                                  options.default_vehicle_speed_kmh, 0.0]),
-            cooler_scale=_per_vehicle(eff.cooler_scale), thermostat_offset_c=_per_vehicle(eff.thermostat_offset_c),
+            aux_default=np.array(
+                [rp.bc_default_c[rp.i_ambient], rp.bc_default_c[rp.i_coolant], options.default_vehicle_speed_kmh, 0.0]
+            ),
+            cooler_scale=_per_vehicle(eff.cooler_scale),
+            thermostat_offset_c=_per_vehicle(eff.thermostat_offset_c),
             warning_rest_c=np.asarray(limits.warning_c - limits.hysteresis_k),
-            **_input_bounds(rp, options), ttl_every=max(int(round(options.ttl_period_s / dt_s)), 1),
-            scalar_effects=scalar_effects)
+            **_input_bounds(rp, options),
+            ttl_every=max(int(round(options.ttl_period_s / dt_s)), 1),
+            scalar_effects=scalar_effects,
+        )
         for f in fields(sp):
             value = getattr(sp, f.name)
             if isinstance(value, np.ndarray) and value.flags.writeable:
-                value.setflags(write=False)          # derived once; nothing writes to them
+                value.setflags(write=False)  # derived once; nothing writes to them
         return sp
 
 
@@ -99,12 +126,33 @@ def _input_bounds(rp: R.ReducedParams, opt: SensorOptions) -> dict:
     aux_lo, aux_hi = opt.aux_range_c
     ret = RETARDER_TORQUE_MAX_NM
     return dict(
-        input_lo=np.array([-ENGINE_SPEED_DATA_MAX_RPM, -ENGINE_TORQUE_DATA_MAX_NM, GEAR_MIN, opt.oil_range_c[0], aux_lo,
-                           aux_lo, 0.0, -ret]),
-        input_hi=np.array([ENGINE_SPEED_DATA_MAX_RPM, ENGINE_TORQUE_DATA_MAX_NM, GEAR_MAX, opt.oil_range_c[1], aux_hi,
-                           aux_hi, opt.max_vehicle_speed_kmh, ret]),
+        input_lo=np.array(
+            [
+                -ENGINE_SPEED_DATA_MAX_RPM,
+                -ENGINE_TORQUE_DATA_MAX_NM,
+                GEAR_MIN,
+                opt.oil_range_c[0],
+                aux_lo,
+                aux_lo,
+                0.0,
+                -ret,
+            ]
+        ),
+        input_hi=np.array(
+            [
+                ENGINE_SPEED_DATA_MAX_RPM,
+                ENGINE_TORQUE_DATA_MAX_NM,
+                GEAR_MAX,
+                opt.oil_range_c[1],
+                aux_hi,
+                aux_hi,
+                opt.max_vehicle_speed_kmh,
+                ret,
+            ]
+        ),
         clamp_lo=np.array([0.0, rp.min_torque_nm, -inf, -inf, -inf, -inf, -inf, -inf]),
-        clamp_hi=np.array([rp.max_speed_rpm, rp.max_torque_nm, inf, inf, inf, inf, inf, inf]))
+        clamp_hi=np.array([rp.max_speed_rpm, rp.max_torque_nm, inf, inf, inf, inf, inf, inf]),
+    )
 
 
 def first_value(value) -> float:

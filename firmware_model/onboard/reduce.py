@@ -41,6 +41,7 @@ laws themselves (power laws are monotone in speed, bilinear tables stay inside t
 temperature columns are piecewise linear), adds the cooler and its inlet-temperature coupling, and raises
 :class:`~firmware_model.errors.StabilityError` naming the node when ``dt > margin x C_i / max sum_j G_ij``.
 """
+
 from __future__ import annotations
 
 import math
@@ -49,25 +50,62 @@ from typing import NamedTuple
 
 import numpy as np
 
-from firmware_model.physics import heat_transfer as ht
-from firmware_model.physics import losses as L
-from firmware_model.physics import oil as oilprops
 from firmware_model.components import PUBLISHED, SHAFT_BEARINGS, STEP_S
 from firmware_model.effects import CATALOG, FIELD_OF_EFFECT, EffectScales, effect_value, with_oil_volume
 from firmware_model.errors import ParameterError, StabilityError
+from firmware_model.network import (
+    BOUNDARIES,
+    K_BRG_SPLASH,
+    K_CONST,
+    K_CONTACT,
+    K_EXT_CONV,
+    K_EXT_RAD,
+    K_IMM_BRG,
+    K_IMM_GEAR,
+    K_RING,
+    K_SPLASH,
+    K_STREAM,
+    MIN_SPEED_RAD_S,
+    S_CHANNEL,
+    S_IMPOSED,
+    SHAFT_SEGMENTS,
+    ConductanceEvaluator,
+    NamedNodes,
+    Network,
+    build_network,
+)
+from firmware_model.onboard.kernel_interface import (
+    EFFECT_HOUSING_AIR_H,
+    EFFECT_NONE,
+    EFFECT_PLANET_OIL_H,
+    EFFECT_TEETH_OIL_H,
+    N_PROP,
+    P_CP,
+    P_K,
+    P_LN_MU,
+    P_LN_NU_CST,
+    P_LN_PR,
+    P_LN_ROLL,
+    P_LOG10_MU,
+    P_RHO,
+    SPEED_COL_LAYSHAFT,
+)
+from firmware_model.parameters import Parameters
+from firmware_model.physics import heat_transfer as ht
+from firmware_model.physics import losses as L
+from firmware_model.physics import oil as oilprops
 from firmware_model.physics.conductance_matrix import link_topology, node_conductance_w_per_k
-from firmware_model.onboard.kernel_interface import (EFFECT_HOUSING_AIR_H, EFFECT_NONE, EFFECT_PLANET_OIL_H,
-                                                     EFFECT_TEETH_OIL_H, N_PROP, P_CP, P_K, P_LN_MU, P_LN_NU_CST,
-                                                     P_LN_PR, P_LN_ROLL, P_LOG10_MU, P_RHO, SPEED_COL_LAYSHAFT)
-from firmware_model.physics.cooler import (COOLER_KINDS, DEFAULT_VEHICLE_SPEED_KMH, cooler_hA_bound_w_per_k,
-                                           cooler_params, cooler_values, oil_cooler_heat)
+from firmware_model.physics.cooler import (
+    COOLER_KINDS,
+    DEFAULT_VEHICLE_SPEED_KMH,
+    cooler_hA_bound_w_per_k,
+    cooler_params,
+    cooler_values,
+    oil_cooler_heat,
+)
 from firmware_model.physics.gearbox_losses import ROLL_POINTS, GearboxLosses
 from firmware_model.physics.heat_lag import heat_lag
 from firmware_model.physics.kinematics import GEAR_MIN, MESHES, N_GEARS, SPEED_NAMES
-from firmware_model.network import (BOUNDARIES, K_BRG_SPLASH, K_CONST, K_CONTACT, K_EXT_CONV, K_EXT_RAD, K_IMM_BRG,
-                                    K_IMM_GEAR, K_RING, K_SPLASH, K_STREAM, S_CHANNEL, S_IMPOSED, SHAFT_SEGMENTS,
-                                    MIN_SPEED_RAD_S, ConductanceEvaluator, NamedNodes, Network, build_network)
-from firmware_model.parameters import Parameters
 from firmware_model.units import KELVIN_OFFSET_K, RAD_S_PER_RPM, RPM_PER_RAD_S, SIGMA_W_PER_M2K4
 
 #: rpm -> rad/s (firmware_model.units)
@@ -98,9 +136,19 @@ RAD_T_RANGE_C = (-40.0, 200.0)
 
 #: effect ids the onboard model represents, each per vehicle (arrays) as well as scalar; oil_level_low changes the
 #: geometry and is applied when the model is built (scalar only)
-EFFECT_HOOKS = ("retarder_heat", "churning_scale", "gear_friction_scale", "planetary_loss_scale",
-                "bearing_loss_scale", "teeth_oil_h_scale", "planet_oil_h_scale", "housing_air_h_scale",
-                "cooler_effectiveness_scale", "thermostat_offset", "hot_surroundings_offset")
+EFFECT_HOOKS = (
+    "retarder_heat",
+    "churning_scale",
+    "gear_friction_scale",
+    "planetary_loss_scale",
+    "bearing_loss_scale",
+    "teeth_oil_h_scale",
+    "planet_oil_h_scale",
+    "housing_air_h_scale",
+    "cooler_effectiveness_scale",
+    "thermostat_offset",
+    "hot_surroundings_offset",
+)
 BUILD_EFFECTS = ("oil_level_low",)
 
 # ---------------------------------------------------------------------------------------------------------------
@@ -122,16 +170,15 @@ def _compact_partition() -> dict:
 PARTITIONS = {"fine": {}, "compact": _compact_partition()}
 
 # loss sources of the onboard model (columns of the source matrix)
-SRC_NAMES = tuple(f"mesh:{m}" for m in MESHES) + tuple(f"bearing:{b}" for b in SHAFT_BEARINGS) + (
-    "oil_lumped", "retarder")
+SRC_NAMES = (
+    tuple(f"mesh:{m}" for m in MESHES) + tuple(f"bearing:{b}" for b in SHAFT_BEARINGS) + ("oil_lumped", "retarder")
+)
 N_SRC = len(SRC_NAMES)
 I_SRC_BEARING = len(MESHES)
 I_SRC_OIL = I_SRC_BEARING + len(SHAFT_BEARINGS)
 I_SRC_RET = I_SRC_OIL + 1
 #: cooler kind -> cooler_code (hold and measured sumps have no cooler: 0)
 COOLER_CODES = {kind: code for code, kind in enumerate(COOLER_KINDS)}
-
-
 
 
 def _ro(a, dtype=float) -> np.ndarray:
@@ -147,82 +194,83 @@ class ReducedParams(NamedNodes):
     Shapes: n nodes, nl links, nb boundaries (network.BOUNDARIES), ns sources (SRC_NAMES), 17 gears (row =
     gear - GEAR_MIN). Links: ``link_a`` is a node; ``link_b`` a node, or ``n + boundary index``.
     """
+
     variant: str
     partition: str
     nodes: tuple
     dt_s: float
     margin: float
-    C_j_per_k: np.ndarray            # (n,)
+    C_j_per_k: np.ndarray  # (n,)
     i_oil: int
-    published_index: np.ndarray      # (28,) node index of each PUBLISHED component
-    members: tuple                   # full-network node names of each reduced node
+    published_index: np.ndarray  # (28,) node index of each PUBLISHED component
+    members: tuple  # full-network node names of each reduced node
     # --- links
-    link_a: np.ndarray               # (nl,)
-    link_b: np.ndarray               # (nl,)
+    link_a: np.ndarray  # (nl,)
+    link_b: np.ndarray  # (nl,)
     link_name: tuple
-    G_const_w_per_k: np.ndarray      # (nl,) constant part
+    G_const_w_per_k: np.ndarray  # (nl,) constant part
     # power-law terms: G = coef[gear, t] * w_in^exp[t] * (phi[T_oil, col[t]] or 1) * effect scale
-    pw_link: np.ndarray              # (npw,)
-    pw_exp: np.ndarray               # (npw,)
-    pw_gear_coef: np.ndarray         # (17, npw) includes |shaft speed / input speed|^exp and gear masks
-    pw_col: np.ndarray               # (npw,) column of pw_phi or -1
-    pw_phi: np.ndarray               # (nT, ncol) oil-temperature factors
-    pw_effect: np.ndarray            # (npw,) EFFECT_* (kernel_interface): none or the vehicle field that scales it
+    pw_link: np.ndarray  # (npw,)
+    pw_exp: np.ndarray  # (npw,)
+    pw_gear_coef: np.ndarray  # (17, npw) includes |shaft speed / input speed|^exp and gear masks
+    pw_col: np.ndarray  # (npw,) column of pw_phi or -1
+    pw_phi: np.ndarray  # (nT, ncol) oil-temperature factors
+    pw_effect: np.ndarray  # (npw,) EFFECT_* (kernel_interface): none or the vehicle field that scales it
     # bilinear terms: G = table[t](sqrt(w_t / w_max[t]), T_oil), w_t = |speed coef[gear, t]| w_in
-    t2_link: np.ndarray              # (n2,)
-    t2_speed_coef: np.ndarray        # (17, n2)
-    t2_w_max: np.ndarray             # (n2,) rad/s
-    t2_table: np.ndarray             # (n2, N_U, nT2) W/K
-    t2_stream: np.ndarray            # (n2,) bool: oil-system stream (the cooler's inlet drop applies)
-    t2_frac: np.ndarray              # (n2,) oil-flow fraction of a stream (for the stability bound)
-    t2_effect: np.ndarray            # (n2,) 0 none (pipe flows and immersed wheels)
+    t2_link: np.ndarray  # (n2,)
+    t2_speed_coef: np.ndarray  # (17, n2)
+    t2_w_max: np.ndarray  # (n2,) rad/s
+    t2_table: np.ndarray  # (n2, N_U, nT2) W/K
+    t2_stream: np.ndarray  # (n2,) bool: oil-system stream (the cooler's inlet drop applies)
+    t2_frac: np.ndarray  # (n2,) oil-flow fraction of a stream (for the stability bound)
+    t2_effect: np.ndarray  # (n2,) 0 none (pipe flows and immersed wheels)
     # immersed wheels, Nusselt part in closed form (Eq 46-48 with the bridge of heat_transfer.nusselt_rotating_cylinder):
     # G = c[t] k_oil Nu(Re, Pr), Re = R_p^2 w_t / nu, w_t = max(|speed coef[gear, t]| w_in, MIN_SPEED_RAD_S)
     # (their fling-off part, Eq 54-58, is an exact sqrt(w) power law among the pw terms)
-    cyl_link: np.ndarray             # (nc,)
-    cyl_speed_coef: np.ndarray       # (17, nc)
-    cyl_c: np.ndarray                # (nc,) area / R_p [m]
-    cyl_ln_rp2: np.ndarray           # (nc,) ln(R_p^2 [m2])
+    cyl_link: np.ndarray  # (nc,)
+    cyl_speed_coef: np.ndarray  # (17, nc)
+    cyl_c: np.ndarray  # (nc,) area / R_p [m]
+    cyl_ln_rp2: np.ndarray  # (nc,) ln(R_p^2 [m2])
     # oil-system streams in closed form (Eq 69-80, NTU): G = m (1 - exp(-hA / m)), m = mcp[t] rho cp(T) |w_LS|,
     # hA = alpha[t] k_oil(T) + beta[t] (channel flows: 7.54 k / D_h x area; planetary: imposed h x area)
-    ef_link: np.ndarray              # (ne,)
-    ef_mcp: np.ndarray               # (ne,) flow fraction x flow per radian [m3/rad]
-    ef_alpha: np.ndarray             # (ne,) [m]
-    ef_beta: np.ndarray              # (ne,) [W/K]
-    ef_effect: np.ndarray            # (ne,) EFFECT_PLANET_OIL_H: planet_oil_h scales beta
+    ef_link: np.ndarray  # (ne,)
+    ef_mcp: np.ndarray  # (ne,) flow fraction x flow per radian [m3/rad]
+    ef_alpha: np.ndarray  # (ne,) [m]
+    ef_beta: np.ndarray  # (ne,) [W/K]
+    ef_effect: np.ndarray  # (ne,) EFFECT_PLANET_OIL_H: planet_oil_h scales beta
     # radiation links: G = area_eps[r] * sigma (T1^2 + T2^2)(T1 + T2)
     rad_link: np.ndarray
     rad_area_eps: np.ndarray
     # --- oil properties on T_GRID_C
-    prop: np.ndarray                 # (nT, N_PROP)
+    prop: np.ndarray  # (nT, N_PROP)
     # --- losses
-    speed_coef: np.ndarray           # (17, 14) SPEED_NAMES per unit input speed
-    mesh_torque: np.ndarray          # (17, 9)
-    mesh_omega2: np.ndarray          # (17, 9)
-    mesh_x0: np.ndarray              # (9,)
-    mesh_phi: np.ndarray             # (9, nx)
-    mesh_roll_k: np.ndarray          # (9,)
-    mesh_heat_sf: np.ndarray         # (9,) seed loss-to-heat factor (0.75 gear contact, 0.80 planetary)
-    mesh_roll_lt_min: np.ndarray     # (9,) log10 of wheel 1's torque below which the rolling loss ramps to 0
-    bear_speed: np.ndarray           # (17, 6) |bearing speed| per unit input speed
-    bear_c: np.ndarray               # (6,) Palmgren M0 coefficient 9.78e-2 f0 Dm^3
-    bear_load: np.ndarray            # (17, 6) load torque per N m of input torque
-    needle_rel: np.ndarray           # (17, 6)
-    needle_c: np.ndarray             # (6,)
-    sync_coef: np.ndarray            # (17,) sum_k c_k rel_k^2: P_sync = mu w_in^2 sync_coef
-    pump_coef: np.ndarray            # (17,) P_pump = pump_coef w_in^2
+    speed_coef: np.ndarray  # (17, 14) SPEED_NAMES per unit input speed
+    mesh_torque: np.ndarray  # (17, 9)
+    mesh_omega2: np.ndarray  # (17, 9)
+    mesh_x0: np.ndarray  # (9,)
+    mesh_phi: np.ndarray  # (9, nx)
+    mesh_roll_k: np.ndarray  # (9,)
+    mesh_heat_sf: np.ndarray  # (9,) seed loss-to-heat factor (0.75 gear contact, 0.80 planetary)
+    mesh_roll_lt_min: np.ndarray  # (9,) log10 of wheel 1's torque below which the rolling loss ramps to 0
+    bear_speed: np.ndarray  # (17, 6) |bearing speed| per unit input speed
+    bear_c: np.ndarray  # (6,) Palmgren M0 coefficient 9.78e-2 f0 Dm^3
+    bear_load: np.ndarray  # (17, 6) load torque per N m of input torque
+    needle_rel: np.ndarray  # (17, 6)
+    needle_c: np.ndarray  # (6,)
+    sync_coef: np.ndarray  # (17,) sum_k c_k rel_k^2: P_sync = mu w_in^2 sync_coef
+    pump_coef: np.ndarray  # (17,) P_pump = pump_coef w_in^2
     churn_w_max: float
-    churn_table: np.ndarray          # (N_U_CHURN, nT) W at the layshaft speed u^2 w_max
+    churn_table: np.ndarray  # (N_U_CHURN, nT) W at the layshaft speed u^2 w_max
     churn_heat_sf: float
-    src_matrix: np.ndarray           # (ns, n) node heat = src_power @ src_matrix
+    src_matrix: np.ndarray  # (ns, n) node heat = src_power @ src_matrix
     heat_lag_tau_s: float
     # --- cooler (seed 3.4, Eq 82-83)
     cooler_code: int
     cooler: dict
-    flow_m3_per_rad: float           # oil-system flow per radian of layshaft rotation
+    flow_m3_per_rad: float  # oil-system flow per radian of layshaft rotation
     # --- boundaries
-    bc_default_c: np.ndarray         # (nb,)
-    engine_off_tau_s: float          # with the engine off, the boundaries relax to ambient with this time constant
+    bc_default_c: np.ndarray  # (nb,)
+    engine_off_tau_s: float  # with the engine off, the boundaries relax to ambient with this time constant
     i_ambient: int
     i_coolant: int
     i_hot: int
@@ -264,27 +312,33 @@ def make_effects(effects: dict | None = None) -> Effects:
         if eid not in CATALOG:
             raise ParameterError(f"unknown effect id {eid!r}")
         if eid not in EFFECT_HOOKS and eid not in BUILD_EFFECTS:
-            raise ParameterError(f"effect {eid} is not represented by the onboard model (it represents "
-                                 f"{', '.join(EFFECT_HOOKS + BUILD_EFFECTS)})")
+            raise ParameterError(
+                f"effect {eid} is not represented by the onboard model (it represents "
+                f"{', '.join(EFFECT_HOOKS + BUILD_EFFECTS)})"
+            )
         a = np.asarray(v, dtype=float)
         e = CATALOG[eid]
         if np.any(~np.isfinite(a)) or np.any(a < e.low) or np.any(a > e.high):
-            raise ParameterError(f"effect {eid}: {e.param} = {v} is outside its plausible range "
-                                 f"{e.low:g}..{e.high:g}{'' if e.unit in ('', '-') else ' ' + e.unit}")
+            raise ParameterError(
+                f"effect {eid}: {e.param} = {v} is outside its plausible range "
+                f"{e.low:g}..{e.high:g}{'' if e.unit in ('', '-') else ' ' + e.unit}"
+            )
 
     def val(eid):
         v = effects.get(eid, CATALOG[eid].neutral)
         a = np.asarray(v, dtype=float)
         return float(a) if a.ndim == 0 else a
 
-    gf, pl, ch, br = (np.asarray(val(k), dtype=float) for k in (
-        "gear_friction_scale", "planetary_loss_scale", "churning_scale", "bearing_loss_scale"))
+    gf, pl, ch, br = (
+        np.asarray(val(k), dtype=float)
+        for k in ("gear_friction_scale", "planetary_loss_scale", "churning_scale", "bearing_loss_scale")
+    )
     shape = np.broadcast(gf, pl, ch, br).shape
     s = np.ones(shape + (N_SRC,))
     for j, m in enumerate(MESHES):
         s[..., j] = pl if m in ("PSP", "PPR") else gf
     s[..., I_SRC_BEARING:I_SRC_OIL] = br[..., None] if br.ndim else br
-    s[..., I_SRC_OIL] = 1.0            # the lumped oil source carries its own scales (churning, needle bearings)
+    s[..., I_SRC_OIL] = 1.0  # the lumped oil source carries its own scales (churning, needle bearings)
     s.setflags(write=False)
     return Effects(src_scale=s, **{FIELD_OF_EFFECT[eid]: val(eid) for eid in EFFECT_HOOKS})
 
@@ -298,8 +352,8 @@ class Aggregation:
     nodes: tuple
     members: tuple
     C: np.ndarray
-    node_of_full: np.ndarray        # (n_full,) reduced node index
-    link_of_full: np.ndarray        # (nl_full,) reduced link index or -1 (inside a group)
+    node_of_full: np.ndarray  # (n_full,) reduced node index
+    link_of_full: np.ndarray  # (nl_full,) reduced link index or -1 (inside a group)
     link_a: np.ndarray
     link_b: np.ndarray
     link_name: tuple
@@ -378,26 +432,29 @@ def _link_param(net: Network, k: int, key: str):
 
 class PowerTerm(NamedTuple):
     """G = gear_coef[gear] w_in^exp (phi[T_oil, col] or 1) x effect scale."""
+
     link: int
     exp: float
-    gear_coef: np.ndarray      # (17,)
-    col: int                   # column of the phi table, -1 for none
-    effect: int                # EFFECT_* (kernel_interface)
+    gear_coef: np.ndarray  # (17,)
+    col: int  # column of the phi table, -1 for none
+    effect: int  # EFFECT_* (kernel_interface)
 
 
 class TableTerm(NamedTuple):
     """G = table(sqrt(w / w_max), T_oil), w = speed_coef[gear] w_in."""
+
     link: int
-    speed_coef: np.ndarray     # (17,)
+    speed_coef: np.ndarray  # (17,)
     w_max_rad_s: float
-    table: np.ndarray          # (N_U, nT2) W/K
-    stream: bool               # an oil-system stream (the cooler's inlet drop applies)
-    frac: float                # its share of the oil flow
+    table: np.ndarray  # (N_U, nT2) W/K
+    stream: bool  # an oil-system stream (the cooler's inlet drop applies)
+    frac: float  # its share of the oil flow
     effect: int
 
 
 class StreamTerm(NamedTuple):
     """Closed-form stream G = m (1 - exp(-hA / m)), m = flow_m3_per_rad rho cp |w_LS|, hA = alpha k_oil + beta."""
+
     link: int
     flow_m3_per_rad: float
     alpha_m: float
@@ -407,19 +464,21 @@ class StreamTerm(NamedTuple):
 
 class CylinderTerm(NamedTuple):
     """Immersed wheel, Nusselt part: G = c k_oil Nu(Re, Pr), Re = R_p^2 w / nu, w = speed_coef[gear] w_in."""
+
     link: int
-    speed_coef: np.ndarray     # (17,)
-    c_m: float                 # area / R_p
-    ln_rp2: float              # ln(R_p^2 [m2])
+    speed_coef: np.ndarray  # (17,)
+    c_m: float  # area / R_p
+    ln_rp2: float  # ln(R_p^2 [m2])
 
 
 class LawGrid(NamedTuple):
     """Every link tabulated from the full evaluator at its own shaft speed w x oil temperature (T_GRID_C)."""
-    tables: dict               # speed source -> (N_U, nT, n_links) W/K at w = u^2 w_max
-    src_of_link: np.ndarray    # speed source of every variable link (-1: constant)
-    w_src_max: np.ndarray      # max speed of every speed source over all gears [rad/s]
-    u: np.ndarray              # (N_U,) sqrt(w / w_max)
-    G_ring_low: np.ndarray     # every link at low range, standstill, 60 degC (the ring gear's low-range value)
+
+    tables: dict  # speed source -> (N_U, nT, n_links) W/K at w = u^2 w_max
+    src_of_link: np.ndarray  # speed source of every variable link (-1: constant)
+    w_src_max: np.ndarray  # max speed of every speed source over all gears [rad/s]
+    u: np.ndarray  # (N_U,) sqrt(w / w_max)
+    G_ring_low: np.ndarray  # every link at low range, standstill, 60 degC (the ring gear's low-range value)
 
 
 def law_grid(net: Network, p: Parameters, batched: bool = True) -> LawGrid:
@@ -429,7 +488,7 @@ def law_grid(net: Network, p: Parameters, batched: bool = True) -> LawGrid:
     calls it once per grid point instead (the same numbers bit for bit, ~50x slower; kept as the reference the
     tests and benchmarks/bench_build.py compare with)."""
     ev = ConductanceEvaluator(net, p, EffectScales())
-    speed_abs = np.abs(p.kinematics.speed)                      # (17, 14)
+    speed_abs = np.abs(p.kinematics.speed)  # (17, 14)
     w_src_max = speed_abs.max(axis=0) * p["engine.max_speed_rad_s"]
     u = np.linspace(0.0, 1.0, N_U)
     n_links = len(net.link_a)
@@ -473,7 +532,7 @@ class _Laws:
         self.t2: list = []
         self.ef: list = []
         self.cyl: list = []
-        self.rad: dict = {}              # reduced link -> area x emissivity
+        self.rad: dict = {}  # reduced link -> area x emissivity
         self.phi_cols: list = []
 
     def phi_col(self, values) -> int:
@@ -492,7 +551,7 @@ class _Laws:
     def add_link(self, k: int) -> None:
         r = int(self.agg.link_of_full[k])
         if r < 0:
-            return                                   # inside a group
+            return  # inside a group
         net, p = self.net, self.p
         kind = int(net.link_kind[k])
         if kind == K_CONST:
@@ -501,8 +560,9 @@ class _Laws:
             mask = (self.kin.mesh_torque[:, int(_link_param(net, k, "mesh"))] != 0).astype(float)
             self.pw.append(PowerTerm(r, 0.0, net.link_G0[k] * mask, -1, EFFECT_NONE))
         elif kind == K_EXT_CONV:
-            self.pw.append(PowerTerm(r, 0.0, np.full(N_GEARS, net.link_G0[k] * p["housing.h_air"]), -1,
-                                     EFFECT_HOUSING_AIR_H))
+            self.pw.append(
+                PowerTerm(r, 0.0, np.full(N_GEARS, net.link_G0[k] * p["housing.h_air"]), -1, EFFECT_HOUSING_AIR_H)
+            )
         elif kind == K_EXT_RAD:
             # housings merged into one node: their radiation areas add (same boundary, same law)
             area_eps = net.link_G0[k] * p["housing.emissivity"]
@@ -524,8 +584,10 @@ class _Laws:
         nus = _cyl_table(net.link_G0[k] / R_p, R_p, w, T_GRID_C)
         tab = self.grid.tables[s][:, :, k]
         if law is None or np.max(np.abs(nus + fo - tab)) > 1e-9 * np.abs(tab).max():
-            raise ParameterError(f"link {net.link_name[k]}: the immersed-wheel conductance is not Nusselt (Eq 46-48) "
-                                 f"plus fling-off (Eq 54-58) as the onboard model assumes")
+            raise ParameterError(
+                f"link {net.link_name[k]}: the immersed-wheel conductance is not Nusselt (Eq 46-48) "
+                f"plus fling-off (Eq 54-58) as the onboard model assumes"
+            )
         e, a, phi = law
         self.pw.append(PowerTerm(r, e, a * self.speed_abs[:, s] ** e, self.phi_col(phi), EFFECT_NONE))
         self.cyl.append(CylinderTerm(r, self.speed_abs[:, s], net.link_G0[k] / R_p, math.log(R_p * R_p)))
@@ -539,14 +601,21 @@ class _Laws:
             alpha, beta = net.link_G0[k] * ht.NU_CHANNEL / float(_link_param(net, k, "D")), 0.0  # Eq 77-80
         else:
             alpha, beta = 0.0, net.link_G0[k] * float(_link_param(net, k, "h"))
-        self.ef.append(StreamTerm(r, frac * self.p["oil_system.flow_m3_per_rad"], alpha, beta,
-                                  EFFECT_PLANET_OIL_H if sub == S_IMPOSED else EFFECT_NONE))
+        self.ef.append(
+            StreamTerm(
+                r,
+                frac * self.p["oil_system.flow_m3_per_rad"],
+                alpha,
+                beta,
+                EFFECT_PLANET_OIL_H if sub == S_IMPOSED else EFFECT_NONE,
+            )
+        )
 
     def _tabulated(self, k: int, r: int, kind: int) -> None:
         """A power law where the table is separable (splash Eq 59, Harris Eq 63, immersed bearings Eq 52), else a
         bilinear table; the ring gear is a splash law at high range and a constant at low range."""
         net, s = self.net, self.grid.src_of_link[k]
-        tab = self.grid.tables[s][:, :, k]                      # (N_U, nT)
+        tab = self.grid.tables[s][:, :, k]  # (N_U, nT)
         wmax = self.grid.w_src_max[s]
         name = net.link_name[k]
         law = _separable_power_law(tab, self.grid.u * self.grid.u * wmax)
@@ -556,8 +625,10 @@ class _Laws:
             if law is not None:
                 self.pw.append(PowerTerm(r, 0.0, G_low * self.kin.low_range.astype(float), -1, EFFECT_NONE))
             elif not np.allclose(tab[0, :], G_low, rtol=1e-9):
-                raise ParameterError("ring-gear conductance: the high-range law at standstill differs from the "
-                                     "low-range value; the onboard tables cannot represent it")
+                raise ParameterError(
+                    "ring-gear conductance: the high-range law at standstill differs from the "
+                    "low-range value; the onboard tables cannot represent it"
+                )
             # else: the table at zero ring speed (the ring does not turn at low range) is the low-range value
         if law is not None:
             e, a, phi = law
@@ -569,12 +640,14 @@ class _Laws:
             self.pw.append(PowerTerm(r, e, coef, col, eff))
         else:
             frac = float(_link_param(net, k, "frac")) if kind == K_STREAM else 0.0
-            self.t2.append(TableTerm(r, self.speed_abs[:, s], wmax, tab[:, ::T2_STRIDE], kind == K_STREAM, frac,
-                                     EFFECT_NONE))
+            self.t2.append(
+                TableTerm(r, self.speed_abs[:, s], wmax, tab[:, ::T2_STRIDE], kind == K_STREAM, frac, EFFECT_NONE)
+            )
 
 
 class LossMaps(NamedTuple):
     """The loss model as the onboard step evaluates it (module doc, "Loss maps")."""
+
     mesh_x0: np.ndarray
     mesh_phi: np.ndarray
     mesh_roll_k: np.ndarray
@@ -603,15 +676,31 @@ def _loss_maps(p: Parameters, net: Network, w_ls_max_rad_s: float) -> LossMaps:
             bear_speed[:, j] = np.abs(kin.speed[:, SPEED_NAMES.index("IS")] - kin.speed[:, SPEED_NAMES.index("MS")])
         else:
             bear_speed[:, j] = speed_abs[:, gl.bearing_speed_idx[j]]
-    sync_c = np.array([n_r * 2.0 * math.pi * R ** 3 * p["sync.w_ring"] / (J * math.sin(p["sync.theta_ring"]))
-                       for n_r, R, J in gl.sync_geo])
+    sync_c = np.array(
+        [
+            n_r * 2.0 * math.pi * R**3 * p["sync.w_ring"] / (J * math.sin(p["sync.theta_ring"]))
+            for n_r, R, J in gl.sync_geo
+        ]
+    )
     u_ch = np.linspace(0.0, 1.0, N_U_CHURN)
-    heat_sf = np.array([p["scale.planet_to_heat"] if m in ("PSP", "PPR") else p["scale.gear_contact_to_heat"]
-                        for m in MESHES])
-    return LossMaps(mesh_x0, mesh_phi_rows, roll_k, heat_sf, bear_speed, L.PALMGREN_SEED_C * gl.f0 * gl.Dm ** 3,
-                    gl.load_torque_coef, L.PALMGREN_SEED_C * gl.needle_f0 * gl.needle_Dm ** 3,
-                    (kin.sync_rel ** 2) @ sync_c, gl.pump_k * kin.speed[:, SPEED_NAMES.index("LS")] ** 2,
-                    w_ls_max_rad_s, _churn_table(gl, u_ch * u_ch * w_ls_max_rad_s, T_GRID_C, kin), roll_lt_min)
+    heat_sf = np.array(
+        [p["scale.planet_to_heat"] if m in ("PSP", "PPR") else p["scale.gear_contact_to_heat"] for m in MESHES]
+    )
+    return LossMaps(
+        mesh_x0,
+        mesh_phi_rows,
+        roll_k,
+        heat_sf,
+        bear_speed,
+        L.PALMGREN_SEED_C * gl.f0 * gl.Dm**3,
+        gl.load_torque_coef,
+        L.PALMGREN_SEED_C * gl.needle_f0 * gl.needle_Dm**3,
+        (kin.sync_rel**2) @ sync_c,
+        gl.pump_k * kin.speed[:, SPEED_NAMES.index("LS")] ** 2,
+        w_ls_max_rad_s,
+        _churn_table(gl, u_ch * u_ch * w_ls_max_rad_s, T_GRID_C, kin),
+        roll_lt_min,
+    )
 
 
 def _source_matrix(net: Network, agg: Aggregation) -> np.ndarray:
@@ -650,21 +739,41 @@ def _law_fields(laws: _Laws) -> dict:
 
     return dict(
         G_const_w_per_k=_ro(laws.G_const),
-        pw_link=col(pw, "link", np.int64), pw_exp=col(pw, "exp"), pw_gear_coef=per_gear(pw, "gear_coef"),
-        pw_col=col(pw, "col", np.int64), pw_phi=_ro(laws.phi_table()), pw_effect=col(pw, "effect", np.int64),
-        t2_link=col(t2, "link", np.int64), t2_speed_coef=per_gear(t2, "speed_coef"), t2_w_max=col(t2, "w_max_rad_s"),
-        t2_table=_ro(np.array([r.table for r in t2]).reshape(len(t2), N_U, nT2)), t2_stream=col(t2, "stream", bool),
-        t2_frac=col(t2, "frac"), t2_effect=col(t2, "effect", np.int64),
-        cyl_link=col(cyl, "link", np.int64), cyl_speed_coef=per_gear(cyl, "speed_coef"), cyl_c=col(cyl, "c_m"),
+        pw_link=col(pw, "link", np.int64),
+        pw_exp=col(pw, "exp"),
+        pw_gear_coef=per_gear(pw, "gear_coef"),
+        pw_col=col(pw, "col", np.int64),
+        pw_phi=_ro(laws.phi_table()),
+        pw_effect=col(pw, "effect", np.int64),
+        t2_link=col(t2, "link", np.int64),
+        t2_speed_coef=per_gear(t2, "speed_coef"),
+        t2_w_max=col(t2, "w_max_rad_s"),
+        t2_table=_ro(np.array([r.table for r in t2]).reshape(len(t2), N_U, nT2)),
+        t2_stream=col(t2, "stream", bool),
+        t2_frac=col(t2, "frac"),
+        t2_effect=col(t2, "effect", np.int64),
+        cyl_link=col(cyl, "link", np.int64),
+        cyl_speed_coef=per_gear(cyl, "speed_coef"),
+        cyl_c=col(cyl, "c_m"),
         cyl_ln_rp2=col(cyl, "ln_rp2"),
-        ef_link=col(ef, "link", np.int64), ef_mcp=col(ef, "flow_m3_per_rad"), ef_alpha=col(ef, "alpha_m"),
-        ef_beta=col(ef, "beta_w_per_k"), ef_effect=col(ef, "effect", np.int64),
+        ef_link=col(ef, "link", np.int64),
+        ef_mcp=col(ef, "flow_m3_per_rad"),
+        ef_alpha=col(ef, "alpha_m"),
+        ef_beta=col(ef, "beta_w_per_k"),
+        ef_effect=col(ef, "effect", np.int64),
         rad_link=_ro(np.array(list(laws.rad), dtype=np.int64), np.int64),
-        rad_area_eps=_ro(np.array(list(laws.rad.values()), dtype=float)))
+        rad_area_eps=_ro(np.array(list(laws.rad.values()), dtype=float)),
+    )
 
 
-def build_reduced(p: Parameters, partition: str | dict = "fine", effects: dict | None = None,
-                  dt_s: float = DT_S, margin: float = STABILITY_MARGIN, check: bool = True) -> ReducedParams:
+def build_reduced(
+    p: Parameters,
+    partition: str | dict = "fine",
+    effects: dict | None = None,
+    dt_s: float = DT_S,
+    margin: float = STABILITY_MARGIN,
+    check: bool = True,
+) -> ReducedParams:
     """Build the onboard model from a validated parameter set; raises StabilityError if dt is unsafe.
 
     ``effects``: only the build-time effect oil_level_low is used here (the others are applied at run time through
@@ -685,28 +794,52 @@ def build_reduced(p: Parameters, partition: str | dict = "fine", effects: dict |
     lm = _loss_maps(p, net, float(grid.w_src_max[SPEED_NAMES.index("LS")]))
     kind = p.strings.get("cooler.kind", "liquid")
     rp = ReducedParams(
-        variant=p.variant, partition=part_name, nodes=agg.nodes, dt_s=float(dt_s), margin=float(margin),
-        C_j_per_k=_ro(agg.C), i_oil=agg.nodes.index("oil"),
-        published_index=_ro(np.array([agg.nodes.index(c) for c in PUBLISHED]), np.int64), members=agg.members,
-        link_a=_ro(agg.link_a, np.int64), link_b=_ro(agg.link_b, np.int64), link_name=agg.link_name,
+        variant=p.variant,
+        partition=part_name,
+        nodes=agg.nodes,
+        dt_s=float(dt_s),
+        margin=float(margin),
+        C_j_per_k=_ro(agg.C),
+        i_oil=agg.nodes.index("oil"),
+        published_index=_ro(np.array([agg.nodes.index(c) for c in PUBLISHED]), np.int64),
+        members=agg.members,
+        link_a=_ro(agg.link_a, np.int64),
+        link_b=_ro(agg.link_b, np.int64),
+        link_name=agg.link_name,
         **_law_fields(laws),
         prop=_ro(oil_property_table(T_GRID_C)),
-        speed_coef=_ro(kin.speed), mesh_torque=_ro(kin.mesh_torque), mesh_omega2=_ro(kin.mesh_omega2),
-        mesh_x0=_ro(lm.mesh_x0), mesh_phi=_ro(lm.mesh_phi), mesh_roll_k=_ro(lm.mesh_roll_k),
-        mesh_heat_sf=_ro(lm.mesh_heat_sf), mesh_roll_lt_min=_ro(lm.mesh_roll_lt_min), bear_speed=_ro(lm.bear_speed),
+        speed_coef=_ro(kin.speed),
+        mesh_torque=_ro(kin.mesh_torque),
+        mesh_omega2=_ro(kin.mesh_omega2),
+        mesh_x0=_ro(lm.mesh_x0),
+        mesh_phi=_ro(lm.mesh_phi),
+        mesh_roll_k=_ro(lm.mesh_roll_k),
+        mesh_heat_sf=_ro(lm.mesh_heat_sf),
+        mesh_roll_lt_min=_ro(lm.mesh_roll_lt_min),
+        bear_speed=_ro(lm.bear_speed),
         bear_c=_ro(lm.bear_c),
-        bear_load=_ro(lm.bear_load), needle_rel=_ro(kin.wheel_bearing_rel), needle_c=_ro(lm.needle_c),
-        sync_coef=_ro(lm.sync_coef), pump_coef=_ro(lm.pump_coef), churn_w_max=float(lm.churn_w_max),
-        churn_table=_ro(lm.churn_table), churn_heat_sf=float(p["scale.churn_to_heat"]),
-        src_matrix=_ro(_source_matrix(net, agg)), heat_lag_tau_s=float(p["scale.heat_lag_tau"]),
-        cooler_code=COOLER_CODES.get(kind, 0), cooler=cooler_values(p),
+        bear_load=_ro(lm.bear_load),
+        needle_rel=_ro(kin.wheel_bearing_rel),
+        needle_c=_ro(lm.needle_c),
+        sync_coef=_ro(lm.sync_coef),
+        pump_coef=_ro(lm.pump_coef),
+        churn_w_max=float(lm.churn_w_max),
+        churn_table=_ro(lm.churn_table),
+        churn_heat_sf=float(p["scale.churn_to_heat"]),
+        src_matrix=_ro(_source_matrix(net, agg)),
+        heat_lag_tau_s=float(p["scale.heat_lag_tau"]),
+        cooler_code=COOLER_CODES.get(kind, 0),
+        cooler=cooler_values(p),
         flow_m3_per_rad=float(p["oil_system.flow_m3_per_rad"]),
         bc_default_c=_ro(np.array([p[f"boundary.{b}"] for b in BOUNDARIES])),
         engine_off_tau_s=float(p.get("boundary.engine_off_tau", ENGINE_OFF_TAU_S)),
-        i_ambient=BOUNDARIES.index("ambient"), i_coolant=BOUNDARIES.index("coolant"),
+        i_ambient=BOUNDARIES.index("ambient"),
+        i_coolant=BOUNDARIES.index("coolant"),
         i_hot=BOUNDARIES.index("hot_surroundings"),
-        max_speed_rpm=float(p["engine.max_speed_rad_s"] / RPM), min_torque_nm=float(p["engine.min_torque"]),
-        max_torque_nm=float(p["engine.max_torque"]))
+        max_speed_rpm=float(p["engine.max_speed_rad_s"] / RPM),
+        min_torque_nm=float(p["engine.min_torque"]),
+        max_torque_nm=float(p["engine.max_torque"]),
+    )
     if check:
         object.__setattr__(rp, "stability", check_stability(rp))
     return rp
@@ -761,8 +894,17 @@ def _fling_off_table(net: Network, k: int, w, T):
     kp = {key: float(_link_param(net, k, key)) for key in ("z", "width", "h_t", "R_p", "h_i")}
     op = oilprops.oil_properties(T)
     wf = np.maximum(w, MIN_SPEED_RAD_S)[:, None]
-    return ht.fling_off_hA(kp["z"], kp["width"], kp["h_t"], kp["R_p"], kp["h_i"], wf, op.k_w_per_mk[None, :],
-                           op.alpha_m2_s[None, :], op.nu_m2_s[None, :]).hA_w_per_k
+    return ht.fling_off_hA(
+        kp["z"],
+        kp["width"],
+        kp["h_t"],
+        kp["R_p"],
+        kp["h_i"],
+        wf,
+        op.k_w_per_mk[None, :],
+        op.alpha_m2_s[None, :],
+        op.nu_m2_s[None, :],
+    ).hA_w_per_k
 
 
 def _mesh_tables(gl: GearboxLosses):
@@ -775,7 +917,7 @@ def _mesh_tables(gl: GearboxLosses):
     for m, mesh in zip(MESHES, gl.meshes):
         planetary = m in ("PSP", "PPR")
         # total torque T on wheel 1; the loss model splits it over the planets
-        T_tot = 10.0 ** xs
+        T_tot = 10.0**xs
         T1 = T_tot / n_pl if planetary else T_tot
         P = L.gear_slip_loss_w(mesh, T1, 1.0, 1.0, 1.0)
         if planetary:
@@ -788,18 +930,17 @@ def _mesh_tables(gl: GearboxLosses):
         rows.append(phi[lo:hi])
         x0s.append(xs[lo])
         Tr = 1000.0 / (n_pl if planetary else 1.0)
-        Pr = L.gear_rolling_loss_w(mesh, Tr, 100.0, 1.0, 1.0, gl.E, gl.E, gl.poisson, gl.poisson,
-                                    n_points=ROLL_POINTS)
+        Pr = L.gear_rolling_loss_w(mesh, Tr, 100.0, 1.0, 1.0, gl.E, gl.E, gl.poisson, gl.poisson, n_points=ROLL_POINTS)
         if planetary:
             Pr = Pr * n_pl
-        roll.append(float(Pr) / (100.0 ** 1.7 * 1000.0 ** -0.13))
+        roll.append(float(Pr) / (100.0**1.7 * 1000.0**-0.13))
         # the plant's ramp starts at ROLL_TORQUE_MIN_NM per contact: n_pl times that on the sun's total torque
         lt_min.append(math.log10((n_pl if planetary else 1.0) * L.ROLL_TORQUE_MIN_NM))
     nx = max(len(r) for r in rows)
     tab = np.empty((len(MESHES), nx))
     for i, r in enumerate(rows):
-        tab[i, :len(r)] = r
-        tab[i, len(r):] = r[-1]
+        tab[i, : len(r)] = r
+        tab[i, len(r) :] = r[-1]
     return np.array(x0s), tab, np.array(roll), np.array(lt_min)
 
 
@@ -810,8 +951,9 @@ def _churn_table(gl: GearboxLosses, w_ls: np.ndarray, T2: np.ndarray, kin) -> np
     for j, T in enumerate(T2):
         op = oilprops.oil_properties(T)
         wc = np.where(gl.ch_is_RI[None, :] > 0, (w_ls * ri_ratio)[:, None], w_ls[:, None])
-        ch = L.churning_loss(wc, gl.ch_Ra, gl.ch_Rp, gl.ch_ht, gl.ch_w, gl.ch_hi, gl.ch_Vp, gl.V0, op.rho_kg_m3,
-                             op.nu_m2_s, gl.h_t0)
+        ch = L.churning_loss(
+            wc, gl.ch_Ra, gl.ch_Rp, gl.ch_ht, gl.ch_w, gl.ch_hi, gl.ch_Vp, gl.V0, op.rho_kg_m3, op.nu_m2_s, gl.h_t0
+        )
         out[:, j] = np.sum(np.where(gl.ch_mask, ch.power_w, 0.0), axis=1)
     return out
 
@@ -874,8 +1016,7 @@ class Helpers:
         self.inv_C = 1.0 / self.C
         # links to the sump and their other end (a measured sump is a boundary of the held-input system)
         self.oil_links = np.flatnonzero((self.ia == rp.i_oil) | (self.ib == rp.i_oil))
-        self.oil_other = np.where(self.ia[self.oil_links] == rp.i_oil, self.ib[self.oil_links],
-                                  self.ia[self.oil_links])
+        self.oil_other = np.where(self.ia[self.oil_links] == rp.i_oil, self.ib[self.oil_links], self.ia[self.oil_links])
         # published components among the free nodes of the held-input system (sump measured / modelled)
         free_meas = np.flatnonzero(np.arange(n) != rp.i_oil)
         pub = np.asarray(rp.published_index)
@@ -924,8 +1065,19 @@ def _scaled(G, idx, val):
     return G
 
 
-def conductances(rp: ReducedParams, row, w_in, x_T, prop, phi, T_nodes_c, T_bc_c, eff: Effects | None = None,
-                 h: Helpers | None = None, radiation: bool = True):
+def conductances(
+    rp: ReducedParams,
+    row,
+    w_in,
+    x_T,
+    prop,
+    phi,
+    T_nodes_c,
+    T_bc_c,
+    eff: Effects | None = None,
+    h: Helpers | None = None,
+    radiation: bool = True,
+):
     """Conductance of every reduced link [W/K] (..., nl) and of the oil-system stream terms (..., nst).
 
     row: gear row (gear - GEAR_MIN), w_in: input speed [rad/s] >= 0, (x_T, prop, phi): :func:`oil_row` at the oil
@@ -978,7 +1130,7 @@ def explicit_step(T, q_w, G_int, G_ext, T_bc_c, ia, ib, ea, eb, dt_over_C, B_int
     G_ext (..., n_ext) of the node-boundary links (ea, eb into T_bc_c (..., nb)); dt_over_C (n,). B_int / B_ext:
     the links' incidence matrices (Helpers) to scatter with one matrix product instead of index sums."""
     n = T.shape[-1]
-    f_int = G_int * (np.take(T, ia, axis=-1) - np.take(T, ib, axis=-1))      # heat from a to b
+    f_int = G_int * (np.take(T, ia, axis=-1) - np.take(T, ib, axis=-1))  # heat from a to b
     f_ext = G_ext * (np.take(T, ea, axis=-1) - np.take(T_bc_c, eb, axis=-1))
     if B_int is not None:
         # one matrix product over every vehicle and copy (a stacked matmul would loop over small ones)
@@ -1005,14 +1157,27 @@ def _scatter(f, idx, n):
 def radiation_conductances(rp: ReducedParams, T_nodes_c, T_bc_c, h: Helpers | None = None):
     """Linearised radiation conductance of every radiation link [W/K] (Eq 81), housing temperatures clipped."""
     h = h or helpers(rp)
-    T1 = np.minimum(np.maximum(np.take(T_nodes_c, h.rad_node, axis=-1), RAD_T_RANGE_C[0]), RAD_T_RANGE_C[1]) \
+    T1 = (
+        np.minimum(np.maximum(np.take(T_nodes_c, h.rad_node, axis=-1), RAD_T_RANGE_C[0]), RAD_T_RANGE_C[1])
         + KELVIN_OFFSET_K
+    )
     T2 = np.take(T_bc_c, h.rad_bc, axis=-1) + KELVIN_OFFSET_K
     return rp.rad_area_eps * SIGMA_W_PER_M2K4 * (T1 * T1 + T2 * T2) * (T1 + T2)  # Eq 81
 
 
-def heat_sources(rp: ReducedParams, row, w_in, torque_abs_nm, prop, x_T, src_scale=None, churn_scale=1.0,
-                 needle_scale=1.0, retarder_w=0.0, h: Helpers | None = None):
+def heat_sources(
+    rp: ReducedParams,
+    row,
+    w_in,
+    torque_abs_nm,
+    prop,
+    x_T,
+    src_scale=None,
+    churn_scale=1.0,
+    needle_scale=1.0,
+    retarder_w=0.0,
+    h: Helpers | None = None,
+):
     """Heat of every source [W], shape (..., N_SRC): meshes (Eq 7-22, x seed heat factors), shaft bearings
     (Eq 35-40), the oil-lumped sources (churning x 1.33, needle bearings, synchronizers, pump) and the retarder."""
     h = h or helpers(rp)
@@ -1036,8 +1201,11 @@ def heat_sources(rp: ReducedParams, row, w_in, torque_abs_nm, prop, x_T, src_sca
     # T_min (L.ROLL_TORQUE_MIN_NM per contact), below it the loss at T_min scaled by T1 / T_min: the same expression
     # with T1^-1.13 taken at T_min (continuous at T_min and at 0)
     lT_roll = np.maximum(lT, rp.mesh_roll_lt_min)
-    P = T1s * omega2_safe * (phi + rp.mesh_roll_k * np.exp(prop[..., P_LN_ROLL, None]
-                                                           + math.log(10.0) * (0.7 * lw - 1.13 * lT_roll)))
+    P = (
+        T1s
+        * omega2_safe
+        * (phi + rp.mesh_roll_k * np.exp(prop[..., P_LN_ROLL, None] + math.log(10.0) * (0.7 * lw - 1.13 * lT_roll)))
+    )
     P_mesh = np.where(on, P, 0.0) * rp.mesh_heat_sf
     # shaft bearings (Eq 35-40)
     omega_b_rad_s = rp.bear_speed[row] * omega_in_col
@@ -1071,8 +1239,9 @@ def heat_sources(rp: ReducedParams, row, w_in, torque_abs_nm, prop, x_T, src_sca
     return out
 
 
-def cooler_heat(rp: ReducedParams, T_oil_c, w_ls, w_eng, T_coolant_c, T_ambient_c, v_kmh, rho_cp,
-                scale=1.0, thermostat_offset_c=0.0):
+def cooler_heat(
+    rp: ReducedParams, T_oil_c, w_ls, w_eng, T_coolant_c, T_ambient_c, v_kmh, rho_cp, scale=1.0, thermostat_offset_c=0.0
+):
     """Heat from the sump to the cooler [W] (Eq 83), the oil-system flow capacity mdot cp [W/K] and the cooler's hA
     [W/K] at this operating point: :func:`firmware_model.physics.cooler.oil_cooler_heat`, the plant's model, with
     the oil flow from the layshaft speed ``w_ls`` [rad/s] and a missing vehicle speed taken as
@@ -1083,10 +1252,19 @@ def cooler_heat(rp: ReducedParams, T_oil_c, w_ls, w_eng, T_coolant_c, T_ambient_
         z = np.zeros(np.broadcast(T_oil_c, omega_ls_rad_s).shape)
         return z, mcp_w_per_k, z
     c = helpers(rp).cooler
-    Q_w, hA_w_per_k = oil_cooler_heat(c, COOLER_KINDS[rp.cooler_code], T_oil_c, omega_ls_rad_s / c.ref_ls_speed_rad_s,
-                                      w_eng, T_coolant_c, T_ambient_c,
-                                      np.nan_to_num(v_kmh, nan=DEFAULT_VEHICLE_SPEED_KMH), mcp_w_per_k, scale,
-                                      thermostat_offset_c)
+    Q_w, hA_w_per_k = oil_cooler_heat(
+        c,
+        COOLER_KINDS[rp.cooler_code],
+        T_oil_c,
+        omega_ls_rad_s / c.ref_ls_speed_rad_s,
+        w_eng,
+        T_coolant_c,
+        T_ambient_c,
+        np.nan_to_num(v_kmh, nan=DEFAULT_VEHICLE_SPEED_KMH),
+        mcp_w_per_k,
+        scale,
+        thermostat_offset_c,
+    )
     return Q_w, mcp_w_per_k, hA_w_per_k
 
 
@@ -1101,18 +1279,21 @@ def max_conductances(rp: ReducedParams) -> dict:
     piecewise linear, NTU streams are below both hA and mdot cp, radiation grows with temperature."""
     w_max = rp.max_speed_rpm * RPM
     jT = (T_GRID_C >= OIL_RANGE_C[0] - 1e-9) & (T_GRID_C <= OIL_RANGE_C[1] + 1e-9)
-    jT = np.convolve(jT.astype(int), [1, 1, 1], mode="same") > 0       # neighbours bound the interpolation
+    jT = np.convolve(jT.astype(int), [1, 1, 1], mode="same") > 0  # neighbours bound the interpolation
     G = np.array(rp.G_const_w_per_k, dtype=float)
     phi_max = np.max(rp.pw_phi[jT], axis=0)
-    eff_max = {EFFECT_TEETH_OIL_H: CATALOG["teeth_oil_h_scale"].high,
-               EFFECT_PLANET_OIL_H: CATALOG["planet_oil_h_scale"].high,
-               EFFECT_HOUSING_AIR_H: CATALOG["housing_air_h_scale"].high}
+    eff_max = {
+        EFFECT_TEETH_OIL_H: CATALOG["teeth_oil_h_scale"].high,
+        EFFECT_PLANET_OIL_H: CATALOG["planet_oil_h_scale"].high,
+        EFFECT_HOUSING_AIR_H: CATALOG["housing_air_h_scale"].high,
+    }
     if np.any(rp.pw_exp < 0):
         raise ParameterError("a conductance law has a negative speed exponent; the stability bound needs >= 0")
     for t in range(len(rp.pw_link)):
         ph = phi_max[rp.pw_col[t]] if rp.pw_col[t] >= 0 else 1.0
-        G[rp.pw_link[t]] += (np.max(rp.pw_gear_coef[:, t]) * w_max ** rp.pw_exp[t] * ph
-                             * eff_max.get(int(rp.pw_effect[t]), 1.0))
+        G[rp.pw_link[t]] += (
+            np.max(rp.pw_gear_coef[:, t]) * w_max ** rp.pw_exp[t] * ph * eff_max.get(int(rp.pw_effect[t]), 1.0)
+        )
     jT2 = jT[::T2_STRIDE]
     for t in range(len(rp.t2_link)):
         G[rp.t2_link[t]] += np.max(rp.t2_table[t][:, jT2])
@@ -1139,8 +1320,13 @@ def max_conductances(rp: ReducedParams) -> dict:
         T2 = 250.0 + KELVIN_OFFSET_K
         G[rp.rad_link] = rp.rad_area_eps * SIGMA_W_PER_M2K4 * (T1 * T1 + T2 * T2) * (T1 + T2)
     # cooler: the largest slope dQ/dT_oil (hA at the highest flows, effectiveness scale at its maximum)
-    hA = cooler_hA_bound_w_per_k(cooler_params(rp.cooler), COOLER_KINDS[rp.cooler_code], w_ls_max, w_max,
-                                 CATALOG["cooler_effectiveness_scale"].high)
+    hA = cooler_hA_bound_w_per_k(
+        cooler_params(rp.cooler),
+        COOLER_KINDS[rp.cooler_code],
+        w_ls_max,
+        w_max,
+        CATALOG["cooler_effectiveness_scale"].high,
+    )
     return {"G": G, "cooler_hA": float(hA)}
 
 
@@ -1162,12 +1348,19 @@ def check_stability(rp: ReducedParams) -> dict:
     total = rowsum + extra
     dt_max = rp.margin * h.C / total
     i = int(np.argmin(dt_max))
-    info = {"dt_max_s": dt_max, "max_sum_G_w_per_k": total, "limiting_node": rp.nodes[i],
-            "C_j_per_k": float(h.C[i]), "margin": rp.margin, "tau_min_s": float(h.C[i] / total[i])}
+    info = {
+        "dt_max_s": dt_max,
+        "max_sum_G_w_per_k": total,
+        "limiting_node": rp.nodes[i],
+        "C_j_per_k": float(h.C[i]),
+        "margin": rp.margin,
+        "tau_min_s": float(h.C[i] / total[i]),
+    }
     if rp.dt_s > dt_max[i]:
         raise StabilityError(
             f"node {rp.nodes[i]} (C = {h.C[i]:.4g} J/K) has a maximum total conductance of {total[i]:.4g} W/K over "
             f"the operating range (every gear, 0..{rp.max_speed_rpm:.0f} rpm, oil {OIL_RANGE_C[0]:g}.."
             f"{OIL_RANGE_C[1]:g} degC): the explicit step dt = {rp.dt_s:g} s exceeds margin {rp.margin:g} x "
-            f"C / sum G = {dt_max[i]:.4g} s; merge the node with a neighbour or raise its thermal mass")
+            f"C / sum G = {dt_max[i]:.4g} s; merge the node with a neighbour or raise its thermal mass"
+        )
     return info

@@ -12,6 +12,7 @@ function for one truck, shape ``()``, and for a fleet, shape ``(V,)``); a :class
 state, outputs, options), input_check, step, conductance_bins, held_modes (modal solution, first-crossing search),
 held_inputs (linear system, time jumps, cool-down), time_to_limit, warning_levels (limits, levels), snapshot.
 """
+
 from __future__ import annotations
 
 import math
@@ -25,12 +26,33 @@ from firmware_model.errors import InputError, ParameterError
 from firmware_model.onboard import reduce as R
 from firmware_model.onboard.blas import limit_blas_threads
 from firmware_model.onboard.core_select import select_core
-from firmware_model.onboard.held_inputs import (cool_down, held_temperatures, jump_state, prepare_jump,
-                                               shutdown_boundaries_c)
+from firmware_model.onboard.held_inputs import (
+    cool_down,
+    held_temperatures,
+    jump_state,
+    prepare_jump,
+    shutdown_boundaries_c,
+)
 from firmware_model.onboard.params import SensorParams
-from firmware_model.onboard.records import (I_AMB, I_GEAR, I_OIL, I_SPEED, I_TORQUE, INPUT_FIELDS, MAIN, N_INPUTS,
-                                            N_PUB, N_REJECT, REJECT_REASONS, TWIN, SensorInputs, SensorOptions,
-                                            SensorOutputs, SensorState, SensorStatus)
+from firmware_model.onboard.records import (
+    I_AMB,
+    I_GEAR,
+    I_OIL,
+    I_SPEED,
+    I_TORQUE,
+    INPUT_FIELDS,
+    MAIN,
+    N_INPUTS,
+    N_PUB,
+    N_REJECT,
+    REJECT_REASONS,
+    TWIN,
+    SensorInputs,
+    SensorOptions,
+    SensorOutputs,
+    SensorState,
+    SensorStatus,
+)
 from firmware_model.onboard.snapshot import decode_snapshot, encode_snapshot, state_bytes
 from firmware_model.onboard.step import step
 from firmware_model.onboard.step_cache import StepCache
@@ -39,8 +61,21 @@ from firmware_model.onboard.warning_levels import Limits, load_limits
 from firmware_model.parameters import Parameters
 from firmware_model.physics.oil import check_temperature_c
 
-__all__ = ["VirtualSensor", "SensorInputs", "SensorOutputs", "SensorState", "SensorStatus", "SensorOptions",
-           "SensorParams", "StepCache", "INPUT_FIELDS", "REJECT_REASONS", "MAIN", "TWIN", "step"]
+__all__ = [
+    "VirtualSensor",
+    "SensorInputs",
+    "SensorOutputs",
+    "SensorState",
+    "SensorStatus",
+    "SensorOptions",
+    "SensorParams",
+    "StepCache",
+    "INPUT_FIELDS",
+    "REJECT_REASONS",
+    "MAIN",
+    "TWIN",
+    "step",
+]
 
 
 class VirtualSensor:
@@ -56,6 +91,7 @@ class VirtualSensor:
     unsafe for the 0.1 s explicit step. ``core`` is the core that steps (firmware_model.onboard.core_select: a
     NumpyCore or a CompiledCore, the same methods); ``core_name`` says which and, for "auto", why not the kernel.
     """
+
     Inputs = SensorInputs
     Status = SensorStatus
     Outputs = SensorOutputs
@@ -64,9 +100,17 @@ class VirtualSensor:
     input_fields = INPUT_FIELDS
     dt_s = STEP_S
 
-    def __init__(self, params: Parameters, limits=None, config=None, effects: dict | None = None,
-                 partition: str | dict = "fine", core: str = "auto", **options):
-        limit_blas_threads()     # firmware_model.onboard.blas: one BLAS thread (the small eigh is 25x slower with more)
+    def __init__(
+        self,
+        params: Parameters,
+        limits=None,
+        config=None,
+        effects: dict | None = None,
+        partition: str | dict = "fine",
+        core: str = "auto",
+        **options,
+    ):
+        limit_blas_threads()  # firmware_model.onboard.blas: one BLAS thread (the small eigh is 25x slower with more)
         sensor_cfg = dict(getattr(config, "sensor", None) or {}) if config is not None else {}
         lim = limits if isinstance(limits, Limits) else _limits_of(limits, config, sensor_cfg)
         oil_mode = options.pop("oil_mode", sensor_cfg.get("oil_mode", "measured"))
@@ -76,8 +120,10 @@ class VirtualSensor:
             raise ParameterError(f"sensor option ttl_sump = {options['ttl_sump']!r} must be 'model' or 'held'")
         reset_s = options.get("clock_reset_s", 10.0)
         if not (isinstance(reset_s, (int, float)) and 1.0 <= reset_s < math.inf):
-            raise ParameterError(f"sensor option clock_reset_s = {reset_s!r} must be a number of seconds, at least 1 "
-                                 f"(time back by more than it is a reset clock; less is skipped)")
+            raise ParameterError(
+                f"sensor option clock_reset_s = {reset_s!r} must be a number of seconds, at least 1 "
+                f"(time back by more than it is a reset clock; less is skipped)"
+            )
         if params.strings.get("cooler.kind") in ("hold", "measured"):
             # a rig: the sump is conditioned from outside (no cooler to model, a constant reading is normal)
             params = _with_cooler(params, "none")
@@ -113,8 +159,15 @@ class VirtualSensor:
     def nodes(self) -> tuple:
         return self.reduced.nodes
 
-    def initial_state(self, T_oil_c=None, snapshot=None, elapsed_s: float = 0.0, n_vehicles: int | None = None,
-                      ambient_c: float | None = None, running_s: float = 0.0) -> SensorState:
+    def initial_state(
+        self,
+        T_oil_c=None,
+        snapshot=None,
+        elapsed_s: float = 0.0,
+        n_vehicles: int | None = None,
+        ambient_c: float | None = None,
+        running_s: float = 0.0,
+    ) -> SensorState:
         """Start: every node at the measured oil temperature (NaN/None, or a reading outside the oil input's plausible
         range, which the step rejects too: ``options.initial_temp_c``, else ``ambient_c``, the first ambient reading,
         when it lies in the ambient input's plausible range, else the parameters' ambient boundary), or from a snapshot (a SensorState, or the bytes/str/dict of :meth:`snapshot`) cooled down for
@@ -124,27 +177,39 @@ class VirtualSensor:
         then the engine is off. With both a snapshot and a measured oil: the measurement wins when the
         cooled snapshot's sump is more than 10 K off (then every node starts at it), else it replaces the sump."""
         if snapshot is not None:
-            return self._restored_state(decode_snapshot(snapshot, self.reduced), T_oil_c, elapsed_s, ambient_c,
-                                        running_s)
+            return self._restored_state(
+                decode_snapshot(snapshot, self.reduced), T_oil_c, elapsed_s, ambient_c, running_s
+            )
         rp = self.reduced
         B = () if n_vehicles is None else (int(n_vehicles),)
         T0 = self._plausible_oil_c(T_oil_c)
         default = self.options.initial_temp_c
-        if default is None:        # the ambient reading (per vehicle) where plausible (NaN is not)
+        if default is None:  # the ambient reading (per vehicle) where plausible (NaN is not)
             amb = np.asarray(np.nan if ambient_c is None else ambient_c, dtype=float)
-            default = np.where((amb >= self.sp.input_lo[I_AMB]) & (amb <= self.sp.input_hi[I_AMB]), amb,
-                               float(rp.bc_default_c[rp.i_ambient]))
+            default = np.where(
+                (amb >= self.sp.input_lo[I_AMB]) & (amb <= self.sp.input_hi[I_AMB]),
+                amb,
+                float(rp.bc_default_c[rp.i_ambient]),
+            )
         T0 = np.broadcast_to(np.where(np.isfinite(T0), T0, default), B).astype(float)
         hold = np.full(B + (N_INPUTS,), np.nan)
         hold[..., [I_SPEED, I_TORQUE, I_GEAR]] = 0.0
         hold[..., I_OIL] = T0
         return SensorState(
-            T_c=np.broadcast_to(T0[..., None, None], B + (2, rp.n)).copy(), lag_w=np.zeros(B + (R.N_SRC,)),
-            hold=hold, age_s=np.full(B + (N_INPUTS,), 0.0), same_s=np.zeros(B + (N_INPUTS,)),
-            raw_prev=np.full(B + (N_INPUTS,), np.nan), oil_ref_c=np.array(T0, dtype=float),
-            level=np.zeros(B + (N_PUB,), dtype=np.int8), pending_s=np.zeros(B + (N_PUB,)),
-            ttl_s=np.full(B + (N_PUB,), np.nan), t_last_s=np.full(B, np.nan), k=np.zeros(B, dtype=np.int64),
-            rejects=np.zeros(B + (N_REJECT,), dtype=np.int64))
+            T_c=np.broadcast_to(T0[..., None, None], B + (2, rp.n)).copy(),
+            lag_w=np.zeros(B + (R.N_SRC,)),
+            hold=hold,
+            age_s=np.full(B + (N_INPUTS,), 0.0),
+            same_s=np.zeros(B + (N_INPUTS,)),
+            raw_prev=np.full(B + (N_INPUTS,), np.nan),
+            oil_ref_c=np.array(T0, dtype=float),
+            level=np.zeros(B + (N_PUB,), dtype=np.int8),
+            pending_s=np.zeros(B + (N_PUB,)),
+            ttl_s=np.full(B + (N_PUB,), np.nan),
+            t_last_s=np.full(B, np.nan),
+            k=np.zeros(B, dtype=np.int64),
+            rejects=np.zeros(B + (N_REJECT,), dtype=np.int64),
+        )
 
     def _plausible_oil_c(self, T_oil_c) -> np.ndarray:
         """An oil reading to start from as an array, NaN where absent or outside the oil input's plausible range (a
@@ -162,8 +227,11 @@ class VirtualSensor:
             amb = float(a.reshape(-1)[0]) if np.all(np.isfinite(a)) else float(rp.bc_default_c[rp.i_ambient])
         T = np.array(st.T_c, dtype=float, copy=True)
         if elapsed_s and elapsed_s > 0:
-            held_s = min(float(running_s), self.sp.options.time_jump_hold_s, float(elapsed_s)) \
-                if running_s and running_s > 0 else 0.0
+            held_s = (
+                min(float(running_s), self.sp.options.time_jump_hold_s, float(elapsed_s))
+                if running_s and running_s > 0
+                else 0.0
+            )
             for v in np.ndindex(T.shape[:-2]):
                 if held_s > 0:
                     T[v] = held_temperatures(st, v, held_s, self.sp)
@@ -183,9 +251,15 @@ class VirtualSensor:
             level = np.where(off[..., None], 0, level).astype(np.asarray(st.level).dtype)
             pending_s = np.where(off[..., None], 0.0, pending_s)
         B = T.shape[:-2]
-        return st._replace(T_c=T, level=level, pending_s=pending_s, t_last_s=np.full(B, np.nan), age_s=np.where(
-            elapsed_s > 0, np.maximum(st.age_s, elapsed_s), st.age_s),
-            ttl_s=np.full(B + (N_PUB,), np.nan), k=np.zeros(B, dtype=np.int64))
+        return st._replace(
+            T_c=T,
+            level=level,
+            pending_s=pending_s,
+            t_last_s=np.full(B, np.nan),
+            age_s=np.where(elapsed_s > 0, np.maximum(st.age_s, elapsed_s), st.age_s),
+            ttl_s=np.full(B + (N_PUB,), np.nan),
+            k=np.zeros(B, dtype=np.int64),
+        )
 
     # -- the step
 
@@ -212,7 +286,7 @@ class VirtualSensor:
         if t_last_s.shape:
             return False
         gap_s = float(t_s) - float(t_last_s)
-        if not (math.isfinite(gap_s) and gap_s > 1.5 * self.sp.dt_s):    # the step's own test of a forward jump
+        if not (math.isfinite(gap_s) and gap_s > 1.5 * self.sp.dt_s):  # the step's own test of a forward jump
             return False
         prepare_jump(state, gap_s - self.sp.dt_s, self.sp, self.cache)
         return True
@@ -226,8 +300,9 @@ class VirtualSensor:
         if raw.ndim == 1 and raw.size == N_INPUTS:
             raw = raw.reshape(1, N_INPUTS)
         if raw.ndim != 2 or raw.shape[1] != N_INPUTS:
-            raise InputError(f"a table of inputs has {N_INPUTS} columns ({', '.join(INPUT_FIELDS)}), "
-                             f"not shape {raw.shape}")
+            raise InputError(
+                f"a table of inputs has {N_INPUTS} columns ({', '.join(INPUT_FIELDS)}), not shape {raw.shape}"
+            )
         t = np.full(raw.shape[0], np.nan) if t_s is None else np.asarray(t_s, dtype=float).reshape(-1)
         if t.shape[0] == 1 and raw.shape[0] != 1:
             t = np.full(raw.shape[0], t[0])
@@ -250,6 +325,7 @@ class VirtualSensor:
             return
         from collections import deque
         from concurrent.futures import ThreadPoolExecutor
+
         n_workers = max(1, int(workers or os.cpu_count() or 1))
         with ThreadPoolExecutor(n_workers, thread_name_prefix="gvs-table") as pool:
             window: deque = deque()
@@ -287,8 +363,10 @@ class VirtualSensor:
 def _table_job(job) -> tuple:
     """A step_tables job as step_table's arguments, or a one-sentence InputError."""
     if not isinstance(job, (tuple, list)) or len(job) not in (2, 3):
-        raise InputError(f"a step_tables job is (state, raw) or (state, raw, t_s), not {type(job).__name__} "
-                         f"of length {len(job) if hasattr(job, '__len__') else '?'}")
+        raise InputError(
+            f"a step_tables job is (state, raw) or (state, raw, t_s), not {type(job).__name__} "
+            f"of length {len(job) if hasattr(job, '__len__') else '?'}"
+        )
     return tuple(job)
 
 
@@ -296,15 +374,25 @@ def _limits_of(path, config, sensor_cfg: dict) -> Limits:
     """Limits from ``path`` (None: config [sensor] limits, else the default file); a relative path in a config file
     is taken relative to that file when it exists there."""
     path = path if path is not None else sensor_cfg.get("limits")
-    if path is not None and config is not None and not str(path).startswith("/") and getattr(
-            config, "origin", "defaults") not in ("defaults", ""):
+    if (
+        path is not None
+        and config is not None
+        and not str(path).startswith("/")
+        and getattr(config, "origin", "defaults") not in ("defaults", "")
+    ):
         cand = Path(config.origin).parent / path
         path = cand if cand.exists() else path
     return load_limits(path, sensor_cfg.get("debounce_s"), sensor_cfg.get("hysteresis_c"))
 
 
 def _with_cooler(params: Parameters, kind: str) -> Parameters:
-    p = Parameters(params.variant, dict(params.values), dict(params.sources), dict(params.units),
-                   dict(params.strings), params.origin)
+    p = Parameters(
+        params.variant,
+        dict(params.values),
+        dict(params.sources),
+        dict(params.units),
+        dict(params.strings),
+        params.origin,
+    )
     p.strings["cooler.kind"] = kind
     return p

@@ -6,6 +6,7 @@ not restored. Every field is checked for its shape, type and range before it is 
 2026-11-27: a saved warning level of 16 restored, then stopped the service at its first step, and again after every
 restart). Snapshots written before the checksum (no ``crc32``) are still read, with the same checks.
 """
+
 from __future__ import annotations
 
 import base64
@@ -15,8 +16,8 @@ import zlib
 import numpy as np
 
 from firmware_model.errors import InputError
-from firmware_model.onboard.reduce import ReducedParams
 from firmware_model.onboard.records import N_PUB, N_REJECT, SensorState
+from firmware_model.onboard.reduce import ReducedParams
 
 SNAPSHOT_SCHEMA = "vsensor-snapshot/1"
 #: a restored node temperature outside this is no state the sensor can have reached [degC]
@@ -35,9 +36,21 @@ def _trailing_shapes(reduced: ReducedParams) -> dict:
     """Each state field's shape after the batch axes."""
     n, ns = len(reduced.nodes), int(reduced.src_matrix.shape[0])
     vec8, pub = (8,), (N_PUB,)
-    return {"T_c": (2, n), "lag_w": (ns,), "hold": vec8, "age_s": vec8, "same_s": vec8, "raw_prev": vec8,
-            "oil_ref_c": (), "level": pub, "pending_s": pub, "ttl_s": pub, "t_last_s": (), "k": (),
-            "rejects": (N_REJECT,)}
+    return {
+        "T_c": (2, n),
+        "lag_w": (ns,),
+        "hold": vec8,
+        "age_s": vec8,
+        "same_s": vec8,
+        "raw_prev": vec8,
+        "oil_ref_c": (),
+        "level": pub,
+        "pending_s": pub,
+        "ttl_s": pub,
+        "t_last_s": (),
+        "k": (),
+        "rejects": (N_REJECT,),
+    }
 
 
 def _check_values(vals: dict) -> None:
@@ -65,12 +78,19 @@ def _check_values(vals: dict) -> None:
 
 def encode_snapshot(state: SensorState, reduced: ReducedParams) -> bytes:
     """Serialise a state (JSON, UTF-8) with the network it belongs to (variant, partition, node list)."""
-    doc = {"schema": SNAPSHOT_SCHEMA, "variant": reduced.variant, "partition": reduced.partition,
-           "nodes": list(reduced.nodes)}
+    doc = {
+        "schema": SNAPSHOT_SCHEMA,
+        "variant": reduced.variant,
+        "partition": reduced.partition,
+        "nodes": list(reduced.nodes),
+    }
     for name, arr in state._asdict().items():
         a = np.asarray(arr)
-        doc[name] = {"dtype": str(a.dtype), "shape": list(a.shape),
-                     "data": base64.b64encode(np.ascontiguousarray(a).tobytes()).decode("ascii")}
+        doc[name] = {
+            "dtype": str(a.dtype),
+            "shape": list(a.shape),
+            "data": base64.b64encode(np.ascontiguousarray(a).tobytes()).decode("ascii"),
+        }
     doc["crc32"] = _crc32(doc)
     return json.dumps(doc, separators=(",", ":")).encode("utf-8")
 
@@ -104,12 +124,14 @@ def decode_snapshot(snap, reduced: ReducedParams) -> SensorState:
             raise InputError(f"snapshot field {name!r} cannot be decoded: {exc}") from None
         want = trailing[name]
         if batch is None:
-            batch = a.shape[:a.ndim - len(want)] if a.ndim >= len(want) else None
+            batch = a.shape[: a.ndim - len(want)] if a.ndim >= len(want) else None
         if batch is None or len(batch) > 1 or a.shape != batch + want:
             raise InputError(f"snapshot field {name!r} has shape {a.shape}, not (vehicles...) + {want}")
         integer = name in ("level", "k", "rejects")
         if a.dtype.kind != ("i" if integer else "f"):
-            raise InputError(f"snapshot field {name!r} has type {a.dtype}, not {'an integer' if integer else 'a float'}")
+            raise InputError(
+                f"snapshot field {name!r} has type {a.dtype}, not {'an integer' if integer else 'a float'}"
+            )
         vals[name] = a.copy()
     _check_values(vals)
     vals["level"] = vals["level"].astype(np.int8)

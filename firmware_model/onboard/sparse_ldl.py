@@ -13,6 +13,7 @@ n + e the e-th entry of L (column-major by position: ``col_ptr[k] .. col_ptr[k +
 column k: for every update u in ``upd_ptr[k] .. upd_ptr[k + 1]``: ``S[target[u]] -= S[a[u]] * S[b[u]] / S[k]``
 (both a and b entries of column k), then column k's entries are divided by ``S[k]``.
 """
+
 from __future__ import annotations
 
 from typing import NamedTuple
@@ -21,12 +22,12 @@ import numpy as np
 
 
 class LdlPattern(NamedTuple):
-    perm: np.ndarray        # (n,) node at each elimination position
-    pos: np.ndarray         # (n,) elimination position of each node
-    col_ptr: np.ndarray     # (n + 1,)
-    row: np.ndarray         # (nnz,) positions
-    link_slot: np.ndarray   # (nl,) slot of each internal link's entry, -1 for boundary links
-    upd_ptr: np.ndarray     # (n + 1,)
+    perm: np.ndarray  # (n,) node at each elimination position
+    pos: np.ndarray  # (n,) elimination position of each node
+    col_ptr: np.ndarray  # (n + 1,)
+    row: np.ndarray  # (nnz,) positions
+    link_slot: np.ndarray  # (nl,) slot of each internal link's entry, -1 for boundary links
+    upd_ptr: np.ndarray  # (n + 1,)
     upd_target: np.ndarray  # slots
     upd_a: np.ndarray
     upd_b: np.ndarray
@@ -64,7 +65,7 @@ def ldl_pattern(link_a, link_b, n: int, last: int) -> LdlPattern:
     for k in range(n):
         rows = sorted(cols[k])
         if rows:
-            parent = rows[0]              # the elimination tree: column k's fill lands in its first row's column
+            parent = rows[0]  # the elimination tree: column k's fill lands in its first row's column
             cols[parent] |= set(rows[1:])
     col_rows = [sorted(c) for c in cols]
     col_ptr = np.zeros(n + 1, dtype=np.int64)
@@ -89,5 +90,5 @@ def ldl_pattern(link_a, link_b, n: int, last: int) -> LdlPattern:
                 ua.append(n + ents[x])
                 ub.append(n + ents[y])
         upd_ptr.append(len(tgt))
-    i64 = lambda v: np.asarray(v, dtype=np.int64)   # noqa: E731
+    i64 = lambda v: np.asarray(v, dtype=np.int64)  # noqa: E731
     return LdlPattern(i64(perm), pos, col_ptr, row, link_slot, i64(upd_ptr), i64(tgt), i64(ua), i64(ub))

@@ -25,6 +25,7 @@ Per step (docs/sensor.md):
    (firmware_model.onboard.time_to_limit): :func:`step` runs it at its end, the CAN service after sending the
    step's frames (:func:`step_deferred`, then ``refresh_ttl``); same outputs either way.
 """
+
 from __future__ import annotations
 
 from typing import NamedTuple
@@ -35,18 +36,33 @@ from firmware_model.components import LEVEL_NA, MODE_HOLDING, MODE_NORMAL, MODE_
 from firmware_model.onboard import reduce as R
 from firmware_model.onboard.conductance_bins import bin_centre, bin_conductances, quantise
 from firmware_model.onboard.held_inputs import jump_state
-from firmware_model.physics.cooler import inlet_drop_k
-from firmware_model.physics.heat_lag import heat_lag_step
+from firmware_model.onboard.input_check import DRIVE_FROZEN_BITS, INPUT_BITS, OIL_FROZEN_BITS, InputCheck, check_inputs
 from firmware_model.onboard.kernel_interface import SPEED_COL_LAYSHAFT, SPEED_COL_OUTPUT
-from firmware_model.onboard.input_check import (DRIVE_FROZEN_BITS, INPUT_BITS, OIL_FROZEN_BITS, InputCheck,
-                                                check_inputs)
 from firmware_model.onboard.params import SensorParams
-from firmware_model.onboard.records import (I_AMB, I_COOL, I_GEAR, I_OIL, I_RET, I_SPEED, I_TORQUE, I_VKMH, MAIN,
-                                            N_INPUTS, N_REJECT, REJECT_INDEX, TWIN, SensorInputs,
-                                            SensorOutputs, SensorState, SensorStatus)
+from firmware_model.onboard.records import (
+    I_AMB,
+    I_COOL,
+    I_GEAR,
+    I_OIL,
+    I_RET,
+    I_SPEED,
+    I_TORQUE,
+    I_VKMH,
+    MAIN,
+    N_INPUTS,
+    N_REJECT,
+    REJECT_INDEX,
+    TWIN,
+    SensorInputs,
+    SensorOutputs,
+    SensorState,
+    SensorStatus,
+)
 from firmware_model.onboard.step_cache import StepCache
 from firmware_model.onboard.time_to_limit import TtlJob, TtlPoint, refresh_ttl
 from firmware_model.onboard.warning_levels import update_levels
+from firmware_model.physics.cooler import inlet_drop_k
+from firmware_model.physics.heat_lag import heat_lag_step
 from firmware_model.physics.kinematics import GEAR_MIN
 from firmware_model.units import RAD_S_PER_RPM
 
@@ -57,18 +73,19 @@ _MODE_OF = np.array([[MODE_HOLDING, MODE_HOLDING], [MODE_OIL_MODEL, MODE_NORMAL]
 
 class NetworkStep(NamedTuple):
     """The network part of a step (arrays of the batch shape B)."""
-    T_c: np.ndarray                # B + (2, n): both copies after the step [degC]
-    lag_w: np.ndarray              # B + (ns,): heat-lag state [W]
-    src_w: np.ndarray              # B + (ns,): heat of every source this step (before the lag) [W]
-    G_w_per_k: np.ndarray          # B + (nl,): link conductances at the bin centre
+
+    T_c: np.ndarray  # B + (2, n): both copies after the step [degC]
+    lag_w: np.ndarray  # B + (ns,): heat-lag state [W]
+    src_w: np.ndarray  # B + (ns,): heat of every source this step (before the lag) [W]
+    G_w_per_k: np.ndarray  # B + (nl,): link conductances at the bin centre
     G_streams_w_per_k: np.ndarray  # B + (nst,): oil-system stream conductances
-    dT_in_k: np.ndarray            # B + (2,): inlet drop of each copy [K]
-    Q_cool_w: np.ndarray           # B + (2,): cooler heat of each copy [W]
-    T_oil_main_c: np.ndarray       # B: the main copy's sump at the start of the step (measured or modelled)
-    T_bc_c: np.ndarray             # B + (nb,): boundary temperatures
-    row: np.ndarray                # B: gear row
-    omega_in_rad_s: np.ndarray     # B: input speed
-    rho_cp_j_per_m3k: np.ndarray   # B: oil volumetric heat capacity at the main sump
+    dT_in_k: np.ndarray  # B + (2,): inlet drop of each copy [K]
+    Q_cool_w: np.ndarray  # B + (2,): cooler heat of each copy [W]
+    T_oil_main_c: np.ndarray  # B: the main copy's sump at the start of the step (measured or modelled)
+    T_bc_c: np.ndarray  # B + (nb,): boundary temperatures
+    row: np.ndarray  # B: gear row
+    omega_in_rad_s: np.ndarray  # B: input speed
+    rho_cp_j_per_m3k: np.ndarray  # B: oil volumetric heat capacity at the main sump
 
 
 def step(state: SensorState, inputs: SensorInputs, sp: SensorParams, cache: StepCache | None = None):
@@ -88,21 +105,21 @@ def step_deferred(state: SensorState, inputs: SensorInputs, sp: SensorParams, ca
     from the next step on; the outputs of a step never depend on that step's refresh, so deferring it changes when
     the work is done, not a single output bit."""
     B = state.t_last_s.shape
-    raw = _raw_inputs(inputs, B)                                                 # B + (8,)
+    raw = _raw_inputs(inputs, B)  # B + (8,)
     t_now = np.asarray(inputs.t_s, dtype=float)
     t_now = t_now if t_now.shape == B else np.broadcast_to(t_now, B)
     counts = np.zeros(B + (N_REJECT,), dtype=np.int64)
     if np.isfinite(t_now).any() or state.t_last_s.size == 0:
         gap = t_now - state.t_last_s
         known = np.isfinite(gap)
-        reset = known & (gap < -sp.options.clock_reset_s)      # a reset clock: its time is the new base, one step
+        reset = known & (gap < -sp.options.clock_reset_s)  # a reset clock: its time is the new base, one step
         backward = known & (gap < 0.5 * sp.dt_s) & ~reset
         jump = known & (gap > 1.5 * sp.dt_s)
         counts[..., _I_TIME_JUMP] = jump
         counts[..., _I_TIME_BACKWARD] = backward | reset
         if backward.all():
             return _skip(state, counts, sp)
-        if backward.any():          # some vehicles of a batch only: they keep their state, the others step
+        if backward.any():  # some vehicles of a batch only: they keep their state, the others step
             skipped = _skip(state, counts.copy(), sp)[:2]
             new_state, outputs, job = _step_all(state, raw, t_now, counts, jump, gap, sp, cache, backward)
             new_state, outputs = _merge_skipped(skipped, new_state, outputs, backward)
@@ -117,20 +134,28 @@ def _step_all(state, raw, t_now, counts, jump, gap, sp: SensorParams, cache: Ste
     if jump is not None and jump.any():
         state = jump_state(state, np.where(jump, gap - sp.dt_s, 0.0), sp, cache)
     chk = check_inputs(state, raw, sp)
-    counts[..., :chk.counts.shape[-1]] = chk.counts
+    counts[..., : chk.counts.shape[-1]] = chk.counts
     net = _network_step(state, chk, raw[..., I_OIL], sp, cache)
     return _finish(state, raw, t_now, chk, net, counts, sp, skipped)
 
 
 def _merge_skipped(skipped, new_state: SensorState, outputs: SensorOutputs, mask: np.ndarray):
     """(state, outputs) with the vehicles of ``mask`` taken from ``skipped`` (their step skipped: time went back)."""
+
     def pick(a, b):
         a, b = np.asarray(a), np.asarray(b)
         return np.where(mask.reshape(mask.shape + (1,) * (b.ndim - mask.ndim)), a, b)
+
     st, out = skipped
-    return (SensorState(*(pick(a, b) for a, b in zip(st, new_state))),
-            SensorOutputs(pick(out.T_c, outputs.T_c), pick(out.level, outputs.level), pick(out.ttl_s, outputs.ttl_s),
-                          SensorStatus(*(pick(a, b) for a, b in zip(out.status, outputs.status)))))
+    return (
+        SensorState(*(pick(a, b) for a, b in zip(st, new_state))),
+        SensorOutputs(
+            pick(out.T_c, outputs.T_c),
+            pick(out.level, outputs.level),
+            pick(out.ttl_s, outputs.ttl_s),
+            SensorStatus(*(pick(a, b) for a, b in zip(out.status, outputs.status))),
+        ),
+    )
 
 
 def _raw_inputs(inputs: SensorInputs, B: tuple) -> np.ndarray:
@@ -154,8 +179,7 @@ def _conductances(sp: SensorParams, cache: StepCache, row, omega_in_rad_s, T_oil
     return G_w_per_k, G_streams_w_per_k, G_w_per_k[..., h.int_idx], G_w_per_k[..., h.ext_idx]
 
 
-def _network_step(state: SensorState, chk: InputCheck, oil_c, sp: SensorParams,
-                  cache: StepCache) -> NetworkStep:
+def _network_step(state: SensorState, chk: InputCheck, oil_c, sp: SensorParams, cache: StepCache) -> NetworkStep:
     """Steps 2-5 of the module doc: operating point, heat through the lag, conductances, cooler and inlet drop, one
     explicit step of both copies."""
     rp, h, eff = sp.reduced, sp.helpers, sp.effects
@@ -173,35 +197,67 @@ def _network_step(state: SensorState, chk: InputCheck, oil_c, sp: SensorParams,
     T_bc_c[..., rp.i_ambient] = used[..., I_AMB]
     T_bc_c[..., rp.i_coolant] = used[..., I_COOL]
     # ---- heat (loss maps) through the heat lag (exact step average for a held input)
-    retarder_w = (eff.retarder_frac * used[..., I_RET] * np.abs(rp.speed_coef[row, SPEED_COL_OUTPUT])
-                  * omega_in_rad_s)
-    src_w = R.heat_sources(rp, row, omega_in_rad_s, torque_nm, prop, x_T, eff.src_scale, eff.churn_scale,
-                           eff.needle_scale, retarder_w, h)
+    retarder_w = eff.retarder_frac * used[..., I_RET] * np.abs(rp.speed_coef[row, SPEED_COL_OUTPUT]) * omega_in_rad_s
+    src_w = R.heat_sources(
+        rp, row, omega_in_rad_s, torque_nm, prop, x_T, eff.src_scale, eff.churn_scale, eff.needle_scale, retarder_w, h
+    )
     lag = heat_lag_step(state.lag_w, src_w, h.heat_lag)
     lag_w = lag.state_w
-    q_nodes_w = lag.delivered_w @ rp.src_matrix                                      # B + (n,)
+    q_nodes_w = lag.delivered_w @ rp.src_matrix  # B + (n,)
     # ---- conductances (at the centre of the operating-point bin), cooler, inlet drop of both copies
     G_w_per_k, G_streams_w_per_k, G_int, G_ext = _conductances(sp, cache, row, omega_in_rad_s, T_oil_main_c)
     omega_ls_rad_s = np.abs(rp.speed_coef[row, SPEED_COL_LAYSHAFT]) * omega_in_rad_s
     rho_cp_j_per_m3k = prop[..., R.P_RHO] * prop[..., R.P_CP]
     Q_cool_w, mcp_w_per_k, _ = R.cooler_heat(
-        rp, T_c[..., :, rp.i_oil], omega_ls_rad_s[..., None], omega_in_rad_s[..., None], used[..., I_COOL, None],
-        used[..., I_AMB, None], used[..., I_VKMH, None], rho_cp_j_per_m3k[..., None], sp.cooler_scale,
-        sp.thermostat_offset_c)
+        rp,
+        T_c[..., :, rp.i_oil],
+        omega_ls_rad_s[..., None],
+        omega_in_rad_s[..., None],
+        used[..., I_COOL, None],
+        used[..., I_AMB, None],
+        used[..., I_VKMH, None],
+        rho_cp_j_per_m3k[..., None],
+        sp.cooler_scale,
+        sp.thermostat_offset_c,
+    )
     dT_in_k = inlet_drop_k(Q_cool_w, mcp_w_per_k)
-    q_copies_w = q_nodes_w[..., None, :] + (G_streams_w_per_k[..., None, :] * dT_in_k[..., :, None]) \
-        @ h.stream_scatter                                                         # B + (2, n)
+    q_copies_w = (
+        q_nodes_w[..., None, :] + (G_streams_w_per_k[..., None, :] * dT_in_k[..., :, None]) @ h.stream_scatter
+    )  # B + (2, n)
     q_copies_w[..., rp.i_oil] -= Q_cool_w
     # ---- one explicit (forward Euler) step of both copies; copies first, (2, ..., n), so that the per-vehicle
     # conductances broadcast over one leading axis
     batch = T_c.ndim > 2
-    T_new_c = R.explicit_step(np.moveaxis(T_c, -2, 0) if batch else T_c,
-                              np.moveaxis(q_copies_w, -2, 0) if batch else q_copies_w, G_int, G_ext, T_bc_c, h.ia,
-                              h.ib, h.ea, h.eb, sp.dt_over_C_s_k_per_j, h.B_int, h.B_ext)
+    T_new_c = R.explicit_step(
+        np.moveaxis(T_c, -2, 0) if batch else T_c,
+        np.moveaxis(q_copies_w, -2, 0) if batch else q_copies_w,
+        G_int,
+        G_ext,
+        T_bc_c,
+        h.ia,
+        h.ib,
+        h.ea,
+        h.eb,
+        sp.dt_over_C_s_k_per_j,
+        h.B_int,
+        h.B_ext,
+    )
     T_new_c = np.moveaxis(T_new_c, 0, -2) if batch else T_new_c
     T_new_c[..., MAIN, rp.i_oil] = np.where(measured, oil_c, T_new_c[..., MAIN, rp.i_oil])
-    return NetworkStep(T_new_c, lag_w, src_w, G_w_per_k, G_streams_w_per_k, dT_in_k, Q_cool_w, T_oil_main_c, T_bc_c,
-                       row, omega_in_rad_s, rho_cp_j_per_m3k)
+    return NetworkStep(
+        T_new_c,
+        lag_w,
+        src_w,
+        G_w_per_k,
+        G_streams_w_per_k,
+        dT_in_k,
+        Q_cool_w,
+        T_oil_main_c,
+        T_bc_c,
+        row,
+        omega_in_rad_s,
+        rho_cp_j_per_m3k,
+    )
 
 
 def _levels(state: SensorState, T_pub_c, available, ttl_now_s, sp: SensorParams):
@@ -209,14 +265,17 @@ def _levels(state: SensorState, T_pub_c, available, ttl_now_s, sp: SensorParams)
     normal, no timer running, every component below warning - hysteresis, no early warning due): the state machine
     rests (every level normal, no timer), the result of :func:`update_levels` without the work."""
     lim = sp.limits
-    if (available.all() and (T_pub_c < sp.warning_rest_c).all() and not (state.level.any() or state.pending_s.any())
-            and (lim.lead_s <= 0 or ttl_now_s.min() > 2.0 * lim.lead_s)):
+    if (
+        available.all()
+        and (T_pub_c < sp.warning_rest_c).all()
+        and not (state.level.any() or state.pending_s.any())
+        and (lim.lead_s <= 0 or ttl_now_s.min() > 2.0 * lim.lead_s)
+    ):
         return np.zeros(T_pub_c.shape, dtype=np.int8), np.zeros(T_pub_c.shape), True
     return (*update_levels(state.level, state.pending_s, T_pub_c, available, lim, sp.dt_s, ttl_now_s), False)
 
 
-def _ttl_job(state: SensorState, chk: InputCheck, net: NetworkStep, sp: SensorParams,
-             skipped=None) -> TtlJob | None:
+def _ttl_job(state: SensorState, chk: InputCheck, net: NetworkStep, sp: SensorParams, skipped=None) -> TtlJob | None:
     """The time-to-limit refreshes due after this step (after the steps k = 0, every, 2 every...; not for the
     vehicles ``skipped``)."""
     due = state.k % sp.ttl_every == 0
@@ -226,22 +285,35 @@ def _ttl_job(state: SensorState, chk: InputCheck, net: NetworkStep, sp: SensorPa
         return None
     B = state.t_last_s.shape
     vehicles = tuple(v for v in (np.ndindex(B) if B else [()]) if due[v])
-    points = tuple(TtlPoint(net.T_c[v][MAIN].copy(), net.src_w[v], net.G_w_per_k[v], net.G_streams_w_per_k[v],
-                            float(net.dT_in_k[v][MAIN]), float(net.Q_cool_w[v][MAIN]), bool(chk.measured[v]),
-                            int(net.row[v]), float(net.omega_in_rad_s[v]), float(net.T_oil_main_c[v]),
-                            net.T_bc_c[v], chk.used[v], float(net.rho_cp_j_per_m3k[v])) for v in vehicles)
+    points = tuple(
+        TtlPoint(
+            net.T_c[v][MAIN].copy(),
+            net.src_w[v],
+            net.G_w_per_k[v],
+            net.G_streams_w_per_k[v],
+            float(net.dT_in_k[v][MAIN]),
+            float(net.Q_cool_w[v][MAIN]),
+            bool(chk.measured[v]),
+            int(net.row[v]),
+            float(net.omega_in_rad_s[v]),
+            float(net.T_oil_main_c[v]),
+            net.T_bc_c[v],
+            chk.used[v],
+            float(net.rho_cp_j_per_m3k[v]),
+        )
+        for v in vehicles
+    )
     return TtlJob(vehicles, points)
 
 
-def _finish(state: SensorState, raw, t_now, chk: InputCheck, net: NetworkStep, counts, sp: SensorParams,
-            skipped=None):
+def _finish(state: SensorState, raw, t_now, chk: InputCheck, net: NetworkStep, counts, sp: SensorParams, skipped=None):
     """Steps 6-7 of the module doc: published temperatures, warnings, time to limit counted down, status, the new
     state and the time-to-limit job."""
     rp, lim, dt = sp.reduced, sp.limits, sp.dt_s
     T_pub_c = net.T_c[..., MAIN, rp.published_index]
     available = chk.drive_age_s <= sp.options.hold_s
     k = state.k
-    steps_since_refresh = np.minimum(k, (k - 1) % sp.ttl_every + 1)          # 0 at k = 0
+    steps_since_refresh = np.minimum(k, (k - 1) % sp.ttl_every + 1)  # 0 at k = 0
     ttl_now_s = np.maximum(state.ttl_s - (steps_since_refresh * dt)[..., None], 0.0)
     level, pending_s, resting = _levels(state, T_pub_c, available, ttl_now_s, sp)
     at_limit = T_pub_c >= lim.warning_c
@@ -256,12 +328,35 @@ def _finish(state: SensorState, raw, t_now, chk: InputCheck, net: NetworkStep, c
     oil_innovation_c = np.where(oil_ok, raw[..., I_OIL] - T_twin_oil_c, np.nan)
     frozen_bits = (chk.drive_frozen * DRIVE_FROZEN_BITS) | (chk.oil_frozen * OIL_FROZEN_BITS)
     rejects = state.rejects + counts
-    status = SensorStatus(mode, ok[..., I_SPEED], ok[..., I_TORQUE], ok[..., I_GEAR], oil_ok, ok @ INPUT_BITS,
-                          T_twin_oil_c, oil_innovation_c, (~measured).astype(np.int8), frozen_bits, rejects)
-    new_state = SensorState(net.T_c, net.lag_w, np.where(ok, chk.used, state.hold), chk.age_s, chk.same_s, raw,
-                            chk.oil_ref_c, level, pending_s, state.ttl_s,
-                            # no frame time (NaN): the step was on the 0.1 s grid, the last time moves on with it
-                            np.where(np.isfinite(t_now), t_now, state.t_last_s + sp.dt_s), state.k + 1, rejects)
+    status = SensorStatus(
+        mode,
+        ok[..., I_SPEED],
+        ok[..., I_TORQUE],
+        ok[..., I_GEAR],
+        oil_ok,
+        ok @ INPUT_BITS,
+        T_twin_oil_c,
+        oil_innovation_c,
+        (~measured).astype(np.int8),
+        frozen_bits,
+        rejects,
+    )
+    new_state = SensorState(
+        net.T_c,
+        net.lag_w,
+        np.where(ok, chk.used, state.hold),
+        chk.age_s,
+        chk.same_s,
+        raw,
+        chk.oil_ref_c,
+        level,
+        pending_s,
+        state.ttl_s,
+        # no frame time (NaN): the step was on the 0.1 s grid, the last time moves on with it
+        np.where(np.isfinite(t_now), t_now, state.t_last_s + sp.dt_s),
+        state.k + 1,
+        rejects,
+    )
     return new_state, SensorOutputs(T_pub_c, level, ttl_out_s, status), _ttl_job(state, chk, net, sp, skipped)
 
 
@@ -274,7 +369,17 @@ def _skip(state: SensorState, counts, sp: SensorParams):
     B = state.t_last_s.shape
     T_pub = state.T_c[..., MAIN, rp.published_index]
     z = np.zeros(B, dtype=bool)
-    status = SensorStatus(np.full(B, MODE_HOLDING, dtype=np.int8), z, z, z, z, np.zeros(B, dtype=np.int64),
-                          state.T_c[..., TWIN, rp.i_oil], np.full(B, np.nan), np.ones(B, dtype=np.int8),
-                          np.zeros(B, dtype=np.int64), rejects)
+    status = SensorStatus(
+        np.full(B, MODE_HOLDING, dtype=np.int8),
+        z,
+        z,
+        z,
+        z,
+        np.zeros(B, dtype=np.int64),
+        state.T_c[..., TWIN, rp.i_oil],
+        np.full(B, np.nan),
+        np.ones(B, dtype=np.int8),
+        np.zeros(B, dtype=np.int64),
+        rejects,
+    )
     return st, SensorOutputs(T_pub, state.level, state.ttl_s, status), None

@@ -4,6 +4,7 @@ The memos are bounded and hold pure functions of their keys (the conductances of
 of a held-input system, one time-jump propagation done ahead of its step), so a step gives the same outputs with a
 fresh cache, a warm one or one shared by sensors built from the same parameters.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -18,9 +19,10 @@ from firmware_model.onboard.held_modes import ModeCache
 class StepCache:
     """The step's memos: conductances per operating-point bin (one vehicle) and held-input modes (time to limit,
     time jumps, cool-down)."""
+
     bins: BinCache = field(default_factory=BinCache)
     modes: ModeCache = field(default_factory=ModeCache)
-    ahead: "JumpAhead" = field(default_factory=lambda: JumpAhead())
+    ahead: JumpAhead = field(default_factory=lambda: JumpAhead())
 
 
 @dataclass
@@ -33,6 +35,7 @@ class JumpAhead:
     A pure memo like the others: the key is everything the propagation reads (one vehicle's temperatures, held
     inputs and input ages, and the gap), so a hit is the same bits the step would compute. ``hits`` counts the steps
     that took a prepared result; an entry is used once."""
+
     key: tuple | None = None
     T_c: np.ndarray | None = None
     hits: int = 0
@@ -40,8 +43,9 @@ class JumpAhead:
     @staticmethod
     def key_of(state, gap_s: float) -> tuple:
         """What a single vehicle's jump propagation depends on, as bytes (float64)."""
-        return (float(gap_s),) + tuple(np.asarray(x, dtype=float).tobytes()
-                                       for x in (state.T_c, state.hold, state.age_s))
+        return (float(gap_s),) + tuple(
+            np.asarray(x, dtype=float).tobytes() for x in (state.T_c, state.hold, state.age_s)
+        )
 
     def put(self, key: tuple, T_c: np.ndarray) -> None:
         self.key, self.T_c = key, np.array(T_c, dtype=float, copy=True)

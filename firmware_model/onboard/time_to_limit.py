@@ -9,6 +9,7 @@ eigen-decomposition; the compiled kernel runs the same method). With the sump mo
 under the held load, and the losses and the oil-side conductances move with it: the system is re-linearised at the
 sump temperature the previous solution predicts at the earliest crossing (docs/sensor.md).
 """
+
 from __future__ import annotations
 
 import math
@@ -19,15 +20,20 @@ import numpy as np
 from firmware_model.components import PUBLISHED
 from firmware_model.onboard import reduce as R
 from firmware_model.onboard.conductance_bins import LN_SPEED_BIN, OIL_BIN_C, SPEED_BIN_MIN_RAD_S
-from firmware_model.physics.conductance_matrix import conductance_matrix
 from firmware_model.onboard.held_inputs import cooler_slope_w_per_k
-from firmware_model.physics.cooler import INLET_DROP_MAX_K
 from firmware_model.onboard.held_march import HeldSystem, March, march_time_to_limit
-from firmware_model.onboard.kernel_interface import (COUPLING_MARGIN, SPEED_COL_LAYSHAFT, SPEED_COL_OUTPUT,
-                                                     TTL_RELINEARISE_STEPS, TTL_RELINEARISE_TOL_K)
+from firmware_model.onboard.kernel_interface import (
+    COUPLING_MARGIN,
+    SPEED_COL_LAYSHAFT,
+    SPEED_COL_OUTPUT,
+    TTL_RELINEARISE_STEPS,
+    TTL_RELINEARISE_TOL_K,
+)
 from firmware_model.onboard.params import SensorParams
 from firmware_model.onboard.records import I_RET, I_TORQUE, N_PUB, SensorState
 from firmware_model.onboard.step_cache import StepCache
+from firmware_model.physics.conductance_matrix import conductance_matrix
+from firmware_model.physics.cooler import INLET_DROP_MAX_K
 
 #: with the sump modelled: the oil-system inlet follows the sump through the linearised cooler in the held-input
 #: system (a non-symmetric coupling, general eigen-decomposition; docs/sensor.md), unless the step clips it
@@ -38,19 +44,20 @@ I_PUB_OIL = PUBLISHED.index("oil")
 
 class TtlPoint(NamedTuple):
     """One vehicle's state after a step and the operating point the step used: what the time to limit holds."""
-    T_main_c: np.ndarray           # (n,) main copy after the step [degC]
-    src_w: np.ndarray              # (ns,) heat of every loss source (before the lag) [W]
-    G_w_per_k: np.ndarray          # (nl,) link conductances (the step's bin)
+
+    T_main_c: np.ndarray  # (n,) main copy after the step [degC]
+    src_w: np.ndarray  # (ns,) heat of every loss source (before the lag) [W]
+    G_w_per_k: np.ndarray  # (nl,) link conductances (the step's bin)
     G_streams_w_per_k: np.ndarray  # (nst,) oil-system stream conductances
-    dT_in_k: float                 # inlet drop of the main copy [K]
-    Q_cool_w: float                # cooler heat of the main copy [W]
-    measured: bool                 # the main copy's sump was the measured oil
-    row: int                       # gear row (gear - GEAR_MIN)
-    omega_in_rad_s: float          # input speed
-    T_oil_c: float                 # the main copy's sump at the step [degC]
-    T_bc_c: np.ndarray             # (nb,) boundary temperatures [degC]
-    used: np.ndarray               # (8,) the inputs the step used (INPUT_FIELDS order)
-    rho_cp_j_per_m3k: float        # oil volumetric heat capacity at T_oil_c
+    dT_in_k: float  # inlet drop of the main copy [K]
+    Q_cool_w: float  # cooler heat of the main copy [W]
+    measured: bool  # the main copy's sump was the measured oil
+    row: int  # gear row (gear - GEAR_MIN)
+    omega_in_rad_s: float  # input speed
+    T_oil_c: float  # the main copy's sump at the step [degC]
+    T_bc_c: np.ndarray  # (nb,) boundary temperatures [degC]
+    used: np.ndarray  # (8,) the inputs the step used (INPUT_FIELDS order)
+    rho_cp_j_per_m3k: float  # oil volumetric heat capacity at T_oil_c
 
 
 class TtlJob:
@@ -58,6 +65,7 @@ class TtlJob:
     compiled core, the kernel's own gvs_ttl_point records, which it refreshes from). ``points`` may be given as a
     function of nothing that makes them: the compiled core's jobs make their TtlPoint tuples only when a numpy
     refresh or a test asks (a batch of 1000 vehicles would otherwise build 1000 of them per refresh, unused)."""
+
     __slots__ = ("vehicles", "_points", "raw")
 
     def __init__(self, vehicles: tuple, points, raw: object = None):
@@ -74,8 +82,8 @@ class TtlJob:
 
 
 class _Solution(NamedTuple):
-    ttl_s: np.ndarray        # (28,) time to limit per published component [s]
-    march: March | None      # the march (None: no finite steady state, "not available")
+    ttl_s: np.ndarray  # (28,) time to limit per published component [s]
+    march: March | None  # the march (None: no finite steady state, "not available")
 
 
 def refresh_ttl(state: SensorState, job: TtlJob | None, sp: SensorParams, cache: StepCache) -> SensorState:
@@ -101,15 +109,30 @@ def time_to_limit(sp: SensorParams, cache: StepCache, p: TtlPoint, vehicle=None)
     for _ in range(TTL_RELINEARISE_STEPS):
         if sol.march is None or math.isnan(sol.march.watch_T_c):
             break
-        T_next_c = sol.march.watch_T_c        # the sump at the earliest crossing of a component (not the sump)
+        T_next_c = sol.march.watch_T_c  # the sump at the earliest crossing of a component (not the sump)
         if abs(T_next_c - T_op_c) < TTL_RELINEARISE_TOL_K:
             break
         T_op_c = T_next_c
         x, prop, _ = R.oil_row(rp, T_op_c, h)
-        retarder_w = float(e.retarder_frac) * float(p.used[I_RET]) \
-            * abs(float(rp.speed_coef[p.row, SPEED_COL_OUTPUT])) * p.omega_in_rad_s
-        src_op_w = R.heat_sources(rp, p.row, p.omega_in_rad_s, abs(float(p.used[I_TORQUE])), prop, x, e.src_scale,
-                                e.churn_scale, e.needle_scale, retarder_w, h)
+        retarder_w = (
+            float(e.retarder_frac)
+            * float(p.used[I_RET])
+            * abs(float(rp.speed_coef[p.row, SPEED_COL_OUTPUT]))
+            * p.omega_in_rad_s
+        )
+        src_op_w = R.heat_sources(
+            rp,
+            p.row,
+            p.omega_in_rad_s,
+            abs(float(p.used[I_TORQUE])),
+            prop,
+            x,
+            e.src_scale,
+            e.churn_scale,
+            e.needle_scale,
+            retarder_w,
+            h,
+        )
         bins = cache.bins.get(sp, p.row, *_bin_centre(p.omega_in_rad_s, T_op_c))
         sol = _solve(sp, p, src_op_w, bins.G_w_per_k, bins.G_streams_w_per_k, T_op_c, vehicle)
     return sol.ttl_s
@@ -144,8 +167,9 @@ def _oil_flow_m3_s(sp: SensorParams, row: int, omega_in_rad_s: float) -> float:
     return rp.flow_m3_per_rad * abs(float(rp.speed_coef[row, SPEED_COL_LAYSHAFT])) * omega_in_rad_s
 
 
-def held_system(sp: SensorParams, p: TtlPoint, src_w, G_w_per_k, G_streams_w_per_k, T_op_c: float,
-                measured: bool, vehicle=None) -> tuple[HeldSystem, np.ndarray]:
+def held_system(
+    sp: SensorParams, p: TtlPoint, src_w, G_w_per_k, G_streams_w_per_k, T_op_c: float, measured: bool, vehicle=None
+) -> tuple[HeldSystem, np.ndarray]:
     """(the held-input system over its free nodes, the free nodes) at the operating point's oil temperature T_op
     (losses ``src_w`` and conductances ``G_w_per_k`` given for it), the cooler linearised at the step's sump
     ``p.T_oil_c`` with its slope at T_op: K from the conductances, the inlet coupling when the inlet follows the
@@ -154,8 +178,11 @@ def held_system(sp: SensorParams, p: TtlPoint, src_w, G_w_per_k, G_streams_w_per
     rp, h = sp.reduced, sp.helpers
     K, _ = conductance_matrix(G_w_per_k, h.topology)
     T_oil_c = p.T_oil_c
-    slope_w_per_k = 0.0 if measured else cooler_slope_w_per_k(sp, T_op_c, p.omega_in_rad_s, p.row, p.used,
-                                                              p.rho_cp_j_per_m3k, vehicle)
+    slope_w_per_k = (
+        0.0
+        if measured
+        else cooler_slope_w_per_k(sp, T_op_c, p.omega_in_rad_s, p.row, p.used, p.rho_cp_j_per_m3k, vehicle)
+    )
     mcp_w_per_k = p.rho_cp_j_per_m3k * _oil_flow_m3_s(sp, p.row, p.omega_in_rad_s)
     u = None
     if not measured:
@@ -168,7 +195,7 @@ def held_system(sp: SensorParams, p: TtlPoint, src_w, G_w_per_k, G_streams_w_per
             try:
                 if not 1.0 - float(np.linalg.solve(K, u)[rp.i_oil]) > COUPLING_MARGIN:
                     u = None
-            except np.linalg.LinAlgError:     # K singular: no steady state either (the march says not available)
+            except np.linalg.LinAlgError:  # K singular: no steady state either (the march says not available)
                 u = None
     if u is not None:
         # the inlet drop is dT_in at the current sump and follows it (the coupling column): its part at the
@@ -178,8 +205,7 @@ def held_system(sp: SensorParams, p: TtlPoint, src_w, G_w_per_k, G_streams_w_per
         # frozen inlet drop, at the operating point's sump T_op through the linearised cooler
         dT_in_k = p.dT_in_k
         if T_op_c != T_oil_c and not measured:
-            dT_lin_k = (p.Q_cool_w + slope_w_per_k * (T_op_c - T_oil_c)) / mcp_w_per_k if mcp_w_per_k > 0.0 \
-                else 0.0
+            dT_lin_k = (p.Q_cool_w + slope_w_per_k * (T_op_c - T_oil_c)) / mcp_w_per_k if mcp_w_per_k > 0.0 else 0.0
             dT_in_k = min(max(dT_lin_k, -INLET_DROP_MAX_K), INLET_DROP_MAX_K)
         b_in_w = (G_streams_w_per_k * dT_in_k) @ h.stream_scatter
     b_w = src_w @ rp.src_matrix + b_in_w + np.bincount(h.ea, G_w_per_k[h.ext_idx] * p.T_bc_c[h.eb], minlength=rp.n)
@@ -219,18 +245,20 @@ def _weights(A: np.ndarray) -> np.ndarray | None:
     return w if bool(np.all(np.isfinite(w)) and np.all(w > 0.0)) else None
 
 
-def _solve(sp: SensorParams, p: TtlPoint, src_w, G_w_per_k, G_streams_w_per_k, T_op_c: float,
-           vehicle=None) -> _Solution:
+def _solve(
+    sp: SensorParams, p: TtlPoint, src_w, G_w_per_k, G_streams_w_per_k, T_op_c: float, vehicle=None
+) -> _Solution:
     """One held-input solution at the operating point's oil temperature T_op (:func:`held_system`), marched
     (firmware_model.onboard.held_march)."""
     rp, h = sp.reduced, sp.helpers
-    measured = p.measured and sp.options.ttl_sump != "model"   # "model": the sump heats with the held load
+    measured = p.measured and sp.options.ttl_sump != "model"  # "model": the sump heats with the held load
     system, free = held_system(sp, p, src_w, G_w_per_k, G_streams_w_per_k, T_op_c, measured, vehicle)
     pub_free, rows = (h.pub_free_meas, h.pub_rows_meas) if measured else (h.pub_free_all, h.pub_rows_all)
     warning_c = sp.limits.warning_c
     # with the sump modelled every node is free: watch the sump at the first crossing of the other components
-    march = march_time_to_limit(system, p.T_main_c[free], rows, warning_c[pub_free],
-                                None if measured else h.ttl_relin_pub, rp.i_oil)
+    march = march_time_to_limit(
+        system, p.T_main_c[free], rows, warning_c[pub_free], None if measured else h.ttl_relin_pub, rp.i_oil
+    )
     if march is None:
         return _Solution(np.full(N_PUB, np.nan), None)
     out = np.full(N_PUB, np.inf)

@@ -5,6 +5,7 @@
 * :func:`update_levels` is the warning state machine: two levels (warning, critical) with hysteresis and a debounce
   time, plus level 3 "not available" (the ``LEVEL_*`` codes of firmware_model.components); vectorised over vehicles.
 """
+
 from __future__ import annotations
 
 import math
@@ -27,6 +28,7 @@ LIMIT_RANGE_C = (-40.0, 250.0)
 @dataclass(frozen=True)
 class Limits:
     """Per published component (PUBLISHED order): warning and critical limits [degC], hysteresis [K]; debounce [s]."""
+
     warning_c: np.ndarray
     critical_c: np.ndarray
     hysteresis_k: np.ndarray
@@ -44,7 +46,7 @@ class Limits:
 
 def _value(entry, where: str, unit: str) -> tuple:
     if not isinstance(entry, dict) or "v" not in entry:
-        raise ParameterError(f"{where} must be a table {{ v = ..., u = \"{unit}\", src = ... }}")
+        raise ParameterError(f'{where} must be a table {{ v = ..., u = "{unit}", src = ... }}')
     if entry.get("u") != unit:
         raise ParameterError(f"{where} has unit {entry.get('u')!r}; it must be {unit!r}")
     if entry.get("src") not in ("seed", "derived", "assumed"):
@@ -55,8 +57,12 @@ def _value(entry, where: str, unit: str) -> tuple:
     return float(v), entry["src"]
 
 
-def load_limits(path: str | Path | None = None, debounce_s: float | None = None,
-                hysteresis_k: float | None = None, lead_s: float | None = None) -> Limits:
+def load_limits(
+    path: str | Path | None = None,
+    debounce_s: float | None = None,
+    hysteresis_k: float | None = None,
+    lead_s: float | None = None,
+) -> Limits:
     """Limits from a TOML file (default params/limits.toml); ``debounce_s`` / ``hysteresis_k`` override the file
     (config [sensor] debounce_s, hysteresis_c)."""
     path = Path(path) if path is not None else LIMITS_PATH
@@ -79,10 +85,12 @@ def load_limits(path: str | Path | None = None, debounce_s: float | None = None,
             if key not in _KEYS:
                 raise ParameterError(f"{path.name}: unknown key {g}.{key}; known: {', '.join(_KEYS)}")
     timing = doc.get("timing", {})
-    deb, prov["timing.debounce"] = _value(timing.get("debounce", {"v": 1.0, "u": "s", "src": "assumed"}),
-                                          f"{path.name}: timing.debounce", "s")
-    lead, prov["timing.lead"] = _value(timing.get("lead", {"v": 0.0, "u": "s", "src": "assumed"}),
-                                       f"{path.name}: timing.lead", "s")
+    deb, prov["timing.debounce"] = _value(
+        timing.get("debounce", {"v": 1.0, "u": "s", "src": "assumed"}), f"{path.name}: timing.debounce", "s"
+    )
+    lead, prov["timing.lead"] = _value(
+        timing.get("lead", {"v": 0.0, "u": "s", "src": "assumed"}), f"{path.name}: timing.lead", "s"
+    )
     for k in timing:
         if k not in ("debounce", "lead"):
             raise ParameterError(f"{path.name}: unknown key timing.{k}; known: debounce, lead")
@@ -95,8 +103,9 @@ def load_limits(path: str | Path | None = None, debounce_s: float | None = None,
         for key, entry in sec.items():
             if key not in _KEYS:
                 raise ParameterError(f"{path.name}: unknown key component.{comp}.{key}")
-            arr[key][i], prov[f"component.{comp}.{key}"] = _value(entry, f"{path.name}: component.{comp}.{key}",
-                                                                   _KEYS[key])
+            arr[key][i], prov[f"component.{comp}.{key}"] = _value(
+                entry, f"{path.name}: component.{comp}.{key}", _KEYS[key]
+            )
     if debounce_s is not None:
         deb = float(debounce_s)
     if hysteresis_k is not None:
@@ -104,11 +113,14 @@ def load_limits(path: str | Path | None = None, debounce_s: float | None = None,
     w, c, hy = arr["warning"], arr["critical"], arr["hysteresis"]
     for i, comp in enumerate(PUBLISHED):
         if not LIMIT_RANGE_C[0] <= w[i] < c[i] <= LIMIT_RANGE_C[1]:
-            raise ParameterError(f"limits of {comp}: warning {w[i]:g} degC must be below critical {c[i]:g} degC, "
-                                 f"both in {LIMIT_RANGE_C[0]:g}..{LIMIT_RANGE_C[1]:g} degC")
+            raise ParameterError(
+                f"limits of {comp}: warning {w[i]:g} degC must be below critical {c[i]:g} degC, "
+                f"both in {LIMIT_RANGE_C[0]:g}..{LIMIT_RANGE_C[1]:g} degC"
+            )
         if not 0.0 <= hy[i] < c[i] - w[i]:
-            raise ParameterError(f"limits of {comp}: hysteresis {hy[i]:g} K must be in 0..(critical - warning) = "
-                                 f"{c[i] - w[i]:g} K")
+            raise ParameterError(
+                f"limits of {comp}: hysteresis {hy[i]:g} K must be in 0..(critical - warning) = {c[i] - w[i]:g} K"
+            )
     if not 0.0 <= deb <= 60.0:
         raise ParameterError(f"debounce = {deb:g} s must be in 0..60 s")
     if lead_s is not None:
@@ -135,7 +147,7 @@ def update_levels(level, pending_s, T_c, available, limits: Limits, dt_s: float,
     held = (lv >= LEVEL_WARNING) & (lv <= LEVEL_CRITICAL)
     warn = (T >= limits.warning_c) | (held & (T > limits.warning_c - limits.hysteresis_k))
     if ttl_s is not None and limits.lead_s > 0:
-        ttl = np.asarray(ttl_s, dtype=float)          # NaN (not available) compares False, like inf
+        ttl = np.asarray(ttl_s, dtype=float)  # NaN (not available) compares False, like inf
         warn = warn | (ttl <= limits.lead_s) | (held & (ttl <= 2.0 * limits.lead_s))
     target = np.where(crit, LEVEL_CRITICAL, np.where(warn, LEVEL_WARNING, LEVEL_NORMAL))
     avail = np.asarray(available)[..., None] if np.ndim(available) == np.ndim(T) - 1 else np.asarray(available)

@@ -6,6 +6,7 @@ both ends, -G between them) plus every node-boundary link's G on its node's diag
 ``G T_boundary`` goes into ``b``. The reference plant (full network) and the onboard model (reduced network) assemble
 K with :func:`conductance_matrix`; :func:`node_conductance_w_per_k` is its diagonal without building it.
 """
+
 from __future__ import annotations
 
 from typing import NamedTuple
@@ -15,22 +16,23 @@ import numpy as np
 
 class LinkTopology(NamedTuple):
     """Which links join which nodes, split into node-node (internal) and node-boundary (external) links."""
-    n: int                    # number of nodes
-    link_a: np.ndarray        # (nl,) node of every link
-    link_b: np.ndarray        # (nl,) other node, or n + boundary index
-    internal: np.ndarray      # (nl,) bool: link_b is a node
-    int_idx: np.ndarray       # link indices of the internal links
-    ext_idx: np.ndarray       # link indices of the external links
-    ia: np.ndarray            # internal links: their two nodes
+
+    n: int  # number of nodes
+    link_a: np.ndarray  # (nl,) node of every link
+    link_b: np.ndarray  # (nl,) other node, or n + boundary index
+    internal: np.ndarray  # (nl,) bool: link_b is a node
+    int_idx: np.ndarray  # link indices of the internal links
+    ext_idx: np.ndarray  # link indices of the external links
+    ia: np.ndarray  # internal links: their two nodes
     ib: np.ndarray
-    ea: np.ndarray            # external links: their node and boundary index
+    ea: np.ndarray  # external links: their node and boundary index
     eb: np.ndarray
-    lap_idx: np.ndarray       # flat (n x n) positions of the internal links' entries: (a, a), (b, b), (a, b), (b, a)
+    lap_idx: np.ndarray  # flat (n x n) positions of the internal links' entries: (a, a), (b, b), (a, b), (b, a)
 
 
 class ConductanceMatrix(NamedTuple):
-    K_w_per_k: np.ndarray              # (n, n)
-    G_boundary_w_per_k: np.ndarray     # (n_ext,) conductance of every external link (in ext_idx order)
+    K_w_per_k: np.ndarray  # (n, n)
+    G_boundary_w_per_k: np.ndarray  # (n_ext,) conductance of every external link (in ext_idx order)
 
 
 def link_topology(link_a, link_b, n: int) -> LinkTopology:
@@ -40,8 +42,19 @@ def link_topology(link_a, link_b, n: int) -> LinkTopology:
     internal = b < n
     ia, ib = a[internal], b[internal]
     lap_idx = np.concatenate([ia * n + ia, ib * n + ib, ia * n + ib, ib * n + ia])
-    return LinkTopology(n, a, b, internal, np.flatnonzero(internal), np.flatnonzero(~internal), ia, ib, a[~internal],
-                        b[~internal] - n, lap_idx)
+    return LinkTopology(
+        n,
+        a,
+        b,
+        internal,
+        np.flatnonzero(internal),
+        np.flatnonzero(~internal),
+        ia,
+        ib,
+        a[~internal],
+        b[~internal] - n,
+        lap_idx,
+    )
 
 
 def conductance_matrix(G_w_per_k: np.ndarray, topo: LinkTopology, diag_w_per_k=None) -> ConductanceMatrix:
@@ -66,8 +79,7 @@ def node_conductance_w_per_k(G_w_per_k: np.ndarray, topo: LinkTopology) -> np.nd
     """The diagonal of K: the total conductance of the links at every node [W/K] (n,)."""
     G = np.asarray(G_w_per_k, dtype=float)
     inner = topo.internal
-    return (np.bincount(topo.link_a, G, minlength=topo.n)
-            + np.bincount(topo.link_b[inner], G[inner], minlength=topo.n))
+    return np.bincount(topo.link_a, G, minlength=topo.n) + np.bincount(topo.link_b[inner], G[inner], minlength=topo.n)
 
 
 def boundary_heat_w(G_boundary_w_per_k: np.ndarray, topo: LinkTopology, T_boundary_c: np.ndarray) -> np.ndarray:

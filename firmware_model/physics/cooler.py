@@ -10,6 +10,7 @@ the ram air of the vehicle speed (air). :func:`oil_cooler_heat` is the whole mod
 Every function takes floats or numpy arrays and does its arithmetic in what it is given (Python floats stay
 scalars), so both callers keep their own last bits.
 """
+
 from __future__ import annotations
 
 from typing import NamedTuple
@@ -32,13 +33,25 @@ DEFAULT_VEHICLE_SPEED_KMH = 50.0
 #: the oil-system inlet drop (sump minus cooler outlet, Q / (mdot cp)) is clipped to +- this [K]
 INLET_DROP_MAX_K = 30.0
 #: parameter names (``cooler.<name>``) of the cooler model, in the order of CoolerParams
-COOLER_KEYS = ("liquid_hA_ref", "liquid_Qmax_cool", "liquid_Qmax_heat", "air_hA_ref", "air_Qmax_cool",
-               "thermostat_open", "thermostat_full", "ref_ls_speed", "ref_engine_speed", "exp_inner", "exp_outer",
-               "air_flow_min_frac")
+COOLER_KEYS = (
+    "liquid_hA_ref",
+    "liquid_Qmax_cool",
+    "liquid_Qmax_heat",
+    "air_hA_ref",
+    "air_Qmax_cool",
+    "thermostat_open",
+    "thermostat_full",
+    "ref_ls_speed",
+    "ref_engine_speed",
+    "exp_inner",
+    "exp_outer",
+    "air_flow_min_frac",
+)
 
 
 class CoolerParams(NamedTuple):
     """The cooler's data sheet (SI; parameter names in COOLER_KEYS)."""
+
     liquid_hA_ref_w_per_k: float
     liquid_Q_max_cool_w: float
     liquid_Q_max_heat_w: float
@@ -46,16 +59,16 @@ class CoolerParams(NamedTuple):
     air_Q_max_cool_w: float
     thermostat_open_c: float
     thermostat_full_c: float
-    ref_ls_speed_rad_s: float        # layshaft speed of the reference inner (oil) flow
-    ref_engine_speed_rad_s: float    # engine speed of the liquid cooler's reference outer (coolant) flow
+    ref_ls_speed_rad_s: float  # layshaft speed of the reference inner (oil) flow
+    ref_engine_speed_rad_s: float  # engine speed of the liquid cooler's reference outer (coolant) flow
     exp_inner: float
     exp_outer: float
-    air_flow_min_frac: float         # air outer flow at standstill (fan) relative to the reference
+    air_flow_min_frac: float  # air outer flow at standstill (fan) relative to the reference
 
 
 class CoolerHeat(NamedTuple):
-    Q_w: np.ndarray | float           # heat from the sump to the cooler (positive cools the oil)
-    hA_w_per_k: np.ndarray | float    # the cooler's effective conductance at these flows
+    Q_w: np.ndarray | float  # heat from the sump to the cooler (positive cools the oil)
+    hA_w_per_k: np.ndarray | float  # the cooler's effective conductance at these flows
 
 
 def cooler_values(p) -> dict:
@@ -70,6 +83,7 @@ def cooler_params(values: dict) -> CoolerParams:
 
 # --- Eq 82-83 ----------------------------------------------------------------------------------------------
 
+
 def thermostat_fraction(T_c, T_open_c, T_full_c):
     """Thermostat opening 0..1, linear between T_open and T_full (section 3.4)."""
     if not T_full_c > T_open_c:
@@ -81,11 +95,14 @@ def thermostat_temperature_c(T_oil_sump_c, Q_cooler_w, mdot_kg_s, cp_j_per_kgk):
     """Temperature seen by the thermostat T_sump - Q / (mdot cp) [degC] (Eq 82); no flow gives T_sump."""
     C = np.abs(np.asarray(mdot_kg_s, dtype=float)) * cp_j_per_kgk
     with np.errstate(divide="ignore", invalid="ignore"):
-        return np.asarray(T_oil_sump_c, dtype=float) - np.where(C > 0.0, np.asarray(Q_cooler_w, dtype=float) / np.where(C > 0.0, C, 1.0), 0.0)
+        return np.asarray(T_oil_sump_c, dtype=float) - np.where(
+            C > 0.0, np.asarray(Q_cooler_w, dtype=float) / np.where(C > 0.0, C, 1.0), 0.0
+        )
 
 
-def cooler_heat_w(kind, hA_w_per_k, T_oil_c, T_medium_c, mdot_kg_s, cp_j_per_kgk, Q_max_cool_w, Q_max_heat_w,
-                  T_open_c, T_full_c):
+def cooler_heat_w(
+    kind, hA_w_per_k, T_oil_c, T_medium_c, mdot_kg_s, cp_j_per_kgk, Q_max_cool_w, Q_max_heat_w, T_open_c, T_full_c
+):
     """Heat flow from the oil to the cooler [W] (Eq 83; positive cools the oil).
 
     * ``"none"``: 0.
@@ -109,7 +126,7 @@ def cooler_heat_w(kind, hA_w_per_k, T_oil_c, T_medium_c, mdot_kg_s, cp_j_per_kgk
         return np.zeros(np.broadcast(hA, dT).shape) if np.ndim(hA) or np.ndim(dT) else 0.0
     if kind == "liquid":
         return np.clip(hA * dT, -np.asarray(Q_max_heat_w, dtype=float), np.asarray(Q_max_cool_w, dtype=float))  # Eq 83
-    if not np.all(np.asarray(T_full_c) > np.asarray(T_open_c)):      # arrays: a thermostat per vehicle
+    if not np.all(np.asarray(T_full_c) > np.asarray(T_open_c)):  # arrays: a thermostat per vehicle
         raise ParameterError(f"cooler T_full_c = {T_full_c} must exceed T_open_c = {T_open_c} [degC]")
     a = hA * np.maximum(dT, 0.0)
     C = np.abs(np.asarray(mdot_kg_s, dtype=float)) * cp_j_per_kgk
@@ -121,6 +138,7 @@ def cooler_heat_w(kind, hA_w_per_k, T_oil_c, T_medium_c, mdot_kg_s, cp_j_per_kgk
 
 
 # --- the cooler at an operating point ------------------------------------------------------------------------
+
 
 def air_temperature_c(T_ambient_c, v_kmh):
     """Air temperature at the air cooler: ambient plus the recirculation excess at this vehicle speed (seed 3.4)."""
@@ -134,7 +152,7 @@ def cooler_hA_w_per_k(c: CoolerParams, kind: str, inner_flow_ratio, omega_engine
     liquid: outer flow linear in the engine speed; air: a fan share plus the ram air, linear in the vehicle speed up
     to AIR_FLOW_MAX_REL x the reference (v_kmh must be a number: callers substitute their default for a missing
     one). ``scale``: the cooler_effectiveness_scale effect."""
-    inner = inner_flow_ratio ** c.exp_inner
+    inner = inner_flow_ratio**c.exp_inner
     if kind == "liquid":
         outer = (np.maximum(omega_engine_rad_s, 0.0) / c.ref_engine_speed_rad_s) ** c.exp_outer
         return c.liquid_hA_ref_w_per_k * inner * outer * scale
@@ -143,8 +161,19 @@ def cooler_hA_w_per_k(c: CoolerParams, kind: str, inner_flow_ratio, omega_engine
     return c.air_hA_ref_w_per_k * inner * (fmin + (1.0 - fmin) * rel) ** c.exp_outer * scale
 
 
-def oil_cooler_heat(c: CoolerParams, kind: str, T_oil_c, inner_flow_ratio, omega_engine_rad_s, T_coolant_c,
-                    T_ambient_c, v_kmh, mcp_w_per_k, scale=1.0, thermostat_offset_c=0.0) -> CoolerHeat:
+def oil_cooler_heat(
+    c: CoolerParams,
+    kind: str,
+    T_oil_c,
+    inner_flow_ratio,
+    omega_engine_rad_s,
+    T_coolant_c,
+    T_ambient_c,
+    v_kmh,
+    mcp_w_per_k,
+    scale=1.0,
+    thermostat_offset_c=0.0,
+) -> CoolerHeat:
     """Heat from the sump to the cooler [W] (Eq 83, the air cooler's thermostat coupled through Eq 82) and the
     cooler's hA, for kind none | liquid | air.
 
@@ -157,12 +186,31 @@ def oil_cooler_heat(c: CoolerParams, kind: str, T_oil_c, inner_flow_ratio, omega
         return CoolerHeat(z, z)
     hA = cooler_hA_w_per_k(c, kind, inner_flow_ratio, omega_engine_rad_s, v_kmh, scale)
     if kind == "liquid":
-        Q = cooler_heat_w("liquid", hA, T_oil_c, T_coolant_c, flow_capacity_w_per_k, 1.0, c.liquid_Q_max_cool_w,
-                          c.liquid_Q_max_heat_w, 0.0, 1.0)
+        Q = cooler_heat_w(
+            "liquid",
+            hA,
+            T_oil_c,
+            T_coolant_c,
+            flow_capacity_w_per_k,
+            1.0,
+            c.liquid_Q_max_cool_w,
+            c.liquid_Q_max_heat_w,
+            0.0,
+            1.0,
+        )
     else:
-        Q = cooler_heat_w("air", hA, T_oil_c, air_temperature_c(T_ambient_c, v_kmh), flow_capacity_w_per_k, 1.0,
-                          c.air_Q_max_cool_w, 0.0, c.thermostat_open_c + thermostat_offset_c,
-                          c.thermostat_full_c + thermostat_offset_c)
+        Q = cooler_heat_w(
+            "air",
+            hA,
+            T_oil_c,
+            air_temperature_c(T_ambient_c, v_kmh),
+            flow_capacity_w_per_k,
+            1.0,
+            c.air_Q_max_cool_w,
+            0.0,
+            c.thermostat_open_c + thermostat_offset_c,
+            c.thermostat_full_c + thermostat_offset_c,
+        )
     return CoolerHeat(np.where(flow_capacity_w_per_k > 0.0, Q, 0.0), hA)
 
 
@@ -173,14 +221,19 @@ def inlet_drop_k(Q_w, mcp_w_per_k):
     return np.clip(np.where(m > 0.0, Q_w / np.where(m > 0.0, m, 1.0), 0.0), -INLET_DROP_MAX_K, INLET_DROP_MAX_K)
 
 
-def cooler_hA_bound_w_per_k(c: CoolerParams, kind: str, omega_ls_max_rad_s: float, omega_engine_max_rad_s: float,
-                            scale_max: float) -> float:
+def cooler_hA_bound_w_per_k(
+    c: CoolerParams, kind: str, omega_ls_max_rad_s: float, omega_engine_max_rad_s: float, scale_max: float
+) -> float:
     """An upper bound of the cooler's hA over the operating range (the stability proof): the highest flows, the
     effect scale at its maximum; the air cooler's outer flow factor bounded by AIR_FLOW_MAX_REL^exp_outer."""
     inner = (omega_ls_max_rad_s / c.ref_ls_speed_rad_s) ** c.exp_inner
     if kind == "liquid":
-        return c.liquid_hA_ref_w_per_k * inner * (omega_engine_max_rad_s / c.ref_engine_speed_rad_s) ** c.exp_outer \
+        return (
+            c.liquid_hA_ref_w_per_k
+            * inner
+            * (omega_engine_max_rad_s / c.ref_engine_speed_rad_s) ** c.exp_outer
             * scale_max
+        )
     if kind == "air":
-        return c.air_hA_ref_w_per_k * inner * AIR_FLOW_MAX_REL ** c.exp_outer * scale_max
+        return c.air_hA_ref_w_per_k * inner * AIR_FLOW_MAX_REL**c.exp_outer * scale_max
     return 0.0

@@ -9,23 +9,28 @@ Oil properties are evaluated at the sump temperature (seed 3.2: "the oil sump te
 
 The same model generates the onboard sensor's loss maps, so plant and sensor share one description of the losses.
 """
+
 from __future__ import annotations
 
 import math
 
 import numpy as np
 
-from firmware_model.physics import losses as L
-from firmware_model.physics import oil as oilprops
 from firmware_model.components import IDLE_WHEELS, LAYSHAFT_WHEELS, PAIRS, SHAFT_BEARINGS
 from firmware_model.effects import EffectScales
+from firmware_model.parameters import Parameters
+from firmware_model.physics import losses as L
+from firmware_model.physics import oil as oilprops
 from firmware_model.physics.geometry import SHAFT_OF_BEARING, Geometry, build_geometry
 from firmware_model.physics.kinematics import GEAR_MIN, GEARS, MESHES, SPEED_NAMES, SYNCS, gear_state
-from firmware_model.parameters import Parameters
 
 #: loss sources in reporting order; "mesh:<m>" for the nine meshes, then the lumped ones
-SOURCES = tuple(f"mesh:{m}" for m in MESHES[:7]) + ("planetary",) + tuple(f"bearing:{b}" for b in SHAFT_BEARINGS) + (
-    "churning", "wheel_bearings", "synchronizers", "pump")
+SOURCES = (
+    tuple(f"mesh:{m}" for m in MESHES[:7])
+    + ("planetary",)
+    + tuple(f"bearing:{b}" for b in SHAFT_BEARINGS)
+    + ("churning", "wheel_bearings", "synchronizers", "pump")
+)
 #: Gauss-Legendre points on each side of the pitch point for the rolling loss (~1 W terms, seed 3.2: coarse is plenty)
 ROLL_POINTS = 4
 
@@ -77,7 +82,7 @@ class GearboxLosses:
             r = g - GEAR_MIN
             if st.main_pair is None or st.direct:
                 continue
-            forces = {"IS": [], "LS": [], "MS": []}   # (x, Fy, Fz, Fa) per unit input torque
+            forces = {"IS": [], "LS": [], "MS": []}  # (x, Fy, Fz, Fa) per unit input torque
             iw, lw = PAIRS[st.split_pair]
             mesh = self.geo.meshes[st.split_pair]
             Ft = 1.0 / mesh.R_w1_m
@@ -91,14 +96,14 @@ class GearboxLosses:
             mesh = self.geo.meshes["R" if mp == "R" else mp]
             Ft = T_ls / (mesh.R_w1_m if mp == "R" else mesh.R_w2_m)
             Fr, Fa = Ft * math.tan(mesh.alpha_tw_rad), Ft * math.tan(mesh.beta_rad)
-            forces["LS"].append((W[mlw].x, +Ft, -Fr, -Fa))     # opposite hand: axial forces partly cancel
+            forces["LS"].append((W[mlw].x, +Ft, -Fr, -Fa))  # opposite hand: axial forces partly cancel
             forces["MS"].append((W[miw].x, -Ft, +Fr, Fa))
             for shaft, (bA, bB) in supports.items():
                 xA, xB = xb[bA], xb[bB]
                 RyA = RyB = RzA = RzB = 0.0
                 fa = 0.0
                 for x, fy, fz, fax in forces[shaft]:
-                    s = (x - xA) / (xB - xA)      # lever rule (Eq 40 needs Fr and Fa of each bearing)
+                    s = (x - xA) / (xB - xA)  # lever rule (Eq 40 needs Fr and Fa of each bearing)
                     RyB += fy * s
                     RyA += fy * (1 - s)
                     RzB += fz * s
@@ -116,10 +121,19 @@ class GearboxLosses:
             typ = "ball" if b == "BO" else "tapered"
             self.f0[j] = p[f"bearing.f0_{typ}"]
             self.Dm[j] = 0.5 * (p[f"bearing.{b}.d_bore"] + p[f"bearing.{b}.d_out"])
-            P1 = L.bearing_p1_n(self.Fr_coef[:, j], self.Fa_coef[:, j], p[f"bearing.e_{typ}"], p[f"bearing.X1_{typ}"],
-                                p[f"bearing.Y1_{typ}"], p[f"bearing.X2_{typ}"], p[f"bearing.Y2_{typ}"])
-            self.load_torque_coef[:, j] = p[f"bearing.f1_{typ}"] * (p["bearing.P0"] + P1) * self.Dm[j] \
+            P1 = L.bearing_p1_n(
+                self.Fr_coef[:, j],
+                self.Fa_coef[:, j],
+                p[f"bearing.e_{typ}"],
+                p[f"bearing.X1_{typ}"],
+                p[f"bearing.Y1_{typ}"],
+                p[f"bearing.X2_{typ}"],
+                p[f"bearing.Y2_{typ}"],
+            )
+            self.load_torque_coef[:, j] = (
+                p[f"bearing.f1_{typ}"] * (p["bearing.P0"] + P1) * self.Dm[j]
                 + p["bearing.f2"] * self.Fa_coef[:, j] * self.Dm[j]
+            )
         self.bearing_speed_idx = [SPEED_NAMES.index(SHAFT_OF_BEARING[b]) for b in SHAFT_BEARINGS]
         # needle bearings
         d_r = p["wheel_bearing.d_roller"]
@@ -134,7 +148,7 @@ class GearboxLosses:
             g = W[w]
             h_i = imm[w]
             th = 2 * math.acos(float(np.clip(1 - h_i / g.R_a, -1, 1)))
-            V_p = 0.5 * g.R_a ** 2 * (th - math.sin(th)) * g.width
+            V_p = 0.5 * g.R_a**2 * (th - math.sin(th)) * g.width
             rows.append((g.R_a, g.R_p, g.h_t, g.width, h_i, V_p, 1.0 if w == "RI" else 0.0))
         a = np.array(rows)
         self.ch_Ra, self.ch_Rp, self.ch_ht, self.ch_w, self.ch_hi, self.ch_Vp, self.ch_is_RI = a.T
@@ -171,7 +185,8 @@ class GearboxLosses:
                     T1 = T1 / self.n_planets
                 # rolling losses are ~1 W (seed 3.2): a coarse quadrature is plenty for them
                 P = L.gear_slip_loss_w(mesh, T1, mw[:, j], rho, mu) + L.gear_rolling_loss_w(
-                    mesh, T1, mw[:, j], mu, piezo, self.E, self.E, self.poisson, self.poisson, n_points=ROLL_POINTS)
+                    mesh, T1, mw[:, j], mu, piezo, self.E, self.E, self.poisson, self.poisson, n_points=ROLL_POINTS
+                )
                 P = np.where(T1 > 0, P, 0.0)
                 if m in ("PSP", "PPR"):
                     P = P * self.n_planets
@@ -194,9 +209,10 @@ class GearboxLosses:
         w_ls = np.abs(sp[:, self.i_ls])
         w_ri = np.abs(sp[:, SPEED_NAMES.index("RI")])
         wc = np.where(self.ch_is_RI[None, :] > 0, w_ri[:, None], w_ls[:, None])
-        with np.errstate(divide="ignore", invalid="ignore"):   # wheels lifted out of the oil are masked below
-            ch = L.churning_loss(wc, self.ch_Ra, self.ch_Rp, self.ch_ht, self.ch_w, self.ch_hi, self.ch_Vp, self.V0,
-                                 rho, nu, self.h_t0)
+        with np.errstate(divide="ignore", invalid="ignore"):  # wheels lifted out of the oil are masked below
+            ch = L.churning_loss(
+                wc, self.ch_Ra, self.ch_Rp, self.ch_ht, self.ch_w, self.ch_hi, self.ch_Vp, self.V0, rho, nu, self.h_t0
+            )
         out["churning"] = np.sum(np.where(self.ch_mask, ch.power_w, 0.0), axis=1)
         if churn_validity:
             out["churning_valid"] = np.all(ch.valid | ~self.ch_mask, axis=1)
@@ -209,8 +225,9 @@ class GearboxLosses:
         Psync = np.zeros(n)
         s = self.p
         for k, (n_ring, R_ring, J_ax) in enumerate(self.sync_geo):
-            Ts = L.sync_ring_drag_torque_nm(n_ring, mu, R_ring, s["sync.w_ring"], J_ax, s["sync.theta_ring"],
-                                            srel[:, k])
+            Ts = L.sync_ring_drag_torque_nm(
+                n_ring, mu, R_ring, s["sync.w_ring"], J_ax, s["sync.theta_ring"], srel[:, k]
+            )
             Psync = Psync + Ts * srel[:, k]
         out["synchronizers"] = Psync
         # oil pump (Eq 42): torque linear in layshaft speed

@@ -5,6 +5,7 @@ The thermal network (:mod:`firmware_model.network`) and the loss model
 (:mod:`firmware_model.physics.gearbox_losses`) are both built from this one description, so the network depends on
 the physics and never the other way round. Lengths in m, angles in rad.
 """
+
 from __future__ import annotations
 
 import math
@@ -27,6 +28,7 @@ CUT_WHEELS = ("1L", "CL", "RL")
 @dataclass(frozen=True)
 class Wheel:
     """Geometry of one gear wheel (radii in m)."""
+
     name: str
     z: int
     m_n: float
@@ -36,19 +38,20 @@ class Wheel:
     R_a: float
     R_f: float
     R_b: float
-    R_in: float       # inner radius (bore, or a fraction of the base radius for wheels cut into the layshaft)
+    R_in: float  # inner radius (bore, or a fraction of the base radius for wheels cut into the layshaft)
     h_t: float
-    x: float          # axial position
+    x: float  # axial position
 
 
 @dataclass(frozen=True)
 class Geometry:
     """Every derived geometric quantity the network and the loss model need."""
-    wheels: dict          # wheel id -> Wheel (idle, layshaft, reverse idler RI, sun PS, planet PP)
-    meshes: dict          # mesh id (kinematics.MESHES) -> losses.GearMesh
-    immersion_m: dict     # layshaft wheel or RI -> immersion depth of its tip circle [m]
-    level_drop_m: float   # oil level below nominal (oil_level_low effect) [m]
-    R_shaft_m: dict       # shaft (IS, LS, MS, OS) -> outer radius [m]
+
+    wheels: dict  # wheel id -> Wheel (idle, layshaft, reverse idler RI, sun PS, planet PP)
+    meshes: dict  # mesh id (kinematics.MESHES) -> losses.GearMesh
+    immersion_m: dict  # layshaft wheel or RI -> immersion depth of its tip circle [m]
+    level_drop_m: float  # oil level below nominal (oil_level_low effect) [m]
+    R_shaft_m: dict  # shaft (IS, LS, MS, OS) -> outer radius [m]
 
 
 def wheel(name: str, z: int, m_n: float, beta: float, alpha_n: float, width: float, R_in: float, x: float) -> Wheel:
@@ -56,8 +59,20 @@ def wheel(name: str, z: int, m_n: float, beta: float, alpha_n: float, width: flo
     circle, base circle from the transverse pressure angle."""
     R_p = m_n * z / (2.0 * math.cos(beta))
     alpha_t = math.atan(math.tan(alpha_n) / math.cos(beta))
-    return Wheel(name, z, m_n, beta, width, R_p, R_p + ADDENDUM_COEF * m_n, R_p - DEDENDUM_COEF * m_n,
-                 R_p * math.cos(alpha_t), R_in, (ADDENDUM_COEF + DEDENDUM_COEF) * m_n, x)
+    return Wheel(
+        name,
+        z,
+        m_n,
+        beta,
+        width,
+        R_p,
+        R_p + ADDENDUM_COEF * m_n,
+        R_p - DEDENDUM_COEF * m_n,
+        R_p * math.cos(alpha_t),
+        R_in,
+        (ADDENDUM_COEF + DEDENDUM_COEF) * m_n,
+        x,
+    )
 
 
 def _pair_wheels(p: Parameters, wheels: dict, meshes: dict) -> None:
@@ -76,8 +91,9 @@ def _pair_wheels(p: Parameters, wheels: dict, meshes: dict) -> None:
             lw_g = replace(lw_g, R_in=max(p["heat.cut_wheel_inner_frac"] * lw_g.R_b, R_ls))
         wheels[lw] = lw_g
         if pair != "R":
-            meshes[pair] = mesh_geometry(int(p[f"{g}.z1"]), int(p[f"{g}.z2"]), m_n, an, beta, a,
-                                         min(p[f"{g}.width1"], p[f"{g}.width2"]))
+            meshes[pair] = mesh_geometry(
+                int(p[f"{g}.z1"]), int(p[f"{g}.z2"]), m_n, an, beta, a, min(p[f"{g}.width1"], p[f"{g}.width2"])
+            )
 
 
 def _reverse_wheels(p: Parameters, wheels: dict, meshes: dict) -> None:
@@ -131,4 +147,3 @@ def build_geometry(p: Parameters) -> Geometry:
     drop = oil_level_drop_m(p)
     R_shaft = {s: p[f"shaft.{s}.d_out"] / 2 for s in ("IS", "LS", "MS", "OS")}
     return Geometry(wheels, meshes, _immersion(p, wheels, drop), drop, R_shaft)
-

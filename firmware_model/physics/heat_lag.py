@@ -7,6 +7,7 @@ minus what it stores, ``u - tau (y_new - y) / dt``, so no joule is lost or creat
 onboard step both use :func:`heat_lag_step` (the onboard step with its fixed dt through precomputed
 :func:`heat_lag` coefficients). tau <= 0 means no lag: the heat is the loss.
 """
+
 from __future__ import annotations
 
 import math
@@ -17,13 +18,14 @@ import numpy as np
 
 class HeatLag(NamedTuple):
     """Coefficients of one step of the lag."""
-    gain: float           # 1 - exp(-dt / tau): share of the gap to the input closed in one step
-    tau_over_dt: float    # tau / dt (0: no lag)
+
+    gain: float  # 1 - exp(-dt / tau): share of the gap to the input closed in one step
+    tau_over_dt: float  # tau / dt (0: no lag)
 
 
 class LagStep(NamedTuple):
-    state_w: np.ndarray | float        # the lag's output at the end of the step
-    delivered_w: np.ndarray | float    # heat delivered on average over the step
+    state_w: np.ndarray | float  # the lag's output at the end of the step
+    delivered_w: np.ndarray | float  # heat delivered on average over the step
 
 
 def heat_lag(tau_s: float, dt_s: float) -> HeatLag:

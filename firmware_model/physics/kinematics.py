@@ -14,6 +14,7 @@ Gear numbers (Table 1): -2 RL, -1 RH, 0 neutral, 1 CL, 2 CH, 3 1L, 4 1H, 5 2L, 6
 11 5L, 12 5H, 13 6L, 14 6H. The overdrive variant (GRSO905) inverts the split: "low split" then engages the H/3
 pair and "high split" the L pair (seed section 4.3 and 5.2).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -30,18 +31,43 @@ N_GEARS = len(GEARS)
 
 #: Table 1: gear -> (split 'low'/'high', main pair, range 'low'/'high'); 0 = neutral
 GEAR_TABLE = {
-    -2: ("low", "R", "low"), -1: ("high", "R", "low"),
-    1: ("low", "C", "low"), 2: ("high", "C", "low"),
-    3: ("low", "1", "low"), 4: ("high", "1", "low"),
-    5: ("low", "2", "low"), 6: ("high", "2", "low"),
-    7: ("low", "3", "low"), 8: ("high", "3", "low"),
-    9: ("low", "1", "high"), 10: ("high", "1", "high"),
-    11: ("low", "2", "high"), 12: ("high", "2", "high"),
-    13: ("low", "3", "high"), 14: ("high", "3", "high"),
+    -2: ("low", "R", "low"),
+    -1: ("high", "R", "low"),
+    1: ("low", "C", "low"),
+    2: ("high", "C", "low"),
+    3: ("low", "1", "low"),
+    4: ("high", "1", "low"),
+    5: ("low", "2", "low"),
+    6: ("high", "2", "low"),
+    7: ("low", "3", "low"),
+    8: ("high", "3", "low"),
+    9: ("low", "1", "high"),
+    10: ("high", "1", "high"),
+    11: ("low", "2", "high"),
+    12: ("high", "2", "high"),
+    13: ("low", "3", "high"),
+    14: ("high", "3", "high"),
 }
 #: short names of Table 1
-GEAR_NAMES = {-2: "RL", -1: "RH", 0: "N", 1: "CL", 2: "CH", 3: "1L", 4: "1H", 5: "2L", 6: "2H", 7: "3L", 8: "3H",
-              9: "4L", 10: "4H", 11: "5L", 12: "5H", 13: "6L", 14: "6H"}
+GEAR_NAMES = {
+    -2: "RL",
+    -1: "RH",
+    0: "N",
+    1: "CL",
+    2: "CH",
+    3: "1L",
+    4: "1H",
+    5: "2L",
+    6: "2H",
+    7: "3L",
+    8: "3H",
+    9: "4L",
+    10: "4H",
+    11: "5L",
+    12: "5H",
+    13: "6L",
+    14: "6H",
+}
 GEAR_BY_NAME = {v: k for k, v in GEAR_NAMES.items()}
 
 #: meshes whose losses are computed: the six layshaft pairs, the reverse idler's second mesh, the planetary
@@ -53,9 +79,9 @@ SYNCS = ("LI/IS", "3M/IS", "3M/MS", "2M/MS", "1M/MS", "PR/range")
 @dataclass(frozen=True)
 class GearState:
     gear: int
-    split_pair: str | None   # 'L' or '3'
-    main_pair: str | None    # '3', '2', '1', 'C', 'R'
-    range: str | None        # 'low' or 'high'
+    split_pair: str | None  # 'L' or '3'
+    main_pair: str | None  # '3', '2', '1', 'C', 'R'
+    range: str | None  # 'low' or 'high'
 
     @property
     def direct(self) -> bool:
@@ -71,8 +97,9 @@ def parse_gear(value) -> int:
         try:
             value = int(float(s))
         except ValueError:
-            raise InputError(f"gear {value!r} is neither a number in {GEAR_MIN}..{GEAR_MAX} nor a Table 1 name "
-                             f"such as 4L or 6H") from None
+            raise InputError(
+                f"gear {value!r} is neither a number in {GEAR_MIN}..{GEAR_MAX} nor a Table 1 name such as 4L or 6H"
+            ) from None
     if isinstance(value, float):
         if not np.isfinite(value) or value != int(value):
             raise InputError(f"gear {value!r} must be an integer in {GEAR_MIN}..{GEAR_MAX}")
@@ -95,8 +122,9 @@ def gear_state(gear: int, split_inverted: bool = False) -> GearState:
 @dataclass(frozen=True)
 class Teeth:
     """Tooth numbers needed by the kinematics (from the parameter set)."""
-    idle: dict          # idle wheel id -> z
-    layshaft: dict      # layshaft wheel id -> z
+
+    idle: dict  # idle wheel id -> z
+    layshaft: dict  # layshaft wheel id -> z
     z_RI: int
     z_sun: int
     z_planet: int
@@ -117,15 +145,16 @@ class KinematicTable:
     mesh speed columns: speed of wheel 2 of the mesh geometry (the layshaft wheel for the six pairs; the driven wheel
     relative to the planet carrier for planetary meshes); mesh torque is the torque on wheel 1
     """
+
     speed_names: tuple
-    speed: np.ndarray           # (N_GEARS, n_speeds)
-    mesh_torque: np.ndarray     # (N_GEARS, len(MESHES))
-    mesh_omega2: np.ndarray     # (N_GEARS, len(MESHES))
+    speed: np.ndarray  # (N_GEARS, n_speeds)
+    mesh_torque: np.ndarray  # (N_GEARS, len(MESHES))
+    mesh_omega2: np.ndarray  # (N_GEARS, len(MESHES))
     wheel_bearing_rel: np.ndarray  # (N_GEARS, 6): |wheel - shaft under it| for LB, 3B, 2B, 1B, CB, RB
-    sync_rel: np.ndarray        # (N_GEARS, len(SYNCS)): |relative speed| of open synchronizer rings (0 if engaged)
-    active_pair: np.ndarray     # (N_GEARS, 6) bool: pair carries torque (L, 3, 2, 1, C, R)
-    ratio: np.ndarray           # (N_GEARS,) input speed / output speed (inf in neutral)
-    low_range: np.ndarray       # (N_GEARS,) bool
+    sync_rel: np.ndarray  # (N_GEARS, len(SYNCS)): |relative speed| of open synchronizer rings (0 if engaged)
+    active_pair: np.ndarray  # (N_GEARS, 6) bool: pair carries torque (L, 3, 2, 1, C, R)
+    ratio: np.ndarray  # (N_GEARS,) input speed / output speed (inf in neutral)
+    low_range: np.ndarray  # (N_GEARS,) bool
     split_inverted: bool
 
     def index(self, gear) -> np.ndarray:
@@ -142,20 +171,22 @@ SPEED_NAMES = ("IS", "LS", "MS", "OS", "LI", "3M", "2M", "1M", "CM", "RM", "RI",
 
 class GearSpeeds(NamedTuple):
     """Every speed of one gear per rad/s of input speed."""
+
     w_is: float
     w_ls: float
     w_ms: float
     w_os: float
-    w_idle: dict          # idle wheel -> speed
+    w_idle: dict  # idle wheel -> speed
     w_ri: float
     w_ring: float
     w_carrier: float
-    w_planet_rel: float   # planets relative to the carrier
+    w_planet_rel: float  # planets relative to the carrier
     low_range: bool
 
 
 class GearRow(NamedTuple):
     """One row of the KinematicTable (one gear)."""
+
     speed: list
     mesh_torque: np.ndarray
     mesh_omega2: np.ndarray
@@ -185,7 +216,7 @@ def gear_speeds(teeth: Teeth, st: GearState) -> GearSpeeds:
     w_idle = {}
     for p, (iw_, lw_) in PAIRS.items():
         if p == "R":
-            w_idle[iw_] = -w_ls * z_l[lw_] / z_i[iw_]   # through the idler: reversed
+            w_idle[iw_] = -w_ls * z_l[lw_] / z_i[iw_]  # through the idler: reversed
         else:
             w_idle[iw_] = w_ls * z_l[lw_] / z_i[iw_]
     w_ri = -w_ls * z_l["RL"] / teeth.z_RI
@@ -240,7 +271,7 @@ def _mesh_loads(teeth: Teeth, st: GearState, s: GearSpeeds):
         mtq[MESHES.index("PSP")] = T_ms
         mw2[MESHES.index("PSP")] = abs(s.w_planet_rel)
         mtq[MESHES.index("PPR")] = T_ms * teeth.z_planet / teeth.z_sun
-        mw2[MESHES.index("PPR")] = abs(s.w_carrier)   # ring relative to the carrier
+        mw2[MESHES.index("PPR")] = abs(s.w_carrier)  # ring relative to the carrier
     return mtq, mw2, act
 
 
@@ -251,9 +282,13 @@ def _gear_row(teeth: Teeth, st: GearState) -> GearRow:
     shaft_under = {"LI": s.w_is, "3M": s.w_ms, "2M": s.w_ms, "1M": s.w_ms, "CM": s.w_ms, "RM": s.w_ms}
     wbr = np.array([abs(s.w_idle[w] - shaft_under[w]) for w in IDLE_WHEELS])
     # synchronizer rings: open interfaces drag at the relative speed; the engaged one is locked
-    sync_pairs = {"LI/IS": (s.w_idle["LI"], s.w_is), "3M/IS": (s.w_idle["3M"], s.w_is),
-                  "3M/MS": (s.w_idle["3M"], s.w_ms), "2M/MS": (s.w_idle["2M"], s.w_ms),
-                  "1M/MS": (s.w_idle["1M"], s.w_ms)}
+    sync_pairs = {
+        "LI/IS": (s.w_idle["LI"], s.w_is),
+        "3M/IS": (s.w_idle["3M"], s.w_is),
+        "3M/MS": (s.w_idle["3M"], s.w_ms),
+        "2M/MS": (s.w_idle["2M"], s.w_ms),
+        "1M/MS": (s.w_idle["1M"], s.w_ms),
+    }
     syn = np.zeros(len(SYNCS))
     for k, name in enumerate(SYNCS):
         if name == "PR/range":
@@ -262,8 +297,17 @@ def _gear_row(teeth: Teeth, st: GearState) -> GearRow:
         else:
             a, b = sync_pairs[name]
             syn[k] = abs(a - b)
-    speed = [s.w_is, s.w_ls, s.w_ms, s.w_os, *(s.w_idle[w] for w in IDLE_WHEELS), s.w_ri, s.w_ms, s.w_planet_rel,
-             s.w_ring]
+    speed = [
+        s.w_is,
+        s.w_ls,
+        s.w_ms,
+        s.w_os,
+        *(s.w_idle[w] for w in IDLE_WHEELS),
+        s.w_ri,
+        s.w_ms,
+        s.w_planet_rel,
+        s.w_ring,
+    ]
     ratio = s.w_is / s.w_os if st.main_pair is not None and s.w_os != 0 else np.inf
     return GearRow(speed, mtq, mw2, wbr, syn, act, ratio)
 
@@ -273,11 +317,18 @@ def build_table(teeth: Teeth, split_inverted: bool = False) -> KinematicTable:
     _check_teeth(teeth)
     states = [gear_state(g, split_inverted) for g in GEARS]
     rows = [_gear_row(teeth, st) for st in states]
-    return KinematicTable(SPEED_NAMES, np.array([r.speed for r in rows], dtype=float),
-                          np.array([r.mesh_torque for r in rows]), np.array([r.mesh_omega2 for r in rows]),
-                          np.array([r.wheel_bearing_rel for r in rows]), np.array([r.sync_rel for r in rows]),
-                          np.array([r.active_pair for r in rows]), np.array([r.ratio for r in rows], dtype=float),
-                          np.array([st.range == "low" for st in states]), split_inverted)
+    return KinematicTable(
+        SPEED_NAMES,
+        np.array([r.speed for r in rows], dtype=float),
+        np.array([r.mesh_torque for r in rows]),
+        np.array([r.mesh_omega2 for r in rows]),
+        np.array([r.wheel_bearing_rel for r in rows]),
+        np.array([r.sync_rel for r in rows]),
+        np.array([r.active_pair for r in rows]),
+        np.array([r.ratio for r in rows], dtype=float),
+        np.array([st.range == "low" for st in states]),
+        split_inverted,
+    )
 
 
 def total_ratio(table: KinematicTable, gear: int) -> float:

@@ -48,6 +48,7 @@ Reconstructions and interpretations (the seed's text extraction garbles several 
   ``Fa/Fr > e`` set); a parameter file that wants SKF semantics must swap the two sets.
 * Eq 36/37 (Palmgren): see ``bearing_torque_nm``. Eq 41: see ``sync_ring_drag_torque_nm``.
 """
+
 from __future__ import annotations
 
 import math
@@ -106,25 +107,25 @@ class GearMesh:
     internal: bool
     x1: float
     x2: float
-    m_t_m: float            # transverse module
-    alpha_t_rad: float      # transverse pressure angle
-    beta_b_rad: float       # base helix angle
-    R_p1_m: float           # reference pitch radii
+    m_t_m: float  # transverse module
+    alpha_t_rad: float  # transverse pressure angle
+    beta_b_rad: float  # base helix angle
+    R_p1_m: float  # reference pitch radii
     R_p2_m: float
-    R_b1_m: float           # base radii
+    R_b1_m: float  # base radii
     R_b2_m: float
-    R_a1_m: float           # tip radii (ring: inside its pitch circle)
+    R_a1_m: float  # tip radii (ring: inside its pitch circle)
     R_a2_m: float
-    R_f1_m: float           # root radii (ring: outside its pitch circle)
+    R_f1_m: float  # root radii (ring: outside its pitch circle)
     R_f2_m: float
-    alpha_tw_rad: float     # working transverse pressure angle (Eq 17)
-    R_w1_m: float           # working pitch radii
+    alpha_tw_rad: float  # working transverse pressure angle (Eq 17)
+    R_w1_m: float  # working pitch radii
     R_w2_m: float
-    g_f_m: float            # length of approach (limited by the driven wheel's tip)
-    g_a_m: float            # length of recession (limited by the driving wheel's tip)
-    L_a_m: float            # length of action (Eq 11)
-    h_t_m: float            # tooth height (addendum + dedendum)
-    eps_alpha: float        # transverse contact ratio L_a / p_bt [-]
+    g_f_m: float  # length of approach (limited by the driven wheel's tip)
+    g_a_m: float  # length of recession (limited by the driving wheel's tip)
+    L_a_m: float  # length of action (Eq 11)
+    h_t_m: float  # tooth height (addendum + dedendum)
+    eps_alpha: float  # transverse contact ratio L_a / p_bt [-]
 
 
 def _check_mesh_inputs(z1: int, z2: int, m_n: float, a_n: float, beta: float, a: float, b: float, internal: bool):
@@ -145,8 +146,9 @@ def _check_mesh_inputs(z1: int, z2: int, m_n: float, a_n: float, beta: float, a:
         raise ParameterError(f"internal mesh ring z2 = {z2} must exceed planet z1 = {z1} [-]")
 
 
-def mesh_geometry(z1, z2, m_n_m, alpha_n_rad, beta_rad, center_distance_m, face_width_m,
-                  internal=False, x1=0.0, x2=0.0) -> GearMesh:
+def mesh_geometry(
+    z1, z2, m_n_m, alpha_n_rad, beta_rad, center_distance_m, face_width_m, internal=False, x1=0.0, x2=0.0
+) -> GearMesh:
     """Build the geometry of a mesh (Eq 11-13, 17), wheel 1 driving wheel 2.
 
     ``internal=True`` is a planet (1, external teeth) meshing with a ring (2, internal teeth).
@@ -178,17 +180,18 @@ def mesh_geometry(z1, z2, m_n_m, alpha_n_rad, beta_rad, center_distance_m, face_
     if internal:
         R_a2 = R_p2 - m_n * (ADDENDUM_COEF + x2)
         R_f2 = R_p2 + m_n * (DEDENDUM_COEF - x2)
-        base_span = R_b2 - R_b1      # Eq 17, internal form
+        base_span = R_b2 - R_b1  # Eq 17, internal form
         sign = -1.0
     else:
         R_a2 = R_p2 + m_n * (ADDENDUM_COEF + x2)
         R_f2 = R_p2 - m_n * (DEDENDUM_COEF - x2)
-        base_span = R_b1 + R_b2      # Eq 17
+        base_span = R_b1 + R_b2  # Eq 17
         sign = 1.0
     if base_span >= a:
         raise ParameterError(
             f"mesh base radii {'difference' if internal else 'sum'} {base_span:.6g} m must be below the "
-            f"centre distance {a:.6g} m")
+            f"centre distance {a:.6g} m"
+        )
     if R_a2 <= R_b2 or R_a1 <= R_b1:
         raise ParameterError("mesh tip radius must lie outside the base circle on both wheels")
     alpha_tw = math.acos(base_span / a)  # Eq 17
@@ -196,24 +199,54 @@ def mesh_geometry(z1, z2, m_n_m, alpha_n_rad, beta_rad, center_distance_m, face_
     R_w2 = R_b2 / math.cos(alpha_tw)
     sin_tw = math.sin(alpha_tw)
     # Eq 12-13 reconstructed with their square roots (see module docstring for which tip limits which)
-    g_a = math.sqrt(R_a1 ** 2 - R_b1 ** 2) - R_w1 * sin_tw
-    g_f = sign * (math.sqrt(R_a2 ** 2 - R_b2 ** 2) - R_w2 * sin_tw)
+    g_a = math.sqrt(R_a1**2 - R_b1**2) - R_w1 * sin_tw
+    g_f = sign * (math.sqrt(R_a2**2 - R_b2**2) - R_w2 * sin_tw)
     if g_f <= 0.0 or g_a <= 0.0:
         raise ParameterError(
             f"mesh lengths of approach {g_f:.6g} m and recession {g_a:.6g} m must both be > 0 "
-            "(tips do not reach the line of action)")
+            "(tips do not reach the line of action)"
+        )
     # curvature radii at the ends of contact must stay positive (no involute interference)
     rho1_start = R_w1 * sin_tw - g_f
     rho2_end = R_w2 * sin_tw - sign * g_a
     if rho1_start <= 0.0 or rho2_end <= 0.0:
         raise ParameterError(
             "mesh path of contact runs past a base-circle tangent point (involute interference); "
-            "check z, x and the centre distance")
+            "check z, x and the centre distance"
+        )
     L_a = g_f + g_a  # Eq 11
     p_bt = math.pi * m_t * math.cos(alpha_t)
-    return GearMesh(z1, z2, m_n, a_n, beta, a, b, bool(internal), x1, x2, m_t, alpha_t, beta_b,
-                    R_p1, R_p2, R_b1, R_b2, R_a1, R_a2, R_f1, R_f2, alpha_tw, R_w1, R_w2, g_f, g_a, L_a,
-                    m_n * (ADDENDUM_COEF + DEDENDUM_COEF), L_a / p_bt)
+    return GearMesh(
+        z1,
+        z2,
+        m_n,
+        a_n,
+        beta,
+        a,
+        b,
+        bool(internal),
+        x1,
+        x2,
+        m_t,
+        alpha_t,
+        beta_b,
+        R_p1,
+        R_p2,
+        R_b1,
+        R_b2,
+        R_a1,
+        R_a2,
+        R_f1,
+        R_f2,
+        alpha_tw,
+        R_w1,
+        R_w2,
+        g_f,
+        g_a,
+        L_a,
+        m_n * (ADDENDUM_COEF + DEDENDUM_COEF),
+        L_a / p_bt,
+    )
 
 
 @lru_cache(maxsize=256)
@@ -232,15 +265,15 @@ def _mesh_kinematics(mesh, n_points):
     d, wt = _line_nodes(mesh.g_f_m, mesh.g_a_m, int(n_points))
     s = -1.0 if mesh.internal else 1.0
     u = mesh.z2 / mesh.z1
-    vg_per_w2 = np.abs(d) * (u + s)                                              # Eq 10 (exact form)
-    vr_per_w2 = 2.0 * mesh.R_w2_m * math.sin(mesh.alpha_tw_rad) + d * (u - s)    # Eq 16 (exact form)
+    vg_per_w2 = np.abs(d) * (u + s)  # Eq 10 (exact form)
+    vr_per_w2 = 2.0 * mesh.R_w2_m * math.sin(mesh.alpha_tw_rad) + d * (u - s)  # Eq 16 (exact form)
     return d, wt, s, vg_per_w2, vr_per_w2
 
 
 def _normal_force(mesh, torque1_nm):
     F_t = np.abs(torque1_nm) / mesh.R_w1_m
     F_n = F_t / (math.cos(mesh.alpha_n_rad) * math.cos(mesh.beta_rad))  # Eq 8
-    F_nu = F_n * math.cos(mesh.beta_b_rad) / mesh.face_width_m            # per unit contact length
+    F_nu = F_n * math.cos(mesh.beta_b_rad) / mesh.face_width_m  # per unit contact length
     return F_n, F_nu
 
 
@@ -283,8 +316,9 @@ def equivalent_modulus_pa(E1_pa, E2_pa, nu1, nu2):
     return 2.0 / ((1.0 - nu1 * nu1) / E1_pa + (1.0 - nu2 * nu2) / E2_pa)
 
 
-def gear_rolling_loss_w(mesh: GearMesh, torque1_nm, omega2_rad_s, mu_pa_s, piezo_per_pa, E1_pa, E2_pa, nu1, nu2,
-                        n_points=20):
+def gear_rolling_loss_w(
+    mesh: GearMesh, torque1_nm, omega2_rad_s, mu_pa_s, piezo_per_pa, E1_pa, E2_pa, nu1, nu2, n_points=20
+):
     """Rolling (EHL film) power loss of a loaded mesh [W], Eq 14-22 (order of 1..10 W, negligible).
 
     Zero torque or speed gives 0; below ROLL_TORQUE_MIN_NM the loss at that torque scaled by T / ROLL_TORQUE_MIN_NM
@@ -297,19 +331,24 @@ def gear_rolling_loss_w(mesh: GearMesh, torque1_nm, omega2_rad_s, mu_pa_s, piezo
     ap = np.asarray(piezo_per_pa, dtype=float)[..., None]
     E_eq = equivalent_modulus_pa(E1_pa, E2_pa, nu1, nu2)  # Eq 19
     _, F_nu = _normal_force(mesh, T)
-    F_nu = np.maximum(F_nu, _normal_force(mesh, np.asarray(ROLL_TORQUE_MIN_NM))[1])   # the film at T_min below it
+    F_nu = np.maximum(F_nu, _normal_force(mesh, np.asarray(ROLL_TORQUE_MIN_NM))[1])  # the film at T_min below it
     V_r = w2 * vr_per_w2  # Eq 16
     c = math.cos(mesh.alpha_t_rad) / (math.cos(mesh.beta_rad) * math.cos(mesh.alpha_n_rad))  # = 1/cos(beta_b)
     sin_tw = math.sin(mesh.alpha_tw_rad)
-    X1 = c * (mesh.R_w1_m * sin_tw + d)        # Eq 21
-    X2 = c * (mesh.R_w2_m * sin_tw - s * d)    # Eq 22 (internal: concave ring, rho2 grows with d)
-    X_eq = X1 * X2 / (X2 + s * X1)             # Eq 20 (internal: X1 X2 / (X2 - X1))
+    X1 = c * (mesh.R_w1_m * sin_tw + d)  # Eq 21
+    X2 = c * (mesh.R_w2_m * sin_tw - s * d)  # Eq 22 (internal: concave ring, rho2 grows with d)
+    X_eq = X1 * X2 / (X2 + s * X1)  # Eq 20 (internal: X1 X2 / (X2 - X1))
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        e_h = (X_eq * 2.65 * (mu * V_r / (2.0 * E_eq * X_eq)) ** 0.7 * (ap * E_eq) ** 0.54
-               * (F_nu / (E_eq * X_eq)) ** -0.13)                      # Eq 18
+        e_h = (
+            X_eq
+            * 2.65
+            * (mu * V_r / (2.0 * E_eq * X_eq)) ** 0.7
+            * (ap * E_eq) ** 0.54
+            * (F_nu / (E_eq * X_eq)) ** -0.13
+        )  # Eq 18
         F_r = ROLL_C_PA * e_h * mesh.face_width_m / math.cos(mesh.beta_rad)  # Eq 15
-        P = np.sum(wt * F_r * V_r, axis=-1)                                # Eq 14
-    P = P * np.minimum(np.abs(T[..., 0]) / ROLL_TORQUE_MIN_NM, 1.0)        # ROLL_TORQUE_MIN_NM: the ramp to 0
+        P = np.sum(wt * F_r * V_r, axis=-1)  # Eq 14
+    P = P * np.minimum(np.abs(T[..., 0]) / ROLL_TORQUE_MIN_NM, 1.0)  # ROLL_TORQUE_MIN_NM: the ramp to 0
     return np.where((T[..., 0] == 0.0) | (w2[..., 0] == 0.0), 0.0, P)
 
 
@@ -319,9 +358,9 @@ class ChurningResult(NamedTuple):
     power_w: np.ndarray | float
     C_side_nm: np.ndarray | float
     C_teeth_nm: np.ndarray | float
-    cmd_regime: np.ndarray | int   # 28, 29 or 30
-    cma_regime: np.ndarray | int   # 31 or 32
-    valid: np.ndarray | bool       # inside the ranges of Eq 33 and Eq 34
+    cmd_regime: np.ndarray | int  # 28, 29 or 30
+    cma_regime: np.ndarray | int  # 31 or 32
+    valid: np.ndarray | bool  # inside the ranges of Eq 33 and Eq 34
 
 
 #: reference tooth height h_t0 of the Cma correlation [m]: the seed's "widths only defined up to 14.4 mm"
@@ -329,8 +368,9 @@ class ChurningResult(NamedTuple):
 CHURN_H_T0_M = 8.0e-3
 
 
-def churning_loss(omega_rad_s, R_a_m, R_p_m, h_t_m, w_t_m, h_i_m, V_p_m3, V_0_m3, rho_kg_m3, nu_m2_s,
-                  h_t0_m=CHURN_H_T0_M) -> ChurningResult:
+def churning_loss(
+    omega_rad_s, R_a_m, R_p_m, h_t_m, w_t_m, h_i_m, V_p_m3, V_0_m3, rho_kg_m3, nu_m2_s, h_t0_m=CHURN_H_T0_M
+) -> ChurningResult:
     """Churning loss of a wheel dipping in the sump, Eq 23-34.
 
     omega_rad_s: wheel speed (the caller passes the magnitude; omega <= 0 gives zero loss), R_a_m tip radius,
@@ -357,10 +397,10 @@ def churning_loss(omega_rad_s, R_a_m, R_p_m, h_t_m, w_t_m, h_i_m, V_p_m3, V_0_m3
     hr = h_i / R_a
     wr = w_t / R_a
     # Eq 28-30
-    lam = re_s ** -0.6 * fr_s ** -0.25
-    cmd28 = 0.97 * re_s ** -0.31 * fr_s ** -(0.464 + 0.037 / hr) * vr ** -0.576 * wr ** -0.124 * hr ** 0.74
-    cmd29 = 2.63 * lam * vr ** -0.73 * wr ** -0.4 * hr ** 1.5
-    cmd30 = 4.57 * lam * vr ** -0.5 * wr ** -0.4 * hr ** 1.5
+    lam = re_s**-0.6 * fr_s**-0.25
+    cmd28 = 0.97 * re_s**-0.31 * fr_s ** -(0.464 + 0.037 / hr) * vr**-0.576 * wr**-0.124 * hr**0.74
+    cmd29 = 2.63 * lam * vr**-0.73 * wr**-0.4 * hr**1.5
+    cmd30 = 4.57 * lam * vr**-0.5 * wr**-0.4 * hr**1.5
     turb_s = re_s >= 2250.0
     low = lam < 8.7e-3
     cmd = np.where(turb_s, cmd28, np.where(low, cmd29, cmd30))
@@ -368,20 +408,37 @@ def churning_loss(omega_rad_s, R_a_m, R_p_m, h_t_m, w_t_m, h_i_m, V_p_m3, V_0_m3
     # Eq 31-32
     htr = h_t / h_t0_m
     wtr = w_t / h_t0_m
-    hi_t = re_t ** 0.23 * fr_t ** 0.32 >= 12.0
-    cma31 = 5623.0 * re_t ** -0.88 * fr_t ** -0.78 * htr ** -1.5 * wtr ** -0.36
-    cma32 = 616.6 * re_t ** -0.64 * fr_t ** -0.46 * htr ** -1.66 * wtr ** -0.46
+    hi_t = re_t**0.23 * fr_t**0.32 >= 12.0
+    cma31 = 5623.0 * re_t**-0.88 * fr_t**-0.78 * htr**-1.5 * wtr**-0.36
+    cma32 = 616.6 * re_t**-0.64 * fr_t**-0.46 * htr**-1.66 * wtr**-0.46
     cma = np.where(hi_t, cma31, cma32)
     cma_regime = np.where(hi_t, 31, 32)
     # Eq 24-25, 23
-    C_side = np.where(on, rho * ws * ws * w_t * R_a ** 4 * cmd, 0.0)
-    C_teeth = np.where(on, rho * ws * ws * w_t * R_p ** 3 * h_t * cma, 0.0)
+    C_side = np.where(on, rho * ws * ws * w_t * R_a**4 * cmd, 0.0)
+    C_teeth = np.where(on, rho * ws * ws * w_t * R_p**3 * h_t * cma, 0.0)
     P = (C_side + C_teeth) * np.where(on, w, 0.0)
     # Eq 33-34 (strict inequalities as printed)
-    valid = (on & (10.0 < re_s) & (re_s < 36000.0) & (1.6 < fr_s) & (fr_s < 1400.0)
-             & (0.025 < hr) & (hr < 1.0) & (0.006 < wr) & (wr < 1.0) & (0.1 < vr) & (vr < 0.25)
-             & (7.0 < re_t) & (re_t < 2110.0) & (22.0 < fr_t) & (fr_t < 3112.0)
-             & (0.45 < wtr) & (wtr < 1.8) & (1.0 < htr) & (htr < 1.6))
+    valid = (
+        on
+        & (10.0 < re_s)
+        & (re_s < 36000.0)
+        & (1.6 < fr_s)
+        & (fr_s < 1400.0)
+        & (0.025 < hr)
+        & (hr < 1.0)
+        & (0.006 < wr)
+        & (wr < 1.0)
+        & (0.1 < vr)
+        & (vr < 0.25)
+        & (7.0 < re_t)
+        & (re_t < 2110.0)
+        & (22.0 < fr_t)
+        & (fr_t < 3112.0)
+        & (0.45 < wtr)
+        & (wtr < 1.8)
+        & (1.0 < htr)
+        & (htr < 1.6)
+    )
     return ChurningResult(P, C_side, C_teeth, np.where(on, cmd_regime, 0), np.where(on, cma_regime, 0), valid)
 
 
@@ -400,9 +457,10 @@ def _palmgren_oil_torque_nm(f0, Dm_m, nu_m2_s, omega_rad_s):
     # Eq 36-37: T_oil = 9.78e-2 f0 Dm^3 max(nu n, 2000)^(2/3), nu in cSt, n in rpm, Dm in m, T in N m.
     # Palmgren: M0 = 1e-7 f0 (nu n)^(2/3) dm^3 N mm (dm in mm) = 0.1 f0 (nu n)^(2/3) Dm^3 N m; the seed's
     # constant is 2.2 % below Palmgren's 0.1 and is kept as printed.
-    nu_n = (np.asarray(nu_m2_s, dtype=float) * 1e6) * (np.abs(np.asarray(omega_rad_s, dtype=float))
-                                                        * RPM_PER_RAD_S)
-    return PALMGREN_SEED_C * f0 * np.asarray(Dm_m, dtype=float) ** 3 * np.maximum(nu_n, PALMGREN_NU_N_MIN) ** (2.0 / 3.0)
+    nu_n = (np.asarray(nu_m2_s, dtype=float) * 1e6) * (np.abs(np.asarray(omega_rad_s, dtype=float)) * RPM_PER_RAD_S)
+    return (
+        PALMGREN_SEED_C * f0 * np.asarray(Dm_m, dtype=float) ** 3 * np.maximum(nu_n, PALMGREN_NU_N_MIN) ** (2.0 / 3.0)
+    )
 
 
 def bearing_torque_nm(f0, f1, f2, Dm_m, nu_m2_s, omega_rad_s, P0_n, P1_n, Fa_n):
@@ -414,10 +472,10 @@ def bearing_torque_nm(f0, f1, f2, Dm_m, nu_m2_s, omega_rad_s, P0_n, P1_n, Fa_n):
     standstill (the loss power is then zero because omega is). Load terms: Eq 38 ``f1 (P0 + P1) Dm``,
     Eq 39 ``f2 |Fa| Dm``.
     """
-    T_oil = _palmgren_oil_torque_nm(f0, Dm_m, nu_m2_s, omega_rad_s)          # Eq 36-37
+    T_oil = _palmgren_oil_torque_nm(f0, Dm_m, nu_m2_s, omega_rad_s)  # Eq 36-37
     T_rad = f1 * (np.asarray(P0_n, dtype=float) + np.asarray(P1_n, dtype=float)) * Dm_m  # Eq 38
-    T_ax = f2 * np.abs(np.asarray(Fa_n, dtype=float)) * Dm_m                 # Eq 39
-    return T_oil + T_rad + T_ax                                              # Eq 35
+    T_ax = f2 * np.abs(np.asarray(Fa_n, dtype=float)) * Dm_m  # Eq 39
+    return T_oil + T_rad + T_ax  # Eq 35
 
 
 def needle_bearing_torque_nm(f0, Dm_m, nu_m2_s, rel_omega_rad_s):
@@ -437,8 +495,15 @@ def sync_ring_drag_torque_nm(n_ring, mu_pa_s, R_ring_m, w_ring_m, J_ax_m, theta_
     shear over the cone area 2 pi R w, gap normal to the cone J_ax sin theta); the torque is that times the
     relative speed and carries its sign (it opposes the relative motion). Loss power = torque * rel_omega >= 0.
     """
-    c = (n_ring * 2.0 * math.pi * np.asarray(mu_pa_s, dtype=float) * np.asarray(R_ring_m, dtype=float) ** 3
-         * w_ring_m / (J_ax_m * np.sin(theta_ring_rad)))  # Eq 41 [N m s]
+    c = (
+        n_ring
+        * 2.0
+        * math.pi
+        * np.asarray(mu_pa_s, dtype=float)
+        * np.asarray(R_ring_m, dtype=float) ** 3
+        * w_ring_m
+        / (J_ax_m * np.sin(theta_ring_rad))
+    )  # Eq 41 [N m s]
     return c * np.asarray(rel_omega_rad_s, dtype=float)
 
 
@@ -454,4 +519,3 @@ def planetary_heat_split(Q_w):
     """Split planetary losses [W] into (sun, planets, ring) heat [W] as 1/3, 1/2, 1/6 (section 3.2)."""
     Q = np.asarray(Q_w, dtype=float)
     return Q * PLANETARY_HEAT_SPLIT["PS"], Q * PLANETARY_HEAT_SPLIT["PP"], Q * PLANETARY_HEAT_SPLIT["PR"]
-

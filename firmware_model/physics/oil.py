@@ -24,6 +24,7 @@ Provenance of each property
   for these): k = 0.134 - 7.0e-5 * T_c W/(m K), cp = 1880 + 3.7 * T_c J/(kg K), i.e. 0.127 W/(m K) and
   2250 J/(kg K) at 100 degC, in line with handbook values for mineral gear oils (ISO VG 100..220).
 """
+
 from __future__ import annotations
 
 import math
@@ -43,11 +44,17 @@ def check_temperature_c(label: str, value_c) -> float:
     """A temperature a user sets for the gearbox (an initial or a held temperature), checked: a finite number within
     T_MIN_C..T_MAX_C, the range the oil model describes (outside it every property is clipped; no gearbox in use
     is colder or hotter). InputError naming ``label`` (e.g. ``"--initial-temp"``) otherwise."""
-    if isinstance(value_c, bool) or not isinstance(value_c, (int, float, np.floating, np.integer)) \
-            or not (math.isfinite(value_c) and T_MIN_C <= value_c <= T_MAX_C):
-        raise InputError(f"{label} {value_c!r} degC is not a plausible gearbox temperature: use "
-                         f"{T_MIN_C:g}..{T_MAX_C:g} degC (the oil model's range)")
+    if (
+        isinstance(value_c, bool)
+        or not isinstance(value_c, (int, float, np.floating, np.integer))
+        or not (math.isfinite(value_c) and T_MIN_C <= value_c <= T_MAX_C)
+    ):
+        raise InputError(
+            f"{label} {value_c!r} degC is not a plausible gearbox temperature: use "
+            f"{T_MIN_C:g}..{T_MAX_C:g} degC (the oil model's range)"
+        )
     return float(value_c)
+
 
 # --- Appendix 2 table -------------------------------------------------------------------------------------
 #: table temperatures [degC]
@@ -116,17 +123,21 @@ def _density(Tc):
 def _kinematic(Tc):
     x = np.log10(Tc + KELVIN_OFFSET_K)
     # np.interp holds the end rows; add the end-segment slopes outside the table (linear extrapolation of W)
-    w = (np.interp(x, _X_ROWS, _W_ROWS)
-         + _W_SLOPE_FIRST * np.minimum(x - _X_FIRST, 0.0)
-         + _W_SLOPE_LAST * np.maximum(x - _X_LAST, 0.0))
-    nu_cst = 10.0 ** (10.0 ** w) - _WALTHER_C  # always > 0.3 cSt: 10**(10**w) > 1
+    w = (
+        np.interp(x, _X_ROWS, _W_ROWS)
+        + _W_SLOPE_FIRST * np.minimum(x - _X_FIRST, 0.0)
+        + _W_SLOPE_LAST * np.maximum(x - _X_LAST, 0.0)
+    )
+    nu_cst = 10.0 ** (10.0**w) - _WALTHER_C  # always > 0.3 cSt: 10**(10**w) > 1
     return nu_cst * 1e-6
 
 
 def _piezo(Tc):
-    a = (np.interp(Tc, TABLE_PIEZO_T_C, TABLE_PIEZO_PER_PA)
-         + _PIEZO_SLOPE_FIRST * np.minimum(Tc - _PIEZO_T_FIRST, 0.0)
-         + _PIEZO_SLOPE_LAST * np.maximum(Tc - _PIEZO_T_LAST, 0.0))
+    a = (
+        np.interp(Tc, TABLE_PIEZO_T_C, TABLE_PIEZO_PER_PA)
+        + _PIEZO_SLOPE_FIRST * np.minimum(Tc - _PIEZO_T_FIRST, 0.0)
+        + _PIEZO_SLOPE_LAST * np.maximum(Tc - _PIEZO_T_LAST, 0.0)
+    )
     return np.maximum(a, PIEZO_FLOOR_PER_PA)
 
 

@@ -37,6 +37,7 @@ Modules: ``options`` (settings, the signal wiring, receive filters), ``records``
 ``trust`` (the findings), ``live`` (:func:`serve`), ``build`` (:func:`build_service` from a config). Only the standard library, numpy and
 the CAN edge (``can_dbc``: python-can, cantools) are imported by the service itself (docs/CONVENTIONS.md).
 """
+
 from __future__ import annotations
 
 import importlib
@@ -44,13 +45,32 @@ import importlib
 #: the public names and the submodule each lives in; imported on first use (PEP 562), so that a run-table replay,
 #: which needs only ``options``, does not import python-can (whose MF4 support alone imports asammdf: ~0.5 s)
 _WHERE = {
-    "build_service": "build", "DM1_PERIOD_STEPS": "core", "SensorService": "core", "LatencyFigures": "live",
-    "QueueListener": "live", "ServeResult": "live", "serve": "live", "GEAR_RANGE": "options",
-    "INPUT_COLUMNS": "options", "INPUT_SIGNALS": "records", "NOMINAL_PERIOD_S": "options",
-    "SENSOR_INPUTS": "records", "ServiceOptions": "options", "can_filters": "options", "parse_gear_map": "options",
-    "rig_pgns": "options", "wanted_pgns": "options", "StepSensor": "protocol", "check_sensor": "protocol",
-    "GbxStatus": "records", "OutputRow": "records", "RecordedOutputs": "records", "StepInputs": "records",
-    "StepKind": "records", "StepRequest": "records"}
+    "build_service": "build",
+    "DM1_PERIOD_STEPS": "core",
+    "SensorService": "core",
+    "LatencyFigures": "live",
+    "QueueListener": "live",
+    "ServeResult": "live",
+    "serve": "live",
+    "GEAR_RANGE": "options",
+    "INPUT_COLUMNS": "options",
+    "INPUT_SIGNALS": "records",
+    "NOMINAL_PERIOD_S": "options",
+    "SENSOR_INPUTS": "records",
+    "ServiceOptions": "options",
+    "can_filters": "options",
+    "parse_gear_map": "options",
+    "rig_pgns": "options",
+    "wanted_pgns": "options",
+    "StepSensor": "protocol",
+    "check_sensor": "protocol",
+    "GbxStatus": "records",
+    "OutputRow": "records",
+    "RecordedOutputs": "records",
+    "StepInputs": "records",
+    "StepKind": "records",
+    "StepRequest": "records",
+}
 
 __all__ = list(_WHERE)
 

@@ -16,6 +16,7 @@ by frame, with numpy over the columns:
 The counters (``service.counters``, ``service.decoder.counters``) end as the frame path leaves them; what only a
 live run does (frames sent, DM1, logging every minute) is not done.
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -24,18 +25,26 @@ from typing import NamedTuple
 
 import numpy as np
 
-from can_dbc.columnar import (FLAG_ERROR, FLAG_EXTENDED, FLAG_REMOTE, DecodedColumns, FrameColumns, decode_columns,
-                              pgn_keys)
+from can_dbc.columnar import (
+    FLAG_ERROR,
+    FLAG_EXTENDED,
+    FLAG_REMOTE,
+    DecodedColumns,
+    FrameColumns,
+    decode_columns,
+    pgn_keys,
+)
 from can_dbc.decoder import signal_messages
 from can_dbc.j1939 import ID_MAX
 from firmware_model.components import MODE_NOT_INITIALISED, PUBLISHED, STEP_S
-from firmware_model.physics.oil import T_MAX_C as OIL_T_MAX_C, T_MIN_C as OIL_T_MIN_C
+from firmware_model.physics.oil import T_MAX_C as OIL_T_MAX_C
+from firmware_model.physics.oil import T_MIN_C as OIL_T_MIN_C
 from firmware_model.service.degraded import recorded_mode_counters, recorded_reject_counters
 from firmware_model.service.options import GEAR_RANGE, NOMINAL_PERIOD_S, SENSOR_INPUTS, wanted_pgns
+from firmware_model.service.protocol import start_state
 from firmware_model.service.recorder import StepRecorder
 from firmware_model.service.records import RecordedOutputs, StepKind
 from firmware_model.service.trust import TimeBaseCheck
-from firmware_model.service.protocol import start_state
 
 #: timing frames examined per vectorised pass of the step grid (fewer right after a time jump)
 _GRID_CHUNK_MAX = 65536
@@ -45,6 +54,7 @@ _GRID_CHUNK_MIN = 256
 class Grid(NamedTuple):
     """The steps of a log: the frame that triggered each (its index), its boundary time, its run-table time; the
     anchors (frame index, frame time; the first, then one per time jump) and which of them were time jumps."""
+
     trigger: np.ndarray
     t_step_s: np.ndarray
     t_s: np.ndarray
@@ -85,7 +95,7 @@ def step_grid(t_frame_s: np.ndarray, timing: np.ndarray, max_catchup: int, backw
             anchor_t.append(t0)
             pos += 1
             continue
-        c = ts[pos:pos + size]
+        c = ts[pos : pos + size]
         n = _boundaries(c, t0)
         cm = np.maximum.accumulate(np.maximum(n, k))
         kprev = np.concatenate([[k], cm[:-1]])
@@ -110,7 +120,7 @@ def step_grid(t_frame_s: np.ndarray, timing: np.ndarray, max_catchup: int, backw
             j = stop
             t_j = float(c[j])
             if bwd[j]:
-                offset += t0 + int(kprev[j]) * STEP_S - t_j          # as SensorService._time_jump
+                offset += t0 + int(kprev[j]) * STEP_S - t_j  # as SensorService._time_jump
             jumps.append(int(timing[pos + j]))
             anchors.append(int(timing[pos + j]))
             anchor_t.append(t_j)
@@ -121,11 +131,18 @@ def step_grid(t_frame_s: np.ndarray, timing: np.ndarray, max_catchup: int, backw
             k = int(cm[-1])
             pos += c.size
             size = min(2 * size, _GRID_CHUNK_MAX)
-    cat = (lambda parts, dt: np.concatenate(parts) if parts else np.zeros(0, dtype=dt))
+    cat = lambda parts, dt: np.concatenate(parts) if parts else np.zeros(0, dtype=dt)
     t_step_s = cat(tstep, float)
     t_s = t_step_s - (first if first is not None else 0.0) + cat(toff, float)
-    return Grid(cat(trig, np.int64), t_step_s, t_s, np.array(anchors, dtype=np.int64), np.array(anchor_t),
-                np.array(jumps, dtype=np.int64), catchup)
+    return Grid(
+        cat(trig, np.int64),
+        t_step_s,
+        t_s,
+        np.array(anchors, dtype=np.int64),
+        np.array(anchor_t),
+        np.array(jumps, dtype=np.int64),
+        catchup,
+    )
 
 
 class _Fresh:
@@ -196,14 +213,14 @@ def _time_base(service, grid: Grid, decoded: DecodedColumns) -> np.ndarray:
                 tb["finding"] = dataclasses.asdict(event)
             i += 1
     if n:
-        tb.update(windows_checked=check.windows_checked, windows_suspect=check.windows_suspect,
-                  suspect=check.suspect)
+        tb.update(windows_checked=check.windows_checked, windows_suspect=check.windows_suspect, suspect=check.suspect)
     return suspect
 
 
 class FrameHalf(NamedTuple):
     """Every step's frame half: kind, the inputs (steps x 8, NaN = not available), percent and reference torque,
     the rig thermocouples (NaN where none is fresh) and which thermocouples were ever received."""
+
     grid: Grid
     kind: np.ndarray
     inputs: np.ndarray
@@ -234,12 +251,20 @@ def _log_jumps(log, grid: Grid, t_frame_s: np.ndarray) -> None:
     for i, f in enumerate(grid.jump_frames[:JUMPS_LOGGED]):
         before = int(np.searchsorted(grid.trigger, f, side="left")) - 1
         epoch = int(np.searchsorted(grid.anchor_frame, f, side="left")) - 1
-        last_s = float(grid.t_step_s[before]) if before >= 0 and grid.trigger[before] > grid.anchor_frame[epoch] \
+        last_s = (
+            float(grid.t_step_s[before])
+            if before >= 0 and grid.trigger[before] > grid.anchor_frame[epoch]
             else float(grid.anchor_t_s[epoch])
+        )
         t_s = float(t_frame_s[f])
-        log.warning("frame time jumped %s by %.3f s (from %.6f to %.6f): restarting the step grid, inputs dropped, "
-                    "the sensor resumes from its state", "backward" if t_s < last_s else "forward", abs(t_s - last_s),
-                    last_s, t_s)
+        log.warning(
+            "frame time jumped %s by %.3f s (from %.6f to %.6f): restarting the step grid, inputs dropped, "
+            "the sensor resumes from its state",
+            "backward" if t_s < last_s else "forward",
+            abs(t_s - last_s),
+            last_s,
+            t_s,
+        )
     if grid.jump_frames.size > JUMPS_LOGGED:
         log.warning("%d more frame time jumps (not logged one by one)", grid.jump_frames.size - JUMPS_LOGGED)
 
@@ -248,10 +273,16 @@ def frame_half(service, cols: FrameColumns, decoded: DecodedColumns, meas_names:
     """The service's frame half over a decoded log; updates ``service.counters`` as the frame path does."""
     opts = service.options
     flags = cols.flags
-    ext_ok = ((flags & FLAG_EXTENDED) != 0) & ((flags & (FLAG_ERROR | FLAG_REMOTE)) == 0) \
-        & (cols.can_id >= 0) & (cols.can_id <= ID_MAX) & np.isfinite(cols.timestamp_s)
-    timing = np.flatnonzero(ext_ok & np.isin(np.where(ext_ok, pgn_keys(np.where(ext_ok, cols.can_id, 0)), -1),
-                                             list(wanted_pgns().values())))
+    ext_ok = (
+        ((flags & FLAG_EXTENDED) != 0)
+        & ((flags & (FLAG_ERROR | FLAG_REMOTE)) == 0)
+        & (cols.can_id >= 0)
+        & (cols.can_id <= ID_MAX)
+        & np.isfinite(cols.timestamp_s)
+    )
+    timing = np.flatnonzero(
+        ext_ok & np.isin(np.where(ext_ok, pgn_keys(np.where(ext_ok, cols.can_id, 0)), -1), list(wanted_pgns().values()))
+    )
     grid = step_grid(cols.timestamp_s, timing, opts.max_catchup_steps, opts.backward_tolerance_s)
     counters = service.counters
     counters["frames_not_timing"] += len(cols) - timing.size
@@ -274,23 +305,25 @@ def frame_half(service, cols: FrameColumns, decoded: DecodedColumns, meas_names:
     j1939_gear = inputs[:, 2].copy()
     inputs[:, 2] = _model_gear(j1939_gear, opts.gear_map)
     counters["gear_unmapped_steps"] += int(np.count_nonzero(~np.isnan(j1939_gear) & np.isnan(inputs[:, 2])))
-    inputs[:, 7] = np.abs(inputs[:, 7])     # J1939 reports retarder braking negative
+    inputs[:, 7] = np.abs(inputs[:, 7])  # J1939 reports retarder braking negative
     pct = fresh.values("engine_torque_pct", max_age[messages["engine_torque_pct"]])
     k = np.searchsorted(decoded.ec1_frame, grid.trigger, side="left") - 1
     configured = np.nan if opts.configured_ref_torque_nm is None else opts.configured_ref_torque_nm
-    ref_nm = np.where(k >= 0, decoded.ec1_ref_torque_nm[np.maximum(k, 0)] if decoded.ec1_frame.size else configured,
-                      configured)
-    meas_c = np.stack([fresh.values(m, max_age["RIG"]) for m in meas_names], axis=1) if n \
-        else np.zeros((0, len(meas_names)))
+    ref_nm = np.where(
+        k >= 0, decoded.ec1_ref_torque_nm[np.maximum(k, 0)] if decoded.ec1_frame.size else configured, configured
+    )
+    meas_c = (
+        np.stack([fresh.values(m, max_age["RIG"]) for m in meas_names], axis=1) if n else np.zeros((0, len(meas_names)))
+    )
     first_s = grid.anchor_t_s[0] if grid.anchor_t_s.size else 0.0
     oil = inputs[:, 3]
-    plausible = (oil >= OIL_T_MIN_C) & (oil <= OIL_T_MAX_C)      # (as SensorService._initialisation; NaN: not)
+    plausible = (oil >= OIL_T_MIN_C) & (oil <= OIL_T_MAX_C)  # (as SensorService._initialisation; NaN: not)
     waiting = ~plausible & (grid.t_step_s - first_s < opts.init_wait_s - 1e-9)
     ready = np.flatnonzero(~waiting)
     kind = np.full(n, int(StepKind.NOT_INITIALISED), dtype=np.int8)
     if ready.size:
         kind[ready[0]] = int(StepKind.INITIALISE)
-        kind[ready[0] + 1:] = int(StepKind.STEP)
+        kind[ready[0] + 1 :] = int(StepKind.STEP)
         counters["started_without_oil"] = bool(not plausible[ready[0]]) and getattr(service, "restore", None) is None
     counters["uninitialised_steps"] += int(ready[0]) if ready.size else n
     return FrameHalf(grid, kind, inputs, pct, ref_nm, meas_c, tuple(m in decoded.tracks for m in meas_names))
@@ -329,7 +362,7 @@ def sensor_half(service, half: FrameHalf) -> RecordedOutputs:
         service.state = state
         T[i0:], level[i0:], ttl[i0:] = out.T_c, out.level, out.ttl_s
         mode = out.degraded_mode.astype(float)
-        tail[i0:, 0] = (mode != 0)
+        tail[i0:, 0] = mode != 0
         tail[i0:, 1] = mode
         tail[i0:, 2:6] = out.valid
         tail[i0:, 6] = ref_ok[i0:]
@@ -338,8 +371,11 @@ def sensor_half(service, half: FrameHalf) -> RecordedOutputs:
         tail[i0:, 9:] = out.rejects[:, :n_rej]
     service.counters.update(recorded_mode_counters(tail[:, 1]))
     if n_rej:
-        service.counters.update(recorded_reject_counters(tail[i0:, 9:], sensor.reject_reasons[:n_rej],
-                                                         ins[i0:, sensor.input_fields.index("oil_temp_c")], base))
+        service.counters.update(
+            recorded_reject_counters(
+                tail[i0:, 9:], sensor.reject_reasons[:n_rej], ins[i0:, sensor.input_fields.index("oil_temp_c")], base
+            )
+        )
     return RecordedOutputs(T, level, ttl, tail)
 
 
@@ -357,8 +393,7 @@ def run_columns(service, cols: FrameColumns) -> dict[str, np.ndarray]:
     outputs = sensor_half(service, half)
     recorder = StepRecorder(PUBLISHED, meas_names, service.sensor.reject_reasons)
     g = half.grid
-    head = np.column_stack([g.t_s, g.t_step_s, half.inputs, half.pct, half.ref_nm]) if g.t_s.size \
-        else np.zeros((0, 12))
+    head = np.column_stack([g.t_s, g.t_step_s, half.inputs, half.pct, half.ref_nm]) if g.t_s.size else np.zeros((0, 12))
     recorder.adopt_heads(head, half.meas_c)
     recorder.adopt(outputs)
     return recorder.columns(half.meas_seen)

@@ -1,11 +1,12 @@
 """The CAN service core, :class:`SensorService`: J1939 frames in, the sensor stepped on frame time, GBX_* frames out.
 Pure of threads, clocks and I/O; the timing model is in the package doc (``firmware_model.service``)."""
+
 from __future__ import annotations
 
 import dataclasses
 import logging
 import math
-from typing import Iterable
+from collections.abc import Iterable
 
 import numpy as np
 
@@ -15,11 +16,11 @@ from can_dbc.errors import ConfigError
 from can_dbc.j1939 import ID_MAX, pgn_key
 from firmware_model.components import MODE_HOLDING, MODE_NOT_INITIALISED, PUBLISHED, STEP_S
 from firmware_model.errors import InputError, ParameterError
-from firmware_model.physics.oil import T_MAX_C as OIL_T_MAX_C, T_MIN_C as OIL_T_MIN_C
+from firmware_model.physics.oil import T_MAX_C as OIL_T_MAX_C
+from firmware_model.physics.oil import T_MIN_C as OIL_T_MIN_C
 from firmware_model.service.netmgmt import AddressClaim
+from firmware_model.service.options import GEAR_RANGE, NOMINAL_PERIOD_S, SENSOR_INPUTS, ServiceOptions, wanted_pgns
 from firmware_model.service.plausibility import FINDING_SPNS, RecordCheck, min_torque_nm
-from firmware_model.service.options import (GEAR_RANGE, NOMINAL_PERIOD_S, SENSOR_INPUTS, ServiceOptions,
-                                            wanted_pgns)
 from firmware_model.service.protocol import StepSensor, check_sensor, start_state
 from firmware_model.service.recorder import StepRecorder
 from firmware_model.service.records import GbxStatus, StepInputs, StepKind, StepRequest
@@ -43,14 +44,20 @@ def _opt_float(x) -> float | None:
 def _codecs(options: ServiceOptions) -> tuple[J1939Decoder, OutputEncoder]:
     """The decoder and encoder the options describe; their ConfigErrors become ParameterErrors."""
     try:
-        decoder = J1939Decoder(expected_sa=options.expected_sa, retarder_ref_torque_nm=options.retarder_ref_torque_nm,
-                               configured_ref_torque_nm=options.configured_ref_torque_nm, rig=options.rig)
+        decoder = J1939Decoder(
+            expected_sa=options.expected_sa,
+            retarder_ref_torque_nm=options.retarder_ref_torque_nm,
+            configured_ref_torque_nm=options.configured_ref_torque_nm,
+            rig=options.rig,
+        )
         encoder = OutputEncoder(options.sensor_source_address)
     except ConfigError as exc:
         raise ParameterError(f"can: {exc}") from None
     if encoder.components != PUBLISHED:
-        raise ParameterError("the DBC's per-component signals (ComponentId) are not the published components "
-                             "(firmware_model.components.PUBLISHED)")
+        raise ParameterError(
+            "the DBC's per-component signals (ComponentId) are not the published components "
+            "(firmware_model.components.PUBLISHED)"
+        )
     return decoder, encoder
 
 
@@ -63,8 +70,15 @@ class SensorService:
     steps, inputs and outputs are the same, ``feed`` returns nothing); ``logger``: where counters and events go.
     """
 
-    def __init__(self, sensor: StepSensor, options: ServiceOptions | None = None, *, record: bool = False,
-                 emit_frames: bool = True, logger: logging.Logger | None = None) -> None:
+    def __init__(
+        self,
+        sensor: StepSensor,
+        options: ServiceOptions | None = None,
+        *,
+        record: bool = False,
+        emit_frames: bool = True,
+        logger: logging.Logger | None = None,
+    ) -> None:
         check_sensor(sensor)
         self.sensor = sensor
         self.options = options or ServiceOptions()
@@ -74,13 +88,25 @@ class SensorService:
         self.emit_frames = emit_frames
         #: the latest value and frame time of every decoded signal
         self.latest = LatestValues()
-        self.counters: dict = {"steps": 0, "steps_sent": 0, "catchup_steps": 0, "time_jumps": 0,
-                               "frames_not_timing": 0, "frames_sent": 0, "dm1_sent": 0, "stale_steps": {},
-                               "uninitialised_steps": 0, "mode_steps": {}, "gear_unmapped_steps": 0,
-                               "started_without_oil": False, "frames_out_of_order": 0, "out_of_order_max_s": 0.0,
-                               "input_rejects": {}, "oil_frozen_at_c": None,
-                               "time_base": {"windows_checked": 0, "windows_suspect": 0, "suspect": False,
-                                             "finding": None}}
+        self.counters: dict = {
+            "steps": 0,
+            "steps_sent": 0,
+            "catchup_steps": 0,
+            "time_jumps": 0,
+            "frames_not_timing": 0,
+            "frames_sent": 0,
+            "dm1_sent": 0,
+            "stale_steps": {},
+            "uninitialised_steps": 0,
+            "mode_steps": {},
+            "gear_unmapped_steps": 0,
+            "started_without_oil": False,
+            "frames_out_of_order": 0,
+            "out_of_order_max_s": 0.0,
+            "input_rejects": {},
+            "oil_frozen_at_c": None,
+            "time_base": {"windows_checked": 0, "windows_suspect": 0, "suspect": False, "finding": None},
+        }
         self._time_base = TimeBaseCheck(self.options.time_base_window_s, self.options.time_base_windows)
         self._findings_logged: dict[tuple, int] = {}
         self._wanted = frozenset(wanted_pgns().values())
@@ -89,7 +115,7 @@ class SensorService:
         messages = signal_messages()
         self._input_ages_s = tuple((signal, self._max_age_s[messages[signal]]) for _, signal in SENSOR_INPUTS)
         self._init_time()
-        self._prev_frame_t_s = -math.inf      # the previous frame's (finite) time: frames out of time order
+        self._prev_frame_t_s = -math.inf  # the previous frame's (finite) time: frames out of time order
         # the sensor: a step leaves its slow time-to-limit refresh to finish_pending(), which the live loop runs
         # after the step's frames are sent and every step runs first (so outputs never depend on when)
         self.state = None
@@ -99,28 +125,35 @@ class SensorService:
         self._pending = None
         self._initialised = False
         self._last_dm1: bytes | None = None
-        self._rejects_prev: np.ndarray | None = None      # the sensor's cumulative reject counters after the last step
-        self._oil_frozen_j = list(getattr(sensor, "reject_reasons", ())).index("oil_frozen") \
-            if "oil_frozen" in getattr(sensor, "reject_reasons", ()) else None
+        self._rejects_prev: np.ndarray | None = None  # the sensor's cumulative reject counters after the last step
+        self._oil_frozen_j = (
+            list(getattr(sensor, "reject_reasons", ())).index("oil_frozen")
+            if "oil_frozen" in getattr(sensor, "reject_reasons", ())
+            else None
+        )
         self._last_dm1_frame = None
         self._steps_since_dm1 = 0
         #: J1939 address claim and requests (live runs: options.address_claim); None: not a network node
-        self.netmgmt = AddressClaim(self.options.j1939_name, self.options.sensor_source_address, self.log) \
-            if self.options.address_claim else None
+        self.netmgmt = (
+            AddressClaim(self.options.j1939_name, self.options.sensor_source_address, self.log)
+            if self.options.address_claim
+            else None
+        )
         self._claim_started = False
         self._meas_names = tuple(f"meas_T_{c}_c" for c in PUBLISHED)
         self._recorder = StepRecorder(PUBLISHED, self._meas_names, self.sensor.reject_reasons)
         self._names_checked = 0
         self._rig_seen = False
         #: the whole-record rules of a live run (firmware_model.service.plausibility; a replay judges its table)
-        self.record_check = None if record else RecordCheck(min_torque_nm(sensor),
-                                                            getattr(sensor, "reject_reasons", ()))
+        self.record_check = (
+            None if record else RecordCheck(min_torque_nm(sensor), getattr(sensor, "reject_reasons", ()))
+        )
 
     def _init_time(self) -> None:
-        self._t0_s: float | None = None       # grid anchor (frame time)
-        self._k = 0                           # steps done since the anchor
+        self._t0_s: float | None = None  # grid anchor (frame time)
+        self._k = 0  # steps done since the anchor
         self._first_t_s: float | None = None  # frame time of the very first anchor (run-table time 0)
-        self._time_offset_s = 0.0             # run-table time added after a backward restart
+        self._time_offset_s = 0.0  # run-table time added after a backward restart
         self._next_log_t_s: float | None = None
         self._ref_warned = False
 
@@ -144,9 +177,8 @@ class SensorService:
                     n0 = len(out)
                     self._steps(due, out)
                     if self.netmgmt is not None and not self.netmgmt.can_transmit(timestamp_s):
-                        held = len(out) - n0         # not sent: not counted as sent
-                        self.counters["frames_held_no_address"] = self.counters.get("frames_held_no_address", 0) \
-                            + held
+                        held = len(out) - n0  # not sent: not counted as sent
+                        self.counters["frames_held_no_address"] = self.counters.get("frames_held_no_address", 0) + held
                         self.counters["frames_sent"] -= held
                         del out[n0:]
             elif timestamp_s < self._next_boundary_s - STEP_S - self.options.backward_tolerance_s:
@@ -208,18 +240,35 @@ class SensorService:
         s = self.counters
         rejected = ", ".join(f"{k} {v}" for k, v in sorted(d["rejected"].items())) or "none"
         stale = ", ".join(f"{k} {v}" for k, v in sorted(s["stale_steps"].items())) or "none"
-        self.log.log(level, "frames seen %d, used %d, rejected: %s; EC1 received %d, RC %d; steps %d (sent %d, "
-                     "catch-up %d), time jumps %d; stale steps per input: %s; frames sent %d",
-                     d["frames_seen"], d["frames_used"], rejected, d["tp"]["ec1_received"],
-                     d["tp"].get("rc_received", 0), s["steps"],
-                     s["steps_sent"], s["catchup_steps"], s["time_jumps"], stale, s["frames_sent"])
+        self.log.log(
+            level,
+            "frames seen %d, used %d, rejected: %s; EC1 received %d, RC %d; steps %d (sent %d, "
+            "catch-up %d), time jumps %d; stale steps per input: %s; frames sent %d",
+            d["frames_seen"],
+            d["frames_used"],
+            rejected,
+            d["tp"]["ec1_received"],
+            d["tp"].get("rc_received", 0),
+            s["steps"],
+            s["steps_sent"],
+            s["catchup_steps"],
+            s["time_jumps"],
+            stale,
+            s["frames_sent"],
+        )
 
     def findings(self) -> list:
         """What the run must not keep quiet about (``firmware_model.service.trust.trust_findings``): a suspect time
         base, inputs from unexpected source addresses, a large degraded share; most severe first."""
         oil_model = getattr(getattr(self.sensor, "options", None), "oil_mode", "measured") == "model"
-        found = trust_findings(self.all_counters(), self.decoder.expected_sa, self.options.expected_sa, oil_model,
-                               self.options.stale_factor, self.options.source_address_keys or None)
+        found = trust_findings(
+            self.all_counters(),
+            self.decoder.expected_sa,
+            self.options.expected_sa,
+            oil_model,
+            self.options.stale_factor,
+            self.options.source_address_keys or None,
+        )
         if self.record_check is not None and self.record_check.findings:
             found = sorted(found + self.record_check.findings, key=lambda f: -f.severity)
         return found
@@ -281,9 +330,14 @@ class SensorService:
     def _time_jump(self, timestamp_s: float, direction: str) -> None:
         last_s = self._t0_s + self._k * STEP_S
         self.counters["time_jumps"] += 1
-        self.log.warning("frame time jumped %s by %.3f s (from %.6f to %.6f): restarting the step grid, inputs "
-                         "dropped, the sensor resumes from its state", direction, abs(timestamp_s - last_s), last_s,
-                         timestamp_s)
+        self.log.warning(
+            "frame time jumped %s by %.3f s (from %.6f to %.6f): restarting the step grid, inputs "
+            "dropped, the sensor resumes from its state",
+            direction,
+            abs(timestamp_s - last_s),
+            last_s,
+            timestamp_s,
+        )
         if direction == "backward":
             # the frame that went back stands where the last step stood: the next step comes STEP_S after it, as
             # on a continuous clock (a STEP_S more here showed the sensor a 0.2 s step, counted as a forward jump)
@@ -337,8 +391,9 @@ class SensorService:
         check = self.record_check
         if check is None or check.update() is None:
             return
-        self.counters["record_findings"] = [{"kind": f.kind, "severity": f.severity.name.lower(),
-                                             "sentence": f.sentence} for f in check.findings]
+        self.counters["record_findings"] = [
+            {"kind": f.kind, "severity": f.severity.name.lower(), "sentence": f.sentence} for f in check.findings
+        ]
         if self.options.log_findings:
             self.log_findings(only_new=True)
 
@@ -347,14 +402,15 @@ class SensorService:
         check = self._time_base
         event = check.update(t_step_s, self.decoder.counters["arrivals"])
         tb = self.counters["time_base"]
-        tb.update(windows_checked=check.windows_checked, windows_suspect=check.windows_suspect,
-                  suspect=check.suspect)
+        tb.update(windows_checked=check.windows_checked, windows_suspect=check.windows_suspect, suspect=check.suspect)
         if event is None:
             return
         if event == "cleared":
             if self.options.log_findings:
-                self.log.info("time base plausible again at frame time %.3f s: the input messages arrive at their "
-                              "J1939 periods", t_step_s)
+                self.log.info(
+                    "time base plausible again at frame time %.3f s: the input messages arrive at their J1939 periods",
+                    t_step_s,
+                )
             return
         if tb["finding"] is None:
             tb["finding"] = dataclasses.asdict(event)
@@ -400,10 +456,12 @@ class SensorService:
         inputs = StepInputs._make(fresh)
         retarder_nm = inputs.retarder_torque_nm
         gear = self._model_gear(inputs.gear)
-        if gear is None and inputs.gear is not None:       # a gear the map or the model's range leaves out
+        if gear is None and inputs.gear is not None:  # a gear the map or the model's range leaves out
             self.counters["gear_unmapped_steps"] += 1
-        return inputs._replace(gear=gear,  # J1939 reports retarder braking negative
-                               retarder_torque_nm=None if retarder_nm is None else abs(retarder_nm))
+        return inputs._replace(
+            gear=gear,  # J1939 reports retarder braking negative
+            retarder_torque_nm=None if retarder_nm is None else abs(retarder_nm),
+        )
 
     def _model_gear(self, gear):
         """The J1939 gear number as a seed Table 1 gear (``gear_map``), None outside the model's range."""
@@ -416,12 +474,18 @@ class SensorService:
         return gear
 
     def _warn_no_ref_torque(self, t_step_s: float) -> None:
-        if not self._ref_warned and self._first_t_s is not None \
-                and t_step_s - self._first_t_s >= self.options.no_ref_torque_warning_s:
+        if (
+            not self._ref_warned
+            and self._first_t_s is not None
+            and t_step_s - self._first_t_s >= self.options.no_ref_torque_warning_s
+        ):
             self._ref_warned = True
-            self.log.warning("no EC1 (engine reference torque, SPN 544) received in %.0f s of traffic and no "
-                             "[can] engine_reference_torque_nm configured: engine torque is not available, the "
-                             "sensor runs degraded", t_step_s - self._first_t_s)
+            self.log.warning(
+                "no EC1 (engine reference torque, SPN 544) received in %.0f s of traffic and no "
+                "[can] engine_reference_torque_nm configured: engine torque is not available, the "
+                "sensor runs degraded",
+                t_step_s - self._first_t_s,
+            )
 
     def _initialisation(self, t_step_s: float, oil_temp_c: float | None) -> StepKind:
         """Before the first step: wait up to ``init_wait_s`` for a plausible measured oil temperature (one outside
@@ -431,16 +495,24 @@ class SensorService:
             self.counters["uninitialised_steps"] += 1
             return StepKind.NOT_INITIALISED
         self._initialised = True
-        self.counters["started_without_oil"] = not plausible and self.restore is None    # (here: the frame half)
-        self.log.info("sensor initialised at frame time %.3f s with oil temperature %s", t_step_s,
-                      "not available" if oil_temp_c is None else f"{oil_temp_c:.2f} degC")
+        self.counters["started_without_oil"] = not plausible and self.restore is None  # (here: the frame half)
+        self.log.info(
+            "sensor initialised at frame time %.3f s with oil temperature %s",
+            t_step_s,
+            "not available" if oil_temp_c is None else f"{oil_temp_c:.2f} degC",
+        )
         return StepKind.INITIALISE
 
     def _record_head(self, t_s: float, t_step_s: float, inputs: StepInputs, ref_torque_nm: float | None) -> None:
         nan = math.nan
         pct = self._fresh("engine_torque_pct", t_step_s)
-        row = (t_s, t_step_s, *[nan if v is None else v for v in inputs], nan if pct is None else pct,
-               nan if ref_torque_nm is None else ref_torque_nm)
+        row = (
+            t_s,
+            t_step_s,
+            *[nan if v is None else v for v in inputs],
+            nan if pct is None else pct,
+            nan if ref_torque_nm is None else ref_torque_nm,
+        )
         self._recorder.add_head(row, self._rig_row(t_step_s) if self._rig_values_seen() else None)
 
     def _fresh(self, name: str, t_step_s: float):
@@ -462,8 +534,12 @@ class SensorService:
     def _rig_row(self, t_step_s: float) -> np.ndarray:
         times, values = self.latest.time_s, self.latest.value
         max_age_s = self._max_age_s["RIG"]
-        return np.array([values[name] if t_step_s - times.get(name, -math.inf) <= max_age_s else math.nan
-                         for name in self._meas_names])
+        return np.array(
+            [
+                values[name] if t_step_s - times.get(name, -math.inf) <= max_age_s else math.nan
+                for name in self._meas_names
+            ]
+        )
 
     def _apply(self, req: StepRequest, send: bool = True) -> list:
         """The sensor half of a step (``req`` from :meth:`_gather`); returns the frames to send."""
@@ -486,24 +562,40 @@ class SensorService:
         self._count_mode(status.degraded_mode)
         frames = []
         if self.emit_frames:
-            frames = self._encode(req.t_step_s, dict(zip(PUBLISHED, T_c.tolist())),
-                                  dict(zip(PUBLISHED, level.astype(int).tolist())),
-                                  dict(zip(PUBLISHED, ttl_s.tolist())), status, send, req.time_base_suspect)
+            frames = self._encode(
+                req.t_step_s,
+                dict(zip(PUBLISHED, T_c.tolist())),
+                dict(zip(PUBLISHED, level.astype(int).tolist())),
+                dict(zip(PUBLISHED, ttl_s.tolist())),
+                status,
+                send,
+                req.time_base_suspect,
+            )
         if self.record:
             self._recorder.add_outputs(T_c, level, ttl_s, status, outputs.status.rejects)
         if self.record_check is not None:
-            self.record_check.add(fields["oil_temp_c"], fields["speed_rpm"], fields["torque_nm"], fields["gear"],
-                                  getattr(outputs.status, "rejects", None))
+            self.record_check.add(
+                fields["oil_temp_c"],
+                fields["speed_rpm"],
+                fields["torque_nm"],
+                fields["gear"],
+                getattr(outputs.status, "rejects", None),
+            )
         return frames
 
     @staticmethod
     def _status(st, ref_torque_nm: float | None) -> GbxStatus:
         """The GBX_STATUS content of a step from the sensor's status record."""
-        return GbxStatus(degraded_mode=int(st.degraded_mode), speed_valid=bool(st.speed_valid),
-                         torque_valid=bool(st.torque_valid), gear_valid=bool(st.gear_valid),
-                         oil_valid=bool(st.oil_valid), ref_torque_valid=ref_torque_nm is not None,
-                         oil_innovation_c=_opt_float(st.oil_innovation_c),
-                         model_oil_temp_c=_opt_float(st.model_oil_temp_c))
+        return GbxStatus(
+            degraded_mode=int(st.degraded_mode),
+            speed_valid=bool(st.speed_valid),
+            torque_valid=bool(st.torque_valid),
+            gear_valid=bool(st.gear_valid),
+            oil_valid=bool(st.oil_valid),
+            ref_torque_valid=ref_torque_nm is not None,
+            oil_innovation_c=_opt_float(st.oil_innovation_c),
+            model_oil_temp_c=_opt_float(st.model_oil_temp_c),
+        )
 
     def _initial_state(self, oil_temp_c, ambient_temp_c):
         """The first state: the saved one (``restore`` = (snapshot, elapsed wall time[, clean stop]),
@@ -519,8 +611,11 @@ class SensorService:
                 kw = {} if clean else {"running_s": elapsed_s}
                 state = self.sensor.initial_state(T_oil_c=oil_temp_c, snapshot=snapshot, elapsed_s=elapsed_s, **kw)
                 self.counters["state_restored"] = True
-                self.log.info("sensor state restored, %s for %.0f s off", "cooled" if clean else
-                              "saved while stepping (no clean stop): inputs held, then cooled,", elapsed_s)
+                self.log.info(
+                    "sensor state restored, %s for %.0f s off",
+                    "cooled" if clean else "saved while stepping (no clean stop): inputs held, then cooled,",
+                    elapsed_s,
+                )
                 return state
             except (InputError, ValueError, KeyError, TypeError) as exc:
                 self.counters["state_cold_start"] = str(exc)
@@ -529,10 +624,16 @@ class SensorService:
 
     def _not_initialised(self, req: StepRequest, send: bool) -> list:
         inputs = req.inputs
-        status = GbxStatus(degraded_mode=MODE_NOT_INITIALISED, speed_valid=inputs.speed_rpm is not None,
-                           torque_valid=inputs.torque_nm is not None, gear_valid=inputs.gear is not None,
-                           oil_valid=False, ref_torque_valid=req.ref_torque_nm is not None,
-                           oil_innovation_c=None, model_oil_temp_c=None)
+        status = GbxStatus(
+            degraded_mode=MODE_NOT_INITIALISED,
+            speed_valid=inputs.speed_rpm is not None,
+            torque_valid=inputs.torque_nm is not None,
+            gear_valid=inputs.gear is not None,
+            oil_valid=False,
+            ref_torque_valid=req.ref_torque_nm is not None,
+            oil_innovation_c=None,
+            model_oil_temp_c=None,
+        )
         self._count_mode(MODE_NOT_INITIALISED)
         frames = self._encode(req.t_step_s, {}, {}, {}, status, send, req.time_base_suspect)
         if self.record:
@@ -560,8 +661,16 @@ class SensorService:
         counts[mode] = counts.get(mode, 0) + 1
         self.counters["mode_now"] = mode
 
-    def _encode(self, t_step_s: float, temps_c: dict, levels: dict, ttl_s: dict, status: GbxStatus,
-                send: bool, time_base_suspect: bool = False) -> list:
+    def _encode(
+        self,
+        t_step_s: float,
+        temps_c: dict,
+        levels: dict,
+        ttl_s: dict,
+        status: GbxStatus,
+        send: bool,
+        time_base_suspect: bool = False,
+    ) -> list:
         """The step's frames; a catch-up step that is not sent leaves the DM1 schedule untouched. GBX_STATUS
         TimeBaseSuspect is 1 while the time base is suspect, else 3 ("no finding"; never 0: a rate check cannot
         prove a time base right)."""
@@ -573,8 +682,12 @@ class SensorService:
             if time_base_suspect:
                 st["time_base_suspect"] = True
             frames = self.encoder.encode(temps_c, levels, ttl_s, st, timestamp_s=t_step_s)
-        dm1 = self.encoder.encode_dm1(levels, missing_spn=_missing_input_spn(status, levels), timestamp_s=t_step_s,
-                                      implausible_spn=self._implausible_spn())
+        dm1 = self.encoder.encode_dm1(
+            levels,
+            missing_spn=_missing_input_spn(status, levels),
+            timestamp_s=t_step_s,
+            implausible_spn=self._implausible_spn(),
+        )
         self._last_dm1_frame = dm1
         self._steps_since_dm1 += 1
         payload = bytes(dm1.data)
@@ -605,4 +718,3 @@ def _missing_input_spn(status: GbxStatus, levels: dict) -> int | None:
         if not getattr(status, key):
             return spn
     return None
-

@@ -3,11 +3,13 @@ severity scale and :func:`untrusted`: the part of the trust findings (firmware_m
 replay needs, without the CAN edge (python-can, cantools), which trust imports for the time-base and source-address
 checks.
 """
+
 from __future__ import annotations
 
 import enum
+from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import ClassVar, Mapping
+from typing import ClassVar
 
 import numpy as np
 
@@ -19,13 +21,22 @@ DEGRADED_WARN_SHARE = 0.2
 DEGRADED_UNTRUSTED_SHARE = 0.5
 #: the inputs whose absence degrades the sensor, by their ``stale_steps`` name (the decoder signal) or run-table
 #: validity column, and their readable names (the others have defaults and are not listed as a cause)
-INPUT_NAMES = {"engine_speed_rpm": "engine speed", "engine_torque_nm": "engine torque", "gear": "gear",
-               "oil_temp_c": "oil temperature", "speed_valid": "engine speed", "torque_valid": "engine torque",
-               "gear_valid": "gear", "oil_valid": "oil temperature"}
+INPUT_NAMES = {
+    "engine_speed_rpm": "engine speed",
+    "engine_torque_nm": "engine torque",
+    "gear": "gear",
+    "oil_temp_c": "oil temperature",
+    "speed_valid": "engine speed",
+    "torque_valid": "engine torque",
+    "gear_valid": "gear",
+    "oil_valid": "oil temperature",
+}
+
 
 class Severity(enum.IntEnum):
     """How loud a finding is: NOTE (worth a line), WARNING (loud: the outputs are less accurate than they look),
     UNTRUSTED (loud, and `replay` exits 3: the outputs should not be used)."""
+
     NOTE = 0
     WARNING = 1
     UNTRUSTED = 2
@@ -35,14 +46,15 @@ class Severity(enum.IntEnum):
 class DegradedFinding:
     """The sensor ran degraded on ``degraded`` of ``steps`` steps; ``by_mode``: degraded mode -> steps;
     ``missing``: input -> steps it was missing (stale, not available or invalid)."""
+
     kind: ClassVar[str] = "degraded"
     steps: int
     degraded: int
     by_mode: dict = field(default_factory=dict)
     missing: dict = field(default_factory=dict)
-    causes: tuple = ()        # why inputs were missing, as far as the CAN decoder's counters tell (trust)
-    rejected: dict = field(default_factory=dict)   # the sensor's own input checks: reject reason -> steps
-    oil_frozen_at_c: float | None = None           # the oil reading on the last step it was rejected as frozen
+    causes: tuple = ()  # why inputs were missing, as far as the CAN decoder's counters tell (trust)
+    rejected: dict = field(default_factory=dict)  # the sensor's own input checks: reject reason -> steps
+    oil_frozen_at_c: float | None = None  # the oil reading on the last step it was rejected as frozen
 
     @property
     def share(self) -> float:
@@ -56,30 +68,50 @@ class DegradedFinding:
 
     @property
     def sentence(self) -> str:
-        modes = ", ".join(f"{MODE_NAMES.get(m, f'mode {m}')} {pct(n, self.steps)}"
-                          for m, n in sorted(self.by_mode.items(), key=lambda kv: -kv[1]) if m != MODE_NORMAL and n)
-        worst = sorted(((n, f"{INPUT_NAMES[k]} {pct(n, self.steps)}") for k, n in self.missing.items()
-                        if n and k in INPUT_NAMES), reverse=True)
+        modes = ", ".join(
+            f"{MODE_NAMES.get(m, f'mode {m}')} {pct(n, self.steps)}"
+            for m, n in sorted(self.by_mode.items(), key=lambda kv: -kv[1])
+            if m != MODE_NORMAL and n
+        )
+        worst = sorted(
+            ((n, f"{INPUT_NAMES[k]} {pct(n, self.steps)}") for k, n in self.missing.items() if n and k in INPUT_NAMES),
+            reverse=True,
+        )
         # the sensor's own checks (a frozen or implausible reading) next to the missing inputs, the most steps
         # first: a frozen oil reading is what degraded such a run, not the few steps a torque came late
         frozen_at = "" if self.oil_frozen_at_c is None else f" at {self.oil_frozen_at_c:.1f} degC"
-        worst = sorted(worst + [(n, REJECT_WORDS[r].format(at=frozen_at, share=pct(n, self.steps)))
-                                for r, n in self.rejected.items() if n and r in REJECT_WORDS],
-                       key=lambda nw: -nw[0])
-        inputs = ("; inputs not usable (missing, stale or rejected as implausible or frozen): "
-                  + ", ".join(words for _, words in worst)) if worst else ""
+        worst = sorted(
+            worst
+            + [
+                (n, REJECT_WORDS[r].format(at=frozen_at, share=pct(n, self.steps)))
+                for r, n in self.rejected.items()
+                if n and r in REJECT_WORDS
+            ],
+            key=lambda nw: -nw[0],
+        )
+        inputs = (
+            (
+                "; inputs not usable (missing, stale or rejected as implausible or frozen): "
+                + ", ".join(words for _, words in worst)
+            )
+            if worst
+            else ""
+        )
         why = f" ({'; '.join(self.causes)})" if self.causes else ""
-        return (f"the sensor ran degraded on {pct(self.degraded, self.steps)} of {self.steps} steps ({modes}){inputs}"
-                f"{why}: its temperatures rest on held, modelled or default inputs")
+        return (
+            f"the sensor ran degraded on {pct(self.degraded, self.steps)} of {self.steps} steps ({modes}){inputs}"
+            f"{why}: its temperatures rest on held, modelled or default inputs"
+        )
 
 
 #: the sensor's input checks that leave an input unused (firmware_model.onboard.records.REJECT_REASONS), in words;
 #: {share}: the share of the run's steps, {at}: " at <the frozen reading> degC". (A frozen drive is only flagged:
 #: its inputs are still used, so it is no cause of a degraded run.)
-REJECT_WORDS = {"oil_frozen": "oil temperature frozen{at} for {share} of the steps (bit-identical while the model's "
-                              "sump moved: the oil was modelled instead)",
-                "oil_implausible": "oil temperature rejected as implausible (out of range, or a jump) on {share} of "
-                                   "the steps"}
+REJECT_WORDS = {
+    "oil_frozen": "oil temperature frozen{at} for {share} of the steps (bit-identical while the model's "
+    "sump moved: the oil was modelled instead)",
+    "oil_implausible": "oil temperature rejected as implausible (out of range, or a jump) on {share} of the steps",
+}
 
 
 def pct(n: int, total: int) -> str:
@@ -87,10 +119,13 @@ def pct(n: int, total: int) -> str:
     return f"{share:.0f} %" if share >= 1.0 or share == 0.0 else f"{share:.1f} %"
 
 
-
-def degraded_finding(mode_steps: Mapping[int, int], missing: Mapping[str, int] | None = None,
-                     oil_model: bool = False, rejected: Mapping[str, int] | None = None,
-                     oil_frozen_at_c: float | None = None) -> DegradedFinding:
+def degraded_finding(
+    mode_steps: Mapping[int, int],
+    missing: Mapping[str, int] | None = None,
+    oil_model: bool = False,
+    rejected: Mapping[str, int] | None = None,
+    oil_frozen_at_c: float | None = None,
+) -> DegradedFinding:
     """The degraded share of a run from its steps per degraded mode (and the steps each input was missing; the
     steps the sensor's own checks rejected one, ``rejected``: reason -> steps, with the frozen oil reading).
     ``oil_model``: the sensor was asked to model the oil (oil_mode "model"): its oil-modelled steps are its normal
@@ -103,8 +138,14 @@ def degraded_finding(mode_steps: Mapping[int, int], missing: Mapping[str, int] |
         rejected = {k: v for k, v in rejected.items() if not k.startswith("oil_")}
     steps = int(sum(mode_steps.values()))
     degraded = steps - int(mode_steps.get(MODE_NORMAL, 0))
-    return DegradedFinding(steps, degraded, {int(m): int(n) for m, n in mode_steps.items()},
-                           dict(missing or {}), rejected=rejected, oil_frozen_at_c=oil_frozen_at_c)
+    return DegradedFinding(
+        steps,
+        degraded,
+        {int(m): int(n) for m, n in mode_steps.items()},
+        dict(missing or {}),
+        rejected=rejected,
+        oil_frozen_at_c=oil_frozen_at_c,
+    )
 
 
 #: a table whose rows jump forward in time on more than this share of the steps has the wrong time unit
@@ -117,6 +158,7 @@ STALL_TORQUE_NM, STALL_SPEED_RPM, STALL_UNTRUSTED_SHARE = 500.0, 300.0, 0.2
 @dataclass(frozen=True)
 class UnitFinding:
     """A run table whose columns look like another unit than their names say: ``what`` says which and why."""
+
     kind: ClassVar[str] = "units"
     what: str
 
@@ -129,29 +171,39 @@ class UnitFinding:
         return self.what
 
 
-def unit_findings(steps: int, time_jumps: int, step_times_s, speed_rpm, torque_nm,
-                  hold_s: float = 60.0) -> list[UnitFinding]:
+def unit_findings(
+    steps: int, time_jumps: int, step_times_s, speed_rpm, torque_nm, hold_s: float = 60.0
+) -> list[UnitFinding]:
     """The unit mistakes a run table shows: time_s in milliseconds (a forward time jump on most steps, the steps
     further apart than the ``hold_s`` over which a jump holds the inputs: the sensor took the engine as off for most
     of the run), engine speed in rad/s (a turning engine delivering torque far below any idle speed)."""
     import numpy as np
+
     out = []
     t = np.asarray(step_times_s, dtype=float)
     spacing_s = float(np.median(np.diff(t))) if t.size > 1 else 0.0
     if steps >= 3 and time_jumps > TIME_JUMP_UNTRUSTED_SHARE * steps and spacing_s > hold_s:
-        out.append(UnitFinding(f"time_s jumps forward on {time_jumps} of {steps} steps, {spacing_s:.0f} s apart (the "
-                               f"sensor held the inputs {hold_s:.0f} s over each gap, then took the engine as off): "
-                               f"if time_s is in milliseconds, give seconds; if the rows really lie "
-                               f"{spacing_s:.0f} s apart, the table is too sparse for the sensor (rows at most "
-                               f"{hold_s:.0f} s apart; resample it)"))
+        out.append(
+            UnitFinding(
+                f"time_s jumps forward on {time_jumps} of {steps} steps, {spacing_s:.0f} s apart (the "
+                f"sensor held the inputs {hold_s:.0f} s over each gap, then took the engine as off): "
+                f"if time_s is in milliseconds, give seconds; if the rows really lie "
+                f"{spacing_s:.0f} s apart, the table is too sparse for the sensor (rows at most "
+                f"{hold_s:.0f} s apart; resample it)"
+            )
+        )
     speed, torque = np.asarray(speed_rpm, dtype=float), np.asarray(torque_nm, dtype=float)
     loaded = np.isfinite(speed) & np.isfinite(torque) & (np.abs(torque) >= STALL_TORQUE_NM) & (speed > 1.0)
     slow = loaded & (speed < STALL_SPEED_RPM)
     if loaded.sum() >= 3 and slow.sum() > STALL_UNTRUSTED_SHARE * loaded.sum():
-        out.append(UnitFinding(f"the turning engine delivers {STALL_TORQUE_NM:g} Nm or more below "
-                               f"{STALL_SPEED_RPM:g} rpm on {pct(int(slow.sum()), int(loaded.sum()))} of its loaded "
-                               f"steps (median {float(np.median(speed[slow])):.0f} rpm): is engine_speed_rpm in "
-                               f"rad/s?"))
+        out.append(
+            UnitFinding(
+                f"the turning engine delivers {STALL_TORQUE_NM:g} Nm or more below "
+                f"{STALL_SPEED_RPM:g} rpm on {pct(int(slow.sum()), int(loaded.sum()))} of its loaded "
+                f"steps (median {float(np.median(speed[slow])):.0f} rpm): is engine_speed_rpm in "
+                f"rad/s?"
+            )
+        )
     return out
 
 
@@ -167,7 +219,7 @@ def recorded_reject_counters(rejects, reasons, oil_c, base=None) -> dict:
     ``rejects``: the sensor's cumulative counters after each step (steps x reasons), ``oil_c`` the steps' oil
     readings, ``base`` the counters the run started from (a restored state's; default zeros)."""
     r = np.asarray(rejects, dtype=float).reshape(-1, len(reasons))
-    b = np.zeros(len(reasons)) if base is None else np.asarray(base, dtype=float).reshape(-1)[:len(reasons)]
+    b = np.zeros(len(reasons)) if base is None else np.asarray(base, dtype=float).reshape(-1)[: len(reasons)]
     total = r[-1] - b if r.shape[0] else np.zeros(len(reasons))
     out: dict = {"input_rejects": {k: int(n) for k, n in zip(reasons, total) if n > 0}, "oil_frozen_at_c": None}
     if "oil_frozen" in reasons and r.shape[0]:

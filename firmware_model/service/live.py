@@ -1,14 +1,16 @@
 """The CAN service live: a python-can bus, a listener that only queues frames (:class:`QueueListener`, run by the
 ``can.Notifier`` thread) and one loop, :func:`serve`, that owns time: it takes the frames in order, feeds the
 :class:`~firmware_model.service.core.SensorService` and sends what it returns."""
+
 from __future__ import annotations
 
 import math
 import queue
 import threading
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Callable, NamedTuple
+from typing import NamedTuple
 
 import can
 import numpy as np
@@ -59,13 +61,19 @@ class FrameClock:
     clock moved but the frames do not show it for ``adopt_s``, they do not follow it and the new offset is adopted.
     Not for frames that carry their sender's time (python-can's virtual bus replaying a log)."""
 
-    def __init__(self, log=None, step_s: float = CLOCK_STEP_S, adopt_s: float = CLOCK_ADOPT_S,
-                 wall: Callable[[], float] = time.time, boot: Callable[[], float] = boot_clock):
+    def __init__(
+        self,
+        log=None,
+        step_s: float = CLOCK_STEP_S,
+        adopt_s: float = CLOCK_ADOPT_S,
+        wall: Callable[[], float] = time.time,
+        boot: Callable[[], float] = boot_clock,
+    ):
         self.log, self.step_s, self.adopt_s, self.wall, self.boot = log, step_s, adopt_s, wall, boot
-        self.ref_offset_s: float | None = None    # wall - boot for the frames' base so far
-        self.prev: tuple[float, float] | None = None     # (frame time, reception time) of the last frame
+        self.ref_offset_s: float | None = None  # wall - boot for the frames' base so far
+        self.prev: tuple[float, float] | None = None  # (frame time, reception time) of the last frame
         self.unseen_since_s: float | None = None  # reception time since the wall clock moved unseen by the frames
-        self.correction_s = 0.0                   # taken out of every frame time so far
+        self.correction_s = 0.0  # taken out of every frame time so far
         self.steps = 0
 
     def __call__(self, t_frame_s: float, t_received_s: float) -> float:
@@ -76,16 +84,16 @@ class FrameClock:
             self.ref_offset_s = offset_s
         moved_s = offset_s - self.ref_offset_s
         if abs(moved_s) <= self.step_s:
-            self.ref_offset_s = offset_s                  # a slew (NTP's slow corrections) is no step
+            self.ref_offset_s = offset_s  # a slew (NTP's slow corrections) is no step
             self.unseen_since_s = None
         elif self.prev is not None:
             mismatch_s = (t_frame_s - self.prev[0]) - (t_received_s - self.prev[1])
-            if abs(mismatch_s - moved_s) < self.step_s:   # the frames stepped with the wall clock
+            if abs(mismatch_s - moved_s) < self.step_s:  # the frames stepped with the wall clock
                 self._step(moved_s, offset_s)
             elif self.unseen_since_s is None:
                 self.unseen_since_s = t_received_s
             elif t_received_s - self.unseen_since_s > self.adopt_s:
-                self.ref_offset_s, self.unseen_since_s = offset_s, None    # these frames do not follow it
+                self.ref_offset_s, self.unseen_since_s = offset_s, None  # these frames do not follow it
         self.prev = (t_frame_s, t_received_s)
         return t_frame_s - self.correction_s
 
@@ -94,8 +102,12 @@ class FrameClock:
         self.ref_offset_s, self.unseen_since_s = offset_s, None
         self.steps += 1
         if self.log is not None:
-            self.log.warning("the system clock that stamps the frames was set by %+.1f s (NTP, GNSS, RTC); the "
-                             "sensor's time continues without the step (%d clock steps so far)", step_s, self.steps)
+            self.log.warning(
+                "the system clock that stamps the frames was set by %+.1f s (NTP, GNSS, RTC); the "
+                "sensor's time continues without the step (%d clock steps so far)",
+                step_s,
+                self.steps,
+            )
 
 
 class QueueListener:
@@ -116,7 +128,7 @@ class QueueListener:
 
     def on_message_received(self, msg) -> None:
         self.received += 1
-        self.queue.put((msg, boot_clock()))          # with the time of reception since boot (FrameClock)
+        self.queue.put((msg, boot_clock()))  # with the time of reception since boot (FrameClock)
 
     def on_error(self, exc: BaseException) -> None:
         """Keep the error for the loop, and hold the notifier's thread until the loop takes it (at most
@@ -139,15 +151,16 @@ class QueueListener:
 @dataclass
 class Outage:
     """A receive outage of :class:`BusLink`: from the first receive error to the first frame after it."""
-    start_s: float                # monotonic clock
+
+    start_s: float  # monotonic clock
     frames_at_start: int
-    next_reopen_s: float          # when a silent outage reopens the bus next
+    next_reopen_s: float  # when a silent outage reopens the bus next
     reopen_delay_s: float
-    consecutive: int = 0          # receive errors since the last frame or reopen
-    next_error_reopen_s: float = 0.0    # the earliest time of the next reopen after errors (monotonic)
+    consecutive: int = 0  # receive errors since the last frame or reopen
+    next_error_reopen_s: float = 0.0  # the earliest time of the next reopen after errors (monotonic)
     error_reopen_gap_s: float = ERROR_REOPEN_GAP_S[0]
     errors: int = 0
-    reopen_failed: bool = False   # a reopen failed in this outage (logged once per outage)
+    reopen_failed: bool = False  # a reopen failed in this outage (logged once per outage)
 
 
 class BusLink:
@@ -164,8 +177,14 @@ class BusLink:
 
     Never a busy loop, never a crash; without ``reopen`` the first error is raised as before."""
 
-    def __init__(self, bus, listener: QueueListener, reopen: Callable | None = None, log=None,
-                 on_wait: Callable[[], None] | None = None):
+    def __init__(
+        self,
+        bus,
+        listener: QueueListener,
+        reopen: Callable | None = None,
+        log=None,
+        on_wait: Callable[[], None] | None = None,
+    ):
         self.bus, self.listener, self.reopen, self.log, self.on_wait = bus, listener, reopen, log, on_wait
         self.events = {"read_errors": 0, "outages": 0, "resumes": 0, "reopens": 0, "reopen_failures": 0}
         self.opened_here = False
@@ -208,8 +227,11 @@ class BusLink:
             o = self.outage = Outage(now, self.listener.received, now + SILENT_REOPEN_S[0], SILENT_REOPEN_S[0])
             self.events["outages"] += 1
             if self.log is not None:
-                self.log.warning("CAN receive error (%s): the sensor is blind until frames return; resuming, and "
-                                 "reopening the bus with back-off if it keeps failing", exc)
+                self.log.warning(
+                    "CAN receive error (%s): the sensor is blind until frames return; resuming, and "
+                    "reopening the bus with back-off if it keeps failing",
+                    exc,
+                )
         o.errors += 1
         o.consecutive += 1
         self._stop_notifier()
@@ -229,8 +251,12 @@ class BusLink:
         if self.listener.received > o.frames_at_start:
             self.outage = None
             if self.log is not None:
-                self.log.info("CAN bus back after %.1f s (%d receive errors, %d reopens so far)", now - o.start_s,
-                              o.errors, self.events["reopens"])
+                self.log.info(
+                    "CAN bus back after %.1f s (%d receive errors, %d reopens so far)",
+                    now - o.start_s,
+                    o.errors,
+                    self.events["reopens"],
+                )
         elif now >= o.next_reopen_s:
             self._stop_notifier()
             self._reopen(stop)
@@ -250,7 +276,7 @@ class BusLink:
         if self.outage is not None:
             self.outage.consecutive = 0
         try:
-            self.bus.shutdown()           # the failed bus, whoever opened it (a second shutdown is harmless)
+            self.bus.shutdown()  # the failed bus, whoever opened it (a second shutdown is harmless)
         except (can.CanError, OSError, RuntimeError, ValueError):
             pass
         delay_s = REOPEN_BACKOFF_S[0]
@@ -262,9 +288,12 @@ class BusLink:
                 first = self.outage is None or not self.outage.reopen_failed
                 if self.outage is not None:
                     self.outage.reopen_failed = True
-                if first and self.log is not None:      # once per outage
-                    self.log.warning("cannot reopen the bus yet (%s); retrying with back-off up to %.0f s "
-                                     "(failures counted)", err, REOPEN_BACKOFF_S[1])
+                if first and self.log is not None:  # once per outage
+                    self.log.warning(
+                        "cannot reopen the bus yet (%s); retrying with back-off up to %.0f s (failures counted)",
+                        err,
+                        REOPEN_BACKOFF_S[1],
+                    )
                 self._wait(stop, delay_s)
                 delay_s = min(2.0 * delay_s, REOPEN_BACKOFF_S[1])
                 continue
@@ -289,6 +318,7 @@ class ServeResult:
     """What :func:`serve` did. ``step_latency_s``: per sent step, wall time from the receive timestamp of the frame
     that completed the step to the end of sending its frames (meaningful when the bus stamps frames with the wall
     clock, as socketcan, udp_multicast and virtual do; the last LATENCY_KEEP_STEPS steps)."""
+
     frames_in: int = 0
     frames_out: int = 0
     send_errors: int = 0
@@ -302,7 +332,7 @@ class ServeResult:
     def cpu_share(self) -> float:
         return self.cpu_s / self.wall_s if self.wall_s > 0 else 0.0
 
-    def latency(self) -> "LatencyFigures | None":
+    def latency(self) -> LatencyFigures | None:
         """Median, p99 and max of ``step_latency_s`` (None without steps)."""
         if not self.step_latency_s:
             return None
@@ -312,6 +342,7 @@ class ServeResult:
 
 class LatencyFigures(NamedTuple):
     """Step latency of a live run [ms] over ``steps`` sent steps."""
+
     median_ms: float
     p99_ms: float
     max_ms: float
@@ -324,8 +355,13 @@ class _FrameHandler:
     logged once per 10 s), the step's latency kept and the deferred part of the step run."""
 
     def __init__(self, service: SensorService, link: BusLink, result: ServeResult, on_sent, frame_clock):
-        self.service, self.link, self.result, self.on_sent, self.frame_clock = (service, link, result, on_sent,
-                                                                               frame_clock)
+        self.service, self.link, self.result, self.on_sent, self.frame_clock = (
+            service,
+            link,
+            result,
+            on_sent,
+            frame_clock,
+        )
         self.last_err_log_s = -math.inf
         self.last_bus_off_s = -math.inf
 
@@ -335,8 +371,11 @@ class _FrameHandler:
         c = self.service.counters
         c["bus_off"] = c.get("bus_off", 0) + 1
         if t_received_s - self.last_bus_off_s > BUS_OFF_EPISODE_S:
-            self.service.log.warning("CAN controller bus-off (error frame; %d so far): no frames until it restarts "
-                                     "(set the interface's restart-ms); the sensor holds its inputs", c["bus_off"])
+            self.service.log.warning(
+                "CAN controller bus-off (error frame; %d so far): no frames until it restarts "
+                "(set the interface's restart-ms); the sensor holds its inputs",
+                c["bus_off"],
+            )
         self.last_bus_off_s = t_received_s
 
     def send(self, frame) -> None:
@@ -351,8 +390,9 @@ class _FrameHandler:
             now_s = time.perf_counter()
             if now_s - self.last_err_log_s > SEND_ERROR_LOG_PERIOD_S:
                 self.last_err_log_s = now_s
-                self.service.log.warning("cannot send %08X: %s (%d send errors so far)", frame.arbitration_id, exc,
-                                         result.send_errors)
+                self.service.log.warning(
+                    "cannot send %08X: %s (%d send errors so far)", frame.arbitration_id, exc, result.send_errors
+                )
 
     def __call__(self, item) -> None:
         msg, t_received_s = item
@@ -372,15 +412,24 @@ class _FrameHandler:
             self.send(frame)
         latencies = self.result.step_latency_s
         if len(latencies) >= LATENCY_KEEP_STEPS:
-            del latencies[:LATENCY_KEEP_STEPS // 2]
+            del latencies[: LATENCY_KEEP_STEPS // 2]
         latencies.append(time.time() - received_s)
-        service.finish_pending()           # the slow part of the step, now that its frames are out
+        service.finish_pending()  # the slow part of the step, now that its frames are out
 
 
-def serve(bus, service: SensorService, *, stop: threading.Event | None = None, duration_s: float | None = None,
-          poll_s: float = 0.05, on_sent: Callable | None = None,
-          on_ready: Callable[[], None] | None = None, on_tick: Callable[[], None] | None = None,
-          reopen: Callable | None = None, frame_clock: FrameClock | None = None) -> ServeResult:
+def serve(
+    bus,
+    service: SensorService,
+    *,
+    stop: threading.Event | None = None,
+    duration_s: float | None = None,
+    poll_s: float = 0.05,
+    on_sent: Callable | None = None,
+    on_ready: Callable[[], None] | None = None,
+    on_tick: Callable[[], None] | None = None,
+    reopen: Callable | None = None,
+    frame_clock: FrameClock | None = None,
+) -> ServeResult:
     """Run ``service`` on ``bus`` until ``stop`` is set or ``duration_s`` of wall time passed.
 
     A ``can.Notifier`` thread receives and queues frames (:class:`QueueListener`); this loop, in the calling thread,
@@ -398,7 +447,7 @@ def serve(bus, service: SensorService, *, stop: threading.Event | None = None, d
     wall0_s, cpu0_s = time.perf_counter(), time.process_time()
     deadline_s = None if duration_s is None else wall0_s + duration_s
     link = BusLink(bus, listener, reopen, service.log, on_wait=on_tick)
-    service.bus_events = link.events          # the outage counters, live, for the health file
+    service.bus_events = link.events  # the outage counters, live, for the health file
     if on_ready is not None:
         on_ready()
     q = listener.queue
@@ -417,7 +466,7 @@ def serve(bus, service: SensorService, *, stop: threading.Event | None = None, d
                     on_tick()
                 continue
             handle(msg)
-            link.check(stop) if link.outage is not None else None   # frames again: the outage ends
+            link.check(stop) if link.outage is not None else None  # frames again: the outage ends
             if on_tick is not None:
                 on_tick()
         else:

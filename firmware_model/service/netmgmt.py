@@ -12,6 +12,7 @@ from it; what the sensor needs is small and written here against the standard:
   next free address in 128..247; otherwise it sends Cannot Claim Address (Address Claimed from the null address
   254) and stops transmitting (counted, logged); winning, it claims again.
 """
+
 from __future__ import annotations
 
 import logging
@@ -38,27 +39,33 @@ SOFTWARE_ID = b"gvs 0.1*"
 class J1939Name:
     """The 64-bit NAME (J1939-81): the defaults are placeholders that an integrator sets per vehicle (config [can]
     name_identity_number, name_manufacturer_code, ...; assumed values, not registered codes)."""
-    identity_number: int = 0x0E5          # 21 bits
-    manufacturer_code: int = 0x7FF        # 11 bits
-    ecu_instance: int = 0                 # 3 bits
-    function_instance: int = 0            # 5 bits
-    function: int = 0x81                  # 8 bits
-    vehicle_system: int = 0               # 7 bits
-    vehicle_system_instance: int = 0      # 4 bits
-    industry_group: int = 1               # 3 bits: on-highway
+
+    identity_number: int = 0x0E5  # 21 bits
+    manufacturer_code: int = 0x7FF  # 11 bits
+    ecu_instance: int = 0  # 3 bits
+    function_instance: int = 0  # 5 bits
+    function: int = 0x81  # 8 bits
+    vehicle_system: int = 0  # 7 bits
+    vehicle_system_instance: int = 0  # 4 bits
+    industry_group: int = 1  # 3 bits: on-highway
     arbitrary_address_capable: bool = False
 
     def value(self) -> int:
-        return (self.identity_number & 0x1FFFFF | (self.manufacturer_code & 0x7FF) << 21
-                | (self.ecu_instance & 0x7) << 32 | (self.function_instance & 0x1F) << 35
-                | (self.function & 0xFF) << 40 | (self.vehicle_system & 0x7F) << 49
-                | (self.vehicle_system_instance & 0xF) << 56 | (self.industry_group & 0x7) << 60
-                | int(bool(self.arbitrary_address_capable)) << 63)
+        return (
+            self.identity_number & 0x1FFFFF
+            | (self.manufacturer_code & 0x7FF) << 21
+            | (self.ecu_instance & 0x7) << 32
+            | (self.function_instance & 0x1F) << 35
+            | (self.function & 0xFF) << 40
+            | (self.vehicle_system & 0x7F) << 49
+            | (self.vehicle_system_instance & 0xF) << 56
+            | (self.industry_group & 0x7) << 60
+            | int(bool(self.arbitrary_address_capable)) << 63
+        )
 
 
 def _frame(pgn: int, sa: int, data: bytes, t: float, prio: int = 6, dest: int = GLOBAL_ADDRESS) -> can.Message:
-    return can.Message(timestamp=t, arbitration_id=can_id_of(pgn, sa, prio, dest), is_extended_id=True,
-                       data=data)
+    return can.Message(timestamp=t, arbitration_id=can_id_of(pgn, sa, prio, dest), is_extended_id=True, data=data)
 
 
 class AddressClaim:
@@ -70,9 +77,14 @@ class AddressClaim:
         self.address: int | None = address
         self.log = log or logging.getLogger("gearbox_vsensor.j1939")
         self.claimed_at_s: float | None = None
-        self.seen: dict[int, int] = {}          # address -> NAME of other claimants
-        self.counters = {"claims_sent": 0, "requests_answered": 0, "nacks_sent": 0, "contentions_won": 0,
-                         "contentions_lost": 0}
+        self.seen: dict[int, int] = {}  # address -> NAME of other claimants
+        self.counters = {
+            "claims_sent": 0,
+            "requests_answered": 0,
+            "nacks_sent": 0,
+            "contentions_won": 0,
+            "contentions_lost": 0,
+        }
 
     def _claim(self, t: float) -> list:
         self.claimed_at_s = t
@@ -85,8 +97,9 @@ class AddressClaim:
         return self._claim(t)
 
     def can_transmit(self, t: float) -> bool:
-        return (self.address is not None and self.claimed_at_s is not None
-                and t >= self.claimed_at_s + CONTENTION_S - 1e-9)
+        return (
+            self.address is not None and self.claimed_at_s is not None and t >= self.claimed_at_s + CONTENTION_S - 1e-9
+        )
 
     def on_frame(self, msg, dm1_frame=None) -> list:
         """Replies to a received frame (network management only; other frames: nothing). ``dm1_frame``: a callable
@@ -95,20 +108,29 @@ class AddressClaim:
             return []
         pgn = pgn_of(msg.arbitration_id)
         if pgn == PGN_ADDRESS_CLAIMED and len(msg.data) >= 8:
-            return self._contention(source_address(msg.arbitration_id), int.from_bytes(bytes(msg.data[:8]), "little"),
-                                    msg.timestamp)
+            return self._contention(
+                source_address(msg.arbitration_id), int.from_bytes(bytes(msg.data[:8]), "little"), msg.timestamp
+            )
         if pgn == PGN_REQUEST:
             dest = destination_address(msg.arbitration_id)
             if dest == GLOBAL_ADDRESS or (self.address is not None and dest == self.address):
-                return self._request(int.from_bytes(bytes(msg.data[:3]), "little"), dest,
-                                     source_address(msg.arbitration_id), msg.timestamp, dm1_frame)
+                return self._request(
+                    int.from_bytes(bytes(msg.data[:3]), "little"),
+                    dest,
+                    source_address(msg.arbitration_id),
+                    msg.timestamp,
+                    dm1_frame,
+                )
         return []
 
     def _request(self, requested: int, dest: int, requester: int, t: float, dm1_frame) -> list:
         if requested == PGN_ADDRESS_CLAIMED:
             self.counters["requests_answered"] += 1
-            return self._claim(t) if self.address is not None else [
-                _frame(PGN_ADDRESS_CLAIMED, NULL_ADDRESS, self.name_value.to_bytes(8, "little"), t)]
+            return (
+                self._claim(t)
+                if self.address is not None
+                else [_frame(PGN_ADDRESS_CLAIMED, NULL_ADDRESS, self.name_value.to_bytes(8, "little"), t)]
+            )
         if self.address is None:
             return []
         if requested == PGN_SOFTWARE_ID:
@@ -118,9 +140,10 @@ class AddressClaim:
             frame = dm1_frame()
             if frame is not None:
                 self.counters["requests_answered"] += 1
-                return [can.Message(timestamp=t, arbitration_id=frame.arbitration_id, is_extended_id=True,
-                                    data=frame.data)]
-        if dest == self.address:                # to us, for a PGN we do not send: NACK (control byte 1)
+                return [
+                    can.Message(timestamp=t, arbitration_id=frame.arbitration_id, is_extended_id=True, data=frame.data)
+                ]
+        if dest == self.address:  # to us, for a PGN we do not send: NACK (control byte 1)
             self.counters["nacks_sent"] += 1
             data = bytes([1, 0xFF, 0xFF, 0xFF, requester]) + requested.to_bytes(3, "little")
             return [_frame(PGN_ACKNOWLEDGEMENT, self.address, data, t, dest=GLOBAL_ADDRESS)]
@@ -128,11 +151,11 @@ class AddressClaim:
 
     def _contention(self, sa: int, other: int, t: float) -> list:
         if other == self.name_value:
-            return []                           # our own claim echoed back
+            return []  # our own claim echoed back
         self.seen[sa] = other
         if self.address is None or sa != self.address:
             return []
-        if self.name_value < other:             # we win: defend the address
+        if self.name_value < other:  # we win: defend the address
             self.counters["contentions_won"] += 1
             return self._claim(t)
         self.counters["contentions_lost"] += 1
@@ -141,10 +164,14 @@ class AddressClaim:
             free = [a for a in ARBITRARY_RANGE if a not in self.seen and a != lost]
             if free:
                 self.address = free[0]
-                self.log.warning("J1939 address 0x%02X lost to a higher-priority NAME; claiming 0x%02X", lost,
-                                 self.address)
+                self.log.warning(
+                    "J1939 address 0x%02X lost to a higher-priority NAME; claiming 0x%02X", lost, self.address
+                )
                 return self._claim(t)
         self.address = None
-        self.log.error("J1939 address 0x%02X lost to a higher-priority NAME and no other address can be claimed: "
-                       "the sensor stops transmitting (Cannot Claim Address sent)", lost)
+        self.log.error(
+            "J1939 address 0x%02X lost to a higher-priority NAME and no other address can be claimed: "
+            "the sensor stops transmitting (Cannot Claim Address sent)",
+            lost,
+        )
         return self._claim(t)

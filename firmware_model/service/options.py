@@ -1,12 +1,13 @@
 """Settings of the CAN service (:class:`ServiceOptions`, the config's ``[can]`` section) and the wiring between the
 J1939 decoder's signals, the sensor's inputs and the run table: which message each input comes from, how long a
 value stays fresh, which PGNs the service listens to."""
+
 from __future__ import annotations
 
 import functools
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Mapping
 
 from can_dbc.dbc import default_source, message_pgn, numbered_messages
 from can_dbc.decoder import input_messages
@@ -19,8 +20,16 @@ from firmware_model.service.records import INPUT_SIGNALS, SENSOR_INPUTS, StepInp
 #: nominal transmission period of each input message [s], the service's staleness clock: J1939-71 defaults (EEC1 is
 #: engine-speed dependent, 10-20 ms: its upper bound), except CCVS1 taken as 1 s (synthesized logs and some trucks
 #: send it every second; the DBC's cycle time is J1939's 100 ms); RIG = the rig thermocouple frames
-NOMINAL_PERIOD_S = {"EEC1": 0.02, "ETC2": 0.1, "TRF1": 1.0, "ET1": 1.0, "AMB": 1.0, "CCVS1": 1.0, "ERC1": 0.1,
-                    "RIG": 0.1}
+NOMINAL_PERIOD_S = {
+    "EEC1": 0.02,
+    "ETC2": 0.1,
+    "TRF1": 1.0,
+    "ET1": 1.0,
+    "AMB": 1.0,
+    "CCVS1": 1.0,
+    "ERC1": 0.1,
+    "RIG": 0.1,
+}
 #: run-table columns of the decoded inputs (StepInputs order) and the two extra decoded columns
 INPUT_COLUMNS = (*INPUT_SIGNALS, "engine_torque_pct", "engine_ref_torque_nm")
 #: the time-base check (``firmware_model.service.trust``): windows of this much frame time, this many in a row
@@ -30,12 +39,14 @@ TIME_BASE_WINDOWS = 3
 GEAR_RANGE = (-2, 14)
 #: config [can] source-address keys -> the messages they set; a later key overrides an earlier one for its messages
 #: (CCVS1 comes from the tachograph on many trucks, AMB from the body controller: their own keys)
-SOURCE_ADDRESS_KEYS = (("engine_source_address", ("EEC1", "EC1", "ET1", "CCVS1", "AMB")),
-                       ("transmission_source_address", ("ETC2", "TRF1")),
-                       ("retarder_source_address", ("ERC1", "RC")),
-                       ("ambient_source_address", ("AMB",)),
-                       ("vehicle_speed_source_address", ("CCVS1",)),
-                       ("coolant_source_address", ("ET1",)))
+SOURCE_ADDRESS_KEYS = (
+    ("engine_source_address", ("EEC1", "EC1", "ET1", "CCVS1", "AMB")),
+    ("transmission_source_address", ("ETC2", "TRF1")),
+    ("retarder_source_address", ("ERC1", "RC")),
+    ("ambient_source_address", ("AMB",)),
+    ("vehicle_speed_source_address", ("CCVS1",)),
+    ("coolant_source_address", ("ET1",)),
+)
 #: config ``[can.source_address]``: message name -> its source address alone, over every key above (a Navistar truck
 #: sends ETC2 from 0x03 and TRF1 from 0x21: ``ETC2 = 0x03``, ``TRF1 = 0x21``)
 SOURCE_ADDRESS_TABLE = "source_address"
@@ -44,8 +55,11 @@ SOURCE_ADDRESS_MESSAGES = ("EEC1", "EC1", "ETC2", "TRF1", "ET1", "AMB", "CCVS1",
 
 def _check_address(key: str, value) -> int:
     if isinstance(value, bool) or not isinstance(value, int) or not 0 <= value <= 253:
-        shown = f"{value} (0x{value:X})" if isinstance(value, int) and not isinstance(value, bool) and value >= 0 \
+        shown = (
+            f"{value} (0x{value:X})"
+            if isinstance(value, int) and not isinstance(value, bool) and value >= 0
             else repr(value)
+        )
         raise ParameterError(f"can.{key} = {shown} is not a J1939 source address 0..253 (0x00..0xFD)")
     return value
 
@@ -64,13 +78,17 @@ def source_addresses(can: Mapping) -> tuple[dict[str, int], dict[str, str]]:
                 sa[n], keys[n] = value, key
     table = can.get(SOURCE_ADDRESS_TABLE, {})
     if not isinstance(table, Mapping):
-        raise ParameterError(f"can.{SOURCE_ADDRESS_TABLE} = {table!r} must be a table of message = address, e.g. "
-                             f"[can.{SOURCE_ADDRESS_TABLE}] TRF1 = 0x21")
+        raise ParameterError(
+            f"can.{SOURCE_ADDRESS_TABLE} = {table!r} must be a table of message = address, e.g. "
+            f"[can.{SOURCE_ADDRESS_TABLE}] TRF1 = 0x21"
+        )
     for name, value in table.items():
         if name not in SOURCE_ADDRESS_MESSAGES:
-            raise ParameterError(f"can.{SOURCE_ADDRESS_TABLE}.{name}: unknown message {name!r}; known: "
-                                 f"{', '.join(SOURCE_ADDRESS_MESSAGES)} "
-                                 f"(e.g. [can.{SOURCE_ADDRESS_TABLE}] TRF1 = 0x21)")
+            raise ParameterError(
+                f"can.{SOURCE_ADDRESS_TABLE}.{name}: unknown message {name!r}; known: "
+                f"{', '.join(SOURCE_ADDRESS_MESSAGES)} "
+                f"(e.g. [can.{SOURCE_ADDRESS_TABLE}] TRF1 = 0x21)"
+            )
         sa[name] = _check_address(f"{SOURCE_ADDRESS_TABLE}.{name}", value)
         keys[name] = f"{SOURCE_ADDRESS_TABLE}.{name}"
     return sa, keys
@@ -80,8 +98,7 @@ def source_addresses(can: Mapping) -> tuple[dict[str, int], dict[str, str]]:
 def wanted_pgns() -> dict[str, int]:
     """Message name -> PGN of every message the service listens to (the input messages, TP.CM and TP.DT), from the
     DBC; PDU1 PGNs (TP.CM, TP.DT) without their destination byte."""
-    return {**{m.name: m.pgn for m in input_messages()}, "TP_CM": message_pgn("TP_CM"),
-            "TP_DT": message_pgn("TP_DT")}
+    return {**{m.name: m.pgn for m in input_messages()}, "TP_CM": message_pgn("TP_CM"), "TP_DT": message_pgn("TP_DT")}
 
 
 @functools.cache
@@ -99,15 +116,28 @@ def can_filters(rig: bool = False, network: bool = True) -> list[dict]:
 
 
 #: config [can] keys of the sensor's J1939 NAME -> J1939Name fields
-NAME_KEYS = {"name_identity_number": "identity_number", "name_manufacturer_code": "manufacturer_code",
-             "name_ecu_instance": "ecu_instance", "name_function_instance": "function_instance",
-             "name_function": "function", "name_vehicle_system": "vehicle_system",
-             "name_vehicle_system_instance": "vehicle_system_instance", "name_industry_group": "industry_group",
-             "arbitrary_address_capable": "arbitrary_address_capable"}
+NAME_KEYS = {
+    "name_identity_number": "identity_number",
+    "name_manufacturer_code": "manufacturer_code",
+    "name_ecu_instance": "ecu_instance",
+    "name_function_instance": "function_instance",
+    "name_function": "function",
+    "name_vehicle_system": "vehicle_system",
+    "name_vehicle_system_instance": "vehicle_system_instance",
+    "name_industry_group": "industry_group",
+    "arbitrary_address_capable": "arbitrary_address_capable",
+}
 #: the bits of each NAME field (J1939-81): a larger value would be cut to its low bits on the bus
-NAME_BITS = {"name_identity_number": 21, "name_manufacturer_code": 11, "name_ecu_instance": 3,
-             "name_function_instance": 5, "name_function": 8, "name_vehicle_system": 7,
-             "name_vehicle_system_instance": 4, "name_industry_group": 3}
+NAME_BITS = {
+    "name_identity_number": 21,
+    "name_manufacturer_code": 11,
+    "name_ecu_instance": 3,
+    "name_function_instance": 5,
+    "name_function": 8,
+    "name_vehicle_system": 7,
+    "name_vehicle_system_instance": 4,
+    "name_industry_group": 3,
+}
 #: can.stale_factor at most this many nominal periods (a larger factor never declares an input stale)
 STALE_FACTOR_MAX = 20.0
 
@@ -123,6 +153,7 @@ class ServiceOptions:
     defaults to the DBC's (0xE5). ``time_base_window_s``/``time_base_windows``: the time-base check
     (``firmware_model.service.trust``); ``log_findings`` False: the trust findings are not logged while running
     (an offline replay prints them once at the end)."""
+
     expected_sa: Mapping[str, int | None] = field(default_factory=dict)
     #: message -> the [can] key that set its ``expected_sa`` (``transmission_source_address``,
     #: ``source_address.TRF1``): the key a foreign-source finding names
@@ -154,13 +185,16 @@ class ServiceOptions:
         if not (isinstance(self.time_base_windows, int) and self.time_base_windows >= 1):
             raise ParameterError(f"time_base_windows = {self.time_base_windows!r} must be an integer >= 1")
         if not 1.0 <= self.stale_factor <= STALE_FACTOR_MAX:
-            raise ParameterError(f"can.stale_factor = {self.stale_factor!r} must be in 1..{STALE_FACTOR_MAX:g} (a "
-                                 f"multiple of the nominal period)")
+            raise ParameterError(
+                f"can.stale_factor = {self.stale_factor!r} must be in 1..{STALE_FACTOR_MAX:g} (a "
+                f"multiple of the nominal period)"
+            )
         _positive("output_period_s", self.output_period_s)
         ratio = self.output_period_s / STEP_S
         if not (abs(ratio - round(ratio)) < 1e-9 and round(ratio) >= 1):
-            raise ParameterError(f"can.output_period_s = {self.output_period_s!r} must be a whole multiple of the "
-                                 f"sensor step {STEP_S} s")
+            raise ParameterError(
+                f"can.output_period_s = {self.output_period_s!r} must be a whole multiple of the sensor step {STEP_S} s"
+            )
         if not (isinstance(self.max_catchup_steps, int) and self.max_catchup_steps >= 1):
             raise ParameterError(f"max_catchup_steps = {self.max_catchup_steps!r} must be an integer >= 1")
         if not 0.0 <= self.init_wait_s <= 60.0:
@@ -172,17 +206,20 @@ class ServiceOptions:
         return int(round(self.output_period_s / STEP_S))
 
     @classmethod
-    def from_config(cls, config=None, **overrides) -> "ServiceOptions":
+    def from_config(cls, config=None, **overrides) -> ServiceOptions:
         """Options from a config's ``[can]`` section (None: defaults); ``overrides``: fields set directly."""
         c = dict(getattr(config, "can", None) or {})
         _check_can_keys(c)
         sa, sa_keys = source_addresses(c)
         kw: dict = {"expected_sa": sa, "source_address_keys": sa_keys}
-        for key, name in (("sensor_source_address", "sensor_source_address"),
-                          ("engine_reference_torque_nm", "configured_ref_torque_nm"),
-                          ("retarder_reference_torque_nm", "retarder_ref_torque_nm"),
-                          ("stale_factor", "stale_factor"), ("output_period_s", "output_period_s"),
-                          ("counter_log_period_s", "counter_log_period_s")):
+        for key, name in (
+            ("sensor_source_address", "sensor_source_address"),
+            ("engine_reference_torque_nm", "configured_ref_torque_nm"),
+            ("retarder_reference_torque_nm", "retarder_ref_torque_nm"),
+            ("stale_factor", "stale_factor"),
+            ("output_period_s", "output_period_s"),
+            ("counter_log_period_s", "counter_log_period_s"),
+        ):
             if key in c:
                 kw[name] = c[key]
         if "gear_map" in c:
@@ -195,8 +232,9 @@ class ServiceOptions:
             if isinstance(v, bool) != flag or (not flag and (not isinstance(v, int) or v < 0)):
                 raise ParameterError(f"can.{key} = {v!r} must be {'true or false' if flag else 'an integer >= 0'}")
             if not flag and v >= 1 << NAME_BITS[key]:
-                raise ParameterError(f"can.{key} = {v!r} does not fit the NAME's {NAME_BITS[key]} bits "
-                                     f"(0..{(1 << NAME_BITS[key]) - 1})")
+                raise ParameterError(
+                    f"can.{key} = {v!r} does not fit the NAME's {NAME_BITS[key]} bits (0..{(1 << NAME_BITS[key]) - 1})"
+                )
             name[field_] = v
         if name:
             kw["j1939_name"] = J1939Name(**name)
@@ -227,7 +265,8 @@ def parse_gear_map(raw) -> dict[int, int]:
         except (TypeError, ValueError):
             raise ParameterError(f"can.gear_map key {k!r} is not an integer J1939 gear number") from None
         if isinstance(v, bool) or not isinstance(v, int) or not GEAR_RANGE[0] <= v <= GEAR_RANGE[1]:
-            raise ParameterError(f"can.gear_map[{k!r}] = {v!r} is not a seed Table 1 gear "
-                                 f"{GEAR_RANGE[0]}..{GEAR_RANGE[1]}")
+            raise ParameterError(
+                f"can.gear_map[{k!r}] = {v!r} is not a seed Table 1 gear {GEAR_RANGE[0]}..{GEAR_RANGE[1]}"
+            )
         out[j] = v
     return out

@@ -12,6 +12,7 @@
 * :func:`sd_notify`: the systemd notification protocol (``READY=1``, ``WATCHDOG=1``) over the standard library's
   socket, a no-op when not run by systemd.
 """
+
 from __future__ import annotations
 
 import json
@@ -61,6 +62,7 @@ class Restore(NamedTuple):
     """A saved state to start from (:meth:`StateStore.load`): the snapshot, the wall time since its last step [s],
     and whether it was saved at a clean stop (False: by a periodic save while stepping, so the service died while
     the truck drove and the engine is taken to have run on; files from before this field count as clean)."""
+
     snapshot: object
     elapsed_s: float
     clean_stop: bool = True
@@ -71,19 +73,20 @@ class StateStore:
     :meth:`save` at shutdown. ``clock``: wall time [s] (stored: the time off between runs); ``timer``: the clock of
     the save period (monotonic: a wall clock set back must not stop the saves); both injectable for tests."""
 
-    def __init__(self, path, period_s: float = STATE_PERIOD_S, clock=time.time, timer=time.monotonic,
-                 background: bool = False):
+    def __init__(
+        self, path, period_s: float = STATE_PERIOD_S, clock=time.time, timer=time.monotonic, background: bool = False
+    ):
         self.path = Path(path)
         self.period_s = float(period_s)
         self.clock, self.timer = clock, timer
         #: the periodic saves write in a thread (the live gateway); :meth:`save` itself always writes now
         self.background = background
         self._writing: threading.Thread | None = None
-        self.last_save_s: float | None = None          # timer: the last attempt
-        self.last_ok_s: float | None = None            # timer: the last save that was written
-        self.stepped_wall_s: float | None = None       # wall time when the state last changed (a step)
+        self.last_save_s: float | None = None  # timer: the last attempt
+        self.last_ok_s: float | None = None  # timer: the last save that was written
+        self.stepped_wall_s: float | None = None  # wall time when the state last changed (a step)
         self._steps_seen: int | None = None
-        self.loaded_saved_wall_s = math.nan          # the time of the state :meth:`load` returned
+        self.loaded_saved_wall_s = math.nan  # the time of the state :meth:`load` returned
         self._saved_steps: int | None = None
         self.counters = {"restored": 0, "cold_starts": 0, "saves": 0, "save_errors": 0, "reason": None}
 
@@ -103,8 +106,10 @@ class StateStore:
             elif not (isinstance(doc.get("saved_wall_s"), (int, float)) and math.isfinite(doc["saved_wall_s"])):
                 reason = "not a saved sensor state (no time of saving)"
             elif doc["saved_wall_s"] > self.clock() + FUTURE_TOLERANCE_S:
-                reason = (f"saved {doc['saved_wall_s'] - self.clock():.0f} s in the future of this clock (the "
-                          f"system clock was set back, or is not yet set): the time off is unknown")
+                reason = (
+                    f"saved {doc['saved_wall_s'] - self.clock():.0f} s in the future of this clock (the "
+                    f"system clock was set back, or is not yet set): the time off is unknown"
+                )
         except FileNotFoundError:
             reason = "no saved state"
         except (OSError, ValueError, UnicodeDecodeError) as exc:
@@ -145,7 +150,7 @@ class StateStore:
             return False
         if not self.background:
             return self.save(service)
-        if self.writing:                  # the last write is still in its fsync: not a second one behind it
+        if self.writing:  # the last write is still in its fsync: not a second one behind it
             return False
         job = self._job(service)
         if job is None:
@@ -153,7 +158,7 @@ class StateStore:
         self._writing = threading.Thread(target=self._write, args=job, name="state-save", daemon=True)
         try:
             self._writing.start()
-        except RuntimeError as exc:       # no thread to be had: write now rather than not at all
+        except RuntimeError as exc:  # no thread to be had: write now rather than not at all
             self._writing = None
             log.warning("cannot start the state writer thread (%s): saving in the loop", exc)
             return self._write(*job)
@@ -175,8 +180,11 @@ class StateStore:
         background save still being written (waited for up to SAVE_WAIT_S: a write hung in its fsync does not
         hold the shutdown for ever). A failed write is counted and tried again a period later, not at every tick."""
         if not self.wait(SAVE_WAIT_S):
-            log.warning("a state save has been writing %s for %.0f s (a hung storage?): writing the state now "
-                        "beside it", self.path, SAVE_WAIT_S)
+            log.warning(
+                "a state save has been writing %s for %.0f s (a hung storage?): writing the state now beside it",
+                self.path,
+                SAVE_WAIT_S,
+            )
         job = self._job(service, clean_stop=final)
         return False if job is None else self._write(*job, final=final)
 
@@ -188,9 +196,15 @@ class StateStore:
             return None
         steps = self._note_steps(service)
         sensor = service.sensor
-        doc = {"schema": STATE_SCHEMA, "saved_wall_s": self.stepped_wall_s, "frame_time_s": service.frame_time_s,
-               "variant": sensor.reduced.variant, "nodes": list(sensor.reduced.nodes), "clean_stop": bool(clean_stop),
-               "snapshot": json.loads(sensor.snapshot(service.state))}
+        doc = {
+            "schema": STATE_SCHEMA,
+            "saved_wall_s": self.stepped_wall_s,
+            "frame_time_s": service.frame_time_s,
+            "variant": sensor.reduced.variant,
+            "nodes": list(sensor.reduced.nodes),
+            "clean_stop": bool(clean_stop),
+            "snapshot": json.loads(sensor.snapshot(service.state)),
+        }
         self.last_save_s = self.timer()
         return json.dumps(doc, separators=(",", ":")).encode("utf-8"), steps, self.last_save_s
 
@@ -200,9 +214,15 @@ class StateStore:
         except OSError as exc:
             self.counters["save_errors"] += 1
             if self.counters["save_errors"] == 1 or final:
-                log.warning("cannot save the state to %s%s: %s (%s)", self.path, " at shutdown" if final else "",
-                            exc, "the next start is a cold start" if final else
-                            f"tried again every {self.period_s:g} s; further errors counted, not logged")
+                log.warning(
+                    "cannot save the state to %s%s: %s (%s)",
+                    self.path,
+                    " at shutdown" if final else "",
+                    exc,
+                    "the next start is a cold start"
+                    if final
+                    else f"tried again every {self.period_s:g} s; further errors counted, not logged",
+                )
             return False
         self._saved_steps = steps
         self.last_ok_s = taken_s
@@ -234,8 +254,15 @@ class HealthFile:
     a wall clock set back does not stop it). It carries the time since boot of writing (:func:`boot_clock`) with the
     boot id, so that `status` judges its age without the wall clock."""
 
-    def __init__(self, path, period_s: float = HEALTH_PERIOD_S, clock=time.time, timer=time.monotonic,
-                 interface: str | None = None, channel: str | None = None):
+    def __init__(
+        self,
+        path,
+        period_s: float = HEALTH_PERIOD_S,
+        clock=time.time,
+        timer=time.monotonic,
+        interface: str | None = None,
+        channel: str | None = None,
+    ):
         self.path = Path(path)
         # the bus it listens on, for `status` to name when no input frame arrives (None: not known)
         self.interface, self.channel = interface, channel
@@ -243,13 +270,14 @@ class HealthFile:
         self.clock, self.timer = clock, timer
         self.started_s = timer()
         self.last_write_s: float | None = None
-        self.errors = 0                       # writes that failed (the first is logged)
+        self.errors = 0  # writes that failed (the first is logged)
         self.boot_id = boot_id()
-        self._steps_seen: int | None = None   # the service's step count at the last write ...
+        self._steps_seen: int | None = None  # the service's step count at the last write ...
         self._stepped_s: float | None = None  # ... and the timer when it last changed (None: never stepped)
 
-    def maybe_write(self, service, store: StateStore | None = None, bus_events: dict | None = None,
-                    stopped: bool = False) -> bool:
+    def maybe_write(
+        self, service, store: StateStore | None = None, bus_events: dict | None = None, stopped: bool = False
+    ) -> bool:
         """Rewrite the file when a period has passed (``stopped``: the last write of a clean stop, now)."""
         now = self.timer()
         if not stopped and self.last_write_s is not None and now - self.last_write_s < self.period_s:
@@ -260,32 +288,50 @@ class HealthFile:
         if steps != self._steps_seen:
             self._steps_seen = steps
             self._stepped_s = now if steps else None
-        doc = {"schema": HEALTH_SCHEMA, "pid": os.getpid(), "written_wall_s": self.clock(),
-               "written_boottime_s": boot_clock(), "boot_id": self.boot_id, "stopped": stopped,
-               "interface": self.interface, "channel": self.channel,
-               "uptime_s": now - self.started_s, "last_step_frame_time_s": service.frame_time_s,
-               "steps": steps, "initialised": service.state is not None,
-               # how long since the step count last moved (a service whose inputs stopped steps no more)
-               "last_step_age_s": None if self._stepped_s is None else now - self._stepped_s,
-               "degraded_mode_now": c.get("mode_now"),
-               "degraded_mode_steps": dict(c.get("mode_steps", {})), "time_jumps": c.get("time_jumps", 0),
-               "clock_steps": c.get("clock_steps", 0), "bus_off": c.get("bus_off", 0),
-               "frames_sent": c.get("frames_sent", 0),
-               "frames_held_no_address": c.get("frames_held_no_address", 0),
-               "decoder": {k: v for k, v in service.decoder.counters.items() if k in ("frames_seen", "frames_used",
-                                                                                     "rejected")},
-               "state": None if store is None else {
-                   **store.counters, "restored": int(restored), "path": str(store.path),
-                   "last_save_age_s": store.age_s(),
-                   # a saved state the sensor could not use is a cold start decided at the first step
-                   "cold_starts": store.counters["cold_starts"] + int("state_cold_start" in c),
-                   "reason": c.get("state_cold_start") or store.counters["reason"]},
-               "j1939": None if getattr(service, "netmgmt", None) is None else {
-                   "address": service.netmgmt.address, **service.netmgmt.counters},
-               "bus": dict(bus_events or getattr(service, "bus_events", None) or {}),
-               # the whole-record findings (firmware_model.service.plausibility), judged after the first minute
-               "findings": list(c.get("record_findings", [])),
-               "health_write_errors": self.errors}
+        doc = {
+            "schema": HEALTH_SCHEMA,
+            "pid": os.getpid(),
+            "written_wall_s": self.clock(),
+            "written_boottime_s": boot_clock(),
+            "boot_id": self.boot_id,
+            "stopped": stopped,
+            "interface": self.interface,
+            "channel": self.channel,
+            "uptime_s": now - self.started_s,
+            "last_step_frame_time_s": service.frame_time_s,
+            "steps": steps,
+            "initialised": service.state is not None,
+            # how long since the step count last moved (a service whose inputs stopped steps no more)
+            "last_step_age_s": None if self._stepped_s is None else now - self._stepped_s,
+            "degraded_mode_now": c.get("mode_now"),
+            "degraded_mode_steps": dict(c.get("mode_steps", {})),
+            "time_jumps": c.get("time_jumps", 0),
+            "clock_steps": c.get("clock_steps", 0),
+            "bus_off": c.get("bus_off", 0),
+            "frames_sent": c.get("frames_sent", 0),
+            "frames_held_no_address": c.get("frames_held_no_address", 0),
+            "decoder": {
+                k: v for k, v in service.decoder.counters.items() if k in ("frames_seen", "frames_used", "rejected")
+            },
+            "state": None
+            if store is None
+            else {
+                **store.counters,
+                "restored": int(restored),
+                "path": str(store.path),
+                "last_save_age_s": store.age_s(),
+                # a saved state the sensor could not use is a cold start decided at the first step
+                "cold_starts": store.counters["cold_starts"] + int("state_cold_start" in c),
+                "reason": c.get("state_cold_start") or store.counters["reason"],
+            },
+            "j1939": None
+            if getattr(service, "netmgmt", None) is None
+            else {"address": service.netmgmt.address, **service.netmgmt.counters},
+            "bus": dict(bus_events or getattr(service, "bus_events", None) or {}),
+            # the whole-record findings (firmware_model.service.plausibility), judged after the first minute
+            "findings": list(c.get("record_findings", [])),
+            "health_write_errors": self.errors,
+        }
         try:
             # no fsync: rewritten every second (a power cut loses nothing it needs); the rename stays atomic
             atomic_write(self.path, json.dumps(doc, default=str).encode("utf-8"), durable=False)
@@ -293,9 +339,13 @@ class HealthFile:
             # not fatal to the sensor, but said: `status` would otherwise report a service that is not running
             self.errors += 1
             if self.errors == 1:
-                log.warning("cannot write the health file %s: %s (further errors counted, not logged; `status` "
-                            "will not see this service)", self.path, exc)
-            self.last_write_s = now           # retried after a period, not at every step
+                log.warning(
+                    "cannot write the health file %s: %s (further errors counted, not logged; `status` "
+                    "will not see this service)",
+                    self.path,
+                    exc,
+                )
+            self.last_write_s = now  # retried after a period, not at every step
             return False
         self.last_write_s = now
         return True
@@ -316,7 +366,7 @@ def sd_notify(message: str) -> bool:
     if not addr:
         return False
     if addr.startswith("@"):
-        addr = "\0" + addr[1:]           # abstract namespace
+        addr = "\0" + addr[1:]  # abstract namespace
     try:
         with socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM) as s:
             s.connect(addr)

@@ -28,10 +28,12 @@ clamped or repaired an input on more than REPAIR_UNTRUSTED_SHARE of its steps. T
   minutes. A held load (a rig's steady point at 60 or 100 N m, its range a few N m of noise) is not judged.
 - **Speed in rad/s**: ``firmware_model.service.degraded.unit_findings`` (an engine delivering torque below idle).
 """
+
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import ClassVar, Mapping
+from typing import ClassVar
 
 import numpy as np
 
@@ -50,8 +52,10 @@ OIL_MAX_RATE_C_PER_MIN, OIL_RATE_WINDOW_S = 16.0, 300.0
 #: a record needs this much oil reading (or driving) before a whole-record rule judges it [s]
 OIL_MIN_S = 60.0
 #: the other units an oil column is tried in: name, words, conversion to degC, the fix
-OIL_UNITS = (("degF", "degF", lambda x: (x - 32.0) / 1.8, "(degF - 32) / 1.8"),
-             ("K", "kelvin", lambda x: x - 273.15, "K - 273.15"))
+OIL_UNITS = (
+    ("degF", "degF", lambda x: (x - 32.0) / 1.8, "(degF - 32) / 1.8"),
+    ("K", "kelvin", lambda x: x - 273.15, "K - 273.15"),
+)
 #: a driving row: the engine at least this fast [rpm] with a gear engaged
 DRIVE_MIN_RPM = 500.0
 #: torque sign: below this torque [Nm] on more than SIGN_SHARE of at least SIGN_MIN_DRIVE_S [s] of driving, and
@@ -66,27 +70,38 @@ PERCENT_MIN_SPREAD = 30.0
 REPAIR_UNTRUSTED_SHARE = 0.05
 #: the reject counters that clamp or repair a value the sensor then uses (a missing input is the degraded
 #: finding's; drive_frozen is flagged but used as it is), with their words
-REPAIR_REASONS = {"speed_clamped": "engine speed clamped to the engine's range",
-                  "torque_clamped": "engine torque clamped to the engine's range",
-                  "gear_unknown": "gear not an integer in -2..14 (last good gear held)",
-                  "oil_implausible": "oil reading out of range or jumping (modelled instead)"}
+REPAIR_REASONS = {
+    "speed_clamped": "engine speed clamped to the engine's range",
+    "torque_clamped": "engine torque clamped to the engine's range",
+    "gear_unknown": "gear not an integer in -2..14 (last good gear held)",
+    "oil_implausible": "oil reading out of range or jumping (modelled instead)",
+}
 #: where a column comes from: a run table's column, or a CAN log's decoded signal (the DBC fixes its unit)
-SOURCES = {"table": {"oil_temp_c": "column oil_temp_c", "engine_torque_nm": "column engine_torque_nm"},
-           "can": {"oil_temp_c": "the oil temperature (TRF1 SPN 177, degC by the DBC)",
-                   "engine_torque_nm": "the engine torque (EEC1 SPN 513 x the reference torque)"}}
+SOURCES = {
+    "table": {"oil_temp_c": "column oil_temp_c", "engine_torque_nm": "column engine_torque_nm"},
+    "can": {
+        "oil_temp_c": "the oil temperature (TRF1 SPN 177, degC by the DBC)",
+        "engine_torque_nm": "the engine torque (EEC1 SPN 513 x the reference torque)",
+    },
+}
 
 
 #: the J1939 SPN a live service's DM1 names for a finding on an input (FMI 2, docs/can.md "DM1: decision")
 FINDING_SPNS = {"engine_speed_rpm": 190, "engine_torque_nm": 513, "gear": 523, "oil_temp_c": 177}
 #: the input of each repair reason
-REPAIR_INPUTS = {"speed_clamped": "engine_speed_rpm", "torque_clamped": "engine_torque_nm", "gear_unknown": "gear",
-                 "oil_implausible": "oil_temp_c"}
+REPAIR_INPUTS = {
+    "speed_clamped": "engine_speed_rpm",
+    "torque_clamped": "engine_torque_nm",
+    "gear_unknown": "gear",
+    "oil_implausible": "oil_temp_c",
+}
 
 
 def min_torque_nm(sensor) -> float | None:
     """The engine's braking limit the sensor clamps the torque to [Nm] (the torque-sign rule's; None: a sensor
     without SensorParams)."""
     from firmware_model.onboard.records import I_TORQUE
+
     sp = getattr(sensor, "sp", None)
     return float(sp.clamp_lo[I_TORQUE]) if sp is not None else None
 
@@ -95,6 +110,7 @@ def min_torque_nm(sensor) -> float | None:
 class PlausibilityFinding:
     """A whole record whose ``column`` looks like ``likely`` (a unit: "degF", "K", "degF or K", "percent"; or
     "negative"); ``what`` is its sentence."""
+
     kind: ClassVar[str] = "plausibility"
     column: str
     likely: str
@@ -117,6 +133,7 @@ class PlausibilityFinding:
 class RepairFinding:
     """The sensor clamped or repaired inputs on ``repaired`` (reason -> steps) of ``steps`` steps; untrusted above
     REPAIR_UNTRUSTED_SHARE for any reason."""
+
     kind: ClassVar[str] = "repair"
     steps: int
     repaired: dict
@@ -132,12 +149,15 @@ class RepairFinding:
 
     @property
     def sentence(self) -> str:
-        worst = sorted(((n, r) for r, n in self.repaired.items() if n > REPAIR_UNTRUSTED_SHARE * self.steps),
-                       reverse=True)
+        worst = sorted(
+            ((n, r) for r, n in self.repaired.items() if n > REPAIR_UNTRUSTED_SHARE * self.steps), reverse=True
+        )
         said = "; ".join(f"{REPAIR_REASONS[r]} on {pct(n, self.steps)}" for n, r in worst)
-        return (f"the sensor clamped or repaired an input on more than {100 * REPAIR_UNTRUSTED_SHARE:.0f} % of its "
-                f"{self.steps} steps ({said}): its temperatures rest on values it had to change, not on the "
-                f"record; check the column's unit and sign (or the sender's scaling)")
+        return (
+            f"the sensor clamped or repaired an input on more than {100 * REPAIR_UNTRUSTED_SHARE:.0f} % of its "
+            f"{self.steps} steps ({said}): its temperatures rest on values it had to change, not on the "
+            f"record; check the column's unit and sign (or the sender's scaling)"
+        )
 
 
 def _finite(values) -> np.ndarray:
@@ -164,24 +184,32 @@ def oil_unit_finding(oil, dt_s: float = STEP_S, source: str = "table") -> Plausi
     fits = []
     for name, words, to_c, fix in OIL_UNITS:
         c = to_c(x)
-        if np.mean((c >= lo) & (c <= hi)) >= OIL_FIT_SHARE and \
-                _max_rate_c_per_min(to_c(raw), dt_s) <= OIL_MAX_RATE_C_PER_MIN:
+        if (
+            np.mean((c >= lo) & (c <= hi)) >= OIL_FIT_SHARE
+            and _max_rate_c_per_min(to_c(raw), dt_s) <= OIL_MAX_RATE_C_PER_MIN
+        ):
             fits.append((name, words, to_c, fix))
     if not fits:
         return None
     col = SOURCES[source]["oil_temp_c"]
-    as_units = " or ".join(f"as {w} it is {to_c(np.percentile(x, 1)):.0f}-{to_c(np.percentile(x, 99)):.0f} degC"
-                           for _, w, to_c, _ in fits)
-    fix = ("give degC: " + " or ".join(f for *_, f in fits)) if source == "table" else \
-        "the DBC fixes the unit, so check the node that sends it (or a gateway that re-encodes it)"
+    as_units = " or ".join(
+        f"as {w} it is {to_c(np.percentile(x, 1)):.0f}-{to_c(np.percentile(x, 99)):.0f} degC" for _, w, to_c, _ in fits
+    )
+    fix = (
+        ("give degC: " + " or ".join(f for *_, f in fits))
+        if source == "table"
+        else "the DBC fixes the unit, so check the node that sends it (or a gateway that re-encodes it)"
+    )
     span_min = x.size * dt_s / 60.0
     return PlausibilityFinding(
-        "oil_temp_c", " or ".join(n for n, *_ in fits),
+        "oil_temp_c",
+        " or ".join(n for n, *_ in fits),
         f"{col} reads {np.percentile(x, 1):.0f}-{np.percentile(x, 99):.0f} (median {np.median(x):.0f}) over "
         f"{span_min:.1f} min, above {hi:.0f} degC on {pct(int(np.sum(x > hi)), x.size)} of the readings, where a "
         f"gearbox sump in degC does not stay (its warning limit is 120 degC); {as_units}, a plausible drive: the "
         f"oil looks like {' or '.join(w for _, w, *_ in fits)}, not degC; {fix} (if the sump really ran above "
-        f"{hi:.0f} degC: stop and check the gearbox)")
+        f"{hi:.0f} degC: stop and check the gearbox)",
+    )
 
 
 def _driving(speed_rpm, gear, n: int) -> np.ndarray:
@@ -192,8 +220,9 @@ def _driving(speed_rpm, gear, n: int) -> np.ndarray:
     return np.isfinite(speed) & (speed >= DRIVE_MIN_RPM) & np.isfinite(g) & (g != 0)
 
 
-def torque_sign_finding(speed_rpm, torque_nm, gear=None, dt_s: float = STEP_S, min_torque_nm: float | None = None,
-                        source: str = "table") -> PlausibilityFinding | None:
+def torque_sign_finding(
+    speed_rpm, torque_nm, gear=None, dt_s: float = STEP_S, min_torque_nm: float | None = None, source: str = "table"
+) -> PlausibilityFinding | None:
     """The torque-sign rule (module doc); ``min_torque_nm``: the engine's braking limit (None: only the
     SIGN_ALL_SHARE branch)."""
     torque = _finite(torque_nm)
@@ -207,19 +236,28 @@ def torque_sign_finding(speed_rpm, torque_nm, gear=None, dt_s: float = STEP_S, m
     if neg <= SIGN_SHARE or (beyond < SIGN_BEYOND_SHARE and neg < SIGN_ALL_SHARE):
         return None
     col = SOURCES[source]["engine_torque_nm"]
-    brake = (f", below the engine's braking limit {min_torque_nm:.0f} Nm on {pct(int(np.sum(t < min_torque_nm)), n)}"
-             if beyond >= SIGN_BEYOND_SHARE else "")
-    fix = "negate the column (the engine's output torque is positive when it drives)" if source == "table" else \
-        "check the node that sends EEC1 (or a gateway that re-encodes it)"
+    brake = (
+        f", below the engine's braking limit {min_torque_nm:.0f} Nm on {pct(int(np.sum(t < min_torque_nm)), n)}"
+        if beyond >= SIGN_BEYOND_SHARE
+        else ""
+    )
+    fix = (
+        "negate the column (the engine's output torque is positive when it drives)"
+        if source == "table"
+        else "check the node that sends EEC1 (or a gateway that re-encodes it)"
+    )
     return PlausibilityFinding(
-        "engine_torque_nm", "negative",
+        "engine_torque_nm",
+        "negative",
         f"{col} is below {SIGN_NEG_NM:.0f} Nm on {pct(int(np.sum(t < SIGN_NEG_NM)), n)} of the {n} driving steps "
         f"(engine at {DRIVE_MIN_RPM:.0f} rpm or more in gear; median {np.median(t):.0f} Nm{brake}): engine braking "
-        f"does not last a whole drive, so the sign convention looks mixed up; {fix}")
+        f"does not last a whole drive, so the sign convention looks mixed up; {fix}",
+    )
 
 
-def torque_percent_finding(speed_rpm, torque_nm, gear=None, dt_s: float = STEP_S,
-                           source: str = "table") -> PlausibilityFinding | None:
+def torque_percent_finding(
+    speed_rpm, torque_nm, gear=None, dt_s: float = STEP_S, source: str = "table"
+) -> PlausibilityFinding | None:
     """The percent-torque rule (module doc)."""
     torque = _finite(torque_nm)
     drive = _driving(speed_rpm, gear, torque.size) & np.isfinite(torque)
@@ -233,23 +271,31 @@ def torque_percent_finding(speed_rpm, torque_nm, gear=None, dt_s: float = STEP_S
     if float(np.percentile(t, 90) - np.percentile(t, 10)) < PERCENT_MIN_SPREAD:
         return None
     col = SOURCES[source]["engine_torque_nm"]
-    fix = "give N m (percent / 100 x the engine's reference torque, EC1 SPN 544)" if source == "table" else \
-        "check the reference torque ([can] engine_reference_torque_nm, else EC1 SPN 544 from the engine)"
+    fix = (
+        "give N m (percent / 100 x the engine's reference torque, EC1 SPN 544)"
+        if source == "table"
+        else "check the reference torque ([can] engine_reference_torque_nm, else EC1 SPN 544 from the engine)"
+    )
     return PlausibilityFinding(
-        "engine_torque_nm", "percent",
+        "engine_torque_nm",
+        "percent",
         f"{col} never exceeds {PERCENT_MAX:.0f} over {n * dt_s / 60.0:.1f} min of driving (peak {peak:.0f}, median "
         f"{np.median(t):.0f}): a truck engine gives 1000-3500 N m and moves no truck for minutes on at most "
-        f"{PERCENT_MAX:.0f} N m, so the torque looks like percent of the reference torque, not N m; {fix}")
+        f"{PERCENT_MAX:.0f} N m, so the torque looks like percent of the reference torque, not N m; {fix}",
+    )
 
 
-def record_findings(columns, dt_s: float = STEP_S, min_torque_nm: float | None = None,
-                    source: str = "table") -> list[PlausibilityFinding]:
+def record_findings(
+    columns, dt_s: float = STEP_S, min_torque_nm: float | None = None, source: str = "table"
+) -> list[PlausibilityFinding]:
     """The unit and sign findings of a whole record: ``columns`` maps run-table names (``oil_temp_c``,
     ``engine_speed_rpm``, ``engine_torque_nm``, ``gear``) to one value per ``dt_s`` (a RunTable or a dict;
     an absent column is not judged); ``source``: "table" or "can" (the sentence's words and fix)."""
+
     def col(name):
         has = columns.has(name) if hasattr(columns, "has") else name in columns
         return columns[name] if has else None
+
     out = []
     oil, speed, torque, gear = (col(c) for c in ("oil_temp_c", "engine_speed_rpm", "engine_torque_nm", "gear"))
     if oil is not None:
@@ -274,8 +320,11 @@ def table_record_findings(out, min_torque_nm: float | None = None, source: str =
     if not out.n:
         return []
     found: list = record_findings(out, STEP_S, min_torque_nm, source)
-    rejects = {k[len("rejects_"):]: int(out[k][-1]) for k in out.columns
-               if k.startswith("rejects_") and np.isfinite(out[k][-1])}
+    rejects = {
+        k[len("rejects_") :]: int(out[k][-1])
+        for k in out.columns
+        if k.startswith("rejects_") and np.isfinite(out[k][-1])
+    }
     repair = repair_finding(rejects, out.n)
     return found + ([repair] if repair is not None else [])
 
@@ -304,8 +353,8 @@ class RecordCheck:
     def __init__(self, min_torque_nm: float | None = None, reject_reasons=(), dt_s: float = STEP_S) -> None:
         self.min_torque_nm, self.dt_s = min_torque_nm, dt_s
         self.reasons = tuple(reject_reasons)
-        self._samples = np.full((LIVE_KEEP, 4), np.nan)     # oil, speed, torque, gear
-        self._n = 0                                          # samples taken (the ring's write position mod KEEP)
+        self._samples = np.full((LIVE_KEEP, 4), np.nan)  # oil, speed, torque, gear
+        self._n = 0  # samples taken (the ring's write position mod KEEP)
         self.steps = 0
         self._first_rejects = None
         self._rejects = None
@@ -318,8 +367,9 @@ class RecordCheck:
                 self._first_rejects = np.asarray(rejects, dtype=float).copy()
             self._rejects = rejects
         if self.steps % LIVE_SAMPLE_STEPS == 0:
-            self._samples[self._n % LIVE_KEEP] = [np.nan if v is None else float(v)
-                                                  for v in (oil_c, speed_rpm, torque_nm, gear)]
+            self._samples[self._n % LIVE_KEEP] = [
+                np.nan if v is None else float(v) for v in (oil_c, speed_rpm, torque_nm, gear)
+            ]
             self._n += 1
         self.steps += 1
 
@@ -329,8 +379,7 @@ class RecordCheck:
             return None
         self._next_s += LIVE_PERIOD_S
         n = min(self._n, LIVE_KEEP)
-        rows = np.roll(self._samples, -(self._n % LIVE_KEEP), axis=0)[-n:] if self._n > LIVE_KEEP \
-            else self._samples[:n]
+        rows = np.roll(self._samples, -(self._n % LIVE_KEEP), axis=0)[-n:] if self._n > LIVE_KEEP else self._samples[:n]
         cols = dict(zip(("oil_temp_c", "engine_speed_rpm", "engine_torque_nm", "gear"), rows.T))
         found: list = record_findings(cols, self.dt_s * LIVE_SAMPLE_STEPS, self.min_torque_nm, "can")
         if self._rejects is not None and self.reasons:

@@ -1,6 +1,7 @@
 """The sensor the CAN service steps: :class:`StepSensor`, what ``firmware_model.onboard.sensor.VirtualSensor``
 offers (and the tests' stand-in, tests/firmware_model/sensor_standin.py). The service reads these attributes and
 nothing else; :func:`check_sensor` checks them once when a service is built."""
+
 from __future__ import annotations
 
 import inspect
@@ -12,8 +13,16 @@ from firmware_model.errors import ParameterError
 from firmware_model.service.records import StepInputs
 
 #: what the service needs of a sensor's status record (``Outputs.status``)
-STATUS_FIELDS = ("degraded_mode", "speed_valid", "torque_valid", "gear_valid", "oil_valid", "oil_innovation_c",
-                 "model_oil_temp_c", "rejects")
+STATUS_FIELDS = (
+    "degraded_mode",
+    "speed_valid",
+    "torque_valid",
+    "gear_valid",
+    "oil_valid",
+    "oil_innovation_c",
+    "model_oil_temp_c",
+    "rejects",
+)
 
 
 class StepSensor(Protocol):
@@ -32,6 +41,7 @@ class StepSensor(Protocol):
       and ``refresh_ttl(state, job) -> state`` (that refresh; ``job`` None: none due). ``step_deferred`` then
       ``refresh_ttl`` must equal the plain ``step``.
     """
+
     Inputs: type
     Status: type
     Outputs: type
@@ -49,8 +59,9 @@ class StepSensor(Protocol):
 def check_sensor(sensor: StepSensor) -> None:
     """ParameterError unless ``sensor`` has the inputs, status and step the service feeds and reads."""
     if tuple(sensor.input_fields) != StepInputs._fields:
-        raise ParameterError(f"the sensor's input_fields {tuple(sensor.input_fields)} are not the service's "
-                             f"{StepInputs._fields}")
+        raise ParameterError(
+            f"the sensor's input_fields {tuple(sensor.input_fields)} are not the service's {StepInputs._fields}"
+        )
     missing = [f for f in (*StepInputs._fields, "t_s") if f not in sensor.Inputs._fields]
     missing += [f for f in STATUS_FIELDS if f not in sensor.Status._fields]
     if missing:

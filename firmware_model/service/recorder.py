@@ -2,6 +2,7 @@
 sensor got them, percent and reference torque, rig thermocouples) and the sensor half's outputs (temperatures,
 warning levels, time to limit, status). The whole-log replay records the two halves apart and joins them
 (:meth:`StepRecorder.adopt`)."""
+
 from __future__ import annotations
 
 import math
@@ -20,17 +21,18 @@ class StepRecorder:
     arrays); ``meas_names``: the rig thermocouple columns (``meas_T_<id>_c``, the same order);
     ``reject_reasons``: the sensor's reject counters (``rejects_<reason>`` columns)."""
 
-    def __init__(self, components: tuple[str, ...], meas_names: tuple[str, ...],
-                 reject_reasons: tuple[str, ...]) -> None:
+    def __init__(
+        self, components: tuple[str, ...], meas_names: tuple[str, ...], reject_reasons: tuple[str, ...]
+    ) -> None:
         self.components = components
         self.meas_names = meas_names
         self.reject_reasons = tuple(reject_reasons)
         self.tail_names = ("degraded", *GbxStatus._fields, *(f"rejects_{r}" for r in self.reject_reasons))
-        self._heads: list[tuple[float, ...]] = []     # per step: HEAD_COLUMNS
-        self._meas_rows: dict[int, np.ndarray] = {}   # step -> rig thermocouples (when any were seen)
+        self._heads: list[tuple[float, ...]] = []  # per step: HEAD_COLUMNS
+        self._meas_rows: dict[int, np.ndarray] = {}  # step -> rig thermocouples (when any were seen)
         self._outs: list[OutputRow] = []
         self._adopted: RecordedOutputs | None = None
-        self._head_block: np.ndarray | None = None    # every head at once (the whole-log path)
+        self._head_block: np.ndarray | None = None  # every head at once (the whole-log path)
         self._meas_block: np.ndarray | None = None
 
     def adopt_heads(self, head: np.ndarray, meas_c: np.ndarray) -> None:
@@ -64,10 +66,10 @@ class StepRecorder:
         tail = [nan if mode is None else float(mode != 0), *(nan if v is None else float(v) for v in status)]
         if self.reject_reasons:
             n_r = len(self.reject_reasons)
-            tail += np.asarray(rejects, dtype=float).reshape(-1)[:n_r].tolist() if rejects is not None \
-                else [0.0] * n_r
-        self._outs.append(OutputRow(np.array(T_c, dtype=float), np.array(level, dtype=float),
-                                    np.array(ttl_s, dtype=float), tail))
+            tail += np.asarray(rejects, dtype=float).reshape(-1)[:n_r].tolist() if rejects is not None else [0.0] * n_r
+        self._outs.append(
+            OutputRow(np.array(T_c, dtype=float), np.array(level, dtype=float), np.array(ttl_s, dtype=float), tail)
+        )
 
     def outputs(self) -> RecordedOutputs:
         """The sensor half of the recorded rows as arrays."""
@@ -75,10 +77,12 @@ class StepRecorder:
             return self._adopted
         n, m, k = len(self.components), len(self.tail_names), len(self._outs)
         outs = self._outs
-        return RecordedOutputs(np.array([r.T_c for r in outs], dtype=float).reshape(k, n),
-                               np.array([r.level for r in outs], dtype=float).reshape(k, n),
-                               np.array([r.ttl_s for r in outs], dtype=float).reshape(k, n),
-                               np.array([r.tail for r in outs], dtype=float).reshape(k, m))
+        return RecordedOutputs(
+            np.array([r.T_c for r in outs], dtype=float).reshape(k, n),
+            np.array([r.level for r in outs], dtype=float).reshape(k, n),
+            np.array([r.ttl_s for r in outs], dtype=float).reshape(k, n),
+            np.array([r.tail for r in outs], dtype=float).reshape(k, m),
+        )
 
     def adopt(self, outputs: RecordedOutputs) -> None:
         """Take the sensor half recorded elsewhere (the whole-log replay, firmware_model.service.columnar)."""
@@ -89,8 +93,11 @@ class StepRecorder:
         """The recorded steps as run-table columns (tools/runtable.py): the head, T_/W_/ttl_ per published
         component ("never" is an empty ttl cell), the status tail, and meas_T_<id>_c for each thermocouple seen."""
         k = self.steps
-        head = np.array(self._heads, dtype=float).reshape(k, len(HEAD_COLUMNS)) if self._head_block is None \
+        head = (
+            np.array(self._heads, dtype=float).reshape(k, len(HEAD_COLUMNS))
+            if self._head_block is None
             else self._head_block
+        )
         cols = {name: head[:, j] for j, name in enumerate(HEAD_COLUMNS)}
         out = self.outputs()
         if out.T_c.shape[0] != k:

@@ -17,27 +17,46 @@ Three findings, each a typed record with a :class:`Severity` and one sentence (`
 :func:`degraded_finding` also serves a run-table replay, which has no CAN counters. The thresholds are the constants
 below; ``gearbox-vsensor replay`` exits 3 when a finding is :attr:`Severity.UNTRUSTED` (docs/interfaces.md 7.2).
 """
+
 from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import ClassVar, Mapping
+from typing import ClassVar
 
 from can_dbc.decoder import EC1_KEY, RC_KEY, signal_messages
 from can_dbc.j1939 import EC1_PGN, RC_PGN
-from firmware_model.service.degraded import (DEGRADED_UNTRUSTED_SHARE, DEGRADED_WARN_SHARE,  # noqa: F401 (re-exported)
-                                             INPUT_NAMES, DegradedFinding, Severity, degraded_finding, pct,
-                                             untrusted)
 from firmware_model.components import STEP_S
-from firmware_model.service.options import (NOMINAL_PERIOD_S, SOURCE_ADDRESS_KEYS, SOURCE_ADDRESS_TABLE,
-                                            TIME_BASE_WINDOW_S, TIME_BASE_WINDOWS, wanted_pgns)
+from firmware_model.service.degraded import (
+    DEGRADED_WARN_SHARE,  # noqa: F401 (re-exported)
+    DegradedFinding,
+    Severity,
+    degraded_finding,
+    pct,
+)
+from firmware_model.service.options import (
+    NOMINAL_PERIOD_S,
+    SOURCE_ADDRESS_KEYS,
+    SOURCE_ADDRESS_TABLE,
+    TIME_BASE_WINDOW_S,
+    TIME_BASE_WINDOWS,
+    wanted_pgns,
+)
 
 #: the transmission periods a real J1939 bus uses for each input message, (fastest, slowest) [s]: EEC1 is engine
 #: speed dependent (J1939-71: 10-20 ms); CCVS1 is 100 ms in J1939 but 1 s on some trucks and in synthesized logs;
 #: ERC1 50-100 ms. The slowest is the service's staleness period (``NOMINAL_PERIOD_S``, checked by a test).
-PERIOD_RANGE_S = {"EEC1": (0.01, 0.02), "ETC2": (0.1, 0.1), "TRF1": (1.0, 1.0), "ET1": (1.0, 1.0),
-                  "AMB": (1.0, 1.0), "CCVS1": (0.1, 1.0), "ERC1": (0.05, 0.1)}
+PERIOD_RANGE_S = {
+    "EEC1": (0.01, 0.02),
+    "ETC2": (0.1, 0.1),
+    "TRF1": (1.0, 1.0),
+    "ET1": (1.0, 1.0),
+    "AMB": (1.0, 1.0),
+    "CCVS1": (0.1, 1.0),
+    "ERC1": (0.05, 0.1),
+}
 #: the time base is suspect when the messages agree on arriving at least this many times faster (or slower) than
 #: their periods ...
 TIME_BASE_FACTOR = 3.0
@@ -53,9 +72,11 @@ FOREIGN_MIN_FRAMES = 10
 #: carries one is primary; the others (ambient, coolant, vehicle speed, retarder) have defaults
 PRIMARY_SIGNALS = ("engine_speed_rpm", "engine_torque_pct", "gear", "oil_temp_c", "engine_ref_torque_nm")
 #: the likely cause of a suspect time base, by direction
-TIME_BASE_CAUSES = {"faster": "the bus is replayed faster than real time, and frames are stamped on arrival",
-                    "slower": "the bus is replayed slower than real time (or its frames are held back), and frames "
-                              "are stamped on arrival"}
+TIME_BASE_CAUSES = {
+    "faster": "the bus is replayed faster than real time, and frames are stamped on arrival",
+    "slower": "the bus is replayed slower than real time (or its frames are held back), and frames "
+    "are stamped on arrival",
+}
 
 
 @dataclass(frozen=True)
@@ -63,6 +84,7 @@ class TimeBaseFinding:
     """The frames of the input messages arrived about ``ratio`` times ``direction`` ("faster"/"slower") than their
     J1939 periods in frame time, over ``windows`` windows of ``window_s``; ``periods_s``: message -> mean period
     seen in the window that raised it."""
+
     kind: ClassVar[str] = "time_base"
     direction: str
     ratio: float
@@ -79,10 +101,12 @@ class TimeBaseFinding:
         shown = [m for m in PERIOD_RANGE_S if m in self.periods_s][:3]
         seen = ", ".join(f"{m} every {_ms(self.periods_s[m])} against {_period_range(m)}" for m in shown)
         clock = "slow" if self.direction == "faster" else "fast"
-        return (f"time base suspect: the input messages arrive about {self.ratio:.1f}x {self.direction} than their "
-                f"J1939 periods in frame time ({seen}), for {self.windows * self.window_s:.0f} s of frame time; "
-                f"likely cause: {TIME_BASE_CAUSES[self.direction]}; the sensor's clock runs about "
-                f"{self.ratio:.1f}x too {clock}, so its temperatures and warnings are wrong")
+        return (
+            f"time base suspect: the input messages arrive about {self.ratio:.1f}x {self.direction} than their "
+            f"J1939 periods in frame time ({seen}), for {self.windows * self.window_s:.0f} s of frame time; "
+            f"likely cause: {TIME_BASE_CAUSES[self.direction]}; the sensor's clock runs about "
+            f"{self.ratio:.1f}x too {clock}, so its temperatures and warnings are wrong"
+        )
 
 
 @dataclass(frozen=True)
@@ -90,6 +114,7 @@ class ForeignSourceFinding:
     """``frames`` frames of ``message`` (``with_data`` of them carrying a usable value) came from source address
     ``source``, while ``expected`` is configured (``config_key``; ``configured`` False: the DBC's default) and
     ``expected_frames`` came from it; ``primary``: the message carries an input whose absence degrades the sensor."""
+
     kind: ClassVar[str] = "foreign_source"
     message: str
     pgn: int
@@ -130,8 +155,10 @@ class ForeignSourceFinding:
         if len(self.also_moved) == 1:
             moved = f"{self.also_moved[0][0]}, which arrives from SA 0x{self.also_moved[0][1]:02X} as expected"
         else:
-            moved = (", ".join(f"{m} (SA 0x{sa:02X})" for m, sa in self.also_moved[:-1])
-                     + f" and {self.also_moved[-1][0]} (SA 0x{self.also_moved[-1][1]:02X}), which arrive as expected")
+            moved = (
+                ", ".join(f"{m} (SA 0x{sa:02X})" for m, sa in self.also_moved[:-1])
+                + f" and {self.also_moved[-1][0]} (SA 0x{self.also_moved[-1][1]:02X}), which arrive as expected"
+            )
         return f"{out}; {'changing' if self.configured else 'setting'} [can] {self.config_key} would also move {moved}"
 
     @property
@@ -143,13 +170,18 @@ class ForeignSourceFinding:
             where = f"[can] expects SA 0x{self.expected:02X} ({self.config_key}; {self.advice})"
         else:
             where = f"[can] expects SA 0x{self.expected:02X} ({config_key_words(self.config_key, bare=True)})"
-        what = f"{self.message} (PGN {self.pgn})" if self.message not in (EC1_KEY, RC_KEY) \
+        what = (
+            f"{self.message} (PGN {self.pgn})"
+            if self.message not in (EC1_KEY, RC_KEY)
             else f"{self.message} (PGN {self.pgn}, TP.BAM transfers)"
+        )
         tail = ": check the source addresses"
         if self.moved:
-            tail = (f", after {self.expected_frames} from SA 0x{self.expected:02X} and none from it since: the sender "
-                    f"moved to SA 0x{self.source:02X} (a new address claim or another ECU) and the sensor has not "
-                    f"used it since")
+            tail = (
+                f", after {self.expected_frames} from SA 0x{self.expected:02X} and none from it since: the sender "
+                f"moved to SA 0x{self.source:02X} (a new address claim or another ECU) and the sensor has not "
+                f"used it since"
+            )
         elif self.expected_frames:
             tail = f" (and {self.expected_frames} times from SA 0x{self.expected:02X}): a second sender"
         elif not self.primary:
@@ -210,8 +242,9 @@ class TimeBaseCheck:
     :class:`TimeBaseFinding` when the time base becomes suspect, ``"cleared"`` when it stops being suspect, else
     None. ``windows_checked`` and ``windows_suspect`` count the windows judged and found suspect."""
 
-    def __init__(self, window_s: float = TIME_BASE_WINDOW_S, windows: int = TIME_BASE_WINDOWS,
-                 factor: float = TIME_BASE_FACTOR) -> None:
+    def __init__(
+        self, window_s: float = TIME_BASE_WINDOW_S, windows: int = TIME_BASE_WINDOWS, factor: float = TIME_BASE_FACTOR
+    ) -> None:
         self.window_s, self.windows, self.factor = window_s, windows, factor
         self.suspect = False
         self.finding: TimeBaseFinding | None = None
@@ -277,40 +310,57 @@ def _moved_along(message: str, key: str, set_by: Mapping[str, str]) -> list[str]
     key (later in SOURCE_ADDRESS_KEYS) nor the [can.source_address] table sets."""
     order = [k for k, _ in SOURCE_ADDRESS_KEYS]
     names = dict(SOURCE_ADDRESS_KEYS).get(key, ())
-    return [m for m in names if m != message
-            and (set_by.get(m) not in order or order.index(set_by[m]) <= order.index(key))]
+    return [
+        m for m in names if m != message and (set_by.get(m) not in order or order.index(set_by[m]) <= order.index(key))
+    ]
 
 
-def _fix(message: str, key: str, set_by: Mapping[str, str], expected_sa: Mapping[str, int | None],
-         received: Mapping[str, int]) -> tuple[str, tuple[tuple[str, int], ...]]:
+def _fix(
+    message: str,
+    key: str,
+    set_by: Mapping[str, str],
+    expected_sa: Mapping[str, int | None],
+    received: Mapping[str, int],
+) -> tuple[str, tuple[tuple[str, int], ...]]:
     """(the key that fixes a foreign address of ``message`` without moving another input, the inputs ``key``
     would move that arrive as expected): ``key`` when its other messages moved with this one (none arrives from
     its expected address), else the message's own ``source_address.<message>`` (a Navistar: ETC2 from 0x03, TRF1
     from 0x21; transmission_source_address for the oil lost the gear)."""
     if key.startswith(SOURCE_ADDRESS_TABLE + "."):
         return key, ()
-    working = tuple((m, expected_sa[m]) for m in _moved_along(message, key, set_by)
-                    if received.get(m, 0) > 0 and expected_sa.get(m) is not None)
+    working = tuple(
+        (m, expected_sa[m])
+        for m in _moved_along(message, key, set_by)
+        if received.get(m, 0) > 0 and expected_sa.get(m) is not None
+    )
     return (f"{SOURCE_ADDRESS_TABLE}.{message}", working) if working else (key, ())
 
 
-def foreign_findings(decoder_counters: Mapping, expected_sa: Mapping[str, int | None],
-                     configured: Mapping[str, int] | None = None,
-                     config_keys: Mapping[str, str] | None = None) -> list[ForeignSourceFinding]:
+def foreign_findings(
+    decoder_counters: Mapping,
+    expected_sa: Mapping[str, int | None],
+    configured: Mapping[str, int] | None = None,
+    config_keys: Mapping[str, str] | None = None,
+) -> list[ForeignSourceFinding]:
     """A finding per (message, foreign source address) that sent at least FOREIGN_MIN_FRAMES frames with data;
     ``expected_sa``: the decoder's, ``configured``: the messages whose address the config set, ``config_keys``:
     the key that set each (``ServiceOptions.source_address_keys``; None: the most specific group key)."""
     pgns = {**wanted_pgns(), EC1_KEY: EC1_PGN, RC_KEY: RC_PGN}
     messages = signal_messages()
     primary = {messages[s] for s in PRIMARY_SIGNALS}
-    set_by = dict(config_keys) if config_keys is not None else \
-        {m: k for m, k in _config_keys().items() if m in (configured or {})}
+    set_by = (
+        dict(config_keys)
+        if config_keys is not None
+        else {m: k for m, k in _config_keys().items() if m in (configured or {})}
+    )
     keys = {**_config_keys(), **set_by}
     arrivals = decoder_counters.get("arrivals", {})
     with_data = decoder_counters.get("foreign_source_data", {})
     first_arrivals = decoder_counters.get("foreign_first_arrivals", {})
-    received = {EC1_KEY: decoder_counters.get("tp", {}).get("ec1_received", 0),
-                RC_KEY: decoder_counters.get("tp", {}).get("rc_received", 0)}
+    received = {
+        EC1_KEY: decoder_counters.get("tp", {}).get("ec1_received", 0),
+        RC_KEY: decoder_counters.get("tp", {}).get("rc_received", 0),
+    }
     out = []
     for message, per_sa in sorted(decoder_counters.get("foreign_source", {}).items()):
         expected = expected_sa.get(message)
@@ -323,23 +373,45 @@ def foreign_findings(decoder_counters: Mapping, expected_sa: Mapping[str, int | 
             if n_data < FOREIGN_MIN_FRAMES:
                 continue
             expected_frames = received[message] if message in received else arrivals.get(message, 0)
-            out.append(ForeignSourceFinding(message, pgns[message], sa, frames, n_data, expected, expected_frames,
-                                            key, message in (configured or {}),
-                                            message in primary,
-                                            None if message in received else first_arrivals.get(message, {}).get(sa),
-                                            "" if fix_key == key else fix_key, also_moved))
+            out.append(
+                ForeignSourceFinding(
+                    message,
+                    pgns[message],
+                    sa,
+                    frames,
+                    n_data,
+                    expected,
+                    expected_frames,
+                    key,
+                    message in (configured or {}),
+                    message in primary,
+                    None if message in received else first_arrivals.get(message, {}).get(sa),
+                    "" if fix_key == key else fix_key,
+                    also_moved,
+                )
+            )
     return out
 
 
 #: a J1939 input missing on at least this share of the steps has its cause looked up in the decoder's counters
 CAUSE_MIN_SHARE = 0.2
 #: the inputs whose causes are named, with the words for them
-CAUSE_INPUTS = {"engine_speed_rpm": "engine speed", "engine_torque_nm": "engine torque", "gear": "gear",
-                "oil_temp_c": "oil temperature", "coolant_temp_c": "coolant temperature"}
+CAUSE_INPUTS = {
+    "engine_speed_rpm": "engine speed",
+    "engine_torque_nm": "engine torque",
+    "gear": "gear",
+    "oil_temp_c": "oil temperature",
+    "coolant_temp_c": "coolant temperature",
+}
 
 
-def input_causes(decoder_counters: Mapping, stale_steps: Mapping[str, int], steps: int,
-                 gear_unmapped: int = 0, stale_factor: float = 3.0) -> list[str]:
+def input_causes(
+    decoder_counters: Mapping,
+    stale_steps: Mapping[str, int],
+    steps: int,
+    gear_unmapped: int = 0,
+    stale_factor: float = 3.0,
+) -> list[str]:
     """Why the inputs missing on at least CAUSE_MIN_SHARE of the steps were missing, as far as the decoder's
     counters tell (an audit: "gear 100 %" alone did not tell a message never sent from one sent with 5 data bytes,
     and the coolant fell to its default without a word): frames shorter than 8 bytes, no frame at all, values sent
@@ -359,32 +431,50 @@ def input_causes(decoder_counters: Mapping, stale_steps: Mapping[str, int], step
             continue
         msg = messages.get(sig)
         if sig == "gear" and gear_unmapped >= CAUSE_MIN_SHARE * steps:
-            out.append(f"gear: on {gear_unmapped} steps {msg} sent a gear that [can] gear_map does not map or that lies "
-                       f"outside the model's -2..14 (seed Table 1): set [can] gear_map for this gearbox")
+            out.append(
+                f"gear: on {gear_unmapped} steps {msg} sent a gear that [can] gear_map does not map or that lies "
+                f"outside the model's -2..14 (seed Table 1): set [can] gear_map for this gearbox"
+            )
         elif short.get(msg):
-            out.append(f"{words}: {short[msg]} {msg} frames came with fewer than 8 data bytes (J1939 sends 8; none of "
-                       f"a short frame's values is used)")
+            out.append(
+                f"{words}: {short[msg]} {msg} frames came with fewer than 8 data bytes (J1939 sends 8; none of "
+                f"a short frame's values is used)"
+            )
         elif not arrivals.get(msg) and not foreign.get(msg):
             others = decoder_counters.get("foreign_source", {}).get(msg, {})
             if others:
                 # frames came, only from other nodes and with nothing in them (an audit: the utulsa capture's 170
                 # all-0xFF TRF1 from 0x31 were reported as "no TRF1 frame arrived")
                 sas = ", ".join(f"0x{sa:02X}" for sa in sorted(others)[:4])
-                out.append(f"{words}: no {msg} frame arrived from its expected source address; "
-                           f"{sum(others.values())} came from {sas} with no usable value (not available)")
+                out.append(
+                    f"{words}: no {msg} frame arrived from its expected source address; "
+                    f"{sum(others.values())} came from {sas} with no usable value (not available)"
+                )
             else:
                 out.append(f"{words}: no {msg} frame arrived")
         elif sig == "engine_torque_nm" and not tp.get("ec1_received"):
-            cmdt = (f"; {not_broadcast} transport transfers were addressed to one node (TP.CMDT), which the sensor "
-                    f"does not receive: EC1 may have come that way") if not_broadcast else ""
-            out.append(f"{words}: no engine reference torque arrived (EC1, SPN 544, by TP.BAM from the engine){cmdt}; "
-                       f"set [can] engine_reference_torque_nm")
+            cmdt = (
+                (
+                    f"; {not_broadcast} transport transfers were addressed to one node (TP.CMDT), which the sensor "
+                    f"does not receive: EC1 may have come that way"
+                )
+                if not_broadcast
+                else ""
+            )
+            out.append(
+                f"{words}: no engine reference torque arrived (EC1, SPN 544, by TP.BAM from the engine){cmdt}; "
+                f"set [can] engine_reference_torque_nm"
+            )
         else:
             src = "engine_torque_pct" if sig == "engine_torque_nm" else sig
             bad = {r: n for r, n in sig_rej.get(src, {}).items() if n}
             if bad:
-                out.append(f"{words}: {msg} sent it as " + ", ".join(
-                    f"{r.replace('_', ' ')} {n} times" for r, n in sorted(bad.items(), key=lambda kv: -kv[1])))
+                out.append(
+                    f"{words}: {msg} sent it as "
+                    + ", ".join(
+                        f"{r.replace('_', ' ')} {n} times" for r, n in sorted(bad.items(), key=lambda kv: -kv[1])
+                    )
+                )
             slow = _slow_message(msg, arrivals.get(msg, 0), steps, stale_factor, stale_steps.get(sig, 0))
             if slow:
                 out.append(f"{words}: {slow if msg not in slow_said else f'{msg} as slow (above)'}")
@@ -409,9 +499,11 @@ def _slow_message(msg: str, arrivals: int, steps: int, stale_factor: float, stal
     if period_s <= max_age_s or abs(stale / steps - (1.0 - max_age_s / period_s)) > SLOW_SHARE_TOL:
         return ""
     need = math.ceil(1.5 * period_s / nominal_s)
-    return (f"{msg} arrived every {1000 * period_s:.0f} ms on average, while a value older than {stale_factor:g} x "
-            f"its J1939 period ({1000 * nominal_s:.0f} ms) is stale (a logger that down-samples, or a slow node?): "
-            f"[can] stale_factor = {need} accepts it")
+    return (
+        f"{msg} arrived every {1000 * period_s:.0f} ms on average, while a value older than {stale_factor:g} x "
+        f"its J1939 period ({1000 * nominal_s:.0f} ms) is stale (a logger that down-samples, or a slow node?): "
+        f"[can] stale_factor = {need} accepts it"
+    )
 
 
 @dataclass(frozen=True)
@@ -419,6 +511,7 @@ class CoolantFinding:
     """ET1 frames arrived, but the coolant temperature was missing on ``missing`` of ``steps`` steps: the liquid
     cooler's medium took the parameter file's default (a truck that sends no ET1 at all gets the default as
     documented, without a finding)."""
+
     kind: ClassVar[str] = "coolant"
     steps: int
     missing: int
@@ -431,14 +524,17 @@ class CoolantFinding:
     @property
     def sentence(self) -> str:
         why = f" ({'; '.join(self.causes)})" if self.causes else ""
-        return (f"the coolant temperature was not usable on {pct(self.missing, self.steps)} of {self.steps} "
-                f"steps{why}: a liquid cooler exchanged with the parameter file's default coolant instead, which can "
-                f"put the sump and the parts the oil streams feed tens of K off")
+        return (
+            f"the coolant temperature was not usable on {pct(self.missing, self.steps)} of {self.steps} "
+            f"steps{why}: a liquid cooler exchanged with the parameter file's default coolant instead, which can "
+            f"put the sump and the parts the oil streams feed tens of K off"
+        )
 
 
 @dataclass(frozen=True)
 class StartFinding:
     """The sensor started without a plausible oil reading: at the ambient reading, else the parameters' ambient."""
+
     kind: ClassVar[str] = "start"
 
     @property
@@ -447,10 +543,12 @@ class StartFinding:
 
     @property
     def sentence(self) -> str:
-        return ("the sensor started without an oil reading, every part at the ambient reading (else the parameters' "
-                "ambient): if the gearbox was already warm (a log cut mid-drive, a restart), its first temperatures "
-                "are low until the model catches up; replay --initial-temp DEGC sets the start (live: the state "
-                "saved at shutdown)")
+        return (
+            "the sensor started without an oil reading, every part at the ambient reading (else the parameters' "
+            "ambient): if the gearbox was already warm (a log cut mid-drive, a restart), its first temperatures "
+            "are low until the model catches up; replay --initial-temp DEGC sets the start (live: the state "
+            "saved at shutdown)"
+        )
 
 
 @dataclass(frozen=True)
@@ -458,6 +556,7 @@ class OrderFinding:
     """Frames out of time order (up to the step plus backward_tolerance_s earlier than the frame before them,
     SensorService._check_order): the decoder takes frames in file order, so an older value replaced a newer one (a
     log-replay audit: every 50th frame 0.1 s late left 4 % of the steps 'missing' without a word)."""
+
     kind: ClassVar[str] = "order"
     frames: int
     max_back_s: float
@@ -468,16 +567,23 @@ class OrderFinding:
 
     @property
     def sentence(self) -> str:
-        return (f"{self.frames} frames came earlier in time than the frame before them (up to "
-                f"{1000 * self.max_back_s:.0f} ms): the frames are not in time order (a log merged from several "
-                f"buffers or channels?), and a frame taken in arrival order can replace a newer value with an older "
-                f"one, which may leave inputs stale; sort a log by time (candump -L: LC_ALL=C sort -s -n -k1.2 "
-                f"IN.log > OUT.log)")
+        return (
+            f"{self.frames} frames came earlier in time than the frame before them (up to "
+            f"{1000 * self.max_back_s:.0f} ms): the frames are not in time order (a log merged from several "
+            f"buffers or channels?), and a frame taken in arrival order can replace a newer value with an older "
+            f"one, which may leave inputs stale; sort a log by time (candump -L: LC_ALL=C sort -s -n -k1.2 "
+            f"IN.log > OUT.log)"
+        )
 
 
-def trust_findings(counters: Mapping, expected_sa: Mapping[str, int | None],
-                   configured: Mapping[str, int] | None = None, oil_model: bool = False,
-                   stale_factor: float = 3.0, config_keys: Mapping[str, str] | None = None) -> list[Finding]:
+def trust_findings(
+    counters: Mapping,
+    expected_sa: Mapping[str, int | None],
+    configured: Mapping[str, int] | None = None,
+    oil_model: bool = False,
+    stale_factor: float = 3.0,
+    config_keys: Mapping[str, str] | None = None,
+) -> list[Finding]:
     """The findings of a CAN run, most severe first: ``counters`` = ``SensorService.all_counters()``. The degraded
     share is a finding from DEGRADED_WARN_SHARE on (``oil_model``: the sensor models the oil by request, which is
     not degraded); foreign source addresses are findings when a message came only
@@ -489,11 +595,12 @@ def trust_findings(counters: Mapping, expected_sa: Mapping[str, int | None],
         out.append(TimeBaseFinding(**raised))
     stale = dict(service.get("stale_steps", {}))
     unmapped = int(service.get("gear_unmapped_steps", 0))
-    if unmapped:       # a gear that arrived but that [can] gear_map or the model's -2..14 leaves out is missing too
+    if unmapped:  # a gear that arrived but that [can] gear_map or the model's -2..14 leaves out is missing too
         stale["gear"] = stale.get("gear", 0) + unmapped
     causes = input_causes(counters["decoder"], stale, int(service.get("steps", 0)), unmapped, stale_factor)
-    degraded = degraded_finding(service.get("mode_steps", {}), stale, oil_model, service.get("input_rejects"),
-                                service.get("oil_frozen_at_c"))
+    degraded = degraded_finding(
+        service.get("mode_steps", {}), stale, oil_model, service.get("input_rejects"), service.get("oil_frozen_at_c")
+    )
     degraded = dataclasses.replace(degraded, causes=tuple(c for c in causes if not c.startswith("coolant")))
     loud = degraded.severity >= Severity.WARNING
     for f in foreign_findings(counters["decoder"], expected_sa, configured, config_keys):
@@ -503,9 +610,14 @@ def trust_findings(counters: Mapping, expected_sa: Mapping[str, int | None],
         out.append(degraded)
     steps = int(service.get("steps", 0))
     sent = counters["decoder"].get("arrivals", {}).get(signal_messages()["coolant_temp_c"], 0)
-    if steps and sent and stale.get("coolant_temp_c", 0) >= CAUSE_MIN_SHARE * steps:    # sent, but not usable
-        out.append(CoolantFinding(steps, int(stale["coolant_temp_c"]),
-                                  tuple(c[len("coolant temperature: "):] for c in causes if c.startswith("coolant"))))
+    if steps and sent and stale.get("coolant_temp_c", 0) >= CAUSE_MIN_SHARE * steps:  # sent, but not usable
+        out.append(
+            CoolantFinding(
+                steps,
+                int(stale["coolant_temp_c"]),
+                tuple(c[len("coolant temperature: ") :] for c in causes if c.startswith("coolant")),
+            )
+        )
     if service.get("started_without_oil"):
         out.append(StartFinding())
     if service.get("frames_out_of_order"):

@@ -1,5 +1,6 @@
 """The project DBC: loads strictly, survives dump-then-reload, matches the J1939 inputs of docs/can.md, names the
 component of every per-component signal and round-trips every output."""
+
 from __future__ import annotations
 
 import math
@@ -22,8 +23,7 @@ REPO = Path(__file__).resolve().parents[2]
 CONTRACT_INPUTS = {
     "EEC1": (61444, 0x00, {190: (4, 16, 0.125, 0.0), 513: (3, 8, 1.0, -125.0)}),
     "ETC2": (61445, 0x03, {523: (4, 8, 1.0, -125.0)}),
-    "TRF1": (65272, 0x03, {177: (5, 16, 0.03125, -273.0), 124: (2, 8, 0.4, 0.0),
-                        3026: (8, 4, 1.0, 0.0, 5)}),
+    "TRF1": (65272, 0x03, {177: (5, 16, 0.03125, -273.0), 124: (2, 8, 0.4, 0.0), 3026: (8, 4, 1.0, 0.0, 5)}),
     "ET1": (65262, 0x00, {110: (1, 8, 1.0, -40.0)}),
     "AMB": (65269, 0x00, {171: (4, 16, 0.03125, -273.0)}),
     "CCVS1": (65265, 0x00, {84: (2, 16, 1 / 256, 0.0)}),
@@ -31,9 +31,14 @@ CONTRACT_INPUTS = {
 }
 
 #: the output table of docs/can.md: name -> PGN
-OUTPUT_PGNS = {**{f"GBX_TEMP_{k + 1}": 0xFF40 + k for k in range(7)}, "GBX_WARN": 0xFF47,
-               **{f"GBX_TTL_{k + 1}": 0xFF48 + k for k in range(7)}, "GBX_STATUS": 0xFF4F, "GBX_DM1": 65226,
-               **{f"RIG_TC_{k + 1}": 0xFF50 + k for k in range(7)}}
+OUTPUT_PGNS = {
+    **{f"GBX_TEMP_{k + 1}": 0xFF40 + k for k in range(7)},
+    "GBX_WARN": 0xFF47,
+    **{f"GBX_TTL_{k + 1}": 0xFF48 + k for k in range(7)},
+    "GBX_STATUS": 0xFF4F,
+    "GBX_DM1": 65226,
+    **{f"RIG_TC_{k + 1}": 0xFF50 + k for k in range(7)},
+}
 
 
 @pytest.fixture(scope="module")
@@ -58,12 +63,38 @@ def test_every_message_is_a_j1939_pg_with_an_extended_id_and_8_bytes(db):
 
 
 def _signature(db):
-    return [(m.name, m.frame_id, m.length, m.protocol, m.cycle_time, m.senders, m.comment,
-             [(s.name, s.start, s.length, s.byte_order, s.is_signed, s.scale, s.offset, s.minimum, s.maximum,
-               s.unit, s.spn, s.comment, s.multiplexer_ids, s.is_multiplexer,
-               None if s.choices is None else {k: str(v) for k, v in s.choices.items()})
-              for s in sorted(m.signals, key=lambda s: (s.start, s.name))])  # the dumper may reorder signals
-            for m in db.messages]
+    return [
+        (
+            m.name,
+            m.frame_id,
+            m.length,
+            m.protocol,
+            m.cycle_time,
+            m.senders,
+            m.comment,
+            [
+                (
+                    s.name,
+                    s.start,
+                    s.length,
+                    s.byte_order,
+                    s.is_signed,
+                    s.scale,
+                    s.offset,
+                    s.minimum,
+                    s.maximum,
+                    s.unit,
+                    s.spn,
+                    s.comment,
+                    s.multiplexer_ids,
+                    s.is_multiplexer,
+                    None if s.choices is None else {k: str(v) for k, v in s.choices.items()},
+                )
+                for s in sorted(m.signals, key=lambda s: (s.start, s.name))
+            ],
+        )  # the dumper may reorder signals
+        for m in db.messages
+    ]
 
 
 def test_dump_then_reload_is_identical(db, tmp_path):
@@ -71,8 +102,9 @@ def test_dump_then_reload_is_identical(db, tmp_path):
     cantools.database.dump_file(db, str(dumped))
     reloaded = cantools.database.load_file(str(dumped), strict=True)
     assert _signature(reloaded) == _signature(db)
-    assert [(n.name, n.dbc.attributes["NmStationAddress"].value) for n in reloaded.nodes] == \
-        [(n.name, n.dbc.attributes["NmStationAddress"].value) for n in db.nodes]
+    assert [(n.name, n.dbc.attributes["NmStationAddress"].value) for n in reloaded.nodes] == [
+        (n.name, n.dbc.attributes["NmStationAddress"].value) for n in db.nodes
+    ]
 
 
 @pytest.mark.parametrize("name", sorted(CONTRACT_INPUTS))
@@ -85,8 +117,12 @@ def test_inputs_match_interfaces_section_1(db, name):
     assert set(by_spn) == set(spns)
     for spn, (byte1, bits, scale, offset, *bit1) in spns.items():
         signal = by_spn[spn]
-        assert (signal.start, signal.length, signal.byte_order, signal.is_signed) == \
-            ((byte1 - 1) * 8 + (bit1[0] - 1 if bit1 else 0), bits, "little_endian", False)
+        assert (signal.start, signal.length, signal.byte_order, signal.is_signed) == (
+            (byte1 - 1) * 8 + (bit1[0] - 1 if bit1 else 0),
+            bits,
+            "little_endian",
+            False,
+        )
         assert signal.scale == pytest.approx(scale) and signal.offset == offset
 
 
@@ -151,21 +187,31 @@ def test_message_helpers_read_the_dbc():
     with pytest.raises(adapter.DecodeError, match="8-bit"):
         dbc.signal_layout("TRF1", "TransOilTemp", 8)
     assert dbc.not_available_raw("GBX_STATUS", "DegradedMode") == 15
-    assert dbc.data_choices("GBX_STATUS", "DegradedMode") == {0: "normal", 1: "oil model only",
-                                                             2: "inputs missing - holding", 3: "not initialised"}
+    assert dbc.data_choices("GBX_STATUS", "DegradedMode") == {
+        0: "normal",
+        1: "oil model only",
+        2: "inputs missing - holding",
+        3: "not initialised",
+    }
 
 
 def _random_outputs(rng):
-    temps = {c: rng.choice([None, math.nan, rng.uniform(-300, 1800), round(rng.uniform(-40, 200), 5)])
-             for c in PUBLISHED}
+    temps = {
+        c: rng.choice([None, math.nan, rng.uniform(-300, 1800), round(rng.uniform(-40, 200), 5)]) for c in PUBLISHED
+    }
     levels = {c: rng.choice([0, 1, 2, 3, None]) for c in PUBLISHED}
     ttl = {c: rng.choice([None, math.inf, math.nan, -5.0, float(rng.randrange(0, 70000))]) for c in PUBLISHED}
-    status = {"speed_valid": rng.choice([True, False, None]), "torque_valid": rng.choice([True, False, None]),
-              "gear_valid": rng.choice([True, False, None]), "oil_valid": rng.choice([True, False, None]),
-              "ref_torque_valid": rng.choice([True, False, None]), "degraded_mode": rng.choice([0, 1, 2, 3, None]),
-              "oil_innovation_c": rng.choice([None, rng.uniform(-1100, 1100)]),
-              "model_oil_temp_c": rng.choice([None, rng.uniform(-40, 150)]),
-              "time_base_suspect": rng.choice([True, False, None])}
+    status = {
+        "speed_valid": rng.choice([True, False, None]),
+        "torque_valid": rng.choice([True, False, None]),
+        "gear_valid": rng.choice([True, False, None]),
+        "oil_valid": rng.choice([True, False, None]),
+        "ref_torque_valid": rng.choice([True, False, None]),
+        "degraded_mode": rng.choice([0, 1, 2, 3, None]),
+        "oil_innovation_c": rng.choice([None, rng.uniform(-1100, 1100)]),
+        "model_oil_temp_c": rng.choice([None, rng.uniform(-40, 150)]),
+        "time_base_suspect": rng.choice([True, False, None]),
+    }
     return temps, levels, ttl, status
 
 
@@ -193,14 +239,22 @@ def test_output_round_trip_of_every_signal_including_not_available_and_never():
                 assert got["ttl_s"][c] == math.inf
             else:
                 assert got["ttl_s"][c] == min(max(round(value), 0), 64254)
-        for key in ("speed_valid", "torque_valid", "gear_valid", "oil_valid", "ref_torque_valid", "degraded_mode",
-                    "time_base_suspect"):
+        for key in (
+            "speed_valid",
+            "torque_valid",
+            "gear_valid",
+            "oil_valid",
+            "ref_torque_valid",
+            "degraded_mode",
+            "time_base_suspect",
+        ):
             assert got["status"][key] == status[key], key
         innovation = status["oil_innovation_c"]
         expected = None if innovation is None else _expected_temp(innovation, -1000.0, 1007.96875)
         assert got["status"]["oil_innovation_c"] == (None if expected is None else pytest.approx(expected))
         assert got["status"]["model_oil_temp_c"] == (
-            None if status["model_oil_temp_c"] is None else pytest.approx(_expected_temp(status["model_oil_temp_c"])))
+            None if status["model_oil_temp_c"] is None else pytest.approx(_expected_temp(status["model_oil_temp_c"]))
+        )
         available = [lv for lv in levels.values() if lv is not None and lv != 3]
         assert got["status"]["max_warning_level"] == (max(available) if available else 3)
 
@@ -238,8 +292,13 @@ def test_rig_round_trip():
 def test_dm1_round_trip_spn_fmi_lamps_and_occurrence_count():
     encoder = adapter.OutputEncoder()
     nothing = adapter.decode_outputs([encoder.encode_dm1({})])["dm1"]
-    assert nothing == {"amber_warning_lamp": 0, "red_stop_lamp": 0, "protect_lamp": 0, "malfunction_lamp": 0,
-                       "dtc": None}
+    assert nothing == {
+        "amber_warning_lamp": 0,
+        "red_stop_lamp": 0,
+        "protect_lamp": 0,
+        "malfunction_lamp": 0,
+        "dtc": None,
+    }
     warn = adapter.decode_outputs([encoder.encode_dm1({"BO": 1, "PS": 1})])["dm1"]
     assert warn["amber_warning_lamp"] == 1 and warn["red_stop_lamp"] == 0
     assert warn["dtc"] == {"spn": 520192 + PUBLISHED.index("BO"), "fmi": 16, "occurrence_count": 1, "component": "BO"}
@@ -260,7 +319,7 @@ def test_dm1_names_a_missing_input_only_when_no_component_dtc_is_active(db):
     assert d["dtc"]["spn"] == 190 and d["dtc"]["fmi"] == 9 and d["dtc"]["occurrence_count"] == 1
     assert str(db.decode_message(miss.arbitration_id, miss.data)["DTC1_FMI"]).startswith("abnormal update rate")
     crit = adapter.decode_outputs([encoder.encode_dm1({"PS": 2}, missing_spn=190)])["dm1"]
-    assert crit["dtc"]["fmi"] == 0 and crit["red_stop_lamp"] == 1          # a component DTC comes first
+    assert crit["dtc"]["fmi"] == 0 and crit["red_stop_lamp"] == 1  # a component DTC comes first
     with pytest.raises(adapter.EncodeError, match="missing_spn"):
         encoder.encode_dm1({}, missing_spn=1 << 19)
 
@@ -268,8 +327,10 @@ def test_dm1_names_a_missing_input_only_when_no_component_dtc_is_active(db):
 def test_dm1_without_an_active_dtc_reads_as_no_active_dtc(db):
     """SPN 0 / FMI 0 / OC 0 is J1939's "no DTC": cantools must not show it as a most severe fault."""
     encoder = adapter.OutputEncoder()
-    nothing, warning, critical = (db.decode_message(m.arbitration_id, m.data) for m in (
-        encoder.encode_dm1({}), encoder.encode_dm1({"PS": 1}), encoder.encode_dm1({"PS": 2})))
+    nothing, warning, critical = (
+        db.decode_message(m.arbitration_id, m.data)
+        for m in (encoder.encode_dm1({}), encoder.encode_dm1({"PS": 1}), encoder.encode_dm1({"PS": 2}))
+    )
     assert str(nothing["DTC1_OccurrenceCount"]) == "no active DTC"
     assert str(nothing["DTC1_FMI"]).startswith("no active DTC")
     assert nothing["DTC1_SPN_Low"] + 65536 * nothing["DTC1_SPN_High"] == 0
@@ -279,6 +340,7 @@ def test_dm1_without_an_active_dtc_reads_as_no_active_dtc(db):
 
 def test_per_component_signal_comments_spell_out_the_component(db):
     from firmware_model.components import describe
+
     for message in db.messages:
         for signal in message.signals:
             component = dbc.component_of(signal)
@@ -287,8 +349,15 @@ def test_per_component_signal_comments_spell_out_the_component(db):
 
 
 def _run_cli(*args, stdin=""):
-    return subprocess.run([sys.executable, "-m", "cantools", *args], input=stdin, capture_output=True, text=True,
-                          cwd=REPO, timeout=120, check=True).stdout
+    return subprocess.run(
+        [sys.executable, "-m", "cantools", *args],
+        input=stdin,
+        capture_output=True,
+        text=True,
+        cwd=REPO,
+        timeout=120,
+        check=True,
+    ).stdout
 
 
 def test_cantools_decode_cli_shows_names_units_and_not_available():
@@ -297,8 +366,9 @@ def test_cantools_decode_cli_shows_names_units_and_not_available():
     temps["PS"] = None
     ttl = {"oil": math.inf}
     frames = encoder.encode(temps, {"PS": 2}, ttl, {"oil_innovation_c": -2.5, "degraded_mode": 1})
-    lines = "".join(f"({k * 0.1:.6f}) vcan0 {m.arbitration_id:08X}#{bytes(m.data).hex().upper()}\n"
-                    for k, m in enumerate(frames))
+    lines = "".join(
+        f"({k * 0.1:.6f}) vcan0 {m.arbitration_id:08X}#{bytes(m.data).hex().upper()}\n" for k, m in enumerate(frames)
+    )
     out = _run_cli("decode", "--single-line", str(DBC), stdin=lines)
     assert "GBX_TEMP_7(T_PS: not available, T_PP: 80.0 degC, T_PR: 80.0 degC, T_oil: 80.0 degC)" in out
     assert "TTL_oil: never" in out and "W_PS: critical" in out

@@ -1,6 +1,7 @@
 """A tiny stand-in for firmware_model.onboard.sensor.VirtualSensor with the API the CAN service expects
 (firmware_model.service.protocol.StepSensor), used by the CAN tests. Deterministic, cheap, and it reacts to every
 input so that wrong inputs show."""
+
 from __future__ import annotations
 
 import collections
@@ -14,10 +15,10 @@ from firmware_model.components import MODE_HOLDING, MODE_NORMAL, MODE_OIL_MODEL,
 from firmware_model.service import StepInputs
 from firmware_model.units import RAD_S_PER_RPM
 
-
 #: the stand-in's inputs: the service's input fields (NaN = not available), then the step's frame time
-SensorInputs = collections.namedtuple("SensorInputs", (*StepInputs._fields, "t_s"),
-                                      defaults=(math.nan,) * (len(StepInputs._fields) + 1))
+SensorInputs = collections.namedtuple(
+    "SensorInputs", (*StepInputs._fields, "t_s"), defaults=(math.nan,) * (len(StepInputs._fields) + 1)
+)
 
 
 class Status(NamedTuple):
@@ -105,6 +106,7 @@ def make_sensor():
     if real_sensor_available():
         from firmware_model.config import load_config
         from firmware_model.onboard.sensor import VirtualSensor as Real
+
         cfg = load_config(None)
         return Real(cfg.load_params(), config=cfg)
     return VirtualSensor()

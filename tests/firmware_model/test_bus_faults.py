@@ -1,6 +1,7 @@
 """The live loop survives a failing bus (issue: in-vehicle gateway): a receive error closes the bus and reopens it
 with back-off, each outage counted and logged once, the sensor resumes when frames return; without a way to reopen,
 the error ends the loop as before."""
+
 from __future__ import annotations
 
 import logging
@@ -43,15 +44,15 @@ def _service():
 def test_a_receive_error_reopens_the_bus_and_the_sensor_resumes(caplog):
     caplog.set_level(logging.INFO)
     frames = traffic(0.0, 4.0)
-    first = FaultyBus(frames[:len(frames) // 2], fail=True)
+    first = FaultyBus(frames[: len(frames) // 2], fail=True)
     later = []
     attempts = {"n": 0}
 
     def reopen():
         attempts["n"] += 1
         if attempts["n"] == 1:
-            raise can.CanInitializationError("No such device")     # the interface is still down once
-        bus = FaultyBus(frames[len(frames) // 2:], fail=False)
+            raise can.CanInitializationError("No such device")  # the interface is still down once
+        bus = FaultyBus(frames[len(frames) // 2 :], fail=False)
         later.append(bus)
         return bus
 
@@ -63,8 +64,8 @@ def test_a_receive_error_reopens_the_bus_and_the_sensor_resumes(caplog):
     timer.cancel()
     # the error, a resume on the same (now silent) bus, the silent outage's reopen: failing once, then working
     assert result.bus_events == {"read_errors": 1, "outages": 1, "resumes": 1, "reopens": 1, "reopen_failures": 1}
-    assert result.frames_in == len(frames)                            # every frame, before and after the outage
-    assert svc.counters["steps"] >= 38 and later and later[0].sent   # stepping and sending on the new bus
+    assert result.frames_in == len(frames)  # every frame, before and after the outage
+    assert svc.counters["steps"] >= 38 and later and later[0].sent  # stepping and sending on the new bus
     assert caplog.text.count("CAN receive error") == 1 and caplog.text.count("CAN bus back after") == 1
 
 
@@ -99,8 +100,8 @@ def test_a_bus_whose_reads_fail_at_once_is_retried_ever_more_slowly_not_in_a_loo
     result = serve(DeadBus(), _service(), stop=stop, reopen=reopen, poll_s=0.02)
     timer.cancel()
     ev = result.bus_events
-    assert 4 <= ev["read_errors"] <= 40, ev        # at most one per 0.1-0.2 s resume (was > 100 000)
-    assert ev["reopens"] == len(opened) and 1 <= len(opened) <= 4, ev   # 0.5, 1, 2 s apart (was every 0.3 s)
+    assert 4 <= ev["read_errors"] <= 40, ev  # at most one per 0.1-0.2 s resume (was > 100 000)
+    assert ev["reopens"] == len(opened) and 1 <= len(opened) <= 4, ev  # 0.5, 1, 2 s apart (was every 0.3 s)
     assert ev["outages"] == 1 and caplog.text.count("CAN receive error") == 1
 
 
@@ -174,6 +175,7 @@ def _clocked(frames, wall_step_at_s=None, wall_step_s=0.0, boot0_s=50.0, stall=N
     frame time ``wall_step_at_s``; ``stall`` = (t0, t1): the frames stamped then are received at t1 (a backlog);
     ``suspend`` = (t, s): the system suspended s seconds at frame time t (wall and boot clocks both advance)."""
     from firmware_model.service.live import FrameClock
+
     sim = SimClocks()
     fc = FrameClock(wall=sim.wall, boot=sim.boot)
     out = []
@@ -208,14 +210,15 @@ def test_a_step_of_the_frame_clock_is_taken_out_a_pause_is_kept():
     assert fc.steps == 1 and fc.correction_s == pytest.approx(3600.0)
     assert stepped.counters["time_jumps"] == plain.counters["time_jumps"] == 0
     assert stepped.counters["steps"] == plain.counters["steps"]
-    fc, frames = _clocked(traffic(0.0, 20.0), wall_step_at_s=10.0, wall_step_s=-7200.0)     # set back two hours
+    fc, frames = _clocked(traffic(0.0, 20.0), wall_step_at_s=10.0, wall_step_s=-7200.0)  # set back two hours
     assert fc.steps == 1 and frames[-1].timestamp == pytest.approx(19.995, abs=0.01)
-    fc, frames = _clocked(traffic(0.0, 20.0), suspend=(10.0, 36000.0))                        # a night suspended
+    fc, frames = _clocked(traffic(0.0, 20.0), suspend=(10.0, 36000.0))  # a night suspended
     assert fc.steps == 0 and frames[-1].timestamp > 36000.0
-    fc, frames = _clocked(traffic(0.0, 20.0), stall=(5.0, 10.0))                              # a 5 s backlog
+    fc, frames = _clocked(traffic(0.0, 20.0), stall=(5.0, 10.0))  # a 5 s backlog
     assert fc.steps == 0 and frames[-1].timestamp == pytest.approx(19.995, abs=0.01)
     # frames whose clock is not the wall clock (an adapter's): a wall step they do not show is adopted, not applied
     from firmware_model.service.live import FrameClock
+
     sim = SimClocks()
     fc = FrameClock(wall=sim.wall, boot=sim.boot)
     for k in range(300):
@@ -228,6 +231,7 @@ def test_a_step_of_the_frame_clock_is_taken_out_a_pause_is_kept():
 def test_every_receive_error_is_counted(caplog):
     """From a gateway audit: 50 malformed frames reported by the notifier counted as one receive error."""
     from firmware_model.service.live import BusLink, QueueListener
+
     listener = QueueListener()
     bus = FaultyBus([], fail=False)
     link = BusLink(bus, listener, reopen=lambda: FaultyBus([], fail=False))
@@ -248,6 +252,7 @@ def test_sighup_stops_cleanly():
 
     from tools.can.bus import STOP_SIGNALS
     from tools.can.systemd import unit_text
+
     assert signal.SIGHUP in STOP_SIGNALS
     assert "Restart=always" in unit_text("socketcan", "can0")
 

@@ -1,5 +1,6 @@
 """SensorService: time from frame timestamps, staleness, catch-up and time jumps, outputs, counters, robustness,
 and the real truck captures (tests/data_paths.py) through the whole service."""
+
 from __future__ import annotations
 
 import logging
@@ -9,12 +10,11 @@ import can
 import numpy as np
 import pytest
 
-from tests.data_paths import SKIP_REASON, real_capture_dir
-
 from can_dbc.adapter import REJECT_REASONS, STATUS_KEYS, can_id_of, decode_outputs, pgn_of
-from firmware_model.service import SensorService, ServiceOptions, can_filters, wanted_pgns
 from firmware_model.components import PUBLISHED, STEP_S
 from firmware_model.errors import ParameterError
+from firmware_model.service import SensorService, ServiceOptions, can_filters, wanted_pgns
+from tests.data_paths import SKIP_REASON, real_capture_dir
 
 from .sensor_standin import VirtualSensor as StandIn
 from .sensor_standin import make_sensor
@@ -24,8 +24,9 @@ CAPTURES = ("normal", "tsc1", "fuzz_1ms_ID_and_Data", "utulsa_logger2_drive")
 
 
 def frame(t, pgn, sa, data, prio=6, **kw):
-    return can.Message(timestamp=t, arbitration_id=can_id_of(pgn, sa, prio), is_extended_id=True,
-                       data=bytes(data), **kw)
+    return can.Message(
+        timestamp=t, arbitration_id=can_id_of(pgn, sa, prio), is_extended_id=True, data=bytes(data), **kw
+    )
 
 
 def eec1(t, rpm=1200.0, pct=50):
@@ -63,6 +64,7 @@ def service(**kw):
 
 # --------------------------------------------------------------------------------------------------- time model
 
+
 def test_steps_on_frame_time_boundaries_and_frames_stamped_with_step_time():
     svc = service()
     out = svc.feed_all(traffic(1000.0, 1003.0))
@@ -95,16 +97,18 @@ def test_same_traffic_same_outputs_and_unwanted_frames_never_move_time():
     noisy = []
     for m in base:
         # foreign frames between, 11-bit, unknown PGNs, our own outputs: counted, never timing
-        noisy.append(can.Message(timestamp=m.timestamp - 0.0004, arbitration_id=0x123, is_extended_id=False,
-                                 data=b"\x01"))
+        noisy.append(
+            can.Message(timestamp=m.timestamp - 0.0004, arbitration_id=0x123, is_extended_id=False, data=b"\x01")
+        )
         noisy.append(frame(m.timestamp - 0.0002, 0xFECA, 0x31, [0] * 8))
         noisy.append(m)
     noisy.insert(0, frame(4.9437, 0xFF40, 0xE5, [0] * 8))  # before the first wanted frame: must not anchor
     a, b = service(), service()
     out_a = a.feed_all(base)
     out_b = b.feed_all(noisy)
-    assert [(m.timestamp, m.arbitration_id, bytes(m.data)) for m in out_a] == \
-           [(m.timestamp, m.arbitration_id, bytes(m.data)) for m in out_b]
+    assert [(m.timestamp, m.arbitration_id, bytes(m.data)) for m in out_a] == [
+        (m.timestamp, m.arbitration_id, bytes(m.data)) for m in out_b
+    ]
     assert b.counters["frames_not_timing"] == 2 * len(base) + 1
     d = b.decoder.counters
     assert d["frames_seen"] == d["frames_used"] + sum(d["rejected"].values()) == len(noisy)
@@ -201,7 +205,7 @@ def test_a_propagation_prepared_for_another_state_or_gap_is_not_taken(core, chan
     (T_out, T_st, hits, key), (ref_out, ref_st, _, _) = runs
     assert hits == 0 and key is None
     assert not sensor.prepare_jump(st, float("inf")) and not sensor.prepare_jump(st, float("nan"))  # no jump the
-    assert sensor.cache.ahead.key is None                                       # step would see: nothing done
+    assert sensor.cache.ahead.key is None  # step would see: nothing done
     assert np.array_equal(T_out, ref_out) and np.array_equal(T_st, ref_st)
 
 
@@ -220,16 +224,20 @@ def test_a_forward_gap_is_propagated_at_its_first_frame_and_the_outputs_are_the_
         sensor = VirtualSensor(params, core=core)
         if core == "c" and sensor.compiled is None:
             pytest.skip("the compiled kernel is not built here")
-        svc = SensorService(sensor if prepared else _WithoutPrepare(sensor),
-                            ServiceOptions(configured_ref_torque_nm=2000.0), record=True)
+        svc = SensorService(
+            sensor if prepared else _WithoutPrepare(sensor),
+            ServiceOptions(configured_ref_torque_nm=2000.0),
+            record=True,
+        )
         sent = svc.feed_all(frames)
         svc.finish_pending()
         runs[prepared] = (svc, sent, sensor.cache.ahead.hits)
     (svc, sent, hits), (plain, plain_sent, plain_hits) = runs[True], runs[False]
     assert svc.counters["time_jumps"] == plain.counters["time_jumps"] == 2
     assert (hits, plain_hits) == (2, 0)
-    assert [(m.timestamp, m.arbitration_id, bytes(m.data)) for m in sent] \
-        == [(m.timestamp, m.arbitration_id, bytes(m.data)) for m in plain_sent]
+    assert [(m.timestamp, m.arbitration_id, bytes(m.data)) for m in sent] == [
+        (m.timestamp, m.arbitration_id, bytes(m.data)) for m in plain_sent
+    ]
     rec, ref = svc.recorded(), plain.recorded()
     assert rec.keys() == ref.keys()
     for name in rec:
@@ -295,8 +303,12 @@ def test_gear_map_and_gears_outside_the_model_are_not_available():
 
 
 def test_options_are_validated_with_named_errors():
-    for key, value in (("sensor_source_address", 300), ("engine_source_address", True),   # named by their [can]
-                       ("engine_reference_torque_nm", -5), ("retarder_reference_torque_nm", "x")):   # key, not field
+    for key, value in (
+        ("sensor_source_address", 300),
+        ("engine_source_address", True),  # named by their [can]
+        ("engine_reference_torque_nm", -5),
+        ("retarder_reference_torque_nm", "x"),
+    ):  # key, not field
         with pytest.raises(ParameterError, match=rf"can\.{key} = "):
             ServiceOptions.from_config(type("C", (), {"can": {key: value}})())
     with pytest.raises(ParameterError, match="stale_factor"):
@@ -305,15 +317,31 @@ def test_options_are_validated_with_named_errors():
         ServiceOptions(output_period_s=0.15)
     # from a gateway audit: inf and NaN periods ended in a traceback; an infinite stale factor was taken and an
     # input gone for 5 minutes stayed valid; a NAME field too wide was cut to its low bits on the bus
-    for key, value in (("output_period_s", math.inf), ("output_period_s", math.nan), ("stale_factor", math.inf),
-                       ("stale_factor", 1e300), ("counter_log_period_s", math.inf),
-                       ("name_identity_number", 2097157), ("name_industry_group", 9)):
+    for key, value in (
+        ("output_period_s", math.inf),
+        ("output_period_s", math.nan),
+        ("stale_factor", math.inf),
+        ("stale_factor", 1e300),
+        ("counter_log_period_s", math.inf),
+        ("name_identity_number", 2097157),
+        ("name_industry_group", 9),
+    ):
         with pytest.raises(ParameterError, match=rf"can\.{key} = "):
             ServiceOptions.from_config(type("C", (), {"can": {key: value}})())
-    opts = ServiceOptions.from_config(type("C", (), {"can": {"engine_source_address": 0x01,
-                                                             "transmission_source_address": 0x05,
-                                                             "sensor_source_address": 0x80,
-                                                             "retarder_reference_torque_nm": 3000}})())
+    opts = ServiceOptions.from_config(
+        type(
+            "C",
+            (),
+            {
+                "can": {
+                    "engine_source_address": 0x01,
+                    "transmission_source_address": 0x05,
+                    "sensor_source_address": 0x80,
+                    "retarder_reference_torque_nm": 3000,
+                }
+            },
+        )()
+    )
     assert opts.expected_sa["EEC1"] == 1 and opts.expected_sa["TRF1"] == 5 and opts.sensor_source_address == 0x80
     svc = SensorService(StandIn(), opts)
     assert svc.decoder.expected_sa["ETC2"] == 5 and svc.decoder.retarder_ref_torque_nm == 3000
@@ -364,7 +392,7 @@ def test_counters_are_logged_every_period_of_frame_time(caplog):
 def test_filters_mask_priority_and_source_address():
     assert len(can_filters(network=False)) == len(wanted_pgns())
     filters = can_filters()
-    assert len(filters) == len(wanted_pgns()) + 2           # + J1939 Request and Address Claimed
+    assert len(filters) == len(wanted_pgns()) + 2  # + J1939 Request and Address Claimed
 
     def passes(can_id):
         return any((can_id & f["can_mask"]) == (f["can_id"] & f["can_mask"]) for f in filters)
@@ -382,6 +410,7 @@ def test_filters_mask_priority_and_source_address():
 
 # --------------------------------------------------------------------------------------------------- robustness
 
+
 def random_frames(n, seed=1):
     """Wrong lengths, remote and error frames, random and 11-bit IDs, random and out-of-range data, FD, time
     going backwards a little, valid frames between."""
@@ -396,30 +425,43 @@ def random_frames(n, seed=1):
         dlc = int(rng.integers(0, 9)) if rng.random() < 0.2 else 8
         data = bytes(rng.integers(0, 256, dlc, dtype=np.uint8))
         if kind == 0:
-            yield can.Message(timestamp=t, arbitration_id=int(rng.integers(0, 0x800)), is_extended_id=False,
-                              data=data)
+            yield can.Message(timestamp=t, arbitration_id=int(rng.integers(0, 0x800)), is_extended_id=False, data=data)
         elif kind == 1:
             yield can.Message(timestamp=t, is_error_frame=True)
         elif kind == 2:
-            yield can.Message(timestamp=t, arbitration_id=can_id_of(wanted[rng.integers(len(wanted))] & 0x3FF00
-                                                                    if wanted[0] else 0, 0),
-                              is_extended_id=True, is_remote_frame=True, dlc=8, check=False)
+            yield can.Message(
+                timestamp=t,
+                arbitration_id=can_id_of(wanted[rng.integers(len(wanted))] & 0x3FF00 if wanted[0] else 0, 0),
+                is_extended_id=True,
+                is_remote_frame=True,
+                dlc=8,
+                check=False,
+            )
         elif kind == 3:
-            yield can.Message(timestamp=t, arbitration_id=int(rng.integers(0, 1 << 29)), is_extended_id=True,
-                              data=data)
+            yield can.Message(timestamp=t, arbitration_id=int(rng.integers(0, 1 << 29)), is_extended_id=True, data=data)
         elif kind == 4:
-            yield can.Message(timestamp=t, arbitration_id=can_id_of(wanted[0], 0), is_extended_id=True,
-                              is_fd=True, data=bytes(rng.integers(0, 256, 12, dtype=np.uint8)), check=False)
+            yield can.Message(
+                timestamp=t,
+                arbitration_id=can_id_of(wanted[0], 0),
+                is_extended_id=True,
+                is_fd=True,
+                data=bytes(rng.integers(0, 256, 12, dtype=np.uint8)),
+                check=False,
+            )
         elif kind == 5:  # TP.CM / TP.DT with random content and destinations
             pgn = (0xEC00, 0xEB00)[int(rng.integers(0, 2))]
-            yield can.Message(timestamp=t, arbitration_id=can_id_of(pgn, int(rng.integers(0, 4)), 7,
-                                                                    int(rng.choice([0xFF, 0x21]))),
-                              is_extended_id=True, data=data)
+            yield can.Message(
+                timestamp=t,
+                arbitration_id=can_id_of(pgn, int(rng.integers(0, 4)), 7, int(rng.choice([0xFF, 0x21]))),
+                is_extended_id=True,
+                data=data,
+            )
         else:  # a wanted PGN from a plausible source with random (often out-of-range / n.a.) data
             pgn = wanted[int(rng.integers(len(wanted)))]
             sa = int(rng.choice([0x00, 0x03, 0x10, 0x31]))
-            yield can.Message(timestamp=t, arbitration_id=can_id_of(pgn, sa, int(rng.integers(0, 8))),
-                              is_extended_id=True, data=data)
+            yield can.Message(
+                timestamp=t, arbitration_id=can_id_of(pgn, sa, int(rng.integers(0, 8))), is_extended_id=True, data=data
+            )
 
 
 def test_100k_hostile_frames_through_the_service_no_exception_every_rejection_explained():
@@ -430,8 +472,16 @@ def test_100k_hostile_frames_through_the_service_no_exception_every_rejection_ex
     assert d["frames_seen"] == n
     assert d["frames_seen"] == d["frames_used"] + sum(d["rejected"].values())
     assert set(d["rejected"]) <= set(REJECT_REASONS)
-    for reason in ("error_frame", "remote_frame", "not_extended_id", "fd_frame", "unknown_pgn", "wrong_dlc",
-                   "wrong_source_address", "tp_not_broadcast"):
+    for reason in (
+        "error_frame",
+        "remote_frame",
+        "not_extended_id",
+        "fd_frame",
+        "unknown_pgn",
+        "wrong_dlc",
+        "wrong_source_address",
+        "tp_not_broadcast",
+    ):
         assert d["rejected"].get(reason, 0) > 0, reason
     assert svc.counters["steps"] > 100
     for m in out:
@@ -442,23 +492,46 @@ def test_100k_hostile_frames_through_the_service_no_exception_every_rejection_ex
 # --------------------------------------------------------------------------------------------------- real captures
 
 needs_captures = pytest.mark.skipif(DATA is None, reason=SKIP_REASON)
-    
+
 # README "What a correct decoder finds", at 10 Hz sampling: the sampled range lies inside the README's (half a unit
 # of its last digit of slack) and covers most of it
 EXPECTED = {
-    "normal": {"engine_speed_rpm": (1147, 1786, 0.5), "gear": (2, 4, 0.5), "oil_temp_c": (77.3, 78.2, 0.05),
-               "ambient_temp_c": (33.1, 33.1, 0.05), "vehicle_speed_kmh": (23.2, 54.9, 0.05),
-               "coolant_temp_c": (92, 93, 0.5), "engine_torque_pct": (3, 45, 0.5)},
-    "tsc1": {"engine_speed_rpm": (711, 1700, 0.5), "gear": (1, 4, 0.5), "oil_temp_c": (76.7, 77.6, 0.05),
-             "ambient_temp_c": (35.4, 35.6, 0.05), "vehicle_speed_kmh": (14.1, 47.5, 0.05),
-             "coolant_temp_c": (89, 93, 0.5), "engine_torque_pct": (0, 85, 0.5)},
-    "fuzz_1ms_ID_and_Data": {"engine_speed_rpm": (719, 730, 0.5), "gear": (0, 0, 0.5),
-                             "oil_temp_c": (76.3, 77.3, 0.05), "ambient_temp_c": (34.5, 34.6, 0.05),
-                             "vehicle_speed_kmh": (0, 0, 0.5), "coolant_temp_c": (90, 90, 0.5),
-                             "engine_torque_pct": (5, 7, 0.5)},
-    "utulsa_logger2_drive": {"engine_speed_rpm": (409, 1859, 0.5), "gear": None, "oil_temp_c": None,
-                             "ambient_temp_c": (21.4, 22.5, 0.05), "vehicle_speed_kmh": (0, 52.3, 0.05),
-                             "coolant_temp_c": (73, 79, 0.5), "engine_torque_pct": (0, 73, 0.5)},
+    "normal": {
+        "engine_speed_rpm": (1147, 1786, 0.5),
+        "gear": (2, 4, 0.5),
+        "oil_temp_c": (77.3, 78.2, 0.05),
+        "ambient_temp_c": (33.1, 33.1, 0.05),
+        "vehicle_speed_kmh": (23.2, 54.9, 0.05),
+        "coolant_temp_c": (92, 93, 0.5),
+        "engine_torque_pct": (3, 45, 0.5),
+    },
+    "tsc1": {
+        "engine_speed_rpm": (711, 1700, 0.5),
+        "gear": (1, 4, 0.5),
+        "oil_temp_c": (76.7, 77.6, 0.05),
+        "ambient_temp_c": (35.4, 35.6, 0.05),
+        "vehicle_speed_kmh": (14.1, 47.5, 0.05),
+        "coolant_temp_c": (89, 93, 0.5),
+        "engine_torque_pct": (0, 85, 0.5),
+    },
+    "fuzz_1ms_ID_and_Data": {
+        "engine_speed_rpm": (719, 730, 0.5),
+        "gear": (0, 0, 0.5),
+        "oil_temp_c": (76.3, 77.3, 0.05),
+        "ambient_temp_c": (34.5, 34.6, 0.05),
+        "vehicle_speed_kmh": (0, 0, 0.5),
+        "coolant_temp_c": (90, 90, 0.5),
+        "engine_torque_pct": (5, 7, 0.5),
+    },
+    "utulsa_logger2_drive": {
+        "engine_speed_rpm": (409, 1859, 0.5),
+        "gear": None,
+        "oil_temp_c": None,
+        "ambient_temp_c": (21.4, 22.5, 0.05),
+        "vehicle_speed_kmh": (0, 52.3, 0.05),
+        "coolant_temp_c": (73, 79, 0.5),
+        "engine_torque_pct": (0, 73, 0.5),
+    },
 }
 EC1_NM = {"normal": 1109.0, "tsc1": 1109.0, "fuzz_1ms_ID_and_Data": 1109.0, "utulsa_logger2_drive": 2457.0}
 
@@ -539,14 +612,17 @@ def test_real_capture_fuzz_and_tsc1_no_crash_no_warning(name):
 def test_status_comes_from_the_sensors_status_record():
     import math
 
-    from firmware_model.parameters import load_parameters
     from firmware_model.onboard.sensor import SensorInputs
     from firmware_model.onboard.sensor import VirtualSensor as Real
+    from firmware_model.parameters import load_parameters
+
     sensor = Real(load_parameters("GRS905"))
     svc = SensorService(sensor, ServiceOptions())
     st = sensor.initial_state(T_oil_c=70.0)
-    for inp in (SensorInputs(1200.0, math.nan, 9.0, 70.0, 20.0, 85.0, 50.0, 0.0),
-                SensorInputs(1200.0, 900.0, 9.0, math.nan, 20.0, 85.0, 50.0, 0.0)):
+    for inp in (
+        SensorInputs(1200.0, math.nan, 9.0, 70.0, 20.0, 85.0, 50.0, 0.0),
+        SensorInputs(1200.0, 900.0, 9.0, math.nan, 20.0, 85.0, 50.0, 0.0),
+    ):
         st, out = sensor.step(st, inp)
         for ref in (None, 2400.0):
             status = svc._status(out.status, ref)
@@ -556,7 +632,7 @@ def test_status_comes_from_the_sensors_status_record():
             assert status.ref_torque_valid == (ref is not None)
             innovation = float(out.status.oil_innovation_c)
             assert status.oil_innovation_c == (innovation if math.isfinite(innovation) else None)
-    assert set(status._asdict()) <= set(STATUS_KEYS)   # what the encoder takes
+    assert set(status._asdict()) <= set(STATUS_KEYS)  # what the encoder takes
 
 
 def test_a_sensor_without_the_service_api_is_refused():

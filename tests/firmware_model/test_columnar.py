@@ -1,6 +1,7 @@
 """The whole-log path (can_dbc.columnar, firmware_model.service.columnar, tools.replay.columns) against the frame
 path: the same run table bit for bit and the same counters, on real captures, on synthesized logs with every fault
 the service handles, and on hostile traffic."""
+
 from __future__ import annotations
 
 import can
@@ -42,17 +43,24 @@ def assert_same(path, **overrides):
 
 def _cycle(seconds=240.0):
     t = np.arange(0.0, seconds, 0.1)
-    return RunTable({"time_s": t, "engine_speed_rpm": 1100.0 + 500.0 * np.sin(t / 9.0),
-                     "engine_torque_nm": 900.0 + 700.0 * np.cos(t / 13.0),
-                     "gear": np.clip(8 + np.round(3 * np.sin(t / 30.0)), 1, 12),
-                     "ambient_temp_c": np.full(t.size, 20.0), "coolant_temp_c": np.full(t.size, 85.0),
-                     "vehicle_speed_kmh": np.full(t.size, 60.0),
-                     "retarder_torque_nm": np.where((t > 100) & (t < 130), 800.0, 0.0)})
+    return RunTable(
+        {
+            "time_s": t,
+            "engine_speed_rpm": 1100.0 + 500.0 * np.sin(t / 9.0),
+            "engine_torque_nm": 900.0 + 700.0 * np.cos(t / 13.0),
+            "gear": np.clip(8 + np.round(3 * np.sin(t / 30.0)), 1, 12),
+            "ambient_temp_c": np.full(t.size, 20.0),
+            "coolant_temp_c": np.full(t.size, 85.0),
+            "vehicle_speed_kmh": np.full(t.size, 60.0),
+            "retarder_torque_nm": np.where((t > 100) & (t < 130), 800.0, 0.0),
+        }
+    )
 
 
 @pytest.fixture(scope="module")
 def drive():
     from tests.tools.can_fixtures import plant_output
+
     inp = _cycle()
     return synth_frames(inp, plant_output(inp, oil0_c=60.0, oil_rate_k_s=0.05), start_timestamp_s=1.7e9).frames
 
@@ -78,14 +86,28 @@ def test_every_fault_at_once_with_other_settings(tmp_path, drive):
     ref, svc = assert_same(path)
     counters = svc.decoder.counters
     assert svc.counters["time_jumps"] >= 1 and svc.counters["stale_steps"]
-    for reason in ("error_frame", "remote_frame", "not_extended_id", "fd_frame", "wrong_source_address",
-                   "wrong_dlc", "unknown_pgn"):
+    for reason in (
+        "error_frame",
+        "remote_frame",
+        "not_extended_id",
+        "fd_frame",
+        "wrong_source_address",
+        "wrong_dlc",
+        "unknown_pgn",
+    ):
         assert counters["rejected"].get(reason, 0) > 0, reason
-    assert {"not_available", "error_value", "out_of_range"} <= {r for v in counters["signal_rejected"].values()
-                                                                 for r in v}
+    assert {"not_available", "error_value", "out_of_range"} <= {
+        r for v in counters["signal_rejected"].values() for r in v
+    }
     assert counters["tp"]["ec1_received"] > 0
-    assert_same(path, gear_map={g: g - 1 for g in range(2, 13)}, configured_ref_torque_nm=2600.0,
-                max_catchup_steps=5, stale_factor=1.5, init_wait_s=0.5)
+    assert_same(
+        path,
+        gear_map={g: g - 1 for g in range(2, 13)},
+        configured_ref_torque_nm=2600.0,
+        max_catchup_steps=5,
+        stale_factor=1.5,
+        init_wait_s=0.5,
+    )
     assert_same(path, expected_sa={"EEC1": None, "TRF1": 0x03})
 
 
@@ -129,14 +151,16 @@ def test_real_captures_give_the_same_table_and_counters(name):
     assert_same(d / name)
 
 
-LINES = [b"(1543509533.000838) can0 18FEF100#FFFF07FFFFFFFFFF\n",
-         b"(0.5) vcan0 0CF00400#1122334455667788 R\n",
-         b"(12) can1 123#0102\n",
-         b"(.25) x 18FEEE00# T\n",
-         b"(99999999999.999999) can0 18FEF8E5#aabbccddeeff0011\n",
-         b"(3.14159265358979323) can0 18FEF8E5#AABBCCDDEEFF0011\n",
-         b"(7.000001) can0 20000080#0000000000000000\n",
-         b"(7.5) can0 1FFFFFFF#00\n"]
+LINES = [
+    b"(1543509533.000838) can0 18FEF100#FFFF07FFFFFFFFFF\n",
+    b"(0.5) vcan0 0CF00400#1122334455667788 R\n",
+    b"(12) can1 123#0102\n",
+    b"(.25) x 18FEEE00# T\n",
+    b"(99999999999.999999) can0 18FEF8E5#aabbccddeeff0011\n",
+    b"(3.14159265358979323) can0 18FEF8E5#AABBCCDDEEFF0011\n",
+    b"(7.000001) can0 20000080#0000000000000000\n",
+    b"(7.5) can0 1FFFFFFF#00\n",
+]
 
 
 @pytest.mark.parametrize("line", LINES)
@@ -150,11 +174,19 @@ def test_candump_lines_parse_exactly_as_python_can_reads_them(tmp_path, line):
         assert np.array_equal(getattr(cols, field), getattr(ref, field)), field
 
 
-@pytest.mark.parametrize("text", [b"(1.0) can0 18FEF100#1122 R\n(1.1) can0 0CF00400#R\n",
-                                  b"(1.0) can0 18FEF100##1112233\n", b"(1.0)\tcan0 18FEF100#11\n",
-                                  b"(1.0) can0 18FEF100#112\n", b"(1e3) can0 18FEF100#11\n",
-                                  b"(1.0) can0 18FEF100#1122\r\n", b"# a comment\n(1.0) can0 18FEF100#11\n",
-                                  b"(1.0) can0 18FEF100#11\n(2.0) can0 18FE"])
+@pytest.mark.parametrize(
+    "text",
+    [
+        b"(1.0) can0 18FEF100#1122 R\n(1.1) can0 0CF00400#R\n",
+        b"(1.0) can0 18FEF100##1112233\n",
+        b"(1.0)\tcan0 18FEF100#11\n",
+        b"(1.0) can0 18FEF100#112\n",
+        b"(1e3) can0 18FEF100#11\n",
+        b"(1.0) can0 18FEF100#1122\r\n",
+        b"# a comment\n(1.0) can0 18FEF100#11\n",
+        b"(1.0) can0 18FEF100#11\n(2.0) can0 18FE",
+    ],
+)
 def test_other_candump_forms_are_left_to_python_can(tmp_path, text):
     """Remote and FD frames, tabs, odd hex, exponents, CRLF, comments, a truncated last line: python-can reads the
     file (its frames, or its error as the frame path reports it)."""
@@ -175,7 +207,7 @@ def test_other_candump_forms_are_left_to_python_can(tmp_path, text):
 def test_mf4_columns_are_python_cans_frames_and_the_replay_is_the_same(tmp_path, drive):
     pytest.importorskip("asammdf", reason="the optional package asammdf (pip install .[mf4]) is not installed")
     msgs = inject(drive, ("hostile", "not_available", "dropout"), seed=2)
-    msgs.sort(key=lambda m: m.timestamp)           # an MF4 group is written in time order
+    msgs.sort(key=lambda m: m.timestamp)  # an MF4 group is written in time order
     path = _write(msgs, tmp_path / "drive.mf4")
     got = read_columns(path)
     assert got.reader == "asammdf columns"
@@ -204,11 +236,13 @@ def test_a_log_without_oil_starts_at_the_ambient_reading_on_both_paths(tmp_path)
     """No oil temperature (no TRF1) at key-on: the sensor starts at the truck's ambient reading (a cold-soaked
     truck at -25 degC), not at the parameters' 25 degC, on the frame path and the whole-log path alike."""
     from tests.tools.can_fixtures import plant_output
+
     inp = _cycle(60.0)
     inp["ambient_temp_c"] = np.full(inp.n, -25.0)
-    frames = list(synth_frames(inp, plant_output(inp, oil0_c=-25.0, oil_rate_k_s=0.0),
-                               start_timestamp_s=1.7e9).frames.messages())
-    no_oil = [m for m in frames if (m.arbitration_id >> 8) & 0x3FFFF != 0xFEF8]     # TRF1 (PGN 65272) left out
+    frames = list(
+        synth_frames(inp, plant_output(inp, oil0_c=-25.0, oil_rate_k_s=0.0), start_timestamp_s=1.7e9).frames.messages()
+    )
+    no_oil = [m for m in frames if (m.arbitration_id >> 8) & 0x3FFFF != 0xFEF8]  # TRF1 (PGN 65272) left out
     assert len(no_oil) < len(frames)
     ref, _ = assert_same(_write(no_oil, tmp_path / "no_oil.log"))
     first = int(np.argmax(np.isfinite(np.asarray(ref["T_PS_c"], dtype=float))))
@@ -220,6 +254,7 @@ def test_both_paths_log_the_same_time_jumps(tmp_path, drive, caplog):
     """The whole-log path logs each time jump as the frame path does (an audit: it counted them, and replay's
     note pointed to log messages that only --processes 1 wrote)."""
     import logging
+
     path = _write(inject(drive, ["jump_forward", "jump_backward"], seed=3), tmp_path / "jumps.log")
     logged = {}
     for columnar in (False, True):
@@ -235,13 +270,14 @@ def test_frames_out_of_time_order_are_counted_alike_and_named(tmp_path, drive):
     of time order and how far back, and a note says to sort the log (a log-replay audit: 4 % of the steps went
     'missing' without a word); a later frame a whole 2 s back is a clock going back, not counted here."""
     from firmware_model.service.trust import OrderFinding
+
     msgs = list(drive.messages(channel="can0"))
     for m in msgs[::50]:
         m.timestamp -= 0.1
     ref, svc = assert_same(_write(msgs, tmp_path / "late.log"))
     n_late = sum(1 for a, b in zip(msgs, msgs[1:]) if 0 < a.timestamp - b.timestamp <= 1.0)
     assert svc.counters["frames_out_of_order"] == n_late > 0
-    assert 0.09 < svc.counters["out_of_order_max_s"] <= 0.101      # 0.1 s plus the spacing of neighbours
+    assert 0.09 < svc.counters["out_of_order_max_s"] <= 0.101  # 0.1 s plus the spacing of neighbours
     notes = [f for f in svc.findings() if isinstance(f, OrderFinding)]
     assert len(notes) == 1 and "sort a log by time" in notes[0].sentence
     svc = _service()
@@ -256,6 +292,7 @@ def test_a_frozen_oil_reading_is_named_as_the_cause_of_the_degraded_run_on_both_
     from firmware_model.service.degraded import DegradedFinding, pct
     from tests.tools.can_fixtures import plant_output
     from tools.can.logsynth import write_frames
+
     inp = _cycle(480.0)
     frames = synth_frames(inp, plant_output(inp, oil0_c=80.0, oil_rate_k_s=0.0), start_timestamp_s=1.7e9).frames
     _, svc = assert_same(write_frames(frames, tmp_path / "frozen_oil.log"))
@@ -263,5 +300,6 @@ def test_a_frozen_oil_reading_is_named_as_the_cause_of_the_degraded_run_on_both_
     assert frozen > 0.3 * svc.counters["steps"] and svc.counters["oil_frozen_at_c"] == 80.0
     degraded = next(f for f in svc.findings() if isinstance(f, DegradedFinding))
     causes = degraded.sentence.split("inputs not usable (missing, stale or rejected as implausible or frozen): ")[1]
-    assert causes.startswith(f"oil temperature frozen at 80.0 degC for {pct(frozen, degraded.steps)} of the steps"), \
+    assert causes.startswith(f"oil temperature frozen at 80.0 degC for {pct(frozen, degraded.steps)} of the steps"), (
         degraded.sentence
+    )

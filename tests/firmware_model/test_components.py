@@ -1,4 +1,5 @@
 """Component codes spelled out where a user looks (``firmware_model.components.describe``), in the glossary's words."""
+
 from __future__ import annotations
 
 import re

@@ -1,5 +1,6 @@
 """The oil cooler (seed section 3.4, Eq 82-83): the Eq 82/83 kernel against hand calculations, and the one cooler
 model the plant and the onboard sensor share."""
+
 import dataclasses
 
 import numpy as np
@@ -14,8 +15,9 @@ from tools.plant.reference import ReferencePlant
 
 
 def test_thermostat_and_eq82():
-    np.testing.assert_allclose(CO.thermostat_fraction(np.array([60.0, 80.0, 90.0, 100.0, 120.0]), 80.0, 100.0),
-                               [0.0, 0.0, 0.5, 1.0, 1.0])
+    np.testing.assert_allclose(
+        CO.thermostat_fraction(np.array([60.0, 80.0, 90.0, 100.0, 120.0]), 80.0, 100.0), [0.0, 0.0, 0.5, 1.0, 1.0]
+    )
     assert CO.thermostat_temperature_c(95.0, 4000.0, 0.5, 2000.0) == pytest.approx(91.0)
     assert CO.thermostat_temperature_c(95.0, 4000.0, 0.0, 2000.0) == pytest.approx(95.0)
     with pytest.raises(ParameterError):
@@ -28,18 +30,18 @@ ARGS = dict(mdot_kg_s=0.4, cp_j_per_kgk=2200.0, Q_max_cool_w=15e3, Q_max_heat_w=
 def test_cooler_none_and_liquid():
     assert CO.cooler_heat_w("none", 400.0, 100.0, 20.0, **ARGS) == 0.0
     assert CO.cooler_heat_w("liquid", 400.0, 100.0, 80.0, **ARGS) == pytest.approx(8000.0)
-    assert CO.cooler_heat_w("liquid", 400.0, 100.0, 20.0, **ARGS) == pytest.approx(15e3)      # cooling saturates
-    assert CO.cooler_heat_w("liquid", 400.0, 50.0, 80.0, **ARGS) == pytest.approx(-12e3)      # heats, saturates
+    assert CO.cooler_heat_w("liquid", 400.0, 100.0, 20.0, **ARGS) == pytest.approx(15e3)  # cooling saturates
+    assert CO.cooler_heat_w("liquid", 400.0, 50.0, 80.0, **ARGS) == pytest.approx(-12e3)  # heats, saturates
     assert CO.cooler_heat_w("liquid", 400.0, 70.0, 80.0, **ARGS) == pytest.approx(-4000.0)
     with pytest.raises(ParameterError):
         CO.cooler_heat_w("water", 400.0, 100.0, 20.0, **ARGS)
 
 
 def test_cooler_air_cannot_heat_and_thermostat_closed():
-    assert CO.cooler_heat_w("air", 400.0, 20.0, 30.0, **ARGS) == 0.0      # oil colder than air
-    assert CO.cooler_heat_w("air", 400.0, 75.0, 20.0, **ARGS) == 0.0      # below T_open
-    assert CO.cooler_heat_w("air", 400.0, 80.0, 20.0, **ARGS) == 0.0      # at T_open
-    assert CO.cooler_heat_w("air", 1e4, 130.0, 20.0, **ARGS) == pytest.approx(15e3)   # saturated
+    assert CO.cooler_heat_w("air", 400.0, 20.0, 30.0, **ARGS) == 0.0  # oil colder than air
+    assert CO.cooler_heat_w("air", 400.0, 75.0, 20.0, **ARGS) == 0.0  # below T_open
+    assert CO.cooler_heat_w("air", 400.0, 80.0, 20.0, **ARGS) == 0.0  # at T_open
+    assert CO.cooler_heat_w("air", 1e4, 130.0, 20.0, **ARGS) == pytest.approx(15e3)  # saturated
     with pytest.raises(ParameterError):
         CO.cooler_heat_w("air", 400.0, 100.0, 20.0, **{**ARGS, "T_full_c": 80.0})
 
@@ -98,9 +100,9 @@ def test_plant_and_onboard_use_the_same_cooler(models, kind):
 
 
 def test_air_cooler_sees_recirculated_air():
-    assert CO.air_temperature_c(25.0, 15.0) == pytest.approx(34.0)        # +9 K at 15 km/h (seed 3.4)
+    assert CO.air_temperature_c(25.0, 15.0) == pytest.approx(34.0)  # +9 K at 15 km/h (seed 3.4)
     assert CO.air_temperature_c(25.0, 50.0) == pytest.approx(27.0)
-    assert CO.air_temperature_c(25.0, -5.0) == pytest.approx(37.0)        # standstill: the table's first row
+    assert CO.air_temperature_c(25.0, -5.0) == pytest.approx(37.0)  # standstill: the table's first row
     assert CO.air_temperature_c(25.0, 300.0) == pytest.approx(25.0)
 
 
@@ -120,6 +122,8 @@ def test_liquid_cooler_hA_follows_its_flows(models):
     ref = CO.cooler_hA_w_per_k(c, "liquid", 1.0, c.ref_engine_speed_rad_s, 50.0)
     assert ref == pytest.approx(c.liquid_hA_ref_w_per_k)
     assert CO.cooler_hA_w_per_k(c, "liquid", 4.0, c.ref_engine_speed_rad_s, 50.0) == pytest.approx(
-        ref * 4.0 ** c.exp_inner)
+        ref * 4.0**c.exp_inner
+    )
     assert CO.cooler_hA_bound_w_per_k(c, "air", 2 * c.ref_ls_speed_rad_s, 0.0, 1.2) >= CO.cooler_hA_w_per_k(
-        c, "air", 2.0, 0.0, 1e3, 1.2)
+        c, "air", 2.0, 0.0, 1e3, 1.2
+    )

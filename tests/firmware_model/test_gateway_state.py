@@ -3,6 +3,7 @@
 State saves are atomic and rate-bounded; a restart restores the state cooled for the time off and reconciled with
 the first oil reading; a missing, corrupt, truncated or foreign file means a cold start, logged and counted; the
 health file feeds `gearbox-vsensor status`; systemd gets READY=1 / WATCHDOG=1 over its notify socket."""
+
 from __future__ import annotations
 
 import base64
@@ -14,11 +15,11 @@ import subprocess
 import numpy as np
 import pytest
 
+from can_dbc.adapter import decode_outputs, pgn_of
 from firmware_model.onboard.sensor import VirtualSensor
 from firmware_model.parameters import load_parameters
 from firmware_model.service import SensorService, ServiceOptions
 from firmware_model.service.persist import HealthFile, StateStore, read_health, sd_notify
-from can_dbc.adapter import decode_outputs, pgn_of
 from tests.firmware_model.test_can_service import traffic
 
 
@@ -47,9 +48,9 @@ def _drive(svc, t0, t1, oil=80.0):
 def test_saved_state_is_restored_cooled_and_reconciled(params, tmp_path):
     clock = Clock()
     first = _service(params)
-    _drive(first, 0.0, 120.0)                                # two minutes of driving: components above the oil
+    _drive(first, 0.0, 120.0)  # two minutes of driving: components above the oil
     store = StateStore(tmp_path / "state.json", period_s=60.0, clock=clock)
-    assert store.save(first, final=True) and store.counters["saves"] == 1      # SIGTERM at the ignition off
+    assert store.save(first, final=True) and store.counters["saves"] == 1  # SIGTERM at the ignition off
     saved_T = np.array(first.state.T_c)
     # the gateway restarts 10 minutes later
     clock.t += 600.0
@@ -61,18 +62,21 @@ def test_saved_state_is_restored_cooled_and_reconciled(params, tmp_path):
     assert second.counters.get("state_restored") is True
     cooled = second.sensor.cool_down(saved_T[0], 600.0, 25.0)
     spread_saved = np.ptp(saved_T[0])
-    assert spread_saved > 2.0                                  # the drive left gradients to keep
+    assert spread_saved > 2.0  # the drive left gradients to keep
     # after the restart the main copy starts from the cooled state (the oil replaced by the reading), not flat
     assert np.ptp(np.array(second.state.T_c)[0]) > 0.2 * np.ptp(cooled)
 
 
-@pytest.mark.parametrize("content, reason", [
-    (None, "no saved state"),
-    (b"{\"schema\": \"vsensor-state/1\", \"snap", "unreadable or truncated"),
-    (b"\x00\xff garbage", "unreadable or truncated"),
-    (json.dumps({"schema": "vsensor-state/1", "variant": "GRSO905", "nodes": ["a"]}).encode(), "another gearbox"),
-    (json.dumps({"schema": "something/else"}).encode(), "schema"),
-])
+@pytest.mark.parametrize(
+    "content, reason",
+    [
+        (None, "no saved state"),
+        (b'{"schema": "vsensor-state/1", "snap', "unreadable or truncated"),
+        (b"\x00\xff garbage", "unreadable or truncated"),
+        (json.dumps({"schema": "vsensor-state/1", "variant": "GRSO905", "nodes": ["a"]}).encode(), "another gearbox"),
+        (json.dumps({"schema": "something/else"}).encode(), "schema"),
+    ],
+)
 def test_unusable_state_means_a_counted_cold_start(params, tmp_path, content, reason, caplog):
     path = tmp_path / "state.json"
     if content is not None:
@@ -82,7 +86,7 @@ def test_unusable_state_means_a_counted_cold_start(params, tmp_path, content, re
     assert store.load(svc.sensor) is None
     assert store.counters["cold_starts"] == 1 and reason in store.counters["reason"]
     assert "cold start" in caplog.text
-    _drive(svc, 0.0, 2.0)                                     # and the sensor starts from the oil as always
+    _drive(svc, 0.0, 2.0)  # and the sensor starts from the oil as always
     assert svc.state is not None and np.allclose(np.array(svc.state.T_c)[0, :3], 80.0, atol=1.0)
 
 
@@ -90,19 +94,19 @@ def test_saves_are_atomic_and_rate_bounded(params, tmp_path):
     clock = Clock()
     svc = _service(params)
     store = StateStore(tmp_path / "state.json", period_s=60.0, clock=clock, timer=clock)
-    assert not store.maybe_save(svc)                          # not initialised yet: nothing to save
+    assert not store.maybe_save(svc)  # not initialised yet: nothing to save
     _drive(svc, 0.0, 3.0)
     assert store.maybe_save(svc)
-    for k in range(100):                                      # the loop ticks often: at most one write a period
+    for k in range(100):  # the loop ticks often: at most one write a period
         clock.t += 0.5
         _drive(svc, 3.0 + 0.5 * k, 3.5 + 0.5 * k)
         store.maybe_save(svc)
-    assert store.counters["saves"] == 1                        # 50 s of ticks: still the first save only
+    assert store.counters["saves"] == 1  # 50 s of ticks: still the first save only
     clock.t += 20.0
     assert store.maybe_save(svc) and store.counters["saves"] == 2
-    clock.t += 120.0                                           # the bus fell silent: nothing new to write
+    clock.t += 120.0  # the bus fell silent: nothing new to write
     assert not store.maybe_save(svc) and store.counters["saves"] == 2
-    assert [p.name for p in tmp_path.iterdir()] == ["state.json"]   # no temporary file left behind
+    assert [p.name for p in tmp_path.iterdir()] == ["state.json"]  # no temporary file left behind
     json.loads((tmp_path / "state.json").read_bytes())
 
 
@@ -129,11 +133,12 @@ def test_a_slow_save_does_not_hold_up_the_loop(params, tmp_path, monkeypatch):
     import threading
 
     from firmware_model.service import persist
+
     release, writes = threading.Event(), []
     real = persist.atomic_write
 
     def slow_write(path, data, durable=True):
-        release.wait(10.0)                      # the fsync of a slow card, until the test lets it go
+        release.wait(10.0)  # the fsync of a slow card, until the test lets it go
         real(path, data, durable)
         writes.append(json.loads(data)["saved_wall_s"])
 
@@ -142,26 +147,29 @@ def test_a_slow_save_does_not_hold_up_the_loop(params, tmp_path, monkeypatch):
     svc = _service(params)
     store = StateStore(tmp_path / "state.json", period_s=60.0, clock=clock, timer=clock, background=True)
     _drive(svc, 0.0, 3.0)
-    assert store.maybe_save(svc)                # returned while the write is still blocked
+    assert store.maybe_save(svc)  # returned while the write is still blocked
     assert store.writing and not writes and store.counters["saves"] == 0
     clock.t += 61.0
     _drive(svc, 3.0, 4.0)
-    assert not store.maybe_save(svc)            # the first is still writing: not a second one behind it
+    assert not store.maybe_save(svc)  # the first is still writing: not a second one behind it
     release.set()
     assert store.wait(10.0) and store.counters["saves"] == 1 and len(writes) == 1
     clock.t += 5.0
     _drive(svc, 4.0, 5.0)
-    assert store.save(svc, final=True)          # at shutdown: now, in this thread
+    assert store.save(svc, final=True)  # at shutdown: now, in this thread
     assert writes == [1.0e9, 1.0e9 + 66.0] and store.counters["saves"] == 2
     assert json.loads((tmp_path / "state.json").read_text())["saved_wall_s"] == 1.0e9 + 66.0
 
 
-@pytest.mark.parametrize("doc, reason", [
-    ({"snapshot": None}, "no snapshot"),
-    ({"saved_wall_s": None}, "no time of saving"),
-    ({"saved_wall_s": "yesterday"}, "no time of saving"),
-    ({"saved_wall_s": 1.0e9 + 86400.0}, "in the future"),
-])
+@pytest.mark.parametrize(
+    "doc, reason",
+    [
+        ({"snapshot": None}, "no snapshot"),
+        ({"saved_wall_s": None}, "no time of saving"),
+        ({"saved_wall_s": "yesterday"}, "no time of saving"),
+        ({"saved_wall_s": 1.0e9 + 86400.0}, "in the future"),
+    ],
+)
 def test_a_state_file_with_bad_fields_is_a_cold_start_not_a_crash_loop(params, tmp_path, doc, reason):
     """From a gateway audit: a file of the right schema and network whose time of saving was null or text, or
     without its snapshot, crashed the start with a traceback; systemd restarted it into the same crash for ever. A
@@ -182,14 +190,14 @@ def test_a_state_file_with_bad_fields_is_a_cold_start_not_a_crash_loop(params, t
 
 def _damage_level(snap):
     a = np.frombuffer(base64.b64decode(snap["level"]["data"]), dtype=np.int8).copy()
-    a[5] = 16                                                  # no warning level: the first step's DM1 failed
+    a[5] = 16  # no warning level: the first step's DM1 failed
     snap["level"]["data"] = base64.b64encode(a.tobytes()).decode()
-    snap.pop("crc32", None)                                          # (a file from before the checksum)
+    snap.pop("crc32", None)  # (a file from before the checksum)
 
 
 def _flip_bit(snap):
     a = np.frombuffer(base64.b64decode(snap["T_c"]["data"]), dtype=np.float64).copy()
-    a.view(np.uint64)[7] ^= np.uint64(1 << 53)                 # one exponent bit: a node 100 K hotter or so
+    a.view(np.uint64)[7] ^= np.uint64(1 << 53)  # one exponent bit: a node 100 K hotter or so
     snap["T_c"]["data"] = base64.b64encode(a.tobytes()).decode()
 
 
@@ -199,8 +207,10 @@ def _short_hold(snap):
     snap.pop("crc32", None)
 
 
-@pytest.mark.parametrize("damage, reason", [
-    (_damage_level, "'level' holds values"), (_flip_bit, "checksum"), (_short_hold, "'hold' has shape")])
+@pytest.mark.parametrize(
+    "damage, reason",
+    [(_damage_level, "'level' holds values"), (_flip_bit, "checksum"), (_short_hold, "'hold' has shape")],
+)
 def test_a_damaged_snapshot_is_a_cold_start_at_the_first_step(params, tmp_path, damage, reason):
     """From a gateway audit: one changed character of the saved warning levels restored as "restored", then stopped
     the service at its first step, after it had saved the same state again (a crash loop under systemd); an
@@ -215,11 +225,11 @@ def test_a_damaged_snapshot_is_a_cold_start_at_the_first_step(params, tmp_path, 
     (tmp_path / "state.json").write_text(json.dumps(saved))
     second = _service(params)
     second.restore = StateStore(tmp_path / "state.json", clock=clock).load(second.sensor)
-    assert second.restore is not None                          # the file itself parses: the sensor's check decides
+    assert second.restore is not None  # the file itself parses: the sensor's check decides
     _drive(second, 5000.0, 5002.0, oil=80.0)
     assert second.counters.get("state_restored") is not True
     assert reason in second.counters["state_cold_start"]
-    assert np.all(np.abs(np.array(second.state.T_c) - 80.0) < 5.0)     # started from the oil reading
+    assert np.all(np.abs(np.array(second.state.T_c) - 80.0) < 5.0)  # started from the oil reading
 
 
 def test_the_saved_time_is_the_last_steps_and_the_wall_clock_does_not_drive_the_period(params, tmp_path):
@@ -232,7 +242,7 @@ def test_the_saved_time_is_the_last_steps_and_the_wall_clock_does_not_drive_the_
     _drive(svc, 0.0, 3.0)
     assert store.maybe_save(svc)
     stepped = wall.t
-    for _ in range(10):                 # ten minutes without a frame: no new save, and the saved time stays
+    for _ in range(10):  # ten minutes without a frame: no new save, and the saved time stays
         wall.t += 60.0
         mono.t += 60.0
         store.maybe_save(svc)
@@ -240,7 +250,7 @@ def test_the_saved_time_is_the_last_steps_and_the_wall_clock_does_not_drive_the_
     assert json.loads((tmp_path / "state.json").read_bytes())["saved_wall_s"] == stepped
     restore = StateStore(tmp_path / "state.json", clock=wall).load(svc.sensor)
     assert restore is not None and restore[1] == pytest.approx(600.0)
-    wall.t -= 3600.0                    # the wall clock set back an hour: the saves go on
+    wall.t -= 3600.0  # the wall clock set back an hour: the saves go on
     for k in range(3):
         mono.t += 61.0
         _drive(svc, 3.0 + k, 4.0 + k)
@@ -255,7 +265,7 @@ def test_a_failing_save_is_tried_again_a_period_later_not_at_every_tick(params, 
     _drive(svc, 0.0, 3.0)
     (tmp_path / "state.json").mkdir()
     store = StateStore(tmp_path / "state.json", period_s=60.0, timer=mono)
-    for k in range(200):                # 100 s of ticks
+    for k in range(200):  # 100 s of ticks
         mono.t += 0.5
         _drive(svc, 3.0 + 0.5 * k, 3.5 + 0.5 * k)
         store.maybe_save(svc)
@@ -267,7 +277,7 @@ def test_a_failing_save_is_tried_again_a_period_later_not_at_every_tick(params, 
 def test_a_failing_save_is_counted_not_fatal(params, tmp_path, caplog):
     svc = _service(params)
     _drive(svc, 0.0, 3.0)
-    (tmp_path / "state.json").mkdir()                         # the path is a directory: the rename fails
+    (tmp_path / "state.json").mkdir()  # the path is a directory: the rename fails
     store = StateStore(tmp_path / "state.json")
     assert not store.save(svc) and not store.save(svc)
     assert store.counters["save_errors"] == 2
@@ -276,6 +286,7 @@ def test_a_failing_save_is_counted_not_fatal(params, tmp_path, caplog):
 
 def test_health_file_and_status_command(params, tmp_path, capsys):
     from tools.cli import main
+
     svc = _service(params)
     _drive(svc, 0.0, 5.0)
     store = StateStore(tmp_path / "state.json")
@@ -293,7 +304,7 @@ def test_health_file_and_status_command(params, tmp_path, capsys):
     assert main(["status", "--health-file", str(tmp_path / "health.json")]) == 1
     assert "NOT RUNNING" in capsys.readouterr().out
     assert main(["status", "--health-file", str(tmp_path / "missing.json")]) == 2
-    for field, bad in (("uptime_s", "long"), ("written_wall_s", None), ("decoder", "x")):   # damaged by hand
+    for field, bad in (("uptime_s", "long"), ("written_wall_s", None), ("decoder", "x")):  # damaged by hand
         (tmp_path / "bad.json").write_text(json.dumps({**doc, field: bad}))
         assert main(["status", "--health-file", str(tmp_path / "bad.json")]) == 2, field
         assert "not a gearbox-vsensor health file" in capsys.readouterr().err
@@ -302,24 +313,25 @@ def test_health_file_and_status_command(params, tmp_path, capsys):
 def test_status_says_when_a_running_service_has_stopped_stepping(params, tmp_path, capsys, monkeypatch):
     """From a gateway audit: with the sensor's input frames gone (other nodes still sending) `status` said
     "running ... mode now 0 (normal)" with exit 0 for 20 s in which no step ran and nothing was sent."""
-    from tools.cli import main
     import tools.cli.status as status_cli
+    from tools.cli import main
+
     svc = _service(params)
     _drive(svc, 0.0, 5.0)
     timer = Clock(100.0)
     health = HealthFile(tmp_path / "health.json", period_s=0.0, timer=timer)
-    monkeypatch.setattr(status_cli, "health_age_s", lambda doc: 0.5)     # the file itself is fresh
+    monkeypatch.setattr(status_cli, "health_age_s", lambda doc: 0.5)  # the file itself is fresh
     assert health.maybe_write(svc)
     assert main(["status", "--health-file", str(tmp_path / "health.json")]) == 0
     assert "(0 s ago)" in capsys.readouterr().out
-    timer.t += 20.0                                            # 20 s without a step: the file is still rewritten
+    timer.t += 20.0  # 20 s without a step: the file is still rewritten
     assert health.maybe_write(svc)
     assert main(["status", "--health-file", str(tmp_path / "health.json")]) == 3
     assert "NO STEP for 20 s" in capsys.readouterr().out
     _drive(svc, 5.0, 6.0)
     assert health.maybe_write(svc)
     assert main(["status", "--health-file", str(tmp_path / "health.json")]) == 0
-    doc = read_health(tmp_path / "health.json")              # damaged by hand: one sentence, exit 2
+    doc = read_health(tmp_path / "health.json")  # damaged by hand: one sentence, exit 2
     (tmp_path / "health.json").write_text(json.dumps({**doc, "last_step_age_s": "long"}))
     assert main(["status", "--health-file", str(tmp_path / "health.json")]) == 2
     assert "not a gearbox-vsensor health file" in capsys.readouterr().err
@@ -329,19 +341,20 @@ def test_status_says_when_a_service_has_never_stepped_after_its_grace(params, tm
     """a service up for 8 s without a single step (no input frame on its
     channel) printed "waiting for inputs, 0 steps" with exit 0, where --help and docs/gateway.md promise exit 3
     when it has not stepped for 5 s. Within its first 5 s it is still only waiting."""
-    from tools.cli import main
     import tools.cli.status as status_cli
+    from tools.cli import main
+
     path = tmp_path / "health.json"
     timer = Clock(100.0)
     health = HealthFile(path, period_s=0.0, timer=timer, interface="socketcan", channel="can0")
-    monkeypatch.setattr(status_cli, "health_age_s", lambda doc: 0.5)     # the file itself is fresh
-    svc = _service(params)                                     # no frame fed: it never steps
+    monkeypatch.setattr(status_cli, "health_age_s", lambda doc: 0.5)  # the file itself is fresh
+    svc = _service(params)  # no frame fed: it never steps
     timer.t += 3.0
     assert health.maybe_write(svc)
     assert main(["status", "--health-file", str(path)]) == 0
     out = capsys.readouterr().out
     assert "service: running," in out and "waiting for inputs, 0 steps" in out and "NEVER" not in out
-    timer.t += 5.0                                             # started 8 s ago, still no step
+    timer.t += 5.0  # started 8 s ago, still no step
     assert health.maybe_write(svc)
     doc = read_health(path)
     assert doc["steps"] == 0 and doc["uptime_s"] == pytest.approx(8.0) and doc["last_step_age_s"] is None
@@ -350,14 +363,14 @@ def test_status_says_when_a_service_has_never_stepped_after_its_grace(params, tm
     assert lines[0].startswith("service: running, but NEVER STEPPED in 8 s")
     assert lines[1].startswith("no step: the service has run 8 s without a single step")
     assert "0 frames received" in lines[1] and "socketcan can0" in lines[1] and "candump can0" in lines[1]
-    _drive(svc, 0.0, 1.0)                                      # frames come: it steps, exit 0
+    _drive(svc, 0.0, 1.0)  # frames come: it steps, exit 0
     assert health.maybe_write(svc)
     assert main(["status", "--health-file", str(path)]) == 0
     assert "NEVER" not in capsys.readouterr().out
-    path.write_text(json.dumps({**doc, "uptime_s": 8.0, "channel": None}))   # an older file: no channel named
+    path.write_text(json.dumps({**doc, "uptime_s": 8.0, "channel": None}))  # an older file: no channel named
     assert main(["status", "--health-file", str(path)]) == 3
     assert "its CAN channel (`run --channel`)" in capsys.readouterr().out
-    doc["stopped"] = True                                      # stopped cleanly: not running (1), not "no step"
+    doc["stopped"] = True  # stopped cleanly: not running (1), not "no step"
     path.write_text(json.dumps(doc))
     assert main(["status", "--health-file", str(path)]) == 1
     assert "NEVER" not in capsys.readouterr().out
@@ -378,6 +391,7 @@ def test_service_unit_passes_systemd_analyze_verify(tmp_path):
     if shutil.which("systemd-analyze") is None:
         pytest.skip("systemd-analyze is not installed (apt install systemd)")
     from tools.can.systemd import unit_text
+
     unit = tmp_path / "gearbox-vsensor.service"
     # a "-" in the channel and a "%" in the config path too (a gateway audit: a fatal error in verify)
     unit.write_text(unit_text("socketcan", "can-gw", config="/etc/gvs/truck%Z.toml"))
@@ -397,6 +411,7 @@ def test_service_unit_fits_the_interface_and_refuses_what_cannot_stand_in_it(cap
     not be found by the service."""
     from tools.can.systemd import unit_text
     from tools.cli import main
+
     pcan = unit_text("pcan", "PCAN_USBBUS1")
     assert "BindsTo" not in pcan and "sys-subsystem-net-devices" not in pcan and "RestrictAddressFamilies" not in pcan
     assert "RestrictAddressFamilies=AF_INET AF_INET6" in unit_text("udp_multicast", "239.0.0.1")
@@ -405,8 +420,10 @@ def test_service_unit_fits_the_interface_and_refuses_what_cannot_stand_in_it(cap
     # config path was taken for a specifier
     assert "BindsTo=sys-subsystem-net-devices-can\\x2dgw.device" in unit_text("socketcan", "can-gw")
     assert "--config /etc/gvs/truck%%Z.toml" in unit_text("socketcan", "can0", config="/etc/gvs/truck%Z.toml")
-    for args, words in ((["--channel", "can0\nExecStartPre=/bin/true"], "line breaks"),
-                        (["--config", "project.toml"], "absolute path")):
+    for args, words in (
+        (["--channel", "can0\nExecStartPre=/bin/true"], "line breaks"),
+        (["--config", "project.toml"], "absolute path"),
+    ):
         assert main(["service-unit", *args]) == 2
         captured = capsys.readouterr()
         assert words in captured.err and "[Unit]" not in captured.out
@@ -428,6 +445,7 @@ def test_failed_health_writes_are_shown_by_status_once_a_write_succeeds(params, 
     """Writes that failed (a full or read-only disk for a while) are counted in the next health document, and a
     stale file says the service may be running but unable to rewrite it."""
     from tools.cli import main
+
     svc = _service(params)
     _drive(svc, 0.0, 2.0)
     target = tmp_path / "d" / "health.json"
@@ -450,11 +468,12 @@ def test_service_unit_warns_of_every_place_the_sandbox_hides(tmp_path):
     """From a newcomer audit: a venv in /tmp whose python links to /root passed without a warning (the check looked
     at the unresolved path and at /home and /root only), and the code of an editable install was not looked at."""
     from tools.can.systemd import check_unit_args
+
     assert check_unit_args("socketcan", "can0", None, "/opt/gvs/bin/python") == []
     tmp_python = check_unit_args("socketcan", "can0", None, "/tmp/venv/bin/python")
     assert len(tmp_python) == 1 and "PrivateTmp=yes" in tmp_python[0]
     link = tmp_path / "python"
-    link.symlink_to("/root/.pyenv/bin/python3")               # need not exist: the link is resolved as text
+    link.symlink_to("/root/.pyenv/bin/python3")  # need not exist: the link is resolved as text
     linked = check_unit_args("socketcan", "can0", None, str(link))
     assert any("ProtectHome=yes" in w and "through its links" in w for w in linked)
 
@@ -463,6 +482,7 @@ def test_status_says_restored_stopped_and_the_mode_now(params, tmp_path, capsys)
     """From a gateway audit: `status` never said whether the saved state was restored (its counter stayed 0), said
     'running' for 5 s after a clean stop, and showed only lifetime totals of the degraded modes."""
     from tools.cli import main
+
     clock = Clock()
     first = _service(params)
     _drive(first, 0.0, 60.0)
@@ -485,6 +505,7 @@ def test_a_restored_state_is_cooled_until_the_first_frame(params, tmp_path):
     """From a review: the time off was measured when the service started, not when the first frame came; a
     gateway restarted while the truck sleeps restored a state too hot by the whole wait."""
     from tools.can.live import GatewayHooks, LiveSettings
+
     clock = Clock()
     first = _service(params)
     _drive(first, 0.0, 60.0)
@@ -492,7 +513,7 @@ def test_a_restored_state_is_cooled_until_the_first_frame(params, tmp_path):
     second = _service(params)
     hooks = GatewayHooks(LiveSettings("virtual", "t", state_file=str(tmp_path / "state.json")), second)
     hooks.store.clock = clock
-    clock.t += 7200.0                                   # two hours until the truck sends its first frame
+    clock.t += 7200.0  # two hours until the truck sends its first frame
     hooks.tick()
     assert second.restore is not None and second.restore[1] == pytest.approx(7200.0)
 
@@ -511,7 +532,7 @@ def test_dm1_names_a_missing_engine_speed_instead_of_clearing(params):
     assert before and all(d["dtc"] is None and d["amber_warning_lamp"] == 0 for d in before)
     no_speed = [m for m in traffic(20.0, 40.0, rpm=1500.0, gear=9) if pgn_of(m.arbitration_id) != 0xF004]
     during = dm1s(svc.feed_all(no_speed))
-    assert during[0]["dtc"] is None                           # holding: the levels are still evaluated
+    assert during[0]["dtc"] is None  # holding: the levels are still evaluated
     last = during[-1]
     assert last["dtc"] is not None and last["dtc"]["spn"] == 190 and last["dtc"]["fmi"] == 9
     assert last["amber_warning_lamp"] == 1 and last["red_stop_lamp"] == 0

@@ -1,11 +1,12 @@
 """Heat paths (seed sections 3.3, 3.4) against hand calculations."""
+
 import math
 
 import numpy as np
 import pytest
 
-from firmware_model.physics import heat_transfer as H
 from firmware_model.errors import ParameterError
+from firmware_model.physics import heat_transfer as H
 
 SIGMA = 5.670374419e-8
 
@@ -34,7 +35,7 @@ def test_gear_contact_eq45_seed_example():
 def test_nusselt_rotating_cylinder_branches_and_continuity():
     pr = 200.0
     assert H.nusselt_rotating_cylinder(1e4, pr) == pytest.approx(0.4 * 100.0 * 200.0 ** (1 / 3))
-    assert H.nusselt_rotating_cylinder(1e6, pr) == pytest.approx(0.238 * 1e6 ** 0.8 * 200.0 ** 0.6)
+    assert H.nusselt_rotating_cylinder(1e6, pr) == pytest.approx(0.238 * 1e6**0.8 * 200.0**0.6)
     for re_edge in (2.5e5, 3.2e5):
         lo = H.nusselt_rotating_cylinder(re_edge * (1 - 1e-9), pr)
         hi = H.nusselt_rotating_cylinder(re_edge * (1 + 1e-9), pr)
@@ -44,14 +45,14 @@ def test_nusselt_rotating_cylinder_branches_and_continuity():
     assert np.all(np.diff(nu) > 0)
     # geometric mid-point of the gap
     mid = math.sqrt(2.5e5 * 3.2e5)
-    expect = math.sqrt(0.4 * mid ** 0.5 * pr ** (1 / 3) * 0.238 * mid ** 0.8 * pr ** 0.6)
+    expect = math.sqrt(0.4 * mid**0.5 * pr ** (1 / 3) * 0.238 * mid**0.8 * pr**0.6)
     assert H.nusselt_rotating_cylinder(mid, pr) == pytest.approx(expect, rel=1e-9)
     assert H.nusselt_rotating_cylinder(0.0, pr) == 0.0
 
 
 def test_reynolds_eq48_eq52():
     assert H.reynolds_gear(0.1, 150.0, 15e-6) == pytest.approx(0.01 * 150 / 15e-6)
-    assert H.reynolds_bearing(0.08, 150.0, 15e-6) == pytest.approx((0.04 ** 2) * 150 / 15e-6)
+    assert H.reynolds_bearing(0.08, 150.0, 15e-6) == pytest.approx((0.04**2) * 150 / 15e-6)
 
 
 def test_immersed_gear_area_eq49():
@@ -59,15 +60,20 @@ def test_immersed_gear_area_eq49():
     # half immersion of the pitch circle: theta = pi; oil reaches 0.06 - 0.0 = 0.06 -> phi = pi
     h_i = 0.1
     A = H.immersed_gear_area_m2(R_p, w_t, R_in, w_in, h_i, z, h_t, beta)
-    hand = (math.pi * R_p * w_t + math.pi * R_in * w_in + R_p ** 2 * math.pi - R_in ** 2 * math.pi
-            + z * h_t * w_t * math.pi / (math.cos(beta) * math.pi))
+    hand = (
+        math.pi * R_p * w_t
+        + math.pi * R_in * w_in
+        + R_p**2 * math.pi
+        - R_in**2 * math.pi
+        + z * h_t * w_t * math.pi / (math.cos(beta) * math.pi)
+    )
     assert A == pytest.approx(hand)
     # shallow dip (20 mm) does not reach R_in: phi = 0
     theta = 2 * math.acos(1 - 0.02 / R_p)
     A2 = H.immersed_gear_area_m2(R_p, w_t, R_in, w_in, 0.02, z, h_t, beta)
-    hand2 = theta * R_p * w_t + R_p ** 2 * (theta - math.sin(theta)) + z * h_t * w_t * theta / (math.cos(beta) * math.pi)
+    hand2 = theta * R_p * w_t + R_p**2 * (theta - math.sin(theta)) + z * h_t * w_t * theta / (math.cos(beta) * math.pi)
     assert A2 == pytest.approx(hand2)
-    th, ph = H.immersion_angles_rad(R_p, R_in, 0.06)   # oil 20 mm into the inner radius
+    th, ph = H.immersion_angles_rad(R_p, R_in, 0.06)  # oil 20 mm into the inner radius
     assert ph == pytest.approx(2 * math.acos(1 - 0.02 / 0.06))
 
 
@@ -102,12 +108,12 @@ def test_fling_off_eq54_58():
 
 def test_splash_and_areas_eq59_62():
     assert H.splash_h_w_per_m2k(1000.0, 325.0) == pytest.approx(325.0)
-    assert H.splash_h_w_per_m2k(2000.0, 325.0, 1000.0) == pytest.approx(325.0 * 2 ** 0.6)
+    assert H.splash_h_w_per_m2k(2000.0, 325.0, 1000.0) == pytest.approx(325.0 * 2**0.6)
     assert H.splash_h_w_per_m2k(0.0, 325.0) == 0.0
     Ac = H.wheel_area_covered_sides_m2(0.08, 0.03, 35, 0.01, 0.3)
     assert Ac == pytest.approx(2 * (math.pi * 0.08 * 0.03 + 35 * 0.01 * 0.03 / math.cos(0.3)))
     Af = H.wheel_area_free_sides_m2(0.08, 0.03, 35, 0.01, 0.3, 0.05)
-    assert Af == pytest.approx(Ac + 2 * math.pi * (0.08 ** 2 - 0.05 ** 2))
+    assert Af == pytest.approx(Ac + 2 * math.pi * (0.08**2 - 0.05**2))
     assert H.cylinder_area_m2(0.07, 0.2) == pytest.approx(math.pi * 0.07 * 0.2)
 
 
@@ -123,11 +129,13 @@ def test_pipe_flow_eq65_68():
     assert H.pipe_nusselt(10.0, 200.0, 1.0, 0.01) == pytest.approx(max(3.66, 1.86 * (10 * 200 / 100) ** (1 / 3)))
     assert H.pipe_nusselt(1.0, 1.0, 1.0, 0.01) == pytest.approx(3.66)
     assert H.pipe_nusselt(1000.0, 200.0, 0.2, 0.01, mu_ratio=1.5) == pytest.approx(
-        1.86 * (1000 * 200 / 20) ** (1 / 3) * 1.5 ** 0.14)
-    assert H.pipe_nusselt(2e4, 100.0, 1.0, 0.01) == pytest.approx(0.027 * 2e4 ** 0.8 * 100 ** (1 / 3))
+        1.86 * (1000 * 200 / 20) ** (1 / 3) * 1.5**0.14
+    )
+    assert H.pipe_nusselt(2e4, 100.0, 1.0, 0.01) == pytest.approx(0.027 * 2e4**0.8 * 100 ** (1 / 3))
     for re_edge in (2300.0, 1e4):
         assert H.pipe_nusselt(re_edge * (1 - 1e-9), 100.0, 1.0, 0.01) == pytest.approx(
-            H.pipe_nusselt(re_edge * (1 + 1e-9), 100.0, 1.0, 0.01), rel=1e-6)
+            H.pipe_nusselt(re_edge * (1 + 1e-9), 100.0, 1.0, 0.01), rel=1e-6
+        )
     assert H.h_from_nusselt_w_per_m2k(3.66, 0.127, 0.01) == pytest.approx(3.66 * 0.127 / 0.01)
 
 
@@ -135,14 +143,14 @@ def test_bearing_channels_eq69_80():
     # needle: gap equal to the roller radius -> alpha = pi/2, the roller takes half a disc
     n, r1, r2, rr = 20, 0.030, 0.0325, 0.0025
     A, P = H.needle_channel_inner(r1, r2, rr, n)
-    assert A == pytest.approx(math.pi / n * (r2 ** 2 - r1 ** 2) - math.pi / 2 * rr ** 2)
+    assert A == pytest.approx(math.pi / n * (r2**2 - r1**2) - math.pi / 2 * rr**2)
     assert P == pytest.approx(2 * math.pi / n * (r1 + r2) + 2 * rr * (math.pi / 2 - 1))
-    Ao, Po = H.needle_channel_outer(0.034, 0.035, rr, n)   # gap 1 mm -> beta = acos(1.5/2.5)
+    Ao, Po = H.needle_channel_outer(0.034, 0.035, rr, n)  # gap 1 mm -> beta = acos(1.5/2.5)
     b = math.acos(1.5 / 2.5)
-    assert Ao == pytest.approx(math.pi / n * (0.035 ** 2 - 0.034 ** 2) - (b * rr ** 2 - rr * math.sin(b) * 1.5e-3))
+    assert Ao == pytest.approx(math.pi / n * (0.035**2 - 0.034**2) - (b * rr**2 - rr * math.sin(b) * 1.5e-3))
     assert Po == pytest.approx(2 * math.pi / n * 0.069 + 2 * rr * (b - math.sin(b)))
     As, Ps = H.shaft_bearing_channel(0.04, 0.055, 0.006, 16)
-    assert As == pytest.approx(math.pi / 16 * (0.055 ** 2 - 0.04 ** 2) - math.pi * 0.006 ** 2)
+    assert As == pytest.approx(math.pi / 16 * (0.055**2 - 0.04**2) - math.pi * 0.006**2)
     assert Ps == pytest.approx(2 * math.pi / 16 * 0.095 + 2 * math.pi * 0.006)
     D_h = H.hydraulic_diameter_m(As, Ps)
     assert D_h == pytest.approx(4 * As / Ps)
@@ -154,14 +162,14 @@ def test_bearing_channels_eq69_80():
 
 def test_radiation_eq81_seed_value_and_eq6():
     # seed: 0.5 * 5.67e-8 * (383.15^2 + 363.15^2)(383.15 + 363.15) = 5.9 W/(m2 K)
-    seed_hand = 0.5 * 5.67e-8 * (383.15 ** 2 + 363.15 ** 2) * (383.15 + 363.15)
+    seed_hand = 0.5 * 5.67e-8 * (383.15**2 + 363.15**2) * (383.15 + 363.15)
     assert round(seed_hand, 1) == 5.9
     h = H.radiation_h_w_per_m2k(0.5, 110.0, 90.0)
     assert round(float(h), 1) == 5.9
     assert h == pytest.approx(seed_hand * SIGMA / 5.67e-8, rel=1e-12)
     # Eq 6 with the linearised coefficient is exact: h (T1 - T2) = eps sigma (T1^4 - T2^4)
     Q = H.radiation_heat_w(0.8, 2.4, 80.0, 25.0)
-    assert Q == pytest.approx(0.8 * SIGMA * 2.4 * (353.15 ** 4 - 298.15 ** 4))
+    assert Q == pytest.approx(0.8 * SIGMA * 2.4 * (353.15**4 - 298.15**4))
     assert Q == pytest.approx(H.radiation_h_w_per_m2k(0.8, 80.0, 25.0) * 2.4 * 55.0, rel=1e-12)
 
 

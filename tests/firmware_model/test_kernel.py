@@ -9,6 +9,7 @@
 * the C sources compile with ``-std=c99 -Wall -Wextra -Wpedantic -Werror`` under gcc and clang, and the random
   sequences run under ``-fsanitize=address,undefined`` without a finding.
 """
+
 from __future__ import annotations
 
 import json
@@ -42,37 +43,50 @@ def hostile_inputs(rng: np.random.Generator, V: int, L: int):
     bad = np.array([np.nan, np.inf, -np.inf, 1e308, -1e308])
     speed = rng.uniform(0.0, 2600.0, (L, V))
     torque = rng.uniform(-800.0, 3200.0, (L, V))
-    tiny = rng.random((L, V)) < 0.05                     # the rolling loss's ramp: torques down to 1e-320 N m
+    tiny = rng.random((L, V)) < 0.05  # the rolling loss's ramp: torques down to 1e-320 N m
     torque[tiny] = 10.0 ** rng.uniform(-320.0, 1.0, int(tiny.sum()))
     gear = rng.integers(-3, 16, (L, V)).astype(float)
     gear[rng.random((L, V)) < 0.05] = 2.5
     oil = 60.0 + np.cumsum(rng.normal(0.0, 1.0, (L, V)), axis=0)
-    oil[rng.random((L, V)) < 0.05] += rng.choice([-30.0, 30.0, 400.0])        # implausible steps and values
-    aux = [rng.uniform(-70.0, 160.0, (L, V)), rng.uniform(-70.0, 160.0, (L, V)), rng.uniform(-10.0, 300.0, (L, V)),
-           rng.uniform(-3000.0, 3000.0, (L, V))]
+    oil[rng.random((L, V)) < 0.05] += rng.choice([-30.0, 30.0, 400.0])  # implausible steps and values
+    aux = [
+        rng.uniform(-70.0, 160.0, (L, V)),
+        rng.uniform(-70.0, 160.0, (L, V)),
+        rng.uniform(-10.0, 300.0, (L, V)),
+        rng.uniform(-3000.0, 3000.0, (L, V)),
+    ]
     raw = np.stack([speed, torque, gear, oil, *aux], axis=-1)
     holes = rng.random(raw.shape) < 0.08
     raw[holes] = rng.choice(bad, size=int(holes.sum()))
-    frozen = rng.random((L, V)) < 0.3                                           # frozen signals: repeat the last row
+    frozen = rng.random((L, V)) < 0.3  # frozen signals: repeat the last row
     for j in range(1, L):
         raw[j, frozen[j]] = raw[j - 1, frozen[j]]
     dt = np.full((L, V), 0.1)
-    dt[rng.random((L, V)) < 0.01] = rng.choice([0.3, 7.0, 95.0, 4000.0])        # forward jumps, per vehicle
-    lost = rng.random((L, V)) < 0.02                                            # frames without a time
+    dt[rng.random((L, V)) < 0.01] = rng.choice([0.3, 7.0, 95.0, 4000.0])  # forward jumps, per vehicle
+    lost = rng.random((L, V)) < 0.02  # frames without a time
     # every vehicle at once (a batch shares its time grid): time goes back by 0.3 s, three steps are skipped
     back = slice(L // 2 - 2, L // 2 + 5)
     dt[back], lost[back] = 0.1, False
     t_s = np.cumsum(dt, axis=0)
-    t_s[L // 2:] -= 0.3
-    t_s[3 * L // 4:] -= 50.0                  # every vehicle: the clock reset (back more than clock_reset_s)
+    t_s[L // 2 :] -= 0.3
+    t_s[3 * L // 4 :] -= 50.0  # every vehicle: the clock reset (back more than clock_reset_s)
     t_s[lost] = np.nan
     return raw, t_s
 
 
 def random_effects(rng: np.random.Generator, V: int) -> dict:
     from firmware_model.effects import CATALOG
-    ids = ("churning_scale", "bearing_loss_scale", "teeth_oil_h_scale", "housing_air_h_scale",
-           "cooler_effectiveness_scale", "thermostat_offset", "hot_surroundings_offset", "retarder_heat")
+
+    ids = (
+        "churning_scale",
+        "bearing_loss_scale",
+        "teeth_oil_h_scale",
+        "housing_air_h_scale",
+        "cooler_effectiveness_scale",
+        "thermostat_offset",
+        "hot_surroundings_offset",
+        "retarder_heat",
+    )
     return {e: rng.uniform(CATALOG[e].low, CATALOG[e].high, V) for e in ids}
 
 
@@ -81,8 +95,17 @@ def _compare_outputs(o_np, o_c, where: str):
     np.testing.assert_allclose(o_c.T_c, o_np.T_c, rtol=0, atol=1e-9, err_msg=where)
     np.testing.assert_array_equal(o_c.level, o_np.level, err_msg=where)
     a, b = o_np.status, o_c.status
-    for f in ("degraded_mode", "speed_valid", "torque_valid", "gear_valid", "oil_valid", "valid_flags",
-              "oil_source", "frozen_flags", "rejects"):
+    for f in (
+        "degraded_mode",
+        "speed_valid",
+        "torque_valid",
+        "gear_valid",
+        "oil_valid",
+        "valid_flags",
+        "oil_source",
+        "frozen_flags",
+        "rejects",
+    ):
         np.testing.assert_array_equal(np.asarray(getattr(b, f)), np.asarray(getattr(a, f)), err_msg=f"{where} {f}")
     np.testing.assert_allclose(b.oil_innovation_c, a.oil_innovation_c, rtol=0, atol=1e-9, err_msg=where)
     np.testing.assert_allclose(b.model_oil_temp_c, a.model_oil_temp_c, rtol=0, atol=1e-9, err_msg=where)
@@ -96,8 +119,13 @@ def _compare_jobs(j_np, j_c, where: str):
     assert j_np.vehicles == j_c.vehicles, where
     for p, q in zip(j_np.points, j_c.points):
         for f in p._fields:
-            np.testing.assert_allclose(np.asarray(getattr(q, f), dtype=float), np.asarray(getattr(p, f),
-                                       dtype=float), rtol=1e-12, atol=1e-9, err_msg=f"{where} ttl point {f}")
+            np.testing.assert_allclose(
+                np.asarray(getattr(q, f), dtype=float),
+                np.asarray(getattr(p, f), dtype=float),
+                rtol=1e-12,
+                atol=1e-9,
+                err_msg=f"{where} ttl point {f}",
+            )
 
 
 @needs_c
@@ -149,11 +177,12 @@ def test_a_table_in_chunks_equals_it_in_one_call(params, monkeypatch):
     (boundaries everywhere: at refreshes, at time jumps) the outputs and the final state are bit-identical to one
     chunk for the whole hostile table."""
     from firmware_model.onboard import compiled
+
     rng = np.random.default_rng(5)
     raw, t_s = hostile_inputs(rng, 1, 1200)
     cc = VirtualSensor(params, core="c")
     st0 = cc.initial_state(T_oil_c=70.0)
-    monkeypatch.setattr(compiled, "TABLE_CHUNK", 10 ** 6)
+    monkeypatch.setattr(compiled, "TABLE_CHUNK", 10**6)
     st_a, a = cc.step_table(st0, raw[:, 0], t_s[:, 0])
     monkeypatch.setattr(compiled, "TABLE_CHUNK", 7)
     st_b, b = cc.step_table(st0, raw[:, 0], t_s[:, 0])
@@ -178,7 +207,7 @@ def test_many_tables_on_threads_equal_one_at_a_time(params):
         for f in ("T_c", "level", "ttl_s", "degraded_mode", "rejects"):
             np.testing.assert_array_equal(getattr(b, f), getattr(a, f), err_msg=f)
         np.testing.assert_array_equal(st_b.T_c, st_a.T_c)
-    assert not np.array_equal(threaded[0][1].T_c, threaded[4][1].T_c)        # in order, not all the same
+    assert not np.array_equal(threaded[0][1].T_c, threaded[4][1].T_c)  # in order, not all the same
 
 
 @needs_c
@@ -187,6 +216,7 @@ def test_named_cycle_replay_matches(params):
     from tools.cycles.named import get_cycle
     from tools.plant.reference import ReferencePlant
     from tools.replay.table import replay_table
+
     plant = ReferencePlant(params).run(get_cycle("uphill"), progress=False).table
     a = replay_table(plant, VirtualSensor(params, core="numpy"))
     b = replay_table(plant, VirtualSensor(params, core="c"))
@@ -210,6 +240,7 @@ def test_float_build_within_50_mK(params):
     from tools.cycles.named import get_cycle
     from tools.plant.reference import ReferencePlant
     from tools.replay.table import replay_table
+
     try:
         CompiledCore(VirtualSensor(params, core="numpy").sp, real="float")
     except ckernel.CoreUnavailable as exc:
@@ -219,8 +250,11 @@ def test_float_build_within_50_mK(params):
     sf = VirtualSensor(params, core="numpy")
     sf.core = CompiledCore(sf.sp, real="float")
     b = replay_table(plant, sf)
-    worst = max(float(np.max(np.abs(np.asarray(b[c]) - np.asarray(a[c])))) for c in a.columns
-                if c.startswith("T_") and c.endswith("_c"))
+    worst = max(
+        float(np.max(np.abs(np.asarray(b[c]) - np.asarray(a[c]))))
+        for c in a.columns
+        if c.startswith("T_") and c.endswith("_c")
+    )
     assert worst <= 0.05, worst
     # warning levels: identical except within 0.05 K of a threshold, or with the time to limit within its
     # tolerance of the early warning's thresholds (lead, 2 lead); the time to limit: the same never / not
@@ -230,11 +264,16 @@ def test_float_build_within_50_mK(params):
     for i, comp in enumerate(PUBLISHED):
         T, la, lb = np.asarray(a[f"T_{comp}_c"]), np.asarray(a[f"W_{comp}"]), np.asarray(b[f"W_{comp}"])
         ta, tb = np.asarray(a[f"ttl_{comp}_s"]), np.asarray(b[f"ttl_{comp}_s"])
-        thresholds = (lim.warning_c[i], lim.critical_c[i], lim.warning_c[i] - lim.hysteresis_k[i],
-                      lim.critical_c[i] - lim.hysteresis_k[i])
+        thresholds = (
+            lim.warning_c[i],
+            lim.critical_c[i],
+            lim.warning_c[i] - lim.hysteresis_k[i],
+            lim.critical_c[i] - lim.hysteresis_k[i],
+        )
         close_T = np.min([np.abs(T - x) for x in thresholds], axis=0) <= 0.05
         close_ttl = (np.abs(ta - lim.lead_s) <= 1.0 + 0.02 * lim.lead_s) | (
-            np.abs(ta - 2 * lim.lead_s) <= 1.0 + 0.04 * lim.lead_s)
+            np.abs(ta - 2 * lim.lead_s) <= 1.0 + 0.04 * lim.lead_s
+        )
         diff = la != lb
         near += int((diff & (close_T | close_ttl)).sum())
         bad += int((diff & ~(close_T | close_ttl)).sum())
@@ -242,16 +281,21 @@ def test_float_build_within_50_mK(params):
         finite += int(fin.sum())
         ttl_bad += int((np.isnan(ta) != np.isnan(tb)).sum() + (np.isinf(ta) != np.isinf(tb)).sum())
         ttl_bad += int((np.abs(ta[fin] - tb[fin]) > np.maximum(1.0, 0.02 * np.abs(ta[fin]))).sum())
-    print(f"\nfloat build on uphill: max |T - reference| {worst:.3g} K, level mismatches {bad} (+{near} within the "
-          f"tolerance of a threshold), time to limit outside 1 s / 2 %: {ttl_bad} of {finite} finite")
+    print(
+        f"\nfloat build on uphill: max |T - reference| {worst:.3g} K, level mismatches {bad} (+{near} within the "
+        f"tolerance of a threshold), time to limit outside 1 s / 2 %: {ttl_bad} of {finite} finite"
+    )
     assert bad == 0 and ttl_bad == 0 and finite > 100
 
 
 def _compile(cc: str, flags: list, out: Path, real: str = "double"):
     src = REPO / "firmware_model" / "onboard" / "c" / "gvs_kernel.c"
     defs = ["-DGVS_REAL_FLOAT"] if real == "float" else []
-    return subprocess.run([cc, "-std=c99", "-Wall", "-Wextra", "-Wpedantic", "-Werror", *flags, *defs, "-c",
-                           str(src), "-o", str(out)], capture_output=True, text=True)
+    return subprocess.run(
+        [cc, "-std=c99", "-Wall", "-Wextra", "-Wpedantic", "-Werror", *flags, *defs, "-c", str(src), "-o", str(out)],
+        capture_output=True,
+        text=True,
+    )
 
 
 @pytest.mark.parametrize("cc", ["gcc", "clang"])
@@ -273,8 +317,14 @@ def test_kernel_uses_only_allowed_headers_and_no_mutable_globals():
     # file-scope declarations that are not functions, types or macros: only read-only data
     depth, data = 0, []
     for line in src.splitlines():
-        if depth == 0 and line and not line[0].isspace() and line.rstrip().endswith(";") and "(" not in line \
-                and not line.startswith(("#", "typedef", "enum", "}", "/*", " *")):
+        if (
+            depth == 0
+            and line
+            and not line[0].isspace()
+            and line.rstrip().endswith(";")
+            and "(" not in line
+            and not line.startswith(("#", "typedef", "enum", "}", "/*", " *"))
+        ):
             data.append(line)
         depth += line.count("{") - line.count("}")
     assert all("const" in d for d in data), data
@@ -308,13 +358,29 @@ def test_kernel_under_address_and_undefined_behaviour_sanitizers(tmp_path):
     if not libasan or not Path(libasan).exists():
         pytest.skip("gcc has no libasan here (apt install libasan8 / gcc)")
     lib = tmp_path / "gvs_kernel_asan.so"
-    ckernel.build(lib, "double", ("-O1", "-g", "-fsanitize=address,undefined", "-fno-sanitize-recover=all",
-                                  "-fno-omit-frame-pointer"), cc="gcc")
-    env = dict(os.environ, GVS_KERNEL_LIB=str(lib), LD_PRELOAD=libasan, ASAN_OPTIONS="detect_leaks=0",
-               UBSAN_OPTIONS="halt_on_error=1:print_stacktrace=1", XDG_CACHE_HOME=str(tmp_path / "cache"),
-               GVS_CORE="c")
-    res = subprocess.run([sys.executable, "-c", SANITIZE_SCRIPT.format(repo=str(REPO))], env=env,
-                         capture_output=True, text=True, cwd=str(tmp_path), timeout=600)
+    ckernel.build(
+        lib,
+        "double",
+        ("-O1", "-g", "-fsanitize=address,undefined", "-fno-sanitize-recover=all", "-fno-omit-frame-pointer"),
+        cc="gcc",
+    )
+    env = dict(
+        os.environ,
+        GVS_KERNEL_LIB=str(lib),
+        LD_PRELOAD=libasan,
+        ASAN_OPTIONS="detect_leaks=0",
+        UBSAN_OPTIONS="halt_on_error=1:print_stacktrace=1",
+        XDG_CACHE_HOME=str(tmp_path / "cache"),
+        GVS_CORE="c",
+    )
+    res = subprocess.run(
+        [sys.executable, "-c", SANITIZE_SCRIPT.format(repo=str(REPO))],
+        env=env,
+        capture_output=True,
+        text=True,
+        cwd=str(tmp_path),
+        timeout=600,
+    )
     assert res.returncode == 0, res.stderr[-3000:]
     assert "runtime error" not in res.stderr and "AddressSanitizer" not in res.stderr, res.stderr[-3000:]
     assert json.loads(res.stdout.strip().splitlines()[-1]) == {"finite": True}
@@ -325,9 +391,11 @@ def test_both_cores_have_one_interface_and_the_sensor_never_asks_which(params):
     """The numpy core and the compiled core have the same methods and attributes; VirtualSensor holds one of them
     and calls it without a branch on which (its source has no ``compiled is None``)."""
     import inspect
+
     from firmware_model.onboard import sensor as sensor_module
     from firmware_model.onboard.compiled import CompiledCore
     from firmware_model.onboard.core_select import NumpyCore
+
     n, c = VirtualSensor(params, core="numpy"), VirtualSensor(params, core="c")
     assert isinstance(n.core, NumpyCore) and isinstance(c.core, CompiledCore)
     for name in ("step", "step_deferred", "refresh_ttl", "step_table"):
@@ -360,6 +428,7 @@ def test_time_to_limit_refresh_on_hostile_operating_points(params):
     conductances, the speed; a job made by the numpy step, converted): no crash, every time to limit NaN ("not
     available"), 0, a finite positive time or inf, and "not available" exactly where the numpy reference says so."""
     from firmware_model.onboard.time_to_limit import TtlJob, time_to_limit
+
     ref = VirtualSensor(params, core="numpy")
     cc = VirtualSensor(params, core="c")
     st = ref.initial_state(T_oil_c=90.0)
@@ -368,15 +437,19 @@ def test_time_to_limit_refresh_on_hostile_operating_points(params):
         st, _, j = ref.step_deferred(st, SensorInputs(1500.0, 2400.0, 6, 90.0, 25.0, 85.0, 60.0, 0.0))
         job = j or job
     base = job.points[0]
-    hostile = [base,
-               base._replace(T_main_c=np.where(np.arange(base.T_main_c.size) == 3, np.nan, base.T_main_c)),
-               base._replace(T_main_c=np.full_like(base.T_main_c, 1e308)),
-               base._replace(src_w=np.full_like(base.src_w, np.inf)),
-               base._replace(G_w_per_k=np.where(np.arange(base.G_w_per_k.size) == 0, np.nan, base.G_w_per_k)),
-               base._replace(G_w_per_k=np.zeros_like(base.G_w_per_k)),
-               base._replace(omega_in_rad_s=np.nan), base._replace(omega_in_rad_s=1e308),
-               base._replace(T_oil_c=-1e308, dT_in_k=np.inf), base._replace(rho_cp_j_per_m3k=0.0),
-               base._replace(measured=True, T_bc_c=np.full_like(base.T_bc_c, np.nan))]
+    hostile = [
+        base,
+        base._replace(T_main_c=np.where(np.arange(base.T_main_c.size) == 3, np.nan, base.T_main_c)),
+        base._replace(T_main_c=np.full_like(base.T_main_c, 1e308)),
+        base._replace(src_w=np.full_like(base.src_w, np.inf)),
+        base._replace(G_w_per_k=np.where(np.arange(base.G_w_per_k.size) == 0, np.nan, base.G_w_per_k)),
+        base._replace(G_w_per_k=np.zeros_like(base.G_w_per_k)),
+        base._replace(omega_in_rad_s=np.nan),
+        base._replace(omega_in_rad_s=1e308),
+        base._replace(T_oil_c=-1e308, dT_in_k=np.inf),
+        base._replace(rho_cp_j_per_m3k=0.0),
+        base._replace(measured=True, T_bc_c=np.full_like(base.T_bc_c, np.nan)),
+    ]
     for k, p in enumerate(hostile):
         with np.errstate(all="ignore"):
             want = time_to_limit(ref.sp, ref.cache, p)
@@ -384,8 +457,12 @@ def test_time_to_limit_refresh_on_hostile_operating_points(params):
         assert np.all(np.isnan(got) | (got >= 0.0)), (k, got)
         assert np.array_equal(np.isnan(got), np.isnan(want)), (k, got, want)
     # the first one is an ordinary point: both agree as the parity tests require
-    np.testing.assert_allclose(cc.refresh_ttl(cc.initial_state(T_oil_c=90.0), TtlJob(((),), (base,))).ttl_s,
-                               time_to_limit(ref.sp, ref.cache, base), rtol=1e-3, atol=0.1)
+    np.testing.assert_allclose(
+        cc.refresh_ttl(cc.initial_state(T_oil_c=90.0), TtlJob(((),), (base,))).ttl_s,
+        time_to_limit(ref.sp, ref.cache, base),
+        rtol=1e-3,
+        atol=0.1,
+    )
 
 
 @needs_c
@@ -397,9 +474,9 @@ def test_a_batch_whose_vehicles_go_back_differently_matches_the_numpy_step(param
     V, L = 60, 40
     raw, t_s = hostile_inputs(rng, V, L)
     t_s = np.cumsum(np.full((L, V), 0.1), axis=0)
-    t_s[20:, :20] -= 0.3                          # a third back a little: skipped
-    t_s[20:, 20:40] -= 10.25                      # a third back past clock_reset_s (gap -10.15 s): a reset clock
-    t_s[20:, 40:50] -= 9.95                       # some just short of it (gap -9.85 s): skipped until caught up
+    t_s[20:, :20] -= 0.3  # a third back a little: skipped
+    t_s[20:, 20:40] -= 10.25  # a third back past clock_reset_s (gap -10.15 s): a reset clock
+    t_s[20:, 40:50] -= 9.95  # some just short of it (gap -9.85 s): skipped until caught up
     ref = VirtualSensor(params, core="numpy", ttl_period_s=1.0)
     cc = VirtualSensor(params, core="c", ttl_period_s=1.0)
     s_np = s_c = ref.initial_state(T_oil_c=rng.uniform(20.0, 90.0, V), n_vehicles=V)
@@ -433,7 +510,7 @@ def test_tiny_torques_and_a_missing_frame_time(params, core):
     # four 0.1 s steps with (almost) no torque move no temperature by as much as 1 K (one gave 280 degC)
     assert np.max(np.abs(out.T_c - ref.T_c)) < 1.0
     t_s = 0.1 * np.arange(300.0)
-    t_s[[50, 120, 121]] = np.nan                      # frames without a time among timed ones
+    t_s[[50, 120, 121]] = np.nan  # frames without a time among timed ones
     _, timed = s.step_table(s.initial_state(T_oil_c=80.0), raw, t_s)
     assert timed.rejects[-1, REJECT_REASONS.index("time_jump")] == 0
     np.testing.assert_allclose(timed.T_c, out.T_c, rtol=0, atol=1e-9)

@@ -2,6 +2,7 @@
 it generates, the ctypes classes agree with a compiled probe of the header, the table builder fills exactly the
 struct's fields, and the kernel source retypes none of the shared constants.
 """
+
 from __future__ import annotations
 
 import ctypes as C
@@ -27,7 +28,7 @@ def test_a_hand_edit_of_the_header_is_named_with_its_line_and_the_command_that_r
     text = KI.header_text()
     lines = text.splitlines()
     i = next(k for k, line in enumerate(lines) if "GVS_MAX_NODES 96" in line)
-    edited = "\n".join(lines[:i] + [lines[i].replace("96", "97")] + lines[i + 1:]) + "\n"
+    edited = "\n".join(lines[:i] + [lines[i].replace("96", "97")] + lines[i + 1 :]) + "\n"
     msg = KI.first_difference(edited, text)
     assert msg is not None and f"line {i + 1} " in msg and KI.REGENERATE in msg
     assert KI.first_difference(text + "/* extra */\n", text) is not None
@@ -64,8 +65,11 @@ def test_ctypes_layouts_and_constants_equal_the_compiled_header(real, tmp_path):
     (tmp_path / "probe.c").write_text(_probe_source())
     flags = ["-DGVS_REAL_FLOAT"] if real == "float" else []
     exe = tmp_path / "probe"
-    res = subprocess.run([CC, "-std=c99", "-Wall", "-Werror", *flags, "-I", str(C_DIR), str(tmp_path / "probe.c"),
-                          "-o", str(exe)], capture_output=True, text=True)
+    res = subprocess.run(
+        [CC, "-std=c99", "-Wall", "-Werror", *flags, "-I", str(C_DIR), str(tmp_path / "probe.c"), "-o", str(exe)],
+        capture_output=True,
+        text=True,
+    )
     assert res.returncode == 0, res.stderr
     out = subprocess.run([str(exe)], capture_output=True, text=True, check=True).stdout.split("\n")
     S = ckernel.structs(C.c_float if real == "float" else C.c_double)
@@ -77,8 +81,9 @@ def test_ctypes_layouts_and_constants_equal_the_compiled_header(real, tmp_path):
     consts.update({f"#{n}": v for e in KI.ENUMS for n, v in e.items})
     got = {line.rsplit(" ", 1)[0]: line.rsplit(" ", 1)[1] for line in out if line}
     bad = [f"{k}: C {got.get(k)}, Python {v}" for k, v in want.items() if got.get(k) != str(v)]
-    bad += [f"{k}: C {got.get(k)}, Python {v!r}" for k, v in consts.items()
-            if got.get(k) is None or (float(got[k]) != v)]
+    bad += [
+        f"{k}: C {got.get(k)}, Python {v!r}" for k, v in consts.items() if got.get(k) is None or (float(got[k]) != v)
+    ]
     assert not bad, "the header and the Python side disagree:\n" + "\n".join(bad[:20])
     assert len(got) == len(want) + len(consts)
 
@@ -88,6 +93,7 @@ def test_the_table_builder_fills_exactly_the_structs_fields():
     from firmware_model.onboard.params import SensorParams
     from firmware_model.onboard.sensor import VirtualSensor
     from firmware_model.parameters import load_parameters
+
     sp: SensorParams = VirtualSensor(load_parameters("GRS905"), core="numpy").sp
     arrays = table_arrays(sp)
     assert list(arrays) == [f.name for f in KI.STRUCT["Tables"].fields]
@@ -101,14 +107,19 @@ def test_the_table_builder_fills_exactly_the_structs_fields():
         assert arrays[name].size == KI.DIMENSIONS["GVS_N_PUB"], name
     assert list(vehicle_arrays(sp, 2)) == [f.name for f in KI.STRUCT["Vehicle"].fields]
     with pytest.raises(KeyError, match="fills no n_recirc.*fills wrong_key"):
-        KI.struct_values(KI.STRUCT["Tables"], {**{k: v for k, v in arrays.items() if k != "n_recirc"},
-                                               "wrong_key": 0})
+        KI.struct_values(KI.STRUCT["Tables"], {**{k: v for k, v in arrays.items() if k != "n_recirc"}, "wrong_key": 0})
 
 
 #: numbers the kernel must read from the header, never retype: the march's, the effect codes, the speed columns
-RETYPED = [r"#define\s+(MARCH|TTL|HERMITE|COUPLING)_", r"\benum\s*\{\s*(P_|LEVEL_|MODE_|MAIN|RJ_)",
-           r"_effect\[t\]\s*==\s*\d", r"n_speed\s*\+\s*\d\]", r"cooler_code\s*==\s*\d", r"\bcase\s+\d+\s*:",
-           r"\[28\]"]
+RETYPED = [
+    r"#define\s+(MARCH|TTL|HERMITE|COUPLING)_",
+    r"\benum\s*\{\s*(P_|LEVEL_|MODE_|MAIN|RJ_)",
+    r"_effect\[t\]\s*==\s*\d",
+    r"n_speed\s*\+\s*\d\]",
+    r"cooler_code\s*==\s*\d",
+    r"\bcase\s+\d+\s*:",
+    r"\[28\]",
+]
 
 
 def test_the_kernel_source_retypes_no_shared_constant():
@@ -120,11 +131,15 @@ def test_the_kernel_source_retypes_no_shared_constant():
 def test_the_python_side_reads_the_shared_constants_from_the_interface():
     from firmware_model.onboard import held_march, reduce, time_to_limit
     from firmware_model.physics.kinematics import SPEED_NAMES
+
     assert held_march.MARCH_D_FRAC is KI.MARCH_D_FRAC and held_march.TTL_QUANTUM_S is KI.TTL_QUANTUM_S
     assert time_to_limit.COUPLING_MARGIN is KI.COUPLING_MARGIN and reduce.P_RHO == KI.P_RHO
     assert SPEED_NAMES[KI.SPEED_COL_LAYSHAFT] == "LS" and SPEED_NAMES[KI.SPEED_COL_OUTPUT] == "OS"
     onboard = Path(reduce.__file__).parent
-    bare = [f"{p.name}:{i + 1}" for p in onboard.glob("*.py") for i, line in enumerate(p.read_text().splitlines())
-            if re.search(r"speed_coef\[[^\]]*,\s*\d\]|_effect\s*==\s*\d|_effect\[t\]\s*==\s*\d", line)]
+    bare = [
+        f"{p.name}:{i + 1}"
+        for p in onboard.glob("*.py")
+        for i, line in enumerate(p.read_text().splitlines())
+        if re.search(r"speed_coef\[[^\]]*,\s*\d\]|_effect\s*==\s*\d|_effect\[t\]\s*==\s*\d", line)
+    ]
     assert not bare, f"bare speed columns or effect codes (use kernel_interface's names): {bare}"
-

@@ -1,12 +1,13 @@
 """Mechanical losses (seed section 3.2) against hand calculations."""
+
 import math
 
 import numpy as np
 import pytest
 
+from firmware_model.errors import ParameterError
 from firmware_model.physics import losses as L
 from firmware_model.physics.heat_lag import first_order_lag_step, heat_lag, heat_lag_step
-from firmware_model.errors import ParameterError
 
 DEG = math.pi / 180.0
 MN = 4.5e-3
@@ -28,18 +29,19 @@ def truck_pair():
 
 # --- geometry ----------------------------------------------------------------------------------------------
 
+
 def test_mesh_geometry_hand_calc(truck_pair):
     m = truck_pair
-    alpha_t = math.atan(math.tan(ALPHA_N) / math.cos(BETA))          # 21.17 deg
+    alpha_t = math.atan(math.tan(ALPHA_N) / math.cos(BETA))  # 21.17 deg
     R_p1, R_p2 = 15 * M_T, 20 * M_T
     R_b1, R_b2 = R_p1 * math.cos(alpha_t), R_p2 * math.cos(alpha_t)
     R_a1, R_a2 = R_p1 + MN, R_p2 + MN
     assert m.R_p1_m == pytest.approx(R_p1) and m.R_b2_m == pytest.approx(R_b2)
     assert m.R_a1_m == pytest.approx(R_a1) and m.R_f1_m == pytest.approx(R_p1 - 1.25 * MN)
-    assert m.alpha_tw_rad == pytest.approx(alpha_t)                   # reference centre distance
+    assert m.alpha_tw_rad == pytest.approx(alpha_t)  # reference centre distance
     # recession limited by the driver's tip, approach by the driven wheel's tip
-    g_a = math.sqrt(R_a1 ** 2 - R_b1 ** 2) - R_p1 * math.sin(alpha_t)
-    g_f = math.sqrt(R_a2 ** 2 - R_b2 ** 2) - R_p2 * math.sin(alpha_t)
+    g_a = math.sqrt(R_a1**2 - R_b1**2) - R_p1 * math.sin(alpha_t)
+    g_f = math.sqrt(R_a2**2 - R_b2**2) - R_p2 * math.sin(alpha_t)
     assert m.g_a_m == pytest.approx(g_a) and m.g_f_m == pytest.approx(g_f)
     assert m.L_a_m == pytest.approx(g_a + g_f)
     assert m.h_t_m == pytest.approx(2.25 * MN)
@@ -61,20 +63,23 @@ def test_working_pressure_angle_eq17():
 def test_internal_mesh_geometry():
     a = (60 - 20) * M_T / 2.0
     m = L.mesh_geometry(20, 60, MN, ALPHA_N, BETA, a, 0.030, internal=True)
-    assert m.R_a2_m == pytest.approx(30 * M_T - MN)                   # ring tip inside its pitch circle
+    assert m.R_a2_m == pytest.approx(30 * M_T - MN)  # ring tip inside its pitch circle
     assert m.R_f2_m == pytest.approx(30 * M_T + 1.25 * MN)
     assert m.alpha_tw_rad == pytest.approx(math.acos((m.R_b2_m - m.R_b1_m) / a))
     assert m.R_w2_m - m.R_w1_m == pytest.approx(a)
-    g_f = m.R_w2_m * math.sin(m.alpha_tw_rad) - math.sqrt(m.R_a2_m ** 2 - m.R_b2_m ** 2)
+    g_f = m.R_w2_m * math.sin(m.alpha_tw_rad) - math.sqrt(m.R_a2_m**2 - m.R_b2_m**2)
     assert m.g_f_m == pytest.approx(g_f) and g_f > 0 and m.g_a_m > 0
 
 
-@pytest.mark.parametrize("kwargs", [
-    dict(z1=30, z2=40, center_distance_m=0.5 * A0),            # base radii sum >= centre distance
-    dict(z1=30, z2=40, center_distance_m=A0 + 20e-3),          # tips no longer reach the line of action
-    dict(z1=30, z2=20, center_distance_m=A0, internal=True),   # ring smaller than planet
-    dict(z1=3, z2=40, center_distance_m=A0),
-])
+@pytest.mark.parametrize(
+    "kwargs",
+    [
+        dict(z1=30, z2=40, center_distance_m=0.5 * A0),  # base radii sum >= centre distance
+        dict(z1=30, z2=40, center_distance_m=A0 + 20e-3),  # tips no longer reach the line of action
+        dict(z1=30, z2=20, center_distance_m=A0, internal=True),  # ring smaller than planet
+        dict(z1=3, z2=40, center_distance_m=A0),
+    ],
+)
 def test_impossible_geometry_raises(kwargs):
     base = dict(m_n_m=MN, alpha_n_rad=ALPHA_N, beta_rad=BETA, face_width_m=0.04)
     with pytest.raises(ParameterError):
@@ -82,6 +87,7 @@ def test_impossible_geometry_raises(kwargs):
 
 
 # --- slipping and rolling ------------------------------------------------------------------------------------
+
 
 def _reference_slip(m, T1, w2, mu, n=20000):
     """Independent midpoint integration of Eq 7-10 written with omega1 kinematics (external mesh)."""
@@ -94,7 +100,7 @@ def _reference_slip(m, T1, w2, mu, n=20000):
     rho2 = m.R_w2_m * math.sin(m.alpha_tw_rad) - d
     V_g = np.abs(d) * (w1 + w2)
     V_r = w1 * rho1 + w2 * rho2
-    f = np.clip(0.0127 * np.log10(0.02912 * F_nu / (mu * V_g * V_r ** 2)), 0.005, 0.15)
+    f = np.clip(0.0127 * np.log10(0.02912 * F_nu / (mu * V_g * V_r**2)), 0.005, 0.15)
     return float(np.mean(F_n * f * V_g))
 
 
@@ -122,7 +128,8 @@ def test_slip_loss_zero_sign_and_broadcast(truck_pair):
     assert L.gear_slip_loss_w(truck_pair, 0.0, 100.0, RHO_100, MU_100) == 0.0
     assert L.gear_slip_loss_w(truck_pair, 1000.0, 0.0, RHO_100, MU_100) == 0.0
     assert L.gear_slip_loss_w(truck_pair, -1000.0, -100.0, RHO_100, MU_100) == pytest.approx(
-        L.gear_slip_loss_w(truck_pair, 1000.0, 100.0, RHO_100, MU_100))
+        L.gear_slip_loss_w(truck_pair, 1000.0, 100.0, RHO_100, MU_100)
+    )
     T = np.array([[0.0], [500.0], [2500.0]])
     w = np.array([0.0, 50.0, 100.0, 200.0])
     P = L.gear_slip_loss_w(truck_pair, T, w, RHO_100, MU_100)
@@ -139,7 +146,7 @@ def test_slip_loss_zero_sign_and_broadcast(truck_pair):
 def _reference_rolling(m, T1, w2, mu, piezo, n=20000):
     """Independent midpoint integration of Eq 14-22 with omega1 kinematics (external mesh)."""
     w1 = w2 * m.z2 / m.z1
-    E = 2.0 / (2.0 * (1.0 - 0.3 ** 2) / E_STEEL)
+    E = 2.0 / (2.0 * (1.0 - 0.3**2) / E_STEEL)
     F_n = T1 / m.R_w1_m / (math.cos(m.alpha_n_rad) * math.cos(m.beta_rad))
     F_nu = F_n * math.cos(m.beta_b_rad) / m.face_width_m
     d = (np.arange(n) + 0.5) / n * m.L_a_m - m.g_f_m
@@ -157,11 +164,13 @@ def test_rolling_loss_order_of_magnitude(truck_pair):
     w2 = 1300.0 * math.pi / 30.0 * 0.75
     P = float(L.gear_rolling_loss_w(truck_pair, 2500.0, w2, MU_100, PIEZO_100, E_STEEL, E_STEEL, 0.3, 0.3))
     print(f"rolling loss {P:.2f} W")
-    assert 0.1 < P < 30.0            # seed: "on the order of 1 W"
+    assert 0.1 < P < 30.0  # seed: "on the order of 1 W"
     assert P == pytest.approx(_reference_rolling(truck_pair, 2500.0, w2, MU_100, PIEZO_100), rel=1e-4)
     assert L.gear_rolling_loss_w(truck_pair, 0.0, w2, MU_100, PIEZO_100, E_STEEL, E_STEEL, 0.3, 0.3) == 0.0
-    P2 = L.gear_rolling_loss_w(truck_pair, 2500.0, np.array([w2, 2 * w2]), MU_100, PIEZO_100, E_STEEL, E_STEEL, 0.3, 0.3)
-    assert P2[1] / P2[0] > 2.0       # faster than linear in speed
+    P2 = L.gear_rolling_loss_w(
+        truck_pair, 2500.0, np.array([w2, 2 * w2]), MU_100, PIEZO_100, E_STEEL, E_STEEL, 0.3, 0.3
+    )
+    assert P2[1] / P2[0] > 2.0  # faster than linear in speed
 
 
 def test_equivalent_modulus_eq19():
@@ -189,34 +198,37 @@ G = 9.80665
 
 def _hand_cmd(regime, re, fr, vr, wr, hr):
     if regime == 28:
-        return 0.97 * re ** -0.31 * fr ** -(0.464 + 0.037 / hr) * vr ** -0.576 * wr ** -0.124 * hr ** 0.74
+        return 0.97 * re**-0.31 * fr ** -(0.464 + 0.037 / hr) * vr**-0.576 * wr**-0.124 * hr**0.74
     c, e = (2.63, -0.73) if regime == 29 else (4.57, -0.5)
-    return c * re ** -0.6 * fr ** -0.25 * vr ** e * wr ** -0.4 * hr ** 1.5
+    return c * re**-0.6 * fr**-0.25 * vr**e * wr**-0.4 * hr**1.5
 
 
 def _hand_cma(regime, re, fr, htr, wtr):
     if regime == 31:
-        return 5623.0 * re ** -0.88 * fr ** -0.78 * htr ** -1.5 * wtr ** -0.36
-    return 616.6 * re ** -0.64 * fr ** -0.46 * htr ** -1.66 * wtr ** -0.46
+        return 5623.0 * re**-0.88 * fr**-0.78 * htr**-1.5 * wtr**-0.36
+    return 616.6 * re**-0.64 * fr**-0.46 * htr**-1.66 * wtr**-0.46
 
 
-@pytest.mark.parametrize("omega, nu, cmd_regime, cma_regime, valid", [
-    (100.0, 5e-5, 28, 31, True),                        # Re_side 5000, Fr_t 206, Re_t 900: inside Eq 33-34
-    (math.sqrt(100.0 * G / 0.05), None, 29, 31, True),  # Re_side 2000, Fr_side 100, Re_t 1800
-    (20.0, 1e-3, 30, 32, False),                        # Re_side 50, Fr_side 2.04; Fr_t 8.3 < 22 (Eq 34)
-])
+@pytest.mark.parametrize(
+    "omega, nu, cmd_regime, cma_regime, valid",
+    [
+        (100.0, 5e-5, 28, 31, True),  # Re_side 5000, Fr_t 206, Re_t 900: inside Eq 33-34
+        (math.sqrt(100.0 * G / 0.05), None, 29, 31, True),  # Re_side 2000, Fr_side 100, Re_t 1800
+        (20.0, 1e-3, 30, 32, False),  # Re_side 50, Fr_side 2.04; Fr_t 8.3 < 22 (Eq 34)
+    ],
+)
 def test_churning_regimes_by_hand(omega, nu, cmd_regime, cma_regime, valid):
     R_a, R_p, h_t, w_t, h_i, V_p, V_0, rho, h_t0 = 0.05, 0.045, 0.010, 0.010, 0.020, 1.5e-3, 10e-3, 850.0, 8e-3
     if nu is None:
-        nu = omega * R_a ** 2 / 2000.0
+        nu = omega * R_a**2 / 2000.0
     r = L.churning_loss(omega, R_a, R_p, h_t, w_t, h_i, V_p, V_0, rho, nu, h_t0)
-    re_s, fr_s = omega * R_a ** 2 / nu, omega ** 2 * R_a / G
-    re_t, fr_t = omega * R_p * h_t / nu, omega ** 2 * R_p ** 2 / (G * h_t)
+    re_s, fr_s = omega * R_a**2 / nu, omega**2 * R_a / G
+    re_t, fr_t = omega * R_p * h_t / nu, omega**2 * R_p**2 / (G * h_t)
     assert int(r.cmd_regime) == cmd_regime and int(r.cma_regime) == cma_regime
     cmd = _hand_cmd(cmd_regime, re_s, fr_s, V_p / V_0, w_t / R_a, h_i / R_a)
     cma = _hand_cma(cma_regime, re_t, fr_t, h_t / h_t0, w_t / h_t0)
-    C_side = rho * omega ** 2 * w_t * R_a ** 4 * cmd
-    C_teeth = rho * omega ** 2 * w_t * R_p ** 3 * h_t * cma
+    C_side = rho * omega**2 * w_t * R_a**4 * cmd
+    C_teeth = rho * omega**2 * w_t * R_p**3 * h_t * cma
     assert float(r.C_side_nm) == pytest.approx(C_side, rel=1e-12)
     assert float(r.C_teeth_nm) == pytest.approx(C_teeth, rel=1e-12)
     assert float(r.power_w) == pytest.approx((C_side + C_teeth) * omega, rel=1e-12)
@@ -235,7 +247,7 @@ def test_churning_layshaft_wheel_realistic():
     # layshaft wheel like the truck pair's 40-tooth wheel: R_a 100 mm, 40 mm wide, dipping 40 mm in 12 l of oil
     R_a, R_p, h_t, w_t, h_i, V_0 = 0.1003, 0.0958, 0.0101, 0.040, 0.040, 12e-3
     th = 2 * math.acos(1 - h_i / R_a)
-    V_p = R_a ** 2 * (th - math.sin(th)) / 2 * w_t
+    V_p = R_a**2 * (th - math.sin(th)) / 2 * w_t
     n = np.array([1000.0, 1500.0, 2000.0])
     r = L.churning_loss(n * math.pi / 30, R_a, R_p, h_t, w_t, h_i, V_p, V_0, RHO_100, 15.2e-6)
     print("churning at 1000/1500/2000 rpm, 100 degC:", np.round(r.power_w, 1), "W")
@@ -245,12 +257,13 @@ def test_churning_layshaft_wheel_realistic():
 
 # --- bearings, synchronizer, pump -------------------------------------------------------------------------
 
+
 def test_bearing_p1_both_branches():
     e, X1, Y1, X2, Y2 = 0.55, 1.0, 0.0, 1.2, 1.0
-    assert L.bearing_p1_n(1000.0, 600.0, e, X1, Y1, X2, Y2) == pytest.approx(1000.0)          # Fa/Fr >= e
+    assert L.bearing_p1_n(1000.0, 600.0, e, X1, Y1, X2, Y2) == pytest.approx(1000.0)  # Fa/Fr >= e
     assert L.bearing_p1_n(1000.0, 100.0, e, X1, Y1, X2, Y2) == pytest.approx(1.2 * 1000 + 100)  # Fa/Fr < e
-    assert L.bearing_p1_n(1000.0, 550.0, e, X1, Y1, X2, Y2) == pytest.approx(1000.0)          # boundary
-    assert L.bearing_p1_n(0.0, 500.0, 0.22, 1.0, 0.5, 0.56, 2.0) == pytest.approx(250.0)     # Fr = 0
+    assert L.bearing_p1_n(1000.0, 550.0, e, X1, Y1, X2, Y2) == pytest.approx(1000.0)  # boundary
+    assert L.bearing_p1_n(0.0, 500.0, 0.22, 1.0, 0.5, 0.56, 2.0) == pytest.approx(250.0)  # Fr = 0
     assert L.bearing_p1_n(0.0, 0.0, e, X1, Y1, X2, Y2) == 0.0
     P = L.bearing_p1_n(np.array([1000.0, 1000.0]), np.array([600.0, 100.0]), e, X1, Y1, X2, Y2)
     np.testing.assert_allclose(P, [1000.0, 1300.0])
@@ -262,13 +275,13 @@ def test_bearing_oil_torque_equals_palmgren():
         # Palmgren: M0 = 1e-7 f0 (nu n)^(2/3) dm^3 [N mm], nu cSt, n rpm, dm mm
         M0 = 1e-7 * f0 * (nu_cst * n_rpm) ** (2 / 3) * (Dm * 1e3) ** 3 / 1e3
         T = float(L.bearing_torque_nm(f0, 0.0, 0.0, Dm, nu_cst * 1e-6, n_rpm * math.pi / 30, 0.0, 0.0, 0.0))
-        assert T == pytest.approx(0.978 * M0, rel=1e-9)       # the seed's 9.78e-2 vs Palmgren's 0.1
+        assert T == pytest.approx(0.978 * M0, rel=1e-9)  # the seed's 9.78e-2 vs Palmgren's 0.1
         assert T == pytest.approx(M0, rel=0.025)
     # below nu n = 2000: Palmgren's floor 160e-7 f0 dm^3 (160 ~ 2000^(2/3) = 158.7)
     M0_floor = 1e-7 * f0 * 2000.0 ** (2 / 3) * (Dm * 1e3) ** 3 / 1e3
     T_low = float(L.bearing_torque_nm(f0, 0.0, 0.0, Dm, nu_cst * 1e-6, 50.0 * math.pi / 30, 0.0, 0.0, 0.0))
     assert T_low == pytest.approx(0.978 * M0_floor, rel=1e-9)
-    assert M0_floor == pytest.approx(160e-7 * f0 * 80.0 ** 3 / 1e3, rel=0.01)
+    assert M0_floor == pytest.approx(160e-7 * f0 * 80.0**3 / 1e3, rel=0.01)
 
 
 def test_bearing_load_terms():
@@ -280,15 +293,15 @@ def test_needle_bearing_relative_speed():
     f0, Dm, nu = 3.0, 0.06, 25.8e-6
     T = L.needle_bearing_torque_nm(f0, Dm, nu, np.array([0.0, 100.0, -100.0]))
     n = 100.0 * 30 / math.pi
-    assert T[1] == pytest.approx(9.78e-2 * f0 * Dm ** 3 * (25.8 * n) ** (2 / 3))
+    assert T[1] == pytest.approx(9.78e-2 * f0 * Dm**3 * (25.8 * n) ** (2 / 3))
     assert T[2] == T[1]
-    assert T[0] * 0.0 == 0.0 and T[0] < T[1]   # floor torque, zero power at zero relative speed
+    assert T[0] * 0.0 == 0.0 and T[0] < T[1]  # floor torque, zero power at zero relative speed
 
 
 def test_sync_ring_drag_eq41():
     n, mu, R, w, J, th, dw = 2, 0.0127, 0.06, 0.010, 0.3e-3, 7.0 * DEG, 100.0
     T = L.sync_ring_drag_torque_nm(n, mu, R, w, J, th, dw)
-    hand = 2 * 2 * math.pi * 0.0127 * 0.06 ** 3 * 0.010 / (0.3e-3 * math.sin(7 * DEG)) * 100.0
+    hand = 2 * 2 * math.pi * 0.0127 * 0.06**3 * 0.010 / (0.3e-3 * math.sin(7 * DEG)) * 100.0
     assert T == pytest.approx(hand)
     assert L.sync_ring_drag_torque_nm(n, mu, R, w, J, th, -dw) == pytest.approx(-hand)
 
@@ -299,6 +312,7 @@ def test_pump_torque_eq42():
 
 
 # --- heat split and lag ---------------------------------------------------------------------------------------
+
 
 def test_planetary_split():
     s = L.PLANETARY_HEAT_SPLIT

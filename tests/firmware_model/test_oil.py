@@ -1,10 +1,12 @@
 """Oil properties against the seed's Appendix 2 table and hand calculations."""
+
 import math
 
 import numpy as np
 import pytest
 
 from firmware_model.physics import oil
+
 ROWS_T = [-20.0, 0.0, 20.0, 40.0, 60.0, 80.0, 100.0, 120.0, 140.0]
 ROWS_RHO = [896.438, 885.902, 875.366, 864.830, 854.294, 843.758, 833.222, 822.686, 812.150]
 ROWS_NU_CST = [9486.0, 1397.0, 337.6, 115.0, 49.9, 25.8, 15.2, 9.84, 6.84]
@@ -28,10 +30,10 @@ def test_viscosity_30c_walther_between_rows():
     # hand Walther: W linear in log10(T_K) between the 20 and 40 degC rows
     x20, x40, x30 = math.log10(293.15), math.log10(313.15), math.log10(303.15)
     w = _walther(337.6) + (_walther(115.0) - _walther(337.6)) * (x30 - x20) / (x40 - x20)
-    expected = 10 ** (10 ** w) - 0.7
+    expected = 10 ** (10**w) - 0.7
     assert nu30 == pytest.approx(expected, rel=1e-10)
-    geometric = math.sqrt(115.0 * 337.6)       # 197.0 cSt (log-linear in T)
-    arithmetic = 0.5 * (115.0 + 337.6)         # 226.3 cSt (linear in T)
+    geometric = math.sqrt(115.0 * 337.6)  # 197.0 cSt (log-linear in T)
+    arithmetic = 0.5 * (115.0 + 337.6)  # 226.3 cSt (linear in T)
     assert 115.0 < nu30 < 337.6
     assert nu30 < arithmetic
     assert abs(nu30 - geometric) < abs(nu30 - arithmetic)
@@ -52,7 +54,7 @@ def test_viscosity_extrapolation_uses_end_segments():
     def line(t_a, nu_a, t_b, nu_b, t):
         xa, xb, x = (math.log10(v + 273.15) for v in (t_a, t_b, t))
         w = _walther(nu_a) + (_walther(nu_b) - _walther(nu_a)) * (x - xa) / (xb - xa)
-        return 10 ** (10 ** w) - 0.7
+        return 10 ** (10**w) - 0.7
 
     assert oil.kinematic_viscosity_m2_s(-40.0) * 1e6 == pytest.approx(line(-20, 9486.0, 0, 1397.0, -40), rel=1e-9)
     assert oil.kinematic_viscosity_m2_s(200.0) * 1e6 == pytest.approx(line(120, 9.84, 140, 6.84, 200), rel=1e-9)
@@ -65,9 +67,9 @@ def test_density_linear():
 
 
 def test_piezo_interpolation_and_extrapolation():
-    assert oil.piezo_viscosity_per_pa(30.0) == pytest.approx(22.8e-9, rel=1e-12)     # (24.0 + 21.6) / 2
-    assert oil.piezo_viscosity_per_pa(10.0) == pytest.approx(25.2e-9, rel=1e-12)     # 24.0 + 0.12 * 10
-    assert oil.piezo_viscosity_per_pa(130.0) == pytest.approx(10.65e-9, rel=1e-12)   # 12.0 - 0.135 * 10
+    assert oil.piezo_viscosity_per_pa(30.0) == pytest.approx(22.8e-9, rel=1e-12)  # (24.0 + 21.6) / 2
+    assert oil.piezo_viscosity_per_pa(10.0) == pytest.approx(25.2e-9, rel=1e-12)  # 24.0 + 0.12 * 10
+    assert oil.piezo_viscosity_per_pa(130.0) == pytest.approx(10.65e-9, rel=1e-12)  # 12.0 - 0.135 * 10
     a = oil.piezo_viscosity_per_pa(np.linspace(-60.0, 300.0, 500))
     assert np.all(a >= oil.PIEZO_FLOOR_PER_PA) and np.all(np.diff(a) <= 0.0)
 

@@ -1,5 +1,6 @@
 """Warning limits, the two-level warning state machine (hysteresis, debounce) and time to limit
 (firmware_model.onboard.warning_levels, held_modes, held_march, time_to_limit)."""
+
 import math
 
 import numpy as np
@@ -7,9 +8,9 @@ import pytest
 
 from firmware_model.components import GROUP, PUBLISHED
 from firmware_model.errors import ParameterError
+from firmware_model.onboard.sensor import SensorInputs, VirtualSensor
 from firmware_model.onboard.warning_levels import LIMITS_PATH, load_limits, update_levels
 from firmware_model.parameters import load_parameters
-from firmware_model.onboard.sensor import SensorInputs, VirtualSensor
 
 I = {c: i for i, c in enumerate(PUBLISHED)}
 
@@ -25,6 +26,7 @@ def limits():
 
 
 # ---- limits file
+
 
 def test_default_limits_per_group_with_provenance(limits):
     assert limits.of("PS")[0] == 130.0 and limits.of("LI.teeth")[0] == 150.0 and limits.of("oil")[0] == 120.0
@@ -49,12 +51,15 @@ def test_component_override_and_config_overrides(tmp_path):
     assert lim.of("PS") == (125.0, 150.0, 2.0) and lim.debounce_s == 3.0 and lim.of("oil")[2] == 2.0
 
 
-@pytest.mark.parametrize("edit, msg", [
-    (("warning = { v = 150", "warning = { v = 190"), "below critical"),
-    (("hysteresis = { v = 5, u = \"K\"", "hysteresis = { v = 50, u = \"K\""), "hysteresis"),
-    (("[oil]", "[oill]"), "unknown section"),
-    (("warning = { v = 150, u = \"degC\"", "warning = { v = 150, u = \"K\""), "unit"),
-])
+@pytest.mark.parametrize(
+    "edit, msg",
+    [
+        (("warning = { v = 150", "warning = { v = 190"), "below critical"),
+        (('hysteresis = { v = 5, u = "K"', 'hysteresis = { v = 50, u = "K"'), "hysteresis"),
+        (("[oil]", "[oill]"), "unknown section"),
+        (('warning = { v = 150, u = "degC"', 'warning = { v = 150, u = "K"'), "unit"),
+    ],
+)
 def test_invalid_limits_are_refused_naming_the_field(tmp_path, edit, msg):
     text = LIMITS_PATH.read_text().replace(*edit, 1)
     with pytest.raises(ParameterError, match=msg):
@@ -62,6 +67,7 @@ def test_invalid_limits_are_refused_naming_the_field(tmp_path, edit, msg):
 
 
 # ---- the state machine
+
 
 def test_early_warning_from_the_time_to_limit(limits):
     n = len(PUBLISHED)
@@ -72,7 +78,7 @@ def test_early_warning_from_the_time_to_limit(limits):
     for _ in range(10):
         lv, pend = update_levels(lv, pend, T, True, limits, 0.1, ttl)
     assert lv[I["PS"]] == 1 and lv.sum() == 1
-    ttl[I["PS"]] = 50.0                                       # still within 2 x lead: held
+    ttl[I["PS"]] = 50.0  # still within 2 x lead: held
     for _ in range(20):
         lv, pend = update_levels(lv, pend, T, True, limits, 0.1, ttl)
     assert lv[I["PS"]] == 1
@@ -97,17 +103,17 @@ def _drive(limits, temps, comp="PS", dt=0.1, level=0):
 
 def test_warning_needs_the_debounce_time(limits):
     w = limits.of("PS")[0]
-    short = _drive(limits, [w - 1] * 5 + [w + 1] * 9 + [w - 1] * 20)       # 0.9 s above: nothing
+    short = _drive(limits, [w - 1] * 5 + [w + 1] * 9 + [w - 1] * 20)  # 0.9 s above: nothing
     assert max(short) == 0
-    long = _drive(limits, [w - 1] * 5 + [w + 1] * 10)                       # 1.0 s above: warning
+    long = _drive(limits, [w - 1] * 5 + [w + 1] * 10)  # 1.0 s above: warning
     assert long[-1] == 1 and long[13] == 0
 
 
 def test_warning_clears_only_below_limit_minus_hysteresis(limits):
     w, c, hy = limits.of("PS")
-    lv = _drive(limits, [w + 1] * 20 + [w - hy + 0.5] * 50)                 # inside the hysteresis band
+    lv = _drive(limits, [w + 1] * 20 + [w - hy + 0.5] * 50)  # inside the hysteresis band
     assert lv[-1] == 1
-    lv = _drive(limits, [w + 1] * 20 + [w - hy - 0.5] * 9)                  # below, but < debounce
+    lv = _drive(limits, [w + 1] * 20 + [w - hy - 0.5] * 9)  # below, but < debounce
     assert lv[-1] == 1
     lv = _drive(limits, [w + 1] * 20 + [w - hy - 0.5] * 10)
     assert lv[-1] == 0
@@ -146,7 +152,7 @@ def test_the_early_warning_fires_before_the_limit(params):
     w = s.limits.of("PS")[0]
     first_above = int(np.argmax(T >= w))
     first_warn = int(np.argmax(levels == 1))
-    assert 0.1 * (first_above - first_warn) >= 20.0          # at least 20 s of the 30 s lead
+    assert 0.1 * (first_above - first_warn) >= 20.0  # at least 20 s of the 30 s lead
     assert levels[-1] == 0
 
 
@@ -155,12 +161,13 @@ def test_the_sensor_warns_and_clears_in_a_load_cycle(params):
     levels, T = _load_cycle(s)
     w, _, hy = s.limits.of("PS")
     first_above = int(np.argmax(T >= w))
-    assert levels.max() == 1 and int(np.argmax(levels == 1)) == first_above + 9      # 1 s debounce
+    assert levels.max() == 1 and int(np.argmax(levels == 1)) == first_above + 9  # 1 s debounce
     cleared = int(np.flatnonzero(levels == 1)[-1]) + 1
-    assert T[cleared - 9] < w - hy <= T[cleared - 10]                                # clears below w - hyst
+    assert T[cleared - 9] < w - hy <= T[cleared - 10]  # clears below w - hyst
 
 
 # ---- time to limit
+
 
 @pytest.mark.parametrize("comp", ["PS", "2M.teeth"])
 def test_time_to_limit_matches_a_held_input_simulation(params, comp):
@@ -242,12 +249,13 @@ def test_coupled_modes_match_the_matrix_exponential():
     from scipy.linalg import expm
 
     from firmware_model.onboard.held_modes import Coupling, decompose
+
     rng = np.random.default_rng(3)
     n = 8
-    C, K = _random_network(rng, n, (50.0, 400.0), 10.0, 0.5, 4.0)    # node 0 (the "sump") to the boundary
+    C, K = _random_network(rng, n, (50.0, 400.0), 10.0, 0.5, 4.0)  # node 0 (the "sump") to the boundary
     u = np.zeros(n)
-    u[[2, 5]] = -10.0                                     # node 0 cools nodes 2 and 5 as it warms ...
-    u[0] = 20.0                                           # ... and gets that heat back
+    u[[2, 5]] = -10.0  # node 0 cools nodes 2 and 5 as it warms ...
+    u[0] = 20.0  # ... and gets that heat back
     free = np.arange(n)
     modes = decompose(K, free, np.sqrt(C), Coupling(u, 0))
     assert modes.coupled and np.iscomplexobj(modes.lam_per_s)
@@ -257,7 +265,7 @@ def test_coupled_modes_match_the_matrix_exponential():
     b[4] = 300.0
     T_inf = modes.steady(b)
     assert np.allclose(Keff @ T_inf, b)
-    T0 = T_inf - rng.uniform(5.0, 20.0, n)                # every node warms toward its steady state
+    T0 = T_inf - rng.uniform(5.0, 20.0, n)  # every node warms toward its steady state
     A = -Keff / C[:, None]
     for t in (1.0, 30.0, 300.0, 3000.0):
         want = T_inf + expm(A * t) @ (T0 - T_inf)
@@ -273,16 +281,17 @@ def test_the_march_finds_the_first_crossings_of_the_matrix_exponential(coupled):
     from scipy.linalg import expm
 
     from firmware_model.onboard.held_march import TTL_QUANTUM_S, HeldSystem, march_time_to_limit
+
     rng = np.random.default_rng(3)
     n = 8
     C, K = _random_network(rng, n, (50.0, 400.0), 10.0, 0.5, 4.0)
     if coupled:
-        K[[2, 5], 0] += 10.0                              # node 0 cools nodes 2 and 5 as it warms ...
-        K[0, 0] -= 20.0                                   # ... and gets that heat back
+        K[[2, 5], 0] += 10.0  # node 0 cools nodes 2 and 5 as it warms ...
+        K[0, 0] -= 20.0  # ... and gets that heat back
     b = np.zeros(n)
     b[4] = 300.0
     T_inf = np.linalg.solve(K, b)
-    T0 = T_inf - rng.uniform(5.0, 20.0, n)                # every node warms toward its steady state
+    T0 = T_inf - rng.uniform(5.0, 20.0, n)  # every node warms toward its steady state
     rows = np.arange(n)
     limit = T0 + (T_inf - T0) * rng.uniform(0.3, 1.2, n)  # some reached, some beyond the steady state
     march = march_time_to_limit(HeldSystem(K, C, b, coupled, not coupled), T0, rows, limit)
@@ -292,6 +301,7 @@ def test_the_march_finds_the_first_crossings_of_the_matrix_exponential(coupled):
 
     def temp(t):
         return T_inf + expm(A * t) @ (T0 - T_inf)
+
     t_scan = np.geomspace(0.05, 2.0e5, 3000)
     traj = np.array([temp(t) for t in t_scan])
     for i in range(n):
@@ -305,8 +315,12 @@ def test_the_march_finds_the_first_crossings_of_the_matrix_exponential(coupled):
             lo, hi = (lo, mid) if temp(mid)[i] >= limit[i] else (mid, hi)
         # within 2 % of the time (as the held-input simulation above), or (a grazing approach, where a tiny
         # temperature error moves the time a lot) the exact solution within 50 mK of the limit at the predicted time
-        assert abs(got[i] - hi) <= 0.02 * hi + TTL_QUANTUM_S or abs(temp(got[i])[i] - limit[i]) <= 0.05, \
-            (i, got[i], hi, temp(got[i])[i] - limit[i])
+        assert abs(got[i] - hi) <= 0.02 * hi + TTL_QUANTUM_S or abs(temp(got[i])[i] - limit[i]) <= 0.05, (
+            i,
+            got[i],
+            hi,
+            temp(got[i])[i] - limit[i],
+        )
     assert np.isfinite(got).sum() >= 3 and np.isinf(got).sum() >= 1
 
 
@@ -318,6 +332,7 @@ def test_the_march_skips_only_where_no_crossing_can_be(seed):
     from scipy.linalg import expm
 
     from firmware_model.onboard.held_march import _skip_to, march_grid_s
+
     rng = np.random.default_rng(seed)
     n = 10
     C, K = _random_network(rng, n, (20.0, 4000.0), 20.0, 0.4, 4.0)
@@ -333,7 +348,7 @@ def test_the_march_skips_only_where_no_crossing_can_be(seed):
     assert open_.all() and t_skip in march_grid_s() and h > 0
     for t in np.linspace(0.0, t_skip, 400):
         assert np.all(T_inf + expm(M * t) @ (T0 - T_inf) < limit)
-    assert t_skip > 0.0 or (limit - T0).min() / de.max() < 1.0       # the first grid point is 1 s
+    assert t_skip > 0.0 or (limit - T0).min() / de.max() < 1.0  # the first grid point is 1 s
     cooling = np.ones(n, dtype=bool)
     assert _skip_to(cooling, limit - T0, -1e-3, np.ones(n)) == (0.0, 1.0) and not cooling.any()
 
@@ -348,15 +363,16 @@ def test_the_weighted_bound_holds_where_the_coupling_breaks_the_metzler_structur
 
     from firmware_model.onboard.held_march import HeldSystem, _bound_scale, march_time_to_limit
     from firmware_model.onboard.time_to_limit import _weights
+
     rng = np.random.default_rng(seed)
     n = 9
     C, K = _random_network(rng, n, (50.0, 2000.0), 10.0, 0.4, 6.0)
     u = np.zeros(n)
-    u[[3, 6]] = -(np.abs(K[[3, 6], 0]) + rng.uniform(0.5, 2.0, 2))          # more than their link to node 0
+    u[[3, 6]] = -(np.abs(K[[3, 6], 0]) + rng.uniform(0.5, 2.0, 2))  # more than their link to node 0
     u[0] = -u[[3, 6]].sum() * 0.3
     A = K.copy()
     A[:, 0] -= u
-    assert np.any(-A[1:, 0] < 0)                                             # not Metzler
+    assert np.any(-A[1:, 0] < 0)  # not Metzler
     w = _weights(A)
     assert w is not None and np.all(w > 0)
     B = -np.abs(A)
@@ -377,7 +393,7 @@ def test_the_weighted_bound_holds_where_the_coupling_breaks_the_metzler_structur
     without = march_time_to_limit(HeldSystem(A, C, b, True, False, None), T0, rows, limit).ttl_s
     assert np.array_equal(np.isinf(with_w), np.isinf(without))
     fin = np.isfinite(without)
-    np.testing.assert_allclose(with_w[fin], without[fin], rtol=0.01, atol=2 ** -7)
+    np.testing.assert_allclose(with_w[fin], without[fin], rtol=0.01, atol=2**-7)
 
 
 def test_time_to_limit_follows_the_cooler_outlet_as_the_sump_warms(params, monkeypatch):
@@ -386,11 +402,12 @@ def test_time_to_limit_follows_the_cooler_outlet_as_the_sump_warms(params, monke
     limit. The prediction, re-linearised at the sump temperature it predicts, says "never", as the sensor's own step
     with the inputs held shows; frozen at the current inlet (no re-linearisation) it predicted a crossing."""
     import firmware_model.onboard.time_to_limit as S
+
     inp = SensorInputs(1150.0, 1000.0, 8, 88.0, 20.0, 100.0, 20.0, 0.0)
 
     def predict_then_hold(relinearise):
         monkeypatch.setattr(S, "TTL_RELINEARISE_STEPS", relinearise)
-        s = VirtualSensor(params, oil_frozen_s=math.inf, core="numpy")   # the patched constant is the reference's
+        s = VirtualSensor(params, oil_frozen_s=math.inf, core="numpy")  # the patched constant is the reference's
         st = s.initial_state(T_oil_c=88.0)
         for _ in range(3000):
             st, out = s.step(st, inp)
@@ -402,10 +419,10 @@ def test_time_to_limit_follows_the_cooler_outlet_as_the_sump_warms(params, monke
         return pred, T_max, s.limits.warning_c[I["PS"]]
 
     pred, T_max, limit = predict_then_hold(2)
-    assert T_max < limit - 1.0              # 20 min held: the sun wheel never reaches its limit
+    assert T_max < limit - 1.0  # 20 min held: the sun wheel never reaches its limit
     assert pred == math.inf
     frozen, _, _ = predict_then_hold(0)
-    assert frozen < 600.0                   # the frozen linearisation predicted a crossing within 10 min
+    assert frozen < 600.0  # the frozen linearisation predicted a crossing within 10 min
 
 
 @pytest.mark.parametrize("torque_nm", [2120.0, 2180.0])
@@ -417,12 +434,13 @@ def test_time_to_limit_couples_the_oil_inlet_to_the_warming_sump(params, monkeyp
     says never; at 2180 Nm it crosses and the prediction is within 15 %. With the inlet frozen at each
     re-linearisation instead (the coupling off) the first predicted a crossing and the second was >40 % late."""
     import firmware_model.onboard.time_to_limit as S
+
     inp = SensorInputs(1178.0, torque_nm, 8, 89.5, 25.0, 92.8, 19.3, 0.0)
     i = I["PS"]
 
     def predict_then_hold(couple):
         monkeypatch.setattr(S, "TTL_INLET_COUPLING", couple)
-        s = VirtualSensor(params, oil_frozen_s=math.inf, core="numpy")   # the patched constant is the reference's
+        s = VirtualSensor(params, oil_frozen_s=math.inf, core="numpy")  # the patched constant is the reference's
         st = s.initial_state(T_oil_c=89.5)
         for _ in range(1800):
             st, out = s.step(st, inp)
@@ -438,7 +456,7 @@ def test_time_to_limit_couples_the_oil_inlet_to_the_warming_sump(params, monkeyp
     pred, T_max, crossed, limit = predict_then_hold(True)
     frozen = predict_then_hold(False)[0]
     if torque_nm == 2120.0:
-        assert crossed is None and T_max > limit - 1.0      # 20 min held: peaks within 1 K under the limit
+        assert crossed is None and T_max > limit - 1.0  # 20 min held: peaks within 1 K under the limit
         assert pred == math.inf
         assert frozen < 600.0
     else:
@@ -451,12 +469,13 @@ def test_coupled_modes_fall_back_to_the_symmetric_ones_when_unstable():
     """A coupling that would make the held system unstable (an eigenvalue without a positive real part) is dropped:
     the item is the symmetric decomposition of K, marked not coupled, so the caller freezes the inlet instead."""
     from firmware_model.onboard.held_modes import Coupling, decompose
+
     n = 4
     C = np.array([100.0, 50.0, 80.0, 60.0])
     G = np.array([[0, 2.0, 0, 1.0], [2.0, 0, 3.0, 0], [0, 3.0, 0, 1.5], [1.0, 0, 1.5, 0]])
     K = np.diag(G.sum(axis=1)) - G
     K[0, 0] += 1.0
-    u = np.array([50.0, 0.0, 0.0, 0.0])                    # the sump would feed itself: K_00 - 50 < 0
+    u = np.array([50.0, 0.0, 0.0, 0.0])  # the sump would feed itself: K_00 - 50 < 0
     modes = decompose(K, np.arange(n), np.sqrt(C), Coupling(u, 0))
     assert not modes.coupled
     sym = decompose(K, np.arange(n), np.sqrt(C))

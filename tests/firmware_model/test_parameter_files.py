@@ -1,6 +1,7 @@
 """Bad parameter files are refused with one sentence naming the file and the key: unknown keys and sections, a unit
 of the wrong dimension, a value of the wrong sign, a number written as text, a value out of range (in the file's
 unit). The shipped variants load unchanged."""
+
 import math
 import re
 import warnings
@@ -30,7 +31,7 @@ def _refused(tmp_path, body: str, head: str = INHERIT) -> str:
 def test_shipped_variants_load_unchanged():
     for variant in ("GRS905", "GRSO905"):
         with warnings.catch_warnings():
-            warnings.simplefilter("error")          # no deprecation warning either
+            warnings.simplefilter("error")  # no deprecation warning either
             p = load_parameters(variant)
         assert len(p.values) == 270 and p.strings["cooler.kind"] == "liquid", variant
         assert p["oil.volume"] == pytest.approx(13.5e-3) and p["engine.max_torque"] == 4200.0
@@ -48,20 +49,26 @@ def test_a_full_copy_of_a_shipped_variant_loads_as_the_variant(tmp_path):
 
 def test_unknown_keys_and_sections_are_refused(tmp_path):
     msg = _refused(tmp_path, '[housing]\nhot_fracc = { v = 0.6, u = "-", src = "assumed" }\n')
-    assert msg == ("p.toml: unknown parameter housing.hot_fracc: GRS905.toml has no such key; "
-                   "did you mean housing.hot_frac?")
+    assert msg == (
+        "p.toml: unknown parameter housing.hot_fracc: GRS905.toml has no such key; did you mean housing.hot_frac?"
+    )
     msg = _refused(tmp_path, '[houzing]\nhot_frac = { v = 0.6, u = "-", src = "assumed" }\n')
-    assert msg == ("p.toml: unknown parameter houzing.hot_frac: GRS905.toml has no section [houzing]; "
-                   "did you mean housing.hot_frac?")
-    msg = _refused(tmp_path, '[gear.L]\nz11 = { v = 35, u = "-", src = "derived" }\n',
-                   head='[meta]\ninherit = "GRSO905"\n')
+    assert msg == (
+        "p.toml: unknown parameter houzing.hot_frac: GRS905.toml has no section [houzing]; "
+        "did you mean housing.hot_frac?"
+    )
+    msg = _refused(
+        tmp_path, '[gear.L]\nz11 = { v = 35, u = "-", src = "derived" }\n', head='[meta]\ninherit = "GRSO905"\n'
+    )
     assert msg == "p.toml: unknown parameter gear.L.z11: GRSO905.toml has no such key; did you mean gear.L.z1?"
     msg = _refused(tmp_path, '[housing]\nhot_frac = { value = 0.6, u = "-", src = "assumed" }\n')
     assert msg == "p.toml: entry 'housing.hot_frac' must be a table { v = ..., u = ..., src = ... } with a value v"
     # a file that inherits nothing is checked against the shipped variants
     msg = _refused(tmp_path, '[housing]\nhot_fracc = { v = 0.6, u = "-", src = "assumed" }\n', head="")
-    assert msg == ("p.toml: unknown parameter housing.hot_fracc: the shipped parameter files (GRS905, GRSO905) "
-                   "have no such key; did you mean housing.hot_frac?")
+    assert msg == (
+        "p.toml: unknown parameter housing.hot_fracc: the shipped parameter files (GRS905, GRSO905) "
+        "have no such key; did you mean housing.hot_frac?"
+    )
 
 
 def test_renamed_keys_still_load_with_their_warning(tmp_path):
@@ -72,14 +79,21 @@ def test_renamed_keys_still_load_with_their_warning(tmp_path):
 
 def test_a_unit_of_another_dimension_is_refused(tmp_path):
     msg = _refused(tmp_path, '[oil]\ninclination = { v = 5, u = "-", src = "seed" }\n')
-    assert msg == ("p.toml: oil.inclination has unit '-' (a plain number) but the key is an angle: "
-                   'write it with u = "deg" or u = "rad"')
+    assert msg == (
+        "p.toml: oil.inclination has unit '-' (a plain number) but the key is an angle: "
+        'write it with u = "deg" or u = "rad"'
+    )
     msg = _refused(tmp_path, '[housing]\nh_air = { v = 10, u = "W/K", src = "seed" }\n')
-    assert msg == ("p.toml: housing.h_air has unit 'W/K' (a thermal conductance) but the key is a heat transfer "
-                   'coefficient: write it with u = "W/(m2 K)"')
+    assert msg == (
+        "p.toml: housing.h_air has unit 'W/K' (a thermal conductance) but the key is a heat transfer "
+        'coefficient: write it with u = "W/(m2 K)"'
+    )
     # another unit of the same dimension is converted
-    p = _load(tmp_path, '[oil]\nlevel_below_ls_axis = { v = 59, u = "mm", src = "derived" }\n'
-                        'inclination = { v = 0.1, u = "rad", src = "seed" }\n')
+    p = _load(
+        tmp_path,
+        '[oil]\nlevel_below_ls_axis = { v = 59, u = "mm", src = "derived" }\n'
+        'inclination = { v = 0.1, u = "rad", src = "seed" }\n',
+    )
     assert p["oil.level_below_ls_axis"] == pytest.approx(0.059) and p["oil.inclination"] == 0.1
 
 
@@ -93,10 +107,13 @@ def test_the_sign_of_a_value_is_checked(tmp_path):
     msg = _refused(tmp_path, '[shaft.LS]\nd_bore = { v = -1, u = "mm", src = "assumed" }\n')
     assert msg == "p.toml: shaft.LS.d_bore = -1 mm must not be negative (the key is a length)"
     # zero where it means something (a solid shaft, no lag, a spur gear), negative temperatures
-    p = _load(tmp_path, '[shaft.IS]\nd_bore = { v = 0, u = "mm", src = "assumed" }\n'
-                        '[scale]\nheat_lag_tau = { v = 0, u = "s", src = "assumed" }\n'
-                        '[gear.1]\nbeta = { v = 0, u = "deg", src = "assumed" }\n'
-                        '[boundary]\nambient = { v = -20, u = "degC", src = "assumed" }\n')
+    p = _load(
+        tmp_path,
+        '[shaft.IS]\nd_bore = { v = 0, u = "mm", src = "assumed" }\n'
+        '[scale]\nheat_lag_tau = { v = 0, u = "s", src = "assumed" }\n'
+        '[gear.1]\nbeta = { v = 0, u = "deg", src = "assumed" }\n'
+        '[boundary]\nambient = { v = -20, u = "degC", src = "assumed" }\n',
+    )
     assert (p["shaft.IS.d_bore"], p["scale.heat_lag_tau"], p["gear.1.beta"], p["boundary.ambient"]) == (0, 0, 0, -20)
     with pytest.raises(ParameterError, match=r"^engine.max_torque = -1 N m must be greater than zero"):
         load_parameters("GRS905").with_overrides({"engine.max_torque": -1.0})
@@ -120,14 +137,16 @@ def test_range_errors_name_the_file_and_use_its_units(tmp_path):
     msg = _refused(tmp_path, '[gear.3]\nz1 = { v = 31.5, u = "-", src = "derived" }\n')
     assert msg == "p.toml: gear.3.z1 = 31.5 must be an integer"
     # an override is SI and comes from no file: the message says so by its unit
-    with pytest.raises(ParameterError, match=re.escape("oil.volume = 0.03 m3 is outside its allowed range "
-                                                       "0.004..0.02 m3")):
+    with pytest.raises(
+        ParameterError, match=re.escape("oil.volume = 0.03 m3 is outside its allowed range 0.004..0.02 m3")
+    ):
         load_parameters("GRS905").with_overrides({"oil.volume": 0.03})
 
 
 def test_a_file_saved_with_a_byte_order_mark_loads(tmp_path):
     """From a bad-input audit: a TOML saved with a BOM by a Windows editor was 'not valid TOML (line 1, column 1)'."""
     from firmware_model.parameters import load_parameters
+
     p = tmp_path / "bom.toml"
     p.write_bytes(b'\xef\xbb\xbf[meta]\ninherit = "GRS905"\n')
     assert load_parameters(p).values == load_parameters("GRS905").values
@@ -136,6 +155,7 @@ def test_a_file_saved_with_a_byte_order_mark_loads(tmp_path):
 def test_a_files_own_description_in_meta_is_allowed(tmp_path):
     """The check of unknown keys leaves [meta] alone: a description of the file changes no physics (review)."""
     from firmware_model.parameters import load_parameters
+
     p = tmp_path / "mine.toml"
     p.write_text('[meta]\ninherit = "GRS905"\ndescription = "truck 17, rig-calibrated cooler"\n')
     assert load_parameters(p).values == load_parameters("GRS905").values

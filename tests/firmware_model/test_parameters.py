@@ -1,12 +1,13 @@
 """Parameter files: SI conversion, provenance on every value, ranges, inheritance; kinematics against the seed."""
+
 import math
 import re
 
 import pytest
 
 from firmware_model.errors import InputError, ParameterError
-from firmware_model.physics.kinematics import GEAR_BY_NAME, gear_state, parse_gear
 from firmware_model.parameters import PARAM_DIR, load_parameters
+from firmware_model.physics.kinematics import GEAR_BY_NAME, gear_state, parse_gear
 
 
 def test_every_value_has_unit_and_provenance():
@@ -20,11 +21,11 @@ def test_every_value_has_unit_and_provenance():
 
 def test_si_conversion():
     p = load_parameters()
-    assert p["gear.3.width1"] == pytest.approx(0.040)              # mm -> m
-    assert p["oil.volume"] == pytest.approx(13.5e-3)               # L -> m3
-    assert p["gear.alpha_n"] == pytest.approx(math.radians(20))    # deg -> rad
+    assert p["gear.3.width1"] == pytest.approx(0.040)  # mm -> m
+    assert p["oil.volume"] == pytest.approx(13.5e-3)  # L -> m3
+    assert p["gear.alpha_n"] == pytest.approx(math.radians(20))  # deg -> rad
     assert p["heat.omega_nom_rad_s"] == pytest.approx(1000 * 2 * math.pi / 60)
-    assert p["cooler.liquid_Qmax_cool"] == pytest.approx(14e3)     # kW -> W
+    assert p["cooler.liquid_Qmax_cool"] == pytest.approx(14e3)  # kW -> W
     assert p.provenance("heat.h_nom") == "seed" and p["heat.h_nom"] == 325
 
 
@@ -43,9 +44,9 @@ def test_ratios_match_the_seed():
     assert r["CL"] == pytest.approx(16.406, rel=0.01)
     assert r["1H"] == pytest.approx(9.164, rel=0.01)
     assert r["6H"] == pytest.approx(1.0, abs=1e-12)
-    assert r["3H"] / r["6H"] == pytest.approx(3.75)           # planetary low range
+    assert r["3H"] / r["6H"] == pytest.approx(3.75)  # planetary low range
     assert r["6L"] / r["6H"] == pytest.approx(1.235, rel=0.01)  # split step
-    assert r["1H"] / 3.75 == pytest.approx(2.444, rel=0.01)    # before the planetary
+    assert r["1H"] / 3.75 == pytest.approx(2.444, rel=0.01)  # before the planetary
     assert r["RL"] < 0 and r["RH"] < 0
 
 
@@ -60,14 +61,14 @@ def test_overdrive_variant_inverts_the_split():
 
 def test_kinematics_torque_paths():
     k = load_parameters().kinematics
-    row = 9 + 2   # 4L: low split (L pair) and 1st, high range
+    row = 9 + 2  # 4L: low split (L pair) and 1st, high range
     active = dict(zip(("L", "3", "2", "1", "C", "R"), k.active_pair[row]))
     assert active == {"L": True, "3": False, "2": False, "1": True, "C": False, "R": False}
-    assert not k.active_pair[14 + 2].any()            # direct drive
-    assert k.mesh_torque[8 + 2, 7] > 0 and k.mesh_torque[9 + 2, 7] == 0   # planetary loaded only at low range
+    assert not k.active_pair[14 + 2].any()  # direct drive
+    assert k.mesh_torque[8 + 2, 7] > 0 and k.mesh_torque[9 + 2, 7] == 0  # planetary loaded only at low range
     # idle wheels on an engaged interface do not slip on their bearing, the others do
-    assert k.wheel_bearing_rel[14 + 2][1] == pytest.approx(0.0)            # 3M locked at 6H
-    assert k.wheel_bearing_rel[14 + 2][0] > 0                               # LI free at 6H
+    assert k.wheel_bearing_rel[14 + 2][1] == pytest.approx(0.0)  # 3M locked at 6H
+    assert k.wheel_bearing_rel[14 + 2][0] > 0  # LI free at 6H
 
 
 def test_gear_parsing():
@@ -80,7 +81,7 @@ def test_gear_parsing():
 def test_out_of_range_and_bad_unit_are_refused(tmp_path):
     src = (PARAM_DIR / "GRS905.toml").read_text()
     bad = tmp_path / "bad.toml"
-    bad.write_text(re.sub(r'h_nom = \{ v = 325,', "h_nom = { v = -5,", src))
+    bad.write_text(re.sub(r"h_nom = \{ v = 325,", "h_nom = { v = -5,", src))
     with pytest.raises(ParameterError, match="heat.h_nom"):
         load_parameters(bad)
     bad.write_text(src.replace('emissivity = { v = 0.8, u = "-"', 'emissivity = { v = 0.8, u = "furlong"'))
@@ -107,8 +108,11 @@ def test_renamed_keys_still_load_with_a_deprecation_warning(tmp_path):
     new = load_parameters()
     src = (PARAM_DIR / "GRS905.toml").read_text()
     # (an old file: the old key in its old unit, and no calibration bounds, which came later)
-    old = re.sub(r'flow_m3_per_rad = \{ v = [^,]+, u = "m3/rad"(, lo = [^,]+, hi = [^,]+)?',
-                 'flow_per_ls_rpm = { v = 0.005, u = "L/min/rpm"', src)
+    old = re.sub(
+        r'flow_m3_per_rad = \{ v = [^,]+, u = "m3/rad"(, lo = [^,]+, hi = [^,]+)?',
+        'flow_per_ls_rpm = { v = 0.005, u = "L/min/rpm"',
+        src,
+    )
     old = re.sub(r'max_speed_rad_s = \{ v = [^,]+, u = "rad/s"', 'max_speed = { v = 4000, u = "rpm"', old)
     old = re.sub(r'omega_nom_rad_s = \{ v = [^,]+, u = "rad/s"', 'N_nom = { v = 1000, u = "rpm"', old)
     assert "flow_per_ls_rpm = {" in old and "max_speed = {" in old and "N_nom = {" in old
@@ -118,15 +122,22 @@ def test_renamed_keys_still_load_with_a_deprecation_warning(tmp_path):
     with pytest.warns(FutureWarning) as rec:
         p = load_parameters(f)
     msgs = sorted(str(w.message) for w in rec)
-    assert msgs == [f"old.toml: parameter {o} is deprecated, use {n} (it is read as {n})" for o, n in (
-        ("engine.max_speed", "engine.max_speed_rad_s"), ("heat.N_nom", "heat.omega_nom_rad_s"),
-        ("oil_system.flow_per_ls_rpm", "oil_system.flow_m3_per_rad"))]
+    assert msgs == [
+        f"old.toml: parameter {o} is deprecated, use {n} (it is read as {n})"
+        for o, n in (
+            ("engine.max_speed", "engine.max_speed_rad_s"),
+            ("heat.N_nom", "heat.omega_nom_rad_s"),
+            ("oil_system.flow_per_ls_rpm", "oil_system.flow_m3_per_rad"),
+        )
+    ]
     for key in ("oil_system.flow_m3_per_rad", "engine.max_speed_rad_s", "heat.omega_nom_rad_s"):
         assert p[key] == new[key]
     with pytest.warns(FutureWarning, match="engine.max_speed_rad_s"):
         assert new.with_overrides({"engine.max_speed": 400.0})["engine.max_speed_rad_s"] == 400.0
     both = tmp_path / "both.toml"
-    both.write_text(old.replace("[engine]\n", '[engine]\nmax_speed_rad_s = { v = 400, u = "rad/s", src = "assumed" }\n'))
+    both.write_text(
+        old.replace("[engine]\n", '[engine]\nmax_speed_rad_s = { v = 400, u = "rad/s", src = "assumed" }\n')
+    )
     with pytest.warns(FutureWarning) as rec, pytest.raises(ParameterError, match="same parameter"):
         load_parameters(both)
     assert rec
@@ -134,13 +145,21 @@ def test_renamed_keys_still_load_with_a_deprecation_warning(tmp_path):
 
 def test_geometry_factors_live_in_the_parameter_file():
     p = load_parameters()
-    for key in ("wheel.bore_RI", "planetary.planet_bore_frac", "shaft.LS.overhang_front", "shaft.OS.overhang_rear",
-                "heat.shaft_inner_diameter_frac", "heat.seat_outer_diameter_factor", "oil.capacity_temp"):
+    for key in (
+        "wheel.bore_RI",
+        "planetary.planet_bore_frac",
+        "shaft.LS.overhang_front",
+        "shaft.OS.overhang_rear",
+        "heat.shaft_inner_diameter_frac",
+        "heat.seat_outer_diameter_factor",
+        "oil.capacity_temp",
+    ):
         assert p.provenance(key) in ("seed", "derived", "assumed") and p.units[key]
 
 
 def test_toml_errors_are_one_sentence(tmp_path):
     from firmware_model.parameters import read_toml
+
     with pytest.raises(ParameterError, match="^limits file x.toml does not exist$"):
         read_toml(tmp_path / "x.toml", "limits file x.toml")
     bad = tmp_path / "bad.toml"

@@ -1,11 +1,18 @@
 """The whole-record plausibility rules (firmware_model.service.plausibility): unit and sign mistakes that pass every
 per-value check, and clamps or repairs on more than 5 % of the steps."""
+
 import numpy as np
 import pytest
 
 from firmware_model.service.degraded import Severity
-from firmware_model.service.plausibility import (RecordCheck, oil_unit_finding, record_findings, repair_finding,
-                                                 torque_percent_finding, torque_sign_finding)
+from firmware_model.service.plausibility import (
+    RecordCheck,
+    oil_unit_finding,
+    record_findings,
+    repair_finding,
+    torque_percent_finding,
+    torque_sign_finding,
+)
 
 DT = 0.1
 
@@ -29,15 +36,18 @@ def to_degf(c):
     return c * 1.8 + 32.0
 
 
-@pytest.mark.parametrize("oil_c, why", [
-    (_warm_up(68.0, 92.0, 12.0), "the uphill drive's 12 minutes"),
-    (_warm_up(20.0, 130.0, 90.0, tau_min=30.0), "a hot drive from 20 to 130 degC"),
-    (_warm_up(-30.0, 70.0, 60.0), "a cold start at -30 degC"),
-    (np.full(36000, -30.0), "a gearbox parked at -30 degC"),
-    (np.concatenate([_warm_up(110.0, 148.0, 20.0), _warm_up(148.0, 100.0, 20.0)]), "a drive up to 148 degC"),
-    (_warm_up(80.0, 140.0, 40.0) + np.random.default_rng(1).normal(0.0, 1.0, 24000), "a noisy hot drive"),
-    (np.concatenate([np.full(1200, 160.0), _warm_up(140.0, 90.0, 30.0)]), "2 min above 150 degC, then cooling"),
-])
+@pytest.mark.parametrize(
+    "oil_c, why",
+    [
+        (_warm_up(68.0, 92.0, 12.0), "the uphill drive's 12 minutes"),
+        (_warm_up(20.0, 130.0, 90.0, tau_min=30.0), "a hot drive from 20 to 130 degC"),
+        (_warm_up(-30.0, 70.0, 60.0), "a cold start at -30 degC"),
+        (np.full(36000, -30.0), "a gearbox parked at -30 degC"),
+        (np.concatenate([_warm_up(110.0, 148.0, 20.0), _warm_up(148.0, 100.0, 20.0)]), "a drive up to 148 degC"),
+        (_warm_up(80.0, 140.0, 40.0) + np.random.default_rng(1).normal(0.0, 1.0, 24000), "a noisy hot drive"),
+        (np.concatenate([np.full(1200, 160.0), _warm_up(140.0, 90.0, 30.0)]), "2 min above 150 degC, then cooling"),
+    ],
+)
 def test_honest_oil_in_degc_is_never_flagged(oil_c, why):
     assert oil_unit_finding(oil_c) is None, why
 
@@ -53,7 +63,7 @@ def test_oil_in_degf_is_found_short_and_long(minutes, t0_c, t1_c):
 def test_oil_in_kelvin_is_found_and_the_overlap_names_both():
     f = oil_unit_finding(_warm_up(68.0, 92.0, 12.0) + 273.15)
     assert f is not None and f.likely == "K" and "kelvin" in f.sentence and "K - 273.15" in f.sentence
-    both = oil_unit_finding(_warm_up(0.0, 25.0, 30.0) + 273.15)     # 273-298: a cold gearbox in K, a hot one in degF
+    both = oil_unit_finding(_warm_up(0.0, 25.0, 30.0) + 273.15)  # 273-298: a cold gearbox in K, a hot one in degF
     assert both is not None and both.likely == "degF or K"
 
 
@@ -63,14 +73,14 @@ def test_a_cold_drive_in_degf_is_not_claimed():
 
 
 def test_a_short_record_is_not_judged():
-    assert oil_unit_finding(to_degf(np.full(500, 80.0))) is None       # 50 s
+    assert oil_unit_finding(to_degf(np.full(500, 80.0))) is None  # 50 s
 
 
 def test_negative_torque_on_most_driving_rows_is_found():
     rpm, torque, gear = _drive(12.0)
     f = torque_sign_finding(rpm, -torque, gear, min_torque_nm=-1000.0)
     assert f is not None and f.likely == "negative" and "engine_torque_nm" in f.sentence and "negate" in f.sentence
-    gentle = np.clip(torque, 100.0, 900.0)        # a flipped gentle drive: never beyond the engine's braking
+    gentle = np.clip(torque, 100.0, 900.0)  # a flipped gentle drive: never beyond the engine's braking
     assert torque_sign_finding(rpm, -gentle, gear, min_torque_nm=-1000.0) is not None
 
 
@@ -79,7 +89,7 @@ def test_engine_braking_on_a_descent_is_not_a_sign_mistake():
     descent = np.where(np.arange(rpm.size) < 0.6 * rpm.size, -350.0, torque)  # 60 % of the drive braking
     assert torque_sign_finding(rpm, descent, gear, min_torque_nm=-1000.0) is None
     assert torque_sign_finding(rpm, torque, gear, min_torque_nm=-1000.0) is None
-    idle = np.zeros(rpm.size)                      # negative torque in neutral is no driving row
+    idle = np.zeros(rpm.size)  # negative torque in neutral is no driving row
     assert torque_sign_finding(rpm, -torque, idle, min_torque_nm=-1000.0) is None
 
 
@@ -88,8 +98,8 @@ def test_torque_in_percent_is_found_and_a_coast_is_not():
     f = torque_percent_finding(rpm, torque / 3000.0 * 100.0, gear)
     assert f is not None and f.likely == "percent" and "percent" in f.sentence and "SPN 544" in f.sentence
     assert torque_percent_finding(rpm, torque, gear) is None
-    assert torque_percent_finding(rpm, np.full(rpm.size, 20.0), gear) is None     # a coast: no load to judge
-    assert torque_percent_finding(rpm[:1800], torque[:1800] / 30.0, gear[:1800]) is None    # 3 min: too short
+    assert torque_percent_finding(rpm, np.full(rpm.size, 20.0), gear) is None  # a coast: no load to judge
+    assert torque_percent_finding(rpm[:1800], torque[:1800] / 30.0, gear[:1800]) is None  # 3 min: too short
 
 
 def test_a_held_low_load_is_not_taken_for_percent():
@@ -125,4 +135,4 @@ def test_the_live_check_judges_after_its_first_minute():
     check.add(to_degf(80.0), 1300.0, 1500.0, 12.0, np.array([0, 599]))
     found = check.update()
     assert {f.kind for f in found} == {"plausibility", "repair"} and check.findings == found
-    assert check.update() is None                   # the next judgement a minute later
+    assert check.update() is None  # the next judgement a minute later

@@ -1,19 +1,20 @@
 """The onboard network: derived from the full one (aggregation, laws, loss maps), explicit step, stability proof."""
+
 import dataclasses
 import math
 
 import numpy as np
 import pytest
 
-from firmware_model.onboard import reduce as R
 from firmware_model.components import PUBLISHED
+from firmware_model.effects import CATALOG, EFFECT_IDS, FIELD_OF_EFFECT, EffectScales, effect_scales
 from firmware_model.errors import ParameterError, StabilityError
+from firmware_model.network import BOUNDARIES, ConductanceEvaluator, build_network
+from firmware_model.onboard import reduce as R
+from firmware_model.parameters import load_parameters
+from firmware_model.physics.conductance_matrix import boundary_heat_w, conductance_matrix, node_conductance_w_per_k
 from firmware_model.physics.gearbox_losses import GearboxLosses
 from firmware_model.physics.kinematics import GEAR_MIN
-from firmware_model.network import BOUNDARIES, ConductanceEvaluator, build_network
-from firmware_model.parameters import load_parameters
-from firmware_model.effects import EFFECT_IDS, CATALOG, FIELD_OF_EFFECT, EffectScales, effect_scales
-from firmware_model.physics.conductance_matrix import boundary_heat_w, conductance_matrix, node_conductance_w_per_k
 
 
 @pytest.fixture(scope="module")
@@ -42,26 +43,49 @@ def _link_matrix(net, agg):
 
 # ---- the explicit step on a single RC node (hand calculation)
 
+
 @pytest.mark.parametrize("scatter", ["index", "incidence"])
 def test_single_rc_node_follows_its_exponential(scatter):
     """C dT/dt = G (T_b - T) + q: forward Euler at dt = 0.1 s against T_inf + (T0 - T_inf) exp(-t G / C)."""
-    C, G, Tb, q, T0, dt = 2000.0, 40.0, 20.0, 800.0, 80.0, 0.1    # tau = 50 s, T_inf = 40 degC
+    C, G, Tb, q, T0, dt = 2000.0, 40.0, 20.0, 800.0, 80.0, 0.1  # tau = 50 s, T_inf = 40 degC
     tau, T_inf = C / G, Tb + q / G
     kw = {}
     if scatter == "incidence":
         kw = dict(B_int=np.zeros((0, 1)), B_ext=np.array([[-1.0]]))
     T = np.array([T0])
     worst = 0.0
-    for k in range(1, 5001):                                        # 10 time constants
-        T = R.explicit_step(T, np.array([q]), np.zeros(0), np.array([G]), np.array([Tb]), np.zeros(0, int),
-                            np.zeros(0, int), np.array([0]), np.array([0]), np.array([dt / C]), **kw)
+    for k in range(1, 5001):  # 10 time constants
+        T = R.explicit_step(
+            T,
+            np.array([q]),
+            np.zeros(0),
+            np.array([G]),
+            np.array([Tb]),
+            np.zeros(0, int),
+            np.zeros(0, int),
+            np.array([0]),
+            np.array([0]),
+            np.array([dt / C]),
+            **kw,
+        )
         exact = T_inf + (T0 - T_inf) * math.exp(-k * dt / tau)
         worst = max(worst, abs(T[0] - exact))
     # Euler's global error for a decaying exponential is below dt / (2 tau) x e^-1 x |T0 - T_inf|
     assert worst <= dt / (2 * tau) * math.exp(-1) * abs(T0 - T_inf) * 1.01
     # the equilibrium is exact: a node at T_inf stays there
-    T = R.explicit_step(np.array([T_inf]), np.array([q]), np.zeros(0), np.array([G]), np.array([Tb]),
-                        np.zeros(0, int), np.zeros(0, int), np.array([0]), np.array([0]), np.array([dt / C]), **kw)
+    T = R.explicit_step(
+        np.array([T_inf]),
+        np.array([q]),
+        np.zeros(0),
+        np.array([G]),
+        np.array([Tb]),
+        np.zeros(0, int),
+        np.zeros(0, int),
+        np.array([0]),
+        np.array([0]),
+        np.array([dt / C]),
+        **kw,
+    )
     assert T[0] == pytest.approx(T_inf, abs=1e-12)
 
 
@@ -69,13 +93,24 @@ def test_two_node_exchange_conserves_heat():
     T = np.array([[100.0, 20.0]])
     C = np.array([500.0, 1500.0])
     for _ in range(20000):
-        T = R.explicit_step(T, np.zeros((1, 2)), np.array([[5.0]]), np.zeros((1, 0)), np.zeros((1, 1)),
-                            np.array([0]), np.array([1]), np.zeros(0, int), np.zeros(0, int), 0.1 / C)
+        T = R.explicit_step(
+            T,
+            np.zeros((1, 2)),
+            np.array([[5.0]]),
+            np.zeros((1, 0)),
+            np.zeros((1, 1)),
+            np.array([0]),
+            np.array([1]),
+            np.zeros(0, int),
+            np.zeros(0, int),
+            0.1 / C,
+        )
     assert float(C @ T[0]) == pytest.approx(500 * 100 + 1500 * 20, rel=1e-12)
     assert T[0, 0] == pytest.approx(40.0, abs=1e-3) and T[0, 1] == pytest.approx(40.0, abs=1e-3)
 
 
 # ---- stability
+
 
 def test_stability_is_proven_for_the_default_parameters(rp):
     st = rp.stability
@@ -85,7 +120,7 @@ def test_stability_is_proven_for_the_default_parameters(rp):
 
 
 def test_stability_check_refuses_a_too_light_node(params):
-    light = params.with_overrides({"wheel_bearing.mass_needle": 0.002})      # a 2 g needle bearing: C ~ 1 J/K
+    light = params.with_overrides({"wheel_bearing.mass_needle": 0.002})  # a 2 g needle bearing: C ~ 1 J/K
     with pytest.raises(StabilityError) as exc:
         R.build_reduced(light)
     msg = str(exc.value)
@@ -95,7 +130,7 @@ def test_stability_check_refuses_a_too_light_node(params):
 
 def test_stability_margin_and_dt_are_checked(params):
     with pytest.raises(StabilityError):
-        R.build_reduced(params, dt_s=1.0)                                     # the CL wheel cannot take 1 s
+        R.build_reduced(params, dt_s=1.0)  # the CL wheel cannot take 1 s
     with pytest.raises(ParameterError):
         R.build_reduced(params, margin=1.5)
 
@@ -117,6 +152,7 @@ def test_stability_bound_covers_the_operating_range(rp):
 
 # ---- derived from the full network
 
+
 def test_fine_partition_keeps_every_node_and_the_total_heat_capacity(rp, full):
     net = full[0]
     assert rp.nodes == net.nodes and rp.partition == "fine"
@@ -130,7 +166,8 @@ def test_compact_partition_is_an_aggregation(params, full):
     assert len(agg.nodes) <= 41 and all(c in agg.nodes for c in PUBLISHED)
     assert float(agg.C.sum()) == pytest.approx(float(net.C_j_per_k.sum()), rel=1e-12)
     assert agg.C[agg.nodes.index("MS")] == pytest.approx(
-        sum(net.C_j_per_k[net.index(s)] for s in net.nodes if s.startswith("MS@")), rel=1e-12)
+        sum(net.C_j_per_k[net.index(s)] for s in net.nodes if s.startswith("MS@")), rel=1e-12
+    )
     # links inside a group vanish; a link between groups is the sum of its members
     for k, r in enumerate(agg.link_of_full):
         a = agg.node_of_full[net.link_a[k]]
@@ -144,8 +181,9 @@ def test_compact_partition_is_an_aggregation(params, full):
     for g, rpm, T in ((9, 1300, 90.0), (3, 2000, 60.0), (14, 900, 110.0)):
         row = g - GEAR_MIN
         sp = np.abs(kin.speed[row] * rpm * R.RPM)
-        Gf = ev.evaluate(T, sp, row, kin.mesh_torque[row], bool(kin.low_range[row]), np.full(net.n, T),
-                         rpc.bc_default_c)
+        Gf = ev.evaluate(
+            T, sp, row, kin.mesh_torque[row], bool(kin.low_range[row]), np.full(net.n, T), rpc.bc_default_c
+        )
         x, prop, phi = R.oil_row(rpc, T)
         G, _ = R.conductances(rpc, row, rpm * R.RPM, x, prop, phi, np.full(rpc.n, T), rpc.bc_default_c)
         ref = M @ Gf
@@ -169,13 +207,12 @@ def test_conductance_laws_match_the_full_evaluator(rp, full):
         Tn = np.full(net.n, T + 3.0)
         Gf = M @ ev.evaluate(T, sp, row, kin.mesh_torque[row], bool(kin.low_range[row]), Tn, rp.bc_default_c)
         x, prop, phi = R.oil_row(rp, T, h)
-        G, _ = R.conductances(rp, row, rpm * R.RPM, x, prop, phi, np.full(rp.n, T + 3.0), rp.bc_default_c,
-                              None, h)
-        big = Gf > 0.5                            # below 0.5 W/K: links of a shaft at (nearly) standstill
+        G, _ = R.conductances(rp, row, rpm * R.RPM, x, prop, phi, np.full(rp.n, T + 3.0), rp.bc_default_c, None, h)
+        big = Gf > 0.5  # below 0.5 W/K: links of a shaft at (nearly) standstill
         errs.append(np.abs(G[big] - Gf[big]) / Gf[big])
     e = np.concatenate(errs)
     assert np.percentile(e, 99) < 0.01
-    assert e.max() < 0.06                         # the ring's splash/housing kink inside one table cell
+    assert e.max() < 0.06  # the ring's splash/housing kink inside one table cell
 
 
 def test_power_laws_are_exact_where_the_physics_is_separable(rp):
@@ -204,7 +241,7 @@ def test_loss_maps_match_gearbox_losses(rp, full, T_range):
         bearings = [float(ref[f"bearing:{b}"][0]) for b in ("BIF", "BLF", "BLR", "BIM", "BMR", "BO")]
         assert np.allclose(Q[9:15], bearings, rtol=0.003, atol=0.05)
         oil = sum(float(ref[k][0]) for k in ("churning", "wheel_bearings", "synchronizers", "pump"))
-        assert Q[R.I_SRC_OIL] == pytest.approx(oil, rel=0.07, abs=1.0)     # churning regime jumps (Eq 28-32)
+        assert Q[R.I_SRC_OIL] == pytest.approx(oil, rel=0.07, abs=1.0)  # churning regime jumps (Eq 28-32)
 
 
 def test_footprint_fits_an_ecu(rp):
@@ -224,7 +261,7 @@ def test_effects_record_validates_and_broadcasts():
 def test_one_effect_record_for_plant_and_onboard_model():
     """Every catalogued effect has its field in the one record; neutral values change nothing; the onboard model's
     record is the same type, with its per-source scales."""
-    assert set(FIELD_OF_EFFECT) == set(EFFECT_IDS)        # the channel effects act on a rig's readings only
+    assert set(FIELD_OF_EFFECT) == set(EFFECT_IDS)  # the channel effects act on a rig's readings only
     assert set(FIELD_OF_EFFECT.values()) <= {f.name for f in dataclasses.fields(EffectScales)}
     neutral = effect_scales(None)
     assert all(getattr(neutral, f) == CATALOG[eid].neutral for eid, f in FIELD_OF_EFFECT.items())
@@ -248,8 +285,9 @@ def test_conductance_matrix_is_the_network_laplacian(rp):
     np.testing.assert_allclose(conductance_matrix(G, h.topology, extra).K_w_per_k, K + np.diag(extra), rtol=1e-14)
     T = np.random.default_rng(3).uniform(20, 100, rp.n)
     T_bc = np.asarray(rp.bc_default_c, dtype=float)
-    rate = R.explicit_step(T, np.zeros(rp.n), G[h.int_idx], G[h.ext_idx], T_bc, h.ia, h.ib, h.ea, h.eb,
-                           np.ones(rp.n)) - T
+    rate = (
+        R.explicit_step(T, np.zeros(rp.n), G[h.int_idx], G[h.ext_idx], T_bc, h.ia, h.ib, h.ea, h.eb, np.ones(rp.n)) - T
+    )
     np.testing.assert_allclose(rate, -K @ T + boundary_heat_w(Ge, h.topology, T_bc), atol=1e-9)
 
 
@@ -270,8 +308,8 @@ def test_batched_evaluate_is_one_call_per_point_bit_for_bit(params, low_range):
     rng = np.random.default_rng(5)
     row = int(np.flatnonzero(kin.low_range == low_range)[0])
     sp = np.abs(kin.speed[row]) * rng.uniform(0.0, 300.0, (40, 1))
-    sp[:3] = 0.0                                       # standstill (speed floors, no oil flow)
-    sp[3] = rng.uniform(0.0, 300.0, sp.shape[1])       # shafts at unrelated speeds
+    sp[:3] = 0.0  # standstill (speed floors, no oil flow)
+    sp[3] = rng.uniform(0.0, 300.0, sp.shape[1])  # shafts at unrelated speeds
     Tn, Tbc = np.full(net.n, 70.0), np.full(len(BOUNDARIES), 35.0)
     for T in (-40.0, 23.7, 95.0, 180.0):
         batch = ev.evaluate(T, sp, row, kin.mesh_torque[row], low_range, Tn, Tbc)

@@ -1,4 +1,5 @@
 """The onboard sensor: accuracy against the reference plant, batch = single, snapshots, every bad-input case."""
+
 import json
 import math
 
@@ -7,12 +8,12 @@ import pytest
 
 from firmware_model.components import MODE_HOLDING, MODE_NORMAL, MODE_OIL_MODEL, PUBLISHED
 from firmware_model.errors import InputError, ParameterError
-from firmware_model.parameters import load_parameters
 from firmware_model.onboard.held_inputs import slowest_time_constant_s
 from firmware_model.onboard.sensor import REJECT_REASONS, SensorInputs, VirtualSensor
 from firmware_model.onboard.step import step_deferred
 from firmware_model.onboard.step_cache import StepCache
 from firmware_model.onboard.time_to_limit import refresh_ttl
+from firmware_model.parameters import load_parameters
 from tools.runtable import RunTable
 
 RJ = {k: i for i, k in enumerate(REJECT_REASONS)}
@@ -41,12 +42,24 @@ NOMINAL = SensorInputs(1300.0, 2000.0, 9, 80.0, 25.0, 85.0, 50.0, 0.0)
 
 # ---- accuracy against the reference plant on a short cycle (the issue's tolerances)
 
+
 def short_cycle(rate_hz=10.0, seed=3):
     """12 minutes that visit low range at high torque, a range shift, reverse, neutral, engine braking, high range
     and a crawler gear, with noise and 2 s ramps: every heat path of the sensor is exercised."""
-    segs = [(30, 0, 700, 0), (60, 5, 1500, 2600), (120, 7, 1400, 2900), (90, 9, 1350, 2400), (20, 0, 700, 0),
-            (25, -2, 1000, 800), (15, 0, 700, 0), (120, 13, 1300, 2000), (60, 12, 1500, -500), (60, 1, 1500, 2000),
-            (60, 3, 1450, 2500), (60, 14, 1200, 1200)]
+    segs = [
+        (30, 0, 700, 0),
+        (60, 5, 1500, 2600),
+        (120, 7, 1400, 2900),
+        (90, 9, 1350, 2400),
+        (20, 0, 700, 0),
+        (25, -2, 1000, 800),
+        (15, 0, 700, 0),
+        (120, 13, 1300, 2000),
+        (60, 12, 1500, -500),
+        (60, 1, 1500, 2000),
+        (60, 3, 1450, 2500),
+        (60, 14, 1200, 1200),
+    ]
     rng = np.random.default_rng(seed)
     edges = np.cumsum([0] + [s[0] for s in segs])
     t = np.arange(0.0, edges[-1] + 1e-9, 1.0 / rate_hz)
@@ -57,15 +70,24 @@ def short_cycle(rate_hz=10.0, seed=3):
     nm_t = np.array([s[3] for s in segs], float)
     rpm = rpm_t[prev] + (rpm_t[idx] - rpm_t[prev]) * a + 5 * rng.standard_normal(t.size)
     nm = nm_t[prev] + (nm_t[idx] - nm_t[prev]) * a + 30 * rng.standard_normal(t.size)
-    return RunTable({"time_s": t, "engine_speed_rpm": np.maximum(rpm, 0), "engine_torque_nm": nm,
-                     "gear": np.array([segs[i][1] for i in idx], float), "ambient_temp_c": np.full(t.size, 25.0),
-                     "coolant_temp_c": np.full(t.size, 85.0), "vehicle_speed_kmh": np.full(t.size, 40.0)})
+    return RunTable(
+        {
+            "time_s": t,
+            "engine_speed_rpm": np.maximum(rpm, 0),
+            "engine_torque_nm": nm,
+            "gear": np.array([segs[i][1] for i in idx], float),
+            "ambient_temp_c": np.full(t.size, 25.0),
+            "coolant_temp_c": np.full(t.size, 85.0),
+            "vehicle_speed_kmh": np.full(t.size, 40.0),
+        }
+    )
 
 
 @pytest.fixture(scope="module")
 def plant_vs_sensor(params, sensor):
-    from tools.replay.table import replay_table
     from tools.plant.reference import ReferencePlant
+    from tools.replay.table import replay_table
+
     tab = short_cycle()
     res = ReferencePlant(params, cooler="liquid").run(tab, initial_temp_c=70.0)
     ref = res.table
@@ -80,7 +102,7 @@ def test_accuracy_against_the_reference_plant_on_a_short_cycle(plant_vs_sensor):
     ref, out = plant_vs_sensor
     t = ref["time_s"]
     m = t >= out["time_s"][0]
-    assert np.max(ref["T_LI.teeth_c"]) > 120 and np.max(ref["T_PS_c"]) > 100      # the cycle is hot enough
+    assert np.max(ref["T_LI.teeth_c"]) > 120 and np.max(ref["T_PS_c"]) > 100  # the cycle is hot enough
     for c in PUBLISHED:
         d = np.interp(t[m], out["time_s"], out[f"T_{c}_c"]) - ref[f"T_{c}_c"][m]
         assert np.max(np.abs(d)) <= 1.5, c
@@ -95,6 +117,7 @@ def test_the_open_loop_twin_predicts_the_plant_oil(plant_vs_sensor):
 
 
 # ---- batch = single
+
 
 def test_batch_equals_single(params):
     s = VirtualSensor(params)
@@ -117,8 +140,9 @@ def test_batch_equals_single(params):
             states[v], o = s.step(states[v], SensorInputs(*(np.asarray(x)[v] if np.ndim(x) else x for x in inp)))
             np.testing.assert_allclose(ob.T_c[v], o.T_c, rtol=0, atol=1e-9)
             np.testing.assert_array_equal(ob.level[v], o.level)
-            np.testing.assert_allclose(np.nan_to_num(ob.ttl_s[v], posinf=1e30), np.nan_to_num(o.ttl_s, posinf=1e30),
-                                       rtol=1e-6)
+            np.testing.assert_allclose(
+                np.nan_to_num(ob.ttl_s[v], posinf=1e30), np.nan_to_num(o.ttl_s, posinf=1e30), rtol=1e-6
+            )
             assert int(ob.status.degraded_mode[v]) == int(o.status.degraded_mode)
     np.testing.assert_array_equal(batch.rejects[1], states[1].rejects)
 
@@ -131,8 +155,16 @@ def test_one_vehicle_and_a_batch_of_one_agree_bit_for_bit_on_bad_input(sensor):
     cache_a, cache_b = StepCache(), StepCache()
     rng = np.random.default_rng(9)
     for k in range(800):
-        vals = [1300 + 200 * rng.standard_normal(), 2000 + 900 * rng.standard_normal(), 9.0, 70 + k * 0.01, 25.0,
-                85.0, 50.0, 0.0]
+        vals = [
+            1300 + 200 * rng.standard_normal(),
+            2000 + 900 * rng.standard_normal(),
+            9.0,
+            70 + k * 0.01,
+            25.0,
+            85.0,
+            50.0,
+            0.0,
+        ]
         j = k % 11
         if j < 8 and k % 3 == 0:
             vals[j] = [np.nan, np.inf, -np.inf, 1e9, -5.0, 7.5, 300.0][k % 7]
@@ -157,13 +189,14 @@ def test_deferred_time_to_limit_gives_the_same_outputs_bit_for_bit(sensor):
         b = sensor.refresh_ttl(b, job)
         for x, y in zip(oa[:3], ob[:3]):
             np.testing.assert_array_equal(x, y)
-    assert jobs == 30                                   # refreshed every ttl_period_s = 1 s
+    assert jobs == 30  # refreshed every ttl_period_s = 1 s
     assert np.isfinite(ob.ttl_s).any() and (ob.ttl_s < np.inf).any()
 
 
 def test_per_vehicle_effects_in_a_batch_equal_a_sensor_built_with_the_effect(params):
-    batch_s = VirtualSensor(params, effects={"gear_friction_scale": np.array([1.0, 1.3]),
-                                             "teeth_oil_h_scale": np.array([1.0, 0.7])})
+    batch_s = VirtualSensor(
+        params, effects={"gear_friction_scale": np.array([1.0, 1.3]), "teeth_oil_h_scale": np.array([1.0, 0.7])}
+    )
     single = VirtualSensor(params, effects={"gear_friction_scale": 1.3, "teeth_oil_h_scale": 0.7})
     b = batch_s.initial_state(T_oil_c=np.full(2, 80.0), n_vehicles=2)
     s = single.initial_state(T_oil_c=80.0)
@@ -177,10 +210,11 @@ def test_per_vehicle_effects_in_a_batch_equal_a_sensor_built_with_the_effect(par
 
 # ---- start, snapshots, restart
 
+
 def test_initial_state_from_the_measured_oil(sensor):
     st = sensor.initial_state(T_oil_c=63.5)
     assert np.all(st.T_c == 63.5) and st.T_c.shape == (2, sensor.reduced.n)
-    cold = sensor.initial_state()                           # no oil: ambient boundary
+    cold = sensor.initial_state()  # no oil: ambient boundary
     assert np.all(cold.T_c == sensor.reduced.bc_default_c[sensor.reduced.i_ambient])
 
 
@@ -193,20 +227,21 @@ def test_snapshot_round_trip_continues_bit_identically(sensor):
     b, ob = run(sensor, st2, NOMINAL, 50)
     np.testing.assert_array_equal(oa.T_c, ob.T_c)
     np.testing.assert_array_equal(a.rejects, b.rejects)
-    st3 = sensor.initial_state(snapshot=blob.decode())     # str works too
+    st3 = sensor.initial_state(snapshot=blob.decode())  # str works too
     assert np.array_equal(st3.T_c, st2.T_c)
 
 
 def test_snapshot_cools_toward_ambient_with_the_slowest_mode_last(sensor):
-    st, _ = run(sensor, sensor.initial_state(T_oil_c=90.0), SensorInputs(1400.0, 2600.0, 5, 90.0, 20.0, 85.0,
-                                                                         30.0, 0.0), 600)
+    st, _ = run(
+        sensor, sensor.initial_state(T_oil_c=90.0), SensorInputs(1400.0, 2600.0, 5, 90.0, 20.0, 85.0, 30.0, 0.0), 600
+    )
     hot = st.T_c[0].copy()
     one_h = sensor.initial_state(snapshot=st, elapsed_s=3600.0, ambient_c=20.0)
     week = sensor.initial_state(snapshot=st, elapsed_s=7 * 86400.0, ambient_c=20.0)
     assert np.all(one_h.T_c[0] < hot.max()) and np.all(one_h.T_c[0] > 20.0)
     np.testing.assert_allclose(week.T_c, 20.0, atol=0.05)
     tau = slowest_time_constant_s(sensor.sp, sensor.cache, 20.0)
-    assert 1800.0 < tau < 24 * 3600.0      # no natural convection in the seed's model: the slowest mode is slow
+    assert 1800.0 < tau < 24 * 3600.0  # no natural convection in the seed's model: the slowest mode is slow
     # long after: the excess decays with the slowest mode (where that mode dominates)
     T1 = sensor.cool_down(hot, 5 * tau, 20.0) - 20.0
     T2 = sensor.cool_down(hot, 6 * tau, 20.0) - 20.0
@@ -240,6 +275,7 @@ def test_a_snapshot_of_another_network_is_refused(sensor, params):
 
 # ---- bad input: each case has its documented behaviour, a counter, and never a NaN temperature
 
+
 @pytest.fixture
 def warm(sensor):
     st, _ = run(sensor, sensor.initial_state(T_oil_c=80.0), NOMINAL, 50)
@@ -249,7 +285,7 @@ def warm(sensor):
 def test_nan_speed_holds_the_last_good_value(sensor, warm):
     a, oa = sensor.step(warm, NOMINAL)
     b, ob = sensor.step(warm, NOMINAL._replace(speed_rpm=math.nan))
-    np.testing.assert_allclose(ob.T_c, oa.T_c, atol=1e-12)               # held: the same as the last good value
+    np.testing.assert_allclose(ob.T_c, oa.T_c, atol=1e-12)  # held: the same as the last good value
     assert b.rejects[RJ["speed_missing"]] == warm.rejects[RJ["speed_missing"]] + 1
     assert int(ob.status.degraded_mode) == MODE_HOLDING and not ob.status.speed_valid
 
@@ -283,15 +319,17 @@ def test_torque_beyond_the_engine_range_is_clamped(sensor, warm):
     assert b.rejects[RJ["torque_clamped"]] == 1 and c.rejects[RJ["torque_clamped"]] == 1
 
 
-@pytest.mark.parametrize("field, value", [("speed_rpm", 1e308), ("speed_rpm", 9000.0), ("speed_rpm", -1e308),
-                                          ("torque_nm", 1e308), ("torque_nm", -1e6)])
+@pytest.mark.parametrize(
+    "field, value",
+    [("speed_rpm", 1e308), ("speed_rpm", 9000.0), ("speed_rpm", -1e308), ("torque_nm", 1e308), ("torque_nm", -1e6)],
+)
 def test_a_speed_or_torque_no_j1939_frame_can_carry_is_missing_not_clamped(sensor, warm, field, value):
     """From an ECU audit: a torque of 1e308 was clamped to the engine's maximum and used in mode 0, raising warnings;
     beyond the J1939 data range (8031.875 rpm; 125 % of a 64255 N m reference) a value is no reading: held as a
     missing one, counted as missing, not clamped."""
     a, oa = sensor.step(warm, NOMINAL)
     b, ob = sensor.step(warm, NOMINAL._replace(**{field: value}))
-    np.testing.assert_allclose(ob.T_c, oa.T_c, atol=1e-12)               # held: the same as the last good value
+    np.testing.assert_allclose(ob.T_c, oa.T_c, atol=1e-12)  # held: the same as the last good value
     what = field.split("_")[0]
     assert b.rejects[RJ[f"{what}_missing"]] == warm.rejects[RJ[f"{what}_missing"]] + 1
     assert b.rejects[RJ[f"{what}_clamped"]] == warm.rejects[RJ[f"{what}_clamped"]]
@@ -308,10 +346,14 @@ def test_an_unknown_gear_holds_the_last_good_gear(sensor, warm, bad_gear):
 
 
 def test_missing_drive_inputs_for_too_long_make_the_estimates_not_available(sensor, warm):
-    st, out = run(sensor, warm, NOMINAL._replace(speed_rpm=math.nan, torque_nm=math.nan, gear=math.nan),
-                  int(sensor.options.hold_s / 0.1) + 5)
+    st, out = run(
+        sensor,
+        warm,
+        NOMINAL._replace(speed_rpm=math.nan, torque_nm=math.nan, gear=math.nan),
+        int(sensor.options.hold_s / 0.1) + 5,
+    )
     assert np.all(out.level == 3) and np.all(np.isnan(out.ttl_s)) and np.all(np.isfinite(out.T_c))
-    st, out = run(sensor, st, NOMINAL, 2)                                # back: available at once
+    st, out = run(sensor, st, NOMINAL, 2)  # back: available at once
     assert np.all(out.level < 3) and int(out.status.degraded_mode) == MODE_NORMAL
 
 
@@ -321,7 +363,7 @@ def test_missing_oil_integrates_the_sump_and_flags_it(sensor, warm):
     assert math.isnan(float(out.status.oil_innovation_c))
     assert out.T_c[I["oil"]] != 80.0 and np.isfinite(out.T_c).all()
     assert st.rejects[RJ["oil_missing"]] == 100
-    st, out = sensor.step(st, NOMINAL._replace(oil_temp_c=81.0))        # measurement back: it is the sump again
+    st, out = sensor.step(st, NOMINAL._replace(oil_temp_c=81.0))  # measurement back: it is the sump again
     assert out.T_c[I["oil"]] == 81.0 and int(out.status.degraded_mode) == MODE_NORMAL
 
 
@@ -334,7 +376,7 @@ def test_an_implausible_oil_temperature_is_not_used(sensor, warm, bad_oil):
 
 
 def test_an_oil_step_faster_than_the_sump_can_move_is_rejected(sensor, warm):
-    st, out = sensor.step(warm, NOMINAL._replace(oil_temp_c=100.0))      # +20 K in 0.1 s
+    st, out = sensor.step(warm, NOMINAL._replace(oil_temp_c=100.0))  # +20 K in 0.1 s
     assert st.rejects[RJ["oil_implausible"]] == 1 and out.T_c[I["oil"]] < 85.0
 
 
@@ -355,11 +397,21 @@ def test_frozen_drive_signals_are_flagged_but_used(params):
 
 
 def test_missing_auxiliary_inputs_take_their_defaults(sensor, warm):
-    a, oa = sensor.step(warm, NOMINAL._replace(ambient_temp_c=sensor.reduced.bc_default_c[sensor.reduced.i_ambient],
-                                               coolant_temp_c=sensor.reduced.bc_default_c[sensor.reduced.i_coolant],
-                                               vehicle_speed_kmh=50.0, retarder_torque_nm=0.0))
-    b, ob = sensor.step(warm, NOMINAL._replace(ambient_temp_c=math.nan, coolant_temp_c=math.nan,
-                                               vehicle_speed_kmh=math.nan, retarder_torque_nm=math.nan))
+    a, oa = sensor.step(
+        warm,
+        NOMINAL._replace(
+            ambient_temp_c=sensor.reduced.bc_default_c[sensor.reduced.i_ambient],
+            coolant_temp_c=sensor.reduced.bc_default_c[sensor.reduced.i_coolant],
+            vehicle_speed_kmh=50.0,
+            retarder_torque_nm=0.0,
+        ),
+    )
+    b, ob = sensor.step(
+        warm,
+        NOMINAL._replace(
+            ambient_temp_c=math.nan, coolant_temp_c=math.nan, vehicle_speed_kmh=math.nan, retarder_torque_nm=math.nan
+        ),
+    )
     np.testing.assert_allclose(ob.T_c, oa.T_c, atol=1e-12)
     assert b.rejects[RJ["aux_missing"]] == 4
 
@@ -390,7 +442,7 @@ def test_after_a_time_jump_the_first_oil_reading_is_used(params, core):
     assert b.rejects[RJ["time_jump"]] == 1
     assert b.rejects[RJ["oil_implausible"]] == a.rejects[RJ["oil_implausible"]]
     assert out.T_c[I["oil"]] == 72.0 and int(out.status.degraded_mode) == MODE_NORMAL
-    c, _ = s.step(b, NOMINAL._replace(t_s=1900.1, oil_temp_c=92.0))    # a step right after it still is one
+    c, _ = s.step(b, NOMINAL._replace(t_s=1900.1, oil_temp_c=92.0))  # a step right after it still is one
     assert c.rejects[RJ["oil_implausible"]] == b.rejects[RJ["oil_implausible"]] + 1
 
 
@@ -415,14 +467,14 @@ def test_a_clock_set_far_back_is_a_new_time_base(sensor, warm):
     more than clock_reset_s back is a reset clock, stepped once and counted, not a sensor frozen until the old time
     comes round again."""
     a, _ = sensor.step(warm, NOMINAL._replace(t_s=100.0))
-    b, _ = sensor.step(a, NOMINAL._replace(t_s=4.0e9))                     # a forward jump (counted)
-    c, oc = sensor.step(b, NOMINAL._replace(t_s=100.1))                    # 4e9 s back: the clock was reset
+    b, _ = sensor.step(a, NOMINAL._replace(t_s=4.0e9))  # a forward jump (counted)
+    c, oc = sensor.step(b, NOMINAL._replace(t_s=100.1))  # 4e9 s back: the clock was reset
     assert c.rejects[RJ["time_backward"]] == b.rejects[RJ["time_backward"]] + 1 and c.k == b.k + 1
     assert oc.status.degraded_mode == 0 and float(c.t_last_s) == 100.1
-    d, od = sensor.step(c, NOMINAL._replace(t_s=100.2))                    # then on the new base, nothing counted
+    d, od = sensor.step(c, NOMINAL._replace(t_s=100.2))  # then on the new base, nothing counted
     np.testing.assert_array_equal(d.rejects, c.rejects)
     assert not np.array_equal(d.T_c, c.T_c) and od.status.degraded_mode == 0
-    e, _ = sensor.step(d, NOMINAL._replace(t_s=100.2 - sensor.options.clock_reset_s + 0.5))    # less: skipped
+    e, _ = sensor.step(d, NOMINAL._replace(t_s=100.2 - sensor.options.clock_reset_s + 0.5))  # less: skipped
     np.testing.assert_array_equal(e.T_c, d.T_c)
     assert e.rejects[RJ["time_backward"]] == d.rejects[RJ["time_backward"]] + 1 and e.k == d.k
 
@@ -438,8 +490,9 @@ def test_garbage_never_gives_a_nan_temperature(sensor):
     st = sensor.initial_state(T_oil_c=70.0)
     choices = [np.nan, np.inf, -np.inf, 1e12, -1e12, 0.0, 3.7, 255.0]
     for k in range(1500):
-        vals = [rng.choice(choices) if rng.random() < 0.4 else v for v in (1300.0, 1800.0, 9.0, 70.0, 25.0, 85.0,
-                                                                          50.0, 0.0)]
+        vals = [
+            rng.choice(choices) if rng.random() < 0.4 else v for v in (1300.0, 1800.0, 9.0, 70.0, 25.0, 85.0, 50.0, 0.0)
+        ]
         st, out = sensor.step(st, SensorInputs(*vals))
         assert np.all(np.isfinite(out.T_c))
         assert np.all(np.isin(out.level, [0, 1, 2, 3]))
@@ -464,13 +517,16 @@ def test_state_fits_in_one_kilobyte(sensor):
     assert sensor.state_bytes(np.float32) <= 1024
 
 
-@pytest.mark.parametrize("call, msg", [
-    (lambda s, st: s.step_table(st, np.zeros((10, 7))), "8 columns"),
-    (lambda s, st: s.step_table(st, np.zeros((4, 2, 8))), "8 columns"),
-    (lambda s, st: s.step_table(st, np.zeros((10, 8)), np.zeros(3)), "3 frame times for 10 rows"),
-    (lambda s, st: list(s.step_tables([(st,)])), "(state, raw) or (state, raw, t_s)"),
-    (lambda s, st: list(s.step_tables([(st, np.zeros((5, 8)))], workers=0)), "threads >= 1"),
-])
+@pytest.mark.parametrize(
+    "call, msg",
+    [
+        (lambda s, st: s.step_table(st, np.zeros((10, 7))), "8 columns"),
+        (lambda s, st: s.step_table(st, np.zeros((4, 2, 8))), "8 columns"),
+        (lambda s, st: s.step_table(st, np.zeros((10, 8)), np.zeros(3)), "3 frame times for 10 rows"),
+        (lambda s, st: list(s.step_tables([(st,)])), "(state, raw) or (state, raw, t_s)"),
+        (lambda s, st: list(s.step_tables([(st, np.zeros((5, 8)))], workers=0)), "threads >= 1"),
+    ],
+)
 def test_tables_refuse_malformed_input_in_one_sentence(sensor, call, msg):
     """A table with the wrong number of columns (which a reshape would have silently re-cut into wrong rows), frame
     times that do not match the rows, a malformed job, no threads: one InputError naming what is wrong."""
@@ -484,8 +540,18 @@ def test_warm_up_changes_no_output(params):
     outputs with and without it."""
     n = 400
     rng = np.random.default_rng(5)
-    raw = np.column_stack([1200 + 500 * rng.random(n), 2000 * rng.random(n), np.full(n, 9.0), 80 + 0.01 * np.arange(n),
-                           np.full(n, 25.0), np.full(n, 85.0), np.full(n, 50.0), np.zeros(n)])
+    raw = np.column_stack(
+        [
+            1200 + 500 * rng.random(n),
+            2000 * rng.random(n),
+            np.full(n, 9.0),
+            80 + 0.01 * np.arange(n),
+            np.full(n, 25.0),
+            np.full(n, 85.0),
+            np.full(n, 50.0),
+            np.zeros(n),
+        ]
+    )
     t_s = 0.1 * np.arange(n)
     t_s[150:] += 30.0
     t_s[300:] += 200.0

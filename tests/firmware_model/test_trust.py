@@ -1,5 +1,6 @@
 """The CAN service says when its outputs cannot be trusted (firmware_model/service/trust.py): a time base that runs
 several times too fast or too slow, inputs that come from unexpected source addresses, a large degraded share."""
+
 from __future__ import annotations
 
 import logging
@@ -10,9 +11,18 @@ import pytest
 
 from can_dbc.adapter import decode_outputs, pgn_of
 from firmware_model.service import NOMINAL_PERIOD_S
-from firmware_model.service.trust import (DEGRADED_UNTRUSTED_SHARE, DEGRADED_WARN_SHARE, PERIOD_RANGE_S,
-                                          DegradedFinding, ForeignSourceFinding, Severity, TimeBaseFinding,
-                                          degraded_finding, untrusted, window_ratio)
+from firmware_model.service.trust import (
+    DEGRADED_UNTRUSTED_SHARE,
+    DEGRADED_WARN_SHARE,
+    PERIOD_RANGE_S,
+    DegradedFinding,
+    ForeignSourceFinding,
+    Severity,
+    TimeBaseFinding,
+    degraded_finding,
+    untrusted,
+    window_ratio,
+)
 
 from .test_can_service import frame, service, traffic, trf1
 
@@ -25,15 +35,24 @@ def scaled(frames, factor, t0=0.0):
     frames are stamped on arrival)."""
     out = []
     for m in frames:
-        out.append(can.Message(timestamp=t0 + (m.timestamp - t0) / factor, arbitration_id=m.arbitration_id,
-                               is_extended_id=True, data=m.data))
+        out.append(
+            can.Message(
+                timestamp=t0 + (m.timestamp - t0) / factor,
+                arbitration_id=m.arbitration_id,
+                is_extended_id=True,
+                data=m.data,
+            )
+        )
     return out
 
 
 def statuses(out):
     """(timestamp, time_base_suspect) of every GBX_STATUS frame sent."""
-    return [(m.timestamp, decode_outputs([m])["status"]["time_base_suspect"]) for m in out
-            if pgn_of(m.arbitration_id) == STATUS_PGN]
+    return [
+        (m.timestamp, decode_outputs([m])["status"]["time_base_suspect"])
+        for m in out
+        if pgn_of(m.arbitration_id) == STATUS_PGN
+    ]
 
 
 def test_the_slowest_periods_are_the_services_staleness_periods():
@@ -49,21 +68,23 @@ def test_real_time_traffic_is_not_suspect_and_the_status_bit_stays_no_finding(ca
     assert not [f for f in svc.findings() if f.kind == "time_base"]
     assert {s for _, s in statuses(out)} == {None}
     status = [m for m in out if pgn_of(m.arbitration_id) == STATUS_PGN][-1]
-    assert status.data[6] == 0xFF                     # byte 7 as before the signal existed
+    assert status.data[6] == 0xFF  # byte 7 as before the signal existed
     assert not [r for r in caplog.records if "time base" in r.getMessage()]
 
 
 def test_traffic_ten_times_too_fast_is_flagged_once_with_the_ratio_and_the_likely_cause(caplog):
     svc = service()
     with caplog.at_level(logging.INFO, logger=LOGGER):
-        out = svc.feed_all(scaled(traffic(0.0, 450.0), 10.0))   # 45 s of frame time
+        out = svc.feed_all(scaled(traffic(0.0, 450.0), 10.0))  # 45 s of frame time
     tb = svc.counters["time_base"]
     assert tb["suspect"] and tb["windows_suspect"] >= 3
     lines = [r for r in caplog.records if "time base suspect" in r.getMessage()]
     assert len(lines) == 1 and lines[0].levelno == logging.WARNING
     text = lines[0].getMessage()
-    assert "10.0x faster" in text and "the bus is replayed faster than real time, and frames are stamped on arrival" \
-        in text
+    assert (
+        "10.0x faster" in text
+        and "the bus is replayed faster than real time, and frames are stamped on arrival" in text
+    )
     found = [f for f in svc.findings() if isinstance(f, TimeBaseFinding)]
     assert len(found) == 1 and found[0].severity == Severity.UNTRUSTED and found[0].direction == "faster"
     assert found[0].ratio == pytest.approx(10.0, rel=0.05)
@@ -77,7 +98,7 @@ def test_traffic_ten_times_too_fast_is_flagged_once_with_the_ratio_and_the_likel
 
 def test_traffic_four_times_too_slow_is_flagged_as_slower():
     svc = service()
-    svc.feed_all(scaled(traffic(0.0, 12.0), 0.25))             # 48 s of frame time
+    svc.feed_all(scaled(traffic(0.0, 12.0), 0.25))  # 48 s of frame time
     found = [f for f in svc.findings() if isinstance(f, TimeBaseFinding)]
     assert len(found) == 1 and found[0].direction == "slower" and found[0].ratio == pytest.approx(4.0, rel=0.1)
     assert "replayed slower than real time" in found[0].sentence
@@ -88,8 +109,10 @@ def test_a_burst_of_buffered_frames_is_not_a_wrong_time_base():
     at most two windows look fast, three in a row are needed."""
     before = traffic(0.0, 20.0)
     burst = scaled([m for m in traffic(20.0, 120.0)], 10.0, t0=20.0)
-    after = [can.Message(timestamp=m.timestamp - 90.0, arbitration_id=m.arbitration_id, is_extended_id=True,
-                         data=m.data) for m in traffic(120.0, 170.0)]
+    after = [
+        can.Message(timestamp=m.timestamp - 90.0, arbitration_id=m.arbitration_id, is_extended_id=True, data=m.data)
+        for m in traffic(120.0, 170.0)
+    ]
     svc = service()
     svc.feed_all(before + burst + after)
     tb = svc.counters["time_base"]
@@ -101,7 +124,7 @@ def test_a_single_odd_sender_is_no_verdict():
     assert window_ratio({"EEC1": 1000, "ETC2": 500, "TRF1": 10}, 10.0) is None
     low, high, periods = window_ratio({"EEC1": 1000, "ETC2": 100, "TRF1": 10}, 10.0)
     assert low <= 1.0 <= high and periods["ETC2"] == pytest.approx(0.1)
-    assert window_ratio({"EEC1": 3, "TRF1": 2}, 10.0) is None   # too few frames for a rate
+    assert window_ratio({"EEC1": 3, "TRF1": 2}, 10.0) is None  # too few frames for a rate
 
 
 def test_a_wrong_engine_source_address_is_named_with_the_degraded_share(caplog):
@@ -119,8 +142,10 @@ def test_a_wrong_engine_source_address_is_named_with_the_degraded_share(caplog):
     assert untrusted(findings)
     foreign = [f for f in findings if isinstance(f, ForeignSourceFinding)]
     assert len(foreign) == 1 and foreign[0].severity == Severity.UNTRUSTED
-    assert foreign[0].sentence.startswith("EEC1 (PGN 61444) arrived 3000 times from SA 0x00 but [can] expects "
-                                          "SA 0x01 (engine_source_address): check the source addresses")
+    assert foreign[0].sentence.startswith(
+        "EEC1 (PGN 61444) arrived 3000 times from SA 0x00 but [can] expects "
+        "SA 0x01 (engine_source_address): check the source addresses"
+    )
     degraded = [f for f in findings if isinstance(f, DegradedFinding)]
     assert len(degraded) == 1 and degraded[0].share > 0.95 and "engine speed 100 %" in degraded[0].sentence
     # logged while running, each finding once although three counter periods passed
@@ -153,6 +178,7 @@ def test_a_sender_that_moved_to_another_address_is_not_called_a_second_sender():
     sender moved, untrusted (a primary input), on both decoders (frame by frame and columnar)."""
     from can_dbc.columnar import FrameColumns, decode_columns
     from firmware_model.service.trust import foreign_findings
+
     frames = traffic(0.0, 60.0, oil=80.0)
     for m in frames:
         if m.timestamp > 30.0 and pgn_of(m.arbitration_id) == 65272:
@@ -164,7 +190,7 @@ def test_a_sender_that_moved_to_another_address_is_not_called_a_second_sender():
     assert "the sender moved to SA 0x04" in moved[0].sentence and "second sender" not in moved[0].sentence
     assert moved[0].severity == Severity.UNTRUSTED
     assert svc.decoder.counters["foreign_first_arrivals"] == {"TRF1": {0x04: 30}}
-    dec = type(svc.decoder)(svc.decoder.expected_sa)          # the columnar decoder counts the same
+    dec = type(svc.decoder)(svc.decoder.expected_sa)  # the columnar decoder counts the same
     decode_columns(FrameColumns.from_messages(frames), dec)
     assert dec.counters["foreign_first_arrivals"] == {"TRF1": {0x04: 30}}
     # both at once: a second sender, as before
@@ -177,9 +203,10 @@ def test_a_sender_that_moved_to_another_address_is_not_called_a_second_sender():
     assert len(f) == 1 and not f[0].moved and "a second sender" in f[0].sentence
 
 
-@pytest.mark.parametrize("modes, severity", [({0: 90, 3: 10}, Severity.NOTE),
-                                             ({0: 70, 1: 30}, Severity.WARNING),
-                                             ({0: 40, 2: 60}, Severity.UNTRUSTED)])
+@pytest.mark.parametrize(
+    "modes, severity",
+    [({0: 90, 3: 10}, Severity.NOTE), ({0: 70, 1: 30}, Severity.WARNING), ({0: 40, 2: 60}, Severity.UNTRUSTED)],
+)
 def test_degraded_share_thresholds(modes, severity):
     f = degraded_finding(modes, {"gear": modes.get(2, 0)})
     assert f.severity == severity
@@ -191,9 +218,10 @@ def test_short_frames_and_a_missing_reference_torque_are_named_as_causes():
     """An audit: "gear 100 %" did not tell ETC2 never sent from ETC2 sent with 5 data bytes; an ET1 with 5 bytes
     left the coolant at its default with "not given, as documented"; no EC1 was not named in a whole-log replay."""
     from firmware_model.service.trust import CoolantFinding
+
     frames = traffic(0.0, 30.0) + [frame(t + 0.7, 65262, 0x00, [0x78, 0xFF, 0xFF, 0xFF, 0xFF]) for t in range(30)]
     for m in frames:
-        if pgn_of(m.arbitration_id) == 61445:                 # ETC2 with 5 data bytes (the gear is in byte 4)
+        if pgn_of(m.arbitration_id) == 61445:  # ETC2 with 5 data bytes (the gear is in byte 4)
             m.data, m.dlc = m.data[:5], 5
     svc = service()
     svc.feed_all(sorted(frames, key=lambda m: m.timestamp))
@@ -203,7 +231,7 @@ def test_short_frames_and_a_missing_reference_torque_are_named_as_causes():
     assert "gear: " in degraded.sentence and "ETC2 frames came with fewer than 8 data bytes" in degraded.sentence
     coolant = next(f for f in findings if isinstance(f, CoolantFinding))
     assert coolant.severity == Severity.WARNING and "30 ET1 frames came with fewer than 8" in coolant.sentence
-    svc = service(configured_ref_torque_nm=None)                 # neither EC1 nor a configured reference
+    svc = service(configured_ref_torque_nm=None)  # neither EC1 nor a configured reference
     svc.feed_all(traffic(0.0, 30.0))
     degraded = next(f for f in svc.findings() if isinstance(f, DegradedFinding))
     assert "no engine reference torque arrived (EC1" in degraded.sentence
@@ -224,6 +252,7 @@ def test_a_start_without_an_oil_reading_is_a_note_that_names_initial_temp():
     """An audit: a log cut mid-drive without TRF1 started every part at ambient, 80 K below the truck, and no word
     said how to give the start."""
     from firmware_model.service.trust import StartFinding
+
     frames = [m for m in traffic(0.0, 30.0) if pgn_of(m.arbitration_id) != 65272]
     svc = service()
     svc.feed_all(frames)
@@ -241,10 +270,13 @@ def test_an_input_sent_only_empty_from_another_node_is_not_called_absent():
     (a log-replay audit: the real utulsa capture's all-0xFF TRF1 from 0x31 were reported as "no TRF1 frame
     arrived"); with no frame at all it still says so."""
     from firmware_model.service.trust import input_causes
+
     counters = {"arrivals": {"EEC1": 100}, "foreign_source": {"TRF1": {0x31: 170}}, "foreign_source_data": {}}
     causes = input_causes(counters, {"oil_temp_c": 100}, 100)
-    assert causes == ["oil temperature: no TRF1 frame arrived from its expected source address; 170 came from 0x31 "
-                      "with no usable value (not available)"]
+    assert causes == [
+        "oil temperature: no TRF1 frame arrived from its expected source address; 170 came from 0x31 "
+        "with no usable value (not available)"
+    ]
     assert input_causes({"arrivals": {}}, {"oil_temp_c": 100}, 100) == ["oil temperature: no TRF1 frame arrived"]
 
 
@@ -252,18 +284,21 @@ def test_a_vehicle_speed_from_the_tachograph_is_set_by_its_own_key():
     """CCVS1 from the tachograph (0xEE): the finding names vehicle_speed_source_address, which moves CCVS1 alone
     (a log-replay audit: it named engine_source_address, and following it moved EEC1 and EC1 too)."""
     from firmware_model.service import ServiceOptions
+
     frames = traffic(0.0, 30.0) + [frame(t + 0.3, 65265, 0xEE, [0, 0, 50, 0, 0, 0, 0, 0]) for t in range(30)]
     frames.sort(key=lambda m: m.timestamp)
     svc = service(counter_log_period_s=10.0)
     svc.feed_all(frames)
     foreign = [f for f in svc.findings() if isinstance(f, ForeignSourceFinding) and f.message == "CCVS1"]
     assert len(foreign) == 1 and "set [can] vehicle_speed_source_address" in foreign[0].sentence, foreign
-    opts = ServiceOptions.from_config(type("C", (), {"can": {"vehicle_speed_source_address": 0xEE,
-                                                             "coolant_source_address": 0x05}})())
+    opts = ServiceOptions.from_config(
+        type("C", (), {"can": {"vehicle_speed_source_address": 0xEE, "coolant_source_address": 0x05}})()
+    )
     assert opts.expected_sa["CCVS1"] == 0xEE and opts.expected_sa["ET1"] == 0x05
     assert "EEC1" not in opts.expected_sa and "EC1" not in opts.expected_sa
-    opts = ServiceOptions.from_config(type("C", (), {"can": {"engine_source_address": 0x01,
-                                                             "vehicle_speed_source_address": 0xEE}})())
+    opts = ServiceOptions.from_config(
+        type("C", (), {"can": {"engine_source_address": 0x01, "vehicle_speed_source_address": 0xEE}})()
+    )
     assert opts.expected_sa["EEC1"] == 0x01 and opts.expected_sa["CCVS1"] == 0xEE
 
 
@@ -272,11 +307,14 @@ def test_a_message_slower_than_the_staleness_rule_is_named_with_the_stale_factor
     only "missing, stale" (a log-replay audit): the cause names the mean period and the [can] stale_factor that
     accepts it, once per message; at its J1939 rate nothing is said."""
     from firmware_model.service.trust import input_causes
+
     counters = {"arrivals": {"EEC1": 1000}, "tp": {"ec1_received": 20}}
     causes = input_causes(counters, {"engine_speed_rpm": 400, "engine_torque_nm": 400}, 1000)
-    assert causes[0] == ("engine speed: EEC1 arrived every 100 ms on average, while a value older than 3 x its J1939 "
-                         "period (20 ms) is stale (a logger that down-samples, or a slow node?): [can] stale_factor = "
-                         "8 accepts it")
+    assert causes[0] == (
+        "engine speed: EEC1 arrived every 100 ms on average, while a value older than 3 x its J1939 "
+        "period (20 ms) is stale (a logger that down-samples, or a slow node?): [can] stale_factor = "
+        "8 accepts it"
+    )
     assert causes[1] == "engine torque: EEC1 as slow (above)"
     assert input_causes({"arrivals": {"EEC1": 5000}}, {"engine_speed_rpm": 400}, 1000) == []
     assert input_causes(counters, {"engine_speed_rpm": 400}, 1000, stale_factor=8.0) == []

@@ -7,6 +7,7 @@ the last bits). Stored in ``tests/golden/data/`` (small: subsampled rows only).
 
 Run ``python -m tests.golden.cases record`` to re-record (only on purpose: the point is that they do not change).
 """
+
 from __future__ import annotations
 
 import hashlib
@@ -23,18 +24,24 @@ DATA = HERE / "data"
 STRIDE = 300
 CYCLES = ("steady", "all_gears", "long_haul", "uphill", "mining")
 #: the real truck captures (shipped with the tests' data when present; see tests/data/README.md)
-CAPTURES = ("normal.candump.log", "tsc1.candump.log", "fuzz_1ms_ID_and_Data.candump.log",
-            "utulsa_logger2_drive.candump.log")
+CAPTURES = (
+    "normal.candump.log",
+    "tsc1.candump.log",
+    "fuzz_1ms_ID_and_Data.candump.log",
+    "utulsa_logger2_drive.candump.log",
+)
 BENCH_SCENARIOS = (0, 3)
 
 
 def capture_dir() -> Path | None:
     from tests.data_paths import real_capture_dir
+
     return real_capture_dir()
 
 
 def _params():
     from firmware_model.parameters import load_parameters
+
     return load_parameters("GRS905")
 
 
@@ -45,22 +52,25 @@ def _table_arrays(table) -> dict:
 def plant_case(cycle: str) -> dict:
     from tools.cycles.named import get_cycle
     from tools.plant.reference import ReferencePlant
+
     res = ReferencePlant(_params()).run(get_cycle(cycle), progress=False)
     return _table_arrays(res.table)
 
 
 def sensor_case(cycle: str) -> dict:
     """The onboard sensor over the plant's run table of ``cycle`` (inputs and the plant's sump as the oil sensor)."""
+    from firmware_model.config import load_config
+    from firmware_model.onboard.sensor import VirtualSensor
     from tools.cycles.named import get_cycle
     from tools.plant.reference import ReferencePlant
     from tools.replay.table import replay_table
-    from firmware_model.onboard.sensor import VirtualSensor
-    from firmware_model.config import load_config
+
     params = _params()
     plant = ReferencePlant(params).run(get_cycle(cycle), progress=False).table
     with tempfile.TemporaryDirectory() as d:
-        from tools.runtable import write_run_table
         from tools.replay.table import read_inputs_table
+        from tools.runtable import write_run_table
+
         p = Path(d) / "plant.csv"
         write_run_table(plant, p)
         table = read_inputs_table(p)
@@ -70,8 +80,9 @@ def sensor_case(cycle: str) -> dict:
 
 def batch_case() -> dict:
     """Three vehicles stepped as one batch (the batch API), 20 min of the uphill cycle with different oils."""
-    from tools.cycles.named import get_cycle
     from firmware_model.onboard.sensor import VirtualSensor
+    from tools.cycles.named import get_cycle
+
     params = _params()
     sensor = VirtualSensor(params)
     tb = get_cycle("uphill")
@@ -83,22 +94,34 @@ def batch_case() -> dict:
         tq = tb["engine_torque_nm"][i] * np.array([1.0, 1.2, 0.8])
         g = np.full(3, tb["gear"][i])
         oil = np.full(3, np.nan)
-        inp = sensor.Inputs(speed_rpm=sp, torque_nm=tq, gear=g, oil_temp_c=oil, ambient_temp_c=np.full(3, 25.0),
-                            coolant_temp_c=np.full(3, 85.0), vehicle_speed_kmh=np.full(3, 50.0),
-                            retarder_torque_nm=np.zeros(3), t_s=np.full(3, 0.1 * (i + 1)))
+        inp = sensor.Inputs(
+            speed_rpm=sp,
+            torque_nm=tq,
+            gear=g,
+            oil_temp_c=oil,
+            ambient_temp_c=np.full(3, 25.0),
+            coolant_temp_c=np.full(3, 85.0),
+            vehicle_speed_kmh=np.full(3, 50.0),
+            retarder_torque_nm=np.zeros(3),
+            t_s=np.full(3, 0.1 * (i + 1)),
+        )
         state, out = sensor.step(state, inp)
         if i % 10 == 0:
             T.append(np.array(out.T_c, dtype=float))
             L.append(np.array(out.level, dtype=float))
             ttl.append(np.array(out.ttl_s, dtype=float))
-    return {"T_c": np.stack(T).reshape(len(T), -1), "level": np.stack(L).reshape(len(L), -1),
-            "ttl_s": np.stack(ttl).reshape(len(ttl), -1)}
+    return {
+        "T_c": np.stack(T).reshape(len(T), -1),
+        "level": np.stack(L).reshape(len(L), -1),
+        "ttl_s": np.stack(ttl).reshape(len(ttl), -1),
+    }
 
 
 def capture_case(name: str) -> dict:
     """A real capture through the CAN service (decoder, freshness, step) with its output frames."""
-    from tools.replay.log import replay_log
     from firmware_model.service import build_service
+    from tools.replay.log import replay_log
+
     d = capture_dir()
     if d is None:
         raise FileNotFoundError("real captures not found")
@@ -110,7 +133,7 @@ def capture_case(name: str) -> dict:
     out["frames_t"] = np.array([f.timestamp for f in frames], dtype=float)
     data = np.zeros((len(frames), 8))
     for i, f in enumerate(frames):
-        data[i, :len(f.data)] = list(f.data)
+        data[i, : len(f.data)] = list(f.data)
     out["frames_data"] = data
     return out
 
@@ -118,6 +141,7 @@ def capture_case(name: str) -> dict:
 def bench_case(index: int) -> dict:
     """One bench-diagnosis scenario (plant model, 900 s cycles): the diagnosis JSON, flattened to numbers + text."""
     from tools.diagnosis.bench import run_bench
+
     with tempfile.TemporaryDirectory() as d:
         run_bench(40, 1, d, model="plant", train_s=900.0, test_s=900.0, only={index}, progress=lambda m: None)
         js = json.loads((Path(d) / f"scenario_{index:02d}.json").read_text())
@@ -138,6 +162,7 @@ def bench_case(index: int) -> dict:
         elif isinstance(x, (int, float)):
             nums.append(float(x))
             text.append(f"{path}=#")
+
     walk(js, "")
     h = hashlib.sha256("\n".join(text).encode()).digest()
     return {"numbers": np.asarray(nums, dtype=float), "text_sha": np.frombuffer(h, dtype=np.uint8).astype(float)}
@@ -166,9 +191,14 @@ def summarise(arrays: dict) -> tuple[dict, dict]:
     for k, a in arrays.items():
         a = np.asarray(a, dtype=float)
         fin = a[np.isfinite(a)]
-        meta[k] = {"shape": list(a.shape), "sha256": _sha(a), "n_nan": int(np.isnan(a).sum()),
-                   "sum": float(fin.sum()) if fin.size else 0.0,
-                   "min": float(fin.min()) if fin.size else None, "max": float(fin.max()) if fin.size else None}
+        meta[k] = {
+            "shape": list(a.shape),
+            "sha256": _sha(a),
+            "n_nan": int(np.isnan(a).sum()),
+            "sum": float(fin.sum()) if fin.size else 0.0,
+            "min": float(fin.min()) if fin.size else None,
+            "max": float(fin.max()) if fin.size else None,
+        }
         sub[k] = a[::STRIDE] if a.ndim >= 1 and a.shape[0] > STRIDE else a
     return meta, sub
 

@@ -10,6 +10,7 @@ temperature within 3e-13 K); 1e-11 of a temperature column (~150 degC) is 1.5e-9
 counters, frame ids and bytes) must be identical. The test prints which columns are bit-identical and which only
 within tolerance, with the largest difference.
 """
+
 from __future__ import annotations
 
 import json
@@ -26,14 +27,20 @@ MANIFEST = json.loads((C.DATA / "manifest.json").read_text()) if (C.DATA / "mani
 
 def _integer_valued(meta: dict, sub: np.ndarray) -> bool:
     fin = sub[np.isfinite(sub)]
-    return fin.size > 0 and bool(np.all(fin == np.round(fin))) and meta["max"] is not None and float(
-        meta["max"]) == round(float(meta["max"])) and float(meta["min"]) == round(float(meta["min"]))
+    return (
+        fin.size > 0
+        and bool(np.all(fin == np.round(fin)))
+        and meta["max"] is not None
+        and float(meta["max"]) == round(float(meta["max"]))
+        and float(meta["min"]) == round(float(meta["min"]))
+    )
 
 
 def column_tolerance(meta: dict) -> float:
     """The largest difference a recorded column may show: TOL, or REL_TOL of its largest finite magnitude."""
-    scale = max((abs(float(meta[k])) for k in ("min", "max") if meta[k] is not None and np.isfinite(meta[k])),
-                default=0.0)
+    scale = max(
+        (abs(float(meta[k])) for k in ("min", "max") if meta[k] is not None and np.isfinite(meta[k])), default=0.0
+    )
     return max(TOL, REL_TOL * scale)
 
 
@@ -56,13 +63,12 @@ def compare(want: dict, stored, arrays: dict) -> tuple[list, list, list]:
             exact.append(col)
             continue
         ref = stored[col.replace("/", "_")]
-        got = a[::C.STRIDE] if a.ndim >= 1 and a.shape[0] > C.STRIDE else a
+        got = a[:: C.STRIDE] if a.ndim >= 1 and a.shape[0] > C.STRIDE else a
         if int(np.isnan(a).sum()) != meta["n_nan"] or not np.array_equal(np.isnan(got), np.isnan(ref)):
             bad.append(f"{col}: NaN pattern differs")
             continue
         diff = np.abs(np.nan_to_num(got - ref, nan=0.0, posinf=0.0, neginf=0.0))
-        inf_ok = np.array_equal(np.isinf(got), np.isinf(ref)) and np.array_equal(got[np.isinf(got)],
-                                                                                   ref[np.isinf(ref)])
+        inf_ok = np.array_equal(np.isinf(got), np.isinf(ref)) and np.array_equal(got[np.isinf(got)], ref[np.isinf(ref)])
         fin = a[np.isfinite(a)]
         ext = 0.0 if not fin.size else max(abs(float(fin.min()) - meta["min"]), abs(float(fin.max()) - meta["max"]))
         worst = max(float(diff.max(initial=0.0)), ext)
@@ -85,11 +91,14 @@ def test_golden(name):
         pytest.skip(f"no golden recording for {name}")
     if name.startswith("capture_") and C.capture_dir() is None:
         from tests.data_paths import SKIP_REASON
+
         pytest.skip(SKIP_REASON)
     fn, args = C.all_cases()[name]
     exact, close, bad = compare(MANIFEST[name], np.load(C.DATA / f"{name}.npz"), fn(*args))
-    print(f"\n{name}: {len(exact)} columns bit-identical, {len(close)} within tolerance"
-          + (": " + ", ".join(f"{c} {d:.1e}" for c, d in close[:12]) if close else ""))
+    print(
+        f"\n{name}: {len(exact)} columns bit-identical, {len(close)} within tolerance"
+        + (": " + ", ".join(f"{c} {d:.1e}" for c, d in close[:12]) if close else "")
+    )
     assert not bad, f"{name}: " + "; ".join(bad[:20])
 
 

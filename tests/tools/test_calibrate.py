@@ -6,6 +6,7 @@ The truth is the reference plant with four assumed values changed (oil-system fl
 cooler exponent), measured like a rig (oil + PS, LI.teeth, BLR thermocouples: lag, noise, J1939 quantisation) on
 10-minute synthetic cycles.
 """
+
 from __future__ import annotations
 
 import warnings
@@ -29,8 +30,14 @@ def params():
 
 @pytest.fixture(scope="module")
 def truth(params):
-    return params.with_overrides({"oil_system.flow_m3_per_rad": 1.6 * params["oil_system.flow_m3_per_rad"],
-                                  "wheel.side_width_in_frac": 0.4, "housing.hot_frac": 0.7, "cooler.exp_inner": 0.65})
+    return params.with_overrides(
+        {
+            "oil_system.flow_m3_per_rad": 1.6 * params["oil_system.flow_m3_per_rad"],
+            "wheel.side_width_in_frac": 0.4,
+            "housing.hot_frac": 0.7,
+            "cooler.exp_inner": 0.65,
+        }
+    )
 
 
 @pytest.fixture(scope="module")
@@ -51,37 +58,43 @@ def calibrated(rig_files):
     d, (tr1, tr2, te) = rig_files
     out = d / "out" / "my_gearbox.toml"
     rep = d / "out" / "report.md"
-    rc = main(["calibrate", "--train", tr1, tr2, "--test", te, "--auto", "--out", str(out), "--report", str(rep),
-               "--quiet"])
+    rc = main(
+        ["calibrate", "--train", tr1, tr2, "--test", te, "--auto", "--out", str(out), "--report", str(rep), "--quiet"]
+    )
     assert rc == 0
     return out, rep
 
 
 def test_calibration_holds_on_held_out_data(calibrated, params, truth):
     out, rep = calibrated
-    cal = load_parameters(out)              # the written file is a valid parameter file
+    cal = load_parameters(out)  # the written file is a valid parameter file
     fitted = [k for k in cal.values if cal.provenance(k) == "fitted"]
     assert "oil_system.flow_m3_per_rad" in fitted and "housing.hot_frac" in fitted
-    assert "wheel.side_width_in_frac" not in fitted          # no measured channel sees it
+    assert "wheel.side_width_in_frac" not in fitted  # no measured channel sees it
     flow = cal["oil_system.flow_m3_per_rad"]
     assert abs(flow / truth["oil_system.flow_m3_per_rad"] - 1.0) < 0.1
     assert abs(cal["housing.hot_frac"] - 0.7) < 0.1
-    for k in cal.values:                   # everything else as in the file
+    for k in cal.values:  # everything else as in the file
         if k not in fitted:
             assert cal[k] == params[k], k
     text = rep.read_text()
     assert "## Identifiability" in text and "wheel.side_width_in_frac" in text and "no: " in text
-    before, after = [float(x) for x in
-                     next(line for line in text.splitlines() if line.startswith("| held-out files, pooled")).split("|")[2:4]]
-    assert after < 0.4 * before, (before, after)            # held-out RMS down by more than 60 %
+    before, after = [
+        float(x)
+        for x in next(line for line in text.splitlines() if line.startswith("| held-out files, pooled")).split("|")[2:4]
+    ]
+    assert after < 0.4 * before, (before, after)  # held-out RMS down by more than 60 %
     assert rep.with_suffix(".png").stat().st_size > 10_000
 
 
-@pytest.mark.parametrize("keys,says", [
-    ("oil_system.flow_m3_per_rad,heat.nonsense", "is not a parameter of GRS905"),
-    ("heat.TCC", "declares no plausible bounds"),
-    ("wheel.side_width_in_frac", "cannot be calibrated from these files"),
-])
+@pytest.mark.parametrize(
+    "keys,says",
+    [
+        ("oil_system.flow_m3_per_rad,heat.nonsense", "is not a parameter of GRS905"),
+        ("heat.TCC", "declares no plausible bounds"),
+        ("wheel.side_width_in_frac", "cannot be calibrated from these files"),
+    ],
+)
 def test_bad_keys_are_refused_and_nothing_written(rig_files, keys, says, capsys):
     d, (tr1, tr2, te) = rig_files
     out = d / "bad" / "x.toml"
@@ -94,16 +107,20 @@ def test_bad_keys_are_refused_and_nothing_written(rig_files, keys, says, capsys)
 
 def test_bounds_are_checked_when_the_file_is_read(tmp_path):
     bad = tmp_path / "b.toml"
-    bad.write_text('[meta]\ninherit = "GRS905"\n[housing]\nhot_frac = { v = 0.95, u = "-", lo = 0.2, hi = 0.8, '
-                   'src = "assumed" }\n')
+    bad.write_text(
+        '[meta]\ninherit = "GRS905"\n[housing]\nhot_frac = { v = 0.95, u = "-", lo = 0.2, hi = 0.8, src = "assumed" }\n'
+    )
     with pytest.raises(ParameterError, match="must lie within its bounds"):
         load_parameters(bad)
     # reversed bounds say so (a calibration audit: 'must lie within its bounds lo = 0.8 .. hi = 0.2')
-    bad.write_text('[meta]\ninherit = "GRS905"\n[housing]\nhot_frac = { v = 0.5, u = "-", lo = 0.8, hi = 0.2, '
-                   'src = "assumed" }\n')
+    bad.write_text(
+        '[meta]\ninherit = "GRS905"\n[housing]\nhot_frac = { v = 0.5, u = "-", lo = 0.8, hi = 0.2, src = "assumed" }\n'
+    )
     with pytest.raises(ParameterError, match="lo must be below hi"):
         load_parameters(bad)
-    bad.write_text('[meta]\ninherit = "GRS905"\n[housing]\nhot_frac = { v = 0.5, u = "-", lo = 0.2, src = "assumed" }\n')
+    bad.write_text(
+        '[meta]\ninherit = "GRS905"\n[housing]\nhot_frac = { v = 0.5, u = "-", lo = 0.2, src = "assumed" }\n'
+    )
     with pytest.raises(ParameterError, match="only one of lo and hi"):
         load_parameters(bad)
     p = load_parameters("GRS905")
@@ -116,7 +133,7 @@ def test_a_fit_that_makes_the_held_out_error_worse_writes_no_parameter_file(para
     RMS 15 times larger, printed as '-1458 % down') with exit 0."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
-        sc = make_scenario(1, 7, "rig", None, None, params, train_s=SHORT_S, test_s=SHORT_S)   # the file is right
+        sc = make_scenario(1, 7, "rig", None, None, params, train_s=SHORT_S, test_s=SHORT_S)  # the file is right
     train, test = sc.train[0], sc.test[0]
     for c in train.columns:
         if c.startswith("meas_T_"):
@@ -124,8 +141,20 @@ def test_a_fit_that_makes_the_held_out_error_worse_writes_no_parameter_file(para
     write_run_table(train, tmp_path / "train_degF.csv")
     write_run_table(test, tmp_path / "test.csv")
     out = tmp_path / "bad" / "cal.toml"
-    rc = main(["calibrate", "--train", str(tmp_path / "train_degF.csv"), "--test", str(tmp_path / "test.csv"),
-               "--params", "housing.hot_frac", "--out", str(out), "--quiet"])
+    rc = main(
+        [
+            "calibrate",
+            "--train",
+            str(tmp_path / "train_degF.csv"),
+            "--test",
+            str(tmp_path / "test.csv"),
+            "--params",
+            "housing.hot_frac",
+            "--out",
+            str(out),
+            "--quiet",
+        ]
+    )
     err = capsys.readouterr().err
     assert rc == 3 and not out.exists(), err
     assert "made the held-out error worse" in err and "no parameter file was written" in err
@@ -137,10 +166,12 @@ def test_a_fit_still_far_off_or_not_pinned_down_is_refused_or_said(params):
     0.2..0.8 range); the equal RMS of a fit that changed nothing was printed as 'worse'."""
     from tools.cli.calibrate import _cautions, _refusal
     from tools.diagnosis.calibrate import Calibration
+
     k = "housing.hot_frac"
 
     def cal(train, test, by_channel, sigma, at_bound=False):
         return Calibration([k], {k: 0.5}, {k: 0.8}, {k: sigma}, {k: at_bound}, [], train, test, by_channel, 10)
+
     far = cal((46.4, 43.4), (1.289, 1.273), {"oil": (0.199, 0.271), "PS": (2.0, 1.0)}, 13.0, True)
     assert "still 43.4 K (RMS) off the training files" in _refusal(far) and "degF" in _refusal(far)
     assert "did not reduce" in _refusal(cal((2.0, 1.0), (1.263, 1.263), {}, 0.01))
@@ -155,8 +186,9 @@ def test_bounds_outside_the_allowed_range_are_refused_when_the_file_loads(tmp_pa
     """From a calibration audit: bounds reaching outside a key's allowed range failed half-way through a fit, naming a
     Latin-hypercube start the user never wrote."""
     bad = tmp_path / "b.toml"
-    bad.write_text('[meta]\ninherit = "GRS905"\n[housing]\n'
-                   'hot_frac = { v = 0.5, u = "-", lo = -0.5, hi = 1.5, src = "assumed" }\n')
+    bad.write_text(
+        '[meta]\ninherit = "GRS905"\n[housing]\nhot_frac = { v = 0.5, u = "-", lo = -0.5, hi = 1.5, src = "assumed" }\n'
+    )
     with pytest.raises(ParameterError, match=r"hot_frac's bounds lo = -0.5 .. hi = 1.5 reach outside"):
         load_parameters(bad)
 
@@ -171,12 +203,20 @@ def test_a_constant_offset_left_on_a_held_out_channel_is_a_caution():
     import numpy as np
 
     from tools.cli.calibrate import _offsets_left
+
     t = np.arange(0.0, 600.0, 10.0)
     rng = np.random.default_rng(0)
     noise = 0.1 * rng.standard_normal(t.size)
-    cal = SimpleNamespace(plot={"test": [("a.csv", "oil", t, None, 1.37 + noise), ("b.csv", "oil", t, None, 1.3 + noise),
-                                         ("a.csv", "PS", t, None, noise),
-                                         ("a.csv", "BLR", t, None, 1.5 * np.sin(t / 60.0))]})
+    cal = SimpleNamespace(
+        plot={
+            "test": [
+                ("a.csv", "oil", t, None, 1.37 + noise),
+                ("b.csv", "oil", t, None, 1.3 + noise),
+                ("a.csv", "PS", t, None, noise),
+                ("a.csv", "BLR", t, None, 1.5 * np.sin(t / 60.0)),
+            ]
+        }
+    )
     lines = _offsets_left(cal)
     assert len(lines) == 1 and lines[0].startswith("oil reads 1.3") and "above the calibrated model" in lines[0]
     assert "sensor offset" in lines[0] and "oil_sensor_offset" in lines[0], lines

@@ -1,5 +1,6 @@
 """The live service end to end on python-can's virtual bus: frames in, GBX_* frames out; live equals offline replay
 (real time, and 20x with the log's timestamps); `gearbox-vsensor run` starts and stops cleanly on SIGTERM."""
+
 from __future__ import annotations
 
 import json
@@ -17,8 +18,8 @@ import numpy as np
 import pytest
 
 from can_dbc.adapter import decode_outputs, pgn_of
-from firmware_model.service import SensorService, ServiceOptions, can_filters, serve
 from firmware_model.components import PUBLISHED
+from firmware_model.service import SensorService, ServiceOptions, can_filters, serve
 from tools.can.logsynth import write_can_log
 from tools.replay.log import play_log, read_log, replay_log
 
@@ -35,6 +36,7 @@ def drive_log(tmp_path_factory):
     from tools.cycles.named import get_cycle
     from tools.plant.reference import ReferencePlant
     from tools.runtable import RunTable
+
     table = get_cycle("uphill")
     keep = table["time_s"] <= 40.0
     table = RunTable({c: table[c][keep] for c in table.columns}, meta=table.meta)
@@ -46,8 +48,7 @@ def drive_log(tmp_path_factory):
 
 def offline(path):
     frames = []
-    table = replay_log(path, SensorService(make_sensor(), ServiceOptions(), record=True),
-                       on_frames=frames.extend)
+    table = replay_log(path, SensorService(make_sensor(), ServiceOptions(), record=True), on_frames=frames.extend)
     return table, frames
 
 
@@ -112,8 +113,8 @@ def test_real_time_replay_on_a_bus_equals_offline(drive_log, tmp_path):
     sample the same inputs as offline, because logsynth puts every value change half-way between two steps."""
     short = tmp_path / "short.log"
     lines = drive_log.read_text().splitlines(keepends=True)
-    t0 = float(lines[0][1:lines[0].index(")")])
-    short.write_text("".join(ln for ln in lines if float(ln[1:ln.index(")")]) - t0 < 6.0))
+    t0 = float(lines[0][1 : lines[0].index(")")])
+    short.write_text("".join(ln for ln in lines if float(ln[1 : ln.index(")")]) - t0 < 6.0))
     _, frames = offline(short)
     out, _, _ = live(short, speed=1.0, preserve=False)
     assert key(out) == key(frames)
@@ -124,8 +125,6 @@ def test_twenty_times_real_time_with_log_timestamps_equals_offline(drive_log):
     out, _, _ = live(drive_log, speed=20.0, preserve=True)
     assert key(out) == key(frames)
     assert len(frames) > 390 * 16
-
-
 
 
 #: `gearbox-vsensor run` as the command line starts it, on a silent bus
@@ -174,8 +173,14 @@ def _sigterm_when_ready(code: str, channel: str, ready: str, stream: str, what: 
     """Start ``python -c code channel``, wait (<= 60 s) for a line containing ``ready`` on ``stream`` (stdout or
     stderr), pause, send SIGTERM and return (returncode, stdout, stderr); fail when it is still running 20 s later."""
     env = {**os.environ, "PYTHONPATH": str(REPO) + os.pathsep + os.environ.get("PYTHONPATH", "")}
-    proc = subprocess.Popen([sys.executable, "-c", code, channel], cwd=REPO, env=env, stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True)
+    proc = subprocess.Popen(
+        [sys.executable, "-c", code, channel],
+        cwd=REPO,
+        env=env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     try:
         pipe = proc.stdout if stream == "stdout" else proc.stderr
         lines = []
@@ -198,7 +203,7 @@ def _sigterm_when_ready(code: str, channel: str, ready: str, stream: str, what: 
     finally:
         if proc.poll() is None:
             proc.kill()
-    head = "".join(lines)              # what was read before SIGTERM belongs to that stream's text
+    head = "".join(lines)  # what was read before SIGTERM belongs to that stream's text
     if stream == "stdout":
         out = head + out
     else:
@@ -206,17 +211,21 @@ def _sigterm_when_ready(code: str, channel: str, ready: str, stream: str, what: 
     return proc.returncode, out, err
 
 
-@pytest.mark.parametrize("code, ready, stream, what, expected", [
-    (_RUN, "listening on virtual", "stderr", "`run`", ("stopped (signal)", "frames seen 0")),
-    # CPython 3.11's queue.SimpleQueue.get(timeout) waits forever when a signal handler that runs inside it outlasts
-    # the timeout (it then waits with a negative, i.e. infinite, timeout until a frame arrives): the main loop's
-    # 50 ms poll must not be where SIGTERM is handled (seen as a hang after SIGTERM in the QEMU VM,
-    # tools/vcan_vm/harness.py)
-    (_SLOW_SIGNAL_RUN, "listening on virtual", "stderr", "`run`", ("stopped (signal)",)),
-    # the root cause of the hang the SignalWatcher of `run` avoids: serve() waits on a queue whose timed get must
-    # keep its deadline when a signal handler runs inside it (CPython 3.11's SimpleQueue does not)
-    (_SLOW_HANDLER_SERVE, "serving", "stdout", "serve()", ("stopped stop",)),
-], ids=["run", "run-with-slow-signal-handling", "serve-with-a-slow-signal-handler"])
+@pytest.mark.parametrize(
+    "code, ready, stream, what, expected",
+    [
+        (_RUN, "listening on virtual", "stderr", "`run`", ("stopped (signal)", "frames seen 0")),
+        # CPython 3.11's queue.SimpleQueue.get(timeout) waits forever when a signal handler that runs inside it outlasts
+        # the timeout (it then waits with a negative, i.e. infinite, timeout until a frame arrives): the main loop's
+        # 50 ms poll must not be where SIGTERM is handled (seen as a hang after SIGTERM in the QEMU VM,
+        # tools/vcan_vm/harness.py)
+        (_SLOW_SIGNAL_RUN, "listening on virtual", "stderr", "`run`", ("stopped (signal)",)),
+        # the root cause of the hang the SignalWatcher of `run` avoids: serve() waits on a queue whose timed get must
+        # keep its deadline when a signal handler runs inside it (CPython 3.11's SimpleQueue does not)
+        (_SLOW_HANDLER_SERVE, "serving", "stdout", "serve()", ("stopped stop",)),
+    ],
+    ids=["run", "run-with-slow-signal-handling", "serve-with-a-slow-signal-handler"],
+)
 def test_stops_cleanly_on_sigterm_on_a_silent_bus(code, ready, stream, what, expected):
     rc, out, err = _sigterm_when_ready(code, f"sigterm-{uuid.uuid4()}", ready, stream, what)
     assert rc == 0, err
@@ -267,8 +276,14 @@ def test_a_second_sigterm_during_the_final_save_does_not_lose_it(tmp_path):
     during it killed `run` with the last state unsaved. The save now runs while a signal only sets the stop flag."""
     env = {**os.environ, "PYTHONPATH": str(REPO) + os.pathsep + os.environ.get("PYTHONPATH", "")}
     state = tmp_path / "state.json"
-    p = subprocess.run([sys.executable, "-c", _SECOND_SIGTERM_RUN, f"second-{uuid.uuid4()}", str(state)], cwd=REPO,
-                       env=env, capture_output=True, text=True, timeout=120)
+    p = subprocess.run(
+        [sys.executable, "-c", _SECOND_SIGTERM_RUN, f"second-{uuid.uuid4()}", str(state)],
+        cwd=REPO,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert p.returncode == 0, p.stderr[-3000:]
     assert "final save done" in p.stdout and "sensor state saved to" in p.stderr, p.stderr[-3000:]
     assert json.loads(state.read_text())["schema"] == "vsensor-state/1"
@@ -276,7 +291,13 @@ def test_a_second_sigterm_during_the_final_save_does_not_lose_it(tmp_path):
 
 def test_run_bad_interface_is_one_sentence_exit_2():
     env = {**os.environ, "PYTHONPATH": str(REPO) + os.pathsep + os.environ.get("PYTHONPATH", "")}
-    p = subprocess.run([sys.executable, "-m", "tools.cli", "run", "--interface", "nosuchbus", "--channel", "x"],
-                       cwd=REPO, env=env, capture_output=True, text=True, timeout=60)
+    p = subprocess.run(
+        [sys.executable, "-m", "tools.cli", "run", "--interface", "nosuchbus", "--channel", "x"],
+        cwd=REPO,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
     assert p.returncode == 2
     assert p.stderr.count("\n") == 1 and "nosuchbus" in p.stderr and "error:" in p.stderr

@@ -1,9 +1,8 @@
 """The command line's options: a mistyped option is refused by its subcommand with a suggestion, usages are honest,
 an option that would do nothing in the mode given is an error (nothing written), and `plant` checks its bus before
 it computes the drive."""
-from __future__ import annotations
 
-import re
+from __future__ import annotations
 
 import pytest
 
@@ -81,15 +80,31 @@ def test_replay_processes_was_removed_and_says_what_replaced_it(tmp_path, capsys
 @pytest.fixture
 def files(tmp_path):
     from tools.runtable import RunTable, write_run_table
-    csv = write_run_table(RunTable({"time_s": [0.0, 1.0], "engine_speed_rpm": [800.0, 800.0],
-                                    "engine_torque_nm": [100.0, 100.0], "gear": [9.0, 9.0]}), tmp_path / "run.csv")
+
+    csv = write_run_table(
+        RunTable(
+            {
+                "time_s": [0.0, 1.0],
+                "engine_speed_rpm": [800.0, 800.0],
+                "engine_torque_nm": [100.0, 100.0],
+                "gear": [9.0, 9.0],
+            }
+        ),
+        tmp_path / "run.csv",
+    )
     log = tmp_path / "run.log"
     log.write_text("(0.000000) vcan0 0CF00400#FFFF7D803EFFFFFF\n")
     return tmp_path, csv, log
 
 
-@pytest.mark.parametrize("extra, named", [(["--frames-out", "F.log"], "--frames-out"), (["--strict"], "--strict"),
-                                          (["--frames-out", "F.log", "--strict"], "--frames-out, --strict")])
+@pytest.mark.parametrize(
+    "extra, named",
+    [
+        (["--frames-out", "F.log"], "--frames-out"),
+        (["--strict"], "--strict"),
+        (["--frames-out", "F.log", "--strict"], "--frames-out, --strict"),
+    ],
+)
 def test_replay_refuses_log_options_on_a_run_table(files, capsys, extra, named):
     d, csv, _ = files
     out = d / "est.csv"
@@ -100,9 +115,14 @@ def test_replay_refuses_log_options_on_a_run_table(files, capsys, extra, named):
     assert not out.exists()
 
 
-@pytest.mark.parametrize("extra", [["--realtime", "--interface", "virtual", "--channel", "x"],
-                                   ["--realtime", "--interface", "virtual", "--channel", "x", "--speed", "10"],
-                                   ["--out", "OUT", "--speed", "3"]])
+@pytest.mark.parametrize(
+    "extra",
+    [
+        ["--realtime", "--interface", "virtual", "--channel", "x"],
+        ["--realtime", "--interface", "virtual", "--channel", "x", "--speed", "10"],
+        ["--out", "OUT", "--speed", "3"],
+    ],
+)
 def test_replay_realtime_points_to_play(files, capsys, extra):
     """`replay --realtime` became `play`: an old command line exits 2 with one sentence naming the new one."""
     d, _, log = files
@@ -123,16 +143,30 @@ def test_simulate_refuses_cycle_options_on_a_run_table(files, capsys, extra, nam
 
 
 def test_simulate_refuses_a_held_sump_with_another_cooler(tmp_path, capsys):
-    argv = ["simulate", "--cycle", "steady:gear=4L,rpm=1300,nm=2000,s=20", "--out", str(tmp_path / "s.csv"),
-            "--quiet", "--hold-oil", "100"]
+    argv = [
+        "simulate",
+        "--cycle",
+        "steady:gear=4L,rpm=1300,nm=2000,s=20",
+        "--out",
+        str(tmp_path / "s.csv"),
+        "--quiet",
+        "--hold-oil",
+        "100",
+    ]
     assert main([*argv, "--cooler", "liquid"]) == 2
     assert "--hold-oil" in capsys.readouterr().err and not (tmp_path / "s.csv").exists()
     assert main([*argv, "--cooler", "hold", "--seed", "1"]) == 0
 
 
-@pytest.mark.parametrize("argv, named", [(["--setup", "truck"], "--setup"), (["--cooler", "air"], "--cooler"),
-                                         (["--effect", "none", "--scenarios", "3"], "--scenarios"),
-                                         (["--effect", "none", "--only", "1"], "--only")])
+@pytest.mark.parametrize(
+    "argv, named",
+    [
+        (["--setup", "truck"], "--setup"),
+        (["--cooler", "air"], "--cooler"),
+        (["--effect", "none", "--scenarios", "3"], "--scenarios"),
+        (["--effect", "none", "--only", "1"], "--only"),
+    ],
+)
 def test_bench_diagnosis_refuses_options_of_the_other_mode(tmp_path, capsys, argv, named):
     assert main(["bench-diagnosis", "--out", str(tmp_path / "b"), *argv]) == 2
     assert f"error: {named} " in capsys.readouterr().err and not (tmp_path / "b").exists()
@@ -146,13 +180,17 @@ def test_bench_diagnosis_refuses_a_start_for_the_model_form_family(tmp_path, cap
 def test_bench_diagnosis_counts_the_files_taken_running():
     """The bench row counts a scenario's files scored as starting running (the JSON's starts), for its table."""
     from tools.diagnosis.bench import Scenario, format_table, score_row, summarize
-    res = {"verdict": {"effect": "none", "shrink": 0.0, "test_rms_before_c": 0.1, "test_rms_after_c": 0.1},
-           "identifiability": {},
-           "starts": {"a.csv": {"start": "running"}, "b.csv": {"start": "rest"}, "test:a.csv": {"start": "running"}}}
+
+    res = {
+        "verdict": {"effect": "none", "shrink": 0.0, "test_rms_before_c": 0.1, "test_rms_after_c": 0.1},
+        "identifiability": {},
+        "starts": {"a.csv": {"start": "running"}, "b.csv": {"start": "rest"}, "test:a.csv": {"start": "running"}},
+    }
     row = score_row(Scenario(0, 1, "truck", None, None, "liquid"), res, 1.0)
     assert (row.files, row.running, row.ok) == (3, 2, True)
-    assert "| files scored as starting while the gearbox runs (--start) | 2 of 3 |" in format_table([row],
-                                                                                                     summarize([row]))
+    assert "| files scored as starting while the gearbox runs (--start) | 2 of 3 |" in format_table(
+        [row], summarize([row])
+    )
 
 
 def test_bench_diagnosis_refuses_scenarios_outside_the_plan(tmp_path, capsys):
@@ -163,6 +201,7 @@ def test_bench_diagnosis_refuses_scenarios_outside_the_plan(tmp_path, capsys):
 
 def test_plant_checks_the_bus_before_it_computes_the_drive(monkeypatch, capsys):
     import tools.can.hil
+
     calls = []
 
     def prepare(*args, **kwargs):

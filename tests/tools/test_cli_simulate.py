@@ -1,4 +1,5 @@
 """`gearbox-vsensor simulate`: output contract and bad input (one sentence, non-zero exit, nothing written)."""
+
 import numpy as np
 import pytest
 
@@ -8,8 +9,12 @@ from tools.runtable import RunTable, read_run_table, write_run_table
 
 def _cycle(path, **mod):
     t = np.arange(0.0, 120.0, 1.0)
-    cols = {"time_s": t, "engine_speed_rpm": np.full(t.size, 1300.0), "engine_torque_nm": np.full(t.size, 1500.0),
-            "gear": np.full(t.size, 9.0)}
+    cols = {
+        "time_s": t,
+        "engine_speed_rpm": np.full(t.size, 1300.0),
+        "engine_torque_nm": np.full(t.size, 1500.0),
+        "gear": np.full(t.size, 9.0),
+    }
     for k, (row, v) in mod.items():
         cols[k] = cols[k].copy()
         cols[k][row] = v
@@ -19,21 +24,46 @@ def _cycle(path, **mod):
 
 def test_simulate_writes_the_contract_columns(tmp_path, capsys):
     out = tmp_path / "run.csv"
-    rc = main(["simulate", "--cycle", str(_cycle(tmp_path / "c.csv")), "--out", str(out), "--quiet",
-               "--plot", str(tmp_path / "p.png")])
+    rc = main(
+        [
+            "simulate",
+            "--cycle",
+            str(_cycle(tmp_path / "c.csv")),
+            "--out",
+            str(out),
+            "--quiet",
+            "--plot",
+            str(tmp_path / "p.png"),
+        ]
+    )
     assert rc == 0
     t = read_run_table(out)
-    for c in ("time_s", "engine_speed_rpm", "engine_torque_nm", "gear", "oil_temp_c", "T_LI.teeth_c", "T_PS_c",
-              "T_oil_c", "T_LS@1L_c", "Q_heat_total_w", "Q_out_cooler_w", "Q_out_housing_radiation_w"):
+    for c in (
+        "time_s",
+        "engine_speed_rpm",
+        "engine_torque_nm",
+        "gear",
+        "oil_temp_c",
+        "T_LI.teeth_c",
+        "T_PS_c",
+        "T_oil_c",
+        "T_LS@1L_c",
+        "Q_heat_total_w",
+        "Q_out_cooler_w",
+        "Q_out_housing_radiation_w",
+    ):
         assert c in t.columns, c
     assert (tmp_path / "p.png").stat().st_size > 10000 and (tmp_path / "p_heat.png").exists()
 
 
-@pytest.mark.parametrize("args_mod, words", [
-    ({"gear": (5, 17.0)}, "gear"),
-    ({"engine_speed_rpm": (5, -10.0)}, "engine_speed_rpm"),
-    ({"engine_torque_nm": (5, float("nan"))}, "engine_torque_nm"),
-])
+@pytest.mark.parametrize(
+    "args_mod, words",
+    [
+        ({"gear": (5, 17.0)}, "gear"),
+        ({"engine_speed_rpm": (5, -10.0)}, "engine_speed_rpm"),
+        ({"engine_torque_nm": (5, float("nan"))}, "engine_torque_nm"),
+    ],
+)
 def test_bad_cycles_fail_cleanly(tmp_path, capsys, args_mod, words):
     out = tmp_path / "run.csv"
     rc = main(["simulate", "--cycle", str(_cycle(tmp_path / "c.csv", **args_mod)), "--out", str(out), "--quiet"])
@@ -69,10 +99,11 @@ def test_missing_output_directory_fails_before_simulating(tmp_path, capsys):
 
 def test_the_summary_spells_out_the_component_codes(tmp_path, capsys):
     from firmware_model.components import meaning
+
     rc = main(["simulate", "--cycle", "steady:gear=4L,rpm=1300,nm=2000,s=60", "--out", str(tmp_path / "s.csv")])
     out = capsys.readouterr().out.splitlines()
     assert rc == 0
-    rows = out[out.index("hottest:") + 1:][:5]
+    rows = out[out.index("hottest:") + 1 :][:5]
     assert len(rows) == 5
     for row in rows:
         code = row.split()[0]
@@ -83,8 +114,8 @@ def test_churning_validity_is_not_a_note_on_every_run(tmp_path, capsys):
     """The churning correlations are outside their range for the whole of most drives (docs/validation.md says so
     once); a run notes it only when it is partial (issue: a newcomer's first hour, item 9)."""
     from tools.cli import main
-    assert main(["simulate", "--cycle", "steady:gear=4L,rpm=1300,nm=2000,s=120", "--out",
-                 str(tmp_path / "s.csv")]) == 0
+
+    assert main(["simulate", "--cycle", "steady:gear=4L,rpm=1300,nm=2000,s=120", "--out", str(tmp_path / "s.csv")]) == 0
     assert "churning" not in capsys.readouterr().err
 
 
@@ -97,22 +128,29 @@ def test_an_output_on_an_input_or_on_another_output_is_refused(tmp_path, capsys)
     out = tmp_path / "run.csv"
     assert main(["simulate", "--cycle", str(cyc), "--out", str(out), "--plot", str(out), "--quiet"]) == 2
     assert "would be lost" in capsys.readouterr().err
-    assert main(["simulate", "--cycle", str(cyc), "--out", str(out), "--plot", str(tmp_path / "p.txt"),
-                 "--quiet"]) == 2
+    assert main(["simulate", "--cycle", str(cyc), "--out", str(out), "--plot", str(tmp_path / "p.txt"), "--quiet"]) == 2
     assert "figure" in capsys.readouterr().err
     assert not out.exists()
 
 
-@pytest.mark.parametrize("col, value, words", [
-    ("oil_temp_c", 1000.0, "start temperature"),        # the first oil reading is where every node starts
-    ("oil_temp_c", -300.0, "start temperature"),
-    ("bc_hot_surroundings_c", 1e6, "outside -60..250"),
-    ("ambient_temp_c", -100.0, "outside -60..250"),
-])
+@pytest.mark.parametrize(
+    "col, value, words",
+    [
+        ("oil_temp_c", 1000.0, "start temperature"),  # the first oil reading is where every node starts
+        ("oil_temp_c", -300.0, "start temperature"),
+        ("bc_hot_surroundings_c", 1e6, "outside -60..250"),
+        ("ambient_temp_c", -100.0, "outside -60..250"),
+    ],
+)
 def test_implausible_start_or_boundary_temperatures_are_refused(tmp_path, capsys, col, value, words):
     t = np.arange(0.0, 120.0, 1.0)
-    cols = {"time_s": t, "engine_speed_rpm": np.full(t.size, 1300.0), "engine_torque_nm": np.full(t.size, 1500.0),
-            "gear": np.full(t.size, 9.0), col: np.full(t.size, 40.0)}
+    cols = {
+        "time_s": t,
+        "engine_speed_rpm": np.full(t.size, 1300.0),
+        "engine_torque_nm": np.full(t.size, 1500.0),
+        "gear": np.full(t.size, 9.0),
+        col: np.full(t.size, 40.0),
+    }
     cols[col][0] = value
     write_run_table(RunTable(cols), tmp_path / "c.csv")
     out = tmp_path / "run.csv"
@@ -122,22 +160,38 @@ def test_implausible_start_or_boundary_temperatures_are_refused(tmp_path, capsys
     assert not out.exists()
 
 
-@pytest.mark.parametrize("body, words", [
-    ('[gearbox]\nvariant = 905\n', "gearbox.variant = 905 must be a string"),
-    ('[gearbox]\nparams = ["a"]\n', "gearbox.params"),
-    ('[sensor]\nlimits = 5\n', "sensor.limits = 5 must be a string"),
-    ('[sensor]\ndebounce_s = "x"\n', "sensor.debounce_s"),
-    ('[sensor]\nhysteresis_c = "3"\n', "sensor.hysteresis_c"),         # a number in quotes passed silently
-    ('[gearbox]\nvariant = "GRS905"\nparams = "x.toml"\n', "not both"),
-    (b"\xff\xfe\x00garbage", "not UTF-8"),
-])
+@pytest.mark.parametrize(
+    "body, words",
+    [
+        ("[gearbox]\nvariant = 905\n", "gearbox.variant = 905 must be a string"),
+        ('[gearbox]\nparams = ["a"]\n', "gearbox.params"),
+        ("[sensor]\nlimits = 5\n", "sensor.limits = 5 must be a string"),
+        ('[sensor]\ndebounce_s = "x"\n', "sensor.debounce_s"),
+        ('[sensor]\nhysteresis_c = "3"\n', "sensor.hysteresis_c"),  # a number in quotes passed silently
+        ('[gearbox]\nvariant = "GRS905"\nparams = "x.toml"\n', "not both"),
+        (b"\xff\xfe\x00garbage", "not UTF-8"),
+    ],
+)
 def test_a_config_value_of_the_wrong_type_is_one_sentence(tmp_path, capsys, body, words):
     """From a bad-input audit: these gave TypeError, ValueError or UnicodeDecodeError tracebacks."""
     cfg = tmp_path / "c.toml"
     cfg.write_bytes(body if isinstance(body, bytes) else body.encode())
     out = tmp_path / "run.csv"
-    assert main(["simulate", "--cycle", str(_cycle(tmp_path / "cyc.csv")), "--out", str(out), "--config", str(cfg),
-                 "--quiet"]) == 2
+    assert (
+        main(
+            [
+                "simulate",
+                "--cycle",
+                str(_cycle(tmp_path / "cyc.csv")),
+                "--out",
+                str(out),
+                "--config",
+                str(cfg),
+                "--quiet",
+            ]
+        )
+        == 2
+    )
     err = capsys.readouterr().err
     assert words in err and "Traceback" not in err and not out.exists()
 
@@ -147,8 +201,23 @@ def test_an_unknown_table_format_or_an_effect_given_twice_is_refused(tmp_path, c
     cyc = _cycle(tmp_path / "c.csv")
     assert main(["simulate", "--cycle", str(cyc), "--out", str(tmp_path / "x.xlsx"), "--quiet"]) == 2
     assert ".csv or .parquet" in capsys.readouterr().err and not (tmp_path / "x.xlsx").exists()
-    assert main(["simulate", "--cycle", str(cyc), "--out", str(tmp_path / "x.csv"), "--quiet",
-                 "--effect", "churning_scale:factor=1.2", "--effect", "churning_scale:factor=1.5"]) == 2
+    assert (
+        main(
+            [
+                "simulate",
+                "--cycle",
+                str(cyc),
+                "--out",
+                str(tmp_path / "x.csv"),
+                "--quiet",
+                "--effect",
+                "churning_scale:factor=1.2",
+                "--effect",
+                "churning_scale:factor=1.5",
+            ]
+        )
+        == 2
+    )
     assert "given twice" in capsys.readouterr().err and not (tmp_path / "x.csv").exists()
 
 
@@ -160,11 +229,20 @@ def test_a_cycle_in_milliseconds_or_rad_s_is_refused_before_it_runs(tmp_path, ca
     table = read_run_table(src)
     ms = RunTable({c: (table[c] * 1000.0 if c == "time_s" else table[c]) for c in table.columns})
     rads = RunTable({c: (table[c] * 2 * np.pi / 60.0 if c == "engine_speed_rpm" else table[c]) for c in table.columns})
-    t20 = np.arange(0.0, 600.0, 0.05)                   # a 10-minute 20 Hz logger file in milliseconds (a review)
-    ms20 = RunTable({"time_s": t20 * 1000.0, "engine_speed_rpm": np.full(t20.size, 1300.0),
-                     "engine_torque_nm": np.full(t20.size, 1500.0), "gear": np.full(t20.size, 9.0)})
-    for name, tab, words in (("ms", ms, "if time_s is in milliseconds, give seconds"), ("rads", rads, "in rad/s?"),
-                             ("ms20", ms20, "if time_s is in milliseconds, give seconds")):
+    t20 = np.arange(0.0, 600.0, 0.05)  # a 10-minute 20 Hz logger file in milliseconds (a review)
+    ms20 = RunTable(
+        {
+            "time_s": t20 * 1000.0,
+            "engine_speed_rpm": np.full(t20.size, 1300.0),
+            "engine_torque_nm": np.full(t20.size, 1500.0),
+            "gear": np.full(t20.size, 9.0),
+        }
+    )
+    for name, tab, words in (
+        ("ms", ms, "if time_s is in milliseconds, give seconds"),
+        ("rads", rads, "in rad/s?"),
+        ("ms20", ms20, "if time_s is in milliseconds, give seconds"),
+    ):
         path = write_run_table(tab, tmp_path / f"{name}.csv")
         out = tmp_path / f"{name}_run.csv"
         assert main(["simulate", "--cycle", str(path), "--out", str(out), "--quiet"]) == 2
@@ -172,26 +250,34 @@ def test_a_cycle_in_milliseconds_or_rad_s_is_refused_before_it_runs(tmp_path, ca
         assert len(err.splitlines()) == 1 and words in err and f"{name}.csv" in err, err
         assert not out.exists()
     out = tmp_path / "rads_run.csv"
-    assert main(["simulate", "--cycle", str(tmp_path / "rads.csv"), "--out", str(out), "--quiet",
-                 "--allow-untrusted"]) == 0 and out.exists()
+    assert (
+        main(["simulate", "--cycle", str(tmp_path / "rads.csv"), "--out", str(out), "--quiet", "--allow-untrusted"])
+        == 0
+        and out.exists()
+    )
 
 
 def _figures(monkeypatch) -> list:
     """The figures the CLI writes, in order, kept for inspection (tools.plots.save_figure still writes them)."""
     import tools.plots as plots
+
     kept, save = [], plots.save_figure
 
     def keep(fig, path, *args, **kw):
         kept.append(fig)
         return save(fig, path, *args, **kw)
+
     monkeypatch.setattr(plots, "save_figure", keep)
     return kept
 
 
 def _limit_lines(ax) -> set:
     """The y values of the horizontal lines across an axis (axhline: x from 0 to 1 in axis coordinates)."""
-    return {float(line.get_ydata()[0]) for line in ax.get_lines()
-            if list(line.get_xdata()) == [0, 1] and len(set(line.get_ydata())) == 1 and line.get_linestyle() == "--"}
+    return {
+        float(line.get_ydata()[0])
+        for line in ax.get_lines()
+        if list(line.get_xdata()) == [0, 1] and len(set(line.get_ydata())) == 1 and line.get_linestyle() == "--"
+    }
 
 
 def test_simulate_plot_is_as_readable_as_replays(tmp_path, monkeypatch):
@@ -200,12 +286,26 @@ def test_simulate_plot_is_as_readable_as_replays(tmp_path, monkeypatch):
     function (tools.plots.temperature_panel): names spelled out, each published component's warning limit."""
     from firmware_model.components import PUBLISHED, describe
     from firmware_model.onboard.warning_levels import load_limits
+
     limits = load_limits()
     figures = _figures(monkeypatch)
     out = tmp_path / "run.csv"
-    assert main(["simulate", "--cycle", "steady:gear=4L,rpm=1300,nm=2000,s=300", "--out", str(out), "--quiet",
-                 "--plot", str(tmp_path / "p.png")]) == 0
-    fig = figures[0]                                  # the temperatures (the heat budget comes second)
+    assert (
+        main(
+            [
+                "simulate",
+                "--cycle",
+                "steady:gear=4L,rpm=1300,nm=2000,s=300",
+                "--out",
+                str(out),
+                "--quiet",
+                "--plot",
+                str(tmp_path / "p.png"),
+            ]
+        )
+        == 0
+    )
+    fig = figures[0]  # the temperatures (the heat budget comes second)
     run = read_run_table(out)
     curves = {line.get_label(): (ax, line) for ax in fig.axes for line in ax.get_lines()}
     inputs = curves["engine speed [rpm]"][0]
@@ -214,15 +314,17 @@ def test_simulate_plot_is_as_readable_as_replays(tmp_path, monkeypatch):
     assert np.allclose(curves["ambient air"][1].get_ydata(), run["ambient_temp_c"])
     assert "oil (sensor reading)" in curves and curves["ambient air"][0] is not inputs
     drawn = [c for c in PUBLISHED if c != "oil" and describe(c) in curves]
-    assert len(drawn) == len(PUBLISHED) - 1           # every published component, each with its name spelled out
+    assert len(drawn) == len(PUBLISHED) - 1  # every published component, each with its name spelled out
     legends = {t.get_text() for ax in fig.axes if ax.get_legend() for t in ax.get_legend().get_texts()}
     assert "PS (sun wheel)" in legends and not legends & set(PUBLISHED)
     for c in drawn:
         ax = curves[describe(c)][0]
         assert limits.of(c)[0] in _limit_lines(ax), c
-    figures.clear()                                   # replay's plot: the same panel, the same limits
-    assert main(["replay", str(out), "--out", str(tmp_path / "est.csv"), "--quiet",
-                 "--plot", str(tmp_path / "r.png")]) == 0
+    figures.clear()  # replay's plot: the same panel, the same limits
+    assert (
+        main(["replay", str(out), "--out", str(tmp_path / "est.csv"), "--quiet", "--plot", str(tmp_path / "r.png")])
+        == 0
+    )
     temps = figures[0].axes[1]
     shown = [line.get_label() for line in temps.get_lines() if not line.get_label().startswith("_")]
     codes = [c for c in PUBLISHED if describe(c) in shown]
@@ -233,13 +335,16 @@ def test_start_time_gives_the_can_log_unix_frame_times(tmp_path, capsys):
     """`simulate --can-log` logs started at 0 s, so `fleet` could not date them; --start-time ISO starts
     the frame times at that UTC time; without --can-log, or not a time: one sentence, nothing written."""
     import datetime as dt
+
     log = tmp_path / "run.log"
     args = ["simulate", "--cycle", str(_cycle(tmp_path / "c.csv")), "--out", str(tmp_path / "run.csv"), "--quiet"]
     assert main([*args, "--can-log", str(log), "--start-time", "2026-01-05T08:00:00+01:00"]) == 0
     first_s = float(log.read_text().split(")", 1)[0].strip("("))
     assert first_s == dt.datetime(2026, 1, 5, 7, tzinfo=dt.timezone.utc).timestamp()
-    for extra, words in ((["--start-time", "2026-01-05"], "only --can-log writes"),
-                         (["--can-log", str(tmp_path / "b.log"), "--start-time", "monday"], "not an ISO 8601")):
+    for extra, words in (
+        (["--start-time", "2026-01-05"], "only --can-log writes"),
+        (["--can-log", str(tmp_path / "b.log"), "--start-time", "monday"], "not an ISO 8601"),
+    ):
         assert main([*args[:-3], "--out", str(tmp_path / "b.csv"), "--quiet", *extra]) == 2
         err = capsys.readouterr().err.strip()
         assert words in err and len(err.splitlines()) == 1, err

@@ -1,4 +1,5 @@
 """The CAN subcommands through the CLI: `simulate --can-log`, `replay LOG`, `play LOG`, `plant`, `run`."""
+
 from __future__ import annotations
 
 import sys
@@ -19,8 +20,7 @@ STEADY = "steady:gear=4L,rpm=1300,nm=2000,s=30"
 @pytest.fixture(scope="module")
 def sim(tmp_path_factory):
     d = tmp_path_factory.mktemp("cmd_can")
-    rc = main(["simulate", "--cycle", STEADY, "--out", str(d / "run.csv"), "--can-log", str(d / "run.log"),
-               "--quiet"])
+    rc = main(["simulate", "--cycle", STEADY, "--out", str(d / "run.csv"), "--can-log", str(d / "run.log"), "--quiet"])
     assert rc == 0
     return d
 
@@ -79,8 +79,25 @@ def test_replay_errors_are_one_sentence(sim, capsys, monkeypatch):
 def test_plant_streams_inputs_and_rig_frames(capsys):
     ch = f"hil-{uuid.uuid4()}"
     mon = can.Bus(interface="virtual", channel=ch)
-    assert main(["plant", "--interface", "virtual", "--channel", ch, "--cycle", STEADY, "--speed", "100",
-                 "--duration", "10", "--quiet"]) == 0
+    assert (
+        main(
+            [
+                "plant",
+                "--interface",
+                "virtual",
+                "--channel",
+                ch,
+                "--cycle",
+                STEADY,
+                "--speed",
+                "100",
+                "--duration",
+                "10",
+                "--quiet",
+            ]
+        )
+        == 0
+    )
     got = drain(mon)
     mon.shutdown()
     pgns = {}
@@ -89,19 +106,22 @@ def test_plant_streams_inputs_and_rig_frames(capsys):
     assert 500 <= pgns[61444] <= 1000 and 95 <= pgns[61445] <= 101 and 9 <= pgns[65272] <= 11
     assert all(95 <= pgns[p] <= 101 for p in range(0xFF50, 0xFF57))
     bams = Counter(m.arbitration_id & 0xFF for m in got if pgn_of(m.arbitration_id) == 0xEC00)
-    assert bams[0x00] == 2 and bams[0x10] == (2 if 61440 in pgns else 0)      # EC1 every 5 s; RC with ERC1
+    assert bams[0x00] == 2 and bams[0x10] == (2 if 61440 in pgns else 0)  # EC1 every 5 s; RC with ERC1
     # a sensor on the bus gets the same from it as from the log: decode one step of the rig
     from can_dbc.adapter import decode_rig
+
     rig = decode_rig([m for m in got if 0xFF50 <= pgn_of(m.arbitration_id) <= 0xFF56][-7:])
     assert len(rig) == 28 and all(20.0 < v < 200.0 for v in rig.values())
 
 
 def test_run_and_plant_help_explain_every_option(capsys):
     parser = build_parser()
-    for cmd, options in (("run", ["--interface", "--channel", "--config", "--bitrate", "--duration", "--log-level"]),
-                         ("plant", ["--interface", "--channel", "--cycle", "--speed", "--config", "--effect"]),
-                         ("play", ["--interface", "--channel", "--bitrate", "--speed", "--quiet"]),
-                         ("replay", ["--frames-out", "--strict"])):
+    for cmd, options in (
+        ("run", ["--interface", "--channel", "--config", "--bitrate", "--duration", "--log-level"]),
+        ("plant", ["--interface", "--channel", "--cycle", "--speed", "--config", "--effect"]),
+        ("play", ["--interface", "--channel", "--bitrate", "--speed", "--quiet"]),
+        ("replay", ["--frames-out", "--strict"]),
+    ):
         with pytest.raises(SystemExit):
             parser.parse_args([cmd, "--help"])
         text = capsys.readouterr().out
@@ -113,17 +133,38 @@ def test_a_simulated_log_carries_its_retarder_reference_so_replay_needs_no_confi
     """A cycle with retarder torque written as a log: RC (SPN 556) in the log gives the replay the reference torque
     the ERC1 percent refers to (the log once needed [can] retarder_reference_torque_nm in the replay's config)."""
     from tools.runtable import RunTable, write_run_table
+
     t = np.arange(0.0, 30.0, 1.0)
-    cyc = RunTable({"time_s": t, "engine_speed_rpm": np.full(t.size, 1200.0), "engine_torque_nm": np.zeros(t.size),
-                    "gear": np.full(t.size, 12.0), "retarder_torque_nm": np.full(t.size, 800.0)})
+    cyc = RunTable(
+        {
+            "time_s": t,
+            "engine_speed_rpm": np.full(t.size, 1200.0),
+            "engine_torque_nm": np.zeros(t.size),
+            "gear": np.full(t.size, 12.0),
+            "retarder_torque_nm": np.full(t.size, 800.0),
+        }
+    )
     write_run_table(cyc, tmp_path / "down.csv")
-    assert main(["simulate", "--cycle", str(tmp_path / "down.csv"), "--out", str(tmp_path / "r.csv"), "--can-log",
-                 str(tmp_path / "r.log"), "--quiet"]) == 0
+    assert (
+        main(
+            [
+                "simulate",
+                "--cycle",
+                str(tmp_path / "down.csv"),
+                "--out",
+                str(tmp_path / "r.csv"),
+                "--can-log",
+                str(tmp_path / "r.log"),
+                "--quiet",
+            ]
+        )
+        == 0
+    )
     assert "retarder_reference_torque_nm" not in capsys.readouterr().err
     main(["replay", str(tmp_path / "r.log"), "--out", str(tmp_path / "e.csv"), "--quiet"])
     est = np.genfromtxt(tmp_path / "e.csv", delimiter=",", names=True)
     braking = est["retarder_torque_nm"][est["time_s"] > 6.0]
-    assert np.all(np.abs(braking - 800.0) <= 0.5 * 3500.0 / 100.0), braking      # within half a percent step
+    assert np.all(np.abs(braking - 800.0) <= 0.5 * 3500.0 / 100.0), braking  # within half a percent step
 
 
 def test_bus_problems_are_one_sentence_and_virtual_says_it_is_in_process(capsys, monkeypatch):
@@ -135,14 +176,32 @@ def test_bus_problems_are_one_sentence_and_virtual_says_it_is_in_process(capsys,
 
     def broken_driver(**kwargs):
         raise NameError("name 'canGetNumberOfChannels' is not defined")
+
     monkeypatch.setattr(can, "Bus", broken_driver)
     assert main(["plant", "--interface", "kvaser", "--channel", "0", "--cycle", STEADY]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "its driver failed (NameError" in err
     monkeypatch.undo()
     ch = f"hil-{uuid.uuid4()}"
-    assert main(["plant", "--interface", "virtual", "--channel", ch, "--cycle", STEADY, "--speed", "100",
-                 "--duration", "1", "--quiet"]) == 0
+    assert (
+        main(
+            [
+                "plant",
+                "--interface",
+                "virtual",
+                "--channel",
+                ch,
+                "--cycle",
+                STEADY,
+                "--speed",
+                "100",
+                "--duration",
+                "1",
+                "--quiet",
+            ]
+        )
+        == 0
+    )
     assert "joins only buses inside this one process" in capsys.readouterr().err
 
 
@@ -151,12 +210,14 @@ def test_sigterm_while_the_plant_computes_is_an_interrupt():
     HIL audit); inside the computation it is now an interrupt as Ctrl-C is, and the handler before it comes back."""
     import os
     import signal
+
     from tools.cli.plant import _term_interrupts
+
     before = signal.getsignal(signal.SIGTERM)
     with pytest.raises(KeyboardInterrupt):
         with _term_interrupts():
             os.kill(os.getpid(), signal.SIGTERM)
-            for _ in range(1000):          # the handler runs between bytecodes
+            for _ in range(1000):  # the handler runs between bytecodes
                 pass
     assert signal.getsignal(signal.SIGTERM) is before
 
@@ -165,10 +226,13 @@ def test_a_bus_that_fails_to_open_leaves_no_teardown_message(capsys, caplog):
     """A udp_multicast bus with a channel that is no address: one sentence, and none of python-can's "... was not
     properly shut down" for the half-built bus after it (a HIL audit)."""
     import logging
+
     pytest.importorskip("msgpack", reason="python-can's udp_multicast needs msgpack")
     with caplog.at_level(logging.WARNING):
-        assert main(["plant", "--interface", "udp_multicast", "--channel", "notanaddress", "--cycle", STEADY,
-                     "--quiet"]) == 2
+        assert (
+            main(["plant", "--interface", "udp_multicast", "--channel", "notanaddress", "--cycle", STEADY, "--quiet"])
+            == 2
+        )
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "cannot open CAN channel 'notanaddress'" in err
     assert not [r for r in caplog.records if "not properly shut down" in r.getMessage()]

@@ -1,10 +1,11 @@
 """`gearbox-vsensor replay` on run tables: output contract, bad values handled by the sensor, bad files refused."""
+
 import numpy as np
 import pytest
 
 from firmware_model.components import PUBLISHED
-from firmware_model.parameters import load_parameters
 from firmware_model.onboard.sensor import SensorInputs, VirtualSensor
+from firmware_model.parameters import load_parameters
 from tools.cli import main
 from tools.replay.table import TableRecord, read_inputs_table, replay_records, replay_table, table_records
 from tools.runtable import RunTable, read_run_table, write_run_table
@@ -12,8 +13,13 @@ from tools.runtable import RunTable, read_run_table, write_run_table
 
 def _table(seconds=60.0, rate=10.0, **cols):
     t = np.arange(0.0, seconds, 1.0 / rate)
-    base = {"time_s": t, "engine_speed_rpm": np.full(t.size, 1300.0), "engine_torque_nm": np.full(t.size, 2000.0),
-            "gear": np.full(t.size, 9.0), "oil_temp_c": 80.0 + 0.01 * t}
+    base = {
+        "time_s": t,
+        "engine_speed_rpm": np.full(t.size, 1300.0),
+        "engine_torque_nm": np.full(t.size, 2000.0),
+        "gear": np.full(t.size, 9.0),
+        "oil_temp_c": 80.0 + 0.01 * t,
+    }
     base.update({k: np.asarray(v, dtype=float) for k, v in cols.items()})
     return RunTable(base)
 
@@ -29,16 +35,25 @@ def test_replay_cli_writes_the_contract_columns(tmp_path, capsys):
     rc = main(["replay", str(src), "--out", str(out), "--plot", str(tmp_path / "est.png")])
     assert rc == 0
     t = read_run_table(out, required=("time_s",))
-    assert t.n == 599                                    # one row per 0.1 s step, at the end of the step
+    assert t.n == 599  # one row per 0.1 s step, at the end of the step
     assert t["time_s"][0] == pytest.approx(0.1) and np.allclose(np.diff(t["time_s"]), 0.1)
     for c in PUBLISHED:
         for col in (f"T_{c}_c", f"W_{c}", f"ttl_{c}_s"):
             assert col in t.columns, col
-    for col in ("engine_speed_rpm", "engine_torque_nm", "gear", "oil_temp_c", "oil_innovation_c", "degraded",
-                "degraded_mode", "model_oil_temp_c", "rejects_speed_missing"):
+    for col in (
+        "engine_speed_rpm",
+        "engine_torque_nm",
+        "gear",
+        "oil_temp_c",
+        "oil_innovation_c",
+        "degraded",
+        "degraded_mode",
+        "model_oil_temp_c",
+        "rejects_speed_missing",
+    ):
         assert col in t.columns, col
-    assert np.isnan(t["ttl_oil_s"]).all()                 # never: an empty cell
-    assert np.isnan(t["ambient_temp_c"]).all()            # not in the input: empty
+    assert np.isnan(t["ttl_oil_s"]).all()  # never: an empty cell
+    assert np.isnan(t["ambient_temp_c"]).all()  # not in the input: empty
     assert (tmp_path / "est.png").stat().st_size > 10000
     assert "replayed" in capsys.readouterr().out
 
@@ -55,7 +70,7 @@ def test_bad_values_in_the_table_are_the_sensor_business(tmp_path, capsys):
     src = write_run_table(_table(engine_speed_rpm=spd, gear=gear, oil_temp_c=oil), tmp_path / "bad.csv")
     out = tmp_path / "est.csv"
     assert main(["replay", str(src), "--out", str(out), "--quiet"]) == 0
-    t = read_inputs_table(out)                           # the output shows the raw inputs it read
+    t = read_inputs_table(out)  # the output shows the raw inputs it read
     assert t["rejects_speed_missing"][-1] == 20 and t["rejects_speed_clamped"][-1] == 1
     assert t["rejects_gear_unknown"][-1] == 5
     assert np.all(t["degraded_mode"][405:] == 1) and np.all(t["degraded"][405:] == 1)
@@ -65,7 +80,7 @@ def test_bad_values_in_the_table_are_the_sensor_business(tmp_path, capsys):
 def test_a_gap_in_the_table_is_a_time_jump(sensor):
     tab = _table(30.0)
     t = tab["time_s"].copy()
-    t[150:] += 100.0                                     # a 100 s hole
+    t[150:] += 100.0  # a 100 s hole
     tab["time_s"] = t
     out = replay_table(tab, sensor)
     assert out["rejects_time_jump"][-1] == 1
@@ -74,18 +89,20 @@ def test_a_gap_in_the_table_is_a_time_jump(sensor):
 
 
 def test_records_are_the_plug_point_for_other_sources(sensor):
-    recs = [TableRecord(0.1 * (k + 1), SensorInputs(1300.0, 2000.0, 9.0, 80.0, t_s=0.1 * (k + 1)))
-            for k in range(50)]
+    recs = [TableRecord(0.1 * (k + 1), SensorInputs(1300.0, 2000.0, 9.0, 80.0, t_s=0.1 * (k + 1))) for k in range(50)]
     out = replay_records(iter(recs), sensor)
     assert out.n == 50 and out["T_PS_c"][-1] > 80.0
     first = next(table_records(_table(1.0)))
     assert isinstance(first.inputs, SensorInputs) and first.t_s == pytest.approx(0.1)
 
 
-@pytest.mark.parametrize("content, words", [
-    ("time_s,engine_speed_rpm\n0,1\n", "required column"),
-    ("time_s,engine_speed_rpm,engine_torque_nm,gear\n0,1,1,1\n0,1,1,1\n", "duplicated"),
-])
+@pytest.mark.parametrize(
+    "content, words",
+    [
+        ("time_s,engine_speed_rpm\n0,1\n", "required column"),
+        ("time_s,engine_speed_rpm,engine_torque_nm,gear\n0,1,1,1\n0,1,1,1\n", "duplicated"),
+    ],
+)
 def test_bad_files_fail_with_one_sentence(tmp_path, capsys, content, words):
     p = tmp_path / "bad.csv"
     p.write_text(content)
@@ -117,8 +134,10 @@ def test_the_summary_names_the_component_closest_to_its_own_limit(tmp_path, caps
     each component's own warning limit, spelled out, with the margin; a table with only the required columns says
     that the auxiliary inputs took their defaults, not a bare "aux_missing N" (issue: a newcomer's first hour)."""
     import numpy as np
+
     from firmware_model.components import PUBLISHED, describe
     from firmware_model.onboard.warning_levels import load_limits
+
     src = write_run_table(_table(10.0), tmp_path / "run.csv")
     assert main(["replay", str(src), "--out", str(tmp_path / "est.csv")]) == 0
     est = read_run_table(tmp_path / "est.csv", required=("time_s",))
@@ -130,7 +149,7 @@ def test_the_summary_names_the_component_closest_to_its_own_limit(tmp_path, caps
     assert line.startswith(f"closest to its limit: {describe(closest)}, peak ") and "warning limit" in line
     rejects = next(s for s in lines if s.startswith("rejected or repaired inputs:"))
     assert "aux_missing" not in rejects
-    assert not np.any(np.isfinite(est["ambient_temp_c"]))       # the table gave only the required columns
+    assert not np.any(np.isfinite(est["ambient_temp_c"]))  # the table gave only the required columns
     assert "auxiliary inputs not given" in rejects and "defaults used" in rejects
 
 
@@ -162,12 +181,18 @@ def test_a_table_sampled_more_sparsely_than_the_hold_gap_is_replayed_whole(senso
     each row alone between two jumps is one step. Before, those rows gave no step: the replay stopped at 10 s without
     a word, and a table with every row 6 s apart had "no rows"."""
     t = np.concatenate([np.arange(0.0, 10.0, 1.0), np.arange(10.0, 599.0, 6.0)])
-    tab = RunTable({"time_s": t, "engine_speed_rpm": np.full(t.size, 1300.0),
-                    "engine_torque_nm": np.full(t.size, 1500.0), "gear": np.full(t.size, 9.0),
-                    "oil_temp_c": 60.0 + 0.01 * t})
+    tab = RunTable(
+        {
+            "time_s": t,
+            "engine_speed_rpm": np.full(t.size, 1300.0),
+            "engine_torque_nm": np.full(t.size, 1500.0),
+            "gear": np.full(t.size, 9.0),
+            "oil_temp_c": 60.0 + 0.01 * t,
+        }
+    )
     out = replay_table(tab, sensor)
     assert out["time_s"][-1] == pytest.approx(t[-1] + 0.1)
-    assert out.n == 100 + (t.size - 11) and out["rejects_time_jump"][-1] == t.size - 11   # 0..10 s: 100 steps
+    assert out.n == 100 + (t.size - 11) and out["rejects_time_jump"][-1] == t.size - 11  # 0..10 s: 100 steps
     sparse = replay_table(RunTable({k: tab[k][10:] for k in tab.columns}), sensor)
     assert sparse.n == t.size - 10
 
@@ -179,25 +204,31 @@ def test_the_oil_modelled_by_request_is_not_degraded(tmp_path, capsys):
     assert main(["replay", str(src), "--oil-mode", "model", "--out", str(tmp_path / "e.csv")]) == 0
     out = capsys.readouterr().out
     assert "degraded: 0.0 % of steps (the oil modelled by request on 100.0 %)" in out
-    oil = np.full(600, np.nan)                   # measured mode without the oil: degraded, untrusted (exit 3)
+    oil = np.full(600, np.nan)  # measured mode without the oil: degraded, untrusted (exit 3)
     src = write_run_table(_table(oil_temp_c=oil), tmp_path / "no_oil.csv")
     assert main(["replay", str(src), "--out", str(tmp_path / "e2.csv"), "--quiet"]) == 3
 
 
-@pytest.mark.parametrize("change, words", [
-    ({"time_s": np.arange(0.0, 60.0, 0.1) * 1000.0}, "if time_s is in milliseconds, give seconds"),
-    ({"engine_speed_rpm": np.full(600, 1300.0 * 2.0 * np.pi / 60.0)}, "is engine_speed_rpm in rad/s?"),
-])
+@pytest.mark.parametrize(
+    "change, words",
+    [
+        ({"time_s": np.arange(0.0, 60.0, 0.1) * 1000.0}, "if time_s is in milliseconds, give seconds"),
+        ({"engine_speed_rpm": np.full(600, 1300.0 * 2.0 * np.pi / 60.0)}, "is engine_speed_rpm in rad/s?"),
+    ],
+)
 def test_a_column_in_another_unit_is_untrusted(tmp_path, capsys, change, words):
     """From a bad-input audit: time_s in ms and engine speed in rad/s replayed with exit 0 and no word (a peak of
     85 degC instead of 101); a CAN log with the same mistake was flagged. Now: a warning naming the column, exit 3."""
     src = write_run_table(_table(**change), tmp_path / "run.csv")
     assert main(["replay", str(src), "--out", str(tmp_path / "est.csv"), "--quiet"]) == 3
     assert words in capsys.readouterr().err
-    t = np.arange(0.0, 3600.0, 10.0)          # telematics every 10 s: held over each gap, no unit mistake
-    stall = np.where(np.arange(600) < 360, 1300.0, 0.0)      # a stalled engine whose torque column keeps its value
-    for name, table in (("ok", _table()), ("sparse", _table(seconds=3600.0, rate=0.1, oil_temp_c=80.0 + 0.001 * t)),
-                        ("stall", _table(engine_speed_rpm=stall))):
+    t = np.arange(0.0, 3600.0, 10.0)  # telematics every 10 s: held over each gap, no unit mistake
+    stall = np.where(np.arange(600) < 360, 1300.0, 0.0)  # a stalled engine whose torque column keeps its value
+    for name, table in (
+        ("ok", _table()),
+        ("sparse", _table(seconds=3600.0, rate=0.1, oil_temp_c=80.0 + 0.001 * t)),
+        ("stall", _table(engine_speed_rpm=stall)),
+    ):
         path = write_run_table(table, tmp_path / f"{name}.csv")
         assert main(["replay", str(path), "--out", str(tmp_path / f"{name}_est.csv"), "--quiet"]) == 0, name
         err = capsys.readouterr().err
@@ -210,12 +241,16 @@ def test_the_summary_times_warnings_by_the_table_clock(spacing_s):
     the time the rows stand at that level, not rows x 0.1 s (an audit: 0.5 min printed for 51 min of warning)."""
     from firmware_model.components import LEVEL_CRITICAL, LEVEL_WARNING
     from tools.replay.summary import summary_lines
+
     t = np.arange(0.0, 3600.0, spacing_s)
     level = np.zeros(t.size)
-    level[(t >= 600.0) & (t < 1800.0)] = LEVEL_WARNING         # 20 min warning
-    level[(t >= 1800.0) & (t < 2400.0)] = LEVEL_CRITICAL        # then 10 min critical
-    cols = {"time_s": t, **{f"T_{c}_c": np.full(t.size, 50.0) for c in PUBLISHED},
-            **{f"W_{c}": np.zeros(t.size) for c in PUBLISHED}}
+    level[(t >= 600.0) & (t < 1800.0)] = LEVEL_WARNING  # 20 min warning
+    level[(t >= 1800.0) & (t < 2400.0)] = LEVEL_CRITICAL  # then 10 min critical
+    cols = {
+        "time_s": t,
+        **{f"T_{c}_c": np.full(t.size, 50.0) for c in PUBLISHED},
+        **{f"W_{c}": np.zeros(t.size) for c in PUBLISHED},
+    }
     cols["W_PS"] = level
     line = summary_lines(RunTable(cols))[1]
     assert line == "warnings: PS in warning for 20.0 min in all, critical for 10.0 min (first at 10.0 min)"
@@ -227,15 +262,19 @@ def test_the_summary_says_when_warning_levels_were_not_available():
     99 % of the cells); a run with every level known says nothing more than "none"."""
     from firmware_model.components import LEVEL_NA
     from tools.replay.summary import summary_lines
+
     t = np.arange(0.0, 600.0, 0.1)
-    cols = {"time_s": t, **{f"T_{c}_c": np.full(t.size, 50.0) for c in PUBLISHED},
-            **{f"W_{c}": np.zeros(t.size) for c in PUBLISHED}}
+    cols = {
+        "time_s": t,
+        **{f"T_{c}_c": np.full(t.size, 50.0) for c in PUBLISHED},
+        **{f"W_{c}": np.zeros(t.size) for c in PUBLISHED},
+    }
     assert summary_lines(RunTable(cols))[1] == "warnings: none"
     for c in PUBLISHED:
-        cols[f"W_{c}"] = np.where(t >= 150.0, LEVEL_NA, 0.0)      # n/a on the last three quarters
+        cols[f"W_{c}"] = np.where(t >= 150.0, LEVEL_NA, 0.0)  # n/a on the last three quarters
     line = summary_lines(RunTable(cols))[1]
     assert line.startswith("warnings: none (warning levels not available") and "75.0 %" in line, line
-    for c in PUBLISHED:                                       # one n/a row of 6000: not "0.0 %" (a review)
+    for c in PUBLISHED:  # one n/a row of 6000: not "0.0 %" (a review)
         cols[f"W_{c}"] = np.where(np.arange(t.size) == 10, LEVEL_NA, 0.0)
     assert "on under 0.1 % of the component-time" in summary_lines(RunTable(cols))[1]
 
@@ -269,4 +308,4 @@ def test_a_table_without_oil_starts_at_its_ambient_reading(sensor, ambient, star
 def test_batched_vehicles_start_at_their_own_ambient(sensor):
     st = sensor.initial_state(n_vehicles=3, ambient_c=np.array([-30.0, np.nan, 10.0]))
     np.testing.assert_array_equal(st.T_c[:, 0, 0], [-30.0, 25.0, 10.0])
-    assert sensor.initial_state(T_oil_c=70.0, ambient_c=-30.0).T_c[0, 0] == 70.0     # the oil reading first
+    assert sensor.initial_state(T_oil_c=70.0, ambient_c=-30.0).T_c[0, 0] == 70.0  # the oil reading first

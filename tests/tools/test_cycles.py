@@ -1,11 +1,24 @@
 """Named synthetic drive cycles: well-formed, consistent, deterministic, and shaped like the thesis's load cases."""
+
 import numpy as np
 import pytest
 
 from firmware_model.errors import InputError
 from firmware_model.physics.kinematics import GEAR_NAMES
-from tools.cycles.named import (BC_COLUMNS, COLUMNS, CYCLE_HELP, CYCLE_NAMES, TABLE11_LC1, TABLE11_LC2, Vehicle,
-                          get_cycle, parse_steady_spec, road_profile, summarize, total_ratios)
+from tools.cycles.named import (
+    BC_COLUMNS,
+    COLUMNS,
+    CYCLE_HELP,
+    CYCLE_NAMES,
+    TABLE11_LC1,
+    TABLE11_LC2,
+    Vehicle,
+    get_cycle,
+    parse_steady_spec,
+    road_profile,
+    summarize,
+    total_ratios,
+)
 from tools.runtable import read_run_table, write_run_table
 
 DURATION_S = {"steady": 3600.0, "all_gears": 1600.0, "long_haul": 3600.0, "uphill": 7200.0, "mining": 10800.0}
@@ -72,7 +85,7 @@ def test_road_cycles_are_physically_consistent(cycles, name):
     ch = np.flatnonzero(np.diff(g) != 0) + 1
     fwd = [i for i in ch if g[i - 1] > 0 and g[i] > 0]
     assert len(fwd) >= 5
-    assert all(np.abs(tb["engine_torque_nm"][i - 2:i + 2]).min() < 1e-6 for i in fwd)
+    assert all(np.abs(tb["engine_torque_nm"][i - 2 : i + 2]).min() < 1e-6 for i in fwd)
 
 
 @pytest.mark.parametrize("name", CYCLE_NAMES)
@@ -178,15 +191,18 @@ def test_steady_spec():
         assert parse_steady_spec(f"steady:gear={name}")["gear"] == g
 
 
-@pytest.mark.parametrize("spec, words", [
-    ("steady:gear=4X", ["4X", "Table 1"]),
-    ("steady:gear=15", ["15"]),
-    ("steady:speed=1300", ["'speed=1300'", "gear=", "rpm=", "nm=", "s=", "oil="]),
-    ("steady:rpm=fast", ["rpm", "'fast'", "not a number"]),
-    ("steady:rpm=-5", ["rpm=-5"]),
-    ("steady:s=0", ["s=0"]),
-    ("steady:oil=80,oil=90", ["oil is given twice"]),          # the last one won, silently (bad-input audit)
-])
+@pytest.mark.parametrize(
+    "spec, words",
+    [
+        ("steady:gear=4X", ["4X", "Table 1"]),
+        ("steady:gear=15", ["15"]),
+        ("steady:speed=1300", ["'speed=1300'", "gear=", "rpm=", "nm=", "s=", "oil="]),
+        ("steady:rpm=fast", ["rpm", "'fast'", "not a number"]),
+        ("steady:rpm=-5", ["rpm=-5"]),
+        ("steady:s=0", ["s=0"]),
+        ("steady:oil=80,oil=90", ["oil is given twice"]),  # the last one won, silently (bad-input audit)
+    ],
+)
 def test_bad_steady_spec(spec, words):
     with pytest.raises(InputError) as ei:
         get_cycle(spec)
@@ -266,8 +282,10 @@ def test_written_cycle_reads_back_valid(tmp_path):
 # ----------------------------------------------------------------------------------------------------------------
 # the vehicle model's pieces
 
+
 def test_driveline_relations_are_inverse():
     from tools.cycles.vehicle import Drivetrain, vehicle_speed_kmh
+
     dt = Drivetrain.of(Vehicle())
     for gear in (3, 9, 14, -2):
         rpm = dt.sync_rpm(gear, 10.0)
@@ -281,9 +299,10 @@ def test_driveline_relations_are_inverse():
 
 def test_reversing_manoeuvre_covers_its_distance():
     from tools.cycles.driver import VEHICLE_STEP_S, reverse_profile
+
     prof = reverse_profile(30.0)
     moving = [p for p in prof if p is not None]
-    assert prof[0] is None and prof[-1] is None                 # pauses in neutral before and after
+    assert prof[0] is None and prof[-1] is None  # pauses in neutral before and after
     assert sum(v for v, _ in moving) * VEHICLE_STEP_S == pytest.approx(30.0, abs=0.2)
     assert max(v for v, _ in moving) == pytest.approx(4.0 / 3.6)
 
@@ -291,9 +310,11 @@ def test_reversing_manoeuvre_covers_its_distance():
 def test_shift_strategy_upshifts_an_overrevving_engine():
     from tools.cycles.driver import DriverState, SpeedTarget, Traction, choose_gear
     from tools.cycles.vehicle import Drivetrain
+
     dt = Drivetrain.of(Vehicle())
-    st = DriverState(mass_kg=40000.0, dwell_s=0.0, next_start_gear=None, mode="drive", gear=10, torque_nm=500.0,
-                     since_shift_s=5.0)
+    st = DriverState(
+        mass_kg=40000.0, dwell_s=0.0, next_start_gear=None, mode="drive", gear=10, torque_nm=500.0, since_shift_s=5.0
+    )
     st.v_m_s = 1960.0 / dt.sync_rpm(10, 1.0)
     st.rpm = dt.sync_rpm(10, st.v_m_s)
     choice = choose_gear(st, dt, 0.0, SpeedTarget(st.v_m_s, 0.0), Traction(2000.0, 500.0, 2500.0, 0.0))

@@ -1,4 +1,5 @@
 """The README's main job: `gearbox-vsensor demo` runs end to end (short drive) and shows something readable."""
+
 from tools.cli import main
 
 
@@ -16,9 +17,17 @@ def test_demo_runs_end_to_end(tmp_path, capsys):
 def test_component_errors_against_the_truth_on_the_bus():
     """Sensor minus the rig thermocouples that travelled on the bus, per component; NaN samples ignored."""
     import numpy as np
+
     from tools.demo import component_errors
     from tools.runtable import RunTable
-    est = RunTable({"time_s": [0.0, 0.1, 0.2], "T_PS_c": [80.0, 81.0, 82.0], "meas_T_PS_c": [79.0, 81.0, np.nan],
-                    "T_oil_c": [70.0, 70.0, 70.0]})
+
+    est = RunTable(
+        {
+            "time_s": [0.0, 0.1, 0.2],
+            "T_PS_c": [80.0, 81.0, 82.0],
+            "meas_T_PS_c": [79.0, 81.0, np.nan],
+            "T_oil_c": [70.0, 70.0, 70.0],
+        }
+    )
     (e,) = component_errors(est)
     assert e.component == "PS" and e.max_abs_k == 1.0 and e.rms_k == np.sqrt(0.5)

@@ -1,4 +1,5 @@
 """What `gearbox-vsensor demo` leaves on disk: 1 s run tables, where it says, and not in git's way."""
+
 from pathlib import Path
 
 import numpy as np
@@ -7,7 +8,7 @@ from tools.cli import main
 from tools.runtable import read_run_table
 
 ROOT = Path(__file__).resolve().parents[2]
-MB_PER_MINUTE = 0.7   # 40 minutes of drive wrote 60 MB (10 Hz run tables); now about 23 MB
+MB_PER_MINUTE = 0.7  # 40 minutes of drive wrote 60 MB (10 Hz run tables); now about 23 MB
 
 
 def test_demo_writes_little_says_where_and_is_ignored_by_git(tmp_path, capsys):
@@ -26,5 +27,6 @@ def test_demo_writes_little_says_where_and_is_ignored_by_git(tmp_path, capsys):
 def test_every_keeps_whole_seconds_or_the_first_row_of_each_second():
     from tools.demo import every
     from tools.runtable import RunTable
+
     assert list(every(RunTable({"time_s": [0.1, 0.2, 1.0, 1.1, 2.0, 2.1]}))["time_s"]) == [1.0, 2.0]
     assert list(every(RunTable({"time_s": [0.0, 0.35, 0.9, 1.2, 2.05]}))["time_s"]) == [0.0, 1.2, 2.05]

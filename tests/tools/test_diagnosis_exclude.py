@@ -5,6 +5,7 @@ claim ("indicated").
 The interval logic is tested on a known misfit profile with the re-simulation replaced; a whole diagnosis is tested
 on a truck pair whose second effect hides behind the first.
 """
+
 from __future__ import annotations
 
 import math
@@ -17,8 +18,8 @@ from firmware_model.effects import CATALOG
 from tools.diagnosis.options import Options
 
 CTX = SimpleNamespace(opts=Options())
-EVIDENCE = Options().evidence_min    # a value is excluded on strong evidence against it (-dBIC > 10)
-EID = "planet_oil_h_scale"           # neutral 1.0, range 0.5 .. 1.5
+EVIDENCE = Options().evidence_min  # a value is excluded on strong evidence against it (-dBIC > 10)
+EID = "planet_oil_h_scale"  # neutral 1.0, range 0.5 .. 1.5
 N_EFF = 800.0
 
 
@@ -58,9 +59,9 @@ def test_an_effect_the_data_point_to_is_indicated_with_its_interval(monkeypatch,
     monkeypatch.setattr(X, "_simulated_S", lambda ctx, base, s, members: _quadratic(members[EID]))
     ne = X._profile_interval(CTX, None, st, _FakeProfile(_quadratic), EID, _walked(_quadratic, st), N_EFF)
     thr = _quadratic(0.6) * math.exp((EVIDENCE + math.log(N_EFF)) / N_EFF)
-    half = math.sqrt((thr - 1000.0) / 4000.0)                 # the exact interval is 0.62 -+ half
+    half = math.sqrt((thr - 1000.0) / 4000.0)  # the exact interval is 0.62 -+ half
     assert ne.indicated and ne.best == pytest.approx(0.6)
-    res = 0.05 / 2 ** X.BISECTIONS                            # the ends land inside, within the resolution
+    res = 0.05 / 2**X.BISECTIONS  # the ends land inside, within the resolution
     assert 0.62 - half <= ne.low <= 0.62 - half + res
     assert 0.62 + half - res <= ne.high <= 0.62 + half
     assert not ne.covers(1.0) and ne.covers(0.62)
@@ -72,11 +73,11 @@ def test_the_surrogates_offset_at_the_best_value_is_taken_out(monkeypatch, st):
     """Surrogates that overstate the misfit by 7 everywhere away from neutral (as superposed changes do) give the
     interval of the simulated profile, not one cut short by the offset."""
     monkeypatch.setattr(X, "_simulated_S", lambda ctx, base, s, members: _quadratic(members[EID]))
-    off = lambda y: _quadratic(y) + (7.0 if y != 1.0 else 0.0)     # noqa: E731
+    off = lambda y: _quadratic(y) + (7.0 if y != 1.0 else 0.0)  # noqa: E731
     ne = X._profile_interval(CTX, None, st, _FakeProfile(off), EID, _walked(off, st), N_EFF)
     thr = _quadratic(0.6) * math.exp((EVIDENCE + math.log(N_EFF)) / N_EFF)
     half = math.sqrt((thr - 1000.0) / 4000.0)
-    res = 0.05 / 2 ** X.BISECTIONS
+    res = 0.05 / 2**X.BISECTIONS
     assert 0.62 - half <= ne.low <= 0.62 - half + res and 0.62 + half - res <= ne.high <= 0.62 + half
 
 
@@ -91,7 +92,7 @@ def test_a_better_fit_the_simulation_refutes_is_not_reported(monkeypatch, st):
 def test_a_flat_profile_is_not_excluded_to_the_bounds(monkeypatch, st):
     """An effect the data cannot see beside the verdict (the same misfit at every value): not excluded from bound to
     bound, not indicated."""
-    flat = lambda y: st.S                                           # noqa: E731
+    flat = lambda y: st.S  # noqa: E731
     monkeypatch.setattr(X, "_simulated_S", lambda ctx, base, s, members: st.S)
     ne = X._profile_interval(CTX, None, st, _FakeProfile(flat), EID, _walked(flat, st), N_EFF)
     assert (ne.low, ne.high) == (0.5, 1.5) and ne.reach == 1.0 and not ne.indicated
@@ -100,9 +101,10 @@ def test_a_flat_profile_is_not_excluded_to_the_bounds(monkeypatch, st):
 def test_an_end_the_simulation_refutes_moves_inwards(monkeypatch, st):
     """A profile flat to 1.3, then rising: the upper end's re-simulation fails beyond 1.25, so the end moves in
     (the bisected end and 1.3 refused, 1.25 confirmed)."""
-    prof = lambda y: st.S if y <= 1.3 + 1e-9 else st.S * 2         # noqa: E731
-    monkeypatch.setattr(X, "_simulated_S", lambda ctx, base, s, members: st.S if members[EID] <= 1.25 + 1e-9
-                        else st.S * 2)
+    prof = lambda y: st.S if y <= 1.3 + 1e-9 else st.S * 2  # noqa: E731
+    monkeypatch.setattr(
+        X, "_simulated_S", lambda ctx, base, s, members: st.S if members[EID] <= 1.25 + 1e-9 else st.S * 2
+    )
     ne = X._profile_interval(CTX, None, st, _FakeProfile(prof), EID, _walked(prof, st), N_EFF)
     assert ne.high == pytest.approx(1.25)
     assert ne.low == 0.5 and not ne.indicated
@@ -113,14 +115,25 @@ def test_a_truck_pair_lists_the_hidden_second_effect():
     alone takes the oil to the expected noise and model error, so no second effect is claimed; beside it the
     planetary convection is listed, indicated (neutral excluded) and fitted below neutral, as planted."""
     import warnings
+
     from firmware_model.parameters import load_parameters
     from tools.diagnosis.bench import make_scenario
     from tools.diagnosis.core import diagnose
+
     params = load_parameters("GRS905")
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
-        sc = make_scenario(2, 1, "truck", "planet_oil_h_scale", 0.6505, params, train_s=900.0, test_s=900.0,
-                           also={"cooler_effectiveness_scale": 1.177})
+        sc = make_scenario(
+            2,
+            1,
+            "truck",
+            "planet_oil_h_scale",
+            0.6505,
+            params,
+            train_s=900.0,
+            test_s=900.0,
+            also={"cooler_effectiveness_scale": 1.177},
+        )
         v = diagnose(sc.train, sc.test, params, model="onboard")["verdict"]
     listed = {n["effect"]: n for n in v["not_excluded"]}
     named = [e["effect"] for e in v.get("effects", [])] or [v["effect"]]
@@ -136,20 +149,19 @@ def test_a_truck_pair_lists_the_hidden_second_effect():
 def test_an_end_whose_tries_are_all_refused_is_bisected_by_simulation(monkeypatch, st):
     """The surrogates pass up to 1.3, the model only up to 1.12: after three refused values the end is bisected by
     re-simulation between the best value (neutral) and the innermost refusal, landing inside, near 1.12."""
-    prof = lambda y: st.S if y <= 1.3 + 1e-9 else st.S * 2         # noqa: E731
-    monkeypatch.setattr(X, "_simulated_S", lambda ctx, base, s, members: st.S if members[EID] <= 1.12
-                        else st.S * 2)
+    prof = lambda y: st.S if y <= 1.3 + 1e-9 else st.S * 2  # noqa: E731
+    monkeypatch.setattr(X, "_simulated_S", lambda ctx, base, s, members: st.S if members[EID] <= 1.12 else st.S * 2)
     ne = X._profile_interval(CTX, None, st, _FakeProfile(prof), EID, _walked(prof, st), N_EFF)
-    assert 1.12 - 0.25 / 2 ** X.BISECTIONS <= ne.high <= 1.12
+    assert 1.12 - 0.25 / 2**X.BISECTIONS <= ne.high <= 1.12
 
 
 def test_neutral_is_judged_on_the_simulated_scale(monkeypatch):
     """The surrogates overstate the misfit by 45 away from neutral (exact there). Neutral's simulated misfit (1050)
     exceeds the threshold (1000 x the evidence factor, about 1021) although it sits below threshold + offset: it must
     be refused, so the effect is indicated."""
-    quad = lambda y: 1000.0 + 20000.0 * (y - 0.95) ** 2           # noqa: E731
+    quad = lambda y: 1000.0 + 20000.0 * (y - 0.95) ** 2  # noqa: E731
     st = SimpleNamespace(members={"cooler_effectiveness_scale": 1.18}, S=quad(1.0))
-    off = lambda y: quad(y) + (45.0 if y != 1.0 else 0.0)           # noqa: E731
+    off = lambda y: quad(y) + (45.0 if y != 1.0 else 0.0)  # noqa: E731
     monkeypatch.setattr(X, "_simulated_S", lambda ctx, base, s, members: quad(members[EID]))
     ne = X._profile_interval(CTX, None, st, _FakeProfile(off), EID, _walked(off, st), N_EFF)
     assert ne.indicated and ne.high < 1.0 and ne.best == pytest.approx(0.95)
@@ -161,7 +173,7 @@ def test_a_one_sided_effect(monkeypatch):
     gives an interval around it, neutral outside (indicated), nothing below 0."""
     eid = "hot_surroundings_offset"
     hi = CATALOG[eid].high
-    quad = lambda y: 1000.0 + 2.0 * (y - 12.0) ** 2                 # noqa: E731
+    quad = lambda y: 1000.0 + 2.0 * (y - 12.0) ** 2  # noqa: E731
     st = SimpleNamespace(members={"cooler_effectiveness_scale": 1.18}, S=quad(0.0))
     monkeypatch.setattr(X, "_simulated_S", lambda ctx, base, s, members: quad(members[eid]))
     pts = _walked(quad, st, eid)
@@ -169,7 +181,7 @@ def test_a_one_sided_effect(monkeypatch):
     ne = X._profile_interval(CTX, None, st, _FakeProfile(quad), eid, pts, N_EFF)
     thr = quad(12.0) * math.exp((EVIDENCE + math.log(N_EFF)) / N_EFF)
     half = math.sqrt((thr - 1000.0) / 2.0)
-    res = 0.1 * hi / 2 ** X.BISECTIONS
+    res = 0.1 * hi / 2**X.BISECTIONS
     assert ne.indicated and ne.frac_low == 0.0
     assert 12.0 - half <= ne.low <= 12.0 - half + res and 12.0 + half - res <= ne.high <= 12.0 + half
 

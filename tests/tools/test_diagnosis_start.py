@@ -4,6 +4,7 @@ fitted, found by the residual a diagnosis at rest leaves.
 The pieces on known arrays; one whole diagnosis on null truck files cut from the middle of synthetic drives, which a
 diagnosis that takes every file at rest calls "unexplained" (the housings lag the oil by several kelvin there).
 """
+
 from __future__ import annotations
 
 import warnings
@@ -30,7 +31,7 @@ def test_box_lsq_is_the_bounded_least_squares_of_two_unknowns():
     r = A @ x_true + rng.normal(0, 0.01, 200)
     x, S = box_lsq(r, w, A, np.array([-1.0, -10.0]), np.array([1.0, 5.0]))
     assert np.allclose(x, x_true, atol=0.01)
-    lo, hi = np.array([-0.05, -10.0]), np.array([0.05, -4.0])      # both unknowns pushed against a bound
+    lo, hi = np.array([-0.05, -10.0]), np.array([0.05, -4.0])  # both unknowns pushed against a bound
     x, S = box_lsq(r, w, A, lo, hi)
     g0, g1 = np.meshgrid(np.linspace(lo[0], hi[0], 41), np.linspace(lo[1], hi[1], 241))
     grid = [float(np.sum(w * (r - A @ np.array([a, b])) ** 2)) for a, b in zip(g0.ravel(), g1.ravel())]
@@ -41,8 +42,7 @@ def test_box_lsq_is_the_bounded_least_squares_of_two_unknowns():
 def _ds(t_end_s=1500.0, channels=(OIL,)):
     t = np.arange(1.0, t_end_s, 2.0)
     ch = {c: SimpleNamespace(cell_t_s=t, cell_n=np.full(t.size, 2)) for c in channels}
-    return SimpleNamespace(name="f.csv", role="train", channels=ch, t_start_s=0.0, t_end_s=t_end_s,
-                           initial_temp_c=70.0)
+    return SimpleNamespace(name="f.csv", role="train", channels=ch, t_start_s=0.0, t_end_s=t_end_s, initial_temp_c=70.0)
 
 
 def test_a_channel_is_scored_after_its_burn_in_and_a_short_file_keeps_enough():
@@ -60,10 +60,10 @@ def _judged(resid_of, t_end_s: float = 2500.0):
     ds = _ds(t_end_s)
     t = ds.channels[OIL].cell_t_s
     rng = np.random.default_rng(1)
-    s_h = 0.08 * (1 - np.exp(-t / 200.0)) * np.exp(-t / 2000.0)     # K of oil per K of housings' start
+    s_h = 0.08 * (1 - np.exp(-t / 200.0)) * np.exp(-t / 2000.0)  # K of oil per K of housings' start
     s_u = np.full(t.size, 0.9)
     resid = resid_of(t, s_h) + rng.normal(0, 0.02, t.size)
-    return ST.judge(ds, [resid], [s_u], [s_h], [np.full(t.size, 1 / 0.02 ** 2)], {OIL: 0.1}, OPTS)
+    return ST.judge(ds, [resid], [s_u], [s_h], [np.full(t.size, 1 / 0.02**2)], {OIL: 0.1}, OPTS)
 
 
 def test_a_running_start_needs_an_early_gap_and_the_housings_evidence():
@@ -84,8 +84,14 @@ def test_a_running_start_needs_an_early_gap_and_the_housings_evidence():
 
 
 def test_the_forced_starts_and_a_running_file_is_trimmed():
-    ds = SimpleNamespace(name="a.csv", role="train", t_start_s=0.0, t_end_s=1500.0, start="rest",
-                         channels={OIL: _channel(np.arange(1.0, 1500.0, 2.0))})
+    ds = SimpleNamespace(
+        name="a.csv",
+        role="train",
+        t_start_s=0.0,
+        t_end_s=1500.0,
+        start="rest",
+        channels={OIL: _channel(np.arange(1.0, 1500.0, 2.0))},
+    )
     ds = _dataclass_like(ds)
     st = ST.decide_starts(Options(start="running"), [ds], [])
     (tr,), rec = st.train, st.records[0]
@@ -98,8 +104,16 @@ def test_the_forced_starts_and_a_running_file_is_trimmed():
 def test_a_forced_running_start_that_cannot_be_taken_says_so():
     """--start running on a file too short to score after its burn-in: scored at rest, and the record's hint (a
     warning of diagnose and calibrate) says that what was asked was not done, and why (it was silent)."""
-    ds = _dataclass_like(SimpleNamespace(name="s.csv", role="train", t_start_s=0.0, t_end_s=800.0, start="rest",
-                                         channels={OIL: _channel(np.arange(1.0, 800.0, 2.0))}))
+    ds = _dataclass_like(
+        SimpleNamespace(
+            name="s.csv",
+            role="train",
+            t_start_s=0.0,
+            t_end_s=800.0,
+            start="rest",
+            channels={OIL: _channel(np.arange(1.0, 800.0, 2.0))},
+        )
+    )
     rec = ST.decide_starts(Options(start="running"), [ds], []).records[0]
     assert rec.start == "rest" and "less than 300 s" in rec.reason
     assert rec.hint.startswith("--start running was asked, but") and rec.reason in rec.hint
@@ -107,13 +121,16 @@ def test_a_forced_running_start_that_cannot_be_taken_says_so():
 
 def _channel(t):
     from tools.diagnosis.prepare import Channel
+
     return Channel(OIL, "oil_temp_c", "T_oil_c", t, 60 + 0.01 * t, t, 60 + 0.01 * t, np.ones(t.size, dtype=int))
 
 
 def _dataclass_like(ns):
     from tools.diagnosis.prepare import Dataset
-    return Dataset(ns.name, ns.role, RunTable({"time_s": np.array([0.0, 1.0])}), ns.channels, 60.0, ns.t_start_s,
-                   ns.t_end_s)
+
+    return Dataset(
+        ns.name, ns.role, RunTable({"time_s": np.array([0.0, 1.0])}), ns.channels, 60.0, ns.t_start_s, ns.t_end_s
+    )
 
 
 def _window(tb: RunTable, t0_s: float) -> RunTable:
@@ -123,11 +140,13 @@ def _window(tb: RunTable, t0_s: float) -> RunTable:
     return RunTable(cols)
 
 
-def _cut_runs(truth_params, setup: str, sensor: dict, seed0: int, drive_s: float, cut_s: float, start_c: float,
-              rng_seed) -> list:
+def _cut_runs(
+    truth_params, setup: str, sensor: dict, seed0: int, drive_s: float, cut_s: float, start_c: float, rng_seed
+) -> list:
     """Three measured runs of the plant with `truth_params`, each a drive from rest at `start_c` cut at `cut_s`."""
     from tools.diagnosis.bench import measure, mixed_cycle
     from tools.plant.reference import ReferencePlant
+
     plant = ReferencePlant(truth_params, {}, cooler="liquid", dt_s=1.0)
     rng = np.random.default_rng(rng_seed)
     runs = []
@@ -146,6 +165,7 @@ def _cut_runs(truth_params, setup: str, sensor: dict, seed0: int, drive_s: float
 def cut_files():
     """Three null truck files (no effect in the truth), each 20 minutes from 20 minutes into a drive from 30 degC."""
     from firmware_model.parameters import load_parameters
+
     params = load_parameters("GRS905")
     return params, _cut_runs(params, "truck", {"oil_temp_c": (2.0, 0.15)}, 50, 2400.0, 1200.0, 30.0, [5, 77])
 
@@ -157,6 +177,7 @@ def test_null_files_cut_from_a_drive_are_none_when_scored_running(cut_files):
     which then stay at rest, and each of them is said to begin driving and warm, with the advice to use --start
     running (on the drives of tests like this one with 25-minute cuts every file was found running: docs)."""
     from tools.diagnosis.core import diagnose
+
     params, files = cut_files
     at_rest = diagnose(files[:2], files[2:], params, model="onboard", opts=Options(start="rest"))
     assert at_rest["verdict"]["effect"] != "none"
@@ -171,7 +192,7 @@ def test_null_files_cut_from_a_drive_are_none_when_scored_running(cut_files):
     for name, st in starts.items():
         if st["start"] == "running":
             assert st["evidence"] >= Options().evidence_min and "first minutes do not fit" in st["reason"]
-        else:          # kept at rest while it begins driving and warm: said, in the starts and the warnings
+        else:  # kept at rest while it begins driving and warm: said, in the starts and the warnings
             assert "--start running" in st["hint"], st
             assert any(w.startswith(f"{name}: ") and "--start running" in w for w in auto["warnings"])
     assert any(st["start"] == "running" for st in starts.values())
@@ -182,11 +203,17 @@ def cut_rig_runs():
     """Three rig runs (oil and three thermocouples), each 30 minutes from 20 minutes into a drive from 25 degC, of a
     gearbox whose hot-surface share is 0.7 (the file: 0.5) and oil-system flow 1.4 times the file's."""
     from firmware_model.parameters import load_parameters
+
     params = load_parameters("GRS905")
-    truth = params.with_overrides({"housing.hot_frac": 0.7,
-                                   "oil_system.flow_m3_per_rad": 1.4 * params["oil_system.flow_m3_per_rad"]})
-    sensor = {"oil_temp_c": (2.0, 0.12), "meas_T_PS_c": (1.0, 0.12), "meas_T_LI.teeth_c": (1.0, 0.12),
-              "meas_T_BLR_c": (1.0, 0.12)}
+    truth = params.with_overrides(
+        {"housing.hot_frac": 0.7, "oil_system.flow_m3_per_rad": 1.4 * params["oil_system.flow_m3_per_rad"]}
+    )
+    sensor = {
+        "oil_temp_c": (2.0, 0.12),
+        "meas_T_PS_c": (1.0, 0.12),
+        "meas_T_LI.teeth_c": (1.0, 0.12),
+        "meas_T_BLR_c": (1.0, 0.12),
+    }
     return params, truth, _cut_runs(truth, "rig", sensor, 70, 3000.0, 1200.0, 25.0, [9, 1])
 
 
@@ -195,6 +222,7 @@ def test_calibrate_on_runs_cut_from_a_drive_needs_them_scored_running(cut_rig_ru
     60 %. (Taken at rest, measured once, docs/diagnosis.md: 0.54, the flow 15 % low, held-out 3.25 -> 3.18 degC; not
     repeated here, for the suite's time.)"""
     from tools.diagnosis.calibrate import calibrate
+
     params, truth, runs = cut_rig_runs
     keys = ["housing.hot_frac", "oil_system.flow_m3_per_rad"]
     cal = calibrate(runs[:2], runs[2:], params, keys, opts=Options(start="running"))
@@ -209,13 +237,18 @@ def test_files_of_one_name_keep_their_own_start_and_a_channel_left_empty_is_drop
     the JSON names them by role; a running file's channel with too few cells after its burn-in is left out of it,
     with a warning (a review found a thermocouple kept with 0 cells, its 'fit' reported as 0.000 degC)."""
     t = np.arange(1.0, 1500.0, 2.0)
-    tc = _channel(t[t < 850.0])                       # a thermocouple that died 850 s in
+    tc = _channel(t[t < 850.0])  # a thermocouple that died 850 s in
     tc = replace(tc, id="PS", column="meas_T_PS_c", model_column="T_PS_c")
-    a = _dataclass_like(SimpleNamespace(name="log.csv", role="train", t_start_s=0.0, t_end_s=1500.0,
-                                        channels={OIL: _channel(t), "PS": tc}))
+    a = _dataclass_like(
+        SimpleNamespace(
+            name="log.csv", role="train", t_start_s=0.0, t_end_s=1500.0, channels={OIL: _channel(t), "PS": tc}
+        )
+    )
     b = replace(a, role="test")
-    recs = (ST.StartOf("log.csv", "train", "rest", "at rest", None, 1.0),
-            ST.StartOf("log.csv", "test", "running", "running", -4.0, 50.0))
+    recs = (
+        ST.StartOf("log.csv", "train", "rest", "at rest", None, 1.0),
+        ST.StartOf("log.csv", "test", "running", "running", -4.0, 50.0),
+    )
     st = ST.decide_starts(Options(), [a], [b], recs)
     assert [r.start for r in st.records] == ["rest", "running"] and st.train[0] is a
     assert set(st.test[0].channels) == {OIL} and any("PS has fewer than" in w for w in st.test[0].warnings)
@@ -228,5 +261,5 @@ def test_a_file_without_the_oil_says_why_it_stays_at_rest():
     t = ds.channels["PS"].cell_t_s
     s_h = 0.3 * (1 - np.exp(-t / 200.0)) * np.exp(-t / 2000.0)
     resid = -6.0 * s_h + np.random.default_rng(2).normal(0, 0.02, t.size)
-    rec = ST.judge(ds, [resid], [np.full(t.size, 0.9)], [s_h], [np.full(t.size, 1 / 0.02 ** 2)], {"PS": 0.1}, OPTS)
+    rec = ST.judge(ds, [resid], [np.full(t.size, 0.9)], [s_h], [np.full(t.size, 1 / 0.02**2)], {"PS": 0.1}, OPTS)
     assert rec.start == "rest" and "no oil channel" in rec.reason and rec.evidence >= OPTS.evidence_min

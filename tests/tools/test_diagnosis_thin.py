@@ -1,9 +1,11 @@
 """Thin evidence (docs/diagnosis.md, "Thin evidence"): files that hold too few effective samples to decide give a
 verdict that says so, names the best candidate and what it would cut, and asks for more or longer files; no sensor
 fault is claimed without evidence for one. The same for a calibration's fitted values."""
+
 from __future__ import annotations
 
 import json
+
 import pytest
 
 from tools.cli import main
@@ -12,13 +14,15 @@ from tools.cli import main
 def test_the_rule_follows_from_the_decision_statistics():
     """n_eff_needed: the least n at which an effect explaining explain_min of the excess reaches evidence_min."""
     import math
+
     from tools.diagnosis.options import Options, n_eff_needed
+
     o = Options()
     n = n_eff_needed(o)
     assert n == 19
     gain = -math.log(1.0 - o.explain_min)
     assert n * gain - math.log(n) >= o.evidence_min > (n - 1) * gain - math.log(n - 1)
-    assert n_eff_needed(o, 2) > n                      # a second parameter pays its own penalty
+    assert n_eff_needed(o, 2) > n  # a second parameter pays its own penalty
 
 
 def test_one_hour_file_with_a_weak_cooler_is_thin_evidence_naming_the_cooler(tmp_path, capsys):
@@ -29,8 +33,24 @@ def test_one_hour_file_with_a_weak_cooler_is_thin_evidence_naming_the_cooler(tmp
     paths = []
     for name, seed in (("train.csv", "0"), ("test.csv", "1")):
         p = tmp_path / name
-        assert main(["simulate", "--cycle", "long_haul", "--seed", seed, "--effect",
-                     "cooler_effectiveness_scale:factor=0.6", "--noise", "--out", str(p), "--quiet"]) == 0
+        assert (
+            main(
+                [
+                    "simulate",
+                    "--cycle",
+                    "long_haul",
+                    "--seed",
+                    seed,
+                    "--effect",
+                    "cooler_effectiveness_scale:factor=0.6",
+                    "--noise",
+                    "--out",
+                    str(p),
+                    "--quiet",
+                ]
+            )
+            == 0
+        )
         paths.append(str(p))
     capsys.readouterr()
     js, rep = tmp_path / "gap.json", tmp_path / "rep" / "gap.md"
@@ -43,6 +63,7 @@ def test_one_hour_file_with_a_weak_cooler_is_thin_evidence_naming_the_cooler(tmp
     assert th["best_candidate"] == "cooler_effectiveness_scale"
     assert 0.45 <= th["parameters"]["factor"] <= 0.65
     from tools.diagnosis.options import Options, n_eff_needed
+
     assert th["n_eff"] < th["n_eff_needed"] == n_eff_needed(Options())
     assert th["test_rms_after_c"] < 0.25 * th["test_rms_before_c"]
     assert "sensor or placement fault" not in v["reason"]
@@ -52,8 +73,25 @@ def test_one_hour_file_with_a_weak_cooler_is_thin_evidence_naming_the_cooler(tmp
     assert "verdict: unexplained (thin evidence)" in out
     # calibrate on the same files: the fit (the cooler's hA) is said to rest on thin evidence, with the advice
     toml, crep = tmp_path / "cal" / "cal.toml", tmp_path / "cal" / "report.md"
-    assert main(["calibrate", "--train", paths[0], "--test", paths[1], "--params", "cooler.liquid_hA_ref", "--out",
-                 str(toml), "--report", str(crep), "--quiet"]) == 0
+    assert (
+        main(
+            [
+                "calibrate",
+                "--train",
+                paths[0],
+                "--test",
+                paths[1],
+                "--params",
+                "cooler.liquid_hA_ref",
+                "--out",
+                str(toml),
+                "--report",
+                str(crep),
+                "--quiet",
+            ]
+        )
+        == 0
+    )
     err = capsys.readouterr().err
     said = next(x for x in err.splitlines() if x.startswith("warning: thin evidence: "))
     assert "fitting 1 value needs at least 19" in said and "more training files, or longer ones" in said
@@ -69,6 +107,7 @@ def test_a_constant_residual_claims_a_sensor_fault_only_with_evidence_for_one():
     """A constant residual over the regimes met is what a sensor offset gives, but also what a heat flow gives on a
     drive over few regimes: "unexplained" calls it a sensor fault only when a sensor effect ranks best."""
     from tools.diagnosis.decide import Verdict, with_structure
+
     v = Verdict("unexplained", "no candidate has strong evidence", None, {}, {})
     heat = with_structure(v, _structure(), "cooler_effectiveness_scale").reason
     assert "sensor or placement fault" not in heat and "no sensor fault is claimed" in heat
@@ -82,15 +121,32 @@ def test_a_constant_residual_claims_a_sensor_fault_only_with_evidence_for_one():
 def _calibration(n_eff: float):
     from tools.diagnosis.calibrate import Calibration
     from tools.diagnosis.options import Options, n_eff_needed
+
     k = "housing.hot_frac"
-    return Calibration([k], {k: 0.5}, {k: 0.7}, {k: 0.01}, {k: False}, [], (2.5, 0.2), (2.5, 0.19),
-                       {"oil": (2.5, 0.19)}, 10, ["a.csv"], ["b.csv"], n_eff=n_eff,
-                       n_eff_needed=n_eff_needed(Options()), n_cells=1801, train_s=3600.0)
+    return Calibration(
+        [k],
+        {k: 0.5},
+        {k: 0.7},
+        {k: 0.01},
+        {k: False},
+        [],
+        (2.5, 0.2),
+        (2.5, 0.19),
+        {"oil": (2.5, 0.19)},
+        10,
+        ["a.csv"],
+        ["b.csv"],
+        n_eff=n_eff,
+        n_eff_needed=n_eff_needed(Options()),
+        n_cells=1801,
+        train_s=3600.0,
+    )
 
 
 @pytest.mark.parametrize("n_eff,thin", [(2.0, True), (500.0, False)])
 def test_a_calibration_on_thin_evidence_says_so_with_the_advice(n_eff, thin, params_grs905):
     from tools.diagnosis.calibrate import report_markdown
+
     cal = _calibration(n_eff)
     said = cal.thin_evidence()
     assert bool(said) == thin
@@ -104,4 +160,5 @@ def test_a_calibration_on_thin_evidence_says_so_with_the_advice(n_eff, thin, par
 @pytest.fixture(scope="module")
 def params_grs905():
     from firmware_model.parameters import load_parameters
+
     return load_parameters("GRS905")

@@ -1,5 +1,6 @@
 """`gearbox-vsensor export-c`: the bundle builds and its test vectors pass on the host (double and float) and on an
 emulated ARM Cortex-M4F (QEMU mps2-an386), within the footprint an ECU allows (issue: deploy the sensor)."""
+
 from __future__ import annotations
 
 import re
@@ -18,8 +19,11 @@ HAVE_ARM = all(shutil.which(t) for t in ARM_TOOLS)
 @pytest.fixture(scope="module")
 def bundles(tmp_path_factory):
     out = {}
-    for name, args in (("double", ["--real", "double"]), ("float", ["--real", "float"]),
-                       ("float_no_ttl", ["--real", "float", "--no-ttl"])):
+    for name, args in (
+        ("double", ["--real", "double"]),
+        ("float", ["--real", "float"]),
+        ("float_no_ttl", ["--real", "float", "--no-ttl"]),
+    ):
         d = tmp_path_factory.mktemp(f"export_{name}")
         assert main(["export-c", *args, "--out", str(d), "--quiet"]) == 0
         out[name] = d
@@ -28,12 +32,24 @@ def bundles(tmp_path_factory):
 
 def test_bundle_files(bundles):
     names = {p.name for p in bundles["float"].iterdir()}
-    assert {"gvs_kernel.c", "gvs_kernel.h", "gvs_tables.c", "gvs_sensor.h", "gvs_sensor.c", "gvs_vectors.c",
-            "gvs_test.c", "Makefile", "README.md", "cortex-m4"} <= names
+    assert {
+        "gvs_kernel.c",
+        "gvs_kernel.h",
+        "gvs_tables.c",
+        "gvs_sensor.h",
+        "gvs_sensor.c",
+        "gvs_vectors.c",
+        "gvs_test.c",
+        "Makefile",
+        "README.md",
+        "cortex-m4",
+    } <= names
     tables = (bundles["float"] / "gvs_tables.c").read_text()
-    assert "const gvs_tables GVS_TABLES" in tables and ".lead_s = 30.0f" in tables     # the early warning on
-    assert re.search(r"\.ldl_nnz = [1-9]", tables) and "#define GVS_EXPORT_TTL 1" in (
-        bundles["float"] / "gvs_sensor.h").read_text()
+    assert "const gvs_tables GVS_TABLES" in tables and ".lead_s = 30.0f" in tables  # the early warning on
+    assert (
+        re.search(r"\.ldl_nnz = [1-9]", tables)
+        and "#define GVS_EXPORT_TTL 1" in (bundles["float"] / "gvs_sensor.h").read_text()
+    )
     bare = (bundles["float_no_ttl"] / "gvs_tables.c").read_text()
     assert ".lead_s = 0.0f" in bare and ".ldl_nnz = 0," in bare and len(bare) < len(tables)
 
@@ -42,6 +58,7 @@ def test_the_summary_names_what_was_written_and_a_file_as_out_is_one_sentence(tm
     """From a newcomer audit: an export into a directory holding other files listed them as written, and --out on
     a file gave the raw 'File exists'."""
     from tools.export.c_bundle import BUNDLE_FILES
+
     fresh = tmp_path / "fresh"
     assert main(["export-c", "--out", str(fresh), "--quiet"]) == 0
     assert sorted(str(p.relative_to(fresh)) for p in fresh.rglob("*") if p.is_file()) == sorted(BUNDLE_FILES)
@@ -69,8 +86,11 @@ def test_make_test_on_the_host(bundles, real, tol):
     print(res.stdout.splitlines()[0])
 
 
-@pytest.mark.skipif(not HAVE_ARM, reason="needs " + ", ".join(ARM_TOOLS) + " (apt install gcc-arm-none-eabi "
-                    "libnewlib-arm-none-eabi qemu-system-arm; .ci/run installs them)")
+@pytest.mark.skipif(
+    not HAVE_ARM,
+    reason="needs " + ", ".join(ARM_TOOLS) + " (apt install gcc-arm-none-eabi "
+    "libnewlib-arm-none-eabi qemu-system-arm; .ci/run installs them)",
+)
 def test_cortex_m4_on_qemu_equals_the_reference_and_fits(bundles):
     """The float build (time to limit included) on the emulated Cortex-M4F passes the vectors exactly as on the host;
     the footprint budget (64 KB flash, 4 KB RAM) is held by the build without the time to limit, and the full
@@ -89,36 +109,49 @@ def test_cortex_m4_on_qemu_equals_the_reference_and_fits(bundles):
         stack = int(re.search(r"stack used by the steps: (\d+) bytes", size.stdout).group(1))
         state = int(re.search(r"state: (\d+) bytes", size.stdout).group(1))
         sizes[name] = (text + data, data + bss, stack, state)
-        print(f"\nCortex-M4F ({name}): flash {text + data} B, RAM data+bss {data + bss} B + stack {stack} B "
-              f"(state {state} B)")
+        print(
+            f"\nCortex-M4F ({name}): flash {text + data} B, RAM data+bss {data + bss} B + stack {stack} B "
+            f"(state {state} B)"
+        )
     flash, _, stack, state = sizes["float_no_ttl"]
     assert flash <= 64 * 1024, f"flash {flash} B"
     assert state + stack <= 4096, f"the sensor's RAM: state {state} B + stack {stack} B"
-    assert sizes["float"][0] > flash and sizes["float"][2] > stack      # the time to limit costs flash and stack
+    assert sizes["float"][0] > flash and sizes["float"][2] > stack  # the time to limit costs flash and stack
     # with the time to limit the flash fits too (int16 index tables, -flto, no soft double in the float build's hot
     # paths: 75 992 B before); its RAM does not (docs/deploy.md says why)
     assert sizes["float"][0] <= 64 * 1024, f"flash with the time to limit {sizes['float'][0]} B"
 
 
-@pytest.mark.skipif(not (HAVE_ARM and HAVE_CC), reason="needs make, a C compiler and " + ", ".join(ARM_TOOLS) +
-                    " (apt install gcc-arm-none-eabi libnewlib-arm-none-eabi qemu-system-arm; .ci/run installs them)")
+@pytest.mark.skipif(
+    not (HAVE_ARM and HAVE_CC),
+    reason="needs make, a C compiler and "
+    + ", ".join(ARM_TOOLS)
+    + " (apt install gcc-arm-none-eabi libnewlib-arm-none-eabi qemu-system-arm; .ci/run installs them)",
+)
 def test_cortex_m4_replays_a_3_h_cycle_like_the_host_float_build(bundles):
     """The mining cycle (3 h, 108,000 steps) through the host's float build and the Cortex-M4F build on QEMU: every
     temperature within 0.05 K, identical warning levels and modes; instructions per step counted by the emulator."""
     import numpy as np
+
     from firmware_model.components import PUBLISHED
     from firmware_model.parameters import load_parameters
     from tools.cycles.named import get_cycle
     from tools.plant.reference import ReferencePlant
     from tools.replay.table import table_steps
+
     d = bundles["float"]
     plant = ReferencePlant(load_parameters("GRS905")).run(get_cycle("mining"), progress=False).table
     _, data = table_steps(plant, 0.1)
     np.ascontiguousarray(data[:, :8], dtype="<f8").tofile(d / "drive.bin")
     host = subprocess.run(["make", "-s", "replay", "IN=drive.bin"], cwd=d, capture_output=True, text=True, timeout=600)
     assert host.returncode == 0, host.stdout + host.stderr
-    m4 = subprocess.run(["make", "-s", "qemu-replay", "IN=drive.bin", "ICOUNT_SHIFT=3"], cwd=d, capture_output=True,
-                        text=True, timeout=1200)
+    m4 = subprocess.run(
+        ["make", "-s", "qemu-replay", "IN=drive.bin", "ICOUNT_SHIFT=3"],
+        cwd=d,
+        capture_output=True,
+        text=True,
+        timeout=1200,
+    )
     assert m4.returncode == 0, m4.stdout + m4.stderr
     n = len(PUBLISHED)
     rec = np.dtype([("T", "<f4", (n,)), ("ttl", "<f4", (n,)), ("level", "i1", (n,)), ("mode", "i1")])
@@ -128,7 +161,7 @@ def test_cortex_m4_replays_a_3_h_cycle_like_the_host_float_build(bundles):
     worst = float(np.abs(a["T"].astype(float) - b["T"]).max())
     assert worst <= 0.05
     assert np.array_equal(a["level"], b["level"]) and np.array_equal(a["mode"], b["mode"])
-    assert (a["level"] == 1).any()            # the drive reaches warnings: the levels are a real comparison
+    assert (a["level"] == 1).any()  # the drive reaches warnings: the levels are a real comparison
     # the time to limit: the same never / not available, finite ones within 1 s or 2 % (the export's float tolerance)
     ta, tb = a["ttl"].astype(float), b["ttl"].astype(float)
     assert np.array_equal(np.isnan(ta), np.isnan(tb)) and np.array_equal(np.isinf(ta), np.isinf(tb))
@@ -138,9 +171,11 @@ def test_cortex_m4_replays_a_3_h_cycle_like_the_host_float_build(bundles):
     assert np.all(np.abs(ta[fin] - tb[fin]) <= np.maximum(1.0, 0.02 * np.abs(ta[fin])))
     mean_cycles, max_cycles = (float(x) for x in re.search(r"mean (\S+), max (\S+)", m4.stdout).groups())
     # -icount shift=3: 8 ns of emulated time per instruction; the SysTick counts the 25 MHz processor clock
-    print(f"\nCortex-M4F over 3 h of mining ({len(a)} steps): max |T_m4 - T_host| {worst:.2g} K, levels identical, "
-          f"time to limit max |difference| {ttl_worst:.3g} s; "
-          f"instructions per step mean {mean_cycles * 40 / 8:.0f}, max {max_cycles * 40 / 8:.0f}")
+    print(
+        f"\nCortex-M4F over 3 h of mining ({len(a)} steps): max |T_m4 - T_host| {worst:.2g} K, levels identical, "
+        f"time to limit max |difference| {ttl_worst:.3g} s; "
+        f"instructions per step mean {mean_cycles * 40 / 8:.0f}, max {max_cycles * 40 / 8:.0f}"
+    )
 
 
 EDGE_PROGRAM = r"""
@@ -185,8 +220,24 @@ def test_float_build_helpers_and_a_bad_refresh_period(bundles, tmp_path):
     (tmp_path / "edge.c").write_text(EDGE_PROGRAM)
     cc = shutil.which("cc") or shutil.which("gcc")
     exe = tmp_path / "edge"
-    build = subprocess.run([cc, "-std=c99", "-O2", "-Wall", "-DGVS_REAL_FLOAT", *caps, f"-I{d}", "-o", str(exe),
-                            str(tmp_path / "edge.c"), str(d / "gvs_tables.c"), "-lm"], capture_output=True, text=True)
+    build = subprocess.run(
+        [
+            cc,
+            "-std=c99",
+            "-O2",
+            "-Wall",
+            "-DGVS_REAL_FLOAT",
+            *caps,
+            f"-I{d}",
+            "-o",
+            str(exe),
+            str(tmp_path / "edge.c"),
+            str(d / "gvs_tables.c"),
+            "-lm",
+        ],
+        capture_output=True,
+        text=True,
+    )
     assert build.returncode == 0, build.stderr
     run = subprocess.run([str(exe)], capture_output=True, text=True, timeout=60)
     assert run.returncode == 0 and "PASS" in run.stdout, run.stdout
@@ -196,11 +247,13 @@ def test_index_tables_are_int16_only_when_every_index_fits():
     """The export stores the index tables as int16 (-DGVS_INDEX16) only when every index fits; one out of range keeps
     them int32."""
     import numpy as np
+
     from firmware_model.onboard.ckernel import TABLE_FIELDS
     from firmware_model.onboard.kernel_tables import table_arrays
     from firmware_model.onboard.sensor import VirtualSensor
     from firmware_model.parameters import load_parameters
     from tools.export.c_bundle import index16_fits
+
     arrays = table_arrays(VirtualSensor(load_parameters("GRS905")).sp)
     assert index16_fits(arrays)
     name = next(n for n, kind in TABLE_FIELDS if kind == "pi")
@@ -306,10 +359,23 @@ def test_restoring_a_saved_state(bundles, tmp_path):
     for name in ("float", "double"):
         d = bundles[name]
         exe = tmp_path / f"resume_{name}"
-        build = subprocess.run([cc, "-std=c99", "-Wall", "-Wextra", "-Werror", f"-I{d}", "-o", str(exe),
-                                str(tmp_path / "resume.c"), *(str(d / f) for f in ("gvs_kernel.c", "gvs_sensor.c",
-                                                                                   "gvs_tables.c")), "-lm"],
-                               capture_output=True, text=True)
+        build = subprocess.run(
+            [
+                cc,
+                "-std=c99",
+                "-Wall",
+                "-Wextra",
+                "-Werror",
+                f"-I{d}",
+                "-o",
+                str(exe),
+                str(tmp_path / "resume.c"),
+                *(str(d / f) for f in ("gvs_kernel.c", "gvs_sensor.c", "gvs_tables.c")),
+                "-lm",
+            ],
+            capture_output=True,
+            text=True,
+        )
         assert build.returncode == 0, build.stderr
         run = subprocess.run([str(exe)], capture_output=True, text=True, timeout=120)
         assert run.returncode == 0 and "PASS" in run.stdout, run.stdout
@@ -327,15 +393,30 @@ def test_a_file_built_with_other_sizes_or_real_type_stops_the_build(bundles, tmp
     a file built without flags gets the export's; one with other values stops with #error."""
     cc = shutil.which("cc") or shutil.which("gcc")
     d = bundles["float"]
-    ok = subprocess.run([cc, "-std=c99", "-c", "-o", str(tmp_path / "k.o"), str(d / "gvs_kernel.c")],
-                        capture_output=True, text=True)
+    ok = subprocess.run(
+        [cc, "-std=c99", "-c", "-o", str(tmp_path / "k.o"), str(d / "gvs_kernel.c")], capture_output=True, text=True
+    )
     assert ok.returncode == 0, ok.stderr
     for flag, what in (("-DGVS_MAX_NODES=96", "GVS_MAX_NODES of this export is"),):
-        bad = subprocess.run([cc, "-std=c99", flag, "-c", "-o", str(tmp_path / "x.o"), str(d / "gvs_sensor.c")],
-                             capture_output=True, text=True)
+        bad = subprocess.run(
+            [cc, "-std=c99", flag, "-c", "-o", str(tmp_path / "x.o"), str(d / "gvs_sensor.c")],
+            capture_output=True,
+            text=True,
+        )
         assert bad.returncode != 0 and what in bad.stderr, bad.stderr
-    bad = subprocess.run([cc, "-std=c99", "-DGVS_REAL_FLOAT", "-c", "-o", str(tmp_path / "y.o"),
-                          str(bundles["double"] / "gvs_kernel.c")], capture_output=True, text=True)
+    bad = subprocess.run(
+        [
+            cc,
+            "-std=c99",
+            "-DGVS_REAL_FLOAT",
+            "-c",
+            "-o",
+            str(tmp_path / "y.o"),
+            str(bundles["double"] / "gvs_kernel.c"),
+        ],
+        capture_output=True,
+        text=True,
+    )
     assert bad.returncode != 0 and "double build" in bad.stderr, bad.stderr
 
 
@@ -384,13 +465,28 @@ def test_loss_map_edges_under_the_sanitizers(bundles, tmp_path):
     for name in ("float", "double"):
         d = bundles[name]
         exe = tmp_path / f"edge_{name}"
-        build = subprocess.run([gcc, "-std=c99", "-O1", "-g", "-fsanitize=address,undefined",
-                                "-fno-sanitize-recover=all", f"-I{d}", "-o", str(exe), str(tmp_path / "loss_edge.c"),
-                                *(str(d / f) for f in ("gvs_kernel.c", "gvs_sensor.c", "gvs_tables.c")), "-lm"],
-                               capture_output=True, text=True)
+        build = subprocess.run(
+            [
+                gcc,
+                "-std=c99",
+                "-O1",
+                "-g",
+                "-fsanitize=address,undefined",
+                "-fno-sanitize-recover=all",
+                f"-I{d}",
+                "-o",
+                str(exe),
+                str(tmp_path / "loss_edge.c"),
+                *(str(d / f) for f in ("gvs_kernel.c", "gvs_sensor.c", "gvs_tables.c")),
+                "-lm",
+            ],
+            capture_output=True,
+            text=True,
+        )
         assert build.returncode == 0, build.stderr
-        run = subprocess.run([str(exe)], capture_output=True, text=True, timeout=300,
-                             env={"ASAN_OPTIONS": "detect_leaks=0"})
+        run = subprocess.run(
+            [str(exe)], capture_output=True, text=True, timeout=300, env={"ASAN_OPTIONS": "detect_leaks=0"}
+        )
         assert run.returncode == 0 and "PASS" in run.stdout, (name, run.stdout[-500:], run.stderr[-2000:])
         assert "runtime error" not in run.stderr, run.stderr[-2000:]
 
@@ -403,18 +499,32 @@ def test_fast_math_stops_the_build(bundles, tmp_path):
     cc = shutil.which("cc") or shutil.which("gcc")
     for name in ("gvs_kernel.c", "gvs_sensor.c"):
         for flag in ("-ffast-math", "-ffinite-math-only"):
-            bad = subprocess.run([cc, "-std=c99", flag, "-c", "-o", str(tmp_path / "k.o"),
-                                  str(bundles["float"] / name)], capture_output=True, text=True)
+            bad = subprocess.run(
+                [cc, "-std=c99", flag, "-c", "-o", str(tmp_path / "k.o"), str(bundles["float"] / name)],
+                capture_output=True,
+                text=True,
+            )
             assert bad.returncode != 0 and "fast-math" in bad.stderr, (name, flag, bad.stderr)
     # clang's -fno-honor-nans defines no macro: the kernel then refuses to step (its NaN checks would not work)
     clang = shutil.which("clang")
     if clang:
         d = bundles["float"]
         exe = tmp_path / "nonan"
-        build = subprocess.run([clang, "-std=c99", "-O2", "-fno-honor-nans", f"-I{d}", "-o", str(exe),
-                                *(str(d / f) for f in ("gvs_kernel.c", "gvs_sensor.c", "gvs_tables.c",
-                                                       "gvs_vectors.c", "gvs_test.c")), "-lm"],
-                               capture_output=True, text=True)
+        build = subprocess.run(
+            [
+                clang,
+                "-std=c99",
+                "-O2",
+                "-fno-honor-nans",
+                f"-I{d}",
+                "-o",
+                str(exe),
+                *(str(d / f) for f in ("gvs_kernel.c", "gvs_sensor.c", "gvs_tables.c", "gvs_vectors.c", "gvs_test.c")),
+                "-lm",
+            ],
+            capture_output=True,
+            text=True,
+        )
         assert build.returncode == 0, build.stderr
         run = subprocess.run([str(exe)], capture_output=True, text=True, timeout=120)
         assert run.returncode != 0 and "FAIL" in run.stdout, run.stdout[-500:]
@@ -425,11 +535,15 @@ def test_variant_replaces_the_configurations(tmp_path):
     status 0. --variant now replaces the configuration's variant (as replay combines them); without it the
     configuration's is used."""
     cfg = tmp_path / "cfg.toml"
-    cfg.write_text('[sensor]\ndebounce_s = 2.0\n')                       # names no variant (the audit's case)
+    cfg.write_text("[sensor]\ndebounce_s = 2.0\n")  # names no variant (the audit's case)
     named = tmp_path / "named.toml"
     named.write_text('[gearbox]\nvariant = "GRSO905"\n')
-    cases = ((["--variant", "GRSO905", "--config", str(cfg)], "GRSO905"), (["--config", str(cfg)], "GRS905"),
-             (["--config", str(named)], "GRSO905"), (["--variant", "GRS905", "--config", str(named)], "GRS905"))
+    cases = (
+        (["--variant", "GRSO905", "--config", str(cfg)], "GRSO905"),
+        (["--config", str(cfg)], "GRS905"),
+        (["--config", str(named)], "GRSO905"),
+        (["--variant", "GRS905", "--config", str(named)], "GRS905"),
+    )
     for i, (args, want) in enumerate(cases):
         out = tmp_path / f"export{i}"
         assert main(["export-c", *args, "--out", str(out), "--quiet"]) == 0

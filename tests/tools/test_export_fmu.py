@@ -1,6 +1,7 @@
 """`gearbox-vsensor export-fmu`: FMPy validates the FMU (FMI 2 and FMI 3) and simulates it; its outputs equal the
 Python reference (the numpy step, the time to limit and the early warning on, as in the FMU) on 1000 s of the uphill
 cycle."""
+
 from __future__ import annotations
 
 import shutil
@@ -10,10 +11,13 @@ import pytest
 
 from tools.cli import main
 
-fmpy = pytest.importorskip("fmpy", reason="FMPy is an optional extra (pip install fmpy): it validates and "
-                                          "simulates the FMU")
-pytestmark = pytest.mark.skipif(not any(shutil.which(c) for c in ("cc", "gcc", "clang")),
-                                reason="export-fmu compiles the FMU's binary: no C compiler here")
+fmpy = pytest.importorskip(
+    "fmpy", reason="FMPy is an optional extra (pip install fmpy): it validates and simulates the FMU"
+)
+pytestmark = pytest.mark.skipif(
+    not any(shutil.which(c) for c in ("cc", "gcc", "clang")),
+    reason="export-fmu compiles the FMU's binary: no C compiler here",
+)
 
 
 @pytest.fixture(scope="module", params=["2", "3"], ids=["fmi2", "fmi3"])
@@ -25,12 +29,12 @@ def fmu(request, tmp_path_factory):
 
 def test_fmpy_validates_it(fmu):
     from fmpy.validation import validate_fmu
+
     assert validate_fmu(str(fmu)) == []
     md = fmpy.read_model_description(str(fmu))
     assert md.fmiVersion == ("3.0" if fmu.stem.endswith("3") else "2.0")
     names = {v.name for v in md.modelVariables}
-    assert {"engine_speed_rpm", "T_PS_c", "W_PS", "ttl_PS_s", "degraded_mode", "limit_warning_PS_c",
-            "variant"} <= names
+    assert {"engine_speed_rpm", "T_PS_c", "W_PS", "ttl_PS_s", "degraded_mode", "limit_warning_PS_c", "variant"} <= names
     assert md.coSimulation is not None and md.defaultExperiment.stepSize == "0.1"
 
 
@@ -41,36 +45,42 @@ def test_simulation_equals_the_reference(fmu):
     from tools.cycles.named import get_cycle
     from tools.plant.reference import ReferencePlant
     from tools.replay.table import table_steps
+
     params = load_parameters("GRS905")
     plant = ReferencePlant(params).run(get_cycle("uphill"), progress=False).table
     _, data = table_steps(plant)
-    n = 10000                                          # past the first early warning (the time to limit finite)
+    n = 10000  # past the first early warning (the time to limit finite)
     raw = data[:n, :8]
-    ref = VirtualSensor(params, core="numpy")        # the time to limit and the early warning on, as in the FMU
+    ref = VirtualSensor(params, core="numpy")  # the time to limit and the early warning on, as in the FMU
     _, out = ref.step_table(ref.initial_state(T_oil_c=float(raw[0, 3])), raw)
     names = [col for _, col in SENSOR_INPUTS]
     signals = np.zeros(n, dtype=[("time", float)] + [(c, float) for c in names])
     signals["time"] = 0.1 * np.arange(n)
     for i, c in enumerate(names):
         signals[c] = raw[:, i]
-    res = fmpy.simulate_fmu(str(fmu), start_time=0.0, stop_time=0.1 * (n - 1), output_interval=0.1,
-                            input=signals, output=["T_PS_c", "T_BLR_c", "T_oil_c", "W_PS", "degraded_mode",
-                                                   "ttl_PS_s", "ttl_1M.teeth_s"])
+    res = fmpy.simulate_fmu(
+        str(fmu),
+        start_time=0.0,
+        stop_time=0.1 * (n - 1),
+        output_interval=0.1,
+        input=signals,
+        output=["T_PS_c", "T_BLR_c", "T_oil_c", "W_PS", "degraded_mode", "ttl_PS_s", "ttl_1M.teeth_s"],
+    )
     k = min(len(res) - 1, n - 1)
     from firmware_model.components import PUBLISHED
+
     ps = PUBLISHED.index("PS")
     for comp in ("PS", "BLR", "oil"):
-        np.testing.assert_allclose(res[f"T_{comp}_c"][1:k + 1], out.T_c[:k, PUBLISHED.index(comp)], rtol=0,
-                                   atol=1e-9)
-    np.testing.assert_array_equal(res["W_PS"][1:k + 1], out.level[:k, ps])
-    np.testing.assert_array_equal(res["degraded_mode"][1:k + 1], out.degraded_mode[:k])
+        np.testing.assert_allclose(res[f"T_{comp}_c"][1 : k + 1], out.T_c[:k, PUBLISHED.index(comp)], rtol=0, atol=1e-9)
+    np.testing.assert_array_equal(res["W_PS"][1 : k + 1], out.level[:k, ps])
+    np.testing.assert_array_equal(res["degraded_mode"][1 : k + 1], out.degraded_mode[:k])
     # the time to limit (the kernel's march against the numpy reference's): within 0.1 s or 0.1 %, inf and NaN alike
     for comp in ("PS", "1M.teeth"):
-        got, want = res[f"ttl_{comp}_s"][1:k + 1], out.ttl_s[:k, PUBLISHED.index(comp)]
+        got, want = res[f"ttl_{comp}_s"][1 : k + 1], out.ttl_s[:k, PUBLISHED.index(comp)]
         np.testing.assert_array_equal(np.isnan(got), np.isnan(want))
         np.testing.assert_array_equal(np.isinf(got), np.isinf(want))
         fin = np.isfinite(want)
-        assert fin.sum() > 100, comp                   # the uphill cycle comes within reach of a limit
+        assert fin.sum() > 100, comp  # the uphill cycle comes within reach of a limit
         assert np.all(np.abs(got[fin] - want[fin]) <= np.maximum(0.1, 1e-3 * np.abs(want[fin]))), comp
     assert k >= n - 2
 
@@ -99,26 +109,34 @@ def test_a_rig_s_own_sampling_and_life_cycle(fmu):
     outputs read during initialisation were zeros; fmpy could not rebuild the binary (no SourceFiles, no
     buildDescription.xml)."""
     from fmpy import extract, read_model_description
+
     from firmware_model.service.options import SENSOR_INPUTS
     from tools.export.fmu import SOURCE_FILES
+
     md = read_model_description(str(fmu))
     assert md.coSimulation.canHandleVariableCommunicationStepSize is False
-    assert {v.name: v.variability for v in md.modelVariables if v.causality == "input"} == \
-        {col: "discrete" for _, col in SENSOR_INPUTS}
+    assert {v.name: v.variability for v in md.modelVariables if v.causality == "input"} == {
+        col: "discrete" for _, col in SENSOR_INPUTS
+    }
     units = {v.name: v.unit or v.declaredType for v in md.modelVariables}
     assert units["T_PS_c"] == "degC" and units["engine_speed_rpm"] == "rpm" and units["ttl_PS_s"] == "s"
     assert md.buildConfigurations and md.buildConfigurations[0].sourceFileSets[0].sourceFiles == list(SOURCE_FILES)
     names = [col for _, col in SENSOR_INPUTS]
-    t = np.arange(0.0, 120.0, 0.05)                       # 20 Hz: a gear change at 60.05 s, off the 0.1 s grid
+    t = np.arange(0.0, 120.0, 0.05)  # 20 Hz: a gear change at 60.05 s, off the 0.1 s grid
     sig = np.zeros(t.size, dtype=[("time", float)] + [(c, float) for c in names])
     sig["time"] = t
     sig["engine_speed_rpm"], sig["engine_torque_nm"] = 1400.0, 1500.0
     sig["gear"] = np.where(t < 60.05, 8.0, 9.0)
     sig["oil_temp_c"] = 80.0
-    sig["oil_temp_c"][(t >= 10.0) & (t < 20.0)] = np.nan    # a 10 s gap: 100 steps without the oil
+    sig["oil_temp_c"][(t >= 10.0) & (t < 20.0)] = np.nan  # a 10 s gap: 100 steps without the oil
     sig["ambient_temp_c"], sig["coolant_temp_c"], sig["vehicle_speed_kmh"] = 20.0, 85.0, 60.0
-    res = fmpy.simulate_fmu(str(fmu), stop_time=99.95, output_interval=0.1, input=sig,
-                            output=["T_PS_c", "rejects_oil_missing", "rejects_gear_unknown"])
+    res = fmpy.simulate_fmu(
+        str(fmu),
+        stop_time=99.95,
+        output_interval=0.1,
+        input=sig,
+        output=["T_PS_c", "rejects_oil_missing", "rejects_gear_unknown"],
+    )
     assert res["time"][-1] == pytest.approx(99.9) and np.isfinite(res["T_PS_c"]).all()
     assert res["rejects_oil_missing"][-1] == 100 and res["rejects_gear_unknown"][-1] == 0
     with pytest.raises(Exception):
@@ -127,16 +145,20 @@ def test_a_rig_s_own_sampling_and_life_cycle(fmu):
     unzipped = extract(str(fmu))
     if md.fmiVersion == "2.0":
         from fmpy.fmi2 import FMU2Slave
-        slave = FMU2Slave(guid=md.guid, unzipDirectory=unzipped, modelIdentifier=md.coSimulation.modelIdentifier,
-                          instanceName="rig")
+
+        slave = FMU2Slave(
+            guid=md.guid, unzipDirectory=unzipped, modelIdentifier=md.coSimulation.modelIdentifier, instanceName="rig"
+        )
         slave.instantiate()
         slave.setupExperiment(startTime=0.0)
         slave.enterInitializationMode()
         get, put = slave.getReal, slave.setReal
     else:
         from fmpy.fmi3 import FMU3Slave
-        slave = FMU3Slave(guid=md.guid, unzipDirectory=unzipped, modelIdentifier=md.coSimulation.modelIdentifier,
-                          instanceName="rig")
+
+        slave = FMU3Slave(
+            guid=md.guid, unzipDirectory=unzipped, modelIdentifier=md.coSimulation.modelIdentifier, instanceName="rig"
+        )
         slave.instantiate()
         slave.enterInitializationMode(startTime=0.0)
         get, put = slave.getFloat64, slave.setFloat64
@@ -145,14 +167,14 @@ def test_a_rig_s_own_sampling_and_life_cycle(fmu):
     slave.exitInitializationMode()
     if md.fmiVersion != "2.0":
         slave.enterStepMode()
-    for t in (float("nan"), float("inf")):              # inf passed the 'same point' check once (it is inf)
+    for t in (float("nan"), float("inf")):  # inf passed the 'same point' check once (it is inf)
         with pytest.raises(Exception):
             slave.doStep(t, 0.1)
     slave.doStep(0.0, 0.1)
     slave.terminate()
     with pytest.raises(Exception):
         slave.doStep(0.1, 0.1)
-    assert np.isfinite(get([vr["T_PS_c"]])[0])        # the outputs stay readable after terminate
+    assert np.isfinite(get([vr["T_PS_c"]])[0])  # the outputs stay readable after terminate
     slave.freeInstance()
 
 
@@ -162,10 +184,12 @@ def test_fmpy_rebuilds_the_binary_from_the_sources(fmu, tmp_path):
     simulates as the shipped one."""
     import subprocess
     import sys
+
     rebuilt = tmp_path / fmu.name
     shutil.copyfile(fmu, rebuilt)
-    res = subprocess.run([sys.executable, "-m", "fmpy", "compile", str(rebuilt)], capture_output=True, text=True,
-                         timeout=600)
+    res = subprocess.run(
+        [sys.executable, "-m", "fmpy", "compile", str(rebuilt)], capture_output=True, text=True, timeout=600
+    )
     assert res.returncode == 0, res.stderr[-2000:]
     run = dict(stop_time=30.0, output_interval=0.1, start_values={"initial_temp_c": 60.0}, output=["T_PS_c", "T_oil_c"])
     a, b = fmpy.simulate_fmu(str(fmu), **run), fmpy.simulate_fmu(str(rebuilt), **run)

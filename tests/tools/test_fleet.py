@@ -3,6 +3,7 @@ input. Needs dask.distributed and pyarrow (pip install '.[fleet]'); without them
 
 Every Dask client runs in a child process: a Dask client leaves threads behind in its process, and other tests of
 this session (the two-process replay) must be able to fork this one."""
+
 from __future__ import annotations
 
 import importlib.util
@@ -54,7 +55,7 @@ def _same(a: dict, b: dict) -> None:
     assert a.keys() == b.keys()
     for k in a:
         for col, va in a[k].items():
-            if col == "replayed_at_s":       # when the row was made
+            if col == "replayed_at_s":  # when the row was made
                 continue
             vb = b[k][col]
             assert va == vb or (isinstance(va, float) and np.isnan(va) and np.isnan(vb)), (col, va, vb)
@@ -67,15 +68,18 @@ def _free_port() -> int:
 
 
 def _wait_workers(address: str, n: int, timeout_s: float = 60.0) -> None:
-    code = (f"from dask.distributed import Client\nwith Client({address!r}, timeout='30s') as c:\n"
-            f"    c.wait_for_workers({n}, timeout={timeout_s})\n")
+    code = (
+        f"from dask.distributed import Client\nwith Client({address!r}, timeout='30s') as c:\n"
+        f"    c.wait_for_workers({n}, timeout={timeout_s})\n"
+    )
     subprocess.run([sys.executable, "-c", code], env=ENV, check=True, timeout=timeout_s + 30)
 
 
 def fleet(*args: str, check: bool = True) -> subprocess.CompletedProcess:
     """`gearbox-vsensor fleet ARGS` in a child process."""
-    res = subprocess.run([sys.executable, "-m", "tools.cli", "fleet", *args], env=ENV, capture_output=True,
-                         text=True, timeout=600)
+    res = subprocess.run(
+        [sys.executable, "-m", "tools.cli", "fleet", *args], env=ENV, capture_output=True, text=True, timeout=600
+    )
     if check:
         assert res.returncode == 0, res.stderr[-3000:]
     return res
@@ -84,9 +88,11 @@ def fleet(*args: str, check: bool = True) -> subprocess.CompletedProcess:
 def run_fleet_in_child(tmp_path, body: str) -> None:
     """Run ``body`` (Python using run_fleet, read_manifest, os, signal) as a script in a child process."""
     script = tmp_path / "child.py"
-    script.write_text("import os, signal\nfrom tools.fleet.manifest import read_manifest\n"
-                      "from tools.fleet.run import run_fleet\n\nif __name__ == '__main__':\n"
-                      + textwrap.indent(textwrap.dedent(body), "    "))
+    script.write_text(
+        "import os, signal\nfrom tools.fleet.manifest import read_manifest\n"
+        "from tools.fleet.run import run_fleet\n\nif __name__ == '__main__':\n"
+        + textwrap.indent(textwrap.dedent(body), "    ")
+    )
     res = subprocess.run([sys.executable, str(script)], env=ENV, capture_output=True, text=True, timeout=600)
     assert res.returncode == 0, res.stderr[-3000:]
 
@@ -97,13 +103,35 @@ def cluster(tmp_path):
     port = _free_port()
     address = f"tcp://127.0.0.1:{port}"
     dask = [sys.executable, "-m", "distributed.cli.dask_scheduler"]
-    procs = [subprocess.Popen([*dask, "--host", "127.0.0.1", "--port", str(port), "--no-dashboard"], env=ENV,
-                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, cwd=tmp_path)]
+    procs = [
+        subprocess.Popen(
+            [*dask, "--host", "127.0.0.1", "--port", str(port), "--no-dashboard"],
+            env=ENV,
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+            cwd=tmp_path,
+        )
+    ]
     time.sleep(1.0)
     for _ in range(2):
-        procs.append(subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_worker", address, "--nthreads",
-                                       "1", "--no-nanny", "--no-dashboard"], env=ENV, stdout=subprocess.DEVNULL,
-                                      stderr=subprocess.DEVNULL, cwd=tmp_path))
+        procs.append(
+            subprocess.Popen(
+                [
+                    sys.executable,
+                    "-m",
+                    "distributed.cli.dask_worker",
+                    address,
+                    "--nthreads",
+                    "1",
+                    "--no-nanny",
+                    "--no-dashboard",
+                ],
+                env=ENV,
+                stdout=subprocess.DEVNULL,
+                stderr=subprocess.DEVNULL,
+                cwd=tmp_path,
+            )
+        )
     try:
         _wait_workers(address, 2)
         yield address, procs[1:]
@@ -117,8 +145,16 @@ def cluster(tmp_path):
 def test_a_real_cluster_gives_the_local_clusters_rows_and_per_log_replay(tmp_path, synthetic, cluster):
     address, _ = cluster
     entries = read_manifest(synthetic)
-    fleet("--manifest", str(synthetic), "--out", str(tmp_path / "remote"), "--scheduler", address, "--estimates",
-          "--no-report")
+    fleet(
+        "--manifest",
+        str(synthetic),
+        "--out",
+        str(tmp_path / "remote"),
+        "--scheduler",
+        address,
+        "--estimates",
+        "--no-report",
+    )
     fleet("--manifest", str(synthetic), "--out", str(tmp_path / "local"), "--workers", "1", "--no-report")
     remote, local = _rows(tmp_path / "remote"), _rows(tmp_path / "local")
     assert len(remote) == len(entries)
@@ -139,7 +175,9 @@ def test_a_real_cluster_gives_the_local_clusters_rows_and_per_log_replay(tmp_pat
 def test_a_worker_killed_mid_run_every_log_once(tmp_path, synthetic, cluster):
     address, workers = cluster
     entries = read_manifest(synthetic)
-    run_fleet_in_child(tmp_path, f"""
+    run_fleet_in_child(
+        tmp_path,
+        f"""
         killed = []
 
         def kill_one(done_batches):
@@ -150,11 +188,12 @@ def test_a_worker_killed_mid_run_every_log_once(tmp_path, synthetic, cluster):
         run_fleet(read_manifest({str(synthetic)!r}), {str(tmp_path / "out")!r}, scheduler={address!r}, max_logs=1,
                   on_batch=kill_one)
         assert killed
-        """)
+        """,
+    )
     assert workers[0].wait(timeout=10) == -signal.SIGKILL
     rows = read_table(tmp_path / "out").to_pylist()
     keys = [r["log_key"] for r in rows]
-    assert sorted(keys) == sorted(e.key for e in entries)       # every log, exactly once
+    assert sorted(keys) == sorted(e.key for e in entries)  # every log, exactly once
     assert read_table(tmp_path / "out", ERRORS) is None
 
 
@@ -164,17 +203,19 @@ def test_bad_logs_land_in_the_errors_table_and_reruns_skip(tmp_path, synthetic):
     good = read_manifest(synthetic)[0].log
     shutil.copy(good, logs / "good.log")
     raw = good.read_bytes()
-    (logs / "truncated.log").write_bytes(raw[:len(raw) // 2 - 7])
-    lines = raw.split(b"\n")      # a log with 2 % garbage lines: summarised, untrusted, as `replay` says
+    (logs / "truncated.log").write_bytes(raw[: len(raw) // 2 - 7])
+    lines = raw.split(b"\n")  # a log with 2 % garbage lines: summarised, untrusted, as `replay` says
     (logs / "garbled.log").write_bytes(b"\n".join(b"#garbage" if k % 50 == 7 else x for k, x in enumerate(lines)))
     (logs / "empty.log").write_bytes(b"")
     (logs / "notes.txt").write_text("not a log\n")
     (logs / "picture.log").write_bytes(bytes(range(256)) * 8)
     import gzip
-    (logs / "packed.log.gz").write_bytes(gzip.compress(raw))          # was skipped without a word
+
+    (logs / "packed.log.gz").write_bytes(gzip.compress(raw))  # was skipped without a word
     # a log of another ECU's traffic only (no engine, no gear): summarised, but not trusted, as `replay` says
-    (logs / "nogear.log").write_text("".join(f"({1.7e9 + 0.1 * k:.6f}) can0 18FEF100#FFFFFFFFFFFFFFFF\n"
-                                             for k in range(3000)))
+    (logs / "nogear.log").write_text(
+        "".join(f"({1.7e9 + 0.1 * k:.6f}) can0 18FEF100#FFFFFFFFFFFFFFFF\n" for k in range(3000))
+    )
     out = tmp_path / "out"
     # the folder holding the vehicle's folder: a log lying directly in a folder given is its own vehicle
     args = [str(tmp_path / "logs"), str(logs / "notes.txt"), "--out", str(out), "--workers", "1"]
@@ -191,7 +232,7 @@ def test_bad_logs_land_in_the_errors_table_and_reruns_skip(tmp_path, synthetic):
     assert not garbled["trusted"] and garbled["malformed_first_lines"] == "8, 58, 108, 158, 208"
     assert garbled["malformed_lines"] == sum(1 for k in range(len(lines)) if k % 50 == 7)
     assert "malformed lines skipped (lines 8, 58, 108, 158, 208 and" in garbled["trust_warnings"]
-    cut_line = raw[:len(raw) // 2 - 7].count(b"\n") + 1
+    cut_line = raw[: len(raw) // 2 - 7].count(b"\n") + 1
     assert rows["truncated.log"]["malformed_lines"] == 1 and rows["good.log"]["malformed_lines"] == 0
     assert rows["truncated.log"]["malformed_first_lines"] == str(cut_line) and rows["truncated.log"]["trusted"]
     assert rows["good.log"]["trusted"] and not rows["nogear.log"]["trusted"] and rows["nogear.log"]["trust_warnings"]
@@ -199,7 +240,7 @@ def test_bad_logs_land_in_the_errors_table_and_reruns_skip(tmp_path, synthetic):
     assert "should not be trusted (2," in report and "| nogear.log |" in report and "| garbled.log |" in report
     assert "Logs with malformed lines skipped (2)" in report and f"| truncated.log | 1 | {cut_line} |" in report
     summary_files = sorted(str(p) for p in (out / "summary").rglob("*.parquet"))
-    fleet(*args)             # a re-run: the summarised logs are not redone, the failed ones tried again, once each
+    fleet(*args)  # a re-run: the summarised logs are not redone, the failed ones tried again, once each
     assert sorted(str(p) for p in (out / "summary").rglob("*.parquet")) == summary_files
     assert len(read_table(out).to_pylist()) == len(rows)
     assert sorted(Path(r["log"]).name for r in read_table(out, ERRORS).to_pylist()) == sorted(errors)
@@ -222,17 +263,17 @@ def test_changed_moved_and_other_variant_logs_are_not_kept_stale(tmp_path, synth
     logs.mkdir(parents=True)
     good = read_manifest(synthetic)[0].log
     lines = good.read_text().splitlines(keepends=True)
-    (logs / "day1.log").write_text("".join(lines[:len(lines) // 2]))          # half written
+    (logs / "day1.log").write_text("".join(lines[: len(lines) // 2]))  # half written
     out = tmp_path / "out"
     args = [str(tmp_path / "logs"), "--out", str(out), "--workers", "1", "--no-report"]
     fleet(*args)
     half = read_table(out).to_pylist()[0]
-    (logs / "day1.log").write_text("".join(lines))                            # the whole day now
+    (logs / "day1.log").write_text("".join(lines))  # the whole day now
     res = fleet(*args)
     assert "0 done before, 1 summarised" in res.stdout, res.stdout
     rows = read_table(out).to_pylist()
     assert len(rows) == 1 and rows[0]["frames"] > half["frames"] and rows[0]["variant"] == "GRS905"
-    assert "1 done before" in fleet(*args).stdout                             # unchanged: skipped
+    assert "1 done before" in fleet(*args).stdout  # unchanged: skipped
     # moved: said, and --prune removes the old row (the new path is replayed)
     (logs / "day1.log").rename(logs / "renamed.log")
     res = fleet(*args)
@@ -252,10 +293,11 @@ def test_a_workers_service_warnings_stay_in_the_row(tmp_path, synthetic, caplog)
     """From a fleet audit: 'frame time jumped backward' warnings of the workers flooded the console, naming no log."""
     from tools.fleet.manifest import LogEntry, log_key
     from tools.fleet.run import process_batch
+
     good = read_manifest(synthetic)[0].log
     lines = good.read_text().splitlines(keepends=True)
     log = tmp_path / "jumps.log"
-    log.write_text("".join(lines[:4000] + lines[1000:3000]))                 # the clock goes back once
+    log.write_text("".join(lines[:4000] + lines[1000:3000]))  # the clock goes back once
     with caplog.at_level("WARNING"):
         [(kind, row)] = process_batch([LogEntry(log, "truckJ", None, None, None, log_key(log))])
     assert kind == "ok" and row["time_jumps"] >= 1
@@ -290,7 +332,9 @@ def test_a_log_that_kills_its_workers_fails_alone(tmp_path, synthetic):
     shutil.copy(src[0].log, logs / "poison.log")
     (tmp_path / "poisonpre.py").write_text(POISON_PRELOAD)
     out = tmp_path / "out"
-    run_fleet_in_child(tmp_path, f"""
+    run_fleet_in_child(
+        tmp_path,
+        f"""
         import sys
         sys.path.insert(0, {str(tmp_path)!r})
         from dask.distributed import LocalCluster
@@ -302,7 +346,8 @@ def test_a_log_that_kills_its_workers_fails_alone(tmp_path, synthetic):
                       max_logs=8)
         finally:
             cl.close()
-        """)
+        """,
+    )
     assert sorted(Path(r["log"]).name for r in read_table(out).to_pylist()) == [f"good{i}.log" for i in range(5)]
     errors = read_table(out, ERRORS).to_pylist()
     assert [Path(r["log"]).name for r in errors] == ["poison.log"] and "died" in errors[0]["reason"]
@@ -312,9 +357,12 @@ def test_an_asc_log_takes_its_date_from_its_header(tmp_path):
     """From a fleet audit: python-can reads an ASC log's frame times from its start, so every .asc log was dated
     'unknown' and --diagnose left it out without a word."""
     from tools.fleet.summary import asc_date
+
     p = tmp_path / "a.asc"
-    p.write_text("date Fri Nov 27 08:10:02.123 2026\nbase hex  timestamps absolute\ninternal events logged\n"
-                 "Begin Triggerblock Mon Jan 05 08:00:00.10 am 2026\n   0.100000 1  18FEF100x  Rx   d 8 FF FF\n")
+    p.write_text(
+        "date Fri Nov 27 08:10:02.123 2026\nbase hex  timestamps absolute\ninternal events logged\n"
+        "Begin Triggerblock Mon Jan 05 08:00:00.10 am 2026\n   0.100000 1  18FEF100x  Rx   d 8 FF FF\n"
+    )
     assert asc_date(p) == "2026-01-05"
     p.write_text("date Mi Okt 07 08:10:02.123 2026\nbase hex  timestamps absolute\n")
     assert asc_date(p) == "2026-10-07"
@@ -323,7 +371,7 @@ def test_an_asc_log_takes_its_date_from_its_header(tmp_path):
 
 
 def _error(capsys, args) -> str:
-    if "--scheduler" in args:       # a Dask client: in a child process
+    if "--scheduler" in args:  # a Dask client: in a child process
         res = fleet(*args[1:], check=False)
         rc, err = res.returncode, res.stderr.strip()
     else:
@@ -341,8 +389,9 @@ def test_bad_input_is_one_sentence_and_writes_nothing(tmp_path, synthetic, capsy
     assert "do not exist" in err and "(line 2)" in err and "(line 3)" in err
     (tmp_path / "adir").mkdir()
     m.write_text("log,vehicle\nadir,t1\n")
-    assert "names a folder where a log file belongs" in _error(capsys, ["fleet", "--manifest", str(m), "--out",
-                                                                        str(out)])
+    assert "names a folder where a log file belongs" in _error(
+        capsys, ["fleet", "--manifest", str(m), "--out", str(out)]
+    )
     logs = [e.log for e in read_manifest(synthetic)]
     # from a fleet audit: a row with more fields than the header (an unquoted comma in a path) was read without
     # its extra fields, and a row's own error did not say which row
@@ -358,7 +407,7 @@ def test_bad_input_is_one_sentence_and_writes_nothing(tmp_path, synthetic, capsy
     assert "two variants, GRS905 (line 2) and GRSO905 (line 3)" in err
     m.write_text(f"log,vehicle\n{logs[0]},t1\n{logs[1]},t1\n{logs[0]},t1\n")
     assert "listed twice (lines 2 and 4)" in _error(capsys, ["fleet", "--manifest", str(m), "--out", str(out)])
-    m.write_text(f"log,vehicle,variant\n{logs[0]},t1,GRS999\n")      # every log landed in the errors table, exit 0
+    m.write_text(f"log,vehicle,variant\n{logs[0]},t1,GRS999\n")  # every log landed in the errors table, exit 0
     assert "vehicle t1" in _error(capsys, ["fleet", "--manifest", str(m), "--out", str(out)])
     m.write_text(f"log,vehicle,config\n{logs[0]},t1,{tmp_path / 'absent.toml'}\n")
     assert "absent.toml" in _error(capsys, ["fleet", "--manifest", str(m), "--out", str(out)])
@@ -366,7 +415,7 @@ def test_bad_input_is_one_sentence_and_writes_nothing(tmp_path, synthetic, capsy
     err = _error(capsys, ["fleet", str(logs[0]), "--out", str(out), "--scheduler", f"tcp://127.0.0.1:{port}"])
     assert "does not answer" in err
     err = _error(capsys, ["fleet", str(logs[0]), "--out", str(out), "--scheduler", "notaurl"])
-    assert "is not a scheduler address" in err                   # said 'does not answer within 10 s (ValueError)'
+    assert "is not a scheduler address" in err  # said 'does not answer within 10 s (ValueError)'
     assert "only --diagnose" in _error(capsys, ["fleet", str(logs[0]), "--out", str(out), "--period-days", "3"])
     assert not out.exists()
     with pytest.raises(InputError):
@@ -378,10 +427,12 @@ def test_a_port_that_is_no_scheduler_and_a_scheduler_without_workers_are_one_sen
     scheduler without a worker hung silently; each is now one sentence within the connect or worker timeout."""
     import socket
     import threading
+
     import tools.fleet.run as R
+
     monkeypatch.setattr(R, "CONNECT_TIMEOUT_S", 1.0)
     monkeypatch.setattr(R, "WORKER_WAIT_S", 2.0)
-    with socket.socket() as srv:                        # accepts, then says nothing (as an HTTP server waits)
+    with socket.socket() as srv:  # accepts, then says nothing (as an HTTP server waits)
         srv.bind(("127.0.0.1", 0))
         srv.listen()
         held = []
@@ -389,9 +440,22 @@ def test_a_port_that_is_no_scheduler_and_a_scheduler_without_workers_are_one_sen
         with pytest.raises(InputError, match="answered as a Dask scheduler"):
             R.connect(f"tcp://127.0.0.1:{srv.getsockname()[1]}", None)
     port = _free_port()
-    sched = subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_scheduler", "--host", "127.0.0.1", "--port",
-                              str(port), "--no-dashboard"], env=ENV, stdout=subprocess.DEVNULL,
-                             stderr=subprocess.DEVNULL, cwd=tmp_path)
+    sched = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "distributed.cli.dask_scheduler",
+            "--host",
+            "127.0.0.1",
+            "--port",
+            str(port),
+            "--no-dashboard",
+        ],
+        env=ENV,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+        cwd=tmp_path,
+    )
     try:
         deadline = time.monotonic() + 60.0
         while R._probe_scheduler(f"tcp://127.0.0.1:{port}") is not None:
@@ -407,8 +471,10 @@ def test_a_port_that_is_no_scheduler_and_a_scheduler_without_workers_are_one_sen
 def test_a_period_that_is_no_whole_day_is_one_sentence(tmp_path, synthetic, capsys):
     """From a fleet audit: --period-days 0.5 numbered the periods 0, 2, 4 ... and the level rule, which needs
     consecutive periods, never fired."""
-    msg = _error(capsys, ["fleet", "--manifest", str(synthetic), "--out", str(tmp_path / "o"), "--diagnose",
-                          "--period-days", "0.5"])
+    msg = _error(
+        capsys,
+        ["fleet", "--manifest", str(synthetic), "--out", str(tmp_path / "o"), "--diagnose", "--period-days", "0.5"],
+    )
     assert "whole number of days" in msg and not (tmp_path / "o").exists()
 
 
@@ -433,10 +499,13 @@ def test_synthetic_cold_starts_begin_at_ambient_and_the_log_says_so(tmp_path):
     """--cold-share: a key-on log starts with the oil 0-4 K above that day's ambient (what its first oil frame
     reads); a mid-shift log starts warm; the rest of the day does not depend on the share."""
     import json
-    cold = synth_fleet(tmp_path / "cold", FleetSpec(vehicles=1, days=2, minutes=1.0, seed=4, cold_share=1.0),
-                       processes=1)
-    warm = synth_fleet(tmp_path / "warm", FleetSpec(vehicles=1, days=2, minutes=1.0, seed=4, cold_share=0.0),
-                       processes=1)
+
+    cold = synth_fleet(
+        tmp_path / "cold", FleetSpec(vehicles=1, days=2, minutes=1.0, seed=4, cold_share=1.0), processes=1
+    )
+    warm = synth_fleet(
+        tmp_path / "warm", FleetSpec(vehicles=1, days=2, minutes=1.0, seed=4, cold_share=0.0), processes=1
+    )
     for manifest, is_cold in ((cold, True), (warm, False)):
         truth = json.loads((manifest.parent / "truth.json").read_text())
         for day in truth["days"]:
@@ -459,13 +528,14 @@ def test_the_oil_modelled_by_request_is_not_counted_as_degraded(tmp_path, synthe
     """sensor.oil_mode = "model" in a vehicle's config: its oil-model-only steps are its normal mode, so the summary
     row's degraded_share stays near 0 on a clean log (it was 1.0: every step counted as degraded), as replay's summary."""
     from tools.fleet.run import process_log
+
     entry = read_manifest(synthetic)[0]
     cfg = tmp_path / "model.toml"
     cfg.write_text('[sensor]\noil_mode = "model"\n')
     status, measured = process_log(entry)
     status_m, modelled = process_log(entry._replace(config=str(cfg)))
     assert status == status_m == "ok"
-    assert measured["degraded_share"] < 0.01          # the first steps, before the first inputs
+    assert measured["degraded_share"] < 0.01  # the first steps, before the first inputs
     assert modelled["degraded_share"] <= measured["degraded_share"]
 
 
@@ -481,7 +551,7 @@ def test_diagnose_on_logs_too_short_to_fit_says_why_nothing_was_written(syntheti
 
 def test_a_manifest_saved_with_a_byte_order_mark_is_read(synthetic):
     """From a bad-input audit: a manifest saved by a Windows editor (UTF-8 with a BOM) said 'has no column log'."""
-    beside = Path(synthetic).with_name("bom.csv")       # a manifest's paths are relative to it: keep it beside
+    beside = Path(synthetic).with_name("bom.csv")  # a manifest's paths are relative to it: keep it beside
     beside.write_bytes(b"\xef\xbb\xbf" + Path(synthetic).read_text().replace("\n", "\r\n").encode("utf-8"))
     try:
         assert [e.log for e in read_manifest(beside)] == [e.log for e in read_manifest(synthetic)]
@@ -494,6 +564,7 @@ def _simulated_day(tmp_path, name: str, start_s: float, day: str, cooler: float 
     (--start-time), the cooler's effectiveness scaled by ``cooler``."""
     from tools.cycles.named import get_cycle
     from tools.runtable import RunTable, write_run_table
+
     cyc = get_cycle("uphill")
     t = np.asarray(cyc["time_s"])
     keep = (t >= start_s) & (t < start_s + 360.0)
@@ -502,9 +573,27 @@ def _simulated_day(tmp_path, name: str, start_s: float, day: str, cooler: float 
     csv = write_run_table(RunTable(cols), tmp_path / f"{name}_cycle.csv")
     log = tmp_path / "logs" / f"{name}_{day}.log"
     log.parent.mkdir(exist_ok=True)
-    assert main(["simulate", "--cycle", str(csv), "--initial-temp", "70", "--quiet", "--out",
-                 str(tmp_path / f"{name}.csv"), "--can-log", str(log), "--start-time", f"{day}T08:00:00Z",
-                 "--effect", f"cooler_effectiveness_scale:factor={cooler}"]) == 0
+    assert (
+        main(
+            [
+                "simulate",
+                "--cycle",
+                str(csv),
+                "--initial-temp",
+                "70",
+                "--quiet",
+                "--out",
+                str(tmp_path / f"{name}.csv"),
+                "--can-log",
+                str(log),
+                "--start-time",
+                f"{day}T08:00:00Z",
+                "--effect",
+                f"cooler_effectiveness_scale:factor={cooler}",
+            ]
+        )
+        == 0
+    )
     return log
 
 
@@ -517,8 +606,9 @@ def test_a_flat_folder_without_a_manifest_shows_each_trucks_cooler_dated_and_no_
     for name, start_s, cooler in (("truck1", 600.0, 1.0), ("truck2", 1200.0, 1.0), ("truck3", 1800.0, 0.4)):
         _simulated_day(tmp_path, name, start_s, "2026-01-05", cooler)
     out = tmp_path / "out"
-    res = fleet(str(tmp_path / "logs"), "--out", str(out), "--workers", "1", "--diagnose",
-                "--vehicle-from", r"^(truck\d+)_")
+    res = fleet(
+        str(tmp_path / "logs"), "--out", str(out), "--workers", "1", "--diagnose", "--vehicle-from", r"^(truck\d+)_"
+    )
     assert "vehicles: 3 read from the file names by --vehicle-from" in res.stdout, res.stdout
     assert "3 logs of 3 vehicles" in res.stdout and "3 vehicle-periods fitted" in res.stdout, res.stdout
     assert set(read_table(out).column("date").to_pylist()) == {"2026-01-05"}
@@ -540,6 +630,7 @@ def test_the_vehicles_of_logs_without_a_manifest_are_said(tmp_path, capsys):
     """a flat folder's logs were one vehicle, the folder's; now one vehicle per log (said), a vehicle's
     folder still names it, and --vehicle-from reads the file name (a file it does not match: one sentence)."""
     from tools.fleet.manifest import entries_and_rule
+
     for rel in ("flat/truck1_2026-01-05.log", "flat/truck2_2026-01-05.log", "nested/truck7/day1.log"):
         (tmp_path / rel).parent.mkdir(parents=True, exist_ok=True)
         (tmp_path / rel).write_text("(1767600000.000000) can0 0CF00400#F0C0C0A02800FFFF\n")
@@ -549,7 +640,8 @@ def test_the_vehicles_of_logs_without_a_manifest_are_said(tmp_path, capsys):
     entries, rule = entries_and_rule([tmp_path / "flat"], vehicle_from=r"(?P<vehicle>truck\d+)_(?P<date>[-\d]+)\.")
     assert [(e.vehicle, e.date) for e in entries] == [("truck1", "2026-01-05"), ("truck2", "2026-01-05")]
     (tmp_path / "flat" / "spare.log").write_text("")
-    msg = _error(capsys, ["fleet", str(tmp_path / "flat"), "--out", str(tmp_path / "o"),
-                          "--vehicle-from", r"^(truck\d+)_"])
+    msg = _error(
+        capsys, ["fleet", str(tmp_path / "flat"), "--out", str(tmp_path / "o"), "--vehicle-from", r"^(truck\d+)_"]
+    )
     assert "spare.log: --vehicle-from '^(truck\\d+)_' finds no vehicle in its file name spare.log" in msg, msg
     assert not (tmp_path / "o").exists()

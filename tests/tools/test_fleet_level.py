@@ -1,5 +1,6 @@
 """The measured oil level (J1939 SPN 124, TRF1 byte 2) in the fleet health: what counts as a reading, what the
 synthetic fleet's level sensors send, and how the flags use it (tools/fleet/level.py, tools/fleet/health.py)."""
+
 from __future__ import annotations
 
 import json
@@ -28,18 +29,23 @@ def _trf1(byte2: int, can_id: int = TRF1_FROM_03, status: int = 0xF, **kw) -> ca
 
 
 def test_only_valid_level_bytes_of_the_transmissions_trf1_are_readings():
-    msgs = [_trf1(200),                                  # 80 %, status not available: a reading
-            _trf1(250, status=0),                        # 100 %, the top of the data range, conditions valid
-            _trf1(0xFB), _trf1(0xFE), _trf1(0xFF),       # reserved, error, not available
-            _trf1(200, status=5), _trf1(200, status=14),     # conditions not valid; status error
-            _trf1(200, can_id=0x18FEF805),               # another source address
-            _trf1(200, ext=False),                       # the same identifier as an 11-bit frame
-            _trf1(200, is_error_frame=True),
-            _trf1(200, is_remote_frame=True),
-            _trf1(200, is_fd=True),
-            _trf1(200, data=bytes([0xFF, 200, 0xFF, 0xFF])),     # 4 bytes
-            _trf1(200, timestamp=float("nan")),
-            _trf1(200, can_id=0x18FEEE03)]               # another PGN (ET1) with the same bytes
+    msgs = [
+        _trf1(200),  # 80 %, status not available: a reading
+        _trf1(250, status=0),  # 100 %, the top of the data range, conditions valid
+        _trf1(0xFB),
+        _trf1(0xFE),
+        _trf1(0xFF),  # reserved, error, not available
+        _trf1(200, status=5),
+        _trf1(200, status=14),  # conditions not valid; status error
+        _trf1(200, can_id=0x18FEF805),  # another source address
+        _trf1(200, ext=False),  # the same identifier as an 11-bit frame
+        _trf1(200, is_error_frame=True),
+        _trf1(200, is_remote_frame=True),
+        _trf1(200, is_fd=True),
+        _trf1(200, data=bytes([0xFF, 200, 0xFF, 0xFF])),  # 4 bytes
+        _trf1(200, timestamp=float("nan")),
+        _trf1(200, can_id=0x18FEEE03),
+    ]  # another PGN (ET1) with the same bytes
     cols = FrameColumns.from_messages(msgs)
     assert level_readings(cols, 0x03).tolist() == pytest.approx([80.0, 100.0])
     assert level_readings(cols, None).tolist() == pytest.approx([80.0, 100.0, 80.0])
@@ -54,9 +60,13 @@ def test_a_synthetic_truck_sends_its_level_a_leak_lowers_it_and_nothing_else_mov
     the sensor's slosh and the oil's expansion); level_share 0: 0xFF, and every other byte of the log the same."""
     logs = {}
     for share in (1.0, 0.0):
-        manifest = synth_fleet(tmp_path / f"s{share}", FleetSpec(vehicles=1, days=2, minutes=2.0, low_oil=1,
-                                                                  growth_days=1.0, seed=3, cold_share=0.0,
-                                                                  level_share=share), processes=1)
+        manifest = synth_fleet(
+            tmp_path / f"s{share}",
+            FleetSpec(
+                vehicles=1, days=2, minutes=2.0, low_oil=1, growth_days=1.0, seed=3, cold_share=0.0, level_share=share
+            ),
+            processes=1,
+        )
         truth = json.loads((manifest.parent / "truth.json").read_text())
         logs[share] = [manifest.parent / d["vehicle"] / f"{d['vehicle']}_{d['date']}.log" for d in truth["days"]]
         fault = truth["faults"]["truck000"]
@@ -78,8 +88,11 @@ def test_a_synthetic_truck_sends_its_level_a_leak_lowers_it_and_nothing_else_mov
 def test_a_diagnosed_log_carries_its_level_beside_its_fit(tmp_path):
     """process_log with diagnose: the log's fit has the level of its SPN 124 readings (NaN and 0 without)."""
     for share in (1.0, 0.0):
-        manifest = synth_fleet(tmp_path / f"s{share}", FleetSpec(vehicles=1, days=1, minutes=5.0, seed=5,
-                                                                  cold_share=0.0, level_share=share), processes=1)
+        manifest = synth_fleet(
+            tmp_path / f"s{share}",
+            FleetSpec(vehicles=1, days=1, minutes=5.0, seed=5, cold_share=0.0, level_share=share),
+            processes=1,
+        )
         entry = read_manifest(manifest)[0]
         kind, row = process_log(entry, diagnose=True)
         assert kind == "ok", row
@@ -95,8 +108,7 @@ def test_a_diagnosed_log_carries_its_level_beside_its_fit(tmp_path):
 
 
 def _period(vehicle: str, period: int, volume_l: float, level_pct: float, se: float = 0.5) -> PeriodFit:
-    return PeriodFit(vehicle, period, f"2026-01-{1 + 7 * period:02d}", 7, 1.0, 0.02, volume_l, 0.5, 0.3,
-                     level_pct, se)
+    return PeriodFit(vehicle, period, f"2026-01-{1 + 7 * period:02d}", 7, 1.0, 0.02, volume_l, 0.5, 0.3, level_pct, se)
 
 
 def _flags(levels: dict, volumes: dict | None = None, se: dict | None = None) -> dict:
@@ -115,8 +127,14 @@ def test_the_level_flag_reads_the_sensor_and_the_temperature_estimate_no_longer_
     estimate falls (a watch, not a flag: the estimate is not identifiable)."""
     nan = math.nan
     falling = [13.5, 13.5, 9.5, 9.5, 9.5, 9.5]
-    flags = _flags({"leak": [90.0, 90.0, 90.0, 63.0, 63.0, 63.0], "sloshy": [89.0, 91.0, 89.0, 91.0, 89.0, 91.0],
-                    "blind": [nan] * 6}, volumes={"sloshy": falling, "blind": falling})
+    flags = _flags(
+        {
+            "leak": [90.0, 90.0, 90.0, 63.0, 63.0, 63.0],
+            "sloshy": [89.0, 91.0, 89.0, 91.0, 89.0, 91.0],
+            "blind": [nan] * 6,
+        },
+        volumes={"sloshy": falling, "blind": falling},
+    )
     assert set(flags) == {"leak", "blind"}
     assert "SPN 124" in flags["leak"].reason and flags["leak"].period == 4
     assert flags["leak"].value == pytest.approx(63.0 / 90.0 * NOMINAL_VOLUME_L)
@@ -135,9 +153,11 @@ def test_a_cooler_drift_is_a_flag_with_or_without_the_level_sensor():
             volume = 9.5 if v == "fouled_and_low" and p >= 2 else 13.5
             fits.append(PeriodFit(v, p, f"2026-01-{1 + 7 * p:02d}", 7, cooler, 0.02, volume, 0.5, 0.3))
     found = [(f.vehicle, f.effect, f.kind) for f in flag_vehicles(fits)]
-    assert sorted(found) == [("fouled", "cooler_effectiveness_scale", "flag"),
-                             ("fouled_and_low", "cooler_effectiveness_scale", "flag"),
-                             ("fouled_and_low", "oil_level_low", "watch")]
+    assert sorted(found) == [
+        ("fouled", "cooler_effectiveness_scale", "flag"),
+        ("fouled_and_low", "cooler_effectiveness_scale", "flag"),
+        ("fouled_and_low", "oil_level_low", "watch"),
+    ]
 
 
 def test_a_level_drop_must_clear_both_its_share_of_the_baseline_and_three_standard_errors():
@@ -172,10 +192,13 @@ def test_fits_of_an_earlier_version_without_the_level_read_together_with_new_one
     """A re-run into an output folder whose first fits lack the level columns: every file's columns are read."""
     pa = pytest.importorskip("pyarrow", reason="the fleet output is Parquet: pip install '.[fleet]' (pyarrow)")
     from tools.fleet.store import FITS, partition_dir, read_table, write_atomic
+
     old = {"log_key": "a", "sse": [1.0, 2.0], "points": 10, "span_s": 600.0}
     write_atomic(pa.Table.from_pylist([old]), partition_dir(tmp_path / FITS, "truck000", "2026-01-05") / "p.parquet")
-    write_atomic(pa.Table.from_pylist([{**old, "log_key": "b", "level_pct": 88.0, "level_readings": 600}]),
-                 partition_dir(tmp_path / FITS, "truck001", "2026-01-05") / "p.parquet")
+    write_atomic(
+        pa.Table.from_pylist([{**old, "log_key": "b", "level_pct": 88.0, "level_readings": 600}]),
+        partition_dir(tmp_path / FITS, "truck001", "2026-01-05") / "p.parquet",
+    )
     rows = {r["log_key"]: r for r in read_table(tmp_path, FITS).to_pylist()}
     assert rows["b"]["level_pct"] == 88.0 and rows["b"]["level_readings"] == 600
     assert rows["a"]["level_pct"] is None and rows["a"]["vehicle"] == "truck000"
@@ -199,15 +222,23 @@ def test_fits_on_another_grid_are_one_clear_error_not_a_reshape_crash(tmp_path):
     from firmware_model.errors import InputError
     from tools.fleet.health import COOLER_GRID, VOLUME_GRID_L, fleet_health
     from tools.fleet.store import FITS, HEALTH, SUMMARY, partition_dir, write_atomic
+
     n = len(COOLER_GRID) * len(VOLUME_GRID_L)
 
     def store(out, n_points):
         for i, date in enumerate(("2026-01-05", "2026-01-06", "2026-01-13")):
-            fit = {"log_key": f"k{i}", "sse": [float(abs(j - 17)) for j in range(n_points)], "points": 100,
-                   "span_s": 600.0}
+            fit = {
+                "log_key": f"k{i}",
+                "sse": [float(abs(j - 17)) for j in range(n_points)],
+                "points": 100,
+                "span_s": 600.0,
+            }
             write_atomic(pa.Table.from_pylist([fit]), partition_dir(out / FITS, "truck000", date) / "p.parquet")
-            write_atomic(pa.Table.from_pylist([{"log_key": f"k{i}", "log": f"l{i}.log"}]),
-                         partition_dir(out / SUMMARY, "truck000", date) / "p.parquet")
+            write_atomic(
+                pa.Table.from_pylist([{"log_key": f"k{i}", "log": f"l{i}.log"}]),
+                partition_dir(out / SUMMARY, "truck000", date) / "p.parquet",
+            )
+
     store(tmp_path / "old", 28)
     with pytest.raises(InputError, match=r"3 of 3 log fits are not on this version's grid .*28 points.*new --out"):
         fleet_health(tmp_path / "old")
@@ -227,17 +258,28 @@ def test_the_report_lists_flags_and_watches_apart(tmp_path):
     from tools.fleet.health import Flag
     from tools.fleet.report import write_report
     from tools.fleet.store import HEALTH, write_atomic
-    periods = [_period(v, p, 13.5 if v != "low" or p < 2 else 9.5, math.nan) for v in ("cool", "low", "ok")
-               for p in range(4)]
+
+    periods = [
+        _period(v, p, 13.5 if v != "low" or p < 2 else 9.5, math.nan) for v in ("cool", "low", "ok") for p in range(4)
+    ]
     write_atomic(pa.Table.from_pylist([f._asdict() for f in periods]), tmp_path / HEALTH / "periods.parquet")
     flag = Flag("cool", "cooler_effectiveness_scale", 3, "2026-01-22", 0.5, 1.0, "drift from its own baseline")
-    watch = Flag("low", "oil_level_low", 3, "2026-01-22", 9.5, 13.5, "the oil volume estimated from the oil "
-                 "temperature (not identifiable: check the level) drifted from its own baseline", "watch")
+    watch = Flag(
+        "low",
+        "oil_level_low",
+        3,
+        "2026-01-22",
+        9.5,
+        13.5,
+        "the oil volume estimated from the oil "
+        "temperature (not identifiable: check the level) drifted from its own baseline",
+        "watch",
+    )
     write_atomic(pa.Table.from_pylist([flag._asdict()]), tmp_path / HEALTH / "flags.parquet")
     write_atomic(pa.Table.from_pylist([watch._asdict()]), tmp_path / HEALTH / "watch.parquet")
     text = write_report(tmp_path).read_text()
     assert "Flagged: 1. To watch (oil level from the oil temperature): 1." in text
-    section = text[text.index("### To watch"):]
+    section = text[text.index("### To watch") :]
     assert "| low | oil_level_low |" in section and "| cool |" not in section
     assert "A dipstick check, not a diagnosis." in section
     assert (tmp_path / "report_health.png").is_file()
@@ -253,10 +295,12 @@ def test_fleet_health_writes_a_temperature_oil_drift_to_watch_and_a_cooler_drift
 
     from tools.fleet.health import COOLER_GRID, VOLUME_GRID_L, fleet_health
     from tools.fleet.store import FITS, HEALTH, SUMMARY, partition_dir, write_atomic
+
     vol, cool = np.array(VOLUME_GRID_L), np.array(COOLER_GRID)
 
-    def sse(v0, c0):    # a bowl with its minimum at (v0, c0): 1 K^2 per L^2, 100 K^2 per (0.1 scale)^2
+    def sse(v0, c0):  # a bowl with its minimum at (v0, c0): 1 K^2 per L^2, 100 K^2 per (0.1 scale)^2
         return (((vol[:, None] - v0) ** 2 + 1e4 * (cool[None, :] - c0) ** 2) + 1.0).ravel().tolist()
+
     k = 0
     for vehicle in ("low", "fouled", "ok0", "ok1", "ok2"):
         for week in range(5):
@@ -267,8 +311,10 @@ def test_fleet_health_writes_a_temperature_oil_drift_to_watch_and_a_cooler_drift
                 date = (dt.date(2026, 1, 5) + dt.timedelta(days=7 * week + day)).isoformat()
                 fit = {"log_key": f"k{k}", "sse": sse(v0, c0), "points": 120, "span_s": 600.0}
                 write_atomic(pa.Table.from_pylist([fit]), partition_dir(tmp_path / FITS, vehicle, date) / "p.parquet")
-                write_atomic(pa.Table.from_pylist([{"log_key": f"k{k}", "log": f"l{k}.log"}]),
-                             partition_dir(tmp_path / SUMMARY, vehicle, date) / "p.parquet")
+                write_atomic(
+                    pa.Table.from_pylist([{"log_key": f"k{k}", "log": f"l{k}.log"}]),
+                    partition_dir(tmp_path / SUMMARY, vehicle, date) / "p.parquet",
+                )
                 k += 1
     health = fleet_health(tmp_path)
     assert [(f.vehicle, f.effect) for f in health.flags] == [("fouled", "cooler_effectiveness_scale")]
@@ -285,12 +331,18 @@ def test_the_health_plot_ticks_whole_periods_by_their_first_day(n_periods):
     labelled ticks, each the period's first day."""
     pytest.importorskip("matplotlib", reason="the report's plots: pip install '.[fleet]' (matplotlib)")
     import datetime as dt
+
     import matplotlib
+
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+
     from tools.fleet.report import period_axis
-    periods = {"period": list(range(n_periods)),
-               "start": [(dt.date(2026, 1, 5) + dt.timedelta(days=7 * p)).isoformat() for p in range(n_periods)]}
+
+    periods = {
+        "period": list(range(n_periods)),
+        "start": [(dt.date(2026, 1, 5) + dt.timedelta(days=7 * p)).isoformat() for p in range(n_periods)],
+    }
     fig, ax = plt.subplots()
     ax.plot(periods["period"], np.ones(n_periods))
     period_axis(ax, periods)

@@ -2,6 +2,7 @@
 (python-can's udp_multicast on this host's loopback) is killed with SIGKILL while driving; restarted with the same
 file, it restores the last periodic snapshot (logged with its age), not a cold start. Corrupt, truncated and foreign
 files each give a clean cold start (tests/firmware_model/test_gateway_state.py)."""
+
 from __future__ import annotations
 
 import json
@@ -16,8 +17,9 @@ import pytest
 
 from tests.firmware_model.test_can_service import traffic
 
-pytest.importorskip("msgpack", reason="python-can's udp_multicast bus needs msgpack (pip install msgpack, in the "
-                                      "'test' extra)")
+pytest.importorskip(
+    "msgpack", reason="python-can's udp_multicast bus needs msgpack (pip install msgpack, in the 'test' extra)"
+)
 
 REPO = Path(__file__).resolve().parents[2]
 #: a multicast group of its own (python-can's default IPv4 group is 239.74.163.2)
@@ -26,6 +28,7 @@ GROUP = "239.74.163.7"
 
 def _bus():
     import can
+
     try:
         return can.Bus(interface="udp_multicast", channel=GROUP)
     except Exception as exc:  # no multicast route on this host
@@ -35,10 +38,32 @@ def _bus():
 def _start(tmp_path: Path, tag: str):
     err = open(tmp_path / f"{tag}.err", "w")
     env = {**os.environ, "PYTHONPATH": str(REPO) + os.pathsep + os.environ.get("PYTHONPATH", "")}
-    p = subprocess.Popen([sys.executable, "-m", "tools.cli", "run", "--interface", "udp_multicast", "--channel", GROUP,
-                          "--config", str(tmp_path / "gw.toml"), "--state-file", str(tmp_path / "state.json"),
-                          "--state-period", "1", "--health-file", str(tmp_path / "health.json"),
-                          "--log-level", "INFO"], cwd=REPO, env=env, stderr=err, stdout=subprocess.DEVNULL)
+    p = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "tools.cli",
+            "run",
+            "--interface",
+            "udp_multicast",
+            "--channel",
+            GROUP,
+            "--config",
+            str(tmp_path / "gw.toml"),
+            "--state-file",
+            str(tmp_path / "state.json"),
+            "--state-period",
+            "1",
+            "--health-file",
+            str(tmp_path / "health.json"),
+            "--log-level",
+            "INFO",
+        ],
+        cwd=REPO,
+        env=env,
+        stderr=err,
+        stdout=subprocess.DEVNULL,
+    )
     deadline = time.monotonic() + 120
     while "listening" not in (tmp_path / f"{tag}.err").read_text():
         if p.poll() is not None or time.monotonic() > deadline:

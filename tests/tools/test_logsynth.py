@@ -1,5 +1,6 @@
 """Log synthesis: the frames of a drive cycle (rates, source addresses, scaling, quantisation, TP.BAM EC1, rig
 thermocouples), written and read back in every format, byte-identical to python-can's candump writer."""
+
 from __future__ import annotations
 
 from collections import Counter
@@ -20,10 +21,18 @@ from .can_fixtures import plant_output
 def cycle(seconds=30.0, rate_hz=10.0):
     t = np.arange(0.0, seconds, 1.0 / rate_hz)
     n = t.size
-    return RunTable({"time_s": t, "engine_speed_rpm": np.linspace(600.0, 2100.0, n),
-                     "engine_torque_nm": np.linspace(-300.0, 3200.0, n), "gear": np.where(t < seconds / 2, 4, -1),
-                     "ambient_temp_c": np.full(n, 21.3), "coolant_temp_c": np.full(n, 85.4),
-                     "vehicle_speed_kmh": np.linspace(0.0, 80.0, n), "retarder_torque_nm": np.where(t > 20, 700.0, 0.0)})
+    return RunTable(
+        {
+            "time_s": t,
+            "engine_speed_rpm": np.linspace(600.0, 2100.0, n),
+            "engine_torque_nm": np.linspace(-300.0, 3200.0, n),
+            "gear": np.where(t < seconds / 2, 4, -1),
+            "ambient_temp_c": np.full(n, 21.3),
+            "coolant_temp_c": np.full(n, 85.4),
+            "vehicle_speed_kmh": np.linspace(0.0, 80.0, n),
+            "retarder_torque_nm": np.where(t > 20, 700.0, 0.0),
+        }
+    )
 
 
 @pytest.fixture(scope="module")
@@ -37,18 +46,33 @@ def test_rates_sources_and_priorities(frames):
     ids = fr.can_id
     t = fr.timestamp_s
     by = {}
-    for name, cid in (("EEC1", 0x0CF00400), ("ETC2", 0x18F00503), ("TRF1", 0x18FEF803), ("ET1", 0x18FEEE00),
-                      ("AMB", 0x18FEF500), ("CCVS1", 0x18FEF100), ("ERC1", 0x18F00010), ("RIG1", 0x18FF50F0)):
+    for name, cid in (
+        ("EEC1", 0x0CF00400),
+        ("ETC2", 0x18F00503),
+        ("TRF1", 0x18FEF803),
+        ("ET1", 0x18FEEE00),
+        ("AMB", 0x18FEF500),
+        ("CCVS1", 0x18FEF100),
+        ("ERC1", 0x18F00010),
+        ("RIG1", 0x18FF50F0),
+    ):
         by[name] = t[ids == cid]
         assert by[name].size == counts.get(name, counts.get("RIG_TC_1")), name
     d = np.diff(by["EEC1"])
     assert 0.0085 < d.min() and d.max() < 0.0215 and 0.0095 < np.median(d) < 0.0205
-    for name, period in (("ETC2", 0.1), ("ERC1", 0.1), ("RIG1", 0.1), ("TRF1", 1.0), ("ET1", 1.0), ("AMB", 1.0),
-                         ("CCVS1", 1.0)):
+    for name, period in (
+        ("ETC2", 0.1),
+        ("ERC1", 0.1),
+        ("RIG1", 0.1),
+        ("TRF1", 1.0),
+        ("ET1", 1.0),
+        ("AMB", 1.0),
+        ("CCVS1", 1.0),
+    ):
         assert np.allclose(np.diff(by[name]), period, atol=0.0021), name
     # every frame but EEC1 sits in the middle of a 100 ms slot counted from the first frame
     phase = np.mod(t[ids != 0x0CF00400] - t[0], 0.1)
-    tp = np.isin(ids[ids != 0x0CF00400], [0x1CECFF00, 0x1CEBFF00, 0x1CECFF10, 0x1CEBFF10])   # EC1, RC BAMs
+    tp = np.isin(ids[ids != 0x0CF00400], [0x1CECFF00, 0x1CEBFF00, 0x1CECFF10, 0x1CEBFF10])  # EC1, RC BAMs
     assert ((phase[~tp] > 0.02) & (phase[~tp] < 0.08)).all()
     assert np.all(np.diff(t) >= 0) and np.allclose(t, np.round(t * 1e6) / 1e6)
     assert t[0] == 0.0 and ids[0] == 0x0CF00400
@@ -75,7 +99,7 @@ def test_values_decode_to_the_cycle_quantised(frames):
     want = np.clip(np.rint(expected("engine_torque_nm", ts) / 3000.0 * 100.0), -125, 125)
     assert np.array_equal(pct, want) and pct.max() >= 100 and pct.min() == -10
     ts, nm = np.array(series["engine_torque_nm"]).T
-    assert np.allclose(nm, pct[-nm.size:] * 30.0)  # torque in Nm from EC1 = percent x 3000 / 100
+    assert np.allclose(nm, pct[-nm.size :] * 30.0)  # torque in Nm from EC1 = percent x 3000 / 100
     ts, gear = np.array(series["gear"]).T
     assert set(gear) == {4, -1} and np.array_equal(gear, expected("gear", ts))
     ts, ret = np.array(series["retarder_torque_nm"]).T
@@ -97,6 +121,7 @@ def test_the_vehicle_speed_and_coolant_source_keys_reach_the_frames_and_the_sens
     (simulate --can-log, plant) as they do in the sensor's decoder: the same config on both ends decodes every frame
     (a review: the frames kept the engine's address, and the sensor with the same config fell back to defaults)."""
     from firmware_model.service import ServiceOptions
+
     inp = cycle(12.0)
     cfg = type("C", (), {"can": {"vehicle_speed_source_address": 0xEE, "coolant_source_address": 0x05}})()
     fr, _ = synth_frames(inp, None, config=cfg)
@@ -104,29 +129,41 @@ def test_the_vehicle_speed_and_coolant_source_keys_reach_the_frames_and_the_sens
     names = [u.name for m in fr.messages() for u in dec.feed(m)]
     assert "vehicle_speed_kmh" in names and "coolant_temp_c" in names
     assert sum(dec.counters["rejected"].values()) == 0, dec.counters["rejected"]
-    ids = {dbc_name: {i & 0xFF for i, p in zip(fr.can_id, (pgn_of(int(i)) for i in fr.can_id)) if p == pgn}
-           for dbc_name, pgn in (("CCVS1", 65265), ("ET1", 65262), ("EEC1", 61444))}
+    ids = {
+        dbc_name: {i & 0xFF for i, p in zip(fr.can_id, (pgn_of(int(i)) for i in fr.can_id)) if p == pgn}
+        for dbc_name, pgn in (("CCVS1", 65265), ("ET1", 65262), ("EEC1", 61444))
+    }
     assert ids == {"CCVS1": {0xEE}, "ET1": {0x05}, "EEC1": {0x00}}
 
 
 def test_reference_torque_clipping_and_sources_from_config():
     inp = cycle(12.0)
-    cfg = type("C", (), {"can": {"engine_reference_torque_nm": 1000, "engine_source_address": 0x01,
-                                 "transmission_source_address": 0x05, "retarder_source_address": 0x29}})()
+    cfg = type(
+        "C",
+        (),
+        {
+            "can": {
+                "engine_reference_torque_nm": 1000,
+                "engine_source_address": 0x01,
+                "transmission_source_address": 0x05,
+                "retarder_source_address": 0x29,
+            }
+        },
+    )()
     fr, counts = synth_frames(inp, None, config=cfg)
     assert "RIG_TC_1" not in counts and "TRF1" not in counts  # no plant output, no oil column: no TRF1
     assert {i & 0xFF for i in fr.can_id} == {0x01, 0x05, 0x29}
-    dec = J1939Decoder(expected_sa={"EEC1": 1, "EC1": 1, "ETC2": 5, "ET1": 1, "AMB": 1, "CCVS1": 1, "ERC1": 0x29,
-                                    "RC": 0x29})
+    dec = J1939Decoder(
+        expected_sa={"EEC1": 1, "EC1": 1, "ETC2": 5, "ET1": 1, "AMB": 1, "CCVS1": 1, "ERC1": 0x29, "RC": 0x29}
+    )
     pct = [u.value for m in fr.messages() for u in dec.feed(m) if u.name == "engine_torque_pct"]
     assert max(pct) == 125 and min(pct) == -30 and dec.ec1_ref_torque_nm == 1000.0
-    assert dec.rc_ref_torque_nm == 3500.0          # RC from the retarder's address: the default reference
+    assert dec.rc_ref_torque_nm == 3500.0  # RC from the retarder's address: the default reference
     assert sum(dec.counters["rejected"].values()) == 0
     with pytest.raises(ParameterError, match="reference torque"):
         synth_frames(inp, None, ref_torque_nm=-5)
     with pytest.raises(InputError, match="gear"):
-        synth_frames(RunTable({"time_s": [0.0, 1.0], "engine_speed_rpm": [600, 600],
-                               "engine_torque_nm": [0, 0]}), None)
+        synth_frames(RunTable({"time_s": [0.0, 1.0], "engine_speed_rpm": [600, 600], "engine_torque_nm": [0, 0]}), None)
 
 
 def test_candump_text_is_exactly_python_cans_writer(tmp_path, frames):
@@ -165,4 +202,4 @@ def test_counts_per_message(frames):
     _, (fr, counts) = frames
     assert sum(counts.values()) == len(fr)
     c = Counter(pgn_of(i) for i in fr.can_id.tolist())
-    assert c[0xEC00] == 6 + 6 and c[0xEB00] == 36 + 18      # EC1 (6 packets) and RC (3) every 5 s of 30 s
+    assert c[0xEC00] == 6 + 6 and c[0xEB00] == 36 + 18  # EC1 (6 packets) and RC (3) every 5 s of 30 s

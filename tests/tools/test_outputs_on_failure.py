@@ -1,6 +1,7 @@
 """A command that fails leaves nothing half-written (tools/outputs.py): no partial output, no temporary file, the
 files that were there before untouched; its message is one sentence naming the option and the user's path. Writes
 are made to fail with monkeypatch (a full disk: OSError ENOSPC), so the tests run anywhere."""
+
 from __future__ import annotations
 
 import errno
@@ -52,45 +53,55 @@ def work(tmp_path, monkeypatch):
 @pytest.fixture(scope="module")
 def can_log(tmp_path_factory):
     d = tmp_path_factory.mktemp("sim")
-    assert main(["simulate", "--cycle", STEADY, "--out", str(d / "run.csv"), "--can-log", str(d / "run.log"),
-                 "--quiet"]) == 0
+    assert (
+        main(["simulate", "--cycle", STEADY, "--out", str(d / "run.csv"), "--can-log", str(d / "run.log"), "--quiet"])
+        == 0
+    )
     return d / "run.log"
 
 
 # ---------------------------------------------------------------- simulate
 
+
 def test_simulate_can_log_full_disk_leaves_no_run_table(work, monkeypatch, capsys):
     import tools.can.logsynth as logsynth
+
     monkeypatch.setattr(logsynth, "write_can_log", lambda a, b, path, *args, **kw: full_disk(path))
     before = snapshot(work)
     assert main(["simulate", "--cycle", STEADY, "--out", "s.csv", "--can-log", "s.log", "--quiet"]) == 2
-    assert one_error(capsys) == ("gearbox-vsensor simulate: error: --can-log s.log: cannot write it (No space left "
-                                 "on device)")
+    assert one_error(capsys) == (
+        "gearbox-vsensor simulate: error: --can-log s.log: cannot write it (No space left on device)"
+    )
     assert snapshot(work) == before
 
 
 def test_simulate_bad_can_config_found_when_the_log_is_written_leaves_nothing(work, capsys):
     (work / "bad.toml").write_text("[can]\nretarder_reference_torque_nm = -5\n")
     before = snapshot(work)
-    assert main(["simulate", "--cycle", STEADY, "--config", "bad.toml", "--out", "s.csv", "--can-log", "s.log",
-                 "--quiet"]) == 2
+    assert (
+        main(["simulate", "--cycle", STEADY, "--config", "bad.toml", "--out", "s.csv", "--can-log", "s.log", "--quiet"])
+        == 2
+    )
     assert "error:" in one_error(capsys)
     assert snapshot(work) == before
 
 
 def test_simulate_plot_full_disk_keeps_no_csv_and_the_old_one_untouched(work, monkeypatch, capsys):
     import tools.plots
+
     (work / "s.csv").write_text("old table\n")
     monkeypatch.setattr(tools.plots, "save_figure", lambda fig, path, **kw: full_disk(path))
     before = snapshot(work)
     assert main(["simulate", "--cycle", STEADY, "--out", "s.csv", "--plot", "p.png", "--quiet"]) == 2
-    assert one_error(capsys) == ("gearbox-vsensor simulate: error: --plot p.png: cannot write it (No space left on "
-                                 "device)")
+    assert one_error(capsys) == (
+        "gearbox-vsensor simulate: error: --plot p.png: cannot write it (No space left on device)"
+    )
     assert snapshot(work) == before
 
 
 def test_simulate_unwritable_directory_fails_before_the_run_naming_the_users_path(work, monkeypatch, capsys):
     import tools.outputs
+
     real = tools.outputs.tempfile.mkstemp
     ro = work / "ro"
     ro.mkdir()
@@ -117,7 +128,7 @@ def test_simulate_can_log_suffix_is_checked_up_front(work, capsys):
 
 def test_simulate_writes_through_a_symlink(work, tmp_path):
     assert main(["simulate", "--cycle", STEADY, "--out", str(tmp_path / "plain.csv"), "--quiet"]) == 0
-    os.symlink("target.csv", work / "link.csv")            # dangling: the run creates the file it points to
+    os.symlink("target.csv", work / "link.csv")  # dangling: the run creates the file it points to
     assert main(["simulate", "--cycle", STEADY, "--out", "link.csv", "--quiet"]) == 0
     assert (work / "link.csv").is_symlink() and os.readlink(work / "link.csv") == "target.csv"
     assert (work / "target.csv").read_bytes() == (tmp_path / "plain.csv").read_bytes()
@@ -126,44 +137,66 @@ def test_simulate_writes_through_a_symlink(work, tmp_path):
 
 # ---------------------------------------------------------------- replay
 
+
 def test_replay_bad_log_leaves_no_frames_out(work, capsys):
     (work / "garbage.log").write_text("(0.0) can0 18FEF100#0011223344556677\nhello\n")
     before = snapshot(work)
     assert main(["replay", "garbage.log", "--out", "g.csv", "--frames-out", "gf.log", "--quiet"]) == 2
-    err = one_error(capsys)         # no step left once the malformed line 2 is skipped: said with the line
+    err = one_error(capsys)  # no step left once the malformed line 2 is skipped: said with the line
     assert "garbage.log: no sensor step" in err and "(1 malformed line skipped (line 2))" in err
     assert snapshot(work) == before
 
 
 def test_replay_unwritable_out_leaves_no_frames_out(work, can_log, monkeypatch, capsys):
     import tools.runtable
+
     monkeypatch.setattr(tools.runtable, "write_run_table", lambda table, path, *a, **kw: full_disk(path))
     before = snapshot(work)
     assert main(["replay", str(can_log), "--out", "r.csv", "--frames-out", "rf.log", "--quiet"]) == 2
-    assert one_error(capsys) == ("gearbox-vsensor replay: error: --out r.csv: cannot write it (No space left on "
-                                 "device)")
+    assert one_error(capsys) == (
+        "gearbox-vsensor replay: error: --out r.csv: cannot write it (No space left on device)"
+    )
     assert snapshot(work) == before
 
 
 def test_replay_log_plot_full_disk_keeps_no_csv(work, can_log, monkeypatch, capsys):
     import tools.plots
+
     monkeypatch.setattr(tools.plots, "save_figure", lambda fig, path, **kw: full_disk(path))
     before = snapshot(work)
-    assert main(["replay", str(can_log), "--out", "r.csv", "--frames-out", "rf.log", "--plot", "rp.png",
-                 "--quiet", "--allow-untrusted"]) == 2
-    assert one_error(capsys) == ("gearbox-vsensor replay: error: --plot rp.png: cannot write it (No space left on "
-                                 "device)")
+    assert (
+        main(
+            [
+                "replay",
+                str(can_log),
+                "--out",
+                "r.csv",
+                "--frames-out",
+                "rf.log",
+                "--plot",
+                "rp.png",
+                "--quiet",
+                "--allow-untrusted",
+            ]
+        )
+        == 2
+    )
+    assert one_error(capsys) == (
+        "gearbox-vsensor replay: error: --plot rp.png: cannot write it (No space left on device)"
+    )
     assert snapshot(work) == before
 
 
 def test_replay_table_plot_full_disk_keeps_no_csv(work, can_log, monkeypatch, capsys):
     import tools.plots
+
     (work / "in.csv").write_bytes(can_log.with_name("run.csv").read_bytes())
     monkeypatch.setattr(tools.plots, "save_figure", lambda fig, path, **kw: full_disk(path))
     before = snapshot(work)
     assert main(["replay", "in.csv", "--out", "r.csv", "--plot", "rp", "--quiet", "--allow-untrusted"]) == 2
-    assert one_error(capsys) == ("gearbox-vsensor replay: error: --plot rp.png: cannot write it (No space left on "
-                                 "device)")
+    assert one_error(capsys) == (
+        "gearbox-vsensor replay: error: --plot rp.png: cannot write it (No space left on device)"
+    )
     assert snapshot(work) == before
 
 
@@ -179,12 +212,13 @@ def test_replay_writes_through_symlinks(work, can_log, capsys):
 
 # ---------------------------------------------------------------- export-c, export-fmu
 
+
 def failing_write_text(monkeypatch, name):
     real = pathlib.Path.write_text
 
     def write_text(self, data, *a, **kw):
         if name in self.name:
-            full_disk(self, data[:len(data) // 2].encode())
+            full_disk(self, data[: len(data) // 2].encode())
         return real(self, data, *a, **kw)
 
     monkeypatch.setattr(pathlib.Path, "write_text", write_text)
@@ -194,8 +228,9 @@ def test_export_c_full_disk_removes_what_it_wrote_and_the_directory_it_made(work
     failing_write_text(monkeypatch, "gvs_tables.c")
     before = snapshot(work)
     assert main(["export-c", "--out", "new/cb", "--quiet"]) == 2
-    assert one_error(capsys) == ("gearbox-vsensor export-c: error: --out new/cb/gvs_tables.c: cannot write it (No "
-                                 "space left on device)")
+    assert one_error(capsys) == (
+        "gearbox-vsensor export-c: error: --out new/cb/gvs_tables.c: cannot write it (No space left on device)"
+    )
     assert snapshot(work) == before
 
 
@@ -229,8 +264,9 @@ def test_export_fmu_full_disk_leaves_no_temporary_file(work, fake_fmu_build, mon
     monkeypatch.setattr(zipfile.ZipFile, "write", lambda self, *a, **kw: full_disk(self.filename))
     before = snapshot(work)
     assert main(["export-fmu", "--out", "x.fmu", "--quiet"]) == 2
-    assert one_error(capsys) == ("gearbox-vsensor export-fmu: error: --out x.fmu: cannot write it (No space left on "
-                                 "device)")
+    assert one_error(capsys) == (
+        "gearbox-vsensor export-fmu: error: --out x.fmu: cannot write it (No space left on device)"
+    )
     assert snapshot(work) == before
 
 
@@ -251,6 +287,7 @@ def test_export_fmu_writes_through_a_symlink(work, fake_fmu_build):
 
 
 # ---------------------------------------------------------------- tools.outputs itself
+
 
 def test_outputs_commits_all_or_removes_all(tmp_path):
     a, b = tmp_path / "a.csv", tmp_path / "b.log"

@@ -1,4 +1,5 @@
 """Reference plant: energy closure, equilibria, input-rate independence, gear shifts, effects, bad input."""
+
 import math
 
 import numpy as np
@@ -18,27 +19,57 @@ def params():
 
 def steady(gear, rpm, nm, seconds, rate_hz=1.0, **extra):
     t = np.arange(0.0, seconds + 1e-9, 1.0 / rate_hz)
-    cols = {"time_s": t, "engine_speed_rpm": np.full(t.size, float(rpm)),
-            "engine_torque_nm": np.full(t.size, float(nm)), "gear": np.full(t.size, float(gear))}
+    cols = {
+        "time_s": t,
+        "engine_speed_rpm": np.full(t.size, float(rpm)),
+        "engine_torque_nm": np.full(t.size, float(nm)),
+        "gear": np.full(t.size, float(gear)),
+    }
     cols.update({k: np.full(t.size, float(v)) for k, v in extra.items()})
     return RunTable(cols)
 
 
 def test_no_load_uniform_boundaries_stay_at_equilibrium(params):
     """Engine stopped, every boundary at 40 degC, start at 40 degC: nothing may move (no spurious sources)."""
-    p = params.with_overrides({f"boundary.{b}": 40.0 for b in (
-        "ambient", "engine_shaft", "flywheel_cover", "support_beam", "end_yoke", "hot_surroundings",
-        "cold_surroundings", "coolant")})
+    p = params.with_overrides(
+        {
+            f"boundary.{b}": 40.0
+            for b in (
+                "ambient",
+                "engine_shaft",
+                "flywheel_cover",
+                "support_beam",
+                "end_yoke",
+                "hot_surroundings",
+                "cold_surroundings",
+                "coolant",
+            )
+        }
+    )
     res = ReferencePlant(p, cooler="liquid").run(steady(0, 0.0, 0.0, 600), initial_temp_c=40.0)
     T = np.array([res.table[f"T_{n}_c"] for n in res.nodes])
     assert np.max(np.abs(T - 40.0)) < 1e-9
 
 
 def test_cold_gearbox_relaxes_toward_boundaries_without_load(params):
-    p = params.with_overrides({f"boundary.{b}": 50.0 for b in (
-        "ambient", "engine_shaft", "flywheel_cover", "support_beam", "end_yoke", "hot_surroundings",
-        "cold_surroundings", "coolant")})
-    res = ReferencePlant(p, cooler="none", dt_s=5.0).run(steady(0, 0.0, 0.0, 40 * 3600, rate_hz=0.01), initial_temp_c=20.0)
+    p = params.with_overrides(
+        {
+            f"boundary.{b}": 50.0
+            for b in (
+                "ambient",
+                "engine_shaft",
+                "flywheel_cover",
+                "support_beam",
+                "end_yoke",
+                "hot_surroundings",
+                "cold_surroundings",
+                "coolant",
+            )
+        }
+    )
+    res = ReferencePlant(p, cooler="none", dt_s=5.0).run(
+        steady(0, 0.0, 0.0, 40 * 3600, rate_hz=0.01), initial_temp_c=20.0
+    )
     T_end = np.array([res.table[f"T_{n}_c"][-1] for n in res.nodes])
     assert np.all(T_end > 45.0) and np.all(T_end <= 50.0 + 1e-9)
     eb = res.energy_balance()
@@ -50,7 +81,9 @@ def test_cold_gearbox_relaxes_toward_boundaries_without_load(params):
 @pytest.mark.parametrize("cooler", ["liquid", "air", "none", "hold"])
 def test_energy_closes_for_every_cooler(params, cooler):
     tab = steady(9, 1300, 2000, 1800, coolant_temp_c=85.0)
-    res = ReferencePlant(params, cooler=cooler).run(tab, initial_temp_c=60.0, hold_oil_c=100.0 if cooler == "hold" else None)
+    res = ReferencePlant(params, cooler=cooler).run(
+        tab, initial_temp_c=60.0, hold_oil_c=100.0 if cooler == "hold" else None
+    )
     eb = res.energy_balance()
     assert eb["generated_j"] > 1e6
     assert eb["closure_rel"] < 1e-3
@@ -67,9 +100,15 @@ def test_losses_integrated_exactly_whatever_the_input_rate(params):
 def test_noisy_100hz_gear_shifting_input_is_robust(params):
     rng = np.random.default_rng(1)
     t = np.arange(0, 600, 0.01)
-    gear = np.repeat(np.array([3, 5, 7, 9, 11, 13, 14, 12, 10, 8, 6, 4]), t.size // 12 + 1)[:t.size]
-    tab = RunTable({"time_s": t, "engine_speed_rpm": 1300 + 30 * rng.standard_normal(t.size),
-                    "engine_torque_nm": 1500 + 150 * rng.standard_normal(t.size), "gear": gear.astype(float)})
+    gear = np.repeat(np.array([3, 5, 7, 9, 11, 13, 14, 12, 10, 8, 6, 4]), t.size // 12 + 1)[: t.size]
+    tab = RunTable(
+        {
+            "time_s": t,
+            "engine_speed_rpm": 1300 + 30 * rng.standard_normal(t.size),
+            "engine_torque_nm": 1500 + 150 * rng.standard_normal(t.size),
+            "gear": gear.astype(float),
+        }
+    )
     res = ReferencePlant(params).run(tab, initial_temp_c=70.0)
     T = np.array([res.table[f"T_{n}_c"] for n in res.nodes])
     assert np.all(np.isfinite(T))
@@ -82,6 +121,7 @@ def test_a_cold_start_re_evaluates_the_losses_as_the_oil_warms(params):
     20-s chunks agree with losses evaluated every step (chunk_s = dt). A chunk's losses stayed at its starting
     viscosity for 20 s: 37 kW at idle, the sump 21 K too warm, the input-front bearing 16 K."""
     from tools.cycles.named import cold_start
+
     tab = cold_start(-30.0, duration_s=600.0)
     plant = ReferencePlant(params)
     chunked = plant.run(tab, initial_temp_c=-30.0).table
@@ -107,7 +147,7 @@ def test_hot_spots_match_the_thesis_qualitatively(params):
     rise = {n: tb[f"T_{n}_c"][-1] - 100.0 for n in ("LI.teeth", "LL", "LS@1L", "LS@2L", "LS@CL", "3M.teeth")}
     assert rise["LI.teeth"] > rise["LL"] > 5
     assert rise["LS@1L"] > rise["LS@2L"] + 10 and rise["LS@1L"] > rise["LS@CL"] + 10
-    assert rise["3M.teeth"] < 3            # unloaded pair at 4L stays near the oil
+    assert rise["3M.teeth"] < 3  # unloaded pair at 4L stays near the oil
 
 
 def test_planetary_hot_at_low_range_cool_at_high(params):
@@ -128,8 +168,11 @@ def test_every_effect_changes_the_plant(params, eid):
     cooler = "air" if eid == "thermostat_offset" else "liquid"
     base = ReferencePlant(params, cooler=cooler).run(tab, initial_temp_c=85.0)
     eff = ReferencePlant(params, {eid: value}, cooler=cooler).run(tab, initial_temp_c=85.0)
-    diff = max(np.max(np.abs(base.table[c] - eff.table[c])) for c in base.table.columns
-               if (c.startswith("T_") or c == "oil_temp_c"))
+    diff = max(
+        np.max(np.abs(base.table[c] - eff.table[c]))
+        for c in base.table.columns
+        if (c.startswith("T_") or c == "oil_temp_c")
+    )
     assert diff > 0.05, f"{eid} changed nothing"
     assert eff.energy_balance()["closure_rel"] < 1e-3
 
@@ -149,8 +192,12 @@ def test_retarder_braking_in_either_sign_heats_the_plant_alike(params):
 def test_bad_inputs_are_one_sentence_errors(params):
     plant = ReferencePlant(params)
     good = steady(9, 1300, 1000, 10)
-    for col, val, words in (("gear", 15.0, "gear"), ("engine_speed_rpm", -5.0, "negative"),
-                            ("engine_torque_nm", math.nan, "not a number"), ("engine_torque_nm", 9999.0, "range")):
+    for col, val, words in (
+        ("gear", 15.0, "gear"),
+        ("engine_speed_rpm", -5.0, "negative"),
+        ("engine_torque_nm", math.nan, "not a number"),
+        ("engine_torque_nm", 9999.0, "range"),
+    ):
         tab = good.copy()
         arr = np.array(tab[col], dtype=float)
         arr[3] = val
@@ -166,6 +213,7 @@ def test_bad_inputs_are_one_sentence_errors(params):
 def test_energy_closes_on_every_named_cycle(params, cycle):
     """Generated heat = stored + rejected within 0.1 % on every named (synthetic) cycle, at its own settings."""
     from tools.cycles.named import get_cycle
+
     tab = get_cycle(cycle, rate_hz=2)
     res = ReferencePlant(params, dt_s=1.0).run(tab, out_dt_s=10.0)
     eb = res.energy_balance()
@@ -177,6 +225,7 @@ def test_energy_closes_on_every_named_cycle(params, cycle):
 def test_progress_bar_starts_no_thread(params, show, capsys):
     """The plant's progress bar (tools.progress) leaves the process single-threaded (forking stays safe)."""
     import threading
+
     before = threading.active_count()
     ReferencePlant(params, cooler="none").run(steady(9, 1300, 2000, 60), progress=show)
     assert threading.active_count() == before

@@ -1,5 +1,6 @@
 """Unit and sign mistakes of a whole record, and clamps on more than 5 % of the steps, through `replay` (run tables
 and CAN logs), `fleet`, `diagnose` and the live service: none of them exits 0 with the wrong numbers."""
+
 import logging
 import math
 
@@ -19,10 +20,14 @@ def drive(minutes=12.0, oil=None, torque_scale=1.0, **cols):
     """A loaded drive, one row a second: the oil warming from 68 to about 92 degC, 1100-1500 rpm, 300-2700 Nm."""
     t = np.arange(0.0, minutes * 60.0, 1.0)
     rng = np.random.default_rng(0)
-    base = {"time_s": t, "engine_speed_rpm": 1100.0 + 400.0 * rng.random(t.size),
-            "engine_torque_nm": torque_scale * (1500.0 + 1200.0 * np.sin(t / 90.0)),
-            "gear": np.full(t.size, 12.0), "vehicle_speed_kmh": np.full(t.size, 60.0),
-            "oil_temp_c": 92.0 - 24.0 * np.exp(-t / 900.0) if oil is None else oil(t)}
+    base = {
+        "time_s": t,
+        "engine_speed_rpm": 1100.0 + 400.0 * rng.random(t.size),
+        "engine_torque_nm": torque_scale * (1500.0 + 1200.0 * np.sin(t / 90.0)),
+        "gear": np.full(t.size, 12.0),
+        "vehicle_speed_kmh": np.full(t.size, 60.0),
+        "oil_temp_c": 92.0 - 24.0 * np.exp(-t / 900.0) if oil is None else oil(t),
+    }
     base.update(cols)
     return RunTable(base)
 
@@ -38,13 +43,16 @@ def replay(tmp_path, capsys, table, *extra, name="run.csv"):
     return rc, capsys.readouterr().err, out
 
 
-@pytest.mark.parametrize("minutes, table, words", [
-    (12.0, dict(oil=degf), "the oil looks like degF, not degC; give degC: (degF - 32) / 1.8"),
-    (30.0, dict(oil=degf), "the oil looks like degF"),
-    (12.0, dict(oil=lambda t: 92.0 - 24.0 * np.exp(-t / 900.0) + 273.15), "the oil looks like kelvin"),
-    (12.0, dict(torque_scale=-1.0), "column engine_torque_nm is below -50 Nm on"),
-    (12.0, dict(torque_scale=100.0 / 3000.0), "the torque looks like percent of the reference torque, not N m"),
-])
+@pytest.mark.parametrize(
+    "minutes, table, words",
+    [
+        (12.0, dict(oil=degf), "the oil looks like degF, not degC; give degC: (degF - 32) / 1.8"),
+        (30.0, dict(oil=degf), "the oil looks like degF"),
+        (12.0, dict(oil=lambda t: 92.0 - 24.0 * np.exp(-t / 900.0) + 273.15), "the oil looks like kelvin"),
+        (12.0, dict(torque_scale=-1.0), "column engine_torque_nm is below -50 Nm on"),
+        (12.0, dict(torque_scale=100.0 / 3000.0), "the torque looks like percent of the reference torque, not N m"),
+    ],
+)
 def test_a_whole_record_in_the_wrong_unit_or_sign_is_untrusted(tmp_path, capsys, minutes, table, words):
     rc, err, out = replay(tmp_path, capsys, drive(minutes, **table))
     assert rc == 3 and words in err and "should not be trusted" in err
@@ -61,19 +69,22 @@ def test_negative_torque_is_also_a_clamp_on_most_steps(tmp_path, capsys):
 
 def test_a_clamp_on_more_than_5_percent_of_the_steps_is_untrusted(tmp_path, capsys):
     t = np.arange(0.0, 720.0, 1.0)
-    high = drive(engine_torque_nm=np.where(t % 10 == 0, 5000.0, 1500.0))       # above 4200 Nm on 10 % of the rows
+    high = drive(engine_torque_nm=np.where(t % 10 == 0, 5000.0, 1500.0))  # above 4200 Nm on 10 % of the rows
     rc, err, _ = replay(tmp_path, capsys, high)
     assert rc == 3 and "engine torque clamped to the engine's range on 10 %" in err
-    few = drive(engine_torque_nm=np.where(t % 50 == 0, 5000.0, 1500.0))        # 2 %: a line in the summary only
+    few = drive(engine_torque_nm=np.where(t % 50 == 0, 5000.0, 1500.0))  # 2 %: a line in the summary only
     rc, err, _ = replay(tmp_path, capsys, few, name="few.csv")
     assert rc == 0 and "clamped or repaired" not in err
 
 
-@pytest.mark.parametrize("oil", [
-    lambda t: 20.0 + 110.0 * (1.0 - np.exp(-t / 600.0)),          # a hot drive from 20 to 130 degC
-    lambda t: -30.0 + 100.0 * (1.0 - np.exp(-t / 1200.0)),        # a cold start at -30 degC
-    lambda t: 140.0 + 8.0 * np.sin(t / 300.0),                     # hot, 132-148 degC
-])
+@pytest.mark.parametrize(
+    "oil",
+    [
+        lambda t: 20.0 + 110.0 * (1.0 - np.exp(-t / 600.0)),  # a hot drive from 20 to 130 degC
+        lambda t: -30.0 + 100.0 * (1.0 - np.exp(-t / 1200.0)),  # a cold start at -30 degC
+        lambda t: 140.0 + 8.0 * np.sin(t / 300.0),  # hot, 132-148 degC
+    ],
+)
 def test_honest_drives_are_not_flagged(tmp_path, capsys, oil):
     rc, err, _ = replay(tmp_path, capsys, drive(30.0, oil=oil))
     assert rc == 0 and "looks like" not in err and "clamped or repaired" not in err, err
@@ -98,6 +109,7 @@ def test_the_fleet_says_it_per_log(tmp_path):
     pytest.importorskip("dask")
     from tools.fleet.manifest import LogEntry
     from tools.fleet.run import process_log
+
     log = _log(tmp_path, drive(oil=degf), "degf.log")
     kind, row = process_log(LogEntry(log, "truck1", None, None, "2026-01-01", "k1"))
     assert kind == "ok" and not row["trusted"] and "looks like degF" in row["trust_warnings"]
@@ -113,8 +125,10 @@ def test_the_diagnosis_refuses_a_file_whose_oil_reads_degf(tmp_path, capsys):
 
 # -- the live service ---------------------------------------------------------------------------------------------
 
+
 def _frame(t, pgn, sa, data, prio=6):
     import can
+
     return can.Message(timestamp=t, arbitration_id=can_id_of(pgn, sa, prio), is_extended_id=True, data=bytes(data))
 
 
@@ -147,6 +161,7 @@ def _run(sensor, seconds, oil_c, pct, caplog=None):
 def test_the_live_service_finds_degf_oil_after_its_first_minute(sensor, caplog, tmp_path):
     from firmware_model.service.persist import HealthFile, read_health
     from tools.cli.status import status_lines
+
     svc, _ = _run(sensor, 50.0, 180.0, 40)
     assert "record_findings" not in svc.counters and not [f for f in svc.findings() if f.kind == "plausibility"]
     with caplog.at_level(logging.WARNING, logger="gearbox_vsensor.can_service"):
@@ -154,13 +169,14 @@ def test_the_live_service_finds_degf_oil_after_its_first_minute(sensor, caplog, 
     found = [f for f in svc.findings() if f.kind == "plausibility"]
     assert len(found) == 1 and found[0].likely == "degF"
     logged = [r.getMessage() for r in caplog.records if "looks like degF" in r.getMessage()]
-    assert len(logged) == 1                                  # logged once
+    assert len(logged) == 1  # logged once
     health = tmp_path / "health.json"
     HealthFile(health).maybe_write(svc)
     doc = read_health(health)
     assert doc["findings"][0]["kind"] == "plausibility" and doc["findings"][0]["severity"] == "untrusted"
-    assert any(line.startswith("finding (untrusted): the oil temperature (TRF1 SPN 177") for line in
-               status_lines(doc, 0.0))
+    assert any(
+        line.startswith("finding (untrusted): the oil temperature (TRF1 SPN 177") for line in status_lines(doc, 0.0)
+    )
 
 
 def test_the_live_service_names_the_input_in_dm1(sensor):
@@ -182,6 +198,8 @@ def test_simulate_refuses_a_cycle_in_the_wrong_unit(tmp_path, capsys):
     assert main(["simulate", "--cycle", str(pct), "--out", str(tmp_path / "p.csv"), "--quiet"]) == 2
     assert "looks like percent" in capsys.readouterr().err
     oil = write_run_table(drive(oil=degf), tmp_path / "degf.csv")
-    assert main(["simulate", "--cycle", str(oil), "--cooler", "measured", "--out", str(tmp_path / "o.csv"),
-                 "--quiet"]) == 2
+    assert (
+        main(["simulate", "--cycle", str(oil), "--cooler", "measured", "--out", str(tmp_path / "o.csv"), "--quiet"])
+        == 2
+    )
     assert "looks like degF" in capsys.readouterr().err

@@ -1,4 +1,5 @@
 """Replay of CAN logs (.log, .asc, .blf, .mf4) through the sensor service into a sensor output run table."""
+
 from __future__ import annotations
 
 import sys
@@ -6,9 +7,9 @@ import sys
 import numpy as np
 import pytest
 
-from firmware_model.service import SensorService, ServiceOptions
 from firmware_model.components import PUBLISHED
 from firmware_model.errors import InputError
+from firmware_model.service import SensorService, ServiceOptions
 from tools.can.logsynth import synth_frames, write_frames
 from tools.replay.log import is_can_log, read_log, replay_log
 from tools.runtable import RunTable, read_run_table, write_run_table
@@ -20,10 +21,17 @@ from .can_fixtures import plant_output
 def cycle(seconds=20.0):
     t = np.arange(0.0, seconds, 0.1)
     n = t.size
-    return RunTable({"time_s": t, "engine_speed_rpm": 1000.0 + 500.0 * np.sin(t / 3.0),
-                     "engine_torque_nm": 800.0 + 600.0 * np.cos(t / 4.0), "gear": np.where(t < 10, 7, 8),
-                     "ambient_temp_c": np.full(n, 20.0), "coolant_temp_c": np.full(n, 85.0),
-                     "vehicle_speed_kmh": np.full(n, 50.0)})
+    return RunTable(
+        {
+            "time_s": t,
+            "engine_speed_rpm": 1000.0 + 500.0 * np.sin(t / 3.0),
+            "engine_torque_nm": 800.0 + 600.0 * np.cos(t / 4.0),
+            "gear": np.where(t < 10, 7, 8),
+            "ambient_temp_c": np.full(n, 20.0),
+            "coolant_temp_c": np.full(n, 85.0),
+            "vehicle_speed_kmh": np.full(n, 50.0),
+        }
+    )
 
 
 def plant(inputs):
@@ -37,15 +45,25 @@ def frames():
 
 
 def replay(path, **kw):
-    return replay_log(path, SensorService(make_sensor(), ServiceOptions(configured_ref_torque_nm=None), record=True),
-                      **kw)
+    return replay_log(
+        path, SensorService(make_sensor(), ServiceOptions(configured_ref_torque_nm=None), record=True), **kw
+    )
 
 
 def test_replay_table_has_the_contract_columns_and_the_decoded_inputs(tmp_path, frames):
     inp, fr = frames
     table = replay(write_frames(fr, tmp_path / "drive.log"))
-    for col in ("time_s", "engine_speed_rpm", "engine_torque_nm", "gear", "oil_temp_c", "ambient_temp_c",
-                "coolant_temp_c", "vehicle_speed_kmh", "retarder_torque_nm"):
+    for col in (
+        "time_s",
+        "engine_speed_rpm",
+        "engine_torque_nm",
+        "gear",
+        "oil_temp_c",
+        "ambient_temp_c",
+        "coolant_temp_c",
+        "vehicle_speed_kmh",
+        "retarder_torque_nm",
+    ):
         assert table.has(col), col
     for c in PUBLISHED:
         for col in (f"T_{c}_c", f"W_{c}", f"ttl_{c}_s", f"meas_T_{c}_c"):
@@ -60,8 +78,9 @@ def test_replay_table_has_the_contract_columns_and_the_decoded_inputs(tmp_path, 
     want = np.clip(np.rint(inp["engine_torque_nm"][k] / 3000.0 * 100.0), -125, 125) * 30.0
     assert np.allclose(table["engine_torque_nm"][ok], want[ok]) and np.isnan(table["engine_torque_nm"][~ok]).all()
     assert np.isnan(table["retarder_torque_nm"]).all()  # no ERC1 in this cycle
-    assert np.allclose(table["meas_T_PS_c"], 61.0 + PUBLISHED.index("PS") + 0.3 * (t - 0.025 - 0.05),
-                       atol=1 / 64 + 1e-6)
+    assert np.allclose(
+        table["meas_T_PS_c"], 61.0 + PUBLISHED.index("PS") + 0.3 * (t - 0.025 - 0.05), atol=1 / 64 + 1e-6
+    )
     assert table.meta["counters"]["decoder"]["frames_seen"] == len(fr)
     out = write_run_table(table, tmp_path / "est.csv")
     back = read_run_table(out, required=("time_s",))
@@ -74,6 +93,7 @@ def test_every_log_format_gives_the_same_table(tmp_path, frames, suffix):
     other makes' loggers; a log-replay audit found it refused)."""
     if suffix == ".trc":
         import can
+
         with can.Logger(tmp_path / "drive.trc") as w:
             for m in fr_messages(frames[1]):
                 w.on_message_received(m)
@@ -81,6 +101,7 @@ def test_every_log_format_gives_the_same_table(tmp_path, frames, suffix):
     elif suffix == ".mf4":
         pytest.importorskip("asammdf", reason="the optional package asammdf (pip install .[mf4]) is not installed")
         import can
+
         with can.Logger(tmp_path / "drive.mf4") as w:
             for m in fr_messages(frames[1]):
                 w.on_message_received(m)
@@ -101,8 +122,10 @@ def test_a_truncated_mf4_or_a_gzip_log_is_one_sentence(tmp_path, frames):
     tracebacks from its finaliser around it; a .log.gz says how to decompress it (a log-replay audit)."""
     import gzip
     import subprocess
+
     pytest.importorskip("asammdf", reason="the optional package asammdf (pip install .[mf4]) is not installed")
     import can
+
     with can.Logger(tmp_path / "drive.mf4") as w:
         for m in fr_messages(frames[1]):
             w.on_message_received(m)
@@ -111,8 +134,20 @@ def test_a_truncated_mf4_or_a_gzip_log_is_one_sentence(tmp_path, frames):
     write_frames(frames[1], tmp_path / "drive.log")
     (tmp_path / "drive.log.gz").write_bytes(gzip.compress((tmp_path / "drive.log").read_bytes()))
     for name, words in (("cut.mf4", "truncated"), ("drive.log.gz", "gzip-compressed; decompress it first")):
-        run = subprocess.run([sys.executable, "-m", "tools.cli", "replay", str(tmp_path / name), "--out",
-                              str(tmp_path / "o.csv"), "--quiet"], capture_output=True, text=True)
+        run = subprocess.run(
+            [
+                sys.executable,
+                "-m",
+                "tools.cli",
+                "replay",
+                str(tmp_path / name),
+                "--out",
+                str(tmp_path / "o.csv"),
+                "--quiet",
+            ],
+            capture_output=True,
+            text=True,
+        )
         assert run.returncode == 2, (name, run.stderr)
         assert run.stderr.count("\n") == 1 and words in run.stderr, (name, run.stderr)
         assert not (tmp_path / "o.csv").exists()
@@ -131,18 +166,19 @@ def test_errors_name_the_file_and_the_rule(tmp_path, monkeypatch):
     (tmp_path / "bad.log").write_text("(0.0) can0 18FEF100#00\nthis is not candump\n")
     with pytest.raises(InputError, match="bad.log: line 2 is not a candump -L frame"):
         list(read_log(tmp_path / "bad.log"))
-    (tmp_path / "cut.log").write_text("(0.0) can0 18FEF100#00\n(0.1) can0")      # a truncated copy
+    (tmp_path / "cut.log").write_text("(0.0) can0 18FEF100#00\n(0.1) can0")  # a truncated copy
     with pytest.raises(InputError, match="cut.log: the log ends in the middle of a line"):
         list(read_log(tmp_path / "cut.log"))
     with pytest.raises(InputError, match="cut.log: the log ends in the middle of a line"):
-        replay(tmp_path / "cut.log", strict=True)             # the fast candump parser too
+        replay(tmp_path / "cut.log", strict=True)  # the fast candump parser too
     with pytest.raises(InputError, match=r"no sensor step.*\(1 malformed line skipped \(line 2, the last, cut"):
-        replay(tmp_path / "cut.log")                          # without strict: skipped, and said
+        replay(tmp_path / "cut.log")  # without strict: skipped, and said
     import can
+
     with can.BLFWriter(tmp_path / "whole.blf") as w:
         for i in range(3000):
             w.on_message_received(can.Message(timestamp=i * 0.01, arbitration_id=0x18FEF100, data=bytes(8)))
-    (tmp_path / "cut.blf").write_bytes((tmp_path / "whole.blf").read_bytes()[:6000])   # read to its end silently
+    (tmp_path / "cut.blf").write_bytes((tmp_path / "whole.blf").read_bytes()[:6000])  # read to its end silently
     with pytest.raises(InputError, match="cut.blf: the BLF log is shorter than its header records"):
         list(read_log(tmp_path / "cut.blf"))
     assert len(list(read_log(tmp_path / "whole.blf"))) == 3000
@@ -157,12 +193,15 @@ def test_errors_name_the_file_and_the_rule(tmp_path, monkeypatch):
     (tmp_path / "equal.log").write_text("".join("(5.000000) can0 0CF00400#F07D7DA02800FFFF\n" for _ in range(200)))
     with pytest.raises(InputError, match="are all time stamps equal"):
         replay(tmp_path / "equal.log")
-    lines = "".join(f"(nan) can0 0CF00400#F0C0C0A02800FFFF\n" for _ in range(50))   # every frame time lost
+    lines = "".join("(nan) can0 0CF00400#F0C0C0A02800FFFF\n" for _ in range(50))  # every frame time lost
     (tmp_path / "nan.log").write_text(lines)
     for columnar in (True, False):
         with pytest.raises(InputError, match="all 50 frames were rejected as a frame time that is not a finite"):
-            replay_log(tmp_path / "nan.log", SensorService(make_sensor(), ServiceOptions(), record=True, emit_frames=False),
-                       columnar=columnar)
+            replay_log(
+                tmp_path / "nan.log",
+                SensorService(make_sensor(), ServiceOptions(), record=True, emit_frames=False),
+                columnar=columnar,
+            )
     (tmp_path / "x.mf4").write_bytes(b"\0" * 64)
     monkeypatch.setitem(sys.modules, "asammdf", None)
     with pytest.raises(InputError, match=r"needs the optional package asammdf.*gearbox-vsensor\[mf4\]"):
@@ -174,15 +213,16 @@ def messy_log(path):
     """A 60 s drive with what the service handles specially: no oil temperature for the first 3 s (not
     initialised), EEC1 missing for 2 s (stale inputs), a forward and a backward time jump, rig thermocouples."""
     from can_dbc.adapter import pgn_of
+
     inp = cycle(60.0)
     fr = synth_frames(inp, plant(inp)).frames
     t, ids, data = fr.timestamp_s.copy(), fr.can_id.copy(), fr.data.copy()
     pgn = np.array([pgn_of(int(i)) for i in ids])
     keep = ~((pgn == 65272) & (t < 3.0)) & ~((pgn == 61444) & (t > 20.0) & (t < 22.0))
     t, ids, data = t[keep], ids[keep], data[keep]
-    t = np.where(t > 35.0, t + 100.0, t)                 # forward jump
-    t = np.where(t > 145.0, t - 7.0, t)                  # backward jump
-    with open(path, "w") as fh:                          # candump -L by hand (our writer never goes backwards)
+    t = np.where(t > 35.0, t + 100.0, t)  # forward jump
+    t = np.where(t > 145.0, t - 7.0, t)  # backward jump
+    with open(path, "w") as fh:  # candump -L by hand (our writer never goes backwards)
         for ts, i, d in zip(t.tolist(), ids.tolist(), data):
             fh.write(f"({ts:.6f}) can0 {i:08X}#{d.tobytes().hex().upper()}\n")
     return path
@@ -217,19 +257,24 @@ def test_retarder_frames_without_a_reference_torque_are_named(tmp_path):
     """ERC1 frames arrive but neither an RC (the retarder's reference torque, SPN 556) nor [can]
     retarder_reference_torque_nm: the summary says so (it said "auxiliary inputs not given (retarder_torque_nm)" as
     if the log had none); with the configured reference, or with RC in the log, nothing is said."""
-    from tools.replay.summary import summary_lines
     from tools.can.logsynth import SynthFrames
+    from tools.replay.summary import summary_lines
+
     inp = cycle()
     inp["retarder_torque_nm"] = np.full(inp.n, 700.0)
     fr = synth_frames(inp, plant(inp)).frames
     without_rc = ~np.isin(fr.can_id, [0x1CECFF10, 0x1CEBFF10])
-    paths = {"rc": write_frames(fr, tmp_path / "rc.log"),
-             "no_rc": write_frames(SynthFrames(fr.timestamp_s[without_rc], fr.can_id[without_rc],
-                                               fr.data[without_rc]), tmp_path / "no_rc.log")}
+    paths = {
+        "rc": write_frames(fr, tmp_path / "rc.log"),
+        "no_rc": write_frames(
+            SynthFrames(fr.timestamp_s[without_rc], fr.can_id[without_rc], fr.data[without_rc]), tmp_path / "no_rc.log"
+        ),
+    }
     lines = {}
     for log, ref in (("no_rc", None), ("no_rc", 3500.0), ("rc", None)):
-        service = SensorService(make_sensor(), ServiceOptions(configured_ref_torque_nm=None,
-                                                              retarder_ref_torque_nm=ref), record=True)
+        service = SensorService(
+            make_sensor(), ServiceOptions(configured_ref_torque_nm=None, retarder_ref_torque_nm=ref), record=True
+        )
         lines[log, ref] = summary_lines(replay_log(paths[log], service))[-1]
     assert "retarder frames (ERC1) arrived, but without a retarder reference torque" in lines["no_rc", None]
     for key in (("no_rc", 3500.0), ("rc", None)):
@@ -256,6 +301,7 @@ def test_a_log_with_a_byte_order_mark_is_one_sentence(tmp_path, frames):
 def test_a_gzipped_log_and_a_directory_are_one_sentence(tmp_path, frames):
     """From a bad-input audit: a gzip-compressed log under a .log name dumped binary bytes into the message."""
     import gzip
+
     _, fr = frames
     path = write_frames(fr, tmp_path / "drive.log")
     packed = tmp_path / "packed.log"
@@ -282,6 +328,7 @@ def test_a_trc_cut_mid_line_is_refused(tmp_path, frames):
     """A PCAN-View trace cut in the middle of its last line is refused as the other text logs are (python-can would
     read the cut line as a shorter frame)."""
     import can
+
     with can.Logger(tmp_path / "drive.trc") as w:
         for m in fr_messages(frames[1]):
             w.on_message_received(m)
@@ -289,7 +336,7 @@ def test_a_trc_cut_mid_line_is_refused(tmp_path, frames):
     (tmp_path / "cut.trc").write_bytes(raw[:-7])
     with pytest.raises(InputError, match="cut.trc: the log ends in the middle of a line"):
         replay(tmp_path / "cut.trc", strict=True)
-    cut = replay(tmp_path / "cut.trc")        # without strict: the cut line skipped, the frames before it kept
+    cut = replay(tmp_path / "cut.trc")  # without strict: the cut line skipped, the frames before it kept
     whole = replay(tmp_path / "drive.trc")
     assert cut.meta["malformed"].summary.startswith("1 malformed line skipped (line ")
     assert cut.meta["counters"]["decoder"]["frames_seen"] == whole.meta["counters"]["decoder"]["frames_seen"] - 1

@@ -1,5 +1,6 @@
 """Malformed lines of a CAN log: skipped, counted and said in both replay paths; untrusted over 1 %
 of the lines or where a line breaks a frame sequence the step needs; ``--strict`` refuses the log as before."""
+
 from __future__ import annotations
 
 import shutil
@@ -21,12 +22,12 @@ SPEC = "steady:gear=4L,rpm=1300,nm=2000,s=120"
 def drive(tmp_path_factory):
     d = tmp_path_factory.mktemp("drive")
     assert main(["simulate", "--cycle", SPEC, "--can-log", str(d / "drive.log"), "--out", str(d / "run.csv")]) == 0
-    return (d / "drive.log").read_bytes().split(b"\n")[:-1]      # the lines, without the final newline's empty tail
+    return (d / "drive.log").read_bytes().split(b"\n")[:-1]  # the lines, without the final newline's empty tail
 
 
 def _write(path, lines, cut: int = 0) -> str:
     raw = b"\n".join(lines) + b"\n"
-    path.write_bytes(raw[:len(raw) - cut] if cut else raw)
+    path.write_bytes(raw[: len(raw) - cut] if cut else raw)
     return str(path)
 
 
@@ -69,7 +70,7 @@ def test_a_garbage_line_in_the_middle_is_skipped_counted_and_said(tmp_path, driv
 
 
 def test_a_truncated_last_line_alone_is_counted_not_untrusted(tmp_path, drive, capsys):
-    path = _write(tmp_path / "cut.log", drive, cut=9)       # the last frame cut in its data: it would still parse
+    path = _write(tmp_path / "cut.log", drive, cut=9)  # the last frame cut in its data: it would still parse
     table = _both_paths(path)
     assert table.meta["counters"]["decoder"]["frames_seen"] == len(drive) - 1
     rc, out, err = _replay(path, capsys)
@@ -88,8 +89,10 @@ def test_more_than_one_percent_garbage_is_untrusted(tmp_path, drive, capsys):
     assert table.meta["malformed"].skipped == n_bad
     rc, out, err = _replay(path, capsys)
     assert rc == 3
-    assert f"warning: {n_bad} malformed lines skipped (lines 8, 58, 108, 158, 208 and {n_bad - 5} more; the last " \
-           f"one cut short" in err
+    assert (
+        f"warning: {n_bad} malformed lines skipped (lines 8, 58, 108, 158, 208 and {n_bad - 5} more; the last "
+        f"one cut short" in err
+    )
     assert f"of the log's {len(drive)} lines, more than 1 %" in err
     rc, out, err = _replay(path, capsys, "--allow-untrusted")
     assert rc == 0 and "more than 1 %" in err
@@ -99,8 +102,8 @@ def test_more_than_one_percent_garbage_is_untrusted(tmp_path, drive, capsys):
 
 def test_a_broken_tp_dt_line_of_ec1_is_untrusted(tmp_path, drive, capsys):
     lines = list(drive)
-    k = _line_of(lines, b"1CEBFF00", 30)        # a packet of an EC1 transfer from the engine (TP.BAM)
-    lines[k] = lines[k].replace(b"#", b"#~")    # a byte of noise in its data
+    k = _line_of(lines, b"1CEBFF00", 30)  # a packet of an EC1 transfer from the engine (TP.BAM)
+    lines[k] = lines[k].replace(b"#", b"#~")  # a byte of noise in its data
     path = _write(tmp_path / "dt.log", lines)
     table = _both_paths(path)
     assert table.meta["malformed"].broken
@@ -109,7 +112,7 @@ def test_a_broken_tp_dt_line_of_ec1_is_untrusted(tmp_path, drive, capsys):
     assert f"1 malformed line skipped (line {k + 1}): line {k + 1} broke a TP.BAM transfer of EC1" in err
     # the same packet line intact and a garbage line elsewhere, outside any transfer: not untrusted
     lines = list(drive)
-    j = _line_of(lines, b"18FEF803", 50) + 1        # just after a TRF1 frame
+    j = _line_of(lines, b"18FEF803", 50) + 1  # just after a TRF1 frame
     lines.insert(j, b"garbage")
     rc, out, err = _replay(_write(tmp_path / "ok.log", lines), capsys)
     assert rc == 0, err
@@ -119,27 +122,31 @@ def test_a_burst_that_leaves_a_primary_input_stale_is_untrusted(tmp_path, drive,
     """40 lines (0.2 % of the log) lost in a row: EEC1 is missing for 0.2 s, beyond its 60 ms staleness limit."""
     lines = list(drive)
     start = _line_of(lines, b"0CF00400", 3000)
-    lines[start:start + 40] = [b"\x00\x7f\x13 binary noise"] * 40
+    lines[start : start + 40] = [b"\x00\x7f\x13 binary noise"] * 40
     path = _write(tmp_path / "burst.log", lines)
     _both_paths(path)
     rc, out, err = _replay(path, capsys)
     assert rc == 3
-    assert f"the malformed lines from line {start + 1} on left a" in err and "gap in EEC1 (engine speed and " \
-           "torque), longer than the sensor's staleness limit of 0.06 s" in err
+    assert (
+        f"the malformed lines from line {start + 1} on left a" in err
+        and "gap in EEC1 (engine speed and torque), longer than the sensor's staleness limit of 0.06 s" in err
+    )
     rc, out, err = _replay(path, capsys, "--strict")
     assert rc == 2 and f"line {start + 1} holds binary data" in err
 
 
 def test_a_cut_blf_keeps_its_frames_and_says_so(tmp_path, drive, capsys):
     import can
+
     from tools.replay.columns import scan_log
+
     src = _write(tmp_path / "drive.log", drive)
     with can.Logger(tmp_path / "drive.blf") as w:
         for m in can.LogReader(src):
             w.on_message_received(m)
     raw = (tmp_path / "drive.blf").read_bytes()
     cut = tmp_path / "cut.blf"
-    cut.write_bytes(raw[:int(len(raw) * 0.8)])
+    cut.write_bytes(raw[: int(len(raw) * 0.8)])
     assert scan_log(cut).note.startswith("the BLF log is shorter than its header records")
     rc, out, err = _replay(str(cut), capsys)
     assert rc in (0, 3), err

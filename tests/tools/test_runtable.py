@@ -1,4 +1,5 @@
 """Run tables (docs/interfaces.md section 3): write-then-read, every validation rule, atomic writes."""
+
 import os
 from pathlib import Path
 
@@ -40,6 +41,7 @@ def error_of(path, **kw):
 
 # ---------------------------------------------------------------- RunTable
 
+
 def test_runtable_helpers():
     t = RunTable({"time_s": [0.0, 0.1, 0.2], "gear": [4, 4, 5], "x_c": [1.0, np.nan, 3.0]}, meta={"a": 1})
     assert t.n == 3 and len(t) == 3
@@ -47,7 +49,7 @@ def test_runtable_helpers():
     assert t.has("gear") and not t.has("oil_temp_c") and "gear" in t
     assert t["gear"].dtype == np.float64
     np.testing.assert_array_equal(t.time_s, [0.0, 0.1, 0.2])
-    t["y_w"] = 5.0   # scalars broadcast
+    t["y_w"] = 5.0  # scalars broadcast
     assert t["y_w"].tolist() == [5.0, 5.0, 5.0]
     with pytest.raises(InputError, match='column "z" has 2 rows but the table has 3'):
         t["z"] = [1.0, 2.0]
@@ -69,26 +71,30 @@ def test_runtable_copies_its_input():
 
 # ---------------------------------------------------------------- round trip
 
+
 def test_write_then_read_round_trip_with_nan_and_extra_columns(tmp_path):
     n = 1000
     rng = np.random.default_rng(1)
-    t = RunTable({
-        "time_s": 10000.0 + np.arange(n) * 0.01,        # 100 Hz late in a 3 h run
-        "engine_speed_rpm": rng.uniform(600, 2100, n),
-        "engine_torque_nm": rng.uniform(-600, 3000, n),
-        "gear": rng.integers(-2, 15, n),
-        "oil_temp_c": rng.normal(80, 5, n),
-        "T_LI.teeth_c": rng.normal(100, 10, n),
-        "Q_gear_w": rng.uniform(0, 2e4, n) * 1e-3,
-        "tiny_m2_s": rng.uniform(1e-6, 1e-4, n),
-    }, meta={"initial_temp_c": 33.5})
+    t = RunTable(
+        {
+            "time_s": 10000.0 + np.arange(n) * 0.01,  # 100 Hz late in a 3 h run
+            "engine_speed_rpm": rng.uniform(600, 2100, n),
+            "engine_torque_nm": rng.uniform(-600, 3000, n),
+            "gear": rng.integers(-2, 15, n),
+            "oil_temp_c": rng.normal(80, 5, n),
+            "T_LI.teeth_c": rng.normal(100, 10, n),
+            "Q_gear_w": rng.uniform(0, 2e4, n) * 1e-3,
+            "tiny_m2_s": rng.uniform(1e-6, 1e-4, n),
+        },
+        meta={"initial_temp_c": 33.5},
+    )
     t["oil_temp_c"][::7] = np.nan
-    t["T_LI.teeth_c"][0] = np.nan    # first cell of a row
-    t["tiny_m2_s"][-1] = np.nan      # last cell of the file
+    t["T_LI.teeth_c"][0] = np.nan  # first cell of a row
+    t["tiny_m2_s"][-1] = np.nan  # last cell of the file
     p = write_run_table(t, tmp_path / "rt.csv")
     text = p.read_text()
     assert text.splitlines()[0] == ",".join(t.columns)
-    assert "nan" not in text and "initial_temp_c" not in text   # NaN is an empty cell; meta stays out
+    assert "nan" not in text and "initial_temp_c" not in text  # NaN is an empty cell; meta stays out
     back = read_run_table(p)
     assert back.columns == t.columns
     for c in t.columns:
@@ -100,22 +106,28 @@ def test_write_then_read_round_trip_with_nan_and_extra_columns(tmp_path):
 
 
 def test_integral_values_written_without_decimals(tmp_path):
-    t = RunTable({"time_s": [0, 1], "engine_speed_rpm": [600, 1300.5], "engine_torque_nm": [0, -250],
-                  "gear": [0, 14]})
+    t = RunTable({"time_s": [0, 1], "engine_speed_rpm": [600, 1300.5], "engine_torque_nm": [0, -250], "gear": [0, 14]})
     lines = write_run_table(t, tmp_path / "a.csv").read_text().splitlines()
     assert lines[1:] == ["0,600,0,0", "1,1300.5,-250,14"]
 
 
 def test_write_accepts_per_column_formats(tmp_path):
-    t = RunTable({"time_s": [0.0, 0.5], "engine_speed_rpm": [1, 2], "engine_torque_nm": [1, 2], "gear": [1, 2],
-                  "x_c": [1.23456, np.nan]})
+    t = RunTable(
+        {
+            "time_s": [0.0, 0.5],
+            "engine_speed_rpm": [1, 2],
+            "engine_torque_nm": [1, 2],
+            "gear": [1, 2],
+            "x_c": [1.23456, np.nan],
+        }
+    )
     text = write_run_table(t, tmp_path / "f.csv", formats={"x_c": "%.2f"}).read_text()
     assert text.splitlines()[1].endswith(",1.23") and text.splitlines()[2].endswith(",")
 
 
 def test_read_accepts_crlf_bom_blank_tail_spaces_and_quoted_cells(tmp_path):
     p = tmp_path / "w.csv"
-    p.write_bytes(("\ufeff" + HEADER + ",note_x\r\n0,600, 0 ,0,1\r\n0.1,700,10,\"3\",\r\n\r\n\r\n").encode("utf-8"))
+    p.write_bytes(("\ufeff" + HEADER + ',note_x\r\n0,600, 0 ,0,1\r\n0.1,700,10,"3",\r\n\r\n\r\n').encode("utf-8"))
     t = read_run_table(p)
     assert t.columns == ("time_s", "engine_speed_rpm", "engine_torque_nm", "gear", "note_x")
     assert t["gear"].tolist() == [0.0, 3.0]
@@ -132,8 +144,11 @@ def test_extra_columns_kept_and_only_required_checked(tmp_path):
 def test_empty_cells_and_fast_path_give_the_same_table(tmp_path):
     rows = good_rows(50)
     a = write_text(tmp_path, HEADER + ",oil_temp_c\n" + "\n".join(r + ",80" for r in rows) + "\n", "a.csv")
-    b = write_text(tmp_path, HEADER + ",oil_temp_c\n" + "\n".join(r + ("," if i % 3 else ",80")
-                                                             for i, r in enumerate(rows)) + "\n", "b.csv")
+    b = write_text(
+        tmp_path,
+        HEADER + ",oil_temp_c\n" + "\n".join(r + ("," if i % 3 else ",80") for i, r in enumerate(rows)) + "\n",
+        "b.csv",
+    )
     ta, tb = read_run_table(a), read_run_table(b)
     for c in HEADER.split(","):
         np.testing.assert_array_equal(ta[c], tb[c])
@@ -141,6 +156,7 @@ def test_empty_cells_and_fast_path_give_the_same_table(tmp_path):
 
 
 # ---------------------------------------------------------------- validation: one sentence naming file, column, row
+
 
 def test_missing_required_column_names_it_and_lists_the_columns(tmp_path):
     p = write_text(tmp_path, "time_s,engine_speed_rpm,engine_torque_nm\n0,1,2\n")
@@ -151,8 +167,10 @@ def test_missing_required_column_names_it_and_lists_the_columns(tmp_path):
 
 def test_gear_not_integer(tmp_path):
     msg = error_of(csv_with(tmp_path, 17, "gear", "3.5"))
-    assert msg.endswith('run.csv: column "gear" row 17: 3.5 is not an integer gear in -2..14 (seed Table 1)') or \
-        'column "gear" row 17: 3.5 is not an integer gear in -2..14 (seed Table 1)' in msg
+    assert (
+        msg.endswith('run.csv: column "gear" row 17: 3.5 is not an integer gear in -2..14 (seed Table 1)')
+        or 'column "gear" row 17: 3.5 is not an integer gear in -2..14 (seed Table 1)' in msg
+    )
 
 
 @pytest.mark.parametrize("value", ["15", "-3"])
@@ -230,11 +248,14 @@ def test_semicolon_file(tmp_path):
     assert "semicolon" in msg
 
 
-@pytest.mark.parametrize("text, words", [
-    ("time_s\tengine_speed_rpm\n0\t1\n", "no commas but tabs"),
-    ("# logged on the rig\n" + HEADER + "\n", "line 1 is a comment"),
-    ("(0.000000) can0 0CF00400#F0C0C0A02800FFFF\n", "holds CAN frames (candump -L), not a run table"),
-])
+@pytest.mark.parametrize(
+    "text, words",
+    [
+        ("time_s\tengine_speed_rpm\n0\t1\n", "no commas but tabs"),
+        ("# logged on the rig\n" + HEADER + "\n", "line 1 is a comment"),
+        ("(0.000000) can0 0CF00400#F0C0C0A02800FFFF\n", "holds CAN frames (candump -L), not a run table"),
+    ],
+)
 def test_a_tab_separated_file_a_comment_line_or_a_can_log_is_named_as_such(tmp_path, text, words):
     """From a bad-input audit: the tab-separated header was one column name, the comment line 'a decimal comma?',
     the candump text a non-numeric cell."""
@@ -257,9 +278,11 @@ def test_row_numbers_do_not_depend_on_empty_cells_elsewhere(tmp_path):
 
 # ---------------------------------------------------------------- atomic writes
 
+
 def small_table():
-    return RunTable({"time_s": np.arange(5000) * 0.1, "engine_speed_rpm": 1300.0, "engine_torque_nm": 1.0,
-                     "gear": 14.0})
+    return RunTable(
+        {"time_s": np.arange(5000) * 0.1, "engine_speed_rpm": 1300.0, "engine_torque_nm": 1.0, "gear": 14.0}
+    )
 
 
 def test_failure_mid_write_leaves_no_file(tmp_path, monkeypatch):
@@ -275,7 +298,7 @@ def test_failure_mid_write_leaves_no_file(tmp_path, monkeypatch):
 
         def write(self, s):
             writes.append(len(s))
-            if len(writes) == 4:          # header, two blocks, then the failure
+            if len(writes) == 4:  # header, two blocks, then the failure
                 raise OSError(28, "No space left on device")
             return self.f.write(s)
 
@@ -293,7 +316,7 @@ def test_failure_mid_write_leaves_no_file(tmp_path, monkeypatch):
         write_run_table(small_table(), target)
     assert len(writes) == 4
     assert not target.exists()
-    assert list(tmp_path.iterdir()) == []   # no temp file left behind
+    assert list(tmp_path.iterdir()) == []  # no temp file left behind
 
 
 def test_failure_keeps_the_previous_file(tmp_path, monkeypatch):
@@ -340,6 +363,7 @@ def test_parquet_output_holds_the_same_numbers(tmp_path):
     """`write_run_table` to .parquet keeps every column at full precision (CSV keeps 10 significant digits)."""
     pq = pytest.importorskip("pyarrow.parquet", reason="pyarrow is the optional extra `parquet`")
     from tools.runtable import RunTable, write_run_table
+
     t = RunTable({"time_s": np.arange(5) * 0.1, "T_PS_c": np.array([1.0 / 3.0, np.nan, 2.0, -1e-300, 1e300])})
     path = write_run_table(t, tmp_path / "o.parquet")
     back = pq.read_table(path)

@@ -7,6 +7,7 @@
   TimeBaseSuspect, finding); `plant --speed X` warns on such buses and keeps the timestamps on the virtual bus;
 - temperature options outside the oil model's range are one-sentence errors with nothing written.
 """
+
 from __future__ import annotations
 
 import logging
@@ -32,8 +33,10 @@ STEADY = "steady:gear=4L,rpm=1300,nm=2000,s=30"
 @pytest.fixture(scope="module")
 def sim(tmp_path_factory):
     d = tmp_path_factory.mktemp("trust")
-    assert main(["simulate", "--cycle", STEADY, "--out", str(d / "run.csv"), "--can-log", str(d / "run.log"),
-                 "--quiet"]) == 0
+    assert (
+        main(["simulate", "--cycle", STEADY, "--out", str(d / "run.csv"), "--can-log", str(d / "run.log"), "--quiet"])
+        == 0
+    )
     (d / "wrong_sa.toml").write_text("[can]\nengine_source_address = 0x01\n")
     return d
 
@@ -47,13 +50,23 @@ def test_replay_with_a_wrong_engine_source_address_says_so_and_exits_3(sim, caps
     assert " times from SA 0x00 but [can] expects SA 0x01 (engine_source_address): check the source addresses" in err
     assert "warning: the sensor ran degraded on 100 % of" in err and "engine speed 100 %" in err
     assert "--allow-untrusted" in err
-    est = read_run_table(out, required=("time_s",))      # the outputs are written all the same
+    est = read_run_table(out, required=("time_s",))  # the outputs are written all the same
     assert est.n > 250 and (est["degraded_mode"][30:] == 2).all()
 
 
 def test_allow_untrusted_exits_0_with_the_same_warnings(sim, capsys):
-    rc = main(["replay", str(sim / "run.log"), "--config", str(sim / "wrong_sa.toml"), "--out",
-               str(sim / "est_allowed.csv"), "--quiet", "--allow-untrusted"])
+    rc = main(
+        [
+            "replay",
+            str(sim / "run.log"),
+            "--config",
+            str(sim / "wrong_sa.toml"),
+            "--out",
+            str(sim / "est_allowed.csv"),
+            "--quiet",
+            "--allow-untrusted",
+        ]
+    )
     err = capsys.readouterr().err
     assert rc == 0 and "warning: EEC1 (PGN 61444)" in err and "warning: the sensor ran degraded" in err
 
@@ -66,9 +79,16 @@ def test_replay_with_the_right_addresses_is_quiet(sim, capsys):
 def test_table_replay_degraded_most_of_the_run_says_so_and_exits_3(tmp_path, capsys):
     t = np.arange(0.0, 60.0, 0.1)
     gear = np.full(t.size, 9.0)
-    gear[100:] = np.nan                                  # the gear stops after 10 s
-    table = RunTable({"time_s": t, "engine_speed_rpm": np.full(t.size, 1300.0),
-                      "engine_torque_nm": np.full(t.size, 2000.0), "gear": gear, "oil_temp_c": np.full(t.size, 80.0)})
+    gear[100:] = np.nan  # the gear stops after 10 s
+    table = RunTable(
+        {
+            "time_s": t,
+            "engine_speed_rpm": np.full(t.size, 1300.0),
+            "engine_torque_nm": np.full(t.size, 2000.0),
+            "gear": gear,
+            "oil_temp_c": np.full(t.size, 80.0),
+        }
+    )
     src = write_run_table(table, tmp_path / "run.csv")
     rc = main(["replay", str(src), "--out", str(tmp_path / "est.csv"), "--quiet"])
     err = capsys.readouterr().err
@@ -82,6 +102,7 @@ def test_table_replay_degraded_most_of_the_run_says_so_and_exits_3(tmp_path, cap
 @pytest.fixture(scope="module")
 def hil_frames():
     from tools.can.hil import prepare
+
     frames, _ = prepare("uphill", duration_s=120.0)
     return frames
 
@@ -90,12 +111,14 @@ def live_on_virtual_bus(frames, *, speed, preserve):
     """Stream the plant's frames ``speed`` x faster onto a virtual bus while the service (time-base windows of 2 s,
     two in a row) runs on it; ``preserve`` False: the bus stamps frames on arrival, like socketcan."""
     from tools.can.hil import stream
+
     channel = f"trust-{uuid.uuid4()}"
     svc_bus = can.Bus(interface="virtual", channel=channel, can_filters=can_filters())
     player = can.Bus(interface="virtual", channel=channel, preserve_timestamps=preserve)
     monitor = can.Bus(interface="virtual", channel=channel)
-    service = SensorService(StandIn(), ServiceOptions(configured_ref_torque_nm=3000.0, time_base_window_s=2.0,
-                                                      time_base_windows=2))
+    service = SensorService(
+        StandIn(), ServiceOptions(configured_ref_torque_nm=3000.0, time_base_window_s=2.0, time_base_windows=2)
+    )
     stop = threading.Event()
     worker = threading.Thread(target=lambda: serve(svc_bus, service, stop=stop), daemon=True)
     worker.start()
@@ -132,42 +155,84 @@ def test_the_same_stream_with_the_plants_timestamps_is_not_flagged(hil_frames):
 
 def test_plant_warns_about_speed_on_a_bus_that_stamps_on_arrival(capsys, monkeypatch):
     import tools.can.bus as bus_mod
+
     channel = f"plant-{uuid.uuid4()}"
     monkeypatch.setattr(bus_mod, "open_player", lambda *a, **k: can.Bus(interface="virtual", channel=channel))
-    assert main(["plant", "--interface", "socketcan", "--channel", "vcan0", "--cycle", STEADY, "--speed", "10",
-                 "--duration", "1", "--quiet"]) == 0
+    assert (
+        main(
+            [
+                "plant",
+                "--interface",
+                "socketcan",
+                "--channel",
+                "vcan0",
+                "--cycle",
+                STEADY,
+                "--speed",
+                "10",
+                "--duration",
+                "1",
+                "--quiet",
+            ]
+        )
+        == 0
+    )
     err = capsys.readouterr().err
     assert err.count("plant: warning:") == 1 and "--speed 10 on socketcan" in err and "stamp frames on arrival" in err
     assert "use --speed 1" in err and "gearbox-vsensor replay RUN.log" in err
-    assert main(["plant", "--interface", "socketcan", "--channel", "vcan0", "--cycle", STEADY, "--duration", "1",
-                 "--quiet"]) == 0
+    assert (
+        main(
+            ["plant", "--interface", "socketcan", "--channel", "vcan0", "--cycle", STEADY, "--duration", "1", "--quiet"]
+        )
+        == 0
+    )
     assert "warning" not in capsys.readouterr().err
 
 
 def test_plant_on_the_virtual_bus_keeps_its_timestamps_and_does_not_warn(capsys):
     channel = f"plant-{uuid.uuid4()}"
     monitor = can.Bus(interface="virtual", channel=channel)
-    assert main(["plant", "--interface", "virtual", "--channel", channel, "--cycle", STEADY, "--speed", "100",
-                 "--duration", "5", "--quiet"]) == 0
+    assert (
+        main(
+            [
+                "plant",
+                "--interface",
+                "virtual",
+                "--channel",
+                channel,
+                "--cycle",
+                STEADY,
+                "--speed",
+                "100",
+                "--duration",
+                "5",
+                "--quiet",
+            ]
+        )
+        == 0
+    )
     stamps = []
     while (m := monitor.recv(0)) is not None:
         stamps.append(m.timestamp)
     monitor.shutdown()
     assert "warning" not in capsys.readouterr().err
-    assert 0.0 <= min(stamps) and max(stamps) <= 5.1      # the plant's frame time, not the wall clock
+    assert 0.0 <= min(stamps) and max(stamps) <= 5.1  # the plant's frame time, not the wall clock
 
 
 # ----------------------------------------------------------------------------------------- temperature options
 
 
-@pytest.mark.parametrize("argv, option", [
-    (["simulate", "--cycle", STEADY, "--initial-temp", "-300"], "--initial-temp -300.0 degC"),
-    (["simulate", "--cycle", STEADY, "--initial-temp", "500"], "--initial-temp 500.0 degC"),
-    (["simulate", "--cycle", STEADY, "--hold-oil", "900"], "--hold-oil 900.0 degC"),
-    (["simulate", "--cycle", STEADY, "--hold-oil", "nan"], "--hold-oil nan degC"),
-    (["simulate", "--cycle", STEADY + ",oil=250"], "oil 250.0 degC"),
-    (["simulate", "--cycle", STEADY + ",init=-41"], "init -41.0 degC"),
-])
+@pytest.mark.parametrize(
+    "argv, option",
+    [
+        (["simulate", "--cycle", STEADY, "--initial-temp", "-300"], "--initial-temp -300.0 degC"),
+        (["simulate", "--cycle", STEADY, "--initial-temp", "500"], "--initial-temp 500.0 degC"),
+        (["simulate", "--cycle", STEADY, "--hold-oil", "900"], "--hold-oil 900.0 degC"),
+        (["simulate", "--cycle", STEADY, "--hold-oil", "nan"], "--hold-oil nan degC"),
+        (["simulate", "--cycle", STEADY + ",oil=250"], "oil 250.0 degC"),
+        (["simulate", "--cycle", STEADY + ",init=-41"], "init -41.0 degC"),
+    ],
+)
 def test_implausible_temperatures_are_refused_in_one_sentence(tmp_path, capsys, argv, option):
     out = tmp_path / "out.csv"
     assert main([*argv, "--out", str(out)]) == 2
@@ -186,17 +251,33 @@ def test_replay_refuses_an_implausible_initial_temperature(sim, tmp_path, capsys
 
 def test_the_limits_of_the_range_are_accepted(tmp_path):
     for value in ("-40", "200"):
-        assert main(["simulate", "--cycle", "steady:gear=4L,rpm=1300,nm=2000,s=10", "--initial-temp", value,
-                     "--out", str(tmp_path / "ok.csv"), "--quiet"]) == 0
+        assert (
+            main(
+                [
+                    "simulate",
+                    "--cycle",
+                    "steady:gear=4L,rpm=1300,nm=2000,s=10",
+                    "--initial-temp",
+                    value,
+                    "--out",
+                    str(tmp_path / "ok.csv"),
+                    "--quiet",
+                ]
+            )
+            == 0
+        )
 
 
-@pytest.mark.parametrize("argv, words", [
-    (["simulate", "--cycle", STEADY, "--noise", "--seed", "-5", "--out", "x.csv"], "--seed -5"),
-    (["simulate", "--cycle", STEADY, "--out-dt", "nan", "--out", "x.csv"], "--out-dt nan"),
-    (["plant", "--interface", "virtual", "--channel", "x", "--cycle", STEADY, "--seed", "-1"], "--seed -1"),
-    (["bench-diagnosis", "--train-s", "-5"], "--train-s -5.0"),
-    (["demo", "--print-every", "0"], "--print-every 0.0"),
-])
+@pytest.mark.parametrize(
+    "argv, words",
+    [
+        (["simulate", "--cycle", STEADY, "--noise", "--seed", "-5", "--out", "x.csv"], "--seed -5"),
+        (["simulate", "--cycle", STEADY, "--out-dt", "nan", "--out", "x.csv"], "--out-dt nan"),
+        (["plant", "--interface", "virtual", "--channel", "x", "--cycle", STEADY, "--seed", "-1"], "--seed -1"),
+        (["bench-diagnosis", "--train-s", "-5"], "--train-s -5.0"),
+        (["demo", "--print-every", "0"], "--print-every 0.0"),
+    ],
+)
 def test_other_options_out_of_range_are_one_sentence_errors(tmp_path, monkeypatch, capsys, argv, words):
     monkeypatch.chdir(tmp_path)
     assert main(argv) == 2
@@ -210,7 +291,9 @@ def test_the_diagnosis_refuses_a_log_recorded_on_a_wrong_clock(tmp_path):
     from tools.can.logsynth import write_can_log
     from tools.cycles.named import get_cycle
     from tools.diagnosis.prepare import load_table
+
     from .can_fixtures import plant_output
+
     cycle = get_cycle("steady:gear=4L,rpm=1300,nm=2000,s=400", rate_hz=10.0)
     real = tmp_path / "real.log"
     write_can_log(cycle, plant_output(cycle), real)

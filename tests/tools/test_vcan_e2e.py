@@ -30,6 +30,7 @@ fixed in tools/can/live.py: SignalWatcher). The script prints its phases (`@ <up
 beside it (start-up 89-118 s). Marked `vcan`; skipped, naming what is missing, when QEMU, the Debian kernel,
 busybox-static or can-utils are absent: `python -m tools.vcan_vm install` (root).
 """
+
 from __future__ import annotations
 
 import os
@@ -43,7 +44,6 @@ import pytest
 
 from can_dbc.adapter import decode_outputs, default_source, pgn_of
 from tools.vcan_vm import harness as vcan_vm
-
 
 #: the sensor's source address (the DBC's)
 SENSOR_SA = default_source("GBX_STATUS")
@@ -117,10 +117,12 @@ echo "recorded $(wc -l < rec.log) frames"
 stamp script end
 """
 #: VM phases: (label, first stamp, last stamp)
-PHASES = (("service start-up", "script start", "service listening"),
-          ("canplayer", "service listening", "canplayer done"),
-          ("catch-up", "canplayer done", "service caught up"),
-          ("shutdown", "service caught up", "script end"))
+PHASES = (
+    ("service start-up", "script start", "service listening"),
+    ("canplayer", "service listening", "canplayer done"),
+    ("catch-up", "canplayer done", "service caught up"),
+    ("shutdown", "service caught up", "script end"),
+)
 
 
 def _skip_reason() -> str | None:
@@ -143,13 +145,23 @@ def _groups(frames):
     return steps
 
 
-INPUTS = ("engine_speed_rpm", "engine_torque_nm", "gear", "oil_temp_c", "ambient_temp_c", "coolant_temp_c",
-          "vehicle_speed_kmh", "retarder_torque_nm", "engine_ref_torque_nm")
+INPUTS = (
+    "engine_speed_rpm",
+    "engine_torque_nm",
+    "gear",
+    "oil_temp_c",
+    "ambient_temp_c",
+    "coolant_temp_c",
+    "vehicle_speed_kmh",
+    "retarder_torque_nm",
+    "engine_ref_torque_nm",
+)
 
 
 def _offline(path):
     from firmware_model.service import build_service
     from tools.replay.log import replay_log
+
     frames = []
     table = replay_log(path, build_service(path.parent / "vm.toml", record=True), on_frames=frames.extend)
     return table, [(m.arbitration_id, bytes(m.data)) for m in frames]
@@ -174,8 +186,10 @@ def vm_run(tmp_path_factory):
     if reason:
         pytest.skip(reason)
     import time
+
     from tools.cycles.named import get_cycle
     from tools.runtable import RunTable, write_run_table
+
     t0 = time.monotonic()
     share = tmp_path_factory.mktemp("vcan-e2e")
     table = get_cycle("uphill")
@@ -185,27 +199,52 @@ def vm_run(tmp_path_factory):
     # of 80 degC for this test gives finite times to limit on the bus (no warning fires)
     limits = (REPO / "firmware_model" / "params" / "limits.toml").read_text() + (
         '\n[component."PS"]\nwarning = { v = 80, u = "degC", src = "assumed", note = "vcan e2e test" }\n'
-        'critical = { v = 100, u = "degC", src = "assumed", note = "vcan e2e test" }\n')
+        'critical = { v = 100, u = "degC", src = "assumed", note = "vcan e2e test" }\n'
+    )
     (share / "vm_limits.toml").write_text(limits)
     (share / "vm.toml").write_text('[can]\nstale_factor = 10\n\n[sensor]\nlimits = "vm_limits.toml"\n')
     env = {**os.environ, "PYTHONPATH": str(REPO) + os.pathsep + os.environ.get("PYTHONPATH", "")}
-    p = subprocess.run([sys.executable, "-m", "tools.cli", "simulate", "--cycle", str(share / "cycle.csv"),
-                        "--out", str(share / "plant.csv"), "--can-log", str(share / "drive.log"), "--quiet"],
-                       cwd=REPO, env=env, capture_output=True, text=True, timeout=600)
+    p = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "tools.cli",
+            "simulate",
+            "--cycle",
+            str(share / "cycle.csv"),
+            "--out",
+            str(share / "plant.csv"),
+            "--can-log",
+            str(share / "drive.log"),
+            "--quiet",
+        ],
+        cwd=REPO,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
     assert p.returncode == 0, p.stderr
     offline = _offline(share / "drive.log")  # the log's replay: also tells the VM how many steps to wait for
     n_steps = len(_groups(offline[1]))
-    vm_env = {"STATUS_FRAMES": str(max(n_steps - 2, 1)), "STATUS_ID": f"18{STATUS_PGN:04X}{SENSOR_SA:02X}",
-              "START_TIMEOUT_S": str(START_TIMEOUT_S), "CATCH_UP_TIMEOUT_S": str(CATCH_UP_TIMEOUT_S),
-              "EXIT_TIMEOUT_S": str(EXIT_TIMEOUT_S)}
+    vm_env = {
+        "STATUS_FRAMES": str(max(n_steps - 2, 1)),
+        "STATUS_ID": f"18{STATUS_PGN:04X}{SENSOR_SA:02X}",
+        "START_TIMEOUT_S": str(START_TIMEOUT_S),
+        "CATCH_UP_TIMEOUT_S": str(CATCH_UP_TIMEOUT_S),
+        "EXIT_TIMEOUT_S": str(EXIT_TIMEOUT_S),
+    }
     t1 = time.monotonic()
     try:
         res = vcan_vm.run_in_vm(VM_SCRIPT, timeout_s=VM_TIMEOUT_S, share_dir=share, env=vm_env)
     except vcan_vm.VMUnavailable as exc:
         pytest.skip(f"vcan VM unavailable: {exc.reason}")
     phases = _phases(res.script_output)
-    print(f"\nvcan e2e timings: host preparation {t1 - t0:.1f} s; VM {res.total_s:.1f} s: "
-          f"boot {res.boot_s or 0:.1f} s ({res.boot_attempts} boot(s)), " + ", ".join(f"{k} {v:.1f} s" for k, v in phases.items()))
+    print(
+        f"\nvcan e2e timings: host preparation {t1 - t0:.1f} s; VM {res.total_s:.1f} s: "
+        f"boot {res.boot_s or 0:.1f} s ({res.boot_attempts} boot(s)), "
+        + ", ".join(f"{k} {v:.1f} s" for k, v in phases.items())
+    )
     assert res.returncode == 0, res.script_output[-3000:]
     return share, res, offline
 
@@ -221,8 +260,11 @@ def test_service_exits_0_on_sigterm_in_the_vm(vm_run):
 def test_bus_outputs_are_bit_identical_to_the_offline_replay(vm_run):
     share, res, (table, offline) = vm_run
     recorded = list(can.LogReader(share / "rec.log"))
-    live = [(m.arbitration_id, bytes(m.data)) for m in recorded
-            if pgn_of(m.arbitration_id) in GBX_PGNS and m.arbitration_id & 0xFF == SENSOR_SA]
+    live = [
+        (m.arbitration_id, bytes(m.data))
+        for m in recorded
+        if pgn_of(m.arbitration_id) in GBX_PGNS and m.arbitration_id & 0xFF == SENSOR_SA
+    ]
     inputs = [m for m in recorded if m.arbitration_id & 0xFF != SENSOR_SA]
     n_log = sum(1 for _ in can.LogReader(share / "drive.log"))
     assert len(inputs) == n_log, "candump lost input frames"
@@ -243,16 +285,18 @@ def test_bus_outputs_are_bit_identical_to_the_offline_replay(vm_run):
     assert abs(len(live_steps) - len(off_steps)) <= 1
     disturbed = np.zeros(n, dtype=bool)
     for c in INPUTS:
-        a, b = table[c][held:held + n], rec_table[c][held:held + n]
+        a, b = table[c][held : held + n], rec_table[c][held : held + n]
         disturbed |= ~((a == b) | (np.isnan(a) & np.isnan(b)))
     first = int(np.argmax(disturbed)) if disturbed.any() else n
     rec_t = np.array([m.timestamp for m in inputs])
     log_t = np.array([m.timestamp for m in can.LogReader(share / "drive.log")])
     jitter_ms = 1e3 * ((rec_t - rec_t[0]) - (log_t - log_t[0]))
     mismatched = [k for k in range(n) if live_steps[k] != off_steps[k]]
-    print(f"\nvcan e2e: {n} steps; bus timing vs the log: p99 {np.percentile(np.abs(jitter_ms), 99):.1f} ms, max "
-          f"{np.abs(jitter_ms).max():.1f} ms; steps with disturbed inputs {int(disturbed.sum())} (first {first}); "
-          f"steps differing from the offline replay of the log {len(mismatched)}")
+    print(
+        f"\nvcan e2e: {n} steps; bus timing vs the log: p99 {np.percentile(np.abs(jitter_ms), 99):.1f} ms, max "
+        f"{np.abs(jitter_ms).max():.1f} ms; steps with disturbed inputs {int(disturbed.sum())} (first {first}); "
+        f"steps differing from the offline replay of the log {len(mismatched)}"
+    )
     assert live_steps[:first] == off_steps[:first]
     assert disturbed.sum() <= 0.02 * n, f"the VM disturbed the inputs of {int(disturbed.sum())} of {n} steps"
     if first == n:
@@ -260,8 +304,10 @@ def test_bus_outputs_are_bit_identical_to_the_offline_replay(vm_run):
     # the drive exercises gear changes and the time to limit, on the bus
     gear = np.asarray(table["gear"], dtype=float)
     assert np.count_nonzero(np.diff(gear[np.isfinite(gear)])) >= 5
-    decoded = [decode_outputs([can.Message(arbitration_id=i, data=d, is_extended_id=True) for i, d in step])
-               for step in live_steps]
+    decoded = [
+        decode_outputs([can.Message(arbitration_id=i, data=d, is_extended_id=True) for i, d in step])
+        for step in live_steps
+    ]
     assert any(v is not None and np.isfinite(v) for out in decoded for v in out.get("ttl_s", {}).values())
     # and they carry the sensor's estimates
     last = decoded[-2]

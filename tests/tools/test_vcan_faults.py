@@ -14,8 +14,8 @@ down (`ip link set vcan0 down`) for 10 s and comes back up, then the drive goes 
 Marked `vcan`; skipped, naming what is missing, without QEMU, the Debian kernel, busybox-static or can-utils
 (`python -m tools.vcan_vm install`, root). About 3 minutes (the service's start-up under TCG emulation dominates).
 """
-from __future__ import annotations
 
+from __future__ import annotations
 
 import can
 import pytest
@@ -96,8 +96,11 @@ def vm_run(tmp_path_factory):
     lines = steady_drive_log(share, 2 * PART_S).read_text().splitlines()
     t = [float(line.split(")")[0].lstrip("(")) for line in lines]
     (share / "part1.log").write_text("\n".join(x for x, ti in zip(lines, t) if ti - t[0] < PART_S) + "\n")
-    edges = {"part2a": (PART_S, PART_S + FREE_S), "part2b": (PART_S + FREE_S, PART_S + FREE_S + FULL_S),
-             "part2c": (PART_S + FREE_S + FULL_S, 1e9)}
+    edges = {
+        "part2a": (PART_S, PART_S + FREE_S),
+        "part2b": (PART_S + FREE_S, PART_S + FREE_S + FULL_S),
+        "part2c": (PART_S + FREE_S + FULL_S, 1e9),
+    }
     for name, (a, b) in edges.items():
         (share / f"{name}.log").write_text("\n".join(x for x, ti in zip(lines, t) if a <= ti - t[0] < b) + "\n")
     (share / "vm.toml").write_text("[can]\nstale_factor = 10\n")
@@ -114,17 +117,23 @@ def test_the_service_survives_the_interface_going_down_and_up(vm_run):
     err = (share / "run.err").read_text()
     assert (share / "run.rc").read_text().strip() == "0", err[-3000:]
     assert "stopped (signal)" in err
-    assert err.count("CAN receive error") == 1, err[-3000:]        # one outage, logged once: no storm
+    assert err.count("CAN receive error") == 1, err[-3000:]  # one outage, logged once: no storm
     assert err.count("CAN bus back after") == 1, err[-3000:]
-    print("\n" + "\n".join(line for line in err.splitlines()
-                           if "receive" in line or "bus back" in line or "frames seen" in line))
+    print(
+        "\n"
+        + "\n".join(
+            line for line in err.splitlines() if "receive" in line or "bus back" in line or "frames seen" in line
+        )
+    )
 
 
 def test_a_full_transmit_queue_is_counted_not_fatal(vm_run):
     share, _ = vm_run
     if (share / "tbf.flag").read_text().strip() != "tbf=1":
-        pytest.skip("the VM kernel has no token-bucket qdisc (sch_tbf) to overflow vcan0's transmit queue: "
-                    + (share / "tc.err").read_text().strip())
+        pytest.skip(
+            "the VM kernel has no token-bucket qdisc (sch_tbf) to overflow vcan0's transmit queue: "
+            + (share / "tc.err").read_text().strip()
+        )
     err = (share / "run.err").read_text()
     assert (share / "run.rc").read_text().strip() == "0", err[-3000:]
     assert "cannot send" in err and "No buffer space" in err, err[-3000:]
@@ -137,9 +146,14 @@ def test_a_full_transmit_queue_is_counted_not_fatal(vm_run):
     rec = list(can.LogReader(share / "rec2.log"))
     free_s = PART_S - FREE_S - FULL_S
     t_free = max(m.timestamp for m in rec if m.arbitration_id & 0xFF != SENSOR_SA) - free_s
-    later = [m for m in rec if m.arbitration_id & 0xFF == SENSOR_SA and pgn_of(m.arbitration_id) == STATUS_PGN
-             and m.timestamp > t_free + 1.0]
-    assert len(later) >= (free_s - 2.0) / 0.1 * 0.9     # publishing every step again once it drains
+    later = [
+        m
+        for m in rec
+        if m.arbitration_id & 0xFF == SENSOR_SA
+        and pgn_of(m.arbitration_id) == STATUS_PGN
+        and m.timestamp > t_free + 1.0
+    ]
+    assert len(later) >= (free_s - 2.0) / 0.1 * 0.9  # publishing every step again once it drains
 
 
 def test_it_publishes_within_3_periods_of_the_first_frame_after_the_outage(vm_run):
@@ -153,4 +167,4 @@ def test_it_publishes_within_3_periods_of_the_first_frame_after_the_outage(vm_ru
     assert after, "the sensor never published again after the outage"
     print(f"\nfirst GBX_STATUS {after[0] * 1e3:.0f} ms after the first input frame; {len(after)} after the outage")
     assert after[0] <= 0.3
-    assert len(after) >= ((PART_S - FULL_S) / 0.1) * 0.9   # every step but those the full queue dropped
+    assert len(after) >= ((PART_S - FULL_S) / 0.1) * 0.9  # every step but those the full queue dropped

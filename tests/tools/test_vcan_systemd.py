@@ -19,6 +19,7 @@ docs/gateway.md tells integrators to install into a system-wide venv.
 Marked `vcan`; skipped, naming what is missing, without QEMU, the Debian kernel, busybox-static, can-utils or
 systemd and udev on the host. About 3 minutes (the service's start-up under TCG emulation is ~25 s, three times).
 """
+
 from __future__ import annotations
 
 import re
@@ -95,8 +96,11 @@ cat result.txt
 
 
 def _systemd_missing() -> list[str]:
-    return [f"{p} (apt install systemd udev)" for p in ("/lib/systemd/systemd", "/lib/systemd/systemd-udevd")
-            if not Path(p).is_file()]
+    return [
+        f"{p} (apt install systemd udev)"
+        for p in ("/lib/systemd/systemd", "/lib/systemd/systemd-udevd")
+        if not Path(p).is_file()
+    ]
 
 
 @pytest.fixture(scope="module")

@@ -5,6 +5,7 @@ the tests below read them on the host.  Skipped, naming what is missing, when QE
 kernel, busybox-static or can-utils are absent: get them with `python -m tools.vcan_vm install`
 (or set VCAN_VM_INSTALL=1 to let this test install them).
 """
+
 from __future__ import annotations
 
 import json
@@ -15,13 +16,14 @@ from pathlib import Path
 import pytest
 
 from tools.vcan_vm import harness as vcan_vm
+
 pytestmark = pytest.mark.vcan
 
 N_GEN = 20
 EXT_ID = 0x1ABCDE01
 VM_TIMEOUT_S = 150  # hard limit; a run takes ~15-25 s
 
-ROUNDTRIP_PY = r'''
+ROUNDTRIP_PY = r"""
 import json, os, time
 import can
 
@@ -52,9 +54,9 @@ except Exception as exc:  # reported to the host, which fails the test with it
     result["error"] = repr(exc)
 with open(os.path.join(share, "roundtrip.json"), "w") as fh:
     json.dump(result, fh)
-'''
+"""
 
-VM_SCRIPT = r'''
+VM_SCRIPT = r"""
 set -u
 ip -details link show vcan0 > ip.txt 2>&1
 echo "ip: $?" >> status.txt
@@ -82,7 +84,7 @@ kill $bg
 wait $bg
 echo "killed-bg: $?" >> status.txt
 echo done
-'''.replace("@N@", str(N_GEN))
+""".replace("@N@", str(N_GEN))
 
 
 @pytest.fixture(scope="module")
@@ -92,8 +94,11 @@ def vm_run(tmp_path_factory):
         vcan_vm.ensure_vm_assets(install=True)
         missing = vcan_vm.vm_prerequisites()
     if missing:
-        pytest.skip("vcan VM prerequisites missing: " + "; ".join(missing) +
-                    " -- get them with `python -m tools.vcan_vm install`")
+        pytest.skip(
+            "vcan VM prerequisites missing: "
+            + "; ".join(missing)
+            + " -- get them with `python -m tools.vcan_vm install`"
+        )
     share = tmp_path_factory.mktemp("vcan_vm_share")
     (share / "roundtrip.py").write_text(ROUNDTRIP_PY)
     result = vcan_vm.run_in_vm(VM_SCRIPT, timeout_s=VM_TIMEOUT_S, share_dir=share)
@@ -134,14 +139,19 @@ def test_repo_importable_inside_vm_from_any_cwd(vm_run):
 
 def test_python_can_socketcan_29bit_roundtrip(vm_run):
     path = vm_run.share_dir / "roundtrip.json"
-    assert path.is_file(), (vm_run.share_dir / "roundtrip.out").read_text() if (
-        vm_run.share_dir / "roundtrip.out").is_file() else _why(vm_run)
+    assert path.is_file(), (
+        (vm_run.share_dir / "roundtrip.out").read_text()
+        if (vm_run.share_dir / "roundtrip.out").is_file()
+        else _why(vm_run)
+    )
     res = json.loads(path.read_text())
     assert res["ok"], res.get("error")
     assert res["received"] == {"id": EXT_ID, "ext": True, "data": [1, 2, 3, 4, 5, 6, 7, 8], "channel": "vcan0"}
     assert res["n"] == 200
-    print(f"python-can round trip in the VM: mean {res['mean_ms']:.3f} ms, median {res['median_ms']:.3f} ms, "
-          f"max {res['max_ms']:.3f} ms")
+    print(
+        f"python-can round trip in the VM: mean {res['mean_ms']:.3f} ms, median {res['median_ms']:.3f} ms, "
+        f"max {res['max_ms']:.3f} ms"
+    )
     assert res["median_ms"] < 50  # ~0.3 ms under TCG; generous for a loaded CI machine
 
 

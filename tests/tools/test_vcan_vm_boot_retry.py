@@ -5,6 +5,7 @@ CPU; after the last one the hang is raised as :class:`VMBootHang`.  No QEMU need
 "QEMU" is a small Python script that reads ``-smp`` and either hangs after the BIOS line (a kernel stuck before its
 init) or prints what a VM prints and exits.
 """
+
 from __future__ import annotations
 
 import sys
@@ -15,7 +16,7 @@ import pytest
 
 from tools.vcan_vm import harness
 
-FAKE_QEMU = r'''#!@PYTHON@
+FAKE_QEMU = r"""#!@PYTHON@
 import sys, time
 args = sys.argv[1:]
 cpus = int(args[args.index("-smp") + 1])
@@ -31,19 +32,25 @@ time.sleep(0.3)
 print(marker[9:] + " at 2.0 s uptime", flush=True)
 time.sleep(@SCRIPT_S@)
 print("@BEGIN@\nhello\n@EXIT@0", flush=True)
-'''
+"""
 
 
 def _assets(tmp_path: Path, hang_with_cpus: tuple[int, ...], script_s: float = 0.0) -> tuple[harness.Assets, Path]:
     calls = tmp_path / "calls.txt"
     qemu = tmp_path / "fake-qemu"
-    qemu.write_text(FAKE_QEMU.replace("@PYTHON@", sys.executable).replace("@CALLS@", str(calls))
-                    .replace("@HANG@", "".join(f"{c}," for c in hang_with_cpus))
-                    .replace("@INIT@", harness.INIT_MARKER).replace("@BEGIN@", harness.SENTINEL_BEGIN)
-                    .replace("@EXIT@", harness.SENTINEL_EXIT).replace("@SCRIPT_S@", repr(script_s)))
+    qemu.write_text(
+        FAKE_QEMU.replace("@PYTHON@", sys.executable)
+        .replace("@CALLS@", str(calls))
+        .replace("@HANG@", "".join(f"{c}," for c in hang_with_cpus))
+        .replace("@INIT@", harness.INIT_MARKER)
+        .replace("@BEGIN@", harness.SENTINEL_BEGIN)
+        .replace("@EXIT@", harness.SENTINEL_EXIT)
+        .replace("@SCRIPT_S@", repr(script_s))
+    )
     qemu.chmod(0o755)
-    assets = harness.Assets(kernel=tmp_path / "vmlinuz", kernel_version="fake", initramfs=tmp_path / "initrd",
-                            qemu=qemu, modules=())
+    assets = harness.Assets(
+        kernel=tmp_path / "vmlinuz", kernel_version="fake", initramfs=tmp_path / "initrd", qemu=qemu, modules=()
+    )
     return assets, calls
 
 
@@ -83,8 +90,9 @@ def test_a_hung_boot_is_killed_and_retried_last_with_one_cpu(tmp_path, capsys):
 def test_every_boot_hung_raises_boot_hang_with_the_console(tmp_path):
     assets, calls = _assets(tmp_path, (1, 2))
     with pytest.raises(harness.VMBootHang, match=r"boot 2 of 2 \(1 CPU\): .*did not start the init within 1 s") as info:
-        harness.run_in_vm("true", timeout_s=30, share_dir=tmp_path / "share", assets=assets, boot_timeout_s=1.0,
-                          boot_attempts=2)
+        harness.run_in_vm(
+            "true", timeout_s=30, share_dir=tmp_path / "share", assets=assets, boot_timeout_s=1.0, boot_attempts=2
+        )
     assert _cpus(calls) == [2, 1]
     assert "Booting from ROM.." in info.value.output
     assert isinstance(info.value, harness.VMTimeout)  # callers catching the run's timeout still catch it

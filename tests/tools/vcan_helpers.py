@@ -1,4 +1,5 @@
 """What the vcan VM tests share: skip (naming what is missing) without the VM, and a steady drive as a candump log."""
+
 from __future__ import annotations
 
 import os
@@ -24,9 +25,25 @@ def steady_drive_log(share: Path, seconds: float) -> Path:
     """`gearbox-vsensor simulate` of a steady drive (gear 9, 1400 rpm, 1800 Nm) for ``seconds``: its J1939 traffic
     as share/drive.log (candump -L), the plant's table as share/plant.csv."""
     env = {**os.environ, "PYTHONPATH": str(REPO) + os.pathsep + os.environ.get("PYTHONPATH", "")}
-    p = subprocess.run([sys.executable, "-m", "tools.cli", "simulate", "--cycle",
-                        f"steady:gear=9,rpm=1400,nm=1800,s={seconds:.0f}", "--out", str(share / "plant.csv"),
-                        "--can-log", str(share / "drive.log"), "--quiet"],
-                       cwd=REPO, env=env, capture_output=True, text=True, timeout=600)
+    p = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "tools.cli",
+            "simulate",
+            "--cycle",
+            f"steady:gear=9,rpm=1400,nm=1800,s={seconds:.0f}",
+            "--out",
+            str(share / "plant.csv"),
+            "--can-log",
+            str(share / "drive.log"),
+            "--quiet",
+        ],
+        cwd=REPO,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
     assert p.returncode == 0, p.stderr
     return share / "drive.log"

@@ -2,6 +2,7 @@
 options (:func:`add_bus_options`), opening a python-can bus with one-sentence errors (:func:`open_bus`,
 :func:`open_player` for a bus that sends recorded frames), the warning for a player faster or slower than real time
 (:func:`speed_warning`) and a stop flag set by SIGINT/SIGTERM (:func:`stop_on_signals`)."""
+
 from __future__ import annotations
 
 import argparse
@@ -10,7 +11,7 @@ import gc
 import logging
 import signal
 import threading
-from typing import Iterator, Sequence
+from collections.abc import Iterator, Sequence
 
 from firmware_model.errors import InputError
 
@@ -30,22 +31,30 @@ def can_subcommand(sub, name: str, *, summary: str, description: str, examples: 
     """A subcommand parser on ``sub``: ``summary`` in the command list, ``description`` on top of its help, then
     the ``examples`` (command lines, shown as written) and ``notes``."""
     epilog = "examples:\n" + "\n".join(f"  {e}" for e in examples) + (f"\n{notes}" if notes else "")
-    return sub.add_parser(name, help=summary, description=description, epilog=epilog,
-                          formatter_class=argparse.RawDescriptionHelpFormatter)
+    return sub.add_parser(
+        name, help=summary, description=description, epilog=epilog, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
 
 
 def add_bus_options(parser, *, required: bool = True, purpose: str = "") -> None:
     """--interface, --channel and --bitrate on ``parser`` (or an argument group); ``purpose`` ends their help
     ("(the bus to play the log onto)")."""
     tail = f" {purpose}" if purpose else ""
-    parser.add_argument("--interface", required=required, metavar="NAME",
-                        help=f"python-can interface: socketcan, virtual, pcan, kvaser, vector, slcan, udp_multicast "
-                             f"...{tail}")
-    parser.add_argument("--channel", required=required, metavar="NAME",
-                        help=f"channel of that interface, e.g. can0, vcan0{tail}")
-    parser.add_argument("--bitrate", type=int, metavar="BIT_S",
-                        help=f"bit rate for interfaces that set it (J1939: 250000 or 500000); socketcan takes the "
-                             f"link's{tail}")
+    parser.add_argument(
+        "--interface",
+        required=required,
+        metavar="NAME",
+        help=f"python-can interface: socketcan, virtual, pcan, kvaser, vector, slcan, udp_multicast ...{tail}",
+    )
+    parser.add_argument(
+        "--channel", required=required, metavar="NAME", help=f"channel of that interface, e.g. can0, vcan0{tail}"
+    )
+    parser.add_argument(
+        "--bitrate",
+        type=int,
+        metavar="BIT_S",
+        help=f"bit rate for interfaces that set it (J1939: 250000 or 500000); socketcan takes the link's{tail}",
+    )
 
 
 def check_bitrate(bitrate_bit_s: int | None) -> None:
@@ -58,6 +67,7 @@ def check_bitrate(bitrate_bit_s: int | None) -> None:
 def open_bus(interface: str, channel: str, bitrate: int | None = None, can_filters=None, **kwargs):
     """A python-can bus; configuration problems become one-sentence InputErrors. ``bitrate`` in bit/s."""
     import can
+
     kw = dict(kwargs)
     if bitrate is not None:
         kw["bitrate"] = bitrate
@@ -73,9 +83,11 @@ def open_bus(interface: str, channel: str, bitrate: int | None = None, can_filte
         except (can.CanError, OSError, ValueError, ImportError) as exc:
             failure = f"cannot open CAN channel {channel!r} on interface {interface!r}: {exc}"
         except Exception as exc:  # a vendor driver without its native library fails in its own way (kvaser: NameError)
-            failure = (f"cannot open CAN channel {channel!r} on interface {interface!r}: its driver failed "
-                       f"({type(exc).__name__}: {exc}); is the vendor's driver library installed?")
-        gc.collect()              # the half-built bus, collected while its teardown message is silenced
+            failure = (
+                f"cannot open CAN channel {channel!r} on interface {interface!r}: its driver failed "
+                f"({type(exc).__name__}: {exc}); is the vendor's driver library installed?"
+            )
+        gc.collect()  # the half-built bus, collected while its teardown message is silenced
     raise InputError(failure)
 
 
@@ -99,12 +111,16 @@ def virtual_note(interface: str, receiver: bool = False) -> str | None:
     "sent" 9452 frames and a run on the same channel saw 0); None for any other interface."""
     if interface != "virtual":
         return None
-    who = ("this sensor receives no frame from another process (gearbox-vsensor plant, gearbox-vsensor "
-           "play, canplayer)" if receiver else
-           "another process (gearbox-vsensor run, candump) sees none of these frames")
-    return (f"--interface virtual joins only buses inside this one process: {who}; between processes use "
-            f"udp_multicast (e.g. --channel 239.74.163.2) or a vcan interface, or gearbox-vsensor demo for plant and "
-            f"sensor in one process")
+    who = (
+        "this sensor receives no frame from another process (gearbox-vsensor plant, gearbox-vsensor play, canplayer)"
+        if receiver
+        else "another process (gearbox-vsensor run, candump) sees none of these frames"
+    )
+    return (
+        f"--interface virtual joins only buses inside this one process: {who}; between processes use "
+        f"udp_multicast (e.g. --channel 239.74.163.2) or a vcan interface, or gearbox-vsensor demo for plant and "
+        f"sensor in one process"
+    )
 
 
 def open_player(interface: str, channel: str, bitrate: int | None = None):
@@ -121,11 +137,13 @@ def speed_warning(interface: str, speed: float) -> str | None:
     player's timestamps."""
     if speed == 1.0 or interface in SENDER_TIMESTAMP_INTERFACES:
         return None
-    return (f"--speed {speed:g} on {interface}: the receivers stamp frames on arrival, so a sensor on this bus "
-            f"(gearbox-vsensor run) counts {1.0 / speed:.3g} s for every second of the drive and its temperatures "
-            f"and warnings are wrong; use --speed 1 for a sensor on the bus, or give the sensor the plant's own "
-            f"frame time: gearbox-vsensor simulate --can-log RUN.log, then gearbox-vsensor replay RUN.log (offline, "
-            f"any speed) or gearbox-vsensor demo (plant and sensor on one in-process virtual bus)")
+    return (
+        f"--speed {speed:g} on {interface}: the receivers stamp frames on arrival, so a sensor on this bus "
+        f"(gearbox-vsensor run) counts {1.0 / speed:.3g} s for every second of the drive and its temperatures "
+        f"and warnings are wrong; use --speed 1 for a sensor on the bus, or give the sensor the plant's own "
+        f"frame time: gearbox-vsensor simulate --can-log RUN.log, then gearbox-vsensor replay RUN.log (offline, "
+        f"any speed) or gearbox-vsensor demo (plant and sensor on one in-process virtual bus)"
+    )
 
 
 @contextlib.contextmanager

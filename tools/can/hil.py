@@ -6,11 +6,12 @@ real-time risk from the solver); then the truck's J1939 inputs (the same frames 
 tools/can/logsynth.py) and the plant's true temperatures (RIG_TC_1..7) are sent on a bus with their timing, in real
 time or ``speedup`` times faster.
 """
+
 from __future__ import annotations
 
 import threading
 import time
-from typing import Callable
+from collections.abc import Callable
 
 from firmware_model.errors import InputError
 from tools.can.logsynth import SynthFrames, SynthResult
@@ -21,16 +22,18 @@ PROGRESS_PERIOD_S = 10.0
 PLANT_OUTPUT_DT_S = 1.0
 
 
-def prepare(cycle: str, config_path=None, effects=(), *, duration_s: float | None = None, seed: int = 0,
-            rig: bool = True) -> SynthResult:
+def prepare(
+    cycle: str, config_path=None, effects=(), *, duration_s: float | None = None, seed: int = 0, rig: bool = True
+) -> SynthResult:
     """Run the plant over the cycle (a name, a ``steady:`` spec or a CSV; the first ``duration_s`` seconds only if
     given) with the unmodelled ``effects`` ("ID:PARAM=VALUE") switched on, and synthesize its frames."""
     from firmware_model.config import load_config
     from firmware_model.effects import parse_effect
-    from tools.cycles.named import get_cycle
     from tools.can.logsynth import synth_frames
+    from tools.cycles.named import get_cycle
     from tools.plant.reference import ReferencePlant
     from tools.runtable import RunTable
+
     cfg = load_config(config_path)
     params = cfg.load_params()
     table = get_cycle(cycle)
@@ -45,11 +48,18 @@ def prepare(cycle: str, config_path=None, effects=(), *, duration_s: float | Non
     return synth_frames(table, res.table, config=cfg, seed=seed, rig=rig)
 
 
-def stream(frames: SynthFrames, bus, *, speedup: float = 1.0, stop: threading.Event | None = None,
-           progress: Callable[[float, int], None] | None = None) -> int:
+def stream(
+    frames: SynthFrames,
+    bus,
+    *,
+    speedup: float = 1.0,
+    stop: threading.Event | None = None,
+    progress: Callable[[float, int], None] | None = None,
+) -> int:
     """Send the frames with their timing, ``speedup`` x faster than real time, until done or ``stop`` is set;
     ``progress(cycle_time_s, frames_sent)`` every PROGRESS_PERIOD_S of cycle time. Returns the number sent."""
     import can
+
     if not speedup > 0:
         raise InputError(f"--speed {speedup} must be positive")
     if not len(frames):
@@ -67,8 +77,9 @@ def stream(frames: SynthFrames, bus, *, speedup: float = 1.0, stop: threading.Ev
         delay_s = wall0_s + (t_s - t_first_s) / speedup - time.perf_counter()
         if delay_s > 0:
             time.sleep(delay_s)
-        bus.send(can.Message(timestamp=t_s, arbitration_id=can_id, is_extended_id=True, data=data[i].tobytes(),
-                             check=False))
+        bus.send(
+            can.Message(timestamp=t_s, arbitration_id=can_id, is_extended_id=True, data=data[i].tobytes(), check=False)
+        )
         sent += 1
         if progress is not None and t_s - t_first_s >= next_report_s:
             progress(t_s - t_first_s, sent)

@@ -5,6 +5,7 @@ and DM1 out (``firmware_model.service``, docs/can.md). SIGINT and SIGTERM stop i
 frames already received, stops the notifier, shuts the bus down and returns. The signals are taken by a thread of
 their own (:class:`SignalWatcher`), never inside the loop's wait for frames, which could then hang on a silent bus.
 """
+
 from __future__ import annotations
 
 import logging
@@ -48,7 +49,7 @@ class SignalWatcher:
                 return
             self.stop.set()
 
-    def __enter__(self) -> "SignalWatcher":
+    def __enter__(self) -> SignalWatcher:
         if self.available:
             self._old_mask = signal.pthread_sigmask(signal.SIG_BLOCK, self.signals)
             self._thread = threading.Thread(target=self._watch, name="signal-watcher", daemon=True)
@@ -69,6 +70,7 @@ class SignalWatcher:
 def set_realtime_priority(priority: int) -> None:
     """SCHED_FIFO for the calling thread and the threads it starts later (the notifier)."""
     import os
+
     low, high = RT_PRIORITY_RANGE
     if not low <= priority <= high:
         raise InputError(f"--rt-priority {priority} must be in {low}..{high}")
@@ -85,6 +87,7 @@ class LiveSettings:
     """What `gearbox-vsensor run` was asked for: the bus (``bitrate_bit_s`` None: the interface's), the project
     configuration (None: defaults), a wall-time limit (None: until a signal), receive filters on the wanted PGNs
     (False: every frame), the rig thermocouple frames, a SCHED_FIFO priority (None: normal scheduling)."""
+
     interface: str
     channel: str
     bitrate_bit_s: int | None = None
@@ -93,9 +96,9 @@ class LiveSettings:
     filters: bool = True
     rig: bool = False
     rt_priority: int | None = None
-    state_file: str | None = None       # the sensor state across restarts (None: cold start every time)
-    state_period_s: float = 60.0        # save the state this often [s] of wall time (and on shutdown)
-    health_file: str | None = None      # the health `gearbox-vsensor status` reads (None: none written)
+    state_file: str | None = None  # the sensor state across restarts (None: cold start every time)
+    state_period_s: float = 60.0  # save the state this often [s] of wall time (and on shutdown)
+    health_file: str | None = None  # the health `gearbox-vsensor status` reads (None: none written)
 
     def check(self) -> None:
         if self.duration_s is not None and not self.duration_s > 0:
@@ -107,10 +110,14 @@ class LiveSettings:
                 raise InputError(f"{opt} {f}: its directory does not exist")
             if f is not None and os.path.isdir(f):
                 raise InputError(f"{opt} {f} is a directory, not a file")
-        if self.state_file and self.health_file and os.path.abspath(self.state_file) == os.path.abspath(
-                self.health_file):
-            raise InputError(f"--state-file and --health-file are the same file {self.state_file}: one would "
-                             f"overwrite the other")
+        if (
+            self.state_file
+            and self.health_file
+            and os.path.abspath(self.state_file) == os.path.abspath(self.health_file)
+        ):
+            raise InputError(
+                f"--state-file and --health-file are the same file {self.state_file}: one would overwrite the other"
+            )
         check_bitrate(self.bitrate_bit_s)
 
 
@@ -121,12 +128,17 @@ class GatewayHooks:
 
     def __init__(self, settings: LiveSettings, service):
         from firmware_model.service.persist import HealthFile, StateStore, watchdog_period_s
+
         self.service = service
         # the periodic saves in a writer thread: a slow fsync (SD card, eMMC) must not hold up the outputs
-        self.store = StateStore(settings.state_file, settings.state_period_s, background=True) \
-            if settings.state_file else None
-        self.health = HealthFile(settings.health_file, interface=settings.interface, channel=settings.channel) \
-            if settings.health_file else None
+        self.store = (
+            StateStore(settings.state_file, settings.state_period_s, background=True) if settings.state_file else None
+        )
+        self.health = (
+            HealthFile(settings.health_file, interface=settings.interface, channel=settings.channel)
+            if settings.health_file
+            else None
+        )
         self.watchdog_s = watchdog_period_s()
         self._last_watchdog = 0.0
         if self.store is not None:
@@ -136,14 +148,17 @@ class GatewayHooks:
 
     def ready(self) -> None:
         from firmware_model.service.persist import sd_notify
+
         sd_notify("READY=1")
 
     def tick(self) -> None:
         import time
+
         from firmware_model.service.persist import Restore, sd_notify
+
         if self.store is not None:
             svc = self.service
-            if svc.state is None and svc.restore is not None:       # not restored yet: cooled until now
+            if svc.state is None and svc.restore is not None:  # not restored yet: cooled until now
                 r = svc.restore
                 svc.restore = Restore(r[0], self.store.elapsed_s(), getattr(r, "clean_stop", True))
             self.store.maybe_save(svc)
@@ -157,6 +172,7 @@ class GatewayHooks:
 
     def finish(self) -> None:
         from firmware_model.service.persist import sd_notify
+
         sd_notify("STOPPING=1")
         if self.store is not None and self.store.save(self.service, final=True):
             log.info("sensor state saved to %s", self.store.path)
@@ -169,10 +185,11 @@ def run_live(settings: LiveSettings):
     the trust findings (WARNING when the outputs should not be trusted) and a summary; returns the
     ``ServeResult``."""
     from firmware_model.service import build_service, can_filters, serve
+
     settings.check()
-    service = build_service(settings.config_path, address_claim=True)   # a node on the bus: J1939-81
+    service = build_service(settings.config_path, address_claim=True)  # a node on the bus: J1939-81
     if hasattr(service.sensor, "warm_up"):
-        service.sensor.warm_up()      # the first time jump after an outage does not pay for first use on the bus
+        service.sensor.warm_up()  # the first time jump after an outage does not pay for first use on the bus
     filters = can_filters(rig=settings.rig) if settings.filters else None
     if settings.rt_priority is not None:
         set_realtime_priority(settings.rt_priority)
@@ -182,39 +199,67 @@ def run_live(settings: LiveSettings):
     # frames stamped with the system clock: its steps (NTP, GNSS) are no time without frames
     from firmware_model.service.live import FrameClock
     from tools.can.bus import SENDER_TIMESTAMP_INTERFACES
+
     frame_clock = None if settings.interface in SENDER_TIMESTAMP_INTERFACES else FrameClock(service.log)
 
     def ready():
-        log.info("listening on %s %s (%s); sending as source address 0x%02X", settings.interface, settings.channel,
-                 "no receive filters" if filters is None else f"{len(filters)} receive filters",
-                 service.encoder.source_address)
+        log.info(
+            "listening on %s %s (%s); sending as source address 0x%02X",
+            settings.interface,
+            settings.channel,
+            "no receive filters" if filters is None else f"{len(filters)} receive filters",
+            service.encoder.source_address,
+        )
         hooks.ready()
 
     # the final save runs while the signals still only set `stop`: a second SIGTERM (systemd's, a user's) during
     # it would otherwise kill the process with the last state unsaved
     with stop_on_signals() as stop, SignalWatcher(stop):
         try:
-            result = serve(bus, service, stop=stop, duration_s=settings.duration_s, on_ready=ready,
-                           on_tick=hooks.tick, reopen=lambda: open_bus(settings.interface, settings.channel,
-                                                                       settings.bitrate_bit_s, filters),
-                           frame_clock=frame_clock)
+            result = serve(
+                bus,
+                service,
+                stop=stop,
+                duration_s=settings.duration_s,
+                on_ready=ready,
+                on_tick=hooks.tick,
+                reopen=lambda: open_bus(settings.interface, settings.channel, settings.bitrate_bit_s, filters),
+                frame_clock=frame_clock,
+            )
         finally:
             try:
                 bus.shutdown()
             except (OSError, RuntimeError, ValueError):
-                pass                          # already shut down after a receive error
+                pass  # already shut down after a receive error
             hooks.finish()
     service.log_counters()
-    service.log_findings()   # firmware_model.service.trust: time base, source addresses, degraded share
-    log.info("stopped (%s): %d frames in, %d frames out, %d send errors, %.1f s, CPU %.1f %% of one core",
-             {"stop": "signal", "duration": "--duration"}.get(result.reason, result.reason), result.frames_in,
-             result.frames_out, result.send_errors, result.wall_s, 100.0 * result.cpu_share)
+    service.log_findings()  # firmware_model.service.trust: time base, source addresses, degraded share
+    log.info(
+        "stopped (%s): %d frames in, %d frames out, %d send errors, %.1f s, CPU %.1f %% of one core",
+        {"stop": "signal", "duration": "--duration"}.get(result.reason, result.reason),
+        result.frames_in,
+        result.frames_out,
+        result.send_errors,
+        result.wall_s,
+        100.0 * result.cpu_share,
+    )
     if result.bus_events.get("read_errors"):
-        log.warning("bus: %d receive outages, %d receive errors, %d resumes, %d reopens, %d failed reopen attempts",
-                    result.bus_events["outages"], result.bus_events["read_errors"], result.bus_events["resumes"],
-                    result.bus_events["reopens"], result.bus_events["reopen_failures"])
+        log.warning(
+            "bus: %d receive outages, %d receive errors, %d resumes, %d reopens, %d failed reopen attempts",
+            result.bus_events["outages"],
+            result.bus_events["read_errors"],
+            result.bus_events["resumes"],
+            result.bus_events["reopens"],
+            result.bus_events["reopen_failures"],
+        )
     latency = result.latency()
     if latency is not None:
-        log.info("step latency (completing frame received -> its outputs sent): median %.2f ms, p99 %.2f ms, "
-                 "max %.2f ms over %d steps", latency.median_ms, latency.p99_ms, latency.max_ms, latency.steps)
+        log.info(
+            "step latency (completing frame received -> its outputs sent): median %.2f ms, p99 %.2f ms, "
+            "max %.2f ms over %d steps",
+            latency.median_ms,
+            latency.p99_ms,
+            latency.max_ms,
+            latency.steps,
+        )
     return result

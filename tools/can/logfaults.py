@@ -20,9 +20,10 @@ kind                        what happens
 ``hostile``                 error, remote, FD, 11-bit and random-identifier frames, broken TP.CM/TP.DT
 ==========================  ==========================================================================================
 """
+
 from __future__ import annotations
 
-from typing import Iterable
+from collections.abc import Iterable
 
 import numpy as np
 
@@ -30,8 +31,19 @@ from can_dbc.columnar import pgn_keys
 from can_dbc.j1939 import can_id_of, source_address
 from firmware_model.errors import InputError
 
-FAULT_KINDS = ("dropout", "late_oil", "not_available", "error_value", "out_of_range", "foreign_source", "wrong_dlc",
-               "jump_forward", "jump_backward", "jitter", "hostile")
+FAULT_KINDS = (
+    "dropout",
+    "late_oil",
+    "not_available",
+    "error_value",
+    "out_of_range",
+    "foreign_source",
+    "wrong_dlc",
+    "jump_forward",
+    "jump_backward",
+    "jitter",
+    "hostile",
+)
 _EEC1, _ETC2, _TRF1 = 0xF004, 0xF005, 0xFEF8
 
 
@@ -42,6 +54,7 @@ def _window(t: np.ndarray, start_frac: float, length_s: float) -> np.ndarray:
 
 def _hostile(t0: float, t1: float, n: int, rng: np.random.Generator) -> list:
     import can
+
     out = []
     for t in np.sort(rng.uniform(t0, t1, n)).tolist():
         kind = int(rng.integers(0, 6))
@@ -49,20 +62,24 @@ def _hostile(t0: float, t1: float, n: int, rng: np.random.Generator) -> list:
         if kind == 0:
             out.append(can.Message(timestamp=t, is_error_frame=True))
         elif kind == 1:
-            out.append(can.Message(timestamp=t, arbitration_id=can_id_of(_EEC1, 0), is_remote_frame=True, dlc=8,
-                                   check=False))
+            out.append(
+                can.Message(timestamp=t, arbitration_id=can_id_of(_EEC1, 0), is_remote_frame=True, dlc=8, check=False)
+            )
         elif kind == 2:
-            out.append(can.Message(timestamp=t, arbitration_id=can_id_of(_EEC1, 0), is_fd=True,
-                                   data=bytes(12), check=False))
+            out.append(
+                can.Message(timestamp=t, arbitration_id=can_id_of(_EEC1, 0), is_fd=True, data=bytes(12), check=False)
+            )
         elif kind == 3:
-            out.append(can.Message(timestamp=t, arbitration_id=int(rng.integers(0, 0x800)), is_extended_id=False,
-                                   data=data))
+            out.append(
+                can.Message(timestamp=t, arbitration_id=int(rng.integers(0, 0x800)), is_extended_id=False, data=data)
+            )
         elif kind == 4:
             out.append(can.Message(timestamp=t, arbitration_id=int(rng.integers(0, 1 << 29)), data=data))
         else:
             pgn = (0xEC00, 0xEB00)[int(rng.integers(0, 2))]
-            out.append(can.Message(timestamp=t, arbitration_id=can_id_of(pgn, 0, 7, int(rng.choice([0xFF, 0x21]))),
-                                   data=data))
+            out.append(
+                can.Message(timestamp=t, arbitration_id=can_id_of(pgn, 0, 7, int(rng.choice([0xFF, 0x21]))), data=data)
+            )
     return out
 
 
@@ -70,6 +87,7 @@ def inject(frames, kinds: Iterable[str], seed: int = 0) -> list:
     """The frames of a synthesized log (``SynthFrames``) with the faults ``kinds`` (:data:`FAULT_KINDS`), as
     ``can.Message`` in file order."""
     import can
+
     kinds = tuple(kinds)
     unknown = sorted(set(kinds) - set(FAULT_KINDS))
     if unknown:
@@ -97,8 +115,13 @@ def inject(frames, kinds: Iterable[str], seed: int = 0) -> list:
     if "foreign_source" in kinds:
         copy = np.flatnonzero(((pgn == _EEC1) | (pgn == _TRF1)) & _window(t, 0.1, 20.0))[::3]
         for i in copy.tolist():
-            extra.append(can.Message(timestamp=float(t[i]) + 1e-4, arbitration_id=can_id_of(
-                int(pgn[i]), (source_address(int(ids[i])) + 3) % 250), data=data[i].tobytes()))
+            extra.append(
+                can.Message(
+                    timestamp=float(t[i]) + 1e-4,
+                    arbitration_id=can_id_of(int(pgn[i]), (source_address(int(ids[i])) + 3) % 250),
+                    data=data[i].tobytes(),
+                )
+            )
     if "wrong_dlc" in kinds:
         dlc[(pgn == _ETC2) & _window(t, 0.15, 3.0)] = 6
     if "jitter" in kinds:
@@ -109,11 +132,15 @@ def inject(frames, kinds: Iterable[str], seed: int = 0) -> list:
         t = np.where(t >= t[0] + 0.75 * (t[-1] - t[0]), t - 30.0, t)
     if "hostile" in kinds:
         extra.extend(_hostile(float(t[0]), float(t[-1]), max(200, t.size // 50), rng))
-    msgs = [can.Message(timestamp=ts, arbitration_id=cid, data=row.tobytes()[:n], dlc=n, check=False)
-            for ts, cid, row, n in zip(t[keep].tolist(), ids[keep].tolist(), data[keep], dlc[keep].tolist())]
-    if extra:   # into file order by time, the originals' (jittered, jumped) order kept
-        order = np.argsort(np.concatenate([np.arange(len(msgs)) + 0.5,
-                                           np.searchsorted(t[keep], [m.timestamp for m in extra])]), kind="stable")
+    msgs = [
+        can.Message(timestamp=ts, arbitration_id=cid, data=row.tobytes()[:n], dlc=n, check=False)
+        for ts, cid, row, n in zip(t[keep].tolist(), ids[keep].tolist(), data[keep], dlc[keep].tolist())
+    ]
+    if extra:  # into file order by time, the originals' (jittered, jumped) order kept
+        order = np.argsort(
+            np.concatenate([np.arange(len(msgs)) + 0.5, np.searchsorted(t[keep], [m.timestamp for m in extra])]),
+            kind="stable",
+        )
         allm = msgs + extra
         msgs = [allm[i] for i in order]
     return msgs

@@ -45,18 +45,30 @@ Speed: ~1.6 M frames for a 3 h cycle; ``.log`` is written by a vectorised format
 python-can's ``CanutilsLogWriter`` (tests check it line for line); ``.asc`` and ``.blf`` go through python-can's
 writers (slower, ~10 us per frame). See docs/can.md for figures.
 """
+
 from __future__ import annotations
 
 import os
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Iterator, NamedTuple
+from typing import NamedTuple
 
 import numpy as np
 
 from can_dbc import dbc
-from can_dbc.j1939 import (EC1_PGN, EC1_REF_TORQUE_BYTE0, RAW8_DATA_MAX, RAW8_NOT_AVAILABLE, RAW16_DATA_MAX,
-                           RAW16_NOT_AVAILABLE, RC_PGN, RC_REF_TORQUE_BYTE0, TP_BAM_CONTROL, TP_DT_DATA_BYTES)
+from can_dbc.j1939 import (
+    EC1_PGN,
+    EC1_REF_TORQUE_BYTE0,
+    RAW8_DATA_MAX,
+    RAW8_NOT_AVAILABLE,
+    RAW16_DATA_MAX,
+    RAW16_NOT_AVAILABLE,
+    RC_PGN,
+    RC_REF_TORQUE_BYTE0,
+    TP_BAM_CONTROL,
+    TP_DT_DATA_BYTES,
+)
 from firmware_model.components import PUBLISHED
 from firmware_model.errors import InputError, ParameterError
 
@@ -91,14 +103,21 @@ EEC1_GRID_S = 0.01
 
 class Schedule(NamedTuple):
     """A periodic message: its period and its phase inside each slot of that period [s]."""
+
     period_s: float
     phase_s: float
 
 
 #: message -> schedule; EEC1 has its own rpm-dependent schedule, EC1 its BAM
-SCHEDULES = {"ETC2": Schedule(0.1, 0.050), "ERC1": Schedule(0.1, 0.055), "RIG": Schedule(0.1, 0.075),
-             "TRF1": Schedule(1.0, 0.045), "ET1": Schedule(1.0, 0.050), "AMB": Schedule(1.0, 0.060),
-             "CCVS1": Schedule(1.0, 0.040)}
+SCHEDULES = {
+    "ETC2": Schedule(0.1, 0.050),
+    "ERC1": Schedule(0.1, 0.055),
+    "RIG": Schedule(0.1, 0.075),
+    "TRF1": Schedule(1.0, 0.045),
+    "ET1": Schedule(1.0, 0.050),
+    "AMB": Schedule(1.0, 0.060),
+    "CCVS1": Schedule(1.0, 0.040),
+}
 _PERIODIC_JITTER_S = 0.001
 _EEC1_JITTER_S = 0.0003
 #: EC1 BAM: TP.CM at this phase of each 5 s period; the last of its 6 TP.DT completes 300 ms later (phase 0.35)
@@ -116,6 +135,7 @@ RIG_ORDER = 8
 @dataclass
 class SynthFrames:
     """Frames as arrays, sorted by time: timestamps [s], 29-bit identifiers, payloads (n x 8 bytes)."""
+
     timestamp_s: np.ndarray
     can_id: np.ndarray
     data: np.ndarray
@@ -126,13 +146,16 @@ class SynthFrames:
     def messages(self, channel: str | None = None) -> Iterator:
         """The frames as ``can.Message`` (extended 8-byte data frames)."""
         import can
+
         for ts, cid, row in zip(self.timestamp_s.tolist(), self.can_id.tolist(), self.data):
-            yield can.Message(timestamp=ts, arbitration_id=cid, is_extended_id=True, data=row.tobytes(),
-                              channel=channel, check=False)
+            yield can.Message(
+                timestamp=ts, arbitration_id=cid, is_extended_id=True, data=row.tobytes(), channel=channel, check=False
+            )
 
 
 class SynthResult(NamedTuple):
     """The synthesized frames and the number of frames per message."""
+
     frames: SynthFrames
     counts: dict
 
@@ -147,6 +170,7 @@ class LogSummary:
 
 class _Part(NamedTuple):
     """The frames of one message: times [s], identifiers, payloads, and its order at equal times."""
+
     timestamp_s: np.ndarray
     can_id: np.ndarray
     data: np.ndarray
@@ -154,27 +178,45 @@ class _Part(NamedTuple):
 
 
 #: the group of _sources that sends each input message unless the config sets the message's own address
-MESSAGE_GROUPS = {"EEC1": "engine", "EC1": "engine", "ETC2": "transmission", "TRF1": "transmission",
-                  "ET1": "coolant", "AMB": "ambient", "CCVS1": "vehicle_speed", "ERC1": "retarder", "RC": "retarder"}
+MESSAGE_GROUPS = {
+    "EEC1": "engine",
+    "EC1": "engine",
+    "ETC2": "transmission",
+    "TRF1": "transmission",
+    "ET1": "coolant",
+    "AMB": "ambient",
+    "CCVS1": "vehicle_speed",
+    "ERC1": "retarder",
+    "RC": "retarder",
+}
 
 
 def _sources(config) -> dict:
     """Sender -> source address: the groups (engine, transmission, ..., rig) and each input message by name, from
     the config's [can] keys and its [can.source_address] table (firmware_model.service.options.source_addresses)."""
     from firmware_model.service.options import source_addresses
+
     src = {**DEFAULT_SOURCES, "rig": dbc.default_source(dbc.numbered_messages("RIG_TC_")[0])}
     can_cfg = getattr(config, "can", None) or {}
     try:
         per_message, _ = source_addresses(can_cfg)
     except ParameterError as e:
         raise ParameterError(f"config {e}") from None
-    for key, name in (("engine_source_address", "engine"), ("transmission_source_address", "transmission"),
-                      ("retarder_source_address", "retarder"), ("ambient_source_address", "ambient"),
-                      ("vehicle_speed_source_address", "vehicle_speed"), ("coolant_source_address", "coolant")):
+    for key, name in (
+        ("engine_source_address", "engine"),
+        ("transmission_source_address", "transmission"),
+        ("retarder_source_address", "retarder"),
+        ("ambient_source_address", "ambient"),
+        ("vehicle_speed_source_address", "vehicle_speed"),
+        ("coolant_source_address", "coolant"),
+    ):
         if key in can_cfg:
             src[name] = can_cfg[key]
-    for key, name in (("ambient_source_address", "ambient"), ("vehicle_speed_source_address", "vehicle_speed"),
-                      ("coolant_source_address", "coolant")):
+    for key, name in (
+        ("ambient_source_address", "ambient"),
+        ("vehicle_speed_source_address", "vehicle_speed"),
+        ("coolant_source_address", "coolant"),
+    ):
         if key not in can_cfg:
             src[name] = src["engine"]  # AMB, CCVS1 and ET1 come from the engine unless configured otherwise
     for message, group in MESSAGE_GROUPS.items():
@@ -249,14 +291,19 @@ def _slots(t0_s: float, t1_s: float, schedule: Schedule, rng: np.random.Generato
     return t_s + rng.uniform(-_PERIODIC_JITTER_S, _PERIODIC_JITTER_S, n)
 
 
-def _eec1_times(t_table_s: np.ndarray, speed_rpm: np.ndarray, t0_s: float, t1_s: float,
-                rng: np.random.Generator) -> np.ndarray:
+def _eec1_times(
+    t_table_s: np.ndarray, speed_rpm: np.ndarray, t0_s: float, t1_s: float, rng: np.random.Generator
+) -> np.ndarray:
     """EEC1 every 20 ms at idle (600 rpm) down to 10 ms at 2100 rpm, with gaussian jitter; first frame at t0_s."""
     # the period as a function of time on a 10 ms grid, then the frame times by accumulating it
     grid_s = np.arange(t0_s, t1_s + EEC1_GRID_S, EEC1_GRID_S)
     grid_rpm = _zoh(t_table_s, speed_rpm, grid_s)
-    period_s = np.clip(EEC1_PERIOD_IDLE_S - (grid_rpm - EEC1_IDLE_RPM) / (EEC1_FAST_RPM - EEC1_IDLE_RPM)
-                       * (EEC1_PERIOD_IDLE_S - EEC1_PERIOD_FAST_S), EEC1_PERIOD_FAST_S, EEC1_PERIOD_IDLE_S)
+    period_s = np.clip(
+        EEC1_PERIOD_IDLE_S
+        - (grid_rpm - EEC1_IDLE_RPM) / (EEC1_FAST_RPM - EEC1_IDLE_RPM) * (EEC1_PERIOD_IDLE_S - EEC1_PERIOD_FAST_S),
+        EEC1_PERIOD_FAST_S,
+        EEC1_PERIOD_IDLE_S,
+    )
     # cumulative "phase" in frames: integral of 1/period; frame k is where the phase crosses k
     phase = np.concatenate([[0.0], np.cumsum(EEC1_GRID_S / period_s[:-1])])
     k = np.arange(0, int(phase[-1]) + 1)
@@ -330,15 +377,17 @@ class _Synth:
         if oil_c is not None:
             data = _empty(t_s.size)
             _put(data, "TRF1", "TransOilTemp", oil_c)
-            if self.inputs.has("oil_level_pct"):     # SPN 124, byte 2; else 0xFF (not available)
+            if self.inputs.has("oil_level_pct"):  # SPN 124, byte 2; else 0xFF (not available)
                 _put(data, "TRF1", "TransOilLevel", self.at("oil_level_pct", t_s))
             self.add("TRF1", _ORDER["TRF1"], t_s, dbc.message_id("TRF1", self.src["TRF1"]), data)
 
     def engine_1s(self) -> None:
         """ET1 coolant, AMB ambient, CCVS1 vehicle speed, each if the cycle has its column."""
-        for name, col, signal in (("ET1", "coolant_temp_c", "EngCoolantTemp"),
-                                  ("AMB", "ambient_temp_c", "AmbientAirTemp"),
-                                  ("CCVS1", "vehicle_speed_kmh", "WheelBasedVehicleSpeed")):
+        for name, col, signal in (
+            ("ET1", "coolant_temp_c", "EngCoolantTemp"),
+            ("AMB", "ambient_temp_c", "AmbientAirTemp"),
+            ("CCVS1", "vehicle_speed_kmh", "WheelBasedVehicleSpeed"),
+        ):
             if not self.inputs.has(col):
                 continue
             t_s = self.slots(name)
@@ -361,17 +410,34 @@ class _Synth:
 
     def ec1(self, ref_torque_nm: float) -> None:
         """EC1 by TP.BAM every 5 s: TP.CM BAM to global, then 6 TP.DT 50 ms apart; SPN 544 in bytes 20-21."""
-        self.bam("EC1", EC1_PGN, EC1_SIZE_BYTES, EC1_PACKETS, EC1_REF_TORQUE_BYTE0, ref_torque_nm, _EC1_PHASE_S,
-                 self.src["EC1"])
+        self.bam(
+            "EC1",
+            EC1_PGN,
+            EC1_SIZE_BYTES,
+            EC1_PACKETS,
+            EC1_REF_TORQUE_BYTE0,
+            ref_torque_nm,
+            _EC1_PHASE_S,
+            self.src["EC1"],
+        )
 
     def rc(self, retarder_ref_torque_nm: float) -> None:
         """RC by TP.BAM every 5 s from the retarder, with ERC1 only: SPN 556 in bytes 17-18."""
         if self.inputs.has("retarder_torque_nm"):
-            self.bam("RC", RC_PGN, RC_SIZE_BYTES, RC_PACKETS, RC_REF_TORQUE_BYTE0, retarder_ref_torque_nm,
-                     _RC_PHASE_S, self.src["RC"])
+            self.bam(
+                "RC",
+                RC_PGN,
+                RC_SIZE_BYTES,
+                RC_PACKETS,
+                RC_REF_TORQUE_BYTE0,
+                retarder_ref_torque_nm,
+                _RC_PHASE_S,
+                self.src["RC"],
+            )
 
-    def bam(self, name: str, pgn: int, size: int, packets: int, byte0: int, ref_torque_nm: float, phase_s: float,
-            sa: int) -> None:
+    def bam(
+        self, name: str, pgn: int, size: int, packets: int, byte0: int, ref_torque_nm: float, phase_s: float, sa: int
+    ) -> None:
         """A reference torque (1 Nm/bit at ``byte0``; every other byte 0xFF) by TP.BAM every EC1_PERIOD_S: TP.CM BAM
         to global at ``phase_s``, then ``packets`` TP.DT 50 ms apart."""
         n_bam = int(np.floor((self.t1_s - self.t0_s - phase_s) / EC1_PERIOD_S)) + 1
@@ -380,14 +446,17 @@ class _Synth:
         payload = np.full(packets * TP_DT_DATA_BYTES, 0xFF, dtype=np.uint8)
         payload[byte0] = int(round(ref_torque_nm)) & 0xFF
         payload[byte0 + 1] = int(round(ref_torque_nm)) >> 8
-        cm = np.array([TP_BAM_CONTROL, size & 0xFF, size >> 8, packets, 0xFF, pgn & 0xFF, (pgn >> 8) & 0xFF,
-                       pgn >> 16], dtype=np.uint8)
+        cm = np.array(
+            [TP_BAM_CONTROL, size & 0xFF, size >> 8, packets, 0xFF, pgn & 0xFF, (pgn >> 8) & 0xFF, pgn >> 16],
+            dtype=np.uint8,
+        )
         start_s = self.t0_s + phase_s + EC1_PERIOD_S * np.arange(n_bam)
         n = TP_DT_DATA_BYTES
-        rows = [cm] + [np.concatenate([[k + 1], payload[n * k:n * k + n]]).astype(np.uint8) for k in range(packets)]
+        rows = [cm] + [np.concatenate([[k + 1], payload[n * k : n * k + n]]).astype(np.uint8) for k in range(packets)]
         t_s = (start_s[:, None] + TP_DT_SPACING_S * np.arange(packets + 1)[None, :]).ravel()
-        ids = np.tile(np.array([dbc.message_id("TP_CM", sa)] + [dbc.message_id("TP_DT", sa)] * packets,
-                               dtype=np.uint32), n_bam)
+        ids = np.tile(
+            np.array([dbc.message_id("TP_CM", sa)] + [dbc.message_id("TP_DT", sa)] * packets, dtype=np.uint32), n_bam
+        )
         data = np.tile(np.stack(rows), (n_bam, 1))
         keep = t_s <= self.t1_s + packets * TP_DT_SPACING_S  # a transfer started inside the cycle is finished
         self.add(name, _ORDER[name], t_s[keep], ids[keep], data[keep])
@@ -401,8 +470,11 @@ class _Synth:
             data = _empty(t_s.size)
             for component, signal, _ in dbc.component_signals(name, 16):
                 col = f"T_{component}_c"
-                x = (_lin(self.t_plant_s, np.asarray(self.plant[col], float), t_s - self.sample_delay_s)
-                     if self.plant.has(col) else np.full(t_s.shape, np.nan))
+                x = (
+                    _lin(self.t_plant_s, np.asarray(self.plant[col], float), t_s - self.sample_delay_s)
+                    if self.plant.has(col)
+                    else np.full(t_s.shape, np.nan)
+                )
                 _put(data, name, signal, x)
             self.add(name, RIG_ORDER + k, t_s, dbc.message_id(name, self.src["rig"]), data)
 
@@ -441,9 +513,18 @@ def _check_cycle(input_table) -> None:
         raise InputError("the drive cycle needs at least two samples with strictly increasing time_s")
 
 
-def synth_frames(input_table, plant_output_table=None, *, config=None, ref_torque_nm: float | None = None,
-                 retarder_ref_torque_nm: float | None = None, seed: int = 0, sample_delay_s: float = 0.05,
-                 start_timestamp_s: float = 0.0, rig: bool = True) -> SynthResult:
+def synth_frames(
+    input_table,
+    plant_output_table=None,
+    *,
+    config=None,
+    ref_torque_nm: float | None = None,
+    retarder_ref_torque_nm: float | None = None,
+    seed: int = 0,
+    sample_delay_s: float = 0.05,
+    start_timestamp_s: float = 0.0,
+    rig: bool = True,
+) -> SynthResult:
     """The J1939 and rig frames of a drive cycle (see the module doc) and a count per message.
 
     ``input_table``: the plant's input run table (time_s, engine_speed_rpm, engine_torque_nm, gear, optional
@@ -485,6 +566,7 @@ def write_frames(frames: SynthFrames, path: str | os.PathLike, channel: str = "c
         _write_candump(frames, target, channel)
         return target
     import can
+
     with can.Logger(target) as writer:
         for msg in frames.messages(channel=channel):
             writer.on_message_received(msg)
@@ -497,35 +579,56 @@ def _write_candump(frames: SynthFrames, target: Path, channel: str, chunk: int =
     with open(target, "w", encoding="ascii", newline="\n") as fh:
         last_s = None
         for i in range(0, len(frames), chunk):
-            t_s = frames.timestamp_s[i:i + chunk]
+            t_s = frames.timestamp_s[i : i + chunk]
             if last_s is None:
                 last_s = float(t_s[0]) if t_s.size else 0.0
             t_s = np.maximum.accumulate(np.maximum(t_s, last_s))  # CanutilsLogWriter never writes a time backwards
             last_s = float(t_s[-1]) if t_s.size else last_s
-            ids = frames.can_id[i:i + chunk]
-            d = frames.data[i:i + chunk]
+            ids = frames.can_id[i : i + chunk]
+            d = frames.data[i : i + chunk]
             hexd = np.empty((d.shape[0], 16), dtype=np.uint8)
             hexd[:, 0::2] = hexdigits[d >> 4]
             hexd[:, 1::2] = hexdigits[d & 0xF]
             hex_rows = hexd.view("S16").ravel()
-            lines = [f"({t:f}) {channel} {cid:08X}#{h.decode()} R\n"
-                     for t, cid, h in zip(t_s.tolist(), ids.tolist(), hex_rows.tolist())]
+            lines = [
+                f"({t:f}) {channel} {cid:08X}#{h.decode()} R\n"
+                for t, cid, h in zip(t_s.tolist(), ids.tolist(), hex_rows.tolist())
+            ]
             fh.write("".join(lines))
 
 
-def write_can_log(input_table, plant_output_table, path: str | os.PathLike, params=None, *, config=None,
-                  ref_torque_nm: float | None = None, retarder_ref_torque_nm: float | None = None, seed: int = 0,
-                  sample_delay_s: float = 0.05, start_timestamp_s: float = 0.0, rig: bool = True,
-                  channel: str = "can0") -> LogSummary:
+def write_can_log(
+    input_table,
+    plant_output_table,
+    path: str | os.PathLike,
+    params=None,
+    *,
+    config=None,
+    ref_torque_nm: float | None = None,
+    retarder_ref_torque_nm: float | None = None,
+    seed: int = 0,
+    sample_delay_s: float = 0.05,
+    start_timestamp_s: float = 0.0,
+    rig: bool = True,
+    channel: str = "can0",
+) -> LogSummary:
     """Write the J1939 traffic of a drive cycle and the plant's true temperatures as a CAN log (module doc).
 
     ``params`` (the gearbox parameters) is accepted for symmetry with the plant and not needed: every value comes
     from the two tables and the config's ``[can]`` section. Returns the path, frame count, duration and a count per
     message.
     """
-    frames, counts = synth_frames(input_table, plant_output_table, config=config, ref_torque_nm=ref_torque_nm,
-                                  retarder_ref_torque_nm=retarder_ref_torque_nm, seed=seed,
-                                  sample_delay_s=sample_delay_s, start_timestamp_s=start_timestamp_s, rig=rig)
+    frames, counts = synth_frames(
+        input_table,
+        plant_output_table,
+        config=config,
+        ref_torque_nm=ref_torque_nm,
+        retarder_ref_torque_nm=retarder_ref_torque_nm,
+        seed=seed,
+        sample_delay_s=sample_delay_s,
+        start_timestamp_s=start_timestamp_s,
+        rig=rig,
+    )
     target = write_frames(frames, path, channel)
     duration = float(frames.timestamp_s[-1] - frames.timestamp_s[0]) if len(frames) else 0.0
     return LogSummary(target, len(frames), duration, counts)
@@ -533,22 +636,37 @@ def write_can_log(input_table, plant_output_table, path: str | os.PathLike, para
 
 def _bench(argv=None) -> None:  # pragma: no cover - a benchmark, run by benchmarks/bench_can.py too
     import time
+
     from tools.cycles.named import get_cycle
     from tools.runtable import RunTable
+
     table = get_cycle("long_haul")
     t = np.asarray(table["time_s"])
     reps = int(np.ceil(10800.0 / (t[-1] + 0.1)))
-    big = RunTable({c: np.concatenate([np.asarray(table[c]) + (k * (t[-1] + 0.1) if c == "time_s" else 0.0)
-                                       for k in range(reps)]) for c in table.columns})
-    fake = RunTable({"time_s": big["time_s"][::10], **{f"T_{c}_c": np.full(big.n // 10 + (big.n % 10 > 0), 90.0)
-                                                       for c in PUBLISHED}})
+    big = RunTable(
+        {
+            c: np.concatenate(
+                [np.asarray(table[c]) + (k * (t[-1] + 0.1) if c == "time_s" else 0.0) for k in range(reps)]
+            )
+            for c in table.columns
+        }
+    )
+    fake = RunTable(
+        {
+            "time_s": big["time_s"][::10],
+            **{f"T_{c}_c": np.full(big.n // 10 + (big.n % 10 > 0), 90.0) for c in PUBLISHED},
+        }
+    )
     import tempfile
+
     with tempfile.TemporaryDirectory() as d:
         t_0 = time.perf_counter()
         s = write_can_log(big, fake, Path(d) / "big.log")
         dt = time.perf_counter() - t_0
-        print(f"logsynth: {s.frames} frames, {s.duration_s / 3600:.2f} h of traffic in {dt:.1f} s "
-              f"({s.frames / dt / 1e3:.0f} k frames/s)")
+        print(
+            f"logsynth: {s.frames} frames, {s.duration_s / 3600:.2f} h of traffic in {dt:.1f} s "
+            f"({s.frames / dt / 1e3:.0f} k frames/s)"
+        )
 
 
 if __name__ == "__main__":  # pragma: no cover

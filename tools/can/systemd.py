@@ -6,6 +6,7 @@ need none for plain reading and writing; ``unit_text(raw=True)``, which no comma
 CAP_NET_RAW), a state directory for the saved state, journal
 logging with a syslog identifier a journal can filter (``journalctl -t gearbox-vsensor``).
 """
+
 from __future__ import annotations
 
 import os
@@ -55,8 +56,13 @@ CHANNEL_RE = re.compile(r"[A-Za-z0-9_.:@/-]+")
 
 
 #: where the unit's sandboxing hides files from the service, and the setting that does it
-HIDDEN = {"/home/": "ProtectHome=yes", "/root/": "ProtectHome=yes", "/run/user/": "ProtectHome=yes",
-          "/tmp/": "PrivateTmp=yes", "/var/tmp/": "PrivateTmp=yes"}
+HIDDEN = {
+    "/home/": "ProtectHome=yes",
+    "/root/": "ProtectHome=yes",
+    "/run/user/": "ProtectHome=yes",
+    "/tmp/": "PrivateTmp=yes",
+    "/var/tmp/": "PrivateTmp=yes",
+}
 
 
 def check_unit_args(interface: str, channel: str, config: str | None, python: str | None) -> list[str]:
@@ -64,17 +70,21 @@ def check_unit_args(interface: str, channel: str, config: str | None, python: st
     Python under /home or /root, which ProtectHome=yes hides from the service)."""
     for opt, v in (("--interface", interface), ("--channel", channel)):
         if not CHANNEL_RE.fullmatch(v or ""):
-            raise InputError(f"{opt} {v!r} must be a name of letters, digits and _ . : @ / - (no spaces or line "
-                             f"breaks: it goes into the unit file)")
+            raise InputError(
+                f"{opt} {v!r} must be a name of letters, digits and _ . : @ / - (no spaces or line "
+                f"breaks: it goes into the unit file)"
+            )
     if config is not None and not os.path.isabs(config):
         raise InputError(f"--config {config} must be an absolute path: the service does not start in this directory")
     warnings = []
     if interface == "virtual":
-        warnings.append("--interface virtual is python-can's bus inside one process: the service would receive no "
-                        "frame from any other program (a test bus, not a gateway's)")
+        warnings.append(
+            "--interface virtual is python-can's bus inside one process: the service would receive no "
+            "frame from any other program (a test bus, not a gateway's)"
+        )
     exe = os.path.abspath(python or sys.executable)
     places = [("the Python", exe), ("the Python (through its links)", os.path.realpath(exe))]
-    if python is None:       # this Python's own copy of gearbox-vsensor (an editable install: the source tree)
+    if python is None:  # this Python's own copy of gearbox-vsensor (an editable install: the source tree)
         places.append(("the gearbox-vsensor code", str(Path(__file__).resolve().parents[2])))
     found = []
     for what, path in places:
@@ -84,9 +94,11 @@ def check_unit_args(interface: str, channel: str, config: str | None, python: st
     if not found:
         return warnings
     where = "; ".join(f"{what} {path} is under {hidden.rstrip('/')} ({HIDDEN[hidden]})" for what, path, hidden in found)
-    return warnings + [f"{where}: the unit's sandbox hides it from the service. Install gearbox-vsensor (not editable) into a "
-            f"virtual environment outside /home, /root and /tmp (e.g. /opt/gearbox-vsensor) and pass its python with "
-            f"--python"]
+    return warnings + [
+        f"{where}: the unit's sandbox hides it from the service. Install gearbox-vsensor (not editable) into a "
+        f"virtual environment outside /home, /root and /tmp (e.g. /opt/gearbox-vsensor) and pass its python with "
+        f"--python"
+    ]
 
 
 def device_unit(channel: str) -> str:
@@ -105,21 +117,42 @@ def device_unit(channel: str) -> str:
     return f"sys-subsystem-net-devices-{''.join(out)}.device"
 
 
-def unit_text(interface: str, channel: str, config: str | None = None, python: str | None = None,
-              raw: bool = False) -> str:
+def unit_text(
+    interface: str, channel: str, config: str | None = None, python: str | None = None, raw: bool = False
+) -> str:
     """The unit file: `run` on ``interface`` ``channel``, the state in /var/lib/gearbox-vsensor, the health file in
     /run/gearbox-vsensor (what `gearbox-vsensor status` reads by default). A socketcan channel is a network device
     the service is bound to; other interfaces have no such device."""
-    cmd = [python or sys.executable, "-m", "tools.cli", "run", "--interface", interface, "--channel", channel,
-           "--state-file", "/var/lib/gearbox-vsensor/state.json",
-           "--health-file", "/run/gearbox-vsensor/health.json"]
+    cmd = [
+        python or sys.executable,
+        "-m",
+        "tools.cli",
+        "run",
+        "--interface",
+        interface,
+        "--channel",
+        channel,
+        "--state-file",
+        "/var/lib/gearbox-vsensor/state.json",
+        "--health-file",
+        "/run/gearbox-vsensor/health.json",
+    ]
     if config:
         cmd += ["--config", config]
     caps = "CAP_NET_RAW" if raw else ""
-    device = (f"After=network.target {device_unit(channel)}\n"
-              f"BindsTo={device_unit(channel)}") if interface == "socketcan" else "After=network.target"
+    device = (
+        (f"After=network.target {device_unit(channel)}\nBindsTo={device_unit(channel)}")
+        if interface == "socketcan"
+        else "After=network.target"
+    )
     families = f"RestrictAddressFamilies={FAMILIES[interface]}" if interface in FAMILIES else ""
     # "%" starts a systemd specifier: a literal one is "%%" (a --config path with "%" failed systemd-analyze verify)
     exec_start = " ".join(shlex.quote(c) for c in cmd).replace("%", "%%")
-    return UNIT.format(channel=channel, device=device, exec_start=exec_start, caps=caps,
-                       families=families, environment="Environment=PYTHONUNBUFFERED=1\n")
+    return UNIT.format(
+        channel=channel,
+        device=device,
+        exec_start=exec_start,
+        caps=caps,
+        families=families,
+        environment="Environment=PYTHONUNBUFFERED=1\n",
+    )

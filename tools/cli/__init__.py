@@ -1,4 +1,5 @@
 """`gearbox-vsensor`: one console command, one module per subcommand (cantools style)."""
+
 from __future__ import annotations
 
 import argparse
@@ -6,8 +7,22 @@ import sys
 
 from firmware_model.errors import VSensorError
 
-SUBCOMMANDS = ("simulate", "replay", "play", "run", "plant", "diagnose", "calibrate", "bench_diagnosis", "demo",
-               "export_c", "export_fmu", "status", "service_unit", "fleet")
+SUBCOMMANDS = (
+    "simulate",
+    "replay",
+    "play",
+    "run",
+    "plant",
+    "diagnose",
+    "calibrate",
+    "bench_diagnosis",
+    "demo",
+    "export_c",
+    "export_fmu",
+    "status",
+    "service_unit",
+    "fleet",
+)
 
 
 class CommandParser(argparse.ArgumentParser):
@@ -33,6 +48,7 @@ class CommandParser(argparse.ArgumentParser):
 def with_suggestion(parser: argparse.ArgumentParser, arg: str) -> str:
     """``arg``, followed by the closest option of ``parser`` when it looks like a mistyped option."""
     import difflib
+
     if not arg.startswith("--"):
         return arg
     options = [o for action in parser._actions for o in action.option_strings if o.startswith("--")]
@@ -45,7 +61,9 @@ class VersionAction(argparse.Action):
 
     def __call__(self, parser, namespace, values, option_string=None):
         from importlib.metadata import PackageNotFoundError, version
+
         from tools.cli.core_option import active_core
+
         try:
             v = version("gearbox-vsensor")
         except PackageNotFoundError:
@@ -58,13 +76,18 @@ def build_parser() -> argparse.ArgumentParser:
     parser = CommandParser(
         prog="gearbox-vsensor",
         description="Virtual temperature sensor for Scania GRS905-type range-splitter gearboxes: the reference "
-                    "thermal plant (simulate), the onboard sensor (replay, run), the HIL plant on CAN (plant) and "
-                    "the sim-to-real gap diagnosis (diagnose, bench-diagnosis).")
-    parser.add_argument("--version", action=VersionAction, nargs=0,
-                        help="print the version and the onboard core this machine runs (the compiled C kernel or "
-                             "numpy), then exit")
+        "thermal plant (simulate), the onboard sensor (replay, run), the HIL plant on CAN (plant) and "
+        "the sim-to-real gap diagnosis (diagnose, bench-diagnosis).",
+    )
+    parser.add_argument(
+        "--version",
+        action=VersionAction,
+        nargs=0,
+        help="print the version and the onboard core this machine runs (the compiled C kernel or numpy), then exit",
+    )
     sub = parser.add_subparsers(title="subcommands", dest="subcommand", metavar="SUBCOMMAND")
     import importlib
+
     for name in SUBCOMMANDS:
         try:
             mod = importlib.import_module(f"tools.cli.{name}")
@@ -92,8 +115,10 @@ def main(argv=None) -> int:
         print(f"gearbox-vsensor {args.subcommand}: interrupted", file=sys.stderr)
         return 130
     except OSError as exc:
-        print(f"gearbox-vsensor {args.subcommand}: error: {exc.strerror or exc}: {exc.filename or ''}".rstrip(": "),
-              file=sys.stderr)
+        print(
+            f"gearbox-vsensor {args.subcommand}: error: {exc.strerror or exc}: {exc.filename or ''}".rstrip(": "),
+            file=sys.stderr,
+        )
         return 2
     return int(rc or 0)
 

@@ -1,4 +1,5 @@
 """`gearbox-vsensor calibrate`: fit the model's assumed parameters to measured runs, checked on held-out runs."""
+
 from __future__ import annotations
 
 import argparse
@@ -13,7 +14,8 @@ from tools.cli.paths import check_paths
 
 def add_subparser(sub):
     p = sub.add_parser(
-        "calibrate", help="fit assumed parameters of the parameter file to measured runs (held-out check)",
+        "calibrate",
+        help="fit assumed parameters of the parameter file to measured runs (held-out check)",
         formatter_class=argparse.RawDescriptionHelpFormatter,
         description=(
             "Calibrate the model to a gearbox: fit chosen parameters of the parameter file (each must declare "
@@ -23,41 +25,62 @@ def add_subparser(sub):
             "and which parameters the channels cannot separate;\n"
             "2. fit: bounded least squares of measured - model on every channel; one-sigma uncertainty;\n"
             "3. held-out RMS before and after;\n"
-            "4. OUT.toml: the whole parameter file with the fitted values, provenance \"fitted\" and the data they "
-            "came from; use it with --config (params = \"OUT.toml\") for replay, simulate or diagnose.\n\n"
+            '4. OUT.toml: the whole parameter file with the fitted values, provenance "fitted" and the data they '
+            'came from; use it with --config (params = "OUT.toml") for replay, simulate or diagnose.\n\n'
             "An unknown key, a key without bounds or a key the data cannot identify is refused (one sentence, exit "
             "2, nothing written); --auto fits every bounded key the data can identify and lists the others. A fit "
             "that makes the held-out RMS worse writes no OUT.toml (exit 3; the report, if asked for, shows why). A fit "
             "whose training residual holds too few effective samples to decide (docs/diagnosis.md, 'Thin evidence') "
-            "is said in a warning, the report and the file's header, with the advice: more or longer files."),
+            "is said in a warning, the report and the file's header, with the advice: more or longer files."
+        ),
         epilog="examples:\n"
-               "  gearbox-vsensor calibrate --train rig1.csv rig2.csv --test rig3.csv --auto --out my_gearbox.toml "
-               "--report cal/report.md\n"
-               "  gearbox-vsensor calibrate --train a.csv --test b.csv --params oil_system.flow_m3_per_rad,"
-               "housing.hot_frac --out my_gearbox.toml")
+        "  gearbox-vsensor calibrate --train rig1.csv rig2.csv --test rig3.csv --auto --out my_gearbox.toml "
+        "--report cal/report.md\n"
+        "  gearbox-vsensor calibrate --train a.csv --test b.csv --params oil_system.flow_m3_per_rad,"
+        "housing.hot_frac --out my_gearbox.toml",
+    )
     p.add_argument("--train", nargs="+", required=True, metavar="FILE", help="training runs (.csv or CAN logs)")
     p.add_argument("--test", nargs="+", required=True, metavar="FILE", help="held-out runs, never used by the fit")
     keys = p.add_mutually_exclusive_group(required=True)
-    keys.add_argument("--params", metavar="KEY,KEY,...", help="dotted keys of the parameter file to fit (each with "
-                                                               "lo/hi bounds)")
+    keys.add_argument(
+        "--params", metavar="KEY,KEY,...", help="dotted keys of the parameter file to fit (each with lo/hi bounds)"
+    )
     keys.add_argument("--auto", action="store_true", help="fit every key with bounds that the data can identify")
-    p.add_argument("--out", required=True, metavar="OUT.toml", help="the calibrated parameter file (written "
-                                                                    "atomically)")
+    p.add_argument(
+        "--out", required=True, metavar="OUT.toml", help="the calibrated parameter file (written atomically)"
+    )
     p.add_argument("--report", metavar="OUT.md", help="also write a Markdown report with a held-out plot next to it")
-    p.add_argument("--config", metavar="TOML", help="project configuration: [gearbox] variant or params = a "
-                                                   "parameter file (one calibrate wrote, too), cooler kind")
-    p.add_argument("--cooler", choices=("none", "liquid", "air", "hold", "measured"),
-                   help="cooler kind of the vehicle or rig (overrides --config; default liquid)")
-    p.add_argument("--plant-dt", type=float, default=2.0, metavar="S",
-                   help="time step of the plant's simulations [s] (default 2: slow thermal fits lose nothing)")
-    p.add_argument("--workers", type=int, metavar="N", help="processes for the simulations (default: 2 or the "
-                                                            "number of cores)")
-    p.add_argument("--start", choices=("auto", "rest", "running"), default="auto",
-                   help="how the runs start: 'rest' (every part at the oil's first reading: a run from cold or "
-                        "after a long stop, what calibrate assumes by default), 'running' (cut from a longer drive, "
-                        "a warm restart: each run scored after its first 600 s, a thermocouple after 900 s, with "
-                        "its housings' start fitted per run), 'auto' (default: at rest, with a warning for a run "
-                        "that begins with the truck driving and the gearbox warm)")
+    p.add_argument(
+        "--config",
+        metavar="TOML",
+        help="project configuration: [gearbox] variant or params = a "
+        "parameter file (one calibrate wrote, too), cooler kind",
+    )
+    p.add_argument(
+        "--cooler",
+        choices=("none", "liquid", "air", "hold", "measured"),
+        help="cooler kind of the vehicle or rig (overrides --config; default liquid)",
+    )
+    p.add_argument(
+        "--plant-dt",
+        type=float,
+        default=2.0,
+        metavar="S",
+        help="time step of the plant's simulations [s] (default 2: slow thermal fits lose nothing)",
+    )
+    p.add_argument(
+        "--workers", type=int, metavar="N", help="processes for the simulations (default: 2 or the number of cores)"
+    )
+    p.add_argument(
+        "--start",
+        choices=("auto", "rest", "running"),
+        default="auto",
+        help="how the runs start: 'rest' (every part at the oil's first reading: a run from cold or "
+        "after a long stop, what calibrate assumes by default), 'running' (cut from a longer drive, "
+        "a warm restart: each run scored after its first 600 s, a thermocouple after 900 s, with "
+        "its housings' start fitted per run), 'auto' (default: at rest, with a warning for a run "
+        "that begins with the truck driving and the gearbox warm)",
+    )
     p.add_argument("--quiet", action="store_true", help="no progress or summary")
     p.set_defaults(func=run)
     return p
@@ -82,11 +105,15 @@ def _refusal(cal) -> str:
     (before_c, after_c), (_, train_c) = cal.test_rms_c, cal.train_rms_c
     if not after_c < before_c:
         what = "made the held-out error worse" if after_c > before_c else "did not reduce the held-out error"
-        return f"the fit {what} (RMS {before_c:.4g} -> {after_c:.4g} degC); check the training files' units and " \
-               f"channels{at}"
+        return (
+            f"the fit {what} (RMS {before_c:.4g} -> {after_c:.4g} degC); check the training files' units and "
+            f"channels{at}"
+        )
     if not train_c <= TRAIN_RMS_REFUSE_C:
-        return (f"the fitted model is still {train_c:.3g} K (RMS) off the training files, far more than a sensor is "
-                f"off: check their units (degF?), columns and variant, and that each run starts at rest (else --start running){at}")
+        return (
+            f"the fitted model is still {train_c:.3g} K (RMS) off the training files, far more than a sensor is "
+            f"off: check their units (degF?), columns and variant, and that each run starts at rest (else --start running){at}"
+        )
     return ""
 
 
@@ -101,11 +128,15 @@ def _cautions(cal, params) -> list[str]:
     for k in cal.keys:
         lo, hi = params.bounds.get(k, (math.nan, math.nan))
         if cal.sigma[k] > 0.25 * (hi - lo):
-            out.append(f"{k} = {cal.fitted[k]:.6g} +- {cal.sigma[k]:.2g} is not pinned down by these runs (its "
-                       f"plausible range is {lo:.6g}..{hi:.6g}): keep the file's value or add runs that excite it")
-        if cal.at_bound[k]:           # both can hold: a loose parameter that also ran into a bound
-            out.append(f"{k} ended at a bound of its plausible range ({cal.fitted[k]:.6g}): the runs may want a "
-                       f"value outside it, or another parameter's effect")
+            out.append(
+                f"{k} = {cal.fitted[k]:.6g} +- {cal.sigma[k]:.2g} is not pinned down by these runs (its "
+                f"plausible range is {lo:.6g}..{hi:.6g}): keep the file's value or add runs that excite it"
+            )
+        if cal.at_bound[k]:  # both can hold: a loose parameter that also ran into a bound
+            out.append(
+                f"{k} ended at a bound of its plausible range ({cal.fitted[k]:.6g}): the runs may want a "
+                f"value outside it, or another parameter's effect"
+            )
     return out
 
 
@@ -113,6 +144,7 @@ def _offsets_left(cal) -> list[str]:
     """Channels whose held-out residual after the fit is a near-constant offset (a calibration audit: oil read 2 K
     high gave a written, biased parameter file, hot_frac 0.54 for 0.35, with no word about the 1.4 K left)."""
     import numpy as np
+
     pooled: dict = {}
     for _, cid, _, _, after in cal.plot.get("test", []):
         pooled.setdefault(cid, []).append(np.asarray(after, dtype=float))
@@ -124,21 +156,28 @@ def _offsets_left(cal) -> list[str]:
             continue
         mean, rms = float(r.mean()), float(np.sqrt(np.mean(r * r)))
         if abs(mean) >= OFFSET_LEFT_C and abs(mean) >= OFFSET_SHARE * rms:
-            check = ("check it with `gearbox-vsensor diagnose` (it fits oil_sensor_offset)" if cid == "oil" else
-                     "check that sensor's calibration and placement")
-            out.append(f"{cid} reads {abs(mean):.2f} K {'above' if mean > 0 else 'below'} the calibrated model on the "
-                       f"held-out files, nearly constant (RMS {rms:.2f} K): the signature of a sensor offset or "
-                       f"placement, which calibrate does not fit and which biases the fitted values; {check} before "
-                       f"using this file")
+            check = (
+                "check it with `gearbox-vsensor diagnose` (it fits oil_sensor_offset)"
+                if cid == "oil"
+                else "check that sensor's calibration and placement"
+            )
+            out.append(
+                f"{cid} reads {abs(mean):.2f} K {'above' if mean > 0 else 'below'} the calibrated model on the "
+                f"held-out files, nearly constant (RMS {rms:.2f} K): the signature of a sensor offset or "
+                f"placement, which calibrate does not fit and which biases the fitted values; {check} before "
+                f"using this file"
+            )
     return out
 
 
 def run(args) -> int:
     import datetime as dt
+
     from firmware_model.parameters import parameter_path
     from tools.diagnosis.calibrate import calibrate, calibrated_toml, plot_held_out, report_markdown
     from tools.diagnosis.options import Options
     from tools.runtable import atomic_text_file
+
     cfg = load_config(args.config)
     params = cfg.load_params()
     cooler = args.cooler or cfg.cooler or params.strings.get("cooler.kind", "liquid")
@@ -148,9 +187,15 @@ def run(args) -> int:
         raise InputError(f"--workers {args.workers} must be at least 1")
     if Path(args.out).suffix.lower() != ".toml":
         raise InputError(f"--out {args.out} must be a .toml file")
-    check_paths([*(("a training file", f) for f in args.train), *(("a test file", f) for f in args.test),
-                 ("the --config", args.config)], {"--out": args.out, "--report": args.report},
-                makes_dirs=("--out", "--report"))
+    check_paths(
+        [
+            *(("a training file", f) for f in args.train),
+            *(("a test file", f) for f in args.test),
+            ("the --config", args.config),
+        ],
+        {"--out": args.out, "--report": args.report},
+        makes_dirs=("--out", "--report"),
+    )
     keys = [k.strip() for k in (args.params or "").split(",") if k.strip()]
     n = [0]
 
@@ -158,9 +203,19 @@ def run(args) -> int:
         n[0] += 1
         if not args.quiet and sys.stderr.isatty():
             print(f"\rcalibrate: fit, {n[0]} evaluations", end="", file=sys.stderr, flush=True)
-    cal = calibrate(args.train, args.test, params, keys, auto=args.auto, cooler=cooler,
-                    opts=Options(workers=args.workers, start=args.start), progress=tick, config_path=args.config,
-                    dt_s=args.plant_dt)
+
+    cal = calibrate(
+        args.train,
+        args.test,
+        params,
+        keys,
+        auto=args.auto,
+        cooler=cooler,
+        opts=Options(workers=args.workers, start=args.start),
+        progress=tick,
+        config_path=args.config,
+        dt_s=args.plant_dt,
+    )
     if not args.quiet and sys.stderr.isatty():
         print(file=sys.stderr)
     for st in cal.starts:
@@ -175,7 +230,7 @@ def run(args) -> int:
         has_fig = plot_held_out(cal, fig)
         with atomic_text_file(rep) as fh:
             fh.write(report_markdown(cal, params, fig.name if has_fig else None))
-    if cal.thin_evidence():             # too few effective samples: said, with the advice, written or not
+    if cal.thin_evidence():  # too few effective samples: said, with the advice, written or not
         print(f"warning: {cal.thin_evidence()}", file=sys.stderr)
     refusal = _refusal(cal)
     if refusal:
@@ -193,8 +248,12 @@ def run(args) -> int:
             if not x.identifiable:
                 print(f"not fitted: {x.key}: {x.reason}")
         for k in cal.keys:
-            print(f"{k}: {cal.start[k]:.6g} -> {cal.fitted[k]:.6g} +- {cal.sigma[k]:.2g} (SI)"
-                  + (" at a bound" if cal.at_bound[k] else ""))
-        print(f"held-out RMS {cal.test_rms_c[0]:.3f} -> {cal.test_rms_c[1]:.3f} degC "
-              f"({100 * (1 - cal.test_rms_c[1] / max(cal.test_rms_c[0], 1e-12)):.0f} % down) -> {args.out}")
+            print(
+                f"{k}: {cal.start[k]:.6g} -> {cal.fitted[k]:.6g} +- {cal.sigma[k]:.2g} (SI)"
+                + (" at a bound" if cal.at_bound[k] else "")
+            )
+        print(
+            f"held-out RMS {cal.test_rms_c[0]:.3f} -> {cal.test_rms_c[1]:.3f} degC "
+            f"({100 * (1 - cal.test_rms_c[1] / max(cal.test_rms_c[0], 1e-12)):.0f} % down) -> {args.out}"
+        )
     return 0

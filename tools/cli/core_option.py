@@ -5,14 +5,17 @@ an error saying why not; ``numpy``: the readable reference step. The choice reac
 worker processes included, through the ``GVS_CORE`` environment variable
 (firmware_model.onboard.core_select).
 """
+
 from __future__ import annotations
 
 import os
 
 from firmware_model.errors import InputError
 
-CORE_HELP = ("which onboard step: auto (default: the compiled C kernel when it is built, else numpy), c (the "
-             "kernel, or an error saying why it is unavailable), numpy (the readable reference; same outputs)")
+CORE_HELP = (
+    "which onboard step: auto (default: the compiled C kernel when it is built, else numpy), c (the "
+    "kernel, or an error saying why it is unavailable), numpy (the readable reference; same outputs)"
+)
 
 
 def add_core_option(parser) -> None:
@@ -31,6 +34,7 @@ def apply_core(args) -> str:
 def active_core(core: str = "auto") -> str:
     """The core a sensor built now would step on, and why not the kernel when it is not."""
     from firmware_model.onboard.ckernel import availability
+
     if core == "numpy" or (core == "auto" and os.environ.get("GVS_CORE", "auto") == "numpy"):
         return "numpy (the reference step)"
     ok, why = availability()

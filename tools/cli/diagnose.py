@@ -1,4 +1,5 @@
 """`gearbox-vsensor diagnose`: locate, identify and test the gap between measurements and the model."""
+
 from __future__ import annotations
 
 import argparse
@@ -14,9 +15,11 @@ from tools.cli.paths import check_paths
 
 def add_subparser(sub):
     from firmware_model.effects import CATALOG
+
     effects = "\n".join(f"  {e.id:28s} {e.param} {e.low:g}..{e.high:g} {e.unit}" for e in CATALOG.values())
     p = sub.add_parser(
-        "diagnose", help="sim-to-real gap diagnosis: where the model misses, which unmodelled effect explains it",
+        "diagnose",
+        help="sim-to-real gap diagnosis: where the model misses, which unmodelled effect explains it",
         formatter_class=argparse.RawDescriptionHelpFormatter,
         description=(
             "Compare measured run tables with the model and diagnose the gap (JSON schema gap-diagnosis/1, see "
@@ -36,37 +39,66 @@ def add_subparser(sub):
             "more or longer files); beside an effect verdict, the "
             "other effects the data cannot rule out (no strong evidence against them, the verdict refitted) and "
             "those they point to without a claim ('indicated');\n"
-            "3. how far it shrinks: RMS and max residual before/after on the TEST files only."),
+            "3. how far it shrinks: RMS and max residual before/after on the TEST files only."
+        ),
         epilog="examples:\n"
-               "  gearbox-vsensor diagnose --train run1.csv run2.csv --test run3.csv --json gap.json\n"
-               "  gearbox-vsensor diagnose --train rig_a.csv --test rig_b.csv --model plant --json gap.json "
-               "--report gap.md\n\neffects (docs/interfaces.md section 6):\n" + effects)
-    p.add_argument("--train", nargs="+", required=True, metavar="FILE",
-                   help="training runs: run tables (.csv) or CAN logs (.log candump -L, .asc, .blf, .mf4, .trc; decoded "
-                        "with the sensor's CAN service: TRF1 oil temperature and rig thermocouple frames)")
-    p.add_argument("--test", nargs="+", required=True, metavar="FILE", help="test runs (.csv or CAN logs), "
-                   "different runs from the training files")
+        "  gearbox-vsensor diagnose --train run1.csv run2.csv --test run3.csv --json gap.json\n"
+        "  gearbox-vsensor diagnose --train rig_a.csv --test rig_b.csv --model plant --json gap.json "
+        "--report gap.md\n\neffects (docs/interfaces.md section 6):\n" + effects,
+    )
+    p.add_argument(
+        "--train",
+        nargs="+",
+        required=True,
+        metavar="FILE",
+        help="training runs: run tables (.csv) or CAN logs (.log candump -L, .asc, .blf, .mf4, .trc; decoded "
+        "with the sensor's CAN service: TRF1 oil temperature and rig thermocouple frames)",
+    )
+    p.add_argument(
+        "--test",
+        nargs="+",
+        required=True,
+        metavar="FILE",
+        help="test runs (.csv or CAN logs), different runs from the training files",
+    )
     p.add_argument("--config", metavar="TOML", help="project configuration (gearbox variant, cooler kind, boundaries)")
-    p.add_argument("--model", choices=("onboard", "plant"), default="onboard",
-                   help="model under diagnosis: the onboard reduced model that runs in the truck (default; the "
-                        "reference plant is used, and said so, while the onboard model is not available) or the "
-                        "reference plant")
-    p.add_argument("--cooler", choices=("none", "liquid", "air", "hold", "measured"),
-                   help="cooler kind of the vehicle or rig (overrides --config; default liquid)")
+    p.add_argument(
+        "--model",
+        choices=("onboard", "plant"),
+        default="onboard",
+        help="model under diagnosis: the onboard reduced model that runs in the truck (default; the "
+        "reference plant is used, and said so, while the onboard model is not available) or the "
+        "reference plant",
+    )
+    p.add_argument(
+        "--cooler",
+        choices=("none", "liquid", "air", "hold", "measured"),
+        help="cooler kind of the vehicle or rig (overrides --config; default liquid)",
+    )
     p.add_argument("--json", required=True, metavar="OUT.json", help="the gap-diagnosis result (written atomically)")
     p.add_argument("--report", metavar="OUT.md", help="also write a Markdown report with PNG plots next to it")
     p.add_argument("--grid-dt", type=float, default=2.0, metavar="S", help="analysis grid [s] (default 2)")
-    p.add_argument("--plant-dt", type=float, default=1.0, metavar="S",
-                   help="time step of the plant's re-simulations [s] (default 1)")
-    p.add_argument("--workers", type=int, metavar="N", help="processes for the re-simulations (default: 2 or the "
-                                                            "number of cores)")
-    p.add_argument("--start", choices=("auto", "rest", "running"), default="auto",
-                   help="how the files start: 'rest' (every part at the oil's first reading: a key-on after a night, "
-                        "a rig run from cold), 'running' (cut from a longer drive, a warm restart: each file scored "
-                        "after its first 600 s, a thermocouple's after 900 s, with its housings' start fitted), or "
-                        "'auto' (default: at rest, then running for the files whose first minutes show a real gap "
-                        "and which the housings' start then fits far better; diagnosed again; the JSON's 'starts' "
-                        "says which and why)")
+    p.add_argument(
+        "--plant-dt",
+        type=float,
+        default=1.0,
+        metavar="S",
+        help="time step of the plant's re-simulations [s] (default 1)",
+    )
+    p.add_argument(
+        "--workers", type=int, metavar="N", help="processes for the re-simulations (default: 2 or the number of cores)"
+    )
+    p.add_argument(
+        "--start",
+        choices=("auto", "rest", "running"),
+        default="auto",
+        help="how the files start: 'rest' (every part at the oil's first reading: a key-on after a night, "
+        "a rig run from cold), 'running' (cut from a longer drive, a warm restart: each file scored "
+        "after its first 600 s, a thermocouple's after 900 s, with its housings' start fitted), or "
+        "'auto' (default: at rest, then running for the files whose first minutes show a real gap "
+        "and which the housings' start then fits far better; diagnosed again; the JSON's 'starts' "
+        "says which and why)",
+    )
     add_core_option(p)
     p.add_argument("--quiet", action="store_true", help="no progress bar or summary on stderr/stdout")
     p.set_defaults(func=run)
@@ -75,6 +107,7 @@ def add_subparser(sub):
 
 def write_json_atomic(obj, path) -> Path:
     from tools.runtable import atomic_text_file
+
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     with atomic_text_file(path) as fh:
@@ -85,13 +118,21 @@ def write_json_atomic(obj, path) -> Path:
 
 def run(args) -> int:
     from tools.diagnosis.core import Options, diagnose
+
     core_line = apply_core(args)
     if not args.quiet:
-        print(f"model: {args.model}" + (f"; {core_line}" if args.model == "onboard" else
-                                         " (the reference plant; the onboard step's core is not used)"),
-              file=sys.stderr)
+        print(
+            f"model: {args.model}"
+            + (
+                f"; {core_line}"
+                if args.model == "onboard"
+                else " (the reference plant; the onboard step's core is not used)"
+            ),
+            file=sys.stderr,
+        )
     from tools.diagnosis.options import STAGES
     from tools.progress import progress
+
     cfg = load_config(args.config)
     params = cfg.load_params()
     cooler = args.cooler or cfg.cooler or params.strings.get("cooler.kind", "liquid")
@@ -101,46 +142,66 @@ def run(args) -> int:
         raise InputError(f"--plant-dt {args.plant_dt} must be within 0.05..5 s")
     if args.workers is not None and args.workers < 1:
         raise InputError(f"--workers {args.workers} must be at least 1")
-    check_paths([*(("a training file", f) for f in args.train), *(("a test file", f) for f in args.test),
-                 ("the --config", args.config)], {"--json": args.json, "--report": args.report},
-                makes_dirs=("--json", "--report"))
+    check_paths(
+        [
+            *(("a training file", f) for f in args.train),
+            *(("a test file", f) for f in args.test),
+            ("the --config", args.config),
+        ],
+        {"--json": args.json, "--report": args.report},
+        makes_dirs=("--json", "--report"),
+    )
     opts = Options(grid_dt_s=args.grid_dt, plant_dt_s=args.plant_dt, workers=args.workers, start=args.start)
     with progress(len(STAGES), "diagnose", enabled=False if args.quiet else None, unit="stage") as bar:
         again = []
 
         def stage(name):
-            if STAGES.index(name) < bar.n:      # every stage again: some files started running
+            if STAGES.index(name) < bar.n:  # every stage again: some files started running
                 again.append(name)
             bar.update(STAGES.index(name) - bar.n)
             bar.set_postfix_str(f"again (files that started running): {name}" if again else name)
-        res, d = diagnose(args.train, args.test, params, model=args.model, cooler=cooler, opts=opts,
-                          progress=stage, keep=True, config_path=args.config)
+
+        res, d = diagnose(
+            args.train,
+            args.test,
+            params,
+            model=args.model,
+            cooler=cooler,
+            opts=opts,
+            progress=stage,
+            keep=True,
+            config_path=args.config,
+        )
         bar.update(len(STAGES) - bar.n)
     # render the report first (staged), then the JSON: both complete or nothing new
     if args.report:
         from tools.diagnosis.report import write_report
+
         write_report(res, d.plot_data, args.report)
     write_json_atomic(res, args.json)
     if not args.quiet:
         v = res["verdict"]
         extra = ""
         if v["effect"] not in ("none", "unexplained"):
-            (pn, pv), = v["parameters"].items()
+            ((pn, pv),) = v["parameters"].items()
             extra = f" ({pn} = {pv:g})"
         if v.get("evidence") == "thin":
             extra = " (thin evidence)"
-        print(f"verdict: {v['effect']}{extra}; test RMS {v['test_rms_before_c']:.3f} -> {v['test_rms_after_c']:.3f} "
-              f"degC (shrink {100 * v['shrink']:.0f} %) -> {args.json}")
+        print(
+            f"verdict: {v['effect']}{extra}; test RMS {v['test_rms_before_c']:.3f} -> {v['test_rms_after_c']:.3f} "
+            f"degC (shrink {100 * v['shrink']:.0f} %) -> {args.json}"
+        )
         if v.get("evidence") == "thin":
             print(v["thin_evidence"]["text"])
         print(f"reason: {v['reason']}")
         running = [n for n, st in res.get("starts", {}).items() if st["start"] == "running"]
         if running:
-            print(f"started running (scored after their first minutes, the housings' start fitted): "
-                  f"{', '.join(running)}")
+            print(
+                f"started running (scored after their first minutes, the housings' start fitted): {', '.join(running)}"
+            )
         print(f"time: {res['timing']['total_s']:.1f} s (the diagnosis, files read)")
         if res["model"].get("note"):
             print(f"note: {res['model']['note']}", file=sys.stderr)
-    for w in res.get("warnings", []):       # the data's warnings (a frozen sensor ...), even with --quiet
+    for w in res.get("warnings", []):  # the data's warnings (a frozen sensor ...), even with --quiet
         print(f"warning: {w}", file=sys.stderr)
     return 0

@@ -1,4 +1,5 @@
 """`gearbox-vsensor export-c`: the onboard sensor as C sources for an ECU or gateway build (tools.export)."""
+
 from __future__ import annotations
 
 import argparse
@@ -6,24 +7,37 @@ import argparse
 
 def add_subparser(sub):
     p = sub.add_parser(
-        "export-c", help="write the onboard sensor as C sources for an ECU build (kernel, tables, test vectors)",
+        "export-c",
+        help="write the onboard sensor as C sources for an ECU build (kernel, tables, test vectors)",
         formatter_class=argparse.RawDescriptionHelpFormatter,
         description="Write the compiled onboard step as C99 sources an integrator drops into an ECU or gateway build: "
-                    "the generic kernel, the generated tables of one gearbox variant and configuration (const "
-                    "arrays), an API header, test vectors from the Python reference, a Makefile (`make test` builds "
-                    "a host program that checks them) and an integrator's README.\n\nThe exported sensor is the full "
-                    "onboard step, the time-to-limit refresh (every 1 s) and the early warning included; "
-                    "--no-ttl leaves the refresh out (less flash and stack; time to limit not available, no early "
-                    "warning).",
-        epilog="example:\n  gearbox-vsensor export-c --variant GRS905 --real float --out vsensor_c && make -C vsensor_c test")
-    p.add_argument("--variant", help="gearbox variant, GRS905 or GRSO905 (default: the --config's, else GRS905; "
-                                     "given, it replaces the --config's)")
+        "the generic kernel, the generated tables of one gearbox variant and configuration (const "
+        "arrays), an API header, test vectors from the Python reference, a Makefile (`make test` builds "
+        "a host program that checks them) and an integrator's README.\n\nThe exported sensor is the full "
+        "onboard step, the time-to-limit refresh (every 1 s) and the early warning included; "
+        "--no-ttl leaves the refresh out (less flash and stack; time to limit not available, no early "
+        "warning).",
+        epilog="example:\n  gearbox-vsensor export-c --variant GRS905 --real float --out vsensor_c && make -C vsensor_c test",
+    )
+    p.add_argument(
+        "--variant",
+        help="gearbox variant, GRS905 or GRSO905 (default: the --config's, else GRS905; "
+        "given, it replaces the --config's)",
+    )
     p.add_argument("--config", metavar="TOML", help="project configuration (variant, cooler, [sensor] limits)")
-    p.add_argument("--real", choices=("float", "double"), default="float",
-                   help="the real type of the build: float (an ECU's single-precision FPU; default) or double "
-                        "(parity with the Python reference)")
-    p.add_argument("--no-ttl", dest="ttl", action="store_false",
-                   help="leave the time-to-limit refresh and its tables out (an ECU short of flash or stack)")
+    p.add_argument(
+        "--real",
+        choices=("float", "double"),
+        default="float",
+        help="the real type of the build: float (an ECU's single-precision FPU; default) or double "
+        "(parity with the Python reference)",
+    )
+    p.add_argument(
+        "--no-ttl",
+        dest="ttl",
+        action="store_false",
+        help="leave the time-to-limit refresh and its tables out (an ECU short of flash or stack)",
+    )
     p.add_argument("--out", required=True, metavar="DIR", help="directory to write (created)")
     p.add_argument("--quiet", action="store_true", help="no summary")
     p.set_defaults(func=run)
@@ -31,8 +45,9 @@ def add_subparser(sub):
 
 def run(args) -> int:
     from tools.export.c_bundle import BUNDLE_FILES, export_c
+
     out = export_c(args.out, variant=args.variant, config_path=args.config, real=args.real, ttl=args.ttl)
     if not args.quiet:
-        files = sorted(BUNDLE_FILES)           # what was written, not what else the directory holds
+        files = sorted(BUNDLE_FILES)  # what was written, not what else the directory holds
         print(f"wrote {len(files)} files to {out}: {', '.join(files)}\nnext: make -C {out} test")
     return 0

@@ -1,4 +1,5 @@
 """`gearbox-vsensor fleet`: the onboard sensor over a fleet's CAN logs on Dask; one summary row per log (Parquet)."""
+
 from __future__ import annotations
 
 import argparse
@@ -16,7 +17,8 @@ PERIOD_DAYS_DEFAULT = 7.0
 
 def add_subparser(sub):
     p = sub.add_parser(
-        "fleet", help="run the sensor over many trucks' CAN logs on Dask (one summary row per log, Parquet)",
+        "fleet",
+        help="run the sensor over many trucks' CAN logs on Dask (one summary row per log, Parquet)",
         formatter_class=argparse.RawDescriptionHelpFormatter,
         description=(
             "Replay every CAN log (.log candump -L, .asc, .blf, .mf4, .trc) through the onboard sensor exactly as "
@@ -30,44 +32,68 @@ def add_subparser(sub):
             "skips the logs already done and never writes a row twice.\n\n"
             "Runs on a Dask LocalCluster on this machine (no set-up; --workers N processes, default one per "
             "core) or on an existing cluster (--scheduler tcp://HOST:PORT; the workers need gearbox-vsensor "
-            "installed)."),
-        epilog=("examples:\n"
-                "  gearbox-vsensor fleet logs/ --out fleet_out    # logs/V/*.log: vehicle V; logs/*.log: one per log\n"
-                "  gearbox-vsensor fleet logs/ --out o --vehicle-from '^(truck\\d+)_'  # truck7_2026-01-05.log\n"
-                "  gearbox-vsensor fleet --manifest fleet.csv --out fleet_out --workers 2\n"
-                "  gearbox-vsensor fleet --manifest fleet.csv --out fleet_out --scheduler tcp://10.0.0.5:8786\n"
-                "  gearbox-vsensor fleet logs/ --out fleet_out --diagnose  # + cooler and oil-level health per week\n"
-                "  gearbox-vsensor fleet logs/ --out o --vehicle-pattern '(?P<vehicle>truck\\d+)_(?P<date>[-\\d]+)'"))
+            "installed)."
+        ),
+        epilog=(
+            "examples:\n"
+            "  gearbox-vsensor fleet logs/ --out fleet_out    # logs/V/*.log: vehicle V; logs/*.log: one per log\n"
+            "  gearbox-vsensor fleet logs/ --out o --vehicle-from '^(truck\\d+)_'  # truck7_2026-01-05.log\n"
+            "  gearbox-vsensor fleet --manifest fleet.csv --out fleet_out --workers 2\n"
+            "  gearbox-vsensor fleet --manifest fleet.csv --out fleet_out --scheduler tcp://10.0.0.5:8786\n"
+            "  gearbox-vsensor fleet logs/ --out fleet_out --diagnose  # + cooler and oil-level health per week\n"
+            "  gearbox-vsensor fleet logs/ --out o --vehicle-pattern '(?P<vehicle>truck\\d+)_(?P<date>[-\\d]+)'"
+        ),
+    )
     p.add_argument("logs", nargs="*", metavar="LOGS", help="CAN log files and folders (searched for log suffixes)")
     p.add_argument("--out", required=True, metavar="DIR", help="output folder (created; re-runs resume into it)")
-    p.add_argument("--manifest", metavar="CSV", help="CSV with columns log,vehicle and optional variant,config,date "
-                                                     "(paths relative to the manifest)")
-    p.add_argument("--vehicle-from", metavar="REGEX",
-                   help="regular expression searched in each log's file name: the vehicle is its group "
-                        "(?P<vehicle>...), else its first group, else what it matches (optional (?P<date>...)); a "
-                        "file it does not match stops the run naming it. Default without it or --vehicle-pattern: "
-                        "the folder holding the log inside a folder given (logs/V/*.log), else one vehicle per log "
-                        "(its file name without the suffix); the run says which in one line")
-    p.add_argument("--vehicle-pattern", metavar="REGEX",
-                   help="regular expression on each log's path with a group (?P<vehicle>...) and optional "
-                        "(?P<variant>...), (?P<date>...)")
+    p.add_argument(
+        "--manifest",
+        metavar="CSV",
+        help="CSV with columns log,vehicle and optional variant,config,date (paths relative to the manifest)",
+    )
+    p.add_argument(
+        "--vehicle-from",
+        metavar="REGEX",
+        help="regular expression searched in each log's file name: the vehicle is its group "
+        "(?P<vehicle>...), else its first group, else what it matches (optional (?P<date>...)); a "
+        "file it does not match stops the run naming it. Default without it or --vehicle-pattern: "
+        "the folder holding the log inside a folder given (logs/V/*.log), else one vehicle per log "
+        "(its file name without the suffix); the run says which in one line",
+    )
+    p.add_argument(
+        "--vehicle-pattern",
+        metavar="REGEX",
+        help="regular expression on each log's path with a group (?P<vehicle>...) and optional "
+        "(?P<variant>...), (?P<date>...)",
+    )
     p.add_argument("--scheduler", metavar="ADDRESS", help="an existing Dask scheduler, tcp://HOST:PORT")
     p.add_argument("--workers", type=int, metavar="N", help="local worker processes (default: one per core)")
     p.add_argument("--estimates", action="store_true", help="also write each log's 10 Hz sensor outputs")
-    p.add_argument("--diagnose", action="store_true",
-                   help="fleet health: per vehicle and week, fit the cooler effectiveness and (weakly) the oil "
-                        "volume from the oil temperature, with their uncertainty, and read the measured oil level "
-                        "(J1939 SPN 124) where a truck sends it; flag drifting vehicles (on synthetic fleets cooler "
-                        "flags were reliable; trucks that send SPN 124 are flagged on their measured level; on the "
-                        "others a drift of the oil volume from the temperature is only a 'to watch' (a leak moves "
-                        "the oil less than the model's own error); docs/fleet.md)")
-    p.add_argument("--period-days", type=float, default=None, metavar="DAYS",
-                   help="the --diagnose period in whole days (default 7); a drift is flagged after 4 periods at the "
-                        "earliest (2 of baseline, 2 drifting)")
+    p.add_argument(
+        "--diagnose",
+        action="store_true",
+        help="fleet health: per vehicle and week, fit the cooler effectiveness and (weakly) the oil "
+        "volume from the oil temperature, with their uncertainty, and read the measured oil level "
+        "(J1939 SPN 124) where a truck sends it; flag drifting vehicles (on synthetic fleets cooler "
+        "flags were reliable; trucks that send SPN 124 are flagged on their measured level; on the "
+        "others a drift of the oil volume from the temperature is only a 'to watch' (a leak moves "
+        "the oil less than the model's own error); docs/fleet.md)",
+    )
+    p.add_argument(
+        "--period-days",
+        type=float,
+        default=None,
+        metavar="DAYS",
+        help="the --diagnose period in whole days (default 7); a drift is flagged after 4 periods at the "
+        "earliest (2 of baseline, 2 drifting)",
+    )
     p.add_argument("--no-report", action="store_true", help="skip report.md and its plots")
-    p.add_argument("--prune", action="store_true",
-                   help="first remove from DIR the rows of logs that are no longer at their path (moved, renamed "
-                        "or deleted: a moved log is replayed again under its new path and would count twice)")
+    p.add_argument(
+        "--prune",
+        action="store_true",
+        help="first remove from DIR the rows of logs that are no longer at their path (moved, renamed "
+        "or deleted: a moved log is replayed again under its new path and would count twice)",
+    )
     p.set_defaults(func=run)
     return p
 
@@ -75,6 +101,7 @@ def add_subparser(sub):
 def _entries(args):
     """(the logs, one sentence on how their vehicles were read: None for a manifest, which names them)."""
     from tools.fleet.manifest import entries_and_rule, read_manifest
+
     if args.manifest and args.logs:
         raise InputError("give either --manifest or LOGS, not both")
     if args.manifest:
@@ -91,13 +118,17 @@ def _warn_duplicates(out) -> None:
     """A warning for logs of one vehicle that look like copies of each other (tools.fleet.report.duplicate_logs)."""
     from tools.fleet.report import duplicate_logs
     from tools.fleet.store import read_table
+
     summary = read_table(out)
     if summary is None:
         return
     dups = duplicate_logs({n: summary.column(n).to_pylist() for n in ("vehicle", "log", "start_s", "end_s", "frames")})
     for g in dups[:5]:
-        print(f"warning: {len(g)} logs of one vehicle look like copies of each other (the same first and last frame "
-              f"time and frame count), each summarised and counted: {', '.join(g)}", file=sys.stderr)
+        print(
+            f"warning: {len(g)} logs of one vehicle look like copies of each other (the same first and last frame "
+            f"time and frame count), each summarised and counted: {', '.join(g)}",
+            file=sys.stderr,
+        )
     if len(dups) > 5:
         print(f"warning: ... {len(dups) - 5} more groups of copies (report.md lists the first 50)", file=sys.stderr)
 
@@ -105,45 +136,64 @@ def _warn_duplicates(out) -> None:
 def _warn_gone(out) -> None:
     """A warning for rows whose log is no longer at its path (``--prune`` removes them)."""
     from tools.fleet.store import read_table
+
     summary = read_table(out)
     if summary is None:
         return
     gone = sorted({p for p in summary.column("log").to_pylist() if not os.path.exists(p)})
     if gone:
-        print(f"warning: {len(gone)} logs summarised in {out} are no longer at their path (moved, renamed or "
-              f"deleted; a moved log is counted again under its new path): {', '.join(gone[:3])}"
-              f"{' ...' if len(gone) > 3 else ''}; run again with --prune to remove their rows", file=sys.stderr)
+        print(
+            f"warning: {len(gone)} logs summarised in {out} are no longer at their path (moved, renamed or "
+            f"deleted; a moved log is counted again under its new path): {', '.join(gone[:3])}"
+            f"{' ...' if len(gone) > 3 else ''}; run again with --prune to remove their rows",
+            file=sys.stderr,
+        )
 
 
 def run(args) -> int:
     from tools.fleet.run import run_fleet
+
     entries, rule = _entries(args)
     if args.period_days is not None and not args.diagnose:
         raise InputError("--period-days sets the health fit's period, which only --diagnose runs")
     args.period_days = PERIOD_DAYS_DEFAULT if args.period_days is None else args.period_days
     if not (args.period_days >= 1 and float(args.period_days).is_integer()):
-        raise InputError(f"--period-days {args.period_days:g} must be a whole number of days, at least 1 (the periods "
-                         f"are counted in days from the first log's date)")
-    if args.scheduler and not re.fullmatch(r"(tcp|tls|inproc|ucx|ws|wss)://[^\s/]+(:\d+)?/?|[\w.-]+:\d+",
-                                           args.scheduler):
+        raise InputError(
+            f"--period-days {args.period_days:g} must be a whole number of days, at least 1 (the periods "
+            f"are counted in days from the first log's date)"
+        )
+    if args.scheduler and not re.fullmatch(
+        r"(tcp|tls|inproc|ucx|ws|wss)://[^\s/]+(:\d+)?/?|[\w.-]+:\d+", args.scheduler
+    ):
         raise InputError(f"--scheduler {args.scheduler!r} is not a scheduler address; give tcp://HOST:PORT")
     if args.prune:
         from tools.fleet.store import FleetStore
+
         gone = FleetStore(args.out).prune() if (Path(args.out) / "summary").is_dir() else []
-        print(f"prune: {len(gone)} logs no longer at their path, their rows removed"
-              + (": " + ", ".join(gone[:5]) + (f" ... and {len(gone) - 5} more" if len(gone) > 5 else "")
-                 if gone else ""))
+        print(
+            f"prune: {len(gone)} logs no longer at their path, their rows removed"
+            + (": " + ", ".join(gone[:5]) + (f" ... and {len(gone) - 5} more" if len(gone) > 5 else "") if gone else "")
+        )
     if rule:
         print(rule)
     t0 = time.perf_counter()
-    res = run_fleet(entries, args.out, scheduler=args.scheduler, workers=args.workers, estimates=args.estimates,
-                    diagnose=args.diagnose)
+    res = run_fleet(
+        entries,
+        args.out,
+        scheduler=args.scheduler,
+        workers=args.workers,
+        estimates=args.estimates,
+        diagnose=args.diagnose,
+    )
     wall_s = time.perf_counter() - t0
     n_vehicles = len({e.vehicle for e in entries})
-    print(f"fleet: {res.logs} logs of {n_vehicles} vehicle{'s' if n_vehicles != 1 else ''}; {res.skipped} done before, "
-          f"{res.summarised} summarised, {res.failed} in the errors table; {res.tasks} tasks on {res.workers} "
-          f"workers in {wall_s:.1f} s")
+    print(
+        f"fleet: {res.logs} logs of {n_vehicles} vehicle{'s' if n_vehicles != 1 else ''}; {res.skipped} done before, "
+        f"{res.summarised} summarised, {res.failed} in the errors table; {res.tasks} tasks on {res.workers} "
+        f"workers in {wall_s:.1f} s"
+    )
     from tools.fleet.store import ERRORS, read_table
+
     errors = read_table(args.out, ERRORS)
     if errors is not None and errors.num_rows:
         for r in errors.slice(0, 5).to_pylist():
@@ -155,24 +205,38 @@ def run(args) -> int:
     why_none = ""
     if args.diagnose:
         from tools.fleet.health import fleet_health
+
         health = fleet_health(args.out, period_days=args.period_days)
         from tools.fleet.health import JUDGED_PERIODS
+
         if health.periods:
-            print(f"health: {health.judged} of {health.vehicles} vehicles have the {JUDGED_PERIODS} periods of "
-                  f"{args.period_days:g} days a drift needs before it can be flagged (a baseline, then a run)"
-                  + (f"; {health.undated} fitted logs left out: no date (give one in the manifest's date column)"
-                     if health.undated else "")
-                  + (f"; {health.far} fitted logs left out: dated more than 60 days before or after the rest of "
-                     f"the fleet (a truck's clock set wrong? give the date in the manifest)" if health.far else ""))
-        print(f"health: {health.periods} vehicle-periods fitted; flagged: "
-              + (", ".join(f"{f.vehicle} ({f.effect})" for f in health.flags) or "none")
-              + "; to watch (oil level from the oil temperature, not identifiable: check it): "
-              + (", ".join(f.vehicle for f in health.watch) or "none"))
+            print(
+                f"health: {health.judged} of {health.vehicles} vehicles have the {JUDGED_PERIODS} periods of "
+                f"{args.period_days:g} days a drift needs before it can be flagged (a baseline, then a run)"
+                + (
+                    f"; {health.undated} fitted logs left out: no date (give one in the manifest's date column)"
+                    if health.undated
+                    else ""
+                )
+                + (
+                    f"; {health.far} fitted logs left out: dated more than 60 days before or after the rest of "
+                    f"the fleet (a truck's clock set wrong? give the date in the manifest)"
+                    if health.far
+                    else ""
+                )
+            )
+        print(
+            f"health: {health.periods} vehicle-periods fitted; flagged: "
+            + (", ".join(f"{f.vehicle} ({f.effect})" for f in health.flags) or "none")
+            + "; to watch (oil level from the oil temperature, not identifiable: check it): "
+            + (", ".join(f.vehicle for f in health.watch) or "none")
+        )
         if health.why_none:
             why_none = health.why_none
             print(f"health: nothing written to {args.out}/health: {health.why_none}")
     if not args.no_report:
         from tools.fleet.report import write_report
+
         path = write_report(args.out, why_none)
         print(f"report: {path}")
     return 0

@@ -2,6 +2,7 @@
 destroyed before or after it is read), two outputs on one file (one silently lost), an output whose directory does
 not exist or that is a directory, a plot in a format matplotlib cannot write, a CAN log in a format that is not
 written. Each is one sentence (InputError), raised before anything is written."""
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -9,16 +10,31 @@ from pathlib import Path
 from firmware_model.errors import InputError
 
 #: the figure formats the plots are written in (matplotlib's raster and vector backends)
-PLOT_SUFFIXES = (".png", ".pdf", ".svg", ".svgz", ".jpg", ".jpeg", ".eps", ".ps", ".pgf", ".tif", ".tiff", ".webp",
-                 ".raw", ".rgba")
+PLOT_SUFFIXES = (
+    ".png",
+    ".pdf",
+    ".svg",
+    ".svgz",
+    ".jpg",
+    ".jpeg",
+    ".eps",
+    ".ps",
+    ".pgf",
+    ".tif",
+    ".tiff",
+    ".webp",
+    ".raw",
+    ".rgba",
+)
 #: the formats a run table is written in (tools.runtable)
 TABLE_SUFFIXES = (".csv", ".parquet")
 #: the formats a CAN log is written in (tools.can.logsynth, python-can's Logger)
 CAN_LOG_SUFFIXES = (".log", ".asc", ".blf")
 
 
-def check_paths(inputs, outputs: dict, plots: tuple = (), makes_dirs: tuple = (), tables: tuple = (),
-                can_logs: tuple = ()) -> None:
+def check_paths(
+    inputs, outputs: dict, plots: tuple = (), makes_dirs: tuple = (), tables: tuple = (), can_logs: tuple = ()
+) -> None:
     """``inputs``: (role, path or None) pairs ("the input", "a training file", "the --config"); ``outputs``:
     {option: path or None (not given)}; ``plots``: the output options that are figures; ``makes_dirs``: the output
     options whose directory the command creates; ``tables``: the output options that are run tables (.csv or
@@ -36,28 +52,34 @@ def check_paths(inputs, outputs: dict, plots: tuple = (), makes_dirs: tuple = ()
         full = path.resolve()
         for role, _, in_full in ins:
             if full == in_full:
-                raise InputError(f"{opt} {p} is also {role}: writing it would destroy that input; choose another "
-                                 f"path")
+                raise InputError(f"{opt} {p} is also {role}: writing it would destroy that input; choose another path")
         if full in seen:
-            raise InputError(f"{opt} {p} is also {seen[full]}: one of the two outputs would be lost; choose another "
-                             f"path")
+            raise InputError(
+                f"{opt} {p} is also {seen[full]}: one of the two outputs would be lost; choose another path"
+            )
         seen[full] = opt
         if full.is_dir():
             raise InputError(f"{opt} {p} is a directory, not a file")
         if opt not in makes_dirs and not full.parent.is_dir():
             raise InputError(f"{opt} {p}: the directory {full.parent} does not exist")
-        above = next(a for a in full.parents if a.exists())      # a directory the command would create under it
+        above = next(a for a in full.parents if a.exists())  # a directory the command would create under it
         if not above.is_dir():
             raise InputError(f"{opt} {p}: {above} is a file, so no directory can be made there")
         if opt in tables and path.suffix.lower() not in TABLE_SUFFIXES:
-            raise InputError(f"{opt} {p}: a run table is written as .csv or .parquet, not "
-                             f"{path.suffix or 'a file without an extension'}")
+            raise InputError(
+                f"{opt} {p}: a run table is written as .csv or .parquet, not "
+                f"{path.suffix or 'a file without an extension'}"
+            )
         if opt in can_logs and path.suffix.lower() not in CAN_LOG_SUFFIXES:
-            raise InputError(f"{opt} {p}: a CAN log is written as .log (candump -L), .asc or .blf, not "
-                             f"{path.suffix or 'a file without an extension'}")
-        if opt in plots and path.suffix and path.suffix.lower() not in PLOT_SUFFIXES:     # none: matplotlib's png
-            raise InputError(f"{opt} {p}: a figure is written as {', '.join(s[1:] for s in PLOT_SUFFIXES)}, not "
-                             f"{path.suffix or 'a file without an extension'}")
+            raise InputError(
+                f"{opt} {p}: a CAN log is written as .log (candump -L), .asc or .blf, not "
+                f"{path.suffix or 'a file without an extension'}"
+            )
+        if opt in plots and path.suffix and path.suffix.lower() not in PLOT_SUFFIXES:  # none: matplotlib's png
+            raise InputError(
+                f"{opt} {p}: a figure is written as {', '.join(s[1:] for s in PLOT_SUFFIXES)}, not "
+                f"{path.suffix or 'a file without an extension'}"
+            )
 
 
 def figure_path(plot):

@@ -5,6 +5,7 @@ tools/replay/log.py, so a log replays bit-identically to a live run. An option o
 (``--frames-out``, ``--strict``) is an error, not silently ignored. Playing a log onto a bus is `gearbox-vsensor
 play` (tools/cli/play.py).
 """
+
 from __future__ import annotations
 
 import argparse
@@ -12,74 +13,101 @@ import sys
 from pathlib import Path
 
 from firmware_model.errors import InputError
+from tools.can.bus import can_subcommand
 from tools.cli.core_option import add_core_option, apply_core
 from tools.cli.paths import check_paths, figure_path
 from tools.outputs import naming, outputs
-from tools.can.bus import can_subcommand
-
 
 #: the two ways to call replay; every option is in one of them (tests/tools/test_cli_options.py)
-USAGE = ("%(prog)s CSV --out EST.csv [--config TOML] [--variant {GRS905,GRSO905}] [--plot PNG]\n"
-         "                              [--oil-mode {measured,model}]\n"
-         "                              [--initial-temp DEGC] [--core {auto,c,numpy}] [--allow-untrusted] [--quiet]\n"
-         "       %(prog)s LOG --out EST.csv [those options] [--frames-out OUT.log] [--strict]")
+USAGE = (
+    "%(prog)s CSV --out EST.csv [--config TOML] [--variant {GRS905,GRSO905}] [--plot PNG]\n"
+    "                              [--oil-mode {measured,model}]\n"
+    "                              [--initial-temp DEGC] [--core {auto,c,numpy}] [--allow-untrusted] [--quiet]\n"
+    "       %(prog)s LOG --out EST.csv [those options] [--frames-out OUT.log] [--strict]"
+)
 #: the options of CAN logs only, by argparse dest
 LOG_OPTIONS = ("frames_out", "strict")
 #: the sentence for each option of replay's --realtime, now `gearbox-vsensor play`
-_PLAY = ("replay --realtime is now its own command: gearbox-vsensor play LOG --interface NAME --channel NAME "
-         "[--bitrate BIT_S] [--speed X] plays a log onto a bus; replay computes the outputs offline")
+_PLAY = (
+    "replay --realtime is now its own command: gearbox-vsensor play LOG --interface NAME --channel NAME "
+    "[--bitrate BIT_S] [--speed X] plays a log onto a bus; replay computes the outputs offline"
+)
 #: options replay no longer has: the sentence that says what replaced them (tools.cli.CommandParser)
 REMOVED_OPTIONS = {
     "--processes": "--processes was removed: a CAN log without --frames-out is replayed as a whole log at once, the "
-                   "fast path (same outputs bit for bit as frame by frame); drop the option",
+    "fast path (same outputs bit for bit as frame by frame); drop the option",
     **{option: _PLAY for option in ("--realtime", "--interface", "--channel", "--bitrate", "--speed")},
 }
 
 
 def add_subparser(sub):
     p = can_subcommand(
-        sub, "replay", summary="run the onboard sensor offline over a run table or a CAN log (10 Hz estimates)",
+        sub,
+        "replay",
+        summary="run the onboard sensor offline over a run table or a CAN log (10 Hz estimates)",
         description="Run the onboard virtual sensor (the same pure step as in the truck) over a recorded drive: a "
-                    "run table (CSV: time_s, engine_speed_rpm, engine_torque_nm, gear, "
-                    "optional oil_temp_c, ambient_temp_c, coolant_temp_c, vehicle_speed_kmh, retarder_torque_nm) "
-                    "or a CAN log (.log candump -L, .asc, .blf, .mf4, .trc) decoded like the live service. Writes the "
-                    "sensor's output at 10 Hz: the inputs it read, T_<id>_c, W_<id> (0 normal, 1 warning, 2 "
-                    "critical, 3 not available), ttl_<id>_s (time to the warning limit with held inputs, empty when "
-                    "never) for the 28 published components, and the status (degraded, degraded_mode, input "
-                    "validity, oil_innovation_c = measured - model oil, model_oil_temp_c, reject counters). Bad "
-                    "input values are not errors: the sensor holds, clamps or degrades and counts them. Run tables: "
-                    "docs/interfaces.md section 3; component codes: docs/glossary.md.",
-        examples=["gearbox-vsensor replay uphill.csv --out est.csv --plot est.png",
-                  "gearbox-vsensor replay truck.blf --config truck.toml --out est.csv",
-                  "gearbox-vsensor replay uphill.csv --oil-mode model --out est_model_oil.csv"],
+        "run table (CSV: time_s, engine_speed_rpm, engine_torque_nm, gear, "
+        "optional oil_temp_c, ambient_temp_c, coolant_temp_c, vehicle_speed_kmh, retarder_torque_nm) "
+        "or a CAN log (.log candump -L, .asc, .blf, .mf4, .trc) decoded like the live service. Writes the "
+        "sensor's output at 10 Hz: the inputs it read, T_<id>_c, W_<id> (0 normal, 1 warning, 2 "
+        "critical, 3 not available), ttl_<id>_s (time to the warning limit with held inputs, empty when "
+        "never) for the 28 published components, and the status (degraded, degraded_mode, input "
+        "validity, oil_innovation_c = measured - model oil, model_oil_temp_c, reject counters). Bad "
+        "input values are not errors: the sensor holds, clamps or degrades and counts them. Run tables: "
+        "docs/interfaces.md section 3; component codes: docs/glossary.md.",
+        examples=[
+            "gearbox-vsensor replay uphill.csv --out est.csv --plot est.png",
+            "gearbox-vsensor replay truck.blf --config truck.toml --out est.csv",
+            "gearbox-vsensor replay uphill.csv --oil-mode model --out est_model_oil.csv",
+        ],
         notes="\nA CAN log's source addresses come from --config [can] (docs/can.md): the group keys\n"
-              "(transmission_source_address sets ETC2 and TRF1 ...) and, per message, the table\n"
-              "[can.source_address] (EEC1 EC1 ETC2 TRF1 ET1 AMB CCVS1 ERC1 RC): on a truck that sends the gear\n"
-              "from 0x03 and the transmission oil from 0x21, write [can.source_address] TRF1 = 0x21.")
+        "(transmission_source_address sets ETC2 and TRF1 ...) and, per message, the table\n"
+        "[can.source_address] (EEC1 EC1 ETC2 TRF1 ET1 AMB CCVS1 ERC1 RC): on a truck that sends the gear\n"
+        "from 0x03 and the transmission oil from 0x21, write [can.source_address] TRF1 = 0x21.",
+    )
     p.usage = USAGE
     p.removed_options = REMOVED_OPTIONS
     p.add_argument("input", metavar="LOG_OR_CSV", help="run table (.csv) or CAN log (.log .asc .blf .mf4 .trc)")
     p.add_argument("--config", metavar="TOML", help="project configuration (gearbox variant, cooler, [sensor], [can])")
-    p.add_argument("--variant", choices=("GRS905", "GRSO905"),
-                   help="gearbox variant (overrides --config; give the variant the drive was made with: another "
-                        "variant's gear ratios and masses give other temperatures without any error)")
-    p.add_argument("--out", metavar="EST.csv", help="sensor output run table (10 Hz; .csv, or .parquet with pyarrow: "
-                                                    "several times faster to write); required")
+    p.add_argument(
+        "--variant",
+        choices=("GRS905", "GRSO905"),
+        help="gearbox variant (overrides --config; give the variant the drive was made with: another "
+        "variant's gear ratios and masses give other temperatures without any error)",
+    )
+    p.add_argument(
+        "--out",
+        metavar="EST.csv",
+        help="sensor output run table (10 Hz; .csv, or .parquet with pyarrow: several times faster to write); required",
+    )
     p.add_argument("--plot", metavar="PNG", help="plot of the estimates, warnings and oil innovation")
-    p.add_argument("--oil-mode", choices=("measured", "model"),
-                   help="measured (default): a valid oil_temp_c is the sump; model: always the modelled sump")
-    p.add_argument("--initial-temp", type=float, metavar="DEGC",
-                   help="initial temperature of every node when the first row has no oil temperature")
+    p.add_argument(
+        "--oil-mode",
+        choices=("measured", "model"),
+        help="measured (default): a valid oil_temp_c is the sump; model: always the modelled sump",
+    )
+    p.add_argument(
+        "--initial-temp",
+        type=float,
+        metavar="DEGC",
+        help="initial temperature of every node when the first row has no oil temperature",
+    )
     add_core_option(p)
-    p.add_argument("--quiet", action="store_true", help="no summary (warnings that the outputs are not to be "
-                                                         "trusted are still printed)")
-    p.add_argument("--allow-untrusted", action="store_true",
-                   help="exit 0 even when the outputs should not be trusted: the sensor degraded on more than half "
-                        "of the steps, a suspect time base, a needed message only from unexpected source "
-                         "addresses, a unit or sign mistake of the whole record (oil in degF or kelvin, torque "
-                         "negated or in percent, speed in rad/s), an input clamped or repaired on more than 5 %% "
-                         "of the steps, or a log's malformed lines (over 1 %% of them, or one breaking a frame "
-                         "sequence the step needs) (default: warn on stderr and exit 3, outputs written)")
+    p.add_argument(
+        "--quiet",
+        action="store_true",
+        help="no summary (warnings that the outputs are not to be trusted are still printed)",
+    )
+    p.add_argument(
+        "--allow-untrusted",
+        action="store_true",
+        help="exit 0 even when the outputs should not be trusted: the sensor degraded on more than half "
+        "of the steps, a suspect time base, a needed message only from unexpected source "
+        "addresses, a unit or sign mistake of the whole record (oil in degF or kelvin, torque "
+        "negated or in percent, speed in rad/s), an input clamped or repaired on more than 5 %% "
+        "of the steps, or a log's malformed lines (over 1 %% of them, or one breaking a frame "
+        "sequence the step needs) (default: warn on stderr and exit 3, outputs written)",
+    )
     _add_log_options(p)
     p.set_defaults(func=run)
     return p
@@ -88,16 +116,21 @@ def add_subparser(sub):
 def _add_log_options(p: argparse.ArgumentParser) -> None:
     """Options of `replay` that only apply to CAN logs."""
     g = p.add_argument_group("CAN logs (.log candump -L, .asc, .blf, .mf4, .trc)")
-    g.add_argument("--frames-out", metavar="OUT.log",
-                   help="also write the frames the sensor would send (GBX_*, DM1) as a CAN log")
-    g.add_argument("--strict", action="store_true",
-                   help="offline: refuse a log with a malformed line or a cut last line, naming the first (default: "
-                        "skip them, count them in the summary; more than 1 %% of the lines, or one that breaks a frame "
-                        "sequence the step needs, makes the outputs untrusted: docs/can.md)")
+    g.add_argument(
+        "--frames-out", metavar="OUT.log", help="also write the frames the sensor would send (GBX_*, DM1) as a CAN log"
+    )
+    g.add_argument(
+        "--strict",
+        action="store_true",
+        help="offline: refuse a log with a malformed line or a cut last line, naming the first (default: "
+        "skip them, count them in the summary; more than 1 %% of the lines, or one that breaks a frame "
+        "sequence the step needs, makes the outputs untrusted: docs/can.md)",
+    )
 
 
 def _sensor_options(args) -> dict:
     from firmware_model.physics.oil import check_temperature_c
+
     opts = {}
     if args.oil_mode:
         opts["oil_mode"] = args.oil_mode
@@ -109,6 +142,7 @@ def _sensor_options(args) -> dict:
 def _config(args):
     """The configuration the replay runs with: --config, its variant replaced by --variant."""
     from firmware_model.config import load_config
+
     cfg = load_config(args.config)
     if args.variant:
         cfg.variant, cfg.params_path = args.variant, None
@@ -127,10 +161,15 @@ def _refuse(given: list[str], why: str) -> None:
 
 def run(args) -> int:
     from tools.replay.formats import is_can_log
+
     path = Path(args.input)
-    check_paths([("the input", args.input), ("the --config", args.config)],
-                {"--out": args.out, "--plot": args.plot, "--frames-out": args.frames_out}, plots=("--plot",),
-                tables=("--out",), can_logs=("--frames-out",))
+    check_paths(
+        [("the input", args.input), ("the --config", args.config)],
+        {"--out": args.out, "--plot": args.plot, "--frames-out": args.frames_out},
+        plots=("--plot",),
+        tables=("--out",),
+        can_logs=("--frames-out",),
+    )
     core_line = apply_core(args)
     if not args.quiet:
         print(core_line)
@@ -138,16 +177,20 @@ def run(args) -> int:
         return _run_log(args, path)
     if path.suffix.lower() == ".gz":
         from tools.replay.formats import check_log
-        check_log(path)           # says it is compressed and how to decompress it
+
+        check_log(path)  # says it is compressed and how to decompress it
     if path.suffix.lower() != ".csv":
-        raise InputError(f"{path}: unknown input type {path.suffix!r}; replay reads run tables (.csv) and CAN logs "
-                         f"(.log, .asc, .blf, .mf4, .trc)")
+        raise InputError(
+            f"{path}: unknown input type {path.suffix!r}; replay reads run tables (.csv) and CAN logs "
+            f"(.log, .asc, .blf, .mf4, .trc)"
+        )
     _refuse(_given(args, LOG_OPTIONS), f"on a run table ({path.name}), only on a CAN log")
     if not args.out:
         raise InputError("--out EST.csv is required")
     from tools.replay.plot import plot_replay
     from tools.replay.table import replay_csv, summarize, table_findings
     from tools.runtable import write_run_table
+
     # the outputs to temporary files first: a failure leaves none of them (tools.outputs)
     with outputs(("--out", args.out), ("--plot", figure_path(args.plot))) as (out_tmp, plot_tmp):
         out, variant, oil_mode = replay_csv(path, _config(args), _sensor_options(args))
@@ -159,6 +202,7 @@ def run(args) -> int:
     dest = Path(args.out)
     if not args.quiet:
         from tools.replay.summary import summary_lines
+
         s = summarize(out)
         print(f"replayed {s.span_s:.1f} s in {s.steps} steps -> {dest}")
         for line in summary_lines(out, oil_model=oil_mode == "model"):
@@ -169,13 +213,17 @@ def run(args) -> int:
 def _report_trust(args, findings) -> int:
     """Print the trust findings (firmware_model.service.trust) on stderr, warnings even with --quiet; returns 3 when
     the outputs should not be trusted (unless --allow-untrusted), else 0."""
-    from firmware_model.service.degraded import Severity, untrusted   # (not trust: that imports python-can)
+    from firmware_model.service.degraded import Severity, untrusted  # (not trust: that imports python-can)
+
     for f in findings:
         if f.severity >= Severity.WARNING or not args.quiet:
             print(f"{'warning' if f.severity >= Severity.WARNING else 'note'}: {f.sentence}", file=sys.stderr)
     if untrusted(findings) and not args.allow_untrusted:
-        print("gearbox-vsensor replay: the outputs are written but should not be trusted (warnings above): exit "
-              "status 3 (--allow-untrusted exits 0)", file=sys.stderr)
+        print(
+            "gearbox-vsensor replay: the outputs are written but should not be trusted (warnings above): exit "
+            "status 3 (--allow-untrusted exits 0)",
+            file=sys.stderr,
+        )
         return 3
     return 0
 
@@ -183,22 +231,32 @@ def _report_trust(args, findings) -> int:
 def _run_log(args, path: Path) -> int:
     """`gearbox-vsensor replay LOG --out EST.csv ...`: the sensor's outputs over a CAN log, offline."""
     from tools.replay.log import replay_log_file
+
     if not args.out:
         raise InputError("--out EST.csv is required to replay a log (to play it onto a bus: gearbox-vsensor play)")
     with outputs(("--out", args.out), ("--frames-out", args.frames_out), ("--plot", figure_path(args.plot))) as tmp:
         out_tmp, frames_tmp, plot_tmp = tmp
-        result = replay_log_file(path, out_tmp, config_path=_config(args), sensor_options=_sensor_options(args),
-                                 frames_out=frames_tmp, strict=args.strict)
+        result = replay_log_file(
+            path,
+            out_tmp,
+            config_path=_config(args),
+            sensor_options=_sensor_options(args),
+            frames_out=frames_tmp,
+            strict=args.strict,
+        )
         if plot_tmp:
             from tools.replay.plot import plot_replay
+
             with naming(plot_tmp):
                 plot_replay(result.table, plot_tmp, f"onboard sensor, replay of {path.name}")
     table = result.table
     d = result.decoder_counters
     rejected = ", ".join(f"{k} {v}" for k, v in sorted(d["rejected"].items())) or "none"
     if not args.quiet:
-        print(f"replayed {d['frames_seen']} frames ({d['frames_used']} used; rejected: {rejected}) -> "
-              f"{table.n} steps of {table['time_s'][-1]:.1f} s -> {Path(args.out)}")
+        print(
+            f"replayed {d['frames_seen']} frames ({d['frames_used']} used; rejected: {rejected}) -> "
+            f"{table.n} steps of {table['time_s'][-1]:.1f} s -> {Path(args.out)}"
+        )
         malformed = table.meta.get("malformed")
         if malformed is not None:
             print(malformed.summary)
@@ -207,6 +265,7 @@ def _run_log(args, path: Path) -> int:
             print(f"note: {jumps} time jump{'s' if jumps > 1 else ''} in the log (the warnings above say where)")
         if table.n:
             from tools.replay.summary import summary_lines
+
             oil_mode = args.oil_mode or _config(args).sensor.get("oil_mode", "measured")
             for line in summary_lines(table, oil_model=oil_mode == "model"):
                 print(line)

@@ -1,4 +1,5 @@
 """`gearbox-vsensor run`: the onboard sensor live on a CAN bus (any python-can interface); tools/can/live.py."""
+
 from __future__ import annotations
 
 import logging
@@ -12,67 +13,105 @@ LOG_LEVELS = ("DEBUG", "INFO", "WARNING", "ERROR")
 
 def add_subparser(sub):
     p = can_subcommand(
-        sub, "run", summary="run the onboard sensor live on a CAN bus (J1939 in, GBX_* frames out)",
+        sub,
+        "run",
+        summary="run the onboard sensor live on a CAN bus (J1939 in, GBX_* frames out)",
         description="Run the onboard virtual sensor on a CAN bus: decode the J1939 inputs (EEC1, EC1 by TP.BAM, "
-                    "ETC2, TRF1, ET1, AMB, CCVS1, ERC1; source addresses from --config [can]), step the sensor every "
-                    "100 ms of frame time (frame timestamps, never the wall clock) and send GBX_TEMP_1..7, GBX_WARN, "
-                    "GBX_TTL_1..7, GBX_STATUS every 100 ms and GBX_DM1 every second and on change. A signal that "
-                    "stops arriving for 3x its period is 'not available' to the sensor (degraded mode) until it "
-                    "returns. Counters of frames seen, used and rejected (by reason) are logged every "
-                    "[can] counter_log_period_s (60 s) of frame time. Stop with Ctrl-C or SIGTERM (exit 0).",
-        examples=["gearbox-vsensor run --interface socketcan --channel can0",
-                  "gearbox-vsensor run --interface socketcan --channel vcan0 --config truck.toml --log-level DEBUG",
-                  "gearbox-vsensor run --interface pcan --channel PCAN_USBBUS1 --bitrate 250000 --duration 3600"],
+        "ETC2, TRF1, ET1, AMB, CCVS1, ERC1; source addresses from --config [can]), step the sensor every "
+        "100 ms of frame time (frame timestamps, never the wall clock) and send GBX_TEMP_1..7, GBX_WARN, "
+        "GBX_TTL_1..7, GBX_STATUS every 100 ms and GBX_DM1 every second and on change. A signal that "
+        "stops arriving for 3x its period is 'not available' to the sensor (degraded mode) until it "
+        "returns. Counters of frames seen, used and rejected (by reason) are logged every "
+        "[can] counter_log_period_s (60 s) of frame time. Stop with Ctrl-C or SIGTERM (exit 0).",
+        examples=[
+            "gearbox-vsensor run --interface socketcan --channel can0",
+            "gearbox-vsensor run --interface socketcan --channel vcan0 --config truck.toml --log-level DEBUG",
+            "gearbox-vsensor run --interface pcan --channel PCAN_USBBUS1 --bitrate 250000 --duration 3600",
+        ],
         notes="\nconfig [can] keys: sensor_source_address, engine_source_address, transmission_source_address,\n"
-              "retarder_source_address, ambient_source_address, vehicle_speed_source_address,\n"
-              "coolant_source_address, the [can.source_address] table (one message's address alone:\n"
-              "EEC1 EC1 ETC2 TRF1 ET1 AMB CCVS1 ERC1 RC, e.g. TRF1 = 0x21 where the oil comes from another node\n"
-              "than the gear), engine_reference_torque_nm (used until EC1 "
-              "arrives),\nretarder_reference_torque_nm (used until RC arrives), gear_map, output_period_s, "
-              "stale_factor, "
-              "counter_log_period_s.\nWatch the outputs: python -m cantools monitor -c vcan0 "
-              "can_dbc/gearbox_vsensor.dbc")
+        "retarder_source_address, ambient_source_address, vehicle_speed_source_address,\n"
+        "coolant_source_address, the [can.source_address] table (one message's address alone:\n"
+        "EEC1 EC1 ETC2 TRF1 ET1 AMB CCVS1 ERC1 RC, e.g. TRF1 = 0x21 where the oil comes from another node\n"
+        "than the gear), engine_reference_torque_nm (used until EC1 "
+        "arrives),\nretarder_reference_torque_nm (used until RC arrives), gear_map, output_period_s, "
+        "stale_factor, "
+        "counter_log_period_s.\nWatch the outputs: python -m cantools monitor -c vcan0 "
+        "can_dbc/gearbox_vsensor.dbc",
+    )
     add_bus_options(p)
     p.add_argument("--config", metavar="TOML", help="project configuration (gearbox variant, [can], [sensor])")
     p.add_argument("--duration", type=float, metavar="S", help="stop after this many seconds of wall time")
-    p.add_argument("--log-level", default="INFO", type=str.upper, choices=LOG_LEVELS,
-                   help="logging level on stderr (default INFO)")
-    p.add_argument("--no-filters", action="store_true",
-                   help="receive every frame (no receive filters): the counters then show all traffic")
+    p.add_argument(
+        "--log-level", default="INFO", type=str.upper, choices=LOG_LEVELS, help="logging level on stderr (default INFO)"
+    )
+    p.add_argument(
+        "--no-filters",
+        action="store_true",
+        help="receive every frame (no receive filters): the counters then show all traffic",
+    )
     p.add_argument("--rig", action="store_true", help="also receive the rig thermocouple frames (RIG_TC_*)")
-    p.add_argument("--rt-priority", type=int, metavar="N",
-                   help="run the receive and step threads with Linux real-time scheduling (SCHED_FIFO, priority "
-                        "1..99; needs root or CAP_SYS_NICE), as on a gateway: keeps the step latency low on a busy "
-                        "machine")
-    p.add_argument("--state-file", metavar="PATH",
-                   help="keep the sensor state across restarts and ignition cycles: saved every --state-period "
-                        "seconds and on shutdown (atomically), restored at start cooled for the time off and "
-                        "reconciled with the first oil reading; missing, corrupt or another gearbox's: cold start, "
-                        "logged (docs/gateway.md)")
-    p.add_argument("--state-period", type=float, default=None, metavar="S",
-                   help="seconds of wall time between state saves (default 60: flash wear)")
-    p.add_argument("--health-file", metavar="PATH",
-                   help="rewrite a health file every second for `gearbox-vsensor status` (uptime, last step, "
-                        "degraded state, counters, age of the last state save)")
+    p.add_argument(
+        "--rt-priority",
+        type=int,
+        metavar="N",
+        help="run the receive and step threads with Linux real-time scheduling (SCHED_FIFO, priority "
+        "1..99; needs root or CAP_SYS_NICE), as on a gateway: keeps the step latency low on a busy "
+        "machine",
+    )
+    p.add_argument(
+        "--state-file",
+        metavar="PATH",
+        help="keep the sensor state across restarts and ignition cycles: saved every --state-period "
+        "seconds and on shutdown (atomically), restored at start cooled for the time off and "
+        "reconciled with the first oil reading; missing, corrupt or another gearbox's: cold start, "
+        "logged (docs/gateway.md)",
+    )
+    p.add_argument(
+        "--state-period",
+        type=float,
+        default=None,
+        metavar="S",
+        help="seconds of wall time between state saves (default 60: flash wear)",
+    )
+    p.add_argument(
+        "--health-file",
+        metavar="PATH",
+        help="rewrite a health file every second for `gearbox-vsensor status` (uptime, last step, "
+        "degraded state, counters, age of the last state save)",
+    )
     p.set_defaults(func=run)
     return p
 
 
 def run(args) -> int:
     from tools.can.live import LiveSettings, run_live
+
     if args.state_period is not None and not args.state_file:
         raise InputError("--state-period sets how often --state-file is saved; give --state-file too")
     args.state_period = 60.0 if args.state_period is None else args.state_period
-    settings = LiveSettings(interface=args.interface, channel=args.channel, bitrate_bit_s=args.bitrate,
-                            config_path=args.config, duration_s=args.duration, filters=not args.no_filters,
-                            rig=args.rig, rt_priority=args.rt_priority, state_file=args.state_file,
-                            state_period_s=args.state_period, health_file=args.health_file)
+    settings = LiveSettings(
+        interface=args.interface,
+        channel=args.channel,
+        bitrate_bit_s=args.bitrate,
+        config_path=args.config,
+        duration_s=args.duration,
+        filters=not args.no_filters,
+        rig=args.rig,
+        rt_priority=args.rt_priority,
+        state_file=args.state_file,
+        state_period_s=args.state_period,
+        health_file=args.health_file,
+    )
     settings.check()
     from tools.can.bus import virtual_note
+
     note = virtual_note(args.interface, receiver=True)
     if note:
         print(f"gearbox-vsensor run: note: {note}", file=sys.stderr, flush=True)
-    logging.basicConfig(level=getattr(logging, args.log_level), stream=sys.stderr,
-                        format="%(asctime)s %(levelname)s %(name)s: %(message)s")
+    logging.basicConfig(
+        level=getattr(logging, args.log_level),
+        stream=sys.stderr,
+        format="%(asctime)s %(levelname)s %(name)s: %(message)s",
+    )
     run_live(settings)
     return 0

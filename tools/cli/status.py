@@ -1,4 +1,5 @@
 """`gearbox-vsensor status`: the health of a running sensor service, for a technician (docs/gateway.md)."""
+
 from __future__ import annotations
 
 import argparse
@@ -15,49 +16,60 @@ NO_STEP_S = 5.0
 
 def add_subparser(sub):
     p = sub.add_parser(
-        "status", help="show the health of a running `gearbox-vsensor run` (uptime, last step, degraded, counters)",
+        "status",
+        help="show the health of a running `gearbox-vsensor run` (uptime, last step, degraded, counters)",
         formatter_class=argparse.RawDescriptionHelpFormatter,
         description="Read the health file a running service rewrites every second (`run --health-file`) and print "
-                    "uptime, the last step's frame time, whether the sensor is initialised, the degraded modes, "
-                    "frame counters, time jumps, the state saves (count, errors, age of the last) and whether the "
-                    "saved state was restored at start. Exit status 0 when the service is running and stepping, 1 "
-                    "when the file is stale (not rewritten for 5 s: not running), 2 when it is missing or not a "
-                    "health file, 3 when the service runs but has not stepped for 5 s (its input frames stopped, or "
-                    "none came in its first 5 s: it publishes nothing; the first line says which and what to "
-                    "check). Within its first 5 s a service that has not stepped yet is `waiting for inputs`, "
-                    "exit 0.")
-    p.add_argument("--health-file", default=DEFAULT_HEALTH, metavar="PATH",
-                   help=f"the service's health file (default {DEFAULT_HEALTH}, as the systemd unit writes it)")
+        "uptime, the last step's frame time, whether the sensor is initialised, the degraded modes, "
+        "frame counters, time jumps, the state saves (count, errors, age of the last) and whether the "
+        "saved state was restored at start. Exit status 0 when the service is running and stepping, 1 "
+        "when the file is stale (not rewritten for 5 s: not running), 2 when it is missing or not a "
+        "health file, 3 when the service runs but has not stepped for 5 s (its input frames stopped, or "
+        "none came in its first 5 s: it publishes nothing; the first line says which and what to "
+        "check). Within its first 5 s a service that has not stepped yet is `waiting for inputs`, "
+        "exit 0.",
+    )
+    p.add_argument(
+        "--health-file",
+        default=DEFAULT_HEALTH,
+        metavar="PATH",
+        help=f"the service's health file (default {DEFAULT_HEALTH}, as the systemd unit writes it)",
+    )
     p.add_argument("--json", action="store_true", help="print the health document as JSON")
     p.set_defaults(func=run)
 
 
 def run(args) -> int:
     import json
+
     from firmware_model.service.persist import read_health
+
     try:
         doc = read_health(args.health_file)
     except FileNotFoundError:
-        raise InputError(f"{args.health_file}: no health file; is `gearbox-vsensor run --health-file "
-                         f"{args.health_file}` running?") from None
+        raise InputError(
+            f"{args.health_file}: no health file; is `gearbox-vsensor run --health-file {args.health_file}` running?"
+        ) from None
     except (OSError, ValueError) as exc:
         raise InputError(f"{args.health_file}: not a gearbox-vsensor health file ({exc})") from None
-    try:        # a health file edited or damaged by hand: its fields of the wrong type are one sentence, exit 2
+    try:  # a health file edited or damaged by hand: its fields of the wrong type are one sentence, exit 2
         age_s = health_age_s(doc)
         lines = status_lines(doc, age_s)
         stepping = not not_stepping(doc)
     except (TypeError, ValueError, AttributeError) as exc:
-        raise InputError(f"{args.health_file}: not a gearbox-vsensor health file (a field of the wrong type: "
-                         f"{exc})") from None
+        raise InputError(
+            f"{args.health_file}: not a gearbox-vsensor health file (a field of the wrong type: {exc})"
+        ) from None
     try:
         if args.json:
             print(json.dumps(doc, indent=2))
         else:
             for line in lines:
                 print(line)
-    except BrokenPipeError:       # `status | head -1`: the reader has what it wanted
+    except BrokenPipeError:  # `status | head -1`: the reader has what it wanted
         import os
         import sys
+
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
     if age_s > STALE_S or doc.get("stopped"):
         return 1
@@ -83,19 +95,25 @@ def never_stepped_sentence(doc: dict) -> str:
     bus = f"{doc.get('interface')} {channel}" if channel else "its CAN channel (`run --channel`)"
     seen = int((doc.get("decoder") or {}).get("frames_seen", 0))
     name = channel or "CHANNEL"
-    tools = ((f" (`ip -details link show {name}`)", f" (`candump {name}`)")
-             if doc.get("interface") in (None, "socketcan") else ("", ""))
-    return (f"no step: the service has run {float(doc['uptime_s']):.0f} s without a single step, as no frame of its "
-            f"input messages (EEC1 engine speed, ETC2, TRF1, ...) has reached it ({seen} frames received), so it "
-            f"publishes nothing; check that {bus} is the truck's powertrain CAN bus, that the interface is up at the "
-            f"bus's bitrate{tools[0]} and that frames arrive on it{tools[1]}: none means wiring, termination or "
-            f"bitrate")
+    tools = (
+        (f" (`ip -details link show {name}`)", f" (`candump {name}`)")
+        if doc.get("interface") in (None, "socketcan")
+        else ("", "")
+    )
+    return (
+        f"no step: the service has run {float(doc['uptime_s']):.0f} s without a single step, as no frame of its "
+        f"input messages (EEC1 engine speed, ETC2, TRF1, ...) has reached it ({seen} frames received), so it "
+        f"publishes nothing; check that {bus} is the truck's powertrain CAN bus, that the interface is up at the "
+        f"bus's bitrate{tools[0]} and that frames arrive on it{tools[1]}: none means wiring, termination or "
+        f"bitrate"
+    )
 
 
 def health_age_s(doc: dict) -> float:
     """How long ago the file was written: by the time since boot when it was written on this boot (a wall clock set
     back or forward says nothing then), else by the wall clock."""
     from firmware_model.service.persist import boot_clock, boot_id
+
     wall_age_s = time.time() - float(doc.get("written_wall_s", 0.0))
     boot = doc.get("written_boottime_s")
     if boot is not None and doc.get("boot_id") and doc.get("boot_id") == boot_id():
@@ -105,10 +123,13 @@ def health_age_s(doc: dict) -> float:
 
 def status_lines(doc: dict, age_s: float) -> list[str]:
     from firmware_model.components import MODE_NAMES
+
     state = doc.get("state") or {}
     last = doc.get("last_step_frame_time_s")
-    stale = (f"NOT RUNNING (health {age_s:.0f} s old; or running but unable to rewrite this file: its log says "
-             f"'cannot write the health file')")
+    stale = (
+        f"NOT RUNNING (health {age_s:.0f} s old; or running but unable to rewrite this file: its log says "
+        f"'cannot write the health file')"
+    )
     if doc.get("stopped"):
         stale = f"stopped cleanly {age_s:.0f} s ago"
     now = doc.get("degraded_mode_now")
@@ -117,45 +138,63 @@ def status_lines(doc: dict, age_s: float) -> list[str]:
     if never_stepped(doc):
         running = f"running, but NEVER STEPPED in {float(doc['uptime_s']):.0f} s"
     elif not_stepping(doc):
-        running = (f"running, but NO STEP for {float(doc['last_step_age_s']):.0f} s (its input frames stopped: "
-                   f"engine speed or the bus; it publishes nothing)")
+        running = (
+            f"running, but NO STEP for {float(doc['last_step_age_s']):.0f} s (its input frames stopped: "
+            f"engine speed or the bus; it publishes nothing)"
+        )
     step_age = doc.get("last_step_age_s")
-    lines = [f"service: {running if age_s <= STALE_S and not doc.get('stopped') else stale}, "
-             f"pid {doc.get('pid')}, uptime {doc.get('uptime_s', 0.0):.0f} s",
-             f"sensor: {'initialised' if doc.get('initialised') else 'waiting for inputs'}, {doc.get('steps', 0)} "
-             f"steps, last step at frame time {'-' if last is None else f'{last:.1f} s'}"
-             + ("" if step_age is None else f" ({float(step_age):.0f} s ago)")
-             + ("" if now is None else f"; mode now {now} ({MODE_NAMES.get(int(now), '?')})"),
-             f"degraded modes (steps since start): {doc.get('degraded_mode_steps') or 'none'}; time jumps "
-             f"{doc.get('time_jumps', 0)}; clock steps {doc.get('clock_steps', 0)}; frames sent "
-             f"{doc.get('frames_sent', 0)}"
-             + (f" ({doc['frames_held_no_address']} held: no J1939 address)"
-                if doc.get("frames_held_no_address") else ""),
-             "frames: " + ", ".join(f"{k.replace('_', ' ')} {v}" for k, v in (doc.get("decoder") or {}).items())]
+    lines = [
+        f"service: {running if age_s <= STALE_S and not doc.get('stopped') else stale}, "
+        f"pid {doc.get('pid')}, uptime {doc.get('uptime_s', 0.0):.0f} s",
+        f"sensor: {'initialised' if doc.get('initialised') else 'waiting for inputs'}, {doc.get('steps', 0)} "
+        f"steps, last step at frame time {'-' if last is None else f'{last:.1f} s'}"
+        + ("" if step_age is None else f" ({float(step_age):.0f} s ago)")
+        + ("" if now is None else f"; mode now {now} ({MODE_NAMES.get(int(now), '?')})"),
+        f"degraded modes (steps since start): {doc.get('degraded_mode_steps') or 'none'}; time jumps "
+        f"{doc.get('time_jumps', 0)}; clock steps {doc.get('clock_steps', 0)}; frames sent "
+        f"{doc.get('frames_sent', 0)}"
+        + (f" ({doc['frames_held_no_address']} held: no J1939 address)" if doc.get("frames_held_no_address") else ""),
+        "frames: " + ", ".join(f"{k.replace('_', ' ')} {v}" for k, v in (doc.get("decoder") or {}).items()),
+    ]
     if never_stepped(doc) and age_s <= STALE_S and not doc.get("stopped"):
         lines.insert(1, never_stepped_sentence(doc))
     if j:
         a = j.get("address")
-        lines.append("J1939 address: " + (f"0x{int(a):02X}" if a is not None else
-                                          "LOST (Cannot Claim sent: the sensor sends nothing; another node claimed "
-                                          "its address with a higher-priority NAME)")
-                     + f"; contentions won {j.get('contentions_won', 0)}, lost {j.get('contentions_lost', 0)}")
+        lines.append(
+            "J1939 address: "
+            + (
+                f"0x{int(a):02X}"
+                if a is not None
+                else "LOST (Cannot Claim sent: the sensor sends nothing; another node claimed "
+                "its address with a higher-priority NAME)"
+            )
+            + f"; contentions won {j.get('contentions_won', 0)}, lost {j.get('contentions_lost', 0)}"
+        )
     bus = doc.get("bus") or {}
     if bus.get("outages") or bus.get("read_errors") or doc.get("bus_off"):
-        lines.append(f"bus: {bus.get('outages', 0)} receive outages, {bus.get('read_errors', 0)} receive errors, "
-                     f"{bus.get('reopens', 0)} reopens ({bus.get('reopen_failures', 0)} failed attempts), "
-                     f"{doc.get('bus_off', 0)} bus-off error frames")
-    for f in doc.get("findings") or []:      # the whole-record findings of the run (after its first minute)
+        lines.append(
+            f"bus: {bus.get('outages', 0)} receive outages, {bus.get('read_errors', 0)} receive errors, "
+            f"{bus.get('reopens', 0)} reopens ({bus.get('reopen_failures', 0)} failed attempts), "
+            f"{doc.get('bus_off', 0)} bus-off error frames"
+        )
+    for f in doc.get("findings") or []:  # the whole-record findings of the run (after its first minute)
         lines.append(f"finding ({f.get('severity')}): {f.get('sentence')}")
     if doc.get("health_write_errors"):
-        lines.append(f"health file: {doc['health_write_errors']} writes failed before this one (the service's log "
-                     f"names the first error)")
+        lines.append(
+            f"health file: {doc['health_write_errors']} writes failed before this one (the service's log "
+            f"names the first error)"
+        )
     if state:
         age = state.get("last_save_age_s")
-        restored = ("restored at start" if state.get("restored") else "not restored") \
-            if "degraded_mode_now" in doc else "restored at start: unknown (a health file of an older version)"
-        lines.append(f"state: {state.get('path')}, {restored}"
-                     f", {state.get('saves', 0)} saves ({state.get('save_errors', 0)} "
-                     f"errors), last {'never' if age is None else f'{age:.0f} s ago'}; cold starts "
-                     f"{state.get('cold_starts', 0)}{' (' + str(state.get('reason')) + ')' if state.get('reason') else ''}")
+        restored = (
+            ("restored at start" if state.get("restored") else "not restored")
+            if "degraded_mode_now" in doc
+            else "restored at start: unknown (a health file of an older version)"
+        )
+        lines.append(
+            f"state: {state.get('path')}, {restored}"
+            f", {state.get('saves', 0)} saves ({state.get('save_errors', 0)} "
+            f"errors), last {'never' if age is None else f'{age:.0f} s ago'}; cold starts "
+            f"{state.get('cold_starts', 0)}{' (' + str(state.get('reason')) + ')' if state.get('reason') else ''}"
+        )
     return lines

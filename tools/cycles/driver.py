@@ -11,6 +11,7 @@ resampled to the requested rate afterwards, and this step has nothing to do with
 * ``shift``: the torque interruption of a gear change (0.6 s, range changes 1.0 s);
 * ``coast``: below the lowest gear's speed while stopping: neutral, on the brakes to the stop point.
 """
+
 from __future__ import annotations
 
 import math
@@ -20,8 +21,15 @@ from typing import NamedTuple
 import numpy as np
 
 from tools.cycles.route import Route, Segment, Stop
-from tools.cycles.vehicle import (IDLE_RPM, KMH_PER_M_S, Drivetrain, G_M_S2, Vehicle, engine_max_torque_nm,
-                                  engine_min_torque_nm)
+from tools.cycles.vehicle import (
+    G_M_S2,
+    IDLE_RPM,
+    KMH_PER_M_S,
+    Drivetrain,
+    Vehicle,
+    engine_max_torque_nm,
+    engine_min_torque_nm,
+)
 
 #: the vehicle model's own time step (10 Hz); the cycle tables are resampled from it to the requested rate
 VEHICLE_STEP_S = 0.1
@@ -35,6 +43,7 @@ REVERSE_GEAR = -2
 
 class Shift(NamedTuple):
     """A gear change under way: from, to, time into it, its duration, the engine torque when it began."""
+
     gear_from: int
     gear_to: int
     elapsed_s: float
@@ -44,6 +53,7 @@ class Shift(NamedTuple):
 
 class SpeedTarget(NamedTuple):
     """The speed the driver aims at a moment ahead and the acceleration that gets there."""
+
     v_target_m_s: float
     a_des_m_s2: float
 
@@ -51,6 +61,7 @@ class SpeedTarget(NamedTuple):
 @dataclass(frozen=True)
 class DriveTrace:
     """What the driver did, at every VEHICLE_STEP_S."""
+
     time_s: np.ndarray
     engine_speed_rpm: np.ndarray
     engine_torque_nm: np.ndarray
@@ -65,6 +76,7 @@ class DriveTrace:
 @dataclass(slots=True)
 class DriverState:
     """The driver's and the truck's state along the route (mutable: stepped in place)."""
+
     mass_kg: float
     dwell_s: float
     next_start_gear: int | None
@@ -75,11 +87,11 @@ class DriverState:
     torque_nm: float = 0.0
     rpm: float = IDLE_RPM
     retarder_nm: float = 0.0
-    stop_index: int = 0                  # index of the next stop on the route
+    stop_index: int = 0  # index of the next stop on the route
     pending_stop: Segment | None = None
     since_shift_s: float = 10.0
     shift: Shift | None = None
-    reverse: list = field(default_factory=list)   # (v, a) samples (None: a pause) of a reversing manoeuvre
+    reverse: list = field(default_factory=list)  # (v, a) samples (None: a pause) of a reversing manoeuvre
 
     def idle(self) -> None:
         """Neutral, idling, no retarder."""
@@ -110,6 +122,7 @@ def speed_target(route: Route, st: DriverState, v_allow_m_s: float, lookahead_s:
 # ----------------------------------------------------------------------------------------------------------------
 # the modes
 
+
 def step_stopped(st: DriverState, drivetrain: Drivetrain, grade: float, route: Route) -> None:
     """Idle for the dwell; then load/unload and pull away (or idle to the end at the end of the route)."""
     st.idle()
@@ -122,7 +135,7 @@ def step_stopped(st: DriverState, drivetrain: Drivetrain, grade: float, route: R
         st.next_start_gear = None
         st.pending_stop = None
         if st.x_m >= route.length_m - 1.0:
-            st.dwell_s = math.inf   # end of the route: idle until the end
+            st.dwell_s = math.inf  # end of the route: idle until the end
         else:
             st.mode, st.gear, st.since_shift_s = "launch", g0, 0.0
 
@@ -131,7 +144,7 @@ def step_reverse(st: DriverState, drivetrain: Drivetrain) -> bool:
     """One sample of the reversing manoeuvre; True on a pause in neutral (the truck does not move this step)."""
     veh = drivetrain.vehicle
     item = st.reverse.pop(0)
-    if item is None:   # a pause in neutral before and after reversing
+    if item is None:  # a pause in neutral before and after reversing
         st.idle()
         st.v_m_s = 0.0
         if not st.reverse:
@@ -139,8 +152,11 @@ def step_reverse(st: DriverState, drivetrain: Drivetrain) -> bool:
         return True
     vr, ar = item
     st.gear = REVERSE_GEAR
-    f = st.mass_kg * (1.0 + veh.rotating_mass_factor) * ar + st.mass_kg * G_M_S2 * veh.crr \
+    f = (
+        st.mass_kg * (1.0 + veh.rotating_mass_factor) * ar
+        + st.mass_kg * G_M_S2 * veh.crr
         + 0.5 * veh.rho_air_kg_m3 * veh.cda_m2 * vr * vr
+    )
     st.torque_nm = max(drivetrain.torque_for_nm(f, REVERSE_GEAR), 0.0) if f > 0 else 0.0
     st.rpm = max(drivetrain.sync_rpm(REVERSE_GEAR, vr), 800.0)
     st.v_m_s, st.retarder_nm = vr, 0.0
@@ -169,12 +185,14 @@ def step_launch(st: DriverState, drivetrain: Drivetrain, grade: float, v_allow_m
 
 class Engaged(NamedTuple):
     """The gear that carries engine torque in a shift (None: none) and that torque."""
+
     gear: int | None
     torque_nm: float
 
 
-def _shift_torque(st: DriverState, drivetrain: Drivetrain, route: Route, sh: Shift, p: float, f_road: float,
-                  v_allow_m_s: float) -> Engaged:
+def _shift_torque(
+    st: DriverState, drivetrain: Drivetrain, route: Route, sh: Shift, p: float, f_road: float, v_allow_m_s: float
+) -> Engaged:
     """Engaged gear and engine torque in the interruption: ramp down, zero, ramp up to the demand."""
     if p < 0.25:
         return Engaged(sh.gear_from, sh.torque0_nm * (1.0 - p / 0.25))
@@ -230,10 +248,11 @@ def step_coast(st: DriverState, drivetrain: Drivetrain, grade: float, target: Sp
 
 class Traction(NamedTuple):
     """The force balance of one driving step."""
-    f_need_n: float          # force the target acceleration needs
-    t_req_nm: float          # engine torque for it
-    t_max_nm: float          # the engine's full load at this speed
-    deficit_n: float         # f_need - engine force (< 0: braking needed)
+
+    f_need_n: float  # force the target acceleration needs
+    t_req_nm: float  # engine torque for it
+    t_max_nm: float  # the engine's full load at this speed
+    deficit_n: float  # f_need - engine force (< 0: braking needed)
 
 
 def step_drive(st: DriverState, drivetrain: Drivetrain, grade: float, target: SpeedTarget) -> Traction:
@@ -265,6 +284,7 @@ def step_drive(st: DriverState, drivetrain: Drivetrain, grade: float, target: Sp
 
 class GearChoice(NamedTuple):
     """The shift strategy's answer: a new gear (None: keep) and whether to drop to neutral and coast."""
+
     gear: int | None
     coast: bool
 
@@ -274,8 +294,11 @@ def _upshift(drivetrain: Drivetrain, gear: int, tr: Traction, cand: dict) -> int
     for g in range(min(gear + 2, 14), gear, -1):
         tg = drivetrain.torque_for_nm(tr.f_need_n, g)
         tmax_g = engine_max_torque_nm(cand[g], g)
-        if tg <= 0.85 * tmax_g and tg >= engine_min_torque_nm(cand[g]) \
-                and cand[g] >= downshift_rpm(max(tg, 0.0) / tmax_g) + 100.0:
+        if (
+            tg <= 0.85 * tmax_g
+            and tg >= engine_min_torque_nm(cand[g])
+            and cand[g] >= downshift_rpm(max(tg, 0.0) / tmax_g) + 100.0
+        ):
             return g
     return None
 
@@ -305,8 +328,10 @@ def choose_gear(st: DriverState, drivetrain: Drivetrain, grade: float, target: S
         new = min(gear + 1, 14)
     if new is None and rpm > upshift_rpm(load) and gear < 14:
         new = _upshift(drivetrain, gear, tr, cand)
-    if new is None and (rpm < downshift_rpm(load)
-                        or (tr.t_req_nm > 0.98 * tr.t_max_nm and rpm < 1500.0 and target.v_target_m_s > v + 0.3)):
+    if new is None and (
+        rpm < downshift_rpm(load)
+        or (tr.t_req_nm > 0.98 * tr.t_max_nm and rpm < 1500.0 and target.v_target_m_s > v + 0.3)
+    ):
         new, coast = _downshift(drivetrain, gear, rpm, tr, cand)
     if new is None and tr.deficit_n < -1.0 and grade < -0.02 and gear > 3:
         # long descent: a lower gear for more engine brake, if the engine can take the speed
@@ -315,10 +340,11 @@ def choose_gear(st: DriverState, drivetrain: Drivetrain, grade: float, target: S
     return GearChoice(new, coast)
 
 
-def step_drive_or_coast(st: DriverState, drivetrain: Drivetrain, route: Route, grade: float, v_allow_m_s: float,
-                        x_stop_m: float) -> None:
+def step_drive_or_coast(
+    st: DriverState, drivetrain: Drivetrain, route: Route, grade: float, v_allow_m_s: float, x_stop_m: float
+) -> None:
     """Drive (and perhaps start a shift or drop to coasting), or coast towards a stop."""
-    target = speed_target(route, st, v_allow_m_s, 1.5)     # the allowed speed here and a second and a half ahead
+    target = speed_target(route, st, v_allow_m_s, 1.5)  # the allowed speed here and a second and a half ahead
     if st.mode == "coast":
         step_coast(st, drivetrain, grade, target, x_stop_m)
         return
@@ -383,7 +409,7 @@ def step(st: DriverState, drivetrain: Drivetrain, route: Route) -> None:
         step_stopped(st, drivetrain, road.grade, route)
     elif st.mode == "reverse":
         if step_reverse(st, drivetrain):
-            return          # a pause in neutral: the truck stands
+            return  # a pause in neutral: the truck stands
     elif st.mode == "launch":
         step_launch(st, drivetrain, road.grade, road.v_allow_m_s)
     elif st.mode == "shift":
@@ -393,8 +419,14 @@ def step(st: DriverState, drivetrain: Drivetrain, route: Route) -> None:
     advance(st, route, stop)
 
 
-def drive(segments: list[Segment], vehicle: Vehicle, duration_s: float, rng: np.random.Generator,
-          idle_start_s: float = 20.0, first_gear: int | None = None) -> DriveTrace:
+def drive(
+    segments: list[Segment],
+    vehicle: Vehicle,
+    duration_s: float,
+    rng: np.random.Generator,
+    idle_start_s: float = 20.0,
+    first_gear: int | None = None,
+) -> DriveTrace:
     """Drive along the route for `duration_s`, starting with `idle_start_s` idling; the trace at VEHICLE_STEP_S."""
     route = Route(segments, rng)
     drivetrain = Drivetrain.of(vehicle)
@@ -404,6 +436,14 @@ def drive(segments: list[Segment], vehicle: Vehicle, duration_s: float, rng: np.
     for k in range(n):
         step(st, drivetrain, route)
         rpm[k], tq[k], gear[k], v[k], ret[k], x[k] = st.rpm, st.torque_nm, st.gear, st.v_m_s, st.retarder_nm, st.x_m
-    return DriveTrace(time_s=np.arange(n) / round(1.0 / VEHICLE_STEP_S), engine_speed_rpm=rpm, engine_torque_nm=tq,
-                      gear=gear, vehicle_speed_kmh=v * KMH_PER_M_S, retarder_torque_nm=ret, distance_m=x,
-                      grade=np.interp(x, route.x, route.grade), altitude_m=np.interp(x, route.x, route.altitude_m))
+    return DriveTrace(
+        time_s=np.arange(n) / round(1.0 / VEHICLE_STEP_S),
+        engine_speed_rpm=rpm,
+        engine_torque_nm=tq,
+        gear=gear,
+        vehicle_speed_kmh=v * KMH_PER_M_S,
+        retarder_torque_nm=ret,
+        distance_m=x,
+        grade=np.interp(x, route.x, route.grade),
+        altitude_m=np.interp(x, route.x, route.altitude_m),
+    )

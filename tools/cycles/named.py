@@ -46,6 +46,7 @@ columns ``bc_*_c`` of the seed's Table 11, and ``meta['initial_temp_c']`` (initi
 ``meta['hold_oil_c']`` (None unless the sump is held). ``noise=True`` adds measurement-like noise (seeded): engine
 torque 2 % + 5 Nm, engine speed 3 rpm, vehicle speed 0.1 km/h (1 sigma).
 """
+
 from __future__ import annotations
 
 import math
@@ -58,33 +59,66 @@ import numpy as np
 from firmware_model.errors import InputError
 from firmware_model.physics.kinematics import GEAR_NAMES, parse_gear
 from firmware_model.physics.oil import check_temperature_c
-
 from tools.cycles.driver import DriveTrace, drive
 from tools.cycles.route import Segment
 from tools.cycles.vehicle import KMH_PER_M_S, Vehicle, gearbox_kinematics, total_ratios, vehicle_speed_kmh
 from tools.runtable import RunTable, read_run_table
 
-__all__ = ["BC_COLUMNS", "COLUMNS", "CYCLE_HELP", "CYCLE_NAMES", "TABLE11_LC1", "TABLE11_LC2", "AMBIENT_C", "Segment",
-           "Vehicle", "all_gears", "cold_start", "get_cycle", "gearbox_kinematics", "long_haul", "mining", "parse_steady_spec",
-           "road_profile", "steady", "summarize", "total_ratios", "uphill"]
+__all__ = [
+    "BC_COLUMNS",
+    "COLUMNS",
+    "CYCLE_HELP",
+    "CYCLE_NAMES",
+    "TABLE11_LC1",
+    "TABLE11_LC2",
+    "AMBIENT_C",
+    "Segment",
+    "Vehicle",
+    "all_gears",
+    "cold_start",
+    "get_cycle",
+    "gearbox_kinematics",
+    "long_haul",
+    "mining",
+    "parse_steady_spec",
+    "road_profile",
+    "steady",
+    "summarize",
+    "total_ratios",
+    "uphill",
+]
 
 CYCLE_NAMES = ("steady", "all_gears", "long_haul", "uphill", "mining")
 CYCLE_HELP = {
     "steady": "steady:gear=4L,rpm=1300,nm=2000,s=3600,oil=100 - one gear at constant speed and torque "
-              "(seed 5.3/5.4); oil= holds the sump",
+    "(seed 5.3/5.4); oil= holds the sump",
     "all_gears": "RL to 6H, 100 s each at 1300 rpm / 1000 Nm, sump held at 100 degC (seed Fig 4), 1600 s",
     "long_haul": "1 h level cruising, 40 t, mostly 6H at ~1300 rpm and 300-900 Nm, cold start 33.5 degC "
-                 "(seed 4.4 load case 1)",
+    "(seed 4.4 load case 1)",
     "uphill": "2 h: ~900 m climb in the first hour at 1800-2500 Nm in low range, then high gears, start 68.3 degC "
-              "(seed 4.4 load case 2)",
+    "(seed 4.4 load case 2)",
     "mining": "3 h mine haul cycles: loaded climbs in low gears, empty descents on engine brake and retarder, "
-              "stops in neutral, start 40 degC (seed 5.2)",
+    "stops in neutral, start 40 degC (seed 5.2)",
 }
 
-BC_COLUMNS = ("bc_engine_shaft_c", "bc_flywheel_cover_c", "bc_support_beam_c", "bc_end_yoke_c",
-              "bc_hot_surroundings_c", "bc_cold_surroundings_c")
-COLUMNS = ("time_s", "engine_speed_rpm", "engine_torque_nm", "gear", "vehicle_speed_kmh", "ambient_temp_c",
-           "coolant_temp_c", "retarder_torque_nm") + BC_COLUMNS
+BC_COLUMNS = (
+    "bc_engine_shaft_c",
+    "bc_flywheel_cover_c",
+    "bc_support_beam_c",
+    "bc_end_yoke_c",
+    "bc_hot_surroundings_c",
+    "bc_cold_surroundings_c",
+)
+COLUMNS = (
+    "time_s",
+    "engine_speed_rpm",
+    "engine_torque_nm",
+    "gear",
+    "vehicle_speed_kmh",
+    "ambient_temp_c",
+    "coolant_temp_c",
+    "retarder_torque_nm",
+) + BC_COLUMNS
 
 #: seed Table 11: final boundary temperatures (degC) of load case 1 (long haul) and 2 (uphill), in BC_COLUMNS order
 TABLE11_LC1 = (90.0, 90.0, 80.0, 80.0, 90.0, 40.0)
@@ -93,6 +127,7 @@ TABLE11_LC2 = (100.0, 100.0, 90.0, 90.0, 100.0, 60.0)
 AMBIENT_C = 25.0
 # ----------------------------------------------------------------------------------------------------------------
 # routes of the named cycles
+
 
 def _long_haul_route(rng: np.random.Generator) -> tuple[list[Segment], Vehicle]:
     u = lambda lo, hi: float(rng.uniform(lo, hi))  # noqa: E731
@@ -105,23 +140,41 @@ def _long_haul_route(rng: np.random.Generator) -> tuple[list[Segment], Vehicle]:
     return segs, Vehicle()
 
 
-def _jitter(rng: np.random.Generator, sections, piece_m: float = 500.0, grade_rel: float = 0.15,
-            limit_kmh: float = 3.0, hills: float = 0.0) -> list[Segment]:
+def _jitter(
+    rng: np.random.Generator,
+    sections,
+    piece_m: float = 500.0,
+    grade_rel: float = 0.15,
+    limit_kmh: float = 3.0,
+    hills: float = 0.0,
+) -> list[Segment]:
     """Cut (length, grade, limit) sections into ~piece_m pieces with seeded grade and speed-limit variation."""
     out = []
     for length, grade, limit in sections:
         k = max(1, int(round(length / piece_m)))
         for _ in range(k):
-            out.append(Segment(length / k, grade * float(rng.uniform(1 - grade_rel, 1 + grade_rel)),
-                               max(8.0, limit + float(rng.uniform(-limit_kmh, limit_kmh))), hills=hills))
+            out.append(
+                Segment(
+                    length / k,
+                    grade * float(rng.uniform(1 - grade_rel, 1 + grade_rel)),
+                    max(8.0, limit + float(rng.uniform(-limit_kmh, limit_kmh))),
+                    hills=hills,
+                )
+            )
     return out
 
 
 def _uphill_route(rng: np.random.Generator) -> tuple[list[Segment], Vehicle]:
     f = lambda: float(rng.uniform(0.9, 1.1))  # noqa: E731
     climb = [  # (length m, grade, limit km/h): ~900 m up in ~45 min, steep bends at low speed
-        (1000 * f(), 0.005, 50), (3000 * f(), 0.040, 40), (2500 * f(), 0.065, 18), (1500 * f(), 0.030, 50),
-        (3000 * f(), 0.070, 18), (1000 * f(), 0.085, 15), (2000 * f(), 0.050, 30), (2000 * f(), 0.060, 19),
+        (1000 * f(), 0.005, 50),
+        (3000 * f(), 0.040, 40),
+        (2500 * f(), 0.065, 18),
+        (1500 * f(), 0.030, 50),
+        (3000 * f(), 0.070, 18),
+        (1000 * f(), 0.085, 15),
+        (2000 * f(), 0.050, 30),
+        (2000 * f(), 0.060, 19),
         (3000 * f(), 0.020, 60),
     ]
     segs = _jitter(rng, climb, hills=0.006)
@@ -139,19 +192,32 @@ MINING_EMPTY_KG = 22000.0
 
 def _mining_route(rng: np.random.Generator) -> tuple[list[Segment], Vehicle]:
     u = lambda lo, hi: float(rng.uniform(lo, hi))  # noqa: E731
-    segs = [Segment(1200, 0.005, 40)]   # from the workshop to the portal
+    segs = [Segment(1200, 0.005, 40)]  # from the workshop to the portal
     for _ in range(12):
         depth_grade = u(0.095, 0.11)
         ramp = u(1500, 2000)
         segs += [
-            Segment(ramp, -depth_grade, u(18, 24)),                       # empty descent
-            Segment(300, 0.0, 15, stop_s=u(150, 240), reverse_m=u(25, 40),  # to the loader, reverse in, load
-                    mass_after_kg=MINING_LOADED_KG, start_gear=1),
+            Segment(ramp, -depth_grade, u(18, 24)),  # empty descent
+            Segment(
+                300,
+                0.0,
+                15,
+                stop_s=u(150, 240),
+                reverse_m=u(25, 40),  # to the loader, reverse in, load
+                mass_after_kg=MINING_LOADED_KG,
+                start_gear=1,
+            ),
             Segment(300, 0.0, 15),
-            Segment(250, 0.12, 8),                                        # steep bend out of the loading area
-            Segment(ramp - 250 * 0.12 / depth_grade, depth_grade, 20),   # loaded climb back to the portal
-            Segment(1500, 0.005, u(30, 40), stop_s=u(60, 110), reverse_m=u(20, 35),  # haul to the tip, dump
-                    mass_after_kg=MINING_EMPTY_KG),
+            Segment(250, 0.12, 8),  # steep bend out of the loading area
+            Segment(ramp - 250 * 0.12 / depth_grade, depth_grade, 20),  # loaded climb back to the portal
+            Segment(
+                1500,
+                0.005,
+                u(30, 40),
+                stop_s=u(60, 110),
+                reverse_m=u(20, 35),  # haul to the tip, dump
+                mass_after_kg=MINING_EMPTY_KG,
+            ),
             Segment(1500, -0.005, u(30, 40)),
         ]
     return segs, Vehicle(mass_kg=MINING_EMPTY_KG, crr=0.012)
@@ -175,6 +241,7 @@ def _road_cycle(name: str, seed: int) -> DriveTrace:
 
 # ----------------------------------------------------------------------------------------------------------------
 # boundary conditions (seed Table 11)
+
 
 def _ramp(t: np.ndarray, points: list[tuple[float, float]]) -> np.ndarray:
     tp, vp = zip(*points)
@@ -210,6 +277,7 @@ def _boundaries(name: str, t: np.ndarray) -> dict:
 # ----------------------------------------------------------------------------------------------------------------
 # assembling tables
 
+
 def _out_time(duration_s: float, rate_hz: float) -> np.ndarray:
     n = int(round(duration_s * rate_hz))
     return np.arange(n) / rate_hz
@@ -240,14 +308,20 @@ def _table(name: str, cols: dict, meta: dict, rate_hz: float, noise: bool, seed:
     cols.update(_boundaries(name, t))
     if noise:
         _add_noise(cols, seed)
-    meta = dict(meta, cycle=meta.get("cycle", name), rate_hz=float(rate_hz), noise=bool(noise), seed=int(seed),
-                synthetic=True)
+    meta = dict(
+        meta, cycle=meta.get("cycle", name), rate_hz=float(rate_hz), noise=bool(noise), seed=int(seed), synthetic=True
+    )
     return RunTable({c: cols[c] for c in COLUMNS}, meta=meta)
 
 
-STEADY_KEYS = {"gear": "gear number or Table 1 name", "rpm": "engine speed", "nm": "engine torque",
-               "s": "duration in seconds", "oil": "held sump temperature in degC",
-               "init": "initial temperature in degC"}
+STEADY_KEYS = {
+    "gear": "gear number or Table 1 name",
+    "rpm": "engine speed",
+    "nm": "engine torque",
+    "s": "duration in seconds",
+    "oil": "held sump temperature in degC",
+    "init": "initial temperature in degC",
+}
 
 
 def parse_steady_spec(spec: str) -> dict:
@@ -259,8 +333,10 @@ def parse_steady_spec(spec: str) -> dict:
         key, eq, val = item.partition("=")
         key = key.strip().lower()
         if not eq or key not in STEADY_KEYS:
-            raise InputError(f"steady cycle spec {spec!r}: {item!r} is not one of "
-                             + ", ".join(f"{k}=<{v}>" for k, v in STEADY_KEYS.items()))
+            raise InputError(
+                f"steady cycle spec {spec!r}: {item!r} is not one of "
+                + ", ".join(f"{k}=<{v}>" for k, v in STEADY_KEYS.items())
+            )
         if key in given:
             raise InputError(f"steady cycle spec {spec!r}: {key} is given twice; give it once")
         given.add(key)
@@ -289,36 +365,65 @@ def parse_steady_spec(spec: str) -> dict:
     return out
 
 
-def steady(gear=9, rpm: float = 1300.0, nm: float = 2000.0, s: float = 3600.0, oil: float | None = None,
-           init: float | None = None, rate_hz: float = 10.0, noise: bool = False, seed: int = 0,
-           spec: str | None = None) -> RunTable:
+def steady(
+    gear=9,
+    rpm: float = 1300.0,
+    nm: float = 2000.0,
+    s: float = 3600.0,
+    oil: float | None = None,
+    init: float | None = None,
+    rate_hz: float = 10.0,
+    noise: bool = False,
+    seed: int = 0,
+    spec: str | None = None,
+) -> RunTable:
     """One gear at constant engine speed and torque (seed 5.3/5.4). SYNTHETIC. Initial temperature: the held oil
     temperature, else 20 degC (seed 5.4)."""
     gear = parse_gear(gear)
     t = _out_time(s, rate_hz)
     g = np.full(t.size, float(gear))
     n_rpm = np.full(t.size, float(rpm))
-    cols = {"time_s": t, "engine_speed_rpm": n_rpm, "engine_torque_nm": np.full(t.size, float(nm)), "gear": g,
-            "vehicle_speed_kmh": vehicle_speed_kmh(g, n_rpm), "retarder_torque_nm": np.zeros(t.size)}
+    cols = {
+        "time_s": t,
+        "engine_speed_rpm": n_rpm,
+        "engine_torque_nm": np.full(t.size, float(nm)),
+        "gear": g,
+        "vehicle_speed_kmh": vehicle_speed_kmh(g, n_rpm),
+        "retarder_torque_nm": np.zeros(t.size),
+    }
     init_c = init if init is not None else (oil if oil is not None else 20.0)
     spec = spec or f"steady:gear={GEAR_NAMES[gear]},rpm={rpm:g},nm={nm:g},s={s:g}" + (
-        f",oil={oil:g}" if oil is not None else "")
-    return _table("steady", cols, {"cycle": spec, "initial_temp_c": float(init_c),
-                                   "hold_oil_c": None if oil is None else float(oil)}, rate_hz, noise, seed)
+        f",oil={oil:g}" if oil is not None else ""
+    )
+    return _table(
+        "steady",
+        cols,
+        {"cycle": spec, "initial_temp_c": float(init_c), "hold_oil_c": None if oil is None else float(oil)},
+        rate_hz,
+        noise,
+        seed,
+    )
 
 
 ALL_GEARS_ORDER = (-2, -1) + tuple(range(1, 15))
 
 
-def all_gears(rate_hz: float = 10.0, noise: bool = False, seed: int = 0, rpm: float = 1300.0, nm: float = 1000.0,
-              step_s: float = 100.0, hold_oil_c: float = 100.0) -> RunTable:
+def all_gears(
+    rate_hz: float = 10.0,
+    noise: bool = False,
+    seed: int = 0,
+    rpm: float = 1300.0,
+    nm: float = 1000.0,
+    step_s: float = 100.0,
+    hold_oil_c: float = 100.0,
+) -> RunTable:
     """RL to 6H, `step_s` each at `rpm` and `nm` (reverse and crawler limited to 700 Nm), sump held (seed Fig 4).
     SYNTHETIC. Each change has a 0.6 s torque interruption (1.0 s for range changes)."""
     n_g = len(ALL_GEARS_ORDER)
     t = _out_time(n_g * step_s, rate_hz)
     k = np.minimum((t // step_s).astype(int), n_g - 1)
     g = np.array(ALL_GEARS_ORDER, dtype=float)[k]
-    limited = (g <= 2)
+    limited = g <= 2
     tq = np.where(limited, min(nm, 700.0), nm)
     # torque interruption around each change: ramp down over the last part of the step, up after
     ts = t - k * step_s
@@ -331,10 +436,17 @@ def all_gears(rate_hz: float = 10.0, noise: bool = False, seed: int = 0, rpm: fl
         tq[m] = tq[m] * frac
     del ts
     n_rpm = np.full(t.size, float(rpm))
-    cols = {"time_s": t, "engine_speed_rpm": n_rpm, "engine_torque_nm": tq, "gear": g,
-            "vehicle_speed_kmh": vehicle_speed_kmh(g, n_rpm), "retarder_torque_nm": np.zeros(t.size)}
-    return _table("all_gears", cols, {"initial_temp_c": float(hold_oil_c), "hold_oil_c": float(hold_oil_c)},
-                  rate_hz, noise, seed)
+    cols = {
+        "time_s": t,
+        "engine_speed_rpm": n_rpm,
+        "engine_torque_nm": tq,
+        "gear": g,
+        "vehicle_speed_kmh": vehicle_speed_kmh(g, n_rpm),
+        "retarder_torque_nm": np.zeros(t.size),
+    }
+    return _table(
+        "all_gears", cols, {"initial_temp_c": float(hold_oil_c), "hold_oil_c": float(hold_oil_c)}, rate_hz, noise, seed
+    )
 
 
 def _road(name: str, rate_hz: float, noise: bool, seed: int) -> RunTable:
@@ -368,11 +480,18 @@ def cold_start(T0_c: float, rate_hz: float = 1.0, duration_s: float = 900.0) -> 
     constant 400 s). Start the plant at ``T0_c`` (every node at the ambient)."""
     t = np.arange(0.0, duration_s + 1e-9, 1.0 / rate_hz)
     load = t >= 120.0
-    return RunTable({"time_s": t, "engine_speed_rpm": np.where(load, 1300.0, 600.0),
-                     "engine_torque_nm": np.where(load, 1500.0, 100.0), "gear": np.where(load, 4.0, 0.0),
-                     "vehicle_speed_kmh": np.where(load, 30.0, 0.0), "ambient_temp_c": np.full(t.size, T0_c),
-                     "coolant_temp_c": 85.0 + (T0_c - 85.0) * np.exp(-t / 400.0)},
-                    meta={"initial_temp_c": float(T0_c), "cycle": f"cold_start:{T0_c:g}", "synthetic": True})
+    return RunTable(
+        {
+            "time_s": t,
+            "engine_speed_rpm": np.where(load, 1300.0, 600.0),
+            "engine_torque_nm": np.where(load, 1500.0, 100.0),
+            "gear": np.where(load, 4.0, 0.0),
+            "vehicle_speed_kmh": np.where(load, 30.0, 0.0),
+            "ambient_temp_c": np.full(t.size, T0_c),
+            "coolant_temp_c": 85.0 + (T0_c - 85.0) * np.exp(-t / 400.0),
+        },
+        meta={"initial_temp_c": float(T0_c), "cycle": f"cold_start:{T0_c:g}", "synthetic": True},
+    )
 
 
 def road_profile(name: str, seed: int = 0) -> dict:
@@ -407,15 +526,24 @@ def get_cycle(spec: str | os.PathLike, rate_hz: float = 10.0, noise: bool = Fals
         return _road(low, rate_hz, noise, seed)
     if low.endswith(".csv") or os.sep in s or "/" in s or Path(s).is_file():
         return read_run_table(s)
-    raise InputError(f"unknown drive cycle {s!r}: give one of {', '.join(CYCLE_NAMES)} "
-                     f"(steady:gear=4L,rpm=1300,nm=2000,s=3600,oil=100) or the path of a CSV run table")
+    raise InputError(
+        f"unknown drive cycle {s!r}: give one of {', '.join(CYCLE_NAMES)} "
+        f"(steady:gear=4L,rpm=1300,nm=2000,s=3600,oil=100) or the path of a CSV run table"
+    )
 
 
 # ----------------------------------------------------------------------------------------------------------------
 # summaries (docs, --help, tests)
 
-GEAR_GROUPS = (("reverse", (-2, -1)), ("neutral", (0,)), ("crawler CL-CH", (1, 2)), ("low range 1L-3H", range(3, 9)),
-               ("4L-5L", (9, 10, 11)), ("5H-6L", (12, 13)), ("6H direct", (14,)))
+GEAR_GROUPS = (
+    ("reverse", (-2, -1)),
+    ("neutral", (0,)),
+    ("crawler CL-CH", (1, 2)),
+    ("low range 1L-3H", range(3, 9)),
+    ("4L-5L", (9, 10, 11)),
+    ("5H-6L", (12, 13)),
+    ("6H direct", (14,)),
+)
 
 
 def summarize(table: RunTable) -> dict:
@@ -426,9 +554,15 @@ def summarize(table: RunTable) -> dict:
     tq = table["engine_torque_nm"]
     total = float(dt.sum())
     share = {name: float(dt[np.isin(g, list(gs))].sum() / total) for name, gs in GEAR_GROUPS}
-    res = {"duration_s": total, "share": share, "mean_torque_nm": float(np.sum(tq * dt) / total),
-           "max_torque_nm": float(tq.max()), "min_torque_nm": float(tq.min()),
-           "max_rpm": float(table["engine_speed_rpm"].max()), "shifts": int(np.count_nonzero(np.diff(g)))}
+    res = {
+        "duration_s": total,
+        "share": share,
+        "mean_torque_nm": float(np.sum(tq * dt) / total),
+        "max_torque_nm": float(tq.max()),
+        "min_torque_nm": float(tq.min()),
+        "max_rpm": float(table["engine_speed_rpm"].max()),
+        "shifts": int(np.count_nonzero(np.diff(g))),
+    }
     if table.has("retarder_torque_nm"):
         res["retarder_share"] = float(dt[table["retarder_torque_nm"] > 1.0].sum() / total)
     if table.has("vehicle_speed_kmh"):

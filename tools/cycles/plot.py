@@ -1,8 +1,9 @@
 """Plot the named synthetic drive cycles to docs/img/cycles_<name>.png and print their summary table.
 
-    python -m tools.cycles.plot                 # every cycle, into docs/img/
-    python -m tools.cycles.plot uphill --out /tmp --seed 1
+python -m tools.cycles.plot                 # every cycle, into docs/img/
+python -m tools.cycles.plot uphill --out /tmp --seed 1
 """
+
 from __future__ import annotations
 
 import argparse
@@ -19,6 +20,7 @@ DEFAULT_SPEC = {"steady": "steady:gear=4L,rpm=1300,nm=2000,s=3600"}
 
 def plot_cycle(name: str, out_dir: Path, seed: int = 0) -> Path:
     from tools.plots import pyplot, time_axis
+
     plt = pyplot()
     spec = DEFAULT_SPEC.get(name, name)
     tb = get_cycle(spec, seed=seed)
@@ -54,8 +56,7 @@ def plot_cycle(name: str, out_dir: Path, seed: int = 0) -> Path:
         ax2 = ax.twinx()
         # on the drive's own time axis (minutes, or hours beyond 2 h: the mining profile was drawn in minutes on an
         # axis in hours, found by a newcomer's check)
-        ax2.plot(rp["time_s"] / (3600.0 if "[h]" in xlabel else 60.0), rp["altitude_m"], lw=0.8, color="0.4",
-                 ls="--")
+        ax2.plot(rp["time_s"] / (3600.0 if "[h]" in xlabel else 60.0), rp["altitude_m"], lw=0.8, color="0.4", ls="--")
         ax2.set_ylabel("altitude [m]\n(dashed)", fontsize=8)
         k = 4
     ax = axs[k]
@@ -69,8 +70,11 @@ def plot_cycle(name: str, out_dir: Path, seed: int = 0) -> Path:
     ax.legend(loc="lower right", fontsize=6, ncol=3)
     ax.set_xlabel(xlabel)
     s = summarize(tb)
-    fig.suptitle(f"SYNTHETIC cycle '{spec}' (seed {seed}): {s['duration_s'] / 60:.0f} min, initial "
-                 f"{tb.meta['initial_temp_c']:g} degC, mean torque {s['mean_torque_nm']:.0f} Nm", fontsize=10)
+    fig.suptitle(
+        f"SYNTHETIC cycle '{spec}' (seed {seed}): {s['duration_s'] / 60:.0f} min, initial "
+        f"{tb.meta['initial_temp_c']:g} degC, mean torque {s['mean_torque_nm']:.0f} Nm",
+        fontsize=10,
+    )
     out = out_dir / f"cycles_{name}.png"
     out_dir.mkdir(parents=True, exist_ok=True)
     fig.savefig(out, dpi=90)
@@ -79,17 +83,21 @@ def plot_cycle(name: str, out_dir: Path, seed: int = 0) -> Path:
 
 
 def summary_markdown(seed: int = 0) -> str:
-    head = ("| cycle | duration | reverse | neutral | crawler | low range 1L-3H | 4L-5L | 5H-6L | 6H | mean torque "
-            "| max torque | min torque | retarder on | shifts |\n" + "|---" * 14 + "|")
+    head = (
+        "| cycle | duration | reverse | neutral | crawler | low range 1L-3H | 4L-5L | 5H-6L | 6H | mean torque "
+        "| max torque | min torque | retarder on | shifts |\n" + "|---" * 14 + "|"
+    )
     rows = [head]
     for name in CYCLE_NAMES:
         s = summarize(get_cycle(DEFAULT_SPEC.get(name, name), seed=seed))
         sh = s["share"]
         pct = lambda k: f"{100 * sh[k]:.1f} %"  # noqa: E731
-        rows.append(f"| {name} | {s['duration_s'] / 60:.0f} min | {pct('reverse')} | {pct('neutral')} | "
-                    f"{pct('crawler CL-CH')} | {pct('low range 1L-3H')} | {pct('4L-5L')} | {pct('5H-6L')} | "
-                    f"{pct('6H direct')} | {s['mean_torque_nm']:.0f} Nm | {s['max_torque_nm']:.0f} Nm | "
-                    f"{s['min_torque_nm']:.0f} Nm | {100 * s.get('retarder_share', 0):.1f} % | {s['shifts']} |")
+        rows.append(
+            f"| {name} | {s['duration_s'] / 60:.0f} min | {pct('reverse')} | {pct('neutral')} | "
+            f"{pct('crawler CL-CH')} | {pct('low range 1L-3H')} | {pct('4L-5L')} | {pct('5H-6L')} | "
+            f"{pct('6H direct')} | {s['mean_torque_nm']:.0f} Nm | {s['max_torque_nm']:.0f} Nm | "
+            f"{s['min_torque_nm']:.0f} Nm | {100 * s.get('retarder_share', 0):.1f} % | {s['shifts']} |"
+        )
     return "\n".join(rows)
 
 

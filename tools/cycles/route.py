@@ -1,4 +1,5 @@
 """Synthetic roads of the road cycles: segments (grade, speed limit, stops) and the route the driver follows."""
+
 from __future__ import annotations
 
 import math
@@ -13,24 +14,27 @@ from tools.cycles.vehicle import KMH_PER_M_S
 @dataclass(frozen=True)
 class Segment:
     """A stretch of synthetic road. Grade is rise/run (+ uphill). A stop, if any, is at the end of the segment."""
+
     length_m: float
     grade: float = 0.0
     limit_kmh: float = 80.0
-    hills: float = 0.0               # amplitude of superposed small hills (grade, rise/run)
-    stop_s: float = 0.0              # dwell at the end (engine idling in neutral)
-    reverse_m: float = 0.0           # reversing manoeuvre (RL) before the dwell, e.g. to the loader or tipping point
-    mass_after_kg: float | None = None   # loading / unloading during the dwell
-    start_gear: int | None = None    # gear to pull away in after the stop
+    hills: float = 0.0  # amplitude of superposed small hills (grade, rise/run)
+    stop_s: float = 0.0  # dwell at the end (engine idling in neutral)
+    reverse_m: float = 0.0  # reversing manoeuvre (RL) before the dwell, e.g. to the loader or tipping point
+    mass_after_kg: float | None = None  # loading / unloading during the dwell
+    start_gear: int | None = None  # gear to pull away in after the stop
 
 
 class RoadPoint(NamedTuple):
     """The road at one place: grade (rise/run) and the speed the driver allows there."""
+
     grade: float
     v_allow_m_s: float
 
 
 class Stop(NamedTuple):
     """A stop on the route: where (the end of its segment) and the segment that defines it."""
+
     x_m: float
     segment: Segment
 

@@ -3,6 +3,7 @@
 All values are assumed (not from the seed); the list is in the docstring of :mod:`tools.cycles.named`. The gearbox
 ratios are the real ones of the parameter set (its kinematics).
 """
+
 from __future__ import annotations
 
 import bisect
@@ -21,9 +22,15 @@ G_M_S2 = 9.81
 KMH_PER_M_S = 3.6
 
 #: tooth numbers used when no parameter loader is available (GRS905, as in the parameter file)
-FALLBACK_TEETH = Teeth(idle={"LI": 28, "3M": 31, "2M": 35, "1M": 38, "CM": 42, "RM": 42},
-                       layshaft={"LL": 38, "3L": 34, "2L": 24, "1L": 17, "CL": 13, "RL": 14},
-                       z_RI=23, z_sun=32, z_planet=28, z_ring=88, n_planets=5)
+FALLBACK_TEETH = Teeth(
+    idle={"LI": 28, "3M": 31, "2M": 35, "1M": 38, "CM": 42, "RM": 42},
+    layshaft={"LL": 38, "3L": 34, "2L": 24, "1L": 17, "CL": 13, "RL": 14},
+    z_RI=23,
+    z_sun=32,
+    z_planet=28,
+    z_ring=88,
+    n_planets=5,
+)
 
 
 @lru_cache(maxsize=1)
@@ -31,6 +38,7 @@ def gearbox_kinematics() -> KinematicTable:
     """The GRS905 kinematics: from `firmware_model.parameters` when it exists, else the seed's tooth numbers."""
     if importlib.util.find_spec("firmware_model.parameters") is not None:
         from firmware_model.parameters import load_parameters
+
         return load_parameters("GRS905").kinematics
     return build_table(FALLBACK_TEETH)
 
@@ -44,17 +52,18 @@ def total_ratios() -> dict[int, float]:
 @dataclass(frozen=True)
 class Vehicle:
     """Longitudinal model of the truck (all values assumed, see the docstring of tools.cycles.named)."""
+
     mass_kg: float = 40000.0
-    crr: float = 0.0055                        # rolling resistance coefficient [-]
+    crr: float = 0.0055  # rolling resistance coefficient [-]
     cda_m2: float = 5.5
     rho_air_kg_m3: float = 1.2
     wheel_radius_m: float = 0.5
     final_drive: float = 3.07
     driveline_eff: float = 0.95
-    engine_inertia_kg_m2: float = 3.5          # engine, flywheel, clutch
-    rotating_mass_factor: float = 0.03         # wheels, axles, propeller shaft as a fraction of the mass
-    retarder_max_nm: float = 3500.0            # on the output shaft
-    retarder_full_rpm: float = 800.0           # output-shaft speed from which the full retarder torque is available
+    engine_inertia_kg_m2: float = 3.5  # engine, flywheel, clutch
+    rotating_mass_factor: float = 0.03  # wheels, axles, propeller shaft as a fraction of the mass
+    retarder_max_nm: float = 3500.0  # on the output shaft
+    retarder_full_rpm: float = 800.0  # output-shaft speed from which the full retarder torque is available
 
 
 # ----------------------------------------------------------------------------------------------------------------
@@ -88,14 +97,16 @@ def engine_min_torque_nm(rpm: float) -> float:
 # ----------------------------------------------------------------------------------------------------------------
 # driveline: engine torque <-> wheel force, engine speed <-> vehicle speed, driving resistance
 
+
 @dataclass(frozen=True)
 class Drivetrain:
     """The force and speed relations of `vehicle` through the gearbox's total ratios (gear -> ratio)."""
+
     vehicle: Vehicle
     ratio: dict
 
     @classmethod
-    def of(cls, vehicle: Vehicle) -> "Drivetrain":
+    def of(cls, vehicle: Vehicle) -> Drivetrain:
         return cls(vehicle, total_ratios())
 
     def sync_rpm(self, gear: int, v_m_s: float) -> float:
@@ -156,5 +167,6 @@ def vehicle_speed_kmh(gear, rpm, vehicle: Vehicle = Vehicle()):
     ratio = total_ratios()
     rt = np.array([ratio[int(g)] for g in gear])
     # rpm / RPM_PER_RAD_S (not * RAD_S_PER_RPM): the same bits as the cycles always had
-    return np.where(np.isfinite(rt), rpm / RPM_PER_RAD_S / (rt * vehicle.final_drive) * vehicle.wheel_radius_m
-                    * KMH_PER_M_S, 0.0)
+    return np.where(
+        np.isfinite(rt), rpm / RPM_PER_RAD_S / (rt * vehicle.final_drive) * vehicle.wheel_radius_m * KMH_PER_M_S, 0.0
+    )

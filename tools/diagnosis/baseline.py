@@ -6,6 +6,7 @@ and the candidates' grid (bounds, at the coarse step where the backend has one, 
 the noise per channel, the nuisance sensor lags, the model error floor, the weights, and the baseline's
 predictions with the initial-temperature nuisance solved per file.
 """
+
 from __future__ import annotations
 
 import math
@@ -23,31 +24,33 @@ from tools.diagnosis.scoring import RoleData, Scorer, file_groups, observations,
 
 class GridPlan(NamedTuple):
     """The candidates' grid re-simulations: the runs and, per run, (effect, value) (None: the coarse baseline)."""
+
     runs: list
     keys: list
 
 
 class HeatPair(NamedTuple):
     """Baseline and 2 K warmer start of the same files (for the oil's effective conductance to the outside)."""
+
     base: list
     warmer: list
 
 
 @dataclass(frozen=True)
 class Baseline:
-    base_tr: list            # model outputs per training file
-    base_te: list            # model outputs per test file
+    base_tr: list  # model outputs per training file
+    base_te: list  # model outputs per test file
     heat_pair: HeatPair
-    grid_outs: list          # outputs of the GridPlan's runs (training files)
-    sigma: dict              # noise per sample, per channel
-    floor: dict              # model error floor, per channel
-    lag0: dict               # nuisance lags refitted on the full misfit of the baseline
+    grid_outs: list  # outputs of the GridPlan's runs (training files)
+    sigma: dict  # noise per sample, per channel
+    floor: dict  # model error floor, per channel
+    lag0: dict  # nuisance lags refitted on the full misfit of the baseline
     scorer: Scorer
-    p0_hp: list              # baseline predictions with the high-pass nuisance lags, no initial-temperature shift
-    p0_tr: list              # baseline predictions as scored (lag0, initial temperature solved), training files
-    p0_te: list              # the same on the test files
-    S0: float                # misfit of the baseline (training files)
-    S_noise: float           # the part of S the noise and the model error floor explain
+    p0_hp: list  # baseline predictions with the high-pass nuisance lags, no initial-temperature shift
+    p0_tr: list  # baseline predictions as scored (lag0, initial temperature solved), training files
+    p0_te: list  # the same on the test files
+    S0: float  # misfit of the baseline (training files)
+    S_noise: float  # the part of S the noise and the model error floor explain
 
     @property
     def train(self) -> RoleData:
@@ -61,12 +64,12 @@ class Baseline:
 class Sims(NamedTuple):
     base_tr: list
     warm_tr: list
-    ref_tr: list | None      # the model's error reference: plant, itself at half the step; onboard, the plant
+    ref_tr: list | None  # the model's error reference: plant, itself at half the step; onboard, the plant
     grid_outs: list
     base_te: list
     warm_te: list
     heat_pair: HeatPair
-    house_tr: list | None = None   # the housings' start moved (files that start running, tools/diagnosis/start.py)
+    house_tr: list | None = None  # the housings' start moved (files that start running, tools/diagnosis/start.py)
     house_te: list | None = None
 
 
@@ -93,8 +96,16 @@ def _simulate(ctx: Context, train: list, test: list, grid: GridPlan) -> Sims:
         pair = HeatPair(pp[0], pp[1])
     else:
         pair = HeatPair([], [])
-    return Sims(out_tr[0], out_tr[1], out_tr[2] if ctx.is_plant else ref_tr, out_tr[len(head):], out_te[0],
-                out_te[1], pair, *house)
+    return Sims(
+        out_tr[0],
+        out_tr[1],
+        out_tr[2] if ctx.is_plant else ref_tr,
+        out_tr[len(head) :],
+        out_te[0],
+        out_te[1],
+        pair,
+        *house,
+    )
 
 
 def model_error_floor(ctx: Context, train: list, sims: Sims, lag: dict, channels) -> dict:
@@ -120,16 +131,23 @@ def model_error_floor(ctx: Context, train: list, sims: Sims, lag: dict, channels
     return floor
 
 
-def _role(datasets: list, base: list, warm: list, lag: dict, sigma: dict, floor: dict, ctx: Context,
-          house: list | None = None) -> RoleData:
+def _role(
+    datasets: list, base: list, warm: list, lag: dict, sigma: dict, floor: dict, ctx: Context, house: list | None = None
+) -> RoleData:
     """The measurements of one role and the sensitivity of every prediction to the initial temperature (and, for
     the files that start running, to the housings' start)."""
     sb, sp = predictions(datasets, base, lag), predictions(datasets, warm, lag)
     sens_h = None
     if house is not None and any(ds.start == "running" for ds in datasets):
         sens_h = [(q - p) / HOUSING_PERTURB_C for p, q in zip(sb, predictions(datasets, house, lag))]
-    return RoleData(datasets, observations(datasets), weights(datasets, sigma, floor, ctx.opts),
-                    [(q - p) / 2.0 for p, q in zip(sb, sp)], file_groups(datasets), sens_h)
+    return RoleData(
+        datasets,
+        observations(datasets),
+        weights(datasets, sigma, floor, ctx.opts),
+        [(q - p) / 2.0 for p, q in zip(sb, sp)],
+        file_groups(datasets),
+        sens_h,
+    )
 
 
 def establish_baseline(ctx: Context, train: list, test: list, grid: GridPlan) -> Baseline:
@@ -140,15 +158,35 @@ def establish_baseline(ctx: Context, train: list, test: list, grid: GridPlan) ->
     sigma = noise_per_channel(train + test, sims.base_tr + sims.base_te)
     lag = fit_nuisance_lags(train, sims.base_tr, ctx.opts)
     floor = model_error_floor(ctx, train, sims, lag, sigma)
-    scorer = Scorer(_role(train, sims.base_tr, sims.warm_tr, lag, sigma, floor, ctx, sims.house_tr),
-                    _role(test, sims.base_te, sims.warm_te, lag, sigma, floor, ctx, sims.house_te), lag, ctx.opts)
+    scorer = Scorer(
+        _role(train, sims.base_tr, sims.warm_tr, lag, sigma, floor, ctx, sims.house_tr),
+        _role(test, sims.base_te, sims.warm_te, lag, sigma, floor, ctx, sims.house_te),
+        lag,
+        ctx.opts,
+    )
     lag0 = scorer.refit_lags(sims.base_tr)
     p0_tr = scorer.adjust(scorer.preds(train, sims.base_tr, lags=lag0), "train")
     p0_te = scorer.adjust(scorer.preds(test, sims.base_te, lags=lag0), "test")
     S0 = scorer.S(p0_tr)
     # noise-expected part of S (for the explained share of the excess)
-    S_noise = float(sum(np.sum(wi * (sigma[cid] ** 2 / ch.cell_n + floor[cid] ** 2))
-                        for wi, (cid, ch) in zip(scorer.train.w,
-                                                 [(c, h) for ds in train for c, h in ds.channels.items()])))
-    return Baseline(sims.base_tr, sims.base_te, sims.heat_pair, sims.grid_outs, sigma, floor, lag0, scorer,
-                    scorer.preds(train, sims.base_tr), p0_tr, p0_te, S0, S_noise)
+    S_noise = float(
+        sum(
+            np.sum(wi * (sigma[cid] ** 2 / ch.cell_n + floor[cid] ** 2))
+            for wi, (cid, ch) in zip(scorer.train.w, [(c, h) for ds in train for c, h in ds.channels.items()])
+        )
+    )
+    return Baseline(
+        sims.base_tr,
+        sims.base_te,
+        sims.heat_pair,
+        sims.grid_outs,
+        sigma,
+        floor,
+        lag0,
+        scorer,
+        scorer.preds(train, sims.base_tr),
+        p0_tr,
+        p0_te,
+        S0,
+        S_noise,
+    )

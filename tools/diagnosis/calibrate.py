@@ -14,6 +14,7 @@ files with the reference plant, after an identifiability analysis, and checks th
    ``N / N_eff`` (the residual's lag-1 autocorrelation: a thermal residual drifts, its samples are not independent).
 4. **Held-out**: the test files simulated with the file's values and with the fitted ones; RMS per channel.
 """
+
 from __future__ import annotations
 
 import math
@@ -27,7 +28,6 @@ import numpy as np
 
 from firmware_model.errors import InputError
 from firmware_model.parameters import Parameters
-
 from tools.diagnosis.measurement import model_at_cells
 from tools.diagnosis.options import HOUSING_PERTURB_C, Options, n_eff_needed
 from tools.diagnosis.prepare import prepare_runs
@@ -56,44 +56,46 @@ def latin_hypercube(k: int, n: int, seed: int = 20261125) -> np.ndarray:
 @dataclass
 class Identifiability:
     key: str
-    signature_c: dict          # channel -> RMS change over half the plausible range [K]
+    signature_c: dict  # channel -> RMS change over half the plausible range [K]
     identifiable: bool
-    reason: str                # why not ('' when identifiable)
-    max_cos: float = 0.0       # largest |cos| with another parameter's sensitivity
-    with_key: str = ""         # ... that parameter
+    reason: str  # why not ('' when identifiable)
+    max_cos: float = 0.0  # largest |cos| with another parameter's sensitivity
+    with_key: str = ""  # ... that parameter
 
 
 @dataclass
 class Calibration:
-    keys: list                 # fitted keys
-    start: dict                # key -> SI value in the file
-    fitted: dict               # key -> fitted SI value
-    sigma: dict                # key -> one standard deviation [SI]
-    at_bound: dict             # key -> bool
-    ident: list                # Identifiability of every requested key
-    train_rms_c: tuple         # (before, after) pooled
-    test_rms_c: tuple          # (before, after) pooled
-    test_by_channel: dict      # channel -> (before, after)
+    keys: list  # fitted keys
+    start: dict  # key -> SI value in the file
+    fitted: dict  # key -> fitted SI value
+    sigma: dict  # key -> one standard deviation [SI]
+    at_bound: dict  # key -> bool
+    ident: list  # Identifiability of every requested key
+    train_rms_c: tuple  # (before, after) pooled
+    test_rms_c: tuple  # (before, after) pooled
+    test_by_channel: dict  # channel -> (before, after)
     n_sims: int
     train: list = field(default_factory=list)
     test: list = field(default_factory=list)
-    plot: dict = field(default_factory=dict)   # held-out residuals for the report's figure
-    starts: tuple = ()                         # start.StartOf per file (rest, or running with --start running)
-    n_eff: float = math.inf                    # effective samples of the training residual after the fit
-    n_eff_needed: int = 0                      # ... needed to decide the fitted values (options.n_eff_needed)
-    n_cells: int = 0                           # cells of the training residual
-    train_s: float = 0.0                       # training time scored [s]
+    plot: dict = field(default_factory=dict)  # held-out residuals for the report's figure
+    starts: tuple = ()  # start.StartOf per file (rest, or running with --start running)
+    n_eff: float = math.inf  # effective samples of the training residual after the fit
+    n_eff_needed: int = 0  # ... needed to decide the fitted values (options.n_eff_needed)
+    n_cells: int = 0  # cells of the training residual
+    train_s: float = 0.0  # training time scored [s]
 
     def thin_evidence(self) -> str:
         """One sentence when the fitted values rest on too few effective samples ('' otherwise), with the advice."""
         if not self.n_eff < self.n_eff_needed:
             return ""
         (b, a), more = self.test_rms_c, self.n_eff_needed / max(self.n_eff, 1e-9)
-        return (f"thin evidence: the training residual after the fit holds n_eff = {self.n_eff:.0f} effective samples "
-                f"of {self.n_cells} cells and fitting {len(self.keys)} value{'s' if len(self.keys) > 1 else ''} needs "
-                f"at least {self.n_eff_needed}; the fit cuts the held-out RMS {b:.2f} -> {a:.2f} K but rests on too "
-                f"little to trust: add more training files, or longer ones (at this autocorrelation about {more:.0f} "
-                f"times the {self.train_s / 3600.0:.1f} h scored), and calibrate again")
+        return (
+            f"thin evidence: the training residual after the fit holds n_eff = {self.n_eff:.0f} effective samples "
+            f"of {self.n_cells} cells and fitting {len(self.keys)} value{'s' if len(self.keys) > 1 else ''} needs "
+            f"at least {self.n_eff_needed}; the fit cuts the held-out RMS {b:.2f} -> {a:.2f} K but rests on too "
+            f"little to trust: add more training files, or longer ones (at this autocorrelation about {more:.0f} "
+            f"times the {self.train_s / 3600.0:.1f} h scored), and calibrate again"
+        )
 
 
 # ----------------------------------------------------------------------------------------------------------------
@@ -113,11 +115,16 @@ def _init(params, cooler, dt_s):
 def _job(job):
     from firmware_model.components import HOUSINGS
     from tools.plant.reference import ReferencePlant
+
     overrides, table, columns, housing_offset_c = job
     params = _W["params"].with_overrides(overrides) if overrides else _W["params"]
     res = ReferencePlant(params, {}, cooler=_W["cooler"], dt_s=_W["dt_s"]).run(
-        table, initial_temp_c=table.meta.get("initial_temp_c"), out_dt_s=1.0, progress=False,
-        initial_offsets_c={h: housing_offset_c for h in HOUSINGS} if housing_offset_c else None)
+        table,
+        initial_temp_c=table.meta.get("initial_temp_c"),
+        out_dt_s=1.0,
+        progress=False,
+        initial_offsets_c={h: housing_offset_c for h in HOUSINGS} if housing_offset_c else None,
+    )
     return {c: res.table[c] for c in ("time_s",) + tuple(columns)}
 
 
@@ -145,7 +152,7 @@ class PlantRuns:
             _init(self.params, self.cooler, self.dt_s)
             outs = [_job(j) for j in jobs]
         n = len(datasets)
-        return [outs[i * n:(i + 1) * n] for i in range(len(overrides))]
+        return [outs[i * n : (i + 1) * n] for i in range(len(overrides))]
 
     def close(self):
         if self._pool is not None:
@@ -156,11 +163,13 @@ class PlantRuns:
 # ----------------------------------------------------------------------------------------------------------------
 # residuals
 
+
 def residual_parts(datasets: list, outs: list, sens_h: list | None = None, opts: Options | None = None) -> list:
     """Measured - model on every (file, channel)'s cells; a file that starts running (tools/diagnosis/start.py) with
     its housings' start as a nuisance: `sens_h`, per file the sensitivity of each channel to it (None: at rest),
     the offset fitted per file (each channel's cells weighted alike, as the fit weighs them)."""
     from tools.diagnosis.scoring import box_lsq
+
     opts = opts or Options()
     out = []
     for f, (ds, o) in enumerate(zip(datasets, outs)):
@@ -168,8 +177,13 @@ def residual_parts(datasets: list, outs: list, sens_h: list | None = None, opts:
         sh = sens_h[f] if sens_h is not None else None
         if sh is not None and rs:
             w = np.concatenate([np.full(r.size, 1.0 / max(r.size, 1)) for r in rs])
-            (beta,), _ = box_lsq(np.concatenate(rs), w, np.concatenate(sh)[:, None],
-                                 np.array([opts.housing_offset_lo_c]), np.array([opts.housing_offset_hi_c]))
+            (beta,), _ = box_lsq(
+                np.concatenate(rs),
+                w,
+                np.concatenate(sh)[:, None],
+                np.array([opts.housing_offset_lo_c]),
+                np.array([opts.housing_offset_hi_c]),
+            )
             rs = [r - beta * s for r, s in zip(rs, sh)]
         out.append(rs)
     return out
@@ -180,9 +194,12 @@ def housing_sensitivity(runs, datasets: list, base: list, overrides: dict | None
     if not any(ds.start == "running" for ds in datasets):
         return [None] * len(datasets)
     house = runs.run(datasets, [overrides or {}], housing_offset_c=HOUSING_PERTURB_C)[0]
-    return [[(model_at_cells(h, ch, 0.0) - model_at_cells(b, ch, 0.0)) / HOUSING_PERTURB_C
-             for ch in ds.channels.values()]
-            if ds.start == "running" else None for ds, b, h in zip(datasets, base, house)]
+    return [
+        [(model_at_cells(h, ch, 0.0) - model_at_cells(b, ch, 0.0)) / HOUSING_PERTURB_C for ch in ds.channels.values()]
+        if ds.start == "running"
+        else None
+        for ds, b, h in zip(datasets, base, house)
+    ]
 
 
 def residual_vector(datasets: list, outs: list, sens_h: list | None = None) -> np.ndarray:
@@ -210,6 +227,7 @@ def pooled_rms(datasets: list, outs: list, sens_h: list | None = None) -> float:
 # ----------------------------------------------------------------------------------------------------------------
 # requested keys and identifiability
 
+
 def check_keys(params: Parameters, keys: list) -> list:
     """The requested keys, or an InputError (one sentence) for an unknown key or one without bounds."""
     if not keys:
@@ -217,11 +235,15 @@ def check_keys(params: Parameters, keys: list) -> list:
     with_bounds = sorted(params.bounds)
     for k in keys:
         if k not in params.values:
-            raise InputError(f"--params: {k!r} is not a parameter of {params.variant} (parameters with plausible "
-                             f"bounds, which calibrate can fit: {', '.join(with_bounds) or 'none'})")
+            raise InputError(
+                f"--params: {k!r} is not a parameter of {params.variant} (parameters with plausible "
+                f"bounds, which calibrate can fit: {', '.join(with_bounds) or 'none'})"
+            )
         if k not in params.bounds:
-            raise InputError(f"--params: {k} declares no plausible bounds (lo, hi) in {params.origin}; only keys "
-                             f"with bounds can be calibrated: {', '.join(with_bounds) or 'none'}")
+            raise InputError(
+                f"--params: {k} declares no plausible bounds (lo, hi) in {params.origin}; only keys "
+                f"with bounds can be calibrated: {', '.join(with_bounds) or 'none'}"
+            )
     if len(set(keys)) != len(keys):
         raise InputError("--params names a parameter twice")
     return list(keys)
@@ -231,8 +253,9 @@ def _columns(datasets: list) -> list:
     return [(i, cid) for i, ds in enumerate(datasets) for cid in ds.channels]
 
 
-def sensitivities(runs: PlantRuns, params: Parameters, datasets: list, keys: list, base: list,
-                  sens_h: list | None = None) -> tuple:
+def sensitivities(
+    runs: PlantRuns, params: Parameters, datasets: list, keys: list, base: list, sens_h: list | None = None
+) -> tuple:
     """(J, per key its per-channel signature over half its plausible range): J[:, j] = d residual / d (x_j), x scaled
     to 0..1 over the bounds (with the housings' start of running files as a nuisance, `sens_h`)."""
     steps = []
@@ -257,8 +280,9 @@ def sensitivities(runs: PlantRuns, params: Parameters, datasets: list, keys: lis
     return J, sig
 
 
-def identifiability(keys: list, J: np.ndarray, sig: dict, ident_min_c: float = IDENT_MIN_C,
-                    collinear_cos: float = COLLINEAR_COS) -> list:
+def identifiability(
+    keys: list, J: np.ndarray, sig: dict, ident_min_c: float = IDENT_MIN_C, collinear_cos: float = COLLINEAR_COS
+) -> list:
     """Which keys the measured channels can fit: a signature above ident_min_c on some channel, and a sensitivity not
     parallel to a stronger key's."""
     norms = np.linalg.norm(J, axis=0)
@@ -273,12 +297,29 @@ def identifiability(keys: list, J: np.ndarray, sig: dict, ident_min_c: float = I
                     best_cos, with_k = c, o
         if strength[k] < ident_min_c:
             ch, v = max(sig[k].items(), key=lambda kv: kv[1])
-            out.append(Identifiability(k, sig[k], False, f"over half its plausible range it moves no measured channel "
-                                       f"by more than {v:.2f} K ({ch}), below {ident_min_c:g} K", best_cos, with_k))
+            out.append(
+                Identifiability(
+                    k,
+                    sig[k],
+                    False,
+                    f"over half its plausible range it moves no measured channel "
+                    f"by more than {v:.2f} K ({ch}), below {ident_min_c:g} K",
+                    best_cos,
+                    with_k,
+                )
+            )
         elif best_cos >= collinear_cos and strength[with_k] >= strength[k]:
-            out.append(Identifiability(k, sig[k], False, f"its effect on the measured channels is parallel to that of "
-                                       f"{with_k} (|cos| = {best_cos:.3f}): the data cannot separate them",
-                                       best_cos, with_k))
+            out.append(
+                Identifiability(
+                    k,
+                    sig[k],
+                    False,
+                    f"its effect on the measured channels is parallel to that of "
+                    f"{with_k} (|cos| = {best_cos:.3f}): the data cannot separate them",
+                    best_cos,
+                    with_k,
+                )
+            )
         else:
             out.append(Identifiability(k, sig[k], True, "", best_cos, with_k))
     return out
@@ -286,6 +327,7 @@ def identifiability(keys: list, J: np.ndarray, sig: dict, ident_min_c: float = I
 
 # ----------------------------------------------------------------------------------------------------------------
 # the fit
+
 
 def _effective_n(r: np.ndarray) -> float:
     x = r - r.mean()
@@ -295,11 +337,13 @@ def _effective_n(r: np.ndarray) -> float:
     return max(x.size * (1 - rho) / (1 + rho), 2.0)
 
 
-def fit(runs: PlantRuns, params: Parameters, datasets: list, keys: list, progress=None,
-        sens_h: list | None = None) -> tuple:
+def fit(
+    runs: PlantRuns, params: Parameters, datasets: list, keys: list, progress=None, sens_h: list | None = None
+) -> tuple:
     """(fitted SI values, one-sigma SI, at-bound flags): bounded least squares over the keys scaled to 0..1 (the
     housings' start of a running file a nuisance, fitted per file: `sens_h`, residual_parts)."""
     from scipy.optimize import least_squares
+
     lo = np.array([params.bounds[k][0] for k in keys])
     hi = np.array([params.bounds[k][1] for k in keys])
     x0 = (np.array([params[k] for k in keys]) - lo) / (hi - lo)
@@ -318,8 +362,16 @@ def fit(runs: PlantRuns, params: Parameters, datasets: list, keys: list, progres
     costs = [float(np.sum(residual_vector(datasets, o, sens_h) ** 2)) for o in outs]
     best = None
     for i in np.argsort(costs)[:LOCAL_SEARCHES]:
-        r_ = least_squares(fun, starts[i], bounds=(0.0, 1.0), x_scale=1.0, diff_step=0.02, xtol=1e-3, ftol=1e-4,
-                           max_nfev=10 * (len(keys) + 1))
+        r_ = least_squares(
+            fun,
+            starts[i],
+            bounds=(0.0, 1.0),
+            x_scale=1.0,
+            diff_step=0.02,
+            xtol=1e-3,
+            ftol=1e-4,
+            max_nfev=10 * (len(keys) + 1),
+        )
         if best is None or r_.cost < best.cost:
             best = r_
     res = best
@@ -342,9 +394,20 @@ def fit(runs: PlantRuns, params: Parameters, datasets: list, keys: list, progres
 CAL_DT_S = 2.0
 
 
-def calibrate(train_tables, test_tables, params: Parameters, keys: list | None, auto: bool = False,
-              cooler: str | None = None, opts: Options | None = None, progress=None, train_names=None,
-              test_names=None, config_path=None, dt_s: float = CAL_DT_S) -> Calibration:
+def calibrate(
+    train_tables,
+    test_tables,
+    params: Parameters,
+    keys: list | None,
+    auto: bool = False,
+    cooler: str | None = None,
+    opts: Options | None = None,
+    progress=None,
+    train_names=None,
+    test_names=None,
+    config_path=None,
+    dt_s: float = CAL_DT_S,
+) -> Calibration:
     """Calibrate `keys` (or, with `auto`, every key with bounds that the data can identify) to the training files,
     with the plant at `dt_s`."""
     opts = opts or Options()
@@ -352,10 +415,12 @@ def calibrate(train_tables, test_tables, params: Parameters, keys: list | None, 
     wanted = sorted(params.bounds) if auto else check_keys(params, list(keys or []))
     if auto and not wanted:
         raise InputError(f"{params.origin} declares no parameter with plausible bounds (lo, hi): nothing to calibrate")
-    runs_ = prepare_runs(train_tables, test_tables, opts, cooler in ("measured", "hold"), train_names, test_names,
-                         config_path, params)
+    runs_ = prepare_runs(
+        train_tables, test_tables, opts, cooler in ("measured", "hold"), train_names, test_names, config_path, params
+    )
     from tools.diagnosis.start import decide_starts
-    starts = decide_starts(opts, runs_.train, runs_.test)      # rest, or every file running (--start running)
+
+    starts = decide_starts(opts, runs_.train, runs_.test)  # rest, or every file running (--start running)
     train, test = starts.train, starts.test
     tick = progress or (lambda: None)
     runs = PlantRuns(params, cooler, dt_s, opts.workers)
@@ -370,24 +435,44 @@ def calibrate(train_tables, test_tables, params: Parameters, keys: list | None, 
             raise InputError(f"--params: {x.key} cannot be calibrated from these files: {x.reason}")
         keys_ok = [x.key for x in ident if x.identifiable]
         if not keys_ok:
-            raise InputError("none of the parameters with plausible bounds can be identified from these files: "
-                             + "; ".join(f"{x.key}: {x.reason}" for x in ident))
+            raise InputError(
+                "none of the parameters with plausible bounds can be identified from these files: "
+                + "; ".join(f"{x.key}: {x.reason}" for x in ident)
+            )
         fitted, sd, at_bound = fit(runs, params, train, keys_ok, tick, sh_tr)
         after_tr, base_te, after_te = runs.run(train, [fitted])[0], *runs.run(test, [{}, fitted])
         sh_te = housing_sensitivity(runs, test, base_te)
         before_c, after_c = channel_rms(test, base_te, sh_te), channel_rms(test, after_te, sh_te)
         rb, ra = residual_parts(test, base_te, sh_te), residual_parts(test, after_te, sh_te)
-        plot = {"test": [(ds.name, cid, ch.cell_t_s, b, a) for ds, bs, as_ in zip(test, rb, ra)
-                         for (cid, ch), b, a in zip(ds.channels.items(), bs, as_)]}
+        plot = {
+            "test": [
+                (ds.name, cid, ch.cell_t_s, b, a)
+                for ds, bs, as_ in zip(test, rb, ra)
+                for (cid, ch), b, a in zip(ds.channels.items(), bs, as_)
+            ]
+        }
         r_tr = residual_vector(train, after_tr, sh_tr)
-        train_s = sum(ds.t_end_s - (ds.scored_from_s if ds.scored_from_s is not None else ds.t_start_s)
-                      for ds in train)
-        return Calibration(keys_ok, {k: params[k] for k in keys_ok}, fitted, sd, at_bound, ident,
-                           (pooled_rms(train, base_tr, sh_tr), pooled_rms(train, after_tr, sh_tr)),
-                           (pooled_rms(test, base_te, sh_te), pooled_rms(test, after_te, sh_te)),
-                           {c: (before_c[c], after_c[c]) for c in before_c}, runs.n_sims,
-                           [ds.name for ds in train], [ds.name for ds in test], plot, starts.records,
-                           _effective_n(r_tr), n_eff_needed(opts, len(keys_ok)), int(r_tr.size), train_s)
+        train_s = sum(ds.t_end_s - (ds.scored_from_s if ds.scored_from_s is not None else ds.t_start_s) for ds in train)
+        return Calibration(
+            keys_ok,
+            {k: params[k] for k in keys_ok},
+            fitted,
+            sd,
+            at_bound,
+            ident,
+            (pooled_rms(train, base_tr, sh_tr), pooled_rms(train, after_tr, sh_tr)),
+            (pooled_rms(test, base_te, sh_te), pooled_rms(test, after_te, sh_te)),
+            {c: (before_c[c], after_c[c]) for c in before_c},
+            runs.n_sims,
+            [ds.name for ds in train],
+            [ds.name for ds in test],
+            plot,
+            starts.records,
+            _effective_n(r_tr),
+            n_eff_needed(opts, len(keys_ok)),
+            int(r_tr.size),
+            train_s,
+        )
     finally:
         runs.close()
 
@@ -395,10 +480,13 @@ def calibrate(train_tables, test_tables, params: Parameters, keys: list | None, 
 # ----------------------------------------------------------------------------------------------------------------
 # output: the calibrated parameter file and the report
 
+
 def _toml_key(key: str) -> str:
     import re
-    return ".".join(p if re.fullmatch(r"[A-Za-z0-9_-]+", p) else '"' + p.replace('"', '\\"') + '"'
-                    for p in key.split("."))
+
+    return ".".join(
+        p if re.fullmatch(r"[A-Za-z0-9_-]+", p) else '"' + p.replace('"', '\\"') + '"' for p in key.split(".")
+    )
 
 
 def _toml_value(v) -> str:
@@ -415,10 +503,13 @@ def calibrated_toml(base_file, params: Parameters, cal: Calibration, stamp: str)
     """The parameter file with the fitted values: every entry of `base_file` (inheritance resolved), the fitted ones
     with provenance ``fitted`` and a note of the data they came from, their one-sigma and the value they replace."""
     from firmware_model.parameters import UNITS, read_entries
+
     entries = read_entries(base_file)
-    lines = [f"# {params.variant} calibrated by gearbox-vsensor calibrate ({stamp}) to {', '.join(cal.train)};",
-             f"# held-out {', '.join(cal.test)}: RMS {cal.test_rms_c[0]:.3f} -> {cal.test_rms_c[1]:.3f} degC.",
-             "# Fitted entries have src = \"fitted\"; every other entry is as in " + str(params.origin) + "."]
+    lines = [
+        f"# {params.variant} calibrated by gearbox-vsensor calibrate ({stamp}) to {', '.join(cal.train)};",
+        f"# held-out {', '.join(cal.test)}: RMS {cal.test_rms_c[0]:.3f} -> {cal.test_rms_c[1]:.3f} degC.",
+        '# Fitted entries have src = "fitted"; every other entry is as in ' + str(params.origin) + ".",
+    ]
     if cal.thin_evidence():
         lines.append("# " + cal.thin_evidence() + ".")
     lines.append("")
@@ -429,9 +520,11 @@ def calibrated_toml(base_file, params: Parameters, cal: Calibration, stamp: str)
             e = dict(e)
             e["v"] = float(f"{cal.fitted[key] / fac:.6g}")
             e["src"] = "fitted"
-            e["note"] = (f"calibrated to {', '.join(cal.train)}: {e['v']:.6g} +- {cal.sigma[key] / fac:.2g} "
-                         f"{e['u']} (1 sigma, statistical); was {was} ({entries[key].get('src')})"
-                         + ("; at a bound of its plausible range" if cal.at_bound[key] else ""))
+            e["note"] = (
+                f"calibrated to {', '.join(cal.train)}: {e['v']:.6g} +- {cal.sigma[key] / fac:.2g} "
+                f"{e['u']} (1 sigma, statistical); was {was} ({entries[key].get('src')})"
+                + ("; at a bound of its plausible range" if cal.at_bound[key] else "")
+            )
             e.pop("ref", None)
         lines.append(f"{_toml_key(key)} = {_toml_value(e)}")
     return "\n".join(lines) + "\n"
@@ -444,36 +537,63 @@ def _first_up(text: str) -> str:
 def report_markdown(cal: Calibration, params: Parameters, figure: str | None) -> str:
     """The calibration report: identifiability, fitted values, training and held-out RMS."""
     chans = sorted({c for x in cal.ident for c in x.signature_c})
-    out = ["# Calibration report", "",
-           f"Parameter file {params.origin}; training files {', '.join(cal.train)}; held-out {', '.join(cal.test)}; "
-           f"{cal.n_sims} plant simulations.", ""]
+    out = [
+        "# Calibration report",
+        "",
+        f"Parameter file {params.origin}; training files {', '.join(cal.train)}; held-out {', '.join(cal.test)}; "
+        f"{cal.n_sims} plant simulations.",
+        "",
+    ]
     running = [st.name for st in cal.starts if st.start == "running"]
     if running:
-        out += [f"Runs that start running (scored after their first minutes, each with its housings' start fitted): "
-                f"{', '.join(running)}.", ""]
-    out += ["## Identifiability", "",
-            "Signature: the RMS change of each measured channel when the parameter moves over half its plausible "
-            f"range [K]; identifiable when some channel moves by at least {IDENT_MIN_C:g} K and its sensitivity is "
-            f"not parallel (|cos| >= {COLLINEAR_COS:g}) to a stronger parameter's.", "",
-            "| parameter | " + " | ".join(chans) + " | max abs(cos), with | fitted |",
-            "|---|" + "---|" * len(chans) + "---|---|"]
+        out += [
+            f"Runs that start running (scored after their first minutes, each with its housings' start fitted): "
+            f"{', '.join(running)}.",
+            "",
+        ]
+    out += [
+        "## Identifiability",
+        "",
+        "Signature: the RMS change of each measured channel when the parameter moves over half its plausible "
+        f"range [K]; identifiable when some channel moves by at least {IDENT_MIN_C:g} K and its sensitivity is "
+        f"not parallel (|cos| >= {COLLINEAR_COS:g}) to a stronger parameter's.",
+        "",
+        "| parameter | " + " | ".join(chans) + " | max abs(cos), with | fitted |",
+        "|---|" + "---|" * len(chans) + "---|---|",
+    ]
     for x in cal.ident:
         sig = " | ".join(f"{x.signature_c.get(c, float('nan')):.2f}" for c in chans)
-        out.append(f"| `{x.key}` | {sig} | {x.max_cos:.3f} {x.with_key} | "
-                   f"{'yes' if x.identifiable else 'no: ' + x.reason} |")
-    out += ["", "## Fitted values", "", "| parameter | file value | fitted | 1 sigma (statistical) | SI unit |",
-            "|---|---|---|---|---|"]
+        out.append(
+            f"| `{x.key}` | {sig} | {x.max_cos:.3f} {x.with_key} | {'yes' if x.identifiable else 'no: ' + x.reason} |"
+        )
+    out += [
+        "",
+        "## Fitted values",
+        "",
+        "| parameter | file value | fitted | 1 sigma (statistical) | SI unit |",
+        "|---|---|---|---|---|",
+    ]
     for k in cal.keys:
         unit = params.units.get(k, "")
-        out.append(f"| `{k}` | {cal.start[k]:.6g} | {cal.fitted[k]:.6g} | {cal.sigma[k]:.2g} | {unit}"
-                   + ("; at a bound" if cal.at_bound[k] else "") + " |")
+        out.append(
+            f"| `{k}` | {cal.start[k]:.6g} | {cal.fitted[k]:.6g} | {cal.sigma[k]:.2g} | {unit}"
+            + ("; at a bound" if cal.at_bound[k] else "")
+            + " |"
+        )
     if cal.thin_evidence():
-        out += ["", f"**Thin evidence.** {_first_up(cal.thin_evidence()[len('thin evidence: '):])}."]
-    out += ["", "The one-sigma figures are statistical (the residual's autocorrelation accounted for); they do not "
-            "include the model's own form error, which is usually larger: judge the fit by the held-out files.", "",
-            "## Residual RMS [degC]", "", "| | before (file values) | after (fitted) |", "|---|---|---|",
-            f"| training files, pooled | {cal.train_rms_c[0]:.3f} | {cal.train_rms_c[1]:.3f} |",
-            f"| held-out files, pooled | {cal.test_rms_c[0]:.3f} | {cal.test_rms_c[1]:.3f} |"]
+        out += ["", f"**Thin evidence.** {_first_up(cal.thin_evidence()[len('thin evidence: ') :])}."]
+    out += [
+        "",
+        "The one-sigma figures are statistical (the residual's autocorrelation accounted for); they do not "
+        "include the model's own form error, which is usually larger: judge the fit by the held-out files.",
+        "",
+        "## Residual RMS [degC]",
+        "",
+        "| | before (file values) | after (fitted) |",
+        "|---|---|---|",
+        f"| training files, pooled | {cal.train_rms_c[0]:.3f} | {cal.train_rms_c[1]:.3f} |",
+        f"| held-out files, pooled | {cal.test_rms_c[0]:.3f} | {cal.test_rms_c[1]:.3f} |",
+    ]
     for c, (b, a) in sorted(cal.test_by_channel.items()):
         out.append(f"| held-out, {c} | {b:.3f} | {a:.3f} |")
     if figure:
@@ -485,6 +605,7 @@ def plot_held_out(cal: Calibration, path) -> bool:
     """The held-out residual per channel before and after (PNG); False when matplotlib is missing."""
     try:
         import matplotlib
+
         matplotlib.use("Agg")
         import matplotlib.pyplot as plt
     except ImportError:
@@ -496,8 +617,11 @@ def plot_held_out(cal: Calibration, path) -> bool:
         ax.plot(t / 60.0, after, color="tab:blue", lw=1.0, label="calibrated")
         ax.axhline(0.0, color="k", lw=0.5)
         ax.set_ylabel(f"{cid}\nmeasured - model [K]")
-        ax.set_title(f"{name}: RMS {np.sqrt(np.mean(before ** 2)):.2f} -> {np.sqrt(np.mean(after ** 2)):.2f} K",
-                     fontsize=9, loc="left")
+        ax.set_title(
+            f"{name}: RMS {np.sqrt(np.mean(before**2)):.2f} -> {np.sqrt(np.mean(after**2)):.2f} K",
+            fontsize=9,
+            loc="left",
+        )
         ax.grid(alpha=0.3)
     axes[0, 0].legend(loc="upper right", fontsize=8)
     axes[-1, 0].set_xlabel("time [min]")

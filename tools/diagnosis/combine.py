@@ -15,6 +15,7 @@ Each member's share of the explained residual: for a pair, the average of its tw
 depend on which was found first); for three, in the order found. The joint set is re-simulated on the test files:
 its held-out shrink is the verdict's.
 """
+
 from __future__ import annotations
 
 import math
@@ -23,7 +24,6 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from firmware_model.effects import CATALOG, fraction_of_range
-
 from tools.diagnosis.baseline import Baseline
 from tools.diagnosis.context import Context
 from tools.diagnosis.decide import pooled_rms
@@ -35,25 +35,27 @@ from tools.diagnosis.options import ANALYTIC, OIL
 @dataclass(frozen=True, eq=False)
 class Step:
     """One effect added to the set: its incremental evidence and the other effects nearly as good at that step."""
+
     effect: str
-    score: float              # incremental -dBIC
-    explained: float          # share of what the set before it left unexplained
-    alternatives: tuple       # effects whose increment came within confusable_share of this one's
+    score: float  # incremental -dBIC
+    explained: float  # share of what the set before it left unexplained
+    alternatives: tuple  # effects whose increment came within confusable_share of this one's
 
 
 @dataclass(frozen=True, eq=False)
 class Combination:
     """Effects fitted together on the training files and re-simulated together on the test files."""
-    members: dict             # effect -> value, leading effect first
-    S: float                  # joint misfit (training files, own nuisance lags, initial temperature solved)
+
+    members: dict  # effect -> value, leading effect first
+    S: float  # joint misfit (training files, own nuisance lags, initial temperature solved)
     preds_train: list
     p_te: list
-    score: float              # -dBIC against the baseline, k = number of members
-    explained: float          # share of the excess squared residual the set explains
-    shares: dict              # effect -> share of the explained part
-    steps: list = field(default_factory=list)   # the forward steps after the leading effect
-    out_train: list | None = None                # the set's training run (model outputs per file)
-    start: tuple = ()                            # the (oil-sensor effect, value) that run started from (Run.start)
+    score: float  # -dBIC against the baseline, k = number of members
+    explained: float  # share of the excess squared residual the set explains
+    shares: dict  # effect -> share of the explained part
+    steps: list = field(default_factory=list)  # the forward steps after the leading effect
+    out_train: list | None = None  # the set's training run (model outputs per file)
+    start: tuple = ()  # the (oil-sensor effect, value) that run started from (Run.start)
 
 
 class SetState:
@@ -66,8 +68,9 @@ class SetState:
         self.S = base.scorer.S_adj(self.raw)
 
 
-def preds_of(base: Baseline, datasets: list, outs: list, members: dict, lags: dict | None = None,
-             start: tuple = ()) -> list:
+def preds_of(
+    base: Baseline, datasets: list, outs: list, members: dict, lags: dict | None = None, start: tuple = ()
+) -> list:
     """Predictions of a set's run (started from `start`): its (at most one) exact sensor effect applied to the model
     outputs."""
     exact = [(e, v) for e, v in members.items() if e in ANALYTIC]
@@ -110,6 +113,7 @@ def _dense(eid: str, n: int = 41) -> np.ndarray:
 def delta_fn(base: Baseline, fit: Fit):
     """v -> per-entry change of the predictions from the effect's single-effect grid (quadratic spline)."""
     from scipy.interpolate import make_interp_spline
+
     xs = np.array(sorted(fit.grid))
     if xs.size < 2:
         return None
@@ -134,7 +138,7 @@ def _surrogate_on_top(ctx: Context, base: Baseline, st: SetState, eid: str, fit:
     fixed = None
     for k in range(1 + SURROGATE_PASSES):
         moved = False
-        for m in (order[:1] if k == 0 else order):
+        for m in order[:1] if k == 0 else order:
             for v in _dense(m):
                 trial = {**members, m: float(v)}
                 S = S_of(trial)
@@ -152,7 +156,7 @@ def surrogate_misfit(base: Baseline, st: SetState, deltas: dict):
     changes of the physical members from their values in `st` (their single-effect grids)."""
     sc, train = base.scorer, base.train.datasets
     exact0 = {e: v for e, v in st.members.items() if e in ANALYTIC}
-    at_st: dict = {}                     # a physical member's change at its value in `st`, computed once
+    at_st: dict = {}  # a physical member's change at its value in `st`, computed once
 
     def S_of(members: dict) -> float:
         exact = {e: v for e, v in members.items() if e in ANALYTIC}
@@ -165,6 +169,7 @@ def surrogate_misfit(base: Baseline, st: SetState, deltas: dict):
                 at_st[m] = deltas[m](v0)
             raw = [a + d - d0 for a, d, d0 in zip(raw, deltas[m](v), at_st[m])]
         return sc.S_adj(raw)
+
     return S_of
 
 
@@ -175,7 +180,7 @@ def eligible(ctx: Context, st: SetState, fits: dict, deltas: dict) -> list:
         if eid in st.members or (eid in ANALYTIC and has_exact):
             continue
         if eid not in ANALYTIC and (deltas.get(eid) is None or ctx.backend_of(eid) != ctx.model.name):
-            continue                      # no grid, or fitted by the fallback plant (cannot be combined)
+            continue  # no grid, or fitted by the fallback plant (cannot be combined)
         out.append(eid)
     return out
 
@@ -258,7 +263,7 @@ def _step(ctx: Context, base: Baseline, crit: Criterion, st: SetState, fits: dic
     moving.sort(key=lambda c: (c[0], c[1]))
     checked = []
     # the best few with the set as it is, and the best with the set moving (when it is another set)
-    sets = [m for _S, _eid, m in cands[:o.combine_check]]
+    sets = [m for _S, _eid, m in cands[: o.combine_check]]
     sets += [m for _S, _eid, m in moving[:1] if m not in sets]
     checked.extend(simulate_sets(ctx, base, sets, st))
     checked.sort(key=lambda s: s.S)
@@ -269,8 +274,11 @@ def _step(ctx: Context, base: Baseline, crit: Criterion, st: SetState, fits: dic
     added = next(e for e in best.members if e not in st.members)
     # its share of all the set now explains, averaged over entering last and entering alone (its single fit)
     share = 0.5 * ((st.S - best.S) + max(base.S0 - fits[added].S, 0.0)) / max(base.S0 - best.S, 1e-12)
-    if (score < o.evidence_min or gain < o.add_explain_min
-            or abs(fraction_of_range(added, best.members[added])) < o.min_frac):
+    if (
+        score < o.evidence_min
+        or gain < o.add_explain_min
+        or abs(fraction_of_range(added, best.members[added])) < o.min_frac
+    ):
         return None
     if share < o.add_share_min and not _closes_clear_gap(ctx, base, st, best, gap_thr_c):
         return None
@@ -319,6 +327,7 @@ def gap_ratio(ctx: Context, base: Baseline, preds: list, gap_thr_c: dict) -> flo
     """The largest ratio, over the channels, of the systematic residual after predictions `preds` to its gap
     threshold (above 1: a real gap remains)."""
     from tools.diagnosis.decide import systematic
+
     post = systematic(base, preds, ctx.opts).rms_c
     return max((post[c] / gap_thr_c[c] for c in post), default=0.0)
 
@@ -342,8 +351,7 @@ def forward_select(ctx: Context, base: Baseline, crit: Criterion, fits: list, ga
     # an offset or gain leader from the sump its reading implies, so that a partner's increment is not the start's
     st = at_start(ctx, base, SetState(base, {top.effect: top.value}, top.out_train))
     chain, steps = [st.S], []
-    while len(st.members) < o.max_effects and gap_left(ctx, base, base.scorer.adjust(st.raw, "train"),
-                                                                gap_thr_c):
+    while len(st.members) < o.max_effects and gap_left(ctx, base, base.scorer.adjust(st.raw, "train"), gap_thr_c):
         nxt = _step(ctx, base, crit, st, by_id, deltas, gap_thr_c)
         if nxt is None:
             break
@@ -355,14 +363,15 @@ def forward_select(ctx: Context, base: Baseline, crit: Criterion, fits: list, ga
     return _finish(ctx, base, crit, by_id, st, chain, steps)
 
 
-def _finish(ctx: Context, base: Baseline, crit: Criterion, fits: dict, st: SetState, chain: list,
-            steps: list) -> Combination:
+def _finish(
+    ctx: Context, base: Baseline, crit: Criterion, fits: dict, st: SetState, chain: list, steps: list
+) -> Combination:
     """The chosen set with its own nuisance lags, scored, and re-simulated on the test files."""
     sc = base.scorer
     exact = next((e for e in st.members if e in ANALYTIC), None)
     lags = sc.refit_lags(st.out, exact)
     pr = sc.adjust(preds_of(base, base.train.datasets, st.out, st.members, lags, start=st.start), "train")
-    if sc.S(pr) > st.S:                 # the refitted lags did not help: keep the scorer's
+    if sc.S(pr) > st.S:  # the refitted lags did not help: keep the scorer's
         lags = dict(sc.lag)
         pr = sc.adjust(st.raw, "train")
     S = sc.S(pr)
@@ -374,8 +383,18 @@ def _finish(ctx: Context, base: Baseline, crit: Criterion, fits: dict, st: SetSt
     t_start = start_of(st.members) if startable(base.test.datasets) else ()
     tout = ctx.sim.run(base.test.datasets, [Run.of(phys, start=t_start)])[0] if phys or t_start else base.base_te
     p_te = sc.adjust(preds_of(base, base.test.datasets, tout, st.members, lags, start=t_start), "test")
-    return Combination(dict(st.members), S, pr, p_te, float(score), float(explained),
-                       _shares(base, fits, st.members, chain), steps, st.out, st.start)
+    return Combination(
+        dict(st.members),
+        S,
+        pr,
+        p_te,
+        float(score),
+        float(explained),
+        _shares(base, fits, st.members, chain),
+        steps,
+        st.out,
+        st.start,
+    )
 
 
 def _acceptable(ctx: Context, base: Baseline, combo: Combination, gap_thr_c: dict) -> bool:
@@ -407,8 +426,7 @@ def _test_rms(base: Baseline, p_te: list) -> float:
     return pooled_rms([y - p for y, p in zip(base.test.obs, p_te)])
 
 
-def select_set(ctx: Context, base: Baseline, crit: Criterion, fits: list, gap_thr_c: dict,
-               confusable: dict) -> tuple:
+def select_set(ctx: Context, base: Baseline, crit: Criterion, fits: list, gap_thr_c: dict, confusable: dict) -> tuple:
     """Forward selection from the best single candidate, and also from each candidate confusable with it (alone the
     data cannot tell them apart, so either may be the set's first member: a sensor offset and hot surroundings both
     lift the oil, but only one of them leaves room for a load-dependent second effect). A set grown from another
@@ -424,7 +442,7 @@ def select_set(ctx: Context, base: Baseline, crit: Criterion, fits: list, gap_th
     best = forward_select(ctx, base, crit, fits, gap_thr_c)
     best_score = best.score if best is not None else _alone_score(ctx, base, crit, top)
     own_test_rms = _test_rms(base, best.p_te if best is not None else top.p_te)
-    alts = [c for c in crit.candidates[1:] if c.fit.effect in confusable.get(top.fit.effect, ())][:o.set_starts - 1]
+    alts = [c for c in crit.candidates[1:] if c.fit.effect in confusable.get(top.fit.effect, ())][: o.set_starts - 1]
     note = ""
     for cand in alts:
         if abs(fraction_of_range(cand.fit.effect, cand.fit.value)) < o.min_frac:
@@ -436,9 +454,11 @@ def select_set(ctx: Context, base: Baseline, crit: Criterion, fits: list, gap_th
             continue
         combo_test_rms = _test_rms(base, combo.p_te)
         if combo_test_rms > own_test_rms * (1.0 + o.set_start_test_tol):
-            note = (f"; a set grown from {cand.fit.effect} ({' + '.join(combo.members)}) scored higher on the "
-                    f"training files ({combo.score:.0f} against {best_score:.0f}) but left the held-out files worse "
-                    f"({combo_test_rms:.3f} against {own_test_rms:.3f} degC RMS): not taken, an overfit")
+            note = (
+                f"; a set grown from {cand.fit.effect} ({' + '.join(combo.members)}) scored higher on the "
+                f"training files ({combo.score:.0f} against {best_score:.0f}) but left the held-out files worse "
+                f"({combo_test_rms:.3f} against {own_test_rms:.3f} degC RMS): not taken, an overfit"
+            )
             continue
         best, best_score, own_test_rms, note = combo, combo.score, combo_test_rms, ""
     return best, note

@@ -1,5 +1,6 @@
 """What every stage of one diagnosis shares: the model under diagnosis and its re-simulations (counted and timed),
 the parameters, the options, the cooler kind and the candidate effects."""
+
 from __future__ import annotations
 
 import time
@@ -32,11 +33,11 @@ class Simulator:
 
 @dataclass(frozen=True)
 class Context:
-    model: object            # the model under diagnosis (tools.diagnosis.models)
-    params: object           # the gearbox parameters
+    model: object  # the model under diagnosis (tools.diagnosis.models)
+    params: object  # the gearbox parameters
     opts: Options
     cooler: str
-    candidates: tuple        # effect ids to fit
+    candidates: tuple  # effect ids to fit
     sim: Simulator
 
     @property

@@ -22,6 +22,7 @@ the stages, each in its own module, pass typed records:
    the measurement that separates them; RMS and max residual before/after on the TEST files only.
 6. **Result** (:mod:`.result`): the JSON; the Markdown report is :mod:`.report`.
 """
+
 from __future__ import annotations
 
 import time
@@ -29,12 +30,19 @@ from dataclasses import replace
 
 from firmware_model.effects import EFFECT_IDS, channel_effect
 from firmware_model.errors import InputError
-
 from tools.diagnosis.baseline import establish_baseline
 from tools.diagnosis.combine import rescue, select_set
 from tools.diagnosis.context import Context, Simulator
-from tools.diagnosis.decide import (confusable_with, decide, held_out_check, residuals, suggestions,
-                                    with_combination, with_not_excluded, with_structure)
+from tools.diagnosis.decide import (
+    confusable_with,
+    decide,
+    held_out_check,
+    residuals,
+    suggestions,
+    with_combination,
+    with_not_excluded,
+    with_structure,
+)
 from tools.diagnosis.exclude import not_excluded
 from tools.diagnosis.fit import fit_all, grid_plan, rank, simulate_test_files
 from tools.diagnosis.heat import unexplained_heat
@@ -59,12 +67,23 @@ class Diagnosis:
     """One diagnosis run of prepared training and test files. `run()` returns the JSON-ready dict; afterwards
     `outcome` holds every stage's records and `plot_data` what the report plots."""
 
-    def __init__(self, train, test, model, params, opts: Options | None = None, cooler: str | None = None,
-                 progress=None, candidates=None):
+    def __init__(
+        self,
+        train,
+        test,
+        model,
+        params,
+        opts: Options | None = None,
+        cooler: str | None = None,
+        progress=None,
+        candidates=None,
+    ):
         self.train, self.test = train, test
         opts = opts or Options()
         cooler = cooler or params.strings.get("cooler.kind", "liquid")
-        self.ctx = Context(model, params, opts, cooler, tuple(candidates or default_candidates(train)), Simulator(model))
+        self.ctx = Context(
+            model, params, opts, cooler, tuple(candidates or default_candidates(train)), Simulator(model)
+        )
         self.progress = progress or (lambda msg: None)
         self.outcome: Outcome | None = None
         self.plot_data: PlotData | None = None
@@ -84,7 +103,7 @@ class Diagnosis:
         if ctx.opts.start == "auto":
             recs = starts_after_verdict(ctx, self.outcome.base, self.outcome.residuals)
             self.starts = decide_starts(ctx.opts, self.train, self.test, recs)
-            if self.starts.running:                # every stage again (the progress callback is told so)
+            if self.starts.running:  # every stage again (the progress callback is told so)
                 self._run_once(self.starts)
         self.plot_data = plot_data(self.outcome)
         res = build_json(ctx, self.outcome, time.perf_counter() - wall0_s)
@@ -97,19 +116,20 @@ class Diagnosis:
         ctx, train, test = self.ctx, starts.train, starts.test
         p = ctx.params
         stage = iter(STAGES)
-        self.progress(next(stage))              # baseline and candidate grid
+        self.progress(next(stage))  # baseline and candidate grid
         grid = grid_plan(ctx)
         base = establish_baseline(ctx, train, test, grid)
-        self.progress(next(stage))              # where
-        where = where_residual(train, base.base_tr, [y - q for y, q in zip(base.train.obs, base.p0_tr)], p,
-                               ctx.cooler, ctx.opts)
+        self.progress(next(stage))  # where
+        where = where_residual(
+            train, base.base_tr, [y - q for y, q in zip(base.train.obs, base.p0_tr)], p, ctx.cooler, ctx.opts
+        )
         heat = unexplained_heat(p, train + test, base.heat_pair, base.p0_tr + base.p0_te, ctx.opts.grid_dt_s)
-        self.progress(next(stage))              # fit
+        self.progress(next(stage))  # fit
         fits = fit_all(ctx, base, grid)
-        self.progress(next(stage))              # test
+        self.progress(next(stage))  # test
         crit = rank(base, fits, simulate_test_files(ctx, base, fits))
         ident = identifiability(ctx, base, fits)
-        self.progress(next(stage))              # verdict
+        self.progress(next(stage))  # verdict
         verdict = decide(ctx, base, crit)
         combo, set_note = None, ""
         conf = confusable_with(crit, ctx.opts)
@@ -122,10 +142,10 @@ class Diagnosis:
             verdict = replace(verdict, reason=verdict.reason + set_note)
         res = residuals(base, verdict, crit, combo)
         checked = held_out_check(ctx, base, verdict, res, where.where)
-        if checked.effect != verdict.effect:       # refused: "unexplained", the baseline's residuals
+        if checked.effect != verdict.effect:  # refused: "unexplained", the baseline's residuals
             verdict, combo = checked, None
             res = residuals(base, verdict, crit)
-        else:                                      # kept (perhaps with a note in its reason): the set stays
+        else:  # kept (perhaps with a note in its reason): the set stays
             verdict = checked
         structure = self._structure(base, fits, verdict)
         verdict = with_structure(verdict, structure, crit.candidates[0].fit.effect)
@@ -133,8 +153,9 @@ class Diagnosis:
         verdict = with_not_excluded(verdict, nex)
         sugg = suggestions(ctx, train, verdict, crit, conf)
         regs = regimes_before_after(test, base.base_te, res.test_before, res.test_after, p, ctx.cooler, ctx.opts)
-        self.outcome = Outcome(base, where, heat, crit, ident, verdict, conf, sugg, res, regs, structure, combo,
-                               tuple(nex))
+        self.outcome = Outcome(
+            base, where, heat, crit, ident, verdict, conf, sugg, res, regs, structure, combo, tuple(nex)
+        )
 
     def _not_excluded(self, base, crit, fits: list, verdict, combo, ident: dict) -> list:
         """The effects the training files cannot rule out beside an effect verdict (:mod:`.exclude`)."""
@@ -158,8 +179,9 @@ class Diagnosis:
         ctx, train = self.ctx, base.train.datasets
         gap = [c for c, v in verdict.systematic.rms_c.items() if v > verdict.gap_thr_c[c]]
         off = next((f.value for f in fits if f.effect == "oil_sensor_offset"), 0.0)
-        preds = base.scorer.adjust(base.scorer.preds(base.train.datasets, base.base_tr, "oil_sensor_offset", off),
-                                   "train")
+        preds = base.scorer.adjust(
+            base.scorer.preds(base.train.datasets, base.base_tr, "oil_sensor_offset", off), "train"
+        )
         chans = [c for ds in base.train.datasets for c in ds.channels]
         resid = [y - q + (off if c == OIL else 0.0) for y, q, c in zip(base.train.obs, preds, chans)]
         where = where_residual(train, base.base_tr, resid, ctx.params, ctx.cooler, ctx.opts)
@@ -170,6 +192,7 @@ def make_model(kind: str, params, cooler: str | None, opts: Options):
     """(model under diagnosis, note): the onboard model or the reference plant; the note says when the plant stands
     in for an onboard model that is not available."""
     from tools.diagnosis.models import OnboardModel, PlantModel, onboard_available
+
     plant = PlantModel(params, cooler=cooler, dt_s=opts.plant_dt_s, out_dt_s=opts.out_dt_s, workers=opts.workers)
     note = None
     if kind == "plant":
@@ -177,8 +200,10 @@ def make_model(kind: str, params, cooler: str | None, opts: Options):
     if kind != "onboard":
         raise InputError(f"--model {kind!r} must be onboard or plant")
     if not onboard_available():
-        note = ("the onboard model (firmware_model.onboard.sensor) is not available yet; the reference plant was "
-                "diagnosed instead")
+        note = (
+            "the onboard model (firmware_model.onboard.sensor) is not available yet; the reference plant was "
+            "diagnosed instead"
+        )
         return plant, note
     return OnboardModel(params, cooler=cooler, fallback=plant, out_dt_s=opts.out_dt_s, workers=opts.workers), note
 
@@ -189,20 +214,34 @@ def boundary_note(runs) -> str | None:
     cols = sorted({c for ds in (*runs.train, *runs.test) for c in ds.inputs.columns if c.startswith("bc_")})
     if not cols:
         return None
-    return (f"the files give boundary temperatures ({', '.join(cols)}) that the onboard model cannot take (a truck "
-            f"sends the ambient and the coolant only): what they change, by the reference plant without any effect, "
-            f"is added to every onboard run")
+    return (
+        f"the files give boundary temperatures ({', '.join(cols)}) that the onboard model cannot take (a truck "
+        f"sends the ambient and the coolant only): what they change, by the reference plant without any effect, "
+        f"is added to every onboard run"
+    )
 
 
-def diagnose(train_tables, test_tables, params, model: str = "onboard", cooler: str | None = None,
-             opts: Options | None = None, progress=None, train_names=None, test_names=None, candidates=None,
-             keep=False, config_path=None):
+def diagnose(
+    train_tables,
+    test_tables,
+    params,
+    model: str = "onboard",
+    cooler: str | None = None,
+    opts: Options | None = None,
+    progress=None,
+    train_names=None,
+    test_names=None,
+    candidates=None,
+    keep=False,
+    config_path=None,
+):
     """Run the diagnosis on lists of RunTables (or paths). Returns the JSON dict (and the Diagnosis object when
     `keep`). `progress(stage)` is told each stage of :data:`tools.diagnosis.options.STAGES` as it begins."""
     opts = opts or Options()
     cooler = cooler or params.strings.get("cooler.kind", "liquid")
-    runs = prepare_runs(train_tables, test_tables, opts, cooler in ("measured", "hold"), train_names, test_names,
-                        config_path, params)
+    runs = prepare_runs(
+        train_tables, test_tables, opts, cooler in ("measured", "hold"), train_names, test_names, config_path, params
+    )
     m, note = make_model(model, params, cooler, opts)
     if m.name == "onboard":
         note = "; ".join(n for n in (note, boundary_note(runs)) if n) or None

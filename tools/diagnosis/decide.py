@@ -7,6 +7,7 @@ and does not sit at its bound with a gap left; else "unexplained" when a real ga
 the evidence is weighed: too few effective samples to decide (options.n_eff_needed) give "unexplained" (or "none"
 without a real gap) qualified as thin evidence, naming the best candidate and what it would cut.
 """
+
 from __future__ import annotations
 
 import math
@@ -16,7 +17,6 @@ from typing import NamedTuple
 import numpy as np
 
 from firmware_model.effects import CATALOG, fraction_of_range
-
 from tools.diagnosis.baseline import Baseline
 from tools.diagnosis.context import Context
 from tools.diagnosis.fit import Candidate, Criterion, Fit
@@ -28,6 +28,7 @@ NO_EFFECT = ("none", "unexplained")
 
 class Systematic(NamedTuple):
     """Per channel: the RMS of the residual with the noise removed, and the 'none' threshold."""
+
     rms_c: dict
     none_thr_c: dict
 
@@ -36,9 +37,10 @@ class Systematic(NamedTuple):
 class ThinEvidence:
     """Too few effective samples to decide: how many there are and are needed, the best candidate and what it would
     do on the test files, and the training time scored (to say how much more driving the decision needs)."""
+
     n_eff: float
     needed: int
-    n: int                   # grid cells of the training files
+    n: int  # grid cells of the training files
     best: Candidate
     test_rms_before_c: float
     test_rms_after_c: float
@@ -46,25 +48,29 @@ class ThinEvidence:
 
     def advice(self) -> str:
         more = self.needed / max(self.n_eff, 1e-9)
-        return (f"add more training files, or longer ones (at this autocorrelation about {more:.0f} times the "
-                f"{self.train_s / 3600.0:.1f} h scored), and diagnose again")
+        return (
+            f"add more training files, or longer ones (at this autocorrelation about {more:.0f} times the "
+            f"{self.train_s / 3600.0:.1f} h scored), and diagnose again"
+        )
 
     def what_it_would_cut(self) -> str:
         f = self.best.fit
         e = CATALOG[f.effect]
         unit = f" {e.unit}" if e.unit != "-" else ""
-        return (f"{f.effect} ({e.param} fitted {f.value:.3g}{unit}) would cut the test RMS "
-                f"{self.test_rms_before_c:.2f} -> {self.test_rms_after_c:.2f} K")
+        return (
+            f"{f.effect} ({e.param} fitted {f.value:.3g}{unit}) would cut the test RMS "
+            f"{self.test_rms_before_c:.2f} -> {self.test_rms_after_c:.2f} K"
+        )
 
 
 @dataclass(frozen=True)
 class Verdict:
-    effect: str              # "none", "unexplained" or the effect id
+    effect: str  # "none", "unexplained" or the effect id
     reason: str
-    systematic: Systematic   # of the baseline on the training files
-    gap_thr_c: dict          # per channel: what a real gap must exceed
-    post_c: dict             # per channel: the systematic residual left after the best candidate
-    thin: ThinEvidence | None = None   # set when too few effective samples to decide
+    systematic: Systematic  # of the baseline on the training files
+    gap_thr_c: dict  # per channel: what a real gap must exceed
+    post_c: dict  # per channel: the systematic residual left after the best candidate
+    thin: ThinEvidence | None = None  # set when too few effective samples to decide
 
     @property
     def is_effect(self) -> bool:
@@ -84,7 +90,7 @@ def systematic(base: Baseline, preds: list, opts: Options) -> Systematic:
             r = rd.obs[k] - preds[k]
             k += 1
             a = acc.setdefault(cid, [0.0, 0.0, 0])
-            a[0] += float(np.sum(r ** 2))
+            a[0] += float(np.sum(r**2))
             a[1] += float(np.sum(base.sigma[cid] ** 2 / ch.cell_n))
             a[2] += r.size
     sys_rms = {c: math.sqrt(max(a[0] - a[1], 0.0) / max(a[2], 1)) for c, a in acc.items()}
@@ -100,14 +106,20 @@ def _why_not(top: Candidate, gap_left: bool, opts: Options) -> str:
     if top.score < opts.evidence_min:
         return f"no candidate has strong evidence (best {f.effect}: score {top.score:.1f} < {opts.evidence_min:g})"
     if top.explained < opts.explain_min:
-        return (f"the best candidate {f.effect} explains only {100 * top.explained:.0f} % of the excess squared "
-                f"residual (< {100 * opts.explain_min:.0f} %)")
+        return (
+            f"the best candidate {f.effect} explains only {100 * top.explained:.0f} % of the excess squared "
+            f"residual (< {100 * opts.explain_min:.0f} %)"
+        )
     if abs(frac) < opts.min_frac:
-        return (f"the best candidate {f.effect} fits at {e.param} = {f.value:g} {e.unit}, only "
-                f"{100 * abs(frac):.0f} % of the way from neutral to its bound (< {100 * opts.min_frac:.0f} %)")
+        return (
+            f"the best candidate {f.effect} fits at {e.param} = {f.value:g} {e.unit}, only "
+            f"{100 * abs(frac):.0f} % of the way from neutral to its bound (< {100 * opts.min_frac:.0f} %)"
+        )
     if f.at_bound and gap_left:
-        return (f"the best candidate {f.effect} sits at the bound of its plausible range ({e.param} = "
-                f"{f.value:g} {e.unit}) and a gap remains")
+        return (
+            f"the best candidate {f.effect} sits at the bound of its plausible range ({e.param} = "
+            f"{f.value:g} {e.unit}) and a gap remains"
+        )
     return ""
 
 
@@ -115,14 +127,15 @@ def _none_reason(sys_rms: dict, thr: dict, base: Baseline, o: Options, is_plant:
     """Why the verdict is none: within the noise, or (an audit: "within its noise" was said of a residual 7.6 times
     the noise) within the model's own measured error where that sets the threshold."""
     listing = "systematic residual " + _listing(sys_rms, thr, "<=", sys_rms)
-    by_floor = [c for c in sys_rms
-                if base.floor[c] > max(o.none_k * base.sigma[c], o.none_floor_c, o.model_floor_c)]
+    by_floor = [c for c in sys_rms if base.floor[c] > max(o.none_k * base.sigma[c], o.none_floor_c, o.model_floor_c)]
     if not by_floor:
         return f"the model agrees with the measurement within its noise on every channel ({listing})"
     what = "the plant's numerical error" if is_plant else "the onboard model's difference from the reference plant"
-    return (f"no gap beyond what this model can resolve: on {', '.join(by_floor)} the threshold is the model's own "
-            f"error ({what} on these drives, {', '.join(f'{c} {base.floor[c]:.3f} degC' for c in by_floor)}), "
-            f"larger than the noise, so an effect smaller than that goes unseen ({listing})")
+    return (
+        f"no gap beyond what this model can resolve: on {', '.join(by_floor)} the threshold is the model's own "
+        f"error ({what} on these drives, {', '.join(f'{c} {base.floor[c]:.3f} degC' for c in by_floor)}), "
+        f"larger than the noise, so an effect smaller than that goes unseen ({listing})"
+    )
 
 
 def _listing(values: dict, thr: dict, op: str, keys) -> str:
@@ -145,18 +158,35 @@ def decide(ctx: Context, base: Baseline, crit: Criterion) -> Verdict:
         return _thin_verdict(base, crit, o, Verdict("unexplained" if real_gap else "none", "", sy, gap_thr, post))
     why_not = _why_not(top, gap_left, o)
     if not why_not:
-        reason = (f"{top.fit.effect} has the strongest evidence (score {top.score:.0f}) and explains "
-                  f"{100 * min(top.explained, 1.0):.0f} % of the excess squared residual")
+        reason = (
+            f"{top.fit.effect} has the strongest evidence (score {top.score:.0f}) and explains "
+            f"{100 * min(top.explained, 1.0):.0f} % of the excess squared residual"
+        )
         if gap_left:
-            reason += ("; a gap remains after it (systematic residual "
-                       + _listing(post, gap_thr, ">", [c for c in post if post[c] > gap_thr[c]])
-                       + "): a second effect, or one outside the catalog")
+            reason += (
+                "; a gap remains after it (systematic residual "
+                + _listing(post, gap_thr, ">", [c for c in post if post[c] > gap_thr[c]])
+                + "): a second effect, or one outside the catalog"
+            )
         return Verdict(top.fit.effect, reason, sy, gap_thr, post)
     if real_gap:
-        return Verdict("unexplained", why_not + "; a real gap remains (systematic residual "
-                       + _listing(sys_rms, gap_thr, ">", real_gap) + ")", sy, gap_thr, post)
-    return Verdict("none", why_not + "; the systematic residual stays below the measurement noise ("
-                   + _listing(sys_rms, gap_thr, "<=", sys_rms) + ")", sy, gap_thr, post)
+        return Verdict(
+            "unexplained",
+            why_not + "; a real gap remains (systematic residual " + _listing(sys_rms, gap_thr, ">", real_gap) + ")",
+            sy,
+            gap_thr,
+            post,
+        )
+    return Verdict(
+        "none",
+        why_not
+        + "; the systematic residual stays below the measurement noise ("
+        + _listing(sys_rms, gap_thr, "<=", sys_rms)
+        + ")",
+        sy,
+        gap_thr,
+        post,
+    )
 
 
 def thin_evidence(base: Baseline, crit: Criterion, opts: Options) -> ThinEvidence:
@@ -164,8 +194,9 @@ def thin_evidence(base: Baseline, crit: Criterion, opts: Options) -> ThinEvidenc
     top = crit.candidates[0]
     before = pooled_rms([y - p for y, p in zip(base.test.obs, base.p0_te)])
     after = pooled_rms([y - p for y, p in zip(base.test.obs, top.p_te)])
-    train_s = sum(ds.t_end_s - (ds.scored_from_s if ds.scored_from_s is not None else ds.t_start_s)
-                  for ds in base.train.datasets)
+    train_s = sum(
+        ds.t_end_s - (ds.scored_from_s if ds.scored_from_s is not None else ds.t_start_s) for ds in base.train.datasets
+    )
     return ThinEvidence(crit.n_eff, n_eff_needed(opts), crit.n, top, before, after, train_s)
 
 
@@ -175,11 +206,13 @@ def _thin_verdict(base: Baseline, crit: Criterion, o: Options, v: Verdict) -> Ve
     th = thin_evidence(base, crit, o)
     gap = [c for c in v.systematic.rms_c if v.systematic.rms_c[c] > v.gap_thr_c[c]]
     listing = _listing(v.systematic.rms_c, v.gap_thr_c, ">" if gap else "<=", gap or list(v.systematic.rms_c))
-    reason = (f"thin evidence, too little to decide: the training residual holds n_eff = {th.n_eff:.0f} effective "
-              f"samples of {th.n} grid cells and the decision needs at least {th.needed}; the best candidate "
-              f"{th.what_it_would_cut()} (score {th.best.score:.1f}, explains "
-              f"{100 * min(max(th.best.explained, 0.0), 1.0):.0f} % of the excess), but that is no claim: "
-              f"{th.advice()} ({'a real gap remains' if gap else 'no real gap'}: systematic residual {listing})")
+    reason = (
+        f"thin evidence, too little to decide: the training residual holds n_eff = {th.n_eff:.0f} effective "
+        f"samples of {th.n} grid cells and the decision needs at least {th.needed}; the best candidate "
+        f"{th.what_it_would_cut()} (score {th.best.score:.1f}, explains "
+        f"{100 * min(max(th.best.explained, 0.0), 1.0):.0f} % of the excess), but that is no claim: "
+        f"{th.advice()} ({'a real gap remains' if gap else 'no real gap'}: systematic residual {listing})"
+    )
     return replace(v, reason=reason, thin=th)
 
 
@@ -189,16 +222,18 @@ def with_combination(ctx: Context, base: Baseline, v: Verdict, combo) -> Verdict
     if combo is None:
         return v
     post = systematic(base, combo.preds_train, ctx.opts).rms_c
-    members = ", ".join(f"{e} {CATALOG[e].param} = {x:.4g} ({100 * combo.shares[e]:.0f} %)"
-                        for e, x in combo.members.items())
-    reason = (f"{len(combo.members)} effects together have the strongest evidence (score {combo.score:.0f}) and "
-              f"explain {100 * min(combo.explained, 1.0):.0f} % of the excess squared residual: {members} (share of "
-              f"the explained residual); each further effect paid for its parameter on the training files")
+    members = ", ".join(
+        f"{e} {CATALOG[e].param} = {x:.4g} ({100 * combo.shares[e]:.0f} %)" for e, x in combo.members.items()
+    )
+    reason = (
+        f"{len(combo.members)} effects together have the strongest evidence (score {combo.score:.0f}) and "
+        f"explain {100 * min(combo.explained, 1.0):.0f} % of the excess squared residual: {members} (share of "
+        f"the explained residual); each further effect paid for its parameter on the training files"
+    )
     left = [c for c in post if post[c] > v.gap_thr_c[c]]
     if left:
-        reason += ("; a gap remains after them (systematic residual " + _listing(post, v.gap_thr_c, ">", left)
-                   + ")")
-    if not v.is_effect:                 # no single effect passed (the reason why), the set does
+        reason += "; a gap remains after them (systematic residual " + _listing(post, v.gap_thr_c, ">", left) + ")"
+    if not v.is_effect:  # no single effect passed (the reason why), the set does
         reason += f" (alone: {v.reason.split(';')[0]})"
     return replace(v, effect=next(iter(combo.members)), reason=reason, post_c=post)
 
@@ -207,13 +242,19 @@ def with_not_excluded(v: Verdict, items: list) -> Verdict:
     """The verdict whose reason also says which other effects the data cannot rule out beside it (exclude.py)."""
     if not items:
         return v
+
     def rng(n):
         e = CATALOG[n.effect]
         return f"{n.effect} {e.param} {n.low:.3g}-{n.high:.3g}"
-    shown = ", ".join(rng(n) + (" (indicated)" if n.indicated else "") for n in items[:3]) \
-        + (f" and {len(items) - 3} more" if len(items) > 3 else "")
-    return replace(v, reason=v.reason + f"; beside it the data cannot exclude (no strong evidence against, the "
-                                        f"verdict's effects refitted): {shown}")
+
+    shown = ", ".join(rng(n) + (" (indicated)" if n.indicated else "") for n in items[:3]) + (
+        f" and {len(items) - 3} more" if len(items) > 3 else ""
+    )
+    return replace(
+        v,
+        reason=v.reason + f"; beside it the data cannot exclude (no strong evidence against, the "
+        f"verdict's effects refitted): {shown}",
+    )
 
 
 def with_structure(v: Verdict, structure: dict, best: str | None = None) -> Verdict:
@@ -224,19 +265,22 @@ def with_structure(v: Verdict, structure: dict, best: str | None = None) -> Verd
     flow's residual constant too."""
     from firmware_model.effects import MEASUREMENT_EFFECTS, effect_channel
     from tools.diagnosis.regimes import structure_sentence
+
     if not structure or not (v.effect in MEASUREMENT_EFFECTS or v.effect == "unexplained"):
         return v
     own = effect_channel(v.effect) or (OIL if v.effect in MEASUREMENT_EFFECTS else None)
     cids = [own] if own in structure else sorted(structure)
     sensor_of = _sensor_channel(v.effect) if v.effect in MEASUREMENT_EFFECTS else _sensor_channel(best)
-    said = "; ".join(structure_sentence(c, structure[c], None if c == sensor_of else best) for c in cids
-                     if c in structure)
+    said = "; ".join(
+        structure_sentence(c, structure[c], None if c == sensor_of else best) for c in cids if c in structure
+    )
     return replace(v, reason=v.reason + "; " + said) if said else v
 
 
 def _sensor_channel(eid: str | None) -> str | None:
     """The channel a measurement effect reads (None for a heat flow or None)."""
     from firmware_model.effects import MEASUREMENT_EFFECTS, effect_channel
+
     if eid is None or eid not in MEASUREMENT_EFFECTS:
         return None
     return effect_channel(eid) or OIL
@@ -244,6 +288,7 @@ def _sensor_channel(eid: str | None) -> str | None:
 
 # ----------------------------------------------------------------------------------------------------------------
 # confusable candidates
+
 
 def _confusable(a: Candidate, b: Candidate, sigs: dict, opts: Options) -> bool:
     """Both strong, their signatures correlated >= confusable_corr, their explained shares close."""
@@ -262,7 +307,7 @@ def confusable_with(crit: Criterion, opts: Options) -> dict:
     cands = crit.candidates
     conf = {c.fit.effect: [] for c in cands}
     for i, a in enumerate(cands):
-        for b in cands[i + 1:]:
+        for b in cands[i + 1 :]:
             if _confusable(a, b, crit.signatures, opts):
                 conf[a.fit.effect].append(b.fit.effect)
                 conf[b.fit.effect].append(a.fit.effect)
@@ -274,7 +319,7 @@ COOLER_HEAT = "__cooler"
 
 
 class NodeDifference(NamedTuple):
-    sq: float                # sum of squared differences (degC^2, W^2 for the cooler's heat)
+    sq: float  # sum of squared differences (degC^2, W^2 for the cooler's heat)
     samples: int
 
 
@@ -286,6 +331,7 @@ def _accumulate(diffs: dict, key: str, a: np.ndarray, b: np.ndarray) -> None:
 def _node_differences(outs_a: list, outs_b: list) -> dict:
     """Node (and COOLER_HEAT) -> the squared difference of two full-output runs over the files."""
     from firmware_model.components import HOUSINGS, PUBLISHED
+
     nodes = [n for n in PUBLISHED if n != OIL] + list(HOUSINGS) + [OIL]
     diffs = {}
     for oa, ob in zip(outs_a, outs_b):
@@ -310,21 +356,32 @@ def suggest(ctx: Context, train: list, fa: Fit, fb: Fit) -> dict:
         rms = math.sqrt(d.sq / max(d.samples, 1))
         if n == COOLER_HEAT or n in measured:
             continue
-        label = ("a second, fast oil sensor in the sump" if n == OIL else
-                 f"a thermocouple on {n}" + (" (sun wheel)" if n == "PS" else ""))
+        label = (
+            "a second, fast oil sensor in the sump"
+            if n == OIL
+            else f"a thermocouple on {n}" + (" (sun wheel)" if n == "PS" else "")
+        )
         ranked.append({"measurement": label, "node": n, "difference_rms_c": json_number(rms)})
     ranked.sort(key=lambda x: -x["difference_rms_c"])
     cool = diffs.get(COOLER_HEAT)
     cool_rms = math.sqrt(cool.sq / max(cool.samples, 1)) if cool else 0.0
     best = ranked[0] if ranked else None
-    text = (f"{fa.effect} and {fb.effect} explain the data alike; " +
-            (f"{best['measurement']} would separate them (predicted difference {best['difference_rms_c']:.2f} "
-             f"degC rms)" if best else "no single extra temperature separates them"))
+    text = f"{fa.effect} and {fb.effect} explain the data alike; " + (
+        f"{best['measurement']} would separate them (predicted difference {best['difference_rms_c']:.2f} degC rms)"
+        if best
+        else "no single extra temperature separates them"
+    )
     if cool_rms > 300:
-        text += (f"; so would the cooler's heat (oil temperatures at the cooler inlet and outlet, or the coolant "
-                 f"temperature): {cool_rms:.0f} W rms apart")
-    return {"effects": [fa.effect, fb.effect], "best": ranked[:3],
-            "cooler_heat_difference_rms_w": json_number(cool_rms, 1), "text": text}
+        text += (
+            f"; so would the cooler's heat (oil temperatures at the cooler inlet and outlet, or the coolant "
+            f"temperature): {cool_rms:.0f} W rms apart"
+        )
+    return {
+        "effects": [fa.effect, fb.effect],
+        "best": ranked[:3],
+        "cooler_heat_difference_rms_w": json_number(cool_rms, 1),
+        "text": text,
+    }
 
 
 def suggestions(ctx: Context, train: list, verdict: Verdict, crit: Criterion, conf: dict) -> list:
@@ -339,9 +396,10 @@ def suggestions(ctx: Context, train: list, verdict: Verdict, crit: Criterion, co
 # ----------------------------------------------------------------------------------------------------------------
 # the held-out shrink
 
+
 def pooled_rms(res: list) -> float:
     n = sum(r.size for r in res)
-    return math.sqrt(sum(float(np.sum(r ** 2)) for r in res) / n) if n else float("nan")
+    return math.sqrt(sum(float(np.sum(r**2)) for r in res) / n) if n else float("nan")
 
 
 def max_abs(res: list) -> float:
@@ -351,6 +409,7 @@ def max_abs(res: list) -> float:
 @dataclass(frozen=True)
 class Residuals:
     """Measured - model per (dataset, channel), before and after the verdict, training and test files."""
+
     train_before: list
     train_after: list
     test_before: list
@@ -379,8 +438,11 @@ def residuals(base: Baseline, verdict: Verdict, crit: Criterion, combo=None) -> 
     res_te0 = [y - p for y, p in zip(obs_te, base.p0_te)]
     if not verdict.is_effect:
         return Residuals(res_tr0, res_tr0, res_te0, res_te0)
-    p_tr, p_te = (combo.preds_train, combo.p_te) if combo is not None else (crit.candidates[0].fit.preds_train,
-                                                                            crit.candidates[0].p_te)
+    p_tr, p_te = (
+        (combo.preds_train, combo.p_te)
+        if combo is not None
+        else (crit.candidates[0].fit.preds_train, crit.candidates[0].p_te)
+    )
     return Residuals(res_tr0, [y - p for y, p in zip(obs_tr, p_tr)], res_te0, [y - p for y, p in zip(obs_te, p_te)])
 
 
@@ -395,7 +457,7 @@ def test_gap_c(base: Baseline, res: Residuals, after: bool = False) -> dict:
             r = resid[k]
             k += 1
             a = acc.setdefault(cid, [0.0, 0.0, 0])
-            a[0] += float(np.sum(r ** 2))
+            a[0] += float(np.sum(r**2))
             a[1] += float(np.sum(base.sigma.get(cid, 0.0) ** 2 / ch.cell_n))
             a[2] += r.size
     return {c: math.sqrt(max(a[0] - a[1], 0.0) / max(a[2], 1)) for c, a in acc.items()}
@@ -418,7 +480,8 @@ def held_out_check(ctx: Context, base: Baseline, v: Verdict, res: Residuals, whe
         note = ("" if v.reason.rstrip().endswith(".") else ".") + (
             f" The held-out files show no gap above the thresholds ({_listing(gap, v.gap_thr_c, '<=', chans)}), so "
             f"their RMS shrink of {100 * res.shrink:.0f} % neither confirms nor refutes it: the claim rests on the "
-            f"training files alone.")
+            f"training files alone."
+        )
         return replace(v, reason=v.reason + note)
     left = test_gap_c(base, res, after=True)
     chans = [c for c in gap if c in v.gap_thr_c]
@@ -427,12 +490,15 @@ def held_out_check(ctx: Context, base: Baseline, v: Verdict, res: Residuals, whe
         note = ("" if v.reason.rstrip().endswith(".") else ".") + (
             f" On the held-out files the RMS shrinks by only {100 * res.shrink:.0f} % because their gap is small beside "
             f"the noise; the effect removes {100 * gap_shrink:.0f} % of the gap itself (the noise removed) and leaves no "
-            f"channel above its threshold ({_listing(left, v.gap_thr_c, '<=', chans)}).")
+            f"channel above its threshold ({_listing(left, v.gap_thr_c, '<=', chans)})."
+        )
         return replace(v, reason=v.reason + note)
     top = ", ".join(f"{w['channel']} in {w['regime']} ({100 * w['share']:.0f} %)" for w in where[:3])
-    reason = (f"the best candidate {v.effect} fits the training files but shrinks the held-out residual by only "
-              f"{100 * res.shrink:.0f} % (< {100 * ctx.opts.shrink_min:.0f} %) although the test files show a real gap "
-              f"({_listing(gap, v.gap_thr_c, '>', real)}): it is not the explanation. The model's assumed values "
-              f"probably differ from this gearbox's (model-form error); the residual sits mostly at {top}; calibrate "
-              f"the assumed parameters to these files (gearbox-vsensor calibrate) and diagnose again")
+    reason = (
+        f"the best candidate {v.effect} fits the training files but shrinks the held-out residual by only "
+        f"{100 * res.shrink:.0f} % (< {100 * ctx.opts.shrink_min:.0f} %) although the test files show a real gap "
+        f"({_listing(gap, v.gap_thr_c, '>', real)}): it is not the explanation. The model's assumed values "
+        f"probably differ from this gearbox's (model-form error); the residual sits mostly at {top}; calibrate "
+        f"the assumed parameters to these files (gearbox-vsensor calibrate) and diagnose again"
+    )
     return Verdict("unexplained", reason, v.systematic, v.gap_thr_c, v.post_c)

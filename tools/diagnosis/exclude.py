@@ -26,13 +26,13 @@ changes; the model does not quite): kept when the simulated misfit passes too, e
 
 This changes no verdict. It is reported as ``verdict.not_excluded`` and in the reason.
 """
+
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
 
 from firmware_model.effects import CATALOG, fraction_of_range
-
 from tools.diagnosis.baseline import Baseline
 from tools.diagnosis.combine import SetState, at_start, delta_fn, eligible, simulate_sets, surrogate_misfit
 from tools.diagnosis.context import Context
@@ -49,14 +49,15 @@ CONFIRM_TRIES = 3
 class NotExcluded:
     """No strong evidence against effect `effect` anywhere in [low, high] beside the verdict (its members refitted);
     frac_low/frac_high: how far that reaches towards each bound (0..1)."""
+
     effect: str
     low: float
     high: float
     frac_low: float
     frac_high: float
-    best: float              # the value that fits best beside the verdict
-    indicated: bool          # neutral lies outside the interval: the data point to the effect (not claimed)
-    evidence: float = 0.0    # -dBIC of adding it at `best` (n_eff ln(S_verdict / S_best) - ln n_eff)
+    best: float  # the value that fits best beside the verdict
+    indicated: bool  # neutral lies outside the interval: the data point to the effect (not claimed)
+    evidence: float = 0.0  # -dBIC of adding it at `best` (n_eff ln(S_verdict / S_best) - ln n_eff)
 
     @property
     def reach(self) -> float:
@@ -73,24 +74,30 @@ class _Profile:
 
     def __init__(self, base: Baseline, st: SetState, deltas: dict):
         from functools import lru_cache
+
         cached = {e: (lru_cache(maxsize=8)(fn) if fn is not None else None) for e, fn in deltas.items()}
         self._S_of = surrogate_misfit(base, st, cached)
 
     def S(self, members: dict) -> float:
         S = self._S_of(members)
-        return S if math.isfinite(S) else math.inf      # a run that went bad is refused, never the best
+        return S if math.isfinite(S) else math.inf  # a run that went bad is refused, never the best
 
     def refit(self, members: dict, held: str, passes: int = 2) -> tuple:
         """(members, S) with `held` fixed and every other member moved by bounded 1-D searches."""
         from scipy.optimize import minimize_scalar
+
         members = dict(members)
         S = self.S(members)
         for _ in range(passes):
             moved = False
             for m in [e for e in members if e != held]:
                 e = CATALOG[m]
-                r = minimize_scalar(lambda x: self.S({**members, m: float(x)}), bounds=(e.low, e.high),
-                                    method="bounded", options={"xatol": 1e-3 * (e.high - e.low)})
+                r = minimize_scalar(
+                    lambda x: self.S({**members, m: float(x)}),
+                    bounds=(e.low, e.high),
+                    method="bounded",
+                    options={"xatol": 1e-3 * (e.high - e.low)},
+                )
                 if r.fun < S - 1e-12 * max(S, 1.0):
                     members, S, moved = {**members, m: float(r.x)}, float(r.fun), True
             if not moved:
@@ -98,15 +105,16 @@ class _Profile:
         return members, S
 
 
-def not_excluded(ctx: Context, base: Baseline, crit: Criterion, fits: list, members: dict, out: list,
-                 skip=(), start: tuple = ()) -> list:
+def not_excluded(
+    ctx: Context, base: Baseline, crit: Criterion, fits: list, members: dict, out: list, skip=(), start: tuple = ()
+) -> list:
     """[NotExcluded] beside the verdict's effects `members` (effect -> value) whose training run is `out`, most
     reaching first; effects in `skip` (not identifiable with the channels) are left out."""
     o = ctx.opts
     by_id = {f.effect: f for f in fits}
     deltas = {eid: (None if eid in ANALYTIC else delta_fn(base, f)) for eid, f in by_id.items()}
     if any(m not in ANALYTIC and deltas.get(m) is None for m in members):
-        return []                        # a member without a grid cannot be moved on the surrogates
+        return []  # a member without a grid cannot be moved on the surrogates
     # a single offset or gain verdict from the sump its reading implies, as every re-simulation below starts
     st = at_start(ctx, base, SetState(base, members, out, start))
     prof = _Profile(base, st, deltas)
@@ -116,8 +124,11 @@ def not_excluded(ctx: Context, base: Baseline, crit: Criterion, fits: list, memb
         if eid in skip:
             continue
         factor = _factor(ctx, n_eff)
-        pts = _walk(prof, st, eid, -1, factor)[::-1] + [(CATALOG[eid].neutral, dict(st.members), st.S)] \
+        pts = (
+            _walk(prof, st, eid, -1, factor)[::-1]
+            + [(CATALOG[eid].neutral, dict(st.members), st.S)]
             + _walk(prof, st, eid, 1, factor)
+        )
         if not _material(eid, pts, min(p[2] for p in pts) * _factor(ctx, n_eff), o):
             continue
         ne = _profile_interval(ctx, base, st, prof, eid, pts, n_eff)
@@ -173,7 +184,7 @@ def _profile_interval(ctx: Context, base: Baseline, st: SetState, prof, eid: str
     value)."""
     factor = _factor(ctx, n_eff)
     i_n = next(i for i, p in enumerate(pts) if p[0] == CATALOG[eid].neutral)
-    i_best = min(range(len(pts)), key=lambda i: (pts[i][2], i != i_n))    # ties: neutral
+    i_best = min(range(len(pts)), key=lambda i: (pts[i][2], i != i_n))  # ties: neutral
     S_best, bias = st.S, 0.0
     if i_best != i_n:
         S_sim = _simulated_S(ctx, base, st, pts[i_best][1])
@@ -181,27 +192,51 @@ def _profile_interval(ctx: Context, base: Baseline, st: SetState, prof, eid: str
             # the surrogates' misfit near the best value is off the simulated one by `bias`: judged with it
             S_best, bias = S_sim, pts[i_best][2] - S_sim
         else:
-            i_best = i_n                 # the surrogate's better fit does not hold when simulated
+            i_best = i_n  # the surrogate's better fit does not hold when simulated
     thr = S_best * factor
     thr_sur = thr + bias
     pts = list(pts)
-    pts[i_n] = (pts[i_n][0], pts[i_n][1], st.S + bias)    # neutral is exact: on the surrogates' scale here
+    pts[i_n] = (pts[i_n][0], pts[i_n][1], st.S + bias)  # neutral is exact: on the surrogates' scale here
     a = b = i_best
     while a > 0 and pts[a - 1][2] <= thr_sur:
         a -= 1
     while b < len(pts) - 1 and pts[b + 1][2] <= thr_sur:
         b += 1
-    lo = _confirm_end(ctx, base, st, prof, eid, (_bisect(prof, eid, pts[a - 1], pts[a], thr_sur) if a > 0 else [])
-                      + [pts[i] for i in range(a, i_best)], pts[i_best], thr)
-    hi = _confirm_end(ctx, base, st, prof, eid, (_bisect(prof, eid, pts[b + 1], pts[b], thr_sur)
-                                                 if b < len(pts) - 1 else [])
-                      + [pts[i] for i in range(b, i_best, -1)], pts[i_best], thr)
+    lo = _confirm_end(
+        ctx,
+        base,
+        st,
+        prof,
+        eid,
+        (_bisect(prof, eid, pts[a - 1], pts[a], thr_sur) if a > 0 else []) + [pts[i] for i in range(a, i_best)],
+        pts[i_best],
+        thr,
+    )
+    hi = _confirm_end(
+        ctx,
+        base,
+        st,
+        prof,
+        eid,
+        (_bisect(prof, eid, pts[b + 1], pts[b], thr_sur) if b < len(pts) - 1 else [])
+        + [pts[i] for i in range(b, i_best, -1)],
+        pts[i_best],
+        thr,
+    )
     best = pts[i_best][0]
     ylo = lo if lo is not None else best
     yhi = hi if hi is not None else best
     evidence = n_eff * math.log(max(st.S, 1e-12) / max(S_best, 1e-12)) - math.log(n_eff)
-    return NotExcluded(eid, float(ylo), float(yhi), _frac_toward(eid, ylo, -1), _frac_toward(eid, yhi, 1),
-                       float(best), not (ylo <= CATALOG[eid].neutral <= yhi), float(evidence))
+    return NotExcluded(
+        eid,
+        float(ylo),
+        float(yhi),
+        _frac_toward(eid, ylo, -1),
+        _frac_toward(eid, yhi, 1),
+        float(best),
+        not (ylo <= CATALOG[eid].neutral <= yhi),
+        float(evidence),
+    )
 
 
 #: bisections of an interval's end between the last value passed and the first refused
@@ -258,6 +293,17 @@ def _confirm_end(ctx: Context, base: Baseline, st: SetState, prof, eid: str, can
 
 def not_excluded_json(items: list) -> list:
     from tools.diagnosis.options import json_number as _r
-    return [{"effect": n.effect, "parameter": CATALOG[n.effect].param, "range": [_r(n.low, 6), _r(n.high, 6)],
-             "best": _r(n.best, 6), "indicated": bool(n.indicated), "evidence": _r(n.evidence, 2),
-             "reach_low": _r(n.frac_low, 3), "reach_high": _r(n.frac_high, 3)} for n in items]
+
+    return [
+        {
+            "effect": n.effect,
+            "parameter": CATALOG[n.effect].param,
+            "range": [_r(n.low, 6), _r(n.high, 6)],
+            "best": _r(n.best, 6),
+            "indicated": bool(n.indicated),
+            "evidence": _r(n.evidence, 2),
+            "reach_low": _r(n.frac_low, 3),
+            "reach_high": _r(n.frac_high, 3),
+        }
+        for n in items
+    ]

@@ -7,6 +7,7 @@ re-simulation (refined where the surrogate was off). The best re-simulated value
 each with its own refitted nuisance lags. Ranked by ``score = -dBIC`` with an effective sample size from the
 residual's lag-1 autocorrelation.
 """
+
 from __future__ import annotations
 
 import math
@@ -15,7 +16,6 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from firmware_model.effects import CATALOG, MEASUREMENT_EFFECTS
-
 from tools.diagnosis.baseline import Baseline, GridPlan
 from tools.diagnosis.context import Context
 from tools.diagnosis.models import Run
@@ -26,39 +26,43 @@ from tools.diagnosis.scoring import box_lsq, start_design
 @dataclass(frozen=True, eq=False)
 class Fit:
     """One effect fitted on the training files."""
+
     effect: str
     value: float
-    S: float                   # misfit at the fitted value (with its own nuisance lags, initial temperature solved)
-    preds_train: list          # per (dataset, channel) arrays on cells (with nuisance)
-    out_train: list            # per dataset model outputs at the fitted value (re-simulated)
+    S: float  # misfit at the fitted value (with its own nuisance lags, initial temperature solved)
+    preds_train: list  # per (dataset, channel) arrays on cells (with nuisance)
+    out_train: list  # per dataset model outputs at the fitted value (re-simulated)
     at_bound: bool
     surrogate_S: float = float("nan")
-    grid: dict = field(default_factory=dict)   # value -> per-(ds,ch) predictions
-    lags: dict = field(default_factory=dict)   # the nuisance sensor lags refitted for this model
+    grid: dict = field(default_factory=dict)  # value -> per-(ds,ch) predictions
+    lags: dict = field(default_factory=dict)  # the nuisance sensor lags refitted for this model
 
 
 @dataclass(frozen=True, eq=False)
 class Candidate:
     """A fitted effect scored on the criterion, with its predictions on the test files."""
+
     fit: Fit
-    score: float               # -dBIC
-    explained: float           # share of the excess squared residual it explains
-    p_te: list                 # predictions on the test files (re-simulated at the fitted value)
-    tout: list                 # the test re-simulation
+    score: float  # -dBIC
+    explained: float  # share of the excess squared residual it explains
+    p_te: list  # predictions on the test files (re-simulated at the fitted value)
+    tout: list  # the test re-simulation
 
 
 @dataclass(frozen=True)
 class Criterion:
     """The ranking: candidates best first, the sample sizes and the signatures for confusability."""
+
     candidates: list
     n: int
     n_eff: float
-    rho: dict                  # lag-1 autocorrelation of the best candidate's residual, per channel
-    signatures: dict           # effect -> weighted change of the predictions, pooled over channels
+    rho: dict  # lag-1 autocorrelation of the best candidate's residual, per channel
+    signatures: dict  # effect -> weighted change of the predictions, pooled over channels
 
 
 # ----------------------------------------------------------------------------------------------------------------
 # the grid
+
 
 def grid_values(eid: str) -> list:
     """The neutral value, the bound(s) and the midpoint(s) towards them."""
@@ -113,17 +117,20 @@ def grid_predictions(ctx: Context, base: Baseline, grid: GridPlan) -> dict:
 # ----------------------------------------------------------------------------------------------------------------
 # the surrogate
 
+
 def _surrogate_min_analytic(ctx: Context, base: Baseline, eid: str) -> tuple:
     """The oil sensor's lag (an exact filter of the model's sump temperature), offset or gain (exact transforms of
     its prediction): the oil channel only, other channels unaffected."""
     from scipy.optimize import minimize_scalar
+
     e = CATALOG[eid]
     sc, train = base.scorer, base.train.datasets
     base_p = sc.preds(train, base.base_tr)
 
     def cost(v):
         return sc.S_adj(sc.preds(train, base.base_tr, eid, v) if v != e.neutral else base_p)
-    fine = [np.linspace(0, min(20.0, e.high), 41)] if eid == "oil_sensor_lag" else []   # short lags, finely
+
+    fine = [np.linspace(0, min(20.0, e.high), 41)] if eid == "oil_sensor_lag" else []  # short lags, finely
     dense = np.unique(np.concatenate(fine + [np.linspace(e.low, e.high, ctx.opts.dense)]))
     c = np.array([cost(t) for t in dense])
     i = int(np.argmin(c))
@@ -140,6 +147,7 @@ def _surrogate_min_spline(ctx: Context, base: Baseline, eid: str, grid: dict) ->
     """A quadratic spline through the grid's predictions, S on a dense parameter grid with the initial-temperature
     nuisance solved in closed form per file; the minimum snapped to a simulated value within one dense step."""
     from scipy.interpolate import make_interp_spline
+
     e = CATALOG[eid]
     dense = np.linspace(e.low, e.high, ctx.opts.dense)
     rd = base.train
@@ -159,7 +167,7 @@ def _surrogate_min_spline(ctx: Context, base: Baseline, eid: str, grid: dict) ->
             Y = np.array([grid[x][k] for x in xs])
             P = make_interp_spline(xs, Y, k=kk, axis=0)(dense)
             R = rd.obs[k] - P
-            raw += np.sum(rd.w[k] * R ** 2, axis=1)
+            raw += np.sum(rd.w[k] * R**2, axis=1)
             num += np.sum(rd.w[k] * R * rd.sens[k], axis=1)
             den += float(np.sum(rd.w[k] * rd.sens[k] ** 2))
         d = np.clip(num / den, -dmax, dmax) if den > 0 else np.zeros(dense.size)
@@ -178,8 +186,10 @@ def _running_file_S(ctx: Context, rd, idx: list, xs: np.ndarray, kk: int, dense:
     """S(theta) on the dense grid of one file that starts running: both start nuisances (uniform, housings) fitted
     per value in their box, as Scorer.adjust fits them (tools/diagnosis/start.py)."""
     from scipy.interpolate import make_interp_spline
-    P = np.concatenate([make_interp_spline(xs, np.array([grid[x][k] for x in xs]), k=kk, axis=0)(dense)
-                        for k in idx], axis=1)
+
+    P = np.concatenate(
+        [make_interp_spline(xs, np.array([grid[x][k] for x in xs]), k=kk, axis=0)(dense) for k in idx], axis=1
+    )
     y, w, A, lo, hi = start_design(rd, idx, ctx.opts)
     return np.array([box_lsq(y - P[j], w, A, lo, hi)[1] for j in range(dense.size)])
 
@@ -194,18 +204,21 @@ def surrogate_min(ctx: Context, base: Baseline, eid: str, grid: dict) -> tuple:
 # ----------------------------------------------------------------------------------------------------------------
 # the search
 
+
 @dataclass
 class Search:
     """The search for one effect's value (mutable: refined in rounds)."""
+
     value: float | None = None
     surrogate_S: float = float("nan")
-    checked: dict = field(default_factory=dict)   # value -> Checked
+    checked: dict = field(default_factory=dict)  # value -> Checked
     done: bool = False
 
 
 @dataclass(frozen=True, eq=False)
 class Checked:
     """A re-simulated value: its misfit, its predictions, the model outputs."""
+
     S: float | None
     preds: list | None
     out: list
@@ -230,7 +243,7 @@ def _search_round(ctx: Context, base: Baseline, grids: dict, state: dict) -> boo
             continue
         st.value, st.surrogate_S = surrogate_min(ctx, base, eid, grids[eid])
         if st.value in st.checked or st.value == CATALOG[eid].neutral:
-            st.done = True       # the neutral value is the baseline: nothing to check
+            st.done = True  # the neutral value is the baseline: nothing to check
             continue
         runs.append(Run.of({eid: st.value}))
         keys.append(eid)
@@ -298,6 +311,7 @@ def fit_all(ctx: Context, base: Baseline, grid: GridPlan) -> list:
 # ----------------------------------------------------------------------------------------------------------------
 # the criterion
 
+
 def lag1_rho(resid: np.ndarray) -> float:
     """The lag-1 autocorrelation of a residual (its mean removed), in 0..0.999."""
     r = resid - resid.mean()
@@ -323,8 +337,12 @@ def effective_n(datasets: list, resid: list) -> tuple:
 def simulate_test_files(ctx: Context, base: Baseline, fits: list) -> list:
     """Per fit, the test files re-simulated at its fitted value (the baseline where it fitted neutral)."""
     moved = [f for f in fits if f.value != CATALOG[f.effect].neutral and f.effect not in MEASUREMENT_EFFECTS]
-    touts_m = dict(zip([f.effect for f in moved],
-                       ctx.sim.run(base.test.datasets, [Run.of({f.effect: f.value}) for f in moved]) if moved else []))
+    touts_m = dict(
+        zip(
+            [f.effect for f in moved],
+            ctx.sim.run(base.test.datasets, [Run.of({f.effect: f.value}) for f in moved]) if moved else [],
+        )
+    )
     return [touts_m.get(f.effect, base.base_te) for f in fits]
 
 
@@ -343,6 +361,10 @@ def rank(base: Baseline, fits: list, touts: list) -> Criterion:
         cands.append(Candidate(f, -dbic, float(explained), p_te, tout))
     cands.sort(key=lambda c: -c.score)
     # signatures for confusability (weighted, pooled over channels)
-    sigs = {c.fit.effect: np.concatenate([np.sqrt(wi) * (pf - p0) for pf, p0, wi in
-                                          zip(c.fit.preds_train, base.p0_tr, rd.w)]) for c in cands}
+    sigs = {
+        c.fit.effect: np.concatenate(
+            [np.sqrt(wi) * (pf - p0) for pf, p0, wi in zip(c.fit.preds_train, base.p0_tr, rd.w)]
+        )
+        for c in cands
+    }
     return Criterion(cands, int(N), n_eff, rho, sigs)

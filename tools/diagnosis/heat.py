@@ -1,5 +1,6 @@
 """The oil residual as a heat flow: Q = C_eff d(r)/dt + G_eff r, the heat entering the oil that the model does not
 have (r smoothed over 120 s)."""
+
 from __future__ import annotations
 
 import math
@@ -17,15 +18,16 @@ SMOOTHING_S = 120.0
 
 class HeatSeries(NamedTuple):
     """The unexplained heat flow of one file's oil channel on the analysis grid."""
-    dataset: object          # prepare.Dataset
+
+    dataset: object  # prepare.Dataset
     t_s: np.ndarray
     Q_w: np.ndarray
     r_smooth_c: np.ndarray
 
 
 class UnexplainedHeat(NamedTuple):
-    json: dict               # the JSON's "unexplained_heat"
-    series: list             # HeatSeries per file with an oil channel
+    json: dict  # the JSON's "unexplained_heat"
+    series: list  # HeatSeries per file with an oil channel
 
 
 def effective_conductance_w_per_k(pair: HeatPair) -> float:
@@ -44,6 +46,7 @@ def effective_conductance_w_per_k(pair: HeatPair) -> float:
 def oil_heat_capacity_j_per_k(params) -> float:
     """The oil and the housings, which follow it."""
     from firmware_model.network import build_network
+
     net = build_network(params)
     C = dict(zip(net.nodes, net.C_j_per_k))
     return C["oil"] + C["H1"] + C["H2"] + C["H3"]
@@ -51,6 +54,7 @@ def oil_heat_capacity_j_per_k(params) -> float:
 
 def _heat_series(ds, ch, p: np.ndarray, C_eff_j_per_k: float, G_eff_w_per_k: float, grid_dt_s: float) -> HeatSeries:
     from scipy.signal import savgol_filter
+
     r = ch.cell_y_c - p
     tg = np.arange(ds.t_start_s, ds.t_end_s + 1e-9, grid_dt_s)
     rg = np.interp(tg, ch.cell_t_s, r)
@@ -79,10 +83,22 @@ def unexplained_heat(params, datasets: list, pair: HeatPair, preds: list, grid_d
             hs = _heat_series(ds, ch, p, C_eff_j_per_k, G_eff_w_per_k, grid_dt_s)
             series.append(hs)
             Q = hs.Q_w
-            files.append({"file": ds.name, "role": ds.role, "mean_w": json_number(float(np.mean(Q)), 1),
-                          "p5_w": json_number(float(np.percentile(Q, 5)), 1),
-                          "p95_w": json_number(float(np.percentile(Q, 95)), 1)})
-    return UnexplainedHeat({"C_eff_j_per_k": json_number(C_eff_j_per_k, 1),
-                            "G_eff_w_per_k": json_number(G_eff_w_per_k, 2), "smoothing_s": SMOOTHING_S,
-                            "sign": "positive = heat entering the oil that the model does not have", "files": files},
-                           series)
+            files.append(
+                {
+                    "file": ds.name,
+                    "role": ds.role,
+                    "mean_w": json_number(float(np.mean(Q)), 1),
+                    "p5_w": json_number(float(np.percentile(Q, 5)), 1),
+                    "p95_w": json_number(float(np.percentile(Q, 95)), 1),
+                }
+            )
+    return UnexplainedHeat(
+        {
+            "C_eff_j_per_k": json_number(C_eff_j_per_k, 1),
+            "G_eff_w_per_k": json_number(G_eff_w_per_k, 2),
+            "smoothing_s": SMOOTHING_S,
+            "sign": "positive = heat entering the oil that the model does not have",
+            "files": files,
+        },
+        series,
+    )

@@ -1,4 +1,5 @@
 """Identifiability: can an effect be seen at all with the channels measured, and from which magnitude on."""
+
 from __future__ import annotations
 
 import math
@@ -7,7 +8,6 @@ from typing import NamedTuple
 import numpy as np
 
 from firmware_model.effects import CATALOG
-
 from tools.diagnosis.baseline import Baseline
 from tools.diagnosis.context import Context
 from tools.diagnosis.options import ANALYTIC, OIL, json_number
@@ -15,19 +15,23 @@ from tools.diagnosis.options import ANALYTIC, OIL, json_number
 
 class Identifiability(NamedTuple):
     identifiable: bool
-    from_oil_alone: bool | None           # None when the oil is not measured
-    max_signature_c: dict                 # channel -> largest RMS change over the effect's range
-    threshold_c: dict                     # channel -> what a channel must see
+    from_oil_alone: bool | None  # None when the oil is not measured
+    max_signature_c: dict  # channel -> largest RMS change over the effect's range
+    threshold_c: dict  # channel -> what a channel must see
     detectable_from_fraction: float | None  # the smallest fraction of the range a channel sees
     note: str
 
     def to_json(self) -> dict:
-        return {"identifiable": self.identifiable, "identifiable_from_oil_alone": self.from_oil_alone,
-                "max_signature_c": {c: json_number(v) for c, v in sorted(self.max_signature_c.items())},
-                "threshold_c": {c: json_number(self.threshold_c[c]) for c in sorted(self.max_signature_c)},
-                "detectable_from_fraction": (json_number(self.detectable_from_fraction, 3)
-                                             if self.detectable_from_fraction is not None else None),
-                "note": self.note}
+        return {
+            "identifiable": self.identifiable,
+            "identifiable_from_oil_alone": self.from_oil_alone,
+            "max_signature_c": {c: json_number(v) for c, v in sorted(self.max_signature_c.items())},
+            "threshold_c": {c: json_number(self.threshold_c[c]) for c in sorted(self.max_signature_c)},
+            "detectable_from_fraction": (
+                json_number(self.detectable_from_fraction, 3) if self.detectable_from_fraction is not None else None
+            ),
+            "note": self.note,
+        }
 
 
 def why_invisible(eid: str, cooler: str, train: list, base_tr: list | None = None, params=None) -> str:
@@ -39,11 +43,15 @@ def why_invisible(eid: str, cooler: str, train: list, base_tr: list | None = Non
     if eid in ("thermostat_offset", "cooler_effectiveness_scale") and cooler == "air" and base_tr and params:
         top = max(float(np.max(o["T_oil_c"])) for o in base_tr)
         if top < params["cooler.thermostat_open"] + 10.0:
-            return (f"the oil stays below {top:.0f} degC in the training files, near or under the air cooler's "
-                    f"thermostat ({params['cooler.thermostat_open']:g}-{params['cooler.thermostat_full']:g} degC)")
+            return (
+                f"the oil stays below {top:.0f} degC in the training files, near or under the air cooler's "
+                f"thermostat ({params['cooler.thermostat_open']:g}-{params['cooler.thermostat_full']:g} degC)"
+            )
     if eid == "retarder_heat":
-        used = any(ds.inputs.has("retarder_torque_nm") and np.any(np.nan_to_num(ds.inputs["retarder_torque_nm"]) > 100)
-                   for ds in train)      # an all-NaN column (no retarder frames) is no use, without numpy's warning
+        used = any(
+            ds.inputs.has("retarder_torque_nm") and np.any(np.nan_to_num(ds.inputs["retarder_torque_nm"]) > 100)
+            for ds in train
+        )  # an all-NaN column (no retarder frames) is no use, without numpy's warning
         if not used:
             return "the retarder is never used in the training files"
     if eid == "synchronizer_shift_heat":
@@ -55,8 +63,8 @@ def why_invisible(eid: str, cooler: str, train: list, base_tr: list | None = Non
 
 
 class Signature(NamedTuple):
-    max_rms_c: dict          # channel -> largest RMS change
-    frac_min: float | None   # smallest fraction of the range some channel sees
+    max_rms_c: dict  # channel -> largest RMS change
+    frac_min: float | None  # smallest fraction of the range some channel sees
 
 
 def _signature(eid: str, grid: dict, pairs: list, p0: list, thr: dict) -> Signature:
@@ -96,19 +104,23 @@ def identifiability(ctx: Context, base: Baseline, fits: list) -> dict:
         grid = dict(f.grid)
         if f.effect in ANALYTIC:
             # the lag half-way and at its bound, exact on the baseline sump
-            grid = {v: base.scorer.preds(train, base.base_tr, f.effect, v)
-                    for v in (e.neutral + 0.5 * (e.high - e.neutral), e.high)}
+            grid = {
+                v: base.scorer.preds(train, base.base_tr, f.effect, v)
+                for v in (e.neutral + 0.5 * (e.high - e.neutral), e.high)
+            }
         sig = _signature(f.effect, grid, pairs, base.p0_hp, thr)
         seen = {c: (sig.max_rms_c.get(c, 0.0) >= thr[c]) for c in thr if c in pairs}
         identifiable = any(seen.values())
         oil_only = sig.max_rms_c.get(OIL, 0.0) >= thr.get(OIL, float("inf"))
         note = ""
         if not identifiable:
-            note = ("not identifiable from oil alone" if sorted(seen) == [OIL]
-                    else "not identifiable with these channels")
+            note = (
+                "not identifiable from oil alone" if sorted(seen) == [OIL] else "not identifiable with these channels"
+            )
             why = why_invisible(f.effect, ctx.cooler, train, base.base_tr, ctx.params)
             if why:
                 note += f" ({why})"
-        out[f.effect] = Identifiability(bool(identifiable), bool(oil_only) if OIL in thr else None, sig.max_rms_c,
-                                        thr, sig.frac_min, note)
+        out[f.effect] = Identifiability(
+            bool(identifiable), bool(oil_only) if OIL in thr else None, sig.max_rms_c, thr, sig.frac_min, note
+        )
     return out

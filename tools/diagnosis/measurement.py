@@ -4,6 +4,7 @@ A first-order sensor lag (a nuisance of 0..sensor_lag_max_s per channel, never a
 analysis grid, and the noise per sample from the high-frequency content of the residual (floored at the J1939
 quantisation).
 """
+
 from __future__ import annotations
 
 import math
@@ -20,6 +21,7 @@ def lag_filter(x: np.ndarray, tau_s: float, dt_s: float) -> np.ndarray:
     if tau_s <= 0 or x.size < 2:
         return x
     from scipy.signal import lfilter
+
     a = math.exp(-dt_s / tau_s)
     y, _ = lfilter([1 - a], [1, -a], x, zi=[a * x[0]])
     return y
@@ -64,7 +66,7 @@ def highpass(x, n):
     k = np.ones(n) / n
     pad = n // 2
     xp = np.pad(x, pad, mode="edge")
-    return x - np.convolve(xp, k, mode="valid")[:x.size]
+    return x - np.convolve(xp, k, mode="valid")[: x.size]
 
 
 def noise_per_channel(datasets: list, outs: list) -> dict:
@@ -80,6 +82,7 @@ def fit_nuisance_lags(train: list, base_tr: list, opts: Options) -> dict:
     """Per channel, the sensor lag (0..sensor_lag_max_s) that best matches the high-pass part of the training
     residual (slow model errors cannot pull it)."""
     from scipy.optimize import minimize_scalar
+
     n = max(int(60 / opts.grid_dt_s), 3)
     lag = {}
     for cid in sorted({c for ds in train for c in ds.channels}):
@@ -88,12 +91,22 @@ def fit_nuisance_lags(train: list, base_tr: list, opts: Options) -> dict:
             ch = ds.channels.get(cid)
             if ch is not None:
                 tm = out["time_s"]
-                items.append((highpass(ch.cell_y_c, n), ch.cell_t_s, tm, np.asarray(out[ch.model_column], float),
-                              float(np.median(np.diff(tm)))))
+                items.append(
+                    (
+                        highpass(ch.cell_y_c, n),
+                        ch.cell_t_s,
+                        tm,
+                        np.asarray(out[ch.model_column], float),
+                        float(np.median(np.diff(tm))),
+                    )
+                )
 
         def cost(tau):
-            return sum(float(np.sum((y - highpass(np.interp(ct, tm, lag_filter(x, tau, dt)), n)) ** 2))
-                       for y, ct, tm, x, dt in items)
+            return sum(
+                float(np.sum((y - highpass(np.interp(ct, tm, lag_filter(x, tau, dt)), n)) ** 2))
+                for y, ct, tm, x, dt in items
+            )
+
         taus = np.arange(0.0, opts.sensor_lag_max_s + 1e-9, 0.5)
         c = [cost(t) for t in taus]
         i = int(np.argmin(c))

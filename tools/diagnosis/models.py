@@ -15,6 +15,7 @@ by the oil-system flow that left the cooler, several kelvin below the sump, so d
 measured sump and no cooler state is a larger model error (up to 20 K on the sun wheel in the uphill cycle) than
 most of the effects sought.
 """
+
 from __future__ import annotations
 
 import importlib
@@ -32,8 +33,13 @@ from firmware_model.errors import InputError
 #: columns every run returns besides the measured channels' model columns
 ALWAYS = ("oil_temp_c", "T_oil_c", "Q_out_cooler_w")
 #: heat-flow columns summed into the heat to the outside (for the effective conductance of the oil)
-Q_OUT = ("Q_out_cooler_w", "Q_out_housing_convection_w", "Q_out_housing_radiation_w", "Q_out_supports_conduction_w",
-         "Q_out_shafts_conduction_w")
+Q_OUT = (
+    "Q_out_cooler_w",
+    "Q_out_housing_convection_w",
+    "Q_out_housing_radiation_w",
+    "Q_out_supports_conduction_w",
+    "Q_out_shafts_conduction_w",
+)
 
 
 def initial_shift_c(effect: str | None, value: float | None, T0_meas_c: float) -> float:
@@ -54,25 +60,40 @@ class Run:
     return every node (decimated to `full_dt_s`) for the measurement suggestions. `start` = (effect, value) of an
     oil-sensor offset or gain: every file starts from the sump that its first reading implies through that sensor
     (:func:`initial_shift_c`), exactly rather than to first order."""
-    effects: tuple = ()                 # ((id, value), ...) so that runs hash
+
+    effects: tuple = ()  # ((id, value), ...) so that runs hash
     initial_offset_c: float = 0.0
     full: bool = False
-    coarse: bool = False                # a cheaper, coarser step where the backend has one (surrogate grids)
-    fine: bool = False                  # half the step (the model's own numerical error), where it has one
-    start: tuple = ()                   # (oil-sensor effect, value) the files start from; () the reading itself
-    housing_offset_c: float = 0.0       # the housings start this far from the others (tools/diagnosis/start.py)
+    coarse: bool = False  # a cheaper, coarser step where the backend has one (surrogate grids)
+    fine: bool = False  # half the step (the model's own numerical error), where it has one
+    start: tuple = ()  # (oil-sensor effect, value) the files start from; () the reading itself
+    housing_offset_c: float = 0.0  # the housings start this far from the others (tools/diagnosis/start.py)
 
     @staticmethod
-    def of(effects: dict | None = None, initial_offset_c: float = 0.0, full: bool = False,
-           coarse: bool = False, fine: bool = False, start: tuple | None = None,
-           housing_offset_c: float = 0.0) -> "Run":
-        return Run(tuple(sorted((effects or {}).items())), float(initial_offset_c), bool(full), bool(coarse),
-                   bool(fine), tuple(start or ()), float(housing_offset_c))
+    def of(
+        effects: dict | None = None,
+        initial_offset_c: float = 0.0,
+        full: bool = False,
+        coarse: bool = False,
+        fine: bool = False,
+        start: tuple | None = None,
+        housing_offset_c: float = 0.0,
+    ) -> Run:
+        return Run(
+            tuple(sorted((effects or {}).items())),
+            float(initial_offset_c),
+            bool(full),
+            bool(coarse),
+            bool(fine),
+            tuple(start or ()),
+            float(housing_offset_c),
+        )
 
     @property
     def initial_offsets_c(self) -> dict | None:
         """{node: K} added to the start of the housings (None: none)."""
         from firmware_model.components import HOUSINGS
+
         return {h: self.housing_offset_c for h in HOUSINGS} if self.housing_offset_c else None
 
     def initial_c(self, T0_meas_c: float) -> float:
@@ -86,6 +107,7 @@ class Run:
 
 class DiagnosisModel:
     """Interface of a model under diagnosis."""
+
     name = "abstract"
     #: effect ids this backend represents itself (others are delegated or unsupported)
     native_effects: tuple = ()
@@ -115,20 +137,31 @@ _WORKER = {}
 
 
 def _init_worker(params, cooler, dt_s, out_dt_s, full_dt_s, coarse_dt_s):
-    _WORKER.update(params=params, cooler=cooler, dt_s=dt_s, out_dt_s=out_dt_s, full_dt_s=full_dt_s,
-                   coarse_dt_s=coarse_dt_s)
+    _WORKER.update(
+        params=params, cooler=cooler, dt_s=dt_s, out_dt_s=out_dt_s, full_dt_s=full_dt_s, coarse_dt_s=coarse_dt_s
+    )
     warnings.filterwarnings("ignore", category=RuntimeWarning)
 
 
 def _plant_job(job):
     table, run, columns = job
     from tools.plant.reference import ReferencePlant
+
     w = _WORKER
-    plant = ReferencePlant(w["params"], run.effect_dict, cooler=w["cooler"],
-                           dt_s=w["coarse_dt_s"] if run.coarse else (0.5 * w["dt_s"] if run.fine else w["dt_s"]))
+    plant = ReferencePlant(
+        w["params"],
+        run.effect_dict,
+        cooler=w["cooler"],
+        dt_s=w["coarse_dt_s"] if run.coarse else (0.5 * w["dt_s"] if run.fine else w["dt_s"]),
+    )
     t0 = table.meta.get("initial_temp_c")
-    res = plant.run(table, initial_temp_c=run.initial_c(t0) if t0 is not None else None,
-                    out_dt_s=w["out_dt_s"], progress=False, initial_offsets_c=run.initial_offsets_c)
+    res = plant.run(
+        table,
+        initial_temp_c=run.initial_c(t0) if t0 is not None else None,
+        out_dt_s=w["out_dt_s"],
+        progress=False,
+        initial_offsets_c=run.initial_offsets_c,
+    )
     tb = res.table
     out = {"time_s": tb["time_s"]}
     for c in set(columns) | set(ALWAYS):
@@ -149,11 +182,21 @@ def _plant_job(job):
 
 class PlantModel(DiagnosisModel):
     """The reference plant under diagnosis (``--model plant``)."""
+
     name = "plant"
 
-    def __init__(self, params, cooler: str | None = None, dt_s: float = 1.0, out_dt_s: float = 1.0,
-                 workers: int | None = None, full_dt_s: float = 10.0, coarse_dt_s: float = 2.0):
+    def __init__(
+        self,
+        params,
+        cooler: str | None = None,
+        dt_s: float = 1.0,
+        out_dt_s: float = 1.0,
+        workers: int | None = None,
+        full_dt_s: float = 10.0,
+        coarse_dt_s: float = 2.0,
+    ):
         from firmware_model.effects import EFFECT_IDS
+
         self.params = params
         self.cooler = cooler or params.strings.get("cooler.kind", "liquid")
         self.dt_s, self.out_dt_s, self.full_dt_s = float(dt_s), float(out_dt_s), float(full_dt_s)
@@ -168,9 +211,11 @@ class PlantModel(DiagnosisModel):
             return None
         if self._pool is None:
             ctx = mp.get_context("fork") if "fork" in mp.get_all_start_methods() else mp.get_context()
-            self._pool = ctx.Pool(self.workers, initializer=_init_worker,
-                                  initargs=(self.params, self.cooler, self.dt_s, self.out_dt_s, self.full_dt_s,
-                                            self.coarse_dt_s))
+            self._pool = ctx.Pool(
+                self.workers,
+                initializer=_init_worker,
+                initargs=(self.params, self.cooler, self.dt_s, self.out_dt_s, self.full_dt_s, self.coarse_dt_s),
+            )
         return self._pool
 
     def simulate(self, datasets, runs, columns):
@@ -187,7 +232,7 @@ class PlantModel(DiagnosisModel):
             for i, r in zip(order, res):
                 outs[i] = r
         nd = len(datasets)
-        return [outs[i * nd:(i + 1) * nd] for i in range(len(runs))]
+        return [outs[i * nd : (i + 1) * nd] for i in range(len(runs))]
 
     def close(self):
         if self._pool is not None:
@@ -202,6 +247,7 @@ class PlantModel(DiagnosisModel):
 # ----------------------------------------------------------------------------------------------------------------
 # onboard model
 
+
 def onboard_available() -> bool:
     return importlib.util.find_spec("firmware_model.onboard.sensor") is not None
 
@@ -215,13 +261,23 @@ class OnboardModel(DiagnosisModel):
     one build per volume, ``oil_sensor_lag`` a filter on the sump output. Other effects are delegated to `fallback`
     (a PlantModel) and listed in `delegated`. Passes are spread over a process pool (one file per process).
     """
+
     name = "onboard"
 
-    def __init__(self, params, cooler: str | None = None, fallback: PlantModel | None = None,
-                 out_dt_s: float = 1.0, config=None, workers: int | None = None):
+    def __init__(
+        self,
+        params,
+        cooler: str | None = None,
+        fallback: PlantModel | None = None,
+        out_dt_s: float = 1.0,
+        config=None,
+        workers: int | None = None,
+    ):
         if not onboard_available():
-            raise InputError("the onboard model (firmware_model.onboard.sensor) is not available in this installation; "
-                             "use --model plant")
+            raise InputError(
+                "the onboard model (firmware_model.onboard.sensor) is not available in this installation; "
+                "use --model plant"
+            )
         self.params = params
         self.cooler = cooler
         self.out_dt_s = float(out_dt_s)
@@ -230,8 +286,9 @@ class OnboardModel(DiagnosisModel):
         self.workers = max(1, int(workers if workers is not None else min(2, os.cpu_count() or 1)))
         self._pool = None
         red = importlib.import_module("firmware_model.onboard.reduce")
-        self.native_effects = tuple(getattr(red, "EFFECT_HOOKS", ())) + tuple(getattr(red, "BUILD_EFFECTS", ())) + (
-            "oil_sensor_lag",)
+        self.native_effects = (
+            tuple(getattr(red, "EFFECT_HOOKS", ())) + tuple(getattr(red, "BUILD_EFFECTS", ())) + ("oil_sensor_lag",)
+        )
         self.delegated = []
         self.notes = []
         self._bc_corrections = {}
@@ -246,11 +303,14 @@ class OnboardModel(DiagnosisModel):
             return None
         key = (id(ds), tuple(columns))
         cached = self._bc_corrections.get(key)
-        if cached is not None and cached[0] is ds:      # (the data set itself kept: an id can be reused)
+        if cached is not None and cached[0] is ds:  # (the data set itself kept: an id can be reused)
             return cached[1]
         from tools.runtable import RunTable
-        bare = _DS(RunTable({c: ds.inputs[c] for c in ds.inputs.columns if not c.startswith("bc_")},
-                            meta=ds.inputs.meta), ds.initial_temp_c)
+
+        bare = _DS(
+            RunTable({c: ds.inputs[c] for c in ds.inputs.columns if not c.startswith("bc_")}, meta=ds.inputs.meta),
+            ds.initial_temp_c,
+        )
         with_bc, without = self.fallback.simulate([ds, bare], [Run.of()], columns)[0]
         corr = {"time_s": np.asarray(with_bc["time_s"], dtype=float)}
         for c, v in with_bc.items():
@@ -294,8 +354,9 @@ class OnboardModel(DiagnosisModel):
         if other:
             if self.fallback is None:
                 bad = sorted({e for r in other for e, _ in r.effects if e not in self.native_effects})
-                raise InputError(f"the onboard model cannot represent effect(s) {', '.join(bad)} and no fallback "
-                                 f"plant is configured")
+                raise InputError(
+                    f"the onboard model cannot represent effect(s) {', '.join(bad)} and no fallback plant is configured"
+                )
             # runs of every node (the measurement suggestions) always come from the plant: not a delegated effect
             for e, _ in (x for r in other if not r.full for x in r.effects):
                 if e not in self.native_effects and e not in self.delegated:
@@ -310,8 +371,9 @@ class OnboardModel(DiagnosisModel):
             return None
         if self._pool is None:
             ctx = mp.get_context("fork") if "fork" in mp.get_all_start_methods() else mp.get_context()
-            self._pool = ctx.Pool(self.workers, initializer=_init_onboard,
-                                  initargs=(self.params, self.cooler, self.config, self.out_dt_s))
+            self._pool = ctx.Pool(
+                self.workers, initializer=_init_onboard, initargs=(self.params, self.cooler, self.config, self.out_dt_s)
+            )
         return self._pool
 
     def close(self):
@@ -332,8 +394,10 @@ class OnboardModel(DiagnosisModel):
 def _corrected(out: dict, corr: dict) -> dict:
     """An onboard run's columns plus a boundary correction (OnboardModel.boundary_correction) on its time grid."""
     t = np.asarray(out["time_s"], dtype=float)
-    return {c: (np.asarray(v, dtype=float) + np.interp(t, corr["time_s"], corr[c]) if c in corr and c != "time_s"
-                else v) for c, v in out.items()}
+    return {
+        c: (np.asarray(v, dtype=float) + np.interp(t, corr["time_s"], corr[c]) if c in corr and c != "time_s" else v)
+        for c, v in out.items()
+    }
 
 
 @dataclass
@@ -360,24 +424,32 @@ def _onboard_job(job):
 def _onboard_build(volume_l: float):
     """The onboard sensor built once per oil volume and process (the expensive part: the reduced network)."""
     from firmware_model.effects import CATALOG
+
     vs = _ONB["builds"].get(volume_l)
     if vs is None:
         from firmware_model.config import Config
         from firmware_model.onboard.sensor import VirtualSensor
+
         eff = {} if volume_l == CATALOG["oil_level_low"].neutral else {"oil_level_low": volume_l}
         params = _ONB["params"]
         if _ONB["cooler"]:
             params = _with_cooler_kind(params, _ONB["cooler"])
-        vs = VirtualSensor(params, config=_ONB["config"] or Config(), effects=eff, oil_mode="model",
-                           ttl_period_s=1e12)
+        vs = VirtualSensor(params, config=_ONB["config"] or Config(), effects=eff, oil_mode="model", ttl_period_s=1e12)
         _ONB["builds"][volume_l] = vs
     return vs
 
 
 def _with_cooler_kind(params, kind):
     from firmware_model.parameters import Parameters
-    p = Parameters(params.variant, dict(params.values), dict(params.sources), dict(params.units),
-                   dict(params.strings), params.origin)
+
+    p = Parameters(
+        params.variant,
+        dict(params.values),
+        dict(params.sources),
+        dict(params.units),
+        dict(params.strings),
+        params.origin,
+    )
     p.strings["cooler.kind"] = kind
     return p
 
@@ -387,11 +459,13 @@ def _onboard_steps(vs, sp, state, raw: np.ndarray, keep: np.ndarray, wi: np.ndar
     (n, 8) for all): the compiled kernel when the sensor has it (one call per step for the whole batch), else the
     numpy step."""
     from firmware_model.onboard import sensor as S
+
     V = state.T_c.shape[0]
     rec = np.empty((keep.size, V, len(wi)))
     rec[0] = state.T_c[:, S.MAIN, :][:, wi]
     if getattr(vs, "compiled", None) is not None:
         from firmware_model.onboard.compiled import CompiledCore
+
         return CompiledCore(sp).run_batch(state, raw, keep, wi, rec)
     j = 1
     for k in range(raw.shape[0] - 1):
@@ -405,9 +479,10 @@ def _onboard_steps(vs, sp, state, raw: np.ndarray, keep: np.ndarray, wi: np.ndar
 def run_onboard_pass(ds, runs, columns, volume_l: float) -> list:
     """Run the onboard step over `ds` once, one vehicle per run (effect values as per-vehicle arrays, the oil input
     absent so that the sensor integrates its sump), and return each run's output columns every `out_dt_s`."""
+    from firmware_model.effects import CATALOG
     from firmware_model.onboard import reduce as R
     from firmware_model.onboard import sensor as S
-    from firmware_model.effects import CATALOG
+
     vs = _onboard_build(volume_l)
     out_dt_s = _ONB["out_dt_s"]
     V = len(runs)
@@ -425,6 +500,7 @@ def run_onboard_pass(ds, runs, columns, volume_l: float) -> list:
 
     def col(name):
         return np.asarray(ds.inputs[name], dtype=float)[idx] if ds.inputs.has(name) else np.full(n, np.nan)
+
     spd, tq, gear = col("engine_speed_rpm"), col("engine_torque_nm"), col("gear")
     amb, cool, vk = col("ambient_temp_c"), col("coolant_temp_c"), col("vehicle_speed_kmh")
     ret = np.nan_to_num(col("retarder_torque_nm"), nan=0.0)
@@ -433,15 +509,15 @@ def run_onboard_pass(ds, runs, columns, volume_l: float) -> list:
     dh = np.array([r.housing_offset_c for r in runs], dtype=float)
     if np.any(dh != 0.0):
         from firmware_model.components import HOUSINGS
+
         T_c = np.array(state.T_c, copy=True)
         hi = [list(vs.nodes).index(h) for h in HOUSINGS]
-        T_c[:, :, hi] += dh[:, None, None]           # both copies
+        T_c[:, :, hi] += dh[:, None, None]  # both copies
         state = state._replace(T_c=T_c)
     every = max(int(round(out_dt_s / dt)), 1)
     keep = np.arange(0, n, every)
     nodes = list(vs.nodes)
-    want = sorted({c[2:-2] for c in columns if c.startswith("T_") and c.endswith("_c") and c[2:-2] in nodes}
-                  | {"oil"})
+    want = sorted({c[2:-2] for c in columns if c.startswith("T_") and c.endswith("_c") and c[2:-2] in nodes} | {"oil"})
     wi = np.array([nodes.index(w) for w in want])
     raw = np.stack([spd, tq, gear, np.full(n, math.nan), amb, cool, vk, ret], axis=-1)
     rec = _onboard_steps(vs, sp, state, raw, keep, wi)
@@ -455,6 +531,7 @@ def run_onboard_pass(ds, runs, columns, volume_l: float) -> list:
         tau = r.effect_dict.get("oil_sensor_lag", 0.0)
         if tau > 0:
             from scipy.signal import lfilter
+
             a = math.exp(-out_dt_s / tau)
             o["oil_temp_c"] = lfilter([1 - a], [1, -a], sump, zi=[a * sump[0]])[0]
         else:

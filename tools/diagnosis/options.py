@@ -1,4 +1,5 @@
 """Settings and constants of the gap diagnosis, shared by its stages, and how it writes a number into its JSON."""
+
 from __future__ import annotations
 
 import math
@@ -13,8 +14,16 @@ J1939_RES_C = 0.03125
 OIL = "oil"
 #: channel id of a rig thermocouple in the sump (meas_T_oil_c): not the vehicle's oil sensor
 OIL_RIG = "oil@rig"
-INPUT_COLUMNS = ("time_s", "engine_speed_rpm", "engine_torque_nm", "gear", "ambient_temp_c", "coolant_temp_c",
-                 "vehicle_speed_kmh", "retarder_torque_nm")
+INPUT_COLUMNS = (
+    "time_s",
+    "engine_speed_rpm",
+    "engine_torque_nm",
+    "gear",
+    "ambient_temp_c",
+    "coolant_temp_c",
+    "vehicle_speed_kmh",
+    "retarder_torque_nm",
+)
 #: effects whose prediction is exact from the baseline (no simulation needed before the check): the oil sensor's
 #: lag (a filter of the model's sump), offset and gain, and a rig thermocouple's offset (thermocouple_offset:ID)
 #: the housings' start in the sensitivity run of a file that starts running [K] (tools/diagnosis/start.py): below the
@@ -29,48 +38,48 @@ STAGES = ("baseline and candidate grid", "where", "fit", "test", "verdict")
 
 @dataclass
 class Options:
-    grid_dt_s: float = 2.0            # analysis grid
-    plant_dt_s: float = 1.0           # re-simulation step of the plant
-    out_dt_s: float = 1.0             # model output interval (before the nuisance lag and the grid)
-    sensor_lag_max_s: float = 10.0    # normal sensor dynamics: a nuisance, never an effect
-    model_floor_c: float = 0.05       # model error floor added to the noise in the weights
+    grid_dt_s: float = 2.0  # analysis grid
+    plant_dt_s: float = 1.0  # re-simulation step of the plant
+    out_dt_s: float = 1.0  # model output interval (before the nuisance lag and the grid)
+    sensor_lag_max_s: float = 10.0  # normal sensor dynamics: a nuisance, never an effect
+    model_floor_c: float = 0.05  # model error floor added to the noise in the weights
     initial_offset_max_c: float = 0.25  # the initial temperature nuisance: within this of the first reading
-    start: str = "auto"               # each file's start: auto, rest or running (tools/diagnosis/start.py)
-    burn_in_s: float = 600.0          # a running start: the oil's first seconds not scored (the components' start
-    burn_in_tc_s: float = 900.0       # unknown), and a rig thermocouple's
-    start_early_s: float = 300.0      # ... judged from a real gap in the oil's first seconds (tools/diagnosis/start.py)
-    start_min_span_s: float = 300.0   # ... and at least this much left after them, else it is scored at rest
-    start_min_cells: int = 30         # a running file's channel keeps at least this many cells, else it is dropped
+    start: str = "auto"  # each file's start: auto, rest or running (tools/diagnosis/start.py)
+    burn_in_s: float = 600.0  # a running start: the oil's first seconds not scored (the components' start
+    burn_in_tc_s: float = 900.0  # unknown), and a rig thermocouple's
+    start_early_s: float = 300.0  # ... judged from a real gap in the oil's first seconds (tools/diagnosis/start.py)
+    start_min_span_s: float = 300.0  # ... and at least this much left after them, else it is scored at rest
+    start_min_cells: int = 30  # a running file's channel keeps at least this many cells, else it is dropped
     housing_offset_lo_c: float = -25.0  # a running start: the housings' start within these of the sump
     housing_offset_hi_c: float = 5.0
-    none_k: float = 0.3               # "none" at once: systematic residual <= none_k x noise (per sample) ...
-    none_floor_c: float = 0.03        # ... or this, on every channel
-    gap_k: float = 1.0                # a real gap: systematic residual > gap_k x noise ...
-    gap_floor_c: float = 0.1          # ... and this, on some channel
-    ident_k: float = 0.5              # identifiable: the effect can move a channel by ident_k x noise (RMS)
-    min_frac: float = 0.1             # a verdict's effect must sit >= 10 % of the way from neutral to its bound
-    evidence_min: float = 10.0        # score (-dBIC) for strong evidence
-    explain_min: float = 0.5          # share of the excess squared residual the verdict must explain
+    none_k: float = 0.3  # "none" at once: systematic residual <= none_k x noise (per sample) ...
+    none_floor_c: float = 0.03  # ... or this, on every channel
+    gap_k: float = 1.0  # a real gap: systematic residual > gap_k x noise ...
+    gap_floor_c: float = 0.1  # ... and this, on some channel
+    ident_k: float = 0.5  # identifiable: the effect can move a channel by ident_k x noise (RMS)
+    min_frac: float = 0.1  # a verdict's effect must sit >= 10 % of the way from neutral to its bound
+    evidence_min: float = 10.0  # score (-dBIC) for strong evidence
+    explain_min: float = 0.5  # share of the excess squared residual the verdict must explain
     confusable_corr: float = 0.95
-    confusable_share: float = 0.1     # explained shares within this of the best
-    refine: int = 2                   # refinement re-simulations per candidate
-    max_effects: int = 3              # forward selection: at most this many effects found together (1: off)
-    set_starts: int = 3               # forward selection: from the best candidate and up to 2 confusable with it
-    set_start_test_tol: float = 0.1   # a set from another start must leave the held-out RMS at most this much above
-                                      # the best candidate's own result (the held-out guard against an overfit)
-    not_excluded: bool = True         # say which other effects the data cannot rule out beside the verdict
+    confusable_share: float = 0.1  # explained shares within this of the best
+    refine: int = 2  # refinement re-simulations per candidate
+    max_effects: int = 3  # forward selection: at most this many effects found together (1: off)
+    set_starts: int = 3  # forward selection: from the best candidate and up to 2 confusable with it
+    set_start_test_tol: float = 0.1  # a set from another start must leave the held-out RMS at most this much above
+    # the best candidate's own result (the held-out guard against an overfit)
+    not_excluded: bool = True  # say which other effects the data cannot rule out beside the verdict
     not_excluded_min_frac: float = 0.3  # list an effect not excluded beside the verdict when its interval
-                                        # (exclude.py) reaches this far towards a bound
-    combine_check: int = 2            # forward selection: candidates re-simulated per step
-    shrink_min: float = 0.3           # a verdict's effect must shrink a real held-out gap by this much
-    add_share_min: float = 0.02       # forward selection: a new effect's least share of all the set explains (unless it
-                                      # closes a clear gap)
-    clear_gap_factor: float = 2.0     # a clear gap: a systematic residual at least this many times its threshold
-    clear_gap_cut: float = 2.5        # ... or cut by more than this factor, leaving no clear gap (set between the cases
-                                      # seen: a true second effect cut 3.9 -> 1.2, a stand-in third 2.8 -> 1.4)
-    add_explain_min: float = 0.2      # forward selection: share of the set's unexplained excess a new effect must explain
-    coarse_grid: bool = True          # surrogate grid at the plant's coarse step (2 s), differences only
-    dense: int = 161                  # dense parameter grid of the surrogate
+    # (exclude.py) reaches this far towards a bound
+    combine_check: int = 2  # forward selection: candidates re-simulated per step
+    shrink_min: float = 0.3  # a verdict's effect must shrink a real held-out gap by this much
+    add_share_min: float = 0.02  # forward selection: a new effect's least share of all the set explains (unless it
+    # closes a clear gap)
+    clear_gap_factor: float = 2.0  # a clear gap: a systematic residual at least this many times its threshold
+    clear_gap_cut: float = 2.5  # ... or cut by more than this factor, leaving no clear gap (set between the cases
+    # seen: a true second effect cut 3.9 -> 1.2, a stand-in third 2.8 -> 1.4)
+    add_explain_min: float = 0.2  # forward selection: share of the set's unexplained excess a new effect must explain
+    coarse_grid: bool = True  # surrogate grid at the plant's coarse step (2 s), differences only
+    dense: int = 161  # dense parameter grid of the surrogate
     workers: int | None = None
     cold_c: float = 60.0
     max_time_gap_s: float = 60.0

@@ -3,6 +3,7 @@
 Input: measured run tables (CSV) or CAN logs with the oil sensor ``oil_temp_c`` and/or rig thermocouples
 ``meas_T_<id>_c``. Every problem is an InputError of one sentence naming the file and the column.
 """
+
 from __future__ import annotations
 
 import hashlib
@@ -16,13 +17,13 @@ import numpy as np
 from firmware_model.components import HOUSINGS, PUBLISHED
 from firmware_model.errors import InputError
 from firmware_model.physics.oil import check_temperature_c
-
 from tools.diagnosis.options import INPUT_COLUMNS, J1939_RES_C, LOG_SUFFIXES, OIL, OIL_RIG, Options
 from tools.runtable import REQUIRED, RunTable, read_run_table, validate_run_table
 
 
 class ChannelColumns(NamedTuple):
     """The measured column of a channel and the model column that predicts it."""
+
     column: str
     model_column: str
 
@@ -30,33 +31,36 @@ class ChannelColumns(NamedTuple):
 @dataclass(frozen=True, eq=False)
 class Channel:
     """One measured channel of one file: its valid raw samples and their averages on the analysis grid."""
-    id: str                 # 'oil' or component id
-    column: str             # measured column
-    model_column: str       # model column predicting it
-    t_s: np.ndarray         # raw valid sample times
-    y_c: np.ndarray         # raw valid values
-    cell_t_s: np.ndarray    # mean sample time per grid cell
-    cell_y_c: np.ndarray    # mean value per grid cell
-    cell_n: np.ndarray      # samples per grid cell
+
+    id: str  # 'oil' or component id
+    column: str  # measured column
+    model_column: str  # model column predicting it
+    t_s: np.ndarray  # raw valid sample times
+    y_c: np.ndarray  # raw valid values
+    cell_t_s: np.ndarray  # mean sample time per grid cell
+    cell_y_c: np.ndarray  # mean value per grid cell
+    cell_n: np.ndarray  # samples per grid cell
 
 
 @dataclass(frozen=True, eq=False)
 class Dataset:
     """One measured file, ready for the diagnosis."""
+
     name: str
-    role: str               # 'train' or 'test'
-    inputs: RunTable        # the drive inputs (and the oil when it is an input), meta['initial_temp_c']
-    channels: dict          # channel id -> Channel
+    role: str  # 'train' or 'test'
+    inputs: RunTable  # the drive inputs (and the oil when it is an input), meta['initial_temp_c']
+    channels: dict  # channel id -> Channel
     initial_temp_c: float
     t_start_s: float
     t_end_s: float
     warnings: tuple = ()
-    start: str = "rest"            # 'rest', or 'running': scored from scored_from_s (tools/diagnosis/start.py)
+    start: str = "rest"  # 'rest', or 'running': scored from scored_from_s (tools/diagnosis/start.py)
     scored_from_s: float | None = None
 
 
 class Runs(NamedTuple):
     """The prepared training and test files."""
+
     train: list
     test: list
 
@@ -68,7 +72,7 @@ def channel_columns(table: RunTable) -> dict:
         out[OIL] = ChannelColumns("oil_temp_c", "oil_temp_c")
     for c in table.columns:
         if c.startswith("meas_T_") and c.endswith("_c"):
-            cid = c[len("meas_T_"):-2]
+            cid = c[len("meas_T_") : -2]
             # a rig thermocouple in the sump is not the vehicle's oil sensor (no sensor lag effect on it)
             out[cid if cid != OIL else OIL_RIG] = ChannelColumns(c, f"T_{cid}_c")
     return out
@@ -76,6 +80,7 @@ def channel_columns(table: RunTable) -> dict:
 
 # ----------------------------------------------------------------------------------------------------------------
 # loading
+
 
 def _table_from_can_log(p: Path, path, config_path) -> RunTable:
     """The measured run table of a CAN log, decoded through the sensor's own CAN service."""
@@ -85,8 +90,10 @@ def _table_from_can_log(p: Path, path, config_path) -> RunTable:
         from tools.replay.formats import is_can_log
         from tools.replay.log import replay_log
     except ImportError:
-        raise InputError(f"{path}: CAN logs need the log decoder (tools/replay/log.py), which is not installed; "
-                         f"convert the log to a CSV run table first") from None
+        raise InputError(
+            f"{path}: CAN logs need the log decoder (tools/replay/log.py), which is not installed; "
+            f"convert the log to a CSV run table first"
+        ) from None
     if not is_can_log(p):
         raise InputError(f"{path}: {p.suffix} logs are not supported; use .log, .asc, .blf, .mf4 or .trc")
     service = build_service(config_path, record=True, emit_frames=False, log_findings=False)
@@ -99,19 +106,23 @@ def _table_from_can_log(p: Path, path, config_path) -> RunTable:
             raise InputError(f"{path}: {f.sentence}")
     hint = "".join(f"; {f.sentence}" for f in untrusted)
     keep = [c for c in INPUT_COLUMNS + ("oil_temp_c",) if rec.has(c)] + [
-        c for c in rec.columns if c.startswith("meas_T_") and c.endswith("_c")]
+        c for c in rec.columns if c.startswith("meas_T_") and c.endswith("_c")
+    ]
     cols = {c: np.asarray(rec[c], dtype=float) for c in keep}
     foreign = [f for f in service.findings() if f.kind == "foreign_source" and f.message == "TRF1"]
     if foreign and not np.any(np.isfinite(cols.get("oil_temp_c", np.zeros(0)))):
         # the oil sensor is there, on another source address: not a dead sensor (what the column check would say)
-        raise InputError(f"{path}: the log carries no oil temperature from the expected source address; "
-                         f"{foreign[0].sentence}")
+        raise InputError(
+            f"{path}: the log carries no oil temperature from the expected source address; {foreign[0].sentence}"
+        )
     # the first steps before every drive signal has arrived carry no input: drop them
     ok = np.ones(rec.n, dtype=bool)
     for c in REQUIRED:
         if c not in cols:
-            raise InputError(f"{path}: the log never carries {c} (its J1939 message is missing or from another "
-                             f"source address); check the [can] section of the configuration{hint}")
+            raise InputError(
+                f"{path}: the log never carries {c} (its J1939 message is missing or from another "
+                f"source address); check the [can] section of the configuration{hint}"
+            )
         ok &= np.isfinite(cols[c])
     if not ok.any():
         raise InputError(f"{path}: no step of the log has engine speed, torque and gear together{hint}")
@@ -154,7 +165,7 @@ def fingerprint(table: RunTable) -> str:
 class Loaded(NamedTuple):
     name: str
     table: RunTable
-    source: object          # the RunTable or the path it came from
+    source: object  # the RunTable or the path it came from
 
 
 def _load_all(items, names, role: str, config_path) -> list:
@@ -182,15 +193,26 @@ def _check_distinct(train: list, test: list) -> None:
                 if k in seen:
                     other, orole = seen[k]
                     if orole != role:
-                        raise InputError(f"{item.name} is both a training and a test file (same data as {other}); "
-                                         f"the test files must be different runs")
-                    raise InputError(f"{item.name} is given twice as a {role} file (same data as {other}); give "
-                                     f"each run once")
+                        raise InputError(
+                            f"{item.name} is both a training and a test file (same data as {other}); "
+                            f"the test files must be different runs"
+                        )
+                    raise InputError(
+                        f"{item.name} is given twice as a {role} file (same data as {other}); give each run once"
+                    )
                 seen[k] = (item.name, role)
 
 
-def prepare_runs(train_tables, test_tables, opts: Options, oil_is_input: bool, train_names=None, test_names=None,
-                 config_path=None, params=None) -> Runs:
+def prepare_runs(
+    train_tables,
+    test_tables,
+    opts: Options,
+    oil_is_input: bool,
+    train_names=None,
+    test_names=None,
+    config_path=None,
+    params=None,
+) -> Runs:
     """Load (RunTables or paths), check that train and test differ, prepare every file; the test files may only
     measure channels that some training file measures. ``params``: the drive columns are also checked against its
     engine and gearbox (what the plant would refuse later), naming the file."""
@@ -203,6 +225,7 @@ def prepare_runs(train_tables, test_tables, opts: Options, oil_is_input: bool, t
     _check_distinct(tr, te)
     if params is not None:
         from tools.plant.reference import validate_drive
+
         for x in tr + te:
             try:
                 validate_drive(x.table, params)
@@ -213,13 +236,16 @@ def prepare_runs(train_tables, test_tables, opts: Options, oil_is_input: bool, t
     ch_tr = {c for ds in train for c in ds.channels}
     missing = sorted({c for ds in test for c in ds.channels} - ch_tr)
     if missing:
-        raise InputError(f"channel(s) {', '.join(missing)} are measured in the test files but in no training file; "
-                         f"the diagnosis can only test what it was trained on")
+        raise InputError(
+            f"channel(s) {', '.join(missing)} are measured in the test files but in no training file; "
+            f"the diagnosis can only test what it was trained on"
+        )
     return Runs(train, test)
 
 
 # ----------------------------------------------------------------------------------------------------------------
 # validation and the analysis grid
+
 
 def _longest_nan_run(t, valid):
     """Longest time span [s] without a valid sample (start, length)."""
@@ -240,12 +266,15 @@ def _check_time(t: np.ndarray, name: str, opts: Options) -> None:
     gap_lim = max(opts.max_time_gap_s, 50 * med)
     k = int(np.argmax(dt))
     if dt[k] > gap_lim:
-        raise InputError(f"{name}: column time_s jumps from {t[k]:.10g} s to {t[k + 1]:.10g} s (a gap of "
-                         f"{dt[k]:.0f} s, more than {gap_lim:.0f} s); split the file at the gap")
+        raise InputError(
+            f"{name}: column time_s jumps from {t[k]:.10g} s to {t[k + 1]:.10g} s (a gap of "
+            f"{dt[k]:.0f} s, more than {gap_lim:.0f} s); split the file at the gap"
+        )
 
 
 class ValidSamples(NamedTuple):
     """The valid samples of a measured column, and a warning about it ('' when none)."""
+
     t_s: np.ndarray
     y_c: np.ndarray
     warning: str
@@ -261,21 +290,26 @@ def _check_values(y: np.ndarray, ok: np.ndarray, name: str, col: str, dur_s: flo
     if np.any(np.isinf(y)):
         raise InputError(f'{name}: column "{col}" row {int(np.flatnonzero(np.isinf(y))[0]) + 1}: infinite value')
     if not ok.any():
-        raise InputError(f'{name}: column "{col}" has no valid value (a dead sensor); remove the column or fix '
-                         f"the logging")
-    if ok.sum() < max(10, 0.2 * y.size) and not (ok.sum() >= 10 and _longest_nan_run(t, ok)[1]
-                                                  <= SPARSE_ALIVE_GAP_S):
-        raise InputError(f'{name}: column "{col}" has only {int(ok.sum())} valid values of {y.size}, with gaps '
-                         f"longer than {SPARSE_ALIVE_GAP_S:.0f} s (a dead sensor); remove the column or fix the "
-                         f"logging")
+        raise InputError(
+            f'{name}: column "{col}" has no valid value (a dead sensor); remove the column or fix the logging'
+        )
+    if ok.sum() < max(10, 0.2 * y.size) and not (ok.sum() >= 10 and _longest_nan_run(t, ok)[1] <= SPARSE_ALIVE_GAP_S):
+        raise InputError(
+            f'{name}: column "{col}" has only {int(ok.sum())} valid values of {y.size}, with gaps '
+            f"longer than {SPARSE_ALIVE_GAP_S:.0f} s (a dead sensor); remove the column or fix the "
+            f"logging"
+        )
     yv = y[ok]
-    if np.any((yv < -60) | (yv > 300)):            # before the stuck check: a span of 1e308 overflows to inf
+    if np.any((yv < -60) | (yv > 300)):  # before the stuck check: a span of 1e308 overflows to inf
         bad = yv[(yv < -60) | (yv > 300)][0]
-        raise InputError(f'{name}: column "{col}" holds {bad:.5g} degC, outside -60..300 degC (not a plausible '
-                         f"temperature)")
+        raise InputError(
+            f'{name}: column "{col}" holds {bad:.5g} degC, outside -60..300 degC (not a plausible temperature)'
+        )
     if np.ptp(yv) <= J1939_RES_C * 1.01 and dur_s > 60:
-        raise InputError(f'{name}: column "{col}" stays at {yv[0]:.5g} degC for the whole {dur_s:.0f} s (a stuck '
-                         f"sensor); remove the column or the file")
+        raise InputError(
+            f'{name}: column "{col}" stays at {yv[0]:.5g} degC for the whole {dur_s:.0f} s (a stuck '
+            f"sensor); remove the column or the file"
+        )
 
 
 def _valid_samples(table: RunTable, t: np.ndarray, name: str, col: str, opts: Options) -> ValidSamples:
@@ -289,9 +323,11 @@ def _valid_samples(table: RunTable, t: np.ndarray, name: str, col: str, opts: Op
     g0, glen = _longest_nan_run(t, ok)
     limit_s = max(opts.max_channel_gap_frac * dur, 300.0)
     if glen > limit_s:
-        raise InputError(f'{name}: column "{col}" has no valid value for {glen:.0f} s from t = {g0:.10g} s '
-                         f"(more than {limit_s:.0f} s: a quarter of the run or 300 s, the longer); cut the file or "
-                         f"drop the column")
+        raise InputError(
+            f'{name}: column "{col}" has no valid value for {glen:.0f} s from t = {g0:.10g} s '
+            f"(more than {limit_s:.0f} s: a quarter of the run or 300 s, the longer); cut the file or "
+            f"drop the column"
+        )
     tv = t[ok]
     keep, warning = _frozen_stretches(table, t, tv, yv, dur, name, col)
     return ValidSamples(tv[keep], yv[keep], warning)
@@ -320,8 +356,9 @@ def _drive_moves(table: RunTable, t: np.ndarray, t0_s: float, t1_s: float) -> bo
     return False
 
 
-def _frozen_stretches(table: RunTable, t: np.ndarray, tv: np.ndarray, yv: np.ndarray, dur_s: float, name: str,
-                      col: str) -> tuple:
+def _frozen_stretches(
+    table: RunTable, t: np.ndarray, tv: np.ndarray, yv: np.ndarray, dur_s: float, name: str, col: str
+) -> tuple:
     """(samples kept, warning): a reading bit-identical for more than FROZEN_S while the drive moves, on a channel
     of fine resolution (steps under FINE_RESOLUTION_C), is a frozen sensor: its first sample is kept, the rest left
     out of the fit and said in the warning (an audit: a sensor stuck for 400 s in each file was fitted as data and
@@ -338,32 +375,52 @@ def _frozen_stretches(table: RunTable, t: np.ndarray, tv: np.ndarray, yv: np.nda
     first, last = bounds[:-1], bounds[1:] - 1
     lens = tv[last] - tv[first]
     fine = float(np.min(np.diff(np.unique(yv)))) < FINE_RESOLUTION_C
-    frozen = np.array([j for j in np.flatnonzero(lens > FROZEN_S)
-                       if fine and _drive_moves(table, t, float(tv[first[j]]), float(tv[last[j]]))], dtype=np.int64)
+    frozen = np.array(
+        [
+            j
+            for j in np.flatnonzero(lens > FROZEN_S)
+            if fine and _drive_moves(table, t, float(tv[first[j]]), float(tv[last[j]]))
+        ],
+        dtype=np.int64,
+    )
     if not frozen.size:
         j = int(np.argmax(lens))
         if lens[j] > max(600.0, 0.3 * dur_s):
-            return keep, (f'column "{col}" is frozen at {yv[first[j]]:.5g} degC for {lens[j]:.0f} s from t = '
-                          f"{tv[first[j]]:.0f} s (kept: the drive was steady or the channel coarse)")
+            return keep, (
+                f'column "{col}" is frozen at {yv[first[j]]:.5g} degC for {lens[j]:.0f} s from t = '
+                f"{tv[first[j]]:.0f} s (kept: the drive was steady or the channel coarse)"
+            )
         return keep, ""
     for j in frozen:
-        keep[first[j] + 1:last[j] + 1] = False
+        keep[first[j] + 1 : last[j] + 1] = False
     total_s = float(lens[frozen].sum())
     if total_s > 0.5 * dur_s:
-        raise InputError(f'{name}: column "{col}" is frozen (one value repeated for more than {FROZEN_S:.0f} s) for '
-                         f"{total_s:.0f} s of its {dur_s:.0f} s: a stuck sensor; remove the column or the file")
+        raise InputError(
+            f'{name}: column "{col}" is frozen (one value repeated for more than {FROZEN_S:.0f} s) for '
+            f"{total_s:.0f} s of its {dur_s:.0f} s: a stuck sensor; remove the column or the file"
+        )
     j = int(frozen[np.argmax(lens[frozen])])
     more = f" and {frozen.size - 1} more stretch(es), {total_s:.0f} s in all" if frozen.size > 1 else ""
-    return keep, (f'column "{col}" is frozen at {yv[first[j]]:.5g} degC for {lens[j]:.0f} s from t = '
-                  f"{tv[first[j]]:.0f} s{more} (a stuck sensor: left out of the fit)")
+    return keep, (
+        f'column "{col}" is frozen at {yv[first[j]]:.5g} degC for {lens[j]:.0f} s from t = '
+        f"{tv[first[j]]:.0f} s{more} (a stuck sensor: left out of the fit)"
+    )
 
 
 def grid_channel(cid: str, cols: ChannelColumns, s: ValidSamples, t_start_s: float, grid_dt_s: float) -> Channel:
     """A channel with its samples averaged onto the analysis grid (cells of grid_dt_s from t_start_s)."""
     k = np.floor((s.t_s - t_start_s) / grid_dt_s + 0.5).astype(np.int64)
     _uk, inv, cnt = np.unique(k, return_inverse=True, return_counts=True)
-    return Channel(cid, cols.column, cols.model_column, s.t_s, s.y_c, cell_t_s=np.bincount(inv, s.t_s) / cnt,
-                   cell_y_c=np.bincount(inv, s.y_c) / cnt, cell_n=cnt.astype(float))
+    return Channel(
+        cid,
+        cols.column,
+        cols.model_column,
+        s.t_s,
+        s.y_c,
+        cell_t_s=np.bincount(inv, s.t_s) / cnt,
+        cell_y_c=np.bincount(inv, s.y_c) / cnt,
+        cell_n=cnt.astype(float),
+    )
 
 
 def _initial_temp_c(table: RunTable, t: np.ndarray, channels: dict, oil_is_input: bool) -> float:
@@ -392,6 +449,7 @@ def _refuse_implausible(table: RunTable, t: np.ndarray, name: str) -> None:
     """InputError for a file whose whole record is implausible (firmware_model.service.plausibility: oil in degF
     or kelvin, torque negated or in percent): a fit to it would explain a unit mistake by a gearbox effect."""
     from firmware_model.service.plausibility import record_findings
+
     found = record_findings(table, float(np.median(np.diff(t))))
     if found:
         raise InputError(f"{name}: {found[0].sentence}")
@@ -407,24 +465,32 @@ def prepare(table: RunTable, name: str, role: str, opts: Options, oil_is_input: 
     if oil_is_input:
         cols.pop(OIL, None)
     if not cols:
-        raise InputError(f"{name}: has no measured channel; the diagnosis needs oil_temp_c or a meas_T_<id>_c column "
-                         f"to compare with the model")
+        raise InputError(
+            f"{name}: has no measured channel; the diagnosis needs oil_temp_c or a meas_T_<id>_c column "
+            f"to compare with the model"
+        )
     channels = {}
     warn = []
     for cid, cc in cols.items():
         if cid not in (OIL, OIL_RIG) and cid not in PUBLISHED and cid not in HOUSINGS:
-            raise InputError(f'{name}: column "{cc.column}" names component "{cid}", which is not a component id '
-                             f"(firmware_model.components)")
+            raise InputError(
+                f'{name}: column "{cc.column}" names component "{cid}", which is not a component id '
+                f"(firmware_model.components)"
+            )
         s = _valid_samples(table, t, name, cc.column, opts)
         if s.warning:
             warn.append(s.warning)
         channels[cid] = grid_channel(cid, cc, s, float(t[0]), opts.grid_dt_s)
     # every node starts there, and the model's oil data span -40..200 degC: said here, with the file's name (the
     # plant refused it later without one)
-    T0 = check_temperature_c(f"{name}: the start (the first measured temperature, read off its first 5 s)",
-                             float(_initial_temp_c(table, t, channels, oil_is_input)))
-    inputs = RunTable({c: table[c] for c in INPUT_COLUMNS if table.has(c)} |
-                      ({"oil_temp_c": table["oil_temp_c"]} if oil_is_input and table.has("oil_temp_c") else {}) |
-                      {c: table[c] for c in table.columns if c.startswith("bc_")},
-                      meta={"initial_temp_c": T0})
+    T0 = check_temperature_c(
+        f"{name}: the start (the first measured temperature, read off its first 5 s)",
+        float(_initial_temp_c(table, t, channels, oil_is_input)),
+    )
+    inputs = RunTable(
+        {c: table[c] for c in INPUT_COLUMNS if table.has(c)}
+        | ({"oil_temp_c": table["oil_temp_c"]} if oil_is_input and table.has("oil_temp_c") else {})
+        | {c: table[c] for c in table.columns if c.startswith("bc_")},
+        meta={"initial_temp_c": T0},
+    )
     return Dataset(name, role, inputs, channels, T0, float(t[0]), float(t[-1]), tuple(warn))

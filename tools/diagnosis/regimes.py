@@ -1,6 +1,7 @@
 """Operating regimes: where the model misses. The residual's square apportioned to regimes (gear range x torque,
 gear, engine speed, transients, cold/warm, retarder, cooler) and to 120-s episodes; the test files' residual before
 and after the verdict per regime."""
+
 from __future__ import annotations
 
 import math
@@ -30,13 +31,19 @@ def gear_group(g):
 
 
 def torque_bin(tq):
-    return np.where(tq < 0, "engine braking (torque < 0)", np.where(
-        tq < 800, "torque 0-800 Nm", np.where(tq < 1500, "torque 800-1500 Nm", "torque > 1500 Nm")))
+    return np.where(
+        tq < 0,
+        "engine braking (torque < 0)",
+        np.where(tq < 800, "torque 0-800 Nm", np.where(tq < 1500, "torque 800-1500 Nm", "torque > 1500 Nm")),
+    )
 
 
 def speed_bin(rpm):
-    return np.where(rpm < 1000, "speed < 1000 rpm", np.where(rpm < 1400, "speed 1000-1400 rpm", np.where(
-        rpm < 1800, "speed 1400-1800 rpm", "speed > 1800 rpm")))
+    return np.where(
+        rpm < 1000,
+        "speed < 1000 rpm",
+        np.where(rpm < 1400, "speed 1000-1400 rpm", np.where(rpm < 1800, "speed 1400-1800 rpm", "speed > 1800 rpm")),
+    )
 
 
 def cell_inputs(ds: Dataset, ch: Channel):
@@ -80,14 +87,16 @@ def _cooler_labels(ct: np.ndarray, base_out: dict, params, cooler: str):
         return np.where(moil < to, "thermostat closed", np.where(moil < tf, "thermostat opening", "thermostat open"))
     if cooler == "liquid":
         qc = np.interp(ct, base_out["time_s"], base_out.get("Q_out_cooler_w", np.zeros(base_out["time_s"].size)))
-        return np.where(qc > 300, "cooler cooling", np.where(qc < -300, "cooler heating the oil",
-                                                             "cooler near balance"))
+        return np.where(
+            qc > 300, "cooler cooling", np.where(qc < -300, "cooler heating the oil", "cooler near balance")
+        )
     return None
 
 
 def regime_labels(ds: Dataset, ch: Channel, base_out: dict, params, cooler: str, opts: Options) -> dict:
     """Partition name -> label per cell of channel `ch`."""
     from firmware_model.physics.kinematics import GEAR_NAMES
+
     tin = ds.inputs["time_s"]
     ct = ch.cell_t_s
     gear, tq, rpm = cell_inputs(ds, ch)
@@ -96,8 +105,9 @@ def regime_labels(ds: Dataset, ch: Channel, base_out: dict, params, cooler: str,
     lab["gear"] = np.array([f"gear {GEAR_NAMES[int(g)]}" for g in gear])
     lab["engine speed"] = speed_bin(rpm)
     lab["speed x torque"] = np.char.add(np.char.add(speed_bin(rpm).astype(str), ", "), torque_bin(tq).astype(str))
-    lab["transient / steady"] = np.where(transient_cells(ds, ct),
-                                         "transient (gear change or torque step in the last 60 s)", "steady")
+    lab["transient / steady"] = np.where(
+        transient_cells(ds, ct), "transient (gear change or torque step in the last 60 s)", "steady"
+    )
     oil = np.interp(ct, base_out["time_s"], base_out["oil_temp_c"])
     if OIL in ds.channels:
         o = ds.channels[OIL]
@@ -115,16 +125,19 @@ def regime_labels(ds: Dataset, ch: Channel, base_out: dict, params, cooler: str,
 # ----------------------------------------------------------------------------------------------------------------
 # the residual by regime
 
+
 @dataclass
 class RegimeSum:
     """The residual accumulated over the cells of one regime."""
-    sq_c2: float = 0.0        # sum of r^2
+
+    sq_c2: float = 0.0  # sum of r^2
     cells: int = 0
-    sum_c: float = 0.0        # sum of r
+    sum_c: float = 0.0  # sum of r
 
 
 class Episode(NamedTuple):
     """A 120-s window of one file and channel: its sum of r^2 and mean residual."""
+
     channel: str
     file: str
     t_start_s: float
@@ -153,27 +166,42 @@ def _by_regime(datasets, outs, resid, params, cooler, opts) -> tuple:
                     a.sum_c += float(np.sum(r[m]))
             w = EPISODE_S
             kk = np.floor((ch.cell_t_s - ds.t_start_s) / w).astype(int)
-            e2 = np.bincount(kk, r ** 2)
+            e2 = np.bincount(kk, r**2)
             for j in np.flatnonzero(e2):
-                ep.append(Episode(cid, ds.name, ds.t_start_s + j * w, min(ds.t_start_s + (j + 1) * w, ds.t_end_s),
-                                  float(e2[j]), float(np.sum(r[kk == j]) / max((kk == j).sum(), 1))))
+                ep.append(
+                    Episode(
+                        cid,
+                        ds.name,
+                        ds.t_start_s + j * w,
+                        min(ds.t_start_s + (j + 1) * w, ds.t_end_s),
+                        float(e2[j]),
+                        float(np.sum(r[kk == j]) / max((kk == j).sum(), 1)),
+                    )
+                )
     return parts, ep
 
 
 def _shares(regs: dict) -> list:
     tot = sum(a.sq_c2 for a in regs.values()) or 1.0
     ntot = sum(a.cells for a in regs.values()) or 1
-    lst = [{"regime": L, "share": json_number(a.sq_c2 / tot, 4), "time_share": json_number(a.cells / ntot, 4),
+    lst = [
+        {
+            "regime": L,
+            "share": json_number(a.sq_c2 / tot, 4),
+            "time_share": json_number(a.cells / ntot, 4),
             "rms_c": json_number(math.sqrt(a.sq_c2 / max(a.cells, 1))),
-            "mean_c": json_number(a.sum_c / max(a.cells, 1))} for L, a in regs.items()]
+            "mean_c": json_number(a.sum_c / max(a.cells, 1)),
+        }
+        for L, a in regs.items()
+    ]
     lst.sort(key=lambda x: -x["share"])
     return lst
 
 
 class Where(NamedTuple):
-    where: list              # the primary partition, every channel, largest share first
-    where_by: dict           # channel -> partition -> regimes
-    episodes: list           # the 10 episodes with the largest share
+    where: list  # the primary partition, every channel, largest share first
+    where_by: dict  # channel -> partition -> regimes
+    episodes: list  # the 10 episodes with the largest share
 
 
 def where_residual(datasets: list, outs: list, resid: list, params, cooler: str, opts: Options) -> Where:
@@ -194,14 +222,23 @@ def where_residual(datasets: list, outs: list, resid: list, params, cooler: str,
     for e in ep:
         tot_ch[e.channel] = tot_ch.get(e.channel, 0.0) + e.sq_c2
     ep.sort(key=lambda e: -e.sq_c2 / (tot_ch[e.channel] or 1.0))
-    episodes = [{"channel": e.channel, "file": e.file, "t_start_s": json_number(e.t_start_s, 1),
-                 "t_end_s": json_number(e.t_end_s, 1), "share": json_number(e.sq_c2 / (tot_ch[e.channel] or 1.0), 4),
-                 "mean_c": json_number(e.mean_c)} for e in ep[:10]]
+    episodes = [
+        {
+            "channel": e.channel,
+            "file": e.file,
+            "t_start_s": json_number(e.t_start_s, 1),
+            "t_end_s": json_number(e.t_end_s, 1),
+            "share": json_number(e.sq_c2 / (tot_ch[e.channel] or 1.0), 4),
+            "mean_c": json_number(e.mean_c),
+        }
+        for e in ep[:10]
+    ]
     return Where(where, where_by, episodes)
 
 
-def regimes_before_after(datasets: list, outs: list, res0: list, res1: list, params, cooler: str,
-                         opts: Options) -> list:
+def regimes_before_after(
+    datasets: list, outs: list, res0: list, res1: list, params, cooler: str, opts: Options
+) -> list:
     """The test files' residual before (res0) and after (res1) per regime of the TEST_PARTITIONS."""
     acc = {}
     k = 0
@@ -221,9 +258,19 @@ def regimes_before_after(datasets: list, outs: list, res0: list, res1: list, par
                     a[2] += int(m.sum())
                     a[3] = max(a[3], float(np.max(np.abs(r0[m]))))
                     a[4] = max(a[4], float(np.max(np.abs(r1[m]))))
-    out = [{"channel": c, "partition": p, "regime": L, "rms_before_c": json_number(math.sqrt(a[0] / a[2])),
-            "rms_after_c": json_number(math.sqrt(a[1] / a[2])), "max_before_c": json_number(a[3]),
-            "max_after_c": json_number(a[4]), "cells": a[2]} for (c, p, L), a in acc.items()]
+    out = [
+        {
+            "channel": c,
+            "partition": p,
+            "regime": L,
+            "rms_before_c": json_number(math.sqrt(a[0] / a[2])),
+            "rms_after_c": json_number(math.sqrt(a[1] / a[2])),
+            "max_before_c": json_number(a[3]),
+            "max_after_c": json_number(a[4]),
+            "cells": a[2],
+        }
+        for (c, p, L), a in acc.items()
+    ]
     out.sort(key=lambda x: (x["channel"] != OIL, x["channel"], x["partition"], -x["rms_before_c"]))
     return out
 
@@ -241,8 +288,11 @@ def residual_structure(where_by: dict, gap_channels) -> dict:
     the load); ``load-dependent`` otherwise (a heat-flow effect grows with the load or the speed)."""
     out = {}
     for cid in gap_channels:
-        regs = [r for r in where_by.get(cid, {}).get(PRIMARY, [])
-                if (r.get("time_share") or 0.0) >= STRUCTURE_MIN_TIME_SHARE and r.get("mean_c") is not None]
+        regs = [
+            r
+            for r in where_by.get(cid, {}).get(PRIMARY, [])
+            if (r.get("time_share") or 0.0) >= STRUCTURE_MIN_TIME_SHARE and r.get("mean_c") is not None
+        ]
         if not regs:
             continue
         w = np.array([r["time_share"] for r in regs])
@@ -251,9 +301,15 @@ def residual_structure(where_by: dict, gap_channels) -> dict:
         spread = float(means.max() - means.min())
         same_sign = bool(np.all(np.sign(means) == np.sign(overall))) and overall != 0.0
         kind = "constant" if same_sign and spread <= STRUCTURE_CONSTANT_SPREAD * abs(overall) else "load-dependent"
-        out[cid] = {"kind": kind, "mean_c": json_number(overall), "spread_c": json_number(spread),
-                    "regimes": [{"regime": r["regime"], "mean_c": r["mean_c"], "time_share": r["time_share"]}
-                                for r in sorted(regs, key=lambda r: -r["time_share"])]}
+        out[cid] = {
+            "kind": kind,
+            "mean_c": json_number(overall),
+            "spread_c": json_number(spread),
+            "regimes": [
+                {"regime": r["regime"], "mean_c": r["mean_c"], "time_share": r["time_share"]}
+                for r in sorted(regs, key=lambda r: -r["time_share"])
+            ],
+        }
     return out
 
 
@@ -264,13 +320,19 @@ def structure_sentence(cid: str, st: dict, better: str | None = None) -> str:
     name = "oil sensor" if cid == "oil" else f"{cid} thermocouple"
     regs = ", ".join(f"{r['mean_c']:+.1f} K in {r['regime']}" for r in st["regimes"][:3])
     if st["kind"] == "constant" and better:
-        return (f"the {name}'s residual is about the same in every operating regime met ({regs}; spread "
-                f"{st['spread_c']:.1f} K around {st['mean_c']:+.1f} K), as a sensor offset's would be, but the best "
-                f"candidate is {better}, not this sensor's own effect, so no sensor fault is claimed")
+        return (
+            f"the {name}'s residual is about the same in every operating regime met ({regs}; spread "
+            f"{st['spread_c']:.1f} K around {st['mean_c']:+.1f} K), as a sensor offset's would be, but the best "
+            f"candidate is {better}, not this sensor's own effect, so no sensor fault is claimed"
+        )
     if st["kind"] == "constant":
-        return (f"the {name}'s residual is about the same in every operating regime ({regs}; spread "
-                f"{st['spread_c']:.1f} K around {st['mean_c']:+.1f} K): the same error whatever the load, the "
-                f"signature of a sensor or placement fault (an offset, or a gain over a narrow span of temperatures) "
-                f"rather than of a heat flow")
-    return (f"the {name}'s residual depends on the operating regime ({regs}; spread {st['spread_c']:.1f} K): a "
-            f"heat-flow effect rather than a sensor offset")
+        return (
+            f"the {name}'s residual is about the same in every operating regime ({regs}; spread "
+            f"{st['spread_c']:.1f} K around {st['mean_c']:+.1f} K): the same error whatever the load, the "
+            f"signature of a sensor or placement fault (an offset, or a gain over a narrow span of temperatures) "
+            f"rather than of a heat flow"
+        )
+    return (
+        f"the {name}'s residual depends on the operating regime ({regs}; spread {st['spread_c']:.1f} K): a "
+        f"heat-flow effect rather than a sensor offset"
+    )

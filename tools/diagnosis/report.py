@@ -3,6 +3,7 @@
 Everything is rendered into memory / a staging directory first and moved into place only when complete, so a failure
 never leaves a half-written report.
 """
+
 from __future__ import annotations
 
 import math
@@ -15,7 +16,6 @@ from typing import NamedTuple
 import numpy as np
 
 from firmware_model.effects import CATALOG
-
 from tools.diagnosis.options import OIL
 from tools.diagnosis.regimes import PRIMARY, cell_inputs, gear_group, speed_bin, torque_bin
 from tools.diagnosis.result import PlotData
@@ -33,6 +33,7 @@ def _chan_label(cid):
 class Row(NamedTuple):
     """One (dataset, channel) of a role: the residual before and after the verdict, the model before and after
     (after: None for 'none' and 'unexplained')."""
+
     ds: object
     cid: str
     ch: object
@@ -52,8 +53,17 @@ def _series(pd: PlotData, role: str) -> list:
     k = 0
     for ds in dsets:
         for cid, ch in ds.channels.items():
-            out.append(Row(ds, cid, ch, obs[k] - p0[k], None if after is None else obs[k] - after[k], p0[k],
-                           None if after is None else after[k]))
+            out.append(
+                Row(
+                    ds,
+                    cid,
+                    ch,
+                    obs[k] - p0[k],
+                    None if after is None else obs[k] - after[k],
+                    p0[k],
+                    None if after is None else after[k],
+                )
+            )
             k += 1
     return out
 
@@ -87,6 +97,7 @@ SPEEDS = ("speed < 1000 rpm", "speed 1000-1400 rpm", "speed 1400-1800 rpm", "spe
 
 class CellBins(NamedTuple):
     """The regime bins of a channel's cells."""
+
     gear_group: np.ndarray
     torque: np.ndarray
     speed: np.ndarray
@@ -99,6 +110,7 @@ def _cell_bins(ds, ch) -> CellBins:
 
 class RegimeGrid(NamedTuple):
     """Over (row label, torque bin): sum of r^2, sum of r, cells."""
+
     sq: np.ndarray
     sum: np.ndarray
     n: np.ndarray
@@ -134,11 +146,20 @@ def _draw_regime_grid(fig, ax, g: RegimeGrid, labels_y: tuple, title: str | None
     for i in range(len(labels_y)):
         for j in range(len(TORQUES)):
             if g.n[i, j]:
-                ax.text(j, i, f"{100 * share[i, j]:.0f} %\n{g.sum[i, j] / g.n[i, j]:+.2f}", ha="center",
-                        va="center", fontsize=7)
+                ax.text(
+                    j,
+                    i,
+                    f"{100 * share[i, j]:.0f} %\n{g.sum[i, j] / g.n[i, j]:+.2f}",
+                    ha="center",
+                    va="center",
+                    fontsize=7,
+                )
     ax.set_xticks(range(len(TORQUES)), ["< 0", "0-800", "800-1500", "> 1500"], fontsize=8)
-    ax.set_yticks(range(len(labels_y)), [x.replace("speed ", "").replace("neutral", "neutral\n(any torque)")
-                                         for x in labels_y], fontsize=8)
+    ax.set_yticks(
+        range(len(labels_y)),
+        [x.replace("speed ", "").replace("neutral", "neutral\n(any torque)") for x in labels_y],
+        fontsize=8,
+    )
     ax.set_xlabel("engine torque [Nm]", fontsize=8)
     if title:
         ax.set_title(title, fontsize=9)
@@ -168,15 +189,23 @@ def plot_ranking(res, path):
     names = [x["effect"] for x in c][::-1]
     scores = [x["score"] for x in c][::-1]
     fig, ax = plt.subplots(figsize=(8.5, 0.32 * len(c) + 1.2))
-    colors = ["tab:green" if x["effect"] == res["verdict"]["effect"] else
-              ("tab:orange" if x["effect"] in res["verdict"].get("confusable_with", []) else "tab:gray")
-              for x in c][::-1]
+    colors = [
+        "tab:green"
+        if x["effect"] == res["verdict"]["effect"]
+        else ("tab:orange" if x["effect"] in res["verdict"].get("confusable_with", []) else "tab:gray")
+        for x in c
+    ][::-1]
     ax.barh(names, scores, color=colors)
     ax.set_xscale("symlog", linthresh=10)
     ax.axvline(res["criterion"]["evidence_min"], color="k", ls=":", lw=1)
     for i, x in enumerate(c[::-1]):
-        ax.text(max(x["score"], 0) if x["score"] > 0 else 0, i, f"  {100 * (x['explained_share'] or 0):.0f} %",
-                va="center", fontsize=7)
+        ax.text(
+            max(x["score"], 0) if x["score"] > 0 else 0,
+            i,
+            f"  {100 * (x['explained_share'] or 0):.0f} %",
+            va="center",
+            fontsize=7,
+        )
     ax.set_xlabel("score = -dBIC (effective sample size); dotted: strong evidence; label: share explained")
     ax.set_title(f"candidate ranking (verdict: {res['verdict']['effect']})", fontsize=10)
     save_figure(fig, path, dpi=90)
@@ -230,15 +259,22 @@ def _fmt(x, nd=3):
 # ----------------------------------------------------------------------------------------------------------------
 # the Markdown, section by section
 
+
 def _md_header(res: dict, title: str | None) -> list:
     L = [f"# {title or 'Gap diagnosis'}\n"]
     delegated = res["model"].get("delegated_to_plant")
-    L.append(f"Model under diagnosis: **{res['model'].get('model')}**" +
-             (f" (requested {res['model']['requested']}; {res['model']['note']})" if res["model"].get("note") else "") +
-             (f" (effects the onboard model cannot represent were fitted with the reference plant: "
-              f"{', '.join(delegated)})" if delegated else "") +
-             f", cooler `{res.get('cooler')}`. Training files: {', '.join(f'`{x}`' for x in res['train'])}; "
-             f"test files: {', '.join(f'`{x}`' for x in res['test'])}.\n")
+    L.append(
+        f"Model under diagnosis: **{res['model'].get('model')}**"
+        + (f" (requested {res['model']['requested']}; {res['model']['note']})" if res["model"].get("note") else "")
+        + (
+            f" (effects the onboard model cannot represent were fitted with the reference plant: "
+            f"{', '.join(delegated)})"
+            if delegated
+            else ""
+        )
+        + f", cooler `{res.get('cooler')}`. Training files: {', '.join(f'`{x}`' for x in res['train'])}; "
+        f"test files: {', '.join(f'`{x}`' for x in res['test'])}.\n"
+    )
     return L
 
 
@@ -247,9 +283,12 @@ def _md_starts(res: dict) -> list:
     starts = res.get("starts") or {}
     if not any(st["start"] == "running" for st in starts.values()):
         return []
-    L = ["Some files began while the gearbox was already running: they are scored after their first minutes, and "
-         "their housings' start is fitted (docs/diagnosis.md, \"Files that start while the gearbox runs\").\n",
-         "| file | role | start | why |", "|---|---|---|---|"]
+    L = [
+        "Some files began while the gearbox was already running: they are scored after their first minutes, and "
+        'their housings\' start is fitted (docs/diagnosis.md, "Files that start while the gearbox runs").\n',
+        "| file | role | start | why |",
+        "|---|---|---|---|",
+    ]
     for name, st in starts.items():
         L.append(f"| `{name}` | {st['role']} | {st['start']} | {st['reason']} |")
     return L + [""]
@@ -260,15 +299,19 @@ def _md_not_excluded(v: dict) -> list:
     items = v.get("not_excluded") or []
     if not items:
         return []
-    L = ["Beside the verdict the training files have no strong evidence against these effects over the range given "
-         "(the verdict's effects refitted at each value); *indicated*: neutral is outside the range, the data point "
-         "to the effect although the verdict does not claim it.\n",
-         "| effect | parameter | not excluded over | fits best at | indicated | evidence for adding it |",
-         "|---|---|---|---|---|---|"]
+    L = [
+        "Beside the verdict the training files have no strong evidence against these effects over the range given "
+        "(the verdict's effects refitted at each value); *indicated*: neutral is outside the range, the data point "
+        "to the effect although the verdict does not claim it.\n",
+        "| effect | parameter | not excluded over | fits best at | indicated | evidence for adding it |",
+        "|---|---|---|---|---|---|",
+    ]
     for n in items:
-        L.append(f"| {n['effect']} | {n['parameter']} | {n['range'][0]:.4g} .. {n['range'][1]:.4g} | {n['best']:.4g} | "
-                 f"{'yes' if n['indicated'] else 'no'} | "
-                 f"{'-' if n['evidence'] is None else format(n['evidence'], '.0f')} |")
+        L.append(
+            f"| {n['effect']} | {n['parameter']} | {n['range'][0]:.4g} .. {n['range'][1]:.4g} | {n['best']:.4g} | "
+            f"{'yes' if n['indicated'] else 'no'} | "
+            f"{'-' if n['evidence'] is None else format(n['evidence'], '.0f')} |"
+        )
     return L + [""]
 
 
@@ -286,9 +329,11 @@ def _md_verdict(res: dict) -> list:
         L.append(f"**{v['effect']}, thin evidence** {text}.\n\nReason: {v['reason']}.")
     else:
         L.append(f"**{v['effect']}**: {v['reason']}.")
-    L.append(f"\n\nOn the test files the pooled RMS residual goes from **{_fmt(v['test_rms_before_c'])} degC** to "
-             f"**{_fmt(v['test_rms_after_c'])} degC** (shrink {100 * (v['shrink'] or 0):.0f} %), the largest "
-             f"residual from {_fmt(v['test_max_before_c'])} to {_fmt(v['test_max_after_c'])} degC.\n")
+    L.append(
+        f"\n\nOn the test files the pooled RMS residual goes from **{_fmt(v['test_rms_before_c'])} degC** to "
+        f"**{_fmt(v['test_rms_after_c'])} degC** (shrink {100 * (v['shrink'] or 0):.0f} %), the largest "
+        f"residual from {_fmt(v['test_max_before_c'])} to {_fmt(v['test_max_after_c'])} degC.\n"
+    )
     L += _md_not_excluded(v)
     for s in res.get("measurement_suggestions", []):
         L.append(f"- {s['text']}.")
@@ -301,15 +346,21 @@ def _md_verdict(res: dict) -> list:
 
 def _md_channels(res: dict) -> list:
     L = ["## Channels\n"]
-    L.append("| channel | noise per sample | sensor lag (nuisance) | systematic (train) | 'none' threshold "
-             "| train RMS / max | test RMS / max | test RMS after |\n|---|---|---|---|---|---|---|---|")
+    L.append(
+        "| channel | noise per sample | sensor lag (nuisance) | systematic (train) | 'none' threshold "
+        "| train RMS / max | test RMS / max | test RMS after |\n|---|---|---|---|---|---|---|---|"
+    )
     for cid, c in res["channels"].items():
-        L.append(f"| {_chan_label(cid)} | {_fmt(c['noise_c'])} | {_fmt(c['sensor_lag_s'], 1)} s | "
-                 f"{_fmt(c['systematic_train_c'])} | {_fmt(c['none_threshold_c'])} | {_fmt(c['train_rms_c'])} / "
-                 f"{_fmt(c['train_max_c'])} | {_fmt(c['test_rms_c'])} / {_fmt(c['test_max_c'])} | "
-                 f"{_fmt(c['test_rms_after_c'])} |")
-    L.append("\nAll temperatures in degC; residual = measured - model on the "
-             f"{res['criterion']['grid_dt_s']:g}-s analysis grid.\n")
+        L.append(
+            f"| {_chan_label(cid)} | {_fmt(c['noise_c'])} | {_fmt(c['sensor_lag_s'], 1)} s | "
+            f"{_fmt(c['systematic_train_c'])} | {_fmt(c['none_threshold_c'])} | {_fmt(c['train_rms_c'])} / "
+            f"{_fmt(c['train_max_c'])} | {_fmt(c['test_rms_c'])} / {_fmt(c['test_max_c'])} | "
+            f"{_fmt(c['test_rms_after_c'])} |"
+        )
+    L.append(
+        "\nAll temperatures in degC; residual = measured - model on the "
+        f"{res['criterion']['grid_dt_s']:g}-s analysis grid.\n"
+    )
     return L
 
 
@@ -320,22 +371,25 @@ def _md_where(res: dict, images: dict) -> list:
     L.append("Regimes ranked by their share of the squared residual (training files, range x torque):\n")
     L.append("| channel | regime | share | time share | RMS | mean |\n|---|---|---|---|---|---|")
     for w in res["where"][:12]:
-        L.append(f"| {w['channel']} | {w['regime']} | {100 * w['share']:.0f} % | {100 * w['time_share']:.0f} % | "
-                 f"{_fmt(w['rms_c'])} | {_fmt(w['mean_c'], 3)} |")
+        L.append(
+            f"| {w['channel']} | {w['regime']} | {100 * w['share']:.0f} % | {100 * w['time_share']:.0f} % | "
+            f"{_fmt(w['rms_c'])} | {_fmt(w['mean_c'], 3)} |"
+        )
     L.append("\nOther partitions (share of the squared residual vs share of the time):\n")
     for cid, parts in res["where_by"].items():
         for part, lst in parts.items():
             if part in (PRIMARY, "gear", "speed x torque"):
                 continue
-            items = ", ".join(f"{x['regime']} {100 * x['share']:.0f} % / {100 * x['time_share']:.0f} %"
-                              for x in lst)
+            items = ", ".join(f"{x['regime']} {100 * x['share']:.0f} % / {100 * x['time_share']:.0f} %" for x in lst)
             L.append(f"- {cid}, {part}: {items}")
     if res["episodes"]:
         L.append("\nEpisodes (120-s windows) with the largest share:\n")
         L.append("| channel | file | from [s] | to [s] | share | mean residual |\n|---|---|---|---|---|---|")
         for e in res["episodes"][:6]:
-            L.append(f"| {e['channel']} | {e['file']} | {e['t_start_s']:.0f} | {e['t_end_s']:.0f} | "
-                     f"{100 * e['share']:.0f} % | {_fmt(e['mean_c'])} |")
+            L.append(
+                f"| {e['channel']} | {e['file']} | {e['t_start_s']:.0f} | {e['t_end_s']:.0f} | "
+                f"{100 * e['share']:.0f} % | {_fmt(e['mean_c'])} |"
+            )
     return L
 
 
@@ -345,13 +399,16 @@ def _md_heat(res: dict, images: dict) -> list:
         return []
     L = ["\n### Unexplained heat flow into the oil\n"]
     L.append(f"![unexplained heat]({images['heat']})\n")
-    L.append(f"C_eff = {h['C_eff_j_per_k'] / 1000:.1f} kJ/K (oil and housings), G_eff = "
-             f"{_fmt(h['G_eff_w_per_k'], 0)} W/K (heat to the outside per kelvin of oil, from a re-simulation "
-             f"with a 2 K warmer start). {h['sign']}.\n")
+    L.append(
+        f"C_eff = {h['C_eff_j_per_k'] / 1000:.1f} kJ/K (oil and housings), G_eff = "
+        f"{_fmt(h['G_eff_w_per_k'], 0)} W/K (heat to the outside per kelvin of oil, from a re-simulation "
+        f"with a 2 K warmer start). {h['sign']}.\n"
+    )
     L.append("| file | mean [W] | 5 % [W] | 95 % [W] |\n|---|---|---|---|")
     for f in h["files"]:
-        L.append(f"| {f['file']} ({f['role']}) | {_fmt(f['mean_w'], 0)} | {_fmt(f['p5_w'], 0)} | "
-                 f"{_fmt(f['p95_w'], 0)} |")
+        L.append(
+            f"| {f['file']} ({f['role']}) | {_fmt(f['mean_w'], 0)} | {_fmt(f['p5_w'], 0)} | {_fmt(f['p95_w'], 0)} |"
+        )
     return L
 
 
@@ -359,41 +416,60 @@ def _md_which(res: dict, images: dict) -> list:
     L = ["\n## Which effect\n"]
     L.append(f"![candidate ranking]({images['ranking']})\n")
     cr = res["criterion"]
-    L.append(f"Score = -dBIC with the effective sample size n_eff = {cr['n_eff']:.0f} of n = {cr['n']} grid cells "
-             f"(lag-1 autocorrelation of the best candidate's residual: "
-             + ", ".join(f"{k} {v_:.2f}" for k, v_ in cr["rho_lag1"].items())
-             + f"); >= {cr['evidence_min']:g} is strong evidence.\n")
-    L.append("| effect | fitted | score | share explained | train RMS after | test RMS after | confusable with | "
-             "identifiable |\n|---|---|---|---|---|---|---|---|")
+    L.append(
+        f"Score = -dBIC with the effective sample size n_eff = {cr['n_eff']:.0f} of n = {cr['n']} grid cells "
+        f"(lag-1 autocorrelation of the best candidate's residual: "
+        + ", ".join(f"{k} {v_:.2f}" for k, v_ in cr["rho_lag1"].items())
+        + f"); >= {cr['evidence_min']:g} is strong evidence.\n"
+    )
+    L.append(
+        "| effect | fitted | score | share explained | train RMS after | test RMS after | confusable with | "
+        "identifiable |\n|---|---|---|---|---|---|---|---|"
+    )
     for c in res["candidates"]:
-        (pn, pv), = c["parameters"].items()
+        ((pn, pv),) = c["parameters"].items()
         ident = res["identifiability"][c["effect"]]
         idt = "yes" if ident["identifiable"] else (ident["note"] or "no")
         unit = f" {c['unit']}" if c["unit"] != "-" else ""
-        L.append(f"| {c['effect']} | {pn} = {pv:.4g}{unit}{' (bound)' if c['at_bound'] else ''} | "
-                 f"{c['score']:.1f} | {100 * (c['explained_share'] or 0):.0f} % | {_fmt(c['train_rms_after_c'])} | "
-                 f"{_fmt(c['test_rms_after_c'])} | {', '.join(c['confusable_with']) or '-'} | {idt} |")
+        L.append(
+            f"| {c['effect']} | {pn} = {pv:.4g}{unit}{' (bound)' if c['at_bound'] else ''} | "
+            f"{c['score']:.1f} | {100 * (c['explained_share'] or 0):.0f} % | {_fmt(c['train_rms_after_c'])} | "
+            f"{_fmt(c['test_rms_after_c'])} | {', '.join(c['confusable_with']) or '-'} | {idt} |"
+        )
     return L
 
 
 def _md_test(res: dict, images: dict) -> list:
     L = ["\n## Before and after on the test files\n"]
     L.append(f"![test before/after]({images['test']})\n")
-    L.append("| channel | partition | regime | RMS before | RMS after | max before | max after |\n"
-             "|---|---|---|---|---|---|---|")
+    L.append(
+        "| channel | partition | regime | RMS before | RMS after | max before | max after |\n"
+        "|---|---|---|---|---|---|---|"
+    )
     for r in res["test_regimes"]:
-        L.append(f"| {r['channel']} | {r['partition']} | {r['regime']} | {_fmt(r['rms_before_c'])} | "
-                 f"{_fmt(r['rms_after_c'])} | {_fmt(r['max_before_c'])} | {_fmt(r['max_after_c'])} |")
-    L.append(f"\n---\nMethod: docs/diagnosis.md. {res['timing']['simulations']} re-simulations in "
-             f"{res['timing']['total_s']:.0f} s.\n")
+        L.append(
+            f"| {r['channel']} | {r['partition']} | {r['regime']} | {_fmt(r['rms_before_c'])} | "
+            f"{_fmt(r['rms_after_c'])} | {_fmt(r['max_before_c'])} | {_fmt(r['max_after_c'])} |"
+        )
+    L.append(
+        f"\n---\nMethod: docs/diagnosis.md. {res['timing']['simulations']} re-simulations in "
+        f"{res['timing']['total_s']:.0f} s.\n"
+    )
     return L
 
 
 def render_markdown(res: dict, images: dict, title: str | None = None) -> str:
     """The report's Markdown from the diagnosis JSON; `images`: plot name -> file name next to it."""
-    return "\n".join(_md_header(res, title) + _md_starts(res) + _md_verdict(res) + _md_channels(res)
-                     + _md_where(res, images)
-                     + _md_heat(res, images) + _md_which(res, images) + _md_test(res, images))
+    return "\n".join(
+        _md_header(res, title)
+        + _md_starts(res)
+        + _md_verdict(res)
+        + _md_channels(res)
+        + _md_where(res, images)
+        + _md_heat(res, images)
+        + _md_which(res, images)
+        + _md_test(res, images)
+    )
 
 
 def write_report(res: dict, pd: PlotData, out, title: str | None = None) -> Path:
@@ -404,12 +480,17 @@ def write_report(res: dict, pd: PlotData, out, title: str | None = None) -> Path
         out = out.with_suffix(out.suffix + ".md") if out.suffix else out.with_suffix(".md")
     parent = out.parent
     stem = out.stem
-    names = {"residuals": f"{stem}_residuals.png", "regimes": f"{stem}_regimes.png",
-             "ranking": f"{stem}_ranking.png", "test": f"{stem}_test.png", "heat": f"{stem}_heat.png"}
+    names = {
+        "residuals": f"{stem}_residuals.png",
+        "regimes": f"{stem}_regimes.png",
+        "ranking": f"{stem}_ranking.png",
+        "test": f"{stem}_test.png",
+        "heat": f"{stem}_heat.png",
+    }
     try:
         parent.mkdir(parents=True, exist_ok=True)
         stage = Path(tempfile.mkdtemp(prefix=".diag-report-", dir=parent))
-    except OSError as exc:        # named after the report, not after the staging folder it could not make
+    except OSError as exc:  # named after the report, not after the staging folder it could not make
         raise cannot_write("--report", out, exc) from None
     try:
         plot_residuals(pd, stage / names["residuals"])
@@ -421,7 +502,7 @@ def write_report(res: dict, pd: PlotData, out, title: str | None = None) -> Path
         (stage / out.name).write_text(render_markdown(res, names, title))
         for n in list(names.values()) + [out.name]:
             os.replace(stage / n, parent / n)
-    except OSError as exc:        # a full disk while staging: the report's name, not the staging folder's
+    except OSError as exc:  # a full disk while staging: the report's name, not the staging folder's
         raise cannot_write("--report", out, exc) from None
     finally:
         shutil.rmtree(stage, ignore_errors=True)

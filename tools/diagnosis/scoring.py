@@ -1,5 +1,6 @@
 """How a model run is scored against the measurements: predictions on the grid cells with the nuisance sensor lags,
 the initial-temperature nuisance solved per file, and the weighted misfit S."""
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -7,14 +8,20 @@ from dataclasses import dataclass
 import numpy as np
 
 from firmware_model.effects import effect_channel
-
 from tools.diagnosis.measurement import lag_filter, model_at_cells
 from tools.diagnosis.models import initial_shift_c
 from tools.diagnosis.options import OIL, Options
 
 
-def predictions(datasets: list, outs: list, lags: dict, effect: str | None = None,
-                value: float | None = None, sens: list | None = None, start: tuple = ()) -> list:
+def predictions(
+    datasets: list,
+    outs: list,
+    lags: dict,
+    effect: str | None = None,
+    value: float | None = None,
+    sens: list | None = None,
+    start: tuple = (),
+) -> list:
     """Predictions on cells per (dataset, channel) with the nuisance lags (the lag candidate replaces the oil
     nuisance by its own lag on the sump; the offset and gain candidates read the oil channel through them and, with
     `sens` (each entry's sensitivity to the initial temperature), start the model from the sump their reading implies,
@@ -25,7 +32,8 @@ def predictions(datasets: list, outs: list, lags: dict, effect: str | None = Non
         shift_c = 0.0
         if sens is not None and OIL in ds.channels:
             shift_c = initial_shift_c(effect, value, ds.initial_temp_c) - (
-                initial_shift_c(*start, ds.initial_temp_c) if start else 0.0)
+                initial_shift_c(*start, ds.initial_temp_c) if start else 0.0
+            )
         for cid, ch in ds.channels.items():
             if cid == OIL and effect == "oil_sensor_lag" and value:
                 p = model_at_cells(outs[i], ch, value, source="T_oil_c")
@@ -34,11 +42,11 @@ def predictions(datasets: list, outs: list, lags: dict, effect: str | None = Non
             if shift_c:
                 p = p + shift_c * sens[k]
             if cid == OIL and effect == "oil_sensor_offset" and value is not None:
-                p = p + value                 # the sensor reads the (lagged) sump plus an offset
+                p = p + value  # the sensor reads the (lagged) sump plus an offset
             elif cid == OIL and effect == "oil_sensor_gain" and value is not None:
-                p = p * value                 # ... or gain x the sump in degC
+                p = p * value  # ... or gain x the sump in degC
             elif value is not None and effect_channel(effect) == cid:
-                p = p + value                 # a rig thermocouple reading its component plus an offset
+                p = p + value  # a rig thermocouple reading its component plus an offset
             res.append(p)
             k += 1
     return res
@@ -56,11 +64,12 @@ def box_lsq(r: np.ndarray, w: np.ndarray, A: np.ndarray, lo: np.ndarray, hi: np.
 
     def ok(x):
         return bool(np.all(x >= lo - 1e-12) and np.all(x <= hi + 1e-12))
+
     cands = []
     x, *_ = np.linalg.lstsq(Aw, rw, rcond=None)
     if ok(x):
         return x, S(x)
-    for j in range(k):                       # one variable at a bound, the others free (then clipped)
+    for j in range(k):  # one variable at a bound, the others free (then clipped)
         for b in (lo[j], hi[j]):
             free = [i for i in range(k) if i != j]
             xx = np.zeros(k)
@@ -80,8 +89,13 @@ def start_design(rd, idx: list, opts) -> tuple:
     y = np.concatenate([rd.obs[k] for k in idx])
     w = np.concatenate([np.broadcast_to(rd.w[k], rd.obs[k].shape) for k in idx])
     A = np.stack([np.concatenate([rd.sens[k] for k in idx]), np.concatenate([rd.sens_h[k] for k in idx])], 1)
-    return (y, w, A, np.array([-opts.initial_offset_max_c, opts.housing_offset_lo_c]),
-            np.array([opts.initial_offset_max_c, opts.housing_offset_hi_c]))
+    return (
+        y,
+        w,
+        A,
+        np.array([-opts.initial_offset_max_c, opts.housing_offset_lo_c]),
+        np.array([opts.initial_offset_max_c, opts.housing_offset_hi_c]),
+    )
 
 
 def observations(datasets: list) -> list:
@@ -117,30 +131,46 @@ def file_groups(datasets: list) -> list:
 @dataclass(frozen=True)
 class RoleData:
     """The measurements of the training or the test files, per (dataset, channel), and what scoring needs."""
+
     datasets: list
-    obs: list                # measured cell values
-    w: list                  # weights
-    sens: list               # sensitivity of each prediction to a uniform initial offset [K/K]
-    files: list              # per file, the indices of its entries
-    sens_h: list | None = None   # ... to the housings' start [K/K] (None: no file of this role starts running)
+    obs: list  # measured cell values
+    w: list  # weights
+    sens: list  # sensitivity of each prediction to a uniform initial offset [K/K]
+    files: list  # per file, the indices of its entries
+    sens_h: list | None = None  # ... to the housings' start [K/K] (None: no file of this role starts running)
 
 
 @dataclass(frozen=True)
 class Scorer:
     """Scores model runs: predictions with the nuisance lags, the initial-temperature nuisance, the misfit."""
+
     train: RoleData
     test: RoleData
-    lag: dict                # the nuisance sensor lag per channel (high-pass fit on the baseline)
+    lag: dict  # the nuisance sensor lag per channel (high-pass fit on the baseline)
     opts: Options
 
     def role(self, role: str) -> RoleData:
         return self.train if role == "train" else self.test
 
-    def preds(self, datasets: list, outs: list, effect: str | None = None, value: float | None = None,
-              lags: dict | None = None, start: tuple = ()) -> list:
+    def preds(
+        self,
+        datasets: list,
+        outs: list,
+        effect: str | None = None,
+        value: float | None = None,
+        lags: dict | None = None,
+        start: tuple = (),
+    ) -> list:
         rd = next((r for r in (self.train, self.test) if r.datasets is datasets), None)
-        return predictions(datasets, outs, self.lag if lags is None else lags, effect, value,
-                           rd.sens if rd is not None else None, start)
+        return predictions(
+            datasets,
+            outs,
+            self.lag if lags is None else lags,
+            effect,
+            value,
+            rd.sens if rd is not None else None,
+            start,
+        )
 
     def adjust(self, preds: list, role: str) -> list:
         """The initial temperature of every file is a nuisance (state, not model): shift each file's predictions by
@@ -182,6 +212,7 @@ class Scorer:
         the training files, per channel (every model, the baseline included, is scored with its best nuisance
         lags)."""
         from scipy.optimize import minimize_scalar
+
         datasets, obs, w = self.train.datasets, self.train.obs, self.train.w
         lags = {}
         for cid in sorted({c for ds in datasets for c in ds.channels}):
@@ -193,13 +224,24 @@ class Scorer:
                 for c, ch in ds.channels.items():
                     if c == cid:
                         tm = outs[i]["time_s"]
-                        items.append((obs[k], w[k], ch.cell_t_s, tm, np.asarray(outs[i][ch.model_column], float),
-                                      float(np.median(np.diff(tm)))))
+                        items.append(
+                            (
+                                obs[k],
+                                w[k],
+                                ch.cell_t_s,
+                                tm,
+                                np.asarray(outs[i][ch.model_column], float),
+                                float(np.median(np.diff(tm))),
+                            )
+                        )
                     k += 1
 
             def cost(tau):
-                return sum(float(np.sum(wk * (y - np.interp(ct, tm, lag_filter(x, tau, dt))) ** 2))
-                           for y, wk, ct, tm, x, dt in items)
+                return sum(
+                    float(np.sum(wk * (y - np.interp(ct, tm, lag_filter(x, tau, dt))) ** 2))
+                    for y, wk, ct, tm, x, dt in items
+                )
+
             t0 = self.lag.get(cid, 0.0)
             lo, hi = max(t0 - 2.0, 0.0), min(t0 + 2.0, self.opts.sensor_lag_max_s)
             r = minimize_scalar(cost, bounds=(lo, hi), method="bounded", options={"xatol": 0.02})

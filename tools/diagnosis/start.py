@@ -32,6 +32,7 @@ uniform one (``housing_offset_lo_c``..``housing_offset_hi_c`` from the sump). Wh
 
 Each file's start, with its reason and evidence, is in the JSON (``starts``) and the report.
 """
+
 from __future__ import annotations
 
 import math
@@ -50,26 +51,33 @@ from tools.diagnosis.scoring import box_lsq
 @dataclass(frozen=True)
 class StartOf:
     """How one file starts."""
+
     name: str
     role: str
-    start: str                       # 'rest' or 'running'
+    start: str  # 'rest' or 'running'
     reason: str
-    housing_offset_c: float | None   # the housings' offset fitted when the start was judged (None: not judged)
-    evidence: float | None           # -dBIC of the housings' offset on the cells after the burn-in (None: not tested)
-    hint: str | None = None          # a file kept at rest that looks cut from a drive (:func:`driving_at_start`),
+    housing_offset_c: float | None  # the housings' offset fitted when the start was judged (None: not judged)
+    evidence: float | None  # -dBIC of the housings' offset on the cells after the burn-in (None: not tested)
+    hint: str | None = None  # a file kept at rest that looks cut from a drive (:func:`driving_at_start`),
     #                                  or one that --start running could not take running (why)
 
     def to_json(self) -> dict:
         from tools.diagnosis.options import json_number
-        return {"start": self.start, "reason": self.reason,
-                "housing_offset_c": json_number(self.housing_offset_c, 2),
-                "evidence": json_number(self.evidence, 1), "hint": self.hint}
+
+        return {
+            "start": self.start,
+            "reason": self.reason,
+            "housing_offset_c": json_number(self.housing_offset_c, 2),
+            "evidence": json_number(self.evidence, 1),
+            "hint": self.hint,
+        }
 
 
 @dataclass(frozen=True)
 class Starts:
     """The files as the diagnosis scores them (running files trimmed to their cells after the burn-in) and the
     per-file decisions."""
+
     train: list
     test: list
     records: tuple
@@ -101,14 +109,28 @@ def trimmed(ds, opts: Options):
         if int(np.sum(cell)) < opts.start_min_cells:
             dropped.append(cid)
             continue
-        chans[cid] = replace(ch, t_s=ch.t_s[raw], y_c=ch.y_c[raw], cell_t_s=ch.cell_t_s[cell],
-                             cell_y_c=ch.cell_y_c[cell], cell_n=ch.cell_n[cell])
+        chans[cid] = replace(
+            ch,
+            t_s=ch.t_s[raw],
+            y_c=ch.y_c[raw],
+            cell_t_s=ch.cell_t_s[cell],
+            cell_y_c=ch.cell_y_c[cell],
+            cell_n=ch.cell_n[cell],
+        )
     if not chans:
         return None
-    warn = tuple(f"channel {c} has fewer than {opts.start_min_cells} valid cells after its burn-in (the file starts "
-                 f"running): left out of this file" for c in dropped)
-    return replace(ds, channels=chans, start="running", scored_from_s=ds.t_start_s + opts.burn_in_s,
-                   warnings=tuple(ds.warnings) + warn)
+    warn = tuple(
+        f"channel {c} has fewer than {opts.start_min_cells} valid cells after its burn-in (the file starts "
+        f"running): left out of this file"
+        for c in dropped
+    )
+    return replace(
+        ds,
+        channels=chans,
+        start="running",
+        scored_from_s=ds.t_start_s + opts.burn_in_s,
+        warnings=tuple(ds.warnings) + warn,
+    )
 
 
 def _early_gap(ds, resid: list, sigma: dict, opts: Options) -> tuple | None:
@@ -137,9 +159,16 @@ def judge(ds, resid: list, sens: list, sens_h: list, w: list, sigma: dict, opts:
     show a real gap (the components' unknown start) and, after them, the housings' start fits far better."""
     span = ds.t_end_s - (ds.t_start_s + opts.burn_in_s)
     if span < opts.start_min_span_s:
-        return StartOf(ds.name, ds.role, "rest", f"at rest: after the first {opts.burn_in_s:.0f} s the file keeps "
-                       f"{max(span, 0.0):.0f} s, too short to tell a running start (at least "
-                       f"{opts.start_min_span_s:.0f} s)", None, None)
+        return StartOf(
+            ds.name,
+            ds.role,
+            "rest",
+            f"at rest: after the first {opts.burn_in_s:.0f} s the file keeps "
+            f"{max(span, 0.0):.0f} s, too short to tell a running start (at least "
+            f"{opts.start_min_span_s:.0f} s)",
+            None,
+            None,
+        )
     early = _early_gap(ds, resid, sigma, opts)
     has_oil = any(c in (OIL, OIL_RIG) for c in ds.channels)
     rs, su, sh, ws = [], [], [], []
@@ -151,8 +180,9 @@ def judge(ds, resid: list, sens: list, sens_h: list, w: list, sigma: dict, opts:
             sh.append(s_h[keep])
             ws.append(np.broadcast_to(wk, r.shape)[keep])
     if not rs:
-        return StartOf(ds.name, ds.role, "rest", "at rest: no cell after the burn-in to judge a running start by",
-                       None, None)
+        return StartOf(
+            ds.name, ds.role, "rest", "at rest: no cell after the burn-in to judge a running start by", None, None
+        )
     r, wt = np.concatenate(rs), np.concatenate(ws)
     d = opts.initial_offset_max_c
     _, S_rest = box_lsq(r, wt, np.concatenate(su)[:, None], np.array([-d]), np.array([d]))
@@ -161,22 +191,43 @@ def judge(ds, resid: list, sens: list, sens_h: list, w: list, sigma: dict, opts:
     n_eff = _n_eff(rs)
     ev = n_eff * math.log(max(S_rest, 1e-12) / max(S_run, 1e-12)) - math.log(max(n_eff, 2.0))
     beta = float(x2[1])
-    house = (f"the housings starting {abs(beta):.1f} K {'below' if beta < 0 else 'above'} the oil (evidence "
-             f"{ev:.0f})")
+    house = f"the housings starting {abs(beta):.1f} K {'below' if beta < 0 else 'above'} the oil (evidence {ev:.0f})"
     if ev >= opts.evidence_min and early is not None:
-        return StartOf(ds.name, ds.role, "running", f"running: its first minutes do not fit a start at rest "
-                       f"({early[0]} {early[1]:.2f} > {early[2]:.2f} degC before the burn-in), and after them it is "
-                       f"fitted far better with {house} >= {opts.evidence_min:g}): the gearbox had been running "
-                       f"before the file began", beta, ev)
+        return StartOf(
+            ds.name,
+            ds.role,
+            "running",
+            f"running: its first minutes do not fit a start at rest "
+            f"({early[0]} {early[1]:.2f} > {early[2]:.2f} degC before the burn-in), and after them it is "
+            f"fitted far better with {house} >= {opts.evidence_min:g}): the gearbox had been running "
+            f"before the file began",
+            beta,
+            ev,
+        )
     if ev >= opts.evidence_min and not has_oil:
-        return StartOf(ds.name, ds.role, "rest", f"at rest: {house} would fit it better, but it has no oil channel to "
-                       f"judge its first minutes by; if it was cut from a drive, use --start running", beta, ev)
+        return StartOf(
+            ds.name,
+            ds.role,
+            "rest",
+            f"at rest: {house} would fit it better, but it has no oil channel to "
+            f"judge its first minutes by; if it was cut from a drive, use --start running",
+            beta,
+            ev,
+        )
     if ev >= opts.evidence_min:
-        return StartOf(ds.name, ds.role, "rest", f"at rest: {house} would fit it better, but its first minutes fit a "
-                       f"start at rest (no real gap before the burn-in); if it begins after a short stop, try "
-                       f"--start running", beta, ev)
-    return StartOf(ds.name, ds.role, "rest", f"at rest: {house} < {opts.evidence_min:g}) does not fit it better",
-                   beta, ev)
+        return StartOf(
+            ds.name,
+            ds.role,
+            "rest",
+            f"at rest: {house} would fit it better, but its first minutes fit a "
+            f"start at rest (no real gap before the burn-in); if it begins after a short stop, try "
+            f"--start running",
+            beta,
+            ev,
+        )
+    return StartOf(
+        ds.name, ds.role, "rest", f"at rest: {house} < {opts.evidence_min:g}) does not fit it better", beta, ev
+    )
 
 
 def _n_eff(resid: list) -> float:
@@ -197,8 +248,10 @@ def driving_at_start(ds) -> str | None:
         v = np.asarray(tb[col], dtype=float)
         ok = np.isfinite(v)
         return float(v[ok][0]) if ok.any() else math.nan
-    v, tq, rpm, amb = (first(c) for c in ("vehicle_speed_kmh", "engine_torque_nm", "engine_speed_rpm",
-                                            "ambient_temp_c"))
+
+    v, tq, rpm, amb = (
+        first(c) for c in ("vehicle_speed_kmh", "engine_torque_nm", "engine_speed_rpm", "ambient_temp_c")
+    )
     warm = ds.initial_temp_c - amb if math.isfinite(amb) else math.nan
     driving = v > 10.0 or (abs(tq) > 500.0 and rpm > 600.0)
     if not (driving and warm >= 15.0):
@@ -218,21 +271,43 @@ def decide_starts(opts: Options, train: list, test: list, records: tuple = ()) -
             if opts.start == "running":
                 rec = StartOf(ds.name, role, "running", "running, as asked (--start running)", None, None)
             elif rec is None:
-                rec = StartOf(ds.name, role, "rest", "at rest, as asked (--start rest)" if opts.start == "rest"
-                              else "at rest", None, None)
+                rec = StartOf(
+                    ds.name,
+                    role,
+                    "rest",
+                    "at rest, as asked (--start rest)" if opts.start == "rest" else "at rest",
+                    None,
+                    None,
+                )
             if rec.start == "running" and ds.t_end_s - (ds.t_start_s + opts.burn_in_s) < opts.start_min_span_s:
-                rec = StartOf(ds.name, role, "rest", f"scored at rest: after its first {opts.burn_in_s:.0f} s the "
-                              f"file keeps less than {opts.start_min_span_s:.0f} s", None, None)
+                rec = StartOf(
+                    ds.name,
+                    role,
+                    "rest",
+                    f"scored at rest: after its first {opts.burn_in_s:.0f} s the "
+                    f"file keeps less than {opts.start_min_span_s:.0f} s",
+                    None,
+                    None,
+                )
             cut = trimmed(ds, opts) if rec.start == "running" else None
             if rec.start == "running" and cut is None:
-                rec = StartOf(ds.name, role, "rest", f"scored at rest: no channel keeps {opts.start_min_cells} cells "
-                              f"after its burn-in", None, None)
+                rec = StartOf(
+                    ds.name,
+                    role,
+                    "rest",
+                    f"scored at rest: no channel keeps {opts.start_min_cells} cells after its burn-in",
+                    None,
+                    None,
+                )
             hint = driving_at_start(ds) if opts.start == "auto" and rec.start == "rest" else None
             if hint:
-                rec = replace(rec, hint=f"{hint}: if it was cut from a longer drive or logged after a short stop, "
-                                        f"diagnose with --start running (a running start scored at rest shows a "
-                                        f"false gap)")
-            elif opts.start == "running" and rec.start == "rest":      # asked for, not possible: say so
+                rec = replace(
+                    rec,
+                    hint=f"{hint}: if it was cut from a longer drive or logged after a short stop, "
+                    f"diagnose with --start running (a running start scored at rest shows a "
+                    f"false gap)",
+                )
+            elif opts.start == "running" and rec.start == "rest":  # asked for, not possible: say so
                 rec = replace(rec, hint=f"--start running was asked, but it is {rec.reason}")
             recs.append(rec)
             new[role].append(cut if cut is not None else ds)
@@ -242,16 +317,19 @@ def decide_starts(opts: Options, train: list, test: list, records: tuple = ()) -
 def starts_json(records: tuple) -> dict:
     """The JSON's ``starts``: per file name (``role:name`` where two files share a name)."""
     names = [r.name for r in records]
-    return {(f"{r.role}:{r.name}" if names.count(r.name) > 1 else r.name): dict(r.to_json(), role=r.role)
-            for r in records}
+    return {
+        (f"{r.role}:{r.name}" if names.count(r.name) > 1 else r.name): dict(r.to_json(), role=r.role) for r in records
+    }
 
 
 def starts_after_verdict(ctx: Context, base, res, which: str = "after") -> tuple:
     """Every file's start judged on a residual of a diagnosis at rest (:func:`judge`): the unmodified model's
     (``before``) or the verdict's (``after``); the housings' start re-simulated once per file (one run)."""
     out = []
-    for role, rd, resid in (("train", base.train, getattr(res, f"train_{which}")),
-                            ("test", base.test, getattr(res, f"test_{which}"))):
+    for role, rd, resid in (
+        ("train", base.train, getattr(res, f"train_{which}")),
+        ("test", base.test, getattr(res, f"test_{which}")),
+    ):
         house = ctx.sim.run(rd.datasets, [Run.of(housing_offset_c=HOUSING_PERTURB_C)])[0]
         base_outs = base.base_tr if role == "train" else base.base_te
         k = 0
@@ -259,9 +337,23 @@ def starts_after_verdict(ctx: Context, base, res, which: str = "after") -> tuple
             n = len(ds.channels)
             idx = list(range(k, k + n))
             k += n
-            sens_h = [(model_at_cells(h_out, ch, base.lag0.get(cid, 0.0))
-                       - model_at_cells(b_out, ch, base.lag0.get(cid, 0.0))) / HOUSING_PERTURB_C
-                      for cid, ch in ds.channels.items()]
-            out.append(judge(ds, [resid[i] for i in idx], [rd.sens[i] for i in idx], sens_h, [rd.w[i] for i in idx],
-                             base.sigma, ctx.opts))
+            sens_h = [
+                (
+                    model_at_cells(h_out, ch, base.lag0.get(cid, 0.0))
+                    - model_at_cells(b_out, ch, base.lag0.get(cid, 0.0))
+                )
+                / HOUSING_PERTURB_C
+                for cid, ch in ds.channels.items()
+            ]
+            out.append(
+                judge(
+                    ds,
+                    [resid[i] for i in idx],
+                    [rd.sens[i] for i in idx],
+                    sens_h,
+                    [rd.w[i] for i in idx],
+                    base.sigma,
+                    ctx.opts,
+                )
+            )
     return tuple(out)

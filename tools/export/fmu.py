@@ -14,6 +14,7 @@ the optional extra ``fmu``), which also validates and simulates the FMU in the t
 The time to limit is refreshed every 1 s by the kernel's ``gvs_ttl_refresh`` (the marched held-input system,
 docs/sensor.md) against the limits as tuned, and the early warning is on, as in ``gearbox-vsensor replay``.
 """
+
 from __future__ import annotations
 
 import hashlib
@@ -37,18 +38,34 @@ from tools.outputs import OutputError, naming, outputs
 
 MODEL_ID = "gearbox_vsensor"
 #: value-reference blocks (the C wrapper gets the same numbers through @BLOCKS@)
-VR = dict(VR_INPUT=0, VR_T=100, VR_TTL=200, VR_MODEL_OIL=300, VR_INNOVATION=301, VR_LEVEL=400, VR_MODE=500,
-          VR_VALID=501, VR_FROZEN=502, VR_REJECT=510, VR_WARNING=600, VR_CRITICAL=700, VR_INITIAL_TEMP=800,
-          VR_VARIANT=900, VR_TIME=1000)
+VR = dict(
+    VR_INPUT=0,
+    VR_T=100,
+    VR_TTL=200,
+    VR_MODEL_OIL=300,
+    VR_INNOVATION=301,
+    VR_LEVEL=400,
+    VR_MODE=500,
+    VR_VALID=501,
+    VR_FROZEN=502,
+    VR_REJECT=510,
+    VR_WARNING=600,
+    VR_CRITICAL=700,
+    VR_INITIAL_TEMP=800,
+    VR_VARIANT=900,
+    VR_TIME=1000,
+)
 #: the inputs' descriptions (SENSOR_INPUTS fields)
-INPUT_TEXT = {"speed_rpm": "engine speed [rpm] (NaN: not available, the last good value is held)",
-              "torque_nm": "engine torque [N.m] (NaN: not available, the last good value is held)",
-              "gear": "engaged gear, an integer in -2..14 (0 neutral; another value: the last good gear is held)",
-              "oil_temp_c": "measured transmission oil temperature [degC] (NaN: not measured, the sump is modelled)",
-              "ambient_temp_c": "ambient air temperature [degC] (NaN: the configured default)",
-              "coolant_temp_c": "engine coolant temperature [degC] (NaN: the configured default)",
-              "vehicle_speed_kmh": "vehicle speed [km/h] (NaN: 50 km/h)",
-              "retarder_torque_nm": "retarder torque [N.m] (NaN: 0, not braking)"}
+INPUT_TEXT = {
+    "speed_rpm": "engine speed [rpm] (NaN: not available, the last good value is held)",
+    "torque_nm": "engine torque [N.m] (NaN: not available, the last good value is held)",
+    "gear": "engaged gear, an integer in -2..14 (0 neutral; another value: the last good gear is held)",
+    "oil_temp_c": "measured transmission oil temperature [degC] (NaN: not measured, the sump is modelled)",
+    "ambient_temp_c": "ambient air temperature [degC] (NaN: the configured default)",
+    "coolant_temp_c": "engine coolant temperature [degC] (NaN: the configured default)",
+    "vehicle_speed_kmh": "vehicle speed [km/h] (NaN: 50 km/h)",
+    "retarder_torque_nm": "retarder torque [N.m] (NaN: 0, not braking)",
+}
 #: the bits of valid_flags and frozen_flags (bit i: input i)
 _BITS = "bit 0 speed, 1 torque, 2 gear, 3 oil, 4 ambient, 5 coolant, 6 vehicle speed, 7 retarder"
 #: start values of the inputs (speed, torque and gear 0; oil and the auxiliary inputs not available)
@@ -59,8 +76,9 @@ def _fmi_headers() -> Path:
     try:
         import fmpy
     except ImportError:
-        raise InputError("export-fmu needs FMPy for the FMI headers: pip install fmpy (or the extra "
-                         "gearbox-vsensor[fmu])") from None
+        raise InputError(
+            "export-fmu needs FMPy for the FMI headers: pip install fmpy (or the extra gearbox-vsensor[fmu])"
+        ) from None
     return Path(fmpy.__file__).resolve().parent / "c-code"
 
 
@@ -70,44 +88,125 @@ def _platform_dir(fmi_version: int = 2) -> str:
     if fmi_version == 3:
         machine = {"amd64": "x86_64", "arm64": "aarch64"}.get(platform.machine().lower(), platform.machine().lower())
         return f"{machine}-" + {"Linux": "linux", "Darwin": "darwin", "Windows": "windows"}.get(system, "linux")
-    bits = "64" if sys.maxsize > 2 ** 32 else "32"
+    bits = "64" if sys.maxsize > 2**32 else "32"
     return {"Linux": "linux", "Darwin": "darwin", "Windows": "win"}.get(system, "linux") + bits
 
 
 def _variables(limits) -> list[tuple]:
     """(name, vr, type, causality, variability, start or None, description) of every variable."""
     from firmware_model.service.options import SENSOR_INPUTS
+
     # every input is discrete: the sensor samples its inputs every 0.1 s and holds them, as a CAN signal is held
     # between frames; an importer holds them between samples instead of interpolating (an interpolated gear 8.3 is
     # rejected, and FMPy interpolating 0 x NaN + 1 x value read the first sample after a gap as NaN)
-    v = [(col, VR["VR_INPUT"] + i, "Real", "input", "discrete", INPUT_START[i], INPUT_TEXT[field])
-         for i, (field, col) in enumerate(SENSOR_INPUTS)]
+    v = [
+        (col, VR["VR_INPUT"] + i, "Real", "input", "discrete", INPUT_START[i], INPUT_TEXT[field])
+        for i, (field, col) in enumerate(SENSOR_INPUTS)
+    ]
     for i, c in enumerate(PUBLISHED):
         v.append((f"T_{c}_c", VR["VR_T"] + i, "Real", "output", "discrete", None, f"{describe(c)} [degC]"))
     for i, c in enumerate(PUBLISHED):
-        v.append((f"W_{c}", VR["VR_LEVEL"] + i, "Integer", "output", "discrete", None,
-                  f"warning level of {c}: 0 normal, 1 warning, 2 critical, 3 not available"))
+        v.append(
+            (
+                f"W_{c}",
+                VR["VR_LEVEL"] + i,
+                "Integer",
+                "output",
+                "discrete",
+                None,
+                f"warning level of {c}: 0 normal, 1 warning, 2 critical, 3 not available",
+            )
+        )
     for i, c in enumerate(PUBLISHED):
-        v.append((f"ttl_{c}_s", VR["VR_TTL"] + i, "Real", "output", "discrete", None,
-                  f"time to the warning limit of {c} with the inputs held [s] (inf: not within 23 days, NaN: "
-                  "not available)"))
-    v += [("model_oil_temp_c", VR["VR_MODEL_OIL"], "Real", "output", "discrete", None, "the open-loop twin's sump"),
-          ("oil_innovation_c", VR["VR_INNOVATION"], "Real", "output", "discrete", None, "measured - model oil [K]"),
-          ("degraded_mode", VR["VR_MODE"], "Integer", "output", "discrete", None,
-           "0 normal, 1 oil modelled, 2 drive inputs missing (holding)"),
-          ("valid_flags", VR["VR_VALID"], "Integer", "output", "discrete", None,
-           "bit i set: input i valid this step (" + _BITS + ")"),
-          ("frozen_flags", VR["VR_FROZEN"], "Integer", "output", "discrete", None,
-           "bit i set: input i frozen (" + _BITS + ")")]
-    v += [(f"rejects_{r}", VR["VR_REJECT"] + i, "Integer", "output", "discrete", None,
-           f"inputs rejected or repaired so far: {r}") for i, r in enumerate(REJECT_REASONS)]
+        v.append(
+            (
+                f"ttl_{c}_s",
+                VR["VR_TTL"] + i,
+                "Real",
+                "output",
+                "discrete",
+                None,
+                f"time to the warning limit of {c} with the inputs held [s] (inf: not within 23 days, NaN: "
+                "not available)",
+            )
+        )
+    v += [
+        ("model_oil_temp_c", VR["VR_MODEL_OIL"], "Real", "output", "discrete", None, "the open-loop twin's sump"),
+        ("oil_innovation_c", VR["VR_INNOVATION"], "Real", "output", "discrete", None, "measured - model oil [K]"),
+        (
+            "degraded_mode",
+            VR["VR_MODE"],
+            "Integer",
+            "output",
+            "discrete",
+            None,
+            "0 normal, 1 oil modelled, 2 drive inputs missing (holding)",
+        ),
+        (
+            "valid_flags",
+            VR["VR_VALID"],
+            "Integer",
+            "output",
+            "discrete",
+            None,
+            "bit i set: input i valid this step (" + _BITS + ")",
+        ),
+        (
+            "frozen_flags",
+            VR["VR_FROZEN"],
+            "Integer",
+            "output",
+            "discrete",
+            None,
+            "bit i set: input i frozen (" + _BITS + ")",
+        ),
+    ]
+    v += [
+        (
+            f"rejects_{r}",
+            VR["VR_REJECT"] + i,
+            "Integer",
+            "output",
+            "discrete",
+            None,
+            f"inputs rejected or repaired so far: {r}",
+        )
+        for i, r in enumerate(REJECT_REASONS)
+    ]
     for i, c in enumerate(PUBLISHED):
-        v.append((f"limit_warning_{c}_c", VR["VR_WARNING"] + i, "Real", "parameter", "fixed",
-                  float(limits.warning_c[i]), f"warning limit of {c} [degC]"))
-        v.append((f"limit_critical_{c}_c", VR["VR_CRITICAL"] + i, "Real", "parameter", "fixed",
-                  float(limits.critical_c[i]), f"critical limit of {c} [degC]"))
-    v.append(("initial_temp_c", VR["VR_INITIAL_TEMP"], "Real", "parameter", "fixed", float("nan"),
-              "start temperature of every node [degC] (NaN: the first oil input, else ambient)"))
+        v.append(
+            (
+                f"limit_warning_{c}_c",
+                VR["VR_WARNING"] + i,
+                "Real",
+                "parameter",
+                "fixed",
+                float(limits.warning_c[i]),
+                f"warning limit of {c} [degC]",
+            )
+        )
+        v.append(
+            (
+                f"limit_critical_{c}_c",
+                VR["VR_CRITICAL"] + i,
+                "Real",
+                "parameter",
+                "fixed",
+                float(limits.critical_c[i]),
+                f"critical limit of {c} [degC]",
+            )
+        )
+    v.append(
+        (
+            "initial_temp_c",
+            VR["VR_INITIAL_TEMP"],
+            "Real",
+            "parameter",
+            "fixed",
+            float("nan"),
+            "start temperature of every node [degC] (NaN: the first oil input, else ambient)",
+        )
+    )
     return v
 
 
@@ -124,9 +223,14 @@ def _unit(name: str, typ: str) -> str | None:
 
 
 #: the units the variables use, as FMI BaseUnit attributes (SI exponents, factor and offset to SI)
-UNITS = {"degC": 'K="1" offset="273.15"', "K": 'K="1"', "s": 's="1"',
-         "rpm": 's="-1" rad="1" factor="0.10471975511965977"', "N.m": 'kg="1" m="2" s="-2"',
-         "km/h": 'm="1" s="-1" factor="0.2777777777777778"'}
+UNITS = {
+    "degC": 'K="1" offset="273.15"',
+    "K": 'K="1"',
+    "s": 's="1"',
+    "rpm": 's="-1" rad="1" factor="0.10471975511965977"',
+    "N.m": 'kg="1" m="2" s="-2"',
+    "km/h": 'm="1" s="-1" factor="0.2777777777777778"',
+}
 
 
 def _unit_definitions() -> str:
@@ -166,15 +270,18 @@ def model_description(variant: str, limits, guid: str, fmi_version: int = 2) -> 
         if caus == "parameter":
             attrs += ' initial="exact"'
         unit = _unit(name, typ)
-        type_attrs = (f' unit="{escape(unit)}"' if unit else "") + (f' start="{_xml_value(start)}"' if start is not None
-                                                                    else "")
+        type_attrs = (f' unit="{escape(unit)}"' if unit else "") + (
+            f' start="{_xml_value(start)}"' if start is not None else ""
+        )
         inner = f"<{typ}{type_attrs}/>"
         rows.append(f'    <ScalarVariable {attrs} description="{escape(desc)}">{inner}</ScalarVariable>')
         if caus == "output":
             outputs.append(k)
-    rows.append(f'    <ScalarVariable name="variant" valueReference="{VR["VR_VARIANT"]}" causality="parameter" '
-                f'variability="fixed" initial="exact" description="gearbox variant of the tables">'
-                f'<String start="{escape(variant)}"/></ScalarVariable>')
+    rows.append(
+        f'    <ScalarVariable name="variant" valueReference="{VR["VR_VARIANT"]}" causality="parameter" '
+        f'variability="fixed" initial="exact" description="gearbox variant of the tables">'
+        f'<String start="{escape(variant)}"/></ScalarVariable>'
+    )
     unknowns = "\n".join(f'      <Unknown index="{k}"/>' for k in outputs)
     sources = "\n".join(f'      <File name="{n}"/>' for n in SOURCE_FILES)
     return f"""<?xml version="1.0" encoding="UTF-8"?>
@@ -221,11 +328,16 @@ def _model_description_3(variant: str, limits, guid: str) -> str:
         rows.append(f'    <{t3} {attrs} description="{escape(desc)}"/>')
         if caus == "output":
             outputs.append(vr)
-    rows.append(f'    <String name="variant" valueReference="{VR["VR_VARIANT"]}" causality="parameter" '
-                f'variability="fixed" description="gearbox variant of the tables"><Start value="{escape(variant)}"/>'
-                f'</String>')
-    rows.insert(0, f'    <Float64 name="time" valueReference="{VR["VR_TIME"]}" causality="independent" '
-                   f'variability="continuous" unit="s" description="simulation time [s]"/>')
+    rows.append(
+        f'    <String name="variant" valueReference="{VR["VR_VARIANT"]}" causality="parameter" '
+        f'variability="fixed" description="gearbox variant of the tables"><Start value="{escape(variant)}"/>'
+        f"</String>"
+    )
+    rows.insert(
+        0,
+        f'    <Float64 name="time" valueReference="{VR["VR_TIME"]}" causality="independent" '
+        f'variability="continuous" unit="s" description="simulation time [s]"/>',
+    )
     structure = "\n".join(f'    <Output valueReference="{vr}"/>' for vr in outputs)
     structure += "\n" + "\n".join(f'    <InitialUnknown valueReference="{vr}"/>' for vr in outputs)
     return f"""<?xml version="1.0" encoding="UTF-8"?>
@@ -251,8 +363,11 @@ def _blocks(variant: str, guid: str) -> str:
     start = ", ".join("NAN" if x != x else repr(x) for x in INPUT_START)
     lo, hi = LIMIT_RANGE_C
     lines += [f"#define LIMIT_LO_C {lo!r}", f"#define LIMIT_HI_C {hi!r}", f'#define LIMIT_RANGE_TEXT "{lo:g}..{hi:g}"']
-    lines += [f"static const double INPUT_START[GVS_N_INPUTS] = {{{start}}};",
-              f'#define GVS_GUID "{guid}"', f'#define GVS_VARIANT "{variant}"']
+    lines += [
+        f"static const double INPUT_START[GVS_N_INPUTS] = {{{start}}};",
+        f'#define GVS_GUID "{guid}"',
+        f'#define GVS_VARIANT "{variant}"',
+    ]
     return "\n".join(lines)
 
 
@@ -273,11 +388,13 @@ def export_fmu(out_path, variant: str | None = None, config_path=None, fmi_versi
     with outputs(("--out", out_path)) as (tmp_fmu,), tempfile.TemporaryDirectory() as tmp:
         try:
             fmu_dir = _build(Path(tmp), variant, config_path, fmi_version, cc, headers)
-        except (OSError, OutputError) as exc:     # the build directory, not --out: say so
+        except (OSError, OutputError) as exc:  # the build directory, not --out: say so
             cause = exc if isinstance(exc, OSError) else exc.cause
             where = f" ({cause.filename})" if getattr(cause, "filename", None) else ""
-            raise InputError(f"--out {os.fspath(out_path)}: cannot build the FMU: {cause.strerror or cause}{where} "
-                             f"(the build runs in the temporary directory {tempfile.gettempdir()})") from None
+            raise InputError(
+                f"--out {os.fspath(out_path)}: cannot build the FMU: {cause.strerror or cause}{where} "
+                f"(the build runs in the temporary directory {tempfile.gettempdir()})"
+            ) from None
         with naming(tmp_fmu), zipfile.ZipFile(tmp_fmu, "w", zipfile.ZIP_DEFLATED) as z:
             for p in sorted(fmu_dir.rglob("*")):
                 if p.is_file():
@@ -288,6 +405,7 @@ def export_fmu(out_path, variant: str | None = None, config_path=None, fmi_versi
 def _build(tmp: Path, variant: str, config_path, fmi_version: int, cc: str, headers) -> Path:
     """The FMU's tree in ``tmp``/fmu: the sources, modelDescription.xml and the binary compiled for this platform."""
     from tools.export.c_bundle import export_c
+
     bundle = export_c(tmp / "c", variant=variant, config_path=config_path, real="double")
     src = tmp / "fmu" / "sources"
     src.mkdir(parents=True)
@@ -302,9 +420,20 @@ def _build(tmp: Path, variant: str, config_path, fmi_version: int, cc: str, head
     suffix = {"Windows": ".dll", "Darwin": ".dylib"}.get(platform.system(), ".so")
     if fmi_version == 3:
         (src / "buildDescription.xml").write_text(build_description())
-    cmd = [cc, "-std=c99", "-O2", "-fPIC", "-shared", "-fno-fast-math", f"-I{headers}", f"-I{src}",
-           *(str(src / n) for n in SOURCE_FILES), "-o",
-           str(binaries / (MODEL_ID + suffix)), "-lm"]
+    cmd = [
+        cc,
+        "-std=c99",
+        "-O2",
+        "-fPIC",
+        "-shared",
+        "-fno-fast-math",
+        f"-I{headers}",
+        f"-I{src}",
+        *(str(src / n) for n in SOURCE_FILES),
+        "-o",
+        str(binaries / (MODEL_ID + suffix)),
+        "-lm",
+    ]
     res = subprocess.run(cmd, capture_output=True, text=True)
     if res.returncode != 0:
         raise InputError(f"the FMU's binary did not compile: {res.stderr.strip()[:400]}")
@@ -315,5 +444,6 @@ def _variant_and_limits(variant: str, config_path):
     """The variant name and the warning limits the export uses (as tools.export.c_bundle.export_c)."""
     from firmware_model.onboard.sensor import VirtualSensor
     from tools.export.c_bundle import export_config
+
     cfg, params = export_config(variant, config_path)
     return params.variant, VirtualSensor(params, config=cfg, core="numpy").limits

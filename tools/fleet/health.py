@@ -24,6 +24,7 @@ signal (0xFF, or too few readings) the estimate's drift, by the same rule, is a 
 DIR/health/watch.parquet), not a flag: "check this truck's level", because the estimate is not identifiable (on the
 synthetic validation fleets 2 of 14 leaks drifted it, and 5 of its 7 drifts were on trucks without a leak).
 """
+
 from __future__ import annotations
 
 import datetime as dt
@@ -51,7 +52,7 @@ DRIFT_MIN = {"cooler_effectiveness_scale": 0.15, "oil_level_low": 1.0}
 #: a period's level needs readings from at least LEVEL_MIN_LOGS logs; its standard error never goes below one bit
 #: over sqrt(logs); a baseline below LEVEL_PLAUSIBLE_MIN_PCT is not a fill level (a sender's placeholder, a sensor
 #: fault): such a vehicle's level is not read
-NOMINAL_VOLUME_L = float(CATALOG["oil_level_low"].neutral)     # the nominal oil volume [L]
+NOMINAL_VOLUME_L = float(CATALOG["oil_level_low"].neutral)  # the nominal oil volume [L]
 LEVEL_BIT_PCT = 0.4
 LEVEL_DRIFT_MIN_SHARE = DRIFT_MIN["oil_level_low"] / NOMINAL_VOLUME_L
 LEVEL_DRIFT_MIN_PCT = 3 * LEVEL_BIT_PCT
@@ -69,6 +70,7 @@ def health_model(variant: str | None = None, config: str | None = None):
     if key not in _MODELS:
         from tools.diagnosis.models import OnboardModel
         from tools.fleet.manifest import vehicle_config
+
         cfg = vehicle_config(variant, config)
         _MODELS[key] = OnboardModel(cfg.load_params(), config=cfg, out_dt_s=FIT_DT_S, workers=1)
     return _MODELS[key]
@@ -76,6 +78,7 @@ def health_model(variant: str | None = None, config: str | None = None):
 
 class LogData(NamedTuple):
     """One log as the model simulates it: its decoded inputs (a RunTable) and the first measured oil [degC]."""
+
     inputs: object
     initial_temp_c: float
 
@@ -85,15 +88,23 @@ def fit_log(table, variant: str | None = None, config: str | None = None) -> dic
     number of compared points and the log's span; None when the log has too little measured oil."""
     from tools.diagnosis.models import Run
     from tools.runtable import RunTable
+
     oil = np.asarray(table["oil_temp_c"], dtype=float)
-    if table.has("oil_valid"):              # the sensor's verdict on each reading (frozen, implausible: not used)
+    if table.has("oil_valid"):  # the sensor's verdict on each reading (frozen, implausible: not used)
         oil = np.where(np.asarray(table["oil_valid"], dtype=float) == 1, oil, np.nan)
     if table.n < 2 * int(DECORRELATION_S / 0.1) or np.mean(np.isfinite(oil)) < MIN_OIL_SHARE:
         return None
     t = np.asarray(table["time_s"], dtype=float)
     cols = {"time_s": t - t[0]}
-    for c in ("engine_speed_rpm", "engine_torque_nm", "gear", "ambient_temp_c", "coolant_temp_c",
-              "vehicle_speed_kmh", "retarder_torque_nm"):
+    for c in (
+        "engine_speed_rpm",
+        "engine_torque_nm",
+        "gear",
+        "ambient_temp_c",
+        "coolant_temp_c",
+        "vehicle_speed_kmh",
+        "retarder_torque_nm",
+    ):
         cols[c] = np.asarray(table[c], dtype=float)
     first = int(np.flatnonzero(np.isfinite(oil))[0])
     runs = [Run.of({"cooler_effectiveness_scale": c, "oil_level_low": v}) for v in VOLUME_GRID_L for c in COOLER_GRID]
@@ -102,8 +113,13 @@ def fit_log(table, variant: str | None = None, config: str | None = None) -> dic
     meas = np.interp(t_fit, cols["time_s"], np.where(np.isfinite(oil), oil, np.nan))
     ok = np.isfinite(meas)
     sse = np.array([float(np.sum((o[0]["oil_temp_c"][ok] - meas[ok]) ** 2)) for o in outs])
-    return {"sse": sse.reshape(len(VOLUME_GRID_L), len(COOLER_GRID)).ravel().tolist(), "points": int(ok.sum()),
-            "span_s": float(cols["time_s"][-1]), "cooler_grid": list(COOLER_GRID), "volume_grid_l": list(VOLUME_GRID_L)}
+    return {
+        "sse": sse.reshape(len(VOLUME_GRID_L), len(COOLER_GRID)).ravel().tolist(),
+        "points": int(ok.sum()),
+        "span_s": float(cols["time_s"][-1]),
+        "cooler_grid": list(COOLER_GRID),
+        "volume_grid_l": list(VOLUME_GRID_L),
+    }
 
 
 def _parabola(x: np.ndarray, y: np.ndarray, i: int) -> tuple[float, float]:
@@ -111,7 +127,7 @@ def _parabola(x: np.ndarray, y: np.ndarray, i: int) -> tuple[float, float]:
     the grid, or where the three points bend the wrong way, the minimum stays on its grid point and the curvature
     is the one-sided bound 2 x (the rise to the next point) / spacing^2 (the evidence that it beats its neighbour)."""
     j = min(max(i, 1), x.size - 2)
-    a, b, _ = np.polyfit(x[j - 1:j + 2], y[j - 1:j + 2], 2)
+    a, b, _ = np.polyfit(x[j - 1 : j + 2], y[j - 1 : j + 2], 2)
     vertex = -b / (2 * a) if a > 0 else math.nan
     if a > 0 and x[0] <= vertex <= x[-1] and 0 < i < x.size - 1:
         return float(vertex), float(2 * a)
@@ -130,7 +146,7 @@ class PeriodFit(NamedTuple):
     oil_volume_l: float
     oil_volume_se: float
     rms_c: float
-    oil_level_pct: float = math.nan     # the measured level (SPN 124): median over the period's logs
+    oil_level_pct: float = math.nan  # the measured level (SPN 124): median over the period's logs
     oil_level_se: float = math.nan
 
 
@@ -150,8 +166,10 @@ def fit_period(vehicle: str, period: int, start: str, fits: list[dict]) -> Perio
 
     def se(curv):
         return math.sqrt(2 * s2 * infl / curv) if curv > 0 else math.inf
-    return PeriodFit(vehicle, period, start, len(fits), c_hat, se(c_curv), v_hat, se(v_curv), math.sqrt(s2),
-                     *period_level(fits))
+
+    return PeriodFit(
+        vehicle, period, start, len(fits), c_hat, se(c_curv), v_hat, se(v_curv), math.sqrt(s2), *period_level(fits)
+    )
 
 
 def period_level(fits: list[dict]) -> tuple[float, float]:
@@ -183,12 +201,12 @@ class Health(NamedTuple):
     periods: int
     fits: list
     flags: list
-    watch: tuple | list = ()    # Flag(kind="watch"): oil-level drifts from the temperature alone
-    why_none: str = ""          # why no vehicle-period was fitted (nothing is written then)
-    vehicles: int = 0           # vehicles with a fitted period
-    judged: int = 0             # of them, those with the periods a judgement needs (JUDGED_PERIODS)
-    undated: int = 0            # fitted logs left out: no date (frame times not Unix time, none in the manifest)
-    far: int = 0                # fitted logs left out: dated far before or after the rest of the fleet
+    watch: tuple | list = ()  # Flag(kind="watch"): oil-level drifts from the temperature alone
+    why_none: str = ""  # why no vehicle-period was fitted (nothing is written then)
+    vehicles: int = 0  # vehicles with a fitted period
+    judged: int = 0  # of them, those with the periods a judgement needs (JUDGED_PERIODS)
+    undated: int = 0  # fitted logs left out: no date (frame times not Unix time, none in the manifest)
+    far: int = 0  # fitted logs left out: dated far before or after the rest of the fleet
 
 
 def _level_rows(rows: list) -> list:
@@ -219,8 +237,15 @@ def _level_flag(vehicle: str, measured: list) -> Flag | None:
         run = (run + 1 if r.period == prev + 1 else 1) if big else 0
         prev = r.period
         if run >= CONSECUTIVE:
-            return Flag(vehicle, "oil_level_low", r.period, r.start, r.oil_level_pct / baseline * NOMINAL_VOLUME_L,
-                        NOMINAL_VOLUME_L, "the measured oil level (SPN 124) fell from its own baseline")
+            return Flag(
+                vehicle,
+                "oil_level_low",
+                r.period,
+                r.start,
+                r.oil_level_pct / baseline * NOMINAL_VOLUME_L,
+                NOMINAL_VOLUME_L,
+                "the measured oil level (SPN 124) fell from its own baseline",
+            )
     return None
 
 
@@ -232,10 +257,12 @@ def _drift_flags(per_vehicle: dict, fleet_median: dict, fleet_mad: dict) -> list
         measured = bool(level_rows)
         if measured and (flag := _level_flag(vehicle, level_rows)) is not None:
             flags.append(flag)
-        for effect, attr, se_attr in (("cooler_effectiveness_scale", "cooler_scale", "cooler_se"),
-                                      ("oil_level_low", "oil_volume_l", "oil_volume_se")):
+        for effect, attr, se_attr in (
+            ("cooler_effectiveness_scale", "cooler_scale", "cooler_se"),
+            ("oil_level_low", "oil_volume_l", "oil_volume_se"),
+        ):
             if measured and effect == "oil_level_low":
-                continue            # read from the level sensor: the estimate from the oil temperature is not used
+                continue  # read from the level sensor: the estimate from the oil temperature is not used
             base_rows = rows[:BASELINE_PERIODS]
             if len(rows) <= BASELINE_PERIODS:
                 continue
@@ -248,12 +275,26 @@ def _drift_flags(per_vehicle: dict, fleet_median: dict, fleet_mad: dict) -> list
                 outside = value < fleet_median[(effect, r.period)] - SPREAD_OUTSIDE * fleet_mad[(effect, r.period)]
                 run = run + 1 if drifting else 0
                 if run >= CONSECUTIVE:
-                    weak = effect == "oil_level_low"    # from the temperature alone (no SPN 124): a watch
-                    flags.append(Flag(vehicle, effect, r.period, r.start, value, baseline,
-                                      ("the oil volume estimated from the oil temperature (not identifiable: check "
-                                       "the level) drifted" if weak else "drift") + " from its own baseline"
-                                      + (", outside the fleet's spread" if outside else ""),
-                                      "watch" if weak else "flag"))
+                    weak = effect == "oil_level_low"  # from the temperature alone (no SPN 124): a watch
+                    flags.append(
+                        Flag(
+                            vehicle,
+                            effect,
+                            r.period,
+                            r.start,
+                            value,
+                            baseline,
+                            (
+                                "the oil volume estimated from the oil temperature (not identifiable: check "
+                                "the level) drifted"
+                                if weak
+                                else "drift"
+                            )
+                            + " from its own baseline"
+                            + (", outside the fleet's spread" if outside else ""),
+                            "watch" if weak else "flag",
+                        )
+                    )
                     break
     return flags
 
@@ -299,19 +340,26 @@ def _check_grids(out: str | Path, rows: list[dict]) -> None:
     n = len(COOLER_GRID) * len(VOLUME_GRID_L)
     bad = [r for r in rows if _grid(r) != here or len(r.get("sse") or ()) != n]
     if bad:
-        raise InputError(f"{Path(out) / 'fits'}: {len(bad)} of {len(rows)} log fits are not on this version's grid "
-                         f"({len(VOLUME_GRID_L)} oil volumes x {len(COOLER_GRID)} cooler scales; the first has "
-                         f"{len(bad[0].get('sse') or ())} points): they come from another version of "
-                         "gearbox-vsensor; run `gearbox-vsensor fleet --diagnose` into a new --out folder")
+        raise InputError(
+            f"{Path(out) / 'fits'}: {len(bad)} of {len(rows)} log fits are not on this version's grid "
+            f"({len(VOLUME_GRID_L)} oil volumes x {len(COOLER_GRID)} cooler scales; the first has "
+            f"{len(bad[0].get('sse') or ())} points): they come from another version of "
+            "gearbox-vsensor; run `gearbox-vsensor fleet --diagnose` into a new --out folder"
+        )
 
 
 #: why no vehicle-period was fitted when no log was (fit_log's conditions)
-NO_FIT = (f"no log was long enough to fit: each needs at least {2 * DECORRELATION_S / 60:.0f} min of replay with the "
-          f"oil temperature measured (and used by the sensor) on {MIN_OIL_SHARE:.0%} of its steps or more")
+NO_FIT = (
+    f"no log was long enough to fit: each needs at least {2 * DECORRELATION_S / 60:.0f} min of replay with the "
+    f"oil temperature measured (and used by the sensor) on {MIN_OIL_SHARE:.0%} of its steps or more"
+)
 #: why, when the folder's logs were summarised but none has a fit
-NO_FIT_HERE = ("no log in this folder has a health fit: either none was long enough (" + NO_FIT.split(": ", 1)[1]
-               + "), or its logs were summarised by a run without --diagnose, which a re-run skips: run --diagnose "
-               "into a new --out folder")
+NO_FIT_HERE = (
+    "no log in this folder has a health fit: either none was long enough ("
+    + NO_FIT.split(": ", 1)[1]
+    + "), or its logs were summarised by a run without --diagnose, which a re-run skips: run --diagnose "
+    "into a new --out folder"
+)
 #: the periods a vehicle needs before a drift can be flagged: a baseline, then a run of drifting periods
 JUDGED_PERIODS = BASELINE_PERIODS + CONSECUTIVE
 
@@ -346,18 +394,25 @@ def fleet_health(out: str | Path, period_days: float = 7.0) -> Health:
     import pyarrow as pa
 
     from tools.fleet.store import HEALTH, read_table, write_atomic
+
     fits = read_table(out, "fits")
     summary = read_table(out)
     if fits is None or summary is None or not fits.num_rows:
         return Health(0, [], [], why_none=NO_FIT_HERE if summary is not None and summary.num_rows else NO_FIT)
     dates = dict(zip(summary.column("log_key").to_pylist(), summary.column("date").to_pylist()))
-    unique = {r["log_key"]: r for r in fits.to_pylist()}     # a log fitted twice (a run killed between files)
+    unique = {r["log_key"]: r for r in fits.to_pylist()}  # a log fitted twice (a run killed between files)
     _check_grids(out, list(unique.values()))
     rows = [r for r in unique.values() if dates.get(r["log_key"], "unknown") != "unknown"]
     undated = len(unique) - len(rows)
     if not rows:
-        return Health(0, [], [], why_none="no fitted log has a date (its frame times are not Unix time and the "
-                                          "manifest gives none), so none falls into a period", undated=undated)
+        return Health(
+            0,
+            [],
+            [],
+            why_none="no fitted log has a date (its frame times are not Unix time and the "
+            "manifest gives none), so none falls into a period",
+            undated=undated,
+        )
     rows, far = _drop_far_dates(rows, dates)
     day0 = min(dt.date.fromisoformat(dates[r["log_key"]]) for r in rows)
     groups: dict = {}
@@ -365,26 +420,52 @@ def fleet_health(out: str | Path, period_days: float = 7.0) -> Health:
         d = dt.date.fromisoformat(dates[r["log_key"]])
         p = int((d - day0).days // period_days)
         groups.setdefault((r["vehicle"], p), []).append(r)
-    period_fits = [fit_period(v, p, (day0 + dt.timedelta(days=p * period_days)).isoformat(), g)
-                   for (v, p), g in sorted(groups.items())]
+    period_fits = [
+        fit_period(v, p, (day0 + dt.timedelta(days=p * period_days)).isoformat(), g)
+        for (v, p), g in sorted(groups.items())
+    ]
     found = flag_vehicles(period_fits)
     flags = [f for f in found if f.kind == "flag"]
     watch = [f for f in found if f.kind == "watch"]
     root = Path(out) / HEALTH
     write_atomic(pa.Table.from_pylist([f._asdict() for f in period_fits]), root / "periods.parquet")
-    schema = pa.schema([("vehicle", pa.string()), ("effect", pa.string()), ("period", pa.int64()),
-                        ("start", pa.string()), ("value", pa.float64()), ("baseline", pa.float64()),
-                        ("reason", pa.string()), ("kind", pa.string())])
+    schema = pa.schema(
+        [
+            ("vehicle", pa.string()),
+            ("effect", pa.string()),
+            ("period", pa.int64()),
+            ("start", pa.string()),
+            ("value", pa.float64()),
+            ("baseline", pa.float64()),
+            ("reason", pa.string()),
+            ("kind", pa.string()),
+        ]
+    )
     write_atomic(pa.Table.from_pylist([f._asdict() for f in flags], schema=schema), root / "flags.parquet")
     write_atomic(pa.Table.from_pylist([f._asdict() for f in watch], schema=schema), root / "watch.parquet")
     per_vehicle: dict = {}
     for f in period_fits:
         per_vehicle[f.vehicle] = per_vehicle.get(f.vehicle, 0) + 1
     judged = sum(n >= JUDGED_PERIODS for n in per_vehicle.values())
-    return Health(len(period_fits), period_fits, flags, watch, vehicles=len(per_vehicle), judged=judged,
-                  undated=undated, far=far)
+    return Health(
+        len(period_fits), period_fits, flags, watch, vehicles=len(per_vehicle), judged=judged, undated=undated, far=far
+    )
 
 
-__all__ = ["COOLER_GRID", "JUDGED_PERIODS", "SPREAD_OUTSIDE", "VOLUME_GRID_L", "Flag", "Health", "LogData", "PeriodFit",
-           "fit_log", "fit_period", "fleet_spread",
-           "flag_vehicles", "fleet_health", "health_model", "period_level"]
+__all__ = [
+    "COOLER_GRID",
+    "JUDGED_PERIODS",
+    "SPREAD_OUTSIDE",
+    "VOLUME_GRID_L",
+    "Flag",
+    "Health",
+    "LogData",
+    "PeriodFit",
+    "fit_log",
+    "fit_period",
+    "fleet_spread",
+    "flag_vehicles",
+    "fleet_health",
+    "health_model",
+    "period_level",
+]

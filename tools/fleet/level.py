@@ -14,6 +14,7 @@ oil temperature), byte 2 at most 250 (0xFA), and the level's measurement status 
 reserved 0xFB-0xFD are not readings, nor is a level whose status says the conditions were not valid. A log without a
 reading has a NaN level and 0 readings: the level is then not known, which is not the same as low.
 """
+
 from __future__ import annotations
 
 import math
@@ -38,6 +39,7 @@ MIN_READINGS = 30
 
 class LogLevel(NamedTuple):
     """The median of a log's valid SPN 124 readings [%] (NaN without readings) and how many there were."""
+
     level_pct: float
     readings: int
 
@@ -46,7 +48,7 @@ def level_readings(cols: FrameColumns, source_address: int | None) -> np.ndarray
     """Every valid SPN 124 reading of the frames [%], in file order; ``source_address`` None accepts any source."""
     level = dbc.signal_layout(LEVEL_MESSAGE, LEVEL_SIGNAL, 8)
     status = dbc.signal_layout(LEVEL_MESSAGE, STATUS_SIGNAL, 4)
-    ok = frame_reasons(cols) == 0                    # the decoder's frame checks, as for the oil temperature
+    ok = frame_reasons(cols) == 0  # the decoder's frame checks, as for the oil temperature
     ok &= (cols.dlc == 8) & (cols.length == 8)
     ok &= pgn_keys(np.where(ok, cols.can_id, 0)) == dbc.message_pgn(LEVEL_MESSAGE)
     if source_address is not None:
@@ -69,8 +71,18 @@ def log_level(cols: FrameColumns, source_address: int | None) -> LogLevel:
 def read_log_level(path: str | os.PathLike, source_address: int | None) -> LogLevel:
     """:func:`log_level` of a CAN log file (any format ``replay`` reads)."""
     from tools.replay.columns import read_columns
-    return log_level(read_columns(path, strict=False).columns, source_address)   # as the replay read it
+
+    return log_level(read_columns(path, strict=False).columns, source_address)  # as the replay read it
 
 
-__all__ = ["LEVEL_MESSAGE", "LEVEL_SIGNAL", "MIN_READINGS", "STATUS_ACCEPTED", "STATUS_SIGNAL", "LogLevel",
-           "level_readings", "log_level", "read_log_level"]
+__all__ = [
+    "LEVEL_MESSAGE",
+    "LEVEL_SIGNAL",
+    "MIN_READINGS",
+    "STATUS_ACCEPTED",
+    "STATUS_SIGNAL",
+    "LogLevel",
+    "level_readings",
+    "log_level",
+    "read_log_level",
+]

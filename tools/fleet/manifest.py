@@ -6,6 +6,7 @@ Every problem with the list itself (a manifest naming missing files, a vehicle w
 a log listed twice, no log at all) is an :class:`~firmware_model.errors.InputError` before anything runs; a log that
 exists but cannot be read is not: it lands in the fleet's errors table.
 """
+
 from __future__ import annotations
 
 import csv
@@ -29,6 +30,7 @@ DEFAULT_VEHICLE_PATTERN = r"(?P<vehicle>[^/]+)/[^/]+$"
 class LogEntry(NamedTuple):
     """One log of the fleet: its path, vehicle, gearbox variant and configuration (None: the defaults), a date
     (YYYY-MM-DD; None: from the log's first frame time) and its key (what a re-run recognises it by)."""
+
     log: Path
     vehicle: str
     variant: str | None
@@ -41,7 +43,9 @@ def vehicle_config(variant: str | None, config: str | None):
     """The project configuration of a vehicle: its ``config`` file (None: the defaults) with its ``variant`` (a
     parameter file name) in place of the file's, when given."""
     import dataclasses
+
     from firmware_model.config import load_config
+
     cfg = load_config(config)
     return cfg if variant is None else dataclasses.replace(cfg, variant=variant, params_path=None)
 
@@ -76,23 +80,29 @@ def read_manifest(manifest: str | os.PathLike) -> list[LogEntry]:
 
 
 def _read_manifest(m: Path) -> list[LogEntry]:
-    with open(m, newline="", encoding="utf-8-sig") as fh:       # -sig: a byte-order mark is not part of "log"
+    with open(m, newline="", encoding="utf-8-sig") as fh:  # -sig: a byte-order mark is not part of "log"
         reader = csv.DictReader(fh)
         header = [h.strip() for h in (reader.fieldnames or [])]
         missing = [c for c in MANIFEST_REQUIRED if c not in header]
         if missing:
-            raise InputError(f"manifest {m} has no column {' or '.join(missing)}; it needs columns log,vehicle "
-                             f"(optional: {','.join(MANIFEST_OPTIONAL)})")
+            raise InputError(
+                f"manifest {m} has no column {' or '.join(missing)}; it needs columns log,vehicle "
+                f"(optional: {','.join(MANIFEST_OPTIONAL)})"
+            )
         unknown = [c for c in header if c not in MANIFEST_REQUIRED + MANIFEST_OPTIONAL]
         if unknown:
-            raise InputError(f"manifest {m} has unknown column(s) {', '.join(unknown)}; use log,vehicle and "
-                             f"optionally {','.join(MANIFEST_OPTIONAL)}")
+            raise InputError(
+                f"manifest {m} has unknown column(s) {', '.join(unknown)}; use log,vehicle and "
+                f"optionally {','.join(MANIFEST_OPTIONAL)}"
+            )
         rows = []
         for r in reader:
             extra = [v for v in (r.get(None) or []) if v and v.strip()]
             if extra:
-                raise InputError(f"manifest {m} line {reader.line_num} has {len(extra)} field(s) more than its header "
-                                 f"({', '.join(map(repr, extra[:3]))}): a comma in a path must be quoted")
+                raise InputError(
+                    f"manifest {m} line {reader.line_num} has {len(extra)} field(s) more than its header "
+                    f"({', '.join(map(repr, extra[:3]))}): a comma in a path must be quoted"
+                )
             rows.append((reader.line_num, {k.strip(): (v or "").strip() for k, v in r.items() if k}))
     entries, lines = [], {}
     for line, r in rows:
@@ -102,7 +112,7 @@ def _read_manifest(m: Path) -> list[LogEntry]:
         if not p.is_absolute():
             p = m.parent / p
         config = r.get("config") or None
-        if config and not Path(config).is_absolute():         # relative to the manifest, as the logs
+        if config and not Path(config).is_absolute():  # relative to the manifest, as the logs
             config = str(m.parent / config)
         try:
             entries.append(_entry(p, r["vehicle"], r.get("variant"), config, r.get("date")))
@@ -111,13 +121,16 @@ def _read_manifest(m: Path) -> list[LogEntry]:
         lines[id(entries[-1])] = line
     folders = [e for e in entries if e.log.is_dir()]
     if folders:
-        raise InputError(f"manifest {m} line {lines[id(folders[0])]} names a folder where a log file belongs: "
-                         f"{folders[0].log}")
+        raise InputError(
+            f"manifest {m} line {lines[id(folders[0])]} names a folder where a log file belongs: {folders[0].log}"
+        )
     absent = [e for e in entries if not e.log.is_file()]
     if absent:
         more = f" and {len(absent) - 3} more" if len(absent) > 3 else ""
-        raise InputError(f"manifest {m} names {len(absent)} log file(s) that do not exist: "
-                         f"{', '.join(f'{e.log} (line {lines[id(e)]})' for e in absent[:3])}{more}")
+        raise InputError(
+            f"manifest {m} names {len(absent)} log file(s) that do not exist: "
+            f"{', '.join(f'{e.log} (line {lines[id(e)]})' for e in absent[:3])}{more}"
+        )
     return check_entries(entries, f"manifest {m}", lambda e: str(lines[id(e)]))
 
 
@@ -134,9 +147,15 @@ def _log_files(paths) -> list[tuple[Path, bool]]:
         p = Path(given)
         if p.is_dir():
             # a compressed log (drive.log.gz) is taken too: it lands in the errors table saying so, not skipped
-            found = sorted(f for f in p.rglob("*") if f.is_file() and (
-                f.suffix.lower() in LOG_SUFFIXES or (f.suffix.lower() == ".gz" and
-                                                     Path(f.stem).suffix.lower() in LOG_SUFFIXES)))
+            found = sorted(
+                f
+                for f in p.rglob("*")
+                if f.is_file()
+                and (
+                    f.suffix.lower() in LOG_SUFFIXES
+                    or (f.suffix.lower() == ".gz" and Path(f.stem).suffix.lower() in LOG_SUFFIXES)
+                )
+            )
             files.extend((f, f.parent != p) for f in found)
         elif p.exists():
             files.append((p, False))
@@ -148,7 +167,7 @@ def _log_files(paths) -> list[tuple[Path, bool]]:
 def _stem(f: Path) -> str:
     """A log's name without its log suffix (and .gz): truck7_2026-01-05.log.gz -> truck7_2026-01-05."""
     name = f.name[:-3] if f.name.lower().endswith(".gz") else f.name
-    return name[:-len(Path(name).suffix)] if Path(name).suffix else name
+    return name[: -len(Path(name).suffix)] if Path(name).suffix else name
 
 
 def _vehicle_from(files: list[Path], vehicle_from: str) -> list[tuple[Path, str, str | None]]:
@@ -161,23 +180,31 @@ def _vehicle_from(files: list[Path], vehicle_from: str) -> list[tuple[Path, str,
     out, unmatched = [], []
     for f in files:
         m = rx.search(f.name)
-        vehicle = None if m is None else (m.group("vehicle") if "vehicle" in rx.groupindex
-                                          else m.group(1) if rx.groups else m.group(0))
+        vehicle = (
+            None
+            if m is None
+            else (m.group("vehicle") if "vehicle" in rx.groupindex else m.group(1) if rx.groups else m.group(0))
+        )
         if not vehicle:
             unmatched.append(f)
             continue
         out.append((f, vehicle, m.groupdict().get("date")))
     if unmatched:
-        more = f" ({len(unmatched)} of {len(files)} logs: {', '.join(u.name for u in unmatched[:3])}" \
-               f"{' ...' if len(unmatched) > 3 else ''})" if len(unmatched) > 1 else ""
-        raise InputError(f"{unmatched[0]}: --vehicle-from '{vehicle_from}' finds no vehicle in its file name "
-                         f"{unmatched[0].name}{more}; fix the pattern (the vehicle is its group (?P<vehicle>...) "
-                         f"or its first group), or name each log's vehicle in a --manifest")
+        more = (
+            f" ({len(unmatched)} of {len(files)} logs: {', '.join(u.name for u in unmatched[:3])}"
+            f"{' ...' if len(unmatched) > 3 else ''})"
+            if len(unmatched) > 1
+            else ""
+        )
+        raise InputError(
+            f"{unmatched[0]}: --vehicle-from '{vehicle_from}' finds no vehicle in its file name "
+            f"{unmatched[0].name}{more}; fix the pattern (the vehicle is its group (?P<vehicle>...) "
+            f"or its first group), or name each log's vehicle in a --manifest"
+        )
     return out
 
 
-def entries_and_rule(paths, pattern: str | None = None,
-                     vehicle_from: str | None = None) -> tuple[list[LogEntry], str]:
+def entries_and_rule(paths, pattern: str | None = None, vehicle_from: str | None = None) -> tuple[list[LogEntry], str]:
     """The logs among ``paths`` with their vehicles, and one sentence saying how the vehicles were read. The
     vehicle: what ``vehicle_from`` finds in the file name (:func:`_vehicle_from`); or what ``pattern`` finds in the
     path (a group ``vehicle``, optional groups ``variant`` and ``date``); else the name of the folder holding the log
@@ -191,8 +218,9 @@ def entries_and_rule(paths, pattern: str | None = None,
         found = _vehicle_from(files, vehicle_from)
         entries = [_entry(f, v, None, None, d) for f, v, d in found]
         n = len({v for _, v, _ in found})
-        return check_entries(entries, "the logs given"), \
-            f"vehicles: {n} read from the file names by --vehicle-from '{vehicle_from}'"
+        return check_entries(
+            entries, "the logs given"
+        ), f"vehicles: {n} read from the file names by --vehicle-from '{vehicle_from}'"
     if pattern:
         try:
             rx = re.compile(pattern)
@@ -207,22 +235,26 @@ def entries_and_rule(paths, pattern: str | None = None,
                 raise InputError(f"{f}: --vehicle-pattern {rx.pattern!r} finds no vehicle in its path")
             groups = match.groupdict()
             entries.append(_entry(f, groups["vehicle"], groups.get("variant"), None, groups.get("date")))
-        return check_entries(entries, "the logs given"), \
-            f"vehicles: {len({e.vehicle for e in entries})} read from the paths by --vehicle-pattern {pattern!r}"
+        return check_entries(
+            entries, "the logs given"
+        ), f"vehicles: {len({e.vehicle for e in entries})} read from the paths by --vehicle-pattern {pattern!r}"
     entries = [_entry(f, f.parent.resolve().name if nested else _stem(f)) for f, nested in listed]
     check_entries(entries, "the logs given")
     n_nested = sum(nested for _, nested in listed)
     loose = len(listed) - n_nested
     parts = []
     if n_nested:
-        parts.append(f"{len({e.vehicle for e, (_, n) in zip(entries, listed) if n})} from the folders holding "
-                     f"{n_nested} logs")
+        parts.append(
+            f"{len({e.vehicle for e, (_, n) in zip(entries, listed) if n})} from the folders holding {n_nested} logs"
+        )
     if loose:
         names = [e.vehicle for e, (_, n) in zip(entries, listed) if not n]
-        parts.append(f"one per log for the {loose} logs not in a vehicle's folder (the file name without its suffix: "
-                     f"{', '.join(names[:3])}{' ...' if loose > 3 else ''}; --vehicle-from REGEX reads a vehicle "
-                     f"from the file names, --vehicle-pattern '(?P<vehicle>[^/]+)/[^/]+$' makes the folder holding "
-                     f"them one vehicle, a --manifest names each)")
+        parts.append(
+            f"one per log for the {loose} logs not in a vehicle's folder (the file name without its suffix: "
+            f"{', '.join(names[:3])}{' ...' if loose > 3 else ''}; --vehicle-from REGEX reads a vehicle "
+            f"from the file names, --vehicle-pattern '(?P<vehicle>[^/]+)/[^/]+$' makes the folder holding "
+            f"them one vehicle, a --manifest names each)"
+        )
     return entries, f"vehicles: {len({e.vehicle for e in entries})}: " + "; ".join(parts)
 
 
@@ -242,10 +274,14 @@ def check_entries(entries: list[LogEntry], where: str, at=None) -> list[LogEntry
         first = per_vehicle.setdefault(e.vehicle, e)
         for field in ("variant", "config"):
             if getattr(first, field) != getattr(e, field):
-                a, b = (f"{getattr(x, field) or f'the default {field} (none given)'}"
-                        f"{f' (line {at(x)})' if at(x) else ''}" for x in (first, e))
-                raise InputError(f"{where}: vehicle {e.vehicle} has two {field}s, {a} and {b}; a vehicle is one "
-                                 f"gearbox (give the other a new vehicle name)")
+                a, b = (
+                    f"{getattr(x, field) or f'the default {field} (none given)'}{f' (line {at(x)})' if at(x) else ''}"
+                    for x in (first, e)
+                )
+                raise InputError(
+                    f"{where}: vehicle {e.vehicle} has two {field}s, {a} and {b}; a vehicle is one "
+                    f"gearbox (give the other a new vehicle name)"
+                )
     _check_gearboxes(per_vehicle.values(), where)
     return entries
 
@@ -254,6 +290,7 @@ def _check_gearboxes(firsts, where: str) -> None:
     """InputError for a variant or configuration that does not load (an unknown variant, a missing or invalid
     configuration file): before anything runs, not as every log of the vehicle in the errors table."""
     from firmware_model.errors import ParameterError
+
     done = set()
     for e in firsts:
         if (e.variant, e.config) in done:
@@ -261,14 +298,23 @@ def _check_gearboxes(firsts, where: str) -> None:
         done.add((e.variant, e.config))
         try:
             from firmware_model.service.options import ServiceOptions
+
             cfg = vehicle_config(e.variant, e.config)
             cfg.load_params()
-            ServiceOptions.from_config(cfg)                   # the [can] section
+            ServiceOptions.from_config(cfg)  # the [can] section
             if cfg.sensor.get("oil_mode", "measured") not in ("measured", "model"):
                 raise ParameterError(f"sensor.oil_mode = {cfg.sensor['oil_mode']!r} must be 'measured' or 'model'")
         except (ParameterError, InputError) as exc:
             raise InputError(f"{where}: vehicle {e.vehicle}: {exc}") from None
 
 
-__all__ = ["DEFAULT_VEHICLE_PATTERN", "LogEntry", "check_entries", "entries_and_rule", "entries_from_paths", "log_key",
-           "read_manifest", "vehicle_config"]
+__all__ = [
+    "DEFAULT_VEHICLE_PATTERN",
+    "LogEntry",
+    "check_entries",
+    "entries_and_rule",
+    "entries_from_paths",
+    "log_key",
+    "read_manifest",
+    "vehicle_config",
+]

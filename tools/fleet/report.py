@@ -4,6 +4,7 @@ Hottest vehicles and components, the distribution of the per-log peaks, the time
 component and by vehicle, the degraded share and rejected frames, the logs that could not be read, and (after
 ``--diagnose``) the drifting vehicles with their fitted cooler effectiveness and oil volume per period.
 """
+
 from __future__ import annotations
 
 import math
@@ -25,8 +26,10 @@ def _save(fig, path: Path) -> None:
 
 def _plt():
     import matplotlib
+
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+
     return plt
 
 
@@ -57,15 +60,21 @@ def _hottest(c: dict, lines: list) -> None:
     lines += ["## Hottest vehicles", "", "| vehicle | peak | component | date | log |", "|---|---|---|---|---|"]
     for v, (T, comp, date, log) in sorted(per_vehicle.items(), key=lambda kv: -kv[1][0])[:10]:
         lines.append(f"| {_cell(v)} | {T:.1f} degC | {comp} | {date} | {_cell(log)} |")
-    lines += ["", "## Hottest components (peak over the fleet, median of the per-log peaks)", "",
-              "| component | fleet peak | median peak | time above warning | time above critical |",
-              "|---|---|---|---|---|"]
+    lines += [
+        "",
+        "## Hottest components (peak over the fleet, median of the per-log peaks)",
+        "",
+        "| component | fleet peak | median peak | time above warning | time above critical |",
+        "|---|---|---|---|---|",
+    ]
     order = np.argsort(-np.nanmax(np.where(np.isfinite(peaks), peaks, -np.inf), axis=0))
     for j in order[:10]:
         k = PUBLISHED[j]
-        lines.append(f"| {k} | {np.nanmax(peaks[:, j]):.1f} degC | {np.nanmedian(peaks[:, j]):.1f} degC | "
-                     f"{_fmt_s(float(np.sum(c[f'above_warning_{k}_s'])))} | "
-                     f"{_fmt_s(float(np.sum(c[f'above_critical_{k}_s'])))} |")
+        lines.append(
+            f"| {k} | {np.nanmax(peaks[:, j]):.1f} degC | {np.nanmedian(peaks[:, j]):.1f} degC | "
+            f"{_fmt_s(float(np.sum(c[f'above_warning_{k}_s'])))} | "
+            f"{_fmt_s(float(np.sum(c[f'above_critical_{k}_s'])))} |"
+        )
     lines.append("")
 
 
@@ -127,10 +136,15 @@ def _gone(c: dict, lines: list) -> None:
     gone = sorted({x for x in c["log"] if not os.path.exists(x)})
     if not gone:
         return
-    lines += [f"## Logs no longer at their path ({len(gone)})", "",
-              "Moved, renamed or deleted since they were summarised: their rows still count above, and a moved log "
-              "is counted again under its new path. `gearbox-vsensor fleet ... --prune` removes their rows.", "",
-              "| log |", "|---|"]
+    lines += [
+        f"## Logs no longer at their path ({len(gone)})",
+        "",
+        "Moved, renamed or deleted since they were summarised: their rows still count above, and a moved log "
+        "is counted again under its new path. `gearbox-vsensor fleet ... --prune` removes their rows.",
+        "",
+        "| log |",
+        "|---|",
+    ]
     lines += [f"| {_cell(x)} |" for x in gone[:50]] + [""]
 
 
@@ -140,12 +154,20 @@ def _malformed(c: dict, lines: list) -> None:
     hit = [i for i, n in enumerate(counts) if n]
     if not hit:
         return
-    lines += [f"## Logs with malformed lines skipped ({len(hit)})", "",
-              "Lines no reader could read (garbage, a last line cut by a logger unplugged): skipped and counted; more "
-              "than 1 % of a log's lines, or one that broke a frame sequence the step needs, makes it untrusted.", "",
-              "| vehicle | log | lines skipped | first lines |", "|---|---|---|---|"]
-    lines += [f"| {_cell(c['vehicle'][i])} | {_cell(os.path.basename(c['log'][i]))} | {counts[i]} | "
-              f"{_cell(c['malformed_first_lines'][i])} |" for i in hit[:50]]
+    lines += [
+        f"## Logs with malformed lines skipped ({len(hit)})",
+        "",
+        "Lines no reader could read (garbage, a last line cut by a logger unplugged): skipped and counted; more "
+        "than 1 % of a log's lines, or one that broke a frame sequence the step needs, makes it untrusted.",
+        "",
+        "| vehicle | log | lines skipped | first lines |",
+        "|---|---|---|---|",
+    ]
+    lines += [
+        f"| {_cell(c['vehicle'][i])} | {_cell(os.path.basename(c['log'][i]))} | {counts[i]} | "
+        f"{_cell(c['malformed_first_lines'][i])} |"
+        for i in hit[:50]
+    ]
     if len(hit) > 50:
         lines.append(f"\n... and {len(hit) - 50} more (the summary's column malformed_lines)")
     lines.append("")
@@ -158,11 +180,18 @@ def _trusted_only(c: dict, lines: list) -> dict:
     bad = [i for i, t in enumerate(trusted) if not t]
     if not bad:
         return c
-    lines += [f"## Logs whose outputs should not be trusted ({len(bad)}, left out of the peaks and times below)", "",
-              "What `gearbox-vsensor replay` would warn about (exit status 3) for each:", "",
-              "| vehicle | log | warnings |", "|---|---|---|"]
-    lines += [f"| {_cell(c['vehicle'][i])} | {_cell(os.path.basename(c['log'][i]))} | {_cell(c['trust_warnings'][i])} |"
-              for i in bad[:50]]
+    lines += [
+        f"## Logs whose outputs should not be trusted ({len(bad)}, left out of the peaks and times below)",
+        "",
+        "What `gearbox-vsensor replay` would warn about (exit status 3) for each:",
+        "",
+        "| vehicle | log | warnings |",
+        "|---|---|---|",
+    ]
+    lines += [
+        f"| {_cell(c['vehicle'][i])} | {_cell(os.path.basename(c['log'][i]))} | {_cell(c['trust_warnings'][i])} |"
+        for i in bad[:50]
+    ]
     if len(bad) > 50:
         lines.append(f"\n... and {len(bad) - 50} more (the summary's column trusted is false)")
     lines.append("")
@@ -185,11 +214,16 @@ def _duplicates(c: dict, lines: list) -> None:
     dups = duplicate_logs(c)
     if not dups:
         return
-    lines += [f"## Logs that look like copies ({len(dups)} groups)", "",
-              "Same vehicle, same first and last frame time, same number of frames: each copy is summarised and its "
-              "hours counted again above. Remove the copies, then run again with --prune (it removes the rows of logs "
-              "no longer at their path; a re-run skips what is done).", "",
-              "| logs |", "|---|"]
+    lines += [
+        f"## Logs that look like copies ({len(dups)} groups)",
+        "",
+        "Same vehicle, same first and last frame time, same number of frames: each copy is summarised and its "
+        "hours counted again above. Remove the copies, then run again with --prune (it removes the rows of logs "
+        "no longer at their path; a re-run skips what is done).",
+        "",
+        "| logs |",
+        "|---|",
+    ]
     lines += ["| " + _cell(", ".join(os.path.basename(x) for x in g)) + " |" for g in dups[:50]]
     lines.append("")
 
@@ -197,8 +231,10 @@ def _duplicates(c: dict, lines: list) -> None:
 def _flag_table(fl: dict, rows: list) -> list:
     lines = ["| vehicle | effect | in the period from | value | own baseline | why |", "|---|---|---|---|---|---|"]
     for i in rows:
-        lines.append(f"| {_cell(fl['vehicle'][i])} | {fl['effect'][i]} | {fl['start'][i]} | {fl['value'][i]:.2f} | "
-                     f"{fl['baseline'][i]:.2f} | {fl['reason'][i]} |")
+        lines.append(
+            f"| {_cell(fl['vehicle'][i])} | {fl['effect'][i]} | {fl['start'][i]} | {fl['value'][i]:.2f} | "
+            f"{fl['baseline'][i]:.2f} | {fl['reason'][i]} |"
+        )
     return lines + [""]
 
 
@@ -206,20 +242,23 @@ def _read_flags(path: Path) -> dict:
     if not path.is_file():
         return {"vehicle": []}
     import pyarrow.parquet as pq
+
     return _cols(pq.read_table(path))
 
 
 def period_axis(ax, periods: dict) -> None:
     """Whole periods only, at most 8 ticks, each labelled with its period's first day when the table has it."""
     from matplotlib.ticker import FuncFormatter, MaxNLocator
+
     first = {}
     for q, d in zip(periods["period"], periods.get("start", [None] * len(periods["period"]))):
         if d is not None and q not in first:
             first[q] = str(d)[:10]
     ax.xaxis.set_major_locator(MaxNLocator(nbins=8, integer=True))
     if first:
-        ax.xaxis.set_major_formatter(FuncFormatter(lambda x, _pos: first.get(int(round(x)), "")
-                                                   if abs(x - round(x)) < 1e-9 else ""))
+        ax.xaxis.set_major_formatter(
+            FuncFormatter(lambda x, _pos: first.get(int(round(x)), "") if abs(x - round(x)) < 1e-9 else "")
+        )
         ax.tick_params(axis="x", labelrotation=30)
         ax.set_xlabel("period, labelled by its first day")
     else:
@@ -232,44 +271,64 @@ def _health(out: Path, lines: list) -> bool:
     if not p.is_file():
         return False
     import pyarrow.parquet as pq
+
     periods = _cols(pq.read_table(p))
     fl = _read_flags(out / HEALTH / "flags.parquet")
     wt = _read_flags(out / HEALTH / "watch.parquet")
     from tools.fleet.health import JUDGED_PERIODS
+
     counts: dict = {}
     for v in periods["vehicle"]:
         counts[v] = counts.get(v, 0) + 1
     judged = sum(n >= JUDGED_PERIODS for n in counts.values())
-    lines += ["## Fleet health (--diagnose)", "",
-              f"{len(counts)} vehicles, {len(periods['vehicle'])} vehicle-periods fitted; {judged} of the "
-              f"{len(counts)} vehicles have the {JUDGED_PERIODS} periods a drift needs before it can be flagged "
-              f"(a baseline, then a run of drifting periods): the others cannot be flagged yet. "
-              f"Flagged: {len(fl['vehicle'])}. To watch (oil level from the oil temperature): {len(wt['vehicle'])}. "
-              f"(From the health tables of the last --diagnose run into this folder.)", ""]
+    lines += [
+        "## Fleet health (--diagnose)",
+        "",
+        f"{len(counts)} vehicles, {len(periods['vehicle'])} vehicle-periods fitted; {judged} of the "
+        f"{len(counts)} vehicles have the {JUDGED_PERIODS} periods a drift needs before it can be flagged "
+        f"(a baseline, then a run of drifting periods): the others cannot be flagged yet. "
+        f"Flagged: {len(fl['vehicle'])}. To watch (oil level from the oil temperature): {len(wt['vehicle'])}. "
+        f"(From the health tables of the last --diagnose run into this folder.)",
+        "",
+    ]
     if fl["vehicle"]:
         lines += _flag_table(fl, range(len(fl["vehicle"])))
     order = _vehicle_order(periods, sorted(set(fl["vehicle"])), sorted(set(wt["vehicle"])))
     _fitted_tables(periods, order, lines)
     if wt["vehicle"]:
-        lines += ["### To watch: check the oil level", "",
-                  "These trucks are not judged on a measured oil level (J1939 SPN 124: not sent, sent in too few "
-                  "periods, or below a plausible fill), and the oil volume estimated from their oil temperature "
-                  "drifted down. That estimate is not identifiable: a 4 L leak moves the "
-                  "oil temperature by a few tenths of a kelvin, less than the onboard model's own error in 8 of the "
-                  "9 drives and starts measured, and on the synthetic validation fleets such drifts were right 2 "
-                  "times in 7 (see 'Measured' in the fleet documentation, docs/fleet.md). A dipstick check, not a "
-                  "diagnosis.", ""]
+        lines += [
+            "### To watch: check the oil level",
+            "",
+            "These trucks are not judged on a measured oil level (J1939 SPN 124: not sent, sent in too few "
+            "periods, or below a plausible fill), and the oil volume estimated from their oil temperature "
+            "drifted down. That estimate is not identifiable: a 4 L leak moves the "
+            "oil temperature by a few tenths of a kelvin, less than the onboard model's own error in 8 of the "
+            "9 drives and starts measured, and on the synthetic validation fleets such drifts were right 2 "
+            "times in 7 (see 'Measured' in the fleet documentation, docs/fleet.md). A dipstick check, not a "
+            "diagnosis.",
+            "",
+        ]
         lines += _flag_table(wt, range(len(wt["vehicle"])))
     _health_plot(periods, order, set(fl["vehicle"]) | set(wt["vehicle"]), out, lines)
     return True
 
 
 #: the fitted values the report shows per vehicle and period: (column, its standard error, heading, format)
-FITTED = (("cooler_scale", "cooler_se", "Cooler effectiveness scale [-] (1: the parameters' cooler; lower: fouled, "
-                                        "bypassed)", "{:.2f}"),
-          ("oil_volume_l", "oil_volume_se", "Oil volume from the oil temperature [L] (not identifiable from it: a "
-                                            "dipstick check, not a diagnosis)", "{:.1f}"),
-          ("oil_level_pct", "oil_level_se", "Measured oil level, SPN 124 [%]", "{:.1f}"))
+FITTED = (
+    (
+        "cooler_scale",
+        "cooler_se",
+        "Cooler effectiveness scale [-] (1: the parameters' cooler; lower: fouled, bypassed)",
+        "{:.2f}",
+    ),
+    (
+        "oil_volume_l",
+        "oil_volume_se",
+        "Oil volume from the oil temperature [L] (not identifiable from it: a dipstick check, not a diagnosis)",
+        "{:.1f}",
+    ),
+    ("oil_level_pct", "oil_level_se", "Measured oil level, SPN 124 [%]", "{:.1f}"),
+)
 #: the vehicles and the (latest) periods the tables show at most
 TABLE_VEHICLES, TABLE_PERIODS = 30, 8
 #: a period's fleet spread needs at least this many vehicles to mark one outside it
@@ -279,6 +338,7 @@ SPREAD_MIN_VEHICLES = 3
 def _period_spread(periods: dict, attr: str) -> dict:
     """Per period: (the fleet's median, its spread, how many vehicles have a value) of column ``attr``."""
     from tools.fleet.health import fleet_spread
+
     out = {}
     for q in sorted(set(periods["period"])):
         vals = [x for x, p in zip(periods[attr], periods["period"]) if p == q and math.isfinite(x)]
@@ -291,12 +351,17 @@ def _below(attr: str, x: float, se: float, spread: tuple) -> bool:
     SPREAD_OUTSIDE spreads, 3 of its standard errors and the smallest drop a flag counts below the median (trucks
     that fit alike, as simulated ones do, have a spread near 0: a hundredth is no finding)."""
     from tools.fleet.health import DRIFT_MIN, LEVEL_DRIFT_MIN_SHARE, SPREAD_OUTSIDE
+
     med, sp, n = spread
-    least = {"cooler_scale": DRIFT_MIN["cooler_effectiveness_scale"], "oil_volume_l": DRIFT_MIN["oil_level_low"],
-             "oil_level_pct": LEVEL_DRIFT_MIN_SHARE * med}[attr]
+    least = {
+        "cooler_scale": DRIFT_MIN["cooler_effectiveness_scale"],
+        "oil_volume_l": DRIFT_MIN["oil_level_low"],
+        "oil_level_pct": LEVEL_DRIFT_MIN_SHARE * med,
+    }[attr]
     drop = med - x
-    return n >= SPREAD_MIN_VEHICLES and math.isfinite(x) and drop > max(SPREAD_OUTSIDE * sp, least) \
-        and not drop <= 3 * se
+    return (
+        n >= SPREAD_MIN_VEHICLES and math.isfinite(x) and drop > max(SPREAD_OUTSIDE * sp, least) and not drop <= 3 * se
+    )
 
 
 def _vehicle_order(periods: dict, flagged: list, watched: list) -> list:
@@ -315,32 +380,43 @@ def _vehicle_order(periods: dict, flagged: list, watched: list) -> list:
 def _fitted_tables(periods: dict, order: list, lines: list) -> None:
     """Per fitted value a table vehicle x period, with the fleet's median and spread of each period."""
     from tools.fleet.health import DRIFT_MIN, SPREAD_OUTSIDE
+
     per = sorted(set(periods["period"]))[-TABLE_PERIODS:]
     start = {}
     for q, d in zip(periods["period"], periods["start"]):
         start.setdefault(q, str(d)[:10])
     at = {(v, q): i for i, (v, q) in enumerate(zip(periods["vehicle"], periods["period"]))}
     shown = order[:TABLE_VEHICLES]
-    lines += ["### Fitted values per vehicle and period", "",
-              f"Each vehicle's fitted value per period (columns: the period's first day) +/- its standard error, "
-              f"beside the fleet's median and spread (1.4826 x the median absolute deviation) in that period. "
-              f"**below**: "
-              f"below the median by more than {SPREAD_OUTSIDE:g} spreads, 3 standard errors and the drop a flag "
-              f"needs ({DRIFT_MIN['cooler_effectiveness_scale']:g} cooler, {DRIFT_MIN['oil_level_low']:g} L oil; "
-              f"with at least {SPREAD_MIN_VEHICLES} vehicles in the period), where a "
-              f"fouled cooler or a low oil level goes (a weak cooler also pulls the oil volume's estimate down); a "
-              f"flag needs a drift from the vehicle's own baseline as well. Flagged and watched vehicles first, "
-              f"then the farthest below the fleet's cooler median.", ""]
+    lines += [
+        "### Fitted values per vehicle and period",
+        "",
+        f"Each vehicle's fitted value per period (columns: the period's first day) +/- its standard error, "
+        f"beside the fleet's median and spread (1.4826 x the median absolute deviation) in that period. "
+        f"**below**: "
+        f"below the median by more than {SPREAD_OUTSIDE:g} spreads, 3 standard errors and the drop a flag "
+        f"needs ({DRIFT_MIN['cooler_effectiveness_scale']:g} cooler, {DRIFT_MIN['oil_level_low']:g} L oil; "
+        f"with at least {SPREAD_MIN_VEHICLES} vehicles in the period), where a "
+        f"fouled cooler or a low oil level goes (a weak cooler also pulls the oil volume's estimate down); a "
+        f"flag needs a drift from the vehicle's own baseline as well. Flagged and watched vehicles first, "
+        f"then the farthest below the fleet's cooler median.",
+        "",
+    ]
     n_periods = len(set(periods["period"]))
     if len(order) > len(shown) or n_periods > len(per):
-        lines[-2] += (f" Shown: {len(shown)} of {len(order)} vehicles, the last {len(per)} of {n_periods} periods; "
-                      f"all in health/periods.parquet.")
+        lines[-2] += (
+            f" Shown: {len(shown)} of {len(order)} vehicles, the last {len(per)} of {n_periods} periods; "
+            f"all in health/periods.parquet."
+        )
     for attr, se, heading, fmt in FITTED:
         if not np.isfinite(np.asarray(periods.get(attr, []), dtype=float)).any():
             continue
         spread = _period_spread(periods, attr)
-        lines += [f"{heading}:", "", "| vehicle | " + " | ".join(start[q] for q in per) + " |",
-                  "|---|" + "---|" * len(per)]
+        lines += [
+            f"{heading}:",
+            "",
+            "| vehicle | " + " | ".join(start[q] for q in per) + " |",
+            "|---|" + "---|" * len(per),
+        ]
         for v in shown:
             cells = []
             for q in per:
@@ -353,10 +429,12 @@ def _fitted_tables(periods: dict, order: list, lines: list) -> None:
                 txt = fmt.format(x) + (f" +/- {fmt.format(e)}" if math.isfinite(e) else "")
                 cells.append(f"**{txt} below**" if _below(attr, x, e, spread[q]) else txt)
             lines.append(f"| {_cell(v)} | " + " | ".join(cells) + " |")
-        lines.append("| fleet median | " + " | ".join(fmt.format(spread[q][0]) if spread[q][2] else "-"
-                                                     for q in per) + " |")
-        lines.append("| fleet spread | " + " | ".join(fmt.format(spread[q][1]) if spread[q][2] >= 2 else "-"
-                                                     for q in per) + " |")
+        lines.append(
+            "| fleet median | " + " | ".join(fmt.format(spread[q][0]) if spread[q][2] else "-" for q in per) + " |"
+        )
+        lines.append(
+            "| fleet spread | " + " | ".join(fmt.format(spread[q][1]) if spread[q][2] >= 2 else "-" for q in per) + " |"
+        )
         lines.append("")
 
 
@@ -364,30 +442,50 @@ def _health_plot(periods: dict, order: list, marked: set, out: Path, lines: list
     """The fitted values per period of at most 8 vehicles (the flagged and watched first, then the farthest below
     the fleet's cooler median) over the fleet's median and spread."""
     from tools.fleet.health import SPREAD_OUTSIDE
+
     plotted = order[:8]
     plt = _plt()
-    panels = [(a, e, h.split(" (")[0]) for a, e, h, _ in FITTED
-              if np.isfinite(np.asarray(periods.get(a, []), dtype=float)).any()]
+    panels = [
+        (a, e, h.split(" (")[0])
+        for a, e, h, _ in FITTED
+        if np.isfinite(np.asarray(periods.get(a, []), dtype=float)).any()
+    ]
     fig, axes = plt.subplots(1, len(panels), figsize=(6 * len(panels), 4.5), squeeze=False)
     for ax, (attr, se, label) in zip(axes[0], panels):
         spread = _period_spread(periods, attr)
         per = [q for q in sorted(spread) if spread[q][2]]
         med = np.array([spread[q][0] for q in per])
         band = np.array([spread[q][1] if spread[q][2] >= SPREAD_MIN_VEHICLES else 0.0 for q in per])
-        ax.fill_between(per, med - SPREAD_OUTSIDE * band, med + SPREAD_OUTSIDE * band, color="0.85",
-                        label=f"fleet median +/- {SPREAD_OUTSIDE:g} spreads")
+        ax.fill_between(
+            per,
+            med - SPREAD_OUTSIDE * band,
+            med + SPREAD_OUTSIDE * band,
+            color="0.85",
+            label=f"fleet median +/- {SPREAD_OUTSIDE:g} spreads",
+        )
         ax.plot(per, med, "k--", marker="." if len(per) == 1 else None, label="fleet median")
         for v in plotted:
             idx = [i for i in range(len(periods["vehicle"])) if periods["vehicle"][i] == v]
-            ax.errorbar([periods["period"][i] for i in idx], [periods[attr][i] for i in idx],
-                        yerr=[min(periods[se][i], 1.0 if attr != "oil_level_pct" else 10.0)
-                              if math.isfinite(periods[se][i]) else 0 for i in idx],
-                        marker="o", capsize=2, label=v + (" (flagged or watched)" if v in marked else ""))
+            ax.errorbar(
+                [periods["period"][i] for i in idx],
+                [periods[attr][i] for i in idx],
+                yerr=[
+                    min(periods[se][i], 1.0 if attr != "oil_level_pct" else 10.0)
+                    if math.isfinite(periods[se][i])
+                    else 0
+                    for i in idx
+                ],
+                marker="o",
+                capsize=2,
+                label=v + (" (flagged or watched)" if v in marked else ""),
+            )
         period_axis(ax, periods)
         ax.set_ylabel(label)
         ax.legend(fontsize=7, loc="center left", bbox_to_anchor=(1.0, 0.5))
-    fig.suptitle(f"Fitted values per period (1 standard error) of {len(plotted)} of {len(order)} vehicles: "
-                 f"flagged and watched first, then the farthest below the fleet's cooler median")
+    fig.suptitle(
+        f"Fitted values per period (1 standard error) of {len(plotted)} of {len(order)} vehicles: "
+        f"flagged and watched first, then the farthest below the fleet's cooler median"
+    )
     fig.tight_layout()
     _save(fig, out / "report_health.png")
     plt.close(fig)
@@ -397,18 +495,26 @@ def _health_plot(periods: dict, order: list, marked: set, out: Path, lines: list
 def _undated(c: dict, lines: list) -> None:
     """The logs without a date, and why: they are left out of --diagnose's periods."""
     from tools.fleet.summary import EPOCH_MIN_S
+
     bad = [i for i, d in enumerate(c["date"]) if d == "unknown"]
     if not bad:
         return
-    lines += [f"## Logs without a date ({len(bad)}, left out of the fleet health)", "",
-              f"A log's date is the UTC day of its first frame when its frame times are Unix time (at least "
-              f"{EPOCH_MIN_S:.0e} s: candump -L, and .blf, .mf4 and .trc logs that record their start), the date in "
-              f"a Vector .asc header, or the manifest's date column. These logs have none of them: their frame times "
-              f"count from the logger's start. Give their dates in a --manifest (column date) or by "
-              f"--vehicle-from's (?P<date>...) in the file name.", "",
-              "| vehicle | log | first frame time |", "|---|---|---|"]
-    lines += [f"| {_cell(c['vehicle'][i])} | {_cell(os.path.basename(c['log'][i]))} | {c['start_s'][i]:.3f} s |"
-              for i in bad[:50]]
+    lines += [
+        f"## Logs without a date ({len(bad)}, left out of the fleet health)",
+        "",
+        f"A log's date is the UTC day of its first frame when its frame times are Unix time (at least "
+        f"{EPOCH_MIN_S:.0e} s: candump -L, and .blf, .mf4 and .trc logs that record their start), the date in "
+        f"a Vector .asc header, or the manifest's date column. These logs have none of them: their frame times "
+        f"count from the logger's start. Give their dates in a --manifest (column date) or by "
+        f"--vehicle-from's (?P<date>...) in the file name.",
+        "",
+        "| vehicle | log | first frame time |",
+        "|---|---|---|",
+    ]
+    lines += [
+        f"| {_cell(c['vehicle'][i])} | {_cell(os.path.basename(c['log'][i]))} | {c['start_s'][i]:.3f} s |"
+        for i in bad[:50]
+    ]
     if len(bad) > 50:
         lines.append(f"\n... and {len(bad) - 50} more (the summary's date is 'unknown')")
     lines.append("")
@@ -430,11 +536,17 @@ def write_report(out: str | os.PathLike, health_why_none: str = "") -> Path:
         undated = len(c["date"]) - len(dated)
         span = (f"dates {dated[0]} to {dated[-1]}" if dated else "no dates") + (
             f" ({undated} logs without a date: their frame times are not Unix time and the manifest gives none; "
-            f"listed below)" if undated else "")
-        lines += [f"{len(c['log'])} logs, {len(set(c['vehicle']))} vehicles, {hours:.1f} truck-hours; "
-                  f"{span}. Mean degraded share "
-                  f"{100 * float(np.mean(c['degraded_share'])):.1f} %; frames rejected: "
-                  f"{sum(sum(c[k]) for k in c if k.startswith('rejected_'))} of {sum(c['frames'])}.", ""]
+            f"listed below)"
+            if undated
+            else ""
+        )
+        lines += [
+            f"{len(c['log'])} logs, {len(set(c['vehicle']))} vehicles, {hours:.1f} truck-hours; "
+            f"{span}. Mean degraded share "
+            f"{100 * float(np.mean(c['degraded_share'])):.1f} %; frames rejected: "
+            f"{sum(sum(c[k]) for k in c if k.startswith('rejected_'))} of {sum(c['frames'])}.",
+            "",
+        ]
         _undated(c, lines)
         _duplicates(c, lines)
         _gone(c, lines)
@@ -446,17 +558,26 @@ def write_report(out: str | os.PathLike, health_why_none: str = "") -> Path:
         else:
             for png in ("report_peaks.png", "report_above_warning.png"):
                 (out / png).unlink(missing_ok=True)
-            lines += ["No log is trusted, so no peak or time above a warning is shown: report_peaks.png and "
-                      "report_above_warning.png not written.", ""]
+            lines += [
+                "No log is trusted, so no peak or time above a warning is shown: report_peaks.png and "
+                "report_above_warning.png not written.",
+                "",
+            ]
     if not _health(out, lines) and health_why_none:
         (out / "report_health.png").unlink(missing_ok=True)
-        lines += ["## Fleet health (--diagnose)", "", f"Nothing fitted: {health_why_none}; report_health.png not "
-                  f"written.", ""]
+        lines += [
+            "## Fleet health (--diagnose)",
+            "",
+            f"Nothing fitted: {health_why_none}; report_health.png not written.",
+            "",
+        ]
     if errors is not None and errors.num_rows:
         e = _cols(errors)
         lines += ["## Logs that could not be read", "", "| log | stage | reason |", "|---|---|---|"]
-        lines += [f"| {_cell(os.path.basename(e['log'][i]))} | {e['stage'][i]} | {_cell(e['reason'][i])} |"
-                  for i in range(min(len(e["log"]), 50))]
+        lines += [
+            f"| {_cell(os.path.basename(e['log'][i]))} | {e['stage'][i]} | {_cell(e['reason'][i])} |"
+            for i in range(min(len(e["log"]), 50))
+        ]
         if len(e["log"]) > 50:
             lines.append(f"\n... and {len(e['log']) - 50} more in the errors table (errors/*.parquet)")
         lines.append("")

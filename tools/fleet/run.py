@@ -8,6 +8,7 @@ rows as it completes (tools/fleet/store.py). Workers only compute: they read, re
 worker that dies mid-run (its tasks go to another worker: Dask) costs time, never a row twice; a log that cannot be
 read becomes an error row with its reason; a re-run skips the logs already written.
 """
+
 from __future__ import annotations
 
 import functools
@@ -36,6 +37,7 @@ _SENSORS: dict = {}
 
 class FleetRun(NamedTuple):
     """What a run did: logs given, skipped (done before), summarised, failed; the tasks; the workers."""
+
     logs: int
     skipped: int
     summarised: int
@@ -50,9 +52,12 @@ def _sensor(variant: str | None, config: str | None):
     if key not in _SENSORS:
         from firmware_model.onboard.sensor import VirtualSensor
         from firmware_model.service import ServiceOptions
+
         cfg = vehicle_config(variant, config)
-        _SENSORS[key] = (VirtualSensor(cfg.load_params(), config=cfg),
-                         ServiceOptions.from_config(cfg, log_findings=False))
+        _SENSORS[key] = (
+            VirtualSensor(cfg.load_params(), config=cfg),
+            ServiceOptions.from_config(cfg, log_findings=False),
+        )
     return _SENSORS[key]
 
 
@@ -63,10 +68,13 @@ _QUIET.setLevel(logging.ERROR)
 
 def _estimates(table, entry: LogEntry, out: Path, date: str) -> None:
     import pyarrow as pa
+
     from tools.fleet.store import write_atomic
+
     cols = {c: table[c] for c in table.columns}
-    write_atomic(pa.table(cols), partition_dir(out / ESTIMATES, entry.vehicle, date)
-                 / f"{entry.log.stem}-{entry.key}.parquet")
+    write_atomic(
+        pa.table(cols), partition_dir(out / ESTIMATES, entry.vehicle, date) / f"{entry.log.stem}-{entry.key}.parquet"
+    )
 
 
 def _oil_level(path: Path, options) -> dict:
@@ -74,10 +82,11 @@ def _oil_level(path: Path, options) -> dict:
     truck does not send it (or, exceptionally, when the second read of the log fails)."""
     from can_dbc import dbc
     from tools.fleet.level import read_log_level
+
     sa = options.expected_sa.get("TRF1", dbc.message("TRF1").frame_id & 0xFF)
     try:
         level = read_log_level(path, sa)
-    except (InputError, OSError, ValueError):    # the log was read once already: its summary is not lost for this
+    except (InputError, OSError, ValueError):  # the log was read once already: its summary is not lost for this
         return {"level_pct": math.nan, "level_readings": 0}
     return {"level_pct": level.level_pct, "level_readings": level.readings}
 
@@ -92,17 +101,19 @@ def _check_complete(path: Path) -> None:
         raise InputError(f"{path}: the log file is empty")
 
 
-def process_log(entry: LogEntry, out: str | None = None, estimates: bool = False,
-                diagnose: bool = False) -> tuple[str, dict]:
+def process_log(
+    entry: LogEntry, out: str | None = None, estimates: bool = False, diagnose: bool = False
+) -> tuple[str, dict]:
     """One log: ("ok", summary row) or ("error", error row); never raises for a bad log. ``diagnose``: the row
     carries the log's health fit under "_fit" (tools/fleet/health.py; None when the log cannot be fitted)."""
     from firmware_model.service import SensorService
     from firmware_model.service.degraded import Severity, untrusted
     from tools.fleet.summary import asc_date, summarize
     from tools.replay.log import log_findings, replay_log, with_malformed
+
     base = {"vehicle": entry.vehicle, "log": os.fspath(entry.log), "log_key": entry.key}
     stage = "sensor"
-    stamp = log_stamp(entry.log)          # before reading: a log that grows while it is read is replayed again
+    stamp = log_stamp(entry.log)  # before reading: a log that grows while it is read is replayed again
     try:
         sensor, options = _sensor(entry.variant, entry.config)
         stage = "replay"
@@ -111,9 +122,15 @@ def process_log(entry: LogEntry, out: str | None = None, estimates: bool = False
         table = replay_log(entry.log, service)
         stage = "summary"
         date = entry.date or (asc_date(entry.log) if Path(entry.log).suffix.lower() == ".asc" else None)
-        row = summarize(table, table.meta["counters"], vehicle=entry.vehicle, log=os.fspath(entry.log),
-                        key=entry.key, date=date,
-                        oil_model=getattr(sensor.options, "oil_mode", "measured") == "model")
+        row = summarize(
+            table,
+            table.meta["counters"],
+            vehicle=entry.vehicle,
+            log=os.fspath(entry.log),
+            key=entry.key,
+            date=date,
+            oil_model=getattr(sensor.options, "oil_mode", "measured") == "model",
+        )
         # the verdict `replay` gives this log (exit status 3): its warnings, and whether they make it untrusted
         malformed = table.meta.get("malformed")
         findings = with_malformed(log_findings(service, table), malformed)
@@ -128,6 +145,7 @@ def process_log(entry: LogEntry, out: str | None = None, estimates: bool = False
             _estimates(table, entry, Path(out), row["date"])
         if diagnose:
             from tools.fleet.health import fit_log
+
             stage = "health fit"
             fit = fit_log(table, entry.variant, entry.config)
             if fit is not None:
@@ -137,7 +155,7 @@ def process_log(entry: LogEntry, out: str | None = None, estimates: bool = False
         return "ok", row
     except (InputError, OSError, ValueError) as exc:
         return "error", {**base, "stage": stage, "reason": str(exc)}
-    except Exception as exc:   # a bug must not stop a fleet: the reason names it
+    except Exception as exc:  # a bug must not stop a fleet: the reason names it
         return "error", {**base, "stage": stage, "reason": f"{type(exc).__name__}: {exc}"}
 
 
@@ -146,12 +164,16 @@ def malformed_columns(malformed) -> dict:
     first line numbers ("1045, 20871"), and the sentence."""
     if malformed is None:
         return {"malformed_lines": 0, "malformed_first_lines": "", "malformed": ""}
-    return {"malformed_lines": malformed.skipped, "malformed_first_lines": ", ".join(map(str, malformed.first)),
-            "malformed": malformed.summary}
+    return {
+        "malformed_lines": malformed.skipped,
+        "malformed_first_lines": ", ".join(map(str, malformed.first)),
+        "malformed": malformed.summary,
+    }
 
 
-def process_batch(entries: list[LogEntry], out: str | None = None, estimates: bool = False,
-                  diagnose: bool = False) -> list:
+def process_batch(
+    entries: list[LogEntry], out: str | None = None, estimates: bool = False, diagnose: bool = False
+) -> list:
     """The logs of one task, in order (a Dask task runs this on a worker). The sensor service's own warnings (a
     frame time jump, a bus finding) are not logged on the worker: each log's row counts them (``time_jumps``) and
     carries its findings (``trust_warnings``); logged, they flooded the fleet's console without a log's name (a
@@ -165,7 +187,7 @@ def batches(entries: list[LogEntry], workers: int, max_logs: int = BATCH_MAX_LOG
         return []
     size = max(1, min(max_logs, math.ceil(len(entries) / (TASKS_PER_WORKER * max(workers, 1)))))
     ordered = sorted(entries, key=lambda e: (e.vehicle, os.fspath(e.log)))
-    return [ordered[i:i + size] for i in range(0, len(ordered), size)]
+    return [ordered[i : i + size] for i in range(0, len(ordered), size)]
 
 
 def batch_id(batch: list[LogEntry]) -> str:
@@ -180,6 +202,7 @@ def _probe_scheduler(address: str) -> str | None:
     import socket
     import struct
     from urllib.parse import urlsplit
+
     if not address.startswith("tcp://"):
         return None
     try:
@@ -198,9 +221,11 @@ def _probe_scheduler(address: str) -> str | None:
                 if not chunk:
                     break
                 head += chunk
-    except socket.timeout:
-        return f"nothing at {address} answered as a Dask scheduler within {CONNECT_TIMEOUT_S:.0f} s (the " \
-               f"dashboard's port, or another service?)"
+    except TimeoutError:
+        return (
+            f"nothing at {address} answered as a Dask scheduler within {CONNECT_TIMEOUT_S:.0f} s (the "
+            f"dashboard's port, or another service?)"
+        )
     except OSError as exc:
         return f"the Dask scheduler at {address} does not answer ({exc.strerror or type(exc).__name__})"
     if len(head) < 16:
@@ -215,22 +240,27 @@ def _client_within(address: str, timeout_s: float):
     """A Dask client of ``address``, or InputError when it is not connected within ``timeout_s`` (Dask's own
     timeout does not bound every handshake: the connection runs in a daemon thread given up after it)."""
     import threading
+
     from dask.distributed import Client
+
     box: dict = {}
 
     def connect_():
         try:
             box["client"] = Client(address, timeout=f"{CONNECT_TIMEOUT_S}s")
-        except BaseException as exc:          # handed to the caller
+        except BaseException as exc:  # handed to the caller
             box["error"] = exc
+
     t = threading.Thread(target=connect_, daemon=True, name="gvs-fleet-connect")
     t.start()
     t.join(timeout_s)
     if "client" in box:
         return box["client"]
     exc = box.get("error")
-    raise InputError(f"the Dask scheduler at {address} does not answer within {timeout_s:.0f} s"
-                     + (f" ({type(exc).__name__})" if exc is not None else "")) from None
+    raise InputError(
+        f"the Dask scheduler at {address} does not answer within {timeout_s:.0f} s"
+        + (f" ({type(exc).__name__})" if exc is not None else "")
+    ) from None
 
 
 def connect(scheduler: str | None, workers: int | None):
@@ -253,12 +283,13 @@ def connect(scheduler: str | None, workers: int | None):
             client.wait_for_workers(1, timeout=WORKER_WAIT_S)
         except (TimeoutError, OSError):
             client.close()
-            raise InputError(f"the Dask scheduler at {scheduler} has no worker (none connected within "
-                             f"{WORKER_WAIT_S:.0f} s: start `dask worker {scheduler}`)") from None
+            raise InputError(
+                f"the Dask scheduler at {scheduler} has no worker (none connected within "
+                f"{WORKER_WAIT_S:.0f} s: start `dask worker {scheduler}`)"
+            ) from None
         return client, None
     n = workers or max(1, os.cpu_count() or 1)
-    cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0",
-                           silence_logs=40)
+    cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0", silence_logs=40)
     return Client(cluster), cluster
 
 
@@ -281,24 +312,36 @@ def _check_variants(store: FleetStore, entries: list[LogEntry]) -> None:
             continue
         want = gearbox_of(e.variant, e.config)
         if want not in have:
-            raise InputError(f"vehicle {e.vehicle} has rows in {store.out} replayed as {', '.join(sorted(have))}, "
-                             f"and this run gives it {want}: a vehicle is one gearbox (use another --out, or remove "
-                             f"{store.out / 'summary' / ('vehicle=' + e.vehicle)} to replay it as {want})")
+            raise InputError(
+                f"vehicle {e.vehicle} has rows in {store.out} replayed as {', '.join(sorted(have))}, "
+                f"and this run gives it {want}: a vehicle is one gearbox (use another --out, or remove "
+                f"{store.out / 'summary' / ('vehicle=' + e.vehicle)} to replay it as {want})"
+            )
 
 
 def _worker_count(client) -> int:
     return max(1, len(client.scheduler_info().get("workers", {})))
 
 
-def run_fleet(entries: list[LogEntry], out: str | os.PathLike, *, scheduler: str | None = None,
-              workers: int | None = None, estimates: bool = False, diagnose: bool = False,
-              show_progress: bool | None = None,
-              max_logs: int = BATCH_MAX_LOGS, on_batch=None) -> FleetRun:
+def run_fleet(
+    entries: list[LogEntry],
+    out: str | os.PathLike,
+    *,
+    scheduler: str | None = None,
+    workers: int | None = None,
+    estimates: bool = False,
+    diagnose: bool = False,
+    show_progress: bool | None = None,
+    max_logs: int = BATCH_MAX_LOGS,
+    on_batch=None,
+) -> FleetRun:
     """Summarise every log of ``entries`` into ``out`` (tools/fleet/store.py); see the module doc. ``on_batch(n)``
     is called after each batch is written (tests kill a worker from it)."""
     from tools.progress import progress
-    client, cluster = connect(scheduler, workers)      # first: without dask it says what to install
+
+    client, cluster = connect(scheduler, workers)  # first: without dask it says what to install
     from dask.distributed import as_completed
+
     try:
         store = FleetStore(out)
         store.prepare()
@@ -306,14 +349,17 @@ def run_fleet(entries: list[LogEntry], out: str | os.PathLike, *, scheduler: str
         done = store.done_keys()
         # a log not done yet, or changed since its row was written (a log still being written then: its size and
         # time moved; a fleet audit saw a partial summary kept for good); rows of an earlier version have no stamp
-        todo = [e for e in entries if e.key not in done or (done[e.key] is not None
-                                                             and done[e.key] != log_stamp(e.log))]
+        todo = [
+            e for e in entries if e.key not in done or (done[e.key] is not None and done[e.key] != log_stamp(e.log))
+        ]
         n_workers = _worker_count(client)
         tasks = batches(todo, n_workers, max_logs)
 
         def submit(b):
-            return client.submit(process_batch, b, os.fspath(out), estimates, diagnose, pure=False,
-                                 key=f"gvs-fleet-{batch_id(b)}")
+            return client.submit(
+                process_batch, b, os.fspath(out), estimates, diagnose, pure=False, key=f"gvs-fleet-{batch_id(b)}"
+            )
+
         futures = {submit(b): b for b in tasks}
         ok = failed = written = 0
         queue = as_completed(futures)
@@ -322,18 +368,32 @@ def run_fleet(entries: list[LogEntry], out: str | os.PathLike, *, scheduler: str
                 batch = futures.pop(fut)
                 try:
                     results = fut.result()
-                except Exception as exc:   # e.g. KilledWorker: the task's logs killed every worker that ran them
+                except Exception as exc:  # e.g. KilledWorker: the task's logs killed every worker that ran them
                     killed = type(exc).__name__ == "KilledWorker"
-                    if killed and len(batch) > 1:   # one log of the batch, or none: each alone, only the guilty fails
+                    if killed and len(batch) > 1:  # one log of the batch, or none: each alone, only the guilty fails
                         for e in batch:
                             f1 = submit([e])
                             futures[f1] = [e]
                             queue.add(f1)
                         continue
-                    why = (f"the worker processes running this log died ({type(exc).__name__}: {exc})" if killed
-                           else f"the task failed on its worker ({type(exc).__name__}: {exc})")
-                    results = [("error", {"vehicle": e.vehicle, "log": os.fspath(e.log), "log_key": e.key,
-                                          "stage": "worker", "reason": why}) for e in batch]
+                    why = (
+                        f"the worker processes running this log died ({type(exc).__name__}: {exc})"
+                        if killed
+                        else f"the task failed on its worker ({type(exc).__name__}: {exc})"
+                    )
+                    results = [
+                        (
+                            "error",
+                            {
+                                "vehicle": e.vehicle,
+                                "log": os.fspath(e.log),
+                                "log_key": e.key,
+                                "stage": "worker",
+                                "reason": why,
+                            },
+                        )
+                        for e in batch
+                    ]
                 rows = [r for kind, r in results if kind == "ok"]
                 errors = [r for kind, r in results if kind == "error"]
                 store.write_batch(batch_id(batch), rows, errors)
@@ -349,5 +409,4 @@ def run_fleet(entries: list[LogEntry], out: str | os.PathLike, *, scheduler: str
             cluster.close()
 
 
-__all__ = ["BATCH_MAX_LOGS", "FleetRun", "batch_id", "batches", "connect", "process_batch", "process_log",
-           "run_fleet"]
+__all__ = ["BATCH_MAX_LOGS", "FleetRun", "batch_id", "batches", "connect", "process_batch", "process_log", "run_fleet"]

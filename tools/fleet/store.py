@@ -11,6 +11,7 @@ the logs of the errors table again (a log finished or repaired since); at the en
 rewritten with one row per log that still fails (:meth:`FleetStore.compact_errors`), and :func:`read_table` drops
 error rows of logs that have a summary, so no log ever has two rows, even after a run killed in between.
 """
+
 from __future__ import annotations
 
 import os
@@ -89,7 +90,7 @@ class FleetStore:
         _, pq = _pa()
         keys: dict = {}
         for f in (self.out / SUMMARY).rglob("*.parquet") if (self.out / SUMMARY).is_dir() else ():
-            names = pq.read_schema(f).names      # only the columns needed (a row has ~300)
+            names = pq.read_schema(f).names  # only the columns needed (a row has ~300)
             t = pq.read_table(f, columns=[c for c in ("log_key", LOG_BYTES, LOG_MTIME, REPLAYED) if c in names])
             k = t.column("log_key").to_pylist()
             b = t.column(LOG_BYTES).to_pylist() if LOG_BYTES in names else [None] * len(k)
@@ -159,17 +160,21 @@ class FleetStore:
         for r in rows:
             fit = r.pop("_fit", None)
             if fit is not None:
-                fits.setdefault((r["vehicle"], r["date"]), []).append({"log_key": r["log_key"], **fit,
-                                                                       REPLAYED: r.get(REPLAYED)})
+                fits.setdefault((r["vehicle"], r["date"]), []).append(
+                    {"log_key": r["log_key"], **fit, REPLAYED: r.get(REPLAYED)}
+                )
             groups.setdefault((r["vehicle"], r["date"]), []).append(r)
         # fits first: the summary row is what marks a log done
         for (vehicle, date), part in fits.items():
-            write_atomic(pa.Table.from_pylist(part), partition_dir(self.out / FITS, vehicle, date)
-                         / f"part-{batch_id}.parquet")
+            write_atomic(
+                pa.Table.from_pylist(part), partition_dir(self.out / FITS, vehicle, date) / f"part-{batch_id}.parquet"
+            )
         for (vehicle, date), part in groups.items():
             body = [{k: v for k, v in r.items() if k not in ("vehicle", "date")} for r in part]
-            write_atomic(pa.Table.from_pylist(body), partition_dir(self.out / SUMMARY, vehicle, date)
-                         / f"part-{batch_id}.parquet")
+            write_atomic(
+                pa.Table.from_pylist(body),
+                partition_dir(self.out / SUMMARY, vehicle, date) / f"part-{batch_id}.parquet",
+            )
         if errors:
             table = pa.table({c: [str(e.get(c, "")) for e in errors] for c in ERROR_COLUMNS})
             write_atomic(table, self.out / ERRORS / f"part-{batch_id}.parquet")
@@ -180,6 +185,7 @@ def read_table(out: str | os.PathLike, which: str = SUMMARY):
     it has no file."""
     pa, _ = _pa()
     import pyarrow.dataset as ds
+
     root = Path(out) / which
     if not root.is_dir() or not any(root.rglob("*.parquet")):
         return None
@@ -200,8 +206,9 @@ def read_table(out: str | os.PathLike, which: str = SUMMARY):
     if which in (FITS, SUMMARY):
         # files written by an earlier version lack the newer columns (the measured level, the trust verdict): every
         # file's columns, not only the first file's, and the missing ones as nulls
-        schema = pa.unify_schemas([data.schema, *(f.physical_schema for f in data.get_fragments())],
-                                  promote_options="permissive")
+        schema = pa.unify_schemas(
+            [data.schema, *(f.physical_schema for f in data.get_fragments())], promote_options="permissive"
+        )
         data = ds.dataset(root, format="parquet", partitioning=part, schema=schema)
         return newest_rows(data.to_table())
     return data.to_table()
@@ -211,6 +218,7 @@ def newest_rows(table):
     """One row per log_key: the newest (by replayed_at_s; a log replayed again after it changed, or a run killed
     between two files); rows of an earlier version, without the time, count as the oldest."""
     import numpy as np
+
     pa, _ = _pa()
     keys = table.column("log_key").to_pylist()
     if len(set(keys)) == len(keys):
@@ -224,6 +232,20 @@ def newest_rows(table):
     return table.take(pa.array(sorted(i for _, i in best.values())))
 
 
-__all__ = ["ERRORS", "ERROR_COLUMNS", "ESTIMATES", "FITS", "HEALTH", "LOG_BYTES", "LOG_MTIME", "REPLAYED", "SUMMARY",
-           "FleetStore", "log_stamp", "newest_rows", "partition_dir", "read_table",
-           "write_atomic"]
+__all__ = [
+    "ERRORS",
+    "ERROR_COLUMNS",
+    "ESTIMATES",
+    "FITS",
+    "HEALTH",
+    "LOG_BYTES",
+    "LOG_MTIME",
+    "REPLAYED",
+    "SUMMARY",
+    "FleetStore",
+    "log_stamp",
+    "newest_rows",
+    "partition_dir",
+    "read_table",
+    "write_atomic",
+]

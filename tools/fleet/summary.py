@@ -5,6 +5,7 @@ ran; per published component the peak temperature and when, the time above the w
 warnings raised and the shortest time to its limit; the degraded share; the rejected frames by reason; the oil
 innovation (measured - modelled sump) mean and RMS.
 """
+
 from __future__ import annotations
 
 import datetime as dt
@@ -19,14 +20,22 @@ from firmware_model.components import MODE_NORMAL, MODE_OIL_MODEL, PUBLISHED, ST
 #: a log's frame time at or above this is taken as Unix time (after 1973): its date is the log's date
 EPOCH_MIN_S = 1e8
 #: per component, the summary's columns (with the component id in place of {c})
-COMPONENT_COLUMNS = ("peak_{c}_c", "peak_{c}_t_s", "above_warning_{c}_s", "above_critical_{c}_s",
-                     "warnings_{c}", "min_ttl_{c}_s")
+COMPONENT_COLUMNS = (
+    "peak_{c}_c",
+    "peak_{c}_t_s",
+    "above_warning_{c}_s",
+    "above_critical_{c}_s",
+    "warnings_{c}",
+    "min_ttl_{c}_s",
+)
 
 
-_MONTHS = {m: i + 1 for i, m in enumerate(("Jan", "Feb", "Mar", "Apr", "May", "Jun", "Jul", "Aug", "Sep", "Oct",
-                                             "Nov", "Dec"))} | {"Mär": 3, "Mai": 5, "Okt": 10, "Dez": 12}
-_ASC_DATE = re.compile(r"^(date|begin\s+triggerblock)\s+\w+\s+(\w{3})\s+(\d{1,2})\s+[\d:.]+(?:\s*[ap]m)?\s+(\d{4})",
-                       re.IGNORECASE)
+_MONTHS = {
+    m: i + 1 for i, m in enumerate(("Jan", "Feb", "Mar", "Apr", "May", "Jun", "Jul", "Aug", "Sep", "Oct", "Nov", "Dec"))
+} | {"Mär": 3, "Mai": 5, "Okt": 10, "Dez": 12}
+_ASC_DATE = re.compile(
+    r"^(date|begin\s+triggerblock)\s+\w+\s+(\w{3})\s+(\d{1,2})\s+[\d:.]+(?:\s*[ap]m)?\s+(\d{4})", re.IGNORECASE
+)
 
 
 def asc_date(path) -> str | None:
@@ -40,8 +49,10 @@ def asc_date(path) -> str | None:
                 if m and m.group(2).capitalize() in _MONTHS:
                     kind = "trigger" if m.group(1).lower() != "date" else "date"
                     try:
-                        found.setdefault(kind, dt.date(int(m.group(4)), _MONTHS[m.group(2).capitalize()],
-                                                       int(m.group(3))).isoformat())
+                        found.setdefault(
+                            kind,
+                            dt.date(int(m.group(4)), _MONTHS[m.group(2).capitalize()], int(m.group(3))).isoformat(),
+                        )
                     except ValueError:
                         continue
                     if kind == "trigger":
@@ -76,8 +87,9 @@ def _component(row: dict, c: str, table) -> None:
     row[f"warnings_{c}"] = int(np.count_nonzero(np.diff(np.concatenate([[0], warn])) == 1))
     # "never" is NaN in the table; the shortest known time to limit, +inf when every refresh said never
     ok = known & (level < 3)
-    row[f"min_ttl_{c}_s"] = float(np.nanmin(ttl[ok])) if np.isfinite(ttl[ok]).any() else \
-        (math.inf if ok.any() else math.nan)
+    row[f"min_ttl_{c}_s"] = (
+        float(np.nanmin(ttl[ok])) if np.isfinite(ttl[ok]).any() else (math.inf if ok.any() else math.nan)
+    )
 
 
 def _degraded_share(table, oil_model: bool) -> float:
@@ -90,8 +102,9 @@ def _degraded_share(table, oil_model: bool) -> float:
     return float(np.mean(np.asarray(table["degraded"], dtype=float) != 0))
 
 
-def summarize(table, counters: dict, *, vehicle: str, log: str, key: str, date: str | None = None,
-              oil_model: bool = False) -> dict:
+def summarize(
+    table, counters: dict, *, vehicle: str, log: str, key: str, date: str | None = None, oil_model: bool = False
+) -> dict:
     """The summary row of one replayed log (``table`` from ``replay_log``, ``counters`` its ``meta["counters"]``);
     ``oil_model``: the sensor models the oil by request (``sensor.oil_mode = "model"``), so its oil-modelled steps
     are normal, not degraded (as in ``replay``'s summary)."""
@@ -100,14 +113,22 @@ def summarize(table, counters: dict, *, vehicle: str, log: str, key: str, date: 
     innov = np.asarray(table["oil_innovation_c"], dtype=float) if table.has("oil_innovation_c") else np.zeros(0)
     innov = innov[np.isfinite(innov)]
     rejected = counters.get("decoder", {}).get("rejected", {})
-    row = {"vehicle": vehicle, "log": log, "log_key": key, "date": date or log_date(start_s) or "unknown",
-           "start_s": start_s, "end_s": end_s, "duration_s": float(table.n * STEP_S), "steps": int(table.n),
-           "degraded_share": _degraded_share(table, oil_model),
-           "frames": int(counters.get("decoder", {}).get("frames_seen", 0)),
-           "time_jumps": int(counters.get("service", {}).get("time_jumps", 0)),
-           "oil_innovation_mean_c": float(np.mean(innov)) if innov.size else math.nan,
-           "oil_innovation_rms_c": float(np.sqrt(np.mean(innov ** 2))) if innov.size else math.nan,
-           "oil_measured_share": float(innov.size / table.n) if table.n else 0.0}
+    row = {
+        "vehicle": vehicle,
+        "log": log,
+        "log_key": key,
+        "date": date or log_date(start_s) or "unknown",
+        "start_s": start_s,
+        "end_s": end_s,
+        "duration_s": float(table.n * STEP_S),
+        "steps": int(table.n),
+        "degraded_share": _degraded_share(table, oil_model),
+        "frames": int(counters.get("decoder", {}).get("frames_seen", 0)),
+        "time_jumps": int(counters.get("service", {}).get("time_jumps", 0)),
+        "oil_innovation_mean_c": float(np.mean(innov)) if innov.size else math.nan,
+        "oil_innovation_rms_c": float(np.sqrt(np.mean(innov**2))) if innov.size else math.nan,
+        "oil_measured_share": float(innov.size / table.n) if table.n else 0.0,
+    }
     for reason in REJECT_REASONS:
         row[f"rejected_{reason}"] = int(rejected.get(reason, 0))
     for c in PUBLISHED:

@@ -12,6 +12,7 @@ log is its J1939 traffic (tools/can/logsynth.py; no rig thermocouples: a truck h
 day and grow linearly to their final value over ``growth_days`` (a fouling cooler, an oil leak). The truth (effects,
 onsets, values per day) is written beside the manifest as ``truth.json``; the fleet command never reads it.
 """
+
 from __future__ import annotations
 
 import datetime as dt
@@ -43,6 +44,7 @@ LEVEL_STREAM = 0x1E7E1
 @dataclass
 class FleetSpec:
     """How many trucks and days, how long each day's log, which trucks get which effect (chosen at random)."""
+
     vehicles: int = 10
     days: int = 7
     minutes: float = 10.0
@@ -50,12 +52,12 @@ class FleetSpec:
     low_oil: int = 0
     growth_days: float = 21.0
     seed: int = 0
-    cold_share: float = 0.5      # share of the days whose log starts at key-on after a night parked
-    level_share: float = 0.0     # share of the trucks whose transmission sends its oil level (SPN 124)
+    cold_share: float = 0.5  # share of the days whose log starts at key-on after a night parked
+    level_share: float = 0.0  # share of the trucks whose transmission sends its oil level (SPN 124)
     start_date: dt.date = START_DATE
-    faults: dict = field(default_factory=dict)     # vehicle -> (effect, onset day, final value); filled by plan()
+    faults: dict = field(default_factory=dict)  # vehicle -> (effect, onset day, final value); filled by plan()
 
-    def plan(self) -> "FleetSpec":
+    def plan(self) -> FleetSpec:
         if self.fouling + self.low_oil > self.vehicles:
             raise InputError("more faulty trucks than trucks")
         rng = np.random.default_rng(self.seed + 7919)
@@ -78,6 +80,7 @@ def effect_on_day(fault, day: int, growth_days: float) -> dict:
         return {}
     effect, onset, final = fault
     from firmware_model.effects import CATALOG
+
     neutral = CATALOG[effect].neutral
     frac = min(1.0, (day - onset + 1) / growth_days)
     return {effect: neutral + frac * (final - neutral)}
@@ -85,8 +88,12 @@ def effect_on_day(fault, day: int, growth_days: float) -> dict:
 
 def _truck(spec: FleetSpec, v: int) -> dict:
     rng = np.random.default_rng(spec.seed * 1000 + v)
-    return {"payload": float(rng.uniform(0.7, 1.25)), "climate_c": float(rng.uniform(2.0, 22.0)),
-            "drive": DRIVES[int(rng.integers(len(DRIVES)))], "route_seed": int(rng.integers(0, 4))}
+    return {
+        "payload": float(rng.uniform(0.7, 1.25)),
+        "climate_c": float(rng.uniform(2.0, 22.0)),
+        "drive": DRIVES[int(rng.integers(len(DRIVES)))],
+        "route_seed": int(rng.integers(0, 4)),
+    }
 
 
 def sends_level(spec: FleetSpec, v: int) -> bool:
@@ -112,6 +119,7 @@ def oil_level_pct(spec: FleetSpec, v: int, day: int, cols: dict, plant_table, vo
 
 def _nominal_volume_l() -> float:
     from firmware_model.effects import CATALOG
+
     return float(CATALOG["oil_level_low"].neutral)
 
 
@@ -123,6 +131,7 @@ def _day_job(job) -> tuple[str, dict]:
     from tools.cycles.named import get_cycle
     from tools.plant.reference import ReferencePlant
     from tools.runtable import RunTable
+
     truck = _truck(spec, v)
     rng = np.random.default_rng(spec.seed * 100000 + v * 1000 + day)
     cyc = get_cycle(truck["drive"], seed=truck["route_seed"] + int(rng.integers(0, 3)))
@@ -151,10 +160,12 @@ def _day_job(job) -> tuple[str, dict]:
         cols["coolant_temp_c"] = coolant_c - (coolant_c - oil0) * np.exp(-cols["time_s"] / COOLANT_WARMUP_S)
         table = RunTable(cols)
     plant = ReferencePlant(load_config(None).load_params(), effects=effects, dt_s=1.0).run(
-        table, initial_temp_c=oil0, progress=False)
+        table, initial_temp_c=oil0, progress=False
+    )
     date = spec.start_date + dt.timedelta(days=day)
-    start = dt.datetime(date.year, date.month, date.day, 6, tzinfo=dt.timezone.utc).timestamp() \
-        + float(rng.uniform(0, 8 * 3600))
+    start = dt.datetime(date.year, date.month, date.day, 6, tzinfo=dt.timezone.utc).timestamp() + float(
+        rng.uniform(0, 8 * 3600)
+    )
     path = Path(out) / name / f"{name}_{date.isoformat()}.log"
     level = sends_level(spec, v)
     if level:
@@ -162,17 +173,29 @@ def _day_job(job) -> tuple[str, dict]:
         table = RunTable({**cols, "oil_level_pct": oil_level_pct(spec, v, day, cols, plant.table, volume_l)})
     path.parent.mkdir(parents=True, exist_ok=True)
     write_can_log(table, plant.table, path, rig=False, start_timestamp_s=start, seed=day)
-    return os.fspath(path), {"vehicle": name, "day": day, "date": date.isoformat(), "effects": effects,
-                             "drive": truck["drive"], "payload": truck["payload"], "ambient_c": amb, "cold": cold,
-                             "oil_start_c": oil0, "level_signal": level}
+    return os.fspath(path), {
+        "vehicle": name,
+        "day": day,
+        "date": date.isoformat(),
+        "effects": effects,
+        "drive": truck["drive"],
+        "payload": truck["payload"],
+        "ambient_c": amb,
+        "cold": cold,
+        "oil_start_c": oil0,
+        "level_signal": level,
+    }
 
 
-def synth_fleet(out: str | os.PathLike, spec: FleetSpec, processes: int | None = None,
-                show_progress: bool | None = None) -> Path:
+def synth_fleet(
+    out: str | os.PathLike, spec: FleetSpec, processes: int | None = None, show_progress: bool | None = None
+) -> Path:
     """Write the fleet's logs under ``out/<vehicle>/``, ``out/manifest.csv`` and ``out/truth.json``; returns the
     manifest's path."""
     import multiprocessing as mp
+
     from tools.progress import progress
+
     spec.plan()
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
@@ -195,26 +218,51 @@ def synth_fleet(out: str | os.PathLike, spec: FleetSpec, processes: int | None =
         fh.write("log,vehicle\n")
         for path, truth in results:
             fh.write(f"{Path(path).relative_to(out).as_posix()},{truth['vehicle']}\n")
-    truth = {"spec": {"vehicles": spec.vehicles, "days": spec.days, "minutes": spec.minutes,
-                      "cold_share": spec.cold_share, "level_share": spec.level_share,
-                      "growth_days": spec.growth_days, "seed": spec.seed, "start_date": spec.start_date.isoformat()},
-             "faults": {v: {"effect": f[0], "onset_day": f[1],
-                            "onset_date": (spec.start_date + dt.timedelta(days=f[1])).isoformat(), "final": f[2]}
-                        for v, f in spec.faults.items()},
-             "days": [t for _, t in results]}
+    truth = {
+        "spec": {
+            "vehicles": spec.vehicles,
+            "days": spec.days,
+            "minutes": spec.minutes,
+            "cold_share": spec.cold_share,
+            "level_share": spec.level_share,
+            "growth_days": spec.growth_days,
+            "seed": spec.seed,
+            "start_date": spec.start_date.isoformat(),
+        },
+        "faults": {
+            v: {
+                "effect": f[0],
+                "onset_day": f[1],
+                "onset_date": (spec.start_date + dt.timedelta(days=f[1])).isoformat(),
+                "final": f[2],
+            }
+            for v, f in spec.faults.items()
+        },
+        "days": [t for _, t in results],
+    }
     (out / "truth.json").write_text(json.dumps(truth, indent=1))
     return manifest
 
 
-__all__ = ["DRIVES", "FAULT_RANGES", "FleetSpec", "effect_on_day", "oil_level_pct", "sends_level", "synth_fleet",
-           "vehicle_name"]
+__all__ = [
+    "DRIVES",
+    "FAULT_RANGES",
+    "FleetSpec",
+    "effect_on_day",
+    "oil_level_pct",
+    "sends_level",
+    "synth_fleet",
+    "vehicle_name",
+]
 
 
 def main(argv=None) -> int:
     """``python -m tools.fleet.synth OUT [--vehicles N ...]``: write a synthetic fleet and its manifest."""
     import argparse
-    ap = argparse.ArgumentParser(prog="python -m tools.fleet.synth", description=__doc__,
-                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+
+    ap = argparse.ArgumentParser(
+        prog="python -m tools.fleet.synth", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     ap.add_argument("out", help="folder for the logs, manifest.csv and truth.json")
     ap.add_argument("--vehicles", type=int, default=10)
     ap.add_argument("--days", type=int, default=7)
@@ -222,10 +270,18 @@ def main(argv=None) -> int:
     ap.add_argument("--fouling", type=int, default=0, help="trucks whose cooler fouls from a random day")
     ap.add_argument("--low-oil", type=int, default=0, help="trucks that lose oil from a random day")
     ap.add_argument("--growth-days", type=float, default=21.0, help="days from onset to the final value")
-    ap.add_argument("--cold-share", type=float, default=0.5,
-                    help="share of the days whose log starts at key-on after a night parked (default 0.5)")
-    ap.add_argument("--level-share", type=float, default=0.0,
-                    help="share of the trucks whose transmission sends its oil level, J1939 SPN 124 (default 0)")
+    ap.add_argument(
+        "--cold-share",
+        type=float,
+        default=0.5,
+        help="share of the days whose log starts at key-on after a night parked (default 0.5)",
+    )
+    ap.add_argument(
+        "--level-share",
+        type=float,
+        default=0.0,
+        help="share of the trucks whose transmission sends its oil level, J1939 SPN 124 (default 0)",
+    )
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--processes", type=int, help="processes (default: one per core)")
     a = ap.parse_args(argv)
@@ -237,8 +293,9 @@ def main(argv=None) -> int:
     for name in ("cold_share", "level_share"):
         if not 0.0 <= getattr(a, name) <= 1.0:
             ap.error(f"--{name.replace('_', '-')} must be between 0 and 1")
-    spec = FleetSpec(a.vehicles, a.days, a.minutes, a.fouling, a.low_oil, a.growth_days, a.seed, a.cold_share,
-                     a.level_share)
+    spec = FleetSpec(
+        a.vehicles, a.days, a.minutes, a.fouling, a.low_oil, a.growth_days, a.seed, a.cold_share, a.level_share
+    )
     try:
         print(synth_fleet(a.out, spec, a.processes))
     except InputError as exc:

@@ -10,6 +10,7 @@ around the current temperatures. Every joule is booked: generated heat = stored 
 measured sump absorbs), checked by `SimResult.energy_balance()`. `ReferencePlant.run` is the driver (chunks of
 steps: losses of every input sample, averaged over each step); `ReferencePlant._step` is one thermal step.
 """
+
 from __future__ import annotations
 
 import math
@@ -22,18 +23,29 @@ import numpy as np
 from firmware_model.components import IDLE_WHEELS
 from firmware_model.effects import effect_scales, with_oil_volume
 from firmware_model.errors import InputError
-from firmware_model.network import (BOUNDARIES, K_EXT_CONV, K_EXT_RAD, K_STREAM, ConductanceEvaluator, Network,
-                                    build_network)
+from firmware_model.network import (
+    BOUNDARIES,
+    K_EXT_CONV,
+    K_EXT_RAD,
+    K_STREAM,
+    ConductanceEvaluator,
+    Network,
+    build_network,
+)
 from firmware_model.parameters import COOLER_KINDS, Parameters
 from firmware_model.physics import oil as oilprops
 from firmware_model.physics.conductance_matrix import boundary_heat_w, conductance_matrix, link_topology
-from firmware_model.physics.cooler import (DEFAULT_VEHICLE_SPEED_KMH, cooler_params, cooler_values, inlet_drop_k,
-                                           oil_cooler_heat)
+from firmware_model.physics.cooler import (
+    DEFAULT_VEHICLE_SPEED_KMH,
+    cooler_params,
+    cooler_values,
+    inlet_drop_k,
+    oil_cooler_heat,
+)
 from firmware_model.physics.gearbox_losses import SOURCES, GearboxLosses
 from firmware_model.physics.heat_lag import HeatLag, first_order_lag_step, heat_lag, heat_lag_step
 from firmware_model.physics.kinematics import GEAR_MAX, GEAR_MIN, SPEED_NAMES, gear_state
 from firmware_model.units import RAD_S_PER_RPM
-
 from tools.progress import progress as progress_bar
 from tools.runtable import RunTable
 
@@ -42,8 +54,14 @@ BC_COLUMNS = {**{f"bc_{b}_c": b for b in BOUNDARIES}, "ambient_temp_c": "ambient
 #: step of the forward difference that linearises the cooler around the sump temperature [K]
 COOLER_SLOPE_DT_K = 0.05
 
-HEAT_OUT_NAMES = ("cooler", "housing_convection", "housing_radiation", "supports_conduction", "shafts_conduction",
-                  "oil_boundary")
+HEAT_OUT_NAMES = (
+    "cooler",
+    "housing_convection",
+    "housing_radiation",
+    "supports_conduction",
+    "shafts_conduction",
+    "oil_boundary",
+)
 
 
 #: a run notes the churning correlations' validity only when they left their range for less than this share of it
@@ -71,51 +89,55 @@ class SimResult:
 
 class RunInputs(NamedTuple):
     """A run table as the integrator reads it (SI; boundary and oil signals interpolated onto the input times)."""
+
     t_s: np.ndarray
     omega_in_rad_s: np.ndarray
     torque_nm: np.ndarray
-    gear: np.ndarray                 # int64
+    gear: np.ndarray  # int64
     v_kmh: np.ndarray | None
-    retarder_nm: np.ndarray | None   # NaN taken as 0
-    bc_c: dict                       # boundary index -> its temperature at every input time
-    oil_meas_c: np.ndarray | None    # measured sump (cooler 'measured')
-    kind: str                        # none | liquid | air | hold | measured
+    retarder_nm: np.ndarray | None  # NaN taken as 0
+    bc_c: dict  # boundary index -> its temperature at every input time
+    oil_meas_c: np.ndarray | None  # measured sump (cooler 'measured')
+    kind: str  # none | liquid | air | hold | measured
     hold_oil_c: float | None
     initial_temp_c: float
 
 
 class ChunkSources(NamedTuple):
     """The sources of a chunk of thermal steps: exact averages over each step of the held input samples."""
-    edges_s: np.ndarray          # (k + 1,) step edges
-    P_src_w: np.ndarray          # (n_src, k) heat of every source
-    P_mech_w: np.ndarray         # (k,) mechanical loss
-    omega_rad_s: np.ndarray      # (n_speeds, k) |shaft speeds|
-    churn_invalid: np.ndarray    # (k,) share of the step outside the churning correlations' range
+
+    edges_s: np.ndarray  # (k + 1,) step edges
+    P_src_w: np.ndarray  # (n_src, k) heat of every source
+    P_mech_w: np.ndarray  # (k,) mechanical loss
+    omega_rad_s: np.ndarray  # (n_speeds, k) |shaft speeds|
+    churn_invalid: np.ndarray  # (k,) share of the step outside the churning correlations' range
 
 
 @dataclass
 class StepState:
     """The integrator's state between thermal steps."""
+
     T_c: np.ndarray
     T_prev_c: np.ndarray
     dt_prev_s: float | None
-    lag_w: np.ndarray            # heat-lag state of every source
-    gear_prev: int               # gear of the last step (synchronizer shift heat)
+    lag_w: np.ndarray  # heat-lag state of every source
+    gear_prev: int  # gear of the last step (synchronizer shift heat)
 
 
 class StepResult(NamedTuple):
     T_new_c: np.ndarray
-    generated_w: float           # heat delivered by all sources
-    stored_w: float              # d(stored energy)/dt over the step
-    out_w: np.ndarray            # (len(HEAT_OUT_NAMES),) heat leaving by each path
+    generated_w: float  # heat delivered by all sources
+    stored_w: float  # d(stored energy)/dt over the step
+    out_w: np.ndarray  # (len(HEAT_OUT_NAMES),) heat leaving by each path
 
 
 @dataclass
 class Ledger:
     """Histories and the energy books of a run."""
-    T_c: np.ndarray              # (n_steps + 1, n)
-    Q_w: np.ndarray              # (n_steps + 1, n_q) the Q_ columns of the output
-    out_j: np.ndarray            # (len(HEAT_OUT_NAMES),) heat out by each path
+
+    T_c: np.ndarray  # (n_steps + 1, n)
+    Q_w: np.ndarray  # (n_steps + 1, n_q) the Q_ columns of the output
+    out_j: np.ndarray  # (len(HEAT_OUT_NAMES),) heat out by each path
     generated_j: float = 0.0
     stored_j: float = 0.0
     mechanical_j: float = 0.0
@@ -133,22 +155,25 @@ class Ledger:
         q[:ns] = cs.P_src_w[:ns, k]
         q[ns] = cs.P_mech_w[k]
         q[ns + 1] = res.generated_w
-        q[ns + 2:ns + 2 + no] = res.out_w
+        q[ns + 2 : ns + 2 + no] = res.out_w
         q[-2] = cs.P_src_w[i_retarder, k]
         q[-1] = res.stored_w
         self.T_c[step + 1] = res.T_new_c
 
     def energy(self) -> dict:
-        return {"generated_j": self.generated_j, "stored_j": self.stored_j, "rejected_j": float(self.out_j.sum()),
-                "mechanical_loss_j": self.mechanical_j,
-                **{f"{nm}_j": float(v) for nm, v in zip(HEAT_OUT_NAMES, self.out_j)}}
+        return {
+            "generated_j": self.generated_j,
+            "stored_j": self.stored_j,
+            "rejected_j": float(self.out_j.sum()),
+            "mechanical_loss_j": self.mechanical_j,
+            **{f"{nm}_j": float(v) for nm, v in zip(HEAT_OUT_NAMES, self.out_j)},
+        }
 
 
 class ReferencePlant:
     """Build once per parameter set and effect set, then `run()` any number of run tables."""
 
-    def __init__(self, params: Parameters, effects: dict | None = None, cooler: str | None = None,
-                 dt_s: float = 0.5):
+    def __init__(self, params: Parameters, effects: dict | None = None, cooler: str | None = None, dt_s: float = 0.5):
         self.effects = dict(effects or {})
         self.scales = effect_scales(self.effects)
         self.p = params = with_oil_volume(params, self.scales.oil_volume_l)
@@ -167,8 +192,11 @@ class ReferencePlant:
         # classify boundary links for the heat budget
         kinds = self.net.link_kind[self.topo.ext_idx]
         bname = np.array(BOUNDARIES)[self.topo.eb]
-        self.ext_group = np.where(kinds == K_EXT_CONV, 1, np.where(kinds == K_EXT_RAD, 2, np.where(
-            np.isin(bname, ["flywheel_cover", "support_beam"]), 3, 4)))
+        self.ext_group = np.where(
+            kinds == K_EXT_CONV,
+            1,
+            np.where(kinds == K_EXT_RAD, 2, np.where(np.isin(bname, ["flywheel_cover", "support_beam"]), 3, 4)),
+        )
         # source distribution matrix: node heat = S @ source heat
         self.src_names = list(SOURCES) + ["retarder", *[f"shift:{w}" for w in IDLE_WHEELS], "shift:PR"]
         self.S = np.zeros((n, len(self.src_names)))
@@ -178,7 +206,7 @@ class ReferencePlant:
         self.stream_idx = self.net.links_of_kind(K_STREAM)
         self.stream_nodes = self.net.link_a[self.stream_idx]
         ia, ib = self.topo.ia, self.topo.ib
-        self.oil_links = np.flatnonzero((ia == self.i_oil) | (ib == self.i_oil))      # internal links at the sump
+        self.oil_links = np.flatnonzero((ia == self.i_oil) | (ib == self.i_oil))  # internal links at the sump
         self.oil_other = np.where(ia[self.oil_links] == self.i_oil, ib[self.oil_links], ia[self.oil_links])
         self.tau_lag = params["scale.heat_lag_tau"]
         self.bc_default = np.array([params[f"boundary.{b}"] for b in BOUNDARIES])
@@ -200,8 +228,20 @@ class ReferencePlant:
         sc = self.scales
 
         def q(T):
-            return oil_cooler_heat(self.cooler, self.kind, T, flow_ratio, w_eng, T_cool, T_amb, v_kmh, mcp_w_per_k,
-                                   sc.cooler_scale, sc.thermostat_offset_c)
+            return oil_cooler_heat(
+                self.cooler,
+                self.kind,
+                T,
+                flow_ratio,
+                w_eng,
+                T_cool,
+                T_amb,
+                v_kmh,
+                mcp_w_per_k,
+                sc.cooler_scale,
+                sc.thermostat_offset_c,
+            )
+
         q0 = q(T_oil)
         if q0.hA_w_per_k <= 0:
             return 0.0, 0.0
@@ -209,9 +249,16 @@ class ReferencePlant:
         return float(q0.Q_w), max(slope, 0.0)
 
     # ------------------------------------------------------------------ driver
-    def run(self, table: RunTable, initial_temp_c: float | None = None, hold_oil_c: float | None = None,
-            out_dt_s: float = 1.0, progress: bool | None = None, chunk_s: float = 20.0,
-            initial_offsets_c: dict | None = None) -> SimResult:
+    def run(
+        self,
+        table: RunTable,
+        initial_temp_c: float | None = None,
+        hold_oil_c: float | None = None,
+        out_dt_s: float = 1.0,
+        progress: bool | None = None,
+        chunk_s: float = 20.0,
+        initial_offsets_c: dict | None = None,
+    ) -> SimResult:
         """Integrate the network over the run table; node temperatures and heat flows every ``out_dt_s``.
         ``initial_temp_c``/``hold_oil_c`` given: within the oil model's range (InputError otherwise).
         ``initial_offsets_c``: {node: K} added to those nodes' start (a gearbox that ran before the table began:
@@ -226,12 +273,14 @@ class ReferencePlant:
         t0, t_end = float(t[0]), float(t[-1])
         n_steps = int(math.ceil((t_end - t0) / dt - 1e-9))
         step_t = np.minimum(t0 + dt * np.arange(n_steps + 1), t_end)
-        dts = np.diff(t, append=t[-1])            # sample durations (zero-order hold; the last has none)
+        dts = np.diff(t, append=t[-1])  # sample durations (zero-order hold; the last has none)
         T = np.full(self.n, float(inp.initial_temp_c))
         for name, dT in (initial_offsets_c or {}).items():
             if name not in self.net.nodes or name == "oil" or not math.isfinite(float(dT)):
-                raise InputError(f"initial_offsets_c: {name!r} is not a node of the network other than the sump, "
-                                 f"or its offset {dT!r} is not a finite number")
+                raise InputError(
+                    f"initial_offsets_c: {name!r} is not a node of the network other than the sump, "
+                    f"or its offset {dT!r} is not a finite number"
+                )
             T[self.net.nodes.index(name)] += float(dT)
         if inp.kind == "hold":
             T[self.i_oil] = inp.hold_oil_c
@@ -249,7 +298,7 @@ class ReferencePlant:
             while s0 < n_steps:
                 s1 = min(s0 + k_chunk, n_steps)
                 T_chunk_c = float(state.T_c[self.i_oil])
-                cs = self._chunk_sources(inp, dts, step_t[s0:s1 + 1], T_chunk_c)
+                cs = self._chunk_sources(inp, dts, step_t[s0 : s1 + 1], T_chunk_c)
                 done = s1 - s0
                 for k in range(s1 - s0):
                     h = cs.edges_s[k + 1] - cs.edges_s[k]
@@ -259,10 +308,12 @@ class ReferencePlant:
                     res = self._step(state, inp, cs, k, lag_dt if abs(h - dt) < 1e-12 else heat_lag(self.tau_lag, h))
                     ledger.book(s0 + k, res, cs, k, h, i_ret)
                     if not np.all(np.isfinite(res.T_new_c)):
-                        raise InputError(f"the plant diverged at t = {cs.edges_s[k + 1]:.1f} s (non-finite "
-                                         f"temperature); check the inputs and parameters")
+                        raise InputError(
+                            f"the plant diverged at t = {cs.edges_s[k + 1]:.1f} s (non-finite "
+                            f"temperature); check the inputs and parameters"
+                        )
                     if abs(state.T_c[self.i_oil] - T_chunk_c) > CHUNK_OIL_MOVE_K:
-                        done = k + 1                  # the losses again at the sump's new temperature
+                        done = k + 1  # the losses again at the sump's new temperature
                         break
                 bar.update(done)
                 s0 += done
@@ -272,8 +323,10 @@ class ReferencePlant:
             # the seed's geometry is outside the correlations' range on most drives (docs/validation.md, "Churning
             # correlations outside their range"): that is said once in the docs; a run notes it only when it is
             # partial, i.e. when it tells something about this drive
-            warnings.append(f"churning correlations (Eq 28-34) outside their validity range (Eq 33-34) for "
-                            f"{ledger.churn_invalid_s:.0f} s of {span_s:.0f} s (see docs/validation.md)")
+            warnings.append(
+                f"churning correlations (Eq 28-34) outside their validity range (Eq 33-34) for "
+                f"{ledger.churn_invalid_s:.0f} s of {span_s:.0f} s (see docs/validation.md)"
+            )
         res = self._output(table, t, step_t, ledger.T_c, ledger.Q_w, out_dt_s, inp.kind)
         return SimResult(res, self.net.nodes, ledger.energy(), warnings, time.perf_counter() - wall0)
 
@@ -293,8 +346,9 @@ class ReferencePlant:
             oilprops.check_temperature_c("the run table's initial_temp_c", initial_temp_c)
         if initial_temp_c is None and table.has("oil_temp_c") and np.isfinite(table["oil_temp_c"][0]):
             # the start: every node at the first oil reading (the oil model's range, as --initial-temp)
-            initial_temp_c = oilprops.check_temperature_c("column oil_temp_c row 1 (the start temperature):",
-                                                          float(table["oil_temp_c"][0]))
+            initial_temp_c = oilprops.check_temperature_c(
+                "column oil_temp_c row 1 (the start temperature):", float(table["oil_temp_c"][0])
+            )
         if hold_oil_c is None:
             hold_oil_c = meta.get("hold_oil_c")
         kind = self.kind
@@ -302,7 +356,7 @@ class ReferencePlant:
             kind = "hold"
         if kind == "hold" and hold_oil_c is None:
             hold_oil_c = self.p["cooler.hold_temp"]
-        if initial_temp_c is None:     # a held sump: every node starts there (as the named cycles do), else the default
+        if initial_temp_c is None:  # a held sump: every node starts there (as the named cycles do), else the default
             initial_temp_c = float(hold_oil_c) if kind == "hold" else self.p["boundary.initial"]
         oil_meas = None
         if kind == "measured":
@@ -322,17 +376,29 @@ class ReferencePlant:
                 _check_range(col, v, ok, *BC_RANGE_C)
                 if ok.any():
                     bc_c[BOUNDARIES.index(b)] = np.interp(t, t[ok], v[ok]) + (
-                        self.scales.hot_offset_c if b == "hot_surroundings" else 0.0)
+                        self.scales.hot_offset_c if b == "hot_surroundings" else 0.0
+                    )
         v_kmh = None
-        if table.has("vehicle_speed_kmh"):     # empty cells interpolated as the bc_ columns (a NaN speed would
-            v = np.asarray(table["vehicle_speed_kmh"], dtype=float)    # switch the air cooler off); none: default
+        if table.has("vehicle_speed_kmh"):  # empty cells interpolated as the bc_ columns (a NaN speed would
+            v = np.asarray(table["vehicle_speed_kmh"], dtype=float)  # switch the air cooler off); none: default
             ok = np.isfinite(v)
             v_kmh = np.interp(t, t[ok], v[ok]) if ok.any() else None
         ret_nm = np.asarray(table["retarder_torque_nm"], dtype=float) if table.has("retarder_torque_nm") else None
         if ret_nm is not None:
             ret_nm = np.nan_to_num(ret_nm, nan=0.0)
-        return RunInputs(t, spd * RAD_S_PER_RPM, trq, gear.astype(np.int64), v_kmh, ret_nm, bc_c, oil_meas, kind,
-                         hold_oil_c, initial_temp_c)
+        return RunInputs(
+            t,
+            spd * RAD_S_PER_RPM,
+            trq,
+            gear.astype(np.int64),
+            v_kmh,
+            ret_nm,
+            bc_c,
+            oil_meas,
+            kind,
+            hold_oil_c,
+            initial_temp_c,
+        )
 
     def _chunk_sources(self, inp: RunInputs, dts: np.ndarray, edges: np.ndarray, T_oil_c: float) -> ChunkSources:
         """Losses of every input sample of a chunk of steps (oil properties at the chunk's start sump temperature),
@@ -353,8 +419,9 @@ class ReferencePlant:
         if inp.retarder_nm is not None and self.scales.retarder_frac > 0:
             # the braking torque's magnitude, as the onboard sensor and the CAN encoder take it (J1939 sends braking
             # negative; a table given in that sign gave the plant no heat and its own CAN log 3 kNm: an audit)
-            P_src[:, self.src_names.index("retarder")] = self.scales.retarder_frac * np.abs(
-                inp.retarder_nm[sl]) * np.abs(sp[:, SPEED_NAMES.index("OS")])
+            P_src[:, self.src_names.index("retarder")] = (
+                self.scales.retarder_frac * np.abs(inp.retarder_nm[sl]) * np.abs(sp[:, SPEED_NAMES.index("OS")])
+            )
         avg = _StepAverager(t[sl], dts[sl], edges)
         return ChunkSources(edges, avg(P_src), avg(P_mech)[0], avg(np.abs(sp)), avg((~churn_ok).astype(float))[0])
 
@@ -372,15 +439,21 @@ class ReferencePlant:
         row = gear - GEAR_MIN
         omega = cs.omega_rad_s[:, k]
         T, i_oil = state.T_c, self.i_oil
-        T_bc = self.bc_default.copy()                 # boundary temperatures at the step end
+        T_bc = self.bc_default.copy()  # boundary temperatures at the step end
         for j, arr in inp.bc_c.items():
             T_bc[j] = float(np.interp(t_b, t, arr))
         delivered = self._delivered_heat(state, cs.P_src_w[:, k].copy(), gear, h, lag)
         kin = self.losses.kin
         G = self.ev.evaluate_cached(T[i_oil], omega, row, kin.mesh_torque[row], bool(kin.low_range[row]), T, T_bc)
         v_kmh = float(np.interp(t_mid, t, inp.v_kmh)) if inp.v_kmh is not None else DEFAULT_VEHICLE_SPEED_KMH
-        q0, gc = self.cooler_heat(T[i_oil], omega[SPEED_NAMES.index("LS")], omega[SPEED_NAMES.index("IS")],
-                                  T_bc[BOUNDARIES.index("coolant")], T_bc[BOUNDARIES.index("ambient")], v_kmh)
+        q0, gc = self.cooler_heat(
+            T[i_oil],
+            omega[SPEED_NAMES.index("LS")],
+            omega[SPEED_NAMES.index("IS")],
+            T_bc[BOUNDARIES.index("coolant")],
+            T_bc[BOUNDARIES.index("ambient")],
+            v_kmh,
+        )
         q_nodes = self._stream_transfer(self.S @ delivered, G, q0, omega, T[i_oil], inp.kind)
         bdf2 = state.dt_prev_s is not None and abs(state.dt_prev_s - h) < 1e-12
         C = self.net.C_j_per_k
@@ -392,7 +465,7 @@ class ReferencePlant:
             hist_term = C * T / h
         A, Ge = conductance_matrix(G, self.topo, a0 * C / h)
         rhs = hist_term + q_nodes + boundary_heat_w(Ge, self.topo, T_bc)
-        A[i_oil, i_oil] += gc                         # cooler linearised: Q = q0 + gc (T_oil_new - T_oil)
+        A[i_oil, i_oil] += gc  # cooler linearised: Q = q0 + gc (T_oil_new - T_oil)
         rhs[i_oil] += gc * T[i_oil] - q0
         prescribed = None
         if inp.kind == "hold":
@@ -425,8 +498,9 @@ class ReferencePlant:
         state.lag_w, delivered = heat_lag_step(state.lag_w, u_w, lag)
         return delivered
 
-    def _stream_transfer(self, q_nodes: np.ndarray, G: np.ndarray, q0: float, omega: np.ndarray, T_oil_c: float,
-                         kind: str) -> np.ndarray:
+    def _stream_transfer(
+        self, q_nodes: np.ndarray, G: np.ndarray, q0: float, omega: np.ndarray, T_oil_c: float, kind: str
+    ) -> np.ndarray:
         """The oil-system inlet lies below the sump by the cooler's drop (Eq 82 idea): a stream component loses
         G (T_i - T_in) = G (T_i - T_s) + G dT, which the returning oil brings to the sump (zero-sum)."""
         dT_in = 0.0
@@ -461,9 +535,17 @@ class ReferencePlant:
             t_out = np.append(t_out, step_t[-1])
         cols = {"time_s": t_out}
         idx = np.clip(np.searchsorted(t, t_out, side="right") - 1, 0, t.size - 1)
-        for c in ("engine_speed_rpm", "engine_torque_nm", "gear", "vehicle_speed_kmh", "ambient_temp_c",
-                  "coolant_temp_c", "retarder_torque_nm", *(c for c in table.columns if c.startswith("bc_"))):
-            if table.has(c):     # the inputs as the plant read them (bc_*: so that the output reproduces the run)
+        for c in (
+            "engine_speed_rpm",
+            "engine_torque_nm",
+            "gear",
+            "vehicle_speed_kmh",
+            "ambient_temp_c",
+            "coolant_temp_c",
+            "retarder_torque_nm",
+            *(c for c in table.columns if c.startswith("bc_")),
+        ):
+            if table.has(c):  # the inputs as the plant read them (bc_*: so that the output reproduces the run)
                 cols[c] = np.asarray(table[c], dtype=float)[idx]
         # node temperatures, linear between thermal steps
         T_out = np.empty((t_out.size, self.n))
@@ -477,9 +559,12 @@ class ReferencePlant:
             cols[f"T_{nm}_c"] = T_out[:, j]
         # heat flows: step averages, each output sample shows the step that ends at or after it
         qi = np.clip(np.searchsorted(step_t, t_out, side="left"), 1, step_t.size - 1)
-        names = [f"Q_heat_{s.replace(':', '_')}_w" for s in SOURCES] + ["Q_loss_mechanical_total_w",
-                                                                          "Q_heat_total_w"] + \
-                [f"Q_out_{nm}_w" for nm in HEAT_OUT_NAMES] + ["Q_heat_retarder_w", "Q_stored_w"]
+        names = (
+            [f"Q_heat_{s.replace(':', '_')}_w" for s in SOURCES]
+            + ["Q_loss_mechanical_total_w", "Q_heat_total_w"]
+            + [f"Q_out_{nm}_w" for nm in HEAT_OUT_NAMES]
+            + ["Q_heat_retarder_w", "Q_stored_w"]
+        )
         for j, nm in enumerate(names):
             cols[nm] = hist_Q[qi, j]
         return RunTable(cols)
@@ -552,19 +637,36 @@ def validate_drive(table: RunTable, p: Parameters) -> None:
     """InputError (column and row) for a run table's drive values that no engine or gearbox of ``p`` produces:
     engine speed and torque outside the engine's range, a gear not in seed Table 1 (missing values are left to the
     caller: a measured file may have gaps)."""
-    _check_drive_ranges({c: np.asarray(table[c], dtype=float) for c in ("engine_speed_rpm", "engine_torque_nm", "gear")
-                         if table.has(c)}, p)
+    _check_drive_ranges(
+        {
+            c: np.asarray(table[c], dtype=float)
+            for c in ("engine_speed_rpm", "engine_torque_nm", "gear")
+            if table.has(c)
+        },
+        p,
+    )
 
 
 def _check_drive_ranges(cols: dict, p: Parameters) -> None:
     """The range rules of the drive columns, on their finite values (validate_drive, _validate_inputs)."""
     vmax = p["engine.max_speed_rad_s"] / RAD_S_PER_RPM
-    rules = (("engine_speed_rpm", lambda v: (v < 0) | (v > vmax),
-              lambda x: "rpm is a negative speed" if x < 0 else f"rpm exceeds {vmax:.0f} rpm"),
-             ("engine_torque_nm", lambda v: (v > p["engine.max_torque"]) | (v < p["engine.min_torque"]),
-              f"Nm is outside the engine's range {p['engine.min_torque']:g}..{p['engine.max_torque']:g} Nm"),
-             ("gear", lambda v: (v != np.round(v)) | (v < GEAR_MIN) | (v > GEAR_MAX),
-              f"is not a gear in {GEAR_MIN}..{GEAR_MAX} (seed Table 1)"))
+    rules = (
+        (
+            "engine_speed_rpm",
+            lambda v: (v < 0) | (v > vmax),
+            lambda x: "rpm is a negative speed" if x < 0 else f"rpm exceeds {vmax:.0f} rpm",
+        ),
+        (
+            "engine_torque_nm",
+            lambda v: (v > p["engine.max_torque"]) | (v < p["engine.min_torque"]),
+            f"Nm is outside the engine's range {p['engine.min_torque']:g}..{p['engine.max_torque']:g} Nm",
+        ),
+        (
+            "gear",
+            lambda v: (v != np.round(v)) | (v < GEAR_MIN) | (v > GEAR_MAX),
+            f"is not a gear in {GEAR_MIN}..{GEAR_MAX} (seed Table 1)",
+        ),
+    )
     for col, bad_of, what in rules:
         if col in cols:
             v = cols[col]
@@ -577,6 +679,7 @@ def _check_drive_ranges(cols: dict, p: Parameters) -> None:
 def _validate_inputs(t, spd, trq, gear, p: Parameters):
     def first_bad(mask):
         return int(np.flatnonzero(mask)[0]) + 1
+
     for name, arr in (("time_s", t), ("engine_speed_rpm", spd), ("engine_torque_nm", trq), ("gear", gear)):
         bad = ~np.isfinite(arr)
         if bad.any():

@@ -16,10 +16,12 @@
 the log's malformed lines and a cut last line are left out first (:func:`scan_log`, tools/replay/lines.py) and
 counted in ``ColumnRead.damage``; the readers above then read what is left.
 """
+
 from __future__ import annotations
 
 import gc
 import os
+from pathlib import Path
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -45,6 +47,7 @@ _DIGIT[48:58] = np.arange(10, dtype=np.uint8)
 class ColumnRead(NamedTuple):
     """The frames of a log, which reader produced them ("numpy candump" or "python-can") and, read without
     ``strict``, what was skipped (tools.replay.lines.LogDamage; None when read strictly)."""
+
     columns: FrameColumns
     reader: str
     damage: Any = None
@@ -57,13 +60,13 @@ def read_columns(path: str | os.PathLike, strict: bool = True, damage=None) -> C
     p = check_log(path)
     if strict:
         cut = truncation(p)
-        if cut:                           # the fast parsers would read a cut last line as a short frame
+        if cut:  # the fast parsers would read a cut last line as a short frame
             raise InputError(f"{p}: {cut}")
     suffix = p.suffix.lower()
     raw = p.read_bytes() if suffix == ".log" and (damage is None or damage.clean is None) else None
     if raw is not None and (raw.endswith(b"\n") or not raw):
         cols = _candump(p, raw)
-        if cols is not None:              # every line read: nothing skipped
+        if cols is not None:  # every line read: nothing skipped
             return ColumnRead(cols, "numpy candump", None if strict else LogDamage(lines=len(cols)))
     if not strict:
         damage = damage if damage is not None else scan_log(p, raw)
@@ -87,9 +90,9 @@ def scan_log(path: Path, raw: bytes | None = None) -> LogDamage:
         raw = path.read_bytes() if raw is None else raw
         try:
             whole = parse_candump(raw) if raw.endswith(b"\n") else None
-        except MixedChannels:      # the reader says so
+        except MixedChannels:  # the reader says so
             whole = None
-        if whole is not None:      # every line read by the fast parser: none malformed, no line-by-line check
+        if whole is not None:  # every line read by the fast parser: none malformed, no line-by-line check
             return LogDamage(lines=len(whole))
     if suffix in TEXT_READERS:
         return scan_text_log(path, raw)
@@ -164,7 +167,7 @@ def _dots(buf: np.ndarray, lines: _Lines, close_pos: np.ndarray) -> np.ndarray |
     n = lines.start.size
     dot = np.full(n, -1, dtype=np.int64)
     pos = np.flatnonzero(buf == ord("."))
-    if _k_per_line(pos, lines, 1):    # the usual file: one dot per line
+    if _k_per_line(pos, lines, 1):  # the usual file: one dot per line
         inside = pos < close_pos
         dot[inside] = pos[inside]
         return dot
@@ -193,11 +196,11 @@ def _timestamps(buf: np.ndarray, lines: _Lines, close_pos: np.ndarray) -> np.nda
     frac = _number(buf, frac_start, frac_len, _DIGIT, 10)
     if whole is None or frac is None:
         return None
-    mant = whole * (10 ** frac_len) + frac
+    mant = whole * (10**frac_len) + frac
     exact = mant < (1 << 53)
     t = mant.astype(np.float64) / (10.0 ** frac_len.astype(np.float64))
-    for i in np.flatnonzero(~exact).tolist():   # more than 2**53: Python's correctly rounded float()
-        t[i] = float(bytes(buf[open_pos[i] + 1:close_pos[i]]))
+    for i in np.flatnonzero(~exact).tolist():  # more than 2**53: Python's correctly rounded float()
+        t[i] = float(bytes(buf[open_pos[i] + 1 : close_pos[i]]))
     return t
 
 
@@ -214,16 +217,16 @@ def _channels(buf: np.ndarray, s1: np.ndarray, s2: np.ndarray) -> list[str]:
     compared with the first line's byte by byte (cheap: one gather per byte of the name), the distinct names are
     listed only when one differs."""
     length = s2 - s1 - 1
-    first = bytes(buf[s1[0] + 1:s2[0]])
+    first = bytes(buf[s1[0] + 1 : s2[0]])
     other = length != len(first)
     for j, byte in enumerate(first):
         other |= buf[s1 + 1 + j] != byte
     if not other.any():
         return [first.decode("ascii", "replace")]
     rows = np.flatnonzero(other)
-    names = {bytes(buf[s1[i] + 1:s2[i]]) for i in rows[np.unique(length[rows], return_index=True)[1]].tolist()}
-    for i in rows[:1000].tolist():        # names of the same length as another: the first lines that differ
-        names.add(bytes(buf[s1[i] + 1:s2[i]]))
+    names = {bytes(buf[s1[i] + 1 : s2[i]]) for i in rows[np.unique(length[rows], return_index=True)[1]].tolist()}
+    for i in rows[:1000].tolist():  # names of the same length as another: the first lines that differ
+        names.add(bytes(buf[s1[i] + 1 : s2[i]]))
     return [first.decode("ascii", "replace")] + sorted(n.decode("ascii", "replace") for n in names - {first})
 
 
@@ -235,15 +238,21 @@ def parse_candump(raw: bytes) -> FrameColumns | None:
     buf, start, end = lines
     n = start.size
     if n == 0:
-        return FrameColumns(np.zeros(0), np.zeros(0, np.int64), np.zeros(0, np.uint8), np.zeros(0, np.int64),
-                            np.zeros(0, np.int64), np.zeros((0, 8), np.uint8))
+        return FrameColumns(
+            np.zeros(0),
+            np.zeros(0, np.int64),
+            np.zeros(0, np.uint8),
+            np.zeros(0, np.int64),
+            np.zeros(0, np.int64),
+            np.zeros((0, 8), np.uint8),
+        )
     close = _one_per_line(buf, ord(")"), lines)
     hash_pos = _one_per_line(buf, ord("#"), lines)
     if close is None or hash_pos is None or np.any(buf[start] != ord("(")):
         return None
     is_space = buf == 32
     spaces = np.flatnonzero(is_space)
-    for k in (2, 3):     # the usual files: every line without, or every line with, the direction flag
+    for k in (2, 3):  # the usual files: every line without, or every line with, the direction flag
         if _k_per_line(spaces, lines, k):
             count = np.full(n, k)
             break
@@ -260,9 +269,10 @@ def parse_candump(raw: bytes) -> FrameColumns | None:
     if len(channels) > 1:
         raise MixedChannels(channels)
     three = count == 3
-    if three.any():   # the " R" / " T" direction flag: one letter at the end
-        flag_ok = (end[three] - data_end[three] == 2) & np.isin(buf[np.minimum(end[three] - 1, buf.size - 1)],
-                                                                  np.frombuffer(b"RrTt", np.uint8))
+    if three.any():  # the " R" / " T" direction flag: one letter at the end
+        flag_ok = (end[three] - data_end[three] == 2) & np.isin(
+            buf[np.minimum(end[three] - 1, buf.size - 1)], np.frombuffer(b"RrTt", np.uint8)
+        )
         if not flag_ok.all():
             return None
     t = _timestamps(buf, lines, close)
@@ -272,7 +282,7 @@ def parse_candump(raw: bytes) -> FrameColumns | None:
         return None
     n_hex = data_end - hash_pos - 1
     if np.any(n_hex % 2) or np.any(n_hex > 16):
-        return None   # odd digits, FD or longer frames, remote frames: python-can reads them
+        return None  # odd digits, FD or longer frames, remote frames: python-can reads them
     data = np.zeros((n, 8), dtype=np.uint8)
     for b in range(8):
         live = n_hex >= 2 * (b + 1)
@@ -301,6 +311,7 @@ def _mf4_group(mdf, index: int, name: str, start_s: float) -> FrameColumns | Non
     def field(suffix, default=None):
         key = f"{name}.{suffix}"
         return np.asarray(rec[key]) if key in names else default
+
     t = np.asarray(sig.timestamps, dtype=float) + start_s
     ide = field("IDE")
     flags = np.where(ide.astype(bool), FLAG_EXTENDED, 0) if ide is not None else np.full(n, FLAG_EXTENDED)
@@ -338,17 +349,17 @@ def read_mf4(path) -> FrameColumns | None:
     in time order or not of a known layout (the caller reads the file with python-can)."""
     try:
         from asammdf import MDF
-        from asammdf.blocks.v4_constants import FLAG_CG_BUS_EVENT
         from asammdf.blocks.source_utils import Source
+        from asammdf.blocks.v4_constants import FLAG_CG_BUS_EVENT
     except ImportError:
         return None
-    with quiet_reader_teardown():       # a truncated file: read_log's one sentence, no asammdf finaliser noise
+    with quiet_reader_teardown():  # a truncated file: read_log's one sentence, no asammdf finaliser noise
         try:
             mdf = MDF(path)
         except Exception:
             mdf = None
         if mdf is None:
-            gc.collect()          # the half-built MDF's finaliser runs here, silenced
+            gc.collect()  # the half-built MDF's finaliser runs here, silenced
     if mdf is None:
         return None
     try:
@@ -357,8 +368,13 @@ def read_mf4(path) -> FrameColumns | None:
         for index, group in enumerate(mdf.groups):
             cg = group.channel_group
             src = cg.acq_source
-            if not cg.flags & FLAG_CG_BUS_EVENT or cg.cycles_nr == 0 or src is None \
-                    or not src.source_type & Source.SOURCE_BUS or src.bus_type != Source.BUS_TYPE_CAN:
+            if (
+                not cg.flags & FLAG_CG_BUS_EVENT
+                or cg.cycles_nr == 0
+                or src is None
+                or not src.source_type & Source.SOURCE_BUS
+                or src.bus_type != Source.BUS_TYPE_CAN
+            ):
                 continue
             names = [c.name for c in group.channels]
             kind = next((k for k in ("CAN_DataFrame", "CAN_ErrorFrame", "CAN_RemoteFrame") if k in names), None)
@@ -375,9 +391,11 @@ def read_mf4(path) -> FrameColumns | None:
     if not parts:
         return None
     t = np.concatenate([p.timestamp_s for p in parts])
-    order = np.argsort(t, kind="stable")    # heapq.merge of time-ordered groups, ties in group order
-    cat = {f: np.concatenate([getattr(p, f) for p in parts])[order] for f in
-           ("timestamp_s", "can_id", "flags", "dlc", "length", "data")}
+    order = np.argsort(t, kind="stable")  # heapq.merge of time-ordered groups, ties in group order
+    cat = {
+        f: np.concatenate([getattr(p, f) for p in parts])[order]
+        for f in ("timestamp_s", "can_id", "flags", "dlc", "length", "data")
+    }
     return FrameColumns(**cat)
 
 

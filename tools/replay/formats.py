@@ -1,5 +1,6 @@
 """Which files the replay reads, by suffix, without importing python-can (which takes a second to import: a CSV
 replay should not pay it)."""
+
 from __future__ import annotations
 
 import contextlib
@@ -7,14 +8,19 @@ import gc
 import os
 import re
 import sys
+from collections.abc import Iterator
 from pathlib import Path
-from typing import Iterator
 
 from firmware_model.errors import InputError
 
 #: CAN log formats python-can reads, by suffix
-LOG_SUFFIXES = {".log": "candump -L", ".asc": "Vector ASC", ".blf": "Vector BLF", ".mf4": "ASAM MDF 4",
-                ".trc": "PEAK PCAN-View TRC"}
+LOG_SUFFIXES = {
+    ".log": "candump -L",
+    ".asc": "Vector ASC",
+    ".blf": "Vector BLF",
+    ".mf4": "ASAM MDF 4",
+    ".trc": "PEAK PCAN-View TRC",
+}
 
 
 def _a(name: str) -> str:
@@ -33,10 +39,11 @@ def mixed_channels(path: Path, channels) -> str:
     from 1: those are named as the file does."""
     text = path.suffix.lower() == ".log"
     names = [str(c) if text or not isinstance(c, int) else str(c + 1) for c in channels]
-    how = (f"grep ' {names[0]} ' {path.name} > {names[0]}.log" if text
-           else "export one channel with the logger's tool")
-    return (f"{path}: holds the frames of {len(names)} CAN channels ({', '.join(names[:4])}); the sensor listens to "
-            f"one bus: keep one channel ({how})")
+    how = f"grep ' {names[0]} ' {path.name} > {names[0]}.log" if text else "export one channel with the logger's tool"
+    return (
+        f"{path}: holds the frames of {len(names)} CAN channels ({', '.join(names[:4])}); the sensor listens to "
+        f"one bus: keep one channel ({how})"
+    )
 
 
 def _gzipped(path: Path) -> bool:
@@ -53,12 +60,17 @@ def check_log(path: str | os.PathLike) -> Path:
     p = Path(path)
     suffix = p.suffix.lower()
     if suffix == ".gz" or (p.is_file() and _gzipped(p)):
-        inner = Path(p.stem).suffix if suffix == ".gz" else suffix       # short.log.gz holds a .log
-        raise InputError(f"{p}: the file is gzip-compressed; decompress it first (zcat {p.name} > "
-                         f"{Path(p.stem).stem if suffix == '.gz' else p.stem}-plain{inner or '.log'})")
+        inner = Path(p.stem).suffix if suffix == ".gz" else suffix  # short.log.gz holds a .log
+        raise InputError(
+            f"{p}: the file is gzip-compressed; decompress it first (zcat {p.name} > "
+            f"{Path(p.stem).stem if suffix == '.gz' else p.stem}-plain{inner or '.log'})"
+        )
     if suffix not in LOG_SUFFIXES:
-        raise InputError(f"{p}: unknown log suffix {suffix!r}; CAN logs are "
-                         + ", ".join(f"{s} ({n})" for s, n in LOG_SUFFIXES.items()) + ", run tables .csv")
+        raise InputError(
+            f"{p}: unknown log suffix {suffix!r}; CAN logs are "
+            + ", ".join(f"{s} ({n})" for s, n in LOG_SUFFIXES.items())
+            + ", run tables .csv"
+        )
     if p.is_dir():
         raise InputError(f"{p}: is a directory, not a log file")
     if not p.is_file():
@@ -67,8 +79,10 @@ def check_log(path: str | os.PathLike) -> Path:
         try:
             import asammdf  # noqa: F401
         except ImportError:
-            raise InputError(f"{p}: reading .mf4 needs the optional package asammdf; install it with "
-                             f"pip install 'gearbox-vsensor[mf4]'") from None
+            raise InputError(
+                f"{p}: reading .mf4 needs the optional package asammdf; install it with "
+                f"pip install 'gearbox-vsensor[mf4]'"
+            ) from None
     return p
 
 
@@ -97,6 +111,7 @@ def read_log(path: str | os.PathLike, damage=None) -> Iterator:
     malformed line or a cut log among them. ``damage`` (tools.replay.lines.LogDamage, from
     ``tools.replay.columns.scan_log``): the log without its malformed lines instead, a BLF log up to its cut."""
     import can
+
     p = check_log(path)
     strict = damage is None
     if strict:
@@ -112,8 +127,8 @@ def read_log(path: str | os.PathLike, damage=None) -> Iterator:
             if p.suffix.lower() == ".mf4" and "seek out of range" in str(exc):
                 failure = f"{p}: the MDF 4 log ends before the blocks it refers to (truncated, or still being written)"
         if failure is not None:
-            gc.collect()          # the half-built reader's finaliser runs here, silenced
-    if failure is not None:       # raised here, not in the handler: the error keeps no half-built reader alive
+            gc.collect()  # the half-built reader's finaliser runs here, silenced
+    if failure is not None:  # raised here, not in the handler: the error keeps no half-built reader alive
         raise InputError(failure)
     n = 0
     try:
@@ -131,19 +146,23 @@ def read_log(path: str | os.PathLike, damage=None) -> Iterator:
         raise
     except Exception as exc:
         if strict and ends_mid_line(p):
-            raise InputError(f"{p}: the log ends in the middle of a line at frame {n + 1} (truncated, or still being "
-                             f"written)") from None
+            raise InputError(
+                f"{p}: the log ends in the middle of a line at frame {n + 1} (truncated, or still being written)"
+            ) from None
         bad = first_bad_candump_line(p) if p.suffix.lower() == ".log" else None
         if bad is not None and bad[1].startswith("\ufeff"):
-            raise InputError(f"{p}: starts with a UTF-8 byte-order mark, which candump never writes (an editor "
-                             f"added it); remove it") from None
+            raise InputError(
+                f"{p}: starts with a UTF-8 byte-order mark, which candump never writes (an editor added it); remove it"
+            ) from None
         if bad is not None and any((ord(ch) < 32 and ch not in "\t\r") or ch == "\ufffd" for ch in bad[1]):
             raise InputError(f"{p}: line {bad[0]} holds binary data; this is not a candump -L text log") from None
         if bad is not None:
-            raise InputError(f"{p}: line {bad[0]} is not a candump -L frame '(time) interface ID#DATA': "
-                             f"{bad[1]!r}") from None
-        raise InputError(f"{p}: frame {n + 1} cannot be read as {_a(LOG_SUFFIXES[p.suffix.lower()])} log: "
-                         f"{exc}") from None
+            raise InputError(
+                f"{p}: line {bad[0]} is not a candump -L frame '(time) interface ID#DATA': {bad[1]!r}"
+            ) from None
+        raise InputError(
+            f"{p}: frame {n + 1} cannot be read as {_a(LOG_SUFFIXES[p.suffix.lower()])} log: {exc}"
+        ) from None
 
 
 #: a candump -L frame line as python-can reads it: (time) interface ID#DATA (ID##FLAGS DATA for CAN FD, #R remote)
@@ -153,7 +172,7 @@ CANDUMP_LINE = re.compile(r"\s*\(\s*[-+0-9.eE]+\s*\)\s+\S+\s+[0-9A-Fa-f]{1,8}#")
 def first_bad_candump_line(path: Path, max_lines: int = 10_000_000) -> tuple[int, str] | None:
     """(line number, text cut to 60 characters) of the first non-empty line of a candump -L log that is not a frame
     line, or None (the error path of read_log: names the line instead of python-can's unpacking error)."""
-    with open(path, "r", encoding="utf-8", errors="replace") as fh:
+    with open(path, encoding="utf-8", errors="replace") as fh:
         for i, line in enumerate(fh, start=1):
             if i > max_lines:
                 break
@@ -174,8 +193,10 @@ def truncation(path: Path) -> str | None:
             recorded = int.from_bytes(head[16:24], "little")
             size = path.stat().st_size
             if 0 < size < recorded:
-                return (f"the BLF log is shorter than its header records ({size} of {recorded} bytes: truncated, or "
-                        f"still being written)")
+                return (
+                    f"the BLF log is shorter than its header records ({size} of {recorded} bytes: truncated, or "
+                    f"still being written)"
+                )
     return None
 
 
@@ -185,6 +206,6 @@ def ends_mid_line(path: Path) -> bool:
     if path.suffix.lower() not in (".log", ".asc", ".trc") or not path.is_file() or path.stat().st_size == 0:
         return False
     with open(path, "rb") as fh:
-        text = b"\0" not in fh.read(4096)        # a binary file is the reader's to refuse
+        text = b"\0" not in fh.read(4096)  # a binary file is the reader's to refuse
         fh.seek(-1, os.SEEK_END)
         return text and fh.read(1) not in (b"\n", b"\r")

@@ -10,6 +10,7 @@ and give the same counts.
 more than ``MALFORMED_UNTRUSTED_SHARE`` of the lines are malformed, or when a malformed line breaks a frame sequence
 the step needs (:func:`broken_sequences`). A cut last line alone is never untrusted.
 """
+
 from __future__ import annotations
 
 import io
@@ -32,8 +33,7 @@ CANDUMP_STRICT = re.compile(rb"\([0-9]+(?:\.[0-9]+)?\) [!-~]+ [0-9A-Fa-f]{1,8}#(
 #: python-can's text readers by suffix, for a log read without its malformed lines
 TEXT_READERS = {".log": "CanutilsLogReader", ".asc": "ASCReader", ".trc": "TRCReader"}
 #: the messages whose frames the step needs (J1939 PGN: EEC1 speed and torque, ETC2 gear, TRF1 oil), their names
-PRIMARY_PGNS = {61444: ("EEC1", "engine speed and torque"), 61445: ("ETC2", "gear"),
-                65272: ("TRF1", "oil temperature")}
+PRIMARY_PGNS = {61444: ("EEC1", "engine speed and torque"), 61445: ("ETC2", "gear"), 65272: ("TRF1", "oil temperature")}
 #: TP.CM and TP.DT (J1939-21), the BAM control byte, and the longest wait between two packets of a transfer (T1)
 TP_CM_PGN, TP_DT_PGN, TP_BAM, TP_T1_S = 0xEC00, 0xEB00, 0x20, 0.75
 
@@ -44,6 +44,7 @@ class LogDamage:
     the malformed ones; ``kept_before`` per malformed line the frames kept before it; ``cut_last``: the last line
     was cut short; ``clean`` the log without the malformed lines (None when none was skipped); ``first_text`` the
     first malformed line (60 characters); ``note`` a binary log cut short (read up to the cut)."""
+
     lines: int = 0
     bad: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
     kept_before: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
@@ -67,17 +68,24 @@ class LogDamage:
             return f"{path}: {self.note}"
         n = int(self.bad[0])
         if self.cut_last and self.skipped == 1:
-            return (f"{path}: the log ends in the middle of a line (line {n}: truncated, or still being written; "
-                    f"without --strict it is skipped and counted)")
+            return (
+                f"{path}: the log ends in the middle of a line (line {n}: truncated, or still being written; "
+                f"without --strict it is skipped and counted)"
+            )
         if self.binary:
-            return (f"{path}: line {n} holds binary data: noise in the log, or not a candump -L text log (without "
-                    f"--strict such lines are skipped and counted)")
-        return (f"{path}: line {n} is not a candump -L frame '(time) interface ID#DATA': {self.first_text!r} "
-                f"(without --strict such lines are skipped and counted)")
+            return (
+                f"{path}: line {n} holds binary data: noise in the log, or not a candump -L text log (without "
+                f"--strict such lines are skipped and counted)"
+            )
+        return (
+            f"{path}: line {n} is not a candump -L frame '(time) interface ID#DATA': {self.first_text!r} "
+            f"(without --strict such lines are skipped and counted)"
+        )
 
     def text_reader(self, suffix: str):
         """python-can's reader of the log without its malformed lines."""
         import can
+
         return getattr(can, TEXT_READERS[suffix])(io.StringIO(self.clean.decode("utf-8", "replace")))
 
 
@@ -85,10 +93,11 @@ def _python_can_reads(line: bytes) -> bool:
     """Whether python-can's candump -L reader reads ``line`` as one frame (the forms the strict pattern leaves out:
     remote and FD frames, tabs, exponents, odd hex)."""
     import can
+
     try:
         text = line.decode("utf-8")
         return "\r" not in text.rstrip("\r") and len(list(can.CanutilsLogReader(io.StringIO(text + "\n")))) == 1
-    except Exception:       # python-can raises a variety of errors for a line it cannot read
+    except Exception:  # python-can raises a variety of errors for a line it cannot read
         return False
 
 
@@ -99,8 +108,9 @@ def scan_text_log(path: Path, raw: bytes | None = None) -> LogDamage:
     raw = path.read_bytes() if raw is None else raw
     suffix = path.suffix.lower()
     if suffix == ".log" and raw.startswith(b"\xef\xbb\xbf"):
-        raise InputError(f"{path}: starts with a UTF-8 byte-order mark, which candump never writes (an editor added "
-                         f"it); remove it")
+        raise InputError(
+            f"{path}: starts with a UTF-8 byte-order mark, which candump never writes (an editor added it); remove it"
+        )
     segs = raw.split(b"\n")
     cut = bool(segs[-1].strip())
     keep, bad, before, lines, first = [], [], [], 0, b""
@@ -117,12 +127,20 @@ def scan_text_log(path: Path, raw: bytes | None = None) -> LogDamage:
             first = first or seg
             bad.append(i + 1)
             before.append(len(keep))
-    damage = LogDamage(lines, np.array(bad, np.int64), np.array(before, np.int64), cut,
-                       b"\n".join(keep) + b"\n" if bad else None, first.decode("utf-8", "replace")[:60])
+    damage = LogDamage(
+        lines,
+        np.array(bad, np.int64),
+        np.array(before, np.int64),
+        cut,
+        b"\n".join(keep) + b"\n" if bad else None,
+        first.decode("utf-8", "replace")[:60],
+    )
     if lines and len(bad) == lines:
         what = "it holds binary data" if damage.binary else f"line {bad[0]}: {damage.first_text!r}"
-        raise InputError(f"{path}: none of its {lines} lines is a CAN frame ({what}): not a {suffix} text CAN log, "
-                         f"or one damaged throughout")
+        raise InputError(
+            f"{path}: none of its {lines} lines is a CAN frame ({what}): not a {suffix} text CAN log, "
+            f"or one damaged throughout"
+        )
     return damage
 
 
@@ -138,7 +156,8 @@ def broken_sequences(damage: LogDamage, cols, stale_factor: float) -> list[str]:
     from can_dbc.columnar import FLAG_ERROR, pgn_keys
     from can_dbc.j1939 import EC1_PGN
     from firmware_model.service.options import NOMINAL_PERIOD_S
-    mid = damage.kept_before[:damage.skipped - int(damage.cut_last)]
+
+    mid = damage.kept_before[: damage.skipped - int(damage.cut_last)]
     if not mid.size or not len(cols):
         return []
     t, data = cols.timestamp_s, cols.data
@@ -146,18 +165,22 @@ def broken_sequences(damage: LogDamage, cols, stale_factor: float) -> list[str]:
     sa = cols.can_id & 0xFF
     out = []
     cm = np.flatnonzero((pgn == TP_CM_PGN) & (data[:, 0] == TP_BAM))
-    ec1 = cm[(data[cm, 5].astype(np.int64) | data[cm, 6].astype(np.int64) << 8
-              | data[cm, 7].astype(np.int64) << 16) == EC1_PGN]
+    ec1 = cm[
+        (data[cm, 5].astype(np.int64) | data[cm, 6].astype(np.int64) << 8 | data[cm, 7].astype(np.int64) << 16)
+        == EC1_PGN
+    ]
     for c in ec1.tolist():
         n, later = int(data[c, 3]), cm[(cm > c) & (sa[cm] == sa[c])]
         end = int(later[0]) if later.size else len(cols)
-        late = np.flatnonzero(t[c + 1:end] > t[c] + TP_T1_S * (n + 1))    # (frame time, not file order: robust)
+        late = np.flatnonzero(t[c + 1 : end] > t[c] + TP_T1_S * (n + 1))  # (frame time, not file order: robust)
         end = c + 1 + int(late[0]) if late.size else end
-        dt = c + 1 + np.flatnonzero((pgn[c + 1:end] == TP_DT_PGN) & (sa[c + 1:end] == sa[c]))
+        dt = c + 1 + np.flatnonzero((pgn[c + 1 : end] == TP_DT_PGN) & (sa[c + 1 : end] == sa[c]))
         lost = np.flatnonzero((mid > c) & (mid <= end))
         if lost.size and not set(range(1, n + 1)) <= set(data[dt, 0].tolist()):
-            out.append(f"line {int(damage.bad[lost[0]])} broke a TP.BAM transfer of EC1 (the engine's reference "
-                       f"torque, from SA 0x{int(sa[c]):02X})")
+            out.append(
+                f"line {int(damage.bad[lost[0]])} broke a TP.BAM transfer of EC1 (the engine's reference "
+                f"torque, from SA 0x{int(sa[c]):02X})"
+            )
             break
     for p, (name, what) in PRIMARY_PGNS.items():
         idx = np.flatnonzero(pgn == p)
@@ -167,18 +190,20 @@ def broken_sequences(damage: LogDamage, cols, stale_factor: float) -> list[str]:
         inside = (pos > 0) & (pos < idx.size)
         gaps, counts = np.unique(pos[inside], return_counts=True)
         span = t[idx[gaps]] - t[idx[gaps - 1]]
-        with np.errstate(divide="ignore", invalid="ignore"):     # a period of 0 or NaN: no frame counted missing
+        with np.errstate(divide="ignore", invalid="ignore"):  # a period of 0 or NaN: no frame counted missing
             missing = np.rint(span / float(np.median(np.diff(t[idx])))) - 1
         hit = np.flatnonzero((span > stale_factor * NOMINAL_PERIOD_S[name]) & (missing >= 1) & (counts >= missing))
         if hit.size:
             first = int(damage.bad[np.flatnonzero(inside & (pos == gaps[hit[0]]))[0]])
-            out.append(f"the malformed lines from line {first} on left a {span[hit[0]]:.2f} s gap in {name} ({what}), "
-                       f"longer than the sensor's staleness limit of {stale_factor * NOMINAL_PERIOD_S[name]:.2f} s")
+            out.append(
+                f"the malformed lines from line {first} on left a {span[hit[0]]:.2f} s gap in {name} ({what}), "
+                f"longer than the sensor's staleness limit of {stale_factor * NOMINAL_PERIOD_S[name]:.2f} s"
+            )
     return out
 
 
 def _numbers(first, total: int) -> str:
-    """"lines 5, 7, 9 and 12 more": the first line numbers of ``total``."""
+    """ "lines 5, 7, 9 and 12 more": the first line numbers of ``total``."""
     more = f" and {total - len(first)} more" if total > len(first) else ""
     return f"line{'s' if total > 1 else ''} {', '.join(str(int(n)) for n in first)}{more}"
 
@@ -188,6 +213,7 @@ class MalformedLinesFinding:
     """``skipped`` malformed lines (the first at ``first``, 1-based) of ``lines`` were skipped; ``cut_last``: the
     last of them was the log's cut last line; ``broken``: the frame sequences they broke, in words; ``note``: a
     binary log read up to its cut."""
+
     kind: ClassVar[str] = "malformed_lines"
     lines: int
     skipped: int
@@ -214,8 +240,10 @@ class MalformedLinesFinding:
         cut = "; the last one cut short, as by a logger stopped mid-write" if self.cut_last else ""
         if self.cut_last and self.skipped == 1:
             cut = ", the last, cut short as by a logger stopped mid-write"
-        return (f"{self.skipped} malformed line{'s' if self.skipped > 1 else ''} skipped "
-                f"({_numbers(self.first, self.skipped)}{cut})")
+        return (
+            f"{self.skipped} malformed line{'s' if self.skipped > 1 else ''} skipped "
+            f"({_numbers(self.first, self.skipped)}{cut})"
+        )
 
     @property
     def sentence(self) -> str:
@@ -223,9 +251,12 @@ class MalformedLinesFinding:
             return self.summary
         why = list(self.broken)
         if self.share > MALFORMED_UNTRUSTED_SHARE:
-            why.insert(0, f"they are {pct(self.skipped - int(self.cut_last), self.lines)} of the log's "
-                          f"{self.lines} lines, more than {100 * MALFORMED_UNTRUSTED_SHARE:g} %: the log is damaged "
-                          f"and the frames those lines held are missing")
+            why.insert(
+                0,
+                f"they are {pct(self.skipped - int(self.cut_last), self.lines)} of the log's "
+                f"{self.lines} lines, more than {100 * MALFORMED_UNTRUSTED_SHARE:g} %: the log is damaged "
+                f"and the frames those lines held are missing",
+            )
         return f"{self.summary}: {'; '.join(why)} (replay --strict refuses such a log)"
 
 
@@ -235,6 +266,11 @@ def damage_finding(damage: LogDamage | None, cols=None, stale_factor: float = 3.
     if damage is None or not (damage.skipped or damage.note):
         return None
     broken = tuple(broken_sequences(damage, cols, stale_factor)) if cols is not None else ()
-    return MalformedLinesFinding(damage.lines, damage.skipped, tuple(int(n) for n in damage.bad[:SHOWN_LINES]),
-                                 damage.cut_last, broken, damage.note)
-
+    return MalformedLinesFinding(
+        damage.lines,
+        damage.skipped,
+        tuple(int(n) for n in damage.bad[:SHOWN_LINES]),
+        damage.cut_last,
+        broken,
+        damage.note,
+    )

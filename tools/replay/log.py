@@ -13,6 +13,7 @@
 
 ``.mf4`` needs ``asammdf`` (``pip install 'gearbox-vsensor[mf4]'``); without it the error says so.
 """
+
 from __future__ import annotations
 
 import os
@@ -36,6 +37,7 @@ class LogReplay(NamedTuple):
     """An offline log replay: the sensor output run table, where it was written, the decoder's and the service's
     counters, and the trust findings (``firmware_model.service.trust``: time base, source addresses, degraded
     share; most severe first)."""
+
     table: Any
     path: Path
     decoder_counters: dict
@@ -43,8 +45,16 @@ class LogReplay(NamedTuple):
     findings: tuple = ()
 
 
-def replay_log(path: str | os.PathLike, sensor_or_service, *, config=None, options=None,
-               on_frames=None, columnar: bool | None = None, strict: bool = False):
+def replay_log(
+    path: str | os.PathLike,
+    sensor_or_service,
+    *,
+    config=None,
+    options=None,
+    on_frames=None,
+    columnar: bool | None = None,
+    strict: bool = False,
+):
     """Replay a CAN log through the sensor service; returns the sensor output run table (10 Hz).
 
     ``sensor_or_service``: a ``VirtualSensor`` (a service is built from ``options`` or the ``config``'s ``[can]``)
@@ -62,16 +72,22 @@ def replay_log(path: str | os.PathLike, sensor_or_service, *, config=None, optio
     """
     from firmware_model.service import SensorService, ServiceOptions
     from tools.runtable import RunTable
+
     if isinstance(sensor_or_service, SensorService):
         service = sensor_or_service
         if not service.record:
             raise InputError("replay_log needs a SensorService built with record=True")
     else:
-        service = SensorService(sensor_or_service, options or ServiceOptions.from_config(config), record=True,
-                                emit_frames=on_frames is not None)
+        service = SensorService(
+            sensor_or_service,
+            options or ServiceOptions.from_config(config),
+            record=True,
+            emit_frames=on_frames is not None,
+        )
     from tools.replay.columns import read_columns, scan_log
+
     reader, kept = "python-can", None
-    if strict:              # the first malformed line named, as the line scan finds it in both paths
+    if strict:  # the first malformed line named, as the line scan finds it in both paths
         first = scan_log(check_log(path))
         if first.skipped or first.note:
             raise InputError(first.strict_sentence(path))
@@ -87,18 +103,24 @@ def replay_log(path: str | os.PathLike, sensor_or_service, *, config=None, optio
     if reader == "python-can":
         columns = service.recorded()
     if damage is not None and kept is None and damage.skipped > int(damage.cut_last):
-        kept = read_columns(path, False, damage).columns     # the frames kept, for the sequences the lines broke
+        kept = read_columns(path, False, damage).columns  # the frames kept, for the sequences the lines broke
     malformed = damage_finding(damage, kept, service.options.stale_factor)
     if not len(columns["time_s"]):
-        raise InputError(_no_step_reason(path, service.decoder.counters)
-                         + (f" ({malformed.summary})" if malformed is not None else ""))
-    return RunTable(columns, meta={"counters": service.all_counters(), "log": os.fspath(path), "reader": reader,
-                                   "malformed": malformed}, source=os.fspath(path))
+        raise InputError(
+            _no_step_reason(path, service.decoder.counters)
+            + (f" ({malformed.summary})" if malformed is not None else "")
+        )
+    return RunTable(
+        columns,
+        meta={"counters": service.all_counters(), "log": os.fspath(path), "reader": reader, "malformed": malformed},
+        source=os.fspath(path),
+    )
 
 
 def _no_step_reason(path, d: dict) -> str:
     """Why a log gave no sensor step: every frame rejected for one reason (named), or too little input traffic."""
     from can_dbc.decoder import REJECT_REASONS
+
     seen, rejected = d.get("frames_seen", 0), d.get("rejected", {})
     reason, count = max(rejected.items(), key=lambda kv: kv[1], default=("", 0))
     if not seen:
@@ -109,18 +131,26 @@ def _no_step_reason(path, d: dict) -> str:
     if seen - sum(rejected.values()) >= 100:
         # many used frames and still no step: they lie within one step of frame time (a log-replay audit: 190 322
         # frames with one time stamp were "less than 100 ms of traffic" without a hint)
-        why = ("; yet it holds that many used frames: are all time stamps equal, or in a unit other than seconds "
-               "(candump -L writes seconds)?")
-    return (f"{path}: no sensor step in {seen} frames: the log holds less than 100 ms of J1939 input traffic (EEC1, "
-            f"ETC2, TRF1, ET1, AMB, CCVS1, ERC1, TP) from the expected sources{why}")
+        why = (
+            "; yet it holds that many used frames: are all time stamps equal, or in a unit other than seconds "
+            "(candump -L writes seconds)?"
+        )
+    return (
+        f"{path}: no sensor step in {seen} frames: the log holds less than 100 ms of J1939 input traffic (EEC1, "
+        f"ETC2, TRF1, ET1, AMB, CCVS1, ERC1, TP) from the expected sources{why}"
+    )
 
 
 def _columnar(service, on_frames, columnar: bool | None) -> bool:
     """Whether the whole-log path runs: asked for, or by default when nothing needs the frames one by one (frames
     to send, a service already fed, a sensor without ``step_table``)."""
-    possible = on_frames is None and not service.emit_frames and hasattr(service.sensor, "step_table") \
-        and service.counters["steps"] == 0 \
+    possible = (
+        on_frames is None
+        and not service.emit_frames
+        and hasattr(service.sensor, "step_table")
+        and service.counters["steps"] == 0
         and service.decoder.counters["frames_seen"] == 0
+    )
     if columnar and not possible:
         raise InputError("the whole-log replay needs a fresh service that sends no frames (no --frames-out)")
     return possible if columnar is None else bool(columnar)
@@ -131,20 +161,25 @@ def _replay_columns(path, service, strict: bool) -> tuple[dict, str, Any, Any]:
     it skipped and the frames it kept."""
     from firmware_model.service.columnar import run_columns
     from tools.replay.columns import read_columns
+
     read = read_columns(path, strict)
     return run_columns(service, read.columns), f"{read.reader}, whole log", read.damage, read.columns
 
 
-def replay_log_file(path, out, *, config_path=None, sensor_options=None, frames_out=None,
-                    strict: bool = False) -> LogReplay:
+def replay_log_file(
+    path, out, *, config_path=None, sensor_options=None, frames_out=None, strict: bool = False
+) -> LogReplay:
     """Replay a CAN log offline through the onboard sensor of ``config_path`` and write the run table to ``out``;
     ``frames_out``: also write the frames the sensor would send as a CAN log (.log, .asc, .blf); ``strict``: refuse
     a log with a malformed line (else skipped, counted, and among the findings when they make it untrusted)."""
     import can
+
     from firmware_model.service import build_service
     from tools.runtable import write_run_table
-    service = build_service(config_path, record=True, sensor_options=sensor_options, emit_frames=bool(frames_out),
-                            log_findings=False)
+
+    service = build_service(
+        config_path, record=True, sensor_options=sensor_options, emit_frames=bool(frames_out), log_findings=False
+    )
     writer = None
     on_frames = None
     if frames_out:
@@ -153,9 +188,10 @@ def replay_log_file(path, out, *, config_path=None, sensor_options=None, frames_
         writer = can.Logger(frames_out)
 
         def on_frames(frames):
-            with naming(frames_out):      # a full disk while writing: the error names the file
+            with naming(frames_out):  # a full disk while writing: the error names the file
                 for f in frames:
                     writer.on_message_received(f)
+
     try:
         table = replay_log(path, service, on_frames=on_frames, strict=strict)
     finally:
@@ -164,14 +200,20 @@ def replay_log_file(path, out, *, config_path=None, sensor_options=None, frames_
                 writer.stop()
     with naming(out):
         written = write_run_table(table, out)
-    return LogReplay(table, written, service.decoder.counters, service.counters,
-                     tuple(with_malformed(log_findings(service, table), table.meta.get("malformed"))))
+    return LogReplay(
+        table,
+        written,
+        service.decoder.counters,
+        service.counters,
+        tuple(with_malformed(log_findings(service, table), table.meta.get("malformed"))),
+    )
 
 
 def with_malformed(findings, malformed) -> list:
     """The trust findings and, when they make the outputs untrusted, the log's skipped lines (most severe first;
     below that they are a line of the summary)."""
     from firmware_model.service.degraded import Severity
+
     if malformed is None or malformed.severity < Severity.UNTRUSTED:
         return list(findings)
     return sorted([*findings, malformed], key=lambda f: -f.severity)
@@ -182,11 +224,18 @@ def log_findings(service, table) -> list:
     (firmware_model.service.plausibility: unit and sign of the decoded inputs, clamps or repairs on more than 5 % of
     the steps), most severe first."""
     from firmware_model.service.plausibility import min_torque_nm, with_record_findings
+
     return with_record_findings(service.findings(), table, min_torque_nm(service.sensor), "can")
 
 
-def play_log(path: str | os.PathLike, bus, *, speedup: float = 1.0, stop: threading.Event | None = None,
-             skip_s: float = PLAY_SKIP_S) -> int:
+def play_log(
+    path: str | os.PathLike,
+    bus,
+    *,
+    speedup: float = 1.0,
+    stop: threading.Event | None = None,
+    skip_s: float = PLAY_SKIP_S,
+) -> int:
     """Send the frames of a log onto ``bus`` with their original timing (``speedup`` x faster), like canplayer.
 
     Uses python-can's ``MessageSync`` (gaps longer than ``skip_s`` are cut short); the frames keep their original
@@ -194,7 +243,9 @@ def play_log(path: str | os.PathLike, bus, *, speedup: float = 1.0, stop: thread
     the number of frames sent.
     """
     import collections
+
     import can
+
     if not speedup > 0:
         raise InputError(f"--speed {speedup} must be positive")
     originals: collections.deque = collections.deque()
@@ -221,11 +272,11 @@ def play_log(path: str | os.PathLike, bus, *, speedup: float = 1.0, stop: thread
     return sent
 
 
-def play_log_on(path, interface: str, channel: str, bitrate_bit_s: int | None = None, *,
-                speedup: float = 1.0) -> int:
+def play_log_on(path, interface: str, channel: str, bitrate_bit_s: int | None = None, *, speedup: float = 1.0) -> int:
     """:func:`play_log` onto a bus it opens (and shuts down; on python-can's virtual bus the frames keep the log's
     timestamps, ``tools.can.bus.open_player``); SIGINT/SIGTERM stop it. Returns the frames sent."""
     from tools.can.bus import open_player, stop_on_signals
+
     check_log(path)
     bus = open_player(interface, channel, bitrate_bit_s)
     try:

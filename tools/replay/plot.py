@@ -1,11 +1,12 @@
 """The plot of a sensor replay: inputs, the estimates closest to their limits with the limits drawn, the warning
 level of every component that left normal (as words), the oil innovation."""
+
 from __future__ import annotations
 
 import numpy as np
 
 from firmware_model.components import LEVEL_NA, PUBLISHED, describe
-from tools.plots import input_panel   # the replay's input panel, shared with simulate's and the demo's figures
+from tools.plots import input_panel  # the replay's input panel, shared with simulate's and the demo's figures
 
 #: components drawn in the temperature panel: the closest to their own warning limits, this many
 PLOT_CLOSEST = 6
@@ -13,8 +14,11 @@ PLOT_CLOSEST = 6
 
 def _closest_to_limits(out, limits) -> list[str]:
     """Components ordered by their smallest margin to their own warning limit over the drive."""
-    margin = {c: float(np.nanmin(limits.of(c)[0] - np.asarray(out[f"T_{c}_c"], dtype=float)))
-              for c in PUBLISHED if out.has(f"T_{c}_c") and np.any(np.isfinite(out[f"T_{c}_c"]))}
+    margin = {
+        c: float(np.nanmin(limits.of(c)[0] - np.asarray(out[f"T_{c}_c"], dtype=float)))
+        for c in PUBLISHED
+        if out.has(f"T_{c}_c") and np.any(np.isfinite(out[f"T_{c}_c"]))
+    }
     return sorted(margin, key=margin.get)[:PLOT_CLOSEST]
 
 
@@ -24,6 +28,7 @@ def plot_replay(out, path, title: str = "", limits=None) -> None:
     words; the oil innovation (measured - model)."""
     from firmware_model.onboard.warning_levels import load_limits
     from tools.plots import level_axis, outside_legend, pyplot, save_figure, temperature_panel, time_axis
+
     limits = limits or load_limits()
     plt = pyplot()
     t, t_label = time_axis(out["time_s"])

@@ -1,6 +1,7 @@
 """What `gearbox-vsensor replay` prints after a replay, the same for a run table and a CAN log: the component
 closest to its own warning limit (limits differ by component), the warnings raised and for how long, the degraded
 share, and the rejected inputs in words (a table without the auxiliary columns is not an error: defaults are used)."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -10,14 +11,22 @@ from firmware_model.components import LEVEL_CRITICAL, LEVEL_NA, LEVEL_WARNING, P
 #: the auxiliary input columns (their absence means defaults, docs/sensor.md "Bad input")
 AUX_COLUMNS = ("ambient_temp_c", "coolant_temp_c", "vehicle_speed_kmh", "retarder_torque_nm")
 #: the J1939 message of each auxiliary input (a log replay's decoder counts its arrivals)
-AUX_MESSAGES = {"ambient_temp_c": "AMB", "coolant_temp_c": "ET1", "vehicle_speed_kmh": "CCVS1",
-                "retarder_torque_nm": "ERC1"}
+AUX_MESSAGES = {
+    "ambient_temp_c": "AMB",
+    "coolant_temp_c": "ET1",
+    "vehicle_speed_kmh": "CCVS1",
+    "retarder_torque_nm": "ERC1",
+}
 #: reject counters in words
 REJECT_WORDS = {
-    "drive_frozen": ("speed and torque bit-identical for over 120 s while turning (flagged, still used: a synthetic "
-                     "cycle without --noise holds them so; on a truck it is a frozen signal)"),
-    "oil_frozen": ("oil reading frozen while the model's sump moved (modelled instead; a rig or plant run that holds "
-                   "the sump at one temperature reads so too)"),
+    "drive_frozen": (
+        "speed and torque bit-identical for over 120 s while turning (flagged, still used: a synthetic "
+        "cycle without --noise holds them so; on a truck it is a frozen signal)"
+    ),
+    "oil_frozen": (
+        "oil reading frozen while the model's sump moved (modelled instead; a rig or plant run that holds "
+        "the sump at one temperature reads so too)"
+    ),
     "oil_implausible": "oil reading out of range or jumping (modelled instead)",
     "oil_missing": "oil reading missing (modelled instead)",
     "speed_clamped": "engine speed outside the engine's range (clamped)",
@@ -43,8 +52,11 @@ def _minutes(seconds: float) -> str:
 
 
 def _closest_line(out, limits) -> str:
-    margins = {c: float(np.nanmin(limits.of(c)[0] - np.asarray(out[f"T_{c}_c"], dtype=float)))
-               for c in PUBLISHED if out.has(f"T_{c}_c") and np.any(np.isfinite(out[f"T_{c}_c"]))}
+    margins = {
+        c: float(np.nanmin(limits.of(c)[0] - np.asarray(out[f"T_{c}_c"], dtype=float)))
+        for c in PUBLISHED
+        if out.has(f"T_{c}_c") and np.any(np.isfinite(out[f"T_{c}_c"]))
+    }
     if not margins:
         return "closest to its limit: no temperature estimated"
     c = min(margins, key=margins.get)
@@ -53,8 +65,10 @@ def _closest_line(out, limits) -> str:
     t_min = (out["time_s"][k] - out["time_s"][0]) / 60.0
     m = margins[c]
     rel = f"{m:.1f} K below" if m > 0 else f"{-m:.1f} K over"
-    return (f"closest to its limit: {describe(c)}, peak {T[k]:.1f} degC at {t_min:.1f} min, {rel} its warning "
-            f"limit {limits.of(c)[0]:.0f} degC")
+    return (
+        f"closest to its limit: {describe(c)}, peak {T[k]:.1f} degC at {t_min:.1f} min, {rel} its warning "
+        f"limit {limits.of(c)[0]:.0f} degC"
+    )
 
 
 def _warning_line(out) -> str:
@@ -76,8 +90,10 @@ def _warning_line(out) -> str:
         # "none" alone would read as an all-clear where the sensor could not judge (an audit: a log without torque
         # printed "warnings: none" with level n/a on 99 % of the cells)
         share = f"{100.0 * na:.1f} %" if na >= 0.001 else "under 0.1 %"
-        line += (f" (warning levels not available, level {LEVEL_NA}, on {share} of the component-time: "
-                 f"no warning could be raised there; see degraded)")
+        line += (
+            f" (warning levels not available, level {LEVEL_NA}, on {share} of the component-time: "
+            f"no warning could be raised there; see degraded)"
+        )
     return line
 
 
@@ -99,8 +115,9 @@ def _arrivals(out) -> dict:
 
 def _reject_line(out) -> str:
     n = out.n
-    counts = {k[len("rejects_"):]: int(out[k][-1]) for k in out.columns
-              if k.startswith("rejects_") and n and out[k][-1] > 0}
+    counts = {
+        k[len("rejects_") :]: int(out[k][-1]) for k in out.columns if k.startswith("rejects_") and n and out[k][-1] > 0
+    }
     words = []
     aux = counts.pop("aux_missing", 0)
     if aux:
@@ -109,16 +126,20 @@ def _reject_line(out) -> str:
         unreferenced = "retarder_torque_nm" in absent and erc1 > 0
         if unreferenced:
             absent.remove("retarder_torque_nm")
-            words.append(f"{erc1} retarder frames (ERC1) arrived, but without a retarder reference torque (no RC "
-                         f"from the retarder's address, no [can] retarder_reference_torque_nm) their percent torque "
-                         f"is no torque: the retarder's heat is left out")
+            words.append(
+                f"{erc1} retarder frames (ERC1) arrived, but without a retarder reference torque (no RC "
+                f"from the retarder's address, no [can] retarder_reference_torque_nm) their percent torque "
+                f"is no torque: the retarder's heat is left out"
+            )
         arrivals = _arrivals(out)
-        rejected = [c for c in absent if arrivals.get(AUX_MESSAGES[c], 0) > 0]    # sent, but no value was usable
+        rejected = [c for c in absent if arrivals.get(AUX_MESSAGES[c], 0) > 0]  # sent, but no value was usable
         absent = [c for c in absent if c not in rejected]
         if rejected:
             sent = ", ".join(f"{c} ({arrivals[AUX_MESSAGES[c]]} {AUX_MESSAGES[c]} frames)" for c in rejected)
-            words.append(f"auxiliary inputs sent but never usable: {sent}, none with a usable value (short frames, "
-                         f"not available or out of range: the decoder's counters): defaults used")
+            words.append(
+                f"auxiliary inputs sent but never usable: {sent}, none with a usable value (short frames, "
+                f"not available or out of range: the decoder's counters): defaults used"
+            )
         if absent:
             words.append(f"auxiliary inputs not given ({', '.join(absent)}): defaults used, as documented")
         elif not unreferenced and not rejected:
@@ -131,8 +152,9 @@ def _reject_line(out) -> str:
 def summary_lines(out, limits=None, oil_model: bool = False) -> list[str]:
     """The lines printed after a replay of ``out`` (the sensor output run table); ``oil_model``: the oil modelled by
     request (--oil-mode model), which is not degraded."""
-    from firmware_model.onboard.warning_levels import load_limits
     from firmware_model.components import MODE_NORMAL, MODE_OIL_MODEL
+    from firmware_model.onboard.warning_levels import load_limits
+
     limits = limits or load_limits()
     line = "degraded: 0.0 % of steps"
     if out.n and out.has("degraded_mode"):

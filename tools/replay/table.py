@@ -11,34 +11,46 @@ status: ``degraded`` (0/1), ``degraded_mode`` (0 normal, 1 oil model only, 2 inp
 ``speed_valid``, ``torque_valid``, ``gear_valid``, ``oil_valid``, ``oil_innovation_c`` (measured - model oil, empty
 without a measurement), ``model_oil_temp_c`` and the cumulative reject counters ``rejects_<reason>``.
 """
+
 from __future__ import annotations
 
 import math
 import os
+from collections.abc import Iterable, Iterator
 from pathlib import Path
-from typing import Any, Iterable, Iterator, NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 
 from firmware_model.components import PUBLISHED, STEP_S
 from firmware_model.errors import InputError
-from firmware_model.service.protocol import start_state      # (not options: that imports python-can)
+from firmware_model.service.protocol import start_state  # (not options: that imports python-can)
 
 #: a gap in the table's time longer than this is a time jump for the sensor (like the CAN service's 5 s catch-up)
 MAX_HOLD_GAP_S = 5.0
 #: the status columns of a table replay, in order (then rejects_<reason>)
-STATUS_COLUMNS = ("degraded", "degraded_mode", "speed_valid", "torque_valid", "gear_valid", "oil_valid",
-                  "oil_innovation_c", "model_oil_temp_c")
+STATUS_COLUMNS = (
+    "degraded",
+    "degraded_mode",
+    "speed_valid",
+    "torque_valid",
+    "gear_valid",
+    "oil_valid",
+    "oil_innovation_c",
+    "model_oil_temp_c",
+)
 
 
 class TableRecord(NamedTuple):
     """One step of a replay source: the end of the step on the run-table clock [s] and the sensor's inputs."""
+
     t_s: float
     inputs: Any
 
 
 class CsvReplay(NamedTuple):
     """A run-table replay: the sensor output RunTable, the gearbox variant and the oil mode it ran with."""
+
     table: Any
     variant: str
     oil_mode: str = "measured"
@@ -47,6 +59,7 @@ class CsvReplay(NamedTuple):
 class ReplaySummary(NamedTuple):
     """What a replay found, for the command line: its span, the hottest component and its peak, the highest
     warning level, the share of degraded steps and the reject counters that are not zero."""
+
     span_s: float
     steps: int
     hottest: str
@@ -58,7 +71,8 @@ class ReplaySummary(NamedTuple):
 
 def _sensor_inputs():
     """(field, run-table column) of each sensor input (the CAN service's wiring)."""
-    from firmware_model.service.records import SENSOR_INPUTS      # (not options: that imports python-can)
+    from firmware_model.service.records import SENSOR_INPUTS  # (not options: that imports python-can)
+
     return SENSOR_INPUTS
 
 
@@ -67,6 +81,7 @@ def read_inputs_table(path):
     strictly increasing) but not the *values* of the inputs: a NaN, a gear 7.5 or a negative speed is data for
     the sensor, which holds, clamps or degrades and counts it (docs/sensor.md "Bad input")."""
     from tools import runtable as rt
+
     name = os.fspath(path)
     p = Path(path)
     if not p.is_file():
@@ -85,6 +100,7 @@ def read_inputs_table(path):
 
 class _Segment(NamedTuple):
     """A stretch of the table between time jumps: its first and last time [s]."""
+
     first_s: float
     last_s: float
 
@@ -108,8 +124,10 @@ def table_steps(table, dt_s: float = STEP_S) -> tuple[np.ndarray, np.ndarray]:
         return np.zeros(0), np.zeros((0, len(_sensor_inputs())))
     if not np.all(np.isfinite(t_s)) or np.any(np.diff(t_s) <= 0):
         raise InputError("column time_s must be finite and strictly increasing")
-    cols = [np.asarray(table[col], dtype=float) if table.has(col) else np.full(t_s.size, np.nan)
-            for _, col in _sensor_inputs()]
+    cols = [
+        np.asarray(table[col], dtype=float) if table.has(col) else np.full(t_s.size, np.nan)
+        for _, col in _sensor_inputs()
+    ]
     data = np.stack(cols, axis=1)
     ends, rows = [], []
     for first_s, last_s in _segments(t_s):
@@ -135,14 +153,23 @@ def table_records(table, inputs_type=None, dt_s: float = STEP_S) -> Iterator[Tab
 
 def _status_row(st) -> tuple:
     """The status columns of one step (STATUS_COLUMNS, then the reject counters)."""
-    return (int(st.degraded_mode != 0), int(st.degraded_mode), bool(st.speed_valid), bool(st.torque_valid),
-            bool(st.gear_valid), bool(st.oil_valid), float(st.oil_innovation_c), float(st.model_oil_temp_c),
-            *np.asarray(st.rejects).tolist())
+    return (
+        int(st.degraded_mode != 0),
+        int(st.degraded_mode),
+        bool(st.speed_valid),
+        bool(st.torque_valid),
+        bool(st.gear_valid),
+        bool(st.oil_valid),
+        float(st.oil_innovation_c),
+        float(st.model_oil_temp_c),
+        *np.asarray(st.rejects).tolist(),
+    )
 
 
 def _output_table(times: list, rows_in: list, rows_out: dict, rows_st: list, reject_reasons, state):
     """The replay's run table from its per-step rows."""
     from tools.runtable import RunTable
+
     n = len(times)
     cols = {"time_s": np.asarray(times, dtype=float)}
     inputs = _sensor_inputs()
@@ -152,7 +179,7 @@ def _output_table(times: list, rows_in: list, rows_out: dict, rows_st: list, rej
     for (prefix, suffix), rows in rows_out.items():
         block = np.asarray(rows, dtype=float).reshape(n, len(PUBLISHED))
         if prefix == "ttl_":
-            block = np.where(np.isinf(block), np.nan, block)     # never = an empty cell
+            block = np.where(np.isinf(block), np.nan, block)  # never = an empty cell
         for j, c in enumerate(PUBLISHED):
             cols[f"{prefix}{c}{suffix}"] = block[:, j]
     names = [*STATUS_COLUMNS, *(f"rejects_{r}" for r in reject_reasons)]
@@ -162,8 +189,9 @@ def _output_table(times: list, rows_in: list, rows_out: dict, rows_st: list, rej
     return RunTable(cols, meta={"final_state": state})
 
 
-def replay_records(records: Iterable[TableRecord], sensor, initial_oil_c: float | None = None,
-                   t0_s: float | None = None):
+def replay_records(
+    records: Iterable[TableRecord], sensor, initial_oil_c: float | None = None, t0_s: float | None = None
+):
     """Step ``sensor`` through :class:`TableRecord` records; returns the output RunTable (one row per step)."""
     fields = [f for f, _ in _sensor_inputs()]
     recs = list(records)
@@ -196,7 +224,7 @@ def replay_steps(times: np.ndarray, data: np.ndarray, sensor, initial_oil_c: flo
     oil0_c = float(data[0, 3]) if initial_oil_c is None else initial_oil_c
     state = start_state(sensor, oil0_c, float(data[0, sensor.input_fields.index("ambient_temp_c")]))
     t_frames = times if frame_t_s is None else np.asarray(frame_t_s, dtype=float)
-    state, out = sensor.step_table(state, data[:, :len(sensor.input_fields)], t_frames)
+    state, out = sensor.step_table(state, data[:, : len(sensor.input_fields)], t_frames)
     rows_out = {("T_", "_c"): out.T_c, ("W_", ""): out.level, ("ttl_", "_s"): out.ttl_s}
     return _output_table(times, data, rows_out, _status_rows(out), sensor.reject_reasons, state)
 
@@ -204,8 +232,16 @@ def replay_steps(times: np.ndarray, data: np.ndarray, sensor, initial_oil_c: flo
 def _status_rows(out) -> np.ndarray:
     """The status columns of every step of a TableOutputs (as :func:`_status_row`)."""
     mode = out.degraded_mode.astype(float)[:, None]
-    return np.hstack([(mode != 0), mode, out.valid.astype(float), out.oil_innovation_c[:, None],
-                      out.model_oil_temp_c[:, None], out.rejects.astype(float)])
+    return np.hstack(
+        [
+            (mode != 0),
+            mode,
+            out.valid.astype(float),
+            out.oil_innovation_c[:, None],
+            out.model_oil_temp_c[:, None],
+            out.rejects.astype(float),
+        ]
+    )
 
 
 def replay_table(table, sensor, initial_oil_c: float | None = None):
@@ -214,8 +250,9 @@ def replay_table(table, sensor, initial_oil_c: float | None = None):
         raise InputError("the run table has no rows")
     if initial_oil_c is None:
         meta = getattr(table, "meta", {}) or {}
-        if meta.get("initial_temp_c") is not None and not (table.has("oil_temp_c")
-                                                           and np.isfinite(table["oil_temp_c"][0])):
+        if meta.get("initial_temp_c") is not None and not (
+            table.has("oil_temp_c") and np.isfinite(table["oil_temp_c"][0])
+        ):
             initial_oil_c = float(meta["initial_temp_c"])
     if hasattr(sensor, "step_table"):
         times, data = table_steps(table, sensor.dt_s)
@@ -223,12 +260,13 @@ def replay_table(table, sensor, initial_oil_c: float | None = None):
     return replay_records(table_records(table, sensor.Inputs, sensor.dt_s), sensor, initial_oil_c)
 
 
-def replay_csv(path, config_path=None, sensor_options=None) -> "CsvReplay":
+def replay_csv(path, config_path=None, sensor_options=None) -> CsvReplay:
     """Read a run table (CSV) and replay it through the onboard sensor of ``config_path`` (None: defaults);
     ``sensor_options``: VirtualSensor options (oil_mode, initial_temp_c)."""
     from firmware_model.config import load_config
     from firmware_model.onboard.sensor import VirtualSensor
     from firmware_model.service.plausibility import min_torque_nm
+
     cfg = load_config(config_path)
     params = cfg.load_params()
     sensor = VirtualSensor(params, config=cfg, **(sensor_options or {}))
@@ -244,19 +282,30 @@ def table_findings(out, oil_model: bool = False) -> list:
     at least DEGRADED_WARN_SHARE, with the inputs that were missing (the validity columns); ``oil_model``: the
     sensor modelled the oil by request (not degraded)."""
     from firmware_model.onboard.records import SensorOptions
-    from firmware_model.service.degraded import (Severity, degraded_finding,   # (not trust: that imports python-can)
-                                                 unit_findings)
+    from firmware_model.service.degraded import (
+        Severity,
+        degraded_finding,  # (not trust: that imports python-can)
+        unit_findings,
+    )
     from firmware_model.service.plausibility import table_record_findings
+
     modes = np.asarray(out["degraded_mode"], dtype=float) if out.n else np.zeros(0)
     values, counts = np.unique(modes[np.isfinite(modes)].astype(int), return_counts=True)
-    missing = {c: int(np.sum(np.asarray(out[c]) == 0)) for c in ("speed_valid", "torque_valid", "gear_valid",
-                                                                 "oil_valid") if out.has(c)}
+    missing = {
+        c: int(np.sum(np.asarray(out[c]) == 0))
+        for c in ("speed_valid", "torque_valid", "gear_valid", "oil_valid")
+        if out.has(c)
+    }
     finding = degraded_finding(dict(zip(values.tolist(), counts.tolist())), missing, oil_model)
     jumps = int(out["rejects_time_jump"][-1]) if out.n and out.has("rejects_time_jump") else 0
-    units = unit_findings(out.n, jumps, out["time_s"] if out.n else [],
-                          out["engine_speed_rpm"] if out.has("engine_speed_rpm") else [],
-                          out["engine_torque_nm"] if out.has("engine_torque_nm") else [],
-                          hold_s=SensorOptions().time_jump_hold_s)
+    units = unit_findings(
+        out.n,
+        jumps,
+        out["time_s"] if out.n else [],
+        out["engine_speed_rpm"] if out.has("engine_speed_rpm") else [],
+        out["engine_torque_nm"] if out.has("engine_torque_nm") else [],
+        hold_s=SensorOptions().time_jump_hold_s,
+    )
     units += table_record_findings(out, (out.meta or {}).get("min_torque_nm"))
     return units + ([finding] if finding.severity >= Severity.WARNING else [])
 
@@ -265,9 +314,15 @@ def summarize(out) -> ReplaySummary:
     """The figures the command line prints after a table replay."""
     n = out.n
     hottest = max(PUBLISHED, key=lambda c: np.nanmax(out[f"T_{c}_c"]))
-    rejects = {k[len("rejects_"):]: int(out[k][-1]) for k in out.columns
-               if k.startswith("rejects_") and n and out[k][-1] > 0}
-    return ReplaySummary(span_s=out["time_s"][-1] - out["time_s"][0] + STEP_S if n else 0.0, steps=n,
-                         hottest=hottest, hottest_c=float(np.nanmax(out[f"T_{hottest}_c"])),
-                         max_level=max(int(np.nanmax(out[f"W_{c}"])) for c in PUBLISHED),
-                         degraded_share=float(np.mean(out["degraded"])) if n else 0.0, rejects=rejects)
+    rejects = {
+        k[len("rejects_") :]: int(out[k][-1]) for k in out.columns if k.startswith("rejects_") and n and out[k][-1] > 0
+    }
+    return ReplaySummary(
+        span_s=out["time_s"][-1] - out["time_s"][0] + STEP_S if n else 0.0,
+        steps=n,
+        hottest=hottest,
+        hottest_c=float(np.nanmax(out[f"T_{hottest}_c"])),
+        max_level=max(int(np.nanmax(out[f"W_{c}"])) for c in PUBLISHED),
+        degraded_share=float(np.mean(out["degraded"])) if n else 0.0,
+        rejects=rejects,
+    )

@@ -26,6 +26,7 @@ Inside the script:
 
 Standard library only.  CLI: ``python -m tools.vcan_vm.harness check|install|run``.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -69,9 +70,20 @@ INSTALL_HINT = "run `python -m tools.vcan_vm install` (apt-get, needs root)"
 
 #: Modules loaded by the initramfs, in order.  Missing ones (built in) are skipped.
 MODULES = (
-    "virtio_ring", "virtio", "virtio_pci_modern_dev", "virtio_pci_legacy_dev", "virtio_pci",
-    "netfs", "fscache", "9pnet", "9pnet_virtio", "9p",
-    "can", "can-raw", "can-dev", "vcan",
+    "virtio_ring",
+    "virtio",
+    "virtio_pci_modern_dev",
+    "virtio_pci_legacy_dev",
+    "virtio_pci",
+    "netfs",
+    "fscache",
+    "9pnet",
+    "9pnet_virtio",
+    "9p",
+    "can",
+    "can-raw",
+    "can-dev",
+    "vcan",
     "overlay",  # optional: keeps the host's /tmp visible under the VM's writable /tmp
     "sch_tbf",  # optional: a token-bucket qdisc on vcan0 makes its transmit queue overflow (ENOBUFS) in a test
 )
@@ -127,9 +139,9 @@ class VMBootHang(VMTimeout):
 
 @dataclasses.dataclass(frozen=True)
 class Assets:
-    kernel: Path             # /boot/vmlinuz-<version>
+    kernel: Path  # /boot/vmlinuz-<version>
     kernel_version: str
-    initramfs: Path          # cached cpio.gz
+    initramfs: Path  # cached cpio.gz
     qemu: Path
     modules: tuple[str, ...]  # modules packed into the initramfs, in load order
 
@@ -137,12 +149,12 @@ class Assets:
 @dataclasses.dataclass
 class VMResult:
     returncode: int
-    output: str              # full serial console output (kernel + init + script), \r stripped
+    output: str  # full serial console output (kernel + init + script), \r stripped
     share_dir: Path
-    boot_s: float | None = None   # QEMU start -> script start, host wall clock
+    boot_s: float | None = None  # QEMU start -> script start, host wall clock
     total_s: float | None = None  # QEMU start -> QEMU exit
-    boot_attempts: int = 1        # 2 or more: the first boot(s) hung before the init and were retried
-    smp: int = 2                  # the CPUs of the boot that ran the script (1 when the last retry ran it)
+    boot_attempts: int = 1  # 2 or more: the first boot(s) hung before the init and were retried
+    smp: int = 2  # the CPUs of the boot that ran the script (1 when the last retry ran it)
 
     @property
     def script_output(self) -> str:
@@ -156,6 +168,7 @@ class VMResult:
 
 
 # --------------------------------------------------------------------------- prerequisites
+
 
 def _version_key(version: str) -> list:
     return [(0, int(p), "") if p.isdigit() else (1, 0, p) for p in re.split(r"[.\-+~]", version)]
@@ -199,7 +212,7 @@ def _find_kernel() -> tuple[Path, str] | None:
     """Newest /boot/vmlinuz-* whose /lib/modules has vcan (module or built in)."""
     found = []
     for kernel in Path("/boot").glob("vmlinuz-*"):
-        kver = kernel.name[len("vmlinuz-"):]
+        kver = kernel.name[len("vmlinuz-") :]
         if _module_file(kver, "vcan") or _module_builtin(kver, "vcan"):
             found.append((kernel, kver))
     if not found:
@@ -215,14 +228,14 @@ def _is_static_elf(path: Path) -> bool:
             if len(ident) < 64 or ident[:4] != b"\x7fELF" or ident[4] != 2:
                 return False
             end = "<" if ident[5] == 1 else ">"
-            phoff, = struct.unpack(end + "Q", ident[32:40])
+            (phoff,) = struct.unpack(end + "Q", ident[32:40])
             phentsize, phnum = struct.unpack(end + "HH", ident[54:58])
             fh.seek(phoff)
             table = fh.read(phentsize * phnum)
     except OSError:
         return False
     for i in range(phnum):
-        p_type, = struct.unpack(end + "I", table[i * phentsize:i * phentsize + 4])
+        (p_type,) = struct.unpack(end + "I", table[i * phentsize : i * phentsize + 4])
         if p_type == 3:  # PT_INTERP
             return False
     return True
@@ -285,11 +298,20 @@ def _apt(args: list[str]) -> subprocess.CompletedProcess:
     cmd = ["apt-get", *args]
     if os.geteuid() != 0:
         if not shutil.which("sudo"):
-            raise VMUnavailable(f"installing needs root: run `sudo {shlex.join([sys.executable, '-m', 'tools.vcan_vm', 'install'])}`")
+            raise VMUnavailable(
+                f"installing needs root: run `sudo {shlex.join([sys.executable, '-m', 'tools.vcan_vm', 'install'])}`"
+            )
         cmd = ["sudo", "-n", "env", "DEBIAN_FRONTEND=noninteractive", "INITRD=No", *cmd]
     try:
-        return subprocess.run(cmd, env=env, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
-                              stderr=subprocess.STDOUT, text=True, timeout=APT_TIMEOUT_S)
+        return subprocess.run(
+            cmd,
+            env=env,
+            stdin=subprocess.DEVNULL,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.STDOUT,
+            text=True,
+            timeout=APT_TIMEOUT_S,
+        )
     except subprocess.TimeoutExpired as exc:
         raise VMUnavailable(f"`{' '.join(cmd)}` did not finish within {APT_TIMEOUT_S} s") from exc
     except FileNotFoundError as exc:
@@ -302,7 +324,9 @@ def _install_packages(log: TextIO | None) -> None:
         raise VMUnavailable("apt-get not found: install " + " ".join(APT_PACKAGES) + " by hand")
     free = shutil.disk_usage("/").free
     if free < MIN_FREE_BYTES_INSTALL:
-        raise VMUnavailable(f"only {free / 1e9:.1f} GB free on /; installing {' '.join(APT_PACKAGES)} needs about 1.5 GB")
+        raise VMUnavailable(
+            f"only {free / 1e9:.1f} GB free on /; installing {' '.join(APT_PACKAGES)} needs about 1.5 GB"
+        )
     if not _apt_updated:
         if log:
             print("vcan_vm: apt-get update", file=log, flush=True)
@@ -319,12 +343,16 @@ def _install_packages(log: TextIO | None) -> None:
         # harness needs is /boot/vmlinuz-* and /lib/modules, so judge by what is on disk.
         still = vm_prerequisites()
         if still:
-            raise VMUnavailable("apt-get install failed and left missing: " + "; ".join(still) +
-                                "\n" + res.stdout[-2000:])
+            raise VMUnavailable(
+                "apt-get install failed and left missing: " + "; ".join(still) + "\n" + res.stdout[-2000:]
+            )
         if log:
-            print("vcan_vm: apt-get install exited with status "
-                  f"{res.returncode} (post-install hooks); the files needed are present, continuing",
-                  file=log, flush=True)
+            print(
+                "vcan_vm: apt-get install exited with status "
+                f"{res.returncode} (post-install hooks); the files needed are present, continuing",
+                file=log,
+                flush=True,
+            )
 
 
 def _cache_root() -> Path:
@@ -350,9 +378,13 @@ def ensure_vm_assets(install: bool = False, log: TextIO | None = None) -> Assets
     modules = [(name, _module_file(kver, name)) for name in MODULES]
     modules = [(name, path) for name, path in modules if path is not None]
     initramfs = _ensure_initramfs(kver, busybox, modules, log)
-    return Assets(kernel=kernel, kernel_version=kver, initramfs=initramfs,
-                  qemu=Path(shutil.which(QEMU)),  # type: ignore[arg-type]
-                  modules=tuple(name for name, _ in modules))
+    return Assets(
+        kernel=kernel,
+        kernel_version=kver,
+        initramfs=initramfs,
+        qemu=Path(shutil.which(QEMU)),  # type: ignore[arg-type]
+        modules=tuple(name for name, _ in modules),
+    )
 
 
 # --------------------------------------------------------------------------- initramfs
@@ -429,8 +461,12 @@ sleep 5
 
 
 def _init_script() -> str:
-    return (_INIT.replace("@INIT_FAIL@", SENTINEL_INIT_FAIL).replace("@EXIT@", SENTINEL_EXIT)
-            .replace("@BEGIN@", SENTINEL_BEGIN).replace("@TIMEOUT@", SENTINEL_TIMEOUT))
+    return (
+        _INIT.replace("@INIT_FAIL@", SENTINEL_INIT_FAIL)
+        .replace("@EXIT@", SENTINEL_EXIT)
+        .replace("@BEGIN@", SENTINEL_BEGIN)
+        .replace("@TIMEOUT@", SENTINEL_TIMEOUT)
+    )
 
 
 def _read_module(path: Path) -> bytes:
@@ -498,8 +534,9 @@ def _ensure_initramfs(kver: str, busybox: Path, modules: list[tuple[str, Path]],
     if target.is_file():
         return target
     t0 = time.monotonic()
-    applets = subprocess.run([str(busybox), "--list"], check=True, stdout=subprocess.PIPE, text=True,
-                             timeout=30).stdout.split()
+    applets = subprocess.run(
+        [str(busybox), "--list"], check=True, stdout=subprocess.PIPE, text=True, timeout=30
+    ).stdout.split()
     cpio = _Cpio()
     for d in ("bin", "dev", "proc", "sys", "lib", "lib/modules", "newroot", "ctl", "tmp", "vmtmp"):
         cpio.dir(d)
@@ -526,8 +563,9 @@ def _ensure_initramfs(kver: str, busybox: Path, modules: list[tuple[str, Path]],
         except OSError:
             pass
     if log:
-        print(f"vcan_vm: built {target} ({len(data) / 1e6:.1f} MB) in {time.monotonic() - t0:.1f} s",
-              file=log, flush=True)
+        print(
+            f"vcan_vm: built {target} ({len(data) / 1e6:.1f} MB) in {time.monotonic() - t0:.1f} s", file=log, flush=True
+        )
     return target
 
 
@@ -589,25 +627,50 @@ def _qemu_cmd(assets: Assets, ctl: Path, share: Path, memory_mb: int, smp: int) 
 
     return [
         str(assets.qemu),
-        "-accel", "tcg",  # KVM is present on these machines but hangs: never use it
-        "-cpu", "max",   # host Python and numpy wheels need more than the qemu64 baseline
-        "-m", str(memory_mb), "-smp", str(smp),
-        "-nodefaults", "-no-user-config", "-nographic", "-no-reboot",
-        "-serial", "stdio", "-monitor", "none",
-        "-kernel", str(assets.kernel), "-initrd", str(assets.initramfs),
+        "-accel",
+        "tcg",  # KVM is present on these machines but hangs: never use it
+        "-cpu",
+        "max",  # host Python and numpy wheels need more than the qemu64 baseline
+        "-m",
+        str(memory_mb),
+        "-smp",
+        str(smp),
+        "-nodefaults",
+        "-no-user-config",
+        "-nographic",
+        "-no-reboot",
+        "-serial",
+        "stdio",
+        "-monitor",
+        "none",
+        "-kernel",
+        str(assets.kernel),
+        "-initrd",
+        str(assets.initramfs),
         # the kernel's boot log, info included, goes to the console (loglevel 7, after quiet: it wins; a hang shows
         # where), and the init lowers the console level to 3 (critical and worse, as before the watchdog)
-        "-append", "console=ttyS0 quiet loglevel=7 panic=-1 mitigations=off random.trust_cpu=on",
+        "-append",
+        "console=ttyS0 quiet loglevel=7 panic=-1 mitigations=off random.trust_cpu=on",
         *virtfs(Path("/"), "hostroot", True),
         *virtfs(ctl, "ctl", False),
         *virtfs(share, "share", False),
     ]
 
 
-def run_in_vm(script: str, timeout_s: float = 300, share_dir: Path | None = None, *,
-              env: dict[str, str] | None = None, assets: Assets | None = None,
-              memory_mb: int = 1024, smp: int = 2, stream: TextIO | None = None, init: str = "sh",
-              boot_timeout_s: float = 120, boot_attempts: int = 3) -> VMResult:
+def run_in_vm(
+    script: str,
+    timeout_s: float = 300,
+    share_dir: Path | None = None,
+    *,
+    env: dict[str, str] | None = None,
+    assets: Assets | None = None,
+    memory_mb: int = 1024,
+    smp: int = 2,
+    stream: TextIO | None = None,
+    init: str = "sh",
+    boot_timeout_s: float = 120,
+    boot_attempts: int = 3,
+) -> VMResult:
     """Boot the VM, run ``script`` with ``/bin/sh`` inside the chroot of the host root, power off.
 
     ``init="systemd"`` boots the host's systemd as PID 1 in the host root instead, and runs the script as a
@@ -648,36 +711,52 @@ def run_in_vm(script: str, timeout_s: float = 300, share_dir: Path | None = None
             raise ValueError(f"init must be 'sh' or 'systemd', not {init!r}")
         if init == "systemd" and not Path("/lib/systemd/systemd").is_file():
             raise VMUnavailable("init='systemd' needs systemd on the host (apt install systemd udev)")
-        (ctl / "vcan-vm.service").write_text(_SYSTEMD_UNIT.format(
-            timeout=inner_timeout, sentinel_begin=SENTINEL_BEGIN, sentinel_timeout=SENTINEL_TIMEOUT,
-            sentinel_exit=SENTINEL_EXIT))
-        (ctl / "params").write_text(f"VM_SHARE={shlex.quote(str(share))}\nVM_TIMEOUT={inner_timeout}\n"
-                                    f"VM_ROOT_9P_OPTS={shlex.quote(_root_9p_opts())}\nVM_INIT={init}\n")
+        (ctl / "vcan-vm.service").write_text(
+            _SYSTEMD_UNIT.format(
+                timeout=inner_timeout,
+                sentinel_begin=SENTINEL_BEGIN,
+                sentinel_timeout=SENTINEL_TIMEOUT,
+                sentinel_exit=SENTINEL_EXIT,
+            )
+        )
+        (ctl / "params").write_text(
+            f"VM_SHARE={shlex.quote(str(share))}\nVM_TIMEOUT={inner_timeout}\n"
+            f"VM_ROOT_9P_OPTS={shlex.quote(_root_9p_opts())}\nVM_INIT={init}\n"
+        )
         output, boot_s, total_s, attempt, cpus = _boot_with_retries(
-            lambda cpus: _qemu_cmd(assets, ctl, share, memory_mb, cpus), smp, timeout_s, boot_timeout_s,
-            boot_attempts, stream)
+            lambda cpus: _qemu_cmd(assets, ctl, share, memory_mb, cpus),
+            smp,
+            timeout_s,
+            boot_timeout_s,
+            boot_attempts,
+            stream,
+        )
         exit_file = ctl / "exit_code"
         exit_text = exit_file.read_text().strip() if exit_file.is_file() else ""
     m = re.search(rf"^{re.escape(SENTINEL_EXIT)}(\d+)\s*$", output, re.M)
     if SENTINEL_TIMEOUT in output:
-        raise VMTimeout(f"script did not finish within {inner_timeout} s inside the VM (run timeout "
-                        f"{timeout_s:g} s); console tail:\n{output[-3000:]}", output)
+        raise VMTimeout(
+            f"script did not finish within {inner_timeout} s inside the VM (run timeout "
+            f"{timeout_s:g} s); console tail:\n{output[-3000:]}",
+            output,
+        )
     if SENTINEL_INIT_FAIL in output:
-        line = output[output.find(SENTINEL_INIT_FAIL):].splitlines()[0]
+        line = output[output.find(SENTINEL_INIT_FAIL) :].splitlines()[0]
         raise VMError(f"VM init failed: {line}; console tail:\n{output[-3000:]}", output)
     if exit_text.isdigit():
         rc = int(exit_text)
     elif m:
         rc = int(m.group(1))
     else:
-        raise VMError(f"VM exited without reporting the script's exit status; console tail:\n{output[-3000:]}",
-                      output)
-    return VMResult(returncode=rc, output=output, share_dir=share, boot_s=boot_s, total_s=total_s,
-                    boot_attempts=attempt, smp=cpus)
+        raise VMError(f"VM exited without reporting the script's exit status; console tail:\n{output[-3000:]}", output)
+    return VMResult(
+        returncode=rc, output=output, share_dir=share, boot_s=boot_s, total_s=total_s, boot_attempts=attempt, smp=cpus
+    )
 
 
-def _boot_with_retries(make_cmd, smp: int, timeout_s: float, boot_timeout_s: float, attempts: int,
-                       stream: TextIO | None) -> tuple[str, float | None, float, int, int]:
+def _boot_with_retries(
+    make_cmd, smp: int, timeout_s: float, boot_timeout_s: float, attempts: int, stream: TextIO | None
+) -> tuple[str, float | None, float, int, int]:
     """Run QEMU; retry a boot that hung before the init (the last retry with one CPU). Returns the console, the boot
     and run times, the boots made and the CPUs of the last."""
     attempts = max(1, int(attempts))
@@ -688,23 +767,30 @@ def _boot_with_retries(make_cmd, smp: int, timeout_s: float, boot_timeout_s: flo
             return output, boot_s, total_s, attempt, cpus
         except VMBootHang as exc:
             if attempt == attempts:
-                raise VMBootHang(f"boot {attempt} of {attempts} ({cpus} CPU{'s' if cpus > 1 else ''}): {exc}",
-                                 exc.output) from None
+                raise VMBootHang(
+                    f"boot {attempt} of {attempts} ({cpus} CPU{'s' if cpus > 1 else ''}): {exc}", exc.output
+                ) from None
             last = exc.output.strip().splitlines()[-1:] or ["(no console output)"]
-            print(f"vcan VM: boot {attempt} of {attempts} hung before the init ({boot_timeout_s:g} s; last console "
-                  f"line: {last[0][:200]}); QEMU killed, booting again"
-                  + (" with one CPU" if attempt + 1 == attempts and smp != 1 else ""), file=sys.stderr, flush=True)
+            print(
+                f"vcan VM: boot {attempt} of {attempts} hung before the init ({boot_timeout_s:g} s; last console "
+                f"line: {last[0][:200]}); QEMU killed, booting again"
+                + (" with one CPU" if attempt + 1 == attempts and smp != 1 else ""),
+                file=sys.stderr,
+                flush=True,
+            )
     raise AssertionError("unreachable")
 
 
-def _run_qemu(cmd: list[str], timeout_s: float, stream: TextIO | None,
-              boot_timeout_s: float | None = None) -> tuple[str, float | None, float]:
+def _run_qemu(
+    cmd: list[str], timeout_s: float, stream: TextIO | None, boot_timeout_s: float | None = None
+) -> tuple[str, float | None, float]:
     t0 = time.monotonic()
     deadline = t0 + timeout_s
     boot_deadline = t0 + boot_timeout_s if boot_timeout_s else None
     init_marker = INIT_MARKER.encode()
-    proc = subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
-                            start_new_session=True)
+    proc = subprocess.Popen(
+        cmd, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, start_new_session=True
+    )
     buf = bytearray()
     boot_s = None
     marker = SENTINEL_BEGIN.encode()
@@ -721,8 +807,11 @@ def _run_qemu(cmd: list[str], timeout_s: float, stream: TextIO | None,
             if boot_deadline is not None and time.monotonic() >= boot_deadline and not sel.select(0):
                 _kill(proc)
                 text = _clean(buf)
-                raise VMBootHang(f"the VM's kernel did not start the init within {boot_timeout_s:g} s; QEMU killed; "
-                                 f"console tail:\n{text[-3000:]}", text)
+                raise VMBootHang(
+                    f"the VM's kernel did not start the init within {boot_timeout_s:g} s; QEMU killed; "
+                    f"console tail:\n{text[-3000:]}",
+                    text,
+                )
             if remaining <= 0:
                 _kill(proc)
                 text = _clean(buf)
@@ -734,7 +823,7 @@ def _run_qemu(cmd: list[str], timeout_s: float, stream: TextIO | None,
             if not chunk:
                 break
             if boot_s is None:
-                if marker in buf[-len(marker):] + chunk:
+                if marker in buf[-len(marker) :] + chunk:
                     boot_s = time.monotonic() - t0
             buf += chunk
             if stream is not None:
@@ -812,11 +901,14 @@ def _cmd_check(args: argparse.Namespace) -> int:
         return 2
     t0 = time.monotonic()
     assets = ensure_vm_assets(log=sys.stdout)
-    print(f"kernel {assets.kernel} ({assets.kernel_version}); initramfs {assets.initramfs}; "
-          f"modules {', '.join(assets.modules)} (assets ready in {time.monotonic() - t0:.2f} s)")
+    print(
+        f"kernel {assets.kernel} ({assets.kernel_version}); initramfs {assets.initramfs}; "
+        f"modules {', '.join(assets.modules)} (assets ready in {time.monotonic() - t0:.2f} s)"
+    )
     try:
-        res = run_in_vm(_CHECK_SCRIPT, timeout_s=args.timeout, assets=assets,
-                        stream=sys.stdout if args.verbose else None)
+        res = run_in_vm(
+            _CHECK_SCRIPT, timeout_s=args.timeout, assets=assets, stream=sys.stdout if args.verbose else None
+        )
     except (VMError, VMUnavailable) as exc:
         print(f"vcan_vm check FAILED: {exc}", file=sys.stderr)
         return 1
@@ -824,8 +916,10 @@ def _cmd_check(args: argparse.Namespace) -> int:
         print(res.script_output.rstrip())
     shutil.rmtree(res.share_dir, ignore_errors=True)
     boot = f"{res.boot_s:.2f}" if res.boot_s is not None else "?"
-    print(f"timings: boot to script start {boot} s ({res.boot_attempts} boot(s)), whole run {res.total_s:.2f} s; "
-          f"script exit status {res.returncode}")
+    print(
+        f"timings: boot to script start {boot} s ({res.boot_attempts} boot(s)), whole run {res.total_s:.2f} s; "
+        f"script exit status {res.returncode}"
+    )
     return 0 if res.returncode == 0 else 1
 
 
@@ -843,8 +937,9 @@ def _cmd_run(args: argparse.Namespace) -> int:
     script = args.command if args.command is not None else sys.stdin.read()
     share = Path(args.share) if args.share else None
     try:
-        res = run_in_vm(script, timeout_s=args.timeout, share_dir=share, stream=sys.stdout if args.verbose else None,
-                        init=args.init)
+        res = run_in_vm(
+            script, timeout_s=args.timeout, share_dir=share, stream=sys.stdout if args.verbose else None, init=args.init
+        )
     except VMUnavailable as exc:
         print(f"vcan_vm: {exc.reason}", file=sys.stderr)
         return 2
@@ -859,8 +954,9 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m tools.vcan_vm",
-                                     description="QEMU VM with a real Linux vcan0 for integration tests.")
+    parser = argparse.ArgumentParser(
+        prog="python -m tools.vcan_vm", description="QEMU VM with a real Linux vcan0 for integration tests."
+    )
     sub = parser.add_subparsers(dest="cmd", required=True)
     p = sub.add_parser("check", help="list prerequisites, boot, show vcan0, python-can round trip, timings")
     p.add_argument("--timeout", type=float, default=120)
@@ -872,9 +968,13 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("-c", dest="command", help="script text (default: read stdin)")
     p.add_argument("--share", help="host directory shared writable as $VM_SHARE (default: temp, removed)")
     p.add_argument("--timeout", type=float, default=300)
-    p.add_argument("--init", choices=("sh", "systemd"), default="sh",
-                   help="sh: the script in a chroot of the host root (default); systemd: the host's systemd as PID 1, "
-                        "the script as a oneshot service (systemctl and journalctl work; docs/vcan-vm.md)")
+    p.add_argument(
+        "--init",
+        choices=("sh", "systemd"),
+        default="sh",
+        help="sh: the script in a chroot of the host root (default); systemd: the host's systemd as PID 1, "
+        "the script as a oneshot service (systemctl and journalctl work; docs/vcan-vm.md)",
+    )
     p.add_argument("-v", "--verbose", action="store_true", help="stream the whole console")
     p.set_defaults(func=_cmd_run)
     args = parser.parse_args(argv)
