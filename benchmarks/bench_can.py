@@ -295,7 +295,8 @@ def bench_live(sensor, seconds: float, load_fps: float, rt_priority: int | None 
         f"{res['r'].send_errors} send errors"
     )
     print(
-        f"latency seen by a monitor (trigger frame sent -> last frame of its step received): median {np.median(lat):.2f} ms, "
+        "latency seen by a monitor (trigger frame sent -> last frame of its step received): median "
+        f"{np.median(lat):.2f} ms, "
         f"p99 {np.percentile(lat, 99):.2f} ms, max {lat.max():.2f} ms"
     )
     if cpu_line:

@@ -14,7 +14,8 @@
     (VirtualSensor.step_tables: one kernel call per 3 h table, on 1 and on all CPU threads), measured on 8 vehicles
     x 3 h and extrapolated to 1000.
 (d) cycles: the named drive cycles (long haul, uphill, mining at 10 Hz) through step_table, one vehicle from 40 degC,
-    best of 3, the oil absent (the sensor's own sump), with the time to limit every 1 s and without it; per step and extrapolated to 1000 vehicles x 3 h on
+    best of 3, the oil absent (the sensor's own sump), with the time to limit every 1 s and without it; per step and
+    extrapolated to 1000 vehicles x 3 h on
     all CPU threads (the benchmark's drive in (a) and (c) is harder than any of them: full torque most of the time).
 Timings are wall clock on a machine that may be shared (2 cores); OpenBLAS is limited to one thread.
 """

@@ -54,7 +54,7 @@ def rig(params: Parameters) -> Parameters:
     return Parameters(params.variant, dict(params.values), dict(params.sources), dict(params.units), s, params.origin)
 
 
-def plant_run(params, name, keep_bc=False, cache={}):
+def plant_run(params, name, keep_bc=False, cache={}):  # noqa: B006 (the dict is the run's memo)
     """The cycle and the reference plant's result (cached)."""
     key = (name, keep_bc)
     if key not in cache:
@@ -71,7 +71,7 @@ def plant_run(params, name, keep_bc=False, cache={}):
     return cache[key]
 
 
-def plant_and_sensor(params, name, keep_bc=False, partition="fine", cache={}):
+def plant_and_sensor(params, name, keep_bc=False, partition="fine", cache={}):  # noqa: B006 (memo)
     """(cycle, plant table, sensor output, plant CPU s, sensor CPU s, sensor): the sensor gets the cycle's inputs
     and the plant's oil temperature as the measured one."""
     key = (name, keep_bc, partition if isinstance(partition, str) else repr(sorted(partition.items())))

@@ -1,4 +1,5 @@
-"""The mistakes a new user makes with an honest drive, each replayed, and what the tool answers (docs/can.md, "Trust findings").
+"""The mistakes a new user makes with an honest drive, each replayed, and what the tool answers (docs/can.md, "Trust
+findings").
 
 Makes fresh copies of the bundled drive (the demo's synthetic uphill drive, 2 h), of its first 12 and 30 minutes,
 of its CAN log and of a real truck capture (when found: ``--captures DIR`` or ``$GVS_REAL_J1939``), spoils each

@@ -363,7 +363,8 @@ def main(argv=None):
         "## 8. Speed",
         "",
         f"3 h mining cycle with noisy 100 Hz inputs ({tab.n} samples): **{wall:.1f} s** on this 2-core machine "
-        f"(target < 30 s; the thesis's commercial tool took 1.5 h). Energy closure {r.energy_balance()['closure_rel']:.1e}. "
+        "(target < 30 s; the thesis's commercial tool took 1.5 h). Energy closure "
+        f"{r.energy_balance()['closure_rel']:.1e}. "
         "Measured by `python benchmarks/bench_plant.py`.",
         "",
     ]
@@ -443,7 +444,8 @@ def _cooler_flow_section(p) -> list:
         "coolant. `calibrate` can fit `oil_system.flow_m3_per_rad` and `cooler.liquid_hA_ref` to rig data, "
         f"but within their declared ranges (flow up to {flow_hi:.0f} times, hA down to {hA_lo:.0f} W/K) "
         "neither alone reaches an effectiveness of 1 (widening them changes the calibration bench's scenarios, "
-        "which perturb every bounded value; not done yet). How much the two parameter fixes move the plant (the sump, and the "
+        "which perturb every bounded value; not done yet). How much the two parameter fixes move the plant "
+        "(the sump, and the "
         "component whose peak moves most), each to an effectiveness of at most 1:",
         "",
         "| cycle | fix | sump, largest change | component peak that moves most |",

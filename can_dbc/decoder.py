@@ -233,7 +233,7 @@ def signal_messages() -> dict[str, str]:
 def _carries_data(params: tuple[Param, ...], data: bytearray) -> bool:
     """True when at least one parameter of an 8-byte frame is a value the decoder would use (J1939 data, within the
     limits); a frame of 0xFF bytes (every value "not available") carries none."""
-    for name, b0, nbytes, scale, offset, integer, low, high, data_max, derived in params:
+    for _name, b0, nbytes, scale, offset, _integer, low, high, data_max, _derived in params:
         raw = data[b0] if nbytes == 1 else data[b0] | (data[b0 + 1] << 8)
         if raw <= data_max and low <= raw * scale + offset <= high:
             return True

@@ -9,7 +9,8 @@
 - Value ranges (J1939-71): 8-bit data 0..0xFA, 16-bit data 0..0xFAFF, then indicator/reserved, error (0xFE, 0xFExx)
   and not available (0xFF, 0xFFxx): :func:`raw_reason`.
 - Transport protocol (J1939-21 TP.BAM), EC1 (J1939-71 PGN 65251) and RC (PGN 65249), reassembled from it: the
-  constants the decoder and the log synthesis share. The TP.CM and TP.DT PGNs themselves are read from the DBC (``can_dbc.dbc``).
+  constants the decoder and the log synthesis share. The TP.CM and TP.DT PGNs themselves are read from the DBC
+  (``can_dbc.dbc``).
 """
 
 from __future__ import annotations

@@ -2,7 +2,8 @@
 
 Each effect is a physically parameterised term with one bounded parameter. All are off by default; a model switches
 one on with its parameter (`retarder_heat:fraction=0.05`). The reference plant implements every effect; the onboard
-model implements those that change its network (see firmware_model.onboard.reduce), which is what the gap diagnosis fits.
+model implements those that change its network (see firmware_model.onboard.reduce), which is what the gap diagnosis
+fits.
 Both read the values through :class:`EffectScales` (:func:`effect_scales` from an ``{effect id: value}`` dict).
 """
 
@@ -62,7 +63,8 @@ CATALOG = _Catalog(
                 0.0,
                 0.1,
                 0.0,
-                "part of the retarder's braking power (retarder torque x output shaft speed) reaching the oil (80 %) and "
+                "part of the retarder's braking power (retarder torque x output shaft speed) reaching the oil "
+                "(80 %) and "
                 "the rear bearing housing H3 (20 %)",
             ),
             Effect(
@@ -167,7 +169,8 @@ CATALOG = _Catalog(
                 -5.0,
                 5.0,
                 0.0,
-                "the oil sensor reads a constant offset from the sump (calibration, or placed in a warmer or colder spot)",
+                "the oil sensor reads a constant offset from the sump (calibration, or placed in a warmer "
+                "or colder spot)",
             ),
             Effect(
                 "oil_sensor_gain",
@@ -325,7 +328,8 @@ class EffectScales:
     Losses (heat of each family): gear contacts, planetary meshes, churning, bearings (shaft and needle). Heat
     transfer: splash h of the idle-wheel teeth, oil-system h in the planetary, external housing h. Cooler: its hA
     and its thermostat. Boundaries: the hot surroundings. Sources: retarder heat (fraction of its braking power),
-    synchronizer heat per shift. The oil sensor's lag, offset and gain, and the sump volume. ``src_scale`` is the onboard model's
+    synchronizer heat per shift. The oil sensor's lag, offset and gain, and the sump volume. ``src_scale`` is the
+    onboard model's
     multiplier per loss-source column (firmware_model.onboard.reduce.make_effects fills it; None elsewhere).
     """
 

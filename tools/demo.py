@@ -222,7 +222,7 @@ def _status_line(t_s: float, d: dict, warn: dict, limits) -> str:
             f"(degraded: {DEGRADED_LABEL.get(st.get('degraded_mode'))})"
         )
     line = f"  t={t_s:6.0f} s  oil {temps.get('oil', float('nan')):5.1f} C | closest to their limits: " + ", ".join(
-        f"{c} {v:5.1f} C ({'%.1f K below' % m if m > 0 else '%.1f K OVER' % -m} {limits.of(c)[0]:.0f})"
+        f"{c} {v:5.1f} C ({f'{m:.1f} K below' if m > 0 else f'{-m:.1f} K OVER'} {limits.of(c)[0]:.0f})"
         for m, c, v in margins
     )
     if margins:

@@ -26,7 +26,7 @@ ROOT = Path(__file__).resolve().parents[2]
 OUT = ROOT / "docs" / "img" / "gearbox_codes.png"
 sys.path.insert(0, str(ROOT))
 
-from firmware_model.components import (
+from firmware_model.components import (  # noqa: E402 (after the sys.path line above)
     HOUSINGS,
     IDLE_WHEELS,
     LAYSHAFT_WHEELS,
@@ -141,10 +141,10 @@ def draw_shafts(ax):
         "LS": (9.5, Y_LS, 78.0, 2.6),
         "OS": (87.0, Y_UP, 109.0, 3.0),
     }
-    for name, (x0, y, x1, th) in spans.items():
+    for _name, (x0, y, x1, th) in spans.items():
         ax.add_patch(Rectangle((x0, y - th / 2), x1 - x0, th, fc=C_SHAFT, ec="#444444", lw=0.8, zorder=5))
     # segment boundaries as ticks on the shafts (the model's shaft discretisation)
-    for shaft, (x0, y, x1, th) in spans.items():
+    for shaft, (_x0, y, _x1, th) in spans.items():
         for b in segment_bounds(shaft)[1:-1]:
             ax.plot([b, b], [y - th / 2 - 0.4, y + th / 2 + 0.4], color="#333333", lw=0.9, zorder=6)
     text(ax, 3.5, Y_UP + 3.2, "IS", size=11.5, box=False)

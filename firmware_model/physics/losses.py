@@ -146,6 +146,32 @@ def _check_mesh_inputs(z1: int, z2: int, m_n: float, a_n: float, beta: float, a:
         raise ParameterError(f"internal mesh ring z2 = {z2} must exceed planet z1 = {z1} [-]")
 
 
+def _path_of_contact(R_b1, R_b2, R_a1, R_a2, base_span, a, sign):
+    """Working pressure angle, working radii and the lengths of approach and recession (Eq 12-13, 17) of a mesh
+    whose wheels have base radii ``R_b*`` and tip radii ``R_a*``; ``sign`` is -1 for an internal mesh."""
+    alpha_tw = math.acos(base_span / a)  # Eq 17
+    R_w1 = R_b1 / math.cos(alpha_tw)
+    R_w2 = R_b2 / math.cos(alpha_tw)
+    sin_tw = math.sin(alpha_tw)
+    # Eq 12-13 reconstructed with their square roots (see module docstring for which tip limits which)
+    g_a = math.sqrt(R_a1**2 - R_b1**2) - R_w1 * sin_tw
+    g_f = sign * (math.sqrt(R_a2**2 - R_b2**2) - R_w2 * sin_tw)
+    if g_f <= 0.0 or g_a <= 0.0:
+        raise ParameterError(
+            f"mesh lengths of approach {g_f:.6g} m and recession {g_a:.6g} m must both be > 0 "
+            "(tips do not reach the line of action)"
+        )
+    # curvature radii at the ends of contact must stay positive (no involute interference)
+    rho1_start = R_w1 * sin_tw - g_f
+    rho2_end = R_w2 * sin_tw - sign * g_a
+    if rho1_start <= 0.0 or rho2_end <= 0.0:
+        raise ParameterError(
+            "mesh path of contact runs past a base-circle tangent point (involute interference); "
+            "check z, x and the centre distance"
+        )
+    return alpha_tw, R_w1, R_w2, g_f, g_a
+
+
 def mesh_geometry(
     z1, z2, m_n_m, alpha_n_rad, beta_rad, center_distance_m, face_width_m, internal=False, x1=0.0, x2=0.0
 ) -> GearMesh:
@@ -194,59 +220,13 @@ def mesh_geometry(
         )
     if R_a2 <= R_b2 or R_a1 <= R_b1:
         raise ParameterError("mesh tip radius must lie outside the base circle on both wheels")
-    alpha_tw = math.acos(base_span / a)  # Eq 17
-    R_w1 = R_b1 / math.cos(alpha_tw)
-    R_w2 = R_b2 / math.cos(alpha_tw)
-    sin_tw = math.sin(alpha_tw)
-    # Eq 12-13 reconstructed with their square roots (see module docstring for which tip limits which)
-    g_a = math.sqrt(R_a1**2 - R_b1**2) - R_w1 * sin_tw
-    g_f = sign * (math.sqrt(R_a2**2 - R_b2**2) - R_w2 * sin_tw)
-    if g_f <= 0.0 or g_a <= 0.0:
-        raise ParameterError(
-            f"mesh lengths of approach {g_f:.6g} m and recession {g_a:.6g} m must both be > 0 "
-            "(tips do not reach the line of action)"
-        )
-    # curvature radii at the ends of contact must stay positive (no involute interference)
-    rho1_start = R_w1 * sin_tw - g_f
-    rho2_end = R_w2 * sin_tw - sign * g_a
-    if rho1_start <= 0.0 or rho2_end <= 0.0:
-        raise ParameterError(
-            "mesh path of contact runs past a base-circle tangent point (involute interference); "
-            "check z, x and the centre distance"
-        )
+    alpha_tw, R_w1, R_w2, g_f, g_a = _path_of_contact(R_b1, R_b2, R_a1, R_a2, base_span, a, sign)
     L_a = g_f + g_a  # Eq 11
     p_bt = math.pi * m_t * math.cos(alpha_t)
-    return GearMesh(
-        z1,
-        z2,
-        m_n,
-        a_n,
-        beta,
-        a,
-        b,
-        bool(internal),
-        x1,
-        x2,
-        m_t,
-        alpha_t,
-        beta_b,
-        R_p1,
-        R_p2,
-        R_b1,
-        R_b2,
-        R_a1,
-        R_a2,
-        R_f1,
-        R_f2,
-        alpha_tw,
-        R_w1,
-        R_w2,
-        g_f,
-        g_a,
-        L_a,
-        m_n * (ADDENDUM_COEF + DEDENDUM_COEF),
-        L_a / p_bt,
-    )
+    given = (z1, z2, m_n, a_n, beta, a, b, bool(internal), x1, x2)
+    circles = (m_t, alpha_t, beta_b, R_p1, R_p2, R_b1, R_b2, R_a1, R_a2, R_f1, R_f2)
+    contact = (alpha_tw, R_w1, R_w2, g_f, g_a, L_a, m_n * (ADDENDUM_COEF + DEDENDUM_COEF), L_a / p_bt)
+    return GearMesh(*given, *circles, *contact)
 
 
 @lru_cache(maxsize=256)
@@ -322,7 +302,8 @@ def gear_rolling_loss_w(
     """Rolling (EHL film) power loss of a loaded mesh [W], Eq 14-22 (order of 1..10 W, negligible).
 
     Zero torque or speed gives 0; below ROLL_TORQUE_MIN_NM the loss at that torque scaled by T / ROLL_TORQUE_MIN_NM
-    (Eq 18 alone grows without bound as the load vanishes). Broadcasts over torque/speed/oil. Planetary meshes: carrier-relative speed.
+    (Eq 18 alone grows without bound as the load vanishes). Broadcasts over torque/speed/oil. Planetary meshes:
+    carrier-relative speed.
     """
     d, wt, s, _, vr_per_w2 = _mesh_kinematics(mesh, n_points)
     T = np.asarray(torque1_nm, dtype=float)[..., None]

@@ -34,7 +34,8 @@ addresses and a large degraded share are logged as findings with their likely ca
 
 Modules: ``options`` (settings, the signal wiring, receive filters), ``records`` (the typed records of a step),
 ``protocol`` (the sensor the service expects), ``core`` (:class:`SensorService`), ``recorder`` (run-table rows),
-``trust`` (the findings), ``live`` (:func:`serve`), ``build`` (:func:`build_service` from a config). Only the standard library, numpy and
+``trust`` (the findings), ``live`` (:func:`serve`), ``build`` (:func:`build_service` from a config). Only the standard
+library, numpy and
 the CAN edge (``can_dbc``: python-can, cantools) are imported by the service itself (docs/CONVENTIONS.md).
 """
 

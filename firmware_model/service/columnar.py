@@ -131,7 +131,10 @@ def step_grid(t_frame_s: np.ndarray, timing: np.ndarray, max_catchup: int, backw
             k = int(cm[-1])
             pos += c.size
             size = min(2 * size, _GRID_CHUNK_MAX)
-    cat = lambda parts, dt: np.concatenate(parts) if parts else np.zeros(0, dtype=dt)
+
+    def cat(parts, dt):
+        return np.concatenate(parts) if parts else np.zeros(0, dtype=dt)
+
     t_step_s = cat(tstep, float)
     t_s = t_step_s - (first if first is not None else 0.0) + cat(toff, float)
     return Grid(
@@ -248,7 +251,7 @@ def _count_out_of_order(counters: dict, t_frame_s: np.ndarray, max_back_s: float
 def _log_jumps(log, grid: Grid, t_frame_s: np.ndarray) -> None:
     """Log the grid's time jumps as the frame path does, one warning each (an audit: the whole-log replay counted
     them and pointed to log messages it never wrote)."""
-    for i, f in enumerate(grid.jump_frames[:JUMPS_LOGGED]):
+    for _i, f in enumerate(grid.jump_frames[:JUMPS_LOGGED]):
         before = int(np.searchsorted(grid.trigger, f, side="left")) - 1
         epoch = int(np.searchsorted(grid.anchor_frame, f, side="left")) - 1
         last_s = (

@@ -3,7 +3,8 @@
 * :class:`StateStore`: the sensor state saved to a file every ``period_s`` of wall time and on shutdown (atomic:
   a temporary file in the same directory, fsync, rename; never a half-written file; at most one write per period
   for flash wear; with ``background=True`` the periodic writes run in a writer thread, so a slow fsync on an SD card
-  or eMMC does not hold up the outputs, and the shutdown save waits for it), and restored at start: cooled for the wall time the gateway was off, reconciled with the first
+  or eMMC does not hold up the outputs, and the shutdown save waits for it), and restored at start: cooled for the wall
+  time the gateway was off, reconciled with the first
   valid oil reading (``VirtualSensor.initial_state(snapshot=..., elapsed_s=..., T_oil_c=...)``). A missing,
   corrupt, truncated or foreign file (another variant or network) means a cold start from the oil, logged and
   counted (``counters["state"]``).

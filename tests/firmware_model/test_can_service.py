@@ -417,7 +417,7 @@ def random_frames(n, seed=1):
     rng = np.random.default_rng(seed)
     wanted = list(wanted_pgns().values())
     t = 0.0
-    for i in range(n):
+    for _i in range(n):
         t += float(rng.exponential(0.0005))
         if rng.random() < 0.001:
             t -= float(rng.uniform(0, 0.5))

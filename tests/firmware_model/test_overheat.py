@@ -12,7 +12,7 @@ from firmware_model.onboard.sensor import SensorInputs, VirtualSensor
 from firmware_model.onboard.warning_levels import LIMITS_PATH, load_limits, update_levels
 from firmware_model.parameters import load_parameters
 
-I = {c: i for i, c in enumerate(PUBLISHED)}
+I = {c: i for i, c in enumerate(PUBLISHED)}  # noqa: E741 (the column index of each component)
 
 
 @pytest.fixture(scope="module")

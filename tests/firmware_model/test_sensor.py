@@ -17,7 +17,7 @@ from firmware_model.parameters import load_parameters
 from tools.runtable import RunTable
 
 RJ = {k: i for i, k in enumerate(REJECT_REASONS)}
-I = {c: i for i, c in enumerate(PUBLISHED)}
+I = {c: i for i, c in enumerate(PUBLISHED)}  # noqa: E741 (the column index of each component)
 
 
 @pytest.fixture(scope="module")
@@ -489,7 +489,7 @@ def test_garbage_never_gives_a_nan_temperature(sensor):
     rng = np.random.default_rng(0)
     st = sensor.initial_state(T_oil_c=70.0)
     choices = [np.nan, np.inf, -np.inf, 1e12, -1e12, 0.0, 3.7, 255.0]
-    for k in range(1500):
+    for _k in range(1500):
         vals = [
             rng.choice(choices) if rng.random() < 0.4 else v for v in (1300.0, 1800.0, 9.0, 70.0, 25.0, 85.0, 50.0, 0.0)
         ]

@@ -6,7 +6,8 @@ or 1e-11 of the column's largest magnitude, whichever is larger, and the full-le
 the same tolerance. The relative part is for the heat flows: numpy's reductions group their sums by the CPU's SIMD
 width, so an AVX-512 machine moves the plant's temperatures by ~1e-13 K from an AVX2 one, and the stored power
 C dT / h by up to 1e-8 W on a column of 1.4e4 W (measured 2026-12-02: 2.7e-9 to 9.6e-9 W on Q_stored_w, every
-temperature within 3e-13 K); 1e-11 of a temperature column (~150 degC) is 1.5e-9 K, the absolute bound's size. Integer-valued columns (warning levels, modes,
+temperature within 3e-13 K); 1e-11 of a temperature column (~150 degC) is 1.5e-9 K, the absolute bound's size.
+Integer-valued columns (warning levels, modes,
 counters, frame ids and bytes) must be identical. The test prints which columns are bit-identical and which only
 within tolerance, with the largest difference.
 """

@@ -684,7 +684,8 @@ def test_a_modest_effect_beside_a_large_one_joins_when_it_closes_the_gap(params)
     reason=(
         "since the plant re-evaluates its losses as the oil warms and the model starts from the oil read at the first "
         "sample (2026-11-26), a third effect (churning x0.875, 0 % of what the set explains) joins this pair: the pair "
-        "leaves 1.2 times the threshold on BLR, which the onboard model with the planted values leaves too (1.5 times), "
+        "leaves 1.2 times the threshold on BLR, which the onboard model with the planted values leaves too "
+        "(1.5 times), "
         "and churning takes it to 0.93; the bench's pair plans (seeds 1 and 6) gave the same counts before and after"
     ),
 )
@@ -941,7 +942,9 @@ def test_a_set_from_another_start_that_does_worse_held_out_is_not_taken(monkeypa
             members={"oil_sensor_gain": 1.03, "housing_air_h_scale": 1.7}, score=1192.0, p_te=[np.full(100, alt_test_c)]
         )
         monkeypatch.setattr(
-            combine, "forward_select", lambda c, b, cr, f, g, start=None: None if start is None else overfit
+            combine,
+            "forward_select",
+            lambda c, b, cr, f, g, start=None: None if start is None else overfit,  # noqa: B023 (used in this iteration)
         )
         monkeypatch.setattr(combine, "_acceptable", lambda *a: True)
         monkeypatch.setattr(combine, "_alone_score", lambda *a: 1090.0)

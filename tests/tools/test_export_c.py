@@ -194,13 +194,19 @@ int main(void)
     size_t i, j;
     for (i = 0; i < sizeof ks / sizeof ks[0]; ++i)
         for (j = 0; j < sizeof ms / sizeof ms[0]; ++j)
-            if (steps_mod(ks[i], ms[j]) != ks[i] % ms[j]) { printf("steps_mod %lld %d\n", (long long)ks[i], ms[j]); ++bad; }
+            if (steps_mod(ks[i], ms[j]) != ks[i] % ms[j]) {
+                printf("steps_mod %lld %d\n", (long long)ks[i], ms[j]); ++bad;
+            }
     for (i = 0; i < sizeof as / sizeof as[0]; ++i)
         for (j = 0; j < sizeof bs / sizeof bs[0]; ++j) {
             float p = pow_f(as[i], bs[j]), q = powf(as[i], bs[j]);
-            if (isinf(q) ? p != q : fabsf(p - q) > 2e-6f * fabsf(q) + 1e-37f) { printf("pow_f %g %g: %g %g\n", as[i], bs[j], p, q); ++bad; }
+            if (isinf(q) ? p != q : fabsf(p - q) > 2e-6f * fabsf(q) + 1e-37f) {
+                printf("pow_f %g %g: %g %g\n", as[i], bs[j], p, q); ++bad;
+            }
         }
-    if (!isnan(pow_f(-1.0f, 0.5f)) || !isnan(pow_f(NAN, 2.0f)) || pow_f(INFINITY, -1.0f) != 0.0f) { printf("pow_f special\n"); ++bad; }
+    if (!isnan(pow_f(-1.0f, 0.5f)) || !isnan(pow_f(NAN, 2.0f)) || pow_f(INFINITY, -1.0f) != 0.0f) {
+        printf("pow_f special\n"); ++bad;
+    }
     if (gvs_check_tables(&tb) != GVS_OK) { printf("tables refused\n"); ++bad; }
     tb.ttl_every = 0;
     if (gvs_check_tables(&tb) != GVS_BAD_TABLES) { printf("ttl_every 0 accepted\n"); ++bad; }
@@ -350,7 +356,8 @@ def test_restoring_a_saved_state(bundles, tmp_path):
     """From integrator audits: the README's 'persist and restore' left the restored time base in place (an
     uptime clock from 0 skipped the first 1000 s), applied no oil reading (a 12 h soak kept a 120 degC state) and
     had no key that told one export's state from another's; then the restart's oil reading was judged a step from
-    the last one before the stop, and a state with a NaN loss lag was taken. gvs_sensor_resume restarts the time base, applies the
+    the last one before the stop, and a state with a NaN loss lag was taken. gvs_sensor_resume restarts the time base,
+    applies the
     oil as the Python sensor's restore does, and refuses contents that are no state; GVS_STATE_KEY differs between
     exports."""
     (tmp_path / "resume.c").write_text(RESUME_PROGRAM)

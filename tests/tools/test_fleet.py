@@ -526,7 +526,8 @@ def test_synthetic_cold_starts_begin_at_ambient_and_the_log_says_so(tmp_path):
 
 def test_the_oil_modelled_by_request_is_not_counted_as_degraded(tmp_path, synthetic):
     """sensor.oil_mode = "model" in a vehicle's config: its oil-model-only steps are its normal mode, so the summary
-    row's degraded_share stays near 0 on a clean log (it was 1.0: every step counted as degraded), as replay's summary."""
+    row's degraded_share stays near 0 on a clean log (it was 1.0: every step counted as degraded), as replay's
+    summary."""
     from tools.fleet.run import process_log
 
     entry = read_manifest(synthetic)[0]

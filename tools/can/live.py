@@ -180,6 +180,38 @@ class GatewayHooks:
             self.health.maybe_write(self.service, self.store, stopped=True)
 
 
+def _log_summary(result) -> None:
+    """Log what a finished run did: frames, bus outages and the step latency."""
+    log.info(
+        "stopped (%s): %d frames in, %d frames out, %d send errors, %.1f s, CPU %.1f %% of one core",
+        {"stop": "signal", "duration": "--duration"}.get(result.reason, result.reason),
+        result.frames_in,
+        result.frames_out,
+        result.send_errors,
+        result.wall_s,
+        100.0 * result.cpu_share,
+    )
+    if result.bus_events.get("read_errors"):
+        log.warning(
+            "bus: %d receive outages, %d receive errors, %d resumes, %d reopens, %d failed reopen attempts",
+            result.bus_events["outages"],
+            result.bus_events["read_errors"],
+            result.bus_events["resumes"],
+            result.bus_events["reopens"],
+            result.bus_events["reopen_failures"],
+        )
+    latency = result.latency()
+    if latency is not None:
+        log.info(
+            "step latency (completing frame received -> its outputs sent): median %.2f ms, p99 %.2f ms, "
+            "max %.2f ms over %d steps",
+            latency.median_ms,
+            latency.p99_ms,
+            latency.max_ms,
+            latency.steps,
+        )
+
+
 def run_live(settings: LiveSettings):
     """Run the service with the onboard sensor on the bus until SIGINT/SIGTERM or the duration; logs the counters,
     the trust findings (WARNING when the outputs should not be trusted) and a summary; returns the
@@ -234,32 +266,5 @@ def run_live(settings: LiveSettings):
             hooks.finish()
     service.log_counters()
     service.log_findings()  # firmware_model.service.trust: time base, source addresses, degraded share
-    log.info(
-        "stopped (%s): %d frames in, %d frames out, %d send errors, %.1f s, CPU %.1f %% of one core",
-        {"stop": "signal", "duration": "--duration"}.get(result.reason, result.reason),
-        result.frames_in,
-        result.frames_out,
-        result.send_errors,
-        result.wall_s,
-        100.0 * result.cpu_share,
-    )
-    if result.bus_events.get("read_errors"):
-        log.warning(
-            "bus: %d receive outages, %d receive errors, %d resumes, %d reopens, %d failed reopen attempts",
-            result.bus_events["outages"],
-            result.bus_events["read_errors"],
-            result.bus_events["resumes"],
-            result.bus_events["reopens"],
-            result.bus_events["reopen_failures"],
-        )
-    latency = result.latency()
-    if latency is not None:
-        log.info(
-            "step latency (completing frame received -> its outputs sent): median %.2f ms, p99 %.2f ms, "
-            "max %.2f ms over %d steps",
-            latency.median_ms,
-            latency.p99_ms,
-            latency.max_ms,
-            latency.steps,
-        )
+    _log_summary(result)
     return result

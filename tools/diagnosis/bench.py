@@ -448,50 +448,56 @@ def score_row(sc: Scenario, res: dict, diag_s: float) -> Row:
     )
 
 
+def _score_set_verdict(sc: Scenario, res: dict, diag_s: float) -> Row:
+    """The row of a scenario that plants several effects together."""
+    v = res["verdict"]
+    ok, status = _score_set(sc, res)
+    found, conf = found_set(v)
+    e = CATALOG[sc.effect]
+    bound = e.high if sc.value > e.neutral else e.low
+    below = _below_detectable(sc, res, [x for x in [sc.effect, *sc.also] if x not in found and x not in conf])
+    note = "planted " + ", ".join(f"{k} {x:.4g}" for k, x in ({sc.effect: sc.value} | sc.also).items())
+    ident = res["identifiability"]
+    declared, covered, dnote = _declared(
+        sc,
+        res,
+        [
+            x
+            for x in [sc.effect, *sc.also]
+            if x not in found and x not in conf and ident.get(x, {}).get("identifiable", True)
+        ]
+        if ok is False
+        else [],
+    )
+    note += "".join(f" ({x})" for x in (below if ok is False else "", dnote) if x)
+    return Row(
+        sc.index,
+        sc.setup,
+        sc.cooler,
+        " + ".join([sc.effect] + list(sc.also)),
+        sc.value,
+        (sc.value - e.neutral) / (bound - e.neutral),
+        " + ".join(found) or v["effect"],
+        None,
+        conf,
+        float(v["shrink"] or 0.0),
+        float(v["test_rms_before_c"] or 0.0),
+        float(v["test_rms_after_c"] or 0.0),
+        status,
+        ok,
+        diag_s,
+        sc.truth_s,
+        note,
+        declared,
+        covered,
+        len(v.get("not_excluded", [])),
+    )
+
+
 def _score_verdict(sc: Scenario, res: dict, diag_s: float) -> Row:
     v = res["verdict"]
     if sc.also:
-        ok, status = _score_set(sc, res)
-        found, conf = found_set(v)
-        e = CATALOG[sc.effect]
-        bound = e.high if sc.value > e.neutral else e.low
-        below = _below_detectable(sc, res, [x for x in [sc.effect, *sc.also] if x not in found and x not in conf])
-        note = "planted " + ", ".join(f"{k} {x:.4g}" for k, x in ({sc.effect: sc.value} | sc.also).items())
-        ident = res["identifiability"]
-        declared, covered, dnote = _declared(
-            sc,
-            res,
-            [
-                x
-                for x in [sc.effect, *sc.also]
-                if x not in found and x not in conf and ident.get(x, {}).get("identifiable", True)
-            ]
-            if ok is False
-            else [],
-        )
-        note += "".join(f" ({x})" for x in (below if ok is False else "", dnote) if x)
-        return Row(
-            sc.index,
-            sc.setup,
-            sc.cooler,
-            " + ".join([sc.effect] + list(sc.also)),
-            sc.value,
-            (sc.value - e.neutral) / (bound - e.neutral),
-            " + ".join(found) or v["effect"],
-            None,
-            conf,
-            float(v["shrink"] or 0.0),
-            float(v["test_rms_before_c"] or 0.0),
-            float(v["test_rms_after_c"] or 0.0),
-            status,
-            ok,
-            diag_s,
-            sc.truth_s,
-            note,
-            declared,
-            covered,
-            len(v.get("not_excluded", [])),
-        )
+        return _score_set_verdict(sc, res, diag_s)
     eff = sc.effect
     conf = list(v.get("confusable_with", []))
     fitted = None
@@ -610,7 +616,8 @@ def format_table(rows: list, summary: dict) -> str:
     )
     foot = (
         f"\n\n| figure | measured | target |\n|---|---|---|\n"
-        f"| scenarios (effect / null; truck / rig) | {s['scenarios']} ({s['effect_scenarios']} / {s['null_scenarios']}; "
+        f"| scenarios (effect / null; truck / rig) | {s['scenarios']} ({s['effect_scenarios']} / "
+        f"{s['null_scenarios']}; "
         f"{s['truck']} / {s['rig']}) | >= 40, >= 8 null, half truck |\n"
         f"| {ident[0]} | {100 * s['top1']:.0f} % ({s['top1_hits']} of {s['top1_scored']}) | {ident[1]} |\n"
         f"| top-1 over all effect scenarios (not identifiable counted as misses) | {100 * s['top1_all']:.0f} % | - |\n"
@@ -629,8 +636,10 @@ def format_table(rows: list, summary: dict) -> str:
         f"{s['not_excluded_mean']:.1f} | - |\n"
         + f"| files scored as starting while the gearbox runs (--start) | {s['running_files']} of {s['files']} | - |\n"
         f"| false alarms on null scenarios | {s['false_alarms']} of {s['null_scenarios']} | 0 |\n"
-        f"| median test-set RMS shrink (verdict = an effect) | {100 * s['median_shrink_identified']:.0f} % | >= 70 % |\n"
-        f"| median diagnosis time per scenario (max) | {s['median_diag_s']:.0f} s ({s['max_diag_s']:.0f} s) | <= 60 s |\n"
+        f"| median test-set RMS shrink (verdict = an effect) | {100 * s['median_shrink_identified']:.0f} % | >= 70 % "
+        "|\n"
+        f"| median diagnosis time per scenario (max) | {s['median_diag_s']:.0f} s ({s['max_diag_s']:.0f} s) | <= 60 "
+        "s |\n"
         f"| median time per scenario incl. generating the truth | {s['median_total_s']:.0f} s | - |\n"
     )
     return head + "\n".join(lines) + foot

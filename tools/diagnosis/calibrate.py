@@ -394,6 +394,22 @@ def fit(
 CAL_DT_S = 2.0
 
 
+def _identifiable_keys(ident: list, auto: bool) -> list[str]:
+    """The keys the training files identify; one sentence when a key asked for by name (not ``auto``) is not, or
+    when none is."""
+    bad = [x for x in ident if not x.identifiable]
+    if bad and not auto:
+        x = bad[0]
+        raise InputError(f"--params: {x.key} cannot be calibrated from these files: {x.reason}")
+    keys_ok = [x.key for x in ident if x.identifiable]
+    if not keys_ok:
+        raise InputError(
+            "none of the parameters with plausible bounds can be identified from these files: "
+            + "; ".join(f"{x.key}: {x.reason}" for x in ident)
+        )
+    return keys_ok
+
+
 def calibrate(
     train_tables,
     test_tables,
@@ -429,16 +445,7 @@ def calibrate(
         sh_tr = housing_sensitivity(runs, train, base_tr)
         J, sig = sensitivities(runs, params, train, wanted, base_tr, sh_tr)
         ident = identifiability(wanted, J, sig)
-        bad = [x for x in ident if not x.identifiable]
-        if bad and not auto:
-            x = bad[0]
-            raise InputError(f"--params: {x.key} cannot be calibrated from these files: {x.reason}")
-        keys_ok = [x.key for x in ident if x.identifiable]
-        if not keys_ok:
-            raise InputError(
-                "none of the parameters with plausible bounds can be identified from these files: "
-                + "; ".join(f"{x.key}: {x.reason}" for x in ident)
-            )
+        keys_ok = _identifiable_keys(ident, auto)
         fitted, sd, at_bound = fit(runs, params, train, keys_ok, tick, sh_tr)
         after_tr, base_te, after_te = runs.run(train, [fitted])[0], *runs.run(test, [{}, fitted])
         sh_te = housing_sensitivity(runs, test, base_te)

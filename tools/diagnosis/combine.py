@@ -176,7 +176,7 @@ def surrogate_misfit(base: Baseline, st: SetState, deltas: dict):
 def eligible(ctx: Context, st: SetState, fits: dict, deltas: dict) -> list:
     has_exact = any(e in ANALYTIC for e in st.members)
     out = []
-    for eid, f in fits.items():
+    for eid, _f in fits.items():
         if eid in st.members or (eid in ANALYTIC and has_exact):
             continue
         if eid not in ANALYTIC and (deltas.get(eid) is None or ctx.backend_of(eid) != ctx.model.name):

@@ -488,8 +488,10 @@ def held_out_check(ctx: Context, base: Baseline, v: Verdict, res: Residuals, whe
     gap_shrink = 1.0 - math.hypot(*(left[c] for c in chans)) / math.hypot(*(gap[c] for c in chans))
     if all(left[c] <= v.gap_thr_c[c] for c in chans) and gap_shrink >= ctx.opts.shrink_min:
         note = ("" if v.reason.rstrip().endswith(".") else ".") + (
-            f" On the held-out files the RMS shrinks by only {100 * res.shrink:.0f} % because their gap is small beside "
-            f"the noise; the effect removes {100 * gap_shrink:.0f} % of the gap itself (the noise removed) and leaves no "
+            f" On the held-out files the RMS shrinks by only {100 * res.shrink:.0f} % because their gap is small "
+            "beside "
+            f"the noise; the effect removes {100 * gap_shrink:.0f} % of the gap itself (the noise removed) and "
+            "leaves no "
             f"channel above its threshold ({_listing(left, v.gap_thr_c, '<=', chans)})."
         )
         return replace(v, reason=v.reason + note)

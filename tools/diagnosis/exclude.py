@@ -93,7 +93,7 @@ class _Profile:
             for m in [e for e in members if e != held]:
                 e = CATALOG[m]
                 r = minimize_scalar(
-                    lambda x: self.S({**members, m: float(x)}),
+                    lambda x: self.S({**members, m: float(x)}),  # noqa: B023 (minimised in this iteration)
                     bounds=(e.low, e.high),
                     method="bounded",
                     options={"xatol": 1e-3 * (e.high - e.low)},
@@ -180,7 +180,8 @@ def _material(eid: str, pts: list, thr: float, o) -> bool:
 def _profile_interval(ctx: Context, base: Baseline, st: SetState, prof, eid: str, pts: list, n_eff: float):
     """The profile interval of `eid` from the walked points `pts` (ascending values, neutral among them): the
     surrogate's best value re-simulated (when it is not neutral) to set the reference misfit, the values around it
-    that pass, each end refined by bisection and confirmed by re-simulation (inwards, CONFIRM_TRIES at most, else the best
+    that pass, each end refined by bisection and confirmed by re-simulation (inwards, CONFIRM_TRIES at most, else the
+    best
     value)."""
     factor = _factor(ctx, n_eff)
     i_n = next(i for i, p in enumerate(pts) if p[0] == CATALOG[eid].neutral)

@@ -326,7 +326,7 @@ def effective_n(datasets: list, resid: list) -> tuple:
     n_eff = 0.0
     k = 0
     for ds in datasets:
-        for cid, ch in ds.channels.items():
+        for cid, _ch in ds.channels.items():
             rho = lag1_rho(resid[k])
             n_eff += resid[k].size * (1 - rho) / (1 + rho)
             k += 1

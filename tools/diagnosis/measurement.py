@@ -104,7 +104,7 @@ def fit_nuisance_lags(train: list, base_tr: list, opts: Options) -> dict:
         def cost(tau):
             return sum(
                 float(np.sum((y - highpass(np.interp(ct, tm, lag_filter(x, tau, dt)), n)) ** 2))
-                for y, ct, tm, x, dt in items
+                for y, ct, tm, x, dt in items  # noqa: B023 (called in this iteration)
             )
 
         taus = np.arange(0.0, opts.sensor_lag_max_s + 1e-9, 0.5)

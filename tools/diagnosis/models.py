@@ -4,9 +4,11 @@
 effect values, see :class:`Run`) and returns, per run and per data set, the model's output columns on its own output
 grid (``time_s`` plus ``oil_temp_c``, ``T_oil_c``, ``T_<id>_c`` ...).
 
-* :class:`PlantModel`: the reference plant (tools.plant.reference), every catalog effect, runs farmed out to a process pool
+* :class:`PlantModel`: the reference plant (tools.plant.reference), every catalog effect, runs farmed out to a process
+pool
   (the machine has two cores; a 25-minute cycle takes about 0.4 s at the default 1 s step).
-* :class:`OnboardModel`: the onboard reduced model (firmware_model.onboard.sensor), run with ``oil_temp_c = NaN`` so that it
+* :class:`OnboardModel`: the onboard reduced model (firmware_model.onboard.sensor), run with ``oil_temp_c = NaN`` so
+that it
   predicts the oil itself; effect values are batched as "vehicles" of one vectorised pass. Effects the onboard model
   cannot represent are delegated to a fallback plant (reported per effect).
 
@@ -257,7 +259,8 @@ class OnboardModel(DiagnosisModel):
 
     Runs the sensor's pure step over each file at its own 10 Hz with the oil input absent (NaN), so the sensor
     integrates the sump with its cooler model. The runs of one call are the vehicles of one vectorised pass per
-    file (the onboard model's per-vehicle effect hooks, firmware_model.onboard.reduce.EFFECT_HOOKS); ``oil_level_low`` is
+    file (the onboard model's per-vehicle effect hooks, firmware_model.onboard.reduce.EFFECT_HOOKS); ``oil_level_low``
+    is
     one build per volume, ``oil_sensor_lag`` a filter on the sump output. Other effects are delegated to `fallback`
     (a PlantModel) and listed in `delegated`. Passes are spread over a process pool (one file per process).
     """

@@ -76,7 +76,7 @@ def _channels_json(out: Outcome) -> dict:
     for cid in chan_ids:
 
         def sel(rs, pairs):
-            return [r for r, c in zip(rs, pairs) if c == cid]
+            return [r for r, c in zip(rs, pairs) if c == cid]  # noqa: B023 (called in this iteration)
 
         a, bb = sel(res.train_before, pairs_tr), sel(res.test_before, pairs_te)
         c_, d = sel(res.train_after, pairs_tr), sel(res.test_after, pairs_te)

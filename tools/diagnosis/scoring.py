@@ -239,7 +239,7 @@ class Scorer:
             def cost(tau):
                 return sum(
                     float(np.sum(wk * (y - np.interp(ct, tm, lag_filter(x, tau, dt))) ** 2))
-                    for y, wk, ct, tm, x, dt in items
+                    for y, wk, ct, tm, x, dt in items  # noqa: B023 (called in this iteration)
                 )
 
             t0 = self.lag.get(cid, 0.0)

@@ -13,7 +13,8 @@ from cold, the benchmark's scenarios. It is wrong for a file cut from a longer d
   0.2-1.4 degC RMS in the first 150 s, 0.03-0.26 degC 300-450 s in, mostly under 0.1 degC after 600 s).
 
 So a file that starts running is scored from ``burn_in_s`` (600 s) on (a rig thermocouple from ``burn_in_tc_s``,
-900 s: :func:`scored_from`; with 300 s, what was left of the start took a 4 % cooler change on a null truck), and the housings' start is a second initial-state nuisance of that file, fitted with the
+900 s: :func:`scored_from`; with 300 s, what was left of the start took a 4 % cooler change on a null truck), and the
+housings' start is a second initial-state nuisance of that file, fitted with the
 uniform one (``housing_offset_lo_c``..``housing_offset_hi_c`` from the sump). Which files start running
 (``Options.start``: ``auto``, ``rest`` or ``running``; ``--start``):
 

@@ -1,7 +1,8 @@
 """`gearbox-vsensor export-fmu`: the onboard sensor as an FMI 2.0 or 3.0 co-simulation FMU for HIL and SIL rigs.
 
 Built from the same C as the ECU export (tools.export.c_bundle): the kernel, the variant's generated tables (double)
-and a small FMI wrapper (tools.export.fmu_source; FMI 2 or 3 over one shared instance). Inside the FMU: ``modelDescription.xml``, the binary for this
+and a small FMI wrapper (tools.export.fmu_source; FMI 2 or 3 over one shared instance). Inside the FMU:
+``modelDescription.xml``, the binary for this
 platform (compiled here with the C compiler on the PATH) and the sources (an importer can rebuild it for another
 platform). Communication step: 0.1 s or a multiple of it. Variables are named as the run-table columns
 (docs/interfaces.md section 3): inputs ``engine_speed_rpm`` ... ``retarder_torque_nm``; outputs ``T_<id>_c``,
@@ -92,6 +93,16 @@ def _platform_dir(fmi_version: int = 2) -> str:
     return {"Linux": "linux", "Darwin": "darwin", "Windows": "win"}.get(system, "linux") + bits
 
 
+def _output(name, vr, typ, text) -> tuple:
+    """A discrete output variable's row (see :func:`_variables`)."""
+    return (name, vr, typ, "output", "discrete", None, text)
+
+
+def _parameter(name, vr, start, text) -> tuple:
+    """A fixed Real parameter's row (see :func:`_variables`)."""
+    return (name, vr, "Real", "parameter", "fixed", float(start), text)
+
+
 def _variables(limits) -> list[tuple]:
     """(name, vr, type, causality, variability, start or None, description) of every variable."""
     from firmware_model.service.options import SENSOR_INPUTS
@@ -104,109 +115,41 @@ def _variables(limits) -> list[tuple]:
         for i, (field, col) in enumerate(SENSOR_INPUTS)
     ]
     for i, c in enumerate(PUBLISHED):
-        v.append((f"T_{c}_c", VR["VR_T"] + i, "Real", "output", "discrete", None, f"{describe(c)} [degC]"))
+        v.append(_output(f"T_{c}_c", VR["VR_T"] + i, "Real", f"{describe(c)} [degC]"))
     for i, c in enumerate(PUBLISHED):
-        v.append(
-            (
-                f"W_{c}",
-                VR["VR_LEVEL"] + i,
-                "Integer",
-                "output",
-                "discrete",
-                None,
-                f"warning level of {c}: 0 normal, 1 warning, 2 critical, 3 not available",
-            )
-        )
+        text = f"warning level of {c}: 0 normal, 1 warning, 2 critical, 3 not available"
+        v.append(_output(f"W_{c}", VR["VR_LEVEL"] + i, "Integer", text))
     for i, c in enumerate(PUBLISHED):
-        v.append(
-            (
-                f"ttl_{c}_s",
-                VR["VR_TTL"] + i,
-                "Real",
-                "output",
-                "discrete",
-                None,
-                f"time to the warning limit of {c} with the inputs held [s] (inf: not within 23 days, NaN: "
-                "not available)",
-            )
+        text = (
+            f"time to the warning limit of {c} with the inputs held [s] (inf: not within 23 days, NaN: not available)"
         )
+        v.append(_output(f"ttl_{c}_s", VR["VR_TTL"] + i, "Real", text))
     v += [
-        ("model_oil_temp_c", VR["VR_MODEL_OIL"], "Real", "output", "discrete", None, "the open-loop twin's sump"),
-        ("oil_innovation_c", VR["VR_INNOVATION"], "Real", "output", "discrete", None, "measured - model oil [K]"),
-        (
-            "degraded_mode",
-            VR["VR_MODE"],
-            "Integer",
-            "output",
-            "discrete",
-            None,
-            "0 normal, 1 oil modelled, 2 drive inputs missing (holding)",
+        _output("model_oil_temp_c", VR["VR_MODEL_OIL"], "Real", "the open-loop twin's sump"),
+        _output("oil_innovation_c", VR["VR_INNOVATION"], "Real", "measured - model oil [K]"),
+        _output(
+            "degraded_mode", VR["VR_MODE"], "Integer", "0 normal, 1 oil modelled, 2 drive inputs missing (holding)"
         ),
-        (
-            "valid_flags",
-            VR["VR_VALID"],
-            "Integer",
-            "output",
-            "discrete",
-            None,
-            "bit i set: input i valid this step (" + _BITS + ")",
-        ),
-        (
-            "frozen_flags",
-            VR["VR_FROZEN"],
-            "Integer",
-            "output",
-            "discrete",
-            None,
-            "bit i set: input i frozen (" + _BITS + ")",
-        ),
+        _output("valid_flags", VR["VR_VALID"], "Integer", "bit i set: input i valid this step (" + _BITS + ")"),
+        _output("frozen_flags", VR["VR_FROZEN"], "Integer", "bit i set: input i frozen (" + _BITS + ")"),
     ]
     v += [
-        (
-            f"rejects_{r}",
-            VR["VR_REJECT"] + i,
-            "Integer",
-            "output",
-            "discrete",
-            None,
-            f"inputs rejected or repaired so far: {r}",
-        )
+        _output(f"rejects_{r}", VR["VR_REJECT"] + i, "Integer", f"inputs rejected or repaired so far: {r}")
         for i, r in enumerate(REJECT_REASONS)
     ]
     for i, c in enumerate(PUBLISHED):
         v.append(
-            (
-                f"limit_warning_{c}_c",
-                VR["VR_WARNING"] + i,
-                "Real",
-                "parameter",
-                "fixed",
-                float(limits.warning_c[i]),
-                f"warning limit of {c} [degC]",
+            _parameter(
+                f"limit_warning_{c}_c", VR["VR_WARNING"] + i, limits.warning_c[i], f"warning limit of {c} [degC]"
             )
         )
         v.append(
-            (
-                f"limit_critical_{c}_c",
-                VR["VR_CRITICAL"] + i,
-                "Real",
-                "parameter",
-                "fixed",
-                float(limits.critical_c[i]),
-                f"critical limit of {c} [degC]",
+            _parameter(
+                f"limit_critical_{c}_c", VR["VR_CRITICAL"] + i, limits.critical_c[i], f"critical limit of {c} [degC]"
             )
         )
-    v.append(
-        (
-            "initial_temp_c",
-            VR["VR_INITIAL_TEMP"],
-            "Real",
-            "parameter",
-            "fixed",
-            float("nan"),
-            "start temperature of every node [degC] (NaN: the first oil input, else ambient)",
-        )
-    )
+    text = "start temperature of every node [degC] (NaN: the first oil input, else ambient)"
+    v.append(_parameter("initial_temp_c", VR["VR_INITIAL_TEMP"], float("nan"), text))
     return v
 
 

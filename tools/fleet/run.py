@@ -323,6 +323,19 @@ def _worker_count(client) -> int:
     return max(1, len(client.scheduler_info().get("workers", {})))
 
 
+def _worker_failure(batch: list[LogEntry], exc: BaseException, killed: bool) -> list[tuple]:
+    """The error rows of a batch whose task failed on its worker (``killed``: its worker processes died)."""
+    why = (
+        f"the worker processes running this log died ({type(exc).__name__}: {exc})"
+        if killed
+        else f"the task failed on its worker ({type(exc).__name__}: {exc})"
+    )
+    return [
+        ("error", {"vehicle": e.vehicle, "log": os.fspath(e.log), "log_key": e.key, "stage": "worker", "reason": why})
+        for e in batch
+    ]
+
+
 def run_fleet(
     entries: list[LogEntry],
     out: str | os.PathLike,
@@ -376,24 +389,7 @@ def run_fleet(
                             futures[f1] = [e]
                             queue.add(f1)
                         continue
-                    why = (
-                        f"the worker processes running this log died ({type(exc).__name__}: {exc})"
-                        if killed
-                        else f"the task failed on its worker ({type(exc).__name__}: {exc})"
-                    )
-                    results = [
-                        (
-                            "error",
-                            {
-                                "vehicle": e.vehicle,
-                                "log": os.fspath(e.log),
-                                "log_key": e.key,
-                                "stage": "worker",
-                                "reason": why,
-                            },
-                        )
-                        for e in batch
-                    ]
+                    results = _worker_failure(batch, exc, killed)
                 rows = [r for kind, r in results if kind == "ok"]
                 errors = [r for kind, r in results if kind == "error"]
                 store.write_batch(batch_id(batch), rows, errors)

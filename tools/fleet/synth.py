@@ -8,7 +8,8 @@ otherwise a window caught mid-shift (started warm: the oil at 55-85 degC, the co
 shows the oil's heat capacity, but weakly: a 4 L leak moves the plant's oil by 0.25-0.37 K rms over 10 minutes from
 cold on the named drives, 0.14-0.24 K in a warm window (docs/fleet.md, benchmarks/bench_oil_level_signal.py). The
 reference plant (tools/plant/reference.py) gives the true temperatures with the truck's effects of that day, and the
-log is its J1939 traffic (tools/can/logsynth.py; no rig thermocouples: a truck has one oil sensor). Effects start at a random
+log is its J1939 traffic (tools/can/logsynth.py; no rig thermocouples: a truck has one oil sensor). Effects start at a
+random
 day and grow linearly to their final value over ``growth_days`` (a fouling cooler, an oil leak). The truth (effects,
 onsets, values per day) is written beside the manifest as ``truth.json``; the fleet command never reads it.
 """
