@@ -29,12 +29,15 @@ from typing import ClassVar
 from can_dbc.decoder import EC1_KEY, RC_KEY, signal_messages
 from can_dbc.j1939 import EC1_PGN, RC_PGN
 from firmware_model.components import STEP_S
-from firmware_model.service.degraded import (
-    DEGRADED_WARN_SHARE,  # noqa: F401 (re-exported)
+from firmware_model.service.degraded import (  # noqa: F401 (the degraded-share finding is re-exported here)
+    DEGRADED_UNTRUSTED_SHARE,
+    DEGRADED_WARN_SHARE,
+    INPUT_NAMES,
     DegradedFinding,
     Severity,
     degraded_finding,
     pct,
+    untrusted,
 )
 from firmware_model.service.options import (
     NOMINAL_PERIOD_S,
