@@ -54,7 +54,7 @@ def rig(params: Parameters) -> Parameters:
     return Parameters(params.variant, dict(params.values), dict(params.sources), dict(params.units), s, params.origin)
 
 
-def plant_run(params, name, keep_bc=False, cache={}):
+def plant_run(params, name, keep_bc=False, cache={}):  # noqa: B006 (the default dict is the memo)
     """The cycle and the reference plant's result (cached)."""
     key = (name, keep_bc)
     if key not in cache:
@@ -71,7 +71,7 @@ def plant_run(params, name, keep_bc=False, cache={}):
     return cache[key]
 
 
-def plant_and_sensor(params, name, keep_bc=False, partition="fine", cache={}):
+def plant_and_sensor(params, name, keep_bc=False, partition="fine", cache={}):  # noqa: B006 (the memo)
     """(cycle, plant table, sensor output, plant CPU s, sensor CPU s, sensor): the sensor gets the cycle's inputs
     and the plant's oil temperature as the measured one."""
     key = (name, keep_bc, partition if isinstance(partition, str) else repr(sorted(partition.items())))
@@ -275,7 +275,7 @@ def _step_pieces(sensor, inp):
     alone on one vehicle (best of 5 x 5000 calls, wall), against the 10 us target."""
     import timeit
 
-    from firmware_model.onboard import reduce as R
+    from firmware_model.onboard import evaluate as E
     from firmware_model.onboard.conductance_bins import bin_centre
     from firmware_model.onboard.input_check import check_inputs
     from firmware_model.onboard.step import step_deferred
@@ -292,12 +292,12 @@ def _step_pieces(sensor, inp):
     omega = float(inp.speed_rpm) * RAD_S_PER_RPM
     torque = abs(float(inp.torque_nm))
     T_oil = 85.0
-    x, prop, _ = R.oil_row(rp, T_oil, h)
-    src = R.heat_sources(rp, row, omega, torque, prop, x, eff.src_scale, eff.churn_scale, eff.needle_scale, 0.0, h)
+    x, prop, _ = E.oil_row(rp, T_oil, h)
+    src = E.heat_sources(rp, row, omega, torque, prop, x, eff.src_scale, eff.churn_scale, eff.needle_scale, 0.0, h)
     bins = cache.bins.get(sp, row, *bin_centre(omega, T_oil))
     T_pub = state.T_c[0, rp.published_index]
     g = dict(
-        R=R,
+        E=E,
         sp=sp,
         rp=rp,
         h=h,
@@ -329,16 +329,16 @@ def _step_pieces(sensor, inp):
     )
     pieces = [
         ("input checks and holds", "check_inputs(state, raw, sp)"),
-        ("oil properties (one interpolated row)", "R.oil_row(rp, T_oil, h)"),
+        ("oil properties (one interpolated row)", "E.oil_row(rp, T_oil, h)"),
         (
             "loss sources (meshes, bearings, sump terms)",
-            "R.heat_sources(rp, row, omega, torque, prop, x, eff.src_scale, eff.churn_scale, eff.needle_scale, 0.0, h)",
+            "E.heat_sources(rp, row, omega, torque, prop, x, eff.src_scale, eff.churn_scale, eff.needle_scale, 0.0, h)",
         ),
         ("heat lag and sources to nodes", "q = heat_lag_step(lag0, src, h.heat_lag).delivered_w @ rp.src_matrix"),
         ("conductance bin lookup (cache hit)", "cache.bins.get(sp, row, *bin_centre(omega, T_oil))"),
         (
             "network update, both copies (explicit_step)",
-            "R.explicit_step(T, q2, bins.G_int_w_per_k, bins.G_ext_w_per_k, T_bc, h.ia, h.ib, h.ea, h.eb, "
+            "E.explicit_step(T, q2, bins.G_int_w_per_k, bins.G_ext_w_per_k, T_bc, h.ia, h.ib, h.ea, h.eb, "
             "sp.dt_over_C_s_k_per_j, h.B_int, h.B_ext)",
         ),
         (
