@@ -89,7 +89,7 @@ class ReducedParams(NamedNodes):
     # bilinear terms: G = table[t](sqrt(omega_t / w_max[t]), T_oil), omega_t = |speed coef[gear, t]| omega_in
     t2_link: np.ndarray  # (n2,)
     t2_speed_coef: np.ndarray  # (17, n2)
-    t2_w_max: np.ndarray  # (n2,) rad/s
+    t2_omega_max_rad_s: np.ndarray  # (n2,) rad/s
     t2_table: np.ndarray  # (n2, N_U, nT2) W/K
     t2_stream: np.ndarray  # (n2,) bool: oil-system stream (the cooler's inlet drop applies)
     t2_frac: np.ndarray  # (n2,) oil-flow fraction of a stream (for the stability bound)
@@ -130,7 +130,7 @@ class ReducedParams(NamedNodes):
     needle_c: np.ndarray  # (6,)
     sync_coef: np.ndarray  # (17,) sum_k c_k rel_k^2: P_sync = mu omega_in^2 sync_coef
     pump_coef: np.ndarray  # (17,) P_pump = pump_coef omega_in^2
-    churn_w_max: float
+    churn_omega_max_rad_s: float
     churn_table: np.ndarray  # (N_U_CHURN, nT) W at the layshaft speed u^2 w_max
     churn_heat_sf: float
     src_matrix: np.ndarray  # (ns, n) node heat = src_power @ src_matrix
@@ -345,7 +345,7 @@ def conductances(
         Gp = _scaled(Gp, h.pw_eff[EFFECT_TEETH_OIL_H], eff.teeth_oil_h)
         Gp = _scaled(Gp, h.pw_eff[EFFECT_HOUSING_AIR_H], eff.housing_air_h)
     # bilinear tables over (sqrt(omega_t / omega_max), T)
-    iu, fu = sqrt_speed_index(rp.t2_speed_coef[gear_row] * omega_in_rad_s[..., None], rp.t2_w_max, N_U)
+    iu, fu = sqrt_speed_index(rp.t2_speed_coef[gear_row] * omega_in_rad_s[..., None], rp.t2_omega_max_rad_s, N_U)
     jT, fT = grid_index(np.asarray(T_grid_x) / T2_STRIDE, h.nT2)
     G2 = bilinear(h.t2_flat, h.t2_base + iu * h.nT2 + jT[..., None], h.nT2, fu, fT[..., None])
     G_streams_ntu = _stream_conductances(rp, gear_row, omega_in_rad_s, prop, eff, h)
@@ -457,7 +457,7 @@ def heat_sources(
     P_sync_w = np.exp(prop[..., P_LN_MU]) * omega_in_sq * rp.sync_coef[gear_row]
     P_pump_w = rp.pump_coef[gear_row] * omega_in_sq
     omega_ls_rad_s = np.abs(rp.speed_coef[gear_row, SPEED_COL_LAYSHAFT]) * omega_in_rad_s
-    iu, fu = sqrt_speed_index(omega_ls_rad_s, rp.churn_w_max, N_U_CHURN)
+    iu, fu = sqrt_speed_index(omega_ls_rad_s, rp.churn_omega_max_rad_s, N_U_CHURN)
     jT, fT = grid_index(T_grid_x, h.nT)
     P_churn_w = bilinear(h.churn_flat, iu * h.nT + jT, h.nT, fu, fT)
     P_oil_w = P_churn_w * rp.churn_heat_sf * churn_scale + P_needle_w * needle_scale + P_sync_w + P_pump_w

@@ -302,11 +302,11 @@ class PowerTerm(NamedTuple):
 
 
 class TableTerm(NamedTuple):
-    """G = table(sqrt(w / w_max), T_oil), w = speed_coef[gear] w_in."""
+    """G = table(sqrt(omega / omega_max), T_oil), omega = speed_coef[gear] omega_in."""
 
     link: int
     speed_coef: np.ndarray  # (17,)
-    w_max_rad_s: float
+    omega_max_rad_s: float
     table: np.ndarray  # (N_U, nT2) W/K
     stream: bool  # an oil-system stream (the cooler's inlet drop applies)
     frac: float  # its share of the oil flow
@@ -519,7 +519,7 @@ class LossMaps(NamedTuple):
     needle_c: np.ndarray
     sync_coef: np.ndarray
     pump_coef: np.ndarray
-    churn_w_max: float
+    churn_omega_max_rad_s: float
     churn_table: np.ndarray
     mesh_roll_lt_min: np.ndarray
 
@@ -608,7 +608,7 @@ def _law_fields(laws: _Laws) -> dict:
         pw_effect=col(pw, "effect", np.int64),
         t2_link=col(t2, "link", np.int64),
         t2_speed_coef=per_gear(t2, "speed_coef"),
-        t2_w_max=col(t2, "w_max_rad_s"),
+        t2_omega_max_rad_s=col(t2, "omega_max_rad_s"),
         t2_table=_ro(np.array([r.table for r in t2]).reshape(len(t2), N_U, nT2)),
         t2_stream=col(t2, "stream", bool),
         t2_frac=col(t2, "frac"),
@@ -684,7 +684,7 @@ def build_reduced(
         needle_c=_ro(lm.needle_c),
         sync_coef=_ro(lm.sync_coef),
         pump_coef=_ro(lm.pump_coef),
-        churn_w_max=float(lm.churn_w_max),
+        churn_omega_max_rad_s=float(lm.churn_omega_max_rad_s),
         churn_table=_ro(lm.churn_table),
         churn_heat_sf=float(p["scale.churn_to_heat"]),
         src_matrix=_ro(_source_matrix(net, agg)),

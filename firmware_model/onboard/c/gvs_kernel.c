@@ -137,17 +137,17 @@ static gvs_real bilinear(const gvs_real *tab, int32_t stride, gvs_real fu, gvs_r
 /* ---- conductance of every link at a bin centre (conductance_bins.bin_conductances -> evaluate.conductances) -
  * G [W/K] of every link and of the oil-system streams at (gear row, speed omega_q, oil T_q): radiation (Eq 81)
  * with every node at T_q and the boundaries at their defaults. */
-static void bin_conductances(const gvs_tables *tb, const gvs_vehicle *veh, int32_t row, gvs_real w, gvs_real T_q,
-                             gvs_real *G, gvs_real *G_streams)
+static void bin_conductances(const gvs_tables *tb, const gvs_vehicle *veh, int32_t gear_row, gvs_real omega_in_rad_s,
+                             gvs_real T_q, gvs_real *G, gvs_real *G_streams)
 {
     gvs_real phi[GVS_MAX_TERMS], G2[GVS_MAX_TERMS], Ge[GVS_MAX_TERMS];
     oil_row_t o;
     int32_t t;
-    gvs_real w_ls, rho_cp_w;
+    gvs_real omega_ls_rad_s, rho_cp_omega;
     oil_row(tb, T_q, &o, phi);
     memcpy(G, tb->G_const, (size_t)tb->nl * sizeof(gvs_real));
     for (t = 0; t < tb->npw; ++t) {                          /* power laws */
-        gvs_real g = tb->pw_gear_coef[row * tb->npw + t] * POW(w, tb->pw_exp[t]);
+        gvs_real g = tb->pw_gear_coef[gear_row * tb->npw + t] * POW(omega_in_rad_s, tb->pw_exp[t]);
         if (tb->pw_col[t] >= 0) g *= phi[tb->pw_col[t]];
         if (tb->pw_effect[t] == GVS_EFFECT_TEETH_OIL_H) g *= veh->teeth_oil_h;
         else if (tb->pw_effect[t] == GVS_EFFECT_HOUSING_AIR_H) g *= veh->housing_air_h;
@@ -157,30 +157,32 @@ static void bin_conductances(const gvs_tables *tb, const gvs_vehicle *veh, int32
         gvs_real fT, fu;
         int32_t jT = grid_index(o.x / (gvs_real)tb->t2_stride, tb->nT2, &fT), iu;
         for (t = 0; t < tb->n2; ++t) {
-            iu = sqrt_speed_index(tb->t2_speed_coef[row * tb->n2 + t] * w, tb->t2_w_max[t], tb->n_u, &fu);
+            gvs_real omega_t_rad_s = tb->t2_speed_coef[gear_row * tb->n2 + t] * omega_in_rad_s;
+            iu = sqrt_speed_index(omega_t_rad_s, tb->t2_omega_max_rad_s[t], tb->n_u, &fu);
             G2[t] = bilinear(tb->t2_table + ((int64_t)t * tb->n_u + iu) * tb->nT2 + jT, tb->nT2, fu, fT);
             G[tb->t2_link[t]] += G2[t];
         }
     }
     /* closed-form streams, NTU (Eq 69-80) */
-    w_ls = FABS(tb->speed_coef[row * tb->n_speed + GVS_SPEED_COL_LAYSHAFT]) * w;
-    rho_cp_w = o.prop[GVS_P_RHO] * o.prop[GVS_P_CP] * w_ls;
+    omega_ls_rad_s = FABS(tb->speed_coef[gear_row * tb->n_speed + GVS_SPEED_COL_LAYSHAFT]) * omega_in_rad_s;
+    rho_cp_omega = o.prop[GVS_P_RHO] * o.prop[GVS_P_CP] * omega_ls_rad_s;
     for (t = 0; t < tb->ne; ++t) {
-        gvs_real mcp = tb->ef_mcp[t] * rho_cp_w;
+        gvs_real mcp = tb->ef_mcp[t] * rho_cp_omega;
         gvs_real beta = tb->ef_beta[t] * (tb->ef_effect[t] == GVS_EFFECT_PLANET_OIL_H ? veh->planet_oil_h : R_(1.0));
         gvs_real hA = tb->ef_alpha[t] * o.prop[GVS_P_K] + beta;
         Ge[t] = mcp > R_(0.0) ? -mcp * EXPM1(-hA / mcp) : R_(0.0);
         G[tb->ef_link[t]] += Ge[t];
     }
     for (t = 0; t < tb->nc; ++t) {                           /* immersed wheels (Eq 46-48) */
-        gvs_real wc = max_r(tb->cyl_speed_coef[row * tb->nc + t] * w, tb->min_speed);
-        gvs_real ln_re = tb->cyl_ln_rp2[t] + LOG(wc) - (o.prop[GVS_P_LN_NU_CST] + tb->ln_1e6);
+        gvs_real omega_c_rad_s = max_r(tb->cyl_speed_coef[gear_row * tb->nc + t] * omega_in_rad_s, tb->min_speed);
+        gvs_real ln_re = tb->cyl_ln_rp2[t] + LOG(omega_c_rad_s) - (o.prop[GVS_P_LN_NU_CST] + tb->ln_1e6);
         G[tb->cyl_link[t]] += tb->cyl_c[t] * o.prop[GVS_P_K] * cyl_nusselt(tb, ln_re, o.prop[GVS_P_LN_PR]);
     }
     for (t = 0; t < tb->nrad; ++t) {                         /* radiation, linearised (Eq 81) */
-        gvs_real T1 = clip_r(T_q, tb->rad_T_lo_c, tb->rad_T_hi_c) + tb->kelvin;
-        gvs_real T2 = veh->T_bc_default_c[tb->rad_bc[t]] + tb->kelvin;
-        G[tb->rad_link[t]] = tb->rad_area_eps[t] * tb->sigma * (T1 * T1 + T2 * T2) * (T1 + T2);
+        gvs_real T_node_k = clip_r(T_q, tb->rad_T_lo_c, tb->rad_T_hi_c) + tb->kelvin;
+        gvs_real T_bc_k = veh->T_bc_default_c[tb->rad_bc[t]] + tb->kelvin;
+        G[tb->rad_link[t]] = tb->rad_area_eps[t] * tb->sigma * (T_node_k * T_node_k + T_bc_k * T_bc_k)
+            * (T_node_k + T_bc_k);
     }
     for (t = 0; t < tb->nst - tb->ne; ++t) G_streams[t] = G2[tb->t2_stream_term[t]];
     for (t = 0; t < tb->ne; ++t) G_streams[tb->nst - tb->ne + t] = Ge[t];
@@ -188,50 +190,56 @@ static void bin_conductances(const gvs_tables *tb, const gvs_vehicle *veh, int32
 
 /* ---- heat of every loss source (evaluate.heat_sources): meshes Eq 7-22, bearings Eq 35-40, oil-lumped sources
  * Eq 23-34, 36-37, 41, 42, and the retarder ---------------------------------------------------------------- */
-static void heat_sources(const gvs_tables *tb, const gvs_vehicle *veh, int32_t row, gvs_real w, gvs_real torque,
-                         const oil_row_t *o, gvs_real retarder_w, gvs_real *src)
+static void heat_sources(const gvs_tables *tb, const gvs_vehicle *veh, int32_t gear_row, gvs_real omega_in_rad_s,
+                         gvs_real torque_nm, const oil_row_t *o, gvs_real retarder_w, gvs_real *src)
 {
     int32_t m, b, i = 0;
-    gvs_real nu = EXP(o->prop[GVS_P_LN_NU_CST]), P_needle = R_(0.0), w_sq, w_ls, fu, fT, P_churn;
+    gvs_real nu = EXP(o->prop[GVS_P_LN_NU_CST]), P_needle = R_(0.0), omega_in_sq, omega_ls_rad_s, fu, fT, P_churn;
     int32_t iu, jT;
     for (m = 0; m < tb->n_mesh; ++m, ++i) {
-        gvs_real T1 = tb->mesh_torque[row * tb->n_mesh + m] * torque;
-        gvs_real w2 = tb->mesh_omega2[row * tb->n_mesh + m] * w;
-        gvs_real lT, lw, x, fx, phi, P, lT_roll;
+        gvs_real torque1_nm = tb->mesh_torque[gear_row * tb->n_mesh + m] * torque_nm;
+        gvs_real omega2_rad_s = tb->mesh_omega2[gear_row * tb->n_mesh + m] * omega_in_rad_s;
+        gvs_real log10_torque1, log10_omega2, x, fx, phi, P, log10_torque1_roll;
         int32_t ix;
-        if (!(T1 > R_(0.0) && w2 > R_(0.0))) { src[i] = R_(0.0); continue; }
-        lT = LOG10(T1);
-        lw = LOG10(w2);
-        x = (lT - o->prop[GVS_P_LOG10_MU] - R_(3.0) * lw - tb->mesh_x0[m]) / tb->x_step;
+        if (!(torque1_nm > R_(0.0) && omega2_rad_s > R_(0.0))) { src[i] = R_(0.0); continue; }
+        log10_torque1 = LOG10(torque1_nm);
+        log10_omega2 = LOG10(omega2_rad_s);
+        x = (log10_torque1 - o->prop[GVS_P_LOG10_MU] - R_(3.0) * log10_omega2 - tb->mesh_x0[m]) / tb->x_step;
         x = clip_r(x, R_(0.0), (gvs_real)tb->nx - R_(1.000001));
         ix = (int32_t)x;
         if (ix > tb->nx - 2) ix = tb->nx - 2;    /* in float nx - 1.000001 rounds to nx - 1: stay in the table */
         fx = x - (gvs_real)ix;
         phi = tb->mesh_phi[m * tb->nx + ix] * (R_(1.0) - fx) + tb->mesh_phi[m * tb->nx + ix + 1] * fx;
-        /* slip T1 w2 phi; rolling K mu^0.7 a^0.54 w2^1.7 T1^-0.13 (Eq 18) down to the mesh's T_min, below it the loss
-         * at T_min scaled by T1 / T_min (T1^-1.13 taken at T_min: continuous at T_min and at 0) */
-        lT_roll = max_r(lT, tb->mesh_roll_lt_min[m]);
-        P = T1 * w2 * (phi + tb->mesh_roll_k[m]
-                       * EXP(o->prop[GVS_P_LN_ROLL] + tb->ln10 * (R_(0.7) * lw - R_(1.13) * lT_roll)));
+        /* slip torque1 omega2 phi; rolling K mu^0.7 a^0.54 omega2^1.7 torque1^-0.13 (Eq 18) down to the mesh's
+         * torque1_min, below it the loss at torque1_min scaled by torque1 / torque1_min (torque1^-1.13 taken at
+         * torque1_min: continuous there and at 0) */
+        log10_torque1_roll = max_r(log10_torque1, tb->mesh_roll_lt_min[m]);
+        P = torque1_nm * omega2_rad_s
+            * (phi + tb->mesh_roll_k[m]
+                     * EXP(o->prop[GVS_P_LN_ROLL]
+                           + tb->ln10 * (R_(0.7) * log10_omega2 - R_(1.13) * log10_torque1_roll)));
         src[i] = P * tb->mesh_heat_sf[m];
     }
     for (b = 0; b < tb->n_bear; ++b, ++i) {                  /* shaft bearings, Palmgren (Eq 35-40) */
-        gvs_real wb = tb->bear_speed[row * tb->n_bear + b] * w;
-        gvs_real M0 = tb->bear_c[b] * POW(max_r(nu * wb * tb->rpm_per_rad_s, tb->palmgren_min), R_(2.0) / R_(3.0));
-        src[i] = (M0 + tb->bear_load[row * tb->n_bear + b] * torque) * wb;
+        gvs_real omega_b_rad_s = tb->bear_speed[gear_row * tb->n_bear + b] * omega_in_rad_s;
+        gvs_real M0 = tb->bear_c[b]
+            * POW(max_r(nu * omega_b_rad_s * tb->rpm_per_rad_s, tb->palmgren_min), R_(2.0) / R_(3.0));
+        src[i] = (M0 + tb->bear_load[gear_row * tb->n_bear + b] * torque_nm) * omega_b_rad_s;
     }
     for (b = 0; b < tb->n_bear; ++b) {                       /* needle bearings on relative speed (Eq 36-37) */
-        gvs_real rel = tb->needle_rel[row * tb->n_bear + b] * w;
-        gvs_real Mn = tb->needle_c[b] * POW(max_r(nu * rel * tb->rpm_per_rad_s, tb->palmgren_min), R_(2.0) / R_(3.0));
-        P_needle += Mn * rel;
+        gvs_real omega_rel_rad_s = tb->needle_rel[gear_row * tb->n_bear + b] * omega_in_rad_s;
+        gvs_real Mn = tb->needle_c[b]
+            * POW(max_r(nu * omega_rel_rad_s * tb->rpm_per_rad_s, tb->palmgren_min), R_(2.0) / R_(3.0));
+        P_needle += Mn * omega_rel_rad_s;
     }
-    w_sq = w * w;
-    w_ls = FABS(tb->speed_coef[row * tb->n_speed + GVS_SPEED_COL_LAYSHAFT]) * w;
-    iu = sqrt_speed_index(w_ls, tb->churn_w_max, tb->n_u_churn, &fu);     /* churning table */
+    omega_in_sq = omega_in_rad_s * omega_in_rad_s;
+    omega_ls_rad_s = FABS(tb->speed_coef[gear_row * tb->n_speed + GVS_SPEED_COL_LAYSHAFT]) * omega_in_rad_s;
+    iu = sqrt_speed_index(omega_ls_rad_s, tb->churn_omega_max_rad_s, tb->n_u_churn, &fu);  /* churning table */
     jT = grid_index(o->x, tb->nT, &fT);
     P_churn = bilinear(tb->churn_table + iu * tb->nT + jT, tb->nT, fu, fT);
     src[i++] = P_churn * tb->churn_heat_sf * veh->churn_scale + P_needle * veh->needle_scale
-        + EXP(o->prop[GVS_P_LN_MU]) * w_sq * tb->sync_coef[row] + tb->pump_coef[row] * w_sq;   /* Eq 41, 42 */
+        + EXP(o->prop[GVS_P_LN_MU]) * omega_in_sq * tb->sync_coef[gear_row]                  /* synchronizers, Eq 41 */
+        + tb->pump_coef[gear_row] * omega_in_sq;                                              /* pump, Eq 42 */
     src[i++] = retarder_w;
     for (m = 0; m < tb->ns; ++m) src[m] *= veh->src_scale[m];
 }
