@@ -179,10 +179,29 @@ def _conductances(sp: SensorParams, cache: StepCache, row, omega_in_rad_s, T_oil
     return G_w_per_k, G_streams_w_per_k, G_w_per_k[..., h.int_idx], G_w_per_k[..., h.ext_idx]
 
 
+def _heat_sources_w(sp: SensorParams, used, gear_row, omega_in_rad_s, torque_nm, prop, T_grid_x):
+    """Heat of every loss source [W] (B + (ns,)) at the step's operating point, the retarder's from its torque."""
+    rp, eff = sp.reduced, sp.effects
+    retarder_w = E.retarder_heat_w(rp, gear_row, omega_in_rad_s, used[..., I_RET], eff.retarder_frac)
+    return E.heat_sources(
+        rp,
+        gear_row,
+        omega_in_rad_s,
+        torque_nm,
+        prop,
+        T_grid_x,
+        eff.src_scale,
+        eff.churn_scale,
+        eff.needle_scale,
+        retarder_w,
+        sp.helpers,
+    )
+
+
 def _network_step(state: SensorState, chk: InputCheck, oil_c, sp: SensorParams, cache: StepCache) -> NetworkStep:
     """Steps 2-5 of the module doc: operating point, heat through the lag, conductances, cooler and inlet drop, one
     explicit step of both copies."""
-    rp, h, eff = sp.reduced, sp.helpers, sp.effects
+    rp, h = sp.reduced, sp.helpers
     used, measured = chk.used, chk.measured
     # ---- operating point
     omega_in_rad_s = used[..., I_SPEED] * RAD_S_PER_RPM
@@ -197,20 +216,7 @@ def _network_step(state: SensorState, chk: InputCheck, oil_c, sp: SensorParams, 
     T_bc_c[..., rp.i_ambient] = used[..., I_AMB]
     T_bc_c[..., rp.i_coolant] = used[..., I_COOL]
     # ---- heat (loss maps) through the heat lag (exact step average for a held input)
-    retarder_w = E.retarder_heat_w(rp, row, omega_in_rad_s, used[..., I_RET], eff.retarder_frac)
-    src_w = E.heat_sources(
-        rp,
-        row,
-        omega_in_rad_s,
-        torque_nm,
-        prop,
-        T_grid_x,
-        eff.src_scale,
-        eff.churn_scale,
-        eff.needle_scale,
-        retarder_w,
-        h,
-    )
+    src_w = _heat_sources_w(sp, used, row, omega_in_rad_s, torque_nm, prop, T_grid_x)
     lag = heat_lag_step(state.lag_w, src_w, h.heat_lag)
     lag_w = lag.state_w
     q_nodes_w = lag.delivered_w @ rp.src_matrix  # B + (n,)
