@@ -359,6 +359,7 @@ def test_helpers_live_and_die_with_their_tables(rp):
     """The derived helpers are cached on the tables themselves: a second call gives the same object, a copy of the
     tables gets its own, and tables no longer used are freed (no module-level cache keeps them alive)."""
     import gc
+    import pickle
     import weakref
 
     assert E.helpers(rp) is E.helpers(rp)
@@ -369,6 +370,10 @@ def test_helpers_live_and_die_with_their_tables(rp):
     del copy, h
     gc.collect()
     assert ref() is None
+    # a pickle carries the tables, not the derived helpers; the unpickled tables build equal ones
+    back = pickle.loads(pickle.dumps(rp))
+    assert "helpers" not in vars(back)
+    np.testing.assert_array_equal(E.helpers(back).B_int, E.helpers(rp).B_int)
 
 
 def test_retarder_heat_is_its_torque_times_the_output_speed(params):
