@@ -264,11 +264,6 @@ class Helpers:
         self.heat_lag = heat_lag(rp.heat_lag_tau_s, rp.dt_s)
 
 
-def helpers(rp: ReducedParams) -> Helpers:
-    """The helpers of ``rp`` (cached on it: :attr:`ReducedParams.helpers`)."""
-    return rp.helpers
-
-
 def oil_row(rp: ReducedParams, T_oil_c, h: Helpers | None = None):
     """(T_grid_x, property row (..., N_PROP), pw phi row (..., ncol)) at the oil temperature; T_grid_x is the
     fractional index on T_GRID_C (held at the ends). C: oil_row."""

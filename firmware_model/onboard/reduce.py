@@ -4,9 +4,10 @@ explicit step, with a stability guarantee checked when the parameters load.
 Everything here is derived by code from the same description the reference plant integrates
 (:func:`firmware_model.network.build_network`, :class:`~firmware_model.network.ConductanceEvaluator`,
 :class:`~firmware_model.physics.gearbox_losses.GearboxLosses`): no number is copied by hand. The cooler
-(:func:`cooler_heat` over :func:`firmware_model.physics.cooler.oil_cooler_heat`), the heat lag
-(:mod:`firmware_model.physics.heat_lag`, coefficients in ``helpers(rp).heat_lag``) and the conductance matrix
-(:func:`firmware_model.physics.conductance_matrix.conductance_matrix` of ``helpers(rp).topology``) are the plant's.
+(:func:`firmware_model.onboard.evaluate.cooler_heat` over :func:`firmware_model.physics.cooler.oil_cooler_heat`),
+the heat lag (:mod:`firmware_model.physics.heat_lag`, coefficients in ``rp.helpers.heat_lag``) and the conductance
+matrix (:func:`firmware_model.physics.conductance_matrix.conductance_matrix` of ``rp.helpers.topology``) are the
+plant's.
 
 Reduction (docs/sensor.md, "Reduction")
 ---------------------------------------

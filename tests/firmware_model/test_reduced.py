@@ -140,7 +140,7 @@ def test_stability_margin_and_dt_are_checked(params):
 
 def test_stability_bound_covers_the_operating_range(rp):
     """The proven bound is above every node's actual sum of conductances at random operating points."""
-    h = E.helpers(rp)
+    h = rp.helpers
     G_max = S.max_conductances(rp)["G"]
     rng = np.random.default_rng(7)
     bc = np.array(rp.bc_default_c)
@@ -199,7 +199,7 @@ def test_conductance_laws_match_the_full_evaluator(rp, full):
     kin = load_parameters("GRS905").kinematics
     M = _link_matrix(net, R.aggregate(net, {}))
     rng = np.random.default_rng(11)
-    h = E.helpers(rp)
+    h = rp.helpers
     errs = []
     for _ in range(600):
         g = int(rng.integers(-2, 15))
@@ -230,7 +230,7 @@ def test_power_laws_are_exact_where_the_physics_is_separable(rp):
 def test_loss_maps_match_gearbox_losses(rp, full, T_range):
     _, _, gl = full
     rng = np.random.default_rng(5)
-    h = E.helpers(rp)
+    h = rp.helpers
     tol_mesh = 0.003 if T_range[0] < 40 else 0.001
     for _ in range(300):
         g = int(rng.integers(-2, 15))
@@ -280,7 +280,7 @@ def test_one_effect_record_for_plant_and_onboard_model():
 def test_conductance_matrix_is_the_network_laplacian(rp):
     """K of physics.conductance_matrix: symmetric, K 1 = the boundary links at each node, its diagonal the total
     conductance at each node (what the stability bound sums), and the plant's implicit matrix adds a0 C / h."""
-    h = E.helpers(rp)
+    h = rp.helpers
     G = np.random.default_rng(2).uniform(0.1, 10.0, len(rp.link_a))
     K, Ge = conductance_matrix(G, h.topology)
     np.testing.assert_allclose(K, K.T, rtol=0, atol=0)
@@ -298,7 +298,7 @@ def test_conductance_matrix_is_the_network_laplacian(rp):
 
 def test_radiation_and_boundaries_are_those_of_the_plant(rp):
     assert len(rp.bc_default_c) == len(BOUNDARIES)
-    h = E.helpers(rp)
+    h = rp.helpers
     g = E.radiation_conductances(rp, np.full(rp.n, 80.0), np.asarray(rp.bc_default_c), h)
     assert np.all(g > 0) and len(g) == 6
 
@@ -341,7 +341,7 @@ def test_loss_maps_match_gearbox_losses_at_tiny_torques(rp, full, tq):
     the onboard reduction applying it to the sun's total torque, 5 planets, where the plant applies it per planet:
     PSP 70 W against 57 W) and the slip table's low end, plant against reduction, every mesh."""
     _, _, gl = full
-    h = E.helpers(rp)
+    h = rp.helpers
     for g in (-1, 1, 5, 8, 12, 14):
         for rpm in (600.0, 1400.0, 2200.0):
             ref = gl.heat(gl.evaluate(rpm * RAD_S_PER_RPM, tq, g, 80.0))
@@ -362,10 +362,10 @@ def test_helpers_live_and_die_with_their_tables(rp):
     import pickle
     import weakref
 
-    assert E.helpers(rp) is E.helpers(rp)
+    assert rp.helpers is rp.helpers
     copy = dataclasses.replace(rp)
-    h = E.helpers(copy)
-    assert h is not E.helpers(rp) and E.helpers(copy) is h
+    h = copy.helpers
+    assert h is not rp.helpers and copy.helpers is h
     ref = weakref.ref(copy)
     del copy, h
     gc.collect()
@@ -373,7 +373,7 @@ def test_helpers_live_and_die_with_their_tables(rp):
     # a pickle carries the tables, not the derived helpers; the unpickled tables build equal ones
     back = pickle.loads(pickle.dumps(rp))
     assert "helpers" not in vars(back)
-    np.testing.assert_array_equal(E.helpers(back).B_int, E.helpers(rp).B_int)
+    np.testing.assert_array_equal(back.helpers.B_int, rp.helpers.B_int)
 
 
 def test_retarder_heat_is_its_torque_times_the_output_speed(params):
