@@ -3,7 +3,7 @@
 The step evaluates every link's conductance at the centre of the operating point's bin: 1 % in input speed, 0.5 K
 in oil temperature, radiation linearised at the bin's oil temperature. The conductances are then a pure function of
 (gear row, speed bin centre, oil bin centre): :func:`bin_conductances` evaluates them for any batch shape through
-firmware_model.onboard.reduce, and a :class:`BinCache` (part of the sensor's step cache) memoises them for one
+firmware_model.onboard.evaluate, and a :class:`BinCache` (part of the sensor's step cache) memoises them for one
 vehicle at a time, keyed by the bin centre itself, so that a cached value is the value the batch computes.
 """
 
@@ -14,7 +14,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from firmware_model.onboard import reduce as R
+from firmware_model.onboard import evaluate as E
 from firmware_model.onboard.params import SensorParams
 
 #: operating-point quantisation of the conductances: 1 % in speed, 0.5 K in oil temperature
@@ -55,14 +55,14 @@ class BinConductances(NamedTuple):
 
 
 def bin_conductances(sp: SensorParams, row, omega_q_rad_s, T_q_c):
-    """(G, stream G) at bin centres of any batch shape: the compact laws of firmware_model.onboard.reduce at the
+    """(G, stream G) at bin centres of any batch shape: the compact laws of firmware_model.onboard.evaluate at the
     speed and oil temperature of the centre, radiation (Eq 81) with the housings at the bin's oil temperature (they
     sit within a few kelvin of the sump: ~1 % on h_rad) and the boundaries at their defaults."""
     rp, h = sp.reduced, sp.helpers
     T_q = np.asarray(T_q_c, dtype=float)
-    x, prop, phi = R.oil_row(rp, T_q, h)
+    T_grid_x, prop, phi = E.oil_row(rp, T_q, h)
     T_nodes = np.broadcast_to(T_q[..., None], T_q.shape + (rp.n,))
-    return R.conductances(rp, row, omega_q_rad_s, x, prop, phi, T_nodes, sp.T_bc_default_c, sp.effects, h)
+    return E.conductances(rp, row, omega_q_rad_s, T_grid_x, prop, phi, T_nodes, sp.T_bc_default_c, sp.effects, h)
 
 
 class BinCache:
@@ -88,10 +88,10 @@ class BinCache:
         return item
 
 
-def conductance_matrix(G_w_per_k, h: R.Helpers, n: int):
+def conductance_matrix(G_w_per_k, h: E.Helpers, n: int):
     """(K, G_ext): the network's conductance matrix [W/K] (weighted Laplacian plus the boundary links on the
     diagonal) of one vehicle's link conductances, and the boundary links' conductances."""
-    # TODO(merge): one conductance assembly (the plant and firmware_model.onboard.reduce assemble the same matrix)
+    # TODO(merge): one conductance assembly (the plant and firmware_model.onboard.evaluate assemble the same matrix)
     Gi = G_w_per_k[h.int_idx]
     K = np.zeros((n, n))
     np.add.at(K, (h.ia, h.ia), Gi)

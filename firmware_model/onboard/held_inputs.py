@@ -12,9 +12,9 @@ from typing import NamedTuple
 import numpy as np
 
 from firmware_model.network import BOUNDARIES
-from firmware_model.onboard import reduce as R
+from firmware_model.onboard import evaluate as E
 from firmware_model.onboard.held_modes import HeldModes, decompose
-from firmware_model.onboard.kernel_interface import SPEED_COL_LAYSHAFT, SPEED_COL_OUTPUT
+from firmware_model.onboard.kernel_interface import P_CP, P_RHO, SPEED_COL_LAYSHAFT
 from firmware_model.onboard.params import SensorParams, first_row, first_value, vehicle_value
 from firmware_model.onboard.records import (
     I_AMB,
@@ -75,11 +75,11 @@ def cooler_slope_w_per_k(
     sp: SensorParams, T_oil_c: float, omega_in_rad_s: float, row: int, used, rho_cp_j_per_m3k: float, vehicle=None
 ) -> float:
     """dQ_cooler/dT_oil [W/K] at this operating point (liquid: its hA unless saturated; air: a finite difference),
-    from firmware_model.onboard.reduce.cooler_heat; ``used``: the step's inputs (INPUT_FIELDS order); ``vehicle``:
+    from firmware_model.onboard.evaluate.cooler_heat; ``used``: the step's inputs (INPUT_FIELDS order); ``vehicle``:
     the batch index whose effects apply (None: the first vehicle's)."""
     rp = sp.reduced
     omega_ls = abs(rp.speed_coef[row, SPEED_COL_LAYSHAFT]) * omega_in_rad_s
-    if rp.cooler_code == R.COOLER_CODES["none"] or omega_ls <= 0.0:
+    if rp.cooler_code == E.COOLER_CODES["none"] or omega_ls <= 0.0:
         return 0.0
     args = (
         omega_ls,
@@ -91,12 +91,12 @@ def cooler_slope_w_per_k(
         vehicle_value(sp.effects.cooler_scale, vehicle),
         vehicle_value(sp.effects.thermostat_offset_c, vehicle),
     )
-    if rp.cooler_code == R.COOLER_CODES["liquid"]:
-        Q, _, hA = R.cooler_heat(rp, T_oil_c, *args)
+    if rp.cooler_code == E.COOLER_CODES["liquid"]:
+        Q, _, hA = E.cooler_heat(rp, T_oil_c, *args)
         c = rp.cooler
         return float(hA) if -c["liquid_Qmax_heat"] < float(Q) < c["liquid_Qmax_cool"] else 0.0
-    Q_hi_w, _, _ = R.cooler_heat(rp, T_oil_c + 0.05, *args)
-    Q_lo_w, _, _ = R.cooler_heat(rp, T_oil_c - 0.05, *args)
+    Q_hi_w, _, _ = E.cooler_heat(rp, T_oil_c + 0.05, *args)
+    Q_lo_w, _, _ = E.cooler_heat(rp, T_oil_c - 0.05, *args)
     return max(float((Q_hi_w - Q_lo_w) / 0.1), 0.0)
 
 
@@ -173,30 +173,30 @@ def _held_propagate(sp: SensorParams, state: SensorState, v: tuple, copy: int, t
     )
     T_oil_c = float(hold[I_OIL]) if measured else float(T0_c[rp.i_oil])
     T0_c[rp.i_oil] = T_oil_c
-    x, prop, phi = R.oil_row(rp, T_oil_c, h)
+    T_grid_x, prop, phi = E.oil_row(rp, T_oil_c, h)
     T_bc_c = np.array(np.asarray(sp.T_bc_default_c, dtype=float).reshape(-1, len(BOUNDARIES))[0])
     T_bc_c[rp.i_ambient], T_bc_c[rp.i_coolant] = T_amb_c, T_cool_c
-    retarder_w = first_value(e.retarder_frac) * retarder_nm * abs(rp.speed_coef[row, SPEED_COL_OUTPUT]) * omega_in_rad_s
-    src_w = R.heat_sources(
+    retarder_w = E.retarder_heat_w(rp, row, omega_in_rad_s, retarder_nm, first_value(e.retarder_frac))
+    src_w = E.heat_sources(
         rp,
         row,
         omega_in_rad_s,
         torque_nm,
         prop,
-        x,
+        T_grid_x,
         first_row(e.src_scale),
         first_value(e.churn_scale),
         first_value(e.needle_scale),
         retarder_w,
         h=h,
     )
-    G_w_per_k, G_streams_w_per_k = R.conductances(
-        rp, row, omega_in_rad_s, x, prop, phi, T0_c, T_bc_c, e if sp.scalar_effects else None, h
+    G_w_per_k, G_streams_w_per_k = E.conductances(
+        rp, row, omega_in_rad_s, T_grid_x, prop, phi, T0_c, T_bc_c, e if sp.scalar_effects else None, h
     )
-    rho_cp_j_per_m3k = float(prop[R.P_RHO] * prop[R.P_CP])
+    rho_cp_j_per_m3k = float(prop[P_RHO] * prop[P_CP])
     omega_ls_rad_s = abs(rp.speed_coef[row, SPEED_COL_LAYSHAFT]) * omega_in_rad_s
     used = np.array([speed_rpm, torque_nm, row + GEAR_MIN, T_oil_c, T_amb_c, T_cool_c, v_kmh, retarder_nm])
-    Q_cool_w, mcp_w_per_k, _ = R.cooler_heat(
+    Q_cool_w, mcp_w_per_k, _ = E.cooler_heat(
         rp,
         T_oil_c,
         omega_ls_rad_s,
@@ -241,8 +241,10 @@ def engine_off_modes(sp: SensorParams, cache: StepCache, ambient_c: float) -> He
 def _engine_off_system(sp: SensorParams, ambient_c: float, T_bc_c) -> LinearSystem:
     rp, h = sp.reduced, sp.helpers
     T_amb_bc_c = np.full(len(BOUNDARIES), float(ambient_c))
-    x, prop, phi = R.oil_row(rp, ambient_c, h)
-    G_w_per_k, _ = R.conductances(rp, 0 - GEAR_MIN, 0.0, x, prop, phi, np.full(rp.n, ambient_c), T_amb_bc_c, None, h)
+    T_grid_x, prop, phi = E.oil_row(rp, ambient_c, h)
+    G_w_per_k, _ = E.conductances(
+        rp, 0 - GEAR_MIN, 0.0, T_grid_x, prop, phi, np.full(rp.n, ambient_c), T_amb_bc_c, None, h
+    )
     return linear_system(
         sp, G_w_per_k, np.zeros(rp.n), np.zeros(rp.n), np.asarray(T_bc_c, dtype=float), ambient_c, 0.0, False, 0.0
     )

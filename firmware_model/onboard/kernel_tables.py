@@ -14,6 +14,7 @@ import math
 import numpy as np
 
 from firmware_model.network import MIN_SPEED_RAD_S
+from firmware_model.onboard import evaluate as E
 from firmware_model.onboard import reduce as R
 from firmware_model.onboard.conductance_bins import LN_SPEED_BIN, OIL_BIN_C, SPEED_BIN_MIN_RAD_S
 from firmware_model.onboard.kernel_interface import STRUCT, VEHICLE_EFFECTS, struct_values
@@ -55,7 +56,7 @@ def _streams(sp: SensorParams) -> tuple[np.ndarray, np.ndarray]:
     return _i32(h.t2_streams), _i32(node)
 
 
-def _sources(rp: R.ReducedParams) -> dict:
+def _sources(rp: E.ReducedParams) -> dict:
     """The source -> node matrix as its non-zeros (the kernel loops over them)."""
     src, node = np.nonzero(np.asarray(rp.src_matrix))
     return dict(
@@ -82,9 +83,9 @@ def _network(sp: SensorParams) -> dict:
         nst=int(stream_node.size),
         nT=h.nT,
         ncol=rp.pw_phi.shape[1],
-        n_u=R.N_U,
+        n_u=E.N_U,
         nT2=h.nT2,
-        n_u_churn=R.N_U_CHURN,
+        n_u_churn=E.N_U_CHURN,
         nx=h.nx,
         n_mesh=rp.mesh_torque.shape[1],
         n_bear=rp.bear_c.size,
@@ -108,9 +109,9 @@ def _network(sp: SensorParams) -> dict:
         pw_phi=_f64(rp.pw_phi),
         t2_link=_i32(rp.t2_link),
         t2_speed_coef=_f64(rp.t2_speed_coef),
-        t2_w_max=_f64(rp.t2_w_max),
+        t2_omega_max_rad_s=_f64(rp.t2_omega_max_rad_s),
         t2_table=_f64(rp.t2_table),
-        t2_stride=R.T2_STRIDE,
+        t2_stride=E.T2_STRIDE,
         cyl_link=_i32(rp.cyl_link),
         cyl_speed_coef=_f64(rp.cyl_speed_coef),
         cyl_c=_f64(rp.cyl_c),
@@ -151,9 +152,9 @@ def _losses(sp: SensorParams) -> dict:
         sync_coef=_f64(rp.sync_coef),
         pump_coef=_f64(rp.pump_coef),
         churn_table=_f64(rp.churn_table),
-        churn_w_max=rp.churn_w_max,
+        churn_omega_max_rad_s=rp.churn_omega_max_rad_s,
         churn_heat_sf=rp.churn_heat_sf,
-        x_step=R.X_STEP,
+        x_step=E.X_STEP,
         ln10=math.log(10.0),
         lag_gain=sp.helpers.heat_lag.gain,
         lag_tau_over_dt=sp.helpers.heat_lag.tau_over_dt,
@@ -200,9 +201,9 @@ def _constants() -> dict:
         ln_0238=math.log(0.238),
         ln_re_lam=math.log(ht.RE_LAMINAR_MAX),
         ln_re_bridge=math.log(ht.RE_TURBULENT_MIN / ht.RE_LAMINAR_MAX),
-        ln_1e6=math.log(1e-6),
-        rad_T_lo_c=R.RAD_T_RANGE_C[0],
-        rad_T_hi_c=R.RAD_T_RANGE_C[1],
+        ln_1e6=E.LN_M2_S_PER_CST,
+        rad_T_lo_c=E.RAD_T_RANGE_C[0],
+        rad_T_hi_c=E.RAD_T_RANGE_C[1],
         speed_bin_min=SPEED_BIN_MIN_RAD_S,
         ln_speed_bin=LN_SPEED_BIN,
         oil_bin_c=OIL_BIN_C,

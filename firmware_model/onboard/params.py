@@ -11,6 +11,7 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 
+from firmware_model.onboard import evaluate as E
 from firmware_model.onboard import reduce as R
 from firmware_model.onboard.records import SensorOptions
 from firmware_model.onboard.warning_levels import Limits
@@ -24,11 +25,11 @@ class SensorParams:
     Effects may be per vehicle (arrays over the batch): then ``T_bc_default_c``, ``cooler_scale`` and
     ``thermostat_offset_c`` carry the batch axis and ``scalar_effects`` is False."""
 
-    reduced: R.ReducedParams
+    reduced: E.ReducedParams
     limits: Limits
     effects: R.Effects
     options: SensorOptions
-    helpers: R.Helpers  # index splits and scatter matrices of the network (reduce.helpers)
+    helpers: E.Helpers  # index splits and scatter matrices of the network (ReducedParams.helpers)
     dt_over_C_s_k_per_j: np.ndarray  # (n,) dt / C of every node
     sqrt_C: np.ndarray  # (n,) C^1/2 (held-input modes)
     T_bc_default_c: np.ndarray  # (nb,) or (V, nb): boundary temperatures, hot-side offset applied
@@ -51,7 +52,7 @@ class SensorParams:
 
     @classmethod
     def build(
-        cls, reduced: R.ReducedParams, limits: Limits, effects: R.Effects, options: SensorOptions
+        cls, reduced: E.ReducedParams, limits: Limits, effects: R.Effects, options: SensorOptions
     ) -> SensorParams:
         """Derive the step's constants once."""
         rp, eff = reduced, effects
@@ -88,7 +89,7 @@ class SensorParams:
             limits=limits,
             effects=eff,
             options=options,
-            helpers=R.helpers(rp),
+            helpers=rp.helpers,
             dt_over_C_s_k_per_j=dt_s / np.asarray(rp.C_j_per_k, dtype=float),
             sqrt_C=np.sqrt(np.asarray(rp.C_j_per_k, dtype=float)),
             T_bc_default_c=bc,
@@ -120,7 +121,7 @@ ENGINE_SPEED_DATA_MAX_RPM = 8031.875
 ENGINE_TORQUE_DATA_MAX_NM = 1.25 * 64255.0
 
 
-def _input_bounds(rp: R.ReducedParams, opt: SensorOptions) -> dict:
+def _input_bounds(rp: E.ReducedParams, opt: SensorOptions) -> dict:
     """Plausible range and clamp of every input field (docs/sensor.md "Bad input")."""
     inf = math.inf
     aux_lo, aux_hi = opt.aux_range_c

@@ -16,8 +16,8 @@ import zlib
 import numpy as np
 
 from firmware_model.errors import InputError
+from firmware_model.onboard.evaluate import ReducedParams
 from firmware_model.onboard.records import N_PUB, N_REJECT, SensorState
-from firmware_model.onboard.reduce import ReducedParams
 
 SNAPSHOT_SCHEMA = "vsensor-snapshot/1"
 #: a restored node temperature outside this is no state the sensor can have reached [degC]

@@ -4,7 +4,7 @@ Pure: no I/O, no clock, nothing that grows; every array has a fixed shape, and w
 :class:`~firmware_model.onboard.step_cache.StepCache` it is given (pure functions of their keys: the outputs do not
 depend on the cache's contents). One step for every use: one truck is a batch of shape ``()``, a fleet a batch of
 shape ``(V,)`` (state from ``initial_state(..., n_vehicles=V)``, input fields arrays of shape (V,)). Forward Euler
-at dt = 0.1 s (stability proven when the parameters load, see firmware_model.onboard.reduce).
+at dt = 0.1 s (stability proven when the parameters load, see firmware_model.onboard.stability).
 
 Per step (docs/sensor.md):
 
@@ -33,11 +33,11 @@ from typing import NamedTuple
 import numpy as np
 
 from firmware_model.components import LEVEL_NA, MODE_HOLDING, MODE_NORMAL, MODE_OIL_MODEL
-from firmware_model.onboard import reduce as R
+from firmware_model.onboard import evaluate as E
 from firmware_model.onboard.conductance_bins import bin_centre, bin_conductances, quantise
 from firmware_model.onboard.held_inputs import jump_state
 from firmware_model.onboard.input_check import DRIVE_FROZEN_BITS, INPUT_BITS, OIL_FROZEN_BITS, InputCheck, check_inputs
-from firmware_model.onboard.kernel_interface import SPEED_COL_LAYSHAFT, SPEED_COL_OUTPUT
+from firmware_model.onboard.kernel_interface import P_CP, P_RHO, SPEED_COL_LAYSHAFT
 from firmware_model.onboard.params import SensorParams
 from firmware_model.onboard.records import (
     I_AMB,
@@ -179,10 +179,29 @@ def _conductances(sp: SensorParams, cache: StepCache, row, omega_in_rad_s, T_oil
     return G_w_per_k, G_streams_w_per_k, G_w_per_k[..., h.int_idx], G_w_per_k[..., h.ext_idx]
 
 
+def _heat_sources_w(sp: SensorParams, used, gear_row, omega_in_rad_s, torque_nm, prop, T_grid_x):
+    """Heat of every loss source [W] (B + (ns,)) at the step's operating point, the retarder's from its torque."""
+    rp, eff = sp.reduced, sp.effects
+    retarder_w = E.retarder_heat_w(rp, gear_row, omega_in_rad_s, used[..., I_RET], eff.retarder_frac)
+    return E.heat_sources(
+        rp,
+        gear_row,
+        omega_in_rad_s,
+        torque_nm,
+        prop,
+        T_grid_x,
+        eff.src_scale,
+        eff.churn_scale,
+        eff.needle_scale,
+        retarder_w,
+        sp.helpers,
+    )
+
+
 def _network_step(state: SensorState, chk: InputCheck, oil_c, sp: SensorParams, cache: StepCache) -> NetworkStep:
     """Steps 2-5 of the module doc: operating point, heat through the lag, conductances, cooler and inlet drop, one
     explicit step of both copies."""
-    rp, h, eff = sp.reduced, sp.helpers, sp.effects
+    rp, h = sp.reduced, sp.helpers
     used, measured = chk.used, chk.measured
     # ---- operating point
     omega_in_rad_s = used[..., I_SPEED] * RAD_S_PER_RPM
@@ -191,24 +210,21 @@ def _network_step(state: SensorState, chk: InputCheck, oil_c, sp: SensorParams, 
     T_c = np.array(state.T_c, dtype=float)
     T_oil_main_c = np.where(measured, oil_c, T_c[..., MAIN, rp.i_oil])
     T_c[..., MAIN, rp.i_oil] = T_oil_main_c
-    x_T, prop, _ = R.oil_row(rp, T_oil_main_c, h)
+    T_grid_x, prop, _ = E.oil_row(rp, T_oil_main_c, h)
     T_bc_c = np.empty(used.shape[:-1] + sp.T_bc_default_c.shape[-1:])
     T_bc_c[...] = sp.T_bc_default_c
     T_bc_c[..., rp.i_ambient] = used[..., I_AMB]
     T_bc_c[..., rp.i_coolant] = used[..., I_COOL]
     # ---- heat (loss maps) through the heat lag (exact step average for a held input)
-    retarder_w = eff.retarder_frac * used[..., I_RET] * np.abs(rp.speed_coef[row, SPEED_COL_OUTPUT]) * omega_in_rad_s
-    src_w = R.heat_sources(
-        rp, row, omega_in_rad_s, torque_nm, prop, x_T, eff.src_scale, eff.churn_scale, eff.needle_scale, retarder_w, h
-    )
+    src_w = _heat_sources_w(sp, used, row, omega_in_rad_s, torque_nm, prop, T_grid_x)
     lag = heat_lag_step(state.lag_w, src_w, h.heat_lag)
     lag_w = lag.state_w
     q_nodes_w = lag.delivered_w @ rp.src_matrix  # B + (n,)
     # ---- conductances (at the centre of the operating-point bin), cooler, inlet drop of both copies
     G_w_per_k, G_streams_w_per_k, G_int, G_ext = _conductances(sp, cache, row, omega_in_rad_s, T_oil_main_c)
     omega_ls_rad_s = np.abs(rp.speed_coef[row, SPEED_COL_LAYSHAFT]) * omega_in_rad_s
-    rho_cp_j_per_m3k = prop[..., R.P_RHO] * prop[..., R.P_CP]
-    Q_cool_w, mcp_w_per_k, _ = R.cooler_heat(
+    rho_cp_j_per_m3k = prop[..., P_RHO] * prop[..., P_CP]
+    Q_cool_w, mcp_w_per_k, _ = E.cooler_heat(
         rp,
         T_c[..., :, rp.i_oil],
         omega_ls_rad_s[..., None],
@@ -228,7 +244,7 @@ def _network_step(state: SensorState, chk: InputCheck, oil_c, sp: SensorParams, 
     # ---- one explicit (forward Euler) step of both copies; copies first, (2, ..., n), so that the per-vehicle
     # conductances broadcast over one leading axis
     batch = T_c.ndim > 2
-    T_new_c = R.explicit_step(
+    T_new_c = E.explicit_step(
         np.moveaxis(T_c, -2, 0) if batch else T_c,
         np.moveaxis(q_copies_w, -2, 0) if batch else q_copies_w,
         G_int,

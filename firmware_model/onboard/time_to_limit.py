@@ -18,14 +18,13 @@ from typing import NamedTuple
 import numpy as np
 
 from firmware_model.components import PUBLISHED
-from firmware_model.onboard import reduce as R
+from firmware_model.onboard import evaluate as E
 from firmware_model.onboard.conductance_bins import LN_SPEED_BIN, OIL_BIN_C, SPEED_BIN_MIN_RAD_S
 from firmware_model.onboard.held_inputs import cooler_slope_w_per_k
 from firmware_model.onboard.held_march import HeldSystem, March, march_time_to_limit
 from firmware_model.onboard.kernel_interface import (
     COUPLING_MARGIN,
     SPEED_COL_LAYSHAFT,
-    SPEED_COL_OUTPUT,
     TTL_RELINEARISE_STEPS,
     TTL_RELINEARISE_TOL_K,
 )
@@ -113,14 +112,9 @@ def time_to_limit(sp: SensorParams, cache: StepCache, p: TtlPoint, vehicle=None)
         if abs(T_next_c - T_op_c) < TTL_RELINEARISE_TOL_K:
             break
         T_op_c = T_next_c
-        x, prop, _ = R.oil_row(rp, T_op_c, h)
-        retarder_w = (
-            float(e.retarder_frac)
-            * float(p.used[I_RET])
-            * abs(float(rp.speed_coef[p.row, SPEED_COL_OUTPUT]))
-            * p.omega_in_rad_s
-        )
-        src_op_w = R.heat_sources(
+        x, prop, _ = E.oil_row(rp, T_op_c, h)
+        retarder_w = E.retarder_heat_w(rp, p.row, p.omega_in_rad_s, float(p.used[I_RET]), float(e.retarder_frac))
+        src_op_w = E.heat_sources(
             rp,
             p.row,
             p.omega_in_rad_s,

@@ -5,7 +5,7 @@ thermostat, recirculated air warmer than ambient at low vehicle speed). The cool
 its data sheet from the reference flows: ``hA = hA_ref (inner flow ratio)^exp_inner (outer flow ratio)^exp_outer``,
 the inner (oil) flow linear in the layshaft speed, the outer flow linear in engine speed (liquid) or a fan share plus
 the ram air of the vehicle speed (air). :func:`oil_cooler_heat` is the whole model; the plant
-(tools.plant.reference) and the onboard model (firmware_model.onboard.reduce.cooler_heat) both call it.
+(tools.plant.reference) and the onboard model (firmware_model.onboard.evaluate.cooler_heat) both call it.
 
 Every function takes floats or numpy arrays and does its arithmetic in what it is given (Python floats stay
 scalars), so both callers keep their own last bits.

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from firmware_model.errors import ParameterError
+from firmware_model.onboard import evaluate as E
 from firmware_model.onboard import reduce as R
 from firmware_model.parameters import load_parameters
 from firmware_model.physics import cooler as CO
@@ -88,14 +89,14 @@ def test_plant_and_onboard_use_the_same_cooler(models, kind):
     same heat at the same operating point, up to the last bits of the flow ratio."""
     params, rp = models
     plant = ReferencePlant(params, cooler=kind)
-    rpk = dataclasses.replace(rp, cooler_code=R.COOLER_CODES[kind])
+    rpk = dataclasses.replace(rp, cooler_code=E.COOLER_CODES[kind])
     rng = np.random.default_rng(4)
     for _ in range(200):
         T, w_ls, w_eng = rng.uniform(40, 140), rng.uniform(1, 200), rng.uniform(0, 250)
         T_cool, T_amb, v = rng.uniform(60, 95), rng.uniform(-10, 40), rng.uniform(0, 130)
         op = oilprops.oil_properties(T)
         q_plant, _ = plant.cooler_heat(T, w_ls, w_eng, T_cool, T_amb, v)
-        q_onboard, _, _ = R.cooler_heat(rpk, T, w_ls, w_eng, T_cool, T_amb, v, op.rho_kg_m3 * op.cp_j_per_kgk)
+        q_onboard, _, _ = E.cooler_heat(rpk, T, w_ls, w_eng, T_cool, T_amb, v, op.rho_kg_m3 * op.cp_j_per_kgk)
         assert float(q_onboard) == pytest.approx(q_plant, rel=1e-12, abs=1e-9)
 
 

@@ -10,11 +10,14 @@ from firmware_model.components import PUBLISHED
 from firmware_model.effects import CATALOG, EFFECT_IDS, FIELD_OF_EFFECT, EffectScales, effect_scales
 from firmware_model.errors import ParameterError, StabilityError
 from firmware_model.network import BOUNDARIES, ConductanceEvaluator, build_network
+from firmware_model.onboard import evaluate as E
 from firmware_model.onboard import reduce as R
+from firmware_model.onboard import stability as S
 from firmware_model.parameters import load_parameters
 from firmware_model.physics.conductance_matrix import boundary_heat_w, conductance_matrix, node_conductance_w_per_k
 from firmware_model.physics.gearbox_losses import GearboxLosses
 from firmware_model.physics.kinematics import GEAR_MIN
+from firmware_model.units import RAD_S_PER_RPM
 
 
 @pytest.fixture(scope="module")
@@ -55,7 +58,7 @@ def test_single_rc_node_follows_its_exponential(scatter):
     T = np.array([T0])
     worst = 0.0
     for k in range(1, 5001):  # 10 time constants
-        T = R.explicit_step(
+        T = E.explicit_step(
             T,
             np.array([q]),
             np.zeros(0),
@@ -73,7 +76,7 @@ def test_single_rc_node_follows_its_exponential(scatter):
     # Euler's global error for a decaying exponential is below dt / (2 tau) x e^-1 x |T0 - T_inf|
     assert worst <= dt / (2 * tau) * math.exp(-1) * abs(T0 - T_inf) * 1.01
     # the equilibrium is exact: a node at T_inf stays there
-    T = R.explicit_step(
+    T = E.explicit_step(
         np.array([T_inf]),
         np.array([q]),
         np.zeros(0),
@@ -93,7 +96,7 @@ def test_two_node_exchange_conserves_heat():
     T = np.array([[100.0, 20.0]])
     C = np.array([500.0, 1500.0])
     for _ in range(20000):
-        T = R.explicit_step(
+        T = E.explicit_step(
             T,
             np.zeros((1, 2)),
             np.array([[5.0]]),
@@ -114,7 +117,7 @@ def test_two_node_exchange_conserves_heat():
 
 def test_stability_is_proven_for_the_default_parameters(rp):
     st = rp.stability
-    assert rp.dt_s == 0.1 and st["margin"] == R.STABILITY_MARGIN
+    assert rp.dt_s == 0.1 and st["margin"] == S.STABILITY_MARGIN
     assert np.all(st["dt_max_s"] >= rp.dt_s)
     assert st["limiting_node"] in rp.nodes and st["tau_min_s"] > 0
 
@@ -137,16 +140,16 @@ def test_stability_margin_and_dt_are_checked(params):
 
 def test_stability_bound_covers_the_operating_range(rp):
     """The proven bound is above every node's actual sum of conductances at random operating points."""
-    h = R.helpers(rp)
-    G_max = R.max_conductances(rp)["G"]
+    h = rp.helpers
+    G_max = S.max_conductances(rp)["G"]
     rng = np.random.default_rng(7)
     bc = np.array(rp.bc_default_c)
     for _ in range(400):
         row = int(rng.integers(0, 17))
-        w = rng.uniform(0, rp.max_speed_rpm) * R.RPM
-        T = rng.uniform(*R.OIL_RANGE_C)
-        x, prop, phi = R.oil_row(rp, T, h)
-        G, _ = R.conductances(rp, row, w, x, prop, phi, np.full(rp.n, T), bc, None, h)
+        w = rng.uniform(0, rp.max_speed_rpm) * RAD_S_PER_RPM
+        T = rng.uniform(*S.OIL_RANGE_C)
+        x, prop, phi = E.oil_row(rp, T, h)
+        G, _ = E.conductances(rp, row, w, x, prop, phi, np.full(rp.n, T), bc, None, h)
         assert np.all(G <= G_max * (1 + 1e-9) + 1e-12), rp.link_name[int(np.argmax(G - G_max))]
 
 
@@ -180,12 +183,12 @@ def test_compact_partition_is_an_aggregation(params, full):
     M = _link_matrix(net, agg)
     for g, rpm, T in ((9, 1300, 90.0), (3, 2000, 60.0), (14, 900, 110.0)):
         row = g - GEAR_MIN
-        sp = np.abs(kin.speed[row] * rpm * R.RPM)
+        sp = np.abs(kin.speed[row] * rpm * RAD_S_PER_RPM)
         Gf = ev.evaluate(
             T, sp, row, kin.mesh_torque[row], bool(kin.low_range[row]), np.full(net.n, T), rpc.bc_default_c
         )
-        x, prop, phi = R.oil_row(rpc, T)
-        G, _ = R.conductances(rpc, row, rpm * R.RPM, x, prop, phi, np.full(rpc.n, T), rpc.bc_default_c)
+        x, prop, phi = E.oil_row(rpc, T)
+        G, _ = E.conductances(rpc, row, rpm * RAD_S_PER_RPM, x, prop, phi, np.full(rpc.n, T), rpc.bc_default_c)
         ref = M @ Gf
         big = ref > 0.5
         assert np.max(np.abs(G[big] - ref[big]) / ref[big]) < 0.05
@@ -196,18 +199,20 @@ def test_conductance_laws_match_the_full_evaluator(rp, full):
     kin = load_parameters("GRS905").kinematics
     M = _link_matrix(net, R.aggregate(net, {}))
     rng = np.random.default_rng(11)
-    h = R.helpers(rp)
+    h = rp.helpers
     errs = []
     for _ in range(600):
         g = int(rng.integers(-2, 15))
         row = g - GEAR_MIN
         rpm = rng.uniform(0, 4000)
         T = rng.uniform(-40, 150)
-        sp = np.abs(kin.speed[row] * rpm * R.RPM)
+        sp = np.abs(kin.speed[row] * rpm * RAD_S_PER_RPM)
         Tn = np.full(net.n, T + 3.0)
         Gf = M @ ev.evaluate(T, sp, row, kin.mesh_torque[row], bool(kin.low_range[row]), Tn, rp.bc_default_c)
-        x, prop, phi = R.oil_row(rp, T, h)
-        G, _ = R.conductances(rp, row, rpm * R.RPM, x, prop, phi, np.full(rp.n, T + 3.0), rp.bc_default_c, None, h)
+        x, prop, phi = E.oil_row(rp, T, h)
+        G, _ = E.conductances(
+            rp, row, rpm * RAD_S_PER_RPM, x, prop, phi, np.full(rp.n, T + 3.0), rp.bc_default_c, None, h
+        )
         big = Gf > 0.5  # below 0.5 W/K: links of a shaft at (nearly) standstill
         errs.append(np.abs(G[big] - Gf[big]) / Gf[big])
     e = np.concatenate(errs)
@@ -225,16 +230,16 @@ def test_power_laws_are_exact_where_the_physics_is_separable(rp):
 def test_loss_maps_match_gearbox_losses(rp, full, T_range):
     _, _, gl = full
     rng = np.random.default_rng(5)
-    h = R.helpers(rp)
+    h = rp.helpers
     tol_mesh = 0.003 if T_range[0] < 40 else 0.001
     for _ in range(300):
         g = int(rng.integers(-2, 15))
         rpm = rng.uniform(300, 4000)
         tq = rng.uniform(-1000, 4200)
         T = rng.uniform(*T_range)
-        ref = gl.heat(gl.evaluate(rpm * R.RPM, tq, g, T))
-        x, prop, phi = R.oil_row(rp, T, h)
-        Q = R.heat_sources(rp, g - GEAR_MIN, rpm * R.RPM, abs(tq), prop, x, h=h)
+        ref = gl.heat(gl.evaluate(rpm * RAD_S_PER_RPM, tq, g, T))
+        x, prop, phi = E.oil_row(rp, T, h)
+        Q = E.heat_sources(rp, g - GEAR_MIN, rpm * RAD_S_PER_RPM, abs(tq), prop, x, h=h)
         meshes = [float(ref[f"mesh:{m}"][0]) for m in ("L", "3", "2", "1", "C", "R", "RI")]
         assert np.allclose(Q[:7], meshes, rtol=tol_mesh, atol=0.05)
         assert Q[7] + Q[8] == pytest.approx(float(ref["planetary"][0]), rel=tol_mesh, abs=0.05)
@@ -275,7 +280,7 @@ def test_one_effect_record_for_plant_and_onboard_model():
 def test_conductance_matrix_is_the_network_laplacian(rp):
     """K of physics.conductance_matrix: symmetric, K 1 = the boundary links at each node, its diagonal the total
     conductance at each node (what the stability bound sums), and the plant's implicit matrix adds a0 C / h."""
-    h = R.helpers(rp)
+    h = rp.helpers
     G = np.random.default_rng(2).uniform(0.1, 10.0, len(rp.link_a))
     K, Ge = conductance_matrix(G, h.topology)
     np.testing.assert_allclose(K, K.T, rtol=0, atol=0)
@@ -286,15 +291,15 @@ def test_conductance_matrix_is_the_network_laplacian(rp):
     T = np.random.default_rng(3).uniform(20, 100, rp.n)
     T_bc = np.asarray(rp.bc_default_c, dtype=float)
     rate = (
-        R.explicit_step(T, np.zeros(rp.n), G[h.int_idx], G[h.ext_idx], T_bc, h.ia, h.ib, h.ea, h.eb, np.ones(rp.n)) - T
+        E.explicit_step(T, np.zeros(rp.n), G[h.int_idx], G[h.ext_idx], T_bc, h.ia, h.ib, h.ea, h.eb, np.ones(rp.n)) - T
     )
     np.testing.assert_allclose(rate, -K @ T + boundary_heat_w(Ge, h.topology, T_bc), atol=1e-9)
 
 
 def test_radiation_and_boundaries_are_those_of_the_plant(rp):
     assert len(rp.bc_default_c) == len(BOUNDARIES)
-    h = R.helpers(rp)
-    g = R.radiation_conductances(rp, np.full(rp.n, 80.0), np.asarray(rp.bc_default_c), h)
+    h = rp.helpers
+    g = E.radiation_conductances(rp, np.full(rp.n, 80.0), np.asarray(rp.bc_default_c), h)
     assert np.all(g > 0) and len(g) == 6
 
 
@@ -336,12 +341,54 @@ def test_loss_maps_match_gearbox_losses_at_tiny_torques(rp, full, tq):
     the onboard reduction applying it to the sun's total torque, 5 planets, where the plant applies it per planet:
     PSP 70 W against 57 W) and the slip table's low end, plant against reduction, every mesh."""
     _, _, gl = full
-    h = R.helpers(rp)
+    h = rp.helpers
     for g in (-1, 1, 5, 8, 12, 14):
         for rpm in (600.0, 1400.0, 2200.0):
-            ref = gl.heat(gl.evaluate(rpm * R.RPM, tq, g, 80.0))
-            x, prop, phi = R.oil_row(rp, 80.0, h)
-            Q = R.heat_sources(rp, g - GEAR_MIN, rpm * R.RPM, tq, prop, x, h=h)
+            ref = gl.heat(gl.evaluate(rpm * RAD_S_PER_RPM, tq, g, 80.0))
+            x, prop, phi = E.oil_row(rp, 80.0, h)
+            Q = E.heat_sources(rp, g - GEAR_MIN, rpm * RAD_S_PER_RPM, tq, prop, x, h=h)
             meshes = [float(ref[f"mesh:{m}"][0]) for m in ("L", "3", "2", "1", "C", "R", "RI")]
             assert np.allclose(Q[:7], meshes, rtol=0.003, atol=0.05), (g, rpm)
             assert Q[7] + Q[8] == pytest.approx(float(ref["planetary"][0]), rel=0.003, abs=0.05), (g, rpm)
+
+
+# ---- the run-time tables' helpers and the retarder's heat
+
+
+def test_helpers_live_and_die_with_their_tables(rp):
+    """The derived helpers are cached on the tables themselves: a second call gives the same object, a copy of the
+    tables gets its own, and tables no longer used are freed (no module-level cache keeps them alive)."""
+    import gc
+    import pickle
+    import weakref
+
+    assert rp.helpers is rp.helpers
+    copy = dataclasses.replace(rp)
+    h = copy.helpers
+    assert h is not rp.helpers and copy.helpers is h
+    ref = weakref.ref(copy)
+    del copy, h
+    gc.collect()
+    assert ref() is None
+    # a pickle carries the tables, not the derived helpers; the unpickled tables build equal ones
+    back = pickle.loads(pickle.dumps(rp))
+    assert "helpers" not in vars(back)
+    np.testing.assert_array_equal(back.helpers.B_int, rp.helpers.B_int)
+
+
+def test_retarder_heat_is_its_torque_times_the_output_speed(params):
+    """The retarder's loss source: retarder_heat x |retarder torque| x output-shaft speed (its sign is the
+    retarder's, not the heat's), the same in the step and in the time-to-limit point it leaves."""
+    from firmware_model.onboard.records import SensorInputs
+    from firmware_model.onboard.sensor import VirtualSensor
+    from firmware_model.physics.kinematics import SPEED_NAMES
+
+    frac, gear, rpm = 0.05, 9, 1500.0
+    vs = VirtualSensor(params, effects={"retarder_heat": frac}, core="numpy")
+    omega_out = abs(vs.reduced.speed_coef[gear - GEAR_MIN, SPEED_NAMES.index("OS")]) * rpm * RAD_S_PER_RPM
+    for torque in (1200.0, -1200.0, 0.0):
+        st = vs.initial_state(60.0)
+        _, _, job = vs.step_deferred(st, SensorInputs(rpm, 800.0, gear, float("nan"), 20.0, 85.0, 60.0, torque))
+        src = job.points[0].src_w
+        assert src[R.I_SRC_RET] == pytest.approx(frac * abs(torque) * omega_out, rel=1e-12, abs=0.0)
+        assert (src[R.I_SRC_RET] > 100.0) == (torque != 0.0)

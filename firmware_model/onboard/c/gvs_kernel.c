@@ -74,7 +74,7 @@ static int64_t steps_mod(int64_t k, int32_t m)
     return (int64_t)r;
 }
 
-/* ---- oil properties at a temperature (reduce.oil_row) --------------------------------------------------- */
+/* ---- oil properties at a temperature (evaluate.oil_row) ------------------------------------------------- */
 typedef struct {
     gvs_real x;                 /* fractional index on the temperature grid */
     gvs_real prop[GVS_N_PROP];
@@ -98,7 +98,7 @@ static void oil_row(const gvs_tables *tb, gvs_real T_c, oil_row_t *o, gvs_real *
             phi[j] = tb->pw_phi[i * tb->ncol + j] * (R_(1.0) - f) + tb->pw_phi[(i + 1) * tb->ncol + j] * f;
 }
 
-/* ---- Nusselt of a rotating cylinder, Eq 46/47 with the bridge (reduce._cyl_nusselt) ---------------------- */
+/* ---- Nusselt of a rotating cylinder, Eq 46/47 with the bridge (evaluate.cyl_nusselt) ---------------------- */
 static gvs_real cyl_nusselt(const gvs_tables *tb, gvs_real ln_re, gvs_real ln_pr)
 {
     gvs_real ln46 = tb->ln_04 + R_(0.5) * ln_re + ln_pr / R_(3.0);
@@ -107,126 +107,150 @@ static gvs_real cyl_nusselt(const gvs_tables *tb, gvs_real ln_re, gvs_real ln_pr
     return EXP(ln46 + s * (ln47 - ln46));
 }
 
-/* ---- conductance of every link at a bin centre (conductance_bins.bin_conductances -> reduce.conductances) ---
+/* ---- the 2-D tables: cell and fraction on a speed axis u = sqrt(omega / omega_max) of n_u points
+ * (evaluate.sqrt_speed_index), on a temperature grid of n points (evaluate.grid_index), and the one bilinear
+ * interpolation from a cell's first corner tab[0], speed rows stride apart (evaluate.bilinear) ------------------ */
+static int32_t sqrt_speed_index(gvs_real omega_rad_s, gvs_real omega_max_rad_s, int32_t n_u, gvs_real *fu)
+{
+    gvs_real uu = SQRT(min_r(omega_rad_s / omega_max_rad_s, R_(1.0))) * (gvs_real)(n_u - 1);
+    int32_t iu = (int32_t)uu;
+    if (iu > n_u - 2) iu = n_u - 2;
+    *fu = uu - (gvs_real)iu;
+    return iu;
+}
+
+static int32_t grid_index(gvs_real x, int32_t n, gvs_real *f)
+{
+    int32_t j = (int32_t)x;
+    if (j > n - 2) j = n - 2;
+    *f = x - (gvs_real)j;
+    return j;
+}
+
+static gvs_real bilinear(const gvs_real *tab, int32_t stride, gvs_real fu, gvs_real fT)
+{
+    gvs_real lo = tab[0] * (R_(1.0) - fT) + tab[1] * fT;
+    gvs_real hi = tab[stride] * (R_(1.0) - fT) + tab[stride + 1] * fT;
+    return lo + (hi - lo) * fu;
+}
+
+/* ---- conductance of every link at a bin centre (conductance_bins.bin_conductances -> evaluate.conductances) -
  * G [W/K] of every link and of the oil-system streams at (gear row, speed omega_q, oil T_q): radiation (Eq 81)
  * with every node at T_q and the boundaries at their defaults. */
-static void bin_conductances(const gvs_tables *tb, const gvs_vehicle *veh, int32_t row, gvs_real w, gvs_real T_q,
-                             gvs_real *G, gvs_real *G_streams)
+static void bin_conductances(const gvs_tables *tb, const gvs_vehicle *veh, int32_t gear_row, gvs_real omega_in_rad_s,
+                             gvs_real T_q, gvs_real *G, gvs_real *G_streams)
 {
     gvs_real phi[GVS_MAX_TERMS], G2[GVS_MAX_TERMS], Ge[GVS_MAX_TERMS];
     oil_row_t o;
     int32_t t;
-    gvs_real w_ls, rho_cp_w;
+    gvs_real omega_ls_rad_s, rho_cp_omega;
     oil_row(tb, T_q, &o, phi);
     memcpy(G, tb->G_const, (size_t)tb->nl * sizeof(gvs_real));
     for (t = 0; t < tb->npw; ++t) {                          /* power laws */
-        gvs_real g = tb->pw_gear_coef[row * tb->npw + t] * POW(w, tb->pw_exp[t]);
+        gvs_real g = tb->pw_gear_coef[gear_row * tb->npw + t] * POW(omega_in_rad_s, tb->pw_exp[t]);
         if (tb->pw_col[t] >= 0) g *= phi[tb->pw_col[t]];
         if (tb->pw_effect[t] == GVS_EFFECT_TEETH_OIL_H) g *= veh->teeth_oil_h;
         else if (tb->pw_effect[t] == GVS_EFFECT_HOUSING_AIR_H) g *= veh->housing_air_h;
         G[tb->pw_link[t]] += g;
     }
     {                                                        /* bilinear tables */
-        gvs_real xT2 = o.x / (gvs_real)tb->t2_stride;
-        int32_t jT = (int32_t)xT2;
-        gvs_real fT;
-        if (jT > tb->nT2 - 2) jT = tb->nT2 - 2;
-        fT = xT2 - (gvs_real)jT;
+        gvs_real fT, fu;
+        int32_t jT = grid_index(o.x / (gvs_real)tb->t2_stride, tb->nT2, &fT), iu;
         for (t = 0; t < tb->n2; ++t) {
-            gvs_real wt = tb->t2_speed_coef[row * tb->n2 + t] * w;
-            gvs_real uu = SQRT(min_r(wt / tb->t2_w_max[t], R_(1.0))) * (gvs_real)(tb->n_u - 1);
-            int32_t iu = (int32_t)uu;
-            gvs_real fu, lo, hi;
-            const gvs_real *tab;
-            if (iu > tb->n_u - 2) iu = tb->n_u - 2;
-            fu = uu - (gvs_real)iu;
-            tab = tb->t2_table + ((int64_t)t * tb->n_u + iu) * tb->nT2 + jT;
-            lo = tab[0] * (R_(1.0) - fT) + tab[1] * fT;
-            hi = tab[tb->nT2] * (R_(1.0) - fT) + tab[tb->nT2 + 1] * fT;
-            G2[t] = lo + (hi - lo) * fu;
+            gvs_real omega_t_rad_s = tb->t2_speed_coef[gear_row * tb->n2 + t] * omega_in_rad_s;
+            iu = sqrt_speed_index(omega_t_rad_s, tb->t2_omega_max_rad_s[t], tb->n_u, &fu);
+            G2[t] = bilinear(tb->t2_table + ((int64_t)t * tb->n_u + iu) * tb->nT2 + jT, tb->nT2, fu, fT);
             G[tb->t2_link[t]] += G2[t];
         }
     }
     /* closed-form streams, NTU (Eq 69-80) */
-    w_ls = FABS(tb->speed_coef[row * tb->n_speed + GVS_SPEED_COL_LAYSHAFT]) * w;
-    rho_cp_w = o.prop[GVS_P_RHO] * o.prop[GVS_P_CP] * w_ls;
+    omega_ls_rad_s = FABS(tb->speed_coef[gear_row * tb->n_speed + GVS_SPEED_COL_LAYSHAFT]) * omega_in_rad_s;
+    rho_cp_omega = o.prop[GVS_P_RHO] * o.prop[GVS_P_CP] * omega_ls_rad_s;
     for (t = 0; t < tb->ne; ++t) {
-        gvs_real mcp = tb->ef_mcp[t] * rho_cp_w;
+        gvs_real mcp = tb->ef_mcp[t] * rho_cp_omega;
         gvs_real beta = tb->ef_beta[t] * (tb->ef_effect[t] == GVS_EFFECT_PLANET_OIL_H ? veh->planet_oil_h : R_(1.0));
         gvs_real hA = tb->ef_alpha[t] * o.prop[GVS_P_K] + beta;
         Ge[t] = mcp > R_(0.0) ? -mcp * EXPM1(-hA / mcp) : R_(0.0);
         G[tb->ef_link[t]] += Ge[t];
     }
     for (t = 0; t < tb->nc; ++t) {                           /* immersed wheels (Eq 46-48) */
-        gvs_real wc = max_r(tb->cyl_speed_coef[row * tb->nc + t] * w, tb->min_speed);
-        gvs_real ln_re = tb->cyl_ln_rp2[t] + LOG(wc) - (o.prop[GVS_P_LN_NU_CST] + tb->ln_1e6);
+        gvs_real omega_c_rad_s = max_r(tb->cyl_speed_coef[gear_row * tb->nc + t] * omega_in_rad_s, tb->min_speed);
+        gvs_real ln_re = tb->cyl_ln_rp2[t] + LOG(omega_c_rad_s) - (o.prop[GVS_P_LN_NU_CST] + tb->ln_1e6);
         G[tb->cyl_link[t]] += tb->cyl_c[t] * o.prop[GVS_P_K] * cyl_nusselt(tb, ln_re, o.prop[GVS_P_LN_PR]);
     }
     for (t = 0; t < tb->nrad; ++t) {                         /* radiation, linearised (Eq 81) */
-        gvs_real T1 = clip_r(T_q, tb->rad_T_lo_c, tb->rad_T_hi_c) + tb->kelvin;
-        gvs_real T2 = veh->T_bc_default_c[tb->rad_bc[t]] + tb->kelvin;
-        G[tb->rad_link[t]] = tb->rad_area_eps[t] * tb->sigma * (T1 * T1 + T2 * T2) * (T1 + T2);
+        gvs_real T_node_k = clip_r(T_q, tb->rad_T_lo_c, tb->rad_T_hi_c) + tb->kelvin;
+        gvs_real T_bc_k = veh->T_bc_default_c[tb->rad_bc[t]] + tb->kelvin;
+        G[tb->rad_link[t]] = tb->rad_area_eps[t] * tb->sigma * (T_node_k * T_node_k + T_bc_k * T_bc_k)
+            * (T_node_k + T_bc_k);
     }
     for (t = 0; t < tb->nst - tb->ne; ++t) G_streams[t] = G2[tb->t2_stream_term[t]];
     for (t = 0; t < tb->ne; ++t) G_streams[tb->nst - tb->ne + t] = Ge[t];
 }
 
-/* ---- heat of every loss source (reduce.heat_sources): meshes Eq 7-22, bearings Eq 35-40, oil-lumped sources
+/* ---- heat of every loss source (evaluate.heat_sources): meshes Eq 7-22, bearings Eq 35-40, oil-lumped sources
  * Eq 23-34, 36-37, 41, 42, and the retarder ---------------------------------------------------------------- */
-static void heat_sources(const gvs_tables *tb, const gvs_vehicle *veh, int32_t row, gvs_real w, gvs_real torque,
-                         const oil_row_t *o, gvs_real retarder_w, gvs_real *src)
+static void heat_sources(const gvs_tables *tb, const gvs_vehicle *veh, int32_t gear_row, gvs_real omega_in_rad_s,
+                         gvs_real torque_nm, const oil_row_t *o, gvs_real retarder_w, gvs_real *src)
 {
     int32_t m, b, i = 0;
-    gvs_real nu = EXP(o->prop[GVS_P_LN_NU_CST]), P_needle = R_(0.0), w_sq, w_ls, uu, fu, xT, fT, lo, hi, P_churn;
+    gvs_real nu = EXP(o->prop[GVS_P_LN_NU_CST]), P_needle = R_(0.0), omega_in_sq, omega_ls_rad_s, fu, fT, P_churn;
     int32_t iu, jT;
     for (m = 0; m < tb->n_mesh; ++m, ++i) {
-        gvs_real T1 = tb->mesh_torque[row * tb->n_mesh + m] * torque;
-        gvs_real w2 = tb->mesh_omega2[row * tb->n_mesh + m] * w;
-        gvs_real lT, lw, x, fx, phi, P, lT_roll;
+        gvs_real torque1_nm = tb->mesh_torque[gear_row * tb->n_mesh + m] * torque_nm;
+        gvs_real omega2_rad_s = tb->mesh_omega2[gear_row * tb->n_mesh + m] * omega_in_rad_s;
+        gvs_real log10_torque1, log10_omega2, x, fx, phi, P, log10_torque1_roll;
         int32_t ix;
-        if (!(T1 > R_(0.0) && w2 > R_(0.0))) { src[i] = R_(0.0); continue; }
-        lT = LOG10(T1);
-        lw = LOG10(w2);
-        x = (lT - o->prop[GVS_P_LOG10_MU] - R_(3.0) * lw - tb->mesh_x0[m]) / tb->x_step;
+        if (!(torque1_nm > R_(0.0) && omega2_rad_s > R_(0.0))) { src[i] = R_(0.0); continue; }
+        log10_torque1 = LOG10(torque1_nm);
+        log10_omega2 = LOG10(omega2_rad_s);
+        x = (log10_torque1 - o->prop[GVS_P_LOG10_MU] - R_(3.0) * log10_omega2 - tb->mesh_x0[m]) / tb->x_step;
         x = clip_r(x, R_(0.0), (gvs_real)tb->nx - R_(1.000001));
         ix = (int32_t)x;
         if (ix > tb->nx - 2) ix = tb->nx - 2;    /* in float nx - 1.000001 rounds to nx - 1: stay in the table */
         fx = x - (gvs_real)ix;
         phi = tb->mesh_phi[m * tb->nx + ix] * (R_(1.0) - fx) + tb->mesh_phi[m * tb->nx + ix + 1] * fx;
-        /* slip T1 w2 phi; rolling K mu^0.7 a^0.54 w2^1.7 T1^-0.13 (Eq 18) down to the mesh's T_min, below it the loss
-         * at T_min scaled by T1 / T_min (T1^-1.13 taken at T_min: continuous at T_min and at 0) */
-        lT_roll = max_r(lT, tb->mesh_roll_lt_min[m]);
-        P = T1 * w2 * (phi + tb->mesh_roll_k[m]
-                       * EXP(o->prop[GVS_P_LN_ROLL] + tb->ln10 * (R_(0.7) * lw - R_(1.13) * lT_roll)));
+        /* slip torque1 omega2 phi; rolling K mu^0.7 a^0.54 omega2^1.7 torque1^-0.13 (Eq 18) down to the mesh's
+         * torque1_min, below it the loss at torque1_min scaled by torque1 / torque1_min (torque1^-1.13 taken at
+         * torque1_min: continuous there and at 0) */
+        log10_torque1_roll = max_r(log10_torque1, tb->mesh_roll_lt_min[m]);
+        P = torque1_nm * omega2_rad_s
+            * (phi + tb->mesh_roll_k[m]
+                     * EXP(o->prop[GVS_P_LN_ROLL]
+                           + tb->ln10 * (R_(0.7) * log10_omega2 - R_(1.13) * log10_torque1_roll)));
         src[i] = P * tb->mesh_heat_sf[m];
     }
     for (b = 0; b < tb->n_bear; ++b, ++i) {                  /* shaft bearings, Palmgren (Eq 35-40) */
-        gvs_real wb = tb->bear_speed[row * tb->n_bear + b] * w;
-        gvs_real M0 = tb->bear_c[b] * POW(max_r(nu * wb * tb->rpm_per_rad_s, tb->palmgren_min), R_(2.0) / R_(3.0));
-        src[i] = (M0 + tb->bear_load[row * tb->n_bear + b] * torque) * wb;
+        gvs_real omega_b_rad_s = tb->bear_speed[gear_row * tb->n_bear + b] * omega_in_rad_s;
+        gvs_real M0 = tb->bear_c[b]
+            * POW(max_r(nu * omega_b_rad_s * tb->rpm_per_rad_s, tb->palmgren_min), R_(2.0) / R_(3.0));
+        src[i] = (M0 + tb->bear_load[gear_row * tb->n_bear + b] * torque_nm) * omega_b_rad_s;
     }
     for (b = 0; b < tb->n_bear; ++b) {                       /* needle bearings on relative speed (Eq 36-37) */
-        gvs_real rel = tb->needle_rel[row * tb->n_bear + b] * w;
-        gvs_real Mn = tb->needle_c[b] * POW(max_r(nu * rel * tb->rpm_per_rad_s, tb->palmgren_min), R_(2.0) / R_(3.0));
-        P_needle += Mn * rel;
+        gvs_real omega_rel_rad_s = tb->needle_rel[gear_row * tb->n_bear + b] * omega_in_rad_s;
+        gvs_real Mn = tb->needle_c[b]
+            * POW(max_r(nu * omega_rel_rad_s * tb->rpm_per_rad_s, tb->palmgren_min), R_(2.0) / R_(3.0));
+        P_needle += Mn * omega_rel_rad_s;
     }
-    w_sq = w * w;
-    w_ls = FABS(tb->speed_coef[row * tb->n_speed + GVS_SPEED_COL_LAYSHAFT]) * w;
-    uu = SQRT(min_r(w_ls / tb->churn_w_max, R_(1.0))) * (gvs_real)(tb->n_u_churn - 1);   /* churning table */
-    iu = (int32_t)uu;
-    if (iu > tb->n_u_churn - 2) iu = tb->n_u_churn - 2;
-    fu = uu - (gvs_real)iu;
-    xT = o->x;
-    jT = (int32_t)xT;
-    if (jT > tb->nT - 2) jT = tb->nT - 2;
-    fT = xT - (gvs_real)jT;
-    lo = tb->churn_table[iu * tb->nT + jT] * (R_(1.0) - fT) + tb->churn_table[iu * tb->nT + jT + 1] * fT;
-    hi = tb->churn_table[(iu + 1) * tb->nT + jT] * (R_(1.0) - fT) + tb->churn_table[(iu + 1) * tb->nT + jT + 1] * fT;
-    P_churn = lo + (hi - lo) * fu;
+    omega_in_sq = omega_in_rad_s * omega_in_rad_s;
+    omega_ls_rad_s = FABS(tb->speed_coef[gear_row * tb->n_speed + GVS_SPEED_COL_LAYSHAFT]) * omega_in_rad_s;
+    iu = sqrt_speed_index(omega_ls_rad_s, tb->churn_omega_max_rad_s, tb->n_u_churn, &fu);  /* churning table */
+    jT = grid_index(o->x, tb->nT, &fT);
+    P_churn = bilinear(tb->churn_table + iu * tb->nT + jT, tb->nT, fu, fT);
     src[i++] = P_churn * tb->churn_heat_sf * veh->churn_scale + P_needle * veh->needle_scale
-        + EXP(o->prop[GVS_P_LN_MU]) * w_sq * tb->sync_coef[row] + tb->pump_coef[row] * w_sq;   /* Eq 41, 42 */
+        + EXP(o->prop[GVS_P_LN_MU]) * omega_in_sq * tb->sync_coef[gear_row]                  /* synchronizers, Eq 41 */
+        + tb->pump_coef[gear_row] * omega_in_sq;                                              /* pump, Eq 42 */
     src[i++] = retarder_w;
     for (m = 0; m < tb->ns; ++m) src[m] *= veh->src_scale[m];
+}
+
+/* ---- heat of the retarder into the sump [W]: its share of the braking power, |torque| x output-shaft speed
+ * (evaluate.retarder_heat_w) ------------------------------------------------------------------------------------ */
+static gvs_real retarder_heat_w(const gvs_tables *tb, const gvs_vehicle *veh, int32_t gear_row, gvs_real omega_in_rad_s,
+                                gvs_real retarder_torque_nm)
+{
+    return veh->retarder_frac * retarder_torque_nm
+        * FABS(tb->speed_coef[gear_row * tb->n_speed + GVS_SPEED_COL_OUTPUT]) * omega_in_rad_s;
 }
 
 /* ---- the oil cooler (physics.cooler.oil_cooler_heat, seed 3.4, Eq 82-83) --------------------------------- */
@@ -469,8 +493,7 @@ static void network_step(const gvs_tables *tb, const gvs_vehicle *veh, gvs_state
     nt->T_bc[tb->i_ambient] = c->used[GVS_I_AMB];
     nt->T_bc[tb->i_coolant] = c->used[GVS_I_COOL];
     /* heat (loss maps) through the first-order heat lag, exact step average (physics.heat_lag) */
-    retarder_w = veh->retarder_frac * c->used[GVS_I_RET]
-        * FABS(tb->speed_coef[nt->row * tb->n_speed + GVS_SPEED_COL_OUTPUT]) * w;
+    retarder_w = retarder_heat_w(tb, veh, nt->row, w, c->used[GVS_I_RET]);
     heat_sources(tb, veh, nt->row, w, torque, &o, retarder_w, nt->src);
     for (i = 0; i < tb->ns; ++i) {
         gvs_real y = st->lag_w[i] + (nt->src[i] - st->lag_w[i]) * tb->lag_gain;
@@ -999,8 +1022,7 @@ int gvs_ttl_refresh(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl_
         if (T_watch != T_watch || FABS(T_watch - T_op) < R_(GVS_TTL_RELINEARISE_TOL_K)) break;
         T_op = T_watch;
         oil_row(tb, T_op, &o, NULL);
-        retarder_w = veh->retarder_frac * p->used[GVS_I_RET]
-            * FABS(tb->speed_coef[p->row * tb->n_speed + GVS_SPEED_COL_OUTPUT]) * w;
+        retarder_w = retarder_heat_w(tb, veh, p->row, w, p->used[GVS_I_RET]);
         heat_sources(tb, veh, p->row, w, FABS(p->used[GVS_I_TORQUE]), &o, retarder_w, src);
         bin_conductances(tb, veh, p->row, speed_bin_centre(tb, w), RINT(T_op / tb->oil_bin_c) * tb->oil_bin_c, G, Gs);
         if (ttl_solve(tb, veh, p, src, G, Gs, T_op, measured, ttl_s, &T_watch) != 0) break;

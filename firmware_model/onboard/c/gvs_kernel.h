@@ -161,7 +161,7 @@ typedef struct {
     /* bilinear tables over (sqrt(w_t / w_max), T) */
     const gvs_idx *t2_link;             /* (n2) */
     const gvs_real *t2_speed_coef;      /* (gears x n2) */
-    const gvs_real *t2_w_max;           /* (n2) [rad/s] */
+    const gvs_real *t2_omega_max_rad_s; /* (n2) [rad/s] */
     const gvs_real *t2_table;           /* (n2 x n_u x nT2) [W/K] */
     int32_t t2_stride;                  /* the tables use every t2_stride-th temperature of the grid */
     /* immersed wheels, Nusselt in closed form */
@@ -193,7 +193,7 @@ typedef struct {
     const gvs_real *needle_rel, *needle_c; /* (n_bear) */
     const gvs_real *sync_coef, *pump_coef; /* (gears) */
     const gvs_real *churn_table;        /* (n_u_churn x nT) [W] */
-    gvs_real churn_w_max;               /* [rad/s] */
+    gvs_real churn_omega_max_rad_s;     /* [rad/s] */
     gvs_real churn_heat_sf, x_step, ln10;
     /* source -> node heat, sparse: node heat[src_nz_node[k]] += delivered[src_nz_src[k]] * src_nz_w[k] */
     const gvs_idx *src_nz_src, *src_nz_node; /* (nsrc_nz) */
