@@ -372,8 +372,8 @@ FAR_DATE_SHARE = 0.05
 
 def _drop_far_dates(rows: list, dates: dict) -> tuple[list, int]:
     """(the rows, how many were left out): the fitted logs dated more than FAR_DATE_GAP_DAYS before (or after) all
-    the others, when they are at most FAR_DATE_SHARE of them (a truck's clock set a year back; a fleet audit saw
-    one such log move every vehicle's periods and give each a one-log first period). Never all of them."""
+    the others, when they are at most FAR_DATE_SHARE of them (a truck's clock set a year back: one such log would
+    move every vehicle's periods and give each a one-log first period). Never all of them."""
     days = sorted(dt.date.fromisoformat(dates[r["log_key"]]).toordinal() for r in rows)
     lo, hi = 0, len(days)
     cap = int(FAR_DATE_SHARE * len(days))
