@@ -112,7 +112,7 @@ def test_the_summary_spells_out_the_component_codes(tmp_path, capsys):
 
 def test_churning_validity_is_not_a_note_on_every_run(tmp_path, capsys):
     """The churning correlations are outside their range for the whole of most drives (docs/validation.md says so
-    once); a run notes it only when it is partial (issue: a newcomer's first hour, item 9)."""
+    once); a run notes it only when it is partial."""
     from tools.cli import main
 
     assert main(["simulate", "--cycle", "steady:gear=4L,rpm=1300,nm=2000,s=120", "--out", str(tmp_path / "s.csv")]) == 0

@@ -132,7 +132,7 @@ def test_help_explains_every_option(capsys):
 def test_the_summary_names_the_component_closest_to_its_own_limit(tmp_path, capsys):
     """Limits differ by component (bearings 120, sun wheel 130, gears 150 degC): the summary ranks by the margin to
     each component's own warning limit, spelled out, with the margin; a table with only the required columns says
-    that the auxiliary inputs took their defaults, not a bare "aux_missing N" (issue: a newcomer's first hour)."""
+    that the auxiliary inputs took their defaults, not a bare "aux_missing N"."""
     import numpy as np
 
     from firmware_model.components import PUBLISHED, describe
