@@ -287,8 +287,8 @@ class OutputEncoder:
         (critical); most severe first, then published order. Lamps: amber if any warning, red stop if any critical.
         ``missing_spn``: the SPN of a drive input that is missing while no level can be evaluated: with no
         component DTC active, the DTC is that SPN with FMI 9 (abnormal update rate) and the amber lamp (a sensor that
-        lost its inputs is not "no fault": a gateway audit saw a critical DTC and the red stop lamp go out when the
-        engine speed stopped). ``implausible_spn``: the SPN of an input whose whole record is implausible (the
+        lost its inputs is not "no fault": without this, a critical DTC and the red stop lamp would go out when the
+        engine speed stops). ``implausible_spn``: the SPN of an input whose whole record is implausible (the
         service's plausibility findings: oil in degF, torque negated, clamps on many steps): with neither a component
         DTC nor a missing input, the DTC is that SPN with FMI 2 (data erratic, intermittent or incorrect) and the
         amber lamp. The occurrence count of an SPN/FMI pair rises by one (max 126) each time it becomes active between

@@ -9,23 +9,11 @@ Reading validates the input columns and reports the first problem as an :class:`
 with one sentence that names the file, the column, the 1-based data row (row 1 is the first line after the header)
 and the rule, e.g. ``run.csv: column "gear" row 17: 3.5 is not an integer gear in -2..14 (seed Table 1)``.
 
-Rules (checked on the columns that are present; a NaN is an error only in a required column):
-
-* ``time_s``: finite and strictly increasing (a repeated time is "duplicated", a smaller one "goes backwards");
-* ``engine_speed_rpm``: finite and >= 0;
-* ``engine_torque_nm``: finite (negative is fine: engine braking);
-* ``gear``: an integer in -2..14 (seed Table 1, 0 = neutral);
-* every cell of every column is empty or a number (``nan`` and ``inf`` are numbers; ``abc`` is not).
-
-Extra columns are kept. Blank lines are skipped (rows are counted without them).
-
-Writing is atomic: the table goes to a temporary file in the target's directory which replaces the target with
-``os.replace`` only when it is complete, so a failure never leaves a half-written file. Numbers are written with
-10 significant digits (``time_s`` with 15, so that 100 Hz over many hours keeps its resolution); NaN is written as an
-empty cell.
-
-Speed (``python -m tools.runtable --bench``, development machine, 2 shared cores): reading 1 M rows x 8 columns
-takes about 2.0 s (2.3 s with empty cells), writing 108 k rows x 150 columns about 3.5 s.
+Rules, on the columns present (a NaN is an error only in a required column): ``time_s`` finite and strictly
+increasing (a repeated time is "duplicated", a smaller one "goes backwards"), speed finite and >= 0, torque finite
+(negative is engine braking), ``gear`` an integer in -2..14, every cell empty or a number (``nan`` and ``inf`` are
+numbers). Extra columns are kept; blank lines are skipped and not counted as rows. Writing is atomic. The figures of
+speed are in docs/interfaces.md, section 3.2.
 """
 
 from __future__ import annotations

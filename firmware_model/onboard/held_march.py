@@ -1,38 +1,14 @@
 """Time to limit by marching the held-input system: no eigen-decomposition, so an ECU can compute it.
 
-With the inputs held the onboard network is linear, ``C dT/dt = -A T + b`` over its free nodes (``A = K``, or
-``K - u e_sump^T`` when the oil-system inlet follows the modelled sump; firmware_model.onboard.time_to_limit builds
-it). This module finds, for each published component, the first time it reaches its warning limit:
-
-1. the steady state ``T_inf = A^-1 b`` (one linear solve);
-2. the deviation ``e = T - T_inf`` marched with TR-BDF2 (gamma = 2 - sqrt 2: a trapezoidal stage to t + gamma h,
-   then BDF2 to t + h; L-stable and second order, and both stages solve with the same matrix ``C + d A``,
-   ``d = (1 - 1/sqrt 2) h``) on a geometric time grid: the first step MARCH_H0_S, each next one MARCH_RATIO times
-   longer, the last one ending at the horizon (2e6 s, 23 days: 41 steps). The first step may skip ahead: by the
-   maximum principle applied to the derivative (which obeys the same equation), no node warms faster later than the
-   fastest one does now, so no open row can cross before ``min(limit - T) / max(dT/dt, 0)``; the first step then
-   goes straight to the last grid point before that time (the grid after it unchanged; on a warming drive this
-   halves the steps), and when nothing warms now every row is closed at once;
-3. a crossing between two grid points is located on the cubic Hermite interpolant of the two states and their
-   derivatives ``de/dt = -C^-1 A e`` (16 samples for the first sign change, then 40 bisections), and reported as
-   the first multiple of TTL_QUANTUM_S at or after it;
-4. the march stops when every component has crossed or can no longer cross, by two bounds on every later t':
-   the maximum principle, ``e_i(t') <= max_j max(e_j(t), 0)``, exact when ``-C^-1 A`` is a Metzler matrix with no
-   positive row sum (always without the coupling: K is a weighted Laplacian plus boundary terms; with it, checked
-   every time), and the energy: with ``A`` symmetric ``E = sum C e^2`` never grows, so
-   ``|e_i(t')| <= sqrt(E(t) / C_i)``. A component whose ``T_inf_i`` plus a bound stays below its limit never
-   reaches it. With the coupling ``A`` is not symmetric and the energy can grow for a while: there the energy
-   bound also needs the energy to have fallen over the last step (a heuristic, not a proof; docs/sensor.md). Where
-   the coupling breaks the Metzler structure, weights w > 0 with ``B w = 1`` (B: A's diagonal minus the moduli of
-   its off-diagonal entries; they exist when A is an H-matrix) make the w-weighted infinity-norm logarithmic norm of
-   ``-C^-1 A`` negative: ``|e_i(t')| <= w_i max_j |e_j(t)| / w_j``, and the stop and the skip use that
-   (:func:`_bound_scale`). At t = 0 the bounds alone settle most refreshes (no limit within reach).
-
-The compiled kernel (firmware_model/onboard/c/gvs_kernel.c, ``gvs_ttl_refresh``) runs the same march, grid,
-interpolation, quantum and stopping rule; it solves with a sparse LDL^T of ``C + d K`` in a fill-reducing order
-generated from the topology (firmware_model.onboard.kernel_tables) and a Sherman-Morrison correction for the
-coupling column, where this reference solves the same systems densely (``numpy.linalg.solve``): the two agree to
-rounding.
+With the inputs held the onboard network is linear, ``C dT/dt = -A T + b`` over its free nodes
+(firmware_model.onboard.time_to_limit builds A and b). For each published component this module finds the first time
+it reaches its warning limit: the steady state ``T_inf = A^-1 b``; the deviation marched with TR-BDF2 on a geometric
+grid (MARCH_H0_S growing by MARCH_RATIO up to TTL_HORIZON_S); a crossing located on the cubic Hermite interpolant and
+reported as a multiple of TTL_QUANTUM_S; a stop once the maximum-principle, energy or weighted-norm bounds
+(:func:`_bound_scale`) show that no open component can cross. The compiled kernel's ``gvs_ttl_refresh``
+(firmware_model/onboard/c/gvs_kernel.c) runs the same march with a sparse LDL^T and a Sherman-Morrison correction
+where this reference solves densely; the two agree to rounding. docs/sensor.md, "Time to limit", has the method,
+its bounds and why they hold.
 """
 
 from __future__ import annotations

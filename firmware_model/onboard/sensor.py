@@ -246,8 +246,8 @@ class VirtualSensor:
             off = np.abs(T[..., MAIN, rp.i_oil] - meas) > 10.0
             T = np.where(off[..., None, None], meas[..., None, None], T)
             T[..., :, rp.i_oil] = meas[..., None]
-            # every node restarted at the reading: the warning levels of the saved temperatures go with them (an ECU
-            # audit saw a warning kept for the debounce time on a gearbox restarted at 40 degC)
+            # every node restarted at the reading: the warning levels of the saved temperatures go with them (else a
+            # warning is kept for the debounce time on a gearbox restarted at 40 degC)
             level = np.where(off[..., None], 0, level).astype(np.asarray(st.level).dtype)
             pending_s = np.where(off[..., None], 0.0, pending_s)
         B = T.shape[:-2]

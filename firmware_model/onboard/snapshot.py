@@ -2,9 +2,9 @@
 by a sensor built on the same thermal network (``VirtualSensor.snapshot`` / ``initial_state(snapshot=...)``).
 
 A snapshot carries a CRC-32 of its content (``crc32``): a damaged file (one flipped bit in a temperature) is refused,
-not restored. Every field is checked for its shape, type and range before it is used (a gateway audit,
-2026-11-27: a saved warning level of 16 restored, then stopped the service at its first step, and again after every
-restart). Snapshots written before the checksum (no ``crc32``) are still read, with the same checks.
+not restored. Every field is checked for its shape, type and range before it is used (a saved warning level of 16,
+restored, would stop the service at its first step, and again after every restart). Snapshots written before the
+checksum (no ``crc32``) are still read, with the same checks.
 """
 
 from __future__ import annotations

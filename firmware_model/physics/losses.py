@@ -4,49 +4,8 @@ All inputs are SI (N m, rad/s, m, Pa, Pa s, kg/m3, m2/s) except where a name say
 (``speed_ls_rpm``). Every function broadcasts over numpy arrays of its load/speed/oil inputs; the gear
 geometry is a frozen ``GearMesh`` built once by ``mesh_geometry``.
 
-Reconstructions and interpretations (the seed's text extraction garbles several formulas):
-
-* Eq 12/13 lost their square roots: the standard lengths on the line of action are
-  ``g = sqrt(R_a**2 - R_b**2) - R_w sin(alpha_tw)``. The seed pairs the approach length g_f with wheel 1's
-  tip (Eq 12) and the recession g_a with wheel 2's tip (Eq 13), but its own Eq 21/22 put the pitch point at
-  ``l = g_f`` with wheel 1's curvature radius *growing* with l, which places wheel 1's tip at ``l = L_a``.
-  We follow Eq 21/22 and the textbook with wheel 1 driving: the approach g_f (from the start of contact to
-  the pitch point) is limited by the tip of the driven wheel 2, the recession g_a by the tip of the driving
-  wheel 1. For an internal mesh (planet 1 drives ring 2) the ring's tip lies inside its pitch circle and
-  ``g_f = R_w2 sin(alpha_tw) - sqrt(R_a2**2 - R_b2**2)``.
-* Eq 10 and 16 as printed, ``V_g = w2 |l - g_f| (1 + z1/z2)`` and ``V_r = 2 w2 R_p1 sin(alpha_tw) + ...``,
-  are kinematically right only if the speed in them is wheel 1's. Here the speed argument is the driven
-  wheel's ``omega2`` and the kinematics are written exactly: with ``d = l - g_f`` (signed, positive towards
-  wheel 1's tip) and ``s = +1`` external / ``-1`` internal,
-  ``V_g = omega2 |d| (z2/z1 + s)`` (= |d| |omega1 -/+ omega2|, the sliding speed) and
-  ``V_r = omega2 (2 R_w2 sin(alpha_tw) + d (z2/z1 - s))`` (= omega1 rho1 + omega2 rho2, the sum of the
-  rolling speeds). The seed's ``|l - g_f|`` in Eq 16 is taken as the signed d (it is rho1 + rho2 weighted).
-* Eq 9 (Benedict-Kelley 1961): the seed prints ``0.0127 log10(0.02912 F_nu / (rho mu V_g V_r^2))`` and
-  calls mu the dynamic viscosity. Benedict & Kelley's original
-  ``f = 0.0127 log10(3.17e8 w / (mu_cP V_s V_e^2))`` (w lb/in, mu cP, V in/s) becomes
-  ``0.0297 w / (mu_Pa_s V_s V_e^2)`` in SI, so 0.02912 is that constant and the product in the denominator
-  must be the *dynamic* viscosity in Pa s: Amesim's ``rho nu`` (kinematic nu) rendered as "rho mu". Read
-  literally (rho times dynamic viscosity) the argument is off by a factor rho ~ 850 and f_g drops by 0.037,
-  i.e. to ~0.02 and ~0.3 % mesh loss, well below the 30 % *over*-prediction the seed reports in 4.1.
-  We therefore use ``mu = rho * nu`` (the ``rho_kg_m3`` argument is kept for the seed's signature and to
-  form ``nu = mu / rho`` consistently). f_g is clipped to ``F_G_MIN..F_G_MAX`` = 0.005..0.15: the law
-  diverges at the pitch point (V_g -> 0) and at vanishing load; the band keeps it in the physically seen
-  range of lubricated gear friction and only acts close to the pitch point where V_g f_g -> 0 anyway.
-* F_t = |torque1| / R_w1 (working pitch radius); F_n = F_t / (cos alpha_n cos beta) (Eq 8);
-  F_nu = F_n / (b / cos beta_b), the normal force per unit length of one contact line across the face.
-* Eq 7 and 14 average the integrand over the line of action; the integral is split at the pitch point
-  (where V_g and the log's argument change behaviour) and each part is integrated with Gauss-Legendre, whose
-  nodes never fall on the pitch point, so the removable singularity (V log V -> 0) gives no NaN and the sum
-  converges with ``n_points`` (points on each side of the pitch point).
-* Eq 15 w_0 is the face width b; the constant 9e7 has units of Pa. Eq 18 is Dowson-Higginson's minimum film
-  thickness with the mean entrainment speed ``V_r / 2``. Below ROLL_TORQUE_MIN_NM (assumed) the rolling loss is the
-  loss at that torque scaled linearly to 0: Eq 18's load^-0.13 has no lower limit and grows without bound as the load
-  vanishes, while the seed gives no loss at zero torque. Eq 20 for an internal mesh uses the concave ring:
-  ``X_eq = X1 X2 / (X2 - X1)``.
-* Eq 40: implemented literally (``X1 Fr + Y1 Fa`` when ``Fa/Fr >= e``). Note that the seed's Table 7 lists
-  the SKF coefficients the other way round (X1=1, Y1=0 is SKF's ``Fa/Fr <= e`` set; X2, Y2 its
-  ``Fa/Fr > e`` set); a parameter file that wants SKF semantics must swap the two sets.
-* Eq 36/37 (Palmgren): see ``bearing_torque_nm``. Eq 41: see ``sync_ring_drag_torque_nm``.
+Where the seed's printed formulas are garbled or ambiguous (Eq 9, 10, 12/13, 16, 18, 20, 40), docs/physics.md,
+"Mechanical losses", says how each is read here and why; the equation numbers stand in the code that implements them.
 """
 
 from __future__ import annotations
@@ -153,7 +112,7 @@ def _path_of_contact(R_b1, R_b2, R_a1, R_a2, base_span, a, sign):
     R_w1 = R_b1 / math.cos(alpha_tw)
     R_w2 = R_b2 / math.cos(alpha_tw)
     sin_tw = math.sin(alpha_tw)
-    # Eq 12-13 reconstructed with their square roots (see module docstring for which tip limits which)
+    # Eq 12-13 reconstructed with their square roots (docs/physics.md says which tip limits which)
     g_a = math.sqrt(R_a1**2 - R_b1**2) - R_w1 * sin_tw
     g_f = sign * (math.sqrt(R_a2**2 - R_b2**2) - R_w2 * sin_tw)
     if g_f <= 0.0 or g_a <= 0.0:

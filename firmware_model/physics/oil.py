@@ -4,25 +4,9 @@ Every function takes a float or a numpy array ``T_c`` and broadcasts. The input 
 ``T_MIN_C .. T_MAX_C`` (-40..200 degC) before any property is evaluated, so a wild sensor value cannot
 produce NaN or a negative viscosity inside the solver loop.
 
-Provenance of each property
----------------------------
-* Density, kinematic viscosity and piezo-viscosity coefficient: the seed's Appendix 2 table (the oil used
-  in the thesis model; rows -20..140 degC). The 1000 degC row of that table (359.102 kg/m3, 1.00 cSt,
-  1.00e-9 /Pa) only existed to stop Amesim's linear extrapolation from going negative; it is kept below as
-  documentation (``_ROW_1000C``) and is *not* used.
-* Density: the table is exactly linear (-0.5268 kg/m3 per K, even through the 1000 degC row), so density
-  is that straight line, extrapolated linearly over the clip range.
-* Kinematic viscosity: Walther / ASTM D341 interpolation, log10(log10(nu_cSt + 0.7)) linear in log10(T_K)
-  between consecutive table rows; below -20 degC and above 140 degC the first/last segment is extended with
-  the same law. The seed's Amesim model interpolated a 1 K table linearly; Walther through the 20 K rows
-  reproduces the rows exactly and is the standard law for mineral oils between them.
-* Piezo-viscosity coefficient (Barus alpha): linear between the rows 20..120 degC (the -20, 0 and 140 degC
-  rows are blank in the seed); outside, the first/last segment is extended linearly (it grows towards the
-  cold end, falls towards the hot end) and floored at ``PIEZO_FLOOR_PER_PA`` = 1.0e-9 /Pa so it can never
-  reach zero or go negative (within the clip range the floor is never active: 1.2e-9 /Pa at 200 degC).
-* Thermal conductivity and specific heat: *assumed, typical gear oil* (the seed only shows Amesim plots
-  for these): k = 0.134 - 7.0e-5 * T_c W/(m K), cp = 1880 + 3.7 * T_c J/(kg K), i.e. 0.127 W/(m K) and
-  2250 J/(kg K) at 100 degC, in line with handbook values for mineral gear oils (ISO VG 100..220).
+Density, viscosity and the piezo-viscosity coefficient come from the seed's Appendix 2 table (Walther / ASTM D341
+between the viscosity rows), conductivity and specific heat are assumed: docs/physics.md, "Oil properties", says
+where each property comes from and how it is extended beyond the table.
 """
 
 from __future__ import annotations

@@ -249,8 +249,8 @@ def _count_out_of_order(counters: dict, t_frame_s: np.ndarray, max_back_s: float
 
 
 def _log_jumps(log, grid: Grid, t_frame_s: np.ndarray) -> None:
-    """Log the grid's time jumps as the frame path does, one warning each (an audit: the whole-log replay counted
-    them and pointed to log messages it never wrote)."""
+    """Log the grid's time jumps as the frame path does, one warning each (the summary counts them and points to
+    these messages)."""
     for _i, f in enumerate(grid.jump_frames[:JUMPS_LOGGED]):
         before = int(np.searchsorted(grid.trigger, f, side="left")) - 1
         epoch = int(np.searchsorted(grid.anchor_frame, f, side="left")) - 1

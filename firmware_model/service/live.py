@@ -33,8 +33,8 @@ RESUME_LIMIT = 3
 #: second: a bus whose reads fail at once (a dead adapter) was reopened every 0.3 s
 ERROR_REOPEN_GAP_S = (0.5, 30.0)
 #: the notifier's thread waits this long after reporting a receive error, unless the loop takes it first [s]:
-#: python-can's Notifier goes on reading after an error a listener handled, and a bus whose reads fail at once
-#: then reported ~40 000 errors a second at ~45 % CPU (a gateway audit)
+#: python-can's Notifier goes on reading after an error a listener handled, so without the pause a bus whose reads
+#: fail at once reports ~40 000 errors a second at ~45 % CPU
 ERROR_PAUSE_S = 0.1
 #: an outage that stays silent (no frame, no error) is treated as a dead handle: the bus is reopened after the
 #: first of these [s], then with the delay doubling up to the second

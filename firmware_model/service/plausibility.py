@@ -5,28 +5,9 @@ live service (after its first minute).
 
 Each finding is a :class:`PlausibilityFinding` (``kind`` "plausibility", :attr:`Severity.UNTRUSTED`, one
 ``.sentence`` naming the column, the likely unit or sign and the fix); :class:`RepairFinding` says that the sensor
-clamped or repaired an input on more than REPAIR_UNTRUSTED_SHARE of its steps. The rules, physically:
-
-- **Oil in degF or kelvin.** A gearbox sump read in degC lies in OIL_ENVELOPE_C (-40 .. 150 degC: its warning limit
-  is 120 degC; oil above 150 degC ages within hours). A record whose oil sits above 150 degC on at least
-  OIL_HOT_SHARE of its readings, while the same readings read as degF ((x - 32) / 1.8) or kelvin (x - 273.15) lie
-  in the envelope on OIL_FIT_SHARE of them and rise no faster than OIL_MAX_RATE_C_PER_MIN over OIL_RATE_WINDOW_S,
-  fits that unit better than degC. Readings of 150-223 fit only degF, 302-423 only kelvin, 223-302 both (a hot
-  gearbox in degF or a cold one in kelvin): then both are named. The rate alone does not decide (a degF rate is
-  1.8x the degC one, but the plant's steady full-load cycle rises 8.1 K/min over 5 min in degC, faster than the
-  uphill drive in degF, 5.8): it only refuses a unit that would make the oil rise faster than any gearbox. Not
-  found: a cold drive in degF that never reads above 150 (-22 .. 140 degF reads as a plausible -22 .. 140 degC).
-- **Torque of the wrong sign.** Driving rows: the engine at DRIVE_MIN_RPM or more with a gear engaged (or no gear
-  column). Engine braking makes the torque negative on a descent (the mining cycle: 31 % of its driving rows), so
-  the finding needs at least SIGN_MIN_DRIVE_S of driving, torque below SIGN_NEG_NM on more than SIGN_SHARE of the
-  driving rows, and either more negative than the engine can brake (its min_torque) on SIGN_BEYOND_SHARE of them or
-  negative on SIGN_ALL_SHARE of them (a flipped gentle drive).
-- **Torque in percent where N m is expected.** J1939 percent torque lies in -125 .. 125 %. A record with at least
-  PERCENT_MIN_DRIVE_S of driving whose torque never exceeds 125 yet reaches PERCENT_MIN_PEAK (a load, not a coast)
-  and varies like a drive (its 10-90 % range at least PERCENT_MIN_SPREAD) is percent: a truck gearbox's engines
-  give 1000-3500 N m, and a drive that never passes 125 N m (under 20 kW at 1500 rpm) does not move a truck for
-  minutes. A held load (a rig's steady point at 60 or 100 N m, its range a few N m of noise) is not judged.
-- **Speed in rad/s**: ``firmware_model.service.degraded.unit_findings`` (an engine delivering torque below idle).
+clamped or repaired an input on more than REPAIR_UNTRUSTED_SHARE of its steps. The rules (oil in degF or
+kelvin, torque of the wrong sign, torque in percent where N m is expected, speed in rad/s), their thresholds and why
+they are set where they are: docs/can.md, "Trust findings", whole-record plausibility.
 """
 
 from __future__ import annotations

@@ -299,8 +299,8 @@ class TimeBaseCheck:
 
 
 def _config_keys() -> dict[str, str]:
-    """Message -> the [can] key that sets its source address alone: the most specific one (an audit: a CCVS1 from
-    the tachograph was told to set engine_source_address, which moved the engine's messages too)."""
+    """Message -> the [can] key that sets its source address alone: the most specific one (for a CCVS1 from the
+    tachograph, engine_source_address would move the engine's messages too)."""
     out: dict[str, str] = {}
     for key, names in SOURCE_ADDRESS_KEYS:
         for name in names:
@@ -416,8 +416,8 @@ def input_causes(
     stale_factor: float = 3.0,
 ) -> list[str]:
     """Why the inputs missing on at least CAUSE_MIN_SHARE of the steps were missing, as far as the decoder's
-    counters tell (an audit: "gear 100 %" alone did not tell a message never sent from one sent with 5 data bytes,
-    and the coolant fell to its default without a word): frames shorter than 8 bytes, no frame at all, values sent
+    counters tell ("gear 100 %" alone does not tell a message never sent from one sent with 5 data bytes, nor say
+    why the coolant fell to its default): frames shorter than 8 bytes, no frame at all, values sent
     as not available or error, no engine reference torque (EC1), EC1 by connection mode. A foreign source address
     has its own finding (foreign_findings)."""
     messages = signal_messages()
@@ -446,8 +446,8 @@ def input_causes(
         elif not arrivals.get(msg) and not foreign.get(msg):
             others = decoder_counters.get("foreign_source", {}).get(msg, {})
             if others:
-                # frames came, only from other nodes and with nothing in them (an audit: the utulsa capture's 170
-                # all-0xFF TRF1 from 0x31 were reported as "no TRF1 frame arrived")
+                # frames came, only from other nodes and with nothing in them (e.g. all-0xFF TRF1 from 0x31):
+                # "no TRF1 frame arrived" alone would be wrong
                 sas = ", ".join(f"0x{sa:02X}" for sa in sorted(others)[:4])
                 out.append(
                     f"{words}: no {msg} frame arrived from its expected source address; "
@@ -491,9 +491,9 @@ SLOW_SHARE_TOL = 0.15
 
 def _slow_message(msg: str, arrivals: int, steps: int, stale_factor: float, stale: int) -> str:
     """The words for a message that arrived, on average, more slowly than the staleness rule allows (a logger that
-    down-samples EEC1 to 10 Hz made 40 % of the steps stale: a log-replay audit), or ''. Only when the stale share
-    is what a steady slow rate gives (1 - max age / period, within SLOW_SHARE_TOL): a message at its own rate with
-    long gaps has the same mean period, and a larger stale_factor would not help it (a review)."""
+    down-samples EEC1 to 10 Hz makes 40 % of the steps stale), or ''. Only when the stale share is what a steady
+    slow rate gives (1 - max age / period, within SLOW_SHARE_TOL): a message at its own rate with long gaps has the
+    same mean period, and a larger stale_factor would not help it."""
     nominal_s = NOMINAL_PERIOD_S.get(msg)
     if not nominal_s or not arrivals or not steps:
         return ""
@@ -557,8 +557,8 @@ class StartFinding:
 @dataclass(frozen=True)
 class OrderFinding:
     """Frames out of time order (up to the step plus backward_tolerance_s earlier than the frame before them,
-    SensorService._check_order): the decoder takes frames in file order, so an older value replaced a newer one (a
-    log-replay audit: every 50th frame 0.1 s late left 4 % of the steps 'missing' without a word)."""
+    SensorService._check_order): the decoder takes frames in file order, so an older value replaces a newer one
+    (every 50th frame 0.1 s late leaves 4 % of the steps 'missing', which this finding explains)."""
 
     kind: ClassVar[str] = "order"
     frames: int

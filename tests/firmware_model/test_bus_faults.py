@@ -83,10 +83,10 @@ class DeadBus(can.BusABC):
 
 
 def test_a_bus_whose_reads_fail_at_once_is_retried_ever_more_slowly_not_in_a_loop(caplog):
-    """From a gateway audit: python-can's Notifier goes on reading after an error its listener handled, and a read
-    that fails at once made that a busy loop (~40 000 errors a second, ~45 % CPU), with a reopen every 0.3 s. Now the
-    notifier's thread waits for the loop after an error, and the delays double over the whole outage, reopens
-    included (0.1, 0.2, 0.4 s, reopen, ... up to 2 s)."""
+    """python-can's Notifier goes on reading after an error its listener handled, so a read that fails at once
+    would be a busy loop (~40 000 errors a second, ~45 % CPU, a reopen every 0.3 s). The notifier's thread waits for
+    the loop after an error, and the delays double over the whole outage, reopens included (0.1, 0.2, 0.4 s, reopen,
+    ... up to 2 s)."""
     caplog.set_level(logging.INFO)
     opened = []
 
@@ -128,9 +128,9 @@ class DownThenUp(can.BusABC):
 
 
 def test_frames_are_read_at_once_when_a_long_outage_ends():
-    """From a review: backing off over the whole outage (the fix above, first version) left the loop waiting up to
-    2 s with the notifier stopped when the interface came back after 7.5 s: the first frame was taken 0.73 s late.
-    The resume waits stay at 0.1-0.2 s; only the reopens after errors are spaced out."""
+    """The resume waits stay at 0.1-0.2 s; only the reopens after errors are spaced out. Backing off the resume
+    too would leave the loop waiting up to 2 s with the notifier stopped when the interface comes back (after 7.5 s:
+    the first frame taken 0.73 s late)."""
     up_s = time.monotonic() + 7.5
     svc = _service()
     first = {}
@@ -197,10 +197,10 @@ def _clocked(frames, wall_step_at_s=None, wall_step_s=0.0, boot0_s=50.0, stall=N
 
 
 def test_a_step_of_the_frame_clock_is_taken_out_a_pause_is_kept():
-    """From a gateway audit: SocketCAN stamps frames with the system clock, so an NTP or GNSS correction of +1 h
-    60 s into a steady drive was read as an hour without frames: the sensor cooled the driving gearbox (the bearing
-    21.8 K low) and said nothing. The FrameClock takes out a step of the wall clock that the frames show; from a
-    review: a suspend (time since boot counts it) and a backlog received late are no step."""
+    """SocketCAN stamps frames with the system clock, so an NTP or GNSS correction of +1 h 60 s into a steady drive
+    would read as an hour without frames: the sensor would cool the driving gearbox (the bearing 21.8 K low) without
+    a word. The FrameClock takes out a step of the wall clock that the frames show; a suspend (time since boot
+    counts it) and a backlog received late are no step."""
     plain, stepped = _service(), _service()
     for m in traffic(0.0, 120.0, rpm=1500.0, gear=9):
         plain.feed(m)
@@ -229,7 +229,7 @@ def test_a_step_of_the_frame_clock_is_taken_out_a_pause_is_kept():
 
 
 def test_every_receive_error_is_counted(caplog):
-    """From a gateway audit: 50 malformed frames reported by the notifier counted as one receive error."""
+    """50 malformed frames reported by the notifier count as 50 receive errors, not one."""
     from firmware_model.service.live import BusLink, QueueListener
 
     listener = QueueListener()
@@ -246,8 +246,8 @@ def test_every_receive_error_is_counted(caplog):
 
 
 def test_sighup_stops_cleanly():
-    """From a gateway audit: SIGHUP killed the service without saving its state, and systemd's Restart=on-failure
-    counts a death by SIGHUP as clean: it stayed down. Now SIGHUP stops like SIGTERM, and the unit restarts always."""
+    """SIGHUP stops like SIGTERM (the state saved), and the unit restarts always: systemd's Restart=on-failure
+    counts a death by SIGHUP as clean, so a service killed by it would stay down."""
     import signal
 
     from tools.can.bus import STOP_SIGNALS
@@ -258,8 +258,8 @@ def test_sighup_stops_cleanly():
 
 
 def test_a_bus_off_error_frame_is_counted_and_logged_once_per_episode(caplog):
-    """From a gateway audit: on SocketCAN a controller's bus-off arrives as error frames, not as a receive error,
-    and nothing said so."""
+    """On SocketCAN a controller's bus-off arrives as error frames, not as a receive error: it is counted and
+    logged once per episode."""
     caplog.set_level(logging.WARNING)
     errors = [can.Message(timestamp=0.01 * k, arbitration_id=0x40, is_error_frame=True, dlc=8) for k in range(50)]
     svc = _service()

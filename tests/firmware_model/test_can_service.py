@@ -155,8 +155,8 @@ def test_time_jumps_restart_the_grid_and_are_counted(caplog):
     rec = svc.recorded()
     assert (np.diff(rec["time_s"]) > 0).all()  # run-table time keeps increasing across a backward restart
     assert svc.counters["steps"] == 3 * 9
-    # ... by one step: the sensor sees no gap where the clock went back (a log-replay audit: it saw 0.2 s and
-    # counted a forward time jump there), and counts the one forward jump
+    # ... by one step: the sensor sees no gap where the clock went back (not 0.2 s, nor a forward time jump
+    # there), and counts the one forward jump
     d = np.diff(rec["time_s"])
     assert np.count_nonzero(d > 1.5 * STEP_S) == 1 and np.allclose(d[d <= 1.5 * STEP_S], STEP_S)
 
@@ -315,8 +315,8 @@ def test_options_are_validated_with_named_errors():
         ServiceOptions(stale_factor=0.5)
     with pytest.raises(ParameterError, match="output_period_s"):
         ServiceOptions(output_period_s=0.15)
-    # from a gateway audit: inf and NaN periods ended in a traceback; an infinite stale factor was taken and an
-    # input gone for 5 minutes stayed valid; a NAME field too wide was cut to its low bits on the bus
+    # refused with a sentence: inf and NaN periods (else a traceback), an infinite stale factor (an input gone for
+    # 5 minutes would stay valid), a NAME field too wide (cut to its low bits on the bus)
     for key, value in (
         ("output_period_s", math.inf),
         ("output_period_s", math.nan),

@@ -251,8 +251,8 @@ def test_a_log_without_oil_starts_at_the_ambient_reading_on_both_paths(tmp_path)
 
 
 def test_both_paths_log_the_same_time_jumps(tmp_path, drive, caplog):
-    """The whole-log path logs each time jump as the frame path does (an audit: it counted them, and replay's
-    note pointed to log messages that only --processes 1 wrote)."""
+    """The whole-log path logs each time jump as the frame path does: replay's note points to these log messages,
+    so both paths must write them."""
     import logging
 
     path = _write(inject(drive, ["jump_forward", "jump_backward"], seed=3), tmp_path / "jumps.log")
@@ -267,8 +267,8 @@ def test_both_paths_log_the_same_time_jumps(tmp_path, drive, caplog):
 
 def test_frames_out_of_time_order_are_counted_alike_and_named(tmp_path, drive):
     """Every 50th frame stamped 0.1 s earlier (a log merged from several buffers): both paths count the frames out
-    of time order and how far back, and a note says to sort the log (a log-replay audit: 4 % of the steps went
-    'missing' without a word); a later frame a whole 2 s back is a clock going back, not counted here."""
+    of time order and how far back, and a note says to sort the log (else 4 % of the steps go 'missing' without a
+    word); a later frame a whole 2 s back is a clock going back, not counted here."""
     from firmware_model.service.trust import OrderFinding
 
     msgs = list(drive.messages(channel="can0"))

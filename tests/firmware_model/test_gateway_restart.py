@@ -37,10 +37,10 @@ def test_restored_state_is_within_2_k_of_the_plant_after_a_10_minute_stop():
 
 
 def test_a_crash_mid_climb_is_restored_with_the_inputs_held_not_cooled():
-    """From a gateway audit: a service that died while the truck climbed (systemd restarted it 5 s later, its last
-    periodic save 30 s old) was restored as if the ignition had been off: cooled for 35 s with the engine stopped,
-    several K low on the hot components. A state saved while stepping (not at a clean stop) now has its inputs held
-    over the time off (at most the time-jump hold, 60 s), then cools: as a forward time jump does."""
+    """A service that dies while the truck climbs (systemd restarts it 5 s later, its last periodic save 30 s old)
+    is not restored as if the ignition had been off (cooled for 35 s with the engine stopped, several K low on the
+    hot components): a state saved while stepping (not at a clean stop) has its inputs held over the time off (at
+    most the time-jump hold, 60 s), then cools: as a forward time jump does."""
     r = _bench().run_crash(drive_s=600.0)
     held, cooled, never = (np.abs(e) for e in (r.held_err_k, r.cooled_err_k, r.uninterrupted_err_k))
     print(

@@ -127,8 +127,8 @@ def test_a_save_says_whether_it_was_made_at_a_clean_stop(params, tmp_path):
 
 
 def test_a_slow_save_does_not_hold_up_the_loop(params, tmp_path, monkeypatch):
-    """From a gateway audit: the periodic save ran in the frame loop, so an fsync that took a second on an SD card
-    held the outputs back for that second. The gateway's store (background=True) writes in a thread; a save still
+    """A periodic save in the frame loop would hold the outputs back for as long as an fsync takes (a second on an
+    SD card). The gateway's store (background=True) writes in a thread; a save still
     being written is not doubled, and the shutdown save waits for it and then writes the state of that moment."""
     import threading
 
@@ -171,9 +171,9 @@ def test_a_slow_save_does_not_hold_up_the_loop(params, tmp_path, monkeypatch):
     ],
 )
 def test_a_state_file_with_bad_fields_is_a_cold_start_not_a_crash_loop(params, tmp_path, doc, reason):
-    """From a gateway audit: a file of the right schema and network whose time of saving was null or text, or
-    without its snapshot, crashed the start with a traceback; systemd restarted it into the same crash for ever. A
-    state saved a day ahead of the clock (set back, or not yet set at boot) was restored without cooling."""
+    """A file of the right schema and network whose time of saving is null or text, or without its snapshot, is a
+    cold start, not a traceback that systemd restarts into the same crash for ever; so is a state saved a day ahead
+    of the clock (set back, or not yet set at boot), which restored would not cool."""
     first = _service(params)
     _drive(first, 0.0, 10.0)
     clock = Clock()
@@ -212,10 +212,10 @@ def _short_hold(snap):
     [(_damage_level, "'level' holds values"), (_flip_bit, "checksum"), (_short_hold, "'hold' has shape")],
 )
 def test_a_damaged_snapshot_is_a_cold_start_at_the_first_step(params, tmp_path, damage, reason):
-    """From a gateway audit: one changed character of the saved warning levels restored as "restored", then stopped
-    the service at its first step, after it had saved the same state again (a crash loop under systemd); an
-    exponent bit flipped in a temperature restored a 420 degC gear teeth node and raised a warning. The snapshot's
-    checksum and its shape, type and range checks make each a counted cold start."""
+    """One changed character of the saved warning levels, or an exponent bit flipped in a temperature (a 420 degC
+    gear teeth node and a false warning), is a counted cold start through the snapshot's checksum and its shape, type
+    and range checks: restored, the first would stop the service at its first step after saving the same state again
+    (a crash loop under systemd)."""
     first = _service(params)
     _drive(first, 0.0, 30.0)
     clock = Clock()
@@ -233,9 +233,9 @@ def test_a_damaged_snapshot_is_a_cold_start_at_the_first_step(params, tmp_path, 
 
 
 def test_the_saved_time_is_the_last_steps_and_the_wall_clock_does_not_drive_the_period(params, tmp_path):
-    """From a gateway audit: the periodic save rewrote the time of saving while the bus was silent (a gateway left
-    powered overnight restored a hot gearbox 'cooled for 4 s'); a wall clock set back an hour stopped the saves for
-    an hour. The state's time is that of the last step; the period runs on a monotonic timer."""
+    """The state's time is that of the last step, so a save while the bus is silent does not make a gateway left
+    powered overnight restore a hot gearbox 'cooled for 4 s'; the period runs on a monotonic timer, so a wall clock
+    set back an hour does not stop the saves for an hour."""
     wall, mono = Clock(), Clock(100.0)
     svc = _service(params)
     store = StateStore(tmp_path / "state.json", period_s=60.0, clock=wall, timer=mono)
@@ -258,8 +258,8 @@ def test_the_saved_time_is_the_last_steps_and_the_wall_clock_does_not_drive_the_
 
 
 def test_a_failing_save_is_tried_again_a_period_later_not_at_every_tick(params, tmp_path, caplog):
-    """From a gateway audit: after one failed save (a full or read-only disk) the store tried again at every tick:
-    1961 attempts in 24 s, catch-up steps, a 176 ms p99. Now once a period; the shutdown's failure is logged."""
+    """After a failed save (a full or read-only disk) the store tries again once a period, not at every tick
+    (1961 attempts in 24 s, catch-up steps, a 176 ms p99); the shutdown's failure is logged."""
     mono = Clock(0.0)
     svc = _service(params)
     _drive(svc, 0.0, 3.0)
@@ -311,8 +311,8 @@ def test_health_file_and_status_command(params, tmp_path, capsys):
 
 
 def test_status_says_when_a_running_service_has_stopped_stepping(params, tmp_path, capsys, monkeypatch):
-    """From a gateway audit: with the sensor's input frames gone (other nodes still sending) `status` said
-    "running ... mode now 0 (normal)" with exit 0 for 20 s in which no step ran and nothing was sent."""
+    """With the sensor's input frames gone (other nodes still sending), `status` does not say "running ... mode
+    now 0 (normal)" with exit 0 while no step runs and nothing is sent."""
     import tools.cli.status as status_cli
     from tools.cli import main
 
@@ -393,7 +393,7 @@ def test_service_unit_passes_systemd_analyze_verify(tmp_path):
     from tools.can.systemd import unit_text
 
     unit = tmp_path / "gearbox-vsensor.service"
-    # a "-" in the channel and a "%" in the config path too (a gateway audit: a fatal error in verify)
+    # a "-" in the channel and a "%" in the config path too (unescaped, they are a fatal error in verify)
     unit.write_text(unit_text("socketcan", "can-gw", config="/etc/gvs/truck%Z.toml"))
     res = subprocess.run(["systemd-analyze", "verify", str(unit)], capture_output=True, text=True, timeout=120)
     assert res.returncode == 0, res.stderr
@@ -406,9 +406,9 @@ def test_service_unit_passes_systemd_analyze_verify(tmp_path):
 
 
 def test_service_unit_fits_the_interface_and_refuses_what_cannot_stand_in_it(capsys):
-    """From a bad-input audit: a pcan unit was bound to a network device that never exists, udp_multicast was
-    blocked by the address families, a line break in --channel added lines to the unit, a relative --config could
-    not be found by the service."""
+    """The unit fits its interface: a pcan unit is not bound to a network device (it never exists), udp_multicast
+    is not blocked by the address families; a line break in --channel (lines added to the unit) and a relative
+    --config (not found by the service) are refused."""
     from tools.can.systemd import unit_text
     from tools.cli import main
 
@@ -416,8 +416,8 @@ def test_service_unit_fits_the_interface_and_refuses_what_cannot_stand_in_it(cap
     assert "BindsTo" not in pcan and "sys-subsystem-net-devices" not in pcan and "RestrictAddressFamilies" not in pcan
     assert "RestrictAddressFamilies=AF_INET AF_INET6" in unit_text("udp_multicast", "239.0.0.1")
     assert "BindsTo=sys-subsystem-net-devices-can0.device" in unit_text("socketcan", "can0")
-    # from a gateway audit: "can-gw" named a device unit that never appears (systemd escapes "-"), and a "%" in the
-    # config path was taken for a specifier
+    # systemd escapes "-" in a device unit's name (unescaped, "can-gw" names a unit that never appears), and a "%"
+    # in the config path is doubled, else it is taken for a specifier
     assert "BindsTo=sys-subsystem-net-devices-can\\x2dgw.device" in unit_text("socketcan", "can-gw")
     assert "--config /etc/gvs/truck%%Z.toml" in unit_text("socketcan", "can0", config="/etc/gvs/truck%Z.toml")
     for args, words in (
@@ -430,8 +430,8 @@ def test_service_unit_fits_the_interface_and_refuses_what_cannot_stand_in_it(cap
 
 
 def test_a_health_file_that_cannot_be_written_is_said_once(params, tmp_path, caplog):
-    """From a bad-input audit: a health file on a read-only file system was skipped without a word, and `status`
-    then reported a service that was not running."""
+    """A health file that cannot be written (a read-only file system) is said once, not skipped without a word
+    (`status` would then report a service that is not running)."""
     svc = _service(params)
     _drive(svc, 0.0, 2.0)
     health = HealthFile(tmp_path / "no_such_dir" / "health.json", period_s=0.0)
@@ -465,8 +465,8 @@ def test_failed_health_writes_are_shown_by_status_once_a_write_succeeds(params, 
 
 
 def test_service_unit_warns_of_every_place_the_sandbox_hides(tmp_path):
-    """From a newcomer audit: a venv in /tmp whose python links to /root passed without a warning (the check looked
-    at the unresolved path and at /home and /root only), and the code of an editable install was not looked at."""
+    """Every path the sandbox hides is warned of: the resolved python (a venv in /tmp whose python links to /root),
+    not only /home and /root, and the code of an editable install."""
     from tools.can.systemd import check_unit_args
 
     assert check_unit_args("socketcan", "can0", None, "/opt/gvs/bin/python") == []
@@ -479,8 +479,8 @@ def test_service_unit_warns_of_every_place_the_sandbox_hides(tmp_path):
 
 
 def test_status_says_restored_stopped_and_the_mode_now(params, tmp_path, capsys):
-    """From a gateway audit: `status` never said whether the saved state was restored (its counter stayed 0), said
-    'running' for 5 s after a clean stop, and showed only lifetime totals of the degraded modes."""
+    """`status` says whether the saved state was restored, says 'stopped' (not 'running') right after a clean
+    stop, and shows the degraded mode now, not only lifetime totals."""
     from tools.cli import main
 
     clock = Clock()
@@ -502,8 +502,8 @@ def test_status_says_restored_stopped_and_the_mode_now(params, tmp_path, capsys)
 
 
 def test_a_restored_state_is_cooled_until_the_first_frame(params, tmp_path):
-    """From a review: the time off was measured when the service started, not when the first frame came; a
-    gateway restarted while the truck sleeps restored a state too hot by the whole wait."""
+    """The time off runs until the first frame, not until the service starts: a gateway restarted while the truck
+    sleeps would otherwise restore a state too hot by the whole wait."""
     from tools.can.live import GatewayHooks, LiveSettings
 
     clock = Clock()
@@ -519,10 +519,10 @@ def test_a_restored_state_is_cooled_until_the_first_frame(params, tmp_path):
 
 
 def test_dm1_names_a_missing_engine_speed_instead_of_clearing(params):
-    """From a gateway audit: with the engine speed gone (EEC1 stopped, ETC2 and TRF1 still there) the levels became
-    not available after the hold time and DM1 went to "no active DTC", lamps off: a service tool read a gearbox at
-    critical as "fault cleared". Now DM1 names SPN 190 with FMI 9 (abnormal update rate) and the amber lamp, and
-    clears again once the speed is back."""
+    """With the engine speed gone (EEC1 stopped, ETC2 and TRF1 still there) the levels become not available after
+    the hold time; DM1 then names SPN 190 with FMI 9 (abnormal update rate) and the amber lamp, not "no active DTC"
+    with lamps off (a service tool would read a gearbox at critical as "fault cleared"), and clears again once the
+    speed is back."""
     svc = SensorService(VirtualSensor(params), ServiceOptions(configured_ref_torque_nm=2000.0))
 
     def dm1s(frames):

@@ -467,9 +467,9 @@ def test_time_to_limit_refresh_on_hostile_operating_points(params):
 
 @needs_c
 def test_a_batch_whose_vehicles_go_back_differently_matches_the_numpy_step(params):
-    """From a review: vehicles of one batch whose clocks go back by different amounts (some skipped, some on a
-    reset clock, the rest stepping; a NaN time keeps a vehicle's last time, so their gaps differ) raised an error in
-    both cores. Now each vehicle is skipped, reset or stepped on its own, alike in numpy and C."""
+    """Vehicles of one batch whose clocks go back by different amounts (some skipped, some on a reset clock, the
+    rest stepping; a NaN time keeps a vehicle's last time, so their gaps differ) raise no error: each vehicle is
+    skipped, reset or stepped on its own, alike in numpy and C."""
     rng = np.random.default_rng(5)
     V, L = 60, 40
     raw, t_s = hostile_inputs(rng, V, L)
@@ -496,10 +496,10 @@ def test_a_batch_whose_vehicles_go_back_differently_matches_the_numpy_step(param
 
 @pytest.mark.parametrize("core", ["numpy", pytest.param("c", marks=needs_c)])
 def test_tiny_torques_and_a_missing_frame_time(params, core):
-    """From an ECU audit: one torque sample of 1e-40 N m drove every temperature to 280 degC (NaN for good in the
-    float build): the rolling loss's film law (Eq 18, load^-0.13) has no lower limit; it now takes its load at no
-    less than 1 N m. And a step without a frame time (NaN) between two with one counted a time jump: the last time
-    now moves on with the 0.1 s grid. Both cores alike (the parity tests compare them step by step)."""
+    """The rolling loss's film law (Eq 18, load^-0.13) has no lower limit, so it takes its load at no less than
+    1 N m: else one torque sample of 1e-40 N m drives every temperature to 280 degC (NaN for good in the float
+    build). A step without a frame time (NaN) between two with one counts no time jump: the last time moves on with
+    the 0.1 s grid. Both cores alike (the parity tests compare them step by step)."""
     s = VirtualSensor(params, core=core)
     raw = np.tile([1400.0, 2395.0, 11.0, np.nan, 20.0, 80.0, 60.0, 0.0], (300, 1))
     _, ref = s.step_table(s.initial_state(T_oil_c=80.0), raw)

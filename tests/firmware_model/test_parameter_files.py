@@ -144,7 +144,7 @@ def test_range_errors_name_the_file_and_use_its_units(tmp_path):
 
 
 def test_a_file_saved_with_a_byte_order_mark_loads(tmp_path):
-    """From a bad-input audit: a TOML saved with a BOM by a Windows editor was 'not valid TOML (line 1, column 1)'."""
+    """A TOML saved with a BOM by a Windows editor loads, not 'not valid TOML (line 1, column 1)'."""
     from firmware_model.parameters import load_parameters
 
     p = tmp_path / "bom.toml"
@@ -153,7 +153,7 @@ def test_a_file_saved_with_a_byte_order_mark_loads(tmp_path):
 
 
 def test_a_files_own_description_in_meta_is_allowed(tmp_path):
-    """The check of unknown keys leaves [meta] alone: a description of the file changes no physics (review)."""
+    """The check of unknown keys leaves [meta] alone: a description of the file changes no physics."""
     from firmware_model.parameters import load_parameters
 
     p = tmp_path / "mine.toml"

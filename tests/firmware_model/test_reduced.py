@@ -337,9 +337,9 @@ def test_law_grid_batched_equals_one_evaluation_per_point(params):
 
 @pytest.mark.parametrize("tq", [1e-30, 0.05, 0.2, 1.0, 3.0, 8.0, 30.0])
 def test_loss_maps_match_gearbox_losses_at_tiny_torques(rp, full, tq):
-    """The rolling loss's ramp below its least film torque (losses.ROLL_TORQUE_MIN_NM per contact: a review found
-    the onboard reduction applying it to the sun's total torque, 5 planets, where the plant applies it per planet:
-    PSP 70 W against 57 W) and the slip table's low end, plant against reduction, every mesh."""
+    """The rolling loss's ramp below its least film torque (losses.ROLL_TORQUE_MIN_NM per contact: applied to the
+    sun's total torque over 5 planets instead of per planet, as the plant does, the reduction gives PSP 70 W against
+    57 W) and the slip table's low end, plant against reduction, every mesh."""
     _, _, gl = full
     h = rp.helpers
     for g in (-1, 1, 5, 8, 12, 14):

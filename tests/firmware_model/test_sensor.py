@@ -255,8 +255,8 @@ def test_restart_with_a_measured_oil_far_from_the_snapshot_trusts_the_measuremen
     far = sensor.initial_state(T_oil_c=30.0, snapshot=sensor.snapshot(st))
     assert near.T_c[0, sensor.reduced.i_oil] == 89.0 and near.T_c[0].max() > 90.0
     assert np.all(far.T_c == 30.0)
-    # warning levels go with the temperatures they were about (an ECU audit: a warning kept for the debounce time
-    # on a gearbox restarted at 40 degC): kept when the state is kept, cleared when every node restarts
+    # warning levels go with the temperatures they were about (else a warning is kept for the debounce time on a
+    # gearbox restarted at 40 degC): kept when the state is kept, cleared when every node restarts
     warm = st._replace(level=np.full_like(st.level, 1), pending_s=np.full_like(st.pending_s, 0.5))
     near = sensor.initial_state(T_oil_c=89.0, snapshot=sensor.snapshot(warm))
     far = sensor.initial_state(T_oil_c=30.0, snapshot=sensor.snapshot(warm))
@@ -324,8 +324,8 @@ def test_torque_beyond_the_engine_range_is_clamped(sensor, warm):
     [("speed_rpm", 1e308), ("speed_rpm", 9000.0), ("speed_rpm", -1e308), ("torque_nm", 1e308), ("torque_nm", -1e6)],
 )
 def test_a_speed_or_torque_no_j1939_frame_can_carry_is_missing_not_clamped(sensor, warm, field, value):
-    """From an ECU audit: a torque of 1e308 was clamped to the engine's maximum and used in mode 0, raising warnings;
-    beyond the J1939 data range (8031.875 rpm; 125 % of a 64255 N m reference) a value is no reading: held as a
+    """A torque of 1e308 clamped to the engine's maximum would be used in mode 0 and raise warnings: beyond the
+    J1939 data range (8031.875 rpm; 125 % of a 64255 N m reference) a value is no reading: held as a
     missing one, counted as missing, not clamped."""
     a, oa = sensor.step(warm, NOMINAL)
     b, ob = sensor.step(warm, NOMINAL._replace(**{field: value}))

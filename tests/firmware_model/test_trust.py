@@ -173,9 +173,9 @@ def test_a_second_sender_beside_the_expected_one_is_only_a_note():
 
 
 def test_a_sender_that_moved_to_another_address_is_not_called_a_second_sender():
-    """From a gateway audit: the transmission controller's TRF1 went from SA 0x03 to 0x04 halfway (a new address
-    claim) and the finding said "a second sender", a note; the oil was not used after the move. Now it says the
-    sender moved, untrusted (a primary input), on both decoders (frame by frame and columnar)."""
+    """The transmission controller's TRF1 moving from SA 0x03 to 0x04 halfway (a new address claim), after which
+    the oil is not used, is a sender that moved, untrusted (a primary input), not "a second sender" note; on both
+    decoders (frame by frame and columnar)."""
     from can_dbc.columnar import FrameColumns, decode_columns
     from firmware_model.service.trust import foreign_findings
 
@@ -215,8 +215,8 @@ def test_degraded_share_thresholds(modes, severity):
 
 
 def test_short_frames_and_a_missing_reference_torque_are_named_as_causes():
-    """An audit: "gear 100 %" did not tell ETC2 never sent from ETC2 sent with 5 data bytes; an ET1 with 5 bytes
-    left the coolant at its default with "not given, as documented"; no EC1 was not named in a whole-log replay."""
+    """The causes tell ETC2 never sent from ETC2 sent with 5 data bytes ("gear 100 %" alone does not), name an ET1
+    with 5 bytes as why the coolant is at its default, and name a missing EC1 in a whole-log replay too."""
     from firmware_model.service.trust import CoolantFinding
 
     frames = traffic(0.0, 30.0) + [frame(t + 0.7, 65262, 0x00, [0x78, 0xFF, 0xFF, 0xFF, 0xFF]) for t in range(30)]
@@ -239,8 +239,8 @@ def test_short_frames_and_a_missing_reference_torque_are_named_as_causes():
 
 
 def test_a_gear_the_map_leaves_out_is_a_missing_gear_with_its_cause():
-    """An audit: ETC2 gears 14-16 of a 16-speed box, or a gear_map without them, made the sensor degraded while the
-    warning's list of missing inputs had no gear (counted before the mapping)."""
+    """ETC2 gears 14-16 of a 16-speed box, or a gear_map without them, make the sensor degraded: the warning's list
+    of missing inputs names the gear (counted after the mapping, not before)."""
     svc = service()
     svc.feed_all(traffic(0.0, 30.0, gear=16))
     assert svc.counters["gear_unmapped_steps"] > 250 and svc.counters["stale_steps"].get("gear", 0) < 10
@@ -249,8 +249,8 @@ def test_a_gear_the_map_leaves_out_is_a_missing_gear_with_its_cause():
 
 
 def test_a_start_without_an_oil_reading_is_a_note_that_names_initial_temp():
-    """An audit: a log cut mid-drive without TRF1 started every part at ambient, 80 K below the truck, and no word
-    said how to give the start."""
+    """A log cut mid-drive without TRF1 starts every part at ambient (80 K below the truck): a note says so and
+    names initial_temp, the way to give the start."""
     from firmware_model.service.trust import StartFinding
 
     frames = [m for m in traffic(0.0, 30.0) if pgn_of(m.arbitration_id) != 65272]
@@ -267,8 +267,7 @@ def test_a_start_without_an_oil_reading_is_a_note_that_names_initial_temp():
 
 def test_an_input_sent_only_empty_from_another_node_is_not_called_absent():
     """The cause of a missing input names frames that came only from other source addresses with nothing in them
-    (a log-replay audit: the real utulsa capture's all-0xFF TRF1 from 0x31 were reported as "no TRF1 frame
-    arrived"); with no frame at all it still says so."""
+    (e.g. all-0xFF TRF1 from 0x31, not "no TRF1 frame arrived"); with no frame at all it still says so."""
     from firmware_model.service.trust import input_causes
 
     counters = {"arrivals": {"EEC1": 100}, "foreign_source": {"TRF1": {0x31: 170}}, "foreign_source_data": {}}
@@ -282,7 +281,7 @@ def test_an_input_sent_only_empty_from_another_node_is_not_called_absent():
 
 def test_a_vehicle_speed_from_the_tachograph_is_set_by_its_own_key():
     """CCVS1 from the tachograph (0xEE): the finding names vehicle_speed_source_address, which moves CCVS1 alone
-    (a log-replay audit: it named engine_source_address, and following it moved EEC1 and EC1 too)."""
+    (not engine_source_address, which would move EEC1 and EC1 too)."""
     from firmware_model.service import ServiceOptions
 
     frames = traffic(0.0, 30.0) + [frame(t + 0.3, 65265, 0xEE, [0, 0, 50, 0, 0, 0, 0, 0]) for t in range(30)]
@@ -303,9 +302,9 @@ def test_a_vehicle_speed_from_the_tachograph_is_set_by_its_own_key():
 
 
 def test_a_message_slower_than_the_staleness_rule_is_named_with_the_stale_factor_that_accepts_it():
-    """EEC1 down-sampled to 10 Hz by a logger (J1939: 10-20 ms) made 40 % of the steps stale, and the cause said
-    only "missing, stale" (a log-replay audit): the cause names the mean period and the [can] stale_factor that
-    accepts it, once per message; at its J1939 rate nothing is said."""
+    """EEC1 down-sampled to 10 Hz by a logger (J1939: 10-20 ms) makes 40 % of the steps stale: the cause names the
+    mean period and the [can] stale_factor that accepts it, not only "missing, stale", once per message; at its
+    J1939 rate nothing is said."""
     from firmware_model.service.trust import input_causes
 
     counters = {"arrivals": {"EEC1": 1000}, "tp": {"ec1_received": 20}}
@@ -318,6 +317,6 @@ def test_a_message_slower_than_the_staleness_rule_is_named_with_the_stale_factor
     assert causes[1] == "engine torque: EEC1 as slow (above)"
     assert input_causes({"arrivals": {"EEC1": 5000}}, {"engine_speed_rpm": 400}, 1000) == []
     assert input_causes(counters, {"engine_speed_rpm": 400}, 1000, stale_factor=8.0) == []
-    # at its own 20 ms for a quarter of the run, then absent: the same mean period, but no rate to accept (a review)
+    # at its own 20 ms for a quarter of the run, then absent: the same mean period, but no rate to accept
     gaps = input_causes({"arrivals": {"EEC1": 1250}, "tp": {"ec1_received": 20}}, {"engine_speed_rpm": 750}, 1000)
     assert not any("stale_factor" in c for c in gaps), gaps

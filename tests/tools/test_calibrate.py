@@ -112,7 +112,7 @@ def test_bounds_are_checked_when_the_file_is_read(tmp_path):
     )
     with pytest.raises(ParameterError, match="must lie within its bounds"):
         load_parameters(bad)
-    # reversed bounds say so (a calibration audit: 'must lie within its bounds lo = 0.8 .. hi = 0.2')
+    # reversed bounds say so (not 'must lie within its bounds lo = 0.8 .. hi = 0.2')
     bad.write_text(
         '[meta]\ninherit = "GRS905"\n[housing]\nhot_frac = { v = 0.5, u = "-", lo = 0.8, hi = 0.2, src = "assumed" }\n'
     )
@@ -129,8 +129,8 @@ def test_bounds_are_checked_when_the_file_is_read(tmp_path):
 
 
 def test_a_fit_that_makes_the_held_out_error_worse_writes_no_parameter_file(params, tmp_path, capsys):
-    """From a bad-input audit: training thermocouples in degF gave a 'fitted' file (a value at its bound, the held-out
-    RMS 15 times larger, printed as '-1458 % down') with exit 0."""
+    """No parameter file when the fit makes the held-out error worse: training thermocouples in degF would give a
+    'fitted' file (a value at its bound, the held-out RMS 15 times larger, printed as '-1458 % down') with exit 0."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
         sc = make_scenario(1, 7, "rig", None, None, params, train_s=SHORT_S, test_s=SHORT_S)  # the file is right
@@ -161,9 +161,9 @@ def test_a_fit_that_makes_the_held_out_error_worse_writes_no_parameter_file(para
 
 
 def test_a_fit_still_far_off_or_not_pinned_down_is_refused_or_said(params):
-    """From a calibration audit: a training file in degF beside a good one gave a 'fitted' file with exit 0 (training
-    RMS 46 -> 43 K, the pooled held-out RMS 1 % down while three of four channels got worse, a sigma of 13 on a
-    0.2..0.8 range); the equal RMS of a fit that changed nothing was printed as 'worse'."""
+    """A fit still far off or not pinned down is refused or said: a training file in degF beside a good one gives
+    training RMS 46 -> 43 K, the pooled held-out RMS 1 % down while three of four channels get worse, a sigma of 13
+    on a 0.2..0.8 range; the equal RMS of a fit that changed nothing is not 'worse'."""
     from tools.cli.calibrate import _cautions, _refusal
     from tools.diagnosis.calibrate import Calibration
 
@@ -183,8 +183,8 @@ def test_a_fit_still_far_off_or_not_pinned_down_is_refused_or_said(params):
 
 
 def test_bounds_outside_the_allowed_range_are_refused_when_the_file_loads(tmp_path):
-    """From a calibration audit: bounds reaching outside a key's allowed range failed half-way through a fit, naming a
-    Latin-hypercube start the user never wrote."""
+    """Bounds reaching outside a key's allowed range are refused when the file loads, not half-way through a fit
+    with an error naming a Latin-hypercube start the user never wrote."""
     bad = tmp_path / "b.toml"
     bad.write_text(
         '[meta]\ninherit = "GRS905"\n[housing]\nhot_frac = { v = 0.5, u = "-", lo = -0.5, hi = 1.5, src = "assumed" }\n'
@@ -194,10 +194,9 @@ def test_bounds_outside_the_allowed_range_are_refused_when_the_file_loads(tmp_pa
 
 
 def test_a_constant_offset_left_on_a_held_out_channel_is_a_caution():
-    """From a calibration audit: oil read 2 K high gave a written parameter file biased far from the truth
-    (hot_frac 0.54 for 0.35) with no word about the 1.4 K left on the held-out oil. A channel whose held-out
-    residual after the fit is large and nearly constant now gets a caution that names a sensor offset; a channel
-    fitted down to noise, or one with a varying residual, does not."""
+    """An oil sensor reading 2 K high biases the written parameter file (hot_frac 0.54 for 0.35) and leaves 1.4 K on
+    the held-out oil: a channel whose held-out residual after the fit is large and nearly constant gets a caution
+    that names a sensor offset; a channel fitted down to noise, or one with a varying residual, does not."""
     from types import SimpleNamespace
 
     import numpy as np

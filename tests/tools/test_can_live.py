@@ -272,8 +272,8 @@ sys.exit(main(["run", "--interface", "virtual", "--channel", channel, "--state-f
 
 
 def test_a_second_sigterm_during_the_final_save_does_not_lose_it(tmp_path):
-    """From a gateway audit: the final state save ran after the signal handlers were restored, so a second SIGTERM
-    during it killed `run` with the last state unsaved. The save now runs while a signal only sets the stop flag."""
+    """The final state save runs while a signal only sets the stop flag: after the signal handlers were restored,
+    a second SIGTERM during it would kill `run` with the last state unsaved."""
     env = {**os.environ, "PYTHONPATH": str(REPO) + os.pathsep + os.environ.get("PYTHONPATH", "")}
     state = tmp_path / "state.json"
     p = subprocess.run(

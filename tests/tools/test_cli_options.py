@@ -194,7 +194,7 @@ def test_bench_diagnosis_counts_the_files_taken_running():
 
 
 def test_bench_diagnosis_refuses_scenarios_outside_the_plan(tmp_path, capsys):
-    """--only 999 of a 2-scenario plan ran nothing and wrote a table of NaN with exit 0 (a bad-input audit)."""
+    """--only 999 of a 2-scenario plan is refused, not a run of nothing that writes a table of NaN with exit 0."""
     assert main(["bench-diagnosis", "--out", str(tmp_path / "b"), "--scenarios", "2", "--only", "1,999"]) == 2
     assert "no scenario 999 in a plan of 2" in capsys.readouterr().err and not (tmp_path / "b").exists()
 
@@ -215,6 +215,6 @@ def test_plant_checks_the_bus_before_it_computes_the_drive(monkeypatch, capsys):
 
 
 def test_run_refuses_a_state_period_without_a_state_file(capsys):
-    """--state-period without --state-file did nothing, silently (a bad-input audit)."""
+    """--state-period without --state-file is refused: alone it would do nothing, silently."""
     assert main(["run", "--interface", "virtual", "--channel", "x", "--state-period", "5"]) == 2
     assert "give --state-file too" in capsys.readouterr().err

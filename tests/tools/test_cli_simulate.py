@@ -112,7 +112,7 @@ def test_the_summary_spells_out_the_component_codes(tmp_path, capsys):
 
 def test_churning_validity_is_not_a_note_on_every_run(tmp_path, capsys):
     """The churning correlations are outside their range for the whole of most drives (docs/validation.md says so
-    once); a run notes it only when it is partial (issue: a newcomer's first hour, item 9)."""
+    once); a run notes it only when it is partial."""
     from tools.cli import main
 
     assert main(["simulate", "--cycle", "steady:gear=4L,rpm=1300,nm=2000,s=120", "--out", str(tmp_path / "s.csv")]) == 0
@@ -173,7 +173,7 @@ def test_implausible_start_or_boundary_temperatures_are_refused(tmp_path, capsys
     ],
 )
 def test_a_config_value_of_the_wrong_type_is_one_sentence(tmp_path, capsys, body, words):
-    """From a bad-input audit: these gave TypeError, ValueError or UnicodeDecodeError tracebacks."""
+    """Each is one sentence, not a TypeError, ValueError or UnicodeDecodeError traceback."""
     cfg = tmp_path / "c.toml"
     cfg.write_bytes(body if isinstance(body, bytes) else body.encode())
     out = tmp_path / "run.csv"
@@ -223,13 +223,13 @@ def test_an_unknown_table_format_or_an_effect_given_twice_is_refused(tmp_path, c
 
 def test_a_cycle_in_milliseconds_or_rad_s_is_refused_before_it_runs(tmp_path, capsys):
     """A CSV cycle whose time_s is in milliseconds (10-minute file -> 7 days, a 600 MB table and a 4.3 GB CAN log)
-    or whose engine speed is in rad/s is refused in one sentence before the plant runs, as replay flags both (a
-    drive-cycle audit); --allow-untrusted runs it as it is."""
+    or whose engine speed is in rad/s is refused in one sentence before the plant runs, as replay flags both;
+    --allow-untrusted runs it as it is."""
     src = _cycle(tmp_path / "c.csv")
     table = read_run_table(src)
     ms = RunTable({c: (table[c] * 1000.0 if c == "time_s" else table[c]) for c in table.columns})
     rads = RunTable({c: (table[c] * 2 * np.pi / 60.0 if c == "engine_speed_rpm" else table[c]) for c in table.columns})
-    t20 = np.arange(0.0, 600.0, 0.05)  # a 10-minute 20 Hz logger file in milliseconds (a review)
+    t20 = np.arange(0.0, 600.0, 0.05)  # a 10-minute 20 Hz logger file in milliseconds
     ms20 = RunTable(
         {
             "time_s": t20 * 1000.0,

@@ -168,8 +168,8 @@ def test_a_simulated_log_carries_its_retarder_reference_so_replay_needs_no_confi
 
 
 def test_bus_problems_are_one_sentence_and_virtual_says_it_is_in_process(capsys, monkeypatch):
-    """A HIL audit: a vendor driver without its library (kvaser: NameError) gave a traceback; plant took
-    --bitrate 5; plant on --interface virtual "sent" its frames to no other process without a word."""
+    """A vendor driver without its library (kvaser: NameError) is one sentence, not a traceback; plant refuses
+    --bitrate 5; plant on --interface virtual says its frames reach no other process."""
     assert main(["plant", "--interface", "virtual", "--channel", "x", "--cycle", STEADY, "--bitrate", "5"]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "--bitrate 5 must be a CAN bit rate" in err
@@ -206,8 +206,8 @@ def test_bus_problems_are_one_sentence_and_virtual_says_it_is_in_process(capsys,
 
 
 def test_sigterm_while_the_plant_computes_is_an_interrupt():
-    """SIGTERM during the plant's precomputation raised nothing and killed plant without a word or a bus shutdown (a
-    HIL audit); inside the computation it is now an interrupt as Ctrl-C is, and the handler before it comes back."""
+    """SIGTERM during the plant's precomputation is an interrupt as Ctrl-C is, not a death without a word or a bus
+    shutdown, and the handler before it comes back."""
     import os
     import signal
 
@@ -224,7 +224,7 @@ def test_sigterm_while_the_plant_computes_is_an_interrupt():
 
 def test_a_bus_that_fails_to_open_leaves_no_teardown_message(capsys, caplog):
     """A udp_multicast bus with a channel that is no address: one sentence, and none of python-can's "... was not
-    properly shut down" for the half-built bus after it (a HIL audit)."""
+    properly shut down" for the half-built bus after it."""
     import logging
 
     pytest.importorskip("msgpack", reason="python-can's udp_multicast needs msgpack")

@@ -132,7 +132,7 @@ def test_help_explains_every_option(capsys):
 def test_the_summary_names_the_component_closest_to_its_own_limit(tmp_path, capsys):
     """Limits differ by component (bearings 120, sun wheel 130, gears 150 degC): the summary ranks by the margin to
     each component's own warning limit, spelled out, with the margin; a table with only the required columns says
-    that the auxiliary inputs took their defaults, not a bare "aux_missing N" (issue: a newcomer's first hour)."""
+    that the auxiliary inputs took their defaults, not a bare "aux_missing N"."""
     import numpy as np
 
     from firmware_model.components import PUBLISHED, describe
@@ -217,8 +217,8 @@ def test_the_oil_modelled_by_request_is_not_degraded(tmp_path, capsys):
     ],
 )
 def test_a_column_in_another_unit_is_untrusted(tmp_path, capsys, change, words):
-    """From a bad-input audit: time_s in ms and engine speed in rad/s replayed with exit 0 and no word (a peak of
-    85 degC instead of 101); a CAN log with the same mistake was flagged. Now: a warning naming the column, exit 3."""
+    """time_s in ms or engine speed in rad/s gives a warning naming the column and exit 3, as a CAN log with the
+    same mistake does, not exit 0 and no word (a peak of 85 degC instead of 101)."""
     src = write_run_table(_table(**change), tmp_path / "run.csv")
     assert main(["replay", str(src), "--out", str(tmp_path / "est.csv"), "--quiet"]) == 3
     assert words in capsys.readouterr().err
@@ -238,7 +238,7 @@ def test_a_column_in_another_unit_is_untrusted(tmp_path, capsys, change, words):
 @pytest.mark.parametrize("spacing_s", [0.1, 10.0, 30.0])
 def test_the_summary_times_warnings_by_the_table_clock(spacing_s):
     """A table's rows may lie seconds apart (telematics tables): the warning and critical times of the summary are
-    the time the rows stand at that level, not rows x 0.1 s (an audit: 0.5 min printed for 51 min of warning)."""
+    the time the rows stand at that level, not rows x 0.1 s (which would print 0.5 min for 51 min of warning)."""
     from firmware_model.components import LEVEL_CRITICAL, LEVEL_WARNING
     from tools.replay.summary import summary_lines
 
@@ -258,8 +258,8 @@ def test_the_summary_times_warnings_by_the_table_clock(spacing_s):
 
 def test_the_summary_says_when_warning_levels_were_not_available():
     """Level n/a (the inputs held too long) is no all-clear: the warning line says on what share of the
-    component-time no warning could be raised (an audit: a log without torque printed "warnings: none" with n/a on
-    99 % of the cells); a run with every level known says nothing more than "none"."""
+    component-time no warning could be raised (a log without torque has n/a on 99 % of the cells); a run with every
+    level known says nothing more than "none"."""
     from firmware_model.components import LEVEL_NA
     from tools.replay.summary import summary_lines
 
@@ -274,14 +274,14 @@ def test_the_summary_says_when_warning_levels_were_not_available():
         cols[f"W_{c}"] = np.where(t >= 150.0, LEVEL_NA, 0.0)  # n/a on the last three quarters
     line = summary_lines(RunTable(cols))[1]
     assert line.startswith("warnings: none (warning levels not available") and "75.0 %" in line, line
-    for c in PUBLISHED:  # one n/a row of 6000: not "0.0 %" (a review)
+    for c in PUBLISHED:  # one n/a row of 6000: not "0.0 %"
         cols[f"W_{c}"] = np.where(np.arange(t.size) == 10, LEVEL_NA, 0.0)
     assert "on under 0.1 % of the component-time" in summary_lines(RunTable(cols))[1]
 
 
 def test_variant_option_equals_the_config_variant(tmp_path):
-    """`replay --variant GRSO905` runs the sensor of that variant, as a config naming it does (an audit: a GRSO905
-    drive replayed with the default variant was 27 K off without a word, and replay had no --variant)."""
+    """`replay --variant GRSO905` runs the sensor of that variant, as a config naming it does (a GRSO905 drive
+    replayed with the default variant is 27 K off)."""
     src = write_run_table(_table(30.0, gear=np.full(300, 13.0)), tmp_path / "run.csv")
     (tmp_path / "o.toml").write_text('[gearbox]\nvariant = "GRSO905"\n')
     runs = {"option": ["--variant", "GRSO905"], "config": ["--config", str(tmp_path / "o.toml")], "default": []}
@@ -296,7 +296,7 @@ def test_variant_option_equals_the_config_variant(tmp_path):
 
 @pytest.mark.parametrize("ambient, start", [(-30.0, -30.0), (500.0, 25.0), (np.nan, 25.0)])
 def test_a_table_without_oil_starts_at_its_ambient_reading(sensor, ambient, start):
-    """No oil column: the sensor starts at the table's first ambient reading (an audit: a -30 degC table started at
+    """No oil column: the sensor starts at the table's first ambient reading (a -30 degC table does not start at
     +25 degC), the parameters' ambient boundary (25 degC) when that reading is missing or implausible."""
     tab = _table(2.0, ambient_temp_c=np.full(20, ambient))
     del tab["oil_temp_c"]

@@ -200,7 +200,7 @@ def test_steady_spec():
         ("steady:rpm=fast", ["rpm", "'fast'", "not a number"]),
         ("steady:rpm=-5", ["rpm=-5"]),
         ("steady:s=0", ["s=0"]),
-        ("steady:oil=80,oil=90", ["oil is given twice"]),  # the last one won, silently (bad-input audit)
+        ("steady:oil=80,oil=90", ["oil is given twice"]),  # not the last one winning, silently
     ],
 )
 def test_bad_steady_spec(spec, words):

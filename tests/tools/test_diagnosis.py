@@ -332,10 +332,10 @@ def test_stuck_sensor(tmp_path, capsys):
 
 def test_a_sensor_frozen_for_minutes_is_left_out_of_the_fit(tmp_path, capsys):
     """A reading repeated bit for bit for more than 300 s (the onboard oil_frozen time) while the drive moves is a
-    stuck sensor: its stretch is left out of the fit and the warning says so, also on stderr (an audit: 400 s stuck
-    in each file was fitted as data and called a load-dependent heat-flow effect, the 600 s warning never reached
-    and never printed); under a held load it is a steady state, kept without a word (a plant log at equilibrium);
-    frozen for more than half the run, the file is refused in one sentence."""
+    stuck sensor: its stretch is left out of the fit and the warning says so, also on stderr (fitted as data, 400 s
+    stuck in each file reads as a load-dependent heat-flow effect, below the 600 s warning); under a held load it is
+    a steady state, kept without a word (a plant log at equilibrium); frozen for more than half the run, the file is
+    refused in one sentence."""
     from tools.diagnosis.options import Options
     from tools.diagnosis.prepare import prepare
 
@@ -354,7 +354,7 @@ def test_a_sensor_frozen_for_minutes_is_left_out_of_the_fit(tmp_path, capsys):
         steady[c][600:1000] = steady[c][600]
     ds = prepare(RunTable(steady), "t.csv", "train", Options())
     assert ds.warnings == () and ds.channels["oil"].t_s.size == 1800
-    coarse = _table(n=1800)  # a logger rounding to 1 K: kept (a review)
+    coarse = _table(n=1800)  # a logger rounding to 1 K: kept
     coarse["oil_temp_c"] = np.round(coarse["oil_temp_c"])
     coarse["oil_temp_c"][600:1000] = coarse["oil_temp_c"][600]
     ds = prepare(RunTable(coarse), "t.csv", "train", Options())
@@ -385,7 +385,7 @@ def test_a_sensor_frozen_for_minutes_is_left_out_of_the_fit(tmp_path, capsys):
         "warning: " in printed.err
         and "left out of the fit" in json.loads((tmp_path / "d.json").read_text())["warnings"][0]
     )
-    assert "\ntime: " in printed.out  # the run time printed (a HIL/diagnosis audit)
+    assert "\ntime: " in printed.out  # the run time printed
     cols["oil_temp_c"][1000:1600] = cols["oil_temp_c"][1000]  # 1000 s of 1800 frozen
     err = _run_bad(tmp_path, capsys, cols)
     assert "is frozen" in err and "a stuck sensor" in err
@@ -525,8 +525,8 @@ def test_can_logs_as_input(tmp_path, params):
 
 
 def test_an_oil_sensor_on_another_source_address_is_named_not_called_dead(tmp_path, params):
-    """From a bad-input audit: TRF1 from SA 0x05 instead of 0x03 was reported as 'no valid value (a dead sensor)';
-    replay said 'check the source addresses'. Now diagnose says the same as replay."""
+    """TRF1 from SA 0x05 instead of 0x03: diagnose says 'check the source addresses', as replay does, not 'no valid
+    value (a dead sensor)'."""
     from firmware_model.errors import InputError
     from tools.can.logsynth import write_can_log
     from tools.plant.reference import ReferencePlant
@@ -811,8 +811,8 @@ def test_an_effect_that_removes_a_small_held_out_gap_is_not_called_unexplained(p
 
 
 def test_a_drive_value_no_engine_produces_names_the_file(tmp_path, capsys):
-    """1e308 rpm in a test file was refused by the plant later as 'column engine_speed_rpm row 6: ...', without the
-    file (a bad-input audit)."""
+    """1e308 rpm in a test file is refused naming the file, not later by the plant as 'column engine_speed_rpm
+    row 6: ...' without it."""
     t = np.arange(0.0, 600.0, 1.0)
     for name in ("a", "b"):
         spd = np.full(t.size, 1300.0)
@@ -846,8 +846,8 @@ def test_a_drive_value_no_engine_produces_names_the_file(tmp_path, capsys):
 
 
 def test_a_report_that_cannot_be_written_names_the_report(tmp_path, monkeypatch):
-    """From a bad-input audit: a read-only folder gave 'Permission denied: ro/.diag-report-6bihojls', the staging
-    folder's name."""
+    """A report in a read-only folder is refused naming the report, not the staging folder
+    ('Permission denied: ro/.diag-report-6bihojls')."""
     import errno
     import tempfile
 
@@ -864,9 +864,9 @@ def test_a_report_that_cannot_be_written_names_the_report(tmp_path, monkeypatch)
 
 def test_the_onboard_model_takes_the_boundary_columns_through_the_plant(params):
     """bc_* columns (a rig's measured boundaries, a named cycle's) reach the onboard model's runs as the plant's
-    correction (with them minus without them), with a note: before, the onboard model ran without them while its
-    plant fallback and error floor knew them, and a delegated effect won (an audit: synchronizer heat for a planted
-    gear friction x1.03 on two uphill drives)."""
+    correction (with them minus without them), with a note: an onboard model run without them, while its plant
+    fallback and error floor know them, lets a delegated effect win (synchronizer heat for a planted gear friction
+    x1.03 on two uphill drives)."""
     from tools.diagnosis.core import boundary_note
     from tools.diagnosis.models import OnboardModel, PlantModel, Run
     from tools.diagnosis.prepare import prepare_runs
@@ -908,8 +908,8 @@ def test_a_none_verdict_names_the_model_error_when_that_sets_the_threshold():
 
 
 def test_a_thermocouple_logged_slower_than_the_table_is_alive(tmp_path):
-    """From a calibration audit: a thermocouple logged every 10 s in a 1 Hz table (10 % of the rows valid, evenly)
-    was refused as a dead sensor, while the same data thinned to 0.1 Hz was accepted."""
+    """A thermocouple logged every 10 s in a 1 Hz table (10 % of the rows valid, evenly) is alive, as the same data
+    thinned to 0.1 Hz is, not a dead sensor."""
     import numpy as np
 
     from tools.diagnosis.prepare import _check_values
@@ -925,8 +925,8 @@ def test_a_thermocouple_logged_slower_than_the_table_is_alive(tmp_path):
 def test_a_set_from_another_start_that_does_worse_held_out_is_not_taken(monkeypatch):
     """The held-out guard of select_set: a set grown from a confusable start that scores higher on the training
     files but leaves the held-out files worse than the best candidate's own result is an overfit, not the verdict
-    (an audit: bearings x2.5 with a +2 K oil offset on a truck gave gain + housing convection + retarder heat, none
-    planted, 0.51 K held-out against 0.14 K for the offset alone); one that does as well held-out is taken."""
+    (bearings x2.5 with a +2 K oil offset on a truck can be fitted as gain + housing convection + retarder heat, none
+    planted: 0.51 K held-out against 0.14 K for the offset alone); one that does as well held-out is taken."""
     from types import SimpleNamespace as NS
 
     from tools.diagnosis import combine

@@ -235,7 +235,7 @@ def test_calibrate_on_runs_cut_from_a_drive_needs_them_scored_running(cut_rig_ru
 def test_files_of_one_name_keep_their_own_start_and_a_channel_left_empty_is_dropped():
     """Windows cut from one log share its name: each keeps its own decision (matched by position, not name), and
     the JSON names them by role; a running file's channel with too few cells after its burn-in is left out of it,
-    with a warning (a review found a thermocouple kept with 0 cells, its 'fit' reported as 0.000 degC)."""
+    with a warning (kept with 0 cells, a thermocouple's 'fit' would read 0.000 degC)."""
     t = np.arange(1.0, 1500.0, 2.0)
     tc = _channel(t[t < 850.0])  # a thermocouple that died 850 s in
     tc = replace(tc, id="PS", column="meas_T_PS_c", model_column="T_PS_c")

@@ -55,8 +55,8 @@ def test_bundle_files(bundles):
 
 
 def test_the_summary_names_what_was_written_and_a_file_as_out_is_one_sentence(tmp_path, capsys):
-    """From a newcomer audit: an export into a directory holding other files listed them as written, and --out on
-    a file gave the raw 'File exists'."""
+    """An export into a directory holding other files lists only what it wrote, and --out on a file is one
+    sentence, not the raw 'File exists'."""
     from tools.export.c_bundle import BUNDLE_FILES
 
     fresh = tmp_path / "fresh"
@@ -321,14 +321,14 @@ int main(void)
     if (gvs_sensor_resume(&st, T_hot - 3.0) != 0) return 1;
     if (st.T_c[0][GVS_TABLES.i_oil] != (gvs_real)(T_hot - 3.0) || st.T_c[0][0] != saved.T_c[0][0]) bad = 3;
     /* the oil reading of the restart is taken from the first step, not judged a step from the one before the stop
-     * (an ECU audit: 10 steps oil_implausible, the sump modelled, on every warm start 5 K away) */
+     * (else 10 steps oil_implausible, the sump modelled, on every warm start 5 K away) */
     memcpy(&st, &saved, sizeof st);
     st.hold[3] = st.raw_prev[3] = (gvs_real)(T_hot + 20.0);   /* as if the sensor had read that before the stop */
     st.age_s[3] = (gvs_real)0.1;
     if (gvs_sensor_resume(&st, T_hot - 8.0) != 0) return 1;
     run(0.0, 10, T_hot - 8.0, &out);
     if (st.rejects[7] != saved.rejects[7] || out.degraded_mode != 0) { printf("oil not taken\n"); bad = 9; }
-    /* a NaN anywhere the step reads is no state (an ECU audit: NaN lag_w restored, 1192 NaN temperatures) */
+    /* a NaN anywhere the step reads is no state (a NaN lag_w restored gives 1192 NaN temperatures) */
     memcpy(&st, &saved, sizeof st);
     st.lag_w[0] = (gvs_real)NAN;
     if (gvs_sensor_resume(&st, 50.0) != -1) bad = 10;
@@ -353,13 +353,10 @@ int main(void)
 
 @pytest.mark.skipif(not HAVE_CC, reason="no make or C compiler on this machine")
 def test_restoring_a_saved_state(bundles, tmp_path):
-    """From integrator audits: the README's 'persist and restore' left the restored time base in place (an
-    uptime clock from 0 skipped the first 1000 s), applied no oil reading (a 12 h soak kept a 120 degC state) and
-    had no key that told one export's state from another's; then the restart's oil reading was judged a step from
-    the last one before the stop, and a state with a NaN loss lag was taken. gvs_sensor_resume restarts the time base,
-    applies the
-    oil as the Python sensor's restore does, and refuses contents that are no state; GVS_STATE_KEY differs between
-    exports."""
+    """gvs_sensor_resume restarts the time base (left in place, an uptime clock from 0 skips the first 1000 s),
+    applies the oil reading as the Python sensor's restore does (else a 12 h soak keeps a 120 degC state, and the
+    restart's reading is judged a step from the last one before the stop), and refuses contents that are no state
+    (a NaN loss lag); GVS_STATE_KEY differs between exports, so one export's state is told from another's."""
     (tmp_path / "resume.c").write_text(RESUME_PROGRAM)
     cc = shutil.which("cc") or shutil.which("gcc")
     keys = {}
@@ -395,9 +392,9 @@ def test_restoring_a_saved_state(bundles, tmp_path):
 
 @pytest.mark.skipif(not HAVE_CC, reason="no make or C compiler on this machine")
 def test_a_file_built_with_other_sizes_or_real_type_stops_the_build(bundles, tmp_path):
-    """From an integrator audit: the kernel built with the default sizes and the application with the export's
-    overran a struct (ASan), a double kernel with a float application crashed. The exported header now fixes them:
-    a file built without flags gets the export's; one with other values stops with #error."""
+    """The exported header fixes the sizes and the real type: a file built without flags gets the export's, one with
+    other values stops with #error (a kernel built with the default sizes and an application with the export's
+    overrun a struct (ASan); a double kernel with a float application crashes)."""
     cc = shutil.which("cc") or shutil.which("gcc")
     d = bundles["float"]
     ok = subprocess.run(
@@ -458,10 +455,10 @@ int main(void)
 
 @pytest.mark.skipif(not HAVE_CC, reason="no make or C compiler on this machine")
 def test_loss_map_edges_under_the_sanitizers(bundles, tmp_path):
-    """From an ECU audit: the float build read one element past the slip table at a crawl with torque (its clip
-    nx - 1.000001 rounds to nx - 1 in single precision: ASan global-buffer-overflow), and a torque of 1e-40 N m
-    drove every temperature to NaN for good (the rolling loss's film law, load^-0.13, has no lower limit). Both
-    builds under -fsanitize=address,undefined: no finding, every temperature plausible."""
+    """Both builds under -fsanitize=address,undefined: no finding, every temperature plausible. Guards the slip
+    table's clip at a crawl with torque (nx - 1.000001 rounds to nx - 1 in single precision: one element past the
+    table) and the film law's least load (load^-0.13 has no lower limit: 1e-40 N m would make every temperature NaN
+    for good)."""
     gcc = shutil.which("gcc")
     if gcc is None:
         pytest.skip("gcc is not installed")
@@ -500,9 +497,9 @@ def test_loss_map_edges_under_the_sanitizers(bundles, tmp_path):
 
 @pytest.mark.skipif(not HAVE_CC, reason="no make or C compiler on this machine")
 def test_fast_math_stops_the_build(bundles, tmp_path):
-    """From an ECU audit: -ffast-math removed the NaN checks (NaN inputs read as good under gcc, a crash under
-    clang); the kernel and the sensor's restore now refuse to compile under it, and a build whose NaN comparisons do
-    not work (clang -fno-honor-nans) refuses to step."""
+    """-ffast-math removes the NaN checks (NaN inputs read as good under gcc, a crash under clang): the kernel and
+    the sensor's restore refuse to compile under it, and a build whose NaN comparisons do not work (clang
+    -fno-honor-nans) refuses to step."""
     cc = shutil.which("cc") or shutil.which("gcc")
     for name in ("gvs_kernel.c", "gvs_sensor.c"):
         for flag in ("-ffast-math", "-ffinite-math-only"):
@@ -538,11 +535,10 @@ def test_fast_math_stops_the_build(bundles, tmp_path):
 
 
 def test_variant_replaces_the_configurations(tmp_path):
-    """From a rig audit: --variant GRSO905 with a --config that names no variant exported GRS905's tables with exit
-    status 0. --variant now replaces the configuration's variant (as replay combines them); without it the
-    configuration's is used."""
+    """--variant replaces the configuration's variant (as replay combines them), also with a --config that names no
+    variant (not GRS905's tables with exit status 0); without it the configuration's is used."""
     cfg = tmp_path / "cfg.toml"
-    cfg.write_text("[sensor]\ndebounce_s = 2.0\n")  # names no variant (the audit's case)
+    cfg.write_text("[sensor]\ndebounce_s = 2.0\n")  # names no variant
     named = tmp_path / "named.toml"
     named.write_text('[gearbox]\nvariant = "GRSO905"\n')
     cases = (

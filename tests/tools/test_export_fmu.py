@@ -86,9 +86,10 @@ def test_simulation_equals_the_reference(fmu):
 
 
 def test_odd_but_legal_use_works_or_is_refused_clearly(fmu):
-    """From an integrator audit: an importer that applies a parameter set wrote the variant's own value and failed;
-    the outputs before the first step read 0 degC with a time to limit of 0 ('at the limit'); an interpolated gear
-    (8.3) was rejected 296 times on 33 gear changes; an initial temperature of 1e308 silently became 25 degC."""
+    """An importer that applies a parameter set may write the variant's own value (another one is refused); the
+    outputs before the first step do not read 0 degC with a time to limit of 0 ('at the limit'); an interpolated
+    gear (8.3) is not rejected 296 times on 33 gear changes; an initial temperature of 1e308 is refused, not
+    silently 25 degC."""
     md = fmpy.read_model_description(str(fmu))
     variability = {v.name: v.variability for v in md.modelVariables}
     assert variability["gear"] == "discrete" and variability["engine_speed_rpm"] == "discrete"
@@ -102,11 +103,11 @@ def test_odd_but_legal_use_works_or_is_refused_clearly(fmu):
 
 
 def test_a_rig_s_own_sampling_and_life_cycle(fmu):
-    """From a rig audit: inputs at 20 Hz with a gear change between communication points aborted the run (FMPy cut
-    the step at the change: 'canHandleVariableCommunicationStepSize' was true), as did a stop time off the 0.1 s
-    grid; FMPy interpolated the inputs, so the first sample after a NaN gap read as NaN (101 oil_missing for a
-    10 s gap); a NaN communication point was accepted, a step after terminate too; infinite limits were taken;
-    outputs read during initialisation were zeros; fmpy could not rebuild the binary (no SourceFiles, no
+    """A rig's own sampling and life cycle: inputs at 20 Hz with a gear change between communication points, and a
+    stop time off the 0.1 s grid, run to the end ('canHandleVariableCommunicationStepSize' true would let FMPy cut
+    the step at the change and abort); inputs are not interpolated (else the first sample after a NaN gap reads as
+    NaN: 101 oil_missing for a 10 s gap); a NaN communication point, a step after terminate and infinite limits are
+    refused; outputs read during initialisation are not zeros; fmpy can rebuild the binary (SourceFiles,
     buildDescription.xml)."""
     from fmpy import extract, read_model_description
 

@@ -245,7 +245,7 @@ def test_bad_logs_land_in_the_errors_table_and_reruns_skip(tmp_path, synthetic):
     assert len(read_table(out).to_pylist()) == len(rows)
     assert sorted(Path(r["log"]).name for r in read_table(out, ERRORS).to_pylist()) == sorted(errors)
     assert len(list((out / "errors").glob("*.parquet"))) == 1
-    # from a fleet audit: a log in the errors table was never tried again, even once it was complete
+    # a log in the errors table is tried again once it is complete
     (logs / "truncated.log").write_bytes(raw)
     res = fleet(*args)
     assert "truncated.log" in {Path(r["log"]).name for r in read_table(out).to_pylist()}
@@ -256,9 +256,9 @@ def test_bad_logs_land_in_the_errors_table_and_reruns_skip(tmp_path, synthetic):
 
 
 def test_changed_moved_and_other_variant_logs_are_not_kept_stale(tmp_path, synthetic):
-    """From a fleet audit: a log still being written kept its partial summary on every re-run (logs were known by
-    their path only); a moved log counted under both paths, and the advice to remove the copies changed nothing; a
-    corrected manifest giving a vehicle another variant kept the rows of the first."""
+    """Logs are known by more than their path: a log still being written does not keep its partial summary on
+    every re-run, a moved log does not count under both paths (and removing the copies helps), and a corrected
+    manifest giving a vehicle another variant does not keep the rows of the first."""
     logs = tmp_path / "logs" / "truckY"
     logs.mkdir(parents=True)
     good = read_manifest(synthetic)[0].log
@@ -290,7 +290,8 @@ def test_changed_moved_and_other_variant_logs_are_not_kept_stale(tmp_path, synth
 
 
 def test_a_workers_service_warnings_stay_in_the_row(tmp_path, synthetic, caplog):
-    """From a fleet audit: 'frame time jumped backward' warnings of the workers flooded the console, naming no log."""
+    """The workers' service warnings ('frame time jumped backward') stay in the log's row instead of flooding the
+    console, naming no log."""
     from tools.fleet.manifest import LogEntry, log_key
     from tools.fleet.run import process_batch
 
@@ -321,9 +322,8 @@ def dask_setup(worker):
 
 
 def test_a_log_that_kills_its_workers_fails_alone(tmp_path, synthetic):
-    """From a fleet audit: the whole batch of a log that killed its workers went to the errors table (up to 64
-    innocent logs, never tried again) without naming the culprit. Now the batch's logs are run one by one and only
-    the culprit fails."""
+    """When a log kills its workers, the batch's logs are run one by one and only the culprit fails, named; not
+    the whole batch (up to 64 innocent logs, never tried again) in the errors table."""
     logs = tmp_path / "logs" / "truckP"
     logs.mkdir(parents=True)
     src = read_manifest(synthetic)
@@ -354,8 +354,8 @@ def test_a_log_that_kills_its_workers_fails_alone(tmp_path, synthetic):
 
 
 def test_an_asc_log_takes_its_date_from_its_header(tmp_path):
-    """From a fleet audit: python-can reads an ASC log's frame times from its start, so every .asc log was dated
-    'unknown' and --diagnose left it out without a word."""
+    """python-can reads an ASC log's frame times from its start, so the date comes from the header: else every .asc
+    log is dated 'unknown' and --diagnose leaves it out without a word."""
     from tools.fleet.summary import asc_date
 
     p = tmp_path / "a.asc"
@@ -393,8 +393,8 @@ def test_bad_input_is_one_sentence_and_writes_nothing(tmp_path, synthetic, capsy
         capsys, ["fleet", "--manifest", str(m), "--out", str(out)]
     )
     logs = [e.log for e in read_manifest(synthetic)]
-    # from a fleet audit: a row with more fields than the header (an unquoted comma in a path) was read without
-    # its extra fields, and a row's own error did not say which row
+    # a row with more fields than the header (an unquoted comma in a path) is refused, not read without its extra
+    # fields, and a row's own error says which row
     m.write_text(f"log,vehicle\n{logs[0]},t1\n{logs[1]},t2,extra\n")
     err = _error(capsys, ["fleet", "--manifest", str(m), "--out", str(out)])
     assert "line 3 has 1 field(s) more than its header" in err and "'extra'" in err
@@ -423,8 +423,8 @@ def test_bad_input_is_one_sentence_and_writes_nothing(tmp_path, synthetic, capsy
 
 
 def test_a_port_that_is_no_scheduler_and_a_scheduler_without_workers_are_one_sentence(tmp_path, monkeypatch):
-    """From a fleet audit: --scheduler at the dashboard's port (a server that answers nothing) hung for ever, and a
-    scheduler without a worker hung silently; each is now one sentence within the connect or worker timeout."""
+    """--scheduler at the dashboard's port (a server that answers nothing) and a scheduler without a worker are
+    each one sentence within the connect or worker timeout, not a hang."""
     import socket
     import threading
 
@@ -469,8 +469,8 @@ def test_a_port_that_is_no_scheduler_and_a_scheduler_without_workers_are_one_sen
 
 
 def test_a_period_that_is_no_whole_day_is_one_sentence(tmp_path, synthetic, capsys):
-    """From a fleet audit: --period-days 0.5 numbered the periods 0, 2, 4 ... and the level rule, which needs
-    consecutive periods, never fired."""
+    """--period-days 0.5 is refused in one sentence: it would number the periods 0, 2, 4 ... and the level rule,
+    which needs consecutive periods, would never fire."""
     msg = _error(
         capsys,
         ["fleet", "--manifest", str(synthetic), "--out", str(tmp_path / "o"), "--diagnose", "--period-days", "0.5"],
@@ -541,8 +541,7 @@ def test_the_oil_modelled_by_request_is_not_counted_as_degraded(tmp_path, synthe
 
 
 def test_diagnose_on_logs_too_short_to_fit_says_why_nothing_was_written(synthetic, tmp_path):
-    """From a newcomer audit: --diagnose on 2-minute logs printed '0 vehicle-periods fitted' and wrote no health
-    folder without a word on why."""
+    """--diagnose on 2-minute logs prints '0 vehicle-periods fitted', writes no health folder and says why."""
     out = tmp_path / "out"
     res = fleet("--manifest", str(synthetic), "--out", str(out), "--workers", "1", "--diagnose", "--no-report")
     assert "0 vehicle-periods fitted" in res.stdout
@@ -551,7 +550,7 @@ def test_diagnose_on_logs_too_short_to_fit_says_why_nothing_was_written(syntheti
 
 
 def test_a_manifest_saved_with_a_byte_order_mark_is_read(synthetic):
-    """From a bad-input audit: a manifest saved by a Windows editor (UTF-8 with a BOM) said 'has no column log'."""
+    """A manifest saved by a Windows editor (UTF-8 with a BOM) is read, not 'has no column log'."""
     beside = Path(synthetic).with_name("bom.csv")  # a manifest's paths are relative to it: keep it beside
     beside.write_bytes(b"\xef\xbb\xbf" + Path(synthetic).read_text().replace("\n", "\r\n").encode("utf-8"))
     try:

@@ -119,7 +119,7 @@ def test_values_decode_to_the_cycle_quantised(frames):
 def test_the_vehicle_speed_and_coolant_source_keys_reach_the_frames_and_the_sensor_reads_them():
     """[can] vehicle_speed_source_address and coolant_source_address move CCVS1 and ET1 in the synthesized frames
     (simulate --can-log, plant) as they do in the sensor's decoder: the same config on both ends decodes every frame
-    (a review: the frames kept the engine's address, and the sensor with the same config fell back to defaults)."""
+    (frames kept at the engine's address would leave the sensor with the same config on its defaults)."""
     from firmware_model.service import ServiceOptions
 
     inp = cycle(12.0)

@@ -178,8 +178,8 @@ def test_every_effect_changes_the_plant(params, eid):
 
 
 def test_retarder_braking_in_either_sign_heats_the_plant_alike(params):
-    """J1939 sends retarder braking negative; a table in that sign gave the plant no heat while its own CAN log and
-    the sensor took the magnitude (a drive-cycle audit): the plant takes the magnitude too."""
+    """J1939 sends retarder braking negative: the plant takes the magnitude, as its own CAN log and the sensor do
+    (else a table in that sign gives the plant no heat)."""
     runs = {}
     for sign in (1.0, -1.0):
         tab = steady(3, 1500, 1800, 120, coolant_temp_c=80.0, ambient_temp_c=25.0, retarder_torque_nm=sign * 800.0)
@@ -247,8 +247,8 @@ def test_measurement_effects_change_the_reading_not_the_gearbox(params, eid, val
 
 
 def test_an_empty_vehicle_speed_cell_does_not_switch_the_air_cooler_off(params):
-    """Empty cells of vehicle_speed_kmh are bridged as the bc_ columns are (an audit: a NaN speed made the air
-    cooler's hA NaN and its heat 0 over the gap, while the sensor kept cooling)."""
+    """Empty cells of vehicle_speed_kmh are bridged as the bc_ columns are (a NaN speed would make the air cooler's
+    hA NaN and its heat 0 over the gap, while the sensor keeps cooling)."""
     full = steady(9, 1300, 2000, 1800, vehicle_speed_kmh=60.0, ambient_temp_c=25.0)
     gap = full.copy()
     v = gap["vehicle_speed_kmh"].copy()
@@ -263,7 +263,7 @@ def test_an_empty_vehicle_speed_cell_does_not_switch_the_air_cooler_off(params):
 
 def test_a_held_sump_is_also_the_start_of_a_table_without_one(params):
     """A run table without a start temperature and a held sump: every node starts at the held temperature, as the
-    named cycles do (an audit: 60 degC with the sump held at 100, 40 K off the sensor's replay of the output)."""
+    named cycles do (not 60 degC with the sump held at 100, 40 K off the sensor's replay of the output)."""
     res = ReferencePlant(params, cooler="hold").run(steady(9, 1300, 1500, 60), hold_oil_c=95.0)
     T0 = np.array([res.table[f"T_{n}_c"][0] for n in res.nodes])
     np.testing.assert_allclose(T0, 95.0, atol=0.05)

@@ -90,7 +90,7 @@ def test_replay_table_has_the_contract_columns_and_the_decoded_inputs(tmp_path, 
 @pytest.mark.parametrize("suffix", [".asc", ".blf", ".mf4", ".trc"])
 def test_every_log_format_gives_the_same_table(tmp_path, frames, suffix):
     """The same frames from every log format replay to the same table (.trc: PEAK's PCAN-View trace, common on
-    other makes' loggers; a log-replay audit found it refused)."""
+    other makes' loggers)."""
     if suffix == ".trc":
         import can
 
@@ -119,7 +119,7 @@ def test_every_log_format_gives_the_same_table(tmp_path, frames, suffix):
 
 def test_a_truncated_mf4_or_a_gzip_log_is_one_sentence(tmp_path, frames):
     """A cut .mf4 is refused in one sentence that says it is truncated, with none of asammdf's "Exception ignored"
-    tracebacks from its finaliser around it; a .log.gz says how to decompress it (a log-replay audit)."""
+    tracebacks from its finaliser around it; a .log.gz says how to decompress it."""
     import gzip
     import subprocess
 
@@ -189,7 +189,7 @@ def test_errors_name_the_file_and_the_rule(tmp_path, monkeypatch):
     (tmp_path / "empty.trc").write_text("")
     with pytest.raises(InputError, match="empty.trc: no sensor step: the log holds no CAN frame"):
         replay(tmp_path / "empty.trc")
-    # 200 used frames with one time stamp: the message asks about the time stamps (a log-replay audit)
+    # 200 used frames with one time stamp: the message asks about the time stamps
     (tmp_path / "equal.log").write_text("".join("(5.000000) can0 0CF00400#F07D7DA02800FFFF\n" for _ in range(200)))
     with pytest.raises(InputError, match="are all time stamps equal"):
         replay(tmp_path / "equal.log")
@@ -282,7 +282,7 @@ def test_retarder_frames_without_a_reference_torque_are_named(tmp_path):
 
 
 def test_a_line_that_is_no_frame_is_named(tmp_path):
-    """From a newcomer audit: a candump -L file with a line that is no frame gave python-can's unpacking error."""
+    """A candump -L line that is no frame is named by its number and text, not python-can's unpacking error."""
     log = tmp_path / "mixed.log"
     log.write_text("(1.000000) can0 18FEF100#0011223344556677\n(1.100000) can0 garbage\n")
     with pytest.raises(InputError, match=r"line 2 is not a candump -L frame .*'\(1\.100000\) can0 garbage'"):
@@ -299,7 +299,8 @@ def test_a_log_with_a_byte_order_mark_is_one_sentence(tmp_path, frames):
 
 
 def test_a_gzipped_log_and_a_directory_are_one_sentence(tmp_path, frames):
-    """From a bad-input audit: a gzip-compressed log under a .log name dumped binary bytes into the message."""
+    """A gzip-compressed log under a .log name, and a directory, are one sentence each, with no binary bytes
+    dumped into the message."""
     import gzip
 
     _, fr = frames
@@ -314,8 +315,8 @@ def test_a_gzipped_log_and_a_directory_are_one_sentence(tmp_path, frames):
 
 
 def test_a_log_of_two_can_channels_is_one_sentence(tmp_path, frames):
-    """From a bad-input audit: can0 and can1 (the same traffic twice) were replayed as one bus: the EC1 transfers
-    collided and the run was 100 % degraded, the warning naming the torque, not the cause."""
+    """A log of can0 and can1 (the same traffic twice) is one sentence naming the two channels: replayed as one bus,
+    the EC1 transfers collide and the run is 100 % degraded, the warning naming the torque, not the cause."""
     _, fr = frames
     text = write_frames(fr, tmp_path / "drive.log").read_text()
     two = tmp_path / "two.log"

@@ -257,8 +257,8 @@ def test_semicolon_file(tmp_path):
     ],
 )
 def test_a_tab_separated_file_a_comment_line_or_a_can_log_is_named_as_such(tmp_path, text, words):
-    """From a bad-input audit: the tab-separated header was one column name, the comment line 'a decimal comma?',
-    the candump text a non-numeric cell."""
+    """Each is named as what it is, not as what the CSV reader makes of it: a tab-separated header as one column
+    name, a comment line as 'a decimal comma?', candump text as a non-numeric cell."""
     assert words in error_of(write_text(tmp_path, text))
 
 

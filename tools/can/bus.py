@@ -94,7 +94,7 @@ def open_bus(interface: str, channel: str, bitrate: int | None = None, can_filte
 @contextlib.contextmanager
 def _quiet_bus_teardown():
     """Silence python-can's ``can.bus`` logger, where BusABC.__del__ logs "... was not properly shut down" for a
-    bus whose constructor failed (a HIL audit: that line followed the one-sentence error); the interfaces' own
+    bus whose constructor failed (that line would follow the one-sentence error); the interfaces' own
     loggers (a driver's warnings) are untouched."""
     bus_log = logging.getLogger("can.bus")
     level = bus_log.level
@@ -107,8 +107,8 @@ def _quiet_bus_teardown():
 
 def virtual_note(interface: str, receiver: bool = False) -> str | None:
     """One sentence for --interface virtual on the command line: python-can's virtual bus joins only the buses of
-    the same process, so another gearbox-vsensor process sees none of its frames (an audit: plant on virtual
-    "sent" 9452 frames and a run on the same channel saw 0); None for any other interface."""
+    the same process, so another gearbox-vsensor process sees none of its frames (plant on virtual "sends" frames
+    that a run on the same channel never sees); None for any other interface."""
     if interface != "virtual":
         return None
     who = (

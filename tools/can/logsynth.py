@@ -4,46 +4,8 @@
 into J1939 frames at the rates a truck sends them, plus the plant's true component temperatures as rig thermocouple
 frames, and writes them as a CAN log (``.log`` candump -L, ``.asc``, ``.blf`` by suffix). ``gearbox-vsensor simulate
 --can-log RUN.log`` calls it; ``gearbox-vsensor replay RUN.log`` reads such a log back through the onboard sensor.
-:func:`synth_frames` gives the same frames as arrays (for the HIL plant, tools/can/hil.py).
-
-What is sent (docs/can.md "Inputs"; source addresses from ``[can]`` of the config, defaults in brackets):
-
-======== ================== ================ ====================================================================
-message  period             source           content
-======== ================== ================ ====================================================================
-EEC1     10-20 ms (rpm)     engine [0x00]    speed (0.125 rpm/bit), actual percent torque = torque / reference
-                                             torque x 100, rounded to 1 %, clipped to -125..125 %
-ETC2     100 ms             gearbox [0x03]   current and selected gear (seed Table 1 numbers, 0 = neutral)
-TRF1     1 s                gearbox [0x03]   oil temperature: the plant's ``oil_temp_c`` (the vehicle's sensor),
-                                             else the cycle's ``oil_temp_c``, else the plant's ``T_oil_c``;
-                                             the oil level (SPN 124) if the cycle has ``oil_level_pct``
-ET1      1 s                engine [0x00]    coolant temperature (1 degC/bit), if the cycle has ``coolant_temp_c``
-AMB      1 s                engine [0x00]    ambient air temperature, if the cycle has ``ambient_temp_c``
-CCVS1    1 s                engine [0x00]    wheel-based vehicle speed, if the cycle has ``vehicle_speed_kmh``
-ERC1     100 ms             retarder [0x10]  actual retarder percent torque (braking is negative, J1939), if the
-                                             cycle has ``retarder_torque_nm``
-EC1      5 s, TP.BAM        engine [0x00]    39 bytes, SPN 544 reference torque in bytes 20-21; TP.CM BAM then 6
-                                             TP.DT packets 50 ms apart
-RC       5 s, TP.BAM        retarder [0x10]  19 bytes, SPN 556 reference retarder torque in bytes 17-18 (what ERC1's
-                                             percent refers to); TP.CM BAM then 3 TP.DT, with ERC1 only
-RIG_TC_* 100 ms             rig 0xF0         the plant's true temperatures of the 28 published components
-======== ================== ================ ====================================================================
-
-Timing: EEC1 follows the engine (20 ms at idle, 10 ms at 2100 rpm) with 0.3 ms of gaussian jitter; the other
-messages keep their period with +-1 ms of jitter at fixed phases inside each 100 ms slot. Timestamps are whole
-microseconds (the resolution of candump -L), counted from ``start_timestamp_s`` (default 0).
-
-Values: every frame carries the cycle's value *sample_delay_s* (default 50 ms) before its timestamp, held (zero-order
-hold) between the cycle's samples; plant temperatures are interpolated linearly. The delay stands for the sampling
-and transmission delay of the ECUs; its real purpose is determinism on a real bus: the onboard sensor steps every
-100 ms of frame time counted from the first frame (the first EEC1, at the cycle's first sample), so with a 10 Hz
-cycle every value change and every 1 s / 100 ms message falls half-way between two sensor steps. Played onto a bus
-with a few milliseconds of timing jitter (canplayer, a HIL), the sensor then samples exactly the same inputs as in an
-offline replay of the log, which the vcan test (tests/tools/test_vcan_e2e.py) checks bit for bit.
-
-Speed: ~1.6 M frames for a 3 h cycle; ``.log`` is written by a vectorised formatter that produces exactly the text of
-python-can's ``CanutilsLogWriter`` (tests check it line for line); ``.asc`` and ``.blf`` go through python-can's
-writers (slower, ~10 us per frame). See docs/can.md for figures.
+:func:`synth_frames` gives the same frames as arrays (for the HIL plant, tools/can/hil.py). docs/can.md, "Log
+synthesis", has the messages, their periods, sources and content, the timing and the sample delay.
 """
 
 from __future__ import annotations

@@ -104,8 +104,7 @@ def check_unit_args(interface: str, channel: str, config: str | None, python: st
 def device_unit(channel: str) -> str:
     """The systemd device unit of a network device (``systemd-escape``: "/" becomes "-", every byte other than
     letters, digits, ":", "_" and "." (a leading "." too) becomes \\xNN: "can-gw" is
-    sys-subsystem-net-devices-can\\x2dgw;
-    a gateway audit found the unescaped name, a device that never appears)."""
+    sys-subsystem-net-devices-can\\x2dgw; the unescaped name is a device that never appears)."""
     out = []
     for i, b in enumerate(channel.encode("utf-8")):
         c = chr(b)

@@ -141,8 +141,8 @@ def _cautions(cal, params) -> list[str]:
 
 
 def _offsets_left(cal) -> list[str]:
-    """Channels whose held-out residual after the fit is a near-constant offset (a calibration audit: oil read 2 K
-    high gave a written, biased parameter file, hot_frac 0.54 for 0.35, with no word about the 1.4 K left)."""
+    """Channels whose held-out residual after the fit is a near-constant offset: an oil sensor reading 2 K high
+    biases the fitted file (hot_frac 0.54 for 0.35) and leaves 1.4 K that the user must be told about."""
     import numpy as np
 
     pooled: dict = {}

@@ -71,8 +71,8 @@ def _say(text: str) -> None:
 
 @contextlib.contextmanager
 def _term_interrupts():
-    """SIGTERM raises KeyboardInterrupt inside the block, as Ctrl-C does (a HIL audit: SIGTERM during the plant's
-    computation killed the process without a word or a bus shutdown); the previous handler comes back after."""
+    """SIGTERM raises KeyboardInterrupt inside the block, as Ctrl-C does (by default SIGTERM during the plant's
+    computation kills the process without a word or a bus shutdown); the previous handler comes back after."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return

@@ -237,9 +237,9 @@ LONG_CYCLE_S, LONG_ROWS_S = 86400.0, 10.0
 
 
 def _refuse_unit_mistakes(table, name: str, oil_used: bool = False) -> None:
-    """InputError for a CSV cycle whose units look wrong, before the plant runs (a drive-cycle audit: a 10-minute
-    file with time_s in milliseconds simulated 7 days and wrote a 600 MB table and a 4.3 GB CAN log without a
-    word, and rad/s speed ran as a stalled engine; replay refused both)."""
+    """InputError for a CSV cycle whose units look wrong, before the plant runs, as replay refuses them: a 10-minute
+    file with time_s in milliseconds would simulate 7 days and write a 600 MB table and a 4.3 GB CAN log, and
+    rad/s speed would run as a stalled engine."""
     from firmware_model.service.degraded import unit_findings
 
     t = np.asarray(table["time_s"], dtype=float)

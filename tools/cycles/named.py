@@ -1,50 +1,12 @@
-"""Named SYNTHETIC drive cycles modelled on the thesis's load cases (seed sections 2.4, 4.4, 5.1-5.5).
+"""Named SYNTHETIC drive cycles modelled on the thesis's load cases (seed sections 2.4, 4.4, 5.1-5.5): none of these
+is a measurement, each is deterministic for a given seed.
 
-None of these is a measurement. The thesis's measured runs (its Figures 22, 24 and 36) are not available; these
-cycles are generated so that they look like what the thesis describes: which gears, how much torque, how long, which
-thermal boundary conditions (Table 11). Each is deterministic for a given seed.
-
-=============  ======================================================================================================
-name           what it is
-=============  ======================================================================================================
-``steady``     ``steady:gear=4L,rpm=1300,nm=2000,s=3600,oil=100``: one gear, constant speed and torque (sections 5.3,
-               5.4; ``oil`` holds the sump, carried in ``meta['hold_oil_c']``)
-``all_gears``  RL to 6H (-2..14 without neutral), 100 s each at 1300 rpm, 1000 Nm (reverse and crawler 700 Nm),
-               sump held at 100 degC: the gear sweep of the thesis's Figure 4
-``long_haul``  ~1 h of level cruising, 40 t, mostly 6H at ~1300 rpm and 300-900 Nm, cold start at 33.5 degC,
-               boundaries ramping to Table 11 load case 1 (section 4.4 load case 1, section 5.1)
-``uphill``     2 h: a ~900 m climb in the first hour (60 t, steep parts at 6-8.5 % and low speed, so 1800-2500 Nm
-               in low range 1L-3H and 4L-5L), then lighter running in high gears; 68.3 degC start, Table 11 load
-               case 2 (section 4.4 load case 2, section 5.1)
-``mining``     3 h of a haul cycle out of a mine: loaded climbs at 10-12 % in low gears (crawler launches, low
-               range), empty descents on engine brake (-300..-600 Nm) and retarder, loading / dumping stops in
-               neutral with short reversing; 40 degC start (section 5.2)
-=============  ======================================================================================================
-
-The road cycles (long_haul, uphill, mining) come from a simple longitudinal vehicle model driven along a synthetic
-route: driving resistance (rolling, aero, grade), a speed-tracking driver, an automated gear shift strategy working on
-the gearbox's real total ratios (from the parameter set's kinematics), engine full-load and engine-brake curves, a
-hydraulic retarder on the output shaft and 0.6 s (range shifts 1.0 s) torque interruptions at every shift. So engine
-speed, torque, gear and vehicle speed are consistent with each other. The truck and its driveline are in
-:mod:`tools.cycles.vehicle`, the roads in :mod:`tools.cycles.route`, the driver (route following, shifting, stops,
-reversing) in :mod:`tools.cycles.driver`; this module defines the named cycles on top of them. The vehicle is assumed
-(not from the seed):
-
-* 40 t gross combination (uphill: a 60 t Nordic combination; mining: 22 t empty / 50 t loaded tipper),
-* rolling resistance 0.0055 (highway; mining gravel 0.012), C_d A = 5.5 m2, air 1.2 kg/m3,
-* wheel radius 0.5 m, final drive 3.07, driveline efficiency 0.95 (both directions),
-* engine 600-2100 rpm, 3000 Nm from 1000 to 1300 rpm, ~430 kW at 1900 rpm; engine brake down to -600 Nm at
-  2100 rpm; torque capped at 2700 Nm in the gears below 4L (and reverse) for the propeller-shaft limit that the
-  seed mentions in section 2.4 (its value is not given there),
-* hydraulic retarder on the output shaft, up to 3500 Nm (at output speeds above 800 rpm, proportional below).
-
-During a shift the gear signal changes half way through the interruption, the torque ramps to zero and back and the
-engine speed moves from the old to the new synchronous speed. Gear 0 (neutral) is shown at standstill.
-
-Every cycle table has the columns of :data:`COLUMNS`: the contract's input columns plus the thermal boundary
-columns ``bc_*_c`` of the seed's Table 11, and ``meta['initial_temp_c']`` (initial temperature of every node) and
-``meta['hold_oil_c']`` (None unless the sump is held). ``noise=True`` adds measurement-like noise (seeded): engine
-torque 2 % + 5 Nm, engine speed 3 rpm, vehicle speed 0.1 km/h (1 sigma).
+``steady:gear=4L,rpm=1300,nm=2000,s=3600,oil=100`` (one gear at constant load, sections 5.3, 5.4), ``all_gears`` (the
+gear sweep of Figure 4), ``long_haul`` (~1 h, Table 11 load case 1), ``uphill`` (2 h, load case 2) and ``mining``
+(3 h haul cycle, section 5.2). The road cycles are driven by the vehicle model of :mod:`tools.cycles.vehicle`,
+:mod:`tools.cycles.route` and :mod:`tools.cycles.driver`; this module defines the named cycles on top of them. Every
+table has the columns of :data:`COLUMNS` plus ``meta['initial_temp_c']`` and ``meta['hold_oil_c']``. docs/cycles.md
+describes each cycle, the vehicle model and its assumed values, and the noise ``noise=True`` adds.
 """
 
 from __future__ import annotations

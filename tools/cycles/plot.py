@@ -54,8 +54,8 @@ def plot_cycle(name: str, out_dir: Path, seed: int = 0) -> Path:
         ax.set_ylabel("speed\n[km/h]")
         rp = road_profile(name, seed)
         ax2 = ax.twinx()
-        # on the drive's own time axis (minutes, or hours beyond 2 h: the mining profile was drawn in minutes on an
-        # axis in hours, found by a newcomer's check)
+        # on the drive's own time axis (minutes, or hours beyond 2 h), so a profile in minutes is never drawn on an
+        # axis in hours
         ax2.plot(rp["time_s"] / (3600.0 if "[h]" in xlabel else 60.0), rp["altitude_m"], lw=0.8, color="0.4", ls="--")
         ax2.set_ylabel("altitude [m]\n(dashed)", fontsize=8)
         k = 4

@@ -434,8 +434,8 @@ def select_set(ctx: Context, base: Baseline, crit: Criterion, fits: list, gap_th
     score beats that result (the set, or the best candidate alone) by at least evidence_min, and on the held-out
     files it does no worse than that result (RMS at most ``set_start_test_tol`` above): the held-out files guard
     the verdict, so a set that fits the training files better and them worse is an overfit, not the explanation
-    (an audit: bearings x2.5 with a +2 K oil-sensor offset gave a gain, housing convection and retarder heat, none
-    planted, 0.51 K held-out against 0.14 K for the offset alone). (set or None: one effect, note for the reason or
+    (bearings x2.5 with a +2 K oil-sensor offset can be fitted as a gain, housing convection and retarder heat,
+    none planted: 0.51 K held-out against 0.14 K for the offset alone). (set or None: one effect, note for the reason or
     "")."""
     o = ctx.opts
     top = crit.candidates[0]

@@ -124,8 +124,8 @@ def _why_not(top: Candidate, gap_left: bool, opts: Options) -> str:
 
 
 def _none_reason(sys_rms: dict, thr: dict, base: Baseline, o: Options, is_plant: bool) -> str:
-    """Why the verdict is none: within the noise, or (an audit: "within its noise" was said of a residual 7.6 times
-    the noise) within the model's own measured error where that sets the threshold."""
+    """Why the verdict is none: within the noise, or within the model's own measured error where that sets the
+    threshold (a residual 7.6 times the noise is not "within its noise")."""
     listing = "systematic residual " + _listing(sys_rms, thr, "<=", sys_rms)
     by_floor = [c for c in sys_rms if base.floor[c] > max(o.none_k * base.sigma[c], o.none_floor_c, o.model_floor_c)]
     if not by_floor:

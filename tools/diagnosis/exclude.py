@@ -1,30 +1,11 @@
 """Stage 4c of the diagnosis: what the data cannot rule out beside the verdict.
 
-A verdict names the effects the evidence pays for. On one oil sensor a second effect can often hide behind the first
-(hot surroundings and a sensor offset both lift the oil; a weaker cooler and larger bearing losses both heat it):
-the named effect, moved a little, takes up the other's signature. Not naming it is right, but silence would read
-as "absent". This stage says, for every other catalog effect, over which values it **cannot be excluded** beside
-the verdict: a profile-likelihood interval.
-
-For an effect ``Y`` held at a value ``y`` the verdict's members are refitted (bounded one-dimensional searches, two
-coordinate passes, on the surrogates of :mod:`.combine`) and the misfit ``S(y)`` compared with the best,
-``S_best``: ``y`` is excluded only when the evidence against it is strong, counted as a verdict counts the
-evidence for an effect: ``-dBIC = n_eff ln(S(y) / S_best) - ln n_eff`` exceeds ``evidence_min`` (10; ``n_eff`` the
-autocorrelation-aware sample size of the criterion). So an effect is *indicated* (neutral excluded) exactly when
-adding it at its best value would have the evidence a verdict needs. That is a profile-likelihood interval,
-deliberately wider than a 95 % one (n_eff ln(S/S_best) <= 3.84): the model's own error
-is not noise, and a chi-square interval excluded planted values the model, off by its own error, fits a little
-worse. ``y`` walks from neutral towards each bound in tenths of the way; the interval is the run of values that pass
-around the best one, each end bisected between tenths. When the best value is not neutral, it is re-simulated
-first; if neutral lies outside the interval the effect is **indicated**: the data point to it beside the verdict,
-which does not claim it (no gap above the expected noise and model error was left, or it failed another rule of the
-verdict). An effect is listed only when its interval reaches at least ``not_excluded_min_frac`` of the way to a
-bound (an effect that cannot be excluded only close to neutral says nothing), and effects the channels cannot see
-at all are reported as not identifiable instead. Each end is re-simulated with the refitted members (surrogates add
-changes; the model does not quite): kept when the simulated misfit passes too, else the next value inwards is tried
-(three at most per side), and then the end is bisected by re-simulation towards the best value.
-
-This changes no verdict. It is reported as ``verdict.not_excluded`` and in the reason.
+For every other catalog effect, over which values it **cannot be excluded** beside the verdict: a profile-likelihood
+interval. The effect is held at tenths of the way from neutral to each bound, the verdict's members refitted on the
+surrogates of :mod:`.combine`, and a value excluded only when ``-dBIC = n_eff ln(S(y) / S_best) - ln n_eff`` exceeds
+``evidence_min``; an effect whose interval leaves out neutral is *indicated*. This changes no verdict. It is reported
+as ``verdict.not_excluded`` and in the reason. docs/diagnosis.md, "What the data cannot rule out beside the
+verdict", has the why of each rule and what it was measured to do.
 """
 
 from __future__ import annotations

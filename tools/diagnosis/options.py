@@ -27,8 +27,8 @@ INPUT_COLUMNS = (
 #: effects whose prediction is exact from the baseline (no simulation needed before the check): the oil sensor's
 #: lag (a filter of the model's sump), offset and gain, and a rig thermocouple's offset (thermocouple_offset:ID)
 #: the housings' start in the sensitivity run of a file that starts running [K] (tools/diagnosis/start.py): below the
-#: oil and of the size met (2-11 K), since the response is linear only near it (a +2 K run scaled to -20 K was
-#: 0.15-0.23 degC off the re-simulation on the oil: a review)
+#: oil and of the size met (2-11 K), since the response is linear only near it (a +2 K run scaled to -20 K is
+#: 0.15-0.23 degC off the re-simulation on the oil)
 HOUSING_PERTURB_C = -6.0
 ANALYTIC = IdFamilies(("oil_sensor_lag", "oil_sensor_offset", "oil_sensor_gain", "thermocouple_offset"))
 LOG_SUFFIXES = (".log", ".asc", ".blf", ".mf4", ".trc")

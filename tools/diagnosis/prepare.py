@@ -361,10 +361,10 @@ def _frozen_stretches(
 ) -> tuple:
     """(samples kept, warning): a reading bit-identical for more than FROZEN_S while the drive moves, on a channel
     of fine resolution (steps under FINE_RESOLUTION_C), is a frozen sensor: its first sample is kept, the rest left
-    out of the fit and said in the warning (an audit: a sensor stuck for 400 s in each file was fitted as data and
-    diagnosed as a load-dependent heat-flow effect, the 600 s warning threshold never reached). Under a steady
-    drive a constant reading is a steady state (a second audit: a plant log held at equilibrium for 40 min), and a
-    coarse channel (1 K steps) holds one value at a thermostat's equilibrium while the drive moves (a review):
+    out of the fit and said in the warning (fitted as data, a sensor stuck for 400 s in each file reads as a
+    load-dependent heat-flow effect, below the 600 s warning threshold). Under a steady drive a constant reading is
+    a steady state (a plant log held at equilibrium for 40 min), and a coarse channel (1 K steps) holds one value
+    at a thermostat's equilibrium while the drive moves:
     kept, with only the warning of a stretch longer than max(600 s, 30 % of the run). InputError when less than
     half the run is left."""
     keep = np.ones(yv.size, dtype=bool)

@@ -1,37 +1,11 @@
 """Stage 0 of the diagnosis: does each file start at rest, or while the gearbox was already running?
 
-The model starts a file with every node at the file's first temperature (the oil's first reading, within the
-initial-temperature nuisance). That is right for a gearbox that stood long enough: a key-on after a night, a rig run
-from cold, the benchmark's scenarios. It is wrong for a file cut from a longer drive, or logged from a warm restart:
-
-* the **housings** lag the oil while it warms (measured on windows of synthetic drives 15-50 minutes in: 2-11 K
-  below the sump), and a housing several kelvin too warm keeps the model's oil too warm for the whole file: on null
-  truck files (no effect at all) cut 25 minutes into a drive the diagnosis said "unexplained", a real gap of
-  0.5-0.8 degC on the oil, 5-7 degC on a rig's sun wheel;
-* the **components** run above or below the oil by what the load before the file made them (-14 to +40 K in the same
-  windows), which the file cannot tell; their error dies within minutes (the oil's residual with the housings right:
-  0.2-1.4 degC RMS in the first 150 s, 0.03-0.26 degC 300-450 s in, mostly under 0.1 degC after 600 s).
-
-So a file that starts running is scored from ``burn_in_s`` (600 s) on (a rig thermocouple from ``burn_in_tc_s``,
-900 s: :func:`scored_from`; with 300 s, what was left of the start took a 4 % cooler change on a null truck), and the
-housings' start is a second initial-state nuisance of that file, fitted with the
-uniform one (``housing_offset_lo_c``..``housing_offset_hi_c`` from the sump). Which files start running
-(``Options.start``: ``auto``, ``rest`` or ``running``; ``--start``):
-
-* ``auto`` (the default) diagnoses every file at rest first. Then, per file, on the residual the verdict leaves (the
-  effect or set it found, else the unmodified model): the file started running when the oil's first
-  ``start_early_s`` (300 s) show a real gap, as the verdict counts one (the noise removed, above max(gap_k sigma,
-  gap_floor_c)), and after them the housings' start lowers the weighted misfit by -dBIC = n_eff ln(S_rest /
-  S_running) - ln n_eff of at least ``evidence_min`` (10, the evidence a verdict needs for an effect). Then the
-  diagnosis runs again with those files scored as such. Both are needed: a gap that builds up over a file (an
-  effect, or the model's own form error) leaves the first minutes at rest fitting, and a slow housings' decay can
-  stand in for part of it. Judged on the verdict's residual, not the unmodified model's: an
-  effect a file truly shows (a rig's bearing losses x2.4 from rest) made the unmodified model fit better with the
-  housings 4-5 K above the oil too, and was taken for a running start;
-* a file whose cells after ``burn_in_s`` span less than ``start_min_span_s`` stays at rest (too short to tell);
-* ``rest`` and ``running`` force every file.
-
-Each file's start, with its reason and evidence, is in the JSON (``starts``) and the report.
+A file that starts running is scored from ``burn_in_s`` on (a rig thermocouple from ``burn_in_tc_s``:
+:func:`scored_from`), and the housings' start is a second initial-state nuisance of that file, fitted with the uniform
+one. ``Options.start`` (``auto``, ``rest`` or ``running``; ``--start``) says which files start running; ``auto``
+decides per file on the residual the verdict leaves. Each file's start, with its reason and evidence, is in the JSON
+(``starts``) and the report. docs/diagnosis.md, "Files that start while the gearbox runs", has the why, the two
+tests of ``auto`` and what they were measured to do.
 """
 
 from __future__ import annotations

@@ -1,28 +1,15 @@
 """Fleet health: per vehicle and period, the effects the oil channel alone identifies, fitted with their uncertainty,
 and the vehicles that drift or sit outside the fleet's spread (``gearbox-vsensor fleet --diagnose``).
 
-Per log (:func:`fit_log`, on the worker): the onboard model (the diagnosis's onboard backend, tools/diagnosis/models.py)
-re-runs the log's decoded inputs open loop (its own sump, from the first measured oil) on a grid of the two effects
-of the catalog that move the oil reading of a truck on the road: ``cooler_effectiveness_scale`` (fouling, bypass)
-and ``oil_level_low`` (a leak). The sum of squared differences to the measured oil over the grid is the log's
-evidence; it is kept (DIR/fits). Per vehicle and period (:func:`fleet_health`): the logs' grids add up (independent
-days), the minimum (refined by a parabola along each axis) is the period's estimate and the curvature its standard
-error, the residual variance inflated by the autocorrelation of the residual (one independent point per
-:data:`DECORRELATION_S`). A vehicle is flagged when :data:`CONSECUTIVE` periods in a row sit below its own first
-:data:`BASELINE_PERIODS` periods by more than :data:`DRIFT_MIN` and 3 standard errors, in the direction of the
-fault (less cooler, less oil); the flag also says when the value sits outside the fleet's spread in that period
-(median -/+ 4 x 1.4826 MAD). The fleet's spread alone never flags: trucks of other duties carry other model biases
-(a long-haul truck's fitted oil volume sits ~2 L below a mining truck's on the synthetic fleet), and a flag on it
-alone was a false flag there.
-
-The oil temperature alone does not identify the oil level (docs/fleet.md). A truck whose transmission sends its
-measured level (J1939 SPN 124, TRF1 byte 2; tools/fleet/level.py) gets it read instead: per log the median of its
-readings (kept in DIR/fits beside the grid), per period the median of its logs with the standard error of their
-scatter (:func:`period_level`), and the oil-level flag comes from that measured level against its own baseline
-(:func:`_level_flag`); the oil-volume estimate from the temperature then plays no part for that truck. Without the
-signal (0xFF, or too few readings) the estimate's drift, by the same rule, is a *watch* (``Flag.kind``,
-DIR/health/watch.parquet), not a flag: "check this truck's level", because the estimate is not identifiable (on the
-synthetic validation fleets 2 of 14 leaks drifted it, and 5 of its 7 drifts were on trucks without a leak).
+Per log (:func:`fit_log`, on the worker): the onboard model (tools/diagnosis/models.py) re-runs the log's decoded
+inputs open loop on a grid of ``cooler_effectiveness_scale`` and ``oil_level_low`` and keeps the sum of squared
+differences to the measured oil (DIR/fits). Per vehicle and period (:func:`fleet_health`): the grids add up, the
+minimum is the estimate and the curvature its standard error (one independent point per :data:`DECORRELATION_S`); a
+vehicle is flagged when :data:`CONSECUTIVE` periods in a row sit below its first :data:`BASELINE_PERIODS` by more than
+:data:`DRIFT_MIN` and 3 standard errors. A truck that sends its measured oil level (SPN 124, tools/fleet/level.py,
+:func:`period_level`, :func:`_level_flag`) is judged on that level; without it an oil-volume drift is a *watch*, not
+a flag. docs/fleet.md, "Fleet health", has the rules, why the fleet's spread alone never flags and why the oil volume
+from the temperature is only a watch.
 """
 
 from __future__ import annotations
@@ -372,8 +359,8 @@ FAR_DATE_SHARE = 0.05
 
 def _drop_far_dates(rows: list, dates: dict) -> tuple[list, int]:
     """(the rows, how many were left out): the fitted logs dated more than FAR_DATE_GAP_DAYS before (or after) all
-    the others, when they are at most FAR_DATE_SHARE of them (a truck's clock set a year back; a fleet audit saw
-    one such log move every vehicle's periods and give each a one-log first period). Never all of them."""
+    the others, when they are at most FAR_DATE_SHARE of them (a truck's clock set a year back: one such log would
+    move every vehicle's periods and give each a one-log first period). Never all of them."""
     days = sorted(dt.date.fromisoformat(dates[r["log_key"]]).toordinal() for r in rows)
     lo, hi = 0, len(days)
     cap = int(FAR_DATE_SHARE * len(days))

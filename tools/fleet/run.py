@@ -176,8 +176,8 @@ def process_batch(
 ) -> list:
     """The logs of one task, in order (a Dask task runs this on a worker). The sensor service's own warnings (a
     frame time jump, a bus finding) are not logged on the worker: each log's row counts them (``time_jumps``) and
-    carries its findings (``trust_warnings``); logged, they flooded the fleet's console without a log's name (a
-    fleet audit)."""
+    carries its findings (``trust_warnings``); logged, they would flood the fleet's console without a log's
+    name."""
     return [process_log(e, out, estimates, diagnose) for e in entries]
 
 
@@ -197,8 +197,8 @@ def batch_id(batch: list[LogEntry]) -> str:
 def _probe_scheduler(address: str) -> str | None:
     """Why ``address`` (``tcp://HOST:PORT``) is not a Dask scheduler that answers, or None. A scheduler sends its
     handshake as soon as a connection opens (8-byte frame length, frame count, msgpack); a port of something else
-    (the scheduler's dashboard, a web server) sends nothing, and Dask's client then waited for ever (a fleet audit,
-    2026-11-27). Other protocols (tls://, ucx://) are not probed."""
+    (the scheduler's dashboard, a web server) sends nothing, and Dask's client would then wait for ever. Other
+    protocols (tls://, ucx://) are not probed."""
     import socket
     import struct
     from urllib.parse import urlsplit
@@ -302,7 +302,7 @@ def gearbox_of(variant: str | None, config: str | None) -> str:
 
 def _check_variants(store: FleetStore, entries: list[LogEntry]) -> None:
     """InputError when a vehicle of ``entries`` already has rows in the output replayed as another gearbox variant
-    (a vehicle is one gearbox: a corrected manifest kept the rows of the wrong variant, a fleet audit found)."""
+    (a vehicle is one gearbox: otherwise a corrected manifest would keep the rows of the wrong variant)."""
     known = store.vehicle_variants()
     if not known:
         return
@@ -361,7 +361,7 @@ def run_fleet(
         _check_variants(store, entries)
         done = store.done_keys()
         # a log not done yet, or changed since its row was written (a log still being written then: its size and
-        # time moved; a fleet audit saw a partial summary kept for good); rows of an earlier version have no stamp
+        # time moved, and its partial summary must not be kept for good); rows of an earlier version have no stamp
         todo = [
             e for e in entries if e.key not in done or (done[e.key] is not None and done[e.key] != log_stamp(e.log))
         ]

@@ -418,7 +418,7 @@ class ReferencePlant:
         sp = self.losses.kin.speed[gear - GEAR_MIN] * w_in[:, None]
         if inp.retarder_nm is not None and self.scales.retarder_frac > 0:
             # the braking torque's magnitude, as the onboard sensor and the CAN encoder take it (J1939 sends braking
-            # negative; a table given in that sign gave the plant no heat and its own CAN log 3 kNm: an audit)
+            # negative; a table in that sign would give the plant no heat and its own CAN log 3 kNm)
             P_src[:, self.src_names.index("retarder")] = (
                 self.scales.retarder_frac * np.abs(inp.retarder_nm[sl]) * np.abs(sp[:, SPEED_NAMES.index("OS")])
             )

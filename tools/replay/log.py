@@ -129,8 +129,8 @@ def _no_step_reason(path, d: dict) -> str:
         return f"{path}: no sensor step: all {seen} frames were rejected as {REJECT_REASONS[reason]}"
     why = ""
     if seen - sum(rejected.values()) >= 100:
-        # many used frames and still no step: they lie within one step of frame time (a log-replay audit: 190 322
-        # frames with one time stamp were "less than 100 ms of traffic" without a hint)
+        # many used frames and still no step: they lie within one step of frame time (e.g. all with one time
+        # stamp), which "less than 100 ms of traffic" alone would not explain
         why = (
             "; yet it holds that many used frames: are all time stamps equal, or in a unit other than seconds "
             "(candump -L writes seconds)?"

@@ -87,8 +87,8 @@ def _warning_line(out) -> str:
     line = "warnings: " + ("; ".join(parts) if parts else "none")
     na = _not_available_share(out, dur_s)
     if na > 0.0:
-        # "none" alone would read as an all-clear where the sensor could not judge (an audit: a log without torque
-        # printed "warnings: none" with level n/a on 99 % of the cells)
+        # "none" alone would read as an all-clear where the sensor could not judge (a log without torque has level
+        # n/a on 99 % of the cells)
         share = f"{100.0 * na:.1f} %" if na >= 0.001 else "under 0.1 %"
         line += (
             f" (warning levels not available, level {LEVEL_NA}, on {share} of the component-time: "
