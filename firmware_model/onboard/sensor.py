@@ -170,7 +170,8 @@ class VirtualSensor:
     ) -> SensorState:
         """Start: every node at the measured oil temperature (NaN/None, or a reading outside the oil input's plausible
         range, which the step rejects too: ``options.initial_temp_c``, else ``ambient_c``, the first ambient reading,
-        when it lies in the ambient input's plausible range, else the parameters' ambient boundary), or from a snapshot (a SensorState, or the bytes/str/dict of :meth:`snapshot`) cooled down for
+        when it lies in the ambient input's plausible range, else the parameters' ambient boundary), or from a
+        snapshot (a SensorState, or the bytes/str/dict of :meth:`snapshot`) cooled down for
         ``elapsed_s`` with the engine off. ``running_s``: the first seconds of that time during which the engine
         ran on with the snapshot's inputs held (a gateway that died while the truck drove: its last state was saved
         while stepping, not at a clean stop), at most ``options.time_jump_hold_s``, as for a forward time jump;
