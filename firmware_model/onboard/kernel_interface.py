@@ -80,6 +80,10 @@ COUPLING_MARGIN = 1.0e-6
 TTL_RELINEARISE_STEPS = 2
 #: ... until the operating point's sump temperature moves less than this [K]
 TTL_RELINEARISE_TOL_K = 0.5
+#: the bounded time to limit (ttl_bound): steady solves of the chord system looking for its steady sump, at most ...
+TTL_BOUND_ITERS = 4
+#: ... until it moves less than this [K]; a sump within this of it is settled (no chord)
+TTL_BOUND_TOL_K = 0.5
 #: the C names of the input fields (records.INPUT_FIELDS, same order)
 INPUT_C_NAMES = ("SPEED", "TORQUE", "GEAR", "OIL", "AMB", "COOL", "VKMH", "RET")
 if len(INPUT_C_NAMES) != N_INPUTS:
@@ -144,6 +148,8 @@ DEFINES = (
     Constant("TTL_RELINEARISE_STEPS", TTL_RELINEARISE_STEPS, "re-linearisations at the predicted sump"),
     Constant("TTL_RELINEARISE_TOL_K", TTL_RELINEARISE_TOL_K, "... until the sump moves less than this [K]"),
     Constant("COUPLING_MARGIN", COUPLING_MARGIN, "the coupled held system needs 1 - e^T K^-1 u above this"),
+    Constant("TTL_BOUND_ITERS", TTL_BOUND_ITERS, "bounded time to limit: steady solves for the chord's far sump"),
+    Constant("TTL_BOUND_TOL_K", TTL_BOUND_TOL_K, "... until it moves less than this [K]"),
 )
 #: the structs gvs_sizeof() measures, in its argument's order ("real": sizeof(gvs_real))
 SIZEOF_IDS = ("tables", "vehicle", "state", "inputs", "outputs", "ttl_point", "real")
