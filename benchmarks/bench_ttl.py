@@ -27,12 +27,10 @@ import os
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 
-import argparse  # noqa: E402
 import hashlib  # noqa: E402
 import json  # noqa: E402
 import math  # noqa: E402
 import sys  # noqa: E402
-import time  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
@@ -43,7 +41,6 @@ import numpy as np  # noqa: E402
 from firmware_model.components import PUBLISHED  # noqa: E402
 from firmware_model.onboard.records import SensorInputs  # noqa: E402
 from firmware_model.onboard.sensor import VirtualSensor  # noqa: E402
-from firmware_model.onboard.time_to_limit import time_to_limit  # noqa: E402
 from firmware_model.parameters import load_parameters  # noqa: E402
 from tools.cycles.named import get_cycle  # noqa: E402
 from tools.plant.reference import ReferencePlant  # noqa: E402
@@ -58,8 +55,16 @@ HELD_CYCLES = ("uphill", "mining", "long_haul")
 WARN_CYCLES = ("steady", "all_gears", "long_haul", "uphill", "mining")
 #: heavy loads: (gear, rpm range, torque range) drawn for the random held points
 GEARS = (1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12)
-INPUT_COLS = ("engine_speed_rpm", "engine_torque_nm", "gear", "oil_temp_c", "ambient_temp_c", "coolant_temp_c",
-              "vehicle_speed_kmh", "retarder_torque_nm")
+INPUT_COLS = (
+    "engine_speed_rpm",
+    "engine_torque_nm",
+    "gear",
+    "oil_temp_c",
+    "ambient_temp_c",
+    "coolant_temp_c",
+    "vehicle_speed_kmh",
+    "retarder_torque_nm",
+)
 
 
 def make_points(n: int, seed: int = 0) -> list[dict]:
@@ -123,8 +128,11 @@ class Bench:
             def make():
                 ref = self.plant.run(RunTable(dict(cols), meta=tab.meta), initial_temp_c=tab.meta.get("initial_temp_c"))
                 t = ref.table
-                return {"time_s": t["time_s"], "oil_temp_c": t["oil_temp_c"],
-                        "T": np.stack([t[f"T_{nd}_c"] for nd in self.c_sensor.nodes], axis=1)}
+                return {
+                    "time_s": t["time_s"],
+                    "oil_temp_c": t["oil_temp_c"],
+                    "T": np.stack([t[f"T_{nd}_c"] for nd in self.c_sensor.nodes], axis=1),
+                }
 
             ref = self._cached(f"cycle:{name}:{tab.meta}", make)
             self.cycles[name] = (cols, tab.meta, ref)

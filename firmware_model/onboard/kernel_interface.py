@@ -336,7 +336,8 @@ _TABLES = (
     "time to limit (gvs_ttl_refresh; firmware_model.onboard.held_march, time_to_limit): heat capacities, the sparse "
     "LDL^T pattern of C/h + K (firmware_model.onboard.sparse_ldl), the components whose crossing re-linearises, and "
     "the options: the sump heats with the held load (else a measured sump is held), and re-linearise at the "
-    "predicted sump (every effect one value for all vehicles)",
+    "predicted sump (every effect one value for all vehicles); ttl_bound: the bounded method (ttl_bound, "
+    "gvs_ttl_refresh_bound; 0: today's march, ttl_method 'march')",
     Field("C_j_per_k", PREAL, ("n",), "J/K"),
     *_f("ldl_perm ldl_pos", PIDX, ("n",)),
     Field("ldl_col_ptr", PIDX, ("n + 1",)),
@@ -346,6 +347,7 @@ _TABLES = (
     *_f("ldl_upd_target ldl_upd_a ldl_upd_b", PIDX, ("ldl_nupd",)),
     Field("ttl_relin", PIDX, ("N_PUB",)),
     *_f("ldl_nnz ldl_nupd ttl_sump_model ttl_relinearise", I32),
+    *_f("ttl_bound", I32),
 )
 
 _VEHICLE = (

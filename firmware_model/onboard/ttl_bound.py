@@ -35,9 +35,9 @@ from firmware_model.onboard.kernel_interface import (
     TTL_BOUND_TOL_K,
 )
 from firmware_model.onboard.params import SensorParams, vehicle_value
-from firmware_model.onboard.records import I_AMB, I_COOL, I_RET, I_TORQUE, I_VKMH, N_PUB
+from firmware_model.onboard.records import I_AMB, I_COOL, I_RET, I_TORQUE, I_VKMH, N_PUB, SensorState
 from firmware_model.onboard.step_cache import StepCache
-from firmware_model.onboard.time_to_limit import TtlPoint, held_system
+from firmware_model.onboard.time_to_limit import TtlJob, TtlPoint, held_system, time_to_limit
 
 I_PUB_OIL = PUBLISHED.index("oil")
 
@@ -47,7 +47,7 @@ def time_to_limit_bound(sp: SensorParams, cache: StepCache, p: TtlPoint, vehicle
     cooler following the sump along their chords to the far sump, the earlier of the two chord systems (the
     conductances at the step's sump and at the far sump's bin; module doc). A settled sump, a measured sump held
     (``ttl_sump = "held"``) or per-vehicle effects: the step's own held system, marched once."""
-    rp, h = sp.reduced, sp.helpers
+    h = sp.helpers
     measured = p.measured and sp.options.ttl_sump != "model"
     pub_free, rows = (h.pub_free_meas, h.pub_rows_meas) if measured else (h.pub_free_all, h.pub_rows_all)
     warning_c = sp.limits.warning_c
@@ -102,9 +102,7 @@ def chord_systems(sp: SensorParams, cache: StepCache, p: TtlPoint, system: HeldS
         return [system]
     T_far_c, src_w, beta_w_per_k, slope_w_per_k, chord = found
     bins = cache.bins.get(sp, p.row, *bin_centre(p.omega_in_rad_s, T_far_c))
-    base, _ = held_system(
-        sp, p, src_w, bins.G_w_per_k, bins.G_streams_w_per_k, T_far_c, False, vehicle, slope_w_per_k
-    )
+    base, _ = held_system(sp, p, src_w, bins.G_w_per_k, bins.G_streams_w_per_k, T_far_c, False, vehicle, slope_w_per_k)
     return [chord, chord_system(base, beta_w_per_k, T_far_c, rp.i_oil)]
 
 
@@ -209,3 +207,15 @@ def positive_weights(A: np.ndarray) -> np.ndarray | None:
     except np.linalg.LinAlgError:
         return None
     return w if bool(np.all(np.isfinite(w)) and np.all(w > 0.0)) else None
+
+
+def refresh_ttl(state: SensorState, job: TtlJob | None, sp: SensorParams, cache: StepCache) -> SensorState:
+    """Run the time-to-limit refresh a step left (``job`` from the step; None: nothing due) with the sensor's
+    ``ttl_method``: "bound" (:func:`time_to_limit_bound`) or "march" (time_to_limit.time_to_limit)."""
+    if job is None:
+        return state
+    solve = time_to_limit_bound if sp.options.ttl_method == "bound" else time_to_limit
+    ttl = np.array(state.ttl_s, dtype=float, copy=True)
+    for v, point in zip(job.vehicles, job.points):
+        ttl[v] = solve(sp, cache, point, v)
+    return state._replace(ttl_s=ttl)
