@@ -1,6 +1,6 @@
 """The time to limit against the reference plant with the inputs held (issue 47): the bounded method beside today's.
 
-    python benchmarks/bench_ttl.py                 # quick: 24 held points (a few minutes of plant runs, cached)
+    python benchmarks/bench_ttl.py                 # quick: 24 held points (a few minutes once, then cached)
     python benchmarks/bench_ttl.py --points 240    # the figures of docs/sensor.md (~10 minutes once, then cached)
 
 (a) accuracy: held points, each a start state and a load held from it: cold starts (every node at -25..40 degC),
@@ -27,10 +27,12 @@ import os
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 
+import argparse  # noqa: E402
 import hashlib  # noqa: E402
 import json  # noqa: E402
 import math  # noqa: E402
 import sys  # noqa: E402
+import time  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
@@ -215,3 +217,178 @@ class Bench:
         st = st._replace(k=np.zeros_like(st.k))  # due now
         _, _, job = self.c_sensor.step_deferred(st, SensorInputs(*raw))
         return job.points[0]
+
+
+def mean_step_us(params, method: str, repeat: int = 7, n: int = 6000) -> float:
+    """Mean per step [us] with the time to limit refreshed every 1 s: bench_kernel.py's hard drive, 600 s from
+    60 degC, step_table in C (one call), median of ``repeat``."""
+    from bench_kernel import drive_inputs
+
+    s = VirtualSensor(params, core="c", ttl_method=method)
+    raw = drive_inputs(n)
+    runs = []
+    for _ in range(repeat):
+        st = s.initial_state(T_oil_c=60.0)
+        t0 = time.perf_counter()
+        s.step_table(st, raw)
+        runs.append((time.perf_counter() - t0) / n * 1e6)
+    return float(np.median(runs))
+
+
+def section_accuracy(bench: Bench, n_points: int, seed: int) -> None:
+    """(a): both methods against the held plant, per horizon bin."""
+    from firmware_model.onboard.time_to_limit import time_to_limit
+    from firmware_model.onboard.ttl_bound import time_to_limit_bound
+
+    sp, cache = bench.c_sensor.sp, bench.c_sensor.cache
+    errs = {"bound": [], "march": []}
+    false = {"bound": 0, "march": 0}
+    kinds = []
+    c0 = time.perf_counter()
+    for p in make_points(n_points, seed):
+        tp = bench.plant_crossings(p)
+        pt = bench.ttl_point(p)
+        pred = {"bound": time_to_limit_bound(sp, cache, pt), "march": time_to_limit(sp, cache, pt)}
+        m = (tp >= BINS_S[0][0]) & (tp <= BINS_S[-1][1])
+        for k, r in pred.items():
+            with np.errstate(invalid="ignore"):
+                errs[k].append(np.stack([tp[m], (r[m] - tp[m]) / tp[m]], axis=1))
+            false[k] += int(np.sum((r > 0.0) & (r <= BINS_S[-1][1]) & ~np.isfinite(tp)))
+        kinds += [f"{p['kind']}/{p['oil']}"] * int(m.sum())
+    print(
+        f"(a) time to limit against the plant with the inputs held: {n_points} held points (cold, warm, cycle "
+        f"moments; sump measured / modelled), {sum(len(e) for e in errs['bound'])} crossings within "
+        f"{BINS_S[0][0]:.0f}-{BINS_S[-1][1]:.0f} s ({time.perf_counter() - c0:.0f} s wall)"
+    )
+    print("    error = (predicted - plant) / plant's remaining time; + late; inf: predicted never")
+    print("    horizon     method  n    within 20 %  late > 10 %  worst late  worst early  never (of the late)")
+    for lo, hi in BINS_S:
+        for k in ("bound", "march"):
+            e = np.concatenate(errs[k])
+            e = e[(e[:, 0] >= lo) & (e[:, 0] < hi), 1] if len(e) else e
+            if not e.size:
+                continue
+            fin = np.isfinite(e)
+            print(
+                f"    {lo / 60:4.0f}-{hi / 60:2.0f} min  {k:6s} {e.size:4d}   {np.mean(np.abs(e) <= WITHIN):8.0%}"
+                f"   {np.mean(e > LATE):8.0%}   {_pct(np.max(e)):>10s}  {_pct(np.min(e)):>10s}"
+                f"   {int(np.sum(~fin))}"
+            )
+    for k in ("bound", "march"):
+        e = np.concatenate(errs[k])[:, 1]
+        per = ", ".join(f"{kd} {np.mean(np.abs(e[np.array(kinds) == kd]) <= WITHIN):.0%}" for kd in sorted(set(kinds)))
+        print(
+            f"    {k}: all {np.mean(np.abs(e) <= WITHIN):.0%} within 20 %, {np.mean(e > LATE):.0%} late by more "
+            f"than 10 %; by start: {per}; predicted within 30 min where the held plant never crosses "
+            f"(45 min): {false[k]}"
+        )
+
+
+def _pct(x: float) -> str:
+    return "never" if math.isinf(x) and x > 0 else f"{100 * x:+.0f} %"
+
+
+def section_speed(params, repeat: int) -> None:
+    """(b): the mean step with the 1 s refresh, both methods alternately in the same run."""
+    runs = {"march": [], "bound": []}
+    for _ in range(2):
+        for k in runs:
+            runs[k].append(mean_step_us(params, k, repeat))
+    print(
+        "(b) mean per step with the time to limit every 1 s (C, bench_kernel.py's hard drive, 600 s, median of "
+        f"{repeat}; two rounds): bound {' / '.join(f'{x:.2f}' for x in runs['bound'])} us, today's march "
+        f"{' / '.join(f'{x:.2f}' for x in runs['march'])} us (target <= 5)"
+    )
+
+
+def section_warnings(bench: Bench) -> None:
+    """(c): level-1 onsets on every named cycle, both methods, the oil measured and absent."""
+    from bench_sensor import rig
+
+    total = {"bound": 0, "march": 0, "later": 0, "earlier": 0, "extra": 0}
+    for name in WARN_CYCLES:
+        tab = get_cycle(name, rate_hz=10)
+        hold = tab.meta.get("hold_oil_c")
+        params = rig(bench.params) if hold is not None else bench.params
+        raw = np.stack(
+            [np.asarray(tab[c], dtype=float) if tab.has(c) else np.zeros(len(tab["time_s"])) for c in INPUT_COLS],
+            axis=1,
+        )
+        raw[:, 7] = np.nan_to_num(raw[:, 7])
+        feeds = {"oil absent": np.nan}
+        if hold is not None:
+            feeds["oil held"] = float(hold)
+        else:
+            _, _, ref = bench.cycle(name)
+            feeds["oil measured"] = np.interp(tab["time_s"], ref["time_s"], ref["oil_temp_c"])
+        for feed, oil in feeds.items():
+            raw[:, 3] = oil
+            on = {}
+            for k in ("bound", "march"):
+                s = VirtualSensor(params, core="c", ttl_method=k, oil_frozen_s=math.inf)
+                T0 = float(tab.meta.get("initial_temp_c") or hold or 25.0)
+                _, out = s.step_table(s.initial_state(T_oil_c=T0, ambient_c=float(raw[0, 4])), raw)
+                on[k] = np.asarray(out.level) >= 1
+            t = np.asarray(tab["time_s"])
+            old_on = on["march"][1:] & ~on["march"][:-1]
+            new_on = on["bound"][1:] & ~on["bound"][:-1]
+            later = int(np.sum(old_on & ~on["bound"][1:]))
+            earlier = int(np.sum(old_on & on["bound"][1:] & ~new_on))
+            extra = int(np.sum(new_on & ~on["march"][1:]))
+            n_old, n_new = int(old_on.sum()), int(new_on.sum())
+            total["bound"] += n_new
+            total["march"] += n_old
+            total["later"] += later
+            total["earlier"] += earlier
+            total["extra"] += extra
+            lead = _leads(t, on["bound"], on["march"])
+            print(
+                f"    {name:9s} {feed:12s}: level-1 onsets bound {n_new}, today {n_old}; later than today's "
+                f"{later}, earlier {earlier}{lead}"
+            )
+    print(
+        f"    all cycles: onsets bound {total['bound']}, today {total['march']}; later than today's "
+        f"{total['later']}; earlier {total['earlier']}; onsets today does not have {total['extra']}"
+    )
+
+
+def _leads(t, new_on, old_on) -> str:
+    """How much earlier the bound's warnings began than today's (where today's began), as a range."""
+    d = []
+    for j in range(new_on.shape[1]):
+        for k in np.flatnonzero(old_on[1:, j] & ~old_on[:-1, j]) + 1:
+            a = k
+            while a > 0 and new_on[a - 1, j]:
+                a -= 1
+            if new_on[k, j]:
+                d.append(t[k] - t[a])
+    d = [x for x in d if x > 0]
+    return f" (by {min(d):.1f}-{max(d):.1f} s)" if d else ""
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--points", type=int, default=24, help="held points (default 24; the figures: 240)")
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--repeat", type=int, default=7, help="runs of the speed measurement (median)")
+    ap.add_argument("--only", choices=("accuracy", "speed", "warnings"))
+    ap.add_argument("--cache", type=Path, default=Path.home() / ".cache" / "gearbox-vsensor" / "bench_ttl")
+    ap.add_argument("--no-cache", action="store_true", help="run every plant run again, keep nothing on disk")
+    a = ap.parse_args()
+    bench = Bench(None if a.no_cache else a.cache)
+    print(
+        "time to limit: the bounded method (ttl_method 'bound') against today's march ('march'); core "
+        f"{bench.c_sensor.core_name}"
+    )
+    if a.only in (None, "accuracy"):
+        section_accuracy(bench, a.points, a.seed)
+    if a.only in (None, "speed"):
+        section_speed(bench.params, a.repeat)
+    if a.only in (None, "warnings"):
+        print("(c) warnings: level-1 onsets per named cycle (C core, 10 Hz), bound and today's, same run")
+        section_warnings(bench)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

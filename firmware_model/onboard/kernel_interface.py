@@ -84,6 +84,9 @@ TTL_RELINEARISE_TOL_K = 0.5
 TTL_BOUND_ITERS = 4
 #: ... until it moves less than this [K]; a sump within this of it is settled (no chord)
 TTL_BOUND_TOL_K = 0.5
+#: ... and where it predicts a crossing within this, today's method too, the earlier kept (the early warning's
+#: lead is 30 s: a warning never comes later than today's) [s]
+TTL_BOUND_GATE_S = 60.0
 #: the C names of the input fields (records.INPUT_FIELDS, same order)
 INPUT_C_NAMES = ("SPEED", "TORQUE", "GEAR", "OIL", "AMB", "COOL", "VKMH", "RET")
 if len(INPUT_C_NAMES) != N_INPUTS:
@@ -150,6 +153,7 @@ DEFINES = (
     Constant("COUPLING_MARGIN", COUPLING_MARGIN, "the coupled held system needs 1 - e^T K^-1 u above this"),
     Constant("TTL_BOUND_ITERS", TTL_BOUND_ITERS, "bounded time to limit: steady solves for the chord's far sump"),
     Constant("TTL_BOUND_TOL_K", TTL_BOUND_TOL_K, "... until it moves less than this [K]"),
+    Constant("TTL_BOUND_GATE_S", TTL_BOUND_GATE_S, "a crossing within this: today's march too, the earlier [s]"),
 )
 #: the structs gvs_sizeof() measures, in its argument's order ("real": sizeof(gvs_real))
 SIZEOF_IDS = ("tables", "vehicle", "state", "inputs", "outputs", "ttl_point", "real")

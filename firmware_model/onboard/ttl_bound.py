@@ -31,6 +31,7 @@ from firmware_model.onboard.kernel_interface import (
     COUPLING_MARGIN,
     SPEED_COL_LAYSHAFT,
     SPEED_COL_OUTPUT,
+    TTL_BOUND_GATE_S,
     TTL_BOUND_ITERS,
     TTL_BOUND_TOL_K,
 )
@@ -61,11 +62,16 @@ def time_to_limit_bound(sp: SensorParams, cache: StepCache, p: TtlPoint, vehicle
         if march is not None:
             ttl_s = march.ttl_s if ttl_s is None else np.minimum(ttl_s, march.ttl_s)
     if ttl_s is None:
-        return np.full(N_PUB, np.nan)
-    out = np.full(N_PUB, np.inf)
-    out[pub_free] = ttl_s
-    if measured:
-        out[I_PUB_OIL] = 0.0 if p.T_oil_c >= warning_c[I_PUB_OIL] else np.inf
+        out = np.full(N_PUB, np.nan)
+    else:
+        out = np.full(N_PUB, np.inf)
+        out[pub_free] = ttl_s
+        if measured:
+            out[I_PUB_OIL] = 0.0 if p.T_oil_c >= warning_c[I_PUB_OIL] else np.inf
+    if np.any(out <= TTL_BOUND_GATE_S):
+        # a crossing soon: today's method too, the earlier of the two (no warning later than today's)
+        today = time_to_limit(sp, cache, p, vehicle)
+        out = np.where(today < out, today, out)
     return out
 
 

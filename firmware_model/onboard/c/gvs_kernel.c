@@ -1136,7 +1136,19 @@ int gvs_ttl_refresh(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl_
         for (it = 0; it < GVS_N_PUB; ++it) ttl_s[it] = (gvs_real)NAN;
         return GVS_OK;
     }
-    if (tb->ttl_bound) return ttl_refresh_bound(tb, veh, p, ttl_s);
+    if (tb->ttl_bound) {
+        /* a crossing soon: today's march too (these tables without ttl_bound), the earlier of the two */
+        gvs_real today[GVS_N_PUB];
+        gvs_tables march = *tb;
+        ttl_refresh_bound(tb, veh, p, ttl_s);
+        for (it = 0; it < GVS_N_PUB && !(ttl_s[it] <= R_(GVS_TTL_BOUND_GATE_S)); ++it) {}
+        if (it == GVS_N_PUB) return GVS_OK;
+        march.ttl_bound = 0;
+        gvs_ttl_refresh(&march, veh, p, today);
+        for (it = 0; it < GVS_N_PUB; ++it)
+            if (today[it] < ttl_s[it]) ttl_s[it] = today[it];
+        return GVS_OK;
+    }
     if (ttl_solve(tb, veh, p, p->src_w, p->G_w_per_k, p->G_streams_w_per_k, T_op, measured, ttl_s, &T_watch, NULL) != 0
         || !tb->ttl_sump_model || !tb->ttl_relinearise)
         return GVS_OK;
