@@ -341,7 +341,7 @@ _TABLES = (
     "LDL^T pattern of C/h + K (firmware_model.onboard.sparse_ldl), the components whose crossing re-linearises, and "
     "the options: the sump heats with the held load (else a measured sump is held), and re-linearise at the "
     "predicted sump (every effect one value for all vehicles); ttl_bound: the bounded method (ttl_bound, "
-    "gvs_ttl_refresh_bound; 0: today's march, ttl_method 'march')",
+    "gvs_kernel.c ttl_refresh_bound; 0: today's march, ttl_method 'march')",
     Field("C_j_per_k", PREAL, ("n",), "J/K"),
     *_f("ldl_perm ldl_pos", PIDX, ("n",)),
     Field("ldl_col_ptr", PIDX, ("n + 1",)),

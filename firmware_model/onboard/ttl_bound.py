@@ -1,20 +1,23 @@
-"""Time to limit with the losses following the warming sump (``ttl_method = "bound"``, the default; docs/sensor.md).
+"""Time to limit with the losses following the warming sump (``ttl_method = "bound"``; docs/sensor.md).
 
-Today's method (:func:`firmware_model.onboard.time_to_limit.time_to_limit`, ``ttl_method = "march"``) takes the
-losses at one sump temperature, the one predicted at the first crossing. While the sump warms from cold the oil is
-more viscous at first and the losses are higher than there, so the components warm faster than predicted: the
-prediction is late. This method keeps the held system linear and lets the heat of every loss source follow the sump
-along the chord of the losses between the current sump T0 and the held system's steady sump T_far:
+Today's method (:func:`firmware_model.onboard.time_to_limit.time_to_limit`, ``ttl_method = "march"``, the default)
+takes the losses, the cooler and the conductances at one sump temperature, the one predicted at the first crossing.
+While the sump warms from cold the oil is more viscous at first and the losses are higher than there, and the
+cooler's thermostat is still closed, so the components warm faster than predicted: late, or "never". This method
+keeps the held system linear and lets the heat of every loss source and the cooler follow the sump along their
+chords between the current sump T0 and the far sump T_far:
 
     q(T_sump) = q(T_far) + beta (T_sump - T_far),  beta = (q(T0) - q(T_far)) / (T0 - T_far)
 
-(q: the sources' heat on the nodes). The losses fall with the oil's viscosity, convexly in the oil temperature, so
-on the way from T0 to T_far the chord lies above them: the heat is over- rather than under-estimated and the
-prediction errs early, not late. beta enters A as one more column on the sump (``A - beta e_sump^T``, like the
-oil-inlet coupling: one Sherman-Morrison column in the kernel); T_far is the fixed point of the chord system's steady
-sump (at most TTL_BOUND_ITERS steady solves, one factorisation of K each), and the system is then marched once
-(firmware_model.onboard.held_march) with the conductances at T_far's bin. The compiled kernel
-(``gvs_ttl_refresh_bound`` in gvs_kernel.c) runs the same steps.
+(q: the sources' heat on the nodes; the cooler likewise, through its slope). beta enters A as one more column on
+the sump (``A - beta e_sump^T``, merged with the oil-inlet coupling: one Sherman-Morrison column in the kernel).
+T_far is the fixed point of the chord system's steady sump (secant method, at most TTL_BOUND_ITERS steady solves),
+so the steady state is the held system's own. Two chord systems are marched (firmware_model.onboard.held_march):
+with the step's conductances (right for the fast components, which cross while the sump is still near T0) and with
+those of T_far's bin (right for the slow ones); the earlier crossing is kept. Where that is within
+TTL_BOUND_GATE_S, today's method runs too and the earlier is kept, so that no early warning comes later than
+today's. The compiled kernel (``ttl_refresh_bound`` in gvs_kernel.c, from ``gvs_ttl_refresh`` when the tables'
+``ttl_bound`` is set) runs the same steps.
 """
 
 from __future__ import annotations

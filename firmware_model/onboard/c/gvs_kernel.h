@@ -243,7 +243,7 @@ typedef struct {
      * LDL^T pattern of C/h + K (firmware_model.onboard.sparse_ldl), the components whose crossing re-linearises, and
      * the options: the sump heats with the held load (else a measured sump is held), and re-linearise at the
      * predicted sump (every effect one value for all vehicles); ttl_bound: the bounded method (ttl_bound,
-     * gvs_ttl_refresh_bound; 0: today's march, ttl_method 'march') */
+     * gvs_kernel.c ttl_refresh_bound; 0: today's march, ttl_method 'march') */
     const gvs_real *C_j_per_k;          /* (n) [J/K] */
     const gvs_idx *ldl_perm, *ldl_pos;  /* (n) */
     const gvs_idx *ldl_col_ptr;         /* (n + 1) */
