@@ -1026,6 +1026,7 @@ static void bound_heat(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_t
                        gvs_real *src, gvs_real *q)
 {
     gvs_real w = p->omega_in_rad_s, retarder_w;
+    const gvs_real *heat = src ? src : p->src_w;
     int32_t i, k;
     oil_row_t o;
     if (src) {
@@ -1035,7 +1036,7 @@ static void bound_heat(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_t
         heat_sources(tb, veh, p->row, w, FABS(p->used[GVS_I_TORQUE]), &o, retarder_w, src);
     }
     for (i = 0; i < tb->n; ++i) q[i] = R_(0.0);
-    for (k = 0; k < tb->nsrc_nz; ++k) q[tb->src_nz_node[k]] += (src ? src : p->src_w)[tb->src_nz_src[k]] * tb->src_nz_w[k];
+    for (k = 0; k < tb->nsrc_nz; ++k) q[tb->src_nz_node[k]] += heat[tb->src_nz_src[k]] * tb->src_nz_w[k];
 }
 
 /* ttl_bound.cooler_chord_slope: (Q(T_far) - Q_step) / (T_far - T_step), at least 0 */
@@ -1100,6 +1101,21 @@ static int bound_far_sump(const gvs_tables *tb, const gvs_vehicle *veh, const gv
     return found ? 0 : -1;
 }
 
+static int ttl_refresh(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl_point *p, gvs_real *ttl_s,
+                       int bound);
+
+/* a crossing within GVS_TTL_BOUND_GATE_S: today's march too, the earlier of the two (no warning later than today's) */
+static void bound_gate(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl_point *p, gvs_real *ttl_s)
+{
+    gvs_real today[GVS_N_PUB];
+    int j;
+    for (j = 0; j < GVS_N_PUB && !(ttl_s[j] <= R_(GVS_TTL_BOUND_GATE_S)); ++j) {}
+    if (j == GVS_N_PUB) return;
+    ttl_refresh(tb, veh, p, today, 0);
+    for (j = 0; j < GVS_N_PUB; ++j)
+        if (today[j] < ttl_s[j]) ttl_s[j] = today[j];
+}
+
 /* the bounded time to limit (ttl_bound.time_to_limit_bound): the earlier of the two chord systems (the step's
  * conductances, those of T_far's bin); the step's own system when the sump is settled, held or not found */
 static int ttl_refresh_bound(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl_point *p, gvs_real *ttl_s)
@@ -1110,6 +1126,7 @@ static int ttl_refresh_bound(const gvs_tables *tb, const gvs_vehicle *veh, const
     if (measured || !tb->ttl_relinearise || bound_far_sump(tb, veh, p, &ch, src) != 0) {
         ttl_solve(tb, veh, p, p->src_w, p->G_w_per_k, p->G_streams_w_per_k, p->T_oil_c, measured, ttl_s, &T_watch,
                   NULL);
+        bound_gate(tb, veh, p, ttl_s);
         return GVS_OK;
     }
     rc_a = ttl_solve(tb, veh, p, src, p->G_w_per_k, p->G_streams_w_per_k, p->T_oil_c, 0, ttl_s, &T_watch, &ch);
@@ -1119,14 +1136,15 @@ static int ttl_refresh_bound(const gvs_tables *tb, const gvs_vehicle *veh, const
     if (rc_b != 0) {
         if (rc_a != 0)
             for (j = 0; j < GVS_N_PUB; ++j) ttl_s[j] = (gvs_real)NAN;
-        return GVS_OK;
+    } else {
+        for (j = 0; j < GVS_N_PUB; ++j)
+            if (rc_a != 0 || other[j] < ttl_s[j]) ttl_s[j] = other[j];
     }
-    for (j = 0; j < GVS_N_PUB; ++j)
-        if (rc_a != 0 || other[j] < ttl_s[j]) ttl_s[j] = other[j];
+    bound_gate(tb, veh, p, ttl_s);
     return GVS_OK;
 }
 
-int gvs_ttl_refresh(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl_point *p, gvs_real *ttl_s)
+static int ttl_refresh(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl_point *p, gvs_real *ttl_s, int bound)
 {
     gvs_real T_watch, T_op = p->T_oil_c, src[GVS_MAX_SRC], G[GVS_MAX_LINKS], Gs[GVS_MAX_STREAMS];
     int measured = p->measured && !tb->ttl_sump_model, it;
@@ -1136,19 +1154,7 @@ int gvs_ttl_refresh(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl_
         for (it = 0; it < GVS_N_PUB; ++it) ttl_s[it] = (gvs_real)NAN;
         return GVS_OK;
     }
-    if (tb->ttl_bound) {
-        /* a crossing soon: today's march too (these tables without ttl_bound), the earlier of the two */
-        gvs_real today[GVS_N_PUB];
-        gvs_tables march = *tb;
-        ttl_refresh_bound(tb, veh, p, ttl_s);
-        for (it = 0; it < GVS_N_PUB && !(ttl_s[it] <= R_(GVS_TTL_BOUND_GATE_S)); ++it) {}
-        if (it == GVS_N_PUB) return GVS_OK;
-        march.ttl_bound = 0;
-        gvs_ttl_refresh(&march, veh, p, today);
-        for (it = 0; it < GVS_N_PUB; ++it)
-            if (today[it] < ttl_s[it]) ttl_s[it] = today[it];
-        return GVS_OK;
-    }
+    if (bound) return ttl_refresh_bound(tb, veh, p, ttl_s);
     if (ttl_solve(tb, veh, p, p->src_w, p->G_w_per_k, p->G_streams_w_per_k, T_op, measured, ttl_s, &T_watch, NULL) != 0
         || !tb->ttl_sump_model || !tb->ttl_relinearise)
         return GVS_OK;
@@ -1164,6 +1170,11 @@ int gvs_ttl_refresh(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl_
         if (ttl_solve(tb, veh, p, src, G, Gs, T_op, measured, ttl_s, &T_watch, NULL) != 0) break;
     }
     return GVS_OK;
+}
+
+int gvs_ttl_refresh(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl_point *p, gvs_real *ttl_s)
+{
+    return ttl_refresh(tb, veh, p, ttl_s, tb->ttl_bound);
 }
 
 /* ---- the step (step.step_deferred; step._finish) ------------------------------------------------------------- */
