@@ -348,7 +348,7 @@ def section_warnings(bench: Bench) -> None:
             )
     print(
         f"    all cycles: onsets bound {total['bound']}, today {total['march']}; later than today's "
-        f"{total['later']}; earlier {total['earlier']}; onsets today does not have {total['extra']}"
+        f"{total['later']}; earlier {total['earlier']}; onsets while today's level is still 0 {total['extra']}"
     )
 
 
