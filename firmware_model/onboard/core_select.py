@@ -23,7 +23,8 @@ from firmware_model.onboard.params import SensorParams
 from firmware_model.onboard.records import N_INPUTS, N_PUB, N_REJECT, SensorInputs, SensorState
 from firmware_model.onboard.step import step, step_deferred
 from firmware_model.onboard.step_cache import StepCache
-from firmware_model.onboard.time_to_limit import TtlJob, refresh_ttl
+from firmware_model.onboard.time_to_limit import TtlJob
+from firmware_model.onboard.ttl_bound import refresh_ttl
 
 CORES = ("auto", "c", "numpy")
 

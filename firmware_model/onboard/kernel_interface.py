@@ -80,6 +80,13 @@ COUPLING_MARGIN = 1.0e-6
 TTL_RELINEARISE_STEPS = 2
 #: ... until the operating point's sump temperature moves less than this [K]
 TTL_RELINEARISE_TOL_K = 0.5
+#: the bounded time to limit (ttl_bound): steady solves of the chord system looking for its steady sump, at most ...
+TTL_BOUND_ITERS = 4
+#: ... until it moves less than this [K]; a sump within this of it is settled (no chord)
+TTL_BOUND_TOL_K = 0.5
+#: ... and where it predicts a crossing within this, today's method too, the earlier kept (the early warning's
+#: lead is 30 s: a warning never comes later than today's) [s]
+TTL_BOUND_GATE_S = 60.0
 #: the C names of the input fields (records.INPUT_FIELDS, same order)
 INPUT_C_NAMES = ("SPEED", "TORQUE", "GEAR", "OIL", "AMB", "COOL", "VKMH", "RET")
 if len(INPUT_C_NAMES) != N_INPUTS:
@@ -144,6 +151,9 @@ DEFINES = (
     Constant("TTL_RELINEARISE_STEPS", TTL_RELINEARISE_STEPS, "re-linearisations at the predicted sump"),
     Constant("TTL_RELINEARISE_TOL_K", TTL_RELINEARISE_TOL_K, "... until the sump moves less than this [K]"),
     Constant("COUPLING_MARGIN", COUPLING_MARGIN, "the coupled held system needs 1 - e^T K^-1 u above this"),
+    Constant("TTL_BOUND_ITERS", TTL_BOUND_ITERS, "bounded time to limit: steady solves for the chord's far sump"),
+    Constant("TTL_BOUND_TOL_K", TTL_BOUND_TOL_K, "... until it moves less than this [K]"),
+    Constant("TTL_BOUND_GATE_S", TTL_BOUND_GATE_S, "a crossing within this: today's march too, the earlier [s]"),
 )
 #: the structs gvs_sizeof() measures, in its argument's order ("real": sizeof(gvs_real))
 SIZEOF_IDS = ("tables", "vehicle", "state", "inputs", "outputs", "ttl_point", "real")
@@ -330,7 +340,8 @@ _TABLES = (
     "time to limit (gvs_ttl_refresh; firmware_model.onboard.held_march, time_to_limit): heat capacities, the sparse "
     "LDL^T pattern of C/h + K (firmware_model.onboard.sparse_ldl), the components whose crossing re-linearises, and "
     "the options: the sump heats with the held load (else a measured sump is held), and re-linearise at the "
-    "predicted sump (every effect one value for all vehicles)",
+    "predicted sump (every effect one value for all vehicles); ttl_bound: the bounded method (ttl_bound, "
+    "gvs_kernel.c ttl_refresh_bound; 0: today's march, ttl_method 'march')",
     Field("C_j_per_k", PREAL, ("n",), "J/K"),
     *_f("ldl_perm ldl_pos", PIDX, ("n",)),
     Field("ldl_col_ptr", PIDX, ("n + 1",)),
@@ -340,6 +351,7 @@ _TABLES = (
     *_f("ldl_upd_target ldl_upd_a ldl_upd_b", PIDX, ("ldl_nupd",)),
     Field("ttl_relin", PIDX, ("N_PUB",)),
     *_f("ldl_nnz ldl_nupd ttl_sump_model ttl_relinearise", I32),
+    *_f("ttl_bound", I32),
 )
 
 _VEHICLE = (

@@ -257,6 +257,7 @@ def _time_to_limit(sp: SensorParams) -> dict:
         ldl_nupd=int(pat.upd_target.size),
         ttl_sump_model=int(sp.options.ttl_sump == "model"),
         ttl_relinearise=int(bool(sp.scalar_effects)),
+        ttl_bound=int(sp.options.ttl_method == "bound"),
     )
 
 

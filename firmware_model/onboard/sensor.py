@@ -118,6 +118,8 @@ class VirtualSensor:
             raise ParameterError(f"sensor.oil_mode = {oil_mode!r} must be 'measured' or 'model'")
         if options.get("ttl_sump", "model") not in ("model", "held"):
             raise ParameterError(f"sensor option ttl_sump = {options['ttl_sump']!r} must be 'model' or 'held'")
+        if options.get("ttl_method", "march") not in ("march", "bound"):
+            raise ParameterError(f"sensor option ttl_method = {options['ttl_method']!r} must be 'march' or 'bound'")
         reset_s = options.get("clock_reset_s", 10.0)
         if not (isinstance(reset_s, (int, float)) and 1.0 <= reset_s < math.inf):
             raise ParameterError(

@@ -59,7 +59,8 @@ from firmware_model.onboard.records import (
     SensorStatus,
 )
 from firmware_model.onboard.step_cache import StepCache
-from firmware_model.onboard.time_to_limit import TtlJob, TtlPoint, refresh_ttl
+from firmware_model.onboard.time_to_limit import TtlJob, TtlPoint
+from firmware_model.onboard.ttl_bound import refresh_ttl
 from firmware_model.onboard.warning_levels import update_levels
 from firmware_model.physics.cooler import inlet_drop_k
 from firmware_model.physics.heat_lag import heat_lag_step

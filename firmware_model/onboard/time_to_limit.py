@@ -162,21 +162,28 @@ def _oil_flow_m3_s(sp: SensorParams, row: int, omega_in_rad_s: float) -> float:
 
 
 def held_system(
-    sp: SensorParams, p: TtlPoint, src_w, G_w_per_k, G_streams_w_per_k, T_op_c: float, measured: bool, vehicle=None
+    sp: SensorParams,
+    p: TtlPoint,
+    src_w,
+    G_w_per_k,
+    G_streams_w_per_k,
+    T_op_c: float,
+    measured: bool,
+    vehicle=None,
+    slope_w_per_k: float | None = None,
 ) -> tuple[HeldSystem, np.ndarray]:
     """(the held-input system over its free nodes, the free nodes) at the operating point's oil temperature T_op
     (losses ``src_w`` and conductances ``G_w_per_k`` given for it), the cooler linearised at the step's sump
-    ``p.T_oil_c`` with its slope at T_op: K from the conductances, the inlet coupling when the inlet follows the
-    sump (and the coupled system passes the stability test below), b from the heat, the boundaries, the inlet drop
-    and a measured sump."""
+    ``p.T_oil_c`` with its slope at T_op (or ``slope_w_per_k`` when given: the bounded method's chord): K from the
+    conductances, the inlet coupling when the inlet follows the sump (and the coupled system passes the stability
+    test below), b from the heat, the boundaries, the inlet drop and a measured sump."""
     rp, h = sp.reduced, sp.helpers
     K, _ = conductance_matrix(G_w_per_k, h.topology)
     T_oil_c = p.T_oil_c
-    slope_w_per_k = (
-        0.0
-        if measured
-        else cooler_slope_w_per_k(sp, T_op_c, p.omega_in_rad_s, p.row, p.used, p.rho_cp_j_per_m3k, vehicle)
-    )
+    if measured:
+        slope_w_per_k = 0.0
+    elif slope_w_per_k is None:
+        slope_w_per_k = cooler_slope_w_per_k(sp, T_op_c, p.omega_in_rad_s, p.row, p.used, p.rho_cp_j_per_m3k, vehicle)
     mcp_w_per_k = p.rho_cp_j_per_m3k * _oil_flow_m3_s(sp, p.row, p.omega_in_rad_s)
     u = None
     if not measured:

@@ -761,11 +761,50 @@ static void held_weights(const gvs_tables *tb, held_t *hs, const gvs_real *col, 
     }
 }
 
+/* ---- the bounded time to limit (ttl_bound): the losses and the cooler along their chords to the far sump ---------
+ * q(T_sump) = q(T_far) + beta (T_sump - T_far): beta joins the coupling column on the sump (ttl_bound.chord_system) */
+typedef struct {
+    gvs_real slope;                     /* the cooler's chord from the step's sump to T_far [W/K] */
+    gvs_real T_far;                     /* the far sump [degC] */
+    gvs_real beta[GVS_MAX_NODES];       /* the node heat's chord [W/K] */
+} ttl_chord_t;
+
+/* ttl_bound.chord_system on the built held system (K factorised in hs->S, b in Tb): A - beta e_sump^T,
+ * b - beta T_far, when 1 - e_sump^T A^-1 beta stays above GVS_COUPLING_MARGIN; the maximum principle needs
+ * beta <= 0 and a non-negative sump column, else the weights are decided again */
+static void chord_column(const gvs_tables *tb, held_t *hs, const ttl_chord_t *ch, gvs_real *Tb)
+{
+    gvs_real x[GVS_MAX_NODES], col[GVS_MAX_NODES], rs[GVS_MAX_NODES];
+    int32_t n = tb->n, i, k, io = tb->i_oil;
+    for (i = 0; i < n; ++i) x[i] = ch->beta[i];
+    held_solve(tb, hs, x);
+    if (!(R_(1.0) - x[io] > R_(GVS_COUPLING_MARGIN))) return;
+    for (i = 0; i < n; ++i) {
+        hs->u[i] += ch->beta[i];
+        Tb[i] -= ch->beta[i] * ch->T_far;
+        hs->w[i] = hs->u[i];
+        col[i] = hs->u[i];
+        if (ch->beta[i] > R_(0.0)) hs->metzler = 0;
+    }
+    hs->coupled = 1;
+    ldl_solve(tb, hs->S, hs->w);
+    for (k = 0; k < tb->nl; ++k) {
+        int32_t a = tb->link_a[k], b = tb->link_b[k];
+        if (b >= n) continue;
+        if (a == io) col[b] += hs->G[k];
+        else if (b == io) col[a] += hs->G[k];
+    }
+    for (i = 0; i < n; ++i)
+        if (i != io && col[i] < R_(0.0)) hs->metzler = 0;
+    hs->weighted = 0;
+    if (!hs->metzler) held_weights(tb, hs, col, rs);
+}
+
 /* the held system at the operating point's sump T_op (time_to_limit.held_system): factorise K, decide the
  * coupling, T_inf = A^-1 b; -1 when there is no finite steady state */
 static int held_build(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl_point *p, const gvs_real *src,
                       const gvs_real *G, const gvs_real *Gs, gvs_real T_op, int measured, held_t *hs,
-                      gvs_real *T_inf)
+                      gvs_real *T_inf, const ttl_chord_t *chord)
 {
     int32_t n = tb->n, k, i, io = tb->i_oil;
     gvs_real T_oil = p->T_oil_c, mcp, dT_in;
@@ -773,7 +812,7 @@ static int held_build(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_tt
     mcp = p->rho_cp_j_per_m3k * tb->flow_m3_per_rad * w_ls;
     hs->G = G;
     hs->held = measured;
-    hs->slope = measured ? R_(0.0) : cooler_slope(tb, veh, p, T_op);
+    hs->slope = measured ? R_(0.0) : (chord ? chord->slope : cooler_slope(tb, veh, p, T_op));
     hs->coupled = 0;
     for (i = 0; i < n; ++i) hs->u[i] = R_(0.0);
     if (!measured && hs->slope != R_(0.0) && FABS(p->dT_in_k) < tb->inlet_drop_max_k && mcp > R_(0.0)
@@ -838,6 +877,7 @@ static int held_build(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_tt
     }
     if (measured) T_inf[io] = T_oil;
     else T_inf[io] += hs->slope * T_oil - p->Q_cool_w;
+    if (chord) chord_column(tb, hs, chord, T_inf);
     /* T_inf = A^-1 b: the factorised K (w = K^-1 u) with the coupling by Sherman-Morrison */
     held_solve(tb, hs, T_inf);
     for (i = 0; i < n; ++i)
@@ -918,7 +958,7 @@ static int skip_to(const gvs_tables *tb, const gvs_ttl_point *p, const gvs_real 
  * the first crossing of a re-linearising component (NaN: none) */
 static int ttl_solve(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl_point *p, const gvs_real *src,
                      const gvs_real *G, const gvs_real *Gs, gvs_real T_op, int measured, gvs_real *ttl,
-                     gvs_real *T_watch)
+                     gvs_real *T_watch, const ttl_chord_t *chord)
 {
     held_t hs;
     gvs_real T_inf[GVS_MAX_NODES], e[GVS_MAX_NODES], de[GVS_MAX_NODES], e_g[GVS_MAX_NODES], e_new[GVS_MAX_NODES];
@@ -931,7 +971,7 @@ static int ttl_solve(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl
     for (j = 0; j < GVS_N_PUB; ++j) ttl[j] = (gvs_real)NAN;
     memset(e, 0, sizeof e);
     memset(de, 0, sizeof de);
-    if (held_build(tb, veh, p, src, G, Gs, T_op, measured, &hs, T_inf) != 0) return -1;
+    if (held_build(tb, veh, p, src, G, Gs, T_op, measured, &hs, T_inf, chord) != 0) return -1;
     for (i = 0; i < n; ++i) e[i] = p->T_main_c[i] - T_inf[i];
     if (measured) e[io] = R_(0.0);
     held_apply(tb, &hs, e, Ae);
@@ -1004,7 +1044,130 @@ static int ttl_solve(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl
     return 0;
 }
 
-int gvs_ttl_refresh(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl_point *p, gvs_real *ttl_s)
+/* ttl_bound.loss_heat_w and the nodes' share of it: the loss sources' heat with the point's load at sump T [W] */
+static void bound_heat(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl_point *p, gvs_real T,
+                       gvs_real *src, gvs_real *q)
+{
+    gvs_real w = p->omega_in_rad_s, retarder_w;
+    const gvs_real *heat = src ? src : p->src_w;
+    int32_t i, k;
+    oil_row_t o;
+    if (src) {
+        oil_row(tb, T, &o, NULL);
+        retarder_w = veh->retarder_frac * p->used[GVS_I_RET]
+            * FABS(tb->speed_coef[p->row * tb->n_speed + GVS_SPEED_COL_OUTPUT]) * w;
+        heat_sources(tb, veh, p->row, w, FABS(p->used[GVS_I_TORQUE]), &o, retarder_w, src);
+    }
+    for (i = 0; i < tb->n; ++i) q[i] = R_(0.0);
+    for (k = 0; k < tb->nsrc_nz; ++k) q[tb->src_nz_node[k]] += heat[tb->src_nz_src[k]] * tb->src_nz_w[k];
+}
+
+/* ttl_bound.cooler_chord_slope: (Q(T_far) - Q_step) / (T_far - T_step), at least 0 */
+static gvs_real bound_cooler_slope(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl_point *p, gvs_real T)
+{
+    gvs_real w_ls = FABS(tb->speed_coef[p->row * tb->n_speed + GVS_SPEED_COL_LAYSHAFT]) * p->omega_in_rad_s;
+    gvs_real mcp = p->rho_cp_j_per_m3k * tb->flow_m3_per_rad * w_ls;
+    const gvs_real *u = p->used;
+    cooler_op_t op;
+    if (tb->cooler_code == GVS_COOLER_NONE || !(w_ls > R_(0.0))) return R_(0.0);
+    cooler_op(tb, veh, w_ls, p->omega_in_rad_s, u[GVS_I_COOL], u[GVS_I_AMB], u[GVS_I_VKMH], mcp, &op);
+    return max_r((cooler_heat(tb, veh, &op, T) - p->Q_cool_w) / (T - p->T_oil_c), R_(0.0));
+}
+
+static gvs_real bound_clip(const gvs_tables *tb, gvs_real T)
+{
+    return clip_r(T, tb->T_grid0_c, tb->T_grid0_c + tb->T_grid_step_k * (gvs_real)(tb->nT - 1));
+}
+
+/* ttl_bound.chord_systems: the far sump T_far by the secant method on the chord system's steady sump (conductances
+ * of the step); 0 when found (ch filled, src its losses), -1 when the sump is settled or none is found */
+static int bound_far_sump(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl_point *p, ttl_chord_t *ch,
+                          gvs_real *src)
+{
+    held_t hs;
+    gvs_real T_inf[GVS_MAX_NODES], q0[GVS_MAX_NODES], qf[GVS_MAX_NODES], src_k[GVS_MAX_SRC];
+    gvs_real T0 = p->T_oil_c, t_prev = T0, g_prev, g, T_far, b_k[GVS_MAX_NODES], slope_k;
+    int32_t i, it, io = tb->i_oil, found = 0;
+    ttl_chord_t *tr = ch;
+    if (held_build(tb, veh, p, p->src_w, p->G_w_per_k, p->G_streams_w_per_k, T0, 0, &hs, T_inf, NULL) != 0)
+        return -1;
+    g_prev = T_inf[io] - T0;
+    if (!(FABS(g_prev) >= R_(GVS_TTL_BOUND_TOL_K))) return -1;
+    bound_heat(tb, veh, p, T0, NULL, q0);
+    T_far = bound_clip(tb, T0 + g_prev);
+    for (it = 0; it < GVS_TTL_BOUND_ITERS; ++it) {
+        if (FABS(T_far - T0) < R_(GVS_TTL_BOUND_TOL_K)) break;
+        bound_heat(tb, veh, p, T_far, src_k, qf);
+        for (i = 0; i < tb->n; ++i) b_k[i] = (q0[i] - qf[i]) / (T0 - T_far);
+        slope_k = bound_cooler_slope(tb, veh, p, T_far);
+        {
+            /* the trial chord in scratch: ch keeps the last one that has a finite steady state */
+            ttl_chord_t trial;
+            trial.slope = slope_k;
+            trial.T_far = T_far;
+            memcpy(trial.beta, b_k, (size_t)tb->n * sizeof(gvs_real));
+            if (held_build(tb, veh, p, src_k, p->G_w_per_k, p->G_streams_w_per_k, T0, 0, &hs, T_inf, &trial) != 0)
+                break;
+            *tr = trial;
+        }
+        memcpy(src, src_k, (size_t)tb->ns * sizeof(gvs_real));
+        found = 1;
+        g = T_inf[io] - T_far;
+        if (!(FABS(g) >= R_(GVS_TTL_BOUND_TOL_K)) || g == g_prev) break;
+        {
+            gvs_real t_next = bound_clip(tb, T_far - g * (T_far - t_prev) / (g - g_prev));
+            t_prev = T_far;
+            g_prev = g;
+            T_far = t_next;
+        }
+    }
+    return found ? 0 : -1;
+}
+
+static int ttl_refresh(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl_point *p, gvs_real *ttl_s,
+                       int bound);
+
+/* a crossing within GVS_TTL_BOUND_GATE_S: today's march too, the earlier of the two (no warning later than today's) */
+static void bound_gate(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl_point *p, gvs_real *ttl_s)
+{
+    gvs_real today[GVS_N_PUB];
+    int j;
+    for (j = 0; j < GVS_N_PUB && !(ttl_s[j] <= R_(GVS_TTL_BOUND_GATE_S)); ++j) {}
+    if (j == GVS_N_PUB) return;
+    ttl_refresh(tb, veh, p, today, 0);
+    for (j = 0; j < GVS_N_PUB; ++j)
+        if (today[j] < ttl_s[j]) ttl_s[j] = today[j];
+}
+
+/* the bounded time to limit (ttl_bound.time_to_limit_bound): the earlier of the two chord systems (the step's
+ * conductances, those of T_far's bin); the step's own system when the sump is settled, held or not found */
+static int ttl_refresh_bound(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl_point *p, gvs_real *ttl_s)
+{
+    gvs_real T_watch, src[GVS_MAX_SRC], G[GVS_MAX_LINKS], Gs[GVS_MAX_STREAMS], other[GVS_N_PUB];
+    int measured = p->measured && !tb->ttl_sump_model, rc_a, rc_b, j;
+    ttl_chord_t ch;
+    if (measured || !tb->ttl_relinearise || bound_far_sump(tb, veh, p, &ch, src) != 0) {
+        ttl_solve(tb, veh, p, p->src_w, p->G_w_per_k, p->G_streams_w_per_k, p->T_oil_c, measured, ttl_s, &T_watch,
+                  NULL);
+        bound_gate(tb, veh, p, ttl_s);
+        return GVS_OK;
+    }
+    rc_a = ttl_solve(tb, veh, p, src, p->G_w_per_k, p->G_streams_w_per_k, p->T_oil_c, 0, ttl_s, &T_watch, &ch);
+    bin_conductances(tb, veh, p->row, speed_bin_centre(tb, p->omega_in_rad_s),
+                     RINT(ch.T_far / tb->oil_bin_c) * tb->oil_bin_c, G, Gs);
+    rc_b = ttl_solve(tb, veh, p, src, G, Gs, ch.T_far, 0, other, &T_watch, &ch);
+    if (rc_b != 0) {
+        if (rc_a != 0)
+            for (j = 0; j < GVS_N_PUB; ++j) ttl_s[j] = (gvs_real)NAN;
+    } else {
+        for (j = 0; j < GVS_N_PUB; ++j)
+            if (rc_a != 0 || other[j] < ttl_s[j]) ttl_s[j] = other[j];
+    }
+    bound_gate(tb, veh, p, ttl_s);
+    return GVS_OK;
+}
+
+static int ttl_refresh(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl_point *p, gvs_real *ttl_s, int bound)
 {
     gvs_real T_watch, T_op = p->T_oil_c, src[GVS_MAX_SRC], G[GVS_MAX_LINKS], Gs[GVS_MAX_STREAMS];
     int measured = p->measured && !tb->ttl_sump_model, it;
@@ -1014,7 +1177,8 @@ int gvs_ttl_refresh(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl_
         for (it = 0; it < GVS_N_PUB; ++it) ttl_s[it] = (gvs_real)NAN;
         return GVS_OK;
     }
-    if (ttl_solve(tb, veh, p, p->src_w, p->G_w_per_k, p->G_streams_w_per_k, T_op, measured, ttl_s, &T_watch) != 0
+    if (bound) return ttl_refresh_bound(tb, veh, p, ttl_s);
+    if (ttl_solve(tb, veh, p, p->src_w, p->G_w_per_k, p->G_streams_w_per_k, T_op, measured, ttl_s, &T_watch, NULL) != 0
         || !tb->ttl_sump_model || !tb->ttl_relinearise)
         return GVS_OK;
     for (it = 0; it < GVS_TTL_RELINEARISE_STEPS; ++it) {
@@ -1025,9 +1189,14 @@ int gvs_ttl_refresh(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl_
         retarder_w = retarder_heat_w(tb, veh, p->row, w, p->used[GVS_I_RET]);
         heat_sources(tb, veh, p->row, w, FABS(p->used[GVS_I_TORQUE]), &o, retarder_w, src);
         bin_conductances(tb, veh, p->row, speed_bin_centre(tb, w), RINT(T_op / tb->oil_bin_c) * tb->oil_bin_c, G, Gs);
-        if (ttl_solve(tb, veh, p, src, G, Gs, T_op, measured, ttl_s, &T_watch) != 0) break;
+        if (ttl_solve(tb, veh, p, src, G, Gs, T_op, measured, ttl_s, &T_watch, NULL) != 0) break;
     }
     return GVS_OK;
+}
+
+int gvs_ttl_refresh(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl_point *p, gvs_real *ttl_s)
+{
+    return ttl_refresh(tb, veh, p, ttl_s, tb->ttl_bound);
 }
 
 /* ---- the step (step.step_deferred; step._finish) ------------------------------------------------------------- */

@@ -104,6 +104,9 @@ typedef int32_t gvs_idx;
 #define GVS_TTL_RELINEARISE_STEPS 2             /* re-linearisations at the predicted sump */
 #define GVS_TTL_RELINEARISE_TOL_K 0.5           /* ... until the sump moves less than this [K] */
 #define GVS_COUPLING_MARGIN 1e-06               /* the coupled held system needs 1 - e^T K^-1 u above this */
+#define GVS_TTL_BOUND_ITERS 4                   /* bounded time to limit: steady solves for the chord's far sump */
+#define GVS_TTL_BOUND_TOL_K 0.5                 /* ... until it moves less than this [K] */
+#define GVS_TTL_BOUND_GATE_S 60.0               /* a crossing within this: today's march too, the earlier [s] */
 
 /* input fields (records.INPUT_FIELDS order) */
 enum { GVS_I_SPEED = 0, GVS_I_TORQUE = 1, GVS_I_GEAR = 2, GVS_I_OIL = 3, GVS_I_AMB = 4, GVS_I_COOL = 5, GVS_I_VKMH = 6,
@@ -239,7 +242,8 @@ typedef struct {
     /* time to limit (gvs_ttl_refresh; firmware_model.onboard.held_march, time_to_limit): heat capacities, the sparse
      * LDL^T pattern of C/h + K (firmware_model.onboard.sparse_ldl), the components whose crossing re-linearises, and
      * the options: the sump heats with the held load (else a measured sump is held), and re-linearise at the
-     * predicted sump (every effect one value for all vehicles) */
+     * predicted sump (every effect one value for all vehicles); ttl_bound: the bounded method (ttl_bound,
+     * gvs_kernel.c ttl_refresh_bound; 0: today's march, ttl_method 'march') */
     const gvs_real *C_j_per_k;          /* (n) [J/K] */
     const gvs_idx *ldl_perm, *ldl_pos;  /* (n) */
     const gvs_idx *ldl_col_ptr;         /* (n + 1) */
@@ -248,7 +252,7 @@ typedef struct {
     const gvs_idx *ldl_upd_ptr;         /* (n + 1) */
     const gvs_idx *ldl_upd_target, *ldl_upd_a, *ldl_upd_b; /* (ldl_nupd) */
     const gvs_idx *ttl_relin;           /* (N_PUB) */
-    int32_t ldl_nnz, ldl_nupd, ttl_sump_model, ttl_relinearise;
+    int32_t ldl_nnz, ldl_nupd, ttl_sump_model, ttl_relinearise, ttl_bound;
 } gvs_tables;
 
 /* Effect values and boundary defaults of one vehicle (firmware_model.effects; neutral = 1 / 0). */
