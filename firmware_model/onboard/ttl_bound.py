@@ -27,13 +27,12 @@ import math
 import numpy as np
 
 from firmware_model.components import PUBLISHED
-from firmware_model.onboard import reduce as R
+from firmware_model.onboard import evaluate as E
 from firmware_model.onboard.conductance_bins import LN_SPEED_BIN, OIL_BIN_C, SPEED_BIN_MIN_RAD_S
 from firmware_model.onboard.held_march import HeldSystem, march_time_to_limit
 from firmware_model.onboard.kernel_interface import (
     COUPLING_MARGIN,
     SPEED_COL_LAYSHAFT,
-    SPEED_COL_OUTPUT,
     TTL_BOUND_GATE_S,
     TTL_BOUND_ITERS,
     TTL_BOUND_TOL_K,
@@ -125,7 +124,7 @@ def bin_centre(omega_in_rad_s: float, T_oil_c: float) -> tuple[float, float]:
 
 def _clip_oil_c(T_c: float) -> float:
     """Within the oil tables' range (the properties are held beyond it)."""
-    return min(max(T_c, float(R.T_GRID_C[0])), float(R.T_GRID_C[-1]))
+    return min(max(T_c, float(E.T_GRID_C[0])), float(E.T_GRID_C[-1]))
 
 
 def _steady_sump_c(system: HeldSystem, i_oil: int) -> float:
@@ -141,14 +140,9 @@ def _steady_sump_c(system: HeldSystem, i_oil: int) -> float:
 def loss_heat_w(sp: SensorParams, p: TtlPoint, T_op_c: float) -> np.ndarray:
     """Heat of every loss source [W] with the point's load at sump temperature T_op (as the step evaluates it)."""
     rp, h, e = sp.reduced, sp.helpers, sp.effects
-    x, prop, _ = R.oil_row(rp, T_op_c, h)
-    retarder_w = (
-        float(e.retarder_frac)
-        * float(p.used[I_RET])
-        * abs(float(rp.speed_coef[p.row, SPEED_COL_OUTPUT]))
-        * p.omega_in_rad_s
-    )
-    return R.heat_sources(
+    x, prop, _ = E.oil_row(rp, T_op_c, h)
+    retarder_w = float(E.retarder_heat_w(rp, p.row, p.omega_in_rad_s, float(p.used[I_RET]), float(e.retarder_frac)))
+    return E.heat_sources(
         rp,
         p.row,
         p.omega_in_rad_s,
@@ -165,12 +159,12 @@ def loss_heat_w(sp: SensorParams, p: TtlPoint, T_op_c: float) -> np.ndarray:
 
 def cooler_chord_slope(sp: SensorParams, p: TtlPoint, T_far_c: float, vehicle=None) -> float:
     """The cooler's chord from the step's sump to T_far [W/K]: (Q(T_far) - Q_step) / (T_far - T_step), at least 0
-    (firmware_model.onboard.reduce.cooler_heat with the point's inputs, as held_inputs.cooler_slope_w_per_k)."""
+    (firmware_model.onboard.evaluate.cooler_heat with the point's inputs, as held_inputs.cooler_slope_w_per_k)."""
     rp = sp.reduced
     omega_ls = abs(float(rp.speed_coef[p.row, SPEED_COL_LAYSHAFT])) * p.omega_in_rad_s
-    if rp.cooler_code == R.COOLER_CODES["none"] or omega_ls <= 0.0:
+    if rp.cooler_code == E.COOLER_CODES["none"] or omega_ls <= 0.0:
         return 0.0
-    Q_far_w, _, _ = R.cooler_heat(
+    Q_far_w, _, _ = E.cooler_heat(
         rp,
         T_far_c,
         omega_ls,

@@ -1054,8 +1054,7 @@ static void bound_heat(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_t
     oil_row_t o;
     if (src) {
         oil_row(tb, T, &o, NULL);
-        retarder_w = veh->retarder_frac * p->used[GVS_I_RET]
-            * FABS(tb->speed_coef[p->row * tb->n_speed + GVS_SPEED_COL_OUTPUT]) * w;
+        retarder_w = retarder_heat_w(tb, veh, p->row, w, p->used[GVS_I_RET]);
         heat_sources(tb, veh, p->row, w, FABS(p->used[GVS_I_TORQUE]), &o, retarder_w, src);
     }
     for (i = 0; i < tb->n; ++i) q[i] = R_(0.0);
