@@ -53,9 +53,9 @@ def add_subparser(sub):
         "--model",
         choices=("onboard", "plant"),
         default="onboard",
-        help="model under diagnosis: the onboard reduced model that runs in the truck (default; the "
-        "reference plant is used, and said so, while the onboard model is not available) or the "
-        "reference plant",
+        help="model under diagnosis: onboard, the reduced model that runs in the truck (the reference plant is "
+        "used, and said so, while the onboard model is not available), or plant, the reference plant "
+        "(default: onboard)",
     )
     p.add_argument("--json", required=True, metavar="OUT.json", help="the gap-diagnosis result (written atomically)")
     p.add_argument("--report", metavar="OUT.md", help="also write a Markdown report with PNG plots next to it")

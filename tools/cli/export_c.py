@@ -37,8 +37,8 @@ def add_subparser(sub):
         "--real",
         choices=("float", "double"),
         default="float",
-        help="the real type of the build: float (an ECU's single-precision FPU; default) or double "
-        "(parity with the Python reference)",
+        help="the real type of the build: float (an ECU's single-precision FPU) or double "
+        "(parity with the Python reference) (default: float)",
     )
     p.add_argument("--out", required=True, metavar="DIR", help="directory to write (created)")
     # moved: --no-ttl to [export] time_to_limit = false, still accepted (hidden) and overriding it; --quiet (its two

@@ -32,7 +32,7 @@ def add_subparser(sub):
         "--fmi",
         choices=("2", "3"),
         default="2",
-        help="FMI version: 2 (default; most rigs import it) or 3 (Float64/Int32 variables)",
+        help="FMI version: 2 (most rigs import it) or 3 (Float64/Int32 variables) (default: 2)",
     )
     p.add_argument("--out", required=True, metavar="FILE.fmu", help="the FMU to write")
     # moved: --variant to [gearbox] variant, still accepted (hidden) and overriding it; --quiet (its one line:
