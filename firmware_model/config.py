@@ -21,6 +21,8 @@ Example::
     TRF1 = 0x21                 # e.g. a Navistar: gear (ETC2) from 0x03, transmission oil (TRF1) from 0x21
     [sensor]
     oil_mode = "measured"        # measured | model
+    [diagnosis]                 # the commands' settings (SETTINGS): [simulate], [replay], [bus], [gateway], [plant],
+    start = "running"           # [diagnosis], [calibration], [bench], [fleet], [export]; docs/interfaces.md section 8
 """
 
 from __future__ import annotations
@@ -115,7 +117,6 @@ _STARTS = ("auto", "rest", "running")
 SETTINGS = {
     "simulate.rate_hz": Setting(10.0, "float", "--rate", 0.001, 1000.0),
     "simulate.noise": Setting(False, "bool", "--noise"),
-    "simulate.seed": Setting(0, "int", "--seed", 0),
     "simulate.dt_s": Setting(0.5, "float", "--dt", 0.01, 5.0),
     "simulate.out_dt_s": Setting(1.0, "float", "--out-dt", 0.01, 3600.0),
     "simulate.initial_temp_c": Setting(None, "float", "--initial-temp", -40.0, 200.0),

@@ -182,7 +182,7 @@ def run(args) -> int:
     cal = _fit(args, cfg, params)
     for st in cal.starts:
         if st.hint:
-            print(f"warning: {st.name}: {st.hint.replace('diagnose with', 'calibrate with')}", file=sys.stderr)
+            print(f"warning: {st.name}: {_calibrate_hint(st.hint)}", file=sys.stderr)
     if args.report:
         _write_report(args.report, cal, params)
     if cal.thin_evidence():  # too few effective samples: said, with the advice, written or not
@@ -202,6 +202,11 @@ def run(args) -> int:
     if not args.quiet:
         _print_summary(args, cal)
     return 0
+
+
+def _calibrate_hint(hint: str) -> str:
+    """A start hint of the diagnosis (tools/diagnosis/start.py), worded for calibrate."""
+    return hint.replace("diagnose with", "calibrate with").replace("[diagnosis] start", "[calibration] start")
 
 
 def _fit(args, cfg, params):

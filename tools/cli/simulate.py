@@ -52,7 +52,7 @@ def add_subparser(sub):
         "--config",
         metavar="TOML",
         help="project configuration: gearbox variant, cooler, boundaries, [can], and [simulate] (sample rate, "
-        "noise and seed of named cycles, plant step, output period, initial and held sump temperature: "
+        "noise of named cycles, plant step, output period, initial and held sump temperature: "
         "docs/interfaces.md section 8)",
     )
     p.add_argument(
@@ -82,6 +82,13 @@ def add_subparser(sub):
         "2026-01-05 (midnight; no zone: UTC); its frame times are then Unix time, as a logger's, "
         "and `fleet` takes each log's date from them (default: frame times from 0 s)",
     )
+    p.add_argument(
+        "--seed",
+        type=int,
+        metavar="N",
+        help="random seed of a named cycle (default 0; one per run, e.g. the logs of a synthetic fleet); an error "
+        "with a CSV run table",
+    )
     p.add_argument("--quiet", action="store_true", help="no progress bar or summary")
     p.add_argument(
         "--allow-untrusted",
@@ -98,14 +105,13 @@ def add_subparser(sub):
 SIMULATE_KEYS = (
     "simulate.rate_hz",
     "simulate.noise",
-    "simulate.seed",
     "simulate.dt_s",
     "simulate.out_dt_s",
     "simulate.initial_temp_c",
     "simulate.hold_oil_c",
 )
 #: those that only apply to named cycles
-CYCLE_KEYS = ("simulate.rate_hz", "simulate.noise", "simulate.seed")
+CYCLE_KEYS = ("simulate.rate_hz", "simulate.noise")
 
 
 def _add_hidden_options(p) -> None:
@@ -125,7 +131,7 @@ def resolve_settings(args, cfg) -> SimpleNamespace:
     s = SimpleNamespace(**{k.split(".")[1]: setting(args, cfg, k) for k in SIMULATE_KEYS})
     s.cooler = args.cooler or cfg.cooler
     named = args.cycle.strip().lower().split(":")[0] in CYCLE_NAMES
-    on_table = given(args, CYCLE_KEYS)
+    on_table = given(args, CYCLE_KEYS) + (["--seed"] if args.seed is not None else [])
     if on_table and not named:
         raise InputError(
             f"{', '.join(on_table)} {'applies' if len(on_table) == 1 else 'apply'} only to named cycles; "
@@ -137,6 +143,9 @@ def resolve_settings(args, cfg) -> SimpleNamespace:
             f"{held[0]} holds the sump, which cooler {s.cooler} does not: use cooler hold ([cooler] kind = "
             f'"hold" or --cooler hold) or leave the cooler out'
         )
+    args.seed = 0 if args.seed is None else args.seed
+    if args.seed < 0:
+        raise InputError(f"--seed {args.seed} must be a non-negative integer")
     if args.start_time is not None and not args.can_log:
         raise InputError("--start-time sets the time stamps of the CAN log, which only --can-log writes")
     s.start_time = parse_start_time(args.start_time)
@@ -188,7 +197,7 @@ def run(args) -> int:
     plot, heat = plot_paths(args.plot)
     # every output to a temporary file first: a failure (a full disk, a bad [can] value) leaves none of them
     with outputs(("--out", args.out), ("--can-log", args.can_log), ("--plot", plot), ("--plot", heat)) as tmp:
-        table = get_cycle(args.cycle, rate_hz=s.rate_hz, noise=s.noise, seed=s.seed)
+        table = get_cycle(args.cycle, rate_hz=s.rate_hz, noise=s.noise, seed=args.seed)
         if cycle_file is not None and not args.allow_untrusted:
             _refuse_unit_mistakes(table, cycle_file, oil_used=s.cooler == "measured")
         plant = ReferencePlant(params, effects, cooler=s.cooler, dt_s=s.dt_s)

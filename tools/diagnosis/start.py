@@ -13,9 +13,10 @@ from cold, the benchmark's scenarios. It is wrong for a file cut from a longer d
   0.2-1.4 degC RMS in the first 150 s, 0.03-0.26 degC 300-450 s in, mostly under 0.1 degC after 600 s).
 
 So a file that starts running is scored from ``burn_in_s`` (600 s) on (a rig thermocouple from ``burn_in_tc_s``,
-900 s: :func:`scored_from`; with 300 s, what was left of the start took a 4 % cooler change on a null truck), and the housings' start is a second initial-state nuisance of that file, fitted with the
-uniform one (``housing_offset_lo_c``..``housing_offset_hi_c`` from the sump). Which files start running
-(``Options.start``: ``auto``, ``rest`` or ``running``; ``--start``):
+900 s: :func:`scored_from`; with 300 s, what was left of the start took a 4 % cooler change on a null truck), and
+the housings' start is a second initial-state nuisance of that file, fitted with the uniform one
+(``housing_offset_lo_c``..``housing_offset_hi_c`` from the sump). Which files start running (``Options.start``:
+``auto``, ``rest`` or ``running``; the configuration's ``[diagnosis] start``):
 
 * ``auto`` (the default) diagnoses every file at rest first. Then, per file, on the residual the verdict leaves (the
   effect or set it found, else the unmodified model): the file started running when the oil's first
@@ -210,7 +211,8 @@ def judge(ds, resid: list, sens: list, sens_h: list, w: list, sigma: dict, opts:
             ds.role,
             "rest",
             f"at rest: {house} would fit it better, but it has no oil channel to "
-            f"judge its first minutes by; if it was cut from a drive, use --start running",
+            f"judge its first minutes by; if it was cut from a drive, use --start running "
+            f'(configuration [diagnosis] start = "running")',
             beta,
             ev,
         )
@@ -221,7 +223,7 @@ def judge(ds, resid: list, sens: list, sens_h: list, w: list, sigma: dict, opts:
             "rest",
             f"at rest: {house} would fit it better, but its first minutes fit a "
             f"start at rest (no real gap before the burn-in); if it begins after a short stop, try "
-            f"--start running",
+            f'--start running (configuration [diagnosis] start = "running")',
             beta,
             ev,
         )
@@ -304,8 +306,8 @@ def decide_starts(opts: Options, train: list, test: list, records: tuple = ()) -
                 rec = replace(
                     rec,
                     hint=f"{hint}: if it was cut from a longer drive or logged after a short stop, "
-                    f"diagnose with --start running (a running start scored at rest shows a "
-                    f"false gap)",
+                    f'diagnose with --start running (configuration [diagnosis] start = "running"; a running '
+                    f"start scored at rest shows a false gap)",
                 )
             elif opts.start == "running" and rec.start == "rest":  # asked for, not possible: say so
                 rec = replace(rec, hint=f"--start running was asked, but it is {rec.reason}")
