@@ -157,3 +157,19 @@ def test_diagnosis_options_are_grouped_by_stage_and_read_as_before():
     assert sum(len(cls.__dataclass_fields__) for cls in STAGE_OPTIONS.values()) == 42
     with pytest.raises(TypeError, match="unexpected keyword argument 'grid_dt'"):
         Options(grid_dt=1.0)
+
+
+def test_fleet_reads_its_settings_from_its_config(tmp_path, capsys):
+    """fleet took --config ([fleet] estimates, period_days, report, and the configuration of the logs a manifest
+    row gives none): a bad value is one sentence naming its key before anything runs; --period-days (hidden) still
+    needs --diagnose."""
+    log = tmp_path / "logs" / "truck1.log"
+    log.parent.mkdir()
+    log.write_text("(0.000000) vcan0 0CF00400#FFFF7D803EFFFFFF\n")
+    cfg = tmp_path / "fleet.toml"
+    cfg.write_text("[fleet]\nperiod_days = 0\n")
+    out = tmp_path / "out"
+    assert main(["fleet", str(log.parent), "--out", str(out), "--config", str(cfg)]) == 2
+    assert "fleet.period_days = 0 must be a whole number in 1..3650" in capsys.readouterr().err
+    assert main(["fleet", str(log.parent), "--out", str(out), "--period-days", "2"]) == 2
+    assert "only --diagnose runs" in capsys.readouterr().err and not out.exists()

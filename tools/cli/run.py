@@ -42,8 +42,9 @@ def add_subparser(sub):
     p.add_argument(
         "--config",
         metavar="TOML",
-        help="project configuration: gearbox variant, [can], [sensor], [bus] (bit rate, receive filters, rig "
-        "frames) and [gateway] (log level, real-time priority, state save period): docs/interfaces.md section 8",
+        help="project configuration: gearbox variant, [can], [sensor], [bus] (bitrate_bit_s, receive_filters, "
+        "receive_rig: the rig thermocouple frames) and [gateway] (log_level INFO, rt_priority: SCHED_FIFO 1..99, "
+        "state_period_s 60): docs/interfaces.md section 8",
     )
     p.add_argument("--duration", type=float, metavar="S", help="stop after this many seconds of wall time")
     p.add_argument(
