@@ -88,13 +88,14 @@ class Setting:
     option: str
     low: float = -math.inf
     high: float = math.inf
+    unit: str = ""  # named in the error sentence: "a whole number of days"
 
     def describe(self) -> str:
         """What a value must be, for an error sentence."""
         if isinstance(self.kind, tuple):
             return " or ".join(repr(k) for k in self.kind)
         if self.kind in ("float", "int"):
-            whole = "a whole number" if self.kind == "int" else "a number"
+            whole = ("a whole number" if self.kind == "int" else "a number") + (f" of {self.unit}" if self.unit else "")
             return f"{whole} in {self.low:g}..{self.high:g}" if math.isfinite(self.high) else f"{whole} >= {self.low:g}"
         return {"bool": "true or false", "str": "a string in quotes"}[self.kind]
 
@@ -145,7 +146,7 @@ SETTINGS = {
     "bench.cooler": Setting("liquid", ("liquid", "air"), "--cooler"),
     "bench.start": Setting("auto", _STARTS, "--start"),
     "fleet.estimates": Setting(False, "bool", "--estimates"),
-    "fleet.period_days": Setting(7, "int", "--period-days", 1, 3650),
+    "fleet.period_days": Setting(7, "int", "--period-days", 1, 3650, "days"),
     "fleet.report": Setting(True, "bool", "--no-report"),
     "export.time_to_limit": Setting(True, "bool", "--no-ttl"),
 }

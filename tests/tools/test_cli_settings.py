@@ -170,6 +170,6 @@ def test_fleet_reads_its_settings_from_its_config(tmp_path, capsys):
     cfg.write_text("[fleet]\nperiod_days = 0\n")
     out = tmp_path / "out"
     assert main(["fleet", str(log.parent), "--out", str(out), "--config", str(cfg)]) == 2
-    assert "fleet.period_days = 0 must be a whole number in 1..3650" in capsys.readouterr().err
+    assert "fleet.period_days = 0 must be a whole number of days in 1..3650" in capsys.readouterr().err
     assert main(["fleet", str(log.parent), "--out", str(out), "--period-days", "2"]) == 2
     assert "only --diagnose runs" in capsys.readouterr().err and not out.exists()

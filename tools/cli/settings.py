@@ -27,8 +27,8 @@ def add_hidden(parser, key: str) -> None:
         kw.update(action="store_const", const=not s.option.startswith("--no-"))
     elif isinstance(s.kind, tuple):
         kw.update(choices=s.kind, type=str.upper if all(k.isupper() for k in s.kind) else str)
-    else:
-        kw.update(type=float if s.kind == "float" else int)
+    else:  # a whole number too is read as a number, so that 0.5 is refused in the setting's own sentence
+        kw.update(type=float)
     parser.add_argument(s.option, **kw)
 
 
@@ -41,7 +41,7 @@ def setting(args, cfg, key: str):
         return cfg.setting(key)
     if not s.accepts(v):
         raise InputError(f"{s.option} {v:g} must be {s.describe()} (configuration key {key})")
-    return v
+    return int(v) if s.kind == "int" else v
 
 
 def given(args, keys) -> list[str]:
