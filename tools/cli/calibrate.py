@@ -59,8 +59,9 @@ def add_subparser(sub):
         "--config",
         metavar="TOML",
         help="project configuration: [gearbox] variant or params = a parameter file (one calibrate wrote, too), "
-        "cooler kind, and [calibration] (plant step, worker processes, how the runs start: docs/interfaces.md "
-        "section 8)",
+        "cooler kind, and [calibration]: plant_dt_s (the plant's step, 2 s: slow thermal fits lose nothing), "
+        "workers (processes: 2 or the number of cores), start (how the runs start: auto, rest or running; above) "
+        "(docs/interfaces.md section 8)",
     )
     p.add_argument("--quiet", action="store_true", help="no progress or summary")
     # moved to the configuration, still accepted (hidden) and overriding it: [cooler] kind and [calibration]

@@ -46,8 +46,9 @@ def add_subparser(sub):
         "--config",
         metavar="TOML",
         help="project configuration: gearbox variant, cooler kind (none, liquid, air, hold, measured), boundaries, "
-        "and [diagnosis] (analysis grid, plant step, worker processes, how the files start: docs/interfaces.md "
-        "section 8)",
+        "and [diagnosis]: grid_dt_s (analysis grid, 2 s), plant_dt_s (the re-simulations' step, 1 s), workers "
+        "(processes: 2 or the number of cores), start (how the files start: auto, rest or running; below) "
+        "(docs/interfaces.md section 8)",
     )
     p.add_argument(
         "--model",

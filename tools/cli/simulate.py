@@ -51,9 +51,10 @@ def add_subparser(sub):
     p.add_argument(
         "--config",
         metavar="TOML",
-        help="project configuration: gearbox variant, cooler, boundaries, [can], and [simulate] (sample rate, "
-        "noise of named cycles, plant step, output period, initial and held sump temperature: "
-        "docs/interfaces.md section 8)",
+        help="project configuration: gearbox variant, cooler ([cooler] kind: none, liquid, air, hold, measured), "
+        "boundaries, [can], and [simulate]: rate_hz (10) and noise (false) of named cycles, dt_s (plant step, "
+        "0.5 s), out_dt_s (output period, 1 s), initial_temp_c (every node's start), hold_oil_c (the held sump) "
+        "(docs/interfaces.md section 8)",
     )
     p.add_argument(
         "--effect",
