@@ -89,9 +89,12 @@ class Setting:
     low: float = -math.inf
     high: float = math.inf
     unit: str = ""  # named in the error sentence: "a whole number of days"
+    text: str = ""  # what a value must be, when it says more than the kind and range
 
     def describe(self) -> str:
         """What a value must be, for an error sentence."""
+        if self.text:
+            return self.text
         if isinstance(self.kind, tuple):
             return " or ".join(repr(k) for k in self.kind)
         if self.kind in ("float", "int"):
@@ -124,7 +127,9 @@ SETTINGS = {
     "simulate.hold_oil_c": Setting(None, "float", "--hold-oil", -40.0, 200.0),
     "replay.initial_temp_c": Setting(None, "float", "--initial-temp", -40.0, 200.0),
     "replay.strict": Setting(False, "bool", "--strict"),
-    "bus.bitrate_bit_s": Setting(None, "int", "--bitrate", 10_000, 1_000_000),
+    "bus.bitrate_bit_s": Setting(
+        None, "int", "--bitrate", 10_000, 1_000_000, text="a CAN bit rate in 10000..1000000 bit/s"
+    ),
     "bus.receive_filters": Setting(True, "bool", "--no-filters"),
     "bus.receive_rig": Setting(False, "bool", "--rig"),
     "gateway.log_level": Setting("INFO", ("DEBUG", "INFO", "WARNING", "ERROR"), "--log-level"),
