@@ -115,6 +115,8 @@ class Setting:
 
 
 _COOLERS = ("none", "liquid", "air", "hold", "measured")
+#: a temperature a user sets for the gearbox: the oil model's range (firmware_model.physics.oil.check_temperature_c)
+_TEMPERATURE = "a plausible gearbox temperature: use -40..200 degC (the oil model's range)"
 _STARTS = ("auto", "rest", "running")
 #: the commands' settings read from the configuration, by section.key (docs/interfaces.md section 8); the option
 #: each replaced is still accepted, hidden, and wins over the file
@@ -123,9 +125,9 @@ SETTINGS = {
     "simulate.noise": Setting(False, "bool", "--noise"),
     "simulate.dt_s": Setting(0.5, "float", "--dt", 0.01, 5.0),
     "simulate.out_dt_s": Setting(1.0, "float", "--out-dt", 0.01, 3600.0),
-    "simulate.initial_temp_c": Setting(None, "float", "--initial-temp", -40.0, 200.0),
-    "simulate.hold_oil_c": Setting(None, "float", "--hold-oil", -40.0, 200.0),
-    "replay.initial_temp_c": Setting(None, "float", "--initial-temp", -40.0, 200.0),
+    "simulate.initial_temp_c": Setting(None, "float", "--initial-temp", -40.0, 200.0, text=_TEMPERATURE),
+    "simulate.hold_oil_c": Setting(None, "float", "--hold-oil", -40.0, 200.0, text=_TEMPERATURE),
+    "replay.initial_temp_c": Setting(None, "float", "--initial-temp", -40.0, 200.0, text=_TEMPERATURE),
     "replay.strict": Setting(False, "bool", "--strict"),
     "bus.bitrate_bit_s": Setting(
         None, "int", "--bitrate", 10_000, 1_000_000, text="a CAN bit rate in 10000..1000000 bit/s"

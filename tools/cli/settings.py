@@ -40,7 +40,8 @@ def setting(args, cfg, key: str):
     if v is None:
         return cfg.setting(key)
     if not s.accepts(v):
-        raise InputError(f"{s.option} {v:g} must be {s.describe()} (configuration key {key})")
+        shown = f"{v:g}" if s.kind == "int" else repr(float(v)) + (" degC" if key.endswith("_c") else "")
+        raise InputError(f"{s.option} {shown} must be {s.describe()} (configuration key {key})")
     return int(v) if s.kind == "int" else v
 
 

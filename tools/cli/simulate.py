@@ -19,7 +19,8 @@ from tools.cli.settings import add_hidden, given, setting
 from tools.outputs import naming, outputs
 
 
-def add_subparser(sub):
+def _help_texts() -> tuple[str, str]:
+    """The description (the named cycles) and the epilog (examples, the effects) of `simulate --help`."""
     from tools.cycles.named import CYCLE_NAMES
 
     # the channel effects (a rig thermocouple's offset) act on a reading: the plant writes true temperatures
@@ -28,22 +29,33 @@ def add_subparser(sub):
         for e in CATALOG.values()
         if e.id not in CHANNEL_EFFECTS
     )
-    p = sub.add_parser(
-        "simulate",
-        help="run the reference plant (the thesis's full network) over a drive cycle",
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-        description="Run the reference thermal plant (61 thermal masses, every loss and heat path of the seed) "
+    description = (
+        "Run the reference thermal plant (61 thermal masses, every loss and heat path of the seed) "
         "over a drive cycle and write a run table with every node temperature, every loss and every "
         "heat flow to the outside.\n\nNamed cycles are SYNTHETIC, modelled on the thesis's load cases: "
         + ", ".join(CYCLE_NAMES)
         + "; or 'steady:gear=4L,rpm=1300,nm=2000,s=3600,oil=100'; or a CSV "
         "run table (docs/interfaces.md section 3). Component codes (PS, BLR, LS@1L ...): "
-        "docs/glossary.md.",
-        epilog="examples:\n  gearbox-vsensor simulate --cycle uphill --out uphill.csv --plot uphill.png\n"
+        "docs/glossary.md."
+    )
+    epilog = (
+        "examples:\n  gearbox-vsensor simulate --cycle uphill --out uphill.csv --plot uphill.png\n"
         "  gearbox-vsensor simulate --cycle steady:gear=4L,rpm=1300,nm=2000,s=3600,oil=100 --config rig.toml "
         '--out s.csv   # rig.toml: [cooler] kind = "hold"\n'
         "  gearbox-vsensor simulate --cycle mining --effect retarder_heat:fraction=0.05 --out m.csv\n\n"
-        "effects (docs/interfaces.md section 6): " + effects,
+        "effects (docs/interfaces.md section 6): " + effects
+    )
+    return description, epilog
+
+
+def add_subparser(sub):
+    description, epilog = _help_texts()
+    p = sub.add_parser(
+        "simulate",
+        help="run the reference plant (the thesis's full network) over a drive cycle",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        description=description,
+        epilog=epilog,
     )
     p.add_argument(
         "--cycle", required=True, metavar="NAME_OR_CSV", help="named cycle, steady:... spec, or a CSV run table"
