@@ -114,7 +114,6 @@ class Setting:
         return self.low <= v <= self.high
 
 
-_COOLERS = ("none", "liquid", "air", "hold", "measured")
 #: a temperature a user sets for the gearbox: the oil model's range (firmware_model.physics.oil.check_temperature_c)
 _TEMPERATURE = "a plausible gearbox temperature: use -40..200 degC (the oil model's range)"
 _STARTS = ("auto", "rest", "running")
