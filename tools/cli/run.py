@@ -84,7 +84,8 @@ def run(args) -> int:
 
     if given(args, ("gateway.state_period_s",)) and not args.state_file:
         raise InputError("--state-period sets how often --state-file is saved; give --state-file too")
-    s = {key: setting(args, load_config(args.config), key) for key in RUN_KEYS}
+    cfg = load_config(args.config)
+    s = {key: setting(args, cfg, key) for key in RUN_KEYS}
     settings = LiveSettings(
         interface=args.interface,
         channel=args.channel,
