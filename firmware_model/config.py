@@ -21,10 +21,13 @@ Example::
     TRF1 = 0x21                 # e.g. a Navistar: gear (ETC2) from 0x03, transmission oil (TRF1) from 0x21
     [sensor]
     oil_mode = "measured"        # measured | model
+    [diagnosis]                 # the commands' settings (SETTINGS): [simulate], [replay], [bus], [gateway], [plant],
+    start = "running"           # [diagnosis], [calibration], [bench], [fleet], [export]; docs/interfaces.md section 8
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -74,6 +77,89 @@ ALLOWED = {
 }
 
 
+@dataclass(frozen=True)
+class Setting:
+    """A command's setting that lives in the configuration (not on the command line): its default, what it may be
+    (``kind``: "float" or "int" within ``low..high``, "bool", "str", or a tuple of the words allowed) and the
+    command-line option it replaced (still accepted, hidden, and overriding the file)."""
+
+    default: object
+    kind: object
+    option: str
+    low: float = -math.inf
+    high: float = math.inf
+    unit: str = ""  # named in the error sentence: "a whole number of days"
+    text: str = ""  # what a value must be, when it says more than the kind and range
+
+    def describe(self) -> str:
+        """What a value must be, for an error sentence."""
+        if self.text:
+            return self.text
+        if isinstance(self.kind, tuple):
+            return " or ".join(repr(k) for k in self.kind)
+        if self.kind in ("float", "int"):
+            whole = ("a whole number" if self.kind == "int" else "a number") + (f" of {self.unit}" if self.unit else "")
+            return f"{whole} in {self.low:g}..{self.high:g}" if math.isfinite(self.high) else f"{whole} >= {self.low:g}"
+        return {"bool": "true or false", "str": "a string in quotes"}[self.kind]
+
+    def accepts(self, v) -> bool:
+        if isinstance(self.kind, tuple):
+            return v in self.kind
+        if self.kind == "bool":
+            return isinstance(v, bool)
+        if self.kind == "str":
+            return isinstance(v, str)
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or (self.kind == "int" and not float(v).is_integer()):
+            return False
+        return self.low <= v <= self.high
+
+
+#: a temperature a user sets for the gearbox: the oil model's range (firmware_model.physics.oil.check_temperature_c)
+_TEMPERATURE = "a plausible gearbox temperature: use -40..200 degC (the oil model's range)"
+_STARTS = ("auto", "rest", "running")
+#: the commands' settings read from the configuration, by section.key (docs/interfaces.md section 8); the option
+#: each replaced is still accepted, hidden, and wins over the file
+SETTINGS = {
+    "simulate.rate_hz": Setting(10.0, "float", "--rate", 0.001, 1000.0),
+    "simulate.noise": Setting(False, "bool", "--noise"),
+    "simulate.dt_s": Setting(0.5, "float", "--dt", 0.01, 5.0),
+    "simulate.out_dt_s": Setting(1.0, "float", "--out-dt", 0.01, 3600.0),
+    "simulate.initial_temp_c": Setting(None, "float", "--initial-temp", -40.0, 200.0, text=_TEMPERATURE),
+    "simulate.hold_oil_c": Setting(None, "float", "--hold-oil", -40.0, 200.0, text=_TEMPERATURE),
+    "replay.initial_temp_c": Setting(None, "float", "--initial-temp", -40.0, 200.0, text=_TEMPERATURE),
+    "replay.strict": Setting(False, "bool", "--strict"),
+    "bus.bitrate_bit_s": Setting(
+        None, "int", "--bitrate", 10_000, 1_000_000, text="a CAN bit rate in 10000..1000000 bit/s"
+    ),
+    "bus.receive_filters": Setting(True, "bool", "--no-filters"),
+    "bus.receive_rig": Setting(False, "bool", "--rig"),
+    "gateway.log_level": Setting("INFO", ("DEBUG", "INFO", "WARNING", "ERROR"), "--log-level"),
+    "gateway.rt_priority": Setting(None, "int", "--rt-priority", 1, 99),
+    "gateway.state_period_s": Setting(60.0, "float", "--state-period", 1.0, 86400.0),
+    "plant.seed": Setting(0, "int", "--seed", 0),
+    "plant.rig_frames": Setting(True, "bool", "--no-rig"),
+    "diagnosis.grid_dt_s": Setting(2.0, "float", "--grid-dt", 0.1, 60.0),
+    "diagnosis.plant_dt_s": Setting(1.0, "float", "--plant-dt", 0.05, 5.0),
+    "diagnosis.workers": Setting(None, "int", "--workers", 1),
+    "diagnosis.start": Setting("auto", _STARTS, "--start"),
+    "calibration.plant_dt_s": Setting(2.0, "float", "--plant-dt", 0.05, 5.0),
+    "calibration.workers": Setting(None, "int", "--workers", 1),
+    "calibration.start": Setting("auto", _STARTS, "--start"),
+    "bench.model": Setting("plant", ("plant", "onboard"), "--model"),
+    "bench.train_s": Setting(1500.0, "float", "--train-s", 60.0, 86400.0),
+    "bench.test_s": Setting(1500.0, "float", "--test-s", 60.0, 86400.0),
+    "bench.setup": Setting("rig", ("truck", "rig"), "--setup"),
+    "bench.cooler": Setting("liquid", ("liquid", "air"), "--cooler"),
+    "bench.start": Setting("auto", _STARTS, "--start"),
+    "fleet.estimates": Setting(False, "bool", "--estimates"),
+    "fleet.period_days": Setting(7, "int", "--period-days", 1, 3650, "days"),
+    "fleet.report": Setting(True, "bool", "--no-report"),
+    "export.time_to_limit": Setting(True, "bool", "--no-ttl"),
+}
+for _key in SETTINGS:
+    ALLOWED.setdefault(_key.split(".")[0], set()).add(_key.split(".")[1])
+
+
 @dataclass
 class Config:
     variant: str = "GRS905"
@@ -83,6 +169,12 @@ class Config:
     can: dict = field(default_factory=dict)
     sensor: dict = field(default_factory=dict)
     origin: str = "defaults"
+    #: the values of :data:`SETTINGS` the file gives, by section.key
+    settings: dict = field(default_factory=dict)
+
+    def setting(self, key: str):
+        """The value of a command's setting (:data:`SETTINGS`): the file's, else its default."""
+        return self.settings.get(key, SETTINGS[key].default)
 
     def load_params(self) -> Parameters:
         p = load_parameters(self.params_path or self.variant)
@@ -162,6 +254,10 @@ def load_config(path: str | Path | Config | None) -> Config:
         raise ParameterError(
             f"config {path.name}: cooler.kind = {cooler!r} must be none, liquid, air, hold or measured"
         )
+    settings = {f"{sec}.{k}": v for sec, body in doc.items() for k, v in body.items() if f"{sec}.{k}" in SETTINGS}
+    for key, v in settings.items():
+        if not SETTINGS[key].accepts(v):
+            raise ParameterError(f"config {path.name}: {key} = {v!r} must be {SETTINGS[key].describe()}")
     for k, v in doc.get("boundary", {}).items():
         if not isinstance(v, (int, float)) or not -60 <= v <= 250:
             raise ParameterError(f"config {path.name}: boundary.{k} = {v!r} must be a temperature in -60..250 degC")
@@ -173,4 +269,5 @@ def load_config(path: str | Path | Config | None) -> Config:
         dict(doc.get("can", {})),
         dict(doc.get("sensor", {})),
         str(path),
+        settings,
     )

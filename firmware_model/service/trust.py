@@ -549,8 +549,8 @@ class StartFinding:
         return (
             "the sensor started without an oil reading, every part at the ambient reading (else the parameters' "
             "ambient): if the gearbox was already warm (a log cut mid-drive, a restart), its first temperatures "
-            "are low until the model catches up; replay --initial-temp DEGC sets the start (live: the state "
-            "saved at shutdown)"
+            "are low until the model catches up; replay's configuration [replay] initial_temp_c (or --initial-temp) "
+            "sets the start (live: the state saved at shutdown)"
         )
 
 

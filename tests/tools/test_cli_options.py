@@ -4,6 +4,8 @@ it computes the drive."""
 
 from __future__ import annotations
 
+import argparse
+
 import pytest
 
 from tools.cli import build_parser, main
@@ -29,7 +31,14 @@ SUBCOMMANDS = build_parser().subcommands
 
 
 def long_options(parser) -> list[str]:
-    return [o for a in parser._actions for o in a.option_strings if o.startswith("--") and o != "--help"]
+    """The options --help shows (not the hidden ones that moved to the configuration)."""
+    return [
+        o
+        for a in parser._actions
+        if a.help != argparse.SUPPRESS
+        for o in a.option_strings
+        if o.startswith("--") and o != "--help"
+    ]
 
 
 def test_every_subcommand_has_a_minimal_command_line():

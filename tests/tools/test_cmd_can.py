@@ -117,10 +117,11 @@ def test_plant_streams_inputs_and_rig_frames(capsys):
 def test_run_and_plant_help_explain_every_option(capsys):
     parser = build_parser()
     for cmd, options in (
-        ("run", ["--interface", "--channel", "--config", "--bitrate", "--duration", "--log-level"]),
-        ("plant", ["--interface", "--channel", "--cycle", "--speed", "--config", "--effect"]),
-        ("play", ["--interface", "--channel", "--bitrate", "--speed", "--quiet"]),
-        ("replay", ["--frames-out", "--strict"]),
+        # --bitrate, --log-level (run, plant), --quiet (play) and --strict (replay) moved to the configuration
+        ("run", ["--interface", "--channel", "--config", "bitrate_bit_s", "--duration", "log_level"]),
+        ("plant", ["--interface", "--channel", "--cycle", "--speed", "--config", "--effect", "bitrate_bit_s"]),
+        ("play", ["--interface", "--channel", "--bitrate", "--speed"]),
+        ("replay", ["--frames-out", "strict"]),
     ):
         with pytest.raises(SystemExit):
             parser.parse_args([cmd, "--help"])

@@ -125,7 +125,8 @@ def test_help_explains_every_option(capsys):
     with pytest.raises(SystemExit):
         main(["replay", "--help"])
     text = capsys.readouterr().out
-    for opt in ("--config", "--out", "--plot", "--oil-mode", "--initial-temp"):
+    # --oil-mode and --initial-temp moved to the configuration ([sensor] oil_mode, [replay] initial_temp_c)
+    for opt in ("--config", "--out", "--plot", "oil_mode", "initial_temp_c"):
         assert opt in text
 
 

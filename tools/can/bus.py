@@ -36,9 +36,9 @@ def can_subcommand(sub, name: str, *, summary: str, description: str, examples: 
     )
 
 
-def add_bus_options(parser, *, required: bool = True, purpose: str = "") -> None:
-    """--interface, --channel and --bitrate on ``parser`` (or an argument group); ``purpose`` ends their help
-    ("(the bus to play the log onto)")."""
+def add_bus_options(parser, *, required: bool = True, purpose: str = "", bitrate: bool = True) -> None:
+    """--interface, --channel and (``bitrate``) --bitrate on ``parser`` (or an argument group); ``purpose`` ends
+    their help ("(the bus to play the log onto)")."""
     tail = f" {purpose}" if purpose else ""
     parser.add_argument(
         "--interface",
@@ -49,6 +49,8 @@ def add_bus_options(parser, *, required: bool = True, purpose: str = "") -> None
     parser.add_argument(
         "--channel", required=required, metavar="NAME", help=f"channel of that interface, e.g. can0, vcan0{tail}"
     )
+    if not bitrate:  # a command that reads it from its configuration ([bus] bitrate_bit_s)
+        return
     parser.add_argument(
         "--bitrate",
         type=int,

@@ -51,7 +51,13 @@ def with_suggestion(parser: argparse.ArgumentParser, arg: str) -> str:
 
     if not arg.startswith("--"):
         return arg
-    options = [o for action in parser._actions for o in action.option_strings if o.startswith("--")]
+    options = [
+        o
+        for action in parser._actions
+        if action.help != argparse.SUPPRESS
+        for o in action.option_strings
+        if o.startswith("--")
+    ]
     close = difflib.get_close_matches(arg.split("=", 1)[0], options, n=1, cutoff=0.6)
     return f"{arg} (did you mean {close[0]}?)" if close else arg
 
@@ -96,6 +102,10 @@ def build_parser() -> argparse.ArgumentParser:
                 continue
             raise
         mod.add_subparser(sub)
+    from tools.cli.settings import DefaultsHelpFormatter
+
+    for p in sub.choices.values():  # every option's default in its help
+        p.formatter_class = DefaultsHelpFormatter
     parser.subcommands = dict(sub.choices)
     return parser
 

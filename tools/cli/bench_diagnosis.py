@@ -5,8 +5,10 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
+from types import SimpleNamespace
 
 from firmware_model.errors import InputError
+from tools.cli.settings import add_hidden, given, setting
 
 
 def add_subparser(sub):
@@ -24,28 +26,11 @@ def add_subparser(sub):
             "RMS shrink, seconds per scenario."
         ),
         epilog="examples:\n  gearbox-vsensor bench-diagnosis --scenarios 40 --seed 1 --out bench/\n"
-        "  gearbox-vsensor bench-diagnosis --effect planetary_loss_scale:factor=1.3 --setup rig "
-        "--write-scenarios --out ex/",
+        "  gearbox-vsensor bench-diagnosis --effect planetary_loss_scale:factor=1.3 --write-scenarios --out ex/",
     )
     p.add_argument("--scenarios", type=int, metavar="N", help="number of scenarios (default 40: 8 null)")
     p.add_argument("--seed", type=int, default=1, metavar="S", help="random seed (default 1)")
     p.add_argument("--out", metavar="DIR", help="write bench.md, bench.csv and one JSON per scenario here")
-    p.add_argument(
-        "--model",
-        choices=("plant", "onboard"),
-        default="plant",
-        help="model under diagnosis (default plant: the scenarios' truth is the plant at a finer step)",
-    )
-    p.add_argument(
-        "--train-s",
-        type=float,
-        default=1500.0,
-        metavar="S",
-        help="length of each of the two training cycles (default 1500 s)",
-    )
-    p.add_argument(
-        "--test-s", type=float, default=1500.0, metavar="S", help="length of the test cycle (default 1500 s)"
-    )
     p.add_argument("--only", metavar="I,J,...", help="run only these scenario indices of the plan")
     p.add_argument(
         "--family",
@@ -57,18 +42,10 @@ def add_subparser(sub):
         "calibrate --auto, on the same files)",
     )
     p.add_argument(
-        "--effect", metavar="ID:PARAM=VALUE|none", help="one custom scenario with this effect instead of the plan"
-    )
-    p.add_argument("--setup", choices=("truck", "rig"), help="set-up of the custom scenario (--effect; default rig)")
-    p.add_argument(
-        "--cooler", choices=("liquid", "air"), help="cooler of the custom scenario (--effect; default liquid)"
-    )
-    p.add_argument(
-        "--start",
-        choices=("auto", "rest", "running"),
-        default="auto",
-        help="how each file of a scenario starts, as diagnose's --start (default auto: at rest unless a "
-        "file's residual shows it began running; the table counts the files taken running)",
+        "--effect",
+        metavar="ID:PARAM=VALUE|none",
+        help="one custom scenario with this effect instead of the plan (its set-up and cooler: [bench] setup "
+        "and cooler)",
     )
     p.add_argument(
         "--write-scenarios",
@@ -76,24 +53,32 @@ def add_subparser(sub):
         help="also write each scenario's measured run tables (train1.csv, train2.csv, test1.csv) under "
         "DIR/scenario_NN/, to run `diagnose` on them by hand",
     )
+    p.add_argument(
+        "--config",
+        metavar="TOML",
+        help="a configuration with a [bench] section: model under diagnosis (plant), training and test cycle "
+        "lengths (1500 s), the custom scenario's set-up (rig) and cooler (liquid), how the files start "
+        "(auto) (docs/interfaces.md section 8)",
+    )
+    for key in BENCH_KEYS:  # moved to the configuration, still accepted (hidden) and overriding it
+        add_hidden(p, key)
     p.set_defaults(func=run)
     return p
 
 
-def run(args) -> int:
-    import warnings
+#: the [bench] settings of the configuration (firmware_model.config.SETTINGS)
+BENCH_KEYS = ("bench.model", "bench.train_s", "bench.test_s", "bench.setup", "bench.cooler", "bench.start")
 
-    from firmware_model.effects import parse_effect
-    from tools.diagnosis import bench as B
-    from tools.diagnosis.options import Options
 
-    warnings.filterwarnings("ignore", category=RuntimeWarning)
+def _check(args, s) -> None:
+    """InputError for options of the other mode (a plan, or the custom scenario of --effect) and numbers out of
+    range; then the default of --scenarios."""
     plan_only = [
         o
         for o, v in (("--scenarios", args.scenarios), ("--only", args.only), ("--family", args.family))
         if v is not None
     ]
-    custom_only = [o for o, v in (("--setup", args.setup), ("--cooler", args.cooler)) if v is not None]
+    custom_only = given(args, ("bench.setup", "bench.cooler"))
     if args.effect and plan_only:
         raise InputError(
             f"{', '.join(plan_only)} {'selects' if len(plan_only) == 1 else 'select'} scenarios of the "
@@ -105,58 +90,75 @@ def run(args) -> int:
             f"custom scenario of --effect"
         )
     args.scenarios = 40 if args.scenarios is None else args.scenarios
-    args.setup, args.cooler = args.setup or "rig", args.cooler or "liquid"
     if args.scenarios < 1:
         raise InputError(f"--scenarios {args.scenarios} must be at least 1")
     if args.seed < 0:
         raise InputError(f"--seed {args.seed} must be a non-negative integer")
-    for opt, value_s in (("--train-s", args.train_s), ("--test-s", args.test_s)):
-        if not 60.0 <= value_s <= 86400.0:
-            raise InputError(f"{opt} {value_s} must be within 60..86400 s")
-    if args.family == "model-form" and args.start != "auto":
+    if args.family == "model-form" and s.start != "auto":
+        named = (given(args, ("bench.start",)) or ["bench.start"])[0]
         raise InputError(
-            "--start applies to the diagnosis of the single, sensor and pair families; the model-form "
+            f"{named} applies to the diagnosis of the single, sensor and pair families; the model-form "
             "family's files start at rest"
         )
     if args.write_scenarios and not args.out:
         raise InputError("--write-scenarios needs --out DIR")
-    only = None
-    if args.only:
-        try:
-            only = {int(x) for x in args.only.split(",") if x.strip()}
-        except ValueError:
-            raise InputError(f"--only {args.only!r} must be comma-separated scenario numbers") from None
-        outside = sorted(i for i in only if not 0 <= i < args.scenarios)
-        if outside:
-            raise InputError(
-                f"--only {args.only}: no scenario {', '.join(map(str, outside))} in a plan of "
-                f"{args.scenarios} (numbered 0..{args.scenarios - 1}; --scenarios sets the plan)"
-            )
+
+
+def _only(args):
+    """The scenario numbers of --only (None: all), each within the plan."""
+    if not args.only:
+        return None
+    try:
+        only = {int(x) for x in args.only.split(",") if x.strip()}
+    except ValueError:
+        raise InputError(f"--only {args.only!r} must be comma-separated scenario numbers") from None
+    outside = sorted(i for i in only if not 0 <= i < args.scenarios)
+    if outside:
+        raise InputError(
+            f"--only {args.only}: no scenario {', '.join(map(str, outside))} in a plan of "
+            f"{args.scenarios} (numbered 0..{args.scenarios - 1}; --scenarios sets the plan)"
+        )
+    return only
+
+
+def run(args) -> int:
+    import warnings
+
+    from firmware_model.config import load_config
+    from firmware_model.effects import parse_effect
+    from tools.diagnosis import bench as B
+    from tools.diagnosis.options import Options
+
+    warnings.filterwarnings("ignore", category=RuntimeWarning)
+    cfg = load_config(args.config)
+    s = SimpleNamespace(**{k.split(".")[1]: setting(args, cfg, k) for k in BENCH_KEYS})
+    _check(args, s)
+    only = _only(args)
     custom = None
     if args.effect:
         if args.effect.strip().lower() == "none":
-            custom = (args.setup, None, None, args.cooler)
+            custom = (s.setup, None, None, s.cooler)
         else:
             eid, val = parse_effect(args.effect)
-            custom = (args.setup, eid, val, args.cooler)
+            custom = (s.setup, eid, val, s.cooler)
     from tqdm import tqdm
 
     if args.family == "model-form":
-        return _model_form(args, only)
+        return _model_form(args, s, only)
     # one result line per scenario on stderr, above the progress bar (shown on a terminal)
     rows, summary = B.run_bench(
         args.scenarios,
         args.seed,
         args.out,
-        model=args.model,
-        train_s=args.train_s,
-        test_s=args.test_s,
+        model=s.model,
+        train_s=s.train_s,
+        test_s=s.test_s,
         only=only,
         custom=custom,
         write_scenarios=args.write_scenarios,
         progress=lambda line: tqdm.write(line, file=sys.stderr),
         family=args.family or "single",
-        opts=Options(start=args.start),
+        opts=Options(start=s.start),
     )
     print(B.format_table(rows, summary))
     if args.out:
@@ -164,7 +166,7 @@ def run(args) -> int:
     return 0
 
 
-def _model_form(args, only) -> int:
+def _model_form(args, s, only) -> int:
     """The model-form family: its own rows (diagnosis and calibration on the same files)."""
     from firmware_model.parameters import load_parameters
     from tools.diagnosis.bench_model_form import format_rows, run_model_form_bench
@@ -173,8 +175,8 @@ def _model_form(args, only) -> int:
         args.scenarios,
         args.seed,
         load_parameters("GRS905"),
-        model=args.model,
-        train_s=args.train_s,
+        model=s.model,
+        train_s=s.train_s,
         only=only,
         progress=lambda line: print(line, file=sys.stderr),
     )

@@ -10,6 +10,7 @@ from pathlib import Path
 from firmware_model.config import load_config
 from firmware_model.errors import InputError
 from tools.cli.paths import check_paths
+from tools.cli.settings import add_hidden, setting
 
 
 def add_subparser(sub):
@@ -31,7 +32,11 @@ def add_subparser(sub):
             "2, nothing written); --auto fits every bounded key the data can identify and lists the others. A fit "
             "that makes the held-out RMS worse writes no OUT.toml (exit 3; the report, if asked for, shows why). A fit "
             "whose training residual holds too few effective samples to decide (docs/diagnosis.md, 'Thin evidence') "
-            "is said in a warning, the report and the file's header, with the advice: more or longer files."
+            "is said in a warning, the report and the file's header, with the advice: more or longer files.\n\n"
+            "How the runs start ([calibration] start): 'rest' (every part at the oil's first reading: a run from "
+            "cold or after a long stop), 'running' (cut from a longer drive, a warm restart: each run scored after "
+            "its first 600 s, a thermocouple after 900 s, with its housings' start fitted per run), 'auto' "
+            "(default: at rest, with a warning for a run that begins with the truck driving and the gearbox warm)."
         ),
         epilog="examples:\n"
         "  gearbox-vsensor calibrate --train rig1.csv rig2.csv --test rig3.csv --auto --out my_gearbox.toml "
@@ -53,37 +58,22 @@ def add_subparser(sub):
     p.add_argument(
         "--config",
         metavar="TOML",
-        help="project configuration: [gearbox] variant or params = a "
-        "parameter file (one calibrate wrote, too), cooler kind",
-    )
-    p.add_argument(
-        "--cooler",
-        choices=("none", "liquid", "air", "hold", "measured"),
-        help="cooler kind of the vehicle or rig (overrides --config; default liquid)",
-    )
-    p.add_argument(
-        "--plant-dt",
-        type=float,
-        default=2.0,
-        metavar="S",
-        help="time step of the plant's simulations [s] (default 2: slow thermal fits lose nothing)",
-    )
-    p.add_argument(
-        "--workers", type=int, metavar="N", help="processes for the simulations (default: 2 or the number of cores)"
-    )
-    p.add_argument(
-        "--start",
-        choices=("auto", "rest", "running"),
-        default="auto",
-        help="how the runs start: 'rest' (every part at the oil's first reading: a run from cold or "
-        "after a long stop, what calibrate assumes by default), 'running' (cut from a longer drive, "
-        "a warm restart: each run scored after its first 600 s, a thermocouple after 900 s, with "
-        "its housings' start fitted per run), 'auto' (default: at rest, with a warning for a run "
-        "that begins with the truck driving and the gearbox warm)",
+        help="project configuration: [gearbox] variant or params = a parameter file (one calibrate wrote, too), "
+        "cooler kind, and [calibration]: plant_dt_s (the plant's step, 2 s: slow thermal fits lose nothing), "
+        "workers (processes: 2 or the number of cores), start (how the runs start: auto, rest or running; above) "
+        "(docs/interfaces.md section 8)",
     )
     p.add_argument("--quiet", action="store_true", help="no progress or summary")
+    # moved to the configuration, still accepted (hidden) and overriding it: [cooler] kind and [calibration]
+    p.add_argument("--cooler", choices=("none", "liquid", "air", "hold", "measured"), help=argparse.SUPPRESS)
+    for key in CALIBRATION_KEYS:
+        add_hidden(p, key)
     p.set_defaults(func=run)
     return p
+
+
+#: the [calibration] settings of the configuration (firmware_model.config.SETTINGS)
+CALIBRATION_KEYS = ("calibration.plant_dt_s", "calibration.workers", "calibration.start")
 
 
 #: a fit that leaves the training files this far off (pooled RMS) explains nothing a sensor could be off by: a unit,
@@ -112,7 +102,8 @@ def _refusal(cal) -> str:
     if not train_c <= TRAIN_RMS_REFUSE_C:
         return (
             f"the fitted model is still {train_c:.3g} K (RMS) off the training files, far more than a sensor is "
-            f"off: check their units (degF?), columns and variant, and that each run starts at rest (else --start running){at}"
+            f"off: check their units (degF?), columns and variant, and that each run starts at rest (else "
+            f'[calibration] start = "running"){at}'
         )
     return ""
 
@@ -174,17 +165,10 @@ def run(args) -> int:
     import datetime as dt
 
     from firmware_model.parameters import parameter_path
-    from tools.diagnosis.calibrate import calibrate, calibrated_toml, plot_held_out, report_markdown
-    from tools.diagnosis.options import Options
-    from tools.runtable import atomic_text_file
+    from tools.diagnosis.calibrate import calibrated_toml
 
     cfg = load_config(args.config)
     params = cfg.load_params()
-    cooler = args.cooler or cfg.cooler or params.strings.get("cooler.kind", "liquid")
-    if not 0.05 <= args.plant_dt <= 5:
-        raise InputError(f"--plant-dt {args.plant_dt} must be within 0.05..5 s")
-    if args.workers is not None and args.workers < 1:
-        raise InputError(f"--workers {args.workers} must be at least 1")
     if Path(args.out).suffix.lower() != ".toml":
         raise InputError(f"--out {args.out} must be a .toml file")
     check_paths(
@@ -196,6 +180,44 @@ def run(args) -> int:
         {"--out": args.out, "--report": args.report},
         makes_dirs=("--out", "--report"),
     )
+    cal = _fit(args, cfg, params)
+    for st in cal.starts:
+        if st.hint:
+            print(f"warning: {st.name}: {_calibrate_hint(st.hint)}", file=sys.stderr)
+    if args.report:
+        _write_report(args.report, cal, params)
+    if cal.thin_evidence():  # too few effective samples: said, with the advice, written or not
+        print(f"warning: {cal.thin_evidence()}", file=sys.stderr)
+    refusal = _refusal(cal)
+    if refusal:
+        # no calibration (wrong units or channels in the training files, an effect the keys cannot stand for):
+        # said, and no parameter file that would look fitted
+        print(f"calibrate: {refusal}, so no parameter file was written", file=sys.stderr)
+        return 3
+    for line in _cautions(cal, params):
+        print(f"warning: {line}", file=sys.stderr)
+    _write_atomic(
+        args.out,
+        calibrated_toml(parameter_path(cfg.params_path or cfg.variant), params, cal, dt.date.today().isoformat()),
+    )
+    if not args.quiet:
+        _print_summary(args, cal)
+    return 0
+
+
+def _calibrate_hint(hint: str) -> str:
+    """A start hint of the diagnosis (tools/diagnosis/start.py), worded for calibrate."""
+    return hint.replace("diagnose with", "calibrate with").replace("[diagnosis] start", "[calibration] start")
+
+
+def _fit(args, cfg, params):
+    """The calibration of ``params`` to the training files (tools.diagnosis.calibrate), with a count of the
+    evaluations on a terminal."""
+    from tools.diagnosis.calibrate import calibrate
+    from tools.diagnosis.options import Options
+
+    plant_dt_s, workers, start = (setting(args, cfg, key) for key in CALIBRATION_KEYS)
+    cooler = args.cooler or cfg.cooler or params.strings.get("cooler.kind", "liquid")
     keys = [k.strip() for k in (args.params or "").split(",") if k.strip()]
     n = [0]
 
@@ -211,49 +233,46 @@ def run(args) -> int:
         keys,
         auto=args.auto,
         cooler=cooler,
-        opts=Options(workers=args.workers, start=args.start),
+        opts=Options(workers=workers, start=start),
         progress=tick,
         config_path=args.config,
-        dt_s=args.plant_dt,
+        dt_s=plant_dt_s,
     )
     if not args.quiet and sys.stderr.isatty():
         print(file=sys.stderr)
-    for st in cal.starts:
-        if st.hint:
-            print(f"warning: {st.name}: {st.hint.replace('diagnose with', 'calibrate with')}", file=sys.stderr)
-    base = parameter_path(cfg.params_path or cfg.variant)
-    stamp = dt.date.today().isoformat()
-    if args.report:
-        rep = Path(args.report)
-        rep.parent.mkdir(parents=True, exist_ok=True)
-        fig = rep.with_suffix(".png")
-        has_fig = plot_held_out(cal, fig)
-        with atomic_text_file(rep) as fh:
-            fh.write(report_markdown(cal, params, fig.name if has_fig else None))
-    if cal.thin_evidence():  # too few effective samples: said, with the advice, written or not
-        print(f"warning: {cal.thin_evidence()}", file=sys.stderr)
-    refusal = _refusal(cal)
-    if refusal:
-        # no calibration (wrong units or channels in the training files, an effect the keys cannot stand for):
-        # said, and no parameter file that would look fitted
-        print(f"calibrate: {refusal}, so no parameter file was written", file=sys.stderr)
-        return 3
-    for line in _cautions(cal, params):
-        print(f"warning: {line}", file=sys.stderr)
-    Path(args.out).parent.mkdir(parents=True, exist_ok=True)
-    with atomic_text_file(args.out) as fh:
-        fh.write(calibrated_toml(base, params, cal, stamp))
-    if not args.quiet:
-        for x in cal.ident:
-            if not x.identifiable:
-                print(f"not fitted: {x.key}: {x.reason}")
-        for k in cal.keys:
-            print(
-                f"{k}: {cal.start[k]:.6g} -> {cal.fitted[k]:.6g} +- {cal.sigma[k]:.2g} (SI)"
-                + (" at a bound" if cal.at_bound[k] else "")
-            )
+    return cal
+
+
+def _write_atomic(path, text: str) -> None:
+    from tools.runtable import atomic_text_file
+
+    Path(path).parent.mkdir(parents=True, exist_ok=True)
+    with atomic_text_file(path) as fh:
+        fh.write(text)
+
+
+def _write_report(report, cal, params) -> None:
+    """The Markdown report and its held-out plot next to it."""
+    from tools.diagnosis.calibrate import plot_held_out, report_markdown
+
+    rep = Path(report)
+    rep.parent.mkdir(parents=True, exist_ok=True)
+    fig = rep.with_suffix(".png")
+    has_fig = plot_held_out(cal, fig)
+    _write_atomic(rep, report_markdown(cal, params, fig.name if has_fig else None))
+
+
+def _print_summary(args, cal) -> None:
+    """The keys not fitted and why, each fitted value with its uncertainty, the held-out RMS before and after."""
+    for x in cal.ident:
+        if not x.identifiable:
+            print(f"not fitted: {x.key}: {x.reason}")
+    for k in cal.keys:
         print(
-            f"held-out RMS {cal.test_rms_c[0]:.3f} -> {cal.test_rms_c[1]:.3f} degC "
-            f"({100 * (1 - cal.test_rms_c[1] / max(cal.test_rms_c[0], 1e-12)):.0f} % down) -> {args.out}"
+            f"{k}: {cal.start[k]:.6g} -> {cal.fitted[k]:.6g} +- {cal.sigma[k]:.2g} (SI)"
+            + (" at a bound" if cal.at_bound[k] else "")
         )
-    return 0
+    print(
+        f"held-out RMS {cal.test_rms_c[0]:.3f} -> {cal.test_rms_c[1]:.3f} degC "
+        f"({100 * (1 - cal.test_rms_c[1] / max(cal.test_rms_c[0], 1e-12)):.0f} % down) -> {args.out}"
+    )

@@ -8,9 +8,9 @@ import sys
 from pathlib import Path
 
 from firmware_model.config import load_config
-from firmware_model.errors import InputError
 from tools.cli.core_option import add_core_option, apply_core
 from tools.cli.paths import check_paths
+from tools.cli.settings import add_hidden, setting
 
 
 def add_subparser(sub):
@@ -21,26 +21,7 @@ def add_subparser(sub):
         "diagnose",
         help="sim-to-real gap diagnosis: where the model misses, which unmodelled effect explains it",
         formatter_class=argparse.RawDescriptionHelpFormatter,
-        description=(
-            "Compare measured run tables with the model and diagnose the gap (JSON schema gap-diagnosis/1, see "
-            "docs/diagnosis.md).\n\n"
-            "Measured channels: oil_temp_c (the vehicle's oil sensor) and meas_T_<id>_c (rig thermocouples, "
-            "component ids of docs/interfaces.md section 5, spelled out in docs/glossary.md). The model predicts "
-            "the oil itself with its cooler model, and every component follows the model's oil (see "
-            "docs/diagnosis.md for why); with cooler kind "
-            "'measured' or 'hold' the oil is an input and only thermocouples are diagnosed.\n\n"
-            "1. where: residual (measured - model) per channel, its share by regime and episode, and for the oil "
-            "the unexplained heat flow it implies;\n"
-            "2. which: every catalog effect fitted on the TRAINING files by re-simulation and ranked by "
-            "score = -dBIC with an effective sample size (autocorrelated residuals); confusable candidates and "
-            "the extra measurement that separates them; verdict 'none' when the model agrees within the "
-            "measurement noise, 'unexplained' when no candidate explains the gap (qualified as thin evidence, with the "
-            "best candidate and what it would cut, when the files hold too few effective samples to decide: add "
-            "more or longer files); beside an effect verdict, the "
-            "other effects the data cannot rule out (no strong evidence against them, the verdict refitted) and "
-            "those they point to without a claim ('indicated');\n"
-            "3. how far it shrinks: RMS and max residual before/after on the TEST files only."
-        ),
+        description=_description(),
         epilog="examples:\n"
         "  gearbox-vsensor diagnose --train run1.csv run2.csv --test run3.csv --json gap.json\n"
         "  gearbox-vsensor diagnose --train rig_a.csv --test rig_b.csv --model plant --json gap.json "
@@ -61,48 +42,64 @@ def add_subparser(sub):
         metavar="FILE",
         help="test runs (.csv or CAN logs), different runs from the training files",
     )
-    p.add_argument("--config", metavar="TOML", help="project configuration (gearbox variant, cooler kind, boundaries)")
+    p.add_argument(
+        "--config",
+        metavar="TOML",
+        help="project configuration: gearbox variant, cooler kind (none, liquid, air, hold, measured), boundaries, "
+        "and [diagnosis]: grid_dt_s (analysis grid, 2 s), plant_dt_s (the re-simulations' step, 1 s), workers "
+        "(processes: 2 or the number of cores), start (how the files start: auto, rest or running; below) "
+        "(docs/interfaces.md section 8)",
+    )
     p.add_argument(
         "--model",
         choices=("onboard", "plant"),
         default="onboard",
-        help="model under diagnosis: the onboard reduced model that runs in the truck (default; the "
-        "reference plant is used, and said so, while the onboard model is not available) or the "
-        "reference plant",
-    )
-    p.add_argument(
-        "--cooler",
-        choices=("none", "liquid", "air", "hold", "measured"),
-        help="cooler kind of the vehicle or rig (overrides --config; default liquid)",
+        help="model under diagnosis: onboard, the reduced model that runs in the truck (the reference plant is "
+        "used, and said so, while the onboard model is not available), or plant, the reference plant "
+        "(default: onboard)",
     )
     p.add_argument("--json", required=True, metavar="OUT.json", help="the gap-diagnosis result (written atomically)")
     p.add_argument("--report", metavar="OUT.md", help="also write a Markdown report with PNG plots next to it")
-    p.add_argument("--grid-dt", type=float, default=2.0, metavar="S", help="analysis grid [s] (default 2)")
-    p.add_argument(
-        "--plant-dt",
-        type=float,
-        default=1.0,
-        metavar="S",
-        help="time step of the plant's re-simulations [s] (default 1)",
-    )
-    p.add_argument(
-        "--workers", type=int, metavar="N", help="processes for the re-simulations (default: 2 or the number of cores)"
-    )
-    p.add_argument(
-        "--start",
-        choices=("auto", "rest", "running"),
-        default="auto",
-        help="how the files start: 'rest' (every part at the oil's first reading: a key-on after a night, "
-        "a rig run from cold), 'running' (cut from a longer drive, a warm restart: each file scored "
-        "after its first 600 s, a thermocouple's after 900 s, with its housings' start fitted), or "
-        "'auto' (default: at rest, then running for the files whose first minutes show a real gap "
-        "and which the housings' start then fits far better; diagnosed again; the JSON's 'starts' "
-        "says which and why)",
-    )
     add_core_option(p)
     p.add_argument("--quiet", action="store_true", help="no progress bar or summary on stderr/stdout")
+    # moved to the configuration, still accepted (hidden) and overriding it: [cooler] kind and [diagnosis]
+    p.add_argument("--cooler", choices=("none", "liquid", "air", "hold", "measured"), help=argparse.SUPPRESS)
+    for key in DIAGNOSIS_KEYS:
+        add_hidden(p, key)
     p.set_defaults(func=run)
     return p
+
+
+#: the [diagnosis] settings of the configuration (firmware_model.config.SETTINGS)
+DIAGNOSIS_KEYS = ("diagnosis.grid_dt_s", "diagnosis.plant_dt_s", "diagnosis.workers", "diagnosis.start")
+
+
+def _description() -> str:
+    return (
+        "Compare measured run tables with the model and diagnose the gap (JSON schema gap-diagnosis/1, see "
+        "docs/diagnosis.md).\n\n"
+        "Measured channels: oil_temp_c (the vehicle's oil sensor) and meas_T_<id>_c (rig thermocouples, "
+        "component ids of docs/interfaces.md section 5, spelled out in docs/glossary.md). The model predicts "
+        "the oil itself with its cooler model, and every component follows the model's oil (see "
+        "docs/diagnosis.md for why); with cooler kind "
+        "'measured' or 'hold' the oil is an input and only thermocouples are diagnosed.\n\n"
+        "1. where: residual (measured - model) per channel, its share by regime and episode, and for the oil "
+        "the unexplained heat flow it implies;\n"
+        "2. which: every catalog effect fitted on the TRAINING files by re-simulation and ranked by "
+        "score = -dBIC with an effective sample size (autocorrelated residuals); confusable candidates and "
+        "the extra measurement that separates them; verdict 'none' when the model agrees within the "
+        "measurement noise, 'unexplained' when no candidate explains the gap (qualified as thin evidence, with the "
+        "best candidate and what it would cut, when the files hold too few effective samples to decide: add "
+        "more or longer files); beside an effect verdict, the "
+        "other effects the data cannot rule out (no strong evidence against them, the verdict refitted) and "
+        "those they point to without a claim ('indicated');\n"
+        "3. how far it shrinks: RMS and max residual before/after on the TEST files only.\n\n"
+        "How the files start ([diagnosis] start): 'rest' (every part at the oil's first reading: a key-on after "
+        "a night, a rig run from cold), 'running' (cut from a longer drive, a warm restart: each file scored "
+        "after its first 600 s, a thermocouple's after 900 s, with its housings' start fitted), or 'auto' "
+        "(default: at rest, then running for the files whose first minutes show a real gap and which the "
+        "housings' start then fits far better; diagnosed again; the JSON's 'starts' says which and why)."
+    )
 
 
 def write_json_atomic(obj, path) -> Path:
@@ -121,27 +118,16 @@ def run(args) -> int:
 
     core_line = apply_core(args)
     if not args.quiet:
-        print(
-            f"model: {args.model}"
-            + (
-                f"; {core_line}"
-                if args.model == "onboard"
-                else " (the reference plant; the onboard step's core is not used)"
-            ),
-            file=sys.stderr,
+        on_core = (
+            f"; {core_line}"
+            if args.model == "onboard"
+            else " (the reference plant; the onboard step's core is not used)"
         )
-    from tools.diagnosis.options import STAGES
-    from tools.progress import progress
-
+        print(f"model: {args.model}{on_core}", file=sys.stderr)
     cfg = load_config(args.config)
     params = cfg.load_params()
     cooler = args.cooler or cfg.cooler or params.strings.get("cooler.kind", "liquid")
-    if not 0.1 <= args.grid_dt <= 60:
-        raise InputError(f"--grid-dt {args.grid_dt} must be within 0.1..60 s")
-    if not 0.05 <= args.plant_dt <= 5:
-        raise InputError(f"--plant-dt {args.plant_dt} must be within 0.05..5 s")
-    if args.workers is not None and args.workers < 1:
-        raise InputError(f"--workers {args.workers} must be at least 1")
+    grid_dt_s, plant_dt_s, workers, start = (setting(args, cfg, key) for key in DIAGNOSIS_KEYS)
     check_paths(
         [
             *(("a training file", f) for f in args.train),
@@ -151,7 +137,26 @@ def run(args) -> int:
         {"--json": args.json, "--report": args.report},
         makes_dirs=("--json", "--report"),
     )
-    opts = Options(grid_dt_s=args.grid_dt, plant_dt_s=args.plant_dt, workers=args.workers, start=args.start)
+    opts = Options(grid_dt_s=grid_dt_s, plant_dt_s=plant_dt_s, workers=workers, start=start)
+    res, d = _diagnose_with_progress(args, params, cooler, opts, diagnose)
+    # render the report first (staged), then the JSON: both complete or nothing new
+    if args.report:
+        from tools.diagnosis.report import write_report
+
+        write_report(res, d.plot_data, args.report)
+    write_json_atomic(res, args.json)
+    if not args.quiet:
+        _print_summary(args, res)
+    for w in res.get("warnings", []):  # the data's warnings (a frozen sensor ...), even with --quiet
+        print(f"warning: {w}", file=sys.stderr)
+    return 0
+
+
+def _diagnose_with_progress(args, params, cooler, opts, diagnose):
+    """The diagnosis with a progress bar by stage (the stages again for files that started running)."""
+    from tools.diagnosis.options import STAGES
+    from tools.progress import progress
+
     with progress(len(STAGES), "diagnose", enabled=False if args.quiet else None, unit="stage") as bar:
         again = []
 
@@ -161,7 +166,7 @@ def run(args) -> int:
             bar.update(STAGES.index(name) - bar.n)
             bar.set_postfix_str(f"again (files that started running): {name}" if again else name)
 
-        res, d = diagnose(
+        out = diagnose(
             args.train,
             args.test,
             params,
@@ -173,35 +178,28 @@ def run(args) -> int:
             config_path=args.config,
         )
         bar.update(len(STAGES) - bar.n)
-    # render the report first (staged), then the JSON: both complete or nothing new
-    if args.report:
-        from tools.diagnosis.report import write_report
+    return out
 
-        write_report(res, d.plot_data, args.report)
-    write_json_atomic(res, args.json)
-    if not args.quiet:
-        v = res["verdict"]
-        extra = ""
-        if v["effect"] not in ("none", "unexplained"):
-            ((pn, pv),) = v["parameters"].items()
-            extra = f" ({pn} = {pv:g})"
-        if v.get("evidence") == "thin":
-            extra = " (thin evidence)"
-        print(
-            f"verdict: {v['effect']}{extra}; test RMS {v['test_rms_before_c']:.3f} -> {v['test_rms_after_c']:.3f} "
-            f"degC (shrink {100 * v['shrink']:.0f} %) -> {args.json}"
-        )
-        if v.get("evidence") == "thin":
-            print(v["thin_evidence"]["text"])
-        print(f"reason: {v['reason']}")
-        running = [n for n, st in res.get("starts", {}).items() if st["start"] == "running"]
-        if running:
-            print(
-                f"started running (scored after their first minutes, the housings' start fitted): {', '.join(running)}"
-            )
-        print(f"time: {res['timing']['total_s']:.1f} s (the diagnosis, files read)")
-        if res["model"].get("note"):
-            print(f"note: {res['model']['note']}", file=sys.stderr)
-    for w in res.get("warnings", []):  # the data's warnings (a frozen sensor ...), even with --quiet
-        print(f"warning: {w}", file=sys.stderr)
-    return 0
+
+def _print_summary(args, res) -> None:
+    """The verdict, its shrink on the test files, the reason, the files taken running and the time."""
+    v = res["verdict"]
+    extra = ""
+    if v["effect"] not in ("none", "unexplained"):
+        ((pn, pv),) = v["parameters"].items()
+        extra = f" ({pn} = {pv:g})"
+    if v.get("evidence") == "thin":
+        extra = " (thin evidence)"
+    print(
+        f"verdict: {v['effect']}{extra}; test RMS {v['test_rms_before_c']:.3f} -> {v['test_rms_after_c']:.3f} "
+        f"degC (shrink {100 * v['shrink']:.0f} %) -> {args.json}"
+    )
+    if v.get("evidence") == "thin":
+        print(v["thin_evidence"]["text"])
+    print(f"reason: {v['reason']}")
+    running = [n for n, st in res.get("starts", {}).items() if st["start"] == "running"]
+    if running:
+        print(f"started running (scored after their first minutes, the housings' start fitted): {', '.join(running)}")
+    print(f"time: {res['timing']['total_s']:.1f} s (the diagnosis, files read)")
+    if res["model"].get("note"):
+        print(f"note: {res['model']['note']}", file=sys.stderr)

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import argparse
 
+from tools.cli.settings import add_hidden, setting
+
 
 def add_subparser(sub):
     p = sub.add_parser(
@@ -15,38 +17,43 @@ def add_subparser(sub):
         "arrays), an API header, test vectors from the Python reference, a Makefile (`make test` builds "
         "a host program that checks them) and an integrator's README.\n\nThe exported sensor is the full "
         "onboard step, the time-to-limit refresh (every 1 s) and the early warning included; "
-        "--no-ttl leaves the refresh out (less flash and stack; time to limit not available, no early "
-        "warning).",
-        epilog="example:\n  gearbox-vsensor export-c --variant GRS905 --real float --out vsensor_c && make -C vsensor_c test",
+        "[export] time_to_limit = false in the --config leaves the refresh out (less flash and stack; time to "
+        "limit not available, no early warning).",
+        epilog="example:\n"
+        "  gearbox-vsensor export-c --variant GRS905 --real float --out vsensor_c && make -C vsensor_c test",
     )
     p.add_argument(
         "--variant",
         help="gearbox variant, GRS905 or GRSO905 (default: the --config's, else GRS905; "
         "given, it replaces the --config's)",
     )
-    p.add_argument("--config", metavar="TOML", help="project configuration (variant, cooler, [sensor] limits)")
+    p.add_argument(
+        "--config",
+        metavar="TOML",
+        help="project configuration: variant, cooler, [sensor] limits, [export] time_to_limit (docs/interfaces.md "
+        "section 8)",
+    )
     p.add_argument(
         "--real",
         choices=("float", "double"),
         default="float",
-        help="the real type of the build: float (an ECU's single-precision FPU; default) or double "
-        "(parity with the Python reference)",
-    )
-    p.add_argument(
-        "--no-ttl",
-        dest="ttl",
-        action="store_false",
-        help="leave the time-to-limit refresh and its tables out (an ECU short of flash or stack)",
+        help="the real type of the build: float (an ECU's single-precision FPU) or double "
+        "(parity with the Python reference) (default: float)",
     )
     p.add_argument("--out", required=True, metavar="DIR", help="directory to write (created)")
-    p.add_argument("--quiet", action="store_true", help="no summary")
+    # moved: --no-ttl to [export] time_to_limit = false, still accepted (hidden) and overriding it; --quiet (its two
+    # lines: redirect them) still accepted
+    add_hidden(p, "export.time_to_limit")
+    p.add_argument("--quiet", action="store_true", help=argparse.SUPPRESS)
     p.set_defaults(func=run)
 
 
 def run(args) -> int:
+    from firmware_model.config import load_config
     from tools.export.c_bundle import BUNDLE_FILES, export_c
 
-    out = export_c(args.out, variant=args.variant, config_path=args.config, real=args.real, ttl=args.ttl)
+    ttl = setting(args, load_config(args.config), "export.time_to_limit")
+    out = export_c(args.out, variant=args.variant, config_path=args.config, real=args.real, ttl=ttl)
     if not args.quiet:
         files = sorted(BUNDLE_FILES)  # what was written, not what else the directory holds
         print(f"wrote {len(files)} files to {out}: {', '.join(files)}\nnext: make -C {out} test")

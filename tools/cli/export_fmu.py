@@ -10,7 +10,8 @@ def add_subparser(sub):
         "export-fmu",
         help="write the onboard sensor as an FMI 2.0 or 3.0 co-simulation FMU for HIL/SIL rigs",
         formatter_class=argparse.RawDescriptionHelpFormatter,
-        description="Build an FMI 2.0 (default) or FMI 3.0 co-simulation FMU of the onboard sensor from the compiled C kernel and the "
+        description="Build an FMI 2.0 (default) or FMI 3.0 co-simulation FMU of the onboard sensor from the "
+        "compiled C kernel and the "
         "variant's generated tables: the binary for this platform plus its sources. Communication step "
         "0.1 s (or a multiple). Variables are named as the run-table columns (docs/interfaces.md "
         "section 3): inputs engine_speed_rpm ... retarder_torque_nm, outputs T_<id>_c, W_<id>, "
@@ -23,19 +24,21 @@ def add_subparser(sub):
         "  gearbox-vsensor export-fmu --fmi 3 --out vsensor3.fmu && python -m fmpy validate vsensor3.fmu",
     )
     p.add_argument(
-        "--variant",
-        help="gearbox variant, GRS905 or GRSO905 (default: the --config's, else GRS905; "
-        "given, it replaces the --config's)",
+        "--config",
+        metavar="TOML",
+        help="project configuration: [gearbox] variant (default GRS905), cooler, [sensor] limits",
     )
-    p.add_argument("--config", metavar="TOML", help="project configuration (variant, cooler, [sensor] limits)")
     p.add_argument(
         "--fmi",
         choices=("2", "3"),
         default="2",
-        help="FMI version: 2 (default; most rigs import it) or 3 (Float64/Int32 variables)",
+        help="FMI version: 2 (most rigs import it) or 3 (Float64/Int32 variables) (default: 2)",
     )
     p.add_argument("--out", required=True, metavar="FILE.fmu", help="the FMU to write")
-    p.add_argument("--quiet", action="store_true", help="no summary")
+    # moved: --variant to [gearbox] variant, still accepted (hidden) and overriding it; --quiet (its one line:
+    # redirect it) still accepted
+    p.add_argument("--variant", help=argparse.SUPPRESS)
+    p.add_argument("--quiet", action="store_true", help=argparse.SUPPRESS)
     p.set_defaults(func=run)
 
 

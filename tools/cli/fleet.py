@@ -10,9 +10,8 @@ import time
 from pathlib import Path
 
 from firmware_model.errors import InputError
-
-#: the health fit's period when --period-days is not given [days]
-PERIOD_DAYS_DEFAULT = 7.0
+from tools.cli.paths import check_paths
+from tools.cli.settings import add_hidden, given, setting
 
 
 def add_subparser(sub):
@@ -20,29 +19,8 @@ def add_subparser(sub):
         "fleet",
         help="run the sensor over many trucks' CAN logs on Dask (one summary row per log, Parquet)",
         formatter_class=argparse.RawDescriptionHelpFormatter,
-        description=(
-            "Replay every CAN log (.log candump -L, .asc, .blf, .mf4, .trc) through the onboard sensor exactly as "
-            "`gearbox-vsensor replay` does, and write per log one summary row: vehicle, log, start and end, "
-            "duration, per component the peak and when, the time above the warning and the critical level, the "
-            "warnings raised and the shortest time to limit, the degraded share, the rejected frames by reason, "
-            "the oil innovation mean and RMS (columns: docs/fleet.md).\n\n"
-            "Output in DIR: summary/vehicle=V/date=D/*.parquet (Hive partitions), errors/*.parquet (a log that "
-            "cannot be read: its reason; the run goes on), estimates/ (with --estimates: the 10 Hz outputs), "
-            "health/ (with --diagnose) and report.md with its plots. Every file is complete or absent; a re-run "
-            "skips the logs already done and never writes a row twice.\n\n"
-            "Runs on a Dask LocalCluster on this machine (no set-up; --workers N processes, default one per "
-            "core) or on an existing cluster (--scheduler tcp://HOST:PORT; the workers need gearbox-vsensor "
-            "installed)."
-        ),
-        epilog=(
-            "examples:\n"
-            "  gearbox-vsensor fleet logs/ --out fleet_out    # logs/V/*.log: vehicle V; logs/*.log: one per log\n"
-            "  gearbox-vsensor fleet logs/ --out o --vehicle-from '^(truck\\d+)_'  # truck7_2026-01-05.log\n"
-            "  gearbox-vsensor fleet --manifest fleet.csv --out fleet_out --workers 2\n"
-            "  gearbox-vsensor fleet --manifest fleet.csv --out fleet_out --scheduler tcp://10.0.0.5:8786\n"
-            "  gearbox-vsensor fleet logs/ --out fleet_out --diagnose  # + cooler and oil-level health per week\n"
-            "  gearbox-vsensor fleet logs/ --out o --vehicle-pattern '(?P<vehicle>truck\\d+)_(?P<date>[-\\d]+)'"
-        ),
+        description=DESCRIPTION,
+        epilog=EPILOG,
     )
     p.add_argument("logs", nargs="*", metavar="LOGS", help="CAN log files and folders (searched for log suffixes)")
     p.add_argument("--out", required=True, metavar="DIR", help="output folder (created; re-runs resume into it)")
@@ -54,21 +32,14 @@ def add_subparser(sub):
     p.add_argument(
         "--vehicle-from",
         metavar="REGEX",
-        help="regular expression searched in each log's file name: the vehicle is its group "
-        "(?P<vehicle>...), else its first group, else what it matches (optional (?P<date>...)); a "
-        "file it does not match stops the run naming it. Default without it or --vehicle-pattern: "
-        "the folder holding the log inside a folder given (logs/V/*.log), else one vehicle per log "
-        "(its file name without the suffix); the run says which in one line",
-    )
-    p.add_argument(
-        "--vehicle-pattern",
-        metavar="REGEX",
-        help="regular expression on each log's path with a group (?P<vehicle>...) and optional "
-        "(?P<variant>...), (?P<date>...)",
+        help="regular expression searched in each log's file name, else in its whole path (a pattern with a "
+        "folder in it: '(?P<vehicle>[^/]+)/[^/]+$'): the vehicle is its group (?P<vehicle>...), else its first "
+        "group, else what it matches (optional (?P<variant>...), (?P<date>...)); a file it does not match stops "
+        "the run naming it. Default: the folder holding the log inside a folder given (logs/V/*.log), else one "
+        "vehicle per log (its file name without the suffix); the run says which in one line",
     )
     p.add_argument("--scheduler", metavar="ADDRESS", help="an existing Dask scheduler, tcp://HOST:PORT")
     p.add_argument("--workers", type=int, metavar="N", help="local worker processes (default: one per core)")
-    p.add_argument("--estimates", action="store_true", help="also write each log's 10 Hz sensor outputs")
     p.add_argument(
         "--diagnose",
         action="store_true",
@@ -80,38 +51,74 @@ def add_subparser(sub):
         "the oil less than the model's own error); docs/fleet.md)",
     )
     p.add_argument(
-        "--period-days",
-        type=float,
-        default=None,
-        metavar="DAYS",
-        help="the --diagnose period in whole days (default 7); a drift is flagged after 4 periods at the "
-        "earliest (2 of baseline, 2 drifting)",
-    )
-    p.add_argument("--no-report", action="store_true", help="skip report.md and its plots")
-    p.add_argument(
         "--prune",
         action="store_true",
         help="first remove from DIR the rows of logs that are no longer at their path (moved, renamed "
         "or deleted: a moved log is replayed again under its new path and would count twice)",
     )
+    p.add_argument(
+        "--config",
+        metavar="TOML",
+        help="project configuration of the logs whose manifest row names none (variant, [can], [sensor]), and "
+        "[fleet]: estimates (write each log's 10 Hz outputs, false), period_days (the --diagnose period, 7; a "
+        "drift is flagged after 4 periods at the earliest), report (report.md and its plots, true) "
+        "(docs/interfaces.md section 8)",
+    )
+    # moved to the configuration, still accepted (hidden) and overriding it: [fleet] estimates, period_days,
+    # report; --vehicle-pattern is --vehicle-from
+    p.add_argument("--vehicle-pattern", metavar="REGEX", help=argparse.SUPPRESS)
+    for key in FLEET_KEYS:
+        add_hidden(p, key)
     p.set_defaults(func=run)
     return p
 
 
+#: the [fleet] settings of the configuration (firmware_model.config.SETTINGS)
+FLEET_KEYS = ("fleet.estimates", "fleet.period_days", "fleet.report")
+DESCRIPTION = (
+    "Replay every CAN log (.log candump -L, .asc, .blf, .mf4, .trc) through the onboard sensor exactly as "
+    "`gearbox-vsensor replay` does, and write per log one summary row: vehicle, log, start and end, "
+    "duration, per component the peak and when, the time above the warning and the critical level, the "
+    "warnings raised and the shortest time to limit, the degraded share, the rejected frames by reason, "
+    "the oil innovation mean and RMS (columns: docs/fleet.md).\n\n"
+    "Output in DIR: summary/vehicle=V/date=D/*.parquet (Hive partitions), errors/*.parquet (a log that "
+    "cannot be read: its reason; the run goes on), estimates/ (with [fleet] estimates: the 10 Hz outputs), "
+    "health/ (with --diagnose) and report.md with its plots. Every file is complete or absent; a re-run "
+    "skips the logs already done and never writes a row twice.\n\n"
+    "Runs on a Dask LocalCluster on this machine (no set-up; --workers N processes, default one per "
+    "core) or on an existing cluster (--scheduler tcp://HOST:PORT; the workers need gearbox-vsensor "
+    "installed)."
+)
+EPILOG = (
+    "examples:\n"
+    "  gearbox-vsensor fleet logs/ --out fleet_out    # logs/V/*.log: vehicle V; logs/*.log: one per log\n"
+    "  gearbox-vsensor fleet logs/ --out o --vehicle-from '^(truck\\d+)_'  # truck7_2026-01-05.log\n"
+    "  gearbox-vsensor fleet --manifest fleet.csv --out fleet_out --workers 2\n"
+    "  gearbox-vsensor fleet --manifest fleet.csv --out fleet_out --scheduler tcp://10.0.0.5:8786\n"
+    "  gearbox-vsensor fleet logs/ --out fleet_out --diagnose  # + cooler and oil-level health per week\n"
+    "  gearbox-vsensor fleet logs/ --out o --vehicle-from '(?P<vehicle>truck\\d+)_(?P<date>[-\\d]+)'"
+)
+
+
 def _entries(args):
     """(the logs, one sentence on how their vehicles were read: None for a manifest, which names them)."""
-    from tools.fleet.manifest import entries_and_rule, read_manifest
+    from tools.fleet.manifest import check_entries, entries_and_rule, read_manifest
 
     if args.manifest and args.logs:
         raise InputError("give either --manifest or LOGS, not both")
     if args.manifest:
-        for opt, given in (("--vehicle-pattern", args.vehicle_pattern), ("--vehicle-from", args.vehicle_from)):
-            if given:
+        for opt, value in (("--vehicle-pattern", args.vehicle_pattern), ("--vehicle-from", args.vehicle_from)):
+            if value:
                 raise InputError(f"{opt} reads vehicles from the logs' names; a manifest names them itself")
-        return read_manifest(args.manifest), None
-    if not args.logs:
+        entries, rule = read_manifest(args.manifest), None
+    elif not args.logs:
         raise InputError("no logs: give LOGS (files or folders) or --manifest CSV")
-    return entries_and_rule(args.logs, args.vehicle_pattern, args.vehicle_from)
+    else:
+        entries, rule = entries_and_rule(args.logs, args.vehicle_pattern, args.vehicle_from)
+    if args.config:  # the configuration of the logs that name none
+        config = str(Path(args.config).resolve())
+        entries = check_entries([e if e.config else e._replace(config=config) for e in entries], "the logs given")
+    return entries, rule
 
 
 def _warn_duplicates(out) -> None:
@@ -151,39 +158,26 @@ def _warn_gone(out) -> None:
 
 
 def run(args) -> int:
+    from firmware_model.config import load_config
     from tools.fleet.run import run_fleet
 
+    if args.config:
+        check_paths([("the --config", args.config)], {})
+    estimates, period_days, report = (setting(args, load_config(args.config), key) for key in FLEET_KEYS)
     entries, rule = _entries(args)
-    if args.period_days is not None and not args.diagnose:
+    if given(args, ("fleet.period_days",)) and not args.diagnose:
         raise InputError("--period-days sets the health fit's period, which only --diagnose runs")
-    args.period_days = PERIOD_DAYS_DEFAULT if args.period_days is None else args.period_days
-    if not (args.period_days >= 1 and float(args.period_days).is_integer()):
-        raise InputError(
-            f"--period-days {args.period_days:g} must be a whole number of days, at least 1 (the periods "
-            f"are counted in days from the first log's date)"
-        )
     if args.scheduler and not re.fullmatch(
         r"(tcp|tls|inproc|ucx|ws|wss)://[^\s/]+(:\d+)?/?|[\w.-]+:\d+", args.scheduler
     ):
         raise InputError(f"--scheduler {args.scheduler!r} is not a scheduler address; give tcp://HOST:PORT")
     if args.prune:
-        from tools.fleet.store import FleetStore
-
-        gone = FleetStore(args.out).prune() if (Path(args.out) / "summary").is_dir() else []
-        print(
-            f"prune: {len(gone)} logs no longer at their path, their rows removed"
-            + (": " + ", ".join(gone[:5]) + (f" ... and {len(gone) - 5} more" if len(gone) > 5 else "") if gone else "")
-        )
+        _prune(args.out)
     if rule:
         print(rule)
     t0 = time.perf_counter()
     res = run_fleet(
-        entries,
-        args.out,
-        scheduler=args.scheduler,
-        workers=args.workers,
-        estimates=args.estimates,
-        diagnose=args.diagnose,
+        entries, args.out, scheduler=args.scheduler, workers=args.workers, estimates=estimates, diagnose=args.diagnose
     )
     wall_s = time.perf_counter() - t0
     n_vehicles = len({e.vehicle for e in entries})
@@ -192,51 +186,68 @@ def run(args) -> int:
         f"{res.summarised} summarised, {res.failed} in the errors table; {res.tasks} tasks on {res.workers} "
         f"workers in {wall_s:.1f} s"
     )
+    _print_errors(args.out)
+    _warn_duplicates(args.out)
+    _warn_gone(args.out)
+    why_none = _health(args.out, period_days) if args.diagnose else ""
+    if report:
+        from tools.fleet.report import write_report
+
+        print(f"report: {write_report(args.out, why_none)}")
+    return 0
+
+
+def _prune(out) -> None:
+    """--prune: remove the rows of logs no longer at their path, and say which."""
+    from tools.fleet.store import FleetStore
+
+    gone = FleetStore(out).prune() if (Path(out) / "summary").is_dir() else []
+    print(
+        f"prune: {len(gone)} logs no longer at their path, their rows removed"
+        + (": " + ", ".join(gone[:5]) + (f" ... and {len(gone) - 5} more" if len(gone) > 5 else "") if gone else "")
+    )
+
+
+def _print_errors(out) -> None:
+    """The first five rows of the errors table on stderr."""
     from tools.fleet.store import ERRORS, read_table
 
-    errors = read_table(args.out, ERRORS)
+    errors = read_table(out, ERRORS)
     if errors is not None and errors.num_rows:
         for r in errors.slice(0, 5).to_pylist():
             print(f"  error ({r['stage']}): {r['reason']}", file=sys.stderr)
         if errors.num_rows > 5:
-            print(f"  ... {errors.num_rows - 5} more in {args.out}/errors", file=sys.stderr)
-    _warn_duplicates(args.out)
-    _warn_gone(args.out)
-    why_none = ""
-    if args.diagnose:
-        from tools.fleet.health import fleet_health
+            print(f"  ... {errors.num_rows - 5} more in {out}/errors", file=sys.stderr)
 
-        health = fleet_health(args.out, period_days=args.period_days)
-        from tools.fleet.health import JUDGED_PERIODS
 
-        if health.periods:
-            print(
-                f"health: {health.judged} of {health.vehicles} vehicles have the {JUDGED_PERIODS} periods of "
-                f"{args.period_days:g} days a drift needs before it can be flagged (a baseline, then a run)"
-                + (
-                    f"; {health.undated} fitted logs left out: no date (give one in the manifest's date column)"
-                    if health.undated
-                    else ""
-                )
-                + (
-                    f"; {health.far} fitted logs left out: dated more than 60 days before or after the rest of "
-                    f"the fleet (a truck's clock set wrong? give the date in the manifest)"
-                    if health.far
-                    else ""
-                )
-            )
+def _health(out, period_days: int) -> str:
+    """--diagnose: the fleet health per vehicle and period, its summary lines; why nothing was written ('' when
+    something was)."""
+    from tools.fleet.health import JUDGED_PERIODS, fleet_health
+
+    health = fleet_health(out, period_days=period_days)
+    if health.periods:
         print(
-            f"health: {health.periods} vehicle-periods fitted; flagged: "
-            + (", ".join(f"{f.vehicle} ({f.effect})" for f in health.flags) or "none")
-            + "; to watch (oil level from the oil temperature, not identifiable: check it): "
-            + (", ".join(f.vehicle for f in health.watch) or "none")
+            f"health: {health.judged} of {health.vehicles} vehicles have the {JUDGED_PERIODS} periods of "
+            f"{period_days:g} days a drift needs before it can be flagged (a baseline, then a run)"
+            + (
+                f"; {health.undated} fitted logs left out: no date (give one in the manifest's date column)"
+                if health.undated
+                else ""
+            )
+            + (
+                f"; {health.far} fitted logs left out: dated more than 60 days before or after the rest of "
+                f"the fleet (a truck's clock set wrong? give the date in the manifest)"
+                if health.far
+                else ""
+            )
         )
-        if health.why_none:
-            why_none = health.why_none
-            print(f"health: nothing written to {args.out}/health: {health.why_none}")
-    if not args.no_report:
-        from tools.fleet.report import write_report
-
-        path = write_report(args.out, why_none)
-        print(f"report: {path}")
-    return 0
+    print(
+        f"health: {health.periods} vehicle-periods fitted; flagged: "
+        + (", ".join(f"{f.vehicle} ({f.effect})" for f in health.flags) or "none")
+        + "; to watch (oil level from the oil temperature, not identifiable: check it): "
+        + (", ".join(f.vehicle for f in health.watch) or "none")
+    )
+    if health.why_none:
+        print(f"health: nothing written to {out}/health: {health.why_none}")
+    return health.why_none or ""

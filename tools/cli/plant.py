@@ -10,6 +10,7 @@ import time
 
 from firmware_model.errors import InputError
 from tools.can.bus import add_bus_options, can_subcommand
+from tools.cli.settings import add_hidden, setting
 
 
 def add_subparser(sub):
@@ -33,12 +34,13 @@ def add_subparser(sub):
         "(--interface virtual joins only buses of one process: for plant and sensor in one process use "
         "gearbox-vsensor demo or the Python API)",
     )
-    add_bus_options(p)
+    add_bus_options(p, bitrate=False)
     p.add_argument("--cycle", required=True, metavar="NAME_OR_CSV", help="named cycle, steady:... spec, or a CSV")
     p.add_argument(
         "--config",
         metavar="TOML",
-        help="project configuration (variant, cooler, [can] addresses, engine_reference_torque_nm sent in EC1)",
+        help="project configuration: variant, cooler, [can] addresses, engine_reference_torque_nm sent in EC1, "
+        "[bus] bitrate_bit_s, [plant] seed (the frame timing jitter) and rig_frames (docs/interfaces.md section 8)",
     )
     p.add_argument(
         "--effect",
@@ -52,17 +54,21 @@ def add_subparser(sub):
         type=float,
         default=1.0,
         metavar="X",
-        help="play X times faster than real time; only on --interface virtual (frames keep the plant's "
+        help="play X times faster than real time (default: 1); only on --interface virtual (frames keep the plant's "
         "timestamps, for a sensor in the same process: the Python API) does a sensor keep time at "
         "X != 1: socketcan, udp_multicast and hardware interfaces stamp frames on arrival (a warning "
         "says so)",
     )
     p.add_argument("--duration", type=float, metavar="S", help="stop after S seconds of cycle time")
-    p.add_argument("--seed", type=int, default=0, help="random seed of the frame timing jitter (default 0)")
-    p.add_argument("--no-rig", action="store_true", help="do not send the rig thermocouple frames")
     p.add_argument("--quiet", action="store_true", help="no progress lines")
+    for key in PLANT_KEYS:  # moved to the configuration, still accepted (hidden) and overriding it
+        add_hidden(p, key)
     p.set_defaults(func=run)
     return p
+
+
+#: the settings of `plant` in the configuration (firmware_model.config.SETTINGS)
+PLANT_KEYS = ("bus.bitrate_bit_s", "plant.seed", "plant.rig_frames")
 
 
 def _say(text: str) -> None:
@@ -88,10 +94,13 @@ def _term_interrupts():
 
 
 def run(args) -> int:
+    from firmware_model.config import load_config
     from tools.can.bus import check_bitrate, open_player, speed_warning, stop_on_signals, virtual_note
     from tools.can.hil import prepare, stream
 
-    check_bitrate(args.bitrate)
+    cfg = load_config(args.config)
+    bitrate, seed, rig = (setting(args, cfg, key) for key in PLANT_KEYS)
+    check_bitrate(bitrate)
     if not args.speed > 0:
         raise InputError(f"--speed {args.speed} must be positive")
     warning = speed_warning(args.interface, args.speed)
@@ -99,9 +108,7 @@ def run(args) -> int:
         _say(f"warning: {warning}")
     if args.duration is not None and not args.duration > 0:
         raise InputError(f"--duration {args.duration} must be a positive number of seconds")
-    if args.seed < 0:
-        raise InputError(f"--seed {args.seed} must be a non-negative integer")
-    bus = open_player(args.interface, args.channel, args.bitrate)  # before the plant run: a bad bus fails at once
+    bus = open_player(args.interface, args.channel, bitrate)  # before the plant run: a bad bus fails at once
     note = virtual_note(args.interface)
     if note:
         _say(f"note: {note}")
@@ -109,9 +116,7 @@ def run(args) -> int:
     try:
         t0_s = time.perf_counter()
         with _term_interrupts():  # SIGTERM while the plant computes: "interrupted", the bus shut down
-            frames, _ = prepare(
-                args.cycle, args.config, args.effect, duration_s=args.duration, seed=args.seed, rig=not args.no_rig
-            )
+            frames, _ = prepare(args.cycle, args.config, args.effect, duration_s=args.duration, seed=seed, rig=rig)
         span_s = float(frames.timestamp_s[-1] - frames.timestamp_s[0]) if len(frames) else 0.0
         if not args.quiet:
             _say(

@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import argparse
 import sys
 
 from tools.can.bus import add_bus_options, can_subcommand
@@ -31,10 +32,10 @@ def add_subparser(sub):
         type=float,
         default=1.0,
         metavar="X",
-        help="play X times faster (default 1; a sensor on a bus that stamps frames on arrival, all but "
+        help="play X times faster (default: 1; a sensor on a bus that stamps frames on arrival, all but "
         "virtual, then sees a wrong time base: a warning says so)",
     )
-    p.add_argument("--quiet", action="store_true", help="no summary line")
+    p.add_argument("--quiet", action="store_true", help=argparse.SUPPRESS)  # its one line: redirect it
     p.set_defaults(func=run)
     return p
 

@@ -2,8 +2,8 @@
 
 Run tables: tools/replay/table.py; CAN logs (``.log .asc .blf .mf4 .trc``) go through the live CAN service,
 tools/replay/log.py, so a log replays bit-identically to a live run. An option of CAN logs on a run table
-(``--frames-out``, ``--strict``) is an error, not silently ignored. Playing a log onto a bus is `gearbox-vsensor
-play` (tools/cli/play.py).
+(``--frames-out``, the hidden ``--strict``) is an error, not silently ignored. Playing a log onto a bus is
+`gearbox-vsensor play` (tools/cli/play.py).
 """
 
 from __future__ import annotations
@@ -16,17 +16,16 @@ from firmware_model.errors import InputError
 from tools.can.bus import can_subcommand
 from tools.cli.core_option import add_core_option, apply_core
 from tools.cli.paths import check_paths, figure_path
+from tools.cli.settings import add_hidden, given, setting
 from tools.outputs import naming, outputs
 
 #: the two ways to call replay; every option is in one of them (tests/tools/test_cli_options.py)
 USAGE = (
-    "%(prog)s CSV --out EST.csv [--config TOML] [--variant {GRS905,GRSO905}] [--plot PNG]\n"
-    "                              [--oil-mode {measured,model}]\n"
-    "                              [--initial-temp DEGC] [--core {auto,c,numpy}] [--allow-untrusted] [--quiet]\n"
-    "       %(prog)s LOG --out EST.csv [those options] [--frames-out OUT.log] [--strict]"
+    "%(prog)s CSV --out EST.csv [--config TOML] [--plot PNG] [--core {auto,c,numpy}] [--allow-untrusted] [--quiet]\n"
+    "       %(prog)s LOG --out EST.csv [those options] [--frames-out OUT.log]"
 )
 #: the options of CAN logs only, by argparse dest
-LOG_OPTIONS = ("frames_out", "strict")
+LOG_OPTIONS = ("frames_out",)
 #: the sentence for each option of replay's --realtime, now `gearbox-vsensor play`
 _PLAY = (
     "replay --realtime is now its own command: gearbox-vsensor play LOG --interface NAME --channel NAME "
@@ -58,7 +57,8 @@ def add_subparser(sub):
         examples=[
             "gearbox-vsensor replay uphill.csv --out est.csv --plot est.png",
             "gearbox-vsensor replay truck.blf --config truck.toml --out est.csv",
-            "gearbox-vsensor replay uphill.csv --oil-mode model --out est_model_oil.csv",
+            "gearbox-vsensor replay uphill.csv --config model_oil.toml --out est_model_oil.csv   "
+            '# model_oil.toml: [sensor] oil_mode = "model"',
         ],
         notes="\nA CAN log's source addresses come from --config [can] (docs/can.md): the group keys\n"
         "(transmission_source_address sets ETC2 and TRF1 ...) and, per message, the table\n"
@@ -68,12 +68,12 @@ def add_subparser(sub):
     p.usage = USAGE
     p.removed_options = REMOVED_OPTIONS
     p.add_argument("input", metavar="LOG_OR_CSV", help="run table (.csv) or CAN log (.log .asc .blf .mf4 .trc)")
-    p.add_argument("--config", metavar="TOML", help="project configuration (gearbox variant, cooler, [sensor], [can])")
     p.add_argument(
-        "--variant",
-        choices=("GRS905", "GRSO905"),
-        help="gearbox variant (overrides --config; give the variant the drive was made with: another "
-        "variant's gear ratios and masses give other temperatures without any error)",
+        "--config",
+        metavar="TOML",
+        help="project configuration: gearbox variant (give the one the drive was made with: another variant's "
+        "gear ratios and masses give other temperatures without any error), cooler, [sensor] oil_mode, [can], "
+        "[replay] initial_temp_c and strict (docs/interfaces.md section 8)",
     )
     p.add_argument(
         "--out",
@@ -81,17 +81,6 @@ def add_subparser(sub):
         help="sensor output run table (10 Hz; .csv, or .parquet with pyarrow: several times faster to write); required",
     )
     p.add_argument("--plot", metavar="PNG", help="plot of the estimates, warnings and oil innovation")
-    p.add_argument(
-        "--oil-mode",
-        choices=("measured", "model"),
-        help="measured (default): a valid oil_temp_c is the sump; model: always the modelled sump",
-    )
-    p.add_argument(
-        "--initial-temp",
-        type=float,
-        metavar="DEGC",
-        help="initial temperature of every node when the first row has no oil temperature",
-    )
     add_core_option(p)
     p.add_argument(
         "--quiet",
@@ -109,6 +98,12 @@ def add_subparser(sub):
         "sequence the step needs) (default: warn on stderr and exit 3, outputs written)",
     )
     _add_log_options(p)
+    # moved to the configuration, still accepted (hidden) and overriding it: [gearbox] variant, [sensor] oil_mode,
+    # [replay] initial_temp_c and strict
+    p.add_argument("--variant", choices=("GRS905", "GRSO905"), help=argparse.SUPPRESS)
+    p.add_argument("--oil-mode", choices=("measured", "model"), help=argparse.SUPPRESS)
+    add_hidden(p, "replay.initial_temp_c")
+    add_hidden(p, "replay.strict")
     p.set_defaults(func=run)
     return p
 
@@ -119,23 +114,19 @@ def _add_log_options(p: argparse.ArgumentParser) -> None:
     g.add_argument(
         "--frames-out", metavar="OUT.log", help="also write the frames the sensor would send (GBX_*, DM1) as a CAN log"
     )
-    g.add_argument(
-        "--strict",
-        action="store_true",
-        help="offline: refuse a log with a malformed line or a cut last line, naming the first (default: "
-        "skip them, count them in the summary; more than 1 %% of the lines, or one that breaks a frame "
-        "sequence the step needs, makes the outputs untrusted: docs/can.md)",
-    )
 
 
 def _sensor_options(args) -> dict:
+    """The sensor's options of the command line and [replay]: oil_mode (--oil-mode over [sensor] oil_mode, which
+    the sensor reads itself), initial_temp_c."""
     from firmware_model.physics.oil import check_temperature_c
 
     opts = {}
     if args.oil_mode:
         opts["oil_mode"] = args.oil_mode
-    if args.initial_temp is not None:
-        opts["initial_temp_c"] = check_temperature_c("--initial-temp", args.initial_temp)
+    initial_c = setting(args, _config(args), "replay.initial_temp_c")
+    if initial_c is not None:
+        opts["initial_temp_c"] = check_temperature_c("--initial-temp", initial_c)
     return opts
 
 
@@ -184,7 +175,9 @@ def run(args) -> int:
             f"{path}: unknown input type {path.suffix!r}; replay reads run tables (.csv) and CAN logs "
             f"(.log, .asc, .blf, .mf4, .trc)"
         )
-    _refuse(_given(args, LOG_OPTIONS), f"on a run table ({path.name}), only on a CAN log")
+    _refuse(
+        _given(args, LOG_OPTIONS) + given(args, ("replay.strict",)), f"on a run table ({path.name}), only on a CAN log"
+    )
     if not args.out:
         raise InputError("--out EST.csv is required")
     from tools.replay.plot import plot_replay
@@ -242,7 +235,7 @@ def _run_log(args, path: Path) -> int:
             config_path=_config(args),
             sensor_options=_sensor_options(args),
             frames_out=frames_tmp,
-            strict=args.strict,
+            strict=setting(args, _config(args), "replay.strict"),
         )
         if plot_tmp:
             from tools.replay.plot import plot_replay

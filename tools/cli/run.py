@@ -7,8 +7,7 @@ import sys
 
 from firmware_model.errors import InputError
 from tools.can.bus import add_bus_options, can_subcommand
-
-LOG_LEVELS = ("DEBUG", "INFO", "WARNING", "ERROR")
+from tools.cli.settings import add_hidden, given, setting
 
 
 def add_subparser(sub):
@@ -25,8 +24,9 @@ def add_subparser(sub):
         "[can] counter_log_period_s (60 s) of frame time. Stop with Ctrl-C or SIGTERM (exit 0).",
         examples=[
             "gearbox-vsensor run --interface socketcan --channel can0",
-            "gearbox-vsensor run --interface socketcan --channel vcan0 --config truck.toml --log-level DEBUG",
-            "gearbox-vsensor run --interface pcan --channel PCAN_USBBUS1 --bitrate 250000 --duration 3600",
+            "gearbox-vsensor run --interface socketcan --channel vcan0 --config truck.toml",
+            "gearbox-vsensor run --interface pcan --channel PCAN_USBBUS1 --config truck.toml --duration 3600   "
+            "# truck.toml: [bus] bitrate_bit_s = 250000",
         ],
         notes="\nconfig [can] keys: sensor_source_address, engine_source_address, transmission_source_address,\n"
         "retarder_source_address, ambient_source_address, vehicle_speed_source_address,\n"
@@ -38,40 +38,22 @@ def add_subparser(sub):
         "counter_log_period_s.\nWatch the outputs: python -m cantools monitor -c vcan0 "
         "can_dbc/gearbox_vsensor.dbc",
     )
-    add_bus_options(p)
-    p.add_argument("--config", metavar="TOML", help="project configuration (gearbox variant, [can], [sensor])")
+    add_bus_options(p, bitrate=False)
+    p.add_argument(
+        "--config",
+        metavar="TOML",
+        help="project configuration: gearbox variant, [can], [sensor], [bus] (bitrate_bit_s, receive_filters, "
+        "receive_rig: the rig thermocouple frames) and [gateway] (log_level INFO, rt_priority: SCHED_FIFO 1..99, "
+        "state_period_s 60): docs/interfaces.md section 8",
+    )
     p.add_argument("--duration", type=float, metavar="S", help="stop after this many seconds of wall time")
-    p.add_argument(
-        "--log-level", default="INFO", type=str.upper, choices=LOG_LEVELS, help="logging level on stderr (default INFO)"
-    )
-    p.add_argument(
-        "--no-filters",
-        action="store_true",
-        help="receive every frame (no receive filters): the counters then show all traffic",
-    )
-    p.add_argument("--rig", action="store_true", help="also receive the rig thermocouple frames (RIG_TC_*)")
-    p.add_argument(
-        "--rt-priority",
-        type=int,
-        metavar="N",
-        help="run the receive and step threads with Linux real-time scheduling (SCHED_FIFO, priority "
-        "1..99; needs root or CAP_SYS_NICE), as on a gateway: keeps the step latency low on a busy "
-        "machine",
-    )
     p.add_argument(
         "--state-file",
         metavar="PATH",
-        help="keep the sensor state across restarts and ignition cycles: saved every --state-period "
-        "seconds and on shutdown (atomically), restored at start cooled for the time off and "
+        help="keep the sensor state across restarts and ignition cycles: saved every [gateway] state_period_s "
+        "(60 s) and on shutdown (atomically), restored at start cooled for the time off and "
         "reconciled with the first oil reading; missing, corrupt or another gearbox's: cold start, "
         "logged (docs/gateway.md)",
-    )
-    p.add_argument(
-        "--state-period",
-        type=float,
-        default=None,
-        metavar="S",
-        help="seconds of wall time between state saves (default 60: flash wear)",
     )
     p.add_argument(
         "--health-file",
@@ -79,27 +61,42 @@ def add_subparser(sub):
         help="rewrite a health file every second for `gearbox-vsensor status` (uptime, last step, "
         "degraded state, counters, age of the last state save)",
     )
+    for key in RUN_KEYS:  # moved to the configuration, still accepted (hidden) and overriding it
+        add_hidden(p, key)
     p.set_defaults(func=run)
     return p
 
 
+#: the settings of `run` in the configuration (firmware_model.config.SETTINGS)
+RUN_KEYS = (
+    "bus.bitrate_bit_s",
+    "bus.receive_filters",
+    "bus.receive_rig",
+    "gateway.log_level",
+    "gateway.rt_priority",
+    "gateway.state_period_s",
+)
+
+
 def run(args) -> int:
+    from firmware_model.config import load_config
     from tools.can.live import LiveSettings, run_live
 
-    if args.state_period is not None and not args.state_file:
+    if given(args, ("gateway.state_period_s",)) and not args.state_file:
         raise InputError("--state-period sets how often --state-file is saved; give --state-file too")
-    args.state_period = 60.0 if args.state_period is None else args.state_period
+    cfg = load_config(args.config)
+    s = {key: setting(args, cfg, key) for key in RUN_KEYS}
     settings = LiveSettings(
         interface=args.interface,
         channel=args.channel,
-        bitrate_bit_s=args.bitrate,
+        bitrate_bit_s=s["bus.bitrate_bit_s"],
         config_path=args.config,
         duration_s=args.duration,
-        filters=not args.no_filters,
-        rig=args.rig,
-        rt_priority=args.rt_priority,
+        filters=s["bus.receive_filters"],
+        rig=s["bus.receive_rig"],
+        rt_priority=s["gateway.rt_priority"],
         state_file=args.state_file,
-        state_period_s=args.state_period,
+        state_period_s=s["gateway.state_period_s"],
         health_file=args.health_file,
     )
     settings.check()
@@ -109,7 +106,7 @@ def run(args) -> int:
     if note:
         print(f"gearbox-vsensor run: note: {note}", file=sys.stderr, flush=True)
     logging.basicConfig(
-        level=getattr(logging, args.log_level),
+        level=getattr(logging, s["gateway.log_level"]),
         stream=sys.stderr,
         format="%(asctime)s %(levelname)s %(name)s: %(message)s",
     )

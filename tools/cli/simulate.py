@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 
@@ -14,10 +15,12 @@ from firmware_model.effects import CATALOG, CHANNEL_EFFECTS, parse_effect
 from firmware_model.errors import InputError
 from firmware_model.physics.oil import check_temperature_c
 from tools.cli.paths import check_paths, figure_path
+from tools.cli.settings import add_hidden, given, setting
 from tools.outputs import naming, outputs
 
 
-def add_subparser(sub):
+def _help_texts() -> tuple[str, str]:
+    """The description (the named cycles) and the epilog (examples, the effects) of `simulate --help`."""
     from tools.cycles.named import CYCLE_NAMES
 
     # the channel effects (a rig thermocouple's offset) act on a reading: the plant writes true temperatures
@@ -26,27 +29,45 @@ def add_subparser(sub):
         for e in CATALOG.values()
         if e.id not in CHANNEL_EFFECTS
     )
-    p = sub.add_parser(
-        "simulate",
-        help="run the reference plant (the thesis's full network) over a drive cycle",
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-        description="Run the reference thermal plant (61 thermal masses, every loss and heat path of the seed) "
+    description = (
+        "Run the reference thermal plant (61 thermal masses, every loss and heat path of the seed) "
         "over a drive cycle and write a run table with every node temperature, every loss and every "
         "heat flow to the outside.\n\nNamed cycles are SYNTHETIC, modelled on the thesis's load cases: "
         + ", ".join(CYCLE_NAMES)
         + "; or 'steady:gear=4L,rpm=1300,nm=2000,s=3600,oil=100'; or a CSV "
         "run table (docs/interfaces.md section 3). Component codes (PS, BLR, LS@1L ...): "
-        "docs/glossary.md.",
-        epilog="examples:\n  gearbox-vsensor simulate --cycle uphill --out uphill.csv --plot uphill.png\n"
-        "  gearbox-vsensor simulate --cycle steady:gear=4L,rpm=1300,nm=2000,s=3600 --cooler hold --out s.csv\n"
+        "docs/glossary.md."
+    )
+    epilog = (
+        "examples:\n  gearbox-vsensor simulate --cycle uphill --out uphill.csv --plot uphill.png\n"
+        "  gearbox-vsensor simulate --cycle steady:gear=4L,rpm=1300,nm=2000,s=3600,oil=100 --config rig.toml "
+        '--out s.csv   # rig.toml: [cooler] kind = "hold"\n'
         "  gearbox-vsensor simulate --cycle mining --effect retarder_heat:fraction=0.05 --out m.csv\n\n"
-        "effects (docs/interfaces.md section 6): " + effects,
+        "effects (docs/interfaces.md section 6): " + effects
+    )
+    return description, epilog
+
+
+def add_subparser(sub):
+    description, epilog = _help_texts()
+    p = sub.add_parser(
+        "simulate",
+        help="run the reference plant (the thesis's full network) over a drive cycle",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        description=description,
+        epilog=epilog,
     )
     p.add_argument(
         "--cycle", required=True, metavar="NAME_OR_CSV", help="named cycle, steady:... spec, or a CSV run table"
     )
-    p.add_argument("--config", metavar="TOML", help="project configuration (gearbox variant, cooler, boundaries, CAN)")
-    p.add_argument("--variant", choices=("GRS905", "GRSO905"), help="gearbox variant (overrides --config)")
+    p.add_argument(
+        "--config",
+        metavar="TOML",
+        help="project configuration: gearbox variant, cooler ([cooler] kind: none, liquid, air, hold, measured), "
+        "boundaries, [can], and [simulate]: rate_hz (10) and noise (false) of named cycles, dt_s (plant step, "
+        "0.5 s), out_dt_s (output period, 1 s), initial_temp_c (every node's start), hold_oil_c (the held sump) "
+        "(docs/interfaces.md section 8)",
+    )
     p.add_argument(
         "--effect",
         action="append",
@@ -54,31 +75,6 @@ def add_subparser(sub):
         metavar="ID:PARAM=VALUE",
         help="switch an unmodelled effect on (repeatable), e.g. retarder_heat:fraction=0.05",
     )
-    p.add_argument(
-        "--cooler",
-        choices=("none", "liquid", "air", "hold", "measured"),
-        help="cooling: none, liquid, air, hold (sump held constant), measured (oil_temp_c column as the "
-        "sump); default from the parameters (liquid)",
-    )
-    p.add_argument(
-        "--hold-oil",
-        type=float,
-        metavar="DEGC",
-        help="hold the sump at this temperature, -40..200 degC (implies --cooler hold; the other nodes "
-        "start as --initial-temp says: a steady: spec's own start is 20 degC unless it has oil=)",
-    )
-    p.add_argument(
-        "--initial-temp",
-        type=float,
-        metavar="DEGC",
-        help="initial temperature of every node (default: the cycle's own, else the first oil reading, "
-        "else the held sump with --cooler hold, else the parameters' [boundary] initial, 60 degC)",
-    )
-    p.add_argument("--rate", type=float, metavar="HZ", help="sample rate of named cycles (default 10)")
-    p.add_argument("--noise", action="store_true", help="add measurement-like noise to named cycles")
-    p.add_argument("--seed", type=int, help="random seed of the named cycles (default 0)")
-    p.add_argument("--dt", type=float, default=0.5, metavar="S", help="plant time step (default 0.5 s, BDF2)")
-    p.add_argument("--out-dt", type=float, default=1.0, metavar="S", help="output sample period (default 1 s)")
     p.add_argument("--out", required=True, metavar="RUN.csv", help="output run table")
     p.add_argument(
         "--plot",
@@ -99,6 +95,13 @@ def add_subparser(sub):
         "2026-01-05 (midnight; no zone: UTC); its frame times are then Unix time, as a logger's, "
         "and `fleet` takes each log's date from them (default: frame times from 0 s)",
     )
+    p.add_argument(
+        "--seed",
+        type=int,
+        metavar="N",
+        help="random seed of a named cycle (default 0; one per run, e.g. the logs of a synthetic fleet); an error "
+        "with a CSV run table",
+    )
     p.add_argument("--quiet", action="store_true", help="no progress bar or summary")
     p.add_argument(
         "--allow-untrusted",
@@ -106,33 +109,63 @@ def add_subparser(sub):
         help="simulate a CSV cycle whose units look wrong (time_s in milliseconds, engine speed in rad/s) "
         "anyway; without it such a cycle is refused before anything runs",
     )
+    _add_hidden_options(p)
     p.set_defaults(func=run)
     return p
 
 
-def refuse_unused_options(args) -> None:
-    """InputError for an option that would do nothing: --rate/--noise/--seed on a CSV run table, --hold-oil with
-    another --cooler than hold. Then the defaults of --rate and --seed."""
+#: the [simulate] settings of the configuration (firmware_model.config.SETTINGS)
+SIMULATE_KEYS = (
+    "simulate.rate_hz",
+    "simulate.noise",
+    "simulate.dt_s",
+    "simulate.out_dt_s",
+    "simulate.initial_temp_c",
+    "simulate.hold_oil_c",
+)
+#: those that only apply to named cycles
+CYCLE_KEYS = ("simulate.rate_hz", "simulate.noise")
+
+
+def _add_hidden_options(p) -> None:
+    """The options that moved to the configuration, still accepted (hidden) and overriding it: --variant
+    ([gearbox] variant), --cooler ([cooler] kind) and the [simulate] settings."""
+    p.add_argument("--variant", choices=("GRS905", "GRSO905"), help=argparse.SUPPRESS)
+    p.add_argument("--cooler", choices=("none", "liquid", "air", "hold", "measured"), help=argparse.SUPPRESS)
+    for key in SIMULATE_KEYS:
+        add_hidden(p, key)
+
+
+def resolve_settings(args, cfg) -> SimpleNamespace:
+    """The [simulate] settings (hidden option, else the configuration, else the default) and the cooler; InputError
+    for a named-cycle option on a CSV run table, a held sump with another cooler, --start-time without --can-log."""
     from tools.cycles.named import CYCLE_NAMES
 
+    s = SimpleNamespace(**{k.split(".")[1]: setting(args, cfg, k) for k in SIMULATE_KEYS})
+    s.cooler = args.cooler or cfg.cooler
     named = args.cycle.strip().lower().split(":")[0] in CYCLE_NAMES
-    given = [
-        o for o, v in (("--rate", args.rate), ("--noise", args.noise or None), ("--seed", args.seed)) if v is not None
-    ]
-    if given and not named:
+    on_table = given(args, CYCLE_KEYS) + (["--seed"] if args.seed is not None else [])
+    if on_table and not named:
         raise InputError(
-            f"{', '.join(given)} {'applies' if len(given) == 1 else 'apply'} only to named cycles; "
+            f"{', '.join(on_table)} {'applies' if len(on_table) == 1 else 'apply'} only to named cycles; "
             f"{args.cycle} is a run table, simulated as it is"
         )
-    if args.hold_oil is not None and args.cooler not in (None, "hold"):
+    if s.hold_oil_c is not None and s.cooler not in (None, "hold"):
+        held = given(args, ("simulate.hold_oil_c",)) or ["simulate.hold_oil_c"]
         raise InputError(
-            f"--hold-oil holds the sump, which --cooler {args.cooler} does not: use --cooler hold or leave --cooler out"
+            f"{held[0]} holds the sump, which cooler {s.cooler} does not: use cooler hold ([cooler] kind = "
+            f'"hold" or --cooler hold) or leave the cooler out'
         )
-    args.rate = 10.0 if args.rate is None else args.rate
     args.seed = 0 if args.seed is None else args.seed
+    if args.seed < 0:
+        raise InputError(f"--seed {args.seed} must be a non-negative integer")
     if args.start_time is not None and not args.can_log:
         raise InputError("--start-time sets the time stamps of the CAN log, which only --can-log writes")
-    args.start_time = parse_start_time(args.start_time)
+    s.start_time = parse_start_time(args.start_time)
+    for opt, value_c in (("--initial-temp", s.initial_temp_c), ("--hold-oil", s.hold_oil_c)):
+        if value_c is not None:
+            check_temperature_c(opt, value_c)
+    return s
 
 
 def parse_start_time(text: str | None) -> float:
@@ -157,29 +190,15 @@ def parse_start_time(text: str | None) -> float:
 
 def run(args) -> int:
     from tools.cycles.named import get_cycle
-
-    refuse_unused_options(args)
     from tools.plant.reference import ReferencePlant
 
     cfg = load_config(args.config)
+    s = resolve_settings(args, cfg)
     if args.variant:
         cfg.variant = args.variant
         cfg.params_path = None
     params = cfg.load_params()
-    parsed = [parse_effect(e) for e in args.effect]
-    effects = dict(parsed)
-    if len(effects) < len(parsed):
-        twice = sorted({e for e, _ in parsed if sum(x == e for x, _ in parsed) > 1})
-        raise InputError(f"--effect {', '.join(twice)} is given twice; give each effect once")
-    if args.rate <= 0 or args.rate > 1000:
-        raise InputError(f"--rate {args.rate} must be in (0, 1000] Hz")
-    if not 0.01 <= args.out_dt <= 3600:
-        raise InputError(f"--out-dt {args.out_dt} must be within 0.01..3600 s")
-    if args.seed < 0:
-        raise InputError(f"--seed {args.seed} must be a non-negative integer")
-    for opt, value_c in (("--initial-temp", args.initial_temp), ("--hold-oil", args.hold_oil)):
-        if value_c is not None:
-            check_temperature_c(opt, value_c)
+    effects = _effects(args.effect)
     cycle_file = args.cycle if Path(args.cycle).is_file() else None
     check_paths(
         [("the --cycle", cycle_file), ("the --config", args.config)],
@@ -191,40 +210,54 @@ def run(args) -> int:
     plot, heat = plot_paths(args.plot)
     # every output to a temporary file first: a failure (a full disk, a bad [can] value) leaves none of them
     with outputs(("--out", args.out), ("--can-log", args.can_log), ("--plot", plot), ("--plot", heat)) as tmp:
-        table = get_cycle(args.cycle, rate_hz=args.rate, noise=args.noise, seed=args.seed)
+        table = get_cycle(args.cycle, rate_hz=s.rate_hz, noise=s.noise, seed=args.seed)
         if cycle_file is not None and not args.allow_untrusted:
-            _refuse_unit_mistakes(table, cycle_file, oil_used=(args.cooler or cfg.cooler) == "measured")
-        plant = ReferencePlant(params, effects, cooler=args.cooler or cfg.cooler, dt_s=args.dt)
+            _refuse_unit_mistakes(table, cycle_file, oil_used=s.cooler == "measured")
+        plant = ReferencePlant(params, effects, cooler=s.cooler, dt_s=s.dt_s)
         try:
             res = plant.run(
                 table,
-                initial_temp_c=args.initial_temp,
-                hold_oil_c=args.hold_oil,
-                out_dt_s=args.out_dt,
+                initial_temp_c=s.initial_temp_c,
+                hold_oil_c=s.hold_oil_c,
+                out_dt_s=s.out_dt_s,
                 progress=None if not args.quiet else False,
             )
         except InputError as exc:  # the plant checks the rows: name the file they came from (cycles.md)
             if cycle_file is None or str(cycle_file) in str(exc):
                 raise
             raise InputError(f"{cycle_file}: {exc}") from None
-        _write_outputs(args, table, res, params, cfg, tmp)
-    out = Path(args.out)
+        _write_outputs(args, table, res, params, cfg, tmp, s.start_time)
     if not args.quiet:
-        eb = res.energy_balance()
-        tb = res.table
-        hot = sorted(
-            ((float(tb[c].max()), c[2:-2]) for c in tb.columns if c.startswith("T_") and c.endswith("_c")), reverse=True
-        )[:5]
-        print(f"simulated {tb['time_s'][-1] - tb['time_s'][0]:.0f} s of '{args.cycle}' in {res.wall_s:.1f} s -> {out}")
-        print("hottest:\n" + "\n".join(f"  {n:10s} {v:6.1f} degC  {meaning(n) or ''}" for v, n in hot))
-        net_in = " (negative: the cooler and boundaries heated the gearbox on balance)" if eb["rejected_j"] < 0 else ""
-        print(
-            f"energy: generated {eb['generated_j'] / 1e6:.2f} MJ = stored {eb['stored_j'] / 1e6:.2f} MJ + rejected "
-            f"{eb['rejected_j'] / 1e6:.2f} MJ{net_in} (closure {eb['closure_rel']:.1e})"
-        )
-        for w in res.warnings:
-            print(f"note: {w}", file=sys.stderr)
+        _print_summary(args, res)
     return 0
+
+
+def _effects(given_effects) -> dict:
+    """The --effect values, each effect once."""
+    parsed = [parse_effect(e) for e in given_effects]
+    effects = dict(parsed)
+    if len(effects) < len(parsed):
+        twice = sorted({e for e, _ in parsed if sum(x == e for x, _ in parsed) > 1})
+        raise InputError(f"--effect {', '.join(twice)} is given twice; give each effect once")
+    return effects
+
+
+def _print_summary(args, res) -> None:
+    """The span simulated, the five hottest nodes and the energy balance; the plant's warnings on stderr."""
+    eb = res.energy_balance()
+    tb = res.table
+    hot = sorted(
+        ((float(tb[c].max()), c[2:-2]) for c in tb.columns if c.startswith("T_") and c.endswith("_c")), reverse=True
+    )[:5]
+    print(f"simulated {tb['time_s'][-1] - tb['time_s'][0]:.0f} s of '{args.cycle}' in {res.wall_s:.1f} s -> {args.out}")
+    print("hottest:\n" + "\n".join(f"  {n:10s} {v:6.1f} degC  {meaning(n) or ''}" for v, n in hot))
+    net_in = " (negative: the cooler and boundaries heated the gearbox on balance)" if eb["rejected_j"] < 0 else ""
+    print(
+        f"energy: generated {eb['generated_j'] / 1e6:.2f} MJ = stored {eb['stored_j'] / 1e6:.2f} MJ + rejected "
+        f"{eb['rejected_j'] / 1e6:.2f} MJ{net_in} (closure {eb['closure_rel']:.1e})"
+    )
+    for w in res.warnings:
+        print(f"note: {w}", file=sys.stderr)
 
 
 #: a CSV cycle whose rows lie further apart than this (median) over at least UNIT_CHECK_MIN_ROWS rows is taken for
@@ -270,7 +303,7 @@ def plot_paths(plot):
     return figure_path(plot), pp.with_name(pp.stem + "_heat" + (pp.suffix or ".png"))
 
 
-def _write_outputs(args, table, res, params, cfg, tmp) -> None:
+def _write_outputs(args, table, res, params, cfg, tmp, start_time_s: float) -> None:
     """The run table, the CAN log and the figures, to the temporary files ``tmp`` (tools.outputs)."""
     from tools.runtable import write_run_table
 
@@ -281,7 +314,7 @@ def _write_outputs(args, table, res, params, cfg, tmp) -> None:
         from tools.can.logsynth import write_can_log
 
         with naming(log_tmp):
-            write_can_log(table, res.table, log_tmp, params, config=cfg, start_timestamp_s=args.start_time)
+            write_can_log(table, res.table, log_tmp, params, config=cfg, start_timestamp_s=start_time_s)
     if plot_tmp:
         from tools.plots import plot_heat_budget, plot_simulation
 

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
 from firmware_model.effects import IdFamilies
 
@@ -37,21 +37,64 @@ STAGES = ("baseline and candidate grid", "where", "fit", "test", "verdict")
 
 
 @dataclass
-class Options:
+class ReadingOptions:
+    """Reading and preparing the files: the analysis grid and the gaps a file may have."""
+
     grid_dt_s: float = 2.0  # analysis grid
-    plant_dt_s: float = 1.0  # re-simulation step of the plant
-    out_dt_s: float = 1.0  # model output interval (before the nuisance lag and the grid)
-    sensor_lag_max_s: float = 10.0  # normal sensor dynamics: a nuisance, never an effect
-    model_floor_c: float = 0.05  # model error floor added to the noise in the weights
-    initial_offset_max_c: float = 0.25  # the initial temperature nuisance: within this of the first reading
-    start: str = "auto"  # each file's start: auto, rest or running (tools/diagnosis/start.py)
+    max_time_gap_s: float = 60.0
+    max_channel_gap_frac: float = 0.25
+
+
+@dataclass
+class StartOptions:
+    """How each file starts (tools/diagnosis/start.py): at rest, or running with its first minutes not scored."""
+
+    start: str = "auto"  # each file's start: auto, rest or running
     burn_in_s: float = 600.0  # a running start: the oil's first seconds not scored (the components' start
     burn_in_tc_s: float = 900.0  # unknown), and a rig thermocouple's
-    start_early_s: float = 300.0  # ... judged from a real gap in the oil's first seconds (tools/diagnosis/start.py)
+    start_early_s: float = 300.0  # ... judged from a real gap in the oil's first seconds
     start_min_span_s: float = 300.0  # ... and at least this much left after them, else it is scored at rest
     start_min_cells: int = 30  # a running file's channel keeps at least this many cells, else it is dropped
     housing_offset_lo_c: float = -25.0  # a running start: the housings' start within these of the sump
     housing_offset_hi_c: float = 5.0
+
+
+@dataclass
+class SimulationOptions:
+    """The model's runs: the plant's step, the output interval, the processes, the surrogate's grid."""
+
+    plant_dt_s: float = 1.0  # re-simulation step of the plant
+    out_dt_s: float = 1.0  # model output interval (before the nuisance lag and the grid)
+    workers: int | None = None
+    coarse_grid: bool = True  # surrogate grid at the plant's coarse step (2 s), differences only
+    dense: int = 161  # dense parameter grid of the surrogate
+    refine: int = 2  # refinement re-simulations per candidate
+
+
+@dataclass
+class FitOptions:
+    """Fitting the candidates: the nuisances and the forward selection of several effects."""
+
+    sensor_lag_max_s: float = 10.0  # normal sensor dynamics: a nuisance, never an effect
+    model_floor_c: float = 0.05  # model error floor added to the noise in the weights
+    initial_offset_max_c: float = 0.25  # the initial temperature nuisance: within this of the first reading
+    max_effects: int = 3  # forward selection: at most this many effects found together (1: off)
+    set_starts: int = 3  # forward selection: from the best candidate and up to 2 confusable with it
+    set_start_test_tol: float = 0.1  # a set from another start must leave the held-out RMS at most this much above
+    # the best candidate's own result (the held-out guard against an overfit)
+    combine_check: int = 2  # forward selection: candidates re-simulated per step
+    add_share_min: float = 0.02  # forward selection: a new effect's least share of all the set explains (unless it
+    # closes a clear gap)
+    add_explain_min: float = 0.2  # forward selection: share of the set's unexplained excess a new effect must explain
+    clear_gap_factor: float = 2.0  # a clear gap: a systematic residual at least this many times its threshold
+    clear_gap_cut: float = 2.5  # ... or cut by more than this factor, leaving no clear gap (set between the cases
+    # seen: a true second effect cut 3.9 -> 1.2, a stand-in third 2.8 -> 1.4)
+
+
+@dataclass
+class VerdictOptions:
+    """The verdict and the exclusion of the other effects: the thresholds of a gap, of evidence and of a shrink."""
+
     none_k: float = 0.3  # "none" at once: systematic residual <= none_k x noise (per sample) ...
     none_floor_c: float = 0.03  # ... or this, on every channel
     gap_k: float = 1.0  # a real gap: systematic residual > gap_k x noise ...
@@ -62,28 +105,75 @@ class Options:
     explain_min: float = 0.5  # share of the excess squared residual the verdict must explain
     confusable_corr: float = 0.95
     confusable_share: float = 0.1  # explained shares within this of the best
-    refine: int = 2  # refinement re-simulations per candidate
-    max_effects: int = 3  # forward selection: at most this many effects found together (1: off)
-    set_starts: int = 3  # forward selection: from the best candidate and up to 2 confusable with it
-    set_start_test_tol: float = 0.1  # a set from another start must leave the held-out RMS at most this much above
-    # the best candidate's own result (the held-out guard against an overfit)
+    shrink_min: float = 0.3  # a verdict's effect must shrink a real held-out gap by this much
     not_excluded: bool = True  # say which other effects the data cannot rule out beside the verdict
     not_excluded_min_frac: float = 0.3  # list an effect not excluded beside the verdict when its interval
     # (exclude.py) reaches this far towards a bound
-    combine_check: int = 2  # forward selection: candidates re-simulated per step
-    shrink_min: float = 0.3  # a verdict's effect must shrink a real held-out gap by this much
-    add_share_min: float = 0.02  # forward selection: a new effect's least share of all the set explains (unless it
-    # closes a clear gap)
-    clear_gap_factor: float = 2.0  # a clear gap: a systematic residual at least this many times its threshold
-    clear_gap_cut: float = 2.5  # ... or cut by more than this factor, leaving no clear gap (set between the cases
-    # seen: a true second effect cut 3.9 -> 1.2, a stand-in third 2.8 -> 1.4)
-    add_explain_min: float = 0.2  # forward selection: share of the set's unexplained excess a new effect must explain
-    coarse_grid: bool = True  # surrogate grid at the plant's coarse step (2 s), differences only
-    dense: int = 161  # dense parameter grid of the surrogate
-    workers: int | None = None
-    cold_c: float = 60.0
-    max_time_gap_s: float = 60.0
-    max_channel_gap_frac: float = 0.25
+
+
+@dataclass
+class ReportOptions:
+    """What the report shows: the regime split of the residual ("where")."""
+
+    cold_c: float = 60.0  # oil below this: the "cold" regime
+
+
+#: the settings of the diagnosis by stage: Options' attribute -> its class
+STAGE_OPTIONS = {
+    "reading": ReadingOptions,
+    "starts": StartOptions,
+    "simulation": SimulationOptions,
+    "fit": FitOptions,
+    "verdict": VerdictOptions,
+    "report": ReportOptions,
+}
+#: every setting's stage (each name belongs to one)
+SETTING_STAGE = {f.name: stage for stage, cls in STAGE_OPTIONS.items() for f in fields(cls)}
+
+
+class Options:
+    """The settings of the gap diagnosis, grouped by stage (``opts.reading``, ``opts.starts``, ``opts.simulation``,
+    ``opts.fit``, ``opts.verdict``, ``opts.report``). Each setting is also read and written by its own name
+    (``opts.grid_dt_s``) and given so (``Options(grid_dt_s=1.0, start="rest")``), as when the settings were one flat
+    list; a stage may be given whole (``Options(verdict=VerdictOptions(evidence_min=6))``)."""
+
+    def __init__(self, **given):
+        for stage, cls in STAGE_OPTIONS.items():
+            value = given.pop(stage, None)
+            if value is not None and not isinstance(value, cls):
+                raise TypeError(f"Options({stage}=...) must be a {cls.__name__}")
+            object.__setattr__(self, stage, value if value is not None else cls())
+        for name, value in given.items():
+            if name not in SETTING_STAGE:
+                raise TypeError(f"Options() got an unexpected keyword argument {name!r}")
+            setattr(getattr(self, SETTING_STAGE[name]), name, value)
+
+    def __setattr__(self, name, value):
+        if name in STAGE_OPTIONS:
+            object.__setattr__(self, name, value)
+        elif name in SETTING_STAGE:
+            setattr(getattr(self, SETTING_STAGE[name]), name, value)
+        else:
+            raise AttributeError(f"Options has no setting {name!r}")
+
+    def __eq__(self, other):
+        return isinstance(other, Options) and all(getattr(self, s) == getattr(other, s) for s in STAGE_OPTIONS)
+
+    def __repr__(self):
+        return "Options(" + ", ".join(f"{s}={getattr(self, s)!r}" for s in STAGE_OPTIONS) + ")"
+
+
+def _flat(name: str, stage: str) -> property:
+    """A setting read and written by its own name on Options (``opts.grid_dt_s`` is ``opts.reading.grid_dt_s``)."""
+    return property(
+        lambda self: getattr(getattr(self, stage), name),
+        lambda self, value: setattr(getattr(self, stage), name, value),
+        doc=f"``{stage}.{name}``",
+    )
+
+
+for _name, _stage in SETTING_STAGE.items():
+    setattr(Options, _name, _flat(_name, _stage))
 
 
 def n_eff_needed(opts: Options, k: int = 1) -> int:

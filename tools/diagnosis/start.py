@@ -2,7 +2,7 @@
 
 A file that starts running is scored from ``burn_in_s`` on (a rig thermocouple from ``burn_in_tc_s``:
 :func:`scored_from`), and the housings' start is a second initial-state nuisance of that file, fitted with the uniform
-one. ``Options.start`` (``auto``, ``rest`` or ``running``; ``--start``) says which files start running; ``auto``
+one. ``Options.start`` (``auto``, ``rest`` or ``running``; the configuration's ``[diagnosis] start``) says which files start running; ``auto``
 decides per file on the residual the verdict leaves. Each file's start, with its reason and evidence, is in the JSON
 (``starts``) and the report. docs/diagnosis.md, "Files that start while the gearbox runs", has the why, the two
 tests of ``auto`` and what they were measured to do.
@@ -185,7 +185,8 @@ def judge(ds, resid: list, sens: list, sens_h: list, w: list, sigma: dict, opts:
             ds.role,
             "rest",
             f"at rest: {house} would fit it better, but it has no oil channel to "
-            f"judge its first minutes by; if it was cut from a drive, use --start running",
+            f"judge its first minutes by; if it was cut from a drive, use --start running "
+            f'(configuration [diagnosis] start = "running")',
             beta,
             ev,
         )
@@ -196,7 +197,7 @@ def judge(ds, resid: list, sens: list, sens_h: list, w: list, sigma: dict, opts:
             "rest",
             f"at rest: {house} would fit it better, but its first minutes fit a "
             f"start at rest (no real gap before the burn-in); if it begins after a short stop, try "
-            f"--start running",
+            f'--start running (configuration [diagnosis] start = "running")',
             beta,
             ev,
         )
@@ -279,8 +280,8 @@ def decide_starts(opts: Options, train: list, test: list, records: tuple = ()) -
                 rec = replace(
                     rec,
                     hint=f"{hint}: if it was cut from a longer drive or logged after a short stop, "
-                    f"diagnose with --start running (a running start scored at rest shows a "
-                    f"false gap)",
+                    f'diagnose with --start running (configuration [diagnosis] start = "running"; a running '
+                    f"start scored at rest shows a false gap)",
                 )
             elif opts.start == "running" and rec.start == "rest":  # asked for, not possible: say so
                 rec = replace(rec, hint=f"--start running was asked, but it is {rec.reason}")

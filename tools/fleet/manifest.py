@@ -170,16 +170,21 @@ def _stem(f: Path) -> str:
     return name[: -len(Path(name).suffix)] if Path(name).suffix else name
 
 
-def _vehicle_from(files: list[Path], vehicle_from: str) -> list[tuple[Path, str, str | None]]:
-    """(file, vehicle, date) from ``vehicle_from``, a regular expression searched in each file name: the vehicle is
-    its group ``vehicle``, else its first group, else what it matches; an optional group ``date`` (YYYY-MM-DD)."""
+def _vehicle_from(files: list[Path], vehicle_from: str, option: str = "--vehicle-from") -> tuple[list[tuple], bool]:
+    """((file, vehicle, variant, date) per file, whether any was read from a path rather than a file name) from
+    ``vehicle_from``, a regular expression searched in each file name, else in its whole path (a pattern with a
+    folder in it): the vehicle is its group ``vehicle``, else its first group, else what it matches; optional groups
+    ``variant`` and ``date`` (YYYY-MM-DD)."""
     try:
         rx = re.compile(vehicle_from)
     except re.error as exc:
-        raise InputError(f"--vehicle-from {vehicle_from!r} is not a regular expression: {exc}") from None
-    out, unmatched = [], []
+        raise InputError(f"{option} {vehicle_from!r} is not a regular expression: {exc}") from None
+    out, unmatched, on_path = [], [], False
     for f in files:
         m = rx.search(f.name)
+        if m is None:
+            m = rx.search(f.resolve().as_posix())
+            on_path = on_path or m is not None
         vehicle = (
             None
             if m is None
@@ -188,7 +193,7 @@ def _vehicle_from(files: list[Path], vehicle_from: str) -> list[tuple[Path, str,
         if not vehicle:
             unmatched.append(f)
             continue
-        out.append((f, vehicle, m.groupdict().get("date")))
+        out.append((f, vehicle, m.groupdict().get("variant"), m.groupdict().get("date")))
     if unmatched:
         more = (
             f" ({len(unmatched)} of {len(files)} logs: {', '.join(u.name for u in unmatched[:3])}"
@@ -197,47 +202,31 @@ def _vehicle_from(files: list[Path], vehicle_from: str) -> list[tuple[Path, str,
             else ""
         )
         raise InputError(
-            f"{unmatched[0]}: --vehicle-from '{vehicle_from}' finds no vehicle in its file name "
-            f"{unmatched[0].name}{more}; fix the pattern (the vehicle is its group (?P<vehicle>...) "
+            f"{unmatched[0]}: {option} '{vehicle_from}' finds no vehicle in its file name "
+            f"{unmatched[0].name} or its path{more}; fix the pattern (the vehicle is its group (?P<vehicle>...) "
             f"or its first group), or name each log's vehicle in a --manifest"
         )
-    return out
+    return out, on_path
 
 
 def entries_and_rule(paths, pattern: str | None = None, vehicle_from: str | None = None) -> tuple[list[LogEntry], str]:
     """The logs among ``paths`` with their vehicles, and one sentence saying how the vehicles were read. The
-    vehicle: what ``vehicle_from`` finds in the file name (:func:`_vehicle_from`); or what ``pattern`` finds in the
-    path (a group ``vehicle``, optional groups ``variant`` and ``date``); else the name of the folder holding the log
-    when that folder lies inside a folder given (logs/<vehicle>/*.log), and otherwise the log itself, its file name
-    without the suffix: a flat folder of logs is one vehicle per log (it was one vehicle, the folder's)."""
+    vehicle: what ``vehicle_from`` finds in the file name, else in the path (:func:`_vehicle_from`; ``pattern`` is
+    the same, the former --vehicle-pattern); else the name of the folder holding the log when that folder lies
+    inside a folder given (logs/<vehicle>/*.log), and otherwise the log itself, its file name without the suffix: a
+    flat folder of logs is one vehicle per log (it was one vehicle, the folder's)."""
     if pattern and vehicle_from:
         raise InputError("give either --vehicle-pattern (on the path) or --vehicle-from (on the file name), not both")
     listed = _log_files(paths)
     files = [f for f, _ in listed]
-    if vehicle_from:
-        found = _vehicle_from(files, vehicle_from)
-        entries = [_entry(f, v, None, None, d) for f, v, d in found]
-        n = len({v for _, v, _ in found})
-        return check_entries(
-            entries, "the logs given"
-        ), f"vehicles: {n} read from the file names by --vehicle-from '{vehicle_from}'"
-    if pattern:
-        try:
-            rx = re.compile(pattern)
-        except re.error as exc:
-            raise InputError(f"--vehicle-pattern {pattern!r} is not a regular expression: {exc}") from None
-        if "vehicle" not in rx.groupindex:
-            raise InputError(f"--vehicle-pattern {pattern!r} has no group (?P<vehicle>...)")
-        entries = []
-        for f in files:
-            match = rx.search(f.resolve().as_posix())
-            if match is None:
-                raise InputError(f"{f}: --vehicle-pattern {rx.pattern!r} finds no vehicle in its path")
-            groups = match.groupdict()
-            entries.append(_entry(f, groups["vehicle"], groups.get("variant"), None, groups.get("date")))
-        return check_entries(
-            entries, "the logs given"
-        ), f"vehicles: {len({e.vehicle for e in entries})} read from the paths by --vehicle-pattern {pattern!r}"
+    regex = vehicle_from or pattern
+    if regex:
+        option = "--vehicle-from" if vehicle_from else "--vehicle-pattern"
+        found, on_path = _vehicle_from(files, regex, option)
+        entries = [_entry(f, v, variant, None, d) for f, v, variant, d in found]
+        n = len({v for _, v, _, _ in found})
+        where = "paths" if on_path else "file names"
+        return check_entries(entries, "the logs given"), f"vehicles: {n} read from the {where} by {option} '{regex}'"
     entries = [_entry(f, f.parent.resolve().name if nested else _stem(f)) for f, nested in listed]
     check_entries(entries, "the logs given")
     n_nested = sum(nested for _, nested in listed)
@@ -252,7 +241,7 @@ def entries_and_rule(paths, pattern: str | None = None, vehicle_from: str | None
         parts.append(
             f"one per log for the {loose} logs not in a vehicle's folder (the file name without its suffix: "
             f"{', '.join(names[:3])}{' ...' if loose > 3 else ''}; --vehicle-from REGEX reads a vehicle "
-            f"from the file names, --vehicle-pattern '(?P<vehicle>[^/]+)/[^/]+$' makes the folder holding "
+            f"from the file names, --vehicle-from '(?P<vehicle>[^/]+)/[^/]+$' makes the folder holding "
             f"them one vehicle, a --manifest names each)"
         )
     return entries, f"vehicles: {len({e.vehicle for e in entries})}: " + "; ".join(parts)
