@@ -2,10 +2,10 @@
 
 A file that starts running is scored from ``burn_in_s`` on (a rig thermocouple from ``burn_in_tc_s``:
 :func:`scored_from`), and the housings' start is a second initial-state nuisance of that file, fitted with the uniform
-one. ``Options.start`` (``auto``, ``rest`` or ``running``; the configuration's ``[diagnosis] start``) says which files start running; ``auto``
-decides per file on the residual the verdict leaves. Each file's start, with its reason and evidence, is in the JSON
-(``starts``) and the report. docs/diagnosis.md, "Files that start while the gearbox runs", has the why, the two
-tests of ``auto`` and what they were measured to do.
+one. ``Options.start`` (``auto``, ``rest`` or ``running``; the configuration's ``[diagnosis] start``) says which files
+start running; ``auto`` decides per file on the residual the verdict leaves. Each file's start, with its reason and
+evidence, is in the JSON (``starts``) and the report. docs/diagnosis.md, "Files that start while the gearbox runs", has
+the why, the two tests of ``auto`` and what they were measured to do.
 """
 
 from __future__ import annotations
