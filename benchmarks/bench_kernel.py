@@ -43,6 +43,7 @@ import numpy as np  # noqa: E402
 from firmware_model.onboard.records import SensorInputs  # noqa: E402
 from firmware_model.onboard.sensor import VirtualSensor  # noqa: E402
 from firmware_model.parameters import load_parameters  # noqa: E402
+from firmware_model.service.records import INPUT_SIGNALS  # noqa: E402
 
 
 def drive_inputs(n: int, seed: int = 0) -> np.ndarray:
@@ -193,16 +194,7 @@ def bench_cycles(params) -> None:
         f"(d) named cycles through step_table, one vehicle from 40 degC, best of 3 [us per step]; 1000 vehicles x 3 h "
         f"extrapolated on {threads} thread(s) [s]"
     )
-    names = (
-        "engine_speed_rpm",
-        "engine_torque_nm",
-        "gear",
-        "oil_temp_c",
-        "ambient_temp_c",
-        "coolant_temp_c",
-        "vehicle_speed_kmh",
-        "retarder_torque_nm",
-    )
+    names = INPUT_SIGNALS
     for name in ("long_haul", "uphill", "mining"):
         cyc = get_cycle(name, rate_hz=10.0)
         n = cyc["time_s"].size

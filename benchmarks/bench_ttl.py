@@ -44,6 +44,7 @@ from firmware_model.components import PUBLISHED  # noqa: E402
 from firmware_model.onboard.records import SensorInputs  # noqa: E402
 from firmware_model.onboard.sensor import VirtualSensor  # noqa: E402
 from firmware_model.parameters import load_parameters  # noqa: E402
+from firmware_model.service.records import INPUT_SIGNALS  # noqa: E402
 from tools.cycles.named import get_cycle  # noqa: E402
 from tools.plant.reference import ReferencePlant  # noqa: E402
 from tools.runtable import RunTable  # noqa: E402
@@ -57,16 +58,7 @@ HELD_CYCLES = ("uphill", "mining", "long_haul")
 WARN_CYCLES = ("steady", "all_gears", "long_haul", "uphill", "mining")
 #: heavy loads: (gear, rpm range, torque range) drawn for the random held points
 GEARS = (1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12)
-INPUT_COLS = (
-    "engine_speed_rpm",
-    "engine_torque_nm",
-    "gear",
-    "oil_temp_c",
-    "ambient_temp_c",
-    "coolant_temp_c",
-    "vehicle_speed_kmh",
-    "retarder_torque_nm",
-)
+INPUT_COLS = INPUT_SIGNALS
 
 
 def make_points(n: int, seed: int = 0) -> list[dict]:

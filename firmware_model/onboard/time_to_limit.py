@@ -95,6 +95,26 @@ def refresh_ttl(state: SensorState, job: TtlJob | None, sp: SensorParams, cache:
     return state._replace(ttl_s=ttl)
 
 
+def loss_heat_w(sp: SensorParams, p: TtlPoint, T_op_c: float) -> np.ndarray:
+    """Heat of every loss source [W] with the point's load at sump temperature T_op (as the step evaluates it)."""
+    rp, h, e = sp.reduced, sp.helpers, sp.effects
+    x, prop, _ = E.oil_row(rp, T_op_c, h)
+    retarder_w = float(E.retarder_heat_w(rp, p.row, p.omega_in_rad_s, float(p.used[I_RET]), float(e.retarder_frac)))
+    return E.heat_sources(
+        rp,
+        p.row,
+        p.omega_in_rad_s,
+        abs(float(p.used[I_TORQUE])),
+        prop,
+        x,
+        e.src_scale,
+        e.churn_scale,
+        e.needle_scale,
+        retarder_w,
+        h,
+    )
+
+
 def time_to_limit(sp: SensorParams, cache: StepCache, p: TtlPoint, vehicle=None) -> np.ndarray:
     """Time [s] until each published component reaches its warning limit if the current inputs are held.
 
@@ -103,7 +123,6 @@ def time_to_limit(sp: SensorParams, cache: StepCache, p: TtlPoint, vehicle=None)
     sol = _solve(sp, p, p.src_w, p.G_w_per_k, p.G_streams_w_per_k, p.T_oil_c, vehicle)
     if sp.options.ttl_sump != "model" or not sp.scalar_effects:
         return sol.ttl_s
-    rp, h, e = sp.reduced, sp.helpers, sp.effects
     T_op_c = p.T_oil_c
     for _ in range(TTL_RELINEARISE_STEPS):
         if sol.march is None or math.isnan(sol.march.watch_T_c):
@@ -112,21 +131,7 @@ def time_to_limit(sp: SensorParams, cache: StepCache, p: TtlPoint, vehicle=None)
         if abs(T_next_c - T_op_c) < TTL_RELINEARISE_TOL_K:
             break
         T_op_c = T_next_c
-        x, prop, _ = E.oil_row(rp, T_op_c, h)
-        retarder_w = E.retarder_heat_w(rp, p.row, p.omega_in_rad_s, float(p.used[I_RET]), float(e.retarder_frac))
-        src_op_w = E.heat_sources(
-            rp,
-            p.row,
-            p.omega_in_rad_s,
-            abs(float(p.used[I_TORQUE])),
-            prop,
-            x,
-            e.src_scale,
-            e.churn_scale,
-            e.needle_scale,
-            retarder_w,
-            h,
-        )
+        src_op_w = loss_heat_w(sp, p, T_op_c)
         bins = cache.bins.get(sp, p.row, *_bin_centre(p.omega_in_rad_s, T_op_c))
         sol = _solve(sp, p, src_op_w, bins.G_w_per_k, bins.G_streams_w_per_k, T_op_c, vehicle)
     return sol.ttl_s

@@ -38,9 +38,9 @@ from firmware_model.onboard.kernel_interface import (
     TTL_BOUND_TOL_K,
 )
 from firmware_model.onboard.params import SensorParams, vehicle_value
-from firmware_model.onboard.records import I_AMB, I_COOL, I_RET, I_TORQUE, I_VKMH, N_PUB, SensorState
+from firmware_model.onboard.records import I_AMB, I_COOL, I_VKMH, N_PUB, SensorState
 from firmware_model.onboard.step_cache import StepCache
-from firmware_model.onboard.time_to_limit import TtlJob, TtlPoint, held_system, time_to_limit
+from firmware_model.onboard.time_to_limit import TtlJob, TtlPoint, held_system, loss_heat_w, time_to_limit
 
 I_PUB_OIL = PUBLISHED.index("oil")
 
@@ -135,26 +135,6 @@ def _steady_sump_c(system: HeldSystem, i_oil: int) -> float:
         return math.nan
     T = float(T_inf_c[i_oil])
     return T if math.isfinite(T) else math.nan
-
-
-def loss_heat_w(sp: SensorParams, p: TtlPoint, T_op_c: float) -> np.ndarray:
-    """Heat of every loss source [W] with the point's load at sump temperature T_op (as the step evaluates it)."""
-    rp, h, e = sp.reduced, sp.helpers, sp.effects
-    x, prop, _ = E.oil_row(rp, T_op_c, h)
-    retarder_w = float(E.retarder_heat_w(rp, p.row, p.omega_in_rad_s, float(p.used[I_RET]), float(e.retarder_frac)))
-    return E.heat_sources(
-        rp,
-        p.row,
-        p.omega_in_rad_s,
-        abs(float(p.used[I_TORQUE])),
-        prop,
-        x,
-        e.src_scale,
-        e.churn_scale,
-        e.needle_scale,
-        retarder_w,
-        h,
-    )
 
 
 def cooler_chord_slope(sp: SensorParams, p: TtlPoint, T_far_c: float, vehicle=None) -> float:
