@@ -185,8 +185,7 @@ def judge(ds, resid: list, sens: list, sens_h: list, w: list, sigma: dict, opts:
             ds.role,
             "rest",
             f"at rest: {house} would fit it better, but it has no oil channel to "
-            f"judge its first minutes by; if it was cut from a drive, use --start running "
-            f'(configuration [diagnosis] start = "running")',
+            f"judge its first minutes by; if it was cut from a drive, use --start running",
             beta,
             ev,
         )
@@ -197,7 +196,7 @@ def judge(ds, resid: list, sens: list, sens_h: list, w: list, sigma: dict, opts:
             "rest",
             f"at rest: {house} would fit it better, but its first minutes fit a "
             f"start at rest (no real gap before the burn-in); if it begins after a short stop, try "
-            f'--start running (configuration [diagnosis] start = "running")',
+            f"--start running",
             beta,
             ev,
         )
@@ -280,8 +279,7 @@ def decide_starts(opts: Options, train: list, test: list, records: tuple = ()) -
                 rec = replace(
                     rec,
                     hint=f"{hint}: if it was cut from a longer drive or logged after a short stop, "
-                    f'diagnose with --start running (configuration [diagnosis] start = "running"; a running '
-                    f"start scored at rest shows a false gap)",
+                    f"diagnose with --start running (a running start scored at rest shows a false gap)",
                 )
             elif opts.start == "running" and rec.start == "rest":  # asked for, not possible: say so
                 rec = replace(rec, hint=f"--start running was asked, but it is {rec.reason}")
