@@ -43,6 +43,7 @@ import numpy as np
 import pytest
 
 from can_dbc.adapter import decode_outputs, default_source, pgn_of
+from tests.tools.vcan_helpers import VM_HIDDEN
 from tools.vcan_vm import harness as vcan_vm
 
 #: the sensor's source address (the DBC's)
@@ -236,7 +237,7 @@ def vm_run(tmp_path_factory):
     }
     t1 = time.monotonic()
     try:
-        res = vcan_vm.run_in_vm(VM_SCRIPT, timeout_s=VM_TIMEOUT_S, share_dir=share, env=vm_env)
+        res = vcan_vm.run_in_vm(VM_SCRIPT, timeout_s=VM_TIMEOUT_S, share_dir=share, env=vm_env, hide_modules=VM_HIDDEN)
     except vcan_vm.VMUnavailable as exc:
         pytest.skip(f"vcan VM unavailable: {exc.reason}")
     phases = _phases(res.script_output)

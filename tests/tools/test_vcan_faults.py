@@ -21,7 +21,7 @@ import can
 import pytest
 
 from can_dbc.adapter import default_source, pgn_of
-from tests.tools.vcan_helpers import skip_without_vm, steady_drive_log
+from tests.tools.vcan_helpers import VM_HIDDEN, skip_without_vm, steady_drive_log
 from tools.vcan_vm import harness as vcan_vm
 
 pytestmark = pytest.mark.vcan
@@ -105,7 +105,9 @@ def vm_run(tmp_path_factory):
         (share / f"{name}.log").write_text("\n".join(x for x, ti in zip(lines, t) if a <= ti - t[0] < b) + "\n")
     (share / "vm.toml").write_text("[can]\nstale_factor = 10\n")
     try:
-        res = vcan_vm.run_in_vm(VM_SCRIPT, timeout_s=900, share_dir=share, env={"DOWN_S": str(DOWN_S)})
+        res = vcan_vm.run_in_vm(
+            VM_SCRIPT, timeout_s=900, share_dir=share, env={"DOWN_S": str(DOWN_S)}, hide_modules=VM_HIDDEN
+        )
     except vcan_vm.VMUnavailable as exc:
         pytest.skip(f"vcan VM unavailable: {exc.reason}")
     assert res.returncode == 0, res.script_output[-3000:]

@@ -104,7 +104,7 @@ APT_TIMEOUT_S = 1200
 # Seconds reserved for boot and power-off: the in-VM watchdog kills the script this much
 # before the host-side deadline so that its console output still comes back.
 _BOOT_MARGIN_S = 20.0
-_INITRAMFS_FORMAT = 3  # bump when the initramfs layout changes (part of the cache key)
+_INITRAMFS_FORMAT = 4  # bump when the initramfs layout changes (part of the cache key)
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
 
@@ -428,6 +428,7 @@ mkdir -p "$R$VM_SHARE" 2>/dev/null
 mount -t 9p -o trans=virtio,version=9p2000.L,msize=262144 share "$R$VM_SHARE" || fail "mount share at $VM_SHARE"
 mkdir -p $R/run/vcan-vm
 cp /ctl/run.sh /ctl/script.sh $R/run/vcan-vm/ || fail "copy script"
+[ ! -d /ctl/pyhide ] || cp -r /ctl/pyhide $R/run/vcan-vm/ || fail "copy the hidden-module stubs"
 ip link set lo up
 chroot $R /bin/sh -c 'ip link add dev vcan0 type vcan && ip link set up vcan0' || fail "create vcan0"
 read -r up _ < /proc/uptime; echo "vcan-vm: vcan0 up at ${up} s uptime"
@@ -578,9 +579,13 @@ def _root_9p_opts() -> str:
     return os.environ.get("VCAN_VM_ROOT_9P_OPTS", "trans=virtio,version=9p2000.L,ro,msize=262144,cache=loose")
 
 
-def _run_sh(share: Path, env: dict[str, str] | None) -> str:
+#: where the stubs of ``hide_modules`` are inside the VM (first on PYTHONPATH)
+VM_PYHIDE = "/run/vcan-vm/pyhide"
+
+
+def _run_sh(share: Path, env: dict[str, str] | None, hide: bool = False) -> str:
     python = _host_python()
-    pythonpath = [str(REPO_ROOT)]
+    pythonpath = ([VM_PYHIDE] if hide else []) + [str(REPO_ROOT)]
     if os.environ.get("PYTHONPATH"):
         pythonpath.append(os.environ["PYTHONPATH"])
     base = {
@@ -670,6 +675,7 @@ def run_in_vm(
     init: str = "sh",
     boot_timeout_s: float = 120,
     boot_attempts: int = 3,
+    hide_modules: tuple[str, ...] = (),
 ) -> VMResult:
     """Boot the VM, run ``script`` with ``/bin/sh`` inside the chroot of the host root, power off.
 
@@ -687,6 +693,10 @@ def run_in_vm(
     retry boots one CPU (``-smp 1``: the hangs reported for TCG happen while the kernel brings up the second CPU).  Each retry is
     reported on stderr; :attr:`VMResult.boot_attempts` counts the boots. ``boot_timeout_s=None`` (or 0) turns the
     watchdog off.
+
+    ``hide_modules``: top-level packages the VM's Python cannot import (a stub raising ImportError, first on
+    PYTHONPATH). ``("asammdf",)`` saves about half of each service start-up under TCG: python-can imports asammdf
+    (with pandas and sympy) at ``import can`` when it is installed, and nothing but an MF4 log needs it.
 
     Returns the script's exit status; raises :class:`VMTimeout` (QEMU killed) when the whole run
     takes longer than ``timeout_s`` (per boot), :class:`VMBootHang` when every boot hung before the init,
@@ -706,7 +716,11 @@ def run_in_vm(
     with tempfile.TemporaryDirectory(prefix="vcan-vm-ctl-") as ctl_name:
         ctl = Path(ctl_name)
         (ctl / "script.sh").write_text(script)
-        (ctl / "run.sh").write_text(_run_sh(share, env))
+        (ctl / "run.sh").write_text(_run_sh(share, env, bool(hide_modules)))
+        for name in hide_modules:
+            stub = ctl / "pyhide" / name
+            stub.mkdir(parents=True)
+            (stub / "__init__.py").write_text(f"raise ImportError('{name} is hidden in the vcan VM (hide_modules)')\n")
         if init not in ("sh", "systemd"):
             raise ValueError(f"init must be 'sh' or 'systemd', not {init!r}")
         if init == "systemd" and not Path("/lib/systemd/systemd").is_file():
