@@ -44,6 +44,22 @@ def pytest_collection_modifyitems(config, items):
     items.sort(key=lambda item: module_rank[item.nodeid.split("::", 1)[0]])
 
 
+@pytest.hookimpl(optionalhook=True)
+def pytest_xdist_make_scheduler(config, log):
+    """With `--dist loadfile`: whole files per worker, and the QEMU VM files (tests/tools/test_vcan_*) as one unit on
+    one worker, one VM at a time (two VMs of 2 vCPUs each on a 2-core host slow the services inside below real time)."""
+    if config.getoption("dist") != "loadfile":
+        return None
+    from xdist.scheduler import LoadFileScheduling
+
+    class VMFilesTogether(LoadFileScheduling):
+        def _split_scope(self, nodeid: str) -> str:
+            path = nodeid.split("::", 1)[0]
+            return "tests/tools/test_vcan_*" if path.startswith("tests/tools/test_vcan_") else path
+
+    return VMFilesTogether(config, log)
+
+
 @pytest.fixture(scope="session")
 def uphill_plant():
     """The reference plant (GRS905) over the uphill cycle, 2 h at 1 s rows: computed once per session (about 20 s),
