@@ -695,8 +695,9 @@ def run_in_vm(
     watchdog off.
 
     ``hide_modules``: top-level packages the VM's Python cannot import (a stub raising ImportError, first on
-    PYTHONPATH). ``("asammdf",)`` saves about half of each service start-up under TCG: python-can imports asammdf
-    (with pandas and sympy) at ``import can`` when it is installed, and nothing but an MF4 log needs it.
+    PYTHONPATH). ``("asammdf",)`` saves ~8 s of each service start-up under TCG on a quiet host (~40 s on a loaded
+    one): python-can imports asammdf (with pandas and sympy) at ``import can`` when it is installed, and nothing but
+    an MF4 log needs it.
 
     Returns the script's exit status; raises :class:`VMTimeout` (QEMU killed) when the whole run
     takes longer than ``timeout_s`` (per boot), :class:`VMBootHang` when every boot hung before the init,
