@@ -694,10 +694,7 @@ def run_in_vm(
     reported on stderr; :attr:`VMResult.boot_attempts` counts the boots. ``boot_timeout_s=None`` (or 0) turns the
     watchdog off.
 
-    ``hide_modules``: top-level packages the VM's Python cannot import (a stub raising ImportError, first on
-    PYTHONPATH). ``("asammdf",)`` saves ~8 s of each service start-up under TCG on a quiet host (~40 s on a loaded
-    one): python-can imports asammdf (with pandas and sympy) at ``import can`` when it is installed, and nothing but
-    an MF4 log needs it.
+    ``hide_modules``: top-level packages the VM's Python cannot import (:func:`_write_module_stubs`).
 
     Returns the script's exit status; raises :class:`VMTimeout` (QEMU killed) when the whole run
     takes longer than ``timeout_s`` (per boot), :class:`VMBootHang` when every boot hung before the init,
@@ -718,10 +715,7 @@ def run_in_vm(
         ctl = Path(ctl_name)
         (ctl / "script.sh").write_text(script)
         (ctl / "run.sh").write_text(_run_sh(share, env, bool(hide_modules)))
-        for name in hide_modules:
-            stub = ctl / "pyhide" / name
-            stub.mkdir(parents=True)
-            (stub / "__init__.py").write_text(f"raise ImportError('{name} is hidden in the vcan VM (hide_modules)')\n")
+        _write_module_stubs(ctl / "pyhide", hide_modules)
         if init not in ("sh", "systemd"):
             raise ValueError(f"init must be 'sh' or 'systemd', not {init!r}")
         if init == "systemd" and not Path("/lib/systemd/systemd").is_file():
@@ -767,6 +761,19 @@ def run_in_vm(
     return VMResult(
         returncode=rc, output=output, share_dir=share, boot_s=boot_s, total_s=total_s, boot_attempts=attempt, smp=cpus
     )
+
+
+def _write_module_stubs(directory: Path, names: tuple[str, ...]) -> None:
+    """A package per name whose import raises ImportError, for the VM's PYTHONPATH (``VM_PYHIDE``).
+
+    ``("asammdf",)`` saves ~8 s of each service start-up under TCG on a quiet host (~40 s on a loaded one):
+    python-can imports asammdf (with pandas and sympy) at ``import can`` when it is installed, and nothing but an MF4
+    log needs it.
+    """
+    for name in names:
+        stub = directory / name
+        stub.mkdir(parents=True)
+        (stub / "__init__.py").write_text(f"raise ImportError('{name} is hidden in the vcan VM (hide_modules)')\n")
 
 
 def _boot_with_retries(
