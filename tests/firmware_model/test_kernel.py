@@ -211,15 +211,12 @@ def test_many_tables_on_threads_equal_one_at_a_time(params):
 
 
 @needs_c
-def test_named_cycle_replay_matches(params):
+def test_named_cycle_replay_matches(params, uphill_plant, uphill_numpy_replay):
     """The uphill cycle's plant table replayed by both cores (10 Hz, 2 h: warnings and early warnings fire)."""
-    from tools.cycles.named import get_cycle
-    from tools.plant.reference import ReferencePlant
     from tools.replay.table import replay_table
 
-    plant = ReferencePlant(params).run(get_cycle("uphill"), progress=False).table
-    a = replay_table(plant, VirtualSensor(params, core="numpy"))
-    b = replay_table(plant, VirtualSensor(params, core="c"))
+    a = uphill_numpy_replay
+    b = replay_table(uphill_plant, VirtualSensor(params, core="c"))
     assert a.columns == b.columns
     for col in a.columns:
         x, y = np.asarray(a[col], dtype=float), np.asarray(b[col], dtype=float)
@@ -233,23 +230,20 @@ def test_named_cycle_replay_matches(params):
 
 
 @needs_c
-def test_float_build_within_50_mK(params):
+def test_float_build_within_50_mK(params, uphill_plant, uphill_numpy_replay):
     """The single-precision build (an ECU's) on the uphill cycle: within 0.05 K of the reference, warning levels
     identical except within 0.05 K of a threshold (counted), the time to limit within 1 s or 2 %."""
     from firmware_model.onboard.compiled import CompiledCore
-    from tools.cycles.named import get_cycle
-    from tools.plant.reference import ReferencePlant
     from tools.replay.table import replay_table
 
     try:
         CompiledCore(VirtualSensor(params, core="numpy").sp, real="float")
     except ckernel.CoreUnavailable as exc:
         pytest.skip(f"no float build: {exc}")
-    plant = ReferencePlant(params).run(get_cycle("uphill"), progress=False).table
-    a = replay_table(plant, VirtualSensor(params, core="numpy"))
+    a = uphill_numpy_replay
     sf = VirtualSensor(params, core="numpy")
     sf.core = CompiledCore(sf.sp, real="float")
-    b = replay_table(plant, sf)
+    b = replay_table(uphill_plant, sf)
     worst = max(
         float(np.max(np.abs(np.asarray(b[c]) - np.asarray(a[c]))))
         for c in a.columns

@@ -38,17 +38,14 @@ def test_fmpy_validates_it(fmu):
     assert md.coSimulation is not None and md.defaultExperiment.stepSize == "0.1"
 
 
-def test_simulation_equals_the_reference(fmu):
+def test_simulation_equals_the_reference(fmu, uphill_plant):
     from firmware_model.onboard.sensor import VirtualSensor
     from firmware_model.parameters import load_parameters
     from firmware_model.service.options import SENSOR_INPUTS
-    from tools.cycles.named import get_cycle
-    from tools.plant.reference import ReferencePlant
     from tools.replay.table import table_steps
 
     params = load_parameters("GRS905")
-    plant = ReferencePlant(params).run(get_cycle("uphill"), progress=False).table
-    _, data = table_steps(plant)
+    _, data = table_steps(uphill_plant)
     n = 10000  # past the first early warning (the time to limit finite)
     raw = data[:n, :8]
     ref = VirtualSensor(params, core="numpy")  # the time to limit and the early warning on, as in the FMU

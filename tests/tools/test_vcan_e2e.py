@@ -20,9 +20,9 @@ The drive is the first 60 s of the uphill cycle (DRIVE_S; 120 s until the test o
 minute added only cruising and two downshifts, for 60 s more of real time). The service is the unchanged CLI with the
 default sensor options (time to limit every 1 s); vm.toml sets stale_factor 10 and a limits file whose sun-wheel
 warning is 80 degC (the drive reaches ~71 degC: the time to limit on the bus is finite, no warning fires; with the
-default 130 degC it is "never" throughout since the prediction follows the cooler outlet). The VM script waits for the service
-to answer the drive's last steps (a second candump counts its GBX_STATUS frames) instead of a fixed sleep, and every
-wait in it is bounded: a service that does not exit 60 s after SIGTERM is sent SIGABRT and its threads' stacks
+default 130 degC it is "never" throughout since the prediction follows the cooler outlet). The VM script waits for the
+service to answer the drive's last steps (a second candump counts its GBX_STATUS frames) instead of a fixed sleep,
+and every wait in it is bounded: a service that does not exit 60 s after SIGTERM is sent SIGABRT and its threads' stacks
 (`python -X faulthandler`) land in run.err, instead of the run hanging until the VM timeout (that hang was a real bug,
 fixed in tools/can/live.py: SignalWatcher). The script prints its phases (`@ <uptime> <phase>`), the test a summary
 (`-s`). Measured on the 2-core development machine (docs/vcan-vm.md): ~2 min for the whole test on a quiet host (boot
@@ -43,6 +43,7 @@ import numpy as np
 import pytest
 
 from can_dbc.adapter import decode_outputs, default_source, pgn_of
+from tests.tools.vcan_helpers import VM_HIDDEN
 from tools.vcan_vm import harness as vcan_vm
 
 #: the sensor's source address (the DBC's)
@@ -236,7 +237,7 @@ def vm_run(tmp_path_factory):
     }
     t1 = time.monotonic()
     try:
-        res = vcan_vm.run_in_vm(VM_SCRIPT, timeout_s=VM_TIMEOUT_S, share_dir=share, env=vm_env)
+        res = vcan_vm.run_in_vm(VM_SCRIPT, timeout_s=VM_TIMEOUT_S, share_dir=share, env=vm_env, hide_modules=VM_HIDDEN)
     except vcan_vm.VMUnavailable as exc:
         pytest.skip(f"vcan VM unavailable: {exc.reason}")
     phases = _phases(res.script_output)

@@ -3,8 +3,8 @@
 `gearbox-vsensor run --interface socketcan --channel vcan0` follows a steady drive; after 20 s the interface goes
 down (`ip link set vcan0 down`) for 10 s and comes back up, then the drive goes on. What must hold:
 
-- the service survives (no crash, exit 0 on SIGTERM at the end), logs the outage once when it starts and once when frames return (no log storm,
-  no busy loop);
+- the service survives (no crash, exit 0 on SIGTERM at the end), logs the outage once when it starts and once when
+  frames return (no log storm, no busy loop);
 - after the interface is up again it publishes within 3 step periods (0.3 s) of the first input frame;
 - the outage is counted (outages, read errors, resumes, reopens) in the counters it logs at the end;
 - a transmit queue that overflows (a token-bucket qdisc of 8 kbit/s on vcan0 for 5 s, 5 s
@@ -21,7 +21,7 @@ import can
 import pytest
 
 from can_dbc.adapter import default_source, pgn_of
-from tests.tools.vcan_helpers import skip_without_vm, steady_drive_log
+from tests.tools.vcan_helpers import VM_HIDDEN, skip_without_vm, steady_drive_log
 from tools.vcan_vm import harness as vcan_vm
 
 pytestmark = pytest.mark.vcan
@@ -47,7 +47,9 @@ svc=$!
 deadline=$(( $(now) + 420 ))
 while ! grep -q "listening on socketcan" run.err; do
     sleep 0.5
-    if [ "$(now)" -gt $deadline ] || ! kill -0 $svc 2>/dev/null; then stamp "service did not start"; cat run.err; exit 3; fi
+    if [ "$(now)" -gt $deadline ] || ! kill -0 $svc 2>/dev/null; then
+        stamp "service did not start"; cat run.err; exit 3
+    fi
 done
 stamp service listening
 canplayer -I part1.log vcan0=can0
@@ -105,7 +107,9 @@ def vm_run(tmp_path_factory):
         (share / f"{name}.log").write_text("\n".join(x for x, ti in zip(lines, t) if a <= ti - t[0] < b) + "\n")
     (share / "vm.toml").write_text("[can]\nstale_factor = 10\n")
     try:
-        res = vcan_vm.run_in_vm(VM_SCRIPT, timeout_s=900, share_dir=share, env={"DOWN_S": str(DOWN_S)})
+        res = vcan_vm.run_in_vm(
+            VM_SCRIPT, timeout_s=900, share_dir=share, env={"DOWN_S": str(DOWN_S)}, hide_modules=VM_HIDDEN
+        )
     except vcan_vm.VMUnavailable as exc:
         pytest.skip(f"vcan VM unavailable: {exc.reason}")
     assert res.returncode == 0, res.script_output[-3000:]

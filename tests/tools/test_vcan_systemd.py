@@ -28,7 +28,7 @@ from pathlib import Path
 import pytest
 
 from can_dbc.adapter import default_source, pgn_of
-from tests.tools.vcan_helpers import skip_without_vm, steady_drive_log
+from tests.tools.vcan_helpers import VM_HIDDEN, skip_without_vm, steady_drive_log
 from tools.vcan_vm import harness as vcan_vm
 
 pytestmark = pytest.mark.vcan
@@ -58,7 +58,8 @@ wait_new_main() {
 }
 "$VM_PYTHON" -m tools.cli service-unit --interface socketcan --channel vcan0 > $UNIT || exit 3
 mkdir -p $UNIT.d
-printf '[Service]\nEnvironment=PYTHONPATH=%s\n' "$VM_REPO" > $UNIT.d/repo.conf
+# the repo (and the stubs of the modules the VM hides) on PYTHONPATH, as for the script
+printf '[Service]\nEnvironment=PYTHONPATH=%s\n' "$PYTHONPATH" > $UNIT.d/repo.conf
 # the Python as the unit runs it (a venv's python is a symlink to its base interpreter)
 case "$VM_PYTHON $(readlink -f "$VM_PYTHON")" in /root/*|/home/*|*" /root/"*|*" /home/"*)
     printf '[Service]\nProtectHome=no\nDynamicUser=no\n' > $UNIT.d/python-under-home.conf
@@ -109,7 +110,7 @@ def vm_run(tmp_path_factory):
     share = tmp_path_factory.mktemp("vcan-systemd")
     steady_drive_log(share, DRIVE_S)
     try:
-        res = vcan_vm.run_in_vm(VM_SCRIPT, timeout_s=900, share_dir=share, init="systemd")
+        res = vcan_vm.run_in_vm(VM_SCRIPT, timeout_s=900, share_dir=share, init="systemd", hide_modules=VM_HIDDEN)
     except vcan_vm.VMUnavailable as exc:
         pytest.skip(f"vcan VM unavailable: {exc.reason}")
     journal = (share / "journal.txt").read_text() if (share / "journal.txt").is_file() else ""

@@ -15,6 +15,7 @@ from pathlib import Path
 
 import pytest
 
+from tests.tools.vcan_helpers import VM_HIDDEN
 from tools.vcan_vm import harness as vcan_vm
 
 pytestmark = pytest.mark.vcan
@@ -101,7 +102,7 @@ def vm_run(tmp_path_factory):
         )
     share = tmp_path_factory.mktemp("vcan_vm_share")
     (share / "roundtrip.py").write_text(ROUNDTRIP_PY)
-    result = vcan_vm.run_in_vm(VM_SCRIPT, timeout_s=VM_TIMEOUT_S, share_dir=share)
+    result = vcan_vm.run_in_vm(VM_SCRIPT, timeout_s=VM_TIMEOUT_S, share_dir=share, hide_modules=VM_HIDDEN)
     print(f"vcan VM: boot {result.boot_s:.2f} s ({result.boot_attempts} boot(s)), whole run {result.total_s:.2f} s")
     yield result
     shutil.rmtree(share, ignore_errors=True)

@@ -12,6 +12,9 @@ import pytest
 from tools.vcan_vm import harness as vcan_vm
 
 REPO = Path(__file__).resolve().parents[2]
+#: what the VM's Python need not import: python-can imports asammdf (pandas, sympy) at `import can` when the mf4
+#: extra is installed, ~8 s of each service start-up under TCG on a quiet host; no VM test reads an MF4 log
+VM_HIDDEN = ("asammdf",)
 
 
 def skip_without_vm(extra_missing: list[str] | None = None) -> None:

@@ -204,6 +204,8 @@ def pinned_kernel_header(header: str, sp, real: str, variant: str) -> str:
             '#error "this export\'s tables use int32 indices: do not set GVS_INDEX16"',
             "#endif",
         ]
+    if sp.options.ttl_method != "bound":  # the tables use today's march: the bounded method's code stays out (flash)
+        lines += ["#ifndef GVS_NO_TTL_BOUND", "#define GVS_NO_TTL_BOUND 1", "#endif"]
     if real == "float":
         lines += ["#ifndef GVS_REAL_FLOAT", "#define GVS_REAL_FLOAT 1", "#endif"]
     else:

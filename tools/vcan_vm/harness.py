@@ -104,7 +104,7 @@ APT_TIMEOUT_S = 1200
 # Seconds reserved for boot and power-off: the in-VM watchdog kills the script this much
 # before the host-side deadline so that its console output still comes back.
 _BOOT_MARGIN_S = 20.0
-_INITRAMFS_FORMAT = 3  # bump when the initramfs layout changes (part of the cache key)
+_INITRAMFS_FORMAT = 4  # bump when the initramfs layout changes (part of the cache key)
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
 
@@ -418,7 +418,8 @@ mount -t devpts devpts $R/dev/pts
 mount -t tmpfs -o mode=1777 shm $R/dev/shm
 # /tmp: the host's /tmp read-only below, the VM's writes in RAM above (overlayfs), so host paths
 # under /tmp (a venv, a checkout, pytest's tmp_path) stay visible; plain tmpfs if overlay fails.
-mkdir -p /vmtmp && mount -t tmpfs -o mode=755 tmpfs /vmtmp && mkdir -p /vmtmp/upper /vmtmp/work && chmod 1777 /vmtmp/upper
+mkdir -p /vmtmp && mount -t tmpfs -o mode=755 tmpfs /vmtmp
+mkdir -p /vmtmp/upper /vmtmp/work && chmod 1777 /vmtmp/upper
 mount -t overlay -o lowerdir=$R/tmp,upperdir=/vmtmp/upper,workdir=/vmtmp/work overlay $R/tmp 2>/dev/null || {
   echo "vcan-vm: overlay on /tmp failed, host /tmp hidden by a tmpfs"
   mount -t tmpfs -o mode=1777 tmpfs $R/tmp || fail "mount /tmp"
@@ -428,6 +429,7 @@ mkdir -p "$R$VM_SHARE" 2>/dev/null
 mount -t 9p -o trans=virtio,version=9p2000.L,msize=262144 share "$R$VM_SHARE" || fail "mount share at $VM_SHARE"
 mkdir -p $R/run/vcan-vm
 cp /ctl/run.sh /ctl/script.sh $R/run/vcan-vm/ || fail "copy script"
+[ ! -d /ctl/pyhide ] || cp -r /ctl/pyhide $R/run/vcan-vm/ || fail "copy the hidden-module stubs"
 ip link set lo up
 chroot $R /bin/sh -c 'ip link add dev vcan0 type vcan && ip link set up vcan0' || fail "create vcan0"
 read -r up _ < /proc/uptime; echo "vcan-vm: vcan0 up at ${up} s uptime"
@@ -440,7 +442,9 @@ if [ "$VM_INIT" = systemd ]; then
   mount -o bind /ctl $R/run/vcan-vm/ctl || fail "bind the control dir"
   cp /ctl/vcan-vm.service $R/run/systemd/system/ || fail "copy the script's unit"
   # runtime masks: boot-time tmpfiles would walk (and whiteout) the host's /tmp over 9p for minutes
-  for u in systemd-tmpfiles-setup.service systemd-tmpfiles-clean.timer; do ln -s /dev/null $R/run/systemd/system/$u; done
+  for u in systemd-tmpfiles-setup.service systemd-tmpfiles-clean.timer; do
+    ln -s /dev/null $R/run/systemd/system/$u
+  done
   exec switch_root $R /lib/systemd/systemd --unit=vcan-vm.service --show-status=error
   fail "switch_root to systemd"
 fi
@@ -578,9 +582,13 @@ def _root_9p_opts() -> str:
     return os.environ.get("VCAN_VM_ROOT_9P_OPTS", "trans=virtio,version=9p2000.L,ro,msize=262144,cache=loose")
 
 
-def _run_sh(share: Path, env: dict[str, str] | None) -> str:
+#: where the stubs of ``hide_modules`` are inside the VM (first on PYTHONPATH)
+VM_PYHIDE = "/run/vcan-vm/pyhide"
+
+
+def _run_sh(share: Path, env: dict[str, str] | None, hide: bool = False) -> str:
     python = _host_python()
-    pythonpath = [str(REPO_ROOT)]
+    pythonpath = ([VM_PYHIDE] if hide else []) + [str(REPO_ROOT)]
     if os.environ.get("PYTHONPATH"):
         pythonpath.append(os.environ["PYTHONPATH"])
     base = {
@@ -670,6 +678,7 @@ def run_in_vm(
     init: str = "sh",
     boot_timeout_s: float = 120,
     boot_attempts: int = 3,
+    hide_modules: tuple[str, ...] = (),
 ) -> VMResult:
     """Boot the VM, run ``script`` with ``/bin/sh`` inside the chroot of the host root, power off.
 
@@ -684,9 +693,11 @@ def run_in_vm(
 
     A boot whose kernel has not started the init within ``boot_timeout_s`` (a normal one: ~3 s of VM time, under 6 s
     of wall time; 9-13 s on a loaded host) is killed and retried, up to ``boot_attempts`` boots in all; the last
-    retry boots one CPU (``-smp 1``: the hangs reported for TCG happen while the kernel brings up the second CPU).  Each retry is
-    reported on stderr; :attr:`VMResult.boot_attempts` counts the boots. ``boot_timeout_s=None`` (or 0) turns the
-    watchdog off.
+    retry boots one CPU (``-smp 1``: the hangs reported for TCG happen while the kernel brings up the second CPU).
+    Each retry is reported on stderr; :attr:`VMResult.boot_attempts` counts the boots. ``boot_timeout_s=None`` (or 0)
+    turns the watchdog off.
+
+    ``hide_modules``: top-level packages the VM's Python cannot import (:func:`_write_module_stubs`).
 
     Returns the script's exit status; raises :class:`VMTimeout` (QEMU killed) when the whole run
     takes longer than ``timeout_s`` (per boot), :class:`VMBootHang` when every boot hung before the init,
@@ -705,24 +716,7 @@ def run_in_vm(
     inner_timeout = max(5, int(timeout_s - _BOOT_MARGIN_S))
     with tempfile.TemporaryDirectory(prefix="vcan-vm-ctl-") as ctl_name:
         ctl = Path(ctl_name)
-        (ctl / "script.sh").write_text(script)
-        (ctl / "run.sh").write_text(_run_sh(share, env))
-        if init not in ("sh", "systemd"):
-            raise ValueError(f"init must be 'sh' or 'systemd', not {init!r}")
-        if init == "systemd" and not Path("/lib/systemd/systemd").is_file():
-            raise VMUnavailable("init='systemd' needs systemd on the host (apt install systemd udev)")
-        (ctl / "vcan-vm.service").write_text(
-            _SYSTEMD_UNIT.format(
-                timeout=inner_timeout,
-                sentinel_begin=SENTINEL_BEGIN,
-                sentinel_timeout=SENTINEL_TIMEOUT,
-                sentinel_exit=SENTINEL_EXIT,
-            )
-        )
-        (ctl / "params").write_text(
-            f"VM_SHARE={shlex.quote(str(share))}\nVM_TIMEOUT={inner_timeout}\n"
-            f"VM_ROOT_9P_OPTS={shlex.quote(_root_9p_opts())}\nVM_INIT={init}\n"
-        )
+        _write_control(ctl, script, share, env, hide_modules, init, inner_timeout)
         output, boot_s, total_s, attempt, cpus = _boot_with_retries(
             lambda cpus: _qemu_cmd(assets, ctl, share, memory_mb, cpus),
             smp,
@@ -733,6 +727,39 @@ def run_in_vm(
         )
         exit_file = ctl / "exit_code"
         exit_text = exit_file.read_text().strip() if exit_file.is_file() else ""
+    rc = _script_status(output, exit_text, inner_timeout, timeout_s)
+    return VMResult(
+        returncode=rc, output=output, share_dir=share, boot_s=boot_s, total_s=total_s, boot_attempts=attempt, smp=cpus
+    )
+
+
+def _write_control(
+    ctl: Path, script: str, share: Path, env: dict | None, hide_modules: tuple, init: str, inner_timeout: int
+) -> None:
+    """The control directory the VM's init reads: the script, its wrapper, the module stubs, the unit, the params."""
+    (ctl / "script.sh").write_text(script)
+    (ctl / "run.sh").write_text(_run_sh(share, env, bool(hide_modules)))
+    _write_module_stubs(ctl / "pyhide", hide_modules)
+    if init not in ("sh", "systemd"):
+        raise ValueError(f"init must be 'sh' or 'systemd', not {init!r}")
+    if init == "systemd" and not Path("/lib/systemd/systemd").is_file():
+        raise VMUnavailable("init='systemd' needs systemd on the host (apt install systemd udev)")
+    (ctl / "vcan-vm.service").write_text(
+        _SYSTEMD_UNIT.format(
+            timeout=inner_timeout,
+            sentinel_begin=SENTINEL_BEGIN,
+            sentinel_timeout=SENTINEL_TIMEOUT,
+            sentinel_exit=SENTINEL_EXIT,
+        )
+    )
+    (ctl / "params").write_text(
+        f"VM_SHARE={shlex.quote(str(share))}\nVM_TIMEOUT={inner_timeout}\n"
+        f"VM_ROOT_9P_OPTS={shlex.quote(_root_9p_opts())}\nVM_INIT={init}\n"
+    )
+
+
+def _script_status(output: str, exit_text: str, inner_timeout: int, timeout_s: float) -> int:
+    """The script's exit status from the exit file or the console's sentinel; the VM's failures raised."""
     m = re.search(rf"^{re.escape(SENTINEL_EXIT)}(\d+)\s*$", output, re.M)
     if SENTINEL_TIMEOUT in output:
         raise VMTimeout(
@@ -749,9 +776,20 @@ def run_in_vm(
         rc = int(m.group(1))
     else:
         raise VMError(f"VM exited without reporting the script's exit status; console tail:\n{output[-3000:]}", output)
-    return VMResult(
-        returncode=rc, output=output, share_dir=share, boot_s=boot_s, total_s=total_s, boot_attempts=attempt, smp=cpus
-    )
+    return rc
+
+
+def _write_module_stubs(directory: Path, names: tuple[str, ...]) -> None:
+    """A package per name whose import raises ImportError, for the VM's PYTHONPATH (``VM_PYHIDE``).
+
+    ``("asammdf",)`` saves ~8 s of each service start-up under TCG on a quiet host (~40 s on a loaded one):
+    python-can imports asammdf (with pandas and sympy) at ``import can`` when it is installed, and nothing but an MF4
+    log needs it.
+    """
+    for name in names:
+        stub = directory / name
+        stub.mkdir(parents=True)
+        (stub / "__init__.py").write_text(f"raise ImportError('{name} is hidden in the vcan VM (hide_modules)')\n")
 
 
 def _boot_with_retries(
@@ -831,10 +869,12 @@ def _run_qemu(
                 stream.flush()
         try:
             proc.wait(timeout=max(1.0, deadline - time.monotonic()))
-        except subprocess.TimeoutExpired:
+        except subprocess.TimeoutExpired as exc:
             _kill(proc)
             text = _clean(buf)
-            raise VMTimeout(f"QEMU did not exit within {timeout_s:g} s; killed; console tail:\n{text[-3000:]}", text)
+            raise VMTimeout(
+                f"QEMU did not exit within {timeout_s:g} s; killed; console tail:\n{text[-3000:]}", text
+            ) from exc
     finally:
         sel.close()
         proc.stdout.close()

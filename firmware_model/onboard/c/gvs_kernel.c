@@ -462,6 +462,9 @@ int gvs_check_tables(const gvs_tables *tb)
         || tb->ncol > GVS_MAX_TERMS || tb->n_gears != GVS_N_GEARS
         || tb->nT < 2 || tb->nT2 < 2 || tb->n_u < 2 || tb->n_u_churn < 2 || tb->nx < 2 || tb->ttl_every < 1)
         return GVS_BAD_TABLES;
+#ifdef GVS_NO_TTL_BOUND
+    if (tb->ttl_bound) return GVS_BAD_TABLES;    /* tables asking for the bounded method this build left out */
+#endif
     return GVS_OK;
 }
 
@@ -769,6 +772,7 @@ typedef struct {
     gvs_real beta[GVS_MAX_NODES];       /* the node heat's chord [W/K] */
 } ttl_chord_t;
 
+#ifndef GVS_NO_TTL_BOUND
 /* ttl_bound.chord_system on the built held system (K factorised in hs->S, b in Tb): A - beta e_sump^T,
  * b - beta T_far, when 1 - e_sump^T A^-1 beta stays above GVS_COUPLING_MARGIN; the maximum principle needs
  * beta <= 0 and a non-negative sump column, else the weights are decided again */
@@ -799,6 +803,7 @@ static void chord_column(const gvs_tables *tb, held_t *hs, const ttl_chord_t *ch
     hs->weighted = 0;
     if (!hs->metzler) held_weights(tb, hs, col, rs);
 }
+#endif
 
 /* the held system at the operating point's sump T_op (time_to_limit.held_system): factorise K, decide the
  * coupling, T_inf = A^-1 b; -1 when there is no finite steady state */
@@ -877,7 +882,11 @@ static int held_build(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_tt
     }
     if (measured) T_inf[io] = T_oil;
     else T_inf[io] += hs->slope * T_oil - p->Q_cool_w;
+#ifndef GVS_NO_TTL_BOUND
     if (chord) chord_column(tb, hs, chord, T_inf);
+#else
+    (void)chord;
+#endif
     /* T_inf = A^-1 b: the factorised K (w = K^-1 u) with the coupling by Sherman-Morrison */
     held_solve(tb, hs, T_inf);
     for (i = 0; i < n; ++i)
@@ -1044,6 +1053,7 @@ static int ttl_solve(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl
     return 0;
 }
 
+#ifndef GVS_NO_TTL_BOUND /* an export whose tables use today's march leaves the bounded method out (flash) */
 /* ttl_bound.loss_heat_w and the nodes' share of it: the loss sources' heat with the point's load at sump T [W] */
 static void bound_heat(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl_point *p, gvs_real T,
                        gvs_real *src, gvs_real *q)
@@ -1166,6 +1176,8 @@ static int ttl_refresh_bound(const gvs_tables *tb, const gvs_vehicle *veh, const
     return GVS_OK;
 }
 
+#endif /* GVS_NO_TTL_BOUND */
+
 static int ttl_refresh(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl_point *p, gvs_real *ttl_s, int bound)
 {
     gvs_real T_watch, T_op = p->T_oil_c, src[GVS_MAX_SRC], G[GVS_MAX_LINKS], Gs[GVS_MAX_STREAMS];
@@ -1176,7 +1188,11 @@ static int ttl_refresh(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_t
         for (it = 0; it < GVS_N_PUB; ++it) ttl_s[it] = (gvs_real)NAN;
         return GVS_OK;
     }
+#ifndef GVS_NO_TTL_BOUND
     if (bound) return ttl_refresh_bound(tb, veh, p, ttl_s);
+#else
+    (void)bound;
+#endif
     if (ttl_solve(tb, veh, p, p->src_w, p->G_w_per_k, p->G_streams_w_per_k, T_op, measured, ttl_s, &T_watch, NULL) != 0
         || !tb->ttl_sump_model || !tb->ttl_relinearise)
         return GVS_OK;
