@@ -262,6 +262,20 @@ class Parameters:
         _check_values(new)
         return new
 
+    def with_cooler_kind(self, kind: str) -> Parameters:
+        """A copy whose cooler is of another kind (``cooler.kind``: "none" runs the gearbox without its cooler)."""
+        strings = dict(self.strings)
+        strings["cooler.kind"] = kind
+        return Parameters(
+            self.variant,
+            dict(self.values),
+            dict(self.sources),
+            dict(self.units),
+            strings,
+            self.origin,
+            dict(self.bounds),
+        )
+
     def table(self):
         """Rows (key, SI value, SI unit, provenance) for documentation."""
         return [(k, self.values[k], self.units[k], self.sources[k]) for k in sorted(self.values)]

@@ -20,24 +20,13 @@ from firmware_model.onboard.records import (
     I_TORQUE,
     N_INPUTS,
     REJECT_INDEX,
+    REJECT_REASONS,
     TWIN,
     SensorState,
 )
 
 #: reject counters of the input checks, in REJECT_REASONS order (the time checks come after them)
-_INPUT_REASONS = (
-    "speed_missing",
-    "speed_clamped",
-    "torque_missing",
-    "torque_clamped",
-    "gear_missing",
-    "gear_unknown",
-    "oil_missing",
-    "oil_implausible",
-    "oil_frozen",
-    "drive_frozen",
-    "aux_missing",
-)
+_INPUT_REASONS = REJECT_REASONS[: REJECT_INDEX["aux_missing"] + 1]
 assert tuple(REJECT_INDEX[r] for r in _INPUT_REASONS) == tuple(range(len(_INPUT_REASONS)))
 _MISSING_COLUMNS = [REJECT_INDEX[r] for r in ("speed_missing", "torque_missing", "gear_missing", "oil_missing")]
 _CLAMPED_COLUMNS = [REJECT_INDEX[r] for r in ("speed_clamped", "torque_clamped")]

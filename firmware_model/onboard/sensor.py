@@ -128,7 +128,7 @@ class VirtualSensor:
             )
         if params.strings.get("cooler.kind") in ("hold", "measured"):
             # a rig: the sump is conditioned from outside (no cooler to model, a constant reading is normal)
-            params = _with_cooler(params, "none")
+            params = params.with_cooler_kind("none")
             options.setdefault("oil_frozen_s", math.inf)
         try:
             opts = SensorOptions(oil_mode=oil_mode, **options)
@@ -386,16 +386,3 @@ def _limits_of(path, config, sensor_cfg: dict) -> Limits:
         cand = Path(config.origin).parent / path
         path = cand if cand.exists() else path
     return load_limits(path, sensor_cfg.get("debounce_s"), sensor_cfg.get("hysteresis_c"))
-
-
-def _with_cooler(params: Parameters, kind: str) -> Parameters:
-    p = Parameters(
-        params.variant,
-        dict(params.values),
-        dict(params.sources),
-        dict(params.units),
-        dict(params.strings),
-        params.origin,
-    )
-    p.strings["cooler.kind"] = kind
-    return p

@@ -436,25 +436,10 @@ def _onboard_build(volume_l: float):
         eff = {} if volume_l == CATALOG["oil_level_low"].neutral else {"oil_level_low": volume_l}
         params = _ONB["params"]
         if _ONB["cooler"]:
-            params = _with_cooler_kind(params, _ONB["cooler"])
+            params = params.with_cooler_kind(_ONB["cooler"])
         vs = VirtualSensor(params, config=_ONB["config"] or Config(), effects=eff, oil_mode="model", ttl_period_s=1e12)
         _ONB["builds"][volume_l] = vs
     return vs
-
-
-def _with_cooler_kind(params, kind):
-    from firmware_model.parameters import Parameters
-
-    p = Parameters(
-        params.variant,
-        dict(params.values),
-        dict(params.sources),
-        dict(params.units),
-        dict(params.strings),
-        params.origin,
-    )
-    p.strings["cooler.kind"] = kind
-    return p
 
 
 def _onboard_steps(vs, sp, state, raw: np.ndarray, keep: np.ndarray, wi: np.ndarray) -> np.ndarray:
