@@ -403,3 +403,28 @@ def test_the_documented_example_loads_as_written(tmp_path):
         "oil",
     )
     assert [(c.id, c.group) for c in d.published][-1] == ("oil", "oil")
+
+
+def test_a_calibrated_parameter_file_keeps_the_description(tmp_path):
+    """calibrate writes every entry of its base file again: the topology's lists and { from } entries too, so the
+    calibrated file is the same description (with the fitted values where it takes them from parameters)."""
+    from types import SimpleNamespace
+
+    from tools.diagnosis.calibrate import calibrated_toml
+
+    cal = SimpleNamespace(
+        train=["a.csv"],
+        test=["b.csv"],
+        test_rms_c=(2.0, 1.0),
+        thin_evidence=lambda: "",
+        fitted={"wheel.x_LI": 0.09},
+        sigma={"wheel.x_LI": 0.001},
+        at_bound={"wheel.x_LI": False},
+    )
+    p = load_parameters("GRS905")
+    f = tmp_path / "cal.toml"
+    f.write_text(calibrated_toml("GRS905", p, cal, "2026-12-04"))
+    assert load_parameters(f).values == {**p.values, "wheel.x_LI": 0.09}
+    d, ref = load_description(f), load_description("GRS905")
+    assert d.nodes == ref.nodes and [g.ratio for g in d.gears] == [g.ratio for g in ref.gears]
+    assert d.wheel("LI").x_m == 0.09 and d.provenance["topology.wheel.LI.x"] == "fitted"
