@@ -284,6 +284,9 @@ class Gear:
     path: tuple
     stated_ratio: float | None
     ratio: float  # input speed / output speed from the teeth along the path (inf: neutral)
+    meshes: tuple = ()  # the meshes that carry the power, in the path's order (none in neutral)
+    engaged: tuple = ()  # the couplings the path engages
+    held: tuple = ()  # (planetary set, held member or "locked") of each set the path passes
 
 
 @dataclass(frozen=True)
@@ -794,6 +797,7 @@ class _Walk:
         self.wheels, self.planetary = wheels, planetary
         self.meshes, self.couplings = meshes, couplings
         self.at, self.speed = start, 1.0
+        self.loaded, self.engaged, self.held = [], [], []
 
     def fail(self, step: str, why: str):
         self.r.fail(self.key, f"does not close at step {step!r}: {why}")
@@ -810,6 +814,7 @@ class _Walk:
             if self.at not in joins or len(others) != 1:
                 self.fail(s, f"the power is on {self.at}, which the coupling {s} ({', '.join(joins)}) does not join")
             self.at = others[0]
+            self.engaged.append(s)
         elif s in self.meshes:
             self.mesh(s, self.meshes[s])
         elif s.partition("/")[0] in {p.id for p in self.planetary}:
@@ -828,6 +833,7 @@ class _Walk:
         z_in, _, _, _, _ = _gear_of(self.wheels, self.planetary, w_in)
         z_out, _, _, shaft_out, _ = _gear_of(self.wheels, self.planetary, w_out)
         self.speed *= (z_in / z_out) * (1.0 if m.internal else -1.0)
+        self.loaded.append(s)
         self.at = shaft_out if shaft_out is not None else w_out
 
     def planet_step(self, s: str) -> None:
@@ -852,6 +858,10 @@ class _Walk:
         }[held]
         self.speed *= rel[out] / rel[into]
         self.at = {"sun": ps.sun_shaft, "carrier": ps.carrier_shaft, "ring": ps.ring}[out]
+        self.held.append((pid, held))
+        if held != "locked":  # the set's own meshes carry the power unless it turns as one body
+            members = {ps.sun, ps.planet, ps.ring}
+            self.loaded += [m.id for m in self.meshes.values() if set(m.wheels) <= members]
 
 
 def _gears(r: _Reader, topo: dict, parts: dict, drive: Drive, check: dict) -> tuple:
@@ -870,7 +880,7 @@ def _gears(r: _Reader, topo: dict, parts: dict, drive: Drive, check: dict) -> tu
                 r.fail(f"{key}.path", f"reaches the output shaft {drive.output_shaft}, but gear 0 is neutral")
             if f["ratio"] is not None:
                 r.fail(f"{key}.ratio", "must be left out: neutral transmits no power")
-            out.append(Gear(name, 0, f["path"], None, math.inf))
+            out.append(Gear(name, 0, f["path"], None, math.inf, (), tuple(walk.engaged), tuple(walk.held)))
             continue
         if walk.at != drive.output_shaft:
             r.fail(f"{key}.path", f"does not close: it ends on {walk.at}, not on the output shaft {drive.output_shaft}")
@@ -884,7 +894,9 @@ def _gears(r: _Reader, topo: dict, parts: dict, drive: Drive, check: dict) -> tu
                 f"= {stated:g} is off the ratio of the teeth along its path, {ratio:.6g} (by "
                 f"{abs(ratio / stated - 1):.2%}; topology.check.ratio_rel_tol = {tol:g})",
             )
-        out.append(Gear(name, f["number"], f["path"], stated, ratio))
+        out.append(
+            Gear(name, f["number"], f["path"], stated, ratio, tuple(walk.loaded), tuple(walk.engaged), tuple(walk.held))
+        )
     if drive.kind == "fixed_ratio" and sum(g.number != 0 for g in out) != 1:
         r.fail(f"{TOPOLOGY}.gear", "must hold exactly one gear (besides neutral) for a fixed-ratio drive")
     return tuple(out)

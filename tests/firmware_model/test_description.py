@@ -81,18 +81,18 @@ def test_the_kinematics_constants_and_ratios_are_the_description(both):
     assert tuple(m.id for m in d.meshes) == K.MESHES
     assert tuple(c.id for c in d.couplings if c.kind == "sync") == K.SYNCS
     assert {g.number: g.name for g in d.gears} == K.GEAR_NAMES
-    planet_meshes = tuple(m.id for m in d.meshes if set(m.wheels) <= set(C.PLANETARY))
     for g in d.gears:
+        row = g.number - K.GEAR_MIN
+        # the meshes the path loads are the ones the kinematics loads in that gear (none in neutral)
+        assert set(g.meshes) == {m for m, t in zip(K.MESHES, kin.mesh_torque[row]) if t != 0}, g.name
+        # the synchronizers the path engages are the ones locked (no relative speed) in that gear
+        for k, sync in enumerate(K.SYNCS[:-1]):  # PR/range: engaged on one side or the other in every gear
+            assert (sync in g.engaged) == (kin.sync_rel[row, k] == 0), (g.name, sync)
         if g.number == 0:
             assert math.isinf(g.ratio) and math.isinf(K.total_ratio(kin, 0))
             continue
         assert abs(g.ratio - K.total_ratio(kin, g.number)) <= 1e-12 * abs(g.ratio), g.name
-        # the meshes the path loads are the ones the kinematics loads in that gear
-        loaded = {s for s in g.path if s in K.MESHES}
-        if not g.path[-1].endswith("/locked"):
-            loaded |= set(planet_meshes)
-        row = kin.mesh_torque[g.number - K.GEAR_MIN]
-        assert loaded == {m for m, t in zip(K.MESHES, row) if t != 0}, g.name
+        assert g.held == (("range", "ring" if kin.low_range[row] else "locked"),), g.name
         split, main, rng = K.GEAR_TABLE[g.number]
         assert g.path[-1] == ("range/ring" if rng == "low" else "range/locked"), g.name
         st = K.gear_state(g.number, p.split_inverted)
