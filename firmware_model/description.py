@@ -907,6 +907,8 @@ def _limits(r: _Reader, name: str) -> dict:
     path = r.path.parent / name  # beside the description, else a shipped one
     if not path.is_file():
         path = PARAM_DIR / name
+    if not path.is_file():
+        r.fail(f"{TOPOLOGY}.published.limits", f"= {name!r} is no file beside the description or shipped with it")
     doc = read_toml(path, f"limits file {name}")
 
     def v(sec, k):

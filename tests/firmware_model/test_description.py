@@ -341,12 +341,33 @@ MALFORMED = [
         "topology.oil.jets",
         "names XX, which is no part of the description",
     ),
+    (
+        "limits file missing",
+        '[topology.published]\nlimits = { v = "nolimits.toml", u = "-", src = "assumed" }',
+        "topology.published.limits",
+        "= 'nolimits.toml' is no file beside the description or shipped with it",
+    ),
+    (
+        "mesh of two wheels on one shaft",
+        '[topology.mesh.C]\nwheels = { v = ["1M", "CM"], u = "-", src = "seed" }',
+        "topology.mesh.C.wheels",
+        "sit on one shaft (MS) and cannot mesh",
+    ),
+    (
+        "fixed-ratio drive with many gears",
+        '[topology.drive]\nkind = { v = "fixed_ratio", u = "-", src = "assumed" }',
+        "topology.gear",
+        "must hold exactly one gear (besides neutral) for a fixed-ratio drive",
+    ),
+    ("a file without a topology", ("whole", '[meta]\nvariant = "X"\n'), "[topology]", "is missing: the file describes"),
 ]
 
 
 def _write(tmp_path, body) -> str:
     f = tmp_path / "p.toml"
-    if body is None:  # a whole copy of GRS905 without the planetary set's ring
+    if isinstance(body, tuple):  # a whole file that inherits nothing
+        f.write_text(body[1])
+    elif body is None:  # a whole copy of GRS905 without the planetary set's ring
         text = (PARAM_DIR / "GRS905.toml").read_text()
         line = 'ring = { v = "PR", u = "-", src = "seed", ref = "2.2" }\n'
         assert text.count(line) == 1

@@ -33,6 +33,10 @@ def _mm(x_m) -> str:
     return "-" if x_m is None else f"{x_m * 1e3:g} mm"
 
 
+def _c(t_c) -> str:
+    return "-" if t_c is None else f"{t_c:g}"
+
+
 def summary(d) -> list[str]:
     """The description as text lines, section by section."""
     out = [f"gearbox {d.name} ({d.origin}): {d.drive.kind} drive, {d.drive.input_shaft} -> {d.drive.output_shaft}"]
@@ -94,7 +98,7 @@ def _summary_rest(d) -> list[str]:
     out.append("boundaries: " + ", ".join(f"{b.id} {b.temperature_c:g} degC" for b in d.boundaries))
     out.append(f"published ({len(d.published)}, warning/critical degC):")
     for i in range(0, len(d.published), 7):
-        out.append("  " + ", ".join(f"{c.id} {c.warning_c:g}/{c.critical_c:g}" for c in d.published[i : i + 7]))
+        out.append("  " + ", ".join(f"{c.id} {_c(c.warning_c)}/{_c(c.critical_c)}" for c in d.published[i : i + 7]))
     return out
 
 
