@@ -131,7 +131,7 @@ SPECS = {
         "faces": _L,
     },
     "gear": {"number": _i(sign="any"), "path": _L, "ratio": _n("1", False, "any")},
-    "boundary": {"temperature": _n("degC", sign="any"), "touches": _L},
+    "boundary": {"temperature": _n("degC", sign="any"), "touches": _L, "conductance": _n("W/K", False)},
 }
 #: the sections that hold one table, not one table per id
 SINGLE_SPECS = {
@@ -304,6 +304,7 @@ class Boundary:
     id: str
     temperature_c: float
     touches: tuple
+    conductance_w_per_k: float | None = None  # of each touch by conduction (None: through a cooler or the housing)
 
 
 @dataclass(frozen=True)
@@ -764,7 +765,12 @@ def _oil(r: _Reader, topo: dict, shafts: dict, nodes: set) -> OilSystem:
 
 
 def _boundaries(r: _Reader, topo: dict) -> tuple:
-    return tuple(Boundary(b, f["temperature"], f["touches"]) for b, _, f in _per_id(r, topo, "boundary"))
+    out = []
+    for b, key, f in _per_id(r, topo, "boundary"):
+        if f["conductance"] is not None and not f["touches"]:
+            r.fail(f"{key}.conductance", "is given, but the boundary touches nothing")
+        out.append(Boundary(b, f["temperature"], f["touches"], f["conductance"]))
+    return tuple(out)
 
 
 def _check_touches(r: _Reader, boundaries: tuple, nodes: set) -> None:

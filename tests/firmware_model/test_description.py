@@ -69,6 +69,11 @@ def test_the_network_and_geometry_constants_are_the_description(both):
         assert (w.teeth, w.module_m, w.helix_rad, w.width_m, w.x_m) == (g.z, g.m_n, g.beta, g.width, g.x), w.id
     net = N.build_network(p)
     assert d.nodes == net.nodes
+    # the conduction links to the boundaries: the touching nodes and their conductance
+    for k, b in enumerate(d.boundaries):
+        links = [i for i in range(len(net.link_b)) if net.link_b[i] == net.n + k and net.link_kind[i] == N.K_CONST]
+        assert {net.nodes[net.link_a[i]] for i in links} == (set(b.touches) if b.conductance_w_per_k else set()), b.id
+        assert all(net.link_G0[i] == b.conductance_w_per_k for i in links), b.id
     fed = {net.nodes[net.link_a[i]] for i in net.links_of_kind(N.K_STREAM)}
     assert set(d.oil.jets) == fed
     for b in shaft_bearings:

@@ -95,7 +95,10 @@ def _summary_rest(d) -> list[str]:
         f"oil system: {o.lubrication} lubrication, {o.volume_m3 * 1e3:g} L, {pump} reaching {len(o.jets)} parts, "
         f"filter {o.filter}; cooler {o.cooler}{thermo}{heater}"
     )
-    out.append("boundaries: " + ", ".join(f"{b.id} {b.temperature_c:g} degC" for b in d.boundaries))
+    out.append(f"boundaries ({len(d.boundaries)}, default temperature; what touches each):")
+    for b in d.boundaries:
+        g = f" through {b.conductance_w_per_k:g} W/K each" if b.conductance_w_per_k else ""
+        out.append(f"  {b.id} {b.temperature_c:g} degC; touches {', '.join(b.touches) or 'nothing directly'}{g}")
     out.append(f"published ({len(d.published)}, warning/critical degC):")
     for i in range(0, len(d.published), 7):
         out.append("  " + ", ".join(f"{c.id} {_c(c.warning_c)}/{_c(c.critical_c)}" for c in d.published[i : i + 7]))
