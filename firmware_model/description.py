@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import difflib
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from firmware_model.errors import ParameterError
@@ -129,6 +129,9 @@ SPECS = {
         "area": _n("m2"),
         "internal_split": _n("1", sign="0+"),
         "faces": _L,
+        "x": _n("m", False, "any"),
+        "joined_to": _t,
+        "joint_area": _n("m2", False),
     },
     "gear": {"number": _i(sign="any"), "path": _L, "ratio": _n("1", False, "any")},
     "boundary": {"temperature": _n("degC", sign="any"), "touches": _L, "conductance": _n("W/K", False)},
@@ -261,6 +264,9 @@ class Housing:
     area_m2: float
     internal_split: float
     faces: tuple
+    x_m: float | None = None  # position of its node (for the conduction across a joint)
+    joined_to: str | None = None  # the housing it is bolted to
+    joint_area_m2: float | None = None  # the flange's cross-section
 
 
 @dataclass(frozen=True)
@@ -696,6 +702,20 @@ def _bearings(r: _Reader, topo: dict, shafts: dict, wheels: dict, housings: set)
     return tuple(out)
 
 
+def _check_joint(r: _Reader, key: str, f: dict, topo: dict) -> None:
+    """A housing bolted to another names a housing that is not itself, with the flange's area and both positions."""
+    j = f["joined_to"]
+    if j is None:
+        if f["joint_area"] is not None:
+            r.fail(f"{key}.joint_area", "is given, but the housing is joined to no other (joined_to)")
+        return
+    others = topo.get("housing") or {}
+    if j not in others or f"{TOPOLOGY}.housing.{j}" == key:
+        r.fail(f"{key}.joined_to", f"= {j!r} is no other housing; housings: {', '.join(others)}")
+    if f["joint_area"] is None or f["x"] is None or not isinstance(others[j], dict) or "x" not in others[j]:
+        r.fail(key, f"is joined to {j} but lacks joint_area, or x (here or in {j}): the joint's conduction needs both")
+
+
 def _housings(r: _Reader, topo: dict, boundaries: set) -> tuple:
     out = []
     materials = sorted({k.split(".")[1] for k in r.entries if k.startswith("material.")})
@@ -708,7 +728,9 @@ def _housings(r: _Reader, topo: dict, boundaries: set) -> tuple:
         for b in f["faces"]:
             if b not in boundaries:
                 r.fail(f"{key}.faces", f"names {b}, which is no boundary; boundaries: {', '.join(boundaries)}")
-        out.append(Housing(hid, f["name"] or hid, f["material"], f["mass"], f["area"], f["internal_split"], f["faces"]))
+        _check_joint(r, key, f, topo)
+        h = Housing(hid, f["name"] or hid, f["material"], f["mass"], f["area"], f["internal_split"], f["faces"])
+        out.append(replace(h, x_m=f["x"], joined_to=f["joined_to"], joint_area_m2=f["joint_area"]))
     split = sum(h.internal_split for h in out)
     if out and abs(split - 1.0) > 1e-6:
         r.fail(f"{TOPOLOGY}.housing.*.internal_split", f"add up to {split:g}; the housings share the inside: 1")

@@ -69,6 +69,15 @@ def test_the_network_and_geometry_constants_are_the_description(both):
         assert (w.teeth, w.module_m, w.helix_rad, w.width_m, w.x_m) == (g.z, g.m_n, g.beta, g.width, g.x), w.id
     net = N.build_network(p)
     assert d.nodes == net.nodes
+    # the housings' joints: the links across the flanges, their conductance from the description
+    from firmware_model.physics.heat_transfer import linear_conductance_w_per_k
+
+    by_id = {h.id: h for h in d.housings}
+    joints = {f"cond:{h.id}-{h.joined_to}": h for h in d.housings if h.joined_to}
+    assert set(joints) == {nm for nm in net.link_name if nm.startswith("cond:H")}
+    for nm, h in joints.items():
+        g_w_per_k = linear_conductance_w_per_k(p["housing.k_joint"], h.joint_area_m2, h.x_m, by_id[h.joined_to].x_m)
+        assert net.link_G0[net.link_name.index(nm)] == g_w_per_k, nm
     # the conduction links to the boundaries: the touching nodes and their conductance
     for k, b in enumerate(d.boundaries):
         links = [i for i in range(len(net.link_b)) if net.link_b[i] == net.n + k and net.link_kind[i] == N.K_CONST]
@@ -345,6 +354,12 @@ MALFORMED = [
         '[topology.oil]\njets = { v = ["BIF", "XX"], u = "-", src = "seed" }',
         "topology.oil.jets",
         "names XX, which is no part of the description",
+    ),
+    (
+        "housing joined to itself",
+        '[topology.housing.H2]\njoined_to = { v = "H2", u = "-", src = "seed" }',
+        "topology.housing.H2.joined_to",
+        "= 'H2' is no other housing",
     ),
     (
         "limits file missing",
