@@ -41,6 +41,7 @@ DESC_DIM_NAMES = {**DIM_NAMES, "m3/s": "a volume flow"}
 
 #: how a wheel sits: turning on its shaft until a coupling engages it, fixed to it, cut into it, on a stationary pin
 MOUNTS = ("idle", "fixed", "cut", "pin")
+SIDES = ("covered", "free")
 BEARING_KINDS = ("tapered", "ball", "needle", "cylindrical", "spherical")
 COUPLING_KINDS = ("sync", "dog", "clutch")
 LUBRICATIONS = ("splash", "forced")
@@ -89,6 +90,7 @@ SPECS = {
         "width": _n("m"),
         "x": _n("m", sign="any"),
         "bore": _n("m", False),
+        "sides": _t,
     },
     "planetary": {
         "sun": _T,
@@ -144,6 +146,8 @@ SINGLE_SPECS = {
         "pump_shaft": _t,
         "pump_flow": ("number", False, ("m3/rad", "m3/s"), "+"),
         "jets": _l,
+        "dipping": _l,
+        "splashed": _l,
         "filter": _t,
         "cooler": _T,
         "thermostat_open": _n("degC", False, "any"),
@@ -198,6 +202,7 @@ class Wheel:
     shaft: str | None  # None: on a pin
     segment: str | None
     bore_m: float | None  # diameter of the bore (idle and pin wheels)
+    sides: str | None = None  # SIDES: the web sides covered by neighbouring wheels or free (splash area)
 
 
 @dataclass(frozen=True)
@@ -281,6 +286,8 @@ class OilSystem:
     thermostat_open_c: float | None
     thermostat_full_c: float | None
     heater_w: float
+    dipping: tuple = ()  # the parts that dip into the sump
+    splashed: tuple = ()  # the parts the thrown oil splashes
 
 
 @dataclass(frozen=True)
@@ -544,7 +551,10 @@ def _wheels(r: _Reader, topo: dict, shafts: dict) -> tuple:
             r.fail(f"{key}.segment", f"= {seg!r} is no segment of shaft {shaft}")
         if mount in ("idle", "pin") and f["bore"] is None:
             r.fail(key, f"has no bore: a wheel that turns on its {'pin' if mount == 'pin' else 'shaft'} needs one")
-        out.append(Wheel(wid, mount, f["teeth"], f["module"], f["helix"], f["width"], f["x"], shaft, seg, f["bore"]))
+        if f["sides"] is not None and f["sides"] not in SIDES:
+            r.fail(f"{key}.sides", f"= {f['sides']!r} must be one of {', '.join(SIDES)}")
+        w = Wheel(wid, mount, f["teeth"], f["module"], f["helix"], f["width"], f["x"], shaft, seg, f["bore"])
+        out.append(replace(w, sides=f["sides"]))
     return tuple(out)
 
 
@@ -752,9 +762,10 @@ def _oil(r: _Reader, topo: dict, shafts: dict, nodes: set) -> OilSystem:
         r.fail(
             f"{key}.pump_shaft", f"= {f['pump_shaft']!r} is no shaft of the description; shafts: {', '.join(shafts)}"
         )
-    for j in f["jets"] or ():
-        if j not in nodes:
-            r.fail(f"{key}.jets", f"names {j}, which is no part of the description")
+    for k in ("jets", "dipping", "splashed"):
+        for j in f[k] or ():
+            if j not in nodes:
+                r.fail(f"{key}.{k}", f"names {j}, which is no part of the description")
     if f["cooler"] not in COOLERS:
         r.fail(f"{key}.cooler", f"= {f['cooler']!r} must be one of {', '.join(COOLERS)}")
     t_open, t_full = f["thermostat_open"], f["thermostat_full"]
@@ -783,6 +794,8 @@ def _oil(r: _Reader, topo: dict, shafts: dict, nodes: set) -> OilSystem:
         t_open,
         t_full,
         f["heater"] or 0.0,
+        f["dipping"] or (),
+        f["splashed"] or (),
     )
 
 

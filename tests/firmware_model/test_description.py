@@ -69,6 +69,15 @@ def test_the_network_and_geometry_constants_are_the_description(both):
         assert (w.teeth, w.module_m, w.helix_rad, w.width_m, w.x_m) == (g.z, g.m_n, g.beta, g.width, g.x), w.id
     net = N.build_network(p)
     assert d.nodes == net.nodes
+
+    # what dips into the sump, what the oil splashes, which wheels have covered sides: the network's links
+    def linked(prefix):
+        return {nm.split(":", 1)[1] for nm in net.link_name if nm.startswith(prefix)}
+
+    assert set(d.oil.dipping) == linked("imm:")
+    assert set(d.oil.splashed) == linked("splash:") - {"OS"} | {"OS@bulk", "PR"} | linked("bsplash:")
+    assert tuple(w.id for w in d.wheels if w.sides == "free") == ("CM", "RM")  # network: Eq 61 for CM and RM
+    assert {w.id for w in d.wheels if w.sides} == set(C.IDLE_WHEELS)
     # the housings' joints: the links across the flanges, their conductance from the description
     from firmware_model.physics.heat_transfer import linear_conductance_w_per_k
 

@@ -81,7 +81,7 @@ def _summary_rest(d) -> list[str]:
     for h in d.housings:
         out.append(
             f"  {h.id} {h.name}: {h.material}, {h.mass_kg:g} kg, {h.area_m2:g} m2, {h.internal_split:.0%} of the "
-            f"inside; faces {', '.join(h.faces)}"
+            f"inside{f', bolted to {h.joined_to}' if h.joined_to else ''}; faces {', '.join(h.faces)}"
         )
     o = d.oil
     pump = f"pump on {o.pump_shaft}" if o.pump_shaft else ("pump" if o.pump_flow else "no pump")
@@ -95,6 +95,8 @@ def _summary_rest(d) -> list[str]:
         f"oil system: {o.lubrication} lubrication, {o.volume_m3 * 1e3:g} L, {pump} reaching {len(o.jets)} parts, "
         f"filter {o.filter}; cooler {o.cooler}{thermo}{heater}"
     )
+    out.append(f"  dipping into the sump: {', '.join(o.dipping) or 'nothing'}")
+    out.append(f"  splashed: {', '.join(o.splashed) or 'nothing'}")
     out.append(f"boundaries ({len(d.boundaries)}, default temperature; what touches each):")
     for b in d.boundaries:
         g = f" through {b.conductance_w_per_k:g} W/K each" if b.conductance_w_per_k else ""
