@@ -11,6 +11,9 @@ misspelt key or section, ``u = "-"`` for an angle or ``v = "4200"`` is a Paramet
 Values must be greater than zero unless their dimension takes any sign or the key may be zero or negative
 (SIGN_FREE_DIMS, ZERO_ALLOWED, NOT_POSITIVE); range messages give the value and the range in the unit the file used.
 
+The ``[topology]`` section (the gearbox description, firmware_model.description) is passed by: its keys are no
+parameters, and firmware_model.description checks them against what a description may hold.
+
 Renamed keys (RENAMED_KEYS) are migrated in the shipped files; a file that still uses an old name
 (``oil_system.flow_per_ls_rpm``, ``engine.max_speed``, ``heat.N_nom``) loads with a FutureWarning naming the new key
 (``oil_system.flow_m3_per_rad``, ``engine.max_speed_rad_s``, ``heat.omega_nom_rad_s``), its value converted by its unit
