@@ -81,6 +81,7 @@ SPECS = {
         "x": ("table", True, "m", "any"),
     },
     "wheel": {
+        "name": _t,
         "shaft": _t,
         "segment": _t,
         "mount": _T,
@@ -112,6 +113,7 @@ SPECS = {
     "mesh": {"wheels": _L, "centre_distance": _n("m", False)},
     "coupling": {"kind": _T, "joins": _L},
     "bearing": {
+        "name": _t,
         "kind": _T,
         "shaft": _t,
         "segment": _t,
@@ -203,6 +205,7 @@ class Wheel:
     segment: str | None
     bore_m: float | None  # diameter of the bore (idle and pin wheels)
     sides: str | None = None  # SIDES: the web sides covered by neighbouring wheels or free (splash area)
+    name: str | None = None  # what it is, in a few words
 
 
 @dataclass(frozen=True)
@@ -258,6 +261,7 @@ class Bearing:
     width_m: float
     roller_m: float | None
     x_m: float | None
+    name: str | None = None  # what it is, in a few words
 
 
 @dataclass(frozen=True)
@@ -359,6 +363,20 @@ class Description:
 
     def gear(self, name: str) -> Gear | None:
         return self._one(self.gears, name)
+
+    @property
+    def names(self) -> dict:
+        """What each part is, in a few words (printed output, legends): shafts, wheels, planetary members (sun
+        wheel, planet wheels, ring gear), bearings and housings by id, and the sump; a part without a name is left
+        out."""
+        out = {s.id: s.name for s in self.shafts}
+        out.update({w.id: w.name for w in self.wheels if w.name})
+        for ps in self.planetary:
+            out.update({ps.sun: "sun wheel", ps.planet: "planet wheels", ps.ring: "ring gear"})
+        out.update({b.id: b.name for b in self.bearings if b.name})
+        out.update({h.id: h.name for h in self.housings})
+        out["oil"] = "oil sump"
+        return out
 
     @property
     def nodes(self) -> tuple:
@@ -554,7 +572,7 @@ def _wheels(r: _Reader, topo: dict, shafts: dict) -> tuple:
         if f["sides"] is not None and f["sides"] not in SIDES:
             r.fail(f"{key}.sides", f"= {f['sides']!r} must be one of {', '.join(SIDES)}")
         w = Wheel(wid, mount, f["teeth"], f["module"], f["helix"], f["width"], f["x"], shaft, seg, f["bore"])
-        out.append(replace(w, sides=f["sides"]))
+        out.append(replace(w, sides=f["sides"], name=f["name"]))
     return tuple(out)
 
 
@@ -707,6 +725,7 @@ def _bearings(r: _Reader, topo: dict, shafts: dict, wheels: dict, housings: set)
                 f["width"],
                 f["roller"],
                 f["x"],
+                f["name"],
             )
         )
     return tuple(out)

@@ -43,6 +43,8 @@ def test_the_components_constants_are_the_description(both):
             assert meshes["R"] == (lw, C.REVERSE_IDLER) and meshes["RI"] == (C.REVERSE_IDLER, iw)
         else:
             assert meshes[pair] == (iw, lw) and wheels[iw].mount == "idle" and wheels[lw].shaft == "LS"
+    assert {i: n for i, n in d.names.items()} == {i: n for i, n in C.NAMES.items() if i in d.names}
+    assert set(C.NAMES) - set(d.names) == set()  # every code components.py names is a part of the description
     assert tuple(c.id for c in d.published) == C.PUBLISHED
     assert {c.id: c.group for c in d.published} == C.GROUP
 
@@ -258,7 +260,7 @@ MALFORMED = [
         "unknown key",
         '[topology.wheel.LI]\nteth = { v = 28, u = "-", src = "seed" }',
         "topology.wheel.LI.teth",
-        "is an unknown key (did you mean teeth?); known: shaft, segment, mount, teeth",
+        "is an unknown key (did you mean teeth?); known: name, shaft, segment, mount, teeth",
     ),
     (
         "unknown section",

@@ -48,7 +48,7 @@ def summary(d) -> list[str]:
     for w in d.wheels:
         on = "on a pin" if w.shaft is None else f"{w.mount} on {w.shaft} ({w.segment})"
         out.append(
-            f"  {w.id}: {on}, z {w.teeth}, module {_mm(w.module_m)}, helix "
+            f"  {w.id}{f' ({w.name})' if w.name else ''}: {on}, z {w.teeth}, module {_mm(w.module_m)}, helix "
             f"{math.degrees(w.helix_rad):g} deg, width {_mm(w.width_m)}"
         )
     for ps in d.planetary:
@@ -76,7 +76,8 @@ def _summary_rest(d) -> list[str]:
     for b in d.bearings:
         seat = f"under {b.wheel}" if b.wheel else (f"in {b.housing}" if b.housing else f"inside {b.inside}")
         size = f"{_mm(b.bore_m)} x {_mm(b.outer_m)} x {_mm(b.width_m)}" if b.bore_m else f"width {_mm(b.width_m)}"
-        out.append(f"  {b.id}: {b.kind} on {b.shaft} ({b.segment}), {seat}; {size}")
+        named = f"{b.id} ({b.name})" if b.name else b.id
+        out.append(f"  {named}: {b.kind} on {b.shaft} ({b.segment}), {seat}; {size}")
     out.append(f"housings ({len(d.housings)}):")
     for h in d.housings:
         out.append(
