@@ -11,6 +11,9 @@ misspelt key or section, ``u = "-"`` for an angle or ``v = "4200"`` is a Paramet
 Values must be greater than zero unless their dimension takes any sign or the key may be zero or negative
 (SIGN_FREE_DIMS, ZERO_ALLOWED, NOT_POSITIVE); range messages give the value and the range in the unit the file used.
 
+The ``[topology]`` section (the gearbox description, firmware_model.description) is passed by: its keys are no
+parameters, and firmware_model.description checks them against what a description may hold.
+
 Renamed keys (RENAMED_KEYS) are migrated in the shipped files; a file that still uses an old name
 (``oil_system.flow_per_ls_rpm``, ``engine.max_speed``, ``heat.N_nom``) loads with a FutureWarning naming the new key
 (``oil_system.flow_m3_per_rad``, ``engine.max_speed_rad_s``, ``heat.omega_nom_rad_s``), its value converted by its unit
@@ -281,10 +284,22 @@ class Parameters:
         return [(k, self.values[k], self.units[k], self.sources[k]) for k in sorted(self.values)]
 
 
+#: the section of a parameter file that holds the gearbox's topology (firmware_model.description reads and checks it;
+#: the parameter loader passes it by)
+TOPOLOGY = "topology"
+
+
+def is_topology(key: str) -> bool:
+    """Whether a dotted key belongs to the topology section (read by firmware_model.description, not here)."""
+    return key.startswith(TOPOLOGY + ".")
+
+
 def _flatten(d: dict, prefix: str = ""):
+    """(dotted key, entry) of every entry: a table with a value ``v``, or a topology entry ``{ from = "key" }``
+    that takes a parameter's value."""
     for k, v in d.items():
         key = f"{prefix}{k}"
-        if isinstance(v, dict) and "v" not in v:
+        if isinstance(v, dict) and "v" not in v and "from" not in v:
             yield from _flatten(v, key + ".")
         else:
             yield key, v
@@ -367,6 +382,8 @@ def _check_keys(path: Path, entries: dict, base: dict, base_name: str) -> None:
     for key, e in entries.items():
         if key == "meta.inherit" or (key.startswith("meta.") and isinstance(e, str)):
             continue  # a file's own description (meta.description ...): text, no physics
+        if is_topology(key):
+            continue  # checked by firmware_model.description against what a topology may hold
         if key not in base:
             raise ParameterError(_unknown_key(path, key, base, base_name))
         _check_entry_kind(path, key, e, base[key])
@@ -462,6 +479,8 @@ def load_parameters(variant_or_path: str | Path = "GRS905") -> Parameters:
     values, sources, units, strings, bounds = {}, {}, {}, {}, {}
     written = {}  # key -> (unit, factor to SI) as in the file, for messages
     for key, e in entries.items():
+        if is_topology(key):
+            continue  # the gearbox description (firmware_model.description), no parameter
         if key in ("meta.variant", "meta.inherit") or (key.startswith("meta.") and isinstance(e, str)):
             strings[key] = str(e)  # a description of the file (meta.description ...): text, no physics
             continue

@@ -26,6 +26,7 @@ MINIMAL = {
     "status": [],
     "service-unit": [],
     "fleet": ["logs/", "--out", "fleet_out"],
+    "describe": [],
 }
 SUBCOMMANDS = build_parser().subcommands
 

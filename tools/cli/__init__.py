@@ -22,6 +22,7 @@ SUBCOMMANDS = (
     "status",
     "service_unit",
     "fleet",
+    "describe",
 )
 
 

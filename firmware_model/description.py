@@ -1,0 +1,1126 @@
+"""The gearbox description as data: what a gearbox is made of and how its power flows (docs/description.md).
+
+A description is the ``[topology]`` section of a parameter file (firmware_model/params/*.toml, or a user's own file):
+shafts with their segments and positions, wheels, meshes, planetary sets, couplings, bearings, housings, the oil
+system, the gears with their power paths and stated ratios, what drives the gearbox, its boundaries and the
+components it publishes. Every value is written as in the rest of the file (``{ v, u, src }``) or taken from a
+parameter of the file with its unit and provenance (``{ from = "gear.L.z1" }``), so a variant that overrides a
+parameter (GRSO905 inherits GRS905) changes its description with it.
+
+:func:`load_description` reads a description by name or path and checks that it holds together before anything
+runs: a description that does not is a ParameterError of one sentence naming the file, the key and why (the CLI
+turns it into exit status 2). SI units throughout; temperatures in degC.
+
+    >>> d = load_description("GRS905")
+    >>> len(d.published), d.gear("4L").number, round(d.gear("4L").ratio, 4)
+    (28, 9, 3.0336)
+"""
+
+from __future__ import annotations
+
+import difflib
+import math
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+from firmware_model.errors import ParameterError
+from firmware_model.parameters import (
+    DIM_NAMES,
+    PARAM_DIR,
+    PROVENANCES,
+    TOPOLOGY,
+    UNITS,
+    is_topology,
+    read_entries,
+    read_toml,
+)
+
+#: units a description may use: the parameter files' and volume flows (a motor-driven pump)
+DESC_UNITS = {**UNITS, "L/min": ("m3/s", 1e-3 / 60.0), "m3/s": ("m3/s", 1.0)}
+DESC_DIM_NAMES = {**DIM_NAMES, "m3/s": "a volume flow"}
+
+#: how a wheel sits: turning on its shaft until a coupling engages it, fixed to it, cut into it, on a stationary pin
+MOUNTS = ("idle", "fixed", "cut", "pin")
+SIDES = ("covered", "free")
+BEARING_KINDS = ("tapered", "ball", "needle", "cylindrical", "spherical")
+COUPLING_KINDS = ("sync", "dog", "clutch")
+LUBRICATIONS = ("splash", "forced")
+COOLERS = ("none", "liquid", "air")
+DRIVES = ("vehicle", "fixed_ratio")
+#: what a planetary step of a power path may hold (``range/ring``); ``locked`` turns the set as one body
+HELD = ("sun", "ring", "carrier", "locked")
+#: a coupling member that is no part: the gearbox casing (a brake holding a ring gear)
+CASING = "housing"
+#: where a thermostatic bypass may plausibly open: the oil's working range [degC]
+THERMOSTAT_RANGE_C = (40.0, 150.0)
+
+# field specifications: name -> (kind, required, dimension, sign); kind text | list | number | int | table;
+# sign "+" (> 0), "0+" (>= 0), "-0" (<= 0) or "any"
+_T, _L = ("text", True, None, None), ("list", True, None, None)
+_t, _l = ("text", False, None, None), ("list", False, None, None)
+
+
+def _n(dim: str, required: bool = True, sign: str = "+") -> tuple:
+    return ("number", required, dim, sign)
+
+
+def _i(required: bool = True, sign: str = "+") -> tuple:
+    return ("int", required, "1", sign)
+
+
+SPECS = {
+    "shaft": {
+        "name": _t,
+        "d_out": _n("m"),
+        "d_bore": _n("m", sign="0+"),
+        "x_front": _n("m", False, "any"),
+        "x_rear": _n("m", False, "any"),
+        "overhang_front": _n("m", False, "0+"),
+        "overhang_rear": _n("m", False, "0+"),
+        "segments": _L,
+        "x": ("table", True, "m", "any"),
+    },
+    "wheel": {
+        "name": _t,
+        "shaft": _t,
+        "segment": _t,
+        "mount": _T,
+        "teeth": _i(),
+        "module": _n("m"),
+        "helix": _n("rad", sign="0+"),
+        "width": _n("m"),
+        "x": _n("m", sign="any"),
+        "bore": _n("m", False),
+        "sides": _t,
+    },
+    "planetary": {
+        "sun": _T,
+        "planet": _T,
+        "ring": _T,
+        "sun_shaft": _T,
+        "sun_segment": _t,
+        "carrier_shaft": _T,
+        "carrier_segment": _t,
+        "z_sun": _i(),
+        "z_planet": _i(),
+        "z_ring": _i(),
+        "n_planets": _i(),
+        "module": _n("m"),
+        "helix": _n("rad", sign="0+"),
+        "width": _n("m"),
+        "x": _n("m", sign="any"),
+    },
+    "mesh": {"wheels": _L, "centre_distance": _n("m", False)},
+    "coupling": {"kind": _T, "joins": _L},
+    "bearing": {
+        "name": _t,
+        "kind": _T,
+        "shaft": _t,
+        "segment": _t,
+        "housing": _t,
+        "inside": _t,
+        "wheel": _t,
+        "bore": _n("m", False),
+        "outer": _n("m", False),
+        "width": _n("m"),
+        "roller": _n("m", False),
+        "x": _n("m", False, "any"),
+    },
+    "housing": {
+        "name": _t,
+        "material": _T,
+        "mass": _n("kg"),
+        "area": _n("m2"),
+        "internal_split": _n("1", sign="0+"),
+        "faces": _L,
+        "x": _n("m", False, "any"),
+        "joined_to": _t,
+        "joint_area": _n("m2", False),
+    },
+    "gear": {"number": _i(sign="any"), "path": _L, "ratio": _n("1", False, "any")},
+    "boundary": {"temperature": _n("degC", sign="any"), "touches": _L, "conductance": _n("W/K", False)},
+}
+#: the sections that hold one table, not one table per id
+SINGLE_SPECS = {
+    "oil": {
+        "lubrication": _T,
+        "volume": _n("m3"),
+        "pump_shaft": _t,
+        "pump_flow": ("number", False, ("m3/rad", "m3/s"), "+"),
+        "jets": _l,
+        "dipping": _l,
+        "splashed": _l,
+        "filter": _t,
+        "cooler": _T,
+        "thermostat_open": _n("degC", False, "any"),
+        "thermostat_full": _n("degC", False, "any"),
+        "heater": _n("W", False, "0+"),
+    },
+    "check": {"ratio_rel_tol": _n("1", False), "profile_shift_max": _n("1", False)},
+    "drive": {
+        "kind": _T,
+        "input_shaft": _T,
+        "output_shaft": _T,
+        "max_speed": _n("rad/s"),
+        "max_torque": _n("N m"),
+        "min_torque": _n("N m", False, "-0"),
+    },
+}
+#: the published section: the order, the limits file, and one list of ids per limit group (any other key)
+PUBLISHED_KEYS = ("order", "limits")
+SECTIONS = tuple(SPECS) + tuple(SINGLE_SPECS) + ("published",)
+REQUIRED_SECTIONS = ("shaft", "mesh", "housing", "oil", "gear", "drive", "boundary", "published")
+DEFAULT_CHECK = {"ratio_rel_tol": 0.005, "profile_shift_max": 1.0}
+
+
+@dataclass(frozen=True)
+class Segment:
+    """A piece of a shaft with one node: its id (``MS@2M``) and axial position [m]."""
+
+    id: str
+    x_m: float
+
+
+@dataclass(frozen=True)
+class Shaft:
+    id: str
+    name: str
+    d_out_m: float
+    d_bore_m: float
+    segments: tuple
+    front_m: float  # the shaft's front end [m]
+    rear_m: float  # its rear end [m]
+
+
+@dataclass(frozen=True)
+class Wheel:
+    id: str
+    mount: str  # MOUNTS
+    teeth: int
+    module_m: float
+    helix_rad: float
+    width_m: float
+    x_m: float
+    shaft: str | None  # None: on a pin
+    segment: str | None
+    bore_m: float | None  # diameter of the bore (idle and pin wheels)
+    sides: str | None = None  # SIDES: the web sides covered by neighbouring wheels or free (splash area)
+    name: str | None = None  # what it is, in a few words
+
+
+@dataclass(frozen=True)
+class PlanetarySet:
+    id: str
+    sun: str
+    planet: str
+    ring: str
+    sun_shaft: str
+    sun_segment: str | None
+    carrier_shaft: str
+    carrier_segment: str | None
+    z_sun: int
+    z_planet: int
+    z_ring: int
+    n_planets: int
+    module_m: float
+    helix_rad: float
+    width_m: float
+    x_m: float
+
+    def teeth(self, member: str) -> int:
+        return {self.sun: self.z_sun, self.planet: self.z_planet, self.ring: self.z_ring}[member]
+
+
+@dataclass(frozen=True)
+class Mesh:
+    id: str
+    wheels: tuple  # (wheel 1, wheel 2)
+    centre_distance_m: float  # stated by the shafts' axes, else the standard one
+    standard_m: float  # m_n (z1 +- z2) / (2 cos beta)
+    internal: bool  # wheel 2 is a ring gear
+
+
+@dataclass(frozen=True)
+class Coupling:
+    id: str
+    kind: str
+    joins: tuple  # the engaged member first, then what it can be engaged to
+
+
+@dataclass(frozen=True)
+class Bearing:
+    id: str
+    kind: str
+    shaft: str
+    segment: str
+    housing: str | None  # seated in a housing ...
+    inside: str | None  # ... or inside another shaft's segment (a pilot bearing)
+    wheel: str | None  # under an idle wheel
+    bore_m: float | None
+    outer_m: float | None
+    width_m: float
+    roller_m: float | None
+    x_m: float | None
+    name: str | None = None  # what it is, in a few words
+
+
+@dataclass(frozen=True)
+class Housing:
+    id: str
+    name: str
+    material: str
+    mass_kg: float
+    area_m2: float
+    internal_split: float
+    faces: tuple
+    x_m: float | None = None  # position of its node (for the conduction across a joint)
+    joined_to: str | None = None  # the housing it is bolted to
+    joint_area_m2: float | None = None  # the flange's cross-section
+
+
+@dataclass(frozen=True)
+class OilSystem:
+    lubrication: str
+    volume_m3: float
+    pump_shaft: str | None
+    pump_flow: float | None  # m3/rad for a shaft-driven pump, m3/s for a motor-driven one
+    jets: tuple
+    filter: str
+    cooler: str
+    thermostat_open_c: float | None
+    thermostat_full_c: float | None
+    heater_w: float
+    dipping: tuple = ()  # the parts that dip into the sump
+    splashed: tuple = ()  # the parts the thrown oil splashes
+
+
+@dataclass(frozen=True)
+class Gear:
+    name: str
+    number: int
+    path: tuple
+    stated_ratio: float | None
+    ratio: float  # input speed / output speed from the teeth along the path (inf: neutral)
+    meshes: tuple = ()  # the meshes that carry the power, in the path's order (none in neutral)
+    engaged: tuple = ()  # the couplings the path engages
+    held: tuple = ()  # (planetary set, held member or "locked") of each set the path passes
+
+
+@dataclass(frozen=True)
+class Drive:
+    kind: str
+    input_shaft: str
+    output_shaft: str
+    max_speed_rad_s: float
+    max_torque_nm: float
+    min_torque_nm: float
+
+
+@dataclass(frozen=True)
+class Boundary:
+    id: str
+    temperature_c: float
+    touches: tuple
+    conductance_w_per_k: float | None = None  # of each touch by conduction (None: through a cooler or the housing)
+
+
+@dataclass(frozen=True)
+class Published:
+    id: str
+    group: str
+    warning_c: float | None
+    critical_c: float | None
+
+
+@dataclass(frozen=True)
+class Description:
+    """A checked gearbox description; every collection in the file's order."""
+
+    name: str
+    origin: str
+    shafts: tuple
+    wheels: tuple
+    planetary: tuple
+    meshes: tuple
+    couplings: tuple
+    bearings: tuple
+    housings: tuple
+    oil: OilSystem
+    gears: tuple
+    drive: Drive
+    boundaries: tuple
+    published: tuple
+    provenance: dict = field(default_factory=dict)  # dotted key -> seed | derived | assumed | fitted
+
+    def _one(self, items, key: str):
+        return next((x for x in items if getattr(x, "id", getattr(x, "name", None)) == key), None)
+
+    def shaft(self, id_: str) -> Shaft | None:
+        return self._one(self.shafts, id_)
+
+    def wheel(self, id_: str) -> Wheel | None:
+        return self._one(self.wheels, id_)
+
+    def gear(self, name: str) -> Gear | None:
+        return self._one(self.gears, name)
+
+    @property
+    def names(self) -> dict:
+        """What each part is, in a few words (printed output, legends): shafts, wheels, planetary members (sun
+        wheel, planet wheels, ring gear), bearings and housings by id, and the sump; a part without a name is left
+        out."""
+        out = {s.id: s.name for s in self.shafts}
+        out.update({w.id: w.name for w in self.wheels if w.name})
+        for ps in self.planetary:
+            out.update({ps.sun: "sun wheel", ps.planet: "planet wheels", ps.ring: "ring gear"})
+        out.update({b.id: b.name for b in self.bearings if b.name})
+        out.update({h.id: h.name for h in self.housings})
+        out["oil"] = "oil sump"
+        return out
+
+    @property
+    def nodes(self) -> tuple:
+        """The thermal nodes the description implies, in the network's order: shaft segments, idle wheels (teeth
+        and bulk), the other wheels, planetary members, bearings, housings, the sump."""
+        out = [s.id for sh in self.shafts for s in sh.segments]
+        out += [f"{w.id}.{part}" for w in self.wheels if w.mount == "idle" for part in ("teeth", "bulk")]
+        out += [w.id for w in self.wheels if w.mount != "idle"]
+        out += [m for ps in self.planetary for m in (ps.sun, ps.planet, ps.ring)]
+        out += [b.id for b in self.bearings] + [h.id for h in self.housings] + ["oil"]
+        return tuple(out)
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# reading
+
+
+class _Reader:
+    """The file's entries and the messages that name it."""
+
+    def __init__(self, path: Path, entries: dict):
+        self.path, self.entries = path, entries
+        self.provenance: dict = {}
+
+    def fail(self, key: str, why: str):
+        raise ParameterError(f"{self.path.name}: {key} {why}")
+
+    def resolve(self, key: str, raw) -> dict:
+        """The entry ``{ v, u, src }`` of a key, following ``{ from = "parameter" }``."""
+        if isinstance(raw, dict) and "from" in raw and "v" not in raw:
+            src_key = raw["from"]
+            if not isinstance(src_key, str) or is_topology(src_key) or src_key not in self.entries:
+                self.fail(key, f"takes its value from {src_key!r}, which is no parameter of this file")
+            raw = self.entries[src_key]
+        if not isinstance(raw, dict) or "v" not in raw:
+            self.fail(key, 'must be a table { v = ..., u = ..., src = ... } or { from = "parameter" }')
+        if raw.get("src") not in PROVENANCES:
+            self.fail(key, f"has provenance {raw.get('src')!r}; it must be one of {', '.join(PROVENANCES)}")
+        self.provenance[key] = raw["src"]
+        return raw
+
+    def value(self, key: str, raw, spec: tuple):
+        kind, _, dim, sign = spec
+        e = self.resolve(key, raw)
+        v = e["v"]
+        if kind == "text":
+            if not isinstance(v, str) or not v:
+                self.fail(key, f"= {v!r} must be text in quotes")
+            return v
+        if kind == "list":
+            if not isinstance(v, list) or not all(isinstance(x, str) and x for x in v):
+                self.fail(key, f"= {v!r} must be a list of ids in quotes")
+            return tuple(v)
+        return self.number(key, e, kind, dim, sign)
+
+    def number(self, key: str, e: dict, kind: str, dim, sign: str):
+        v, u = e["v"], e.get("u")
+        if isinstance(v, bool) or not isinstance(v, (int, float)):
+            self.fail(key, f"= {v!r} is not a number")
+        dims = dim if isinstance(dim, tuple) else (dim,)
+        if u not in DESC_UNITS or DESC_UNITS[u][0] not in dims:
+            allowed = " or ".join(f'"{x}"' for x, (d, _) in DESC_UNITS.items() if d in dims)
+            what = " or ".join(DESC_DIM_NAMES.get(d, d) for d in dims)
+            self.fail(key, f"has unit {u!r}, but it is {what}: write it with u = {allowed}")
+        x = float(v) * DESC_UNITS[u][1]
+        if not math.isfinite(x):
+            self.fail(key, f"= {v} is not a finite number")
+        if kind == "int" and x != int(x):
+            self.fail(key, f"= {v:g} must be a whole number")
+        bad = {"+": x <= 0, "0+": x < 0, "-0": x > 0}.get(sign, False)
+        if bad:
+            rule = {"+": "greater than zero", "0+": "zero or more", "-0": "zero or less"}[sign]
+            self.fail(key, f"= {v:g}{'' if u == '-' else ' ' + u} must be {rule}")
+        return int(x) if kind == "int" else x
+
+    def fields(self, key: str, table, spec: dict) -> dict:
+        """The values of one table by field name, every field known and every required one present."""
+        if not isinstance(table, dict) or "v" in table or "from" in table:
+            self.fail(key, "must be a section of fields, such as [" + key + "]")
+        for name in table:
+            if name not in spec:
+                close = difflib.get_close_matches(name, list(spec), n=1)
+                hint = f" (did you mean {close[0]}?)" if close else ""
+                self.fail(f"{key}.{name}", f"is an unknown key{hint}; known: {', '.join(spec)}")
+        out = {}
+        for name, fs in spec.items():
+            if name not in table:
+                if fs[1]:
+                    self.fail(key, f"has no {name}; required: {', '.join(n for n, s in spec.items() if s[1])}")
+                out[name] = None
+            elif fs[0] == "table":
+                sub = table[name]
+                if not isinstance(sub, dict) or "v" in sub or "from" in sub:
+                    self.fail(f"{key}.{name}", "must be a section of one entry per id")
+                out[name] = {
+                    k: self.value(f"{key}.{name}.{k}", r, ("number", True, fs[2], fs[3])) for k, r in sub.items()
+                }
+            else:
+                out[name] = self.value(f"{key}.{name}", table[name], fs)
+        return out
+
+
+def _nest(entries: dict) -> dict:
+    """The topology entries (dotted keys below ``topology.``) as nested sections."""
+    root: dict = {}
+    for key, e in entries.items():
+        if not is_topology(key):
+            continue
+        parts = key.split(".")[1:]
+        d = root
+        for p in parts[:-1]:
+            d = d.setdefault(p, {})
+        d[parts[-1]] = e
+    return root
+
+
+def _sections(r: _Reader, topo: dict) -> None:
+    """Every section of the topology known, every required one present."""
+    if not topo:
+        r.fail(f"[{TOPOLOGY}]", "is missing: the file describes no gearbox (docs/description.md)")
+    for name in topo:
+        if name not in SECTIONS:
+            close = difflib.get_close_matches(name, SECTIONS, n=1)
+            hint = f" (did you mean {close[0]}?)" if close else ""
+            r.fail(f"{TOPOLOGY}.{name}", f"is an unknown section{hint}; known: {', '.join(SECTIONS)}")
+    for name in REQUIRED_SECTIONS:
+        if not topo.get(name):
+            r.fail(f"{TOPOLOGY}.{name}", f"is missing; a description needs {', '.join(REQUIRED_SECTIONS)}")
+
+
+def _per_id(r: _Reader, topo: dict, section: str) -> list:
+    """(id, dotted key, field values) of every table of a per-id section, in the file's order."""
+    spec = SPECS[section]
+    tables = topo.get(section) or {}
+    return [(i, f"{TOPOLOGY}.{section}.{i}", r.fields(f"{TOPOLOGY}.{section}.{i}", t, spec)) for i, t in tables.items()]
+
+
+def _shafts(r: _Reader, topo: dict) -> tuple:
+    out = []
+    for sid, key, f in _per_id(r, topo, "shaft"):
+        segs, xs = f["segments"], f["x"]
+        if not segs:
+            r.fail(f"{key}.segments", "is empty; a shaft has at least one segment")
+        for s in segs:
+            if s not in xs:
+                r.fail(f"{key}.x", f"has no position for segment {s}")
+        for s in xs:
+            if s not in segs:
+                r.fail(f"{key}.x.{s}", f"is no segment of the shaft; its segments: {', '.join(segs)}")
+        pos = [xs[s] for s in segs]
+        for a, b, xa, xb in zip(segs, segs[1:], pos, pos[1:]):
+            if xb < xa:
+                r.fail(f"{key}.x.{b}", f"= {xb:g} m lies in front of {a} ({xa:g} m): list segments front to rear")
+        if f["d_bore"] >= f["d_out"]:
+            r.fail(f"{key}.d_bore", f"= {f['d_bore']:g} m must be smaller than d_out = {f['d_out']:g} m")
+        ends = _shaft_ends(r, key, f, pos)
+        segments = tuple(Segment(s, x) for s, x in zip(segs, pos))
+        out.append(Shaft(sid, f["name"] or sid, f["d_out"], f["d_bore"], segments, *ends))
+    return tuple(out)
+
+
+def _shaft_ends(r: _Reader, key: str, f: dict, pos: list) -> tuple:
+    """(front, rear) of a shaft: stated (x_front, x_rear) or its outer segments plus their overhangs."""
+    stated = f["x_front"] is not None or f["x_rear"] is not None
+    overhang = f["overhang_front"] is not None or f["overhang_rear"] is not None
+    if stated == overhang or (stated and None in (f["x_front"], f["x_rear"])):
+        r.fail(key, "needs its ends: x_front and x_rear, or overhang_front and overhang_rear (not both pairs)")
+    if stated:
+        if not (f["x_front"] <= pos[0] and pos[-1] <= f["x_rear"]):
+            r.fail(f"{key}.x_front", "and x_rear must enclose the shaft's segments")
+        return f["x_front"], f["x_rear"]
+    if None in (f["overhang_front"], f["overhang_rear"]):
+        r.fail(key, "needs both overhang_front and overhang_rear")
+    return pos[0] - f["overhang_front"], pos[-1] + f["overhang_rear"]
+
+
+def _wheels(r: _Reader, topo: dict, shafts: dict) -> tuple:
+    out = []
+    for wid, key, f in _per_id(r, topo, "wheel"):
+        mount, shaft, seg = f["mount"], f["shaft"], f["segment"]
+        if mount not in MOUNTS:
+            r.fail(f"{key}.mount", f"= {mount!r} must be one of {', '.join(MOUNTS)}")
+        if mount == "pin":
+            if shaft is not None:
+                r.fail(f"{key}.shaft", "must be left out: a wheel on a pin sits on no shaft")
+        elif shaft not in shafts:
+            known = ", ".join(shafts)
+            r.fail(f"{key}.shaft", f"= {shaft!r} is no shaft of the description (mount {mount}); shafts: {known}")
+        elif seg not in [s.id for s in shafts[shaft].segments]:
+            r.fail(f"{key}.segment", f"= {seg!r} is no segment of shaft {shaft}")
+        if mount in ("idle", "pin") and f["bore"] is None:
+            r.fail(key, f"has no bore: a wheel that turns on its {'pin' if mount == 'pin' else 'shaft'} needs one")
+        if f["sides"] is not None and f["sides"] not in SIDES:
+            r.fail(f"{key}.sides", f"= {f['sides']!r} must be one of {', '.join(SIDES)}")
+        w = Wheel(wid, mount, f["teeth"], f["module"], f["helix"], f["width"], f["x"], shaft, seg, f["bore"])
+        out.append(replace(w, sides=f["sides"], name=f["name"]))
+    return tuple(out)
+
+
+def _planetary(r: _Reader, topo: dict, shafts: dict) -> tuple:
+    out = []
+    for pid, key, f in _per_id(r, topo, "planetary"):
+        for k, seg_k in (("sun_shaft", "sun_segment"), ("carrier_shaft", "carrier_segment")):
+            if f[k] not in shafts:
+                r.fail(f"{key}.{k}", f"= {f[k]!r} is no shaft of the description; shafts: {', '.join(shafts)}")
+            if f[seg_k] is not None and f[seg_k] not in [s.id for s in shafts[f[k]].segments]:
+                r.fail(f"{key}.{seg_k}", f"= {f[seg_k]!r} is no segment of shaft {f[k]}")
+        zs, zp, zr, n = f["z_sun"], f["z_planet"], f["z_ring"], f["n_planets"]
+        if abs((zr - zs) / 2 - zp) > 0.5:
+            r.fail(f"{key}.z_planet", f"= {zp} does not fit between sun and ring: it must be (z_ring - z_sun) / 2")
+        if (zs + zr) % n:
+            r.fail(
+                f"{key}.n_planets",
+                f"= {n}: (z_sun + z_ring) / n_planets = {(zs + zr) / n:g} is not whole, so "
+                "the planets cannot be spaced evenly",
+            )
+        members = (f["sun"], f["planet"], f["ring"])
+        if len(set(members)) < 3:
+            r.fail(key, f"names a member twice ({', '.join(members)}): sun, planet and ring are three parts")
+        out.append(
+            PlanetarySet(
+                pid,
+                *members,
+                f["sun_shaft"],
+                f["sun_segment"],
+                f["carrier_shaft"],
+                f["carrier_segment"],
+                zs,
+                zp,
+                zr,
+                n,
+                f["module"],
+                f["helix"],
+                f["width"],
+                f["x"],
+            )
+        )
+    return tuple(out)
+
+
+def _gear_of(wheels: dict, planetary: tuple, member: str):
+    """(teeth, module, helix, shaft or None, ring?) of a wheel or planetary member; None if there is none."""
+    if member in wheels:
+        w = wheels[member]
+        return w.teeth, w.module_m, w.helix_rad, w.shaft if w.mount in ("fixed", "cut") else None, False
+    for ps in planetary:
+        if member in (ps.sun, ps.planet, ps.ring):
+            shaft = ps.sun_shaft if member == ps.sun else None
+            return ps.teeth(member), ps.module_m, ps.helix_rad, shaft, member == ps.ring
+    return None
+
+
+def _meshes(r: _Reader, topo: dict, wheels: dict, planetary: tuple, check: dict) -> tuple:
+    out = []
+    for mid, key, f in _per_id(r, topo, "mesh"):
+        pair = f["wheels"]
+        if len(pair) != 2 or pair[0] == pair[1]:
+            r.fail(f"{key}.wheels", f"= {list(pair)} must name two different wheels")
+        g = [_gear_of(wheels, planetary, w) for w in pair]
+        for w, gw in zip(pair, g):
+            if gw is None:
+                r.fail(f"{key}.wheels", f"names {w}, which is no wheel or planetary member of the description")
+        (z1, m1, b1, _, _), (z2, m2, b2, _, ring) = g
+        s1, s2 = (wheels[w].shaft if w in wheels else g_[3] for w, g_ in zip(pair, g))
+        if g[0][4]:
+            r.fail(f"{key}.wheels", f"= {list(pair)}: put the ring gear {pair[0]} second")
+        if not math.isclose(m1, m2, rel_tol=1e-9):
+            r.fail(f"{key}.wheels", f"= {list(pair)}: their modules disagree ({m1 * 1e3:g} mm and {m2 * 1e3:g} mm)")
+        if not math.isclose(b1, b2, rel_tol=1e-9, abs_tol=1e-12):
+            r.fail(
+                f"{key}.wheels",
+                f"= {list(pair)}: their helix angles disagree ({math.degrees(b1):g} deg and {math.degrees(b2):g} deg)",
+            )
+        if s1 is not None and s1 == s2:
+            r.fail(f"{key}.wheels", f"= {list(pair)} sit on one shaft ({s1}) and cannot mesh")
+        std = m1 * (z2 - z1 if ring else z1 + z2) / (2 * math.cos(b1))
+        a = std if f["centre_distance"] is None else f["centre_distance"]
+        shift = abs(a - std) / m1
+        if shift > check["profile_shift_max"] + 1e-12:
+            r.fail(
+                f"{key}.centre_distance",
+                f"= {a * 1e3:g} mm disagrees with the wheels' standard centre distance "
+                f"{std * 1e3:.4g} mm by {shift:.2g} modules; a profile shift covers at most "
+                f"{check['profile_shift_max']:g} (topology.check.profile_shift_max)",
+            )
+        out.append(Mesh(mid, tuple(pair), a, std, ring))
+    return tuple(out)
+
+
+def _couplings(r: _Reader, topo: dict, members: set) -> tuple:
+    out = []
+    for cid, key, f in _per_id(r, topo, "coupling"):
+        if f["kind"] not in COUPLING_KINDS:
+            r.fail(f"{key}.kind", f"= {f['kind']!r} must be one of {', '.join(COUPLING_KINDS)}")
+        joins = f["joins"]
+        if not 2 <= len(joins) <= 3 or len(set(joins)) < len(joins):
+            r.fail(f"{key}.joins", f"= {list(joins)} must name a member and one or two others it engages to")
+        for m in joins:
+            if m not in members and m != CASING:
+                r.fail(f"{key}.joins", f"names {m}, which is no shaft, wheel or planetary member (or {CASING!r})")
+        out.append(Coupling(cid, f["kind"], joins))
+    return tuple(out)
+
+
+def _bearings(r: _Reader, topo: dict, shafts: dict, wheels: dict, housings: set) -> tuple:
+    out = []
+    segments = {s.id for sh in shafts.values() for s in sh.segments}
+    for bid, key, f in _per_id(r, topo, "bearing"):
+        if f["kind"] not in BEARING_KINDS:
+            r.fail(f"{key}.kind", f"= {f['kind']!r} must be one of {', '.join(BEARING_KINDS)}")
+        if f["wheel"] is not None:  # under an idle wheel: on the wheel's shaft and segment
+            w = wheels.get(f["wheel"])
+            if w is None or w.mount != "idle":
+                r.fail(f"{key}.wheel", f"= {f['wheel']!r} is no idle wheel of the description")
+            for k in ("shaft", "segment", "housing", "inside"):
+                if f[k] is not None:
+                    r.fail(f"{key}.{k}", "must be left out: a wheel bearing sits under its wheel")
+            shaft, seg = w.shaft, w.segment
+        else:
+            shaft, seg = f["shaft"], f["segment"]
+            if shaft not in shafts:
+                r.fail(f"{key}.shaft", f"= {shaft!r} is no shaft of the description; shafts: {', '.join(shafts)}")
+            if seg not in [s.id for s in shafts[shaft].segments]:
+                r.fail(f"{key}.segment", f"= {seg!r} is no segment of shaft {shaft}")
+            if (f["housing"] is None) == (f["inside"] is None):
+                r.fail(key, "needs one seat: housing (a housing id) or inside (another shaft's segment)")
+            if f["housing"] is not None and f["housing"] not in housings:
+                r.fail(f"{key}.housing", f"= {f['housing']!r} is no housing; housings: {', '.join(housings)}")
+            if f["inside"] is not None and (f["inside"] not in segments or f["inside"] == seg):
+                r.fail(f"{key}.inside", f"= {f['inside']!r} is no segment of another shaft")
+            if f["bore"] is None or f["outer"] is None:
+                r.fail(key, "needs bore and outer (diameters of a shaft bearing)")
+            if f["bore"] >= f["outer"]:
+                r.fail(f"{key}.bore", f"= {f['bore'] * 1e3:g} mm must be smaller than outer = {f['outer'] * 1e3:g} mm")
+        out.append(
+            Bearing(
+                bid,
+                f["kind"],
+                shaft,
+                seg,
+                f["housing"],
+                f["inside"],
+                f["wheel"],
+                f["bore"],
+                f["outer"],
+                f["width"],
+                f["roller"],
+                f["x"],
+                f["name"],
+            )
+        )
+    return tuple(out)
+
+
+def _check_joint(r: _Reader, key: str, f: dict, topo: dict) -> None:
+    """A housing bolted to another names a housing that is not itself, with the flange's area and both positions."""
+    j = f["joined_to"]
+    if j is None:
+        if f["joint_area"] is not None:
+            r.fail(f"{key}.joint_area", "is given, but the housing is joined to no other (joined_to)")
+        return
+    others = topo.get("housing") or {}
+    if j not in others or f"{TOPOLOGY}.housing.{j}" == key:
+        r.fail(f"{key}.joined_to", f"= {j!r} is no other housing; housings: {', '.join(others)}")
+    if f["joint_area"] is None or f["x"] is None or not isinstance(others[j], dict) or "x" not in others[j]:
+        r.fail(key, f"is joined to {j} but lacks joint_area, or x (here or in {j}): the joint's conduction needs both")
+
+
+def _housings(r: _Reader, topo: dict, boundaries: set) -> tuple:
+    out = []
+    materials = sorted({k.split(".")[1] for k in r.entries if k.startswith("material.")})
+    for hid, key, f in _per_id(r, topo, "housing"):
+        if materials and f["material"] not in materials:
+            r.fail(
+                f"{key}.material",
+                f"= {f['material']!r} has no [material.{f['material']}] in the file; materials: {', '.join(materials)}",
+            )
+        for b in f["faces"]:
+            if b not in boundaries:
+                r.fail(f"{key}.faces", f"names {b}, which is no boundary; boundaries: {', '.join(boundaries)}")
+        _check_joint(r, key, f, topo)
+        h = Housing(hid, f["name"] or hid, f["material"], f["mass"], f["area"], f["internal_split"], f["faces"])
+        out.append(replace(h, x_m=f["x"], joined_to=f["joined_to"], joint_area_m2=f["joint_area"]))
+    split = sum(h.internal_split for h in out)
+    if out and abs(split - 1.0) > 1e-6:
+        r.fail(f"{TOPOLOGY}.housing.*.internal_split", f"add up to {split:g}; the housings share the inside: 1")
+    return tuple(out)
+
+
+def _single(r: _Reader, topo: dict, section: str) -> dict:
+    return r.fields(f"{TOPOLOGY}.{section}", topo.get(section) or {}, SINGLE_SPECS[section])
+
+
+def _oil(r: _Reader, topo: dict, shafts: dict, nodes: set) -> OilSystem:
+    key = f"{TOPOLOGY}.oil"
+    f = _single(r, topo, "oil")
+    if f["lubrication"] not in LUBRICATIONS:
+        r.fail(f"{key}.lubrication", f"= {f['lubrication']!r} must be one of {', '.join(LUBRICATIONS)}")
+    if f["lubrication"] == "forced" and (f["pump_flow"] is None or not f["jets"]):
+        r.fail(key, "has forced lubrication but no pump_flow or no jets (what the pumped oil reaches)")
+    if f["pump_shaft"] is not None and f["pump_shaft"] not in shafts:
+        r.fail(
+            f"{key}.pump_shaft", f"= {f['pump_shaft']!r} is no shaft of the description; shafts: {', '.join(shafts)}"
+        )
+    for k in ("jets", "dipping", "splashed"):
+        for j in f[k] or ():
+            if j not in nodes:
+                r.fail(f"{key}.{k}", f"names {j}, which is no part of the description")
+    if f["cooler"] not in COOLERS:
+        r.fail(f"{key}.cooler", f"= {f['cooler']!r} must be one of {', '.join(COOLERS)}")
+    t_open, t_full = f["thermostat_open"], f["thermostat_full"]
+    if (t_open is None) != (t_full is None):
+        r.fail(key, "needs both thermostat_open and thermostat_full (a bypass opens between them), or neither")
+    if t_open is not None:
+        lo, hi = THERMOSTAT_RANGE_C
+        if not lo <= t_open <= hi:
+            r.fail(
+                f"{key}.thermostat_open",
+                f"= {t_open:g} degC lies outside the oil's plausible working range "
+                f"{lo:g}..{hi:g} degC: the bypass would never (or always) be open",
+            )
+        if t_full <= t_open:
+            r.fail(f"{key}.thermostat_full", f"= {t_full:g} degC must lie above thermostat_open = {t_open:g} degC")
+        if f["cooler"] == "none":
+            r.fail(f"{key}.thermostat_open", 'is given, but there is no cooler (cooler = "none") to bypass')
+    return OilSystem(
+        f["lubrication"],
+        f["volume"],
+        f["pump_shaft"],
+        f["pump_flow"],
+        f["jets"] or (),
+        f["filter"] or "none",
+        f["cooler"],
+        t_open,
+        t_full,
+        f["heater"] or 0.0,
+        f["dipping"] or (),
+        f["splashed"] or (),
+    )
+
+
+def _boundaries(r: _Reader, topo: dict) -> tuple:
+    out = []
+    for b, key, f in _per_id(r, topo, "boundary"):
+        if f["conductance"] is not None and not f["touches"]:
+            r.fail(f"{key}.conductance", "is given, but the boundary touches nothing")
+        out.append(Boundary(b, f["temperature"], f["touches"], f["conductance"]))
+    return tuple(out)
+
+
+def _check_touches(r: _Reader, boundaries: tuple, nodes: set) -> None:
+    for b in boundaries:
+        for n in b.touches:
+            if n not in nodes:
+                r.fail(f"{TOPOLOGY}.boundary.{b.id}.touches", f"names {n}, which is no part of the description")
+
+
+def _drive(r: _Reader, topo: dict, shafts: dict) -> Drive:
+    key = f"{TOPOLOGY}.drive"
+    f = _single(r, topo, "drive")
+    if f["kind"] not in DRIVES:
+        r.fail(f"{key}.kind", f"= {f['kind']!r} must be one of {', '.join(DRIVES)}")
+    for k in ("input_shaft", "output_shaft"):
+        if f[k] not in shafts:
+            r.fail(f"{key}.{k}", f"= {f[k]!r} is no shaft of the description; shafts: {', '.join(shafts)}")
+    if f["input_shaft"] == f["output_shaft"]:
+        r.fail(f"{key}.output_shaft", "is the input shaft: the power must go somewhere")
+    min_t = 0.0 if f["min_torque"] is None else f["min_torque"]
+    return Drive(f["kind"], f["input_shaft"], f["output_shaft"], f["max_speed"], f["max_torque"], min_t)
+
+
+class _Walk:
+    """Follows a gear's power path from the input shaft: the member carrying the power and its speed per unit
+    input speed."""
+
+    def __init__(self, r, key, wheels, planetary, meshes, couplings, start):
+        self.r, self.key = r, key
+        self.wheels, self.planetary = wheels, planetary
+        self.meshes, self.couplings = meshes, couplings
+        self.at, self.speed = start, 1.0
+        self.loaded, self.engaged, self.held = [], [], []
+
+    def fail(self, step: str, why: str):
+        self.r.fail(self.key, f"does not close at step {step!r}: {why}")
+
+    def carried(self, wheel: str) -> bool:
+        """Whether the power, now on ``self.at``, reaches ``wheel``: it is the wheel, or fixed to that shaft."""
+        g = _gear_of(self.wheels, self.planetary, wheel)
+        return self.at == wheel or (g is not None and g[3] == self.at)
+
+    def step(self, s: str) -> None:
+        if s in self.couplings:
+            joins = self.couplings[s].joins
+            others = [j for j in joins if j != self.at]
+            if self.at not in joins or len(others) != 1:
+                self.fail(s, f"the power is on {self.at}, which the coupling {s} ({', '.join(joins)}) does not join")
+            self.at = others[0]
+            self.engaged.append(s)
+        elif s in self.meshes:
+            self.mesh(s, self.meshes[s])
+        elif s.partition("/")[0] in {p.id for p in self.planetary}:
+            self.planet_step(s)
+        else:
+            self.fail(s, "it is no mesh, coupling or planetary set/held member of the description")
+
+    def mesh(self, s: str, m: Mesh) -> None:
+        a, b = m.wheels
+        if not self.carried(a) and not self.carried(b):
+            self.fail(
+                s,
+                f"the power is on {self.at}, which drives neither {a} nor {b} (an idle wheel needs its coupling first)",
+            )
+        w_in, w_out = (a, b) if self.carried(a) else (b, a)
+        z_in, _, _, _, _ = _gear_of(self.wheels, self.planetary, w_in)
+        z_out, _, _, shaft_out, _ = _gear_of(self.wheels, self.planetary, w_out)
+        self.speed *= (z_in / z_out) * (1.0 if m.internal else -1.0)
+        self.loaded.append(s)
+        self.at = shaft_out if shaft_out is not None else w_out
+
+    def planet_step(self, s: str) -> None:
+        pid, _, held = s.partition("/")
+        ps = next(p for p in self.planetary if p.id == pid)
+        if held not in HELD:
+            self.fail(s, f"{held!r} must be one of {', '.join(HELD)}")
+        where = {ps.sun_shaft: "sun", ps.sun: "sun", ps.carrier_shaft: "carrier", ps.ring: "ring"}
+        if self.at not in where:
+            self.fail(s, f"the power is on {self.at}, which is no member of planetary set {pid}")
+        into = where[self.at]
+        if into == held:
+            self.fail(s, f"the power enters through the held member ({held})")
+        out = next(m for m in ("carrier", "sun", "ring") if m not in (into, held))
+        zs, zr = ps.z_sun, ps.z_ring
+        # speeds of (sun, carrier, ring) with one member held (Willis: w_s - w_c = -(z_r/z_s)(w_r - w_c))
+        rel = {
+            "ring": {"sun": 1 + zr / zs, "carrier": 1.0, "ring": 0.0},
+            "sun": {"sun": 0.0, "carrier": 1.0, "ring": 1 + zs / zr},
+            "carrier": {"sun": -zr / zs, "carrier": 0.0, "ring": 1.0},
+            "locked": {"sun": 1.0, "carrier": 1.0, "ring": 1.0},
+        }[held]
+        self.speed *= rel[out] / rel[into]
+        self.at = {"sun": ps.sun_shaft, "carrier": ps.carrier_shaft, "ring": ps.ring}[out]
+        self.held.append((pid, held))
+        if held != "locked":  # the set's own meshes carry the power unless it turns as one body
+            members = {ps.sun, ps.planet, ps.ring}
+            self.loaded += [m.id for m in self.meshes.values() if set(m.wheels) <= members]
+
+
+def _gears(r: _Reader, topo: dict, parts: dict, drive: Drive, check: dict) -> tuple:
+    """Every gear's power path followed from the input shaft to the output shaft, its ratio against the stated one."""
+    out, numbers = [], {}
+    for name, key, f in _per_id(r, topo, "gear"):
+        if f["number"] in numbers:
+            r.fail(f"{key}.number", f"= {f['number']} is also gear {numbers[f['number']]}'s number")
+        numbers[f["number"]] = name
+        walk = _Walk(r, f"{key}.path", *parts, drive.input_shaft)
+        for s in f["path"]:
+            walk.step(s)
+        neutral = f["number"] == 0
+        if neutral:
+            if walk.at == drive.output_shaft:
+                r.fail(f"{key}.path", f"reaches the output shaft {drive.output_shaft}, but gear 0 is neutral")
+            if f["ratio"] is not None:
+                r.fail(f"{key}.ratio", "must be left out: neutral transmits no power")
+            out.append(Gear(name, 0, f["path"], None, math.inf, (), tuple(walk.engaged), tuple(walk.held)))
+            continue
+        if walk.at != drive.output_shaft:
+            r.fail(f"{key}.path", f"does not close: it ends on {walk.at}, not on the output shaft {drive.output_shaft}")
+        ratio = 1.0 / walk.speed
+        stated, tol = f["ratio"], check["ratio_rel_tol"]
+        if stated is None:
+            r.fail(key, "has no ratio: state the ratio input/output speed (it is checked against the teeth)")
+        if abs(ratio - stated) > tol * abs(stated):
+            r.fail(
+                f"{key}.ratio",
+                f"= {stated:g} is off the ratio of the teeth along its path, {ratio:.6g} (by "
+                f"{abs(ratio / stated - 1):.2%}; topology.check.ratio_rel_tol = {tol:g})",
+            )
+        out.append(
+            Gear(name, f["number"], f["path"], stated, ratio, tuple(walk.loaded), tuple(walk.engaged), tuple(walk.held))
+        )
+    if drive.kind == "fixed_ratio" and sum(g.number != 0 for g in out) != 1:
+        r.fail(f"{TOPOLOGY}.gear", "must hold exactly one gear (besides neutral) for a fixed-ratio drive")
+    return tuple(out)
+
+
+def _limits(r: _Reader, name: str) -> dict:
+    """The limits file's groups: group -> (warning, critical) [degC], and per-component overrides by id."""
+    path = r.path.parent / name  # beside the description, else a shipped one
+    if not path.is_file():
+        path = PARAM_DIR / name
+    if not path.is_file():
+        r.fail(f"{TOPOLOGY}.published.limits", f"= {name!r} is no file beside the description or shipped with it")
+    doc = read_toml(path, f"limits file {name}")
+
+    def v(sec, k):
+        e = sec.get(k) if isinstance(sec, dict) else None
+        return float(e["v"]) if isinstance(e, dict) and isinstance(e.get("v"), (int, float)) else None
+
+    groups = {
+        g: (v(s, "warning"), v(s, "critical")) for g, s in doc.items() if g not in ("meta", "timing", "component")
+    }
+    comps = {c: (v(s, "warning"), v(s, "critical")) for c, s in (doc.get("component") or {}).items()}
+    return {"groups": groups, "components": comps}
+
+
+def _published(r: _Reader, topo: dict, nodes: set) -> tuple:
+    key = f"{TOPOLOGY}.published"
+    table = topo.get("published") or {}
+    if "order" not in table:
+        r.fail(key, "has no order (the published components, in their CAN and column order)")
+    order = r.value(f"{key}.order", table["order"], _L)
+    limits_name = r.value(f"{key}.limits", table["limits"], _T) if "limits" in table else "limits.toml"
+    lim = _limits(r, limits_name)
+    group_of = {}
+    for g, raw in table.items():
+        if g in PUBLISHED_KEYS:
+            continue
+        if g not in lim["groups"]:
+            r.fail(
+                f"{key}.{g}",
+                f"is no limit group of {limits_name}; known keys: {', '.join(PUBLISHED_KEYS + tuple(lim['groups']))}",
+            )
+        for c in r.value(f"{key}.{g}", raw, _L):
+            if c in group_of:
+                r.fail(f"{key}.{g}", f"lists {c}, which is already in group {group_of[c]}")
+            group_of[c] = g
+    seen = set()
+    for c in order:
+        if c in seen:
+            r.fail(f"{key}.order", f"lists {c} twice")
+        seen.add(c)
+        if c not in nodes:
+            r.fail(f"{key}.order", f"lists {c}, which is no node of the description (no part has that id)")
+        if c not in group_of:
+            r.fail(f"{key}.order", f"lists {c}, which is in no limit group ({', '.join(lim['groups'])})")
+    for c, g in group_of.items():
+        if c not in seen:
+            r.fail(f"{key}.{g}", f"lists {c}, which is not published (not in order)")
+    out = []
+    for c in order:
+        w, cr = lim["components"].get(c, (None, None))
+        gw, gc = lim["groups"][group_of[c]]
+        out.append(Published(c, group_of[c], gw if w is None else w, gc if cr is None else cr))
+    return tuple(out)
+
+
+def _unique_ids(r: _Reader, named: list) -> None:
+    """No id names two parts: (kind, id) of every shaft, segment, wheel, planetary member, bearing, housing."""
+    seen: dict = {"oil": "the sump"}
+    for kind, i in named:
+        if i in seen:
+            r.fail(f"{TOPOLOGY}.{kind}.{i}", f"reuses the id {i} of {seen[i]}: every part needs its own id")
+        seen[i] = f"{kind} {i}"
+
+
+def shipped_descriptions() -> tuple:
+    """The names of the descriptions shipped in firmware_model/params/ (the parameter files with a topology)."""
+    names = []
+    for p in sorted(PARAM_DIR.glob("*.toml")):
+        try:
+            if any(is_topology(k) for k in read_entries(p)):
+                names.append(p.stem)
+        except ParameterError:
+            continue
+    return tuple(names)
+
+
+def description_path(name_or_path: str | Path) -> Path:
+    """The file of a description: NAME (shipped in firmware_model/params/) or the path of a .toml FILE."""
+    p = Path(name_or_path)
+    if p.suffix.lower() == ".toml":
+        return p
+    if (PARAM_DIR / f"{p.name}.toml").is_file() and str(name_or_path) == p.name and p.name != "limits":
+        return PARAM_DIR / f"{p.name}.toml"
+    raise ParameterError(
+        f"unknown gearbox {str(name_or_path)!r}: use one of {', '.join(shipped_descriptions())} "
+        f"or the path of a .toml description file"
+    )
+
+
+def load_description(name_or_path: str | Path = "GRS905") -> Description:
+    """The checked description of a shipped gearbox (NAME) or of a user's file (FILE): one sentence naming the
+    file, the key and why for anything that does not hold together."""
+    path = description_path(name_or_path)
+    entries = read_entries(path)
+    r = _Reader(path, entries)
+    topo = _nest(entries)
+    _sections(r, topo)
+    check = {**DEFAULT_CHECK, **{k: v for k, v in _single(r, topo, "check").items() if v is not None}}
+    shafts = _shafts(r, topo)
+    by_shaft = {s.id: s for s in shafts}
+    wheels = _wheels(r, topo, by_shaft)
+    planetary = _planetary(r, topo, by_shaft)
+    housing_ids = tuple((topo.get("housing") or {}).keys())
+    named = [("shaft", s.id) for s in shafts] + [("shaft", g.id) for s in shafts for g in s.segments]
+    named += [("wheel", w.id) for w in wheels]
+    named += [("planetary", m) for ps in planetary for m in (ps.sun, ps.planet, ps.ring)]
+    named += [("bearing", b) for b in topo.get("bearing") or {}] + [("housing", h) for h in housing_ids]
+    _unique_ids(r, named)
+    by_wheel = {w.id: w for w in wheels}
+    meshes = _meshes(r, topo, by_wheel, planetary, check)
+    members = {i for _, i in named}
+    couplings = _couplings(r, topo, members)
+    boundaries = _boundaries(r, topo)
+    housings = _housings(r, topo, {b.id for b in boundaries})
+    bearings = _bearings(r, topo, by_shaft, by_wheel, set(housing_ids))
+    drive = _drive(r, topo, by_shaft)
+    parts = (by_wheel, planetary, {m.id: m for m in meshes}, {c.id: c for c in couplings})
+    gears = _gears(r, topo, parts, drive, check)
+    desc = Description(
+        str(entries.get("meta.variant", path.stem)),
+        path.name,
+        shafts,
+        wheels,
+        planetary,
+        meshes,
+        couplings,
+        bearings,
+        housings,
+        None,
+        gears,
+        drive,
+        boundaries,
+        (),
+        r.provenance,
+    )
+    nodes = set(desc.nodes)
+    _check_touches(r, boundaries, nodes)
+    oil = _oil(r, topo, by_shaft, nodes)
+    published = _published(r, topo, nodes)
+    return Description(
+        desc.name,
+        desc.origin,
+        shafts,
+        wheels,
+        planetary,
+        meshes,
+        couplings,
+        bearings,
+        housings,
+        oil,
+        gears,
+        drive,
+        boundaries,
+        published,
+        r.provenance,
+    )

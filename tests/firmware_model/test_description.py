@@ -1,0 +1,482 @@
+"""The gearbox description (firmware_model.description, docs/description.md): the shipped GRS905 and GRSO905
+descriptions state exactly what the code's constants hold today (ids, orders, pairs, bearing shafts and housings,
+positions, the gears' ratios), and a description that does not hold together is one sentence naming the file, the
+key and why, exit 2 through `gearbox-vsensor describe`."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from firmware_model import components as C
+from firmware_model import network as N
+from firmware_model.description import load_description
+from firmware_model.errors import ParameterError
+from firmware_model.parameters import PARAM_DIR, load_parameters
+from firmware_model.physics import geometry as G
+from firmware_model.physics import kinematics as K
+from tools.cli import main
+
+VARIANTS = ("GRS905", "GRSO905")
+
+
+@pytest.fixture(scope="module", params=VARIANTS)
+def both(request):
+    return load_description(request.param), load_parameters(request.param)
+
+
+def test_the_components_constants_are_the_description(both):
+    d, _ = both
+    wheels = {w.id: w for w in d.wheels}
+    assert tuple(w.id for w in d.wheels if w.mount == "idle") == C.IDLE_WHEELS
+    assert tuple(w.id for w in d.wheels if w.shaft == "LS") == C.LAYSHAFT_WHEELS
+    assert tuple(w.id for w in d.wheels if w.mount == "pin") == (C.REVERSE_IDLER,)
+    assert tuple((ps.sun, ps.planet, ps.ring) for ps in d.planetary) == (C.PLANETARY,)
+    assert tuple(b.id for b in d.bearings if b.wheel is None) == C.SHAFT_BEARINGS
+    assert tuple(b.id for b in d.bearings if b.wheel is not None) == C.WHEEL_BEARINGS
+    assert tuple(b.wheel for b in d.bearings if b.wheel is not None) == C.IDLE_WHEELS
+    assert tuple(h.id for h in d.housings) == C.HOUSINGS
+    meshes = {m.id: m.wheels for m in d.meshes}
+    for pair, (iw, lw) in C.PAIRS.items():
+        if pair == "R":  # the reverse pair meshes through the idler
+            assert meshes["R"] == (lw, C.REVERSE_IDLER) and meshes["RI"] == (C.REVERSE_IDLER, iw)
+        else:
+            assert meshes[pair] == (iw, lw) and wheels[iw].mount == "idle" and wheels[lw].shaft == "LS"
+    assert {i: n for i, n in d.names.items()} == {i: n for i, n in C.NAMES.items() if i in d.names}
+    assert set(C.NAMES) - set(d.names) == set()  # every code components.py names is a part of the description
+    assert tuple(c.id for c in d.published) == C.PUBLISHED
+    assert {c.id: c.group for c in d.published} == C.GROUP
+
+
+def test_the_network_and_geometry_constants_are_the_description(both):
+    d, p = both
+    assert {s.id: tuple(g.id for g in s.segments) for s in d.shafts} == N.SHAFT_SEGMENTS
+    shaft_bearings = [b for b in d.bearings if b.wheel is None]
+    assert {b.id: b.segment for b in shaft_bearings} == N.SEGMENT_OF_BEARING
+    assert {w.id: w.segment for w in d.wheels if w.mount == "idle"} == N.SEGMENT_OF_IDLE_WHEEL
+    assert {h.id: h.material for h in d.housings} == N.HOUSING_MATERIAL
+    assert tuple(b.id for b in d.boundaries) == N.BOUNDARIES
+    assert {b.id: b.shaft for b in shaft_bearings} == G.SHAFT_OF_BEARING
+    assert {b.id: b.housing for b in shaft_bearings if b.housing} == G.HOUSING_OF_BEARING
+    assert {b.id: b.inside for b in shaft_bearings if b.inside} == {"BIM": "IS@LI"}  # network: the pilot bearing
+    assert tuple(w.id for w in d.wheels if w.mount == "cut") == G.CUT_WHEELS
+    # positions and ends of the segments as the network computes them, bit for bit
+    geo = G.build_geometry(p)
+    pos, ends = N._segment_positions(p, geo.wheels)
+    assert {s.id: [g.x_m for g in s.segments] for s in d.shafts} == pos
+    assert {s.id: (s.front_m, s.rear_m) for s in d.shafts} == ends
+    for w in d.wheels:
+        g = geo.wheels[w.id]
+        assert (w.teeth, w.module_m, w.helix_rad, w.width_m, w.x_m) == (g.z, g.m_n, g.beta, g.width, g.x), w.id
+    net = N.build_network(p)
+    assert d.nodes == net.nodes
+
+    # what dips into the sump, what the oil splashes, which wheels have covered sides: the network's links
+    def linked(prefix):
+        return {nm.split(":", 1)[1] for nm in net.link_name if nm.startswith(prefix)}
+
+    assert set(d.oil.dipping) == linked("imm:")
+    assert set(d.oil.splashed) == linked("splash:") - {"OS"} | {"OS@bulk", "PR"} | linked("bsplash:")
+    assert tuple(w.id for w in d.wheels if w.sides == "free") == ("CM", "RM")  # network: Eq 61 for CM and RM
+    assert {w.id for w in d.wheels if w.sides} == set(C.IDLE_WHEELS)
+    # the housings' joints: the links across the flanges, their conductance from the description
+    from firmware_model.physics.heat_transfer import linear_conductance_w_per_k
+
+    by_id = {h.id: h for h in d.housings}
+    joints = {f"cond:{h.id}-{h.joined_to}": h for h in d.housings if h.joined_to}
+    assert set(joints) == {nm for nm in net.link_name if nm.startswith("cond:H")}
+    for nm, h in joints.items():
+        g_w_per_k = linear_conductance_w_per_k(p["housing.k_joint"], h.joint_area_m2, h.x_m, by_id[h.joined_to].x_m)
+        assert net.link_G0[net.link_name.index(nm)] == g_w_per_k, nm
+    # the conduction links to the boundaries: the touching nodes and their conductance
+    for k, b in enumerate(d.boundaries):
+        links = [i for i in range(len(net.link_b)) if net.link_b[i] == net.n + k and net.link_kind[i] == N.K_CONST]
+        assert {net.nodes[net.link_a[i]] for i in links} == (set(b.touches) if b.conductance_w_per_k else set()), b.id
+        assert all(net.link_G0[i] == b.conductance_w_per_k for i in links), b.id
+    fed = {net.nodes[net.link_a[i]] for i in net.links_of_kind(N.K_STREAM)}
+    assert set(d.oil.jets) == fed
+    for b in shaft_bearings:
+        assert (b.bore_m, b.outer_m, b.width_m) == tuple(p[f"bearing.{b.id}.{k}"] for k in ("d_bore", "d_out", "width"))
+
+
+def test_the_kinematics_constants_and_ratios_are_the_description(both):
+    d, p = both
+    kin = p.kinematics
+    assert tuple(m.id for m in d.meshes) == K.MESHES
+    assert tuple(c.id for c in d.couplings if c.kind == "sync") == K.SYNCS
+    assert {g.number: g.name for g in d.gears} == K.GEAR_NAMES
+    for g in d.gears:
+        row = g.number - K.GEAR_MIN
+        # the meshes the path loads are the ones the kinematics loads in that gear (none in neutral)
+        assert set(g.meshes) == {m for m, t in zip(K.MESHES, kin.mesh_torque[row]) if t != 0}, g.name
+        # the synchronizers the path engages are the ones locked (no relative speed) in that gear
+        for k, sync in enumerate(K.SYNCS[:-1]):  # PR/range: engaged on one side or the other in every gear
+            assert (sync in g.engaged) == (kin.sync_rel[row, k] == 0), (g.name, sync)
+        if g.number == 0:
+            assert math.isinf(g.ratio) and math.isinf(K.total_ratio(kin, 0))
+            continue
+        assert abs(g.ratio - K.total_ratio(kin, g.number)) <= 1e-12 * abs(g.ratio), g.name
+        assert g.held == (("range", "ring" if kin.low_range[row] else "locked"),), g.name
+        split, main, rng = K.GEAR_TABLE[g.number]
+        assert g.path[-1] == ("range/ring" if rng == "low" else "range/locked"), g.name
+        st = K.gear_state(g.number, p.split_inverted)
+        assert g.path[0] == ("LI/IS" if st.split_pair == "L" else "3M/IS"), g.name
+
+
+def test_the_published_limits_are_the_limits_file(both):
+    from firmware_model.onboard.warning_levels import load_limits
+
+    d, _ = both
+    lim = load_limits()
+    for c in d.published:
+        assert (c.warning_c, c.critical_c) == lim.of(c.id)[:2], c.id
+
+
+def test_the_parameters_are_unchanged_by_the_topology():
+    """The parameter loader passes the topology by: the same 270 values, no topology key among them."""
+    for v in VARIANTS:
+        p = load_parameters(v)
+        assert len(p.values) == 270 and not any(k.startswith("topology.") for k in {**p.values, **p.strings})
+
+
+def test_describe_prints_the_summary(capsys):
+    assert main(["describe"]) == 0
+    out = capsys.readouterr().out
+    assert out.startswith("gearbox GRS905 (GRS905.toml): vehicle drive, IS -> OS")
+    assert "    9 4L: ratio 3.03361 (stated 3.034); path LI/IS L 1 1M/MS range/locked" in out
+    assert "oil system: splash lubrication, 13.5 L, pump on LS reaching 21 parts" in out
+    assert "thermostatic bypass opens at 80 degC" in out and "PS 130/150" in out
+    assert main(["describe", "--gearbox", "GRSO905"]) == 0
+    assert "   14 6H: ratio 0.807563 (stated 0.8076); path LI/IS L 3 3M/MS range/locked" in capsys.readouterr().out
+
+
+def test_an_unknown_gearbox_is_one_sentence(capsys):
+    assert main(["describe", "--gearbox", "GRS999"]) == 2
+    err = capsys.readouterr().err
+    assert err == (
+        "gearbox-vsensor describe: error: unknown gearbox 'GRS999': use one of GRS905, GRSO905 or the path of a "
+        ".toml description file\n"
+    )
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# malformed descriptions: (case, the file's body after inheriting GRS905, the key the sentence names, its reason)
+
+ORDER = C.PUBLISHED
+MALFORMED = [
+    (
+        "mesh modules disagree",
+        '[topology.wheel.LL]\nmodule = { v = 5, u = "mm", src = "assumed" }',
+        "topology.mesh.L.wheels",
+        "their modules disagree (4.5 mm and 5 mm)",
+    ),
+    (
+        "mesh centre distance",
+        '[topology.mesh.3]\ncentre_distance = { v = 170, u = "mm", src = "assumed" }',
+        "topology.mesh.3.centre_distance",
+        "disagrees with the wheels' standard centre distance",
+    ),
+    (
+        "mesh on an unknown wheel",
+        '[topology.mesh.L]\nwheels = { v = ["LI", "LX"], u = "-", src = "seed" }',
+        "topology.mesh.L.wheels",
+        "names LX, which is no wheel or planetary member",
+    ),
+    (
+        "bearing on an unknown shaft",
+        '[topology.bearing.BLF]\nshaft = { v = "XS", u = "-", src = "seed" }',
+        "topology.bearing.BLF.shaft",
+        "'XS' is no shaft of the description",
+    ),
+    (
+        "bearing in an unknown housing",
+        '[topology.bearing.BO]\nhousing = { v = "H4", u = "-", src = "seed" }',
+        "topology.bearing.BO.housing",
+        "'H4' is no housing",
+    ),
+    (
+        "bearing bore over its outer diameter",
+        '[topology.bearing.BO]\nbore = { v = 150, u = "mm", src = "assumed" }',
+        "topology.bearing.BO.bore",
+        "must be smaller than outer",
+    ),
+    (
+        "path misses a coupling",
+        '[topology.gear.4L]\npath = { v = ["LI/IS", "L", "1", "range/locked"], u = "-", src = "seed" }',
+        "topology.gear.4L.path",
+        "does not close at step 'range/locked'",
+    ),
+    (
+        "path ends short of the output",
+        '[topology.gear.4L]\npath = { v = ["LI/IS", "L"], u = "-", src = "seed" }',
+        "topology.gear.4L.path",
+        "ends on LS, not on the output shaft OS",
+    ),
+    (
+        "path through an unknown step",
+        '[topology.gear.4L]\npath = { v = ["LI/IS", "L", "9", "1M/MS"], u = "-", src = "seed" }',
+        "topology.gear.4L.path",
+        "it is no mesh, coupling or planetary set",
+    ),
+    (
+        "ratio off its stated value",
+        '[topology.gear.4L]\nratio = { v = 3.2, u = "-", src = "seed" }',
+        "topology.gear.4L.ratio",
+        "is off the ratio of the teeth along its path, 3.03361",
+    ),
+    (
+        "two gears with one number",
+        '[topology.gear.4H]\nnumber = { v = 9, u = "-", src = "seed" }',
+        "topology.gear.4H.number",
+        "is also gear 4L's number",
+    ),
+    (
+        "published component with no node",
+        "[topology.published]\norder = { v = [" + ", ".join(f'"{c}"' for c in ORDER[:-1]) + ', "sump"], u = "-", '
+        'src = "seed" }',
+        "topology.published.order",
+        "lists sump, which is no node of the description",
+    ),
+    (
+        "published in an unknown limit group",
+        '[topology.published]\nhot = { v = ["oil"], u = "-", src = "seed" }',
+        "topology.published.hot",
+        "is no limit group of limits.toml",
+    ),
+    (
+        "zero size",
+        '[topology.wheel.3M]\nwidth = { v = 0, u = "mm", src = "assumed" }',
+        "topology.wheel.3M.width",
+        "= 0 mm must be greater than zero",
+    ),
+    (
+        "negative size",
+        '[topology.bearing.BO]\nwidth = { v = -26, u = "mm", src = "assumed" }',
+        "topology.bearing.BO.width",
+        "= -26 mm must be greater than zero",
+    ),
+    (
+        "unknown key",
+        '[topology.wheel.LI]\nteth = { v = 28, u = "-", src = "seed" }',
+        "topology.wheel.LI.teth",
+        "is an unknown key (did you mean teeth?); known: name, shaft, segment, mount, teeth",
+    ),
+    (
+        "unknown section",
+        '[topology.shafts.XS]\nname = { v = "x", u = "-", src = "seed" }',
+        "topology.shafts",
+        "is an unknown section (did you mean shaft?); known: shaft, wheel",
+    ),
+    (
+        "wheel on an unknown shaft",
+        '[topology.wheel.2M]\nshaft = { v = "XS", u = "-", src = "seed" }',
+        "topology.wheel.2M.shaft",
+        "'XS' is no shaft of the description (mount idle)",
+    ),
+    (
+        "wheel on a segment of another shaft",
+        '[topology.wheel.LI]\nsegment = { v = "MS@3M", u = "-", src = "seed" }',
+        "topology.wheel.LI.segment",
+        "'MS@3M' is no segment of shaft IS",
+    ),
+    (
+        "duplicate id",
+        '[topology.bearing.LL]\nkind = { v = "needle", u = "-", src = "seed" }\nwheel = { v = "2M", u = "-", '
+        'src = "seed" }\nwidth = { from = "wheel_bearing.length_roller" }',
+        "topology.bearing.LL",
+        "reuses the id LL of wheel LL",
+    ),
+    ("planetary set missing a member", None, "topology.planetary.range", "has no ring; required: sun, planet, ring"),
+    (
+        "planets that do not fit",
+        '[topology.planetary.range]\nz_planet = { v = 27, u = "-", src = "assumed" }',
+        "topology.planetary.range.z_planet",
+        "does not fit between sun and ring",
+    ),
+    (
+        "thermostat below the oil's range",
+        '[topology.oil]\nthermostat_open = { v = 20, u = "degC", src = "assumed" }',
+        "topology.oil.thermostat_open",
+        "= 20 degC lies outside the oil's plausible working range 40..150 degC",
+    ),
+    (
+        "thermostat full below open",
+        '[topology.oil]\nthermostat_full = { v = 70, u = "degC", src = "assumed" }',
+        "topology.oil.thermostat_full",
+        "must lie above thermostat_open = 80 degC",
+    ),
+    (
+        "unit of another dimension",
+        '[topology.wheel.LI]\nwidth = { v = 45, u = "kg", src = "assumed" }',
+        "topology.wheel.LI.width",
+        "has unit 'kg', but it is a length",
+    ),
+    (
+        "value from a missing parameter",
+        '[topology.wheel.LI]\nteeth = { from = "gear.L.z9" }',
+        "topology.wheel.LI.teeth",
+        "takes its value from 'gear.L.z9', which is no parameter of this file",
+    ),
+    (
+        "provenance unknown",
+        '[topology.wheel.LI]\nmount = { v = "idle", u = "-", src = "guess" }',
+        "topology.wheel.LI.mount",
+        "has provenance 'guess'",
+    ),
+    (
+        "mount unknown",
+        '[topology.wheel.LI]\nmount = { v = "floating", u = "-", src = "seed" }',
+        "topology.wheel.LI.mount",
+        "= 'floating' must be one of idle, fixed, cut, pin",
+    ),
+    (
+        "teeth as text",
+        '[topology.wheel.LI]\nteeth = { v = "28", u = "-", src = "seed" }',
+        "topology.wheel.LI.teeth",
+        "= '28' is not a number",
+    ),
+    (
+        "segments out of order",
+        '[topology.shaft.OS.x]\n"OS@BO" = { v = 0.6, u = "m", src = "assumed" }',
+        "topology.shaft.OS.x.OS@BO",
+        "= 0.6 m lies in front of OS@bulk",
+    ),
+    (
+        "housing faces an unknown boundary",
+        '[topology.housing.H3]\nfaces = { v = ["sky"], u = "-", src = "seed" }',
+        "topology.housing.H3.faces",
+        "names sky, which is no boundary",
+    ),
+    (
+        "coupling of an unknown member",
+        '[topology.coupling."2M/MS"]\njoins = { v = ["2X", "MS"], u = "-", src = "seed" }',
+        "topology.coupling.2M/MS.joins",
+        "names 2X, which is no shaft, wheel or planetary member",
+    ),
+    (
+        "drive from an unknown shaft",
+        '[topology.drive]\ninput_shaft = { v = "XS", u = "-", src = "seed" }',
+        "topology.drive.input_shaft",
+        "'XS' is no shaft of the description",
+    ),
+    (
+        "oil jet at an unknown part",
+        '[topology.oil]\njets = { v = ["BIF", "XX"], u = "-", src = "seed" }',
+        "topology.oil.jets",
+        "names XX, which is no part of the description",
+    ),
+    (
+        "housing joined to itself",
+        '[topology.housing.H2]\njoined_to = { v = "H2", u = "-", src = "seed" }',
+        "topology.housing.H2.joined_to",
+        "= 'H2' is no other housing",
+    ),
+    (
+        "limits file missing",
+        '[topology.published]\nlimits = { v = "nolimits.toml", u = "-", src = "assumed" }',
+        "topology.published.limits",
+        "= 'nolimits.toml' is no file beside the description or shipped with it",
+    ),
+    (
+        "mesh of two wheels on one shaft",
+        '[topology.mesh.C]\nwheels = { v = ["1M", "CM"], u = "-", src = "seed" }',
+        "topology.mesh.C.wheels",
+        "sit on one shaft (MS) and cannot mesh",
+    ),
+    (
+        "fixed-ratio drive with many gears",
+        '[topology.drive]\nkind = { v = "fixed_ratio", u = "-", src = "assumed" }',
+        "topology.gear",
+        "must hold exactly one gear (besides neutral) for a fixed-ratio drive",
+    ),
+    ("a file without a topology", ("whole", '[meta]\nvariant = "X"\n'), "[topology]", "is missing: the file describes"),
+]
+
+
+def _write(tmp_path, body) -> str:
+    f = tmp_path / "p.toml"
+    if isinstance(body, tuple):  # a whole file that inherits nothing
+        f.write_text(body[1])
+    elif body is None:  # a whole copy of GRS905 without the planetary set's ring
+        text = (PARAM_DIR / "GRS905.toml").read_text()
+        line = 'ring = { v = "PR", u = "-", src = "seed", ref = "2.2" }\n'
+        assert text.count(line) == 1
+        f.write_text(text.replace(line, ""))
+    else:
+        f.write_text('[meta]\ninherit = "GRS905"\n\n' + body + "\n")
+    return str(f)
+
+
+@pytest.mark.parametrize("case, body, key, why", MALFORMED, ids=[m[0] for m in MALFORMED])
+def test_a_malformed_description_is_one_sentence_naming_the_file_and_the_key(tmp_path, capsys, case, body, key, why):
+    path = _write(tmp_path, body)
+    with pytest.raises(ParameterError) as exc:
+        load_description(path)
+    msg = str(exc.value)
+    assert "\n" not in msg and msg.startswith(f"p.toml: {key} "), msg
+    assert why in msg, msg
+    assert main(["describe", "--gearbox", path]) == 2
+    captured = capsys.readouterr()
+    assert captured.err == f"gearbox-vsensor describe: error: {msg}\n" and "Traceback" not in captured.err
+    assert captured.out == ""
+
+
+def test_there_are_at_least_twenty_distinct_malformed_descriptions():
+    assert len({m[0] for m in MALFORMED}) == len(MALFORMED) >= 20
+    assert len({(m[2], m[3]) for m in MALFORMED}) == len(MALFORMED)
+
+
+def test_the_documented_example_loads_as_written(tmp_path):
+    """docs/description.md's single-stage reducer: a description that inherits nothing, with one gear."""
+    import re
+    from pathlib import Path
+
+    text = (Path(__file__).resolve().parents[2] / "docs" / "description.md").read_text(encoding="utf-8")
+    f = tmp_path / "r1.toml"
+    f.write_text(re.search(r"```toml\n(.*?)```", text, re.S).group(1))
+    d = load_description(f)
+    assert d.name == "R1" and d.drive.kind == "fixed_ratio" and [g.name for g in d.gears] == ["G"]
+    assert d.gears[0].ratio == pytest.approx(-77 / 19, rel=1e-12)
+    assert d.nodes == (
+        "IN@B1",
+        "IN@P",
+        "IN@B2",
+        "OUT@B3",
+        "OUT@W",
+        "OUT@B4",
+        "P",
+        "W",
+        "B1",
+        "B2",
+        "B3",
+        "B4",
+        "H",
+        "oil",
+    )
+    assert [(c.id, c.group) for c in d.published][-1] == ("oil", "oil")
+
+
+def test_a_calibrated_parameter_file_keeps_the_description(tmp_path):
+    """calibrate writes every entry of its base file again: the topology's lists and { from } entries too, so the
+    calibrated file is the same description (with the fitted values where it takes them from parameters)."""
+    from types import SimpleNamespace
+
+    from tools.diagnosis.calibrate import calibrated_toml
+
+    cal = SimpleNamespace(
+        train=["a.csv"],
+        test=["b.csv"],
+        test_rms_c=(2.0, 1.0),
+        thin_evidence=lambda: "",
+        fitted={"wheel.x_LI": 0.09},
+        sigma={"wheel.x_LI": 0.001},
+        at_bound={"wheel.x_LI": False},
+    )
+    p = load_parameters("GRS905")
+    f = tmp_path / "cal.toml"
+    f.write_text(calibrated_toml("GRS905", p, cal, "2026-12-04"))
+    assert load_parameters(f).values == {**p.values, "wheel.x_LI": 0.09}
+    d, ref = load_description(f), load_description("GRS905")
+    assert d.nodes == ref.nodes and [g.ratio for g in d.gears] == [g.ratio for g in ref.gears]
+    assert d.wheel("LI").x_m == 0.09 and d.provenance["topology.wheel.LI.x"] == "fitted"

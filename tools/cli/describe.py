@@ -1,0 +1,116 @@
+"""`gearbox-vsensor describe`: check a gearbox description and print its summary (firmware_model.description)."""
+
+from __future__ import annotations
+
+import argparse
+import math
+
+
+def add_subparser(sub):
+    p = sub.add_parser(
+        "describe",
+        help="check a gearbox description and print its shafts, wheels, meshes, gears, bearings, housings, oil "
+        "system and published components",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        description="Check a gearbox description (the [topology] of a parameter file, docs/description.md) and "
+        "print its summary: shafts and segments, wheels, meshes, gears with their power paths and ratios "
+        "(from the teeth and as stated), bearings, housings, the oil system, the boundaries and the "
+        "published components with their warning limits. A description that does not hold together is "
+        "one sentence naming the file, the key and why (exit 2).",
+        epilog="examples:\n  gearbox-vsensor describe\n  gearbox-vsensor describe --gearbox my_gearbox.toml",
+    )
+    p.add_argument(
+        "--gearbox",
+        default="GRS905",
+        metavar="NAME|FILE",
+        help="a description shipped in firmware_model/params/ (GRS905, GRSO905) or the path of a .toml file "
+        "(default: GRS905)",
+    )
+    p.set_defaults(func=run)
+
+
+def _mm(x_m) -> str:
+    return "-" if x_m is None else f"{x_m * 1e3:g} mm"
+
+
+def _c(t_c) -> str:
+    return "-" if t_c is None else f"{t_c:g}"
+
+
+def summary(d) -> list[str]:
+    """The description as text lines, section by section."""
+    out = [f"gearbox {d.name} ({d.origin}): {d.drive.kind} drive, {d.drive.input_shaft} -> {d.drive.output_shaft}"]
+    out.append(f"shafts ({len(d.shafts)}):")
+    for s in d.shafts:
+        segs = ", ".join(f"{g.id} {g.x_m * 1e3:g}" for g in s.segments)
+        out.append(f"  {s.id} {s.name}: d {_mm(s.d_out_m)}, bore {_mm(s.d_bore_m)}; segments at x [mm]: {segs}")
+    out.append(f"wheels ({len(d.wheels)}):")
+    for w in d.wheels:
+        on = "on a pin" if w.shaft is None else f"{w.mount} on {w.shaft} ({w.segment})"
+        out.append(
+            f"  {w.id}{f' ({w.name})' if w.name else ''}: {on}, z {w.teeth}, module {_mm(w.module_m)}, helix "
+            f"{math.degrees(w.helix_rad):g} deg, width {_mm(w.width_m)}"
+        )
+    for ps in d.planetary:
+        out.append(
+            f"planetary set {ps.id}: sun {ps.sun} (z {ps.z_sun}, on {ps.sun_shaft}), {ps.n_planets} planets "
+            f"{ps.planet} (z {ps.z_planet}), ring {ps.ring} (z {ps.z_ring}), carrier on {ps.carrier_shaft}"
+        )
+    out.append(f"meshes ({len(d.meshes)}):")
+    for m in d.meshes:
+        kind = "internal" if m.internal else "external"
+        out.append(
+            f"  {m.id}: {m.wheels[0]}-{m.wheels[1]} {kind}, centre distance {m.centre_distance_m * 1e3:.4g} mm "
+            f"(standard {m.standard_m * 1e3:.4g} mm)"
+        )
+    out.append("couplings: " + ", ".join(f"{c.id} ({c.kind})" for c in d.couplings))
+    out.append(f"gears ({sum(g.number != 0 for g in d.gears)} and neutral):" if d.gears else "gears: none")
+    for g in d.gears:
+        ratio = "neutral" if g.number == 0 else f"ratio {g.ratio:.6g} (stated {g.stated_ratio:g})"
+        out.append(f"  {g.number:>3} {g.name}: {ratio}; path {' '.join(g.path)}")
+    return out + _summary_rest(d)
+
+
+def _summary_rest(d) -> list[str]:
+    out = [f"bearings ({len(d.bearings)}):"]
+    for b in d.bearings:
+        seat = f"under {b.wheel}" if b.wheel else (f"in {b.housing}" if b.housing else f"inside {b.inside}")
+        size = f"{_mm(b.bore_m)} x {_mm(b.outer_m)} x {_mm(b.width_m)}" if b.bore_m else f"width {_mm(b.width_m)}"
+        named = f"{b.id} ({b.name})" if b.name else b.id
+        out.append(f"  {named}: {b.kind} on {b.shaft} ({b.segment}), {seat}; {size}")
+    out.append(f"housings ({len(d.housings)}):")
+    for h in d.housings:
+        out.append(
+            f"  {h.id} {h.name}: {h.material}, {h.mass_kg:g} kg, {h.area_m2:g} m2, {h.internal_split:.0%} of the "
+            f"inside{f', bolted to {h.joined_to}' if h.joined_to else ''}; faces {', '.join(h.faces)}"
+        )
+    o = d.oil
+    pump = f"pump on {o.pump_shaft}" if o.pump_shaft else ("pump" if o.pump_flow else "no pump")
+    thermo = (
+        f", thermostatic bypass opens at {o.thermostat_open_c:g} degC (full {o.thermostat_full_c:g} degC)"
+        if o.thermostat_open_c is not None
+        else ""
+    )
+    heater = f", heater {o.heater_w:g} W" if o.heater_w else ", no heater"
+    out.append(
+        f"oil system: {o.lubrication} lubrication, {o.volume_m3 * 1e3:g} L, {pump} reaching {len(o.jets)} parts, "
+        f"filter {o.filter}; cooler {o.cooler}{thermo}{heater}"
+    )
+    out.append(f"  dipping into the sump: {', '.join(o.dipping) or 'nothing'}")
+    out.append(f"  splashed: {', '.join(o.splashed) or 'nothing'}")
+    out.append(f"boundaries ({len(d.boundaries)}, default temperature; what touches each):")
+    for b in d.boundaries:
+        g = f" through {b.conductance_w_per_k:g} W/K each" if b.conductance_w_per_k else ""
+        out.append(f"  {b.id} {b.temperature_c:g} degC; touches {', '.join(b.touches) or 'nothing directly'}{g}")
+    out.append(f"published ({len(d.published)}, warning/critical degC):")
+    for i in range(0, len(d.published), 7):
+        out.append("  " + ", ".join(f"{c.id} {_c(c.warning_c)}/{_c(c.critical_c)}" for c in d.published[i : i + 7]))
+    return out
+
+
+def run(args) -> int:
+    from firmware_model.description import load_description
+
+    d = load_description(args.gearbox)
+    print("\n".join(summary(d)))
+    return 0
