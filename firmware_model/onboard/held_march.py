@@ -148,9 +148,8 @@ def march_time_to_limit(
     """First time [s] each free node ``rows`` reaches ``limit_c`` with the inputs held (module doc); None when the
     held system has no finite steady state (the caller publishes "not available"). ``watch`` (bool per row): the
     temperature of free node ``watch_node`` is recorded at the first crossing of a watched row (the time to limit's
-    re-linearisation). ``stop_s`` (per row): only a crossing before it is wanted (an earlier one is known), so a row
-    closes after the step that reaches it (its time stays inf unless it crossed in that step or before). ``ratio``:
-    each step this many times longer than the last (the bounded method's grid is coarser: TTL_BOUND_RATIO)."""
+    re-linearisation). ``stop_s`` (per row): an earlier crossing is known, so a row closes after the step that
+    passes it (inf unless it crossed by then). ``ratio``: the grid's (the bounded method's: TTL_BOUND_RATIO)."""
     A, C, b = sys.A_w_per_k, sys.C_j_per_k, sys.b_w
     try:
         T_inf = np.linalg.solve(A, b)
@@ -176,15 +175,12 @@ def march_time_to_limit(
         open_ &= Tinf_rows + np.sqrt(energy / Crow) >= lim
     watch = np.zeros(rows.size, dtype=bool) if watch is None else np.asarray(watch, dtype=bool)
     watch_t, watch_T = math.nan, math.nan
-    t, h = 0.0, MARCH_H0_S
-    t_skip = 0.0
-    steps = 0
+    t, h, t_skip, steps = 0.0, MARCH_H0_S, 0.0, 0
     if bounded and open_.any():
         t_skip, h = _skip_to(open_, lim - T0_rows, _bound_scale(sys, de), w_rows, ratio)
     while open_.any() and t < TTL_HORIZON_S:
         h_step = t_skip if t_skip > 0.0 else min(h, TTL_HORIZON_S - t)
-        d = MARCH_D_FRAC * h_step
-        steps += 1
+        d, steps = MARCH_D_FRAC * h_step, steps + 1
         M = np.diag(C) + d * A
         try:
             e_g = np.linalg.solve(M, C * e - d * (A @ e))
@@ -212,8 +208,7 @@ def march_time_to_limit(
             open_ &= Tinf_rows + _bound_scale(sys, e_new) * w_rows >= lim
         if not sys.coupled or energy_new <= energy:
             open_ &= Tinf_rows + np.sqrt(energy_new / Crow) >= lim
-        if stop_s is not None:
-            open_ &= ~(t_new >= stop_s)
+        open_ &= ~np.greater_equal(t_new, math.inf if stop_s is None else stop_s)
         e, de, t, energy = e_new, de_new, t_new, energy_new
         if t_skip > 0.0:
             t_skip = 0.0  # the skip's step was the grid's steps up to t_skip: h is the next one
