@@ -64,6 +64,7 @@ class March(NamedTuple):
     T_inf_c: np.ndarray  # (m,) steady state
     watch_t_s: float  # the first crossing (before the quantum) of a watched row; NaN: none crosses
     watch_T_c: float  # the watched node's temperature then (the Hermite interpolant of its step)
+    steps: int = 0  # the march's steps (each one factorisation and two solves): its cost
 
 
 def _hermite(s, h, f0, g0, f1, g1):
@@ -111,14 +112,17 @@ def _bound_scale(sys: HeldSystem, x: np.ndarray) -> float:
     return float(np.max(np.abs(x) / sys.weights))
 
 
-def _skip_to(open_: np.ndarray, gap_k: np.ndarray, rate_max_k_per_s: float, w_rows: np.ndarray) -> tuple[float, float]:
+def _skip_to(
+    open_: np.ndarray, gap_k: np.ndarray, rate_max_k_per_s: float, w_rows: np.ndarray, ratio: float = MARCH_RATIO
+) -> tuple[float, float]:
     """The first step's end and the step after it (t_skip, h). With the maximum principle applied to the
     derivative (which obeys the same equation), no node warms faster than ``rate = max_j max(de_j/dt(0), 0)`` at any
     later time, so no open row crosses before ``t_min = min gap / rate``: the first step goes straight to the last
     grid point at or before t_min (the grid after it unchanged). ``rate == 0``: nothing warms now, so nothing ever
     warms and every open row is closed (in place). NaN: no skip. Without the Metzler structure but with weights
     (HeldSystem.weights) row i warms no faster than ``rate w_i``, ``rate = max_j |de_j/dt(0)| / w_j``
-    (:func:`_bound_scale`; w_rows: the rows' weights, 1 when Metzler)."""
+    (:func:`_bound_scale`; w_rows: the rows' weights, 1 when Metzler; ratio: the grid's, MARCH_RATIO or the bounded
+    method's)."""
     t_skip, h = 0.0, MARCH_H0_S
     if not rate_max_k_per_s > 0.0:
         if rate_max_k_per_s <= 0.0:
@@ -127,7 +131,7 @@ def _skip_to(open_: np.ndarray, gap_k: np.ndarray, rate_max_k_per_s: float, w_ro
     t_min = float(np.min(gap_k[open_] / (rate_max_k_per_s * w_rows[open_])))
     while t_skip + h <= t_min and t_skip + h < TTL_HORIZON_S:
         t_skip = t_skip + h
-        h = h * MARCH_RATIO
+        h = h * ratio
     return t_skip, h
 
 
@@ -138,11 +142,14 @@ def march_time_to_limit(
     limit_c: np.ndarray,
     watch: np.ndarray | None = None,
     watch_node: int = 0,
+    stop_s: np.ndarray | None = None,
+    ratio: float = MARCH_RATIO,
 ) -> March | None:
     """First time [s] each free node ``rows`` reaches ``limit_c`` with the inputs held (module doc); None when the
     held system has no finite steady state (the caller publishes "not available"). ``watch`` (bool per row): the
     temperature of free node ``watch_node`` is recorded at the first crossing of a watched row (the time to limit's
-    re-linearisation)."""
+    re-linearisation). ``stop_s`` (per row): an earlier crossing is known, so a row closes after the step that
+    passes it (inf unless it crossed by then). ``ratio``: the grid's (the bounded method's: TTL_BOUND_RATIO)."""
     A, C, b = sys.A_w_per_k, sys.C_j_per_k, sys.b_w
     try:
         T_inf = np.linalg.solve(A, b)
@@ -168,13 +175,12 @@ def march_time_to_limit(
         open_ &= Tinf_rows + np.sqrt(energy / Crow) >= lim
     watch = np.zeros(rows.size, dtype=bool) if watch is None else np.asarray(watch, dtype=bool)
     watch_t, watch_T = math.nan, math.nan
-    t, h = 0.0, MARCH_H0_S
-    t_skip = 0.0
+    t, h, t_skip, steps = 0.0, MARCH_H0_S, 0.0, 0
     if bounded and open_.any():
-        t_skip, h = _skip_to(open_, lim - T0_rows, _bound_scale(sys, de), w_rows)
+        t_skip, h = _skip_to(open_, lim - T0_rows, _bound_scale(sys, de), w_rows, ratio)
     while open_.any() and t < TTL_HORIZON_S:
         h_step = t_skip if t_skip > 0.0 else min(h, TTL_HORIZON_S - t)
-        d = MARCH_D_FRAC * h_step
+        d, steps = MARCH_D_FRAC * h_step, steps + 1
         M = np.diag(C) + d * A
         try:
             e_g = np.linalg.solve(M, C * e - d * (A @ e))
@@ -202,9 +208,10 @@ def march_time_to_limit(
             open_ &= Tinf_rows + _bound_scale(sys, e_new) * w_rows >= lim
         if not sys.coupled or energy_new <= energy:
             open_ &= Tinf_rows + np.sqrt(energy_new / Crow) >= lim
+        open_ &= ~np.greater_equal(t_new, math.inf if stop_s is None else stop_s)
         e, de, t, energy = e_new, de_new, t_new, energy_new
         if t_skip > 0.0:
             t_skip = 0.0  # the skip's step was the grid's steps up to t_skip: h is the next one
         else:
-            h = h * MARCH_RATIO
-    return March(out, T_inf, watch_t, watch_T)
+            h = h * ratio
+    return March(out, T_inf, watch_t, watch_T, steps)

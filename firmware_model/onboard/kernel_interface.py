@@ -87,6 +87,10 @@ TTL_BOUND_TOL_K = 0.5
 #: ... and where it predicts a crossing within this, today's method too, the earlier kept (the early warning's
 #: lead is 30 s: a warning never comes later than today's) [s]
 TTL_BOUND_GATE_S = 60.0
+#: ... and its marches' grid: each step this many times longer than the last (today's: MARCH_RATIO); on the 240
+#: held points of benchmarks/bench_ttl.py 2.5 is late as rarely as 1.4 and within 20 % as often but in 1-3 min
+#: (90 % against 96 %), in about 60 % of the steps (docs/sensor.md)
+TTL_BOUND_RATIO = 2.5
 #: the C names of the input fields (records.INPUT_FIELDS, same order)
 INPUT_C_NAMES = ("SPEED", "TORQUE", "GEAR", "OIL", "AMB", "COOL", "VKMH", "RET")
 if len(INPUT_C_NAMES) != N_INPUTS:
@@ -154,6 +158,7 @@ DEFINES = (
     Constant("TTL_BOUND_ITERS", TTL_BOUND_ITERS, "bounded time to limit: steady solves for the chord's far sump"),
     Constant("TTL_BOUND_TOL_K", TTL_BOUND_TOL_K, "... until it moves less than this [K]"),
     Constant("TTL_BOUND_GATE_S", TTL_BOUND_GATE_S, "a crossing within this: today's march too, the earlier [s]"),
+    Constant("TTL_BOUND_RATIO", TTL_BOUND_RATIO, "... its marches: each step this many times longer than the last"),
 )
 #: the structs gvs_sizeof() measures, in its argument's order ("real": sizeof(gvs_real))
 SIZEOF_IDS = ("tables", "vehicle", "state", "inputs", "outputs", "ttl_point", "real")

@@ -603,6 +603,10 @@ typedef struct {
     int coupled, held, metzler;         /* metzler: the maximum principle holds (held_march) */
     int weighted;                       /* not metzler: wt > 0 with B wt = 1 (held_march.HeldSystem.weights) */
     gvs_real wt[GVS_MAX_NODES];
+#ifndef GVS_NO_TTL_BOUND
+    int by_row;                         /* coupled march: w = M^-1 e_sump (held_factor), cw = d e_sump^T M^-1 u */
+    gvs_real cw, d;
+#endif
 } held_t;
 
 /* S = c_scale C + d K (held: the sump's row and column identity) */
@@ -681,6 +685,28 @@ static int held_factor(const gvs_tables *tb, held_t *hs, gvs_real c_scale, gvs_r
         if (hs->held) hs->S[tb->ldl_pos[tb->i_oil]] = R_(1.0);
     }
     if (ldl_factor(tb, hs->S) != 0) return -1;
+#ifndef GVS_NO_TTL_BOUND
+    if (hs->coupled && hs->by_row && c_scale != R_(0.0)) {
+        /* the sump is eliminated last: L^-1 e_sump = e_sump, so M^-1 e_sump is D^-1 and the backward pass only */
+        gvs_real y[GVS_MAX_NODES];
+        int32_t n = tb->n, k, e;
+        for (k = 0; k < n - 1; ++k) y[k] = R_(0.0);
+        y[n - 1] = hs->S[n - 1];
+        for (k = n - 2; k >= 0; --k) {
+            gvs_real acc = R_(0.0);
+            for (e = tb->ldl_col_ptr[k]; e < tb->ldl_col_ptr[k + 1]; ++e) acc -= hs->S[n + e] * y[tb->ldl_row[e]];
+            y[k] = acc;
+        }
+        hs->cw = R_(0.0);
+        for (k = 0; k < n; ++k) {
+            hs->w[tb->ldl_perm[k]] = y[k];
+            hs->cw += y[k] * hs->u[tb->ldl_perm[k]];
+        }
+        hs->cw *= d;
+        hs->d = d;
+        return R_(1.0) - hs->cw != R_(0.0) ? 0 : -1;
+    }
+#endif
     if (hs->coupled) {
         for (i = 0; i < tb->n; ++i) hs->w[i] = d * hs->u[i];
         ldl_solve(tb, hs->S, hs->w);
@@ -693,6 +719,17 @@ static int held_factor(const gvs_tables *tb, held_t *hs, gvs_real c_scale, gvs_r
 static void held_solve(const gvs_tables *tb, const held_t *hs, gvs_real *x)
 {
     int32_t i;
+#ifndef GVS_NO_TTL_BOUND
+    if (hs->coupled && hs->by_row && hs->d > R_(0.0)) {
+        /* (M - d u e^T) y = x: y_sump = e^T M^-1 x / (1 - cw), then M y = x + d u y_sump */
+        gvs_real ys = R_(0.0);
+        for (i = 0; i < tb->n; ++i) ys += hs->w[i] * x[i];
+        ys = ys / (R_(1.0) - hs->cw) * hs->d;
+        for (i = 0; i < tb->n; ++i) x[i] += hs->u[i] * ys;
+        ldl_solve(tb, hs->S, x);
+        return;
+    }
+#endif
     ldl_solve(tb, hs->S, x);
     if (hs->coupled) {
         gvs_real f = x[tb->i_oil] / (R_(1.0) - hs->w[tb->i_oil]);
@@ -741,16 +778,17 @@ static gvs_real cooler_slope(const gvs_tables *tb, const gvs_vehicle *veh, const
     return max_r((Q_hi - Q_lo) / R_(0.1), R_(0.0));
 }
 
-/* time_to_limit._weights: wt = B^-1 1, B = K - u2 e_sump^T (A's diagonal, minus the moduli of its off-diagonal
- * entries: only the sump's column differs from K's, -|col| instead of -G), by Sherman-Morrison on K's factors in
- * hs->S; hs->weighted when every wt is finite and positive. u2 is built in the scratch rs. */
-static void held_weights(const gvs_tables *tb, held_t *hs, const gvs_real *col, gvs_real *rs)
+/* time_to_limit._weights: wt = B^-1 1 (rhs NULL; the chord systems: B^-1 C, ttl_bound.positive_weights), B = K - u2
+ * e_sump^T (A's diagonal, minus the moduli of its off-diagonal entries: only the sump's column differs from K's, -|col|
+ * instead of -G), by Sherman-Morrison on K's factors in hs->S; hs->weighted when every wt is finite and positive. u2
+ * is built in the scratch rs. */
+static void held_weights(const gvs_tables *tb, held_t *hs, const gvs_real *col, gvs_real *rs, const gvs_real *rhs)
 {
     int32_t n = tb->n, i, io = tb->i_oil;
     gvs_real den, f;
     for (i = 0; i < n; ++i) {
         rs[i] = i != io ? FABS(col[i]) - col[i] + hs->u[i] : hs->u[i];
-        hs->wt[i] = R_(1.0);
+        hs->wt[i] = rhs ? rhs[i] : R_(1.0);
     }
     ldl_solve(tb, hs->S, rs);
     ldl_solve(tb, hs->S, hs->wt);
@@ -770,38 +808,48 @@ typedef struct {
     gvs_real slope;                     /* the cooler's chord from the step's sump to T_far [W/K] */
     gvs_real T_far;                     /* the far sump [degC] */
     gvs_real beta[GVS_MAX_NODES];       /* the node heat's chord [W/K] */
+    const gvs_real *stop;               /* per published component: only a crossing before it is wanted (or NULL) */
 } ttl_chord_t;
 
 #ifndef GVS_NO_TTL_BOUND
-/* ttl_bound.chord_system on the built held system (K factorised in hs->S, b in Tb): A - beta e_sump^T,
- * b - beta T_far, when 1 - e_sump^T A^-1 beta stays above GVS_COUPLING_MARGIN; the maximum principle needs
- * beta <= 0 and a non-negative sump column, else the weights are decided again */
-static void chord_column(const gvs_tables *tb, held_t *hs, const ttl_chord_t *ch, gvs_real *Tb)
+/* ttl_bound.chord_system on the built held system (K factorised in hs->S, w = K^-1 u when coupled, b in Tb):
+ * A - beta e_sump^T, b - beta T_far, when 1 - e_sump^T A^-1 beta stays above GVS_COUPLING_MARGIN; the maximum
+ * principle needs beta <= 0 and a non-negative sump column. held_build leaves the weights to this (they are decided
+ * once, for the system with or without the chord) */
+static void sump_column(const gvs_tables *tb, const held_t *hs, gvs_real *col)
 {
-    gvs_real x[GVS_MAX_NODES], col[GVS_MAX_NODES], rs[GVS_MAX_NODES];
     int32_t n = tb->n, i, k, io = tb->i_oil;
-    for (i = 0; i < n; ++i) x[i] = ch->beta[i];
-    held_solve(tb, hs, x);
-    if (!(R_(1.0) - x[io] > R_(GVS_COUPLING_MARGIN))) return;
-    for (i = 0; i < n; ++i) {
-        hs->u[i] += ch->beta[i];
-        Tb[i] -= ch->beta[i] * ch->T_far;
-        hs->w[i] = hs->u[i];
-        col[i] = hs->u[i];
-        if (ch->beta[i] > R_(0.0)) hs->metzler = 0;
-    }
-    hs->coupled = 1;
-    ldl_solve(tb, hs->S, hs->w);
+    for (i = 0; i < n; ++i) col[i] = hs->u[i];                 /* -A's sump column */
     for (k = 0; k < tb->nl; ++k) {
         int32_t a = tb->link_a[k], b = tb->link_b[k];
         if (b >= n) continue;
         if (a == io) col[b] += hs->G[k];
         else if (b == io) col[a] += hs->G[k];
     }
-    for (i = 0; i < n; ++i)
-        if (i != io && col[i] < R_(0.0)) hs->metzler = 0;
+}
+
+static void chord_column(const gvs_tables *tb, held_t *hs, const ttl_chord_t *ch, gvs_real *Tb)
+{
+    gvs_real x[GVS_MAX_NODES], col[GVS_MAX_NODES], rs[GVS_MAX_NODES];
+    int32_t n = tb->n, i, io = tb->i_oil;
+    for (i = 0; i < n; ++i) x[i] = ch->beta[i];
+    ldl_solve(tb, hs->S, x);                           /* K^-1 beta; e^T A^-1 beta by Sherman-Morrison */
+    if (R_(1.0) - (hs->coupled ? x[io] / (R_(1.0) - hs->w[io]) : x[io]) > R_(GVS_COUPLING_MARGIN)) {
+        for (i = 0; i < n; ++i) {
+            hs->u[i] += ch->beta[i];
+            Tb[i] -= ch->beta[i] * ch->T_far;
+            hs->w[i] = (hs->coupled ? hs->w[i] : R_(0.0)) + x[i];  /* K^-1 (u + beta) */
+            if (ch->beta[i] > R_(0.0)) hs->metzler = 0;
+        }
+        hs->coupled = 1;
+        sump_column(tb, hs, col);
+        for (i = 0; i < n; ++i)
+            if (i != io && col[i] < R_(0.0)) hs->metzler = 0;
+    } else if (hs->coupled && !hs->metzler) {
+        sump_column(tb, hs, col);                          /* without the chord: the coupled system's weights */
+    }
     hs->weighted = 0;
-    if (!hs->metzler) held_weights(tb, hs, col, rs);
+    if (!hs->metzler) held_weights(tb, hs, col, rs, tb->C_j_per_k);   /* B wt = C (ttl_bound.positive_weights) */
 }
 #endif
 
@@ -817,6 +865,10 @@ static int held_build(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_tt
     mcp = p->rho_cp_j_per_m3k * tb->flow_m3_per_rad * w_ls;
     hs->G = G;
     hs->held = measured;
+#ifndef GVS_NO_TTL_BOUND
+    hs->by_row = 0;
+    hs->d = R_(0.0);
+#endif
     hs->slope = measured ? R_(0.0) : (chord ? chord->slope : cooler_slope(tb, veh, p, T_op));
     hs->coupled = 0;
     for (i = 0; i < n; ++i) hs->u[i] = R_(0.0);
@@ -859,7 +911,7 @@ static int held_build(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_tt
         rs[io] += hs->slope;
         for (i = 0; i < n; ++i)
             if ((i != io && col[i] < R_(0.0)) || rs[i] < R_(0.0)) hs->metzler = 0;
-        if (!hs->metzler) held_weights(tb, hs, col, rs);
+        if (!hs->metzler && !chord) held_weights(tb, hs, col, rs, NULL);   /* with a chord: chord_column decides */
     }
     /* b: heat, inlet drop, boundaries, the sump */
     for (i = 0; i < n; ++i) T_inf[i] = R_(0.0);
@@ -933,7 +985,7 @@ static gvs_real bound_max(const held_t *hs, const gvs_real *x, int32_t i, gvs_re
  * step ends at the last grid point before that (*t_skip, *h the step after it). Nothing warming now closes every row
  * (returns 0); NaN: no skip. */
 static int skip_to(const gvs_tables *tb, const gvs_ttl_point *p, const gvs_real *de, const held_t *hs, int8_t *open,
-                   march_t *t_skip, march_t *h)
+                   march_t *t_skip, march_t *h, march_t ratio)
 {
     gvs_real rate = hs->metzler ? de[0] : FABS(de[0]) / hs->wt[0];
     march_t t_min = (march_t)INFINITY;
@@ -958,7 +1010,7 @@ static int skip_to(const gvs_tables *tb, const gvs_ttl_point *p, const gvs_real 
         }
     while (*t_skip + *h <= t_min && *t_skip + *h < M_(GVS_TTL_HORIZON_S)) {
         *t_skip += *h;
-        *h *= M_(GVS_MARCH_RATIO);
+        *h *= ratio;
     }
     return 1;
 }
@@ -976,11 +1028,19 @@ static int ttl_solve(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl
     int8_t open[GVS_N_PUB];
     int32_t n = tb->n, i, j, any = 0, io = tb->i_oil;
     march_t t = M_(0.0), h = M_(GVS_MARCH_H0_S), t_skip = M_(0.0);
+#ifndef GVS_NO_TTL_BOUND
+    const march_t ratio = chord ? M_(GVS_TTL_BOUND_RATIO) : M_(GVS_MARCH_RATIO);   /* the chord systems' grid */
+#else
+    const march_t ratio = M_(GVS_MARCH_RATIO);
+#endif
     *T_watch = (gvs_real)NAN;
     for (j = 0; j < GVS_N_PUB; ++j) ttl[j] = (gvs_real)NAN;
     memset(e, 0, sizeof e);
     memset(de, 0, sizeof de);
     if (held_build(tb, veh, p, src, G, Gs, T_op, measured, &hs, T_inf, chord) != 0) return -1;
+#ifndef GVS_NO_TTL_BOUND
+    hs.by_row = chord != NULL && tb->ldl_perm[n - 1] == io;  /* the chord systems' march: Sherman-Morrison by row */
+#endif
     for (i = 0; i < n; ++i) e[i] = p->T_main_c[i] - T_inf[i];
     if (measured) e[io] = R_(0.0);
     held_apply(tb, &hs, e, Ae);
@@ -1005,7 +1065,7 @@ static int ttl_solve(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl
         any |= open[j];
     }
     if (any && (hs.metzler || hs.weighted))
-        any = skip_to(tb, p, de, &hs, open, &t_skip, &h);
+        any = skip_to(tb, p, de, &hs, open, &t_skip, &h, ratio);
     while (any && t < M_(GVS_TTL_HORIZON_S)) {
         march_t h_step = t_skip > M_(0.0) ? t_skip : (h < M_(GVS_TTL_HORIZON_S) - t ? h : M_(GVS_TTL_HORIZON_S) - t);
         gvs_real d = (gvs_real)(M_(GVS_MARCH_D_FRAC) * h_step), s_watch = R_(2.0);
@@ -1039,6 +1099,9 @@ static int ttl_solve(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl
             if ((hs.metzler || hs.weighted) && T_inf[r] + e_max * (hs.metzler ? R_(1.0) : hs.wt[r]) < lim)
                 open[j] = 0;
             if ((!hs.coupled || energy_new <= energy) && T_inf[r] + SQRT(energy_new / C[r]) < lim) open[j] = 0;
+#ifndef GVS_NO_TTL_BOUND
+            if (chord && chord->stop && t + h_step >= (march_t)chord->stop[j]) open[j] = 0;
+#endif
             any |= open[j];
         }
         if (s_watch <= R_(1.0) && *T_watch != *T_watch && !measured)
@@ -1048,27 +1111,28 @@ static int ttl_solve(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl
         energy = energy_new;
         t += h_step;
         if (t_skip > M_(0.0)) t_skip = M_(0.0);     /* the skip was the grid's steps up to t_skip */
-        else h *= M_(GVS_MARCH_RATIO);
+        else h *= ratio;
     }
     return 0;
 }
 
 #ifndef GVS_NO_TTL_BOUND /* an export whose tables use today's march leaves the bounded method out (flash) */
-/* ttl_bound.loss_heat_w and the nodes' share of it: the loss sources' heat with the point's load at sump T [W] */
-static void bound_heat(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl_point *p, gvs_real T,
-                       gvs_real *src, gvs_real *q)
+/* ttl_bound.loss_heat_w: the loss sources' heat with the point's load at sump T [W] */
+static void bound_heat(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl_point *p, gvs_real T, gvs_real *src)
 {
-    gvs_real w = p->omega_in_rad_s, retarder_w;
-    const gvs_real *heat = src ? src : p->src_w;
-    int32_t i, k;
+    gvs_real w = p->omega_in_rad_s;
     oil_row_t o;
-    if (src) {
-        oil_row(tb, T, &o, NULL);
-        retarder_w = retarder_heat_w(tb, veh, p->row, w, p->used[GVS_I_RET]);
-        heat_sources(tb, veh, p->row, w, FABS(p->used[GVS_I_TORQUE]), &o, retarder_w, src);
-    }
+    oil_row(tb, T, &o, NULL);
+    heat_sources(tb, veh, p->row, w, FABS(p->used[GVS_I_TORQUE]), &o,
+                 retarder_heat_w(tb, veh, p->row, w, p->used[GVS_I_RET]), src);
+}
+
+/* the nodes' share q of the sources' heat src */
+static void bound_scatter(const gvs_tables *tb, const gvs_real *src, gvs_real *q)
+{
+    int32_t i, k;
     for (i = 0; i < tb->n; ++i) q[i] = R_(0.0);
-    for (k = 0; k < tb->nsrc_nz; ++k) q[tb->src_nz_node[k]] += heat[tb->src_nz_src[k]] * tb->src_nz_w[k];
+    for (k = 0; k < tb->nsrc_nz; ++k) q[tb->src_nz_node[k]] += src[tb->src_nz_src[k]] * tb->src_nz_w[k];
 }
 
 /* ttl_bound.cooler_chord_slope: (Q(T_far) - Q_step) / (T_far - T_step), at least 0 */
@@ -1088,40 +1152,76 @@ static gvs_real bound_clip(const gvs_tables *tb, gvs_real T)
     return clip_r(T, tb->T_grid0_c, tb->T_grid0_c + tb->T_grid_step_k * (gvs_real)(tb->nT - 1));
 }
 
+/* a trial's steady sump (ttl_bound._steady_sump_c of time_to_limit.held_system with the cooler's slope s at the step's
+ * sump, then ttl_bound.chord_system) from dot products with r = K^-1 e_sump (K: the links, no cooler): K + s e e^T
+ * differs from K in the sump's diagonal only, so e^T (K + s e e^T)^-1 x = r.x / (1 + s r_sump); the inlet coupling
+ * u and the chord beta are columns on the sump (Sherman-Morrison: e^T A^-1 x = e^T K^-1 x / (1 - e^T K^-1 u)).
+ * rb: r.b without the cooler's and the coupling's terms; ru: r.u / s; rbeta: r.beta (chord: T_far finite). NaN:
+ * no finite steady sump */
+static gvs_real bound_steady_sump(const gvs_tables *tb, const gvs_ttl_point *p, gvs_real r_io, gvs_real rb,
+                                  gvs_real ru, gvs_real s, gvs_real mcp, gvs_real rbeta, gvs_real T_far)
+{
+    gvs_real den = R_(1.0) + s * r_io, cu = R_(0.0), a, c;
+    rb += s * p->T_oil_c * r_io;
+    if (s != R_(0.0) && FABS(p->dT_in_k) < tb->inlet_drop_max_k && mcp > R_(0.0)
+        && FABS(p->Q_cool_w / mcp) < tb->inlet_drop_max_k && R_(1.0) - ru * (s / mcp) / den > R_(GVS_COUPLING_MARGIN)) {
+        cu = ru * (s / mcp) / den;                   /* the inlet follows the sump: e^T K^-1 u */
+        rb -= p->T_oil_c * ru * (s / mcp);
+    }
+    a = rb / den / (R_(1.0) - cu);
+    if (T_far == T_far) {
+        c = rbeta / den / (R_(1.0) - cu);            /* e^T A^-1 beta: the chord's column when its margin holds */
+        if (R_(1.0) - c > R_(GVS_COUPLING_MARGIN)) a = (a - T_far * c) / (R_(1.0) - c);
+    }
+    return finite_r((double)a) ? a : (gvs_real)NAN;
+}
+
 /* ttl_bound.chord_systems: the far sump T_far by the secant method on the chord system's steady sump (conductances
- * of the step); 0 when found (ch filled, src its losses), -1 when the sump is settled or none is found */
+ * of the step), one factorisation of K for every trial (bound_steady_sump); 0 when found (ch filled, src its losses),
+ * -1 when the sump is settled or none is found */
 static int bound_far_sump(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl_point *p, ttl_chord_t *ch,
                           gvs_real *src)
 {
     held_t hs;
-    gvs_real T_inf[GVS_MAX_NODES], q0[GVS_MAX_NODES], qf[GVS_MAX_NODES], src_k[GVS_MAX_SRC];
-    gvs_real T0 = p->T_oil_c, t_prev = T0, g_prev, g, T_far, b_k[GVS_MAX_NODES], slope_k;
-    int32_t i, it, io = tb->i_oil, found = 0;
-    ttl_chord_t *tr = ch;
-    if (held_build(tb, veh, p, p->src_w, p->G_w_per_k, p->G_streams_w_per_k, T0, 0, &hs, T_inf, NULL) != 0)
-        return -1;
-    g_prev = T_inf[io] - T0;
+    gvs_real r[GVS_MAX_NODES], rw[GVS_MAX_SRC], src_k[GVS_MAX_SRC], qf[GVS_MAX_NODES];
+    gvs_real T0 = p->T_oil_c, t_prev = T0, g_prev, g, T_far, rb = R_(0.0), ru = R_(0.0), rq0 = R_(0.0), rqf, slope_k;
+    gvs_real mcp = p->rho_cp_j_per_m3k * tb->flow_m3_per_rad
+        * FABS(tb->speed_coef[p->row * tb->n_speed + GVS_SPEED_COL_LAYSHAFT]) * p->omega_in_rad_s;
+    int32_t n = tb->n, i, k, it, io = tb->i_oil, found = 0;
+    hs.G = p->G_w_per_k;
+    hs.slope = R_(0.0);
+    hs.held = 0;
+    hs.coupled = 0;
+    hs.by_row = 0;
+    if (held_factor(tb, &hs, R_(0.0), R_(1.0)) != 0) return -1;
+    for (i = 0; i < n; ++i) r[i] = i == io ? R_(1.0) : R_(0.0);
+    ldl_solve(tb, hs.S, r);
+    /* r.b of the parts no trial changes: the inlet drop at the step's sump, the boundaries, -Q_cool on the sump */
+    for (k = 0; k < tb->nst; ++k) ru += p->G_streams_w_per_k[k] * (r[io] - r[tb->stream_node[k]]);
+    for (k = 0; k < tb->nl; ++k)
+        if (tb->link_b[k] >= n) rb += p->G_w_per_k[k] * p->T_bc_c[tb->link_b[k] - n] * r[tb->link_a[k]];
+    rb += ru * p->dT_in_k - r[io] * p->Q_cool_w;
+    for (i = 0; i < tb->ns; ++i) rw[i] = R_(0.0);         /* r.q = rw.src: the sources' weights on r */
+    for (k = 0; k < tb->nsrc_nz; ++k) rw[tb->src_nz_src[k]] += tb->src_nz_w[k] * r[tb->src_nz_node[k]];
+    for (i = 0; i < tb->ns; ++i) rq0 += rw[i] * p->src_w[i];
+    g_prev = bound_steady_sump(tb, p, r[io], rb + rq0, ru, cooler_slope(tb, veh, p, T0), mcp, R_(0.0),
+                               (gvs_real)NAN) - T0;
     if (!(FABS(g_prev) >= R_(GVS_TTL_BOUND_TOL_K))) return -1;
-    bound_heat(tb, veh, p, T0, NULL, q0);
     T_far = bound_clip(tb, T0 + g_prev);
     for (it = 0; it < GVS_TTL_BOUND_ITERS; ++it) {
+        gvs_real T_s;
         if (FABS(T_far - T0) < R_(GVS_TTL_BOUND_TOL_K)) break;
-        bound_heat(tb, veh, p, T_far, src_k, qf);
-        for (i = 0; i < tb->n; ++i) b_k[i] = (q0[i] - qf[i]) / (T0 - T_far);
+        bound_heat(tb, veh, p, T_far, src_k);
+        rqf = R_(0.0);
+        for (i = 0; i < tb->ns; ++i) rqf += rw[i] * src_k[i];
         slope_k = bound_cooler_slope(tb, veh, p, T_far);
-        {
-            /* the trial chord in scratch: ch keeps the last one that has a finite steady state */
-            ttl_chord_t trial;
-            trial.slope = slope_k;
-            trial.T_far = T_far;
-            memcpy(trial.beta, b_k, (size_t)tb->n * sizeof(gvs_real));
-            if (held_build(tb, veh, p, src_k, p->G_w_per_k, p->G_streams_w_per_k, T0, 0, &hs, T_inf, &trial) != 0)
-                break;
-            *tr = trial;
-        }
+        T_s = bound_steady_sump(tb, p, r[io], rb + rqf, ru, slope_k, mcp, (rq0 - rqf) / (T0 - T_far), T_far);
+        if (T_s != T_s) break;                              /* no finite steady state there: the last that has one */
+        ch->slope = slope_k;
+        ch->T_far = T_far;
         memcpy(src, src_k, (size_t)tb->ns * sizeof(gvs_real));
         found = 1;
-        g = T_inf[io] - T_far;
+        g = T_s - T_far;
         if (!(FABS(g) >= R_(GVS_TTL_BOUND_TOL_K)) || g == g_prev) break;
         {
             gvs_real t_next = bound_clip(tb, T_far - g * (T_far - t_prev) / (g - g_prev));
@@ -1130,7 +1230,11 @@ static int bound_far_sump(const gvs_tables *tb, const gvs_vehicle *veh, const gv
             T_far = t_next;
         }
     }
-    return found ? 0 : -1;
+    if (!found) return -1;
+    bound_scatter(tb, p->src_w, r);                          /* the node heat's chord to the found far sump */
+    bound_scatter(tb, src, qf);
+    for (i = 0; i < n; ++i) ch->beta[i] = (r[i] - qf[i]) / (T0 - ch->T_far);
+    return 0;
 }
 
 static int ttl_refresh(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl_point *p, gvs_real *ttl_s,
@@ -1155,6 +1259,7 @@ static int ttl_refresh_bound(const gvs_tables *tb, const gvs_vehicle *veh, const
     gvs_real T_watch, src[GVS_MAX_SRC], G[GVS_MAX_LINKS], Gs[GVS_MAX_STREAMS], other[GVS_N_PUB];
     int measured = p->measured && !tb->ttl_sump_model, rc_a, rc_b, j;
     ttl_chord_t ch;
+    ch.stop = NULL;
     if (measured || !tb->ttl_relinearise || bound_far_sump(tb, veh, p, &ch, src) != 0) {
         ttl_solve(tb, veh, p, p->src_w, p->G_w_per_k, p->G_streams_w_per_k, p->T_oil_c, measured, ttl_s, &T_watch,
                   NULL);
@@ -1164,6 +1269,7 @@ static int ttl_refresh_bound(const gvs_tables *tb, const gvs_vehicle *veh, const
     rc_a = ttl_solve(tb, veh, p, src, p->G_w_per_k, p->G_streams_w_per_k, p->T_oil_c, 0, ttl_s, &T_watch, &ch);
     bin_conductances(tb, veh, p->row, speed_bin_centre(tb, p->omega_in_rad_s),
                      RINT(ch.T_far / tb->oil_bin_c) * tb->oil_bin_c, G, Gs);
+    if (rc_a == 0) ch.stop = ttl_s;                /* the second march: only crossings before the first's */
     rc_b = ttl_solve(tb, veh, p, src, G, Gs, ch.T_far, 0, other, &T_watch, &ch);
     if (rc_b != 0) {
         if (rc_a != 0)
