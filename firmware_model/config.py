@@ -73,7 +73,7 @@ ALLOWED = {
         "name_industry_group",
         "arbitrary_address_capable",
     },
-    "sensor": {"oil_mode", "limits", "debounce_s", "hysteresis_c", "snapshot"},
+    "sensor": {"oil_mode", "limits", "debounce_s", "hysteresis_c", "snapshot", "ttl_method"},
 }
 
 
@@ -191,6 +191,7 @@ KEY_TYPES = {
     "gearbox.variant": str,
     "gearbox.params": str,
     "sensor.oil_mode": str,
+    "sensor.ttl_method": str,
     "sensor.limits": str,
     "sensor.debounce_s": (0.0, 60.0),
     "sensor.hysteresis_c": (0.0, 50.0),

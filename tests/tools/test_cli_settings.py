@@ -187,3 +187,23 @@ def test_fleet_reads_its_settings_from_its_config(tmp_path, capsys):
     assert "fleet.period_days = 0 must be a whole number of days in 1..3650" in capsys.readouterr().err
     assert main(["fleet", str(log.parent), "--out", str(out), "--period-days", "2"]) == 2
     assert "only --diagnose runs" in capsys.readouterr().err and not out.exists()
+
+
+def test_the_time_to_limit_method_is_chosen_in_the_configuration(tmp_path):
+    """`[sensor] ttl_method` reaches the sensor (and so every command that builds one); a wrong word is one sentence."""
+    from firmware_model.onboard.sensor import VirtualSensor
+    from firmware_model.parameters import load_parameters
+
+    params = load_parameters("GRS905")
+    assert VirtualSensor(params, config=load_config(None)).sp.options.ttl_method == "march"
+    cfg = tmp_path / "bound.toml"
+    cfg.write_text('[sensor]\nttl_method = "bound"\n')
+    assert VirtualSensor(params, config=load_config(cfg)).sp.options.ttl_method == "bound"
+    # the caller's option wins over the file, as for the other sensor options
+    assert VirtualSensor(params, config=load_config(cfg), ttl_method="march").sp.options.ttl_method == "march"
+    cfg.write_text('[sensor]\nttl_method = "bounded"\n')
+    with pytest.raises(ParameterError, match=r"sensor\.ttl_method = 'bounded' must be 'march' or 'bound'"):
+        VirtualSensor(params, config=load_config(cfg))
+    cfg.write_text("[sensor]\nttl_method = 1\n")
+    with pytest.raises(ParameterError, match=r"sensor\.ttl_method = 1 must be a string"):
+        load_config(cfg)
