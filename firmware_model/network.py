@@ -25,7 +25,7 @@ from firmware_model.errors import ParameterError
 from firmware_model.parameters import Parameters
 from firmware_model.physics import heat_transfer as ht
 from firmware_model.physics import oil as oilprops
-from firmware_model.physics.geometry import CUT_WHEELS, HOUSING_OF_BEARING, SHAFT_OF_BEARING, Geometry, build_geometry
+from firmware_model.physics.geometry import Geometry, build_geometry
 from firmware_model.physics.kinematics import MESHES, SPEED_NAMES
 from firmware_model.physics.losses import ADDENDUM_COEF, DEDENDUM_COEF, PLANETARY_HEAT_SPLIT
 
@@ -136,6 +136,8 @@ class _Builder:
 
     def __init__(self, p: Parameters, geo: Geometry):
         self.p, self.geo, self.W = p, geo, geo.wheels
+        self.desc = geo.description
+        self.bearing = {brg.id: brg for brg in self.desc.bearings}
         self.st_rho, self.st_k, self.st_cp = p["material.steel.rho"], p["material.steel.k"], p["material.steel.cp"]
         self.nodes: list = []
         self.C: list = []
@@ -316,7 +318,7 @@ def _bearing_radial_links(b: _Builder) -> None:
             # the pilot bearing sits inside the rear end of the input shaft
             b.link(brg, "IS@LI", K_CONST, b.radial(k, wdt, f_seat * d_out, Dm, sf), f"rad:{brg}-IS@LI")
         else:
-            h = HOUSING_OF_BEARING[brg]
+            h = b.bearing[brg].housing
             k_h = p[f"material.{HOUSING_MATERIAL[h]}.k"]
             b.link(brg, h, K_CONST, b.radial(min(k_h, k), wdt, f_seat * d_out, Dm, sf), f"rad:{brg}-{h}")
     gp, gs = b.W["PP"], b.W["PS"]
@@ -370,7 +372,7 @@ def _immersed_links(b: _Builder) -> None:
         h_i = b.geo.immersion_m[w]
         if h_i <= 0:
             continue
-        w_in = 0.0 if w in CUT_WHEELS else p["wheel.side_width_in_frac"] * g.width
+        w_in = 0.0 if b.desc.wheel(w).mount == "cut" else p["wheel.side_width_in_frac"] * g.width
         h_i_p = min(h_i, 2 * g.R_p)
         A = float(ht.immersed_gear_area_m2(g.R_p, g.width, g.R_in, w_in, h_i_p, g.z, g.h_t, g.beta))
         b.link(
@@ -418,7 +420,7 @@ def _splash_links(b: _Builder) -> None:
             continue
         _, _, wdt, dr, Dm = _bearing_dims(p, brg)
         A = float(ht.bearing_internal_area_m2(Dm - dr, Dm + dr, p[f"bearing.{brg}.n_rollers"], dr, wdt))  # Eq 64
-        b.link(brg, "oil", K_BRG_SPLASH, A, f"bsplash:{brg}", speed=spd(SHAFT_OF_BEARING[brg]), Dm=Dm, d_roller=dr)
+        b.link(brg, "oil", K_BRG_SPLASH, A, f"bsplash:{brg}", speed=spd(b.bearing[brg].shaft), Dm=Dm, d_roller=dr)
     A_int = p["housing.internal_area"] * p["housing.oil_covered_frac"]
     for h in HOUSINGS:
         b.link(h, "oil", K_CONST, p["housing.h_oil"] * A_int * p[f"housing.internal_split_{h}"], f"hoil:{h}")

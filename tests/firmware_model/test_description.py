@@ -11,7 +11,7 @@ import pytest
 
 from firmware_model import components as C
 from firmware_model import network as N
-from firmware_model.description import load_description
+from firmware_model.description import description_of, load_description
 from firmware_model.errors import ParameterError
 from firmware_model.parameters import PARAM_DIR, load_parameters
 from firmware_model.physics import geometry as G
@@ -57,10 +57,24 @@ def test_the_network_and_geometry_constants_are_the_description(both):
     assert {w.id: w.segment for w in d.wheels if w.mount == "idle"} == N.SEGMENT_OF_IDLE_WHEEL
     assert {h.id: h.material for h in d.housings} == N.HOUSING_MATERIAL
     assert tuple(b.id for b in d.boundaries) == N.BOUNDARIES
-    assert {b.id: b.shaft for b in shaft_bearings} == G.SHAFT_OF_BEARING
-    assert {b.id: b.housing for b in shaft_bearings if b.housing} == G.HOUSING_OF_BEARING
+    # what geometry.py held as constants before it was built from the description
+    assert {b.id: b.shaft for b in shaft_bearings} == {
+        "BIF": "IS",
+        "BLF": "LS",
+        "BLR": "LS",
+        "BIM": "MS",
+        "BMR": "MS",
+        "BO": "OS",
+    }
+    assert {b.id: b.housing for b in shaft_bearings if b.housing} == {
+        "BIF": "H1",
+        "BLF": "H1",
+        "BLR": "H2",
+        "BMR": "H2",
+        "BO": "H3",
+    }
     assert {b.id: b.inside for b in shaft_bearings if b.inside} == {"BIM": "IS@LI"}  # network: the pilot bearing
-    assert tuple(w.id for w in d.wheels if w.mount == "cut") == G.CUT_WHEELS
+    assert tuple(w.id for w in d.wheels if w.mount == "cut") == ("1L", "CL", "RL")
     # positions and ends of the segments as the network computes them, bit for bit
     geo = G.build_geometry(p)
     pos, ends = N._segment_positions(p, geo.wheels)
@@ -480,3 +494,27 @@ def test_a_calibrated_parameter_file_keeps_the_description(tmp_path):
     d, ref = load_description(f), load_description("GRS905")
     assert d.nodes == ref.nodes and [g.ratio for g in d.gears] == [g.ratio for g in ref.gears]
     assert d.wheel("LI").x_m == 0.09 and d.provenance["topology.wheel.LI.x"] == "fitted"
+
+
+def test_the_geometry_is_built_from_the_description(tmp_path):
+    """A file that inherits the GRS905 and mounts the layshaft's first-gear wheel on it instead of cutting it into
+    it gets a wheel with the shaft inside (no cut-wheel web), and its meshes from the description's."""
+    (tmp_path / "fixed_1L.toml").write_text(
+        '[meta]\ninherit = "GRS905"\n[topology.wheel.1L]\nmount = { v = "fixed", u = "-", src = "assumed" }\n'
+    )
+    p0, p1 = load_parameters("GRS905"), load_parameters(tmp_path / "fixed_1L.toml")
+    g0, g1 = G.build_geometry(p0), G.build_geometry(p1)
+    R_ls = p0["shaft.LS.d_out"] / 2
+    assert g0.wheels["1L"].R_in > R_ls and g1.wheels["1L"].R_in == R_ls
+    assert g1.wheels["CL"] == g0.wheels["CL"] and g1.meshes == g0.meshes
+    assert set(g0.meshes) == {m.id for m in load_description("GRS905").meshes}
+
+
+def test_a_parameter_sets_description_follows_its_overrides():
+    p = load_parameters("GRS905")
+    q = p.with_overrides({"gear.3.width1": 0.035}).with_cooler_kind("none")
+    assert description_of(p) == load_description("GRS905")
+    assert description_of(q).wheel("3M").width_m == 0.035 and description_of(q).wheel("3L").width_m == 0.04
+    assert (
+        G.build_geometry(q).meshes["3"].face_width_m == 0.035 and G.build_geometry(p).meshes["3"].face_width_m == 0.04
+    )
