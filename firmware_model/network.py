@@ -19,7 +19,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-from firmware_model.components import HOUSINGS, IDLE_WHEELS, LAYSHAFT_WHEELS, PAIRS, SHAFT_BEARINGS, WHEEL_BEARINGS
+from firmware_model.components import IDLE_WHEELS, LAYSHAFT_WHEELS, PAIRS, SHAFT_BEARINGS, WHEEL_BEARINGS
+from firmware_model.description import Description
 from firmware_model.effects import RETARDER_HEAT_SPLIT, EffectScales
 from firmware_model.errors import ParameterError
 from firmware_model.parameters import Parameters
@@ -59,25 +60,6 @@ N_KINDS = len(KIND_NAMES)
 # oil-system stream sub-kinds
 S_PIPE, S_CHANNEL, S_IMPOSED = range(3)
 
-SHAFT_SEGMENTS = {
-    "IS": ("IS@bulk", "IS@BIF", "IS@LI"),
-    "LS": ("LS@BLF", "LS@LL", "LS@3L", "LS@2L", "LS@1L", "LS@CL", "LS@RL", "LS@BLR"),
-    "MS": ("MS@BIM", "MS@3M", "MS@2M", "MS@1M", "MS@CM", "MS@RM", "MS@BMR", "MS@PS"),
-    "OS": ("OS@carrier", "OS@bulk", "OS@BO", "OS@EY"),
-}
-#: the shaft segment under each shaft bearing
-SEGMENT_OF_BEARING = {
-    "BIF": "IS@BIF",
-    "BLF": "LS@BLF",
-    "BLR": "LS@BLR",
-    "BIM": "MS@BIM",
-    "BMR": "MS@BMR",
-    "BO": "OS@BO",
-}
-#: the shaft segment under each idle wheel
-SEGMENT_OF_IDLE_WHEEL = {"LI": "IS@LI", **{w: f"MS@{w}" for w in IDLE_WHEELS[1:]}}
-#: housing material
-HOUSING_MATERIAL = {"H1": "aluminium", "H2": "cast_iron", "H3": "aluminium"}
 #: shortest shaft segment [m] (a numerical floor: two neighbouring parts at one position)
 MIN_SEGMENT_M = 1e-3
 #: speed floor of the rotating-part correlations (immersed wheels and bearings, bearing splash) [rad/s]: they are
@@ -138,6 +120,7 @@ class _Builder:
         self.p, self.geo, self.W = p, geo, geo.wheels
         self.desc = geo.description
         self.bearing = {brg.id: brg for brg in self.desc.bearings}
+        self.housing = {h.id: h for h in self.desc.housings}
         self.st_rho, self.st_k, self.st_cp = p["material.steel.rho"], p["material.steel.k"], p["material.steel.cp"]
         self.nodes: list = []
         self.C: list = []
@@ -191,30 +174,26 @@ def _segment_lengths(xs: list, x_front: float, x_rear: float) -> list:
     return [max(bounds[i + 1] - bounds[i], MIN_SEGMENT_M) for i in range(len(xs))]
 
 
-def _segment_positions(p: Parameters, W: dict) -> tuple[dict, dict]:
-    """Axial position of every shaft segment node, and each shaft's front and rear end (seed 3.1, Fig 3)."""
-    pos = {
-        "IS": [0.0, p["bearing.BIF.x"], W["LI"].x],
-        "LS": [p["shaft.LS.x_BLF"]] + [W[w].x for w in LAYSHAFT_WHEELS] + [p["shaft.LS.x_BLR"]],
-        "MS": [p["bearing.BIM.x"]] + [W[w].x for w in IDLE_WHEELS[1:]] + [p["bearing.BMR.x"], p["shaft.MS.x_PS"]],
-        "OS": [p["shaft.OS.x_carrier"], p["shaft.OS.x_bulk"], p["shaft.OS.x_BO"], p["shaft.OS.x_EY"]],
-    }
-    ends = {"IS": (p["shaft.IS.x_front"], p["shaft.IS.x_rear"])}
-    for s in ("LS", "MS", "OS"):
-        ends[s] = (pos[s][0] - p[f"shaft.{s}.overhang_front"], pos[s][-1] + p[f"shaft.{s}.overhang_rear"])
+def _segment_positions(d: Description) -> tuple[dict, dict]:
+    """Axial position of every shaft segment node, and each shaft's front and rear end (seed 3.1, Fig 3), as the
+    description states them."""
+    pos = {s.id: [g.x_m for g in s.segments] for s in d.shafts}
+    ends = {s.id: (s.front_m, s.rear_m) for s in d.shafts}
     return pos, ends
 
 
 def _shaft_nodes(b: _Builder, pos: dict, ends: dict) -> None:
     """Shaft segments (seed 3.1): a hollow cylinder each; the output shaft's carrier has its own mass."""
     p = b.p
-    for s, names in SHAFT_SEGMENTS.items():
-        ro, ri = p[f"shaft.{s}.d_out"] / 2, p[f"shaft.{s}.d_bore"] / 2
+    carriers = {ps.carrier_segment for ps in b.desc.planetary}
+    for sh in b.desc.shafts:
+        s, names = sh.id, [g.id for g in sh.segments]
+        ro, ri = sh.d_out_m / 2, sh.d_bore_m / 2
         for nm, L in zip(names, _segment_lengths(pos[s], *ends[s])):
             b.seg_len[nm] = L
             m = b.st_rho * math.pi * (ro**2 - ri**2) * L
-            if nm == "OS@carrier":
-                m = p["shaft.OS.carrier_mass"]
+            if nm in carriers:
+                m = p[f"shaft.{s}.carrier_mass"]
             b.add(nm, m * b.st_cp)
 
 
@@ -248,8 +227,8 @@ def _other_nodes(b: _Builder) -> None:
         b.add(brg, p[f"bearing.{brg}.mass"] * cp)
     for brg in WHEEL_BEARINGS:
         b.add(brg, (p["wheel_bearing.mass_3B"] if brg == "3B" else p["wheel_bearing.mass_needle"]) * cp)
-    for h in HOUSINGS:
-        b.add(h, p[f"housing.mass_{h}"] * p[f"material.{HOUSING_MATERIAL[h]}.cp"])
+    for h in b.housing:
+        b.add(h, b.housing[h].mass_kg * p[f"material.{b.housing[h].material}.cp"])
     T_cap = p["oil.capacity_temp"]
     rho_oil = float(oilprops.density_kg_m3(T_cap))
     cp_oil = float(oilprops.specific_heat_j_per_kgk(T_cap))
@@ -259,8 +238,9 @@ def _other_nodes(b: _Builder) -> None:
 def _conduction_links(b: _Builder, pos: dict) -> None:
     """Linear conduction along the shafts, to the boundary structures and across the housing joints (Eq 43)."""
     p = b.p
-    for s, names in SHAFT_SEGMENTS.items():
-        ro, ri = p[f"shaft.{s}.d_out"] / 2, p[f"shaft.{s}.d_bore"] / 2
+    for sh in b.desc.shafts:
+        s, names = sh.id, [g.id for g in sh.segments]
+        ro, ri = sh.d_out_m / 2, sh.d_bore_m / 2
         A = math.pi * (ro**2 - ri**2)
         for i in range(len(names) - 1):
             G = ht.linear_conductance_w_per_k(b.st_k, A, pos[s][i], pos[s][i + 1])
@@ -270,9 +250,10 @@ def _conduction_links(b: _Builder, pos: dict) -> None:
     b.link("H1", "flywheel_cover", K_CONST, p["housing.G_H1_flywheel"], "bc:H1-flywheel_cover")
     b.link("H2", "support_beam", K_CONST, p["housing.G_H2_beam"], "bc:H2-support_beam")
     kj = p["housing.k_joint"]
-    for h1, h2 in (("H1", "H2"), ("H2", "H3")):
-        G = ht.linear_conductance_w_per_k(kj, p[f"housing.A_{h1}{h2}"], p[f"housing.x_{h1}"], p[f"housing.x_{h2}"])
-        b.link(h1, h2, K_CONST, G, f"cond:{h1}-{h2}")
+    for h in b.desc.housings:
+        if h.joined_to is not None:  # the bolted flange conducts between the two housings' nodes
+            G = ht.linear_conductance_w_per_k(kj, h.joint_area_m2, h.x_m, b.housing[h.joined_to].x_m)
+            b.link(h.id, h.joined_to, K_CONST, G, f"cond:{h.id}-{h.joined_to}")
 
 
 def _wheel_radial_links(b: _Builder) -> None:
@@ -294,7 +275,7 @@ def _wheel_radial_links(b: _Builder) -> None:
         G_solid = b.radial(k, g.width, D_bulk, 2 * g.R_in, 1.0)
         G_outer = b.radial(k, g.width, 2 * g.R_in, Dm, sf_b)
         b.link(f"{w}.bulk", wb, K_CONST, 1.0 / (1.0 / G_solid + 1.0 / G_outer), f"rad:{w}.bulk-{wb}")
-        seg = SEGMENT_OF_IDLE_WHEEL[w]
+        seg = b.desc.wheel(w).segment
         b.link(wb, seg, K_CONST, b.radial(k, g.width, Dm, f_in * D_shaft, sf_b), f"rad:{wb}-{seg}")
     for w in LAYSHAFT_WHEELS:
         g = W[w]
@@ -312,14 +293,15 @@ def _bearing_radial_links(b: _Builder) -> None:
         sf = p[f"bearing.sf_radial_{'ball' if brg == 'BO' else 'tapered'}"]
         d_in, d_out, wdt = p[f"bearing.{brg}.d_bore"], p[f"bearing.{brg}.d_out"], p[f"bearing.{brg}.width"]
         Dm = 0.5 * (d_in + d_out)
-        seg = SEGMENT_OF_BEARING[brg]
+        seat = b.bearing[brg]
+        seg = seat.segment
         b.link(brg, seg, K_CONST, b.radial(k, wdt, Dm, f_in * d_in, sf), f"rad:{brg}-{seg}")
-        if brg == "BIM":
-            # the pilot bearing sits inside the rear end of the input shaft
-            b.link(brg, "IS@LI", K_CONST, b.radial(k, wdt, f_seat * d_out, Dm, sf), f"rad:{brg}-IS@LI")
+        if seat.inside is not None:
+            # a pilot bearing sits inside another shaft's segment
+            b.link(brg, seat.inside, K_CONST, b.radial(k, wdt, f_seat * d_out, Dm, sf), f"rad:{brg}-{seat.inside}")
         else:
-            h = b.bearing[brg].housing
-            k_h = p[f"material.{HOUSING_MATERIAL[h]}.k"]
+            h = seat.housing
+            k_h = p[f"material.{b.housing[h].material}.k"]
             b.link(brg, h, K_CONST, b.radial(min(k_h, k), wdt, f_seat * d_out, Dm, sf), f"rad:{brg}-{h}")
     gp, gs = b.W["PP"], b.W["PS"]
     n_pl = int(p["planetary.n_planets"])
@@ -422,8 +404,8 @@ def _splash_links(b: _Builder) -> None:
         A = float(ht.bearing_internal_area_m2(Dm - dr, Dm + dr, p[f"bearing.{brg}.n_rollers"], dr, wdt))  # Eq 64
         b.link(brg, "oil", K_BRG_SPLASH, A, f"bsplash:{brg}", speed=spd(b.bearing[brg].shaft), Dm=Dm, d_roller=dr)
     A_int = p["housing.internal_area"] * p["housing.oil_covered_frac"]
-    for h in HOUSINGS:
-        b.link(h, "oil", K_CONST, p["housing.h_oil"] * A_int * p[f"housing.internal_split_{h}"], f"hoil:{h}")
+    for h in b.housing.values():
+        b.link(h.id, "oil", K_CONST, p["housing.h_oil"] * A_int * h.internal_split, f"hoil:{h.id}")
 
 
 def _bore_and_bearing_streams(b: _Builder) -> None:
@@ -434,7 +416,7 @@ def _bore_and_bearing_streams(b: _Builder) -> None:
         D = p[f"shaft.{s}.d_bore"]
         if D <= 0:
             continue
-        for nm in SHAFT_SEGMENTS[s]:
+        for nm in (g.id for g in b.desc.shaft(s).segments):
             if nm == "IS@bulk":
                 continue  # oil enters the input shaft behind its front bearing
             L = b.seg_len[nm]
@@ -513,8 +495,8 @@ def _planetary_streams(b: _Builder) -> None:
 def _external_links(b: _Builder) -> None:
     """Outside of the housings: convection and radiation to the hot and the cold surroundings."""
     p = b.p
-    for h in HOUSINGS:
-        A_ext = p[f"housing.area_{h}"] * p["housing.external_frac"]
+    for h in b.housing:
+        A_ext = b.housing[h].area_m2 * p["housing.external_frac"]
         for side, frac in (
             ("hot_surroundings", p["housing.hot_frac"]),
             ("cold_surroundings", 1 - p["housing.hot_frac"]),
@@ -550,7 +532,7 @@ def build_network(p: Parameters) -> Network:
     """The full thermal network of the parameter set: nodes (seed 3.1), then links family by family (seed 3.3)."""
     geo = build_geometry(p)
     b = _Builder(p, geo)
-    pos, ends = _segment_positions(p, geo.wheels)
+    pos, ends = _segment_positions(geo.description)
     _shaft_nodes(b, pos, ends)
     _wheel_nodes(b)
     _other_nodes(b)

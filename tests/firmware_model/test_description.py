@@ -51,11 +51,27 @@ def test_the_components_constants_are_the_description(both):
 
 def test_the_network_and_geometry_constants_are_the_description(both):
     d, p = both
-    assert {s.id: tuple(g.id for g in s.segments) for s in d.shafts} == N.SHAFT_SEGMENTS
+    # what network.py and geometry.py held as constants before they were built from the description
+    assert {s.id: tuple(g.id for g in s.segments) for s in d.shafts} == {
+        "IS": ("IS@bulk", "IS@BIF", "IS@LI"),
+        "LS": ("LS@BLF", "LS@LL", "LS@3L", "LS@2L", "LS@1L", "LS@CL", "LS@RL", "LS@BLR"),
+        "MS": ("MS@BIM", "MS@3M", "MS@2M", "MS@1M", "MS@CM", "MS@RM", "MS@BMR", "MS@PS"),
+        "OS": ("OS@carrier", "OS@bulk", "OS@BO", "OS@EY"),
+    }
     shaft_bearings = [b for b in d.bearings if b.wheel is None]
-    assert {b.id: b.segment for b in shaft_bearings} == N.SEGMENT_OF_BEARING
-    assert {w.id: w.segment for w in d.wheels if w.mount == "idle"} == N.SEGMENT_OF_IDLE_WHEEL
-    assert {h.id: h.material for h in d.housings} == N.HOUSING_MATERIAL
+    assert {b.id: b.segment for b in shaft_bearings} == {
+        "BIF": "IS@BIF",
+        "BLF": "LS@BLF",
+        "BLR": "LS@BLR",
+        "BIM": "MS@BIM",
+        "BMR": "MS@BMR",
+        "BO": "OS@BO",
+    }
+    assert {w.id: w.segment for w in d.wheels if w.mount == "idle"} == {
+        "LI": "IS@LI",
+        **{w: f"MS@{w}" for w in C.IDLE_WHEELS[1:]},
+    }
+    assert {h.id: h.material for h in d.housings} == {"H1": "aluminium", "H2": "cast_iron", "H3": "aluminium"}
     assert tuple(b.id for b in d.boundaries) == N.BOUNDARIES
     # what geometry.py held as constants before it was built from the description
     assert {b.id: b.shaft for b in shaft_bearings} == {
@@ -75,9 +91,18 @@ def test_the_network_and_geometry_constants_are_the_description(both):
     }
     assert {b.id: b.inside for b in shaft_bearings if b.inside} == {"BIM": "IS@LI"}  # network: the pilot bearing
     assert tuple(w.id for w in d.wheels if w.mount == "cut") == ("1L", "CL", "RL")
-    # positions and ends of the segments as the network computes them, bit for bit
+    # positions and ends of the segments as the network computed them from the parameters, bit for bit
     geo = G.build_geometry(p)
-    pos, ends = N._segment_positions(p, geo.wheels)
+    W = geo.wheels
+    pos = {
+        "IS": [0.0, p["bearing.BIF.x"], W["LI"].x],
+        "LS": [p["shaft.LS.x_BLF"]] + [W[w].x for w in C.LAYSHAFT_WHEELS] + [p["shaft.LS.x_BLR"]],
+        "MS": [p["bearing.BIM.x"]] + [W[w].x for w in C.IDLE_WHEELS[1:]] + [p["bearing.BMR.x"], p["shaft.MS.x_PS"]],
+        "OS": [p["shaft.OS.x_carrier"], p["shaft.OS.x_bulk"], p["shaft.OS.x_BO"], p["shaft.OS.x_EY"]],
+    }
+    ends = {"IS": (p["shaft.IS.x_front"], p["shaft.IS.x_rear"])}
+    for s in ("LS", "MS", "OS"):
+        ends[s] = (pos[s][0] - p[f"shaft.{s}.overhang_front"], pos[s][-1] + p[f"shaft.{s}.overhang_rear"])
     assert {s.id: [g.x_m for g in s.segments] for s in d.shafts} == pos
     assert {s.id: (s.front_m, s.rear_m) for s in d.shafts} == ends
     for w in d.wheels:
