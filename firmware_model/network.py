@@ -245,10 +245,12 @@ def _conduction_links(b: _Builder, pos: dict) -> None:
         for i in range(len(names) - 1):
             G = ht.linear_conductance_w_per_k(b.st_k, A, pos[s][i], pos[s][i + 1])
             b.link(names[i], names[i + 1], K_CONST, G, f"cond:{names[i]}-{names[i + 1]}")
-    b.link("IS@bulk", "engine_shaft", K_CONST, p["housing.G_IS_engine"], "bc:IS-engine_shaft")
-    b.link("OS@EY", "end_yoke", K_CONST, p["housing.G_OS_endyoke"], "bc:OS-end_yoke")
-    b.link("H1", "flywheel_cover", K_CONST, p["housing.G_H1_flywheel"], "bc:H1-flywheel_cover")
-    b.link("H2", "support_beam", K_CONST, p["housing.G_H2_beam"], "bc:H2-support_beam")
+    # the boundaries touched by conduction (a flange, a spline), in the order of the nodes that touch them
+    conducting = [bd for bd in b.desc.boundaries if bd.conductance_w_per_k is not None]
+    for node in b.nodes:
+        for bd in conducting:
+            if node in bd.touches:
+                b.link(node, bd.id, K_CONST, bd.conductance_w_per_k, f"bc:{node}-{bd.id}")
     kj = p["housing.k_joint"]
     for h in b.desc.housings:
         if h.joined_to is not None:  # the bolted flange conducts between the two housings' nodes
@@ -528,9 +530,20 @@ def _heat_sources(ix: dict) -> dict:
     return sources
 
 
+def _check_boundaries(d: Description) -> None:
+    """The boundaries the run tables, the onboard step and the C kernel index (BOUNDARIES), in their order."""
+    ids = tuple(bd.id for bd in d.boundaries)
+    if ids != BOUNDARIES:
+        raise ParameterError(
+            f"{d.origin}: topology.boundary lists {', '.join(ids)}; the plant and the sensor take the boundaries "
+            f"{', '.join(BOUNDARIES)} in this order (the only ones they know so far)"
+        )
+
+
 def build_network(p: Parameters) -> Network:
     """The full thermal network of the parameter set: nodes (seed 3.1), then links family by family (seed 3.3)."""
     geo = build_geometry(p)
+    _check_boundaries(geo.description)
     b = _Builder(p, geo)
     pos, ends = _segment_positions(geo.description)
     _shaft_nodes(b, pos, ends)

@@ -543,3 +543,31 @@ def test_a_parameter_sets_description_follows_its_overrides():
     assert (
         G.build_geometry(q).meshes["3"].face_width_m == 0.035 and G.build_geometry(p).meshes["3"].face_width_m == 0.04
     )
+
+
+def test_the_network_is_built_from_the_description(tmp_path):
+    """A file that inherits the GRS905 and changes its description (the bearing housing cast iron, the end yoke's
+    conductance, the end yoke segment 10 mm further back) gets a network that follows; nothing else changes."""
+    p0 = load_parameters("GRS905")
+    x_ey = p0["shaft.OS.x_EY"] + 0.01
+    (tmp_path / "changed.toml").write_text(
+        '[meta]\ninherit = "GRS905"\n'
+        '[topology.housing.H3]\nmaterial = { v = "cast_iron", u = "-", src = "assumed" }\n'
+        '[topology.boundary.end_yoke]\nconductance = { v = 7.5, u = "W/K", src = "assumed" }\n'
+        f'[topology.shaft.OS.x]\n"OS@EY" = {{ v = {x_ey!r}, u = "m", src = "assumed" }}\n'
+    )
+    n0, n1 = N.build_network(p0), N.build_network(load_parameters(tmp_path / "changed.toml"))
+    i_h3 = n0.nodes.index("H3")
+    assert n1.C_j_per_k[i_h3] == p0["housing.mass_H3"] * p0["material.cast_iron.cp"] != n0.C_j_per_k[i_h3]
+    k_ey = n1.link_name.index("bc:OS@EY-end_yoke")
+    assert n1.link_G0[k_ey] == 7.5 and n0.link_G0[k_ey] == p0["housing.G_OS_endyoke"]
+    assert n1.segment_length_m["OS@EY"] > n0.segment_length_m["OS@EY"]
+    assert n1.segment_length_m["IS@LI"] == n0.segment_length_m["IS@LI"] and n1.nodes == n0.nodes
+
+
+def test_a_description_with_other_boundaries_is_one_sentence(tmp_path):
+    text = (PARAM_DIR / "GRS905.toml").read_text().replace("[topology.boundary.ambient]", "[topology.boundary.air]")
+    (tmp_path / "other_boundaries.toml").write_text(text)
+    p = load_parameters(tmp_path / "other_boundaries.toml")
+    with pytest.raises(ParameterError, match=r"^other_boundaries.toml: topology.boundary lists .*, air; the plant"):
+        N.build_network(p)
