@@ -19,7 +19,6 @@ from typing import NamedTuple
 
 import numpy as np
 
-from firmware_model.components import IDLE_WHEELS, LAYSHAFT_WHEELS, PAIRS, SHAFT_BEARINGS, WHEEL_BEARINGS
 from firmware_model.description import Description
 from firmware_model.effects import RETARDER_HEAT_SPLIT, EffectScales
 from firmware_model.errors import ParameterError
@@ -121,6 +120,11 @@ class _Builder:
         self.desc = geo.description
         self.bearing = {brg.id: brg for brg in self.desc.bearings}
         self.housing = {h.id: h for h in self.desc.housings}
+        #: idle wheels (teeth and bulk nodes), the other wheels (one node each), shaft bearings, (wheel, its bearing)
+        self.idle = tuple(w.id for w in self.desc.wheels if w.mount == "idle")
+        self.whole = tuple(w.id for w in self.desc.wheels if w.mount != "idle")
+        self.shaft_brgs = tuple(x.id for x in self.desc.bearings if x.wheel is None)
+        self.wheel_brgs = tuple((x.wheel, x.id) for x in self.desc.bearings if x.wheel is not None)
         self.st_rho, self.st_k, self.st_cp = p["material.steel.rho"], p["material.steel.k"], p["material.steel.cp"]
         self.nodes: list = []
         self.C: list = []
@@ -203,16 +207,17 @@ def _wheel_nodes(b: _Builder) -> None:
     p, W = b.p, b.W
     shell = p["gear.teeth_shell_modules"]
     hub = p["wheel.hub_mass_factor"]
-    for w in IDLE_WHEELS:
+    for w in b.idle:
         g = W[w]
         R_sh = g.R_f - shell * g.m_n
         m_teeth = b.st_rho * g.width * (math.pi * (g.R_f**2 - R_sh**2) + 0.5 * math.pi * (g.R_a**2 - g.R_f**2))
         m_bulk = b.st_rho * g.width * math.pi * (R_sh**2 - g.R_in**2) * hub
         b.add(f"{w}.teeth", m_teeth * b.st_cp)
         b.add(f"{w}.bulk", m_bulk * b.st_cp)
-    for w in LAYSHAFT_WHEELS + ("RI",):
+    for w in b.whole:
         g = W[w]
-        R_inner = b.geo.R_shaft_m["LS"] if w != "RI" else g.R_in
+        shaft = b.desc.wheel(w).shaft
+        R_inner = g.R_in if shaft is None else b.geo.R_shaft_m[shaft]  # an idler on a pin: its bore
         m = b.st_rho * g.width * (math.pi * (g.R_f**2 - R_inner**2) + 0.5 * math.pi * (g.R_a**2 - g.R_f**2))
         b.add(w, m * b.st_cp)
 
@@ -223,9 +228,9 @@ def _other_nodes(b: _Builder) -> None:
     b.add("PS", p["planetary.mass_sun"] * cp)
     b.add("PP", p["planetary.mass_planets"] * cp)
     b.add("PR", p["planetary.mass_ring"] * cp)
-    for brg in SHAFT_BEARINGS:
+    for brg in b.shaft_brgs:
         b.add(brg, p[f"bearing.{brg}.mass"] * cp)
-    for brg in WHEEL_BEARINGS:
+    for _, brg in b.wheel_brgs:
         b.add(brg, (p["wheel_bearing.mass_3B"] if brg == "3B" else p["wheel_bearing.mass_needle"]) * cp)
     for h in b.housing:
         b.add(h, b.housing[h].mass_kg * p[f"material.{b.housing[h].material}.cp"])
@@ -265,13 +270,13 @@ def _wheel_radial_links(b: _Builder) -> None:
     sf_tb, sf_lw = p["heat.sf_teeth_bulk"], p["heat.sf_layshaft_wheel"]
     f_in = p["heat.shaft_inner_diameter_frac"]
     d_roll = p["wheel_bearing.d_roller"]
-    for w, wb in zip(IDLE_WHEELS, WHEEL_BEARINGS):
+    for w, wb in b.wheel_brgs:
         g = W[w]
         D_teeth = g.R_a + g.R_f  # mean of tip and root diameters
         D_bulk = g.R_b + g.R_in  # mean of base and inner diameters
         b.link(f"{w}.teeth", f"{w}.bulk", K_CONST, b.radial(k, g.width, D_teeth, D_bulk, sf_tb), f"rad:{w}.teeth-bulk")
         sf_b = p["wheel_bearing.sf_radial_tapered"] if wb == "3B" else p["wheel_bearing.sf_radial_needle"]
-        D_shaft = 2 * b.geo.R_shaft_m["IS" if w == "LI" else "MS"]
+        D_shaft = 2 * b.geo.R_shaft_m[b.desc.wheel(w).shaft]
         Dm = D_shaft + d_roll
         # bulk -> bearing: solid from the bulk's representative diameter to the bore, then the bearing's outer half
         G_solid = b.radial(k, g.width, D_bulk, 2 * g.R_in, 1.0)
@@ -279,11 +284,11 @@ def _wheel_radial_links(b: _Builder) -> None:
         b.link(f"{w}.bulk", wb, K_CONST, 1.0 / (1.0 / G_solid + 1.0 / G_outer), f"rad:{w}.bulk-{wb}")
         seg = b.desc.wheel(w).segment
         b.link(wb, seg, K_CONST, b.radial(k, g.width, Dm, f_in * D_shaft, sf_b), f"rad:{wb}-{seg}")
-    for w in LAYSHAFT_WHEELS:
-        g = W[w]
+    for w in (x for x in b.whole if b.desc.wheel(x).shaft is not None):
+        g, seat = W[w], b.desc.wheel(w)
         D_w = g.R_b + g.R_in
-        D_s = f_in * 2 * b.geo.R_shaft_m["LS"]
-        b.link(w, f"LS@{w}", K_CONST, b.radial(k, g.width, D_w, D_s, sf_lw), f"rad:{w}-LS@{w}")
+        D_s = f_in * 2 * b.geo.R_shaft_m[seat.shaft]
+        b.link(w, seat.segment, K_CONST, b.radial(k, g.width, D_w, D_s, sf_lw), f"rad:{w}-{seat.segment}")
 
 
 def _bearing_radial_links(b: _Builder) -> None:
@@ -291,7 +296,7 @@ def _bearing_radial_links(b: _Builder) -> None:
     their bearings, the sun to the main shaft through its spline."""
     p, k = b.p, b.st_k
     f_in, f_seat = p["heat.shaft_inner_diameter_frac"], p["heat.seat_outer_diameter_factor"]
-    for brg in SHAFT_BEARINGS:
+    for brg in b.shaft_brgs:
         sf = p[f"bearing.sf_radial_{'ball' if brg == 'BO' else 'tapered'}"]
         d_in, d_out, wdt = p[f"bearing.{brg}.d_bore"], p[f"bearing.{brg}.d_out"], p[f"bearing.{brg}.width"]
         Dm = 0.5 * (d_in + d_out)
@@ -325,19 +330,18 @@ def _bearing_radial_links(b: _Builder) -> None:
 
 
 def _contact_links(b: _Builder) -> None:
-    """Gear contact conductance between the wheels of a loaded mesh (Eq 45)."""
-    p, W = b.p, b.W
+    """Gear contact conductance between the wheels of each mesh, over its face width (Eq 45); a planetary set's
+    meshes once per planet."""
+    p = b.p
     tcc, whz, cfrac = p["heat.TCC"], p["heat.w_Hz"], p["heat.contact_length_frac"]
-    for pair, (iw, lw) in PAIRS.items():
-        G = ht.gear_contact_conductance_w_per_k(tcc, min(W[iw].width, W[lw].width), whz, cfrac)
-        if pair == "R":
-            b.link("RL", "RI", K_CONTACT, G, "contact:RL-RI", mesh=MESHES.index("R"))
-            b.link("RI", "RM.teeth", K_CONTACT, G, "contact:RI-RM", mesh=MESHES.index("RI"))
-        else:
-            b.link(f"{iw}.teeth", lw, K_CONTACT, G, f"contact:{iw}-{lw}", mesh=MESHES.index(pair))
-    Gp = int(p["planetary.n_planets"]) * ht.gear_contact_conductance_w_per_k(tcc, p["planetary.width"], whz, cfrac)
-    b.link("PS", "PP", K_CONTACT, Gp, "contact:PS-PP", mesh=MESHES.index("PSP"))
-    b.link("PP", "PR", K_CONTACT, Gp, "contact:PP-PR", mesh=MESHES.index("PPR"))
+    n_planets = {m: ps.n_planets for ps in b.desc.planetary for m in (ps.sun, ps.planet, ps.ring)}
+    for m in b.desc.meshes:
+        w1, w2 = m.wheels
+        G = ht.gear_contact_conductance_w_per_k(tcc, b.geo.meshes[m.id].face_width_m, whz, cfrac)
+        if w1 in n_planets:
+            G = n_planets[w1] * G
+        a, c = (f"{w}.teeth" if w in b.idle else w for w in m.wheels)
+        b.link(a, c, K_CONTACT, G, f"contact:{w1}-{w2}", mesh=MESHES.index(m.id))
 
 
 def _bearing_dims(p: Parameters, brg: str):
@@ -351,8 +355,15 @@ def _immersed_links(b: _Builder) -> None:
     bearings partly immersed (Eq 52-53)."""
     p, W = b.p, b.W
     spd = SPEED_NAMES.index
-    for w in LAYSHAFT_WHEELS + ("RI",):
+    dipping = b.desc.oil.dipping
+    for w in (x for x in dipping if x in W):
         g = W[w]
+        shaft = b.desc.wheel(w).shaft
+        if w not in b.geo.immersion_m:
+            raise ParameterError(
+                f"{b.desc.origin}: topology.oil.dipping names {w}, whose immersion the plant cannot compute yet "
+                f"(it knows that of {', '.join(b.geo.immersion_m)})"
+            )
         h_i = b.geo.immersion_m[w]
         if h_i <= 0:
             continue
@@ -365,21 +376,21 @@ def _immersed_links(b: _Builder) -> None:
             K_IMM_GEAR,
             A,
             f"imm:{w}",
-            speed=spd("RI" if w == "RI" else "LS"),
+            speed=spd(w if shaft is None else shaft),  # a wheel on a pin turns at its own speed
             R_p=g.R_p,
             z=g.z,
             width=g.width,
             h_t=g.h_t,
             h_i=h_i_p,
         )
-    for brg in ("BLF", "BLR"):
+    for brg in (x for x in dipping if x in b.bearing and b.bearing[x].wheel is None):
         _, _, wdt, dr, Dm = _bearing_dims(p, brg)
         A = float(
             ht.immersed_bearing_area_m2(
                 Dm - dr, Dm + dr, p[f"bearing.{brg}.n_rollers"], dr, wdt, p[f"bearing.{brg}.immersion"]
             )
         )
-        b.link(brg, "oil", K_IMM_BRG, A, f"imm:{brg}", speed=spd("LS"), Dm=Dm)
+        b.link(brg, "oil", K_IMM_BRG, A, f"imm:{brg}", speed=spd(b.bearing[brg].shaft), Dm=Dm)
 
 
 def _splash_links(b: _Builder) -> None:
@@ -388,9 +399,10 @@ def _splash_links(b: _Builder) -> None:
     p, W = b.p, b.W
     spd = SPEED_NAMES.index
     covered = bool(p["wheel.covered_sides"])
-    for w in IDLE_WHEELS:
+    splashed = b.desc.oil.splashed
+    for w in (x.id for x in b.desc.wheels if f"{x.id}.teeth" in splashed):
         g = W[w]
-        if w in ("CM", "RM") or not covered:
+        if b.desc.wheel(w).sides == "free" or not covered:
             A = float(ht.wheel_area_free_sides_m2(g.R_p, g.width, g.z, g.h_t, g.beta, g.R_in))  # Eq 61
         else:
             A = float(ht.wheel_area_covered_sides_m2(g.R_p, g.width, g.z, g.h_t, g.beta))  # Eq 60
@@ -399,9 +411,7 @@ def _splash_links(b: _Builder) -> None:
     b.link("OS@bulk", "oil", K_SPLASH, A_os, "splash:OS", speed=spd("OS"), group=1)
     # ring gear: splash at high range, 200 W/(m2 K) like the housing at low range (seed 3.3)
     b.link("PR", "oil", K_RING, p["planetary.ring_outer_area"], "ring:PR", speed=spd("PR"))
-    for brg in SHAFT_BEARINGS:
-        if brg == "BIM":
-            continue
+    for brg in (x for x in splashed if x in b.bearing and b.bearing[x].wheel is None):
         _, _, wdt, dr, Dm = _bearing_dims(p, brg)
         A = float(ht.bearing_internal_area_m2(Dm - dr, Dm + dr, p[f"bearing.{brg}.n_rollers"], dr, wdt))  # Eq 64
         b.link(brg, "oil", K_BRG_SPLASH, A, f"bsplash:{brg}", speed=spd(b.bearing[brg].shaft), Dm=Dm, d_roller=dr)
@@ -426,9 +436,9 @@ def _bore_and_bearing_streams(b: _Builder) -> None:
     r_r = p["wheel_bearing.d_roller"] / 2
     cd = p["wheel_bearing.cage_depth_frac"] * r_r
     L_r = p["wheel_bearing.length_roller"]
-    for w, wb in zip(IDLE_WHEELS, WHEEL_BEARINGS):
+    for w, wb in b.wheel_brgs:
         n_r = p["wheel_bearing.n_rollers_LB"] if wb == "LB" else p["wheel_bearing.n_rollers_main"]
-        R_s = b.geo.R_shaft_m["IS" if w == "LI" else "MS"]
+        R_s = b.geo.R_shaft_m[b.desc.wheel(w).shaft]
         A_i, P_i = ht.needle_channel_inner(R_s, R_s + cd, r_r, n_r)
         A_o, P_o = ht.needle_channel_outer(R_s + 2 * r_r - cd, R_s + 2 * r_r, r_r, n_r)
         A_heat = float(ht.channel_heat_area_m2(P_i, L_r, n_r) + ht.channel_heat_area_m2(P_o, L_r, n_r))
@@ -507,24 +517,22 @@ def _external_links(b: _Builder) -> None:
             b.link(h, side, K_EXT_RAD, A_ext * frac, f"extrad:{h}-{side.split('_')[0]}")
 
 
-def _heat_sources(ix: dict) -> dict:
+def _heat_sources(b: _Builder) -> dict:
     """Where each loss is deposited: mesh heat split evenly between the two wheels (seed 3.2), planetary heat by
     losses.PLANETARY_HEAT_SPLIT, bearings into themselves, the lumped losses into the sump (seed 3.2), the retarder
     by effects.RETARDER_HEAT_SPLIT, synchronizer shift heat into the engaged wheel."""
-    sources = {}
-    for pair, (iw, lw) in PAIRS.items():
-        if pair == "R":
-            sources["mesh:R"] = [Share(ix["RL"], 0.5), Share(ix["RI"], 0.5)]
-            sources["mesh:RI"] = [Share(ix["RI"], 0.5), Share(ix["RM.teeth"], 0.5)]
-        else:
-            sources[f"mesh:{pair}"] = [Share(ix[f"{iw}.teeth"], 0.5), Share(ix[lw], 0.5)]
+    ix, sources = b.ix, {}
+    planetary = {m for ps in b.desc.planetary for m in (ps.sun, ps.planet, ps.ring)}
+    for m in b.desc.meshes:
+        if planetary.isdisjoint(m.wheels):  # a planetary set's meshes: the planetary source
+            sources[f"mesh:{m.id}"] = [Share(ix[f"{w}.teeth" if w in b.idle else w], 0.5) for w in m.wheels]
     sources["planetary"] = [Share(ix[w], f) for w, f in PLANETARY_HEAT_SPLIT.items()]
-    for brg in SHAFT_BEARINGS:
+    for brg in b.shaft_brgs:
         sources[f"bearing:{brg}"] = [Share(ix[brg], 1.0)]
     for key in ("churning", "wheel_bearings", "synchronizers", "pump"):
         sources[key] = [Share(ix["oil"], 1.0)]
     sources["retarder"] = [Share(ix[nm], f) for nm, f in RETARDER_HEAT_SPLIT.items()]
-    for w in IDLE_WHEELS:
+    for w in b.idle:
         sources[f"shift:{w}"] = [Share(ix[f"{w}.bulk"], 1.0)]
     sources["shift:PR"] = [Share(ix["PR"], 1.0)]
     return sources
@@ -558,7 +566,7 @@ def build_network(p: Parameters) -> Network:
     _bore_and_bearing_streams(b)
     _planetary_streams(b)
     _external_links(b)
-    return b.network(_heat_sources(b.ix))
+    return b.network(_heat_sources(b))
 
 
 # ---------------------------------------------------------------------------------------------------------------

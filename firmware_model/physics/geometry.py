@@ -45,7 +45,7 @@ class Geometry:
     meshes: dict  # mesh id (kinematics.MESHES) -> losses.GearMesh
     immersion_m: dict  # layshaft wheel or RI -> immersion depth of its tip circle [m]
     level_drop_m: float  # oil level below nominal (oil_level_low effect) [m]
-    R_shaft_m: dict  # shaft (IS, LS, MS, OS) -> outer radius [m]
+    R_shaft_m: dict  # shaft id -> outer radius [m]
     description: Description | None = None  # the gearbox description it is built from
 
 
@@ -129,5 +129,5 @@ def build_geometry(p: Parameters) -> Geometry:
     _planetary_wheels(p, d, wheels)
     meshes = _meshes(p, d)
     drop = oil_level_drop_m(p)
-    R_shaft = {s: p[f"shaft.{s}.d_out"] / 2 for s in ("IS", "LS", "MS", "OS")}
+    R_shaft = {s.id: s.d_out_m / 2 for s in d.shafts}
     return Geometry(wheels, meshes, _immersion(p, wheels, drop), drop, R_shaft, d)

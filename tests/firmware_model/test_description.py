@@ -571,3 +571,23 @@ def test_a_description_with_other_boundaries_is_one_sentence(tmp_path):
     p = load_parameters(tmp_path / "other_boundaries.toml")
     with pytest.raises(ParameterError, match=r"^other_boundaries.toml: topology.boundary lists .*, air; the plant"):
         N.build_network(p)
+
+
+def test_what_dips_and_what_is_splashed_comes_from_the_description(tmp_path):
+    """A file whose reverse idler and rear layshaft bearing no longer dip, whose output bearing is not splashed and
+    whose crawler wheel has covered sides: the network's immersion and splash links follow."""
+    dips = '["LL", "3L", "2L", "1L", "CL", "RL", "BLF"]'
+    splashed = '["LI.teeth", "3M.teeth", "2M.teeth", "1M.teeth", "CM.teeth", "RM.teeth", "OS@bulk", "PR", "BIF", '
+    splashed += '"BLF", "BLR", "BMR"]'
+    (tmp_path / "oil.toml").write_text(
+        '[meta]\ninherit = "GRS905"\n'
+        f'[topology.oil]\ndipping = {{ v = {dips}, u = "-", src = "assumed" }}\n'
+        f'splashed = {{ v = {splashed}, u = "-", src = "assumed" }}\n'
+        '[topology.wheel.CM]\nsides = { v = "covered", u = "-", src = "assumed" }\n'
+    )
+    n0, n1 = N.build_network(load_parameters("GRS905")), N.build_network(load_parameters(tmp_path / "oil.toml"))
+    gone = set(n0.link_name) - set(n1.link_name)
+    assert gone == {"imm:RI", "imm:BLR", "bsplash:BO"} and set(n1.link_name) <= set(n0.link_name)
+    k_cm, k_rm = n0.link_name.index("splash:CM.teeth"), n0.link_name.index("splash:RM.teeth")
+    g1 = dict(zip(n1.link_name, n1.link_G0))
+    assert g1["splash:CM.teeth"] < n0.link_G0[k_cm] and g1["splash:RM.teeth"] == n0.link_G0[k_rm]
