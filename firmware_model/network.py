@@ -421,22 +421,22 @@ def _splash_links(b: _Builder) -> None:
 
 
 def _bore_and_bearing_streams(b: _Builder) -> None:
-    """Oil-system streams through the input and main shaft bores (Eq 65-68), the needle bearings (Eq 69-74,
-    77-80) and the shaft bearings BIM and BMR (Eq 75-80); heat goes to the sump with the returning oil."""
-    p = b.p
-    for s, frac in (("IS", p["oil_system.frac_IS_bore"]), ("MS", p["oil_system.frac_MS_bore"])):
-        D = p[f"shaft.{s}.d_bore"]
-        if D <= 0:
+    """Oil-system streams through the shaft bores (Eq 65-68), the needle bearings (Eq 69-74, 77-80) and the shaft
+    bearings (Eq 75-80) the pumped oil reaches (oil.jets); heat goes to the sump with the returning oil."""
+    p, jets = b.p, b.desc.oil.jets
+    for sh in b.desc.shafts:
+        fed = [g.id for g in sh.segments if g.id in jets]  # (the input shaft's oil enters behind its front bearing)
+        D = sh.d_bore_m
+        if not fed or D <= 0:
             continue
-        for nm in (g.id for g in b.desc.shaft(s).segments):
-            if nm == "IS@bulk":
-                continue  # oil enters the input shaft behind its front bearing
+        frac = p[f"oil_system.frac_{sh.id}_bore"]
+        for nm in fed:
             L = b.seg_len[nm]
             b.link(nm, "oil", K_STREAM, math.pi * D * L, f"oilsys:{nm}", sub=S_PIPE, frac=frac, D=D, L=L, h=0.0)
     r_r = p["wheel_bearing.d_roller"] / 2
     cd = p["wheel_bearing.cage_depth_frac"] * r_r
     L_r = p["wheel_bearing.length_roller"]
-    for w, wb in b.wheel_brgs:
+    for w, wb in (x for x in b.wheel_brgs if x[1] in jets):
         n_r = p["wheel_bearing.n_rollers_LB"] if wb == "LB" else p["wheel_bearing.n_rollers_main"]
         R_s = b.geo.R_shaft_m[b.desc.wheel(w).shaft]
         A_i, P_i = ht.needle_channel_inner(R_s, R_s + cd, r_r, n_r)
@@ -455,7 +455,7 @@ def _bore_and_bearing_streams(b: _Builder) -> None:
             L=0.0,
             h=0.0,
         )
-    for brg in ("BIM", "BMR"):
+    for brg in (x for x in b.shaft_brgs if x in jets):
         _, _, wdt, dr, Dm = _bearing_dims(p, brg)
         n_r = p[f"bearing.{brg}.n_rollers"]
         A_f, P_f = ht.shaft_bearing_channel(Dm / 2 - dr / 2, Dm / 2 + dr / 2, dr / 2, n_r)

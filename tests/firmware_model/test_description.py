@@ -591,3 +591,18 @@ def test_what_dips_and_what_is_splashed_comes_from_the_description(tmp_path):
     k_cm, k_rm = n0.link_name.index("splash:CM.teeth"), n0.link_name.index("splash:RM.teeth")
     g1 = dict(zip(n1.link_name, n1.link_G0))
     assert g1["splash:CM.teeth"] < n0.link_G0[k_cm] and g1["splash:RM.teeth"] == n0.link_G0[k_rm]
+
+
+def test_what_the_pumped_oil_reaches_comes_from_the_description(tmp_path):
+    """A file whose pump no longer feeds the main shaft's rear segment, the pilot bearing and one needle bearing
+    loses exactly those oil-system streams."""
+    d = load_description("GRS905")
+    jets = [j for j in d.oil.jets if j not in ("MS@PS", "BIM", "CB")]
+    (tmp_path / "jets.toml").write_text(
+        f'[meta]\ninherit = "GRS905"\n[topology.oil]\njets = {{ v = {jets!r}, u = "-", src = "assumed" }}\n'.replace(
+            "'", '"'
+        )
+    )
+    n0, n1 = N.build_network(load_parameters("GRS905")), N.build_network(load_parameters(tmp_path / "jets.toml"))
+    assert set(n0.link_name) - set(n1.link_name) == {"oilsys:MS@PS", "oilsys:BIM", "oilsys:CB"}
+    assert set(n1.link_name) <= set(n0.link_name)
