@@ -1088,13 +1088,33 @@ def description_of(p: Parameters) -> Description:
     d = p.__dict__.get("_description")
     if d is None:
         path = description_path(p.path or p.variant)
-        entries = read_entries(path)
+        entries = _entries_of(path)
         if not any(is_topology(k) for k in entries):
-            ref = read_entries(PARAM_DIR / f"{VARIANTS[0]}.toml")
+            ref = _entries_of(PARAM_DIR / f"{VARIANTS[0]}.toml")
             entries = {**entries, **{k: e for k, e in ref.items() if is_topology(k)}}
         d = _describe(path, entries, p)
         p.__dict__["_description"] = d
     return d
+
+
+#: the entries of the files parameter sets were described from, by (path, modification time, size): a set copied
+#: with ``with_overrides`` (effects, calibrate) is described again without reading and parsing its file again
+_ENTRIES: dict = {}
+_ENTRIES_MAX = 16
+
+
+def _entries_of(path: Path) -> dict:
+    """The file's entries (as read_entries), read once per version of the file; never modified by the reader."""
+    try:
+        st = path.stat()
+    except OSError:
+        return read_entries(path)  # a missing file: its ParameterError
+    key = (str(path.resolve()), st.st_mtime_ns, st.st_size)
+    if key not in _ENTRIES:
+        if len(_ENTRIES) >= _ENTRIES_MAX:
+            _ENTRIES.clear()
+        _ENTRIES[key] = read_entries(path)
+    return dict(_ENTRIES[key])
 
 
 def _describe(path: Path, entries: dict, params: Parameters | None = None) -> Description:
