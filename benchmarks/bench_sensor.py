@@ -169,8 +169,6 @@ MERGES = (("RI", "oil"), ("IS@bulk", "IS@BIF"), ("MS@RM", "MS@CM"), ("H2", "H1")
 
 
 def section_partitions(params, cycles):
-    from firmware_model.onboard.reduce import PARTITIONS
-
     print(
         "\n(a2) how far the network can be aggregated: worst component per cycle, as a share of the budget "
         f"max(max/{MAX_TOL}, RMS/{RMS_TOL}) (1 = at the tolerance)"
@@ -186,7 +184,7 @@ def section_partitions(params, cycles):
                 part[k] = b
         part[a] = b
         rows.append((f"+ {a} into {b}", part))
-    rows.append(("compact", PARTITIONS["compact"]))
+    rows.append(("compact", "compact"))
     for label, pt in rows:
         cells = []
         nn = None

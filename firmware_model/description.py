@@ -30,6 +30,8 @@ from firmware_model.parameters import (
     PROVENANCES,
     TOPOLOGY,
     UNITS,
+    VARIANTS,
+    Parameters,
     is_topology,
     read_entries,
     read_toml,
@@ -38,6 +40,11 @@ from firmware_model.parameters import (
 #: units a description may use: the parameter files' and volume flows (a motor-driven pump)
 DESC_UNITS = {**UNITS, "L/min": ("m3/s", 1e-3 / 60.0), "m3/s": ("m3/s", 1.0)}
 DESC_DIM_NAMES = {**DIM_NAMES, "m3/s": "a volume flow"}
+#: the unit of each SI dimension whose factor is 1 (a parameter set's SI value written as an entry, unchanged)
+SI_UNIT = {}
+for _u, (_dim, _fac) in DESC_UNITS.items():
+    if _fac == 1.0:
+        SI_UNIT.setdefault(_dim, _u)
 
 #: how a wheel sits: turning on its shaft until a coupling engages it, fixed to it, cut into it, on a stationary pin
 MOUNTS = ("idle", "fixed", "cut", "pin")
@@ -397,8 +404,8 @@ class Description:
 class _Reader:
     """The file's entries and the messages that name it."""
 
-    def __init__(self, path: Path, entries: dict):
-        self.path, self.entries = path, entries
+    def __init__(self, path: Path, entries: dict, params: Parameters | None = None):
+        self.path, self.entries, self.params = path, entries, params
         self.provenance: dict = {}
 
     def fail(self, key: str, why: str):
@@ -410,13 +417,21 @@ class _Reader:
             src_key = raw["from"]
             if not isinstance(src_key, str) or is_topology(src_key) or src_key not in self.entries:
                 self.fail(key, f"takes its value from {src_key!r}, which is no parameter of this file")
-            raw = self.entries[src_key]
+            raw = self._parameter(src_key, self.entries[src_key])
         if not isinstance(raw, dict) or "v" not in raw:
             self.fail(key, 'must be a table { v = ..., u = ..., src = ... } or { from = "parameter" }')
         if raw.get("src") not in PROVENANCES:
             self.fail(key, f"has provenance {raw.get('src')!r}; it must be one of {', '.join(PROVENANCES)}")
         self.provenance[key] = raw["src"]
         return raw
+
+    def _parameter(self, src_key: str, raw):
+        """The file's entry of a parameter, or, describing a parameter set, the set's SI value (an overridden or
+        fitted value follows; the file's value converted to SI is the same float)."""
+        p = self.params
+        if p is None or src_key not in p.values or not isinstance(raw, dict) or p.units.get(src_key) not in SI_UNIT:
+            return raw
+        return {**raw, "v": p.values[src_key], "u": SI_UNIT[p.units[src_key]], "src": p.sources[src_key]}
 
     def value(self, key: str, raw, spec: tuple):
         kind, _, dim, sign = spec
@@ -1061,8 +1076,50 @@ def load_description(name_or_path: str | Path = "GRS905") -> Description:
     """The checked description of a shipped gearbox (NAME) or of a user's file (FILE): one sentence naming the
     file, the key and why for anything that does not hold together."""
     path = description_path(name_or_path)
-    entries = read_entries(path)
-    r = _Reader(path, entries)
+    return _describe(path, read_entries(path))
+
+
+def description_of(p: Parameters) -> Description:
+    """The description of the gearbox a parameter set describes, kept with the set: the ``[topology]`` of the file
+    it came from (its variant's shipped file for a set made in code), every numeric ``{ from = "parameter" }`` entry
+    taking the set's value (a set made with ``with_overrides`` or fitted by calibrate describes its own gearbox).
+    A parameter file without a ``[topology]`` has the first shipped variant's, with its own values (as before
+    descriptions)."""
+    d = p.__dict__.get("_description")
+    if d is None:
+        path = description_path(p.path or p.variant)
+        entries = _entries_of(path)
+        if not any(is_topology(k) for k in entries):
+            ref = _entries_of(PARAM_DIR / f"{VARIANTS[0]}.toml")
+            entries = {**entries, **{k: e for k, e in ref.items() if is_topology(k)}}
+        d = _describe(path, entries, p)
+        p.__dict__["_description"] = d
+    return d
+
+
+#: the entries of the files parameter sets were described from, by (path, modification time, size): a set copied
+#: with ``with_overrides`` (effects, calibrate) is described again without reading and parsing its file again
+_ENTRIES: dict = {}
+_ENTRIES_MAX = 16
+
+
+def _entries_of(path: Path) -> dict:
+    """The file's entries (as read_entries), read once per version of the file; never modified by the reader."""
+    try:
+        st = path.stat()
+    except OSError:
+        return read_entries(path)  # a missing file: its ParameterError
+    key = (str(path.resolve()), st.st_mtime_ns, st.st_size)
+    if key not in _ENTRIES:
+        if len(_ENTRIES) >= _ENTRIES_MAX:
+            _ENTRIES.clear()
+        _ENTRIES[key] = read_entries(path)
+    return dict(_ENTRIES[key])
+
+
+def _describe(path: Path, entries: dict, params: Parameters | None = None) -> Description:
+    """The checked description in a file's entries (the values of ``params`` for its parameters, when given)."""
+    r = _Reader(path, entries, params)
     topo = _nest(entries)
     _sections(r, topo)
     check = {**DEFAULT_CHECK, **{k: v for k, v in _single(r, topo, "check").items() if v is not None}}

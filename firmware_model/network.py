@@ -19,13 +19,13 @@ from typing import NamedTuple
 
 import numpy as np
 
-from firmware_model.components import HOUSINGS, IDLE_WHEELS, LAYSHAFT_WHEELS, PAIRS, SHAFT_BEARINGS, WHEEL_BEARINGS
+from firmware_model.description import Description
 from firmware_model.effects import RETARDER_HEAT_SPLIT, EffectScales
 from firmware_model.errors import ParameterError
 from firmware_model.parameters import Parameters
 from firmware_model.physics import heat_transfer as ht
 from firmware_model.physics import oil as oilprops
-from firmware_model.physics.geometry import CUT_WHEELS, HOUSING_OF_BEARING, SHAFT_OF_BEARING, Geometry, build_geometry
+from firmware_model.physics.geometry import Geometry, build_geometry
 from firmware_model.physics.kinematics import MESHES, SPEED_NAMES
 from firmware_model.physics.losses import ADDENDUM_COEF, DEDENDUM_COEF, PLANETARY_HEAT_SPLIT
 
@@ -59,25 +59,6 @@ N_KINDS = len(KIND_NAMES)
 # oil-system stream sub-kinds
 S_PIPE, S_CHANNEL, S_IMPOSED = range(3)
 
-SHAFT_SEGMENTS = {
-    "IS": ("IS@bulk", "IS@BIF", "IS@LI"),
-    "LS": ("LS@BLF", "LS@LL", "LS@3L", "LS@2L", "LS@1L", "LS@CL", "LS@RL", "LS@BLR"),
-    "MS": ("MS@BIM", "MS@3M", "MS@2M", "MS@1M", "MS@CM", "MS@RM", "MS@BMR", "MS@PS"),
-    "OS": ("OS@carrier", "OS@bulk", "OS@BO", "OS@EY"),
-}
-#: the shaft segment under each shaft bearing
-SEGMENT_OF_BEARING = {
-    "BIF": "IS@BIF",
-    "BLF": "LS@BLF",
-    "BLR": "LS@BLR",
-    "BIM": "MS@BIM",
-    "BMR": "MS@BMR",
-    "BO": "OS@BO",
-}
-#: the shaft segment under each idle wheel
-SEGMENT_OF_IDLE_WHEEL = {"LI": "IS@LI", **{w: f"MS@{w}" for w in IDLE_WHEELS[1:]}}
-#: housing material
-HOUSING_MATERIAL = {"H1": "aluminium", "H2": "cast_iron", "H3": "aluminium"}
 #: shortest shaft segment [m] (a numerical floor: two neighbouring parts at one position)
 MIN_SEGMENT_M = 1e-3
 #: speed floor of the rotating-part correlations (immersed wheels and bearings, bearing splash) [rad/s]: they are
@@ -136,6 +117,14 @@ class _Builder:
 
     def __init__(self, p: Parameters, geo: Geometry):
         self.p, self.geo, self.W = p, geo, geo.wheels
+        self.desc = geo.description
+        self.bearing = {brg.id: brg for brg in self.desc.bearings}
+        self.housing = {h.id: h for h in self.desc.housings}
+        #: idle wheels (teeth and bulk nodes), the other wheels (one node each), shaft bearings, (wheel, its bearing)
+        self.idle = tuple(w.id for w in self.desc.wheels if w.mount == "idle")
+        self.whole = tuple(w.id for w in self.desc.wheels if w.mount != "idle")
+        self.shaft_brgs = tuple(x.id for x in self.desc.bearings if x.wheel is None)
+        self.wheel_brgs = tuple((x.wheel, x.id) for x in self.desc.bearings if x.wheel is not None)
         self.st_rho, self.st_k, self.st_cp = p["material.steel.rho"], p["material.steel.k"], p["material.steel.cp"]
         self.nodes: list = []
         self.C: list = []
@@ -189,30 +178,26 @@ def _segment_lengths(xs: list, x_front: float, x_rear: float) -> list:
     return [max(bounds[i + 1] - bounds[i], MIN_SEGMENT_M) for i in range(len(xs))]
 
 
-def _segment_positions(p: Parameters, W: dict) -> tuple[dict, dict]:
-    """Axial position of every shaft segment node, and each shaft's front and rear end (seed 3.1, Fig 3)."""
-    pos = {
-        "IS": [0.0, p["bearing.BIF.x"], W["LI"].x],
-        "LS": [p["shaft.LS.x_BLF"]] + [W[w].x for w in LAYSHAFT_WHEELS] + [p["shaft.LS.x_BLR"]],
-        "MS": [p["bearing.BIM.x"]] + [W[w].x for w in IDLE_WHEELS[1:]] + [p["bearing.BMR.x"], p["shaft.MS.x_PS"]],
-        "OS": [p["shaft.OS.x_carrier"], p["shaft.OS.x_bulk"], p["shaft.OS.x_BO"], p["shaft.OS.x_EY"]],
-    }
-    ends = {"IS": (p["shaft.IS.x_front"], p["shaft.IS.x_rear"])}
-    for s in ("LS", "MS", "OS"):
-        ends[s] = (pos[s][0] - p[f"shaft.{s}.overhang_front"], pos[s][-1] + p[f"shaft.{s}.overhang_rear"])
+def _segment_positions(d: Description) -> tuple[dict, dict]:
+    """Axial position of every shaft segment node, and each shaft's front and rear end (seed 3.1, Fig 3), as the
+    description states them."""
+    pos = {s.id: [g.x_m for g in s.segments] for s in d.shafts}
+    ends = {s.id: (s.front_m, s.rear_m) for s in d.shafts}
     return pos, ends
 
 
 def _shaft_nodes(b: _Builder, pos: dict, ends: dict) -> None:
     """Shaft segments (seed 3.1): a hollow cylinder each; the output shaft's carrier has its own mass."""
     p = b.p
-    for s, names in SHAFT_SEGMENTS.items():
-        ro, ri = p[f"shaft.{s}.d_out"] / 2, p[f"shaft.{s}.d_bore"] / 2
+    carriers = {ps.carrier_segment for ps in b.desc.planetary}
+    for sh in b.desc.shafts:
+        s, names = sh.id, [g.id for g in sh.segments]
+        ro, ri = sh.d_out_m / 2, sh.d_bore_m / 2
         for nm, L in zip(names, _segment_lengths(pos[s], *ends[s])):
             b.seg_len[nm] = L
             m = b.st_rho * math.pi * (ro**2 - ri**2) * L
-            if nm == "OS@carrier":
-                m = p["shaft.OS.carrier_mass"]
+            if nm in carriers:
+                m = p[f"shaft.{s}.carrier_mass"]
             b.add(nm, m * b.st_cp)
 
 
@@ -222,16 +207,17 @@ def _wheel_nodes(b: _Builder) -> None:
     p, W = b.p, b.W
     shell = p["gear.teeth_shell_modules"]
     hub = p["wheel.hub_mass_factor"]
-    for w in IDLE_WHEELS:
+    for w in b.idle:
         g = W[w]
         R_sh = g.R_f - shell * g.m_n
         m_teeth = b.st_rho * g.width * (math.pi * (g.R_f**2 - R_sh**2) + 0.5 * math.pi * (g.R_a**2 - g.R_f**2))
         m_bulk = b.st_rho * g.width * math.pi * (R_sh**2 - g.R_in**2) * hub
         b.add(f"{w}.teeth", m_teeth * b.st_cp)
         b.add(f"{w}.bulk", m_bulk * b.st_cp)
-    for w in LAYSHAFT_WHEELS + ("RI",):
+    for w in b.whole:
         g = W[w]
-        R_inner = b.geo.R_shaft_m["LS"] if w != "RI" else g.R_in
+        shaft = b.desc.wheel(w).shaft
+        R_inner = g.R_in if shaft is None else b.geo.R_shaft_m[shaft]  # an idler on a pin: its bore
         m = b.st_rho * g.width * (math.pi * (g.R_f**2 - R_inner**2) + 0.5 * math.pi * (g.R_a**2 - g.R_f**2))
         b.add(w, m * b.st_cp)
 
@@ -242,12 +228,12 @@ def _other_nodes(b: _Builder) -> None:
     b.add("PS", p["planetary.mass_sun"] * cp)
     b.add("PP", p["planetary.mass_planets"] * cp)
     b.add("PR", p["planetary.mass_ring"] * cp)
-    for brg in SHAFT_BEARINGS:
+    for brg in b.shaft_brgs:
         b.add(brg, p[f"bearing.{brg}.mass"] * cp)
-    for brg in WHEEL_BEARINGS:
+    for _, brg in b.wheel_brgs:
         b.add(brg, (p["wheel_bearing.mass_3B"] if brg == "3B" else p["wheel_bearing.mass_needle"]) * cp)
-    for h in HOUSINGS:
-        b.add(h, p[f"housing.mass_{h}"] * p[f"material.{HOUSING_MATERIAL[h]}.cp"])
+    for h in b.housing:
+        b.add(h, b.housing[h].mass_kg * p[f"material.{b.housing[h].material}.cp"])
     T_cap = p["oil.capacity_temp"]
     rho_oil = float(oilprops.density_kg_m3(T_cap))
     cp_oil = float(oilprops.specific_heat_j_per_kgk(T_cap))
@@ -257,20 +243,24 @@ def _other_nodes(b: _Builder) -> None:
 def _conduction_links(b: _Builder, pos: dict) -> None:
     """Linear conduction along the shafts, to the boundary structures and across the housing joints (Eq 43)."""
     p = b.p
-    for s, names in SHAFT_SEGMENTS.items():
-        ro, ri = p[f"shaft.{s}.d_out"] / 2, p[f"shaft.{s}.d_bore"] / 2
+    for sh in b.desc.shafts:
+        s, names = sh.id, [g.id for g in sh.segments]
+        ro, ri = sh.d_out_m / 2, sh.d_bore_m / 2
         A = math.pi * (ro**2 - ri**2)
         for i in range(len(names) - 1):
             G = ht.linear_conductance_w_per_k(b.st_k, A, pos[s][i], pos[s][i + 1])
             b.link(names[i], names[i + 1], K_CONST, G, f"cond:{names[i]}-{names[i + 1]}")
-    b.link("IS@bulk", "engine_shaft", K_CONST, p["housing.G_IS_engine"], "bc:IS-engine_shaft")
-    b.link("OS@EY", "end_yoke", K_CONST, p["housing.G_OS_endyoke"], "bc:OS-end_yoke")
-    b.link("H1", "flywheel_cover", K_CONST, p["housing.G_H1_flywheel"], "bc:H1-flywheel_cover")
-    b.link("H2", "support_beam", K_CONST, p["housing.G_H2_beam"], "bc:H2-support_beam")
+    # the boundaries touched by conduction (a flange, a spline), in the order of the nodes that touch them
+    conducting = [bd for bd in b.desc.boundaries if bd.conductance_w_per_k is not None]
+    for node in b.nodes:
+        for bd in conducting:
+            if node in bd.touches:
+                b.link(node, bd.id, K_CONST, bd.conductance_w_per_k, f"bc:{node}-{bd.id}")
     kj = p["housing.k_joint"]
-    for h1, h2 in (("H1", "H2"), ("H2", "H3")):
-        G = ht.linear_conductance_w_per_k(kj, p[f"housing.A_{h1}{h2}"], p[f"housing.x_{h1}"], p[f"housing.x_{h2}"])
-        b.link(h1, h2, K_CONST, G, f"cond:{h1}-{h2}")
+    for h in b.desc.housings:
+        if h.joined_to is not None:  # the bolted flange conducts between the two housings' nodes
+            G = ht.linear_conductance_w_per_k(kj, h.joint_area_m2, h.x_m, b.housing[h.joined_to].x_m)
+            b.link(h.id, h.joined_to, K_CONST, G, f"cond:{h.id}-{h.joined_to}")
 
 
 def _wheel_radial_links(b: _Builder) -> None:
@@ -280,25 +270,25 @@ def _wheel_radial_links(b: _Builder) -> None:
     sf_tb, sf_lw = p["heat.sf_teeth_bulk"], p["heat.sf_layshaft_wheel"]
     f_in = p["heat.shaft_inner_diameter_frac"]
     d_roll = p["wheel_bearing.d_roller"]
-    for w, wb in zip(IDLE_WHEELS, WHEEL_BEARINGS):
+    for w, wb in b.wheel_brgs:
         g = W[w]
         D_teeth = g.R_a + g.R_f  # mean of tip and root diameters
         D_bulk = g.R_b + g.R_in  # mean of base and inner diameters
         b.link(f"{w}.teeth", f"{w}.bulk", K_CONST, b.radial(k, g.width, D_teeth, D_bulk, sf_tb), f"rad:{w}.teeth-bulk")
         sf_b = p["wheel_bearing.sf_radial_tapered"] if wb == "3B" else p["wheel_bearing.sf_radial_needle"]
-        D_shaft = 2 * b.geo.R_shaft_m["IS" if w == "LI" else "MS"]
+        D_shaft = 2 * b.geo.R_shaft_m[b.desc.wheel(w).shaft]
         Dm = D_shaft + d_roll
         # bulk -> bearing: solid from the bulk's representative diameter to the bore, then the bearing's outer half
         G_solid = b.radial(k, g.width, D_bulk, 2 * g.R_in, 1.0)
         G_outer = b.radial(k, g.width, 2 * g.R_in, Dm, sf_b)
         b.link(f"{w}.bulk", wb, K_CONST, 1.0 / (1.0 / G_solid + 1.0 / G_outer), f"rad:{w}.bulk-{wb}")
-        seg = SEGMENT_OF_IDLE_WHEEL[w]
+        seg = b.desc.wheel(w).segment
         b.link(wb, seg, K_CONST, b.radial(k, g.width, Dm, f_in * D_shaft, sf_b), f"rad:{wb}-{seg}")
-    for w in LAYSHAFT_WHEELS:
-        g = W[w]
+    for w in (x for x in b.whole if b.desc.wheel(x).shaft is not None):
+        g, seat = W[w], b.desc.wheel(w)
         D_w = g.R_b + g.R_in
-        D_s = f_in * 2 * b.geo.R_shaft_m["LS"]
-        b.link(w, f"LS@{w}", K_CONST, b.radial(k, g.width, D_w, D_s, sf_lw), f"rad:{w}-LS@{w}")
+        D_s = f_in * 2 * b.geo.R_shaft_m[seat.shaft]
+        b.link(w, seat.segment, K_CONST, b.radial(k, g.width, D_w, D_s, sf_lw), f"rad:{w}-{seat.segment}")
 
 
 def _bearing_radial_links(b: _Builder) -> None:
@@ -306,18 +296,19 @@ def _bearing_radial_links(b: _Builder) -> None:
     their bearings, the sun to the main shaft through its spline."""
     p, k = b.p, b.st_k
     f_in, f_seat = p["heat.shaft_inner_diameter_frac"], p["heat.seat_outer_diameter_factor"]
-    for brg in SHAFT_BEARINGS:
+    for brg in b.shaft_brgs:
         sf = p[f"bearing.sf_radial_{'ball' if brg == 'BO' else 'tapered'}"]
         d_in, d_out, wdt = p[f"bearing.{brg}.d_bore"], p[f"bearing.{brg}.d_out"], p[f"bearing.{brg}.width"]
         Dm = 0.5 * (d_in + d_out)
-        seg = SEGMENT_OF_BEARING[brg]
+        seat = b.bearing[brg]
+        seg = seat.segment
         b.link(brg, seg, K_CONST, b.radial(k, wdt, Dm, f_in * d_in, sf), f"rad:{brg}-{seg}")
-        if brg == "BIM":
-            # the pilot bearing sits inside the rear end of the input shaft
-            b.link(brg, "IS@LI", K_CONST, b.radial(k, wdt, f_seat * d_out, Dm, sf), f"rad:{brg}-IS@LI")
+        if seat.inside is not None:
+            # a pilot bearing sits inside another shaft's segment
+            b.link(brg, seat.inside, K_CONST, b.radial(k, wdt, f_seat * d_out, Dm, sf), f"rad:{brg}-{seat.inside}")
         else:
-            h = HOUSING_OF_BEARING[brg]
-            k_h = p[f"material.{HOUSING_MATERIAL[h]}.k"]
+            h = seat.housing
+            k_h = p[f"material.{b.housing[h].material}.k"]
             b.link(brg, h, K_CONST, b.radial(min(k_h, k), wdt, f_seat * d_out, Dm, sf), f"rad:{brg}-{h}")
     gp, gs = b.W["PP"], b.W["PS"]
     n_pl = int(p["planetary.n_planets"])
@@ -339,19 +330,18 @@ def _bearing_radial_links(b: _Builder) -> None:
 
 
 def _contact_links(b: _Builder) -> None:
-    """Gear contact conductance between the wheels of a loaded mesh (Eq 45)."""
-    p, W = b.p, b.W
+    """Gear contact conductance between the wheels of each mesh, over its face width (Eq 45); a planetary set's
+    meshes once per planet."""
+    p = b.p
     tcc, whz, cfrac = p["heat.TCC"], p["heat.w_Hz"], p["heat.contact_length_frac"]
-    for pair, (iw, lw) in PAIRS.items():
-        G = ht.gear_contact_conductance_w_per_k(tcc, min(W[iw].width, W[lw].width), whz, cfrac)
-        if pair == "R":
-            b.link("RL", "RI", K_CONTACT, G, "contact:RL-RI", mesh=MESHES.index("R"))
-            b.link("RI", "RM.teeth", K_CONTACT, G, "contact:RI-RM", mesh=MESHES.index("RI"))
-        else:
-            b.link(f"{iw}.teeth", lw, K_CONTACT, G, f"contact:{iw}-{lw}", mesh=MESHES.index(pair))
-    Gp = int(p["planetary.n_planets"]) * ht.gear_contact_conductance_w_per_k(tcc, p["planetary.width"], whz, cfrac)
-    b.link("PS", "PP", K_CONTACT, Gp, "contact:PS-PP", mesh=MESHES.index("PSP"))
-    b.link("PP", "PR", K_CONTACT, Gp, "contact:PP-PR", mesh=MESHES.index("PPR"))
+    n_planets = {m: ps.n_planets for ps in b.desc.planetary for m in (ps.sun, ps.planet, ps.ring)}
+    for m in b.desc.meshes:
+        w1, w2 = m.wheels
+        G = ht.gear_contact_conductance_w_per_k(tcc, b.geo.meshes[m.id].face_width_m, whz, cfrac)
+        if w1 in n_planets:
+            G = n_planets[w1] * G
+        a, c = (f"{w}.teeth" if w in b.idle else w for w in m.wheels)
+        b.link(a, c, K_CONTACT, G, f"contact:{w1}-{w2}", mesh=MESHES.index(m.id))
 
 
 def _bearing_dims(p: Parameters, brg: str):
@@ -365,12 +355,19 @@ def _immersed_links(b: _Builder) -> None:
     bearings partly immersed (Eq 52-53)."""
     p, W = b.p, b.W
     spd = SPEED_NAMES.index
-    for w in LAYSHAFT_WHEELS + ("RI",):
+    dipping = b.desc.oil.dipping
+    for w in (x for x in dipping if x in W):
         g = W[w]
+        shaft = b.desc.wheel(w).shaft
+        if w not in b.geo.immersion_m:
+            raise ParameterError(
+                f"{b.desc.origin}: topology.oil.dipping names {w}, whose immersion the plant cannot compute yet "
+                f"(it knows that of {', '.join(b.geo.immersion_m)})"
+            )
         h_i = b.geo.immersion_m[w]
         if h_i <= 0:
             continue
-        w_in = 0.0 if w in CUT_WHEELS else p["wheel.side_width_in_frac"] * g.width
+        w_in = 0.0 if b.desc.wheel(w).mount == "cut" else p["wheel.side_width_in_frac"] * g.width
         h_i_p = min(h_i, 2 * g.R_p)
         A = float(ht.immersed_gear_area_m2(g.R_p, g.width, g.R_in, w_in, h_i_p, g.z, g.h_t, g.beta))
         b.link(
@@ -379,21 +376,21 @@ def _immersed_links(b: _Builder) -> None:
             K_IMM_GEAR,
             A,
             f"imm:{w}",
-            speed=spd("RI" if w == "RI" else "LS"),
+            speed=spd(w if shaft is None else shaft),  # a wheel on a pin turns at its own speed
             R_p=g.R_p,
             z=g.z,
             width=g.width,
             h_t=g.h_t,
             h_i=h_i_p,
         )
-    for brg in ("BLF", "BLR"):
+    for brg in (x for x in dipping if x in b.bearing and b.bearing[x].wheel is None):
         _, _, wdt, dr, Dm = _bearing_dims(p, brg)
         A = float(
             ht.immersed_bearing_area_m2(
                 Dm - dr, Dm + dr, p[f"bearing.{brg}.n_rollers"], dr, wdt, p[f"bearing.{brg}.immersion"]
             )
         )
-        b.link(brg, "oil", K_IMM_BRG, A, f"imm:{brg}", speed=spd("LS"), Dm=Dm)
+        b.link(brg, "oil", K_IMM_BRG, A, f"imm:{brg}", speed=spd(b.bearing[brg].shaft), Dm=Dm)
 
 
 def _splash_links(b: _Builder) -> None:
@@ -402,9 +399,10 @@ def _splash_links(b: _Builder) -> None:
     p, W = b.p, b.W
     spd = SPEED_NAMES.index
     covered = bool(p["wheel.covered_sides"])
-    for w in IDLE_WHEELS:
+    splashed = b.desc.oil.splashed
+    for w in (x.id for x in b.desc.wheels if f"{x.id}.teeth" in splashed):
         g = W[w]
-        if w in ("CM", "RM") or not covered:
+        if b.desc.wheel(w).sides == "free" or not covered:
             A = float(ht.wheel_area_free_sides_m2(g.R_p, g.width, g.z, g.h_t, g.beta, g.R_in))  # Eq 61
         else:
             A = float(ht.wheel_area_covered_sides_m2(g.R_p, g.width, g.z, g.h_t, g.beta))  # Eq 60
@@ -413,36 +411,34 @@ def _splash_links(b: _Builder) -> None:
     b.link("OS@bulk", "oil", K_SPLASH, A_os, "splash:OS", speed=spd("OS"), group=1)
     # ring gear: splash at high range, 200 W/(m2 K) like the housing at low range (seed 3.3)
     b.link("PR", "oil", K_RING, p["planetary.ring_outer_area"], "ring:PR", speed=spd("PR"))
-    for brg in SHAFT_BEARINGS:
-        if brg == "BIM":
-            continue
+    for brg in (x for x in splashed if x in b.bearing and b.bearing[x].wheel is None):
         _, _, wdt, dr, Dm = _bearing_dims(p, brg)
         A = float(ht.bearing_internal_area_m2(Dm - dr, Dm + dr, p[f"bearing.{brg}.n_rollers"], dr, wdt))  # Eq 64
-        b.link(brg, "oil", K_BRG_SPLASH, A, f"bsplash:{brg}", speed=spd(SHAFT_OF_BEARING[brg]), Dm=Dm, d_roller=dr)
+        b.link(brg, "oil", K_BRG_SPLASH, A, f"bsplash:{brg}", speed=spd(b.bearing[brg].shaft), Dm=Dm, d_roller=dr)
     A_int = p["housing.internal_area"] * p["housing.oil_covered_frac"]
-    for h in HOUSINGS:
-        b.link(h, "oil", K_CONST, p["housing.h_oil"] * A_int * p[f"housing.internal_split_{h}"], f"hoil:{h}")
+    for h in b.housing.values():
+        b.link(h.id, "oil", K_CONST, p["housing.h_oil"] * A_int * h.internal_split, f"hoil:{h.id}")
 
 
 def _bore_and_bearing_streams(b: _Builder) -> None:
-    """Oil-system streams through the input and main shaft bores (Eq 65-68), the needle bearings (Eq 69-74,
-    77-80) and the shaft bearings BIM and BMR (Eq 75-80); heat goes to the sump with the returning oil."""
-    p = b.p
-    for s, frac in (("IS", p["oil_system.frac_IS_bore"]), ("MS", p["oil_system.frac_MS_bore"])):
-        D = p[f"shaft.{s}.d_bore"]
-        if D <= 0:
+    """Oil-system streams through the shaft bores (Eq 65-68), the needle bearings (Eq 69-74, 77-80) and the shaft
+    bearings (Eq 75-80) the pumped oil reaches (oil.jets); heat goes to the sump with the returning oil."""
+    p, jets = b.p, b.desc.oil.jets
+    for sh in b.desc.shafts:
+        fed = [g.id for g in sh.segments if g.id in jets]  # (the input shaft's oil enters behind its front bearing)
+        D = sh.d_bore_m
+        if not fed or D <= 0:
             continue
-        for nm in SHAFT_SEGMENTS[s]:
-            if nm == "IS@bulk":
-                continue  # oil enters the input shaft behind its front bearing
+        frac = p[f"oil_system.frac_{sh.id}_bore"]
+        for nm in fed:
             L = b.seg_len[nm]
             b.link(nm, "oil", K_STREAM, math.pi * D * L, f"oilsys:{nm}", sub=S_PIPE, frac=frac, D=D, L=L, h=0.0)
     r_r = p["wheel_bearing.d_roller"] / 2
     cd = p["wheel_bearing.cage_depth_frac"] * r_r
     L_r = p["wheel_bearing.length_roller"]
-    for w, wb in zip(IDLE_WHEELS, WHEEL_BEARINGS):
+    for w, wb in (x for x in b.wheel_brgs if x[1] in jets):
         n_r = p["wheel_bearing.n_rollers_LB"] if wb == "LB" else p["wheel_bearing.n_rollers_main"]
-        R_s = b.geo.R_shaft_m["IS" if w == "LI" else "MS"]
+        R_s = b.geo.R_shaft_m[b.desc.wheel(w).shaft]
         A_i, P_i = ht.needle_channel_inner(R_s, R_s + cd, r_r, n_r)
         A_o, P_o = ht.needle_channel_outer(R_s + 2 * r_r - cd, R_s + 2 * r_r, r_r, n_r)
         A_heat = float(ht.channel_heat_area_m2(P_i, L_r, n_r) + ht.channel_heat_area_m2(P_o, L_r, n_r))
@@ -459,7 +455,7 @@ def _bore_and_bearing_streams(b: _Builder) -> None:
             L=0.0,
             h=0.0,
         )
-    for brg in ("BIM", "BMR"):
+    for brg in (x for x in b.shaft_brgs if x in jets):
         _, _, wdt, dr, Dm = _bearing_dims(p, brg)
         n_r = p[f"bearing.{brg}.n_rollers"]
         A_f, P_f = ht.shaft_bearing_channel(Dm / 2 - dr / 2, Dm / 2 + dr / 2, dr / 2, n_r)
@@ -511,8 +507,8 @@ def _planetary_streams(b: _Builder) -> None:
 def _external_links(b: _Builder) -> None:
     """Outside of the housings: convection and radiation to the hot and the cold surroundings."""
     p = b.p
-    for h in HOUSINGS:
-        A_ext = p[f"housing.area_{h}"] * p["housing.external_frac"]
+    for h in b.housing:
+        A_ext = b.housing[h].area_m2 * p["housing.external_frac"]
         for side, frac in (
             ("hot_surroundings", p["housing.hot_frac"]),
             ("cold_surroundings", 1 - p["housing.hot_frac"]),
@@ -521,34 +517,43 @@ def _external_links(b: _Builder) -> None:
             b.link(h, side, K_EXT_RAD, A_ext * frac, f"extrad:{h}-{side.split('_')[0]}")
 
 
-def _heat_sources(ix: dict) -> dict:
+def _heat_sources(b: _Builder) -> dict:
     """Where each loss is deposited: mesh heat split evenly between the two wheels (seed 3.2), planetary heat by
     losses.PLANETARY_HEAT_SPLIT, bearings into themselves, the lumped losses into the sump (seed 3.2), the retarder
     by effects.RETARDER_HEAT_SPLIT, synchronizer shift heat into the engaged wheel."""
-    sources = {}
-    for pair, (iw, lw) in PAIRS.items():
-        if pair == "R":
-            sources["mesh:R"] = [Share(ix["RL"], 0.5), Share(ix["RI"], 0.5)]
-            sources["mesh:RI"] = [Share(ix["RI"], 0.5), Share(ix["RM.teeth"], 0.5)]
-        else:
-            sources[f"mesh:{pair}"] = [Share(ix[f"{iw}.teeth"], 0.5), Share(ix[lw], 0.5)]
+    ix, sources = b.ix, {}
+    planetary = {m for ps in b.desc.planetary for m in (ps.sun, ps.planet, ps.ring)}
+    for m in b.desc.meshes:
+        if planetary.isdisjoint(m.wheels):  # a planetary set's meshes: the planetary source
+            sources[f"mesh:{m.id}"] = [Share(ix[f"{w}.teeth" if w in b.idle else w], 0.5) for w in m.wheels]
     sources["planetary"] = [Share(ix[w], f) for w, f in PLANETARY_HEAT_SPLIT.items()]
-    for brg in SHAFT_BEARINGS:
+    for brg in b.shaft_brgs:
         sources[f"bearing:{brg}"] = [Share(ix[brg], 1.0)]
     for key in ("churning", "wheel_bearings", "synchronizers", "pump"):
         sources[key] = [Share(ix["oil"], 1.0)]
     sources["retarder"] = [Share(ix[nm], f) for nm, f in RETARDER_HEAT_SPLIT.items()]
-    for w in IDLE_WHEELS:
+    for w in b.idle:
         sources[f"shift:{w}"] = [Share(ix[f"{w}.bulk"], 1.0)]
     sources["shift:PR"] = [Share(ix["PR"], 1.0)]
     return sources
 
 
+def _check_boundaries(d: Description) -> None:
+    """The boundaries the run tables, the onboard step and the C kernel index (BOUNDARIES), in their order."""
+    ids = tuple(bd.id for bd in d.boundaries)
+    if ids != BOUNDARIES:
+        raise ParameterError(
+            f"{d.origin}: topology.boundary lists {', '.join(ids)}; the plant and the sensor take the boundaries "
+            f"{', '.join(BOUNDARIES)} in this order (the only ones they know so far)"
+        )
+
+
 def build_network(p: Parameters) -> Network:
     """The full thermal network of the parameter set: nodes (seed 3.1), then links family by family (seed 3.3)."""
     geo = build_geometry(p)
+    _check_boundaries(geo.description)
     b = _Builder(p, geo)
-    pos, ends = _segment_positions(p, geo.wheels)
+    pos, ends = _segment_positions(geo.description)
     _shaft_nodes(b, pos, ends)
     _wheel_nodes(b)
     _other_nodes(b)
@@ -561,7 +566,7 @@ def build_network(p: Parameters) -> Network:
     _bore_and_bearing_streams(b)
     _planetary_streams(b)
     _external_links(b)
-    return b.network(_heat_sources(b.ix))
+    return b.network(_heat_sources(b))
 
 
 # ---------------------------------------------------------------------------------------------------------------

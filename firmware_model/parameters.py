@@ -32,7 +32,7 @@ import difflib
 import fnmatch
 import math
 import warnings
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from firmware_model.errors import ParameterError
@@ -192,6 +192,9 @@ class Parameters:
     origin: str = ""
     #: plausible (low, high) bounds in SI of the keys whose entry declares ``lo`` and ``hi`` (what calibrate may fit)
     bounds: dict = field(default_factory=dict)
+    #: the file it was loaded from (its description: firmware_model.description.description_of); "" for a set
+    #: made in code (its variant's shipped file then)
+    path: str = ""
 
     def __getitem__(self, key: str) -> float:
         try:
@@ -259,8 +262,13 @@ class Parameters:
             if k not in vals:
                 raise ParameterError(f"cannot override unknown parameter {k!r}")
             vals[k] = float(v)
-        new = Parameters(
-            self.variant, vals, dict(self.sources), dict(self.units), dict(self.strings), self.origin, dict(self.bounds)
+        new = replace(
+            self,
+            values=vals,
+            sources=dict(self.sources),
+            units=dict(self.units),
+            strings=dict(self.strings),
+            bounds=dict(self.bounds),
         )
         _check_values(new)
         return new
@@ -269,14 +277,13 @@ class Parameters:
         """A copy whose cooler is of another kind (``cooler.kind``: "none" runs the gearbox without its cooler)."""
         strings = dict(self.strings)
         strings["cooler.kind"] = kind
-        return Parameters(
-            self.variant,
-            dict(self.values),
-            dict(self.sources),
-            dict(self.units),
-            strings,
-            self.origin,
-            dict(self.bounds),
+        return replace(
+            self,
+            values=dict(self.values),
+            sources=dict(self.sources),
+            units=dict(self.units),
+            strings=strings,
+            bounds=dict(self.bounds),
         )
 
     def table(self):
@@ -508,7 +515,9 @@ def load_parameters(variant_or_path: str | Path = "GRS905") -> Parameters:
         b = _bounds(path, key, e, fac, v)
         if b is not None:
             bounds[key] = b
-    params = Parameters(strings.get("meta.variant", path.stem), values, sources, units, strings, path.name, bounds)
+    params = Parameters(
+        strings.get("meta.variant", path.stem), values, sources, units, strings, path.name, bounds, str(path.resolve())
+    )
     _check_values(params, written)
     _check_required(params)
     kind = params.strings.get("cooler.kind", "liquid")

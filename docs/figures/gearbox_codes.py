@@ -35,7 +35,10 @@ from firmware_model.components import (  # noqa: E402 (after the sys.path line a
     SHAFT_BEARINGS,
     WHEEL_BEARINGS,
 )
-from firmware_model.network import SHAFT_SEGMENTS  # noqa: E402
+from firmware_model.description import load_description  # noqa: E402
+
+#: the segments of each shaft, front to rear (the GRS905's description)
+SHAFT_SEGMENTS = {s.id: tuple(g.id for g in s.segments) for s in load_description("GRS905").shafts}
 
 try:
     import tomllib

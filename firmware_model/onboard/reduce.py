@@ -46,6 +46,7 @@ from typing import NamedTuple
 import numpy as np
 
 from firmware_model.components import PUBLISHED, SHAFT_BEARINGS, STEP_S
+from firmware_model.description import Description
 from firmware_model.effects import CATALOG, FIELD_OF_EFFECT, EffectScales, effect_value, with_oil_volume
 from firmware_model.errors import ParameterError
 from firmware_model.network import (
@@ -63,7 +64,6 @@ from firmware_model.network import (
     MIN_SPEED_RAD_S,
     S_CHANNEL,
     S_IMPOSED,
-    SHAFT_SEGMENTS,
     ConductanceEvaluator,
     Network,
     build_network,
@@ -131,19 +131,20 @@ BUILD_EFFECTS = ("oil_level_low",)
 # partitions
 
 
-def _compact_partition() -> dict:
-    part = {}
-    for shaft, segs in SHAFT_SEGMENTS.items():
-        for s in segs:
-            part[s] = shaft
-    for h in ("H1", "H2", "H3"):
-        part[h] = "H"
-    part["RI"] = "oil"
+def _compact_partition(d: Description) -> dict:
+    """One node per shaft, one for the housings, the wheels on a pin (an idler) in the sump."""
+    part = {g.id: sh.id for sh in d.shafts for g in sh.segments}
+    part.update({h.id: "H" for h in d.housings})
+    part.update({w.id: "oil" for w in d.wheels if w.mount == "pin"})
     return part
 
 
-#: name -> {full node: reduced node}; nodes not named keep their own name
-PARTITIONS = {"fine": {}, "compact": _compact_partition()}
+def _fine_partition(d: Description) -> dict:
+    return {}
+
+
+#: name -> the partition of a description ({full node: reduced node}; nodes not named keep their own name)
+PARTITIONS = {"fine": _fine_partition, "compact": _compact_partition}
 
 # loss sources of the onboard model (columns of the source matrix)
 SRC_NAMES = (
@@ -580,12 +581,12 @@ def _source_matrix(net: Network, agg: Aggregation) -> np.ndarray:
     return S
 
 
-def _resolve_partition(partition: str | dict) -> tuple[str, dict]:
+def _resolve_partition(partition: str | dict, d: Description) -> tuple[str, dict]:
     if not isinstance(partition, str):
         return "custom", partition
     if partition not in PARTITIONS:
         raise ParameterError(f"unknown partition {partition!r}; known: {', '.join(PARTITIONS)}")
-    return partition, PARTITIONS[partition]
+    return partition, PARTITIONS[partition](d)
 
 
 def _law_fields(laws: _Laws) -> dict:
@@ -645,8 +646,8 @@ def build_reduced(
         raise ParameterError(f"dt_s = {dt_s} s must be in (0, 1] s")
     if not 0.0 < margin <= 1.0:
         raise ParameterError(f"stability margin = {margin} must be in (0, 1]")
-    part_name, partition = _resolve_partition(partition)
     net = build_network(p)
+    part_name, partition = _resolve_partition(partition, net.geometry.description)
     agg = aggregate(net, partition)
     kin = p.kinematics
     grid = law_grid(net, p)

@@ -21,7 +21,7 @@ from firmware_model.effects import EffectScales
 from firmware_model.parameters import Parameters
 from firmware_model.physics import losses as L
 from firmware_model.physics import oil as oilprops
-from firmware_model.physics.geometry import SHAFT_OF_BEARING, Geometry, build_geometry
+from firmware_model.physics.geometry import Geometry, build_geometry
 from firmware_model.physics.kinematics import GEAR_MIN, GEARS, MESHES, SPEED_NAMES, SYNCS, gear_state
 
 #: loss sources in reporting order; "mesh:<m>" for the nine meshes, then the lumped ones
@@ -134,7 +134,8 @@ class GearboxLosses:
                 p[f"bearing.f1_{typ}"] * (p["bearing.P0"] + P1) * self.Dm[j]
                 + p["bearing.f2"] * self.Fa_coef[:, j] * self.Dm[j]
             )
-        self.bearing_speed_idx = [SPEED_NAMES.index(SHAFT_OF_BEARING[b]) for b in SHAFT_BEARINGS]
+        shaft_of = {b.id: b.shaft for b in self.geo.description.bearings}
+        self.bearing_speed_idx = [SPEED_NAMES.index(shaft_of[b]) for b in SHAFT_BEARINGS]
         # needle bearings
         d_r = p["wheel_bearing.d_roller"]
         R_s = {"LI": self.geo.R_shaft_m["IS"]}

@@ -13,16 +13,10 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from firmware_model.components import LAYSHAFT_WHEELS, PAIRS
+from firmware_model.components import LAYSHAFT_WHEELS
+from firmware_model.description import Description, description_of
 from firmware_model.parameters import Parameters
 from firmware_model.physics.losses import ADDENDUM_COEF, DEDENDUM_COEF, mesh_geometry
-
-#: the shaft each shaft bearing carries (input, layshaft, main, output shaft)
-SHAFT_OF_BEARING = {"BIF": "IS", "BLF": "LS", "BLR": "LS", "BIM": "MS", "BMR": "MS", "BO": "OS"}
-#: the housing each shaft bearing sits in (BIM, the pilot bearing, sits inside the input shaft)
-HOUSING_OF_BEARING = {"BIF": "H1", "BLF": "H1", "BLR": "H2", "BMR": "H2", "BO": "H3"}
-#: layshaft wheels cut into the layshaft (no bore, no web: seed 2.2, 3.3)
-CUT_WHEELS = ("1L", "CL", "RL")
 
 
 @dataclass(frozen=True)
@@ -51,7 +45,8 @@ class Geometry:
     meshes: dict  # mesh id (kinematics.MESHES) -> losses.GearMesh
     immersion_m: dict  # layshaft wheel or RI -> immersion depth of its tip circle [m]
     level_drop_m: float  # oil level below nominal (oil_level_low effect) [m]
-    R_shaft_m: dict  # shaft (IS, LS, MS, OS) -> outer radius [m]
+    R_shaft_m: dict  # shaft id -> outer radius [m]
+    description: Description | None = None  # the gearbox description it is built from
 
 
 def wheel(name: str, z: int, m_n: float, beta: float, alpha_n: float, width: float, R_in: float, x: float) -> Wheel:
@@ -75,48 +70,38 @@ def wheel(name: str, z: int, m_n: float, beta: float, alpha_n: float, width: flo
     )
 
 
-def _pair_wheels(p: Parameters, wheels: dict, meshes: dict) -> None:
-    """The six layshaft pairs: idle wheel (input / main shaft) and layshaft wheel, and the five forward meshes."""
-    an, a = p["gear.alpha_n"], p["gear.center_distance"]
-    R_ls = p["shaft.LS.d_out"] / 2
-    for pair, (iw, lw) in PAIRS.items():
-        g = f"gear.{pair}"
-        m_n, beta = p[f"{g}.m_n"], p[f"{g}.beta"]
-        x = p[f"wheel.x_{iw}"]
-        bore = (p["wheel.bore_LI"] if iw == "LI" else p["wheel.bore_main"]) / 2
-        wheels[iw] = wheel(iw, int(p[f"{g}.z1"]), m_n, beta, an, p[f"{g}.width1"], bore, x)
-        lw_g = wheel(lw, int(p[f"{g}.z2"]), m_n, beta, an, p[f"{g}.width2"], R_ls, x)
-        if lw in CUT_WHEELS:
-            # cut into the layshaft: inner diameter a fraction (70 %) of the base diameter (seed 3.3)
-            lw_g = replace(lw_g, R_in=max(p["heat.cut_wheel_inner_frac"] * lw_g.R_b, R_ls))
-        wheels[lw] = lw_g
-        if pair != "R":
-            meshes[pair] = mesh_geometry(
-                int(p[f"{g}.z1"]), int(p[f"{g}.z2"]), m_n, an, beta, a, min(p[f"{g}.width1"], p[f"{g}.width2"])
-            )
+def _wheel_of(p: Parameters, d: Description, w) -> Wheel:
+    """A wheel of the description: an idle wheel or an idler on a pin turns on its bore; a wheel fixed to its
+    shaft has the shaft's radius inside, one cut into it a fraction (70 %) of its base radius (seed 3.3)."""
+    R_in = w.bore_m / 2 if w.mount in ("idle", "pin") else d.shaft(w.shaft).d_out_m / 2
+    g = wheel(w.id, w.teeth, w.module_m, w.helix_rad, p["gear.alpha_n"], w.width_m, R_in, w.x_m)
+    if w.mount == "cut":
+        g = replace(g, R_in=max(p["heat.cut_wheel_inner_frac"] * g.R_b, R_in))
+    return g
 
 
-def _reverse_wheels(p: Parameters, wheels: dict, meshes: dict) -> None:
-    """Reverse: RL (layshaft) drives the idler RI, RI drives RM; standard centre distances (no profile shift)."""
+def _planetary_wheels(p: Parameters, d: Description, wheels: dict) -> None:
+    """Each planetary set's sun (on its shaft) and planets (a bore a fraction of their pitch diameter)."""
     an = p["gear.alpha_n"]
-    m_r, b_r = p["gear.R.m_n"], p["gear.R.beta"]
-    zRL, zRI, zRM = int(p["gear.R.z2"]), int(p["gear.R.z_idler"]), int(p["gear.R.z1"])
-    wr = min(p["gear.R.width1"], p["gear.R.width2"], p["gear.R.width_idler"])
-    meshes["R"] = mesh_geometry(zRL, zRI, m_r, an, b_r, m_r * (zRL + zRI) / (2 * math.cos(b_r)), wr)
-    meshes["RI"] = mesh_geometry(zRI, zRM, m_r, an, b_r, m_r * (zRI + zRM) / (2 * math.cos(b_r)), wr)
-    wheels["RI"] = wheel("RI", zRI, m_r, b_r, an, p["gear.R.width_idler"], p["wheel.bore_RI"] / 2, p["wheel.x_RM"])
+    for ps in d.planetary:
+        mp, bp, wp, zp = ps.module_m, ps.helix_rad, ps.width_m, ps.z_planet
+        R_sun_in = d.shaft(ps.sun_shaft).d_out_m / 2
+        wheels[ps.sun] = wheel(ps.sun, ps.z_sun, mp, bp, an, wp, R_sun_in, ps.x_m)
+        wheels[ps.planet] = wheel(ps.planet, zp, mp, bp, an, wp, p["planetary.planet_bore_frac"] * mp * zp / 2, ps.x_m)
 
 
-def _planetary_wheels(p: Parameters, wheels: dict, meshes: dict) -> None:
-    """Planetary: the sun drives the planets; a planet drives the (fixed) ring relative to the carrier."""
+def _meshes(p: Parameters, d: Description) -> dict:
+    """Every mesh of the description at its centre distance (stated, or the standard one), over the narrower of
+    its two face widths; a ring gear meshes internally."""
     an = p["gear.alpha_n"]
-    zs, zp, zr = int(p["planetary.z_sun"]), int(p["planetary.z_planet"]), int(p["planetary.z_ring"])
-    mp, bp, wp = p["planetary.m_n"], p["planetary.beta"], p["planetary.width"]
-    a_p = mp * (zs + zp) / (2 * math.cos(bp))
-    meshes["PSP"] = mesh_geometry(zs, zp, mp, an, bp, a_p, wp)
-    meshes["PPR"] = mesh_geometry(zp, zr, mp, an, bp, a_p, wp, internal=True)
-    wheels["PS"] = wheel("PS", zs, mp, bp, an, wp, p["shaft.MS.d_out"] / 2, p["shaft.MS.x_PS"])
-    wheels["PP"] = wheel("PP", zp, mp, bp, an, wp, p["planetary.planet_bore_frac"] * mp * zp / 2, p["shaft.MS.x_PS"])
+    size = {w.id: (w.teeth, w.module_m, w.helix_rad, w.width_m) for w in d.wheels}
+    for ps in d.planetary:
+        size.update({m: (ps.teeth(m), ps.module_m, ps.helix_rad, ps.width_m) for m in (ps.sun, ps.planet, ps.ring)})
+    meshes = {}
+    for m in d.meshes:
+        (z1, m_n, beta, b1), (z2, _, _, b2) = size[m.wheels[0]], size[m.wheels[1]]
+        meshes[m.id] = mesh_geometry(z1, z2, m_n, an, beta, m.centre_distance_m, min(b1, b2), internal=m.internal)
+    return meshes
 
 
 def oil_level_drop_m(p: Parameters) -> float:
@@ -139,11 +124,10 @@ def _immersion(p: Parameters, wheels: dict, level_drop_m: float) -> dict:
 
 def build_geometry(p: Parameters) -> Geometry:
     """Every derived geometric quantity of the parameter set."""
-    wheels: dict = {}
-    meshes: dict = {}
-    _pair_wheels(p, wheels, meshes)
-    _reverse_wheels(p, wheels, meshes)
-    _planetary_wheels(p, wheels, meshes)
+    d = description_of(p)
+    wheels = {w.id: _wheel_of(p, d, w) for w in d.wheels}
+    _planetary_wheels(p, d, wheels)
+    meshes = _meshes(p, d)
     drop = oil_level_drop_m(p)
-    R_shaft = {s: p[f"shaft.{s}.d_out"] / 2 for s in ("IS", "LS", "MS", "OS")}
-    return Geometry(wheels, meshes, _immersion(p, wheels, drop), drop, R_shaft)
+    R_shaft = {s.id: s.d_out_m / 2 for s in d.shafts}
+    return Geometry(wheels, meshes, _immersion(p, wheels, drop), drop, R_shaft, d)

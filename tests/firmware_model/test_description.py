@@ -11,7 +11,7 @@ import pytest
 
 from firmware_model import components as C
 from firmware_model import network as N
-from firmware_model.description import load_description
+from firmware_model.description import description_of, load_description
 from firmware_model.errors import ParameterError
 from firmware_model.parameters import PARAM_DIR, load_parameters
 from firmware_model.physics import geometry as G
@@ -51,19 +51,58 @@ def test_the_components_constants_are_the_description(both):
 
 def test_the_network_and_geometry_constants_are_the_description(both):
     d, p = both
-    assert {s.id: tuple(g.id for g in s.segments) for s in d.shafts} == N.SHAFT_SEGMENTS
+    # what network.py and geometry.py held as constants before they were built from the description
+    assert {s.id: tuple(g.id for g in s.segments) for s in d.shafts} == {
+        "IS": ("IS@bulk", "IS@BIF", "IS@LI"),
+        "LS": ("LS@BLF", "LS@LL", "LS@3L", "LS@2L", "LS@1L", "LS@CL", "LS@RL", "LS@BLR"),
+        "MS": ("MS@BIM", "MS@3M", "MS@2M", "MS@1M", "MS@CM", "MS@RM", "MS@BMR", "MS@PS"),
+        "OS": ("OS@carrier", "OS@bulk", "OS@BO", "OS@EY"),
+    }
     shaft_bearings = [b for b in d.bearings if b.wheel is None]
-    assert {b.id: b.segment for b in shaft_bearings} == N.SEGMENT_OF_BEARING
-    assert {w.id: w.segment for w in d.wheels if w.mount == "idle"} == N.SEGMENT_OF_IDLE_WHEEL
-    assert {h.id: h.material for h in d.housings} == N.HOUSING_MATERIAL
+    assert {b.id: b.segment for b in shaft_bearings} == {
+        "BIF": "IS@BIF",
+        "BLF": "LS@BLF",
+        "BLR": "LS@BLR",
+        "BIM": "MS@BIM",
+        "BMR": "MS@BMR",
+        "BO": "OS@BO",
+    }
+    assert {w.id: w.segment for w in d.wheels if w.mount == "idle"} == {
+        "LI": "IS@LI",
+        **{w: f"MS@{w}" for w in C.IDLE_WHEELS[1:]},
+    }
+    assert {h.id: h.material for h in d.housings} == {"H1": "aluminium", "H2": "cast_iron", "H3": "aluminium"}
     assert tuple(b.id for b in d.boundaries) == N.BOUNDARIES
-    assert {b.id: b.shaft for b in shaft_bearings} == G.SHAFT_OF_BEARING
-    assert {b.id: b.housing for b in shaft_bearings if b.housing} == G.HOUSING_OF_BEARING
+    # what geometry.py held as constants before it was built from the description
+    assert {b.id: b.shaft for b in shaft_bearings} == {
+        "BIF": "IS",
+        "BLF": "LS",
+        "BLR": "LS",
+        "BIM": "MS",
+        "BMR": "MS",
+        "BO": "OS",
+    }
+    assert {b.id: b.housing for b in shaft_bearings if b.housing} == {
+        "BIF": "H1",
+        "BLF": "H1",
+        "BLR": "H2",
+        "BMR": "H2",
+        "BO": "H3",
+    }
     assert {b.id: b.inside for b in shaft_bearings if b.inside} == {"BIM": "IS@LI"}  # network: the pilot bearing
-    assert tuple(w.id for w in d.wheels if w.mount == "cut") == G.CUT_WHEELS
-    # positions and ends of the segments as the network computes them, bit for bit
+    assert tuple(w.id for w in d.wheels if w.mount == "cut") == ("1L", "CL", "RL")
+    # positions and ends of the segments as the network computed them from the parameters, bit for bit
     geo = G.build_geometry(p)
-    pos, ends = N._segment_positions(p, geo.wheels)
+    W = geo.wheels
+    pos = {
+        "IS": [0.0, p["bearing.BIF.x"], W["LI"].x],
+        "LS": [p["shaft.LS.x_BLF"]] + [W[w].x for w in C.LAYSHAFT_WHEELS] + [p["shaft.LS.x_BLR"]],
+        "MS": [p["bearing.BIM.x"]] + [W[w].x for w in C.IDLE_WHEELS[1:]] + [p["bearing.BMR.x"], p["shaft.MS.x_PS"]],
+        "OS": [p["shaft.OS.x_carrier"], p["shaft.OS.x_bulk"], p["shaft.OS.x_BO"], p["shaft.OS.x_EY"]],
+    }
+    ends = {"IS": (p["shaft.IS.x_front"], p["shaft.IS.x_rear"])}
+    for s in ("LS", "MS", "OS"):
+        ends[s] = (pos[s][0] - p[f"shaft.{s}.overhang_front"], pos[s][-1] + p[f"shaft.{s}.overhang_rear"])
     assert {s.id: [g.x_m for g in s.segments] for s in d.shafts} == pos
     assert {s.id: (s.front_m, s.rear_m) for s in d.shafts} == ends
     for w in d.wheels:
@@ -480,3 +519,90 @@ def test_a_calibrated_parameter_file_keeps_the_description(tmp_path):
     d, ref = load_description(f), load_description("GRS905")
     assert d.nodes == ref.nodes and [g.ratio for g in d.gears] == [g.ratio for g in ref.gears]
     assert d.wheel("LI").x_m == 0.09 and d.provenance["topology.wheel.LI.x"] == "fitted"
+
+
+def test_the_geometry_is_built_from_the_description(tmp_path):
+    """A file that inherits the GRS905 and mounts the layshaft's first-gear wheel on it instead of cutting it into
+    it gets a wheel with the shaft inside (no cut-wheel web), and its meshes from the description's."""
+    (tmp_path / "fixed_1L.toml").write_text(
+        '[meta]\ninherit = "GRS905"\n[topology.wheel.1L]\nmount = { v = "fixed", u = "-", src = "assumed" }\n'
+    )
+    p0, p1 = load_parameters("GRS905"), load_parameters(tmp_path / "fixed_1L.toml")
+    g0, g1 = G.build_geometry(p0), G.build_geometry(p1)
+    R_ls = p0["shaft.LS.d_out"] / 2
+    assert g0.wheels["1L"].R_in > R_ls and g1.wheels["1L"].R_in == R_ls
+    assert g1.wheels["CL"] == g0.wheels["CL"] and g1.meshes == g0.meshes
+    assert set(g0.meshes) == {m.id for m in load_description("GRS905").meshes}
+
+
+def test_a_parameter_sets_description_follows_its_overrides():
+    p = load_parameters("GRS905")
+    q = p.with_overrides({"gear.3.width1": 0.035}).with_cooler_kind("none")
+    assert description_of(p) == load_description("GRS905")
+    assert description_of(q).wheel("3M").width_m == 0.035 and description_of(q).wheel("3L").width_m == 0.04
+    assert (
+        G.build_geometry(q).meshes["3"].face_width_m == 0.035 and G.build_geometry(p).meshes["3"].face_width_m == 0.04
+    )
+
+
+def test_the_network_is_built_from_the_description(tmp_path):
+    """A file that inherits the GRS905 and changes its description (the bearing housing cast iron, the end yoke's
+    conductance, the end yoke segment 10 mm further back) gets a network that follows; nothing else changes."""
+    p0 = load_parameters("GRS905")
+    x_ey = p0["shaft.OS.x_EY"] + 0.01
+    (tmp_path / "changed.toml").write_text(
+        '[meta]\ninherit = "GRS905"\n'
+        '[topology.housing.H3]\nmaterial = { v = "cast_iron", u = "-", src = "assumed" }\n'
+        '[topology.boundary.end_yoke]\nconductance = { v = 7.5, u = "W/K", src = "assumed" }\n'
+        f'[topology.shaft.OS.x]\n"OS@EY" = {{ v = {x_ey!r}, u = "m", src = "assumed" }}\n'
+    )
+    n0, n1 = N.build_network(p0), N.build_network(load_parameters(tmp_path / "changed.toml"))
+    i_h3 = n0.nodes.index("H3")
+    assert n1.C_j_per_k[i_h3] == p0["housing.mass_H3"] * p0["material.cast_iron.cp"] != n0.C_j_per_k[i_h3]
+    k_ey = n1.link_name.index("bc:OS@EY-end_yoke")
+    assert n1.link_G0[k_ey] == 7.5 and n0.link_G0[k_ey] == p0["housing.G_OS_endyoke"]
+    assert n1.segment_length_m["OS@EY"] > n0.segment_length_m["OS@EY"]
+    assert n1.segment_length_m["IS@LI"] == n0.segment_length_m["IS@LI"] and n1.nodes == n0.nodes
+
+
+def test_a_description_with_other_boundaries_is_one_sentence(tmp_path):
+    text = (PARAM_DIR / "GRS905.toml").read_text().replace("[topology.boundary.ambient]", "[topology.boundary.air]")
+    (tmp_path / "other_boundaries.toml").write_text(text)
+    p = load_parameters(tmp_path / "other_boundaries.toml")
+    with pytest.raises(ParameterError, match=r"^other_boundaries.toml: topology.boundary lists .*, air; the plant"):
+        N.build_network(p)
+
+
+def test_what_dips_and_what_is_splashed_comes_from_the_description(tmp_path):
+    """A file whose reverse idler and rear layshaft bearing no longer dip, whose output bearing is not splashed and
+    whose crawler wheel has covered sides: the network's immersion and splash links follow."""
+    dips = '["LL", "3L", "2L", "1L", "CL", "RL", "BLF"]'
+    splashed = '["LI.teeth", "3M.teeth", "2M.teeth", "1M.teeth", "CM.teeth", "RM.teeth", "OS@bulk", "PR", "BIF", '
+    splashed += '"BLF", "BLR", "BMR"]'
+    (tmp_path / "oil.toml").write_text(
+        '[meta]\ninherit = "GRS905"\n'
+        f'[topology.oil]\ndipping = {{ v = {dips}, u = "-", src = "assumed" }}\n'
+        f'splashed = {{ v = {splashed}, u = "-", src = "assumed" }}\n'
+        '[topology.wheel.CM]\nsides = { v = "covered", u = "-", src = "assumed" }\n'
+    )
+    n0, n1 = N.build_network(load_parameters("GRS905")), N.build_network(load_parameters(tmp_path / "oil.toml"))
+    gone = set(n0.link_name) - set(n1.link_name)
+    assert gone == {"imm:RI", "imm:BLR", "bsplash:BO"} and set(n1.link_name) <= set(n0.link_name)
+    k_cm, k_rm = n0.link_name.index("splash:CM.teeth"), n0.link_name.index("splash:RM.teeth")
+    g1 = dict(zip(n1.link_name, n1.link_G0))
+    assert g1["splash:CM.teeth"] < n0.link_G0[k_cm] and g1["splash:RM.teeth"] == n0.link_G0[k_rm]
+
+
+def test_what_the_pumped_oil_reaches_comes_from_the_description(tmp_path):
+    """A file whose pump no longer feeds the main shaft's rear segment, the pilot bearing and one needle bearing
+    loses exactly those oil-system streams."""
+    d = load_description("GRS905")
+    jets = [j for j in d.oil.jets if j not in ("MS@PS", "BIM", "CB")]
+    (tmp_path / "jets.toml").write_text(
+        f'[meta]\ninherit = "GRS905"\n[topology.oil]\njets = {{ v = {jets!r}, u = "-", src = "assumed" }}\n'.replace(
+            "'", '"'
+        )
+    )
+    n0, n1 = N.build_network(load_parameters("GRS905")), N.build_network(load_parameters(tmp_path / "jets.toml"))
+    assert set(n0.link_name) - set(n1.link_name) == {"oilsys:MS@PS", "oilsys:BIM", "oilsys:CB"}
+    assert set(n1.link_name) <= set(n0.link_name)

@@ -165,7 +165,7 @@ def test_fine_partition_keeps_every_node_and_the_total_heat_capacity(rp, full):
 
 def test_compact_partition_is_an_aggregation(params, full):
     net = full[0]
-    agg = R.aggregate(net, R.PARTITIONS["compact"])
+    agg = R.aggregate(net, R.PARTITIONS["compact"](net.geometry.description))
     assert len(agg.nodes) <= 41 and all(c in agg.nodes for c in PUBLISHED)
     assert float(agg.C.sum()) == pytest.approx(float(net.C_j_per_k.sum()), rel=1e-12)
     assert agg.C[agg.nodes.index("MS")] == pytest.approx(
