@@ -45,7 +45,6 @@ import numpy as np
 import pytest
 
 from can_dbc.adapter import decode_outputs, default_source, pgn_of
-from tests.tools.vcan_helpers import VM_HIDDEN
 from tools.vcan_vm import harness as vcan_vm
 
 #: the sensor's source address (the DBC's)
@@ -104,6 +103,14 @@ else
 fi
 wait $answered
 sleep 2  # the step or two after the counted ones
+kill $dump
+wait $dump
+cp /tmp/rec.log rec.log
+echo "recorded $(wc -l < rec.log) frames"
+stamp drive recorded
+"""
+#: after the drive (and the faults, test_vcan_faults.py): SIGTERM, a bounded wait for the exit, then SIGABRT
+SHUTDOWN_SCRIPT = r"""
 kill -TERM $svc
 deadline=$(( $(now) + EXIT_TIMEOUT_S ))
 while kill -0 $svc 2>/dev/null && [ "$(now)" -le $deadline ]; do sleep 0.2; done
@@ -113,10 +120,6 @@ fi
 wait $svc
 echo $? > run.rc
 stamp service exited
-kill $dump
-wait $dump
-cp /tmp/rec.log rec.log
-echo "recorded $(wc -l < rec.log) frames"
 stamp script end
 """
 #: VM phases: (label, first stamp, last stamp)
@@ -124,7 +127,8 @@ PHASES = (
     ("service start-up", "script start", "service listening"),
     ("canplayer", "service listening", "canplayer done"),
     ("catch-up", "canplayer done", "service caught up"),
-    ("shutdown", "service caught up", "script end"),
+    ("faults (test_vcan_faults.py)", "drive recorded", "faults done"),
+    ("shutdown", "faults done", "service exited"),
 )
 
 
@@ -183,18 +187,11 @@ def _phases(script_output: str) -> dict:
     return {label: stamps[b] - stamps[a] for label, a, b in PHASES if a in stamps and b in stamps}
 
 
-@pytest.fixture(scope="module")
-def vm_run(tmp_path_factory):
-    reason = _skip_reason()
-    if reason:
-        pytest.skip(reason)
-    import time
-
+def prepare_drive(share: Path) -> tuple[tuple, dict]:
+    """The drive's log, vm.toml and its limits in ``share``: (the offline replay of the log, the script's env)."""
     from tools.cycles.named import get_cycle
     from tools.runtable import RunTable, write_run_table
 
-    t0 = time.monotonic()
-    share = tmp_path_factory.mktemp("vcan-e2e")
     table = get_cycle("uphill")
     keep = table["time_s"] <= DRIVE_S
     write_run_table(RunTable({c: table[c][keep] for c in table.columns}), share / "cycle.csv")
@@ -237,18 +234,22 @@ def vm_run(tmp_path_factory):
         "CATCH_UP_TIMEOUT_S": str(CATCH_UP_TIMEOUT_S),
         "EXIT_TIMEOUT_S": str(EXIT_TIMEOUT_S),
     }
-    t1 = time.monotonic()
-    try:
-        res = vcan_vm.run_in_vm(VM_SCRIPT, timeout_s=VM_TIMEOUT_S, share_dir=share, env=vm_env, hide_modules=VM_HIDDEN)
-    except vcan_vm.VMUnavailable as exc:
-        pytest.skip(f"vcan VM unavailable: {exc.reason}")
-    phases = _phases(res.script_output)
+    return offline, vm_env
+
+
+def print_timings(res, host_s: float) -> None:
     print(
-        f"\nvcan e2e timings: host preparation {t1 - t0:.1f} s; VM {res.total_s:.1f} s: "
+        f"\nvcan e2e timings: host preparation {host_s:.1f} s; VM {res.total_s:.1f} s: "
         f"boot {res.boot_s or 0:.1f} s ({res.boot_attempts} boot(s)), "
-        + ", ".join(f"{k} {v:.1f} s" for k, v in phases.items())
+        + ", ".join(f"{k} {v:.1f} s" for k, v in _phases(res.script_output).items())
     )
-    assert res.returncode == 0, res.script_output[-3000:]
+
+
+@pytest.fixture(scope="module")
+def vm_run(vcan_service_run):
+    """One VM boot and one service for this drive and then the faults of test_vcan_faults.py (tests/tools/conftest.py:
+    the service's start-up under TCG is most of each VM test's time)."""
+    share, res, offline = vcan_service_run
     return share, res, offline
 
 
