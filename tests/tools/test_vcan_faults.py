@@ -12,17 +12,21 @@ down (`ip link set vcan0 down`) for 10 s and comes back up, then the drive goes 
   counted and logged at most once per 10 s, never fatal; the sensor publishes every step again once it drains.
 
 Marked `vcan`; skipped, naming what is missing, without QEMU, the Debian kernel, busybox-static or can-utils
-(`python -m tools.vcan_vm install`, root). About 3 minutes (the service's start-up under TCG emulation dominates).
+(`python -m tools.vcan_vm install`, root). The service is the one of test_vcan_e2e.py, started once in one VM boot
+for both (tests/tools/conftest.py): it follows this steady drive after that test's uphill drive (the same vm.toml:
+stale_factor 10, and a lower sun-wheel warning limit, which changes no check here). About 1.5 minutes more than that
+test alone.
 """
 
 from __future__ import annotations
+
+from pathlib import Path
 
 import can
 import pytest
 
 from can_dbc.adapter import default_source, pgn_of
-from tests.tools.vcan_helpers import VM_HIDDEN, skip_without_vm, steady_drive_log
-from tools.vcan_vm import harness as vcan_vm
+from tests.tools.vcan_helpers import steady_drive_log
 
 pytestmark = pytest.mark.vcan
 
@@ -34,24 +38,11 @@ DOWN_S = 10
 FREE_S = 5.0
 FULL_S = 5.0
 
-VM_SCRIPT = r"""
-set -u
-cd "$VM_SHARE"
-stamp() { echo "@ $(cut -d' ' -f1 /proc/uptime) $*"; }
-now() { cut -d. -f1 /proc/uptime; }
+#: run in the VM after the drive of test_vcan_e2e.py, by the same service (tests/tools/conftest.py: one boot and one
+#: service start-up for both), before its shutdown
+FAULTS_SCRIPT = r"""
 candump -L -r 8388608 vcan0 > /tmp/rec1.log 2> candump1.err &
 dump=$!
-"$VM_PYTHON" -X faulthandler -m tools.cli run --interface socketcan --channel vcan0 --config vm.toml \
-    --log-level INFO 2> run.err &
-svc=$!
-deadline=$(( $(now) + 420 ))
-while ! grep -q "listening on socketcan" run.err; do
-    sleep 0.5
-    if [ "$(now)" -gt $deadline ] || ! kill -0 $svc 2>/dev/null; then
-        stamp "service did not start"; cat run.err; exit 3
-    fi
-done
-stamp service listening
 canplayer -I part1.log vcan0=can0
 sleep 1
 stamp down
@@ -78,24 +69,17 @@ if [ $tbf = 1 ]; then tc qdisc del dev vcan0 root; fi
 stamp queue free
 canplayer -I part2c.log vcan0=can0
 sleep 2
-kill -TERM $svc
-deadline=$(( $(now) + 60 ))
-while kill -0 $svc 2>/dev/null && [ "$(now)" -le $deadline ]; do sleep 0.2; done
-if kill -0 $svc 2>/dev/null; then stamp "service still running 60 s after SIGTERM"; kill -ABRT $svc; fi
-wait $svc
-echo $? > run.rc
 kill $dump
 wait $dump
 cp /tmp/rec1.log rec1.log; cp /tmp/rec2.log rec2.log
-stamp script end
+stamp faults done
 """
 
 
-@pytest.fixture(scope="module")
-def vm_run(tmp_path_factory):
-    skip_without_vm()
-    share = tmp_path_factory.mktemp("vcan-faults")
-    lines = steady_drive_log(share, 2 * PART_S).read_text().splitlines()
+def prepare_faults(share: Path) -> dict:
+    """The steady drive cut into its parts (part1.log, part2a-c.log) in ``share``; the script's env."""
+    (share / "steady").mkdir()
+    lines = steady_drive_log(share / "steady", 2 * PART_S).read_text().splitlines()
     t = [float(line.split(")")[0].lstrip("(")) for line in lines]
     (share / "part1.log").write_text("\n".join(x for x, ti in zip(lines, t) if ti - t[0] < PART_S) + "\n")
     edges = {
@@ -105,14 +89,13 @@ def vm_run(tmp_path_factory):
     }
     for name, (a, b) in edges.items():
         (share / f"{name}.log").write_text("\n".join(x for x, ti in zip(lines, t) if a <= ti - t[0] < b) + "\n")
-    (share / "vm.toml").write_text("[can]\nstale_factor = 10\n")
-    try:
-        res = vcan_vm.run_in_vm(
-            VM_SCRIPT, timeout_s=900, share_dir=share, env={"DOWN_S": str(DOWN_S)}, hide_modules=VM_HIDDEN
-        )
-    except vcan_vm.VMUnavailable as exc:
-        pytest.skip(f"vcan VM unavailable: {exc.reason}")
-    assert res.returncode == 0, res.script_output[-3000:]
+    return {"DOWN_S": str(DOWN_S)}
+
+
+@pytest.fixture(scope="module")
+def vm_run(vcan_service_run):
+    """The service of test_vcan_e2e.py's drive, which then follows this steady drive (tests/tools/conftest.py)."""
+    share, res, _ = vcan_service_run
     return share, res
 
 

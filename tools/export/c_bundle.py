@@ -104,7 +104,11 @@ def reference_vectors(sensor, params, steps: int = VECTOR_STEPS, every: int = VE
     from tools.plant.reference import ReferencePlant
     from tools.replay.table import table_steps
 
-    plant = ReferencePlant(params).run(get_cycle("uphill"), progress=False).table
+    # the plant over the vectors' span only (plus 10 s), not the cycle's 2 h: the steps it gives are the same, bit
+    # for bit (the plant integrates forward from the cycle's initial temperature, kept in its meta)
+    cycle = get_cycle("uphill")
+    t_s = np.asarray(cycle["time_s"])
+    plant = ReferencePlant(params).run(cycle.select(t_s <= t_s[0] + steps * sensor.dt_s + 10.0), progress=False).table
     _, data = table_steps(plant, sensor.dt_s)
     raw = np.array(data[:steps, :8], dtype=float)
     rng = np.random.default_rng(905)

@@ -714,6 +714,7 @@ def run_in_vm(
     if share == Path("/"):
         raise ValueError("share_dir must not be /")
     inner_timeout = max(5, int(timeout_s - _BOOT_MARGIN_S))
+    _compile_repo()
     with tempfile.TemporaryDirectory(prefix="vcan-vm-ctl-") as ctl_name:
         ctl = Path(ctl_name)
         _write_control(ctl, script, share, env, hide_modules, init, inner_timeout)
@@ -731,6 +732,24 @@ def run_in_vm(
     return VMResult(
         returncode=rc, output=output, share_dir=share, boot_s=boot_s, total_s=total_s, boot_attempts=attempt, smp=cpus
     )
+
+
+#: the repo's packages the VM's Python imports (``python -m tools.cli``)
+_REPO_PACKAGES = ("firmware_model", "can_dbc", "tools")
+
+
+def _compile_repo() -> None:
+    """The repo's bytecode next to its sources (``__pycache__``, as an import writes it), before the boot: the VM's
+    Python writes none (PYTHONDONTWRITEBYTECODE), so on a host that writes none either, each Python start in the VM
+    compiled every repo module it imported under TCG. A checkout that cannot be written is left as it is."""
+    import compileall
+
+    prefix, sys.pycache_prefix = sys.pycache_prefix, None  # the VM's Python reads __pycache__ beside the sources
+    try:
+        for name in _REPO_PACKAGES:
+            compileall.compile_dir(REPO_ROOT / name, quiet=2, workers=1)
+    finally:
+        sys.pycache_prefix = prefix
 
 
 def _write_control(
