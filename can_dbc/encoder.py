@@ -228,7 +228,8 @@ class OutputEncoder:
         *,
         timestamp_s: float = 0.0,
     ) -> list[can.Message]:
-        """The 16 periodic frames: GBX_TEMP_1..7, GBX_WARN, GBX_TTL_1..7, GBX_STATUS.
+        """The periodic frames: GBX_TEMP_1..k, GBX_WARN (or GBX_WARN_1..w), GBX_TTL_1..k, GBX_STATUS; 16 for the
+        GRS905's 28 components (k = 7).
 
         ``temps_c``: component -> degC, None/NaN when there is no valid estimate. ``levels``: 0 normal,
         1 warning, 2 critical, 3 or None not available. ``ttl_s``: seconds to the warning limit, ``math.inf``

@@ -123,6 +123,9 @@ def test_another_description_loads_strictly_and_round_trips_every_component(r1, 
     loaded = dbc.load_dbc(out)
     assert loaded.published_components() == tuple(ids)
     _roundtrip(loaded, ids)
+    temp_2 = OutputEncoder(database=loaded).encode({"oil": 90.0}, {}, {}, {})[1]
+    assert bytes(temp_2.data)[6:] == b"\xff\xff"  # GBX_TEMP_2: B3, B4, oil; bytes 7-8 are fill
+    assert "B1 (" not in db.get_message_by_name("GBX_TEMP_1").get_signal_by_name("T_B1").comment  # no name: id only
     assert dbc.load_dbc(out.read_text(encoding="utf-8")).published_components() == tuple(ids)  # text, too
 
 

@@ -35,7 +35,7 @@ def component_meanings(description) -> dict:
     ``teeth of the <LI's name>``), else the GRS905 glossary's (firmware_model.components); None when neither knows."""
     from firmware_model.components import WHEEL_PARTS, meaning
 
-    names = description.names
+    names = {i: n for i, n in description.names.items() if n and n != i}  # a part named by its id says nothing
     out = {}
     for p in description.published:
         wheel, _, part = p.id.partition(".")
