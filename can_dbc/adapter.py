@@ -5,6 +5,8 @@ its own (python-can, cantools and the standard library; nothing of the sensor). 
 
 - ``can_dbc.j1939``: J1939 identifier arithmetic, value ranges, transport-protocol, EC1 and RC constants;
 - ``can_dbc.dbc``: the DBC, loaded once, and the layouts, PGNs, source addresses and component ids read from it;
+  :func:`load_dbc` another gearbox's;
+- ``can_dbc.generate``: :func:`generate_dbc`, a gearbox's DBC from its published components (``export-dbc``);
 - ``can_dbc.decoder``: :class:`J1939Decoder` (frames -> :class:`SignalUpdate`, every frame counted once);
 - ``can_dbc.encoder``: :class:`OutputEncoder` (the GBX_* frames), :class:`RigEncoder` / :func:`encode_rig`;
 - ``can_dbc.readback``: :func:`decode_outputs`, :func:`decode_rig`, the encoders' inverse through cantools;
@@ -17,11 +19,13 @@ from __future__ import annotations
 
 from can_dbc.dbc import (
     DBC_NAME,
+    CanDatabase,
     ComponentSignal,
     SignalLayout,
     default_source,
     fill_mask,
     load_database,
+    load_dbc,
     message_id,
     message_pgn,
     numbered_messages,
@@ -40,6 +44,7 @@ from can_dbc.decoder import (
 )
 from can_dbc.encoder import STATUS_KEYS, OutputEncoder, RigEncoder, encode_rig
 from can_dbc.errors import CanDbcError, ConfigError, DecodeError, EncodeError
+from can_dbc.generate import MAX_COMPONENTS, GenerateError, frame_layout, generate_dbc
 from can_dbc.j1939 import (
     EC1_PGN,
     GLOBAL_ADDRESS,
@@ -56,11 +61,13 @@ from can_dbc.readback import decode_outputs, decode_rig
 
 __all__ = [
     "DBC_NAME",
+    "CanDatabase",
     "ComponentSignal",
     "SignalLayout",
     "default_source",
     "fill_mask",
     "load_database",
+    "load_dbc",
     "message_id",
     "message_pgn",
     "numbered_messages",
@@ -78,6 +85,10 @@ __all__ = [
     "OutputEncoder",
     "RigEncoder",
     "encode_rig",
+    "MAX_COMPONENTS",
+    "GenerateError",
+    "frame_layout",
+    "generate_dbc",
     "CanDbcError",
     "ConfigError",
     "DecodeError",

@@ -14,6 +14,7 @@ import functools
 import math
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import NamedTuple
 
 import can
@@ -255,7 +256,9 @@ class J1939Decoder:
     accepts any source). Engine torque in Nm needs a reference torque: EC1 (SPN 544) once received, else
     ``configured_ref_torque_nm``; retarder torque in Nm likewise: RC (SPN 556, from the retarder's source address)
     once received, else the configured ``retarder_ref_torque_nm``. ``limits`` overrides
-    :data:`DEFAULT_LIMITS`. ``rig=True`` also decodes RIG_TC_* frames into ``meas_T_<id>_c``. Bad settings raise
+    :data:`DEFAULT_LIMITS`. ``rig=True`` also decodes RIG_TC_* frames into ``meas_T_<id>_c``. ``database``: the
+    gearbox's DBC (:func:`can_dbc.dbc.load_dbc`; None the shipped GRS905 DBC), whose RIG_TC_* frames and TP PGNs are
+    read; the J1939 inputs are every generated DBC's and are read from the shipped one. Bad settings raise
     ConfigError.
 
     ``counters``: ``frames_seen``, ``frames_used``, ``rejected`` (reason -> frames; seen = used + rejected),
@@ -278,8 +281,10 @@ class J1939Decoder:
         *,
         limits: Mapping[str, tuple[float, float]] | None = None,
         rig: bool = False,
+        database: dbc.CanDatabase | str | Path | None = None,
     ) -> None:
-        self.expected_sa: dict[str, int | None] = self._sources(expected_sa or {})
+        db = dbc.load_dbc(database)
+        self.expected_sa: dict[str, int | None] = self._sources(expected_sa or {}, db)
         self.retarder_ref_torque_nm = _check_ref_torque("retarder_ref_torque_nm", retarder_ref_torque_nm)
         self.configured_ref_torque_nm = _check_ref_torque("configured_ref_torque_nm", configured_ref_torque_nm)
         #: engine reference torque from the last EC1, retarder reference torque from the last RC; None until one
@@ -294,19 +299,19 @@ class J1939Decoder:
                     f"of {', '.join(DEFAULT_LIMITS)}"
                 )
             self.limits[name] = (bounds[0], bounds[1])
-        self._tp_cm_pgn = dbc.message_pgn("TP_CM")
-        self._tp_dt_pgn = dbc.message_pgn("TP_DT")
+        self._tp_cm_pgn = db.message_pgn("TP_CM")
+        self._tp_dt_pgn = db.message_pgn("TP_DT")
         self._routes: dict[int, _Route] = {}
         for m in input_messages():
             self._routes[m.pgn] = _Route(m.name, tuple(self._param(m.name, s, name) for name, s in m.signals))
         if rig:
-            for name in dbc.numbered_messages(RIG_PREFIX):
-                message = dbc.message(name)
+            for name in db.numbered_messages(RIG_PREFIX):
+                message = db.message(name)
                 params = tuple(
                     self._param(name, message.get_signal_by_name(c.signal_name), f"meas_T_{c.component}_c")
-                    for c in dbc.component_signals(name, 16)
+                    for c in db.component_signals(name, 16)
                 )
-                self._routes[dbc.message_pgn(name)] = _Route(RIG_KEY, params)
+                self._routes[db.message_pgn(name)] = _Route(RIG_KEY, params)
         self._sessions: dict[int, _Bam] = {}
         self.counters: dict = {
             "frames_seen": 0,
@@ -324,12 +329,12 @@ class J1939Decoder:
         self._arrivals.update({route.key: 0 for route in self._routes.values()})
 
     @staticmethod
-    def _sources(expected_sa: Mapping[str, int | None]) -> dict[str, int | None]:
+    def _sources(expected_sa: Mapping[str, int | None], db: dbc.CanDatabase) -> dict[str, int | None]:
         """The source address checked per message: the DBC's, overridden by ``expected_sa``."""
         source: dict[str, int | None] = {m.name: m.default_source for m in input_messages()}
-        source[EC1_KEY] = dbc.default_source("TP_CM")
-        source[RC_KEY] = dbc.default_source("ERC1")  # the retarder's own configuration
-        source[RIG_KEY] = dbc.default_source(dbc.numbered_messages(RIG_PREFIX)[0])
+        source[EC1_KEY] = db.default_source("TP_CM")
+        source[RC_KEY] = db.default_source("ERC1")  # the retarder's own configuration
+        source[RIG_KEY] = db.default_source(db.numbered_messages(RIG_PREFIX)[0])
         for name, value in expected_sa.items():
             if name not in source:
                 raise ConfigError(

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
+from pathlib import Path
 from typing import NamedTuple
 
 import can
@@ -125,16 +126,20 @@ class ComponentFrame(NamedTuple):
     signals: tuple[dbc.ComponentSignal, ...]
 
 
-def component_frame(name: str, source_address: int, length: int) -> ComponentFrame:
-    """Message ``name`` sent by ``source_address``, with its ``length``-bit per-component signals."""
-    return ComponentFrame(
-        dbc.message_id(name, source_address), dbc.fill_mask(name), dbc.component_signals(name, length)
-    )
+def component_frame(name: str, source_address: int, length: int, db: dbc.CanDatabase | None = None) -> ComponentFrame:
+    """Message ``name`` of ``db`` (None: the shipped DBC) sent by ``source_address``, with its ``length``-bit
+    per-component signals."""
+    db = db or dbc.shipped()
+    return ComponentFrame(db.message_id(name, source_address), db.fill_mask(name), db.component_signals(name, length))
 
 
-def component_frames(prefix: str, source_address: int, length: int = 16) -> tuple[ComponentFrame, ...]:
-    """The messages ``<prefix>1..N`` sent by ``source_address``, with their per-component signals."""
-    return tuple(component_frame(name, source_address, length) for name in dbc.numbered_messages(prefix))
+def component_frames(
+    prefix: str, source_address: int, length: int = 16, db: dbc.CanDatabase | None = None
+) -> tuple[ComponentFrame, ...]:
+    """The messages ``<prefix>1..N`` of ``db`` (None: the shipped DBC) sent by ``source_address``, with their
+    per-component signals."""
+    db = db or dbc.shipped()
+    return tuple(component_frame(name, source_address, length, db) for name in db.numbered_messages(prefix))
 
 
 def _pack_temperatures(
@@ -152,50 +157,53 @@ def _pack_temperatures(
 class OutputEncoder:
     """Encodes the sensor's outputs into GBX_TEMP_1..7, GBX_WARN, GBX_TTL_1..7, GBX_STATUS (and GBX_DM1).
 
-    ``source_address``: None = the DBC's (0xE5); ConfigError outside 0..253. Attributes: ``components``, the
+    ``source_address``: None = the DBC's (0xE5); ConfigError outside 0..253. ``database``: the DBC of the gearbox
+    (:func:`can_dbc.dbc.load_dbc`: a path, the text or a loaded one; None the shipped GRS905 DBC); its frames are the
+    ones sent (GBX_TEMP_1..k, GBX_WARN or GBX_WARN_1..w, GBX_TTL_1..k). Attributes: ``components``, the
     component ids in the order of every per-component signal (the DBC's ``ComponentId`` attributes);
     ``degraded_modes``, the DegradedMode value table without "not available"; ``dm1_spns``, the DTC SPN of each
     component.
     """
 
-    def __init__(self, source_address: int | None = None) -> None:
+    def __init__(self, source_address: int | None = None, database: dbc.CanDatabase | str | Path | None = None) -> None:
+        self._db = db = dbc.load_dbc(database)
         if source_address is None:
-            source_address = dbc.default_source("GBX_STATUS")
+            source_address = db.default_source("GBX_STATUS")
         self.source_address = check_source_address("source_address", source_address)
-        self.components = dbc.published_components()
-        self.degraded_modes = dbc.data_choices("GBX_STATUS", "DegradedMode")
-        self._mode_not_available = dbc.not_available_raw("GBX_STATUS", "DegradedMode")
-        self._temp = component_frames("GBX_TEMP_", self.source_address)
-        self._ttl = component_frames("GBX_TTL_", self.source_address)
+        self.components = db.published_components()
+        self.degraded_modes = db.data_choices("GBX_STATUS", "DegradedMode")
+        self._mode_not_available = db.not_available_raw("GBX_STATUS", "DegradedMode")
+        self._temp = component_frames("GBX_TEMP_", self.source_address, 16, db)
+        self._ttl = component_frames("GBX_TTL_", self.source_address, 16, db)
         for frame in self._ttl:
             if any((c.layout.scale, c.layout.offset) != (1.0, 0.0) for c in frame.signals):
                 raise DecodeError("DBC messages GBX_TTL_* must scale 1 s/bit with offset 0")
         first_ttl = self._ttl[0].signals[0].signal_name
-        self._ttl_never_raw = next(
-            raw for raw, name in dbc.choices("GBX_TTL_1", first_ttl).items() if name == TTL_NEVER
-        )
-        self._warn = component_frame("GBX_WARN", self.source_address, 2)
+        self._ttl_never_raw = next(raw for raw, name in db.choices("GBX_TTL_1", first_ttl).items() if name == TTL_NEVER)
+        self._warn = tuple(component_frame(name, self.source_address, 2, db) for name in db.warn_messages())
         self._init_status()
         self._init_dm1()
 
     def _init_status(self) -> None:
-        self._status_id = dbc.message_id("GBX_STATUS", self.source_address)
-        self._status_fill = dbc.fill_mask("GBX_STATUS")
+        db = self._db
+        self._status_id = db.message_id("GBX_STATUS", self.source_address)
+        self._status_fill = db.fill_mask("GBX_STATUS")
         self._status_flags = tuple(
-            (key, dbc.signal_layout("GBX_STATUS", sig, 2).start_bit) for key, sig in STATUS_FLAG_SIGNALS
+            (key, db.signal_layout("GBX_STATUS", sig, 2).start_bit) for key, sig in STATUS_FLAG_SIGNALS
         )
-        self._max_level_start = dbc.signal_layout("GBX_STATUS", "MaxWarnLevel", 2).start_bit
-        self._mode_start = dbc.signal_layout("GBX_STATUS", "DegradedMode", 4).start_bit
-        self._innovation = dbc.signal_layout("GBX_STATUS", "OilInnovation", 16)
-        self._model_oil = dbc.signal_layout("GBX_STATUS", "ModelOilTemp", 16)
-        self._counter_start = dbc.signal_layout("GBX_STATUS", "RollingCounter", 8).start_bit
+        self._max_level_start = db.signal_layout("GBX_STATUS", "MaxWarnLevel", 2).start_bit
+        self._mode_start = db.signal_layout("GBX_STATUS", "DegradedMode", 4).start_bit
+        self._innovation = db.signal_layout("GBX_STATUS", "OilInnovation", 16)
+        self._model_oil = db.signal_layout("GBX_STATUS", "ModelOilTemp", 16)
+        self._counter_start = db.signal_layout("GBX_STATUS", "RollingCounter", 8).start_bit
         self._counter = 0
 
     def _init_dm1(self) -> None:
-        self._dm1_id = dbc.message_id("GBX_DM1", self.source_address)
-        self._dm1_fill = dbc.fill_mask("GBX_DM1") | (0xFF << 8)  # + byte 2: do not flash
+        db = self._db
+        self._dm1_id = db.message_id("GBX_DM1", self.source_address)
+        self._dm1_fill = db.fill_mask("GBX_DM1") | (0xFF << 8)  # + byte 2: do not flash
         self._dm1 = {
-            sig: dbc.signal_layout("GBX_DM1", sig, length).start_bit
+            sig: db.signal_layout("GBX_DM1", sig, length).start_bit
             for sig, length in (
                 ("AmberWarningLampStatus", 2),
                 ("RedStopLampStatus", 2),
@@ -206,7 +214,7 @@ class OutputEncoder:
             )
         }
         #: the DTC SPN of each component: the SPN the DBC gives its GBX_TEMP signal
-        temp_spns = {s.name: s.spn for name in dbc.numbered_messages("GBX_TEMP_") for s in dbc.message(name).signals}
+        temp_spns = {s.name: s.spn for name in db.numbered_messages("GBX_TEMP_") for s in db.message(name).signals}
         self.dm1_spns = {c.component: temp_spns[c.signal_name] for frame in self._temp for c in frame.signals}
         self._dm1_occurrences: dict[tuple[str, int], int] = {}
         self._dm1_active: set[tuple[str, int]] = set()
@@ -220,7 +228,8 @@ class OutputEncoder:
         *,
         timestamp_s: float = 0.0,
     ) -> list[can.Message]:
-        """The 16 periodic frames: GBX_TEMP_1..7, GBX_WARN, GBX_TTL_1..7, GBX_STATUS.
+        """The periodic frames: GBX_TEMP_1..k, GBX_WARN (or GBX_WARN_1..w), GBX_TTL_1..k, GBX_STATUS; 16 for the
+        GRS905's 28 components (k = 7).
 
         ``temps_c``: component -> degC, None/NaN when there is no valid estimate. ``levels``: 0 normal,
         1 warning, 2 critical, 3 or None not available. ``ttl_s``: seconds to the warning limit, ``math.inf``
@@ -228,14 +237,14 @@ class OutputEncoder:
         published are ignored. ``status``: keys :data:`STATUS_KEYS` (EncodeError on any other key).
         """
         frames = _pack_temperatures(self._temp, temps_c, timestamp_s)
-        payload = self._warn.fill_mask
         max_level = LEVEL_NOT_AVAILABLE
-        for component, _, layout in self._warn.signals:
-            level = _level(levels.get(component), f"levels[{component!r}]")
-            if level != LEVEL_NOT_AVAILABLE and (max_level == LEVEL_NOT_AVAILABLE or level > max_level):
-                max_level = level
-            payload |= level << layout.start_bit
-        frames.append(_frame(self._warn.can_id, payload, timestamp_s))
+        for can_id, payload, signals in self._warn:
+            for component, _, layout in signals:
+                level = _level(levels.get(component), f"levels[{component!r}]")
+                if level != LEVEL_NOT_AVAILABLE and (max_level == LEVEL_NOT_AVAILABLE or level > max_level):
+                    max_level = level
+                payload |= level << layout.start_bit
+            frames.append(_frame(can_id, payload, timestamp_s))
         never_raw = self._ttl_never_raw
         for can_id, fill, signals in self._ttl:
             payload = fill
@@ -339,13 +348,15 @@ class OutputEncoder:
 
 
 class RigEncoder:
-    """Encodes rig thermocouple temperatures into RIG_TC_1..7 (source address: None = the DBC's, 0xF0)."""
+    """Encodes rig thermocouple temperatures into RIG_TC_1..7 (source address: None = the DBC's, 0xF0; ``database``:
+    the gearbox's DBC as for :class:`OutputEncoder`)."""
 
-    def __init__(self, source_address: int | None = None) -> None:
+    def __init__(self, source_address: int | None = None, database: dbc.CanDatabase | str | Path | None = None) -> None:
+        db = dbc.load_dbc(database)
         if source_address is None:
-            source_address = dbc.default_source(dbc.numbered_messages("RIG_TC_")[0])
+            source_address = db.default_source(db.numbered_messages("RIG_TC_")[0])
         self.source_address = check_source_address("source_address", source_address)
-        self._frames = component_frames("RIG_TC_", self.source_address)
+        self._frames = component_frames("RIG_TC_", self.source_address, 16, db)
 
     def encode(self, temps_c: Mapping[str, float | None], *, timestamp_s: float = 0.0) -> list[can.Message]:
         """Seven frames; a component missing, None or NaN is sent as not available."""

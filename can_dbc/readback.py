@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterable
+from pathlib import Path
 
 import can
 import cantools
@@ -16,18 +17,18 @@ from can_dbc.errors import DecodeError
 from can_dbc.j1939 import pgn_of, source_key
 
 
-def _messages_by_pgn(prefixes: tuple[str, ...]) -> dict[int, object]:
-    return {pgn_of(m.frame_id): m for m in dbc.load_database().messages if m.name.startswith(prefixes)}
+def _messages_by_pgn(prefixes: tuple[str, ...], db: dbc.CanDatabase) -> dict[int, object]:
+    return {pgn_of(m.frame_id): m for m in db.database.messages if m.name.startswith(prefixes)}
 
 
 def _temperature(value: object) -> float | None:
     return None if isinstance(value, NamedSignalValue) else float(value)
 
 
-def _decoded(msgs: Iterable[can.Message], prefixes: tuple[str, ...], source_address: int | None):
+def _decoded(msgs: Iterable[can.Message], prefixes: tuple[str, ...], source_address: int | None, db: dbc.CanDatabase):
     """``(message, values)`` of every data frame of a PGN of the messages named ``prefixes*`` (from
     ``source_address`` only, if given), decoded with their value tables; DecodeError if cantools cannot."""
-    messages = _messages_by_pgn(prefixes)
+    messages = _messages_by_pgn(prefixes, db)
     for msg in msgs:
         if not msg.is_extended_id or msg.is_error_frame or msg.is_remote_frame:
             continue
@@ -52,8 +53,8 @@ def _ttl(value: object) -> float | None:
     return float(value)
 
 
-def _status(values) -> dict:
-    modes = dbc.data_choices("GBX_STATUS", "DegradedMode")
+def _status(values, db: dbc.CanDatabase) -> dict:
+    modes = db.data_choices("GBX_STATUS", "DegradedMode")
     status = {key: {0: False, 1: True}.get(values[sig].value) for key, sig in STATUS_FLAG_SIGNALS}
     mode = values["DegradedMode"]
     status["degraded_mode"] = mode.value if mode.value in modes else None
@@ -84,8 +85,13 @@ def _dm1(values, component_of_spn: dict[int, str]) -> dict:
     }
 
 
-def decode_outputs(msgs: Iterable[can.Message], source_address: int | None = None) -> dict:
-    """Decode GBX_* frames (matched by PGN; from ``source_address`` only, if given) with cantools.
+def decode_outputs(
+    msgs: Iterable[can.Message],
+    source_address: int | None = None,
+    database: dbc.CanDatabase | str | Path | None = None,
+) -> dict:
+    """Decode GBX_* frames (matched by PGN; from ``source_address`` only, if given) with cantools and the gearbox's
+    DBC ``database`` (:func:`can_dbc.dbc.load_dbc`; None the shipped GRS905 DBC).
 
     Returns the keys present among ``temps_c`` (component -> degC or None), ``levels`` (component -> 0..3),
     ``ttl_s`` (component -> s, math.inf never, None not available), ``status`` (the keys of
@@ -93,30 +99,36 @@ def decode_outputs(msgs: Iterable[can.Message], source_address: int | None = Non
     one whose GBX_TEMP signal has the DTC's SPN). The last frame of a kind wins. Raises DecodeError for a frame of a
     GBX PGN that cantools cannot decode.
     """
+    db = dbc.load_dbc(database)
     component_of_spn = {
-        s.spn: dbc.component_of(s) for name in dbc.numbered_messages("GBX_TEMP_") for s in dbc.message(name).signals
+        s.spn: dbc.component_of(s) for name in db.numbered_messages("GBX_TEMP_") for s in db.message(name).signals
     }
     result: dict = {}
-    for message, values in _decoded(msgs, ("GBX_",), source_address):
+    for message, values in _decoded(msgs, ("GBX_",), source_address, db):
         name = message.name
         if name.startswith("GBX_TEMP_"):
             result.setdefault("temps_c", {}).update(
                 {c: _temperature(v) for c, v in _by_component(message, values).items()}
             )
-        elif name == "GBX_WARN":
-            result["levels"] = {c: int(v.value) for c, v in _by_component(message, values).items()}
+        elif name == "GBX_WARN" or name.startswith("GBX_WARN_"):
+            result.setdefault("levels", {}).update({c: int(v.value) for c, v in _by_component(message, values).items()})
         elif name.startswith("GBX_TTL_"):
             result.setdefault("ttl_s", {}).update({c: _ttl(v) for c, v in _by_component(message, values).items()})
         elif name == "GBX_STATUS":
-            result["status"] = _status(values)
+            result["status"] = _status(values, db)
         elif name == "GBX_DM1":
             result["dm1"] = _dm1(values, component_of_spn)
     return result
 
 
-def decode_rig(msgs: Iterable[can.Message], source_address: int | None = None) -> dict[str, float | None]:
-    """Decode RIG_TC_* frames (matched by PGN; from ``source_address`` only, if given): component -> degC or None."""
+def decode_rig(
+    msgs: Iterable[can.Message],
+    source_address: int | None = None,
+    database: dbc.CanDatabase | str | Path | None = None,
+) -> dict[str, float | None]:
+    """Decode RIG_TC_* frames (matched by PGN; from ``source_address`` only, if given) with the gearbox's DBC
+    ``database`` (None: the shipped one): component -> degC or None."""
     result: dict[str, float | None] = {}
-    for message, values in _decoded(msgs, ("RIG_TC_",), source_address):
+    for message, values in _decoded(msgs, ("RIG_TC_",), source_address, dbc.load_dbc(database)):
         result.update({c: _temperature(v) for c, v in _by_component(message, values).items()})
     return result

@@ -27,6 +27,7 @@ MINIMAL = {
     "service-unit": [],
     "fleet": ["logs/", "--out", "fleet_out"],
     "describe": [],
+    "export-dbc": [],
 }
 SUBCOMMANDS = build_parser().subcommands
 

@@ -41,9 +41,10 @@ def test_at_least_a_third_fewer_options_on_the_command_line():
 
 
 def test_a_later_subcommand_keeps_to_the_minimum():
-    """describe (issue 45) has one option: which gearbox."""
-    assert set(SUBCOMMANDS) - ISSUE44_SUBCOMMANDS == {"describe"}
+    """describe (issue 45) has one option: which gearbox; export-dbc (issue 45) two: which gearbox, which file."""
+    assert set(SUBCOMMANDS) - ISSUE44_SUBCOMMANDS == {"describe", "export-dbc"}
     assert [a.option_strings for a in visible(SUBCOMMANDS["describe"])] == [["--gearbox"]]
+    assert [a.option_strings for a in visible(SUBCOMMANDS["export-dbc"])] == [["--gearbox"], ["--out"]]
 
 
 @pytest.mark.parametrize("name", sorted(SUBCOMMANDS))

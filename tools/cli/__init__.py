@@ -19,6 +19,7 @@ SUBCOMMANDS = (
     "demo",
     "export_c",
     "export_fmu",
+    "export_dbc",
     "status",
     "service_unit",
     "fleet",

@@ -1,0 +1,164 @@
+"""A DBC per gearbox (can_dbc.generate, `gearbox-vsensor export-dbc`): the GRS905's generated DBC is the shipped
+one byte for byte; another description's loads strictly, lays out every published component by the packing rule
+of docs/can.md, and its frames encode and decode one value per component with the encoders, the readback and the
+decoder given that DBC; too many components is one sentence, exit 2."""
+
+from __future__ import annotations
+
+import math
+import re
+from pathlib import Path
+from types import SimpleNamespace
+
+import cantools
+import pytest
+
+from can_dbc import dbc, generate
+from can_dbc.decoder import J1939Decoder
+from can_dbc.encoder import OutputEncoder, RigEncoder
+from can_dbc.j1939 import pgn_of
+from can_dbc.readback import decode_outputs, decode_rig
+from firmware_model.description import load_description
+from tools.cli import main
+from tools.cli.export_dbc import component_meanings
+
+REPO = Path(__file__).resolve().parents[2]
+SHIPPED = REPO / "can_dbc" / dbc.DBC_NAME
+
+
+@pytest.fixture(scope="module")
+def r1(tmp_path_factory) -> Path:
+    """docs/description.md's single-stage reducer R1: 7 published components (P, W, B1..B4, oil)."""
+    text = (REPO / "docs" / "description.md").read_text(encoding="utf-8")
+    f = tmp_path_factory.mktemp("r1") / "r1.toml"
+    f.write_text(re.search(r"```toml\n(.*?)```", text, re.S).group(1), encoding="utf-8")
+    return f
+
+
+def test_the_grs905_dbc_is_generated_byte_for_byte(tmp_path, capsys):
+    d = load_description("GRS905")
+    text = generate.generate_dbc([p.id for p in d.published], component_meanings(d))
+    assert text == SHIPPED.read_text(encoding="utf-8")
+    out = tmp_path / "g.dbc"
+    assert main(["export-dbc", "--out", str(out)]) == 0
+    assert out.read_bytes() == SHIPPED.read_bytes()
+    assert "28 published components" in capsys.readouterr().out
+
+
+def test_the_layout_rule_reproduces_todays_pgns_and_extends():
+    ids = [f"C{i}" for i in range(28)]
+    lay = generate.frame_layout(ids)
+    assert [f.pgn for f in lay.temp] == list(range(0xFF40, 0xFF47))
+    assert [f.name for f in lay.warn] == ["GBX_WARN"] and lay.warn[0].pgn == 0xFF47
+    assert [f.pgn for f in lay.ttl] == list(range(0xFF48, 0xFF4F)) and lay.status_pgn == 0xFF4F
+    assert [f.pgn for f in lay.rig] == list(range(0xFF50, 0xFF57))
+    for n in (1, 7, 29, 33, 100, generate.MAX_COMPONENTS):
+        lay = generate.frame_layout([f"C{i}" for i in range(n)])
+        frames = (*lay.temp, *lay.warn, *lay.ttl, *lay.rig)
+        pgns = sorted([f.pgn for f in frames] + [lay.status_pgn])
+        assert pgns == list(range(0xFF40, 0xFF40 + generate.frames_needed(n)))  # contiguous, no PGN twice
+        assert pgns[-1] <= 0xFFFF
+        for kind in (lay.temp, lay.warn, lay.ttl, lay.rig):
+            assert [c for f in kind for c in f.components] == [f"C{i}" for i in range(n)]
+        assert len(lay.warn) == math.ceil(n / 32) and len(lay.temp) == math.ceil(n / 4)
+    with pytest.raises(generate.GenerateError, match=r"at most 244 fit"):
+        generate.frame_layout([f"C{i}" for i in range(generate.MAX_COMPONENTS + 1)])
+
+
+def test_bad_ids_are_one_sentence():
+    with pytest.raises(generate.GenerateError, match="both make the signal name T_A_b"):
+        generate.generate_dbc(["A.b", "A_b"])
+    with pytest.raises(generate.GenerateError, match="quote or white space"):
+        generate.generate_dbc(['A"'])
+    with pytest.raises(generate.GenerateError, match="over 32 characters"):
+        generate.generate_dbc(["X" * 29])
+    with pytest.raises(generate.GenerateError, match="at least one"):
+        generate.generate_dbc([])
+
+
+def _roundtrip(db: dbc.CanDatabase, ids: list[str]) -> None:
+    """One distinct value per component through the encoders, the cantools readback and the decoder."""
+    temps = {c: 20.0 + 1.5 * i for i, c in enumerate(ids)}
+    levels = {c: i % 3 for i, c in enumerate(ids)}
+    ttl = {c: [math.inf, None, 60.0 + i][i % 3] for i, c in enumerate(ids)}
+    enc = OutputEncoder(database=db)
+    assert enc.components == tuple(ids)
+    frames = enc.encode(temps, levels, ttl, {"model_oil_temp_c": 70.0})
+    assert len(frames) == 2 * math.ceil(len(ids) / 4) + math.ceil(len(ids) / 32) + 1
+    out = decode_outputs(frames, database=db)
+    assert out["temps_c"] == temps and out["levels"] == levels and out["ttl_s"] == ttl
+    assert out["status"]["max_warning_level"] == (2 if len(ids) > 2 else max(levels.values()))
+    last = ids[-1]
+    dm1 = decode_outputs([OutputEncoder(database=db).encode_dm1({last: 2})], database=db)["dm1"]
+    assert dm1["dtc"]["component"] == last and dm1["dtc"]["spn"] == generate.SPN_FIRST + len(ids) - 1
+    rig = RigEncoder(database=db).encode(temps)
+    assert decode_rig(rig, database=db) == temps
+    decoder = J1939Decoder(rig=True, database=db)
+    got = {u.name: u.value for m in rig for u in decoder.feed(m)}
+    assert got == {f"meas_T_{c}_c": t for c, t in temps.items()}
+
+
+def test_another_description_loads_strictly_and_round_trips_every_component(r1, tmp_path):
+    out = tmp_path / "r1.dbc"
+    assert main(["export-dbc", "--gearbox", str(r1), "--out", str(out)]) == 0
+    db = cantools.database.load_file(str(out), strict=True)
+    ids = ["P", "W", "B1", "B2", "B3", "B4", "oil"]
+    names = [m.name for m in db.messages]
+    assert [n for n in names if n.startswith(("GBX_", "RIG_"))] == [
+        "GBX_TEMP_1", "GBX_TEMP_2", "GBX_WARN", "GBX_TTL_1", "GBX_TTL_2", "GBX_STATUS", "GBX_DM1", "RIG_TC_1",
+        "RIG_TC_2",
+    ]  # fmt: skip
+    assert {n: pgn_of(db.get_message_by_name(n).frame_id) for n in names if n.startswith(("GBX_", "RIG_"))} == {
+        "GBX_TEMP_1": 0xFF40, "GBX_TEMP_2": 0xFF41, "GBX_WARN": 0xFF42, "GBX_TTL_1": 0xFF43, "GBX_TTL_2": 0xFF44,
+        "GBX_STATUS": 0xFF45, "GBX_DM1": 0xFECA, "RIG_TC_1": 0xFF46, "RIG_TC_2": 0xFF47,
+    }  # fmt: skip
+    assert "oil (oil sump)" in db.get_message_by_name("GBX_TEMP_2").get_signal_by_name("T_oil").comment
+    grs = cantools.database.load_file(str(SHIPPED), strict=True)
+    for m in grs.messages:  # the J1939 inputs and DM1 are every gearbox's
+        if not m.name.startswith(("GBX_TEMP", "GBX_WARN", "GBX_TTL", "GBX_STATUS", "RIG_")):
+            assert db.get_message_by_name(m.name).frame_id == m.frame_id
+            assert [(s.name, s.start, s.length, s.scale, s.offset) for s in m.signals] == [
+                (s.name, s.start, s.length, s.scale, s.offset) for s in db.get_message_by_name(m.name).signals
+            ]
+    loaded = dbc.load_dbc(out)
+    assert loaded.published_components() == tuple(ids)
+    _roundtrip(loaded, ids)
+    temp_2 = OutputEncoder(database=loaded).encode({"oil": 90.0}, {}, {}, {})[1]
+    assert bytes(temp_2.data)[6:] == b"\xff\xff"  # GBX_TEMP_2: B3, B4, oil; bytes 7-8 are fill
+    assert "B1 (" not in db.get_message_by_name("GBX_TEMP_1").get_signal_by_name("T_B1").comment  # no name: id only
+    assert dbc.load_dbc(out.read_text(encoding="utf-8")).published_components() == tuple(ids)  # text, too
+
+
+def test_more_than_32_components_take_several_warning_frames():
+    ids = [f"N{i}" for i in range(41)]
+    text = generate.generate_dbc(ids)
+    db = dbc.load_dbc(text)
+    assert db.warn_messages() == ("GBX_WARN_1", "GBX_WARN_2")
+    _roundtrip(db, ids)
+
+
+def test_the_shipped_dbc_is_the_default_everywhere():
+    assert dbc.load_dbc() is dbc.shipped()
+    assert dbc.load_dbc(SHIPPED).published_components() == dbc.published_components()
+    a, b = OutputEncoder(), OutputEncoder(database=SHIPPED)
+    args = ({"oil": 80.0}, {"oil": 1}, {"oil": 5.0}, {"counter": 3})
+    assert [(f.arbitration_id, bytes(f.data)) for f in a.encode(*args)] == [
+        (f.arbitration_id, bytes(f.data)) for f in b.encode(*args)
+    ]
+
+
+def test_a_bad_dbc_is_one_sentence(tmp_path):
+    with pytest.raises(dbc.DecodeError, match="cannot be read"):
+        dbc.load_dbc(tmp_path / "missing.dbc")
+    with pytest.raises(dbc.DecodeError, match="is no valid DBC"):
+        dbc.load_dbc("BO_ this is\nnot a DBC")
+
+
+def test_too_many_components_is_one_sentence_exit_2(monkeypatch, capsys):
+    published = tuple(SimpleNamespace(id=f"X{i}") for i in range(generate.MAX_COMPONENTS + 1))
+    fake = SimpleNamespace(name="BIG", published=published, names={})
+    monkeypatch.setattr("firmware_model.description.load_description", lambda name: fake)
+    assert main(["export-dbc", "--gearbox", "BIG"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("gearbox-vsensor export-dbc: error: gearbox BIG: 245 published components need")
+    assert "\n" not in err and "at most 244 fit" in err

@@ -1,0 +1,67 @@
+"""`gearbox-vsensor export-dbc`: the DBC of a gearbox's CAN frames, generated from its description (can_dbc)."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+
+def add_subparser(sub):
+    p = sub.add_parser(
+        "export-dbc",
+        help="write the DBC of a gearbox's CAN frames, generated from its description's published components",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        description="Write the DBC of the sensor's CAN frames for one gearbox: the J1939 inputs, then per published "
+        "component (the [topology.published] order of its description, docs/description.md) a temperature, a "
+        "warning level, a time to limit and a rig thermocouple signal, the status and DM1 frames. Four 16-bit "
+        "values or 32 warning levels to a frame, Proprietary B PGNs from 0xFF40 up (docs/can.md, 'A DBC per "
+        "gearbox'); for the GRS905 it is the shipped can_dbc/gearbox_vsensor.dbc. A description with more "
+        "published components than the PGNs hold is one sentence (exit 2).",
+        epilog="examples:\n  gearbox-vsensor export-dbc --out grs905.dbc\n"
+        "  gearbox-vsensor export-dbc --gearbox my_gearbox.toml --out my_gearbox.dbc",
+    )
+    p.add_argument(
+        "--gearbox",
+        default="GRS905",
+        metavar="NAME|FILE",
+        help="a description shipped in firmware_model/params/ or the path of a .toml file (default: GRS905)",
+    )
+    p.add_argument("--out", metavar="FILE.dbc", help="file to write (default: standard output)")
+    p.set_defaults(func=run)
+
+
+def component_meanings(description) -> dict:
+    """Published component id -> what it is in a few words, from the description's part names (``LI.teeth`` ->
+    ``teeth of the <LI's name>``), else the GRS905 glossary's (firmware_model.components); None when neither knows."""
+    from firmware_model.components import WHEEL_PARTS, meaning
+
+    names = {i: n for i, n in description.names.items() if n and n != i}  # a part named by its id says nothing
+    out = {}
+    for p in description.published:
+        wheel, _, part = p.id.partition(".")
+        if p.id in names:
+            out[p.id] = names[p.id]
+        elif part in WHEEL_PARTS and wheel in names:
+            out[p.id] = f"{WHEEL_PARTS[part]} of the {names[wheel]}"
+        else:
+            out[p.id] = meaning(p.id)
+    return out
+
+
+def run(args) -> int:
+    from can_dbc.generate import GenerateError, generate_dbc
+    from firmware_model.description import load_description
+
+    d = load_description(args.gearbox)
+    try:
+        text = generate_dbc([p.id for p in d.published], component_meanings(d))
+    except GenerateError as exc:
+        print(f"gearbox-vsensor export-dbc: error: gearbox {d.name}: {exc}", file=sys.stderr)
+        return 2
+    if args.out is None:
+        sys.stdout.write(text)
+        return 0
+    with open(args.out, "w", encoding="utf-8", newline="\n") as f:
+        f.write(text)
+    print(f"wrote {args.out}: the DBC of {d.name}'s {len(d.published)} published components")
+    return 0
