@@ -58,6 +58,8 @@ DRIVES = ("vehicle", "fixed_ratio")
 HELD = ("sun", "ring", "carrier", "locked")
 #: a coupling member that is no part: the gearbox casing (a brake holding a ring gear)
 CASING = "housing"
+#: the node of the pumped oil on its way to the jets (after the pump, filter and cooler) of a forced oil system
+OIL_INLET = "oil.inlet"
 #: where a thermostatic bypass may plausibly open: the oil's working range [degC]
 THERMOSTAT_RANGE_C = (40.0, 150.0)
 
@@ -383,17 +385,22 @@ class Description:
         out.update({b.id: b.name for b in self.bearings if b.name})
         out.update({h.id: h.name for h in self.housings})
         out["oil"] = "oil sump"
+        if self.oil is not None and self.oil.lubrication == "forced":
+            out[OIL_INLET] = "oil inlet (to the jets)"
         return out
 
     @property
     def nodes(self) -> tuple:
         """The thermal nodes the description implies, in the network's order: shaft segments, idle wheels (teeth
-        and bulk), the other wheels, planetary members, bearings, housings, the sump."""
+        and bulk), the other wheels, planetary members, bearings, housings, the sump and, for forced lubrication,
+        the oil inlet (the pumped oil after the pump, filter and cooler, before the jets)."""
         out = [s.id for sh in self.shafts for s in sh.segments]
         out += [f"{w.id}.{part}" for w in self.wheels if w.mount == "idle" for part in ("teeth", "bulk")]
         out += [w.id for w in self.wheels if w.mount != "idle"]
         out += [m for ps in self.planetary for m in (ps.sun, ps.planet, ps.ring)]
         out += [b.id for b in self.bearings] + [h.id for h in self.housings] + ["oil"]
+        if self.oil is not None and self.oil.lubrication == "forced":
+            out.append(OIL_INLET)
         return tuple(out)
 
 
@@ -1040,7 +1047,7 @@ def _published(r: _Reader, topo: dict, nodes: set) -> tuple:
 
 def _unique_ids(r: _Reader, named: list) -> None:
     """No id names two parts: (kind, id) of every shaft, segment, wheel, planetary member, bearing, housing."""
-    seen: dict = {"oil": "the sump"}
+    seen: dict = {"oil": "the sump", OIL_INLET: "the oil inlet"}
     for kind, i in named:
         if i in seen:
             r.fail(f"{TOPOLOGY}.{kind}.{i}", f"reuses the id {i} of {seen[i]}: every part needs its own id")
@@ -1163,7 +1170,7 @@ def _describe(path: Path, entries: dict, params: Parameters | None = None) -> De
     nodes = set(desc.nodes)
     _check_touches(r, boundaries, nodes)
     oil = _oil(r, topo, by_shaft, nodes)
-    published = _published(r, topo, nodes)
+    published = _published(r, topo, set(replace(desc, oil=oil).nodes))  # with the oil inlet of a forced system
     return Description(
         desc.name,
         desc.origin,

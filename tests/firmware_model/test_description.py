@@ -11,7 +11,7 @@ import pytest
 
 from firmware_model import components as C
 from firmware_model import network as N
-from firmware_model.description import description_of, load_description
+from firmware_model.description import description_of, load_description, shipped_descriptions
 from firmware_model.errors import ParameterError
 from firmware_model.parameters import PARAM_DIR, load_parameters
 from firmware_model.physics import geometry as G
@@ -194,9 +194,10 @@ def test_an_unknown_gearbox_is_one_sentence(capsys):
     assert main(["describe", "--gearbox", "GRS999"]) == 2
     err = capsys.readouterr().err
     assert err == (
-        "gearbox-vsensor describe: error: unknown gearbox 'GRS999': use one of GRS905, GRSO905 or the path of a "
-        ".toml description file\n"
+        f"gearbox-vsensor describe: error: unknown gearbox 'GRS999': use one of {', '.join(shipped_descriptions())} "
+        "or the path of a .toml description file\n"
     )
+    assert {"GRS905", "GRSO905"} <= set(shipped_descriptions())
 
 
 # ---------------------------------------------------------------------------------------------------------------
