@@ -36,6 +36,23 @@ class Score:
     p99_k: float
 
 
+class TrainingMean:
+    """The trivial predictor: each target's mean over the training records (what any model must beat)."""
+
+    name = "training mean"
+
+    def __init__(self, task: Task):
+        self.task = task
+        self.mean: dict[str, float] = {}
+
+    def fit(self, records: Sequence[ScadaRecord]) -> TrainingMean:
+        self.mean = {ch: float(np.nanmean(np.concatenate([r.values[ch] for r in records]))) for ch in self.task.targets}
+        return self
+
+    def predict(self, record: ScadaRecord) -> dict[str, np.ndarray]:
+        return {ch: np.full(record.n, m) for ch, m in self.mean.items()}
+
+
 def errors(measured: np.ndarray, predicted: np.ndarray) -> tuple[int, float, float]:
     """(rows scored, RMS, 99th percentile of the absolute error) over the rows where both are finite."""
     ok = np.isfinite(measured) & np.isfinite(predicted)

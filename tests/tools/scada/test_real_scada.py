@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from tests.data_paths import SCADA_SKIP_REASON, real_scada_dir
-from tools.scada.holdout import cross_unit_splits, evaluate
+from tools.scada.holdout import TrainingMean, cross_unit_splits, evaluate
 from tools.scada.nbm import TASKS, LinearNBM
 
 DATA = real_scada_dir()
@@ -18,20 +18,6 @@ def records():
     from tools.scada.reader import read_units
 
     return read_units(sorted(DATA.glob("*.csv*")), "engie")
-
-
-class Mean:
-    """The trivial predictor: each channel's mean over the training records."""
-
-    def __init__(self, task):
-        self.task = task
-
-    def fit(self, records):
-        self.m = {ch: np.nanmean(np.concatenate([r.values[ch] for r in records])) for ch in self.task.targets}
-        return self
-
-    def predict(self, record):
-        return {ch: np.full(record.n, m) for ch, m in self.m.items()}
 
 
 def test_the_real_records_are_read_in_utc_with_their_gaps_and_glitches_counted(records):
@@ -75,7 +61,7 @@ def test_the_nbm_beats_the_mean_on_every_held_out_turbine(records):
     for split in cross_unit_splits(records):
         for task in TASKS.values():
             nbm = {s.channel: s for s in evaluate(LinearNBM, task, split)}
-            mean = {s.channel: s for s in evaluate(Mean, task, split)}
+            mean = {s.channel: s for s in evaluate(TrainingMean, task, split)}
             for ch in task.targets:
                 factor = 3.0 if task.oil_input else 1.0
                 assert nbm[ch].n > 1000 and factor * nbm[ch].rms_k < mean[ch].rms_k, (split[0], ch)
