@@ -9,7 +9,7 @@ import pytest
 from firmware_model.errors import InputError
 from tools.scada.clean import REASONS
 from tools.scada.columns import load_column_map
-from tools.scada.holdout import cross_unit_splits, errors, evaluate, table, time_splits
+from tools.scada.holdout import TrainingMean, cross_unit_splits, errors, evaluate, table, time_splits
 from tools.scada.nbm import LAG_TAUS_S, TASKS, LinearNBM, exp_lag, features
 from tools.scada.reader import ScadaRecord
 
@@ -117,22 +117,6 @@ def test_errors_are_rms_and_p99_over_rows_where_both_exist():
     assert n == 2 and rms == pytest.approx(np.sqrt(0.5)) and p99 == pytest.approx(np.percentile([1.0, 0.0], 99))
 
 
-class Constant:
-    """A stand-in for the physics: any object with fit(records) and predict(record) is scored the same way."""
-
-    name = "constant"
-
-    def __init__(self, task):
-        self.task = task
-
-    def fit(self, records):
-        self.mean = {ch: np.nanmean(np.concatenate([r.values[ch] for r in records])) for ch in self.task.targets}
-        return self
-
-    def predict(self, record):
-        return {ch: np.full(record.n, m) for ch, m in self.mean.items()}
-
-
 def test_any_predictor_is_scored_on_the_same_splits_side_by_side():
     recs = {}
     for k, u in enumerate(["T1", "T2", "T3"]):
@@ -145,11 +129,15 @@ def test_any_predictor_is_scored_on_the_same_splits_side_by_side():
     assert [s[0] for s in splits] == ["T2+T3 -> T1", "T1+T3 -> T2", "T1+T2 -> T3"]
     assert all(len(tr) == 2 and te[0].unit not in {r.unit for r in tr} for _, tr, te in splits)
     nbm = [s for sp in splits for s in evaluate(LinearNBM, TASKS["bearings"], sp)]
-    const = [s for sp in splits for s in evaluate(Constant, TASKS["bearings"], sp)]
+    const = [s for sp in splits for s in evaluate(TrainingMean, TASKS["bearings"], sp)]
     assert all(s.rms_k < 1e-8 for s in nbm) and all(s.rms_k > 0.01 for s in const)
-    text = table(nbm, const, "constant")
+    # the training mean predicts the mean of the two training units, whatever the held-out unit does
+    (_, train, (test,)) = splits[0]
+    m = np.nanmean(np.concatenate([r.values["Gb1t_avg"] for r in train]))
+    assert np.all(TrainingMean(TASKS["bearings"]).fit(train).predict(test)["Gb1t_avg"] == m)
+    text = table(nbm, const, "training mean")
     lines = text.splitlines()
-    assert "| constant RMS [K] |" in lines[0] and len(lines) == 2 + len(nbm)
+    assert "| training mean RMS [K] |" in lines[0] and len(lines) == 2 + len(nbm)
     assert len({line.count("|") for line in lines}) == 1
     alone = table(nbm).splitlines()
     assert all(line.endswith("| - | - |") for line in alone[2:]) and len({line.count("|") for line in alone}) == 1
