@@ -74,7 +74,8 @@ class ScadaRecord:
         return list(zip(starts.tolist(), np.append(starts[1:], self.n).tolist()))
 
     def select(self, mask: np.ndarray) -> ScadaRecord:
-        """The rows where ``mask`` holds (stretches renumbered; a removed row between two kept ones is a gap)."""
+        """The rows where ``mask`` holds (stretches renumbered; a removed row between two kept ones is a gap). The
+        counters stay those of the whole record as read."""
         idx = np.flatnonzero(mask)
         brk = np.diff(idx, prepend=-2) != 1
         brk |= np.diff(self.stretch[idx], prepend=-1) != 0
@@ -92,14 +93,11 @@ class ScadaRecord:
 
 def _open_text(path: Path):
     """The file as text: gzip by its magic bytes, else plain; a binary or damaged file raises InputError."""
-    head = path.read_bytes()[:2] if path.is_file() else None
-    if head is None:
+    if not path.is_file():
         raise InputError(f"{path}: no such file")
+    data = path.read_bytes()
     try:
-        if head == b"\x1f\x8b":
-            text = gzip.decompress(path.read_bytes()).decode("utf-8-sig")
-        else:
-            text = path.read_bytes().decode("utf-8-sig")
+        text = (gzip.decompress(data) if data[:2] == b"\x1f\x8b" else data).decode("utf-8-sig")
     except (OSError, EOFError, zlib.error):
         raise InputError(f"{path.name}: a damaged gzip file (it does not decompress)") from None
     except UnicodeDecodeError:

@@ -72,6 +72,7 @@ def two_files(tmp_path):
     a[6] = row(t0 + 6 * step, p_kw=-4.0, rs=0.0)  # standstill (and negative)
     a[8] = row(t0 + 8 * step, Gost_avg=None)  # missing
     a[10] = row(t0 + 10 * step, Gb1t_avg=92.0)  # a one-row spike of 30 K
+    a[14] = row(t0 + 14 * step).replace(",20.0,7.0", ",n/a,7.0")  # a nacelle reading that is no number
     a.insert(12, "R1,2017-03-26T02:40:00+01:00,1.0")  # a bad line: too few fields
     tb = t0 + 18 * step + timedelta(hours=1)
     b = [row(tb + k * step) for k in range(6)]
@@ -95,7 +96,8 @@ def test_files_join_in_utc_with_their_gap_and_every_bad_row_counted(two_files):
     assert c["duplicate_time"] == 1 and c["out_of_order"] == 1 and c["gap"] == 1
     assert c["standstill"] == 1 and c["negative_power"] == 2
     by = rec.by_channel
-    assert by["outdoor_temp_c"]["implausible"] == 1 and c["implausible"] == 1
+    assert by["outdoor_temp_c"]["implausible"] == 1 and by["ambient_temp_c"]["implausible"] == 1
+    assert c["implausible"] == 2 and np.isnan(rec.values["ambient_temp_c"][14])
     assert by["Gost_avg"]["missing"] == 1 and c["missing"] == 1
     assert by["Gb1t_avg"]["jump"] == 1 and c["jump"] == 1
     v = rec.values
@@ -195,3 +197,31 @@ def test_a_spike_is_one_row_off_both_neighbours_on_one_side_within_a_stretch():
     st = np.array([0, 0, 0, 0, 0, 0, 0, 1, 1])
     # row 1: a spike; rows 4-5: a step held two rows, no spike; row 7: first row of its stretch
     assert spikes(x, st, 20.0).tolist() == [False, True] + [False] * 7
+
+
+def test_the_autumn_change_is_continuous_in_utc_and_a_dropped_repeated_hour_is_a_gap(tmp_path):
+    """Local time repeats 02:00-02:59 on 2017-10-29 (+02:00, then +01:00); in UTC the rows follow each other. A copy
+    that drops the repeated hour (as the published La Haute Borne files do) has a one-hour gap in UTC."""
+    t0 = datetime(2017, 10, 28, 23, 0, tzinfo=timezone.utc)
+    eu = [t0 + timedelta(minutes=10 * k) for k in range(18)]
+    stamps = [t.astimezone(CEST if t < datetime(2017, 10, 29, 1, tzinfo=timezone.utc) else CET) for t in eu]
+    lines = [row(s.isoformat()) for s in stamps]
+    assert "02:10:00+02:00" in lines[7] and "02:10:00+01:00" in lines[13]
+    rec = read_record([write(tmp_path / "full.csv", lines)])
+    assert rec.n == 18 and rec.n_stretches == 1 and np.all(np.diff(rec.time_s) == 600.0)
+    # 01:50+02:00 followed by 02:00+01:00, as in the published files
+    dropped = [ln for ln in lines if "+02:00" not in ln or ln.split(",")[1][11:13] != "02"]
+    rec = read_record([write(tmp_path / "dropped.csv", dropped)])
+    assert rec.n == 12 and rec.n_stretches == 2 and rec.counts["gap"] == 1
+    assert np.diff(rec.time_s).max() == 600.0 + 3600.0
+
+
+def test_a_map_with_time_in_seconds_and_no_unit_column_names_the_unit_after_the_file(tmp_path):
+    src = (MAP_DIR / "engie.toml").read_text()
+    src = src.replace('kind = "iso8601_offset"', 'kind = "seconds"').replace(
+        'unit_id = { column = "Wind_turbine_name" }\n', ""
+    )
+    (tmp_path / "s.toml").write_text(src)
+    lines = [row(repr(1.5e9 + 600.0 * k)) for k in range(5)] + [row("soon")]
+    rec = read_record([write(tmp_path / "rig7.csv", lines)], tmp_path / "s.toml")
+    assert rec.unit == "rig7" and rec.n == 5 and rec.counts["bad_time"] == 1 and rec.time_s[0] == 1.5e9
