@@ -52,6 +52,7 @@ class GearKinematics:
     mesh_omega2: dict  # mesh id -> |speed of its wheel 2 relative to the carrier| when loaded, else 0
     ratio: float  # input speed / output speed (inf: neutral)
     low_range: bool  # a planetary set of the path is held (not locked): its meshes carry the power
+    driver: dict  # loaded mesh id -> (its driving wheel, the torque on it), in the path's order
 
 
 class _Members:
@@ -105,7 +106,7 @@ class _PathLoads:
         self.couplings = {c.id: c for c in d.couplings}
         self.meshes = {m.id: m for m in d.meshes}
         self.sets = {ps.id: ps for ps in d.planetary}
-        self.ties, self.held, self.mesh_torque = [], [], {}
+        self.ties, self.held, self.mesh_torque, self.driver = [], [], {}, {}
 
     def carried(self, wheel: str) -> bool:
         return self.at == wheel or self.shaft_of.get(wheel) == self.at
@@ -120,6 +121,7 @@ class _PathLoads:
             w_in, w_out = (a, b) if self.carried(a) else (b, a)
             # torque on wheel 1: the driving torque, or the driven wheel's (same tooth force, z_1 / z_in)
             self.mesh_torque[s] = self.torque if w_in == a else self.torque * self.z[a] / self.z[w_in]
+            self.driver[s] = (w_in, self.torque)
             self.torque = self.torque * self.z[w_out] / self.z[w_in]
             self.at = self.shaft_of.get(w_out, w_out)
         else:
@@ -235,7 +237,8 @@ def gear_kinematics(d: Description, gear) -> GearKinematics:
     w_out = speed[d.drive.output_shaft]
     ratio = 1.0 / w_out if gear.number != 0 and w_out != 0 else math.inf
     low = any(h != "locked" for _, h in walk.held)
-    return GearKinematics(gear.name, gear.number, speed, planet_rel, torque, omega2, ratio, low)
+    driver = {m: v for m, v in walk.driver.items() if m in gear.meshes}
+    return GearKinematics(gear.name, gear.number, speed, planet_rel, torque, omega2, ratio, low, driver)
 
 
 def _rel(a: float, b: float) -> float:

@@ -21,6 +21,7 @@ from firmware_model.effects import EffectScales
 from firmware_model.parameters import Parameters
 from firmware_model.physics import losses as L
 from firmware_model.physics import oil as oilprops
+from firmware_model.physics.drivetrain import kinematics_of
 from firmware_model.physics.geometry import Geometry, build_geometry
 from firmware_model.physics.kinematics import GEAR_MIN, GEARS, MESHES, SPEED_NAMES, SYNCS, gear_state
 
@@ -40,7 +41,7 @@ class GearboxLosses:
 
     def __init__(self, p: Parameters, geometry: Geometry | None = None):
         self.p = p
-        self.kin = p.kinematics
+        self.kin = kinematics_of(p)  # the gearbox's own description (docs/description.md)
         self.geo = geometry or build_geometry(p)
         self.meshes = [self.geo.meshes[m] for m in MESHES]
         self.n_planets = int(p["planetary.n_planets"])
