@@ -208,3 +208,28 @@ def test_a_planetary_and_two_parallel_stage_wind_gearbox(tmp_path):
     assert g.mesh_omega2["PR"] == pytest.approx(1.0, rel=TOL)  # the ring relative to the carrier
     assert g.mesh_omega2["SP"] == pytest.approx(abs(g.planet_rel["ps"]), rel=TOL)
     assert speed_names(d) == ("ROT", "SUN", "INT", "GEN", "S", "PL_rel", "RG")
+
+
+def test_the_loss_sources_of_the_description_are_the_grs905s(both):
+    """The losses iterate the description; its sources are the GRS905's in their order (the onboard tables index
+    them)."""
+    from firmware_model.physics.gearbox_losses import SOURCES, sources_of
+
+    d, _ = both
+    assert sources_of(d) == SOURCES
+
+
+def test_the_wind_gearbox_loss_sources(tmp_path):
+    """Its own meshes between fixed axes, its planetary set, no shaft bearings (it describes none)."""
+    from firmware_model.physics.gearbox_losses import sources_of
+
+    d = load_description(_wind(tmp_path))
+    assert sources_of(d) == (
+        "mesh:M1",
+        "mesh:M2",
+        "planetary",
+        "churning",
+        "wheel_bearings",
+        "synchronizers",
+        "pump",
+    )
