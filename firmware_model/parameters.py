@@ -246,6 +246,9 @@ class Parameters:
 
     @property
     def kinematics(self) -> KinematicTable:
+        """The range-splitter's Table 1 kinematics in closed form from the tooth parameters (the check of the
+        description's solve; the plant and the onboard model take the gearbox's own description's:
+        firmware_model.physics.drivetrain.kinematics_of)."""
         kin = self.__dict__.get("_kin")
         if kin is None:
             kin = build_table(self.teeth, self.split_inverted)
