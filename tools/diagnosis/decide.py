@@ -328,11 +328,12 @@ def _accumulate(diffs: dict, key: str, a: np.ndarray, b: np.ndarray) -> None:
     diffs[key] = NodeDifference(d.sq + float(np.sum((a - b) ** 2)), d.samples + a.size)
 
 
-def _node_differences(outs_a: list, outs_b: list) -> dict:
-    """Node (and COOLER_HEAT) -> the squared difference of two full-output runs over the files."""
-    from firmware_model.components import HOUSINGS, PUBLISHED
+def _node_differences(outs_a: list, outs_b: list, gearbox) -> dict:
+    """Node (and COOLER_HEAT) -> the squared difference of two full-output runs over the files: the published
+    components and the housings of ``gearbox`` (a parameter set or description), the sump last."""
+    from tools.published import housings, ids
 
-    nodes = [n for n in PUBLISHED if n != OIL] + list(HOUSINGS) + [OIL]
+    nodes = [n for n in ids(gearbox) if n != OIL] + list(housings(gearbox)) + [OIL]
     diffs = {}
     for oa, ob in zip(outs_a, outs_b):
         fa_, fb_ = oa["full"], ob["full"]
@@ -350,7 +351,7 @@ def suggest(ctx: Context, train: list, fa: Fit, fb: Fit) -> dict:
     node and rank the nodes (and the cooler heat) by the RMS difference."""
     outs = ctx.sim.run(train, [Run.of({fa.effect: fa.value}, full=True), Run.of({fb.effect: fb.value}, full=True)])
     measured = {cid for ds in train for cid in ds.channels}
-    diffs = _node_differences(outs[0], outs[1])
+    diffs = _node_differences(outs[0], outs[1], ctx.params)
     ranked = []
     for n, d in diffs.items():
         rms = math.sqrt(d.sq / max(d.samples, 1))
