@@ -46,7 +46,10 @@ def published(source=None) -> tuple:
     their CAN and column order."""
     d = description(source)
     if d is None:
-        return tuple(source)
+        out = tuple(source) if isinstance(source, (tuple, list)) else ()
+        if not out or not all(hasattr(c, "id") and hasattr(c, "group") for c in out):
+            raise TypeError(f"{source!r} is no parameter set, description, sensor or list of published components")
+        return out
     pub = getattr(source, "published", None)  # a sensor that says what it publishes
     if pub is not None and not isinstance(source, Description) and all(isinstance(c, str) for c in pub):
         by_id = {c.id: c for c in d.published}

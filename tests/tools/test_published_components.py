@@ -180,3 +180,17 @@ def test_demo_fmu_and_diagnosis_follow_the_description(r1):
     with pytest.raises(InputError, match='names component "PS"'):
         prepare(RunTable({**drive, "meas_T_PS_c": np.linspace(40.0, 70.0, t.size)}), "r.csv", "train", Options(),
                 gearbox=r1)  # fmt: skip
+
+
+def test_a_sensor_that_says_what_it_publishes_is_taken_at_its_word(r1):
+    """A sensor (or anything with ``params``) that lists its published ids gives those, each with its description's
+    group; one that does not gives its parameter set's description's."""
+    from types import SimpleNamespace
+
+    params = load_parameters("GRS905")
+    assert P.ids(SimpleNamespace(params=params)) == PUBLISHED
+    sensor = SimpleNamespace(params=params, published=("PS", "oil"))
+    assert P.ids(sensor) == ("PS", "oil") and P.groups(sensor) == {"PS": "sun", "oil": "oil"}
+    assert P.ids(list(r1.published)) == R1_IDS
+    with pytest.raises(TypeError, match="no parameter set"):
+        P.ids(42)
