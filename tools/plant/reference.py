@@ -20,7 +20,6 @@ from typing import NamedTuple
 
 import numpy as np
 
-from firmware_model.components import IDLE_WHEELS
 from firmware_model.effects import effect_scales, with_oil_volume
 from firmware_model.errors import InputError
 from firmware_model.network import (
@@ -198,7 +197,9 @@ class ReferencePlant:
             np.where(kinds == K_EXT_RAD, 2, np.where(np.isin(bname, ["flywheel_cover", "support_beam"]), 3, 4)),
         )
         # source distribution matrix: node heat = S @ source heat
-        self.src_names = list(SOURCES) + ["retarder", *[f"shift:{w}" for w in IDLE_WHEELS], "shift:PR"]
+        # the synchronizers' shift heat: one source per wheel a shift heats, as the network's description has them
+        shifts = [s for s in self.net.sources if s.startswith("shift:")]
+        self.src_names = list(SOURCES) + ["retarder", *shifts]
         self.S = np.zeros((n, len(self.src_names)))
         for j, s in enumerate(self.src_names):
             for node, frac in self.net.sources[s]:
