@@ -382,6 +382,8 @@ class Description:
     boundaries: tuple
     published: tuple
     provenance: dict = field(default_factory=dict)  # dotted key -> seed | derived | assumed | fitted
+    #: the parameters its { from } entries take (a copy of a parameter set overriding none describes the same gearbox)
+    taken: frozenset = frozenset()
 
     def _one(self, items, key: str):
         return next((x for x in items if getattr(x, "id", getattr(x, "name", None)) == key), None)
@@ -431,6 +433,7 @@ class _Reader:
     def __init__(self, path: Path, entries: dict, params: Parameters | None = None):
         self.path, self.entries, self.params = path, entries, params
         self.provenance: dict = {}
+        self.taken: set = set()
 
     def fail(self, key: str, why: str):
         raise ParameterError(f"{self.path.name}: {key} {why}")
@@ -442,6 +445,7 @@ class _Reader:
             if not isinstance(src_key, str) or is_topology(src_key) or src_key not in self.entries:
                 self.fail(key, f"takes its value from {src_key!r}, which is no parameter of this file")
             raw = self._parameter(src_key, self.entries[src_key])
+            self.taken.add(src_key)
         if not isinstance(raw, dict) or "v" not in raw:
             self.fail(key, 'must be a table { v = ..., u = ..., src = ... } or { from = "parameter" }')
         if raw.get("src") not in PROVENANCES:
@@ -1228,4 +1232,5 @@ def _describe(path: Path, entries: dict, params: Parameters | None = None) -> De
         boundaries,
         published,
         r.provenance,
+        frozenset(r.taken),
     )

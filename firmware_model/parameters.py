@@ -272,6 +272,7 @@ class Parameters:
             bounds=dict(self.bounds),
         )
         _check_values(new)
+        _keep_description(self, new, overrides)
         return new
 
     def with_cooler_kind(self, kind: str) -> Parameters:
@@ -300,6 +301,17 @@ TOPOLOGY = "topology"
 def is_topology(key: str) -> bool:
     """Whether a dotted key belongs to the topology section (read by firmware_model.description, not here)."""
     return key.startswith(TOPOLOGY + ".")
+
+
+def _keep_description(parent: Parameters, new: Parameters, overrides: dict) -> None:
+    """A copy that overrides no parameter its gearbox description takes (``{ from }``) describes the same gearbox:
+    it keeps its parent's description (firmware_model.description.description_of) instead of deriving it again."""
+    d = parent.__dict__.get("_description")
+    if d is None:
+        return
+    keys = {RENAMED_KEYS.get(k, k) for k in overrides}
+    if keys.isdisjoint(d.taken):
+        new.__dict__["_description"] = d
 
 
 def _flatten(d: dict, prefix: str = ""):
@@ -732,18 +744,25 @@ def _check_values(p: Parameters, written: dict | None = None):
         if not _ranged(key):
             continue  # a file's own parameter (its [topology] takes it): the description checks what it may be
         lo, hi = DIM_RANGE.get(dim, (-math.inf, math.inf))
-        for pat, klo, khi, integer in KEY_RULES:
-            if fnmatch.fnmatchcase(key, pat):
-                lo, hi = max(lo, klo), min(hi, khi)
-                if integer and v != int(v):
-                    raise ParameterError(f"{where}{key} = {x:g}{unit} must be an integer")
-                break
+        rule = _key_rule(key)
+        if rule is not None:
+            klo, khi, integer = rule
+            lo, hi = max(lo, klo), min(hi, khi)
+            if integer and v != int(v):
+                raise ParameterError(f"{where}{key} = {x:g}{unit} must be an integer")
         if not lo <= v <= hi:
             (slo, _), (shi, _) = _shown(lo, key, dim, written), _shown(hi, key, dim, written)
             raise ParameterError(f"{where}{key} = {x:g}{unit} is outside its allowed range {slo:g}..{shi:g}{unit}")
         _check_bounds(p, key, dim, lo, hi, where, written)
 
 
+@functools.lru_cache(maxsize=4096)
+def _key_rule(key: str):
+    """(low, high, integer?) of the first KEY_RULES pattern a key matches, None if none does."""
+    return next(((lo, hi, i) for pat, lo, hi, i in KEY_RULES if fnmatch.fnmatchcase(key, pat)), None)
+
+
+@functools.lru_cache(maxsize=4096)
 def _ranged(key: str) -> bool:
     """Whether a key's value is held to the ranges here: the shipped files' keys and the per-kind ones (PER_KIND)."""
     return key in _reference_keys() or any(fnmatch.fnmatchcase(key, pat) for pat, _ in PER_KIND)

@@ -185,3 +185,15 @@ def test_what_the_network_needs_is_named_when_missing(tmp_path, old, new, key):
         build_network(p)
     msg = str(exc.value)
     assert msg.startswith(f"w3.toml: {key} is missing: the network needs it") and "\n" not in msg, msg
+
+
+def test_a_copy_keeps_its_parents_description_unless_it_overrides_what_the_description_takes():
+    p = load_parameters("GRS905")
+    d = description_of(p)
+    assert "housing.mass_H1" in d.taken and "heat.h_nom" not in d.taken
+    same = p.with_overrides({"heat.h_nom": 330.0})
+    assert description_of(same) is d
+    heavier = p.with_overrides({"housing.mass_H1": 60.0})
+    assert description_of(heavier) is not d and description_of(heavier).housings[0].mass_kg == 60.0
+    i = build_network(heavier).index("H1")
+    assert build_network(heavier).C_j_per_k[i] == 60.0 * p["material.aluminium.cp"] != build_network(same).C_j_per_k[i]
