@@ -72,7 +72,8 @@ class ReducedParams(NamedNodes):
     margin: float
     C_j_per_k: np.ndarray  # (n,)
     i_oil: int
-    published_index: np.ndarray  # (28,) node index of each PUBLISHED component
+    published_index: np.ndarray  # (n_pub,) node index of each published component
+    published: tuple  # (n_pub,) ids of the published components (the description's published.order)
     members: tuple  # full-network node names of each reduced node
     # --- links
     link_a: np.ndarray  # (nl,)

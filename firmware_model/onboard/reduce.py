@@ -45,7 +45,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from firmware_model.components import PUBLISHED, SHAFT_BEARINGS, STEP_S
+from firmware_model.components import SHAFT_BEARINGS, STEP_S
 from firmware_model.description import Description
 from firmware_model.effects import CATALOG, FIELD_OF_EFFECT, EffectScales, effect_value, with_oil_volume
 from firmware_model.errors import ParameterError
@@ -222,6 +222,11 @@ class Aggregation:
     link_name: tuple
 
 
+def published_ids(d: Description) -> tuple:
+    """The published components' ids, in the description's published.order (CAN signal and column order)."""
+    return tuple(c.id for c in d.published)
+
+
 def aggregate(net: Network, partition: dict) -> Aggregation:
     """Merge full nodes into groups: C summed, links between groups summed, links inside a group dropped."""
     for k in partition:
@@ -232,7 +237,7 @@ def aggregate(net: Network, partition: dict) -> Aggregation:
         g = partition.get(nm, nm)
         if g not in names:
             names.append(g)
-    for c in PUBLISHED:
+    for c in published_ids(net.geometry.description):
         if c not in names:
             raise ParameterError(f"the partition has no node named {c!r} (every published component must be one)")
     gi = {g: i for i, g in enumerate(names)}
@@ -656,6 +661,7 @@ def build_reduced(
         laws.add_link(k)
     lm = _loss_maps(p, net, float(grid.w_src_max[SPEED_NAMES.index("LS")]))
     kind = p.strings.get("cooler.kind", "liquid")
+    published = published_ids(net.geometry.description)
     rp = ReducedParams(
         variant=p.variant,
         partition=part_name,
@@ -664,7 +670,8 @@ def build_reduced(
         margin=float(margin),
         C_j_per_k=_ro(agg.C),
         i_oil=agg.nodes.index("oil"),
-        published_index=_ro(np.array([agg.nodes.index(c) for c in PUBLISHED]), np.int64),
+        published_index=_ro(np.array([agg.nodes.index(c) for c in published]), np.int64),
+        published=published,
         members=agg.members,
         link_a=_ro(agg.link_a, np.int64),
         link_b=_ro(agg.link_b, np.int64),

@@ -17,7 +17,6 @@ from typing import NamedTuple
 
 import numpy as np
 
-from firmware_model.components import PUBLISHED
 from firmware_model.onboard import evaluate as E
 from firmware_model.onboard.conductance_bins import LN_SPEED_BIN, OIL_BIN_C, SPEED_BIN_MIN_RAD_S
 from firmware_model.onboard.held_inputs import cooler_slope_w_per_k
@@ -29,7 +28,7 @@ from firmware_model.onboard.kernel_interface import (
     TTL_RELINEARISE_TOL_K,
 )
 from firmware_model.onboard.params import SensorParams
-from firmware_model.onboard.records import I_RET, I_TORQUE, N_PUB, SensorState
+from firmware_model.onboard.records import I_RET, I_TORQUE, SensorState
 from firmware_model.onboard.step_cache import StepCache
 from firmware_model.physics.conductance_matrix import conductance_matrix
 from firmware_model.physics.cooler import INLET_DROP_MAX_K
@@ -37,8 +36,6 @@ from firmware_model.physics.cooler import INLET_DROP_MAX_K
 #: with the sump modelled: the oil-system inlet follows the sump through the linearised cooler in the held-input
 #: system (a non-symmetric coupling, general eigen-decomposition; docs/sensor.md), unless the step clips it
 TTL_INLET_COUPLING = True
-#: the published sump's column
-I_PUB_OIL = PUBLISHED.index("oil")
 
 
 class TtlPoint(NamedTuple):
@@ -266,9 +263,10 @@ def _solve(
         system, p.T_main_c[free], rows, warning_c[pub_free], None if measured else h.ttl_relin_pub, rp.i_oil
     )
     if march is None:
-        return _Solution(np.full(N_PUB, np.nan), None)
-    out = np.full(N_PUB, np.inf)
+        return _Solution(np.full(len(rp.published), np.nan), None)
+    out = np.full(len(rp.published), np.inf)
     out[pub_free] = march.ttl_s
     if measured:
-        out[I_PUB_OIL] = 0.0 if p.T_oil_c >= warning_c[I_PUB_OIL] else np.inf
+        oil = rp.published_index == rp.i_oil  # the published sump's column (if published)
+        out[oil] = np.where(p.T_oil_c >= warning_c[oil], 0.0, np.inf)
     return _Solution(out, march)

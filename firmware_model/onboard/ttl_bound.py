@@ -29,7 +29,6 @@ import math
 
 import numpy as np
 
-from firmware_model.components import PUBLISHED
 from firmware_model.onboard import evaluate as E
 from firmware_model.onboard.conductance_bins import LN_SPEED_BIN, OIL_BIN_C, SPEED_BIN_MIN_RAD_S
 from firmware_model.onboard.held_march import HeldSystem, march_time_to_limit
@@ -43,11 +42,9 @@ from firmware_model.onboard.kernel_interface import (
     TTL_BOUND_TOL_K,
 )
 from firmware_model.onboard.params import SensorParams, vehicle_value
-from firmware_model.onboard.records import I_AMB, I_COOL, I_VKMH, N_PUB, SensorState
+from firmware_model.onboard.records import I_AMB, I_COOL, I_VKMH, SensorState
 from firmware_model.onboard.step_cache import StepCache
 from firmware_model.onboard.time_to_limit import TtlJob, TtlPoint, held_system, loss_heat_w, time_to_limit
-
-I_PUB_OIL = PUBLISHED.index("oil")
 
 
 def time_to_limit_bound(sp: SensorParams, cache: StepCache, p: TtlPoint, vehicle=None) -> np.ndarray:
@@ -71,12 +68,13 @@ def time_to_limit_bound(sp: SensorParams, cache: StepCache, p: TtlPoint, vehicle
         if march is not None:
             ttl_s = march.ttl_s if ttl_s is None else np.minimum(ttl_s, march.ttl_s)
     if ttl_s is None:
-        out = np.full(N_PUB, np.nan)
+        out = np.full(len(sp.reduced.published), np.nan)
     else:
-        out = np.full(N_PUB, np.inf)
+        out = np.full(len(sp.reduced.published), np.inf)
         out[pub_free] = ttl_s
         if measured:
-            out[I_PUB_OIL] = 0.0 if p.T_oil_c >= warning_c[I_PUB_OIL] else np.inf
+            oil = sp.reduced.published_index == sp.reduced.i_oil  # the published sump's column (if published)
+            out[oil] = np.where(p.T_oil_c >= warning_c[oil], 0.0, np.inf)
     if np.any(out <= TTL_BOUND_GATE_S):
         # a crossing soon: today's method too, the earlier of the two (no warning later than today's)
         today = time_to_limit(sp, cache, p, vehicle)
