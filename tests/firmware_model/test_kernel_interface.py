@@ -103,8 +103,10 @@ def test_the_table_builder_fills_exactly_the_structs_fields():
             assert v.ndim == 1 and v.dtype.kind == ("f" if f.ctype == KI.PREAL else "i"), f.name
         else:
             assert isinstance(v, int if f.ctype == KI.I32 else float) or hasattr(v, "dtype"), f.name
+    assert arrays["n_pub"] == len(sp.reduced.published) <= KI.MAX_PUB
+    assert arrays["n_gears"] == sp.reduced.speed_coef.shape[0] <= KI.MAX_GEARS
     for name in ("published_index", "warning_c", "ttl_relin"):
-        assert arrays[name].size == KI.DIMENSIONS["GVS_N_PUB"], name
+        assert arrays[name].size == arrays["n_pub"], name
     assert list(vehicle_arrays(sp, 2)) == [f.name for f in KI.STRUCT["Vehicle"].fields]
     with pytest.raises(KeyError, match="fills no n_recirc.*fills wrong_key"):
         KI.struct_values(KI.STRUCT["Tables"], {**{k: v for k, v in arrays.items() if k != "n_recirc"}, "wrong_key": 0})

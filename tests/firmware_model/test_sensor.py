@@ -582,7 +582,7 @@ def _reordered_description(tmp_path, params_text: str) -> Path:
     return f
 
 
-@pytest.mark.parametrize("core", ["numpy"])
+@pytest.mark.parametrize("core", ["numpy", "c"])
 def test_the_published_components_come_from_the_description(tmp_path, core):
     from firmware_model.parameters import PARAM_DIR
 

@@ -172,6 +172,8 @@ def capacity_values(sp) -> tuple[dict, bool]:
         GVS_MAX_STREAMS=a["nst"],
         GVS_MAX_TERMS=max(a["n2"], a["ne"], a["ncol"], 1),
         GVS_MAX_LNZ=max(a["ldl_nnz"], 1),
+        GVS_MAX_PUB=a["n_pub"],
+        GVS_MAX_GEARS=a["n_gears"],
     )
     return {k: int(v) for k, v in caps.items()}, index16_fits(a)
 

@@ -398,14 +398,14 @@ static void update_levels(const gvs_tables *tb, gvs_state *st, const gvs_real *T
                           const gvs_real *ttl_now)
 {
     int i, rest = available;
-    for (i = 0; i < GVS_N_PUB && rest; ++i)
+    for (i = 0; i < tb->n_pub && rest; ++i)
         rest = T_pub[i] < tb->warning_rest_c[i] && st->level[i] == GVS_LEVEL_NORMAL && st->pending_s[i] == R_(0.0)
             && (tb->lead_s <= R_(0.0) || ttl_now[i] > R_(2.0) * tb->lead_s);
     if (rest) {            /* nothing near a limit: the state machine rests */
-        for (i = 0; i < GVS_N_PUB; ++i) { st->level[i] = GVS_LEVEL_NORMAL; st->pending_s[i] = R_(0.0); }
+        for (i = 0; i < tb->n_pub; ++i) { st->level[i] = GVS_LEVEL_NORMAL; st->pending_s[i] = R_(0.0); }
         return;
     }
-    for (i = 0; i < GVS_N_PUB; ++i) {
+    for (i = 0; i < tb->n_pub; ++i) {
         int lv = st->level[i], target, held, crit, warn, change, take;
         gvs_real T = T_pub[i], pend;
         crit = T >= tb->critical_c[i] || (lv == GVS_LEVEL_CRITICAL && T > tb->critical_c[i] - tb->hysteresis_k[i]);
@@ -428,7 +428,7 @@ static int skip_step(const gvs_tables *tb, gvs_state *st, gvs_outputs *out)
 {
     int i;
     st->rejects[GVS_RJ_TIME_BACKWARD] += 1;
-    for (i = 0; i < GVS_N_PUB; ++i) {
+    for (i = 0; i < tb->n_pub; ++i) {
         out->T_c[i] = st->T_c[GVS_MAIN][tb->published_index[i]];
         out->level[i] = st->level[i];
         out->ttl_s[i] = st->ttl_s[i];
@@ -459,7 +459,8 @@ int gvs_check_tables(const gvs_tables *tb)
     if (!nan_checks_work()) return GVS_BAD_TABLES;
     if (tb->n > GVS_MAX_NODES || tb->nl > GVS_MAX_LINKS || tb->ldl_nnz > GVS_MAX_LNZ || tb->ns > GVS_MAX_SRC || tb->nb > GVS_MAX_BC
         || tb->nst > GVS_MAX_STREAMS || tb->n2 > GVS_MAX_TERMS || tb->ne > GVS_MAX_TERMS
-        || tb->ncol > GVS_MAX_TERMS || tb->n_gears != GVS_N_GEARS
+        || tb->ncol > GVS_MAX_TERMS || tb->n_gears < 1 || tb->n_gears > GVS_MAX_GEARS
+        || tb->n_pub < 1 || tb->n_pub > GVS_MAX_PUB
         || tb->nT < 2 || tb->nT2 < 2 || tb->n_u < 2 || tb->n_u_churn < 2 || tb->nx < 2 || tb->ttl_every < 1)
         return GVS_BAD_TABLES;
 #ifdef GVS_NO_TTL_BOUND
@@ -996,12 +997,12 @@ static int skip_to(const gvs_tables *tb, const gvs_ttl_point *p, const gvs_real 
     }
     if (!(rate > R_(0.0))) {
         if (rate <= R_(0.0)) {
-            for (j = 0; j < GVS_N_PUB; ++j) open[j] = 0;
+            for (j = 0; j < tb->n_pub; ++j) open[j] = 0;
             return 0;
         }
         return 1;
     }
-    for (j = 0; j < GVS_N_PUB; ++j)
+    for (j = 0; j < tb->n_pub; ++j)
         if (open[j]) {
             int32_t r = tb->published_index[j];
             march_t tj = (march_t)(tb->warning_c[j] - p->T_main_c[r])
@@ -1015,7 +1016,7 @@ static int skip_to(const gvs_tables *tb, const gvs_ttl_point *p, const gvs_real 
     return 1;
 }
 
-/* one held-input solution (time_to_limit._solve + held_march.march_time_to_limit): ttl[GVS_N_PUB]; *T_watch the sump at
+/* one held-input solution (time_to_limit._solve + held_march.march_time_to_limit): ttl[GVS_MAX_PUB]; *T_watch the sump at
  * the first crossing of a re-linearising component (NaN: none) */
 static int ttl_solve(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl_point *p, const gvs_real *src,
                      const gvs_real *G, const gvs_real *Gs, gvs_real T_op, int measured, gvs_real *ttl,
@@ -1025,7 +1026,7 @@ static int ttl_solve(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl
     gvs_real T_inf[GVS_MAX_NODES], e[GVS_MAX_NODES], de[GVS_MAX_NODES], e_g[GVS_MAX_NODES], e_new[GVS_MAX_NODES];
     gvs_real de_new[GVS_MAX_NODES], Ae[GVS_MAX_NODES], energy = R_(0.0), energy_new, e_max = R_(0.0), bnd;
     const gvs_real *C = tb->C_j_per_k;
-    int8_t open[GVS_N_PUB];
+    int8_t open[GVS_MAX_PUB];
     int32_t n = tb->n, i, j, any = 0, io = tb->i_oil;
     march_t t = M_(0.0), h = M_(GVS_MARCH_H0_S), t_skip = M_(0.0);
 #ifndef GVS_NO_TTL_BOUND
@@ -1034,7 +1035,7 @@ static int ttl_solve(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl
     const march_t ratio = M_(GVS_MARCH_RATIO);
 #endif
     *T_watch = (gvs_real)NAN;
-    for (j = 0; j < GVS_N_PUB; ++j) ttl[j] = (gvs_real)NAN;
+    for (j = 0; j < tb->n_pub; ++j) ttl[j] = (gvs_real)NAN;
     memset(e, 0, sizeof e);
     memset(de, 0, sizeof de);
     if (held_build(tb, veh, p, src, G, Gs, T_op, measured, &hs, T_inf, chord) != 0) return -1;
@@ -1050,7 +1051,7 @@ static int ttl_solve(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl
         e_max = bound_max(&hs, e, i, e_max);
     }
     bnd = e_max;                                    /* held_march._bound_scale (when metzler or weighted) */
-    for (j = 0; j < GVS_N_PUB; ++j) {
+    for (j = 0; j < tb->n_pub; ++j) {
         int32_t r = tb->published_index[j];
         gvs_real lim = tb->warning_c[j];
         open[j] = 0;
@@ -1083,7 +1084,7 @@ static int ttl_solve(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl
             e_max = bound_max(&hs, e_new, i, e_max);
         }
         any = 0;
-        for (j = 0; j < GVS_N_PUB; ++j) {
+        for (j = 0; j < tb->n_pub; ++j) {
             int32_t r = tb->published_index[j];
             gvs_real lim = tb->warning_c[j], f1;
             if (!open[j]) continue;
@@ -1243,12 +1244,12 @@ static int ttl_refresh(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_t
 /* a crossing within GVS_TTL_BOUND_GATE_S: today's march too, the earlier of the two (no warning later than today's) */
 static void bound_gate(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl_point *p, gvs_real *ttl_s)
 {
-    gvs_real today[GVS_N_PUB];
+    gvs_real today[GVS_MAX_PUB];
     int j;
-    for (j = 0; j < GVS_N_PUB && !(ttl_s[j] <= R_(GVS_TTL_BOUND_GATE_S)); ++j) {}
-    if (j == GVS_N_PUB) return;
+    for (j = 0; j < tb->n_pub && !(ttl_s[j] <= R_(GVS_TTL_BOUND_GATE_S)); ++j) {}
+    if (j == tb->n_pub) return;
     ttl_refresh(tb, veh, p, today, 0);
-    for (j = 0; j < GVS_N_PUB; ++j)
+    for (j = 0; j < tb->n_pub; ++j)
         if (today[j] < ttl_s[j]) ttl_s[j] = today[j];
 }
 
@@ -1256,7 +1257,7 @@ static void bound_gate(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_t
  * conductances, those of T_far's bin); the step's own system when the sump is settled, held or not found */
 static int ttl_refresh_bound(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl_point *p, gvs_real *ttl_s)
 {
-    gvs_real T_watch, src[GVS_MAX_SRC], G[GVS_MAX_LINKS], Gs[GVS_MAX_STREAMS], other[GVS_N_PUB];
+    gvs_real T_watch, src[GVS_MAX_SRC], G[GVS_MAX_LINKS], Gs[GVS_MAX_STREAMS], other[GVS_MAX_PUB];
     int measured = p->measured && !tb->ttl_sump_model, rc_a, rc_b, j;
     ttl_chord_t ch;
     ch.stop = NULL;
@@ -1273,9 +1274,9 @@ static int ttl_refresh_bound(const gvs_tables *tb, const gvs_vehicle *veh, const
     rc_b = ttl_solve(tb, veh, p, src, G, Gs, ch.T_far, 0, other, &T_watch, &ch);
     if (rc_b != 0) {
         if (rc_a != 0)
-            for (j = 0; j < GVS_N_PUB; ++j) ttl_s[j] = (gvs_real)NAN;
+            for (j = 0; j < tb->n_pub; ++j) ttl_s[j] = (gvs_real)NAN;
     } else {
-        for (j = 0; j < GVS_N_PUB; ++j)
+        for (j = 0; j < tb->n_pub; ++j)
             if (rc_a != 0 || other[j] < ttl_s[j]) ttl_s[j] = other[j];
     }
     bound_gate(tb, veh, p, ttl_s);
@@ -1291,7 +1292,7 @@ static int ttl_refresh(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_t
     oil_row_t o;
     if (gvs_check_tables(tb) != GVS_OK) return GVS_BAD_TABLES;
     if (tb->ldl_nnz <= 0) {                       /* a build without the time to limit's tables: not available */
-        for (it = 0; it < GVS_N_PUB; ++it) ttl_s[it] = (gvs_real)NAN;
+        for (it = 0; it < tb->n_pub; ++it) ttl_s[it] = (gvs_real)NAN;
         return GVS_OK;
     }
 #ifndef GVS_NO_TTL_BOUND
@@ -1325,7 +1326,7 @@ int gvs_step(const gvs_tables *tb, const gvs_vehicle *veh, gvs_state *st, const 
              gvs_outputs *out, gvs_ttl_point *ttl)
 {
     int64_t counts[GVS_N_REJECT];
-    gvs_real T_pub[GVS_N_PUB], ttl_now[GVS_N_PUB];
+    gvs_real T_pub[GVS_MAX_PUB], ttl_now[GVS_MAX_PUB];
     int64_t k = st->k, since;
     int i, available, any = 0, due;
     check_t c;
@@ -1351,16 +1352,16 @@ int gvs_step(const gvs_tables *tb, const gvs_vehicle *veh, gvs_state *st, const 
     check_inputs(tb, st, in->raw, counts, &c);
     network_step(tb, veh, st, &c, in->raw[GVS_I_OIL], &nt);
     /* published temperatures, warnings, the time to limit counted down */
-    for (i = 0; i < GVS_N_PUB; ++i) T_pub[i] = st->T_c[GVS_MAIN][tb->published_index[i]];
+    for (i = 0; i < tb->n_pub; ++i) T_pub[i] = st->T_c[GVS_MAIN][tb->published_index[i]];
     available = c.drive_age_s <= tb->hold_s;
     since = k == 0 ? 0 : (steps_mod(k - 1, tb->ttl_every) + 1);
-    for (i = 0; i < GVS_N_PUB; ++i) {
+    for (i = 0; i < tb->n_pub; ++i) {
         gvs_real t = st->ttl_s[i] - (gvs_real)since * tb->dt_s;
         ttl_now[i] = t != t ? t : max_r(t, R_(0.0));
     }
     update_levels(tb, st, T_pub, available, ttl_now);
-    for (i = 0; i < GVS_N_PUB; ++i) any |= st->level[i] != GVS_LEVEL_NORMAL || T_pub[i] >= tb->warning_c[i];
-    for (i = 0; i < GVS_N_PUB; ++i) {
+    for (i = 0; i < tb->n_pub; ++i) any |= st->level[i] != GVS_LEVEL_NORMAL || T_pub[i] >= tb->warning_c[i];
+    for (i = 0; i < tb->n_pub; ++i) {
         out->T_c[i] = T_pub[i];
         out->level[i] = st->level[i];
         if (any && st->level[i] == GVS_LEVEL_NA) out->ttl_s[i] = (gvs_real)NAN;
