@@ -35,7 +35,6 @@ from firmware_model.components import (
 )
 from firmware_model.onboard.records import MAIN, N_INPUTS, N_REJECT, REJECT_REASONS, TWIN
 from firmware_model.physics.cooler import COOLER_KINDS
-from firmware_model.physics.kinematics import SPEED_NAMES
 
 HEADER_PATH = Path(__file__).resolve().parent / "c" / "gvs_kernel.h"
 REGENERATE = "python -m firmware_model.onboard.kernel_interface --write"
@@ -55,10 +54,6 @@ N_PROP = len(PROP_COLUMNS)
 P_LOG10_MU, P_LN_NU_CST, P_LN_MU, P_LN_ROLL, P_RHO, P_CP, P_K, P_LN_PR = range(N_PROP)
 #: which vehicle effect scales a conductance law (pw_effect, ef_effect): none or a gvs_vehicle field
 EFFECT_NONE, EFFECT_TEETH_OIL_H, EFFECT_PLANET_OIL_H, EFFECT_HOUSING_AIR_H = range(4)
-#: columns of the per-gear speed table (speed_coef, SPEED_NAMES) the step reads: the layshaft (oil pump, cooler
-#: flow, churning) and the output shaft (retarder)
-SPEED_COL_LAYSHAFT = SPEED_NAMES.index("LS")
-SPEED_COL_OUTPUT = SPEED_NAMES.index("OS")
 #: the time to limit's march (held_march): first step [s], each step this many times longer than the last
 MARCH_H0_S = 1.0
 MARCH_RATIO = 1.4
@@ -143,8 +138,6 @@ DEFINES = (
     Constant("N_INPUTS", N_INPUTS, "input fields (records.INPUT_FIELDS)"),
     Constant("N_REJECT", N_REJECT, "reject counters (records.REJECT_REASONS)"),
     Constant("N_PROP", N_PROP, "columns of the oil property table"),
-    Constant("SPEED_COL_LAYSHAFT", SPEED_COL_LAYSHAFT, "speed_coef column of the layshaft (oil flow, churning)"),
-    Constant("SPEED_COL_OUTPUT", SPEED_COL_OUTPUT, "speed_coef column of the output shaft (retarder)"),
     Constant("MARCH_H0_S", MARCH_H0_S, "time to limit: first march step [s]"),
     Constant("MARCH_RATIO", MARCH_RATIO, "each march step this many times longer than the last"),
     Constant("TTL_HORIZON_S", TTL_HORIZON_S, "time to limit beyond this is never (inf) [s]"),
@@ -289,6 +282,9 @@ _TABLES = (
     Field("T_grid_step_k", REAL, (), "K"),
     "losses",
     Field("speed_coef", PREAL, ("gears", "n_speed"), doc="every speed per unit input speed"),
+    Field("pump_speed_col", I32, doc="speed_coef column of the shaft that drives the oil pump (flow, cooler); -1 none"),
+    Field("churn_speed_col", I32, doc="... of the shaft whose dipping wheels churn (the churning table); -1 none"),
+    Field("output_speed_col", I32, doc="... of the output shaft (retarder); -1 none"),
     *_f("mesh_torque mesh_omega2", PREAL, ("gears", "n_mesh")),
     Field("mesh_x0", PREAL, ("n_mesh",)),
     Field("mesh_phi", PREAL, ("n_mesh", "nx")),

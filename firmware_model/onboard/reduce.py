@@ -227,6 +227,31 @@ def published_ids(d: Description) -> tuple:
     return tuple(c.id for c in d.published)
 
 
+def speed_columns(d: Description) -> dict:
+    """The speed_coef columns (SPEED_NAMES) the step reads, from the description: the shaft that drives the oil pump
+    (oil.pump_shaft), the one whose dipping wheels churn (the churning law, physics.gearbox_losses, is the
+    layshaft's), the output shaft (drive.output_shaft, the retarder's). The tables allow -1 (no such shaft: it turns
+    at 0); a motor-driven pump (no pump_shaft) is refused here, its flow follows no shaft and has no law onboard."""
+    if d.oil.pump_shaft is None:
+        raise ParameterError(
+            f"{d.origin}: topology.oil has no pump_shaft (a motor-driven pump): the onboard sensor models the oil flow "
+            "of a shaft-driven pump only"
+        )
+
+    def col(key: str, shaft: str) -> int:
+        if shaft not in SPEED_NAMES:
+            raise ParameterError(
+                f"{d.origin}: {key} = {shaft!r} is no shaft of the kinematics ({', '.join(SPEED_NAMES)})"
+            )
+        return SPEED_NAMES.index(shaft)
+
+    return dict(
+        pump_speed_col=col("topology.oil.pump_shaft", d.oil.pump_shaft),
+        churn_speed_col=SPEED_NAMES.index("LS"),
+        output_speed_col=col("topology.drive.output_shaft", d.drive.output_shaft),
+    )
+
+
 def aggregate(net: Network, partition: dict) -> Aggregation:
     """Merge full nodes into groups: C summed, links between groups summed, links inside a group dropped."""
     for k in partition:
@@ -679,6 +704,7 @@ def build_reduced(
         **_law_fields(laws),
         prop=_ro(oil_property_table(T_GRID_C)),
         speed_coef=_ro(kin.speed),
+        **speed_columns(net.geometry.description),
         mesh_torque=_ro(kin.mesh_torque),
         mesh_omega2=_ro(kin.mesh_omega2),
         mesh_x0=_ro(lm.mesh_x0),

@@ -23,7 +23,6 @@ from firmware_model.onboard.held_inputs import cooler_slope_w_per_k
 from firmware_model.onboard.held_march import HeldSystem, March, march_time_to_limit
 from firmware_model.onboard.kernel_interface import (
     COUPLING_MARGIN,
-    SPEED_COL_LAYSHAFT,
     TTL_RELINEARISE_STEPS,
     TTL_RELINEARISE_TOL_K,
 )
@@ -158,9 +157,9 @@ def _inlet_follows_sump(sp: SensorParams, p: TtlPoint, measured: bool, slope_w_p
 
 
 def _oil_flow_m3_s(sp: SensorParams, row: int, omega_in_rad_s: float) -> float:
-    """Oil-system volume flow [m3/s] at this gear and input speed (the pump turns with the layshaft)."""
+    """Oil-system volume flow [m3/s] at this gear and input speed (the pump turns with its shaft)."""
     rp = sp.reduced
-    return rp.flow_m3_per_rad * abs(float(rp.speed_coef[row, SPEED_COL_LAYSHAFT])) * omega_in_rad_s
+    return rp.flow_m3_per_rad * float(E.shaft_speed_rad_s(rp, row, rp.pump_speed_col, 1.0)) * omega_in_rad_s
 
 
 def held_system(

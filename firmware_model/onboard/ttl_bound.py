@@ -35,7 +35,6 @@ from firmware_model.onboard.held_march import HeldSystem, march_time_to_limit
 from firmware_model.onboard.kernel_interface import (
     COUPLING_MARGIN,
     MARCH_RATIO,
-    SPEED_COL_LAYSHAFT,
     TTL_BOUND_GATE_S,
     TTL_BOUND_ITERS,
     TTL_BOUND_RATIO,
@@ -146,7 +145,7 @@ def cooler_chord_slope(sp: SensorParams, p: TtlPoint, T_far_c: float, vehicle=No
     """The cooler's chord from the step's sump to T_far [W/K]: (Q(T_far) - Q_step) / (T_far - T_step), at least 0
     (firmware_model.onboard.evaluate.cooler_heat with the point's inputs, as held_inputs.cooler_slope_w_per_k)."""
     rp = sp.reduced
-    omega_ls = abs(float(rp.speed_coef[p.row, SPEED_COL_LAYSHAFT])) * p.omega_in_rad_s
+    omega_ls = float(E.shaft_speed_rad_s(rp, p.row, rp.pump_speed_col, 1.0)) * p.omega_in_rad_s
     if rp.cooler_code == E.COOLER_CODES["none"] or omega_ls <= 0.0:
         return 0.0
     Q_far_w, _, _ = E.cooler_heat(

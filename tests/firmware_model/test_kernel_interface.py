@@ -136,7 +136,13 @@ def test_the_python_side_reads_the_shared_constants_from_the_interface():
 
     assert held_march.MARCH_D_FRAC is KI.MARCH_D_FRAC and held_march.TTL_QUANTUM_S is KI.TTL_QUANTUM_S
     assert time_to_limit.COUPLING_MARGIN is KI.COUPLING_MARGIN and reduce.P_RHO == KI.P_RHO
-    assert SPEED_NAMES[KI.SPEED_COL_LAYSHAFT] == "LS" and SPEED_NAMES[KI.SPEED_COL_OUTPUT] == "OS"
+    from firmware_model.onboard.sensor import VirtualSensor
+    from firmware_model.parameters import load_parameters
+
+    rp = VirtualSensor(load_parameters("GRS905"), core="numpy").reduced
+    assert SPEED_NAMES[rp.pump_speed_col] == SPEED_NAMES[rp.churn_speed_col] == "LS"
+    assert SPEED_NAMES[rp.output_speed_col] == "OS"
+    assert not hasattr(KI, "SPEED_COL_LAYSHAFT") and "SPEED_COL" not in KI.header_text()
     onboard = Path(reduce.__file__).parent
     bare = [
         f"{p.name}:{i + 1}"

@@ -58,6 +58,13 @@ static float pow_f(float a, float b)
 static gvs_real min_r(gvs_real a, gvs_real b) { return a < b ? a : b; }
 static gvs_real max_r(gvs_real a, gvs_real b) { return a > b ? a : b; }
 static gvs_real clip_r(gvs_real x, gvs_real lo, gvs_real hi) { return x < lo ? lo : (x > hi ? hi : x); }
+
+/* |speed| of the shaft in speed_coef column col (tables.pump_speed_col, churn_speed_col, output_speed_col; -1: no
+ * such shaft, 0) at this gear row (evaluate.shaft_speed_rad_s) */
+static gvs_real shaft_speed(const gvs_tables *tb, int32_t row, int32_t col, gvs_real omega_in_rad_s)
+{
+    return col < 0 ? R_(0.0) : FABS(tb->speed_coef[row * tb->n_speed + col]) * omega_in_rad_s;
+}
 static int finite_r(double x) { return x == x && x - x == 0.0; }
 
 /* k mod m for a step count k >= 0 and m >= 1 without a 64-bit division (none in an FPU-only ECU's hardware: the
@@ -164,7 +171,7 @@ static void bin_conductances(const gvs_tables *tb, const gvs_vehicle *veh, int32
         }
     }
     /* closed-form streams, NTU (Eq 69-80) */
-    omega_ls_rad_s = FABS(tb->speed_coef[gear_row * tb->n_speed + GVS_SPEED_COL_LAYSHAFT]) * omega_in_rad_s;
+    omega_ls_rad_s = shaft_speed(tb, gear_row, tb->pump_speed_col, omega_in_rad_s);
     rho_cp_omega = o.prop[GVS_P_RHO] * o.prop[GVS_P_CP] * omega_ls_rad_s;
     for (t = 0; t < tb->ne; ++t) {
         gvs_real mcp = tb->ef_mcp[t] * rho_cp_omega;
@@ -233,7 +240,7 @@ static void heat_sources(const gvs_tables *tb, const gvs_vehicle *veh, int32_t g
         P_needle += Mn * omega_rel_rad_s;
     }
     omega_in_sq = omega_in_rad_s * omega_in_rad_s;
-    omega_ls_rad_s = FABS(tb->speed_coef[gear_row * tb->n_speed + GVS_SPEED_COL_LAYSHAFT]) * omega_in_rad_s;
+    omega_ls_rad_s = shaft_speed(tb, gear_row, tb->churn_speed_col, omega_in_rad_s);
     iu = sqrt_speed_index(omega_ls_rad_s, tb->churn_omega_max_rad_s, tb->n_u_churn, &fu);  /* churning table */
     jT = grid_index(o->x, tb->nT, &fT);
     P_churn = bilinear(tb->churn_table + iu * tb->nT + jT, tb->nT, fu, fT);
@@ -250,7 +257,7 @@ static gvs_real retarder_heat_w(const gvs_tables *tb, const gvs_vehicle *veh, in
                                 gvs_real retarder_torque_nm)
 {
     return veh->retarder_frac * retarder_torque_nm
-        * FABS(tb->speed_coef[gear_row * tb->n_speed + GVS_SPEED_COL_OUTPUT]) * omega_in_rad_s;
+        * shaft_speed(tb, gear_row, tb->output_speed_col, omega_in_rad_s);
 }
 
 /* ---- the oil cooler (physics.cooler.oil_cooler_heat, seed 3.4, Eq 82-83) --------------------------------- */
@@ -460,7 +467,9 @@ int gvs_check_tables(const gvs_tables *tb)
     if (tb->n > GVS_MAX_NODES || tb->nl > GVS_MAX_LINKS || tb->ldl_nnz > GVS_MAX_LNZ || tb->ns > GVS_MAX_SRC || tb->nb > GVS_MAX_BC
         || tb->nst > GVS_MAX_STREAMS || tb->n2 > GVS_MAX_TERMS || tb->ne > GVS_MAX_TERMS
         || tb->ncol > GVS_MAX_TERMS || tb->n_gears < 1 || tb->n_gears > GVS_MAX_GEARS
-        || tb->n_pub < 1 || tb->n_pub > GVS_MAX_PUB
+        || tb->n_pub < 1 || tb->n_pub > GVS_MAX_PUB || tb->pump_speed_col < -1 || tb->pump_speed_col >= tb->n_speed
+        || tb->churn_speed_col < -1 || tb->churn_speed_col >= tb->n_speed || tb->output_speed_col < -1
+        || tb->output_speed_col >= tb->n_speed
         || tb->nT < 2 || tb->nT2 < 2 || tb->n_u < 2 || tb->n_u_churn < 2 || tb->nx < 2 || tb->ttl_every < 1)
         return GVS_BAD_TABLES;
 #ifdef GVS_NO_TTL_BOUND
@@ -520,7 +529,7 @@ static void network_step(const gvs_tables *tb, const gvs_vehicle *veh, gvs_state
         nt->G = st->memo_G;
         nt->Gs = st->memo_Gs;
     }
-    w_ls = FABS(tb->speed_coef[nt->row * tb->n_speed + GVS_SPEED_COL_LAYSHAFT]) * w;
+    w_ls = shaft_speed(tb, nt->row, tb->pump_speed_col, w);
     nt->rho_cp = o.prop[GVS_P_RHO] * o.prop[GVS_P_CP];
     mcp = nt->rho_cp * tb->flow_m3_per_rad * w_ls;
     cooler_op(tb, veh, w_ls, w, c->used[GVS_I_COOL], c->used[GVS_I_AMB], c->used[GVS_I_VKMH], mcp, &cop);
@@ -763,7 +772,7 @@ static void held_apply(const gvs_tables *tb, const held_t *hs, const gvs_real *e
  * difference */
 static gvs_real cooler_slope(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl_point *p, gvs_real T)
 {
-    gvs_real w_ls = FABS(tb->speed_coef[p->row * tb->n_speed + GVS_SPEED_COL_LAYSHAFT]) * p->omega_in_rad_s;
+    gvs_real w_ls = shaft_speed(tb, p->row, tb->pump_speed_col, p->omega_in_rad_s);
     gvs_real Q, Q_hi, Q_lo;
     gvs_real mcp = p->rho_cp_j_per_m3k * tb->flow_m3_per_rad * w_ls;
     const gvs_real *u = p->used;
@@ -862,7 +871,7 @@ static int held_build(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_tt
 {
     int32_t n = tb->n, k, i, io = tb->i_oil;
     gvs_real T_oil = p->T_oil_c, mcp, dT_in;
-    gvs_real w_ls = FABS(tb->speed_coef[p->row * tb->n_speed + GVS_SPEED_COL_LAYSHAFT]) * p->omega_in_rad_s;
+    gvs_real w_ls = shaft_speed(tb, p->row, tb->pump_speed_col, p->omega_in_rad_s);
     mcp = p->rho_cp_j_per_m3k * tb->flow_m3_per_rad * w_ls;
     hs->G = G;
     hs->held = measured;
@@ -1139,7 +1148,7 @@ static void bound_scatter(const gvs_tables *tb, const gvs_real *src, gvs_real *q
 /* ttl_bound.cooler_chord_slope: (Q(T_far) - Q_step) / (T_far - T_step), at least 0 */
 static gvs_real bound_cooler_slope(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl_point *p, gvs_real T)
 {
-    gvs_real w_ls = FABS(tb->speed_coef[p->row * tb->n_speed + GVS_SPEED_COL_LAYSHAFT]) * p->omega_in_rad_s;
+    gvs_real w_ls = shaft_speed(tb, p->row, tb->pump_speed_col, p->omega_in_rad_s);
     gvs_real mcp = p->rho_cp_j_per_m3k * tb->flow_m3_per_rad * w_ls;
     const gvs_real *u = p->used;
     cooler_op_t op;
@@ -1187,7 +1196,7 @@ static int bound_far_sump(const gvs_tables *tb, const gvs_vehicle *veh, const gv
     gvs_real r[GVS_MAX_NODES], rw[GVS_MAX_SRC], src_k[GVS_MAX_SRC], qf[GVS_MAX_NODES];
     gvs_real T0 = p->T_oil_c, t_prev = T0, g_prev, g, T_far, rb = R_(0.0), ru = R_(0.0), rq0 = R_(0.0), rqf, slope_k;
     gvs_real mcp = p->rho_cp_j_per_m3k * tb->flow_m3_per_rad
-        * FABS(tb->speed_coef[p->row * tb->n_speed + GVS_SPEED_COL_LAYSHAFT]) * p->omega_in_rad_s;
+        * shaft_speed(tb, p->row, tb->pump_speed_col, R_(1.0)) * p->omega_in_rad_s;
     int32_t n = tb->n, i, k, it, io = tb->i_oil, found = 0;
     hs.G = p->G_w_per_k;
     hs.slope = R_(0.0);

@@ -96,8 +96,6 @@ typedef int32_t gvs_idx;
 #define GVS_N_INPUTS 8                          /* input fields (records.INPUT_FIELDS) */
 #define GVS_N_REJECT 13                         /* reject counters (records.REJECT_REASONS) */
 #define GVS_N_PROP 8                            /* columns of the oil property table */
-#define GVS_SPEED_COL_LAYSHAFT 1                /* speed_coef column of the layshaft (oil flow, churning) */
-#define GVS_SPEED_COL_OUTPUT 3                  /* speed_coef column of the output shaft (retarder) */
 #define GVS_MARCH_H0_S 1.0                      /* time to limit: first march step [s] */
 #define GVS_MARCH_RATIO 1.4                     /* each march step this many times longer than the last */
 #define GVS_TTL_HORIZON_S 2000000.0             /* time to limit beyond this is never (inf) [s] */
@@ -194,6 +192,10 @@ typedef struct {
     gvs_real T_grid_step_k;             /* [K] */
     /* losses */
     const gvs_real *speed_coef;         /* (gears x n_speed) every speed per unit input speed */
+    /* speed_coef column of the shaft that drives the oil pump (flow, cooler); -1 none */
+    int32_t pump_speed_col;
+    int32_t churn_speed_col;            /* ... of the shaft whose dipping wheels churn (the churning table); -1 none */
+    int32_t output_speed_col;           /* ... of the output shaft (retarder); -1 none */
     const gvs_real *mesh_torque, *mesh_omega2; /* (gears x n_mesh) */
     const gvs_real *mesh_x0;            /* (n_mesh) */
     const gvs_real *mesh_phi;           /* (n_mesh x nx) */
