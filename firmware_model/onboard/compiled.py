@@ -29,7 +29,7 @@ from firmware_model.onboard.held_inputs import jump_state
 from firmware_model.onboard.kernel_interface import NEED_JUMP
 from firmware_model.onboard.kernel_tables import VEHICLE_EFFECTS, table_arrays, vehicle_arrays
 from firmware_model.onboard.params import SensorParams
-from firmware_model.onboard.records import N_INPUTS, N_PUB, SensorInputs, SensorOutputs, SensorState, SensorStatus
+from firmware_model.onboard.records import N_INPUTS, SensorInputs, SensorOutputs, SensorState, SensorStatus
 from firmware_model.onboard.step_cache import StepCache
 from firmware_model.onboard.time_to_limit import TtlJob, TtlPoint
 
@@ -77,6 +77,7 @@ class CompiledCore:
         self.name = f"c (the compiled C99 kernel, {real})"
         rp = sp.reduced
         self.n, self.ns, self.nl, self.nb = rp.n, rp.src_matrix.shape[0], len(rp.link_a), len(rp.bc_default_c)
+        self.n_pub = len(rp.published)  # the structs hold GVS_MAX_PUB: the first n_pub are this gearbox's
         arrays = table_arrays(sp)
         self.nst = int(arrays["nst"])
         self._keep, self.tables = [], self.S["Tables"]()
@@ -140,14 +141,13 @@ class CompiledCore:
             "same_s",
             "raw_prev",
             "oil_ref_c",
-            "pending_s",
-            "ttl_s",
             "t_last_s",
             "k",
             "rejects",
-            "level",
         ):
             buf[f] = getattr(state, f)
+        for f in ("pending_s", "ttl_s", "level"):
+            buf[f][..., : self.n_pub] = getattr(state, f)
         return buf
 
     def unpack(self, buf: np.ndarray) -> BufferedState:
@@ -160,9 +160,9 @@ class CompiledCore:
             buf["same_s"],
             buf["raw_prev"],
             buf["oil_ref_c"],
-            buf["level"],
-            buf["pending_s"],
-            buf["ttl_s"],
+            buf["level"][..., : self.n_pub],
+            buf["pending_s"][..., : self.n_pub],
+            buf["ttl_s"][..., : self.n_pub],
             buf["t_last_s"],
             buf["k"],
             buf["rejects"],
@@ -192,7 +192,9 @@ class CompiledCore:
             out["frozen_flags"].astype(np.int64),
             out["rejects"].copy(),
         )
-        return SensorOutputs(out["T_c"].astype(float), out["level"].copy(), out["ttl_s"].astype(float), status)
+        pub = slice(0, self.n_pub)
+        T_c, level, ttl_s = out["T_c"][..., pub], out["level"][..., pub], out["ttl_s"][..., pub]
+        return SensorOutputs(T_c.astype(float), level.copy(), ttl_s.astype(float), status)
 
     def ttl_job(self, pts: np.ndarray) -> TtlJob | None:
         """The time-to-limit refreshes the kernel's points ask for (None: none due)."""
@@ -303,7 +305,7 @@ class CompiledCore:
         pts = job.raw if job.raw is not None else self._points(job)
         V = buf.shape[0] if buf.shape else None
         veh = self.vehicles(V)
-        ttl = np.zeros(N_PUB, dtype=self.S["real"])
+        ttl = np.zeros(self.n_pub, dtype=self.S["real"])
         for v in job.vehicles:
             i = int(np.ravel_multi_index(v, pts.shape)) if v else 0
             self.lib.gvs_ttl_refresh(
@@ -312,7 +314,7 @@ class CompiledCore:
                 pts.ctypes.data + i * pts.itemsize,
                 ttl.ctypes.data,
             )
-            buf["ttl_s"][v] = ttl
+            buf["ttl_s"][v + (slice(0, self.n_pub),)] = ttl
         return self.unpack(buf)
 
     def _points(self, job: TtlJob) -> np.ndarray:
@@ -337,7 +339,7 @@ class CompiledCore:
         m_max = max(1, min(N, TABLE_CHUNK))
         rec = np.empty(m_max, dtype=self.S["Inputs_dtype"])
         out = np.zeros(m_max, dtype=self.S["Outputs_dtype"])
-        res = self._table_buffers(N, out.dtype)
+        res = self._table_buffers(N, out.dtype, self.n_pub)
         buf = self.pack(state)
         pt = np.zeros((), dtype=self.S["TtlPoint_dtype"])
         veh = self.vehicles(None).ctypes.data_as(C.POINTER(self.S["Vehicle"]))
@@ -416,12 +418,12 @@ class CompiledCore:
         return rec
 
     @staticmethod
-    def _table_buffers(N: int, out_dtype: np.dtype) -> TableOutputs:
+    def _table_buffers(N: int, out_dtype: np.dtype, n_pub: int) -> TableOutputs:
         """Empty TableOutputs for N rows (the kernel's outputs converted: temperatures and times as float64)."""
         return TableOutputs(
-            np.empty((N, N_PUB)),
-            np.empty((N, N_PUB), dtype=out_dtype["level"].base),
-            np.empty((N, N_PUB)),
+            np.empty((N, n_pub)),
+            np.empty((N, n_pub), dtype=out_dtype["level"].base),
+            np.empty((N, n_pub)),
             np.empty(N, dtype=out_dtype["degraded_mode"]),
             np.empty((N, 4), dtype=bool),
             np.empty(N),
@@ -432,10 +434,10 @@ class CompiledCore:
     @staticmethod
     def _fill_table(res: TableOutputs, out: np.ndarray, j0: int) -> None:
         """Rows j0.. of ``res`` from the kernel's output records ``out``."""
-        rows = slice(j0, j0 + out.shape[0])
-        res.T_c[rows] = out["T_c"]
-        res.level[rows] = out["level"]
-        res.ttl_s[rows] = out["ttl_s"]
+        rows, pub = slice(j0, j0 + out.shape[0]), slice(0, res.T_c.shape[1])
+        res.T_c[rows] = out["T_c"][:, pub]
+        res.level[rows] = out["level"][:, pub]
+        res.ttl_s[rows] = out["ttl_s"][:, pub]
         res.degraded_mode[rows] = out["degraded_mode"]
         for i, k in enumerate(("speed_valid", "torque_valid", "gear_valid", "oil_valid")):
             res.valid[rows, i] = out[k] != 0
@@ -444,4 +446,4 @@ class CompiledCore:
         res.rejects[rows] = out["rejects"]
 
 
-__all__ = ["CompiledCore", "BufferedState", "TableOutputs", "N_PUB"]
+__all__ = ["CompiledCore", "BufferedState", "TableOutputs"]

@@ -20,7 +20,7 @@ import numpy as np
 from firmware_model.errors import ParameterError
 from firmware_model.onboard.ckernel import CoreUnavailable
 from firmware_model.onboard.params import SensorParams
-from firmware_model.onboard.records import N_INPUTS, N_PUB, N_REJECT, SensorInputs, SensorState
+from firmware_model.onboard.records import N_INPUTS, N_REJECT, SensorInputs, SensorState
 from firmware_model.onboard.step import step, step_deferred
 from firmware_model.onboard.step_cache import StepCache
 from firmware_model.onboard.time_to_limit import TtlJob
@@ -76,8 +76,8 @@ class NumpyCore:
         (N,): the same TableOutputs as the compiled core's one call."""
         from firmware_model.onboard.compiled import TableOutputs
 
-        N = raw.shape[0]
-        T, lev, ttl = np.empty((N, N_PUB)), np.empty((N, N_PUB), dtype=np.int8), np.empty((N, N_PUB))
+        N, n_pub = raw.shape[0], len(self.sp.reduced.published)
+        T, lev, ttl = np.empty((N, n_pub)), np.empty((N, n_pub), dtype=np.int8), np.empty((N, n_pub))
         mode, valid = np.empty(N, dtype=np.int8), np.empty((N, 4), dtype=bool)
         innov, model_oil, rejects = np.empty(N), np.empty(N), np.empty((N, N_REJECT), dtype=np.int64)
         for j in range(N):

@@ -28,8 +28,6 @@ from firmware_model.onboard.kernel_interface import (
     P_LN_ROLL,
     P_LOG10_MU,
     P_RHO,
-    SPEED_COL_LAYSHAFT,
-    SPEED_COL_OUTPUT,
 )
 from firmware_model.physics import heat_transfer as ht
 from firmware_model.physics import losses as L
@@ -72,7 +70,8 @@ class ReducedParams(NamedNodes):
     margin: float
     C_j_per_k: np.ndarray  # (n,)
     i_oil: int
-    published_index: np.ndarray  # (28,) node index of each PUBLISHED component
+    published_index: np.ndarray  # (n_pub,) node index of each published component
+    published: tuple  # (n_pub,) ids of the published components (the description's published.order)
     members: tuple  # full-network node names of each reduced node
     # --- links
     link_a: np.ndarray  # (nl,)
@@ -116,6 +115,11 @@ class ReducedParams(NamedNodes):
     prop: np.ndarray  # (nT, N_PROP)
     # --- losses
     speed_coef: np.ndarray  # (17, 14) SPEED_NAMES per unit input speed
+    # columns of speed_coef (-1: none): the shaft that drives the oil pump (the description's oil.pump_shaft: oil
+    # flow, cooler), the one whose dipping wheels churn (the churning table's speed), the output shaft (retarder)
+    pump_speed_col: int
+    churn_speed_col: int
+    output_speed_col: int
     mesh_torque: np.ndarray  # (17, 9)
     mesh_omega2: np.ndarray  # (17, 9)
     mesh_x0: np.ndarray  # (9,)
@@ -179,6 +183,14 @@ class ReducedParams(NamedNodes):
         state = dict(self.__dict__)
         state.pop("helpers", None)  # derived: rebuilt on first use after unpickling
         return state
+
+
+def shaft_speed_rad_s(rp: ReducedParams, gear_row, col: int, omega_in_rad_s):
+    """|speed| [rad/s] of the shaft in column ``col`` of speed_coef (pump_speed_col, churn_speed_col,
+    output_speed_col) at this gear row and input speed; a column -1 (no such shaft) turns at 0. C: shaft_speed."""
+    if col < 0:
+        return 0.0 * np.abs(np.asarray(omega_in_rad_s, dtype=float))
+    return np.abs(rp.speed_coef[gear_row, col]) * omega_in_rad_s
 
 
 def cyl_nusselt(ln_re, ln_pr):
@@ -303,7 +315,7 @@ def bilinear(flat, base, stride: int, fu, fT):
 def retarder_heat_w(rp: ReducedParams, gear_row, omega_in_rad_s, retarder_torque_nm, retarder_frac):
     """Heat of the retarder into the sump [W]: the share ``retarder_frac`` (effect retarder_heat) of its braking
     power, torque [N m] (a magnitude) x output-shaft speed. C: retarder_heat_w."""
-    return retarder_frac * retarder_torque_nm * np.abs(rp.speed_coef[gear_row, SPEED_COL_OUTPUT]) * omega_in_rad_s
+    return retarder_frac * retarder_torque_nm * shaft_speed_rad_s(rp, gear_row, rp.output_speed_col, omega_in_rad_s)
 
 
 def _scaled(G, idx, val):
@@ -357,7 +369,7 @@ def conductances(
 
 def _stream_conductances(rp: ReducedParams, gear_row, omega_in_rad_s, prop, eff, h: Helpers):
     """Closed-form oil-system streams [W/K]: m (1 - exp(-hA / m)), m = mdot cp (NTU effectiveness, Eq 69-80)."""
-    omega_ls_rad_s = np.abs(rp.speed_coef[gear_row, SPEED_COL_LAYSHAFT]) * omega_in_rad_s
+    omega_ls_rad_s = shaft_speed_rad_s(rp, gear_row, rp.pump_speed_col, omega_in_rad_s)
     mcp_w_per_k = rp.ef_mcp * (prop[..., P_RHO] * prop[..., P_CP] * omega_ls_rad_s)[..., None]
     beta_w_per_k = rp.ef_beta
     if eff is not None and h.ef_planet.size and not (np.ndim(eff.planet_oil_h) == 0 and eff.planet_oil_h == 1.0):
@@ -451,7 +463,7 @@ def heat_sources(
     omega_in_sq = omega_in_rad_s * omega_in_rad_s
     P_sync_w = np.exp(prop[..., P_LN_MU]) * omega_in_sq * rp.sync_coef[gear_row]
     P_pump_w = rp.pump_coef[gear_row] * omega_in_sq
-    omega_ls_rad_s = np.abs(rp.speed_coef[gear_row, SPEED_COL_LAYSHAFT]) * omega_in_rad_s
+    omega_ls_rad_s = shaft_speed_rad_s(rp, gear_row, rp.churn_speed_col, omega_in_rad_s)
     iu, fu = sqrt_speed_index(omega_ls_rad_s, rp.churn_omega_max_rad_s, N_U_CHURN)
     jT, fT = grid_index(T_grid_x, h.nT)
     P_churn_w = bilinear(h.churn_flat, iu * h.nT + jT, h.nT, fu, fT)

@@ -14,7 +14,7 @@ import numpy as np
 from firmware_model.network import BOUNDARIES
 from firmware_model.onboard import evaluate as E
 from firmware_model.onboard.held_modes import HeldModes, decompose
-from firmware_model.onboard.kernel_interface import P_CP, P_RHO, SPEED_COL_LAYSHAFT
+from firmware_model.onboard.kernel_interface import P_CP, P_RHO
 from firmware_model.onboard.params import SensorParams, first_row, first_value, vehicle_value
 from firmware_model.onboard.records import (
     I_AMB,
@@ -78,7 +78,7 @@ def cooler_slope_w_per_k(
     from firmware_model.onboard.evaluate.cooler_heat; ``used``: the step's inputs (INPUT_FIELDS order); ``vehicle``:
     the batch index whose effects apply (None: the first vehicle's)."""
     rp = sp.reduced
-    omega_ls = abs(rp.speed_coef[row, SPEED_COL_LAYSHAFT]) * omega_in_rad_s
+    omega_ls = E.shaft_speed_rad_s(rp, row, rp.pump_speed_col, omega_in_rad_s)
     if rp.cooler_code == E.COOLER_CODES["none"] or omega_ls <= 0.0:
         return 0.0
     args = (
@@ -194,7 +194,7 @@ def _held_propagate(sp: SensorParams, state: SensorState, v: tuple, copy: int, t
         rp, row, omega_in_rad_s, T_grid_x, prop, phi, T0_c, T_bc_c, e if sp.scalar_effects else None, h
     )
     rho_cp_j_per_m3k = float(prop[P_RHO] * prop[P_CP])
-    omega_ls_rad_s = abs(rp.speed_coef[row, SPEED_COL_LAYSHAFT]) * omega_in_rad_s
+    omega_ls_rad_s = E.shaft_speed_rad_s(rp, row, rp.pump_speed_col, omega_in_rad_s)
     used = np.array([speed_rpm, torque_nm, row + GEAR_MIN, T_oil_c, T_amb_c, T_cool_c, v_kmh, retarder_nm])
     Q_cool_w, mcp_w_per_k, _ = E.cooler_heat(
         rp,

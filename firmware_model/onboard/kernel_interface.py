@@ -33,9 +33,8 @@ from firmware_model.components import (
     MODE_NORMAL,
     MODE_OIL_MODEL,
 )
-from firmware_model.onboard.records import MAIN, N_INPUTS, N_PUB, N_REJECT, REJECT_REASONS, TWIN
+from firmware_model.onboard.records import MAIN, N_INPUTS, N_REJECT, REJECT_REASONS, TWIN
 from firmware_model.physics.cooler import COOLER_KINDS
-from firmware_model.physics.kinematics import N_GEARS, SPEED_NAMES
 
 HEADER_PATH = Path(__file__).resolve().parent / "c" / "gvs_kernel.h"
 REGENERATE = "python -m firmware_model.onboard.kernel_interface --write"
@@ -45,6 +44,8 @@ REGENERATE = "python -m firmware_model.onboard.kernel_interface --write"
 #: default capacities of the plain structs (the tables give the actual sizes; gvs_check_tables() refuses larger
 #: ones); an ECU build sets them to the exported variant's sizes (-DGVS_MAX_NODES=61 ...) to save RAM
 MAX_NODES, MAX_LINKS, MAX_SRC, MAX_BC, MAX_STREAMS, MAX_LNZ, MAX_TERMS = 96, 192, 32, 8, 32, 512, 64
+#: ... and the most published components and gears (the description's published.order and gears; GRS905: 28, 17)
+MAX_PUB, MAX_GEARS = 48, 32
 #: return codes of gvs_step
 OK, SKIPPED, NEED_JUMP, BAD_TABLES = 0, 1, 2, -1
 #: columns of the oil property table (logarithms where the property spans decades: interpolated in the log)
@@ -53,10 +54,6 @@ N_PROP = len(PROP_COLUMNS)
 P_LOG10_MU, P_LN_NU_CST, P_LN_MU, P_LN_ROLL, P_RHO, P_CP, P_K, P_LN_PR = range(N_PROP)
 #: which vehicle effect scales a conductance law (pw_effect, ef_effect): none or a gvs_vehicle field
 EFFECT_NONE, EFFECT_TEETH_OIL_H, EFFECT_PLANET_OIL_H, EFFECT_HOUSING_AIR_H = range(4)
-#: columns of the per-gear speed table (speed_coef, SPEED_NAMES) the step reads: the layshaft (oil pump, cooler
-#: flow, churning) and the output shaft (retarder)
-SPEED_COL_LAYSHAFT = SPEED_NAMES.index("LS")
-SPEED_COL_OUTPUT = SPEED_NAMES.index("OS")
 #: the time to limit's march (held_march): first step [s], each step this many times longer than the last
 MARCH_H0_S = 1.0
 MARCH_RATIO = 1.4
@@ -133,16 +130,14 @@ CAPACITIES = (
         MAX_TERMS,
         "the most terms of one kind of conductance law (tables, closed-form streams) and oil-factor columns",
     ),
+    Constant("MAX_PUB", MAX_PUB, "published components (tables.n_pub; the description's published.order)"),
+    Constant("MAX_GEARS", MAX_GEARS, "gear rows of the per-gear tables (tables.n_gears)"),
 )
 #: fixed sizes and numbers of the kernel and the numpy reference
 DEFINES = (
-    Constant("N_PUB", N_PUB, "published components (firmware_model.components.PUBLISHED)"),
     Constant("N_INPUTS", N_INPUTS, "input fields (records.INPUT_FIELDS)"),
     Constant("N_REJECT", N_REJECT, "reject counters (records.REJECT_REASONS)"),
-    Constant("N_GEARS", N_GEARS, "gear rows of the per-gear tables"),
     Constant("N_PROP", N_PROP, "columns of the oil property table"),
-    Constant("SPEED_COL_LAYSHAFT", SPEED_COL_LAYSHAFT, "speed_coef column of the layshaft (oil flow, churning)"),
-    Constant("SPEED_COL_OUTPUT", SPEED_COL_OUTPUT, "speed_coef column of the output shaft (retarder)"),
     Constant("MARCH_H0_S", MARCH_H0_S, "time to limit: first march step [s]"),
     Constant("MARCH_RATIO", MARCH_RATIO, "each march step this many times longer than the last"),
     Constant("TTL_HORIZON_S", TTL_HORIZON_S, "time to limit beyond this is never (inf) [s]"),
@@ -200,7 +195,7 @@ ENUMS = (
 class Field(NamedTuple):
     """One struct field. ``ctype``: int32_t, int64_t, int8_t, double, gvs_real, or a read-only table
     ``const gvs_real *`` / ``const gvs_idx *``. ``shape``: of a plain array its C dimensions (numbers or capacity
-    names), of a table the sizes its length is made of (tables fields, ``gears`` = N_GEARS)."""
+    names), of a table the sizes its length is made of (tables fields, ``gears`` = n_gears)."""
 
     name: str
     ctype: str
@@ -242,7 +237,7 @@ _TABLES = (
     "sizes: nodes, links, boundaries, sources, power laws, tables, cylinders, closed-form streams, radiation links, "
     "streams, source non-zeros; then the tables' axes",
     *_f("n nl nb ns npw n2 nc ne nrad nst nsrc_nz", I32),
-    *_f("nT ncol n_u nT2 n_u_churn nx n_mesh n_bear n_speed n_gears", I32),
+    *_f("nT ncol n_u nT2 n_u_churn nx n_mesh n_bear n_speed n_gears n_pub", I32),
     Field("i_oil", I32, doc="the sump node"),
     Field("i_ambient", I32, doc="the ambient boundary"),
     Field("i_coolant", I32, doc="the coolant boundary"),
@@ -255,7 +250,7 @@ _TABLES = (
     Field("link_a", PIDX, ("nl",)),
     Field("link_b", PIDX, ("nl",), doc="link_b >= n: boundary link_b - n"),
     Field("G_const", PREAL, ("nl",), "W/K"),
-    Field("published_index", PIDX, ("N_PUB",), doc="node of each published component"),
+    Field("published_index", PIDX, ("n_pub",), doc="node of each published component"),
     "power laws: G = coef[row, t] w^exp[t] (phi(T)[col[t]] or 1) x effect",
     *_f("pw_link pw_col pw_effect", PIDX, ("npw",)),
     Field("pw_exp", PREAL, ("npw",)),
@@ -287,6 +282,9 @@ _TABLES = (
     Field("T_grid_step_k", REAL, (), "K"),
     "losses",
     Field("speed_coef", PREAL, ("gears", "n_speed"), doc="every speed per unit input speed"),
+    Field("pump_speed_col", I32, doc="speed_coef column of the shaft that drives the oil pump (flow, cooler); -1 none"),
+    Field("churn_speed_col", I32, doc="... of the shaft whose dipping wheels churn (the churning table); -1 none"),
+    Field("output_speed_col", I32, doc="... of the output shaft (retarder); -1 none"),
     *_f("mesh_torque mesh_omega2", PREAL, ("gears", "n_mesh")),
     Field("mesh_x0", PREAL, ("n_mesh",)),
     Field("mesh_phi", PREAL, ("n_mesh", "nx")),
@@ -338,9 +336,9 @@ _TABLES = (
     *_f("hold_s drive_frozen_s oil_frozen_s", REAL, (), "s"),
     *_f("oil_frozen_drift_c oil_step_c", REAL, (), "K"),
     Field("clock_reset_s", REAL, (), "s", "t_s back by more than this: a reset clock (stepped, counted)"),
-    *_f("warning_c critical_c", PREAL, ("N_PUB",), "degC"),
-    Field("hysteresis_k", PREAL, ("N_PUB",), "K"),
-    Field("warning_rest_c", PREAL, ("N_PUB",), "degC"),
+    *_f("warning_c critical_c", PREAL, ("n_pub",), "degC"),
+    Field("hysteresis_k", PREAL, ("n_pub",), "K"),
+    Field("warning_rest_c", PREAL, ("n_pub",), "degC"),
     *_f("debounce_s lead_s", REAL, (), "s"),
     "time to limit (gvs_ttl_refresh; firmware_model.onboard.held_march, time_to_limit): heat capacities, the sparse "
     "LDL^T pattern of C/h + K (firmware_model.onboard.sparse_ldl), the components whose crossing re-linearises, and "
@@ -354,7 +352,7 @@ _TABLES = (
     Field("ldl_link_slot", PIDX, ("nl",)),
     Field("ldl_upd_ptr", PIDX, ("n + 1",)),
     *_f("ldl_upd_target ldl_upd_a ldl_upd_b", PIDX, ("ldl_nupd",)),
-    Field("ttl_relin", PIDX, ("N_PUB",)),
+    Field("ttl_relin", PIDX, ("n_pub",)),
     *_f("ldl_nnz ldl_nupd ttl_sump_model ttl_relinearise", I32),
     *_f("ttl_bound", I32),
 )
@@ -375,7 +373,7 @@ _STATE = (
     *_f("age_s same_s", REAL, ("GVS_N_INPUTS",), "s"),
     Field("raw_prev", REAL, ("GVS_N_INPUTS",)),
     Field("oil_ref_c", REAL, (), "degC"),
-    *_f("pending_s ttl_s", REAL, ("GVS_N_PUB",), "s"),
+    *_f("pending_s ttl_s", REAL, ("GVS_MAX_PUB",), "s"),
     Field("t_last_s", F64, (), "s", "frame time of the last step (NaN unknown)"),
     Field("k", I64, doc="steps done"),
     Field("rejects", I64, ("GVS_N_REJECT",)),
@@ -386,7 +384,7 @@ _STATE = (
     Field("memo_omega_q", REAL, (), "rad/s"),
     Field("memo_T_q", REAL, (), "degC"),
     *_f("memo_row memo_valid", I32),
-    Field("level", I8, ("GVS_N_PUB",), doc="GVS_LEVEL_*"),
+    Field("level", I8, ("GVS_MAX_PUB",), doc="GVS_LEVEL_*"),
 )
 
 _INPUTS = (
@@ -395,13 +393,13 @@ _INPUTS = (
 )
 
 _OUTPUTS = (
-    Field("T_c", REAL, ("GVS_N_PUB",), "degC"),
-    Field("ttl_s", REAL, ("GVS_N_PUB",), "s"),
+    Field("T_c", REAL, ("GVS_MAX_PUB",), "degC"),
+    Field("ttl_s", REAL, ("GVS_MAX_PUB",), "s"),
     *_f("model_oil_temp_c", REAL, (), "degC"),
     Field("oil_innovation_c", REAL, (), "K"),
     Field("rejects", I64, ("GVS_N_REJECT",), doc="the cumulative reject counters after this step"),
     *_f("valid_flags frozen_flags", I32, doc="bit GVS_I_* per input"),
-    Field("level", I8, ("GVS_N_PUB",), doc="GVS_LEVEL_*"),
+    Field("level", I8, ("GVS_MAX_PUB",), doc="GVS_LEVEL_*"),
     Field("degraded_mode", I8, doc="GVS_MODE_*"),
     *_f("speed_valid torque_valid gear_valid oil_valid oil_source", I8),
 )
@@ -575,7 +573,7 @@ int gvs_step(const gvs_tables *tb, const gvs_vehicle *veh, gvs_state *st, const 
 
 /* The time to limit [s] of every published component (0: at or above its warning limit now; +inf: not within
  * GVS_TTL_HORIZON_S; NaN: the held system has no finite steady state, or tables without the time to limit's,
- * ldl_nnz 0) from a due refresh's operating point p, into ttl_s[GVS_N_PUB].
+ * ldl_nnz 0) from a due refresh's operating point p, into ttl_s[tb->n_pub].
  * Returns GVS_OK, or GVS_BAD_TABLES. Cost: one sparse factorisation and solve, then march steps (from
  * GVS_MARCH_H0_S, each GVS_MARCH_RATIO times longer, to the horizon) of one factorisation and three solves each
  * until every component has crossed or provably cannot. */

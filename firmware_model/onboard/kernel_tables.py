@@ -30,7 +30,7 @@ from firmware_model.physics.cooler import (
     DEFAULT_VEHICLE_SPEED_KMH,
     INLET_DROP_MAX_K,
 )
-from firmware_model.physics.kinematics import GEAR_MIN, N_GEARS
+from firmware_model.physics.kinematics import GEAR_MIN
 from firmware_model.units import KELVIN_OFFSET_K, RAD_S_PER_RPM, RPM_PER_RAD_S, SIGMA_W_PER_M2K4
 
 
@@ -90,7 +90,11 @@ def _network(sp: SensorParams) -> dict:
         n_mesh=rp.mesh_torque.shape[1],
         n_bear=rp.bear_c.size,
         n_speed=rp.speed_coef.shape[1],
-        n_gears=N_GEARS,
+        n_gears=rp.speed_coef.shape[0],
+        n_pub=len(rp.published_index),
+        pump_speed_col=rp.pump_speed_col,
+        churn_speed_col=rp.churn_speed_col,
+        output_speed_col=rp.output_speed_col,
         i_oil=rp.i_oil,
         i_ambient=rp.i_ambient,
         i_coolant=rp.i_coolant,

@@ -11,6 +11,7 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 
+from firmware_model.errors import ParameterError
 from firmware_model.onboard import evaluate as E
 from firmware_model.onboard import reduce as R
 from firmware_model.onboard.records import SensorOptions
@@ -56,6 +57,11 @@ class SensorParams:
     ) -> SensorParams:
         """Derive the step's constants once."""
         rp, eff = reduced, effects
+        if tuple(limits.components) != tuple(rp.published):
+            raise ParameterError(
+                f"the limits ({limits.origin}) are for the components {', '.join(limits.components)}; this gearbox "
+                f"publishes {', '.join(rp.published)}"
+            )
         dt_s = rp.dt_s
         hot = eff.hot_offset_c
         if np.ndim(hot) == 0:

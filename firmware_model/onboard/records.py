@@ -11,10 +11,6 @@ from typing import NamedTuple
 
 import numpy as np
 
-from firmware_model.components import PUBLISHED
-
-#: published components (PUBLISHED order): the last axis of the temperatures, levels and times to limit
-N_PUB = len(PUBLISHED)
 #: input fields in the order of the state's hold / age arrays
 INPUT_FIELDS = (
     "speed_rpm",
@@ -76,9 +72,9 @@ class SensorState(NamedTuple):
     same_s: np.ndarray  # B + (8,): time each raw input has been bit-identical [s]
     raw_prev: np.ndarray  # B + (8,): previous raw input values
     oil_ref_c: np.ndarray  # B: twin sump temperature when the measured oil last changed [degC]
-    level: np.ndarray  # B + (28,): warning levels (int8)
-    pending_s: np.ndarray  # B + (28,): debounce timers [s]
-    ttl_s: np.ndarray  # B + (28,): last time to limit [s]
+    level: np.ndarray  # B + (n_pub,): warning levels (int8), published order
+    pending_s: np.ndarray  # B + (n_pub,): debounce timers [s]
+    ttl_s: np.ndarray  # B + (n_pub,): last time to limit [s]
     t_last_s: np.ndarray  # B: frame time of the last step (NaN unknown)
     k: np.ndarray  # B: steps done (int64)
     rejects: np.ndarray  # B + (N_REJECT,): reject counters (int64)
@@ -99,9 +95,10 @@ class SensorStatus(NamedTuple):
 
 
 class SensorOutputs(NamedTuple):
-    T_c: np.ndarray  # (..., 28) published temperatures [degC], PUBLISHED order; always finite
-    level: np.ndarray  # (..., 28) 0 normal, 1 warning, 2 critical, 3 not available (int8)
-    ttl_s: np.ndarray  # (..., 28) time to the warning limit with held inputs [s]: inf never, NaN not available
+    # the last axis: the published components (n_pub), in the gearbox description's published.order
+    T_c: np.ndarray  # (..., n_pub) published temperatures [degC]; always finite
+    level: np.ndarray  # (..., n_pub) 0 normal, 1 warning, 2 critical, 3 not available (int8)
+    ttl_s: np.ndarray  # (..., n_pub) time to the warning limit with held inputs [s]: inf never, NaN not available
     status: SensorStatus
 
 

@@ -45,7 +45,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from firmware_model.components import PUBLISHED, SHAFT_BEARINGS, STEP_S
+from firmware_model.components import SHAFT_BEARINGS, STEP_S
 from firmware_model.description import Description
 from firmware_model.effects import CATALOG, FIELD_OF_EFFECT, EffectScales, effect_value, with_oil_volume
 from firmware_model.errors import ParameterError
@@ -223,6 +223,36 @@ class Aggregation:
     link_name: tuple
 
 
+def published_ids(d: Description) -> tuple:
+    """The published components' ids, in the description's published.order (CAN signal and column order)."""
+    return tuple(c.id for c in d.published)
+
+
+def speed_columns(d: Description) -> dict:
+    """The speed_coef columns (SPEED_NAMES) the step reads, from the description: the shaft that drives the oil pump
+    (oil.pump_shaft), the one whose dipping wheels churn (the churning law, physics.gearbox_losses, is the
+    layshaft's), the output shaft (drive.output_shaft, the retarder's). The tables allow -1 (no such shaft: it turns
+    at 0); a motor-driven pump (no pump_shaft) is refused here, its flow follows no shaft and has no law onboard."""
+    if d.oil.pump_shaft is None:
+        raise ParameterError(
+            f"{d.origin}: topology.oil has no pump_shaft (a motor-driven pump): the onboard sensor models the oil flow "
+            "of a shaft-driven pump only"
+        )
+
+    def col(key: str, shaft: str) -> int:
+        if shaft not in SPEED_NAMES:
+            raise ParameterError(
+                f"{d.origin}: {key} = {shaft!r} is no shaft of the kinematics ({', '.join(SPEED_NAMES)})"
+            )
+        return SPEED_NAMES.index(shaft)
+
+    return dict(
+        pump_speed_col=col("topology.oil.pump_shaft", d.oil.pump_shaft),
+        churn_speed_col=SPEED_NAMES.index("LS"),
+        output_speed_col=col("topology.drive.output_shaft", d.drive.output_shaft),
+    )
+
+
 def aggregate(net: Network, partition: dict) -> Aggregation:
     """Merge full nodes into groups: C summed, links between groups summed, links inside a group dropped."""
     for k in partition:
@@ -233,7 +263,7 @@ def aggregate(net: Network, partition: dict) -> Aggregation:
         g = partition.get(nm, nm)
         if g not in names:
             names.append(g)
-    for c in PUBLISHED:
+    for c in published_ids(net.geometry.description):
         if c not in names:
             raise ParameterError(f"the partition has no node named {c!r} (every published component must be one)")
     gi = {g: i for i, g in enumerate(names)}
@@ -657,6 +687,7 @@ def build_reduced(
         laws.add_link(k)
     lm = _loss_maps(p, net, float(grid.w_src_max[SPEED_NAMES.index("LS")]))
     kind = p.strings.get("cooler.kind", "liquid")
+    published = published_ids(net.geometry.description)
     rp = ReducedParams(
         variant=p.variant,
         partition=part_name,
@@ -665,7 +696,8 @@ def build_reduced(
         margin=float(margin),
         C_j_per_k=_ro(agg.C),
         i_oil=agg.nodes.index("oil"),
-        published_index=_ro(np.array([agg.nodes.index(c) for c in PUBLISHED]), np.int64),
+        published_index=_ro(np.array([agg.nodes.index(c) for c in published]), np.int64),
+        published=published,
         members=agg.members,
         link_a=_ro(agg.link_a, np.int64),
         link_b=_ro(agg.link_b, np.int64),
@@ -673,6 +705,7 @@ def build_reduced(
         **_law_fields(laws),
         prop=_ro(oil_property_table(T_GRID_C)),
         speed_coef=_ro(kin.speed),
+        **speed_columns(net.geometry.description),
         mesh_torque=_ro(kin.mesh_torque),
         mesh_omega2=_ro(kin.mesh_omega2),
         mesh_x0=_ro(lm.mesh_x0),

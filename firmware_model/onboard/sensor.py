@@ -22,6 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from firmware_model.components import STEP_S
+from firmware_model.description import description_of
 from firmware_model.errors import InputError, ParameterError
 from firmware_model.onboard import reduce as R
 from firmware_model.onboard.blas import limit_blas_threads
@@ -43,7 +44,6 @@ from firmware_model.onboard.records import (
     INPUT_FIELDS,
     MAIN,
     N_INPUTS,
-    N_PUB,
     N_REJECT,
     REJECT_REASONS,
     TWIN,
@@ -112,7 +112,8 @@ class VirtualSensor:
     ):
         limit_blas_threads()  # firmware_model.onboard.blas: one BLAS thread (the small eigh is 25x slower with more)
         sensor_cfg = dict(getattr(config, "sensor", None) or {}) if config is not None else {}
-        lim = limits if isinstance(limits, Limits) else _limits_of(limits, config, sensor_cfg)
+        published = description_of(params).published
+        lim = limits if isinstance(limits, Limits) else _limits_of(limits, config, sensor_cfg, published)
         oil_mode = options.pop("oil_mode", sensor_cfg.get("oil_mode", "measured"))
         if oil_mode not in ("measured", "model"):
             raise ParameterError(f"sensor.oil_mode = {oil_mode!r} must be 'measured' or 'model'")
@@ -163,6 +164,16 @@ class VirtualSensor:
     def nodes(self) -> tuple:
         return self.reduced.nodes
 
+    @property
+    def published(self) -> tuple:
+        """The published components' ids (the description's published.order): the last axis of the outputs'
+        temperatures, levels and times to limit, and of the state's level, pending_s and ttl_s."""
+        return self.reduced.published
+
+    @property
+    def n_pub(self) -> int:
+        return len(self.reduced.published)
+
     def initial_state(
         self,
         T_oil_c=None,
@@ -208,9 +219,9 @@ class VirtualSensor:
             same_s=np.zeros(B + (N_INPUTS,)),
             raw_prev=np.full(B + (N_INPUTS,), np.nan),
             oil_ref_c=np.array(T0, dtype=float),
-            level=np.zeros(B + (N_PUB,), dtype=np.int8),
-            pending_s=np.zeros(B + (N_PUB,)),
-            ttl_s=np.full(B + (N_PUB,), np.nan),
+            level=np.zeros(B + (self.n_pub,), dtype=np.int8),
+            pending_s=np.zeros(B + (self.n_pub,)),
+            ttl_s=np.full(B + (self.n_pub,), np.nan),
             t_last_s=np.full(B, np.nan),
             k=np.zeros(B, dtype=np.int64),
             rejects=np.zeros(B + (N_REJECT,), dtype=np.int64),
@@ -262,7 +273,7 @@ class VirtualSensor:
             pending_s=pending_s,
             t_last_s=np.full(B, np.nan),
             age_s=np.where(elapsed_s > 0, np.maximum(st.age_s, elapsed_s), st.age_s),
-            ttl_s=np.full(B + (N_PUB,), np.nan),
+            ttl_s=np.full(B + (self.n_pub,), np.nan),
             k=np.zeros(B, dtype=np.int64),
         )
 
@@ -375,7 +386,7 @@ def _table_job(job) -> tuple:
     return tuple(job)
 
 
-def _limits_of(path, config, sensor_cfg: dict) -> Limits:
+def _limits_of(path, config, sensor_cfg: dict, published: tuple) -> Limits:
     """Limits from ``path`` (None: config [sensor] limits, else the default file); a relative path in a config file
     is taken relative to that file when it exists there."""
     path = path if path is not None else sensor_cfg.get("limits")
@@ -387,4 +398,4 @@ def _limits_of(path, config, sensor_cfg: dict) -> Limits:
     ):
         cand = Path(config.origin).parent / path
         path = cand if cand.exists() else path
-    return load_limits(path, sensor_cfg.get("debounce_s"), sensor_cfg.get("hysteresis_c"))
+    return load_limits(path, sensor_cfg.get("debounce_s"), sensor_cfg.get("hysteresis_c"), published=published)

@@ -17,7 +17,7 @@ import numpy as np
 
 from firmware_model.errors import InputError
 from firmware_model.onboard.evaluate import ReducedParams
-from firmware_model.onboard.records import N_PUB, N_REJECT, SensorState
+from firmware_model.onboard.records import N_REJECT, SensorState
 
 SNAPSHOT_SCHEMA = "vsensor-snapshot/1"
 #: a restored node temperature outside this is no state the sensor can have reached [degC]
@@ -35,7 +35,7 @@ def _crc32(doc: dict) -> int:
 def _trailing_shapes(reduced: ReducedParams) -> dict:
     """Each state field's shape after the batch axes."""
     n, ns = len(reduced.nodes), int(reduced.src_matrix.shape[0])
-    vec8, pub = (8,), (N_PUB,)
+    vec8, pub = (8,), (len(reduced.published),)
     return {
         "T_c": (2, n),
         "lag_w": (ns,),

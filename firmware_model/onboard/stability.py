@@ -25,6 +25,7 @@ from firmware_model.onboard.evaluate import (
     ReducedParams,
     cyl_nusselt,
     radiation_w_per_k,
+    shaft_speed_rad_s,
 )
 from firmware_model.onboard.kernel_interface import (
     EFFECT_HOUSING_AIR_H,
@@ -35,7 +36,6 @@ from firmware_model.onboard.kernel_interface import (
     P_LN_NU_CST,
     P_LN_PR,
     P_RHO,
-    SPEED_COL_LAYSHAFT,
 )
 from firmware_model.physics.conductance_matrix import node_conductance_w_per_k
 from firmware_model.physics.cooler import COOLER_KINDS, cooler_hA_bound_w_per_k, cooler_params
@@ -72,7 +72,7 @@ def max_conductances(rp: ReducedParams) -> dict:
     for t in range(len(rp.t2_link)):
         G[rp.t2_link[t]] += np.max(rp.t2_table[t][:, jT2])
     prop = rp.prop[jT]
-    omega_ls_max_rad_s = np.max(np.abs(rp.speed_coef[:, SPEED_COL_LAYSHAFT])) * omega_in_max_rad_s
+    omega_ls_max_rad_s = np.max(shaft_speed_rad_s(rp, slice(None), rp.pump_speed_col, 1.0)) * omega_in_max_rad_s
     for t in range(len(rp.ef_link)):
         planet = eff_max[EFFECT_PLANET_OIL_H] if rp.ef_effect[t] == EFFECT_PLANET_OIL_H else 1.0
         hA = rp.ef_alpha[t] * np.max(prop[:, P_K]) + rp.ef_beta[t] * planet

@@ -37,7 +37,7 @@ from firmware_model.onboard import evaluate as E
 from firmware_model.onboard.conductance_bins import bin_centre, bin_conductances, quantise
 from firmware_model.onboard.held_inputs import jump_state
 from firmware_model.onboard.input_check import DRIVE_FROZEN_BITS, INPUT_BITS, OIL_FROZEN_BITS, InputCheck, check_inputs
-from firmware_model.onboard.kernel_interface import P_CP, P_RHO, SPEED_COL_LAYSHAFT
+from firmware_model.onboard.kernel_interface import P_CP, P_RHO
 from firmware_model.onboard.params import SensorParams
 from firmware_model.onboard.records import (
     I_AMB,
@@ -223,7 +223,7 @@ def _network_step(state: SensorState, chk: InputCheck, oil_c, sp: SensorParams, 
     q_nodes_w = lag.delivered_w @ rp.src_matrix  # B + (n,)
     # ---- conductances (at the centre of the operating-point bin), cooler, inlet drop of both copies
     G_w_per_k, G_streams_w_per_k, G_int, G_ext = _conductances(sp, cache, row, omega_in_rad_s, T_oil_main_c)
-    omega_ls_rad_s = np.abs(rp.speed_coef[row, SPEED_COL_LAYSHAFT]) * omega_in_rad_s
+    omega_ls_rad_s = E.shaft_speed_rad_s(rp, row, rp.pump_speed_col, omega_in_rad_s)
     rho_cp_j_per_m3k = prop[..., P_RHO] * prop[..., P_CP]
     Q_cool_w, mcp_w_per_k, _ = E.cooler_heat(
         rp,

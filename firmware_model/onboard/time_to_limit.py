@@ -17,19 +17,17 @@ from typing import NamedTuple
 
 import numpy as np
 
-from firmware_model.components import PUBLISHED
 from firmware_model.onboard import evaluate as E
 from firmware_model.onboard.conductance_bins import LN_SPEED_BIN, OIL_BIN_C, SPEED_BIN_MIN_RAD_S
 from firmware_model.onboard.held_inputs import cooler_slope_w_per_k
 from firmware_model.onboard.held_march import HeldSystem, March, march_time_to_limit
 from firmware_model.onboard.kernel_interface import (
     COUPLING_MARGIN,
-    SPEED_COL_LAYSHAFT,
     TTL_RELINEARISE_STEPS,
     TTL_RELINEARISE_TOL_K,
 )
 from firmware_model.onboard.params import SensorParams
-from firmware_model.onboard.records import I_RET, I_TORQUE, N_PUB, SensorState
+from firmware_model.onboard.records import I_RET, I_TORQUE, SensorState
 from firmware_model.onboard.step_cache import StepCache
 from firmware_model.physics.conductance_matrix import conductance_matrix
 from firmware_model.physics.cooler import INLET_DROP_MAX_K
@@ -37,8 +35,6 @@ from firmware_model.physics.cooler import INLET_DROP_MAX_K
 #: with the sump modelled: the oil-system inlet follows the sump through the linearised cooler in the held-input
 #: system (a non-symmetric coupling, general eigen-decomposition; docs/sensor.md), unless the step clips it
 TTL_INLET_COUPLING = True
-#: the published sump's column
-I_PUB_OIL = PUBLISHED.index("oil")
 
 
 class TtlPoint(NamedTuple):
@@ -161,9 +157,9 @@ def _inlet_follows_sump(sp: SensorParams, p: TtlPoint, measured: bool, slope_w_p
 
 
 def _oil_flow_m3_s(sp: SensorParams, row: int, omega_in_rad_s: float) -> float:
-    """Oil-system volume flow [m3/s] at this gear and input speed (the pump turns with the layshaft)."""
+    """Oil-system volume flow [m3/s] at this gear and input speed (the pump turns with its shaft)."""
     rp = sp.reduced
-    return rp.flow_m3_per_rad * abs(float(rp.speed_coef[row, SPEED_COL_LAYSHAFT])) * omega_in_rad_s
+    return rp.flow_m3_per_rad * float(E.shaft_speed_rad_s(rp, row, rp.pump_speed_col, 1.0)) * omega_in_rad_s
 
 
 def held_system(
@@ -266,9 +262,10 @@ def _solve(
         system, p.T_main_c[free], rows, warning_c[pub_free], None if measured else h.ttl_relin_pub, rp.i_oil
     )
     if march is None:
-        return _Solution(np.full(N_PUB, np.nan), None)
-    out = np.full(N_PUB, np.inf)
+        return _Solution(np.full(len(rp.published), np.nan), None)
+    out = np.full(len(rp.published), np.inf)
     out[pub_free] = march.ttl_s
     if measured:
-        out[I_PUB_OIL] = 0.0 if p.T_oil_c >= warning_c[I_PUB_OIL] else np.inf
+        oil = rp.published_index == rp.i_oil  # the published sump's column (if published)
+        out[oil] = np.where(p.T_oil_c >= warning_c[oil], 0.0, np.inf)
     return _Solution(out, march)

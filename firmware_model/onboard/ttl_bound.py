@@ -29,25 +29,21 @@ import math
 
 import numpy as np
 
-from firmware_model.components import PUBLISHED
 from firmware_model.onboard import evaluate as E
 from firmware_model.onboard.conductance_bins import LN_SPEED_BIN, OIL_BIN_C, SPEED_BIN_MIN_RAD_S
 from firmware_model.onboard.held_march import HeldSystem, march_time_to_limit
 from firmware_model.onboard.kernel_interface import (
     COUPLING_MARGIN,
     MARCH_RATIO,
-    SPEED_COL_LAYSHAFT,
     TTL_BOUND_GATE_S,
     TTL_BOUND_ITERS,
     TTL_BOUND_RATIO,
     TTL_BOUND_TOL_K,
 )
 from firmware_model.onboard.params import SensorParams, vehicle_value
-from firmware_model.onboard.records import I_AMB, I_COOL, I_VKMH, N_PUB, SensorState
+from firmware_model.onboard.records import I_AMB, I_COOL, I_VKMH, SensorState
 from firmware_model.onboard.step_cache import StepCache
 from firmware_model.onboard.time_to_limit import TtlJob, TtlPoint, held_system, loss_heat_w, time_to_limit
-
-I_PUB_OIL = PUBLISHED.index("oil")
 
 
 def time_to_limit_bound(sp: SensorParams, cache: StepCache, p: TtlPoint, vehicle=None) -> np.ndarray:
@@ -71,12 +67,13 @@ def time_to_limit_bound(sp: SensorParams, cache: StepCache, p: TtlPoint, vehicle
         if march is not None:
             ttl_s = march.ttl_s if ttl_s is None else np.minimum(ttl_s, march.ttl_s)
     if ttl_s is None:
-        out = np.full(N_PUB, np.nan)
+        out = np.full(len(sp.reduced.published), np.nan)
     else:
-        out = np.full(N_PUB, np.inf)
+        out = np.full(len(sp.reduced.published), np.inf)
         out[pub_free] = ttl_s
         if measured:
-            out[I_PUB_OIL] = 0.0 if p.T_oil_c >= warning_c[I_PUB_OIL] else np.inf
+            oil = sp.reduced.published_index == sp.reduced.i_oil  # the published sump's column (if published)
+            out[oil] = np.where(p.T_oil_c >= warning_c[oil], 0.0, np.inf)
     if np.any(out <= TTL_BOUND_GATE_S):
         # a crossing soon: today's method too, the earlier of the two (no warning later than today's)
         today = time_to_limit(sp, cache, p, vehicle)
@@ -148,7 +145,7 @@ def cooler_chord_slope(sp: SensorParams, p: TtlPoint, T_far_c: float, vehicle=No
     """The cooler's chord from the step's sump to T_far [W/K]: (Q(T_far) - Q_step) / (T_far - T_step), at least 0
     (firmware_model.onboard.evaluate.cooler_heat with the point's inputs, as held_inputs.cooler_slope_w_per_k)."""
     rp = sp.reduced
-    omega_ls = abs(float(rp.speed_coef[p.row, SPEED_COL_LAYSHAFT])) * p.omega_in_rad_s
+    omega_ls = float(E.shaft_speed_rad_s(rp, p.row, rp.pump_speed_col, 1.0)) * p.omega_in_rad_s
     if rp.cooler_code == E.COOLER_CODES["none"] or omega_ls <= 0.0:
         return 0.0
     Q_far_w, _, _ = E.cooler_heat(

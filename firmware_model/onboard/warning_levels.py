@@ -27,7 +27,8 @@ LIMIT_RANGE_C = (-40.0, 250.0)
 
 @dataclass(frozen=True)
 class Limits:
-    """Per published component (PUBLISHED order): warning and critical limits [degC], hysteresis [K]; debounce [s]."""
+    """Per published component (``components`` order, the description's published.order): warning and critical
+    limits [degC], hysteresis [K]; debounce [s]."""
 
     warning_c: np.ndarray
     critical_c: np.ndarray
@@ -38,9 +39,11 @@ class Limits:
     #: a warning also fires when the component will reach its warning limit within lead_s at the current load
     #: (and clears only when that is more than 2 lead_s away); 0 switches the early warning off
     lead_s: float = 0.0
+    #: the published components' ids, in the order of the arrays (default: the GRS905's)
+    components: tuple = PUBLISHED
 
     def of(self, component: str) -> tuple:
-        i = PUBLISHED.index(component)
+        i = self.components.index(component)
         return float(self.warning_c[i]), float(self.critical_c[i]), float(self.hysteresis_k[i])
 
 
@@ -62,9 +65,13 @@ def load_limits(
     debounce_s: float | None = None,
     hysteresis_k: float | None = None,
     lead_s: float | None = None,
+    published: tuple | None = None,
 ) -> Limits:
     """Limits from a TOML file (default params/limits.toml); ``debounce_s`` / ``hysteresis_k`` override the file
-    (config [sensor] debounce_s, hysteresis_c)."""
+    (config [sensor] debounce_s, hysteresis_c). ``published``: the components, each with an ``id`` and a limit
+    ``group`` (a description's published, firmware_model.description), in their order; None: the GRS905's."""
+    ids = PUBLISHED if published is None else tuple(c.id for c in published)
+    group = GROUP if published is None else {c.id: c.group for c in published}
     path = Path(path) if path is not None else LIMITS_PATH
     doc = read_toml(path, f"limits file {path}", f"limits file {path.name}")
     known = set(GROUPS) | {"meta", "timing", "component"}
@@ -94,12 +101,15 @@ def load_limits(
     for k in timing:
         if k not in ("debounce", "lead"):
             raise ParameterError(f"{path.name}: unknown key timing.{k}; known: debounce, lead")
-    n = len(PUBLISHED)
-    arr = {key: np.array([per[(GROUP[c], key)] for c in PUBLISHED]) for key in _KEYS}
+    n = len(ids)
+    for c in ids:
+        if group[c] not in GROUPS:
+            raise ParameterError(f"published component {c}: limit group {group[c]!r} has no section in {path.name}")
+    arr = {key: np.array([per[(group[c], key)] for c in ids]) for key in _KEYS}
     for comp, sec in (doc.get("component") or {}).items():
-        if comp not in PUBLISHED:
+        if comp not in ids:
             raise ParameterError(f"{path.name}: [component.{comp!r}] is not a published component")
-        i = PUBLISHED.index(comp)
+        i = ids.index(comp)
         for key, entry in sec.items():
             if key not in _KEYS:
                 raise ParameterError(f"{path.name}: unknown key component.{comp}.{key}")
@@ -111,7 +121,7 @@ def load_limits(
     if hysteresis_k is not None:
         arr["hysteresis"] = np.full(n, float(hysteresis_k))
     w, c, hy = arr["warning"], arr["critical"], arr["hysteresis"]
-    for i, comp in enumerate(PUBLISHED):
+    for i, comp in enumerate(ids):
         if not LIMIT_RANGE_C[0] <= w[i] < c[i] <= LIMIT_RANGE_C[1]:
             raise ParameterError(
                 f"limits of {comp}: warning {w[i]:g} degC must be below critical {c[i]:g} degC, "
@@ -129,7 +139,7 @@ def load_limits(
         raise ParameterError(f"lead = {lead:g} s must be in 0..3600 s")
     for a in (w, c, hy):
         a.setflags(write=False)
-    return Limits(w, c, hy, deb, prov, str(path.name), lead)
+    return Limits(w, c, hy, deb, prov, str(path.name), lead, ids)
 
 
 def update_levels(level, pending_s, T_c, available, limits: Limits, dt_s: float, ttl_s=None):

@@ -36,7 +36,7 @@ from can_dbc.columnar import (
 )
 from can_dbc.decoder import signal_messages
 from can_dbc.j1939 import ID_MAX
-from firmware_model.components import MODE_NOT_INITIALISED, PUBLISHED, STEP_S
+from firmware_model.components import MODE_NOT_INITIALISED, STEP_S
 from firmware_model.physics.oil import T_MAX_C as OIL_T_MAX_C
 from firmware_model.physics.oil import T_MIN_C as OIL_T_MIN_C
 from firmware_model.service.degraded import recorded_mode_counters, recorded_reject_counters
@@ -340,7 +340,7 @@ def sensor_half(service, half: FrameHalf) -> RecordedOutputs:
     """The sensor's step over every initialised step (``step_table``); the not-initialised steps as the service
     records them. Updates ``service.state`` and the steps per degraded mode."""
     n = half.kind.size
-    n_pub, sensor = len(PUBLISHED), service.sensor
+    n_pub, sensor = len(service.published), service.sensor
     n_rej = len(sensor.reject_reasons)
     T = np.full((n, n_pub), np.nan)
     level = np.full((n, n_pub), 3.0)
@@ -389,12 +389,12 @@ def run_columns(service, cols: FrameColumns) -> dict[str, np.ndarray]:
         raise ValueError("run_columns needs a fresh SensorService built with record=True, emit_frames=False")
     if service.counters["steps"] or service.decoder.counters["frames_seen"]:
         raise ValueError("run_columns needs a fresh SensorService (no frame fed yet)")
-    meas_names = tuple(f"meas_T_{c}_c" for c in PUBLISHED)
+    meas_names = tuple(f"meas_T_{c}_c" for c in service.published)
     decoded = decode_columns(cols, service.decoder)
     half = frame_half(service, cols, decoded, meas_names)
     _time_base(service, half.grid, decoded)
     outputs = sensor_half(service, half)
-    recorder = StepRecorder(PUBLISHED, meas_names, service.sensor.reject_reasons)
+    recorder = StepRecorder(service.published, meas_names, service.sensor.reject_reasons)
     g = half.grid
     head = np.column_stack([g.t_s, g.t_step_s, half.inputs, half.pct, half.ref_nm]) if g.t_s.size else np.zeros((0, 12))
     recorder.adopt_heads(head, half.meas_c)

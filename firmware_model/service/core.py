@@ -14,7 +14,7 @@ from can_dbc.decoder import J1939Decoder, LatestValues, signal_messages
 from can_dbc.encoder import OutputEncoder
 from can_dbc.errors import ConfigError
 from can_dbc.j1939 import ID_MAX, pgn_key
-from firmware_model.components import MODE_HOLDING, MODE_NOT_INITIALISED, PUBLISHED, STEP_S
+from firmware_model.components import MODE_HOLDING, MODE_NOT_INITIALISED, STEP_S
 from firmware_model.errors import InputError, ParameterError
 from firmware_model.physics.oil import T_MAX_C as OIL_T_MAX_C
 from firmware_model.physics.oil import T_MIN_C as OIL_T_MIN_C
@@ -41,7 +41,7 @@ def _opt_float(x) -> float | None:
     return x if math.isfinite(x) else None
 
 
-def _codecs(options: ServiceOptions) -> tuple[J1939Decoder, OutputEncoder]:
+def _codecs(options: ServiceOptions, published: tuple) -> tuple[J1939Decoder, OutputEncoder]:
     """The decoder and encoder the options describe; their ConfigErrors become ParameterErrors."""
     try:
         decoder = J1939Decoder(
@@ -53,10 +53,10 @@ def _codecs(options: ServiceOptions) -> tuple[J1939Decoder, OutputEncoder]:
         encoder = OutputEncoder(options.sensor_source_address)
     except ConfigError as exc:
         raise ParameterError(f"can: {exc}") from None
-    if encoder.components != PUBLISHED:
+    if tuple(encoder.components) != tuple(published):
         raise ParameterError(
-            "the DBC's per-component signals (ComponentId) are not the published components "
-            "(firmware_model.components.PUBLISHED)"
+            "the DBC's per-component signals (ComponentId) are not the sensor's published components "
+            "(its gearbox description's published.order)"
         )
     return decoder, encoder
 
@@ -82,7 +82,9 @@ class SensorService:
         check_sensor(sensor)
         self.sensor = sensor
         self.options = options or ServiceOptions()
-        self.decoder, self.encoder = _codecs(self.options)
+        #: the published components' ids (the sensor's, from its gearbox description): the outputs' order
+        self.published = tuple(sensor.published)
+        self.decoder, self.encoder = _codecs(self.options, self.published)
         self.log = logger or log
         self.record = record
         self.emit_frames = emit_frames
@@ -140,8 +142,8 @@ class SensorService:
             else None
         )
         self._claim_started = False
-        self._meas_names = tuple(f"meas_T_{c}_c" for c in PUBLISHED)
-        self._recorder = StepRecorder(PUBLISHED, self._meas_names, self.sensor.reject_reasons)
+        self._meas_names = tuple(f"meas_T_{c}_c" for c in self.published)
+        self._recorder = StepRecorder(self.published, self._meas_names, self.sensor.reject_reasons)
         self._names_checked = 0
         self._rig_seen = False
         #: the whole-record rules of a live run (firmware_model.service.plausibility; a replay judges its table)
@@ -564,9 +566,9 @@ class SensorService:
         if self.emit_frames:
             frames = self._encode(
                 req.t_step_s,
-                dict(zip(PUBLISHED, T_c.tolist())),
-                dict(zip(PUBLISHED, level.astype(int).tolist())),
-                dict(zip(PUBLISHED, ttl_s.tolist())),
+                dict(zip(self.published, T_c.tolist())),
+                dict(zip(self.published, level.astype(int).tolist())),
+                dict(zip(self.published, ttl_s.tolist())),
                 status,
                 send,
                 req.time_base_suspect,
@@ -637,7 +639,7 @@ class SensorService:
         self._count_mode(MODE_NOT_INITIALISED)
         frames = self._encode(req.t_step_s, {}, {}, {}, status, send, req.time_base_suspect)
         if self.record:
-            n = len(PUBLISHED)
+            n = len(self.published)
             self._recorder.add_outputs(np.full(n, np.nan), np.full(n, 3), np.full(n, np.nan), status)
         return frames
 

@@ -34,7 +34,8 @@ class StepSensor(Protocol):
       counters in ``reject_reasons`` order);
     - ``Outputs``: its outputs record type: ``T_c``, ``level``, ``ttl_s`` (per published component) and ``status``;
     - ``reject_reasons``: names of the reject counters; ``input_fields``: :class:`StepInputs` fields, same order;
-      ``dt_s``: the step, ``firmware_model.components.STEP_S``;
+      ``dt_s``: the step, ``firmware_model.components.STEP_S``; ``published``: the published components' ids,
+      the order of the outputs' last axis (the gearbox description's published.order);
     - ``initial_state(T_oil_c=...)``, optionally with ``ambient_c=...`` (no oil reading: start at the ambient one;
       :func:`start_state` passes it to a sensor whose ``initial_state`` takes it),
       ``step_deferred(state, inputs) -> (state, outputs, job)`` (the step without its slow time-to-limit refresh)
@@ -48,6 +49,7 @@ class StepSensor(Protocol):
     reject_reasons: tuple[str, ...]
     input_fields: tuple[str, ...]
     dt_s: float
+    published: tuple[str, ...]
 
     def initial_state(self, T_oil_c: float | None = None) -> Any: ...
 
@@ -66,6 +68,8 @@ def check_sensor(sensor: StepSensor) -> None:
     missing += [f for f in STATUS_FIELDS if f not in sensor.Status._fields]
     if missing:
         raise ParameterError(f"the sensor's Inputs/Status records lack the fields {missing}")
+    if not tuple(getattr(sensor, "published", ())):
+        raise ParameterError("the sensor names no published components (its published ids)")
     if sensor.dt_s != STEP_S:
         raise ParameterError(f"the sensor steps every {sensor.dt_s} s; the CAN service every {STEP_S} s")
 

@@ -46,6 +46,7 @@ class VirtualSensor:
     reject_reasons: tuple[str, ...] = ()
     input_fields = SensorInputs._fields[:-1]
     dt_s = STEP_S
+    published = PUBLISHED
 
     def __init__(self, params=None, limits=None, config=None):
         self.warn_c = 95.0 if limits is None else limits

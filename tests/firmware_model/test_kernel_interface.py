@@ -103,8 +103,10 @@ def test_the_table_builder_fills_exactly_the_structs_fields():
             assert v.ndim == 1 and v.dtype.kind == ("f" if f.ctype == KI.PREAL else "i"), f.name
         else:
             assert isinstance(v, int if f.ctype == KI.I32 else float) or hasattr(v, "dtype"), f.name
+    assert arrays["n_pub"] == len(sp.reduced.published) <= KI.MAX_PUB
+    assert arrays["n_gears"] == sp.reduced.speed_coef.shape[0] <= KI.MAX_GEARS
     for name in ("published_index", "warning_c", "ttl_relin"):
-        assert arrays[name].size == KI.DIMENSIONS["GVS_N_PUB"], name
+        assert arrays[name].size == arrays["n_pub"], name
     assert list(vehicle_arrays(sp, 2)) == [f.name for f in KI.STRUCT["Vehicle"].fields]
     with pytest.raises(KeyError, match="fills no n_recirc.*fills wrong_key"):
         KI.struct_values(KI.STRUCT["Tables"], {**{k: v for k, v in arrays.items() if k != "n_recirc"}, "wrong_key": 0})
@@ -134,7 +136,13 @@ def test_the_python_side_reads_the_shared_constants_from_the_interface():
 
     assert held_march.MARCH_D_FRAC is KI.MARCH_D_FRAC and held_march.TTL_QUANTUM_S is KI.TTL_QUANTUM_S
     assert time_to_limit.COUPLING_MARGIN is KI.COUPLING_MARGIN and reduce.P_RHO == KI.P_RHO
-    assert SPEED_NAMES[KI.SPEED_COL_LAYSHAFT] == "LS" and SPEED_NAMES[KI.SPEED_COL_OUTPUT] == "OS"
+    from firmware_model.onboard.sensor import VirtualSensor
+    from firmware_model.parameters import load_parameters
+
+    rp = VirtualSensor(load_parameters("GRS905"), core="numpy").reduced
+    assert SPEED_NAMES[rp.pump_speed_col] == SPEED_NAMES[rp.churn_speed_col] == "LS"
+    assert SPEED_NAMES[rp.output_speed_col] == "OS"
+    assert not hasattr(KI, "SPEED_COL_LAYSHAFT") and "SPEED_COL" not in KI.header_text()
     onboard = Path(reduce.__file__).parent
     bare = [
         f"{p.name}:{i + 1}"

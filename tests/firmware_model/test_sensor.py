@@ -2,6 +2,7 @@
 
 import json
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -565,3 +566,80 @@ def test_warm_up_changes_no_output(params):
     for name in outs[0]._fields:
         a, b = np.asarray(getattr(outs[0], name)), np.asarray(getattr(outs[1], name))
         assert np.array_equal(a, b, equal_nan=True) if a.dtype.kind == "f" else np.array_equal(a, b), name
+
+
+def _reordered_description(tmp_path, params_text: str) -> Path:
+    """The GRS905 publishing 27 components (no PR), the sump first: the same network, another published list."""
+    order_line = next(ln for ln in params_text.splitlines() if ln.startswith("order = { v = [") and '"oil"' in ln)
+    order = [c for c in PUBLISHED if c != "PR"]
+    order = ["oil"] + [c for c in order if c != "oil"]
+    text = params_text.replace(
+        order_line, "order = { v = [" + ", ".join(f'"{c}"' for c in order) + '], u = "-", src = "assumed" }'
+    )
+    text = text.replace('planetary = { v = ["PP", "PR"]', 'planetary = { v = ["PP"]')
+    f = tmp_path / "GRS905_27.toml"
+    f.write_text(text)
+    return f
+
+
+@pytest.mark.parametrize("core", ["numpy", "c"])
+def test_the_published_components_come_from_the_description(tmp_path, core):
+    from firmware_model.parameters import PARAM_DIR
+
+    f = _reordered_description(tmp_path, (PARAM_DIR / "GRS905.toml").read_text())
+    ref = VirtualSensor(load_parameters("GRS905"), core=core)
+    other = VirtualSensor(load_parameters(f), core=core)
+    assert other.published == ("oil",) + tuple(c for c in PUBLISHED if c not in ("PR", "oil"))
+    assert ref.published == PUBLISHED and other.sp.limits.components == other.published
+    assert other.limits.of("PP") == ref.limits.of("PP")
+    s0, s1 = ref.initial_state(T_oil_c=80.0), other.initial_state(T_oil_c=80.0)
+    assert s1.level.shape == s1.ttl_s.shape == (27,)
+    inp = SensorInputs(1800.0, 2400.0, 9, 80.0, 20.0, 85.0, 60.0, 0.0)
+    for _ in range(30):
+        s0, o0 = ref.step(s0, inp)
+        s1, o1 = other.step(s1, inp)
+    assert o1.T_c.shape == o1.level.shape == o1.ttl_s.shape == (27,)
+    cols = [PUBLISHED.index(c) for c in other.published]
+    np.testing.assert_array_equal(o1.T_c, o0.T_c[cols])
+    np.testing.assert_array_equal(o1.level, o0.level[cols])
+    np.testing.assert_array_equal(o1.ttl_s, o0.ttl_s[cols])
+
+
+def test_the_pump_and_output_speed_columns_come_from_the_description(tmp_path):
+    from firmware_model.parameters import PARAM_DIR
+    from firmware_model.physics.kinematics import SPEED_NAMES
+
+    text = (PARAM_DIR / "GRS905.toml").read_text()
+    line = next(ln for ln in text.splitlines() if ln.startswith("pump_shaft = "))
+    (tmp_path / "ms_pump.toml").write_text(text.replace(line, line.replace('v = "LS"', 'v = "MS"')))
+    ref = VirtualSensor(load_parameters("GRS905"), core="numpy")
+    sensors = [VirtualSensor(load_parameters(tmp_path / "ms_pump.toml"), core=c) for c in ("numpy", "c")]
+    assert SPEED_NAMES[ref.reduced.pump_speed_col] == "LS" and SPEED_NAMES[ref.reduced.output_speed_col] == "OS"
+    assert all(SPEED_NAMES[s.reduced.pump_speed_col] == "MS" for s in sensors)
+    assert sensors[1].compiled is not None
+    inp = SensorInputs(1800.0, 2400.0, 5, math.nan, 20.0, 85.0, 40.0, 300.0)
+    states = [s.initial_state(T_oil_c=80.0) for s in [ref, *sensors]]
+    for _ in range(50):
+        outs = []
+        for i, s in enumerate([ref, *sensors]):
+            states[i], o = s.step(states[i], inp)
+            outs.append(o)
+    # the pump turns with the main shaft (faster than the layshaft in 5th gear): another oil flow, another sump;
+    # the kernel reads the same column as the numpy step
+    assert outs[1].status.model_oil_temp_c != outs[0].status.model_oil_temp_c
+    np.testing.assert_allclose(outs[2].T_c, outs[1].T_c, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(outs[2].status.model_oil_temp_c, outs[1].status.model_oil_temp_c, rtol=0, atol=1e-9)
+
+
+def test_a_motor_driven_pump_is_one_sentence(tmp_path):
+    from firmware_model.parameters import PARAM_DIR
+
+    text = (PARAM_DIR / "GRS905.toml").read_text()
+    line = next(ln for ln in text.splitlines() if ln.startswith("pump_shaft = "))
+    (tmp_path / "motor_pump.toml").write_text(text.replace(line + "\n", ""))
+    try:
+        params = load_parameters(tmp_path / "motor_pump.toml")
+    except ParameterError:
+        pytest.skip("the description itself refuses a splash-lubricated gearbox without a pump shaft")
+    with pytest.raises(ParameterError, match=r"^.*topology\.oil has no pump_shaft .* shaft-driven pump only$"):
+        VirtualSensor(params, core="numpy")

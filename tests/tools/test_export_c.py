@@ -312,9 +312,9 @@ int main(void)
         if (st.T_c[0][i] != (gvs_real)(T_hot - 30.0) || st.T_c[1][i] != (gvs_real)(T_hot - 30.0)) bad = 2;
     /* ... and the warning levels of the saved temperatures go with them */
     memcpy(&st, &saved, sizeof st);
-    for (i = 0; i < GVS_N_PUB; ++i) { st.level[i] = 1; st.pending_s[i] = (gvs_real)0.5; }
+    for (i = 0; i < GVS_MAX_PUB; ++i) { st.level[i] = 1; st.pending_s[i] = (gvs_real)0.5; }
     if (gvs_sensor_resume(&st, T_hot - 30.0) != 0) return 1;
-    for (i = 0; i < GVS_N_PUB; ++i)
+    for (i = 0; i < GVS_MAX_PUB; ++i)
         if (st.level[i] != 0 || st.pending_s[i] != (gvs_real)0.0) bad = 12;
     /* within 10 K: only the sump takes it */
     memcpy(&st, &saved, sizeof st);
@@ -443,10 +443,10 @@ int main(void)
         gvs_inputs in = {{speed[(k / 50) % 4], torque[k % 6], (double)(1 + k % 12), 80.0, 20.0, 85.0, 5.0, 0.0},
                          NAN};
         gvs_sensor_step(&st, &in, &out);
-        for (i = 0; i < GVS_N_PUB; ++i)
+        for (i = 0; i < GVS_MAX_PUB; ++i)
             if (!(out.T_c[i] > -60.0 && out.T_c[i] < 200.0)) bad = 1;
     }
-    for (j = 0; j < GVS_N_PUB; ++j) printf("%.6f ", (double)out.T_c[j]);
+    for (j = 0; j < GVS_MAX_PUB; ++j) printf("%.6f ", (double)out.T_c[j]);
     printf("\n%s\n", bad ? "FAIL" : "PASS");
     return bad;
 }

@@ -14,6 +14,7 @@ available" (NaN) and the early warning is off (lead 0 s).
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import math
 from pathlib import Path
@@ -172,6 +173,8 @@ def capacity_values(sp) -> tuple[dict, bool]:
         GVS_MAX_STREAMS=a["nst"],
         GVS_MAX_TERMS=max(a["n2"], a["ne"], a["ncol"], 1),
         GVS_MAX_LNZ=max(a["ldl_nnz"], 1),
+        GVS_MAX_PUB=a["n_pub"],
+        GVS_MAX_GEARS=a["n_gears"],
     )
     return {k: int(v) for k, v in caps.items()}, index16_fits(a)
 
@@ -276,18 +279,13 @@ def export_c(out_dir, variant: str | None = None, config_path=None, real: str = 
     ``variant``: replaces the configuration's (None: the configuration's, else GRS905). ``ttl`` False: a build
     without the time-to-limit refresh (module doc)."""
     from firmware_model.onboard.sensor import VirtualSensor
-    from firmware_model.onboard.warning_levels import Limits
 
     if real not in ("float", "double"):
         raise InputError(f"--real {real!r} must be float or double")
     cfg, params = export_config(variant, config_path)
     probe = VirtualSensor(params, config=cfg, core="numpy")
     lim = probe.limits
-    limits = (
-        lim
-        if ttl
-        else Limits(lim.warning_c, lim.critical_c, lim.hysteresis_k, lim.debounce_s, lim.provenance, lim.origin, 0.0)
-    )
+    limits = lim if ttl else dataclasses.replace(lim, lead_s=0.0)  # the published components kept
     sensor = VirtualSensor(params, limits=limits, config=cfg, core="numpy")
     out = Path(out_dir)
     above = next((a for a in (out, *out.parents) if a.exists()), None)

@@ -18,7 +18,7 @@ typedef struct Instance_ Instance;
 struct Instance_ {
     gvs_state st;
     gvs_tables tb;
-    gvs_real warning_c[GVS_N_PUB], critical_c[GVS_N_PUB], rest_c[GVS_N_PUB];
+    gvs_real warning_c[GVS_MAX_PUB], critical_c[GVS_MAX_PUB], rest_c[GVS_MAX_PUB];
     double inputs[GVS_N_INPUTS];
     double initial_temp_c, time_s;
     gvs_outputs out;
@@ -35,7 +35,7 @@ static void reset(Instance *m)
 {
     int i;
     m->tb = GVS_TABLES;
-    for (i = 0; i < GVS_N_PUB; ++i) {
+    for (i = 0; i < GVS_MAX_PUB; ++i) {
         m->warning_c[i] = GVS_TABLES.warning_c[i];
         m->critical_c[i] = GVS_TABLES.critical_c[i];
     }
@@ -53,7 +53,7 @@ static void publish_state(Instance *m)
 {
     int i;
     memset(&m->out, 0, sizeof m->out);
-    for (i = 0; i < GVS_N_PUB; ++i) {
+    for (i = 0; i < GVS_MAX_PUB; ++i) {
         m->out.T_c[i] = m->st.T_c[0][GVS_TABLES.published_index[i]];
         m->out.level[i] = m->st.level[i];
         m->out.ttl_s[i] = (gvs_real)NAN;
@@ -89,7 +89,7 @@ static int exit_init(Instance *m)
         m->log(m, 1, "the start time must be a finite time");
         return -1;
     }
-    for (i = 0; i < GVS_N_PUB; ++i) {
+    for (i = 0; i < GVS_MAX_PUB; ++i) {
         if (!(m->warning_c[i] >= (gvs_real)LIMIT_LO_C && m->critical_c[i] <= (gvs_real)LIMIT_HI_C)) {
             m->log(m, 1, "every limit must be a temperature in " LIMIT_RANGE_TEXT " degC (as the limits file)");
             return -1;
@@ -162,13 +162,13 @@ static double real_out(Instance *m, unsigned vr, int *ok)
 {
     *ok = 1;
     outputs_now(m);
-    if (vr >= VR_T && vr < VR_T + GVS_N_PUB) return (double)m->out.T_c[vr - VR_T];
-    if (vr >= VR_TTL && vr < VR_TTL + GVS_N_PUB) return (double)m->out.ttl_s[vr - VR_TTL];
+    if (vr >= VR_T && vr < VR_T + GVS_MAX_PUB) return (double)m->out.T_c[vr - VR_T];
+    if (vr >= VR_TTL && vr < VR_TTL + GVS_MAX_PUB) return (double)m->out.ttl_s[vr - VR_TTL];
     if (vr == VR_MODEL_OIL) return (double)m->out.model_oil_temp_c;
     if (vr == VR_INNOVATION) return (double)m->out.oil_innovation_c;
     if (vr >= VR_INPUT && vr < VR_INPUT + GVS_N_INPUTS) return m->inputs[vr - VR_INPUT];
-    if (vr >= VR_WARNING && vr < VR_WARNING + GVS_N_PUB) return (double)m->warning_c[vr - VR_WARNING];
-    if (vr >= VR_CRITICAL && vr < VR_CRITICAL + GVS_N_PUB) return (double)m->critical_c[vr - VR_CRITICAL];
+    if (vr >= VR_WARNING && vr < VR_WARNING + GVS_MAX_PUB) return (double)m->warning_c[vr - VR_WARNING];
+    if (vr >= VR_CRITICAL && vr < VR_CRITICAL + GVS_MAX_PUB) return (double)m->critical_c[vr - VR_CRITICAL];
     if (vr == VR_INITIAL_TEMP) return m->initial_temp_c;
     if (vr == VR_TIME) return m->time_s;
     *ok = 0;
@@ -178,7 +178,7 @@ static double real_out(Instance *m, unsigned vr, int *ok)
 static int int_out(Instance *m, unsigned r, long *value)
 {
     outputs_now(m);
-    if (r >= VR_LEVEL && r < VR_LEVEL + GVS_N_PUB) *value = m->out.level[r - VR_LEVEL];
+    if (r >= VR_LEVEL && r < VR_LEVEL + GVS_MAX_PUB) *value = m->out.level[r - VR_LEVEL];
     else if (r == VR_MODE) *value = m->out.degraded_mode;
     else if (r == VR_VALID) *value = m->out.valid_flags;
     else if (r == VR_FROZEN) *value = m->out.frozen_flags;
@@ -204,8 +204,8 @@ static int set_real(Instance *m, unsigned r, double value)
 {
     if (r >= VR_INPUT && r < VR_INPUT + GVS_N_INPUTS) m->inputs[r - VR_INPUT] = value;
     else if (m->initialised != PHASE_SETUP) return -1;
-    else if (r >= VR_WARNING && r < VR_WARNING + GVS_N_PUB) m->warning_c[r - VR_WARNING] = (gvs_real)value;
-    else if (r >= VR_CRITICAL && r < VR_CRITICAL + GVS_N_PUB) m->critical_c[r - VR_CRITICAL] = (gvs_real)value;
+    else if (r >= VR_WARNING && r < VR_WARNING + GVS_MAX_PUB) m->warning_c[r - VR_WARNING] = (gvs_real)value;
+    else if (r >= VR_CRITICAL && r < VR_CRITICAL + GVS_MAX_PUB) m->critical_c[r - VR_CRITICAL] = (gvs_real)value;
     else if (r == VR_INITIAL_TEMP) m->initial_temp_c = value;
     else return -1;
     return 0;

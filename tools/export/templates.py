@@ -76,7 +76,7 @@ void gvs_sensor_init_ambient(gvs_state *st, double T_oil_c, double T_ambient_c)
     st->hold[GVS_I_SPEED] = st->hold[GVS_I_TORQUE] = st->hold[GVS_I_GEAR] = 0;
     st->hold[GVS_I_OIL] = T0;
     st->oil_ref_c = T0;
-    for (i = 0; i < GVS_N_PUB; ++i) st->ttl_s[i] = (gvs_real)NAN;
+    for (i = 0; i < GVS_MAX_PUB; ++i) st->ttl_s[i] = (gvs_real)NAN;
     st->t_last_s = NAN;
 }
 
@@ -93,7 +93,7 @@ int gvs_sensor_resume(gvs_state *st, double T_oil_c)
     for (c = 0; c < 2; ++c)
         for (i = 0; i < tb->n; ++i)
             if (!(st->T_c[c][i] >= (gvs_real)-100.0 && st->T_c[c][i] <= (gvs_real)500.0)) return -1;
-    for (i = 0; i < GVS_N_PUB; ++i)
+    for (i = 0; i < GVS_MAX_PUB; ++i)
         if (st->level[i] < 0 || st->level[i] > 3 || !(st->pending_s[i] >= (gvs_real)0.0)
             || !finite_value(st->pending_s[i])) return -1;
     for (i = 0; i < GVS_N_REJECT; ++i)
@@ -119,7 +119,7 @@ int gvs_sensor_resume(gvs_state *st, double T_oil_c)
             for (c = 0; c < 2; ++c)
                 for (i = 0; i < tb->n; ++i) st->T_c[c][i] = T;
             /* every node restarted at the reading: the saved warning levels go with the saved temperatures */
-            for (i = 0; i < GVS_N_PUB; ++i) {
+            for (i = 0; i < GVS_MAX_PUB; ++i) {
                 st->level[i] = 0;
                 st->pending_s[i] = (gvs_real)0.0;
             }
@@ -128,7 +128,7 @@ int gvs_sensor_resume(gvs_state *st, double T_oil_c)
     }
     st->t_last_s = NAN;
     st->k = 0;
-    for (i = 0; i < GVS_N_PUB; ++i) st->ttl_s[i] = (gvs_real)NAN;
+    for (i = 0; i < GVS_MAX_PUB; ++i) st->ttl_s[i] = (gvs_real)NAN;
     return 0;
 }
 
@@ -206,21 +206,21 @@ int main(void)
         for (i = 0; i < GVS_N_INPUTS; ++i) in.raw[i] = GVS_VEC_INPUTS[j * GVS_N_INPUTS + i];
         in.t_s = NAN;
         gvs_sensor_step(&state, &in, &out);
-        for (i = 0; i < GVS_N_PUB; ++i) nan_out += !(out.T_c[i] == out.T_c[i]);
+        for (i = 0; i < GVS_MAX_PUB; ++i) nan_out += !(out.T_c[i] == out.T_c[i]);
         if ((j + 1) % GVS_VEC_EVERY != 0 || kept >= GVS_VEC_KEPT) continue;
-        for (i = 0; i < GVS_N_PUB; ++i) {
-            double e = GVS_VEC_T_C[kept * GVS_N_PUB + i], d = fabs((double)out.T_c[i] - e);
+        for (i = 0; i < GVS_MAX_PUB; ++i) {
+            double e = GVS_VEC_T_C[kept * GVS_MAX_PUB + i], d = fabs((double)out.T_c[i] - e);
             if (d > worst) worst = d;
 #if GVS_EXPORT_TTL
             {
-                double tw = GVS_VEC_TTL[kept * GVS_N_PUB + i];
+                double tw = GVS_VEC_TTL[kept * GVS_MAX_PUB + i];
                 ttl_bad += !ttl_close((double)out.ttl_s[i], tw, &ttl_worst);
-                if (out.level[i] != GVS_VEC_LEVEL[kept * GVS_N_PUB + i]) {
+                if (out.level[i] != GVS_VEC_LEVEL[kept * GVS_MAX_PUB + i]) {
                     if (near_threshold(i, e) || near_lead(tw)) ++level_near; else ++level_bad;
                 }
             }
 #else
-            if (out.level[i] != GVS_VEC_LEVEL[kept * GVS_N_PUB + i]) {
+            if (out.level[i] != GVS_VEC_LEVEL[kept * GVS_MAX_PUB + i]) {
                 if (near_threshold(i, e)) ++level_near; else ++level_bad;
             }
 #endif
@@ -248,7 +248,7 @@ int main(void)
 REPLAY_PROGRAM = r"""/* gearbox-vsensor export-c: `gvs_replay IN OUT` steps the exported sensor over a whole drive and writes every
  * step's outputs, to compare two builds of the same sources (the host's and the Cortex-M4F's, `make replay` and
  * `make qemu-replay`). IN: per step 8 little-endian float64 inputs (the order of gvs_inputs.raw; NaN = not
- * available), 0.1 s apart. OUT: per step float32 T_c[GVS_N_PUB], float32 ttl_s[GVS_N_PUB], int8 level[GVS_N_PUB],
+ * available), 0.1 s apart. OUT: per step float32 T_c[GVS_MAX_PUB], float32 ttl_s[GVS_MAX_PUB], int8 level[GVS_MAX_PUB],
  * int8 degraded_mode.
  * Built with -DGVS_SYSTICK (the Cortex-M4F build), it also counts the processor clock cycles of each step with the
  * SysTick timer: under QEMU with -icount the emulated clock advances a fixed time per instruction, so the cycles
@@ -292,8 +292,8 @@ int main(int argc, char **argv)
     }
     while (fread(raw, sizeof raw, 1, fi) == 1) {
         gvs_inputs in;
-        float T[GVS_N_PUB], ttl[GVS_N_PUB];
-        int8_t lv[GVS_N_PUB + 1];
+        float T[GVS_MAX_PUB], ttl[GVS_MAX_PUB];
+        int8_t lv[GVS_MAX_PUB + 1];
 #ifdef GVS_SYSTICK
         uint32_t t0, d;
 #endif
@@ -309,12 +309,12 @@ int main(int argc, char **argv)
 #else
         gvs_sensor_step(&state, &in, &out);
 #endif
-        for (i = 0; i < GVS_N_PUB; ++i) {
+        for (i = 0; i < GVS_MAX_PUB; ++i) {
             T[i] = (float)out.T_c[i];
             ttl[i] = (float)out.ttl_s[i];
             lv[i] = (int8_t)out.level[i];
         }
-        lv[GVS_N_PUB] = (int8_t)out.degraded_mode;
+        lv[GVS_MAX_PUB] = (int8_t)out.degraded_mode;
         if (fwrite(T, sizeof T, 1, fo) != 1 || fwrite(ttl, sizeof ttl, 1, fo) != 1 || fwrite(lv, sizeof lv, 1, fo) != 1) {
             fprintf(stderr, "gvs_replay: cannot write %s\n", argv[2]);
             return 2;

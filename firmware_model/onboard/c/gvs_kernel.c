@@ -58,6 +58,13 @@ static float pow_f(float a, float b)
 static gvs_real min_r(gvs_real a, gvs_real b) { return a < b ? a : b; }
 static gvs_real max_r(gvs_real a, gvs_real b) { return a > b ? a : b; }
 static gvs_real clip_r(gvs_real x, gvs_real lo, gvs_real hi) { return x < lo ? lo : (x > hi ? hi : x); }
+
+/* |speed| of the shaft in speed_coef column col (tables.pump_speed_col, churn_speed_col, output_speed_col; -1: no
+ * such shaft, 0) at this gear row (evaluate.shaft_speed_rad_s) */
+static gvs_real shaft_speed(const gvs_tables *tb, int32_t row, int32_t col, gvs_real omega_in_rad_s)
+{
+    return col < 0 ? R_(0.0) : FABS(tb->speed_coef[row * tb->n_speed + col]) * omega_in_rad_s;
+}
 static int finite_r(double x) { return x == x && x - x == 0.0; }
 
 /* k mod m for a step count k >= 0 and m >= 1 without a 64-bit division (none in an FPU-only ECU's hardware: the
@@ -164,7 +171,7 @@ static void bin_conductances(const gvs_tables *tb, const gvs_vehicle *veh, int32
         }
     }
     /* closed-form streams, NTU (Eq 69-80) */
-    omega_ls_rad_s = FABS(tb->speed_coef[gear_row * tb->n_speed + GVS_SPEED_COL_LAYSHAFT]) * omega_in_rad_s;
+    omega_ls_rad_s = shaft_speed(tb, gear_row, tb->pump_speed_col, omega_in_rad_s);
     rho_cp_omega = o.prop[GVS_P_RHO] * o.prop[GVS_P_CP] * omega_ls_rad_s;
     for (t = 0; t < tb->ne; ++t) {
         gvs_real mcp = tb->ef_mcp[t] * rho_cp_omega;
@@ -233,7 +240,7 @@ static void heat_sources(const gvs_tables *tb, const gvs_vehicle *veh, int32_t g
         P_needle += Mn * omega_rel_rad_s;
     }
     omega_in_sq = omega_in_rad_s * omega_in_rad_s;
-    omega_ls_rad_s = FABS(tb->speed_coef[gear_row * tb->n_speed + GVS_SPEED_COL_LAYSHAFT]) * omega_in_rad_s;
+    omega_ls_rad_s = shaft_speed(tb, gear_row, tb->churn_speed_col, omega_in_rad_s);
     iu = sqrt_speed_index(omega_ls_rad_s, tb->churn_omega_max_rad_s, tb->n_u_churn, &fu);  /* churning table */
     jT = grid_index(o->x, tb->nT, &fT);
     P_churn = bilinear(tb->churn_table + iu * tb->nT + jT, tb->nT, fu, fT);
@@ -250,7 +257,7 @@ static gvs_real retarder_heat_w(const gvs_tables *tb, const gvs_vehicle *veh, in
                                 gvs_real retarder_torque_nm)
 {
     return veh->retarder_frac * retarder_torque_nm
-        * FABS(tb->speed_coef[gear_row * tb->n_speed + GVS_SPEED_COL_OUTPUT]) * omega_in_rad_s;
+        * shaft_speed(tb, gear_row, tb->output_speed_col, omega_in_rad_s);
 }
 
 /* ---- the oil cooler (physics.cooler.oil_cooler_heat, seed 3.4, Eq 82-83) --------------------------------- */
@@ -398,14 +405,14 @@ static void update_levels(const gvs_tables *tb, gvs_state *st, const gvs_real *T
                           const gvs_real *ttl_now)
 {
     int i, rest = available;
-    for (i = 0; i < GVS_N_PUB && rest; ++i)
+    for (i = 0; i < tb->n_pub && rest; ++i)
         rest = T_pub[i] < tb->warning_rest_c[i] && st->level[i] == GVS_LEVEL_NORMAL && st->pending_s[i] == R_(0.0)
             && (tb->lead_s <= R_(0.0) || ttl_now[i] > R_(2.0) * tb->lead_s);
     if (rest) {            /* nothing near a limit: the state machine rests */
-        for (i = 0; i < GVS_N_PUB; ++i) { st->level[i] = GVS_LEVEL_NORMAL; st->pending_s[i] = R_(0.0); }
+        for (i = 0; i < tb->n_pub; ++i) { st->level[i] = GVS_LEVEL_NORMAL; st->pending_s[i] = R_(0.0); }
         return;
     }
-    for (i = 0; i < GVS_N_PUB; ++i) {
+    for (i = 0; i < tb->n_pub; ++i) {
         int lv = st->level[i], target, held, crit, warn, change, take;
         gvs_real T = T_pub[i], pend;
         crit = T >= tb->critical_c[i] || (lv == GVS_LEVEL_CRITICAL && T > tb->critical_c[i] - tb->hysteresis_k[i]);
@@ -428,7 +435,7 @@ static int skip_step(const gvs_tables *tb, gvs_state *st, gvs_outputs *out)
 {
     int i;
     st->rejects[GVS_RJ_TIME_BACKWARD] += 1;
-    for (i = 0; i < GVS_N_PUB; ++i) {
+    for (i = 0; i < tb->n_pub; ++i) {
         out->T_c[i] = st->T_c[GVS_MAIN][tb->published_index[i]];
         out->level[i] = st->level[i];
         out->ttl_s[i] = st->ttl_s[i];
@@ -459,7 +466,10 @@ int gvs_check_tables(const gvs_tables *tb)
     if (!nan_checks_work()) return GVS_BAD_TABLES;
     if (tb->n > GVS_MAX_NODES || tb->nl > GVS_MAX_LINKS || tb->ldl_nnz > GVS_MAX_LNZ || tb->ns > GVS_MAX_SRC || tb->nb > GVS_MAX_BC
         || tb->nst > GVS_MAX_STREAMS || tb->n2 > GVS_MAX_TERMS || tb->ne > GVS_MAX_TERMS
-        || tb->ncol > GVS_MAX_TERMS || tb->n_gears != GVS_N_GEARS
+        || tb->ncol > GVS_MAX_TERMS || tb->n_gears < 1 || tb->n_gears > GVS_MAX_GEARS
+        || tb->n_pub < 1 || tb->n_pub > GVS_MAX_PUB || tb->pump_speed_col < -1 || tb->pump_speed_col >= tb->n_speed
+        || tb->churn_speed_col < -1 || tb->churn_speed_col >= tb->n_speed || tb->output_speed_col < -1
+        || tb->output_speed_col >= tb->n_speed
         || tb->nT < 2 || tb->nT2 < 2 || tb->n_u < 2 || tb->n_u_churn < 2 || tb->nx < 2 || tb->ttl_every < 1)
         return GVS_BAD_TABLES;
 #ifdef GVS_NO_TTL_BOUND
@@ -519,7 +529,7 @@ static void network_step(const gvs_tables *tb, const gvs_vehicle *veh, gvs_state
         nt->G = st->memo_G;
         nt->Gs = st->memo_Gs;
     }
-    w_ls = FABS(tb->speed_coef[nt->row * tb->n_speed + GVS_SPEED_COL_LAYSHAFT]) * w;
+    w_ls = shaft_speed(tb, nt->row, tb->pump_speed_col, w);
     nt->rho_cp = o.prop[GVS_P_RHO] * o.prop[GVS_P_CP];
     mcp = nt->rho_cp * tb->flow_m3_per_rad * w_ls;
     cooler_op(tb, veh, w_ls, w, c->used[GVS_I_COOL], c->used[GVS_I_AMB], c->used[GVS_I_VKMH], mcp, &cop);
@@ -762,7 +772,7 @@ static void held_apply(const gvs_tables *tb, const held_t *hs, const gvs_real *e
  * difference */
 static gvs_real cooler_slope(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl_point *p, gvs_real T)
 {
-    gvs_real w_ls = FABS(tb->speed_coef[p->row * tb->n_speed + GVS_SPEED_COL_LAYSHAFT]) * p->omega_in_rad_s;
+    gvs_real w_ls = shaft_speed(tb, p->row, tb->pump_speed_col, p->omega_in_rad_s);
     gvs_real Q, Q_hi, Q_lo;
     gvs_real mcp = p->rho_cp_j_per_m3k * tb->flow_m3_per_rad * w_ls;
     const gvs_real *u = p->used;
@@ -861,7 +871,7 @@ static int held_build(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_tt
 {
     int32_t n = tb->n, k, i, io = tb->i_oil;
     gvs_real T_oil = p->T_oil_c, mcp, dT_in;
-    gvs_real w_ls = FABS(tb->speed_coef[p->row * tb->n_speed + GVS_SPEED_COL_LAYSHAFT]) * p->omega_in_rad_s;
+    gvs_real w_ls = shaft_speed(tb, p->row, tb->pump_speed_col, p->omega_in_rad_s);
     mcp = p->rho_cp_j_per_m3k * tb->flow_m3_per_rad * w_ls;
     hs->G = G;
     hs->held = measured;
@@ -996,12 +1006,12 @@ static int skip_to(const gvs_tables *tb, const gvs_ttl_point *p, const gvs_real 
     }
     if (!(rate > R_(0.0))) {
         if (rate <= R_(0.0)) {
-            for (j = 0; j < GVS_N_PUB; ++j) open[j] = 0;
+            for (j = 0; j < tb->n_pub; ++j) open[j] = 0;
             return 0;
         }
         return 1;
     }
-    for (j = 0; j < GVS_N_PUB; ++j)
+    for (j = 0; j < tb->n_pub; ++j)
         if (open[j]) {
             int32_t r = tb->published_index[j];
             march_t tj = (march_t)(tb->warning_c[j] - p->T_main_c[r])
@@ -1015,7 +1025,7 @@ static int skip_to(const gvs_tables *tb, const gvs_ttl_point *p, const gvs_real 
     return 1;
 }
 
-/* one held-input solution (time_to_limit._solve + held_march.march_time_to_limit): ttl[GVS_N_PUB]; *T_watch the sump at
+/* one held-input solution (time_to_limit._solve + held_march.march_time_to_limit): ttl[GVS_MAX_PUB]; *T_watch the sump at
  * the first crossing of a re-linearising component (NaN: none) */
 static int ttl_solve(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl_point *p, const gvs_real *src,
                      const gvs_real *G, const gvs_real *Gs, gvs_real T_op, int measured, gvs_real *ttl,
@@ -1025,7 +1035,7 @@ static int ttl_solve(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl
     gvs_real T_inf[GVS_MAX_NODES], e[GVS_MAX_NODES], de[GVS_MAX_NODES], e_g[GVS_MAX_NODES], e_new[GVS_MAX_NODES];
     gvs_real de_new[GVS_MAX_NODES], Ae[GVS_MAX_NODES], energy = R_(0.0), energy_new, e_max = R_(0.0), bnd;
     const gvs_real *C = tb->C_j_per_k;
-    int8_t open[GVS_N_PUB];
+    int8_t open[GVS_MAX_PUB];
     int32_t n = tb->n, i, j, any = 0, io = tb->i_oil;
     march_t t = M_(0.0), h = M_(GVS_MARCH_H0_S), t_skip = M_(0.0);
 #ifndef GVS_NO_TTL_BOUND
@@ -1034,7 +1044,7 @@ static int ttl_solve(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl
     const march_t ratio = M_(GVS_MARCH_RATIO);
 #endif
     *T_watch = (gvs_real)NAN;
-    for (j = 0; j < GVS_N_PUB; ++j) ttl[j] = (gvs_real)NAN;
+    for (j = 0; j < tb->n_pub; ++j) ttl[j] = (gvs_real)NAN;
     memset(e, 0, sizeof e);
     memset(de, 0, sizeof de);
     if (held_build(tb, veh, p, src, G, Gs, T_op, measured, &hs, T_inf, chord) != 0) return -1;
@@ -1050,7 +1060,7 @@ static int ttl_solve(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl
         e_max = bound_max(&hs, e, i, e_max);
     }
     bnd = e_max;                                    /* held_march._bound_scale (when metzler or weighted) */
-    for (j = 0; j < GVS_N_PUB; ++j) {
+    for (j = 0; j < tb->n_pub; ++j) {
         int32_t r = tb->published_index[j];
         gvs_real lim = tb->warning_c[j];
         open[j] = 0;
@@ -1083,7 +1093,7 @@ static int ttl_solve(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl
             e_max = bound_max(&hs, e_new, i, e_max);
         }
         any = 0;
-        for (j = 0; j < GVS_N_PUB; ++j) {
+        for (j = 0; j < tb->n_pub; ++j) {
             int32_t r = tb->published_index[j];
             gvs_real lim = tb->warning_c[j], f1;
             if (!open[j]) continue;
@@ -1138,7 +1148,7 @@ static void bound_scatter(const gvs_tables *tb, const gvs_real *src, gvs_real *q
 /* ttl_bound.cooler_chord_slope: (Q(T_far) - Q_step) / (T_far - T_step), at least 0 */
 static gvs_real bound_cooler_slope(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl_point *p, gvs_real T)
 {
-    gvs_real w_ls = FABS(tb->speed_coef[p->row * tb->n_speed + GVS_SPEED_COL_LAYSHAFT]) * p->omega_in_rad_s;
+    gvs_real w_ls = shaft_speed(tb, p->row, tb->pump_speed_col, p->omega_in_rad_s);
     gvs_real mcp = p->rho_cp_j_per_m3k * tb->flow_m3_per_rad * w_ls;
     const gvs_real *u = p->used;
     cooler_op_t op;
@@ -1186,7 +1196,7 @@ static int bound_far_sump(const gvs_tables *tb, const gvs_vehicle *veh, const gv
     gvs_real r[GVS_MAX_NODES], rw[GVS_MAX_SRC], src_k[GVS_MAX_SRC], qf[GVS_MAX_NODES];
     gvs_real T0 = p->T_oil_c, t_prev = T0, g_prev, g, T_far, rb = R_(0.0), ru = R_(0.0), rq0 = R_(0.0), rqf, slope_k;
     gvs_real mcp = p->rho_cp_j_per_m3k * tb->flow_m3_per_rad
-        * FABS(tb->speed_coef[p->row * tb->n_speed + GVS_SPEED_COL_LAYSHAFT]) * p->omega_in_rad_s;
+        * shaft_speed(tb, p->row, tb->pump_speed_col, R_(1.0)) * p->omega_in_rad_s;
     int32_t n = tb->n, i, k, it, io = tb->i_oil, found = 0;
     hs.G = p->G_w_per_k;
     hs.slope = R_(0.0);
@@ -1243,12 +1253,12 @@ static int ttl_refresh(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_t
 /* a crossing within GVS_TTL_BOUND_GATE_S: today's march too, the earlier of the two (no warning later than today's) */
 static void bound_gate(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl_point *p, gvs_real *ttl_s)
 {
-    gvs_real today[GVS_N_PUB];
+    gvs_real today[GVS_MAX_PUB];
     int j;
-    for (j = 0; j < GVS_N_PUB && !(ttl_s[j] <= R_(GVS_TTL_BOUND_GATE_S)); ++j) {}
-    if (j == GVS_N_PUB) return;
+    for (j = 0; j < tb->n_pub && !(ttl_s[j] <= R_(GVS_TTL_BOUND_GATE_S)); ++j) {}
+    if (j == tb->n_pub) return;
     ttl_refresh(tb, veh, p, today, 0);
-    for (j = 0; j < GVS_N_PUB; ++j)
+    for (j = 0; j < tb->n_pub; ++j)
         if (today[j] < ttl_s[j]) ttl_s[j] = today[j];
 }
 
@@ -1256,7 +1266,7 @@ static void bound_gate(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_t
  * conductances, those of T_far's bin); the step's own system when the sump is settled, held or not found */
 static int ttl_refresh_bound(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl_point *p, gvs_real *ttl_s)
 {
-    gvs_real T_watch, src[GVS_MAX_SRC], G[GVS_MAX_LINKS], Gs[GVS_MAX_STREAMS], other[GVS_N_PUB];
+    gvs_real T_watch, src[GVS_MAX_SRC], G[GVS_MAX_LINKS], Gs[GVS_MAX_STREAMS], other[GVS_MAX_PUB];
     int measured = p->measured && !tb->ttl_sump_model, rc_a, rc_b, j;
     ttl_chord_t ch;
     ch.stop = NULL;
@@ -1273,9 +1283,9 @@ static int ttl_refresh_bound(const gvs_tables *tb, const gvs_vehicle *veh, const
     rc_b = ttl_solve(tb, veh, p, src, G, Gs, ch.T_far, 0, other, &T_watch, &ch);
     if (rc_b != 0) {
         if (rc_a != 0)
-            for (j = 0; j < GVS_N_PUB; ++j) ttl_s[j] = (gvs_real)NAN;
+            for (j = 0; j < tb->n_pub; ++j) ttl_s[j] = (gvs_real)NAN;
     } else {
-        for (j = 0; j < GVS_N_PUB; ++j)
+        for (j = 0; j < tb->n_pub; ++j)
             if (rc_a != 0 || other[j] < ttl_s[j]) ttl_s[j] = other[j];
     }
     bound_gate(tb, veh, p, ttl_s);
@@ -1291,7 +1301,7 @@ static int ttl_refresh(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_t
     oil_row_t o;
     if (gvs_check_tables(tb) != GVS_OK) return GVS_BAD_TABLES;
     if (tb->ldl_nnz <= 0) {                       /* a build without the time to limit's tables: not available */
-        for (it = 0; it < GVS_N_PUB; ++it) ttl_s[it] = (gvs_real)NAN;
+        for (it = 0; it < tb->n_pub; ++it) ttl_s[it] = (gvs_real)NAN;
         return GVS_OK;
     }
 #ifndef GVS_NO_TTL_BOUND
@@ -1325,7 +1335,7 @@ int gvs_step(const gvs_tables *tb, const gvs_vehicle *veh, gvs_state *st, const 
              gvs_outputs *out, gvs_ttl_point *ttl)
 {
     int64_t counts[GVS_N_REJECT];
-    gvs_real T_pub[GVS_N_PUB], ttl_now[GVS_N_PUB];
+    gvs_real T_pub[GVS_MAX_PUB], ttl_now[GVS_MAX_PUB];
     int64_t k = st->k, since;
     int i, available, any = 0, due;
     check_t c;
@@ -1351,16 +1361,16 @@ int gvs_step(const gvs_tables *tb, const gvs_vehicle *veh, gvs_state *st, const 
     check_inputs(tb, st, in->raw, counts, &c);
     network_step(tb, veh, st, &c, in->raw[GVS_I_OIL], &nt);
     /* published temperatures, warnings, the time to limit counted down */
-    for (i = 0; i < GVS_N_PUB; ++i) T_pub[i] = st->T_c[GVS_MAIN][tb->published_index[i]];
+    for (i = 0; i < tb->n_pub; ++i) T_pub[i] = st->T_c[GVS_MAIN][tb->published_index[i]];
     available = c.drive_age_s <= tb->hold_s;
     since = k == 0 ? 0 : (steps_mod(k - 1, tb->ttl_every) + 1);
-    for (i = 0; i < GVS_N_PUB; ++i) {
+    for (i = 0; i < tb->n_pub; ++i) {
         gvs_real t = st->ttl_s[i] - (gvs_real)since * tb->dt_s;
         ttl_now[i] = t != t ? t : max_r(t, R_(0.0));
     }
     update_levels(tb, st, T_pub, available, ttl_now);
-    for (i = 0; i < GVS_N_PUB; ++i) any |= st->level[i] != GVS_LEVEL_NORMAL || T_pub[i] >= tb->warning_c[i];
-    for (i = 0; i < GVS_N_PUB; ++i) {
+    for (i = 0; i < tb->n_pub; ++i) any |= st->level[i] != GVS_LEVEL_NORMAL || T_pub[i] >= tb->warning_c[i];
+    for (i = 0; i < tb->n_pub; ++i) {
         out->T_c[i] = T_pub[i];
         out->level[i] = st->level[i];
         if (any && st->level[i] == GVS_LEVEL_NA) out->ttl_s[i] = (gvs_real)NAN;

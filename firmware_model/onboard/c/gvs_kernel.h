@@ -84,14 +84,18 @@ typedef int32_t gvs_idx;
 /* the most terms of one kind of conductance law (tables, closed-form streams) and oil-factor columns */
 #define GVS_MAX_TERMS 64
 #endif
+#ifndef GVS_MAX_PUB
+/* published components (tables.n_pub; the description's published.order) */
+#define GVS_MAX_PUB 48
+#endif
+#ifndef GVS_MAX_GEARS
+/* gear rows of the per-gear tables (tables.n_gears) */
+#define GVS_MAX_GEARS 32
+#endif
 
-#define GVS_N_PUB 28                            /* published components (firmware_model.components.PUBLISHED) */
 #define GVS_N_INPUTS 8                          /* input fields (records.INPUT_FIELDS) */
 #define GVS_N_REJECT 13                         /* reject counters (records.REJECT_REASONS) */
-#define GVS_N_GEARS 17                          /* gear rows of the per-gear tables */
 #define GVS_N_PROP 8                            /* columns of the oil property table */
-#define GVS_SPEED_COL_LAYSHAFT 1                /* speed_coef column of the layshaft (oil flow, churning) */
-#define GVS_SPEED_COL_OUTPUT 3                  /* speed_coef column of the output shaft (retarder) */
 #define GVS_MARCH_H0_S 1.0                      /* time to limit: first march step [s] */
 #define GVS_MARCH_RATIO 1.4                     /* each march step this many times longer than the last */
 #define GVS_TTL_HORIZON_S 2000000.0             /* time to limit beyond this is never (inf) [s] */
@@ -143,7 +147,7 @@ typedef struct {
     /* sizes: nodes, links, boundaries, sources, power laws, tables, cylinders, closed-form streams, radiation links,
      * streams, source non-zeros; then the tables' axes */
     int32_t n, nl, nb, ns, npw, n2, nc, ne, nrad, nst, nsrc_nz, nT, ncol, n_u, nT2, n_u_churn, nx, n_mesh, n_bear;
-    int32_t n_speed, n_gears;
+    int32_t n_speed, n_gears, n_pub;
     int32_t i_oil;                      /* the sump node */
     int32_t i_ambient;                  /* the ambient boundary */
     int32_t i_coolant;                  /* the coolant boundary */
@@ -156,7 +160,7 @@ typedef struct {
     const gvs_idx *link_a;              /* (nl) */
     const gvs_idx *link_b;              /* (nl) link_b >= n: boundary link_b - n */
     const gvs_real *G_const;            /* (nl) [W/K] */
-    const gvs_idx *published_index;     /* (N_PUB) node of each published component */
+    const gvs_idx *published_index;     /* (n_pub) node of each published component */
     /* power laws: G = coef[row, t] w^exp[t] (phi(T)[col[t]] or 1) x effect */
     const gvs_idx *pw_link, *pw_col, *pw_effect; /* (npw) */
     const gvs_real *pw_exp;             /* (npw) */
@@ -188,6 +192,10 @@ typedef struct {
     gvs_real T_grid_step_k;             /* [K] */
     /* losses */
     const gvs_real *speed_coef;         /* (gears x n_speed) every speed per unit input speed */
+    /* speed_coef column of the shaft that drives the oil pump (flow, cooler); -1 none */
+    int32_t pump_speed_col;
+    int32_t churn_speed_col;            /* ... of the shaft whose dipping wheels churn (the churning table); -1 none */
+    int32_t output_speed_col;           /* ... of the output shaft (retarder); -1 none */
     const gvs_real *mesh_torque, *mesh_omega2; /* (gears x n_mesh) */
     const gvs_real *mesh_x0;            /* (n_mesh) */
     const gvs_real *mesh_phi;           /* (n_mesh x nx) */
@@ -236,9 +244,9 @@ typedef struct {
     gvs_real hold_s, drive_frozen_s, oil_frozen_s; /* [s] */
     gvs_real oil_frozen_drift_c, oil_step_c; /* [K] */
     gvs_real clock_reset_s;             /* [s] t_s back by more than this: a reset clock (stepped, counted) */
-    const gvs_real *warning_c, *critical_c; /* (N_PUB) [degC] */
-    const gvs_real *hysteresis_k;       /* (N_PUB) [K] */
-    const gvs_real *warning_rest_c;     /* (N_PUB) [degC] */
+    const gvs_real *warning_c, *critical_c; /* (n_pub) [degC] */
+    const gvs_real *hysteresis_k;       /* (n_pub) [K] */
+    const gvs_real *warning_rest_c;     /* (n_pub) [degC] */
     gvs_real debounce_s, lead_s;        /* [s] */
     /* time to limit (gvs_ttl_refresh; firmware_model.onboard.held_march, time_to_limit): heat capacities, the sparse
      * LDL^T pattern of C/h + K (firmware_model.onboard.sparse_ldl), the components whose crossing re-linearises, and
@@ -252,7 +260,7 @@ typedef struct {
     const gvs_idx *ldl_link_slot;       /* (nl) */
     const gvs_idx *ldl_upd_ptr;         /* (n + 1) */
     const gvs_idx *ldl_upd_target, *ldl_upd_a, *ldl_upd_b; /* (ldl_nupd) */
-    const gvs_idx *ttl_relin;           /* (N_PUB) */
+    const gvs_idx *ttl_relin;           /* (n_pub) */
     int32_t ldl_nnz, ldl_nupd, ttl_sump_model, ttl_relinearise, ttl_bound;
 } gvs_tables;
 
@@ -274,7 +282,7 @@ typedef struct {
     gvs_real age_s[GVS_N_INPUTS], same_s[GVS_N_INPUTS]; /* [s] */
     gvs_real raw_prev[GVS_N_INPUTS];
     gvs_real oil_ref_c;                 /* [degC] */
-    gvs_real pending_s[GVS_N_PUB], ttl_s[GVS_N_PUB]; /* [s] */
+    gvs_real pending_s[GVS_MAX_PUB], ttl_s[GVS_MAX_PUB]; /* [s] */
     double t_last_s;                    /* [s] frame time of the last step (NaN unknown) */
     int64_t k;                          /* steps done */
     int64_t rejects[GVS_N_REJECT];
@@ -285,7 +293,7 @@ typedef struct {
     gvs_real memo_omega_q;              /* [rad/s] */
     gvs_real memo_T_q;                  /* [degC] */
     int32_t memo_row, memo_valid;
-    int8_t level[GVS_N_PUB];            /* GVS_LEVEL_* */
+    int8_t level[GVS_MAX_PUB];          /* GVS_LEVEL_* */
 } gvs_state;
 
 /* One step's inputs. */
@@ -296,13 +304,13 @@ typedef struct {
 
 /* One step's outputs (SensorOutputs and SensorStatus of the numpy reference). */
 typedef struct {
-    gvs_real T_c[GVS_N_PUB];            /* [degC] */
-    gvs_real ttl_s[GVS_N_PUB];          /* [s] */
+    gvs_real T_c[GVS_MAX_PUB];          /* [degC] */
+    gvs_real ttl_s[GVS_MAX_PUB];        /* [s] */
     gvs_real model_oil_temp_c;          /* [degC] */
     gvs_real oil_innovation_c;          /* [K] */
     int64_t rejects[GVS_N_REJECT];      /* the cumulative reject counters after this step */
     int32_t valid_flags, frozen_flags;  /* bit GVS_I_* per input */
-    int8_t level[GVS_N_PUB];            /* GVS_LEVEL_* */
+    int8_t level[GVS_MAX_PUB];          /* GVS_LEVEL_* */
     int8_t degraded_mode;               /* GVS_MODE_* */
     int8_t speed_valid, torque_valid, gear_valid, oil_valid, oil_source;
 } gvs_outputs;
@@ -335,7 +343,7 @@ int gvs_step(const gvs_tables *tb, const gvs_vehicle *veh, gvs_state *st, const 
 
 /* The time to limit [s] of every published component (0: at or above its warning limit now; +inf: not within
  * GVS_TTL_HORIZON_S; NaN: the held system has no finite steady state, or tables without the time to limit's,
- * ldl_nnz 0) from a due refresh's operating point p, into ttl_s[GVS_N_PUB].
+ * ldl_nnz 0) from a due refresh's operating point p, into ttl_s[tb->n_pub].
  * Returns GVS_OK, or GVS_BAD_TABLES. Cost: one sparse factorisation and solve, then march steps (from
  * GVS_MARCH_H0_S, each GVS_MARCH_RATIO times longer, to the horizon) of one factorisation and three solves each
  * until every component has crossed or provably cannot. */
