@@ -10,10 +10,10 @@ from types import SimpleNamespace
 import numpy as np
 
 from firmware_model.components import meaning
-from firmware_model.config import load_config
 from firmware_model.effects import CATALOG, CHANNEL_EFFECTS, parse_effect
 from firmware_model.errors import InputError
 from firmware_model.physics.oil import check_temperature_c
+from tools.cli.gearbox_option import add_gearbox_option, resolve_gearbox
 from tools.cli.paths import check_paths, figure_path
 from tools.cli.settings import add_hidden, given, setting
 from tools.outputs import naming, outputs
@@ -68,6 +68,7 @@ def add_subparser(sub):
         "0.5 s), out_dt_s (output period, 1 s), initial_temp_c (every node's start), hold_oil_c (the held sump) "
         "(docs/interfaces.md section 8)",
     )
+    add_gearbox_option(p)
     p.add_argument(
         "--effect",
         action="append",
@@ -128,9 +129,8 @@ CYCLE_KEYS = ("simulate.rate_hz", "simulate.noise")
 
 
 def _add_hidden_options(p) -> None:
-    """The options that moved to the configuration, still accepted (hidden) and overriding it: --variant
-    ([gearbox] variant), --cooler ([cooler] kind) and the [simulate] settings."""
-    p.add_argument("--variant", choices=("GRS905", "GRSO905"), help=argparse.SUPPRESS)
+    """The options that moved to the configuration, still accepted (hidden) and overriding it: --cooler ([cooler]
+    kind) and the [simulate] settings."""
     p.add_argument("--cooler", choices=("none", "liquid", "air", "hold", "measured"), help=argparse.SUPPRESS)
     for key in SIMULATE_KEYS:
         add_hidden(p, key)
@@ -192,11 +192,8 @@ def run(args) -> int:
     from tools.cycles.named import get_cycle
     from tools.plant.reference import ReferencePlant
 
-    cfg = load_config(args.config)
+    cfg = resolve_gearbox(args)
     s = resolve_settings(args, cfg)
-    if args.variant:
-        cfg.variant = args.variant
-        cfg.params_path = None
     params = cfg.load_params()
     effects = _effects(args.effect)
     cycle_file = args.cycle if Path(args.cycle).is_file() else None
