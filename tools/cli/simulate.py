@@ -189,6 +189,7 @@ def parse_start_time(text: str | None) -> float:
 
 
 def run(args) -> int:
+    from firmware_model.description import description_of
     from tools.cycles.named import get_cycle
     from tools.plant.reference import ReferencePlant
 
@@ -207,9 +208,14 @@ def run(args) -> int:
     plot, heat = plot_paths(args.plot)
     # every output to a temporary file first: a failure (a full disk, a bad [can] value) leaves none of them
     with outputs(("--out", args.out), ("--can-log", args.can_log), ("--plot", plot), ("--plot", heat)) as tmp:
-        table = get_cycle(args.cycle, rate_hz=s.rate_hz, noise=s.noise, seed=args.seed)
+        table = get_cycle(
+            args.cycle, rate_hz=s.rate_hz, noise=s.noise, seed=args.seed, description=description_of(params)
+        )
+        fixed_ratio = table.meta.get("drive") == "fixed_ratio"
         if cycle_file is not None and not args.allow_untrusted:
-            _refuse_unit_mistakes(table, cycle_file, oil_used=s.cooler == "measured")
+            _refuse_unit_mistakes(table, cycle_file, oil_used=s.cooler == "measured", sparse_ok=fixed_ratio)
+        if fixed_ratio:  # one output row per input row of a table slower than the output period (a SCADA table)
+            s.out_dt_s = max(s.out_dt_s, table.meta["row_period_s"])
         plant = ReferencePlant(params, effects, cooler=s.cooler, dt_s=s.dt_s)
         try:
             res = plant.run(
@@ -266,14 +272,15 @@ UNIT_CHECK_MIN_ROWS = 20
 LONG_CYCLE_S, LONG_ROWS_S = 86400.0, 10.0
 
 
-def _refuse_unit_mistakes(table, name: str, oil_used: bool = False) -> None:
+def _refuse_unit_mistakes(table, name: str, oil_used: bool = False, sparse_ok: bool = False) -> None:
     """InputError for a CSV cycle whose units look wrong, before the plant runs, as replay refuses them: a 10-minute
     file with time_s in milliseconds would simulate 7 days and write a 600 MB table and a 4.3 GB CAN log, and
-    rad/s speed would run as a stalled engine."""
+    rad/s speed would run as a stalled engine. ``sparse_ok``: rows far apart are expected (a fixed-ratio drive's
+    SCADA averages), not taken for milliseconds."""
     from firmware_model.service.degraded import unit_findings
 
     t = np.asarray(table["time_s"], dtype=float)
-    if t.size >= UNIT_CHECK_MIN_ROWS:
+    if t.size >= UNIT_CHECK_MIN_ROWS and not sparse_ok:
         spacing_s = float(np.median(np.diff(t)))
         if spacing_s > SPARSE_ROWS_S or (t[-1] - t[0] > LONG_CYCLE_S and spacing_s >= LONG_ROWS_S):
             raise InputError(
