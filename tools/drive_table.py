@@ -92,8 +92,9 @@ def _check_values(table, name: str, strict: bool) -> None:
 def map_fixed_ratio(table, description, name: str | None = None, strict: bool = True):
     """A fixed-ratio drive's run table mapped onto the inputs of the code: ``engine_speed_rpm`` = input speed,
     ``engine_torque_nm`` = input torque, ``gear`` = the description's single gear, ``ambient_temp_c`` and
-    ``oil_temp_c`` as given; ``meta``: ``drive`` = ``"fixed_ratio"`` and ``row_period_s`` (the median spacing).
-    A pure function: the table is not changed. InputError for a missing column or a bad value (``strict``)."""
+    ``oil_temp_c`` as given, ``vehicle_speed_kmh`` and ``retarder_torque_nm`` 0 (it stands still); ``meta``:
+    ``drive`` = ``"fixed_ratio"`` and ``row_period_s`` (the median spacing). A pure function: the table is not
+    changed. InputError for a missing column or a bad value (``strict``)."""
     from tools.runtable import RunTable
 
     name = name or getattr(table, "source", None) or "run table"
@@ -112,6 +113,9 @@ def map_fixed_ratio(table, description, name: str | None = None, strict: bool = 
         "engine_torque_nm": np.asarray(table["input_torque_nm"], dtype=float),
         "gear": np.full(t_s.size, float(fixed_ratio_gear(description))),
         "ambient_temp_c": np.asarray(table["ambient_temp_c"], dtype=float),
+        # a fixed-ratio drive stands still: no headwind on the housing (not the plant's 50 km/h default), no retarder
+        "vehicle_speed_kmh": np.zeros(t_s.size),
+        "retarder_torque_nm": np.zeros(t_s.size),
     }
     cols.update({c: np.asarray(table[c], dtype=float) for c in FIXED_RATIO_OPTIONAL if table.has(c)})
     meta = {**(getattr(table, "meta", {}) or {}), "drive": "fixed_ratio", "row_period_s": row_period_s(t_s)}

@@ -47,6 +47,7 @@ def test_the_mapping_is_a_pure_function_onto_the_vehicle_inputs(fixed_grs905):
     np.testing.assert_array_equal(m["engine_speed_rpm"], src["input_speed_rpm"])
     np.testing.assert_array_equal(m["engine_torque_nm"], src["input_torque_nm"])
     assert set(m["gear"]) == {9.0}  # the description's single gear
+    assert not m["vehicle_speed_kmh"].any() and not m["retarder_torque_nm"].any()  # it stands still
     np.testing.assert_array_equal(m["oil_temp_c"], src["oil_temp_c"])
     assert m.meta["drive"] == "fixed_ratio" and m.meta["row_period_s"] == PERIOD_S
     assert all(np.array_equal(src[c], v) for c, v in before.items()) and "engine_speed_rpm" not in src.columns
@@ -112,12 +113,12 @@ def test_held_plan_holds_each_row_over_its_interval():
     np.testing.assert_array_equal(n, [6000, 9000, 6000, 6000])
 
 
-def _sensor():
+def _sensor(**options):
     from firmware_model.config import load_config
     from firmware_model.onboard.sensor import VirtualSensor
 
     cfg = load_config(None)
-    return VirtualSensor(cfg.load_params(), config=cfg)
+    return VirtualSensor(cfg.load_params(), config=cfg, **options)
 
 
 def test_a_slow_table_replays_held_with_one_output_row_per_input_row(fixed_grs905):
@@ -142,6 +143,28 @@ def test_a_slow_table_replays_held_with_one_output_row_per_input_row(fixed_grs90
     chunked = replay_held(m, _sensor(), chunk_steps=7777)
     for c in held.columns:
         np.testing.assert_array_equal(chunked[c], held[c], err_msg=c)
+
+
+def test_a_held_row_is_not_a_frozen_signal(fixed_grs905):
+    """Each row is bit-identical over its 10 minutes by construction: with the held table's options the frozen
+    checks look past that, and still find a channel stuck over more rows."""
+    from tools.replay.table import held_options, replay_table
+
+    rng = np.random.default_rng(0)
+    src = _scada(rows=12, oil=True)
+    src["input_torque_nm"][:] += rng.normal(0.0, 50.0, src.n)
+    src["oil_temp_c"][:] += rng.normal(0.0, 1.0, src.n)
+    m = map_fixed_ratio(src, fixed_grs905)
+    assert held_options(map_fixed_ratio(_scada(), fixed_grs905)) == {"drive_frozen_s": 1800.0, "oil_frozen_s": 1800.0}
+    assert held_options(RunTable({"time_s": [0.0, 1.0]})) == {}
+    plain = replay_table(m, _sensor())
+    assert plain["rejects_drive_frozen"][-1] > 0  # the default 120 s takes a held row for a frozen drive
+    held = replay_table(m, _sensor(**held_options(m)))
+    assert held["rejects_drive_frozen"][-1] == 0 and held["rejects_oil_frozen"][-1] == 0
+    src = _scada(rows=12)
+    src["input_speed_rpm"][:], src["input_torque_nm"][:] = 1200.0, 1500.0  # the same on every row: stuck
+    stuck = map_fixed_ratio(src, fixed_grs905)
+    assert replay_table(stuck, _sensor(**held_options(stuck)))["rejects_drive_frozen"][-1] > 0
 
 
 def test_a_month_of_scada_rows_plans_4320_output_rows():

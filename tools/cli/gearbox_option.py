@@ -2,7 +2,7 @@
 
 NAME is a description shipped in firmware_model/params/ (GRS905, GRSO905), FILE the path of a user's parameter file
 (with its ``[topology]``, docs/description.md). The command line wins over the configuration's ``[gearbox]``
-(``gearbox``, ``variant`` or ``params``), which wins over the default, GRS905. ``--variant`` is the option's former
+(``variant = NAME`` or ``params = FILE``), which wins over the default, GRS905. ``--variant`` is the option's former
 name, still accepted and hidden; given with ``--gearbox`` it must name the same gearbox.
 
 Everything is checked before any work: an unknown NAME, a FILE that is missing or does not load, and a description
@@ -35,12 +35,19 @@ class _GearboxAction(argparse.Action):
         setattr(namespace, self.dest, values)
 
 
+@functools.lru_cache(maxsize=1)
+def shipped() -> tuple:
+    """The shipped descriptions' names (firmware_model.description.shipped_descriptions), read once per process:
+    every command's parser names them."""
+    from firmware_model.description import shipped_descriptions
+
+    return shipped_descriptions()
+
+
 def add_gearbox_option(parser, help_text: str | None = None) -> None:
     """``--gearbox NAME|FILE`` (default None: the configuration's, else GRS905) and its hidden alias ``--variant``
     (the same dest)."""
-    from firmware_model.description import shipped_descriptions
-
-    text = (help_text or GEARBOX_HELP).format(names=", ".join(shipped_descriptions()))
+    text = (help_text or GEARBOX_HELP).format(names=", ".join(shipped()))
     parser.add_argument(
         "--gearbox", dest="gearbox", action=_GearboxAction, default=None, metavar="NAME|FILE", help=text
     )
@@ -58,18 +65,16 @@ def given_gearbox(args) -> str | None:
 
 
 def _is_file(name: str) -> bool:
-    """FILE (a path) rather than NAME: a .toml suffix or a path separator."""
+    """FILE (a path) rather than NAME: a .toml suffix, a path separator, or a file of that name here."""
     return Path(name).suffix.lower() == ".toml" or Path(name).name != name or Path(name).is_file()
 
 
 def with_gearbox(cfg, gearbox: str | None):
     """The configuration ``cfg`` with ``gearbox`` (NAME or FILE; None: as it is) in place of its [gearbox]; an
     unknown NAME or a missing FILE is an InputError naming it and the shipped names."""
-    from firmware_model.description import shipped_descriptions
-
     if gearbox is None:
         return cfg
-    names = shipped_descriptions()
+    names = shipped()
     if _is_file(gearbox):
         if not Path(gearbox).is_file():
             raise InputError(
@@ -94,7 +99,7 @@ def check_gearbox(cfg, said: str | None = None):
     """The description of the configuration's gearbox, checked before any work: it loads and the plant and the
     sensor can run it (:func:`runnable`); InputError naming it (``said``: as the user gave it, ``--gearbox NAME``)
     and why otherwise. A description alone (no parameters) that loads but cannot run says the latter."""
-    from firmware_model.description import description_of, load_description, shipped_descriptions
+    from firmware_model.description import description_of, load_description
     from firmware_model.parameters import load_parameters
 
     name = gearbox_of(cfg)
@@ -111,7 +116,7 @@ def check_gearbox(cfg, said: str | None = None):
             d = None
         if d is None or not runnable(d):
             raise InputError(
-                f"{said} does not load ({failed}); the shipped gearboxes are {', '.join(shipped_descriptions())}"
+                f"{said} does not load ({failed}); the shipped gearboxes are {', '.join(shipped())}"
             ) from None
     why = runnable(d)
     if why:

@@ -233,6 +233,23 @@ def replay_steps(times: np.ndarray, data: np.ndarray, sensor, initial_oil_c: flo
     return _output_table(times, data, rows_out, _status_rows(out), sensor.reject_reasons, state)
 
 
+def held_options(table) -> dict:
+    """The sensor options a held table needs (none for a vehicle's table): a row held over its interval is
+    bit-identical for up to GAP_PERIODS row periods by construction, so the frozen checks of speed, torque and oil
+    look past that (a SCADA channel stuck over more rows is still found)."""
+    from firmware_model.onboard.records import SensorOptions
+    from tools.drive_table import GAP_PERIODS
+
+    meta = getattr(table, "meta", None) or {}
+    if meta.get("drive") != "fixed_ratio":
+        return {}
+    held_s = (GAP_PERIODS + 1.0) * float(meta.get("row_period_s") or 0.0)
+    return {
+        "drive_frozen_s": max(SensorOptions.drive_frozen_s, held_s),
+        "oil_frozen_s": max(SensorOptions.oil_frozen_s, held_s),
+    }
+
+
 #: steps of the sensor per call when a slow table is held (the outputs of one call sit in memory)
 HELD_CHUNK_STEPS = 100_000
 
@@ -316,8 +333,10 @@ def replay_csv(path, config_path=None, sensor_options=None) -> CsvReplay:
 
     cfg = load_config(config_path)
     params = cfg.load_params()
-    sensor = VirtualSensor(params, config=cfg, **(sensor_options or {}))
-    out = replay_table(read_inputs_table(path, description_of(params)), sensor)
+    table = read_inputs_table(path, description_of(params))
+    options = {**held_options(table), **(sensor_options or {})}
+    sensor = VirtualSensor(params, config=cfg, **options)
+    out = replay_table(table, sensor)
     out.meta["min_torque_nm"] = min_torque_nm(sensor)
     return CsvReplay(out, params.variant, sensor.options.oil_mode)
 
