@@ -75,6 +75,7 @@ class DemoOptions:
     minutes: float = 40.0  # how much of the cycle to run
     out_dir: Path = Path("demo_out")
     print_every_s: float = 300.0  # print the sensor's outputs every this many seconds of drive time
+    gearbox: str = "GRS905"  # a shipped description's NAME or a parameter FILE (tools.cli.gearbox_option)
 
 
 class Truth(NamedTuple):
@@ -429,7 +430,7 @@ def run_demo(opts: DemoOptions, echo: Callable[[str], None] | None = None) -> Bu
     if out.exists() and not out.is_dir():
         raise InputError(f"--out-dir {out} is a file, not a directory")
     out.mkdir(parents=True, exist_ok=True)
-    params = load_parameters("GRS905")
+    params = load_parameters(opts.gearbox)
     echo(f"[1/4] reference plant: {opts.minutes:.0f} min of the synthetic '{opts.cycle}' drive ...")
     truth = simulate_truth(params, opts.cycle, opts.minutes)
     write_run_table(every(truth.table), out / "plant.csv")

@@ -36,7 +36,9 @@ def prepare(
 
     cfg = load_config(config_path)
     params = cfg.load_params()
-    table = get_cycle(cycle)
+    from firmware_model.description import description_of
+
+    table = get_cycle(cycle, description=description_of(params))
     if duration_s is not None:
         t_s = table["time_s"]
         keep = t_s <= t_s[0] + duration_s

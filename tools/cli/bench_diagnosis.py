@@ -8,6 +8,7 @@ from pathlib import Path
 from types import SimpleNamespace
 
 from firmware_model.errors import InputError
+from tools.cli.gearbox_option import add_gearbox_option, gearbox_of, resolve_gearbox
 from tools.cli.settings import add_hidden, given, setting
 
 
@@ -62,6 +63,7 @@ def add_subparser(sub):
     )
     for key in BENCH_KEYS:  # moved to the configuration, still accepted (hidden) and overriding it
         add_hidden(p, key)
+    add_gearbox_option(p)
     p.set_defaults(func=run)
     return p
 
@@ -126,11 +128,12 @@ def run(args) -> int:
 
     from firmware_model.config import load_config
     from firmware_model.effects import parse_effect
+    from firmware_model.parameters import load_parameters
     from tools.diagnosis import bench as B
     from tools.diagnosis.options import Options
 
     warnings.filterwarnings("ignore", category=RuntimeWarning)
-    cfg = load_config(args.config)
+    cfg = resolve_gearbox(args, load_config(args.config))
     s = SimpleNamespace(**{k.split(".")[1]: setting(args, cfg, k) for k in BENCH_KEYS})
     _check(args, s)
     only = _only(args)
@@ -144,7 +147,7 @@ def run(args) -> int:
     from tqdm import tqdm
 
     if args.family == "model-form":
-        return _model_form(args, s, only)
+        return _model_form(args, s, only, load_parameters(gearbox_of(cfg)))
     # one result line per scenario on stderr, above the progress bar (shown on a terminal)
     rows, summary = B.run_bench(
         args.scenarios,
@@ -159,6 +162,7 @@ def run(args) -> int:
         progress=lambda line: tqdm.write(line, file=sys.stderr),
         family=args.family or "single",
         opts=Options(start=s.start),
+        params=load_parameters(gearbox_of(cfg)),
     )
     print(B.format_table(rows, summary))
     if args.out:
@@ -166,15 +170,14 @@ def run(args) -> int:
     return 0
 
 
-def _model_form(args, s, only) -> int:
+def _model_form(args, s, only, params) -> int:
     """The model-form family: its own rows (diagnosis and calibration on the same files)."""
-    from firmware_model.parameters import load_parameters
     from tools.diagnosis.bench_model_form import format_rows, run_model_form_bench
 
     rows = run_model_form_bench(
         args.scenarios,
         args.seed,
-        load_parameters("GRS905"),
+        params,
         model=s.model,
         train_s=s.train_s,
         only=only,

@@ -9,6 +9,7 @@ from pathlib import Path
 
 from firmware_model.config import load_config
 from firmware_model.errors import InputError
+from tools.cli.gearbox_option import add_gearbox_option, resolve_gearbox
 from tools.cli.paths import check_paths
 from tools.cli.settings import add_hidden, setting
 
@@ -68,6 +69,7 @@ def add_subparser(sub):
     p.add_argument("--cooler", choices=("none", "liquid", "air", "hold", "measured"), help=argparse.SUPPRESS)
     for key in CALIBRATION_KEYS:
         add_hidden(p, key)
+    add_gearbox_option(p)
     p.set_defaults(func=run)
     return p
 
@@ -167,7 +169,7 @@ def run(args) -> int:
     from firmware_model.parameters import parameter_path
     from tools.diagnosis.calibrate import calibrated_toml
 
-    cfg = load_config(args.config)
+    cfg = resolve_gearbox(args, load_config(args.config))
     params = cfg.load_params()
     if Path(args.out).suffix.lower() != ".toml":
         raise InputError(f"--out {args.out} must be a .toml file")
@@ -235,7 +237,7 @@ def _fit(args, cfg, params):
         cooler=cooler,
         opts=Options(workers=workers, start=start),
         progress=tick,
-        config_path=args.config,
+        config_path=cfg,
         dt_s=plant_dt_s,
     )
     if not args.quiet and sys.stderr.isatty():

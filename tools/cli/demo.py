@@ -15,6 +15,8 @@ import argparse
 import sys
 from pathlib import Path
 
+from tools.cli.gearbox_option import add_gearbox_option, gearbox_of, resolve_gearbox
+
 
 def add_subparser(sub):
     p = sub.add_parser(
@@ -41,6 +43,7 @@ def add_subparser(sub):
         metavar="S",
         help="print the sensor's outputs every this many seconds of drive time, (0, 36000] (default 300)",
     )
+    add_gearbox_option(p)
     p.set_defaults(func=run)
     return p
 
@@ -51,8 +54,15 @@ def run(args) -> int:
 
     if not 0 < args.print_every <= 36000:
         raise InputError(f"--print-every {args.print_every} must be within (0, 36000] s of drive time")
+    gearbox = gearbox_of(resolve_gearbox(args))
     bus = run_demo(
-        DemoOptions(cycle=args.cycle, minutes=args.minutes, out_dir=Path(args.out_dir), print_every_s=args.print_every)
+        DemoOptions(
+            cycle=args.cycle,
+            minutes=args.minutes,
+            out_dir=Path(args.out_dir),
+            print_every_s=args.print_every,
+            gearbox=gearbox,
+        )
     )
     if bus.send_errors:
         print(f"note: {bus.send_errors} frames could not be sent", file=sys.stderr)

@@ -9,6 +9,7 @@ from pathlib import Path
 
 from firmware_model.config import load_config
 from tools.cli.core_option import add_core_option, apply_core
+from tools.cli.gearbox_option import add_gearbox_option, resolve_gearbox
 from tools.cli.paths import check_paths
 from tools.cli.settings import add_hidden, setting
 
@@ -66,6 +67,7 @@ def add_subparser(sub):
     p.add_argument("--cooler", choices=("none", "liquid", "air", "hold", "measured"), help=argparse.SUPPRESS)
     for key in DIAGNOSIS_KEYS:
         add_hidden(p, key)
+    add_gearbox_option(p)
     p.set_defaults(func=run)
     return p
 
@@ -124,7 +126,7 @@ def run(args) -> int:
             else " (the reference plant; the onboard step's core is not used)"
         )
         print(f"model: {args.model}{on_core}", file=sys.stderr)
-    cfg = load_config(args.config)
+    cfg = resolve_gearbox(args, load_config(args.config))
     params = cfg.load_params()
     cooler = args.cooler or cfg.cooler or params.strings.get("cooler.kind", "liquid")
     grid_dt_s, plant_dt_s, workers, start = (setting(args, cfg, key) for key in DIAGNOSIS_KEYS)
@@ -175,7 +177,7 @@ def _diagnose_with_progress(args, params, cooler, opts, diagnose):
             opts=opts,
             progress=stage,
             keep=True,
-            config_path=args.config,
+            config_path=resolve_gearbox(args),
         )
         bar.update(len(STAGES) - bar.n)
     return out

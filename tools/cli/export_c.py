@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 
+from tools.cli.gearbox_option import add_gearbox_option, resolve_gearbox
 from tools.cli.settings import add_hidden, setting
 
 
@@ -20,13 +21,9 @@ def add_subparser(sub):
         "[export] time_to_limit = false in the --config leaves the refresh out (less flash and stack; time to "
         "limit not available, no early warning).",
         epilog="example:\n"
-        "  gearbox-vsensor export-c --variant GRS905 --real float --out vsensor_c && make -C vsensor_c test",
+        "  gearbox-vsensor export-c --gearbox GRS905 --real float --out vsensor_c && make -C vsensor_c test",
     )
-    p.add_argument(
-        "--variant",
-        help="gearbox variant, GRS905 or GRSO905 (default: the --config's, else GRS905; "
-        "given, it replaces the --config's)",
-    )
+    add_gearbox_option(p)
     p.add_argument(
         "--config",
         metavar="TOML",
@@ -52,8 +49,9 @@ def run(args) -> int:
     from firmware_model.config import load_config
     from tools.export.c_bundle import BUNDLE_FILES, export_c
 
-    ttl = setting(args, load_config(args.config), "export.time_to_limit")
-    out = export_c(args.out, variant=args.variant, config_path=args.config, real=args.real, ttl=ttl)
+    cfg = resolve_gearbox(args, load_config(args.config))
+    ttl = setting(args, cfg, "export.time_to_limit")
+    out = export_c(args.out, config_path=cfg, real=args.real, ttl=ttl)
     if not args.quiet:
         files = sorted(BUNDLE_FILES)  # what was written, not what else the directory holds
         print(f"wrote {len(files)} files to {out}: {', '.join(files)}\nnext: make -C {out} test")

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import argparse
 
+from tools.cli.gearbox_option import add_gearbox_option, resolve_gearbox
+
 
 def add_subparser(sub):
     p = sub.add_parser(
@@ -26,7 +28,7 @@ def add_subparser(sub):
     p.add_argument(
         "--config",
         metavar="TOML",
-        help="project configuration: [gearbox] variant (default GRS905), cooler, [sensor] limits",
+        help="project configuration: [gearbox] (default GRS905), cooler, [sensor] limits",
     )
     p.add_argument(
         "--fmi",
@@ -35,9 +37,8 @@ def add_subparser(sub):
         help="FMI version: 2 (most rigs import it) or 3 (Float64/Int32 variables) (default: 2)",
     )
     p.add_argument("--out", required=True, metavar="FILE.fmu", help="the FMU to write")
-    # moved: --variant to [gearbox] variant, still accepted (hidden) and overriding it; --quiet (its one line:
-    # redirect it) still accepted
-    p.add_argument("--variant", help=argparse.SUPPRESS)
+    add_gearbox_option(p)
+    # moved: --quiet (its one line: redirect it) still accepted
     p.add_argument("--quiet", action="store_true", help=argparse.SUPPRESS)
     p.set_defaults(func=run)
 
@@ -48,7 +49,8 @@ def run(args) -> int:
 
     # before the build: --out a directory, in a missing directory, or also the --config
     check_paths([("the --config", args.config)], {"--out": args.out})
-    out = export_fmu(args.out, variant=args.variant, config_path=args.config, fmi_version=int(args.fmi))
+    cfg = resolve_gearbox(args)
+    out = export_fmu(args.out, config_path=cfg, fmi_version=int(args.fmi))
     if not args.quiet:
         print(f"wrote {out} ({out.stat().st_size // 1024} KiB, FMI {args.fmi}.0 co-simulation, step 0.1 s)")
     return 0

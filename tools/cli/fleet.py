@@ -10,6 +10,7 @@ import time
 from pathlib import Path
 
 from firmware_model.errors import InputError
+from tools.cli.gearbox_option import add_gearbox_option, resolve_gearbox
 from tools.cli.paths import check_paths
 from tools.cli.settings import add_hidden, given, setting
 
@@ -69,6 +70,12 @@ def add_subparser(sub):
     p.add_argument("--vehicle-pattern", metavar="REGEX", help=argparse.SUPPRESS)
     for key in FLEET_KEYS:
         add_hidden(p, key)
+    add_gearbox_option(
+        p,
+        "the gearbox of the logs whose manifest row names no variant: a description shipped in "
+        "firmware_model/params/ (NAME: {names}) or the path of a parameter file with a [topology] (FILE) (default: "
+        "their configuration's [gearbox], else GRS905)",
+    )
     p.set_defaults(func=run)
     return p
 
@@ -102,7 +109,9 @@ EPILOG = (
 
 def _entries(args):
     """(the logs, one sentence on how their vehicles were read: None for a manifest, which names them)."""
-    from tools.fleet.manifest import check_entries, entries_and_rule, read_manifest
+    from firmware_model.config import load_config
+    from tools.cli.gearbox_option import check_gearbox, given_gearbox
+    from tools.fleet.manifest import check_entries, entries_and_rule, read_manifest, vehicle_config
 
     if args.manifest and args.logs:
         raise InputError("give either --manifest or LOGS, not both")
@@ -118,6 +127,13 @@ def _entries(args):
     if args.config:  # the configuration of the logs that name none
         config = str(Path(args.config).resolve())
         entries = check_entries([e if e.config else e._replace(config=config) for e in entries], "the logs given")
+    gearbox = given_gearbox(args)
+    if gearbox is not None:  # the gearbox of the logs that name none, checked as a command's --gearbox
+        cfg = resolve_gearbox(args, load_config(None))
+        gearbox = cfg.params_path or cfg.variant
+        entries = check_entries([e if e.variant else e._replace(variant=gearbox) for e in entries], "the logs given")
+    for variant, config in dict.fromkeys((e.variant, e.config) for e in entries):
+        check_gearbox(vehicle_config(variant, config))
     return entries, rule
 
 

@@ -10,6 +10,7 @@ import time
 
 from firmware_model.errors import InputError
 from tools.can.bus import add_bus_options, can_subcommand
+from tools.cli.gearbox_option import add_gearbox_option, resolve_gearbox
 from tools.cli.settings import add_hidden, setting
 
 
@@ -63,6 +64,7 @@ def add_subparser(sub):
     p.add_argument("--quiet", action="store_true", help="no progress lines")
     for key in PLANT_KEYS:  # moved to the configuration, still accepted (hidden) and overriding it
         add_hidden(p, key)
+    add_gearbox_option(p)
     p.set_defaults(func=run)
     return p
 
@@ -98,7 +100,7 @@ def run(args) -> int:
     from tools.can.bus import check_bitrate, open_player, speed_warning, stop_on_signals, virtual_note
     from tools.can.hil import prepare, stream
 
-    cfg = load_config(args.config)
+    cfg = resolve_gearbox(args, load_config(args.config))
     bitrate, seed, rig = (setting(args, cfg, key) for key in PLANT_KEYS)
     check_bitrate(bitrate)
     if not args.speed > 0:
@@ -116,7 +118,7 @@ def run(args) -> int:
     try:
         t0_s = time.perf_counter()
         with _term_interrupts():  # SIGTERM while the plant computes: "interrupted", the bus shut down
-            frames, _ = prepare(args.cycle, args.config, args.effect, duration_s=args.duration, seed=seed, rig=rig)
+            frames, _ = prepare(args.cycle, cfg, args.effect, duration_s=args.duration, seed=seed, rig=rig)
         span_s = float(frames.timestamp_s[-1] - frames.timestamp_s[0]) if len(frames) else 0.0
         if not args.quiet:
             _say(

@@ -15,13 +15,15 @@ from pathlib import Path
 from firmware_model.errors import InputError
 from tools.can.bus import can_subcommand
 from tools.cli.core_option import add_core_option, apply_core
+from tools.cli.gearbox_option import add_gearbox_option, resolve_gearbox
 from tools.cli.paths import check_paths, figure_path
 from tools.cli.settings import add_hidden, given, setting
 from tools.outputs import naming, outputs
 
 #: the two ways to call replay; every option is in one of them (tests/tools/test_cli_options.py)
 USAGE = (
-    "%(prog)s CSV --out EST.csv [--config TOML] [--plot PNG] [--core {auto,c,numpy}] [--allow-untrusted] [--quiet]\n"
+    "%(prog)s CSV --out EST.csv [--config TOML] [--gearbox NAME|FILE] [--plot PNG]\n"
+    "           [--core {auto,c,numpy}] [--allow-untrusted] [--quiet]\n"
     "       %(prog)s LOG --out EST.csv [those options] [--frames-out OUT.log]"
 )
 #: the options of CAN logs only, by argparse dest
@@ -80,6 +82,7 @@ def add_subparser(sub):
         metavar="EST.csv",
         help="sensor output run table (10 Hz; .csv, or .parquet with pyarrow: several times faster to write); required",
     )
+    add_gearbox_option(p)
     p.add_argument("--plot", metavar="PNG", help="plot of the estimates, warnings and oil innovation")
     add_core_option(p)
     p.add_argument(
@@ -98,9 +101,8 @@ def add_subparser(sub):
         "sequence the step needs) (default: warn on stderr and exit 3, outputs written)",
     )
     _add_log_options(p)
-    # moved to the configuration, still accepted (hidden) and overriding it: [gearbox] variant, [sensor] oil_mode,
-    # [replay] initial_temp_c and strict
-    p.add_argument("--variant", choices=("GRS905", "GRSO905"), help=argparse.SUPPRESS)
+    # moved to the configuration, still accepted (hidden) and overriding it: [sensor] oil_mode, [replay]
+    # initial_temp_c and strict
     p.add_argument("--oil-mode", choices=("measured", "model"), help=argparse.SUPPRESS)
     add_hidden(p, "replay.initial_temp_c")
     add_hidden(p, "replay.strict")
@@ -131,13 +133,8 @@ def _sensor_options(args) -> dict:
 
 
 def _config(args):
-    """The configuration the replay runs with: --config, its variant replaced by --variant."""
-    from firmware_model.config import load_config
-
-    cfg = load_config(args.config)
-    if args.variant:
-        cfg.variant, cfg.params_path = args.variant, None
-    return cfg
+    """The configuration the replay runs with: --config, its gearbox replaced by --gearbox."""
+    return resolve_gearbox(args)
 
 
 def _given(args, dests) -> list[str]:
@@ -161,6 +158,7 @@ def run(args) -> int:
         tables=("--out",),
         can_logs=("--frames-out",),
     )
+    _config(args)  # the gearbox checked before any work
     core_line = apply_core(args)
     if not args.quiet:
         print(core_line)

@@ -7,6 +7,7 @@ import sys
 
 from firmware_model.errors import InputError
 from tools.can.bus import add_bus_options, can_subcommand
+from tools.cli.gearbox_option import add_gearbox_option, resolve_gearbox
 from tools.cli.settings import add_hidden, given, setting
 
 
@@ -63,6 +64,7 @@ def add_subparser(sub):
     )
     for key in RUN_KEYS:  # moved to the configuration, still accepted (hidden) and overriding it
         add_hidden(p, key)
+    add_gearbox_option(p)
     p.set_defaults(func=run)
     return p
 
@@ -84,13 +86,13 @@ def run(args) -> int:
 
     if given(args, ("gateway.state_period_s",)) and not args.state_file:
         raise InputError("--state-period sets how often --state-file is saved; give --state-file too")
-    cfg = load_config(args.config)
+    cfg = resolve_gearbox(args, load_config(args.config))
     s = {key: setting(args, cfg, key) for key in RUN_KEYS}
     settings = LiveSettings(
         interface=args.interface,
         channel=args.channel,
         bitrate_bit_s=s["bus.bitrate_bit_s"],
-        config_path=args.config,
+        config_path=cfg,
         duration_s=args.duration,
         filters=s["bus.receive_filters"],
         rig=s["bus.receive_rig"],

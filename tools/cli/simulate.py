@@ -10,10 +10,10 @@ from types import SimpleNamespace
 import numpy as np
 
 from firmware_model.components import meaning
-from firmware_model.config import load_config
 from firmware_model.effects import CATALOG, CHANNEL_EFFECTS, parse_effect
 from firmware_model.errors import InputError
 from firmware_model.physics.oil import check_temperature_c
+from tools.cli.gearbox_option import add_gearbox_option, resolve_gearbox
 from tools.cli.paths import check_paths, figure_path
 from tools.cli.settings import add_hidden, given, setting
 from tools.outputs import naming, outputs
@@ -68,6 +68,7 @@ def add_subparser(sub):
         "0.5 s), out_dt_s (output period, 1 s), initial_temp_c (every node's start), hold_oil_c (the held sump) "
         "(docs/interfaces.md section 8)",
     )
+    add_gearbox_option(p)
     p.add_argument(
         "--effect",
         action="append",
@@ -128,9 +129,8 @@ CYCLE_KEYS = ("simulate.rate_hz", "simulate.noise")
 
 
 def _add_hidden_options(p) -> None:
-    """The options that moved to the configuration, still accepted (hidden) and overriding it: --variant
-    ([gearbox] variant), --cooler ([cooler] kind) and the [simulate] settings."""
-    p.add_argument("--variant", choices=("GRS905", "GRSO905"), help=argparse.SUPPRESS)
+    """The options that moved to the configuration, still accepted (hidden) and overriding it: --cooler ([cooler]
+    kind) and the [simulate] settings."""
     p.add_argument("--cooler", choices=("none", "liquid", "air", "hold", "measured"), help=argparse.SUPPRESS)
     for key in SIMULATE_KEYS:
         add_hidden(p, key)
@@ -189,14 +189,12 @@ def parse_start_time(text: str | None) -> float:
 
 
 def run(args) -> int:
+    from firmware_model.description import description_of
     from tools.cycles.named import get_cycle
     from tools.plant.reference import ReferencePlant
 
-    cfg = load_config(args.config)
+    cfg = resolve_gearbox(args)
     s = resolve_settings(args, cfg)
-    if args.variant:
-        cfg.variant = args.variant
-        cfg.params_path = None
     params = cfg.load_params()
     effects = _effects(args.effect)
     cycle_file = args.cycle if Path(args.cycle).is_file() else None
@@ -210,9 +208,14 @@ def run(args) -> int:
     plot, heat = plot_paths(args.plot)
     # every output to a temporary file first: a failure (a full disk, a bad [can] value) leaves none of them
     with outputs(("--out", args.out), ("--can-log", args.can_log), ("--plot", plot), ("--plot", heat)) as tmp:
-        table = get_cycle(args.cycle, rate_hz=s.rate_hz, noise=s.noise, seed=args.seed)
+        table = get_cycle(
+            args.cycle, rate_hz=s.rate_hz, noise=s.noise, seed=args.seed, description=description_of(params)
+        )
+        fixed_ratio = table.meta.get("drive") == "fixed_ratio"
         if cycle_file is not None and not args.allow_untrusted:
-            _refuse_unit_mistakes(table, cycle_file, oil_used=s.cooler == "measured")
+            _refuse_unit_mistakes(table, cycle_file, oil_used=s.cooler == "measured", sparse_ok=fixed_ratio)
+        if fixed_ratio:  # one output row per input row of a table slower than the output period (a SCADA table)
+            s.out_dt_s = max(s.out_dt_s, table.meta["row_period_s"])
         plant = ReferencePlant(params, effects, cooler=s.cooler, dt_s=s.dt_s)
         try:
             res = plant.run(
@@ -269,14 +272,15 @@ UNIT_CHECK_MIN_ROWS = 20
 LONG_CYCLE_S, LONG_ROWS_S = 86400.0, 10.0
 
 
-def _refuse_unit_mistakes(table, name: str, oil_used: bool = False) -> None:
+def _refuse_unit_mistakes(table, name: str, oil_used: bool = False, sparse_ok: bool = False) -> None:
     """InputError for a CSV cycle whose units look wrong, before the plant runs, as replay refuses them: a 10-minute
     file with time_s in milliseconds would simulate 7 days and write a 600 MB table and a 4.3 GB CAN log, and
-    rad/s speed would run as a stalled engine."""
+    rad/s speed would run as a stalled engine. ``sparse_ok``: rows far apart are expected (a fixed-ratio drive's
+    SCADA averages), not taken for milliseconds."""
     from firmware_model.service.degraded import unit_findings
 
     t = np.asarray(table["time_s"], dtype=float)
-    if t.size >= UNIT_CHECK_MIN_ROWS:
+    if t.size >= UNIT_CHECK_MIN_ROWS and not sparse_ok:
         spacing_s = float(np.median(np.diff(t)))
         if spacing_s > SPARSE_ROWS_S or (t[-1] - t[0] > LONG_CYCLE_S and spacing_s >= LONG_ROWS_S):
             raise InputError(

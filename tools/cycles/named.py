@@ -24,7 +24,7 @@ from firmware_model.physics.oil import check_temperature_c
 from tools.cycles.driver import DriveTrace, drive
 from tools.cycles.route import Segment
 from tools.cycles.vehicle import KMH_PER_M_S, Vehicle, gearbox_kinematics, total_ratios, vehicle_speed_kmh
-from tools.runtable import RunTable, read_run_table
+from tools.runtable import RunTable
 
 __all__ = [
     "BC_COLUMNS",
@@ -474,8 +474,11 @@ def _check_rate(rate_hz) -> float:
     return r
 
 
-def get_cycle(spec: str | os.PathLike, rate_hz: float = 10.0, noise: bool = False, seed: int = 0) -> RunTable:
-    """A named cycle, a 'steady:...' spec, or a CSV run table (read and validated; rate, noise and seed ignored)."""
+def get_cycle(
+    spec: str | os.PathLike, rate_hz: float = 10.0, noise: bool = False, seed: int = 0, description=None
+) -> RunTable:
+    """A named cycle, a 'steady:...' spec, or a CSV run table (read and validated; rate, noise and seed ignored; a
+    fixed-ratio drive's mapped for ``description``, the gearbox's: tools.drive_table; None: the GRS905)."""
     s = os.fspath(spec).strip() if not isinstance(spec, str) else spec.strip()
     rate_hz = _check_rate(rate_hz)
     low = s.lower()
@@ -487,7 +490,9 @@ def get_cycle(spec: str | os.PathLike, rate_hz: float = 10.0, noise: bool = Fals
     if low in _ROAD:
         return _road(low, rate_hz, noise, seed)
     if low.endswith(".csv") or os.sep in s or "/" in s or Path(s).is_file():
-        return read_run_table(s)
+        from tools.drive_table import read_drive_table
+
+        return read_drive_table(s, description)
     raise InputError(
         f"unknown drive cycle {s!r}: give one of {', '.join(CYCLE_NAMES)} "
         f"(steady:gear=4L,rpm=1300,nm=2000,s=3600,oil=100) or the path of a CSV run table"

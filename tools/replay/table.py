@@ -76,11 +76,14 @@ def _sensor_inputs():
     return SENSOR_INPUTS
 
 
-def read_inputs_table(path):
+def read_inputs_table(path, description=None):
     """Read a run table for the sensor: the structure is checked (header, numbers, the required columns, time_s
     strictly increasing) but not the *values* of the inputs: a NaN, a gear 7.5 or a negative speed is data for
-    the sensor, which holds, clamps or degrades and counts it (docs/sensor.md "Bad input")."""
+    the sensor, which holds, clamps or degrades and counts it (docs/sensor.md "Bad input"). A fixed-ratio drive's
+    table is mapped onto the vehicle inputs (tools.drive_table; ``description``: the gearbox's, None: the
+    GRS905)."""
     from tools import runtable as rt
+    from tools.drive_table import check_drive, map_fixed_ratio
 
     name = os.fspath(path)
     p = Path(path)
@@ -90,12 +93,13 @@ def read_inputs_table(path):
     arr = rt.parse_numeric_csv(p, names)
     if arr is None:
         arr = rt.parse_careful(p, names, name)
-    for col in rt.REQUIRED:
+    fixed = check_drive(names, description, name) == "fixed_ratio"
+    for col in ("time_s",) if fixed else rt.REQUIRED:
         if col not in names:
             raise InputError(f'{name}: required column "{col}" is missing; the columns are {", ".join(names)}')
     table = rt.RunTable({c: arr[:, j] for j, c in enumerate(names)}, source=name)
     rt.validate_run_table(rt.RunTable({"time_s": table["time_s"]}, source=name), ("time_s",), name)
-    return table
+    return map_fixed_ratio(table, description, name, strict=False) if fixed else table
 
 
 class _Segment(NamedTuple):
@@ -229,6 +233,63 @@ def replay_steps(times: np.ndarray, data: np.ndarray, sensor, initial_oil_c: flo
     return _output_table(times, data, rows_out, _status_rows(out), sensor.reject_reasons, state)
 
 
+def held_options(table) -> dict:
+    """The sensor options a held table needs (none for a vehicle's table): a row held over its interval is
+    bit-identical for up to GAP_PERIODS row periods by construction, so the frozen checks of speed, torque and oil
+    look past that (a SCADA channel stuck over more rows is still found)."""
+    from firmware_model.onboard.records import SensorOptions
+    from tools.drive_table import GAP_PERIODS
+
+    meta = getattr(table, "meta", None) or {}
+    if meta.get("drive") != "fixed_ratio":
+        return {}
+    held_s = (GAP_PERIODS + 1.0) * float(meta.get("row_period_s") or 0.0)
+    return {
+        "drive_frozen_s": max(SensorOptions.drive_frozen_s, held_s),
+        "oil_frozen_s": max(SensorOptions.oil_frozen_s, held_s),
+    }
+
+
+#: steps of the sensor per call when a slow table is held (the outputs of one call sit in memory)
+HELD_CHUNK_STEPS = 100_000
+
+
+def replay_held(table, sensor, initial_oil_c: float | None = None, chunk_steps: int = HELD_CHUNK_STEPS):
+    """A table slower than the step (a fixed-ratio drive's SCADA averages) through a sensor with ``step_table``:
+    each row held over its interval on the 0.1 s grid (tools.drive_table.held_plan), one output row per input row:
+    the sensor at the end of that row's interval (``time_s``), with the inputs of the row. A month of 10-minute
+    rows is 26 million steps and 4,320 output rows; the steps run ``chunk_steps`` at a time."""
+    from tools.drive_table import held_plan
+
+    t_s = np.asarray(table["time_s"], dtype=float)
+    data = np.stack(
+        [np.asarray(table[c], dtype=float) if table.has(c) else np.full(t_s.size, np.nan) for _, c in _sensor_inputs()],
+        axis=1,
+    )
+    n, ends_s = held_plan(t_s, sensor.dt_s, (getattr(table, "meta", None) or {}).get("row_period_s"))
+    first = np.concatenate([[0], np.cumsum(n)])  # the first step of each row; the last entry: the number of steps
+    oil0_c = float(data[0, 3]) if initial_oil_c is None else initial_oil_c
+    state = start_state(sensor, oil0_c, float(data[0, sensor.input_fields.index("ambient_temp_c")]))
+    kept: dict = {"T": [], "W": [], "ttl": [], "status": []}
+    for k0 in range(0, int(first[-1]), chunk_steps):
+        k = np.arange(k0, min(k0 + chunk_steps, int(first[-1])))
+        row = np.searchsorted(first, k, side="right") - 1
+        state, out = sensor.step_table(
+            state, data[row][:, : len(sensor.input_fields)], t_s[row] + sensor.dt_s * (k - first[row] + 1)
+        )
+        last = k == first[row + 1] - 1
+        for key, block in (("T", out.T_c), ("W", out.level), ("ttl", out.ttl_s), ("status", _status_rows(out))):
+            kept[key].append(np.asarray(block)[last])
+    rows_out = {
+        ("T_", "_c"): np.concatenate(kept["T"]),
+        ("W_", ""): np.concatenate(kept["W"]),
+        ("ttl_", "_s"): np.concatenate(kept["ttl"]),
+    }
+    out_table = _output_table(ends_s, data, rows_out, np.concatenate(kept["status"]), sensor.reject_reasons, state)
+    out_table.meta.update(drive="fixed_ratio", steps=int(first[-1]))
+    return out_table
+
+
 def _status_rows(out) -> np.ndarray:
     """The status columns of every step of a TableOutputs (as :func:`_status_row`)."""
     mode = out.degraded_mode.astype(float)[:, None]
@@ -254,6 +315,8 @@ def replay_table(table, sensor, initial_oil_c: float | None = None):
             table.has("oil_temp_c") and np.isfinite(table["oil_temp_c"][0])
         ):
             initial_oil_c = float(meta["initial_temp_c"])
+    if hasattr(sensor, "step_table") and (getattr(table, "meta", None) or {}).get("drive") == "fixed_ratio":
+        return replay_held(table, sensor, initial_oil_c)
     if hasattr(sensor, "step_table"):
         times, data = table_steps(table, sensor.dt_s)
         return replay_steps(times, data, sensor, initial_oil_c)
@@ -264,13 +327,16 @@ def replay_csv(path, config_path=None, sensor_options=None) -> CsvReplay:
     """Read a run table (CSV) and replay it through the onboard sensor of ``config_path`` (None: defaults);
     ``sensor_options``: VirtualSensor options (oil_mode, initial_temp_c)."""
     from firmware_model.config import load_config
+    from firmware_model.description import description_of
     from firmware_model.onboard.sensor import VirtualSensor
     from firmware_model.service.plausibility import min_torque_nm
 
     cfg = load_config(config_path)
     params = cfg.load_params()
-    sensor = VirtualSensor(params, config=cfg, **(sensor_options or {}))
-    out = replay_table(read_inputs_table(path), sensor)
+    table = read_inputs_table(path, description_of(params))
+    options = {**held_options(table), **(sensor_options or {})}
+    sensor = VirtualSensor(params, config=cfg, **options)
+    out = replay_table(table, sensor)
     out.meta["min_torque_nm"] = min_torque_nm(sensor)
     return CsvReplay(out, params.variant, sensor.options.oil_mode)
 

@@ -1,0 +1,253 @@
+"""`--gearbox NAME|FILE` on every command that builds a gearbox (tools/cli/gearbox_option.py): the gearbox named
+reaches the run, `--variant` is its hidden alias, the command line wins over the configuration's [gearbox], and a
+gearbox that is unknown, missing, does not load or cannot run yet is one sentence (exit 2) before any work."""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from firmware_model.config import load_config
+from firmware_model.errors import InputError
+from tools.cli import build_parser, main
+from tools.runtable import RunTable, read_run_table, write_run_table
+
+ROOT = Path(__file__).resolve().parents[2]
+SUBCOMMANDS = build_parser().subcommands
+
+
+class Stop(Exception):
+    """Raised by a stubbed stage once it has seen the gearbox: the command is not run to the end."""
+
+
+def _cycle(path: Path, gear: float = 1.0) -> Path:
+    """A 60 s drive at 1300 rpm and 1500 Nm in ``gear`` (1: 1L, where the splitters of the two variants differ)."""
+    t = np.arange(0.0, 60.0, 1.0)
+    cols = {
+        "time_s": t,
+        "engine_speed_rpm": np.full(t.size, 1300.0),
+        "engine_torque_nm": np.full(t.size, 1500.0),
+        "gear": np.full(t.size, gear),
+        "oil_temp_c": np.full(t.size, 60.0),
+    }
+    write_run_table(RunTable(cols), path)
+    return path
+
+
+def _simulate(tmp_path, *gearbox) -> RunTable:
+    out = tmp_path / f"run{'_'.join(gearbox).replace('/', '_')}.csv"
+    rc = main(["simulate", "--cycle", str(_cycle(tmp_path / "c.csv")), "--out", str(out), "--quiet", *gearbox])
+    assert rc == 0
+    return read_run_table(out)
+
+
+def test_simulate_runs_the_gearbox_named_and_variant_is_its_alias(tmp_path):
+    grs, grso = _simulate(tmp_path), _simulate(tmp_path, "--gearbox", "GRSO905")
+    alias = _simulate(tmp_path, "--variant", "GRSO905")
+    # the variants' splitters differ: another input speed of the layshaft, other losses, other temperatures
+    assert not np.allclose(grs["T_LI.teeth_c"], grso["T_LI.teeth_c"])
+    np.testing.assert_array_equal(alias["T_LI.teeth_c"], grso["T_LI.teeth_c"])
+    same = _simulate(tmp_path, "--gearbox", "GRSO905", "--variant", "GRSO905")
+    np.testing.assert_array_equal(same["T_LI.teeth_c"], grso["T_LI.teeth_c"])
+
+
+def test_a_users_parameter_file_is_a_gearbox(tmp_path):
+    """FILE: a copy of the GRSO905's parameter file runs as the GRSO905."""
+    f = tmp_path / "my_box.toml"
+    f.write_text((ROOT / "firmware_model" / "params" / "GRSO905.toml").read_text())
+    np.testing.assert_array_equal(
+        _simulate(tmp_path, "--gearbox", str(f))["T_LI.teeth_c"],
+        _simulate(tmp_path, "--gearbox", "GRSO905")["T_LI.teeth_c"],
+    )
+
+
+def test_replay_runs_the_gearbox_named(tmp_path, capsys):
+    cyc = _cycle(tmp_path / "c.csv")
+    outs = {}
+    for g in ("GRS905", "GRSO905"):
+        out = tmp_path / f"est_{g}.csv"
+        assert main(["replay", str(cyc), "--out", str(out), "--quiet", "--allow-untrusted", "--gearbox", g]) == 0
+        outs[g] = read_run_table(out)
+    assert not np.allclose(outs["GRS905"]["T_LI.teeth_c"], outs["GRSO905"]["T_LI.teeth_c"])
+
+
+def test_the_command_line_wins_over_the_configuration(tmp_path):
+    cfg = tmp_path / "c.toml"
+    cfg.write_text('[gearbox]\nvariant = "GRSO905"\n')
+    from tools.cli.gearbox_option import resolve_gearbox
+
+    args = SUBCOMMANDS["replay"].parse_args(["x.csv", "--config", str(cfg)])
+    assert resolve_gearbox(args).variant == "GRSO905"
+    args = SUBCOMMANDS["replay"].parse_args(["x.csv", "--config", str(cfg), "--gearbox", "GRS905"])
+    assert resolve_gearbox(args).variant == "GRS905"
+    own = tmp_path / "own.toml"
+    own.write_text('[meta]\ninherit = "GRSO905"\n')
+    args = SUBCOMMANDS["replay"].parse_args(["x.csv", "--config", str(cfg), "--gearbox", str(own)])
+    got = resolve_gearbox(args)
+    assert Path(got.params_path) == own.resolve() and got.load_params().variant == "GRSO905"
+
+
+def _seen(monkeypatch, module: str, name: str, pick):
+    """Stub ``module.name`` with a function that records ``pick(args, kwargs)`` (the gearbox it got) and stops."""
+    import importlib
+
+    seen = []
+
+    def stub(*args, **kwargs):
+        seen.append(pick(args, kwargs))
+        raise Stop
+
+    monkeypatch.setattr(importlib.import_module(module), name, stub)
+    return seen
+
+
+def _variant_of_config(args, kwargs):
+    cfg = kwargs.get("config_path", args[1] if len(args) > 1 else None)
+    return load_config(cfg).load_params().variant
+
+
+def _variant_of_params(position):
+    return lambda args, kwargs: (kwargs["params"] if position == "params" else args[position]).variant
+
+
+#: per command: its arguments without the gearbox, the stage that receives it, what the stage got
+STAGES = {
+    "export-c": (["--out", "{tmp}/c"], "tools.export.c_bundle", "export_c", _variant_of_config),
+    "export-fmu": (["--out", "{tmp}/x.fmu"], "tools.export.fmu", "export_fmu", _variant_of_config),
+    "run": (
+        ["--interface", "virtual", "--channel", "gvs_gearbox_test"],
+        "tools.can.live",
+        "run_live",
+        lambda a, k: load_config(a[0].config_path).load_params().variant,
+    ),
+    "plant": (
+        ["--interface", "virtual", "--channel", "gvs_gearbox_test", "--cycle", "uphill", "--quiet"],
+        "tools.can.hil",
+        "prepare",
+        _variant_of_config,
+    ),
+    "diagnose": (
+        ["--train", "{cyc}", "--test", "{cyc}", "--json", "{tmp}/d.json", "--quiet"],
+        "tools.diagnosis.core",
+        "diagnose",
+        _variant_of_params(2),
+    ),
+    "calibrate": (
+        ["--train", "{cyc}", "--test", "{cyc}", "--auto", "--out", "{tmp}/cal.toml", "--quiet"],
+        "tools.diagnosis.calibrate",
+        "calibrate",
+        _variant_of_params(2),
+    ),
+    "bench-diagnosis": (["--scenarios", "1"], "tools.diagnosis.bench", "run_bench", _variant_of_params("params")),
+    "demo": (["--out-dir", "{tmp}/demo"], "tools.demo", "run_demo", lambda a, k: a[0].gearbox),
+    "fleet": (
+        ["{log}", "--out", "{tmp}/fleet"],
+        "tools.fleet.run",
+        "run_fleet",
+        lambda a, k: {e.variant for e in a[0]},
+    ),
+}
+
+
+def _argv(tmp_path, name) -> list[str]:
+    log = tmp_path / "v1.log"
+    log.write_text("(0.000000) can0 0CF00400#FFFFFF0000FFFFFF\n")
+    cyc = _cycle(tmp_path / "c.csv")
+    fill = {"tmp": str(tmp_path), "cyc": str(cyc), "log": str(log)}
+    return [name] + [a.format(**fill) for a in STAGES[name][0]]
+
+
+@pytest.mark.parametrize("option", ["--gearbox", "--variant"])
+@pytest.mark.parametrize("name", sorted(STAGES))
+def test_every_command_takes_the_gearbox_to_its_run(tmp_path, monkeypatch, capsys, name, option):
+    _, module, stage, pick = STAGES[name]
+    seen = _seen(monkeypatch, module, stage, pick)
+    with pytest.raises(Stop):
+        main(_argv(tmp_path, name) + [option, "GRSO905"])
+    assert seen == [{"GRSO905"} if name == "fleet" else "GRSO905"]
+    seen.clear()
+    with pytest.raises(Stop):
+        main(_argv(tmp_path, name))
+    assert seen == [{None} if name == "fleet" else "GRS905"]  # fleet: the logs' own configuration, by default
+
+
+def test_every_command_that_builds_a_gearbox_has_the_option():
+    for name in [*STAGES, "simulate", "replay"]:
+        text = " ".join(SUBCOMMANDS[name].format_help().split())
+        assert "--gearbox NAME|FILE" in text and "GRS905" in text and "default" in text, name
+        assert "--variant" not in text, name  # the alias stays hidden
+
+
+def _one_sentence(capsys, name) -> str:
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith(f"gearbox-vsensor {name}: error: "), err
+    return err
+
+
+@pytest.mark.parametrize("name", sorted([*STAGES, "simulate", "replay"]))
+def test_a_bad_gearbox_is_one_sentence_before_any_work(tmp_path, monkeypatch, capsys, name):
+    if name in STAGES:
+        _seen(monkeypatch, STAGES[name][1], STAGES[name][2], lambda a, k: None)
+        argv = _argv(tmp_path, name)
+    elif name == "simulate":
+        argv = ["simulate", "--cycle", str(_cycle(tmp_path / "c.csv")), "--out", str(tmp_path / "o.csv")]
+    else:
+        argv = ["replay", str(_cycle(tmp_path / "c.csv")), "--out", str(tmp_path / "o.csv")]
+    assert main(argv + ["--gearbox", "GRS906"]) == 2
+    err = _one_sentence(capsys, name)
+    assert "GRS906" in err and "GRS905, GRSO905" in err
+    assert main(argv + ["--gearbox", str(tmp_path / "missing.toml")]) == 2
+    err = _one_sentence(capsys, name)
+    assert "missing.toml" in err and "no such file" in err and "GRS905, GRSO905" in err
+    assert main(argv + ["--variant", "GRS905", "--gearbox", "GRSO905"]) == 2
+    assert "name different gearboxes" in _one_sentence(capsys, name)
+    assert not (tmp_path / "o.csv").exists()
+
+
+def test_a_file_that_does_not_load_is_one_sentence(tmp_path, capsys):
+    f = tmp_path / "broken.toml"
+    f.write_text('[meta]\ninherit = "GRS905"\n[gear.L]\nz1 = { v = "many", u = "-", src = "seed" }\n')
+    argv = ["simulate", "--cycle", str(_cycle(tmp_path / "c.csv")), "--out", str(tmp_path / "o.csv")]
+    assert main(argv + ["--gearbox", str(f)]) == 2
+    err = _one_sentence(capsys, "simulate")
+    assert "broken.toml" in err and "does not load" in err and "GRS905, GRSO905" in err
+
+
+def _r1(tmp_path) -> Path:
+    """The fixed-ratio example of docs/description.md: a description that loads, of another topology."""
+    text = (ROOT / "docs" / "description.md").read_text(encoding="utf-8")
+    f = tmp_path / "r1.toml"
+    f.write_text(re.search(r"```toml\n(.*?)```", text, re.S).group(1))
+    return f
+
+
+def test_a_description_the_plant_cannot_run_yet_is_one_sentence(tmp_path, capsys):
+    from firmware_model.description import load_description
+    from tools.cli.gearbox_option import runnable
+
+    f = _r1(tmp_path)
+    assert "not the GRS905's" in runnable(load_description(f))
+    assert runnable(load_description("GRSO905")) == ""
+    argv = ["simulate", "--cycle", str(_cycle(tmp_path / "c.csv")), "--out", str(tmp_path / "o.csv")]
+    assert main(argv + ["--gearbox", str(f)]) == 2
+    err = _one_sentence(capsys, "simulate")
+    assert "r1.toml" in err and "fixed_ratio drive" in err and "not the GRS905's" in err
+    assert not (tmp_path / "o.csv").exists()
+    cfg = tmp_path / "c.toml"  # the same from the configuration, naming the key
+    cfg.write_text(f'[gearbox]\nparams = "{f.name}"\n')
+    assert main(argv + ["--config", str(cfg)]) == 2
+    err = _one_sentence(capsys, "simulate")
+    assert "config c.toml: gearbox.params" in err and "not the GRS905's" in err
+
+
+def test_the_configurations_unknown_variant_is_one_sentence(tmp_path, capsys):
+    cfg = tmp_path / "c.toml"
+    cfg.write_text('[gearbox]\nvariant = "GRS906"\n')
+    from tools.cli.gearbox_option import resolve_gearbox
+
+    args = SUBCOMMANDS["replay"].parse_args(["x.csv", "--config", str(cfg)])
+    with pytest.raises(InputError, match=r"config c.toml: gearbox.variant = 'GRS906' does not load .*GRS905, GRSO905"):
+        resolve_gearbox(args)
