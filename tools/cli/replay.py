@@ -185,18 +185,19 @@ def run(args) -> int:
     # the outputs to temporary files first: a failure leaves none of them (tools.outputs)
     with outputs(("--out", args.out), ("--plot", figure_path(args.plot))) as (out_tmp, plot_tmp):
         out, variant, oil_mode = replay_csv(path, _config(args), _sensor_options(args))
+        gearbox = _config(args).load_params()
         with naming(out_tmp):
             write_run_table(out, out_tmp)
         if plot_tmp:
             with naming(plot_tmp):
-                plot_replay(out, plot_tmp, f"{variant} onboard sensor, replay of {path.name}")
+                plot_replay(out, plot_tmp, f"{variant} onboard sensor, replay of {path.name}", gearbox=gearbox)
     dest = Path(args.out)
     if not args.quiet:
         from tools.replay.summary import summary_lines
 
         s = summarize(out)
         print(f"replayed {s.span_s:.1f} s in {s.steps} steps -> {dest}")
-        for line in summary_lines(out, oil_model=oil_mode == "model"):
+        for line in summary_lines(out, oil_model=oil_mode == "model", gearbox=gearbox):
             print(line)
     return _report_trust(args, table_findings(out, oil_model=oil_mode == "model"))
 
@@ -225,6 +226,7 @@ def _run_log(args, path: Path) -> int:
 
     if not args.out:
         raise InputError("--out EST.csv is required to replay a log (to play it onto a bus: gearbox-vsensor play)")
+    gearbox = _config(args).load_params()
     with outputs(("--out", args.out), ("--frames-out", args.frames_out), ("--plot", figure_path(args.plot))) as tmp:
         out_tmp, frames_tmp, plot_tmp = tmp
         result = replay_log_file(
@@ -239,7 +241,7 @@ def _run_log(args, path: Path) -> int:
             from tools.replay.plot import plot_replay
 
             with naming(plot_tmp):
-                plot_replay(result.table, plot_tmp, f"onboard sensor, replay of {path.name}")
+                plot_replay(result.table, plot_tmp, f"onboard sensor, replay of {path.name}", gearbox=gearbox)
     table = result.table
     d = result.decoder_counters
     rejected = ", ".join(f"{k} {v}" for k, v in sorted(d["rejected"].items())) or "none"
@@ -258,6 +260,6 @@ def _run_log(args, path: Path) -> int:
             from tools.replay.summary import summary_lines
 
             oil_mode = args.oil_mode or _config(args).sensor.get("oil_mode", "measured")
-            for line in summary_lines(table, oil_model=oil_mode == "model"):
+            for line in summary_lines(table, oil_model=oil_mode == "model", gearbox=gearbox):
                 print(line)
     return _report_trust(args, result.findings)

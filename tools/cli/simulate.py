@@ -326,6 +326,6 @@ def _write_outputs(args, table, res, params, cfg, tmp, start_time_s: float) -> N
             f", effects {args.effect}" if args.effect else ""
         )
         with naming(plot_tmp):
-            plot_simulation(res.table, plot_tmp, title)
+            plot_simulation(res.table, plot_tmp, title, gearbox=params)
         with naming(heat_tmp):
             plot_heat_budget(res.table, heat_tmp, title)
