@@ -102,6 +102,7 @@ SPECS = {
         "x": _n("m", sign="any"),
         "bore": _n("m", False),
         "sides": _t,
+        "immersion": _n("1", False),
     },
     "planetary": {
         "sun": _T,
@@ -228,6 +229,7 @@ class Wheel:
     bore_m: float | None  # diameter of the bore (idle and pin wheels)
     sides: str | None = None  # SIDES: the web sides covered by neighbouring wheels or free (splash area)
     name: str | None = None  # what it is, in a few words
+    immersion: float | None = None  # the share of its tip diameter dipping into the sump (a dipping wheel)
 
 
 @dataclass(frozen=True)
@@ -418,16 +420,21 @@ class Description:
     @property
     def nodes(self) -> tuple:
         """The thermal nodes the description implies, in the network's order: shaft segments, idle wheels (teeth
-        and bulk), the other wheels, planetary members, bearings, housings, the sump and, for forced lubrication,
-        the oil inlet (the pumped oil after the pump, filter and cooler, before the jets)."""
+        and bulk), the other wheels, planetary members, bearings, housings and the sump (a forced oil system's inlet
+        is no node: it is `derived`)."""
         out = [s.id for sh in self.shafts for s in sh.segments]
         out += [f"{w.id}.{part}" for w in self.wheels if w.mount == "idle" for part in ("teeth", "bulk")]
         out += [w.id for w in self.wheels if w.mount != "idle"]
         out += [m for ps in self.planetary for m in (ps.sun, ps.planet, ps.ring)]
         out += [b.id for b in self.bearings] + [h.id for h in self.housings] + ["oil"]
-        if self.oil is not None and self.oil.lubrication == "forced":
-            out.append(OIL_INLET)
         return tuple(out)
+
+    @property
+    def derived(self) -> tuple:
+        """The temperatures computed from the nodes rather than held by one: for forced lubrication the oil inlet
+        (the pumped oil after the pump, filter and cooler, before the jets), the sump minus the cooler's drop
+        Q / (mdot cp) (physics.cooler.inlet_drop_k: the temperature the jets' streams take)."""
+        return (OIL_INLET,) if self.oil is not None and self.oil.lubrication == "forced" else ()
 
 
 # ---------------------------------------------------------------------------------------------------------------
@@ -622,7 +629,7 @@ def _wheels(r: _Reader, topo: dict, shafts: dict) -> tuple:
         if f["sides"] is not None and f["sides"] not in SIDES:
             r.fail(f"{key}.sides", f"= {f['sides']!r} must be one of {', '.join(SIDES)}")
         w = Wheel(wid, mount, f["teeth"], f["module"], f["helix"], f["width"], f["x"], shaft, seg, f["bore"])
-        out.append(replace(w, sides=f["sides"], name=f["name"]))
+        out.append(replace(w, sides=f["sides"], name=f["name"], immersion=f["immersion"]))
     return tuple(out)
 
 
@@ -1222,7 +1229,8 @@ def _describe(path: Path, entries: dict, params: Parameters | None = None) -> De
     nodes = set(desc.nodes)
     _check_touches(r, boundaries, nodes)
     oil = _oil(r, topo, by_shaft, nodes)
-    published = _published(r, topo, set(replace(desc, oil=oil).nodes))  # with the oil inlet of a forced system
+    with_oil = replace(desc, oil=oil)
+    published = _published(r, topo, set(with_oil.nodes) | set(with_oil.derived))  # a forced system's oil inlet too
     return Description(
         desc.name,
         desc.origin,

@@ -413,8 +413,9 @@ def _immersed_links(b: _Builder) -> None:
 
 
 def _splash_links(b: _Builder) -> None:
-    """Splashed parts (Eq 59-64): idle-wheel teeth, the output shaft, the ring gear, the shaft bearings (Harris),
-    and the housings' inside (200 W/(m2 K) on 90 % of 1.9 m2, split 50/35/15)."""
+    """Splashed parts (Eq 59-64): idle-wheel teeth, other wheels the thrown or jetted oil wets, the output shaft,
+    the ring gear, the shaft bearings (Harris), and the housings' inside (200 W/(m2 K) on 90 % of 1.9 m2, split
+    50/35/15)."""
     p, W, d = b.p, b.W, b.desc
     spd = b.spd
     covered = bool(p.get("wheel.covered_sides", 1))
@@ -426,6 +427,15 @@ def _splash_links(b: _Builder) -> None:
         else:
             A = float(ht.wheel_area_covered_sides_m2(g.R_p, g.width, g.z, g.h_t, g.beta))  # Eq 60
         b.link(f"{w}.teeth", "oil", K_SPLASH, A, f"splash:{w}.teeth", speed=spd(w), group=0)
+    # a wheel on its shaft (no planetary member) the thrown or the jetted oil wets: its teeth, Eq 59 over Eq 60/61
+    wetted = set(splashed) | (set(d.oil.jets) if d.oil.lubrication == "forced" else set())
+    for w in (x for x in b.whole if x in wetted):
+        g, wh = W[w], b.desc.wheel(w)
+        if wh.sides == "free":
+            A = float(ht.wheel_area_free_sides_m2(g.R_p, g.width, g.z, g.h_t, g.beta, g.R_in))  # Eq 61
+        else:
+            A = float(ht.wheel_area_covered_sides_m2(g.R_p, g.width, g.z, g.h_t, g.beta))  # Eq 60
+        b.link(w, "oil", K_SPLASH, A, f"splash:{w}", speed=spd(wh.shaft or w), group=0)
     for sh in d.shafts:  # splashed shaft segments: the wetted length of the shaft's outside (Eq 62)
         for seg in (g.id for g in sh.segments if g.id in splashed):
             L = sh.wetted_length_m if sh.wetted_length_m is not None else b.seg_len[seg]

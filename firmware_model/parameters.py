@@ -47,6 +47,9 @@ except ModuleNotFoundError:  # Python 3.10
 
 PARAM_DIR = Path(__file__).resolve().parent / "params"
 VARIANTS = ("GRS905", "GRSO905")
+#: the shipped gearboxes with a description of their own (firmware_model/params/NAME.toml, standalone files): they
+#: load by name like the variants but are no reference for the keys of other files
+STANDALONE = ("R1", "HR225", "MM82")
 PROVENANCES = ("seed", "derived", "assumed", "fitted")
 
 #: unit string in a file -> (SI dimension, factor to SI)
@@ -214,7 +217,8 @@ class Parameters:
 
     @property
     def split_inverted(self) -> bool:
-        return bool(self["meta.split_inverted"])
+        """Whether the GRS905's split is inverted (meta.split_inverted); a gearbox without that key has no split."""
+        return bool(self.values.get("meta.split_inverted", 0.0))
 
     @property
     def teeth(self) -> Teeth:
@@ -416,6 +420,13 @@ PER_KIND = (
     ("material.*.k", "material.steel.k"),
     ("material.*.cp", "material.steel.cp"),
     ("bearing.sf_radial_*", "bearing.sf_radial_tapered"),
+    ("bearing.f0_*", "bearing.f0_tapered"),  # Palmgren's coefficients and Eq 40's load factors of a bearing kind
+    ("bearing.f1_*", "bearing.f1_tapered"),
+    ("bearing.e_*", "bearing.e_tapered"),
+    ("bearing.X1_*", "bearing.X1_tapered"),
+    ("bearing.Y1_*", "bearing.Y1_tapered"),
+    ("bearing.X2_*", "bearing.X2_tapered"),
+    ("bearing.Y2_*", "bearing.Y2_tapered"),
     ("wheel_bearing.sf_radial_*", "wheel_bearing.sf_radial_needle"),
 )
 #: what a file with its own [topology] must hold: the physics every network needs (the per-kind ones its
@@ -566,10 +577,10 @@ def parameter_path(variant_or_path: str | Path) -> Path:
     p = Path(variant_or_path)
     if p.suffix.lower() == ".toml":
         return p
-    if str(variant_or_path) in VARIANTS:
+    if str(variant_or_path) in VARIANTS + STANDALONE:
         return PARAM_DIR / f"{variant_or_path}.toml"
     raise ParameterError(
-        f"unknown gearbox variant {variant_or_path!r}: use one of {', '.join(VARIANTS)} "
+        f"unknown gearbox variant {variant_or_path!r}: use one of {', '.join(VARIANTS + STANDALONE)} "
         f"or the path of a .toml parameter file"
     )
 
@@ -604,7 +615,7 @@ def _bounds(path: Path, key: str, e: dict, fac: float, v: float):
 
 
 def load_parameters(variant_or_path: str | Path = "GRS905") -> Parameters:
-    """Load a variant by name (GRS905, GRSO905) or a TOML file by path."""
+    """Load a shipped gearbox by name (GRS905, GRSO905, R1, HR225, MM82) or a TOML file by path."""
     path = parameter_path(variant_or_path)
     entries = _read(path)
     values, sources, units, strings, bounds = {}, {}, {}, {}, {}

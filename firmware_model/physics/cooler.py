@@ -13,6 +13,7 @@ scalars), so both callers keep their own last bits.
 
 from __future__ import annotations
 
+import math
 from typing import NamedTuple
 
 import numpy as np
@@ -72,8 +73,10 @@ class CoolerHeat(NamedTuple):
 
 
 def cooler_values(p) -> dict:
-    """{name: SI value} of the cooler parameters (COOLER_KEYS) of a parameter set."""
-    return {k: p[f"cooler.{k}"] for k in COOLER_KEYS}
+    """{name: SI value} of the cooler parameters (COOLER_KEYS) of a parameter set. A gearbox's file may leave out the
+    keys of a cooler it does not have (MM82: the liquid cooler's, the layshaft and engine reference speeds; HR225:
+    all): those are NaN, and a model that reads one gives NaN, never a silent number."""
+    return {k: p.values.get(f"cooler.{k}", math.nan) for k in COOLER_KEYS}
 
 
 def cooler_params(values: dict) -> CoolerParams:

@@ -80,15 +80,21 @@ def _shaft_sides(d: Description) -> dict:
     for pin in pins:  # the shafts on either side of an idler
         ends = [shaft_of.get(w) for m in d.meshes if pin in m.wheels for w in m.wheels if w != pin]
         links += [(ends[0], e) for e in ends[1:] if ends[0] and e]
-    side = {d.drive.input_shaft: 1.0}
-    grew = True
-    while grew:
-        grew = False
-        for a, b in links:
-            for u, v in ((a, b), (b, a)):
-                if u in side and v not in side:
-                    side[v] = -side[u]
-                    grew = True
+    side: dict = {}
+    # the input shaft first; a shaft no mesh joins to it (the sun shaft behind a planetary set: its members' forces
+    # balance over the planets) starts its own chain on the +1 side
+    for start in [d.drive.input_shaft] + [sh.id for sh in d.shafts]:
+        if start in side:
+            continue
+        side[start] = 1.0
+        grew = True
+        while grew:
+            grew = False
+            for a, b in links:
+                for u, v in ((a, b), (b, a)):
+                    if u in side and v not in side:
+                        side[v] = -side[u]
+                        grew = True
     return side
 
 
@@ -119,7 +125,8 @@ class GearboxLosses:
         self.col.update({w.id: names.index(w.shaft) for w in d.wheels if w.mount in ("fixed", "cut")})
         self._bearing_tables()
         self._churn_geometry()
-        self.pump_k = p["pump.k"]
+        # a pump on a shaft takes pump.k w^2 from it; a motor-driven pump (no pump_shaft) takes nothing from the drive
+        self.pump_k = p["pump.k"] if d.oil.pump_shaft is not None else 0.0
         self.pump_col = None if d.oil.pump_shaft is None else names.index(d.oil.pump_shaft)
         self.sync_geo = [_sync_ring(p, d, c.joins) for c in d.couplings if c.kind == "sync"]
 
@@ -241,7 +248,7 @@ class GearboxLosses:
         wheel = {w.id: w for w in d.wheels}
         needles = [b for b in d.bearings if b.wheel is not None]
         self.needle_Dm = np.array([2 * self.geo.R_shaft_m[wheel[b.wheel].shaft] + b.roller_m for b in needles])
-        self.needle_f0 = p["wheel_bearing.f0_needle"]
+        self.needle_f0 = p["wheel_bearing.f0_needle"] if needles else 0.0
 
     def _churn_geometry(self):
         """The wheels dipping into the sump (oil.dipping): their tip, pitch and tooth sizes and immersion."""
@@ -264,7 +271,7 @@ class GearboxLosses:
         self.ch_is_RI = np.array([1.0 if mount[w] == "pin" else 0.0 for w in dipping])
         self.ch_mask = self.ch_hi > 0
         self.V0 = d.oil.volume_m3
-        self.h_t0 = self.p["oil.h_t0"]
+        self.h_t0 = self.p["oil.h_t0"] if dipping else 0.0  # Eq 34's reference tooth height (no wheel dips: unused)
 
     # ------------------------------------------------------------------ evaluation
     def evaluate(self, omega_in_rad_s, torque_in_nm, gear, T_oil_c, churn_validity: bool = False) -> dict:

@@ -139,4 +139,8 @@ def build_geometry(p: Parameters) -> Geometry:
     meshes = _meshes(p, d)
     drop = oil_level_drop_m(p)
     R_shaft = {s.id: s.d_out_m / 2 for s in d.shafts}
-    return Geometry(wheels, meshes, _immersion(p, wheels, drop), drop, R_shaft, d)
+    immersion = _immersion(p, wheels, drop)
+    for w in d.wheels:  # a wheel whose description states its immersed share of its tip diameter
+        if w.id not in immersion and w.immersion is not None:
+            immersion[w.id] = w.immersion * 2 * wheels[w.id].R_a
+    return Geometry(wheels, meshes, immersion, drop, R_shaft, d)

@@ -1,17 +1,20 @@
 """The shipped gearbox descriptions (firmware_model/params/*.toml with a [topology], docs/description.md "Shipped
 descriptions"): each loads, its gears' teeth give its stated ratios, what it publishes are nodes of it; the MM82
 wind turbine gearbox has the stated overall ratio and publishes what its SCADA measures; a forced oil system has an
-oil inlet node and a splash one has none."""
+oil inlet (derived) and a splash one has none; the standalone ones load by name with their network and losses."""
 
 from __future__ import annotations
 
 import math
 
+import numpy as np
 import pytest
 
 from firmware_model.description import OIL_INLET, load_description, shipped_descriptions
 from firmware_model.errors import ParameterError
-from firmware_model.parameters import PARAM_DIR, read_entries
+from firmware_model.network import build_network
+from firmware_model.parameters import PARAM_DIR, load_parameters, parameter_path, read_entries
+from firmware_model.physics.gearbox_losses import GearboxLosses
 from tools.cli import main
 
 
@@ -27,7 +30,7 @@ def test_each_shipped_description_loads_and_holds_together(name):
     for g in d.gears:
         if g.number != 0:
             assert g.ratio == pytest.approx(g.stated_ratio, rel=tol)
-    nodes = set(d.nodes)
+    nodes = set(d.nodes) | set(d.derived)
     assert d.published and all(c.id in nodes for c in d.published)
     assert len({c.id for c in d.published}) == len(d.published)
     assert all(c.warning_c < c.critical_c for c in d.published)
@@ -83,11 +86,12 @@ def test_every_topology_number_of_the_new_files_has_a_unit_and_a_provenance():
             assert "u" in e, key
 
 
-def test_a_forced_oil_system_has_an_oil_inlet_node_and_a_splash_one_has_none():
-    assert load_description("MM82").nodes[-2:] == ("oil", OIL_INLET)
+def test_a_forced_oil_system_derives_an_oil_inlet_and_a_splash_one_has_none():
+    mm82 = load_description("MM82")
+    assert mm82.nodes[-1] == "oil" and OIL_INLET not in mm82.nodes and mm82.derived == (OIL_INLET,)
     for name in ("GRS905", "HR225"):
-        nodes = load_description(name).nodes
-        assert nodes[-1] == "oil" and OIL_INLET not in nodes
+        d = load_description(name)
+        assert d.nodes[-1] == "oil" and OIL_INLET not in d.nodes and d.derived == ()
 
 
 def test_publishing_an_oil_inlet_without_forced_lubrication_is_one_sentence(tmp_path):
@@ -104,3 +108,17 @@ def test_publishing_an_oil_inlet_without_forced_lubrication_is_one_sentence(tmp_
         "splash.toml: topology.published.order lists oil.inlet, which is no node of the description (no part has "
         "that id)"
     )
+
+
+@pytest.mark.parametrize("name", ["R1", "HR225", "MM82"])
+def test_each_standalone_description_loads_by_name_with_its_network_and_losses(name):
+    """A shipped gearbox with its own description loads by name; its network and loss model build from it."""
+    p = load_parameters(name)
+    assert p.variant == name and p.path == str(parameter_path(name).resolve())
+    net = build_network(p)
+    assert net.nodes == load_description(name).nodes
+    losses = GearboxLosses(p, net.geometry)
+    g = next(g.number for g in load_description(name).gears if g.number != 0)
+    out = losses.evaluate(np.array([50.0]), np.array([1000.0]), np.array([g]), 60.0)
+    assert all(np.all(np.isfinite(v)) and np.all(v >= 0) for v in out.values())
+    assert sum(float(v[0]) for v in out.values()) > 0

@@ -20,6 +20,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from firmware_model.description import description_of
 from firmware_model.effects import effect_scales, with_oil_volume
 from firmware_model.errors import InputError
 from firmware_model.network import (
@@ -35,15 +36,16 @@ from firmware_model.parameters import COOLER_KINDS, Parameters
 from firmware_model.physics import oil as oilprops
 from firmware_model.physics.conductance_matrix import boundary_heat_w, conductance_matrix, link_topology
 from firmware_model.physics.cooler import (
+    AIR_RECIRC_V_KMH,
     DEFAULT_VEHICLE_SPEED_KMH,
     cooler_params,
     cooler_values,
     inlet_drop_k,
     oil_cooler_heat,
 )
-from firmware_model.physics.gearbox_losses import SOURCES, GearboxLosses
+from firmware_model.physics.gearbox_losses import GearboxLosses
 from firmware_model.physics.heat_lag import HeatLag, first_order_lag_step, heat_lag, heat_lag_step
-from firmware_model.physics.kinematics import GEAR_MAX, GEAR_MIN, SPEED_NAMES, gear_state
+from firmware_model.physics.kinematics import GEAR_MAX, GEAR_MIN, gear_state
 from firmware_model.units import RAD_S_PER_RPM
 from tools.progress import progress as progress_bar
 from tools.runtable import RunTable
@@ -150,6 +152,7 @@ class Ledger:
     stored_j: float = 0.0
     mechanical_j: float = 0.0
     churn_invalid_s: float = 0.0
+    n_sources: int = 0  # the loss sources of the gearbox (GearboxLosses.sources)
 
     def book(self, step: int, res: StepResult, cs: ChunkSources, k: int, h_s: float, i_retarder: int) -> None:
         """Books thermal step ``step`` (the k-th of its chunk, length h_s)."""
@@ -158,7 +161,7 @@ class Ledger:
         self.out_j += res.out_w * h_s
         self.mechanical_j += cs.P_mech_w[k] * h_s
         self.churn_invalid_s += cs.churn_invalid[k] * h_s
-        ns, no = len(SOURCES), len(HEAT_OUT_NAMES)
+        ns, no = self.n_sources, len(HEAT_OUT_NAMES)
         q = self.Q_w[step + 1]
         q[:ns] = cs.P_src_w[:ns, k]
         q[ns] = cs.P_mech_w[k]
@@ -193,6 +196,17 @@ class ReferencePlant:
         self.dt = float(dt_s)
         self.net: Network = build_network(params)
         self.losses = GearboxLosses(params, self.net.geometry)
+        self.sources = self.losses.sources  # the gearbox's loss sources (the GRS905's: gearbox_losses.SOURCES)
+        d = self.net.geometry.description
+        names = self.losses.kin.speed_names
+        # the speeds the cooler and the retarder read: the oil pump's shaft (a motor pump: none), the input shaft
+        # (the engine of a vehicle: the liquid cooler's coolant flow) and the output shaft (the retarder)
+        self.i_pump = None if d.oil.pump_shaft is None else names.index(d.oil.pump_shaft)
+        self.i_input, self.i_output = names.index(d.drive.input_shaft), names.index(d.drive.output_shaft)
+        # a stationary machine (no vehicle) without a vehicle-speed column: its air cooler sees its fan's air and no
+        # recirculated air (the recirculation table's end); a vehicle without one: the cooler model's default speed
+        self.v_default_kmh = DEFAULT_VEHICLE_SPEED_KMH if d.drive.kind == "vehicle" else float(AIR_RECIRC_V_KMH[-1])
+        self.drive = d.drive
         self.ev = ConductanceEvaluator(self.net, params, self.scales)
         self.n = n = self.net.n
         self.i_oil = self.net.index("oil")
@@ -201,16 +215,15 @@ class ReferencePlant:
         kinds = self.net.link_kind[self.topo.ext_idx]
         self.boundaries = self.net.boundaries
         self.bc_columns = bc_columns(self.boundaries)
-        bname = np.array(self.boundaries)[self.topo.eb]
-        self.ext_group = np.where(
-            kinds == K_EXT_CONV,
-            1,
-            np.where(kinds == K_EXT_RAD, 2, np.where(np.isin(bname, ["flywheel_cover", "support_beam"]), 3, 4)),
-        )
+        # conduction to a boundary: through the supports (a housing touches it: the GRS905's flywheel cover and
+        # support beam) or along the shafts (its engine shaft and end yoke)
+        housings = [self.net.index(h.id) for h in d.housings]
+        at_housing = np.isin(self.net.link_a[self.topo.ext_idx], housings)
+        self.ext_group = np.where(kinds == K_EXT_CONV, 1, np.where(kinds == K_EXT_RAD, 2, np.where(at_housing, 3, 4)))
         # source distribution matrix: node heat = S @ source heat
         # the synchronizers' shift heat: one source per wheel a shift heats, as the network's description has them
         shifts = [s for s in self.net.sources if s.startswith("shift:")]
-        self.src_names = list(SOURCES) + ["retarder", *shifts]
+        self.src_names = list(self.sources) + ["retarder", *shifts]
         self.S = np.zeros((n, len(self.src_names)))
         for j, s in enumerate(self.src_names):
             for node, frac in self.net.sources[s]:
@@ -227,6 +240,10 @@ class ReferencePlant:
         self.cooler = cooler_params(cooler_values(params))
 
     # ------------------------------------------------------------------ cooler (seed 3.4, Eq 82-83)
+    def _pump_speed(self, omega: np.ndarray) -> float:
+        """|speed| of the oil pump's shaft (the GRS905's layshaft); 0 for a motor-driven pump (its flow is fixed)."""
+        return 0.0 if self.i_pump is None else omega[self.i_pump]
+
     def _bc_or_nan(self, T_bc, name: str) -> float:
         """A boundary's temperature; NaN for one the gearbox lacks (the coolant of a gearbox without a liquid
         cooler: the coolers read only their own)."""
@@ -241,7 +258,12 @@ class ReferencePlant:
         mdot_kg_s = self.ev.oil_mass_flow_kg_s(w_ls, op.rho_kg_m3)
         if mdot_kg_s <= 0:
             return 0.0, 0.0
-        flow_ratio = mdot_kg_s / self.ev.oil_mass_flow_kg_s(self.cooler.ref_ls_speed_rad_s, op.rho_kg_m3)
+        # the oil flow over the data sheet's: a shaft pump's at the reference speed, a motor pump's is its own
+        flow_ratio = (
+            1.0
+            if self.i_pump is None
+            else mdot_kg_s / self.ev.oil_mass_flow_kg_s(self.cooler.ref_ls_speed_rad_s, op.rho_kg_m3)
+        )
         mcp_w_per_k = mdot_kg_s * op.cp_j_per_kgk
         sc = self.scales
 
@@ -305,9 +327,7 @@ class ReferencePlant:
         elif inp.kind == "measured":
             T[self.i_oil] = inp.oil_meas_c[0]
         state = StepState(T, T.copy(), None, np.zeros(len(self.src_names)), int(inp.gear[0]))
-        n_q = len(SOURCES) + 4 + len(HEAT_OUT_NAMES)
-        ledger = Ledger(np.empty((n_steps + 1, self.n)), np.zeros((n_steps + 1, n_q)), np.zeros(len(HEAT_OUT_NAMES)))
-        ledger.T_c[0] = T
+        ledger = self._ledger(n_steps, T)
         lag_dt = heat_lag(self.tau_lag, dt)
         i_ret = self.src_names.index("retarder")
         k_chunk = max(1, int(round(chunk_s / dt)))
@@ -347,6 +367,18 @@ class ReferencePlant:
             )
         res = self._output(table, t, step_t, ledger.T_c, ledger.Q_w, out_dt_s, inp.kind)
         return SimResult(res, self.net.nodes, ledger.energy(), warnings, time.perf_counter() - wall0)
+
+    def _ledger(self, n_steps: int, T0_c: np.ndarray) -> Ledger:
+        """Empty books for a run of ``n_steps`` thermal steps starting at node temperatures ``T0_c``."""
+        n_q = len(self.sources) + 4 + len(HEAT_OUT_NAMES)
+        ledger = Ledger(
+            np.empty((n_steps + 1, self.n)),
+            np.zeros((n_steps + 1, n_q)),
+            np.zeros(len(HEAT_OUT_NAMES)),
+            n_sources=len(self.sources),
+        )
+        ledger.T_c[0] = T0_c
+        return ledger
 
     def _inputs(self, table: RunTable, initial_temp_c, hold_oil_c) -> RunInputs:
         """The run table checked and read (columns of the run-table contract; bc_ columns override the defaults)."""
@@ -430,15 +462,15 @@ class ReferencePlant:
         churn_ok = loss.pop("churning_valid")
         heat = self.losses.heat(loss, self.scales)
         P_src = np.zeros((i1 - i0, len(self.src_names)))
-        for j, nm in enumerate(SOURCES):
+        for j, nm in enumerate(self.sources):
             P_src[:, j] = heat[nm]
-        P_mech = np.sum([loss[k] for k in SOURCES], axis=0)
+        P_mech = np.sum([loss[k] for k in self.sources], axis=0)
         sp = self.losses.kin.speed[gear - GEAR_MIN] * w_in[:, None]
         if inp.retarder_nm is not None and self.scales.retarder_frac > 0:
             # the braking torque's magnitude, as the onboard sensor and the CAN encoder take it (J1939 sends braking
             # negative; a table in that sign would give the plant no heat and its own CAN log 3 kNm)
             P_src[:, self.src_names.index("retarder")] = (
-                self.scales.retarder_frac * np.abs(inp.retarder_nm[sl]) * np.abs(sp[:, SPEED_NAMES.index("OS")])
+                self.scales.retarder_frac * np.abs(inp.retarder_nm[sl]) * np.abs(sp[:, self.i_output])
             )
         avg = _StepAverager(t[sl], dts[sl], edges)
         return ChunkSources(edges, avg(P_src), avg(P_mech)[0], avg(np.abs(sp)), avg((~churn_ok).astype(float))[0])
@@ -463,11 +495,11 @@ class ReferencePlant:
         delivered = self._delivered_heat(state, cs.P_src_w[:, k].copy(), gear, h, lag)
         kin = self.losses.kin
         G = self.ev.evaluate_cached(T[i_oil], omega, row, kin.mesh_torque[row], bool(kin.low_range[row]), T, T_bc)
-        v_kmh = float(np.interp(t_mid, t, inp.v_kmh)) if inp.v_kmh is not None else DEFAULT_VEHICLE_SPEED_KMH
+        v_kmh = float(np.interp(t_mid, t, inp.v_kmh)) if inp.v_kmh is not None else self.v_default_kmh
         q0, gc = self.cooler_heat(
             T[i_oil],
-            omega[SPEED_NAMES.index("LS")],
-            omega[SPEED_NAMES.index("IS")],
+            self._pump_speed(omega),
+            omega[self.i_input],
             self._bc_or_nan(T_bc, "coolant"),
             self._bc_or_nan(T_bc, "ambient"),
             v_kmh,
@@ -508,9 +540,10 @@ class ReferencePlant:
         shift heat (effect synchronizer_shift_heat) released over the step of a gear change; updates ``state``."""
         shift_energy = self.scales.shift_energy_j
         if gear != state.gear_prev:
-            if shift_energy > 0:
+            # the GRS905's shifts (seed Table 1): a gearbox without its synchronized wheels has no shift heat
+            if shift_energy > 0 and self.src_names[-1].startswith("shift:"):
                 target = _shift_target(state.gear_prev, gear, self.p.split_inverted)
-                if target is not None:
+                if target in self.src_names:
                     u_w[self.src_names.index(target)] += shift_energy / h
             state.gear_prev = gear
         state.lag_w, delivered = heat_lag_step(state.lag_w, u_w, lag)
@@ -524,7 +557,7 @@ class ReferencePlant:
         dT_in = 0.0
         if kind in ("liquid", "air") and q0 != 0.0:
             op = oilprops.oil_properties(T_oil_c)
-            mdot = self.ev.oil_mass_flow_kg_s(omega[SPEED_NAMES.index("LS")], op.rho_kg_m3)
+            mdot = self.ev.oil_mass_flow_kg_s(self._pump_speed(omega), op.rho_kg_m3)
             dT_in = float(inlet_drop_k(q0, mdot * op.cp_j_per_kgk)) if mdot > 0 else 0.0
         xfer_w = G[self.stream_idx] * dT_in
         q_nodes = q_nodes.copy()
@@ -578,7 +611,7 @@ class ReferencePlant:
         # heat flows: step averages, each output sample shows the step that ends at or after it
         qi = np.clip(np.searchsorted(step_t, t_out, side="left"), 1, step_t.size - 1)
         names = (
-            [f"Q_heat_{s.replace(':', '_')}_w" for s in SOURCES]
+            [f"Q_heat_{s.replace(':', '_')}_w" for s in self.sources]
             + ["Q_loss_mechanical_total_w", "Q_heat_total_w"]
             + [f"Q_out_{nm}_w" for nm in HEAT_OUT_NAMES]
             + ["Q_heat_retarder_w", "Q_stored_w"]
@@ -666,8 +699,12 @@ def validate_drive(table: RunTable, p: Parameters) -> None:
 
 
 def _check_drive_ranges(cols: dict, p: Parameters) -> None:
-    """The range rules of the drive columns, on their finite values (validate_drive, _validate_inputs)."""
-    vmax = p["engine.max_speed_rad_s"] / RAD_S_PER_RPM
+    """The range rules of the drive columns, on their finite values (validate_drive, _validate_inputs): the
+    description's drive (the GRS905's: its engine; a fixed-ratio gearbox's: its input shaft)."""
+    drive = description_of(p).drive
+    vmax = drive.max_speed_rad_s / RAD_S_PER_RPM
+    lo, hi = drive.min_torque_nm, drive.max_torque_nm
+    who = "the engine's" if drive.kind == "vehicle" else "the input shaft's"
     rules = (
         (
             "engine_speed_rpm",
@@ -676,8 +713,8 @@ def _check_drive_ranges(cols: dict, p: Parameters) -> None:
         ),
         (
             "engine_torque_nm",
-            lambda v: (v > p["engine.max_torque"]) | (v < p["engine.min_torque"]),
-            f"Nm is outside the engine's range {p['engine.min_torque']:g}..{p['engine.max_torque']:g} Nm",
+            lambda v: (v > hi) | (v < lo),
+            f"Nm is outside {who} range {lo:g}..{hi:g} Nm",
         ),
         (
             "gear",
