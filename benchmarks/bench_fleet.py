@@ -25,9 +25,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 import can  # noqa: E402
 
 from can_dbc.columnar import decode_columns  # noqa: E402
-from firmware_model.components import PUBLISHED  # noqa: E402
 from firmware_model.service import build_service  # noqa: E402
 from firmware_model.service.columnar import frame_half  # noqa: E402
+from tools.published import ids  # noqa: E402
 from tools.replay.columns import read_columns  # noqa: E402
 from tools.replay.log import replay_log  # noqa: E402
 
@@ -59,7 +59,7 @@ def bench_log_path(path: Path) -> None:
         svc = build_service(None, record=True, emit_frames=False, log_findings=False)
         cols = read_columns(path).columns
         dec = decode_columns(cols, svc.decoder)
-        return frame_half(svc, cols, dec, tuple(f"meas_T_{c}_c" for c in PUBLISHED))
+        return frame_half(svc, cols, dec, tuple(f"meas_T_{c}_c" for c in ids(svc.sensor)))
 
     t_fast, half = best(inputs_only)
     print(

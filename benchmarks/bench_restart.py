@@ -107,14 +107,16 @@ def run_restart(
     first frame of the restart."""
     import logging
 
-    from firmware_model.components import PUBLISHED
     from firmware_model.parameters import load_parameters
     from firmware_model.service.persist import StateStore
     from tools.can.logsynth import synth_frames
     from tools.plant.reference import ReferencePlant
+    from tools.published import ids
 
     table, t_stop_s, t_resume_s = _drive_table(drive_s, off_s, resume_s=after_s + 30.0, true_tau_s=true_tau_s)
-    plant = ReferencePlant(load_parameters("GRS905")).run(table, out_dt_s=0.1, progress=False)
+    params = load_parameters("GRS905")
+    published = ids(params)
+    plant = ReferencePlant(params).run(table, out_dt_s=0.1, progress=False)
     frames = synth_frames(table, plant.table).frames
     ts = frames.timestamp_s
     before = [m for m, t in zip(frames.messages(), ts) if t <= t_stop_s]
@@ -140,7 +142,7 @@ def run_restart(
             svc.feed_all(after)
             svc.finish_pending()
             rec = svc.recorded()
-            T = np.stack([rec[f"T_{c}_c"] for c in PUBLISHED], axis=1)
+            T = np.stack([rec[f"T_{c}_c"] for c in published], axis=1)
             # the first step published with every temperature available, plus after_s
             i0 = int(np.argmax(np.isfinite(T).all(axis=1)))
             i = min(i0 + int(round(after_s / 0.1)), len(T) - 1)
@@ -149,9 +151,9 @@ def run_restart(
     plant_c = []
     for t in t_first_s:
         k = int(np.argmin(np.abs(t_plant_s - t)))
-        plant_c.append(np.array([float(plant.table[f"T_{c}_c"][k]) for c in PUBLISHED]))
+        plant_c.append(np.array([float(plant.table[f"T_{c}_c"][k]) for c in published]))
     return RestartResult(
-        tuple(PUBLISHED),
+        tuple(published),
         tuple(t - t_resume_s for t in t_first_s),
         tuple(plant_c),
         outs[0],
@@ -181,19 +183,21 @@ def run_crash(
     first published temperatures (+``after_s``) of the restarted service against the plant's."""
     import logging
 
-    from firmware_model.components import PUBLISHED
     from firmware_model.parameters import load_parameters
     from firmware_model.service.persist import StateStore
     from tools.can.logsynth import synth_frames
     from tools.cycles.named import get_cycle
     from tools.plant.reference import ReferencePlant
+    from tools.published import ids
     from tools.runtable import RunTable
 
     cyc = get_cycle("uphill")
     t_end_s = drive_s + down_s + after_s + 30.0
     keep = np.asarray(cyc["time_s"]) <= t_end_s
     table = RunTable({c: np.asarray(cyc[c])[keep] for c in cyc.columns if not c.startswith("bc_")}, meta=cyc.meta)
-    plant = ReferencePlant(load_parameters("GRS905")).run(table, out_dt_s=0.1, progress=False)
+    params = load_parameters("GRS905")
+    published = ids(params)
+    plant = ReferencePlant(params).run(table, out_dt_s=0.1, progress=False)
     frames = synth_frames(table, plant.table).frames
     msgs, ts = list(frames.messages()), np.asarray(frames.timestamp_s)
     t0_s = float(ts[0])
@@ -219,7 +223,7 @@ def run_crash(
             svc.finish_pending()
             svc.log.removeHandler(log)
             rec = svc.recorded()
-            T = np.stack([rec[f"T_{c}_c"] for c in PUBLISHED], axis=1)
+            T = np.stack([rec[f"T_{c}_c"] for c in published], axis=1)
             i0 = int(np.argmax(np.isfinite(T).all(axis=1)))
             i = min(i0 + int(round(after_s / 0.1)), len(T) - 1)
             outs.append((T[i], float(rec["can_time_s"][i])))
@@ -228,12 +232,12 @@ def run_crash(
     never.finish_pending()
     rec = never.recorded()
     j = int(np.argmin(np.abs(np.asarray(rec["can_time_s"]) - outs[0][1])))
-    T_never = np.array([float(rec[f"T_{c}_c"][j]) for c in PUBLISHED])
+    T_never = np.array([float(rec[f"T_{c}_c"][j]) for c in published])
     t_plant_s = np.asarray(plant.table["time_s"])
     k = int(np.argmin(np.abs(t_plant_s - (outs[0][1] - t0_s + float(t_plant_s[0])))))
-    plant_c = np.array([float(plant.table[f"T_{c}_c"][k]) for c in PUBLISHED])
+    plant_c = np.array([float(plant.table[f"T_{c}_c"][k]) for c in published])
     return CrashResult(
-        tuple(PUBLISHED), plant_c, outs[0][0] - plant_c, outs[1][0] - plant_c, T_never - plant_c, "\n".join(log.lines)
+        tuple(published), plant_c, outs[0][0] - plant_c, outs[1][0] - plant_c, T_never - plant_c, "\n".join(log.lines)
     )
 
 
@@ -282,7 +286,7 @@ def main(argv=None) -> int:
         "against the same state cooled as at an ignition off",
     )
     a = ap.parse_args(argv)
-    from firmware_model.components import describe
+    from tools.published import label_of
 
     if a.crash:
         return _print_crash(run_crash(a.drive, after_s=a.after), a.drive)
@@ -294,7 +298,7 @@ def main(argv=None) -> int:
     )
     print(f"{'component':40s} {'plant':>8s} {'restored':>9s} {'cold':>9s}   (errors in K)")
     for i, c in enumerate(r.components):
-        print(f"{describe(c)[:40]:40s} {r.plant_c[0][i]:8.2f} {r.restored_err_k[i]:+9.2f} {r.cold_err_k[i]:+9.2f}")
+        print(f"{label_of(c)[:40]:40s} {r.plant_c[0][i]:8.2f} {r.restored_err_k[i]:+9.2f} {r.cold_err_k[i]:+9.2f}")
     ir, ic = int(np.argmax(np.abs(r.restored_err_k))), int(np.argmax(np.abs(r.cold_err_k)))
     print(
         f"worst restored: {r.components[ir]} {r.restored_err_k[ir]:+.2f} K; worst cold start: "
@@ -305,7 +309,7 @@ def main(argv=None) -> int:
 
 
 def _print_crash(r: CrashResult, drive_s: float) -> int:
-    from firmware_model.components import describe
+    from tools.published import label_of
 
     print(
         f"crash restart: uphill, the gateway dies at {drive_s:.0f} s (last save 30 s before), back 5 s later, the "
@@ -314,7 +318,7 @@ def _print_crash(r: CrashResult, drive_s: float) -> int:
     print(f"{'component':40s} {'plant':>8s} {'held':>8s} {'cooled':>8s} {'never died':>11s}")
     for i, c in enumerate(r.components):
         print(
-            f"{describe(c)[:40]:40s} {r.plant_c[i]:8.2f} {r.held_err_k[i]:+8.2f} {r.cooled_err_k[i]:+8.2f} "
+            f"{label_of(c)[:40]:40s} {r.plant_c[i]:8.2f} {r.held_err_k[i]:+8.2f} {r.cooled_err_k[i]:+8.2f} "
             f"{r.uninterrupted_err_k[i]:+11.2f}"
         )
     for name, e in (

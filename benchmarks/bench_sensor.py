@@ -35,12 +35,12 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import numpy as np  # noqa: E402
 
-from firmware_model.components import PUBLISHED  # noqa: E402
 from firmware_model.onboard.sensor import SensorInputs, VirtualSensor  # noqa: E402
 from firmware_model.parameters import Parameters, load_parameters  # noqa: E402
 from firmware_model.physics.heat_lag import heat_lag_step  # noqa: E402
 from tools.cycles.named import get_cycle  # noqa: E402
 from tools.plant.reference import ReferencePlant  # noqa: E402
+from tools.published import ids  # noqa: E402
 from tools.replay.table import replay_table  # noqa: E402
 from tools.runtable import RunTable  # noqa: E402
 
@@ -90,11 +90,12 @@ def plant_and_sensor(params, name, keep_bc=False, partition="fine", cache={}):  
     return cache[key]
 
 
-def errors(ref, out):
+def errors(ref, out, params):
+    """Sensor minus plant, max and RMS, per published component of ``params``."""
     t = ref["time_s"]
     m = t >= out["time_s"][0]
     res = {}
-    for c in PUBLISHED:
+    for c in ids(params):
         d = np.interp(t[m], out["time_s"], out[f"T_{c}_c"]) - ref[f"T_{c}_c"][m]
         res[c] = (float(np.max(np.abs(d))), float(np.sqrt(np.mean(d * d))))
     return res
@@ -106,7 +107,7 @@ def section_accuracy(params, cycles, per_component):
     rows = []
     for name in cycles:
         tab, ref, out, tp, ts, _ = plant_and_sensor(params, name)
-        e = errors(ref, out)
+        e = errors(ref, out, params)
         rows.append((name, e))
         wm = max(e.items(), key=lambda kv: kv[1][0])
         wr = max(e.items(), key=lambda kv: kv[1][1])
@@ -124,7 +125,7 @@ def section_accuracy(params, cycles, per_component):
         if name not in cycles:
             continue
         tab, ref, out, *_ = plant_and_sensor(params, name, **kw)
-        e = errors(ref, out)
+        e = errors(ref, out, params)
         wm = max(e.items(), key=lambda kv: kv[1][0])
         wr = max(e.items(), key=lambda kv: kv[1][1])
         ok = all(v[0] <= MAX_TOL and v[1] <= RMS_TOL for v in e.values())
@@ -136,7 +137,7 @@ def section_accuracy(params, cycles, per_component):
     if per_component:
         print("\nper component, max / RMS |diff| [K]:")
         print(f"{'component':<10}" + "".join(f"{n:>16}" for n, _ in rows))
-        for c in PUBLISHED:
+        for c in ids(params):
             print(f"{c:<10}" + "".join(f"{e[c][0]:9.2f}/{e[c][1]:5.3f}" + " " for _, e in rows))
 
 
@@ -153,7 +154,7 @@ def section_cold_starts(params):
         ref = ReferencePlant(params).run(tab, initial_temp_c=T0).table
         fed = RunTable({c: tab[c] for c in tab.columns})
         fed["oil_temp_c"] = np.interp(tab["time_s"], ref["time_s"], ref["oil_temp_c"])
-        e = errors(ref, replay_table(fed, VirtualSensor(params)))
+        e = errors(ref, replay_table(fed, VirtualSensor(params)), params)
         wm = max(e.items(), key=lambda kv: kv[1][0])
         wr = max(e.items(), key=lambda kv: kv[1][1])
         ok = all(v[0] <= MAX_TOL and v[1] <= RMS_TOL for v in e.values())
@@ -191,7 +192,7 @@ def section_partitions(params, cycles):
         for name in names:
             tab, ref, out, _, _, sensor = plant_and_sensor(params, name, partition=pt if pt else "fine")
             nn = sensor.reduced.n
-            e = errors(ref, out)
+            e = errors(ref, out, params)
             worst = max(e.items(), key=lambda kv: max(kv[1][0] / MAX_TOL, kv[1][1] / RMS_TOL))
             score = max(worst[1][0] / MAX_TOL, worst[1][1] / RMS_TOL)
             cells.append(f"{score:5.2f} ({worst[0]} {worst[1][0]:.2f}/{worst[1][1]:.2f})")
@@ -422,10 +423,10 @@ def section_warnings(params, cycles):
         _ttl_report(tab, ref, out, sensor, "PS")
     if "long_haul" in cycles:
         tab, ref, out, *_ = plant_and_sensor(params, "long_haul")
-        n = sum(int(np.any(out[f"W_{c}"] >= 1)) for c in PUBLISHED)
+        n = sum(int(np.any(out[f"W_{c}"] >= 1)) for c in ids(params))
         print(
             f"long_haul: components that ever warned: {n} (plant hottest "
-            f"{max(float(ref[f'T_{c}_c'].max()) for c in PUBLISHED):.1f} degC)"
+            f"{max(float(ref[f'T_{c}_c'].max()) for c in ids(params)):.1f} degC)"
         )
 
 

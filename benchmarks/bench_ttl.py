@@ -41,13 +41,13 @@ sys.path.insert(0, str(REPO))
 
 import numpy as np  # noqa: E402
 
-from firmware_model.components import PUBLISHED  # noqa: E402
 from firmware_model.onboard.records import SensorInputs  # noqa: E402
 from firmware_model.onboard.sensor import VirtualSensor  # noqa: E402
 from firmware_model.parameters import load_parameters  # noqa: E402
 from firmware_model.service.records import INPUT_SIGNALS  # noqa: E402
 from tools.cycles.named import get_cycle  # noqa: E402
 from tools.plant.reference import ReferencePlant  # noqa: E402
+from tools.published import ids  # noqa: E402
 from tools.runtable import RunTable  # noqa: E402
 
 #: how long the plant runs on with the inputs held [s]; the horizon bins [s]
@@ -169,13 +169,13 @@ class Bench:
                     cols[c] = np.full(2, v)
             off = {nd: float(T0[j] - T0[i_oil]) for j, nd in enumerate(nodes) if nd != "oil"}
             res = self.plant.run(RunTable(cols), initial_temp_c=float(T0[i_oil]), initial_offsets_c=off).table
-            return {"time_s": res["time_s"], "T": np.stack([res[f"T_{c}_c"] for c in PUBLISHED], axis=1)}
+            return {"time_s": res["time_s"], "T": np.stack([res[f"T_{c}_c"] for c in ids(self.params)], axis=1)}
 
         run = self._cached(f"held:{HELD_S}:{json.dumps(p, sort_keys=True)}", make)
         lim = np.asarray(self.c_sensor.limits.warning_c)
-        out = np.full(len(PUBLISHED), np.inf)
+        out = np.full(len(ids(self.params)), np.inf)
         t, T = run["time_s"], run["T"]
-        for j in range(len(PUBLISHED)):
+        for j in range(len(ids(self.params))):
             hit = np.flatnonzero(T[:, j] >= lim[j])
             if hit.size:
                 k = hit[0]

@@ -17,13 +17,13 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from firmware_model.components import PUBLISHED  # noqa: E402
 from firmware_model.parameters import load_parameters  # noqa: E402
 from firmware_model.physics.gearbox_losses import GearboxLosses  # noqa: E402
 from firmware_model.units import RAD_S_PER_RPM as RPM  # noqa: E402
 from tools.cycles.named import CYCLE_NAMES, get_cycle  # noqa: E402
 from tools.plant.reference import ReferencePlant  # noqa: E402
 from tools.plots import plot_heat_budget, plot_temperatures  # noqa: E402
+from tools.published import ids  # noqa: E402
 from tools.runtable import RunTable  # noqa: E402
 
 IMG = ROOT / "docs" / "img"
@@ -276,16 +276,16 @@ def main(argv=None):
         r = ReferencePlant(p).run(tab)
         runs[c] = r
         eb = r.energy_balance()
-        hot = max((float(r.table[f"T_{x}_c"].max()), x) for x in PUBLISHED)
+        hot = max((float(r.table[f"T_{x}_c"].max()), x) for x in ids(p))
         md.append(
             f"| {c} | {tab['time_s'][-1] / 3600:.2f} h | {r.wall_s:.1f} s | {eb['generated_j'] / 1e6:.2f} MJ | "
             f"{eb['stored_j'] / 1e6:.2f} MJ | {eb['rejected_j'] / 1e6:.2f} MJ | {eb['closure_rel']:.1e} | "
             f"{hot[1]} {hot[0]:.1f} °C |"
         )
-        plot_temperatures(r.table, IMG / f"val_cycle_{c}.png", f"reference plant, synthetic cycle {c}")
+        plot_temperatures(r.table, IMG / f"val_cycle_{c}.png", f"reference plant, synthetic cycle {c}", gearbox=p)
         plot_heat_budget(r.table, IMG / f"val_cycle_{c}_heat.png", f"heat budget, synthetic cycle {c}")
     lh = runs["long_haul"].table
-    lh_dev = {x: float(np.max(np.abs(lh[f"T_{x}_c"] - lh["T_oil_c"])[lh["time_s"] > 1800])) for x in PUBLISHED}
+    lh_dev = {x: float(np.max(np.abs(lh[f"T_{x}_c"] - lh["T_oil_c"])[lh["time_s"] > 1800])) for x in ids(p)}
     worst = sorted(lh_dev.items(), key=lambda kv: -kv[1])[:4]
     within3 = sum(v <= 3.0 for v in lh_dev.values())
     up = runs["uphill"].table
@@ -294,7 +294,7 @@ def main(argv=None):
         k: float(np.mean(up[f"Q_out_{k}_w"][first]))
         for k in ("cooler", "housing_convection", "housing_radiation", "supports_conduction", "shafts_conduction")
     }
-    hot_up = sorted(((float(up[f"T_{x}_c"].max()), x) for x in PUBLISHED), reverse=True)[:5]
+    hot_up = sorted(((float(up[f"T_{x}_c"].max()), x) for x in ids(p)), reverse=True)[:5]
     md += [
         "",
         "Energy closes to round-off on every cycle (criterion: 0.1 %).",
@@ -303,7 +303,7 @@ def main(argv=None):
         "",
         "![lh](img/val_cycle_long_haul.png)",
         "",
-        f"After the 30 min warm-up, {within3} of the {len(PUBLISHED)} published components stay within 3 K of "
+        f"After the 30 min warm-up, {within3} of the {len(ids(p))} published components stay within 3 K of "
         "the sump (thesis: components within about 3 °C of the sump). Largest deviations: "
         + ", ".join(f"{x} {v:.1f} K" for x, v in worst)
         + ". At 6H no pair carries torque; the larger "
@@ -392,7 +392,7 @@ def _cold_start_section(p) -> list:
     plant = ReferencePlant(p)
     a = plant.run(tab, initial_temp_c=-30.0).table
     b = plant.run(tab, initial_temp_c=-30.0, chunk_s=plant.dt).table
-    worst = max((float(np.max(np.abs(a[f"T_{c}_c"] - b[f"T_{c}_c"]))), c) for c in PUBLISHED)
+    worst = max((float(np.max(np.abs(a[f"T_{c}_c"] - b[f"T_{c}_c"]))), c) for c in ids(p))
     gl = GearboxLosses(p, plant.net.geometry)
     drag = {
         T: sum(float(np.atleast_1d(v)[0]) for v in gl.heat(gl.evaluate(600 * RPM, 100.0, 0, T)).values())
@@ -489,7 +489,7 @@ def _cooler_fix_rows(p, fixes: dict) -> list:
                     float(np.max(base[f"T_{c}_c"])),
                     float(np.max(t[f"T_{c}_c"])),
                 )
-                for c in PUBLISHED
+                for c in ids(p)
             ]
             _, comp, b_pk, t_pk = max(peaks)
             rows.append(f"| {name} | {label} | {d_oil:.1f} K | {comp}: {b_pk:.1f} -> {t_pk:.1f} °C |")

@@ -58,6 +58,8 @@ DRIVES = ("vehicle", "fixed_ratio")
 HELD = ("sun", "ring", "carrier", "locked")
 #: a coupling member that is no part: the gearbox casing (a brake holding a ring gear)
 CASING = "housing"
+#: the node of the pumped oil on its way to the jets (after the pump, filter and cooler) of a forced oil system
+OIL_INLET = "oil.inlet"
 #: where a thermostatic bypass may plausibly open: the oil's working range [degC]
 THERMOSTAT_RANGE_C = (40.0, 150.0)
 
@@ -86,6 +88,7 @@ SPECS = {
         "overhang_rear": _n("m", False, "0+"),
         "segments": _L,
         "x": ("table", True, "m", "any"),
+        "wetted_length": _n("m", False),
     },
     "wheel": {
         "name": _t,
@@ -116,6 +119,11 @@ SPECS = {
         "helix": _n("rad", sign="0+"),
         "width": _n("m"),
         "x": _n("m", sign="any"),
+        "mass_sun": _n("kg", False),
+        "mass_planets": _n("kg", False),
+        "mass_ring": _n("kg", False),
+        "carrier_mass": _n("kg", False),
+        "ring_area": _n("m2", False),
     },
     "mesh": {"wheels": _L, "centre_distance": _n("m", False)},
     "coupling": {"kind": _T, "joins": _L},
@@ -132,6 +140,9 @@ SPECS = {
         "width": _n("m"),
         "roller": _n("m", False),
         "x": _n("m", False, "any"),
+        "rollers": _i(False),
+        "mass": _n("kg", False),
+        "immersion": _n("1", False),
     },
     "housing": {
         "name": _t,
@@ -143,6 +154,7 @@ SPECS = {
         "x": _n("m", False, "any"),
         "joined_to": _t,
         "joint_area": _n("m2", False),
+        "share": ("table", False, "1", "0+"),
     },
     "gear": {"number": _i(sign="any"), "path": _L, "ratio": _n("1", False, "any")},
     "boundary": {"temperature": _n("degC", sign="any"), "touches": _L, "conductance": _n("W/K", False)},
@@ -162,6 +174,8 @@ SINGLE_SPECS = {
         "thermostat_open": _n("degC", False, "any"),
         "thermostat_full": _n("degC", False, "any"),
         "heater": _n("W", False, "0+"),
+        "inside_area": _n("m2", False),
+        "flow_share": ("table", False, "1", "0+"),
     },
     "check": {"ratio_rel_tol": _n("1", False), "profile_shift_max": _n("1", False)},
     "drive": {
@@ -197,6 +211,7 @@ class Shaft:
     segments: tuple
     front_m: float  # the shaft's front end [m]
     rear_m: float  # its rear end [m]
+    wetted_length_m: float | None = None  # the length of its splashed segments the thrown oil wets (Eq 62)
 
 
 @dataclass(frozen=True)
@@ -233,6 +248,11 @@ class PlanetarySet:
     helix_rad: float
     width_m: float
     x_m: float
+    mass_sun_kg: float | None = None
+    mass_planets_kg: float | None = None  # all planets with their bearings
+    mass_ring_kg: float | None = None
+    carrier_mass_kg: float | None = None  # the carrier segment's mass (left out: the segment's own)
+    ring_area_m2: float | None = None  # the ring gear's outer area the oil reaches
 
     def teeth(self, member: str) -> int:
         return {self.sun: self.z_sun, self.planet: self.z_planet, self.ring: self.z_ring}[member]
@@ -269,6 +289,9 @@ class Bearing:
     roller_m: float | None
     x_m: float | None
     name: str | None = None  # what it is, in a few words
+    rollers: int | None = None  # the number of rolling elements
+    mass_kg: float | None = None
+    immersion: float | None = None  # the immersed share of its height, dipping into the sump (Eq 53)
 
 
 @dataclass(frozen=True)
@@ -283,6 +306,7 @@ class Housing:
     x_m: float | None = None  # position of its node (for the conduction across a joint)
     joined_to: str | None = None  # the housing it is bolted to
     joint_area_m2: float | None = None  # the flange's cross-section
+    shares: dict = field(default_factory=dict)  # boundary -> share of its outside facing it (faces by convection)
 
 
 @dataclass(frozen=True)
@@ -299,6 +323,8 @@ class OilSystem:
     heater_w: float
     dipping: tuple = ()  # the parts that dip into the sump
     splashed: tuple = ()  # the parts the thrown oil splashes
+    inside_area_m2: float | None = None  # the housings' inside area, shared by their internal_split
+    flow_share: dict = field(default_factory=dict)  # shaft (its bore), bearing or planetary set -> share of the flow
 
 
 @dataclass(frozen=True)
@@ -358,6 +384,8 @@ class Description:
     boundaries: tuple
     published: tuple
     provenance: dict = field(default_factory=dict)  # dotted key -> seed | derived | assumed | fitted
+    #: the parameters its { from } entries take (a copy of a parameter set overriding none describes the same gearbox)
+    taken: frozenset = frozenset()
 
     def _one(self, items, key: str):
         return next((x for x in items if getattr(x, "id", getattr(x, "name", None)) == key), None)
@@ -383,17 +411,22 @@ class Description:
         out.update({b.id: b.name for b in self.bearings if b.name})
         out.update({h.id: h.name for h in self.housings})
         out["oil"] = "oil sump"
+        if self.oil is not None and self.oil.lubrication == "forced":
+            out[OIL_INLET] = "oil inlet (to the jets)"
         return out
 
     @property
     def nodes(self) -> tuple:
         """The thermal nodes the description implies, in the network's order: shaft segments, idle wheels (teeth
-        and bulk), the other wheels, planetary members, bearings, housings, the sump."""
+        and bulk), the other wheels, planetary members, bearings, housings, the sump and, for forced lubrication,
+        the oil inlet (the pumped oil after the pump, filter and cooler, before the jets)."""
         out = [s.id for sh in self.shafts for s in sh.segments]
         out += [f"{w.id}.{part}" for w in self.wheels if w.mount == "idle" for part in ("teeth", "bulk")]
         out += [w.id for w in self.wheels if w.mount != "idle"]
         out += [m for ps in self.planetary for m in (ps.sun, ps.planet, ps.ring)]
         out += [b.id for b in self.bearings] + [h.id for h in self.housings] + ["oil"]
+        if self.oil is not None and self.oil.lubrication == "forced":
+            out.append(OIL_INLET)
         return tuple(out)
 
 
@@ -407,6 +440,7 @@ class _Reader:
     def __init__(self, path: Path, entries: dict, params: Parameters | None = None):
         self.path, self.entries, self.params = path, entries, params
         self.provenance: dict = {}
+        self.taken: set = set()
 
     def fail(self, key: str, why: str):
         raise ParameterError(f"{self.path.name}: {key} {why}")
@@ -418,6 +452,7 @@ class _Reader:
             if not isinstance(src_key, str) or is_topology(src_key) or src_key not in self.entries:
                 self.fail(key, f"takes its value from {src_key!r}, which is no parameter of this file")
             raw = self._parameter(src_key, self.entries[src_key])
+            self.taken.add(src_key)
         if not isinstance(raw, dict) or "v" not in raw:
             self.fail(key, 'must be a table { v = ..., u = ..., src = ... } or { from = "parameter" }')
         if raw.get("src") not in PROVENANCES:
@@ -549,7 +584,7 @@ def _shafts(r: _Reader, topo: dict) -> tuple:
             r.fail(f"{key}.d_bore", f"= {f['d_bore']:g} m must be smaller than d_out = {f['d_out']:g} m")
         ends = _shaft_ends(r, key, f, pos)
         segments = tuple(Segment(s, x) for s, x in zip(segs, pos))
-        out.append(Shaft(sid, f["name"] or sid, f["d_out"], f["d_bore"], segments, *ends))
+        out.append(Shaft(sid, f["name"] or sid, f["d_out"], f["d_bore"], segments, *ends, f["wetted_length"]))
     return tuple(out)
 
 
@@ -627,6 +662,11 @@ def _planetary(r: _Reader, topo: dict, shafts: dict) -> tuple:
                 f["helix"],
                 f["width"],
                 f["x"],
+                f["mass_sun"],
+                f["mass_planets"],
+                f["mass_ring"],
+                f["carrier_mass"],
+                f["ring_area"],
             )
         )
     return tuple(out)
@@ -741,6 +781,9 @@ def _bearings(r: _Reader, topo: dict, shafts: dict, wheels: dict, housings: set)
                 f["roller"],
                 f["x"],
                 f["name"],
+                f["rollers"],
+                f["mass"],
+                f["immersion"],
             )
         )
     return tuple(out)
@@ -760,6 +803,18 @@ def _check_joint(r: _Reader, key: str, f: dict, topo: dict) -> None:
         r.fail(key, f"is joined to {j} but lacks joint_area, or x (here or in {j}): the joint's conduction needs both")
 
 
+def _check_shares(r: _Reader, key: str, shares: dict, faces: tuple) -> None:
+    """Each share of a housing's outside names a boundary it faces; together they are at most all of it."""
+    for b, x in shares.items():
+        if b not in faces:
+            r.fail(f"{key}.share.{b}", f"names no boundary the housing faces; faces: {', '.join(faces)}")
+        if x > 1:
+            r.fail(f"{key}.share.{b}", f"= {x:g} is more than the whole outside (1)")
+    total = sum(shares.values())
+    if total > 1 + 1e-9:
+        r.fail(f"{key}.share", f"adds up to {total:g}; the shares of the outside add up to 1 at most")
+
+
 def _housings(r: _Reader, topo: dict, boundaries: set) -> tuple:
     out = []
     materials = sorted({k.split(".")[1] for k in r.entries if k.startswith("material.")})
@@ -773,8 +828,10 @@ def _housings(r: _Reader, topo: dict, boundaries: set) -> tuple:
             if b not in boundaries:
                 r.fail(f"{key}.faces", f"names {b}, which is no boundary; boundaries: {', '.join(boundaries)}")
         _check_joint(r, key, f, topo)
+        shares = f["share"] or {}
+        _check_shares(r, key, shares, f["faces"])
         h = Housing(hid, f["name"] or hid, f["material"], f["mass"], f["area"], f["internal_split"], f["faces"])
-        out.append(replace(h, x_m=f["x"], joined_to=f["joined_to"], joint_area_m2=f["joint_area"]))
+        out.append(replace(h, x_m=f["x"], joined_to=f["joined_to"], joint_area_m2=f["joint_area"], shares=shares))
     split = sum(h.internal_split for h in out)
     if out and abs(split - 1.0) > 1e-6:
         r.fail(f"{TOPOLOGY}.housing.*.internal_split", f"add up to {split:g}; the housings share the inside: 1")
@@ -830,6 +887,8 @@ def _oil(r: _Reader, topo: dict, shafts: dict, nodes: set) -> OilSystem:
         f["heater"] or 0.0,
         f["dipping"] or (),
         f["splashed"] or (),
+        f["inside_area"],
+        f["flow_share"] or {},
     )
 
 
@@ -1040,7 +1099,7 @@ def _published(r: _Reader, topo: dict, nodes: set) -> tuple:
 
 def _unique_ids(r: _Reader, named: list) -> None:
     """No id names two parts: (kind, id) of every shaft, segment, wheel, planetary member, bearing, housing."""
-    seen: dict = {"oil": "the sump"}
+    seen: dict = {"oil": "the sump", OIL_INLET: "the oil inlet"}
     for kind, i in named:
         if i in seen:
             r.fail(f"{TOPOLOGY}.{kind}.{i}", f"reuses the id {i} of {seen[i]}: every part needs its own id")
@@ -1163,7 +1222,7 @@ def _describe(path: Path, entries: dict, params: Parameters | None = None) -> De
     nodes = set(desc.nodes)
     _check_touches(r, boundaries, nodes)
     oil = _oil(r, topo, by_shaft, nodes)
-    published = _published(r, topo, nodes)
+    published = _published(r, topo, set(replace(desc, oil=oil).nodes))  # with the oil inlet of a forced system
     return Description(
         desc.name,
         desc.origin,
@@ -1180,4 +1239,5 @@ def _describe(path: Path, entries: dict, params: Parameters | None = None) -> De
         boundaries,
         published,
         r.provenance,
+        frozenset(r.taken),
     )

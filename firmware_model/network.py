@@ -26,10 +26,10 @@ from firmware_model.parameters import Parameters
 from firmware_model.physics import heat_transfer as ht
 from firmware_model.physics import oil as oilprops
 from firmware_model.physics.geometry import Geometry, build_geometry
-from firmware_model.physics.kinematics import MESHES, SPEED_NAMES
 from firmware_model.physics.losses import ADDENDUM_COEF, DEDENDUM_COEF, PLANETARY_HEAT_SPLIT
 
-#: boundary temperatures (seed section 3, boundary conditions)
+#: the GRS905's boundary temperatures in its description's order (seed section 3, boundary conditions); a network
+#: takes its own from its description (`Network.boundaries`); the onboard step and the C kernel index these
 BOUNDARIES = (
     "engine_shaft",
     "flywheel_cover",
@@ -103,6 +103,10 @@ class Network(NamedNodes):
     geometry: Geometry | None = None
     #: shaft segment -> its length [m]
     segment_length_m: dict = field(default_factory=dict)
+    #: the boundary temperatures a link's b indexes past the nodes, in the description's order
+    boundaries: tuple = BOUNDARIES
+    #: the speeds a link's ``speed`` parameter indexes (`speed_names`)
+    speed_names: tuple = ()
 
     def links_of_kind(self, kind: int) -> np.ndarray:
         return np.flatnonzero(self.link_kind == kind)
@@ -112,12 +116,32 @@ class Network(NamedNodes):
 # building
 
 
+def speed_names(d: Description) -> tuple:
+    """The speeds the network's rotating parts turn at, in the order of the kinematics' speed table: the shafts,
+    the wheels that turn on their own (idle wheels, idlers on a pin), each planetary set's sun, planets relative to
+    the carrier (``<planet>_rel``) and ring (for the GRS905, kinematics.SPEED_NAMES)."""
+    out = [s.id for s in d.shafts] + [w.id for w in d.wheels if w.mount in ("idle", "pin")]
+    for ps in d.planetary:
+        out += [ps.sun, f"{ps.planet}_rel", ps.ring]
+    return tuple(out)
+
+
+def _needed(d: Description, value, key: str, why: str):
+    """A description value the network needs: missing, one sentence naming the file and the key."""
+    if value is None:
+        raise ParameterError(f"{d.origin}: topology.{key} is missing: the network needs it ({why})")
+    return value
+
+
 class _Builder:
     """Collects nodes, then links (with their per-kind parameters)."""
 
     def __init__(self, p: Parameters, geo: Geometry):
         self.p, self.geo, self.W = p, geo, geo.wheels
         self.desc = geo.description
+        self.boundaries = tuple(bd.id for bd in self.desc.boundaries)
+        self.speeds = speed_names(self.desc)
+        self.mesh_ix = {m.id: i for i, m in enumerate(self.desc.meshes)}
         self.bearing = {brg.id: brg for brg in self.desc.bearings}
         self.housing = {h.id: h for h in self.desc.housings}
         #: idle wheels (teeth and bulk nodes), the other wheels (one node each), shaft bearings, (wheel, its bearing)
@@ -142,7 +166,7 @@ class _Builder:
 
     def link(self, a: str, b: str, kind: int, G0: float, name: str, **params) -> None:
         self.la.append(self.ix[a])
-        self.lb.append(self.ix[b] if b in self.ix else len(self.nodes) + BOUNDARIES.index(b))
+        self.lb.append(self.ix[b] if b in self.ix else len(self.nodes) + self.boundaries.index(b))
         self.lk.append(kind)
         self.lg.append(float(G0))
         self.lname.append(name)
@@ -169,7 +193,12 @@ class _Builder:
             sources,
             self.geo,
             self.seg_len,
+            self.boundaries,
+            self.speeds,
         )
+
+    def spd(self, name: str) -> int:
+        return self.speeds.index(name)
 
 
 def _segment_lengths(xs: list, x_front: float, x_rear: float) -> list:
@@ -187,17 +216,14 @@ def _segment_positions(d: Description) -> tuple[dict, dict]:
 
 
 def _shaft_nodes(b: _Builder, pos: dict, ends: dict) -> None:
-    """Shaft segments (seed 3.1): a hollow cylinder each; the output shaft's carrier has its own mass."""
-    p = b.p
-    carriers = {ps.carrier_segment for ps in b.desc.planetary}
+    """Shaft segments (seed 3.1): a hollow cylinder each; a planet carrier's segment has its own mass."""
+    carriers = {ps.carrier_segment: ps.carrier_mass_kg for ps in b.desc.planetary if ps.carrier_mass_kg is not None}
     for sh in b.desc.shafts:
         s, names = sh.id, [g.id for g in sh.segments]
         ro, ri = sh.d_out_m / 2, sh.d_bore_m / 2
         for nm, L in zip(names, _segment_lengths(pos[s], *ends[s])):
             b.seg_len[nm] = L
-            m = b.st_rho * math.pi * (ro**2 - ri**2) * L
-            if nm in carriers:
-                m = p[f"shaft.{s}.carrier_mass"]
+            m = carriers.get(nm, b.st_rho * math.pi * (ro**2 - ri**2) * L)
             b.add(nm, m * b.st_cp)
 
 
@@ -223,21 +249,23 @@ def _wheel_nodes(b: _Builder) -> None:
 
 
 def _other_nodes(b: _Builder) -> None:
-    """Planetary, bearings, housings and the sump."""
-    p, cp = b.p, b.st_cp
-    b.add("PS", p["planetary.mass_sun"] * cp)
-    b.add("PP", p["planetary.mass_planets"] * cp)
-    b.add("PR", p["planetary.mass_ring"] * cp)
-    for brg in b.shaft_brgs:
-        b.add(brg, p[f"bearing.{brg}.mass"] * cp)
-    for _, brg in b.wheel_brgs:
-        b.add(brg, (p["wheel_bearing.mass_3B"] if brg == "3B" else p["wheel_bearing.mass_needle"]) * cp)
+    """Planetary members, bearings, housings and the sump, with the masses the description gives."""
+    p, cp, d = b.p, b.st_cp, b.desc
+    for ps in d.planetary:
+        for member, m, k in (
+            (ps.sun, ps.mass_sun_kg, "mass_sun"),
+            (ps.planet, ps.mass_planets_kg, "mass_planets"),
+            (ps.ring, ps.mass_ring_kg, "mass_ring"),
+        ):
+            b.add(member, _needed(d, m, f"planetary.{ps.id}.{k}", f"the heat capacity of {member}") * cp)
+    for brg in b.shaft_brgs + tuple(x for _, x in b.wheel_brgs):
+        b.add(brg, _needed(d, b.bearing[brg].mass_kg, f"bearing.{brg}.mass", "its heat capacity") * cp)
     for h in b.housing:
         b.add(h, b.housing[h].mass_kg * p[f"material.{b.housing[h].material}.cp"])
     T_cap = p["oil.capacity_temp"]
     rho_oil = float(oilprops.density_kg_m3(T_cap))
     cp_oil = float(oilprops.specific_heat_j_per_kgk(T_cap))
-    b.add("oil", p["oil.volume"] * rho_oil * cp_oil)
+    b.add("oil", d.oil.volume_m3 * rho_oil * cp_oil)
 
 
 def _conduction_links(b: _Builder, pos: dict) -> None:
@@ -269,13 +297,13 @@ def _wheel_radial_links(b: _Builder) -> None:
     p, W, k = b.p, b.W, b.st_k
     sf_tb, sf_lw = p["heat.sf_teeth_bulk"], p["heat.sf_layshaft_wheel"]
     f_in = p["heat.shaft_inner_diameter_frac"]
-    d_roll = p["wheel_bearing.d_roller"]
     for w, wb in b.wheel_brgs:
-        g = W[w]
+        g, brg = W[w], b.bearing[wb]
+        d_roll = _needed(b.desc, brg.roller_m, f"bearing.{wb}.roller", "the conduction through the bearing")
         D_teeth = g.R_a + g.R_f  # mean of tip and root diameters
         D_bulk = g.R_b + g.R_in  # mean of base and inner diameters
         b.link(f"{w}.teeth", f"{w}.bulk", K_CONST, b.radial(k, g.width, D_teeth, D_bulk, sf_tb), f"rad:{w}.teeth-bulk")
-        sf_b = p["wheel_bearing.sf_radial_tapered"] if wb == "3B" else p["wheel_bearing.sf_radial_needle"]
+        sf_b = p[f"wheel_bearing.sf_radial_{brg.kind}"]
         D_shaft = 2 * b.geo.R_shaft_m[b.desc.wheel(w).shaft]
         Dm = D_shaft + d_roll
         # bulk -> bearing: solid from the bulk's representative diameter to the bore, then the bearing's outer half
@@ -297,10 +325,10 @@ def _bearing_radial_links(b: _Builder) -> None:
     p, k = b.p, b.st_k
     f_in, f_seat = p["heat.shaft_inner_diameter_frac"], p["heat.seat_outer_diameter_factor"]
     for brg in b.shaft_brgs:
-        sf = p[f"bearing.sf_radial_{'ball' if brg == 'BO' else 'tapered'}"]
-        d_in, d_out, wdt = p[f"bearing.{brg}.d_bore"], p[f"bearing.{brg}.d_out"], p[f"bearing.{brg}.width"]
-        Dm = 0.5 * (d_in + d_out)
         seat = b.bearing[brg]
+        sf = p[f"bearing.sf_radial_{seat.kind}"]
+        d_in, d_out, wdt = seat.bore_m, seat.outer_m, seat.width_m
+        Dm = 0.5 * (d_in + d_out)
         seg = seat.segment
         b.link(brg, seg, K_CONST, b.radial(k, wdt, Dm, f_in * d_in, sf), f"rad:{brg}-{seg}")
         if seat.inside is not None:
@@ -310,23 +338,15 @@ def _bearing_radial_links(b: _Builder) -> None:
             h = seat.housing
             k_h = p[f"material.{b.housing[h].material}.k"]
             b.link(brg, h, K_CONST, b.radial(min(k_h, k), wdt, f_seat * d_out, Dm, sf), f"rad:{brg}-{h}")
-    gp, gs = b.W["PP"], b.W["PS"]
-    n_pl = int(p["planetary.n_planets"])
-    b.link(
-        "PP",
-        "OS@carrier",
-        K_CONST,
-        n_pl * b.radial(k, gp.width, gp.R_b + gp.R_f, 2 * gp.R_in, p["planetary.sf_planet_carrier"]),
-        "rad:PP-OS@carrier",
-    )
-    b.link(
-        "PS",
-        "MS@PS",
-        K_CONST,
-        b.radial(k, gs.width, gs.R_b + gs.R_in, f_in * 2 * gs.R_in, p["planetary.sf_sun_spline"]),
-        "rad:PS-MS@PS",
-    )
-    # ring gear held by the range synchronizer to the housing: no conduction path modelled (seed lists none)
+    for ps in b.desc.planetary:
+        gp, gs = b.W[ps.planet], b.W[ps.sun]
+        carrier = _needed(b.desc, ps.carrier_segment, f"planetary.{ps.id}.carrier_segment", "the planets' node")
+        sun_seg = _needed(b.desc, ps.sun_segment, f"planetary.{ps.id}.sun_segment", "the sun's seat")
+        G_pc = ps.n_planets * b.radial(k, gp.width, gp.R_b + gp.R_f, 2 * gp.R_in, p["planetary.sf_planet_carrier"])
+        b.link(ps.planet, carrier, K_CONST, G_pc, f"rad:{ps.planet}-{carrier}")
+        G_ss = b.radial(k, gs.width, gs.R_b + gs.R_in, f_in * 2 * gs.R_in, p["planetary.sf_sun_spline"])
+        b.link(ps.sun, sun_seg, K_CONST, G_ss, f"rad:{ps.sun}-{sun_seg}")
+    # a ring gear held by a coupling to the housing: no conduction path modelled (seed lists none)
 
 
 def _contact_links(b: _Builder) -> None:
@@ -341,20 +361,22 @@ def _contact_links(b: _Builder) -> None:
         if w1 in n_planets:
             G = n_planets[w1] * G
         a, c = (f"{w}.teeth" if w in b.idle else w for w in m.wheels)
-        b.link(a, c, K_CONTACT, G, f"contact:{w1}-{w2}", mesh=MESHES.index(m.id))
+        b.link(a, c, K_CONTACT, G, f"contact:{w1}-{w2}", mesh=b.mesh_ix[m.id])
 
 
-def _bearing_dims(p: Parameters, brg: str):
-    """(bore, outer diameter, width, roller diameter, mean diameter) of a shaft bearing [m]."""
-    d_in, d_out = p[f"bearing.{brg}.d_bore"], p[f"bearing.{brg}.d_out"]
-    return d_in, d_out, p[f"bearing.{brg}.width"], p[f"bearing.{brg}.d_roller"], 0.5 * (d_in + d_out)
+def _bearing_dims(b: _Builder, brg: str, why: str):
+    """(width, roller diameter, mean diameter [m], number of rollers) of a shaft bearing the oil reaches."""
+    x = b.bearing[brg]
+    dr = _needed(b.desc, x.roller_m, f"bearing.{brg}.roller", why)
+    n_r = _needed(b.desc, x.rollers, f"bearing.{brg}.rollers", why)
+    return x.width_m, dr, 0.5 * (x.bore_m + x.outer_m), n_r
 
 
 def _immersed_links(b: _Builder) -> None:
     """Dipping layshaft wheels and reverse idler: rotating cylinder (Eq 46-53) + fling-off (Eq 54-58); the layshaft
     bearings partly immersed (Eq 52-53)."""
     p, W = b.p, b.W
-    spd = SPEED_NAMES.index
+    spd = b.spd
     dipping = b.desc.oil.dipping
     for w in (x for x in dipping if x in W):
         g = W[w]
@@ -362,7 +384,7 @@ def _immersed_links(b: _Builder) -> None:
         if w not in b.geo.immersion_m:
             raise ParameterError(
                 f"{b.desc.origin}: topology.oil.dipping names {w}, whose immersion the plant cannot compute yet "
-                f"(it knows that of {', '.join(b.geo.immersion_m)})"
+                f"(it knows only the GRS905's layshaft wheels and reverse idler); lubricate it by jets instead"
             )
         h_i = b.geo.immersion_m[w]
         if h_i <= 0:
@@ -384,22 +406,19 @@ def _immersed_links(b: _Builder) -> None:
             h_i=h_i_p,
         )
     for brg in (x for x in dipping if x in b.bearing and b.bearing[x].wheel is None):
-        _, _, wdt, dr, Dm = _bearing_dims(p, brg)
-        A = float(
-            ht.immersed_bearing_area_m2(
-                Dm - dr, Dm + dr, p[f"bearing.{brg}.n_rollers"], dr, wdt, p[f"bearing.{brg}.immersion"]
-            )
-        )
+        wdt, dr, Dm, n_r = _bearing_dims(b, brg, "it dips into the sump")
+        h_f = _needed(b.desc, b.bearing[brg].immersion, f"bearing.{brg}.immersion", "it dips into the sump")
+        A = float(ht.immersed_bearing_area_m2(Dm - dr, Dm + dr, n_r, dr, wdt, h_f))
         b.link(brg, "oil", K_IMM_BRG, A, f"imm:{brg}", speed=spd(b.bearing[brg].shaft), Dm=Dm)
 
 
 def _splash_links(b: _Builder) -> None:
     """Splashed parts (Eq 59-64): idle-wheel teeth, the output shaft, the ring gear, the shaft bearings (Harris),
     and the housings' inside (200 W/(m2 K) on 90 % of 1.9 m2, split 50/35/15)."""
-    p, W = b.p, b.W
-    spd = SPEED_NAMES.index
-    covered = bool(p["wheel.covered_sides"])
-    splashed = b.desc.oil.splashed
+    p, W, d = b.p, b.W, b.desc
+    spd = b.spd
+    covered = bool(p.get("wheel.covered_sides", 1))
+    splashed = d.oil.splashed
     for w in (x.id for x in b.desc.wheels if f"{x.id}.teeth" in splashed):
         g = W[w]
         if b.desc.wheel(w).sides == "free" or not covered:
@@ -407,15 +426,23 @@ def _splash_links(b: _Builder) -> None:
         else:
             A = float(ht.wheel_area_covered_sides_m2(g.R_p, g.width, g.z, g.h_t, g.beta))  # Eq 60
         b.link(f"{w}.teeth", "oil", K_SPLASH, A, f"splash:{w}.teeth", speed=spd(w), group=0)
-    A_os = float(ht.cylinder_area_m2(p["shaft.OS.d_out"], p["shaft.OS.oil_wetted_length"]))  # Eq 62
-    b.link("OS@bulk", "oil", K_SPLASH, A_os, "splash:OS", speed=spd("OS"), group=1)
-    # ring gear: splash at high range, 200 W/(m2 K) like the housing at low range (seed 3.3)
-    b.link("PR", "oil", K_RING, p["planetary.ring_outer_area"], "ring:PR", speed=spd("PR"))
+    for sh in d.shafts:  # splashed shaft segments: the wetted length of the shaft's outside (Eq 62)
+        for seg in (g.id for g in sh.segments if g.id in splashed):
+            L = sh.wetted_length_m if sh.wetted_length_m is not None else b.seg_len[seg]
+            A = float(ht.cylinder_area_m2(sh.d_out_m, L))
+            b.link(seg, "oil", K_SPLASH, A, f"splash:{sh.id}", speed=spd(sh.id), group=1)
+    # a ring gear: splash when it turns (high range), 200 W/(m2 K) like the housing when held (seed 3.3)
+    for ps in (x for x in d.planetary if x.ring in splashed):
+        A = _needed(d, ps.ring_area_m2, f"planetary.{ps.id}.ring_area", "the ring gear is splashed")
+        b.link(ps.ring, "oil", K_RING, A, f"ring:{ps.ring}", speed=spd(ps.ring))
     for brg in (x for x in splashed if x in b.bearing and b.bearing[x].wheel is None):
-        _, _, wdt, dr, Dm = _bearing_dims(p, brg)
-        A = float(ht.bearing_internal_area_m2(Dm - dr, Dm + dr, p[f"bearing.{brg}.n_rollers"], dr, wdt))  # Eq 64
+        wdt, dr, Dm, n_r = _bearing_dims(b, brg, "it is splashed")
+        A = float(ht.bearing_internal_area_m2(Dm - dr, Dm + dr, n_r, dr, wdt))  # Eq 64
         b.link(brg, "oil", K_BRG_SPLASH, A, f"bsplash:{brg}", speed=spd(b.bearing[brg].shaft), Dm=Dm, d_roller=dr)
-    A_int = p["housing.internal_area"] * p["housing.oil_covered_frac"]
+    A_in = d.oil.inside_area_m2
+    if A_in is None:  # the inside of the housings: what their outside (housing.external_frac) leaves
+        A_in = sum(h.area_m2 for h in d.housings) * (1.0 - p["housing.external_frac"])
+    A_int = A_in * p["housing.oil_covered_frac"]
     for h in b.housing.values():
         b.link(h.id, "oil", K_CONST, p["housing.h_oil"] * A_int * h.internal_split, f"hoil:{h.id}")
 
@@ -423,22 +450,23 @@ def _splash_links(b: _Builder) -> None:
 def _bore_and_bearing_streams(b: _Builder) -> None:
     """Oil-system streams through the shaft bores (Eq 65-68), the needle bearings (Eq 69-74, 77-80) and the shaft
     bearings (Eq 75-80) the pumped oil reaches (oil.jets); heat goes to the sump with the returning oil."""
-    p, jets = b.p, b.desc.oil.jets
-    for sh in b.desc.shafts:
+    p, d, jets = b.p, b.desc, b.desc.oil.jets
+    for sh in d.shafts:
         fed = [g.id for g in sh.segments if g.id in jets]  # (the input shaft's oil enters behind its front bearing)
         D = sh.d_bore_m
         if not fed or D <= 0:
             continue
-        frac = p[f"oil_system.frac_{sh.id}_bore"]
+        frac = _flow_share(b, sh.id, f"the oil through the bore of shaft {sh.id}")
         for nm in fed:
             L = b.seg_len[nm]
             b.link(nm, "oil", K_STREAM, math.pi * D * L, f"oilsys:{nm}", sub=S_PIPE, frac=frac, D=D, L=L, h=0.0)
-    r_r = p["wheel_bearing.d_roller"] / 2
-    cd = p["wheel_bearing.cage_depth_frac"] * r_r
-    L_r = p["wheel_bearing.length_roller"]
     for w, wb in (x for x in b.wheel_brgs if x[1] in jets):
-        n_r = p["wheel_bearing.n_rollers_LB"] if wb == "LB" else p["wheel_bearing.n_rollers_main"]
-        R_s = b.geo.R_shaft_m[b.desc.wheel(w).shaft]
+        brg = b.bearing[wb]
+        r_r = _needed(d, brg.roller_m, f"bearing.{wb}.roller", "the pumped oil reaches it") / 2
+        n_r = _needed(d, brg.rollers, f"bearing.{wb}.rollers", "the pumped oil reaches it")
+        cd = p["wheel_bearing.cage_depth_frac"] * r_r
+        L_r = brg.width_m
+        R_s = b.geo.R_shaft_m[d.wheel(w).shaft]
         A_i, P_i = ht.needle_channel_inner(R_s, R_s + cd, r_r, n_r)
         A_o, P_o = ht.needle_channel_outer(R_s + 2 * r_r - cd, R_s + 2 * r_r, r_r, n_r)
         A_heat = float(ht.channel_heat_area_m2(P_i, L_r, n_r) + ht.channel_heat_area_m2(P_o, L_r, n_r))
@@ -450,14 +478,13 @@ def _bore_and_bearing_streams(b: _Builder) -> None:
             A_heat,
             f"oilsys:{wb}",
             sub=S_CHANNEL,
-            frac=p["oil_system.frac_needle_each"],
+            frac=_flow_share(b, wb, "the pumped oil reaches it"),
             D=Dh,
             L=0.0,
             h=0.0,
         )
     for brg in (x for x in b.shaft_brgs if x in jets):
-        _, _, wdt, dr, Dm = _bearing_dims(p, brg)
-        n_r = p[f"bearing.{brg}.n_rollers"]
+        wdt, dr, Dm, n_r = _bearing_dims(b, brg, "the pumped oil reaches it")
         A_f, P_f = ht.shaft_bearing_channel(Dm / 2 - dr / 2, Dm / 2 + dr / 2, dr / 2, n_r)
         A_heat = float(ht.channel_heat_area_m2(P_f, wdt, n_r))
         b.link(
@@ -467,28 +494,56 @@ def _bore_and_bearing_streams(b: _Builder) -> None:
             A_heat,
             f"oilsys:{brg}",
             sub=S_CHANNEL,
-            frac=p[f"oil_system.frac_{brg}"],
+            frac=_flow_share(b, brg, "the pumped oil reaches it"),
             D=float(ht.hydraulic_diameter_m(A_f, P_f)),
             L=0.0,
             h=0.0,
         )
 
 
+def _flow_share(b: _Builder, part: str, why: str) -> float:
+    """The share of the pumped flow a jet takes (``oil.flow_share``)."""
+    return _needed(b.desc, b.desc.oil.flow_share.get(part), f"oil.flow_share.{part}", why)
+
+
+def _check_flow_shares(b: _Builder) -> None:
+    """Every share of the pumped flow names a shaft (its bore), a bearing or a planetary set (one the pumped oil no
+    longer reaches, oil.jets, takes none)."""
+    d = b.desc
+    parts = {x.id for x in d.shafts} | {x.id for x in d.bearings} | {x.id for x in d.planetary}
+    for part in d.oil.flow_share:
+        if part not in parts:
+            raise ParameterError(
+                f"{d.origin}: topology.oil.flow_share.{part} names no shaft, bearing or planetary set of the "
+                f"description"
+            )
+
+
 def _planetary_streams(b: _Builder) -> None:
-    """The oil system in the planetary: an imposed h (750 W/(m2 K), seed 3.3) on every outer tooth surface, the
-    flow split by area."""
+    """The oil system in a planetary set the pumped oil reaches: an imposed h (750 W/(m2 K), seed 3.3) on every
+    outer tooth surface of its members in oil.jets, the set's share of the flow split by area."""
+    d = b.desc
+    for ps in d.planetary:
+        _set_streams(b, ps, [m for m in (ps.sun, ps.planet, ps.ring) if m in d.oil.jets])
+
+
+def _set_streams(b: _Builder, ps, fed: list) -> None:
+    if not fed:
+        return
     p, W = b.p, b.W
-    n_pl = int(p["planetary.n_planets"])
-    m_n = p["planetary.m_n"]
+    m_n = ps.module_m
     h_t = (ADDENDUM_COEF + DEDENDUM_COEF) * m_n
+    size = {
+        ps.sun: (ps.z_sun, W[ps.sun].R_p, 1),
+        ps.planet: (ps.z_planet, W[ps.planet].R_p, ps.n_planets),
+        ps.ring: (ps.z_ring, m_n * ps.z_ring / 2, 1),
+    }
     pl_area = {}
-    for nm, z, R_p, mult in (
-        ("PS", int(p["planetary.z_sun"]), W["PS"].R_p, 1),
-        ("PP", int(p["planetary.z_planet"]), W["PP"].R_p, n_pl),
-        ("PR", int(p["planetary.z_ring"]), m_n * p["planetary.z_ring"] / 2, 1),
-    ):
-        pl_area[nm] = mult * p["planetary.width"] * (2 * math.pi * R_p + 2 * z * h_t)
+    for nm in fed:
+        z, R_p, mult = size[nm]
+        pl_area[nm] = mult * ps.width_m * (2 * math.pi * R_p + 2 * z * h_t)
     tot = sum(pl_area.values())
+    share = _flow_share(b, ps.id, f"the pumped oil reaches planetary set {ps.id}")
     for nm, A in pl_area.items():
         b.link(
             nm,
@@ -497,61 +552,77 @@ def _planetary_streams(b: _Builder) -> None:
             A,
             f"oilsys:{nm}",
             sub=S_IMPOSED,
-            frac=p["oil_system.frac_planetary"] * A / tot,
+            frac=share * A / tot,
             D=0.0,
             L=0.0,
             h=p["planetary.h_oil"],
         )
 
 
+def face_shares(d: Description, h) -> dict:
+    """Each boundary a housing's outside exchanges heat with by convection and radiation (its faces but those it
+    touches by conduction) -> its share of the outside: as stated (``share``), the rest split evenly between the
+    faces without one (for the GRS905: the hot surroundings housing.hot_frac, the cold ones the rest)."""
+    conducting = {bd.id for bd in d.boundaries if bd.conductance_w_per_k is not None and h.id in bd.touches}
+    faces = [f for f in h.faces if f not in conducting]
+    rest = [f for f in faces if f not in h.shares]
+    left = (1 - sum(h.shares.values())) / len(rest) if rest else 0.0
+    return {f: h.shares.get(f, left) for f in faces}
+
+
 def _external_links(b: _Builder) -> None:
-    """Outside of the housings: convection and radiation to the hot and the cold surroundings."""
+    """Outside of the housings: convection and radiation to the boundaries each faces (for the GRS905, the hot and
+    the cold surroundings), over its share of the external area."""
     p = b.p
-    for h in b.housing:
-        A_ext = b.housing[h].area_m2 * p["housing.external_frac"]
-        for side, frac in (
-            ("hot_surroundings", p["housing.hot_frac"]),
-            ("cold_surroundings", 1 - p["housing.hot_frac"]),
-        ):
-            b.link(h, side, K_EXT_CONV, A_ext * frac, f"extconv:{h}-{side.split('_')[0]}")
-            b.link(h, side, K_EXT_RAD, A_ext * frac, f"extrad:{h}-{side.split('_')[0]}")
+    for h in b.desc.housings:
+        A_ext = h.area_m2 * p["housing.external_frac"]
+        for side, frac in face_shares(b.desc, h).items():
+            short = side.removesuffix("_surroundings")  # the GRS905's: extconv:H1-hot
+            b.link(h.id, side, K_EXT_CONV, A_ext * frac, f"extconv:{h.id}-{short}")
+            b.link(h.id, side, K_EXT_RAD, A_ext * frac, f"extrad:{h.id}-{short}")
 
 
 def _heat_sources(b: _Builder) -> dict:
-    """Where each loss is deposited: mesh heat split evenly between the two wheels (seed 3.2), planetary heat by
+    """Where each loss is deposited: mesh heat split evenly between the two wheels (seed 3.2), a planetary set's
+    heat (``planetary:<set>``; the first set's also ``planetary``) over its sun, planets and ring by
     losses.PLANETARY_HEAT_SPLIT, bearings into themselves, the lumped losses into the sump (seed 3.2), the retarder
-    by effects.RETARDER_HEAT_SPLIT, synchronizer shift heat into the engaged wheel."""
-    ix, sources = b.ix, {}
-    planetary = {m for ps in b.desc.planetary for m in (ps.sun, ps.planet, ps.ring)}
-    for m in b.desc.meshes:
+    by effects.RETARDER_HEAT_SPLIT (its housing share into the housing of the output shaft's last bearing),
+    synchronizer shift heat into the engaged wheel or ring."""
+    ix, sources, d = b.ix, {}, b.desc
+    planetary = {m for ps in d.planetary for m in (ps.sun, ps.planet, ps.ring)}
+    for m in d.meshes:
         if planetary.isdisjoint(m.wheels):  # a planetary set's meshes: the planetary source
             sources[f"mesh:{m.id}"] = [Share(ix[f"{w}.teeth" if w in b.idle else w], 0.5) for w in m.wheels]
-    sources["planetary"] = [Share(ix[w], f) for w, f in PLANETARY_HEAT_SPLIT.items()]
+    roles = dict(zip(PLANETARY_HEAT_SPLIT, ("sun", "planet", "ring")))  # PS, PP, PR: the GRS905's members
+    for i, ps in enumerate(d.planetary):
+        split = [Share(ix[getattr(ps, roles[w])], f) for w, f in PLANETARY_HEAT_SPLIT.items()]
+        sources[f"planetary:{ps.id}"] = split
+        if i == 0:
+            sources["planetary"] = split
     for brg in b.shaft_brgs:
         sources[f"bearing:{brg}"] = [Share(ix[brg], 1.0)]
     for key in ("churning", "wheel_bearings", "synchronizers", "pump"):
         sources[key] = [Share(ix["oil"], 1.0)]
-    sources["retarder"] = [Share(ix[nm], f) for nm, f in RETARDER_HEAT_SPLIT.items()]
+    sources["retarder"] = [Share(ix[_retarder_node(d, nm)], f) for nm, f in RETARDER_HEAT_SPLIT.items()]
     for w in b.idle:
         sources[f"shift:{w}"] = [Share(ix[f"{w}.bulk"], 1.0)]
-    sources["shift:PR"] = [Share(ix["PR"], 1.0)]
+    for ps in d.planetary:
+        sources[f"shift:{ps.ring}"] = [Share(ix[ps.ring], 1.0)]
     return sources
 
 
-def _check_boundaries(d: Description) -> None:
-    """The boundaries the run tables, the onboard step and the C kernel index (BOUNDARIES), in their order."""
-    ids = tuple(bd.id for bd in d.boundaries)
-    if ids != BOUNDARIES:
-        raise ParameterError(
-            f"{d.origin}: topology.boundary lists {', '.join(ids)}; the plant and the sensor take the boundaries "
-            f"{', '.join(BOUNDARIES)} in this order (the only ones they know so far)"
-        )
+def _retarder_node(d: Description, name: str) -> str:
+    """A node of effects.RETARDER_HEAT_SPLIT: the sump, or the housing at the output (that of the output shaft's
+    last bearing seated in a housing; the last housing when none is)."""
+    if name == "oil":
+        return name
+    seats = [x.housing for x in d.bearings if x.shaft == d.drive.output_shaft and x.housing is not None]
+    return seats[-1] if seats else d.housings[-1].id
 
 
 def build_network(p: Parameters) -> Network:
     """The full thermal network of the parameter set: nodes (seed 3.1), then links family by family (seed 3.3)."""
     geo = build_geometry(p)
-    _check_boundaries(geo.description)
     b = _Builder(p, geo)
     pos, ends = _segment_positions(geo.description)
     _shaft_nodes(b, pos, ends)
@@ -565,6 +636,7 @@ def build_network(p: Parameters) -> Network:
     _splash_links(b)
     _bore_and_bearing_streams(b)
     _planetary_streams(b)
+    _check_flow_shares(b)
     _external_links(b)
     return b.network(_heat_sources(b))
 
@@ -589,14 +661,21 @@ class ConductanceEvaluator:
         self.h_house = p["housing.h_oil"]
         self.h_air = p["housing.h_air"]
         self.eps = p["housing.emissivity"]
-        self.flow_m3_per_rad = p["oil_system.flow_m3_per_rad"]  # oil volume per radian of layshaft rotation
+        oil = net.geometry.description.oil
+        # a pump on a shaft: oil volume per radian of the shaft (the GRS905's layshaft); a motor-driven pump: its flow
+        self.pump_speed = None if oil.pump_shaft is None else net.speed_names.index(oil.pump_shaft)
+        self.flow_m3_per_rad = (oil.pump_flow or 0.0) if oil.pump_shaft is not None else 0.0
+        self.flow_m3_s = (oil.pump_flow or 0.0) if oil.pump_shaft is None else 0.0
         self.n_nodes = net.n
         self.ext_rad_idx = self.idx[K_EXT_RAD]
         self.ext_rad_a = net.link_a[self.ext_rad_idx]
         self.ext_rad_b = net.link_b[self.ext_rad_idx] - net.n
 
     def oil_mass_flow_kg_s(self, omega_ls_rad_s, rho_kg_m3):
-        """Oil-system mass flow: linear in the layshaft speed (seed 3.3, Fig 12)."""
+        """Oil-system mass flow: linear in the pump shaft's (the layshaft's) speed (seed 3.3, Fig 12); a
+        motor-driven pump's is its flow."""
+        if self.pump_speed is None:
+            return rho_kg_m3 * self.flow_m3_s
         return rho_kg_m3 * self.flow_m3_per_rad * abs(omega_ls_rad_s)
 
     def _splash_h(self, omega_rad_s):
@@ -659,7 +738,7 @@ class ConductanceEvaluator:
         if not i.size:
             return
         kp = self.kp[K_STREAM]
-        omega_ls_rad_s = speeds[..., SPEED_NAMES.index("LS")]
+        omega_ls_rad_s = speeds[..., self.pump_speed or 0]
         if np.ndim(omega_ls_rad_s):
             omega_ls_rad_s = omega_ls_rad_s[..., None]  # a batch of operating points (evaluate)
         mdot_tot = self.oil_mass_flow_kg_s(omega_ls_rad_s, op.rho_kg_m3)
@@ -690,9 +769,10 @@ class ConductanceEvaluator:
         T_nodes_c: np.ndarray | None = None,
         T_bc_c: np.ndarray | None = None,
     ) -> np.ndarray:
-        """Conductance of every link [W/K]. speeds: |rad/s| per SPEED_NAMES; T_nodes/T_bc for radiation.
+        """Conductance of every link [W/K]. speeds: |rad/s| per the network's speed_names; T_nodes/T_bc for
+        radiation.
 
-        ``speeds`` may be a batch (..., len(SPEED_NAMES)) of operating points at the one oil temperature, gear and
+        ``speeds`` may be a batch (..., len(speed_names)) of operating points at the one oil temperature, gear and
         range: then a new array (..., n_links) is returned, equal element by element to one call per point (the
         oil properties stay scalars as in a single call; the onboard build tabulates its laws this way)."""
         speeds = np.asarray(speeds)

@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import difflib
 import fnmatch
+import functools
 import math
 import warnings
 from dataclasses import dataclass, field, replace
@@ -246,6 +247,9 @@ class Parameters:
 
     @property
     def kinematics(self) -> KinematicTable:
+        """The range-splitter's Table 1 kinematics in closed form from the tooth parameters (the check of the
+        description's solve; the plant and the onboard model take the gearbox's own description's:
+        firmware_model.physics.drivetrain.kinematics_of)."""
         kin = self.__dict__.get("_kin")
         if kin is None:
             kin = build_table(self.teeth, self.split_inverted)
@@ -271,6 +275,7 @@ class Parameters:
             bounds=dict(self.bounds),
         )
         _check_values(new)
+        _keep_description(self, new, overrides)
         return new
 
     def with_cooler_kind(self, kind: str) -> Parameters:
@@ -299,6 +304,17 @@ TOPOLOGY = "topology"
 def is_topology(key: str) -> bool:
     """Whether a dotted key belongs to the topology section (read by firmware_model.description, not here)."""
     return key.startswith(TOPOLOGY + ".")
+
+
+def _keep_description(parent: Parameters, new: Parameters, overrides: dict) -> None:
+    """A copy that overrides no parameter its gearbox description takes (``{ from }``) describes the same gearbox:
+    it keeps its parent's description (firmware_model.description.description_of) instead of deriving it again."""
+    d = parent.__dict__.get("_description")
+    if d is None:
+        return
+    keys = {RENAMED_KEYS.get(k, k) for k in overrides}
+    if keys.isdisjoint(d.taken):
+        new.__dict__["_description"] = d
 
 
 def _flatten(d: dict, prefix: str = ""):
@@ -364,8 +380,116 @@ def _read(path: Path, seen=()) -> dict:
         base.update({k: v for k, v in entries.items() if k != "meta.inherit"})
         return base
     if not _is_shipped(path):
-        _check_keys(path, entries, _reference_entries(), "the shipped parameter files (" + ", ".join(VARIANTS) + ")")
+        if any(is_topology(k) for k in entries):
+            _check_own_keys(path, entries)
+        else:
+            _check_keys(path, entries, _reference_entries(), f"the shipped parameter files ({', '.join(VARIANTS)})")
     return entries
+
+
+#: the physics parameters a file with its own [topology] may hold whatever its gearbox (the rest of its geometry is
+#: in its [topology]); these sections' keys of the shipped files, but those the GRS905's description takes
+GENERIC_SECTIONS = (
+    "meta",
+    "material",
+    "oil",
+    "gear",
+    "wheel",
+    "bearing",
+    "wheel_bearing",
+    "sync",
+    "pump",
+    "planetary",
+    "housing",
+    "heat",
+    "scale",
+    "oil_system",
+    "cooler",
+    "boundary",
+    "engine",
+)
+#: sections whose keys stay parameters even where the GRS905's description takes them (defaults, the cooler, limits)
+ALWAYS_GENERIC = ("boundary", "cooler", "engine")
+#: parameters of a kind a gearbox may have the GRS905 lacks: (pattern, the shipped key whose unit it takes)
+PER_KIND = (
+    ("material.*.rho", "material.steel.rho"),
+    ("material.*.k", "material.steel.k"),
+    ("material.*.cp", "material.steel.cp"),
+    ("bearing.sf_radial_*", "bearing.sf_radial_tapered"),
+    ("wheel_bearing.sf_radial_*", "wheel_bearing.sf_radial_needle"),
+)
+#: what a file with its own [topology] must hold: the physics every network needs (the per-kind ones its
+#: description implies are named by the network when missing)
+REQUIRED_GENERIC = (
+    "material.steel.rho",
+    "material.steel.k",
+    "material.steel.cp",
+    "oil.capacity_temp",
+    "gear.alpha_n",
+    "gear.teeth_shell_modules",
+    "wheel.hub_mass_factor",
+    "wheel_bearing.cage_depth_frac",
+    "housing.k_joint",
+    "housing.h_oil",
+    "housing.h_air",
+    "housing.emissivity",
+    "housing.external_frac",
+    "housing.oil_covered_frac",
+    "heat.h_nom",
+    "heat.omega_nom_rad_s",
+    "heat.splash_exponent",
+    "heat.TCC",
+    "heat.w_Hz",
+    "heat.contact_length_frac",
+    "heat.sf_teeth_bulk",
+    "heat.sf_layshaft_wheel",
+    "heat.cut_wheel_inner_frac",
+    "heat.shaft_inner_diameter_frac",
+    "heat.seat_outer_diameter_factor",
+    "scale.gear_contact_to_heat",
+    "scale.planet_to_heat",
+    "scale.churn_to_heat",
+    "scale.heat_lag_tau",
+    "boundary.initial",
+)
+#: ... and with a planetary set in its description
+REQUIRED_PLANETARY = (
+    "planetary.planet_bore_frac",
+    "planetary.sf_planet_carrier",
+    "planetary.sf_sun_spline",
+    "planetary.h_oil",
+)
+
+
+def _generic_entries() -> dict:
+    """The shipped keys a file with its own [topology] may hold (GENERIC_SECTIONS, ALWAYS_GENERIC)."""
+    ref = _reference_entries()
+    taken = {e["from"] for k, e in ref.items() if is_topology(k) and isinstance(e, dict) and "from" in e}
+    return {
+        k: e
+        for k, e in ref.items()
+        if k.split(".")[0] in GENERIC_SECTIONS and (k not in taken or k.split(".")[0] in ALWAYS_GENERIC)
+    }
+
+
+def _check_own_keys(path: Path, entries: dict) -> None:
+    """A file with its own [topology] holds the generic physics parameters (`_generic_entries`), parameters of a
+    kind the shipped files lack (PER_KIND, in the unit of their pattern's shipped key) and its own parameters that
+    its [topology] takes (``{ from = ... }``; their units are checked by the description keys that take them)."""
+    base = _generic_entries()
+    own = {e["from"] for k, e in entries.items() if is_topology(k) and isinstance(e, dict) and "from" in e}
+    for key, e in entries.items():
+        if key == "meta.inherit" or is_topology(key) or (key.startswith("meta.") and isinstance(e, str)):
+            continue
+        if key in base:
+            _check_entry_kind(path, key, e, base[key])
+            continue
+        kind = next((ref for pat, ref in PER_KIND if fnmatch.fnmatchcase(key, pat)), None)
+        if kind is not None:
+            _check_entry_kind(path, key, e, _reference_entries()[kind])
+        elif key not in own:
+            known = {**base, **dict.fromkeys(own)}
+            raise ParameterError(_unknown_key(path, key, known, "a file with its own [topology]"))
 
 
 def _is_shipped(path: Path) -> bool:
@@ -519,7 +643,10 @@ def load_parameters(variant_or_path: str | Path = "GRS905") -> Parameters:
         strings.get("meta.variant", path.stem), values, sources, units, strings, path.name, bounds, str(path.resolve())
     )
     _check_values(params, written)
-    _check_required(params)
+    if _standalone(path, entries):
+        _check_required_generic(params, entries)
+    else:
+        _check_required(params)
     kind = params.strings.get("cooler.kind", "liquid")
     if kind not in COOLER_KINDS:
         raise ParameterError(f"cooler.kind = {kind!r} must be one of {', '.join(COOLER_KINDS)}")
@@ -544,6 +671,29 @@ REQUIRED = [
     "engine.max_torque",
     "engine.max_speed_rad_s",
 ] + [f"gear.{p}.{k}" for p in ("L", "3", "2", "1", "C", "R") for k in ("z1", "z2", "m_n", "beta", "width1", "width2")]
+
+
+def _standalone(path: Path, entries: dict) -> bool:
+    """Whether a file describes its own gearbox: a [topology] of its own, inheriting no shipped file."""
+    if _is_shipped(path) or not any(is_topology(k) for k in entries):
+        return False
+    meta = read_toml(path, f"parameter file {path.name}").get("meta")
+    return not (isinstance(meta, dict) and meta.get("inherit"))
+
+
+def _check_required_generic(p: Parameters, entries: dict) -> None:
+    """A file with its own [topology] holds the physics parameters every network needs (REQUIRED_GENERIC; with a
+    planetary set REQUIRED_PLANETARY) and the materials of its housings."""
+    need = list(REQUIRED_GENERIC)
+    if any(k.startswith(f"{TOPOLOGY}.planetary.") for k in entries):
+        need += REQUIRED_PLANETARY
+    for k, e in entries.items():
+        if fnmatch.fnmatchcase(k, f"{TOPOLOGY}.housing.*.material") and isinstance(e, dict):
+            name = e.get("v") if "v" in e else p.strings.get(e.get("from", ""))
+            need += [f"material.{name}.k", f"material.{name}.cp"]
+    for k in need:
+        if k not in p.values:
+            raise ParameterError(f"{p.origin}: parameter {k} is missing (every gearbox's network needs it)")
 
 
 def _check_required(p: Parameters):
@@ -594,17 +744,36 @@ def _check_values(p: Parameters, written: dict | None = None):
         bad_sign = _sign_rule(key, v, dim)
         if bad_sign:
             raise ParameterError(f"{where}{key} = {x:g}{unit} {bad_sign} (the key is {DIM_NAMES.get(dim, dim)})")
+        if not _ranged(key):
+            continue  # a file's own parameter (its [topology] takes it): the description checks what it may be
         lo, hi = DIM_RANGE.get(dim, (-math.inf, math.inf))
-        for pat, klo, khi, integer in KEY_RULES:
-            if fnmatch.fnmatchcase(key, pat):
-                lo, hi = max(lo, klo), min(hi, khi)
-                if integer and v != int(v):
-                    raise ParameterError(f"{where}{key} = {x:g}{unit} must be an integer")
-                break
+        rule = _key_rule(key)
+        if rule is not None:
+            klo, khi, integer = rule
+            lo, hi = max(lo, klo), min(hi, khi)
+            if integer and v != int(v):
+                raise ParameterError(f"{where}{key} = {x:g}{unit} must be an integer")
         if not lo <= v <= hi:
             (slo, _), (shi, _) = _shown(lo, key, dim, written), _shown(hi, key, dim, written)
             raise ParameterError(f"{where}{key} = {x:g}{unit} is outside its allowed range {slo:g}..{shi:g}{unit}")
         _check_bounds(p, key, dim, lo, hi, where, written)
+
+
+@functools.lru_cache(maxsize=4096)
+def _key_rule(key: str):
+    """(low, high, integer?) of the first KEY_RULES pattern a key matches, None if none does."""
+    return next(((lo, hi, i) for pat, lo, hi, i in KEY_RULES if fnmatch.fnmatchcase(key, pat)), None)
+
+
+@functools.lru_cache(maxsize=4096)
+def _ranged(key: str) -> bool:
+    """Whether a key's value is held to the ranges here: the shipped files' keys and the per-kind ones (PER_KIND)."""
+    return key in _reference_keys() or any(fnmatch.fnmatchcase(key, pat) for pat, _ in PER_KIND)
+
+
+@functools.lru_cache(maxsize=1)
+def _reference_keys() -> frozenset:
+    return frozenset(_reference_entries())
 
 
 def _check_bounds(p: Parameters, key: str, dim: str, lo: float, hi: float, where: str, written: dict | None):

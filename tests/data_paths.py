@@ -32,3 +32,20 @@ def real_capture_dir() -> Path | None:
         if (c / "normal.candump.log").is_file():
             return c
     return None
+
+
+#: the real measured gearbox temperatures (ENGIE's La Haute Borne SCADA) are read only from $GVS_REAL_SCADA
+SCADA_SKIP_REASON = (
+    "real SCADA records not found: the repository does not ship ENGIE's La Haute Borne open data (what it is: "
+    "docs/real-data.md, 'Real measured temperatures'); put its turbine_<ID>_<period>_<k>.csv.gz files in a "
+    "directory and run the tests with GVS_REAL_SCADA=<that directory>"
+)
+
+
+def real_scada_dir() -> Path | None:
+    """$GVS_REAL_SCADA when it names a directory holding SCADA files, else None (no other place is searched: the
+    records are read only where they are pointed to)."""
+    env = os.environ.get("GVS_REAL_SCADA")
+    if env and any(Path(env).glob("*.csv*")):
+        return Path(env)
+    return None

@@ -30,6 +30,8 @@ FORBIDDEN = {
     "firmware_model.units": ("firmware_model.", "can_dbc", "tools"),
     "firmware_model.components": ("firmware_model.", "can_dbc", "tools"),
     "firmware_model.errors": ("firmware_model.", "can_dbc", "tools"),
+    # measured SCADA records have no CAN side
+    "tools.scada": ("can_dbc", "firmware_model.service"),
 }
 #: nothing but the console entry point imports the CLI modules
 CLI = "tools.cli"

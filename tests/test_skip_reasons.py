@@ -42,3 +42,11 @@ def test_the_real_captures_reason_says_how_to_provide_them():
     can_md = (ROOT / "docs" / "can.md").read_text(encoding="utf-8")
     assert "\n### Real truck captures\n" in can_md and "'Real truck captures'" in SKIP_REASON
     assert all(f"`{f}`" in can_md for f in CAPTURE_FILES)
+
+
+def test_the_real_scada_reason_says_how_to_provide_them():
+    from tests.data_paths import SCADA_SKIP_REASON
+
+    assert "GVS_REAL_SCADA=" in SCADA_SKIP_REASON
+    md = (ROOT / "docs" / "real-data.md").read_text(encoding="utf-8")
+    assert md.startswith("# Real measured temperatures\n") and "'Real measured temperatures'" in SCADA_SKIP_REASON

@@ -33,10 +33,10 @@ from firmware_model.components import (
     MODE_HOLDING,
     MODE_NOT_INITIALISED,
     MODE_OIL_MODEL,
-    PUBLISHED,
 )
 from firmware_model.errors import InputError
 from tools.progress import progress
+from tools.published import description, ids, label_of
 from tools.runtable import RunTable, write_run_table
 
 #: how the demo prints a warning level and a degraded mode
@@ -207,13 +207,14 @@ def _ttl_words(ttl_s) -> str:
     return f"{ttl_s:.0f} s to its limit"
 
 
-def _status_line(t_s: float, d: dict, warn: dict, limits) -> str:
+def _status_line(t_s: float, d: dict, warn: dict, limits, published: tuple) -> str:
     """One printed line of what the sensor published at drive time `t_s` (`d`: decoded outputs of one step): the
-    components closest to their own warning limits (the limits differ: bearings, sun wheel, gears), with the margin."""
+    components closest to their own warning limits (the limits differ: bearings, sun wheel, gears), with the margin;
+    ``published``: the gearbox's published component ids."""
     temps = d.get("temps_c", {})
     ttl = d.get("ttl_s", {})
     margins = sorted(
-        (limits.of(c)[0] - v, c, v) for c, v in temps.items() if c in PUBLISHED and v is not None and not math.isnan(v)
+        (limits.of(c)[0] - v, c, v) for c, v in temps.items() if c in published and v is not None and not math.isnan(v)
     )[:3]
     st = d.get("status", {})
     if st.get("degraded_mode") in (MODE_HOLDING, MODE_NOT_INITIALISED) and t_s < 1.0:
@@ -235,11 +236,10 @@ def _status_line(t_s: float, d: dict, warn: dict, limits) -> str:
     return line
 
 
-def _level_events(t_s: float, d: dict, last: dict, limits) -> list[str]:
+def _level_events(t_s: float, d: dict, last: dict, limits, desc=None) -> list[str]:
     """Lines for every component whose warning level changed at this step, with why (limit, early warning,
-    hysteresis); ``last`` (component -> level) is updated."""
-    from firmware_model.components import describe
-
+    hysteresis); ``last`` (component -> level) is updated; ``desc``: the gearbox's description (the components'
+    words)."""
     lines = []
     temps, ttl = d.get("temps_c", {}), d.get("ttl_s", {})
     for c, lv in d.get("levels", {}).items():
@@ -257,7 +257,7 @@ def _level_events(t_s: float, d: dict, last: dict, limits) -> list[str]:
                 if T >= warn_c
                 else f"early warning: {_ttl_words(ttl.get(c))} of {warn_c:.0f} C at this load"
             )
-            lines.append(f"  t={t_s:6.0f} s  {LEVEL_LABEL[lv]} raised: {describe(c)} {T:.1f} C, {why}")
+            lines.append(f"  t={t_s:6.0f} s  {LEVEL_LABEL[lv]} raised: {label_of(c, desc)} {T:.1f} C, {why}")
         else:
             edge = (crit_c if before == LEVEL_CRITICAL else warn_c) - hyst_k
             lines.append(
@@ -268,14 +268,15 @@ def _level_events(t_s: float, d: dict, last: dict, limits) -> list[str]:
     return lines
 
 
-def print_published(outs: list, print_every_s: float, echo: Callable[[str], None], limits=None) -> dict:
+def print_published(outs: list, print_every_s: float, echo: Callable[[str], None], limits=None, gearbox=None) -> dict:
     """Decode the sensor's frames per 100 ms step; print a line every `print_every_s` of drive time and at the end
     of the drive, and a line whenever a warning is raised or cleared (with why); returns component -> drive time of
-    its first warning."""
+    its first warning. ``gearbox``: the sensor's parameter set or description (None: the default gearbox)."""
     from can_dbc.adapter import decode_outputs
     from firmware_model.onboard.warning_levels import load_limits
 
     limits = limits or load_limits()
+    desc, published = description(gearbox), ids(gearbox)
     by_t: dict = {}
     for m in outs:
         by_t.setdefault(round(m.timestamp, 3), []).append(m)
@@ -287,11 +288,11 @@ def print_published(outs: list, print_every_s: float, echo: Callable[[str], None
         warn = {c: v for c, v in d.get("levels", {}).items() if v in (LEVEL_WARNING, LEVEL_CRITICAL)}
         for c in warn:
             first_warn.setdefault(c, ts - t_first)
-        for line in _level_events(ts - t_first, d, last_level, limits):
+        for line in _level_events(ts - t_first, d, last_level, limits, desc):
             echo(line)
         if ts - t_first + 1e-9 >= next_print or k == len(times) - 1:
             next_print += print_every_s
-            echo(_status_line(ts - t_first, d, warn, limits))
+            echo(_status_line(ts - t_first, d, warn, limits, published))
     if first_warn:
         echo(
             "  first warnings (drive time): "
@@ -308,10 +309,11 @@ class ComponentError(NamedTuple):
     component: str
 
 
-def component_errors(est: RunTable) -> list[ComponentError]:
-    """Sensor minus truth per component (the rig thermocouples travelled on the bus as meas_T_ columns)."""
+def component_errors(est: RunTable, gearbox=None) -> list[ComponentError]:
+    """Sensor minus truth per published component of ``gearbox`` (a parameter set or description; None: the default
+    gearbox) (the rig thermocouples travelled on the bus as meas_T_ columns)."""
     errs = []
-    for c in PUBLISHED:
+    for c in ids(gearbox):
         if est.has(f"T_{c}_c") and est.has(f"meas_T_{c}_c"):
             e = np.asarray(est[f"T_{c}_c"]) - np.asarray(est[f"meas_T_{c}_c"])
             e = e[np.isfinite(e)]
@@ -320,8 +322,8 @@ def component_errors(est: RunTable) -> list[ComponentError]:
     return errs
 
 
-def print_accuracy(est: RunTable, echo: Callable[[str], None]) -> None:
-    errs = component_errors(est)
+def print_accuracy(est: RunTable, echo: Callable[[str], None], gearbox=None) -> None:
+    errs = component_errors(est, gearbox)
     if not errs:
         return
     worst = max(errs)
@@ -336,15 +338,33 @@ def print_accuracy(est: RunTable, echo: Callable[[str], None]) -> None:
     )
 
 
-def plot_demo(est: RunTable, truth: RunTable, path) -> Path:
+def featured(est: RunTable, limits, gearbox=None) -> tuple:
+    """The two groups of published components the demo's figure draws: the planetary members the gearbox publishes
+    and the sump (without a planetary set: the sump and the three closest to their warning limits), then the five
+    others closest to their warning limits over the drive (tools.replay.plot.closest_to_limits)."""
+    from tools.replay.plot import closest_to_limits
+
+    desc, pub = description(gearbox), ids(gearbox)
+    members = {m for ps in desc.planetary for m in (ps.sun, ps.planet, ps.ring)} if desc is not None else set()
+    first = [c for c in pub if c in members]
+    oil = ["oil"] if "oil" in pub else []
+    rest = [c for c in pub if c not in first and c not in oil]
+    if not first:
+        first = closest_to_limits(est, limits, rest)[:3]
+        rest = [c for c in rest if c not in first]
+    return tuple(first + oil), tuple(closest_to_limits(est, limits, rest)[:5])
+
+
+def plot_demo(est: RunTable, truth: RunTable, path, gearbox=None) -> Path:
     """The demo's figure: the inputs; sensor estimates (solid) with the plant's truth on top (black dashed) and each
-    component's warning limit (dotted), in two panels; the error sensor - truth; the warning level of every component
-    that raised one, as words."""
-    from firmware_model.components import describe
+    component's warning limit (dotted), in two panels (:func:`featured`); the error sensor - truth; the warning
+    level of every component that raised one, as words. ``gearbox``: the parameter set or description (None: the
+    default gearbox)."""
     from firmware_model.onboard.warning_levels import load_limits
     from tools.plots import input_panel, level_axis, outside_legend, pyplot, save_figure, time_axis
 
     limits = load_limits()
+    desc = description(gearbox)
     plt = pyplot()
     t, t_label = time_axis(est["time_s"])
     tt = time_axis(truth["time_s"])[0] if truth.n else t
@@ -353,11 +373,11 @@ def plot_demo(est: RunTable, truth: RunTable, path) -> Path:
     axes[0].set_title(
         "Virtual sensor on the CAN bus (solid) vs the reference plant's truth (black dashed); dotted: warning limits"
     )
-    groups = (("PS", "PP", "PR", "oil"), ("LI.teeth", "1M.teeth", "2M.teeth", "LB", "BLR"))
+    groups = featured(est, limits, gearbox)
     for ax, comps in zip(axes[1:3], groups):
         for i, c in enumerate(comps):
             if est.has(f"T_{c}_c"):
-                ax.plot(t, est[f"T_{c}_c"], color=f"C{i}", lw=1.8, label=f"{describe(c)}: sensor")
+                ax.plot(t, est[f"T_{c}_c"], color=f"C{i}", lw=1.8, label=f"{label_of(c, desc)}: sensor")
             if truth.has(f"T_{c}_c"):
                 ax.plot(
                     tt, truth[f"T_{c}_c"], color="k", lw=0.9, ls="--", zorder=5, label="plant truth" if i == 0 else None
@@ -368,7 +388,7 @@ def plot_demo(est: RunTable, truth: RunTable, path) -> Path:
         ax.grid(alpha=0.3)
         outside_legend(ax)
     ax = axes[3]
-    for i, c in enumerate(groups[0][:3] + groups[1]):
+    for i, c in enumerate(tuple(c for c in groups[0] if c != "oil") + groups[1]):
         if est.has(f"T_{c}_c") and est.has(f"meas_T_{c}_c"):
             ax.plot(
                 t, np.asarray(est[f"T_{c}_c"]) - np.asarray(est[f"meas_T_{c}_c"]), lw=0.9, color=f"C{i % 10}", label=c
@@ -379,11 +399,11 @@ def plot_demo(est: RunTable, truth: RunTable, path) -> Path:
     outside_legend(ax, ncol=2)
     ax = axes[4]
     raised = [
-        c for c in PUBLISHED if est.has(f"W_{c}") and np.any(np.isin(est[f"W_{c}"], (LEVEL_WARNING, LEVEL_CRITICAL)))
+        c for c in ids(gearbox) if est.has(f"W_{c}") and np.any(np.isin(est[f"W_{c}"], (LEVEL_WARNING, LEVEL_CRITICAL)))
     ]
     for i, c in enumerate(raised[:8]):
         lv = np.where(np.asarray(est[f"W_{c}"]) == LEVEL_NA, -1, est[f"W_{c}"])
-        ax.step(t, lv, where="post", lw=1.4, color=f"C{i}", label=describe(c))
+        ax.step(t, lv, where="post", lw=1.4, color=f"C{i}", label=label_of(c, desc))
     if raised:
         outside_legend(ax)
     else:
@@ -431,10 +451,10 @@ def run_demo(opts: DemoOptions, echo: Callable[[str], None] | None = None) -> Bu
         f"[4/4] what the sensor published (decoded from the bus with can_dbc/gearbox_vsensor.dbc), every "
         f"{opts.print_every_s:.0f} s of drive time:"
     )
-    print_published(bus.outputs, opts.print_every_s, echo)
+    print_published(bus.outputs, opts.print_every_s, echo, gearbox=params)
     write_run_table(every(bus.recorded), out / "sensor.csv")
-    print_accuracy(bus.recorded, echo)
-    plot_demo(bus.recorded, truth.table, out / "demo.png")
+    print_accuracy(bus.recorded, echo, params)
+    plot_demo(bus.recorded, truth.table, out / "demo.png", params)
     echo(f"plots: {out / 'demo.png'}; sensor outputs: {out / 'sensor.csv'}")
     size_mb = sum(f.stat().st_size for f in out.glob("*") if f.name in DEMO_FILES) / 1e6
     echo(f"wrote {size_mb:.0f} MB to {out.resolve()}: {', '.join(DEMO_FILES)} (run tables with {CSV_ROW_S:g} s rows)")

@@ -8,24 +8,31 @@ from pathlib import Path
 
 import numpy as np
 
-from firmware_model.components import (
-    IDLE_WHEELS,
-    LAYSHAFT_WHEELS,
-    PLANETARY,
-    PUBLISHED,
-    SHAFT_BEARINGS,
-    WHEEL_BEARINGS,
-    describe,
-)
+from tools.published import description, ids, label_of
 
-GROUPS = {
-    "Input/main-shaft wheel teeth": [f"{w}.teeth" for w in IDLE_WHEELS],
-    "Layshaft wheels": list(LAYSHAFT_WHEELS),
-    "Planetary": list(PLANETARY),
-    "Shaft bearings": list(SHAFT_BEARINGS),
-    "Wheel bearings": list(WHEEL_BEARINGS),
-    "Housings": ["H1", "H2", "H3"],
-}
+
+def panels(gearbox=None) -> dict:
+    """The component groups a figure draws one panel each of, from the gearbox's description (a parameter set, a
+    description or a sensor; None: the default gearbox's): {title: ids}. The idle wheels' teeth, the other wheels
+    (named after their shaft when they share one), the planetary members, the shaft bearings, the wheel bearings,
+    the housings, and any other published component; a group the gearbox does not have is left out."""
+    d = description(gearbox)
+    pub = ids(d)
+    idle = [w.id for w in d.wheels if w.mount == "idle"]
+    wheels = [w for w in d.wheels if w.mount != "idle" and w.id in pub]
+    shafts = {w.shaft for w in wheels}
+    shaft_name = d.names.get(next(iter(shafts), None)) if len(shafts) == 1 else None
+    out = {
+        "Idle wheel teeth": [c for c in pub if c.partition(".")[0] in idle],
+        (f"{shaft_name[0].upper()}{shaft_name[1:]} wheels" if shaft_name else "Wheels"): [w.id for w in wheels],
+        "Planetary": [m for ps in d.planetary for m in (ps.sun, ps.planet, ps.ring)],
+        "Shaft bearings": [b.id for b in d.bearings if b.wheel is None],
+        "Wheel bearings": [b.id for b in d.bearings if b.wheel is not None],
+        "Housings": [h.id for h in d.housings],
+    }
+    shown = {c for cs in out.values() for c in cs} | {"oil"}
+    out["Other published components"] = [c for c in pub if c not in shown]
+    return {k: v for k, v in out.items() if v}
 
 
 def pyplot():
@@ -112,15 +119,18 @@ def input_temperature_panel(ax, t, table) -> None:
         outside_legend(ax)
 
 
-def temperature_panel(ax, t, table, components, limits, prefix: str = "T_") -> list[str]:
-    """Each component's temperature labelled with its name spelled out (:func:`describe`), and the warning limit of
-    each published one as a dashed line in its colour, named at the right end; one grey line where several share a
+def temperature_panel(ax, t, table, components, limits, gearbox, prefix: str = "T_") -> list[str]:
+    """Each component's temperature labelled with its name spelled out (tools.published.label: the description's
+    words for its parts), and the warning limit of each component the gearbox (a parameter set, a description or a
+    sensor) publishes as a dashed line in its colour, named at the right end; one grey line where several share a
     limit. Returns the components drawn (those the table has)."""
+    d = description(gearbox)
+    pub = set(ids(gearbox))
     drawn = [c for c in components if table.has(f"{prefix}{c}_c")]
     at_limit: dict[float, list] = {}
     for i, c in enumerate(drawn):
-        ax.plot(t, table[f"{prefix}{c}_c"], lw=1.1, color=f"C{i % 10}", label=describe(c))
-        if c in PUBLISHED:
+        ax.plot(t, table[f"{prefix}{c}_c"], lw=1.1, color=f"C{i % 10}", label=label_of(c, d))
+        if c in pub:
             at_limit.setdefault(limits.of(c)[0], []).append((c, f"C{i % 10}"))
     for limit_c, comps in at_limit.items():
         color = comps[0][1] if len(comps) == 1 else "0.35"
@@ -140,44 +150,53 @@ def temperature_panel(ax, t, table, components, limits, prefix: str = "T_") -> l
     return drawn
 
 
-def plot_simulation(table, path, title="", limits=None):
+def plot_simulation(table, path, title="", limits=None, gearbox=None):
     """The figure of `simulate --plot`: the inputs (speed, torque, gear; the input temperatures), then one panel per
-    component group with names spelled out, the warning limits dashed and the plant's oil sump for reference."""
+    component group (:func:`panels` of ``gearbox``, a parameter set or description; None: the default gearbox) with
+    names spelled out, the warning limits dashed and the plant's oil sump for reference."""
     from firmware_model.onboard.warning_levels import load_limits
 
     limits = limits or load_limits()
+    gearbox = description(gearbox)
+    groups = panels(gearbox)
+    rows = (len(groups) + 1) // 2
     plt = pyplot()
     t, t_label = time_axis(table["time_s"])
-    fig = plt.figure(figsize=(20, 17))
-    grid = fig.add_gridspec(5, 2, height_ratios=[1.2, 0.9, 2, 2, 2])
+    fig = plt.figure(figsize=(20, 5 + 4 * rows))
+    grid = fig.add_gridspec(2 + rows, 2, height_ratios=[1.2, 0.9] + [2] * rows)
     inputs = fig.add_subplot(grid[0, :])
     input_panel(inputs, t, table)
     inputs.set_title(title)
     input_temperature_panel(fig.add_subplot(grid[1, :], sharex=inputs), t, table)
     oil = table["T_oil_c"] if table.has("T_oil_c") else None
-    for k, (group, ids) in enumerate(GROUPS.items()):
+    for k, (group, members) in enumerate(groups.items()):
         ax = fig.add_subplot(grid[2 + k // 2, k % 2], sharex=inputs)
-        temperature_panel(ax, t, table, ids, limits)
+        temperature_panel(ax, t, table, members, limits, gearbox)
         if oil is not None:
             ax.plot(t, oil, "k:", lw=1.2, label="oil sump (plant)")
         ax.set_title(group, fontsize=10)
         ax.set_ylabel("degC (dashed:\nwarning limits)" if k % 2 == 0 else "degC")
         ax.grid(alpha=0.3)
         outside_legend(ax)
-        if k >= len(GROUPS) - 2:
+        if k >= len(groups) - 2:
             ax.set_xlabel(t_label)
     return save_figure(fig, path)
 
 
-def plot_temperatures(table, path, title="", prefix="T_"):
-    """One panel per component group, the oil in every panel for reference (the validation figures,
-    benchmarks/validate_plant.py; `simulate --plot` draws :func:`plot_simulation`)."""
+def plot_temperatures(table, path, title="", prefix="T_", gearbox=None):
+    """One panel per component group (:func:`panels` of ``gearbox``; None: the default gearbox), the oil in every
+    panel for reference (the validation figures, benchmarks/validate_plant.py; `simulate --plot` draws
+    :func:`plot_simulation`)."""
     plt = pyplot()
     t_h, t_label = time_axis(table["time_s"])
-    fig, axes = plt.subplots(3, 2, figsize=(15, 10), sharex=True)
+    groups = panels(gearbox)
+    rows = (len(groups) + 1) // 2
+    fig, axes = plt.subplots(rows, 2, figsize=(15, 10 * rows / 3), sharex=True, squeeze=False)
     oil = table[f"{prefix}oil_c"] if table.has(f"{prefix}oil_c") else None
-    for ax, (grp, ids) in zip(axes.flat, GROUPS.items()):
-        for c in ids:
+    for ax in axes.flat[len(groups) :]:
+        ax.set_visible(False)
+    for ax, (grp, members) in zip(axes.flat, groups.items()):
+        for c in members:
             col = f"{prefix}{c}_c"
             if table.has(col):
                 ax.plot(t_h, table[col], lw=1, label=c)

@@ -98,6 +98,7 @@ from firmware_model.physics import heat_transfer as ht
 from firmware_model.physics import losses as L
 from firmware_model.physics import oil as oilprops
 from firmware_model.physics.cooler import cooler_values
+from firmware_model.physics.drivetrain import kinematics_of
 from firmware_model.physics.gearbox_losses import ROLL_POINTS, GearboxLosses
 from firmware_model.physics.kinematics import GEAR_MIN, MESHES, N_GEARS, SPEED_NAMES
 from firmware_model.units import RAD_S_PER_RPM
@@ -381,7 +382,7 @@ def law_grid(net: Network, p: Parameters, batched: bool = True) -> LawGrid:
     calls it once per grid point instead (the same numbers bit for bit, ~50x slower; kept as the reference the
     tests and benchmarks/bench_build.py compare with)."""
     ev = ConductanceEvaluator(net, p, EffectScales())
-    speed_abs = np.abs(p.kinematics.speed)  # (17, 14)
+    speed_abs = np.abs(kinematics_of(p).speed)  # (17, 14)
     w_src_max = speed_abs.max(axis=0) * p["engine.max_speed_rad_s"]
     u = np.linspace(0.0, 1.0, N_U)
     n_links = len(net.link_a)
@@ -418,7 +419,7 @@ class _Laws:
 
     def __init__(self, net: Network, agg: Aggregation, p: Parameters, grid: LawGrid):
         self.net, self.agg, self.p, self.grid = net, agg, p, grid
-        self.kin = p.kinematics
+        self.kin = kinematics_of(p)
         self.speed_abs = np.abs(self.kin.speed)
         self.G_const = np.zeros(len(agg.link_a))
         self.pw: list = []
@@ -559,7 +560,7 @@ class LossMaps(NamedTuple):
 def _loss_maps(p: Parameters, net: Network, w_ls_max_rad_s: float) -> LossMaps:
     """Mesh slip tables and rolling constants (Eq 7-22), Palmgren coefficients of the shaft and needle bearings
     (Eq 35-40), synchronizer (Eq 41) and pump (Eq 42) coefficients per gear, churning table (Eq 23-34)."""
-    kin = p.kinematics
+    kin = kinematics_of(p)
     gl = GearboxLosses(p, net.geometry)
     mesh_x0, mesh_phi_rows, roll_k, roll_lt_min = _mesh_tables(gl)
     speed_abs = np.abs(kin.speed)
@@ -679,7 +680,7 @@ def build_reduced(
     net = build_network(p)
     part_name, partition = _resolve_partition(partition, net.geometry.description)
     agg = aggregate(net, partition)
-    kin = p.kinematics
+    kin = kinematics_of(p)
     grid = law_grid(net, p)
     laws = _Laws(net, agg, p, grid)
     for k in range(len(net.link_a)):

@@ -16,15 +16,20 @@ import math
 
 import numpy as np
 
-from firmware_model.components import IDLE_WHEELS, LAYSHAFT_WHEELS, PAIRS, SHAFT_BEARINGS
+from firmware_model.components import SHAFT_BEARINGS
+from firmware_model.description import Description
 from firmware_model.effects import EffectScales
+from firmware_model.errors import ParameterError
 from firmware_model.parameters import Parameters
 from firmware_model.physics import losses as L
 from firmware_model.physics import oil as oilprops
+from firmware_model.physics.drivetrain import gear_kinematics, kinematics_of
 from firmware_model.physics.geometry import Geometry, build_geometry
-from firmware_model.physics.kinematics import GEAR_MIN, GEARS, MESHES, SPEED_NAMES, SYNCS, gear_state
+from firmware_model.physics.kinematics import GEAR_MIN, MESHES
 
-#: loss sources in reporting order; "mesh:<m>" for the nine meshes, then the lumped ones
+#: the GRS905's loss sources in reporting order (the onboard tables and the run tables index it): "mesh:<m>" for
+#: the meshes between fixed axes, the planetary sets, the shaft bearings, then the lumped ones; a gearbox's own are
+#: GearboxLosses.sources (sources_of its description), the same for the GRS905
 SOURCES = (
     tuple(f"mesh:{m}" for m in MESHES[:7])
     + ("planetary",)
@@ -35,70 +40,155 @@ SOURCES = (
 ROLL_POINTS = 4
 
 
+def _planetary_members(d: Description) -> dict:
+    """Planetary member -> its set."""
+    return {m: ps for ps in d.planetary for m in (ps.sun, ps.planet, ps.ring)}
+
+
+def sources_of(d: Description) -> tuple:
+    """A description's loss sources in reporting order: its meshes between fixed axes, ``planetary`` (every set's
+    meshes) when it has a planetary set, its shaft bearings, churning, the idle wheels' bearings, the synchronizers
+    and the pump."""
+    members = _planetary_members(d)
+    out = [f"mesh:{m.id}" for m in d.meshes if not set(m.wheels) & set(members)]
+    out += ["planetary"] if d.planetary else []
+    out += [f"bearing:{b.id}" for b in d.bearings if b.wheel is None]
+    return tuple(out) + ("churning", "wheel_bearings", "synchronizers", "pump")
+
+
+def _sync_ring(p: Parameters, d: Description, joins: tuple) -> tuple:
+    """(rings, ring radius, axial clearance) of a synchronizer: the range synchronizer's rings where it engages a
+    planetary member, the split synchronizer's where it engages the input shaft, else the main box's (seed 3.2)."""
+    if joins[0] in _planetary_members(d):
+        return p["sync.n_ring_range"], p["sync.R_ring_range"], p["sync.J_ax_range"]
+    if d.drive.input_shaft in joins:
+        return p["sync.n_ring_split"], p["sync.R_ring_split"], p["sync.J_ax"]
+    return p["sync.n_ring_main"], p["sync.R_ring_main"], p["sync.J_ax"]
+
+
+def _shaft_sides(d: Description) -> dict:
+    """Shaft -> +1 or -1: the side of the mesh plane it sits on, the input shaft's +1, a mesh between two shafts
+    (directly or through an idler on a pin, which sits beside the plane) changing side; a radial mesh force pushes
+    each shaft away from its mate, so it takes the sign of its side."""
+    shaft_of = {w.id: w.shaft for w in d.wheels}
+    pins = {w.id for w in d.wheels if w.mount == "pin"}
+    links = []
+    for m in d.meshes:
+        a, b = (shaft_of.get(w) for w in m.wheels)
+        if a and b:
+            links.append((a, b))
+    for pin in pins:  # the shafts on either side of an idler
+        ends = [shaft_of.get(w) for m in d.meshes if pin in m.wheels for w in m.wheels if w != pin]
+        links += [(ends[0], e) for e in ends[1:] if ends[0] and e]
+    side = {d.drive.input_shaft: 1.0}
+    grew = True
+    while grew:
+        grew = False
+        for a, b in links:
+            for u, v in ((a, b), (b, a)):
+                if u in side and v not in side:
+                    side[v] = -side[u]
+                    grew = True
+    return side
+
+
 class GearboxLosses:
-    """The loss model of one parameter set and its geometry."""
+    """The loss model of one parameter set and its geometry, built from the gearbox's description."""
 
     def __init__(self, p: Parameters, geometry: Geometry | None = None):
         self.p = p
-        self.kin = p.kinematics
+        self.kin = kinematics_of(p)  # the gearbox's own description (docs/description.md)
         self.geo = geometry or build_geometry(p)
-        self.meshes = [self.geo.meshes[m] for m in MESHES]
-        self.n_planets = int(p["planetary.n_planets"])
+        d = self.d = self.geo.description
+        self.sources = sources_of(d)
+        self.mesh_ids = tuple(m.id for m in d.meshes)
+        self.meshes = [self.geo.meshes[m] for m in self.mesh_ids]
+        members = _planetary_members(d)
+        # a planetary mesh is one per planet: its load splits over the set's planets
+        self.mesh_planets = [members[m.wheels[0]].n_planets if set(m.wheels) & set(members) else 0 for m in d.meshes]
+        # the first planetary set's planets (the onboard mesh tables split one set's load: onboard/reduce.py)
+        self.n_planets = d.planetary[0].n_planets if d.planetary else 1
         self.E = p["material.steel.E"]
         self.poisson = p["material.steel.poisson"]
         self.sf_gear = p["scale.gear_contact_to_heat"]
         self.sf_planet = p["scale.planet_to_heat"]
         self.sf_churn = p["scale.churn_to_heat"]
+        names = self.kin.speed_names
+        # the speed column a wheel turns at: its shaft's (fixed, cut) or its own (idle, on a pin)
+        self.col = {n: i for i, n in enumerate(names)}
+        self.col.update({w.id: names.index(w.shaft) for w in d.wheels if w.mount in ("fixed", "cut")})
         self._bearing_tables()
         self._churn_geometry()
-        self.i_ls = SPEED_NAMES.index("LS")
-        self.i_is = SPEED_NAMES.index("IS")
-        self.i_ms = SPEED_NAMES.index("MS")
-        self.i_os = SPEED_NAMES.index("OS")
         self.pump_k = p["pump.k"]
-        # synchronizer ring geometry per interface
-        s = p
-        self.sync_geo = []
-        for name in SYNCS:
-            if name in ("LI/IS", "3M/IS"):
-                self.sync_geo.append((s["sync.n_ring_split"], s["sync.R_ring_split"], s["sync.J_ax"]))
-            elif name == "PR/range":
-                self.sync_geo.append((s["sync.n_ring_range"], s["sync.R_ring_range"], s["sync.J_ax_range"]))
-            else:
-                self.sync_geo.append((s["sync.n_ring_main"], s["sync.R_ring_main"], s["sync.J_ax"]))
+        self.pump_col = None if d.oil.pump_shaft is None else names.index(d.oil.pump_shaft)
+        self.sync_geo = [_sync_ring(p, d, c.joins) for c in d.couplings if c.kind == "sync"]
 
     # ------------------------------------------------------------------ geometry-derived tables
+    def _mesh_forces(self, g) -> dict:
+        """(x, Fy, Fz, Fa) per unit input torque on each shaft from the loaded meshes between fixed axes of a gear:
+        tangential force from the driving wheel's torque on its working pitch radius, +Ft on the driving wheel's
+        shaft and -Ft on the driven one's, radial force Ft tan(alpha_tw) by the shaft's side, axial Ft tan(beta); a
+        shaft that takes the power in through one mesh and gives it out through another has wheels of opposite hand
+        (the axial forces partly cancel)."""
+        d, members = self.d, _planetary_members(self.d)
+        wheel = {w.id: w for w in d.wheels}
+        mesh = {m.id: m for m in d.meshes}
+        side = _shaft_sides(d)
+        forces: dict = {}
+        entered: set = set()
+        for mid, (w_in, torque) in g.driver.items():
+            if set(mesh[mid].wheels) & set(members):
+                continue
+            gm = self.geo.meshes[mid]
+            first = mesh[mid].wheels[0] == w_in
+            Ft = torque / (gm.R_w1_m if first else gm.R_w2_m)
+            Fr, Fa = Ft * math.tan(gm.alpha_tw_rad), Ft * math.tan(gm.beta_rad)
+            for w in mesh[mid].wheels:
+                shaft = wheel[w].shaft
+                if shaft is None:  # an idler on a pin: its forces go to the casing
+                    continue
+                driving = w == w_in
+                fa = -Fa if driving and shaft in entered else Fa
+                forces.setdefault(shaft, []).append((wheel[w].x_m, Ft if driving else -Ft, side[shaft] * Fr, fa))
+                if not driving:
+                    entered.add(shaft)
+        return forces
+
+    def _supports(self) -> tuple:
+        """Shaft -> (front, rear) bearing carrying it (its own, or a pilot bearing seated inside it), and shaft ->
+        the bearing taking its axial force (the rearmost of its own seated in a housing)."""
+        d = self.d
+        seg_shaft = {s.id: sh.id for sh in d.shafts for s in sh.segments}
+        seg_x = {s.id: s.x_m for sh in d.shafts for s in sh.segments}
+        shaft_bearings = [b for b in d.bearings if b.wheel is None]
+        supports, thrust = {}, {}
+        for sh in d.shafts:
+            carry = [b for b in shaft_bearings if b.shaft == sh.id or seg_shaft.get(b.inside) == sh.id]
+            carry.sort(key=lambda b: b.x_m if b.x_m is not None else seg_x[b.segment])
+            if len(carry) >= 2:
+                supports[sh.id] = (carry[0].id, carry[-1].id)
+            own = [b for b in carry if b.shaft == sh.id and b.housing is not None]
+            if own:
+                thrust[sh.id] = own[-1].id
+        return supports, thrust
+
     def _bearing_tables(self):
         """Radial and axial load coefficients [N per N m of input torque], per gear and shaft bearing."""
-        p, W = self.p, self.geo.wheels
-        nG = len(GEARS)
-        self.Fr_coef = np.zeros((nG, len(SHAFT_BEARINGS)))
-        self.Fa_coef = np.zeros((nG, len(SHAFT_BEARINGS)))
-        xb = {b: p[f"bearing.{b}.x"] for b in SHAFT_BEARINGS}
-        supports = {"IS": ("BIF", "BIM"), "LS": ("BLF", "BLR"), "MS": ("BIM", "BMR")}
-        thrust = {"IS": "BIF", "LS": "BLR", "MS": "BMR"}
-        for g in GEARS:
-            st = gear_state(g, p.split_inverted)
-            r = g - GEAR_MIN
-            if st.main_pair is None or st.direct:
-                continue
-            forces = {"IS": [], "LS": [], "MS": []}  # (x, Fy, Fz, Fa) per unit input torque
-            iw, lw = PAIRS[st.split_pair]
-            mesh = self.geo.meshes[st.split_pair]
-            Ft = 1.0 / mesh.R_w1_m
-            Fr, Fa = Ft * math.tan(mesh.alpha_tw_rad), Ft * math.tan(mesh.beta_rad)
-            shaft_i = "IS" if iw == "LI" else "MS"
-            forces[shaft_i].append((W[iw].x, +Ft, +Fr, Fa))
-            forces["LS"].append((W[lw].x, -Ft, -Fr, Fa))
-            T_ls = W[lw].z / W[iw].z
-            mp = st.main_pair
-            miw, mlw = PAIRS[mp]
-            mesh = self.geo.meshes["R" if mp == "R" else mp]
-            Ft = T_ls / (mesh.R_w1_m if mp == "R" else mesh.R_w2_m)
-            Fr, Fa = Ft * math.tan(mesh.alpha_tw_rad), Ft * math.tan(mesh.beta_rad)
-            forces["LS"].append((W[mlw].x, +Ft, -Fr, -Fa))  # opposite hand: axial forces partly cancel
-            forces["MS"].append((W[miw].x, -Ft, +Fr, Fa))
+        d = self.d
+        shaft_bearings = [b for b in d.bearings if b.wheel is None]
+        ids = self.bearing_ids = [b.id for b in shaft_bearings]
+        nG = self.kin.speed.shape[0]
+        self.Fr_coef = np.zeros((nG, len(ids)))
+        self.Fa_coef = np.zeros((nG, len(ids)))
+        seg_x = {s.id: s.x_m for sh in d.shafts for s in sh.segments}
+        xb = {b.id: b.x_m if b.x_m is not None else seg_x[b.segment] for b in shaft_bearings}
+        supports, thrust = self._supports()
+        for gear in d.gears:
+            r = gear.number - GEAR_MIN
+            forces = self._mesh_forces(gear_kinematics(d, gear))
             for shaft, (bA, bB) in supports.items():
+                if shaft not in forces:
+                    continue
                 xA, xB = xb[bA], xb[bB]
                 RyA = RyB = RzA = RzB = 0.0
                 fa = 0.0
@@ -109,18 +199,24 @@ class GearboxLosses:
                     RzB += fz * s
                     RzA += fz * (1 - s)
                     fa += fax
-                jA, jB = SHAFT_BEARINGS.index(bA), SHAFT_BEARINGS.index(bB)
+                jA, jB = ids.index(bA), ids.index(bB)
                 self.Fr_coef[r, jA] += math.hypot(RyA, RzA)
                 self.Fr_coef[r, jB] += math.hypot(RyB, RzB)
-                self.Fa_coef[r, SHAFT_BEARINGS.index(thrust[shaft])] += abs(fa)
-        # torque per N m of input torque from the load terms (Eq 38-40), per gear and bearing
+                if shaft in thrust:
+                    self.Fa_coef[r, ids.index(thrust[shaft])] += abs(fa)
+        self._bearing_torques(shaft_bearings)
+
+    def _bearing_torques(self, shaft_bearings: list):
+        """Palmgren's load torque per N m of input torque (Eq 38-40) of each shaft bearing, its speed column(s),
+        and the idle wheels' needle bearings."""
+        p, d = self.p, self.d
         self.load_torque_coef = np.zeros_like(self.Fr_coef)
-        self.f0 = np.zeros(len(SHAFT_BEARINGS))
-        self.Dm = np.zeros(len(SHAFT_BEARINGS))
-        for j, b in enumerate(SHAFT_BEARINGS):
-            typ = "ball" if b == "BO" else "tapered"
+        self.f0 = np.zeros(len(shaft_bearings))
+        self.Dm = np.zeros(len(shaft_bearings))
+        for j, b in enumerate(shaft_bearings):
+            typ = b.kind
             self.f0[j] = p[f"bearing.f0_{typ}"]
-            self.Dm[j] = 0.5 * (p[f"bearing.{b}.d_bore"] + p[f"bearing.{b}.d_out"])
+            self.Dm[j] = 0.5 * (b.bore_m + b.outer_m)
             P1 = L.bearing_p1_n(
                 self.Fr_coef[:, j],
                 self.Fa_coef[:, j],
@@ -134,32 +230,45 @@ class GearboxLosses:
                 p[f"bearing.f1_{typ}"] * (p["bearing.P0"] + P1) * self.Dm[j]
                 + p["bearing.f2"] * self.Fa_coef[:, j] * self.Dm[j]
             )
-        shaft_of = {b.id: b.shaft for b in self.geo.description.bearings}
-        self.bearing_speed_idx = [SPEED_NAMES.index(shaft_of[b]) for b in SHAFT_BEARINGS]
-        # needle bearings
-        d_r = p["wheel_bearing.d_roller"]
-        R_s = {"LI": self.geo.R_shaft_m["IS"]}
-        self.needle_Dm = np.array([2 * (R_s.get(w, self.geo.R_shaft_m["MS"])) + d_r for w in IDLE_WHEELS])
+        # a bearing turns with its shaft; a pilot bearing at the difference of its shaft and the one around it
+        seg_shaft = {s.id: sh.id for sh in d.shafts for s in sh.segments}
+        names = self.kin.speed_names
+        self.bearing_speed_idx = [names.index(b.shaft) for b in shaft_bearings]
+        self.bearing_outer_idx = [
+            None if b.inside is None else names.index(seg_shaft[b.inside]) for b in shaft_bearings
+        ]
+        # needle bearings under the idle wheels: mean diameter over the shaft under the wheel
+        wheel = {w.id: w for w in d.wheels}
+        needles = [b for b in d.bearings if b.wheel is not None]
+        self.needle_Dm = np.array([2 * self.geo.R_shaft_m[wheel[b.wheel].shaft] + b.roller_m for b in needles])
         self.needle_f0 = p["wheel_bearing.f0_needle"]
 
     def _churn_geometry(self):
-        W, imm = self.geo.wheels, self.geo.immersion_m
+        """The wheels dipping into the sump (oil.dipping): their tip, pitch and tooth sizes and immersion."""
+        W, imm, d = self.geo.wheels, self.geo.immersion_m, self.d
+        dipping = [w.id for w in d.wheels if w.id in d.oil.dipping]
         rows = []
-        for w in LAYSHAFT_WHEELS + ("RI",):
+        for w in dipping:
+            if w not in imm:
+                raise ParameterError(f"{d.origin}: topology.oil.dipping names {w}, whose immersion is not known")
             g = W[w]
             h_i = imm[w]
             th = 2 * math.acos(float(np.clip(1 - h_i / g.R_a, -1, 1)))
             V_p = 0.5 * g.R_a**2 * (th - math.sin(th)) * g.width
-            rows.append((g.R_a, g.R_p, g.h_t, g.width, h_i, V_p, 1.0 if w == "RI" else 0.0))
-        a = np.array(rows)
-        self.ch_Ra, self.ch_Rp, self.ch_ht, self.ch_w, self.ch_hi, self.ch_Vp, self.ch_is_RI = a.T
+            rows.append((g.R_a, g.R_p, g.h_t, g.width, h_i, V_p))
+        a = np.array(rows).reshape(len(rows), 6)
+        self.ch_Ra, self.ch_Rp, self.ch_ht, self.ch_w, self.ch_hi, self.ch_Vp = a.T
+        self.ch_col = np.array([self.col[w] for w in dipping], dtype=np.int64)
+        # an idler on a pin (the onboard churning table scales it from the layshaft speed: onboard/reduce.py)
+        mount = {w.id: w.mount for w in d.wheels}
+        self.ch_is_RI = np.array([1.0 if mount[w] == "pin" else 0.0 for w in dipping])
         self.ch_mask = self.ch_hi > 0
-        self.V0 = self.p["oil.volume"]
+        self.V0 = d.oil.volume_m3
         self.h_t0 = self.p["oil.h_t0"]
 
     # ------------------------------------------------------------------ evaluation
     def evaluate(self, omega_in_rad_s, torque_in_nm, gear, T_oil_c, churn_validity: bool = False) -> dict:
-        """Mechanical loss [W] of every source in SOURCES, as arrays over the samples.
+        """Mechanical loss [W] of every source in ``self.sources``, as arrays over the samples.
 
         omega_in_rad_s, torque_in_nm, gear: arrays (or scalars) of the same length; T_oil_c: scalar or array.
         """
@@ -172,44 +281,44 @@ class GearboxLosses:
         rho, mu, nu, piezo = op.rho_kg_m3, op.mu_pa_s, op.nu_m2_s, op.piezo_per_pa
         kin = self.kin
         out = {}
-        # meshes
+        # meshes; a planetary mesh once per planet, its loss summed over the planets
         mt = kin.mesh_torque[row] * T_in[:, None]
         mw = kin.mesh_omega2[row] * w_in[:, None]
         planet = np.zeros(n)
-        for j, m in enumerate(MESHES):
+        for j, m in enumerate(self.mesh_ids):
             T1 = mt[:, j]
+            n_pl = self.mesh_planets[j]
             if not np.any(T1):
                 P = np.zeros(n)
             else:
                 mesh = self.meshes[j]
-                if m in ("PSP", "PPR"):
-                    T1 = T1 / self.n_planets
+                if n_pl:
+                    T1 = T1 / n_pl
                 # rolling losses are ~1 W (seed 3.2): a coarse quadrature is plenty for them
                 P = L.gear_slip_loss_w(mesh, T1, mw[:, j], rho, mu) + L.gear_rolling_loss_w(
                     mesh, T1, mw[:, j], mu, piezo, self.E, self.E, self.poisson, self.poisson, n_points=ROLL_POINTS
                 )
                 P = np.where(T1 > 0, P, 0.0)
-                if m in ("PSP", "PPR"):
-                    P = P * self.n_planets
-            if m in ("PSP", "PPR"):
+                if n_pl:
+                    P = P * n_pl
+            if n_pl:
                 planet = planet + P
             else:
                 out[f"mesh:{m}"] = P
-        out["planetary"] = planet
+        if "planetary" in self.sources:
+            out["planetary"] = planet
         # shaft bearings (Eq 35-40)
         sp = kin.speed[row] * w_in[:, None]
-        for j, b in enumerate(SHAFT_BEARINGS):
-            if b == "BIM":
-                wb = np.abs(sp[:, self.i_is] - sp[:, self.i_ms])
-            else:
-                wb = np.abs(sp[:, self.bearing_speed_idx[j]])
+        for j, b in enumerate(self.bearing_ids):
+            wb = sp[:, self.bearing_speed_idx[j]]
+            if self.bearing_outer_idx[j] is not None:  # a pilot bearing: between its shaft and the one around it
+                wb = wb - sp[:, self.bearing_outer_idx[j]]
+            wb = np.abs(wb)
             T_oil = L.bearing_torque_nm(self.f0[j], 0.0, 0.0, self.Dm[j], nu, wb, 0.0, 0.0, 0.0)
             T_load = self.load_torque_coef[row, j] * T_in
             out[f"bearing:{b}"] = (T_oil + T_load) * wb
-        # churning (Eq 23-34) of the immersed layshaft wheels and the reverse idler
-        w_ls = np.abs(sp[:, self.i_ls])
-        w_ri = np.abs(sp[:, SPEED_NAMES.index("RI")])
-        wc = np.where(self.ch_is_RI[None, :] > 0, w_ri[:, None], w_ls[:, None])
+        # churning (Eq 23-34) of the wheels dipping into the sump, each at its own speed
+        wc = np.abs(sp[:, self.ch_col])
         with np.errstate(divide="ignore", invalid="ignore"):  # wheels lifted out of the oil are masked below
             ch = L.churning_loss(
                 wc, self.ch_Ra, self.ch_Rp, self.ch_ht, self.ch_w, self.ch_hi, self.ch_Vp, self.V0, rho, nu, self.h_t0
@@ -231,8 +340,9 @@ class GearboxLosses:
             )
             Psync = Psync + Ts * srel[:, k]
         out["synchronizers"] = Psync
-        # oil pump (Eq 42): torque linear in layshaft speed
-        out["pump"] = self.pump_k * w_ls * w_ls
+        # oil pump (Eq 42): torque linear in the pump shaft's speed (none for a motor-driven pump)
+        w_pump = np.zeros(n) if self.pump_col is None else np.abs(sp[:, self.pump_col])
+        out["pump"] = self.pump_k * w_pump * w_pump
         return out
 
     def heat(self, loss: dict, scales: EffectScales | None = None) -> dict:

@@ -106,13 +106,22 @@ def _meshes(p: Parameters, d: Description) -> dict:
 
 def oil_level_drop_m(p: Parameters) -> float:
     """How far the oil surface lies below its nominal level: the volume deficit over the free surface [m]."""
-    vol = p["oil.volume"]
-    return max(0.0, (p.get("oil.nominal_volume", vol) - vol)) / p["oil.free_surface_area"]
+    vol = p.get("oil.volume")
+    if vol is None or p.get("oil.nominal_volume", vol) <= vol:
+        return 0.0  # no deficit (a description's own volume, without the parameter, is its nominal one)
+    return (p["oil.nominal_volume"] - vol) / p["oil.free_surface_area"]
+
+
+#: the parameters the GRS905's immersion depths take
+IMMERSION_KEYS = ("shaft.LS.x_BLF", "oil.level_below_ls_axis", "oil.inclination", "gear.R.idler_immersion")
 
 
 def _immersion(p: Parameters, wheels: dict, level_drop_m: float) -> dict:
     """Immersion depth of the layshaft wheels: the oil surface lies below the layshaft axis at BLF and rises toward
-    the rear (5 deg tilt, seed 2.2); the reverse idler has its own depth."""
+    the rear (5 deg tilt, seed 2.2); the reverse idler has its own depth. Another gearbox (without the GRS905's
+    layshaft wheels and oil level parameters) has none computed: the network names a dipping wheel it lacks."""
+    if not set(LAYSHAFT_WHEELS) | {"RI"} <= set(wheels) or not set(IMMERSION_KEYS) <= set(p.values):
+        return {}
     x_blf = p["shaft.LS.x_BLF"]
     immersion = {}
     for w in LAYSHAFT_WHEELS:

@@ -11,7 +11,7 @@ import pytest
 
 from firmware_model import components as C
 from firmware_model import network as N
-from firmware_model.description import description_of, load_description
+from firmware_model.description import description_of, load_description, shipped_descriptions
 from firmware_model.errors import ParameterError
 from firmware_model.parameters import PARAM_DIR, load_parameters
 from firmware_model.physics import geometry as G
@@ -194,9 +194,10 @@ def test_an_unknown_gearbox_is_one_sentence(capsys):
     assert main(["describe", "--gearbox", "GRS999"]) == 2
     err = capsys.readouterr().err
     assert err == (
-        "gearbox-vsensor describe: error: unknown gearbox 'GRS999': use one of GRS905, GRSO905 or the path of a "
-        ".toml description file\n"
+        f"gearbox-vsensor describe: error: unknown gearbox 'GRS999': use one of {', '.join(shipped_descriptions())} "
+        "or the path of a .toml description file\n"
     )
+    assert {"GRS905", "GRSO905"} <= set(shipped_descriptions())
 
 
 # ---------------------------------------------------------------------------------------------------------------
@@ -565,12 +566,23 @@ def test_the_network_is_built_from_the_description(tmp_path):
     assert n1.segment_length_m["IS@LI"] == n0.segment_length_m["IS@LI"] and n1.nodes == n0.nodes
 
 
-def test_a_description_with_other_boundaries_is_one_sentence(tmp_path):
-    text = (PARAM_DIR / "GRS905.toml").read_text().replace("[topology.boundary.ambient]", "[topology.boundary.air]")
-    (tmp_path / "other_boundaries.toml").write_text(text)
-    p = load_parameters(tmp_path / "other_boundaries.toml")
-    with pytest.raises(ParameterError, match=r"^other_boundaries.toml: topology.boundary lists .*, air; the plant"):
-        N.build_network(p)
+def test_the_network_takes_the_descriptions_boundaries(tmp_path):
+    """Another boundary list (the GRS905's with its ambient renamed and moved first) is the network's, in the file's
+    order: the links index it."""
+    text = (PARAM_DIR / "GRS905.toml").read_text()
+    i, j = text.index("[topology.boundary.ambient]"), text.index("# the published components")
+    air = text[i:j].replace("[topology.boundary.ambient]", "[topology.boundary.air]")
+    text = text[:i] + text[j:]
+    k = text.index("[topology.boundary.engine_shaft]")
+    (tmp_path / "other_boundaries.toml").write_text(text[:k] + air + text[k:])
+    n0, n1 = (
+        N.build_network(load_parameters("GRS905")),
+        N.build_network(load_parameters(tmp_path / "other_boundaries.toml")),
+    )
+    assert n1.boundaries == ("air",) + N.BOUNDARIES[:-1] and n0.boundaries == N.BOUNDARIES
+    assert n1.link_name == n0.link_name
+    ext = n0.link_b >= n0.n
+    assert [n1.boundaries[i - n1.n] for i in n1.link_b[ext]] == [n0.boundaries[i - n0.n] for i in n0.link_b[ext]]
 
 
 def test_what_dips_and_what_is_splashed_comes_from_the_description(tmp_path):

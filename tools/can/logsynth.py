@@ -31,7 +31,6 @@ from can_dbc.j1939 import (
     TP_BAM_CONTROL,
     TP_DT_DATA_BYTES,
 )
-from firmware_model.components import PUBLISHED
 from firmware_model.errors import InputError, ParameterError
 
 #: default engine reference torque (SPN 544) sent in EC1 when the config has none [Nm]; assumed, a 13 l truck engine
@@ -424,11 +423,14 @@ class _Synth:
         self.add(name, _ORDER[name], t_s[keep], ids[keep], data[keep])
 
     def rig(self) -> None:
-        """RIG_TC_1..7: the plant's true temperatures of the published components, linearly interpolated."""
-        if self.plant is None or not any(self.plant.has(f"T_{c}_c") for c in PUBLISHED):
+        """RIG_TC_<k> (the DBC's rig messages): the plant's true temperatures of the components they carry, linearly
+        interpolated."""
+        messages = dbc.numbered_messages("RIG_TC_")
+        carried = [c for name in messages for c, _, _ in dbc.component_signals(name, 16)]  # the DBC's components
+        if self.plant is None or not any(self.plant.has(f"T_{c}_c") for c in carried):
             return
         t_s = self.slots("RIG")
-        for k, name in enumerate(dbc.numbered_messages("RIG_TC_")):
+        for k, name in enumerate(messages):
             data = _empty(t_s.size)
             for component, signal, _ in dbc.component_signals(name, 16):
                 col = f"T_{component}_c"
@@ -600,6 +602,7 @@ def _bench(argv=None) -> None:  # pragma: no cover - a benchmark, run by benchma
     import time
 
     from tools.cycles.named import get_cycle
+    from tools.published import ids
     from tools.runtable import RunTable
 
     table = get_cycle("long_haul")
@@ -616,7 +619,7 @@ def _bench(argv=None) -> None:  # pragma: no cover - a benchmark, run by benchma
     fake = RunTable(
         {
             "time_s": big["time_s"][::10],
-            **{f"T_{c}_c": np.full(big.n // 10 + (big.n % 10 > 0), 90.0) for c in PUBLISHED},
+            **{f"T_{c}_c": np.full(big.n // 10 + (big.n % 10 > 0), 90.0) for c in ids()},
         }
     )
     import tempfile

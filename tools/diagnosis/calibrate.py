@@ -113,8 +113,8 @@ def _init(params, cooler, dt_s):
 
 
 def _job(job):
-    from firmware_model.components import HOUSINGS
     from tools.plant.reference import ReferencePlant
+    from tools.published import housings
 
     overrides, table, columns, housing_offset_c = job
     params = _W["params"].with_overrides(overrides) if overrides else _W["params"]
@@ -123,7 +123,7 @@ def _job(job):
         initial_temp_c=table.meta.get("initial_temp_c"),
         out_dt_s=1.0,
         progress=False,
-        initial_offsets_c={h: housing_offset_c for h in HOUSINGS} if housing_offset_c else None,
+        initial_offsets_c={h: housing_offset_c for h in housings(params)} if housing_offset_c else None,
     )
     return {c: res.table[c] for c in ("time_s",) + tuple(columns)}
 

@@ -22,6 +22,7 @@ from tools.diagnosis.context import Context
 from tools.diagnosis.fit import Candidate, Criterion, Fit
 from tools.diagnosis.models import Run
 from tools.diagnosis.options import OIL, Options, json_number, n_eff_needed
+from tools.published import description, housings, ids
 
 NO_EFFECT = ("none", "unexplained")
 
@@ -328,11 +329,10 @@ def _accumulate(diffs: dict, key: str, a: np.ndarray, b: np.ndarray) -> None:
     diffs[key] = NodeDifference(d.sq + float(np.sum((a - b) ** 2)), d.samples + a.size)
 
 
-def _node_differences(outs_a: list, outs_b: list) -> dict:
-    """Node (and COOLER_HEAT) -> the squared difference of two full-output runs over the files."""
-    from firmware_model.components import HOUSINGS, PUBLISHED
-
-    nodes = [n for n in PUBLISHED if n != OIL] + list(HOUSINGS) + [OIL]
+def _node_differences(outs_a: list, outs_b: list, gearbox) -> dict:
+    """Node (and COOLER_HEAT) -> the squared difference of two full-output runs over the files: the published
+    components and the housings of ``gearbox`` (a parameter set or description), the sump last."""
+    nodes = [n for n in ids(gearbox) if n != OIL] + list(housings(gearbox)) + [OIL]
     diffs = {}
     for oa, ob in zip(outs_a, outs_b):
         fa_, fb_ = oa["full"], ob["full"]
@@ -350,8 +350,10 @@ def suggest(ctx: Context, train: list, fa: Fit, fb: Fit) -> dict:
     node and rank the nodes (and the cooler heat) by the RMS difference."""
     outs = ctx.sim.run(train, [Run.of({fa.effect: fa.value}, full=True), Run.of({fb.effect: fb.value}, full=True)])
     measured = {cid for ds in train for cid in ds.channels}
-    diffs = _node_differences(outs[0], outs[1])
+    diffs = _node_differences(outs[0], outs[1], ctx.params)
     ranked = []
+    desc = description(ctx.params)
+    suns = {ps.sun for ps in desc.planetary} if desc is not None else set()
     for n, d in diffs.items():
         rms = math.sqrt(d.sq / max(d.samples, 1))
         if n == COOLER_HEAT or n in measured:
@@ -359,7 +361,7 @@ def suggest(ctx: Context, train: list, fa: Fit, fb: Fit) -> dict:
         label = (
             "a second, fast oil sensor in the sump"
             if n == OIL
-            else f"a thermocouple on {n}" + (" (sun wheel)" if n == "PS" else "")
+            else f"a thermocouple on {n}" + (" (sun wheel)" if n in suns else "")
         )
         ranked.append({"measurement": label, "node": n, "difference_rms_c": json_number(rms)})
     ranked.sort(key=lambda x: -x["difference_rms_c"])

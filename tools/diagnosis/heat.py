@@ -44,12 +44,16 @@ def effective_conductance_w_per_k(pair: HeatPair) -> float:
 
 
 def oil_heat_capacity_j_per_k(params) -> float:
-    """The oil and the housings, which follow it."""
+    """The oil and the housings (the description's), which follow it."""
     from firmware_model.network import build_network
+    from tools.published import housings
 
     net = build_network(params)
     C = dict(zip(net.nodes, net.C_j_per_k))
-    return C["oil"] + C["H1"] + C["H2"] + C["H3"]
+    total = C["oil"]
+    for h in housings(params):
+        total += C[h]
+    return total
 
 
 def _heat_series(ds, ch, p: np.ndarray, C_eff_j_per_k: float, G_eff_w_per_k: float, grid_dt_s: float) -> HeatSeries:

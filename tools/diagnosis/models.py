@@ -31,6 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from firmware_model.errors import InputError
+from tools.published import housings
 
 #: columns every run returns besides the measured channels' model columns
 ALWAYS = ("oil_temp_c", "T_oil_c", "Q_out_cooler_w")
@@ -91,12 +92,9 @@ class Run:
             float(housing_offset_c),
         )
 
-    @property
-    def initial_offsets_c(self) -> dict | None:
-        """{node: K} added to the start of the housings (None: none)."""
-        from firmware_model.components import HOUSINGS
-
-        return {h: self.housing_offset_c for h in HOUSINGS} if self.housing_offset_c else None
+    def initial_offsets_c(self, housings: tuple) -> dict | None:
+        """{node: K} added to the start of the ``housings`` (the gearbox's housing ids; None: no offset)."""
+        return {h: self.housing_offset_c for h in housings} if self.housing_offset_c else None
 
     def initial_c(self, T0_meas_c: float) -> float:
         """The initial temperature of a file whose first oil reading (or initial temperature) is `T0_meas_c`."""
@@ -162,7 +160,7 @@ def _plant_job(job):
         initial_temp_c=run.initial_c(t0) if t0 is not None else None,
         out_dt_s=w["out_dt_s"],
         progress=False,
-        initial_offsets_c=run.initial_offsets_c,
+        initial_offsets_c=run.initial_offsets_c(housings(w["params"])),
     )
     tb = res.table
     out = {"time_s": tb["time_s"]}
@@ -496,10 +494,8 @@ def run_onboard_pass(ds, runs, columns, volume_l: float) -> list:
     state = vs.initial_state(T_oil_c=T0, n_vehicles=V)
     dh = np.array([r.housing_offset_c for r in runs], dtype=float)
     if np.any(dh != 0.0):
-        from firmware_model.components import HOUSINGS
-
         T_c = np.array(state.T_c, copy=True)
-        hi = [list(vs.nodes).index(h) for h in HOUSINGS]
+        hi = [list(vs.nodes).index(h) for h in housings(vs)]
         T_c[:, :, hi] += dh[:, None, None]  # both copies
         state = state._replace(T_c=T_c)
     every = max(int(round(out_dt_s / dt)), 1)

@@ -14,7 +14,6 @@ from typing import NamedTuple
 
 import numpy as np
 
-from firmware_model.components import HOUSINGS, PUBLISHED
 from firmware_model.errors import InputError
 from firmware_model.physics.oil import check_temperature_c
 from tools.diagnosis.options import INPUT_COLUMNS, J1939_RES_C, LOG_SUFFIXES, OIL, OIL_RIG, Options
@@ -231,8 +230,8 @@ def prepare_runs(
                 validate_drive(x.table, params)
             except InputError as exc:
                 raise InputError(f"{x.name}: {exc}") from None
-    train = [prepare(x.table, x.name, "train", opts, oil_is_input) for x in tr]
-    test = [prepare(x.table, x.name, "test", opts, oil_is_input) for x in te]
+    train = [prepare(x.table, x.name, "train", opts, oil_is_input, params) for x in tr]
+    test = [prepare(x.table, x.name, "test", opts, oil_is_input, params) for x in te]
     ch_tr = {c for ds in train for c in ds.channels}
     missing = sorted({c for ds in test for c in ds.channels} - ch_tr)
     if missing:
@@ -455,8 +454,12 @@ def _refuse_implausible(table: RunTable, t: np.ndarray, name: str) -> None:
         raise InputError(f"{name}: {found[0].sentence}")
 
 
-def prepare(table: RunTable, name: str, role: str, opts: Options, oil_is_input: bool = False) -> Dataset:
-    """Validate a measured run table and put its channels on the analysis grid. Raises InputError (one sentence)."""
+def prepare(table: RunTable, name: str, role: str, opts: Options, oil_is_input: bool = False, gearbox=None) -> Dataset:
+    """Validate a measured run table and put its channels on the analysis grid; a measured component must be one
+    ``gearbox`` (a parameter set or description; None: the default gearbox) publishes, or one of its housings.
+    Raises InputError (one sentence)."""
+    from tools.published import housings, ids
+
     validate_run_table(table, REQUIRED, name)
     t = np.asarray(table["time_s"], dtype=float)
     _check_time(t, name, opts)
@@ -471,11 +474,12 @@ def prepare(table: RunTable, name: str, role: str, opts: Options, oil_is_input: 
         )
     channels = {}
     warn = []
+    known = ids(gearbox) + housings(gearbox)
     for cid, cc in cols.items():
-        if cid not in (OIL, OIL_RIG) and cid not in PUBLISHED and cid not in HOUSINGS:
+        if cid not in (OIL, OIL_RIG) and cid not in known:
             raise InputError(
                 f'{name}: column "{cc.column}" names component "{cid}", which is not a component id '
-                f"(firmware_model.components)"
+                f"(the gearbox's published components and housings: {', '.join(known)})"
             )
         s = _valid_samples(table, t, name, cc.column, opts)
         if s.warning:

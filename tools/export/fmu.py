@@ -29,13 +29,13 @@ import zipfile
 from pathlib import Path
 from xml.sax.saxutils import escape
 
-from firmware_model.components import PUBLISHED, describe
 from firmware_model.errors import InputError
 from firmware_model.onboard.ckernel import compiler
 from firmware_model.onboard.records import REJECT_REASONS
 from firmware_model.onboard.warning_levels import LIMIT_RANGE_C
 from tools.export.fmu_source import fmu_c
 from tools.outputs import OutputError, naming, outputs
+from tools.published import description, ids, label_of
 
 MODEL_ID = "gearbox_vsensor"
 #: value-reference blocks (the C wrapper gets the same numbers through @BLOCKS@)
@@ -103,10 +103,18 @@ def _parameter(name, vr, start, text) -> tuple:
     return (name, vr, "Real", "parameter", "fixed", float(start), text)
 
 
-def _variables(limits) -> list[tuple]:
-    """(name, vr, type, causality, variability, start or None, description) of every variable."""
+def _variables(limits, gearbox=None) -> list[tuple]:
+    """(name, vr, type, causality, variability, start or None, description) of every variable; the per-component
+    ones for each component ``gearbox`` (the sensor, or its parameter set or description; None: the default
+    gearbox) publishes, in its order."""
     from firmware_model.service.options import SENSOR_INPUTS
 
+    desc, published = description(gearbox), ids(gearbox)
+    if len(published) > VR["VR_TTL"] - VR["VR_T"]:
+        raise InputError(
+            f"the FMU numbers at most {VR['VR_TTL'] - VR['VR_T']} published components; this gearbox publishes "
+            f"{len(published)}"
+        )
     # every input is discrete: the sensor samples its inputs every 0.1 s and holds them, as a CAN signal is held
     # between frames; an importer holds them between samples instead of interpolating (an interpolated gear 8.3 is
     # rejected, and FMPy interpolating 0 x NaN + 1 x value read the first sample after a gap as NaN)
@@ -114,12 +122,12 @@ def _variables(limits) -> list[tuple]:
         (col, VR["VR_INPUT"] + i, "Real", "input", "discrete", INPUT_START[i], INPUT_TEXT[field])
         for i, (field, col) in enumerate(SENSOR_INPUTS)
     ]
-    for i, c in enumerate(PUBLISHED):
-        v.append(_output(f"T_{c}_c", VR["VR_T"] + i, "Real", f"{describe(c)} [degC]"))
-    for i, c in enumerate(PUBLISHED):
+    for i, c in enumerate(published):
+        v.append(_output(f"T_{c}_c", VR["VR_T"] + i, "Real", f"{label_of(c, desc)} [degC]"))
+    for i, c in enumerate(published):
         text = f"warning level of {c}: 0 normal, 1 warning, 2 critical, 3 not available"
         v.append(_output(f"W_{c}", VR["VR_LEVEL"] + i, "Integer", text))
-    for i, c in enumerate(PUBLISHED):
+    for i, c in enumerate(published):
         text = (
             f"time to the warning limit of {c} with the inputs held [s] (inf: not within 23 days, NaN: not available)"
         )
@@ -137,7 +145,7 @@ def _variables(limits) -> list[tuple]:
         _output(f"rejects_{r}", VR["VR_REJECT"] + i, "Integer", f"inputs rejected or repaired so far: {r}")
         for i, r in enumerate(REJECT_REASONS)
     ]
-    for i, c in enumerate(PUBLISHED):
+    for i, c in enumerate(published):
         v.append(
             _parameter(
                 f"limit_warning_{c}_c", VR["VR_WARNING"] + i, limits.warning_c[i], f"warning limit of {c} [degC]"
@@ -203,12 +211,13 @@ def _xml_value(x: float) -> str:
     return "NaN" if x != x else repr(float(x))
 
 
-def model_description(variant: str, limits, guid: str, fmi_version: int = 2) -> str:
-    """modelDescription.xml of the FMU (FMI ``fmi_version``)."""
+def model_description(variant: str, limits, guid: str, fmi_version: int = 2, gearbox=None) -> str:
+    """modelDescription.xml of the FMU (FMI ``fmi_version``); ``gearbox``: the sensor, or its parameter set or
+    description, whose published components it outputs (None: the default gearbox)."""
     if fmi_version == 3:
-        return _model_description_3(variant, limits, guid)
+        return _model_description_3(variant, limits, guid, gearbox)
     rows, outputs = [], []
-    for k, (name, vr, typ, caus, var, start, desc) in enumerate(_variables(limits), start=1):
+    for k, (name, vr, typ, caus, var, start, desc) in enumerate(_variables(limits, gearbox), start=1):
         attrs = f'name="{escape(name)}" valueReference="{vr}" causality="{caus}" variability="{var}"'
         if caus == "parameter":
             attrs += ' initial="exact"'
@@ -258,9 +267,9 @@ def model_description(variant: str, limits, guid: str, fmi_version: int = 2) -> 
 _FMI3_TYPE = {"Real": "Float64", "Integer": "Int32", "String": "String"}
 
 
-def _model_description_3(variant: str, limits, guid: str) -> str:
+def _model_description_3(variant: str, limits, guid: str, gearbox=None) -> str:
     rows, outputs = [], []
-    for name, vr, typ, caus, var, start, desc in _variables(limits):
+    for name, vr, typ, caus, var, start, desc in _variables(limits, gearbox):
         t3 = "Int64" if name.startswith("rejects_") else _FMI3_TYPE[typ]
         attrs = f'name="{escape(name)}" valueReference="{vr}" causality="{caus}" variability="{var}"'
         unit = _unit(name, typ)
@@ -355,9 +364,11 @@ def _build(tmp: Path, variant: str, config_path, fmi_version: int, cc: str, head
     for name in ("gvs_kernel.c", "gvs_kernel.h", "gvs_tables.c", "gvs_sensor.c", "gvs_sensor.h"):
         shutil.copyfile(bundle / name, src / name)
     guid = "{" + hashlib.sha256((src / "gvs_tables.c").read_bytes()).hexdigest()[:32] + "}"
-    variant_name, limits = _variant_and_limits(variant, config_path)
+    variant_name, sensor = _variant_and_sensor(variant, config_path)
     (src / "fmu.c").write_text(fmu_c(fmi_version, _blocks(variant_name, guid)))
-    (tmp / "fmu" / "modelDescription.xml").write_text(model_description(variant_name, limits, guid, fmi_version))
+    (tmp / "fmu" / "modelDescription.xml").write_text(
+        model_description(variant_name, sensor.limits, guid, fmi_version, sensor)
+    )
     binaries = tmp / "fmu" / "binaries" / _platform_dir(fmi_version)
     binaries.mkdir(parents=True)
     suffix = {"Windows": ".dll", "Darwin": ".dylib"}.get(platform.system(), ".so")
@@ -383,10 +394,11 @@ def _build(tmp: Path, variant: str, config_path, fmi_version: int, cc: str, head
     return tmp / "fmu"
 
 
-def _variant_and_limits(variant: str, config_path):
-    """The variant name and the warning limits the export uses (as tools.export.c_bundle.export_c)."""
+def _variant_and_sensor(variant: str, config_path):
+    """The variant name and the sensor the export describes: its published components and warning limits (as
+    tools.export.c_bundle.export_c)."""
     from firmware_model.onboard.sensor import VirtualSensor
     from tools.export.c_bundle import export_config
 
     cfg, params = export_config(variant, config_path)
-    return params.variant, VirtualSensor(params, config=cfg, core="numpy").limits
+    return params.variant, VirtualSensor(params, config=cfg, core="numpy")

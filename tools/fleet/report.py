@@ -13,7 +13,6 @@ from pathlib import Path
 
 import numpy as np
 
-from firmware_model.components import PUBLISHED
 from tools.fleet.store import ERRORS, HEALTH, read_table
 
 
@@ -48,13 +47,20 @@ def _fmt_s(s: float) -> str:
     return f"{s / 3600:.2f} h" if s >= 3600 else f"{s / 60:.1f} min" if s >= 60 else f"{s:.0f} s"
 
 
+def published_in(c: dict) -> tuple:
+    """The published components a summary table covers, in its column order: the ids with a ``peak_<id>_c``
+    column (tools.fleet.summary wrote them from the sensor's gearbox, in its published order)."""
+    return tuple(k[len("peak_") : -len("_c")] for k in c if k.startswith("peak_") and k.endswith("_c"))
+
+
 def _hottest(c: dict, lines: list) -> None:
     n = len(c["log"])
-    peaks = np.array([[c[f"peak_{k}_c"][i] for k in PUBLISHED] for i in range(n)], dtype=float)
+    pub = published_in(c)
+    peaks = np.array([[c[f"peak_{k}_c"][i] for k in pub] for i in range(n)], dtype=float).reshape(n, -1)
     best = np.nanargmax(np.where(np.isfinite(peaks), peaks, -np.inf), axis=1)
     per_vehicle: dict = {}
     for i in range(n):
-        v, comp, T = c["vehicle"][i], PUBLISHED[best[i]], peaks[i, best[i]]
+        v, comp, T = c["vehicle"][i], pub[best[i]], peaks[i, best[i]]
         if np.isfinite(T) and (v not in per_vehicle or T > per_vehicle[v][0]):
             per_vehicle[v] = (T, comp, c["date"][i], os.path.basename(c["log"][i]))
     lines += ["## Hottest vehicles", "", "| vehicle | peak | component | date | log |", "|---|---|---|---|---|"]
@@ -69,7 +75,7 @@ def _hottest(c: dict, lines: list) -> None:
     ]
     order = np.argsort(-np.nanmax(np.where(np.isfinite(peaks), peaks, -np.inf), axis=0))
     for j in order[:10]:
-        k = PUBLISHED[j]
+        k = pub[j]
         lines.append(
             f"| {k} | {np.nanmax(peaks[:, j]):.1f} degC | {np.nanmedian(peaks[:, j]):.1f} degC | "
             f"{_fmt_s(float(np.sum(c[f'above_warning_{k}_s'])))} | "
@@ -89,8 +95,9 @@ def _plots(c: dict, out: Path, lines: list) -> None:
     plt = _plt()
     n = len(c["log"])
     lines += ["## Peaks and time above the warning level", ""]
-    peaks = {k: np.array(c[f"peak_{k}_c"], dtype=float) for k in PUBLISHED}
-    shown = [k for k in PUBLISHED if np.isfinite(peaks[k]).any()]
+    pub = published_in(c)
+    peaks = {k: np.array(c[f"peak_{k}_c"], dtype=float) for k in pub}
+    shown = [k for k in pub if np.isfinite(peaks[k]).any()]
     if shown:
         top = sorted(shown, key=lambda k: -np.nanmax(peaks[k]))[:6]
         fig, ax = plt.subplots(figsize=(8, 4.5))
@@ -104,14 +111,14 @@ def _plots(c: dict, out: Path, lines: list) -> None:
         lines += ["![peaks](report_peaks.png)", ""]
     else:
         _not_written(out / "report_peaks.png", "No log has a temperature (the sensor never ran initialised)", lines)
-    above = {k: float(np.sum(c[f"above_warning_{k}_s"])) for k in PUBLISHED}
-    ks = [k for k in PUBLISHED if above[k] > 0]
+    above = {k: float(np.sum(c[f"above_warning_{k}_s"])) for k in pub}
+    ks = [k for k in pub if above[k] > 0]
     if not ks:
         _not_written(out / "report_above_warning.png", "No log reached a warning limit", lines)
         return
     per_v: dict = {}
     for i in range(n):
-        per_v[c["vehicle"][i]] = per_v.get(c["vehicle"][i], 0.0) + max(c[f"above_warning_{k}_s"][i] for k in PUBLISHED)
+        per_v[c["vehicle"][i]] = per_v.get(c["vehicle"][i], 0.0) + max(c[f"above_warning_{k}_s"][i] for k in pub)
     fig, (a1, a2) = plt.subplots(1, 2, figsize=(12, 4.5))
     a1.barh(ks, [above[k] / 60 for k in ks])
     a1.set_xlabel("time above warning, all logs [min]")

@@ -130,6 +130,7 @@ def process_log(
             key=entry.key,
             date=date,
             oil_model=getattr(sensor.options, "oil_mode", "measured") == "model",
+            gearbox=sensor,
         )
         # the verdict `replay` gives this log (exit status 3): its warnings, and whether they make it untrusted
         malformed = table.meta.get("malformed")

@@ -15,7 +15,8 @@ import re
 import numpy as np
 
 from can_dbc.decoder import REJECT_REASONS
-from firmware_model.components import MODE_NORMAL, MODE_OIL_MODEL, PUBLISHED, STEP_S
+from firmware_model.components import MODE_NORMAL, MODE_OIL_MODEL, STEP_S
+from tools.published import ids
 
 #: a log's frame time at or above this is taken as Unix time (after 1973): its date is the log's date
 EPOCH_MIN_S = 1e8
@@ -103,11 +104,21 @@ def _degraded_share(table, oil_model: bool) -> float:
 
 
 def summarize(
-    table, counters: dict, *, vehicle: str, log: str, key: str, date: str | None = None, oil_model: bool = False
+    table,
+    counters: dict,
+    *,
+    vehicle: str,
+    log: str,
+    key: str,
+    date: str | None = None,
+    oil_model: bool = False,
+    gearbox=None,
 ) -> dict:
     """The summary row of one replayed log (``table`` from ``replay_log``, ``counters`` its ``meta["counters"]``);
     ``oil_model``: the sensor models the oil by request (``sensor.oil_mode = "model"``), so its oil-modelled steps
-    are normal, not degraded (as in ``replay``'s summary)."""
+    are normal, not degraded (as in ``replay``'s summary); ``gearbox``: the sensor that replayed it (or its
+    parameter set or description): its published components get the COMPONENT_COLUMNS, in their order (None: the
+    default gearbox's)."""
     can_t = np.asarray(table["can_time_s"], dtype=float)
     start_s, end_s = float(can_t[0]), float(can_t[-1])
     innov = np.asarray(table["oil_innovation_c"], dtype=float) if table.has("oil_innovation_c") else np.zeros(0)
@@ -131,7 +142,7 @@ def summarize(
     }
     for reason in REJECT_REASONS:
         row[f"rejected_{reason}"] = int(rejected.get(reason, 0))
-    for c in PUBLISHED:
+    for c in ids(gearbox):
         _component(row, c, table)
     return row
 

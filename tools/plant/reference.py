@@ -20,7 +20,6 @@ from typing import NamedTuple
 
 import numpy as np
 
-from firmware_model.components import IDLE_WHEELS
 from firmware_model.effects import effect_scales, with_oil_volume
 from firmware_model.errors import InputError
 from firmware_model.network import (
@@ -49,8 +48,17 @@ from firmware_model.units import RAD_S_PER_RPM
 from tools.progress import progress as progress_bar
 from tools.runtable import RunTable
 
-#: run-table column -> boundary name (bc_<name>_c columns, plus the contract's ambient and coolant columns)
-BC_COLUMNS = {**{f"bc_{b}_c": b for b in BOUNDARIES}, "ambient_temp_c": "ambient", "coolant_temp_c": "coolant"}
+
+def bc_columns(boundaries) -> dict:
+    """Run-table column -> boundary name of a gearbox's boundaries (its description's, in their order): a bc_<name>_c
+    column each, plus the contract's ambient_temp_c and coolant_temp_c where it has those boundaries."""
+    cols = {f"bc_{b}_c": b for b in boundaries}
+    cols.update({f"{b}_temp_c": b for b in ("ambient", "coolant") if b in boundaries})
+    return cols
+
+
+#: run-table column -> boundary name of the GRS905 (network.BOUNDARIES); a plant takes its gearbox's (bc_columns)
+BC_COLUMNS = bc_columns(BOUNDARIES)
 #: step of the forward difference that linearises the cooler around the sump temperature [K]
 COOLER_SLOPE_DT_K = 0.05
 
@@ -191,14 +199,18 @@ class ReferencePlant:
         self.topo = link_topology(self.net.link_a, self.net.link_b, n)
         # classify boundary links for the heat budget
         kinds = self.net.link_kind[self.topo.ext_idx]
-        bname = np.array(BOUNDARIES)[self.topo.eb]
+        self.boundaries = self.net.boundaries
+        self.bc_columns = bc_columns(self.boundaries)
+        bname = np.array(self.boundaries)[self.topo.eb]
         self.ext_group = np.where(
             kinds == K_EXT_CONV,
             1,
             np.where(kinds == K_EXT_RAD, 2, np.where(np.isin(bname, ["flywheel_cover", "support_beam"]), 3, 4)),
         )
         # source distribution matrix: node heat = S @ source heat
-        self.src_names = list(SOURCES) + ["retarder", *[f"shift:{w}" for w in IDLE_WHEELS], "shift:PR"]
+        # the synchronizers' shift heat: one source per wheel a shift heats, as the network's description has them
+        shifts = [s for s in self.net.sources if s.startswith("shift:")]
+        self.src_names = list(SOURCES) + ["retarder", *shifts]
         self.S = np.zeros((n, len(self.src_names)))
         for j, s in enumerate(self.src_names):
             for node, frac in self.net.sources[s]:
@@ -209,11 +221,17 @@ class ReferencePlant:
         self.oil_links = np.flatnonzero((ia == self.i_oil) | (ib == self.i_oil))  # internal links at the sump
         self.oil_other = np.where(ia[self.oil_links] == self.i_oil, ib[self.oil_links], ia[self.oil_links])
         self.tau_lag = params["scale.heat_lag_tau"]
-        self.bc_default = np.array([params[f"boundary.{b}"] for b in BOUNDARIES])
-        self.bc_default[BOUNDARIES.index("hot_surroundings")] += self.scales.hot_offset_c
+        self.bc_default = np.array([bd.temperature_c for bd in self.net.geometry.description.boundaries])
+        if "hot_surroundings" in self.boundaries:
+            self.bc_default[self.boundaries.index("hot_surroundings")] += self.scales.hot_offset_c
         self.cooler = cooler_params(cooler_values(params))
 
     # ------------------------------------------------------------------ cooler (seed 3.4, Eq 82-83)
+    def _bc_or_nan(self, T_bc, name: str) -> float:
+        """A boundary's temperature; NaN for one the gearbox lacks (the coolant of a gearbox without a liquid
+        cooler: the coolers read only their own)."""
+        return T_bc[self.boundaries.index(name)] if name in self.boundaries else math.nan
+
     def cooler_heat(self, T_oil, w_ls, w_eng, T_cool, T_amb, v_kmh):
         """Heat from the sump to the cooler [W] (physics.cooler.oil_cooler_heat, the onboard model's cooler) and its
         derivative with respect to the sump temperature (forward difference over COOLER_SLOPE_DT_K)."""
@@ -369,13 +387,13 @@ class ReferencePlant:
             _check_range("oil_temp_c", oil_meas, ok, oilprops.T_MIN_C, oilprops.T_MAX_C)
             oil_meas = np.interp(t, t[ok], oil_meas[ok])
         bc_c = {}
-        for col, b in BC_COLUMNS.items():
+        for col, b in self.bc_columns.items():
             if table.has(col):
                 v = np.asarray(table[col], dtype=float)
                 ok = np.isfinite(v)
                 _check_range(col, v, ok, *BC_RANGE_C)
                 if ok.any():
-                    bc_c[BOUNDARIES.index(b)] = np.interp(t, t[ok], v[ok]) + (
+                    bc_c[self.boundaries.index(b)] = np.interp(t, t[ok], v[ok]) + (
                         self.scales.hot_offset_c if b == "hot_surroundings" else 0.0
                     )
         v_kmh = None
@@ -450,8 +468,8 @@ class ReferencePlant:
             T[i_oil],
             omega[SPEED_NAMES.index("LS")],
             omega[SPEED_NAMES.index("IS")],
-            T_bc[BOUNDARIES.index("coolant")],
-            T_bc[BOUNDARIES.index("ambient")],
+            self._bc_or_nan(T_bc, "coolant"),
+            self._bc_or_nan(T_bc, "ambient"),
             v_kmh,
         )
         q_nodes = self._stream_transfer(self.S @ delivered, G, q0, omega, T[i_oil], inp.kind)

@@ -5,48 +5,57 @@ from __future__ import annotations
 
 import numpy as np
 
-from firmware_model.components import LEVEL_NA, PUBLISHED, describe
+from firmware_model.components import LEVEL_NA
 from tools.plots import input_panel  # the replay's input panel, shared with simulate's and the demo's figures
+from tools.published import description, ids, label_of
 
 #: components drawn in the temperature panel: the closest to their own warning limits, this many
 PLOT_CLOSEST = 6
 
 
-def _closest_to_limits(out, limits) -> list[str]:
-    """Components ordered by their smallest margin to their own warning limit over the drive."""
+def closest_to_limits(out, limits, published) -> list[str]:
+    """The ``published`` components (ids) ordered by their smallest margin to their own warning limit over the
+    drive, the PLOT_CLOSEST closest."""
     margin = {
         c: float(np.nanmin(limits.of(c)[0] - np.asarray(out[f"T_{c}_c"], dtype=float)))
-        for c in PUBLISHED
+        for c in published
         if out.has(f"T_{c}_c") and np.any(np.isfinite(out[f"T_{c}_c"]))
     }
     return sorted(margin, key=margin.get)[:PLOT_CLOSEST]
 
 
-def plot_replay(out, path, title: str = "", limits=None) -> None:
+def raised_components(out, published) -> list[str]:
+    """The ``published`` components (ids, in their order) whose warning level left normal in ``out``."""
+    return [c for c in published if out.has(f"W_{c}") and np.any(np.isin(out[f"W_{c}"], (1, 2)))]
+
+
+def plot_replay(out, path, title: str = "", limits=None, gearbox=None) -> None:
     """Write a PNG of a sensor output run table: the inputs; the PLOT_CLOSEST estimates closest to their own warning
     limits, each with its limit dashed, and the measured oil; the level of every component that left normal, as
-    words; the oil innovation (measured - model)."""
+    words; the oil innovation (measured - model). ``gearbox``: the sensor, its parameter set or description (the
+    published components and their words; None: the default gearbox)."""
     from firmware_model.onboard.warning_levels import load_limits
     from tools.plots import level_axis, outside_legend, pyplot, save_figure, temperature_panel, time_axis
 
     limits = limits or load_limits()
+    d, pub = description(gearbox), ids(gearbox)
     plt = pyplot()
     t, t_label = time_axis(out["time_s"])
     fig, axes = plt.subplots(4, 1, figsize=(13, 11), sharex=True, gridspec_kw={"height_ratios": [1.2, 3, 1.3, 1]})
     input_panel(axes[0], t, out)
     axes[0].set_title(title)
     ax = axes[1]
-    temperature_panel(ax, t, out, _closest_to_limits(out, limits), limits)
+    temperature_panel(ax, t, out, closest_to_limits(out, limits, pub), limits, gearbox)
     if out.has("oil_temp_c") and np.any(np.isfinite(out["oil_temp_c"])):
         ax.plot(t, out["oil_temp_c"], "k:", lw=1, label="oil (measured)")
     ax.set_ylabel("temperature [degC]\n(dashed: warning limits)")
     outside_legend(ax)
     ax.grid(alpha=0.3)
     ax = axes[2]
-    raised = [c for c in PUBLISHED if out.has(f"W_{c}") and np.any(np.isin(out[f"W_{c}"], (1, 2)))]
+    raised = raised_components(out, pub)
     for i, c in enumerate(raised[:8]):
         lv = np.where(np.asarray(out[f"W_{c}"]) == LEVEL_NA, -1, out[f"W_{c}"])
-        ax.step(t, lv, where="post", lw=1.2, color=f"C{i}", label=describe(c))
+        ax.step(t, lv, where="post", lw=1.2, color=f"C{i}", label=label_of(c, d))
     if not raised:
         ax.text(0.5, 0.5, "no warning on this drive", transform=ax.transAxes, ha="center", va="center")
     level_axis(ax)

@@ -6,7 +6,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from firmware_model.components import LEVEL_CRITICAL, LEVEL_NA, LEVEL_WARNING, PUBLISHED, STEP_S, describe
+from firmware_model.components import LEVEL_CRITICAL, LEVEL_NA, LEVEL_WARNING, STEP_S
+from tools.published import description, ids, label_of
 
 #: the auxiliary input columns (their absence means defaults, docs/sensor.md "Bad input")
 AUX_COLUMNS = ("ambient_temp_c", "coolant_temp_c", "vehicle_speed_kmh", "retarder_torque_nm")
@@ -51,10 +52,10 @@ def _minutes(seconds: float) -> str:
     return f"{seconds / 60.0:.1f} min"
 
 
-def _closest_line(out, limits) -> str:
+def _closest_line(out, limits, published: tuple, desc) -> str:
     margins = {
         c: float(np.nanmin(limits.of(c)[0] - np.asarray(out[f"T_{c}_c"], dtype=float)))
-        for c in PUBLISHED
+        for c in published
         if out.has(f"T_{c}_c") and np.any(np.isfinite(out[f"T_{c}_c"]))
     }
     if not margins:
@@ -66,15 +67,15 @@ def _closest_line(out, limits) -> str:
     m = margins[c]
     rel = f"{m:.1f} K below" if m > 0 else f"{-m:.1f} K over"
     return (
-        f"closest to its limit: {describe(c)}, peak {T[k]:.1f} degC at {t_min:.1f} min, {rel} its warning "
+        f"closest to its limit: {label_of(c, desc)}, peak {T[k]:.1f} degC at {t_min:.1f} min, {rel} its warning "
         f"limit {limits.of(c)[0]:.0f} degC"
     )
 
 
-def _warning_line(out) -> str:
+def _warning_line(out, published: tuple) -> str:
     parts = []
     dur_s = _row_durations_s(out["time_s"]) if out.n else np.zeros(0)
-    for c in PUBLISHED:
+    for c in published:
         if not out.has(f"W_{c}"):
             continue
         w = np.asarray(out[f"W_{c}"])
@@ -85,7 +86,7 @@ def _warning_line(out) -> str:
             crit = f", critical for {_minutes(n_crit)}" if n_crit else ""
             parts.append(f"{c} in warning for {_minutes(n_warn)} in all{crit} (first at {t0:.1f} min)")
     line = "warnings: " + ("; ".join(parts) if parts else "none")
-    na = _not_available_share(out, dur_s)
+    na = _not_available_share(out, dur_s, published)
     if na > 0.0:
         # "none" alone would read as an all-clear where the sensor could not judge (a log without torque has level
         # n/a on 99 % of the cells)
@@ -97,10 +98,10 @@ def _warning_line(out) -> str:
     return line
 
 
-def _not_available_share(out, dur_s) -> float:
+def _not_available_share(out, dur_s, published: tuple) -> float:
     """The share of component-time (the published components' rows weighted by how long each stands) at level
     n/a."""
-    cols = [np.asarray(out[f"W_{c}"]) for c in PUBLISHED if out.has(f"W_{c}")]
+    cols = [np.asarray(out[f"W_{c}"]) for c in published if out.has(f"W_{c}")]
     total = float(np.sum(dur_s)) * len(cols)
     if not cols or not total > 0.0:
         return 0.0
@@ -149,9 +150,10 @@ def _reject_line(out) -> str:
     return "rejected or repaired inputs: " + ("; ".join(words) if words else "none")
 
 
-def summary_lines(out, limits=None, oil_model: bool = False) -> list[str]:
+def summary_lines(out, limits=None, oil_model: bool = False, gearbox=None) -> list[str]:
     """The lines printed after a replay of ``out`` (the sensor output run table); ``oil_model``: the oil modelled by
-    request (--oil-mode model), which is not degraded."""
+    request (--oil-mode model), which is not degraded; ``gearbox``: the sensor, its parameter set or description
+    (the published components and their words; None: the default gearbox)."""
     from firmware_model.components import MODE_NORMAL, MODE_OIL_MODEL
     from firmware_model.onboard.warning_levels import load_limits
 
@@ -163,4 +165,5 @@ def summary_lines(out, limits=None, oil_model: bool = False) -> list[str]:
         line = f"degraded: {100 * float(np.mean(~normal)):.1f} % of steps"
         if oil_model:
             line += f" (the oil modelled by request on {100 * float(np.mean(mode == MODE_OIL_MODEL)):.1f} %)"
-    return [_closest_line(out, limits), _warning_line(out), line, _reject_line(out)]
+    pub, desc = ids(gearbox), description(gearbox)
+    return [_closest_line(out, limits, pub, desc), _warning_line(out, pub), line, _reject_line(out)]

@@ -1,0 +1,106 @@
+"""The shipped gearbox descriptions (firmware_model/params/*.toml with a [topology], docs/description.md "Shipped
+descriptions"): each loads, its gears' teeth give its stated ratios, what it publishes are nodes of it; the MM82
+wind turbine gearbox has the stated overall ratio and publishes what its SCADA measures; a forced oil system has an
+oil inlet node and a splash one has none."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from firmware_model.description import OIL_INLET, load_description, shipped_descriptions
+from firmware_model.errors import ParameterError
+from firmware_model.parameters import PARAM_DIR, read_entries
+from tools.cli import main
+
+
+def test_the_new_descriptions_are_shipped():
+    assert {"GRS905", "GRSO905", "MM82", "HR225"} <= set(shipped_descriptions())
+
+
+@pytest.mark.parametrize("name", shipped_descriptions())
+def test_each_shipped_description_loads_and_holds_together(name):
+    d = load_description(name)
+    assert d.name == name  # [meta] variant is the file's name
+    tol = 0.005
+    for g in d.gears:
+        if g.number != 0:
+            assert g.ratio == pytest.approx(g.stated_ratio, rel=tol)
+    nodes = set(d.nodes)
+    assert d.published and all(c.id in nodes for c in d.published)
+    assert len({c.id for c in d.published}) == len(d.published)
+    assert all(c.warning_c < c.critical_c for c in d.published)
+
+
+@pytest.mark.parametrize("name", shipped_descriptions())
+def test_describe_shows_each_shipped_description(name, capsys):
+    assert main(["describe", "--gearbox", name]) == 0
+    assert capsys.readouterr().out.startswith(f"gearbox {name} ({name}.toml): ")
+
+
+def test_mm82_has_the_stated_overall_ratio_from_its_teeth():
+    d = load_description("MM82")
+    assert d.drive.kind == "fixed_ratio" and (d.drive.input_shaft, d.drive.output_shaft) == ("LSS", "HSS")
+    (g,) = [g for g in d.gears if g.number != 0]
+    assert 1.0 / g.ratio == pytest.approx(104.8, rel=0.005)  # a speed increaser: input/output speed = 1/104.8
+    assert 1.0 / g.stated_ratio == pytest.approx(104.8, rel=1e-3)
+    (ps,) = d.planetary
+    assert ps.n_planets == 3 and ps.carrier_shaft == "LSS" and ps.sun_shaft == "SS"
+    assert g.held == (("main", "ring"),)
+    stage = {
+        "planetary": 1 + ps.z_ring / ps.z_sun,
+        "low-speed": d.wheel("W1").teeth / d.wheel("P1").teeth,
+        "high-speed": d.wheel("W2").teeth / d.wheel("P2").teeth,
+    }
+    assert 1.0 / g.ratio == pytest.approx(math.prod(stage.values()), rel=1e-12)
+    assert set(g.meshes) == {"PSP", "PPR", "LS", "HS"}
+    # rated input torque 2050 kW at 15.7 rpm is within the drive's plausible inputs; the rotor's ~17 rpm too
+    assert d.drive.max_torque_nm > 2050e3 / (15.7 * math.pi / 30) and d.drive.max_speed_rad_s > 17 * math.pi / 30
+
+
+def test_mm82_publishes_what_its_scada_measures():
+    d = load_description("MM82")
+    assert d.oil.lubrication == "forced" and d.oil.pump_shaft is None and d.oil.cooler == "air"
+    assert (d.oil.thermostat_open_c, d.oil.thermostat_full_c) == (45.0, 55.0)
+    first = [c.id for c in d.published][:4]
+    assert first == ["oil", OIL_INLET, "BHG", "BHR"]  # sump, inlet, Gb1t, Gb2t
+    assert {c.group for c in d.published[:2]} == {"oil"} and {c.group for c in d.published[2:4]} == {"bearing"}
+    hss = {b.id for b in d.bearings if b.shaft == "HSS"}
+    assert hss == {"BHG", "BHR"}
+
+
+def test_every_topology_number_of_the_new_files_has_a_unit_and_a_provenance():
+    for name in ("MM82", "HR225"):
+        entries = read_entries(PARAM_DIR / f"{name}.toml")
+        for key, e in entries.items():
+            if key.startswith("meta."):
+                continue
+            assert isinstance(e, dict), key
+            if "from" in e:
+                continue
+            assert e.get("src") in ("seed", "derived", "assumed"), key
+            assert "u" in e, key
+
+
+def test_a_forced_oil_system_has_an_oil_inlet_node_and_a_splash_one_has_none():
+    assert load_description("MM82").nodes[-2:] == ("oil", OIL_INLET)
+    for name in ("GRS905", "HR225"):
+        nodes = load_description(name).nodes
+        assert nodes[-1] == "oil" and OIL_INLET not in nodes
+
+
+def test_publishing_an_oil_inlet_without_forced_lubrication_is_one_sentence(tmp_path):
+    text = (PARAM_DIR / "HR225.toml").read_text(encoding="utf-8")
+    old = 'order = { v = ["P", "W", "B1", "B2", "B3", "B4", "oil"]'
+    assert old in text
+    text = text.replace(old, 'order = { v = ["P", "W", "B1", "B2", "B3", "B4", "oil", "oil.inlet"]')
+    text = text.replace('oil = { v = ["oil"]', 'oil = { v = ["oil", "oil.inlet"]')
+    f = tmp_path / "splash.toml"
+    f.write_text(text, encoding="utf-8")
+    with pytest.raises(ParameterError) as e:
+        load_description(f)
+    assert str(e.value) == (
+        "splash.toml: topology.published.order lists oil.inlet, which is no node of the description (no part has "
+        "that id)"
+    )

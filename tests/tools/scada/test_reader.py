@@ -1,0 +1,227 @@
+"""The SCADA reader and its column maps on small files written here: UTC offsets across a DST change, gzip and plain
+files of one turbine joined with their gap, and every bad row counted under its reason."""
+
+from __future__ import annotations
+
+import gzip
+import math
+from datetime import datetime, timedelta, timezone
+
+import numpy as np
+import pytest
+
+from firmware_model.errors import InputError
+from tools.scada.clean import REASONS, spikes
+from tools.scada.columns import MAP_DIR, load_column_map, shipped_maps
+from tools.scada.reader import read_record, read_units
+
+HEADER = [
+    "Wind_turbine_name",
+    "Date_time",
+    "P_avg",
+    "Rs_avg",
+    "Ds_avg",
+    "Cm_avg",
+    "Gost_avg",
+    "Git_avg",
+    "Gb1t_avg",
+    "Gb2t_avg",
+    "Ot_avg",
+    "Yt_avg",
+    "Ws_avg",
+]
+RATIO = 104.8
+CET, CEST = timezone(timedelta(hours=1)), timezone(timedelta(hours=2))
+# 2017-03-26 01:00 UTC: central Europe goes from +01:00 to +02:00
+DST_UTC = datetime(2017, 3, 26, 1, 0, tzinfo=timezone.utc)
+
+
+def stamp(t_utc: datetime) -> str:
+    return t_utc.astimezone(CEST if t_utc >= DST_UTC else CET).isoformat()
+
+
+def row(t_utc, p_kw=800.0, rs=14.0, unit="R1", **over):
+    ds = rs * RATIO
+    cm = p_kw * 1000.0 / (ds * 2 * math.pi / 60) if ds > 0 else 0.0
+    vals = dict(P_avg=p_kw, Rs_avg=rs, Ds_avg=ds, Cm_avg=cm, Gost_avg=55.0, Git_avg=50.0, Gb1t_avg=62.0)
+    vals.update(Gb2t_avg=61.0, Ot_avg=8.0, Yt_avg=20.0, Ws_avg=7.0)
+    vals.update(over)
+    cells = [unit, stamp(t_utc) if isinstance(t_utc, datetime) else t_utc]
+    return ",".join(cells + ["" if vals[h] is None else repr(float(vals[h])) for h in HEADER[2:]])
+
+
+def write(path, lines, gz=False):
+    text = ",".join(HEADER) + "\n" + "\n".join(lines) + "\n"
+    if gz:
+        path.write_bytes(gzip.compress(text.encode()))
+    else:
+        path.write_text(text)
+    return path
+
+
+@pytest.fixture
+def two_files(tmp_path):
+    """File A (gzip): 2017-03-26 00:00..02:50 UTC across the DST change, with a glitch, a negative power, a
+    standstill, a missing value, a spike and a bad line. File B (plain), after a one-hour gap: a duplicate and an
+    out-of-order row."""
+    t0 = datetime(2017, 3, 26, 0, 0, tzinfo=timezone.utc)
+    step = timedelta(minutes=10)
+    a = [row(t0 + k * step) for k in range(18)]
+    a[3] = row(t0 + 3 * step, Ot_avg=71.0)  # outdoor glitch
+    a[5] = row(t0 + 5 * step, p_kw=-6.0)  # drawn from the grid, rotor turning
+    a[6] = row(t0 + 6 * step, p_kw=-4.0, rs=0.0)  # standstill (and negative)
+    a[8] = row(t0 + 8 * step, Gost_avg=None)  # missing
+    a[10] = row(t0 + 10 * step, Gb1t_avg=92.0)  # a one-row spike of 30 K
+    a[14] = row(t0 + 14 * step).replace(",20.0,7.0", ",n/a,7.0")  # a nacelle reading that is no number
+    a.insert(12, "R1,2017-03-26T02:40:00+01:00,1.0")  # a bad line: too few fields
+    tb = t0 + 18 * step + timedelta(hours=1)
+    b = [row(tb + k * step) for k in range(6)]
+    b.insert(3, row(tb + 2 * step, Gost_avg=99.0))  # repeated time stamp: the first row is kept
+    b[4], b[5] = b[5], b[4]  # rows 3 and 4 swapped: one row out of order
+    return write(tmp_path / "a.csv.gz", a, gz=True), write(tmp_path / "b.csv", b), t0
+
+
+def test_files_join_in_utc_with_their_gap_and_every_bad_row_counted(two_files):
+    fa, fb, t0 = two_files
+    rec = read_record([fb, fa])  # given in the wrong order: joined by time
+    assert rec.unit == "R1" and rec.n == 18 + 6
+    t = rec.time_s - t0.timestamp()
+    # the DST change leaves no hole and no overlap in UTC
+    assert np.all(np.diff(t[:18]) == 600.0) and t[0] == 0.0
+    assert t[18] - t[17] == 600.0 + 3600.0
+    assert rec.n_stretches == 2 and rec.stretch_bounds() == [(0, 18), (18, 24)]
+    c = rec.counts
+    assert set(c) == set(REASONS)
+    assert c["bad_line"] == 1 and c["bad_time"] == 0
+    assert c["duplicate_time"] == 1 and c["out_of_order"] == 1 and c["gap"] == 1
+    assert c["standstill"] == 1 and c["negative_power"] == 2
+    by = rec.by_channel
+    assert by["outdoor_temp_c"]["implausible"] == 1 and by["ambient_temp_c"]["implausible"] == 1
+    assert c["implausible"] == 2 and np.isnan(rec.values["ambient_temp_c"][14])
+    assert by["Gost_avg"]["missing"] == 1 and c["missing"] == 1
+    assert by["Gb1t_avg"]["jump"] == 1 and c["jump"] == 1
+    v = rec.values
+    assert np.isnan(v["outdoor_temp_c"][3]) and np.isnan(v["Gost_avg"][8]) and np.isnan(v["Gb1t_avg"][10])
+    assert v["input_torque_nm"][5] == 0.0 and v["input_torque_nm"][6] == 0.0
+    # the duplicate's second row (99 degC) is dropped, the first kept
+    assert np.nanmax(v["Gost_avg"]) == 55.0
+    assert np.isfinite(v["Gb1t_avg"][[9, 11]]).all()
+
+
+def test_the_input_torque_is_power_over_rotor_speed_or_converter_torque_times_ratio(tmp_path, two_files):
+    fa, fb, _ = two_files
+    rec = read_record([fa, fb])
+    expect = 800e3 / (14.0 * 2 * math.pi / 60)
+    assert rec.values["input_torque_nm"][0] == pytest.approx(expect, rel=1e-12)
+    assert rec.values["input_speed_rpm"][0] == 14.0 and rec.values["ambient_temp_c"][0] == 20.0
+    assert load_column_map("engie").inputs["input_torque_nm"].derive == "power_over_speed"
+    src = (MAP_DIR / "engie.toml").read_text()
+    src = src.replace(
+        'derive = "power_over_speed"\npower = "P_avg"\npower_unit = "kW"\npower_scale = 1000.0\nspeed = "Rs_avg"',
+        'derive = "torque_times_ratio"\ntorque = "Cm_avg"\nfast_speed = "Ds_avg"\nslow_speed = "Rs_avg"',
+    )
+    assert "torque_times_ratio" in src
+    (tmp_path / "alt.toml").write_text(src)
+    rec2 = read_record([fa, fb], tmp_path / "alt.toml")
+    np.testing.assert_allclose(rec2.values["input_torque_nm"], rec.values["input_torque_nm"], rtol=1e-9)
+    assert rec2.counts["standstill"] == 1
+
+
+def test_the_engie_map_is_shipped_with_a_node_for_every_measured_channel():
+    assert "engie" in shipped_maps()
+    m = load_column_map("engie")
+    assert m.time_column == "Date_time" and m.unit_column == "Wind_turbine_name" and m.period_s == 600.0
+    assert m.inputs["input_speed_rpm"].column == "Rs_avg" and m.inputs["ambient_temp_c"].column == "Yt_avg"
+    assert m.inputs["outdoor_temp_c"].column == "Ot_avg"
+    assert set(m.nodes) == {"Gost_avg", "Git_avg", "Gb1t_avg", "Gb2t_avg"} and m.nodes["Gost_avg"] == "oil"
+
+
+def test_several_turbines_are_separate_records(tmp_path):
+    t0 = datetime(2017, 6, 1, tzinfo=timezone.utc)
+    lines = [row(t0 + timedelta(minutes=10 * k), unit=u) for k in range(4) for u in ("R1", "R2")]
+    f = write(tmp_path / "two.csv", lines)
+    recs = read_units([f])
+    assert sorted(recs) == ["R1", "R2"] and all(r.n == 4 and r.n_stretches == 1 for r in recs.values())
+    with pytest.raises(InputError, match="2 units"):
+        read_record([f])
+
+
+def test_a_stamp_without_utc_offset_drops_its_row(tmp_path):
+    t0 = datetime(2017, 6, 1, tzinfo=timezone.utc)
+    lines = [row(t0 + timedelta(minutes=10 * k)) for k in range(3)] + [row("2017-06-01T00:30:00")]
+    rec = read_record([write(tmp_path / "x.csv", lines)])
+    assert rec.n == 3 and rec.counts["bad_time"] == 1
+
+
+@pytest.mark.parametrize(
+    "content, words",
+    [
+        (b"time,speed\n1,2\n", "not a SCADA file of the column map engie: its header lacks the column(s) Date_time"),
+        (b"\x89PNG\r\n\x1a\n\x00\x00\x00\rIHDR\xff\xfe", "binary content"),
+        (b"\x1f\x8b\x08\x00garbage", "a damaged gzip file"),
+        (b"", "empty"),
+        (",".join(HEADER).encode() + b"\nR1,yesterday,1,2,3,4,5,6,7,8,9,10,11\n", "no row with a readable time stamp"),
+    ],
+)
+def test_a_file_of_another_format_is_one_sentence(tmp_path, content, words):
+    f = tmp_path / "wrong.csv.gz"
+    f.write_bytes(content)
+    with pytest.raises(InputError) as err:
+        read_record([f])
+    msg = str(err.value)
+    assert words in msg and "wrong.csv.gz" in msg and "\n" not in msg
+
+
+@pytest.mark.parametrize(
+    "edit, words",
+    [
+        (("range = [0.0, 25.0]", "range = [25.0, 0.0]"), "inputs.input_speed_rpm: range must be"),
+        (('column = "Rs_avg"', 'colum = "Rs_avg"'), "unknown key 'colum'"),
+        (('derive = "power_over_speed"', 'derive = "magic"'), "derive = 'magic' is none of"),
+        (("period_s = 600", "period_s = -1"), "period_s must be positive"),
+    ],
+)
+def test_a_bad_column_map_names_its_key(tmp_path, edit, words):
+    src = (MAP_DIR / "engie.toml").read_text()
+    assert edit[0] in src
+    (tmp_path / "m.toml").write_text(src.replace(edit[0], edit[1], 1))
+    with pytest.raises(InputError, match="m.toml") as err:
+        load_column_map(tmp_path / "m.toml")
+    assert words in str(err.value)
+    with pytest.raises(InputError, match="neither a shipped map"):
+        load_column_map(tmp_path / "nothere.toml")
+
+
+def test_a_spike_is_one_row_off_both_neighbours_on_one_side_within_a_stretch():
+    x = np.array([50.0, 80.0, 50.0, 50.0, 80.0, 80.0, 50.0, 80.0, 50.0])
+    st = np.array([0, 0, 0, 0, 0, 0, 0, 1, 1])
+    # row 1: a spike; rows 4-5: a step held two rows, no spike; row 7: first row of its stretch
+    assert spikes(x, st, 20.0).tolist() == [False, True] + [False] * 7
+
+
+def test_the_autumn_change_is_continuous_in_utc_and_a_dropped_repeated_hour_is_a_gap(tmp_path):
+    """Local time repeats 02:00-02:59 on 2017-10-29 (+02:00, then +01:00); in UTC the rows follow each other. A copy
+    that drops the repeated hour (as the published La Haute Borne files do) has a one-hour gap in UTC."""
+    t0 = datetime(2017, 10, 28, 23, 0, tzinfo=timezone.utc)
+    eu = [t0 + timedelta(minutes=10 * k) for k in range(18)]
+    stamps = [t.astimezone(CEST if t < datetime(2017, 10, 29, 1, tzinfo=timezone.utc) else CET) for t in eu]
+    lines = [row(s.isoformat()) for s in stamps]
+    assert "02:10:00+02:00" in lines[7] and "02:10:00+01:00" in lines[13]
+    rec = read_record([write(tmp_path / "full.csv", lines)])
+    assert rec.n == 18 and rec.n_stretches == 1 and np.all(np.diff(rec.time_s) == 600.0)
+    # 01:50+02:00 followed by 02:00+01:00, as in the published files
+    dropped = [ln for ln in lines if "+02:00" not in ln or ln.split(",")[1][11:13] != "02"]
+    rec = read_record([write(tmp_path / "dropped.csv", dropped)])
+    assert rec.n == 12 and rec.n_stretches == 2 and rec.counts["gap"] == 1
+    assert np.diff(rec.time_s).max() == 600.0 + 3600.0
+
+
+def test_a_map_with_time_in_seconds_and_no_unit_column_names_the_unit_after_the_file(tmp_path):
+    src = (MAP_DIR / "engie.toml").read_text()
+    src = src.replace('kind = "iso8601_offset"', 'kind = "seconds"').replace(
+        'unit_id = { column = "Wind_turbine_name" }\n', ""
+    )
+    (tmp_path / "s.toml").write_text(src)
+    lines = [row(repr(1.5e9 + 600.0 * k)) for k in range(5)] + [row("soon")]
+    rec = read_record([write(tmp_path / "rig7.csv", lines)], tmp_path / "s.toml")
+    assert rec.unit == "rig7" and rec.n == 5 and rec.counts["bad_time"] == 1 and rec.time_s[0] == 1.5e9

@@ -1,0 +1,124 @@
+"""The linear normal-behaviour model (NBM) of wind-turbine condition monitoring: the baseline the physics is held
+against on measured temperatures (docs/real-data.md, "The data-driven baseline").
+
+A temperature is a least-squares linear function of: the power, its exponential lags with time constants of 10 min,
+30 min, 1 h and 2 h (first order, computed along each gap-free stretch and reset to the power at the stretch's first
+row, a missing power held), the rotor speed, the outdoor and the nacelle temperatures, a constant, and for the
+bearings also the measured oil. Two tasks: ``bearings`` (each bearing from the measured oil and the load) and
+``oil`` (the sump and the inlet without any oil reading). Rows where a feature or the target is NaN are left out
+of the fit and get a NaN prediction.
+
+Any model compared on these tasks is a *predictor*: ``fit(records)`` on training records, then
+``predict(record)`` -> {channel: prediction}, NaN where it has none (:mod:`tools.scada.holdout` scores them).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.signal import lfilter
+
+from firmware_model.errors import InputError
+from tools.scada.reader import ScadaRecord
+
+#: the time constants of the power's lags [s]
+LAG_TAUS_S = (600.0, 1800.0, 3600.0, 7200.0)
+
+
+@dataclass(frozen=True)
+class Task:
+    """What is predicted (``targets``, measured channels) and which measured channel is an input (``oil_input``)."""
+
+    name: str
+    targets: tuple[str, ...]
+    oil_input: str | None = None
+    #: the run-table inputs used as features (besides the power's lags)
+    inputs: tuple[str, ...] = ("power_kw", "input_speed_rpm", "outdoor_temp_c", "ambient_temp_c")
+    #: the input whose lags are features
+    lagged: str = "power_kw"
+
+
+#: the two tasks on the ENGIE map's channels
+TASKS = {
+    "bearings": Task("bearings", ("Gb1t_avg", "Gb2t_avg"), oil_input="Gost_avg"),
+    "oil": Task("oil", ("Gost_avg", "Git_avg")),
+}
+
+
+def exp_lag(x: np.ndarray, time_s: np.ndarray, stretch: np.ndarray, tau_s: float) -> np.ndarray:
+    """First-order lag of ``x`` with time constant ``tau_s``, y_k = a y_{k-1} + (1 - a) x_k, a = exp(-dt / tau),
+    along each stretch: y = x at the stretch's first row (reset at every gap); a NaN ``x`` is held at its last
+    value (NaN until the stretch's first valid one). ``dt`` is the stretch's median step."""
+    y = np.full(x.shape, np.nan)
+    starts = np.flatnonzero(np.diff(stretch, prepend=-1) != 0)
+    for a0, b0 in zip(starts, np.append(starts[1:], x.size)):
+        seg = x[a0:b0]
+        ok = np.flatnonzero(~np.isnan(seg))
+        if ok.size == 0:
+            continue
+        first = ok[0]
+        held = seg[first:].copy()
+        idx = np.where(~np.isnan(held), np.arange(held.size), 0)
+        held = held[np.maximum.accumulate(idx)]  # forward fill
+        dt = float(np.median(np.diff(time_s[a0:b0]))) if b0 - a0 > 1 else tau_s
+        a = np.exp(-dt / tau_s)
+        y[a0 + first : b0] = lfilter([1.0 - a], [1.0, -a], held, zi=[a * held[0]])[0]
+    return y
+
+
+def features(record: ScadaRecord, task: Task) -> tuple[np.ndarray, list[str]]:
+    """(rows x features matrix without the constant, the features' names) of ``record`` for ``task``."""
+    missing = [c for c in (*task.inputs, task.lagged, task.oil_input) if c and c not in record.values]
+    if missing:
+        raise InputError(f"the record of {record.unit} has no channel {missing[0]} the {task.name} task needs")
+    cols = [record.values[c] for c in task.inputs]
+    names = list(task.inputs)
+    for tau in LAG_TAUS_S:
+        cols.append(exp_lag(record.values[task.lagged], record.time_s, record.stretch, tau))
+        names.append(f"{task.lagged}_lag{tau / 60:.0f}min")
+    if task.oil_input:
+        cols.append(record.values[task.oil_input])
+        names.append(task.oil_input)
+    return np.column_stack(cols), names
+
+
+def least_squares(x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, float]:
+    """(coefficients, intercept) of y ~ x (rows with a NaN left out), solved on standardised columns."""
+    ok = np.all(np.isfinite(x), axis=1) & np.isfinite(y)
+    if ok.sum() <= x.shape[1] + 1:
+        raise InputError(f"{int(ok.sum())} complete rows cannot fit {x.shape[1] + 1} coefficients")
+    xs, ys = x[ok], y[ok]
+    mu, sd = xs.mean(axis=0), xs.std(axis=0)
+    sd = np.where(sd > 0, sd, 1.0)
+    a = np.column_stack([(xs - mu) / sd, np.ones(len(xs))])
+    sol = np.linalg.lstsq(a, ys, rcond=None)[0]
+    coef = sol[:-1] / sd
+    return coef, float(sol[-1] - coef @ mu)
+
+
+class LinearNBM:
+    """The linear NBM of one task (the module's docstring); a predictor."""
+
+    name = "linear NBM"
+
+    def __init__(self, task: Task | str):
+        self.task = TASKS[task] if isinstance(task, str) else task
+        self.coef: dict[str, tuple[np.ndarray, float]] = {}
+        self.feature_names: list[str] = []
+
+    def fit(self, records: Sequence[ScadaRecord]) -> LinearNBM:
+        mats = [features(r, self.task) for r in records]
+        self.feature_names = mats[0][1]
+        x = np.vstack([m[0] for m in mats])
+        for target in self.task.targets:
+            y = np.concatenate([r.values[target] for r in records])
+            self.coef[target] = least_squares(x, y)
+        return self
+
+    def predict(self, record: ScadaRecord) -> dict[str, np.ndarray]:
+        if not self.coef:
+            raise InputError("the NBM predicts only after fit()")
+        x = features(record, self.task)[0]
+        return {t: x @ c + b for t, (c, b) in self.coef.items()}

@@ -1,0 +1,238 @@
+"""SCADA files (``.csv``, ``.csv.gz``) -> one record per unit (turbine), its gaps kept (docs/real-data.md).
+
+Each file is read with the csv module through its column map (:mod:`tools.scada.columns`); only the map's columns
+are converted (numpy float64, an empty cell NaN). Time stamps with a UTC offset become UTC seconds; a stamp without
+one, or one that does not parse, drops its row (``bad_time``), as does a line with the wrong number of fields
+(``bad_line``). The files of one unit are joined in time order: a row earlier than one before it in its file is
+counted (``out_of_order``) and sorted into place; a repeated time stamp keeps its first row (``duplicate_time``). A
+step longer than 1.5 periods starts a new stretch (``gap``): the record keeps the true times, no row is invented,
+and a model resets its state at each stretch's first row. The values' rules (missing, implausible, spikes,
+standstill, negative power) are :mod:`tools.scada.clean`'s.
+
+A file that is not such a SCADA file (binary, a damaged gzip, a header without the map's columns, no rows) raises
+an :class:`~firmware_model.errors.InputError` with one sentence naming the file.
+"""
+
+from __future__ import annotations
+
+import csv
+import gzip
+import io
+import zlib
+from collections.abc import Iterable
+from dataclasses import dataclass, field
+from datetime import datetime
+from pathlib import Path
+
+import numpy as np
+
+from firmware_model.errors import InputError
+from tools.scada.clean import REASONS, clean_values
+from tools.scada.columns import ColumnMap, load_column_map
+
+#: a step longer than this many periods is a gap
+GAP_PERIODS = 1.5
+
+
+@dataclass
+class FileRows:
+    """One file's rows that have a time: UTC seconds, the unit of each row, the map's columns as float arrays."""
+
+    path: Path
+    time_s: np.ndarray
+    unit: np.ndarray
+    raw: dict[str, np.ndarray]
+    counts: dict[str, int]
+
+
+@dataclass
+class ScadaRecord:
+    """One unit's rows in time order. ``stretch`` numbers the gap-free stretches (0, 1, ...) row by row; ``values``
+    holds every input and measured channel of the map after the rules of :mod:`tools.scada.clean` (a rejected value
+    is NaN); ``counts`` the rows or values each reason (REASONS) touched, ``by_channel`` the same per channel."""
+
+    unit: str
+    time_s: np.ndarray
+    stretch: np.ndarray
+    values: dict[str, np.ndarray]
+    counts: dict[str, int]
+    by_channel: dict[str, dict[str, int]]
+    cmap: ColumnMap
+    files: list[Path] = field(default_factory=list)
+
+    @property
+    def n(self) -> int:
+        return int(self.time_s.size)
+
+    @property
+    def n_stretches(self) -> int:
+        return int(self.stretch[-1]) + 1 if self.n else 0
+
+    def stretch_bounds(self) -> list[tuple[int, int]]:
+        """[start, stop) row indices of each gap-free stretch."""
+        starts = np.flatnonzero(np.diff(self.stretch, prepend=-1) != 0)
+        return list(zip(starts.tolist(), np.append(starts[1:], self.n).tolist()))
+
+    def select(self, mask: np.ndarray) -> ScadaRecord:
+        """The rows where ``mask`` holds (stretches renumbered; a removed row between two kept ones is a gap). The
+        counters stay those of the whole record as read."""
+        idx = np.flatnonzero(mask)
+        brk = np.diff(idx, prepend=-2) != 1
+        brk |= np.diff(self.stretch[idx], prepend=-1) != 0
+        return ScadaRecord(
+            unit=self.unit,
+            time_s=self.time_s[idx],
+            stretch=np.cumsum(brk) - 1,
+            values={k: v[idx] for k, v in self.values.items()},
+            counts=dict(self.counts),
+            by_channel={k: dict(v) for k, v in self.by_channel.items()},
+            cmap=self.cmap,
+            files=list(self.files),
+        )
+
+
+def _open_text(path: Path):
+    """The file as text: gzip by its magic bytes, else plain; a binary or damaged file raises InputError."""
+    if not path.is_file():
+        raise InputError(f"{path}: no such file")
+    data = path.read_bytes()
+    try:
+        text = (gzip.decompress(data) if data[:2] == b"\x1f\x8b" else data).decode("utf-8-sig")
+    except (OSError, EOFError, zlib.error):
+        raise InputError(f"{path.name}: a damaged gzip file (it does not decompress)") from None
+    except UnicodeDecodeError:
+        raise InputError(f"{path.name}: not a SCADA CSV file (binary content, not UTF-8 text)") from None
+    if "\x00" in text[:4096]:
+        raise InputError(f"{path.name}: not a SCADA CSV file (binary content)")
+    return io.StringIO(text, newline="")
+
+
+def _parse_time(stamp: str, kind: str) -> float | None:
+    """UTC seconds of a time stamp, or None when it does not parse (or has no UTC offset where one is needed)."""
+    if kind == "seconds":
+        try:
+            t = float(stamp)
+        except ValueError:
+            return None
+        return t if np.isfinite(t) else None
+    try:
+        dt = datetime.fromisoformat(stamp.strip().replace("Z", "+00:00"))
+    except ValueError:
+        return None
+    return dt.timestamp() if dt.utcoffset() is not None else None
+
+
+def _number(cell: str) -> float:
+    try:
+        return float(cell) if cell.strip() else np.nan
+    except ValueError:
+        return np.inf  # marked unparsable; clean_values counts it as implausible
+
+
+def read_file(path: str | Path, cmap: ColumnMap) -> FileRows:
+    """One file's rows (see the module's docstring for what is dropped and counted)."""
+    path = Path(path)
+    reader = csv.reader(_open_text(path))
+    header = next(reader, None)
+    if not header:
+        raise InputError(f"{path.name}: empty, not a SCADA file of the column map {cmap.name}")
+    header = [h.strip() for h in header]
+    lacking = [c for c in cmap.columns if c not in header]
+    if lacking:
+        raise InputError(
+            f"{path.name}: not a SCADA file of the column map {cmap.name}: its header lacks the column(s) "
+            f"{', '.join(lacking[:4])}{' ...' if len(lacking) > 4 else ''}"
+        )
+    idx = {c: header.index(c) for c in cmap.columns}
+    value_cols = [c for c in cmap.columns if c not in (cmap.time_column, cmap.unit_column)]
+    counts = dict.fromkeys(REASONS, 0)
+    times, units, rows = [], [], []
+    for row in reader:
+        if not row or (len(row) == 1 and not row[0].strip()):
+            continue
+        if len(row) != len(header):
+            counts["bad_line"] += 1
+            continue
+        t = _parse_time(row[idx[cmap.time_column]], cmap.time_kind)
+        if t is None:
+            counts["bad_time"] += 1
+            continue
+        times.append(t)
+        units.append(row[idx[cmap.unit_column]].strip() if cmap.unit_column else path.stem)
+        rows.append([_number(row[idx[c]]) for c in value_cols])
+    if not times:
+        raise InputError(f"{path.name}: no row with a readable time stamp ({cmap.time_column}), no SCADA data")
+    arr = np.array(rows, dtype=float).reshape(len(rows), len(value_cols))
+    return FileRows(
+        path=path,
+        time_s=np.array(times, dtype=float),
+        unit=np.array(units, dtype=object),
+        raw={c: arr[:, i] for i, c in enumerate(value_cols)},
+        counts=counts,
+    )
+
+
+def _order(parts: list[FileRows], counts: dict[str, int]) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    """The files' rows joined in time order, duplicates removed (both counted): (time_s, raw columns)."""
+    parts = sorted(parts, key=lambda p: float(np.min(p.time_s)))
+    for p in parts:
+        counts["out_of_order"] += int(np.sum(p.time_s < np.maximum.accumulate(p.time_s)))
+    t = np.concatenate([p.time_s for p in parts])
+    raw = {c: np.concatenate([p.raw[c] for p in parts]) for c in parts[0].raw}
+    order = np.argsort(t, kind="stable")
+    t = t[order]
+    keep = np.diff(t, prepend=-np.inf) > 0
+    counts["duplicate_time"] += int(np.sum(~keep))
+    return t[keep], {c: v[order][keep] for c, v in raw.items()}
+
+
+def _record(unit: str, parts: list[FileRows], cmap: ColumnMap) -> ScadaRecord:
+    counts = dict.fromkeys(REASONS, 0)
+    for p in parts:
+        for k, v in p.counts.items():
+            counts[k] += v
+    t, raw = _order(parts, counts)
+    gap = np.diff(t, prepend=t[0]) > GAP_PERIODS * cmap.period_s
+    counts["gap"] += int(np.sum(gap))
+    stretch = np.cumsum(gap)
+    values, by_channel = clean_values(raw, stretch, cmap, counts)
+    return ScadaRecord(
+        unit=unit,
+        time_s=t,
+        stretch=stretch,
+        values=values,
+        counts=counts,
+        by_channel=by_channel,
+        cmap=cmap,
+        files=[p.path for p in parts],
+    )
+
+
+def _split_units(f: FileRows) -> dict[str, FileRows]:
+    out = {}
+    for u in dict.fromkeys(f.unit.tolist()):
+        m = f.unit == u
+        first = not out  # the file's line counts go with its first unit
+        counts = dict(f.counts) if first else dict.fromkeys(REASONS, 0)
+        out[u] = FileRows(f.path, f.time_s[m], f.unit[m], {c: v[m] for c, v in f.raw.items()}, counts)
+    return out
+
+
+def read_units(paths: Iterable[str | Path], columns: str | Path | ColumnMap = "engie") -> dict[str, ScadaRecord]:
+    """Every unit's record in ``paths`` (the unit from the map's unit column), each unit's files joined in time."""
+    cmap = columns if isinstance(columns, ColumnMap) else load_column_map(columns)
+    by_unit: dict[str, list[FileRows]] = {}
+    for path in paths:
+        for unit, part in _split_units(read_file(path, cmap)).items():
+            by_unit.setdefault(unit, []).append(part)
+    if not by_unit:
+        raise InputError("no SCADA file given")
+    return {u: _record(u, parts, cmap) for u, parts in sorted(by_unit.items())}
+
+
+def read_record(paths: Iterable[str | Path], columns: str | Path | ColumnMap = "engie") -> ScadaRecord:
+    """The one unit's record in ``paths``; files of several units raise an InputError naming them."""
+    recs = read_units(paths, columns)
+    if len(recs) > 1:
+        raise InputError(f"the files hold {len(recs)} units ({', '.join(recs)}), not one: read them with read_units")
+    return next(iter(recs.values()))
