@@ -214,7 +214,8 @@ class Parameters:
 
     @property
     def split_inverted(self) -> bool:
-        return bool(self["meta.split_inverted"])
+        """The GRS905 family's range-split wiring; a standalone description's gears say their own kinematics (False)."""
+        return bool(self.get("meta.split_inverted", 0))
 
     @property
     def teeth(self) -> Teeth:
