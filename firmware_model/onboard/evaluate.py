@@ -34,7 +34,6 @@ from firmware_model.physics import losses as L
 from firmware_model.physics.conductance_matrix import link_topology
 from firmware_model.physics.cooler import COOLER_KINDS, DEFAULT_VEHICLE_SPEED_KMH, cooler_params, oil_cooler_heat
 from firmware_model.physics.heat_lag import heat_lag
-from firmware_model.physics.kinematics import MESHES
 from firmware_model.units import KELVIN_OFFSET_K, RPM_PER_RAD_S, SIGMA_W_PER_M2K4
 
 #: oil-temperature grid of the property and conductance tables [degC]; outside it the end rows are held
@@ -59,8 +58,8 @@ LN_M2_S_PER_CST = math.log(1e-6)
 class ReducedParams(NamedNodes):
     """Everything the onboard step needs, as read-only arrays (a frozen, typed record; dynamax style).
 
-    Shapes: n nodes, nl links, nb boundaries (network.BOUNDARIES), ns sources (reduce.SRC_NAMES), 17 gears (gear_row =
-    gear - GEAR_MIN). Links: ``link_a`` is a node; ``link_b`` a node, or ``n + boundary index``.
+    Shapes: n nodes, nl links, nb boundaries (reduce.onboard_boundaries), ns sources (src_names: reduce.source_names),
+    17 gears (gear_row = gear - GEAR_MIN). Links: ``link_a`` is a node; ``link_b`` a node, or ``n + boundary index``.
     """
 
     variant: str
@@ -114,7 +113,7 @@ class ReducedParams(NamedNodes):
     # --- oil properties on T_GRID_C
     prop: np.ndarray  # (nT, N_PROP)
     # --- losses
-    speed_coef: np.ndarray  # (17, 14) SPEED_NAMES per unit input speed
+    speed_coef: np.ndarray  # (17, speed columns: drivetrain.speed_names) per unit input speed
     # columns of speed_coef (-1: none): the shaft that drives the oil pump (the description's oil.pump_shaft: oil
     # flow, cooler), the one whose dipping wheels churn (the churning table's speed), the output shaft (retarder)
     pump_speed_col: int
@@ -154,6 +153,9 @@ class ReducedParams(NamedNodes):
     min_torque_nm: float
     max_torque_nm: float
     stability: dict = field(default_factory=dict)
+    # --- the loss sources (the columns of src_matrix; reduce.source_names) and those of a planetary set
+    src_names: tuple = ()
+    src_planetary: tuple = ()
 
     def footprint(self, dtype=np.float32) -> dict:
         """Bytes an ECU would hold for these parameters: every float table as ``dtype``, index arrays as int16.
@@ -250,7 +252,7 @@ class Helpers:
         self.churn_flat = np.ascontiguousarray(rp.churn_table).reshape(-1)
         self.mesh_flat = np.ascontiguousarray(rp.mesh_phi).reshape(-1)
         self.nx = rp.mesh_phi.shape[1]
-        self.mesh_base = np.arange(len(MESHES)) * self.nx
+        self.mesh_base = np.arange(rp.mesh_phi.shape[0]) * self.nx
         self.rad_node = rp.link_a[rp.rad_link]
         self.rad_bc = rp.link_b[rp.rad_link] - n
         self.pw_eff = {k: np.flatnonzero(rp.pw_effect == k) for k in (EFFECT_TEETH_OIL_H, EFFECT_HOUSING_AIR_H)}
@@ -442,7 +444,7 @@ def heat_sources(
     retarder_w=0.0,
     h: Helpers | None = None,
 ):
-    """Heat of every source [W], shape (..., N_SRC): meshes (Eq 7-22, x seed heat factors), shaft bearings
+    """Heat of every source [W], shape (..., ns: rp.src_names): meshes (Eq 7-22, x seed heat factors), shaft bearings
     (Eq 35-40), the oil-lumped sources (churning x 1.33, needle bearings, synchronizers, pump) and the retarder
     (:func:`retarder_heat_w`). C: heat_sources."""
     h = h or rp.helpers

@@ -11,7 +11,6 @@ from typing import NamedTuple
 
 import numpy as np
 
-from firmware_model.network import BOUNDARIES
 from firmware_model.onboard import evaluate as E
 from firmware_model.onboard.held_modes import HeldModes, decompose
 from firmware_model.onboard.kernel_interface import P_CP, P_RHO
@@ -174,7 +173,7 @@ def _held_propagate(sp: SensorParams, state: SensorState, v: tuple, copy: int, t
     T_oil_c = float(hold[I_OIL]) if measured else float(T0_c[rp.i_oil])
     T0_c[rp.i_oil] = T_oil_c
     T_grid_x, prop, phi = E.oil_row(rp, T_oil_c, h)
-    T_bc_c = np.array(np.asarray(sp.T_bc_default_c, dtype=float).reshape(-1, len(BOUNDARIES))[0])
+    T_bc_c = np.array(np.asarray(sp.T_bc_default_c, dtype=float).reshape(-1, sp.reduced.bc_default_c.size)[0])
     T_bc_c[rp.i_ambient], T_bc_c[rp.i_coolant] = T_amb_c, T_cool_c
     retarder_w = E.retarder_heat_w(rp, row, omega_in_rad_s, retarder_nm, first_value(e.retarder_frac))
     src_w = E.heat_sources(
@@ -233,14 +232,14 @@ def engine_off_modes(sp: SensorParams, cache: StepCache, ambient_c: float) -> He
     key = ("off", round(ambient_c, 1))
     modes = cache.modes.get(key)
     if modes is None:
-        system = _engine_off_system(sp, ambient_c, np.full(len(BOUNDARIES), float(ambient_c)))
+        system = _engine_off_system(sp, ambient_c, np.full(sp.reduced.bc_default_c.size, float(ambient_c)))
         modes = cache.modes.put(key, decompose(system.K_w_per_k, system.free, sp.sqrt_C))
     return modes
 
 
 def _engine_off_system(sp: SensorParams, ambient_c: float, T_bc_c) -> LinearSystem:
     rp, h = sp.reduced, sp.helpers
-    T_amb_bc_c = np.full(len(BOUNDARIES), float(ambient_c))
+    T_amb_bc_c = np.full(sp.reduced.bc_default_c.size, float(ambient_c))
     T_grid_x, prop, phi = E.oil_row(rp, ambient_c, h)
     G_w_per_k, _ = E.conductances(
         rp, 0 - GEAR_MIN, 0.0, T_grid_x, prop, phi, np.full(rp.n, ambient_c), T_amb_bc_c, None, h
@@ -252,9 +251,9 @@ def _engine_off_system(sp: SensorParams, ambient_c: float, T_bc_c) -> LinearSyst
 
 def cool_down(sp: SensorParams, cache: StepCache, T0_c, elapsed_s: float, ambient_c: float, boundaries_c=None):
     """Node temperatures after ``elapsed_s`` with the engine off: no heat, no flow, no cooler. The boundaries start
-    at ``boundaries_c`` (their temperatures when the engine stopped, BOUNDARIES order; None: all at ambient) and
-    relax to ambient with the engine's cool-down time constant tau (``boundary.engine_off_tau``): the engine and its
-    coolant stay hot for a short stop and are at ambient after a night.
+    at ``boundaries_c`` (their temperatures when the engine stopped, in reduce.onboard_boundaries order; None: all at
+    ambient) and relax to ambient with the engine's cool-down time constant tau (``boundary.engine_off_tau``): the
+    engine and its coolant stay hot for a short stop and are at ambient after a night.
 
     Exact for the linear engine-off network: with e = T - T_amb, ``C de/dt = -K e + K d exp(-t/tau)`` (d: the
     steady excess that the boundaries at shutdown would hold), the particular solution is ``P exp(-t/tau)`` with
@@ -279,9 +278,10 @@ def cool_down(sp: SensorParams, cache: StepCache, T0_c, elapsed_s: float, ambien
 
 
 def shutdown_boundaries_c(sp: SensorParams, hold) -> np.ndarray:
-    """The boundary temperatures (BOUNDARIES order) the step used when the engine stopped: the defaults of the
-    parameter file with the last ambient and coolant readings (``hold``: the state's held inputs of one vehicle)."""
-    T_bc_c = np.array(np.asarray(sp.T_bc_default_c, dtype=float).reshape(-1, len(BOUNDARIES))[0])
+    """The boundary temperatures (reduce.onboard_boundaries order) the step used when the engine stopped: the
+    defaults of the parameter file with the last ambient and coolant readings (``hold``: the state's held inputs of
+    one vehicle)."""
+    T_bc_c = np.array(np.asarray(sp.T_bc_default_c, dtype=float).reshape(-1, sp.reduced.bc_default_c.size)[0])
     rp = sp.reduced
     T_bc_c[rp.i_ambient] = _held(hold, I_AMB, float(sp.aux_default[0]))
     T_bc_c[rp.i_coolant] = _held(hold, I_COOL, float(sp.aux_default[1]))

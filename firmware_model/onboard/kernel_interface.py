@@ -237,7 +237,7 @@ _TABLES = (
     "sizes: nodes, links, boundaries, sources, power laws, tables, cylinders, closed-form streams, radiation links, "
     "streams, source non-zeros; then the tables' axes",
     *_f("n nl nb ns npw n2 nc ne nrad nst nsrc_nz", I32),
-    *_f("nT ncol n_u nT2 n_u_churn nx n_mesh n_bear n_speed n_gears n_pub", I32),
+    *_f("nT ncol n_u nT2 n_u_churn nx n_mesh n_bear n_needle n_speed n_gears n_pub", I32),
     Field("i_oil", I32, doc="the sump node"),
     Field("i_ambient", I32, doc="the ambient boundary"),
     Field("i_coolant", I32, doc="the coolant boundary"),
@@ -291,7 +291,8 @@ _TABLES = (
     *_f("mesh_roll_k mesh_heat_sf", PREAL, ("n_mesh",)),
     Field("mesh_roll_lt_min", PREAL, ("n_mesh",), doc="log10 T1 below which the rolling loss ramps to 0"),
     *_f("bear_speed bear_c bear_load", PREAL, ("gears", "n_bear")),
-    *_f("needle_rel needle_c", PREAL, ("n_bear",)),
+    Field("needle_rel", PREAL, ("gears", "n_needle"), doc="needle bearings' relative speed per unit input speed"),
+    Field("needle_c", PREAL, ("n_needle",)),
     *_f("sync_coef pump_coef", PREAL, ("gears",)),
     Field("churn_table", PREAL, ("n_u_churn", "nT"), "W"),
     *_f("churn_omega_max_rad_s", REAL, (), "rad/s"),

@@ -15,7 +15,6 @@ import numpy as np
 
 from firmware_model.network import MIN_SPEED_RAD_S
 from firmware_model.onboard import evaluate as E
-from firmware_model.onboard import reduce as R
 from firmware_model.onboard.conductance_bins import LN_SPEED_BIN, OIL_BIN_C, SPEED_BIN_MIN_RAD_S
 from firmware_model.onboard.kernel_interface import STRUCT, VEHICLE_EFFECTS, struct_values
 from firmware_model.onboard.params import SensorParams
@@ -74,7 +73,7 @@ def _network(sp: SensorParams) -> dict:
         n=rp.n,
         nl=len(rp.link_a),
         nb=len(rp.bc_default_c),
-        ns=R.N_SRC,
+        ns=len(rp.src_names),
         npw=len(rp.pw_link),
         n2=len(rp.t2_link),
         nc=len(rp.cyl_link),
@@ -89,6 +88,7 @@ def _network(sp: SensorParams) -> dict:
         nx=h.nx,
         n_mesh=rp.mesh_torque.shape[1],
         n_bear=rp.bear_c.size,
+        n_needle=rp.needle_c.size,
         n_speed=rp.speed_coef.shape[1],
         n_gears=rp.speed_coef.shape[0],
         n_pub=len(rp.published_index),
@@ -287,7 +287,7 @@ def vehicle_arrays(sp: SensorParams, n_vehicles: int | None) -> dict:
     V = 1 if n_vehicles is None else int(n_vehicles)
     e = sp.effects
     out = {k: np.broadcast_to(np.asarray(getattr(e, k), dtype=float), (V,)).copy() for k in VEHICLE_EFFECTS}
-    out["src_scale"] = np.broadcast_to(np.asarray(e.src_scale, dtype=float), (V, R.N_SRC)).copy()
+    out["src_scale"] = np.broadcast_to(np.asarray(e.src_scale, dtype=float), (V, len(sp.reduced.src_names))).copy()
     bc = np.asarray(sp.T_bc_default_c, dtype=float)
     out["T_bc_default_c"] = np.broadcast_to(bc, (V, bc.shape[-1])).copy()
     return struct_values(STRUCT["Vehicle"], out)

@@ -50,7 +50,6 @@ from firmware_model.description import Description
 from firmware_model.effects import CATALOG, FIELD_OF_EFFECT, EffectScales, effect_value, with_oil_volume
 from firmware_model.errors import ParameterError
 from firmware_model.network import (
-    BOUNDARIES,
     K_BRG_SPLASH,
     K_CONST,
     K_CONTACT,
@@ -97,10 +96,10 @@ from firmware_model.parameters import Parameters
 from firmware_model.physics import heat_transfer as ht
 from firmware_model.physics import losses as L
 from firmware_model.physics import oil as oilprops
-from firmware_model.physics.cooler import cooler_values
-from firmware_model.physics.drivetrain import kinematics_of
+from firmware_model.physics.cooler import COOLER_KEYS, cooler_values
+from firmware_model.physics.drivetrain import kinematics_of, speed_names
 from firmware_model.physics.gearbox_losses import ROLL_POINTS, GearboxLosses
-from firmware_model.physics.kinematics import GEAR_MIN, MESHES, N_GEARS, SPEED_NAMES
+from firmware_model.physics.kinematics import GEAR_MIN, MESHES, N_GEARS
 from firmware_model.units import RAD_S_PER_RPM
 
 #: fixed step of the onboard model [s] (firmware_model.components.STEP_S)
@@ -127,6 +126,8 @@ EFFECT_HOOKS = (
     "hot_surroundings_offset",
 )
 BUILD_EFFECTS = ("oil_level_low",)
+#: the boundaries the step writes from its inputs (ambient, coolant) or an effect shifts (hot_surroundings)
+STEP_BOUNDARIES = ("ambient", "coolant", "hot_surroundings")
 
 # ---------------------------------------------------------------------------------------------------------------
 # partitions
@@ -147,14 +148,32 @@ def _fine_partition(d: Description) -> dict:
 #: name -> the partition of a description ({full node: reduced node}; nodes not named keep their own name)
 PARTITIONS = {"fine": _fine_partition, "compact": _compact_partition}
 
-# loss sources of the onboard model (columns of the source matrix)
+# loss sources of the onboard model (columns of the source matrix): every mesh, every shaft bearing, the oil-lumped
+# sources and the retarder; the GRS905's (a model built from a description carries its own: ReducedParams.src_names)
 SRC_NAMES = (
     tuple(f"mesh:{m}" for m in MESHES) + tuple(f"bearing:{b}" for b in SHAFT_BEARINGS) + ("oil_lumped", "retarder")
 )
 N_SRC = len(SRC_NAMES)
-I_SRC_BEARING = len(MESHES)
-I_SRC_OIL = I_SRC_BEARING + len(SHAFT_BEARINGS)
-I_SRC_RET = I_SRC_OIL + 1
+#: the GRS905's first bearing, its oil-lumped and its retarder source (a description's: ReducedParams.src_names)
+I_SRC_BEARING = SRC_NAMES.index(f"bearing:{SHAFT_BEARINGS[0]}")
+I_SRC_OIL = SRC_NAMES.index("oil_lumped")
+I_SRC_RET = SRC_NAMES.index("retarder")
+
+
+def planetary_meshes(d: Description) -> tuple:
+    """The ids of the meshes inside a planetary set (their heat is the set's, their loss split over the planets)."""
+    members = {m for ps in d.planetary for m in (ps.sun, ps.planet, ps.ring)}
+    return tuple(m.id for m in d.meshes if set(m.wheels) & members)
+
+
+def source_names(d: Description) -> tuple:
+    """The loss sources of a description's onboard model, in the order of SRC_NAMES: its meshes, its shaft bearings
+    (those under no idle wheel), the oil-lumped sources, the retarder."""
+    return (
+        tuple(f"mesh:{m.id}" for m in d.meshes)
+        + tuple(f"bearing:{b.id}" for b in d.bearings if b.wheel is None)
+        + ("oil_lumped", "retarder")
+    )
 
 
 def _ro(a, dtype=float) -> np.ndarray:
@@ -168,9 +187,10 @@ def _ro(a, dtype=float) -> np.ndarray:
 Effects = EffectScales
 
 
-def make_effects(effects: dict | None = None) -> Effects:
+def make_effects(effects: dict | None = None, rp=None) -> Effects:
     """Effects record from {effect id: value or array of per-vehicle values}; unknown or unsupported ids raise.
-    Each value is a float or an array over vehicles (V,)."""
+    Each value is a float or an array over vehicles (V,). ``rp``: the onboard model whose loss sources the scales
+    follow (ReducedParams.src_names, .src_planetary); None: the GRS905's (SRC_NAMES)."""
     effects = dict(effects or {})
     for eid, v in effects.items():
         if eid not in CATALOG:
@@ -197,12 +217,16 @@ def make_effects(effects: dict | None = None) -> Effects:
         np.asarray(val(k), dtype=float)
         for k in ("gear_friction_scale", "planetary_loss_scale", "churning_scale", "bearing_loss_scale")
     )
+    names = SRC_NAMES if rp is None else rp.src_names
+    planetary = {f"mesh:{m}" for m in ("PSP", "PPR")} if rp is None else set(rp.src_planetary)
     shape = np.broadcast(gf, pl, ch, br).shape
-    s = np.ones(shape + (N_SRC,))
-    for j, m in enumerate(MESHES):
-        s[..., j] = pl if m in ("PSP", "PPR") else gf
-    s[..., I_SRC_BEARING:I_SRC_OIL] = br[..., None] if br.ndim else br
-    s[..., I_SRC_OIL] = 1.0  # the lumped oil source carries its own scales (churning, needle bearings)
+    s = np.ones(shape + (len(names),))
+    for j, nm in enumerate(names):
+        if nm.startswith("mesh:"):
+            s[..., j] = pl if nm in planetary else gf
+        elif nm.startswith("bearing:"):
+            s[..., j] = br
+    # the lumped oil source carries its own scales (churning, needle bearings); the retarder its heat
     s.setflags(write=False)
     return Effects(src_scale=s, **{FIELD_OF_EFFECT[eid]: val(eid) for eid in EFFECT_HOOKS})
 
@@ -229,28 +253,44 @@ def published_ids(d: Description) -> tuple:
 
 
 def speed_columns(d: Description) -> dict:
-    """The speed_coef columns (SPEED_NAMES) the step reads, from the description: the shaft that drives the oil pump
-    (oil.pump_shaft), the one whose dipping wheels churn (the churning law, physics.gearbox_losses, is the
-    layshaft's), the output shaft (drive.output_shaft, the retarder's). The tables allow -1 (no such shaft: it turns
-    at 0); a motor-driven pump (no pump_shaft) is refused here, its flow follows no shaft and has no law onboard."""
-    if d.oil.pump_shaft is None:
+    """The speed_coef columns (drivetrain.speed_names) the step reads, from the description: the shaft that drives
+    the oil pump (oil.pump_shaft), the one most of the dipping wheels turn with (churn_column: the GRS905's layshaft),
+    the output shaft (drive.output_shaft, the retarder's). The tables allow -1 (no pump, no dipping wheel: it turns
+    at 0); a motor-driven pump (a pump_flow, no pump_shaft) is refused here, its flow follows no shaft and has no
+    law onboard."""
+    names = speed_names(d)
+    if d.oil.pump_shaft is None and d.oil.pump_flow is not None:
         raise ParameterError(
             f"{d.origin}: topology.oil has no pump_shaft (a motor-driven pump): the onboard sensor models the oil flow "
             "of a shaft-driven pump only"
         )
 
-    def col(key: str, shaft: str) -> int:
-        if shaft not in SPEED_NAMES:
-            raise ParameterError(
-                f"{d.origin}: {key} = {shaft!r} is no shaft of the kinematics ({', '.join(SPEED_NAMES)})"
-            )
-        return SPEED_NAMES.index(shaft)
+    def col(key: str, shaft: str | None) -> int:
+        if shaft is None:
+            return -1
+        if shaft not in names:
+            raise ParameterError(f"{d.origin}: {key} = {shaft!r} is no shaft of the kinematics ({', '.join(names)})")
+        return names.index(shaft)
 
     return dict(
         pump_speed_col=col("topology.oil.pump_shaft", d.oil.pump_shaft),
-        churn_speed_col=SPEED_NAMES.index("LS"),
+        churn_speed_col=churn_column(d),
         output_speed_col=col("topology.drive.output_shaft", d.drive.output_shaft),
     )
+
+
+def _wheel_column(d: Description, wheel: str) -> int:
+    """The speed column a wheel turns with: its own (an idle wheel, an idler on a pin), else its shaft's."""
+    names = speed_names(d)
+    w = next(w for w in d.wheels if w.id == wheel)
+    return names.index(w.id) if w.id in names else names.index(w.shaft)
+
+
+def churn_column(d: Description) -> int:
+    """The speed column the onboard churning table is tabulated on: the one most of the dipping wheels turn with
+    (the GRS905's layshaft; the others scale from it, _churn_table); -1 when no wheel dips."""
+    cols = [_wheel_column(d, w.id) for w in d.wheels if w.id in d.oil.dipping]
+    return max(cols, key=cols.count) if cols else -1
 
 
 def aggregate(net: Network, partition: dict) -> Aggregation:
@@ -287,7 +327,7 @@ def aggregate(net: Network, partition: dict) -> Aggregation:
         link_of[k] = keys[key]
     la = np.array([k[0] for k in keys], dtype=np.int64)
     lb = np.array([k[1] for k in keys], dtype=np.int64)
-    allnames = list(names) + list(BOUNDARIES)
+    allnames = list(names) + list(onboard_boundaries(net))
     lname = tuple(f"{allnames[a]}-{allnames[b]}{':rad' if c == 'rad' else ''}" for a, b, c in keys)
     return Aggregation(tuple(names), members, C, node_of, link_of, la, lb, lname)
 
@@ -312,8 +352,8 @@ def oil_property_table(T_c: np.ndarray) -> np.ndarray:
 
 def _speed_of_link(net: Network, k: int) -> int:
     kind = int(net.link_kind[k])
-    if kind == K_STREAM:
-        return SPEED_NAMES.index("LS")
+    if kind == K_STREAM:  # the oil streams follow the pump's shaft
+        return net.speed_names.index(net.geometry.description.oil.pump_shaft)
     j = int(np.sum(net.link_kind[:k] == kind))
     return int(net.kind_params[kind]["speed"][j])
 
@@ -382,8 +422,8 @@ def law_grid(net: Network, p: Parameters, batched: bool = True) -> LawGrid:
     calls it once per grid point instead (the same numbers bit for bit, ~50x slower; kept as the reference the
     tests and benchmarks/bench_build.py compare with)."""
     ev = ConductanceEvaluator(net, p, EffectScales())
-    speed_abs = np.abs(kinematics_of(p).speed)  # (17, 14)
-    w_src_max = speed_abs.max(axis=0) * p["engine.max_speed_rad_s"]
+    speed_abs = np.abs(kinematics_of(p).speed)  # (17, speed columns)
+    w_src_max = speed_abs.max(axis=0) * net.geometry.description.drive.max_speed_rad_s
     u = np.linspace(0.0, 1.0, N_U)
     n_links = len(net.link_a)
     variable = (K_SPLASH, K_IMM_GEAR, K_IMM_BRG, K_BRG_SPLASH, K_STREAM, K_RING)
@@ -391,13 +431,13 @@ def law_grid(net: Network, p: Parameters, batched: bool = True) -> LawGrid:
     for k in range(n_links):
         if int(net.link_kind[k]) in variable:
             src_of_link[k] = _speed_of_link(net, k)
-    zero_mt = np.zeros(len(MESHES))
+    zero_mt = np.zeros(len(net.geometry.description.meshes))
     T_dummy = np.full(net.n, 60.0)
-    bc_dummy = np.full(len(BOUNDARIES), 40.0)
+    bc_dummy = np.full(len(net.boundaries), 40.0)
 
     def eval_all(w, T, low_range=False):
         """Every link with all shafts at the speed w (an array of speeds: a batch, see evaluate) [W/K]."""
-        sp = np.repeat(np.asarray(w, dtype=float)[..., None], len(SPEED_NAMES), axis=-1)
+        sp = np.repeat(np.asarray(w, dtype=float)[..., None], len(net.speed_names), axis=-1)
         return ev.evaluate(float(T), sp, 0, zero_mt, low_range, T_dummy, bc_dummy).copy()
 
     sources = sorted(set(src_of_link[src_of_link >= 0].tolist()))
@@ -498,7 +538,7 @@ class _Laws:
         self.ef.append(
             StreamTerm(
                 r,
-                frac * self.p["oil_system.flow_m3_per_rad"],
+                frac * _pump_flow_m3_per_rad(net.geometry.description),
                 alpha,
                 beta,
                 EFFECT_PLANET_OIL_H if sub == S_IMPOSED else EFFECT_NONE,
@@ -557,6 +597,11 @@ class LossMaps(NamedTuple):
     mesh_roll_lt_min: np.ndarray
 
 
+def _pump_flow_m3_per_rad(d: Description) -> float:
+    """The oil volume a shaft-driven pump moves per radian of its shaft (0: no pump)."""
+    return float(d.oil.pump_flow or 0.0) if d.oil.pump_shaft is not None else 0.0
+
+
 def _loss_maps(p: Parameters, net: Network, w_ls_max_rad_s: float) -> LossMaps:
     """Mesh slip tables and rolling constants (Eq 7-22), Palmgren coefficients of the shaft and needle bearings
     (Eq 35-40), synchronizer (Eq 41) and pump (Eq 42) coefficients per gear, churning table (Eq 23-34)."""
@@ -564,10 +609,11 @@ def _loss_maps(p: Parameters, net: Network, w_ls_max_rad_s: float) -> LossMaps:
     gl = GearboxLosses(p, net.geometry)
     mesh_x0, mesh_phi_rows, roll_k, roll_lt_min = _mesh_tables(gl)
     speed_abs = np.abs(kin.speed)
-    bear_speed = np.zeros((N_GEARS, len(SHAFT_BEARINGS)))
-    for j, b in enumerate(SHAFT_BEARINGS):
-        if b == "BIM":
-            bear_speed[:, j] = np.abs(kin.speed[:, SPEED_NAMES.index("IS")] - kin.speed[:, SPEED_NAMES.index("MS")])
+    d = net.geometry.description
+    bear_speed = np.zeros((N_GEARS, len(gl.bearing_ids)))
+    for j in range(len(gl.bearing_ids)):
+        if gl.bearing_outer_idx[j] is not None:  # a pilot bearing: between its shaft and the one around it
+            bear_speed[:, j] = np.abs(kin.speed[:, gl.bearing_outer_idx[j]] - kin.speed[:, gl.bearing_speed_idx[j]])
         else:
             bear_speed[:, j] = speed_abs[:, gl.bearing_speed_idx[j]]
     sync_c = np.array(
@@ -577,9 +623,11 @@ def _loss_maps(p: Parameters, net: Network, w_ls_max_rad_s: float) -> LossMaps:
         ]
     )
     u_ch = np.linspace(0.0, 1.0, N_U_CHURN)
+    planetary = planetary_meshes(d)
     heat_sf = np.array(
-        [p["scale.planet_to_heat"] if m in ("PSP", "PPR") else p["scale.gear_contact_to_heat"] for m in MESHES]
+        [p["scale.planet_to_heat"] if m.id in planetary else p["scale.gear_contact_to_heat"] for m in d.meshes]
     )
+    pump = np.zeros(N_GEARS) if gl.pump_col is None else gl.pump_k * kin.speed[:, gl.pump_col] ** 2
     return LossMaps(
         mesh_x0,
         mesh_phi_rows,
@@ -590,18 +638,21 @@ def _loss_maps(p: Parameters, net: Network, w_ls_max_rad_s: float) -> LossMaps:
         gl.load_torque_coef,
         L.PALMGREN_SEED_C * gl.needle_f0 * gl.needle_Dm**3,
         (kin.sync_rel**2) @ sync_c,
-        gl.pump_k * kin.speed[:, SPEED_NAMES.index("LS")] ** 2,
+        pump,
         w_ls_max_rad_s,
-        _churn_table(gl, u_ch * u_ch * w_ls_max_rad_s, T_GRID_C, kin),
+        _churn_table(gl, u_ch * u_ch * w_ls_max_rad_s, T_GRID_C, kin, churn_column(d)),
         roll_lt_min,
     )
 
 
 def _source_matrix(net: Network, agg: Aggregation) -> np.ndarray:
-    """(N_SRC, n): where each source's heat goes, in reduced nodes."""
-    S = np.zeros((N_SRC, len(agg.nodes)))
-    for j, nm in enumerate(SRC_NAMES):
-        if nm.startswith("mesh:") and nm[5:] in ("PSP", "PPR"):
+    """(sources, n): where each source's heat goes, in reduced nodes (source_names)."""
+    d = net.geometry.description
+    planetary = planetary_meshes(d)
+    names = source_names(d)
+    S = np.zeros((len(names), len(agg.nodes)))
+    for j, nm in enumerate(names):
+        if nm.startswith("mesh:") and nm[5:] in planetary:
             dist = net.sources["planetary"]
         elif nm == "oil_lumped":
             dist = net.sources["churning"]
@@ -660,6 +711,43 @@ def _law_fields(laws: _Laws) -> dict:
     )
 
 
+def onboard_boundaries(net: Network) -> tuple:
+    """The onboard model's boundaries: the network's (its description's, in order: link_b indexes them), then those
+    of STEP_BOUNDARIES the description has not, as slots no link touches (the step writes the ambient and coolant
+    inputs and shifts the hot surroundings there; the GRS905 has all three)."""
+    return tuple(net.boundaries) + tuple(b for b in STEP_BOUNDARIES if b not in net.boundaries)
+
+
+def _boundary_defaults_c(p: Parameters, net: Network) -> np.ndarray:
+    """The boundaries' default temperatures (onboard_boundaries order): the file's boundary.<name>, else the
+    description's (topology.boundary.<name>.temperature); a slot no link touches takes the ambient's."""
+    stated = {b.id: b.temperature_c for b in net.geometry.description.boundaries}
+    ambient = p.get("boundary.ambient", stated.get("ambient", p["boundary.initial"]))
+    return np.array([p.get(f"boundary.{b}", stated.get(b, ambient)) for b in onboard_boundaries(net)], dtype=float)
+
+
+def _surroundings_fields(p: Parameters, net: Network) -> dict:
+    """The ReducedParams fields of the cooler, the oil flow, the boundaries, the drive's operating range and the
+    loss sources, from the parameter set and its description."""
+    kind = p.strings.get("cooler.kind", "liquid")
+    d, bcs = net.geometry.description, onboard_boundaries(net)
+    return dict(
+        cooler_code=COOLER_CODES.get(kind, 0),
+        cooler=cooler_values(p) if COOLER_CODES.get(kind, 0) else {k: 0.0 for k in COOLER_KEYS},
+        flow_m3_per_rad=_pump_flow_m3_per_rad(d),
+        bc_default_c=_ro(_boundary_defaults_c(p, net)),
+        engine_off_tau_s=float(p.get("boundary.engine_off_tau", ENGINE_OFF_TAU_S)),
+        i_ambient=bcs.index("ambient"),
+        i_coolant=bcs.index("coolant"),
+        i_hot=bcs.index("hot_surroundings"),
+        max_speed_rpm=float(d.drive.max_speed_rad_s / RAD_S_PER_RPM),
+        min_torque_nm=float(d.drive.min_torque_nm),
+        max_torque_nm=float(d.drive.max_torque_nm),
+        src_names=source_names(d),
+        src_planetary=tuple(f"mesh:{m}" for m in planetary_meshes(d)),
+    )
+
+
 def build_reduced(
     p: Parameters,
     partition: str | dict = "fine",
@@ -678,16 +766,19 @@ def build_reduced(
     if not 0.0 < margin <= 1.0:
         raise ParameterError(f"stability margin = {margin} must be in (0, 1]")
     net = build_network(p)
-    part_name, partition = _resolve_partition(partition, net.geometry.description)
+    d = net.geometry.description
+    cols = speed_columns(d)  # refuses what the onboard model has no law for before any table is built
+    part_name, partition = _resolve_partition(partition, d)
     agg = aggregate(net, partition)
     kin = kinematics_of(p)
     grid = law_grid(net, p)
     laws = _Laws(net, agg, p, grid)
     for k in range(len(net.link_a)):
         laws.add_link(k)
-    lm = _loss_maps(p, net, float(grid.w_src_max[SPEED_NAMES.index("LS")]))
-    kind = p.strings.get("cooler.kind", "liquid")
-    published = published_ids(net.geometry.description)
+    # the churning table's speed axis: the churning column's top speed (no wheel dips: a nominal 1 rad/s, the table 0)
+    churn_col = cols["churn_speed_col"]
+    lm = _loss_maps(p, net, float(grid.w_src_max[churn_col]) if churn_col >= 0 else 1.0)
+    published = published_ids(d)
     rp = ReducedParams(
         variant=p.variant,
         partition=part_name,
@@ -705,7 +796,7 @@ def build_reduced(
         **_law_fields(laws),
         prop=_ro(oil_property_table(T_GRID_C)),
         speed_coef=_ro(kin.speed),
-        **speed_columns(net.geometry.description),
+        **cols,
         mesh_torque=_ro(kin.mesh_torque),
         mesh_omega2=_ro(kin.mesh_omega2),
         mesh_x0=_ro(lm.mesh_x0),
@@ -725,17 +816,7 @@ def build_reduced(
         churn_heat_sf=float(p["scale.churn_to_heat"]),
         src_matrix=_ro(_source_matrix(net, agg)),
         heat_lag_tau_s=float(p["scale.heat_lag_tau"]),
-        cooler_code=COOLER_CODES.get(kind, 0),
-        cooler=cooler_values(p),
-        flow_m3_per_rad=float(p["oil_system.flow_m3_per_rad"]),
-        bc_default_c=_ro(np.array([p[f"boundary.{b}"] for b in BOUNDARIES])),
-        engine_off_tau_s=float(p.get("boundary.engine_off_tau", ENGINE_OFF_TAU_S)),
-        i_ambient=BOUNDARIES.index("ambient"),
-        i_coolant=BOUNDARIES.index("coolant"),
-        i_hot=BOUNDARIES.index("hot_surroundings"),
-        max_speed_rpm=float(p["engine.max_speed_rad_s"] / RAD_S_PER_RPM),
-        min_torque_nm=float(p["engine.min_torque"]),
-        max_torque_nm=float(p["engine.max_torque"]),
+        **_surroundings_fields(p, net),
     )
     if check:
         object.__setattr__(rp, "stability", check_stability(rp))
@@ -792,12 +873,12 @@ def _fling_off_table(net: Network, k: int, w, T):
 def _mesh_tables(gl: GearboxLosses):
     """Per mesh: x0 and phi on x = x0 + X_STEP i (slip loss / (T1 w2)), the rolling-loss constant and log10 of the
     torque T1 below which the rolling loss ramps to 0 (the plant's L.ROLL_TORQUE_MIN_NM per contact)."""
-    n_pl = gl.n_planets
     rows, x0s, roll, lt_min = [], [], [], []
     # x range: beyond it f_g is clipped at both ends for every point of the line of action
     xs = np.arange(-16.0, 24.0 + 1e-9, X_STEP)
-    for m, mesh in zip(MESHES, gl.meshes):
-        planetary = m in ("PSP", "PPR")
+    for n_planets, mesh in zip(gl.mesh_planets, gl.meshes):
+        planetary = n_planets > 0
+        n_pl = n_planets if planetary else gl.n_planets
         # total torque T on wheel 1; the loss model splits it over the planets
         T_tot = 10.0**xs
         T1 = T_tot / n_pl if planetary else T_tot
@@ -819,20 +900,42 @@ def _mesh_tables(gl: GearboxLosses):
         # the plant's ramp starts at ROLL_TORQUE_MIN_NM per contact: n_pl times that on the sun's total torque
         lt_min.append(math.log10((n_pl if planetary else 1.0) * L.ROLL_TORQUE_MIN_NM))
     nx = max(len(r) for r in rows)
-    tab = np.empty((len(MESHES), nx))
+    tab = np.empty((len(rows), nx))
     for i, r in enumerate(rows):
         tab[i, : len(r)] = r
         tab[i, len(r) :] = r[-1]
     return np.array(x0s), tab, np.array(roll), np.array(lt_min)
 
 
-def _churn_table(gl: GearboxLosses, w_ls: np.ndarray, T2: np.ndarray, kin) -> np.ndarray:
-    """Churning loss [W] of every immersed wheel at layshaft speed w_ls x oil temperature T2 (Eq 23-34)."""
-    ri_ratio = abs(kin.speed[0 - GEAR_MIN, SPEED_NAMES.index("RI")] / kin.speed[0 - GEAR_MIN, SPEED_NAMES.index("LS")])
+def churn_ratios(gl: GearboxLosses, kin, col: int) -> np.ndarray:
+    """Each dipping wheel's speed over the churning column's, taken in neutral (or, without one, the first gear that
+    turns that column): 1 for the wheels that turn with it (the GRS905's layshaft wheels, its idler: RI/LS). The
+    table has one speed axis: a wheel whose ratio changes with the gear is refused (one sentence naming it)."""
+    if col < 0:
+        return np.ones(len(gl.ch_col))
+    turning = [r for r in range(N_GEARS) if kin.speed[r, col] != 0.0]
+    r = next(r for r in [0 - GEAR_MIN] + turning if kin.speed[r, col] != 0.0)
+    out = np.array([1.0 if c == col else abs(kin.speed[r, c] / kin.speed[r, col]) for c in gl.ch_col])
+    dipping = [w.id for w in gl.d.wheels if w.id in gl.d.oil.dipping]  # gl.ch_col's order
+    for w, c, ratio in zip(dipping, gl.ch_col, out):
+        every = np.abs(kin.speed[turning, c] / kin.speed[turning, col])
+        if not np.allclose(every, ratio, rtol=1e-12, atol=0.0):
+            raise ParameterError(
+                f"{gl.d.origin}: topology.oil.dipping names {w}, whose speed over {kin.speed_names[col]}'s changes "
+                "with the gear: the onboard churning table follows one shaft (the wheels dipping into the sump must "
+                "turn with it or at a fixed ratio to it)"
+            )
+    return out
+
+
+def _churn_table(gl: GearboxLosses, w_ls: np.ndarray, T2: np.ndarray, kin, col: int) -> np.ndarray:
+    """Churning loss [W] of every immersed wheel at the churning column's speed w_ls (the GRS905's layshaft; each
+    wheel at its own ratio to it) x oil temperature T2 (Eq 23-34)."""
+    ratio = churn_ratios(gl, kin, col)
     out = np.zeros((w_ls.size, T2.size))
     for j, T in enumerate(T2):
         op = oilprops.oil_properties(T)
-        wc = np.where(gl.ch_is_RI[None, :] > 0, (w_ls * ri_ratio)[:, None], w_ls[:, None])
+        wc = np.where(ratio[None, :] != 1.0, w_ls[:, None] * ratio[None, :], w_ls[:, None])
         ch = L.churning_loss(
             wc, gl.ch_Ra, gl.ch_Rp, gl.ch_ht, gl.ch_w, gl.ch_hi, gl.ch_Vp, gl.V0, op.rho_kg_m3, op.nu_m2_s, gl.h_t0
         )

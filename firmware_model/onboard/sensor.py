@@ -141,7 +141,7 @@ class VirtualSensor:
             check_temperature_c("sensor option initial_temp_c", opts.initial_temp_c)
         self.params = params
         self.reduced = R.build_reduced(params, partition=partition, effects=effects)
-        self.effects = R.make_effects({k: v for k, v in (effects or {}).items() if k in R.EFFECT_HOOKS})
+        self.effects = R.make_effects({k: v for k, v in (effects or {}).items() if k in R.EFFECT_HOOKS}, self.reduced)
         self.sp = SensorParams.build(self.reduced, lim, self.effects, opts)
         self.cache = StepCache()
         self.limits = lim
@@ -213,7 +213,7 @@ class VirtualSensor:
         hold[..., I_OIL] = T0
         return SensorState(
             T_c=np.broadcast_to(T0[..., None, None], B + (2, rp.n)).copy(),
-            lag_w=np.zeros(B + (R.N_SRC,)),
+            lag_w=np.zeros(B + (len(rp.src_names),)),
             hold=hold,
             age_s=np.full(B + (N_INPUTS,), 0.0),
             same_s=np.zeros(B + (N_INPUTS,)),

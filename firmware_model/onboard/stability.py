@@ -93,13 +93,15 @@ def max_conductances(rp: ReducedParams) -> dict:
     if rp.rad_link.size:
         G[rp.rad_link] = radiation_w_per_k(rp.rad_area_eps, RAD_T_RANGE_C[1] + KELVIN_OFFSET_K, 250.0 + KELVIN_OFFSET_K)
     # cooler: the largest slope dQ/dT_oil (hA at the highest flows, effectiveness scale at its maximum)
-    hA = cooler_hA_bound_w_per_k(
-        cooler_params(rp.cooler),
-        COOLER_KINDS[rp.cooler_code],
-        omega_ls_max_rad_s,
-        omega_in_max_rad_s,
-        CATALOG["cooler_effectiveness_scale"].high,
-    )
+    hA = 0.0  # no cooler (cooler_code 0): the housing sheds the heat
+    if rp.cooler_code:
+        hA = cooler_hA_bound_w_per_k(
+            cooler_params(rp.cooler),
+            COOLER_KINDS[rp.cooler_code],
+            omega_ls_max_rad_s,
+            omega_in_max_rad_s,
+            CATALOG["cooler_effectiveness_scale"].high,
+        )
     return {"G": G, "cooler_hA": float(hA)}
 
 

@@ -477,7 +477,7 @@ def run_onboard_pass(ds, runs, columns, volume_l: float) -> list:
         vals = np.array([r.effect_dict.get(eid, CATALOG[eid].neutral) for r in runs], dtype=float)
         if np.any(vals != CATALOG[eid].neutral):
             eff[eid] = vals
-    sp = S.SensorParams.build(vs.reduced, vs.limits, R.make_effects(eff), vs.options)
+    sp = S.SensorParams.build(vs.reduced, vs.limits, R.make_effects(eff, vs.reduced), vs.options)
     dt = vs.dt_s
     tin = np.asarray(ds.inputs["time_s"], dtype=float)
     n = int(np.floor((tin[-1] - tin[0]) / dt + 1e-9)) + 1

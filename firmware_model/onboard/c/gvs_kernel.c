@@ -233,8 +233,8 @@ static void heat_sources(const gvs_tables *tb, const gvs_vehicle *veh, int32_t g
             * POW(max_r(nu * omega_b_rad_s * tb->rpm_per_rad_s, tb->palmgren_min), R_(2.0) / R_(3.0));
         src[i] = (M0 + tb->bear_load[gear_row * tb->n_bear + b] * torque_nm) * omega_b_rad_s;
     }
-    for (b = 0; b < tb->n_bear; ++b) {                       /* needle bearings on relative speed (Eq 36-37) */
-        gvs_real omega_rel_rad_s = tb->needle_rel[gear_row * tb->n_bear + b] * omega_in_rad_s;
+    for (b = 0; b < tb->n_needle; ++b) {                     /* needle bearings on relative speed (Eq 36-37) */
+        gvs_real omega_rel_rad_s = tb->needle_rel[gear_row * tb->n_needle + b] * omega_in_rad_s;
         gvs_real Mn = tb->needle_c[b]
             * POW(max_r(nu * omega_rel_rad_s * tb->rpm_per_rad_s, tb->palmgren_min), R_(2.0) / R_(3.0));
         P_needle += Mn * omega_rel_rad_s;
@@ -469,7 +469,7 @@ int gvs_check_tables(const gvs_tables *tb)
         || tb->ncol > GVS_MAX_TERMS || tb->n_gears < 1 || tb->n_gears > GVS_MAX_GEARS
         || tb->n_pub < 1 || tb->n_pub > GVS_MAX_PUB || tb->pump_speed_col < -1 || tb->pump_speed_col >= tb->n_speed
         || tb->churn_speed_col < -1 || tb->churn_speed_col >= tb->n_speed || tb->output_speed_col < -1
-        || tb->output_speed_col >= tb->n_speed
+        || tb->output_speed_col >= tb->n_speed || tb->n_needle < 0 || tb->ns != tb->n_mesh + tb->n_bear + 2
         || tb->nT < 2 || tb->nT2 < 2 || tb->n_u < 2 || tb->n_u_churn < 2 || tb->nx < 2 || tb->ttl_every < 1)
         return GVS_BAD_TABLES;
 #ifdef GVS_NO_TTL_BOUND

@@ -147,7 +147,7 @@ typedef struct {
     /* sizes: nodes, links, boundaries, sources, power laws, tables, cylinders, closed-form streams, radiation links,
      * streams, source non-zeros; then the tables' axes */
     int32_t n, nl, nb, ns, npw, n2, nc, ne, nrad, nst, nsrc_nz, nT, ncol, n_u, nT2, n_u_churn, nx, n_mesh, n_bear;
-    int32_t n_speed, n_gears, n_pub;
+    int32_t n_needle, n_speed, n_gears, n_pub;
     int32_t i_oil;                      /* the sump node */
     int32_t i_ambient;                  /* the ambient boundary */
     int32_t i_coolant;                  /* the coolant boundary */
@@ -202,7 +202,8 @@ typedef struct {
     const gvs_real *mesh_roll_k, *mesh_heat_sf; /* (n_mesh) */
     const gvs_real *mesh_roll_lt_min;   /* (n_mesh) log10 T1 below which the rolling loss ramps to 0 */
     const gvs_real *bear_speed, *bear_c, *bear_load; /* (gears x n_bear) */
-    const gvs_real *needle_rel, *needle_c; /* (n_bear) */
+    const gvs_real *needle_rel;         /* (gears x n_needle) needle bearings' relative speed per unit input speed */
+    const gvs_real *needle_c;           /* (n_needle) */
     const gvs_real *sync_coef, *pump_coef; /* (gears) */
     const gvs_real *churn_table;        /* (n_u_churn x nT) [W] */
     gvs_real churn_omega_max_rad_s;     /* [rad/s] */
