@@ -1,12 +1,13 @@
 """The ``--gearbox NAME|FILE`` option of the commands that build a gearbox, and its resolution.
 
-NAME is a description shipped in firmware_model/params/ (GRS905, GRSO905), FILE the path of a user's parameter file
+NAME is a description shipped in firmware_model/params/ (GRS905, GRSO905, R1, HR225, MM82), FILE the path of a user's parameter file
 (with its ``[topology]``, docs/description.md). The command line wins over the configuration's ``[gearbox]``
 (``variant = NAME`` or ``params = FILE``), which wins over the default, GRS905. ``--variant`` is the option's former
 name, still accepted and hidden; given with ``--gearbox`` it must name the same gearbox.
 
-Everything is checked before any work: an unknown NAME, a FILE that is missing or does not load, and a description
-the plant and the sensor cannot run yet (:func:`runnable`) are one sentence (exit 2 on the command line).
+Everything is checked before any work: an unknown NAME and a FILE that is missing or does not load are one sentence
+(exit 2 on the command line); what a builder cannot model yet (the onboard model of a motor-driven pump: the MM82)
+is its own sentence when the command builds it.
 """
 
 from __future__ import annotations
@@ -96,32 +97,19 @@ def gearbox_of(cfg) -> str:
 
 
 def check_gearbox(cfg, said: str | None = None):
-    """The description of the configuration's gearbox, checked before any work: it loads and the plant and the
-    sensor can run it (:func:`runnable`); InputError naming it (``said``: as the user gave it, ``--gearbox NAME``)
-    and why otherwise. A description alone (no parameters) that loads but cannot run says the latter."""
-    from firmware_model.description import description_of, load_description
+    """The description of the configuration's gearbox, checked before any work: its parameter file loads (its
+    values, and its description with them); InputError naming it (``said``: as the user gave it, ``--gearbox
+    NAME``) and why otherwise. What a builder cannot run yet (the onboard model of a motor-driven pump) is its own
+    one sentence when the command builds it."""
+    from firmware_model.description import description_of
     from firmware_model.parameters import load_parameters
 
     name = gearbox_of(cfg)
     said = said or f"gearbox {name}"
     try:
-        d = description_of(load_parameters(name))
+        return description_of(load_parameters(name))
     except ParameterError as exc:
-        d = None
-        failed = exc
-    if d is None:
-        try:
-            d = load_description(name) if _is_file(name) else None
-        except ParameterError:
-            d = None
-        if d is None or not runnable(d):
-            raise InputError(
-                f"{said} does not load ({failed}); the shipped gearboxes are {', '.join(shipped())}"
-            ) from None
-    why = runnable(d)
-    if why:
-        raise InputError(f"{said}: {why}")
-    return d
+        raise InputError(f"{said} does not load ({exc}); the shipped gearboxes are {', '.join(shipped())}") from None
 
 
 def _config_key(cfg) -> str:
@@ -147,43 +135,3 @@ def resolve_gearbox(args, cfg=None):
     check_gearbox(cfg, f"--gearbox {gearbox}" if gearbox is not None else _config_key(cfg))
     args.resolved_config = cfg
     return cfg
-
-
-# ---------------------------------------------------------------------------------------------------------------
-# What the plant and the sensor can run today. Delete this (and its call in check_gearbox) when the plant, the
-# onboard model and the C kernel are built from any description.
-
-
-def _shape(d) -> tuple:
-    """What the code built from the GRS905's constants depends on: the drive, the thermal nodes, the gears (their
-    power paths may differ: the kinematics knows both shipped variants'), the meshes, the couplings, the boundaries
-    and the published components, by id and in order."""
-    return (
-        d.drive.kind,
-        d.nodes,
-        tuple(g.name for g in d.gears),
-        tuple(m.id for m in d.meshes),
-        tuple(c.id for c in d.couplings),
-        tuple(b.id for b in d.boundaries),
-        tuple(p.id for p in d.published),
-    )
-
-
-@functools.lru_cache(maxsize=1)
-def _grs905_shape() -> tuple:
-    from firmware_model.description import load_description
-
-    return _shape(load_description("GRS905"))
-
-
-def runnable(description) -> str:
-    """Why the plant and the sensor cannot run this gearbox yet ('' when they can): for now they build the GRS905's
-    topology from constants, so a description of another topology (its numbers may differ) is refused."""
-    if _shape(description) == _grs905_shape():
-        return ""
-    kind = description.drive.kind
-    return (
-        f"its topology ({kind} drive, {len(description.nodes)} thermal nodes, {len(description.gears)} gears) is not "
-        f"the GRS905's, and the plant and the sensor run only the GRS905's topology so far (describe and export-dbc "
-        f"take any description)"
-    )

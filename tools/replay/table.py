@@ -22,7 +22,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from firmware_model.components import PUBLISHED, STEP_S
+from firmware_model.components import STEP_S
 from firmware_model.errors import InputError
 from firmware_model.service.protocol import start_state  # (not options: that imports python-can)
 
@@ -170,8 +170,9 @@ def _status_row(st) -> tuple:
     )
 
 
-def _output_table(times: list, rows_in: list, rows_out: dict, rows_st: list, reject_reasons, state):
-    """The replay's run table from its per-step rows."""
+def _output_table(times: list, rows_in: list, rows_out: dict, rows_st: list, sensor, state):
+    """The replay's run table from its per-step rows (the sensor's published components and reject reasons)."""
+    published, reject_reasons = tuple(sensor.published), sensor.reject_reasons
     from tools.runtable import RunTable
 
     n = len(times)
@@ -181,10 +182,10 @@ def _output_table(times: list, rows_in: list, rows_out: dict, rows_st: list, rej
     for j, (_, col) in enumerate(inputs):
         cols[col] = ins[:, j]
     for (prefix, suffix), rows in rows_out.items():
-        block = np.asarray(rows, dtype=float).reshape(n, len(PUBLISHED))
+        block = np.asarray(rows, dtype=float).reshape(n, len(published))
         if prefix == "ttl_":
             block = np.where(np.isinf(block), np.nan, block)  # never = an empty cell
-        for j, c in enumerate(PUBLISHED):
+        for j, c in enumerate(published):
             cols[f"{prefix}{c}{suffix}"] = block[:, j]
     names = [*STATUS_COLUMNS, *(f"rejects_{r}" for r in reject_reasons)]
     st = np.asarray(rows_st, dtype=float).reshape(n, len(names))
@@ -216,7 +217,7 @@ def replay_records(
         W_rows.append(out.level)
         ttl_rows.append(out.ttl_s)
         rows_st.append(_status_row(out.status))
-    return _output_table(times, data, rows_out, rows_st, sensor.reject_reasons, state)
+    return _output_table(times, data, rows_out, rows_st, sensor, state)
 
 
 def replay_steps(times: np.ndarray, data: np.ndarray, sensor, initial_oil_c: float | None = None, frame_t_s=None):
@@ -230,7 +231,7 @@ def replay_steps(times: np.ndarray, data: np.ndarray, sensor, initial_oil_c: flo
     t_frames = times if frame_t_s is None else np.asarray(frame_t_s, dtype=float)
     state, out = sensor.step_table(state, data[:, : len(sensor.input_fields)], t_frames)
     rows_out = {("T_", "_c"): out.T_c, ("W_", ""): out.level, ("ttl_", "_s"): out.ttl_s}
-    return _output_table(times, data, rows_out, _status_rows(out), sensor.reject_reasons, state)
+    return _output_table(times, data, rows_out, _status_rows(out), sensor, state)
 
 
 def held_options(table) -> dict:
@@ -285,7 +286,7 @@ def replay_held(table, sensor, initial_oil_c: float | None = None, chunk_steps: 
         ("W_", ""): np.concatenate(kept["W"]),
         ("ttl_", "_s"): np.concatenate(kept["ttl"]),
     }
-    out_table = _output_table(ends_s, data, rows_out, np.concatenate(kept["status"]), sensor.reject_reasons, state)
+    out_table = _output_table(ends_s, data, rows_out, np.concatenate(kept["status"]), sensor, state)
     out_table.meta.update(drive="fixed_ratio", steps=int(first[-1]))
     return out_table
 
@@ -379,7 +380,9 @@ def table_findings(out, oil_model: bool = False) -> list:
 def summarize(out) -> ReplaySummary:
     """The figures the command line prints after a table replay."""
     n = out.n
-    hottest = max(PUBLISHED, key=lambda c: np.nanmax(out[f"T_{c}_c"]))
+    # the published components: those with an estimate and a warning level
+    published = [k[2:-2] for k in out.columns if k.startswith("T_") and k.endswith("_c") and out.has(f"W_{k[2:-2]}")]
+    hottest = max(published, key=lambda c: np.nanmax(out[f"T_{c}_c"]))
     rejects = {
         k[len("rejects_") :]: int(out[k][-1]) for k in out.columns if k.startswith("rejects_") and n and out[k][-1] > 0
     }
@@ -388,7 +391,7 @@ def summarize(out) -> ReplaySummary:
         steps=n,
         hottest=hottest,
         hottest_c=float(np.nanmax(out[f"T_{hottest}_c"])),
-        max_level=max(int(np.nanmax(out[f"W_{c}"])) for c in PUBLISHED),
+        max_level=max(int(np.nanmax(out[f"W_{c}"])) for c in published),
         degraded_share=float(np.mean(out["degraded"])) if n else 0.0,
         rejects=rejects,
     )
