@@ -47,7 +47,7 @@ except ModuleNotFoundError:  # Python 3.10
 
 PARAM_DIR = Path(__file__).resolve().parent / "params"
 VARIANTS = ("GRS905", "GRSO905")
-#: the shipped gearboxes with a description of their own (firmware_model/params/NAME.toml, standalone files): they
+#: the shipped gearboxes with a description of their own (a NAME.toml in firmware_model/params/, standalone files): they
 #: load by name like the variants but are no reference for the keys of other files
 STANDALONE = ("R1", "HR225", "MM82")
 PROVENANCES = ("seed", "derived", "assumed", "fitted")
