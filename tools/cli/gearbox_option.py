@@ -1,9 +1,9 @@
 """The ``--gearbox NAME|FILE`` option of the commands that build a gearbox, and its resolution.
 
-NAME is a description shipped in firmware_model/params/ (GRS905, GRSO905, R1, HR225, MM82), FILE the path of a user's parameter file
-(with its ``[topology]``, docs/description.md). The command line wins over the configuration's ``[gearbox]``
-(``variant = NAME`` or ``params = FILE``), which wins over the default, GRS905. ``--variant`` is the option's former
-name, still accepted and hidden; given with ``--gearbox`` it must name the same gearbox.
+NAME is a description shipped in firmware_model/params/ (GRS905, GRSO905, R1, HR225, MM82), FILE the path of a
+user's parameter file (with its ``[topology]``, docs/description.md). The command line wins over the configuration's
+``[gearbox]`` (``variant = NAME`` or ``params = FILE``), which wins over the default, GRS905. ``--variant`` is the
+option's former name, still accepted and hidden; given with ``--gearbox`` it must name the same gearbox.
 
 Everything is checked before any work: an unknown NAME and a FILE that is missing or does not load are one sentence
 (exit 2 on the command line); what a builder cannot model yet (the onboard model of a motor-driven pump: the MM82)
