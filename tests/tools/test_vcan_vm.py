@@ -73,9 +73,12 @@ echo "roundtrip: $?" >> status.txt
 # can-utils with a background candump; & / wait / kill in the script
 timeout 30 candump -L -n @N@ vcan0 > "$VM_SHARE/candump.log" 2> candump.err &
 dump=$!
-# cangen only once candump's socket is bound (its filter listed in /proc/net/can/rcvlist_all; a fixed 0.5 s lost
-# the first frames under a loaded emulation), at most 10 s
-for i in $(seq 100); do grep -q vcan0 /proc/net/can/rcvlist_all 2>/dev/null && break; sleep 0.1; done
+# cangen only once candump's socket is bound (its filter listed in /proc/net/can/rcvlist_all, which shows an empty
+# list as "(vcan0: no entry)"; a fixed 0.5 s lost the first frames under a loaded emulation), at most 10 s
+for i in $(seq 100); do
+    grep -v 'no entry' /proc/net/can/rcvlist_all 2>/dev/null | grep -q vcan0 && break
+    sleep 0.1
+done
 sleep 0.2
 cangen vcan0 -e -n @N@ -g 2 -I i -L 8 -D i
 echo "cangen: $?" >> status.txt
