@@ -300,3 +300,16 @@ def test_the_configurations_unknown_variant_is_one_sentence(tmp_path, capsys):
     args = SUBCOMMANDS["replay"].parse_args(["x.csv", "--config", str(cfg)])
     with pytest.raises(InputError, match=r"config c.toml: gearbox.variant = 'GRS906' does not load .*GRS905, GRSO905"):
         resolve_gearbox(args)
+
+
+def test_a_trucks_named_cycle_on_a_fixed_ratio_gearbox_is_one_sentence(tmp_path, capsys):
+    """The named cycles drive a truck; a fixed-ratio gearbox is refused with what to give instead, not run (or
+    stopped by a range check that only happens to fire)."""
+    out = tmp_path / "o.csv"
+    assert (
+        main(["simulate", "--gearbox", "HR225", "--cycle", "steady:gear=4L,rpm=1000,nm=300,s=60", "--out", str(out)])
+        == 2
+    )
+    err = _one_sentence(capsys, "simulate")
+    assert "truck" in err and "fixed_ratio" in err and "input_speed_rpm" in err
+    assert not out.exists()

@@ -482,6 +482,13 @@ def get_cycle(
     s = os.fspath(spec).strip() if not isinstance(spec, str) else spec.strip()
     rate_hz = _check_rate(rate_hz)
     low = s.lower()
+    is_file = low.endswith(".csv") or os.sep in s or "/" in s or Path(s).is_file()
+    if not is_file and description is not None and description.drive.kind != "vehicle":
+        # the named cycles drive a truck (engine speed, torque, gear): another drive takes its own run table
+        raise InputError(
+            f"drive cycle {s!r} is a truck's, but gearbox {description.name} has a {description.drive.kind} drive: "
+            f"give a CSV run table with time_s, input_speed_rpm, input_torque_nm, ambient_temp_c"
+        )
     if low == "steady" or low.startswith("steady:"):
         p = parse_steady_spec(s)
         return steady(**p, rate_hz=rate_hz, noise=noise, seed=seed, spec=s)
@@ -489,7 +496,7 @@ def get_cycle(
         return all_gears(rate_hz=rate_hz, noise=noise, seed=seed)
     if low in _ROAD:
         return _road(low, rate_hz, noise, seed)
-    if low.endswith(".csv") or os.sep in s or "/" in s or Path(s).is_file():
+    if is_file:
         from tools.drive_table import read_drive_table
 
         return read_drive_table(s, description)
