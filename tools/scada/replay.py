@@ -46,18 +46,25 @@ def estimate_columns(record: ScadaRecord, published) -> dict:
     return out
 
 
-def replay_record(record: ScadaRecord, config, sensor_options: dict | None = None) -> ScadaReplay:
-    """Replay the sensor of ``config`` (a firmware_model.config.Config; its gearbox) over ``record``."""
+def replay_record(
+    record: ScadaRecord, config, sensor_options: dict | None = None, effects: dict | None = None
+) -> ScadaReplay:
+    """Replay the sensor of ``config`` (a firmware_model.config.Config; its gearbox) over ``record``; ``effects``:
+    {effect id: value} of the sensor's effect hooks (firmware_model.onboard.reduce.EFFECT_HOOKS)."""
+    from firmware_model.description import description_of
     from firmware_model.onboard.sensor import VirtualSensor
+    from tools.drive_table import map_fixed_ratio
     from tools.replay.table import held_options, replay_table
 
     params = config.load_params()
     options = dict(sensor_options or {})
     oil_mode = options.get("oil_mode") or config.sensor.get("oil_mode", "measured")
     table = run_table_of(record, with_oil=oil_mode != "model")
-    sensor = VirtualSensor(params, config=config, **{**held_options(table), **options})
+    # the fixed-ratio inputs onto the sensor's (input speed and torque, the description's one gear)
+    drive = map_fixed_ratio(table, description_of(params), table.source, strict=False)
+    sensor = VirtualSensor(params, config=config, effects=effects, **{**held_options(drive), **options})
     estimated = estimate_columns(record, tuple(sensor.published))
-    out = replay_table(table, sensor)
+    out = replay_table(drive, sensor)
     n = record.n
     if out.n != n:  # one output row per SCADA row (tools.replay.table.replay_held)
         raise RuntimeError(f"the replay gave {out.n} rows for {n} SCADA rows")

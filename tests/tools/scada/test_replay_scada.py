@@ -38,13 +38,13 @@ def _map(tmp_path: Path, bearing_node: str = "B1") -> Path:
     return path
 
 
-def _rows(k0: int, k1: int, oil_c=lambda k: 55.0 + 4.0 * math.sin(k / 7.0)):
+def _rows(k0: int, k1: int, oil_c=lambda k: 55.0 + 4.0 * math.sin(k / 7.0), load=1.0):
     # an industrial drive: 1485 rpm, 40-110 kW in slow swings, warm air; a sump reading that moves (a reading stuck
     # over several rows is a frozen sensor to the sensor, which then models the oil)
     return [
         row(
             T0 + timedelta(minutes=10 * k),
-            p_kw=40.0 + 70.0 * (0.5 + 0.5 * math.sin(k / 9.0)),
+            p_kw=load * (40.0 + 70.0 * (0.5 + 0.5 * math.sin(k / 9.0))),
             rs=1485.0,
             Gost_avg=oil_c(k),
             Yt_avg=25.0 + 3.0 * math.sin(k / 20.0),
@@ -90,6 +90,12 @@ def test_the_modelled_oil_never_reads_the_sump(tmp_path):
     np.testing.assert_array_equal(ea["est_Gost_avg"], eb["est_Gost_avg"])
     np.testing.assert_array_equal(ea["est_Gb1t_avg"], eb["est_Gb1t_avg"])
     assert not np.allclose(eb["est_Gost_avg"], eb["Gost_avg"])
+    # the model's sump follows the load: at 1.6 times the power it ends warmer, above the air
+    c = write(tmp_path / "c.csv", _rows(0, ROWS, load=1.6))
+    assert _replay(tmp_path, [c], "--oil-mode", "model", "--out", tmp_path / "c_est.csv").returncode == 0
+    ec = read_run_table(tmp_path / "c_est.csv", required=("time_s",))
+    assert ec["est_Gost_avg"][-1] > ea["est_Gost_avg"][-1] + 0.5
+    assert np.all(ea["est_Gost_avg"][12:] > ea["ambient_temp_c"][12:])
 
 
 def test_several_files_of_one_unit_are_one_record(tmp_path):
