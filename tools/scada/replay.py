@@ -30,20 +30,26 @@ class ScadaReplay:
     table: RunTable
     oil_mode: str
     estimated: dict  # measured channel -> the output column its estimate comes from
+    notes: list  # the channels left without an estimate, and why
 
 
-def estimate_columns(record: ScadaRecord, published) -> dict:
-    """The output column of the sensor that estimates each measured channel of ``record``'s map: ``T_<node>_c`` of
-    the published part it is tied to. A channel tied to a part the gearbox does not publish is one sentence."""
-    out = {}
+def estimate_columns(record: ScadaRecord, published, parts=()) -> tuple[dict, list[str]]:
+    """({measured channel: the sensor's output column that estimates it}, notes): ``T_<node>_c`` of the published
+    part each channel is tied to. A channel tied to a part of the gearbox (``parts``: its nodes and derived
+    temperatures) that the sensor does not publish is left without an estimate, with a note; one tied to a part the
+    gearbox does not have is one sentence (a wrong map)."""
+    out, notes = {}, []
     for name, node in record.cmap.nodes.items():
-        if node not in published:
+        if node in published:
+            out[name] = f"T_{node}_c"
+        elif node in parts:
+            notes.append(f"{name} is not estimated: the sensor does not publish {node!r}")
+        else:
             raise InputError(
                 f"column map {record.cmap.name}: measured channel {name} is tied to {node!r}, which the gearbox "
-                f"does not publish (it publishes {', '.join(published)})"
+                f"does not have (it publishes {', '.join(published)})"
             )
-        out[name] = f"T_{node}_c"
-    return out
+    return out, notes
 
 
 def replay_record(
@@ -63,7 +69,8 @@ def replay_record(
     # the fixed-ratio inputs onto the sensor's (input speed and torque, the description's one gear)
     drive = map_fixed_ratio(table, description_of(params), table.source, strict=False)
     sensor = VirtualSensor(params, config=config, effects=effects, **{**held_options(drive), **options})
-    estimated = estimate_columns(record, tuple(sensor.published))
+    d = description_of(params)
+    estimated, notes = estimate_columns(record, tuple(sensor.published), (*d.nodes, *d.derived))
     out = replay_table(drive, sensor)
     n = record.n
     if out.n != n:  # one output row per SCADA row (tools.replay.table.replay_held)
@@ -71,20 +78,20 @@ def replay_record(
     cols: dict = {"time_s": out["time_s"], "time_utc_s": np.asarray(record.time_s, dtype=float)}
     for name in INPUTS:
         cols[name] = table[name]
-    for name, col in estimated.items():
+    for name in record.cmap.nodes:
         cols[name] = np.asarray(record.values[name], dtype=float)
-        cols[f"est_{name}"] = out[col]
+        cols[f"est_{name}"] = out[estimated[name]] if name in estimated else np.full(n, np.nan)
     for name in out.columns:
         if name not in cols and name not in INPUTS:
             cols[name] = out[name]
     meta = {**out.meta, "unit": record.unit, "t0_utc_s": table.meta["t0_utc_s"], "drive": "fixed_ratio"}
-    return ScadaReplay(RunTable(cols, meta=meta, source=f"replay of {record.unit}"), oil_mode, estimated)
+    return ScadaReplay(RunTable(cols, meta=meta, source=f"replay of {record.unit}"), oil_mode, estimated, notes)
 
 
 def error_lines(result: ScadaReplay) -> list[str]:
     """One line per measured channel: rows compared, mean, RMS and 99th percentile of |estimate - measured|."""
     t = result.table
-    lines = []
+    lines = [f"  note: {x}" for x in result.notes]
     for name in result.estimated:
         e = t[f"est_{name}"] - t[name]
         ok = np.isfinite(e)

@@ -113,7 +113,7 @@ def test_several_files_of_one_unit_are_one_record(tmp_path):
 @pytest.mark.parametrize(
     "case",
     [
-        ("a channel tied to a part the gearbox lacks", "BHG", "does not publish"),
+        ("a channel tied to a part the gearbox lacks", "BHG", "does not have"),
         ("several files without --columns", None, "only with --columns"),
     ],
     ids=lambda c: c[0],
