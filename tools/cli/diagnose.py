@@ -167,8 +167,7 @@ def run(args) -> int:
 
 def _run_scada(args) -> int:
     """`diagnose --columns MAP --train SCADA... --test SCADA...`: the gap of the onboard model on real records."""
-    from firmware_model.onboard.sensor import VirtualSensor
-    from tools.scada.diagnose import Setup, diagnose_records
+    from tools.scada.diagnose import diagnose_records, setup_of, thermostat_of
     from tools.scada.reader import read_units
 
     check_paths(
@@ -179,20 +178,11 @@ def _run_scada(args) -> int:
     if args.report:
         raise InputError("--report is for run tables; on SCADA records the JSON holds the diagnosis")
     cfg = resolve_gearbox(args, load_config(args.config))
-    params = cfg.load_params()
     train, test = (list(read_units(files, args.columns).values()) for files in (args.train, args.test))
-    published = set(VirtualSensor(params, config=cfg).published)
-    cmap = train[0].cmap
-    tied = {ch: node for ch, node in cmap.nodes.items() if node in published}
-    sump = next((ch for ch, node in tied.items() if node == "oil"), None)
-    setup = Setup(cfg, sump, tuple(ch for ch in tied if ch != sump))
-    thermostat = None
-    if "cooler.thermostat_open" in params.values and "cooler.thermostat_full" in params.values:
-        thermostat = (params.values["cooler.thermostat_open"], params.values["cooler.thermostat_full"])
-    res = diagnose_records(setup, train, test, thermostat)
-    left = sorted(set(cmap.nodes) - set(tied))
-    if left:
-        res["warnings"] = [f"not diagnosed: {', '.join(left)} (tied to parts {cfg.variant} does not publish)"]
+    setup, notes = setup_of(cfg, train[0].cmap)
+    res = diagnose_records(setup, train, test, thermostat_of(cfg.load_params()))
+    if notes:
+        res["warnings"] = notes
     write_json_atomic(res, args.json)
     if not args.quiet:
         _print_summary_scada(args, res)

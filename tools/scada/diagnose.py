@@ -70,18 +70,36 @@ class Setup:
         return ((self.sump,) if self.sump else ()) + self.others
 
 
-def estimates(setup: Setup, record: ScadaRecord, effects: dict) -> dict[str, np.ndarray]:
+def setup_of(config, cmap) -> tuple[Setup, list[str]]:
+    """The Setup of ``config``'s gearbox for the channels of column map ``cmap`` tied to parts the sensor publishes
+    (the sump: the channel tied to ``oil``), and a note per channel left out (tied to a part it does not publish)."""
+    from firmware_model.onboard.sensor import VirtualSensor
+
+    published = set(VirtualSensor(config.load_params(), config=config).published)
+    tied = {ch: node for ch, node in cmap.nodes.items() if node in published}
+    sump = next((ch for ch, node in tied.items() if node == "oil"), None)
+    notes = [f"{ch} is left out: the sensor does not publish {n!r}" for ch, n in cmap.nodes.items() if ch not in tied]
+    return Setup(config, sump, tuple(ch for ch in tied if ch != sump)), notes
+
+
+def thermostat_of(params) -> tuple[float, float] | None:
+    """(opens, fully open) [degC] of the description's thermostatic cooler bypass, None without one."""
+    keys = ("cooler.thermostat_open", "cooler.thermostat_full")
+    return tuple(float(params.values[k]) for k in keys) if all(k in params.values for k in keys) else None
+
+
+def estimates(setup: Setup, record: ScadaRecord, effects: dict, params=None) -> dict[str, np.ndarray]:
     """{channel: the model's estimate} over ``record`` with ``effects`` (the sump's from the model alone, the others
-    from the measured sump)."""
+    from the measured sump); ``params``: the gearbox's parameters in place of the configuration's."""
     from tools.scada.replay import replay_record
 
     model_effects = {k: v for k, v in effects.items() if k in EFFECTS}
     out = {}
     if setup.sump:
-        t = replay_record(record, setup.config, {"oil_mode": "model"}, effects=model_effects).table
+        t = replay_record(record, setup.config, {"oil_mode": "model"}, model_effects, params).table
         out[setup.sump] = t[f"est_{setup.sump}"] + effects.get("oil_sensor_offset", 0.0)
     if setup.others:
-        t = replay_record(record, setup.config, {"oil_mode": "measured"}, effects=model_effects).table
+        t = replay_record(record, setup.config, {"oil_mode": "measured"}, model_effects, params).table
         for ch in setup.others:
             out[ch] = t[f"est_{ch}"] + effects.get(f"thermocouple_offset:{ch}", 0.0)
     return out

@@ -53,16 +53,17 @@ def estimate_columns(record: ScadaRecord, published, parts=()) -> tuple[dict, li
 
 
 def replay_record(
-    record: ScadaRecord, config, sensor_options: dict | None = None, effects: dict | None = None
+    record: ScadaRecord, config, sensor_options: dict | None = None, effects: dict | None = None, params=None
 ) -> ScadaReplay:
     """Replay the sensor of ``config`` (a firmware_model.config.Config; its gearbox) over ``record``; ``effects``:
-    {effect id: value} of the sensor's effect hooks (firmware_model.onboard.reduce.EFFECT_HOOKS)."""
+    {effect id: value} of the sensor's effect hooks (firmware_model.onboard.reduce.EFFECT_HOOKS); ``params``: the
+    gearbox's parameters in place of the configuration's (a calibration's trial values)."""
     from firmware_model.description import description_of
     from firmware_model.onboard.sensor import VirtualSensor
     from tools.drive_table import map_fixed_ratio
     from tools.replay.table import held_options, replay_table
 
-    params = config.load_params()
+    params = config.load_params() if params is None else params
     options = dict(sensor_options or {})
     oil_mode = options.get("oil_mode") or config.sensor.get("oil_mode", "measured")
     table = run_table_of(record, with_oil=oil_mode != "model")

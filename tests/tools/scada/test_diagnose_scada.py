@@ -108,3 +108,27 @@ def test_a_gap_no_effect_makes_is_unexplained_and_never_worsens_the_held_out_rec
     assert v["test_rms_after_c"] <= v["test_rms_before_c"]
     offsets = [c for c in res["candidates"] if c["effect"].startswith("thermocouple_offset")]
     assert v["effect"] not in [c["effect"] for c in offsets if c.get("test_rms_after_c", 0) > v["test_rms_before_c"]]
+
+
+def test_calibrate_finds_a_planted_value_and_prints_the_nbm_beside_it(setup, tmp_path):
+    """`calibrate --gearbox HR225 --columns MAP --train F --test F --params bearing.f0_tapered --out OUT.toml`:
+    readings made by the sensor with the tapered bearings' f0 = 3.6 (the file says 3.0) give back 3.6."""
+    s, train, test = setup
+    params = s.config.load_params().with_overrides({"bearing.f0_tapered": 3.6})
+    files = []
+    for rec, seed, name in ((train, 7, "train.csv"), (test, 8, "test.csv")):
+        rng = np.random.default_rng(seed)
+        for chans in ((s.sump,), s.others):
+            est = estimates(s, rec, {}, params)
+            for ch in chans:
+                rec.values[ch] = est[ch] + rng.normal(0.0, 0.1, rec.n)
+        files.append(_write_measured(tmp_path / name, rec))
+    cmd = ["calibrate", "--gearbox", "HR225", "--columns", str(_map(tmp_path)), "--train", str(files[0])]
+    cmd += ["--test", str(files[1]), "--params", "bearing.f0_tapered", "--out", str(tmp_path / "cal.toml")]
+    p = subprocess.run([sys.executable, "-m", "tools.cli", *cmd], cwd=REPO, capture_output=True, text=True, timeout=600)
+    assert p.returncode == 0, p.stderr
+    fitted = float(p.stdout.split("fitted bearing.f0_tapered = ", 1)[1].split()[0])
+    assert fitted == pytest.approx(3.6, rel=0.03), p.stdout
+    assert "linear NBM" in p.stdout and "| Gb1t_avg |" in p.stdout
+    text = (tmp_path / "cal.toml").read_text()
+    assert 'src = "fitted"' in text and "f0_tapered" in text
