@@ -131,7 +131,7 @@ def fixed_ratio_drive(description, span_s: float, dt_s: float = 0.1):
     return RunTable(cols, meta={"drive": "fixed_ratio"}, source="the export's fixed-ratio test drive")
 
 
-def _vector_plant(params, steps: int, dt_s: float):
+def vector_plant(params, steps: int, dt_s: float):
     """The plant's table over the vectors' span: the uphill cycle for a vehicle, :func:`fixed_ratio_drive` (mapped
     onto the code's inputs, tools.drive_table) for a fixed-ratio drive."""
     from tools.cycles.named import get_cycle
@@ -155,7 +155,7 @@ def reference_vectors(sensor, params, steps: int = VECTOR_STEPS, every: int = VE
     drive) with a stretch of hostile inputs (NaN, inf, out of range, frozen)."""
     from tools.replay.table import table_steps
 
-    plant = _vector_plant(params, steps, sensor.dt_s)
+    plant = vector_plant(params, steps, sensor.dt_s)
     _, data = table_steps(plant, sensor.dt_s)
     raw = np.array(data[:steps, :8], dtype=float)
     rng = np.random.default_rng(905)
@@ -343,23 +343,9 @@ def export_c(out_dir, variant: str | None = None, config_path=None, real: str = 
     tol = "0.05" if real == "float" else "1e-9"
     ttl_abs, ttl_rel = TTL_TOL[real]
     reset_s = f"{sensor.options.clock_reset_s:g}"
-    files = {
-        "gvs_kernel.c": (SOURCE_DIR / "gvs_kernel.c").read_bytes(),
-        "gvs_kernel.h": pinned_kernel_header(
-            (SOURCE_DIR / "gvs_kernel.h").read_text(), sensor.sp, real, params.variant
-        ),
-        "gvs_tables.c": tables_source(sensor.sp, real, params.variant, ttl),
-    }
+    files = sensor_files(sensor, real, ttl)
     files.update(
         {
-            "gvs_sensor.h": API_HEADER.format(
-                variant=params.variant,
-                real=real,
-                ttl=int(ttl),
-                key=f"0x{state_key(files, real, ttl):08x}u",
-                reset=reset_s,
-            ),
-            "gvs_sensor.c": SENSOR_SOURCE,
             "gvs_vectors.c": vectors_source(reference_vectors(sensor, params), real, ttl),
             "gvs_test.c": TEST_PROGRAM.replace("@TOL@", tol)
             .replace("@TTL_ABS@", repr(ttl_abs))
@@ -398,6 +384,27 @@ def _check_text(sensor) -> dict:
         oil_step=f"{a['oil_step_c']:g}",
         hold=f"{a['hold_s']:g}",
     )
+
+
+def sensor_files(sensor, real: str, ttl: bool = True) -> dict:
+    """The sensor's sources of a build ({file: text or bytes}): the kernel, its header with the build's settings, the
+    generated tables of ``sensor`` and the API (gvs_sensor.h/.c); what the bundle holds besides its test, and what
+    the FMU compiles (tools.export.fmu)."""
+    variant = sensor.params.variant
+    files = {
+        "gvs_kernel.c": (SOURCE_DIR / "gvs_kernel.c").read_bytes(),
+        "gvs_kernel.h": pinned_kernel_header((SOURCE_DIR / "gvs_kernel.h").read_text(), sensor.sp, real, variant),
+        "gvs_tables.c": tables_source(sensor.sp, real, variant, ttl),
+    }
+    files["gvs_sensor.h"] = API_HEADER.format(
+        variant=variant,
+        real=real,
+        ttl=int(ttl),
+        key=f"0x{state_key(files, real, ttl):08x}u",
+        reset=f"{sensor.options.clock_reset_s:g}",
+    )
+    files["gvs_sensor.c"] = SENSOR_SOURCE
+    return files
 
 
 def export_config(variant: str | None, config_path):
