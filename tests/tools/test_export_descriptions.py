@@ -120,6 +120,24 @@ def test_the_bundle_follows_the_description(gearbox, bundles):
         assert "engine speed [rpm]" in readme
 
 
+@pytest.mark.skipif(
+    not all(shutil.which(t) for t in ("make", "arm-none-eabi-gcc", "arm-none-eabi-size")),
+    reason="needs make and the ARM tool chain (apt install gcc-arm-none-eabi libnewlib-arm-none-eabi)",
+)
+def test_the_cortex_m4_build_compiles_without_a_warning_and_fits_the_flash(bundles):
+    """The float bundle's Cortex-M4F build (cross-compiled only: the QEMU runs are the GRS905's, test_export_c.py)
+    compiles without a warning and the sensor alone fits 64 KB of flash."""
+    d = bundles["float"]
+    res = subprocess.run(["make", "-s", "cortex-m4"], cwd=d, capture_output=True, text=True, timeout=600)
+    assert res.returncode == 0 and "warning" not in (res.stdout + res.stderr).lower(), res.stdout + res.stderr
+    size = subprocess.run(
+        ["arm-none-eabi-size", "gvs_footprint_m4.elf"], cwd=d, capture_output=True, text=True, timeout=60
+    )
+    text, data, _ = (int(x) for x in re.search(r"^\s*(\d+)\s+(\d+)\s+(\d+)", size.stdout, re.M).groups())
+    print(f"\nCortex-M4F flash (text + data) {text + data} B")
+    assert text + data <= 64 * 1024
+
+
 # ---- the FMU --------------------------------------------------------------------------------------------------
 
 
