@@ -67,6 +67,14 @@ def add_subparser(sub):
     )
     # moved to the configuration, still accepted (hidden) and overriding it: [fleet] estimates, period_days,
     # report; --vehicle-pattern is --vehicle-from
+    p.add_argument(
+        "--columns",
+        metavar="NAME|FILE",
+        help="LOGS are SCADA files and folders (.csv, .csv.gz) read through this column map (NAME: one shipped, "
+        "engie; FILE: your own): per unit and calendar month the effects of a gearbox ageing fitted with the "
+        "onboard model of --gearbox, and the units that drift from the fleet flagged (DIR/health/effects.parquet, "
+        "flags.parquet; docs/real-data.md)",
+    )
     p.add_argument("--vehicle-pattern", metavar="REGEX", help=argparse.SUPPRESS)
     for key in FLEET_KEYS:
         add_hidden(p, key)
@@ -173,12 +181,83 @@ def _warn_gone(out) -> None:
         )
 
 
+def _scada_files(paths) -> list[Path]:
+    """The SCADA files among ``paths`` (files, and folders searched for .csv and .csv.gz)."""
+    out = []
+    for p in map(Path, paths):
+        if p.is_dir():
+            out += sorted(f for f in p.rglob("*") if f.name.endswith((".csv", ".csv.gz")))
+        elif p.is_file():
+            out.append(p)
+        else:
+            raise InputError(f"{p}: no such file or folder")
+    if not out:
+        raise InputError(f"no SCADA file (.csv, .csv.gz) in {', '.join(map(str, paths)) or 'the arguments'}")
+    return out
+
+
+def _run_scada(args) -> int:
+    """`fleet --gearbox NAME --columns MAP DIR... --out OUT`: the fleet's health on SCADA records."""
+    import pyarrow as pa
+
+    from firmware_model.config import load_config
+    from tools.fleet.store import write_atomic
+    from tools.progress import progress
+    from tools.scada.diagnose import setup_of
+    from tools.scada.fleet import fit_fleet, flag_units
+    from tools.scada.reader import read_units
+
+    if args.scheduler or args.workers or args.diagnose or args.manifest:
+        raise InputError("--scheduler, --workers, --diagnose and --manifest are for CAN logs, not with --columns")
+    cfg = resolve_gearbox(args, load_config(args.config))
+    records = read_units(_scada_files(args.logs), args.columns)
+    setup, notes = setup_of(cfg, next(iter(records.values())).cmap)
+    for note in notes:
+        print(f"note: {note}", file=sys.stderr)
+    t0 = time.perf_counter()
+    with progress(len(records), "fleet", unit="unit") as bar:
+        fits = fit_fleet(setup, records, progress=lambda: bar.update(1))
+    flags = flag_units(fits)
+    root = Path(args.out) / "health"
+    root.mkdir(parents=True, exist_ok=True)
+    rows = [
+        {
+            "unit": f.unit,
+            "start": f.start,
+            "rows": f.rows,
+            "effect": e,
+            "value": f.values[e],
+            "se": f.se[e],
+            "rms_c": f.rms_c,
+        }
+        for f in fits
+        for e in f.values
+    ]
+    write_atomic(pa.Table.from_pylist(rows), root / "effects.parquet")
+    flag_schema = pa.schema(
+        [
+            (k, pa.float64() if k in ("value", "baseline") else pa.int64() if k == "period" else pa.string())
+            for k in ("vehicle", "effect", "period", "start", "value", "baseline", "reason", "kind")
+        ]
+    )
+    write_atomic(pa.Table.from_pylist([f._asdict() for f in flags], schema=flag_schema), root / "flags.parquet")
+    print(
+        f"fleet: {len(records)} units, {len(fits)} unit-months fitted in {time.perf_counter() - t0:.1f} s; "
+        f"{len(flags)} flagged -> {root}"
+    )
+    for f in flags:
+        print(f"  {f.vehicle}: {f.effect} from {f.start}: {f.reason}")
+    return 0
+
+
 def run(args) -> int:
     from firmware_model.config import load_config
     from tools.fleet.run import run_fleet
 
     if args.config:
         check_paths([("the --config", args.config)], {})
+    if args.columns:
+        return _run_scada(args)
     estimates, period_days, report = (setting(args, load_config(args.config), key) for key in FLEET_KEYS)
     entries, rule = _entries(args)
     if given(args, ("fleet.period_days",)) and not args.diagnose:

@@ -1,0 +1,88 @@
+"""The fleet on SCADA (tools/scada/fleet.py): three units whose readings their own sensor made, one of them with
+extra bearing heat from its fourth period on: that one is flagged from that period, with the effect; the others
+are not. On the HR225 with the column map of test_replay_scada.py, periods of 6 h (36 rows) instead of months."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from firmware_model.config import load_config
+from tests.tools.scada.test_reader import write
+from tests.tools.scada.test_replay_scada import _map, _rows
+from tools.cli.gearbox_option import with_gearbox
+from tools.scada.diagnose import Setup, estimates
+from tools.scada.fleet import fit_fleet, flag_units
+from tools.scada.reader import read_record
+
+PERIOD_ROWS = 36
+PERIODS = 6
+PLANTED_FROM = 3  # the period from which unit C's bearings run hot
+
+
+def _unit(tmp_path, setup, name, load, planted):
+    rec = read_record([write(tmp_path / f"{name}.csv", _rows(0, PERIOD_ROWS * PERIODS, load=load))], _map(tmp_path))
+    rng = np.random.default_rng(len(name) + int(10 * load))
+    # the sump first (the model alone), then the bearings from that reading; from PLANTED_FROM on, with the effect
+    for chans in ((setup.sump,), setup.others):
+        base, hot = estimates(setup, rec, {}), estimates(setup, rec, planted) if planted else None
+        for ch in chans:
+            v = base[ch].copy()
+            if hot is not None:
+                v[PLANTED_FROM * PERIOD_ROWS :] = hot[ch][PLANTED_FROM * PERIOD_ROWS :]
+            rec.values[ch] = v + rng.normal(0.0, 0.1, rec.n)
+    return rec
+
+
+def test_the_unit_whose_bearings_run_hot_is_flagged_from_that_period_and_the_others_are_not(tmp_path):
+    setup = Setup(with_gearbox(load_config(None), "HR225"), "Gost_avg", ("Gb1t_avg", "Gb2t_avg"))
+    units = {
+        "A": _unit(tmp_path, setup, "A", 1.0, None),
+        "B": _unit(tmp_path, setup, "B", 0.9, None),
+        "C": _unit(tmp_path, setup, "C", 1.1, {"bearing_loss_scale": 1.6}),
+    }
+    fits = fit_fleet(setup, units, days=PERIOD_ROWS * 600.0 / 86400.0)
+    flags = flag_units(fits)
+    assert [(f.vehicle, f.effect) for f in flags] == [("C", "bearing_loss_scale")], flags
+    first = min(f.period for f in fits if f.unit == "C")
+    assert flags[0].period - first in (PLANTED_FROM, PLANTED_FROM + 1)
+    late = [f for f in fits if f.unit == "C" and f.period - first >= PLANTED_FROM + 1]
+    assert all(abs(f.values["bearing_loss_scale"] - 1.6) < 0.1 for f in late), late
+
+
+def test_fleet_columns_writes_the_fits_and_the_flags_of_a_folder(tmp_path):
+    """`fleet --gearbox HR225 --columns MAP DIR --out OUT`: one row per unit, month and effect; no flag on two units
+    of one month (no baseline yet); an option of CAN logs is one sentence."""
+    import subprocess
+    import sys
+
+    import pyarrow.parquet as pq
+
+    from tests.tools.scada.test_replay_scada import REPO
+
+    data = tmp_path / "scada"
+    data.mkdir()
+    for unit in ("T1", "T2"):
+        write(data / f"{unit}.csv", [line.replace("R1,", f"{unit},", 1) for line in _rows(0, 72)])
+    cmd = [
+        sys.executable,
+        "-m",
+        "tools.cli",
+        "fleet",
+        str(data),
+        "--gearbox",
+        "HR225",
+        "--columns",
+        str(_map(tmp_path)),
+    ]
+    p = subprocess.run([*cmd, "--out", str(tmp_path / "out")], cwd=REPO, capture_output=True, text=True, timeout=600)
+    assert p.returncode == 0, p.stderr
+    effects = pq.read_table(tmp_path / "out" / "health" / "effects.parquet").to_pylist()
+    assert sorted({(r["unit"], r["effect"]) for r in effects}) == [
+        (u, e) for u in ("T1", "T2") for e in ("bearing_loss_scale", "cooler_effectiveness_scale")
+    ]
+    assert pq.read_table(tmp_path / "out" / "health" / "flags.parquet").num_rows == 0
+    assert "2 units" in p.stdout
+    p = subprocess.run(
+        [*cmd, "--workers", "2", "--out", str(tmp_path / "o2")], cwd=REPO, capture_output=True, text=True
+    )
+    assert p.returncode == 2 and "not with --columns" in p.stderr and len(p.stderr.strip().splitlines()) == 1
