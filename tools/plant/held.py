@@ -178,7 +178,7 @@ class HeldIntegrator:
             if abs(pred.T_end_c[p.i_oil] - T[p.i_oil]) > OIL_MOVE_K and h > 2.0 * p.dt:
                 h *= 0.5
                 continue
-            sub = self._solve(i, T, lag, t, h, pred.T_mean_c, pred.T_end_c)
+            sub = self._solve(i, T, lag, t, h, pred.T_mean_c, pred.T_end_c, slope_w_per_k=pred.cooler[1])
             if h > 2.0 * p.dt and self._cooler_err_k(sub, h) > COOLER_TOL_K:
                 h *= 0.5
                 continue
@@ -206,13 +206,15 @@ class HeldIntegrator:
         t_s = self.inp.t_s
         return self.bc_rows[i] + (self.bc_rows[i + 1] - self.bc_rows[i]) * ((t - t_s[i]) / (t_s[i + 1] - t_s[i]))
 
-    def _solve(self, i: int, T0, lag0, t: float, h: float, T_mean, T_end, predict: bool = False) -> _Sub:
+    def _solve(self, i, T0, lag0, t: float, h: float, T_mean, T_end, predict: bool = False, slope_w_per_k=None) -> _Sub:
         """Sub-interval [t, t + h] of row ``i`` from ``T0`` solved exactly: the conductances, radiation and cooler
         taken at the temperatures ``T_mean`` (the sub-interval's mean), the sources' heat and the boundaries linear
         in time from their values at the start (the losses at the sump of ``T0``) to those at the end (the losses at
         the sump of ``T_end``): the end state of the fast nodes (a bearing) follows the losses at the end.
         ``predict``: one implicit Euler step instead (L-stable: the fast nodes at their end state, the slow ones within
-        a few per cent of their move), the mean temperatures halfway; the point the exact solution is then taken at."""
+        a few per cent of their move), the mean temperatures halfway; the point the exact solution is then taken at.
+        ``slope_w_per_k``: the cooler's slope to take (the prediction's, at the start: the error check at the end
+        catches a thermostat between), else evaluated."""
         p, inp = self.p, self.inp
         row = int(inp.gear[i]) - GEAR_MIN
         kin = p.losses.kin
@@ -228,7 +230,8 @@ class HeldIntegrator:
         v_kmh = float(np.interp(t + 0.5 * h, inp.t_s, inp.v_kmh)) if inp.v_kmh is not None else p.v_default_kmh
         cooler_args = (p._pump_speed(omega), omega[p.i_input], p._bc_or_nan(T_bc, "coolant"))
         cooler_args += (p._bc_or_nan(T_bc, "ambient"), v_kmh)
-        q0, gc = p.cooler_heat(T_oil, *cooler_args)
+        q0, gc = p.cooler_heat(T_oil, *cooler_args, slope=slope_w_per_k is None)
+        gc = gc if slope_w_per_k is None or q0 == 0.0 else slope_w_per_k
         q_nodes = p._stream_transfer(p.S @ lag.delivered_w, G, q0, omega, T_oil, inp.kind)
         A, Ge = conductance_matrix(G, p.topo)
         A[p.i_oil, p.i_oil] += gc  # the cooler linearised at the mean sump: Q = q0 + gc (T_oil - T_oil_mean)
