@@ -12,7 +12,7 @@ from tools.cycles.scada_rows import scada_rows
 from tools.plant.reference import ReferencePlant
 
 #: the held path's bound against the step path at the row times, every node [K]: measured over two days of 10-minute
-#: rows (bench_held_month.py) 0.034 K on the HR225, 0.021 K on the R1, 0.058 K on the MM82 (a planet, 50 K above the
+#: rows (bench_held_month.py) 0.038 K on the HR225, 0.027 K on the R1, 0.058 K on the MM82 (a planet, 50 K above the
 #: sump: 0.1 % of its rise); the step path's own step error (0.5 s against 0.1 s) is 0.011 K on the HR225
 HELD_BOUND_K = 0.06
 #: the ledger: generated = stored + rejected, and the held path's books against the step path's, share of generated
