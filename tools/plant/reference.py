@@ -47,6 +47,7 @@ from firmware_model.physics.gearbox_losses import GearboxLosses
 from firmware_model.physics.heat_lag import HeatLag, first_order_lag_step, heat_lag, heat_lag_step
 from firmware_model.physics.kinematics import GEAR_MAX, GEAR_MIN, gear_state
 from firmware_model.units import RAD_S_PER_RPM
+from tools.plant.held import N_OUT, HeldIntegrator, takes_held_path
 from tools.progress import progress as progress_bar
 from tools.runtable import RunTable
 
@@ -72,6 +73,7 @@ HEAT_OUT_NAMES = (
     "shafts_conduction",
     "oil_boundary",
 )
+assert len(HEAT_OUT_NAMES) == N_OUT  # the held path's books (tools/plant/held.py)
 
 
 #: a run notes the churning correlations' validity only when they left their range for less than this share of it
@@ -249,9 +251,10 @@ class ReferencePlant:
         cooler: the coolers read only their own)."""
         return T_bc[self.boundaries.index(name)] if name in self.boundaries else math.nan
 
-    def cooler_heat(self, T_oil, w_ls, w_eng, T_cool, T_amb, v_kmh):
+    def cooler_heat(self, T_oil, w_ls, w_eng, T_cool, T_amb, v_kmh, slope: bool = True):
         """Heat from the sump to the cooler [W] (physics.cooler.oil_cooler_heat, the onboard model's cooler) and its
-        derivative with respect to the sump temperature (forward difference over COOLER_SLOPE_DT_K)."""
+        derivative with respect to the sump temperature (forward difference over COOLER_SLOPE_DT_K; 0 without
+        ``slope``)."""
         if self.kind not in ("liquid", "air"):
             return 0.0, 0.0
         op = oilprops.oil_properties(T_oil)
@@ -285,8 +288,10 @@ class ReferencePlant:
         q0 = q(T_oil)
         if q0.hA_w_per_k <= 0:
             return 0.0, 0.0
-        slope = (float(q(T_oil + COOLER_SLOPE_DT_K).Q_w) - float(q0.Q_w)) / COOLER_SLOPE_DT_K
-        return float(q0.Q_w), max(slope, 0.0)
+        if not slope:
+            return float(q0.Q_w), 0.0
+        slope_w_per_k = (float(q(T_oil + COOLER_SLOPE_DT_K).Q_w) - float(q0.Q_w)) / COOLER_SLOPE_DT_K
+        return float(q0.Q_w), max(slope_w_per_k, 0.0)
 
     # ------------------------------------------------------------------ driver
     def run(
@@ -298,11 +303,14 @@ class ReferencePlant:
         progress: bool | None = None,
         chunk_s: float = 20.0,
         initial_offsets_c: dict | None = None,
+        held: bool | None = None,
     ) -> SimResult:
         """Integrate the network over the run table; node temperatures and heat flows every ``out_dt_s``.
         ``initial_temp_c``/``hold_oil_c`` given: within the oil model's range (InputError otherwise).
         ``initial_offsets_c``: {node: K} added to those nodes' start (a gearbox that ran before the table began:
-        its housings lag the oil; the diagnosis fits that offset, tools/diagnosis/start.py)."""
+        its housings lag the oil; the diagnosis fits that offset, tools/diagnosis/start.py). ``held``: integrate
+        row interval by row interval in long exact steps (tools/plant/held.py; None: when the table is a fixed-ratio
+        drive's whose rows are slower than the step, held.takes_held_path)."""
         wall0 = time.perf_counter()
         for label, value_c in (("initial_temp_c", initial_temp_c), ("hold_oil_c", hold_oil_c)):
             if value_c is not None:
@@ -326,6 +334,8 @@ class ReferencePlant:
             T[self.i_oil] = inp.hold_oil_c
         elif inp.kind == "measured":
             T[self.i_oil] = inp.oil_meas_c[0]
+        if held or (held is None and takes_held_path(table, inp.kind, dt, self.scales)):
+            return self._run_held(table, inp, T, out_dt_s, wall0)
         state = StepState(T, T.copy(), None, np.zeros(len(self.src_names)), int(inp.gear[0]))
         ledger = self._ledger(n_steps, T)
         lag_dt = heat_lag(self.tau_lag, dt)
@@ -355,17 +365,23 @@ class ReferencePlant:
                         break
                 bar.update(done)
                 s0 += done
-        warnings = []
-        span_s = t_end - t0
-        if 0 < ledger.churn_invalid_s < CHURN_NOTE_SHARE * span_s:
-            # the seed's geometry is outside the correlations' range on most drives (docs/validation.md, "Churning
-            # correlations outside their range"): that is said once in the docs; a run notes it only when it is
-            # partial, i.e. when it tells something about this drive
-            warnings.append(
-                f"churning correlations (Eq 28-34) outside their validity range (Eq 33-34) for "
-                f"{ledger.churn_invalid_s:.0f} s of {span_s:.0f} s (see docs/validation.md)"
-            )
         res = self._output(table, t, step_t, ledger.T_c, ledger.Q_w, out_dt_s, inp.kind)
+        warnings = _churn_note(ledger.churn_invalid_s, t_end - t0)
+        return SimResult(res, self.net.nodes, ledger.energy(), warnings, time.perf_counter() - wall0)
+
+    def _run_held(self, table: RunTable, inp: RunInputs, T0_c: np.ndarray, out_dt_s: float, wall0: float):
+        """The held path of :meth:`run` (tools/plant/held.py): the state at every row time, the books."""
+        if inp.kind not in ("none", "liquid", "air"):
+            raise InputError(f"the held path integrates a modelled sump (cooler none, liquid or air), not {inp.kind}")
+        ledger = self._ledger(inp.t_s.size - 1, T0_c)
+        rows = HeldIntegrator(self, inp).run(T0_c, ledger.Q_w.shape[1])
+        ledger.T_c, ledger.Q_w, ledger.out_j = rows.T_c, rows.Q_w, rows.out_j
+        ledger.generated_j, ledger.stored_j, ledger.mechanical_j = rows.generated_j, rows.stored_j, rows.mechanical_j
+        ledger.churn_invalid_s = rows.churn_invalid_s
+        t = inp.t_s
+        res = self._output(table, t, t, ledger.T_c, ledger.Q_w, out_dt_s, inp.kind)
+        res.meta.update(held_sub_intervals=rows.sub_intervals)
+        warnings = _churn_note(ledger.churn_invalid_s, float(t[-1] - t[0]))
         return SimResult(res, self.net.nodes, ledger.energy(), warnings, time.perf_counter() - wall0)
 
     def _ledger(self, n_steps: int, T0_c: np.ndarray) -> Ledger:
@@ -637,6 +653,18 @@ class ReferencePlant:
         if gain == 1.0 and offset_c == 0.0:
             return y_out
         return gain * np.asarray(y_out) + offset_c
+
+
+def _churn_note(churn_invalid_s: float, span_s: float) -> list:
+    """The run's note on the churning correlations' range, when they left it for part of the run only: the seed's
+    geometry is outside their range on most drives (docs/validation.md, "Churning correlations outside their
+    range"), which the docs say once; a run notes it only when it is partial, i.e. tells something about this drive."""
+    if 0 < churn_invalid_s < CHURN_NOTE_SHARE * span_s:
+        return [
+            f"churning correlations (Eq 28-34) outside their validity range (Eq 33-34) for "
+            f"{churn_invalid_s:.0f} s of {span_s:.0f} s (see docs/validation.md)"
+        ]
+    return []
 
 
 class _StepAverager:
