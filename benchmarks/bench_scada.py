@@ -13,7 +13,11 @@ for the physics model (any predictor with fit(records) and predict(record) -> {c
 factory to `run(..., other=...)`; `--vs-mean` fills them with each channel's training mean, the trivial
 predictor), and the run time; then the oil task's error across turbines on producing rows and on the others.
 
-    python benchmarks/bench_scada.py [--vs-mean] DATA_DIR    # or GVS_REAL_SCADA=DATA_DIR
+`--physics` fills them with the physics model (tools/scada/physics.py: the MM82's onboard sensor with the task's
+effects fitted on the training records; `--fit-rows N` caps the rows per training record, default half a year),
+and prints each fit's effects.
+
+    python benchmarks/bench_scada.py [--vs-mean | --physics [--fit-rows N]] DATA_DIR    # or GVS_REAL_SCADA=DATA_DIR
 """
 
 from __future__ import annotations
@@ -85,15 +89,42 @@ def run(data_dir: Path, other=None, other_name: str = "physics") -> str:
     )
 
 
+def physics_factory(fit_rows: int | None, fits: list):
+    """A factory task -> PhysicsModel of the MM82 description (its fitted models kept in ``fits``)."""
+    from firmware_model.config import load_config
+    from tools.cli.gearbox_option import with_gearbox
+    from tools.scada.physics import PhysicsModel
+
+    cfg = with_gearbox(load_config(None), "MM82")
+
+    def make(task):
+        m = PhysicsModel(task, cfg) if fit_rows is None else PhysicsModel(task, cfg, max_fit_rows=fit_rows)
+        fits.append(m)
+        return m
+
+    return make
+
+
 def main(argv: list[str]) -> int:
-    vs_mean = "--vs-mean" in argv
-    args = [a for a in argv if a != "--vs-mean"]
+    flags = {a for a in argv if a in ("--vs-mean", "--physics")}
+    args = [a for a in argv if a not in flags]
+    fit_rows = None
+    if "--fit-rows" in args:
+        i = args.index("--fit-rows")
+        fit_rows = int(args[i + 1])
+        del args[i : i + 2]
     where = args[0] if args else os.environ.get("GVS_REAL_SCADA")
     if not where or not Path(where).is_dir():
-        print("usage: bench_scada.py [--vs-mean] DATA_DIR (the La Haute Borne SCADA files; or set GVS_REAL_SCADA)")
+        print("usage: bench_scada.py [--vs-mean | --physics [--fit-rows N]] DATA_DIR (or set GVS_REAL_SCADA)")
         return 2
-    if vs_mean:
+    if "--vs-mean" in flags:
         print(run(Path(where), TrainingMean, "training mean"))
+    elif "--physics" in flags:
+        fits: list = []
+        print(run(Path(where), physics_factory(fit_rows, fits), "physics"))
+        print("\nThe physics fits (in split order, bearings then oil):\n")
+        for m in fits:
+            print(f"- {m.task.name}: {m.report}")
     else:
         print(run(Path(where)))
     return 0

@@ -13,6 +13,7 @@ SLOW_MODULES = (
     "tests/tools/test_diagnosis.py",
     "tests/firmware_model/test_kernel.py",
     "tests/tools/test_export_c.py",
+    "tests/tools/test_export_descriptions.py",
     "tests/tools/test_diagnosis_thin.py",
     "tests/tools/test_diagnosis_start.py",
     "tests/tools/test_calibrate.py",

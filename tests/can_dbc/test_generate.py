@@ -18,7 +18,7 @@ from can_dbc.decoder import J1939Decoder
 from can_dbc.encoder import OutputEncoder, RigEncoder
 from can_dbc.j1939 import pgn_of
 from can_dbc.readback import decode_outputs, decode_rig
-from firmware_model.description import load_description
+from firmware_model.description import load_description, shipped_descriptions
 from tools.cli import main
 from tools.cli.export_dbc import component_meanings
 
@@ -162,3 +162,21 @@ def test_too_many_components_is_one_sentence_exit_2(monkeypatch, capsys):
     err = capsys.readouterr().err.strip()
     assert err.startswith("gearbox-vsensor export-dbc: error: gearbox BIG: 245 published components need")
     assert "\n" not in err and "at most 244 fit" in err
+
+
+@pytest.mark.parametrize("name", shipped_descriptions())
+def test_every_shipped_description_s_dbc_loads_strictly(name, tmp_path):
+    """Every shipped description's generated DBC (no onboard sensor needed: the MM82's too) loads with cantools
+    strict=True, carries a temperature, warning level, time to limit and rig signal per published component in the
+    description's order, and the project's loader reads those components back from it."""
+    d = load_description(name)
+    out = tmp_path / f"{name}.dbc"
+    assert main(["export-dbc", "--gearbox", name, "--out", str(out)]) == 0
+    db = cantools.database.load_file(str(out), strict=True)
+    ids = [p.id for p in d.published]
+    signals = {s.name for m in db.messages for s in m.signals}
+    for c in ids:  # the signal names of docs/can.md: a component id's dot as an underscore
+        stem = c.replace(".", "_")
+        assert {f"T_{stem}", f"W_{stem}", f"TTL_{stem}", f"TC_{stem}"} <= signals, c
+    assert dbc.load_dbc(out).published_components() == tuple(ids)
+    _roundtrip(dbc.load_dbc(out), ids)

@@ -63,15 +63,23 @@ def test_a_mistyped_option_is_refused_by_its_subcommand_with_a_suggestion(name, 
 
 def test_an_extra_argument_is_refused_by_its_subcommand(capsys):
     with pytest.raises(SystemExit):
-        build_parser().parse_args(["replay", "a.csv", "b.csv", "--out", "e.csv"])
+        build_parser().parse_args(["simulate", "--cycle", "uphill", "--out", "e.csv", "b.csv"])
     err = capsys.readouterr().err
-    assert err.startswith("usage: gearbox-vsensor replay ") and "unrecognized arguments: b.csv" in err
+    assert err.startswith("usage: gearbox-vsensor simulate ") and "unrecognized arguments: b.csv" in err
     assert "did you mean" not in err
+
+
+def test_replay_of_several_files_without_a_column_map_is_one_sentence(tmp_path, capsys):
+    # several files are one record only for SCADA (--columns); a second run table or log is refused, not ignored
+    a, b = tmp_path / "a.csv", tmp_path / "b.csv"
+    assert main(["replay", str(a), str(b), "--out", str(tmp_path / "e.csv")]) == 2
+    err = capsys.readouterr().err
+    assert "replay reads one run table or CAN log, not 2 files" in err and err.count("error:") == 1
 
 
 def test_replay_usage_is_honest_and_complete():
     usage = SUBCOMMANDS["replay"].format_usage()
-    assert "[--out" not in usage and usage.count("--out EST.csv") == 2
+    assert "[--out" not in usage and usage.count("--out EST.csv") == 3
     assert "--realtime" not in usage and "--interface" not in usage
     for option in long_options(SUBCOMMANDS["replay"]):
         assert option in usage, option

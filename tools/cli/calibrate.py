@@ -65,6 +65,14 @@ def add_subparser(sub):
         "(docs/interfaces.md section 8)",
     )
     p.add_argument("--quiet", action="store_true", help="no progress or summary")
+    p.add_argument(
+        "--columns",
+        metavar="NAME|FILE",
+        help="the training and test files are SCADA records read through this column map (NAME: one shipped, "
+        "engie; FILE: your own; docs/real-data.md): the onboard model of --gearbox is fitted (the sump from the "
+        "model alone, every other channel from the measured sump) and a linear normal-behaviour model fitted on "
+        "the same training records is scored beside it",
+    )
     # moved to the configuration, still accepted (hidden) and overriding it: [cooler] kind and [calibration]
     p.add_argument("--cooler", choices=("none", "liquid", "air", "hold", "measured"), help=argparse.SUPPRESS)
     for key in CALIBRATION_KEYS:
@@ -173,6 +181,8 @@ def run(args) -> int:
     params = cfg.load_params()
     if Path(args.out).suffix.lower() != ".toml":
         raise InputError(f"--out {args.out} must be a .toml file")
+    if args.columns:
+        return _run_scada(args, cfg, params)
     check_paths(
         [
             *(("a training file", f) for f in args.train),
@@ -205,6 +215,60 @@ def run(args) -> int:
     if not args.quiet:
         _print_summary(args, cal)
     return 0
+
+
+def _run_scada(args, cfg, params) -> int:
+    """`calibrate --columns MAP --train SCADA... --test SCADA... (--params KEYS | --auto) --out OUT.toml`."""
+    import datetime as dt
+
+    from firmware_model.parameters import parameter_path
+    from tools.diagnosis.calibrate import calibrated_toml, check_keys
+    from tools.scada.calibrate import calibrate_records, nbm_beside
+    from tools.scada.diagnose import setup_of
+    from tools.scada.reader import read_units
+
+    check_paths(
+        [*(("a training file", f) for f in args.train), *(("a test file", f) for f in args.test)],
+        {"--out": args.out},
+        makes_dirs=("--out",),
+    )
+    if args.report:
+        raise InputError("--report is for run tables; on SCADA records calibrate prints its tables")
+    keys = None if args.auto else check_keys(params, [k.strip() for k in args.params.split(",") if k.strip()])
+    train, test = (list(read_units(files, args.columns).values()) for files in (args.train, args.test))
+    setup, notes = setup_of(cfg, train[0].cmap)
+    for note in notes:
+        print(f"note: {note}", file=sys.stderr)
+    cal = calibrate_records(setup, train, test, keys)
+    nbm = nbm_beside(setup, train, test)
+    if not args.quiet:
+        _print_scada(cal, nbm)
+    (b, a) = cal.test_rms_c
+    if not a <= b:
+        print(
+            f"calibrate: the fit made the held-out records worse (RMS {b:.2f} -> {a:.2f} K), so no parameter "
+            "file was written",
+            file=sys.stderr,
+        )
+        return 3
+    _write_atomic(
+        args.out,
+        calibrated_toml(parameter_path(cfg.params_path or cfg.variant), params, cal, dt.date.today().isoformat()),
+    )
+    return 0
+
+
+def _print_scada(cal, nbm: dict) -> None:
+    """Identifiability, the fitted values and the held-out table: physics before and after beside the NBM."""
+    for x in cal.ident:
+        sig = ", ".join(f"{ch} {v:.2f}" for ch, v in x.signature_c.items())
+        print(f"{x.key}: signature [K over half its range] {sig}" + ("" if x.identifiable else f"; {x.reason}"))
+    for k in cal.keys:
+        print(f"fitted {k} = {cal.fitted[k]:.6g} +- {cal.sigma[k]:.2g} (was {cal.start[k]:.6g})")
+    print("| channel | held-out RMS, physics as shipped [K] | physics calibrated [K] | linear NBM [K] |")
+    print("|---|---:|---:|---:|")
+    for ch, (b, a) in cal.test_by_channel.items():
+        print(f"| {ch} | {b:.2f} | {a:.2f} | {nbm.get(ch, float('nan')):.2f} |")
 
 
 def _calibrate_hint(hint: str) -> str:

@@ -8,6 +8,7 @@ import sys
 from pathlib import Path
 
 from firmware_model.config import load_config
+from firmware_model.errors import InputError
 from tools.cli.core_option import add_core_option, apply_core
 from tools.cli.gearbox_option import add_gearbox_option, resolve_gearbox
 from tools.cli.paths import check_paths
@@ -63,6 +64,13 @@ def add_subparser(sub):
     p.add_argument("--report", metavar="OUT.md", help="also write a Markdown report with PNG plots next to it")
     add_core_option(p)
     p.add_argument("--quiet", action="store_true", help="no progress bar or summary on stderr/stdout")
+    p.add_argument(
+        "--columns",
+        metavar="NAME|FILE",
+        help="the training and test files are SCADA records read through this column map (NAME: one shipped, "
+        "engie; FILE: your own; docs/real-data.md): the onboard model of --gearbox replayed over them, the "
+        "sump from the model alone, every other measured channel from the measured sump",
+    )
     # moved to the configuration, still accepted (hidden) and overriding it: [cooler] kind and [diagnosis]
     p.add_argument("--cooler", choices=("none", "liquid", "air", "hold", "measured"), help=argparse.SUPPRESS)
     for key in DIAGNOSIS_KEYS:
@@ -118,6 +126,9 @@ def write_json_atomic(obj, path) -> Path:
 def run(args) -> int:
     from tools.diagnosis.core import Options, diagnose
 
+    if args.columns:
+        return _run_scada(args)
+
     core_line = apply_core(args)
     if not args.quiet:
         on_core = (
@@ -152,6 +163,45 @@ def run(args) -> int:
     for w in res.get("warnings", []):  # the data's warnings (a frozen sensor ...), even with --quiet
         print(f"warning: {w}", file=sys.stderr)
     return 0
+
+
+def _run_scada(args) -> int:
+    """`diagnose --columns MAP --train SCADA... --test SCADA...`: the gap of the onboard model on real records."""
+    from tools.scada.diagnose import diagnose_records, setup_of, thermostat_of
+    from tools.scada.reader import read_units
+
+    check_paths(
+        [*(("a training file", f) for f in args.train), *(("a test file", f) for f in args.test)],
+        {"--json": args.json},
+        makes_dirs=("--json",),
+    )
+    if args.report:
+        raise InputError("--report is for run tables; on SCADA records the JSON holds the diagnosis")
+    cfg = resolve_gearbox(args, load_config(args.config))
+    train, test = (list(read_units(files, args.columns).values()) for files in (args.train, args.test))
+    setup, notes = setup_of(cfg, train[0].cmap)
+    res = diagnose_records(setup, train, test, thermostat_of(cfg.load_params()))
+    if notes:
+        res["warnings"] = notes
+    write_json_atomic(res, args.json)
+    if not args.quiet:
+        _print_summary_scada(args, res)
+    for w in res.get("warnings", []):
+        print(f"warning: {w}", file=sys.stderr)
+    return 0
+
+
+def _print_summary_scada(args, res) -> None:
+    v = res["verdict"]
+    extra = "".join(f" ({k} = {x:g})" for k, x in v.get("parameters", {}).items())
+    print(
+        f"verdict: {v['effect']}{extra}; held-out RMS {v['test_rms_before_c']:.2f} -> {v['test_rms_after_c']:.2f} K "
+        f"(shrink {100 * v['shrink']:.0f} %) -> {args.json}"
+    )
+    print(f"reason: {v['reason']}")
+    for w in res["where"][:3]:
+        print(f"  gap: {w['channel']} in '{w['regime']}': mean {w['mean_c']:+.2f} K, {100 * w['share']:.0f} % of it")
+    print(f"time: {res['timing']['total_s']:.1f} s")
 
 
 def _diagnose_with_progress(args, params, cooler, opts, diagnose):

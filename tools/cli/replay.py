@@ -24,7 +24,8 @@ from tools.outputs import naming, outputs
 USAGE = (
     "%(prog)s CSV --out EST.csv [--config TOML] [--gearbox NAME|FILE] [--plot PNG]\n"
     "           [--core {auto,c,numpy}] [--allow-untrusted] [--quiet]\n"
-    "       %(prog)s LOG --out EST.csv [those options] [--frames-out OUT.log]"
+    "       %(prog)s LOG --out EST.csv [those options] [--frames-out OUT.log]\n"
+    "       %(prog)s SCADA... --columns NAME|FILE --out EST.csv [those options]"
 )
 #: the options of CAN logs only, by argparse dest
 LOG_OPTIONS = ("frames_out",)
@@ -52,9 +53,9 @@ def add_subparser(sub):
         "or a CAN log (.log candump -L, .asc, .blf, .mf4, .trc) decoded like the live service. Writes the "
         "sensor's output at 10 Hz: the inputs it read, T_<id>_c, W_<id> (0 normal, 1 warning, 2 "
         "critical, 3 not available), ttl_<id>_s (time to the warning limit with held inputs, empty when "
-        "never) for the 28 published components, and the status (degraded, degraded_mode, input "
-        "validity, oil_innovation_c = measured - model oil, model_oil_temp_c, reject counters). Bad "
-        "input values are not errors: the sensor holds, clamps or degrades and counts them. Run tables: "
+        "never) for the gearbox's published components (28 for the GRS905), and the status (degraded, "
+        "degraded_mode, input validity, oil_innovation_c = measured - model oil, model_oil_temp_c, reject "
+        "counters). Bad input values are not errors: the sensor holds, clamps or degrades and counts them. Run tables: "
         "docs/interfaces.md section 3; component codes: docs/glossary.md.",
         examples=[
             "gearbox-vsensor replay uphill.csv --out est.csv --plot est.png",
@@ -69,7 +70,13 @@ def add_subparser(sub):
     )
     p.usage = USAGE
     p.removed_options = REMOVED_OPTIONS
-    p.add_argument("input", metavar="LOG_OR_CSV", help="run table (.csv) or CAN log (.log .asc .blf .mf4 .trc)")
+    p.add_argument(
+        "input",
+        metavar="INPUT",
+        nargs="+",
+        help="run table (.csv), CAN log (.log .asc .blf .mf4 .trc), or with --columns one or more SCADA files "
+        "(.csv, .csv.gz) of one unit",
+    )
     p.add_argument(
         "--config",
         metavar="TOML",
@@ -101,6 +108,7 @@ def add_subparser(sub):
         "sequence the step needs) (default: warn on stderr and exit 3, outputs written)",
     )
     _add_log_options(p)
+    _add_scada_options(p)
     # moved to the configuration, still accepted (hidden) and overriding it: [sensor] oil_mode, [replay]
     # initial_temp_c and strict
     p.add_argument("--oil-mode", choices=("measured", "model"), help=argparse.SUPPRESS)
@@ -115,6 +123,18 @@ def _add_log_options(p: argparse.ArgumentParser) -> None:
     g = p.add_argument_group("CAN logs (.log candump -L, .asc, .blf, .mf4, .trc)")
     g.add_argument(
         "--frames-out", metavar="OUT.log", help="also write the frames the sensor would send (GBX_*, DM1) as a CAN log"
+    )
+
+
+def _add_scada_options(p: argparse.ArgumentParser) -> None:
+    """Options of `replay` for SCADA records (docs/real-data.md)."""
+    g = p.add_argument_group("SCADA records (.csv, .csv.gz; docs/real-data.md)")
+    g.add_argument(
+        "--columns",
+        metavar="NAME|FILE",
+        help="read the inputs as a SCADA record through this column map (NAME: one shipped, engie; FILE: your own): "
+        "one output row per record row, each measured channel beside its estimate est_<channel>; "
+        '[sensor] oil_mode = "model" (or --oil-mode model) leaves the sump unread',
     )
 
 
@@ -150,9 +170,20 @@ def _refuse(given: list[str], why: str) -> None:
 def run(args) -> int:
     from tools.replay.formats import is_can_log
 
-    path = Path(args.input)
+    if args.columns:
+        _config(args)  # the gearbox checked before any work
+        print_core = apply_core(args)
+        if not args.quiet:
+            print(print_core)
+        return _run_scada(args)
+    if len(args.input) > 1:
+        raise InputError(
+            f"replay reads one run table or CAN log, not {len(args.input)} files (several files are read as one "
+            "record only with --columns, for SCADA)"
+        )
+    path = Path(args.input[0])
     check_paths(
-        [("the input", args.input), ("the --config", args.config)],
+        [("the input", str(path)), ("the --config", args.config)],
         {"--out": args.out, "--plot": args.plot, "--frames-out": args.frames_out},
         plots=("--plot",),
         tables=("--out",),
@@ -200,6 +231,42 @@ def run(args) -> int:
         for line in summary_lines(out, oil_model=oil_mode == "model", gearbox=gearbox):
             print(line)
     return _report_trust(args, table_findings(out, oil_model=oil_mode == "model"))
+
+
+def _run_scada(args) -> int:
+    """`gearbox-vsensor replay SCADA... --columns NAME|FILE --out EST.csv`: the sensor over one unit's SCADA."""
+    from tools.runtable import write_run_table
+    from tools.scada.reader import read_record
+    from tools.scada.replay import error_lines, replay_record
+
+    check_paths(
+        [*(("an input", p) for p in args.input), ("the --config", args.config)],
+        {"--out": args.out, "--plot": args.plot},
+        plots=("--plot",),
+        tables=("--out",),
+    )
+    _refuse(_given(args, LOG_OPTIONS) + given(args, ("replay.strict",)), "on a SCADA record, only on a CAN log")
+    if not args.out:
+        raise InputError("--out EST.csv is required")
+    config = _config(args)
+    record = read_record(args.input, args.columns)
+    with outputs(("--out", args.out), ("--plot", figure_path(args.plot))) as (out_tmp, plot_tmp):
+        result = replay_record(record, config, _sensor_options(args))
+        with naming(out_tmp):
+            write_run_table(result.table, out_tmp)
+        if plot_tmp:
+            from tools.scada.plot import plot_estimates
+
+            with naming(plot_tmp):
+                plot_estimates(result, plot_tmp)
+    if not args.quiet:
+        print(
+            f"replayed {record.unit}: {record.n} rows in {record.n_stretches} stretches "
+            f"(oil {result.oil_mode}) -> {Path(args.out)}"
+        )
+        for line in error_lines(result):
+            print(line)
+    return 0
 
 
 def _report_trust(args, findings) -> int:

@@ -21,9 +21,11 @@ from pathlib import Path
 
 import numpy as np
 
+from firmware_model.description import description_of
 from firmware_model.errors import InputError
 from firmware_model.onboard.ckernel import SOURCE_DIR, TABLE_FIELDS, source_id
 from firmware_model.onboard.kernel_tables import VEHICLE_EFFECTS, table_arrays, vehicle_arrays
+from tools.drive_table import fixed_ratio_gear
 from tools.export.templates import (
     API_HEADER,
     FOOTPRINT,
@@ -98,18 +100,62 @@ def tables_source(sp, real: str, variant: str, ttl: bool = True) -> str:
     return "".join(parts)
 
 
-def reference_vectors(sensor, params, steps: int = VECTOR_STEPS, every: int = VECTOR_EVERY) -> dict:
-    """Inputs (steps, 8) and the Python reference's outputs every ``every`` steps (temperatures, levels, mode), from
-    the uphill cycle's plant table with a stretch of hostile inputs (NaN, inf, out of range, frozen)."""
-    from tools.cycles.named import get_cycle
-    from tools.plant.reference import ReferencePlant
-    from tools.replay.table import table_steps
+#: the test vectors of a fixed-ratio drive (a motor or a turbine on the input shaft: no named cycle drives one): the
+#: input speed swings between these shares of the description's max_speed and the input torque between these of its
+#: max_torque (both rise and fall together, one period FIXED_RATIO_PERIOD_S), ambient FIXED_RATIO_AMBIENT_C; the plant
+#: starts warm (FIXED_RATIO_START_C) so that 1000 s cross a warning limit of R1 and HR225 (the time to limit finite,
+#: the early warning and a level change in the vectors). Assumed: chosen for the test's coverage, not a duty cycle.
+FIXED_RATIO_SPEED = (0.55, 0.95)
+FIXED_RATIO_TORQUE = (0.5, 1.0)
+FIXED_RATIO_PERIOD_S = 400.0
+FIXED_RATIO_AMBIENT_C = 25.0
+FIXED_RATIO_START_C = 105.0
 
+
+def fixed_ratio_drive(description, span_s: float, dt_s: float = 0.1):
+    """The fixed-ratio drive's run table of the test vectors (the contract's columns time_s, input_speed_rpm,
+    input_torque_nm, ambient_temp_c; docs/interfaces.md section 3.2) over ``span_s`` at ``dt_s``."""
+    from firmware_model.units import RPM_PER_RAD_S
+    from tools.runtable import RunTable
+
+    t_s = dt_s * np.arange(int(round(span_s / dt_s)) + 1)
+    x = 0.5 - 0.5 * np.cos(2.0 * np.pi * t_s / FIXED_RATIO_PERIOD_S)  # 0 .. 1 .. 0 per period
+    (s0, s1), (q0, q1) = FIXED_RATIO_SPEED, FIXED_RATIO_TORQUE
+    max_rpm = description.drive.max_speed_rad_s * RPM_PER_RAD_S
+    cols = {
+        "time_s": t_s,
+        "input_speed_rpm": max_rpm * (s0 + (s1 - s0) * x),
+        "input_torque_nm": description.drive.max_torque_nm * (q0 + (q1 - q0) * x),
+        "ambient_temp_c": np.full(t_s.size, FIXED_RATIO_AMBIENT_C),
+    }
+    return RunTable(cols, meta={"drive": "fixed_ratio"}, source="the export's fixed-ratio test drive")
+
+
+def vector_plant(params, steps: int, dt_s: float):
+    """The plant's table over the vectors' span: the uphill cycle for a vehicle, :func:`fixed_ratio_drive` (mapped
+    onto the code's inputs, tools.drive_table) for a fixed-ratio drive."""
+    from tools.cycles.named import get_cycle
+    from tools.drive_table import map_fixed_ratio
+    from tools.plant.reference import ReferencePlant
+
+    d = description_of(params)
+    if d.drive.kind == "fixed_ratio":
+        table = map_fixed_ratio(fixed_ratio_drive(d, steps * dt_s + 10.0, dt_s), d)
+        return ReferencePlant(params).run(table, initial_temp_c=FIXED_RATIO_START_C, progress=False).table
     # the plant over the vectors' span only (plus 10 s), not the cycle's 2 h: the steps it gives are the same, bit
     # for bit (the plant integrates forward from the cycle's initial temperature, kept in its meta)
     cycle = get_cycle("uphill")
     t_s = np.asarray(cycle["time_s"])
-    plant = ReferencePlant(params).run(cycle.select(t_s <= t_s[0] + steps * sensor.dt_s + 10.0), progress=False).table
+    return ReferencePlant(params).run(cycle.select(t_s <= t_s[0] + steps * dt_s + 10.0), progress=False).table
+
+
+def reference_vectors(sensor, params, steps: int = VECTOR_STEPS, every: int = VECTOR_EVERY) -> dict:
+    """Inputs (steps, 8) and the Python reference's outputs every ``every`` steps (temperatures, levels, mode), from
+    the plant's table of the gearbox's drive (a vehicle: the uphill cycle; a fixed-ratio drive: its own test
+    drive) with a stretch of hostile inputs (NaN, inf, out of range, frozen)."""
+    from tools.replay.table import table_steps
+
+    plant = vector_plant(params, steps, sensor.dt_s)
     _, data = table_steps(plant, sensor.dt_s)
     raw = np.array(data[:steps, :8], dtype=float)
     rng = np.random.default_rng(905)
@@ -176,7 +222,8 @@ def capacity_values(sp) -> tuple[dict, bool]:
         GVS_MAX_PUB=a["n_pub"],
         GVS_MAX_GEARS=a["n_gears"],
     )
-    return {k: int(v) for k, v in caps.items()}, index16_fits(a)
+    # at least 1: ISO C has no zero-size array (a splash-lubricated gearbox has no oil streams, nst = 0)
+    return {k: max(int(v), 1) for k, v in caps.items()}, index16_fits(a)
 
 
 def capacities(sp) -> str:
@@ -287,6 +334,7 @@ def export_c(out_dir, variant: str | None = None, config_path=None, real: str = 
     lim = probe.limits
     limits = lim if ttl else dataclasses.replace(lim, lead_s=0.0)  # the published components kept
     sensor = VirtualSensor(params, limits=limits, config=cfg, core="numpy")
+    d = description_of(params)
     out = Path(out_dir)
     above = next((a for a in (out, *out.parents) if a.exists()), None)
     if above is not None and not above.is_dir():
@@ -295,23 +343,9 @@ def export_c(out_dir, variant: str | None = None, config_path=None, real: str = 
     tol = "0.05" if real == "float" else "1e-9"
     ttl_abs, ttl_rel = TTL_TOL[real]
     reset_s = f"{sensor.options.clock_reset_s:g}"
-    files = {
-        "gvs_kernel.c": (SOURCE_DIR / "gvs_kernel.c").read_bytes(),
-        "gvs_kernel.h": pinned_kernel_header(
-            (SOURCE_DIR / "gvs_kernel.h").read_text(), sensor.sp, real, params.variant
-        ),
-        "gvs_tables.c": tables_source(sensor.sp, real, params.variant, ttl),
-    }
+    files = sensor_files(sensor, real, ttl)
     files.update(
         {
-            "gvs_sensor.h": API_HEADER.format(
-                variant=params.variant,
-                real=real,
-                ttl=int(ttl),
-                key=f"0x{state_key(files, real, ttl):08x}u",
-                reset=reset_s,
-            ),
-            "gvs_sensor.c": SENSOR_SOURCE,
             "gvs_vectors.c": vectors_source(reference_vectors(sensor, params), real, ttl),
             "gvs_test.c": TEST_PROGRAM.replace("@TOL@", tol)
             .replace("@TTL_ABS@", repr(ttl_abs))
@@ -320,15 +354,17 @@ def export_c(out_dir, variant: str | None = None, config_path=None, real: str = 
             "Makefile": MAKEFILE.replace("@REAL_FLAG@", real_flag).replace("@CAPS@", capacities(sensor.sp)),
             "cortex-m4/startup.c": STARTUP,
             "cortex-m4/mps2_an386.ld": LINKER_SCRIPT,
-            "cortex-m4/footprint.c": FOOTPRINT,
+            "cortex-m4/footprint.c": FOOTPRINT.replace("@GEAR@", repr(float(footprint_gear(d)))),
             "README.md": README.format(
                 variant=params.variant,
                 real=real,
                 tol=tol,
-                ttl_text=_ttl_text(ttl, real, float(limits.lead_s)),
+                ttl_text=_ttl_text(ttl, real, float(limits.lead_s), len(sensor.published)),
                 source_id=source_id(),
                 n=sensor.reduced.n,
+                n_pub=len(sensor.published),
                 reset=reset_s,
+                **_drive_text(d),
                 **_check_text(sensor),
             ),
         }
@@ -350,6 +386,27 @@ def _check_text(sensor) -> dict:
     )
 
 
+def sensor_files(sensor, real: str, ttl: bool = True) -> dict:
+    """The sensor's sources of a build ({file: text or bytes}): the kernel, its header with the build's settings, the
+    generated tables of ``sensor`` and the API (gvs_sensor.h/.c); what the bundle holds besides its test, and what
+    the FMU compiles (tools.export.fmu)."""
+    variant = sensor.params.variant
+    files = {
+        "gvs_kernel.c": (SOURCE_DIR / "gvs_kernel.c").read_bytes(),
+        "gvs_kernel.h": pinned_kernel_header((SOURCE_DIR / "gvs_kernel.h").read_text(), sensor.sp, real, variant),
+        "gvs_tables.c": tables_source(sensor.sp, real, variant, ttl),
+    }
+    files["gvs_sensor.h"] = API_HEADER.format(
+        variant=variant,
+        real=real,
+        ttl=int(ttl),
+        key=f"0x{state_key(files, real, ttl):08x}u",
+        reset=f"{sensor.options.clock_reset_s:g}",
+    )
+    files["gvs_sensor.c"] = SENSOR_SOURCE
+    return files
+
+
 def export_config(variant: str | None, config_path):
     """(the configuration, its parameters) of an export: ``config_path`` (None: the defaults) with its variant
     replaced by ``variant`` when one is given, as ``gearbox-vsensor replay`` combines --config and --variant."""
@@ -361,7 +418,7 @@ def export_config(variant: str | None, config_path):
     return cfg, cfg.load_params()
 
 
-def _ttl_text(ttl: bool, real: str, lead_s: float) -> str:
+def _ttl_text(ttl: bool, real: str, lead_s: float, n_pub: int) -> str:
     """The README's paragraph on the time to limit."""
     if not ttl:
         return (
@@ -370,11 +427,40 @@ def _ttl_text(ttl: bool, real: str, lead_s: float) -> str:
         )
     ttl_abs, ttl_rel = TTL_TOL[real]
     return (
-        "**Time to limit**: `ttl_s[28]` [s] until each component reaches its warning limit if the current inputs "
+        f"**Time to limit**: `ttl_s[{n_pub}]` [s] until each component reaches its warning limit if the current inputs "
         "were held\n(0: at or above it, inf: not within 23 days, NaN: not available), refreshed every 1 s by "
         "`gvs_ttl_refresh` inside\n`gvs_sensor_step` and counted down in between; the early warning (level 1) "
         f"fires when it is {lead_s:g} s or less.\nThe refresh marches the held-input network (a sparse LDL^T, at "
         "most 41 steps; no eigen-decomposition, no\nallocation): it is the step's costly part, about 100 times "
         f"one step when a limit is within reach. `make test`\nchecks it within {ttl_abs} s or {ttl_rel:g} of "
         "the reference."
+    )
+
+
+def footprint_gear(description) -> int:
+    """The gear the footprint program steps in: a fixed-ratio drive's one gear; a vehicle's 4L where it has one
+    (the GRS905's, as measured before), else its first forward gear."""
+    if description.drive.kind == "fixed_ratio":
+        return fixed_ratio_gear(description)
+    four_l = description.gear("4L")
+    return four_l.number if four_l is not None else min(g.number for g in description.gears if g.number > 0)
+
+
+def _drive_text(description) -> dict:
+    """The README's words on the test vectors' drive and on the inputs, for the gearbox's drive."""
+    if description.drive.kind != "fixed_ratio":
+        return dict(
+            vectors="the uphill cycle",
+            inputs_text="Inputs: engine speed [rpm], engine torque [N m] (net, signed), selected gear (-2..14; 0 "
+            "neutral), measured sump oil\n[degC], ambient and coolant [degC], vehicle speed [km/h], retarder torque "
+            "[N m].",
+        )
+    (s0, s1), (q0, q1) = FIXED_RATIO_SPEED, FIXED_RATIO_TORQUE
+    return dict(
+        vectors=f"a fixed-ratio test drive: input speed {s0:.0%}-{s1:.0%},\ninput torque {q0:.0%}-{q1:.0%} of the "
+        f"maximum, from {FIXED_RATIO_START_C:g} degC",
+        inputs_text="Inputs (a fixed-ratio drive, its input shaft in an engine's place, as `gearbox-vsensor replay` "
+        "maps a\nfixed-ratio run table): input speed [rpm] as `speed_rpm`, input torque [N m] (signed) as "
+        f"`torque_nm`, gear always {fixed_ratio_gear(description)}\n(its one gear), measured sump oil [degC], "
+        "ambient [degC], coolant NaN (none), vehicle speed 0 and retarder torque 0\n(it stands still).",
     )

@@ -5,7 +5,9 @@ and a small FMI wrapper (tools.export.fmu_source; FMI 2 or 3 over one shared ins
 ``modelDescription.xml``, the binary for this
 platform (compiled here with the C compiler on the PATH) and the sources (an importer can rebuild it for another
 platform). Communication step: 0.1 s or a multiple of it. Variables are named as the run-table columns
-(docs/interfaces.md section 3): inputs ``engine_speed_rpm`` ... ``retarder_torque_nm``; outputs ``T_<id>_c``,
+(docs/interfaces.md section 3) of the gearbox's drive: inputs ``engine_speed_rpm`` ... ``retarder_torque_nm`` (a
+vehicle), ``input_speed_rpm``, ``input_torque_nm``, ``oil_temp_c``, ``ambient_temp_c`` (a fixed-ratio drive: its one
+gear, no coolant, standing still, as replay maps its run table); outputs ``T_<id>_c``,
 ``W_<id>``, ``ttl_<id>_s`` for every published component, ``degraded_mode``, ``valid_flags``, ``frozen_flags``,
 ``model_oil_temp_c``, ``oil_innovation_c``, ``rejects_<reason>``; parameters ``variant``, ``initial_temp_c`` and the
 limits ``limit_warning_<id>_c`` / ``limit_critical_<id>_c``. FMI 2 types them Real / Integer / String, FMI 3
@@ -21,7 +23,6 @@ from __future__ import annotations
 import hashlib
 import os
 import platform
-import shutil
 import subprocess
 import sys
 import tempfile
@@ -71,6 +72,39 @@ INPUT_TEXT = {
 _BITS = "bit 0 speed, 1 torque, 2 gear, 3 oil, 4 ambient, 5 coolant, 6 vehicle speed, 7 retarder"
 #: start values of the inputs (speed, torque and gear 0; oil and the auxiliary inputs not available)
 INPUT_START = (0.0, 0.0, 0.0) + (float("nan"),) * 5
+#: a fixed-ratio drive's inputs (docs/interfaces.md section 3.2, tools.drive_table): sensor input field -> (variable,
+#: description); the others are not inputs of its FMU and hold what replay gives a fixed-ratio run table (the one
+#: gear, coolant not available, vehicle speed and retarder torque 0: tools.drive_table.map_fixed_ratio)
+FIXED_RATIO_INPUTS = {
+    "speed_rpm": ("input_speed_rpm", "input shaft speed [rpm] (NaN: not available, the last good value is held)"),
+    "torque_nm": ("input_torque_nm", "input shaft torque [N.m] (NaN: not available, the last good value is held)"),
+    "oil_temp_c": ("oil_temp_c", INPUT_TEXT["oil_temp_c"]),
+    "ambient_temp_c": ("ambient_temp_c", INPUT_TEXT["ambient_temp_c"]),
+}
+_FIXED_RATIO_BITS = (
+    "bit 0 input speed, 1 input torque, 2 gear (the one gear), 3 oil, 4 ambient, 5 coolant (none), 6 vehicle speed "
+    "(0), 7 retarder (0)"
+)
+
+
+def fmu_inputs(gearbox=None) -> list[tuple]:
+    """(variable name, description, start, exposed) of each sensor input (SENSOR_INPUTS order) in the FMU of
+    ``gearbox`` (as :func:`_variables`): a vehicle's eight as the run-table columns; a fixed-ratio drive's input
+    speed, input torque, oil and ambient, the other four fixed at what replay maps a fixed-ratio run table to."""
+    from firmware_model.service.options import SENSOR_INPUTS
+    from tools.drive_table import fixed_ratio_gear
+
+    desc = description(gearbox)
+    if desc is None or desc.drive.kind != "fixed_ratio":
+        return [(col, INPUT_TEXT[f], INPUT_START[i], True) for i, (f, col) in enumerate(SENSOR_INPUTS)]
+    fixed = {"gear": float(fixed_ratio_gear(desc)), "vehicle_speed_kmh": 0.0, "retarder_torque_nm": 0.0}
+    out = []
+    for i, (f, col) in enumerate(SENSOR_INPUTS):
+        if f in FIXED_RATIO_INPUTS:
+            out.append((*FIXED_RATIO_INPUTS[f], INPUT_START[i], True))
+        else:
+            out.append((col, INPUT_TEXT[f], fixed.get(f, float("nan")), False))
+    return out
 
 
 def _fmi_headers() -> Path:
@@ -107,8 +141,6 @@ def _variables(limits, gearbox=None) -> list[tuple]:
     """(name, vr, type, causality, variability, start or None, description) of every variable; the per-component
     ones for each component ``gearbox`` (the sensor, or its parameter set or description; None: the default
     gearbox) publishes, in its order."""
-    from firmware_model.service.options import SENSOR_INPUTS
-
     desc, published = description(gearbox), ids(gearbox)
     if len(published) > VR["VR_TTL"] - VR["VR_T"]:
         raise InputError(
@@ -119,9 +151,11 @@ def _variables(limits, gearbox=None) -> list[tuple]:
     # between frames; an importer holds them between samples instead of interpolating (an interpolated gear 8.3 is
     # rejected, and FMPy interpolating 0 x NaN + 1 x value read the first sample after a gap as NaN)
     v = [
-        (col, VR["VR_INPUT"] + i, "Real", "input", "discrete", INPUT_START[i], INPUT_TEXT[field])
-        for i, (field, col) in enumerate(SENSOR_INPUTS)
+        (name, VR["VR_INPUT"] + i, "Real", "input", "discrete", start, text)
+        for i, (name, text, start, exposed) in enumerate(fmu_inputs(gearbox))
+        if exposed
     ]
+    bits = _FIXED_RATIO_BITS if desc is not None and desc.drive.kind == "fixed_ratio" else _BITS
     for i, c in enumerate(published):
         v.append(_output(f"T_{c}_c", VR["VR_T"] + i, "Real", f"{label_of(c, desc)} [degC]"))
     for i, c in enumerate(published):
@@ -138,8 +172,8 @@ def _variables(limits, gearbox=None) -> list[tuple]:
         _output(
             "degraded_mode", VR["VR_MODE"], "Integer", "0 normal, 1 oil modelled, 2 drive inputs missing (holding)"
         ),
-        _output("valid_flags", VR["VR_VALID"], "Integer", "bit i set: input i valid this step (" + _BITS + ")"),
-        _output("frozen_flags", VR["VR_FROZEN"], "Integer", "bit i set: input i frozen (" + _BITS + ")"),
+        _output("valid_flags", VR["VR_VALID"], "Integer", "bit i set: input i valid this step (" + bits + ")"),
+        _output("frozen_flags", VR["VR_FROZEN"], "Integer", "bit i set: input i frozen (" + bits + ")"),
     ]
     v += [
         _output(f"rejects_{r}", VR["VR_REJECT"] + i, "Integer", f"inputs rejected or repaired so far: {r}")
@@ -238,7 +272,7 @@ def model_description(variant: str, limits, guid: str, fmi_version: int = 2, gea
     sources = "\n".join(f'      <File name="{n}"/>' for n in SOURCE_FILES)
     return f"""<?xml version="1.0" encoding="UTF-8"?>
 <fmiModelDescription fmiVersion="2.0" modelName="gearbox-vsensor {escape(variant)}" guid="{guid}"
-  description="Onboard virtual temperature sensor of a {escape(variant)} range-splitter gearbox (0.1 s step)"
+  description="Onboard virtual temperature sensor of a {escape(variant)} {_kind(gearbox)} (0.1 s step)"
   generationTool="gearbox-vsensor export-fmu" variableNamingConvention="flat" numberOfEventIndicators="0">
   <CoSimulation modelIdentifier="{MODEL_ID}" canHandleVariableCommunicationStepSize="false"
     canBeInstantiatedOnlyOncePerProcess="false" canNotUseMemoryManagementFunctions="false">
@@ -265,6 +299,13 @@ def model_description(variant: str, limits, guid: str, fmi_version: int = 2, gea
 
 #: FMI 3 type of each FMI 2 type (the reject counters are Int64 in FMI 3: they count a whole life)
 _FMI3_TYPE = {"Real": "Float64", "Integer": "Int32", "String": "String"}
+
+
+def _kind(gearbox) -> str:
+    """What the gearbox is, for the FMU's description: a vehicle's range-splitter gearbox (the GRS905's words, as
+    before), a fixed-ratio drive's fixed-ratio gearbox."""
+    desc = description(gearbox)
+    return "fixed-ratio gearbox" if desc is not None and desc.drive.kind == "fixed_ratio" else "range-splitter gearbox"
 
 
 def _model_description_3(variant: str, limits, guid: str, gearbox=None) -> str:
@@ -294,7 +335,7 @@ def _model_description_3(variant: str, limits, guid: str, gearbox=None) -> str:
     structure += "\n" + "\n".join(f'    <InitialUnknown valueReference="{vr}"/>' for vr in outputs)
     return f"""<?xml version="1.0" encoding="UTF-8"?>
 <fmiModelDescription fmiVersion="3.0" modelName="gearbox-vsensor {escape(variant)}" instantiationToken="{guid}"
-  description="Onboard virtual temperature sensor of a {escape(variant)} range-splitter gearbox (0.1 s step)"
+  description="Onboard virtual temperature sensor of a {escape(variant)} {_kind(gearbox)} (0.1 s step)"
   generationTool="gearbox-vsensor export-fmu" variableNamingConvention="flat">
   <CoSimulation modelIdentifier="{MODEL_ID}" canHandleVariableCommunicationStepSize="false"
     fixedInternalStepSize="0.1" canGetAndSetFMUState="false" canSerializeFMUState="false"/>
@@ -310,13 +351,17 @@ def _model_description_3(variant: str, limits, guid: str, gearbox=None) -> str:
 """
 
 
-def _blocks(variant: str, guid: str) -> str:
+def _blocks(variant: str, guid: str, gearbox=None) -> str:
     lines = [f"#define {k} {v}u" for k, v in VR.items()]
-    start = ", ".join("NAN" if x != x else repr(x) for x in INPUT_START)
+    inputs = fmu_inputs(gearbox)
+    start = ", ".join("NAN" if x != x else repr(x) for _, _, x, _ in inputs)
+    exposed = ", ".join(str(int(e)) for *_, e in inputs)
     lo, hi = LIMIT_RANGE_C
     lines += [f"#define LIMIT_LO_C {lo!r}", f"#define LIMIT_HI_C {hi!r}", f'#define LIMIT_RANGE_TEXT "{lo:g}..{hi:g}"']
     lines += [
         f"static const double INPUT_START[GVS_N_INPUTS] = {{{start}}};",
+        "/* 1: an input of the FMU; 0: fixed at its start (a fixed-ratio drive's gear, vehicle speed ...) */",
+        f"static const int INPUT_EXPOSED[GVS_N_INPUTS] = {{{exposed}}};",
         f'#define GVS_GUID "{guid}"',
         f'#define GVS_VARIANT "{variant}"',
     ]
@@ -356,16 +401,19 @@ def export_fmu(out_path, variant: str | None = None, config_path=None, fmi_versi
 
 def _build(tmp: Path, variant: str, config_path, fmi_version: int, cc: str, headers) -> Path:
     """The FMU's tree in ``tmp``/fmu: the sources, modelDescription.xml and the binary compiled for this platform."""
-    from tools.export.c_bundle import export_c
+    from tools.export.c_bundle import sensor_files
 
-    bundle = export_c(tmp / "c", variant=variant, config_path=config_path, real="double")
+    variant_name, sensor = _variant_and_sensor(variant, config_path)
     src = tmp / "fmu" / "sources"
     src.mkdir(parents=True)
-    for name in ("gvs_kernel.c", "gvs_kernel.h", "gvs_tables.c", "gvs_sensor.c", "gvs_sensor.h"):
-        shutil.copyfile(bundle / name, src / name)
+    # the sensor's sources of export-c's double build (not its test vectors: no plant run for an FMU)
+    for name, content in sensor_files(sensor, "double").items():
+        if isinstance(content, bytes):
+            (src / name).write_bytes(content)
+        else:
+            (src / name).write_text(content)
     guid = "{" + hashlib.sha256((src / "gvs_tables.c").read_bytes()).hexdigest()[:32] + "}"
-    variant_name, sensor = _variant_and_sensor(variant, config_path)
-    (src / "fmu.c").write_text(fmu_c(fmi_version, _blocks(variant_name, guid)))
+    (src / "fmu.c").write_text(fmu_c(fmi_version, _blocks(variant_name, guid, sensor)))
     (tmp / "fmu" / "modelDescription.xml").write_text(
         model_description(variant_name, sensor.limits, guid, fmi_version, sensor)
     )

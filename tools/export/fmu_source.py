@@ -166,7 +166,7 @@ static double real_out(Instance *m, unsigned vr, int *ok)
     if (vr >= VR_TTL && vr < VR_TTL + GVS_MAX_PUB) return (double)m->out.ttl_s[vr - VR_TTL];
     if (vr == VR_MODEL_OIL) return (double)m->out.model_oil_temp_c;
     if (vr == VR_INNOVATION) return (double)m->out.oil_innovation_c;
-    if (vr >= VR_INPUT && vr < VR_INPUT + GVS_N_INPUTS) return m->inputs[vr - VR_INPUT];
+    if (vr >= VR_INPUT && vr < VR_INPUT + GVS_N_INPUTS && INPUT_EXPOSED[vr - VR_INPUT]) return m->inputs[vr - VR_INPUT];
     if (vr >= VR_WARNING && vr < VR_WARNING + GVS_MAX_PUB) return (double)m->warning_c[vr - VR_WARNING];
     if (vr >= VR_CRITICAL && vr < VR_CRITICAL + GVS_MAX_PUB) return (double)m->critical_c[vr - VR_CRITICAL];
     if (vr == VR_INITIAL_TEMP) return m->initial_temp_c;
@@ -202,7 +202,10 @@ static int set_variant(Instance *m, unsigned r, const char *value)
 /* inputs at any time, parameters before the end of initialisation only; 0 or -1 */
 static int set_real(Instance *m, unsigned r, double value)
 {
-    if (r >= VR_INPUT && r < VR_INPUT + GVS_N_INPUTS) m->inputs[r - VR_INPUT] = value;
+    if (r >= VR_INPUT && r < VR_INPUT + GVS_N_INPUTS) {
+        if (!INPUT_EXPOSED[r - VR_INPUT]) return -1;   /* not an input of this FMU (its fixed value stays) */
+        m->inputs[r - VR_INPUT] = value;
+    }
     else if (m->initialised != PHASE_SETUP) return -1;
     else if (r >= VR_WARNING && r < VR_WARNING + GVS_MAX_PUB) m->warning_c[r - VR_WARNING] = (gvs_real)value;
     else if (r >= VR_CRITICAL && r < VR_CRITICAL + GVS_MAX_PUB) m->critical_c[r - VR_CRITICAL] = (gvs_real)value;

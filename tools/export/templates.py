@@ -405,7 +405,7 @@ clean:
 
 README = """# gearbox-vsensor onboard sensor, {variant}, exported for an ECU ({real} build)
 
-Kernel sources {source_id}. `make test` builds a host program that steps the test vectors (the uphill cycle, 1000 s
+Kernel sources {source_id}. `make test` builds a host program that steps the test vectors ({vectors}, 1000 s
 at 10 Hz with 20 s of hostile inputs, past its first early warning) and compares temperatures (tolerance {tol} K),
 warning levels, degraded modes and the time to limit with the Python reference (gearbox-vsensor's numpy step).
 
@@ -437,9 +437,8 @@ gvs_outputs out;
 gvs_sensor_step(&state, &in, &out);
 ```
 
-Inputs: engine speed [rpm], engine torque [N m] (net, signed), selected gear (-2..14; 0 neutral), measured sump oil
-[degC], ambient and coolant [degC], vehicle speed [km/h], retarder torque [N m]. Outputs (`gvs_outputs`): `T_c[28]`
-the published component temperatures [degC] (order: the CAN outputs' component ids), `level[28]` 0 normal,
+{inputs_text} Outputs (`gvs_outputs`): `T_c[{n_pub}]`
+the published component temperatures [degC] (order: the CAN outputs' component ids), `level[{n_pub}]` 0 normal,
 1 warning, 2 critical, 3 not available, `degraded_mode` 0 normal, 1 oil modelled, 2 drive inputs missing (holding),
 the validity bits, the modelled sump and the oil innovation (measured - model) [K], and `rejects[13]` the cumulative
 counters of rejected or repaired inputs (speed_missing, speed_clamped, torque_missing, torque_clamped,
@@ -556,7 +555,7 @@ static void steps(void)
     gvs_outputs out;
     int i, k;
     for (i = 0; i < GVS_N_INPUTS; ++i) in.raw[i] = 20.0;
-    in.raw[GVS_I_GEAR] = 9.0;
+    in.raw[GVS_I_GEAR] = @GEAR@;
     in.t_s = NAN;
     for (k = 0; k < 50; ++k) {        /* moving speed and oil: new conductance bins, every law evaluated */
         in.raw[GVS_I_SPEED] = (double)(in_speed + 37.0f * (float)k);

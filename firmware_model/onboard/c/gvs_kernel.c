@@ -158,7 +158,9 @@ static gvs_real bilinear(const gvs_real *tab, int32_t stride, gvs_real fu, gvs_r
 static void bin_conductances(const gvs_tables *tb, const gvs_vehicle *veh, int32_t gear_row, gvs_real omega_in_rad_s,
                              gvs_real T_q, gvs_real *G, gvs_real *G_streams)
 {
-    gvs_real phi[GVS_MAX_TERMS], G2[GVS_MAX_TERMS], Ge[GVS_MAX_TERMS];
+    /* G2 zeroed: with no bilinear table and no stream (a splash-lubricated gearbox: n2 = nst = 0, one term) gcc
+     * -O2 cannot see that the stream loop below never reads it and warns (-Werror in the export's Makefile) */
+    gvs_real phi[GVS_MAX_TERMS], G2[GVS_MAX_TERMS] = {0}, Ge[GVS_MAX_TERMS];
     oil_row_t o;
     int32_t t;
     gvs_real omega_ls_rad_s, rho_cp_omega;

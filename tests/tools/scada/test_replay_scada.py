@@ -1,0 +1,133 @@
+"""`replay --columns MAP SCADA... --out est.csv`: the sensor over a SCADA record, each measured channel beside its
+estimate, one output row per record row; the modelled oil never reads the sump; several files are one record.
+
+Run on the HR225 (an industrial reducer the onboard sensor models) with a column map tied to its parts, written
+here from the shipped engie map: the path is the gearbox's, not the MM82's.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+import subprocess
+import sys
+from datetime import datetime, timedelta, timezone
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from tests.tools.scada.test_reader import row, write
+from tools.runtable import read_run_table
+from tools.scada.columns import MAP_DIR
+
+REPO = Path(__file__).resolve().parents[3]
+T0 = datetime(2018, 6, 1, 0, 0, tzinfo=timezone.utc)
+ROWS = 72  # half a day of 10-minute rows
+
+
+def _map(tmp_path: Path, bearing_node: str = "B1") -> Path:
+    """The engie map for the HR225: its input speed up to 1800 rpm; the bearings tied to B1 and B2, no inlet."""
+    text = (MAP_DIR / "engie.toml").read_text()
+    text = text.replace("range = [0.0, 25.0]", "range = [0.0, 2000.0]")
+    text = text.replace("range = [0.0, 2.0e6]", "range = [0.0, 3000.0]")
+    text = text.replace('node = "BHG"', f'node = "{bearing_node}"').replace('node = "BHR"', 'node = "B2"')
+    text = re.sub(r"\[measured\.Git_avg\].*?(?=\n\[|\Z)", "", text, flags=re.S)
+    path = tmp_path / "hr225_map.toml"
+    path.write_text(text)
+    return path
+
+
+def _rows(k0: int, k1: int, oil_c=lambda k: 55.0 + 4.0 * math.sin(k / 7.0), load=1.0):
+    # an industrial drive: 1485 rpm, 40-110 kW in slow swings, warm air; a sump reading that moves (a reading stuck
+    # over several rows is a frozen sensor to the sensor, which then models the oil)
+    return [
+        row(
+            T0 + timedelta(minutes=10 * k),
+            p_kw=load * (40.0 + 70.0 * (0.5 + 0.5 * math.sin(k / 9.0))),
+            rs=1485.0,
+            Gost_avg=oil_c(k),
+            Yt_avg=25.0 + 3.0 * math.sin(k / 20.0),
+        )
+        for k in range(k0, k1)
+    ]
+
+
+def _replay(tmp_path: Path, files, *extra) -> subprocess.CompletedProcess:
+    args = ["replay", *map(str, files), "--gearbox", "HR225", "--columns", str(_map(tmp_path)), *extra]
+    return subprocess.run(
+        [sys.executable, "-m", "tools.cli", *args], cwd=REPO, capture_output=True, text=True, timeout=300
+    )
+
+
+def test_each_measured_channel_is_written_beside_its_estimate_one_row_per_record_row(tmp_path):
+    scada = write(tmp_path / "a.csv", _rows(0, ROWS))
+    p = _replay(tmp_path, [scada], "--out", tmp_path / "est.csv")
+    assert p.returncode == 0, p.stderr
+    est = read_run_table(tmp_path / "est.csv", required=("time_s",))
+    assert est.n == ROWS
+    for name, node in (("Gost_avg", "oil"), ("Gb1t_avg", "B1"), ("Gb2t_avg", "B2")):
+        assert est.has(name) and est.has(f"est_{name}")
+        np.testing.assert_array_equal(est[f"est_{name}"], est[f"T_{node}_c"])
+    # the oil measured: the sump's estimate is the reading the sensor used
+    np.testing.assert_allclose(est["est_Gost_avg"], est["Gost_avg"], atol=1e-9)
+    # the bearings between the air and the oil plus their own heating; the time stamps are the SCADA rows' (the end
+    # of each interval)
+    for name in ("est_Gb1t_avg", "est_Gb2t_avg"):
+        assert np.all(est[name] > est["ambient_temp_c"]) and np.all(est[name] < est["Gost_avg"] + 20.0)
+    np.testing.assert_allclose(np.diff(est["time_utc_s"]), 600.0)
+    assert est["time_utc_s"][0] == T0.timestamp()
+    assert "Gb1t_avg" in p.stdout and "RMS" in p.stdout
+
+
+def test_the_modelled_oil_never_reads_the_sump(tmp_path):
+    a = write(tmp_path / "a.csv", _rows(0, ROWS))
+    b = write(tmp_path / "b.csv", _rows(0, ROWS, oil_c=lambda k: 40.0 + k * 0.3))
+    for scada, out in ((a, "a_est.csv"), (b, "b_est.csv")):
+        p = _replay(tmp_path, [scada], "--oil-mode", "model", "--out", tmp_path / out)
+        assert p.returncode == 0, p.stderr
+    ea, eb = (read_run_table(tmp_path / f, required=("time_s",)) for f in ("a_est.csv", "b_est.csv"))
+    np.testing.assert_array_equal(ea["est_Gost_avg"], eb["est_Gost_avg"])
+    np.testing.assert_array_equal(ea["est_Gb1t_avg"], eb["est_Gb1t_avg"])
+    assert not np.allclose(eb["est_Gost_avg"], eb["Gost_avg"])
+    # the model's sump follows the load: at 1.6 times the power it ends warmer, above the air
+    c = write(tmp_path / "c.csv", _rows(0, ROWS, load=1.6))
+    assert _replay(tmp_path, [c], "--oil-mode", "model", "--out", tmp_path / "c_est.csv").returncode == 0
+    ec = read_run_table(tmp_path / "c_est.csv", required=("time_s",))
+    assert ec["est_Gost_avg"][-1] > ea["est_Gost_avg"][-1] + 0.5
+    assert np.all(ea["est_Gost_avg"][12:] > ea["ambient_temp_c"][12:])
+
+
+def test_several_files_of_one_unit_are_one_record(tmp_path):
+    whole = write(tmp_path / "whole.csv", _rows(0, ROWS))
+    first = write(tmp_path / "first.csv", _rows(0, ROWS // 2))
+    second = write(tmp_path / "second.csv", _rows(ROWS // 2, ROWS))
+    assert _replay(tmp_path, [whole], "--out", tmp_path / "w.csv", "--quiet").returncode == 0
+    p = _replay(tmp_path, [second, first], "--out", tmp_path / "s.csv", "--quiet")
+    assert p.returncode == 0, p.stderr
+    w, s = (read_run_table(tmp_path / f, required=("time_s",)) for f in ("w.csv", "s.csv"))
+    for c in ("est_Gb1t_avg", "est_Gb2t_avg", "time_utc_s"):
+        np.testing.assert_array_equal(w[c], s[c])
+
+
+@pytest.mark.parametrize(
+    "case",
+    [
+        ("a channel tied to a part the gearbox lacks", "BHG", "does not have"),
+        ("several files without --columns", None, "only with --columns"),
+    ],
+    ids=lambda c: c[0],
+)
+def test_what_cannot_be_replayed_is_one_sentence(tmp_path, case):
+    _, node, words = case
+    scada = write(tmp_path / "a.csv", _rows(0, 6))
+    if node is None:
+        cmd = ["replay", str(scada), str(scada), "--gearbox", "HR225", "--out", str(tmp_path / "e.csv")]
+    else:
+        cmd = ["replay", str(scada), "--gearbox", "HR225", "--columns", str(_map(tmp_path, node))]
+        cmd += ["--out", str(tmp_path / "e.csv")]
+    p = subprocess.run([sys.executable, "-m", "tools.cli", *cmd], cwd=REPO, capture_output=True, text=True, timeout=300)
+    assert p.returncode == 2, p.stderr
+    assert words in p.stderr and "Traceback" not in p.stderr
+    assert len(p.stderr.strip().splitlines()) == 1, p.stderr
+    assert not (tmp_path / "e.csv").exists()

@@ -1,0 +1,163 @@
+"""Calibration of a gearbox description's assumed values to SCADA records (`calibrate --columns`; docs/real-data.md,
+"Calibrating on real data"), with the linear NBM fitted on the same training records beside it.
+
+The model is the onboard sensor replayed over each record (tools.scada.diagnose.estimates: the sump channel from
+the model alone, every other channel from the measured sump), with trial values of parameter keys that declare
+plausible bounds (lo, hi) in the description. As for run tables (tools.diagnosis.calibrate):
+
+1. identifiability: each key stepped by SENS_STEP of its range; its signature per channel is the RMS change scaled
+   to half the range; a key below IDENT_MIN_C on every channel, or whose sensitivity is nearly parallel to a
+   stronger key's (|cos| >= COLLINEAR_COS), is not fitted;
+2. fit: bounded least squares (scipy, trust-region reflective) of measured - model over every training row and
+   channel, the keys scaled to their bounds, at most MAX_EVALUATIONS replays;
+3. one standard deviation from the Jacobian, inflated by N / N_eff (autocorrelated 10-minute residuals);
+4. held-out: the test records with the file's and with the fitted values, per channel; and the NBM's (both tasks:
+   the bearings from the measured sump, the sump without it), fitted on the same training records.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import numpy as np
+
+from firmware_model.errors import InputError
+from tools.diagnosis.calibrate import COLLINEAR_COS, IDENT_MIN_C, SENS_STEP, Calibration, Identifiability
+from tools.scada.diagnose import Setup, effective_n, estimates
+from tools.scada.reader import ScadaRecord
+
+#: replays of the training records the least-squares fit may take
+MAX_EVALUATIONS = 16
+
+
+def _residual(setup: Setup, records: Sequence[ScadaRecord], params) -> dict[str, np.ndarray]:
+    est = [estimates(setup, r, {}, params) for r in records]
+    return {ch: np.concatenate([r.values[ch] - e[ch] for r, e in zip(records, est)]) for ch in setup.channels}
+
+
+def _vector(res: dict) -> np.ndarray:
+    v = np.concatenate(list(res.values()))
+    return np.where(np.isfinite(v), v, 0.0)
+
+
+def _rms(res: dict) -> float:
+    v = np.concatenate(list(res.values()))
+    v = v[np.isfinite(v)]
+    return float(np.sqrt(np.mean(v * v))) if v.size else float("nan")
+
+
+def _ch_rms(r: np.ndarray) -> float:
+    r = r[np.isfinite(r)]
+    return float(np.sqrt(np.mean(r * r))) if r.size else float("nan")
+
+
+def identifiability(setup, train, params, keys, r0) -> tuple[list[Identifiability], dict]:
+    """Each key's signature per channel and whether it can be fitted; the sensitivity columns (d residual / d u, u
+    the key scaled to its bounds) of every key."""
+    cols, out = {}, []
+    for k in keys:
+        lo, hi = params.bounds[k]
+        v0 = params.values[k]
+        step = SENS_STEP * (hi - lo) * (1.0 if v0 + SENS_STEP * (hi - lo) <= hi else -1.0)
+        r1 = _residual(setup, train, params.with_overrides({k: v0 + step}))
+        sig = {ch: 0.5 * _ch_rms(r1[ch] - r0[ch]) / SENS_STEP for ch in r0}
+        cols[k] = (_vector(r1) - _vector(r0)) / (step / (hi - lo))
+        ok = max(sig.values()) >= IDENT_MIN_C
+        why = "" if ok else f"moves no channel by {IDENT_MIN_C} K over half its range"
+        out.append(Identifiability(k, sig, ok, why))
+    strength = {x.key: max(x.signature_c.values()) for x in out}
+    for x in sorted(out, key=lambda x: -strength[x.key]):
+        if not x.identifiable:
+            continue
+        for y in out:
+            if y is x or not y.identifiable or strength[y.key] < strength[x.key]:
+                continue
+            a, b = cols[x.key], cols[y.key]
+            cos = abs(float(a @ b)) / max(float(np.linalg.norm(a) * np.linalg.norm(b)), 1e-300)
+            if cos > x.max_cos:
+                x.max_cos, x.with_key = cos, y.key
+            if cos >= COLLINEAR_COS:
+                x.identifiable, x.reason = False, f"cannot be separated from {y.key} (|cos| {cos:.3f})"
+                break
+    return out, cols
+
+
+def calibrate_records(
+    setup: Setup, train: Sequence[ScadaRecord], test: Sequence[ScadaRecord], keys: Sequence[str] | None
+) -> Calibration:
+    """Fit ``keys`` (None: every key with bounds the records identify) of the setup's gearbox on ``train``; the
+    held-out RMS on ``test`` before and after."""
+    from scipy.optimize import least_squares
+
+    params = setup.config.load_params()
+    keys = sorted(params.bounds) if keys is None else list(keys)
+    r0 = _residual(setup, train, params)
+    ident, _ = identifiability(setup, train, params, keys, r0)
+    fit_keys = [x.key for x in ident if x.identifiable]
+    if not fit_keys:
+        raise InputError(
+            "none of the parameters can be identified from these records: "
+            + "; ".join(f"{x.key} {x.reason}" for x in ident)
+        )
+    lo = np.array([params.bounds[k][0] for k in fit_keys])
+    span = np.array([params.bounds[k][1] for k in fit_keys]) - lo
+
+    def over(u: np.ndarray):
+        return params.with_overrides({k: float(lo[i] + span[i] * u[i]) for i, k in enumerate(fit_keys)})
+
+    u0 = np.array([(params.values[k] - lo[i]) / span[i] for i, k in enumerate(fit_keys)])
+    sol = least_squares(
+        lambda u: _vector(_residual(setup, train, over(u))),
+        u0,
+        bounds=(0.0, 1.0),
+        diff_step=0.02,
+        max_nfev=MAX_EVALUATIONS,
+    )
+    fitted = {k: float(lo[i] + span[i] * sol.x[i]) for i, k in enumerate(fit_keys)}
+    r1 = _residual(setup, train, over(sol.x))
+    n, n_eff = int(sum(np.isfinite(v).sum() for v in r1.values())), effective_n(r1)
+    s2 = float(2.0 * sol.cost) / max(n - len(fit_keys), 1)
+    try:
+        cov = np.linalg.inv(sol.jac.T @ sol.jac) * s2 * n / n_eff
+        sigma = {k: float(math.sqrt(max(cov[i, i], 0.0)) * span[i]) for i, k in enumerate(fit_keys)}
+    except np.linalg.LinAlgError:
+        sigma = {k: math.inf for k in fit_keys}
+    t0, t1 = _residual(setup, test, params), _residual(setup, test, params.with_overrides(fitted))
+    return Calibration(
+        keys=fit_keys,
+        start={k: params.values[k] for k in fit_keys},
+        fitted=fitted,
+        sigma=sigma,
+        at_bound={k: bool(min(sol.x[i], 1.0 - sol.x[i]) < 1e-3) for i, k in enumerate(fit_keys)},
+        ident=ident,
+        train_rms_c=(_rms(r0), _rms(r1)),
+        test_rms_c=(_rms(t0), _rms(t1)),
+        test_by_channel={ch: (_ch_rms(t0[ch]), _ch_rms(t1[ch])) for ch in t0},
+        n_sims=int(sol.nfev) + len(keys) + 3,
+        train=[str(f) for r in train for f in r.files],
+        test=[str(f) for r in test for f in r.files],
+        n_eff=n_eff,
+        n_cells=n,
+    )
+
+
+def nbm_beside(setup: Setup, train: Sequence[ScadaRecord], test: Sequence[ScadaRecord]) -> dict:
+    """{channel: held-out RMS of the linear NBM fitted on ``train``}: the sump without any oil reading, every other
+    channel from the measured sump and the load."""
+    from tools.scada.holdout import errors
+    from tools.scada.nbm import LinearNBM, Task
+
+    out = {}
+    if setup.sump:
+        m = LinearNBM(Task("oil", (setup.sump,))).fit(train)
+        preds = [m.predict(r)[setup.sump] for r in test]
+        meas = np.concatenate([r.values[setup.sump] for r in test])
+        out[setup.sump] = errors(meas, np.concatenate(preds))[1]
+    if setup.others:
+        m = LinearNBM(Task("bearings", setup.others, oil_input=setup.sump)).fit(train)
+        preds = [m.predict(r) for r in test]
+        for ch in setup.others:
+            meas = np.concatenate([r.values[ch] for r in test])
+            out[ch] = errors(meas, np.concatenate([p[ch] for p in preds]))[1]
+    return out

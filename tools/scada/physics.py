@@ -1,0 +1,141 @@
+"""The physics model as a predictor of measured temperatures: the onboard sensor of a gearbox description with a few
+of its effects (firmware_model.onboard.reduce.EFFECT_HOOKS) fitted on training records, scored like the NBM
+(:mod:`tools.scada.holdout`; docs/real-data.md, "The physics model beside the NBM").
+
+Each task fits the effects that move what it predicts, each with bounds that keep it physical:
+
+- ``bearings`` (each bearing from the measured oil and the load): the bearings' own losses and the housing's
+  convection to the nacelle air (how far the bearings sit above the oil, and how much the air pulls them down);
+- ``oil`` (the sump without any oil reading): the mesh friction, the cooler's effectiveness, the housing's
+  convection and the thermostat's opening temperature.
+
+The fit is least squares (scipy) of estimate - measured over the training rows of every target, the sensor replayed
+over each training record (one output row per SCADA row) for every evaluation; ``max_fit_rows`` caps the rows per
+training record (its last rows: the most recent state of the turbine) to bound the time.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from firmware_model.effects import CATALOG
+from tools.scada.nbm import Task
+from tools.scada.reader import ScadaRecord
+
+
+@dataclass(frozen=True)
+class FitParam:
+    """One fitted effect: its id, start (the catalog's neutral value), bounds (the catalog's plausible range) and
+    the step of the finite differences (in its own unit)."""
+
+    effect: str
+    step: float
+
+    @property
+    def start(self) -> float:
+        return float(CATALOG[self.effect].neutral)
+
+    @property
+    def lo(self) -> float:
+        return float(CATALOG[self.effect].low)
+
+    @property
+    def hi(self) -> float:
+        return float(CATALOG[self.effect].high)
+
+
+#: the effects each task fits (ids of the effect catalog; scales are relative, offsets in K)
+FIT = {
+    "bearings": (FitParam("bearing_loss_scale", 0.05), FitParam("housing_air_h_scale", 0.05)),
+    "oil": (
+        FitParam("gear_friction_scale", 0.05),
+        FitParam("cooler_effectiveness_scale", 0.05),
+        FitParam("housing_air_h_scale", 0.05),
+        FitParam("thermostat_offset", 0.5),
+    ),
+}
+
+
+#: an effect whose step moves no estimate of the training rows by this much is not identifiable there [K]
+IDENTIFIABLE_K = 0.01
+#: least-squares evaluations per fit (each replays every training record)
+MAX_EVALUATIONS = 12
+
+
+@dataclass
+class PhysicsModel:
+    """A predictor: ``fit(records)`` then ``predict(record)`` -> {channel: estimate} (NaN where it has none)."""
+
+    task: Task
+    config: object  # firmware_model.config.Config: the gearbox (the MM82 description), the sensor's settings
+    max_fit_rows: int = 26_280  # half a year of 10-minute rows per training record
+    effects: dict = field(default_factory=dict)
+    report: dict = field(default_factory=dict)
+    name: str = "physics"
+
+    @property
+    def oil_mode(self) -> str:
+        return "measured" if self.task.oil_input else "model"
+
+    def _config(self):
+        return self.config
+
+    def _estimates(self, record: ScadaRecord, effects: dict) -> dict[str, np.ndarray]:
+        from tools.scada.replay import replay_record
+
+        res = replay_record(record, self._config(), {"oil_mode": self.oil_mode}, effects=effects)
+        return {ch: res.table[f"est_{ch}"] for ch in self.task.targets if res.table.has(f"est_{ch}")}
+
+    def fit(self, records: Sequence[ScadaRecord]) -> PhysicsModel:
+        """Fit the task's effects on ``records``: first which of them move the estimates at all (identifiability:
+        one step of each from the neutral value; one that moves no estimate by IDENTIFIABLE_K stays neutral and is
+        reported), then least squares over the others."""
+        from scipy.optimize import least_squares
+
+        train = [r.select(np.arange(r.n) >= r.n - self.max_fit_rows) for r in records]
+        all_params = FIT[self.task.name]
+
+        def residuals(eff: dict) -> np.ndarray:
+            out = []
+            for r in train:
+                est = self._estimates(r, eff)
+                for ch in self.task.targets:
+                    if ch in est:
+                        e = est[ch] - r.values[ch]
+                        out.append(np.where(np.isfinite(e), e, 0.0))
+            return np.concatenate(out)
+
+        r0 = residuals({})
+        moves = {}
+        for p in all_params:
+            step = p.step if p.start + p.step <= p.hi else -p.step
+            moves[p.effect] = float(np.max(np.abs(residuals({p.effect: p.start + step}) - r0)))
+        params = [p for p in all_params if moves[p.effect] >= IDENTIFIABLE_K]
+        self.effects, nfev, cost = {}, len(all_params) + 1, 0.5 * float(r0 @ r0)
+        if params:
+            sol = least_squares(
+                lambda x: residuals({p.effect: float(v) for p, v in zip(params, x)}),
+                np.array([p.start for p in params]),
+                bounds=([p.lo for p in params], [p.hi for p in params]),
+                diff_step=[p.step / max(abs(p.start), 1.0) for p in params],
+                x_scale=[p.step for p in params],
+                max_nfev=MAX_EVALUATIONS,
+            )
+            self.effects = {p.effect: float(v) for p, v in zip(params, sol.x)}
+            nfev, cost = nfev + int(sol.nfev), float(sol.cost)
+        self.report = {
+            "effects": dict(self.effects),
+            "not_identifiable": [e for e, m in moves.items() if m < IDENTIFIABLE_K],
+            "largest_move_k": moves,
+            "evaluations": nfev,
+            "rows": sum(r.n for r in train),
+            "rms_k": float(np.sqrt(2.0 * cost / max(r0.size, 1))),
+        }
+        return self
+
+    def predict(self, record: ScadaRecord) -> dict[str, np.ndarray]:
+        est = self._estimates(record, self.effects)
+        return {ch: est.get(ch, np.full(record.n, np.nan)) for ch in self.task.targets}

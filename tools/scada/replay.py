@@ -1,0 +1,107 @@
+"""The onboard sensor over a SCADA record: `replay --gearbox MM82 --columns engie FILE... --out est.csv`
+(docs/real-data.md, "The sensor on SCADA").
+
+The record becomes a fixed-ratio run table (:mod:`tools.scada.runtable`: each 10-minute row held over its interval,
+the measured sump as ``oil_temp_c`` unless the oil is modelled), the sensor replays it with one output row per input
+row (tools.replay.table.replay_held), and the estimates are written beside the measurements: for every measured
+channel of the column map its cleaned reading under its own name and the sensor's estimate of the description's
+part it is tied to as ``est_<name>`` (``est_Gb1t_avg``). With ``oil_mode = "model"`` the sump is not read and the
+sump channel's estimate is the model's; with the oil measured, the estimate of the sump is the reading the sensor
+used (its model's own sump is the ``model_oil_temp_c`` column). The sensor's full output (``T_<id>_c``, ``W_<id>``,
+``ttl_<id>_s``, the status) follows.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from firmware_model.errors import InputError
+from tools.runtable import RunTable
+from tools.scada.reader import ScadaRecord
+from tools.scada.runtable import INPUTS, run_table_of
+
+
+@dataclass
+class ScadaReplay:
+    """What :func:`replay_record` did: the output table, the sensor's oil mode and the channels it estimated."""
+
+    table: RunTable
+    oil_mode: str
+    estimated: dict  # measured channel -> the output column its estimate comes from
+    notes: list  # the channels left without an estimate, and why
+
+
+def estimate_columns(record: ScadaRecord, published, parts=()) -> tuple[dict, list[str]]:
+    """({measured channel: the sensor's output column that estimates it}, notes): ``T_<node>_c`` of the published
+    part each channel is tied to. A channel tied to a part of the gearbox (``parts``: its nodes and derived
+    temperatures) that the sensor does not publish is left without an estimate, with a note; one tied to a part the
+    gearbox does not have is one sentence (a wrong map)."""
+    out, notes = {}, []
+    for name, node in record.cmap.nodes.items():
+        if node in published:
+            out[name] = f"T_{node}_c"
+        elif node in parts:
+            notes.append(f"{name} is not estimated: the sensor does not publish {node!r}")
+        else:
+            raise InputError(
+                f"column map {record.cmap.name}: measured channel {name} is tied to {node!r}, which the gearbox "
+                f"does not have (it publishes {', '.join(published)})"
+            )
+    return out, notes
+
+
+def replay_record(
+    record: ScadaRecord, config, sensor_options: dict | None = None, effects: dict | None = None, params=None
+) -> ScadaReplay:
+    """Replay the sensor of ``config`` (a firmware_model.config.Config; its gearbox) over ``record``; ``effects``:
+    {effect id: value} of the sensor's effect hooks (firmware_model.onboard.reduce.EFFECT_HOOKS); ``params``: the
+    gearbox's parameters in place of the configuration's (a calibration's trial values)."""
+    from firmware_model.description import description_of
+    from firmware_model.onboard.sensor import VirtualSensor
+    from tools.drive_table import map_fixed_ratio
+    from tools.replay.table import held_options, replay_table
+
+    params = config.load_params() if params is None else params
+    options = dict(sensor_options or {})
+    oil_mode = options.get("oil_mode") or config.sensor.get("oil_mode", "measured")
+    table = run_table_of(record, with_oil=oil_mode != "model")
+    # the fixed-ratio inputs onto the sensor's (input speed and torque, the description's one gear)
+    drive = map_fixed_ratio(table, description_of(params), table.source, strict=False)
+    sensor = VirtualSensor(params, config=config, effects=effects, **{**held_options(drive), **options})
+    d = description_of(params)
+    estimated, notes = estimate_columns(record, tuple(sensor.published), (*d.nodes, *d.derived))
+    out = replay_table(drive, sensor)
+    n = record.n
+    if out.n != n:  # one output row per SCADA row (tools.replay.table.replay_held)
+        raise RuntimeError(f"the replay gave {out.n} rows for {n} SCADA rows")
+    cols: dict = {"time_s": out["time_s"], "time_utc_s": np.asarray(record.time_s, dtype=float)}
+    for name in INPUTS:
+        cols[name] = table[name]
+    for name in record.cmap.nodes:
+        cols[name] = np.asarray(record.values[name], dtype=float)
+        cols[f"est_{name}"] = out[estimated[name]] if name in estimated else np.full(n, np.nan)
+    for name in out.columns:
+        if name not in cols and name not in INPUTS:
+            cols[name] = out[name]
+    meta = {**out.meta, "unit": record.unit, "t0_utc_s": table.meta["t0_utc_s"], "drive": "fixed_ratio"}
+    return ScadaReplay(RunTable(cols, meta=meta, source=f"replay of {record.unit}"), oil_mode, estimated, notes)
+
+
+def error_lines(result: ScadaReplay) -> list[str]:
+    """One line per measured channel: rows compared, mean, RMS and 99th percentile of |estimate - measured|."""
+    t = result.table
+    lines = [f"  note: {x}" for x in result.notes]
+    for name in result.estimated:
+        e = t[f"est_{name}"] - t[name]
+        ok = np.isfinite(e)
+        if not ok.any():
+            lines.append(f"  {name}: no row with both a reading and an estimate")
+            continue
+        e = e[ok]
+        lines.append(
+            f"  {name}: {ok.sum()} rows, estimate - measured mean {e.mean():+.2f} K, RMS "
+            f"{np.sqrt(np.mean(e**2)):.2f} K, |e| p99 {np.percentile(np.abs(e), 99):.2f} K"
+        )
+    return lines
