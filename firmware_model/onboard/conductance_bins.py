@@ -15,30 +15,33 @@ from typing import NamedTuple
 import numpy as np
 
 from firmware_model.onboard import evaluate as E
+from firmware_model.onboard.evaluate import SPEED_BIN_MIN_RAD_S
 from firmware_model.onboard.params import SensorParams
 
 #: operating-point quantisation of the conductances: 1 % in speed, 0.5 K in oil temperature
 SPEED_BIN_REL = 0.01
-SPEED_BIN_MIN_RAD_S = 1.0  # below ~10 rpm the conductances are evaluated at 0
 OIL_BIN_C = 0.5
 LN_SPEED_BIN = math.log1p(SPEED_BIN_REL)
 #: bins a BinCache keeps (a bounded memo; the oldest entry goes first)
 BIN_CACHE_SIZE = 256
 
 
-def quantise(omega_in_rad_s, T_oil_c):
+def quantise(omega_in_rad_s, T_oil_c, speed_min_rad_s: float = SPEED_BIN_MIN_RAD_S):
     """(speed bin centre [rad/s], oil bin centre [degC], speed bin index) of the operating point, any shape: the
-    conductances are evaluated at the bin centres."""
+    conductances are evaluated at the bin centres; below ``speed_min_rad_s`` (ReducedParams.speed_bin_min_rad_s) at
+    standstill."""
     omega = np.asarray(omega_in_rad_s, dtype=float)
-    b = np.round(np.log(np.maximum(omega, SPEED_BIN_MIN_RAD_S)) / LN_SPEED_BIN)
-    omega_q = np.where(omega >= SPEED_BIN_MIN_RAD_S, np.exp(b * LN_SPEED_BIN), 0.0)
+    b = np.round(np.log(np.maximum(omega, speed_min_rad_s)) / LN_SPEED_BIN)
+    omega_q = np.where(omega >= speed_min_rad_s, np.exp(b * LN_SPEED_BIN), 0.0)
     T_q = np.round(np.asarray(T_oil_c, dtype=float) / OIL_BIN_C) * OIL_BIN_C
     return omega_q, T_q, b
 
 
-def bin_centre(omega_in_rad_s: float, T_oil_c: float) -> tuple[float, float]:
+def bin_centre(
+    omega_in_rad_s: float, T_oil_c: float, speed_min_rad_s: float = SPEED_BIN_MIN_RAD_S
+) -> tuple[float, float]:
     """:func:`quantise` for one vehicle in scalars, the same numbers: (speed bin centre, oil bin centre)."""
-    if omega_in_rad_s >= SPEED_BIN_MIN_RAD_S:
+    if omega_in_rad_s >= speed_min_rad_s:
         omega_q = float(np.exp(np.round(np.log(omega_in_rad_s) / LN_SPEED_BIN) * LN_SPEED_BIN))
     else:
         omega_q = 0.0

@@ -28,11 +28,12 @@ from firmware_model.onboard.kernel_interface import (
     P_LN_ROLL,
     P_LOG10_MU,
     P_RHO,
+    PUMP_KINDS,
 )
 from firmware_model.physics import heat_transfer as ht
 from firmware_model.physics import losses as L
 from firmware_model.physics.conductance_matrix import link_topology
-from firmware_model.physics.cooler import COOLER_KINDS, DEFAULT_VEHICLE_SPEED_KMH, cooler_params, oil_cooler_heat
+from firmware_model.physics.cooler import COOLER_KINDS, cooler_params, oil_cooler_heat
 from firmware_model.physics.heat_lag import heat_lag
 from firmware_model.units import KELVIN_OFFSET_K, RPM_PER_RAD_S, SIGMA_W_PER_M2K4
 
@@ -50,6 +51,13 @@ X_STEP = 0.125
 RAD_T_RANGE_C = (-40.0, 200.0)
 #: cooler kind -> cooler_code (hold and measured sumps have no cooler: 0)
 COOLER_CODES = {kind: code for code, kind in enumerate(COOLER_KINDS)}
+#: below this input speed the conductances are evaluated at standstill (conductance_bins) [rad/s] ...
+SPEED_BIN_MIN_RAD_S = 1.0
+#: ... or below this share of the drive's top speed when that is less (a wind turbine's rotor turns at <= 20 rpm, its
+#: high-speed shaft at 100x that): ReducedParams.speed_bin_min_rad_s
+SPEED_BIN_MIN_FRAC = 0.01
+#: oil pump kind (kernel_interface.PUMP_KINDS) -> pump_code
+PUMP_CODES = {kind: code for code, kind in enumerate(PUMP_KINDS)}
 #: ln(1e-6): kinematic viscosity from cSt (the property table's P_LN_NU_CST) to m2/s
 LN_M2_S_PER_CST = math.log(1e-6)
 
@@ -100,10 +108,11 @@ class ReducedParams(NamedNodes):
     cyl_speed_coef: np.ndarray  # (17, nc)
     cyl_c: np.ndarray  # (nc,) area / R_p [m]
     cyl_ln_rp2: np.ndarray  # (nc,) ln(R_p^2 [m2])
-    # oil-system streams in closed form (Eq 69-80, NTU): G = m (1 - exp(-hA / m)), m = mcp[t] rho cp(T) |w_LS|,
+    # oil-system streams in closed form (Eq 69-80, NTU): G = m (1 - exp(-hA / m)), m = mcp[t] rho cp(T) x the pump's
+    # drive (pump_drive: |w_LS| of a shaft pump, 1 for a motor pump),
     # hA = alpha[t] k_oil(T) + beta[t] (channel flows: 7.54 k / D_h x area; planetary: imposed h x area)
     ef_link: np.ndarray  # (ne,)
-    ef_mcp: np.ndarray  # (ne,) flow fraction x flow per radian [m3/rad]
+    ef_mcp: np.ndarray  # (ne,) flow fraction x flow per unit drive (flow_per_drive: [m3/rad] shaft, [m3/s] motor)
     ef_alpha: np.ndarray  # (ne,) [m]
     ef_beta: np.ndarray  # (ne,) [W/K]
     ef_effect: np.ndarray  # (ne,) EFFECT_PLANET_OIL_H: planet_oil_h scales beta
@@ -141,7 +150,10 @@ class ReducedParams(NamedNodes):
     # --- cooler (seed 3.4, Eq 82-83)
     cooler_code: int
     cooler: dict
-    flow_m3_per_rad: float  # oil-system flow per radian of layshaft rotation
+    flow_m3_per_rad: float  # oil-system flow per radian of the pump shaft (a shaft-driven pump; else 0)
+    pump_code: int  # PUMP_CODES: none, shaft, motor
+    pump_flow_m3_s: float  # a motor-driven pump's fixed volume flow (else 0)
+    default_v_kmh: float  # the cooler's air speed when the input has none (the plant's: a vehicle's 50, else 200)
     # --- boundaries
     bc_default_c: np.ndarray  # (nb,)
     engine_off_tau_s: float  # with the engine off, the boundaries relax to ambient with this time constant
@@ -152,6 +164,8 @@ class ReducedParams(NamedNodes):
     max_speed_rpm: float
     min_torque_nm: float
     max_torque_nm: float
+    # below this input speed the conductances are evaluated at standstill (conductance_bins.speed_bin_min_rad_s)
+    speed_bin_min_rad_s: float
     stability: dict = field(default_factory=dict)
     # --- the loss sources (the columns of src_matrix; reduce.source_names) and those of a planetary set
     src_names: tuple = ()
@@ -193,6 +207,28 @@ def shaft_speed_rad_s(rp: ReducedParams, gear_row, col: int, omega_in_rad_s):
     if col < 0:
         return 0.0 * np.abs(np.asarray(omega_in_rad_s, dtype=float))
     return np.abs(rp.speed_coef[gear_row, col]) * omega_in_rad_s
+
+
+def speed_bin_min_rad_s(max_speed_rad_s: float) -> float:
+    """The input speed below which the conductances are evaluated at standstill: SPEED_BIN_MIN_RAD_S (~10 rpm), or
+    SPEED_BIN_MIN_FRAC of the drive's top speed when that is less."""
+    return min(SPEED_BIN_MIN_RAD_S, SPEED_BIN_MIN_FRAC * max_speed_rad_s)
+
+
+def pump_drive(rp: ReducedParams, gear_row, omega_in_rad_s):
+    """What the oil-system flow is proportional to (flow = flow_per_drive(rp) x it): a shaft-driven pump's shaft speed
+    |w| [rad/s], a motor-driven pump's 1 (its volume flow is fixed, as the plant's
+    network.ConductanceEvaluator.oil_mass_flow_kg_s: rho x pump_flow, no speed, no viscosity law), 0 without a pump.
+    C: pump_drive."""
+    if rp.pump_code == PUMP_CODES["motor"]:
+        return np.ones(np.shape(omega_in_rad_s))
+    return shaft_speed_rad_s(rp, gear_row, rp.pump_speed_col, omega_in_rad_s)
+
+
+def flow_per_drive(rp: ReducedParams) -> float:
+    """The oil-system flow per unit of pump_drive: [m3/rad] of a shaft pump, [m3/s] of a motor pump.
+    C: flow_per_drive."""
+    return rp.pump_flow_m3_s if rp.pump_code == PUMP_CODES["motor"] else rp.flow_m3_per_rad
 
 
 def cyl_nusselt(ln_re, ln_pr):
@@ -371,8 +407,8 @@ def conductances(
 
 def _stream_conductances(rp: ReducedParams, gear_row, omega_in_rad_s, prop, eff, h: Helpers):
     """Closed-form oil-system streams [W/K]: m (1 - exp(-hA / m)), m = mdot cp (NTU effectiveness, Eq 69-80)."""
-    omega_ls_rad_s = shaft_speed_rad_s(rp, gear_row, rp.pump_speed_col, omega_in_rad_s)
-    mcp_w_per_k = rp.ef_mcp * (prop[..., P_RHO] * prop[..., P_CP] * omega_ls_rad_s)[..., None]
+    drive = pump_drive(rp, gear_row, omega_in_rad_s)
+    mcp_w_per_k = rp.ef_mcp * (prop[..., P_RHO] * prop[..., P_CP] * drive)[..., None]
     beta_w_per_k = rp.ef_beta
     if eff is not None and h.ef_planet.size and not (np.ndim(eff.planet_oil_h) == 0 and eff.planet_oil_h == 1.0):
         beta_w_per_k = _scaled(np.broadcast_to(beta_w_per_k, mcp_w_per_k.shape), h.ef_planet, eff.planet_oil_h)
@@ -507,7 +543,7 @@ def _mesh_heat_w(rp: ReducedParams, gear_row, omega_in_rad_s, torque_nm, prop, h
 def cooler_heat(
     rp: ReducedParams,
     T_oil_c,
-    omega_ls_rad_s,
+    drive,
     omega_eng_rad_s,
     T_coolant_c,
     T_ambient_c,
@@ -518,24 +554,25 @@ def cooler_heat(
 ):
     """Heat from the sump to the cooler [W] (Eq 83), the oil-system flow capacity mdot cp [W/K] and the cooler's hA
     [W/K] at this operating point: :func:`firmware_model.physics.cooler.oil_cooler_heat`, the plant's model, with
-    the oil flow from the layshaft speed ``omega_ls_rad_s`` and a missing vehicle speed taken as
-    DEFAULT_VEHICLE_SPEED_KMH; ``effectiveness_scale``: the effect cooler_effectiveness_scale. C: cooler_op and
-    cooler_heat."""
-    omega_ls_rad_s = np.asarray(omega_ls_rad_s, dtype=float)
-    mcp_w_per_k = rho_cp_j_per_m3k * rp.flow_m3_per_rad * omega_ls_rad_s
+    the oil flow flow_per_drive x ``drive`` (:func:`pump_drive`: the layshaft speed of the GRS905's pump) and a
+    missing vehicle speed taken as rp.default_v_kmh; the inner flow over the data sheet's: a shaft pump's speed over
+    the reference speed, a motor pump's 1 (it runs at its own flow, as the plant's); ``effectiveness_scale``: the
+    effect cooler_effectiveness_scale. C: cooler_op and cooler_heat."""
+    drive = np.asarray(drive, dtype=float)
+    mcp_w_per_k = rho_cp_j_per_m3k * flow_per_drive(rp) * drive
     if rp.cooler_code == 0:
-        z = np.zeros(np.broadcast(T_oil_c, omega_ls_rad_s).shape)
+        z = np.zeros(np.broadcast(T_oil_c, drive).shape)
         return z, mcp_w_per_k, z
     c = rp.helpers.cooler
     Q_w, hA_w_per_k = oil_cooler_heat(
         c,
         COOLER_KINDS[rp.cooler_code],
         T_oil_c,
-        omega_ls_rad_s / c.ref_ls_speed_rad_s,
+        drive if rp.pump_code == PUMP_CODES["motor"] else drive / c.ref_ls_speed_rad_s,
         omega_eng_rad_s,
         T_coolant_c,
         T_ambient_c,
-        np.nan_to_num(v_kmh, nan=DEFAULT_VEHICLE_SPEED_KMH),
+        np.nan_to_num(v_kmh, nan=rp.default_v_kmh),
         mcp_w_per_k,
         effectiveness_scale,
         thermostat_offset_c,

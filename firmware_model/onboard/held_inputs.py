@@ -77,11 +77,11 @@ def cooler_slope_w_per_k(
     from firmware_model.onboard.evaluate.cooler_heat; ``used``: the step's inputs (INPUT_FIELDS order); ``vehicle``:
     the batch index whose effects apply (None: the first vehicle's)."""
     rp = sp.reduced
-    omega_ls = E.shaft_speed_rad_s(rp, row, rp.pump_speed_col, omega_in_rad_s)
-    if rp.cooler_code == E.COOLER_CODES["none"] or omega_ls <= 0.0:
+    drive = E.pump_drive(rp, row, omega_in_rad_s)
+    if rp.cooler_code == E.COOLER_CODES["none"] or drive <= 0.0:
         return 0.0
     args = (
-        omega_ls,
+        drive,
         omega_in_rad_s,
         used[I_COOL],
         used[I_AMB],
@@ -193,12 +193,12 @@ def _held_propagate(sp: SensorParams, state: SensorState, v: tuple, copy: int, t
         rp, row, omega_in_rad_s, T_grid_x, prop, phi, T0_c, T_bc_c, e if sp.scalar_effects else None, h
     )
     rho_cp_j_per_m3k = float(prop[P_RHO] * prop[P_CP])
-    omega_ls_rad_s = E.shaft_speed_rad_s(rp, row, rp.pump_speed_col, omega_in_rad_s)
+    drive = E.pump_drive(rp, row, omega_in_rad_s)
     used = np.array([speed_rpm, torque_nm, row + GEAR_MIN, T_oil_c, T_amb_c, T_cool_c, v_kmh, retarder_nm])
     Q_cool_w, mcp_w_per_k, _ = E.cooler_heat(
         rp,
         T_oil_c,
-        omega_ls_rad_s,
+        drive,
         omega_in_rad_s,
         T_cool_c,
         T_amb_c,

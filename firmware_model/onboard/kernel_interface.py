@@ -53,6 +53,10 @@ PROP_COLUMNS = ("LOG10_MU", "LN_NU_CST", "LN_MU", "LN_ROLL", "RHO", "CP", "K", "
 N_PROP = len(PROP_COLUMNS)
 P_LOG10_MU, P_LN_NU_CST, P_LN_MU, P_LN_ROLL, P_RHO, P_CP, P_K, P_LN_PR = range(N_PROP)
 #: which vehicle effect scales a conductance law (pw_effect, ef_effect): none or a gvs_vehicle field
+#: oil pump kinds; the index is ReducedParams.pump_code and tables.pump_code (GVS_PUMP_*): none (splash
+#: lubrication), a pump on a shaft (flow per radian of it: the GRS905's on the layshaft), a motor-driven pump (a fixed
+#: volume flow, the MM82's)
+PUMP_KINDS = ("none", "shaft", "motor")
 EFFECT_NONE, EFFECT_TEETH_OIL_H, EFFECT_PLANET_OIL_H, EFFECT_HOUSING_AIR_H = range(4)
 #: the time to limit's march (held_march): first step [s], each step this many times longer than the last
 MARCH_H0_S = 1.0
@@ -185,6 +189,7 @@ ENUMS = (
         (EFFECT_NONE, EFFECT_TEETH_OIL_H, EFFECT_PLANET_OIL_H, EFFECT_HOUSING_AIR_H),
     ),
     _enum("cooler kinds (tables.cooler_code; firmware_model.physics.cooler.COOLER_KINDS)", "COOLER_", COOLER_KINDS),
+    _enum("oil pump kinds (tables.pump_code; PUMP_KINDS)", "PUMP_", PUMP_KINDS),
     _enum("the argument of gvs_sizeof", "SIZEOF_", SIZEOF_IDS),
 )
 
@@ -242,6 +247,7 @@ _TABLES = (
     Field("i_ambient", I32, doc="the ambient boundary"),
     Field("i_coolant", I32, doc="the coolant boundary"),
     Field("cooler_code", I32, doc="GVS_COOLER_*"),
+    Field("pump_code", I32, doc="GVS_PUMP_*: the oil flow follows pump_speed_col (shaft) or is pump_flow_m3_s (motor)"),
     Field("gear_min", I32, doc="gear of row 0"),
     Field("oil_mode_measured", I32, doc="1: a measured sump is used"),
     Field("ttl_every", I32, doc="steps between time-to-limit refreshes"),
@@ -304,6 +310,7 @@ _TABLES = (
     Field("lag_tau_over_dt", REAL),
     "cooler (seed 3.4, Eq 82-83)",
     Field("flow_m3_per_rad", REAL, (), "m3/rad"),
+    Field("pump_flow_m3_s", REAL, (), "m3/s", doc="a motor-driven pump's fixed flow"),
     *_f("liquid_hA_ref", REAL, (), "W/K"),
     *_f("liquid_Qmax_cool liquid_Qmax_heat", REAL, (), "W"),
     Field("air_hA_ref", REAL, (), "W/K"),

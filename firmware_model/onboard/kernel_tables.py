@@ -15,7 +15,7 @@ import numpy as np
 
 from firmware_model.network import MIN_SPEED_RAD_S
 from firmware_model.onboard import evaluate as E
-from firmware_model.onboard.conductance_bins import LN_SPEED_BIN, OIL_BIN_C, SPEED_BIN_MIN_RAD_S
+from firmware_model.onboard.conductance_bins import LN_SPEED_BIN, OIL_BIN_C
 from firmware_model.onboard.kernel_interface import STRUCT, VEHICLE_EFFECTS, struct_values
 from firmware_model.onboard.params import SensorParams
 from firmware_model.onboard.sparse_ldl import ldl_pattern
@@ -26,7 +26,6 @@ from firmware_model.physics.cooler import (
     AIR_RECIRC_DT_K,
     AIR_RECIRC_V_KMH,
     AIR_REF_SPEED_KMH,
-    DEFAULT_VEHICLE_SPEED_KMH,
     INLET_DROP_MAX_K,
 )
 from firmware_model.physics.kinematics import GEAR_MIN
@@ -99,6 +98,7 @@ def _network(sp: SensorParams) -> dict:
         i_ambient=rp.i_ambient,
         i_coolant=rp.i_coolant,
         cooler_code=rp.cooler_code,
+        pump_code=rp.pump_code,
         gear_min=GEAR_MIN,
         dt_over_C=_f64(sp.dt_over_C_s_k_per_j),
         link_a=_i32(rp.link_a),
@@ -171,6 +171,8 @@ def _cooler(sp: SensorParams) -> dict:
     c = sp.helpers.cooler
     return dict(
         flow_m3_per_rad=rp.flow_m3_per_rad,
+        pump_flow_m3_s=rp.pump_flow_m3_s,
+        speed_bin_min=rp.speed_bin_min_rad_s,
         liquid_hA_ref=c.liquid_hA_ref_w_per_k,
         liquid_Qmax_cool=c.liquid_Q_max_cool_w,
         liquid_Qmax_heat=c.liquid_Q_max_heat_w,
@@ -186,7 +188,7 @@ def _cooler(sp: SensorParams) -> dict:
         air_ref_speed_kmh=AIR_REF_SPEED_KMH,
         air_flow_max_rel=AIR_FLOW_MAX_REL,
         inlet_drop_max_k=INLET_DROP_MAX_K,
-        default_vkmh=DEFAULT_VEHICLE_SPEED_KMH,
+        default_vkmh=rp.default_v_kmh,
         recirc_v_kmh=_f64(AIR_RECIRC_V_KMH),
         recirc_dT_k=_f64(AIR_RECIRC_DT_K),
         n_recirc=AIR_RECIRC_V_KMH.size,
@@ -208,7 +210,6 @@ def _constants() -> dict:
         ln_1e6=E.LN_M2_S_PER_CST,
         rad_T_lo_c=E.RAD_T_RANGE_C[0],
         rad_T_hi_c=E.RAD_T_RANGE_C[1],
-        speed_bin_min=SPEED_BIN_MIN_RAD_S,
         ln_speed_bin=LN_SPEED_BIN,
         oil_bin_c=OIL_BIN_C,
     )

@@ -125,6 +125,9 @@ ENGINE_SPEED_DATA_MAX_RPM = 8031.875
 #: the largest engine torque magnitude a J1939 frame can carry [N m] (SPN 513, -125..125 %, of the reference torque
 #: SPN 544, at most 64255 N m): beyond it no reading (1e308 was clamped to the engine's maximum and raised warnings)
 ENGINE_TORQUE_DATA_MAX_NM = 1.25 * 64255.0
+#: a drive whose torque exceeds what a J1939 frame can carry (the MM82's rotor, 2.5 MN m, read from SCADA): its input
+#: is plausible up to this multiple of its largest torque (assumed: J1939's 125 % of the reference torque)
+TORQUE_DATA_REL = 1.25
 
 
 def _input_bounds(rp: E.ReducedParams, opt: SensorOptions) -> dict:
@@ -132,11 +135,12 @@ def _input_bounds(rp: E.ReducedParams, opt: SensorOptions) -> dict:
     inf = math.inf
     aux_lo, aux_hi = opt.aux_range_c
     ret = RETARDER_TORQUE_MAX_NM
+    torque_max_nm = max(ENGINE_TORQUE_DATA_MAX_NM, TORQUE_DATA_REL * max(rp.max_torque_nm, -rp.min_torque_nm))
     return dict(
         input_lo=np.array(
             [
                 -ENGINE_SPEED_DATA_MAX_RPM,
-                -ENGINE_TORQUE_DATA_MAX_NM,
+                -torque_max_nm,
                 GEAR_MIN,
                 opt.oil_range_c[0],
                 aux_lo,
@@ -148,7 +152,7 @@ def _input_bounds(rp: E.ReducedParams, opt: SensorOptions) -> dict:
         input_hi=np.array(
             [
                 ENGINE_SPEED_DATA_MAX_RPM,
-                ENGINE_TORQUE_DATA_MAX_NM,
+                torque_max_nm,
                 GEAR_MAX,
                 opt.oil_range_c[1],
                 aux_hi,

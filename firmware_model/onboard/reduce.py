@@ -71,10 +71,12 @@ from firmware_model.onboard.evaluate import (
     COOLER_CODES,
     N_U,
     N_U_CHURN,
+    PUMP_CODES,
     T2_STRIDE,
     T_GRID_C,
     X_STEP,
     ReducedParams,
+    speed_bin_min_rad_s,
 )
 from firmware_model.onboard.kernel_interface import (
     EFFECT_HOUSING_AIR_H,
@@ -96,7 +98,7 @@ from firmware_model.parameters import Parameters
 from firmware_model.physics import heat_transfer as ht
 from firmware_model.physics import losses as L
 from firmware_model.physics import oil as oilprops
-from firmware_model.physics.cooler import COOLER_KEYS, cooler_values
+from firmware_model.physics.cooler import AIR_RECIRC_V_KMH, COOLER_KEYS, DEFAULT_VEHICLE_SPEED_KMH, cooler_values
 from firmware_model.physics.drivetrain import kinematics_of, speed_names
 from firmware_model.physics.gearbox_losses import ROLL_POINTS, GearboxLosses
 from firmware_model.physics.kinematics import GEAR_MIN, MESHES, N_GEARS
@@ -247,23 +249,23 @@ class Aggregation:
     link_name: tuple
 
 
+def published_components(d: Description) -> tuple:
+    """The published components the onboard model holds as nodes, in the description's published.order: a derived
+    temperature (a forced oil system's inlet, Description.derived) is no node of the network and is left out."""
+    return tuple(c for c in d.published if c.id not in d.derived)
+
+
 def published_ids(d: Description) -> tuple:
-    """The published components' ids, in the description's published.order (CAN signal and column order)."""
-    return tuple(c.id for c in d.published)
+    """The ids of published_components (CAN signal and column order)."""
+    return tuple(c.id for c in published_components(d))
 
 
 def speed_columns(d: Description) -> dict:
     """The speed_coef columns (drivetrain.speed_names) the step reads, from the description: the shaft that drives
     the oil pump (oil.pump_shaft), the one most of the dipping wheels turn with (churn_column: the GRS905's layshaft),
-    the output shaft (drive.output_shaft, the retarder's). The tables allow -1 (no pump, no dipping wheel: it turns
-    at 0); a motor-driven pump (a pump_flow, no pump_shaft) is refused here, its flow follows no shaft and has no
-    law onboard."""
+    the output shaft (drive.output_shaft, the retarder's). The tables allow -1 (no pump or a motor-driven one, no
+    dipping wheel: it turns at 0)."""
     names = speed_names(d)
-    if d.oil.pump_shaft is None and d.oil.pump_flow is not None:
-        raise ParameterError(
-            f"{d.origin}: topology.oil has no pump_shaft (a motor-driven pump): the onboard sensor models the oil flow "
-            "of a shaft-driven pump only"
-        )
 
     def col(key: str, shaft: str | None) -> int:
         if shaft is None:
@@ -352,8 +354,9 @@ def oil_property_table(T_c: np.ndarray) -> np.ndarray:
 
 def _speed_of_link(net: Network, k: int) -> int:
     kind = int(net.link_kind[k])
-    if kind == K_STREAM:  # the oil streams follow the pump's shaft
-        return net.speed_names.index(net.geometry.description.oil.pump_shaft)
+    if kind == K_STREAM:  # the oil streams follow the pump's shaft; a motor pump's flow none (column 0, a flat table)
+        shaft = net.geometry.description.oil.pump_shaft
+        return 0 if shaft is None else net.speed_names.index(shaft)
     j = int(np.sum(net.link_kind[:k] == kind))
     return int(net.kind_params[kind]["speed"][j])
 
@@ -538,7 +541,7 @@ class _Laws:
         self.ef.append(
             StreamTerm(
                 r,
-                frac * _pump_flow_m3_per_rad(net.geometry.description),
+                frac * _flow_per_drive_m3(net.geometry.description),
                 alpha,
                 beta,
                 EFFECT_PLANET_OIL_H if sub == S_IMPOSED else EFFECT_NONE,
@@ -552,7 +555,9 @@ class _Laws:
         tab = self.grid.tables[s][:, :, k]  # (N_U, nT)
         wmax = self.grid.w_src_max[s]
         name = net.link_name[k]
-        law = _separable_power_law(tab, self.grid.u * self.grid.u * wmax)
+        # an oil-system stream stays a stream (the cooler's inlet drop applies to it): a motor pump's is flat in
+        # speed, which would pass for a power law
+        law = None if kind == K_STREAM else _separable_power_law(tab, self.grid.u * self.grid.u * wmax)
         if kind == K_RING:
             # low range: housing-like constant h (seed 3.3); high range: the ring turns with the sun (splash)
             G_low = float(self.grid.G_ring_low[k])
@@ -574,9 +579,14 @@ class _Laws:
             self.pw.append(PowerTerm(r, e, coef, col, eff))
         else:
             frac = float(_link_param(net, k, "frac")) if kind == K_STREAM else 0.0
-            self.t2.append(
-                TableTerm(r, self.speed_abs[:, s], wmax, tab[:, ::T2_STRIDE], kind == K_STREAM, frac, EFFECT_NONE)
-            )
+            speed = self._speed(kind, s)
+            self.t2.append(TableTerm(r, speed, wmax, tab[:, ::T2_STRIDE], kind == K_STREAM, frac, EFFECT_NONE))
+
+    def _speed(self, kind: int, s: int) -> np.ndarray:
+        """|speed| per unit input speed a link's table is read at: its source's; a motor pump's stream reads its
+        table at standstill (the flow follows no shaft: the table is flat in speed)."""
+        motor = kind == K_STREAM and self.net.geometry.description.oil.pump_shaft is None
+        return np.zeros(N_GEARS) if motor else self.speed_abs[:, s]
 
 
 class LossMaps(NamedTuple):
@@ -597,9 +607,29 @@ class LossMaps(NamedTuple):
     mesh_roll_lt_min: np.ndarray
 
 
+def _pump_code(d: Description) -> int:
+    """PUMP_CODES of the description's oil pump: on a shaft (oil.pump_shaft), motor-driven (a pump_flow, no shaft),
+    none."""
+    if d.oil.pump_shaft is not None:
+        return PUMP_CODES["shaft"]
+    return PUMP_CODES["motor"] if d.oil.pump_flow else PUMP_CODES["none"]
+
+
 def _pump_flow_m3_per_rad(d: Description) -> float:
-    """The oil volume a shaft-driven pump moves per radian of its shaft (0: no pump)."""
+    """The oil volume a shaft-driven pump moves per radian of its shaft (0: no pump, or a motor-driven one)."""
     return float(d.oil.pump_flow or 0.0) if d.oil.pump_shaft is not None else 0.0
+
+
+def _motor_pump_flow_m3_s(d: Description) -> float:
+    """A motor-driven pump's volume flow [m3/s] (0: none, or a pump on a shaft): the plant holds it fixed
+    (network.ConductanceEvaluator.oil_mass_flow_kg_s, mass flow rho(T_oil) x it), and so does the onboard model."""
+    return float(d.oil.pump_flow or 0.0) if d.oil.pump_shaft is None else 0.0
+
+
+def _flow_per_drive_m3(d: Description) -> float:
+    """The oil flow per unit of evaluate.pump_drive (evaluate.flow_per_drive): m3/rad of a shaft pump, m3/s of a
+    motor pump."""
+    return _motor_pump_flow_m3_s(d) if _pump_code(d) == PUMP_CODES["motor"] else _pump_flow_m3_per_rad(d)
 
 
 def _loss_maps(p: Parameters, net: Network, w_ls_max_rad_s: float) -> LossMaps:
@@ -735,6 +765,10 @@ def _surroundings_fields(p: Parameters, net: Network) -> dict:
         cooler_code=COOLER_CODES.get(kind, 0),
         cooler=cooler_values(p) if COOLER_CODES.get(kind, 0) else {k: 0.0 for k in COOLER_KEYS},
         flow_m3_per_rad=_pump_flow_m3_per_rad(d),
+        pump_code=_pump_code(d),
+        pump_flow_m3_s=_motor_pump_flow_m3_s(d),
+        # the plant's (tools.plant.reference: v_default_kmh): a vehicle's default speed, else no recirculation
+        default_v_kmh=DEFAULT_VEHICLE_SPEED_KMH if d.drive.kind == "vehicle" else float(AIR_RECIRC_V_KMH[-1]),
         bc_default_c=_ro(_boundary_defaults_c(p, net)),
         engine_off_tau_s=float(p.get("boundary.engine_off_tau", ENGINE_OFF_TAU_S)),
         i_ambient=bcs.index("ambient"),
@@ -743,6 +777,7 @@ def _surroundings_fields(p: Parameters, net: Network) -> dict:
         max_speed_rpm=float(d.drive.max_speed_rad_s / RAD_S_PER_RPM),
         min_torque_nm=float(d.drive.min_torque_nm),
         max_torque_nm=float(d.drive.max_torque_nm),
+        speed_bin_min_rad_s=speed_bin_min_rad_s(float(d.drive.max_speed_rad_s)),
         src_names=source_names(d),
         src_planetary=tuple(f"mesh:{m}" for m in planetary_meshes(d)),
     )
@@ -767,7 +802,7 @@ def build_reduced(
         raise ParameterError(f"stability margin = {margin} must be in (0, 1]")
     net = build_network(p)
     d = net.geometry.description
-    cols = speed_columns(d)  # refuses what the onboard model has no law for before any table is built
+    cols = speed_columns(d)
     part_name, partition = _resolve_partition(partition, d)
     agg = aggregate(net, partition)
     kin = kinematics_of(p)

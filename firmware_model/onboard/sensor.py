@@ -112,7 +112,7 @@ class VirtualSensor:
     ):
         limit_blas_threads()  # firmware_model.onboard.blas: one BLAS thread (the small eigh is 25x slower with more)
         sensor_cfg = dict(getattr(config, "sensor", None) or {}) if config is not None else {}
-        published = description_of(params).published
+        published = R.published_components(description_of(params))
         lim = limits if isinstance(limits, Limits) else _limits_of(limits, config, sensor_cfg, published)
         oil_mode = options.pop("oil_mode", sensor_cfg.get("oil_mode", "measured"))
         if oil_mode not in ("measured", "model"):

@@ -19,13 +19,15 @@ from firmware_model.errors import ParameterError, StabilityError
 from firmware_model.network import MIN_SPEED_RAD_S
 from firmware_model.onboard.evaluate import (
     LN_M2_S_PER_CST,
+    PUMP_CODES,
     RAD_T_RANGE_C,
     T2_STRIDE,
     T_GRID_C,
     ReducedParams,
     cyl_nusselt,
+    flow_per_drive,
+    pump_drive,
     radiation_w_per_k,
-    shaft_speed_rad_s,
 )
 from firmware_model.onboard.kernel_interface import (
     EFFECT_HOUSING_AIR_H,
@@ -72,11 +74,14 @@ def max_conductances(rp: ReducedParams) -> dict:
     for t in range(len(rp.t2_link)):
         G[rp.t2_link[t]] += np.max(rp.t2_table[t][:, jT2])
     prop = rp.prop[jT]
-    omega_ls_max_rad_s = np.max(shaft_speed_rad_s(rp, slice(None), rp.pump_speed_col, 1.0)) * omega_in_max_rad_s
+    # the pump's largest drive: its shaft at the top input speed (pump_drive is linear in it), a motor pump's 1
+    drive_max = np.max(pump_drive(rp, slice(None), 1.0)) * (
+        1.0 if rp.pump_code == PUMP_CODES["motor"] else omega_in_max_rad_s
+    )
     for t in range(len(rp.ef_link)):
         planet = eff_max[EFFECT_PLANET_OIL_H] if rp.ef_effect[t] == EFFECT_PLANET_OIL_H else 1.0
         hA = rp.ef_alpha[t] * np.max(prop[:, P_K]) + rp.ef_beta[t] * planet
-        m = rp.ef_mcp[t] * np.max(prop[:, P_RHO] * prop[:, P_CP]) * omega_ls_max_rad_s
+        m = rp.ef_mcp[t] * np.max(prop[:, P_RHO] * prop[:, P_CP]) * drive_max
         G[rp.ef_link[t]] += min(hA, m)
     if len(rp.cyl_link):
         # monotone in speed (Re); over the oil range sampled every 0.25 K of the interpolated properties, +2 %
@@ -98,9 +103,10 @@ def max_conductances(rp: ReducedParams) -> dict:
         hA = cooler_hA_bound_w_per_k(
             cooler_params(rp.cooler),
             COOLER_KINDS[rp.cooler_code],
-            omega_ls_max_rad_s,
+            drive_max,
             omega_in_max_rad_s,
             CATALOG["cooler_effectiveness_scale"].high,
+            motor_pump=rp.pump_code == PUMP_CODES["motor"],
         )
     return {"G": G, "cooler_hA": float(hA)}
 
@@ -116,7 +122,7 @@ def check_stability(rp: ReducedParams) -> dict:
     # from its component to the sump and |d(G_s dT_in)/dT_oil| <= G_s hA / (mdot cp) <= frac_s hA
     extra = np.zeros(n)
     extra[rp.i_oil] += hA
-    fracs = np.concatenate([rp.t2_frac[h.t2_streams], rp.ef_mcp / rp.flow_m3_per_rad])
+    fracs = np.concatenate([rp.t2_frac[h.t2_streams], rp.ef_mcp / flow_per_drive(rp)])
     nodes = np.argmin(h.stream_scatter, axis=1)
     np.add.at(extra, nodes, fracs * hA)
     extra[rp.i_oil] += fracs.sum() * hA

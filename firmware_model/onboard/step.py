@@ -174,8 +174,10 @@ def _conductances(sp: SensorParams, cache: StepCache, row, omega_in_rad_s, T_oil
     bin: from the cache for one vehicle, evaluated for a batch (the same numbers)."""
     h = sp.helpers
     if row.ndim == 0 and sp.scalar_effects:
-        return cache.bins.get(sp, int(row), *bin_centre(float(omega_in_rad_s), float(T_oil_c)))
-    omega_q, T_q, _ = quantise(omega_in_rad_s, T_oil_c)
+        return cache.bins.get(
+            sp, int(row), *bin_centre(float(omega_in_rad_s), float(T_oil_c), sp.reduced.speed_bin_min_rad_s)
+        )
+    omega_q, T_q, _ = quantise(omega_in_rad_s, T_oil_c, sp.reduced.speed_bin_min_rad_s)
     G_w_per_k, G_streams_w_per_k = bin_conductances(sp, row, omega_q, T_q)
     return G_w_per_k, G_streams_w_per_k, G_w_per_k[..., h.int_idx], G_w_per_k[..., h.ext_idx]
 
@@ -223,12 +225,12 @@ def _network_step(state: SensorState, chk: InputCheck, oil_c, sp: SensorParams, 
     q_nodes_w = lag.delivered_w @ rp.src_matrix  # B + (n,)
     # ---- conductances (at the centre of the operating-point bin), cooler, inlet drop of both copies
     G_w_per_k, G_streams_w_per_k, G_int, G_ext = _conductances(sp, cache, row, omega_in_rad_s, T_oil_main_c)
-    omega_ls_rad_s = E.shaft_speed_rad_s(rp, row, rp.pump_speed_col, omega_in_rad_s)
+    drive = E.pump_drive(rp, row, omega_in_rad_s)
     rho_cp_j_per_m3k = prop[..., P_RHO] * prop[..., P_CP]
     Q_cool_w, mcp_w_per_k, _ = E.cooler_heat(
         rp,
         T_c[..., :, rp.i_oil],
-        omega_ls_rad_s[..., None],
+        drive[..., None],
         omega_in_rad_s[..., None],
         used[..., I_COOL, None],
         used[..., I_AMB, None],

@@ -18,7 +18,7 @@ from typing import NamedTuple
 import numpy as np
 
 from firmware_model.onboard import evaluate as E
-from firmware_model.onboard.conductance_bins import LN_SPEED_BIN, OIL_BIN_C, SPEED_BIN_MIN_RAD_S
+from firmware_model.onboard.conductance_bins import LN_SPEED_BIN, OIL_BIN_C
 from firmware_model.onboard.held_inputs import cooler_slope_w_per_k
 from firmware_model.onboard.held_march import HeldSystem, March, march_time_to_limit
 from firmware_model.onboard.kernel_interface import (
@@ -128,16 +128,16 @@ def time_to_limit(sp: SensorParams, cache: StepCache, p: TtlPoint, vehicle=None)
             break
         T_op_c = T_next_c
         src_op_w = loss_heat_w(sp, p, T_op_c)
-        bins = cache.bins.get(sp, p.row, *_bin_centre(p.omega_in_rad_s, T_op_c))
+        bins = cache.bins.get(sp, p.row, *_bin_centre(p.omega_in_rad_s, T_op_c, sp.reduced.speed_bin_min_rad_s))
         sol = _solve(sp, p, src_op_w, bins.G_w_per_k, bins.G_streams_w_per_k, T_op_c, vehicle)
     return sol.ttl_s
 
 
-def _bin_centre(omega_in_rad_s: float, T_oil_c: float) -> tuple[float, float]:
+def _bin_centre(omega_in_rad_s: float, T_oil_c: float, speed_min_rad_s: float) -> tuple[float, float]:
     """The conductance bin centre as the time to limit computes it: math.log and math.exp (numpy's differ from them
     in the last bit for a few % of the bins, and a last-bit change of the cached modes can move a crossing by one
-    search quantum)."""
-    if omega_in_rad_s >= SPEED_BIN_MIN_RAD_S:
+    search quantum); below speed_min_rad_s (ReducedParams.speed_bin_min_rad_s) at standstill."""
+    if omega_in_rad_s >= speed_min_rad_s:
         omega_q = math.exp(round(math.log(omega_in_rad_s) / LN_SPEED_BIN) * LN_SPEED_BIN)
     else:
         omega_q = 0.0
@@ -157,8 +157,11 @@ def _inlet_follows_sump(sp: SensorParams, p: TtlPoint, measured: bool, slope_w_p
 
 
 def _oil_flow_m3_s(sp: SensorParams, row: int, omega_in_rad_s: float) -> float:
-    """Oil-system volume flow [m3/s] at this gear and input speed (the pump turns with its shaft)."""
+    """Oil-system volume flow [m3/s] at this gear and input speed: a shaft pump's turns with its shaft, a motor
+    pump's is fixed (evaluate.pump_drive)."""
     rp = sp.reduced
+    if rp.pump_code == E.PUMP_CODES["motor"]:
+        return rp.pump_flow_m3_s
     return rp.flow_m3_per_rad * float(E.shaft_speed_rad_s(rp, row, rp.pump_speed_col, 1.0)) * omega_in_rad_s
 
 

@@ -30,7 +30,7 @@ import math
 import numpy as np
 
 from firmware_model.onboard import evaluate as E
-from firmware_model.onboard.conductance_bins import LN_SPEED_BIN, OIL_BIN_C, SPEED_BIN_MIN_RAD_S
+from firmware_model.onboard.conductance_bins import LN_SPEED_BIN, OIL_BIN_C
 from firmware_model.onboard.held_march import HeldSystem, march_time_to_limit
 from firmware_model.onboard.kernel_interface import (
     COUPLING_MARGIN,
@@ -113,16 +113,16 @@ def chord_systems(sp: SensorParams, cache: StepCache, p: TtlPoint, system: HeldS
     if found is None:
         return [system]
     T_far_c, src_w, beta_w_per_k, slope_w_per_k, chord = found
-    bins = cache.bins.get(sp, p.row, *bin_centre(p.omega_in_rad_s, T_far_c))
+    bins = cache.bins.get(sp, p.row, *bin_centre(p.omega_in_rad_s, T_far_c, rp.speed_bin_min_rad_s))
     base, _ = held_system(sp, p, src_w, bins.G_w_per_k, bins.G_streams_w_per_k, T_far_c, False, vehicle, slope_w_per_k)
     return [chord, chord_system(base, beta_w_per_k, T_far_c, rp.i_oil)]
 
 
-def bin_centre(omega_in_rad_s: float, T_oil_c: float) -> tuple[float, float]:
+def bin_centre(omega_in_rad_s: float, T_oil_c: float, speed_min_rad_s: float) -> tuple[float, float]:
     """The conductance bin's centre (speed, oil) in math.log and math.exp, as the time to limit and the kernel's
     speed_bin_centre compute it (conductance_bins.quantise's numpy differs in the last bit for a few bins)."""
     w = omega_in_rad_s
-    w_q = math.exp(round(math.log(w) / LN_SPEED_BIN) * LN_SPEED_BIN) if w >= SPEED_BIN_MIN_RAD_S else 0.0
+    w_q = math.exp(round(math.log(w) / LN_SPEED_BIN) * LN_SPEED_BIN) if w >= speed_min_rad_s else 0.0
     return w_q, round(T_oil_c / OIL_BIN_C) * OIL_BIN_C
 
 
@@ -145,13 +145,13 @@ def cooler_chord_slope(sp: SensorParams, p: TtlPoint, T_far_c: float, vehicle=No
     """The cooler's chord from the step's sump to T_far [W/K]: (Q(T_far) - Q_step) / (T_far - T_step), at least 0
     (firmware_model.onboard.evaluate.cooler_heat with the point's inputs, as held_inputs.cooler_slope_w_per_k)."""
     rp = sp.reduced
-    omega_ls = float(E.shaft_speed_rad_s(rp, p.row, rp.pump_speed_col, 1.0)) * p.omega_in_rad_s
-    if rp.cooler_code == E.COOLER_CODES["none"] or omega_ls <= 0.0:
+    drive = float(E.pump_drive(rp, p.row, p.omega_in_rad_s))
+    if rp.cooler_code == E.COOLER_CODES["none"] or drive <= 0.0:
         return 0.0
     Q_far_w, _, _ = E.cooler_heat(
         rp,
         T_far_c,
-        omega_ls,
+        drive,
         p.omega_in_rad_s,
         p.used[I_COOL],
         p.used[I_AMB],

@@ -225,11 +225,17 @@ def inlet_drop_k(Q_w, mcp_w_per_k):
 
 
 def cooler_hA_bound_w_per_k(
-    c: CoolerParams, kind: str, omega_ls_max_rad_s: float, omega_engine_max_rad_s: float, scale_max: float
+    c: CoolerParams,
+    kind: str,
+    omega_ls_max_rad_s: float,
+    omega_engine_max_rad_s: float,
+    scale_max: float,
+    motor_pump: bool = False,
 ) -> float:
     """An upper bound of the cooler's hA over the operating range (the stability proof): the highest flows, the
-    effect scale at its maximum; the air cooler's outer flow factor bounded by AIR_FLOW_MAX_REL^exp_outer."""
-    inner = (omega_ls_max_rad_s / c.ref_ls_speed_rad_s) ** c.exp_inner
+    effect scale at its maximum; the air cooler's outer flow factor bounded by AIR_FLOW_MAX_REL^exp_outer. A motor
+    pump (``motor_pump``) runs at its data-sheet flow: inner flow ratio 1, whatever the layshaft."""
+    inner = 1.0 if motor_pump else (omega_ls_max_rad_s / c.ref_ls_speed_rad_s) ** c.exp_inner
     if kind == "liquid":
         return (
             c.liquid_hA_ref_w_per_k

@@ -172,11 +172,12 @@ class UnitFinding:
 
 
 def unit_findings(
-    steps: int, time_jumps: int, step_times_s, speed_rpm, torque_nm, hold_s: float = 60.0
+    steps: int, time_jumps: int, step_times_s, speed_rpm, torque_nm, hold_s: float = 60.0, engine: bool = True
 ) -> list[UnitFinding]:
     """The unit mistakes a run table shows: time_s in milliseconds (a forward time jump on most steps, the steps
     further apart than the ``hold_s`` over which a jump holds the inputs: the sensor took the engine as off for most
-    of the run), engine speed in rad/s (a turning engine delivering torque far below any idle speed)."""
+    of the run), engine speed in rad/s (a turning engine delivering torque far below any idle speed; only when the
+    input is a vehicle's ``engine``: a fixed-ratio drive's rotor, the MM82's, delivers 2 MN m at 15 rpm)."""
     import numpy as np
 
     out = []
@@ -195,7 +196,7 @@ def unit_findings(
     speed, torque = np.asarray(speed_rpm, dtype=float), np.asarray(torque_nm, dtype=float)
     loaded = np.isfinite(speed) & np.isfinite(torque) & (np.abs(torque) >= STALL_TORQUE_NM) & (speed > 1.0)
     slow = loaded & (speed < STALL_SPEED_RPM)
-    if loaded.sum() >= 3 and slow.sum() > STALL_UNTRUSTED_SHARE * loaded.sum():
+    if engine and loaded.sum() >= 3 and slow.sum() > STALL_UNTRUSTED_SHARE * loaded.sum():
         out.append(
             UnitFinding(
                 f"the turning engine delivers {STALL_TORQUE_NM:g} Nm or more below "

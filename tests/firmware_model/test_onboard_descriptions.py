@@ -1,4 +1,5 @@
-"""The onboard sensor built from a description other than the GRS905's (issue 45): the docs' reducer R1.
+"""The onboard sensor built from a description other than the GRS905's (issue 45): the docs' reducer R1 and the MM82
+wind-turbine gearbox (a motor-driven pump, an air cooler behind a thermostat).
 
 R1.toml states the network's physics but not yet every loss constant the gear losses read (physics.gearbox_losses:
 the steel's elasticity, Palmgren's coefficients, the Eq 34 tooth height, the pump); the fixture adds the GRS905's
@@ -16,6 +17,8 @@ import pytest
 
 from firmware_model.description import description_of
 from firmware_model.errors import ParameterError
+from firmware_model.network import K_STREAM, build_network
+from firmware_model.onboard import evaluate as E
 from firmware_model.onboard import reduce as R
 from firmware_model.onboard.records import I_AMB, I_GEAR, I_OIL, I_SPEED, I_TORQUE, N_INPUTS
 from firmware_model.onboard.sensor import VirtualSensor
@@ -104,11 +107,12 @@ def test_r1_builds_from_its_description(r1):
     assert rp.bc_default_c[rp.i_ambient] == pytest.approx(25.0)
 
 
-def test_a_pump_without_a_pump_shaft_is_refused(r1):
+def test_a_pump_without_a_pump_shaft_is_driven_by_a_motor(r1):
     d = description_of(r1)
     forced = replace(d, oil=replace(d.oil, pump_flow=1e-4))
-    with pytest.raises(ParameterError, match="pump_shaft"):
-        R.speed_columns(forced)
+    assert R.speed_columns(forced)["pump_speed_col"] == -1
+    assert R._pump_code(forced) == E.PUMP_CODES["motor"] and R._pump_code(d) == E.PUMP_CODES["none"]
+    assert R._motor_pump_flow_m3_s(forced) == 1e-4 and R._pump_flow_m3_per_rad(forced) == 0.0
 
 
 @pytest.mark.parametrize("oil_mode", ["measured", "model"])
@@ -158,6 +162,18 @@ def _plant_or_skip(params):
         pytest.skip(f"the reference plant does not run {params.variant} yet: {exc}")
 
 
+def _load_steps(d, n_s: int, seed: int):
+    """(time [s], input speed [rpm], input torque [N m]) every second: load steps of 5-15 minutes at 30-95 % of the
+    drive's top speed and 10-90 % of its torque, a 10-minute standstill from 1200 s."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(n_s + 1, dtype=float)
+    seg = np.searchsorted(np.cumsum(rng.integers(300, 900, 16)), t)
+    speed_rpm = (0.3 + 0.65 * rng.random(seg.max() + 1))[seg] * d.drive.max_speed_rad_s * 60.0 / (2.0 * np.pi)
+    torque_nm = (0.1 + 0.8 * rng.random(seg.max() + 1))[seg] * d.drive.max_torque_nm
+    speed_rpm[1200:1800] = torque_nm[1200:1800] = 0.0
+    return t, speed_rpm, torque_nm
+
+
 @pytest.mark.parametrize("oil_mode", ["measured", "model"])
 def test_r1_follows_the_reference_plant(r1, oil_mode):
     """Issue 45: within 1.5 K of the reference plant on a drive of load steps (30-95 % of the drive's top speed,
@@ -167,12 +183,7 @@ def test_r1_follows_the_reference_plant(r1, oil_mode):
     plant = _plant_or_skip(r1)
     d = description_of(r1)
     gear, n_s = d.gears[0].number, 3600
-    rng = np.random.default_rng(45)
-    t = np.arange(n_s + 1, dtype=float)
-    seg = np.searchsorted(np.cumsum(rng.integers(300, 900, 16)), t)
-    speed_rpm = (0.3 + 0.65 * rng.random(seg.max() + 1))[seg] * d.drive.max_speed_rad_s * 60.0 / (2.0 * np.pi)
-    torque_nm = (0.1 + 0.8 * rng.random(seg.max() + 1))[seg] * d.drive.max_torque_nm
-    speed_rpm[1200:1800] = torque_nm[1200:1800] = 0.0
+    t, speed_rpm, torque_nm = _load_steps(d, n_s, 45)
     table = RunTable(
         {
             "time_s": t,
@@ -196,3 +207,80 @@ def test_r1_follows_the_reference_plant(r1, oil_mode):
     row = np.clip(np.round(t_out / 0.1).astype(int) - 1, 0, t_s.size - 1)
     assert T_plant.max() > 40.0  # the drive heats the reducer
     assert np.max(np.abs(o.T_c[row] - T_plant)) <= 1.5
+
+
+# --------------------------------------------------------------------------------------------------------------
+# MM82: a motor-driven pump, an air cooler behind a thermostatic bypass, a rotor at <= 20 rpm and 2.5 MN m
+
+
+@pytest.fixture(scope="module")
+def mm82():
+    return load_parameters("MM82")
+
+
+def test_mm82_builds_with_its_motor_pump_and_air_cooler(mm82):
+    from firmware_model.physics.cooler import AIR_RECIRC_V_KMH
+
+    d = description_of(mm82)
+    rp = R.build_reduced(mm82)
+    assert (rp.pump_code, rp.pump_speed_col, rp.flow_m3_per_rad) == (E.PUMP_CODES["motor"], -1, 0.0)
+    assert rp.pump_flow_m3_s == pytest.approx(80e-3 / 60.0)  # 80 L/min
+    assert rp.cooler_code == E.COOLER_CODES["air"]
+    assert (rp.cooler["thermostat_open"], rp.cooler["thermostat_full"]) == (45.0, 55.0)
+    # every oil stream is one: the cooler's inlet drop applies to all of them, as in the plant
+    assert len(rp.ef_link) + int(np.sum(rp.t2_stream)) == len(build_network(mm82).links_of_kind(K_STREAM))
+    # the oil inlet is derived, not a node: the sensor publishes the others in their order
+    assert rp.published == tuple(c.id for c in d.published if c.id not in d.derived) and "oil.inlet" in d.derived
+    # no vehicle speed: the plant's cooler air has no recirculation excess
+    assert rp.default_v_kmh == AIR_RECIRC_V_KMH[-1]
+    # the rotor turns below the GRS905's standstill speed of the conductances: its own is 1 % of its top speed
+    assert rp.speed_bin_min_rad_s == pytest.approx(0.01 * d.drive.max_speed_rad_s)
+
+
+@pytest.fixture(scope="module")
+def mm82_drive(mm82):
+    """An hour of load steps from warm (oil 45 degC, ambient 30 degC): the thermostat opens. The plant's output and
+    the sensor's raw inputs (the plant's sump as the measured oil)."""
+    from tools.runtable import RunTable
+
+    plant = _plant_or_skip(mm82)
+    d = description_of(mm82)
+    gear, n_s, amb_c, start_c = d.gears[0].number, 3600, 30.0, 45.0
+    t, speed_rpm, torque_nm = _load_steps(d, n_s, 82)
+    table = RunTable(
+        {
+            "time_s": t,
+            "engine_speed_rpm": speed_rpm,
+            "engine_torque_nm": torque_nm,
+            "gear": np.full(t.size, gear),
+            "ambient_temp_c": np.full(t.size, amb_c),
+        }
+    )
+    out = plant.run(table, initial_temp_c=start_c, progress=False).table
+    t_s = np.arange(0.0, n_s, 0.1)
+    held = np.minimum(t_s.astype(int), n_s)
+    raw = np.full((t_s.size, N_INPUTS), np.nan)
+    raw[:, I_SPEED], raw[:, I_TORQUE], raw[:, I_GEAR], raw[:, I_AMB] = speed_rpm[held], torque_nm[held], gear, amb_c
+    raw[:, I_OIL] = np.interp(t_s, np.asarray(out["time_s"]), np.asarray(out["T_oil_c"]))
+    return out, raw, start_c
+
+
+@pytest.mark.parametrize("oil_mode", ["measured", "model"])
+def test_mm82_follows_the_reference_plant_and_the_c_kernel_agrees(mm82, mm82_drive, oil_mode):
+    """Issue 45: within 1.5 K of the reference plant on a drive the sensor was built without, every published
+    component, with measured and with modelled oil; the C kernel equal to the numpy step within 1e-9 K."""
+    out, raw, start_c = mm82_drive
+    T = {}
+    for core in ("numpy", "c"):
+        s = VirtualSensor(mm82, core=core, oil_mode=oil_mode)
+        _, o = s.step_table(s.initial_state(T_oil_c=start_c), raw)
+        T[core] = o.T_c
+    assert s.compiled is not None
+    assert np.max(np.abs(T["c"] - T["numpy"])) <= 1e-9
+    T_plant = np.column_stack([np.asarray(out[f"T_{c}_c"]) for c in s.published])
+    t_out = np.asarray(out["time_s"])
+    row = np.clip(np.round(t_out / 0.1).astype(int) - 1, 0, len(raw) - 1)
+    oil = np.asarray(out["T_oil_c"])
+    assert oil.max() > 50.0  # the thermostat opens (45-55 degC): the air cooler takes part
+    assert T_plant.max() > start_c + 20.0  # the drive heats the high-speed stage
+    assert np.max(np.abs(T["numpy"][row] - T_plant)) <= 1.5

@@ -631,15 +631,36 @@ def test_the_pump_and_output_speed_columns_come_from_the_description(tmp_path):
     np.testing.assert_allclose(outs[2].status.model_oil_temp_c, outs[1].status.model_oil_temp_c, rtol=0, atol=1e-9)
 
 
-def test_a_motor_driven_pump_is_one_sentence(tmp_path):
+def test_a_motor_driven_pump_keeps_its_flow_at_standstill(tmp_path):
+    """Issue 45: a pump without a pump shaft is driven by a motor (the MM82's); the onboard model keeps its volume
+    flow at any input speed, as the plant does (network.ConductanceEvaluator.oil_mass_flow_kg_s), and the kernel
+    reads the same tables as the numpy step."""
+    from firmware_model.description import description_of
+    from firmware_model.onboard import evaluate as E
     from firmware_model.parameters import PARAM_DIR
+    from firmware_model.physics.kinematics import GEAR_MIN
 
     text = (PARAM_DIR / "GRS905.toml").read_text()
     line = next(ln for ln in text.splitlines() if ln.startswith("pump_shaft = "))
     (tmp_path / "motor_pump.toml").write_text(text.replace(line + "\n", ""))
-    try:
-        params = load_parameters(tmp_path / "motor_pump.toml")
-    except ParameterError:
-        pytest.skip("the description itself refuses a splash-lubricated gearbox without a pump shaft")
-    with pytest.raises(ParameterError, match=r"^.*topology\.oil has no pump_shaft .* shaft-driven pump only$"):
-        VirtualSensor(params, core="numpy")
+    params = load_parameters(tmp_path / "motor_pump.toml")
+    sensors = [VirtualSensor(params, core=c) for c in ("numpy", "c")]
+    shaft = VirtualSensor(load_parameters("GRS905"), core="numpy").reduced
+    rp = sensors[0].reduced
+    assert (rp.pump_code, rp.pump_speed_col, rp.flow_m3_per_rad) == (E.PUMP_CODES["motor"], -1, 0.0)
+    assert rp.pump_flow_m3_s == description_of(params).oil.pump_flow > 0.0
+    # at standstill the layshaft's pump moves no oil, the motor's its flow: only then do the oil streams conduct
+    for r, flowing in ((shaft, False), (rp, True)):
+        Tx, prop, phi = E.oil_row(r, 80.0)
+        _, G_streams = E.conductances(r, 5 - GEAR_MIN, 0.0, Tx, prop, phi, np.full(r.n, 80.0), r.bc_default_c)
+        assert bool(np.all(G_streams > 0.0)) is flowing and bool(np.any(G_streams > 0.0)) is flowing
+    assert sensors[1].compiled is not None
+    inp = SensorInputs(0.0, 0.0, 5, math.nan, 20.0, 85.0, 40.0, 0.0)
+    states = [s.initial_state(T_oil_c=80.0) for s in sensors]
+    for _ in range(50):
+        outs = []
+        for i, s in enumerate(sensors):
+            states[i], o = s.step(states[i], inp)
+            outs.append(o)
+    np.testing.assert_allclose(outs[1].T_c, outs[0].T_c, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(outs[1].status.model_oil_temp_c, outs[0].status.model_oil_temp_c, rtol=0, atol=1e-9)

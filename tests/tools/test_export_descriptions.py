@@ -5,8 +5,8 @@ FMPy, names its inputs and outputs after the description and equals `replay` on 
 gearbox's drive (a fixed-ratio drive's: input speed, input torque, ambient and oil).
 
 The descriptions are those shipped in firmware_model/params/; one the sensor refuses with its documented one-sentence
-refusal (the motor-driven pump: the MM82, for now) is skipped with that sentence, so that it joins when the sensor
-builds it. Any other failure to build fails."""
+refusal would be skipped with that sentence (none since the MM82's motor-driven pump is modelled onboard). Any other
+failure to build fails."""
 
 from __future__ import annotations
 

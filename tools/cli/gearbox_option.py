@@ -6,8 +6,7 @@ user's parameter file (with its ``[topology]``, docs/description.md). The comman
 option's former name, still accepted and hidden; given with ``--gearbox`` it must name the same gearbox.
 
 Everything is checked before any work: an unknown NAME and a FILE that is missing or does not load are one sentence
-(exit 2 on the command line); what a builder cannot model yet (the onboard model of a motor-driven pump: the MM82)
-is its own sentence when the command builds it.
+(exit 2 on the command line); what a builder cannot model yet is its own sentence when the command builds it.
 """
 
 from __future__ import annotations
@@ -99,8 +98,7 @@ def gearbox_of(cfg) -> str:
 def check_gearbox(cfg, said: str | None = None):
     """The description of the configuration's gearbox, checked before any work: its parameter file loads (its
     values, and its description with them); InputError naming it (``said``: as the user gave it, ``--gearbox
-    NAME``) and why otherwise. What a builder cannot run yet (the onboard model of a motor-driven pump) is its own
-    one sentence when the command builds it."""
+    NAME``) and why otherwise. What a builder cannot run yet is its own one sentence when the command builds it."""
     from firmware_model.description import description_of
     from firmware_model.parameters import load_parameters
 

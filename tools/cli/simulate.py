@@ -290,7 +290,8 @@ def _refuse_unit_mistakes(table, name: str, oil_used: bool = False, sparse_ok: b
             )
     from firmware_model.service.plausibility import record_findings
 
-    speed = unit_findings(0, 0, [], table["engine_speed_rpm"], table["engine_torque_nm"])
+    engine = table.meta.get("drive") != "fixed_ratio"
+    speed = unit_findings(0, 0, [], table["engine_speed_rpm"], table["engine_torque_nm"], engine=engine)
     # the whole-record rules (oil only when the plant takes it as its sump: --cooler measured)
     cols = {c: table[c] for c in table.columns if c != "oil_temp_c" or oil_used}
     whole = record_findings(cols, float(np.median(np.diff(t)))) if t.size > 1 else []

@@ -339,6 +339,7 @@ def replay_csv(path, config_path=None, sensor_options=None) -> CsvReplay:
     sensor = VirtualSensor(params, config=cfg, **options)
     out = replay_table(table, sensor)
     out.meta["min_torque_nm"] = min_torque_nm(sensor)
+    out.meta["engine_drive"] = description_of(params).drive.kind == "vehicle"  # table_findings' speed-unit check
     return CsvReplay(out, params.variant, sensor.options.oil_mode)
 
 
@@ -372,6 +373,7 @@ def table_findings(out, oil_model: bool = False) -> list:
         out["engine_speed_rpm"] if out.has("engine_speed_rpm") else [],
         out["engine_torque_nm"] if out.has("engine_torque_nm") else [],
         hold_s=SensorOptions().time_jump_hold_s,
+        engine=(out.meta or {}).get("engine_drive", True),
     )
     units += table_record_findings(out, (out.meta or {}).get("min_torque_nm"))
     return units + ([finding] if finding.severity >= Severity.WARNING else [])

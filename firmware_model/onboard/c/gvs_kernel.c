@@ -65,6 +65,17 @@ static gvs_real shaft_speed(const gvs_tables *tb, int32_t row, int32_t col, gvs_
 {
     return col < 0 ? R_(0.0) : FABS(tb->speed_coef[row * tb->n_speed + col]) * omega_in_rad_s;
 }
+/* what the oil-system flow is proportional to (evaluate.pump_drive): a shaft pump's shaft speed [rad/s], a motor
+ * pump's 1 (its flow is fixed) */
+static gvs_real pump_drive(const gvs_tables *tb, int32_t row, gvs_real omega_in_rad_s)
+{
+    return tb->pump_code == GVS_PUMP_MOTOR ? R_(1.0) : shaft_speed(tb, row, tb->pump_speed_col, omega_in_rad_s);
+}
+/* the oil-system flow per unit of pump_drive (evaluate.flow_per_drive): m3/rad of a shaft pump, m3/s of a motor's */
+static gvs_real flow_per_drive(const gvs_tables *tb)
+{
+    return tb->pump_code == GVS_PUMP_MOTOR ? tb->pump_flow_m3_s : tb->flow_m3_per_rad;
+}
 static int finite_r(double x) { return x == x && x - x == 0.0; }
 
 /* k mod m for a step count k >= 0 and m >= 1 without a 64-bit division (none in an FPU-only ECU's hardware: the
@@ -173,7 +184,7 @@ static void bin_conductances(const gvs_tables *tb, const gvs_vehicle *veh, int32
         }
     }
     /* closed-form streams, NTU (Eq 69-80) */
-    omega_ls_rad_s = shaft_speed(tb, gear_row, tb->pump_speed_col, omega_in_rad_s);
+    omega_ls_rad_s = pump_drive(tb, gear_row, omega_in_rad_s);
     rho_cp_omega = o.prop[GVS_P_RHO] * o.prop[GVS_P_CP] * omega_ls_rad_s;
     for (t = 0; t < tb->ne; ++t) {
         gvs_real mcp = tb->ef_mcp[t] * rho_cp_omega;
@@ -290,7 +301,9 @@ static void cooler_op(const gvs_tables *tb, const gvs_vehicle *veh, gvs_real w_l
     op->hA = op->T_air = R_(0.0);
     if (tb->cooler_code == GVS_COOLER_NONE) return;
     if (v_kmh != v_kmh) v_kmh = tb->default_vkmh;
-    inner = POW(w_ls / tb->ref_ls_speed, tb->exp_inner);
+    /* the inner flow over the data sheet's: a shaft pump's speed over the reference, a motor pump's 1 (w_ls: the
+     * pump_drive) */
+    inner = POW(tb->pump_code == GVS_PUMP_MOTOR ? w_ls : w_ls / tb->ref_ls_speed, tb->exp_inner);
     if (tb->cooler_code == GVS_COOLER_LIQUID) {
         gvs_real outer = POW(max_r(w_eng, R_(0.0)) / tb->ref_engine_speed, tb->exp_outer);
         op->hA = tb->liquid_hA_ref * inner * outer * veh->cooler_scale;
@@ -470,6 +483,7 @@ int gvs_check_tables(const gvs_tables *tb)
         || tb->nst > GVS_MAX_STREAMS || tb->n2 > GVS_MAX_TERMS || tb->ne > GVS_MAX_TERMS
         || tb->ncol > GVS_MAX_TERMS || tb->n_gears < 1 || tb->n_gears > GVS_MAX_GEARS
         || tb->n_pub < 1 || tb->n_pub > GVS_MAX_PUB || tb->pump_speed_col < -1 || tb->pump_speed_col >= tb->n_speed
+        || tb->pump_code < GVS_PUMP_NONE || tb->pump_code > GVS_PUMP_MOTOR
         || tb->churn_speed_col < -1 || tb->churn_speed_col >= tb->n_speed || tb->output_speed_col < -1
         || tb->output_speed_col >= tb->n_speed || tb->n_needle < 0 || tb->ns != tb->n_mesh + tb->n_bear + 2
         || tb->nT < 2 || tb->nT2 < 2 || tb->n_u < 2 || tb->n_u_churn < 2 || tb->nx < 2 || tb->ttl_every < 1)
@@ -531,9 +545,9 @@ static void network_step(const gvs_tables *tb, const gvs_vehicle *veh, gvs_state
         nt->G = st->memo_G;
         nt->Gs = st->memo_Gs;
     }
-    w_ls = shaft_speed(tb, nt->row, tb->pump_speed_col, w);
+    w_ls = pump_drive(tb, nt->row, w);
     nt->rho_cp = o.prop[GVS_P_RHO] * o.prop[GVS_P_CP];
-    mcp = nt->rho_cp * tb->flow_m3_per_rad * w_ls;
+    mcp = nt->rho_cp * flow_per_drive(tb) * w_ls;
     cooler_op(tb, veh, w_ls, w, c->used[GVS_I_COOL], c->used[GVS_I_AMB], c->used[GVS_I_VKMH], mcp, &cop);
     for (cp = 0; cp < 2; ++cp) {
         nt->Q_cool[cp] = cooler_heat(tb, veh, &cop, T[cp][tb->i_oil]);
@@ -774,9 +788,9 @@ static void held_apply(const gvs_tables *tb, const held_t *hs, const gvs_real *e
  * difference */
 static gvs_real cooler_slope(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl_point *p, gvs_real T)
 {
-    gvs_real w_ls = shaft_speed(tb, p->row, tb->pump_speed_col, p->omega_in_rad_s);
+    gvs_real w_ls = pump_drive(tb, p->row, p->omega_in_rad_s);
     gvs_real Q, Q_hi, Q_lo;
-    gvs_real mcp = p->rho_cp_j_per_m3k * tb->flow_m3_per_rad * w_ls;
+    gvs_real mcp = p->rho_cp_j_per_m3k * flow_per_drive(tb) * w_ls;
     const gvs_real *u = p->used;
     cooler_op_t op;
     if (tb->cooler_code == GVS_COOLER_NONE || !(w_ls > R_(0.0))) return R_(0.0);
@@ -873,8 +887,8 @@ static int held_build(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_tt
 {
     int32_t n = tb->n, k, i, io = tb->i_oil;
     gvs_real T_oil = p->T_oil_c, mcp, dT_in;
-    gvs_real w_ls = shaft_speed(tb, p->row, tb->pump_speed_col, p->omega_in_rad_s);
-    mcp = p->rho_cp_j_per_m3k * tb->flow_m3_per_rad * w_ls;
+    gvs_real w_ls = pump_drive(tb, p->row, p->omega_in_rad_s);
+    mcp = p->rho_cp_j_per_m3k * flow_per_drive(tb) * w_ls;
     hs->G = G;
     hs->held = measured;
 #ifndef GVS_NO_TTL_BOUND
@@ -1150,8 +1164,8 @@ static void bound_scatter(const gvs_tables *tb, const gvs_real *src, gvs_real *q
 /* ttl_bound.cooler_chord_slope: (Q(T_far) - Q_step) / (T_far - T_step), at least 0 */
 static gvs_real bound_cooler_slope(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl_point *p, gvs_real T)
 {
-    gvs_real w_ls = shaft_speed(tb, p->row, tb->pump_speed_col, p->omega_in_rad_s);
-    gvs_real mcp = p->rho_cp_j_per_m3k * tb->flow_m3_per_rad * w_ls;
+    gvs_real w_ls = pump_drive(tb, p->row, p->omega_in_rad_s);
+    gvs_real mcp = p->rho_cp_j_per_m3k * flow_per_drive(tb) * w_ls;
     const gvs_real *u = p->used;
     cooler_op_t op;
     if (tb->cooler_code == GVS_COOLER_NONE || !(w_ls > R_(0.0))) return R_(0.0);
@@ -1197,8 +1211,9 @@ static int bound_far_sump(const gvs_tables *tb, const gvs_vehicle *veh, const gv
     held_t hs;
     gvs_real r[GVS_MAX_NODES], rw[GVS_MAX_SRC], src_k[GVS_MAX_SRC], qf[GVS_MAX_NODES];
     gvs_real T0 = p->T_oil_c, t_prev = T0, g_prev, g, T_far, rb = R_(0.0), ru = R_(0.0), rq0 = R_(0.0), rqf, slope_k;
-    gvs_real mcp = p->rho_cp_j_per_m3k * tb->flow_m3_per_rad
-        * shaft_speed(tb, p->row, tb->pump_speed_col, R_(1.0)) * p->omega_in_rad_s;
+    gvs_real mcp = tb->pump_code == GVS_PUMP_MOTOR ? p->rho_cp_j_per_m3k * tb->pump_flow_m3_s
+        : p->rho_cp_j_per_m3k * tb->flow_m3_per_rad * shaft_speed(tb, p->row, tb->pump_speed_col, R_(1.0))
+            * p->omega_in_rad_s;
     int32_t n = tb->n, i, k, it, io = tb->i_oil, found = 0;
     hs.G = p->G_w_per_k;
     hs.slope = R_(0.0);

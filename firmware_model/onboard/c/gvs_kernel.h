@@ -136,6 +136,8 @@ enum { GVS_P_LOG10_MU = 0, GVS_P_LN_NU_CST = 1, GVS_P_LN_MU = 2, GVS_P_LN_ROLL =
 enum { GVS_EFFECT_NONE = 0, GVS_EFFECT_TEETH_OIL_H = 1, GVS_EFFECT_PLANET_OIL_H = 2, GVS_EFFECT_HOUSING_AIR_H = 3 };
 /* cooler kinds (tables.cooler_code; firmware_model.physics.cooler.COOLER_KINDS) */
 enum { GVS_COOLER_NONE = 0, GVS_COOLER_LIQUID = 1, GVS_COOLER_AIR = 2 };
+/* oil pump kinds (tables.pump_code; PUMP_KINDS) */
+enum { GVS_PUMP_NONE = 0, GVS_PUMP_SHAFT = 1, GVS_PUMP_MOTOR = 2 };
 /* the argument of gvs_sizeof */
 enum { GVS_SIZEOF_TABLES = 0, GVS_SIZEOF_VEHICLE = 1, GVS_SIZEOF_STATE = 2, GVS_SIZEOF_INPUTS = 3,
        GVS_SIZEOF_OUTPUTS = 4, GVS_SIZEOF_TTL_POINT = 5, GVS_SIZEOF_REAL = 6 };
@@ -152,6 +154,8 @@ typedef struct {
     int32_t i_ambient;                  /* the ambient boundary */
     int32_t i_coolant;                  /* the coolant boundary */
     int32_t cooler_code;                /* GVS_COOLER_* */
+    /* GVS_PUMP_*: the oil flow follows pump_speed_col (shaft) or is pump_flow_m3_s (motor) */
+    int32_t pump_code;
     int32_t gear_min;                   /* gear of row 0 */
     int32_t oil_mode_measured;          /* 1: a measured sump is used */
     int32_t ttl_every;                  /* steps between time-to-limit refreshes */
@@ -214,6 +218,7 @@ typedef struct {
     gvs_real lag_gain, lag_tau_over_dt;
     /* cooler (seed 3.4, Eq 82-83) */
     gvs_real flow_m3_per_rad;           /* [m3/rad] */
+    gvs_real pump_flow_m3_s;            /* [m3/s] a motor-driven pump's fixed flow */
     gvs_real liquid_hA_ref;             /* [W/K] */
     gvs_real liquid_Qmax_cool, liquid_Qmax_heat; /* [W] */
     gvs_real air_hA_ref;                /* [W/K] */
