@@ -388,6 +388,8 @@ class Description:
     provenance: dict = field(default_factory=dict)  # dotted key -> seed | derived | assumed | fitted
     #: the parameters its { from } entries take (a copy of a parameter set overriding none describes the same gearbox)
     taken: frozenset = frozenset()
+    #: the warning-limits file its published.limits names (resolved: beside the description, else a shipped one)
+    limits_path: str | None = None
 
     def _one(self, items, key: str):
         return next((x for x in items if getattr(x, "id", getattr(x, "name", None)) == key), None)
@@ -1043,13 +1045,19 @@ def _gears(r: _Reader, topo: dict, parts: dict, drive: Drive, check: dict) -> tu
     return tuple(out)
 
 
-def _limits(r: _Reader, name: str) -> dict:
-    """The limits file's groups: group -> (warning, critical) [degC], and per-component overrides by id."""
-    path = r.path.parent / name  # beside the description, else a shipped one
+def limits_file(r: _Reader, name: str) -> Path:
+    """The limits file ``name`` of a description: beside it, else a shipped one."""
+    path = r.path.parent / name
     if not path.is_file():
         path = PARAM_DIR / name
     if not path.is_file():
         r.fail(f"{TOPOLOGY}.published.limits", f"= {name!r} is no file beside the description or shipped with it")
+    return path
+
+
+def _limits(r: _Reader, name: str) -> dict:
+    """The limits file's groups: group -> (warning, critical) [degC], and per-component overrides by id."""
+    path = limits_file(r, name)
     doc = read_toml(path, f"limits file {name}")
 
     def v(sec, k):
@@ -1063,13 +1071,19 @@ def _limits(r: _Reader, name: str) -> dict:
     return {"groups": groups, "components": comps}
 
 
+def _limits_name(r: _Reader, topo: dict) -> str:
+    """The limits file the description's published.limits names (default limits.toml)."""
+    table = topo.get("published") or {}
+    return r.value(f"{TOPOLOGY}.published.limits", table["limits"], _T) if "limits" in table else "limits.toml"
+
+
 def _published(r: _Reader, topo: dict, nodes: set) -> tuple:
     key = f"{TOPOLOGY}.published"
     table = topo.get("published") or {}
     if "order" not in table:
         r.fail(key, "has no order (the published components, in their CAN and column order)")
     order = r.value(f"{key}.order", table["order"], _L)
-    limits_name = r.value(f"{key}.limits", table["limits"], _T) if "limits" in table else "limits.toml"
+    limits_name = _limits_name(r, topo)
     lim = _limits(r, limits_name)
     group_of = {}
     for g, raw in table.items():
@@ -1248,4 +1262,5 @@ def _describe(path: Path, entries: dict, params: Parameters | None = None) -> De
         published,
         r.provenance,
         frozenset(r.taken),
+        str(limits_file(r, _limits_name(r, topo))),
     )

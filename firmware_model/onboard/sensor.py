@@ -112,7 +112,11 @@ class VirtualSensor:
     ):
         limit_blas_threads()  # firmware_model.onboard.blas: one BLAS thread (the small eigh is 25x slower with more)
         sensor_cfg = dict(getattr(config, "sensor", None) or {}) if config is not None else {}
-        published = R.published_components(description_of(params))
+        d = description_of(params)
+        published = R.published_components(d)
+        # the limits: the caller's, else the configuration's [sensor] limits, else the description's own file
+        if limits is None and sensor_cfg.get("limits") is None:
+            limits = d.limits_path
         lim = limits if isinstance(limits, Limits) else _limits_of(limits, config, sensor_cfg, published)
         oil_mode = options.pop("oil_mode", sensor_cfg.get("oil_mode", "measured"))
         if oil_mode not in ("measured", "model"):
