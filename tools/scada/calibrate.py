@@ -8,8 +8,8 @@ plausible bounds (lo, hi) in the description. As for run tables (tools.diagnosis
 1. identifiability: each key stepped by SENS_STEP of its range; its signature per channel is the RMS change scaled
    to half the range; a key below IDENT_MIN_C on every channel, or whose sensitivity is nearly parallel to a
    stronger key's (|cos| >= COLLINEAR_COS), is not fitted;
-2. fit: bounded least squares (scipy, trust-region reflective) of measured - model over every training row and
-   channel, the keys scaled to their bounds, at most MAX_EVALUATIONS replays;
+2. fit: bounded Gauss-Newton least squares (tools/scada/gauss_newton.py: the identifiability's sensitivities, then
+   two confirmed steps) of measured - model over every training row and channel, the keys scaled to their bounds;
 3. one standard deviation from the Jacobian, inflated by N / N_eff (autocorrelated 10-minute residuals);
 4. held-out: the test records with the file's and with the fitted values, per channel; and the NBM's (both tasks:
    the bearings from the measured sump, the sump without it), fitted on the same training records.
@@ -24,11 +24,9 @@ import numpy as np
 
 from firmware_model.errors import InputError
 from tools.diagnosis.calibrate import COLLINEAR_COS, IDENT_MIN_C, SENS_STEP, Calibration, Identifiability
+from tools.scada import gauss_newton
 from tools.scada.diagnose import Setup, effective_n, estimates
 from tools.scada.reader import ScadaRecord
-
-#: replays of the training records the least-squares fit may take
-MAX_EVALUATIONS = 16
 
 
 def _residual(setup: Setup, records: Sequence[ScadaRecord], params) -> dict[str, np.ndarray]:
@@ -88,12 +86,10 @@ def calibrate_records(
 ) -> Calibration:
     """Fit ``keys`` (None: every key with bounds the records identify) of the setup's gearbox on ``train``; the
     held-out RMS on ``test`` before and after."""
-    from scipy.optimize import least_squares
-
     params = setup.config.load_params()
     keys = sorted(params.bounds) if keys is None else list(keys)
     r0 = _residual(setup, train, params)
-    ident, _ = identifiability(setup, train, params, keys, r0)
+    ident, cols = identifiability(setup, train, params, keys, r0)
     fit_keys = [x.key for x in ident if x.identifiable]
     if not fit_keys:
         raise InputError(
@@ -107,19 +103,24 @@ def calibrate_records(
         return params.with_overrides({k: float(lo[i] + span[i] * u[i]) for i, k in enumerate(fit_keys)})
 
     u0 = np.array([(params.values[k] - lo[i]) / span[i] for i, k in enumerate(fit_keys)])
-    sol = least_squares(
+    sol = gauss_newton.fit(
         lambda u: _vector(_residual(setup, train, over(u))),
         u0,
-        bounds=(0.0, 1.0),
-        diff_step=0.02,
-        max_nfev=MAX_EVALUATIONS,
+        np.zeros(len(fit_keys)),
+        np.ones(len(fit_keys)),
+        np.full(len(fit_keys), SENS_STEP),
+        r0=_vector(r0),
+        jac=np.stack([cols[k] for k in fit_keys], axis=1),
     )
-    fitted = {k: float(lo[i] + span[i] * sol.x[i]) for i, k in enumerate(fit_keys)}
-    r1 = _residual(setup, train, over(sol.x))
+    u = sol["x"]
+    fitted = {k: float(lo[i] + span[i] * u[i]) for i, k in enumerate(fit_keys)}
+    # the residual at the fit per channel (the vector's NaN rows were zeros: NaN again)
+    edges = np.cumsum([0] + [v.size for v in r0.values()])
+    r1 = {ch: np.where(np.isfinite(v), sol["r"][a:b], np.nan) for (ch, v), a, b in zip(r0.items(), edges, edges[1:])}
     n, n_eff = int(sum(np.isfinite(v).sum() for v in r1.values())), effective_n(r1)
-    s2 = float(2.0 * sol.cost) / max(n - len(fit_keys), 1)
+    s2 = float(sol["r"] @ sol["r"]) / max(n - len(fit_keys), 1)
     try:
-        cov = np.linalg.inv(sol.jac.T @ sol.jac) * s2 * n / n_eff
+        cov = np.linalg.inv(sol["jac"].T @ sol["jac"]) * s2 * n / n_eff
         sigma = {k: float(math.sqrt(max(cov[i, i], 0.0)) * span[i]) for i, k in enumerate(fit_keys)}
     except np.linalg.LinAlgError:
         sigma = {k: math.inf for k in fit_keys}
@@ -129,12 +130,12 @@ def calibrate_records(
         start={k: params.values[k] for k in fit_keys},
         fitted=fitted,
         sigma=sigma,
-        at_bound={k: bool(min(sol.x[i], 1.0 - sol.x[i]) < 1e-3) for i, k in enumerate(fit_keys)},
+        at_bound={k: bool(min(u[i], 1.0 - u[i]) < 1e-3) for i, k in enumerate(fit_keys)},
         ident=ident,
         train_rms_c=(_rms(r0), _rms(r1)),
         test_rms_c=(_rms(t0), _rms(t1)),
         test_by_channel={ch: (_ch_rms(t0[ch]), _ch_rms(t1[ch])) for ch in t0},
-        n_sims=int(sol.nfev) + len(keys) + 3,
+        n_sims=int(sol["evaluations"]) + len(keys) + 3,
         train=[str(f) for r in train for f in r.files],
         test=[str(f) for r in test for f in r.files],
         n_eff=n_eff,

@@ -9,8 +9,9 @@ Each task fits the effects that move what it predicts, each with bounds that kee
 - ``oil`` (the sump without any oil reading): the mesh friction, the cooler's effectiveness, the housing's
   convection and the thermostat's opening temperature.
 
-The fit is least squares (scipy) of estimate - measured over the training rows of every target, the sensor replayed
-over each training record (one output row per SCADA row) for every evaluation; ``max_fit_rows`` caps the rows per
+The fit is a bounded Gauss-Newton least squares (tools/scada/gauss_newton.py: the sensitivities once, then two
+confirmed steps) of estimate - measured over the training rows of every target, the sensor replayed over each
+training record (one output row per SCADA row) for every evaluation; ``max_fit_rows`` caps the rows per
 training record (its last rows: the most recent state of the turbine) to bound the time.
 """
 
@@ -22,6 +23,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from firmware_model.effects import CATALOG
+from tools.scada import gauss_newton
 from tools.scada.nbm import Task
 from tools.scada.reader import ScadaRecord
 
@@ -61,8 +63,6 @@ FIT = {
 
 #: an effect whose step moves no estimate of the training rows by this much is not identifiable there [K]
 IDENTIFIABLE_K = 0.01
-#: least-squares evaluations per fit (each replays every training record)
-MAX_EVALUATIONS = 12
 
 
 @dataclass
@@ -93,8 +93,6 @@ class PhysicsModel:
         """Fit the task's effects on ``records``: first which of them move the estimates at all (identifiability:
         one step of each from the neutral value; one that moves no estimate by IDENTIFIABLE_K stays neutral and is
         reported), then least squares over the others."""
-        from scipy.optimize import least_squares
-
         train = [r.select(np.arange(r.n) >= r.n - self.max_fit_rows) for r in records]
         all_params = FIT[self.task.name]
 
@@ -109,23 +107,27 @@ class PhysicsModel:
             return np.concatenate(out)
 
         r0 = residuals({})
-        moves = {}
+        moves, cols = {}, {}
         for p in all_params:
             step = p.step if p.start + p.step <= p.hi else -p.step
-            moves[p.effect] = float(np.max(np.abs(residuals({p.effect: p.start + step}) - r0)))
+            r1 = residuals({p.effect: p.start + step})
+            moves[p.effect] = float(np.max(np.abs(r1 - r0)))
+            cols[p.effect] = (r1 - r0) / step
         params = [p for p in all_params if moves[p.effect] >= IDENTIFIABLE_K]
-        self.effects, nfev, cost = {}, len(all_params) + 1, 0.5 * float(r0 @ r0)
+        self.effects, nfev, r_end = {}, len(all_params) + 1, r0
         if params:
-            sol = least_squares(
+            out = gauss_newton.fit(
                 lambda x: residuals({p.effect: float(v) for p, v in zip(params, x)}),
                 np.array([p.start for p in params]),
-                bounds=([p.lo for p in params], [p.hi for p in params]),
-                diff_step=[p.step / max(abs(p.start), 1.0) for p in params],
-                x_scale=[p.step for p in params],
-                max_nfev=MAX_EVALUATIONS,
+                np.array([p.lo for p in params]),
+                np.array([p.hi for p in params]),
+                np.array([p.step for p in params]),
+                r0=r0,
+                jac=np.stack([cols[p.effect] for p in params], axis=1),
             )
-            self.effects = {p.effect: float(v) for p, v in zip(params, sol.x)}
-            nfev, cost = nfev + int(sol.nfev), float(sol.cost)
+            self.effects = {p.effect: float(v) for p, v in zip(params, out["x"])}
+            nfev, r_end = nfev + out["evaluations"], out["r"]
+        cost = 0.5 * float(r_end @ r_end)
         self.report = {
             "effects": dict(self.effects),
             "not_identifiable": [e for e, m in moves.items() if m < IDENTIFIABLE_K],
