@@ -61,6 +61,7 @@ class TableOutputs(NamedTuple):
     oil_innovation_c: np.ndarray
     model_oil_temp_c: np.ndarray
     rejects: np.ndarray  # (N, 13) cumulative counters after each step
+    oil_inlet_temp_c: np.ndarray  # (N,) a forced oil system's inlet (SensorStatus.oil_inlet_temp_c); else NaN
 
 
 class CompiledCore:
@@ -191,6 +192,7 @@ class CompiledCore:
             out["oil_source"].copy(),
             out["frozen_flags"].astype(np.int64),
             out["rejects"].copy(),
+            out["oil_inlet_temp_c"].astype(float),
         )
         pub = slice(0, self.n_pub)
         T_c, level, ttl_s = out["T_c"][..., pub], out["level"][..., pub], out["ttl_s"][..., pub]
@@ -429,6 +431,7 @@ class CompiledCore:
             np.empty(N),
             np.empty(N),
             np.empty((N,) + out_dtype["rejects"].shape, dtype=out_dtype["rejects"].base),
+            np.empty(N),
         )
 
     @staticmethod
@@ -444,6 +447,7 @@ class CompiledCore:
         res.oil_innovation_c[rows] = out["oil_innovation_c"]
         res.model_oil_temp_c[rows] = out["model_oil_temp_c"]
         res.rejects[rows] = out["rejects"]
+        res.oil_inlet_temp_c[rows] = out["oil_inlet_temp_c"]
 
 
 __all__ = ["CompiledCore", "BufferedState", "TableOutputs"]

@@ -80,10 +80,12 @@ class NumpyCore:
         T, lev, ttl = np.empty((N, n_pub)), np.empty((N, n_pub), dtype=np.int8), np.empty((N, n_pub))
         mode, valid = np.empty(N, dtype=np.int8), np.empty((N, 4), dtype=bool)
         innov, model_oil, rejects = np.empty(N), np.empty(N), np.empty((N, N_REJECT), dtype=np.int64)
+        inlet = np.empty(N)
         for j in range(N):
             state, out = self.step(state, SensorInputs(*raw[j, :N_INPUTS].tolist(), t_s=float(t_s[j])), cache)
             st = out.status
             T[j], lev[j], ttl[j] = out.T_c, out.level, out.ttl_s
             mode[j], valid[j] = st.degraded_mode, (st.speed_valid, st.torque_valid, st.gear_valid, st.oil_valid)
             innov[j], model_oil[j], rejects[j] = st.oil_innovation_c, st.model_oil_temp_c, st.rejects
-        return state, TableOutputs(T, lev, ttl, mode, valid, innov, model_oil, rejects)
+            inlet[j] = st.oil_inlet_temp_c
+        return state, TableOutputs(T, lev, ttl, mode, valid, innov, model_oil, rejects, inlet)

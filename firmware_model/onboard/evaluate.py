@@ -170,6 +170,9 @@ class ReducedParams(NamedNodes):
     # --- the loss sources (the columns of src_matrix; reduce.source_names) and those of a planetary set
     src_names: tuple = ()
     src_planetary: tuple = ()
+    # a forced oil system (the description's derived oil.inlet): the step outputs its oil inlet, the sump minus the
+    # cooler's drop (SensorStatus.oil_inlet_temp_c); False: NaN
+    oil_inlet: bool = False
 
     def footprint(self, dtype=np.float32) -> dict:
         """Bytes an ECU would hold for these parameters: every float table as ``dtype``, index arrays as int16.

@@ -99,6 +99,7 @@ def _network(sp: SensorParams) -> dict:
         i_coolant=rp.i_coolant,
         cooler_code=rp.cooler_code,
         pump_code=rp.pump_code,
+        oil_inlet=int(rp.oil_inlet),
         gear_min=GEAR_MIN,
         dt_over_C=_f64(sp.dt_over_C_s_k_per_j),
         link_a=_i32(rp.link_a),

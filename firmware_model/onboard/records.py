@@ -92,6 +92,9 @@ class SensorStatus(NamedTuple):
     oil_source: np.ndarray  # 0 measured, 1 modelled (the main network's sump)
     frozen_flags: np.ndarray  # bit i: INPUT_FIELDS[i] frozen (bit-identical too long)
     rejects: np.ndarray  # cumulative counters, REJECT_REASONS order
+    # a forced oil system's inlet [degC]: the sump the step took minus the cooler's drop Q / (mdot cp)
+    # (physics.cooler.inlet_drop_k), the temperature the jets' streams take; NaN without forced lubrication
+    oil_inlet_temp_c: np.ndarray = np.nan
 
 
 class SensorOutputs(NamedTuple):

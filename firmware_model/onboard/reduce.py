@@ -46,7 +46,7 @@ from typing import NamedTuple
 import numpy as np
 
 from firmware_model.components import SHAFT_BEARINGS, STEP_S
-from firmware_model.description import Description
+from firmware_model.description import OIL_INLET, Description
 from firmware_model.effects import CATALOG, FIELD_OF_EFFECT, EffectScales, effect_value, with_oil_volume
 from firmware_model.errors import ParameterError
 from firmware_model.network import (
@@ -780,6 +780,7 @@ def _surroundings_fields(p: Parameters, net: Network) -> dict:
         speed_bin_min_rad_s=speed_bin_min_rad_s(float(d.drive.max_speed_rad_s)),
         src_names=source_names(d),
         src_planetary=tuple(f"mesh:{m}" for m in planetary_meshes(d)),
+        oil_inlet=OIL_INLET in d.derived,
     )
 
 

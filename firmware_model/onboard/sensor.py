@@ -178,6 +178,11 @@ class VirtualSensor:
     def n_pub(self) -> int:
         return len(self.reduced.published)
 
+    @property
+    def oil_inlet(self) -> bool:
+        """True for a forced oil system: the status's ``oil_inlet_temp_c`` is its oil inlet (else NaN)."""
+        return bool(self.reduced.oil_inlet)
+
     def initial_state(
         self,
         T_oil_c=None,

@@ -347,6 +347,9 @@ def _finish(state: SensorState, raw, t_now, chk: InputCheck, net: NetworkStep, c
     oil_innovation_c = np.where(oil_ok, raw[..., I_OIL] - T_twin_oil_c, np.nan)
     frozen_bits = (chk.drive_frozen * DRIVE_FROZEN_BITS) | (chk.oil_frozen * OIL_FROZEN_BITS)
     rejects = state.rejects + counts
+    # the oil inlet of a forced oil system (the description's derived oil.inlet): the main copy's sump this step
+    # took (the measurement when used) minus the cooler's drop it applied to the jets' streams
+    oil_inlet_c = net.T_oil_main_c - net.dT_in_k[..., MAIN] if rp.oil_inlet else np.full(net.T_oil_main_c.shape, np.nan)
     status = SensorStatus(
         mode,
         ok[..., I_SPEED],
@@ -359,6 +362,7 @@ def _finish(state: SensorState, raw, t_now, chk: InputCheck, net: NetworkStep, c
         (~measured).astype(np.int8),
         frozen_bits,
         rejects,
+        oil_inlet_c,
     )
     new_state = SensorState(
         net.T_c,
@@ -400,5 +404,6 @@ def _skip(state: SensorState, counts, sp: SensorParams):
         np.ones(B, dtype=np.int8),
         np.zeros(B, dtype=np.int64),
         rejects,
+        np.full(B, np.nan),
     )
     return st, SensorOutputs(T_pub, state.level, state.ttl_s, status), None

@@ -284,7 +284,8 @@ def test_another_topology_runs_through_simulate_and_replay(tmp_path):
 def test_the_mm82_runs_through_simulate_and_replay(tmp_path):
     """The MM82 (a motor-driven pump, an air cooler behind a thermostat, a rotor at 15 rpm): replay runs on a
     fixed-ratio table with the oil measured and with it modelled, one output row per input row, its published
-    components (the oil inlet is derived: not among them); the sensor within 1.5 K of the plant on this half hour.
+    components (the oil inlet is derived: not among them, a status column); the sensor within 1.5 K of the plant on
+    this half hour, its oil inlet too.
     Both trust the table: 0.8 MN m at 15 rpm is a rotor's, not an engine's speed in rad/s."""
     table = _fixed_ratio_table(tmp_path / "mm.csv", 15.0, 8.0e5)
     plant, est = tmp_path / "plant.csv", tmp_path / "est.csv"
@@ -303,6 +304,9 @@ def test_the_mm82_runs_through_simulate_and_replay(tmp_path):
         for c in ("oil", "BHG", "BHR", "P2"):
             plant_c = np.interp(es["time_s"], pl["time_s"], pl[f"T_{c}_c"])
             assert np.max(np.abs(es[f"T_{c}_c"] - plant_c)) < 1.5
+        # forced lubrication: the oil inlet (derived) as a status column, beside the plant's
+        plant_c = np.interp(es["time_s"], pl["time_s"], pl["T_oil.inlet_c"])
+        assert np.max(np.abs(es["oil_inlet_temp_c"] - plant_c)) < 1.5
 
 
 def test_the_configurations_unknown_variant_is_one_sentence(tmp_path, capsys):

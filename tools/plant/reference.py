@@ -20,7 +20,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from firmware_model.description import description_of
+from firmware_model.description import OIL_INLET, description_of
 from firmware_model.effects import effect_scales, with_oil_volume
 from firmware_model.errors import InputError
 from firmware_model.network import (
@@ -365,7 +365,7 @@ class ReferencePlant:
                         break
                 bar.update(done)
                 s0 += done
-        res = self._output(table, t, step_t, ledger.T_c, ledger.Q_w, out_dt_s, inp.kind)
+        res = self._output(table, inp, step_t, ledger.T_c, ledger.Q_w, out_dt_s)
         warnings = _churn_note(ledger.churn_invalid_s, t_end - t0)
         return SimResult(res, self.net.nodes, ledger.energy(), warnings, time.perf_counter() - wall0)
 
@@ -379,7 +379,7 @@ class ReferencePlant:
         ledger.generated_j, ledger.stored_j, ledger.mechanical_j = rows.generated_j, rows.stored_j, rows.mechanical_j
         ledger.churn_invalid_s = rows.churn_invalid_s
         t = inp.t_s
-        res = self._output(table, t, t, ledger.T_c, ledger.Q_w, out_dt_s, inp.kind)
+        res = self._output(table, inp, t, ledger.T_c, ledger.Q_w, out_dt_s)
         res.meta.update(held_sub_intervals=rows.sub_intervals)
         warnings = _churn_note(ledger.churn_invalid_s, float(t[-1] - t[0]))
         return SimResult(res, self.net.nodes, ledger.energy(), warnings, time.perf_counter() - wall0)
@@ -570,16 +570,38 @@ class ReferencePlant:
     ) -> np.ndarray:
         """The oil-system inlet lies below the sump by the cooler's drop (Eq 82 idea): a stream component loses
         G (T_i - T_in) = G (T_i - T_s) + G dT, which the returning oil brings to the sump (zero-sum)."""
-        dT_in = 0.0
-        if kind in ("liquid", "air") and q0 != 0.0:
-            op = oilprops.oil_properties(T_oil_c)
-            mdot = self.ev.oil_mass_flow_kg_s(self._pump_speed(omega), op.rho_kg_m3)
-            dT_in = float(inlet_drop_k(q0, mdot * op.cp_j_per_kgk)) if mdot > 0 else 0.0
-        xfer_w = G[self.stream_idx] * dT_in
+        xfer_w = G[self.stream_idx] * self._inlet_drop_k(q0, omega, T_oil_c, kind)
         q_nodes = q_nodes.copy()
         np.subtract.at(q_nodes, self.stream_nodes, xfer_w)
         q_nodes[self.i_oil] += xfer_w.sum()
         return q_nodes
+
+    def _inlet_drop_k(self, q0: float, omega: np.ndarray, T_oil_c: float, kind: str) -> float:
+        """The cooler's inlet drop Q / (mdot cp) [K] (physics.cooler.inlet_drop_k): the oil-system inlet lies this
+        far below the sump at ``T_oil_c``; 0 without a modelled cooler, its heat or an oil flow."""
+        if kind not in ("liquid", "air") or q0 == 0.0:
+            return 0.0
+        op = oilprops.oil_properties(T_oil_c)
+        mdot = self.ev.oil_mass_flow_kg_s(self._pump_speed(omega), op.rho_kg_m3)
+        return float(inlet_drop_k(q0, mdot * op.cp_j_per_kgk)) if mdot > 0 else 0.0
+
+    def _inlet_c(self, inp: RunInputs, t_out: np.ndarray, T_oil_c: np.ndarray) -> np.ndarray:
+        """A forced oil system's inlet at the output times (the description's derived oil.inlet): the sump there minus
+        the cooler's drop at that sump, with the inputs in force over the step that ends there (the row before
+        ``t_out``: a held row's over its interval) and the boundaries at ``t_out``."""
+        t, kin = inp.t_s, self.losses.kin
+        rows = np.clip(np.searchsorted(t, t_out, side="left") - 1, 0, t.size - 1)
+        T_in_c = np.empty(t_out.size)
+        for k, (tk, i, T_oil) in enumerate(zip(t_out.tolist(), rows.tolist(), np.asarray(T_oil_c).tolist())):
+            omega = np.abs(kin.speed[int(inp.gear[i]) - GEAR_MIN] * inp.omega_in_rad_s[i])
+            T_bc = self.bc_default.copy()
+            for j, arr in inp.bc_c.items():
+                T_bc[j] = float(np.interp(tk, t, arr))
+            v_kmh = float(np.interp(tk, t, inp.v_kmh)) if inp.v_kmh is not None else self.v_default_kmh
+            cool, amb = self._bc_or_nan(T_bc, "coolant"), self._bc_or_nan(T_bc, "ambient")
+            q0, _ = self.cooler_heat(T_oil, self._pump_speed(omega), omega[self.i_input], cool, amb, v_kmh, slope=False)
+            T_in_c[k] = T_oil - self._inlet_drop_k(q0, omega, T_oil, inp.kind)
+        return T_in_c
 
     def _heat_out(self, G, Ge, T, T_new, T_bc, q0, gc, q_nodes, dstore, kind, prescribed) -> np.ndarray:
         """Heat leaving by each path of HEAT_OUT_NAMES over the step [W]; a held or measured sump's absorption is
@@ -596,7 +618,8 @@ class ReferencePlant:
         return out
 
     # ------------------------------------------------------------------ output
-    def _output(self, table, t, step_t, hist_T, hist_Q, out_dt_s, kind) -> RunTable:
+    def _output(self, table, inp: RunInputs, step_t, hist_T, hist_Q, out_dt_s) -> RunTable:
+        t, kind = inp.t_s, inp.kind
         t_out = np.arange(step_t[0], step_t[-1] + 1e-9, out_dt_s) if out_dt_s > 0 else step_t
         if t_out[-1] < step_t[-1] - 1e-9:
             t_out = np.append(t_out, step_t[-1])
@@ -624,6 +647,8 @@ class ReferencePlant:
             cols["oil_temp_c"] = self._oil_sensor(t_out, step_t, hist_T[:, self.i_oil], T_out[:, self.i_oil])
         for j, nm in enumerate(self.net.nodes):
             cols[f"T_{nm}_c"] = T_out[:, j]
+        if OIL_INLET in self.net.geometry.description.derived:  # a forced oil system: its inlet, derived
+            cols[f"T_{OIL_INLET}_c"] = self._inlet_c(inp, t_out, T_out[:, self.i_oil])
         # heat flows: step averages, each output sample shows the step that ends at or after it
         qi = np.clip(np.searchsorted(step_t, t_out, side="left"), 1, step_t.size - 1)
         names = (

@@ -9,7 +9,8 @@ Output (a run table, tools/runtable.py): ``time_s`` (end of each 0.1 s step), th
 when absent), ``T_<id>_c``, ``W_<id>``, ``ttl_<id>_s`` (empty when never) for every published component, then the
 status: ``degraded`` (0/1), ``degraded_mode`` (0 normal, 1 oil model only, 2 inputs missing - holding),
 ``speed_valid``, ``torque_valid``, ``gear_valid``, ``oil_valid``, ``oil_innovation_c`` (measured - model oil, empty
-without a measurement), ``model_oil_temp_c`` and the cumulative reject counters ``rejects_<reason>``.
+without a measurement), ``model_oil_temp_c``, for a forced oil system (a sensor whose ``oil_inlet`` is true) its oil
+inlet ``oil_inlet_temp_c``, and the cumulative reject counters ``rejects_<reason>``.
 """
 
 from __future__ import annotations
@@ -39,6 +40,8 @@ STATUS_COLUMNS = (
     "oil_innovation_c",
     "model_oil_temp_c",
 )
+#: the status column of a forced oil system's inlet, after STATUS_COLUMNS (only where the sensor has one)
+INLET_COLUMN = "oil_inlet_temp_c"
 
 
 class TableRecord(NamedTuple):
@@ -156,7 +159,7 @@ def table_records(table, inputs_type=None, dt_s: float = STEP_S) -> Iterator[Tab
 
 
 def _status_row(st) -> tuple:
-    """The status columns of one step (STATUS_COLUMNS, then the reject counters)."""
+    """The status columns of one step (STATUS_COLUMNS, the oil inlet, then the reject counters)."""
     return (
         int(st.degraded_mode != 0),
         int(st.degraded_mode),
@@ -166,6 +169,7 @@ def _status_row(st) -> tuple:
         bool(st.oil_valid),
         float(st.oil_innovation_c),
         float(st.model_oil_temp_c),
+        float(getattr(st, INLET_COLUMN, math.nan)),
         *np.asarray(st.rejects).tolist(),
     )
 
@@ -187,10 +191,11 @@ def _output_table(times: list, rows_in: list, rows_out: dict, rows_st: list, sen
             block = np.where(np.isinf(block), np.nan, block)  # never = an empty cell
         for j, c in enumerate(published):
             cols[f"{prefix}{c}{suffix}"] = block[:, j]
-    names = [*STATUS_COLUMNS, *(f"rejects_{r}" for r in reject_reasons)]
+    names = [*STATUS_COLUMNS, INLET_COLUMN, *(f"rejects_{r}" for r in reject_reasons)]
     st = np.asarray(rows_st, dtype=float).reshape(n, len(names))
     for j, nm in enumerate(names):
-        cols[nm] = st[:, j]
+        if nm != INLET_COLUMN or getattr(sensor, "oil_inlet", False):  # a splash gearbox's table has no inlet
+            cols[nm] = st[:, j]
     return RunTable(cols, meta={"final_state": state})
 
 
@@ -301,6 +306,7 @@ def _status_rows(out) -> np.ndarray:
             out.valid.astype(float),
             out.oil_innovation_c[:, None],
             out.model_oil_temp_c[:, None],
+            out.oil_inlet_temp_c[:, None],
             out.rejects.astype(float),
         ]
     )

@@ -7,8 +7,9 @@ row (tools.replay.table.replay_held), and the estimates are written beside the m
 channel of the column map its cleaned reading under its own name and the sensor's estimate of the description's
 part it is tied to as ``est_<name>`` (``est_Gb1t_avg``). With ``oil_mode = "model"`` the sump is not read and the
 sump channel's estimate is the model's; with the oil measured, the estimate of the sump is the reading the sensor
-used (its model's own sump is the ``model_oil_temp_c`` column). The sensor's full output (``T_<id>_c``, ``W_<id>``,
-``ttl_<id>_s``, the status) follows.
+used (its model's own sump is the ``model_oil_temp_c`` column). A channel tied to a forced oil system's inlet
+(``oil.inlet``) is estimated by the status column ``oil_inlet_temp_c``. The sensor's full output (``T_<id>_c``,
+``W_<id>``, ``ttl_<id>_s``, the status) follows.
 """
 
 from __future__ import annotations
@@ -17,13 +18,17 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from firmware_model.description import OIL_INLET
 from firmware_model.errors import InputError
+from tools.replay.table import INLET_COLUMN
 from tools.runtable import RunTable
 from tools.scada.reader import ScadaRecord
 from tools.scada.runtable import INPUTS, run_table_of
 
 #: the time to limit's refresh period of these offline replays [s] (the live service refreshes every second)
 OFFLINE_TTL_PERIOD_S = 10.0
+#: a derived temperature of the description -> the sensor's output column that estimates it (where it has one)
+DERIVED_COLUMNS = {OIL_INLET: INLET_COLUMN}
 
 
 @dataclass
@@ -36,15 +41,19 @@ class ScadaReplay:
     notes: list  # the channels left without an estimate, and why
 
 
-def estimate_columns(record: ScadaRecord, published, parts=()) -> tuple[dict, list[str]]:
+def estimate_columns(record: ScadaRecord, published, parts=(), outputs=()) -> tuple[dict, list[str]]:
     """({measured channel: the sensor's output column that estimates it}, notes): ``T_<node>_c`` of the published
-    part each channel is tied to. A channel tied to a part of the gearbox (``parts``: its nodes and derived
-    temperatures) that the sensor does not publish is left without an estimate, with a note; one tied to a part the
-    gearbox does not have is one sentence (a wrong map)."""
+    part each channel is tied to; a channel tied to a derived temperature, its status column when the output
+    (``outputs``: its column names) has it (the oil inlet: ``oil_inlet_temp_c``, a forced oil system's). A channel
+    tied to a part of the gearbox (``parts``: its nodes and derived temperatures) the sensor does not estimate is
+    left without an estimate, with a note; one tied to a part the gearbox does not have is one sentence (a wrong
+    map)."""
     out, notes = {}, []
     for name, node in record.cmap.nodes.items():
         if node in published:
             out[name] = f"T_{node}_c"
+        elif DERIVED_COLUMNS.get(node) in outputs:
+            out[name] = DERIVED_COLUMNS[node]
         elif node in parts:
             notes.append(f"{name} is not estimated: the sensor does not publish {node!r}")
         else:
@@ -75,8 +84,8 @@ def replay_record(
     drive = map_fixed_ratio(table, description_of(params), table.source, strict=False)
     sensor = VirtualSensor(params, config=config, effects=effects, **{**held_options(drive), **options})
     d = description_of(params)
-    estimated, notes = estimate_columns(record, tuple(sensor.published), (*d.nodes, *d.derived))
     out = replay_table(drive, sensor)
+    estimated, notes = estimate_columns(record, tuple(sensor.published), (*d.nodes, *d.derived), out.columns)
     n = record.n
     if out.n != n:  # one output row per SCADA row (tools.replay.table.replay_held)
         raise RuntimeError(f"the replay gave {out.n} rows for {n} SCADA rows")

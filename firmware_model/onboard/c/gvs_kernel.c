@@ -461,6 +461,7 @@ static int skip_step(const gvs_tables *tb, gvs_state *st, gvs_outputs *out)
     out->frozen_flags = 0;
     out->model_oil_temp_c = st->T_c[GVS_TWIN][tb->i_oil];
     out->oil_innovation_c = (gvs_real)NAN;
+    out->oil_inlet_temp_c = (gvs_real)NAN;
     out->oil_source = 1;
     memcpy(out->rejects, st->rejects, sizeof st->rejects);
     return GVS_SKIPPED;
@@ -1406,6 +1407,8 @@ int gvs_step(const gvs_tables *tb, const gvs_vehicle *veh, gvs_state *st, const 
         | (c.oil_frozen ? (1 << GVS_I_OIL) : 0);
     out->model_oil_temp_c = st->T_c[GVS_TWIN][tb->i_oil];
     out->oil_innovation_c = c.ok[GVS_I_OIL] ? (gvs_real)in->raw[GVS_I_OIL] - out->model_oil_temp_c : (gvs_real)NAN;
+    /* a forced oil system's inlet: the main copy's sump the step took minus the drop it gave the jets' streams */
+    out->oil_inlet_temp_c = tb->oil_inlet ? nt.T_oil_main - nt.dT_in[GVS_MAIN] : (gvs_real)NAN;
     out->oil_source = (int8_t)!c.measured;
     for (i = 0; i < GVS_N_REJECT; ++i) st->rejects[i] += counts[i];
     memcpy(out->rejects, st->rejects, sizeof st->rejects);

@@ -156,6 +156,8 @@ typedef struct {
     int32_t cooler_code;                /* GVS_COOLER_* */
     /* GVS_PUMP_*: the oil flow follows pump_speed_col (shaft) or is pump_flow_m3_s (motor) */
     int32_t pump_code;
+    /* 1: a forced oil system, the step outputs its oil inlet (sump - inlet drop); 0: NaN */
+    int32_t oil_inlet;
     int32_t gear_min;                   /* gear of row 0 */
     int32_t oil_mode_measured;          /* 1: a measured sump is used */
     int32_t ttl_every;                  /* steps between time-to-limit refreshes */
@@ -314,6 +316,8 @@ typedef struct {
     gvs_real ttl_s[GVS_MAX_PUB];        /* [s] */
     gvs_real model_oil_temp_c;          /* [degC] */
     gvs_real oil_innovation_c;          /* [K] */
+    /* [degC] a forced oil system's inlet: the sump the step took - the inlet drop */
+    gvs_real oil_inlet_temp_c;
     int64_t rejects[GVS_N_REJECT];      /* the cumulative reject counters after this step */
     int32_t valid_flags, frozen_flags;  /* bit GVS_I_* per input */
     int8_t level[GVS_MAX_PUB];          /* GVS_LEVEL_* */
