@@ -25,7 +25,7 @@ import numpy as np
 from firmware_model.errors import InputError
 from tools.diagnosis.calibrate import COLLINEAR_COS, IDENT_MIN_C, SENS_STEP, Calibration, Identifiability
 from tools.scada import gauss_newton
-from tools.scada.diagnose import Setup, effective_n, estimates
+from tools.scada.diagnose import Setup, effective_n, estimates, require_readings
 from tools.scada.reader import ScadaRecord
 
 
@@ -89,6 +89,7 @@ def calibrate_records(
     params = setup.config.load_params()
     keys = sorted(params.bounds) if keys is None else list(keys)
     r0 = _residual(setup, train, params)
+    require_readings(r0, "training")
     ident, cols = identifiability(setup, train, params, keys, r0)
     fit_keys = [x.key for x in ident if x.identifiable]
     if not fit_keys:

@@ -26,6 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from firmware_model.effects import CATALOG
+from firmware_model.errors import InputError
 from tools.scada.reader import ScadaRecord
 from tools.scada.regimes import regimes, where
 from tools.scada.runtable import oil_channel
@@ -109,6 +110,15 @@ def _residuals(setup: Setup, records: Sequence[ScadaRecord], effects: dict) -> d
     """{channel: measured - model} over ``records`` joined (NaN where either is missing)."""
     est = [estimates(setup, r, effects) for r in records]
     return {ch: np.concatenate([r.values[ch] - e[ch] for r, e in zip(records, est)]) for ch in setup.channels}
+
+
+def require_readings(res: dict[str, np.ndarray], which: str) -> None:
+    """An InputError when ``res`` (measured - model per channel) holds no row with both a reading and an estimate."""
+    if not any(np.isfinite(r).any() for r in res.values()):
+        raise InputError(
+            f"the {which} records hold no reading of {', '.join(res) or 'any measured channel'} beside an estimate: "
+            "nothing to compare the model with"
+        )
 
 
 def _pooled(res: dict[str, np.ndarray]) -> np.ndarray:
@@ -233,6 +243,8 @@ def diagnose_records(
     """The gap-diagnosis/1 result of ``setup``'s model on the SCADA records (``train`` fits, ``test`` scores)."""
     t0 = time.perf_counter()
     r0, t_before = _residuals(setup, train, {}), _residuals(setup, test, {})
+    require_readings(r0, "training")
+    require_readings(t_before, "test")
     sse0, n = _sse(r0), int(_pooled(r0).size)
     n_eff = effective_n(r0)
     masks = [regimes(r, thermostat_c, setup.sump or oil_channel(r)) for r in train]

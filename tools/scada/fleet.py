@@ -22,6 +22,7 @@ from typing import NamedTuple
 import numpy as np
 
 from firmware_model.effects import CATALOG
+from tools.fleet.health import Flag  # the truck fleet's flag row: one flags.parquet schema
 from tools.scada.diagnose import Setup, effective_n, estimates
 from tools.scada.reader import ScadaRecord
 
@@ -47,20 +48,6 @@ class PeriodFit(NamedTuple):
     values: dict  # effect -> fitted value
     se: dict  # effect -> standard error
     rms_c: float  # the residual's RMS after the fit [K]
-
-
-class Flag(NamedTuple):
-    """As the truck fleet's (tools/fleet/health.py): unit, effect, the period and date of the first drifting
-    period, the value, the baseline, why, flag."""
-
-    vehicle: str
-    effect: str
-    period: int
-    start: str
-    value: float
-    baseline: float
-    reason: str
-    kind: str
 
 
 def periods_of(record: ScadaRecord, days: float | None = None) -> list[tuple[int, str, np.ndarray]]:

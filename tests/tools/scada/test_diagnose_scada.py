@@ -17,6 +17,7 @@ import numpy as np
 import pytest
 
 from firmware_model.config import load_config
+from firmware_model.errors import InputError
 from tests.tools.scada.test_reader import row, write
 from tests.tools.scada.test_replay_scada import REPO, _map, _rows
 from tools.cli.gearbox_option import with_gearbox
@@ -132,3 +133,12 @@ def test_calibrate_finds_a_planted_value_and_prints_the_nbm_beside_it(setup, tmp
     assert "linear NBM" in p.stdout and "| Gb1t_avg |" in p.stdout
     text = (tmp_path / "cal.toml").read_text()
     assert 'src = "fitted"' in text and "f0_tapered" in text
+
+
+def test_records_without_a_reading_are_one_sentence_not_a_verdict(setup):
+    s, train, test = setup
+    blank = train.select(np.ones(train.n, dtype=bool))
+    for ch in s.channels:
+        blank.values[ch] = np.full(blank.n, np.nan)
+    with pytest.raises(InputError, match="the training records hold no reading of Gost_avg, Gb1t_avg, Gb2t_avg"):
+        diagnose_records(s, [blank], [test])
