@@ -262,13 +262,17 @@ def load_config(path: str | Path | Config | None) -> Config:
     for k, v in doc.get("boundary", {}).items():
         if not isinstance(v, (int, float)) or not -60 <= v <= 250:
             raise ParameterError(f"config {path.name}: boundary.{k} = {v!r} must be a temperature in -60..250 degC")
+    sensor = dict(doc.get("sensor", {}))
+    limits = sensor.get("limits")
+    if limits is not None and not Path(limits).is_absolute() and (path.parent / limits).exists():
+        sensor["limits"] = str((path.parent / limits).resolve())  # relative to this file (else a shipped name)
     return Config(
         g.get("variant", "GRS905"),
         params,
         cooler,
         dict(doc.get("boundary", {})),
         dict(doc.get("can", {})),
-        dict(doc.get("sensor", {})),
+        sensor,
         str(path),
         settings,
     )

@@ -60,6 +60,14 @@ def _value(entry, where: str, unit: str) -> tuple:
     return float(v), entry["src"]
 
 
+def _limits_path(path: str | Path | None) -> Path:
+    """The limits file: the default, a path, or a shipped file by its name (limits.toml, limits_wind.toml)."""
+    path = Path(path) if path is not None else LIMITS_PATH
+    if not path.exists() and path.name == str(path) and (LIMITS_PATH.parent / path.name).exists():
+        return LIMITS_PATH.parent / path.name
+    return path
+
+
 def load_limits(
     path: str | Path | None = None,
     debounce_s: float | None = None,
@@ -72,7 +80,7 @@ def load_limits(
     ``group`` (a description's published, firmware_model.description), in their order; None: the GRS905's."""
     ids = PUBLISHED if published is None else tuple(c.id for c in published)
     group = GROUP if published is None else {c.id: c.group for c in published}
-    path = Path(path) if path is not None else LIMITS_PATH
+    path = _limits_path(path)
     doc = read_toml(path, f"limits file {path}", f"limits file {path.name}")
     known = set(GROUPS) | {"meta", "timing", "component"}
     for k in doc:
@@ -148,8 +156,9 @@ def update_levels(level, pending_s, T_c, available, limits: Limits, dt_s: float,
     Target level: critical while T >= critical (or, once critical, while T > critical - hysteresis); else warning
     while T >= warning or the time to the warning limit is at most ``lead_s`` (or, once at warning or above, while
     T > warning - hysteresis or the time to limit is at most 2 lead_s); else normal. A change to the target is
-    taken when it has been pending for ``debounce`` seconds (the timer restarts whenever the target equals the
-    current level). Level 3 (not available) is entered and left at once: it reports the sensor, not the part.
+    taken when it has been pending for ``debounce`` seconds, to the nearest step (the timer restarts whenever the
+    target equals the current level). Level 3 (not available) is entered and left at once: it reports the sensor,
+    not the part.
     """
     T = np.asarray(T_c)
     lv = np.asarray(level)
@@ -165,6 +174,9 @@ def update_levels(level, pending_s, T_c, available, limits: Limits, dt_s: float,
     change = target != lv
     pend = np.where(change, pending_s + dt_s, 0.0)
     immediate = (target == LEVEL_NA) | (lv == LEVEL_NA)
-    take = change & (immediate | (pend >= limits.debounce_s - 1e-9))
+    # the pending time is a sum of steps: half a step of slack makes a debounce that is a whole number of steps
+    # exact in float as in double (600 float steps of 0.1 s sum to less than 60 s), and rounds any other to the
+    # nearest step
+    take = change & (immediate | (pend >= limits.debounce_s - 0.5 * dt_s))
     new = np.where(take, target, lv).astype(np.int8)
     return new, np.where(take, 0.0, pend)

@@ -109,6 +109,25 @@ def test_warning_needs_the_debounce_time(limits):
     assert long[-1] == 1 and long[13] == 0
 
 
+def test_a_debounce_of_whole_steps_is_taken_on_time_when_the_timer_is_summed_in_float(tmp_path):
+    """A 60 s debounce is 600 steps of 0.1 s: the C kernel's float build sums the pending time in float32, whose
+    600 steps of 0.1 fall short of 60; the level is still taken on the 600th step, in float as in double."""
+    text = LIMITS_PATH.read_text()
+    lim = load_limits(_write(tmp_path, text), debounce_s=60.0)
+    n, w = len(PUBLISHED), lim.of("PS")[0]
+    T = np.full(n, 20.0)
+    T[I["PS"]] = w + 5.0
+    for real in (np.float32, np.float64):
+        lv, pend = np.zeros(n, dtype=np.int8), np.zeros(n, dtype=real)
+        taken = None
+        for k in range(1, 605):
+            lv, pend = update_levels(lv, pend, T, True, lim, real(0.1))
+            pend = pend.astype(real)
+            if taken is None and lv[I["PS"]] == 1:
+                taken = k
+        assert taken == 600, (real, taken)
+
+
 def test_warning_clears_only_below_limit_minus_hysteresis(limits):
     w, c, hy = limits.of("PS")
     lv = _drive(limits, [w + 1] * 20 + [w - hy + 0.5] * 50)  # inside the hysteresis band
@@ -481,3 +500,12 @@ def test_coupled_modes_fall_back_to_the_symmetric_ones_when_unstable():
     sym = decompose(K, np.arange(n), np.sqrt(C))
     assert np.array_equal(modes.lam_per_s, sym.lam_per_s) and np.array_equal(modes.V, sym.V)
     assert np.all(modes.lam_per_s > 0)
+
+
+def test_a_shipped_limits_file_is_found_by_its_name_and_the_mm82_takes_the_wind_limits():
+    wind = load_limits("limits_wind.toml")
+    assert wind.debounce_s == 60.0 and wind.origin.endswith("limits_wind.toml")
+    mm82 = VirtualSensor(load_parameters("MM82")).limits
+    assert mm82.origin.endswith("limits_wind.toml") and mm82.of("oil")[0] == 75.0
+    with pytest.raises(ParameterError, match="does not exist"):
+        load_limits("no_such_limits.toml")

@@ -439,7 +439,8 @@ static void update_levels(const gvs_tables *tb, gvs_state *st, const gvs_real *T
         if (!available) target = GVS_LEVEL_NA;
         change = target != lv;
         pend = change ? st->pending_s[i] + tb->dt_s : R_(0.0);
-        take = change && (target == GVS_LEVEL_NA || lv == GVS_LEVEL_NA || pend >= tb->debounce_s - R_(1e-9));
+        /* half a step of slack: a float sum of 600 steps of 0.1 s falls short of 60 s (warning_levels.py) */
+        take = change && (target == GVS_LEVEL_NA || lv == GVS_LEVEL_NA || pend >= tb->debounce_s - R_(0.5) * tb->dt_s);
         st->level[i] = (int8_t)(take ? target : lv);
         st->pending_s[i] = take ? R_(0.0) : pend;
     }
