@@ -4,8 +4,8 @@ Today's method (:func:`firmware_model.onboard.time_to_limit.time_to_limit`, ``tt
 takes the losses, the cooler and the conductances at one sump temperature, the one predicted at the first crossing.
 While the sump warms from cold the oil is more viscous at first and the losses are higher than there, and the
 cooler's thermostat is still closed, so the components warm faster than predicted: late, or "never". This method
-keeps the held system linear and lets the heat of every loss source and the cooler follow the sump along their
-chords between the current sump T0 and the far sump T_far:
+keeps the held system linear and lets the heat of every loss source follow the sump along its chord between the
+current sump T0 and the far sump T_far:
 
     q(T_sump) = q(T_far) + beta (T_sump - T_far),  beta = (q(T0) - q(T_far)) / (T0 - T_far)
 

@@ -892,6 +892,7 @@ static int held_build(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_tt
     gvs_real T_oil = p->T_oil_c, mcp, dT_in;
     gvs_real w_ls = pump_drive(tb, p->row, p->omega_in_rad_s);
     gvs_real k_in = chord ? chord->inlet : (gvs_real)NAN;     /* the bounded method's inlet line [K/K] */
+    gvs_real Q_c = chord ? chord->Q0 : p->Q_cool_w;            /* ... and its cooler line's heat at the sump */
     mcp = p->rho_cp_j_per_m3k * flow_per_drive(tb) * w_ls;
     hs->G = G;
     hs->held = measured;
@@ -904,7 +905,7 @@ static int held_build(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_tt
     for (i = 0; i < n; ++i) hs->u[i] = R_(0.0);
     if (!measured && hs->slope != R_(0.0) && FABS(p->dT_in_k) < tb->inlet_drop_max_k && mcp > R_(0.0)
         && (k_in == k_in ? k_in != R_(0.0) && FABS(p->dT_in_k + k_in * (T_op - T_oil)) < tb->inlet_drop_max_k
-                         : FABS((p->Q_cool_w + hs->slope * (T_op - T_oil)) / mcp) < tb->inlet_drop_max_k)) {
+                         : FABS((Q_c + hs->slope * (T_op - T_oil)) / mcp) < tb->inlet_drop_max_k)) {
         for (k = 0; k < tb->nst; ++k) {
             gvs_real f = Gs[k] * (k_in == k_in ? k_in : hs->slope / mcp);
             hs->u[tb->stream_node[k]] -= f;
@@ -929,6 +930,7 @@ static int held_build(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_tt
     hs->weighted = 0;
     if (hs->coupled) {
         gvs_real col[GVS_MAX_NODES], rs[GVS_MAX_NODES];
+        memset(rs, 0, sizeof rs);                      /* (gcc cannot see that the loop below sets rs[io]) */
         for (i = 0; i < n; ++i) {
             col[i] = hs->u[i];
             rs[i] = -hs->u[i];
@@ -950,7 +952,7 @@ static int held_build(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_tt
     dT_in = p->dT_in_k;
     if (!hs->coupled && T_op != T_oil && !measured)
         dT_in = clip_r(k_in == k_in ? p->dT_in_k + k_in * (T_op - T_oil)
-                       : mcp > R_(0.0) ? (p->Q_cool_w + hs->slope * (T_op - T_oil)) / mcp : R_(0.0),
+                       : mcp > R_(0.0) ? (Q_c + hs->slope * (T_op - T_oil)) / mcp : R_(0.0),
                        -tb->inlet_drop_max_k, tb->inlet_drop_max_k);
     for (k = 0; k < tb->nst; ++k) {
         gvs_real f = Gs[k] * dT_in;
@@ -965,7 +967,7 @@ static int held_build(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_tt
         else if (measured && (a == io || b == io)) T_inf[a == io ? b : a] += G[k] * T_oil;
     }
     if (measured) T_inf[io] = T_oil;
-    else T_inf[io] += hs->slope * T_oil - p->Q_cool_w;
+    else T_inf[io] += hs->slope * T_oil - Q_c;
 #ifndef GVS_NO_TTL_BOUND
     if (chord) chord_column(tb, hs, chord, T_inf);
 #else
@@ -1332,8 +1334,7 @@ static int ttl_refresh_bound(const gvs_tables *tb, const gvs_vehicle *veh, const
     gvs_real T_watch, src[GVS_MAX_SRC], G[GVS_MAX_LINKS], Gs[GVS_MAX_STREAMS], other[GVS_MAX_PUB];
     int measured = p->measured && !tb->ttl_sump_model, rc_a, rc_b, j;
     ttl_chord_t ch;
-    gvs_ttl_point q;
-    gvs_real T_x, k_in, again[GVS_MAX_PUB];
+    gvs_real T_x, k_in;
     ch.stop = NULL;
     ch.inlet = (gvs_real)NAN;
     if (measured || !tb->ttl_relinearise || bound_far_sump(tb, veh, p, &ch, src) != 0) {
@@ -1342,13 +1343,11 @@ static int ttl_refresh_bound(const gvs_tables *tb, const gvs_vehicle *veh, const
         bound_gate(tb, veh, p, ttl_s);
         return GVS_OK;
     }
-    q = *p;                                        /* the cooler's line: its heat at the step's sump */
-    q.Q_cool_w = ch.Q0;
-    rc_a = ttl_solve(tb, veh, &q, src, p->G_w_per_k, p->G_streams_w_per_k, p->T_oil_c, 0, ttl_s, &T_x, &ch);
+    rc_a = ttl_solve(tb, veh, p, src, p->G_w_per_k, p->G_streams_w_per_k, p->T_oil_c, 0, ttl_s, &T_x, &ch);
     bin_conductances(tb, veh, p->row, speed_bin_centre(tb, p->omega_in_rad_s),
                      RINT(ch.T_far / tb->oil_bin_c) * tb->oil_bin_c, G, Gs);
     if (rc_a == 0) ch.stop = ttl_s;                /* the second march: only crossings before the first's */
-    rc_b = ttl_solve(tb, veh, &q, src, G, Gs, ch.T_far, 0, other, &T_watch, &ch);
+    rc_b = ttl_solve(tb, veh, p, src, G, Gs, ch.T_far, 0, other, &T_watch, &ch);
     if (rc_b != 0) {
         if (rc_a != 0)
             for (j = 0; j < tb->n_pub; ++j) ttl_s[j] = (gvs_real)NAN;
@@ -1359,13 +1358,13 @@ static int ttl_refresh_bound(const gvs_tables *tb, const gvs_vehicle *veh, const
     /* the sump at the first crossing (the first march's, else the second's): where the first system's coupled
      * inlet drop passes its clip before it, the first system once more with the drop's secant to it */
     if (rc_a != 0 || T_x != T_x) T_x = rc_b == 0 ? T_watch : (gvs_real)NAN;
-    k_in = bound_clipped_inlet(tb, &q, &ch, T_x);
-    if (k_in == k_in) {
+    k_in = bound_clipped_inlet(tb, p, &ch, T_x);
+    if (k_in == k_in) {                            /* (other: merged above, free for this march) */
         ch.stop = NULL;
         ch.inlet = k_in;
-        if (ttl_solve(tb, veh, &q, src, p->G_w_per_k, p->G_streams_w_per_k, p->T_oil_c, 0, again, &T_watch, &ch) == 0)
+        if (ttl_solve(tb, veh, p, src, p->G_w_per_k, p->G_streams_w_per_k, p->T_oil_c, 0, other, &T_watch, &ch) == 0)
             for (j = 0; j < tb->n_pub; ++j)
-                if ((rc_a != 0 && rc_b != 0) || again[j] < ttl_s[j]) ttl_s[j] = again[j];
+                if ((rc_a != 0 && rc_b != 0) || other[j] < ttl_s[j]) ttl_s[j] = other[j];
     }
     bound_gate(tb, veh, p, ttl_s);
     return GVS_OK;
