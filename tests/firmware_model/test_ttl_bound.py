@@ -3,7 +3,8 @@
 * numpy and the C kernel give the same times (1e-3 relative or 0.1 s), "not available" at the same points, on
   ordinary held points from cold and warm starts and on hostile ones;
 * from cold and warm starts it is not late against the reference plant run with the inputs held (today's march
-  said "never" at each of these points while the sump warmed);
+  said "never" at each of these points while the sump warmed), also at the points of benchmarks/bench_ttl.py where
+  its first version was late by 15-18 % (the cooler's chord from cold, the inlet drop past its clip);
 * on a named cycle no early warning comes later than with today's march;
 * its cost: the second march stops at the first's crossings, the chord systems' weights solve B w = C, and over a
   hard drive the bounded refresh marches fewer steps than today's (it took 2.3 times as many before).
