@@ -144,19 +144,24 @@ def _bin_centre(omega_in_rad_s: float, T_oil_c: float, speed_min_rad_s: float) -
     return omega_q, round(T_oil_c / OIL_BIN_C) * OIL_BIN_C
 
 
-def _inlet_follows_sump(sp: SensorParams, p: TtlPoint, measured: bool, slope_w_per_k: float, T_op_c: float) -> bool:
+def _inlet_follows_sump(
+    sp: SensorParams, p: TtlPoint, measured: bool, slope_w_per_k: float, T_op_c: float, inlet_k_per_k=None
+) -> bool:
     """Whether the held-input system couples the oil-system inlet to the sump: the sump is modelled, the cooler has
-    a slope, and the inlet drop is inside the step's clip both now and, on the linearised cooler, at the operating
-    point's sump T_op (a clipped inlet drop does not follow the sump)."""
+    a slope, and the inlet drop is inside the step's clip both now and, on the linearised cooler (or the bounded
+    method's inlet line ``inlet_k_per_k``), at the operating point's sump T_op (a clipped inlet drop does not follow
+    the sump)."""
     if not TTL_INLET_COUPLING or measured or slope_w_per_k == 0 or not abs(p.dT_in_k) < INLET_DROP_MAX_K:
         return False
-    mcp = p.rho_cp_j_per_m3k * _oil_flow_m3_s(sp, p.row, p.omega_in_rad_s)
+    mcp = p.rho_cp_j_per_m3k * oil_flow_m3_s(sp, p.row, p.omega_in_rad_s)
     if not mcp > 0.0:
         return False
+    if inlet_k_per_k is not None:
+        return inlet_k_per_k != 0.0 and abs(p.dT_in_k + inlet_k_per_k * (T_op_c - p.T_oil_c)) < INLET_DROP_MAX_K
     return abs((p.Q_cool_w + slope_w_per_k * (T_op_c - p.T_oil_c)) / mcp) < INLET_DROP_MAX_K
 
 
-def _oil_flow_m3_s(sp: SensorParams, row: int, omega_in_rad_s: float) -> float:
+def oil_flow_m3_s(sp: SensorParams, row: int, omega_in_rad_s: float) -> float:
     """Oil-system volume flow [m3/s] at this gear and input speed: a shaft pump's turns with its shaft, a motor
     pump's is fixed (evaluate.pump_drive)."""
     rp = sp.reduced
@@ -175,12 +180,15 @@ def held_system(
     measured: bool,
     vehicle=None,
     slope_w_per_k: float | None = None,
+    inlet_k_per_k: float | None = None,
 ) -> tuple[HeldSystem, np.ndarray]:
     """(the held-input system over its free nodes, the free nodes) at the operating point's oil temperature T_op
     (losses ``src_w`` and conductances ``G_w_per_k`` given for it), the cooler linearised at the step's sump
     ``p.T_oil_c`` with its slope at T_op (or ``slope_w_per_k`` when given: the bounded method's chord): K from the
     conductances, the inlet coupling when the inlet follows the sump (and the coupled system passes the stability
-    test below), b from the heat, the boundaries, the inlet drop and a measured sump."""
+    test below), b from the heat, the boundaries, the inlet drop and a measured sump. ``inlet_k_per_k``: the inlet
+    drop follows the sump along this slope [K/K] from the step's drop (the bounded method's inlet line) instead of
+    the cooler's slope over mdot cp."""
     rp, h = sp.reduced, sp.helpers
     K, _ = conductance_matrix(G_w_per_k, h.topology)
     T_oil_c = p.T_oil_c
@@ -188,14 +196,15 @@ def held_system(
         slope_w_per_k = 0.0
     elif slope_w_per_k is None:
         slope_w_per_k = cooler_slope_w_per_k(sp, T_op_c, p.omega_in_rad_s, p.row, p.used, p.rho_cp_j_per_m3k, vehicle)
-    mcp_w_per_k = p.rho_cp_j_per_m3k * _oil_flow_m3_s(sp, p.row, p.omega_in_rad_s)
+    mcp_w_per_k = p.rho_cp_j_per_m3k * oil_flow_m3_s(sp, p.row, p.omega_in_rad_s)
     u = None
     if not measured:
         K[rp.i_oil, rp.i_oil] += slope_w_per_k
-        if _inlet_follows_sump(sp, p, measured, slope_w_per_k, T_op_c):
+        if _inlet_follows_sump(sp, p, measured, slope_w_per_k, T_op_c, inlet_k_per_k):
             # the oil-system inlet follows the sump through the linearised cooler: inlet drop
             # (Q0 + slope (T_sump - T0)) / (mdot cp) moves sv (T_sump - T0) slope / (mdot cp) into the streams
-            u = (G_streams_w_per_k @ h.stream_scatter) * (slope_w_per_k / mcp_w_per_k)
+            k_in = slope_w_per_k / mcp_w_per_k if inlet_k_per_k is None else inlet_k_per_k
+            u = (G_streams_w_per_k @ h.stream_scatter) * k_in
             # K - u e^T has det(K) (1 - e^T K^-1 u): at or below 0 a real mode grows; then the inlet is frozen
             try:
                 if not 1.0 - float(np.linalg.solve(K, u)[rp.i_oil]) > COUPLING_MARGIN:
@@ -210,7 +219,12 @@ def held_system(
         # frozen inlet drop, at the operating point's sump T_op through the linearised cooler
         dT_in_k = p.dT_in_k
         if T_op_c != T_oil_c and not measured:
-            dT_lin_k = (p.Q_cool_w + slope_w_per_k * (T_op_c - T_oil_c)) / mcp_w_per_k if mcp_w_per_k > 0.0 else 0.0
+            if inlet_k_per_k is not None:
+                dT_lin_k = p.dT_in_k + inlet_k_per_k * (T_op_c - T_oil_c)
+            elif mcp_w_per_k > 0.0:
+                dT_lin_k = (p.Q_cool_w + slope_w_per_k * (T_op_c - T_oil_c)) / mcp_w_per_k
+            else:
+                dT_lin_k = 0.0
             dT_in_k = min(max(dT_lin_k, -INLET_DROP_MAX_K), INLET_DROP_MAX_K)
         b_in_w = (G_streams_w_per_k * dT_in_k) @ h.stream_scatter
     b_w = src_w @ rp.src_matrix + b_in_w + np.bincount(h.ea, G_w_per_k[h.ext_idx] * p.T_bc_c[h.eb], minlength=rp.n)

@@ -3,7 +3,8 @@
 * numpy and the C kernel give the same times (1e-3 relative or 0.1 s), "not available" at the same points, on
   ordinary held points from cold and warm starts and on hostile ones;
 * from cold and warm starts it is not late against the reference plant run with the inputs held (today's march
-  said "never" at each of these points while the sump warmed);
+  said "never" at each of these points while the sump warmed), also at the points of benchmarks/bench_ttl.py where
+  its first version was late by 15-18 % (the cooler's chord from cold, the inlet drop past its clip);
 * on a named cycle no early warning comes later than with today's march;
 * its cost: the second march stops at the first's crossings, the chord systems' weights solve B w = C, and over a
   hard drive the bounded refresh marches fewer steps than today's (it took 2.3 times as many before).
@@ -35,6 +36,20 @@ HELD = [
     ((-1.7, 5, 1583.0, 2801.0, 75.4, -1.7, 60.0), ("PS",)),  # cold start
     ((1.4, 1, 1712.7, 2726.9, 20.2, 1.4, 83.7), ("CL", "CM.teeth", "PS")),  # cold start, low gear
     ((90.6, 3, 2048.2, 2050.1, 73.9, 36.6, 81.9), ("PS", "1M.teeth")),  # warm start
+]
+
+#: held points of benchmarks/bench_ttl.py --points 240 where the bounded method was late by more than 10 % before
+#: (the sump measured): cold starts, where the liquid cooler heats the oil at its clip until the sump nears the
+#: coolant and the cooler's chord took that heating away linearly; a warm start, where the oil-system inlet drop
+#: reaches its 30 K clip before the crossing and the coupled drop (the cooler's slope) kept growing past it:
+#: (spec as HELD), component, the plant's run [s], the earliest the prediction may be (share of the plant's time)
+LATE_BEFORE = [
+    ((23.64, 4, 1801.5, 2925.1, 74.8, 23.64, 80.76), "PS", 300.0, 0.8),  # point 30: plant 173 s, before 199 s
+    ((19.24, 1, 1469.6, 2040.2, 67.7, 19.24, 78.59), "PS", 400.0, 0.8),  # point 66: plant 291 s, before 344 s
+    ((1.42, 1, 1712.7, 2726.9, 20.2, 1.42, 83.7), "PP", 450.0, 0.8),  # point 24: plant 375 s, before 430 s
+    # point 229: plant 485 s, before 556 s; a grazing approach (the sun wheel peaks 4 K over its limit): the drop's
+    # secant under its clipped curve makes it 71 % early (docs/sensor.md, "What falls short")
+    ((80.57, 3, 2124.4, 1913.4, 36.3, 9.38, 82.61), "PS", 560.0, 0.0),
 ]
 
 
@@ -97,8 +112,24 @@ def test_not_late_against_the_held_plant_from_cold_and_warm_starts(params, spec,
         )
 
 
+@pytest.mark.parametrize("spec, comp, seconds, earliest", LATE_BEFORE)
+def test_not_late_where_it_was_late_before(params, spec, comp, seconds, earliest):
+    """The chord systems march the cooler along a line at or below its curve (ttl_bound.cooler_line) and, where the
+    coupled inlet drop passes its clip before the first crossing, once more with the drop's secant
+    (ttl_bound.Chord.clipped_inlet_k_per_k): the prediction is not late by more than 10 % of the held plant's
+    crossing (before: 15-18 % late), and from the cold starts not early by more than 20 % either."""
+    sensor = VirtualSensor(params, core="numpy", ttl_method="bound")
+    pred = time_to_limit_bound(sensor.sp, sensor.cache, held_point(sensor, spec))
+    j = PUBLISHED.index(comp)
+    plant = plant_crossings(params, spec, seconds)[j]
+    assert 60.0 <= plant < seconds
+    assert earliest * plant <= pred[j] <= 1.1 * plant, (
+        f"{comp}: predicted {pred[j]:.0f} s, the held plant crossed at {plant:.0f} s"
+    )
+
+
 @needs_c
-@pytest.mark.parametrize("spec", [h[0] for h in HELD] + [(45.0, 7, 1800.0, 2400.0, 60.0, 45.0, 95.0)])
+@pytest.mark.parametrize("spec", [h[0] for h in HELD + LATE_BEFORE] + [(45.0, 7, 1800.0, 2400.0, 60.0, 45.0, 95.0)])
 def test_c_equals_numpy_on_held_points(params, spec):
     ref = VirtualSensor(params, core="numpy", ttl_method="bound")
     cc = VirtualSensor(params, core="c", ttl_method="bound")
@@ -202,7 +233,7 @@ def test_the_second_march_only_looks_before_the_first_crossing(params):
     for spec in [h_[0] for h_ in HELD]:
         p = held_point(sensor, spec)
         system, free = held_system(sensor.sp, p, p.src_w, p.G_w_per_k, p.G_streams_w_per_k, p.T_oil_c, False)
-        first, second = chord_systems(sensor.sp, sensor.cache, p, system)
+        first, second = chord_systems(sensor.sp, sensor.cache, p, system)[:2]
         args = (p.T_main_c[free], h.pub_rows_all, warning_c[h.pub_free_all])
         a = march_time_to_limit(first, *args, ratio=TTL_BOUND_RATIO)
         full = march_time_to_limit(second, *args, ratio=TTL_BOUND_RATIO)
@@ -220,7 +251,7 @@ def test_chord_weights_solve_B_w_equals_C(params):
     sensor = VirtualSensor(params, core="numpy", ttl_method="bound")
     p = held_point(sensor, HELD[0][0])
     system, _ = held_system(sensor.sp, p, p.src_w, p.G_w_per_k, p.G_streams_w_per_k, p.T_oil_c, False)
-    for chord in chord_systems(sensor.sp, sensor.cache, p, system):
+    for chord in chord_systems(sensor.sp, sensor.cache, p, system)[:2]:
         assert not chord.metzler and chord.weights is not None
         B = -np.abs(chord.A_w_per_k)
         np.fill_diagonal(B, np.diag(chord.A_w_per_k))

@@ -833,7 +833,9 @@ static void held_weights(const gvs_tables *tb, held_t *hs, const gvs_real *col, 
 /* ---- the bounded time to limit (ttl_bound): the losses and the cooler along their chords to the far sump ---------
  * q(T_sump) = q(T_far) + beta (T_sump - T_far): beta joins the coupling column on the sump (ttl_bound.chord_system) */
 typedef struct {
-    gvs_real slope;                     /* the cooler's chord from the step's sump to T_far [W/K] */
+    gvs_real slope;                     /* the cooler's line from the step's sump to T_far [W/K] */
+    gvs_real Q0;                        /* ... its heat at the step's sump [W] (ttl_bound.cooler_line) */
+    gvs_real inlet;                     /* the inlet drop's slope [K/K]; NaN: the cooler's slope over mdot cp */
     gvs_real T_far;                     /* the far sump [degC] */
     gvs_real beta[GVS_MAX_NODES];       /* the node heat's chord [W/K] */
     const gvs_real *stop;               /* per published component: only a crossing before it is wanted (or NULL) */
@@ -890,6 +892,8 @@ static int held_build(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_tt
     int32_t n = tb->n, k, i, io = tb->i_oil;
     gvs_real T_oil = p->T_oil_c, mcp, dT_in;
     gvs_real w_ls = pump_drive(tb, p->row, p->omega_in_rad_s);
+    gvs_real k_in = chord ? chord->inlet : (gvs_real)NAN;     /* the bounded method's inlet line [K/K] */
+    gvs_real Q_c = chord ? chord->Q0 : p->Q_cool_w;            /* ... and its cooler line's heat at the sump */
     mcp = p->rho_cp_j_per_m3k * flow_per_drive(tb) * w_ls;
     hs->G = G;
     hs->held = measured;
@@ -901,9 +905,10 @@ static int held_build(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_tt
     hs->coupled = 0;
     for (i = 0; i < n; ++i) hs->u[i] = R_(0.0);
     if (!measured && hs->slope != R_(0.0) && FABS(p->dT_in_k) < tb->inlet_drop_max_k && mcp > R_(0.0)
-        && FABS((p->Q_cool_w + hs->slope * (T_op - T_oil)) / mcp) < tb->inlet_drop_max_k) {
+        && (k_in == k_in ? k_in != R_(0.0) && FABS(p->dT_in_k + k_in * (T_op - T_oil)) < tb->inlet_drop_max_k
+                         : FABS((Q_c + hs->slope * (T_op - T_oil)) / mcp) < tb->inlet_drop_max_k)) {
         for (k = 0; k < tb->nst; ++k) {
-            gvs_real f = Gs[k] * (hs->slope / mcp);
+            gvs_real f = Gs[k] * (k_in == k_in ? k_in : hs->slope / mcp);
             hs->u[tb->stream_node[k]] -= f;
             hs->u[io] += f;
         }
@@ -926,6 +931,7 @@ static int held_build(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_tt
     hs->weighted = 0;
     if (hs->coupled) {
         gvs_real col[GVS_MAX_NODES], rs[GVS_MAX_NODES];
+        memset(rs, 0, sizeof rs);                      /* (gcc cannot see that the loop below sets rs[io]) */
         for (i = 0; i < n; ++i) {
             col[i] = hs->u[i];
             rs[i] = -hs->u[i];
@@ -946,7 +952,8 @@ static int held_build(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_tt
     for (k = 0; k < tb->nsrc_nz; ++k) T_inf[tb->src_nz_node[k]] += src[tb->src_nz_src[k]] * tb->src_nz_w[k];
     dT_in = p->dT_in_k;
     if (!hs->coupled && T_op != T_oil && !measured)
-        dT_in = clip_r(mcp > R_(0.0) ? (p->Q_cool_w + hs->slope * (T_op - T_oil)) / mcp : R_(0.0),
+        dT_in = clip_r(k_in == k_in ? p->dT_in_k + k_in * (T_op - T_oil)
+                       : mcp > R_(0.0) ? (Q_c + hs->slope * (T_op - T_oil)) / mcp : R_(0.0),
                        -tb->inlet_drop_max_k, tb->inlet_drop_max_k);
     for (k = 0; k < tb->nst; ++k) {
         gvs_real f = Gs[k] * dT_in;
@@ -961,7 +968,7 @@ static int held_build(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_tt
         else if (measured && (a == io || b == io)) T_inf[a == io ? b : a] += G[k] * T_oil;
     }
     if (measured) T_inf[io] = T_oil;
-    else T_inf[io] += hs->slope * T_oil - p->Q_cool_w;
+    else T_inf[io] += hs->slope * T_oil - Q_c;
 #ifndef GVS_NO_TTL_BOUND
     if (chord) chord_column(tb, hs, chord, T_inf);
 #else
@@ -1163,8 +1170,8 @@ static void bound_scatter(const gvs_tables *tb, const gvs_real *src, gvs_real *q
     for (k = 0; k < tb->nsrc_nz; ++k) q[tb->src_nz_node[k]] += src[tb->src_nz_src[k]] * tb->src_nz_w[k];
 }
 
-/* ttl_bound.cooler_chord_slope: (Q(T_far) - Q_step) / (T_far - T_step), at least 0 */
-static gvs_real bound_cooler_slope(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl_point *p, gvs_real T)
+/* ttl_bound.cooler_heat_w: the cooler's heat with the point's inputs at sump T [W] (0 without a cooler or drive) */
+static gvs_real bound_cooler_heat(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl_point *p, gvs_real T)
 {
     gvs_real w_ls = pump_drive(tb, p->row, p->omega_in_rad_s);
     gvs_real mcp = p->rho_cp_j_per_m3k * flow_per_drive(tb) * w_ls;
@@ -1172,7 +1179,30 @@ static gvs_real bound_cooler_slope(const gvs_tables *tb, const gvs_vehicle *veh,
     cooler_op_t op;
     if (tb->cooler_code == GVS_COOLER_NONE || !(w_ls > R_(0.0))) return R_(0.0);
     cooler_op(tb, veh, w_ls, p->omega_in_rad_s, u[GVS_I_COOL], u[GVS_I_AMB], u[GVS_I_VKMH], mcp, &op);
-    return max_r((cooler_heat(tb, veh, &op, T) - p->Q_cool_w) / (T - p->T_oil_c), R_(0.0));
+    return cooler_heat(tb, veh, &op, T);
+}
+
+/* ttl_bound.cooler_chord_slope: (Q(T_far) - Q_step) / (T_far - T_step), at least 0 */
+static gvs_real bound_cooler_slope(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl_point *p, gvs_real T)
+{
+    if (tb->cooler_code == GVS_COOLER_NONE || !(pump_drive(tb, p->row, p->omega_in_rad_s) > R_(0.0))) return R_(0.0);
+    return max_r((bound_cooler_heat(tb, veh, p, T) - p->Q_cool_w) / (T - p->T_oil_c), R_(0.0));
+}
+
+/* ttl_bound.cooler_line: the line through the cooler's heat at T_far, at or below its heat at the step's sump and at
+ * GVS_TTL_BOUND_SAMPLES sumps evenly between (the secants' extreme, slope at least 0): ch->slope, ch->Q0 */
+static void bound_cooler_line(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl_point *p, ttl_chord_t *ch)
+{
+    gvs_real T0 = p->T_oil_c, T_far = ch->T_far, Q_far = bound_cooler_heat(tb, veh, p, T_far), d0 = T0 - T_far;
+    gvs_real slope = (p->Q_cool_w - Q_far) / d0;
+    int k;
+    for (k = 1; k <= GVS_TTL_BOUND_SAMPLES; ++k) {
+        gvs_real T = T0 + (T_far - T0) * ((gvs_real)k / (gvs_real)(GVS_TTL_BOUND_SAMPLES + 1));
+        gvs_real sec = (bound_cooler_heat(tb, veh, p, T) - Q_far) / (T - T_far);
+        if (d0 < R_(0.0) ? sec > slope : sec < slope) slope = sec;     /* Python's max / min, NaN alike */
+    }
+    ch->slope = R_(0.0) > slope ? R_(0.0) : slope;
+    ch->Q0 = Q_far + ch->slope * d0;
 }
 
 static gvs_real bound_clip(const gvs_tables *tb, gvs_real T)
@@ -1260,6 +1290,7 @@ static int bound_far_sump(const gvs_tables *tb, const gvs_vehicle *veh, const gv
         }
     }
     if (!found) return -1;
+    bound_cooler_line(tb, veh, p, ch);
     bound_scatter(tb, p->src_w, r);                          /* the node heat's chord to the found far sump */
     bound_scatter(tb, src, qf);
     for (i = 0; i < n; ++i) ch->beta[i] = (r[i] - qf[i]) / (T0 - ch->T_far);
@@ -1268,6 +1299,22 @@ static int bound_far_sump(const gvs_tables *tb, const gvs_vehicle *veh, const gv
 
 static int ttl_refresh(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl_point *p, gvs_real *ttl_s,
                        int bound);
+
+/* ttl_bound.Chord.clipped_inlet_k_per_k: the inlet drop's secant [K/K] from the step's sump to T_x when the first
+ * chord system's coupled drop (the cooler line's slope over mdot cp, from the step's drop) is beyond the clip at T_x;
+ * NaN: not */
+static gvs_real bound_clipped_inlet(const gvs_tables *tb, const gvs_ttl_point *p, const ttl_chord_t *ch, gvs_real T_x)
+{
+    gvs_real mcp = tb->pump_code == GVS_PUMP_MOTOR ? p->rho_cp_j_per_m3k * tb->pump_flow_m3_s
+        : p->rho_cp_j_per_m3k * tb->flow_m3_per_rad * shaft_speed(tb, p->row, tb->pump_speed_col, R_(1.0))
+            * p->omega_in_rad_s;
+    gvs_real d_x;
+    if (!(mcp > R_(0.0)) || !(FABS(p->dT_in_k) < tb->inlet_drop_max_k) || !(T_x != p->T_oil_c))
+        return (gvs_real)NAN;
+    d_x = p->dT_in_k + ch->slope / mcp * (T_x - p->T_oil_c);
+    if (!(FABS(d_x) > tb->inlet_drop_max_k)) return (gvs_real)NAN;
+    return (clip_r(d_x, -tb->inlet_drop_max_k, tb->inlet_drop_max_k) - p->dT_in_k) / (T_x - p->T_oil_c);
+}
 
 /* a crossing within GVS_TTL_BOUND_GATE_S: today's march too, the earlier of the two (no warning later than today's) */
 static void bound_gate(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl_point *p, gvs_real *ttl_s)
@@ -1288,14 +1335,16 @@ static int ttl_refresh_bound(const gvs_tables *tb, const gvs_vehicle *veh, const
     gvs_real T_watch, src[GVS_MAX_SRC], G[GVS_MAX_LINKS], Gs[GVS_MAX_STREAMS], other[GVS_MAX_PUB];
     int measured = p->measured && !tb->ttl_sump_model, rc_a, rc_b, j;
     ttl_chord_t ch;
+    gvs_real T_x, k_in;
     ch.stop = NULL;
+    ch.inlet = (gvs_real)NAN;
     if (measured || !tb->ttl_relinearise || bound_far_sump(tb, veh, p, &ch, src) != 0) {
         ttl_solve(tb, veh, p, p->src_w, p->G_w_per_k, p->G_streams_w_per_k, p->T_oil_c, measured, ttl_s, &T_watch,
                   NULL);
         bound_gate(tb, veh, p, ttl_s);
         return GVS_OK;
     }
-    rc_a = ttl_solve(tb, veh, p, src, p->G_w_per_k, p->G_streams_w_per_k, p->T_oil_c, 0, ttl_s, &T_watch, &ch);
+    rc_a = ttl_solve(tb, veh, p, src, p->G_w_per_k, p->G_streams_w_per_k, p->T_oil_c, 0, ttl_s, &T_x, &ch);
     bin_conductances(tb, veh, p->row, speed_bin_centre(tb, p->omega_in_rad_s),
                      RINT(ch.T_far / tb->oil_bin_c) * tb->oil_bin_c, G, Gs);
     if (rc_a == 0) ch.stop = ttl_s;                /* the second march: only crossings before the first's */
@@ -1306,6 +1355,17 @@ static int ttl_refresh_bound(const gvs_tables *tb, const gvs_vehicle *veh, const
     } else {
         for (j = 0; j < tb->n_pub; ++j)
             if (rc_a != 0 || other[j] < ttl_s[j]) ttl_s[j] = other[j];
+    }
+    /* the sump at the first crossing (the first march's, else the second's): where the first system's coupled
+     * inlet drop passes its clip before it, the first system once more with the drop's secant to it */
+    if (rc_a != 0 || T_x != T_x) T_x = rc_b == 0 ? T_watch : (gvs_real)NAN;
+    k_in = bound_clipped_inlet(tb, p, &ch, T_x);
+    if (k_in == k_in) {                            /* (other: merged above, free for this march) */
+        ch.stop = NULL;
+        ch.inlet = k_in;
+        if (ttl_solve(tb, veh, p, src, p->G_w_per_k, p->G_streams_w_per_k, p->T_oil_c, 0, other, &T_watch, &ch) == 0)
+            for (j = 0; j < tb->n_pub; ++j)
+                if ((rc_a != 0 && rc_b != 0) || other[j] < ttl_s[j]) ttl_s[j] = other[j];
     }
     bound_gate(tb, veh, p, ttl_s);
     return GVS_OK;
