@@ -73,7 +73,7 @@ ALLOWED = {
         "name_industry_group",
         "arbitrary_address_capable",
     },
-    "sensor": {"oil_mode", "limits", "debounce_s", "hysteresis_c", "snapshot", "ttl_method"},
+    "sensor": {"oil_mode", "limits", "debounce_s", "hysteresis_c", "snapshot", "ttl_method", "held_step"},
 }
 
 
@@ -192,6 +192,7 @@ KEY_TYPES = {
     "gearbox.params": str,
     "sensor.oil_mode": str,
     "sensor.ttl_method": str,
+    "sensor.held_step": str,
     "sensor.limits": str,
     "sensor.debounce_s": (0.0, 60.0),
     "sensor.hysteresis_c": (0.0, 50.0),

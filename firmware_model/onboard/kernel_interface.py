@@ -92,6 +92,10 @@ TTL_BOUND_GATE_S = 60.0
 #: held points of benchmarks/bench_ttl.py 2.5 is late as rarely as 1.4 and within 20 % as often but in 1-3 min
 #: (90 % against 96 %), in about 60 % of the steps (docs/sensor.md)
 TTL_BOUND_RATIO = 2.5
+#: an early warning (Limits.lead_s) is judged only on a time to limit refreshed at most this long ago [s] (every live
+#: and 0.1 s offline configuration refreshes at least this often; a held replay's coarse step refreshes once per row
+#: and publishes the countdown in between, which raises no early warning and clears none: docs/sensor.md)
+TTL_FRESH_S = 10.0
 #: the C names of the input fields (records.INPUT_FIELDS, same order)
 INPUT_C_NAMES = ("SPEED", "TORQUE", "GEAR", "OIL", "AMB", "COOL", "VKMH", "RET")
 if len(INPUT_C_NAMES) != N_INPUTS:
@@ -158,6 +162,7 @@ DEFINES = (
     Constant("TTL_BOUND_TOL_K", TTL_BOUND_TOL_K, "... until it moves less than this [K]"),
     Constant("TTL_BOUND_GATE_S", TTL_BOUND_GATE_S, "a crossing within this: today's march too, the earlier [s]"),
     Constant("TTL_BOUND_RATIO", TTL_BOUND_RATIO, "... its marches: each step this many times longer than the last"),
+    Constant("TTL_FRESH_S", TTL_FRESH_S, "an early warning judges a time to limit at most this old [s]"),
 )
 #: the structs gvs_sizeof() measures, in its argument's order ("real": sizeof(gvs_real))
 SIZEOF_IDS = ("tables", "vehicle", "state", "inputs", "outputs", "ttl_point", "real")
