@@ -21,6 +21,7 @@ Example::
     TRF1 = 0x21                 # e.g. a Navistar: gear (ETC2) from 0x03, transmission oil (TRF1) from 0x21
     [sensor]
     oil_mode = "measured"        # measured | model
+    held_step = "auto"           # auto | reference: a held SCADA table's step (docs/sensor.md)
     [diagnosis]                 # the commands' settings (SETTINGS): [simulate], [replay], [bus], [gateway], [plant],
     start = "running"           # [diagnosis], [calibration], [bench], [fleet], [export]; docs/interfaces.md section 8
 """
