@@ -9,13 +9,14 @@ takes ~25 min for the MM82), and the accuracy of the held path against it over t
 stored + rejected) and the held path's generated energy against the step path's. Issue 45's target: a month in
 at most 10 s.
 
-With ``--sensor`` (the plant only as the reference of (c)): the onboard sensor's held replay (`replay`) at the coarse step the stability
-proof allows (docs/sensor.md "A coarser step for held tables"; the MM82: 10 s) beside the 0.1 s reference in the same
-run: (a) CPU time of a month and a year of synthetic rows (the year's reference extrapolated from its month unless
-``--reference-year``), (b) max / RMS |coarse - 0.1 s| of every published component and of the modelled sump, with
-the oil measured (the plant's sump) and modelled, (c) the sensor against its own plant on the held month at both
-steps; with ``--real DIR`` also (a) and (b) on ENGIE SCADA (turbine R80736: its longest file, a month, and all its
-files, through the SCADA replay and the command). Issue 45's target: a month in at most 2 s; issue 46's: a year.
+With ``--sensor`` (the plant only as the reference of (c)): the onboard sensor's held replay (`replay`) at the
+coarse step the stability proof allows (docs/sensor.md "A coarser step for held tables"; the MM82: 10 s) beside the
+0.1 s reference in the same run: (a) CPU time of a month and a year of synthetic rows (the year's reference
+extrapolated from its month unless ``--reference-year``), (b) max / RMS |coarse - 0.1 s| of every published
+component and of the modelled sump, with the oil measured (the plant's sump) and modelled, (c) the sensor against
+its own plant on the held month at both steps; with ``--real DIR`` also (a) and (b) on ENGIE SCADA (turbine R80736:
+its longest file, a month, and all its files, through the SCADA replay and the command). Issue 45's target: a month
+in at most 2 s; issue 46's: a year.
 
     python benchmarks/bench_held_month.py [--gearbox MM82 --gearbox HR225 ...] [--days 2] [--dt 0.5]
     python benchmarks/bench_held_month.py --sensor [--real DIR] [--reference-year]

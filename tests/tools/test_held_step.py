@@ -219,7 +219,8 @@ def test_bad_row_periods(mm82):
     assert np.all(np.abs(out["time_s"] - (t + span)) <= 5.0 + 1e-9)  # each row ends within half a step
     ref = replay_table(irregular, s, step_s=0.1)
     assert ref["rejects_time_jump"][-1] >= 1
-    assert _largest_difference_k(out, ref, s.published) <= 10 * COARSE_BOUND_K  # rows ending up to 5 s apart
+    # the same bound as regular rows (measured 0.036 K), though rows 4 and 7 s off the period end up to 5 s apart
+    assert _largest_difference_k(out, ref, s.published) <= COARSE_BOUND_K
     odd = RunTable({c: table[c] for c in table.columns}, meta={**table.meta, "row_period_s": 600.05})
     odd["time_s"] = 600.05 * np.arange(table.n)
     assert replay_table(odd, s).meta["step_s"] == 0.1
