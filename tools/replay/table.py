@@ -421,6 +421,7 @@ def replay_csv(path, config_path=None, sensor_options=None) -> CsvReplay:
     out = replay_table(table, sensor)
     out.meta["min_torque_nm"] = min_torque_nm(sensor)
     out.meta["engine_drive"] = description_of(params).drive.kind == "vehicle"  # table_findings' speed-unit check
+    out.meta["limits"] = sensor.limits  # the summary's margins: this gearbox's limits, not the GRS905's
     return CsvReplay(out, params.variant, sensor.options.oil_mode)
 
 
