@@ -1,7 +1,8 @@
 """The physics model and the linear NBM side by side on one calendar month of real SCADA (docs/real-data.md).
 
 The full held-out table (bench_scada.py --physics) replays years of 10-minute rows per fit evaluation, which the
-onboard sensor's 10 Hz stepping makes slow (~23 s CPU per turbine-month); this one keeps the same month of every
+onboard sensor's 10 Hz stepping made slow (~23 s CPU per turbine-month; its 10 s held step: under 1 s, docs/sensor.md
+"A coarser step for held tables"); this one keeps the same month of every
 turbine, fits both models on two turbines' month and scores them on the third's (each way round), for both tasks:
 the bearings from the measured oil, the oil without it. It prints the held-out RMS and p99 per channel, the
 physics model's fitted effects and the time.

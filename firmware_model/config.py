@@ -21,6 +21,7 @@ Example::
     TRF1 = 0x21                 # e.g. a Navistar: gear (ETC2) from 0x03, transmission oil (TRF1) from 0x21
     [sensor]
     oil_mode = "measured"        # measured | model
+    held_step = "auto"           # auto | reference: a held SCADA table's step (docs/sensor.md)
     [diagnosis]                 # the commands' settings (SETTINGS): [simulate], [replay], [bus], [gateway], [plant],
     start = "running"           # [diagnosis], [calibration], [bench], [fleet], [export]; docs/interfaces.md section 8
 """
@@ -73,7 +74,7 @@ ALLOWED = {
         "name_industry_group",
         "arbitrary_address_capable",
     },
-    "sensor": {"oil_mode", "limits", "debounce_s", "hysteresis_c", "snapshot", "ttl_method"},
+    "sensor": {"oil_mode", "limits", "debounce_s", "hysteresis_c", "snapshot", "ttl_method", "held_step"},
 }
 
 
@@ -192,6 +193,7 @@ KEY_TYPES = {
     "gearbox.params": str,
     "sensor.oil_mode": str,
     "sensor.ttl_method": str,
+    "sensor.held_step": str,
     "sensor.limits": str,
     "sensor.debounce_s": (0.0, 60.0),
     "sensor.hysteresis_c": (0.0, 50.0),

@@ -135,15 +135,17 @@ def read_drive_table(path: str | os.PathLike, description=None):
     return rt.validate_run_table(map_fixed_ratio(table, description, name), name=name)
 
 
-def held_plan(t_s: np.ndarray, dt_s: float, period_s: float | None = None):
+def held_plan(t_s: np.ndarray, dt_s: float, period_s: float | None = None, nearest: bool = False):
     """How a table slower than the step is stepped: each row holds its values over its interval (zero-order hold
     of the interval's mean, as a SCADA average stands for the interval that begins at its time stamp), up to the
     next row, or one row period for the last row and before a gap longer than GAP_PERIODS periods (a time jump).
-    Returns ``(steps per row (N,) int, the end of each row's interval (N,) [s])``; every row has at least one step."""
+    Returns ``(steps per row (N,) int, the end of each row's interval (N,) [s])``; every row has at least one step.
+    ``nearest``: each row the nearest whole number of steps instead of the whole steps that fit (a coarse step: a
+    row a few seconds off the period then ends at most dt/2 early or late, never a time jump or a step back)."""
     t_s = np.asarray(t_s, dtype=float)
     period_s = row_period_s(t_s) if period_s is None else period_s
     period_s = period_s if period_s > 0 else dt_s
     span_s = np.diff(t_s, append=t_s[-1] + period_s)
     span_s = np.where(span_s > GAP_PERIODS * period_s, period_s, span_s)
-    n = np.maximum(1, np.floor(span_s / dt_s + 1e-9).astype(np.int64))
+    n = np.maximum(1, np.floor(span_s / dt_s + (0.5 if nearest else 1e-9)).astype(np.int64))
     return n, t_s + n * dt_s

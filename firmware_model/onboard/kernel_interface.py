@@ -95,6 +95,10 @@ TTL_BOUND_RATIO = 2.5
 #: ... and the line its cooler follows: through the cooler's heat at the far sump, at or below it at the step's sump
 #: and at this many sumps evenly between (the secants' extreme; the chord was late from cold starts, docs/sensor.md)
 TTL_BOUND_SAMPLES = 3
+#: an early warning (Limits.lead_s) is judged only on a time to limit refreshed at most this long ago [s] (every live
+#: and 0.1 s offline configuration refreshes at least this often; a held replay's coarse step refreshes once per row
+#: and publishes the countdown in between, which raises no early warning and clears none: docs/sensor.md)
+TTL_FRESH_S = 10.0
 #: the C names of the input fields (records.INPUT_FIELDS, same order)
 INPUT_C_NAMES = ("SPEED", "TORQUE", "GEAR", "OIL", "AMB", "COOL", "VKMH", "RET")
 if len(INPUT_C_NAMES) != N_INPUTS:
@@ -162,6 +166,7 @@ DEFINES = (
     Constant("TTL_BOUND_GATE_S", TTL_BOUND_GATE_S, "a crossing within this: today's march too, the earlier [s]"),
     Constant("TTL_BOUND_RATIO", TTL_BOUND_RATIO, "... its marches: each step this many times longer than the last"),
     Constant("TTL_BOUND_SAMPLES", TTL_BOUND_SAMPLES, "... its cooler line: under the cooler at this many sumps"),
+    Constant("TTL_FRESH_S", TTL_FRESH_S, "an early warning judges a time to limit at most this old [s]"),
 )
 #: the structs gvs_sizeof() measures, in its argument's order ("real": sizeof(gvs_real))
 SIZEOF_IDS = ("tables", "vehicle", "state", "inputs", "outputs", "ttl_point", "real")

@@ -39,6 +39,7 @@ here when the tables are built is firmware_model.onboard.stability.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 from typing import NamedTuple
@@ -93,7 +94,7 @@ from firmware_model.onboard.kernel_interface import (
     P_LOG10_MU,
     P_RHO,
 )
-from firmware_model.onboard.stability import STABILITY_MARGIN, check_stability
+from firmware_model.onboard.stability import HELD_STEP_CAP_S, STABILITY_MARGIN, check_stability
 from firmware_model.parameters import Parameters
 from firmware_model.physics import heat_transfer as ht
 from firmware_model.physics import losses as L
@@ -857,6 +858,19 @@ def build_reduced(
     if check:
         object.__setattr__(rp, "stability", check_stability(rp))
     return rp
+
+
+def with_step(rp: ReducedParams, dt_s: float) -> ReducedParams:
+    """The same onboard model at another explicit step ``dt_s`` (a held replay's coarser step; nothing else in the
+    tables depends on it), its stability proof checked again (StabilityError when ``dt_s`` exceeds it). At most
+    HELD_STEP_CAP_S."""
+    if not 0.0 < dt_s <= HELD_STEP_CAP_S:
+        raise ParameterError(f"dt_s = {dt_s} s must be in (0, {HELD_STEP_CAP_S:g}] s")
+    if dt_s == rp.dt_s:
+        return rp
+    new = dataclasses.replace(rp, dt_s=float(dt_s))  # a fresh record: its helpers (the heat lag at dt) rebuilt
+    object.__setattr__(new, "stability", check_stability(new))
+    return new
 
 
 def _separable_power_law(tab: np.ndarray, w: np.ndarray):

@@ -15,13 +15,14 @@ held_inputs (linear system, time jumps, cool-down), time_to_limit, warning_level
 
 from __future__ import annotations
 
+import copy
+import dataclasses
 import math
 import os
 from pathlib import Path
 
 import numpy as np
 
-from firmware_model.components import STEP_S
 from firmware_model.description import description_of
 from firmware_model.errors import InputError, ParameterError
 from firmware_model.onboard import reduce as R
@@ -77,6 +78,10 @@ __all__ = [
     "step",
 ]
 
+#: sensor.held_step: "auto" (a held table steps at the largest step the stability proof allows that divides its row
+#: period, firmware_model.onboard.stability.held_step_s) or "reference" (every 0.1 s, as a vehicle)
+HELD_STEPS = ("auto", "reference")
+
 
 class VirtualSensor:
     """The onboard sensor: parameters built and checked once, then the pure step.
@@ -98,7 +103,6 @@ class VirtualSensor:
     #: names of the reject counters (SensorStatus.rejects), in order
     reject_reasons = REJECT_REASONS
     input_fields = INPUT_FIELDS
-    dt_s = STEP_S
 
     def __init__(
         self,
@@ -121,6 +125,9 @@ class VirtualSensor:
         oil_mode = options.pop("oil_mode", sensor_cfg.get("oil_mode", "measured"))
         if oil_mode not in ("measured", "model"):
             raise ParameterError(f"sensor.oil_mode = {oil_mode!r} must be 'measured' or 'model'")
+        held_step = options.pop("held_step", sensor_cfg.get("held_step", "auto"))
+        if held_step not in HELD_STEPS:
+            raise ParameterError(f"sensor.held_step = {held_step!r} must be one of {', '.join(map(repr, HELD_STEPS))}")
         if options.get("ttl_sump", "model") not in ("model", "held"):
             raise ParameterError(f"sensor option ttl_sump = {options['ttl_sump']!r} must be 'model' or 'held'")
         if "ttl_method" in sensor_cfg:  # the configuration's choice, unless the caller's options name one
@@ -150,7 +157,35 @@ class VirtualSensor:
         self.cache = StepCache()
         self.limits = lim
         self.options = opts
+        self.held_step = held_step
         self.core = select_core(core, self.sp)
+        self._core_choice = core
+        self._stepped: dict = {}
+
+    @property
+    def dt_s(self) -> float:
+        """The explicit step [s]: components.STEP_S (0.1 s), or a held replay's coarser one (:meth:`with_step`)."""
+        return self.sp.dt_s
+
+    def with_step(self, dt_s: float, ttl_period_s: float | None = None) -> VirtualSensor:
+        """This sensor (parameters, limits, effects, options, core choice) at another explicit step ``dt_s`` (a held
+        replay's, firmware_model.onboard.stability.held_step_s), the stability proof checked again at it
+        (StabilityError beyond it); ``ttl_period_s``: the time-to-limit period there (None: this sensor's). Built
+        once per (step, period) and kept. Only offline: the CAN service refuses a step other than 0.1 s."""
+        period_s = self.options.ttl_period_s if ttl_period_s is None else float(ttl_period_s)
+        if dt_s == self.dt_s and period_s == self.options.ttl_period_s:
+            return self
+        key = (float(dt_s), period_s)
+        if key not in self._stepped:
+            other = copy.copy(self)
+            other.reduced = R.with_step(self.reduced, float(dt_s))
+            other.options = dataclasses.replace(self.options, ttl_period_s=period_s)
+            other.sp = SensorParams.build(other.reduced, self.limits, self.effects, other.options)
+            other.cache = StepCache()
+            other.core = select_core(self._core_choice, other.sp)
+            other._stepped = {}
+            self._stepped[key] = other
+        return self._stepped[key]
 
     @property
     def core_name(self) -> str:

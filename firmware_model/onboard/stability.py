@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from firmware_model.components import STEP_S
 from firmware_model.effects import CATALOG
 from firmware_model.errors import ParameterError, StabilityError
 from firmware_model.network import MIN_SPEED_RAD_S
@@ -47,6 +48,10 @@ from firmware_model.units import KELVIN_OFFSET_K, RAD_S_PER_RPM
 STABILITY_MARGIN = 0.8
 #: oil temperature range over which stability is guaranteed [degC]
 OIL_RANGE_C = (-40.0, 150.0)
+#: the largest step a held replay takes [s] (assumed; docs/sensor.md "A coarser step for held tables"): the drive
+#: inputs' hold time (SensorOptions.hold_s, 10 s) so that one missing row-step is still "held", not "not available",
+#: and the offline time-to-limit period (10 s); beyond it a month costs little less (the per-row work dominates)
+HELD_STEP_CAP_S = 10.0
 
 
 def max_conductances(rp: ReducedParams) -> dict:
@@ -145,3 +150,27 @@ def check_stability(rp: ReducedParams) -> dict:
             f"C / sum G = {dt_max[i]:.4g} s; merge the node with a neighbour or raise its thermal mass"
         )
     return info
+
+
+def held_step_s(stability: dict, period_s, cap_s: float = HELD_STEP_CAP_S, base_s: float = STEP_S) -> float:
+    """The step [s] of a table held over rows of ``period_s`` (a fixed-ratio drive's SCADA): the largest multiple
+    ``k base_s`` of the vehicle step that the proof ``stability`` (:func:`check_stability`'s, margin included) holds
+    for at every node, at most ``cap_s``, that divides the row period (every row an integer number of steps, the
+    frame times on the base grid). ``base_s`` when none larger does, or the period is not a positive multiple of
+    ``base_s`` (an irregular table, a missing or bad period)."""
+    try:
+        period = float(period_s)
+    except (TypeError, ValueError):
+        return base_s
+    dt_max = float(np.min(stability["dt_max_s"])) if stability and len(stability.get("dt_max_s", ())) else 0.0
+    if not (np.isfinite(period) and period > base_s and np.isfinite(dt_max)):
+        return base_s
+    m = period / base_s  # the period in base steps: an integer, else base_s
+    if abs(m - round(m)) > 1e-9 * m:
+        return base_s
+    m = int(round(m))
+    k_max = int(np.floor(min(dt_max, cap_s) / base_s + 1e-9))
+    for k in range(min(k_max, m), 1, -1):
+        if m % k == 0 and k * base_s <= dt_max:
+            return round(k * base_s, 9)
+    return base_s

@@ -37,7 +37,7 @@ from firmware_model.onboard import evaluate as E
 from firmware_model.onboard.conductance_bins import bin_centre, bin_conductances, quantise
 from firmware_model.onboard.held_inputs import jump_state
 from firmware_model.onboard.input_check import DRIVE_FROZEN_BITS, INPUT_BITS, OIL_FROZEN_BITS, InputCheck, check_inputs
-from firmware_model.onboard.kernel_interface import P_CP, P_RHO
+from firmware_model.onboard.kernel_interface import P_CP, P_RHO, TTL_FRESH_S
 from firmware_model.onboard.params import SensorParams
 from firmware_model.onboard.records import (
     I_AMB,
@@ -334,7 +334,12 @@ def _finish(state: SensorState, raw, t_now, chk: InputCheck, net: NetworkStep, c
     k = state.k
     steps_since_refresh = np.minimum(k, (k - 1) % sp.ttl_every + 1)  # 0 at k = 0
     ttl_now_s = np.maximum(state.ttl_s - (steps_since_refresh * dt)[..., None], 0.0)
-    level, pending_s, resting = _levels(state, T_pub_c, available, ttl_now_s, sp)
+    # the early warning judges only a time to limit refreshed at most TTL_FRESH_S ago (a held replay's coarse step
+    # refreshes once per row): an older one is published counted down, but raises no early warning and clears none
+    # (it reads as 2 lead_s, warning_levels.update_levels)
+    fresh = steps_since_refresh * dt <= TTL_FRESH_S + 0.5 * dt
+    ttl_lead_s = np.where(np.asarray(fresh)[..., None], ttl_now_s, 2.0 * lim.lead_s)
+    level, pending_s, resting = _levels(state, T_pub_c, available, ttl_lead_s, sp)
     at_limit = T_pub_c >= lim.warning_c
     if not resting and (level.any() or at_limit.any()):
         ttl_out_s = np.where(level == LEVEL_NA, np.nan, np.where(at_limit, 0.0, ttl_now_s))

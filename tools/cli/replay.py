@@ -210,7 +210,7 @@ def run(args) -> int:
     if not args.out:
         raise InputError("--out EST.csv is required")
     from tools.replay.plot import plot_replay
-    from tools.replay.table import replay_csv, summarize, table_findings
+    from tools.replay.table import held_step_line, replay_csv, summarize, table_findings
     from tools.runtable import write_run_table
 
     # the outputs to temporary files first: a failure leaves none of them (tools.outputs)
@@ -228,6 +228,8 @@ def run(args) -> int:
 
         s = summarize(out)
         print(f"replayed {s.span_s:.1f} s in {s.steps} steps -> {dest}")
+        if held_step_line(out):
+            print(held_step_line(out))
         for line in summary_lines(out, oil_model=oil_mode == "model", gearbox=gearbox):
             print(line)
     return _report_trust(args, table_findings(out, oil_model=oil_mode == "model"))
@@ -235,6 +237,7 @@ def run(args) -> int:
 
 def _run_scada(args) -> int:
     """`gearbox-vsensor replay SCADA... --columns NAME|FILE --out EST.csv`: the sensor over one unit's SCADA."""
+    from tools.replay.table import held_step_line
     from tools.runtable import write_run_table
     from tools.scada.reader import read_record
     from tools.scada.replay import error_lines, replay_record
@@ -264,6 +267,8 @@ def _run_scada(args) -> int:
             f"replayed {record.unit}: {record.n} rows in {record.n_stretches} stretches "
             f"(oil {result.oil_mode}) -> {Path(args.out)}"
         )
+        if held_step_line(result.table):
+            print(held_step_line(result.table))
         for line in error_lines(result):
             print(line)
     return 0

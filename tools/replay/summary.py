@@ -157,7 +157,7 @@ def summary_lines(out, limits=None, oil_model: bool = False, gearbox=None) -> li
     from firmware_model.components import MODE_NORMAL, MODE_OIL_MODEL
     from firmware_model.onboard.warning_levels import load_limits
 
-    limits = limits or load_limits()
+    limits = limits or (getattr(out, "meta", None) or {}).get("limits") or load_limits()
     line = "degraded: 0.0 % of steps"
     if out.n and out.has("degraded_mode"):
         mode = np.asarray(out["degraded_mode"])

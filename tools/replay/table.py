@@ -258,24 +258,68 @@ def held_options(table) -> dict:
 
 #: steps of the sensor per call when a slow table is held (the outputs of one call sit in memory)
 HELD_CHUNK_STEPS = 100_000
+#: the reject counters that count events (one per jump), not steps: a coarse held step does not scale them
+EVENT_REJECTS = ("time_jump", "time_backward")
 
 
-def replay_held(table, sensor, initial_oil_c: float | None = None, chunk_steps: int = HELD_CHUNK_STEPS):
+def held_step_of(table, sensor, step_s: float | None = None) -> float:
+    """The explicit step [s] a held replay of ``table`` takes with ``sensor``: ``step_s`` when given, else by the
+    sensor's ``held_step`` ("auto": the largest the stability proof allows that divides the row period,
+    firmware_model.onboard.stability.held_step_s; "reference": the vehicle's 0.1 s)."""
+    from firmware_model.onboard.stability import held_step_s
+
+    if step_s is not None:
+        period_s, dt_s = _row_period_s(table), float(step_s)
+        m = period_s / dt_s if dt_s > 0 else math.nan
+        if dt_s != sensor.dt_s and not (np.isfinite(m) and m >= 1 and abs(m - round(m)) <= 1e-9 * m):
+            raise InputError(f"a held step of {step_s!r} s does not divide the table's row period of {period_s:g} s")
+        return dt_s
+    if getattr(sensor, "held_step", "reference") != "auto":
+        return sensor.dt_s
+    return held_step_s(sensor.reduced.stability, _row_period_s(table), base_s=sensor.dt_s)
+
+
+def _row_period_s(table) -> float:
+    """A held table's row period [s]: its meta's (tools.drive_table.map_fixed_ratio), else the median spacing."""
+    from tools.drive_table import row_period_s
+
+    period_s = (getattr(table, "meta", None) or {}).get("row_period_s")
+    return float(period_s) if period_s is not None else row_period_s(np.asarray(table["time_s"], dtype=float))
+
+
+def replay_held(
+    table, sensor, initial_oil_c: float | None = None, chunk_steps: int = HELD_CHUNK_STEPS, step_s: float | None = None
+):
     """A table slower than the step (a fixed-ratio drive's SCADA averages) through a sensor with ``step_table``:
-    each row held over its interval on the 0.1 s grid (tools.drive_table.held_plan), one output row per input row:
-    the sensor at the end of that row's interval (``time_s``), with the inputs of the row. A month of 10-minute
-    rows is 26 million steps and 4,320 output rows; the steps run ``chunk_steps`` at a time."""
+    each row held over its interval (tools.drive_table.held_plan), one output row per input row: the sensor at the
+    end of that row's interval (``time_s``), with the inputs of the row. The step (:func:`held_step_of`; ``step_s``
+    overrides the sensor's ``held_step``): the MM82's 10-minute rows step every 10 s (60 steps a row, a month
+    259,200 steps) where the stability proof allows it, else every 0.1 s (26 million steps a month); the steps run
+    ``chunk_steps`` at a time. At a coarser step the time to limit is refreshed once per row period, from the state
+    one step before each regular row's end (docs/sensor.md "A coarser step for held tables"), and the reject
+    counters count the 0.1 s steps each step stands for (events: one each), as at 0.1 s. ``meta["step_s"]``: the
+    step taken."""
     from tools.drive_table import held_plan
 
+    base = sensor
+    dt_s = held_step_of(table, sensor, step_s)
+    period_s = _row_period_s(table)
+    if dt_s != sensor.dt_s:
+        # one time-to-limit refresh per row period (offline batches: 10 s or less often; the live service 1 s)
+        sensor = sensor.with_step(dt_s, ttl_period_s=max(period_s, base.options.ttl_period_s))
     t_s = np.asarray(table["time_s"], dtype=float)
     data = np.stack(
         [np.asarray(table[c], dtype=float) if table.has(c) else np.full(t_s.size, np.nan) for _, c in _sensor_inputs()],
         axis=1,
     )
-    n, ends_s = held_plan(t_s, sensor.dt_s, (getattr(table, "meta", None) or {}).get("row_period_s"))
+    n, ends_s = held_plan(t_s, sensor.dt_s, period_s, nearest=sensor is not base)
     first = np.concatenate([[0], np.cumsum(n)])  # the first step of each row; the last entry: the number of steps
     oil0_c = float(data[0, 3]) if initial_oil_c is None else initial_oil_c
     state = start_state(sensor, oil0_c, float(data[0, sensor.input_fields.index("ambient_temp_c")]))
+    if sensor is not base and 1 < sensor.sp.ttl_every == int(np.median(n)):
+        # the refresh follows the steps k = 0, every, 2 every... (step.py): k from 2 puts it after the second-last
+        # step of every regular row, its time to limit published (one step counted down) at the row's last step
+        state = state._replace(k=np.full(np.shape(state.k), 2 % sensor.sp.ttl_every, dtype=np.int64))
     kept: dict = {"T": [], "W": [], "ttl": [], "status": []}
     for k0 in range(0, int(first[-1]), chunk_steps):
         k = np.arange(k0, min(k0 + chunk_steps, int(first[-1])))
@@ -291,9 +335,40 @@ def replay_held(table, sensor, initial_oil_c: float | None = None, chunk_steps: 
         ("W_", ""): np.concatenate(kept["W"]),
         ("ttl_", "_s"): np.concatenate(kept["ttl"]),
     }
-    out_table = _output_table(ends_s, data, rows_out, np.concatenate(kept["status"]), sensor, state)
-    out_table.meta.update(drive="fixed_ratio", steps=int(first[-1]))
+    status = np.concatenate(kept["status"])
+    per_base = sensor.dt_s / base.dt_s
+    if per_base != 1.0:
+        # a coarse step stands for per_base steps of 0.1 s: its step counters count them (events count one)
+        n_st = status.shape[1] - len(sensor.reject_reasons)
+        for j, reason in enumerate(sensor.reject_reasons):
+            if reason not in EVENT_REJECTS:
+                status[:, n_st + j] = np.rint(status[:, n_st + j] * per_base)
+    out_table = _output_table(ends_s, data, rows_out, status, sensor, state)
+    proof = base.reduced.stability or {}
+    out_table.meta.update(
+        drive="fixed_ratio",
+        steps=int(first[-1]),
+        step_s=float(sensor.dt_s),
+        row_period_s=float(period_s),
+        step_proof_s=float(np.min(proof["dt_max_s"])) if len(proof.get("dt_max_s", ())) else math.nan,
+        step_limiting_node=str(proof.get("limiting_node", "")),
+    )
     return out_table
+
+
+def held_step_line(out) -> str | None:
+    """The line a command prints about the step of a held replay (None for a table stepped at 0.1 s rows)."""
+    from firmware_model.onboard.stability import HELD_STEP_CAP_S
+
+    meta = getattr(out, "meta", None) or {}
+    if "step_s" not in meta:
+        return None
+    proof = meta.get("step_proof_s", math.nan)
+    return (
+        f"sensor step: {meta['step_s']:g} s over rows of {meta.get('row_period_s', math.nan):g} s "
+        f"({meta.get('steps', 0)} steps; the stability proof allows {proof:.3g} s, node "
+        f"{meta.get('step_limiting_node', '?')}; cap {HELD_STEP_CAP_S:g} s; [sensor] held_step)"
+    )
 
 
 def _status_rows(out) -> np.ndarray:
@@ -312,7 +387,7 @@ def _status_rows(out) -> np.ndarray:
     )
 
 
-def replay_table(table, sensor, initial_oil_c: float | None = None):
+def replay_table(table, sensor, initial_oil_c: float | None = None, step_s: float | None = None):
     """Run ``sensor`` over a run table at 10 Hz (see :func:`table_records`); returns the sensor output RunTable."""
     if table.n == 0:
         raise InputError("the run table has no rows")
@@ -323,7 +398,7 @@ def replay_table(table, sensor, initial_oil_c: float | None = None):
         ):
             initial_oil_c = float(meta["initial_temp_c"])
     if hasattr(sensor, "step_table") and (getattr(table, "meta", None) or {}).get("drive") == "fixed_ratio":
-        return replay_held(table, sensor, initial_oil_c)
+        return replay_held(table, sensor, initial_oil_c, step_s=step_s)
     if hasattr(sensor, "step_table"):
         times, data = table_steps(table, sensor.dt_s)
         return replay_steps(times, data, sensor, initial_oil_c)
@@ -346,6 +421,7 @@ def replay_csv(path, config_path=None, sensor_options=None) -> CsvReplay:
     out = replay_table(table, sensor)
     out.meta["min_torque_nm"] = min_torque_nm(sensor)
     out.meta["engine_drive"] = description_of(params).drive.kind == "vehicle"  # table_findings' speed-unit check
+    out.meta["limits"] = sensor.limits  # the summary's margins: this gearbox's limits, not the GRS905's
     return CsvReplay(out, params.variant, sensor.options.oil_mode)
 
 

@@ -25,7 +25,8 @@ from tools.runtable import RunTable
 from tools.scada.reader import ScadaRecord
 from tools.scada.runtable import INPUTS, run_table_of
 
-#: the time to limit's refresh period of these offline replays [s] (the live service refreshes every second)
+#: the time to limit's refresh period of these offline replays at 0.1 s [s] (the live service refreshes every second;
+#: at a held table's coarser step, once per row: tools.replay.table.replay_held)
 OFFLINE_TTL_PERIOD_S = 10.0
 #: a derived temperature of the description -> the sensor's output column that estimates it (where it has one)
 DERIVED_COLUMNS = {OIL_INLET: INLET_COLUMN}

@@ -113,6 +113,7 @@ typedef int32_t gvs_idx;
 #define GVS_TTL_BOUND_GATE_S 60.0               /* a crossing within this: today's march too, the earlier [s] */
 #define GVS_TTL_BOUND_RATIO 2.5                 /* ... its marches: each step this many times longer than the last */
 #define GVS_TTL_BOUND_SAMPLES 3                 /* ... its cooler line: under the cooler at this many sumps */
+#define GVS_TTL_FRESH_S 10.0                    /* an early warning judges a time to limit at most this old [s] */
 
 /* input fields (records.INPUT_FIELDS order) */
 enum { GVS_I_SPEED = 0, GVS_I_TORQUE = 1, GVS_I_GEAR = 2, GVS_I_OIL = 3, GVS_I_AMB = 4, GVS_I_COOL = 5, GVS_I_VKMH = 6,
