@@ -97,7 +97,7 @@ TTL_BOUND_RATIO = 2.5
 TTL_BOUND_SAMPLES = 3
 #: an early warning (Limits.lead_s) is judged only on a time to limit refreshed at most this long ago [s] (every live
 #: and 0.1 s offline configuration refreshes at least this often; a held replay's coarse step refreshes once per row
-#: and publishes the countdown in between, which raises no early warning and clears none: docs/sensor.md)
+#: and publishes the countdown in between, which neither raises nor holds an early warning: docs/sensor.md)
 TTL_FRESH_S = 10.0
 #: the C names of the input fields (records.INPUT_FIELDS, same order)
 INPUT_C_NAMES = ("SPEED", "TORQUE", "GEAR", "OIL", "AMB", "COOL", "VKMH", "RET")

@@ -335,10 +335,10 @@ def _finish(state: SensorState, raw, t_now, chk: InputCheck, net: NetworkStep, c
     steps_since_refresh = np.minimum(k, (k - 1) % sp.ttl_every + 1)  # 0 at k = 0
     ttl_now_s = np.maximum(state.ttl_s - (steps_since_refresh * dt)[..., None], 0.0)
     # the early warning judges only a time to limit refreshed at most TTL_FRESH_S ago (a held replay's coarse step
-    # refreshes once per row): an older one is published counted down, but raises no early warning and clears none
-    # (it reads as 2 lead_s, warning_levels.update_levels)
+    # refreshes once per row): an older one is published counted down, but neither raises an early warning nor
+    # holds one (it reads as "never"): the levels between refreshes follow the temperatures
     fresh = steps_since_refresh * dt <= TTL_FRESH_S + 0.5 * dt
-    ttl_lead_s = np.where(np.asarray(fresh)[..., None], ttl_now_s, 2.0 * lim.lead_s)
+    ttl_lead_s = np.where(np.asarray(fresh)[..., None], ttl_now_s, np.inf)
     level, pending_s, resting = _levels(state, T_pub_c, available, ttl_lead_s, sp)
     at_limit = T_pub_c >= lim.warning_c
     if not resting and (level.any() or at_limit.any()):

@@ -1443,13 +1443,13 @@ int gvs_step(const gvs_tables *tb, const gvs_vehicle *veh, gvs_state *st, const 
     for (i = 0; i < tb->n_pub; ++i) T_pub[i] = st->T_c[GVS_MAIN][tb->published_index[i]];
     available = c.drive_age_s <= tb->hold_s;
     since = k == 0 ? 0 : (steps_mod(k - 1, tb->ttl_every) + 1);
-    /* the early warning judges only a time to limit refreshed at most GVS_TTL_FRESH_S ago; an older one raises none
-     * and clears none: it reads as 2 lead_s (step._finish) */
+    /* the early warning judges only a time to limit refreshed at most GVS_TTL_FRESH_S ago; an older one neither
+     * raises nor holds one: it reads as "never" (step._finish) */
     fresh = (gvs_real)since * tb->dt_s <= R_(GVS_TTL_FRESH_S) + R_(0.5) * tb->dt_s;
     for (i = 0; i < tb->n_pub; ++i) {
         gvs_real t = st->ttl_s[i] - (gvs_real)since * tb->dt_s;
         ttl_now[i] = t != t ? t : max_r(t, R_(0.0));
-        ttl_lead[i] = fresh ? ttl_now[i] : R_(2.0) * tb->lead_s;
+        ttl_lead[i] = fresh ? ttl_now[i] : (gvs_real)INFINITY;
     }
     update_levels(tb, st, T_pub, available, ttl_lead);
     for (i = 0; i < tb->n_pub; ++i) any |= st->level[i] != GVS_LEVEL_NORMAL || T_pub[i] >= tb->warning_c[i];
