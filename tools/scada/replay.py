@@ -5,11 +5,11 @@ The record becomes a fixed-ratio run table (:mod:`tools.scada.runtable`: each 10
 the measured sump as ``oil_temp_c`` unless the oil is modelled), the sensor replays it with one output row per input
 row (tools.replay.table.replay_held), and the estimates are written beside the measurements: for every measured
 channel of the column map its cleaned reading under its own name and the sensor's estimate of the description's
-part it is tied to as ``est_<name>`` (``est_Gb1t_avg``). With ``oil_mode = "model"`` the sump is not read and the
-sump channel's estimate is the model's; with the oil measured, the estimate of the sump is the reading the sensor
-used (its model's own sump is the ``model_oil_temp_c`` column). A channel tied to a forced oil system's inlet
-(``oil.inlet``) is estimated by the status column ``oil_inlet_temp_c``. The sensor's full output (``T_<id>_c``,
-``W_<id>``, ``ttl_<id>_s``, the status) follows.
+part it is tied to as ``est_<name>`` (``est_Gb1t_avg``). With ``oil_mode = "model"`` the sump is read only in the
+first row (the model's start) and the sump channel's estimate is the model's; with the oil measured, the estimate
+of the sump is the reading the sensor used (its model's own sump is the ``model_oil_temp_c`` column). A channel
+tied to a forced oil system's inlet (``oil.inlet``) is estimated by the status column ``oil_inlet_temp_c``. The
+sensor's full output (``T_<id>_c``, ``W_<id>``, ``ttl_<id>_s``, the status) follows.
 """
 
 from __future__ import annotations
@@ -23,7 +23,7 @@ from firmware_model.errors import InputError
 from tools.replay.table import INLET_COLUMN
 from tools.runtable import RunTable
 from tools.scada.reader import ScadaRecord
-from tools.scada.runtable import INPUTS, run_table_of
+from tools.scada.runtable import INPUTS, oil_channel, run_table_of
 
 #: the time to limit's refresh period of these offline replays at 0.1 s [s] (the live service refreshes every second;
 #: at a held table's coarser step, once per row: tools.replay.table.replay_held)
@@ -65,6 +65,17 @@ def estimate_columns(record: ScadaRecord, published, parts=(), outputs=()) -> tu
     return out, notes
 
 
+def first_sump_c(record: ScadaRecord) -> float | None:
+    """The sump channel's reading in the record's first row (None without one): where a modelled sump starts. A
+    record begins wherever its files begin, often with the turbine producing and the oil at 55-60 degC; started at
+    the nacelle air instead, the model's sump would take most of a day to be fair to (its slowest mode)."""
+    oil = oil_channel(record)
+    if oil is None:
+        return None
+    first = float(np.asarray(record.values[oil], dtype=float)[0])
+    return first if np.isfinite(first) else None
+
+
 def replay_record(
     record: ScadaRecord, config, sensor_options: dict | None = None, effects: dict | None = None, params=None
 ) -> ScadaReplay:
@@ -85,8 +96,11 @@ def replay_record(
     drive = map_fixed_ratio(table, description_of(params), table.source, strict=False)
     sensor = VirtualSensor(params, config=config, effects=effects, **{**held_options(drive), **options})
     d = description_of(params)
-    out = replay_table(drive, sensor)
+    start_c = first_sump_c(record) if oil_mode == "model" else None
+    out = replay_table(drive, sensor, initial_oil_c=start_c)
     estimated, notes = estimate_columns(record, tuple(sensor.published), (*d.nodes, *d.derived), out.columns)
+    if start_c is not None:
+        notes.append(f"the model's sump starts at the first sump reading ({start_c:.1f} degC) and reads no other")
     n = record.n
     if out.n != n:  # one output row per SCADA row (tools.replay.table.replay_held)
         raise RuntimeError(f"the replay gave {out.n} rows for {n} SCADA rows")

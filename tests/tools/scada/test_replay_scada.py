@@ -81,9 +81,10 @@ def test_each_measured_channel_is_written_beside_its_estimate_one_row_per_record
     assert not est.has("oil_inlet_temp_c")  # a splash-lubricated gearbox has no oil inlet
 
 
-def test_the_modelled_oil_never_reads_the_sump(tmp_path):
+def test_the_modelled_oil_reads_only_the_first_sump_reading(tmp_path):
     a = write(tmp_path / "a.csv", _rows(0, ROWS))
-    b = write(tmp_path / "b.csv", _rows(0, ROWS, oil_c=lambda k: 40.0 + k * 0.3))
+    # b: the same first reading (55 degC), every later one different
+    b = write(tmp_path / "b.csv", _rows(0, ROWS, oil_c=lambda k: 55.0 if k == 0 else 40.0 + k * 0.3))
     for scada, out in ((a, "a_est.csv"), (b, "b_est.csv")):
         p = _replay(tmp_path, [scada], "--oil-mode", "model", "--out", tmp_path / out)
         assert p.returncode == 0, p.stderr
@@ -91,6 +92,12 @@ def test_the_modelled_oil_never_reads_the_sump(tmp_path):
     np.testing.assert_array_equal(ea["est_Gost_avg"], eb["est_Gost_avg"])
     np.testing.assert_array_equal(ea["est_Gb1t_avg"], eb["est_Gb1t_avg"])
     assert not np.allclose(eb["est_Gost_avg"], eb["Gost_avg"])
+    assert "starts at the first sump reading (55.0 degC)" in p.stdout
+    # the model's sump starts at that first reading: started 15 K colder, its first estimate is colder
+    d = write(tmp_path / "d.csv", _rows(0, ROWS, oil_c=lambda k: 40.0 if k == 0 else 55.0))
+    assert _replay(tmp_path, [d], "--oil-mode", "model", "--out", tmp_path / "d_est.csv").returncode == 0
+    ed = read_run_table(tmp_path / "d_est.csv", required=("time_s",))
+    assert ed["est_Gost_avg"][0] < ea["est_Gost_avg"][0] - 5.0
     # the model's sump follows the load: at 1.6 times the power it ends warmer, above the air
     c = write(tmp_path / "c.csv", _rows(0, ROWS, load=1.6))
     assert _replay(tmp_path, [c], "--oil-mode", "model", "--out", tmp_path / "c_est.csv").returncode == 0
