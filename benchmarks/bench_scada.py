@@ -17,11 +17,16 @@ predictor), and the run time; then the oil task's error across turbines on produ
 effects fitted on the training records; `--fit-rows N` caps the rows per training record, default half a year),
 and prints each fit's effects.
 
-    python benchmarks/bench_scada.py [--vs-mean | --physics [--fit-rows N]] DATA_DIR    # or GVS_REAL_SCADA=DATA_DIR
+`--period YYYY[-MM]` keeps only that calendar year or month (UTC) of every turbine before splitting; `--only TEXT`
+(repeatable) keeps the splits whose label contains TEXT (e.g. `--only "-> R80721" --only "R80736: first year"`),
+so that one split per kind can be run with the physics model.
+
+    python benchmarks/bench_scada.py [--vs-mean | --physics [--fit-rows N]] [--period P] [--only TEXT]... DATA_DIR
 """
 
 from __future__ import annotations
 
+import datetime as dt
 import os
 import sys
 import time
@@ -61,22 +66,50 @@ def by_state(records) -> str:
     return "\n".join(lines)
 
 
-def run(data_dir: Path, other=None, other_name: str = "physics") -> str:
+def period_of(records: dict, period: str) -> dict:
+    """Each unit's rows in the calendar year (YYYY) or month (YYYY-MM) ``period``, UTC; units without any left out."""
+    parts = [int(x) for x in period.split("-")]
+    if len(parts) == 1:
+        a, b = dt.datetime(parts[0], 1, 1), dt.datetime(parts[0] + 1, 1, 1)
+    else:
+        y, m = parts
+        a, b = dt.datetime(y, m, 1), dt.datetime(y + m // 12, m % 12 + 1, 1)
+    a_s, b_s = (x.replace(tzinfo=dt.timezone.utc).timestamp() for x in (a, b))
+    out = {}
+    for unit, rec in records.items():
+        mask = (rec.time_s >= a_s) & (rec.time_s < b_s)
+        if mask.any():
+            out[unit] = rec.select(mask)
+    return out
+
+
+def run(
+    data_dir: Path, other=None, other_name: str = "physics", period: str | None = None, only: list[str] | None = None
+) -> str:
     """The held-out table of the NBM (and of ``other``, a predictor factory task -> predictor, when given)."""
     t0 = time.perf_counter()
     records = read_units(sorted(data_dir.glob("*.csv*")), "engie")
+    if period:
+        records = period_of(records, period)
     t_read = time.perf_counter() - t0
     splits = cross_unit_splits(records) + time_splits(records) + time_splits(records, cut="2017-01-01")
+    if only:
+        splits = [s for s in splits if any(o in s[0] for o in only)]
     nbm, phys = [], []
     for split in splits:
         for task in TASKS.values():
             nbm.extend(evaluate(LinearNBM, task, split))
             if other is not None:
+                t1 = time.perf_counter()
                 phys.extend(evaluate(other, task, split))
+                print(
+                    f"{split[0]} {task.name}: physics fitted and scored in {time.perf_counter() - t1:.0f} s", flush=True
+                )
     total = time.perf_counter() - t0
     rows = sum(r.n for r in records.values())
     head = (
-        f"{len(records)} turbines, {rows} rows of 10 min ({', '.join(f'{u}: {r.n}' for u, r in records.items())}); "
+        (f"period {period}: " if period else "")
+        + f"{len(records)} turbines, {rows} rows of 10 min ({', '.join(f'{u}: {r.n}' for u, r in records.items())}); "
         f"read in {t_read:.1f} s, {len(splits)} splits x {len(TASKS)} tasks fitted and scored in "
         f"{total - t_read:.1f} s (total {total:.1f} s)"
     )
@@ -108,25 +141,34 @@ def physics_factory(fit_rows: int | None, fits: list):
 def main(argv: list[str]) -> int:
     flags = {a for a in argv if a in ("--vs-mean", "--physics")}
     args = [a for a in argv if a not in flags]
-    fit_rows = None
-    if "--fit-rows" in args:
-        i = args.index("--fit-rows")
-        fit_rows = int(args[i + 1])
+    fit_rows, period, only = None, None, []
+    while any(a in args for a in ("--fit-rows", "--period", "--only")):
+        i = next(i for i, a in enumerate(args) if a in ("--fit-rows", "--period", "--only"))
+        flag, value = args[i], args[i + 1]
         del args[i : i + 2]
+        if flag == "--fit-rows":
+            fit_rows = int(value)
+        elif flag == "--period":
+            period = value
+        else:
+            only.append(value)
     where = args[0] if args else os.environ.get("GVS_REAL_SCADA")
     if not where or not Path(where).is_dir():
-        print("usage: bench_scada.py [--vs-mean | --physics [--fit-rows N]] DATA_DIR (or set GVS_REAL_SCADA)")
+        print(
+            "usage: bench_scada.py [--vs-mean | --physics [--fit-rows N]] [--period YYYY[-MM]] [--only TEXT]... "
+            "DATA_DIR (or set GVS_REAL_SCADA)"
+        )
         return 2
     if "--vs-mean" in flags:
-        print(run(Path(where), TrainingMean, "training mean"))
+        print(run(Path(where), TrainingMean, "training mean", period, only))
     elif "--physics" in flags:
         fits: list = []
-        print(run(Path(where), physics_factory(fit_rows, fits), "physics"))
+        print(run(Path(where), physics_factory(fit_rows, fits), "physics", period, only))
         print("\nThe physics fits (in split order, bearings then oil):\n")
         for m in fits:
             print(f"- {m.task.name}: {m.report}")
     else:
-        print(run(Path(where)))
+        print(run(Path(where), period=period, only=only))
     return 0
 
 
