@@ -50,7 +50,9 @@ VARIANTS = ("GRS905", "GRSO905")
 #: the shipped gearboxes with a description of their own (a NAME.toml in firmware_model/params/, standalone files): they
 #: load by name like the variants but are no reference for the keys of other files
 STANDALONE = ("R1", "HR225", "MM82")
-PROVENANCES = ("seed", "derived", "assumed", "fitted")
+#: where a value comes from: "fitted" is what `calibrate` writes (OUT.toml); "calibrated" a value fitted to measured
+#: data of the real machine and shipped in its description (the data, the held-out figure: in its note)
+PROVENANCES = ("seed", "derived", "assumed", "fitted", "calibrated")
 
 #: unit string in a file -> (SI dimension, factor to SI)
 UNITS = {
