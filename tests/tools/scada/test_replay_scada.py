@@ -142,11 +142,12 @@ def test_what_cannot_be_replayed_is_one_sentence(tmp_path, case):
 
 
 def test_the_mm82_s_oil_inlet_is_estimated_below_its_sump(tmp_path):
-    """The MM82 (forced lubrication: a motor pump through an air cooler behind a thermostat opening at 45 degC) on
-    the shipped engie map: the measured inlet channel (Git_avg, tied to the derived oil.inlet) is estimated by the
-    sensor's oil inlet, below the sump estimate by the cooler's drop while the thermostat is open."""
+    """The MM82 (forced lubrication: a motor pump through an air cooler behind a thermostat open from 55 degC, fully
+    from 60 degC) on the shipped engie map: the measured inlet channel (Git_avg, tied to the derived oil.inlet) is
+    estimated by the sensor's oil inlet, below the sump estimate by the cooler's drop while the thermostat is fully
+    open (the sump read at 60.5-63.5 degC)."""
     rows = [
-        row(T0 + timedelta(minutes=10 * k), p_kw=800.0, rs=14.0, Gost_avg=56.0 + 2.0 * math.sin(k / 5.0), Yt_avg=20.0)
+        row(T0 + timedelta(minutes=10 * k), p_kw=800.0, rs=14.0, Gost_avg=62.0 + 1.5 * math.sin(k / 5.0), Yt_avg=20.0)
         for k in range(24)
     ]
     scada = write(tmp_path / "mm82.csv", rows)
