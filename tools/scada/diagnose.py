@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -65,10 +65,20 @@ class Setup:
     config: object
     sump: str | None
     others: tuple[str, ...]
+    #: the gearbox's parameters, read from its file once (each read parses and checks the TOML files: ~1.5 s, which
+    #: made up half of a diagnosis of a turbine-year when every replay read them again)
+    _params: object = field(default=None, repr=False, compare=False)
 
     @property
     def channels(self) -> tuple[str, ...]:
         return ((self.sump,) if self.sump else ()) + self.others
+
+    @property
+    def params(self):
+        """The configuration's gearbox parameters (read once; replays read them, never change them)."""
+        if self._params is None:
+            self._params = self.config.load_params()
+        return self._params
 
 
 def setup_of(config, cmap) -> tuple[Setup, list[str]]:
@@ -95,6 +105,7 @@ def estimates(setup: Setup, record: ScadaRecord, effects: dict, params=None) -> 
     from tools.scada.replay import replay_record
 
     model_effects = {k: v for k, v in effects.items() if k in EFFECTS}
+    params = setup.params if params is None else params
     out = {}
     if setup.sump:
         t = replay_record(record, setup.config, {"oil_mode": "model"}, model_effects, params).table

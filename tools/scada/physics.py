@@ -75,6 +75,7 @@ class PhysicsModel:
     effects: dict = field(default_factory=dict)
     report: dict = field(default_factory=dict)
     name: str = "physics"
+    params: object = field(default=None, repr=False)
 
     @property
     def oil_mode(self) -> str:
@@ -83,10 +84,16 @@ class PhysicsModel:
     def _config(self):
         return self.config
 
+    def _params(self):
+        """The gearbox's parameters, read once (a read parses and checks its TOML files: ~1.5 s per replay else)."""
+        if self.params is None:
+            self.params = self._config().load_params()
+        return self.params
+
     def _estimates(self, record: ScadaRecord, effects: dict) -> dict[str, np.ndarray]:
         from tools.scada.replay import replay_record
 
-        res = replay_record(record, self._config(), {"oil_mode": self.oil_mode}, effects=effects)
+        res = replay_record(record, self._config(), {"oil_mode": self.oil_mode}, effects=effects, params=self._params())
         return {ch: res.table[f"est_{ch}"] for ch in self.task.targets if res.table.has(f"est_{ch}")}
 
     def fit(self, records: Sequence[ScadaRecord]) -> PhysicsModel:
