@@ -100,7 +100,10 @@ def replay_record(
     out = replay_table(drive, sensor, initial_oil_c=start_c)
     estimated, notes = estimate_columns(record, tuple(sensor.published), (*d.nodes, *d.derived), out.columns)
     if start_c is not None:
-        notes.append(f"the model's sump starts at the first sump reading ({start_c:.1f} degC) and reads no other")
+        notes.append(
+            f"the model's sump starts at the first sump reading ({start_c:.1f} degC), reads no other and is not "
+            "compared with that first one"
+        )
     n = record.n
     if out.n != n:  # one output row per SCADA row (tools.replay.table.replay_held)
         raise RuntimeError(f"the replay gave {out.n} rows for {n} SCADA rows")
@@ -109,7 +112,9 @@ def replay_record(
         cols[name] = table[name]
     for name in record.cmap.nodes:
         cols[name] = np.asarray(record.values[name], dtype=float)
-        cols[f"est_{name}"] = out[estimated[name]] if name in estimated else np.full(n, np.nan)
+        cols[f"est_{name}"] = np.array(out[estimated[name]], dtype=float) if name in estimated else np.full(n, np.nan)
+        if start_c is not None and record.cmap.nodes[name] == "oil":
+            cols[f"est_{name}"][0] = np.nan  # the first reading is the model's start: not compared with itself
     for name in out.columns:
         if name not in cols and name not in INPUTS:
             cols[name] = out[name]

@@ -42,11 +42,18 @@ def _measured(setup, record, effects, seed, bias=None):
     rng = np.random.default_rng(seed)
     # the sump first (the model alone), then the bearings from that reading, as the diagnosis replays them
     for chans in ((setup.sump,), setup.others):
-        est = estimates(setup, record, effects)
-        for ch in chans:
-            extra = bias(record) if bias is not None and ch != setup.sump else 0.0
-            record.values[ch] = est[ch] + extra + rng.normal(0.0, 0.1, record.n)
+        _model_readings(setup, record, chans, estimates(setup, record, effects), rng, bias)
     return record
+
+
+def _model_readings(setup, record, chans, est, rng, bias=None):
+    """The channels ``chans`` read the model's estimates ``est`` plus 0.1 K of noise; the sump's first reading
+    stays: a modelled sump starts there (its estimate there is not one)."""
+    start_c = float(record.values[setup.sump][0])
+    for ch in chans:
+        extra = bias(record) if bias is not None and ch != setup.sump else 0.0
+        record.values[ch] = est[ch] + extra + rng.normal(0.0, 0.1, record.n)
+    record.values[setup.sump][0] = start_c
 
 
 def _write_measured(path, record):
@@ -120,9 +127,7 @@ def test_calibrate_finds_a_planted_value_and_prints_the_nbm_beside_it(setup, tmp
     for rec, seed, name in ((train, 7, "train.csv"), (test, 8, "test.csv")):
         rng = np.random.default_rng(seed)
         for chans in ((s.sump,), s.others):
-            est = estimates(s, rec, {}, params)
-            for ch in chans:
-                rec.values[ch] = est[ch] + rng.normal(0.0, 0.1, rec.n)
+            _model_readings(s, rec, chans, estimates(s, rec, {}, params), rng)
         files.append(_write_measured(tmp_path / name, rec))
     cmd = ["calibrate", "--gearbox", "HR225", "--columns", str(_map(tmp_path)), "--train", str(files[0])]
     cmd += ["--test", str(files[1]), "--params", "bearing.f0_tapered", "--out", str(tmp_path / "cal.toml")]
