@@ -9,7 +9,7 @@
     measured (the sensor fed the plant's oil) or modelled (oil absent). At each point the reference plant runs on
     with the inputs held (2700 s) and every published component's first crossing of its warning limit is the truth;
     the sensor's prediction at that moment (one step with the held inputs, then the refresh) by the bounded method
-    (ttl_method "bound") and by today's ("march", the default) in the same run. Per horizon bin of the plant's
+    (ttl_method "bound", the default) and by the march alone ("march") in the same run. Per horizon bin of the plant's
     crossing (1-3, 3-10, 10-30 min): predictions, share within 20 % of the remaining time, the worst late and the
     worst early (+: late), and the share late by more than 10 %; then the predictions of a crossing within 30 min
     where the held plant does not cross within 45 min (early without bound).

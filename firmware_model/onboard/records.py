@@ -122,8 +122,9 @@ class SensorOptions:
     ttl_period_s: float = 1.0  # time to limit refreshed this often (0: every step)
     ttl_sump: str = "model"  # time to limit: the sump evolves with the cooler model ("model") or a
     #                                      measured reading is held like the other inputs ("held")
-    ttl_method: str = "march"  # time to limit: today's march ("march") or the losses and the cooler along their
-    #                                      chords to the far sump ("bound", firmware_model.onboard.ttl_bound)
+    ttl_method: str = "bound"  # time to limit: the losses and the cooler along their chords to the far sump
+    #                                      ("bound", firmware_model.onboard.ttl_bound: never late by more than 10 %
+    #                                      on bench_ttl) or the march alone ("march", late while the sump warms)
     time_jump_hold_s: float = 60.0  # forward jumps: held inputs this long, then engine off
     clock_reset_s: float = 10.0  # time back by more than this: a reset clock, stepped as one step
     initial_temp_c: float | None = None  # cold start without oil: default = ambient boundary

@@ -132,7 +132,7 @@ class VirtualSensor:
             raise ParameterError(f"sensor option ttl_sump = {options['ttl_sump']!r} must be 'model' or 'held'")
         if "ttl_method" in sensor_cfg:  # the configuration's choice, unless the caller's options name one
             options.setdefault("ttl_method", sensor_cfg["ttl_method"])
-        if options.get("ttl_method", "march") not in ("march", "bound"):
+        if options.get("ttl_method", "bound") not in ("march", "bound"):
             raise ParameterError(f"sensor.ttl_method = {options['ttl_method']!r} must be 'march' or 'bound'")
         reset_s = options.get("clock_reset_s", 10.0)
         if not (isinstance(reset_s, (int, float)) and 1.0 <= reset_s < math.inf):

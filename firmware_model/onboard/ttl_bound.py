@@ -1,9 +1,10 @@
 """Time to limit with the losses following the warming sump (``ttl_method = "bound"``; docs/sensor.md).
 
-Today's method (:func:`firmware_model.onboard.time_to_limit.time_to_limit`, ``ttl_method = "march"``, the default)
-takes the losses, the cooler and the conductances at one sump temperature, the one predicted at the first crossing.
-While the sump warms from cold the oil is more viscous at first and the losses are higher than there, and the
-cooler's thermostat is still closed, so the components warm faster than predicted: late, or "never". This method
+The march alone (:func:`firmware_model.onboard.time_to_limit.time_to_limit`, ``ttl_method = "march"``; the default
+until 2026-12-04) takes the losses, the cooler and the conductances at one sump temperature, the one predicted at
+the first crossing. While the sump warms from cold the oil is more viscous at first and the losses are higher than
+there, and the cooler's thermostat is still closed, so the components warm faster than predicted: late, or "never".
+This method
 keeps the held system linear and lets the heat of every loss source follow the sump along its chord between the
 current sump T0 and the far sump T_far:
 

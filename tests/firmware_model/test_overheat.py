@@ -426,7 +426,8 @@ def test_time_to_limit_follows_the_cooler_outlet_as_the_sump_warms(params, monke
 
     def predict_then_hold(relinearise):
         monkeypatch.setattr(S, "TTL_RELINEARISE_STEPS", relinearise)
-        s = VirtualSensor(params, oil_frozen_s=math.inf, core="numpy")  # the patched constant is the reference's
+        # the patched constant is the reference's; the march alone (the default is the bounded method)
+        s = VirtualSensor(params, oil_frozen_s=math.inf, core="numpy", ttl_method="march")
         st = s.initial_state(T_oil_c=88.0)
         for _ in range(3000):
             st, out = s.step(st, inp)
@@ -459,7 +460,8 @@ def test_time_to_limit_couples_the_oil_inlet_to_the_warming_sump(params, monkeyp
 
     def predict_then_hold(couple):
         monkeypatch.setattr(S, "TTL_INLET_COUPLING", couple)
-        s = VirtualSensor(params, oil_frozen_s=math.inf, core="numpy")  # the patched constant is the reference's
+        # the patched constant is the reference's; the march alone (the default is the bounded method)
+        s = VirtualSensor(params, oil_frozen_s=math.inf, core="numpy", ttl_method="march")
         st = s.initial_state(T_oil_c=89.5)
         for _ in range(1800):
             st, out = s.step(st, inp)

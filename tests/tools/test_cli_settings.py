@@ -207,12 +207,12 @@ def test_the_time_to_limit_method_is_chosen_in_the_configuration(tmp_path):
     from firmware_model.parameters import load_parameters
 
     params = load_parameters("GRS905")
-    assert VirtualSensor(params, config=load_config(None)).sp.options.ttl_method == "march"
-    cfg = tmp_path / "bound.toml"
-    cfg.write_text('[sensor]\nttl_method = "bound"\n')
-    assert VirtualSensor(params, config=load_config(cfg)).sp.options.ttl_method == "bound"
+    assert VirtualSensor(params, config=load_config(None)).sp.options.ttl_method == "bound"
+    cfg = tmp_path / "march.toml"
+    cfg.write_text('[sensor]\nttl_method = "march"\n')
+    assert VirtualSensor(params, config=load_config(cfg)).sp.options.ttl_method == "march"
     # the caller's option wins over the file, as for the other sensor options
-    assert VirtualSensor(params, config=load_config(cfg), ttl_method="march").sp.options.ttl_method == "march"
+    assert VirtualSensor(params, config=load_config(cfg), ttl_method="bound").sp.options.ttl_method == "bound"
     cfg.write_text('[sensor]\nttl_method = "bounded"\n')
     with pytest.raises(ParameterError, match=r"sensor\.ttl_method = 'bounded' must be 'march' or 'bound'"):
         VirtualSensor(params, config=load_config(cfg))

@@ -207,6 +207,42 @@ int main(void)
     if (!isnan(pow_f(-1.0f, 0.5f)) || !isnan(pow_f(NAN, 2.0f)) || pow_f(INFINITY, -1.0f) != 0.0f) {
         printf("pow_f special\n"); ++bad;
     }
+    /* rint_f and ceil_f are rintf and ceilf bit for bit; expm1_f and log10_f within 4 ulp of the double result
+     * (every 97th float: both signs, zeros, subnormals, the 2^23 edge, inf, NaN) */
+    {
+        uint32_t b = 0;
+        double worst_e = 0.0, worst_l = 0.0;
+        do {
+            float x, r, rr, c, cc;
+            memcpy(&x, &b, sizeof x);
+            r = rint_f(x); rr = rintf(x); c = ceil_f(x); cc = ceilf(x);
+            if ((memcmp(&r, &rr, sizeof r) && !(isnan(r) && isnan(rr)))
+                || (memcmp(&c, &cc, sizeof c) && !(isnan(c) && isnan(cc)))) {
+                if (bad < 10) printf("rint_f/ceil_f %a: %a %a, %a %a\n", x, r, rr, c, cc);
+                ++bad;
+            }
+            if (x > -100.0f && x < 80.0f) {
+                double ref = expm1((double)x), e = fabs(expm1_f(x) - ref) / ldexp(1.0, ilogb(ref) - 23);
+                if (ref != 0.0 && e > worst_e) worst_e = e;
+            }
+            if (x > 0.0f && isfinite(x) && x != 1.0f) {
+                double ref = log10((double)x), e = fabs(log10_f(x) - ref) / ldexp(1.0, ilogb(ref) - 23);
+                if (e > worst_l) worst_l = e;
+            }
+            b += 97u;
+        } while (b >= 97u);
+        if (worst_e > 4.0 || worst_l > 4.0 || expm1_f(0.0f) != 0.0f || expm1_f(-INFINITY) != -1.0f
+            || expm1_f(INFINITY) != INFINITY || !isnan(expm1_f(NAN)) || log10_f(1.0f) != 0.0f) {
+            printf("expm1_f %g ulp, log10_f %g ulp\n", worst_e, worst_l); ++bad;
+        }
+        for (b = 0; b < 8; ++b) {   /* the exit of the do loop: every 2^23 edge on its own */
+            static const float edge[] = {8388607.5f, -8388607.5f, 8388608.0f, 0.5f, -0.5f, 1.5f, 2.5f, -0.0f};
+            if (rint_f(edge[b]) != rintf(edge[b]) || signbit(rint_f(edge[b])) != signbit(rintf(edge[b]))
+                || ceil_f(edge[b]) != ceilf(edge[b]) || signbit(ceil_f(edge[b])) != signbit(ceilf(edge[b]))) {
+                printf("edge %a\n", edge[b]); ++bad;
+            }
+        }
+    }
     if (gvs_check_tables(&tb) != GVS_OK) { printf("tables refused\n"); ++bad; }
     tb.ttl_every = 0;
     if (gvs_check_tables(&tb) != GVS_BAD_TABLES) { printf("ttl_every 0 accepted\n"); ++bad; }
@@ -219,7 +255,8 @@ int main(void)
 @pytest.mark.skipif(not HAVE_CC, reason="no make or C compiler on this machine")
 def test_float_build_helpers_and_a_bad_refresh_period(bundles, tmp_path):
     """The float build's helpers that replace the C library on an ECU: the step count's modulo without a 64-bit
-    division (also past 2^32 steps) equals %, a^b as expf(b logf(a)) is powf within 2e-6 with powf's special cases;
+    division (also past 2^32 steps) equals %, a^b as expf(b logf(a)) is powf within 2e-6 with powf's special cases,
+    rint_f and ceil_f are rintf and ceilf bit for bit, expm1_f and log10_f within 4 ulp;
     tables with a time-to-limit period below one step are refused (they were a division by zero)."""
     d = bundles["float"]
     caps = re.search(r"^CAPS = (.*)$", (d / "Makefile").read_text(), re.M).group(1).split()

@@ -16,14 +16,14 @@ const char *const gvs_source_id_str = GVS_SOURCE_ID;
 #ifdef GVS_REAL_FLOAT
 #define R_(x) ((float)(x))
 #define EXP expf
-#define EXPM1 expm1f
+#define EXPM1 expm1_f
 #define LOG logf
-#define LOG10 log10f
+#define LOG10 log10_f
 #define POW pow_f
 #define SQRT sqrtf
 #define FABS fabsf
-#define RINT rintf
-#define CEIL ceilf
+#define RINT rint_f
+#define CEIL ceil_f
 /* the time-to-limit march's clock: single precision in the float build (no soft double on an FPU without one;
  * a crossing moves by far less than the float build's tolerance), double otherwise (bit-identical to numpy) */
 typedef float march_t;
@@ -41,6 +41,18 @@ typedef float march_t;
 typedef double march_t;
 #endif
 #define M_(x) ((march_t)(x))
+#if defined(GVS_REAL_FLOAT) && defined(__GNUC__)
+/* small helpers kept out of line in the float build, the ECU's, where flash comes before speed: -flto would copy
+ * each into its callers (measured on the Cortex-M4F footprint: ~0.5 KB together) */
+#define GVS_OUTLINE __attribute__((noinline))
+/* ... and its copy loops stay loops, not calls of the C library's memcpy (~300 B of flash, fast on long blocks the
+ * sensor never copies) */
+#ifndef __clang__
+#pragma GCC optimize("no-tree-loop-distribute-patterns")
+#endif
+#else
+#define GVS_OUTLINE
+#endif
 /* the constants shared with the numpy reference (march, effect codes, speed columns, ...) are the generated
  * header's GVS_* (firmware_model/onboard/kernel_interface.py) */
 
@@ -53,11 +65,41 @@ static float pow_f(float a, float b)
     if (!(a > 0.0f)) return a == 0.0f ? (b > 0.0f ? 0.0f : (float)INFINITY) : (float)NAN;
     return expf(b * logf(a));
 }
+
+/* rintf and ceilf for the float build, exactly (the default rounding mode: to nearest, ties to even), without
+ * libm's (~320 B of an ECU's flash): from 2^23 on every float is an integer (and NaN, inf pass through); below it
+ * adding and taking away 2^23 rounds to an integer, and the sign of a zero result is the argument's */
+/* expm1f and log10f from expf and logf (linked anyway) instead of libm's own (~920 B): e^x - 1 by Kahan's
+ * (u - 1) x / ln u, u = e^x (the rounding of u cancels: a few ulp where e^x - 1 alone loses every digit),
+ * log10 as ln / ln 10 (1-2 ulp); far inside the float build's tolerance */
+static float expm1_f(float x)
+{
+    float u = expf(x), um1 = u - 1.0f;
+    if (um1 == 0.0f) return x;                                  /* |x| below an ulp of 1 */
+    if (um1 == -1.0f || um1 == (float)INFINITY) return um1;     /* e^x underflows to 0 or overflows in float */
+    return um1 * (x / logf(u));
+}
+static float log10_f(float x) { return logf(x) * 0.43429448190325182f; }
+
+#define F_INT_FROM 8388608.0f
+static float rint_f(float x)
+{
+    float a = fabsf(x);
+    if (!(a < F_INT_FROM)) return x;
+    return copysignf((float)(a + F_INT_FROM) - F_INT_FROM, x);
+}
+static float ceil_f(float x)
+{
+    float a;
+    if (!(fabsf(x) < F_INT_FROM)) return x;
+    a = (float)(int32_t)x;                 /* toward zero, then up when that was down */
+    return copysignf(a < x ? a + 1.0f : a, x);
+}
 #endif
 
 static gvs_real min_r(gvs_real a, gvs_real b) { return a < b ? a : b; }
-static gvs_real max_r(gvs_real a, gvs_real b) { return a > b ? a : b; }
-static gvs_real clip_r(gvs_real x, gvs_real lo, gvs_real hi) { return x < lo ? lo : (x > hi ? hi : x); }
+GVS_OUTLINE static gvs_real max_r(gvs_real a, gvs_real b) { return a > b ? a : b; }
+GVS_OUTLINE static gvs_real clip_r(gvs_real x, gvs_real lo, gvs_real hi) { return x < lo ? lo : (x > hi ? hi : x); }
 
 /* |speed| of the shaft in speed_coef column col (tables.pump_speed_col, churn_speed_col, output_speed_col; -1: no
  * such shaft, 0) at this gear row (evaluate.shaft_speed_rad_s) */
@@ -76,11 +118,39 @@ static gvs_real flow_per_drive(const gvs_tables *tb)
 {
     return tb->pump_code == GVS_PUMP_MOTOR ? tb->pump_flow_m3_s : tb->flow_m3_per_rad;
 }
-static int finite_r(double x) { return x == x && x - x == 0.0; }
+/* dst = src: n reals; the rejection counters */
+static void copy_r(gvs_real *dst, const gvs_real *src, int32_t n)
+{
+    int32_t i;
+    for (i = 0; i < n; ++i) dst[i] = src[i];
+}
+static void copy_rejects(int64_t *dst, const int64_t *src)
+{
+    int i;
+    for (i = 0; i < GVS_N_REJECT; ++i) dst[i] = src[i];
+}
+
+/* a finite real (in the build's own precision: a float's check is no soft double on an M4F) */
+GVS_OUTLINE static int finite_g(gvs_real x) { return x == x && x - x == R_(0.0); }
+/* the raw inputs and the frame times are doubles: they are judged by their bits, exactly as a double comparison
+ * judges them, so that a float build links no soft double comparison (d_key orders as the value, -0 as +0; NaN
+ * and the infinities are caught by finite_d before any comparison that would order them) */
+GVS_OUTLINE static int finite_d(double x)
+{
+    uint64_t u;
+    memcpy(&u, &x, sizeof u);
+    return ((u >> 52) & 0x7FFu) != 0x7FFu;
+}
+GVS_OUTLINE static int64_t d_key(double x)
+{
+    uint64_t u;
+    memcpy(&u, &x, sizeof u);
+    return (u >> 63) ? -(int64_t)(u & 0x7FFFFFFFFFFFFFFFu) : (int64_t)u;
+}
 
 /* k mod m for a step count k >= 0 and m >= 1 without a 64-bit division (none in an FPU-only ECU's hardware: the
  * C library's would cost flash): 32-bit while k fits (13.6 years of 10 Hz steps), else binary long division */
-static int64_t steps_mod(int64_t k, int32_t m)
+GVS_OUTLINE static int64_t steps_mod(int64_t k, int32_t m)
 {
     uint64_t u = (uint64_t)k, r = 0;
     int b;
@@ -165,7 +235,7 @@ static void bin_conductances(const gvs_tables *tb, const gvs_vehicle *veh, int32
     int32_t t;
     gvs_real omega_ls_rad_s, rho_cp_omega;
     oil_row(tb, T_q, &o, phi);
-    memcpy(G, tb->G_const, (size_t)tb->nl * sizeof(gvs_real));
+    copy_r(G, tb->G_const, tb->nl);
     for (t = 0; t < tb->npw; ++t) {                          /* power laws */
         gvs_real g = tb->pw_gear_coef[gear_row * tb->npw + t] * POW(omega_in_rad_s, tb->pw_exp[t]);
         if (tb->pw_col[t] >= 0) g *= phi[tb->pw_col[t]];
@@ -335,9 +405,17 @@ static gvs_real cooler_heat(const gvs_tables *tb, const gvs_vehicle *veh, const 
     return cap > R_(0.0) ? Q : R_(0.0);
 }
 
-static gvs_real inlet_drop_k(const gvs_tables *tb, gvs_real Q, gvs_real mcp)
+GVS_OUTLINE static gvs_real inlet_drop_k(const gvs_tables *tb, gvs_real Q, gvs_real mcp)
 {
     return clip_r(mcp > R_(0.0) ? Q / mcp : R_(0.0), -tb->inlet_drop_max_k, tb->inlet_drop_max_k);
+}
+
+/* the nodes' share q of the sources' heat src */
+static void scatter_heat(const gvs_tables *tb, const gvs_real *src, gvs_real *q)
+{
+    int32_t i, k;
+    for (i = 0; i < tb->n; ++i) q[i] = R_(0.0);
+    for (k = 0; k < tb->nsrc_nz; ++k) q[tb->src_nz_node[k]] += src[tb->src_nz_src[k]] * tb->src_nz_w[k];
 }
 
 /* ---- input checks (input_check.check_inputs) --------------------------------------------------------------- */
@@ -356,12 +434,13 @@ static void check_inputs(const gvs_tables *tb, gvs_state *st, const double *raw_
     /* the checks and the clamp on the double value (a float build must judge 1e308 as the reference does) */
     for (i = 0; i < GVS_N_INPUTS; ++i) {
         double r = raw_d[i], lo = (double)tb->clamp_lo[i], hi = (double)tb->clamp_hi[i], f;
-        raw[i] = (gvs_real)r;
-        finite[i] = finite_r(r);
-        in_range[i] = finite[i] && r >= (double)tb->input_lo[i] && r <= (double)tb->input_hi[i];
-        f = i == GVS_I_RET ? fabs(r) : (r < lo ? lo : (r > hi ? hi : r));
-        clamped[i] = in_range[i] && f != r;    /* beyond the plausible range: missing, not clamped */
-        fixed[i] = finite[i] ? (gvs_real)f : raw[i];
+        raw[i] = (gvs_real)(r);
+        int64_t kr = d_key(r);
+        finite[i] = finite_d(r);
+        in_range[i] = finite[i] && kr >= d_key((double)tb->input_lo[i]) && kr <= d_key((double)tb->input_hi[i]);
+        f = i == GVS_I_RET ? fabs(r) : (kr < d_key(lo) ? lo : (kr > d_key(hi) ? hi : r));
+        clamped[i] = in_range[i] && d_key(f) != kr;    /* beyond the plausible range: missing, not clamped */
+        fixed[i] = finite[i] ? (gvs_real)(f) : raw[i];
     }
     gear_ok = in_range[GVS_I_GEAR] && raw[GVS_I_GEAR] == RINT(raw[GVS_I_GEAR]);
     oil_in_range = in_range[GVS_I_OIL];
@@ -409,7 +488,7 @@ static void check_inputs(const gvs_tables *tb, gvs_state *st, const double *raw_
 }
 
 /* ---- the conductance bin of the operating point (conductance_bins.bin_centre) ------------------------------ */
-static gvs_real speed_bin_centre(const gvs_tables *tb, gvs_real w)
+GVS_OUTLINE static gvs_real speed_bin_centre(const gvs_tables *tb, gvs_real w)
 {
     if (!(w >= tb->speed_bin_min)) return R_(0.0);
     return EXP(RINT(LOG(w) / tb->ln_speed_bin) * tb->ln_speed_bin);
@@ -464,7 +543,7 @@ static int skip_step(const gvs_tables *tb, gvs_state *st, gvs_outputs *out)
     out->oil_innovation_c = (gvs_real)NAN;
     out->oil_inlet_temp_c = (gvs_real)NAN;
     out->oil_source = 1;
-    memcpy(out->rejects, st->rejects, sizeof st->rejects);
+    copy_rejects(out->rejects, st->rejects);
     return GVS_SKIPPED;
 }
 
@@ -517,7 +596,7 @@ static void network_step(const gvs_tables *tb, const gvs_vehicle *veh, gvs_state
     int32_t i, k, cp;
     nt->omega_in = w;
     nt->row = (int32_t)c->used[GVS_I_GEAR] - tb->gear_min;
-    nt->T_oil_main = c->measured ? (gvs_real)oil_raw : T[GVS_MAIN][tb->i_oil];
+    nt->T_oil_main = c->measured ? (gvs_real)(oil_raw) : T[GVS_MAIN][tb->i_oil];
     T[GVS_MAIN][tb->i_oil] = nt->T_oil_main;
     oil_row(tb, nt->T_oil_main, &o, NULL);
     for (i = 0; i < tb->nb; ++i) nt->T_bc[i] = veh->T_bc_default_c[i];
@@ -531,9 +610,7 @@ static void network_step(const gvs_tables *tb, const gvs_vehicle *veh, gvs_state
         delivered[i] = nt->src[i] - tb->lag_tau_over_dt * (y - st->lag_w[i]);
         st->lag_w[i] = y;
     }
-    for (i = 0; i < tb->n; ++i) rate[GVS_MAIN][i] = R_(0.0);   /* the heat into each node, both copies' rates from it */
-    for (k = 0; k < tb->nsrc_nz; ++k)
-        rate[GVS_MAIN][tb->src_nz_node[k]] += delivered[tb->src_nz_src[k]] * tb->src_nz_w[k];
+    scatter_heat(tb, delivered, rate[GVS_MAIN]);   /* the heat into each node, both copies' rates from it */
     /* conductances at the centre of the operating point's bin: 1 % in speed, 0.5 K in oil */
     {
         gvs_real w_q = speed_bin_centre(tb, w), T_q = RINT(nt->T_oil_main / tb->oil_bin_c) * tb->oil_bin_c;
@@ -591,7 +668,7 @@ static void network_step(const gvs_tables *tb, const gvs_vehicle *veh, gvs_state
             T1[i] += tb->dt_over_C[i] * r1[i];
         }
     }
-    if (c->measured) T[GVS_MAIN][tb->i_oil] = (gvs_real)oil_raw;
+    if (c->measured) T[GVS_MAIN][tb->i_oil] = (gvs_real)(oil_raw);
 }
 
 static void ttl_point(const gvs_tables *tb, const gvs_state *st, const check_t *c, const net_t *nt,
@@ -667,7 +744,7 @@ static int ldl_factor(const gvs_tables *tb, gvs_real *S)
     int32_t n = tb->n, k, u, e;
     for (k = 0; k < n; ++k) {
         gvs_real dk = S[k], inv;
-        if (!(dk > R_(0.0)) || !finite_r((double)dk)) return -1;
+        if (!(dk > R_(0.0)) || !finite_g(dk)) return -1;
         inv = R_(1.0) / dk;
         for (u = tb->ldl_upd_ptr[k]; u < tb->ldl_upd_ptr[k + 1]; ++u)
             S[tb->ldl_upd_target[u]] -= S[tb->ldl_upd_a[u]] * inv * S[tb->ldl_upd_b[u]];
@@ -702,7 +779,7 @@ static int held_factor(const gvs_tables *tb, held_t *hs, gvs_real c_scale, gvs_r
     int32_t i;
     if (c_scale == R_(0.0)) {
         ldl_assemble(tb, hs, c_scale, d);
-        memcpy(hs->K, hs->S, (size_t)(tb->n + tb->ldl_nnz) * sizeof(gvs_real));
+        copy_r(hs->K, hs->S, tb->n + tb->ldl_nnz);
     } else {
         int32_t k, n = tb->n;
         for (k = 0; k < n; ++k) {
@@ -715,9 +792,16 @@ static int held_factor(const gvs_tables *tb, held_t *hs, gvs_real c_scale, gvs_r
     if (ldl_factor(tb, hs->S) != 0) return -1;
 #ifndef GVS_NO_TTL_BOUND
     if (hs->coupled && hs->by_row && c_scale != R_(0.0)) {
+        int32_t n = tb->n, k;
+#ifdef GVS_REAL_FLOAT
+        /* the float build (flash before speed) solves for e_sump in full: the forward pass over zeros keeps
+         * them +0, so w is bit for bit the shortcut's below */
+        for (k = 0; k < n; ++k) hs->w[k] = k == tb->i_oil ? R_(1.0) : R_(0.0);
+        ldl_solve(tb, hs->S, hs->w);
+#else
         /* the sump is eliminated last: L^-1 e_sump = e_sump, so M^-1 e_sump is D^-1 and the backward pass only */
         gvs_real y[GVS_MAX_NODES];
-        int32_t n = tb->n, k, e;
+        int32_t e;
         for (k = 0; k < n - 1; ++k) y[k] = R_(0.0);
         y[n - 1] = hs->S[n - 1];
         for (k = n - 2; k >= 0; --k) {
@@ -725,11 +809,10 @@ static int held_factor(const gvs_tables *tb, held_t *hs, gvs_real c_scale, gvs_r
             for (e = tb->ldl_col_ptr[k]; e < tb->ldl_col_ptr[k + 1]; ++e) acc -= hs->S[n + e] * y[tb->ldl_row[e]];
             y[k] = acc;
         }
+        for (k = 0; k < n; ++k) hs->w[tb->ldl_perm[k]] = y[k];
+#endif
         hs->cw = R_(0.0);
-        for (k = 0; k < n; ++k) {
-            hs->w[tb->ldl_perm[k]] = y[k];
-            hs->cw += y[k] * hs->u[tb->ldl_perm[k]];
-        }
+        for (k = 0; k < n; ++k) hs->cw += hs->w[tb->ldl_perm[k]] * hs->u[tb->ldl_perm[k]];
         hs->cw *= d;
         hs->d = d;
         return R_(1.0) - hs->cw != R_(0.0) ? 0 : -1;
@@ -786,17 +869,24 @@ static void held_apply(const gvs_tables *tb, const held_t *hs, const gvs_real *e
     if (hs->held) Ae[tb->i_oil] = R_(0.0);
 }
 
+/* the cooler's operating point with the point's inputs (op); 0: no cooler, or no drive (it takes no heat) */
+static int point_cooler(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl_point *p, cooler_op_t *op)
+{
+    gvs_real w_ls = pump_drive(tb, p->row, p->omega_in_rad_s);
+    gvs_real mcp = p->rho_cp_j_per_m3k * flow_per_drive(tb) * w_ls;
+    const gvs_real *u = p->used;
+    if (tb->cooler_code == GVS_COOLER_NONE || !(w_ls > R_(0.0))) return 0;
+    cooler_op(tb, veh, w_ls, p->omega_in_rad_s, u[GVS_I_COOL], u[GVS_I_AMB], u[GVS_I_VKMH], mcp, op);
+    return 1;
+}
+
 /* dQ_cooler/dT_oil [W/K] (held_inputs.cooler_slope_w_per_k): liquid its hA unless saturated, air a finite
  * difference */
 static gvs_real cooler_slope(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl_point *p, gvs_real T)
 {
-    gvs_real w_ls = pump_drive(tb, p->row, p->omega_in_rad_s);
     gvs_real Q, Q_hi, Q_lo;
-    gvs_real mcp = p->rho_cp_j_per_m3k * flow_per_drive(tb) * w_ls;
-    const gvs_real *u = p->used;
     cooler_op_t op;
-    if (tb->cooler_code == GVS_COOLER_NONE || !(w_ls > R_(0.0))) return R_(0.0);
-    cooler_op(tb, veh, w_ls, p->omega_in_rad_s, u[GVS_I_COOL], u[GVS_I_AMB], u[GVS_I_VKMH], mcp, &op);
+    if (!point_cooler(tb, veh, p, &op)) return R_(0.0);
     if (tb->cooler_code == GVS_COOLER_LIQUID) {
         Q = cooler_heat(tb, veh, &op, T);
         return (-tb->liquid_Qmax_heat < Q && Q < tb->liquid_Qmax_cool) ? op.hA : R_(0.0);
@@ -826,7 +916,20 @@ static void held_weights(const gvs_tables *tb, held_t *hs, const gvs_real *col, 
     hs->weighted = 1;
     for (i = 0; i < n; ++i) {
         hs->wt[i] += rs[i] * f;
-        if (!(hs->wt[i] > R_(0.0)) || !finite_r((double)hs->wt[i])) hs->weighted = 0;
+        if (!(hs->wt[i] > R_(0.0)) || !finite_g(hs->wt[i])) hs->weighted = 0;
+    }
+}
+
+/* -A's sump column (the coupling u and the links to the sump) */
+static void sump_column(const gvs_tables *tb, const held_t *hs, gvs_real *col)
+{
+    int32_t n = tb->n, i, k, io = tb->i_oil;
+    for (i = 0; i < n; ++i) col[i] = hs->u[i];                 /* -A's sump column */
+    for (k = 0; k < tb->nl; ++k) {
+        int32_t a = tb->link_a[k], b = tb->link_b[k];
+        if (b >= n) continue;
+        if (a == io) col[b] += hs->G[k];
+        else if (b == io) col[a] += hs->G[k];
     }
 }
 
@@ -846,18 +949,6 @@ typedef struct {
  * A - beta e_sump^T, b - beta T_far, when 1 - e_sump^T A^-1 beta stays above GVS_COUPLING_MARGIN; the maximum
  * principle needs beta <= 0 and a non-negative sump column. held_build leaves the weights to this (they are decided
  * once, for the system with or without the chord) */
-static void sump_column(const gvs_tables *tb, const held_t *hs, gvs_real *col)
-{
-    int32_t n = tb->n, i, k, io = tb->i_oil;
-    for (i = 0; i < n; ++i) col[i] = hs->u[i];                 /* -A's sump column */
-    for (k = 0; k < tb->nl; ++k) {
-        int32_t a = tb->link_a[k], b = tb->link_b[k];
-        if (b >= n) continue;
-        if (a == io) col[b] += hs->G[k];
-        else if (b == io) col[a] += hs->G[k];
-    }
-}
-
 static void chord_column(const gvs_tables *tb, held_t *hs, const ttl_chord_t *ch, gvs_real *Tb)
 {
     gvs_real x[GVS_MAX_NODES], col[GVS_MAX_NODES], rs[GVS_MAX_NODES];
@@ -932,24 +1023,17 @@ static int held_build(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_tt
     if (hs->coupled) {
         gvs_real col[GVS_MAX_NODES], rs[GVS_MAX_NODES];
         memset(rs, 0, sizeof rs);                      /* (gcc cannot see that the loop below sets rs[io]) */
-        for (i = 0; i < n; ++i) {
-            col[i] = hs->u[i];
-            rs[i] = -hs->u[i];
-        }
-        for (k = 0; k < tb->nl; ++k) {
-            int32_t a = tb->link_a[k], b = tb->link_b[k];
-            if (b >= n) rs[a] += G[k];
-            else if (a == io) col[b] += G[k];
-            else if (b == io) col[a] += G[k];
-        }
+        sump_column(tb, hs, col);
+        for (i = 0; i < n; ++i) rs[i] = -hs->u[i];
+        for (k = 0; k < tb->nl; ++k)
+            if (tb->link_b[k] >= n) rs[tb->link_a[k]] += G[k];
         rs[io] += hs->slope;
         for (i = 0; i < n; ++i)
             if ((i != io && col[i] < R_(0.0)) || rs[i] < R_(0.0)) hs->metzler = 0;
         if (!hs->metzler && !chord) held_weights(tb, hs, col, rs, NULL);   /* with a chord: chord_column decides */
     }
     /* b: heat, inlet drop, boundaries, the sump */
-    for (i = 0; i < n; ++i) T_inf[i] = R_(0.0);
-    for (k = 0; k < tb->nsrc_nz; ++k) T_inf[tb->src_nz_node[k]] += src[tb->src_nz_src[k]] * tb->src_nz_w[k];
+    scatter_heat(tb, src, T_inf);
     dT_in = p->dT_in_k;
     if (!hs->coupled && T_op != T_oil && !measured)
         dT_in = clip_r(k_in == k_in ? p->dT_in_k + k_in * (T_op - T_oil)
@@ -977,7 +1061,7 @@ static int held_build(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_tt
     /* T_inf = A^-1 b: the factorised K (w = K^-1 u) with the coupling by Sherman-Morrison */
     held_solve(tb, hs, T_inf);
     for (i = 0; i < n; ++i)
-        if (!finite_r((double)T_inf[i])) return -1;
+        if (!finite_g(T_inf[i])) return -1;
     return 0;
 }
 
@@ -1048,6 +1132,24 @@ static int skip_to(const gvs_tables *tb, const gvs_ttl_point *p, const gvs_real 
         *h *= ratio;
     }
     return 1;
+}
+
+/* the loss sources' heat with the point's load at sump T [W] (ttl_bound.loss_heat_w; the re-linearised march's) */
+static void point_heat(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl_point *p, gvs_real T, gvs_real *src)
+{
+    gvs_real w = p->omega_in_rad_s;
+    oil_row_t o;
+    oil_row(tb, T, &o, NULL);
+    heat_sources(tb, veh, p->row, w, FABS(p->used[GVS_I_TORQUE]), &o,
+                 retarder_heat_w(tb, veh, p->row, w, p->used[GVS_I_RET]), src);
+}
+
+/* the conductances of the bin of the point's speed and sump T */
+static void point_conductances(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl_point *p, gvs_real T,
+                               gvs_real *G, gvs_real *Gs)
+{
+    bin_conductances(tb, veh, p->row, speed_bin_centre(tb, p->omega_in_rad_s), RINT(T / tb->oil_bin_c) * tb->oil_bin_c,
+                     G, Gs);
 }
 
 /* one held-input solution (time_to_limit._solve + held_march.march_time_to_limit): ttl[GVS_MAX_PUB]; *T_watch the sump at
@@ -1141,8 +1243,8 @@ static int ttl_solve(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl
         }
         if (s_watch <= R_(1.0) && *T_watch != *T_watch && !measured)
             *T_watch = T_inf[io] + hermite(s_watch, (gvs_real)h_step, e[io], de[io], e_new[io], de_new[io]);
-        memcpy(e, e_new, (size_t)n * sizeof(gvs_real));
-        memcpy(de, de_new, (size_t)n * sizeof(gvs_real));
+        copy_r(e, e_new, n);
+        copy_r(de, de_new, n);
         energy = energy_new;
         t += h_step;
         if (t_skip > M_(0.0)) t_skip = M_(0.0);     /* the skip was the grid's steps up to t_skip */
@@ -1152,34 +1254,11 @@ static int ttl_solve(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl
 }
 
 #ifndef GVS_NO_TTL_BOUND /* an export whose tables use today's march leaves the bounded method out (flash) */
-/* ttl_bound.loss_heat_w: the loss sources' heat with the point's load at sump T [W] */
-static void bound_heat(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl_point *p, gvs_real T, gvs_real *src)
-{
-    gvs_real w = p->omega_in_rad_s;
-    oil_row_t o;
-    oil_row(tb, T, &o, NULL);
-    heat_sources(tb, veh, p->row, w, FABS(p->used[GVS_I_TORQUE]), &o,
-                 retarder_heat_w(tb, veh, p->row, w, p->used[GVS_I_RET]), src);
-}
-
-/* the nodes' share q of the sources' heat src */
-static void bound_scatter(const gvs_tables *tb, const gvs_real *src, gvs_real *q)
-{
-    int32_t i, k;
-    for (i = 0; i < tb->n; ++i) q[i] = R_(0.0);
-    for (k = 0; k < tb->nsrc_nz; ++k) q[tb->src_nz_node[k]] += src[tb->src_nz_src[k]] * tb->src_nz_w[k];
-}
-
 /* ttl_bound.cooler_heat_w: the cooler's heat with the point's inputs at sump T [W] (0 without a cooler or drive) */
 static gvs_real bound_cooler_heat(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl_point *p, gvs_real T)
 {
-    gvs_real w_ls = pump_drive(tb, p->row, p->omega_in_rad_s);
-    gvs_real mcp = p->rho_cp_j_per_m3k * flow_per_drive(tb) * w_ls;
-    const gvs_real *u = p->used;
     cooler_op_t op;
-    if (tb->cooler_code == GVS_COOLER_NONE || !(w_ls > R_(0.0))) return R_(0.0);
-    cooler_op(tb, veh, w_ls, p->omega_in_rad_s, u[GVS_I_COOL], u[GVS_I_AMB], u[GVS_I_VKMH], mcp, &op);
-    return cooler_heat(tb, veh, &op, T);
+    return point_cooler(tb, veh, p, &op) ? cooler_heat(tb, veh, &op, T) : R_(0.0);
 }
 
 /* ttl_bound.cooler_chord_slope: (Q(T_far) - Q_step) / (T_far - T_step), at least 0 */
@@ -1205,7 +1284,15 @@ static void bound_cooler_line(const gvs_tables *tb, const gvs_vehicle *veh, cons
     ch->Q0 = Q_far + ch->slope * d0;
 }
 
-static gvs_real bound_clip(const gvs_tables *tb, gvs_real T)
+/* the oil system's m cp at the point [W/K] (ttl_bound's, in its order of products) */
+static gvs_real bound_mcp(const gvs_tables *tb, const gvs_ttl_point *p)
+{
+    return tb->pump_code == GVS_PUMP_MOTOR ? p->rho_cp_j_per_m3k * tb->pump_flow_m3_s
+        : p->rho_cp_j_per_m3k * tb->flow_m3_per_rad * shaft_speed(tb, p->row, tb->pump_speed_col, R_(1.0))
+            * p->omega_in_rad_s;
+}
+
+GVS_OUTLINE static gvs_real bound_clip(const gvs_tables *tb, gvs_real T)
 {
     return clip_r(T, tb->T_grid0_c, tb->T_grid0_c + tb->T_grid_step_k * (gvs_real)(tb->nT - 1));
 }
@@ -1231,7 +1318,7 @@ static gvs_real bound_steady_sump(const gvs_tables *tb, const gvs_ttl_point *p, 
         c = rbeta / den / (R_(1.0) - cu);            /* e^T A^-1 beta: the chord's column when its margin holds */
         if (R_(1.0) - c > R_(GVS_COUPLING_MARGIN)) a = (a - T_far * c) / (R_(1.0) - c);
     }
-    return finite_r((double)a) ? a : (gvs_real)NAN;
+    return finite_g(a) ? a : (gvs_real)NAN;
 }
 
 /* ttl_bound.chord_systems: the far sump T_far by the secant method on the chord system's steady sump (conductances
@@ -1243,9 +1330,7 @@ static int bound_far_sump(const gvs_tables *tb, const gvs_vehicle *veh, const gv
     held_t hs;
     gvs_real r[GVS_MAX_NODES], rw[GVS_MAX_SRC], src_k[GVS_MAX_SRC], qf[GVS_MAX_NODES];
     gvs_real T0 = p->T_oil_c, t_prev = T0, g_prev, g, T_far, rb = R_(0.0), ru = R_(0.0), rq0 = R_(0.0), rqf, slope_k;
-    gvs_real mcp = tb->pump_code == GVS_PUMP_MOTOR ? p->rho_cp_j_per_m3k * tb->pump_flow_m3_s
-        : p->rho_cp_j_per_m3k * tb->flow_m3_per_rad * shaft_speed(tb, p->row, tb->pump_speed_col, R_(1.0))
-            * p->omega_in_rad_s;
+    gvs_real mcp = bound_mcp(tb, p);
     int32_t n = tb->n, i, k, it, io = tb->i_oil, found = 0;
     hs.G = p->G_w_per_k;
     hs.slope = R_(0.0);
@@ -1270,7 +1355,7 @@ static int bound_far_sump(const gvs_tables *tb, const gvs_vehicle *veh, const gv
     for (it = 0; it < GVS_TTL_BOUND_ITERS; ++it) {
         gvs_real T_s;
         if (FABS(T_far - T0) < R_(GVS_TTL_BOUND_TOL_K)) break;
-        bound_heat(tb, veh, p, T_far, src_k);
+        point_heat(tb, veh, p, T_far, src_k);
         rqf = R_(0.0);
         for (i = 0; i < tb->ns; ++i) rqf += rw[i] * src_k[i];
         slope_k = bound_cooler_slope(tb, veh, p, T_far);
@@ -1278,7 +1363,7 @@ static int bound_far_sump(const gvs_tables *tb, const gvs_vehicle *veh, const gv
         if (T_s != T_s) break;                              /* no finite steady state there: the last that has one */
         ch->slope = slope_k;
         ch->T_far = T_far;
-        memcpy(src, src_k, (size_t)tb->ns * sizeof(gvs_real));
+        copy_r(src, src_k, tb->ns);
         found = 1;
         g = T_s - T_far;
         if (!(FABS(g) >= R_(GVS_TTL_BOUND_TOL_K)) || g == g_prev) break;
@@ -1291,8 +1376,8 @@ static int bound_far_sump(const gvs_tables *tb, const gvs_vehicle *veh, const gv
     }
     if (!found) return -1;
     bound_cooler_line(tb, veh, p, ch);
-    bound_scatter(tb, p->src_w, r);                          /* the node heat's chord to the found far sump */
-    bound_scatter(tb, src, qf);
+    scatter_heat(tb, p->src_w, r);                          /* the node heat's chord to the found far sump */
+    scatter_heat(tb, src, qf);
     for (i = 0; i < n; ++i) ch->beta[i] = (r[i] - qf[i]) / (T0 - ch->T_far);
     return 0;
 }
@@ -1305,9 +1390,7 @@ static int ttl_refresh(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_t
  * NaN: not */
 static gvs_real bound_clipped_inlet(const gvs_tables *tb, const gvs_ttl_point *p, const ttl_chord_t *ch, gvs_real T_x)
 {
-    gvs_real mcp = tb->pump_code == GVS_PUMP_MOTOR ? p->rho_cp_j_per_m3k * tb->pump_flow_m3_s
-        : p->rho_cp_j_per_m3k * tb->flow_m3_per_rad * shaft_speed(tb, p->row, tb->pump_speed_col, R_(1.0))
-            * p->omega_in_rad_s;
+    gvs_real mcp = bound_mcp(tb, p);
     gvs_real d_x;
     if (!(mcp > R_(0.0)) || !(FABS(p->dT_in_k) < tb->inlet_drop_max_k) || !(T_x != p->T_oil_c))
         return (gvs_real)NAN;
@@ -1345,8 +1428,7 @@ static int ttl_refresh_bound(const gvs_tables *tb, const gvs_vehicle *veh, const
         return GVS_OK;
     }
     rc_a = ttl_solve(tb, veh, p, src, p->G_w_per_k, p->G_streams_w_per_k, p->T_oil_c, 0, ttl_s, &T_x, &ch);
-    bin_conductances(tb, veh, p->row, speed_bin_centre(tb, p->omega_in_rad_s),
-                     RINT(ch.T_far / tb->oil_bin_c) * tb->oil_bin_c, G, Gs);
+    point_conductances(tb, veh, p, ch.T_far, G, Gs);
     if (rc_a == 0) ch.stop = ttl_s;                /* the second march: only crossings before the first's */
     rc_b = ttl_solve(tb, veh, p, src, G, Gs, ch.T_far, 0, other, &T_watch, &ch);
     if (rc_b != 0) {
@@ -1377,7 +1459,6 @@ static int ttl_refresh(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_t
 {
     gvs_real T_watch, T_op = p->T_oil_c, src[GVS_MAX_SRC], G[GVS_MAX_LINKS], Gs[GVS_MAX_STREAMS];
     int measured = p->measured && !tb->ttl_sump_model, it;
-    oil_row_t o;
     if (gvs_check_tables(tb) != GVS_OK) return GVS_BAD_TABLES;
     if (tb->ldl_nnz <= 0) {                       /* a build without the time to limit's tables: not available */
         for (it = 0; it < tb->n_pub; ++it) ttl_s[it] = (gvs_real)NAN;
@@ -1392,13 +1473,10 @@ static int ttl_refresh(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_t
         || !tb->ttl_sump_model || !tb->ttl_relinearise)
         return GVS_OK;
     for (it = 0; it < GVS_TTL_RELINEARISE_STEPS; ++it) {
-        gvs_real w = p->omega_in_rad_s, retarder_w;
         if (T_watch != T_watch || FABS(T_watch - T_op) < R_(GVS_TTL_RELINEARISE_TOL_K)) break;
         T_op = T_watch;
-        oil_row(tb, T_op, &o, NULL);
-        retarder_w = retarder_heat_w(tb, veh, p->row, w, p->used[GVS_I_RET]);
-        heat_sources(tb, veh, p->row, w, FABS(p->used[GVS_I_TORQUE]), &o, retarder_w, src);
-        bin_conductances(tb, veh, p->row, speed_bin_centre(tb, w), RINT(T_op / tb->oil_bin_c) * tb->oil_bin_c, G, Gs);
+        point_heat(tb, veh, p, T_op, src);
+        point_conductances(tb, veh, p, T_op, G, Gs);
         if (ttl_solve(tb, veh, p, src, G, Gs, T_op, measured, ttl_s, &T_watch, NULL) != 0) break;
     }
     return GVS_OK;
@@ -1415,21 +1493,24 @@ int gvs_step(const gvs_tables *tb, const gvs_vehicle *veh, gvs_state *st, const 
 {
     int64_t counts[GVS_N_REJECT];
     gvs_real T_pub[GVS_MAX_PUB], ttl_now[GVS_MAX_PUB], ttl_lead[GVS_MAX_PUB];
-    int64_t k = st->k, since;
+    int64_t k = st->k;
+    int32_t since;                  /* steps since the last refresh, at most ttl_every: a float from an int32 (an
+                                     * int64's conversion is soft-float code on an M4F) */
     int i, available, any = 0, due, fresh;
     check_t c;
     net_t nt;
     if (ttl) ttl->due = 0;
     if (gvs_check_tables(tb) != GVS_OK) return GVS_BAD_TABLES;
     memset(counts, 0, sizeof counts);
-    if (finite_r(in->t_s)) {
+    if (finite_d(in->t_s)) {
         double gap = in->t_s - st->t_last_s;
-        if (finite_r(gap)) {
+        if (finite_d(gap)) {
             /* back by more than clock_reset_s: the clock was reset (a glitch, a restored state, an uptime
              * counter); its time is the new time base and this is one step (step.step_deferred) */
-            if (gap < -(double)tb->clock_reset_s) counts[GVS_RJ_TIME_BACKWARD] = 1;
-            else if (gap < 0.5 * (double)tb->dt_s) return skip_step(tb, st, out);
-            else if (gap > 1.5 * (double)tb->dt_s) {
+            int64_t kg = d_key(gap);
+            if (kg < d_key(-(double)tb->clock_reset_s)) counts[GVS_RJ_TIME_BACKWARD] = 1;
+            else if (kg < d_key(0.5 * (double)tb->dt_s)) return skip_step(tb, st, out);
+            else if (kg > d_key(1.5 * (double)tb->dt_s)) {
                 if (!jump_done) return GVS_NEED_JUMP;
                 counts[GVS_RJ_TIME_JUMP] = 1;
                 /* the inputs age by the gap (held_inputs.jump_state): a value from before it is no recent one */
@@ -1442,7 +1523,7 @@ int gvs_step(const gvs_tables *tb, const gvs_vehicle *veh, gvs_state *st, const 
     /* published temperatures, warnings, the time to limit counted down */
     for (i = 0; i < tb->n_pub; ++i) T_pub[i] = st->T_c[GVS_MAIN][tb->published_index[i]];
     available = c.drive_age_s <= tb->hold_s;
-    since = k == 0 ? 0 : (steps_mod(k - 1, tb->ttl_every) + 1);
+    since = k == 0 ? 0 : (int32_t)(steps_mod(k - 1, tb->ttl_every) + 1);
     /* the early warning judges only a time to limit refreshed at most GVS_TTL_FRESH_S ago; an older one neither
      * raises nor holds one: it reads as "never" (step._finish) */
     fresh = (gvs_real)since * tb->dt_s <= R_(GVS_TTL_FRESH_S) + R_(0.5) * tb->dt_s;
@@ -1471,14 +1552,14 @@ int gvs_step(const gvs_tables *tb, const gvs_vehicle *veh, gvs_state *st, const 
     out->frozen_flags = (c.drive_frozen ? (1 << GVS_I_SPEED) | (1 << GVS_I_TORQUE) : 0)
         | (c.oil_frozen ? (1 << GVS_I_OIL) : 0);
     out->model_oil_temp_c = st->T_c[GVS_TWIN][tb->i_oil];
-    out->oil_innovation_c = c.ok[GVS_I_OIL] ? (gvs_real)in->raw[GVS_I_OIL] - out->model_oil_temp_c : (gvs_real)NAN;
+    out->oil_innovation_c = c.ok[GVS_I_OIL] ? (gvs_real)(in->raw[GVS_I_OIL]) - out->model_oil_temp_c : (gvs_real)NAN;
     /* a forced oil system's inlet: the main copy's sump the step took minus the drop it gave the jets' streams */
     out->oil_inlet_temp_c = tb->oil_inlet ? nt.T_oil_main - nt.dT_in[GVS_MAIN] : (gvs_real)NAN;
     out->oil_source = (int8_t)!c.measured;
     for (i = 0; i < GVS_N_REJECT; ++i) st->rejects[i] += counts[i];
-    memcpy(out->rejects, st->rejects, sizeof st->rejects);
+    copy_rejects(out->rejects, st->rejects);
     /* no frame time (NaN): the step was on the 0.1 s grid, the last time moves on with it (NaN stays NaN) */
-    st->t_last_s = finite_r(in->t_s) ? in->t_s : st->t_last_s + (double)tb->dt_s;
+    st->t_last_s = finite_d(in->t_s) ? in->t_s : st->t_last_s + (double)tb->dt_s;
     due = steps_mod(k, tb->ttl_every) == 0;
     if (due && ttl) ttl_point(tb, st, &c, &nt, ttl);
     st->k = k + 1;
