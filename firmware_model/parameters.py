@@ -491,6 +491,7 @@ def _check_own_keys(path: Path, entries: dict) -> None:
     its [topology] takes (``{ from = ... }``; their units are checked by the description keys that take them)."""
     base = _generic_entries()
     own = {e["from"] for k, e in entries.items() if is_topology(k) and isinstance(e, dict) and "from" in e}
+    reference = None  # the shipped files' entries, read once (not once per key)
     for key, e in entries.items():
         if key == "meta.inherit" or is_topology(key) or (key.startswith("meta.") and isinstance(e, str)):
             continue
@@ -499,7 +500,8 @@ def _check_own_keys(path: Path, entries: dict) -> None:
             continue
         kind = next((ref for pat, ref in PER_KIND if fnmatch.fnmatchcase(key, pat)), None)
         if kind is not None:
-            _check_entry_kind(path, key, e, _reference_entries()[kind])
+            reference = _reference_entries() if reference is None else reference
+            _check_entry_kind(path, key, e, reference[kind])
         elif key not in own:
             known = {**base, **dict.fromkeys(own)}
             raise ParameterError(_unknown_key(path, key, known, "a file with its own [topology]"))
