@@ -12,7 +12,6 @@ physics model's fitted effects and the time.
 
 from __future__ import annotations
 
-import datetime as dt
 import os
 import sys
 import time
@@ -30,18 +29,13 @@ from tools.scada.nbm import TASKS, LinearNBM  # noqa: E402
 from tools.scada.physics import PhysicsModel  # noqa: E402
 from tools.scada.reader import read_units  # noqa: E402
 
+sys.path.insert(0, str(ROOT / "benchmarks"))
+from bench_scada import period_of  # noqa: E402
+
 
 def month_of(records: dict, month: str) -> dict:
     """Each unit's rows in the calendar month ``month`` (YYYY-MM, UTC); units without any are left out."""
-    y, m = (int(x) for x in month.split("-"))
-    a = dt.datetime(y, m, 1, tzinfo=dt.timezone.utc).timestamp()
-    b = dt.datetime(y + m // 12, m % 12 + 1, 1, tzinfo=dt.timezone.utc).timestamp()
-    out = {}
-    for unit, rec in records.items():
-        mask = (rec.time_s >= a) & (rec.time_s < b)
-        if mask.any():
-            out[unit] = rec.select(mask)
-    return out
+    return period_of(records, month)
 
 
 def main(argv: list[str]) -> int:
