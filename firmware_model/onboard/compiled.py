@@ -334,14 +334,16 @@ class CompiledCore:
             pts["due"][v] = 1
         return pts
 
-    def step_table(self, state: SensorState, raw: np.ndarray, t_s: np.ndarray, cache: StepCache):
+    def step_table(self, state: SensorState, raw: np.ndarray, t_s: np.ndarray, cache: StepCache, keep=None):
         """``(state, TableOutputs)``: one vehicle stepped through N rows of inputs (raw (N, 8) in INPUT_FIELDS
-        order, t_s (N,) frame times or NaN), each time-to-limit refresh and time jump handled between kernel calls."""
+        order, t_s (N,) frame times or NaN), each time-to-limit refresh and time jump handled between kernel calls;
+        ``keep`` (N,) bool: only those rows' outputs are converted and returned (None: every row's)."""
         N = raw.shape[0]
         m_max = max(1, min(N, TABLE_CHUNK))
         rec = np.empty(m_max, dtype=self.S["Inputs_dtype"])
         out = np.zeros(m_max, dtype=self.S["Outputs_dtype"])
-        res = self._table_buffers(N, out.dtype, self.n_pub)
+        res = self._table_buffers(N if keep is None else int(np.count_nonzero(keep)), out.dtype, self.n_pub)
+        filled = 0
         buf = self.pack(state)
         pt = np.zeros((), dtype=self.S["TtlPoint_dtype"])
         veh = self.vehicles(None).ctypes.data_as(C.POINTER(self.S["Vehicle"]))
@@ -364,7 +366,9 @@ class CompiledCore:
                     C.byref(status),
                 )
                 k = self._after_run(buf, rec, out, pt, k, done, status.value, cache)
-            self._fill_table(res, out[:m], j0)
+            rows = out[:m] if keep is None else out[:m][keep[j0 : j0 + m]]
+            self._fill_table(res, rows, filled)
+            filled += rows.shape[0]
         return self.unpack(buf), res
 
     def _after_run(self, buf, rec, out, pt, j: int, done: int, status: int, cache: StepCache) -> int:

@@ -71,9 +71,9 @@ class NumpyCore:
         """The time-to-limit refresh a :meth:`step_deferred` left (None: nothing due)."""
         return refresh_ttl(state, job, self.sp, cache)
 
-    def step_table(self, state: SensorState, raw: np.ndarray, t_s: np.ndarray, cache: StepCache):
+    def step_table(self, state: SensorState, raw: np.ndarray, t_s: np.ndarray, cache: StepCache, keep=None):
         """``(state, TableOutputs)``: one vehicle stepped row by row through ``raw`` (N, 8) at frame times ``t_s``
-        (N,): the same TableOutputs as the compiled core's one call."""
+        (N,): the same TableOutputs as the compiled core's one call (``keep``: only those rows', as there)."""
         from firmware_model.onboard.compiled import TableOutputs
 
         N, n_pub = raw.shape[0], len(self.sp.reduced.published)
@@ -88,4 +88,5 @@ class NumpyCore:
             mode[j], valid[j] = st.degraded_mode, (st.speed_valid, st.torque_valid, st.gear_valid, st.oil_valid)
             innov[j], model_oil[j], rejects[j] = st.oil_innovation_c, st.model_oil_temp_c, st.rejects
             inlet[j] = st.oil_inlet_temp_c
-        return state, TableOutputs(T, lev, ttl, mode, valid, innov, model_oil, rejects, inlet)
+        out = TableOutputs(T, lev, ttl, mode, valid, innov, model_oil, rejects, inlet)
+        return state, out if keep is None else TableOutputs(*(a[keep] for a in out))

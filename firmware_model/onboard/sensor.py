@@ -351,11 +351,12 @@ class VirtualSensor:
         prepare_jump(state, gap_s - self.sp.dt_s, self.sp, self.cache)
         return True
 
-    def step_table(self, state: SensorState, raw, t_s=None):
+    def step_table(self, state: SensorState, raw, t_s=None, keep=None):
         """``(state, TableOutputs)``: one vehicle stepped through a table of inputs: ``raw`` (N, 8) in INPUT_FIELDS
         order (NaN missing), ``t_s`` (N,) frame times (None or NaN: the 0.1 s grid). The compiled core runs the
         table in one call (the time to limit refreshed inside; forward time jumps between calls); the numpy core
-        steps row by row (same outputs)."""
+        steps row by row (same outputs). ``keep`` (N,) bool: the outputs of those rows only (a held replay keeps
+        one step per row: converting every step's outputs cost a quarter of its time)."""
         raw = np.ascontiguousarray(raw, dtype=float)
         if raw.ndim == 1 and raw.size == N_INPUTS:
             raw = raw.reshape(1, N_INPUTS)
@@ -368,6 +369,11 @@ class VirtualSensor:
             t = np.full(raw.shape[0], t[0])
         if t.shape[0] != raw.shape[0]:
             raise InputError(f"t_s has {t.shape[0]} frame times for {raw.shape[0]} rows of inputs")
+        if keep is not None:
+            keep = np.asarray(keep, dtype=bool).reshape(-1)
+            if keep.shape[0] != raw.shape[0]:
+                raise InputError(f"keep has {keep.shape[0]} flags for {raw.shape[0]} rows of inputs")
+            return self.core.step_table(state, raw, t, self.cache, keep)
         return self.core.step_table(state, raw, t, self.cache)
 
     def step_tables(self, jobs, workers: int | None = None):

@@ -23,6 +23,7 @@ import numpy as np
 import pytest
 
 from firmware_model.components import PUBLISHED
+from firmware_model.errors import InputError
 from firmware_model.onboard import ckernel
 from firmware_model.onboard.records import REJECT_REASONS, SensorInputs
 from firmware_model.onboard.sensor import VirtualSensor
@@ -190,6 +191,31 @@ def test_a_table_in_chunks_equals_it_in_one_call(params, monkeypatch):
         np.testing.assert_array_equal(getattr(b, f), getattr(a, f), err_msg=f)
     np.testing.assert_array_equal(st_b.T_c, st_a.T_c)
     assert np.isfinite(a.ttl_s).any() and a.rejects[-1].sum() > 0
+
+
+@needs_c
+@pytest.mark.parametrize("core", ["c", "numpy"])
+def test_a_table_keeping_some_rows_gives_those_rows(params, monkeypatch, core):
+    """``step_table(..., keep=mask)`` (a held replay keeps one step per row) returns exactly the rows of the full
+    table that the mask keeps, and the same final state, on either core; with chunks of 7 rows the kept rows fall
+    on every side of a chunk boundary."""
+    from firmware_model.onboard import compiled
+
+    rng = np.random.default_rng(13)
+    raw, t_s = hostile_inputs(rng, 1, 400 if core == "numpy" else 1200)
+    s = VirtualSensor(params, core=core)
+    st0 = s.initial_state(T_oil_c=60.0)
+    keep = rng.random(raw.shape[0]) < 0.2
+    keep[-1] = True
+    monkeypatch.setattr(compiled, "TABLE_CHUNK", 7)
+    st_a, a = s.step_table(st0, raw[:, 0], t_s[:, 0])
+    st_b, b = s.step_table(st0, raw[:, 0], t_s[:, 0], keep)
+    assert b.T_c.shape[0] == keep.sum() < a.T_c.shape[0]
+    for f in a._fields:
+        np.testing.assert_array_equal(getattr(b, f), getattr(a, f)[keep], err_msg=f)
+    np.testing.assert_array_equal(st_b.T_c, st_a.T_c)
+    with pytest.raises(InputError, match="keep has 3 flags"):
+        s.step_table(st0, raw[:, 0], t_s[:, 0], keep[:3])
 
 
 @needs_c

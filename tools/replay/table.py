@@ -324,12 +324,12 @@ def replay_held(
     for k0 in range(0, int(first[-1]), chunk_steps):
         k = np.arange(k0, min(k0 + chunk_steps, int(first[-1])))
         row = np.searchsorted(first, k, side="right") - 1
-        state, out = sensor.step_table(
-            state, data[row][:, : len(sensor.input_fields)], t_s[row] + sensor.dt_s * (k - first[row] + 1)
-        )
         last = k == first[row + 1] - 1
+        state, out = sensor.step_table(
+            state, data[row][:, : len(sensor.input_fields)], t_s[row] + sensor.dt_s * (k - first[row] + 1), last
+        )
         for key, block in (("T", out.T_c), ("W", out.level), ("ttl", out.ttl_s), ("status", _status_rows(out))):
-            kept[key].append(np.asarray(block)[last])
+            kept[key].append(np.asarray(block))
     rows_out = {
         ("T_", "_c"): np.concatenate(kept["T"]),
         ("W_", ""): np.concatenate(kept["W"]),

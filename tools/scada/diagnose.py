@@ -56,6 +56,11 @@ SCORE_MIN = 10.0
 TESTED = 3
 #: secant replays that refine a nonlinear effect's value
 SECANT_STEPS = 3
+#: the two oil modes' replays of an evaluation on two threads (the same results; False: one after the other)
+PARALLEL_MODES = True
+#: a reading offset's held-out residual is the one before it, shifted (no replay; False: replayed, the same figures
+#: to rounding: benchmarks/bench_scada_speed.py's reference)
+OFFSETS_WITHOUT_REPLAY = True
 
 
 @dataclass
@@ -102,18 +107,28 @@ def thermostat_of(params) -> tuple[float, float] | None:
 def estimates(setup: Setup, record: ScadaRecord, effects: dict, params=None) -> dict[str, np.ndarray]:
     """{channel: the model's estimate} over ``record`` with ``effects`` (the sump's from the model alone, the others
     from the measured sump); ``params``: the gearbox's parameters in place of the configuration's."""
-    from tools.scada.replay import replay_record
+    from tools.scada.replay import ESTIMATES_ONLY, replay_record
 
     model_effects = {k: v for k, v in effects.items() if k in EFFECTS}
     params = setup.params if params is None else params
+    modes = (("model",) if setup.sump else ()) + (("measured",) if setup.others else ())
+
+    def replay(mode: str):
+        return replay_record(record, setup.config, {**ESTIMATES_ONLY, "oil_mode": mode}, model_effects, params).table
+
+    if len(modes) == 2 and PARALLEL_MODES:
+        # the two replays are independent and the kernel releases the GIL: side by side on two threads
+        from concurrent.futures import ThreadPoolExecutor
+
+        with ThreadPoolExecutor(2, thread_name_prefix="gvs-diagnose") as pool:
+            tables = dict(zip(modes, pool.map(replay, modes)))
+    else:
+        tables = {mode: replay(mode) for mode in modes}
     out = {}
     if setup.sump:
-        t = replay_record(record, setup.config, {"oil_mode": "model"}, model_effects, params).table
-        out[setup.sump] = t[f"est_{setup.sump}"] + effects.get("oil_sensor_offset", 0.0)
-    if setup.others:
-        t = replay_record(record, setup.config, {"oil_mode": "measured"}, model_effects, params).table
-        for ch in setup.others:
-            out[ch] = t[f"est_{ch}"] + effects.get(f"thermocouple_offset:{ch}", 0.0)
+        out[setup.sump] = tables["model"][f"est_{setup.sump}"] + effects.get("oil_sensor_offset", 0.0)
+    for ch in setup.others:
+        out[ch] = tables["measured"][f"est_{ch}"] + effects.get(f"thermocouple_offset:{ch}", 0.0)
     return out
 
 
@@ -285,7 +300,12 @@ def diagnose_records(
             "confusable_with": _confusable(c, cands),
         }
         if i < TESTED:
-            after = _residuals(setup, test, {eid: c["value"]})
+            # a reading offset moves no estimate: the held-out residual before it, shifted (no replay)
+            after = (
+                _residuals(setup, test, {eid: c["value"]})
+                if c["jac"] is not None or not OFFSETS_WITHOUT_REPLAY
+                else _residuals_offset(t_before, eid, c["value"], setup)
+            )
             entry["test_rms_before_c"] = _rms(_pooled(t_before))
             entry["test_rms_after_c"] = _rms(_pooled(after))
         out_cands.append(entry)

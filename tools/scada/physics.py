@@ -91,9 +91,10 @@ class PhysicsModel:
         return self.params
 
     def _estimates(self, record: ScadaRecord, effects: dict) -> dict[str, np.ndarray]:
-        from tools.scada.replay import replay_record
+        from tools.scada.replay import ESTIMATES_ONLY, replay_record
 
-        res = replay_record(record, self._config(), {"oil_mode": self.oil_mode}, effects=effects, params=self._params())
+        options = {**ESTIMATES_ONLY, "oil_mode": self.oil_mode}
+        res = replay_record(record, self._config(), options, effects=effects, params=self._params())
         return {ch: res.table[f"est_{ch}"] for ch in self.task.targets if res.table.has(f"est_{ch}")}
 
     def fit(self, records: Sequence[ScadaRecord]) -> PhysicsModel:

@@ -28,6 +28,12 @@ from tools.scada.runtable import INPUTS, oil_channel, run_table_of
 #: the time to limit's refresh period of these offline replays at 0.1 s [s] (the live service refreshes every second;
 #: at a held table's coarser step, once per row: tools.replay.table.replay_held)
 OFFLINE_TTL_PERIOD_S = 10.0
+#: the time-to-limit period of replays that want temperatures only (the diagnosis, the calibration's predictor)
+#: [s]: refreshed once, at the first step (no temperature depends on it; the refreshes, once per row otherwise,
+#: were a fifth of such a replay's time). Finite: the kernel counts the steps between refreshes in an int32
+ESTIMATES_TTL_PERIOD_S = 1.0e8
+#: the sensor options of such replays
+ESTIMATES_ONLY = {"ttl_period_s": ESTIMATES_TTL_PERIOD_S}
 #: a derived temperature of the description -> the sensor's output column that estimates it (where it has one)
 DERIVED_COLUMNS = {OIL_INLET: INLET_COLUMN}
 

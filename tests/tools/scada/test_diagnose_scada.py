@@ -147,3 +147,39 @@ def test_records_without_a_reading_are_one_sentence_not_a_verdict(setup):
         blank.values[ch] = np.full(blank.n, np.nan)
     with pytest.raises(InputError, match="the training records hold no reading of Gost_avg, Gb1t_avg, Gb2t_avg"):
         diagnose_records(s, [blank], [test])
+
+
+def test_the_shortcuts_give_the_result_of_the_plain_diagnosis(setup, monkeypatch):
+    """The diagnosis's speed-ups change no figure: the two oil modes on two threads, the held-out residual of a
+    reading offset shifted instead of replayed, and the time to limit left out of its replays give the result of
+    the plain diagnosis (one mode after the other, every residual replayed, the time to limit at every row), on
+    readings with a gap a reading offset explains (bearing 1 reads 2 K high: an offset among the three tested)."""
+    from tools.scada import diagnose, replay
+
+    s, train, test = setup
+
+    def high(record):
+        return np.full(record.n, 2.0)
+
+    tr, te = _measured(s, train, {}, 7, bias=high), _measured(s, test, {}, 8, bias=high)
+    fast = diagnose_records(s, [tr], [te])
+    monkeypatch.setattr(diagnose, "PARALLEL_MODES", False)
+    monkeypatch.setattr(diagnose, "OFFSETS_WITHOUT_REPLAY", False)
+    monkeypatch.setattr(replay, "ESTIMATES_ONLY", {})
+    plain = diagnose_records(s, [tr], [te])
+    tested = [c["effect"] for c in plain["candidates"] if "test_rms_after_c" in c]
+    assert any(e.startswith("thermocouple_offset") for e in tested), tested
+    fast.pop("timing"), plain.pop("timing")
+    assert fast["verdict"]["effect"] == plain["verdict"]["effect"]
+    assert json.dumps(fast, sort_keys=True) == json.dumps(plain, sort_keys=True) or _close(fast, plain)
+
+
+def _close(a, b) -> bool:
+    """Equal but for rounding in the last bits (a - (b + c) against (a - b) - c)."""
+    if isinstance(a, dict):
+        return a.keys() == b.keys() and all(_close(a[k], b[k]) for k in a)
+    if isinstance(a, list):
+        return len(a) == len(b) and all(_close(x, y) for x, y in zip(a, b))
+    if isinstance(a, float):
+        return a == pytest.approx(b, rel=1e-12, abs=1e-12, nan_ok=True)
+    return a == b

@@ -163,3 +163,34 @@ def test_the_mm82_s_oil_inlet_is_estimated_below_its_sump(tmp_path):
     inlet, sump = est["est_Git_avg"], est["est_Gost_avg"]
     assert np.isfinite(inlet).all()
     assert np.all(sump > 60.0) and np.all(inlet < sump - 0.5)
+
+
+@pytest.mark.parametrize("oil_mode", ["measured", "model"])
+def test_a_replay_for_estimates_only_gives_the_same_estimates_without_the_time_to_limit(tmp_path, oil_mode):
+    """The diagnosis and the calibration replay with ESTIMATES_ONLY (the time to limit refreshed once, not every
+    row): every estimate and temperature column is the same bits as the full replay's, the time to limit is not (it
+    is stale after the first row), on the MM82 with its load swinging and its sump crossing the thermostat band."""
+    from firmware_model.config import load_config
+    from tools.cli.gearbox_option import with_gearbox
+    from tools.scada.reader import read_record
+    from tools.scada.replay import ESTIMATES_ONLY, replay_record
+
+    rows = [
+        row(
+            T0 + timedelta(minutes=10 * k),
+            p_kw=300.0 + 1500.0 * (0.5 + 0.5 * math.sin(k / 6.0)),
+            rs=9.0 + 5.0 * (0.5 + 0.5 * math.sin(k / 6.0)),
+            Gost_avg=52.0 + 8.0 * (0.5 + 0.5 * math.sin(k / 11.0)),
+        )
+        for k in range(72)
+    ]
+    rec = read_record([write(tmp_path / "mm82.csv", rows)], "engie")
+    cfg = with_gearbox(load_config(None), "MM82")
+    full = replay_record(rec, cfg, {"oil_mode": oil_mode}).table
+    est = replay_record(rec, cfg, {**ESTIMATES_ONLY, "oil_mode": oil_mode}).table
+    temps = [c for c in full.columns if c.startswith("est_") or c.startswith("T_") or c.endswith("_temp_c")]
+    assert len(temps) > 10
+    for c in temps:
+        np.testing.assert_array_equal(est[c], full[c], err_msg=c)
+    ttl = [c for c in full.columns if c.startswith("ttl_")]
+    assert any(not np.array_equal(est[c], full[c], equal_nan=True) for c in ttl)
