@@ -620,13 +620,11 @@ def two_effects(params):
             test_s=900.0,
             also={"cooler_effectiveness_scale": 0.5},
         )
-        single = diagnose(sc.train, sc.test, params, model="plant", opts=Options(max_effects=1))
-        pair = diagnose(sc.train, sc.test, params, model="plant")
-    return single, pair
+        return diagnose(sc.train, sc.test, params, model="plant")
 
 
 def test_two_effects_are_found_together(two_effects):
-    single, pair = two_effects
+    pair = two_effects
     v = pair["verdict"]
     found = {e["effect"]: e for e in v["effects"]}
     assert set(found) == {"bearing_loss_scale", "cooler_effectiveness_scale"}, v["reason"]
@@ -638,9 +636,10 @@ def test_two_effects_are_found_together(two_effects):
     assert all(e["share"] > 0 for e in v["effects"])
     second = v["effects"][1]
     assert second["score_added"] >= 10.0 and isinstance(second["confusable_with"], list)
-    # the pair holds on the test file the fit never saw, better than the best single effect
+    # the pair holds on the test file the fit never saw, better than any single effect (each candidate's held-out
+    # figure is that effect fitted alone)
     assert v["shrink"] > 0.8
-    assert v["test_rms_after_c"] < single["verdict"]["test_rms_after_c"]
+    assert v["test_rms_after_c"] < min(c["test_rms_after_c"] for c in pair["candidates"])
     assert "2 effects together" in v["reason"]
 
 
