@@ -58,7 +58,7 @@ def planted(tmp_path_factory, params):
             "--test",
             *paths["test"],
             "--model",
-            "plant",
+            "onboard",
             "--json",
             str(out),
             "--report",
@@ -156,7 +156,7 @@ def test_null_scenario_gives_none(params):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
         sc = make_scenario(1, 12, "truck", None, None, params, train_s=SHORT_S, test_s=SHORT_S)
-        res = diagnose(sc.train, sc.test, params, model="plant")
+        res = diagnose(sc.train, sc.test, params, model="onboard")
     assert res["verdict"]["effect"] == "none", res["verdict"]
     assert res["verdict"]["shrink"] == 0.0
     assert set(res["channels"]) == {"oil"}
@@ -373,7 +373,7 @@ def test_a_sensor_frozen_for_minutes_is_left_out_of_the_fit(tmp_path, capsys):
                 "--test",
                 str(tmp_path / "test.csv"),
                 "--model",
-                "plant",
+                "onboard",
                 "--json",
                 str(tmp_path / "d.json"),
             ]
@@ -566,7 +566,7 @@ def test_oil_sensor_offset_is_named_with_its_constant_signature(params, setup, v
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
         sc = make_scenario(0, 11, setup, "oil_sensor_offset", value, params, train_s=SHORT_S, test_s=SHORT_S)
-        res = diagnose(sc.train, sc.test, params, model="plant")
+        res = diagnose(sc.train, sc.test, params, model="onboard")
     v = res["verdict"]
     assert v["effect"] in ("oil_sensor_offset", "oil_sensor_gain"), v["reason"]
     if v["effect"] == "oil_sensor_offset":
@@ -754,7 +754,7 @@ def test_a_rig_thermocouple_offset_is_named_on_its_channel(params):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
         sc = make_scenario(0, 11, "rig", "thermocouple_offset:BLR", -1.5, params, train_s=SHORT_S, test_s=SHORT_S)
-        res = diagnose(sc.train, sc.test, params, model="plant")
+        res = diagnose(sc.train, sc.test, params, model="onboard")
     v = res["verdict"]
     assert v["effect"] == "thermocouple_offset:BLR", v["reason"]
     assert abs(v["parameters"]["offset_c"] + 1.5) < 0.2
