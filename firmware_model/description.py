@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import difflib
 import math
+import re
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
@@ -1132,11 +1133,30 @@ def shipped_descriptions() -> tuple:
     names = []
     for p in sorted(PARAM_DIR.glob("*.toml")):
         try:
-            if any(is_topology(k) for k in read_entries(p)):
+            if _has_topology(p):
                 names.append(p.stem)
         except ParameterError:
             continue
     return tuple(names)
+
+
+_TOPOLOGY_HEADER = re.compile(rb"^[ \t]*\[[ \t]*topology[ \t]*[.\]]", re.MULTILINE)
+
+
+def _has_topology(path: Path, depth: int = 0) -> bool:
+    """Whether a shipped file has a [topology] of its own or through ``meta.inherit``: read without the key checks
+    of `read_entries` (every command's --help names the descriptions; the checks run when one is loaded). A
+    ``[topology...]`` table header answers without parsing the file."""
+    if _TOPOLOGY_HEADER.search(path.read_bytes()):
+        return True
+    doc = read_toml(path, f"parameter file {path.name}")
+    if TOPOLOGY in doc:
+        return True
+    meta = doc.get("meta")
+    parent = meta.get("inherit") if isinstance(meta, dict) else None
+    if not isinstance(parent, str) or depth > len(VARIANTS):
+        return False
+    return (PARAM_DIR / f"{parent}.toml").is_file() and _has_topology(PARAM_DIR / f"{parent}.toml", depth + 1)
 
 
 def description_path(name_or_path: str | Path) -> Path:

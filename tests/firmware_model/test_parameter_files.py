@@ -159,3 +159,34 @@ def test_a_files_own_description_in_meta_is_allowed(tmp_path):
     p = tmp_path / "mine.toml"
     p.write_text('[meta]\ninherit = "GRS905"\ndescription = "truck 17, rig-calibrated cooler"\n')
     assert load_parameters(p).values == load_parameters("GRS905").values
+
+
+def test_a_file_rewritten_at_once_is_read_afresh_and_a_read_document_is_a_copy(tmp_path):
+    """read_toml keeps parsed documents by their bytes: a file rewritten with the same size within the file system's
+    time-stamp resolution is read with its new content, and changing a document read once changes no later read."""
+    from firmware_model.parameters import read_toml
+
+    p = tmp_path / "x.toml"
+    p.write_text('a = { v = 1.0, u = "-" }\n')
+    first = read_toml(p, "x")
+    first["a"]["v"] = 99.0
+    assert read_toml(p, "x")["a"]["v"] == 1.0
+    p.write_text('a = { v = 2.0, u = "-" }\n')  # same size, same instant
+    assert read_toml(p, "x")["a"]["v"] == 2.0
+
+
+def test_the_descriptions_named_for_help_are_those_whose_entries_hold_a_topology():
+    """shipped_descriptions reads a [topology] header off each shipped file without loading it: the same names as
+    loading every file with its checks."""
+    from firmware_model.description import shipped_descriptions
+    from firmware_model.parameters import is_topology, read_entries
+
+    loaded = []
+    for p in sorted(PARAM_DIR.glob("*.toml")):
+        try:
+            if any(is_topology(k) for k in read_entries(p)):
+                loaded.append(p.stem)
+        except ParameterError:
+            continue
+    assert shipped_descriptions() == tuple(loaded)
+    assert {"GRS905", "GRSO905", "MM82"} <= set(loaded)

@@ -60,6 +60,9 @@ wait_new_main() {
 mkdir -p $UNIT.d
 # the repo (and the stubs of the modules the VM hides) on PYTHONPATH, as for the script
 printf '[Service]\nEnvironment=PYTHONPATH=%s\n' "$PYTHONPATH" > $UNIT.d/repo.conf
+# the host's compiled kernel (the harness sets GVS_KERNEL_LIB): no compile under TCG at each of the three starts
+[ -n "${GVS_KERNEL_LIB:-}" ] \
+    && printf '[Service]\nEnvironment=GVS_KERNEL_LIB=%s\n' "$GVS_KERNEL_LIB" > $UNIT.d/kernel.conf
 # the Python as the unit runs it (a venv's python is a symlink to its base interpreter)
 case "$VM_PYTHON $(readlink -f "$VM_PYTHON")" in /root/*|/home/*|*" /root/"*|*" /home/"*)
     printf '[Service]\nProtectHome=no\nDynamicUser=no\n' > $UNIT.d/python-under-home.conf

@@ -717,7 +717,7 @@ def run_in_vm(
     _compile_repo()
     with tempfile.TemporaryDirectory(prefix="vcan-vm-ctl-") as ctl_name:
         ctl = Path(ctl_name)
-        _write_control(ctl, script, share, env, hide_modules, init, inner_timeout)
+        _write_control(ctl, script, share, {**_host_kernel_env(), **(env or {})}, hide_modules, init, inner_timeout)
         output, boot_s, total_s, attempt, cpus = _boot_with_retries(
             lambda cpus: _qemu_cmd(assets, ctl, share, memory_mb, cpus),
             smp,
@@ -750,6 +750,19 @@ def _compile_repo() -> None:
             compileall.compile_dir(REPO_ROOT / name, quiet=2, workers=1)
     finally:
         sys.pycache_prefix = prefix
+
+
+def _host_kernel_env() -> dict[str, str]:
+    """``GVS_KERNEL_LIB`` = the host's compiled kernel (built now if needed), which the VM sees at the same path: the
+    VM's HOME is /tmp, so without it a checkout whose installed library is stale compiled the kernel under TCG at
+    every service start (~30 s each). Empty when the host has no compiled kernel (the VM then finds its own way)."""
+    from firmware_model.onboard import ckernel
+
+    try:
+        lib, _ = ckernel.load("double")
+    except ckernel.CoreUnavailable:
+        return {}
+    return {"GVS_KERNEL_LIB": str(Path(lib._name).resolve())}
 
 
 def _write_control(
