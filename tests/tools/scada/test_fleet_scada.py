@@ -56,8 +56,9 @@ def test_the_unit_whose_bearings_run_hot_is_flagged_from_that_period_and_the_oth
 
 
 def test_fleet_columns_writes_the_fits_and_the_flags_of_a_folder(tmp_path):
-    """`fleet --gearbox HR225 --columns MAP DIR --out OUT`: one row per unit, month and effect; no flag on two units
-    of one month (no baseline yet); an option of CAN logs is one sentence."""
+    """`fleet --gearbox HR225 --columns MAP DIR --out OUT`: one row per unit, month and effect (a month needs
+    MIN_BLOCKS days with rows: six days here); no flag on two units of one month (no baseline yet, and two units
+    make no fleet median); an option of CAN logs is one sentence."""
     import subprocess
     import sys
 
@@ -68,7 +69,7 @@ def test_fleet_columns_writes_the_fits_and_the_flags_of_a_folder(tmp_path):
     data = tmp_path / "scada"
     data.mkdir()
     for unit in ("T1", "T2"):
-        write(data / f"{unit}.csv", [line.replace("R1,", f"{unit},", 1) for line in _rows(0, 72)])
+        write(data / f"{unit}.csv", [line.replace("R1,", f"{unit},", 1) for line in _rows(0, 6 * 144)])
     cmd = [
         sys.executable,
         "-m",
