@@ -193,6 +193,14 @@ def main() -> int:
                 )
             else:
                 print("  not detected")
+            _, _, drift = fleet.drifts(fits, eid).get(unit, (0, 0, []))
+            after_d = [(d, se) for f, d, se in drift if period_end_s(f.period, days) > utc_s(date) + WEEK_S]
+            if after_d:
+                print(
+                    f"  {eid} of {unit} from a week after the date: drift from its baseline median "
+                    f"{np.median([d for d, _ in after_d]):+.2f}, 3 standard errors median "
+                    f"{np.median([3 * se for _, se in after_d]):.2f} ({len(after_d)} periods)"
+                )
             for f in own_other:
                 print(f"  also on {unit}: {f.effect} from {f.start}: {f.reason}")
             print(

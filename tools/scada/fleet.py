@@ -208,23 +208,36 @@ def deviations(fits: Sequence[PeriodFit], eid: str) -> dict[str, list[tuple[Peri
     return out
 
 
+def drifts(
+    fits: Sequence[PeriodFit], eid: str, baseline_periods: int = BASELINE_PERIODS
+) -> dict[str, tuple[float, float, list[tuple[PeriodFit, float, float]]]]:
+    """unit -> (baseline, its standard error, [(period fit, drift from the baseline, the drift's standard error)]
+    over the periods after the baseline), for the units with more than ``baseline_periods`` usable periods."""
+    out = {}
+    for unit, rows in sorted(deviations(fits, eid).items()):
+        if len(rows) <= baseline_periods:
+            continue
+        w = np.array([1.0 / se**2 for _, _, se in rows[:baseline_periods]])
+        baseline = float(np.sum(w * [d for _, d, _ in rows[:baseline_periods]]) / np.sum(w))
+        se_base = float(1.0 / np.sqrt(np.sum(w)))
+        out[unit] = (
+            baseline,
+            se_base,
+            [(f, d - baseline, float(np.hypot(se, se_base))) for f, d, se in rows[baseline_periods:]],
+        )
+    return out
+
+
 def flag_units(
     fits: Sequence[PeriodFit], baseline_periods: int = BASELINE_PERIODS, consecutive: int = CONSECUTIVE
 ) -> list[Flag]:
     """The units that drift from their siblings (the module doc says how)."""
     flags = []
     for eid in EFFECTS:
-        for unit, rows in sorted(deviations(fits, eid).items()):
-            if len(rows) <= baseline_periods:
-                continue
-            w = np.array([1.0 / se**2 for _, _, se in rows[:baseline_periods]])
-            baseline = float(np.sum(w * [d for _, d, _ in rows[:baseline_periods]]) / np.sum(w))
-            se_base = float(1.0 / np.sqrt(np.sum(w)))
+        for unit, (baseline, se_base, rows) in drifts(fits, eid, baseline_periods).items():
             run = 0
-            for i in range(baseline_periods, len(rows)):
-                f, d, se = rows[i]
-                drift = d - baseline
-                run = run + 1 if abs(drift) > DRIFT_MIN[eid] and abs(drift) > 3.0 * np.hypot(se, se_base) else 0
+            for i, (f, drift, se) in enumerate(rows):
+                run = run + 1 if abs(drift) > DRIFT_MIN[eid] and abs(drift) > 3.0 * se else 0
                 if run >= consecutive:
                     first = rows[i - consecutive + 1][0]
                     flags.append(
