@@ -71,9 +71,9 @@ def add_subparser(sub):
         "--columns",
         metavar="NAME|FILE",
         help="LOGS are SCADA files and folders (.csv, .csv.gz) read through this column map (NAME: one shipped, "
-        "engie; FILE: your own): per unit and calendar month the effects of a gearbox ageing fitted with the "
-        "onboard model of --gearbox, and the units that drift from the fleet flagged (DIR/health/effects.parquet, "
-        "flags.parquet; docs/real-data.md)",
+        "engie; FILE: your own): per unit and calendar month (--period-days N: spans of N days) the effects of a "
+        "gearbox ageing fitted with the onboard model of --gearbox, and the units that drift from the fleet "
+        "flagged (DIR/health/effects.parquet, flags.parquet; docs/real-data.md)",
     )
     p.add_argument("--vehicle-pattern", metavar="REGEX", help=argparse.SUPPRESS)
     for key in FLEET_KEYS:
@@ -215,8 +215,10 @@ def _run_scada(args) -> int:
     for note in notes:
         print(f"note: {note}", file=sys.stderr)
     t0 = time.perf_counter()
+    # calendar months unless --period-days is given (the [fleet] setting's default, 7, is the trucks')
+    days = float(setting(args, cfg, "fleet.period_days")) if given(args, ("fleet.period_days",)) else None
     with progress(len(records), "fleet", unit="unit") as bar:
-        fits = fit_fleet(setup, records, progress=lambda: bar.update(1))
+        fits = fit_fleet(setup, records, days, progress=lambda: bar.update(1))
     flags = flag_units(fits)
     root = Path(args.out) / "health"
     root.mkdir(parents=True, exist_ok=True)
@@ -225,6 +227,7 @@ def _run_scada(args) -> int:
             "unit": f.unit,
             "start": f.start,
             "rows": f.rows,
+            "blocks": f.blocks,
             "effect": e,
             "value": f.values[e],
             "se": f.se[e],
@@ -241,8 +244,9 @@ def _run_scada(args) -> int:
         ]
     )
     write_atomic(pa.Table.from_pylist([f._asdict() for f in flags], schema=flag_schema), root / "flags.parquet")
+    kind = "unit-months" if days is None else "unit-periods"
     print(
-        f"fleet: {len(records)} units, {len(fits)} unit-months fitted in {time.perf_counter() - t0:.1f} s; "
+        f"fleet: {len(records)} units, {len(fits)} {kind} fitted in {time.perf_counter() - t0:.1f} s; "
         f"{len(flags)} flagged -> {root}"
     )
     for f in flags:

@@ -5,12 +5,17 @@ docs/real-data.md, "The fleet on SCADA").
 Per unit and period (:func:`fit_period`): the onboard model replayed over the unit's whole record at the neutral
 effects and once per effect of :data:`EFFECTS` stepped (tools.scada.diagnose.estimates: the sump channel from the
 model alone, the other channels from the measured sump); one linear least-squares solve of all the effects together
-on every channel's residual gives the values, and the residual's variance with an effective sample size their
-standard errors. Per period, each effect's median over all the units is the fleet's (seasons, the farm's weather
-move every unit alike; with three units or more, one drifting unit does not move it); a unit's *deviation* is its
-value minus that median, its *baseline* the median of its deviation over its first BASELINE_PERIODS periods (a
-unit may always differ a little), and it is flagged when its deviation leaves the baseline by more than DRIFT_MIN
-and 3 standard errors for CONSECUTIVE periods in a row: the first of them is the date in the flag.
+on every channel's residual gives the values. Their standard errors allow for the residual's autocorrelation: the
+larger of the AR(1) effective-sample-size error and a block (cluster-robust sandwich) error over blocks of a day,
+which also covers the slower, weather-long correlation of a model's error that an AR(1) misses; a period needs
+MIN_BLOCKS blocks with rows.
+
+Per period, each effect's median over the units that identify it is the fleet's (seasons, the farm's weather move
+every unit alike); only with MIN_UNITS units or more, where one drifting unit cannot move it. A unit's *deviation*
+is its value minus that median (its error: the unit's and the median unit's errors together), its *baseline* the
+precision-weighted mean of its first BASELINE_PERIODS deviations (a unit may always differ a little), and it is
+flagged when its deviation leaves the baseline by more than DRIFT_MIN and 3 standard errors (the deviation's and the
+baseline's together) for CONSECUTIVE of its periods in a row: the first of them is the date in the flag.
 """
 
 from __future__ import annotations
@@ -36,6 +41,13 @@ CONSECUTIVE = 2
 DRIFT_MIN = {"bearing_loss_scale": 0.15, "cooler_effectiveness_scale": 0.15}
 #: a period needs this many rows with every channel measured
 MIN_ROWS = 36
+#: the block of the cluster-robust error: a day, or a sixth of a period shorter than six days [s] (assumed: the
+#: weather and the daily cycle set how long a model's error stays alike); a period needs MIN_BLOCKS blocks with rows
+BLOCK_S = 86400.0
+MIN_BLOCKS = 5
+#: a period's fleet median needs this many units (with two, one drifting unit moves the median by half its drift
+#: and the other seems to drift the other way)
+MIN_UNITS = 3
 #: an effect whose step moves no estimate by this much in a period is not fitted there [K]
 IDENTIFIABLE_K = 0.01
 
@@ -46,8 +58,9 @@ class PeriodFit(NamedTuple):
     start: str  # ISO date (UTC) of the period's first row
     rows: int
     values: dict  # effect -> fitted value
-    se: dict  # effect -> standard error
+    se: dict  # effect -> standard error (inf: not identifiable in this period)
     rms_c: float  # the residual's RMS after the fit [K]
+    blocks: int = 0  # blocks (BLOCK_S) with rows
 
 
 def periods_of(record: ScadaRecord, days: float | None = None) -> list[tuple[int, str, np.ndarray]]:
@@ -67,11 +80,22 @@ def periods_of(record: ScadaRecord, days: float | None = None) -> list[tuple[int
     return out
 
 
-def fit_period(setup: Setup, r0: dict, r_step: dict, unit: str, period: int, start: str) -> PeriodFit | None:
+def block_s(days: float | None) -> float:
+    """The cluster block of periods of ``days`` (None: calendar months) [s]."""
+    return BLOCK_S if days is None else min(BLOCK_S, 86400.0 * days / 6.0)
+
+
+def fit_period(
+    setup: Setup, r0: dict, r_step: dict, unit: str, period: int, start: str, block: np.ndarray | None = None
+) -> PeriodFit | None:
     """The effects of one unit's period from the residual at the neutral effects ``r0`` and with each effect stepped
-    (``r_step``: effect -> residual), all {channel: rows of the period}; None with too few measured rows."""
+    (``r_step``: effect -> residual), all {channel: rows of the period}; ``block``: each row's block number (None:
+    every row its own). None with too few measured rows or blocks."""
     ok = np.all([np.isfinite(r0[ch]) for ch in setup.channels], axis=0)
-    if ok.sum() < MIN_ROWS:
+    n = int(ok.sum())
+    blk = np.arange(ok.size) if block is None else np.asarray(block)
+    blocks = np.unique(blk[ok])
+    if n < MIN_ROWS or blocks.size < MIN_BLOCKS:
         return None
     y = np.concatenate([r0[ch][ok] for ch in setup.channels])
     cols = [np.concatenate([(r0[ch][ok] - r_step[e][ch][ok]) / STEP[e] for ch in setup.channels]) for e in EFFECTS]
@@ -83,18 +107,28 @@ def fit_period(setup: Setup, r0: dict, r_step: dict, unit: str, period: int, sta
         a = np.stack(cols, axis=1)[:, moves]
         d, *_ = np.linalg.lstsq(a, y, rcond=None)
         res = y - a @ d
-        n_eff = effective_n({ch: res[i * ok.sum() : (i + 1) * ok.sum()] for i, ch in enumerate(setup.channels)})
+        bread = np.linalg.pinv(a.T @ a)
+        # AR(1): the residual's variance over an effective sample size
+        n_eff = effective_n({ch: res[i * n : (i + 1) * n] for i, ch in enumerate(setup.channels)})
         s2 = float(res @ res) / max(y.size - int(moves.sum()), 1)
-        cov = np.linalg.pinv(a.T @ a) * s2 * y.size / n_eff
-        delta[moves], se[moves] = d, np.sqrt(np.maximum(np.diag(cov), 0.0))
+        cov_ar1 = bread * s2 * y.size / n_eff
+        # blocks: the sandwich with each block's score summed over its rows and channels (small-sample G / (G - 1))
+        g = np.tile(blk[ok], len(setup.channels))
+        _, inv = np.unique(g, return_inverse=True)
+        scores = np.zeros((blocks.size, a.shape[1]))
+        np.add.at(scores, inv, a * res[:, None])
+        cov_blk = bread @ (scores.T @ scores) @ bread * blocks.size / (blocks.size - 1)
+        var = np.maximum(np.diag(cov_ar1), np.diag(cov_blk))
+        delta[moves], se[moves] = d, np.sqrt(np.maximum(var, 0.0))
     return PeriodFit(
         unit,
         period,
         start,
-        int(ok.sum()),
+        n,
         {e: float(CATALOG[e].neutral + d) for e, d in zip(EFFECTS, delta)},
         {e: float(s) for e, s in zip(EFFECTS, se)},
         float(np.sqrt(np.mean(res * res))),
+        int(blocks.size),
     )
 
 
@@ -103,64 +137,121 @@ def _residual(setup: Setup, record: ScadaRecord, effects: dict) -> dict:
     return {ch: record.values[ch] - est[ch] for ch in setup.channels}
 
 
+def residuals(setup: Setup, record: ScadaRecord) -> tuple[dict, dict]:
+    """The unit's residual at the neutral effects and with each effect stepped (effect -> residual), each a
+    {channel: measured - model} over its whole record."""
+    r0 = _residual(setup, record, {})
+    return r0, {e: _residual(setup, record, {e: CATALOG[e].neutral + STEP[e]}) for e in EFFECTS}
+
+
+def fit_unit(
+    setup: Setup, record: ScadaRecord, days: float | None = None, resid=None, unit: str | None = None
+) -> list[PeriodFit]:
+    """One unit's PeriodFits in time order; ``resid``: its :func:`residuals` when already computed; ``unit``: its
+    name (default: the record's)."""
+    r0, r_step = residuals(setup, record) if resid is None else resid
+    block = np.floor(np.asarray(record.time_s, dtype=float) / block_s(days)).astype(np.int64)
+    fits = []
+    for period, start, m in periods_of(record, days):
+        f = fit_period(
+            setup,
+            {ch: v[m] for ch, v in r0.items()},
+            {e: {ch: v[m] for ch, v in r.items()} for e, r in r_step.items()},
+            record.unit if unit is None else unit,
+            period,
+            start,
+            block[m],
+        )
+        if f is not None:
+            fits.append(f)
+    return fits
+
+
 def fit_fleet(setup: Setup, records: dict[str, ScadaRecord], days: float | None = None, progress=None) -> list:
     """Every unit's PeriodFit (units in name order, periods in time order). Each unit's whole record is replayed
     once at the neutral effects and once per effect stepped (a period keeps the state the ones before left: no
     start-up transient at each period's first rows), then each period is fitted on its rows."""
     fits = []
     for unit, rec in sorted(records.items()):
-        r0 = _residual(setup, rec, {})
-        r_step = {e: _residual(setup, rec, {e: CATALOG[e].neutral + STEP[e]}) for e in EFFECTS}
-        for period, start, m in periods_of(rec, days):
-            f = fit_period(
-                setup,
-                {ch: v[m] for ch, v in r0.items()},
-                {e: {ch: v[m] for ch, v in r.items()} for e, r in r_step.items()},
-                unit,
-                period,
-                start,
-            )
-            if f is not None:
-                fits.append(f)
+        fits += fit_unit(setup, rec, days, unit=unit)
         if progress is not None:
             progress()
     return fits
 
 
-def flag_units(fits: Sequence[PeriodFit]) -> list[Flag]:
-    """The units that drift from their siblings (the module doc says how)."""
+def _median_se(values: list[float], ses: list[float]) -> tuple[float, float]:
+    """The median of ``values`` and its standard error: the median unit's (odd count), half the two middle ones'
+    together (even)."""
+    order = np.argsort(values)
+    v, s = np.asarray(values)[order], np.asarray(ses)[order]
+    k = v.size // 2
+    if v.size % 2:
+        return float(v[k]), float(s[k])
+    return float(0.5 * (v[k - 1] + v[k])), float(0.5 * np.hypot(s[k - 1], s[k]))
+
+
+def deviations(fits: Sequence[PeriodFit], eid: str) -> dict[str, list[tuple[PeriodFit, float, float]]]:
+    """unit -> [(its period fit, deviation from the fleet median, its standard error)] in time order, over the
+    periods where MIN_UNITS units or more identify ``eid``."""
     by_period: dict = {}
     for f in fits:
-        by_period.setdefault(f.period, []).append(f)
+        if np.isfinite(f.se[eid]):
+            by_period.setdefault(f.period, []).append(f)
+    out: dict = {}
+    for period in sorted(by_period):
+        group = by_period[period]
+        if len(group) < MIN_UNITS:
+            continue
+        med, se_med = _median_se([f.values[eid] for f in group], [f.se[eid] for f in group])
+        for f in group:
+            out.setdefault(f.unit, []).append((f, f.values[eid] - med, float(np.hypot(f.se[eid], se_med))))
+    return out
+
+
+def drifts(
+    fits: Sequence[PeriodFit], eid: str, baseline_periods: int = BASELINE_PERIODS
+) -> dict[str, tuple[float, float, list[tuple[PeriodFit, float, float]]]]:
+    """unit -> (baseline, its standard error, [(period fit, drift from the baseline, the drift's standard error)]
+    over the periods after the baseline), for the units with more than ``baseline_periods`` usable periods."""
+    out = {}
+    for unit, rows in sorted(deviations(fits, eid).items()):
+        if len(rows) <= baseline_periods:
+            continue
+        w = np.array([1.0 / se**2 for _, _, se in rows[:baseline_periods]])
+        baseline = float(np.sum(w * [d for _, d, _ in rows[:baseline_periods]]) / np.sum(w))
+        se_base = float(1.0 / np.sqrt(np.sum(w)))
+        out[unit] = (
+            baseline,
+            se_base,
+            [(f, d - baseline, float(np.hypot(se, se_base))) for f, d, se in rows[baseline_periods:]],
+        )
+    return out
+
+
+def flag_units(
+    fits: Sequence[PeriodFit], baseline_periods: int = BASELINE_PERIODS, consecutive: int = CONSECUTIVE
+) -> list[Flag]:
+    """The units that drift from their siblings (the module doc says how)."""
     flags = []
-    for unit in sorted({f.unit for f in fits}):
-        rows = sorted((f for f in fits if f.unit == unit), key=lambda f: f.period)
-        for eid in EFFECTS:
-            dev = []
-            for f in rows:
-                fleet = [g.values[eid] for g in by_period[f.period]]
-                dev.append(f.values[eid] - float(np.median(fleet)) if len(fleet) > 1 else np.nan)
-            if len(rows) <= BASELINE_PERIODS or not np.all(np.isfinite(dev[:BASELINE_PERIODS])):
-                continue
-            baseline = float(np.median(dev[:BASELINE_PERIODS]))
+    for eid in EFFECTS:
+        for unit, (baseline, se_base, rows) in drifts(fits, eid, baseline_periods).items():
             run = 0
-            for i in range(BASELINE_PERIODS, len(rows)):
-                drift = dev[i] - baseline
-                run = run + 1 if abs(drift) > DRIFT_MIN[eid] and abs(drift) > 3.0 * rows[i].se[eid] else 0
-                if run >= CONSECUTIVE:
-                    first = rows[i - CONSECUTIVE + 1]
+            for i, (f, drift, se) in enumerate(rows):
+                run = run + 1 if abs(drift) > DRIFT_MIN[eid] and abs(drift) > 3.0 * se else 0
+                if run >= consecutive:
+                    first = rows[i - consecutive + 1][0]
                     flags.append(
                         Flag(
                             unit,
                             eid,
                             first.period,
                             first.start,
-                            rows[i].values[eid],
+                            f.values[eid],
                             baseline,
-                            f"drift from its siblings by {drift:+.2f} (its own baseline {baseline:+.2f}) for "
-                            f"{CONSECUTIVE} periods",
+                            f"drift from its siblings by {drift:+.2f} (its own baseline {baseline:+.2f} +- "
+                            f"{se_base:.2f}) for {consecutive} periods",
                             "flag",
                         )
                     )
                     break
-    return flags
+    return sorted(flags, key=lambda f: (f.vehicle, f.effect))

@@ -91,7 +91,7 @@ class ScadaRecord:
         )
 
 
-def _open_text(path: Path):
+def open_text(path: Path):
     """The file as text: gzip by its magic bytes, else plain; a binary or damaged file raises InputError."""
     if not path.is_file():
         raise InputError(f"{path}: no such file")
@@ -107,7 +107,7 @@ def _open_text(path: Path):
     return io.StringIO(text, newline="")
 
 
-def _parse_time(stamp: str, kind: str) -> float | None:
+def parse_time(stamp: str, kind: str) -> float | None:
     """UTC seconds of a time stamp, or None when it does not parse (or has no UTC offset where one is needed)."""
     if kind == "seconds":
         try:
@@ -132,7 +132,7 @@ def _number(cell: str) -> float:
 def read_file(path: str | Path, cmap: ColumnMap) -> FileRows:
     """One file's rows (see the module's docstring for what is dropped and counted)."""
     path = Path(path)
-    reader = csv.reader(_open_text(path))
+    reader = csv.reader(open_text(path))
     header = next(reader, None)
     if not header:
         raise InputError(f"{path.name}: empty, not a SCADA file of the column map {cmap.name}")
@@ -153,7 +153,7 @@ def read_file(path: str | Path, cmap: ColumnMap) -> FileRows:
         if len(row) != len(header):
             counts["bad_line"] += 1
             continue
-        t = _parse_time(row[idx[cmap.time_column]], cmap.time_kind)
+        t = parse_time(row[idx[cmap.time_column]], cmap.time_kind)
         if t is None:
             counts["bad_time"] += 1
             continue

@@ -56,8 +56,9 @@ def test_the_unit_whose_bearings_run_hot_is_flagged_from_that_period_and_the_oth
 
 
 def test_fleet_columns_writes_the_fits_and_the_flags_of_a_folder(tmp_path):
-    """`fleet --gearbox HR225 --columns MAP DIR --out OUT`: one row per unit, month and effect; no flag on two units
-    of one month (no baseline yet); an option of CAN logs is one sentence."""
+    """`fleet --gearbox HR225 --columns MAP DIR --out OUT`: one row per unit, month and effect (a month needs
+    MIN_BLOCKS days with rows: six days here); no flag on two units of one month (no baseline yet, and two units
+    make no fleet median); an option of CAN logs is one sentence."""
     import subprocess
     import sys
 
@@ -68,7 +69,7 @@ def test_fleet_columns_writes_the_fits_and_the_flags_of_a_folder(tmp_path):
     data = tmp_path / "scada"
     data.mkdir()
     for unit in ("T1", "T2"):
-        write(data / f"{unit}.csv", [line.replace("R1,", f"{unit},", 1) for line in _rows(0, 72)])
+        write(data / f"{unit}.csv", [line.replace("R1,", f"{unit},", 1) for line in _rows(0, 6 * 144)])
     cmd = [
         sys.executable,
         "-m",
@@ -87,7 +88,15 @@ def test_fleet_columns_writes_the_fits_and_the_flags_of_a_folder(tmp_path):
         (u, e) for u in ("T1", "T2") for e in ("bearing_loss_scale", "cooler_effectiveness_scale")
     ]
     assert pq.read_table(tmp_path / "out" / "health" / "flags.parquet").num_rows == 0
-    assert "2 units" in p.stdout
+    assert "2 units" in p.stdout and "unit-months" in p.stdout
+    # --period-days N: spans of N days instead of calendar months (each needs MIN_BLOCKS blocks: a sixth of it)
+    p = subprocess.run(
+        [*cmd, "--period-days", "2", "--out", str(tmp_path / "o1")], cwd=REPO, capture_output=True, text=True
+    )
+    assert p.returncode == 0, p.stderr
+    effects = pq.read_table(tmp_path / "o1" / "health" / "effects.parquet").to_pylist()
+    assert all(len({r["start"] for r in effects if r["unit"] == u}) >= 2 for u in ("T1", "T2"))
+    assert "unit-periods" in p.stdout
     p = subprocess.run(
         [*cmd, "--workers", "2", "--out", str(tmp_path / "o2")], cwd=REPO, capture_output=True, text=True
     )
