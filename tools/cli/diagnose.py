@@ -199,6 +199,8 @@ def _print_summary_scada(args, res) -> None:
         f"(shrink {100 * v['shrink']:.0f} %) -> {args.json}"
     )
     print(f"reason: {v['reason']}")
+    per = ", ".join(f"{ch} {c['test_rms_c']:.2f} -> {c['test_rms_after_c']:.2f}" for ch, c in res["channels"].items())
+    print(f"held-out RMS per channel [K]: {per}")
     for w in res["where"][:3]:
         print(f"  gap: {w['channel']} in '{w['regime']}': mean {w['mean_c']:+.2f} K, {100 * w['share']:.0f} % of it")
     print(f"time: {res['timing']['total_s']:.1f} s")

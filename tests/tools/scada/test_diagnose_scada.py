@@ -98,6 +98,38 @@ def test_readings_the_model_explains_are_none(setup):
     s, train, test = setup
     res = diagnose_records(s, [_measured(s, train, {}, 3)], [_measured(s, test, {}, 4)])
     assert res["verdict"]["effect"] == "none"
+    assert all(c["test_rms_after_c"] == c["test_rms_c"] for c in res["channels"].values())
+
+
+def test_the_verdict_s_held_out_shrink_is_given_per_channel(setup):
+    """Bearing 1 reads 2 K high in both records: the verdict is its reading offset, which removes that channel's
+    held-out gap (channels.Gb1t_avg.test_rms_after_c) and leaves the other channels' figures as they were."""
+    s, train, test = setup
+    tr, te = _measured(s, train, {}, 9), _measured(s, test, {}, 10)
+    for rec in (tr, te):
+        rec.values["Gb1t_avg"] = rec.values["Gb1t_avg"] + 2.0
+    res = diagnose_records(s, [tr], [te])
+    assert res["verdict"]["effect"] == "thermocouple_offset:Gb1t_avg", res["candidates"][:3]
+    ch = res["channels"]
+    assert ch["Gb1t_avg"]["test_rms_c"] > 1.5 and ch["Gb1t_avg"]["test_rms_after_c"] < 0.3
+    assert all(ch[c]["test_rms_after_c"] == ch[c]["test_rms_c"] for c in ("Gost_avg", "Gb2t_avg"))
+
+
+def test_an_effect_at_the_bound_of_its_range_is_no_verdict(setup):
+    """Bearing 1 reads 8 K high, beyond a reading offset's plausible range (5 K): its offset fits at the bound
+    with a gap left; it is named in the reason and not claimed, though it shrinks the held-out record most, nor is
+    a weaker effect that shrinks it less (bearing_loss_scale 1.27 here): the verdict is unexplained."""
+    s, train, test = setup
+    tr, te = _measured(s, train, {}, 11), _measured(s, test, {}, 12)
+    for rec in (tr, te):
+        rec.values["Gb1t_avg"] = rec.values["Gb1t_avg"] + 8.0
+    res = diagnose_records(s, [tr], [te])
+    off = next(c for c in res["candidates"] if c["effect"] == "thermocouple_offset:Gb1t_avg")
+    assert off["at_bound"] and off["parameters"]["offset_c"] == pytest.approx(5.0)
+    assert off["test_rms_after_c"] < off["test_rms_before_c"]
+    v = res["verdict"]
+    assert v["effect"] == "unexplained" and "thermocouple_offset:Gb1t_avg (score" in v["reason"], v
+    assert "at the bound of its range (offset_c = 5)" in v["reason"]
 
 
 def test_a_gap_no_effect_makes_is_unexplained_and_never_worsens_the_held_out_record(setup):
