@@ -25,7 +25,9 @@ in at most 2 s; issue 46's: a year.
 from __future__ import annotations
 
 import argparse
+import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -182,8 +184,6 @@ def real_figures(real_dir: str) -> None:
     """(a) and (b) on the ENGIE SCADA of REAL_UNIT through the SCADA replay (tools/scada/replay.py, the path of
     `replay --gearbox MM82 --columns engie FILES`): its longest file (a month) and all its files."""
     import dataclasses
-    import subprocess
-    import tempfile
 
     from firmware_model.config import load_config
     from tools.cli.gearbox_option import with_gearbox
@@ -220,16 +220,22 @@ def real_figures(real_dir: str) -> None:
         f"{out.table.meta['step_s']:g} s step: {c_cpu:.2f} s CPU ({c_wall:.2f} s wall), SCALED to a year "
         f"{c_cpu * per_year:.1f} s CPU"
     )
-    with tempfile.TemporaryDirectory() as tmp:
-        argv = [sys.executable, "-m", "tools.cli", "replay", "--gearbox", "MM82", "--columns", "engie", *files]
-        w0 = time.perf_counter()
-        done = subprocess.run([*argv, "--out", str(Path(tmp) / "est.csv")], cwd=ROOT, capture_output=True, text=True)
-        wall = time.perf_counter() - w0
+    wall, done = time_replay_command(files)
     said = [ln for ln in done.stdout.splitlines() if ln.startswith("sensor step")]
     print(
         f"(a) the command `replay --gearbox MM82 --columns engie` on them: {wall:.1f} s wall with its start-up "
         f"(exit {done.returncode}); {said[0] if said else done.stderr.strip()[-200:]}"
     )
+
+
+def time_replay_command(files) -> tuple[float, subprocess.CompletedProcess]:
+    """(wall [s], the finished process) of `replay --gearbox MM82 --columns engie FILES --out est.csv` in a child
+    process: start-up, reading and writing included."""
+    with tempfile.TemporaryDirectory() as tmp:
+        argv = [sys.executable, "-m", "tools.cli", "replay", "--gearbox", "MM82", "--columns", "engie", *files]
+        w0 = time.perf_counter()
+        done = subprocess.run([*argv, "--out", str(Path(tmp) / "est.csv")], cwd=ROOT, capture_output=True, text=True)
+        return time.perf_counter() - w0, done
 
 
 def main(argv=None) -> int:

@@ -23,9 +23,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import os
-import subprocess
 import sys
-import tempfile
 import time
 from pathlib import Path
 
@@ -33,6 +31,8 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
+
+from bench_held_month import time_replay_command  # noqa: E402
 
 from firmware_model.config import load_config  # noqa: E402
 from firmware_model.onboard.blas import limit_blas_threads  # noqa: E402
@@ -126,11 +126,7 @@ def replay_figures(data_dir: Path) -> None:
         f"({w_now:.2f} s wall), before {c_ref:.2f} s CPU ({w_ref:.2f} s wall); max |now - before| "
         f"{_max_diff(now, ref):.1e} K ({_load()}); goal <= 2 s"
     )
-    with tempfile.TemporaryDirectory() as tmp:
-        argv = [sys.executable, "-m", "tools.cli", "replay", "--gearbox", "MM82", "--columns", "engie", *files]
-        w0 = time.perf_counter()
-        done = subprocess.run([*argv, "--out", str(Path(tmp) / "est.csv")], cwd=ROOT, capture_output=True, text=True)
-        wall = time.perf_counter() - w0
+    wall, done = time_replay_command(files)
     print(
         f"the command `replay --gearbox MM82 --columns engie` on them, now: {wall:.1f} s wall with its start-up, the "
         f"files read and est.csv written (exit {done.returncode}; {_load()})"

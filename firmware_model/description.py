@@ -63,6 +63,9 @@ CASING = "housing"
 OIL_INLET = "oil.inlet"
 #: where a thermostatic bypass may plausibly open: the oil's working range [degC]
 THERMOSTAT_RANGE_C = (40.0, 150.0)
+#: where the thermostat reads the oil: "return" the oil leaving the cooler and bypass, T_sump - Q / (mdot cp) (seed
+#: Eq 82, the default); "sump" the oil the pump draws, before the cooler (a valve upstream of the cooler)
+THERMOSTAT_SENSES = ("return", "sump")
 
 # field specifications: name -> (kind, required, dimension, sign); kind text | list | number | int | table;
 # sign "+" (> 0), "0+" (>= 0), "-0" (<= 0) or "any"
@@ -175,6 +178,7 @@ SINGLE_SPECS = {
         "cooler": _T,
         "thermostat_open": _n("degC", False, "any"),
         "thermostat_full": _n("degC", False, "any"),
+        "thermostat_senses": _t,
         "heater": _n("W", False, "0+"),
         "inside_area": _n("m2", False),
         "flow_share": ("table", False, "1", "0+"),
@@ -328,6 +332,7 @@ class OilSystem:
     splashed: tuple = ()  # the parts the thrown oil splashes
     inside_area_m2: float | None = None  # the housings' inside area, shared by their internal_split
     flow_share: dict = field(default_factory=dict)  # shaft (its bore), bearing or planetary set -> share of the flow
+    thermostat_senses: str = "return"  # where the thermostat reads the oil (THERMOSTAT_SENSES)
 
 
 @dataclass(frozen=True)
@@ -884,6 +889,11 @@ def _oil(r: _Reader, topo: dict, shafts: dict, nodes: set) -> OilSystem:
             r.fail(f"{key}.thermostat_full", f"= {t_full:g} degC must lie above thermostat_open = {t_open:g} degC")
         if f["cooler"] == "none":
             r.fail(f"{key}.thermostat_open", 'is given, but there is no cooler (cooler = "none") to bypass')
+    senses = f["thermostat_senses"] or "return"
+    if senses not in THERMOSTAT_SENSES:
+        r.fail(f"{key}.thermostat_senses", f"= {senses!r} must be one of {', '.join(THERMOSTAT_SENSES)}")
+    elif f["thermostat_senses"] is not None and t_open is None:
+        r.fail(f"{key}.thermostat_senses", "is given, but there is no thermostat (thermostat_open, thermostat_full)")
     return OilSystem(
         f["lubrication"],
         f["volume"],
@@ -899,6 +909,7 @@ def _oil(r: _Reader, topo: dict, shafts: dict, nodes: set) -> OilSystem:
         f["splashed"] or (),
         f["inside_area"],
         f["flow_share"] or {},
+        senses,
     )
 
 

@@ -326,6 +326,7 @@ _TABLES = (
     Field("air_hA_ref", REAL, (), "W/K"),
     Field("air_Qmax_cool", REAL, (), "W"),
     *_f("thermostat_open_c thermostat_full_c", REAL, (), "degC"),
+    Field("thermostat_sump", REAL, doc="1: the thermostat reads the sump (before the cooler); 0: the return, Eq 82"),
     *_f("ref_ls_speed ref_engine_speed", REAL, (), "rad/s"),
     *_f("exp_inner exp_outer air_flow_min_frac", REAL),
     Field("air_ref_speed_kmh", REAL, (), "km/h"),

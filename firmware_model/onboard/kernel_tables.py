@@ -181,6 +181,7 @@ def _cooler(sp: SensorParams) -> dict:
         air_Qmax_cool=c.air_Q_max_cool_w,
         thermostat_open_c=c.thermostat_open_c,
         thermostat_full_c=c.thermostat_full_c,
+        thermostat_sump=c.thermostat_sump,
         ref_ls_speed=c.ref_ls_speed_rad_s,
         ref_engine_speed=c.ref_engine_speed_rad_s,
         exp_inner=c.exp_inner,

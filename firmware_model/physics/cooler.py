@@ -47,6 +47,7 @@ COOLER_KEYS = (
     "exp_inner",
     "exp_outer",
     "air_flow_min_frac",
+    "thermostat_sump",
 )
 
 
@@ -65,6 +66,7 @@ class CoolerParams(NamedTuple):
     exp_inner: float
     exp_outer: float
     air_flow_min_frac: float  # air outer flow at standstill (fan) relative to the reference
+    thermostat_sump: float = 0.0  # 1: the thermostat reads the sump (before the cooler); 0: the return (Eq 82)
 
 
 class CoolerHeat(NamedTuple):
@@ -75,13 +77,19 @@ class CoolerHeat(NamedTuple):
 def cooler_values(p) -> dict:
     """{name: SI value} of the cooler parameters (COOLER_KEYS) of a parameter set. A gearbox's file may leave out the
     keys of a cooler it does not have (MM82: the liquid cooler's, the layshaft and engine reference speeds; HR225:
-    all): those are NaN, and a model that reads one gives NaN, never a silent number."""
-    return {k: p.values.get(f"cooler.{k}", math.nan) for k in COOLER_KEYS}
+    all): those are NaN, and a model that reads one gives NaN, never a silent number. ``thermostat_sump`` is no
+    parameter: 1.0 where the gearbox's description has its thermostat read the sump (``thermostat_senses``), else 0."""
+    from firmware_model.description import description_of
+
+    out = {k: p.values.get(f"cooler.{k}", math.nan) for k in COOLER_KEYS if k != "thermostat_sump"}
+    out["thermostat_sump"] = 1.0 if description_of(p).oil.thermostat_senses == "sump" else 0.0
+    return out
 
 
 def cooler_params(values: dict) -> CoolerParams:
-    """CoolerParams from {name: SI value} (cooler_values, or the onboard model's stored copy)."""
-    return CoolerParams(*(values[k] for k in COOLER_KEYS))
+    """CoolerParams from {name: SI value} (cooler_values, or the onboard model's stored copy; a copy stored before
+    ``thermostat_sump`` existed reads the return, Eq 82)."""
+    return CoolerParams(*(values[k] if k != "thermostat_sump" else values.get(k, 0.0) for k in COOLER_KEYS))
 
 
 # --- Eq 82-83 ----------------------------------------------------------------------------------------------
@@ -104,7 +112,17 @@ def thermostat_temperature_c(T_oil_sump_c, Q_cooler_w, mdot_kg_s, cp_j_per_kgk):
 
 
 def cooler_heat_w(
-    kind, hA_w_per_k, T_oil_c, T_medium_c, mdot_kg_s, cp_j_per_kgk, Q_max_cool_w, Q_max_heat_w, T_open_c, T_full_c
+    kind,
+    hA_w_per_k,
+    T_oil_c,
+    T_medium_c,
+    mdot_kg_s,
+    cp_j_per_kgk,
+    Q_max_cool_w,
+    Q_max_heat_w,
+    T_open_c,
+    T_full_c,
+    thermostat_sump=0.0,
 ):
     """Heat flow from the oil to the cooler [W] (Eq 83; positive cools the oil).
 
@@ -117,7 +135,9 @@ def cooler_heat_w(
       point is unique; on the open ramp Q = a (T_oil - T_open - Q/C)/D gives
       ``Q_lin = a (T_oil - T_open) / (D + a/C)``, the thermostat limits it to ``clip(Q_lin, 0, a)`` and the
       cooler saturation to ``min(., Q_max_cool)`` (at Q_max_cool the ramp still asks for more). No oil flow
-      (C = 0) gives 0.
+      (C = 0) gives 0. ``thermostat_sump`` = 1: the thermostat reads the sump, before the cooler (T_th = T_oil):
+      ``Q_lin = a (T_oil - T_open) / D``, the coupling term a/C dropped; the sump then stays in the band while the
+      cooler can take the heat, and the return lies Q/C below it.
     hA_eff is the cooler's effective conductance (data-sheet output / temperature difference) at the
     current inner and outer flows.
     """
@@ -135,7 +155,8 @@ def cooler_heat_w(
     C = np.abs(np.asarray(mdot_kg_s, dtype=float)) * cp_j_per_kgk
     D = T_full_c - T_open_c
     with np.errstate(divide="ignore", invalid="ignore"):
-        q_lin = a * (np.asarray(T_oil_c, dtype=float) - T_open_c) / (D + a / np.where(C > 0.0, C, 1.0))
+        coupling = np.where(np.asarray(thermostat_sump) > 0.5, 0.0, a / np.where(C > 0.0, C, 1.0))
+        q_lin = a * (np.asarray(T_oil_c, dtype=float) - T_open_c) / (D + coupling)
     q = np.minimum(np.clip(q_lin, 0.0, a), np.asarray(Q_max_cool_w, dtype=float))  # Eq 82/83
     return np.where((C > 0.0) & (a > 0.0), q, 0.0)
 
@@ -213,6 +234,7 @@ def oil_cooler_heat(
             0.0,
             c.thermostat_open_c + thermostat_offset_c,
             c.thermostat_full_c + thermostat_offset_c,
+            c.thermostat_sump,
         )
     return CoolerHeat(np.where(flow_capacity_w_per_k > 0.0, Q, 0.0), hA)
 
@@ -231,10 +253,12 @@ def cooler_hA_bound_w_per_k(
     omega_engine_max_rad_s: float,
     scale_max: float,
     motor_pump: bool = False,
+    air_min_c: float = -40.0,
 ) -> float:
     """An upper bound of the cooler's hA over the operating range (the stability proof): the highest flows, the
     effect scale at its maximum; the air cooler's outer flow factor bounded by AIR_FLOW_MAX_REL^exp_outer. A motor
-    pump (``motor_pump``) runs at its data-sheet flow: inner flow ratio 1, whatever the layshaft."""
+    pump (``motor_pump``) runs at its data-sheet flow: inner flow ratio 1, whatever the layshaft. An air cooler whose
+    thermostat reads the sump: the slope of its open ramp, with the air down to ``air_min_c``."""
     inner = 1.0 if motor_pump else (omega_ls_max_rad_s / c.ref_ls_speed_rad_s) ** c.exp_inner
     if kind == "liquid":
         return (
@@ -244,5 +268,11 @@ def cooler_hA_bound_w_per_k(
             * scale_max
         )
     if kind == "air":
-        return c.air_hA_ref_w_per_k * inner * AIR_FLOW_MAX_REL**c.exp_outer * scale_max
+        hA = c.air_hA_ref_w_per_k * inner * AIR_FLOW_MAX_REL**c.exp_outer * scale_max
+        if c.thermostat_sump > 0.5:
+            # read at the sump, the ramp Q = hA (T - T_air)(T - T_open)/D has the slope hA (2 T - T_air - T_open)/D,
+            # at most hA (2 D + T_open - T_air)/D on it (T <= T_open + D), the air down to air_min_c
+            D = c.thermostat_full_c - c.thermostat_open_c
+            return hA * max(1.0, (2.0 * D + c.thermostat_open_c - air_min_c) / D)
+        return hA
     return 0.0

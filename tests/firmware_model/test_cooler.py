@@ -76,6 +76,29 @@ def test_cooler_air_satisfies_eq82_eq83():
     assert sat.any() and (~sat & (Q > 0)).any() and (Q == 0).any()
 
 
+def test_a_thermostat_at_the_sump_reads_the_oil_before_the_cooler():
+    # hand case of test_cooler_air_hand_case, the thermostat at the sump: Q = a (90 - 80) / 15, no Q / C coupling
+    Q = CO.cooler_heat_w("air", 100.0, 90.0, 20.0, **ARGS, thermostat_sump=1.0)
+    assert Q == pytest.approx(7000.0 * 10.0 / 15.0)
+    assert Q > CO.cooler_heat_w("air", 100.0, 90.0, 20.0, **ARGS)  # the return lies below the sump: less opening
+    # the same bounds: closed at T_open, the whole hA dT above T_full, the rating above that
+    assert CO.cooler_heat_w("air", 100.0, 80.0, 20.0, **ARGS, thermostat_sump=1.0) == 0.0
+    assert CO.cooler_heat_w("air", 100.0, 96.0, 20.0, **ARGS, thermostat_sump=1.0) == pytest.approx(7600.0)
+    assert CO.cooler_heat_w("air", 1e4, 96.0, 20.0, **ARGS, thermostat_sump=1.0) == pytest.approx(15e3)
+
+
+def test_the_stability_bound_covers_a_sump_thermostat_s_ramp():
+    """The proof's cooler slope: the sump thermostat's ramp, finite differences over oil and air, stays below it."""
+    c = CO.CoolerParams(0, 0, 0, 1400.0, 6e4, 55.0, 60.0, 1.0, 1.0, 0.5, 0.3, 1.0, 1.0)
+    bound = CO.cooler_hA_bound_w_per_k(c, "air", 1.0, 1.0, 1.0, motor_pump=True)
+    T = np.linspace(40.0, 150.0, 2201)
+    for T_air in (-40.0, 0.0, 30.0):
+        Q = CO.cooler_heat_w("air", 1400.0, T, T_air, 1.0, 2000.0, 6e4, 0.0, 55.0, 60.0, thermostat_sump=1.0)
+        slope = np.diff(Q) / np.diff(T)
+        assert np.max(slope) <= bound and np.max(slope) > 1400.0  # steeper than hA: the band is narrow
+    assert bound > CO.cooler_hA_bound_w_per_k(c._replace(thermostat_sump=0.0), "air", 1.0, 1.0, 1.0, motor_pump=True)
+
+
 @pytest.fixture(scope="module")
 def models():
     """(parameters, onboard model) of the default gearbox."""

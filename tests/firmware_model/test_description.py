@@ -347,6 +347,12 @@ MALFORMED = [
         "must lie above thermostat_open = 80 degC",
     ),
     (
+        "thermostat read nowhere known",
+        '[topology.oil]\nthermostat_senses = { v = "cooler", u = "-", src = "assumed" }',
+        "topology.oil.thermostat_senses",
+        "= 'cooler' must be one of return, sump",
+    ),
+    (
         "unit of another dimension",
         '[topology.wheel.LI]\nwidth = { v = 45, u = "kg", src = "assumed" }',
         "topology.wheel.LI.width",

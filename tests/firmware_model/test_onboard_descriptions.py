@@ -276,15 +276,30 @@ def mm82_drive(mm82):
     return out, raw, start_c
 
 
+@pytest.fixture(scope="module")
+def mm82_replays(mm82, mm82_drive):
+    """get(oil_mode, core) -> (sensor, step_table output over mm82_drive), each computed once per module: two tests
+    read each (an hour of 0.1 s numpy steps is most of their time)."""
+    done = {}
+
+    def get(oil_mode: str, core: str):
+        if (oil_mode, core) not in done:
+            _, raw, start_c = mm82_drive
+            s = VirtualSensor(mm82, core=core, oil_mode=oil_mode)
+            done[(oil_mode, core)] = (s, s.step_table(s.initial_state(T_oil_c=start_c), raw)[1])
+        return done[(oil_mode, core)]
+
+    return get
+
+
 @pytest.mark.parametrize("oil_mode", ["measured", "model"])
-def test_mm82_follows_the_reference_plant_and_the_c_kernel_agrees(mm82, mm82_drive, oil_mode):
+def test_mm82_follows_the_reference_plant_and_the_c_kernel_agrees(mm82_replays, mm82_drive, oil_mode):
     """Issue 45: within 1.5 K of the reference plant on a drive the sensor was built without, every published
     component, with measured and with modelled oil; the C kernel equal to the numpy step within 1e-9 K."""
     out, raw, start_c = mm82_drive
     T = {}
     for core in ("numpy", "c"):
-        s = VirtualSensor(mm82, core=core, oil_mode=oil_mode)
-        _, o = s.step_table(s.initial_state(T_oil_c=start_c), raw)
+        s, o = mm82_replays(oil_mode, core)
         T[core] = o.T_c
     assert s.compiled is not None
     assert np.max(np.abs(T["c"] - T["numpy"])) <= 1e-9
@@ -298,7 +313,7 @@ def test_mm82_follows_the_reference_plant_and_the_c_kernel_agrees(mm82, mm82_dri
 
 
 @pytest.mark.parametrize("oil_mode", ["measured", "model"])
-def test_mm82_oil_inlet_follows_the_reference_plant_and_the_c_kernel_agrees(mm82, mm82_drive, oil_mode):
+def test_mm82_oil_inlet_follows_the_reference_plant_and_the_c_kernel_agrees(mm82_replays, mm82_drive, oil_mode):
     """A forced oil system's inlet (the description's derived oil.inlet: the sump minus the cooler's drop Q / (mdot
     cp)) is a status output: the C kernel equal to the numpy step within 1e-9 K, below the sensor's sump by the drop
     once the thermostat opens, and within 0.5 K of the plant's inlet (T_oil.inlet_c) with the oil measured and
@@ -308,9 +323,7 @@ def test_mm82_oil_inlet_follows_the_reference_plant_and_the_c_kernel_agrees(mm82
     out, raw, start_c = mm82_drive
     res = {}
     for core in ("numpy", "c"):
-        s = VirtualSensor(mm82, core=core, oil_mode=oil_mode)
-        _, o = s.step_table(s.initial_state(T_oil_c=start_c), raw)
-        res[core] = o
+        s, res[core] = mm82_replays(oil_mode, core)
     assert s.oil_inlet and s.compiled is not None
     inlet = res["numpy"].oil_inlet_temp_c
     assert np.isfinite(inlet).all() and np.isfinite(res["c"].oil_inlet_temp_c).all()

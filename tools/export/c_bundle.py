@@ -170,6 +170,25 @@ def reference_vectors(sensor, params, steps: int = VECTOR_STEPS, every: int = VE
     )
 
 
+#: reference vectors by the digest of the generated sensor files: the numpy reference over VECTOR_STEPS steps takes
+#: seconds, and a process that exports the same tables again (the float and double builds of one gearbox, a test
+#: suite) gets the same vectors. The C build depends on nothing but those files, so equal files need equal vectors.
+_VECTORS: dict[str, dict] = {}
+
+
+def _cached_vectors(files: dict[str, str | bytes], sensor, params) -> dict:
+    digest = hashlib.sha256()
+    for name in sorted(files):
+        text = files[name]
+        digest.update(name.encode() + b"\0" + (text if isinstance(text, bytes) else text.encode()) + b"\0")
+    key = digest.hexdigest()
+    if key not in _VECTORS:
+        if len(_VECTORS) >= 8:
+            _VECTORS.clear()
+        _VECTORS[key] = reference_vectors(sensor, params)
+    return _VECTORS[key]
+
+
 def vectors_source(vec: dict, real: str, ttl: bool = True) -> str:
     raw = vec["raw"]
     parts = [
@@ -346,7 +365,7 @@ def export_c(out_dir, variant: str | None = None, config_path=None, real: str = 
     files = sensor_files(sensor, real, ttl)
     files.update(
         {
-            "gvs_vectors.c": vectors_source(reference_vectors(sensor, params), real, ttl),
+            "gvs_vectors.c": vectors_source(_cached_vectors(files, sensor, params), real, ttl),
             "gvs_test.c": TEST_PROGRAM.replace("@TOL@", tol)
             .replace("@TTL_ABS@", repr(ttl_abs))
             .replace("@TTL_REL@", repr(ttl_rel)),

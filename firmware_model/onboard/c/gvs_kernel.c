@@ -398,7 +398,8 @@ static gvs_real cooler_heat(const gvs_tables *tb, const gvs_vehicle *veh, const 
         gvs_real a, D, q_lin, q;
         a = hA * max_r(T_oil - op->T_air, R_(0.0));
         D = T_full - T_open;
-        q_lin = a * (T_oil - T_open) / (D + a / (cap > R_(0.0) ? cap : R_(1.0)));
+        /* the thermostat reads the return (Eq 82 coupled: a / cap) or the sump (no coupling) */
+        q_lin = a * (T_oil - T_open) / (D + (tb->thermostat_sump > R_(0.5) ? R_(0.0) : a / (cap > R_(0.0) ? cap : R_(1.0))));
         q = min_r(clip_r(q_lin, R_(0.0), a), tb->air_Qmax_cool);
         Q = (cap > R_(0.0) && a > R_(0.0)) ? q : R_(0.0);
     }

@@ -228,6 +228,7 @@ typedef struct {
     gvs_real air_hA_ref;                /* [W/K] */
     gvs_real air_Qmax_cool;             /* [W] */
     gvs_real thermostat_open_c, thermostat_full_c; /* [degC] */
+    gvs_real thermostat_sump;           /* 1: the thermostat reads the sump (before the cooler); 0: the return, Eq 82 */
     gvs_real ref_ls_speed, ref_engine_speed; /* [rad/s] */
     gvs_real exp_inner, exp_outer, air_flow_min_frac;
     gvs_real air_ref_speed_kmh;         /* [km/h] */
