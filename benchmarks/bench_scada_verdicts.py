@@ -9,11 +9,15 @@ model (tools/scada/diagnose.py, the path of `diagnose --gearbox MM82 --columns e
 
 It prints one table row per diagnosis: the verdict and its parameter, the held-out RMS before -> after pooled and
 per channel (the sump in model mode, the bearings from the measured sump) with the shrink, the regime carrying the
-largest share of the training gap (the JSON's "where"), the runner-up candidates with their held-out RMS, and the
-wall time; then every effect's fitted value on every split, to compare the turbines. ``--out DIR`` also writes each
+largest share of the training gap (the JSON's "where"), every tested candidate's held-out RMS (marked at a bound
+of its range), the verdict of the rule before one at a bound was refused, and the wall time; then every effect's
+fitted value on every split, to compare the turbines. ``--out DIR`` also writes each
 gap-diagnosis/1 JSON there.
 
-    python benchmarks/bench_scada_verdicts.py DATA_DIR [--cross] [--only R80721]... [--out DIR]   # ~1 min a split
+``--sump-thermostat 140`` diagnoses instead the copy of the MM82 whose thermostat reads the sump
+(benchmarks/bench_mm82_thermostat.py; its held step is shorter: each split takes about four times as long).
+
+    python benchmarks/bench_scada_verdicts.py DATA_DIR [--cross] [--only R80721]... [--out DIR] [--sump-thermostat F]
 """
 
 from __future__ import annotations
@@ -21,6 +25,7 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -145,8 +150,27 @@ def main(argv: list[str]) -> int:
     ap.add_argument("--cross", action="store_true", help="also train on the two other turbines' 2017-2020 files")
     ap.add_argument("--only", action="append", default=[], help="only this test turbine (repeatable)")
     ap.add_argument("--out", type=Path, help="write each gap-diagnosis/1 JSON into this folder")
+    ap.add_argument(
+        "--sump-thermostat",
+        type=float,
+        metavar="L_PER_MIN",
+        help="diagnose a copy of the MM82 whose thermostat reads the sump, with this oil flow (140: "
+        "benchmarks/bench_mm82_thermostat.py), in place of the shipped one",
+    )
     args = ap.parse_args(argv)
-    cfg = with_gearbox(load_config(None), "MM82")
+    with tempfile.TemporaryDirectory() as tmp:
+        gearbox = "MM82"
+        if args.sump_thermostat is not None:
+            from bench_mm82_thermostat import sump_thermostat_copy
+
+            gearbox = str(sump_thermostat_copy(args.sump_thermostat, Path(tmp)))
+            print(f"MM82 with its thermostat at the sump, oil flow {args.sump_thermostat:g} L/min\n")
+        run(args, with_gearbox(load_config(None), gearbox))
+    return 0
+
+
+def run(args, cfg) -> None:
+    """Every split's diagnosis with ``cfg``'s gearbox: the table, then the values side by side."""
     print(
         "| split | verdict | held-out RMS [K] before -> after (shrink) | per channel [K] | largest share of the "
         "training gap | tested candidates: held-out RMS [K] | with bounds allowed (rule before) | wall [s] |"
@@ -163,7 +187,6 @@ def main(argv: list[str]) -> int:
             (args.out / f"{name}.json").write_text(json.dumps(res, indent=1))
     print("\nEvery candidate's fitted value (training score, BIC drop) per split:\n")
     print(values_table(results))
-    return 0
 
 
 if __name__ == "__main__":
