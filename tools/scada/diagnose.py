@@ -54,6 +54,10 @@ NOISE_K = 0.5
 SCORE_MIN = 10.0
 #: candidates refined and re-scored on the held-out records (the best by training score)
 TESTED = 3
+#: a claim may leave no channel's held-out RMS worse by more than this fraction and this many kelvin: the pooled
+#: figure alone let an effect that helped the sump make a bearing 69 % worse (R80721's own history, sump thermostat)
+WORSE_REL = 0.05
+WORSE_MIN_K = 0.05
 #: a fitted value within this fraction of its range from a bound sits at the bound (as calibrate's)
 BOUND_FRACTION = 0.01
 #: secant replays that refine a nonlinear effect's value
@@ -257,6 +261,18 @@ def _refine(setup: Setup, train: Sequence[ScadaRecord], c: dict) -> None:
         c["value"], c["after"] = theta, after
 
 
+def worse_channels(before: dict[str, np.ndarray], after: dict[str, np.ndarray]) -> list[str]:
+    """The channels whose held-out RMS ``after`` ({channel: residual}) is worse than ``before`` by more than
+    WORSE_REL and WORSE_MIN_K."""
+    out = []
+    for ch, r in after.items():
+        b = _rms(before[ch][np.isfinite(before[ch])])
+        a = _rms(r[np.isfinite(r)])
+        if np.isfinite(a) and np.isfinite(b) and a > b * (1.0 + WORSE_REL) and a - b > WORSE_MIN_K:
+            out.append(ch)
+    return out
+
+
 def _pooled_jac(jac: dict) -> np.ndarray:
     v = np.concatenate(list(jac.values()))
     return np.where(np.isfinite(v), v, 0.0)
@@ -311,6 +327,7 @@ def diagnose_records(
             )
             entry["test_rms_before_c"] = _rms(_pooled(t_before))
             entry["test_rms_after_c"] = _rms(_pooled(after))
+            entry["worse_channels"] = worse_channels(t_before, after)
             test_after[eid] = after
         out_cands.append(entry)
     verdict = _verdict(r0, t_before, out_cands, where(r0, joined))
@@ -371,9 +388,12 @@ def _verdict(r0: dict, t_before: dict, cands: list[dict], where_rows: list[dict]
             "shrink": 0.0,
             "reason": f"the model is within {NOISE_K} K RMS of the readings",
         }
-    bound = None
+    bound, worse = None, None
     for c in cands:
         if "test_rms_after_c" not in c or c["score"] < SCORE_MIN or c["test_rms_after_c"] > before:
+            continue
+        if c.get("worse_channels"):  # better pooled, but a channel worse held out: no claim
+            worse = worse or c
             continue
         # the best that holds sits at a bound of its range with a gap left (above the noise): the data want more
         # of it than the range allows, a model form rather than this effect (as the run tables' verdict); the
@@ -392,6 +412,11 @@ def _verdict(r0: dict, t_before: dict, cands: list[dict], where_rows: list[dict]
     top = where_rows[0] if where_rows else None
     at = f"; the largest share of the gap: {top['channel']} in '{top['regime']}'" if top else ""
     at += f"; {_at_bound_text(bound)}" if bound else ""
+    if worse:
+        at += (
+            f"; {worse['effect']} ({_fmt_params(worse['parameters'])}) lowers the pooled held-out RMS but makes "
+            f"{', '.join(worse['worse_channels'])} worse"
+        )
     return {
         **base,
         "effect": "unexplained",
@@ -400,6 +425,10 @@ def _verdict(r0: dict, t_before: dict, cands: list[dict], where_rows: list[dict]
         "reason": f"no candidate both scores {SCORE_MIN:.0f} on the training records within its range and holds "
         f"on the held-out ones{at}",
     }
+
+
+def _fmt_params(params: dict) -> str:
+    return ", ".join(f"{k} = {v:g}" for k, v in params.items())
 
 
 def _at_bound_text(c: dict) -> str:
