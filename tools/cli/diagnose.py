@@ -61,7 +61,9 @@ def add_subparser(sub):
         "(default: onboard)",
     )
     p.add_argument("--json", required=True, metavar="OUT.json", help="the gap-diagnosis result (written atomically)")
-    p.add_argument("--report", metavar="OUT.md", help="also write a Markdown report with PNG plots next to it")
+    p.add_argument(
+        "--report", metavar="OUT.md", help="also write a Markdown report with PNG plots next to it (run tables only)"
+    )
     add_core_option(p)
     p.add_argument("--quiet", action="store_true", help="no progress bar or summary on stderr/stdout")
     p.add_argument(
