@@ -373,8 +373,7 @@ class VirtualSensor:
             keep = np.asarray(keep, dtype=bool).reshape(-1)
             if keep.shape[0] != raw.shape[0]:
                 raise InputError(f"keep has {keep.shape[0]} flags for {raw.shape[0]} rows of inputs")
-            return self.core.step_table(state, raw, t, self.cache, keep)
-        return self.core.step_table(state, raw, t, self.cache)
+        return self.core.step_table(state, raw, t, self.cache, keep)
 
     def step_tables(self, jobs, workers: int | None = None):
         """Many vehicles' tables: ``jobs`` an iterable of ``(state, raw)`` or ``(state, raw, t_s)`` (as

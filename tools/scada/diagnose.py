@@ -263,12 +263,13 @@ def _refine(setup: Setup, train: Sequence[ScadaRecord], c: dict) -> None:
 
 def worse_channels(before: dict[str, np.ndarray], after: dict[str, np.ndarray]) -> list[str]:
     """The channels whose held-out RMS ``after`` ({channel: residual}) is worse than ``before`` by more than
-    WORSE_REL and WORSE_MIN_K."""
+    WORSE_REL and WORSE_MIN_K, or that had an estimate before and have none after."""
     out = []
     for ch, r in after.items():
         b = _rms(before[ch][np.isfinite(before[ch])])
         a = _rms(r[np.isfinite(r)])
-        if np.isfinite(a) and np.isfinite(b) and a > b * (1.0 + WORSE_REL) and a - b > WORSE_MIN_K:
+        lost = np.isfinite(b) and not np.isfinite(a)
+        if lost or (np.isfinite(a) and np.isfinite(b) and a > b * (1.0 + WORSE_REL) and a - b > WORSE_MIN_K):
             out.append(ch)
     return out
 
@@ -433,8 +434,8 @@ def _fmt_params(params: dict) -> str:
 
 def _at_bound_text(c: dict) -> str:
     """Why candidate ``c`` (it holds on the held-out records) is not the verdict: it sits at a bound."""
-    ((k, v),) = c["parameters"].items()
     return (
         f"the best candidate that holds on the held-out records, {c['effect']} (score {c['score']:.0f}, held-out "
-        f"RMS {c['test_rms_after_c']:.2f} K), sits at the bound of its range ({k} = {v:g}) with a gap left"
+        f"RMS {c['test_rms_after_c']:.2f} K), sits at the bound of its range ({_fmt_params(c['parameters'])}) with "
+        "a gap left"
     )

@@ -218,7 +218,8 @@ def _close(a, b) -> bool:
 
 
 def test_worse_channels_names_a_channel_made_worse_beyond_the_noise():
-    """A channel's held-out RMS 10 % and 0.2 K worse is named; 3 % worse, or 0.02 K at a tiny RMS, is not."""
+    """A channel's held-out RMS 10 % and 0.2 K worse is named, and one left without any estimate; 3 % worse, or
+    0.02 K at a tiny RMS, is not."""
     from tools.scada.diagnose import worse_channels
 
     rng = np.random.default_rng(0)
@@ -226,6 +227,8 @@ def test_worse_channels_names_a_channel_made_worse_beyond_the_noise():
     after = {"a": before["a"] * 1.10, "b": before["b"] * 1.03, "c": before["c"] + 0.03}
     after["a"][0] = np.nan  # a missing estimate is left out, not a reason
     assert worse_channels(before, after) == ["a"]
+    after["b"] = np.full(500, np.nan)  # no estimate left on a channel that had one: worse
+    assert worse_channels(before, after) == ["a", "b"]
 
 
 def test_an_effect_that_makes_one_channel_worse_held_out_is_no_verdict(setup, monkeypatch):
