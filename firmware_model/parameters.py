@@ -334,9 +334,9 @@ def _flatten(d: dict, prefix: str = ""):
             yield key, v
 
 
-#: parsed documents by their bytes: a command reads the shipped files up to ~40 times (the descriptions' names for
-#: --help, the key checks, inheritance); parsing them once saves ~0.4 s of every start-up. Keyed by content, not by
-#: path and time stamp, so a file rewritten within a time stamp's resolution is read afresh.
+#: parsed documents by their bytes: a command reads the shipped files many times (the key checks, inheritance),
+#: and parsing each once shortens every start-up. Keyed by content, not by path and time stamp, so a file rewritten
+#: within a time stamp's resolution is read afresh.
 _PARSED: dict[bytes, dict] = {}
 _PARSED_MAX = 64
 

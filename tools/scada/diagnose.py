@@ -54,8 +54,8 @@ NOISE_K = 0.5
 SCORE_MIN = 10.0
 #: candidates refined and re-scored on the held-out records (the best by training score)
 TESTED = 3
-#: a claim may leave no channel's held-out RMS worse by more than this fraction and this many kelvin: the pooled
-#: figure alone let an effect that helped the sump make a bearing 69 % worse (R80721's own history, sump thermostat)
+#: a claim may leave no channel's held-out RMS worse by more than this fraction and this many kelvin (the pooled
+#: figure alone can hide one channel made much worse while another improves)
 WORSE_REL = 0.05
 WORSE_MIN_K = 0.05
 #: a fitted value within this fraction of its range from a bound sits at the bound (as calibrate's)

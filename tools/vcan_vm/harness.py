@@ -754,8 +754,8 @@ def _compile_repo() -> None:
 
 def _host_kernel_env() -> dict[str, str]:
     """``GVS_KERNEL_LIB`` = the host's compiled kernel (built now if needed), which the VM sees at the same path: the
-    VM's HOME is /tmp, so without it a checkout whose installed library is stale compiled the kernel under TCG at
-    every service start (~30 s each). Empty when the host has no compiled kernel (the VM then finds its own way)."""
+    VM's HOME is /tmp, so without it a checkout whose installed library is stale would compile the kernel under TCG
+    at every service start. Empty when the host has no compiled kernel (the VM then finds its own way)."""
     from firmware_model.onboard import ckernel
 
     try:
