@@ -198,7 +198,10 @@ def _scada_files(paths) -> list[Path]:
 
 def _run_scada(args) -> int:
     """`fleet --gearbox NAME --columns MAP DIR... --out OUT`: the fleet's health on SCADA records."""
-    import pyarrow as pa
+    try:
+        import pyarrow as pa
+    except ImportError:
+        raise InputError("the fleet command writes Parquet: pip install 'gearbox-vsensor[fleet]' (pyarrow)") from None
 
     from firmware_model.config import load_config
     from tools.fleet.store import write_atomic

@@ -5,6 +5,7 @@ are not. On the HR225 with the column map of test_replay_scada.py, periods of 6 
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from firmware_model.config import load_config
 from tests.tools.scada.test_reader import write
@@ -62,9 +63,9 @@ def test_fleet_columns_writes_the_fits_and_the_flags_of_a_folder(tmp_path):
     import subprocess
     import sys
 
-    import pyarrow.parquet as pq
-
     from tests.tools.scada.test_replay_scada import REPO
+
+    pq = pytest.importorskip("pyarrow.parquet", reason="fleet --columns writes Parquet: pip install '.[fleet]'")
 
     data = tmp_path / "scada"
     data.mkdir()
@@ -101,3 +102,15 @@ def test_fleet_columns_writes_the_fits_and_the_flags_of_a_folder(tmp_path):
         [*cmd, "--workers", "2", "--out", str(tmp_path / "o2")], cwd=REPO, capture_output=True, text=True
     )
     assert p.returncode == 2 and "not with --columns" in p.stderr and len(p.stderr.strip().splitlines()) == 1
+
+
+def test_fleet_columns_without_pyarrow_is_one_sentence(tmp_path, monkeypatch, capsys):
+    """Installed without the fleet extra: `fleet --columns` says what to install, in one sentence, before reading."""
+    import sys
+
+    from tools.cli import main
+
+    monkeypatch.setitem(sys.modules, "pyarrow", None)  # import pyarrow raises ImportError
+    rc = main(["fleet", str(tmp_path), "--gearbox", "HR225", "--columns", "engie", "--out", str(tmp_path / "o")])
+    err = capsys.readouterr().err.strip()
+    assert rc == 2 and err.count("\n") == 0 and "pip install 'gearbox-vsensor[fleet]'" in err, err
