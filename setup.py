@@ -37,7 +37,8 @@ kernel = Extension(
     "firmware_model.onboard._gvs_kernel",
     sources=["firmware_model/onboard/c/gvs_kernel.c"],
     include_dirs=["firmware_model/onboard/c"],
-    define_macros=[("GVS_SOURCE_ID", f'"{source_id()}"')],
+    # GVS_STEP_MEMO: the host's build memoises the last step's heat sources (gvs_kernel.c; an ECU export does not)
+    define_macros=[("GVS_SOURCE_ID", f'"{source_id()}"'), ("GVS_STEP_MEMO", "1")],
     extra_compile_args=["-std=c99", "-O3", "-fno-fast-math"],
     optional=True,
 )

@@ -10,7 +10,7 @@ stored + rejected) and the held path's generated energy against the step path's.
 at most 10 s.
 
 With ``--sensor`` (the plant only as the reference of (c)): the onboard sensor's held replay (`replay`) at the
-coarse step the stability proof allows (docs/sensor.md "A coarser step for held tables"; the MM82: 10 s) beside the
+coarse step the stability proof allows (docs/sensor.md "A coarser step for held tables"; the MM82: 15 s) beside the
 0.1 s reference in the same run: (a) CPU time of a month and a year of synthetic rows (the year's reference
 extrapolated from its month unless ``--reference-year``), (b) max / RMS |coarse - 0.1 s| of every published
 component and of the modelled sump, with the oil measured (the plant's sump) and modelled, (c) the sensor against

@@ -86,6 +86,7 @@ def bench_step(params) -> None:
             rec.ctypes.data,
             raw.shape[0],
             0,
+            None,
             out.ctypes.data,
             None,
             ctypes.byref(status),

@@ -38,6 +38,9 @@ SOURCE_DIR = Path(__file__).resolve().parent / "c"
 SOURCES = ("gvs_kernel.c", "gvs_kernel.h")
 #: flags of every build: strict C99, warnings as errors, no fast-math (parity with numpy needs IEEE arithmetic)
 CFLAGS = ("-std=c99", "-O3", "-fPIC", "-Wall", "-Wextra", "-Wpedantic", "-Werror", "-fno-fast-math")
+#: a host build memoises the last step's heat sources (gvs_kernel.c, GVS_STEP_MEMO; an ECU export leaves it out);
+#: ``extra_flags=("-UGVS_STEP_MEMO",)`` builds without it
+HOST_DEFINES = ("-DGVS_STEP_MEMO",)
 
 
 class CoreUnavailable(RuntimeError):
@@ -93,7 +96,8 @@ def build(out: Path, real: str = "double", extra_flags: tuple = (), cc: str | No
     out.parent.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(dir=out.parent) as tmp:
         tmp_lib = Path(tmp) / out.name
-        cmd = [cc, *CFLAGS, *extra_flags, "-shared", *defs, str(SOURCE_DIR / "gvs_kernel.c"), "-o", str(tmp_lib), "-lm"]
+        cmd = [cc, *CFLAGS, *HOST_DEFINES, *extra_flags, "-shared", *defs, str(SOURCE_DIR / "gvs_kernel.c"), "-o"]
+        cmd += [str(tmp_lib), "-lm"]
         res = subprocess.run(cmd, capture_output=True, text=True)
         if res.returncode != 0:
             raise CoreUnavailable(
@@ -132,6 +136,7 @@ def _open(path: Path, real: str):
         C.c_void_p,
         C.c_int64,
         C.c_int,
+        C.c_void_p,
         C.c_void_p,
         C.c_void_p,
         P(C.c_int),

@@ -130,7 +130,7 @@ class CompiledCore:
         if isinstance(state, BufferedState) and buf is not None:
             buf = buf.copy()
             if getattr(state, "owner", None) is not self:
-                buf["memo_valid"] = 0  # another sensor's conductance memo: not this one's
+                buf["memo_valid"] = buf["memo_heat_valid"] = 0  # another sensor's memos: not this one's
             return buf
         B = np.shape(state.t_last_s)
         buf = np.zeros(B, dtype=self.S["State_dtype"])
@@ -348,11 +348,13 @@ class CompiledCore:
         pt = np.zeros((), dtype=self.S["TtlPoint_dtype"])
         veh = self.vehicles(None).ctypes.data_as(C.POINTER(self.S["Vehicle"]))
         status = C.c_int(0)
+        flags = None if keep is None else np.ascontiguousarray(keep, dtype=np.int8)
         for j0 in range(0, N, m_max):  # the same kernel steps, in chunks that reuse two buffers
             m = min(m_max, N - j0)
             rec["raw"][:m] = raw[j0 : j0 + m]
             rec["t_s"][:m] = t_s[j0 : j0 + m]
-            k = 0
+            kf = None if flags is None else flags[j0 : j0 + m]
+            k = w = 0  # steps done, outputs written (the kept steps' only: the kernel writes no other)
             while k < m:
                 done = self.lib.gvs_run(
                     self._tables_p,
@@ -361,18 +363,21 @@ class CompiledCore:
                     rec[k:].ctypes.data,
                     m - k,
                     0,
-                    out[k:].ctypes.data,
+                    None if kf is None else kf[k:].ctypes.data,
+                    out[w:].ctypes.data,
                     pt.ctypes.data,
                     C.byref(status),
                 )
-                k = self._after_run(buf, rec, out, pt, k, done, status.value, cache)
-            rows = out[:m] if keep is None else out[:m][keep[j0 : j0 + m]]
-            self._fill_table(res, rows, filled)
-            filled += rows.shape[0]
+                w += done if kf is None else int(np.count_nonzero(kf[k : k + done]))
+                k, w = self._after_run(buf, rec, out, pt, (k, w), done, status.value, cache, kf)
+            self._fill_table(res, out[:w], filled)
+            filled += w
         return self.unpack(buf), res
 
-    def _after_run(self, buf, rec, out, pt, j: int, done: int, status: int, cache: StepCache) -> int:
-        """After a gvs_run of ``done`` rows from row j: a jump to propagate, then a due refresh; the next row."""
+    def _after_run(self, buf, rec, out, pt, at, done: int, status: int, cache: StepCache, kf=None) -> tuple:
+        """After a gvs_run of ``done`` rows from row j (``at`` = (j, outputs written)): a jump to propagate (its
+        output written when ``kf``, the keep flags, keeps it), then a due refresh; the next row and outputs."""
+        j, w = at
         if status < 0:
             raise CoreUnavailable(f"the C kernel refused its tables (code {status})")
         j += done
@@ -381,23 +386,25 @@ class CompiledCore:
             st = jump_state(self.unpack(buf), gap - self.sp.dt_s, self.sp, cache)
             buf["T_c"][:, : self.n] = st.T_c
             one = np.zeros((), dtype=self.S["TtlPoint_dtype"])
+            kept = kf is None or bool(kf[j])
             self.lib.gvs_step(
                 self._tables_p,
                 self.vehicles(None).ctypes.data_as(C.POINTER(self.S["Vehicle"])),
                 buf.ctypes.data,
                 rec[j:].ctypes.data,
                 1,
-                out[j:].ctypes.data,
+                (out[w:] if kept else np.zeros(1, dtype=out.dtype)).ctypes.data,
                 one.ctypes.data,
             )
             pt[...] = one
             j += 1
+            w += kept
         if pt["due"]:
             self.lib.gvs_ttl_refresh(
                 self._tables_p, self.vehicles(None).ctypes.data, pt.ctypes.data, buf["ttl_s"].ctypes.data
             )
             pt["due"] = 0
-        return j
+        return j, w
 
     def run_batch(
         self, state: SensorState, raw: np.ndarray, keep: np.ndarray, nodes: np.ndarray, rec: np.ndarray

@@ -179,7 +179,10 @@ class VirtualSensor:
         if key not in self._stepped:
             other = copy.copy(self)
             other.reduced = R.with_step(self.reduced, float(dt_s))
-            other.options = dataclasses.replace(self.options, ttl_period_s=period_s)
+            # one step without speed or torque is still "held" at any step (a 15 s step: not "not available"
+            # at once); at 0.1-10 s the hold is the options' own
+            hold_s = max(self.options.hold_s, float(dt_s))
+            other.options = dataclasses.replace(self.options, ttl_period_s=period_s, hold_s=hold_s)
             other.sp = SensorParams.build(other.reduced, self.limits, self.effects, other.options)
             other.cache = StepCache()
             other.core = select_core(self._core_choice, other.sp)

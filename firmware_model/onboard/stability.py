@@ -39,6 +39,7 @@ from firmware_model.onboard.kernel_interface import (
     P_LN_NU_CST,
     P_LN_PR,
     P_RHO,
+    TTL_FRESH_S,
 )
 from firmware_model.physics.conductance_matrix import node_conductance_w_per_k
 from firmware_model.physics.cooler import COOLER_KINDS, cooler_hA_bound_w_per_k, cooler_params
@@ -48,10 +49,11 @@ from firmware_model.units import KELVIN_OFFSET_K, RAD_S_PER_RPM
 STABILITY_MARGIN = 0.8
 #: oil temperature range over which stability is guaranteed [degC]
 OIL_RANGE_C = (-40.0, 150.0)
-#: the largest step a held replay takes [s] (assumed; docs/sensor.md "A coarser step for held tables"): the drive
-#: inputs' hold time (SensorOptions.hold_s, 10 s) so that one missing row-step is still "held", not "not available",
-#: and the offline time-to-limit period (10 s); beyond it a month costs little less (the per-row work dominates)
-HELD_STEP_CAP_S = 10.0
+#: the largest step a held replay takes [s] (derived; docs/sensor.md "A coarser step for held tables"): an early
+#: warning judges a time to limit at most TTL_FRESH_S + dt / 2 old (step.py), so at a step of at most 2 TTL_FRESH_S
+#: the one refresh per row, one step before the row's end, is still judged; the drive inputs' hold time grows with
+#: the step (VirtualSensor.with_step), so one step without speed or torque is still "held"
+HELD_STEP_CAP_S = 2.0 * TTL_FRESH_S
 
 
 def max_conductances(rp: ReducedParams) -> dict:

@@ -406,6 +406,59 @@ def test_kernel_under_address_and_undefined_behaviour_sanitizers(tmp_path):
     assert json.loads(res.stdout.strip().splitlines()[-1]) == {"finite": True}
 
 
+MEMO_SCRIPT = """
+import hashlib, json, sys
+import numpy as np
+sys.path.insert(0, {repo!r})
+from tests.firmware_model.test_kernel import hostile_inputs
+from firmware_model.config import load_config
+from firmware_model.description import description_of
+from firmware_model.onboard.sensor import VirtualSensor
+from firmware_model.parameters import load_parameters
+from tools.cycles.scada_rows import scada_rows
+from tools.replay.table import held_options, replay_table
+h = hashlib.sha256()
+mm82 = load_parameters("MM82")
+rows = scada_rows(description_of(mm82), 2.0)
+for mode in ("measured", "model"):
+    out = replay_table(rows, VirtualSensor(mm82, core="c", oil_mode=mode, **held_options(rows)))
+    for c in out.columns:
+        h.update(np.ascontiguousarray(out[c], dtype=float).tobytes())
+s = VirtualSensor(load_parameters("GRS905"), core="c")
+raw, t_s = hostile_inputs(np.random.default_rng(21), 1, 3000)
+st, tab = s.step_table(s.initial_state(T_oil_c=60.0), raw[:, 0], t_s[:, 0])
+for a in (*tab, st.T_c):
+    h.update(np.ascontiguousarray(a, dtype=float).tobytes())
+print(json.dumps({{"digest": h.hexdigest(), "memo": int(st.buf["memo_heat_valid"])}}))
+"""
+
+
+@needs_c
+def test_the_host_builds_memo_gives_the_same_bits_as_a_build_without_it(tmp_path):
+    """The host's build (GVS_STEP_MEMO: the last step's heat sources reused for the same inputs and sump, the twin
+    copied while it equals the main copy) against a build without it (an ECU's code path): the MM82's held
+    replays with the sump measured and modelled and a hostile GRS905 table give the same bits, and the host's
+    build did memoise."""
+    lib = tmp_path / "gvs_kernel_no_memo.so"
+    ckernel.build(lib, "double", ("-UGVS_STEP_MEMO",))
+    runs = {}
+    for name, extra in (("host", {}), ("no_memo", {"GVS_KERNEL_LIB": str(lib)})):
+        env = dict(os.environ, XDG_CACHE_HOME=str(tmp_path / "cache"), GVS_CORE="c", **extra)
+        env.pop("GVS_KERNEL_LIB", None) if not extra else None
+        res = subprocess.run(
+            [sys.executable, "-c", MEMO_SCRIPT.format(repo=str(REPO))],
+            env=env,
+            capture_output=True,
+            text=True,
+            cwd=str(tmp_path),
+            timeout=600,
+        )
+        assert res.returncode == 0, res.stderr[-3000:]
+        runs[name] = json.loads(res.stdout.strip().splitlines()[-1])
+    assert runs["host"]["memo"] == 1 and runs["no_memo"]["memo"] == 0
+    assert runs["host"]["digest"] == runs["no_memo"]["digest"]
+
+
 @needs_c
 def test_both_cores_have_one_interface_and_the_sensor_never_asks_which(params):
     """The numpy core and the compiled core have the same methods and attributes; VirtualSensor holds one of them

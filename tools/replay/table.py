@@ -293,8 +293,8 @@ def replay_held(
     """A table slower than the step (a fixed-ratio drive's SCADA averages) through a sensor with ``step_table``:
     each row held over its interval (tools.drive_table.held_plan), one output row per input row: the sensor at the
     end of that row's interval (``time_s``), with the inputs of the row. The step (:func:`held_step_of`; ``step_s``
-    overrides the sensor's ``held_step``): the MM82's 10-minute rows step every 10 s (60 steps a row, a month
-    259,200 steps) where the stability proof allows it, else every 0.1 s (26 million steps a month); the steps run
+    overrides the sensor's ``held_step``): the MM82's 10-minute rows step every 15 s (40 steps a row, a month
+    172,800 steps) where the stability proof allows it, else every 0.1 s (26 million steps a month); the steps run
     ``chunk_steps`` at a time. At a coarser step the time to limit is refreshed once per row period, from the state
     one step before each regular row's end (docs/sensor.md "A coarser step for held tables"), and the reject
     counters count the 0.1 s steps each step stands for (events: one each), as at 0.1 s. ``meta["step_s"]``: the

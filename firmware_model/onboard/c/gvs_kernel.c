@@ -586,6 +586,32 @@ typedef struct {
     int32_t row;
 } net_t;
 
+#ifdef GVS_STEP_MEMO
+/* one explicit step of one copy T from its heat r (the main copy's arithmetic of network_step, in its order) */
+static void euler_one_copy(const gvs_tables *tb, const net_t *nt, gvs_real *T0, gvs_real *r0)
+{
+    int32_t i, k;
+    for (k = 0; k < tb->nst; ++k) {
+        gvs_real f0 = nt->Gs[k] * nt->dT_in[GVS_MAIN];
+        r0[tb->stream_node[k]] -= f0;
+        r0[tb->i_oil] += f0;
+    }
+    r0[tb->i_oil] -= nt->Q_cool[GVS_MAIN];
+    for (k = 0; k < tb->nl; ++k) {
+        int32_t a = tb->link_a[k], b = tb->link_b[k];
+        gvs_real g = nt->G[k];
+        if (b < tb->n) {
+            gvs_real f0 = g * (T0[a] - T0[b]);      /* heat from a to b */
+            r0[a] -= f0;
+            r0[b] += f0;
+        } else {
+            r0[a] -= g * (T0[a] - nt->T_bc[b - tb->n]);
+        }
+    }
+    for (i = 0; i < tb->n; ++i) T0[i] += tb->dt_over_C[i] * r0[i];
+}
+#endif
+
 static void network_step(const gvs_tables *tb, const gvs_vehicle *veh, gvs_state *st, const check_t *c,
                          double oil_raw, net_t *nt)
 {
@@ -605,7 +631,25 @@ static void network_step(const gvs_tables *tb, const gvs_vehicle *veh, gvs_state
     nt->T_bc[tb->i_coolant] = c->used[GVS_I_COOL];
     /* heat (loss maps) through the first-order heat lag, exact step average (physics.heat_lag) */
     retarder_w = retarder_heat_w(tb, veh, nt->row, w, c->used[GVS_I_RET]);
+#ifdef GVS_STEP_MEMO
+    /* the host's build: the same inputs and sump as the last step (a held row), the same sources (a pure function) */
+    if (st->memo_heat_valid && st->memo_heat_row == nt->row && st->memo_heat_key[0] == w
+        && st->memo_heat_key[1] == torque && st->memo_heat_key[2] == nt->T_oil_main
+        && st->memo_heat_key[3] == retarder_w) {
+        copy_r(nt->src, st->memo_src, tb->ns);
+    } else {
+        heat_sources(tb, veh, nt->row, w, torque, &o, retarder_w, nt->src);
+        copy_r(st->memo_src, nt->src, tb->ns);
+        st->memo_heat_row = nt->row;
+        st->memo_heat_key[0] = w;
+        st->memo_heat_key[1] = torque;
+        st->memo_heat_key[2] = nt->T_oil_main;
+        st->memo_heat_key[3] = retarder_w;
+        st->memo_heat_valid = 1;
+    }
+#else
     heat_sources(tb, veh, nt->row, w, torque, &o, retarder_w, nt->src);
+#endif
     for (i = 0; i < tb->ns; ++i) {
         gvs_real y = st->lag_w[i] + (nt->src[i] - st->lag_w[i]) * tb->lag_gain;
         delivered[i] = nt->src[i] - tb->lag_tau_over_dt * (y - st->lag_w[i]);
@@ -633,6 +677,15 @@ static void network_step(const gvs_tables *tb, const gvs_vehicle *veh, gvs_state
         nt->Q_cool[cp] = cooler_heat(tb, veh, &cop, T[cp][tb->i_oil]);
         nt->dT_in[cp] = inlet_drop_k(tb, nt->Q_cool[cp], mcp);
     }
+#ifdef GVS_STEP_MEMO
+    /* the host's build: with the sump modelled the twin is the main copy bit for bit (same heat, conductances and
+     * start): one copy stepped, the twin copied, the same bits as stepping both */
+    if (!c->measured && memcmp(T[GVS_MAIN], T[GVS_TWIN], (size_t)tb->n * sizeof(gvs_real)) == 0) {
+        euler_one_copy(tb, nt, T[GVS_MAIN], rate[GVS_MAIN]);
+        copy_r(T[GVS_TWIN], T[GVS_MAIN], tb->n);
+        return;
+    }
+#endif
     /* one explicit (forward Euler) step of both copies, side by side: two independent chains of updates (each
      * copy's sums in the same order as one copy at a time) */
     {
@@ -1568,13 +1621,16 @@ int gvs_step(const gvs_tables *tb, const gvs_vehicle *veh, gvs_state *st, const 
 }
 
 int64_t gvs_run(const gvs_tables *tb, const gvs_vehicle *veh, gvs_state *st, const gvs_inputs *in, int64_t n_steps,
-                int stop_on_ttl, gvs_outputs *out, gvs_ttl_point *ttl, int *status)
+                int stop_on_ttl, const int8_t *keep, gvs_outputs *out, gvs_ttl_point *ttl, int *status)
 {
+    gvs_outputs scratch;            /* the outputs of a step not kept */
     int64_t j;
     int rc = GVS_OK;
     for (j = 0; j < n_steps; ++j) {
-        rc = gvs_step(tb, veh, st, in + j, 0, out + j, ttl);
+        gvs_outputs *o = (keep && !keep[j]) ? &scratch : out;
+        rc = gvs_step(tb, veh, st, in + j, 0, o, ttl);
         if (rc == GVS_NEED_JUMP || rc == GVS_BAD_TABLES) break;
+        if (o == out) ++out;
         if (ttl && ttl->due) {
             if (stop_on_ttl) { ++j; break; }
             gvs_ttl_refresh(tb, veh, ttl, st->ttl_s);

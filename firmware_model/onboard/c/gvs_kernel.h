@@ -304,6 +304,12 @@ typedef struct {
     gvs_real memo_omega_q;              /* [rad/s] */
     gvs_real memo_T_q;                  /* [degC] */
     int32_t memo_row, memo_valid;
+    /* memo of the last heat sources, in a build with GVS_STEP_MEMO only (the host's: a held replay steps the same
+     * inputs tens of times a row; an ECU's inputs change every frame, so its build leaves the code out): the sources
+     * at (gear row, speed, torque, sump, retarder); a state packed from elsewhere starts with memo_heat_valid = 0 */
+    gvs_real memo_src[GVS_MAX_SRC];     /* [W] */
+    gvs_real memo_heat_key[4];          /* speed [rad/s], |torque| [N m], sump [degC], retarder heat [W] */
+    int32_t memo_heat_row, memo_heat_valid;
     int8_t level[GVS_MAX_PUB];          /* GVS_LEVEL_* */
 } gvs_state;
 
@@ -362,13 +368,14 @@ int gvs_step(const gvs_tables *tb, const gvs_vehicle *veh, gvs_state *st, const 
  * until every component has crossed or provably cannot. */
 int gvs_ttl_refresh(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl_point *p, gvs_real *ttl_s);
 
-/* Steps over a table of inputs (n_steps rows) for one vehicle, writing one gvs_outputs per step. A step that
- * leaves a due time-to-limit refresh: with stop_on_ttl the run stops after it (the caller refreshes), else the
- * refresh runs in place (gvs_ttl_refresh into st->ttl_s) when ttl is given. Stops before a step that needs a jump
- * propagated; returns the number of steps done (the caller resumes from there). *status: the last gvs_step
- * return code. */
+/* Steps over a table of inputs (n_steps rows) for one vehicle, writing one gvs_outputs per step, or with keep
+ * (n_steps flags; NULL: every step) only for the steps whose flag is set, one after the other (a held replay keeps
+ * one step a row: the others' outputs are never written). A step that leaves a due time-to-limit refresh: with
+ * stop_on_ttl the run stops after it (the caller refreshes), else the refresh runs in place (gvs_ttl_refresh into
+ * st->ttl_s) when ttl is given. Stops before a step that needs a jump propagated; returns the number of steps done
+ * (the caller resumes from there). *status: the last gvs_step return code. */
 int64_t gvs_run(const gvs_tables *tb, const gvs_vehicle *veh, gvs_state *st, const gvs_inputs *in, int64_t n_steps,
-                int stop_on_ttl, gvs_outputs *out, gvs_ttl_point *ttl, int *status);
+                int stop_on_ttl, const int8_t *keep, gvs_outputs *out, gvs_ttl_point *ttl, int *status);
 
 /* One step of n_vehicles vehicles (arrays of states, inputs, outputs, time-to-limit points; jump_done and ttl may
  * be NULL), vehicle parameters veh[v * veh_stride] (stride 0: one set for all). codes[v]: each vehicle's return
