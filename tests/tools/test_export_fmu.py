@@ -38,18 +38,25 @@ def test_fmpy_validates_it(fmu):
     assert md.coSimulation is not None and md.defaultExperiment.stepSize == "0.1"
 
 
-def test_simulation_equals_the_reference(fmu, uphill_plant):
+@pytest.fixture(scope="module")
+def uphill_reference(uphill_plant):
+    """(raw inputs, the numpy step's outputs) over the first 1000 s of the uphill cycle: the reference of both FMI
+    versions, computed once (the numpy step with the time to limit every 1 s: ~6 s)."""
     from firmware_model.onboard.sensor import VirtualSensor
     from firmware_model.parameters import load_parameters
-    from firmware_model.service.options import SENSOR_INPUTS
     from tools.replay.table import table_steps
 
-    params = load_parameters("GRS905")
     _, data = table_steps(uphill_plant)
-    n = 10000  # past the first early warning (the time to limit finite)
-    raw = data[:n, :8]
-    ref = VirtualSensor(params, core="numpy")  # the time to limit and the early warning on, as in the FMU
-    _, out = ref.step_table(ref.initial_state(T_oil_c=float(raw[0, 3])), raw)
+    raw = data[:10000, :8]  # past the first early warning (the time to limit finite)
+    ref = VirtualSensor(load_parameters("GRS905"), core="numpy")  # time to limit and early warning on, as the FMU
+    return raw, ref.step_table(ref.initial_state(T_oil_c=float(raw[0, 3])), raw)[1]
+
+
+def test_simulation_equals_the_reference(fmu, uphill_reference):
+    from firmware_model.service.options import SENSOR_INPUTS
+
+    raw, out = uphill_reference
+    n = raw.shape[0]
     names = [col for _, col in SENSOR_INPUTS]
     signals = np.zeros(n, dtype=[("time", float)] + [(c, float) for c in names])
     signals["time"] = 0.1 * np.arange(n)
