@@ -237,12 +237,13 @@ def test_many_tables_on_threads_equal_one_at_a_time(params):
 
 
 @needs_c
-def test_named_cycle_replay_matches(params, uphill_plant, uphill_numpy_replay):
-    """The uphill cycle's plant table replayed by both cores (10 Hz, 2 h: warnings and early warnings fire)."""
+def test_named_cycle_replay_matches(params, uphill_hour, uphill_numpy_replay):
+    """The uphill cycle's plant table replayed by both cores (10 Hz, its first hour: warnings and early warnings
+    fire)."""
     from tools.replay.table import replay_table
 
     a = uphill_numpy_replay
-    b = replay_table(uphill_plant, VirtualSensor(params, core="c"))
+    b = replay_table(uphill_hour, VirtualSensor(params, core="c"))
     assert a.columns == b.columns
     for col in a.columns:
         x, y = np.asarray(a[col], dtype=float), np.asarray(b[col], dtype=float)
@@ -256,7 +257,7 @@ def test_named_cycle_replay_matches(params, uphill_plant, uphill_numpy_replay):
 
 
 @needs_c
-def test_float_build_within_50_mK(params, uphill_plant, uphill_numpy_replay):
+def test_float_build_within_50_mK(params, uphill_hour, uphill_numpy_replay):
     """The single-precision build (an ECU's) on the uphill cycle: within 0.05 K of the reference, warning levels
     identical except within 0.05 K of a threshold (counted), the time to limit within 1 s or 2 %."""
     from firmware_model.onboard.compiled import CompiledCore
@@ -269,7 +270,7 @@ def test_float_build_within_50_mK(params, uphill_plant, uphill_numpy_replay):
     a = uphill_numpy_replay
     sf = VirtualSensor(params, core="numpy")
     sf.core = CompiledCore(sf.sp, real="float")
-    b = replay_table(uphill_plant, sf)
+    b = replay_table(uphill_hour, sf)
     worst = max(
         float(np.max(np.abs(np.asarray(b[c]) - np.asarray(a[c]))))
         for c in a.columns
