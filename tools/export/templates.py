@@ -108,6 +108,7 @@ int gvs_sensor_resume(gvs_state *st, double T_oil_c)
     /* raw_prev holds the last raw input as it came, +-inf and values beyond the real type's range included */
     if (!finite_value(st->oil_ref_c)) return -1;
     st->memo_valid = 0;                 /* the conductance memo is recomputed, never trusted from storage */
+    st->memo_heat_valid = 0;            /* and the heat memo of a build with GVS_STEP_MEMO */
     /* an ignition cycle lies between: every input's last value is older than any check's window (the oil reading
      * after a stop is no 0.1 s step from the one before it: VirtualSensor._restored_state ages them by the stop) */
     for (i = 0; i < GVS_N_INPUTS; ++i)
