@@ -71,6 +71,10 @@ cd "$VM_SHARE"
 stamp() { echo "@ $(cut -d' ' -f1 /proc/uptime) $*"; }
 now() { cut -d. -f1 /proc/uptime; }
 stamp script start
+# vcan0's frames all delivered by one CPU (RPS), so that every socket gets them in the same order: with each CPU
+# delivering what was sent from it, a host that preempts a vCPU can make candump and the service see some frames in
+# different orders, and the offline replay of candump's record then differs from the live outputs
+echo 1 > /sys/class/net/vcan0/queues/rx-0/rps_cpus || echo "RPS for vcan0 not set"
 rt=""
 if command -v chrt > /dev/null; then rt="chrt -f 20"; fi
 # record into the VM's RAM (writing each line to the 9p share is too slow: candump would drop frames)
