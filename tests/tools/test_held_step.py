@@ -111,6 +111,31 @@ def test_the_coarse_step_equals_the_reference_step_within_a_measured_bound(mm82,
     assert ref["rejects_oil_missing"][-1] >= 3 * 6000
 
 
+def test_a_row_without_speed_and_torque_reads_at_the_coarse_step_as_at_0_1_s(mm82):
+    """A 10-minute row without speed and torque (and one without torque only): at 15 s the drive inputs' hold
+    grows to the step (VirtualSensor.with_step: one step without them is still "held", as the first 10 s at
+    0.1 s), and every row's warning levels, degraded mode and reject counters equal the 0.1 s replay's; the rows
+    after them are available again; at 7.5 s the hold stays the options' 10 s."""
+    from tools.replay.table import held_options, replay_table
+
+    table = _rows(mm82, 6.0)
+    table["engine_speed_rpm"][12] = np.nan
+    table["engine_torque_nm"][12] = np.nan
+    table["engine_torque_nm"][20] = np.nan
+    s = _sensor(mm82, **held_options(table))
+    assert s.with_step(MM82_STEP_S, 600.0).options.hold_s == MM82_STEP_S
+    assert s.with_step(MM82_STEP_S / 2, 600.0).options.hold_s == s.options.hold_s == 10.0
+    ref = replay_table(table, s, step_s=0.1)
+    for step in (MM82_STEP_S, MM82_STEP_S / 2):
+        coarse = replay_table(table, s, step_s=step)
+        for c in coarse.columns:
+            if c.startswith(("W_", "rejects_")) or c in ("degraded_mode", "oil_valid"):
+                np.testing.assert_array_equal(coarse[c], ref[c], err_msg=f"{step} s: {c}")
+        assert _largest_difference_k(coarse, ref, s.published) <= COARSE_BOUND_K
+    assert ref["degraded_mode"][12] != ref["degraded_mode"][11] == ref["degraded_mode"][13]  # the row is not normal
+    assert ref["rejects_speed_missing"][12] > ref["rejects_speed_missing"][11]
+
+
 def _low_limits(params, warning_c: float = 56.0, debounce_s: float = 1.0):
     """The sensor's limits with every warning at ``warning_c`` (critical 90, hysteresis 1 K, the given debounce):
     the synthetic rows cross them, so the time to limit is finite and the levels move (the early warning's lead:
