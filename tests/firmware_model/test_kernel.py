@@ -370,6 +370,18 @@ print(json.dumps({{"finite": bool(np.isfinite(out.T_c).all() and np.isfinite(tab
 """
 
 
+def _run_script(script: str, env: dict, cwd: Path) -> subprocess.CompletedProcess:
+    """One of this module's scripts (``{repo}`` filled in) in a fresh interpreter with ``env``."""
+    return subprocess.run(
+        [sys.executable, "-c", script.format(repo=str(REPO))],
+        env=env,
+        capture_output=True,
+        text=True,
+        cwd=str(cwd),
+        timeout=600,
+    )
+
+
 def test_kernel_under_address_and_undefined_behaviour_sanitizers(tmp_path):
     """The random hostile sequences through a -fsanitize=address,undefined build: no finding (the sanitizers abort
     the process on one)."""
@@ -394,14 +406,7 @@ def test_kernel_under_address_and_undefined_behaviour_sanitizers(tmp_path):
         XDG_CACHE_HOME=str(tmp_path / "cache"),
         GVS_CORE="c",
     )
-    res = subprocess.run(
-        [sys.executable, "-c", SANITIZE_SCRIPT.format(repo=str(REPO))],
-        env=env,
-        capture_output=True,
-        text=True,
-        cwd=str(tmp_path),
-        timeout=600,
-    )
+    res = _run_script(SANITIZE_SCRIPT, env, tmp_path)
     assert res.returncode == 0, res.stderr[-3000:]
     assert "runtime error" not in res.stderr and "AddressSanitizer" not in res.stderr, res.stderr[-3000:]
     assert json.loads(res.stdout.strip().splitlines()[-1]) == {"finite": True}
@@ -412,7 +417,6 @@ import hashlib, json, sys
 import numpy as np
 sys.path.insert(0, {repo!r})
 from tests.firmware_model.test_kernel import hostile_inputs
-from firmware_model.config import load_config
 from firmware_model.description import description_of
 from firmware_model.onboard.sensor import VirtualSensor
 from firmware_model.parameters import load_parameters
@@ -444,18 +448,11 @@ def test_the_host_builds_memo_gives_the_same_bits_as_a_build_without_it(tmp_path
         pytest.skip("no C compiler (cc, gcc or clang) to build the kernel without the memo")
     lib = tmp_path / "gvs_kernel_no_memo.so"
     ckernel.build(lib, "double", ("-UGVS_STEP_MEMO",))
+    base = {k: v for k, v in os.environ.items() if k != "GVS_KERNEL_LIB"}  # the host: the installed or cached build
+    base.update(XDG_CACHE_HOME=str(tmp_path / "cache"), GVS_CORE="c")
     runs = {}
-    for name, extra in (("host", {}), ("no_memo", {"GVS_KERNEL_LIB": str(lib)})):
-        env = dict(os.environ, XDG_CACHE_HOME=str(tmp_path / "cache"), GVS_CORE="c", **extra)
-        env.pop("GVS_KERNEL_LIB", None) if not extra else None
-        res = subprocess.run(
-            [sys.executable, "-c", MEMO_SCRIPT.format(repo=str(REPO))],
-            env=env,
-            capture_output=True,
-            text=True,
-            cwd=str(tmp_path),
-            timeout=600,
-        )
+    for name, env in (("host", base), ("no_memo", {**base, "GVS_KERNEL_LIB": str(lib)})):
+        res = _run_script(MEMO_SCRIPT, env, tmp_path)
         assert res.returncode == 0, res.stderr[-3000:]
         runs[name] = json.loads(res.stdout.strip().splitlines()[-1])
     assert runs["host"]["memo"] == 1 and runs["no_memo"]["memo"] == 0
