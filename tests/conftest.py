@@ -75,9 +75,8 @@ def uphill_plant():
 
 @pytest.fixture(scope="session")
 def uphill_hour(uphill_plant):
-    """The first hour of `uphill_plant`: every warning of its two hours (PS, 826-1817 s) and 99.8 % of their finite
-    times to limit (19 350 of 19 390 component-steps); the second hour adds a steady climb and no warning, and half
-    of the numpy replay's ~40 s."""
+    """The first hour of `uphill_plant`: it holds every warning and nearly every finite time to limit of the two
+    hours (the second adds a steady climb, no warning, and half of the numpy reference replay's time)."""
     return uphill_plant.select(np.asarray(uphill_plant["time_s"]) < 3600.0)
 
 

@@ -41,7 +41,7 @@ def test_fmpy_validates_it(fmu):
 @pytest.fixture(scope="module")
 def uphill_reference(uphill_plant):
     """(raw inputs, the numpy step's outputs) over the first 1000 s of the uphill cycle: the reference of both FMI
-    versions, computed once (the numpy step with the time to limit every 1 s: ~6 s)."""
+    versions, computed once."""
     from firmware_model.onboard.sensor import VirtualSensor
     from firmware_model.parameters import load_parameters
     from tools.replay.table import table_steps
