@@ -176,8 +176,26 @@ def prandtl(T_c):
     return _kinematic(Tc) * _density(Tc) * _specific_heat(Tc) / _conductivity(Tc)
 
 
+#: the last few scalar temperatures' properties: a plant step asks for the sump's three times (cooler, inlet drop,
+#: conductances); the tuple is immutable, so a hit returns the same values bit for bit
+_SCALAR_MEMO: dict = {}
+_SCALAR_MEMO_SIZE = 8
+
+
 def oil_properties(T_c) -> OilProperties:
     """Every oil property at once (one clip, one Walther evaluation); for the solver loop."""
+    if type(T_c) in (float, np.float64):
+        hit = _SCALAR_MEMO.get(T_c)
+        if hit is None:
+            hit = _oil_properties(T_c)
+            if len(_SCALAR_MEMO) >= _SCALAR_MEMO_SIZE:
+                _SCALAR_MEMO.clear()
+            _SCALAR_MEMO[T_c] = hit
+        return hit
+    return _oil_properties(T_c)
+
+
+def _oil_properties(T_c) -> OilProperties:
     Tc = _clip_t(T_c)
     rho = _density(Tc)
     nu = _kinematic(Tc)

@@ -123,6 +123,10 @@ class ChunkSources(NamedTuple):
     P_mech_w: np.ndarray  # (k,) mechanical loss
     omega_rad_s: np.ndarray  # (n_speeds, k) |shaft speeds|
     churn_invalid: np.ndarray  # (k,) share of the step outside the churning correlations' range
+    gear: np.ndarray  # (k,) the gear in force at each step's middle
+    T_bc_c: np.ndarray  # (k, n_boundaries) boundary temperatures at each step's end
+    v_kmh: np.ndarray | None  # (k,) vehicle speed at each step's middle (None: no column)
+    oil_meas_c: np.ndarray | None  # (k,) the measured sump at each step's end (None: not measured)
 
 
 @dataclass
@@ -489,29 +493,42 @@ class ReferencePlant:
                 self.scales.retarder_frac * np.abs(inp.retarder_nm[sl]) * np.abs(sp[:, self.i_output])
             )
         avg = _StepAverager(t[sl], dts[sl], edges)
-        return ChunkSources(edges, avg(P_src), avg(P_mech)[0], avg(np.abs(sp)), avg((~churn_ok).astype(float))[0])
+        # the step's gear, boundaries and vehicle speed, for every step of the chunk at once (np.interp element by
+        # element: the same values as one call per step)
+        t_b, t_mid = edges[1:], 0.5 * (edges[:-1] + edges[1:])
+        im = np.clip(np.searchsorted(t, t_mid, side="right") - 1, 0, t.size - 1)
+        T_bc = np.tile(self.bc_default, (t_b.size, 1))
+        for j, arr in inp.bc_c.items():
+            T_bc[:, j] = np.interp(t_b, t, arr)
+        v_kmh = np.interp(t_mid, t, inp.v_kmh) if inp.v_kmh is not None else None
+        oil_meas_c = np.interp(t_b, t, inp.oil_meas_c) if inp.kind == "measured" else None
+        return ChunkSources(
+            edges,
+            avg(P_src),
+            avg(P_mech)[0],
+            avg(np.abs(sp)),
+            avg((~churn_ok).astype(float))[0],
+            inp.gear[im],
+            T_bc,
+            v_kmh,
+            oil_meas_c,
+        )
 
     # ------------------------------------------------------------------ one thermal step
     def _step(self, state: StepState, inp: RunInputs, cs: ChunkSources, k: int, lag: HeatLag) -> StepResult:
         """One BDF2 step (implicit Euler on the first step and after a change of step size) of
         (a0 C / h + K) T_new = C (history) / h + sources, with the cooler linearised around the sump temperature;
         updates ``state``."""
-        t = inp.t_s
-        t_a, t_b = cs.edges_s[k], cs.edges_s[k + 1]
-        h = t_b - t_a
-        t_mid = 0.5 * (t_a + t_b)
-        im = min(max(int(np.searchsorted(t, t_mid, side="right")) - 1, 0), t.size - 1)
-        gear = int(inp.gear[im])
+        h = cs.edges_s[k + 1] - cs.edges_s[k]
+        gear = int(cs.gear[k])
         row = gear - GEAR_MIN
         omega = cs.omega_rad_s[:, k]
         T, i_oil = state.T_c, self.i_oil
-        T_bc = self.bc_default.copy()  # boundary temperatures at the step end
-        for j, arr in inp.bc_c.items():
-            T_bc[j] = float(np.interp(t_b, t, arr))
+        T_bc = cs.T_bc_c[k]  # boundary temperatures at the step end
         delivered = self._delivered_heat(state, cs.P_src_w[:, k].copy(), gear, h, lag)
         kin = self.losses.kin
         G = self.ev.evaluate_cached(T[i_oil], omega, row, kin.mesh_torque[row], bool(kin.low_range[row]), T, T_bc)
-        v_kmh = float(np.interp(t_mid, t, inp.v_kmh)) if inp.v_kmh is not None else self.v_default_kmh
+        v_kmh = float(cs.v_kmh[k]) if cs.v_kmh is not None else self.v_default_kmh
         q0, gc = self.cooler_heat(
             T[i_oil],
             self._pump_speed(omega),
@@ -537,12 +554,12 @@ class ReferencePlant:
         if inp.kind == "hold":
             prescribed = inp.hold_oil_c
         elif inp.kind == "measured":
-            prescribed = float(np.interp(t_b, t, inp.oil_meas_c))
+            prescribed = float(cs.oil_meas_c[k])
         if prescribed is not None:
             A[i_oil, :] = 0.0
             A[i_oil, i_oil] = 1.0
             rhs[i_oil] = prescribed
-        T_new = np.linalg.solve(A, rhs)
+        T_new = _solve(A, rhs)
         if bdf2:
             dstore = C * (1.5 * T_new - 2.0 * T + 0.5 * state.T_prev_c) / h
         else:
@@ -690,6 +707,16 @@ def _churn_note(churn_invalid_s: float, span_s: float) -> list:
             f"{churn_invalid_s:.0f} s of {span_s:.0f} s (see docs/validation.md)"
         ]
     return []
+
+
+def _solve(A: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """A x = b by LAPACK's dgesv without numpy.linalg's per-call overhead (the plant's one solve per step)."""
+    from scipy.linalg.lapack import dgesv  # imported at the first step, not with the plant (0.2 s)
+
+    _, _, x, info = dgesv(A, b)
+    if info != 0:
+        raise np.linalg.LinAlgError(f"the plant's step matrix is singular (LAPACK dgesv info {info})")
+    return x
 
 
 class _StepAverager:
