@@ -170,9 +170,9 @@ def reference_vectors(sensor, params, steps: int = VECTOR_STEPS, every: int = VE
     )
 
 
-#: reference vectors by the digest of the generated sensor files: the numpy reference over VECTOR_STEPS steps takes
-#: seconds, and a process that exports the same tables again (the float and double builds of one gearbox, a test
-#: suite) gets the same vectors. The C build depends on nothing but those files, so equal files need equal vectors.
+#: reference vectors by the digest of the sensor's files as the double build generates them (its tables at full
+#: precision): the numpy reference over VECTOR_STEPS steps takes seconds, and a process that exports the same sensor
+#: again (the float and double builds of one gearbox, a test suite) gets the same vectors; equal files, equal sensor.
 _VECTORS: dict[str, dict] = {}
 
 
@@ -363,9 +363,11 @@ def export_c(out_dir, variant: str | None = None, config_path=None, real: str = 
     ttl_abs, ttl_rel = TTL_TOL[real]
     reset_s = f"{sensor.options.clock_reset_s:g}"
     files = sensor_files(sensor, real, ttl)
+    # the vectors come from the numpy reference in double whatever the build's real type: keyed by the double files
+    vector_key_files = files if real == "double" else sensor_files(sensor, "double", ttl)
     files.update(
         {
-            "gvs_vectors.c": vectors_source(_cached_vectors(files, sensor, params), real, ttl),
+            "gvs_vectors.c": vectors_source(_cached_vectors(vector_key_files, sensor, params), real, ttl),
             "gvs_test.c": TEST_PROGRAM.replace("@TOL@", tol)
             .replace("@TTL_ABS@", repr(ttl_abs))
             .replace("@TTL_REL@", repr(ttl_rel)),
