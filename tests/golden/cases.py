@@ -10,6 +10,7 @@ Run ``python -m tests.golden.cases record`` to re-record (only on purpose: the p
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import json
 import sys
@@ -49,24 +50,28 @@ def _table_arrays(table) -> dict:
     return {c: np.asarray(table[c], dtype=float) for c in table.columns}
 
 
-def plant_case(cycle: str) -> dict:
+@functools.cache
+def _plant_table(cycle: str):
+    """The reference plant's run table of ``cycle``: run once per process for its plant case and its sensor case
+    (read only)."""
     from tools.cycles.named import get_cycle
     from tools.plant.reference import ReferencePlant
 
-    res = ReferencePlant(_params()).run(get_cycle(cycle), progress=False)
-    return _table_arrays(res.table)
+    return ReferencePlant(_params()).run(get_cycle(cycle), progress=False).table
+
+
+def plant_case(cycle: str) -> dict:
+    return {c: np.array(v, copy=True) for c, v in _table_arrays(_plant_table(cycle)).items()}
 
 
 def sensor_case(cycle: str) -> dict:
     """The onboard sensor over the plant's run table of ``cycle`` (inputs and the plant's sump as the oil sensor)."""
     from firmware_model.config import load_config
     from firmware_model.onboard.sensor import VirtualSensor
-    from tools.cycles.named import get_cycle
-    from tools.plant.reference import ReferencePlant
     from tools.replay.table import replay_table
 
     params = _params()
-    plant = ReferencePlant(params).run(get_cycle(cycle), progress=False).table
+    plant = _plant_table(cycle)
     with tempfile.TemporaryDirectory() as d:
         from tools.replay.table import read_inputs_table
         from tools.runtable import write_run_table
