@@ -235,7 +235,7 @@ def gear_slip_loss_w(mesh: GearMesh, torque1_nm, omega2_rad_s, rho_kg_m3, mu_pa_
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         nu = mu / rho
         f_g = BK_A * np.log10(BK_C * F_nu / (rho * nu * V_g * V_r * V_r))  # Eq 9 (rho nu = mu)
-    f_g = np.clip(np.nan_to_num(f_g, nan=F_G_MIN, posinf=F_G_MAX, neginf=F_G_MIN), F_G_MIN, F_G_MAX)
+    f_g = np.where(np.isnan(f_g), F_G_MIN, np.clip(f_g, F_G_MIN, F_G_MAX))  # NaN -> F_G_MIN; +-inf clipped
     P = np.sum(wt * F_n * f_g * V_g, axis=-1)  # Eq 7
     return np.where((T[..., 0] == 0.0) | (w2[..., 0] == 0.0), 0.0, P)
 
