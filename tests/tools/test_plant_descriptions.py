@@ -16,7 +16,7 @@ from tools.runtable import RunTable
 
 #: the books close to this share of the heat generated
 LEDGER_REL = 1e-3
-#: the plant's step for these hours-long runs: the diagnosis's 2 s (its default 0.5 s is for the vehicles' 10 Hz
+#: the plant's step for these hours-long runs: calibrate's default 2 s (the plant's own 0.5 s is for the vehicles' 10 Hz
 #: loads; these loads move over minutes, and the books close by construction at any step)
 PLANT_DT_S = 2.0
 
