@@ -680,6 +680,7 @@ class ConductanceEvaluator:
         self.ext_rad_idx = self.idx[K_EXT_RAD]
         self.ext_rad_a = net.link_a[self.ext_rad_idx]
         self.ext_rad_b = net.link_b[self.ext_rad_idx] - net.n
+        self.generation = 0  # counts full evaluations: while it stands, only boundary links' G have moved
 
     def oil_mass_flow_kg_s(self, omega_ls_rad_s, rho_kg_m3):
         """Oil-system mass flow: linear in the pump shaft's (the layshaft's) speed (seed 3.3, Fig 12); a
@@ -786,6 +787,7 @@ class ConductanceEvaluator:
         range: then a new array (..., n_links) is returned, equal element by element to one call per point (the
         oil properties stay scalars as in a single call; the onboard build tabulates its laws this way)."""
         speeds = np.asarray(speeds)
+        self.generation += 1  # every full evaluation (radiation alone keeps it: it moves only boundary links)
         G = self.G if speeds.ndim < 2 else np.broadcast_to(self.net.link_G0, speeds.shape[:-1] + self.G.shape).copy()
         op = oilprops.oil_properties(T_oil_c)
         i = self.idx[K_CONTACT]  # contacts: active when the mesh carries torque (Eq 45)

@@ -57,17 +57,26 @@ def link_topology(link_a, link_b, n: int) -> LinkTopology:
     )
 
 
-def conductance_matrix(G_w_per_k: np.ndarray, topo: LinkTopology, diag_w_per_k=None) -> ConductanceMatrix:
+def internal_laplacian_w_per_k(G_w_per_k: np.ndarray, topo: LinkTopology) -> np.ndarray:
+    """The node-node links' part of K (n, n): their weighted Laplacian, summed in link order."""
+    n = topo.n
+    Gi = G_w_per_k[topo.int_idx]
+    return np.bincount(topo.lap_idx, np.concatenate([Gi, Gi, -Gi, -Gi]), minlength=n * n).reshape(n, n)
+
+
+def conductance_matrix(
+    G_w_per_k: np.ndarray, topo: LinkTopology, diag_w_per_k=None, laplacian_w_per_k=None
+) -> ConductanceMatrix:
     """K of the link conductances ``G_w_per_k`` (nl,), plus ``diag_w_per_k`` (n,) on the diagonal when given (e.g. the
-    a0 C / dt of an implicit step: the plant solves (a0 C / dt + K) T_new = rhs).
+    a0 C / dt of an implicit step: the plant solves (a0 C / dt + K) T_new = rhs). ``laplacian_w_per_k``: the
+    :func:`internal_laplacian_w_per_k` of these G when the caller kept it (copied, not changed).
 
     Summation order (it decides the last bits, and both callers keep theirs): the node-node links in link order;
     then the boundary links one by one onto the diagonal, or, with ``diag_w_per_k``, their sum per node added to it
     and the total to the diagonal."""
     n = topo.n
-    Gi = G_w_per_k[topo.int_idx]
     Ge = G_w_per_k[topo.ext_idx]
-    K = np.bincount(topo.lap_idx, np.concatenate([Gi, Gi, -Gi, -Gi]), minlength=n * n).reshape(n, n)
+    K = internal_laplacian_w_per_k(G_w_per_k, topo) if laplacian_w_per_k is None else laplacian_w_per_k.copy()
     if diag_w_per_k is None:
         np.add.at(K, (topo.ea, topo.ea), Ge)
     else:

@@ -242,6 +242,9 @@ def oil_cooler_heat(
 def inlet_drop_k(Q_w, mcp_w_per_k):
     """The oil-system inlet lies below the sump by the cooler's drop Q / (mdot cp) (the returning cooled oil, Eq 82),
     clipped to +- INLET_DROP_MAX_K; 0 without flow."""
+    if np.ndim(Q_w) == 0 and np.ndim(mcp_w_per_k) == 0:  # the plant's one value a step, without numpy's overhead
+        m = float(mcp_w_per_k)
+        return min(max(float(Q_w) / m, -INLET_DROP_MAX_K), INLET_DROP_MAX_K) if m > 0.0 else 0.0
     m = np.asarray(mcp_w_per_k, dtype=float)
     return np.clip(np.where(m > 0.0, Q_w / np.where(m > 0.0, m, 1.0), 0.0), -INLET_DROP_MAX_K, INLET_DROP_MAX_K)
 

@@ -34,7 +34,12 @@ from firmware_model.network import (
 )
 from firmware_model.parameters import COOLER_KINDS, Parameters
 from firmware_model.physics import oil as oilprops
-from firmware_model.physics.conductance_matrix import boundary_heat_w, conductance_matrix, link_topology
+from firmware_model.physics.conductance_matrix import (
+    boundary_heat_w,
+    conductance_matrix,
+    internal_laplacian_w_per_k,
+    link_topology,
+)
 from firmware_model.physics.cooler import (
     AIR_RECIRC_V_KMH,
     DEFAULT_VEHICLE_SPEED_KMH,
@@ -226,6 +231,7 @@ class ReferencePlant:
         housings = [self.net.index(h.id) for h in d.housings]
         at_housing = np.isin(self.net.link_a[self.topo.ext_idx], housings)
         self.ext_group = np.where(kinds == K_EXT_CONV, 1, np.where(kinds == K_EXT_RAD, 2, np.where(at_housing, 3, 4)))
+        self.ext_group_links = [np.flatnonzero(self.ext_group == grp) for grp in (1, 2, 3, 4)]
         # source distribution matrix: node heat = S @ source heat
         # the synchronizers' shift heat: one source per wheel a shift heats, as the network's description has them
         shifts = [s for s in self.net.sources if s.startswith("shift:")]
@@ -244,6 +250,7 @@ class ReferencePlant:
         if "hot_surroundings" in self.boundaries:
             self.bc_default[self.boundaries.index("hot_surroundings")] += self.scales.hot_offset_c
         self.cooler = cooler_params(cooler_values(params))
+        self._laplacian, self._laplacian_key = None, None
 
     # ------------------------------------------------------------------ cooler (seed 3.4, Eq 82-83)
     def _pump_speed(self, omega: np.ndarray) -> float:
@@ -274,28 +281,28 @@ class ReferencePlant:
         mcp_w_per_k = mdot_kg_s * op.cp_j_per_kgk
         sc = self.scales
 
-        def q(T):
-            return oil_cooler_heat(
-                self.cooler,
-                self.kind,
-                T,
-                flow_ratio,
-                w_eng,
-                T_cool,
-                T_amb,
-                v_kmh,
-                mcp_w_per_k,
-                sc.cooler_scale,
-                sc.thermostat_offset_c,
-            )
-
-        q0 = q(T_oil)
-        if q0.hA_w_per_k <= 0:
+        # the sump and the slope's second point in one call: the cooler's law is element-wise, so each value is
+        # the one a scalar call gives
+        T_eval = T_oil if not slope else np.array([T_oil, T_oil + COOLER_SLOPE_DT_K])
+        q = oil_cooler_heat(
+            self.cooler,
+            self.kind,
+            T_eval,
+            flow_ratio,
+            w_eng,
+            T_cool,
+            T_amb,
+            v_kmh,
+            mcp_w_per_k,
+            sc.cooler_scale,
+            sc.thermostat_offset_c,
+        )
+        if q.hA_w_per_k <= 0:
             return 0.0, 0.0
         if not slope:
-            return float(q0.Q_w), 0.0
-        slope_w_per_k = (float(q(T_oil + COOLER_SLOPE_DT_K).Q_w) - float(q0.Q_w)) / COOLER_SLOPE_DT_K
-        return float(q0.Q_w), max(slope_w_per_k, 0.0)
+            return float(q.Q_w), 0.0
+        q0_w, q1_w = q.Q_w.tolist()
+        return q0_w, max((q1_w - q0_w) / COOLER_SLOPE_DT_K, 0.0)
 
     # ------------------------------------------------------------------ driver
     def run(
@@ -546,7 +553,10 @@ class ReferencePlant:
         else:
             a0 = 1.0
             hist_term = C * T / h
-        A, Ge = conductance_matrix(G, self.topo, a0 * C / h)
+        if self._laplacian_key != (id(G), self.ev.generation):  # node-node links changed: their part of K again
+            self._laplacian = internal_laplacian_w_per_k(G, self.topo)
+            self._laplacian_key = (id(G), self.ev.generation)
+        A, Ge = conductance_matrix(G, self.topo, a0 * C / h, self._laplacian)
         rhs = hist_term + q_nodes + boundary_heat_w(Ge, self.topo, T_bc)
         A[i_oil, i_oil] += gc  # cooler linearised: Q = q0 + gc (T_oil_new - T_oil)
         rhs[i_oil] += gc * T[i_oil] - q0
@@ -626,8 +636,8 @@ class ReferencePlant:
         out = np.zeros(len(HEAT_OUT_NAMES))
         out[0] = q0 + gc * (T_new[self.i_oil] - T[self.i_oil]) if kind in ("liquid", "air") else 0.0
         q_bc = Ge * (T_new[self.topo.ea] - T_bc[self.topo.eb])
-        for grp in (1, 2, 3, 4):
-            out[grp] = q_bc[self.ext_group == grp].sum()
+        for grp, links in enumerate(self.ext_group_links, start=1):
+            out[grp] = q_bc[links].sum()
         if prescribed is not None:
             Gi = G[self.topo.int_idx]
             inflow = q_nodes[self.i_oil] + float(np.dot(Gi[self.oil_links], T_new[self.oil_other] - T_new[self.i_oil]))
