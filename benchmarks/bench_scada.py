@@ -21,7 +21,10 @@ and prints each fit's effects.
 (repeatable) keeps the splits whose label contains TEXT (e.g. `--only "-> R80721" --only "R80736: first year"`),
 so that one split per kind can be run with the physics model.
 
-    python benchmarks/bench_scada.py [--vs-mean | --physics [--fit-rows N]] [--period P] [--only TEXT]... DATA_DIR
+`--informed` fills them with the physics-informed NBM (tools/scada/hybrid.py: the NBM with the physics model's
+estimate as one more feature, both fitted on the training records) and prints each fit's weight on the physics.
+
+    python benchmarks/bench_scada.py [--vs-mean | --physics | --informed [--fit-rows N]] [--period P] [--only T]... DIR
 """
 
 from __future__ import annotations
@@ -138,8 +141,22 @@ def physics_factory(fit_rows: int | None, fits: list):
     return make
 
 
+def informed_factory(fit_rows: int | None, fits: list):
+    """A factory task -> PhysicsInformedNBM over the MM82's physics predictor (fitted models kept in ``fits``)."""
+    from tools.scada.hybrid import PhysicsInformedNBM
+
+    physics = physics_factory(fit_rows, [])
+
+    def make(task):
+        m = PhysicsInformedNBM(task, physics(task))
+        fits.append(m)
+        return m
+
+    return make
+
+
 def main(argv: list[str]) -> int:
-    flags = {a for a in argv if a in ("--vs-mean", "--physics")}
+    flags = {a for a in argv if a in ("--vs-mean", "--physics", "--informed")}
     args = [a for a in argv if a not in flags]
     fit_rows, period, only = None, None, []
     while any(a in args for a in ("--fit-rows", "--period", "--only")):
@@ -155,8 +172,8 @@ def main(argv: list[str]) -> int:
     where = args[0] if args else os.environ.get("GVS_REAL_SCADA")
     if not where or not Path(where).is_dir():
         print(
-            "usage: bench_scada.py [--vs-mean | --physics [--fit-rows N]] [--period YYYY[-MM]] [--only TEXT]... "
-            "DATA_DIR (or set GVS_REAL_SCADA)"
+            "usage: bench_scada.py [--vs-mean | --physics | --informed [--fit-rows N]] [--period YYYY[-MM]] "
+            "[--only TEXT]... DATA_DIR (or set GVS_REAL_SCADA)"
         )
         return 2
     if "--vs-mean" in flags:
@@ -167,6 +184,13 @@ def main(argv: list[str]) -> int:
         print("\nThe physics fits (in split order, bearings then oil):\n")
         for m in fits:
             print(f"- {m.task.name}: {m.report}")
+    elif "--informed" in flags:
+        fits = []
+        print(run(Path(where), informed_factory(fit_rows, fits), "physics-informed NBM", period, only))
+        print("\nEach fit's coefficient on the physics estimate (in split order, bearings then oil):\n")
+        for m in fits:
+            weights = ", ".join(f"{t} {w:.2f}" for t, w in m.physics_weight().items())
+            print(f"- {m.task.name}: {weights}; physics effects {m.physics.effects}")
     else:
         print(run(Path(where), period=period, only=only))
     return 0
