@@ -240,7 +240,7 @@ def _run_scada(args, cfg, params) -> int:
     for note in notes:
         print(f"note: {note}", file=sys.stderr)
     cal = calibrate_records(setup, train, test, keys)
-    nbm = nbm_beside(setup, train, test)
+    nbm = nbm_beside(setup, train, test, params.with_overrides(cal.fitted))
     if not args.quiet:
         _print_scada(cal, nbm)
     (b, a) = cal.test_rms_c
@@ -259,16 +259,21 @@ def _run_scada(args, cfg, params) -> int:
 
 
 def _print_scada(cal, nbm: dict) -> None:
-    """Identifiability, the fitted values and the held-out table: physics before and after beside the NBM."""
+    """Identifiability, the fitted values and the held-out table: physics before and after beside the NBM and the
+    NBM with the calibrated physics among its features."""
     for x in cal.ident:
         sig = ", ".join(f"{ch} {v:.2f}" for ch, v in x.signature_c.items())
         print(f"{x.key}: signature [K over half its range] {sig}" + ("" if x.identifiable else f"; {x.reason}"))
     for k in cal.keys:
         print(f"fitted {k} = {cal.fitted[k]:.6g} +- {cal.sigma[k]:.2g} (was {cal.start[k]:.6g})")
-    print("| channel | held-out RMS, physics as shipped [K] | physics calibrated [K] | linear NBM [K] |")
-    print("|---|---:|---:|---:|")
+    print(
+        "| channel | held-out RMS, physics as shipped [K] | physics calibrated [K] | linear NBM [K] "
+        "| physics-informed NBM [K] |"
+    )
+    print("|---|---:|---:|---:|---:|")
     for ch, (b, a) in cal.test_by_channel.items():
-        print(f"| {ch} | {b:.2f} | {a:.2f} | {nbm.get(ch, float('nan')):.2f} |")
+        n, h = nbm.get(ch, (float("nan"), float("nan")))
+        print(f"| {ch} | {b:.2f} | {a:.2f} | {n:.2f} | {h:.2f} |")
 
 
 def _calibrate_hint(hint: str) -> str:

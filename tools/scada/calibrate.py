@@ -12,7 +12,8 @@ plausible bounds (lo, hi) in the description. As for run tables (tools.diagnosis
    two confirmed steps) of measured - model over every training row and channel, the keys scaled to their bounds;
 3. one standard deviation from the Jacobian, inflated by N / N_eff (autocorrelated 10-minute residuals);
 4. held-out: the test records with the file's and with the fitted values, per channel; and the NBM's (both tasks:
-   the bearings from the measured sump, the sump without it), fitted on the same training records.
+   the bearings from the measured sump, the sump without it), fitted on the same training records, with and without
+   the calibrated sensor's estimate among its features (the physics-informed NBM, tools/scada/hybrid.py).
 """
 
 from __future__ import annotations
@@ -144,22 +145,39 @@ def calibrate_records(
     )
 
 
-def nbm_beside(setup: Setup, train: Sequence[ScadaRecord], test: Sequence[ScadaRecord]) -> dict:
-    """{channel: held-out RMS of the linear NBM fitted on ``train``}: the sump without any oil reading, every other
-    channel from the measured sump and the load."""
+class _SensorWith:
+    """The sensor with fixed parameter values as a physics predictor (no fit): the setup's estimates."""
+
+    def __init__(self, setup: Setup, params):
+        self.setup, self.params = setup, params
+        self._done: dict[int, tuple] = {}  # id -> (record, estimates): both tasks read one replay of a record
+
+    def fit(self, records):
+        return self
+
+    def predict(self, record: ScadaRecord) -> dict[str, np.ndarray]:
+        if id(record) not in self._done:
+            self._done[id(record)] = (record, estimates(self.setup, record, {}, self.params))
+        return self._done[id(record)][1]
+
+
+def nbm_beside(setup: Setup, train: Sequence[ScadaRecord], test: Sequence[ScadaRecord], params=None) -> dict:
+    """{channel: (held-out RMS of the linear NBM fitted on ``train``, of the physics-informed NBM)}: the sump without
+    any oil reading, every other channel from the measured sump and the load. The physics-informed NBM
+    (tools/scada/hybrid.py) takes the sensor with ``params`` (the calibrated values) as its physics; NaN without."""
     from tools.scada.holdout import errors
+    from tools.scada.hybrid import PhysicsInformedNBM
     from tools.scada.nbm import LinearNBM, Task
 
-    out = {}
-    if setup.sump:
-        m = LinearNBM(Task("oil", (setup.sump,))).fit(train)
-        preds = [m.predict(r)[setup.sump] for r in test]
-        meas = np.concatenate([r.values[setup.sump] for r in test])
-        out[setup.sump] = errors(meas, np.concatenate(preds))[1]
-    if setup.others:
-        m = LinearNBM(Task("bearings", setup.others, oil_input=setup.sump)).fit(train)
-        preds = [m.predict(r) for r in test]
-        for ch in setup.others:
+    tasks = ([Task("oil", (setup.sump,))] if setup.sump else []) + (
+        [Task("bearings", setup.others, oil_input=setup.sump)] if setup.others else []
+    )
+    out, sensor = {}, (_SensorWith(setup, params) if params is not None else None)
+    for task in tasks:
+        models = [LinearNBM(task)] + ([PhysicsInformedNBM(task, sensor)] if sensor else [])
+        preds = [[m.fit(train).predict(r) for r in test] for m in models]
+        for ch in task.targets:
             meas = np.concatenate([r.values[ch] for r in test])
-            out[ch] = errors(meas, np.concatenate([p[ch] for p in preds]))[1]
+            rms = [errors(meas, np.concatenate([p[ch] for p in pm]))[1] for pm in preds]
+            out[ch] = (rms[0], rms[1] if len(rms) > 1 else float("nan"))
     return out
