@@ -174,8 +174,14 @@ def nbm_beside(setup: Setup, train: Sequence[ScadaRecord], test: Sequence[ScadaR
     )
     out, sensor = {}, (_SensorWith(setup, params) if params is not None else None)
     for task in tasks:
-        models = [LinearNBM(task)] + ([PhysicsInformedNBM(task, sensor)] if sensor else [])
-        preds = [[m.fit(train).predict(r) for r in test] for m in models]
+        nbm = LinearNBM(task).fit(train)
+        preds = [[nbm.predict(r) for r in test]]
+        if sensor is not None:
+            try:  # the sensor's estimates may leave too few complete rows: the column says nan, the rest stands
+                informed = PhysicsInformedNBM(task, sensor).fit(train)
+                preds.append([informed.predict(r) for r in test])
+            except InputError:
+                pass
         for ch in task.targets:
             meas = np.concatenate([r.values[ch] for r in test])
             rms = [errors(meas, np.concatenate([p[ch] for p in pm]))[1] for pm in preds]

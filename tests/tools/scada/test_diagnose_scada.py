@@ -254,3 +254,20 @@ def test_an_effect_that_makes_one_channel_worse_held_out_is_no_verdict(setup, mo
     assert "bearing_loss_scale (factor = " in v["reason"] and "makes Gb2t_avg worse" in v["reason"], v["reason"]
     monkeypatch.setattr(D, "worse_channels", real)
     assert diagnose_records(s, [tr], [te])["verdict"]["effect"] == "bearing_loss_scale"
+
+
+def test_a_physics_informed_nbm_without_estimates_leaves_its_column_nan_not_the_table(setup, monkeypatch):
+    """nbm_beside: when the sensor's estimates leave no complete row, the NBM's figures stand and the physics-informed
+    NBM's are NaN (calibrate prints 'nan' in that column instead of failing)."""
+    import tools.scada.calibrate as cal
+
+    s, train, test = setup
+    for rec, seed in ((train, 3), (test, 4)):
+        _measured(s, rec, {}, seed)
+    monkeypatch.setattr(
+        cal, "estimates", lambda st, rec, eff, params: {ch: np.full(rec.n, np.nan) for ch in st.channels}
+    )
+    out = cal.nbm_beside(s, [train], [test], s.config.load_params())
+    assert set(out) == {"Gost_avg", "Gb1t_avg", "Gb2t_avg"}
+    for ch, (nbm_k, informed_k) in out.items():
+        assert np.isfinite(nbm_k) and np.isnan(informed_k), (ch, nbm_k, informed_k)
