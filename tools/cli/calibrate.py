@@ -71,7 +71,8 @@ def add_subparser(sub):
         help="the training and test files are SCADA records read through this column map (NAME: one shipped, "
         "engie; FILE: your own; docs/real-data.md): the onboard model of --gearbox is fitted (the sump from the "
         "model alone, every other channel from the measured sump) and a linear normal-behaviour model fitted on "
-        "the same training records is scored beside it",
+        "the same training records is scored beside it, without and with the calibrated model's estimate among "
+        "its features (the physics-informed NBM)",
     )
     # moved to the configuration, still accepted (hidden) and overriding it: [cooler] kind and [calibration]
     p.add_argument("--cooler", choices=("none", "liquid", "air", "hold", "measured"), help=argparse.SUPPRESS)
