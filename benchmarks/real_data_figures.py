@@ -36,35 +36,21 @@ from tools.cli.gearbox_option import with_gearbox  # noqa: E402
 from tools.scada.diagnose import thermostat_of  # noqa: E402
 from tools.scada.hybrid import PhysicsInformedNBM  # noqa: E402
 from tools.scada.nbm import TASKS, LinearNBM  # noqa: E402
+from tools.scada.physics import PhysicsModel  # noqa: E402
 from tools.scada.reader import read_units  # noqa: E402
 from tools.scada.regimes import regimes  # noqa: E402
-from tools.scada.replay import replay_record  # noqa: E402
 
-#: (task, oil mode of the physics replay, channels) of the figures
-CHANNELS = (("bearings", "measured", ("Gb1t_avg", "Gb2t_avg")), ("oil", "model", ("Gost_avg",)))
+#: (task, channels) of the figures: the bearings from the measured oil, the sump in model mode (the task's oil_input)
+CHANNELS = (("bearings", ("Gb1t_avg", "Gb2t_avg")), ("oil", ("Gost_avg",)))
 LABEL = {"Gb1t_avg": "bearing 1 (Gb1t)", "Gb2t_avg": "bearing 2 (Gb2t)", "Gost_avg": "oil sump (Gost)"}
-
-
-class ShippedSensor:
-    """The shipped sensor as a physics predictor without a fit (its replay in one oil mode)."""
-
-    def __init__(self, config, oil_mode: str):
-        self.config, self.oil_mode = config, oil_mode
-
-    def fit(self, records):
-        return self
-
-    def predict(self, record) -> dict:
-        tab = replay_record(record, self.config, {"oil_mode": self.oil_mode}).table
-        return {c[4:]: np.asarray(tab[c], dtype=float) for c in tab.columns if c.startswith("est_")}
 
 
 def estimates(train: list, test, config) -> dict:
     """{channel: (measured, physics, NBM, physics-informed NBM)} over ``test``."""
     out = {}
-    for task, oil_mode, channels in CHANNELS:
+    for task, channels in CHANNELS:
         nbm = LinearNBM(TASKS[task]).fit(train).predict(test)
-        sensor = ShippedSensor(config, oil_mode)
+        sensor = PhysicsModel(TASKS[task], config, fit_effects=False)  # the shipped values, no effect fitted
         phys = sensor.predict(test)
         informed = PhysicsInformedNBM(TASKS[task], sensor).fit(train).predict(test)
         for ch in channels:

@@ -145,22 +145,6 @@ def calibrate_records(
     )
 
 
-class _SensorWith:
-    """The sensor with fixed parameter values as a physics predictor (no fit): the setup's estimates."""
-
-    def __init__(self, setup: Setup, params):
-        self.setup, self.params = setup, params
-        self._done: dict[int, tuple] = {}  # id -> (record, estimates): both tasks read one replay of a record
-
-    def fit(self, records):
-        return self
-
-    def predict(self, record: ScadaRecord) -> dict[str, np.ndarray]:
-        if id(record) not in self._done:
-            self._done[id(record)] = (record, estimates(self.setup, record, {}, self.params))
-        return self._done[id(record)][1]
-
-
 def nbm_beside(setup: Setup, train: Sequence[ScadaRecord], test: Sequence[ScadaRecord], params=None) -> dict:
     """{channel: (held-out RMS of the linear NBM fitted on ``train``, of the physics-informed NBM)}: the sump without
     any oil reading, every other channel from the measured sump and the load. The physics-informed NBM
@@ -168,16 +152,18 @@ def nbm_beside(setup: Setup, train: Sequence[ScadaRecord], test: Sequence[ScadaR
     from tools.scada.holdout import errors
     from tools.scada.hybrid import PhysicsInformedNBM
     from tools.scada.nbm import LinearNBM, Task
+    from tools.scada.physics import PhysicsModel
 
     tasks = ([Task("oil", (setup.sump,))] if setup.sump else []) + (
         [Task("bearings", setup.others, oil_input=setup.sump)] if setup.others else []
     )
-    out, sensor = {}, (_SensorWith(setup, params) if params is not None else None)
+    out = {}
     for task in tasks:
         nbm = LinearNBM(task).fit(train)
         preds = [[nbm.predict(r) for r in test]]
-        if sensor is not None:
+        if params is not None:
             try:  # the sensor's estimates may leave too few complete rows: the column says nan, the rest stands
+                sensor = PhysicsModel(task, setup.config, params=params, fit_effects=False)
                 informed = PhysicsInformedNBM(task, sensor).fit(train)
                 preds.append([informed.predict(r) for r in test])
             except InputError:

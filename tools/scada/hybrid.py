@@ -16,42 +16,44 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from firmware_model.errors import InputError
-from tools.scada.nbm import TASKS, Task, features, least_squares
+from tools.scada.nbm import LinearNBM, Task
 from tools.scada.reader import ScadaRecord
 
 
-class PhysicsInformedNBM:
+class PhysicsInformedNBM(LinearNBM):
     """The linear NBM with the physics estimate as one more feature (the module's docstring); a predictor.
-    ``physics``: an unfitted physics predictor of the same task (``fit`` fits it)."""
+    ``physics``: a physics predictor of the same task; ``fit`` fits it first (a PhysicsModel with ``fit_effects``
+    False keeps its values)."""
 
     name = "physics-informed NBM"
 
     def __init__(self, task: Task | str, physics):
-        self.task = TASKS[task] if isinstance(task, str) else task
+        super().__init__(task)
         self.physics = physics
-        self.coef: dict[str, tuple[np.ndarray, float]] = {}
-        self.feature_names: list[str] = []
+        self._estimates: dict[int, tuple] = {}  # id -> (record, estimates), within one fit or one predict
 
-    def _matrix(self, record: ScadaRecord, estimates: dict, target: str) -> np.ndarray:
-        x = features(record, self.task)[0]
-        return np.column_stack([x, estimates.get(target, np.full(record.n, np.nan))])
+    def _extra(self, record: ScadaRecord, target: str) -> list[np.ndarray]:
+        if id(record) not in self._estimates:
+            self._estimates[id(record)] = (record, self.physics.predict(record))
+        return [self._estimates[id(record)][1].get(target, np.full(record.n, np.nan))]
+
+    def _extra_names(self) -> list[str]:
+        return ["physics estimate"]
 
     def fit(self, records: Sequence[ScadaRecord]) -> PhysicsInformedNBM:
         self.physics.fit(records)
-        estimates = [self.physics.predict(r) for r in records]
-        self.feature_names = features(records[0], self.task)[1] + ["physics estimate"]
-        for target in self.task.targets:
-            x = np.vstack([self._matrix(r, e, target) for r, e in zip(records, estimates)])
-            y = np.concatenate([r.values[target] for r in records])
-            self.coef[target] = least_squares(x, y)
-        return self
+        self._estimates = {}
+        try:
+            return super().fit(records)
+        finally:
+            self._estimates = {}
 
     def predict(self, record: ScadaRecord) -> dict[str, np.ndarray]:
-        if not self.coef:
-            raise InputError("the physics-informed NBM predicts only after fit()")
-        estimates = self.physics.predict(record)
-        return {t: self._matrix(record, estimates, t) @ c + b for t, (c, b) in self.coef.items()}
+        self._estimates = {}
+        try:
+            return super().predict(record)
+        finally:
+            self._estimates = {}
 
     def physics_weight(self) -> dict[str, float]:
         """Per target, the coefficient on the physics estimate (1: the physics' own scale; 0: not used)."""

@@ -99,26 +99,36 @@ def least_squares(x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, float]:
 
 
 class LinearNBM:
-    """The linear NBM of one task (the module's docstring); a predictor."""
+    """The linear NBM of one task (the module's docstring); a predictor. A subclass adds feature columns per target
+    through ``_extra`` (and their names through ``_extra_names``)."""
 
     name = "linear NBM"
 
     def __init__(self, task: Task | str):
+        if isinstance(task, str) and task not in TASKS:
+            raise InputError(f"no NBM task {task!r}: the tasks are {', '.join(TASKS)}")
         self.task = TASKS[task] if isinstance(task, str) else task
         self.coef: dict[str, tuple[np.ndarray, float]] = {}
         self.feature_names: list[str] = []
 
+    def _extra(self, record: ScadaRecord, target: str) -> list[np.ndarray]:
+        """More feature columns of ``record`` for ``target`` (none here)."""
+        return []
+
+    def _extra_names(self) -> list[str]:
+        return []
+
     def fit(self, records: Sequence[ScadaRecord]) -> LinearNBM:
         mats = [features(r, self.task) for r in records]
-        self.feature_names = mats[0][1]
-        x = np.vstack([m[0] for m in mats])
+        self.feature_names = mats[0][1] + self._extra_names()
         for target in self.task.targets:
+            x = np.vstack([np.column_stack([m[0], *self._extra(r, target)]) for m, r in zip(mats, records)])
             y = np.concatenate([r.values[target] for r in records])
             self.coef[target] = least_squares(x, y)
         return self
 
     def predict(self, record: ScadaRecord) -> dict[str, np.ndarray]:
         if not self.coef:
-            raise InputError("the NBM predicts only after fit()")
+            raise InputError(f"the {self.name} predicts only after fit()")
         x = features(record, self.task)[0]
-        return {t: x @ c + b for t, (c, b) in self.coef.items()}
+        return {t: np.column_stack([x, *self._extra(record, t)]) @ c + b for t, (c, b) in self.coef.items()}

@@ -76,6 +76,7 @@ class PhysicsModel:
     report: dict = field(default_factory=dict)
     name: str = "physics"
     params: object = field(default=None, repr=False)
+    fit_effects: bool = True  # False: fit() keeps ``effects`` (the sensor with its values, e.g. calibrated ones)
 
     @property
     def oil_mode(self) -> str:
@@ -101,6 +102,9 @@ class PhysicsModel:
         """Fit the task's effects on ``records``: first which of them move the estimates at all (identifiability:
         one step of each from the neutral value; one that moves no estimate by IDENTIFIABLE_K stays neutral and is
         reported), then least squares over the others."""
+        if not self.fit_effects:
+            self.report = {"effects": dict(self.effects), "fitted": False}
+            return self
         train = [r.select(np.arange(r.n) >= r.n - self.max_fit_rows) for r in records]
         all_params = FIT[self.task.name]
 

@@ -260,12 +260,13 @@ def test_a_physics_informed_nbm_without_estimates_leaves_its_column_nan_not_the_
     """nbm_beside: when the sensor's estimates leave no complete row, the NBM's figures stand and the physics-informed
     NBM's are NaN (calibrate prints 'nan' in that column instead of failing)."""
     import tools.scada.calibrate as cal
+    from tools.scada.physics import PhysicsModel
 
     s, train, test = setup
     for rec, seed in ((train, 3), (test, 4)):
         _measured(s, rec, {}, seed)
     monkeypatch.setattr(
-        cal, "estimates", lambda st, rec, eff, params: {ch: np.full(rec.n, np.nan) for ch in st.channels}
+        PhysicsModel, "predict", lambda self, rec: {c: np.full(rec.n, np.nan) for c in self.task.targets}
     )
     out = cal.nbm_beside(s, [train], [test], s.config.load_params())
     assert set(out) == {"Gost_avg", "Gb1t_avg", "Gb2t_avg"}

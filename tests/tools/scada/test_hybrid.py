@@ -25,20 +25,6 @@ from tools.scada.replay import replay_record
 BEARINGS = TASKS["bearings"]
 
 
-class SensorAsIs:
-    """A physics predictor without a fit: the sensor's estimates with the file's values."""
-
-    def __init__(self, cfg):
-        self.cfg = cfg
-
-    def fit(self, records):
-        return self
-
-    def predict(self, record):
-        res = replay_record(record, self.cfg, {"oil_mode": "measured"})
-        return {ch: res.table[f"est_{ch}"] for ch in BEARINGS.targets}
-
-
 @pytest.fixture(scope="module")
 def records(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("hybrid")
@@ -51,7 +37,7 @@ def records(tmp_path_factory):
 def _readings(cfg, rec):
     """0.8 x the sensor's estimate + 0.01 K/kW x the power's 1 h lag + 5 K: a physics that is off by a scale and a
     load-dependent bias a regression on the load can learn."""
-    est = SensorAsIs(cfg).predict(rec)
+    est = PhysicsModel(BEARINGS, cfg, fit_effects=False).predict(rec)
     lag = exp_lag(rec.values["power_kw"], rec.time_s, rec.stretch, 3600.0)
     for ch in BEARINGS.targets:
         rec.values[ch] = 0.8 * est[ch] + 0.01 * lag + 5.0
@@ -61,7 +47,7 @@ def test_the_estimates_weight_and_the_bias_are_found_and_hold_on_another_record(
     cfg, train, test = records
     for rec in (train, test):
         _readings(cfg, rec)
-    model = PhysicsInformedNBM(BEARINGS, SensorAsIs(cfg)).fit([train])
+    model = PhysicsInformedNBM(BEARINGS, PhysicsModel(BEARINGS, cfg, fit_effects=False)).fit([train])
     for ch, w in model.physics_weight().items():
         assert w == pytest.approx(0.8, abs=1e-6), ch
     pred, nbm = model.predict(test), LinearNBM(BEARINGS).fit([train]).predict(test)
@@ -87,4 +73,4 @@ def test_with_the_physics_predictor_on_its_own_sensors_readings_the_physics_carr
 def test_a_prediction_before_the_fit_is_one_sentence(records):
     cfg, _, test = records
     with pytest.raises(InputError, match="only after fit"):
-        PhysicsInformedNBM("bearings", SensorAsIs(cfg)).predict(test)
+        PhysicsInformedNBM("bearings", PhysicsModel(BEARINGS, cfg, fit_effects=False)).predict(test)

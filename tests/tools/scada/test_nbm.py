@@ -153,3 +153,8 @@ def test_a_time_split_fits_before_the_cut_and_tests_after():
     assert test[0].stretch[0] == 0 and np.all(np.diff(test[0].stretch) >= 0)
     # a record shorter than a year has no first-year split
     assert time_splits({"T1": rec}) == []
+
+
+def test_an_unknown_task_is_one_sentence():
+    with pytest.raises(InputError, match="no NBM task 'bearing': the tasks are bearings, oil"):
+        LinearNBM("bearing")
