@@ -237,3 +237,25 @@ def test_run_refuses_a_state_period_without_a_state_file(capsys):
     """--state-period without --state-file is refused: alone it would do nothing, silently."""
     assert main(["run", "--interface", "virtual", "--channel", "x", "--state-period", "5"]) == 2
     assert "give --state-file too" in capsys.readouterr().err
+
+
+def test_a_subcommand_builds_and_imports_only_its_own_parser():
+    """`gearbox-vsensor run ...` imports tools.cli.run and none of the other subcommands' modules (the service's
+    start-up); an unknown or no subcommand builds them all, for the list of choices."""
+    import subprocess
+    import sys
+
+    code = (
+        "import sys; from tools.cli import main\n"
+        "try:\n    main(sys.argv[1:])\nexcept SystemExit:\n    pass\n"
+        "print(sorted(m for m in sys.modules if m.startswith('tools.cli.')))"
+    )
+
+    def modules(*argv):
+        out = subprocess.run([sys.executable, "-c", code, *argv], capture_output=True, text=True, check=True).stdout
+        return out.strip().splitlines()[-1]
+
+    one = modules("service-unit", "--help")
+    assert "tools.cli.service_unit" in one and "tools.cli.simulate" not in one and "tools.cli.diagnose" not in one
+    every = modules("servce-unit")
+    assert "tools.cli.simulate" in every and "tools.cli.diagnose" in every and "tools.cli.service_unit" in every

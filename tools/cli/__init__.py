@@ -80,7 +80,9 @@ class VersionAction(argparse.Action):
         parser.exit()
 
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser(only: str | None = None) -> argparse.ArgumentParser:
+    """The command line's parser; ``only`` (a module of SUBCOMMANDS): that subcommand's parser alone, so that a
+    command imports its own module and not the fifteen others (the service's start-up on a small gateway)."""
     parser = CommandParser(
         prog="gearbox-vsensor",
         description="Virtual temperature sensor for Scania GRS905-type range-splitter gearboxes: the reference "
@@ -96,7 +98,7 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(title="subcommands", dest="subcommand", metavar="SUBCOMMAND")
     import importlib
 
-    for name in SUBCOMMANDS:
+    for name in (only,) if only in SUBCOMMANDS else SUBCOMMANDS:
         try:
             mod = importlib.import_module(f"tools.cli.{name}")
         except ModuleNotFoundError as exc:
@@ -112,8 +114,18 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def requested_subcommand(argv) -> str | None:
+    """The module of the subcommand that ``argv`` names first, or None (top-level options, no or an unknown name:
+    every parser is built, for the full help or the list of choices)."""
+    if not argv or argv[0].startswith("-"):
+        return None
+    name = argv[0].replace("-", "_")
+    return name if name in SUBCOMMANDS and argv[0] == name.replace("_", "-") else None
+
+
 def main(argv=None) -> int:
-    parser = build_parser()
+    argv = sys.argv[1:] if argv is None else list(argv)
+    parser = build_parser(requested_subcommand(argv))
     args = parser.parse_args(argv)
     if not getattr(args, "func", None):
         parser.print_help()
