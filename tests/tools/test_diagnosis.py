@@ -504,6 +504,34 @@ def test_onboard_backend_runs_effects_as_vehicles(params):
     assert all(np.all(np.isfinite(o[0]["oil_temp_c"])) for o in out)
 
 
+def test_the_plant_runs_a_repeated_run_of_a_table_once(params, monkeypatch):
+    """The same run of the same table asked again (the onboard model's boundary correction and heat pair) comes from
+    the first run, a copy with the columns asked for; more columns, another run or another table run the plant."""
+    import tools.diagnosis.models as models
+    from tools.diagnosis.models import PlantModel, Run
+    from tools.diagnosis.options import Options
+    from tools.diagnosis.prepare import prepare
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        sc = make_scenario(2, 13, "rig", None, None, params, n_train=1, train_s=120.0, test_s=60.0)
+    ds = prepare(sc.train[0], "t.csv", "train", Options())
+    calls = []
+    job = models._plant_job
+    monkeypatch.setattr(models, "_plant_job", lambda j: calls.append(j[1]) or job(j))
+    plant = PlantModel(params, workers=1)
+    first = plant.simulate([ds], [Run.of()], ["oil_temp_c", "T_PS_c"])[0][0]
+    first["T_PS_c"][:] = 0.0  # a caller's change stays its own
+    again = plant.simulate([ds], [Run.of(), Run.of(initial_offset_c=2.0)], ["T_PS_c"])
+    assert calls == [Run.of(), Run.of(initial_offset_c=2.0)]
+    assert np.all(again[0][0]["T_PS_c"] > 5.0) and np.array_equal(again[0][0]["oil_temp_c"], first["oil_temp_c"])
+    assert "T_PS_c" in again[0][0] and not np.array_equal(again[1][0]["oil_temp_c"], first["oil_temp_c"])
+    plant.simulate([ds], [Run.of()], ["T_PS_c", "T_LB_c"])  # a column not kept: run again
+    other = prepare(sc.train[0], "t.csv", "train", Options())  # equal content, another table
+    fresh = plant.simulate([other], [Run.of()], ["T_PS_c"])[0][0]
+    assert len(calls) == 4 and np.array_equal(fresh["T_PS_c"], again[0][0]["T_PS_c"])
+
+
 def test_can_logs_as_input(tmp_path, params):
     from tools.can.logsynth import write_can_log
     from tools.plant.reference import ReferencePlant

@@ -180,6 +180,15 @@ def _plant_job(job):
     return out
 
 
+def _copy_outputs(out: dict, keep: set | None = None) -> dict:
+    """A copy of one plant job's outputs (``keep``: only those columns), its "full" node table too."""
+    return {
+        k: ({c: v.copy() for c, v in a.items()} if k == "full" else a.copy())
+        for k, a in out.items()
+        if keep is None or k in keep
+    }
+
+
 class PlantModel(DiagnosisModel):
     """The reference plant under diagnosis (``--model plant``)."""
 
@@ -205,6 +214,7 @@ class PlantModel(DiagnosisModel):
         self.native_effects = tuple(EFFECT_IDS)
         self.notes = []
         self._pool = None
+        self._memo = {}
 
     def _get_pool(self):
         if self.workers <= 1:
@@ -220,19 +230,41 @@ class PlantModel(DiagnosisModel):
 
     def simulate(self, datasets, runs, columns):
         jobs = [(ds.inputs, run, tuple(columns)) for run in runs for ds in datasets]
-        pool = self._get_pool()
+        outs = [self._remembered(j) for j in jobs]
+        todo = [i for i, o in enumerate(outs) if o is None]
+        pool = self._get_pool() if len(todo) > 1 else None
         if pool is None:
             _init_worker(self.params, self.cooler, self.dt_s, self.out_dt_s, self.full_dt_s, self.coarse_dt_s)
-            outs = [_plant_job(j) for j in jobs]
+            for i in todo:
+                outs[i] = _plant_job(jobs[i])
         else:
             # longest jobs first keeps both cores busy to the end
-            order = sorted(range(len(jobs)), key=lambda i: -jobs[i][0].n)
-            res = pool.map(_plant_job, [jobs[i] for i in order], chunksize=1)
-            outs = [None] * len(jobs)
-            for i, r in zip(order, res):
+            order = sorted(todo, key=lambda i: -jobs[i][0].n)
+            for i, r in zip(order, pool.map(_plant_job, [jobs[i] for i in order], chunksize=1)):
                 outs[i] = r
+        for i in todo:
+            self._remember(jobs[i], outs[i])
         nd = len(datasets)
         return [outs[i * nd : (i + 1) * nd] for i in range(len(runs))]
+
+    #: plant runs kept per diagnosis: the same run of the same table asked twice (the onboard model's boundary
+    #: correction and its heat pair both run the plant with no effect on the first training file) runs once
+    REMEMBER_MAX = 16
+
+    def _remembered(self, job) -> dict | None:
+        """What an identical earlier job (the same table object, the same run, asking for these columns or more)
+        returned, with only the columns this one gets (copies); else None."""
+        table, run, columns = job
+        hit = self._memo.get((id(table), run))
+        if hit is None or hit[0] is not table or not set(columns) <= hit[2]:  # (an id can be reused: table kept)
+            return None
+        return _copy_outputs(hit[1], {"time_s", "full", *columns, *ALWAYS, *(() if run.effects else Q_OUT)})
+
+    def _remember(self, job, out: dict) -> None:
+        table, run, columns = job
+        if len(self._memo) >= self.REMEMBER_MAX:
+            self._memo.clear()
+        self._memo[(id(table), run)] = (table, _copy_outputs(out), set(columns) | set(ALWAYS))
 
     def close(self):
         if self._pool is not None:
