@@ -75,7 +75,7 @@ def _checked(name: str, x: np.ndarray, ch: Channel, stretch: np.ndarray, by: dic
 def _derived(ch: Channel, raw: dict, cmap: ColumnMap, counts: dict) -> np.ndarray:
     """A derived input torque [N m]: P / omega_rotor or Cm * fast / slow, 0 at standstill and under negative load."""
     src = ch.sources
-    speed = raw[src["speed"] if ch.derive == "power_over_speed" else src["slow_speed"]]
+    speed = raw[src["speed"] if ch.derive == "power_over_speed" else src["slow_speed"]] * ch.speed_scale  # rpm
     load = raw[src["power"] if ch.derive == "power_over_speed" else src["torque"]] * ch.source_scale
     with np.errstate(invalid="ignore"):
         still = speed < cmap.standstill_rpm
@@ -86,7 +86,7 @@ def _derived(ch: Channel, raw: dict, cmap: ColumnMap, counts: dict) -> np.ndarra
         if ch.derive == "power_over_speed":
             val = load / (speed * RAD_S_PER_RPM)
         else:
-            val = load * raw[src["fast_speed"]] / speed
+            val = load * raw[src["fast_speed"]] * ch.speed_scale / speed  # the ratio fast / slow
     out[moving] = val[moving]
     counts["standstill"] += int(np.sum(still))
     counts["negative_power"] += int(np.sum(negative))

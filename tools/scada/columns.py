@@ -30,8 +30,38 @@ DERIVATIONS = {
     "power_over_speed": ("power", "speed"),
     "torque_times_ratio": ("torque", "fast_speed", "slow_speed"),
 }
+#: the keys a map may carry at its top, in its ``time`` and in its ``unit_id``
+MAP_KEYS = {"format", "title", "period_s", "time", "unit_id", "standstill_rpm", "inputs", "measured"}
+TIME_KEYS = {"column", "kind"}
+UNIT_ID_KEYS = {"column"}
+#: the run-table inputs every map gives (the drive and the air around the gearbox: tools/scada/runtable.py)
+REQUIRED_INPUTS = {
+    "input_speed_rpm": "the gearbox input shaft's speed",
+    "input_torque_nm": "the input torque",
+    "ambient_temp_c": "the air around the gearbox",
+}
+#: units a map may give a column in: (dimension, factor, offset) to the dimension's base unit (degC, rpm, N m, W)
+KNOWN_UNITS = {
+    **dict.fromkeys(("degC", "°C", "C"), ("temperature", 1.0, 0.0)),
+    "K": ("temperature", 1.0, -273.15),
+    **dict.fromkeys(("degF", "°F", "F"), ("temperature", 5.0 / 9.0, -32.0 * 5.0 / 9.0)),
+    **dict.fromkeys(("rpm", "1/min", "r/min"), ("speed", 1.0, 0.0)),
+    "rad/s": ("speed", 30.0 / math.pi, 0.0),
+    **dict.fromkeys(("N m", "Nm", "N.m"), ("torque", 1.0, 0.0)),
+    **dict.fromkeys(("kN m", "kNm", "kN.m"), ("torque", 1.0e3, 0.0)),
+    "W": ("power", 1.0, 0.0),
+    "kW": ("power", 1.0e3, 0.0),
+    "MW": ("power", 1.0e6, 0.0),
+}
+#: the unit a run-table input's name ends with (the project's naming rule); measured channels are degC
+NAME_UNITS = {"_c": "degC", "_rpm": "rpm", "_nm": "N m", "_kw": "kW", "_w": "W"}
+#: the entry keys of a derived input's source unit and scale, by derivation, and the unit the scale must give
+SOURCE_UNITS = {
+    "power_over_speed": ("power_unit", "power_scale", "W"),
+    "torque_times_ratio": ("torque_unit", "torque_scale", "N m"),
+}
 #: the keys an entry may carry
-ENTRY_KEYS = {"column", "unit", "scale", "offset", "range", "jump_k", "node", "what", "derive"} | {
+ENTRY_KEYS = {"column", "unit", "scale", "offset", "range", "jump_k", "node", "what", "derive", "speed_unit"} | {
     "power_unit",
     "power_scale",
     "torque_unit",
@@ -57,6 +87,8 @@ class Channel:
     #: a derived input's source columns by role (power, speed; torque, fast_speed, slow_speed) and their scale
     sources: dict = field(default_factory=dict)
     source_scale: float = 1.0
+    #: a derived input's speed columns to rpm (``speed_unit``, rpm by default)
+    speed_scale: float = 1.0
 
     @property
     def columns(self) -> tuple[str, ...]:
@@ -120,22 +152,49 @@ def load_column_map(spec: str | Path) -> ColumnMap:
     except (UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
         raise InputError(f"column map {path.name}: not a readable TOML file ({exc})") from None
     where = path.name
+    _known_keys(raw, MAP_KEYS, where)
     time = _table(raw, "time", where)
+    _known_keys(time, TIME_KEYS, f"{where}: time")
+    unit_id = raw.get("unit_id", {})
+    if not isinstance(unit_id, dict):
+        raise InputError(f'column map {where}: unit_id must be a table, e.g. unit_id = {{ column = "Turbine" }}')
+    _known_keys(unit_id, UNIT_ID_KEYS, f"{where}: unit_id")
     kind = time.get("kind", "iso8601_offset")
     if kind not in TIME_KINDS:
         raise InputError(f"column map {where}: time.kind = {kind!r} is none of {', '.join(TIME_KINDS)}")
     inputs = {k: _channel(k, v, f"{where}: inputs.{k}") for k, v in _table(raw, "inputs", where).items()}
-    measured = {k: _channel(k, v, f"{where}: measured.{k}") for k, v in raw.get("measured", {}).items()}
+    measured = {k: _channel(k, v, f"{where}: measured.{k}", "degC") for k, v in raw.get("measured", {}).items()}
     for k, ch in measured.items():
         if ch.derive:
             raise InputError(f"column map {where}: measured.{k} is derived; a measured channel is one column")
+        if not isinstance(ch.node, str) or not ch.node:
+            raise InputError(
+                f"column map {where}: measured.{k} needs node = the id of the gearbox part the reading is tied to "
+                '(the description\'s, e.g. "oil" for the sump)'
+            )
+    for k, what in REQUIRED_INPUTS.items():
+        if k not in inputs:
+            raise InputError(f"column map {where}: needs [inputs.{k}] ({what}): no run table without it")
+    sumps = [k for k, ch in measured.items() if ch.node == "oil"]
+    if len(sumps) > 1:
+        raise InputError(
+            f'column map {where}: {" and ".join(sumps)} are both tied to the sump (node "oil"), which the '
+            "sensor reads from one channel: tie one of them elsewhere or leave it out"
+        )
+    standstill = _number(raw, "standstill_rpm", where, default=0.0)
+    top = (inputs["input_speed_rpm"].range or (0.0, math.inf))[1]
+    if not 0.0 <= standstill < top:
+        raise InputError(
+            f"column map {where}: standstill_rpm = {standstill:g} must lie in 0 .. {top:g} rpm (the input speed's "
+            "range): the rotor counts as standing still below it"
+        )
     return ColumnMap(
         name=str(raw.get("format", path.stem)),
         time_column=_text(time, "column", f"{where}: time"),
         time_kind=kind,
-        unit_column=raw.get("unit_id", {}).get("column"),
+        unit_column=unit_id.get("column"),
         period_s=_number(raw, "period_s", where, positive=True),
-        standstill_rpm=_number(raw, "standstill_rpm", where, default=0.0),
+        standstill_rpm=standstill,
         inputs=inputs,
         measured=measured,
         title=str(raw.get("title", "")),
@@ -175,14 +234,20 @@ def _range(entry: dict, where: str) -> tuple[float, float] | None:
     return float(val[0]), float(val[1])
 
 
-def _channel(name: str, entry: dict, where: str) -> Channel:
+def _channel(name: str, entry: dict, where: str, target: str | None = "") -> Channel:
+    """One entry of [inputs] or [measured]; ``target``: the unit its values are in after the scale ("": the unit
+    its name ends with, NAME_UNITS)."""
     if not isinstance(entry, dict):
         raise InputError(f"column map {where}: must be a table")
     unknown = sorted(set(entry) - ENTRY_KEYS)
     if unknown:
         raise InputError(f"column map {where}: unknown key {unknown[0]!r} (known: {', '.join(sorted(ENTRY_KEYS))})")
+    target = _name_unit(name) if target == "" else target
+    scale, offset = _conversion(entry, "unit", "scale", "offset", target, where)
     common = dict(
         unit=_text(entry, "unit", where),
+        scale=scale,
+        offset=offset,
         range=_range(entry, where),
         jump_k=_number(entry, "jump_k", where, positive=True) if "jump_k" in entry else None,
         node=entry.get("node"),
@@ -190,22 +255,72 @@ def _channel(name: str, entry: dict, where: str) -> Channel:
     )
     derive = entry.get("derive")
     if derive is None:
-        return Channel(
-            name=name,
-            column=_text(entry, "column", where),
-            scale=_number(entry, "scale", where, default=1.0),
-            offset=_number(entry, "offset", where, default=0.0),
-            **common,
-        )
+        return Channel(name=name, column=_text(entry, "column", where), **common)
     if derive not in DERIVATIONS:
         raise InputError(f"column map {where}: derive = {derive!r} is none of {', '.join(DERIVATIONS)}")
     sources = {role: _text(entry, role, where) for role in DERIVATIONS[derive]}
-    scale_key = "power_scale" if derive == "power_over_speed" else "torque_scale"
+    unit_key, scale_key, base = SOURCE_UNITS[derive]
+    source_scale, _ = _conversion(entry, unit_key, scale_key, None, base, where)
+    speed_unit = entry.get("speed_unit", "rpm")
+    speed = KNOWN_UNITS.get(str(speed_unit))
+    if speed is None or speed[0] != "speed":
+        units = ", ".join(sorted(u for u, v in KNOWN_UNITS.items() if v[0] == "speed"))
+        raise InputError(f"column map {where}: speed_unit = {speed_unit!r} is none of {units}")
     return Channel(
         name=name,
         column=None,
         derive=derive,
         sources=sources,
-        source_scale=_number(entry, scale_key, where, default=1.0),
+        source_scale=source_scale,
+        speed_scale=speed[1],
         **common,
     )
+
+
+def _known_keys(table: dict, known: set, where: str) -> None:
+    unknown = sorted(set(table) - known)
+    if unknown:
+        raise InputError(f"column map {where}: unknown key {unknown[0]!r} (known: {', '.join(sorted(known))})")
+
+
+def _name_unit(name: str) -> str | None:
+    """The unit a run-table input's name ends with (None: a name without one of NAME_UNITS' suffixes)."""
+    return next((u for suffix, u in NAME_UNITS.items() if name.endswith(suffix)), None)
+
+
+def _conversion(entry: dict, unit_key: str, scale_key: str, offset_key: str | None, target, where: str):
+    """(scale, offset) that turn the column's ``entry[unit_key]`` into ``target``: implied by a unit of KNOWN_UNITS
+    (a scale or offset the map gives must agree with it), else the map's own, which a unit the tool does not know
+    must give. No unit (``unit_key`` absent) takes the map's scale as it is."""
+    scale = _number(entry, scale_key, where, default=1.0)
+    offset = _number(entry, offset_key, where, default=0.0) if offset_key else 0.0
+    if scale == 0.0:
+        raise InputError(f"column map {where}: {scale_key} must not be 0 (every value would be {offset:g})")
+    unit = entry.get(unit_key)
+    if unit is None or target is None:
+        return scale, offset
+    have, want = KNOWN_UNITS.get(str(unit)), KNOWN_UNITS[target]
+    if have is None:
+        if scale_key not in entry:
+            same = sorted(u for u, v in KNOWN_UNITS.items() if v[0] == want[0])
+            raise InputError(
+                f"column map {where}: {unit_key} = {unit!r} is not a unit the tool converts ({', '.join(same)}); "
+                f"give {scale_key}{' and ' + offset_key if offset_key else ''} that turn it into {target}"
+            )
+        return scale, offset
+    if have[0] != want[0]:
+        raise InputError(
+            f"column map {where}: {unit_key} = {unit!r} is a {have[0]}, but {where.split(': ')[-1]} is "
+            f"a {want[0]} in {target}"
+        )
+    implied = (have[1] / want[1], (have[2] - want[2]) / want[1])
+    given = (scale if scale_key in entry else implied[0], offset if offset_key and offset_key in entry else implied[1])
+    if not (math.isclose(given[0], implied[0], rel_tol=1e-3) and math.isclose(given[1], implied[1], abs_tol=0.01)):
+        raise InputError(
+            f"column map {where}: {unit_key} = {unit!r} in {target} is {scale_key} {implied[0]:.6g}"
+            + (f", {offset_key} {implied[1]:.6g}" if offset_key else "")
+            + f"; the map gives {scale_key} {given[0]:g}"
+            + (f", {offset_key} {given[1]:g}" if offset_key else "")
+            + f" (leave {scale_key} out and {unit!r} converts)"
+        )
+    return given

@@ -179,6 +179,20 @@ def test_a_file_of_another_format_is_one_sentence(tmp_path, content, words):
         (('column = "Rs_avg"', 'colum = "Rs_avg"'), "unknown key 'colum'"),
         (('derive = "power_over_speed"', 'derive = "magic"'), "derive = 'magic' is none of"),
         (("period_s = 600", "period_s = -1"), "period_s must be positive"),
+        (("standstill_rpm = 0.5", "standstil_rpm = 0.5"), "unknown key 'standstil_rpm'"),
+        (("standstill_rpm = 0.5", "standstill_rpm = 30.0"), "standstill_rpm = 30 must lie in 0 .. 25 rpm"),
+        (('unit_id = { column = "Wind', 'unit_id = { colum = "Wind'), "unit_id: unknown key 'colum'"),
+        (("[measured.Gb1t_avg]", "[measure.Gb1t_avg]"), "unknown key 'measure'"),
+        (('column = "Yt_avg"\nunit = "degC"', 'column = "Yt_avg"\nunit = "furlongs"'), "'furlongs' is not a unit"),
+        (('column = "Yt_avg"\nunit = "degC"', 'column = "Yt_avg"\nunit = "rpm"'), "'rpm' is a speed"),
+        (('column = "Yt_avg"\nunit = "degC"', 'column = "Yt_avg"\nunit = "degF"\nscale = 1.0'), "is scale 0.555556"),
+        (('column = "Yt_avg"\nunit = "degC"', 'column = "Yt_avg"\nunit = "degC"\nscale = 0'), "scale must not be 0"),
+        (('power_unit = "kW"', 'power_unit = "kW"\npower_scale = 1.0'), "is power_scale 1000"),
+        (('power_unit = "kW"', 'power_unit = "kW"\nspeed_unit = "knots"'), "speed_unit = 'knots' is none of"),
+        (('node = "BHG"', 'what2 = "x"'), "unknown key 'what2'"),
+        (('node = "BHG"\n', ""), "measured.Gb1t_avg needs node"),
+        (('node = "BHG"', 'node = "oil"'), "Gost_avg and Gb1t_avg are both tied to the sump"),
+        (("[inputs.ambient_temp_c]", "[inputs.nacelle_temp_c]"), "needs [inputs.ambient_temp_c]"),
     ],
 )
 def test_a_bad_column_map_names_its_key(tmp_path, edit, words):
@@ -190,6 +204,47 @@ def test_a_bad_column_map_names_its_key(tmp_path, edit, words):
     assert words in str(err.value)
     with pytest.raises(InputError, match="neither a shipped map"):
         load_column_map(tmp_path / "nothere.toml")
+
+
+def test_a_column_in_a_unit_the_tool_knows_is_converted_to_the_name_s_unit(tmp_path, two_files):
+    """degF and K temperatures, a rotor speed in rad/s (its derived torque too) and a power in W: the same record
+    as the shipped map's on the same readings in degC, rpm and kW."""
+    fa, fb, _ = two_files
+    want = read_record([fa, fb])
+    src = (MAP_DIR / "engie.toml").read_text()
+    for old, new in (
+        ('column = "Yt_avg"\nunit = "degC"', 'column = "Yt_avg"\nunit = "degF"'),
+        ('column = "Gost_avg"\nunit = "degC"', 'column = "Gost_avg"\nunit = "K"'),
+        ('column = "Rs_avg"\nunit = "rpm"', 'column = "Rs_avg"\nunit = "rad/s"'),
+        ('power_unit = "kW"', 'power_unit = "W"\nspeed_unit = "rad/s"'),
+        ('column = "P_avg"\nunit = "kW"', 'column = "P_avg"\nunit = "W"'),
+    ):
+        assert old in src
+        src = src.replace(old, new, 1)
+    (tmp_path / "units.toml").write_text(src)
+    lines = gzip.decompress(fa.read_bytes()).decode().splitlines()[1:] + fb.read_text().splitlines()[1:]
+    col = {h: i for i, h in enumerate(HEADER)}
+
+    def convert(line):
+        cells = line.split(",")
+        if len(cells) != len(HEADER):
+            return line
+        for name, f in (
+            ("Yt_avg", lambda c: c * 9 / 5 + 32),
+            ("Gost_avg", lambda c: c + 273.15),
+            ("Rs_avg", lambda n: n * math.pi / 30),
+            ("P_avg", lambda p: p * 1e3),
+        ):
+            try:
+                cells[col[name]] = repr(f(float(cells[col[name]])))
+            except ValueError:
+                pass
+        return ",".join(cells)
+
+    got = read_record([write(tmp_path / "si.csv", [convert(x) for x in lines])], tmp_path / "units.toml")
+    assert got.n == want.n and got.counts == want.counts
+    for k in ("ambient_temp_c", "Gost_avg", "input_speed_rpm", "input_torque_nm", "power_kw"):
+        np.testing.assert_allclose(got.values[k], want.values[k], rtol=1e-9, atol=1e-9, err_msg=k)
 
 
 def test_a_spike_is_one_row_off_both_neighbours_on_one_side_within_a_stretch():
