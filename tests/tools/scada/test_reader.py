@@ -117,7 +117,7 @@ def test_the_input_torque_is_power_over_rotor_speed_or_converter_torque_times_ra
     assert load_column_map("engie").inputs["input_torque_nm"].derive == "power_over_speed"
     src = (MAP_DIR / "engie.toml").read_text()
     src = src.replace(
-        'derive = "power_over_speed"\npower = "P_avg"\npower_unit = "kW"\npower_scale = 1000.0\nspeed = "Rs_avg"',
+        'derive = "power_over_speed"\npower = "P_avg"\npower_unit = "kW"\nspeed = "Rs_avg"',
         'derive = "torque_times_ratio"\ntorque = "Cm_avg"\nfast_speed = "Ds_avg"\nslow_speed = "Rs_avg"',
     )
     assert "torque_times_ratio" in src

@@ -43,7 +43,7 @@ def test_the_two_torque_derivations_agree_while_producing(records, tmp_path):
     from tools.scada.reader import read_record
 
     src = (MAP_DIR / "engie.toml").read_text()
-    old = 'derive = "power_over_speed"\npower = "P_avg"\npower_unit = "kW"\npower_scale = 1000.0\nspeed = "Rs_avg"'
+    old = 'derive = "power_over_speed"\npower = "P_avg"\npower_unit = "kW"\nspeed = "Rs_avg"'
     assert old in src
     new = 'derive = "torque_times_ratio"\ntorque = "Cm_avg"\nfast_speed = "Ds_avg"\nslow_speed = "Rs_avg"'
     (tmp_path / "cm.toml").write_text(src.replace(old, new))
