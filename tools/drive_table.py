@@ -118,7 +118,9 @@ def map_fixed_ratio(table, description, name: str | None = None, strict: bool = 
         "retarder_torque_nm": np.zeros(t_s.size),
     }
     cols.update({c: np.asarray(table[c], dtype=float) for c in FIXED_RATIO_OPTIONAL if table.has(c)})
-    meta = {**(getattr(table, "meta", {}) or {}), "drive": "fixed_ratio", "row_period_s": row_period_s(t_s)}
+    meta = {**(getattr(table, "meta", {}) or {}), "drive": "fixed_ratio"}
+    # the period the table's maker knows (a SCADA record's column map: a one-row record has one), else the spacing
+    meta["row_period_s"] = meta.get("row_period_s") or row_period_s(t_s)
     return RunTable(cols, meta=meta, source=getattr(table, "source", None))
 
 

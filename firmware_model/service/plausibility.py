@@ -300,13 +300,19 @@ def table_record_findings(out, min_torque_nm: float | None = None, source: str =
     and the cumulative ``rejects_<reason>`` columns)."""
     if not out.n:
         return []
-    found: list = record_findings(out, STEP_S, min_torque_nm, source)
+    meta = getattr(out, "meta", None) or {}
+    held = meta.get("steps") is not None and meta.get("step_s") is not None
+    # a held table (tools.replay.table.replay_held: one row per input row, minutes apart): its rows' period, and
+    # the 0.1 s steps its reject counters count
+    dt_s = float(meta.get("row_period_s") or STEP_S) if held else STEP_S
+    steps = int(round(meta["steps"] * meta["step_s"] / STEP_S)) if held else out.n
+    found: list = record_findings(out, dt_s, min_torque_nm, source)
     rejects = {
         k[len("rejects_") :]: int(out[k][-1])
         for k in out.columns
         if k.startswith("rejects_") and np.isfinite(out[k][-1])
     }
-    repair = repair_finding(rejects, out.n)
+    repair = repair_finding(rejects, steps)
     return found + ([repair] if repair is not None else [])
 
 

@@ -136,3 +136,18 @@ def test_the_live_check_judges_after_its_first_minute():
     found = check.update()
     assert {f.kind for f in found} == {"plausibility", "repair"} and check.findings == found
     assert check.update() is None  # the next judgement a minute later
+
+
+def test_a_held_table_s_reject_counters_are_shares_of_its_0_1_s_steps():
+    """A held replay (one row per 10-minute SCADA row, 40 steps of 15 s each) counts its rejects in 0.1 s steps: 3000
+    of them over 1000 rows is 0.05 % of its 6 million steps, not 300 % of its rows (a real turbine's record was
+    called untrusted for it)."""
+    from firmware_model.service.plausibility import table_record_findings
+    from tools.runtable import RunTable
+
+    n = 1000
+    cols = {"time_s": 600.0 * np.arange(1, n + 1), "rejects_oil_implausible": np.full(n, 3000.0)}
+    held = RunTable(dict(cols), meta={"steps": 40 * n, "step_s": 15.0, "row_period_s": 600.0})
+    assert not [f for f in table_record_findings(held) if f.kind == "repair"]
+    rows = RunTable(dict(cols))  # the same counters on a table stepped at 0.1 s rows: 300 % of its steps
+    assert [f for f in table_record_findings(rows) if f.kind == "repair"]

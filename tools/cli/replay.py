@@ -240,7 +240,7 @@ def _run_scada(args) -> int:
     from tools.replay.table import held_step_line
     from tools.runtable import write_run_table
     from tools.scada.reader import read_record
-    from tools.scada.replay import error_lines, replay_record
+    from tools.scada.replay import error_lines, record_findings, replay_record
 
     check_paths(
         [*(("an input", p) for p in args.input), ("the --config", args.config)],
@@ -255,6 +255,7 @@ def _run_scada(args) -> int:
     record = read_record(args.input, args.columns)
     with outputs(("--out", args.out), ("--plot", figure_path(args.plot))) as (out_tmp, plot_tmp):
         result = replay_record(record, config, _sensor_options(args))
+        findings = record_findings(record, result)
         with naming(out_tmp):
             write_run_table(result.table, out_tmp)
         if plot_tmp:
@@ -269,9 +270,12 @@ def _run_scada(args) -> int:
         )
         if held_step_line(result.table):
             print(held_step_line(result.table))
+        dropped = {k: v for k, v in record.counts.items() if v}
+        if dropped:
+            print("  rows: " + ", ".join(f"{k.replace('_', ' ')} {v}" for k, v in dropped.items()))
         for line in error_lines(result):
             print(line)
-    return 0
+    return _report_trust(args, findings)
 
 
 def _report_trust(args, findings) -> int:

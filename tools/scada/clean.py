@@ -47,14 +47,20 @@ CHANNEL_REASONS = ("missing", "implausible", "jump")
 
 
 def spikes(x: np.ndarray, stretch: np.ndarray, jump: float) -> np.ndarray:
-    """Rows further than ``jump`` from both neighbours in their stretch, on the same side (NaN neighbours never
-    make a spike; a stretch's first and last rows have one neighbour and are never spikes)."""
+    """Rows further than ``jump`` from both neighbours in their stretch, on the same side; and a stretch's first row
+    further than ``jump`` from the next one where that one and its own next agree within ``jump``: a glitch is not
+    taken as where a model starts (NaN neighbours never make a spike; a last row, with one neighbour, never is)."""
     prev = np.r_[np.nan, x[:-1]]
     nxt = np.r_[x[1:], np.nan]
-    same = np.r_[False, stretch[1:] == stretch[:-1]] & np.r_[stretch[:-1] == stretch[1:], False]
+    with_prev = np.r_[False, stretch[1:] == stretch[:-1]]
+    with_next = np.r_[stretch[:-1] == stretch[1:], False]
     up, down = x - prev, x - nxt
     with np.errstate(invalid="ignore"):
-        return same & (np.abs(up) > jump) & (np.abs(down) > jump) & (np.sign(up) == np.sign(down))
+        inner = with_prev & with_next & (np.abs(up) > jump) & (np.abs(down) > jump) & (np.sign(up) == np.sign(down))
+        nxt2 = np.r_[x[2:], np.full(min(2, x.size), np.nan)]
+        with_next2 = with_next & np.r_[with_next[1:], False]
+        first = ~with_prev & with_next2 & (np.abs(down) > jump) & (np.abs(nxt - nxt2) <= jump)
+    return inner | first
 
 
 def _checked(name: str, x: np.ndarray, ch: Channel, stretch: np.ndarray, by: dict) -> np.ndarray:

@@ -14,6 +14,7 @@ sensor's full output (``T_<id>_c``, ``W_<id>``, ``ttl_<id>_s``, the status) foll
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -71,15 +72,24 @@ def estimate_columns(record: ScadaRecord, published, parts=(), outputs=()) -> tu
     return out, notes
 
 
-def first_sump_c(record: ScadaRecord) -> float | None:
-    """The sump channel's reading in the record's first row (None without one): where a modelled sump starts. A
-    record begins wherever its files begin, often with the turbine producing and the oil at 55-60 degC; started at
-    the nacelle air instead, the model's sump would take most of a day to be fair to (its slowest mode)."""
+#: how far into a record its first sump reading may lie to be where a modelled sump starts [s]
+START_WINDOW_S = 3600.0
+
+
+def first_sump(record: ScadaRecord) -> tuple[float, int] | None:
+    """The sump channel's first reading in the record's first hour and first stretch, with its row (None without
+    one): where a modelled sump starts. A record begins wherever its files begin, often with the turbine producing
+    and the oil at 55-60 degC; started at the nacelle air instead, the model's sump would take most of a day to be
+    fair to (its slowest mode). A first row without a reading (or a glitch there: tools/scada/clean.py) leaves the
+    start to the next reading."""
     oil = oil_channel(record)
-    if oil is None:
+    if oil is None or record.n == 0:
         return None
-    first = float(np.asarray(record.values[oil], dtype=float)[0])
-    return first if np.isfinite(first) else None
+    t = np.asarray(record.time_s, dtype=float)
+    x = np.asarray(record.values[oil], dtype=float)
+    ok = np.isfinite(x) & (np.asarray(record.stretch) == record.stretch[0]) & (t - t[0] <= START_WINDOW_S)
+    rows = np.flatnonzero(ok)
+    return (float(x[rows[0]]), int(rows[0])) if rows.size else None
 
 
 def replay_record(
@@ -90,6 +100,7 @@ def replay_record(
     gearbox's parameters in place of the configuration's (a calibration's trial values)."""
     from firmware_model.description import description_of
     from firmware_model.onboard.sensor import VirtualSensor
+    from firmware_model.service.plausibility import min_torque_nm
     from tools.drive_table import map_fixed_ratio
     from tools.replay.table import held_options, replay_table
 
@@ -102,13 +113,14 @@ def replay_record(
     drive = map_fixed_ratio(table, description_of(params), table.source, strict=False)
     sensor = VirtualSensor(params, config=config, effects=effects, **{**held_options(drive), **options})
     d = description_of(params)
-    start_c = first_sump_c(record) if oil_mode == "model" else None
+    start = first_sump(record) if oil_mode == "model" else None
+    start_c = start[0] if start is not None else None
     out = replay_table(drive, sensor, initial_oil_c=start_c)
     estimated, notes = estimate_columns(record, tuple(sensor.published), (*d.nodes, *d.derived), out.columns)
-    if start_c is not None:
+    if start is not None:
+        which = "the first sump reading" if start[1] == 0 else f"the first sump reading (row {start[1] + 1})"
         notes.append(
-            f"the model's sump starts at the first sump reading ({start_c:.1f} degC), reads no other and is not "
-            "compared with that first one"
+            f"the model's sump starts at {which} ({start_c:.1f} degC), reads no other and is not compared with that one"
         )
     n = record.n
     if out.n != n:  # one output row per SCADA row (tools.replay.table.replay_held)
@@ -119,13 +131,96 @@ def replay_record(
     for name in record.cmap.nodes:
         cols[name] = np.asarray(record.values[name], dtype=float)
         cols[f"est_{name}"] = np.array(out[estimated[name]], dtype=float) if name in estimated else np.full(n, np.nan)
-        if start_c is not None and record.cmap.nodes[name] == "oil":
-            cols[f"est_{name}"][0] = np.nan  # the first reading is the model's start: not compared with itself
+        if start is not None and record.cmap.nodes[name] == "oil":
+            cols[f"est_{name}"][start[1]] = np.nan  # the reading the model starts from: not compared with itself
     for name in out.columns:
         if name not in cols and name not in INPUTS:
             cols[name] = out[name]
-    meta = {**out.meta, "unit": record.unit, "t0_utc_s": table.meta["t0_utc_s"], "drive": "fixed_ratio"}
+    meta = {
+        **out.meta,
+        "unit": record.unit,
+        "t0_utc_s": table.meta["t0_utc_s"],
+        "drive": "fixed_ratio",
+        "engine_drive": d.drive.kind == "vehicle",  # table_findings: no idle-speed rule on a rotor
+        "min_torque_nm": min_torque_nm(sensor),
+    }
     return ScadaReplay(RunTable(cols, meta=meta, source=f"replay of {record.unit}"), oil_mode, estimated, notes)
+
+
+#: a record's findings: rows dropped by the reader beyond this share of the rows read; a channel's values rejected
+#: as implausible beyond this share of its rows; a measured channel's estimate off its readings on average by more
+#: than BIAS_WARN_K (a loud warning: a model gap, a hot bearing or a unit) or BIAS_UNTRUSTED_K (exit 3: no model gap
+#: is that large; a sump read in degF puts the bearings 56 K over theirs) over at least BIAS_MIN_ROWS rows. The
+#: shipped MM82 on the three ENGIE turbines' records: |mean| within 3.3 K on every channel, either oil mode.
+DROPPED_WARN_SHARE, IMPLAUSIBLE_WARN_SHARE = 0.05, 0.05
+BIAS_WARN_K, BIAS_UNTRUSTED_K, BIAS_MIN_ROWS = 10.0, 30.0, 36
+
+
+@dataclass(frozen=True)
+class RecordFinding:
+    """What a SCADA replay's record says about its outputs (``firmware_model.service.degraded.Severity``)."""
+
+    kind: str
+    severity: int
+    sentence: str
+
+
+def record_findings(record: ScadaRecord, result: ScadaReplay) -> list:
+    """The trust findings of a SCADA replay, most severe first: the sensor's on its output table (degraded share,
+    repairs: tools.replay.table.table_findings), rows the reader dropped, channels mostly rejected as implausible
+    (a column in another unit than its map says), and measured channels whose estimate is far off on average."""
+    from firmware_model.service.degraded import Severity
+    from tools.replay.table import table_findings
+
+    found = list(table_findings(result.table, oil_model=result.oil_mode == "model"))
+    c = record.counts
+    dropped = {k: c.get(k, 0) for k in ("bad_line", "bad_time", "duplicate_time") if c.get(k, 0)}
+    read = record.n + sum(dropped.values())
+    if read and sum(dropped.values()) > DROPPED_WARN_SHARE * read:
+        why = ", ".join(f"{v} {k.replace('_', ' ')}" for k, v in dropped.items())
+        found.append(
+            RecordFinding(
+                "rows",
+                Severity.WARNING,
+                f"{sum(dropped.values())} of {read} rows were dropped ({why}): the "
+                "outputs leave them out (bad time: a stamp without its UTC offset or that does not parse)",
+            )
+        )
+    for name, by in record.by_channel.items():
+        bad = by.get("implausible", 0)
+        if record.n and bad > IMPLAUSIBLE_WARN_SHARE * record.n:
+            ch = record.cmap.channels[name]
+            lo, hi = ch.range or (math.nan, math.nan)
+            found.append(
+                RecordFinding(
+                    "units",
+                    Severity.UNTRUSTED,
+                    f"{name} ({', '.join(ch.columns)}): {bad} of {record.n} "
+                    f"rows outside its plausible range {lo:g}..{hi:g} ({ch.unit} in the map): is the column "
+                    "in another unit?",
+                )
+            )
+    t = result.table
+    for name in result.estimated:
+        e = np.asarray(t[f"est_{name}"], dtype=float) - np.asarray(t[name], dtype=float)
+        e = e[np.isfinite(e)]
+        bias = float(np.mean(e)) if e.size >= BIAS_MIN_ROWS else 0.0
+        if abs(bias) > BIAS_WARN_K:
+            found.append(
+                RecordFinding(
+                    "units",
+                    Severity.UNTRUSTED if abs(bias) > BIAS_UNTRUSTED_K else Severity.WARNING,
+                    f"{name}: the estimate is {bias:+.1f} K off its readings on average over {e.size} rows: "
+                    + (
+                        "a unit or a channel of the column map is wrong (an input in degF or kelvin, a reading tied "
+                        "to the wrong node)"
+                        if abs(bias) > BIAS_UNTRUSTED_K
+                        else "the model and this unit disagree (a bearing running hot, a sensor offset: "
+                        "gearbox-vsensor diagnose) or a unit or a channel of the column map is wrong"
+                    ),
+                )
+            )
+    return sorted(found, key=lambda f: -f.severity)
 
 
 def error_lines(result: ScadaReplay) -> list[str]:

@@ -250,8 +250,12 @@ def test_a_column_in_a_unit_the_tool_knows_is_converted_to_the_name_s_unit(tmp_p
 def test_a_spike_is_one_row_off_both_neighbours_on_one_side_within_a_stretch():
     x = np.array([50.0, 80.0, 50.0, 50.0, 80.0, 80.0, 50.0, 80.0, 50.0])
     st = np.array([0, 0, 0, 0, 0, 0, 0, 1, 1])
-    # row 1: a spike; rows 4-5: a step held two rows, no spike; row 7: first row of its stretch
+    # row 1: a spike; rows 4-5: a step held two rows, no spike; row 7: first row of its stretch, one row after it
     assert spikes(x, st, 20.0).tolist() == [False, True] + [False] * 7
+    # a stretch's first row off the next two, which agree: a glitch (not where a model starts); its last row never
+    edge = np.array([5.0, 55.0, 56.0, 57.0, 90.0])
+    assert spikes(edge, np.zeros(5, int), 20.0).tolist() == [True, False, False, False, False]
+    assert spikes(edge[:2], np.zeros(2, int), 20.0).tolist() == [False, False]  # no third row to agree with
 
 
 def test_the_autumn_change_is_continuous_in_utc_and_a_dropped_repeated_hour_is_a_gap(tmp_path):

@@ -194,3 +194,61 @@ def test_a_replay_for_estimates_only_gives_the_same_estimates_without_the_time_t
         np.testing.assert_array_equal(est[c], full[c], err_msg=c)
     ttl = [c for c in full.columns if c.startswith("ttl_")]
     assert any(not np.array_equal(est[c], full[c], equal_nan=True) for c in ttl)
+
+
+def _edit(lines, column: str, f) -> list[str]:
+    """``lines`` (rows of tests.tools.scada.test_reader's HEADER) with ``f`` applied to one column's cells."""
+    from tests.tools.scada.test_reader import HEADER
+
+    i = HEADER.index(column)
+    out = []
+    for line in lines:
+        cells = line.split(",")
+        cells[i] = f(cells[i])
+        out.append(",".join(cells))
+    return out
+
+
+@pytest.mark.parametrize(
+    "column, f, status, words",
+    [
+        # the sump in degF: an input; the bearings' estimates 70 K over their readings
+        ("Gost_avg", lambda c: repr(float(c) * 9 / 5 + 32), 3, "Gb1t_avg: the estimate is +"),
+        # the nacelle air in kelvin: every value outside its range
+        ("Yt_avg", lambda c: repr(float(c) + 273.15), 3, "ambient_temp_c (Yt_avg): 72 of 72 rows outside"),
+        # half the stamps without their UTC offset: dropped, said, and the rest replayed
+        ("Date_time", lambda c: c[:19] if c[14] in "024" else c, 0, "rows were dropped (36 bad time)"),
+    ],
+)
+def test_a_record_in_another_unit_or_with_dropped_rows_is_said_and_exits_3_when_untrusted(
+    tmp_path, column, f, status, words
+):
+    scada = write(tmp_path / "a.csv", _edit(_rows(0, ROWS), column, f))
+    p = _replay(tmp_path, [scada], "--out", tmp_path / "est.csv")
+    assert p.returncode == status, p.stderr
+    assert words in p.stderr and (tmp_path / "est.csv").exists()
+    assert (status == 3) == ("exit status 3" in p.stderr)
+
+
+def test_the_modelled_sump_starts_at_the_first_reading_of_the_first_hour_and_one_row_is_one_row(tmp_path):
+    lines = _rows(0, ROWS)
+    without_first = _edit(lines[:1], "Gost_avg", lambda c: "") + lines[1:]
+    p = _replay(
+        tmp_path, [write(tmp_path / "a.csv", without_first)], "--oil-mode", "model", "--out", tmp_path / "e.csv"
+    )
+    assert p.returncode == 0, p.stderr
+    assert "starts at the first sump reading (row 2) (55.6 degC)" in p.stdout
+    e = read_run_table(tmp_path / "e.csv", required=("time_s",))
+    # row 2's reading is the start, not compared with itself; the model's sump near it from the first row on
+    assert np.isnan(e["est_Gost_avg"][1]) and np.isfinite(e["est_Gost_avg"][[0, *range(2, ROWS)]]).all()
+    assert abs(e["est_Gost_avg"][0] - 55.6) < 2.0  # not the air's 25 degC
+    # one row: held over the map's 10 minutes, as the same row is at the head of a longer record
+    assert (
+        _replay(tmp_path, [write(tmp_path / "one.csv", lines[:1])], "--out", tmp_path / "one.csv.est.csv").returncode
+        == 0
+    )
+    one = read_run_table(tmp_path / "one.csv.est.csv", required=("time_s",))
+    head = _replay(tmp_path, [write(tmp_path / "two.csv", lines[:2])], "--out", tmp_path / "two_est.csv")
+    two = read_run_table(tmp_path / "two_est.csv", required=("time_s",))
+    assert head.returncode == 0 and one.n == 1 and one["time_s"][0] == two["time_s"][0] == 600.0
+    assert one["est_Gb1t_avg"][0] == two["est_Gb1t_avg"][0]
