@@ -329,6 +329,30 @@ def _check_time_increasing(name: str, t: np.ndarray) -> None:
             )
 
 
+#: a table whose rows lie further apart than this (median) over at least MS_CHECK_MIN_ROWS rows is taken for
+#: time_s in milliseconds [s] (the sensor's hold time: rows further apart are too sparse for it anyway) ...
+SPARSE_ROWS_S = 60.0
+MS_CHECK_MIN_ROWS = 20
+#: ... and so is one longer than LONG_CYCLE_S whose rows lie at least LONG_ROWS_S apart: a 20-100 Hz logger in
+#: milliseconds (rows 10-50 "s" apart; a 10-minute file spans about 7 days)
+LONG_CYCLE_S, LONG_ROWS_S = 86400.0, 10.0
+
+
+def milliseconds_sentence(t_s, name: str, sparse_ok: bool = False) -> str | None:
+    """The sentence for a table whose time_s looks like milliseconds (None: it does not); ``sparse_ok``: rows far
+    apart are expected (a fixed-ratio drive's SCADA averages)."""
+    t = np.asarray(t_s, dtype=float)
+    if t.size < MS_CHECK_MIN_ROWS or sparse_ok:
+        return None
+    spacing_s = float(np.median(np.diff(t)))
+    if spacing_s > SPARSE_ROWS_S or (t[-1] - t[0] > LONG_CYCLE_S and spacing_s >= LONG_ROWS_S):
+        return (
+            f"{name}: its rows lie a median {spacing_s:.0f} s apart ({t[-1] - t[0]:.0f} s in all): if time_s is in "
+            "milliseconds, give seconds"
+        )
+    return None
+
+
 def validate_run_table(table: RunTable, required: Iterable[str] = REQUIRED, name: str | None = None) -> RunTable:
     """Check the contract rules on a table in memory; raise InputError naming column and 1-based row."""
     name = name or table.source or "run table"

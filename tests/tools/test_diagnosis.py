@@ -323,6 +323,15 @@ def test_no_measured_channel(tmp_path, capsys):
     assert "no measured channel" in err
 
 
+def test_time_in_milliseconds_is_one_sentence_not_a_25_gib_grid(tmp_path, capsys):
+    """A training file with time_s in milliseconds (15 min -> 10 days): refused as simulate and replay refuse it
+    (it was a MemoryError traceback after 35 s: 25.3 GiB for the analysis grid)."""
+    cols = _table()
+    cols["time_s"] = cols["time_s"] * 1000.0
+    err = _run_bad(tmp_path, capsys, cols)
+    assert "train.csv: its rows lie a median 1000 s apart" in err and "if time_s is in milliseconds" in err
+
+
 def test_stuck_sensor(tmp_path, capsys):
     cols = _table()
     cols["oil_temp_c"] = np.full(cols["time_s"].size, 71.25)

@@ -263,31 +263,18 @@ def _print_summary(args, res) -> None:
         print(f"note: {w}", file=sys.stderr)
 
 
-#: a CSV cycle whose rows lie further apart than this (median) over at least UNIT_CHECK_MIN_ROWS rows is taken for
-#: time_s in milliseconds [s] (the sensor's hold time: rows further apart are too sparse for it anyway) ...
-SPARSE_ROWS_S = 60.0
-UNIT_CHECK_MIN_ROWS = 20
-#: ... and so is one longer than LONG_CYCLE_S whose rows lie at least LONG_ROWS_S apart: a 20-100 Hz logger in
-#: milliseconds (rows 10-50 "s" apart; a 10-minute file spans about 7 days)
-LONG_CYCLE_S, LONG_ROWS_S = 86400.0, 10.0
-
-
 def _refuse_unit_mistakes(table, name: str, oil_used: bool = False, sparse_ok: bool = False) -> None:
     """InputError for a CSV cycle whose units look wrong, before the plant runs, as replay refuses them: a 10-minute
     file with time_s in milliseconds would simulate 7 days and write a 600 MB table and a 4.3 GB CAN log, and
     rad/s speed would run as a stalled engine. ``sparse_ok``: rows far apart are expected (a fixed-ratio drive's
     SCADA averages), not taken for milliseconds."""
     from firmware_model.service.degraded import unit_findings
+    from tools.runtable import milliseconds_sentence
 
     t = np.asarray(table["time_s"], dtype=float)
-    if t.size >= UNIT_CHECK_MIN_ROWS and not sparse_ok:
-        spacing_s = float(np.median(np.diff(t)))
-        if spacing_s > SPARSE_ROWS_S or (t[-1] - t[0] > LONG_CYCLE_S and spacing_s >= LONG_ROWS_S):
-            raise InputError(
-                f"{name}: its rows lie a median {spacing_s:.0f} s apart ({t[-1] - t[0]:.0f} s in all): "
-                f"if time_s is in milliseconds, give seconds; if the rows really lie that far apart, "
-                f"pass --allow-untrusted"
-            )
+    ms = milliseconds_sentence(t, name, sparse_ok)
+    if ms:
+        raise InputError(f"{ms}; if the rows really lie that far apart, pass --allow-untrusted")
     from firmware_model.service.plausibility import record_findings
 
     engine = table.meta.get("drive") != "fixed_ratio"

@@ -257,9 +257,14 @@ def _longest_nan_run(t, valid):
     return float(edges[k]), float(d[k])
 
 
-def _check_time(t: np.ndarray, name: str, opts: Options) -> None:
+def _check_time(t: np.ndarray, name: str, opts: Options, fixed_ratio: bool = False) -> None:
+    from tools.runtable import milliseconds_sentence
+
     if t.size < 10:
         raise InputError(f"{name}: has only {t.size} rows; the diagnosis needs at least 10 samples")
+    ms = milliseconds_sentence(t, name, sparse_ok=fixed_ratio)
+    if ms:
+        raise InputError(ms)
     dt = np.diff(t)
     med = float(np.median(dt))
     gap_lim = max(opts.max_time_gap_s, 50 * med)
@@ -462,7 +467,7 @@ def prepare(table: RunTable, name: str, role: str, opts: Options, oil_is_input: 
 
     validate_run_table(table, REQUIRED, name)
     t = np.asarray(table["time_s"], dtype=float)
-    _check_time(t, name, opts)
+    _check_time(t, name, opts, (getattr(table, "meta", None) or {}).get("drive") == "fixed_ratio")
     _refuse_implausible(table, t, name)
     cols = channel_columns(table)
     if oil_is_input:
