@@ -180,3 +180,20 @@ def test_every_shipped_description_s_dbc_loads_strictly(name, tmp_path):
         assert {f"T_{stem}", f"W_{stem}", f"TTL_{stem}", f"TC_{stem}"} <= signals, c
     assert dbc.load_dbc(out).published_components() == tuple(ids)
     _roundtrip(dbc.load_dbc(out), ids)
+
+
+def test_export_dbc_never_writes_over_its_description_and_writes_only_a_dbc(tmp_path, capsys):
+    """--out on the description itself, or a name that is no .dbc, is one sentence, exit 2, the description intact
+    (it was overwritten with the DBC, which no command could then read)."""
+    from firmware_model.parameters import PARAM_DIR
+
+    desc = tmp_path / "my.toml"
+    desc.write_text((PARAM_DIR / "R1.toml").read_text())
+    before = desc.read_bytes()
+    for out, words in ((desc, "a DBC file's name ends in .dbc"), (tmp_path / "x.txt", "ends in .dbc")):
+        assert main(["export-dbc", "--gearbox", str(desc), "--out", str(out)]) == 2
+        assert words in capsys.readouterr().err
+    assert desc.read_bytes() == before
+    dbc_like = tmp_path / "my.dbc"
+    assert main(["export-dbc", "--gearbox", str(desc), "--out", str(dbc_like)]) == 0
+    assert cantools.database.load_file(str(dbc_like)).messages

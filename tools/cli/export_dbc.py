@@ -50,9 +50,20 @@ def component_meanings(description) -> dict:
 
 def run(args) -> int:
     from can_dbc.generate import GenerateError, generate_dbc
-    from firmware_model.description import load_description
+    from firmware_model.description import description_path, load_description
+    from firmware_model.errors import InputError, ParameterError
+    from tools.cli.paths import check_paths
+    from tools.runtable import atomic_text_file
 
+    if args.out is not None and not str(args.out).lower().endswith(".dbc"):
+        raise InputError(f"--out {args.out}: a DBC file's name ends in .dbc")
     d = load_description(args.gearbox)
+    if args.out is not None:
+        try:
+            source = str(description_path(args.gearbox))
+        except ParameterError:
+            source = None  # (a description made in code)
+        check_paths([("the --gearbox description", source)], {"--out": args.out})
     try:
         text = generate_dbc([p.id for p in d.published], component_meanings(d))
     except GenerateError as exc:
@@ -61,7 +72,7 @@ def run(args) -> int:
     if args.out is None:
         sys.stdout.write(text)
         return 0
-    with open(args.out, "w", encoding="utf-8", newline="\n") as f:
+    with atomic_text_file(args.out) as f:
         f.write(text)
     print(f"wrote {args.out}: the DBC of {d.name}'s {len(d.published)} published components")
     return 0
