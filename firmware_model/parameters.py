@@ -312,6 +312,31 @@ def is_topology(key: str) -> bool:
     return key.startswith(TOPOLOGY + ".")
 
 
+#: pairs of keys whose values keep an order, the first below the second by at least the gap (the description's
+#: check: the thermostat is fully open above where it starts to open), which calibrate's box bounds cannot say
+ORDERED_KEYS = (("cooler.thermostat_open", "cooler.thermostat_full", 0.1),)
+
+
+def with_fit_bounds(p: Parameters, keys) -> Parameters:
+    """A copy whose bounds of the ``keys`` to fit keep ORDERED_KEYS' order for every value within them: a key fitted
+    without its partner stays on its side of the partner's value; two fitted together split the range their bounds
+    share at its middle (moved, if need be, to lie between their values). The values are unchanged."""
+    keys, bounds = set(keys), dict(p.bounds)
+    for a, b, gap in ORDERED_KEYS:
+        fit_a, fit_b = a in keys and a in bounds, b in keys and b in bounds
+        if fit_a and fit_b:
+            lo, hi = max(bounds[a][0], bounds[b][0]), min(bounds[a][1], bounds[b][1])
+            if lo < hi:
+                m = min(max(0.5 * (lo + hi), p[a] + 0.5 * gap), p[b] - 0.5 * gap)
+                bounds[a] = (bounds[a][0], min(bounds[a][1], m - 0.5 * gap))
+                bounds[b] = (max(bounds[b][0], m + 0.5 * gap), bounds[b][1])
+        elif fit_a and b in p.values:
+            bounds[a] = (bounds[a][0], min(bounds[a][1], p[b] - gap))
+        elif fit_b and a in p.values:
+            bounds[b] = (max(bounds[b][0], p[a] + gap), bounds[b][1])
+    return replace(p, bounds=bounds)
+
+
 def _keep_description(parent: Parameters, new: Parameters, overrides: dict) -> None:
     """A copy that overrides no parameter its gearbox description takes (``{ from }``) describes the same gearbox:
     it keeps its parent's description (firmware_model.description.description_of) instead of deriving it again."""

@@ -166,3 +166,23 @@ def test_toml_errors_are_one_sentence(tmp_path):
     bad.write_text("a = [")
     with pytest.raises(ParameterError, match="^config file bad.toml is not valid TOML"):
         read_toml(bad, "config file bad.toml")
+
+
+def test_fit_bounds_keep_the_thermostat_open_below_full_for_every_trial():
+    """The MM82's bounds overlap (open 40-62, full 55-70 degC): calibrate --auto stepped open above full and stopped
+    on the description's check, on honest data. The bounds it fits within keep the order."""
+    from firmware_model.description import description_of
+    from firmware_model.parameters import with_fit_bounds
+
+    p = load_parameters("MM82")
+    o, f = "cooler.thermostat_open", "cooler.thermostat_full"
+    assert p.bounds[o][1] > p.bounds[f][0]  # the overlap that made it fail
+    alone = with_fit_bounds(p, [o, "housing.h_air"])
+    assert alone.bounds[o] == (p.bounds[o][0], p[f] - 0.1) and alone.bounds[f] == p.bounds[f]
+    assert with_fit_bounds(p, [f]).bounds[f] == (p[o] + 0.1, p.bounds[f][1])
+    both = with_fit_bounds(p, [o, f])
+    assert both.bounds[o][1] < both.bounds[f][0] and both.bounds[o][0] <= p[o] <= both.bounds[o][1]
+    assert both.bounds[f][0] <= p[f] <= both.bounds[f][1]
+    assert both.values == p.values and both.bounds["housing.h_air"] == p.bounds["housing.h_air"]
+    for lo_o in (both.bounds[o][1], alone.bounds[o][1]):  # the extreme trials describe a gearbox
+        description_of(p.with_overrides({o: lo_o, f: both.bounds[f][0] if lo_o == both.bounds[o][1] else p[f]}))

@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from firmware_model.errors import InputError
-from firmware_model.parameters import Parameters
+from firmware_model.parameters import Parameters, with_fit_bounds
 from tools.diagnosis.measurement import model_at_cells
 from tools.diagnosis.options import HOUSING_PERTURB_C, Options, n_eff_needed
 from tools.diagnosis.prepare import prepare_runs
@@ -429,6 +429,7 @@ def calibrate(
     opts = opts or Options()
     cooler = cooler or params.strings.get("cooler.kind", "liquid")
     wanted = sorted(params.bounds) if auto else check_keys(params, list(keys or []))
+    params = with_fit_bounds(params, wanted)  # the thermostat's open below its full, whatever the trial
     if auto and not wanted:
         raise InputError(f"{params.origin} declares no parameter with plausible bounds (lo, hi): nothing to calibrate")
     runs_ = prepare_runs(
