@@ -31,7 +31,9 @@ def add_subparser(sub):
             'came from; use it with --config (params = "OUT.toml") for replay, simulate or diagnose.\n\n'
             "An unknown key, a key without bounds or a key the data cannot identify is refused (one sentence, exit "
             "2, nothing written); --auto fits every bounded key the data can identify and lists the others. A fit "
-            "that makes the held-out RMS worse writes no OUT.toml (exit 3; the report, if asked for, shows why). A fit "
+            "that makes the held-out RMS worse (on SCADA records also one that leaves it unchanged, or held-out records "
+            "with fewer than 36 readings of any channel: they cannot test it) writes no OUT.toml (exit 3; the "
+            "report, if asked for, shows why). A fit "
             "whose training residual holds too few effective samples to decide (docs/diagnosis.md, 'Thin evidence') "
             "is said in a warning, the report and the file's header, with the advice: more or longer files.\n\n"
             "How the runs start ([calibration] start): 'rest' (every part at the oil's first reading: a run from "
@@ -90,6 +92,8 @@ CALIBRATION_KEYS = ("calibration.plant_dt_s", "calibration.workers", "calibratio
 #: a fit that leaves the training files this far off (pooled RMS) explains nothing a sensor could be off by: a unit,
 #: a column, a variant or a start that is not at rest [degC]
 TRAIN_RMS_REFUSE_C = 5.0
+#: the fewest readings of a measured channel held-out SCADA records must have to test a fit (6 h of 10-minute rows)
+SCADA_TEST_MIN_ROWS = 36
 #: a held-out channel the fit made worse by more than this share (and 0.05 K) is named in a warning
 WORSE_SHARE = 0.10
 #: a channel's held-out residual after the fit that is this constant (|mean| >= this share of its RMS) and at least
@@ -222,6 +226,8 @@ def _run_scada(args, cfg, params) -> int:
     """`calibrate --columns MAP --train SCADA... --test SCADA... (--params KEYS | --auto) --out OUT.toml`."""
     import datetime as dt
 
+    import numpy as np
+
     from firmware_model.parameters import parameter_path
     from tools.diagnosis.calibrate import calibrated_toml, check_keys
     from tools.scada.calibrate import calibrate_records, nbm_beside
@@ -245,12 +251,19 @@ def _run_scada(args, cfg, params) -> int:
     if not args.quiet:
         _print_scada(cal, nbm)
     (b, a) = cal.test_rms_c
-    if not a <= b:
-        print(
-            f"calibrate: the fit made the held-out records worse (RMS {b:.2f} -> {a:.2f} K), so no parameter "
-            "file was written",
-            file=sys.stderr,
-        )
+    held = max((int(np.sum(np.isfinite(r.values[ch]))) for r in test for ch in r.cmap.measured), default=0)
+    why = (
+        f"the held-out records hold at most {held} readings of a channel, too few to test it (at least "
+        f"{SCADA_TEST_MIN_ROWS})"
+        if held < SCADA_TEST_MIN_ROWS
+        else f"the fit made the held-out records worse (RMS {b:.2f} -> {a:.2f} K)"
+        if a > b or not np.isfinite(a)
+        else f"the fit did not change the held-out error (RMS {b:.2f} -> {a:.2f} K): those records do not test it"
+        if not a < b
+        else ""
+    )
+    if why:
+        print(f"calibrate: {why}, so no parameter file was written", file=sys.stderr)
         return 3
     _write_atomic(
         args.out,

@@ -177,6 +177,12 @@ def test_calibrate_finds_a_planted_value_and_prints_the_nbm_beside_it(setup, tmp
         assert all(np.isfinite([nbm_k, informed_k])) and calibrated_k < min(nbm_k, informed_k), row
     text = (tmp_path / "cal.toml").read_text()
     assert 'src = "fitted"' in text and "f0_tapered" in text
+    # held-out records of three rows cannot test the fit: no file, exit 3 (it wrote one, exit 0, its table nan)
+    short = _write_measured(tmp_path / "short.csv", test.select(np.arange(test.n) < 3))
+    cmd[cmd.index("--test") + 1], cmd[-1] = str(short), str(tmp_path / "short.toml")
+    p = subprocess.run([sys.executable, "-m", "tools.cli", *cmd], cwd=REPO, capture_output=True, text=True, timeout=600)
+    assert p.returncode == 3 and "hold at most 3 readings of a channel, too few to test it" in p.stderr, p.stderr
+    assert not (tmp_path / "short.toml").exists()
 
 
 def test_records_without_a_reading_are_one_sentence_not_a_verdict(setup):
