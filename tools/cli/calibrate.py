@@ -31,9 +31,9 @@ def add_subparser(sub):
             'came from; use it with --config (params = "OUT.toml") for replay, simulate or diagnose.\n\n'
             "An unknown key, a key without bounds or a key the data cannot identify is refused (one sentence, exit "
             "2, nothing written); --auto fits every bounded key the data can identify and lists the others. A fit "
-            "that makes the held-out RMS worse (on SCADA records also one that leaves it unchanged, or held-out records "
-            "with fewer than 36 readings of any channel: they cannot test it) writes no OUT.toml (exit 3; the "
-            "report, if asked for, shows why). A fit "
+            "that makes the held-out RMS worse (on SCADA records also one that leaves it unchanged, or held-out "
+            "records with fewer than 36 readings of any channel: they cannot test it) writes no OUT.toml (exit 3; "
+            "the report, if asked for, shows why). A fit "
             "whose training residual holds too few effective samples to decide (docs/diagnosis.md, 'Thin evidence') "
             "is said in a warning, the report and the file's header, with the advice: more or longer files.\n\n"
             "How the runs start ([calibration] start): 'rest' (every part at the oil's first reading: a run from "
