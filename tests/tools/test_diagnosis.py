@@ -989,3 +989,24 @@ def test_a_set_from_another_start_that_does_worse_held_out_is_not_taken(monkeypa
             assert best is overfit and note == ""
         else:
             assert best is None and "left the held-out files worse (0.510 against 0.140 degC RMS)" in note, note
+
+
+def test_the_json_is_strict_json_a_missing_number_is_null(tmp_path):
+    """A figure over no row (a held-out RMS of a one-row record) is NaN in Python; the file holds null, which every
+    JSON parser reads (json writes NaN, which strict parsers refuse)."""
+    import json
+
+    from tools.cli.diagnose import write_json_atomic
+
+    obj = {"a": float("nan"), "b": [1.0, float("inf"), np.float64("nan"), {"c": -float("inf")}], "d": "x", "e": 2}
+    path = write_json_atomic(obj, tmp_path / "sub" / "g.json")
+
+    def refuse(const):
+        raise ValueError(const)
+
+    assert json.loads(path.read_text(), parse_constant=refuse) == {
+        "a": None,
+        "b": [1.0, None, None, {"c": None}],
+        "d": "x",
+        "e": 2,
+    }

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 from pathlib import Path
 
@@ -114,13 +115,25 @@ def _description() -> str:
     )
 
 
+def strict_json(obj):
+    """``obj`` with every NaN or infinite number as null: JSON has no NaN (Python's json writes one that strict
+    parsers refuse, e.g. a held-out RMS over no row)."""
+    if isinstance(obj, float):
+        return obj if math.isfinite(obj) else None
+    if isinstance(obj, dict):
+        return {k: strict_json(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [strict_json(v) for v in obj]
+    return obj
+
+
 def write_json_atomic(obj, path) -> Path:
     from tools.runtable import atomic_text_file
 
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     with atomic_text_file(path) as fh:
-        json.dump(obj, fh, indent=1)
+        json.dump(strict_json(obj), fh, indent=1, allow_nan=False)
         fh.write("\n")
     return path
 
