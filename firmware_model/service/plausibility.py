@@ -266,12 +266,39 @@ def torque_percent_finding(
     )
 
 
+#: the kN m rule: a drive of at least PERCENT_MIN_DRIVE_S whose torque peaks above KNM_MIN_PEAK (it is there) and at
+#: most KNM_MAX (no engine moves a truck for minutes on 10 N m; 2.6 kN m written in kN m is 2.6)
+KNM_MAX, KNM_MIN_PEAK = 10.0, 0.5
+
+
+def torque_knm_finding(
+    speed_rpm, torque_nm, gear=None, dt_s: float = STEP_S, source: str = "table"
+) -> PlausibilityFinding | None:
+    """The kN m rule (KNM_MAX): a vehicle's engine torque that looks like kN m."""
+    torque = _finite(torque_nm)
+    drive = _driving(speed_rpm, gear, torque.size) & np.isfinite(torque)
+    n = int(drive.sum())
+    if n * dt_s < PERCENT_MIN_DRIVE_S:
+        return None
+    peak = float(np.max(np.abs(torque[drive])))
+    if not KNM_MIN_PEAK < peak <= KNM_MAX:
+        return None
+    col = SOURCES[source]["engine_torque_nm"]
+    return PlausibilityFinding(
+        "engine_torque_nm",
+        "kN m",
+        f"{col} never exceeds {KNM_MAX:.0f} over {n * dt_s / 60.0:.1f} min of driving (peak {peak:.3g}): a truck "
+        f"engine gives 1000-3500 N m, so the torque looks like kN m; give N m (x 1000)",
+    )
+
+
 def record_findings(
-    columns, dt_s: float = STEP_S, min_torque_nm: float | None = None, source: str = "table"
+    columns, dt_s: float = STEP_S, min_torque_nm: float | None = None, source: str = "table", engine: bool = True
 ) -> list[PlausibilityFinding]:
     """The unit and sign findings of a whole record: ``columns`` maps run-table names (``oil_temp_c``,
     ``engine_speed_rpm``, ``engine_torque_nm``, ``gear``) to one value per ``dt_s`` (a RunTable or a dict;
-    an absent column is not judged); ``source``: "table" or "can" (the sentence's words and fix)."""
+    an absent column is not judged); ``source``: "table" or "can" (the sentence's words and fix); ``engine``: the
+    drive is a vehicle's engine (a fixed-ratio drive's input, an idling reducer's few N m, is no kN m mistake)."""
 
     def col(name):
         has = columns.has(name) if hasattr(columns, "has") else name in columns
@@ -284,6 +311,8 @@ def record_findings(
     if speed is not None and torque is not None:
         out.append(torque_sign_finding(speed, torque, gear, dt_s, min_torque_nm, source))
         out.append(torque_percent_finding(speed, torque, gear, dt_s, source))
+        if engine:
+            out.append(torque_knm_finding(speed, torque, gear, dt_s, source))
     return [f for f in out if f is not None]
 
 
@@ -306,7 +335,7 @@ def table_record_findings(out, min_torque_nm: float | None = None, source: str =
     # the 0.1 s steps its reject counters count
     dt_s = float(meta.get("row_period_s") or STEP_S) if held else STEP_S
     steps = int(round(meta["steps"] * meta["step_s"] / STEP_S)) if held else out.n
-    found: list = record_findings(out, dt_s, min_torque_nm, source)
+    found: list = record_findings(out, dt_s, min_torque_nm, source, bool(meta.get("engine_drive", True)))
     rejects = {
         k[len("rejects_") :]: int(out[k][-1])
         for k in out.columns

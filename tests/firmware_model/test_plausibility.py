@@ -102,6 +102,22 @@ def test_torque_in_percent_is_found_and_a_coast_is_not():
     assert torque_percent_finding(rpm[:1800], torque[:1800] / 30.0, gear[:1800]) is None  # 3 min: too short
 
 
+def test_torque_in_kn_m_is_found_a_coast_and_a_reducer_are_not():
+    """A loaded drive's torque written in kN m (peak 2.7) hid a real warning behind exit 0; a coast at 0 N m, a
+    short record and a fixed-ratio drive's idling input are no such mistake."""
+    from firmware_model.service.plausibility import record_findings, torque_knm_finding
+
+    rpm, torque, gear = _drive(10)
+    f = torque_knm_finding(rpm, torque / 1000.0, gear)
+    assert f is not None and f.likely == "kN m" and "x 1000" in f.sentence and "peak 2.7" in f.sentence
+    assert torque_knm_finding(rpm, torque, gear) is None
+    assert torque_knm_finding(rpm, np.zeros(rpm.size), gear) is None  # a coast, fuel cut: nothing to judge
+    assert torque_knm_finding(rpm[:1800], torque[:1800] / 1000.0, gear[:1800]) is None  # 3 min: too short
+    cols = {"engine_speed_rpm": rpm, "engine_torque_nm": torque / 1000.0, "gear": gear}
+    assert [x.likely for x in record_findings(cols, DT)] == ["kN m"]
+    assert record_findings(cols, DT, engine=False) == []
+
+
 def test_a_held_low_load_is_not_taken_for_percent():
     """A rig's steady point at 60 or 100 N m (with a few N m of noise) is an honest light load, not percent: the
     rule needs a load that varies like a drive."""

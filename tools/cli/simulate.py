@@ -281,7 +281,7 @@ def _refuse_unit_mistakes(table, name: str, oil_used: bool = False, sparse_ok: b
     speed = unit_findings(0, 0, [], table["engine_speed_rpm"], table["engine_torque_nm"], engine=engine)
     # the whole-record rules (oil only when the plant takes it as its sump: --cooler measured)
     cols = {c: table[c] for c in table.columns if c != "oil_temp_c" or oil_used}
-    whole = record_findings(cols, float(np.median(np.diff(t)))) if t.size > 1 else []
+    whole = record_findings(cols, float(np.median(np.diff(t))), engine=engine) if t.size > 1 else []
     if speed or whole:
         raise InputError(f"{name}: {(speed + whole)[0].sentence} (pass --allow-untrusted to simulate it as it is)")
 

@@ -454,7 +454,8 @@ def _refuse_implausible(table: RunTable, t: np.ndarray, name: str) -> None:
     or kelvin, torque negated or in percent): a fit to it would explain a unit mistake by a gearbox effect."""
     from firmware_model.service.plausibility import record_findings
 
-    found = record_findings(table, float(np.median(np.diff(t))))
+    engine = (getattr(table, "meta", None) or {}).get("drive") != "fixed_ratio"
+    found = record_findings(table, float(np.median(np.diff(t))), engine=engine)
     if found:
         raise InputError(f"{name}: {found[0].sentence}")
 
