@@ -292,6 +292,32 @@ def torque_knm_finding(
     )
 
 
+#: the ambient and coolant temperatures the sensor takes (firmware_model.onboard.records.SensorOptions.aux_range_c);
+#: outside, it uses its default. A column outside on more than AUX_OUT_SHARE of its finite rows is a unit mistake.
+AUX_COLUMNS_C, AUX_RANGE_C, AUX_OUT_SHARE = ("ambient_temp_c", "coolant_temp_c"), (-60.0, 150.0), 0.5
+
+
+def aux_unit_finding(name: str, values_c) -> PlausibilityFinding | None:
+    """The ambient or coolant column ``name`` mostly outside AUX_RANGE_C: the sensor replaced it by its default
+    (e.g. a coolant in kelvin: the warning its heat would give is gone)."""
+    x = _finite(values_c)
+    x = x[np.isfinite(x)]
+    if x.size == 0:
+        return None
+    lo, hi = AUX_RANGE_C
+    out = (x < lo) | (x > hi)
+    if out.mean() <= AUX_OUT_SHARE:
+        return None
+    med = float(np.median(x))
+    likely = "kelvin" if lo + 273.15 <= med <= hi + 273.15 else "another unit"
+    return PlausibilityFinding(
+        name,
+        "K" if likely == "kelvin" else "unit",
+        f"column {name} lies outside {lo:g}..{hi:g} degC on {pct(int(out.sum()), out.size)} of its rows (median "
+        f"{med:.1f}): it looks like {likely}, and the sensor used its default in its place; give degC",
+    )
+
+
 def record_findings(
     columns, dt_s: float = STEP_S, min_torque_nm: float | None = None, source: str = "table", engine: bool = True
 ) -> list[PlausibilityFinding]:
@@ -313,6 +339,8 @@ def record_findings(
         out.append(torque_percent_finding(speed, torque, gear, dt_s, source))
         if engine:
             out.append(torque_knm_finding(speed, torque, gear, dt_s, source))
+    if source == "table":  # (a CAN source decodes them in degC, its range checked by the decoder)
+        out.extend(aux_unit_finding(c, col(c)) for c in AUX_COLUMNS_C if col(c) is not None)
     return [f for f in out if f is not None]
 
 

@@ -167,3 +167,17 @@ def test_a_held_table_s_reject_counters_are_shares_of_its_0_1_s_steps():
     assert not [f for f in table_record_findings(held) if f.kind == "repair"]
     rows = RunTable(dict(cols))  # the same counters on a table stepped at 0.1 s rows: 300 % of its steps
     assert [f for f in table_record_findings(rows) if f.kind == "repair"]
+
+
+def test_an_ambient_or_coolant_in_kelvin_is_found_honest_ones_are_not():
+    """A coolant in kelvin was replaced by the sensor's default with a vague note and exit 0 (the sun wheel's warning
+    gone); now named, with its likely unit."""
+    from firmware_model.service.plausibility import aux_unit_finding, record_findings
+
+    hot = np.linspace(85.0, 95.0, 600)
+    f = aux_unit_finding("coolant_temp_c", hot + 273.15)
+    assert f is not None and f.likely == "K" and "kelvin" in f.sentence and "coolant_temp_c" in f.sentence
+    assert aux_unit_finding("coolant_temp_c", hot) is None
+    assert aux_unit_finding("ambient_temp_c", np.r_[np.full(10, 400.0), np.full(90, 20.0)]) is None  # a few glitches
+    assert [x.likely for x in record_findings({"ambient_temp_c": hot * 0 + 293.0}, DT)] == ["K"]
+    assert record_findings({"ambient_temp_c": hot * 0 + 293.0}, DT, source="can") == []
