@@ -238,10 +238,15 @@ def test_a_cycle_in_milliseconds_or_rad_s_is_refused_before_it_runs(tmp_path, ca
             "gear": np.full(t20.size, 9.0),
         }
     )
+    # an oil column in degF: not the sump (no --cooler measured), but every node's start without --initial-temp
+    degf = RunTable(
+        {**{c: ms20[c] for c in ms20.columns}, "time_s": t20, "oil_temp_c": np.linspace(176, 187, t20.size)}
+    )
     for name, tab, words in (
         ("ms", ms, "if time_s is in milliseconds, give seconds"),
         ("rads", rads, "in rad/s?"),
         ("ms20", ms20, "if time_s is in milliseconds, give seconds"),
+        ("degf", degf, "the oil looks like degF"),
     ):
         path = write_run_table(tab, tmp_path / f"{name}.csv")
         out = tmp_path / f"{name}_run.csv"

@@ -213,7 +213,9 @@ def run(args) -> int:
         )
         fixed_ratio = table.meta.get("drive") == "fixed_ratio"
         if cycle_file is not None and not args.allow_untrusted:
-            _refuse_unit_mistakes(table, cycle_file, oil_used=s.cooler == "measured", sparse_ok=fixed_ratio)
+            # the oil column is used as the sump (--cooler measured) or, without --initial-temp, as every node's start
+            oil_used = s.cooler == "measured" or (s.initial_temp_c is None and table.has("oil_temp_c"))
+            _refuse_unit_mistakes(table, cycle_file, oil_used=oil_used, sparse_ok=fixed_ratio)
         if fixed_ratio:  # one output row per input row of a table slower than the output period (a SCADA table)
             s.out_dt_s = max(s.out_dt_s, table.meta["row_period_s"])
         plant = ReferencePlant(params, effects, cooler=s.cooler, dt_s=s.dt_s)
