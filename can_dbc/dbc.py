@@ -164,6 +164,18 @@ def load_dbc(source: CanDatabase | str | Path | None = None) -> CanDatabase:
     return CanDatabase(database)
 
 
+@functools.lru_cache(maxsize=8)
+def for_components(components: tuple) -> CanDatabase:
+    """The DBC of a gearbox whose published components are ``components`` (ids in CAN order): the shipped one when
+    they are the GRS905's, else the one can_dbc.generate lays out for them (as `gearbox-vsensor export-dbc` writes
+    it; the signal comments name the ids only). GenerateError when they cannot be laid out."""
+    from can_dbc.generate import generate_dbc
+
+    if tuple(components) == tuple(shipped().published_components()):
+        return shipped()
+    return load_dbc(generate_dbc(list(components)))
+
+
 def message(name: str):
     """The shipped DBC's message ``name`` (a cantools ``Message``)."""
     return shipped().message(name)

@@ -43,14 +43,22 @@ def _opt_float(x) -> float | None:
 
 def _codecs(options: ServiceOptions, published: tuple) -> tuple[J1939Decoder, OutputEncoder]:
     """The decoder and encoder the options describe; their ConfigErrors become ParameterErrors."""
+    from can_dbc.dbc import for_components
+    from can_dbc.generate import GenerateError
+
+    try:
+        database = for_components(tuple(published))  # the gearbox's frames (the GRS905's: the shipped DBC)
+    except GenerateError as exc:
+        raise ParameterError(f"its CAN frames: {exc}") from None
     try:
         decoder = J1939Decoder(
             expected_sa=options.expected_sa,
             retarder_ref_torque_nm=options.retarder_ref_torque_nm,
             configured_ref_torque_nm=options.configured_ref_torque_nm,
             rig=options.rig,
+            database=database,
         )
-        encoder = OutputEncoder(options.sensor_source_address)
+        encoder = OutputEncoder(options.sensor_source_address, database=database)
     except ConfigError as exc:
         raise ParameterError(f"can: {exc}") from None
     if tuple(encoder.components) != tuple(published):

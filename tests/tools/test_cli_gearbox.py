@@ -330,3 +330,27 @@ def test_a_trucks_named_cycle_on_a_fixed_ratio_gearbox_is_one_sentence(tmp_path,
     err = _one_sentence(capsys, "simulate")
     assert "truck" in err and "fixed_ratio" in err and "input_speed_rpm" in err
     assert not out.exists()
+
+
+def test_a_gearbox_s_own_can_log_replays_with_its_own_frames(tmp_path):
+    """simulate --gearbox HR225 --can-log, then replay of that log: it was one internal sentence ("the DBC's
+    per-component signals ... are not the sensor's published components") for every gearbox but the GRS905's. Now
+    the sensor sends and reads the frames of its gearbox's DBC (export-dbc's): the log's replay follows the plant,
+    and the frames it sends decode with that DBC."""
+    from can_dbc.readback import decode_outputs
+    from tools.replay.formats import read_log
+
+    table = _fixed_ratio_table(tmp_path / "hr.csv", 1480.0, 600.0)
+    log, plant = tmp_path / "hr.log", tmp_path / "plant.csv"
+    argv = ["simulate", "--gearbox", "HR225", "--cycle", str(table), "--out", str(plant), "--can-log", str(log)]
+    assert main([*argv, "--quiet"]) == 0
+    est, frames, dbc = tmp_path / "est.csv", tmp_path / "out.log", tmp_path / "hr225.dbc"
+    rc = main(["replay", str(log), "--gearbox", "HR225", "--out", str(est), "--frames-out", str(frames), "--quiet"])
+    assert rc in (0, 3)
+    es, pl = read_run_table(est, required=("time_s",)), read_run_table(plant)
+    assert "T_P_c" in es.columns and "T_LI.teeth_c" not in es.columns
+    assert np.max(np.abs(es["T_P_c"][-1] - np.interp(es["time_s"][-1], pl["time_s"], pl["T_P_c"]))) < 1.0
+    assert main(["export-dbc", "--gearbox", "HR225", "--out", str(dbc)]) == 0
+    decoded = decode_outputs(list(read_log(frames)), database=dbc)
+    temps = decoded["temps_c"]
+    assert {"P", "oil"} <= set(temps) and abs(temps["P"] - es["T_P_c"][-1]) < 0.1

@@ -198,6 +198,7 @@ def replay_log_file(
         if writer is not None:
             with naming(frames_out):
                 writer.stop()
+    table.meta["limits"] = service.sensor.limits  # the summary's margins: this gearbox's limits, not the GRS905's
     with naming(out):
         written = write_run_table(table, out)
     return LogReplay(
