@@ -207,13 +207,18 @@ def _run_scada(args) -> int:
     from tools.fleet.store import write_atomic
     from tools.progress import progress
     from tools.scada.diagnose import setup_of
-    from tools.scada.fleet import fit_fleet, flag_units
+    from tools.scada.fleet import MIN_UNITS, fit_fleet, flag_units
     from tools.scada.reader import read_units
 
     if args.scheduler or args.workers or args.diagnose or args.manifest:
         raise InputError("--scheduler, --workers, --diagnose and --manifest are for CAN logs, not with --columns")
     cfg = resolve_gearbox(args, load_config(args.config))
-    records = read_units(_scada_files(args.logs), args.columns)
+    if Path(args.out).exists() and not Path(args.out).is_dir():
+        raise InputError(f"--out {args.out} is a file; the fleet writes a folder (health/*.parquet) there")
+    skipped: list = []
+    records = read_units(_scada_files(args.logs), args.columns, skipped)
+    for path, why in skipped:
+        print(f"skipped {path}: {why}", file=sys.stderr)
     setup, notes = setup_of(cfg, next(iter(records.values())).cmap)
     for note in notes:
         print(f"note: {note}", file=sys.stderr)
@@ -254,6 +259,17 @@ def _run_scada(args) -> int:
     )
     for f in flags:
         print(f"  {f.vehicle}: {f.effect} from {f.start}: {f.reason}")
+    if len(records) < MIN_UNITS:
+        print(
+            f"note: {len(records)} unit{'s' if len(records) != 1 else ''}: a unit is flagged against its siblings' "
+            f"median, which needs at least {MIN_UNITS}; none could be flagged",
+            file=sys.stderr,
+        )
+    if skipped:
+        write_atomic(
+            pa.Table.from_pylist([{"file": str(p), "error": why} for p, why in skipped]), root / "errors.parquet"
+        )
+        print(f"note: {len(skipped)} file(s) could not be read (above; {root / 'errors.parquet'})", file=sys.stderr)
     return 0
 
 

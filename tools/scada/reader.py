@@ -218,14 +218,27 @@ def _split_units(f: FileRows) -> dict[str, FileRows]:
     return out
 
 
-def read_units(paths: Iterable[str | Path], columns: str | Path | ColumnMap = "engie") -> dict[str, ScadaRecord]:
-    """Every unit's record in ``paths`` (the unit from the map's unit column), each unit's files joined in time."""
+def read_units(
+    paths: Iterable[str | Path], columns: str | Path | ColumnMap = "engie", skipped: list | None = None
+) -> dict[str, ScadaRecord]:
+    """Every unit's record in ``paths`` (the unit from the map's unit column), each unit's files joined in time;
+    ``skipped``: a list that takes (path, sentence) of each file that cannot be read, which is then left out (a
+    fleet's folder), instead of the InputError."""
     cmap = columns if isinstance(columns, ColumnMap) else load_column_map(columns)
     by_unit: dict[str, list[FileRows]] = {}
     for path in paths:
-        for unit, part in _split_units(read_file(path, cmap)).items():
+        try:
+            rows = read_file(path, cmap)
+        except InputError as exc:
+            if skipped is None:
+                raise
+            skipped.append((Path(path), str(exc)))
+            continue
+        for unit, part in _split_units(rows).items():
             by_unit.setdefault(unit, []).append(part)
     if not by_unit:
+        if skipped:
+            raise InputError(f"none of the {len(skipped)} files could be read (the first: {skipped[0][1]})")
         raise InputError("no SCADA file given")
     return {u: _record(u, parts, cmap) for u, parts in sorted(by_unit.items())}
 

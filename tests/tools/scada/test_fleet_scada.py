@@ -90,6 +90,18 @@ def test_fleet_columns_writes_the_fits_and_the_flags_of_a_folder(tmp_path):
     ]
     assert pq.read_table(tmp_path / "out" / "health" / "flags.parquet").num_rows == 0
     assert "2 units" in p.stdout and "unit-months" in p.stdout
+    # two units cannot be flagged, and the output says so (it read as healthy)
+    assert "2 units: a unit is flagged against its siblings' median, which needs at least 3" in p.stderr
+    # a file that is no SCADA record is skipped, named and listed; the rest is read (it stopped the whole run)
+    (data / "notes.csv").write_text("a,b\n1,2\n")
+    p = subprocess.run([*cmd, "--out", str(tmp_path / "o3")], cwd=REPO, capture_output=True, text=True, timeout=600)
+    assert p.returncode == 0 and "skipped" in p.stderr and "notes.csv" in p.stderr, p.stderr
+    errors = pq.read_table(tmp_path / "o3" / "health" / "errors.parquet").to_pylist()
+    assert [r["file"].endswith("notes.csv") for r in errors] == [True] and "2 units" in p.stdout
+    (tmp_path / "a_file").write_text("")
+    p = subprocess.run([*cmd, "--out", str(tmp_path / "a_file")], cwd=REPO, capture_output=True, text=True)
+    assert p.returncode == 2 and "is a file; the fleet writes a folder" in p.stderr
+    (data / "notes.csv").unlink()
     # --period-days N: spans of N days instead of calendar months (each needs MIN_BLOCKS blocks: a sixth of it)
     p = subprocess.run(
         [*cmd, "--period-days", "2", "--out", str(tmp_path / "o1")], cwd=REPO, capture_output=True, text=True
