@@ -132,7 +132,12 @@ def _number(cell: str) -> float:
 def read_file(path: str | Path, cmap: ColumnMap) -> FileRows:
     """One file's rows (see the module's docstring for what is dropped and counted)."""
     path = Path(path)
-    reader = csv.reader(open_text(path))
+    text = open_text(path)
+    first = text.readline()
+    text.seek(0)
+    # ENGIE's own export separates with ";" (and may write decimal commas): the same columns, read as they are
+    semicolon = ";" in first and "," not in first
+    reader = csv.reader(text, delimiter=";" if semicolon else ",")
     header = next(reader, None)
     if not header:
         raise InputError(f"{path.name}: empty, not a SCADA file of the column map {cmap.name}")
@@ -159,9 +164,19 @@ def read_file(path: str | Path, cmap: ColumnMap) -> FileRows:
             continue
         times.append(t)
         units.append(row[idx[cmap.unit_column]].strip() if cmap.unit_column else path.stem)
-        rows.append([_number(row[idx[c]]) for c in value_cols])
+        if semicolon:
+            rows.append([_number(row[idx[c]].replace(",", ".")) for c in value_cols])
+        else:
+            rows.append([_number(row[idx[c]]) for c in value_cols])
     if not times:
-        raise InputError(f"{path.name}: no row with a readable time stamp ({cmap.time_column}), no SCADA data")
+        example = next((r[idx[cmap.time_column]] for r in _rows_of(path, semicolon, len(header))), "")
+        plain = cmap.time_kind == "iso8601_offset" and parse_time(example + "+00:00", cmap.time_kind) is not None
+        raise InputError(
+            f"{path.name}: its time stamps ({cmap.time_column}, e.g. {example!r}) have no UTC offset: give them with "
+            "theirs (2017-01-01T00:10:00+01:00); a stamp in local time without one is ambiguous"
+            if plain
+            else f"{path.name}: no row with a readable time stamp ({cmap.time_column}), no SCADA data"
+        )
     arr = np.array(rows, dtype=float).reshape(len(rows), len(value_cols))
     return FileRows(
         path=path,
@@ -170,6 +185,13 @@ def read_file(path: str | Path, cmap: ColumnMap) -> FileRows:
         raw={c: arr[:, i] for i, c in enumerate(value_cols)},
         counts=counts,
     )
+
+
+def _rows_of(path: Path, semicolon: bool, width: int):
+    """The data rows of a file with ``width`` fields (a second pass, for a sentence's example)."""
+    reader = csv.reader(open_text(path), delimiter=";" if semicolon else ",")
+    next(reader, None)
+    return (r for r in reader if len(r) == width)
 
 
 def _order(parts: list[FileRows], counts: dict[str, int]) -> tuple[np.ndarray, dict[str, np.ndarray]]:
@@ -247,5 +269,8 @@ def read_record(paths: Iterable[str | Path], columns: str | Path | ColumnMap = "
     """The one unit's record in ``paths``; files of several units raise an InputError naming them."""
     recs = read_units(paths, columns)
     if len(recs) > 1:
-        raise InputError(f"the files hold {len(recs)} units ({', '.join(recs)}), not one: read them with read_units")
+        raise InputError(
+            f"the files hold {len(recs)} units ({', '.join(repr(u) for u in recs)}), not one: give one unit's files "
+            "(the fleet command reads several units)"
+        )
     return next(iter(recs.values()))

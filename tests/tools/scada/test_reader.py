@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import gzip
 import math
+import re
 from datetime import datetime, timedelta, timezone
 
 import numpy as np
@@ -284,3 +285,24 @@ def test_a_map_with_time_in_seconds_and_no_unit_column_names_the_unit_after_the_
     lines = [row(repr(1.5e9 + 600.0 * k)) for k in range(5)] + [row("soon")]
     rec = read_record([write(tmp_path / "rig7.csv", lines)], tmp_path / "s.toml")
     assert rec.unit == "rig7" and rec.n == 5 and rec.counts["bad_time"] == 1 and rec.time_s[0] == 1.5e9
+
+
+def test_engie_s_semicolon_export_with_decimal_commas_reads_as_the_comma_file(tmp_path, two_files):
+    """ENGIE's own export separates with ';' (and a European locale writes decimal commas): the same record. A file
+    whose stamps all lack their UTC offset says so (it said 'no row with a readable time stamp')."""
+    fa, fb, _ = two_files
+    want = read_record([fb])
+    lines = fb.read_text().splitlines()
+    semi = tmp_path / "b_semicolon.csv"
+    semi.write_text("\n".join(";".join(c.replace(".", ",") for c in ln.split(",")) for ln in lines) + "\n")
+    got = read_record([semi])
+    assert got.n == want.n and got.counts == want.counts
+    for k in want.values:
+        np.testing.assert_array_equal(got.values[k], want.values[k], err_msg=k)
+    bare = tmp_path / "bare.csv"
+    bare.write_text("\n".join([lines[0]] + [re.sub(r"[+-]\d\d:\d\d,", ",", ln, count=1) for ln in lines[1:]]) + "\n")
+    with pytest.raises(InputError, match=r"bare.csv: its time stamps \(Date_time, e.g. '2017-03-26T0"):
+        read_record([bare])
+    two = write(tmp_path / "two.csv", [row(datetime(2017, 5, 1, tzinfo=timezone.utc), unit=u) for u in ("A", "B")])
+    with pytest.raises(InputError, match=r"2 units \('A', 'B'\), not one: give one unit's files"):
+        read_record([two])
