@@ -115,6 +115,8 @@ REJECT_REASONS = {
     "tp_other_pgn": "a BAM announce, or its TP.DT packets, of a PGN the sensor does not use",
     "tp_no_session": "a TP.DT packet with no open BAM transfer from its source address",
     "tp_sequence_error": "a TP.DT packet out of sequence; the transfer is aborted",
+    "tp_duplicate": "a TP.DT packet that repeats the previous one from its source byte for byte (a logger or gateway "
+    "that copies frames); ignored, the transfer goes on",
     "tp_timeout": "a TP.DT packet more than 750 ms after the previous packet (or time going backwards); aborted",
 }
 _SEVERITY = {"out_of_range": 3, "error_value": 2, "not_available": 1}
@@ -313,6 +315,7 @@ class J1939Decoder:
                 )
                 self._routes[db.message_pgn(name)] = _Route(RIG_KEY, params)
         self._sessions: dict[int, _Bam] = {}
+        self._last_dt: dict[int, bytes] = {}  # the last TP.DT packet taken from each source (its repeat is ignored)
         self.counters: dict = {
             "frames_seen": 0,
             "frames_used": 0,
@@ -536,6 +539,7 @@ class J1939Decoder:
         else:
             reason = None
         self._sessions[sa] = _Bam(pgn, size_bytes, packets, 1, timestamp_s, bytearray(), reason)
+        self._last_dt.pop(sa, None)  # a new transfer: its packets repeat no earlier one
         self.counters["tp"]["started"] += 1
         return reason
 
@@ -546,6 +550,8 @@ class J1939Decoder:
             return "tp_not_broadcast"
         if not eight:
             return "wrong_dlc"  # the transfer stays open; its next packet will be out of sequence
+        if self._last_dt.get(sa) == bytes(data):
+            return "tp_duplicate"
         session = self._sessions.get(sa)
         if session is None:
             return "tp_no_session"
@@ -558,6 +564,7 @@ class J1939Decoder:
             return "tp_sequence_error"
         session.next_seq += 1
         session.last_timestamp_s = timestamp_s
+        self._last_dt[sa] = bytes(data)
         if session.reason is None:
             session.buf += data[1:8]
         if session.next_seq <= session.packets:

@@ -330,10 +330,23 @@ def test_out_of_order_packet_aborts_the_transfer_cleanly():
     assert feed_all(d, bam(ec1_payload(1109), t0=20.0)) == [("engine_ref_torque_nm", 1109.0)]  # next one is fine
 
 
-def test_duplicate_and_missing_packets_are_sequence_errors():
+def test_a_repeated_packet_is_ignored_a_changed_or_missing_one_is_a_sequence_error():
+    """A TP.DT packet repeated byte for byte (a logger or gateway that copies frames: every line of a log twice lost
+    the engine's reference torque) is ignored and counted; the same sequence number with other data, or a missing
+    packet, aborts the transfer."""
     frames = bam(ec1_payload(1109))
     d = J1939Decoder()
-    assert feed_all(d, frames[:3] + [frames[2]] + frames[3:]) == []
+    assert feed_all(d, frames[:3] + [frames[2]] + frames[3:]) == [("engine_ref_torque_nm", 1109.0)]
+    assert d.counters["rejected"] == {"tp_duplicate": 1}
+    d = J1939Decoder()
+    assert feed_all(d, [f for f in frames for _ in (0, 1)]) == [("engine_ref_torque_nm", 1109.0)]
+    changed = can.Message(
+        arbitration_id=frames[2].arbitration_id,
+        data=bytes([frames[2].data[0]]) + bytes(7),
+        timestamp=frames[2].timestamp,
+    )
+    d = J1939Decoder()
+    assert feed_all(d, frames[:3] + [changed] + frames[3:]) == []
     assert d.counters["rejected"]["tp_sequence_error"] == 1
     d = J1939Decoder()
     assert feed_all(d, frames[:2] + frames[3:]) == []
@@ -509,6 +522,9 @@ def random_frames(n, seed):
             if rng.random() < 0.3:
                 i = rng.randrange(1, len(transfer) - 1)
                 transfer[i], transfer[i + 1] = transfer[i + 1], transfer[i]
+            if rng.random() < 0.1:  # a packet copied by a gateway
+                i = rng.randrange(1, len(transfer))
+                transfer.insert(i + 1, transfer[i])
             transfers.append(len(transfer))
             out.extend(transfer)
             t = transfer[-1].timestamp
