@@ -6,6 +6,7 @@ key and why, exit 2 through `gearbox-vsensor describe`."""
 from __future__ import annotations
 
 import math
+import re
 
 import pytest
 
@@ -624,3 +625,16 @@ def test_what_the_pumped_oil_reaches_comes_from_the_description(tmp_path):
     n0, n1 = N.build_network(load_parameters("GRS905")), N.build_network(load_parameters(tmp_path / "jets.toml"))
     assert set(n0.link_name) - set(n1.link_name) == {"oilsys:MS@PS", "oilsys:BIM", "oilsys:CB"}
     assert set(n1.link_name) <= set(n0.link_name)
+
+
+def test_describe_checks_the_parameter_values_as_every_command_does(tmp_path, capsys):
+    """describe exited 0 on a copy with a steel cp of 0 or a value outside its bounds, which simulate and replay
+    refuse: now the same sentence."""
+    text = (PARAM_DIR / "R1.toml").read_text()
+    line = next(ln for ln in text.splitlines() if ln.startswith("cp = ") and "J/(kg K)" in ln)
+    bad = tmp_path / "cp0.toml"
+    bad.write_text(text.replace(line, re.sub(r"v = [0-9.eE+-]+", "v = 0", line, count=1), 1))
+    assert main(["describe", "--gearbox", str(bad)]) == 2
+    err = capsys.readouterr().err
+    assert "cp0.toml" in err and "must be greater than zero" in err and len(err.strip().splitlines()) == 1
+    assert main(["describe", "--gearbox", "R1"]) == 0

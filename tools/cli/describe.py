@@ -23,8 +23,8 @@ def add_subparser(sub):
         "--gearbox",
         default="GRS905",
         metavar="NAME|FILE",
-        help="a description shipped in firmware_model/params/ (GRS905, GRSO905) or the path of a .toml file "
-        "(default: GRS905)",
+        help="a description shipped in firmware_model/params/ (GRS905, GRSO905, HR225, MM82, R1) or the path of a "
+        ".toml file (default: GRS905)",
     )
     p.set_defaults(func=run)
 
@@ -109,8 +109,12 @@ def _summary_rest(d) -> list[str]:
 
 
 def run(args) -> int:
-    from firmware_model.description import load_description
+    from firmware_model.description import description_of, load_description
+    from firmware_model.parameters import load_parameters
 
-    d = load_description(args.gearbox)
+    load_description(args.gearbox)  # the description's own sentences first (a missing [topology], a bad key)
+    # then its parameter values, as every other command loads them (a cp of 0, a value outside its bounds, a unit
+    # typo: one sentence here too)
+    d = description_of(load_parameters(args.gearbox))
     print("\n".join(summary(d)))
     return 0
