@@ -58,10 +58,9 @@ class ThinEvidence:
         f = self.best.fit
         e = CATALOG[f.effect]
         unit = f" {e.unit}" if e.unit != "-" else ""
-        return (
-            f"{f.effect} ({e.param} fitted {f.value:.3g}{unit}) would cut the test RMS "
-            f"{self.test_rms_before_c:.2f} -> {self.test_rms_after_c:.2f} K"
-        )
+        before, after = self.test_rms_before_c, self.test_rms_after_c
+        verb = "would cut" if after < before else "would not cut"  # (held out, the best candidate may do harm)
+        return f"{f.effect} ({e.param} fitted {f.value:.3g}{unit}) {verb} the test RMS {before:.2f} -> {after:.2f} K"
 
 
 @dataclass(frozen=True)

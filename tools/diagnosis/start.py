@@ -22,6 +22,9 @@ from tools.diagnosis.models import Run
 from tools.diagnosis.options import HOUSING_PERTURB_C, OIL, OIL_RIG, Options
 from tools.diagnosis.scoring import box_lsq
 
+#: how a user asks for files that start running (the configuration's key; the command line's hidden option too)
+RUNNING = '[diagnosis] start = "running" in the --config (or --start running)'
+
 
 @dataclass(frozen=True)
 class StartOf:
@@ -185,7 +188,7 @@ def judge(ds, resid: list, sens: list, sens_h: list, w: list, sigma: dict, opts:
             ds.role,
             "rest",
             f"at rest: {house} would fit it better, but it has no oil channel to "
-            f"judge its first minutes by; if it was cut from a drive, use --start running",
+            f"judge its first minutes by; if it was cut from a drive, set {RUNNING}",
             beta,
             ev,
         )
@@ -196,7 +199,7 @@ def judge(ds, resid: list, sens: list, sens_h: list, w: list, sigma: dict, opts:
             "rest",
             f"at rest: {house} would fit it better, but its first minutes fit a "
             f"start at rest (no real gap before the burn-in); if it begins after a short stop, try "
-            f"--start running",
+            f"{RUNNING}",
             beta,
             ev,
         )
@@ -279,7 +282,7 @@ def decide_starts(opts: Options, train: list, test: list, records: tuple = ()) -
                 rec = replace(
                     rec,
                     hint=f"{hint}: if it was cut from a longer drive or logged after a short stop, "
-                    f"diagnose with --start running (a running start scored at rest shows a false gap)",
+                    f"diagnose with {RUNNING} (a running start scored at rest shows a false gap)",
                 )
             elif opts.start == "running" and rec.start == "rest":  # asked for, not possible: say so
                 rec = replace(rec, hint=f"--start running was asked, but it is {rec.reason}")
