@@ -21,7 +21,8 @@ def add_subparser(sub):
         formatter_class=argparse.RawDescriptionHelpFormatter,
         description=(
             "Calibrate the model to a gearbox: fit chosen parameters of the parameter file (each must declare "
-            "plausible bounds lo/hi there) to the TRAINING files with the reference plant, and check the result on "
+            "plausible bounds lo/hi there) to the TRAINING files with the reference plant (SCADA records with "
+            "--columns: with the onboard sensor, held over their rows), and check the result on "
             "the TEST files it never saw (see docs/diagnosis.md, 'Calibration').\n\n"
             "1. identifiability: each parameter's signature on every measured channel over half its plausible range, "
             "and which parameters the channels cannot separate;\n"

@@ -100,7 +100,11 @@ def setup_of(config, cmap) -> tuple[Setup, list[str]]:
     published = set(VirtualSensor(config.load_params(), config=config).published)
     tied = {ch: node for ch, node in cmap.nodes.items() if node in published}
     sump = next((ch for ch, node in tied.items() if node == "oil"), None)
-    notes = [f"{ch} is left out: the sensor does not publish {n!r}" for ch, n in cmap.nodes.items() if ch not in tied]
+    notes = [
+        f"{ch} is left out of the fit: {n!r} is not a published component (replay estimates a derived one beside them)"
+        for ch, n in cmap.nodes.items()
+        if ch not in tied
+    ]
     return Setup(config, sump, tuple(ch for ch in tied if ch != sump)), notes
 
 
