@@ -47,17 +47,17 @@ def add_subparser(sub):
         sub,
         "replay",
         summary="run the onboard sensor offline over a run table or a CAN log (10 Hz estimates)",
-        description="Run the onboard virtual sensor (the same pure step as in the truck) over a recorded drive: a "
-        "run table (CSV: time_s, engine_speed_rpm, engine_torque_nm, gear, "
-        "optional oil_temp_c, ambient_temp_c, coolant_temp_c, vehicle_speed_kmh, retarder_torque_nm) "
-        "or a CAN log (.log candump -L, .asc, .blf, .mf4, .trc) decoded like the live service, or a fixed-ratio "
-        "gearbox's SCADA record (--columns MAP: one output row per row, est_<channel> beside each measured one; "
-        "docs/real-data.md). Writes the sensor's output at 10 Hz: the inputs it read, T_<id>_c, W_<id> (0 "
-        "normal, 1 warning, 2 critical, 3 not available), ttl_<id>_s (time to the warning limit with held inputs, empty when "
-        "never) for the gearbox's published components (28 for the GRS905), and the status (degraded, "
-        "degraded_mode, input validity, oil_innovation_c = measured - model oil, model_oil_temp_c, reject "
-        "counters). Bad input values are not errors: the sensor holds, clamps or degrades and counts them. Run tables: "
-        "docs/interfaces.md section 3; component codes: docs/glossary.md.",
+        description="Run the onboard virtual sensor (the same pure step as in the truck) over a recorded drive: "
+        "a run table (CSV: time_s, engine_speed_rpm, engine_torque_nm, gear, optional oil_temp_c, ambient_temp_c, "
+        "coolant_temp_c, vehicle_speed_kmh, retarder_torque_nm) or a CAN log (.log candump -L, .asc, .blf, .mf4, "
+        ".trc) decoded like the live service, or a fixed-ratio gearbox's SCADA record (--columns MAP: one output "
+        "row per row, est_<channel> beside each measured one; docs/real-data.md). Writes the sensor's output at "
+        "10 Hz: the inputs it read, T_<id>_c, W_<id> (0 normal, 1 warning, 2 critical, 3 not available), "
+        "ttl_<id>_s (time to the warning limit with held inputs, empty when never) for the gearbox's published "
+        "components (28 for the GRS905), and the status (degraded, degraded_mode, input validity, "
+        "oil_innovation_c = measured - model oil, model_oil_temp_c, reject counters). Bad input values are not "
+        "errors: the sensor holds, clamps or degrades and counts them. Run tables: docs/interfaces.md section 3; "
+        "component codes: docs/glossary.md.",
         examples=[
             "gearbox-vsensor replay uphill.csv --out est.csv --plot est.png",
             "gearbox-vsensor replay truck.blf --config truck.toml --out est.csv",
