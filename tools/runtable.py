@@ -169,6 +169,11 @@ def read_header(path: Path, name: str) -> list[str]:
             f"{name}: line 1 is a comment ({line.strip()[:40]!r}); a run table starts with its header "
             f"row: remove the comment lines"
         )
+    if line.replace(" ", "").lower().startswith("timestamp,arbitration_id"):
+        raise InputError(
+            f"{name}: is a python-can CSV log of CAN frames, not a run table; replay reads CAN logs as .log, .asc, "
+            f".blf, .mf4 or .trc: convert it first (python -m can.logconvert IN.csv OUT.log)"
+        )
     if line.lstrip().startswith("(") and "#" in line:
         raise InputError(
             f"{name}: holds CAN frames (candump -L), not a run table; a drive cycle or run table is a "

@@ -341,3 +341,33 @@ def test_a_trc_cut_mid_line_is_refused(tmp_path, frames):
     whole = replay(tmp_path / "drive.trc")
     assert cut.meta["malformed"].summary.startswith("1 malformed line skipped (line ")
     assert cut.meta["counters"]["decoder"]["frames_seen"] == whole.meta["counters"]["decoder"]["frames_seen"] - 1
+
+
+def test_a_log_named_for_another_format_says_what_it_is(tmp_path, capsys):
+    """A candump log named .asc ('the log holds no CAN frame'), a BLF named .log ('binary data') and python-can's
+    CSV log (a run table's 'column arbitration_id is not a number') each say what they are and what to do."""
+    import can
+
+    from tools.cli import main
+
+    frames = [can.Message(timestamp=0.1 * i, arbitration_id=0x0CF00400, data=bytes(8)) for i in range(20)]
+    candump = tmp_path / "drive.asc"
+    candump.write_text("".join(f"({m.timestamp:.6f}) can0 0CF00400#{m.data.hex().upper()}\n" for m in frames))
+    blf = tmp_path / "drive.blf"
+    with can.Logger(str(blf)) as log:
+        for m in frames:
+            log.on_message_received(m)
+    blf_named = tmp_path / "drive_blf.log"
+    blf_named.write_bytes(blf.read_bytes())
+    pycsv = tmp_path / "frames.csv"
+    with can.Logger(str(pycsv)) as log:
+        for m in frames:
+            log.on_message_received(m)
+    for path, words in (
+        (candump, "it looks like a candump -L log; name it .log"),
+        (blf_named, "it looks like a BLF log; name it .blf"),
+        (pycsv, "is a python-can CSV log of CAN frames, not a run table"),
+    ):
+        assert main(["replay", str(path), "--out", str(tmp_path / "o.csv")]) == 2
+        err = capsys.readouterr().err
+        assert words in err and len(err.strip().splitlines()) == 1, err

@@ -169,6 +169,28 @@ def read_log(path: str | os.PathLike, damage=None) -> Iterator:
 CANDUMP_LINE = re.compile(r"\s*\(\s*[-+0-9.eE]+\s*\)\s+\S+\s+[0-9A-Fa-f]{1,8}#")
 
 
+#: what a log's first bytes say it is, and the name it should end with
+CONTENT_KINDS = (("a BLF log", ".blf"), ("a candump -L log", ".log"), ("an ASC log", ".asc"))
+
+
+def content_kind(path: Path) -> tuple[str, str] | None:
+    """(what the file's first bytes look like, the suffix that reads it), or None when they look like none of
+    CONTENT_KINDS: a log named for another format says what it is instead of 'no CAN frame'."""
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(4096)
+    except OSError:
+        return None
+    if head[:4] == b"LOGG":
+        return CONTENT_KINDS[0]
+    lines = [ln for ln in head.decode("utf-8", "replace").splitlines()[:20] if ln.strip()]
+    if lines and sum(bool(CANDUMP_LINE.match(ln)) for ln in lines) >= max(1, len(lines) // 2):
+        return CONTENT_KINDS[1]
+    if lines and (lines[0].lower().startswith("date ") or any(ln.lower().startswith("base hex") for ln in lines)):
+        return CONTENT_KINDS[2]
+    return None
+
+
 def first_bad_candump_line(path: Path, max_lines: int = 10_000_000) -> tuple[int, str] | None:
     """(line number, text cut to 60 characters) of the first non-empty line of a candump -L log that is not a frame
     line, or None (the error path of read_log: names the line instead of python-can's unpacking error)."""

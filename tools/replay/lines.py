@@ -136,6 +136,11 @@ def scan_text_log(path: Path, raw: bytes | None = None) -> LogDamage:
         first.decode("utf-8", "replace")[:60],
     )
     if lines and len(bad) == lines:
+        from tools.replay.formats import content_kind
+
+        kind = content_kind(Path(path))
+        if kind is not None and kind[1] != suffix:
+            raise InputError(f"{path}: no CAN frame read as {suffix}: it looks like {kind[0]}; name it {kind[1]}")
         what = "it holds binary data" if damage.binary else f"line {bad[0]}: {damage.first_text!r}"
         raise InputError(
             f"{path}: none of its {lines} lines is a CAN frame ({what}): not a {suffix} text CAN log, "

@@ -124,6 +124,12 @@ def _no_step_reason(path, d: dict) -> str:
     seen, rejected = d.get("frames_seen", 0), d.get("rejected", {})
     reason, count = max(rejected.items(), key=lambda kv: kv[1], default=("", 0))
     if not seen:
+        from tools.replay.formats import content_kind
+
+        kind = content_kind(Path(path))
+        if kind is not None and Path(path).suffix.lower() != kind[1]:
+            as_ = Path(path).suffix or "this type"
+            return f"{path}: no CAN frame read as {as_}: it looks like {kind[0]}; name it {kind[1]}"
         return f"{path}: no sensor step: the log holds no CAN frame (an empty log?)"
     if count == seen and reason in REJECT_REASONS:
         return f"{path}: no sensor step: all {seen} frames were rejected as {REJECT_REASONS[reason]}"
