@@ -98,9 +98,16 @@ class DegradedFinding:
             else ""
         )
         why = f" ({'; '.join(self.causes)})" if self.causes else ""
+        no_oil = any(INPUT_NAMES.get(k) == "oil temperature" and n >= self.steps for k, n in self.missing.items())
+        advice = (
+            ' (no oil reading at all: [sensor] oil_mode = "model", or --oil-mode model, models the oil by request, '
+            "not as a fault)"
+            if no_oil and self.steps
+            else ""
+        )
         return (
             f"the sensor ran degraded on {pct(self.degraded, self.steps)} of {self.steps} steps ({modes}){inputs}"
-            f"{why}: its temperatures rest on held, modelled or default inputs"
+            f"{why}: its temperatures rest on held, modelled or default inputs{advice}"
         )
 
 

@@ -320,3 +320,14 @@ def test_a_message_slower_than_the_staleness_rule_is_named_with_the_stale_factor
     # at its own 20 ms for a quarter of the run, then absent: the same mean period, but no rate to accept
     gaps = input_causes({"arrivals": {"EEC1": 1250}, "tp": {"ec1_received": 20}}, {"engine_speed_rpm": 750}, 1000)
     assert not any("stale_factor" in c for c in gaps), gaps
+
+
+def test_a_run_without_any_oil_reading_is_told_how_to_model_the_oil_by_request():
+    """A table without oil_temp_c is degraded throughout (the oil modelled as a fault); the sentence says how to ask
+    for the model instead. A run missing the oil for part of the time gets no such advice."""
+    from firmware_model.components import MODE_NORMAL, MODE_OIL_MODEL
+    from firmware_model.service.degraded import degraded_finding
+
+    whole = degraded_finding({MODE_OIL_MODEL: 600}, {"oil_valid": 600})
+    part = degraded_finding({MODE_OIL_MODEL: 400, MODE_NORMAL: 200}, {"oil_valid": 400})
+    assert 'oil_mode = "model"' in whole.sentence and "oil_mode" not in part.sentence

@@ -145,8 +145,12 @@ def _reject_line(out) -> str:
             words.append(f"auxiliary inputs not given ({', '.join(absent)}): defaults used, as documented")
         elif not unreferenced and not rejected:
             words.append(f"auxiliary inputs missing or out of range on {aux} steps: defaults used")
+    meta = getattr(out, "meta", None) or {}
+    held = meta.get("steps") is not None and meta.get("step_s") is not None
     for k, v in counts.items():
-        words.append(f"{REJECT_WORDS.get(k, k.replace('_', ' '))}: {v} steps")
+        # a held table's rows stand for many 0.1 s steps, which its counters count: said as time, not as steps
+        amount = f"{v * STEP_S:g} s" if held else f"{v} steps"
+        words.append(f"{REJECT_WORDS.get(k, k.replace('_', ' '))}: {amount}")
     return "rejected or repaired inputs: " + ("; ".join(words) if words else "none")
 
 
