@@ -411,7 +411,6 @@ def replay_csv(path, config_path=None, sensor_options=None) -> CsvReplay:
     from firmware_model.config import load_config
     from firmware_model.description import description_of
     from firmware_model.onboard.sensor import VirtualSensor
-    from firmware_model.service.plausibility import min_torque_nm
 
     cfg = load_config(config_path)
     params = cfg.load_params()
@@ -419,10 +418,19 @@ def replay_csv(path, config_path=None, sensor_options=None) -> CsvReplay:
     options = {**held_options(table), **(sensor_options or {})}
     sensor = VirtualSensor(params, config=cfg, **options)
     out = replay_table(table, sensor)
-    out.meta["min_torque_nm"] = min_torque_nm(sensor)
-    out.meta["engine_drive"] = description_of(params).drive.kind == "vehicle"  # table_findings' speed-unit check
-    out.meta["limits"] = sensor.limits  # the summary's margins: this gearbox's limits, not the GRS905's
+    mark_for_findings(out, sensor)
     return CsvReplay(out, params.variant, sensor.options.oil_mode)
+
+
+def mark_for_findings(out, sensor) -> None:
+    """What :func:`table_findings` and the summary need of the sensor, in ``out.meta``: the torque's lower clamp,
+    whether the drive is a vehicle's engine (the speed-unit and kN m checks) and this gearbox's limits."""
+    from firmware_model.description import description_of
+    from firmware_model.service.plausibility import min_torque_nm
+
+    out.meta["min_torque_nm"] = min_torque_nm(sensor)
+    out.meta["engine_drive"] = description_of(sensor.params).drive.kind == "vehicle"
+    out.meta["limits"] = sensor.limits  # the summary's margins: this gearbox's limits, not the GRS905's
 
 
 def table_findings(out, oil_model: bool = False) -> list:

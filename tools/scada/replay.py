@@ -100,9 +100,8 @@ def replay_record(
     gearbox's parameters in place of the configuration's (a calibration's trial values)."""
     from firmware_model.description import description_of
     from firmware_model.onboard.sensor import VirtualSensor
-    from firmware_model.service.plausibility import min_torque_nm
     from tools.drive_table import map_fixed_ratio
-    from tools.replay.table import held_options, replay_table
+    from tools.replay.table import held_options, mark_for_findings, replay_table
 
     params = config.load_params() if params is None else params
     # an offline batch: the time to limit refreshed every 10 s (the live service: every 1 s), a quarter less time
@@ -136,15 +135,10 @@ def replay_record(
     for name in out.columns:
         if name not in cols and name not in INPUTS:
             cols[name] = out[name]
-    meta = {
-        **out.meta,
-        "unit": record.unit,
-        "t0_utc_s": table.meta["t0_utc_s"],
-        "drive": "fixed_ratio",
-        "engine_drive": d.drive.kind == "vehicle",  # table_findings: no idle-speed rule on a rotor
-        "min_torque_nm": min_torque_nm(sensor),
-    }
-    return ScadaReplay(RunTable(cols, meta=meta, source=f"replay of {record.unit}"), oil_mode, estimated, notes)
+    meta = {**out.meta, "unit": record.unit, "t0_utc_s": table.meta["t0_utc_s"], "drive": "fixed_ratio"}
+    result = RunTable(cols, meta=meta, source=f"replay of {record.unit}")
+    mark_for_findings(result, sensor)  # (a rotor's drive: no idle-speed or kN m rule)
+    return ScadaReplay(result, oil_mode, estimated, notes)
 
 
 #: a record's findings: rows dropped by the reader beyond this share of the rows read; a channel's values rejected
@@ -154,6 +148,11 @@ def replay_record(
 #: shipped MM82 on the three ENGIE turbines' records: |mean| within 3.3 K on every channel, either oil mode.
 DROPPED_WARN_SHARE, IMPLAUSIBLE_WARN_SHARE = 0.05, 0.05
 BIAS_WARN_K, BIAS_UNTRUSTED_K, BIAS_MIN_ROWS = 10.0, 30.0, 36
+
+
+#: the severities of the findings (firmware_model.service.degraded.Severity's values, compared as ints: this room
+#: imports no service module; tests/tools/scada/test_replay_scada.py holds them equal)
+WARNING, UNTRUSTED = 1, 2
 
 
 @dataclass(frozen=True)
@@ -169,7 +168,6 @@ def record_findings(record: ScadaRecord, result: ScadaReplay) -> list:
     """The trust findings of a SCADA replay, most severe first: the sensor's on its output table (degraded share,
     repairs: tools.replay.table.table_findings), rows the reader dropped, channels mostly rejected as implausible
     (a column in another unit than its map says), and measured channels whose estimate is far off on average."""
-    from firmware_model.service.degraded import Severity
     from tools.replay.table import table_findings
 
     found = list(table_findings(result.table, oil_model=result.oil_mode == "model"))
@@ -181,7 +179,7 @@ def record_findings(record: ScadaRecord, result: ScadaReplay) -> list:
         found.append(
             RecordFinding(
                 "rows",
-                Severity.WARNING,
+                WARNING,
                 f"{sum(dropped.values())} of {read} rows were dropped ({why}): the "
                 "outputs leave them out (bad time: a stamp without its UTC offset or that does not parse)",
             )
@@ -194,7 +192,7 @@ def record_findings(record: ScadaRecord, result: ScadaReplay) -> list:
             found.append(
                 RecordFinding(
                     "units",
-                    Severity.UNTRUSTED,
+                    UNTRUSTED,
                     f"{name} ({', '.join(ch.columns)}): {bad} of {record.n} "
                     f"rows outside its plausible range {lo:g}..{hi:g} ({ch.unit} in the map): is the column "
                     "in another unit?",
@@ -209,7 +207,7 @@ def record_findings(record: ScadaRecord, result: ScadaReplay) -> list:
             found.append(
                 RecordFinding(
                     "units",
-                    Severity.UNTRUSTED if abs(bias) > BIAS_UNTRUSTED_K else Severity.WARNING,
+                    UNTRUSTED if abs(bias) > BIAS_UNTRUSTED_K else WARNING,
                     f"{name}: the estimate is {bias:+.1f} K off its readings on average over {e.size} rows: "
                     + (
                         "a unit or a channel of the column map is wrong (an input in degF or kelvin, a reading tied "

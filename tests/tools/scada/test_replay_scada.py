@@ -252,3 +252,11 @@ def test_the_modelled_sump_starts_at_the_first_reading_of_the_first_hour_and_one
     two = read_run_table(tmp_path / "two_est.csv", required=("time_s",))
     assert head.returncode == 0 and one.n == 1 and one["time_s"][0] == two["time_s"][0] == 600.0
     assert one["est_Gb1t_avg"][0] == two["est_Gb1t_avg"][0]
+
+
+def test_the_record_findings_severities_are_the_service_s():
+    """tools.scada imports no service module: its two severities are Severity's values, written again here."""
+    from firmware_model.service.degraded import Severity
+    from tools.scada import replay
+
+    assert (replay.WARNING, replay.UNTRUSTED) == (Severity.WARNING, Severity.UNTRUSTED)
