@@ -236,16 +236,21 @@ def torque_sign_finding(
     )
 
 
+def _driven_torque(speed_rpm, torque_nm, gear, dt_s: float) -> np.ndarray | None:
+    """The torque of the driving steps, or None when they last under PERCENT_MIN_DRIVE_S (too short to judge)."""
+    torque = _finite(torque_nm)
+    drive = _driving(speed_rpm, gear, torque.size) & np.isfinite(torque)
+    return torque[drive] if int(drive.sum()) * dt_s >= PERCENT_MIN_DRIVE_S else None
+
+
 def torque_percent_finding(
     speed_rpm, torque_nm, gear=None, dt_s: float = STEP_S, source: str = "table"
 ) -> PlausibilityFinding | None:
     """The percent-torque rule (module doc)."""
-    torque = _finite(torque_nm)
-    drive = _driving(speed_rpm, gear, torque.size) & np.isfinite(torque)
-    n = int(drive.sum())
-    if n * dt_s < PERCENT_MIN_DRIVE_S:
+    t = _driven_torque(speed_rpm, torque_nm, gear, dt_s)
+    if t is None:
         return None
-    t = torque[drive]
+    n = t.size
     peak = float(t.max())
     if not (PERCENT_MIN_PEAK <= peak <= PERCENT_MAX):
         return None
@@ -275,12 +280,11 @@ def torque_knm_finding(
     speed_rpm, torque_nm, gear=None, dt_s: float = STEP_S, source: str = "table"
 ) -> PlausibilityFinding | None:
     """The kN m rule (KNM_MAX): a vehicle's engine torque that looks like kN m."""
-    torque = _finite(torque_nm)
-    drive = _driving(speed_rpm, gear, torque.size) & np.isfinite(torque)
-    n = int(drive.sum())
-    if n * dt_s < PERCENT_MIN_DRIVE_S:
+    t = _driven_torque(speed_rpm, torque_nm, gear, dt_s)
+    if t is None:
         return None
-    peak = float(np.max(np.abs(torque[drive])))
+    n = t.size
+    peak = float(np.max(np.abs(t)))
     if not KNM_MIN_PEAK < peak <= KNM_MAX:
         return None
     col = SOURCES[source]["engine_torque_nm"]
