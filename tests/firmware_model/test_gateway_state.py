@@ -476,6 +476,11 @@ def test_service_unit_warns_of_every_place_the_sandbox_hides(tmp_path):
     link.symlink_to("/root/.pyenv/bin/python3")  # need not exist: the link is resolved as text
     linked = check_unit_args("socketcan", "can0", None, str(link))
     assert any("ProtectHome=yes" in w and "through its links" in w for w in linked)
+    # the configuration too (it was never checked): under /tmp or /root the service cannot read it
+    for where, setting in (("/tmp/cfg.toml", "PrivateTmp=yes"), ("/root/truck.toml", "ProtectHome=yes")):
+        (w,) = check_unit_args("socketcan", "can0", where, "/opt/gvs/bin/python")
+        assert f"the --config {where}" in w and setting in w and "/etc/gearbox-vsensor" in w and "venv" not in w
+    assert check_unit_args("socketcan", "can0", "/etc/gearbox-vsensor/truck.toml", "/opt/gvs/bin/python") == []
 
 
 def test_status_says_restored_stopped_and_the_mode_now(params, tmp_path, capsys):

@@ -67,7 +67,7 @@ HIDDEN = {
 
 def check_unit_args(interface: str, channel: str, config: str | None, python: str | None) -> list[str]:
     """InputError for a channel that cannot stand in a unit file or a relative --config; returns warnings (a
-    Python under /home or /root, which ProtectHome=yes hides from the service)."""
+    Python, the code or the --config under /home, /root or /tmp, which the unit's sandbox hides from the service)."""
     for opt, v in (("--interface", interface), ("--channel", channel)):
         if not CHANNEL_RE.fullmatch(v or ""):
             raise InputError(
@@ -84,6 +84,8 @@ def check_unit_args(interface: str, channel: str, config: str | None, python: st
         )
     exe = os.path.abspath(python or sys.executable)
     places = [("the Python", exe), ("the Python (through its links)", os.path.realpath(exe))]
+    if config is not None:  # (that --python and --config exist is not checked: a unit may be made for another host)
+        places.append(("the --config", os.path.realpath(config)))
     if python is None:  # this Python's own copy of gearbox-vsensor (an editable install: the source tree)
         places.append(("the gearbox-vsensor code", str(Path(__file__).resolve().parents[2])))
     found = []
@@ -94,11 +96,16 @@ def check_unit_args(interface: str, channel: str, config: str | None, python: st
     if not found:
         return warnings
     where = "; ".join(f"{what} {path} is under {hidden.rstrip('/')} ({HIDDEN[hidden]})" for what, path, hidden in found)
-    return warnings + [
-        f"{where}: the unit's sandbox hides it from the service. Install gearbox-vsensor (not editable) into a "
-        f"virtual environment outside /home, /root and /tmp (e.g. /opt/gearbox-vsensor) and pass its python with "
-        f"--python"
-    ]
+    fixes = []
+    if any(what != "the --config" for what, _, _ in found):
+        fixes.append(
+            "install gearbox-vsensor (not editable) into a virtual environment outside /home, /root and /tmp (e.g. "
+            "/opt/gearbox-vsensor) and pass its python with --python"
+        )
+    if any(what == "the --config" for what, _, _ in found):
+        fixes.append("put the configuration outside them (e.g. /etc/gearbox-vsensor/config.toml)")
+    fix = "; ".join(fixes)
+    return warnings + [f"{where}: the unit's sandbox hides it from the service. {fix[:1].upper()}{fix[1:]}"]
 
 
 def device_unit(channel: str) -> str:
