@@ -233,7 +233,7 @@ def _run_scada(args, cfg, params) -> int:
     from tools.diagnosis.calibrate import calibrated_toml, check_keys
     from tools.scada.calibrate import calibrate_records, nbm_beside
     from tools.scada.diagnose import setup_of
-    from tools.scada.reader import read_units
+    from tools.scada.reader import read_held_out
 
     check_paths(
         [*(("a training file", f) for f in args.train), *(("a test file", f) for f in args.test)],
@@ -243,7 +243,7 @@ def _run_scada(args, cfg, params) -> int:
     if args.report:
         raise InputError("--report is for run tables; on SCADA records calibrate prints its tables")
     keys = None if args.auto else check_keys(params, [k.strip() for k in args.params.split(",") if k.strip()])
-    train, test = (list(read_units(files, args.columns).values()) for files in (args.train, args.test))
+    train, test = read_held_out(args.train, args.test, args.columns)
     setup, notes = setup_of(cfg, train[0].cmap)
     for note in notes:
         print(f"note: {note}", file=sys.stderr)

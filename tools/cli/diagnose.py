@@ -183,7 +183,7 @@ def run(args) -> int:
 def _run_scada(args) -> int:
     """`diagnose --columns MAP --train SCADA... --test SCADA...`: the gap of the onboard model on real records."""
     from tools.scada.diagnose import diagnose_records, setup_of, thermostat_of
-    from tools.scada.reader import read_units
+    from tools.scada.reader import read_held_out
 
     check_paths(
         [*(("a training file", f) for f in args.train), *(("a test file", f) for f in args.test)],
@@ -193,7 +193,7 @@ def _run_scada(args) -> int:
     if args.report:
         raise InputError("--report is for run tables; on SCADA records the JSON holds the diagnosis")
     cfg = resolve_gearbox(args, load_config(args.config))
-    train, test = (list(read_units(files, args.columns).values()) for files in (args.train, args.test))
+    train, test = read_held_out(args.train, args.test, args.columns)
     setup, notes = setup_of(cfg, train[0].cmap)
     res = diagnose_records(setup, train, test, thermostat_of(cfg.load_params()))
     if notes:

@@ -265,6 +265,23 @@ def read_units(
     return {u: _record(u, parts, cmap) for u, parts in sorted(by_unit.items())}
 
 
+def read_held_out(train_paths, test_paths, columns) -> tuple[list[ScadaRecord], list[ScadaRecord]]:
+    """The training and the test records (each unit's files one record), refused with one sentence when a test
+    record shares rows (its unit, the same time stamps) with a training one: its error would not be held out."""
+    train = list(read_units(train_paths, columns).values())
+    test = list(read_units(test_paths, columns).values())
+    for te in test:
+        for tr in train:
+            if te.unit == tr.unit:
+                shared = int(np.isin(te.time_s, tr.time_s).sum())
+                if shared:
+                    raise InputError(
+                        f"the test records of {te.unit} share {shared} of their {te.n} rows with the training ones: "
+                        "held-out figures need other rows (another unit, or other dates)"
+                    )
+    return train, test
+
+
 def read_record(paths: Iterable[str | Path], columns: str | Path | ColumnMap = "engie") -> ScadaRecord:
     """The one unit's record in ``paths``; files of several units raise an InputError naming them."""
     recs = read_units(paths, columns)

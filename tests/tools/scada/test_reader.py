@@ -306,3 +306,21 @@ def test_engie_s_semicolon_export_with_decimal_commas_reads_as_the_comma_file(tm
     two = write(tmp_path / "two.csv", [row(datetime(2017, 5, 1, tzinfo=timezone.utc), unit=u) for u in ("A", "B")])
     with pytest.raises(InputError, match=r"2 units \('A', 'B'\), not one: give one unit's files"):
         read_record([two])
+
+
+def test_held_out_records_may_not_share_rows_with_the_training_ones(tmp_path, two_files):
+    """diagnose and calibrate on SCADA read train and test through read_held_out: the same file (or overlapping
+    files of one unit) as both is one sentence (a 'held-out' RMS over training rows said nothing), another unit or
+    other dates pass."""
+    from tools.scada.reader import read_held_out
+
+    fa, fb, _ = two_files
+    with pytest.raises(InputError, match=r"the test records of R1 share 18 of their 18 rows with the training ones"):
+        read_held_out([fa, fb], [fa], "engie")
+    train, test = read_held_out([fa], [fb], "engie")
+    assert [r.unit for r in train] == [r.unit for r in test] == ["R1"] and test[0].n == 6
+    other = write(
+        tmp_path / "r2.csv",
+        [ln.replace("R1,", "R2,", 1) for ln in gzip.decompress(fa.read_bytes()).decode().splitlines()[1:]],
+    )
+    assert read_held_out([fa], [other], "engie")[1][0].unit == "R2"
