@@ -163,7 +163,10 @@ def load_column_map(spec: str | Path) -> ColumnMap:
     if kind not in TIME_KINDS:
         raise InputError(f"column map {where}: time.kind = {kind!r} is none of {', '.join(TIME_KINDS)}")
     inputs = {k: _channel(k, v, f"{where}: inputs.{k}") for k, v in _table(raw, "inputs", where).items()}
-    measured = {k: _channel(k, v, f"{where}: measured.{k}", "degC") for k, v in raw.get("measured", {}).items()}
+    measured_raw = raw.get("measured", {})
+    if not isinstance(measured_raw, dict):
+        raise InputError(f"column map {where}: measured must be tables [measured.<channel>], not {measured_raw!r}")
+    measured = {k: _channel(k, v, f"{where}: measured.{k}", "degC") for k, v in measured_raw.items()}
     for k, ch in measured.items():
         if ch.derive:
             raise InputError(f"column map {where}: measured.{k} is derived; a measured channel is one column")

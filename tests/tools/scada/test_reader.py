@@ -205,6 +205,10 @@ def test_a_bad_column_map_names_its_key(tmp_path, edit, words):
     assert words in str(err.value)
     with pytest.raises(InputError, match="neither a shipped map"):
         load_column_map(tmp_path / "nothere.toml")
+    # a key, not tables (was an AttributeError)
+    (tmp_path / "m2.toml").write_text("measured = 5\n" + src[: src.index("[measured.")])
+    with pytest.raises(InputError, match=r"m2.toml: measured must be tables \[measured.<channel>\], not 5"):
+        load_column_map(tmp_path / "m2.toml")
 
 
 def test_a_column_in_a_unit_the_tool_knows_is_converted_to_the_name_s_unit(tmp_path, two_files):
