@@ -49,7 +49,7 @@ def _codecs(options: ServiceOptions, published: tuple) -> tuple[J1939Decoder, Ou
     try:
         database = for_components(tuple(published))  # the gearbox's frames (the GRS905's: the shipped DBC)
     except GenerateError as exc:
-        raise ParameterError(f"its CAN frames: {exc}") from None
+        raise ParameterError(f"the gearbox's CAN frames cannot be laid out ({exc})") from None
     try:
         decoder = J1939Decoder(
             expected_sa=options.expected_sa,

@@ -356,13 +356,19 @@ def repair_finding(rejects: Mapping[str, int], steps: int) -> RepairFinding | No
     return RepairFinding(int(steps), repaired)
 
 
+def is_held(meta) -> bool:
+    """Whether a replay's output table is held (tools.replay.table.replay_held: one row per input row, its reject
+    counters in 0.1 s steps): its meta records the steps taken and their length."""
+    return meta.get("steps") is not None and meta.get("step_s") is not None
+
+
 def table_record_findings(out, min_torque_nm: float | None = None, source: str = "table") -> list:
     """The plausibility findings of a sensor output run table (a replay's: the inputs it read, one row per step,
     and the cumulative ``rejects_<reason>`` columns)."""
     if not out.n:
         return []
     meta = getattr(out, "meta", None) or {}
-    held = meta.get("steps") is not None and meta.get("step_s") is not None
+    held = is_held(meta)
     # a held table (tools.replay.table.replay_held: one row per input row, minutes apart): its rows' period, and
     # the 0.1 s steps its reject counters count
     dt_s = float(meta.get("row_period_s") or STEP_S) if held else STEP_S

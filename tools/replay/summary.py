@@ -7,6 +7,7 @@ from __future__ import annotations
 import numpy as np
 
 from firmware_model.components import LEVEL_CRITICAL, LEVEL_NA, LEVEL_WARNING, STEP_S
+from firmware_model.service.plausibility import is_held
 from tools.published import description, ids, label_of
 
 #: the auxiliary input columns (their absence means defaults, docs/sensor.md "Bad input")
@@ -145,8 +146,7 @@ def _reject_line(out) -> str:
             words.append(f"auxiliary inputs not given ({', '.join(absent)}): defaults used, as documented")
         elif not unreferenced and not rejected:
             words.append(f"auxiliary inputs missing or out of range on {aux} steps: defaults used")
-    meta = getattr(out, "meta", None) or {}
-    held = meta.get("steps") is not None and meta.get("step_s") is not None
+    held = is_held(getattr(out, "meta", None) or {})
     for k, v in counts.items():
         # a held table's rows stand for many 0.1 s steps, which its counters count: said as time, not as steps
         amount = f"{v * STEP_S:g} s" if held else f"{v} steps"

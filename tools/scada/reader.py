@@ -138,6 +138,7 @@ def read_file(path: str | Path, cmap: ColumnMap) -> FileRows:
     # ENGIE's own export separates with ";" (and may write decimal commas): the same columns, read as they are
     semicolon = ";" in first and "," not in first
     reader = csv.reader(text, delimiter=";" if semicolon else ",")
+    number = (lambda cell: _number(cell.replace(",", "."))) if semicolon else _number
     header = next(reader, None)
     if not header:
         raise InputError(f"{path.name}: empty, not a SCADA file of the column map {cmap.name}")
@@ -164,10 +165,7 @@ def read_file(path: str | Path, cmap: ColumnMap) -> FileRows:
             continue
         times.append(t)
         units.append(row[idx[cmap.unit_column]].strip() if cmap.unit_column else path.stem)
-        if semicolon:
-            rows.append([_number(row[idx[c]].replace(",", ".")) for c in value_cols])
-        else:
-            rows.append([_number(row[idx[c]]) for c in value_cols])
+        rows.append([number(row[idx[c]]) for c in value_cols])
     if not times:
         example = next((r[idx[cmap.time_column]] for r in _rows_of(path, semicolon, len(header))), "")
         plain = cmap.time_kind == "iso8601_offset" and parse_time(example + "+00:00", cmap.time_kind) is not None
