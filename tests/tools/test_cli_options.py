@@ -61,6 +61,22 @@ def test_a_mistyped_option_is_refused_by_its_subcommand_with_a_suggestion(name, 
     assert f"gearbox-vsensor {name}: error: unrecognized arguments: {typo} (did you mean {option}?)" in err
 
 
+def test_a_mistyped_required_option_is_named_with_its_suggestion(capsys):
+    """`--outt` for the required `--out`: the missing option alone ("required: --out") hid the typo."""
+    with pytest.raises(SystemExit) as exc:
+        build_parser().parse_args(["simulate", "--cycle", "uphill", "--outt", "e.csv"])
+    err = capsys.readouterr().err
+    assert exc.value.code == 2
+    assert (
+        "error: unrecognized arguments: --outt (did you mean --out?); the following arguments are required: --out"
+        in err
+    )
+    with pytest.raises(SystemExit):  # an abbreviation argparse accepts is not called unknown
+        build_parser().parse_args(["simulate", "--cyc", "uphill"])
+    err = capsys.readouterr().err
+    assert "required: --out" in err and "unrecognized" not in err
+
+
 def test_an_extra_argument_is_refused_by_its_subcommand(capsys):
     with pytest.raises(SystemExit):
         build_parser().parse_args(["simulate", "--cycle", "uphill", "--out", "e.csv", "b.csv"])

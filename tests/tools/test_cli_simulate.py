@@ -260,6 +260,11 @@ def test_a_cycle_in_milliseconds_or_rad_s_is_refused_before_it_runs(tmp_path, ca
         == 0
         and out.exists()
     )
+    # a named cycle is made in the right units: the option would change nothing, so it is refused, not ignored
+    out = tmp_path / "named_run.csv"
+    assert main(["simulate", "--cycle", "steady", "--out", str(out), "--quiet", "--allow-untrusted"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "applies only to CSV run tables" in err and not out.exists(), err
 
 
 def _figures(monkeypatch) -> list:

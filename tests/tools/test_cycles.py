@@ -189,6 +189,8 @@ def test_steady_spec():
     assert parse_steady_spec("steady:gear=6h,init=35")["init"] == 35.0
     for g, name in GEAR_NAMES.items():
         assert parse_steady_spec(f"steady:gear={name}")["gear"] == g
+    # up to the gearbox's own max_speed (4000 rpm), which every other command accepts (was refused over 3000)
+    assert get_cycle("steady:rpm=3800,s=10")["engine_speed_rpm"][0] == 3800
 
 
 @pytest.mark.parametrize(
@@ -199,6 +201,8 @@ def test_steady_spec():
         ("steady:speed=1300", ["'speed=1300'", "gear=", "rpm=", "nm=", "s=", "oil="]),
         ("steady:rpm=fast", ["rpm", "'fast'", "not a number"]),
         ("steady:rpm=-5", ["rpm=-5"]),
+        ("steady:rpm=4500", ["rpm=4500", "0..4000"]),  # the GRS905's max_speed, as the plant and the replay take it
+        ("steady:nm=4300", ["nm=4300", "-4200..4200"]),
         ("steady:s=0", ["s=0"]),
         ("steady:oil=80,oil=90", ["oil is given twice"]),  # not the last one winning, silently
     ],

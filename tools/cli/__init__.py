@@ -36,6 +36,7 @@ class CommandParser(argparse.ArgumentParser):
     subcommands: dict = {}
 
     def parse_known_args(self, args=None, namespace=None):
+        self.given = list(sys.argv[1:] if args is None else args)  # for error(): the options it did not know
         namespace, extras = super().parse_known_args(args, namespace)
         sub = self.subcommands.get(getattr(namespace, "subcommand", None))
         if extras and sub is not None:
@@ -45,6 +46,23 @@ class CommandParser(argparse.ArgumentParser):
                     sub.error(removed[arg.split("=", 1)[0]])
             sub.error("unrecognized arguments: " + " ".join(with_suggestion(sub, a) for a in extras))
         return namespace, extras
+
+    def error(self, message):
+        """A missing required option is often a mistyped one (``--outt``): say that first, with the suggestion."""
+        if message.startswith("the following arguments are required"):
+            removed = getattr(self, "removed_options", {})
+            for arg in getattr(self, "given", ()):
+                if arg.split("=", 1)[0] in removed:
+                    super().error(removed[arg.split("=", 1)[0]])
+            unknown = [a for a in getattr(self, "given", ()) if a.startswith("--") and not self.knows(a)]
+            if unknown:
+                message = f"unrecognized arguments: {' '.join(with_suggestion(self, a) for a in unknown)}; {message}"
+        super().error(message)
+
+    def knows(self, arg: str) -> bool:
+        """Whether ``arg`` (``--name`` or ``--name=value``) is one of this parser's options or a prefix of one."""
+        name = arg.split("=", 1)[0]
+        return any(o == name or (self.allow_abbrev and o.startswith(name)) for o in self._option_string_actions)
 
 
 def with_suggestion(parser: argparse.ArgumentParser, arg: str) -> str:

@@ -150,6 +150,11 @@ def resolve_settings(args, cfg) -> SimpleNamespace:
             f"{', '.join(on_table)} {'applies' if len(on_table) == 1 else 'apply'} only to named cycles; "
             f"{args.cycle} is a run table, simulated as it is"
         )
+    if named and args.allow_untrusted:
+        raise InputError(
+            f"--allow-untrusted applies only to CSV run tables (whose units may look wrong); {args.cycle} is a "
+            "named cycle, made in the right units"
+        )
     if s.hold_oil_c is not None and s.cooler not in (None, "hold"):
         held = given(args, ("simulate.hold_oil_c",)) or ["simulate.hold_oil_c"]
         raise InputError(

@@ -286,8 +286,9 @@ STEADY_KEYS = {
 }
 
 
-def parse_steady_spec(spec: str) -> dict:
-    """'steady:gear=4L,rpm=1300,nm=2000,s=3600,oil=100' -> dict (defaults gear 4L, 1300 rpm, 2000 Nm, 3600 s)."""
+def parse_steady_spec(spec: str, max_rpm: float = 4000.0, max_nm: float = 4200.0) -> dict:
+    """'steady:gear=4L,rpm=1300,nm=2000,s=3600,oil=100' -> dict (defaults gear 4L, 1300 rpm, 2000 Nm, 3600 s); rpm
+    and nm within the gearbox's drive limits (its description's max_speed and max_torque; the GRS905's by default)."""
     out = {"gear": 9, "rpm": 1300.0, "nm": 2000.0, "s": 3600.0, "oil": None, "init": None}
     _, _, rest = spec.partition(":")
     given = set()
@@ -315,10 +316,10 @@ def parse_steady_spec(spec: str) -> dict:
         if not math.isfinite(x):
             raise InputError(f"steady cycle spec {spec!r}: {key}={val!r} must be finite")
         out[key] = x
-    if out["rpm"] < 0 or out["rpm"] > 3000:
-        raise InputError(f"steady cycle spec {spec!r}: rpm={out['rpm']:g} must be in 0..3000")
-    if abs(out["nm"]) > 4200:
-        raise InputError(f"steady cycle spec {spec!r}: nm={out['nm']:g} must be within -4200..4200 Nm")
+    if out["rpm"] < 0 or out["rpm"] > max_rpm:
+        raise InputError(f"steady cycle spec {spec!r}: rpm={out['rpm']:g} must be in 0..{max_rpm:.0f}")
+    if abs(out["nm"]) > max_nm:
+        raise InputError(f"steady cycle spec {spec!r}: nm={out['nm']:g} must be within -{max_nm:.0f}..{max_nm:.0f} Nm")
     if out["s"] <= 0 or out["s"] > 7 * 86400:
         raise InputError(f"steady cycle spec {spec!r}: s={out['s']:g} must be a positive duration up to a week")
     for key in ("oil", "init"):
@@ -490,7 +491,13 @@ def get_cycle(
             f"give a CSV run table with time_s, input_speed_rpm, input_torque_nm, ambient_temp_c"
         )
     if low == "steady" or low.startswith("steady:"):
-        p = parse_steady_spec(s)
+        limits = {}
+        if description is not None:  # the gearbox's own drive limits (the plant refuses rows beyond them)
+            limits = {
+                "max_rpm": description.drive.max_speed_rad_s * 30.0 / math.pi,
+                "max_nm": description.drive.max_torque_nm,
+            }
+        p = parse_steady_spec(s, **limits)
         return steady(**p, rate_hz=rate_hz, noise=noise, seed=seed, spec=s)
     if low == "all_gears":
         return all_gears(rate_hz=rate_hz, noise=noise, seed=seed)
