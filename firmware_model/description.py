@@ -913,6 +913,20 @@ def _oil(r: _Reader, topo: dict, shafts: dict, nodes: set) -> OilSystem:
     )
 
 
+def _check_oil_fits(r: _Reader, oil: OilSystem, housings: tuple) -> None:
+    """The oil volume fits in its housings: no more than a sphere of their outside surface holds (half their total
+    area, which counts both faces; the sphere encloses the most for its surface), a loose bound that still catches a
+    volume in the wrong unit (6 m3 for the MM82's 300 L)."""
+    outside_m2 = 0.5 * sum(h.area_m2 for h in housings)
+    most_m3 = outside_m2**1.5 / (6.0 * math.sqrt(math.pi))
+    if oil.volume_m3 > most_m3:
+        r.fail(
+            f"{TOPOLOGY}.oil.volume",
+            f"= {oil.volume_m3 * 1e3:g} L does not fit in the housings: a sphere of their outside surface (half their "
+            f"total area, {outside_m2:.3g} m2) holds {most_m3 * 1e3:.3g} L; is the volume in another unit?",
+        )
+
+
 def _boundaries(r: _Reader, topo: dict) -> tuple:
     out = []
     for b, key, f in _per_id(r, topo, "boundary"):
@@ -1274,6 +1288,7 @@ def _describe(path: Path, entries: dict, params: Parameters | None = None) -> De
     nodes = set(desc.nodes)
     _check_touches(r, boundaries, nodes)
     oil = _oil(r, topo, by_shaft, nodes)
+    _check_oil_fits(r, oil, housings)
     with_oil = replace(desc, oil=oil)
     published = _published(r, topo, set(with_oil.nodes) | set(with_oil.derived))  # a forced system's oil inlet too
     return Description(
