@@ -216,7 +216,7 @@ def _print_summary_scada(args, res) -> None:
     print(f"reason: {v['reason']}")
     per = ", ".join(f"{ch} {c['test_rms_c']:.2f} -> {c['test_rms_after_c']:.2f}" for ch, c in res["channels"].items())
     print(f"held-out RMS per channel [K]: {per}")
-    for w in res["where"][:3]:
+    for w in res["where"][:3] if v.get("evidence") != "thin" else []:  # (thin: too few rows to say where)
         print(f"  gap: {w['channel']} in '{w['regime']}': mean {w['mean_c']:+.2f} K, {100 * w['share']:.0f} % of it")
     print(f"time: {res['timing']['total_s']:.1f} s")
 

@@ -18,6 +18,7 @@ from tools.scada.columns import Channel, ColumnMap
 
 #: every reason a row or value is dropped, repaired or flagged, in report order
 REASONS = (
+    "bad_bytes",
     "bad_line",
     "bad_time",
     "out_of_order",
@@ -31,6 +32,7 @@ REASONS = (
 )
 #: each reason in words, for reports
 REASON_WORDS = {
+    "bad_bytes": "lines with bytes that are not UTF-8 (read as U+FFFD: a cell with one is dropped)",
     "bad_line": "lines with the wrong number of fields (dropped)",
     "bad_time": "time stamps that do not parse or carry no UTC offset (row dropped)",
     "out_of_order": "rows earlier than a row before them in their file (sorted into place)",

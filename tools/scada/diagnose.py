@@ -27,6 +27,7 @@ import numpy as np
 
 from firmware_model.effects import CATALOG
 from firmware_model.errors import InputError
+from tools.diagnosis.options import Options, n_eff_needed
 from tools.scada.reader import ScadaRecord
 from tools.scada.regimes import regimes, where
 from tools.scada.runtable import oil_channel
@@ -336,6 +337,11 @@ def diagnose_records(
             test_after[eid] = after
         out_cands.append(entry)
     verdict = _verdict(r0, t_before, out_cands, where(r0, joined))
+    # as for run tables: the effective samples of the training residual after the best fit (before it, a large
+    # smooth gap would count as few samples however well an effect explains it)
+    n_eff_fit = effective_n(cands[0]["after"]) if cands else n_eff
+    if verdict["effect"] != "none" and n_eff_fit < n_eff_needed(Options()):
+        verdict = _thin_verdict(verdict, out_cands, n, n_eff_fit)
     channels = _channel_stats(r0, t_before)
     # the verdict's held-out residual per channel (as for run tables: channels.*.test_rms_after_c); none and
     # unexplained leave the model as it is
@@ -352,6 +358,31 @@ def diagnose_records(
         "verdict": verdict,
         "model": {"kind": "onboard", "rows_train": n, "effective_samples": n_eff},
         "timing": {"total_s": time.perf_counter() - t0},
+    }
+
+
+def _thin_verdict(verdict: dict, cands: list[dict], n: int, n_eff: float) -> dict:
+    """Too few effective samples to decide (as for run tables, tools.diagnosis.decide): no effect claimed and no
+    regime named as where the gap lies; the best candidate and what it would do held out, as no claim."""
+    needed = n_eff_needed(Options())
+    best = next((c for c in cands if "test_rms_after_c" in c), None)
+    cut = (
+        f"; the best candidate {best['effect']} ({_fmt_params(best['parameters'])}) would "
+        f"{'cut' if best['test_rms_after_c'] < best['test_rms_before_c'] else 'not cut'} the held-out RMS "
+        f"{best['test_rms_before_c']:.2f} -> {best['test_rms_after_c']:.2f} K, but that is no claim"
+        if best
+        else ""
+    )
+    return {
+        "test_rms_before_c": verdict["test_rms_before_c"],
+        "effect": "unexplained",
+        "test_rms_after_c": verdict["test_rms_before_c"],
+        "shrink": 0.0,
+        "evidence": "thin",
+        "reason": f"thin evidence, too little to decide: the training residual after the best fit holds n_eff = "
+        f"{n_eff:.0f} effective "
+        f"samples of {n} readings and the decision needs at least {needed}{cut}; add more training files, or "
+        "longer ones, and diagnose again",
     }
 
 

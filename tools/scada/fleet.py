@@ -55,7 +55,7 @@ IDENTIFIABLE_K = 0.01
 class PeriodFit(NamedTuple):
     unit: str
     period: int
-    start: str  # ISO date (UTC) of the period's first row
+    start: str  # ISO date (UTC) of the period's first day (a month's 1st; as for trucks, not its first row's)
     rows: int
     values: dict  # effect -> fitted value
     se: dict  # effect -> standard error (inf: not identifiable in this period)
@@ -65,7 +65,8 @@ class PeriodFit(NamedTuple):
 
 def periods_of(record: ScadaRecord, days: float | None = None) -> list[tuple[int, str, np.ndarray]]:
     """(period number, start date, row mask) of ``record``: calendar months (UTC) when ``days`` is None, else spans
-    of ``days`` from the Unix epoch. The number orders the periods across units alike."""
+    of ``days`` from the Unix epoch. The number orders the periods across units alike, and the start date is the
+    period's own first day (every unit's period k starts on the same date, whenever its rows begin)."""
     t = np.asarray(record.time_s, dtype=float)
     if days is None:
         stamps = [dt.datetime.fromtimestamp(x, tz=dt.timezone.utc) for x in t]
@@ -75,8 +76,11 @@ def periods_of(record: ScadaRecord, days: float | None = None) -> list[tuple[int
     out = []
     for k in np.unique(key):
         m = key == k
-        start = dt.datetime.fromtimestamp(t[m][0], tz=dt.timezone.utc).date().isoformat()
-        out.append((int(k), start, m))
+        if days is None:
+            start = dt.date(int(k) // 12, int(k) % 12 + 1, 1)
+        else:
+            start = dt.datetime.fromtimestamp(int(k) * 86400.0 * days, tz=dt.timezone.utc).date()
+        out.append((int(k), start.isoformat(), m))
     return out
 
 

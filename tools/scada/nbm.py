@@ -84,11 +84,22 @@ def features(record: ScadaRecord, task: Task) -> tuple[np.ndarray, list[str]]:
     return np.column_stack(cols), names
 
 
-def least_squares(x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, float]:
-    """(coefficients, intercept) of y ~ x (rows with a NaN left out), solved on standardised columns."""
+def least_squares(
+    x: np.ndarray, y: np.ndarray, names: Sequence[str] = (), target: str = "the target"
+) -> tuple[np.ndarray, float]:
+    """(coefficients, intercept) of y ~ x (rows with a NaN left out), solved on standardised columns; ``names`` (x's
+    columns) and ``target`` (y's) name the emptiest column when too few rows are complete."""
     ok = np.all(np.isfinite(x), axis=1) & np.isfinite(y)
     if ok.sum() <= x.shape[1] + 1:
-        raise InputError(f"{int(ok.sum())} complete rows cannot fit {x.shape[1] + 1} coefficients")
+        given = np.column_stack([np.isfinite(x), np.isfinite(y)]).sum(axis=0)
+        labels = (
+            [*names, target] if len(names) == x.shape[1] else [f"feature {i}" for i in range(x.shape[1])] + [target]
+        )
+        worst = int(np.argmin(given))
+        raise InputError(
+            f"{int(ok.sum())} complete rows cannot fit {x.shape[1] + 1} coefficients: {labels[worst]} has a value "
+            f"on {int(given[worst])} of {len(y)} rows (an empty or rejected column?)"
+        )
     xs, ys = x[ok], y[ok]
     mu, sd = xs.mean(axis=0), xs.std(axis=0)
     sd = np.where(sd > 0, sd, 1.0)
@@ -124,7 +135,7 @@ class LinearNBM:
         for target in self.task.targets:
             x = np.vstack([np.column_stack([m[0], *self._extra(r, target)]) for m, r in zip(mats, records)])
             y = np.concatenate([r.values[target] for r in records])
-            self.coef[target] = least_squares(x, y)
+            self.coef[target] = least_squares(x, y, self.feature_names, target)
         return self
 
     def predict(self, record: ScadaRecord) -> dict[str, np.ndarray]:

@@ -91,19 +91,27 @@ class ScadaRecord:
         )
 
 
-def open_text(path: Path):
-    """The file as text: gzip by its magic bytes, else plain; a binary or damaged file raises InputError."""
+def open_text(path: Path, counts: dict | None = None):
+    """The file as text: gzip by its magic bytes, else plain; a binary or damaged file raises InputError. Bytes that
+    are not UTF-8 (a name or a unit in Latin-1, a logger's stray byte) become U+FFFD, their lines counted in
+    ``counts["bad_bytes"]``: a cell with one does not parse and is dropped and counted like any bad cell."""
     if not path.is_file():
         raise InputError(f"{path}: no such file")
     data = path.read_bytes()
     try:
-        text = (gzip.decompress(data) if data[:2] == b"\x1f\x8b" else data).decode("utf-8-sig")
+        data = gzip.decompress(data) if data[:2] == b"\x1f\x8b" else data
     except (OSError, EOFError, zlib.error):
         raise InputError(f"{path.name}: a damaged gzip file (it does not decompress)") from None
-    except UnicodeDecodeError:
-        raise InputError(f"{path.name}: not a SCADA CSV file (binary content, not UTF-8 text)") from None
-    if "\x00" in text[:4096]:
+    if b"\x00" in data[:4096]:
         raise InputError(f"{path.name}: not a SCADA CSV file (binary content)")
+    try:
+        text = data.decode("utf-8-sig")
+    except UnicodeDecodeError:
+        text = data.decode("utf-8-sig", errors="replace")
+        if text.count("\ufffd") > 0.05 * len(text):  # text has a stray byte here and there, binary many more
+            raise InputError(f"{path.name}: not a SCADA CSV file (binary content, not UTF-8 text)") from None
+        if counts is not None:
+            counts["bad_bytes"] += sum("\ufffd" in line for line in text.splitlines())
     return io.StringIO(text, newline="")
 
 
@@ -132,7 +140,8 @@ def _number(cell: str) -> float:
 def read_file(path: str | Path, cmap: ColumnMap) -> FileRows:
     """One file's rows (see the module's docstring for what is dropped and counted)."""
     path = Path(path)
-    text = open_text(path)
+    counts = dict.fromkeys(REASONS, 0)
+    text = open_text(path, counts)
     first = text.readline()
     text.seek(0)
     # ENGIE's own export separates with ";" (and may write decimal commas): the same columns, read as they are
@@ -151,7 +160,6 @@ def read_file(path: str | Path, cmap: ColumnMap) -> FileRows:
         )
     idx = {c: header.index(c) for c in cmap.columns}
     value_cols = [c for c in cmap.columns if c not in (cmap.time_column, cmap.unit_column)]
-    counts = dict.fromkeys(REASONS, 0)
     times, units, rows = [], [], []
     for row in reader:
         if not row or (len(row) == 1 and not row[0].strip()):

@@ -150,6 +150,21 @@ def test_a_gap_no_effect_makes_is_unexplained_and_never_worsens_the_held_out_rec
     assert v["effect"] not in [c["effect"] for c in offsets if c.get("test_rms_after_c", 0) > v["test_rms_before_c"]]
 
 
+def test_a_training_record_of_a_few_rows_is_thin_evidence_naming_no_regime(setup, tmp_path):
+    """Two training rows with a planted bearing loss: the best candidate fits them, but two readings per channel
+    decide nothing; the verdict says thin evidence, claims no effect and names no regime where the gap lies (it
+    named the regimes of those two rows)."""
+    s, train, test = setup
+    planted = {"bearing_loss_scale": 1.8}
+    rows = np.zeros(train.n, bool)
+    rows[20:22] = True  # loaded rows, after the start-up
+    res = diagnose_records(s, [_measured(s, train, planted, 7).select(rows)], [_measured(s, test, planted, 8)])
+    v = res["verdict"]
+    assert v["effect"] == "unexplained" and v["evidence"] == "thin" and v["shrink"] == 0.0
+    assert v["reason"].startswith("thin evidence, too little to decide") and "needs at least 19" in v["reason"]
+    assert "regime" not in v["reason"] and "largest share" not in v["reason"]
+
+
 def test_calibrate_finds_a_planted_value_and_prints_the_nbm_beside_it(setup, tmp_path):
     """`calibrate --gearbox HR225 --columns MAP --train F --test F --params bearing.f0_tapered --out OUT.toml`:
     readings made by the sensor with the tapered bearings' f0 = 3.6 (the file says 3.0) give back 3.6."""

@@ -126,3 +126,23 @@ def test_fleet_columns_without_pyarrow_is_one_sentence(tmp_path, monkeypatch, ca
     rc = main(["fleet", str(tmp_path), "--gearbox", "HR225", "--columns", "engie", "--out", str(tmp_path / "o")])
     err = capsys.readouterr().err.strip()
     assert rc == 2 and err.count("\n") == 0 and "pip install 'gearbox-vsensor[fleet]'" in err, err
+
+
+def test_a_period_starts_on_its_own_first_day_not_on_its_first_row():
+    """Two turbines whose months begin on different days (a gap, a later commissioning) share period k's start
+    date: a month's 1st, a span's first day from the epoch; was each record's first row's date."""
+    from datetime import datetime, timezone
+
+    from tools.scada.clean import REASONS
+    from tools.scada.columns import load_column_map
+    from tools.scada.reader import ScadaRecord
+
+    t0 = datetime(2017, 6, 17, 13, 40, tzinfo=timezone.utc).timestamp()
+    t = t0 + 600.0 * np.arange(4000)  # 17 June to 15 July
+    rec = ScadaRecord("T1", t, np.zeros(t.size, int), {}, dict.fromkeys(REASONS, 0), {}, load_column_map("engie"))
+    assert [(start, int(rows.sum())) for _, start, rows in periods_of(rec)] == [
+        ("2017-06-01", 1934),  # 13 days 10 h 20 min of 10-minute rows
+        ("2017-07-01", 2066),
+    ]
+    spans = periods_of(rec, days=7.0)  # the epoch began on a Thursday: 7-day spans start on Thursdays
+    assert spans[0][1] == "2017-06-15" and all(datetime.fromisoformat(s).weekday() == 3 for _, s, _ in spans)

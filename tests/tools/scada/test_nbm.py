@@ -101,6 +101,18 @@ def test_rows_with_nan_are_left_out_of_the_fit_and_get_no_prediction():
     assert np.isnan(model.predict(rec)["Git_avg"][200])
 
 
+def test_a_column_without_values_is_named_when_no_row_is_complete():
+    """An outdoor column all rejected (a map pointing at an empty column) leaves no complete row: the sentence names
+    that column, not only "0 complete rows"."""
+    rec = synthetic()
+    x, _ = features(rec, TASKS["oil"])
+    for ch in TASKS["oil"].targets:
+        rec.values[ch] = x @ np.linspace(0.001, 0.01, x.shape[1]) + 30.0
+    rec.values["outdoor_temp_c"][:] = np.nan
+    with pytest.raises(InputError, match=r"0 complete rows .*: outdoor_temp_c has a value on 0 of 3000 rows"):
+        LinearNBM("oil").fit([rec])
+
+
 def test_the_bearings_task_needs_the_measured_oil():
     rec = synthetic()
     del rec.values["Gost_avg"]

@@ -154,6 +154,22 @@ def test_a_stamp_without_utc_offset_drops_its_row(tmp_path):
     assert rec.n == 3 and rec.counts["bad_time"] == 1
 
 
+def test_a_stray_latin_1_byte_costs_its_cell_not_the_file(tmp_path):
+    """A Latin-1 byte (a degree sign in a column the map does not read, a bad byte in one sump cell) is no reason to
+    refuse a year of data: the lines are counted, the cell is dropped as not a number, the rest is read (was: the
+    whole file refused as binary)."""
+    t0 = datetime(2017, 6, 1, tzinfo=timezone.utc)
+    lines = [row(t0 + timedelta(minutes=10 * k)) + ",\xb0C" for k in range(6)]
+    lines[3] = lines[3].replace("55.0", "55.0\xb0")
+    text = ",".join(HEADER) + ",Unit \xb0\n" + "\n".join(lines) + "\n"
+    f = tmp_path / "latin.csv"
+    f.write_bytes(text.encode("latin-1"))
+    rec = read_record([f])
+    assert rec.n == 6 and rec.counts["bad_bytes"] == 7  # the header and every row (the unread column's degree sign)
+    assert np.isnan(rec.values["Gost_avg"][3]) and rec.by_channel["Gost_avg"]["implausible"] == 1
+    assert np.all(rec.values["Gost_avg"][[0, 1, 2, 4, 5]] == 55.0)
+
+
 @pytest.mark.parametrize(
     "content, words",
     [
