@@ -12,6 +12,7 @@ they are set where they are: docs/can.md, "Trust findings", whole-record plausib
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import ClassVar
@@ -108,6 +109,96 @@ class PlausibilityFinding:
     @property
     def spn_key(self) -> str:
         return self.column
+
+
+#: the gear-numbering rule: steps in gear while driving (over GEAR_MIN_KMH, past a launch's slip, and GEAR_MIN_RPM)
+#: give each gear's engine speed per km/h, which over the gear's ratio is the axle and wheel's constant, the same in
+#: every gear; gears whose constants differ by more than GEAR_RATIO_TOL (each with GEAR_MIN_S of driving) are not
+#: this gearbox's (another transmission, or another numbering: [can] gear_map). The named cycles with their noise
+#: spread 4 % at most; the GRS905 numbered from its first main gear (without the crawlers) 11 % over gears 1L-3H.
+GEAR_MIN_KMH, GEAR_MIN_RPM, GEAR_MIN_S, GEAR_RATIO_TOL = 5.0, 500.0, 3.0, 0.10
+#: ... and that constant is a road vehicle's: its axle ratio on a tyre of WHEEL_RADIUS_M within AXLE_RANGE (assumed:
+#: trucks' final drives 2.5-6.5, hub reductions to ~7; dynamic radii 0.47-0.53 m; a shift within a geometric
+#: ladder, as the GRS905's upper gears, keeps the constants equal and only this range can catch it)
+WHEEL_RADIUS_M, AXLE_RANGE = 0.5, (2.0, 7.0)
+#: the axle ratio on a WHEEL_RADIUS_M tyre per rpm per km/h per unit of gearbox ratio (2 pi r 3.6 / 60)
+AXLE_PER_RPM_PER_KMH = 2.0 * math.pi * WHEEL_RADIUS_M * 3.6 / 60.0
+
+
+@dataclass(frozen=True)
+class GearRatioFinding:
+    """The gears ``gears`` drove at ``rpm_per_kmh`` (median engine speed per km/h each), whose ratios in this
+    gearbox are ``ratios``: from one gear to the next they step otherwise than the gearbox's ratios (by more than
+    GEAR_RATIO_TOL), or they need an axle ratio outside AXLE_RANGE. A warning: the outputs are written and the exit
+    status stays 0, but the losses are those of other gears."""
+
+    kind: ClassVar[str] = "plausibility"
+    gears: tuple
+    rpm_per_kmh: tuple
+    ratios: tuple
+    gearbox: str
+    source: str = "table"
+
+    @property
+    def severity(self) -> Severity:
+        return Severity.WARNING
+
+    @property
+    def spn_key(self) -> str:
+        return "gear"
+
+    @property
+    def axles(self) -> list[float]:
+        """The axle ratio each gear implies on a WHEEL_RADIUS_M tyre."""
+        return [x / r * AXLE_PER_RPM_PER_KMH for x, r in zip(self.rpm_per_kmh, self.ratios)]
+
+    @property
+    def sentence(self) -> str:
+        col = "the gear (ETC2 SPN 523)" if self.source == "can" else "column gear"
+        steps = lambda xs: " : ".join(f"{a / b:.2f}" for a, b in zip(xs, xs[1:]))  # noqa: E731
+        fix = "set [can] gear_map" if self.source == "can" else "renumber the gears"
+        lo, hi = AXLE_RANGE
+        axles = self.axles
+        why = []
+        if max(axles) > (1.0 + GEAR_RATIO_TOL) * min(axles):
+            why.append(f"steps {steps(self.rpm_per_kmh)}, where the {self.gearbox}'s ratios step {steps(self.ratios)}")
+        if min(axles) < lo or max(axles) > hi:
+            why.append(
+                f"over the {self.gearbox}'s ratios an axle ratio of {min(axles):.2g}-{max(axles):.2g} on "
+                f"{WHEEL_RADIUS_M:g} m tyres, where road vehicles have {lo:g}-{hi:g}"
+            )
+        why = "; ".join(why)
+        return (
+            f"{col} does not follow the {self.gearbox}'s ratios: driving in gears "
+            f"{', '.join(map(str, self.gears))}, the engine turns {', '.join(f'{x:.1f}' for x in self.rpm_per_kmh)} "
+            f"rpm per km/h ({why}): these gear numbers are another gearbox's, and the losses those of other gears; "
+            f"{fix} to this gearbox's numbers, or replay with its own description (--gearbox)"
+        )
+
+
+def gear_ratio_finding(
+    speed_rpm, vehicle_kmh, gear, ratios, gearbox: str, dt_s: float = STEP_S, source: str = "table"
+) -> GearRatioFinding | None:
+    """The gear-numbering rules (GEAR_RATIO_TOL, AXLE_RANGE) on a record's engine speed, vehicle speed and gear;
+    ``ratios``: gear number -> this gearbox's ratio (input over output speed)."""
+    s, v, g = (_finite(x) for x in (speed_rpm, vehicle_kmh, gear))
+    driving = np.isfinite(s) & np.isfinite(v) & np.isfinite(g) & (v > GEAR_MIN_KMH) & (s > GEAR_MIN_RPM)
+    per = {}
+    for n in np.unique(g[driving]).astype(int):
+        r = abs(float(ratios.get(int(n), math.nan)))
+        rows = driving & (g == n)
+        if math.isfinite(r) and r > 0 and rows.sum() * dt_s >= GEAR_MIN_S:
+            per[int(n)] = (float(np.median(s[rows] / v[rows])), r)
+    if not per:
+        return None
+    gears = sorted(per)
+    found = GearRatioFinding(
+        tuple(gears), tuple(per[n][0] for n in gears), tuple(per[n][1] for n in gears), gearbox, source
+    )
+    axles = found.axles
+    lo, hi = AXLE_RANGE
+    spread = len(per) >= 2 and max(axles) > (1.0 + GEAR_RATIO_TOL) * min(axles)
+    return found if spread or min(axles) < lo or max(axles) > hi else None
 
 
 @dataclass(frozen=True)
@@ -374,6 +465,17 @@ def table_record_findings(out, min_torque_nm: float | None = None, source: str =
     dt_s = float(meta.get("row_period_s") or STEP_S) if held else STEP_S
     steps = int(round(meta["steps"] * meta["step_s"] / STEP_S)) if held else out.n
     found: list = record_findings(out, dt_s, min_torque_nm, source, bool(meta.get("engine_drive", True)))
+    if meta.get("gear_ratios") and all(out.has(c) for c in ("engine_speed_rpm", "vehicle_speed_kmh", "gear")):
+        gears = gear_ratio_finding(
+            out["engine_speed_rpm"],
+            out["vehicle_speed_kmh"],
+            out["gear"],
+            meta["gear_ratios"],
+            meta["gearbox"],
+            dt_s,
+            source,
+        )
+        found += [gears] if gears is not None else []
     rejects = {
         k[len("rejects_") :]: int(out[k][-1])
         for k in out.columns

@@ -315,6 +315,8 @@ def test_replay_says_the_step_it_took(tmp_path, capsys, mm82):
     assert f"sensor step: 15 s over rows of 600 s ({src.n * 40} steps; the stability proof allows 15.7 s, node P2" in (
         out.out
     )
+    # the span is the rows' whole time (the last row covers its 600 s) in the sensor's steps, not the rows + 0.1 s
+    assert f"replayed {src.n * 600.0:.1f} s in {src.n * 40} steps" in out.out
     assert "closest to its limit:" in out.out
 
 

@@ -343,6 +343,32 @@ def test_a_trc_cut_mid_line_is_refused(tmp_path, frames):
     assert cut.meta["counters"]["decoder"]["frames_seen"] == whole.meta["counters"]["decoder"]["frames_seen"] - 1
 
 
+@pytest.mark.parametrize("suffix", [".asc", ".trc"])
+def test_garbage_lines_in_asc_and_trc_logs_are_counted_not_skipped_in_silence(tmp_path, frames, suffix):
+    """python-can's ASC and TRC readers skip a line they do not know without a word: such a line, and an ASC frame
+    cut short of its DLC's bytes, are now counted and named as a candump log's are; the frames are those of the
+    whole log, less the cut one."""
+    import can
+
+    with can.Logger(tmp_path / f"drive{suffix}") as w:
+        for m in fr_messages(frames[1]):
+            w.on_message_received(m)
+    lines = (tmp_path / f"drive{suffix}").read_text().splitlines()
+    body = next(i for i, line in enumerate(lines) if line.strip()[:1].isdigit() and ("Rx" in line))
+    frame = lines[body + 5]
+    lines.insert(body + 3, "### logger restarted ###")
+    cut = frame.rsplit(" ", 3)[0] if suffix == ".asc" else None
+    if cut is not None:  # an ASC frame line that lost its last three bytes: python-can read it as a shorter frame
+        lines[body + 6] = cut
+    (tmp_path / f"bad{suffix}").write_text("\n".join(lines) + "\n")
+    bad = replay(tmp_path / f"bad{suffix}")
+    whole = replay(tmp_path / f"drive{suffix}")
+    skipped = 2 if cut is not None else 1
+    assert bad.meta["malformed"].summary.startswith(f"{skipped} malformed line{'s' if skipped > 1 else ''} skipped")
+    seen = bad.meta["counters"]["decoder"]["frames_seen"]
+    assert seen == whole.meta["counters"]["decoder"]["frames_seen"] - (skipped - 1)
+
+
 def test_a_log_named_for_another_format_says_what_it_is(tmp_path, capsys):
     """A candump log named .asc ('the log holds no CAN frame'), a BLF named .log ('binary data') and python-can's
     CSV log (a run table's 'column arbitration_id is not a number') each say what they are and what to do."""

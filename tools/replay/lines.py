@@ -30,6 +30,20 @@ MALFORMED_UNTRUSTED_SHARE = 0.01
 SHOWN_LINES = 5
 #: a candump -L line exactly as the whole-log parser and python-can read it (after the line's surrounding whitespace)
 CANDUMP_STRICT = re.compile(rb"\([0-9]+(?:\.[0-9]+)?\) [!-~]+ [0-9A-Fa-f]{1,8}#(?:[0-9A-Fa-f]{2}){0,8}(?: [RT])?")
+#: the lines an ASC log may hold besides its frames (python-can's reader skips any other line without a word): the
+#: header's and trigger block's keywords, comments, and events that start with their time stamp
+ASC_KNOWN = re.compile(
+    rb"(?:date |base |internal events logged|no internal events logged|begin triggerblock|end triggerblock|//|"
+    rb"[0-9]+\.[0-9]+\s)",
+    re.IGNORECASE,
+)
+#: an ASC classic data frame: time, channel, ID, direction, d, its DLC, then its data bytes (the rest: CANoe's
+#: Length/BitCount/ID fields); a frame with fewer data bytes than its DLC is cut
+ASC_FRAME = re.compile(
+    rb"[0-9]+\.[0-9]+\s+[0-9]+\s+[0-9A-Fa-f]+x?\s+(?:Rx|Tx)\s+d\s+([0-9A-Fa-f])((?:\s+[0-9A-Fa-f]{2}(?=\s|$))*)"
+)
+#: a PCAN-View trace (.trc) holds ';' header lines and frames that start with their message number
+TRC_KNOWN = re.compile(rb"(?:;|[0-9]+\)?\s)")
 #: python-can's text readers by suffix, for a log read without its malformed lines
 TEXT_READERS = {".log": "CanutilsLogReader", ".asc": "ASCReader", ".trc": "TRCReader"}
 #: the messages whose frames the step needs (J1939 PGN: EEC1 speed and torque, ETC2 gear, TRF1 oil), their names
@@ -101,10 +115,25 @@ def _python_can_reads(line: bytes) -> bool:
         return False
 
 
+def _reads(suffix: str, seg: bytes, stripped: bytes) -> bool:
+    """Whether a (non-last) line of a ``suffix`` log is one its reader takes: a candump -L frame; an ASC line of a
+    known kind, a data frame with all its bytes; a TRC header line or one that starts with its message number."""
+    if suffix == ".log":
+        return CANDUMP_STRICT.fullmatch(stripped) is not None or _python_can_reads(seg)
+    if suffix == ".asc":
+        if ASC_KNOWN.match(stripped) is None:
+            return False
+        frame = ASC_FRAME.match(stripped)
+        return frame is None or len(frame.group(2).split()) >= int(frame.group(1), 16)
+    if suffix == ".trc":
+        return TRC_KNOWN.match(stripped) is not None
+    return True
+
+
 def scan_text_log(path: Path, raw: bytes | None = None) -> LogDamage:
-    """The malformed lines of a text log (.log: every line checked; .asc, .trc: python-can skips the lines it does
-    not know, so only a cut last line); InputError when no line is left or the file starts with a byte-order
-    mark."""
+    """The malformed lines of a text log (.log: every line checked; .asc: a line of no kind an ASC log holds, or a
+    data frame short of its DLC's bytes; .trc: a line neither a ';' header nor numbered; any: a cut last line);
+    InputError when no line is left or the file starts with a byte-order mark."""
     raw = path.read_bytes() if raw is None else raw
     suffix = path.suffix.lower()
     if suffix == ".log" and raw.startswith(b"\xef\xbb\xbf"):
@@ -120,7 +149,7 @@ def scan_text_log(path: Path, raw: bytes | None = None) -> LogDamage:
             continue
         lines += 1
         last = i == len(segs) - 1
-        ok = not last and (suffix != ".log" or CANDUMP_STRICT.fullmatch(s) is not None or _python_can_reads(seg))
+        ok = not last and _reads(suffix, seg, s)
         if ok:
             keep.append(seg)
         else:

@@ -180,7 +180,9 @@ def replay_log_file(
     a log with a malformed line (else skipped, counted, and among the findings when they make it untrusted)."""
     import can
 
+    from firmware_model.description import description_of
     from firmware_model.service import build_service
+    from tools.replay.table import gear_meta
     from tools.runtable import write_run_table
 
     service = build_service(
@@ -205,6 +207,7 @@ def replay_log_file(
             with naming(frames_out):
                 writer.stop()
     table.meta["limits"] = service.sensor.limits  # the summary's margins: this gearbox's limits, not the GRS905's
+    table.meta.update(gear_meta(description_of(service.sensor.params)))  # the gear-numbering rule's ratios
     with naming(out):
         written = write_run_table(table, out)
     return LogReplay(

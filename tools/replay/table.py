@@ -428,9 +428,20 @@ def mark_for_findings(out, sensor) -> None:
     from firmware_model.description import description_of
     from firmware_model.service.plausibility import min_torque_nm
 
+    description = description_of(sensor.params)
     out.meta["min_torque_nm"] = min_torque_nm(sensor)
-    out.meta["engine_drive"] = description_of(sensor.params).drive.kind == "vehicle"
+    out.meta["engine_drive"] = description.drive.kind == "vehicle"
     out.meta["limits"] = sensor.limits  # the summary's margins: this gearbox's limits, not the GRS905's
+    out.meta.update(gear_meta(description))
+
+
+def gear_meta(description) -> dict:
+    """The gear-numbering rule's inputs (firmware_model.service.plausibility.gear_ratio_finding): the gearbox's name
+    and its gears' ratios, for a vehicle's drive (none for a fixed-ratio one)."""
+    if description.drive.kind != "vehicle":
+        return {}
+    ratios = {g.number: g.ratio for g in description.gears if g.number != 0 and math.isfinite(g.ratio)}
+    return {"gearbox": description.name, "gear_ratios": ratios}
 
 
 def table_findings(out, oil_model: bool = False) -> list:
@@ -478,9 +489,14 @@ def summarize(out) -> ReplaySummary:
     rejects = {
         k[len("rejects_") :]: int(out[k][-1]) for k in out.columns if k.startswith("rejects_") and n and out[k][-1] > 0
     }
+    meta = out.meta or {}
+    held = meta.get("steps") is not None and meta.get("step_s") is not None  # (plausibility.is_held: one row per
+    # input row, its steps of step_s; the last row covers its own period, not 0.1 s)
     return ReplaySummary(
-        span_s=out["time_s"][-1] - out["time_s"][0] + STEP_S if n else 0.0,
-        steps=n,
+        span_s=(meta["steps"] * meta["step_s"] if held else out["time_s"][-1] - out["time_s"][0] + STEP_S)
+        if n
+        else 0.0,
+        steps=int(meta["steps"]) if held else n,
         hottest=hottest,
         hottest_c=float(np.nanmax(out[f"T_{hottest}_c"])),
         max_level=max(int(np.nanmax(out[f"W_{c}"])) for c in published),
