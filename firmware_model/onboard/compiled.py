@@ -279,7 +279,8 @@ class CompiledCore:
         )
         if self.lib.gvs_step(*args, 0, out.ctypes.data, pts.ctypes.data) == NEED_JUMP:
             gap = float(rec["t_s"]) - float(buf["t_last_s"])
-            buf["T_c"][:, : self.n] = jump_state(self.unpack(buf), gap - self.sp.dt_s, self.sp, cache).T_c
+            st = jump_state(self.unpack(buf), gap - self.sp.dt_s, self.sp, cache)
+            buf["T_c"][:, : self.n], buf["pending_s"][: self.n_pub] = st.T_c, st.pending_s
             self.lib.gvs_step(*args, 1, out.ctypes.data, pts.ctypes.data)
         return self.unpack(buf), self.outputs(out), self.ttl_job(pts)
 
@@ -295,7 +296,7 @@ class CompiledCore:
         jump = known & (gap > 1.5 * dt) & ~backward  # (the kernel skips the backward ones itself)
         if jump.any():
             st = jump_state(self.unpack(buf), np.where(jump, gap - dt, 0.0), self.sp, cache)
-            buf["T_c"][..., : self.n] = st.T_c
+            buf["T_c"][..., : self.n], buf["pending_s"][..., : self.n_pub] = st.T_c, st.pending_s
         return np.ascontiguousarray(jump, dtype=np.int8).reshape(-1)
 
     def refresh_ttl(self, state: SensorState, job: TtlJob | None, cache: StepCache) -> SensorState:
@@ -384,7 +385,7 @@ class CompiledCore:
         if status == NEED_JUMP:
             gap = rec["t_s"][j] - float(buf["t_last_s"])
             st = jump_state(self.unpack(buf), gap - self.sp.dt_s, self.sp, cache)
-            buf["T_c"][:, : self.n] = st.T_c
+            buf["T_c"][:, : self.n], buf["pending_s"][: self.n_pub] = st.T_c, st.pending_s
             one = np.zeros((), dtype=self.S["TtlPoint_dtype"])
             kept = kf is None or bool(kf[j])
             self.lib.gvs_step(

@@ -102,19 +102,23 @@ def cooler_slope_w_per_k(
 def jump_state(state: SensorState, gap_s, sp: SensorParams, cache: StepCache) -> SensorState:
     """Propagate over a forward time jump of ``gap_s`` (per vehicle; <= 0: none): held inputs for up to
     time_jump_hold_s, then engine off. The inputs age by the gap: a value held from before it is no recent good
-    value (the oil's jump check and the drive inputs' hold then treat it as old, as the C kernel does). A single
-    vehicle's propagation that :func:`prepare_jump` did ahead is taken from ``cache.ahead`` (the same bits)."""
+    value (the oil's jump check and the drive inputs' hold then treat it as old, as the C kernel does). A warning
+    level change pending before the gap has been pending through it: its debounce timer counts the gap (else rows
+    10 s apart took 10 rows to raise a 1 s debounce, 30 s rows never). A single vehicle's propagation that
+    :func:`prepare_jump` did ahead is taken from ``cache.ahead`` (the same bits)."""
     B = state.t_last_s.shape
     T = np.array(state.T_c, dtype=float, copy=True)
     age = np.array(state.age_s, dtype=float, copy=True)
+    pending = np.array(state.pending_s, copy=True)
     for v in np.ndindex(B) if B else [()]:
         g = float(np.asarray(gap_s)[v])
         if g <= 0:
             continue
         age[v] = age[v] + g
+        pending[v] = np.where(pending[v] > 0, pending[v] + g, pending[v])
         ahead = cache.ahead.take(cache.ahead.key_of(state, g)) if not B and cache.ahead.key is not None else None
         T[v] = ahead if ahead is not None else _jump_temperatures(state, v, g, sp, cache)
-    return state._replace(T_c=T, age_s=age.astype(np.asarray(state.age_s).dtype, copy=False))
+    return state._replace(T_c=T, age_s=age.astype(np.asarray(state.age_s).dtype, copy=False), pending_s=pending)
 
 
 def prepare_jump(state: SensorState, gap_s: float, sp: SensorParams, cache: StepCache) -> None:

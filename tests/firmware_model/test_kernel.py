@@ -588,3 +588,25 @@ def test_tiny_torques_and_a_missing_frame_time(params, core):
     _, timed = s.step_table(s.initial_state(T_oil_c=80.0), raw, t_s)
     assert timed.rejects[-1, REJECT_REASONS.index("time_jump")] == 0
     np.testing.assert_allclose(timed.T_c, out.T_c, rtol=0, atol=1e-9)
+
+
+@needs_c
+@pytest.mark.parametrize("core", ["numpy", "c"])
+def test_rows_10_s_apart_raise_a_warning_within_a_row(params, uphill_hour, core):
+    """A table logged every 10 s: each row is a forward time jump, and a warning pending before it has been pending
+    through it. A component at or above its warning limit on two rows in a row (10 s, ten debounces) is at warning
+    by the second; before, the debounce counted one 0.1 s step per row and raised it ten rows late (at 30 s rows,
+    never). Both cores alike."""
+    from tools.replay.table import replay_table
+
+    sparse = uphill_hour.select(np.arange(uphill_hour.n) % 10 == 0)
+    sensor = VirtualSensor(params, core=core)
+    out = replay_table(sparse, sensor)
+    late = []
+    for i, c in enumerate(PUBLISHED):
+        T, W = np.asarray(out[f"T_{c}_c"]), np.asarray(out[f"W_{c}"])
+        hot = T >= sensor.limits.warning_c[i]
+        both = hot[1:] & hot[:-1]
+        late += [(c, int(k)) for k in np.flatnonzero(both & (W[1:] == 0)) + 1]
+    assert not late, late[:5]
+    assert np.nanmax(np.asarray(out["W_PS"], dtype=float)) >= 1
