@@ -22,6 +22,7 @@ import contextlib
 import csv
 import io
 import os
+import re
 import tempfile
 import warnings
 from collections.abc import Iterable, Iterator, Mapping
@@ -37,6 +38,9 @@ from tools.outputs import discard, publish, reserve
 REQUIRED = ("time_s", "engine_speed_rpm", "engine_torque_nm", "gear")
 #: optional input columns with a contract meaning
 OPTIONAL_INPUTS = ("oil_temp_c", "ambient_temp_c", "coolant_temp_c", "vehicle_speed_kmh", "retarder_torque_nm")
+#: the columns the tools read by their exact name (a fixed-ratio drive's inputs too): a column that is one of them
+#: but for case, a unit in brackets or separators is refused, not ignored (check_column_names)
+READ_BY_NAME = (*REQUIRED, *OPTIONAL_INPUTS, "input_speed_rpm", "input_torque_nm")
 #: default number format of a column; time gets more digits
 DEFAULT_FORMAT = "%.10g"
 TIME_FORMAT = "%.15g"
@@ -393,11 +397,57 @@ def validate_run_table(table: RunTable, required: Iterable[str] = REQUIRED, name
     return table
 
 
+def _plain_name(column: str) -> str:
+    """A column name without case, a unit in brackets or parentheses, and separators: 'Oil Temp [degC]' -> 'oiltemp'."""
+    return re.sub(r"[^0-9a-z]", "", re.sub(r"[\[(].*?[\])]", "", column.lower()))
+
+
+#: the unit suffixes of READ_BY_NAME that a logger's column may leave out ('oil_temp [degC]')
+_UNIT_SUFFIXES = ("c", "s", "rpm", "nm", "kmh")
+
+
+def check_column_names(columns: Iterable[str], name: str) -> None:
+    """InputError for a column that is one the tools read by name (READ_BY_NAME) or a measured channel
+    (``meas_T_<id>_c``) written otherwise (``Oil_Temp_C``, ``oil_temp_c [degC]``, ``meas_T_PS [degC]``): the tools
+    would ignore it and run without that input."""
+    columns = list(columns)
+    present = set(columns)
+    for col in columns:
+        if col in present and (col in READ_BY_NAME or re.fullmatch(r"meas_T_.+_c", col)):
+            continue
+        plain = _plain_name(col)
+        for known in READ_BY_NAME:
+            stem = known.rsplit("_", 1)[0] if known.rsplit("_", 1)[-1] in _UNIT_SUFFIXES else known
+            if known not in present and plain in (_plain_name(known), _plain_name(stem)):
+                raise InputError(
+                    f'{name}: column "{col}" looks like {known}, which the tools read by that exact name (in its '
+                    f"unit): rename it, else it is ignored and the run goes without it"
+                )
+            if (
+                known.endswith("_c")
+                and known not in present
+                and plain in (_plain_name(stem) + "f", _plain_name(stem) + "k")
+            ):
+                unit = "degF" if plain.endswith("f") else "kelvin"
+                raise InputError(
+                    f'{name}: column "{col}" looks like {known} in {unit}, which the tools read in degC under that '
+                    "name: convert it, else it is ignored and the run goes without it"
+                )
+        m = re.fullmatch(r"meas_?t_?(.+?)(?:_?c)?", plain) if col.lower().startswith("meas") else None
+        if m:
+            ident = re.sub(r"[\[(].*?[\])]", "", col).strip()[len("meas_T_") :].removesuffix("_c").strip(" _")
+            raise InputError(
+                f'{name}: column "{col}" looks like a measured channel, which the tools read as meas_T_<id>_c in degC '
+                f"(meas_T_{ident}_c): rename it, else it is ignored"
+            )
+
+
 def read_run_table(path: str | os.PathLike, required: Iterable[str] = REQUIRED) -> RunTable:
     """Read and validate a CSV run table; extra columns are kept. Raises InputError (one sentence) on bad input."""
     name = os.fspath(path)
     p = Path(path)
     names = read_header(p, name)
+    check_column_names(names, name)
     arr = parse_numeric_csv(p, names)
     if arr is None:
         arr = parse_careful(p, names, name)

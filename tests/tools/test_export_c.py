@@ -68,6 +68,22 @@ def test_the_summary_names_what_was_written_and_a_file_as_out_is_one_sentence(tm
     assert f"wrote {len(BUNDLE_FILES)} files" in out and "keep.txt" not in out and "fresh" not in out
     assert main(["export-c", "--out", str(tmp_path / "keep.txt")]) == 2
     assert "is a file, so the bundle's directory cannot be made there" in capsys.readouterr().err
+    # an earlier bundle's directory is exported into again; a project's own README.md and Makefile are not
+    # overwritten (they were, exit 0), nor is the current directory taken for an empty --out
+    assert main(["export-c", "--out", str(fresh), "--quiet"]) == 0
+    project = tmp_path / "project"
+    project.mkdir()
+    (project / "README.md").write_text("my project")
+    (project / "Makefile").write_text("all:\n")
+    assert main(["export-c", "--out", str(project), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert "holds Makefile, README.md, which the bundle would overwrite, and is no earlier bundle's" in err
+    assert (project / "README.md").read_text() == "my project" and sorted(p.name for p in project.iterdir()) == [
+        "Makefile",
+        "README.md",
+    ]
+    assert main(["export-c", "--out", "", "--quiet"]) == 2
+    assert "--out is empty" in capsys.readouterr().err
 
 
 @pytest.mark.skipif(not HAVE_CC, reason="no make or C compiler on this machine")

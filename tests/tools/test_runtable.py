@@ -370,3 +370,34 @@ def test_parquet_output_holds_the_same_numbers(tmp_path):
     assert back.column_names == ["time_s", "T_PS_c"]
     np.testing.assert_array_equal(back.column("T_PS_c").to_numpy(), t["T_PS_c"])
     assert not list(tmp_path.glob(".*tmp"))
+
+
+@pytest.mark.parametrize(
+    "column, words",
+    [
+        ("oil_temp_c [degC]", 'column "oil_temp_c [degC]" looks like oil_temp_c'),
+        ("Oil_Temp_C", 'column "Oil_Temp_C" looks like oil_temp_c'),
+        ("oil_temp [degC]", 'column "oil_temp [degC]" looks like oil_temp_c'),
+        ("Ambient Temp (C)", "looks like ambient_temp_c"),
+        ("oil_temp_f", "looks like oil_temp_c in degF"),
+        ("coolant_temp_k", "looks like coolant_temp_c in kelvin"),
+        (
+            "meas_T_PS [degC]",
+            "looks like a measured channel, which the tools read as meas_T_<id>_c in degC (meas_T_PS_c)",
+        ),
+    ],
+)
+def test_a_known_column_written_otherwise_is_refused_not_ignored(tmp_path, column, words):
+    """A rig logger's header ('oil_temp [degC]', 'Oil_Temp_C'): the column was ignored and the run went on without
+    the oil (simulate started from the boundary temperature, exit 0; replay modelled the sump and advised
+    oil_mode = "model"). Now one sentence naming the column and the name it must have."""
+    path = tmp_path / "rig.csv"
+    path.write_text(f"time_s,engine_speed_rpm,engine_torque_nm,gear,{column}\n0,1300,1500,9,80\n1,1300,1500,9,80\n")
+    with pytest.raises(InputError) as err:
+        read_run_table(path)
+    assert words in str(err.value) and "rig.csv" in str(err.value) and "\n" not in str(err.value)
+    # the exact names, and other columns, read as before
+    path.write_text(
+        "time_s,engine_speed_rpm,engine_torque_nm,gear,oil_temp_c,meas_T_PS_c,T_PS_c,note\n0,1,2,9,80,81,82,3\n"
+    )
+    assert read_run_table(path).has("meas_T_PS_c")

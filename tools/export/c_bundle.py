@@ -354,10 +354,7 @@ def export_c(out_dir, variant: str | None = None, config_path=None, real: str = 
     limits = lim if ttl else dataclasses.replace(lim, lead_s=0.0)  # the published components kept
     sensor = VirtualSensor(params, limits=limits, config=cfg, core="numpy")
     d = description_of(params)
-    out = Path(out_dir)
-    above = next((a for a in (out, *out.parents) if a.exists()), None)
-    if above is not None and not above.is_dir():
-        raise InputError(f"--out {out_dir}: {above} is a file, so the bundle's directory cannot be made there")
+    out = check_bundle_dir(out_dir)
     real_flag = "-DGVS_REAL_FLOAT" if real == "float" else ""
     tol = "0.05" if real == "float" else "1e-9"
     ttl_abs, ttl_rel = TTL_TOL[real]
@@ -393,6 +390,27 @@ def export_c(out_dir, variant: str | None = None, config_path=None, real: str = 
     # all or nothing: each file to a temporary one beside it, renamed when all are written; on a failure what this
     # run wrote and the directories it made are removed, files that were there before untouched (tools.outputs)
     return write_tree(out, files, "--out")
+
+
+def check_bundle_dir(out_dir) -> Path:
+    """The bundle's directory: new, empty, or an earlier bundle's (its gvs_kernel.h is this project's), whose files
+    are replaced; InputError where the bundle would overwrite files of someone else's (a project's own README.md or
+    Makefile) or where a file stands in the path."""
+    if not str(out_dir).strip():
+        raise InputError("--out is empty: give the directory of the bundle, e.g. --out gvs_c")
+    out = Path(out_dir)
+    above = next((a for a in (out, *out.parents) if a.exists()), None)
+    if above is not None and not above.is_dir():
+        raise InputError(f"--out {out_dir}: {above} is a file, so the bundle's directory cannot be made there")
+    kernel = out / "gvs_kernel.h"
+    earlier = kernel.is_file() and "gearbox-vsensor onboard step" in kernel.read_text(errors="replace")[:2000]
+    taken = [f for f in BUNDLE_FILES if (out / f).exists()]
+    if taken and not earlier:
+        raise InputError(
+            f"--out {out_dir} holds {', '.join(taken[:3])}{' ...' if len(taken) > 3 else ''}, which the bundle would "
+            "overwrite, and is no earlier bundle's: export into a new or empty directory"
+        )
+    return out
 
 
 def _check_text(sensor) -> dict:
