@@ -143,7 +143,7 @@ def test_reference_torque_clipping_and_sources_from_config():
         (),
         {
             "can": {
-                "engine_reference_torque_nm": 1000,
+                "engine_reference_torque_nm": 2600,
                 "engine_source_address": 0x01,
                 "transmission_source_address": 0x05,
                 "retarder_source_address": 0x29,
@@ -157,11 +157,32 @@ def test_reference_torque_clipping_and_sources_from_config():
         expected_sa={"EEC1": 1, "EC1": 1, "ETC2": 5, "ET1": 1, "AMB": 1, "CCVS1": 1, "ERC1": 0x29, "RC": 0x29}
     )
     pct = [u.value for m in fr.messages() for u in dec.feed(m) if u.name == "engine_torque_pct"]
-    assert max(pct) == 125 and min(pct) == -30 and dec.ec1_ref_torque_nm == 1000.0
+    assert 120 <= max(pct) <= 123 and min(pct) == -12 and dec.ec1_ref_torque_nm == 2600.0  # none clipped
     assert dec.rc_ref_torque_nm == 3500.0  # RC from the retarder's address: the default reference
     assert sum(dec.counters["rejected"].values()) == 0
     with pytest.raises(ParameterError, match="reference torque"):
         synth_frames(inp, None, ref_torque_nm=-5)
+    # a torque past 125 % of the reference the config gives was clipped in silence (3200 Nm sent as 1250)
+    cfg.can["engine_reference_torque_nm"] = 1000
+    with pytest.raises(
+        InputError, match=r"reaches 3200 N m, past 125% .* raise \[can\] engine_reference_torque_nm to at least 2560"
+    ):
+        synth_frames(inp, None, config=cfg)
+
+
+def test_a_torque_past_the_default_reference_raises_it_and_one_past_j1939_is_refused():
+    """Without a reference torque in the config, the log's EC1 sends the least one under which the cycle's torque
+    fits EEC1's 125 % (a 4100 Nm steady point was sent as 3750 Nm); a wind turbine's 1.2 MN m fits no J1939 frame."""
+    inp = cycle(12.0)
+    inp._cols["engine_torque_nm"] = np.linspace(-300.0, 4100.0, inp.n)
+    fr, _ = synth_frames(inp, None)
+    dec = J1939Decoder(expected_sa={"EEC1": 0, "EC1": 0})
+    tq = [u for m in fr.messages() for u in dec.feed(m)]
+    pct = [u.value for u in tq if u.name == "engine_torque_pct"]
+    assert dec.ec1_ref_torque_nm == 3280.0 and max(pct) / 100.0 * 3280.0 > 4000.0  # was 3750 at most
+    inp._cols["engine_torque_nm"] = np.full(inp.n, 1.2e6)
+    with pytest.raises(InputError, match="a CAN log cannot carry this drive; use its run table"):
+        synth_frames(inp, None)
     with pytest.raises(InputError, match="gear"):
         synth_frames(RunTable({"time_s": [0.0, 1.0], "engine_speed_rpm": [600, 600], "engine_torque_nm": [0, 0]}), None)
 

@@ -10,6 +10,7 @@ synthesis", has the messages, their periods, sources and content, the timing and
 
 from __future__ import annotations
 
+import math
 import os
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -468,6 +469,37 @@ def _reference_torques_nm(config, ref_torque_nm, retarder_ref_torque_nm) -> tupl
     return ref, _positive("retarder reference torque", retarder_ref_torque_nm)
 
 
+def reference_torques_nm(input_table, config=None, ref_torque_nm=None, retarder_ref_torque_nm=None):
+    """The engine and retarder reference torques a log of ``input_table`` sends (:func:`_reference_for`); the
+    checks run before any plant run (simulate --can-log)."""
+    given = ref_torque_nm is not None or "engine_reference_torque_nm" in (getattr(config, "can", None) or {})
+    ref_nm, retarder_ref_nm = _reference_torques_nm(config, ref_torque_nm, retarder_ref_torque_nm)
+    _check_cycle(input_table)
+    return _reference_for(input_table, ref_nm, given), retarder_ref_nm
+
+
+def _reference_for(input_table, ref_nm: float, given: bool) -> float:
+    """The engine reference torque the log sends: ``ref_nm``, or (not ``given``) the least whole N m under which
+    the cycle's torque stays within EEC1's 125 %; InputError where EEC1 cannot carry the torque (it clipped it)."""
+    torque = np.asarray(input_table["engine_torque_nm"], dtype=float)
+    peak = float(np.nanmax(np.abs(torque))) if torque.size and np.isfinite(torque).any() else 0.0
+    top = PCT_RANGE[1] / 100.0
+    if peak <= top * ref_nm:
+        return ref_nm
+    if peak > top * REF_TORQUE_MAX_NM:
+        raise InputError(
+            f"the cycle's torque reaches {peak:.4g} N m, past the most a J1939 EEC1 frame carries ({top:.0%} of the "
+            f"largest reference torque, {REF_TORQUE_MAX_NM} N m): a CAN log cannot carry this drive; use its run table"
+        )
+    if given:
+        raise InputError(
+            f"the cycle's torque reaches {peak:.4g} N m, past {top:.0%} of the engine reference torque {ref_nm:g} N m "
+            f"that EEC1 carries (it would be clipped): raise [can] engine_reference_torque_nm to at least "
+            f"{math.ceil(peak / top):d}"
+        )
+    return float(math.ceil(peak / top))
+
+
 def _check_cycle(input_table) -> None:
     for col in ("time_s", "engine_speed_rpm", "engine_torque_nm", "gear"):
         if not input_table.has(col):
@@ -496,11 +528,10 @@ def synth_frames(
     None sends no rig frames. ``ref_torque_nm`` / ``retarder_ref_torque_nm``: default from the config's ``[can]``
     (engine_reference_torque_nm, retarder_reference_torque_nm), else 3000 Nm / 3500 Nm.
     """
-    ref_nm, retarder_ref_nm = _reference_torques_nm(config, ref_torque_nm, retarder_ref_torque_nm)
+    ref_nm, retarder_ref_nm = reference_torques_nm(input_table, config, ref_torque_nm, retarder_ref_torque_nm)
     if not 0.0 <= sample_delay_s < 1.0:
         raise InputError(f"sample_delay_s = {sample_delay_s!r} must be in 0..1 s")
     src = _sources(config)
-    _check_cycle(input_table)
     synth = _Synth(input_table, plant_output_table, src, seed, sample_delay_s)
     synth.eec1(ref_nm)
     synth.etc2()

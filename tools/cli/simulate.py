@@ -217,6 +217,10 @@ def run(args) -> int:
             args.cycle, rate_hz=s.rate_hz, noise=s.noise, seed=args.seed, description=description_of(params)
         )
         fixed_ratio = table.meta.get("drive") == "fixed_ratio"
+        if args.can_log:  # a torque EEC1 cannot carry is refused before the plant runs
+            from tools.can.logsynth import reference_torques_nm
+
+            reference_torques_nm(table, cfg)
         if cycle_file is not None and not args.allow_untrusted:
             # the oil column is used as the sump (--cooler measured) or, without --initial-temp, as every node's start
             oil_used = s.cooler == "measured" or (s.initial_temp_c is None and table.has("oil_temp_c"))
