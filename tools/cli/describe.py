@@ -105,6 +105,12 @@ def _summary_rest(d) -> list[str]:
     out.append(f"published ({len(d.published)}, warning/critical degC):")
     for i in range(0, len(d.published), 7):
         out.append("  " + ", ".join(f"{c.id} {_c(c.warning_c)}/{_c(c.critical_c)}" for c in d.published[i : i + 7]))
+    derived = [c.id for c in d.published if c.id in d.derived]
+    if derived:  # (firmware_model.onboard.reduce.published_components: no node of the onboard network)
+        out.append(
+            f"  {', '.join(derived)}: derived (the reference plant's); the onboard sensor and its CAN frames publish "
+            f"the other {len(d.published) - len(derived)}"
+        )
     return out
 
 

@@ -64,8 +64,11 @@ def run(args) -> int:
         except ParameterError:
             source = None  # (a description made in code)
         check_paths([("the --gearbox description", source)], {"--out": args.out})
+    # what the sensor publishes (firmware_model.onboard.reduce.published_ids): a derived temperature (a forced
+    # system's oil inlet) is no node of the onboard network, the plant's only
+    on_bus = tuple(p.id for p in d.published if p.id not in getattr(d, "derived", ()))
     try:
-        text = generate_dbc([p.id for p in d.published], component_meanings(d))
+        text = generate_dbc(list(on_bus), component_meanings(d))
     except GenerateError as exc:
         print(f"gearbox-vsensor export-dbc: error: gearbox {d.name}: {exc}", file=sys.stderr)
         return 2
@@ -74,5 +77,7 @@ def run(args) -> int:
         return 0
     with atomic_text_file(args.out) as f:
         f.write(text)
-    print(f"wrote {args.out}: the DBC of {d.name}'s {len(d.published)} published components")
+    left = [p.id for p in d.published if p.id not in on_bus]
+    note = f" ({', '.join(left)}: derived, the plant's only, not on the bus)" if left else ""
+    print(f"wrote {args.out}: the DBC of {d.name}'s {len(on_bus)} published components{note}")
     return 0
