@@ -222,3 +222,23 @@ def test_a_constant_offset_left_on_a_held_out_channel_is_a_caution():
     cal.plot["test"] = [("a.csv", "PS", t, None, -0.9 + noise)]
     lines = _offsets_left(cal)
     assert len(lines) == 1 and "PS reads 0.8" in lines[0] and "below" in lines[0] and "diagnose" not in lines[0]
+
+
+def test_a_fit_that_changes_nothing_is_said_so_and_a_worse_one_is_never_called_a_cut():
+    """A model that already fits (held-out RMS 0.087 -> 0.091 K) was told 'the fit made the held-out error worse;
+    check the training files' units'; a thin fit that raised the held-out RMS was said to 'cut' it."""
+    from types import SimpleNamespace
+
+    from tools.cli.calibrate import _refusal
+    from tools.diagnosis.calibrate import Calibration
+
+    cal = SimpleNamespace(keys=("housing.hot_frac",), at_bound={"housing.hot_frac": False})
+    cal.test_rms_c, cal.train_rms_c = (0.087, 0.0914), (0.09, 0.09)
+    assert "already match the held-out files; nothing to calibrate" in _refusal(cal)
+    cal.test_rms_c = (0.24, 7.25)
+    assert "made the held-out error worse (RMS 0.24 -> 7.25 degC); check the training files' units" in _refusal(cal)
+    thin = SimpleNamespace(
+        n_eff=3.0, n_eff_needed=19, test_rms_c=(0.24, 7.25), n_cells=40, keys=("housing.hot_frac",), train_s=600.0
+    )
+    text = Calibration.thin_evidence(thin)
+    assert "does not cut the held-out RMS 0.24 -> 7.25 K and rests on too little" in text and "cuts" not in text

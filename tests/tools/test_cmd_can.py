@@ -52,6 +52,15 @@ def test_simulate_can_log_then_replay_it(sim, capsys):
     assert abs(last["temps_c"]["PS"] - est["T_PS_c"][-1]) <= 1 / 64
 
 
+@pytest.mark.parametrize("speed", ["0", "-1", "nan"])
+def test_play_at_a_speed_that_is_no_positive_number_is_one_sentence(sim, capsys, speed):
+    """--speed 0 on a bus that stamps on arrival was a ZeroDivisionError traceback (the warning divided by it)."""
+    args = ["play", str(sim / "run.log"), "--interface", "socketcan", "--channel", "vcan0", "--speed", speed]
+    assert main(args) == 2
+    err = capsys.readouterr().err
+    assert f"--speed {speed} must be a positive number" in err and "Traceback" not in err and "warning" not in err
+
+
 def test_play_plays_the_log_onto_a_bus(sim, capsys):
     ch = f"rt-{uuid.uuid4()}"
     mon = can.Bus(interface="virtual", channel=ch)

@@ -110,10 +110,15 @@ def _refusal(cal) -> str:
     at = f" (at a bound: {', '.join(bound)})" if bound else ""
     (before_c, after_c), (_, train_c) = cal.test_rms_c, cal.train_rms_c
     if not after_c < before_c:
-        what = "made the held-out error worse" if after_c > before_c else "did not reduce the held-out error"
+        if after_c - before_c <= max(0.05, 0.1 * before_c):  # a change in the noise: the file already fits
+            return (
+                f"the fit did not reduce the held-out error (RMS {before_c:.4g} -> {after_c:.4g} degC, a change "
+                f"within 0.05 K or 10 %): the file's values already match the held-out files; nothing to calibrate"
+                f"{at}"
+            )
         return (
-            f"the fit {what} (RMS {before_c:.4g} -> {after_c:.4g} degC); check the training files' units and "
-            f"channels{at}"
+            f"the fit made the held-out error worse (RMS {before_c:.4g} -> {after_c:.4g} degC); check the training "
+            f"files' units and channels{at}"
         )
     if not train_c <= TRAIN_RMS_REFUSE_C:
         return (

@@ -4,8 +4,10 @@
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 
+from firmware_model.errors import InputError
 from tools.can.bus import add_bus_options, can_subcommand
 from tools.cli.paths import check_paths
 
@@ -45,6 +47,8 @@ def run(args) -> int:
     from tools.replay.log import play_log_on
 
     check_paths([("the input", args.input)], {})
+    if not (math.isfinite(args.speed) and args.speed > 0):  # (before the warning, which divides by it)
+        raise InputError(f"--speed {args.speed:g} must be a positive number (1: the log's own timing)")
     warning = speed_warning(args.interface, args.speed)
     if warning:
         print(f"warning: {warning}", file=sys.stderr)

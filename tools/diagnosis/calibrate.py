@@ -92,9 +92,10 @@ class Calibration:
         return (
             f"thin evidence: the training residual after the fit holds n_eff = {self.n_eff:.0f} effective samples "
             f"of {self.n_cells} cells and fitting {len(self.keys)} value{'s' if len(self.keys) > 1 else ''} needs "
-            f"at least {self.n_eff_needed}; the fit cuts the held-out RMS {b:.2f} -> {a:.2f} K but rests on too "
-            f"little to trust: add more training files, or longer ones (at this autocorrelation about {more:.0f} "
-            f"times the {self.train_s / 3600.0:.1f} h scored), and calibrate again"
+            f"at least {self.n_eff_needed}; the fit {'cuts' if a < b else 'does not cut'} the held-out RMS "
+            f"{b:.2f} -> {a:.2f} K {'but' if a < b else 'and'} rests on too little to trust: add more training "
+            f"files, or longer ones (at this autocorrelation about {more:.0f} times the {self.train_s / 3600.0:.1f} h "
+            "scored), and calibrate again"
         )
 
 
