@@ -483,6 +483,19 @@ def test_service_unit_warns_of_every_place_the_sandbox_hides(tmp_path):
     assert check_unit_args("socketcan", "can0", "/etc/gearbox-vsensor/truck.toml", "/opt/gvs/bin/python") == []
 
 
+def test_service_unit_warns_of_an_unknown_interface_and_a_config_that_does_not_load(tmp_path):
+    """A unit that would fail at every start (Restart=always: a crash loop) was written without a word; what this
+    machine can tell is a warning (the unit may be for another host)."""
+    from tools.can.systemd import check_unit_args
+
+    (w,) = check_unit_args("nosuch", "can0", None, "/opt/gvs/bin/python")
+    assert "--interface nosuch: python-can here knows no such interface" in w
+    bad = tmp_path / "gvs.toml"
+    bad.write_text("[can]\nbitrat = 250000\n")
+    found = check_unit_args("socketcan", "can0", str(bad), "/opt/gvs/bin/python")
+    assert any(f"--config {bad} does not load here" in x and "bitrat" in x for x in found), found
+
+
 def test_status_says_restored_stopped_and_the_mode_now(params, tmp_path, capsys):
     """`status` says whether the saved state was restored, says 'stopped' (not 'running') right after a clean
     stop, and shows the degraded mode now, not only lifetime totals."""

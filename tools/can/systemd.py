@@ -65,6 +65,33 @@ HIDDEN = {
 }
 
 
+def _here_warnings(interface: str, config: str | None) -> list[str]:
+    """What this machine can tell of a unit that would fail at every start (a unit may be made for another host,
+    so these are warnings, and a --python that is not here is none): an interface this python-can does not know,
+    a --config that is here and does not load."""
+    import can
+
+    out = []
+    if interface not in can.interfaces.VALID_INTERFACES:
+        out.append(
+            f"--interface {interface}: python-can here knows no such interface ({', '.join(sorted(VALID_SHOWN))}, "
+            "...): unless the gateway's python-can has it, the service fails at every start"
+        )
+    if config is not None and os.path.isfile(config):
+        from firmware_model.config import load_config
+        from firmware_model.errors import ParameterError
+
+        try:
+            load_config(config)
+        except (InputError, ParameterError) as exc:
+            out.append(f"--config {config} does not load here ({exc}): the service would fail at every start")
+    return out
+
+
+#: the interfaces a warning lists (python-can's common ones)
+VALID_SHOWN = ("socketcan", "pcan", "kvaser", "vector", "slcan", "udp_multicast", "virtual")
+
+
 def check_unit_args(interface: str, channel: str, config: str | None, python: str | None) -> list[str]:
     """InputError for a channel that cannot stand in a unit file or a relative --config; returns warnings (a
     Python, the code or the --config under /home, /root or /tmp, which the unit's sandbox hides from the service)."""
@@ -76,7 +103,7 @@ def check_unit_args(interface: str, channel: str, config: str | None, python: st
             )
     if config is not None and not os.path.isabs(config):
         raise InputError(f"--config {config} must be an absolute path: the service does not start in this directory")
-    warnings = []
+    warnings = _here_warnings(interface, config)
     if interface == "virtual":
         warnings.append(
             "--interface virtual is python-can's bus inside one process: the service would receive no "
