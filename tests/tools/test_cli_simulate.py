@@ -359,3 +359,25 @@ def test_start_time_gives_the_can_log_unix_frame_times(tmp_path, capsys):
         err = capsys.readouterr().err.strip()
         assert words in err and len(err.splitlines()) == 1, err
         assert not (tmp_path / "b.csv").exists() and not (tmp_path / "b.log").exists()
+
+
+def test_an_effect_the_runs_cooler_makes_act_on_nothing_is_refused(tmp_path, capsys):
+    """thermostat_offset on the default liquid cooler (no thermostat) changed no node and exited 0: a run that asked
+    for the effect passed for one with it."""
+    out = tmp_path / "x.csv"
+    argv = [
+        "simulate",
+        "--cycle",
+        "steady:s=30",
+        "--out",
+        str(out),
+        "--quiet",
+        "--effect",
+        "thermostat_offset:offset_c=10",
+    ]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert "--effect thermostat_offset acts on air coolers, and this run's cooler is liquid" in err and not out.exists()
+    cfg = tmp_path / "air.toml"
+    cfg.write_text('[cooler]\nkind = "air"\n')
+    assert main([*argv, "--config", str(cfg)]) == 0 and out.exists()

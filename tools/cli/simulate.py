@@ -228,6 +228,7 @@ def run(args) -> int:
         if fixed_ratio:  # one output row per input row of a table slower than the output period (a SCADA table)
             s.out_dt_s = max(s.out_dt_s, table.meta["row_period_s"])
         plant = ReferencePlant(params, effects, cooler=s.cooler, dt_s=s.dt_s)
+        _refuse_idle_effects(effects, plant.kind)
         try:
             res = plant.run(
                 table,
@@ -244,6 +245,21 @@ def run(args) -> int:
     if not args.quiet:
         _print_summary(args, res)
     return 0
+
+
+#: the effects that act on a cooler only of these kinds (firmware_model.physics.cooler.cooler_heat): elsewhere they
+#: change nothing, and a run that asked for one would pass for a run with it
+EFFECT_COOLERS = {"thermostat_offset": ("air",), "cooler_effectiveness_scale": ("liquid", "air")}
+
+
+def _refuse_idle_effects(effects: dict, cooler: str) -> None:
+    """InputError for an --effect that the run's cooler makes act on nothing."""
+    for eid, kinds in EFFECT_COOLERS.items():
+        if eid in effects and cooler not in kinds:
+            raise InputError(
+                f"--effect {eid} acts on {' or '.join(kinds)} coolers, and this run's cooler is {cooler}: it would "
+                f'change nothing; choose the cooler ([cooler] kind = "{kinds[0]}") or leave the effect out'
+            )
 
 
 def _effects(given_effects) -> dict:
