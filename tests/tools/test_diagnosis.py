@@ -339,6 +339,23 @@ def test_stuck_sensor(tmp_path, capsys):
     assert "stuck sensor" in err and "oil_temp_c" in err
 
 
+@pytest.mark.parametrize("unit, to_unit", [("degF", lambda c: c * 1.8 + 32.0), ("kelvin", lambda c: c + 273.15)])
+def test_a_thermocouple_in_degf_or_kelvin_is_told_by_the_oil_beside_it(tmp_path, capsys, unit, to_unit):
+    """A part's thermocouple logged in degF passed every range check (130 degC reads 266): the diagnosis took the
+    gap for a heat-flow effect. Read against the sump it sits 150 K over it, and beside it in that unit."""
+    cols = _table()
+    if unit == "kelvin":  # a cold run (a warm part in kelvin is over 300, refused as no plausible temperature)
+        cols["oil_temp_c"] = cols["oil_temp_c"] - 40.0
+    cols["meas_T_PS_c"] = to_unit(cols["oil_temp_c"] + 5.0)
+    err = _run_bad(tmp_path, capsys, cols)
+    assert 'column "meas_T_PS_c" reads a median' in err and f"the column looks like {unit}, not degC" in err
+    cols["meas_T_PS_c"] = cols["oil_temp_c"] + 35.0  # a hot part in degC: no finding
+    from tools.diagnosis.options import Options
+    from tools.diagnosis.prepare import prepare
+
+    assert "PS" in prepare(RunTable(cols), "t.csv", "train", Options()).channels
+
+
 def test_a_sensor_frozen_for_minutes_is_left_out_of_the_fit(tmp_path, capsys):
     """A reading repeated bit for bit for more than 300 s (the onboard oil_frozen time) while the drive moves is a
     stuck sensor: its stretch is left out of the fit and the warning says so, also on stderr (fitted as data, 400 s

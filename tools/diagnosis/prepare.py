@@ -316,6 +316,29 @@ def _check_values(y: np.ndarray, ok: np.ndarray, name: str, col: str, dur_s: flo
         )
 
 
+#: a measured part sits at most this far above the sump on the median of a run [K] (bearings and wheels run up to
+#: ~40 K over it); a reading further off that lies within UNIT_FIT_K of the sump in degF or kelvin is in that unit
+PART_OVER_OIL_K, UNIT_FIT_K = 80.0, 40.0
+
+
+def _check_unit_against_oil(y: np.ndarray, oil_c: np.ndarray, name: str, col: str) -> None:
+    """InputError for a measured part's column in degF or kelvin, told by the sump beside it (a thermocouple
+    logged in degF passed every range check: 130 degC reads 266, and the diagnosis took it as a heat-flow gap)."""
+    both = np.isfinite(y) & np.isfinite(oil_c)
+    if both.sum() < 10:
+        return
+    over = float(np.median(y[both] - oil_c[both]))
+    if over <= PART_OVER_OIL_K:
+        return
+    for unit, to_c, fix in (("degF", (y - 32.0) / 1.8, "(degF - 32) / 1.8"), ("kelvin", y - 273.15, "K - 273.15")):
+        if abs(float(np.median(to_c[both] - oil_c[both]))) <= UNIT_FIT_K:
+            raise InputError(
+                f'{name}: column "{col}" reads a median {over:.0f} K above the oil (oil_temp_c), where a part runs '
+                f"at most {PART_OVER_OIL_K:.0f} K over it; as {unit} it sits beside the oil: the column looks like "
+                f"{unit}, not degC; give degC: {fix}"
+            )
+
+
 def _valid_samples(table: RunTable, t: np.ndarray, name: str, col: str, opts: Options) -> ValidSamples:
     """The valid samples of a measured column; refuses dead, stuck, implausible and long-missing ones and warns
     about a sensor frozen for a long stretch."""
@@ -323,6 +346,8 @@ def _valid_samples(table: RunTable, t: np.ndarray, name: str, col: str, opts: Op
     y = np.asarray(table[col], dtype=float)
     ok = np.isfinite(y)
     _check_values(y, ok, name, col, dur, t)
+    if col != "oil_temp_c" and table.has("oil_temp_c"):
+        _check_unit_against_oil(y, np.asarray(table["oil_temp_c"], dtype=float), name, col)
     yv = y[ok]
     g0, glen = _longest_nan_run(t, ok)
     limit_s = max(opts.max_channel_gap_frac * dur, 300.0)
