@@ -108,7 +108,9 @@ def test_the_bundle_follows_the_description(gearbox, bundles):
     ttl = _c_values(vectors, "GVS_VEC_TTL").reshape(-1, n_pub)
     if d.drive.kind == "fixed_ratio":
         # the export's fixed-ratio drive is made to reach a warning (the uphill cycle's reach is the GRS905's tests')
-        assert (level == 1).any() and np.isfinite(ttl).sum() > 100
+        # ... from under its lowest limit: a time to limit that counts down, not 0 throughout (the MM82's started
+        # at 105 degC, over all its limits: every reference value 0, "largest difference 0 s")
+        assert (level == 1).any() and (np.isfinite(ttl) & (ttl > 0)).sum() > 100
         gear = fixed_ratio_gear(d)
         assert set(raw[calm, 2]) == {gear}
         assert f"gear always {gear}" in readme and "engine speed" not in readme
