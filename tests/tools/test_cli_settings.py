@@ -219,3 +219,20 @@ def test_the_time_to_limit_method_is_chosen_in_the_configuration(tmp_path):
     cfg.write_text("[sensor]\nttl_method = 1\n")
     with pytest.raises(ParameterError, match=r"sensor\.ttl_method = 1 must be a string"):
         load_config(cfg)
+
+
+def test_export_fmu_says_that_export_c_s_time_to_limit_setting_is_not_its_own(tmp_path, monkeypatch, capsys):
+    """[export] time_to_limit = false in the config was ignored by export-fmu without a word (the FMU still computes
+    the time to limit): said on stderr, the FMU built as before."""
+    import tools.export.fmu as fmu_module
+    from tools.cli import main
+
+    built = tmp_path / "s.fmu"
+    monkeypatch.setattr(fmu_module, "export_fmu", lambda out, **kw: (built.write_bytes(b"x"), built)[1])
+    cfg = tmp_path / "c.toml"
+    cfg.write_text("[export]\ntime_to_limit = false\n")
+    assert main(["export-fmu", "--config", str(cfg), "--out", str(built)]) == 0
+    assert "time_to_limit = false applies to export-c" in capsys.readouterr().err
+    cfg.write_text("")
+    assert main(["export-fmu", "--config", str(cfg), "--out", str(built)]) == 0
+    assert "time_to_limit" not in capsys.readouterr().err

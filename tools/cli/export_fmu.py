@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import sys
 
 from tools.cli.gearbox_option import add_gearbox_option, resolve_gearbox
 
@@ -51,6 +52,12 @@ def run(args) -> int:
     # before the build: --out a directory, in a missing directory, or also the --config
     check_paths([("the --config", args.config)], {"--out": args.out})
     cfg = resolve_gearbox(args)
+    if cfg.setting("export.time_to_limit") is False:  # export-c's setting: said, not ignored in silence
+        print(
+            "warning: [export] time_to_limit = false applies to export-c (an ECU's flash); the FMU computes the time "
+            "to limit as the onboard sensor does (its ttl_<id>_s outputs)",
+            file=sys.stderr,
+        )
     out = export_fmu(args.out, config_path=cfg, fmi_version=int(args.fmi))
     if not args.quiet:
         print(f"wrote {out} ({out.stat().st_size // 1024} KiB, FMI {args.fmi}.0 co-simulation, step 0.1 s)")
