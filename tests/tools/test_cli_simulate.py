@@ -381,3 +381,20 @@ def test_an_effect_the_runs_cooler_makes_act_on_nothing_is_refused(tmp_path, cap
     cfg = tmp_path / "air.toml"
     cfg.write_text('[cooler]\nkind = "air"\n')
     assert main([*argv, "--config", str(cfg)]) == 0 and out.exists()
+
+
+def test_a_named_cycle_setting_in_the_config_is_said_to_be_ignored_for_a_run_table(tmp_path, capsys):
+    """[simulate] rate_hz in a project's configuration with a CSV cycle changed nothing without a word (the option
+    is refused): a warning names the key and the file; the run goes on (the file serves named cycles too)."""
+    cfg = tmp_path / "p.toml"
+    cfg.write_text("[simulate]\nrate_hz = 5\nnoise = true\n")
+    out = tmp_path / "run.csv"
+    assert (
+        main(
+            ["simulate", "--cycle", str(_cycle(tmp_path / "c.csv")), "--config", str(cfg), "--out", str(out), "--quiet"]
+        )
+        == 0
+    )
+    err = capsys.readouterr().err
+    assert "warning: [simulate] rate_hz, [simulate] noise in" in err and "apply only to named cycles" in err
+    assert out.exists()

@@ -145,6 +145,13 @@ def resolve_settings(args, cfg) -> SimpleNamespace:
     s.cooler = args.cooler or cfg.cooler
     named = args.cycle.strip().lower().split(":")[0] in CYCLE_NAMES
     on_table = given(args, CYCLE_KEYS) + (["--seed"] if args.seed is not None else [])
+    in_file = [f"[{k.replace('.', '] ')}" for k in CYCLE_KEYS if k in cfg.settings]
+    if in_file and not named:  # a project's configuration serves named cycles and tables alike: said, not refused
+        print(
+            f"warning: {', '.join(in_file)} in {cfg.origin} {'applies' if len(in_file) == 1 else 'apply'} only to "
+            f"named cycles: {'it is' if len(in_file) == 1 else 'they are'} ignored for the run table {args.cycle}",
+            file=sys.stderr,
+        )
     if on_table and not named:
         raise InputError(
             f"{', '.join(on_table)} {'applies' if len(on_table) == 1 else 'apply'} only to named cycles; "
