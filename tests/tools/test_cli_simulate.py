@@ -398,3 +398,15 @@ def test_a_named_cycle_setting_in_the_config_is_said_to_be_ignored_for_a_run_tab
     err = capsys.readouterr().err
     assert "warning: [simulate] rate_hz, [simulate] noise in" in err and "apply only to named cycles" in err
     assert out.exists()
+
+
+def test_a_sump_held_warm_beside_cold_parts_is_a_note(tmp_path, capsys):
+    """[simulate] hold_oil_c = 100 on a steady spec without init: the sump at 100 degC, every other part from the
+    spec's 20 degC, without a word (steady:...,oil=100 starts them all at 100)."""
+    cfg = tmp_path / "h.toml"
+    cfg.write_text('[cooler]\nkind = "hold"\n[simulate]\nhold_oil_c = 100\n')
+    out = tmp_path / "run.csv"
+    assert main(["simulate", "--cycle", "steady:s=30", "--config", str(cfg), "--out", str(out), "--quiet"]) == 0
+    assert "note: the sump is held at 100 degC while the other parts start at 20 degC" in capsys.readouterr().err
+    assert main(["simulate", "--cycle", "steady:s=30,oil=100", "--out", str(out), "--quiet"]) == 0
+    assert "held at" not in capsys.readouterr().err

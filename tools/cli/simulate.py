@@ -251,7 +251,25 @@ def run(args) -> int:
         _write_outputs(args, table, res, params, cfg, tmp, s.start_time)
     if not args.quiet:
         _print_summary(args, res)
+    held_c = (
+        s.hold_oil_c if s.hold_oil_c is not None else (plant.p["cooler.hold_temp"] if plant.kind == "hold" else None)
+    )
+    _note_cold_parts_beside_a_held_sump(res.table, held_c)
     return 0
+
+
+def _note_cold_parts_beside_a_held_sump(table, hold_c: float | None) -> None:
+    """A note when the sump is held warm while the other parts start far colder (a [simulate] hold_oil_c without
+    initial_temp_c): the first minutes are a warm-up, which a run that meant a warm gearbox would not want."""
+    if hold_c is None or not table.n:
+        return
+    first = [float(table[c][0]) for c in table.columns if c.startswith("T_") and c.endswith("_c") and c != "T_oil_c"]
+    if first and hold_c - min(first) > 20.0:
+        print(
+            f"note: the sump is held at {hold_c:g} degC while the other parts start at {min(first):.0f} degC: the "
+            "run begins with their warm-up; [simulate] initial_temp_c starts them warm",
+            file=sys.stderr,
+        )
 
 
 #: the effects that act on a cooler only of these kinds (firmware_model.physics.cooler.cooler_heat): elsewhere they
