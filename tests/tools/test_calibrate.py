@@ -128,9 +128,11 @@ def test_bounds_are_checked_when_the_file_is_read(tmp_path):
     assert np.isclose(p.bounds["oil_system.flow_m3_per_rad"][1], 1.59e-06)
 
 
-def test_a_fit_that_makes_the_held_out_error_worse_writes_no_parameter_file(params, tmp_path, capsys):
-    """No parameter file when the fit makes the held-out error worse: training thermocouples in degF would give a
-    'fitted' file (a value at its bound, the held-out RMS 15 times larger, printed as '-1458 % down') with exit 0."""
+def test_training_thermocouples_in_degf_write_no_parameter_file(params, tmp_path, capsys):
+    """No parameter file from training thermocouples in degF: they gave a 'fitted' file (a value at its bound, the
+    held-out RMS 15 times larger, printed as '-1458 % down') with exit 0; then the fit was refused as making the
+    held-out error worse (exit 3); now the columns are refused as degF before any fit, read against the oil beside
+    them (exit 2). The refusal of a worse fit: test_a_fit_that_changes_nothing_is_said_so_..."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
         sc = make_scenario(1, 7, "rig", None, None, params, train_s=SHORT_S, test_s=SHORT_S)  # the file is right
@@ -156,8 +158,8 @@ def test_a_fit_that_makes_the_held_out_error_worse_writes_no_parameter_file(para
         ]
     )
     err = capsys.readouterr().err
-    assert rc == 3 and not out.exists(), err
-    assert "made the held-out error worse" in err and "no parameter file was written" in err
+    assert rc == 2 and not out.exists(), err
+    assert "train_degF.csv: column" in err and "the column looks like degF, not degC" in err
 
 
 def test_a_fit_still_far_off_or_not_pinned_down_is_refused_or_said(params):

@@ -237,6 +237,7 @@ def test_export_c_full_disk_removes_what_it_wrote_and_the_directory_it_made(work
 def test_export_c_full_disk_keeps_the_files_that_were_there(work, monkeypatch, capsys):
     (work / "cb").mkdir()
     (work / "cb" / "Makefile").write_text("an older bundle's Makefile\n")
+    (work / "cb" / "gvs_kernel.h").write_text("/* gearbox-vsensor onboard step: an older bundle's header */\n")
     (work / "cb" / "notes.txt").write_text("the user's\n")
     failing_write_text(monkeypatch, "gvs_tables.c")
     before = snapshot(work)

@@ -528,10 +528,11 @@ def synth_frames(
     None sends no rig frames. ``ref_torque_nm`` / ``retarder_ref_torque_nm``: default from the config's ``[can]``
     (engine_reference_torque_nm, retarder_reference_torque_nm), else 3000 Nm / 3500 Nm.
     """
-    ref_nm, retarder_ref_nm = reference_torques_nm(input_table, config, ref_torque_nm, retarder_ref_torque_nm)
+    ref_nm, retarder_ref_nm = _reference_torques_nm(config, ref_torque_nm, retarder_ref_torque_nm)
     if not 0.0 <= sample_delay_s < 1.0:
         raise InputError(f"sample_delay_s = {sample_delay_s!r} must be in 0..1 s")
-    src = _sources(config)
+    src = _sources(config)  # (the configuration's sentences before the cycle's)
+    ref_nm, retarder_ref_nm = reference_torques_nm(input_table, config, ref_torque_nm, retarder_ref_torque_nm)
     synth = _Synth(input_table, plant_output_table, src, seed, sample_delay_s)
     synth.eec1(ref_nm)
     synth.etc2()
