@@ -202,6 +202,7 @@ def test_steady_spec():
         ("steady:rpm=fast", ["rpm", "'fast'", "not a number"]),
         ("steady:rpm=-5", ["rpm=-5"]),
         ("steady:rpm=4500", ["rpm=4500", "0..4000"]),  # the GRS905's max_speed, as the plant and the replay take it
+        ("steady:gear=0,nm=2000", ["nm=2000 in neutral (gear=0) reaches no gear"]),  # was dropped in silence
         ("steady:nm=4300", ["nm=4300", "-4200..4200"]),
         ("steady:s=0", ["s=0"]),
         ("steady:oil=80,oil=90", ["oil is given twice"]),  # not the last one winning, silently

@@ -318,6 +318,14 @@ def parse_steady_spec(spec: str, max_rpm: float = 4000.0, max_nm: float = 4200.0
         out[key] = x
     if out["rpm"] < 0 or out["rpm"] > max_rpm:
         raise InputError(f"steady cycle spec {spec!r}: rpm={out['rpm']:g} must be in 0..{max_rpm:.0f}")
+    if out["gear"] == 0 and "nm" not in given:
+        out["nm"] = 0.0  # neutral idles: the default 2000 Nm would reach no gear (the plant drops it)
+    if out["gear"] == 0 and out["nm"] != 0:
+        # in neutral the engine's torque reaches no gear: the plant drops it (the gearbox idles); said, not dropped
+        raise InputError(
+            f"steady cycle spec {spec!r}: nm={out['nm']:g} in neutral (gear=0) reaches no gear; give nm=0 for an "
+            "idling gearbox, or a gear"
+        )
     if abs(out["nm"]) > max_nm:
         raise InputError(f"steady cycle spec {spec!r}: nm={out['nm']:g} must be within -{max_nm:.0f}..{max_nm:.0f} Nm")
     if out["s"] <= 0 or out["s"] > 7 * 86400:
