@@ -605,3 +605,15 @@ def test_variant_replaces_the_configurations(tmp_path):
         assert main(["export-c", *args, "--out", str(out), "--quiet"]) == 0
         head = (out / "gvs_tables.c").read_text()[:300]
         assert f"the onboard tables of {want} " in head, head
+
+
+def test_the_readme_says_when_the_build_models_the_sump():
+    """export-c with [sensor] oil_mode = "model" wrote the measured-oil README byte for byte: an integrator saw the
+    oil readings ignored and degraded_mode 1 throughout, with no word of why."""
+    from firmware_model.description import load_description
+    from tools.export.c_bundle import _drive_text
+
+    for name in ("GRS905", "R1"):
+        d = load_description(name)
+        assert 'This build models the sump ([sensor] oil_mode = "model")' in _drive_text(d, "model")["inputs_text"]
+        assert "models the sump" not in _drive_text(d, "measured")["inputs_text"]

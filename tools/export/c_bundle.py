@@ -389,7 +389,7 @@ def export_c(out_dir, variant: str | None = None, config_path=None, real: str = 
                 n=sensor.reduced.n,
                 n_pub=len(sensor.published),
                 reset=reset_s,
-                **_drive_text(d),
+                **_drive_text(d, sensor.options.oil_mode),
                 **_check_text(sensor),
             ),
         }
@@ -492,14 +492,22 @@ def footprint_gear(description) -> int:
     return four_l.number if four_l is not None else min(g.number for g in description.gears if g.number > 0)
 
 
-def _drive_text(description) -> dict:
-    """The README's words on the test vectors' drive and on the inputs, for the gearbox's drive."""
+#: the README's words when the build models the sump ([sensor] oil_mode = "model")
+MODEL_OIL_TEXT = (
+    '\nThis build models the sump ([sensor] oil_mode = "model"): the oil input is not used as the sump (it still\n'
+    "gives the oil innovation, measured - model), and `degraded_mode` 1 says the sump is modelled, as designed."
+)
+
+
+def _drive_text(description, oil_mode: str = "measured") -> dict:
+    """The README's words on the test vectors' drive and on the inputs, for the gearbox's drive and oil mode."""
+    model = MODEL_OIL_TEXT if oil_mode == "model" else ""
     if description.drive.kind != "fixed_ratio":
         return dict(
             vectors="the uphill cycle",
             inputs_text="Inputs: engine speed [rpm], engine torque [N m] (net, signed), selected gear (-2..14; 0 "
             "neutral), measured sump oil\n[degC], ambient and coolant [degC], vehicle speed [km/h], retarder torque "
-            "[N m].",
+            "[N m]." + model,
         )
     (s0, s1), (q0, q1) = FIXED_RATIO_SPEED, FIXED_RATIO_TORQUE
     return dict(
@@ -508,5 +516,5 @@ def _drive_text(description) -> dict:
         inputs_text="Inputs (a fixed-ratio drive, its input shaft in an engine's place, as `gearbox-vsensor replay` "
         "maps a\nfixed-ratio run table): input speed [rpm] as `speed_rpm`, input torque [N m] (signed) as "
         f"`torque_nm`, gear always {fixed_ratio_gear(description)}\n(its one gear), measured sump oil [degC], "
-        "ambient [degC], coolant NaN (none), vehicle speed 0 and retarder torque 0\n(it stands still).",
+        "ambient [degC], coolant NaN (none), vehicle speed 0 and retarder torque 0\n(it stands still)." + model,
     )
