@@ -496,6 +496,26 @@ def test_service_unit_warns_of_an_unknown_interface_and_a_config_that_does_not_l
     assert any(f"--config {bad} does not load here" in x and "bitrat" in x for x in found), found
 
 
+def test_status_says_not_running_at_once_when_the_service_s_process_is_gone(params, tmp_path, capsys):
+    """A service killed with SIGKILL left a fresh health file: status said 'running' for up to 5 s. Its pid is no
+    live process on this boot: NOT RUNNING at once, exit 1."""
+    import subprocess
+    import sys
+
+    from tools.cli import main
+
+    svc = _service(params)
+    _drive(svc, 0.0, 2.0)
+    health = HealthFile(tmp_path / "health.json")
+    assert health.maybe_write(svc, None)
+    doc = read_health(tmp_path / "health.json")
+    dead = subprocess.Popen([sys.executable, "-c", "pass"])
+    dead.wait()
+    (tmp_path / "health.json").write_text(json.dumps({**doc, "pid": dead.pid}))
+    assert main(["status", "--health-file", str(tmp_path / "health.json")]) == 1
+    assert f"NOT RUNNING (its process {dead.pid} is gone: killed or crashed" in capsys.readouterr().out
+
+
 def test_status_says_restored_stopped_and_the_mode_now(params, tmp_path, capsys):
     """`status` says whether the saved state was restored, says 'stopped' (not 'running') right after a clean
     stop, and shows the degraded mode now, not only lifetime totals."""

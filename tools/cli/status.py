@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import os
 import time
 
 from firmware_model.errors import InputError
@@ -54,7 +55,8 @@ def run(args) -> int:
         raise InputError(f"{args.health_file}: not a gearbox-vsensor health file ({exc})") from None
     try:  # a health file edited or damaged by hand: its fields of the wrong type are one sentence, exit 2
         age_s = health_age_s(doc)
-        lines = status_lines(doc, age_s)
+        gone = process_gone(doc)
+        lines = status_lines(doc, age_s, gone)
         stepping = not not_stepping(doc)
     except (TypeError, ValueError, AttributeError) as exc:
         raise InputError(
@@ -71,7 +73,7 @@ def run(args) -> int:
         import sys
 
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
-    if age_s > STALE_S or doc.get("stopped"):
+    if age_s > STALE_S or doc.get("stopped") or gone:
         return 1
     return 0 if stepping else 3
 
@@ -121,7 +123,25 @@ def health_age_s(doc: dict) -> float:
     return wall_age_s
 
 
-def status_lines(doc: dict, age_s: float) -> list[str]:
+def process_gone(doc: dict) -> bool:
+    """Whether the service that wrote ``doc`` on this boot has no process any more (killed, crashed): its pid is no
+    live process here. Only for a file of this boot (a pid of another boot says nothing) and a service in this
+    machine's process namespace (status runs on the gateway)."""
+    from firmware_model.service.persist import boot_id
+
+    pid = doc.get("pid")
+    if doc.get("stopped") or not isinstance(pid, int) or pid <= 0 or doc.get("boot_id") != boot_id():
+        return False
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return True
+    except OSError:  # (another user's process: alive)
+        return False
+    return False
+
+
+def status_lines(doc: dict, age_s: float, gone: bool = False) -> list[str]:
     from firmware_model.components import MODE_NAMES
 
     state = doc.get("state") or {}
@@ -130,6 +150,8 @@ def status_lines(doc: dict, age_s: float) -> list[str]:
         f"NOT RUNNING (health {age_s:.0f} s old; or running but unable to rewrite this file: its log says "
         f"'cannot write the health file')"
     )
+    if gone:
+        stale = f"NOT RUNNING (its process {doc.get('pid')} is gone: killed or crashed; health {age_s:.0f} s old)"
     if doc.get("stopped"):
         stale = f"stopped cleanly {age_s:.0f} s ago"
     now = doc.get("degraded_mode_now")
@@ -144,7 +166,7 @@ def status_lines(doc: dict, age_s: float) -> list[str]:
         )
     step_age = doc.get("last_step_age_s")
     lines = [
-        f"service: {running if age_s <= STALE_S and not doc.get('stopped') else stale}, "
+        f"service: {running if age_s <= STALE_S and not doc.get('stopped') and not gone else stale}, "
         f"pid {doc.get('pid')}, uptime {doc.get('uptime_s', 0.0):.0f} s",
         f"sensor: {'initialised' if doc.get('initialised') else 'waiting for inputs'}, {doc.get('steps', 0)} "
         f"steps, last step at frame time {'-' if last is None else f'{last:.1f} s'}"
