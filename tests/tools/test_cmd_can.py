@@ -61,6 +61,23 @@ def test_play_at_a_speed_that_is_no_positive_number_is_one_sentence(sim, capsys,
     assert f"--speed {speed} must be a positive number" in err and "Traceback" not in err and "warning" not in err
 
 
+def test_play_skips_a_malformed_line_as_replay_does_and_says_so(sim, tmp_path, capsys):
+    """A line of noise in the middle of a log stopped play half-way (exit 2, the frames before it already on the
+    bus); replay skips and counts it. play now checks the log first and plays every frame around it."""
+    lines = (sim / "run.log").read_text().splitlines()
+    mid = len(lines) // 2
+    (tmp_path / "noisy.log").write_text("\n".join(lines[:mid] + ["#### logger hiccup ####"] + lines[mid:]) + "\n")
+    ch = f"rt-{uuid.uuid4()}"
+    mon = can.Bus(interface="virtual", channel=ch)
+    assert (
+        main(["play", str(tmp_path / "noisy.log"), "--interface", "virtual", "--channel", ch, "--speed", "1000"]) == 0
+    )
+    got = drain(mon)
+    mon.shutdown()
+    assert len(got) == len(lines)
+    assert f"note: 1 malformed line skipped (line {mid + 1})" in capsys.readouterr().err
+
+
 def test_play_plays_the_log_onto_a_bus(sim, capsys):
     ch = f"rt-{uuid.uuid4()}"
     mon = can.Bus(interface="virtual", channel=ch)

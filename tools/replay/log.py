@@ -245,12 +245,14 @@ def play_log(
     speedup: float = 1.0,
     stop: threading.Event | None = None,
     skip_s: float = PLAY_SKIP_S,
+    damage=None,
 ) -> int:
     """Send the frames of a log onto ``bus`` with their original timing (``speedup`` x faster), like canplayer.
 
     Uses python-can's ``MessageSync`` (gaps longer than ``skip_s`` are cut short); the frames keep their original
-    timestamps (a bus with ``preserve_timestamps`` passes them on). Error frames in the log are not sent. Returns
-    the number of frames sent.
+    timestamps (a bus with ``preserve_timestamps`` passes them on). Error frames in the log are not sent.
+    ``damage`` (tools.replay.columns.scan_log): the log without its malformed lines, as replay reads it (None: a
+    malformed line stops the play). Returns the number of frames sent.
     """
     import collections
 
@@ -271,7 +273,7 @@ def play_log(
             yield msg
 
     sent = 0
-    for msg in can.MessageSync(timed(read_log(path)), timestamps=True, gap=0.0, skip=skip_s / speedup):
+    for msg in can.MessageSync(timed(read_log(path, damage)), timestamps=True, gap=0.0, skip=skip_s / speedup):
         msg.timestamp = originals.popleft()
         if stop is not None and stop.is_set():
             break
@@ -285,12 +287,22 @@ def play_log(
 def play_log_on(path, interface: str, channel: str, bitrate_bit_s: int | None = None, *, speedup: float = 1.0) -> int:
     """:func:`play_log` onto a bus it opens (and shuts down; on python-can's virtual bus the frames keep the log's
     timestamps, ``tools.can.bus.open_player``); SIGINT/SIGTERM stop it. Returns the frames sent."""
-    from tools.can.bus import open_player, stop_on_signals
+    import sys
 
-    check_log(path)
+    from tools.can.bus import open_player, stop_on_signals
+    from tools.replay.columns import scan_log
+    from tools.replay.lines import damage_finding
+
+    p = check_log(path)
+    # the whole log is checked before a frame is sent: a malformed line is skipped and said, as replay does (it
+    # stopped the play half-way, 30 000 frames already on the bus), and a log of no frame is refused at once
+    damage = scan_log(p)
+    found = damage_finding(damage)
+    if found is not None:
+        print(f"note: {found.summary}", file=sys.stderr)
     bus = open_player(interface, channel, bitrate_bit_s)
     try:
         with stop_on_signals() as stop:
-            return play_log(path, bus, speedup=speedup, stop=stop)
+            return play_log(path, bus, speedup=speedup, stop=stop, damage=damage)
     finally:
         bus.shutdown()
