@@ -227,9 +227,10 @@ def _put16(data: np.ndarray, byte0: int, raw: np.ndarray) -> None:
     data[:, byte0 + 1] = raw >> 8
 
 
-def _put(data: np.ndarray, message: str, signal: str, x: np.ndarray) -> np.ndarray:
-    """Quantise ``x`` as the DBC's byte-aligned 8- or 16-bit ``message.signal`` into ``data``; returns the raw."""
-    sig = dbc.message(message).get_signal_by_name(signal)
+def _put(data: np.ndarray, message: str, signal: str, x: np.ndarray, db=None) -> np.ndarray:
+    """Quantise ``x`` as the DBC's byte-aligned 8- or 16-bit ``message.signal`` into ``data``; returns the raw.
+    ``db``: the gearbox's DBC (can_dbc.dbc.CanDatabase; None: the shipped one)."""
+    sig = (db or dbc).message(message).get_signal_by_name(signal)
     if sig.length == 8:
         raw = _raw8(x, float(sig.scale), float(sig.offset))
         data[:, sig.start // 8] = raw
@@ -279,7 +280,8 @@ class _Synth:
     random generator is drawn from in a fixed order (EEC1, ETC2, TRF1, ET1, AMB, CCVS1, ERC1, RIG): the same seed
     gives the same frames."""
 
-    def __init__(self, input_table, plant_output_table, src: dict, seed: int, sample_delay_s: float) -> None:
+    def __init__(self, input_table, plant_output_table, src: dict, seed: int, sample_delay_s: float, db=None) -> None:
+        self.db = db or dbc.shipped()  # the gearbox's DBC: its rig messages carry its components
         self.inputs = input_table
         self.plant = plant_output_table
         self.src = src
@@ -426,22 +428,23 @@ class _Synth:
     def rig(self) -> None:
         """RIG_TC_<k> (the DBC's rig messages): the plant's true temperatures of the components they carry, linearly
         interpolated."""
-        messages = dbc.numbered_messages("RIG_TC_")
-        carried = [c for name in messages for c, _, _ in dbc.component_signals(name, 16)]  # the DBC's components
+        db = self.db
+        messages = db.numbered_messages("RIG_TC_")
+        carried = [c for name in messages for c, _, _ in db.component_signals(name, 16)]  # the DBC's components
         if self.plant is None or not any(self.plant.has(f"T_{c}_c") for c in carried):
             return
         t_s = self.slots("RIG")
         for k, name in enumerate(messages):
             data = _empty(t_s.size)
-            for component, signal, _ in dbc.component_signals(name, 16):
+            for component, signal, _ in db.component_signals(name, 16):
                 col = f"T_{component}_c"
                 x = (
                     _lin(self.t_plant_s, np.asarray(self.plant[col], float), t_s - self.sample_delay_s)
                     if self.plant.has(col)
                     else np.full(t_s.shape, np.nan)
                 )
-                _put(data, name, signal, x)
-            self.add(name, RIG_ORDER + k, t_s, dbc.message_id(name, self.src["rig"]), data)
+                _put(data, name, signal, x, db)
+            self.add(name, RIG_ORDER + k, t_s, db.message_id(name, self.src["rig"]), data)
 
     def frames(self, start_timestamp_s: float) -> SynthFrames:
         """Every part merged and sorted by time (then message order), in whole microseconds from
@@ -520,8 +523,10 @@ def synth_frames(
     sample_delay_s: float = 0.05,
     start_timestamp_s: float = 0.0,
     rig: bool = True,
+    db=None,
 ) -> SynthResult:
-    """The J1939 and rig frames of a drive cycle (see the module doc) and a count per message.
+    """The J1939 and rig frames of a drive cycle (see the module doc) and a count per message; ``db``: the gearbox's
+    DBC (can_dbc.dbc.for_components; None: the shipped GRS905 one), whose RIG_TC messages carry its components.
 
     ``input_table``: the plant's input run table (time_s, engine_speed_rpm, engine_torque_nm, gear, optional
     inputs). ``plant_output_table``: the plant's output (T_<id>_c columns for the rig frames, oil_temp_c for TRF1);
@@ -533,7 +538,7 @@ def synth_frames(
         raise InputError(f"sample_delay_s = {sample_delay_s!r} must be in 0..1 s")
     src = _sources(config)  # (the configuration's sentences before the cycle's)
     ref_nm, retarder_ref_nm = reference_torques_nm(input_table, config, ref_torque_nm, retarder_ref_torque_nm)
-    synth = _Synth(input_table, plant_output_table, src, seed, sample_delay_s)
+    synth = _Synth(input_table, plant_output_table, src, seed, sample_delay_s, db)
     synth.eec1(ref_nm)
     synth.etc2()
     synth.trf1()
@@ -610,10 +615,16 @@ def write_can_log(
 ) -> LogSummary:
     """Write the J1939 traffic of a drive cycle and the plant's true temperatures as a CAN log (module doc).
 
-    ``params`` (the gearbox parameters) is accepted for symmetry with the plant and not needed: every value comes
-    from the two tables and the config's ``[can]`` section. Returns the path, frame count, duration and a count per
-    message.
+    ``params`` (the gearbox parameters): its DBC's rig messages carry its published components (None: the GRS905's);
+    every other value comes from the two tables and the config's ``[can]`` section. Returns the path, frame count,
+    duration and a count per message.
     """
+    db = None
+    if params is not None:
+        from firmware_model.description import description_of
+        from firmware_model.onboard.reduce import published_ids
+
+        db = dbc.for_components(published_ids(description_of(params)))
     frames, counts = synth_frames(
         input_table,
         plant_output_table,
@@ -624,6 +635,7 @@ def write_can_log(
         sample_delay_s=sample_delay_s,
         start_timestamp_s=start_timestamp_s,
         rig=rig,
+        db=db,
     )
     target = write_frames(frames, path, channel)
     duration = float(frames.timestamp_s[-1] - frames.timestamp_s[0]) if len(frames) else 0.0
