@@ -263,3 +263,19 @@ def test_a_bus_that_fails_to_open_leaves_no_teardown_message(capsys, caplog):
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "cannot open CAN channel 'notanaddress'" in err
     assert not [r for r in caplog.records if "not properly shut down" in r.getMessage()]
+
+
+def test_a_kernel_without_socketcan_is_said_so(monkeypatch):
+    """'[Errno 97] Address family not supported by protocol' for can0, vcan0 and '' alike did not say the kernel
+    has no SocketCAN: the sentence now says so and what to do (python-can's error as a kernel without CAN gives it)."""
+    import errno
+
+    from firmware_model.errors import InputError
+    from tools.can.bus import open_bus
+
+    def no_af_can(**kwargs):
+        raise OSError(errno.EAFNOSUPPORT, "Address family not supported by protocol")
+
+    monkeypatch.setattr(can, "Bus", no_af_can)
+    with pytest.raises(InputError, match=r"\[Errno 97\].*this kernel has no SocketCAN: load its modules"):
+        open_bus("socketcan", "can0")

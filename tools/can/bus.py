@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import errno
 import gc
 import logging
 import signal
@@ -84,6 +85,11 @@ def open_bus(interface: str, channel: str, bitrate: int | None = None, can_filte
             failure = f"--interface {interface!r} is not available here: {exc}"
         except (can.CanError, OSError, ValueError, ImportError) as exc:
             failure = f"cannot open CAN channel {channel!r} on interface {interface!r}: {exc}"
+            if interface == "socketcan" and _errno_of(exc) == errno.EAFNOSUPPORT:
+                failure += (
+                    " (this kernel has no SocketCAN: load its modules, `modprobe can can_raw vcan`, run on a "
+                    "machine with CAN, or use another interface such as udp_multicast)"
+                )
         except Exception as exc:  # a vendor driver without its native library fails in its own way (kvaser: NameError)
             failure = (
                 f"cannot open CAN channel {channel!r} on interface {interface!r}: its driver failed "
@@ -91,6 +97,14 @@ def open_bus(interface: str, channel: str, bitrate: int | None = None, can_filte
             )
         gc.collect()  # the half-built bus, collected while its teardown message is silenced
     raise InputError(failure)
+
+
+def _errno_of(exc: BaseException) -> int | None:
+    """The OS error number of ``exc`` or of the error it wraps (python-can wraps an OSError in a CanError)."""
+    for e in (exc, exc.__cause__, exc.__context__):
+        if isinstance(e, OSError) and e.errno is not None:
+            return e.errno
+    return getattr(exc, "error_code", None)
 
 
 @contextlib.contextmanager
