@@ -310,3 +310,25 @@ def test_batched_vehicles_start_at_their_own_ambient(sensor):
     st = sensor.initial_state(n_vehicles=3, ambient_c=np.array([-30.0, np.nan, 10.0]))
     np.testing.assert_array_equal(st.T_c[:, 0, 0], [-30.0, 25.0, 10.0])
     assert sensor.initial_state(T_oil_c=70.0, ambient_c=-30.0).T_c[0, 0] == 70.0  # the oil reading first
+
+
+def test_a_gearbox_without_a_liquid_cooler_is_not_told_its_coolant_is_missing():
+    """An R1 or HR225 (no cooler) replay said 'auxiliary inputs not given (coolant_temp_c): defaults used': an input
+    its model never reads. The coolant is left out of that line for a gearbox without a liquid cooler; another
+    missing input is still named."""
+    from firmware_model.description import load_description
+    from tools.replay.summary import _reject_line, _unused_inputs
+    from tools.runtable import RunTable
+
+    n = 5
+    cols = {"time_s": np.arange(n) * 0.1, "rejects_aux_missing": np.full(n, 5.0), "ambient_temp_c": np.full(n, 20.0)}
+    cols.update(vehicle_speed_kmh=np.zeros(n), retarder_torque_nm=np.zeros(n))
+    out = RunTable(cols)
+    assert _unused_inputs(load_description("R1")) == ("coolant_temp_c",)
+    assert _unused_inputs(load_description("GRS905")) == ()
+    assert "coolant_temp_c" not in _reject_line(out, ("coolant_temp_c",)) and "auxiliary" not in _reject_line(
+        out, ("coolant_temp_c",)
+    )
+    assert "auxiliary inputs not given (coolant_temp_c)" in _reject_line(out, ())
+    del out._cols["ambient_temp_c"]
+    assert "auxiliary inputs not given (ambient_temp_c)" in _reject_line(out, ("coolant_temp_c",))

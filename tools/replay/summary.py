@@ -115,7 +115,14 @@ def _arrivals(out) -> dict:
     return counters.get("decoder", {}).get("arrivals", {}) if isinstance(counters, dict) else {}
 
 
-def _reject_line(out) -> str:
+def _unused_inputs(desc) -> tuple:
+    """The auxiliary inputs a gearbox's model never reads: the coolant without a liquid cooler (a fixed-ratio
+    reducer's, the MM82's air cooler), so that its absence is no line of the summary."""
+    cooler = getattr(getattr(desc, "oil", None), "cooler", "liquid")
+    return () if cooler == "liquid" else ("coolant_temp_c",)
+
+
+def _reject_line(out, unused: tuple = ()) -> str:
     n = out.n
     counts = {
         k[len("rejects_") :]: int(out[k][-1]) for k in out.columns if k.startswith("rejects_") and n and out[k][-1] > 0
@@ -123,7 +130,9 @@ def _reject_line(out) -> str:
     words = []
     aux = counts.pop("aux_missing", 0)
     if aux:
-        absent = [c for c in AUX_COLUMNS if not out.has(c) or not np.any(np.isfinite(out[c]))]
+        given = [c for c in AUX_COLUMNS if out.has(c) and np.any(np.isfinite(out[c]))]
+        absent = [c for c in AUX_COLUMNS if c not in given and c not in unused]
+        idle = [c for c in AUX_COLUMNS if c not in given and c in unused]  # absent and never read: no line
         erc1 = _arrivals(out).get("ERC1", 0)
         unreferenced = "retarder_torque_nm" in absent and erc1 > 0
         if unreferenced:
@@ -144,7 +153,7 @@ def _reject_line(out) -> str:
             )
         if absent:
             words.append(f"auxiliary inputs not given ({', '.join(absent)}): defaults used, as documented")
-        elif not unreferenced and not rejected:
+        elif not unreferenced and not rejected and not idle:
             words.append(f"auxiliary inputs missing or out of range on {aux} steps: defaults used")
     held = is_held(getattr(out, "meta", None) or {})
     for k, v in counts.items():
@@ -170,4 +179,9 @@ def summary_lines(out, limits=None, oil_model: bool = False, gearbox=None) -> li
         if oil_model:
             line += f" (the oil modelled by request on {100 * float(np.mean(mode == MODE_OIL_MODEL)):.1f} %)"
     pub, desc = ids(gearbox), description(gearbox)
-    return [_closest_line(out, limits, pub, desc), _warning_line(out, pub), line, _reject_line(out)]
+    return [
+        _closest_line(out, limits, pub, desc),
+        _warning_line(out, pub),
+        line,
+        _reject_line(out, _unused_inputs(desc)),
+    ]
