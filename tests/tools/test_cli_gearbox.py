@@ -174,6 +174,18 @@ def test_every_command_takes_the_gearbox_to_its_run(tmp_path, monkeypatch, capsy
     assert seen == [{None} if name == "fleet" else "GRS905"]  # fleet: the logs' own configuration, by default
 
 
+@pytest.mark.parametrize("name", ["diagnose", "calibrate", "bench-diagnosis"])
+def test_a_fixed_ratio_gearbox_on_the_truck_paths_is_one_sentence_before_any_work(tmp_path, monkeypatch, capsys, name):
+    """diagnose, calibrate and bench-diagnosis on run tables take a truck's gearbox: --gearbox HR225 failed deep
+    inside ("cannot override unknown parameter 'oil.volume'", or a column named that the user never wrote)."""
+    _, module, stage, pick = STAGES[name]
+    seen = _seen(monkeypatch, module, stage, pick)
+    assert main(_argv(tmp_path, name) + ["--gearbox", "HR225"]) == 2
+    err = capsys.readouterr().err
+    assert f"gearbox HR225 has a fixed_ratio drive: {name} on run tables takes a vehicle's gearbox" in err
+    assert ("--columns" in err) == (name != "bench-diagnosis") and seen == []
+
+
 def test_every_command_that_builds_a_gearbox_has_the_option():
     for name in [*STAGES, "simulate", "replay"]:
         text = " ".join(SUBCOMMANDS[name].format_help().split())

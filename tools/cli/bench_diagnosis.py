@@ -8,7 +8,7 @@ from pathlib import Path
 from types import SimpleNamespace
 
 from firmware_model.errors import InputError
-from tools.cli.gearbox_option import add_gearbox_option, gearbox_of, resolve_gearbox
+from tools.cli.gearbox_option import add_gearbox_option, gearbox_of, require_vehicle_drive, resolve_gearbox
 from tools.cli.settings import add_hidden, given, setting
 
 
@@ -134,6 +134,7 @@ def run(args) -> int:
 
     warnings.filterwarnings("ignore", category=RuntimeWarning)
     cfg = resolve_gearbox(args, load_config(args.config))
+    require_vehicle_drive(cfg.load_params(), "bench-diagnosis", scada=False)
     s = SimpleNamespace(**{k.split(".")[1]: setting(args, cfg, k) for k in BENCH_KEYS})
     _check(args, s)
     only = _only(args)

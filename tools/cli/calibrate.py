@@ -9,7 +9,7 @@ from pathlib import Path
 
 from firmware_model.config import load_config
 from firmware_model.errors import InputError
-from tools.cli.gearbox_option import add_gearbox_option, resolve_gearbox
+from tools.cli.gearbox_option import add_gearbox_option, require_vehicle_drive, resolve_gearbox
 from tools.cli.paths import check_paths
 from tools.cli.settings import add_hidden, setting
 
@@ -194,6 +194,7 @@ def run(args) -> int:
         raise InputError(f"--out {args.out} must be a .toml file")
     if args.columns:
         return _run_scada(args, cfg, params)
+    require_vehicle_drive(params, "calibrate")
     check_paths(
         [
             *(("a training file", f) for f in args.train),

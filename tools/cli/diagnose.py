@@ -11,7 +11,7 @@ from pathlib import Path
 from firmware_model.config import load_config
 from firmware_model.errors import InputError
 from tools.cli.core_option import add_core_option, apply_core
-from tools.cli.gearbox_option import add_gearbox_option, resolve_gearbox
+from tools.cli.gearbox_option import add_gearbox_option, require_vehicle_drive, resolve_gearbox
 from tools.cli.paths import check_paths
 from tools.cli.settings import add_hidden, setting
 
@@ -154,6 +154,7 @@ def run(args) -> int:
         print(f"model: {args.model}{on_core}", file=sys.stderr)
     cfg = resolve_gearbox(args, load_config(args.config))
     params = cfg.load_params()
+    require_vehicle_drive(params, "diagnose")
     cooler = args.cooler or cfg.cooler or params.strings.get("cooler.kind", "liquid")
     grid_dt_s, plant_dt_s, workers, start = (setting(args, cfg, key) for key in DIAGNOSIS_KEYS)
     check_paths(

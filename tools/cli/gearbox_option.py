@@ -133,3 +133,19 @@ def resolve_gearbox(args, cfg=None):
     check_gearbox(cfg, f"--gearbox {gearbox}" if gearbox is not None else _config_key(cfg))
     args.resolved_config = cfg
     return cfg
+
+
+def require_vehicle_drive(params, command: str, scada: bool = True) -> None:
+    """InputError for a fixed-ratio gearbox where ``command`` takes a vehicle's run tables (the diagnosis's effects,
+    rig set-ups and synthetic drives are a truck's: an HR225 failed deep inside with "cannot override unknown
+    parameter 'oil.volume'"); ``scada``: the command reads a fixed-ratio gearbox's records through --columns."""
+    from firmware_model.description import description_of
+
+    d = description_of(params)
+    if d.drive.kind == "vehicle":
+        return
+    where = "; its records go through --columns NAME|FILE (SCADA: a column map, docs/real-data.md)" if scada else ""
+    raise InputError(
+        f"gearbox {d.name} has a {d.drive.kind} drive: {command} on run tables takes a vehicle's gearbox (the "
+        f"GRS905 family){where}"
+    )
