@@ -114,8 +114,7 @@ class PlausibilityFinding:
 #: the gear-numbering rule: steps in gear while driving (over GEAR_MIN_KMH, past a launch's slip, and GEAR_MIN_RPM)
 #: give each gear's engine speed per km/h, which over the gear's ratio is the axle and wheel's constant, the same in
 #: every gear; gears whose constants differ by more than GEAR_RATIO_TOL (each with GEAR_MIN_S of driving) are not
-#: this gearbox's (another transmission, or another numbering: [can] gear_map). The named cycles with their noise
-#: spread 4 % at most; the GRS905 numbered from its first main gear (without the crawlers) 11 % over gears 1L-3H.
+#: this gearbox's (another transmission, or another numbering: [can] gear_map); docs/can.md gives the margins.
 GEAR_MIN_KMH, GEAR_MIN_RPM, GEAR_MIN_S, GEAR_RATIO_TOL = 5.0, 500.0, 3.0, 0.10
 #: ... and that constant is a road vehicle's: its axle ratio on a tyre of WHEEL_RADIUS_M within AXLE_RANGE (assumed:
 #: trucks' final drives 2.5-6.5, hub reductions to ~7; dynamic radii 0.47-0.53 m; a shift within a geometric

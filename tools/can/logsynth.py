@@ -485,7 +485,8 @@ def _reference_for(input_table, ref_nm: float, given: bool) -> float:
     """The engine reference torque the log sends: ``ref_nm``, or (not ``given``) the least whole N m under which
     the cycle's torque stays within EEC1's 125 %; InputError where EEC1 cannot carry the torque (it clipped it)."""
     torque = np.asarray(input_table["engine_torque_nm"], dtype=float)
-    peak = float(np.nanmax(np.abs(torque))) if torque.size and np.isfinite(torque).any() else 0.0
+    torque = torque[np.isfinite(torque)]  # (a non-finite row is the plant's to refuse, with its row)
+    peak = float(np.max(np.abs(torque))) if torque.size else 0.0
     top = PCT_RANGE[1] / 100.0
     if peak <= top * ref_nm:
         return ref_nm

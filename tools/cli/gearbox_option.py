@@ -137,8 +137,8 @@ def resolve_gearbox(args, cfg=None):
 
 def require_vehicle_drive(params, command: str, scada: bool = True) -> None:
     """InputError for a fixed-ratio gearbox where ``command`` takes a vehicle's run tables (the diagnosis's effects,
-    rig set-ups and synthetic drives are a truck's: an HR225 failed deep inside with "cannot override unknown
-    parameter 'oil.volume'"); ``scada``: the command reads a fixed-ratio gearbox's records through --columns."""
+    rig set-ups and synthetic drives are a truck's); ``scada``: the command reads a fixed-ratio gearbox's records
+    through --columns."""
     from firmware_model.description import description_of
 
     d = description_of(params)

@@ -322,8 +322,8 @@ PART_OVER_OIL_K, UNIT_FIT_K = 80.0, 40.0
 
 
 def _check_unit_against_oil(y: np.ndarray, oil_c: np.ndarray, name: str, col: str) -> None:
-    """InputError for a measured part's column in degF or kelvin, told by the sump beside it (a thermocouple
-    logged in degF passed every range check: 130 degC reads 266, and the diagnosis took it as a heat-flow gap)."""
+    """InputError for a measured part's column in degF or kelvin, told by the sump beside it (a part in degF passes
+    the range check: 130 degC reads 266)."""
     both = np.isfinite(y) & np.isfinite(oil_c)
     if both.sum() < 10:
         return

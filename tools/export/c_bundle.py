@@ -104,9 +104,8 @@ def tables_source(sp, real: str, variant: str, ttl: bool = True) -> str:
 #: input speed swings between these shares of the description's max_speed and the input torque between these of its
 #: max_torque (both rise and fall together, one period FIXED_RATIO_PERIOD_S), ambient FIXED_RATIO_AMBIENT_C; the plant
 #: starts warm, FIXED_RATIO_BELOW_K under the lowest warning limit (fixed_ratio_start_c: 105 degC for R1 and
-#: HR225, 60 degC for the MM82, whose limits are 75-95 degC: from 105 its time to limit was 0 throughout), so that
-#: 1000 s approach a limit (the time to limit finite, the early warning and a level change in the vectors).
-#: Assumed: chosen for the test's coverage, not a duty cycle.
+#: HR225, 60 degC for the MM82), so that 1000 s approach a limit (the time to limit finite, the early warning and a
+#: level change in the vectors). Assumed: chosen for the test's coverage, not a duty cycle.
 FIXED_RATIO_SPEED = (0.55, 0.95)
 FIXED_RATIO_TORQUE = (0.5, 1.0)
 FIXED_RATIO_PERIOD_S = 400.0

@@ -294,8 +294,7 @@ def play_log_on(path, interface: str, channel: str, bitrate_bit_s: int | None = 
     from tools.replay.lines import damage_finding
 
     p = check_log(path)
-    # the whole log is checked before a frame is sent: a malformed line is skipped and said, as replay does (it
-    # stopped the play half-way, 30 000 frames already on the bus), and a log of no frame is refused at once
+    # the whole log is checked before a frame is sent: malformed lines skipped and said, as replay does
     damage = scan_log(p)
     found = damage_finding(damage)
     if found is not None:

@@ -489,9 +489,10 @@ def summarize(out) -> ReplaySummary:
     rejects = {
         k[len("rejects_") :]: int(out[k][-1]) for k in out.columns if k.startswith("rejects_") and n and out[k][-1] > 0
     }
+    from firmware_model.service.plausibility import is_held
+
     meta = out.meta or {}
-    held = meta.get("steps") is not None and meta.get("step_s") is not None  # (plausibility.is_held: one row per
-    # input row, its steps of step_s; the last row covers its own period, not 0.1 s)
+    held = is_held(meta)  # one row per input row, in steps of step_s: the last row covers its own period
     return ReplaySummary(
         span_s=(meta["steps"] * meta["step_s"] if held else out["time_s"][-1] - out["time_s"][0] + STEP_S)
         if n
