@@ -386,6 +386,42 @@ def torque_knm_finding(
     )
 
 
+#: the kN m rule of a fixed-ratio drive: where the input shaft turns at FIXED_FAST_SHARE of the drive's max speed or
+#: more for at least FIXED_KNM_MIN_S, a torque whose 99th percentile is at most FIXED_KNM_SHARE of the drive's max
+#: torque (every value fits it as kN m) and above 0 looks like kN m. In N m no honest record is that low there: a
+#: wind turbine's rotor at 12 rpm and more delivers at least 166 kN m (median 310-340 kN m on the three shared MM82
+#: turbines' 2013-2020 SCADA; the rule's bound is 2.5 kN m), and a motor's reducer must at least overcome its own
+#: drag (the reference plant at 1485 rpm and 0 N m: the HR225 loses 0.61 kW, 3.9 N m against its bound of 1.8; the
+#: R1 0.17 kW at 1450 rpm, 1.1 N m against 0.6)
+FIXED_FAST_SHARE, FIXED_KNM_SHARE, FIXED_KNM_MIN_S = 0.6, 1e-3, 3600.0
+
+
+def fixed_torque_knm_finding(
+    speed_rpm, torque_nm, drive_limits, dt_s: float = STEP_S, source: str = "table"
+) -> PlausibilityFinding | None:
+    """The kN m rule of a fixed-ratio drive (FIXED_KNM_SHARE); ``drive_limits``: its (max speed [rpm], max torque
+    [N m]) from the gearbox description."""
+    max_rpm, max_nm = (float(v) for v in drive_limits)
+    speed, torque = _finite(speed_rpm), _finite(torque_nm)
+    fast = np.isfinite(speed) & np.isfinite(torque) & (speed >= FIXED_FAST_SHARE * max_rpm)
+    n = int(fast.sum())
+    if n < 3 or n * dt_s < FIXED_KNM_MIN_S or not (max_rpm > 0 and max_nm > 0):
+        return None
+    p99, median = (float(v) for v in np.percentile(torque[fast], [99, 50]))
+    if not (median > 0 and p99 <= FIXED_KNM_SHARE * max_nm):
+        return None
+    col = "column engine_torque_nm (input_torque_nm)" if source == "table" else SOURCES[source]["engine_torque_nm"]
+    return PlausibilityFinding(
+        "engine_torque_nm",
+        "kN m",
+        f"{col} stays at or below {p99:.4g} N m (99th percentile; median {median:.4g}) over the "
+        f"{n * dt_s / 3600.0:.1f} h the input shaft turns at {FIXED_FAST_SHARE * max_rpm:.3g} rpm or more, within "
+        f"{FIXED_KNM_SHARE * 100:g} % of the drive's {max_nm:.3g} N m: no gearbox turns that fast on so little "
+        f"(its own drag is more), so the torque looks like kN m (or derived from a power in W read as kW); give N m "
+        f"(x 1000)",
+    )
+
+
 #: the ambient and coolant temperatures the sensor takes (firmware_model.onboard.records.SensorOptions.aux_range_c);
 #: outside, it uses its default. A column outside on more than AUX_OUT_SHARE of its finite rows is a unit mistake.
 AUX_COLUMNS_C, AUX_RANGE_C, AUX_OUT_SHARE = ("ambient_temp_c", "coolant_temp_c"), (-60.0, 150.0), 0.5
@@ -413,12 +449,18 @@ def aux_unit_finding(name: str, values_c) -> PlausibilityFinding | None:
 
 
 def record_findings(
-    columns, dt_s: float = STEP_S, min_torque_nm: float | None = None, source: str = "table", engine: bool = True
+    columns,
+    dt_s: float = STEP_S,
+    min_torque_nm: float | None = None,
+    source: str = "table",
+    engine: bool = True,
+    drive_limits: tuple | None = None,
 ) -> list[PlausibilityFinding]:
     """The unit and sign findings of a whole record: ``columns`` maps run-table names (``oil_temp_c``,
     ``engine_speed_rpm``, ``engine_torque_nm``, ``gear``) to one value per ``dt_s`` (a RunTable or a dict;
     an absent column is not judged); ``source``: "table" or "can" (the sentence's words and fix); ``engine``: the
-    drive is a vehicle's engine (a fixed-ratio drive's input, an idling reducer's few N m, is no kN m mistake)."""
+    drive is a vehicle's engine (a fixed-ratio drive's input, an idling reducer's few N m, is no kN m mistake by the
+    engine's rule); ``drive_limits``: a fixed-ratio drive's (max speed [rpm], max torque [N m]), for its kN m rule."""
 
     def col(name):
         has = columns.has(name) if hasattr(columns, "has") else name in columns
@@ -433,6 +475,8 @@ def record_findings(
         out.append(torque_percent_finding(speed, torque, gear, dt_s, source))
         if engine:
             out.append(torque_knm_finding(speed, torque, gear, dt_s, source))
+        elif drive_limits is not None:
+            out.append(fixed_torque_knm_finding(speed, torque, drive_limits, dt_s, source))
     if source == "table":  # (a CAN source decodes them in degC, its range checked by the decoder)
         out.extend(aux_unit_finding(c, col(c)) for c in AUX_COLUMNS_C if col(c) is not None)
     return [f for f in out if f is not None]
@@ -463,7 +507,9 @@ def table_record_findings(out, min_torque_nm: float | None = None, source: str =
     # the 0.1 s steps its reject counters count
     dt_s = float(meta.get("row_period_s") or STEP_S) if held else STEP_S
     steps = int(round(meta["steps"] * meta["step_s"] / STEP_S)) if held else out.n
-    found: list = record_findings(out, dt_s, min_torque_nm, source, bool(meta.get("engine_drive", True)))
+    found: list = record_findings(
+        out, dt_s, min_torque_nm, source, bool(meta.get("engine_drive", True)), meta.get("drive_limits")
+    )
     if meta.get("gear_ratios") and all(out.has(c) for c in ("engine_speed_rpm", "vehicle_speed_kmh", "gear")):
         gears = gear_ratio_finding(
             out["engine_speed_rpm"],

@@ -118,6 +118,31 @@ def test_torque_in_kn_m_is_found_a_coast_and_a_reducer_are_not():
     assert record_findings(cols, DT, engine=False) == []
 
 
+def test_a_fixed_ratio_drive_s_torque_in_kn_m_is_found_and_its_idle_drag_is_not():
+    """The MM82's rotor torque written in kN m (a median of 650 where 650 kN m is meant) replayed 37 K cool with
+    exit 0; the rule judges where the shaft turns fast, against the drive's own max torque. A motor's reducer
+    idling at its drag (HR225: 3.9 N m at 1485 rpm, the reference plant's loss at 0 N m) and a short record are no
+    such mistake, and neither is an input with no torque at all."""
+    from firmware_model.service.plausibility import fixed_torque_knm_finding, record_findings
+
+    rng = np.random.default_rng(3)
+    rpm = 10.0 + 6.0 * rng.random(432)  # three days of 10-minute rows
+    nm = 1.0e6 * (rpm / 16.0) ** 3
+    mm82 = (20.0, 2.5e6)
+    f = fixed_torque_knm_finding(rpm, nm / 1000.0, mm82, 600.0)
+    assert f is not None and f.likely == "kN m" and "x 1000" in f.sentence and "12 rpm or more" in f.sentence
+    assert fixed_torque_knm_finding(rpm, nm, mm82, 600.0) is None
+    assert fixed_torque_knm_finding(rpm[:5], nm[:5] / 1000.0, mm82, 600.0) is None  # 50 min: too short
+    assert fixed_torque_knm_finding(rpm, np.zeros(rpm.size), mm82, 600.0) is None  # no torque: another problem
+    hr225 = (1800.0, 1800.0)
+    idle = np.full(36000, 1485.0), 3.9 + 0.1 * rng.standard_normal(36000)
+    assert fixed_torque_knm_finding(*idle, hr225, DT) is None
+    assert fixed_torque_knm_finding(idle[0], idle[1] / 3.0, hr225, DT) is not None  # under its drag: kN m
+    cols = {"engine_speed_rpm": rpm, "engine_torque_nm": nm / 1000.0}
+    assert [x.likely for x in record_findings(cols, 600.0, engine=False, drive_limits=mm82)] == ["kN m"]
+    assert record_findings(cols, 600.0, engine=False) == []  # no limits given: not judged
+
+
 def test_a_held_low_load_is_not_taken_for_percent():
     """A rig's steady point at 60 or 100 N m (with a few N m of noise) is an honest light load, not percent: the
     rule needs a load that varies like a drive."""

@@ -204,6 +204,7 @@ def run(args) -> int:
     from firmware_model.description import description_of
     from tools.cycles.named import get_cycle
     from tools.plant.reference import ReferencePlant
+    from tools.replay.table import drive_limits
 
     cfg = resolve_gearbox(args)
     s = resolve_settings(args, cfg)
@@ -231,7 +232,8 @@ def run(args) -> int:
         if cycle_file is not None and not args.allow_untrusted:
             # the oil column is used as the sump (--cooler measured) or, without --initial-temp, as every node's start
             oil_used = s.cooler == "measured" or (s.initial_temp_c is None and table.has("oil_temp_c"))
-            _refuse_unit_mistakes(table, cycle_file, oil_used=oil_used, sparse_ok=fixed_ratio)
+            limits = drive_limits(description_of(params)) if fixed_ratio else None
+            _refuse_unit_mistakes(table, cycle_file, oil_used=oil_used, sparse_ok=fixed_ratio, drive=limits)
         if fixed_ratio:  # one output row per input row of a table slower than the output period (a SCADA table)
             s.out_dt_s = max(s.out_dt_s, table.meta["row_period_s"])
         plant = ReferencePlant(params, effects, cooler=s.cooler, dt_s=s.dt_s)
@@ -315,11 +317,14 @@ def _print_summary(args, res) -> None:
         print(f"note: {w}", file=sys.stderr)
 
 
-def _refuse_unit_mistakes(table, name: str, oil_used: bool = False, sparse_ok: bool = False) -> None:
+def _refuse_unit_mistakes(
+    table, name: str, oil_used: bool = False, sparse_ok: bool = False, drive: tuple | None = None
+) -> None:
     """InputError for a CSV cycle whose units look wrong, before the plant runs, as replay refuses them: a 10-minute
     file with time_s in milliseconds would simulate 7 days and write a 600 MB table and a 4.3 GB CAN log, and
     rad/s speed would run as a stalled engine. ``sparse_ok``: rows far apart are expected (a fixed-ratio drive's
-    SCADA averages), not taken for milliseconds."""
+    SCADA averages), not taken for milliseconds; ``drive``: a fixed-ratio drive's (max speed [rpm], max torque [N m])
+    for its kN m rule."""
     from firmware_model.service.degraded import unit_findings
     from tools.runtable import milliseconds_sentence
 
@@ -333,7 +338,7 @@ def _refuse_unit_mistakes(table, name: str, oil_used: bool = False, sparse_ok: b
     speed = unit_findings(0, 0, [], table["engine_speed_rpm"], table["engine_torque_nm"], engine=engine)
     # the whole-record rules (oil only when the plant takes it as its sump: --cooler measured)
     cols = {c: table[c] for c in table.columns if c != "oil_temp_c" or oil_used}
-    whole = record_findings(cols, float(np.median(np.diff(t))), engine=engine) if t.size > 1 else []
+    whole = record_findings(cols, float(np.median(np.diff(t))), engine=engine, drive_limits=drive) if t.size > 1 else []
     if speed or whole:
         raise InputError(f"{name}: {(speed + whole)[0].sentence} (pass --allow-untrusted to simulate it as it is)")
 

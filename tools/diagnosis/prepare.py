@@ -474,13 +474,20 @@ def _initial_temp_c(table: RunTable, t: np.ndarray, channels: dict, oil_is_input
     return float(np.mean(src_y[sel])) if sel.any() else float(src_y[0])
 
 
-def _refuse_implausible(table: RunTable, t: np.ndarray, name: str) -> None:
+def _refuse_implausible(table: RunTable, t: np.ndarray, name: str, gearbox=None) -> None:
     """InputError for a file whose whole record is implausible (firmware_model.service.plausibility: oil in degF
-    or kelvin, torque negated or in percent): a fit to it would explain a unit mistake by a gearbox effect."""
+    or kelvin, torque negated, in percent or in kN m): a fit to it would explain a unit mistake by a gearbox effect.
+    ``gearbox``: a fixed-ratio drive's parameter set (its drive's limits judge the kN m rule)."""
     from firmware_model.service.plausibility import record_findings
 
     engine = (getattr(table, "meta", None) or {}).get("drive") != "fixed_ratio"
-    found = record_findings(table, float(np.median(np.diff(t))), engine=engine)
+    limits = None
+    if not engine and gearbox is not None and hasattr(gearbox, "variant"):
+        from firmware_model.description import description_of
+        from tools.replay.table import drive_limits
+
+        limits = drive_limits(description_of(gearbox))
+    found = record_findings(table, float(np.median(np.diff(t))), engine=engine, drive_limits=limits)
     if found:
         raise InputError(f"{name}: {found[0].sentence}")
 
@@ -494,7 +501,7 @@ def prepare(table: RunTable, name: str, role: str, opts: Options, oil_is_input: 
     validate_run_table(table, REQUIRED, name)
     t = np.asarray(table["time_s"], dtype=float)
     _check_time(t, name, opts, (getattr(table, "meta", None) or {}).get("drive") == "fixed_ratio")
-    _refuse_implausible(table, t, name)
+    _refuse_implausible(table, t, name, gearbox)
     cols = channel_columns(table)
     if oil_is_input:
         cols.pop(OIL, None)

@@ -431,8 +431,16 @@ def mark_for_findings(out, sensor) -> None:
     description = description_of(sensor.params)
     out.meta["min_torque_nm"] = min_torque_nm(sensor)
     out.meta["engine_drive"] = description.drive.kind == "vehicle"
+    out.meta["drive_limits"] = drive_limits(description)
     out.meta["limits"] = sensor.limits  # the summary's margins: this gearbox's limits, not the GRS905's
     out.meta.update(gear_meta(description))
+
+
+def drive_limits(description) -> tuple | None:
+    """A fixed-ratio drive's (max speed [rpm], max torque [N m]) for the plausibility's kN m rule; None for a
+    vehicle's (the engine's own rule)."""
+    d = description.drive
+    return None if d.kind == "vehicle" else (d.max_speed_rad_s * 60.0 / (2.0 * math.pi), d.max_torque_nm)
 
 
 def gear_meta(description) -> dict:

@@ -230,6 +230,24 @@ def test_a_record_in_another_unit_or_with_dropped_rows_is_said_and_exits_3_when_
     assert (status == 3) == ("exit status 3" in p.stderr)
 
 
+def test_a_power_in_kw_read_as_w_is_said_and_exits_3(tmp_path):
+    """A column map that reads the kW of P_avg as W derives a torque 1000 times too small (the HR225's 250-700 N m
+    as 0.25-0.7): every value within its range, the sensor cool, exit 0 before the fixed-ratio drive's kN m rule."""
+    scada = write(tmp_path / "a.csv", _rows(0, ROWS))
+    path = _map(tmp_path)
+    path.write_text(path.read_text().replace('power_unit = "kW"', 'power_unit = "W"'))
+    p = subprocess.run(
+        [sys.executable, "-m", "tools.cli", "replay", str(scada), "--gearbox", "HR225", "--columns", str(path)]
+        + ["--out", str(tmp_path / "est.csv")],
+        cwd=REPO,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert p.returncode == 3, p.stderr
+    assert "looks like kN m (or derived from a power in W read as kW)" in p.stderr
+
+
 def test_the_modelled_sump_starts_at_the_first_reading_of_the_first_hour_and_one_row_is_one_row(tmp_path):
     lines = _rows(0, ROWS)
     without_first = _edit(lines[:1], "Gost_avg", lambda c: "") + lines[1:]
