@@ -417,8 +417,8 @@ def fixed_torque_knm_finding(
         f"{col} stays at or below {p99:.4g} N m (99th percentile; median {median:.4g}) over the "
         f"{n * dt_s / 3600.0:.1f} h the input shaft turns at {FIXED_FAST_SHARE * max_rpm:.3g} rpm or more, within "
         f"{FIXED_KNM_SHARE * 100:g} % of the drive's {max_nm:.3g} N m: no gearbox turns that fast on so little "
-        f"(its own drag is more), so the torque looks like kN m (or derived from a power in W read as kW); give N m "
-        f"(x 1000)",
+        f"(its own drag is more), so the torque looks like kN m (or derived from a power 1000 times too small: in "
+        f"MW read as kW, in kW read as W); give N m (x 1000)",
     )
 
 

@@ -225,10 +225,46 @@ def _run_scada(args) -> int:
     t0 = time.perf_counter()
     # calendar months unless --period-days is given (the [fleet] setting's default, 7, is the trucks')
     days = float(setting(args, cfg, "fleet.period_days")) if given(args, ("fleet.period_days",)) else None
+    rejected: list = []
     with progress(len(records), "fleet", unit="unit") as bar:
-        fits = fit_fleet(setup, records, days, progress=lambda: bar.update(1))
+        fits = fit_fleet(setup, records, days, progress=lambda: bar.update(1), rejected=rejected)
+    for unit, why in rejected:
+        print(f"left out {unit}: {why} (replay exits 3 on it; fix the file or the column map)", file=sys.stderr)
+        skipped.append((", ".join(str(p) for p in records[unit].files), f"unit {unit} left out: {why}"))
     flags = flag_units(fits)
     root = Path(args.out) / "health"
+    _write_health(root, fits, flags)
+    kind = "unit-months" if days is None else "unit-periods"
+    print(
+        f"fleet: {len(records)} units, {len(fits)} {kind} fitted in {time.perf_counter() - t0:.1f} s; "
+        f"{len(flags)} flagged -> {root}"
+    )
+    for f in flags:
+        print(f"  {f.vehicle}: {f.effect} from {f.start}: {f.reason}")
+    used = len(records) - len(rejected)
+    if used < MIN_UNITS:
+        print(
+            f"note: {used} unit{'s' if used != 1 else ''} fitted: a unit is flagged against its siblings' "
+            f"median, which needs at least {MIN_UNITS}; none could be flagged",
+            file=sys.stderr,
+        )
+    if skipped:
+        write_atomic(
+            pa.Table.from_pylist([{"file": str(p), "error": why} for p, why in skipped]), root / "errors.parquet"
+        )
+        print(
+            f"note: {len(skipped)} file(s) or unit(s) could not be used (above; {root / 'errors.parquet'})",
+            file=sys.stderr,
+        )
+    return 0
+
+
+def _write_health(root: Path, fits, flags) -> None:
+    """health/effects.parquet (one row per unit, period and effect) and health/flags.parquet under ``root``."""
+    import pyarrow as pa
+
+    from tools.fleet.store import write_atomic
+
     root.mkdir(parents=True, exist_ok=True)
     rows = [
         {
@@ -252,25 +288,6 @@ def _run_scada(args) -> int:
         ]
     )
     write_atomic(pa.Table.from_pylist([f._asdict() for f in flags], schema=flag_schema), root / "flags.parquet")
-    kind = "unit-months" if days is None else "unit-periods"
-    print(
-        f"fleet: {len(records)} units, {len(fits)} {kind} fitted in {time.perf_counter() - t0:.1f} s; "
-        f"{len(flags)} flagged -> {root}"
-    )
-    for f in flags:
-        print(f"  {f.vehicle}: {f.effect} from {f.start}: {f.reason}")
-    if len(records) < MIN_UNITS:
-        print(
-            f"note: {len(records)} unit{'s' if len(records) != 1 else ''}: a unit is flagged against its siblings' "
-            f"median, which needs at least {MIN_UNITS}; none could be flagged",
-            file=sys.stderr,
-        )
-    if skipped:
-        write_atomic(
-            pa.Table.from_pylist([{"file": str(p), "error": why} for p, why in skipped]), root / "errors.parquet"
-        )
-        print(f"note: {len(skipped)} file(s) could not be read (above; {root / 'errors.parquet'})", file=sys.stderr)
-    return 0
 
 
 def run(args) -> int:

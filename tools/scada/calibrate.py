@@ -26,7 +26,7 @@ import numpy as np
 from firmware_model.errors import InputError
 from tools.diagnosis.calibrate import COLLINEAR_COS, IDENT_MIN_C, SENS_STEP, Calibration, Identifiability
 from tools.scada import gauss_newton
-from tools.scada.diagnose import Setup, effective_n, estimates, require_readings
+from tools.scada.diagnose import Setup, effective_n, estimates, neutral_residuals
 from tools.scada.reader import ScadaRecord
 
 
@@ -92,8 +92,8 @@ def calibrate_records(
     params = setup.config.load_params()
     keys = sorted(params.bounds) if keys is None else list(keys)
     params = with_fit_bounds(params, keys)  # the thermostat's open below its full, whatever the trial
-    r0 = _residual(setup, train, params)
-    require_readings(r0, "training")
+    r0 = neutral_residuals(setup, train, "training", params)
+    t0 = neutral_residuals(setup, test, "test", params, require=False)  # (its readings: the command's check)
     ident, cols = identifiability(setup, train, params, keys, r0)
     fit_keys = [x.key for x in ident if x.identifiable]
     if not fit_keys:
@@ -129,7 +129,7 @@ def calibrate_records(
         sigma = {k: float(math.sqrt(max(cov[i, i], 0.0)) * span[i]) for i, k in enumerate(fit_keys)}
     except np.linalg.LinAlgError:
         sigma = {k: math.inf for k in fit_keys}
-    t0, t1 = _residual(setup, test, params), _residual(setup, test, params.with_overrides(fitted))
+    t1 = _residual(setup, test, params.with_overrides(fitted))
     return Calibration(
         keys=fit_keys,
         start={k: params.values[k] for k in fit_keys},

@@ -143,10 +143,39 @@ def estimates(setup: Setup, record: ScadaRecord, effects: dict, params=None) -> 
     return out
 
 
+def record_residuals(
+    setup: Setup, records: Sequence[ScadaRecord], effects: dict, params=None
+) -> list[dict[str, np.ndarray]]:
+    """Per record, {channel: measured - model} (NaN where either is missing); ``params`` as :func:`estimates`."""
+    est = [estimates(setup, r, effects, params) for r in records]
+    return [{ch: r.values[ch] - e[ch] for ch in setup.channels} for r, e in zip(records, est)]
+
+
+def joined(per_record: Sequence[dict], channels: Sequence[str]) -> dict[str, np.ndarray]:
+    """The records' residuals joined per channel."""
+    return {ch: np.concatenate([r[ch] for r in per_record]) for ch in channels}
+
+
 def _residuals(setup: Setup, records: Sequence[ScadaRecord], effects: dict) -> dict[str, np.ndarray]:
     """{channel: measured - model} over ``records`` joined (NaN where either is missing)."""
-    est = [estimates(setup, r, effects) for r in records]
-    return {ch: np.concatenate([r.values[ch] - e[ch] for r, e in zip(records, est)]) for ch in setup.channels}
+    return joined(record_residuals(setup, records, effects), setup.channels)
+
+
+def neutral_residuals(
+    setup: Setup, records: Sequence[ScadaRecord], role: str, params=None, require: bool = True
+) -> dict[str, np.ndarray]:
+    """The records' residuals at the neutral effects, joined, after refusing a record whose units look wrong
+    (tools.scada.replay.refuse_untrusted: what makes replay exit 3 would be fitted as a gearbox effect) and, with
+    ``require``, records without a reading beside an estimate. ``params``: the gearbox's in place of the setup's."""
+    from tools.scada.replay import refuse_untrusted
+
+    params = setup.params if params is None else params
+    per = record_residuals(setup, records, {}, params)
+    refuse_untrusted(records, per, params, role)
+    out = joined(per, setup.channels)
+    if require:
+        require_readings(out, role)
+    return out
 
 
 def require_readings(res: dict[str, np.ndarray], which: str) -> None:
@@ -292,9 +321,7 @@ def diagnose_records(
 ) -> dict:
     """The gap-diagnosis/1 result of ``setup``'s model on the SCADA records (``train`` fits, ``test`` scores)."""
     t0 = time.perf_counter()
-    r0, t_before = _residuals(setup, train, {}), _residuals(setup, test, {})
-    require_readings(r0, "training")
-    require_readings(t_before, "test")
+    r0, t_before = neutral_residuals(setup, train, "training"), neutral_residuals(setup, test, "test")
     sse0, n = _sse(r0), int(_pooled(r0).size)
     n_eff = effective_n(r0)
     masks = [regimes(r, thermostat_c, setup.sump or oil_channel(r)) for r in train]

@@ -145,7 +145,12 @@ def residuals(setup: Setup, record: ScadaRecord) -> tuple[dict, dict]:
     """The unit's residual at the neutral effects and with each effect stepped (effect -> residual), each a
     {channel: measured - model} over its whole record."""
     r0 = _residual(setup, record, {})
-    return r0, {e: _residual(setup, record, {e: CATALOG[e].neutral + STEP[e]}) for e in EFFECTS}
+    return r0, stepped_residuals(setup, record)
+
+
+def stepped_residuals(setup: Setup, record: ScadaRecord) -> dict:
+    """effect -> the unit's residual with that effect stepped from neutral."""
+    return {e: _residual(setup, record, {e: CATALOG[e].neutral + STEP[e]}) for e in EFFECTS}
 
 
 def fit_unit(
@@ -171,13 +176,26 @@ def fit_unit(
     return fits
 
 
-def fit_fleet(setup: Setup, records: dict[str, ScadaRecord], days: float | None = None, progress=None) -> list:
+def fit_fleet(
+    setup: Setup, records: dict[str, ScadaRecord], days: float | None = None, progress=None, rejected=None
+) -> list:
     """Every unit's PeriodFit (units in name order, periods in time order). Each unit's whole record is replayed
     once at the neutral effects and once per effect stepped (a period keeps the state the ones before left: no
-    start-up transient at each period's first rows), then each period is fitted on its rows."""
+    start-up transient at each period's first rows), then each period is fitted on its rows. A unit whose units
+    look wrong (tools.scada.replay.untrusted_findings: what makes replay exit 3) is left out, its fits would move
+    the fleet's median: (unit, sentence) appended to ``rejected``."""
+    from tools.scada.replay import untrusted_findings
+
     fits = []
     for unit, rec in sorted(records.items()):
-        fits += fit_unit(setup, rec, days, unit=unit)
+        r0 = _residual(setup, rec, {})
+        found = untrusted_findings(rec, r0, setup.params)
+        if found:
+            if rejected is not None:
+                rejected.append((unit, found[0].sentence))
+        else:
+            resid = r0, stepped_residuals(setup, rec)
+            fits += fit_unit(setup, rec, days, resid=resid, unit=unit)
         if progress is not None:
             progress()
     return fits

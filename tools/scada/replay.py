@@ -16,12 +16,13 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
-from firmware_model.description import OIL_INLET
+from firmware_model.description import OIL_INLET, description_of
 from firmware_model.errors import InputError
-from tools.replay.table import INLET_COLUMN
+from tools.replay.table import INLET_COLUMN, drive_limits
 from tools.runtable import RunTable
 from tools.scada.reader import ScadaRecord
 from tools.scada.runtable import INPUTS, oil_channel, run_table_of
@@ -137,7 +138,7 @@ def replay_record(
             cols[name] = out[name]
     meta = {**out.meta, "unit": record.unit, "t0_utc_s": table.meta["t0_utc_s"], "drive": "fixed_ratio"}
     result = RunTable(cols, meta=meta, source=f"replay of {record.unit}")
-    mark_for_findings(result, sensor)  # (a rotor's drive: no idle-speed or kN m rule)
+    mark_for_findings(result, sensor)  # (a rotor's drive: no idle-speed rule; its own kN m rule)
     return ScadaReplay(result, oil_mode, estimated, notes)
 
 
@@ -184,6 +185,19 @@ def record_findings(record: ScadaRecord, result: ScadaReplay) -> list:
                 "outputs leave them out (bad time: a stamp without its UTC offset or that does not parse)",
             )
         )
+    found += range_findings(record)
+    t = result.table
+    for name in result.estimated:
+        f = bias_finding(name, np.asarray(t[f"est_{name}"], dtype=float) - np.asarray(t[name], dtype=float))
+        if f is not None:
+            found.append(f)
+    return sorted(found, key=lambda f: -f.severity)
+
+
+def range_findings(record: ScadaRecord) -> list[RecordFinding]:
+    """The channels whose values the reader mostly rejected as implausible (a column in another unit than its map
+    says: a nacelle air in kelvin)."""
+    found = []
     for name, by in record.by_channel.items():
         bad = by.get("implausible", 0)
         if record.n and bad > IMPLAUSIBLE_WARN_SHARE * record.n:
@@ -198,27 +212,65 @@ def record_findings(record: ScadaRecord, result: ScadaReplay) -> list:
                     "in another unit?",
                 )
             )
-    t = result.table
-    for name in result.estimated:
-        e = np.asarray(t[f"est_{name}"], dtype=float) - np.asarray(t[name], dtype=float)
-        e = e[np.isfinite(e)]
-        bias = float(np.mean(e)) if e.size >= BIAS_MIN_ROWS else 0.0
-        if abs(bias) > BIAS_WARN_K:
-            found.append(
-                RecordFinding(
-                    "units",
-                    UNTRUSTED if abs(bias) > BIAS_UNTRUSTED_K else WARNING,
-                    f"{name}: the estimate is {bias:+.1f} K off its readings on average over {e.size} rows: "
-                    + (
-                        "a unit or a channel of the column map is wrong (an input in degF or kelvin, a reading tied "
-                        "to the wrong node)"
-                        if abs(bias) > BIAS_UNTRUSTED_K
-                        else "the model and this unit disagree (a bearing running hot, a sensor offset: "
-                        "gearbox-vsensor diagnose) or a unit or a channel of the column map is wrong"
-                    ),
-                )
+    return found
+
+
+def bias_finding(name: str, est_minus_measured) -> RecordFinding | None:
+    """A measured channel whose estimate is off its readings on average by more than BIAS_WARN_K, else None."""
+    e = np.asarray(est_minus_measured, dtype=float)
+    e = e[np.isfinite(e)]
+    bias = float(np.mean(e)) if e.size >= BIAS_MIN_ROWS else 0.0
+    if abs(bias) <= BIAS_WARN_K:
+        return None
+    return RecordFinding(
+        "units",
+        UNTRUSTED if abs(bias) > BIAS_UNTRUSTED_K else WARNING,
+        f"{name}: the estimate is {bias:+.1f} K off its readings on average over {e.size} rows: "
+        + (
+            "a unit or a channel of the column map is wrong (an input in degF or kelvin, a reading tied "
+            "to the wrong node)"
+            if abs(bias) > BIAS_UNTRUSTED_K
+            else "the model and this unit disagree (a bearing running hot, a sensor offset: "
+            "gearbox-vsensor diagnose) or a unit or a channel of the column map is wrong"
+        ),
+    )
+
+
+def untrusted_findings(record: ScadaRecord, residual: dict, params) -> list[RecordFinding]:
+    """What makes `replay` exit 3 on ``record``, from what a fit already has (``residual``: {channel: measured -
+    model} at the neutral effects over the record) and no replay table: channels mostly implausible, an input
+    torque in kN m (firmware_model.service.plausibility) and an estimate more than BIAS_UNTRUSTED_K off its readings
+    on average. ``params``: the gearbox's (its drive's limits). A fit to such a record explains a unit mistake by a
+    gearbox effect: diagnose and calibrate refuse it, the fleet leaves the unit out."""
+    from firmware_model.service.plausibility import fixed_torque_knm_finding
+
+    found = [f for f in range_findings(record) if f.severity >= UNTRUSTED]
+    limits = drive_limits(description_of(params))
+    v = record.values
+    if limits is not None and "input_speed_rpm" in v and "input_torque_nm" in v:
+        knm = fixed_torque_knm_finding(
+            v["input_speed_rpm"], v["input_torque_nm"], limits, float(record.cmap.period_s), "table"
+        )
+        if knm is not None:
+            found.append(RecordFinding("plausibility", UNTRUSTED, knm.sentence))
+    for name, r in residual.items():
+        f = bias_finding(name, -np.asarray(r, dtype=float))
+        if f is not None and f.severity >= UNTRUSTED:
+            found.append(f)
+    return found
+
+
+def refuse_untrusted(records, residuals, params, role: str) -> None:
+    """InputError naming the first of ``records`` (with its residuals at the neutral effects, ``residuals``) whose
+    units look wrong (:func:`untrusted_findings`); ``role``: "training" or "test"."""
+    for record, residual in zip(records, residuals):
+        found = untrusted_findings(record, residual, params)
+        if found:
+            files = ", ".join(Path(f).name for f in record.files[:3]) + (" ..." if len(record.files) > 3 else "")
+            raise InputError(
+                f"the {role} record of {record.unit} ({files}): {found[0].sentence} (replay exits 3 on it; fix the "
+                "file or the column map)"
             )
-    return sorted(found, key=lambda f: -f.severity)
 
 
 def error_lines(result: ScadaReplay) -> list[str]:

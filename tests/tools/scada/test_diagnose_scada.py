@@ -209,6 +209,32 @@ def test_records_without_a_reading_are_one_sentence_not_a_verdict(setup):
         diagnose_records(s, [blank], [test])
 
 
+def _degf(record, channel):
+    out = record.select(np.ones(record.n, dtype=bool))
+    out.values[channel] = out.values[channel] * 9.0 / 5.0 + 32.0
+    return out
+
+
+def test_a_record_replay_distrusts_is_refused_by_diagnose_and_calibrate_naming_it(setup):
+    """A sump in degF (the bearings' estimates from it 70 K over their readings, each value within its range) made
+    replay exit 3, while diagnose fitted it ("unexplained", a gap of +72 K in the thermostat's regime) and calibrate
+    wrote a parameter file from it, exit 0: both refuse it now, naming the role, the unit and why."""
+    from tools.scada.calibrate import calibrate_records
+
+    s, train, test = setup
+    good = [_measured(s, train, {}, 3)], [_measured(s, test, {}, 4)]
+    bad_train, bad_test = [_degf(good[0][0], "Gost_avg")], [_degf(good[1][0], "Gost_avg")]
+    with pytest.raises(InputError, match=r"the training record of .*: Gb1t_avg: the estimate is \+\d+\.\d K off"):
+        diagnose_records(s, bad_train, good[1])
+    with pytest.raises(InputError, match=r"the test record of .*a unit or a channel of the column map is wrong"):
+        diagnose_records(s, good[0], bad_test)
+    with pytest.raises(InputError, match="the training record of"):
+        calibrate_records(s, bad_train, good[1], ["housing.h_air"])
+    with pytest.raises(InputError, match="the test record of"):
+        calibrate_records(s, good[0], bad_test, ["housing.h_air"])
+    assert diagnose_records(s, *good)["verdict"]["effect"] == "none"  # the same records in degC
+
+
 def test_the_shortcuts_give_the_result_of_the_plain_diagnosis(setup, monkeypatch):
     """The diagnosis's speed-ups change no figure: the two oil modes on two threads, the held-out residual of a
     reading offset shifted instead of replayed, and the time to limit left out of its replays give the result of

@@ -56,6 +56,18 @@ def test_the_unit_whose_bearings_run_hot_is_flagged_from_that_period_and_the_oth
     assert all(abs(f.values["bearing_loss_scale"] - 1.6) < 0.1 for f in late), late
 
 
+def test_a_unit_whose_sump_is_in_degf_is_left_out_and_said(tmp_path):
+    """A unit with its sump in degF was fitted with the others (its residual RMS 43 K, effects far out of range)
+    and moved the fleet's median, "0 flagged", exit 0: it is left out, with the sentence replay exits 3 with."""
+    setup = Setup(with_gearbox(load_config(None), "HR225"), "Gost_avg", ("Gb1t_avg", "Gb2t_avg"))
+    units = {n: _unit(tmp_path, setup, n, load, None) for n, load in (("A", 1.0), ("B", 0.9), ("C", 1.1))}
+    units["C"].values["Gost_avg"] = units["C"].values["Gost_avg"] * 9.0 / 5.0 + 32.0
+    rejected: list = []
+    fits = fit_fleet(setup, units, days=PERIOD_ROWS * 600.0 / 86400.0, rejected=rejected)
+    assert {f.unit for f in fits} == {"A", "B"}
+    assert [u for u, _ in rejected] == ["C"] and "Gost_avg: the estimate is" in rejected[0][1]
+
+
 def test_fleet_columns_writes_the_fits_and_the_flags_of_a_folder(tmp_path):
     """`fleet --gearbox HR225 --columns MAP DIR --out OUT`: one row per unit, month and effect (a month needs
     MIN_BLOCKS days with rows: six days here); no flag on two units of one month (no baseline yet, and two units
@@ -91,7 +103,7 @@ def test_fleet_columns_writes_the_fits_and_the_flags_of_a_folder(tmp_path):
     assert pq.read_table(tmp_path / "out" / "health" / "flags.parquet").num_rows == 0
     assert "2 units" in p.stdout and "unit-months" in p.stdout
     # two units cannot be flagged, and the output says so (it read as healthy)
-    assert "2 units: a unit is flagged against its siblings' median, which needs at least 3" in p.stderr
+    assert "2 units fitted: a unit is flagged against its siblings' median, which needs at least 3" in p.stderr
     # a file that is no SCADA record is skipped, named and listed; the rest is read (it stopped the whole run)
     (data / "notes.csv").write_text("a,b\n1,2\n")
     p = subprocess.run([*cmd, "--out", str(tmp_path / "o3")], cwd=REPO, capture_output=True, text=True, timeout=600)

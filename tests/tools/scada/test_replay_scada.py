@@ -245,7 +245,7 @@ def test_a_power_in_kw_read_as_w_is_said_and_exits_3(tmp_path):
         timeout=300,
     )
     assert p.returncode == 3, p.stderr
-    assert "looks like kN m (or derived from a power in W read as kW)" in p.stderr
+    assert "looks like kN m (or derived from a power 1000 times too small: in MW read as kW, in kW" in p.stderr
 
 
 def test_the_modelled_sump_starts_at_the_first_reading_of_the_first_hour_and_one_row_is_one_row(tmp_path):
