@@ -149,6 +149,37 @@ class RunTable:
 # reading
 
 
+#: the shipped SCADA column maps (tools/scada/maps), read as data: a file in one of their formats given without
+#: --columns is named so (tools.scada imports this module, not the other way round)
+SCADA_MAP_DIR = Path(__file__).resolve().parent / "scada" / "maps"
+
+
+def scada_hint(path) -> str:
+    """ " (its header is the <map> SCADA format: give --columns <map>)" when the first line of ``path`` (plain or
+    gzip) holds the time and unit columns of a shipped column map, else ""."""
+    import gzip
+
+    from firmware_model.parameters import tomllib
+
+    try:
+        with open(path, "rb") as f:
+            gz = f.read(2) == b"\x1f\x8b"
+        with gzip.open(path, "rt", errors="replace") if gz else open(path, errors="replace") as f:
+            first = f.readline()
+    except (OSError, EOFError):
+        return ""
+    cells = {c.strip().strip('"') for c in re.split("[,;]", first)}
+    for path_map in sorted(SCADA_MAP_DIR.glob("*.toml")):
+        try:
+            m = tomllib.loads(path_map.read_text())
+            need = {m["time"]["column"], m.get("unit_id", {}).get("column", m["time"]["column"])}
+        except (OSError, KeyError, TypeError, tomllib.TOMLDecodeError):
+            continue
+        if need <= cells:
+            return f" (its header is the {path_map.stem} SCADA format: give --columns {path_map.stem})"
+    return ""
+
+
 def read_header(path: Path, name: str) -> list[str]:
     """Return the column names of the header row (checked: none empty, none twice)."""
     try:
@@ -163,7 +194,8 @@ def read_header(path: Path, name: str) -> list[str]:
     except OSError as e:
         raise InputError(f"{name}: cannot be read ({e.strerror or e})") from None
     if first[:2] == b"\x1f\x8b":
-        raise InputError(f"{name}: the file is gzip-compressed; decompress it first") from None
+        hint = scada_hint(path)
+        raise InputError(f"{name}: {hint[2:-1] if hint else 'the file is gzip-compressed; decompress it first'}")
     try:
         line = first.decode("utf-8-sig")
     except UnicodeDecodeError:
@@ -280,7 +312,7 @@ def parse_careful(path: Path, names: list[str], name: str) -> np.ndarray:
                         raise InputError(
                             f'{name}: column "{names[j]}" row {row_no}: {s!r} is not a number '
                             f"(cells hold a number with '.' as the decimal point, or are empty "
-                            f"when missing)"
+                            f"when missing){scada_hint(path)}"
                         ) from None
                 rows.append(vals)
         except UnicodeDecodeError:

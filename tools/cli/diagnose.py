@@ -193,6 +193,11 @@ def _run_scada(args) -> int:
     )
     if args.report:
         raise InputError("--report is for run tables; on SCADA records the JSON holds the diagnosis")
+    if args.model == "plant":
+        raise InputError(
+            "--model plant is for run tables; on SCADA records the onboard model of --gearbox is diagnosed (its "
+            "replays are what a 10-minute record can drive)"
+        )
     cfg = resolve_gearbox(args, load_config(args.config))
     train, test = read_held_out(args.train, args.test, args.columns)
     setup, notes = setup_of(cfg, train[0].cmap)

@@ -210,9 +210,26 @@ def _run_scada(args) -> int:
     from tools.scada.fleet import MIN_UNITS, fit_fleet, flag_units
     from tools.scada.reader import read_units
 
-    if args.scheduler or args.workers or args.diagnose or args.manifest:
-        raise InputError("--scheduler, --workers, --diagnose and --manifest are for CAN logs, not with --columns")
+    logs_only = {
+        "--scheduler": args.scheduler,
+        "--workers": args.workers,
+        "--diagnose": args.diagnose,
+        "--manifest": args.manifest,
+        "--prune": args.prune,
+        "--vehicle-from": args.vehicle_from,
+        "--vehicle-pattern": args.vehicle_pattern,
+    }
+    named = [o for o, v in logs_only.items() if v] + given(args, ("fleet.estimates", "fleet.report"))
+    if named:
+        raise InputError(
+            f"{', '.join(named)}: for CAN logs, not with --columns (a SCADA unit is its files' "
+            "Wind_turbine_name column, or the map's unit_id)"
+        )
     cfg = resolve_gearbox(args, load_config(args.config))
+    # the CAN logs' [fleet] settings a shared configuration may hold: said, not silently dropped
+    for key, default in (("fleet.estimates", False), ("fleet.report", True)):
+        if cfg.setting(key) != default:
+            print(f"note: [fleet] {key.split('.')[1]} is for CAN logs; the SCADA fleet ignores it", file=sys.stderr)
     if Path(args.out).exists() and not Path(args.out).is_dir():
         raise InputError(f"--out {args.out} is a file; the fleet writes a folder (health/*.parquet) there")
     skipped: list = []

@@ -60,6 +60,10 @@ def check_log(path: str | os.PathLike) -> Path:
     p = Path(path)
     suffix = p.suffix.lower()
     if suffix == ".gz" or (p.is_file() and _gzipped(p)):
+        from tools.runtable import scada_hint
+
+        if scada_hint(p):
+            raise InputError(f"{p}: {scada_hint(p)[2:-1]}")
         inner = Path(p.stem).suffix if suffix == ".gz" else suffix  # short.log.gz holds a .log
         raise InputError(
             f"{p}: the file is gzip-compressed; decompress it first (zcat {p.name} > "

@@ -289,8 +289,14 @@ def read_held_out(train_paths, test_paths, columns) -> tuple[list[ScadaRecord], 
 
 
 def read_record(paths: Iterable[str | Path], columns: str | Path | ColumnMap = "engie") -> ScadaRecord:
-    """The one unit's record in ``paths``; files of several units raise an InputError naming them."""
-    recs = read_units(paths, columns)
+    """The one unit's record in ``paths``; files of several units raise an InputError naming them. A map without a
+    unit column (``unit_id``) takes the files given as one unit's, named after the first (a fleet takes each file
+    for a unit: nothing in them says which files belong together)."""
+    cmap = columns if isinstance(columns, ColumnMap) else load_column_map(columns)
+    paths = list(paths)
+    if cmap.unit_column is None and len(paths) > 1:
+        return _record(Path(paths[0]).stem, [read_file(p, cmap) for p in paths], cmap)
+    recs = read_units(paths, cmap)
     if len(recs) > 1:
         raise InputError(
             f"the files hold {len(recs)} units ({', '.join(repr(u) for u in recs)}), not one: give one unit's files "

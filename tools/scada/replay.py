@@ -181,8 +181,17 @@ def record_findings(record: ScadaRecord, result: ScadaReplay) -> list:
             RecordFinding(
                 "rows",
                 WARNING,
-                f"{sum(dropped.values())} of {read} rows were dropped ({why}): the "
-                "outputs leave them out (bad time: a stamp without its UTC offset or that does not parse)",
+                f"{sum(dropped.values())} of {read} rows were dropped ({why}): the outputs leave them out"
+                + (
+                    " (bad time: a stamp without its UTC offset or that does not parse)"
+                    if "bad_time" in dropped
+                    else ""
+                )
+                + (
+                    " (duplicate time: a second row with a time stamp already read; the first kept)"
+                    if "duplicate_time" in dropped
+                    else ""
+                ),
             )
         )
     found += range_findings(record)

@@ -67,7 +67,7 @@ def _write_measured(path, record):
             row(
                 t,
                 p_kw=record.values["power_kw"][k],
-                rs=1485.0,
+                rs=record.values["input_speed_rpm"][k],
                 Yt_avg=record.values["ambient_temp_c"][k],
                 **{ch: record.values[ch][k] for ch in ("Gost_avg", "Gb1t_avg", "Gb2t_avg")},
             )
@@ -198,6 +198,20 @@ def test_calibrate_finds_a_planted_value_and_prints_the_nbm_beside_it(setup, tmp
     p = subprocess.run([sys.executable, "-m", "tools.cli", *cmd], cwd=REPO, capture_output=True, text=True, timeout=600)
     assert p.returncode == 3 and "hold at most 3 readings of a channel, too few to test it" in p.stderr, p.stderr
     assert not (tmp_path / "short.toml").exists()
+    # a held-out unit standing still: the bearings' f0 moves none of its estimates (a turbine standing on 1337 of
+    # 1346 rows: pooled 7.580 -> 7.577 K, a file written with f0 moved 4.64 -> 2.05, exit 0)
+    still = test.select(np.ones(test.n, dtype=bool))
+    still.values["input_speed_rpm"][:] = 0.0
+    still.values["input_torque_nm"][:] = 0.0
+    still.values["power_kw"][:] = 0.0
+    rng = np.random.default_rng(9)
+    for chans in ((s.sump,), s.others):
+        _model_readings(s, still, chans, estimates(s, still, {}, params), rng)
+    standing = _write_measured(tmp_path / "standing.csv", still)
+    cmd[cmd.index("--test") + 1], cmd[-1] = str(standing), str(tmp_path / "standing.toml")
+    p = subprocess.run([sys.executable, "-m", "tools.cli", *cmd], cwd=REPO, capture_output=True, text=True, timeout=600)
+    assert p.returncode == 3 and "changed no channel's held-out error by 1 % or more" in p.stderr, p.stderr
+    assert not (tmp_path / "standing.toml").exists()
 
 
 def test_records_without_a_reading_are_one_sentence_not_a_verdict(setup):
@@ -233,6 +247,37 @@ def test_a_record_replay_distrusts_is_refused_by_diagnose_and_calibrate_naming_i
     with pytest.raises(InputError, match="the test record of"):
         calibrate_records(s, good[0], bad_test, ["housing.h_air"])
     assert diagnose_records(s, *good)["verdict"]["effect"] == "none"  # the same records in degC
+
+
+def test_options_for_run_tables_or_logs_are_refused_on_scada_not_ignored(tmp_path):
+    """`diagnose --columns ... --model plant` diagnosed the onboard model, and `fleet --columns` dropped --prune
+    and --vehicle-from, each with exit 0."""
+    scada = write(tmp_path / "a.csv", _rows(0, ROWS))
+    common = ["--gearbox", "HR225", "--columns", str(_map(tmp_path))]
+    for args, words in (
+        (
+            [
+                "diagnose",
+                *common,
+                "--train",
+                str(scada),
+                "--test",
+                str(scada),
+                "--model",
+                "plant",
+                "--json",
+                str(tmp_path / "x.json"),
+            ],
+            "--model plant is for run tables",
+        ),
+        (["fleet", str(tmp_path), *common, "--out", str(tmp_path / "o"), "--prune"], "--prune: for CAN logs"),
+        (
+            ["fleet", str(tmp_path), *common, "--out", str(tmp_path / "o"), "--vehicle-from", "x"],
+            "--vehicle-from: for CAN logs",
+        ),
+    ):
+        p = subprocess.run([sys.executable, "-m", "tools.cli", *args], cwd=REPO, capture_output=True, text=True)
+        assert p.returncode == 2 and words in p.stderr, p.stderr
 
 
 def test_the_shortcuts_give_the_result_of_the_plain_diagnosis(setup, monkeypatch):

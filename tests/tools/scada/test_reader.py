@@ -307,6 +307,34 @@ def test_a_map_with_time_in_seconds_and_no_unit_column_names_the_unit_after_the_
     assert rec.unit == "rig7" and rec.n == 5 and rec.counts["bad_time"] == 1 and rec.time_s[0] == 1.5e9
 
 
+def test_without_a_unit_column_the_files_given_are_one_unit_s_record(tmp_path):
+    """A map without unit_id (optional) made each file its own unit, so a turbine's monthly files were refused as
+    "2 units" by replay: they are one record now, named after the first; a fleet still takes each file for a unit."""
+    from tools.scada.reader import read_units
+
+    src = (MAP_DIR / "engie.toml").read_text().replace('unit_id = { column = "Wind_turbine_name" }\n', "")
+    (tmp_path / "m.toml").write_text(src)
+    t0 = datetime(2017, 1, 1, tzinfo=timezone.utc)
+    jan = write(tmp_path / "jan.csv", [row(t0 + timedelta(minutes=10 * k)) for k in range(6)])
+    feb = write(tmp_path / "feb.csv", [row(t0 + timedelta(days=31, minutes=10 * k)) for k in range(6)])
+    rec = read_record([jan, feb], tmp_path / "m.toml")
+    assert rec.unit == "jan" and rec.n == 12 and rec.n_stretches == 2
+    assert sorted(read_units([jan, feb], tmp_path / "m.toml")) == ["feb", "jan"]
+
+
+def test_a_scada_file_given_without_columns_is_named_with_its_map(tmp_path, two_files):
+    """Without --columns an ENGIE file was "gzip-compressed; decompress it first" or "'R1' is not a number"."""
+    from tools.runtable import read_run_table, scada_hint
+
+    gz, plain, _ = two_files
+    for f in (gz, plain):
+        assert scada_hint(f) == " (its header is the engie SCADA format: give --columns engie)"
+        with pytest.raises(InputError, match="give --columns engie"):
+            read_run_table(f)
+    (tmp_path / "run.csv").write_text("time_s,engine_speed_rpm\n0,600\n")
+    assert scada_hint(tmp_path / "run.csv") == ""
+
+
 def test_engie_s_semicolon_export_with_decimal_commas_reads_as_the_comma_file(tmp_path, two_files):
     """ENGIE's own export separates with ';' (and a European locale writes decimal commas): the same record. A file
     whose stamps all lack their UTC offset says so (it said 'no row with a readable time stamp')."""
