@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from tools.published import description, ids, label_of
+from tools.published import limits as gearbox_limits
 
 
 def panels(gearbox=None) -> dict:
@@ -130,7 +131,7 @@ def temperature_panel(ax, t, table, components, limits, gearbox, prefix: str = "
     at_limit: dict[float, list] = {}
     for i, c in enumerate(drawn):
         ax.plot(t, table[f"{prefix}{c}_c"], lw=1.1, color=f"C{i % 10}", label=label_of(c, d))
-        if c in pub:
+        if c in pub and c in limits.components:  # a derived temperature (a forced oil inlet) has no limit
             at_limit.setdefault(limits.of(c)[0], []).append((c, f"C{i % 10}"))
     for limit_c, comps in at_limit.items():
         color = comps[0][1] if len(comps) == 1 else "0.35"
@@ -153,10 +154,9 @@ def temperature_panel(ax, t, table, components, limits, gearbox, prefix: str = "
 def plot_simulation(table, path, title="", limits=None, gearbox=None):
     """The figure of `simulate --plot`: the inputs (speed, torque, gear; the input temperatures), then one panel per
     component group (:func:`panels` of ``gearbox``, a parameter set or description; None: the default gearbox) with
-    names spelled out, the warning limits dashed and the plant's oil sump for reference."""
-    from firmware_model.onboard.warning_levels import load_limits
-
-    limits = limits or load_limits()
+    names spelled out, the warning limits dashed (``limits``; None: the gearbox's own, tools.published.limits) and
+    the plant's oil sump for reference."""
+    limits = limits or gearbox_limits(gearbox)
     gearbox = description(gearbox)
     groups = panels(gearbox)
     rows = (len(groups) + 1) // 2

@@ -67,6 +67,23 @@ def groups(source=None) -> dict:
     return {c.id: c.group for c in published(source)}
 
 
+def limits(source=None):
+    """The warning limits (firmware_model.onboard.warning_levels.Limits) of ``source``: a sensor's own (its
+    configuration may name another file), else the limits file its description's published.limits names, for the
+    components the sensor holds; the default gearbox's for None. Plots draw these, never the GRS905's file for
+    another gearbox (whose components that file does not list)."""
+    from firmware_model.onboard.reduce import published_components
+    from firmware_model.onboard.warning_levels import Limits, load_limits
+
+    own = getattr(source, "limits", None)
+    if isinstance(own, Limits):
+        return own
+    d = description(source)
+    if d is None:
+        raise TypeError(f"{source!r} is no parameter set, description or sensor: it names no limits file")
+    return load_limits(d.limits_path, published=published_components(d))
+
+
 def housings(source=None) -> tuple:
     """The housing ids of ``source``'s description, in its order (the nodes a housing start offset moves)."""
     d = description(source)

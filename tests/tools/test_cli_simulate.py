@@ -410,3 +410,65 @@ def test_a_sump_held_warm_beside_cold_parts_is_a_note(tmp_path, capsys):
     assert "note: the sump is held at 100 degC while the other parts start at 20 degC" in capsys.readouterr().err
     assert main(["simulate", "--cycle", "steady:s=30,oil=100", "--out", str(out), "--quiet"]) == 0
     assert "held at" not in capsys.readouterr().err
+
+
+def _fixed_ratio_cycle(path, rpm: float, nm: float, s: int = 300):
+    """A fixed-ratio drive's CSV cycle: constant input speed and torque at 20 degC ambient."""
+    t = np.arange(0.0, s + 1.0, 1.0)
+    cols = {
+        "time_s": t,
+        "input_speed_rpm": np.full(t.size, rpm),
+        "input_torque_nm": np.full(t.size, nm),
+        "ambient_temp_c": np.full(t.size, 20.0),
+    }
+    write_run_table(RunTable(cols), path)
+    return path
+
+
+def test_plots_of_another_gearbox_draw_its_own_limits(tmp_path, monkeypatch):
+    """`simulate --plot` and `replay --plot` looked up every published component in the GRS905's limits, so
+    every other gearbox (R1, HR225, MM82, a user's own) stopped with 'tuple.index(x): x not in tuple' and wrote
+    no CSV either. The plots now draw the limits the gearbox's own description names (here a file beside it)."""
+    from firmware_model.parameters import PARAM_DIR
+
+    gb = tmp_path / "R1own.toml"
+    gb.write_text(
+        (PARAM_DIR / "R1.toml")
+        .read_text(encoding="utf-8")
+        .replace(
+            "[topology.published]\n", '[topology.published]\nlimits = { v = "own.toml", u = "-", src = "assumed" }\n'
+        )
+    )
+    own = {"gear": 111.0, "sun": 121.0, "planetary": 122.0, "bearing": 101.0, "oil": 91.0}
+    (tmp_path / "own.toml").write_text(
+        "".join(
+            f'[{g}]\nwarning = {{ v = {w}, u = "degC", src = "assumed" }}\n'
+            f'critical = {{ v = {w + 10}, u = "degC", src = "assumed" }}\n'
+            f'hysteresis = {{ v = 2, u = "K", src = "assumed" }}\n'
+            for g, w in own.items()
+        )
+    )
+    cyc = _fixed_ratio_cycle(tmp_path / "c.csv", 1000.0, 200.0)
+    figures = _figures(monkeypatch)
+    out = tmp_path / "run.csv"
+    args = ["simulate", "--gearbox", str(gb), "--cycle", str(cyc), "--out", str(out), "--quiet"]
+    assert main([*args, "--plot", str(tmp_path / "p.png")]) == 0
+    assert out.exists() and (tmp_path / "p.png").exists()
+    drawn = set().union(*(_limit_lines(ax) for ax in figures[0].axes))
+    assert drawn == {own["gear"], own["bearing"]}, drawn  # the R1's wheels and bearings (its oil has no panel)
+    figures.clear()
+    rep = ["replay", "--gearbox", str(gb), str(cyc), "--out", str(tmp_path / "est.csv"), "--quiet"]
+    assert main([*rep, "--allow-untrusted", "--plot", str(tmp_path / "r.png")]) == 0  # no oil reading: degraded
+    assert (tmp_path / "r.png").exists()
+    assert _limit_lines(figures[0].axes[1]) <= {own["gear"], own["bearing"], own["oil"]}
+    assert _limit_lines(figures[0].axes[1])
+
+
+def test_plot_of_a_derived_temperature_draws_no_limit(tmp_path):
+    """The MM82's forced oil inlet (a derived temperature, no node of the sensor, so no limit of its own) is in
+    its plant table: `simulate --plot` draws it without a limit rather than failing to find one."""
+    cyc = _fixed_ratio_cycle(tmp_path / "c.csv", 10.0, 1.5e6, s=120)
+    out = tmp_path / "run.csv"
+    args = ["simulate", "--gearbox", "MM82", "--cycle", str(cyc), "--out", str(out), "--quiet"]
+    assert main([*args, "--plot", str(tmp_path / "p.png")]) == 0
+    assert "T_oil.inlet_c" in read_run_table(out).columns and (tmp_path / "p.png").exists()

@@ -8,6 +8,7 @@ import numpy as np
 from firmware_model.components import LEVEL_NA
 from tools.plots import input_panel  # the replay's input panel, shared with simulate's and the demo's figures
 from tools.published import description, ids, label_of
+from tools.published import limits as gearbox_limits
 
 #: components drawn in the temperature panel: the closest to their own warning limits, this many
 PLOT_CLOSEST = 6
@@ -19,7 +20,9 @@ def closest_to_limits(out, limits, published) -> list[str]:
     margin = {
         c: float(np.nanmin(limits.of(c)[0] - np.asarray(out[f"T_{c}_c"], dtype=float)))
         for c in published
-        if out.has(f"T_{c}_c") and np.any(np.isfinite(out[f"T_{c}_c"]))
+        if c in limits.components  # a derived temperature (a forced oil inlet) has no limit of its own
+        and out.has(f"T_{c}_c")
+        and np.any(np.isfinite(out[f"T_{c}_c"]))
     }
     return sorted(margin, key=margin.get)[:PLOT_CLOSEST]
 
@@ -33,11 +36,11 @@ def plot_replay(out, path, title: str = "", limits=None, gearbox=None) -> None:
     """Write a PNG of a sensor output run table: the inputs; the PLOT_CLOSEST estimates closest to their own warning
     limits, each with its limit dashed, and the measured oil; the level of every component that left normal, as
     words; the oil innovation (measured - model). ``gearbox``: the sensor, its parameter set or description (the
-    published components and their words; None: the default gearbox)."""
-    from firmware_model.onboard.warning_levels import load_limits
+    published components and their words; None: the default gearbox). ``limits``: None for the sensor's that ran
+    (the table's meta), else the gearbox's own (tools.published.limits), never the GRS905's file for another one."""
     from tools.plots import level_axis, outside_legend, pyplot, save_figure, temperature_panel, time_axis
 
-    limits = limits or load_limits()
+    limits = limits or (getattr(out, "meta", None) or {}).get("limits") or gearbox_limits(gearbox)
     d, pub = description(gearbox), ids(gearbox)
     plt = pyplot()
     t, t_label = time_axis(out["time_s"])
