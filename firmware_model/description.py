@@ -1057,6 +1057,12 @@ def _gears(r: _Reader, topo: dict, parts: dict, drive: Drive, check: dict) -> tu
         stated, tol = f["ratio"], check["ratio_rel_tol"]
         if stated is None:
             r.fail(key, "has no ratio: state the ratio input/output speed (it is checked against the teeth)")
+        if stated == 0:  # checked relative to the stated ratio below: a division by zero without this
+            r.fail(
+                f"{key}.ratio",
+                f"= 0 is no ratio of a gear that transmits power: state input/output speed, {ratio:.6g} by the "
+                f"teeth along its path (neutral is gear number 0, without a ratio)",
+            )
         if abs(ratio - stated) > tol * abs(stated):
             r.fail(
                 f"{key}.ratio",

@@ -267,6 +267,12 @@ MALFORMED = [
         "is off the ratio of the teeth along its path, 3.03361",
     ),
     (
+        "ratio zero (a division by zero before)",
+        '[topology.gear.4L]\nratio = { v = 0, u = "-", src = "seed" }',
+        "topology.gear.4L.ratio",
+        "= 0 is no ratio of a gear that transmits power: state input/output speed, 3.03361 by the teeth",
+    ),
+    (
         "two gears with one number",
         '[topology.gear.4H]\nnumber = { v = 9, u = "-", src = "seed" }',
         "topology.gear.4H.number",
