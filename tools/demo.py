@@ -6,8 +6,9 @@
 3. Those frames are played onto a python-can `virtual` bus; the onboard sensor's live CAN service (the same code
    as `gearbox-vsensor run`) decodes them, steps the sensor every 100 ms of frame time and publishes GBX_* frames:
    :func:`run_on_virtual_bus`.
-4. A monitor on the same bus decodes the sensor's frames with the project's DBC and prints temperatures, warnings
-   and time to limit (:func:`print_published`); at the end the estimates are compared with and plotted against the
+4. A monitor on the same bus decodes the sensor's frames with the gearbox's DBC (:func:`gearbox_dbc`: the shipped one
+   for the GRS905, else the one `export-dbc` writes) and prints temperatures, warnings and time to limit
+   (:func:`print_published`); at the end the estimates are compared with and plotted against the
    plant's truth (:func:`print_accuracy`, :func:`plot_demo`).
 
 :func:`run_demo` does it all; every step prints through ``echo`` (stdout by default).
@@ -37,6 +38,7 @@ from firmware_model.components import (
 from firmware_model.errors import InputError
 from tools.progress import progress
 from tools.published import description, ids, label_of
+from tools.published import limits as gearbox_limits
 from tools.runtable import RunTable, write_run_table
 
 #: how the demo prints a warning level and a degraded mode
@@ -46,8 +48,6 @@ DEGRADED_LABEL = {
     MODE_HOLDING: "inputs missing, holding",
     MODE_NOT_INITIALISED: "not initialised",
 }
-#: the PGNs (PDU2, data page 0) of the sensor's GBX_* output frames: GBX_TEMP_1 .. GBX_STATUS
-GBX_PGNS = range(0xFF40, 0xFF50)
 #: frames played onto the virtual bus between two short pauses that let the service's notifier keep up
 SEND_BURST_FRAMES = 20000
 #: how long the demo waits at most for the service to consume the frames [s]
@@ -98,33 +98,55 @@ class BusRun(NamedTuple):
 
 
 def simulate_truth(params, cycle_spec: str, minutes: float) -> Truth:
-    """The first `minutes` of a cycle through the reference plant at 10 Hz."""
+    """The first `minutes` of a cycle through the reference plant at 10 Hz (read for the gearbox ``params``: its
+    gears, its drive limits, a fixed-ratio drive's columns)."""
+    from firmware_model.description import description_of
     from tools.cycles.named import get_cycle
     from tools.plant.reference import ReferencePlant
 
-    cyc = get_cycle(cycle_spec)
+    cyc = get_cycle(cycle_spec, description=description_of(params))
     keep = cyc["time_s"] <= minutes * 60.0
     cyc = RunTable({c: np.asarray(cyc[c])[keep] for c in cyc.columns}, meta=dict(getattr(cyc, "meta", {}) or {}))
     res = ReferencePlant(params).run(cyc, out_dt_s=0.1, progress=None)
     return Truth(cyc, res.table, res.wall_s)
 
 
-def drive_frames(truth: Truth, log_path: Path):
-    """J1939 frames of the drive (inputs) and rig thermocouple frames (truth), also written as a candump -L log."""
+def gearbox_dbc(params):
+    """The DBC of the gearbox ``params`` (its sensor's frames, as the CAN service and `simulate --can-log` lay them
+    out): the shipped one for the GRS905's published components, else the one `export-dbc` writes for its own."""
+    from can_dbc.dbc import for_components
+    from firmware_model.description import description_of
+    from firmware_model.onboard.reduce import published_ids
+
+    return for_components(published_ids(description_of(params)))
+
+
+def gbx_pgns(db) -> frozenset:
+    """The PGNs (PDU2, data page 0) of the sensor's per-step output frames in the DBC ``db``: GBX_TEMP_1 ..
+    GBX_STATUS (GBX_DM1 aside: it is sent on change and every second, not every step)."""
+    return frozenset(db.message_pgn(m.name) for m in db.database.messages if m.name.startswith("GBX_")) - {
+        db.message_pgn("GBX_DM1")
+    }
+
+
+def drive_frames(truth: Truth, log_path: Path, db=None):
+    """J1939 frames of the drive (inputs) and rig thermocouple frames (truth), also written as a candump -L log;
+    ``db``: the gearbox's DBC, whose RIG_TC messages carry its components (None: the shipped GRS905 one)."""
     from tools.can.logsynth import synth_frames, write_frames
 
-    frames, _counts = synth_frames(truth.cycle, truth.table, rig=True)
+    frames, _counts = synth_frames(truth.cycle, truth.table, rig=True, db=db)
     write_frames(frames, log_path)
     return frames
 
 
-def _monitor(bus, outs: list, stop: threading.Event) -> threading.Thread:
-    """A thread that collects the sensor's GBX_* frames from `bus` until `stop` is set."""
+def _monitor(bus, outs: list, stop: threading.Event, pgns: frozenset) -> threading.Thread:
+    """A thread that collects the sensor's GBX_* frames (``pgns``, :func:`gbx_pgns`) from `bus` until `stop` is
+    set."""
 
     def loop():
         while not stop.is_set():
             m = bus.recv(timeout=0.1)
-            if m is not None and (m.arbitration_id >> 8) & 0xFFFF in GBX_PGNS:
+            if m is not None and (m.arbitration_id >> 8) & 0xFFFF in pgns:
                 outs.append(m)
 
     th = threading.Thread(target=loop, daemon=True)
@@ -158,8 +180,9 @@ def _wait_until_consumed(service, timeout_s: float = DRAIN_TIMEOUT_S) -> None:
         last = steps
 
 
-def run_on_virtual_bus(params, frames) -> BusRun:
-    """The sensor's CAN service on a python-can virtual bus fed with `frames`; a monitor collects its outputs."""
+def run_on_virtual_bus(params, frames, db=None) -> BusRun:
+    """The sensor's CAN service on a python-can virtual bus fed with `frames`; a monitor collects its outputs (the
+    per-step frames of ``db``, the gearbox's DBC; None: :func:`gearbox_dbc` of ``params``)."""
     import can
 
     from firmware_model.onboard.sensor import VirtualSensor
@@ -175,7 +198,7 @@ def run_on_virtual_bus(params, frames) -> BusRun:
     th = threading.Thread(target=lambda: result.setdefault("r", serve(svc_bus, service, stop=stop)), daemon=True)
     th.start()
     outs: list = []
-    mth = _monitor(monitor, outs, mon_stop)
+    mth = _monitor(monitor, outs, mon_stop, gbx_pgns(db or gearbox_dbc(params)))
     t0 = time.perf_counter()
     n_sent = _send_all(sender, frames, channel)
     _wait_until_consumed(service)
@@ -215,7 +238,9 @@ def _status_line(t_s: float, d: dict, warn: dict, limits, published: tuple) -> s
     temps = d.get("temps_c", {})
     ttl = d.get("ttl_s", {})
     margins = sorted(
-        (limits.of(c)[0] - v, c, v) for c, v in temps.items() if c in published and v is not None and not math.isnan(v)
+        (limits.of(c)[0] - v, c, v)
+        for c, v in temps.items()
+        if c in published and c in limits.components and v is not None and not math.isnan(v)
     )[:3]
     st = d.get("status", {})
     if st.get("degraded_mode") in (MODE_HOLDING, MODE_NOT_INITIALISED) and t_s < 1.0:
@@ -223,9 +248,13 @@ def _status_line(t_s: float, d: dict, warn: dict, limits, published: tuple) -> s
             f"  t={t_s:6.0f} s  starting: no engine speed, torque and gear received yet "
             f"(degraded: {DEGRADED_LABEL.get(st.get('degraded_mode'))})"
         )
-    line = f"  t={t_s:6.0f} s  oil {temps.get('oil', float('nan')):5.1f} C | closest to their limits: " + ", ".join(
-        f"{c} {v:5.1f} C ({f'{m:.1f} K below' if m > 0 else f'{-m:.1f} K OVER'} {limits.of(c)[0]:.0f})"
-        for m, c, v in margins
+    oil = temps.get("oil")  # None: not available on the bus (or no oil published)
+    line = (
+        f"  t={t_s:6.0f} s  oil {float('nan') if oil is None else oil:5.1f} C | closest to their limits: "
+        + ", ".join(
+            f"{c} {v:5.1f} C ({f'{m:.1f} K below' if m > 0 else f'{-m:.1f} K OVER'} {limits.of(c)[0]:.0f})"
+            for m, c, v in margins
+        )
     )
     if margins:
         c = margins[0][1]
@@ -269,14 +298,16 @@ def _level_events(t_s: float, d: dict, last: dict, limits, desc=None) -> list[st
     return lines
 
 
-def print_published(outs: list, print_every_s: float, echo: Callable[[str], None], limits=None, gearbox=None) -> dict:
+def print_published(
+    outs: list, print_every_s: float, echo: Callable[[str], None], limits=None, gearbox=None, db=None
+) -> dict:
     """Decode the sensor's frames per 100 ms step; print a line every `print_every_s` of drive time and at the end
     of the drive, and a line whenever a warning is raised or cleared (with why); returns component -> drive time of
-    its first warning. ``gearbox``: the sensor's parameter set or description (None: the default gearbox)."""
+    its first warning. ``gearbox``: the sensor's parameter set or description (None: the default gearbox);
+    ``limits``: None for the gearbox's own; ``db``: the DBC the frames are laid out by (None: the shipped one)."""
     from can_dbc.adapter import decode_outputs
-    from firmware_model.onboard.warning_levels import load_limits
 
-    limits = limits or load_limits()
+    limits = limits or gearbox_limits(gearbox)
     desc, published = description(gearbox), ids(gearbox)
     by_t: dict = {}
     for m in outs:
@@ -285,7 +316,7 @@ def print_published(outs: list, print_every_s: float, echo: Callable[[str], None
     t_first = times[0] if times else 0.0
     next_print, first_warn, last_level = 0.0, {}, {}
     for k, ts in enumerate(times):
-        d = decode_outputs(by_t[ts])
+        d = decode_outputs(by_t[ts], database=db)
         warn = {c: v for c, v in d.get("levels", {}).items() if v in (LEVEL_WARNING, LEVEL_CRITICAL)}
         for c in warn:
             first_warn.setdefault(c, ts - t_first)
@@ -361,10 +392,9 @@ def plot_demo(est: RunTable, truth: RunTable, path, gearbox=None) -> Path:
     component's warning limit (dotted), in two panels (:func:`featured`); the error sensor - truth; the warning
     level of every component that raised one, as words. ``gearbox``: the parameter set or description (None: the
     default gearbox)."""
-    from firmware_model.onboard.warning_levels import load_limits
     from tools.plots import input_panel, level_axis, outside_legend, pyplot, save_figure, time_axis
 
-    limits = load_limits()
+    limits = gearbox_limits(gearbox)  # the gearbox's own, not the GRS905's file (whose components it has not)
     desc = description(gearbox)
     plt = pyplot()
     t, t_label = time_axis(est["time_s"])
@@ -383,7 +413,7 @@ def plot_demo(est: RunTable, truth: RunTable, path, gearbox=None) -> Path:
                 ax.plot(
                     tt, truth[f"T_{c}_c"], color="k", lw=0.9, ls="--", zorder=5, label="plant truth" if i == 0 else None
                 )
-            if c != "oil":
+            if c != "oil" and c in limits.components:
                 ax.axhline(limits.of(c)[0], color=f"C{i}", lw=0.8, ls=":")
         ax.set_ylabel("degC")
         ax.grid(alpha=0.3)
@@ -418,41 +448,51 @@ def plot_demo(est: RunTable, truth: RunTable, path, gearbox=None) -> Path:
 
 def run_demo(opts: DemoOptions, echo: Callable[[str], None] | None = None) -> BusRun:
     """The four steps, printed through `echo`; writes plant.csv, drive.log, sensor.csv and demo.png to out_dir."""
+    from can_dbc.dbc import shipped
     from firmware_model.parameters import load_parameters
 
     echo = echo or (lambda line: print(line, flush=True))
     if not 1.0 <= opts.minutes <= 600.0:
         raise InputError(f"--minutes {opts.minutes} must be in 1..600")
+    from firmware_model.description import description_of
     from tools.cycles.named import get_cycle
 
-    get_cycle(opts.cycle)  # an unknown cycle is refused before the output directory is made
+    # the gearbox, its frames and the cycle read for it are refused before the output directory is made
+    params = load_parameters(opts.gearbox)
+    db = gearbox_dbc(params)  # the frames of this gearbox's sensor, as the service lays them out
+    get_cycle(opts.cycle, description=description_of(params))
     out = Path(opts.out_dir)
     if out.exists() and not out.is_dir():
         raise InputError(f"--out-dir {out} is a file, not a directory")
     out.mkdir(parents=True, exist_ok=True)
-    params = load_parameters(opts.gearbox)
     echo(f"[1/4] reference plant: {opts.minutes:.0f} min of the synthetic '{opts.cycle}' drive ...")
     truth = simulate_truth(params, opts.cycle, opts.minutes)
     write_run_table(every(truth.table), out / "plant.csv")
     echo(f"      done in {truth.wall_s:.1f} s; truth written to {out / 'plant.csv'}")
     echo("[2/4] J1939 frames of the drive (inputs) and rig thermocouple frames (truth) ...")
-    frames = drive_frames(truth, out / "drive.log")
+    frames = drive_frames(truth, out / "drive.log", db)
     echo(
         f"      {len(frames)} frames -> {out / 'drive.log'} (candump -L; replay it with canplayer or "
         f"`gearbox-vsensor replay`)"
     )
     echo("[3/4] sensor service on python-can's virtual bus (frame time drives the 10 Hz steps) ...")
-    bus = run_on_virtual_bus(params, frames)
+    bus = run_on_virtual_bus(params, frames, db)
     echo(
-        f"      {bus.frames_in} frames in, {len(bus.outputs)} GBX frames out on the bus (16 per step; DM1 aside), "
+        f"      {bus.frames_in} frames in, {len(bus.outputs)} GBX frames out on the bus "
+        f"({len(gbx_pgns(db))} per step; DM1 aside), "
         f"{bus.steps} steps "
         f"in {bus.wall_s:.1f} s wall"
     )
+    dbc_words = (
+        "can_dbc/gearbox_vsensor.dbc"
+        if db is shipped()
+        else f"the {params.variant}'s DBC, as `gearbox-vsensor export-dbc --gearbox` writes it"
+    )
     echo(
-        f"[4/4] what the sensor published (decoded from the bus with can_dbc/gearbox_vsensor.dbc), every "
+        f"[4/4] what the sensor published (decoded from the bus with {dbc_words}), every "
         f"{opts.print_every_s:.0f} s of drive time:"
     )
-    print_published(bus.outputs, opts.print_every_s, echo, gearbox=params)
+    print_published(bus.outputs, opts.print_every_s, echo, gearbox=params, db=db)
     write_run_table(every(bus.recorded), out / "sensor.csv")
     print_accuracy(bus.recorded, echo, params)
     plot_demo(bus.recorded, truth.table, out / "demo.png", params)
