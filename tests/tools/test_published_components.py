@@ -124,6 +124,18 @@ def test_the_replay_summary_and_plot_choices_follow_the_description(r1):
     assert raised_components(table, ids) == ["B3"]
 
 
+def test_the_limits_without_a_sensor_are_the_descriptions_own(r1):
+    """A table without its sensor's limits (no meta) was summarised with the GRS905's file, which has none of the
+    R1's components ('tuple.index(x): x not in tuple'): the summary takes the description's own limits file."""
+    from tools.replay.summary import summary_lines
+
+    lim = P.limits(r1)
+    assert lim.components == R1_IDS and lim.of("W")[0] == 150.0 and lim.of("B3")[0] == 120.0
+    assert P.limits().components == PUBLISHED  # None: the default gearbox
+    lines = summary_lines(_sensor_table(R1_IDS, np.arange(0.0, 600.0, 1.0), hot="W", warn="B3"), gearbox=r1)
+    assert lines[0].startswith("closest to its limit: W (output wheel), peak 140.0 degC") and "limit 150" in lines[0]
+
+
 def test_fleet_rows_and_report_follow_the_description(r1):
     from tools.fleet.report import _hottest, published_in
     from tools.fleet.summary import summarize

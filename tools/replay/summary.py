@@ -166,11 +166,12 @@ def _reject_line(out, unused: tuple = ()) -> str:
 def summary_lines(out, limits=None, oil_model: bool = False, gearbox=None) -> list[str]:
     """The lines printed after a replay of ``out`` (the sensor output run table); ``oil_model``: the oil modelled by
     request (--oil-mode model), which is not degraded; ``gearbox``: the sensor, its parameter set or description
-    (the published components and their words; None: the default gearbox)."""
+    (the published components and their words; None: the default gearbox); ``limits``: None for the sensor's that
+    ran (the table's meta), else the gearbox's own (tools.published.limits), never the GRS905's for another one."""
     from firmware_model.components import MODE_NORMAL, MODE_OIL_MODEL
-    from firmware_model.onboard.warning_levels import load_limits
+    from tools.published import limits as gearbox_limits
 
-    limits = limits or (getattr(out, "meta", None) or {}).get("limits") or load_limits()
+    limits = limits or (getattr(out, "meta", None) or {}).get("limits") or gearbox_limits(gearbox)
     line = "degraded: 0.0 % of steps"
     if out.n and out.has("degraded_mode"):
         mode = np.asarray(out["degraded_mode"])
