@@ -370,9 +370,26 @@ def effect_scales(effects: dict | None = None) -> EffectScales:
     return EffectScales(**{FIELD_OF_EFFECT[eid]: effect_value(effects, eid) for eid in EFFECT_IDS})
 
 
+def oil_level_refusal(params) -> str | None:
+    """Why effect oil_level_low cannot act on ``params``' gearbox, or None when it can: its range (8..13.5 L, neutral
+    13.5) is the GRS905 family's sump (the ``oil.volume`` parameter); another gearbox's oil volume is its
+    description's ``topology.oil.volume``, which the effect's litres do not describe (for an 11 L sump, 12 L would
+    be more oil, not less)."""
+    if "oil.volume" in params.values:
+        return None
+    return (
+        f"effect oil_level_low's range {CATALOG['oil_level_low'].low:g}..{CATALOG['oil_level_low'].high:g} L is the "
+        "GRS905 family's sump, and this gearbox's oil volume is its description's topology.oil.volume"
+    )
+
+
 def with_oil_volume(params, volume_l: float):
     """The parameter set with the sump holding ``volume_l`` litres when that is below nominal (effect
-    oil_level_low: less immersion, less thermal mass); the set itself otherwise."""
+    oil_level_low: less immersion, less thermal mass); the set itself otherwise. InputError for a gearbox the
+    effect does not describe (:func:`oil_level_refusal`)."""
     if volume_l < CATALOG["oil_level_low"].neutral:
+        why = oil_level_refusal(params)
+        if why is not None:
+            raise InputError(f"{why}: give a lower volume there (a copy of the description) to run it with less oil")
         return params.with_overrides({"oil.volume": volume_l * (1.0 / L_PER_M3)})
     return params

@@ -307,6 +307,23 @@ def _write_health(root: Path, fits, flags) -> None:
     write_atomic(pa.Table.from_pylist([f._asdict() for f in flags], schema=flag_schema), root / "flags.parquet")
 
 
+def check_health_gearboxes(entries) -> None:
+    """InputError before any work when --diagnose's health fit (the cooler's effectiveness and the sump's volume of
+    the GRS905 family, tools/fleet/health.py) cannot act on a log's gearbox: every log failed it, one by one."""
+    from firmware_model.config import load_config
+    from firmware_model.effects import oil_level_refusal
+    from tools.cli.gearbox_option import with_gearbox
+
+    for variant in sorted({e.variant for e in entries if e.variant}):
+        why = oil_level_refusal(with_gearbox(load_config(None), variant).load_params())
+        if why:
+            raise InputError(
+                f"--diagnose fits the cooler's effectiveness and the oil volume of the GRS905 family's sump, which "
+                f"the logs of gearbox {Path(variant).name} cannot have ({why}); without --diagnose the fleet "
+                "summarises them"
+            )
+
+
 def run(args) -> int:
     from firmware_model.config import load_config
     from tools.fleet.run import run_fleet
@@ -317,6 +334,8 @@ def run(args) -> int:
         return _run_scada(args)
     estimates, period_days, report = (setting(args, load_config(args.config), key) for key in FLEET_KEYS)
     entries, rule = _entries(args)
+    if args.diagnose:
+        check_health_gearboxes(entries)
     if given(args, ("fleet.period_days",)) and not args.diagnose:
         raise InputError("--period-days sets the health fit's period, which only --diagnose runs")
     if args.scheduler and not re.fullmatch(

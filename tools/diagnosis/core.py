@@ -57,10 +57,15 @@ from tools.diagnosis.start import decide_starts, starts_after_verdict, starts_js
 __all__ = ["Diagnosis", "Options", "diagnose", "lag_filter", "load_table", "make_model", "prepare"]
 
 
-def default_candidates(train: list) -> tuple:
-    """Every catalog effect, and an offset of every rig thermocouple the training files measure."""
+def default_candidates(train: list, params=None) -> tuple:
+    """Every catalog effect that can act on ``params``' gearbox (oil_level_low only on the GRS905 family's sump:
+    firmware_model.effects.oil_level_refusal), and an offset of every rig thermocouple the training files
+    measure."""
+    from firmware_model.effects import oil_level_refusal
+
     tcs = sorted({c for ds in train for c in ds.channels if c != OIL})
-    return EFFECT_IDS + tuple(channel_effect("thermocouple_offset", c) for c in tcs)
+    effects = tuple(e for e in EFFECT_IDS if e != "oil_level_low" or params is None or not oil_level_refusal(params))
+    return effects + tuple(channel_effect("thermocouple_offset", c) for c in tcs)
 
 
 class Diagnosis:
@@ -82,7 +87,7 @@ class Diagnosis:
         opts = opts or Options()
         cooler = cooler or params.strings.get("cooler.kind", "liquid")
         self.ctx = Context(
-            model, params, opts, cooler, tuple(candidates or default_candidates(train)), Simulator(model)
+            model, params, opts, cooler, tuple(candidates or default_candidates(train, params)), Simulator(model)
         )
         self.progress = progress or (lambda msg: None)
         self.outcome: Outcome | None = None
