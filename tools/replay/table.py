@@ -443,6 +443,15 @@ def drive_limits(description) -> tuple | None:
     return None if d.kind == "vehicle" else (d.max_speed_rad_s * 60.0 / (2.0 * math.pi), d.max_torque_nm)
 
 
+def drive_knm_finding(speed_rpm, torque_nm, description, dt_s: float):
+    """The kN m finding of ``description``'s fixed-ratio drive over these inputs, one every ``dt_s``
+    (firmware_model.service.plausibility.fixed_torque_knm_finding), or None (also for a vehicle's drive)."""
+    from firmware_model.service.plausibility import fixed_torque_knm_finding
+
+    limits = drive_limits(description)
+    return None if limits is None else fixed_torque_knm_finding(speed_rpm, torque_nm, limits, dt_s, "table")
+
+
 def gear_meta(description) -> dict:
     """The gear-numbering rule's inputs (firmware_model.service.plausibility.gear_ratio_finding): the gearbox's name
     and its gears' ratios, for a vehicle's drive (none for a fixed-ratio one)."""

@@ -22,7 +22,7 @@ import numpy as np
 
 from firmware_model.description import OIL_INLET, description_of
 from firmware_model.errors import InputError
-from tools.replay.table import INLET_COLUMN, drive_limits
+from tools.replay.table import INLET_COLUMN, drive_knm_finding
 from tools.runtable import RunTable
 from tools.scada.reader import ScadaRecord
 from tools.scada.runtable import INPUTS, oil_channel, run_table_of
@@ -251,14 +251,11 @@ def untrusted_findings(record: ScadaRecord, residual: dict, params) -> list[Reco
     torque in kN m (firmware_model.service.plausibility) and an estimate more than BIAS_UNTRUSTED_K off its readings
     on average. ``params``: the gearbox's (its drive's limits). A fit to such a record explains a unit mistake by a
     gearbox effect: diagnose and calibrate refuse it, the fleet leaves the unit out."""
-    from firmware_model.service.plausibility import fixed_torque_knm_finding
-
     found = [f for f in range_findings(record) if f.severity >= UNTRUSTED]
-    limits = drive_limits(description_of(params))
     v = record.values
-    if limits is not None and "input_speed_rpm" in v and "input_torque_nm" in v:
-        knm = fixed_torque_knm_finding(
-            v["input_speed_rpm"], v["input_torque_nm"], limits, float(record.cmap.period_s), "table"
+    if "input_speed_rpm" in v and "input_torque_nm" in v:
+        knm = drive_knm_finding(
+            v["input_speed_rpm"], v["input_torque_nm"], description_of(params), float(record.cmap.period_s)
         )
         if knm is not None:
             found.append(RecordFinding("plausibility", UNTRUSTED, knm.sentence))
