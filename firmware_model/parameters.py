@@ -53,6 +53,12 @@ STANDALONE = ("R1", "HR225", "MM82")
 #: where a value comes from: "fitted" is what `calibrate` writes (OUT.toml); "calibrated" a value fitted to measured
 #: data of the real machine and shipped in its description (the data, the held-out figure: in its note)
 PROVENANCES = ("seed", "derived", "assumed", "fitted", "calibrated")
+#: the fields an entry may have: its value, unit and provenance, where the seed states it, why (an assumed value),
+#: calibration bounds, or a parameter it takes its value from (a topology entry); a misspelt field (nte) would be
+#: silently ignored
+ENTRY_FIELDS = ("v", "u", "src", "ref", "note", "lo", "hi", "from")
+#: a field written out in full, for the hint
+_FIELDS_IN_FULL = {"value": "v", "unit": "u", "source": "src", "provenance": "src"}
 
 #: unit string in a file -> (SI dimension, factor to SI)
 UNITS = {
@@ -423,6 +429,8 @@ def _read(path: Path, seen=()) -> dict:
     (`_check_keys`)."""
     doc = read_toml(path, f"parameter file {path.name}")
     entries = _renamed(dict(_flatten(doc)), path)
+    for key, e in entries.items():
+        _check_entry_fields(path, key, e)
     meta = doc.get("meta")
     parent = meta.get("inherit") if isinstance(meta, dict) else None
     if parent:
@@ -519,6 +527,20 @@ REQUIRED_PLANETARY = (
     "planetary.sf_sun_spline",
     "planetary.h_oil",
 )
+
+
+def _check_entry_fields(path: Path, key: str, e) -> None:
+    """Every field of an entry is one of ENTRY_FIELDS, with the closest one named for a typo."""
+    if not isinstance(e, dict):
+        return
+    for name in e:
+        if name not in ENTRY_FIELDS:
+            close = difflib.get_close_matches(name, ENTRY_FIELDS, n=1)
+            close = [_FIELDS_IN_FULL[name]] if name in _FIELDS_IN_FULL else close
+            hint = f" (did you mean {close[0]}?)" if close else ""
+            raise ParameterError(
+                f"{path.name}: {key} has an unknown field {name}{hint}; an entry's fields: {', '.join(ENTRY_FIELDS)}"
+            )
 
 
 def _generic_entries() -> dict:

@@ -450,6 +450,12 @@ MALFORMED = [
         "topology.gear",
         "must hold exactly one gear (besides neutral) for a fixed-ratio drive",
     ),
+    (
+        "unknown field of an entry",
+        '[topology.oil]\nvolume = { v = 13.5, u = "L", src = "assumed", nte = "x" }',
+        "topology.oil.volume",
+        "has an unknown field nte (did you mean note?); an entry's fields: v, u, src, ref, note, lo, hi, from",
+    ),
     ("a file without a topology", ("whole", '[meta]\nvariant = "X"\n'), "[topology]", "is missing: the file describes"),
 ]
 

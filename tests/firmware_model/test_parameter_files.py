@@ -71,6 +71,19 @@ def test_unknown_keys_and_sections_are_refused(tmp_path):
     )
 
 
+def test_an_unknown_field_of_an_entry_is_refused(tmp_path):
+    """A misspelt field beside v, u and src (nte for note) was silently ignored; unit for u left the unit out."""
+    msg = _refused(tmp_path, '[housing]\nhot_frac = { v = 0.6, u = "-", src = "assumed", nte = "x" }\n')
+    assert msg == (
+        "p.toml: housing.hot_frac has an unknown field nte (did you mean note?); "
+        "an entry's fields: v, u, src, ref, note, lo, hi, from"
+    )
+    msg = _refused(tmp_path, '[housing]\nhot_frac = { v = 0.6, unit = "-", src = "assumed" }\n')
+    assert msg.startswith("p.toml: housing.hot_frac has an unknown field unit (did you mean u?); "), msg
+    msg = _refused(tmp_path, '[topology.oil]\nvolume = { v = 11, u = "L", src = "assumed", nte = "x" }\n')
+    assert msg.startswith("p.toml: topology.oil.volume has an unknown field nte (did you mean note?)"), msg
+
+
 def test_renamed_keys_still_load_with_their_warning(tmp_path):
     with pytest.warns(FutureWarning, match="engine.max_speed is deprecated"):
         p = _load(tmp_path, '[engine]\nmax_speed = { v = 3000, u = "rpm", src = "assumed" }\n')
