@@ -37,6 +37,7 @@ from firmware_model.parameters import (
     read_entries,
     read_toml,
 )
+from firmware_model.physics.oil import T_MAX_C, T_MIN_C
 
 #: units a description may use: the parameter files' and volume flows (a motor-driven pump)
 DESC_UNITS = {**UNITS, "L/min": ("m3/s", 1e-3 / 60.0), "m3/s": ("m3/s", 1.0)}
@@ -61,6 +62,9 @@ HELD = ("sun", "ring", "carrier", "locked")
 CASING = "housing"
 #: the node of the pumped oil on its way to the jets (after the pump, filter and cooler) of a forced oil system
 OIL_INLET = "oil.inlet"
+#: a boundary's temperature: the range the oil model describes [degC] (physics.oil.check_temperature_c); beyond it
+#: the convection to the housing is thousands of W (-300 degC lies below absolute zero)
+BOUNDARY_RANGE_C = (T_MIN_C, T_MAX_C)
 #: where a thermostatic bypass may plausibly open: the oil's working range [degC]
 THERMOSTAT_RANGE_C = (40.0, 150.0)
 #: where the thermostat reads the oil: "return" the oil leaving the cooler and bypass, T_sump - Q / (mdot cp) (seed
@@ -68,7 +72,7 @@ THERMOSTAT_RANGE_C = (40.0, 150.0)
 THERMOSTAT_SENSES = ("return", "sump")
 
 # field specifications: name -> (kind, required, dimension, sign); kind text | list | number | int | table;
-# sign "+" (> 0), "0+" (>= 0), "-0" (<= 0) or "any"
+# sign "+" (> 0), "0+" (>= 0), "-0" (<= 0), "share" (> 0 and <= 1: a share of a whole) or "any"
 _T, _L = ("text", True, None, None), ("list", True, None, None)
 _t, _l = ("text", False, None, None), ("list", False, None, None)
 
@@ -106,7 +110,7 @@ SPECS = {
         "x": _n("m", sign="any"),
         "bore": _n("m", False),
         "sides": _t,
-        "immersion": _n("1", False),
+        "immersion": _n("1", False, "share"),
     },
     "planetary": {
         "sun": _T,
@@ -147,7 +151,7 @@ SPECS = {
         "x": _n("m", False, "any"),
         "rollers": _i(False),
         "mass": _n("kg", False),
-        "immersion": _n("1", False),
+        "immersion": _n("1", False, "share"),
     },
     "housing": {
         "name": _t,
@@ -511,9 +515,14 @@ class _Reader:
             self.fail(key, f"= {v} is not a finite number")
         if kind == "int" and x != int(x):
             self.fail(key, f"= {v:g} must be a whole number")
-        bad = {"+": x <= 0, "0+": x < 0, "-0": x > 0}.get(sign, False)
+        bad = {"+": x <= 0, "0+": x < 0, "-0": x > 0, "share": not 0 < x <= 1}.get(sign, False)
         if bad:
-            rule = {"+": "greater than zero", "0+": "zero or more", "-0": "zero or less"}[sign]
+            rule = {
+                "+": "greater than zero",
+                "0+": "zero or more",
+                "-0": "zero or less",
+                "share": "greater than zero and at most 1 (a share of the whole: 0..1)",
+            }[sign]
             self.fail(key, f"= {v:g}{'' if u == '-' else ' ' + u} must be {rule}")
         return int(x) if kind == "int" else x
 
@@ -932,6 +941,13 @@ def _boundaries(r: _Reader, topo: dict) -> tuple:
     for b, key, f in _per_id(r, topo, "boundary"):
         if f["conductance"] is not None and not f["touches"]:
             r.fail(f"{key}.conductance", "is given, but the boundary touches nothing")
+        lo, hi = BOUNDARY_RANGE_C
+        if not lo <= f["temperature"] <= hi:
+            r.fail(
+                f"{key}.temperature",
+                f"= {f['temperature']:g} degC lies outside the plausible range {lo:g}..{hi:g} degC (the oil model's; "
+                "no gearbox in use is surrounded by a colder or hotter boundary)",
+            )
         out.append(Boundary(b, f["temperature"], f["touches"], f["conductance"]))
     return tuple(out)
 

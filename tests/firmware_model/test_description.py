@@ -456,6 +456,30 @@ MALFORMED = [
         "topology.oil.volume",
         "has an unknown field nte (did you mean note?); an entry's fields: v, u, src, ref, note, lo, hi, from",
     ),
+    (
+        "boundary below absolute zero",
+        '[topology.boundary.ambient]\ntemperature = { v = -300, u = "degC", src = "assumed" }',
+        "topology.boundary.ambient.temperature",
+        "= -300 degC lies outside the plausible range -40..200 degC (the oil model's;",
+    ),
+    (
+        "boundary hotter than any gearbox",
+        '[topology.boundary.cold_surroundings]\ntemperature = { v = 500, u = "degC", src = "assumed" }',
+        "topology.boundary.cold_surroundings.temperature",
+        "= 500 degC lies outside the plausible range -40..200 degC",
+    ),
+    (
+        "wheel immersion over 1",
+        '[topology.wheel.LL]\nimmersion = { v = 30, u = "-", src = "assumed" }',
+        "topology.wheel.LL.immersion",
+        "= 30 must be greater than zero and at most 1 (a share of the whole: 0..1)",
+    ),
+    (
+        "bearing immersion over 1",
+        '[topology.bearing.BLF]\nimmersion = { v = 1.5, u = "-", src = "assumed" }',
+        "topology.bearing.BLF.immersion",
+        "= 1.5 must be greater than zero and at most 1",
+    ),
     ("a file without a topology", ("whole", '[meta]\nvariant = "X"\n'), "[topology]", "is missing: the file describes"),
 ]
 
