@@ -37,6 +37,7 @@ from firmware_model.parameters import (
     read_entries,
     read_toml,
 )
+from firmware_model.physics.losses import ADDENDUM_COEF, DEDENDUM_COEF
 from firmware_model.physics.oil import T_MAX_C, T_MIN_C
 
 #: units a description may use: the parameter files' and volume flows (a motor-driven pump)
@@ -67,6 +68,10 @@ OIL_INLET = "oil.inlet"
 BOUNDARY_RANGE_C = (T_MIN_C, T_MAX_C)
 #: where a thermostatic bypass may plausibly open: the oil's working range [degC]
 THERMOSTAT_RANGE_C = (40.0, 150.0)
+#: how far a shaft may step down to a bearing seat: the shaft's diameter over the bearing's bore at most (a shoulder
+#: of common shaft design practice, D/d 1.1..1.5; the GRS905's layshaft journals are 50 mm on 62 mm, 1.24); a pilot
+#: bearing (seated inside another shaft) sits on a spigot at the shaft's end and is not held to it
+SHOULDER_MAX = 1.5
 #: where the thermostat reads the oil: "return" the oil leaving the cooler and bypass, T_sump - Q / (mdot cp) (seed
 #: Eq 82, the default); "sump" the oil the pump draws, before the cooler (a valve upstream of the cooler)
 THERMOSTAT_SENSES = ("return", "sump")
@@ -646,8 +651,33 @@ def _wheels(r: _Reader, topo: dict, shafts: dict) -> tuple:
         if f["sides"] is not None and f["sides"] not in SIDES:
             r.fail(f"{key}.sides", f"= {f['sides']!r} must be one of {', '.join(SIDES)}")
         w = Wheel(wid, mount, f["teeth"], f["module"], f["helix"], f["width"], f["x"], shaft, seg, f["bore"])
+        _check_wheel_fits(r, key, w, shafts)
         out.append(replace(w, sides=f["sides"], name=f["name"], immersion=f["immersion"]))
     return tuple(out)
+
+
+def _check_wheel_fits(r: _Reader, key: str, w: Wheel, shafts: dict) -> None:
+    """A wheel is larger than what it sits on: an idle wheel's bore than its shaft, the root circle of a wheel than
+    its bore (idle, pin) or its shaft (fixed), a cut wheel's tip circle than its shaft (its teeth stand out of it);
+    else its body has a negative mass (ISO 53 basic rack, as physics.geometry builds it)."""
+    d_pitch = w.module_m * w.teeth / math.cos(w.helix_rad)
+    d_root, d_tip = d_pitch - 2 * DEDENDUM_COEF * w.module_m, d_pitch + 2 * ADDENDUM_COEF * w.module_m
+    size = f"(z {w.teeth}, module {w.module_m * 1e3:g} mm)"
+    d_shaft = shafts[w.shaft].d_out_m if w.shaft is not None else None
+    if w.mount == "idle" and w.bore_m <= d_shaft:
+        r.fail(
+            f"{key}.bore",
+            f"= {w.bore_m * 1e3:g} mm is not larger than its shaft {w.shaft} (d_out = {d_shaft * 1e3:g} mm): an idle "
+            "wheel turns on a bearing around its shaft",
+        )
+    inner, what = (w.bore_m, "its bore") if w.mount in ("idle", "pin") else (d_shaft, f"its shaft {w.shaft}'s d_out")
+    outer, circle = (d_tip, "tip") if w.mount == "cut" else (d_root, "root")
+    if outer <= inner:
+        r.fail(
+            key,
+            f"{size} has a {circle} diameter of {outer * 1e3:.4g} mm, not larger than {what} {inner * 1e3:g} mm: "
+            f"the wheel is smaller than what it sits on",
+        )
 
 
 def _planetary(r: _Reader, topo: dict, shafts: dict) -> tuple:
@@ -790,6 +820,7 @@ def _bearings(r: _Reader, topo: dict, shafts: dict, wheels: dict, housings: set)
                 r.fail(key, "needs bore and outer (diameters of a shaft bearing)")
             if f["bore"] >= f["outer"]:
                 r.fail(f"{key}.bore", f"= {f['bore'] * 1e3:g} mm must be smaller than outer = {f['outer'] * 1e3:g} mm")
+            _check_seat(r, key, f, shafts[shaft])
         out.append(
             Bearing(
                 bid,
@@ -811,6 +842,18 @@ def _bearings(r: _Reader, topo: dict, shafts: dict, wheels: dict, housings: set)
             )
         )
     return tuple(out)
+
+
+def _check_seat(r: _Reader, key: str, f: dict, shaft: Shaft) -> None:
+    """A shaft bearing seated in a housing sits on a journal of its shaft, stepped down at most SHOULDER_MAX."""
+    if f["inside"] is None and shaft.d_out_m > SHOULDER_MAX * f["bore"]:
+        r.fail(
+            f"{key}.bore",
+            f"= {f['bore'] * 1e3:g} mm is too small for its shaft {shaft.id} (d_out = {shaft.d_out_m * 1e3:g} mm, "
+            f"{shaft.d_out_m / f['bore']:.2f} times the bore): a bearing seat is a journal of the shaft, stepped down "
+            f"by a shoulder of at most {SHOULDER_MAX:g}:1 (a bore of {shaft.d_out_m / SHOULDER_MAX * 1e3:.3g} mm or "
+            "more); a bearing on a spigot at the shaft's end is a pilot bearing (inside)",
+        )
 
 
 def _check_joint(r: _Reader, key: str, f: dict, topo: dict) -> None:

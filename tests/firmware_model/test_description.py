@@ -480,6 +480,30 @@ MALFORMED = [
         "topology.bearing.BLF.immersion",
         "= 1.5 must be greater than zero and at most 1",
     ),
+    (
+        "fixed wheel smaller than its shaft",
+        '[topology.shaft.LS]\nd_out = { v = 200, u = "mm", src = "assumed" }',
+        "topology.wheel.LL",
+        "has a root diameter of 170.7 mm, not larger than its shaft LS's d_out 200 mm: the wheel is smaller",
+    ),
+    (
+        "cut wheel inside its shaft",
+        '[topology.shaft.LS]\nd_out = { v = 90, u = "mm", src = "assumed" }',
+        "topology.wheel.CL",
+        "has a tip diameter of 85.02 mm, not larger than its shaft LS's d_out 90 mm",
+    ),
+    (
+        "idle wheel bore inside its shaft",
+        '[topology.wheel.3M]\nbore = { v = 60, u = "mm", src = "assumed" }',
+        "topology.wheel.3M.bore",
+        "= 60 mm is not larger than its shaft MS (d_out = 70 mm): an idle wheel turns on a bearing around its shaft",
+    ),
+    (
+        "bearing bore far below its shaft",
+        '[topology.bearing.BO]\nbore = { v = 50, u = "mm", src = "assumed" }',
+        "topology.bearing.BO.bore",
+        "= 50 mm is too small for its shaft OS (d_out = 80 mm, 1.60 times the bore): a bearing seat is a journal",
+    ),
     ("a file without a topology", ("whole", '[meta]\nvariant = "X"\n'), "[topology]", "is missing: the file describes"),
 ]
 
