@@ -25,6 +25,8 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from firmware_model.errors import ParameterError
+from firmware_model.limits import GROUPS as LIMIT_GROUPS
+from firmware_model.limits import load_limits
 from firmware_model.parameters import (
     DIM_NAMES,
     PARAM_DIR,
@@ -1146,20 +1148,15 @@ def limits_file(r: _Reader, name: str) -> Path:
     return path
 
 
-def _limits(r: _Reader, name: str) -> dict:
-    """The limits file's groups: group -> (warning, critical) [degC], and per-component overrides by id."""
-    path = limits_file(r, name)
-    doc = read_toml(path, f"limits file {name}")
-
-    def v(sec, k):
-        e = sec.get(k) if isinstance(sec, dict) else None
-        return float(e["v"]) if isinstance(e, dict) and isinstance(e.get("v"), (int, float)) else None
-
-    groups = {
-        g: (v(s, "warning"), v(s, "critical")) for g, s in doc.items() if g not in ("meta", "timing", "component")
-    }
-    comps = {c: (v(s, "warning"), v(s, "critical")) for c, s in (doc.get("component") or {}).items()}
-    return {"groups": groups, "components": comps}
+def _limits(r: _Reader, name: str, published: tuple) -> tuple:
+    """The published components with their warning and critical limits [degC], read by the one loader every command
+    uses (firmware_model.limits.load_limits: its sections, keys, units, warning below critical, the hysteresis): what
+    replay and simulate refuse, describe refuses too, naming the description's key."""
+    try:
+        lim = load_limits(limits_file(r, name), published=published)
+    except ParameterError as exc:
+        r.fail(f"{TOPOLOGY}.published.limits", f"= {name!r} is refused: {exc}")
+    return tuple(replace(c, warning_c=lim.of(c.id)[0], critical_c=lim.of(c.id)[1]) for c in published)
 
 
 def _limits_name(r: _Reader, topo: dict) -> str:
@@ -1175,15 +1172,14 @@ def _published(r: _Reader, topo: dict, nodes: set) -> tuple:
         r.fail(key, "has no order (the published components, in their CAN and column order)")
     order = r.value(f"{key}.order", table["order"], _L)
     limits_name = _limits_name(r, topo)
-    lim = _limits(r, limits_name)
     group_of = {}
     for g, raw in table.items():
         if g in PUBLISHED_KEYS:
             continue
-        if g not in lim["groups"]:
+        if g not in LIMIT_GROUPS:
             r.fail(
                 f"{key}.{g}",
-                f"is no limit group of {limits_name}; known keys: {', '.join(PUBLISHED_KEYS + tuple(lim['groups']))}",
+                f"is no limit group of {limits_name}; known keys: {', '.join(PUBLISHED_KEYS + LIMIT_GROUPS)}",
             )
         for c in r.value(f"{key}.{g}", raw, _L):
             if c in group_of:
@@ -1197,15 +1193,31 @@ def _published(r: _Reader, topo: dict, nodes: set) -> tuple:
         if c not in nodes:
             r.fail(f"{key}.order", f"lists {c}, which is no node of the description (no part has that id)")
         if c not in group_of:
-            r.fail(f"{key}.order", f"lists {c}, which is in no limit group ({', '.join(lim['groups'])})")
+            r.fail(f"{key}.order", f"lists {c}, which is in no limit group ({', '.join(LIMIT_GROUPS)})")
     for c, g in group_of.items():
         if c not in seen:
             r.fail(f"{key}.{g}", f"lists {c}, which is not published (not in order)")
+    return _limits(r, limits_name, tuple(Published(c, group_of[c], None, None) for c in order))
+
+
+def limit_notes(d: Description) -> tuple:
+    """Sentences on limits a part cannot stay below: a warning limit at or below every boundary's default
+    temperature (without losses the parts settle between the boundaries' temperatures, so such a part warns, or is
+    critical, from the start). Notes, not errors: a run table's ambient may be colder than the default."""
+    if not d.boundaries:
+        return ()
+    cold = min(d.boundaries, key=lambda b: b.temperature_c)
+    limits = Path(d.limits_path).name if d.limits_path else "the limits file"
     out = []
-    for c in order:
-        w, cr = lim["components"].get(c, (None, None))
-        gw, gc = lim["groups"][group_of[c]]
-        out.append(Published(c, group_of[c], gw if w is None else w, gc if cr is None else cr))
+    for c in d.published:
+        if c.warning_c is None or c.warning_c > cold.temperature_c:
+            continue
+        level = "critical" if c.critical_c is not None and c.critical_c <= cold.temperature_c else "at warning"
+        out.append(
+            f"{d.origin}: {c.id}'s warning limit {c.warning_c:g} degC ({limits}, group {c.group}) lies at or below "
+            f"every boundary's temperature (the coldest, {cold.id}, is {cold.temperature_c:g} degC): {c.id} cannot "
+            f"cool below it and is {level} from the start"
+        )
     return tuple(out)
 
 

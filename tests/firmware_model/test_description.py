@@ -705,3 +705,65 @@ def test_describe_checks_the_parameter_values_as_every_command_does(tmp_path, ca
     err = capsys.readouterr().err
     assert "cp0.toml" in err and "must be greater than zero" in err and len(err.strip().splitlines()) == 1
     assert main(["describe", "--gearbox", "R1"]) == 0
+
+
+def _with_limits(tmp_path, *edits) -> str:
+    """A GRS905 copy whose published.limits is the shipped limits.toml with its [oil] section edited (old, new)."""
+    text = (PARAM_DIR / "limits.toml").read_text()
+    head, oil = text[: text.index("[oil]")], text[text.index("[oil]") :]
+    for old, new in edits:
+        assert oil.count(old) == 1, old
+        oil = oil.replace(old, new)
+    (tmp_path / "my_limits.toml").write_text(head + oil)
+    f = tmp_path / "p.toml"
+    f.write_text(
+        '[meta]\ninherit = "GRS905"\n\n[topology.published]\n'
+        'limits = { v = "my_limits.toml", u = "-", src = "assumed" }\n'
+    )
+    return str(f)
+
+
+OIL_WARNING = 'warning = { v = 120, u = "degC"'
+
+
+@pytest.mark.parametrize(
+    "old, new, why",
+    [
+        (OIL_WARNING, 'warning = { v = 140, u = "degC"', "limits of oil: warning 140 degC must be below critical 135"),
+        (OIL_WARNING, 'warnng = { v = 90, u = "degC", src = "assumed" }\n' + OIL_WARNING, "unknown key oil.warnng"),
+        ('hysteresis = { v = 3, u = "K"', 'hysteresis = { v = 3, u = "degC"', "oil.hysteresis has unit 'degC'"),
+    ],
+    ids=["warning above critical", "unknown key", "hysteresis in degC"],
+)
+def test_describe_refuses_the_limits_file_replay_refuses(tmp_path, capsys, old, new, why):
+    """describe printed 'oil 140/135' for a warning above critical and passed an unknown key or a hysteresis in degC
+    that replay refuses: both read the file with one loader now (firmware_model.limits.load_limits)."""
+    from firmware_model.onboard.warning_levels import load_limits
+
+    path = _with_limits(tmp_path, (old, new))
+    with pytest.raises(ParameterError) as exc:
+        load_description(path)
+    msg = str(exc.value)
+    assert "\n" not in msg and msg.startswith("p.toml: topology.published.limits = 'my_limits.toml' is refused: ")
+    assert why in msg, msg
+    with pytest.raises(ParameterError) as replays:  # the sensor's loader (replay, simulate) says the same
+        load_limits(tmp_path / "my_limits.toml", published=load_description("GRS905").published)
+    assert msg.endswith(str(replays.value))
+    assert main(["describe", "--gearbox", path]) == 2
+    assert capsys.readouterr().err == f"gearbox-vsensor describe: error: {msg}\n"
+
+
+def test_a_warning_limit_below_every_boundary_is_a_note(tmp_path, capsys):
+    """An oil warning limit of 15 degC with the coldest boundary at 25 degC is critical from t = 0: describe says so
+    on stderr (a run table's ambient may be colder than the default, so it is no error)."""
+    path = _with_limits(
+        tmp_path, (OIL_WARNING, 'warning = { v = 15, u = "degC"'), ("critical = { v = 135,", "critical = { v = 19,")
+    )
+    assert main(["describe", "--gearbox", path]) == 0
+    captured = capsys.readouterr()
+    assert "oil 15/19" in captured.out
+    assert captured.err == (
+        "note: p.toml: oil's warning limit 15 degC (my_limits.toml, group oil) lies at or below every boundary's "
+        "temperature (the coldest, ambient, is 25 degC): oil cannot cool below it and is critical from the start\n"
+    )
+    assert main(["describe"]) == 0 and capsys.readouterr().err == ""

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import sys
 
 
 def add_subparser(sub):
@@ -115,7 +116,7 @@ def _summary_rest(d) -> list[str]:
 
 
 def run(args) -> int:
-    from firmware_model.description import description_of, load_description
+    from firmware_model.description import description_of, limit_notes, load_description
     from firmware_model.parameters import load_parameters
 
     load_description(args.gearbox)  # the description's own sentences first (a missing [topology], a bad key)
@@ -123,4 +124,6 @@ def run(args) -> int:
     # typo: one sentence here too)
     d = description_of(load_parameters(args.gearbox))
     print("\n".join(summary(d)))
+    for note in limit_notes(d):  # plausible but suspect: on stderr, as the other commands' notes
+        print(f"note: {note}", file=sys.stderr)
     return 0
