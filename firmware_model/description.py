@@ -911,6 +911,19 @@ def _single(r: _Reader, topo: dict, section: str) -> dict:
     return r.fields(f"{TOPOLOGY}.{section}", topo.get(section) or {}, SINGLE_SPECS[section])
 
 
+def cooler_flow_refusal(kind: str, pump_flow) -> str | None:
+    """Why an oil cooler of ``kind`` cannot work in an oil system with this pump flow (None: no pump), or None: a
+    liquid or air cooler takes its heat from the oil the pump drives through it (Eq 82-83, its conductance scaled
+    by that flow), so without a pump it takes none, in silence (178 degC with an 'air' cooler that removed 0 W)."""
+    if kind in ("liquid", "air") and not pump_flow:
+        return (
+            "an oil cooler takes its heat from the oil a pump drives through it, and this oil system has no pump "
+            '(pump_flow): give the pump\'s flow, or cooler = "none" (a housing cooled by the air around it: its '
+            "area and h_air)"
+        )
+    return None
+
+
 def _oil(r: _Reader, topo: dict, shafts: dict, nodes: set) -> OilSystem:
     key = f"{TOPOLOGY}.oil"
     f = _single(r, topo, "oil")
@@ -943,6 +956,24 @@ def _oil(r: _Reader, topo: dict, shafts: dict, nodes: set) -> OilSystem:
             r.fail(f"{key}.thermostat_full", f"= {t_full:g} degC must lie above thermostat_open = {t_open:g} degC")
         if f["cooler"] == "none":
             r.fail(f"{key}.thermostat_open", 'is given, but there is no cooler (cooler = "none") to bypass')
+    why = cooler_flow_refusal(f["cooler"], f["pump_flow"])
+    if why:
+        r.fail(f"{key}.cooler", f"= {f['cooler']!r}: {why}")
+    # a run's cooler kind (the file's [cooler] kind, or a configuration's) may leave the cooler out or hold the sump,
+    # but not ask for a cooler the description does not have
+    raw = r.entries.get(f"{key}.cooler")
+    linked = isinstance(raw, dict) and raw.get("from") == "cooler.kind"  # the run's kind is the description's
+    kind = r.params.strings.get("cooler.kind") if r.params is not None else None
+    if linked and kind is not None:
+        why = cooler_flow_refusal(kind, f["pump_flow"])
+        if why:
+            r.fail(f"{key}.cooler", f"= {kind!r} (the run's cooler kind): {why}")
+    elif kind in ("liquid", "air") and kind != f["cooler"]:
+        r.fail(
+            f"{key}.cooler",
+            f"= {f['cooler']!r} but the run's cooler kind is {kind!r} (the file's [cooler] kind, or a "
+            "configuration's): say it once (cooler = { from = \"cooler.kind\" } takes the [cooler] section's)",
+        )
     senses = f["thermostat_senses"] or "return"
     if senses not in THERMOSTAT_SENSES:
         r.fail(f"{key}.thermostat_senses", f"= {senses!r} must be one of {', '.join(THERMOSTAT_SENSES)}")

@@ -767,3 +767,29 @@ def test_a_warning_limit_below_every_boundary_is_a_note(tmp_path, capsys):
         "temperature (the coldest, ambient, is 25 degC): oil cannot cool below it and is critical from the start\n"
     )
     assert main(["describe"]) == 0 and capsys.readouterr().err == ""
+
+
+def test_an_oil_cooler_without_a_pump_or_against_the_description_is_one_sentence(tmp_path, capsys):
+    """An 'air' cooler on a splash-lubricated gearbox without a pump took no heat (the oil at 178 degC, the cooler's
+    0 W, exit 0): a cooler takes its heat from the oil the pump drives through it. A run's cooler kind that asks for
+    a cooler the description does not have (a configuration's [cooler] kind = "air" on R1's cooler = "none") is
+    refused the same way; leaving the cooler out ("none") or holding the sump stays allowed."""
+    from firmware_model.config import load_config
+    from firmware_model.description import description_of
+    from tools.cli.gearbox_option import with_gearbox
+
+    text = (PARAM_DIR / "HR225.toml").read_text()
+    line = next(ln for ln in text.splitlines() if ln.startswith('kind = { v = "none"'))
+    air = tmp_path / "air.toml"
+    air.write_text(text.replace(line, 'kind = { v = "air", u = "-", src = "assumed" }', 1))
+    with pytest.raises(ParameterError, match="cooler = 'air': an oil cooler takes its heat from the oil a pump"):
+        load_description(str(air))
+    assert main(["describe", "--gearbox", str(air)]) == 2 and "no pump (pump_flow)" in capsys.readouterr().err
+    cfg = with_gearbox(load_config(None), "R1")
+    for kind, refused in (("air", True), ("liquid", True), ("none", False), ("hold", False)):
+        cfg.cooler = kind
+        if refused:
+            with pytest.raises(ParameterError, match=f"but the run's cooler kind is '{kind}'"):
+                description_of(cfg.load_params())
+        else:
+            description_of(cfg.load_params())
