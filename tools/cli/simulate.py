@@ -225,6 +225,8 @@ def run(args) -> int:
             args.cycle, rate_hz=s.rate_hz, noise=s.noise, seed=args.seed, description=description_of(params)
         )
         fixed_ratio = table.meta.get("drive") == "fixed_ratio"
+        if table.meta.get("fitted"):  # a GRS905 cycle fitted to another gearbox: said once (tools.cycles.fit)
+            print(f"note: {table.meta['fitted']}", file=sys.stderr)
         if args.can_log:  # a torque EEC1 cannot carry is refused before the plant runs
             from tools.can.logsynth import reference_torques_nm
 

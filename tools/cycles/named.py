@@ -22,6 +22,7 @@ from firmware_model.errors import InputError
 from firmware_model.physics.kinematics import GEAR_NAMES, parse_gear
 from firmware_model.physics.oil import check_temperature_c
 from tools.cycles.driver import DriveTrace, drive
+from tools.cycles.fit import fit_cycle, gear_list, gear_ratios, nearest_gear, own_gears, with_own_boundaries
 from tools.cycles.route import Segment
 from tools.cycles.vehicle import KMH_PER_M_S, Vehicle, gearbox_kinematics, total_ratios, vehicle_speed_kmh
 from tools.runtable import RunTable
@@ -265,15 +266,18 @@ def _add_noise(cols: dict, seed: int) -> None:
     cols["vehicle_speed_kmh"] = np.maximum(cols["vehicle_speed_kmh"] + rng.standard_normal(n) * 0.1, 0.0)
 
 
-def _table(name: str, cols: dict, meta: dict, rate_hz: float, noise: bool, seed: int) -> RunTable:
+def _table(name: str, cols: dict, meta: dict, rate_hz: float, noise: bool, seed: int, description=None) -> RunTable:
     t = cols["time_s"]
     cols.update(_boundaries(name, t))
+    cols = {c: cols[c] for c in COLUMNS}
+    if own_gears(description):  # its own boundary temperatures, not the GRS905's Table 11 (tools.cycles.fit)
+        cols = with_own_boundaries(cols, description)
     if noise:
         _add_noise(cols, seed)
     meta = dict(
         meta, cycle=meta.get("cycle", name), rate_hz=float(rate_hz), noise=bool(noise), seed=int(seed), synthetic=True
     )
-    return RunTable({c: cols[c] for c in COLUMNS}, meta=meta)
+    return RunTable(cols, meta=meta)
 
 
 STEADY_KEYS = {
@@ -347,10 +351,13 @@ def steady(
     noise: bool = False,
     seed: int = 0,
     spec: str | None = None,
+    description=None,
 ) -> RunTable:
     """One gear at constant engine speed and torque (seed 5.3/5.4). SYNTHETIC. Initial temperature: the held oil
-    temperature, else 20 degC (seed 5.4)."""
-    gear = parse_gear(gear)
+    temperature, else 20 degC (seed 5.4). ``description``: a gearbox outside the GRS905 family (tools.cycles.fit):
+    ``gear`` is its gear number, the vehicle speed its ratio's, the boundaries its own."""
+    own = own_gears(description)
+    gear = int(gear) if own else parse_gear(gear)
     t = _out_time(s, rate_hz)
     g = np.full(t.size, float(gear))
     n_rpm = np.full(t.size, float(rpm))
@@ -359,11 +366,11 @@ def steady(
         "engine_speed_rpm": n_rpm,
         "engine_torque_nm": np.full(t.size, float(nm)),
         "gear": g,
-        "vehicle_speed_kmh": vehicle_speed_kmh(g, n_rpm),
+        "vehicle_speed_kmh": vehicle_speed_kmh(g, n_rpm, ratio=gear_ratios(description) if own else None),
         "retarder_torque_nm": np.zeros(t.size),
     }
     init_c = init if init is not None else (oil if oil is not None else 20.0)
-    spec = spec or f"steady:gear={GEAR_NAMES[gear]},rpm={rpm:g},nm={nm:g},s={s:g}" + (
+    spec = spec or f"steady:gear={gear if own else GEAR_NAMES[gear]},rpm={rpm:g},nm={nm:g},s={s:g}" + (
         f",oil={oil:g}" if oil is not None else ""
     )
     return _table(
@@ -373,6 +380,7 @@ def steady(
         rate_hz,
         noise,
         seed,
+        description,
     )
 
 
@@ -505,12 +513,23 @@ def get_cycle(
                 "max_rpm": description.drive.max_speed_rad_s * 30.0 / math.pi,
                 "max_nm": description.drive.max_torque_nm,
             }
-        p = parse_steady_spec(s, **limits)
-        return steady(**p, rate_hz=rate_hz, noise=noise, seed=seed, spec=s)
+        if own_gears(description):  # its gear numbers and names, not the GRS905's Table 1 (tools.cycles.fit)
+            s_grs, gear = _own_steady_gear(s, description)
+            p = dict(parse_steady_spec(s_grs, **limits), gear=gear)
+            neutral = gear in (g.number for g in description.gears if not math.isfinite(g.ratio))
+            if neutral and "nm=" not in s_grs.replace(" ", "").lower():
+                p["nm"] = 0.0  # neutral idles, as the GRS905's gear=0
+            if neutral and p["nm"] != 0:
+                raise InputError(f"steady cycle spec {s!r}: nm={p['nm']:g} in neutral reaches no gear; give nm=0")
+        else:
+            p = parse_steady_spec(s, **limits)
+        return steady(**p, rate_hz=rate_hz, noise=noise, seed=seed, spec=s, description=description)
     if low == "all_gears":
-        return all_gears(rate_hz=rate_hz, noise=noise, seed=seed)
+        table = all_gears(rate_hz=rate_hz, noise=noise, seed=seed)
+        return fit_cycle(table, description) if own_gears(description) else table
     if low in _ROAD:
-        return _road(low, rate_hz, noise, seed)
+        table = _road(low, rate_hz, noise, seed)
+        return fit_cycle(table, description) if own_gears(description) else table
     if is_file:
         from tools.drive_table import read_drive_table
 
@@ -519,6 +538,28 @@ def get_cycle(
         f"unknown drive cycle {s!r}: give one of {', '.join(CYCLE_NAMES)} "
         f"(steady:gear=4L,rpm=1300,nm=2000,s=3600,oil=100) or the path of a CSV run table"
     )
+
+
+def _own_steady_gear(spec: str, description) -> tuple[str, int]:
+    """(the spec without its gear, the gear number) of a steady spec on a gearbox outside the GRS905 family: gear= is
+    one of its gear numbers or names; left out, its forward gear nearest the GRS905's 4L in ratio (the default)."""
+    head, _, rest = spec.partition(":")
+    items = [p for p in (q.strip() for q in rest.split(",")) if p]
+    given = [p for p in items if p.partition("=")[0].strip().lower() == "gear"]
+    others = ",".join(p for p in items if p not in given)
+    if not given:
+        return f"{head}:{others}", nearest_gear(description, total_ratios()[parse_gear("4L")])
+    token = given[0].partition("=")[2].strip()
+    by_name = {g.name.lower(): g.number for g in description.gears}
+    numbers = {g.number for g in description.gears}
+    try:
+        gear = by_name[token.lower()] if token.lower() in by_name else int(token)
+    except ValueError:
+        gear = None
+    if gear not in numbers or len(given) > 1:
+        why = "is given twice; give it once" if len(given) > 1 else f"is no gear of {description.name}"
+        raise InputError(f"steady cycle spec {spec!r}: gear={token} {why}; its gears: {gear_list(description)}")
+    return f"{head}:{others}", gear
 
 
 # ----------------------------------------------------------------------------------------------------------------

@@ -162,9 +162,10 @@ class Drivetrain:
         return best
 
 
-def vehicle_speed_kmh(gear, rpm, vehicle: Vehicle = Vehicle()):
-    """Vehicle speed [km/h] that engine speed `rpm` implies in `gear` (arrays; 0 in neutral)."""
-    ratio = total_ratios()
+def vehicle_speed_kmh(gear, rpm, vehicle: Vehicle = Vehicle(), ratio: dict | None = None):
+    """Vehicle speed [km/h] that engine speed `rpm` implies in `gear` (arrays; 0 in neutral), through `vehicle`'s
+    axle and wheel; `ratio`: gear -> |total ratio| of the gearbox (None: the GRS905's, total_ratios)."""
+    ratio = total_ratios() if ratio is None else ratio
     rt = np.array([ratio[int(g)] for g in gear])
     # rpm / RPM_PER_RAD_S (not * RAD_S_PER_RPM): the same bits as the cycles always had
     return np.where(
