@@ -1,11 +1,13 @@
 """The named cycles on a vehicle gearbox outside the GRS905 family (tools.cycles.fit, docs/cycles.md "Another
 gearbox"): its own gear ratios give the vehicle speed, its own boundary temperatures stand, the road cycles are
-fitted to its gears and drive limits. The gearbox is T6
+fitted to its gears and drive limits, and `export-c` builds its test vectors from them. The gearbox is T6
 (tests/firmware_model/gearboxes/T6.toml): six speeds, direct 6th, 2600 Nm, ambient 20 and end yoke 60 degC."""
 
 from __future__ import annotations
 
 import math
+import shutil
+import subprocess
 from pathlib import Path
 
 import numpy as np
@@ -20,6 +22,7 @@ from tools.cycles.vehicle import KMH_PER_M_S, Vehicle
 from tools.runtable import read_run_table
 
 T6 = Path(__file__).resolve().parents[1] / "firmware_model" / "gearboxes" / "T6.toml"
+HAVE_CC = shutil.which("make") is not None and (shutil.which("cc") or shutil.which("gcc")) is not None
 
 
 @pytest.fixture(scope="module")
@@ -85,3 +88,13 @@ def test_the_grs905_family_runs_the_cycles_as_they_are():
         assert a.columns == b.columns and "fitted" not in b.meta
         for c in a.columns:
             np.testing.assert_array_equal(a[c], b[c])
+
+
+@pytest.mark.skipif(not HAVE_CC, reason="needs make and a C compiler")
+def test_export_c_of_another_truck_gearbox_passes_its_vectors(tmp_path):
+    out = tmp_path / "t6_c"
+    # the vectors came from the GRS905's uphill cycle as it is: 3000 Nm, over T6's 2600 Nm, refused
+    assert main(["export-c", "--gearbox", str(T6), "--out", str(out), "--quiet"]) == 0
+    assert "the uphill cycle fitted to T6" in (out / "README.md").read_text()
+    run = subprocess.run(["make", "-C", str(out), "test"], capture_output=True, text=True, timeout=600)
+    assert run.returncode == 0 and "PASS" in run.stdout, run.stdout + run.stderr

@@ -138,8 +138,9 @@ def fixed_ratio_drive(description, span_s: float, dt_s: float = 0.1):
 
 
 def vector_plant(params, steps: int, dt_s: float):
-    """The plant's table over the vectors' span: the uphill cycle for a vehicle, :func:`fixed_ratio_drive` (mapped
-    onto the code's inputs, tools.drive_table) for a fixed-ratio drive."""
+    """The plant's table over the vectors' span: the uphill cycle for a vehicle (fitted to its gears, drive limits and
+    boundaries outside the GRS905 family: tools.cycles.fit), :func:`fixed_ratio_drive` (mapped onto the code's
+    inputs, tools.drive_table) for a fixed-ratio drive."""
     from tools.cycles.named import get_cycle
     from tools.drive_table import map_fixed_ratio
     from tools.plant.reference import ReferencePlant
@@ -150,7 +151,7 @@ def vector_plant(params, steps: int, dt_s: float):
         return ReferencePlant(params).run(table, initial_temp_c=fixed_ratio_start_c(d), progress=False).table
     # the plant over the vectors' span only (plus 10 s), not the cycle's 2 h: the steps it gives are the same, bit
     # for bit (the plant integrates forward from the cycle's initial temperature, kept in its meta)
-    cycle = get_cycle("uphill")
+    cycle = get_cycle("uphill", description=d)
     t_s = np.asarray(cycle["time_s"])
     return ReferencePlant(params).run(cycle.select(t_s <= t_s[0] + steps * dt_s + 10.0), progress=False).table
 
@@ -502,8 +503,17 @@ def _drive_text(description, oil_mode: str = "measured") -> dict:
     """The README's words on the test vectors' drive and on the inputs, for the gearbox's drive and oil mode."""
     model = MODEL_OIL_TEXT if oil_mode == "model" else ""
     if description.drive.kind != "fixed_ratio":
+        from tools.cycles.fit import own_gears, torque_factors
+
+        fitted = ""
+        if own_gears(description):
+            drive_f, brake_f = torque_factors(description)
+            fitted = (
+                f" fitted to {description.name}\n(its gears by nearest ratio, torque x{drive_f:.3g} driving and "
+                f"x{brake_f:.3g} braking, its own boundaries)"
+            )
         return dict(
-            vectors="the uphill cycle",
+            vectors="the uphill cycle" + fitted,
             inputs_text="Inputs: engine speed [rpm], engine torque [N m] (net, signed), selected gear (-2..14; 0 "
             "neutral), measured sump oil\n[degC], ambient and coolant [degC], vehicle speed [km/h], retarder torque "
             "[N m]." + model,
