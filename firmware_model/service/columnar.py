@@ -44,7 +44,7 @@ from firmware_model.service.options import GEAR_RANGE, NOMINAL_PERIOD_S, SENSOR_
 from firmware_model.service.protocol import start_state
 from firmware_model.service.recorder import StepRecorder
 from firmware_model.service.records import RecordedOutputs, StepKind
-from firmware_model.service.trust import TimeBaseCheck
+from firmware_model.service.trust import TimeBaseCheck, log_time_glitch
 
 #: timing frames examined per vectorised pass of the step grid (fewer right after a time jump)
 _GRID_CHUNK_MAX = 65536
@@ -62,6 +62,9 @@ class Grid(NamedTuple):
     anchor_t_s: np.ndarray
     jump_frames: np.ndarray
     catchup_steps: int
+    #: (frame index, its time, the grid's last step time, the next timing frame's time or None) of each timing
+    #: frame whose time stamp alone lay far ahead (a glitch: no jump)
+    glitches: tuple = ()
 
 
 def _boundaries(t_s: np.ndarray, t0_s: float) -> np.ndarray:
@@ -85,7 +88,7 @@ def step_grid(t_frame_s: np.ndarray, timing: np.ndarray, max_catchup: int, backw
     ``t_frame_s`` (``SensorService.feed``: anchor, due steps, forward and backward time jumps)."""
     ts = t_frame_s[timing]
     trig, tstep, toff = [], [], []
-    anchors, anchor_t, jumps = [], [], []
+    anchors, anchor_t, jumps, glitches = [], [], [], []
     t0 = first = None
     k, offset, catchup, pos, size = 0, 0.0, 0, 0, _GRID_CHUNK_MIN
     while pos < ts.size:
@@ -119,6 +122,15 @@ def step_grid(t_frame_s: np.ndarray, timing: np.ndarray, max_catchup: int, backw
         if events.size:
             j = stop
             t_j = float(c[j])
+            nxt = pos + j + 1
+            if fwd[j] and (nxt == ts.size or ts[nxt] < t_j - STEP_S - backward_tol_s):
+                # the next timing frame is back near the grid (or there is none): this one frame's time stamp is a
+                # glitch, not a jump (SensorService._settle_ahead): the grid goes on from the frame after it
+                glitches.append(
+                    (int(timing[pos + j]), t_j, t0 + int(kprev[j]) * STEP_S, float(ts[nxt]) if nxt < ts.size else None)
+                )
+                k, pos, size = int(kprev[j]), nxt, _GRID_CHUNK_MIN
+                continue
             if bwd[j]:
                 offset += t0 + int(kprev[j]) * STEP_S - t_j  # as SensorService._time_jump
             jumps.append(int(timing[pos + j]))
@@ -145,6 +157,7 @@ def step_grid(t_frame_s: np.ndarray, timing: np.ndarray, max_catchup: int, backw
         np.array(anchor_t),
         np.array(jumps, dtype=np.int64),
         catchup,
+        tuple(glitches),
     )
 
 
@@ -292,6 +305,9 @@ def frame_half(service, cols: FrameColumns, decoded: DecodedColumns, meas_names:
     counters["steps"] += grid.t_step_s.size
     counters["catchup_steps"] += grid.catchup_steps
     counters["time_jumps"] += grid.jump_frames.size
+    for i, (_, glitch_s, grid_s, next_s) in enumerate(grid.glitches):
+        counters["frames_time_glitch"] += 1
+        log_time_glitch(service.log, glitch_s, grid_s, next_s, i + 1)
     _count_out_of_order(counters, cols.timestamp_s, STEP_S + opts.backward_tolerance_s)
     _log_jumps(service.log, grid, cols.timestamp_s)
     fresh = _Fresh(decoded, grid)

@@ -24,7 +24,7 @@ from firmware_model.service.plausibility import FINDING_SPNS, RecordCheck, min_t
 from firmware_model.service.protocol import StepSensor, check_sensor, start_state
 from firmware_model.service.recorder import StepRecorder
 from firmware_model.service.records import GbxStatus, StepInputs, StepKind, StepRequest
-from firmware_model.service.trust import Severity, TimeBaseCheck, trust_findings
+from firmware_model.service.trust import Severity, TimeBaseCheck, log_time_glitch, trust_findings
 
 log = logging.getLogger("gearbox_vsensor.can_service")
 
@@ -39,6 +39,30 @@ def _opt_float(x) -> float | None:
         return None
     x = float(x)
     return x if math.isfinite(x) else None
+
+
+def _new_counters() -> dict:
+    """The service's counters at the start of a run."""
+    return {
+        "steps": 0,
+        "steps_sent": 0,
+        "catchup_steps": 0,
+        "time_jumps": 0,
+        "frames_time_glitch": 0,
+        "frames_not_timing": 0,
+        "frames_sent": 0,
+        "dm1_sent": 0,
+        "stale_steps": {},
+        "uninitialised_steps": 0,
+        "mode_steps": {},
+        "gear_unmapped_steps": 0,
+        "started_without_oil": False,
+        "frames_out_of_order": 0,
+        "out_of_order_max_s": 0.0,
+        "input_rejects": {},
+        "oil_frozen_at_c": None,
+        "time_base": {"windows_checked": 0, "windows_suspect": 0, "suspect": False, "finding": None},
+    }
 
 
 def _codecs(options: ServiceOptions, published: tuple) -> tuple[J1939Decoder, OutputEncoder]:
@@ -98,25 +122,7 @@ class SensorService:
         self.emit_frames = emit_frames
         #: the latest value and frame time of every decoded signal
         self.latest = LatestValues()
-        self.counters: dict = {
-            "steps": 0,
-            "steps_sent": 0,
-            "catchup_steps": 0,
-            "time_jumps": 0,
-            "frames_not_timing": 0,
-            "frames_sent": 0,
-            "dm1_sent": 0,
-            "stale_steps": {},
-            "uninitialised_steps": 0,
-            "mode_steps": {},
-            "gear_unmapped_steps": 0,
-            "started_without_oil": False,
-            "frames_out_of_order": 0,
-            "out_of_order_max_s": 0.0,
-            "input_rejects": {},
-            "oil_frozen_at_c": None,
-            "time_base": {"windows_checked": 0, "windows_suspect": 0, "suspect": False, "finding": None},
-        }
+        self.counters: dict = _new_counters()
         self._time_base = TimeBaseCheck(self.options.time_base_window_s, self.options.time_base_windows)
         self._findings_logged: dict[tuple, int] = {}
         self._wanted = frozenset(wanted_pgns().values())
@@ -160,6 +166,9 @@ class SensorService:
         )
 
     def _init_time(self) -> None:
+        #: a timing frame far ahead of the step grid, held until the next one says whether the frame time jumped
+        #: (the next is as far ahead: a logger pause) or this one frame's time stamp is a glitch (the next is back)
+        self._ahead = None
         self._t0_s: float | None = None  # grid anchor (frame time)
         self._k = 0  # steps done since the anchor
         self._first_t_s: float | None = None  # frame time of the very first anchor (run-table time 0)
@@ -177,12 +186,15 @@ class SensorService:
         if self.netmgmt is not None:
             out.extend(self._network_management(msg))
         if self._drives_time(msg):
+            if self._ahead is not None:
+                self._settle_ahead(timestamp_s)
             if self._t0_s is None:
                 self._anchor(timestamp_s)
             elif timestamp_s >= self._next_boundary_s:
                 due = self._due(timestamp_s)
                 if due > self.options.max_catchup_steps:
-                    self._time_jump(timestamp_s, "forward")
+                    self._ahead = msg  # decoded once the next timing frame settles what its time means
+                    return out
                 else:
                     n0 = len(out)
                     self._steps(due, out)
@@ -197,6 +209,30 @@ class SensorService:
             self.counters["frames_not_timing"] += 1
         self.decoder.feed_into(msg, self.latest)
         return out
+
+    def _settle_ahead(self, next_s: float) -> None:
+        """The timing frame held far ahead (``self._ahead``), settled by the next one's time ``next_s``: as far ahead
+        or more (within the step and backward_tolerance_s), the frame time jumped there (a logger pause); back
+        near the grid, the held frame's time stamp alone was wrong: a glitch, counted and logged, its data used,
+        and the grid goes on (a jump there shifted every later step's time and held the inputs over the gap). The
+        whole-log path decides the same (firmware_model.service.columnar.step_grid)."""
+        ahead, self._ahead = self._ahead, None
+        if next_s >= ahead.timestamp - STEP_S - self.options.backward_tolerance_s:
+            self._time_jump(ahead.timestamp, "forward")
+        else:
+            self._time_glitch(ahead.timestamp, next_s)
+        self.decoder.feed_into(ahead, self.latest)
+
+    def end_of_log(self) -> None:
+        """At the end of a log: a timing frame still held far ahead (its log's last) is a glitch, its data used."""
+        if self._ahead is not None:
+            ahead, self._ahead = self._ahead, None
+            self._time_glitch(ahead.timestamp, None)
+            self.decoder.feed_into(ahead, self.latest)
+
+    def _time_glitch(self, glitch_s: float, next_s: float | None) -> None:
+        self.counters["frames_time_glitch"] += 1
+        log_time_glitch(self.log, glitch_s, self.frame_time_s, next_s, self.counters["frames_time_glitch"])
 
     def _check_order(self, timestamp_s: float) -> None:
         """Count a frame earlier than the one before it by at most the step plus ``backward_tolerance_s`` (a log

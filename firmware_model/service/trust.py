@@ -626,3 +626,23 @@ def trust_findings(
     if service.get("frames_out_of_order"):
         out.append(OrderFinding(int(service["frames_out_of_order"]), float(service.get("out_of_order_max_s", 0.0))))
     return sorted(out, key=lambda f: -f.severity)
+
+
+#: time-stamp glitches logged one by one (a run counts them all: the service's frames_time_glitch)
+GLITCHES_LOGGED = 20
+
+
+def log_time_glitch(log, glitch_s: float, grid_s: float | None, next_s: float | None, count: int) -> None:
+    """Log the ``count``-th glitch of a run (one timing frame stamped ``glitch_s``, far ahead of the step grid at
+    ``grid_s`` and of the next timing frame at ``next_s``, None at the log's end), as both replay paths do."""
+    if count > GLITCHES_LOGGED:
+        return
+    nxt = "the log ends there" if next_s is None else f"the next frame at {next_s:.6f}"
+    log.warning(
+        "one frame's time stamp lies %.3f s ahead of the step grid (%.6f against %.6f; %s): a glitch of its time "
+        "stamp, not a time jump: its data used, the grid goes on",
+        glitch_s - (grid_s if grid_s is not None else glitch_s),
+        glitch_s,
+        grid_s if grid_s is not None else float("nan"),
+        nxt,
+    )

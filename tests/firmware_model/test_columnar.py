@@ -303,3 +303,33 @@ def test_a_frozen_oil_reading_is_named_as_the_cause_of_the_degraded_run_on_both_
     assert causes.startswith(f"oil temperature frozen at 80.0 degC for {pct(frozen, degraded.steps)} of the steps"), (
         degraded.sentence
     )
+
+
+def test_one_frame_stamped_ahead_is_a_glitch_not_a_time_jump(tmp_path, drive, caplog):
+    """One EEC1 frame stamped 30 s ahead (a logger's glitch) was a forward jump and the next frame a backward one:
+    every later step's time 30 s off, the inputs held over a gap that never was. Both paths now take it for a
+    glitch: no jump, the same steps at the same times as the clean log, the glitch counted and logged alike."""
+    import logging
+
+    clean = replay_log(_write(inject(drive, [], seed=3), tmp_path / "clean.log"), _service(), columnar=True)
+    path = _write(inject(drive, ["time_glitch"], seed=3), tmp_path / "glitch.log")
+    logged = {}
+    for columnar in (False, True):
+        caplog.clear()
+        svc = _service()
+        with caplog.at_level(logging.WARNING, logger="gearbox_vsensor.can_service"):
+            out = replay_log(path, svc, columnar=columnar)
+        logged[columnar] = [r.getMessage() for r in caplog.records if "glitch of its time stamp" in r.getMessage()]
+        assert svc.counters["time_jumps"] == 0 and svc.counters["frames_time_glitch"] == 1
+        assert np.array_equal(out["time_s"], clean["time_s"])
+        for c in (c for c in clean.columns if c.startswith("T_")):
+            assert np.nanmax(np.abs(out[c] - clean[c])) < 1e-6, c
+    assert len(logged[False]) == 1 and logged[True] == logged[False]
+    assert "lies 30." in logged[False][0]
+
+
+def test_a_real_jump_is_still_a_jump_when_the_next_frame_follows_it(tmp_path, drive):
+    """The frame after a far-ahead one settles it: as far ahead, the time jumped (a logger pause), as before."""
+    svc = _service()
+    replay_log(_write(inject(drive, ["jump_forward"], seed=3), tmp_path / "jump.log"), svc, columnar=False)
+    assert svc.counters["time_jumps"] == 1 and svc.counters["frames_time_glitch"] == 0

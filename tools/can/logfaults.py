@@ -16,6 +16,7 @@ kind                        what happens
 ``wrong_dlc``               some ETC2 frames with 6 data bytes
 ``jump_forward``            the frame time jumps 20 s ahead (a logger pause)
 ``jump_backward``           the frame time jumps 30 s back (a logger clock reset)
+``time_glitch``             one EEC1 frame stamped 30 s ahead of its neighbours (a logger's glitch, not a jump)
 ``jitter``                  frames a few ms out of order
 ``hostile``                 error, remote, FD, 11-bit and random-identifier frames, broken TP.CM/TP.DT
 ==========================  ==========================================================================================
@@ -41,6 +42,7 @@ FAULT_KINDS = (
     "wrong_dlc",
     "jump_forward",
     "jump_backward",
+    "time_glitch",
     "jitter",
     "hostile",
 )
@@ -130,6 +132,9 @@ def inject(frames, kinds: Iterable[str], seed: int = 0) -> list:
         t = np.where(t >= t[0] + 0.45 * (t[-1] - t[0]), t + 20.0, t)
     if "jump_backward" in kinds:
         t = np.where(t >= t[0] + 0.75 * (t[-1] - t[0]), t - 30.0, t)
+    if "time_glitch" in kinds:
+        t = t.copy()
+        t[np.flatnonzero((pgn == _EEC1) & (t >= t[0] + 0.35 * (t[-1] - t[0])))[0]] += 30.0
     if "hostile" in kinds:
         extra.extend(_hostile(float(t[0]), float(t[-1]), max(200, t.size // 50), rng))
     msgs = [

@@ -334,6 +334,12 @@ def _run_log(args, path: Path) -> int:
         jumps = result.service_counters["time_jumps"]
         if jumps:
             print(f"note: {jumps} time jump{'s' if jumps > 1 else ''} in the log (the warnings above say where)")
+        glitches = result.service_counters.get("frames_time_glitch", 0)
+        if glitches:
+            print(
+                f"note: {glitches} frame time stamp{'s' if glitches > 1 else ''} far ahead of the frames around: "
+                "taken for glitches, not time jumps (the warnings above say where)"
+            )
         if table.n:
             from tools.replay.summary import summary_lines
 

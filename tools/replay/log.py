@@ -100,6 +100,7 @@ def replay_log(
             frames = feed(msg)
             if frames and on_frames is not None:
                 on_frames(frames)
+        service.end_of_log()  # a last timing frame far ahead: a time-stamp glitch, as the whole-log path takes it
     if reader == "python-can":
         columns = service.recorded()
     if damage is not None and kept is None and damage.skipped > int(damage.cut_last):
