@@ -172,6 +172,11 @@ def record_findings(record: ScadaRecord, result: ScadaReplay) -> list:
     from tools.replay.table import table_findings
 
     found = list(table_findings(result.table, oil_model=result.oil_mode == "model"))
+    spacing = spacing_finding(record)
+    if spacing is not None:
+        # it says why the held table's time jumps forward on most rows (the run-table sentence's advice, "rows at
+        # most 60 s apart; resample it", is not a SCADA record's)
+        found = [f for f in found if not f.sentence.startswith("time_s jumps forward")] + [spacing]
     c = record.counts
     dropped = {k: c.get(k, 0) for k in ("bad_line", "bad_time", "duplicate_time") if c.get(k, 0)}
     read = record.n + sum(dropped.values())
@@ -201,6 +206,42 @@ def record_findings(record: ScadaRecord, result: ScadaReplay) -> list:
         if f is not None:
             found.append(f)
     return sorted(found, key=lambda f: -f.severity)
+
+
+#: a record whose rows lie further apart than this share over its map's period_s (median spacing) has every row
+#: after a gap; closer than the inverse share, its gaps are found late (GAP_PERIODS of the map's period)
+SPACING_TOLERANCE = 1.1
+
+
+def spacing_finding(record: ScadaRecord) -> RecordFinding | None:
+    """Rows whose median spacing is not the column map's ``period_s``: further apart (hourly rows read with a
+    10-minute map), every row is its own stretch after a gap and the sensor holds the inputs 60 s, then takes the
+    drive as stopped (untrusted); closer (1-minute rows), each row is held until the next and the estimates stand,
+    but a gap is found only past GAP_PERIODS of the map's period (a warning)."""
+    from tools.scada.reader import GAP_PERIODS
+
+    t = np.asarray(record.time_s, dtype=float)
+    if t.size < 3:
+        return None
+    spacing_s, period_s = float(np.median(np.diff(t))), float(record.cmap.period_s)
+    fix = f"if the file's rows are {spacing_s:g}-s averages, set period_s = {spacing_s:g} in a copy of the column map"
+    if spacing_s > SPACING_TOLERANCE * period_s:
+        return RecordFinding(
+            "rows",
+            UNTRUSTED,
+            f"the rows lie {spacing_s:g} s apart (median) where the column map's period_s is {period_s:g} s: every "
+            f"row is taken for its own stretch after a gap (the sensor holds the inputs over 60 s of it, then takes "
+            f"the drive as stopped); {fix}",
+        )
+    if spacing_s * SPACING_TOLERANCE < period_s:
+        return RecordFinding(
+            "rows",
+            WARNING,
+            f"the rows lie {spacing_s:g} s apart (median) where the column map's period_s is {period_s:g} s: each row "
+            f"is held until the next (the estimates stand), but a gap is found only past {GAP_PERIODS * period_s:g} s; "
+            f"{fix}",
+        )
+    return None
 
 
 def range_findings(record: ScadaRecord) -> list[RecordFinding]:
@@ -251,7 +292,7 @@ def untrusted_findings(record: ScadaRecord, residual: dict, params) -> list[Reco
     torque in kN m (firmware_model.service.plausibility) and an estimate more than BIAS_UNTRUSTED_K off its readings
     on average. ``params``: the gearbox's (its drive's limits). A fit to such a record explains a unit mistake by a
     gearbox effect: diagnose and calibrate refuse it, the fleet leaves the unit out."""
-    found = [f for f in range_findings(record) if f.severity >= UNTRUSTED]
+    found = [f for f in [*range_findings(record), spacing_finding(record)] if f and f.severity >= UNTRUSTED]
     v = record.values
     if "input_speed_rpm" in v and "input_torque_nm" in v:
         knm = drive_knm_finding(

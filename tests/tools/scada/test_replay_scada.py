@@ -248,6 +248,29 @@ def test_a_power_in_kw_read_as_w_is_said_and_exits_3(tmp_path):
     assert "looks like kN m (or derived from a power 1000 times too small: in MW read as kW, in kW" in p.stderr
 
 
+@pytest.mark.parametrize(
+    "minutes, status, words",
+    [(60, 3, "every row is taken for its own stretch"), (1, 0, "each row is held until the next")],
+)
+def test_rows_further_apart_or_closer_than_the_map_s_period_are_said(tmp_path, minutes, status, words):
+    """Hourly rows read with the 10-minute map made every row a stretch after a gap (the sensor held the inputs
+    60 s, then took the drive as stopped) and said "rows at most 60 s apart; resample it", a run table's advice;
+    1-minute rows ran silently as "rows of 600 s". Both now name the spacing, the map's period_s and the fix."""
+    rows = [
+        row(
+            T0 + timedelta(minutes=minutes * k),
+            p_kw=60.0 + 30.0 * math.sin(k / 5.0),
+            rs=1485.0,
+            Gost_avg=55.0 + 3.0 * math.sin(k / 7.0),
+        )
+        for k in range(ROWS)
+    ]
+    p = _replay(tmp_path, [write(tmp_path / "a.csv", rows)], "--out", tmp_path / "est.csv")
+    assert p.returncode == status, p.stderr
+    assert words in p.stderr and f"set period_s = {60 * minutes}" in p.stderr
+    assert "resample it" not in p.stderr
+
+
 def test_the_modelled_sump_starts_at_the_first_reading_of_the_first_hour_and_one_row_is_one_row(tmp_path):
     lines = _rows(0, ROWS)
     without_first = _edit(lines[:1], "Gost_avg", lambda c: "") + lines[1:]
