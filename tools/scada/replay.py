@@ -217,12 +217,15 @@ def spacing_finding(record: ScadaRecord) -> RecordFinding | None:
     """Rows whose median spacing is not the column map's ``period_s``: further apart (hourly rows read with a
     10-minute map), every row is its own stretch after a gap and the sensor holds the inputs 60 s, then takes the
     drive as stopped (untrusted); closer (1-minute rows), each row is held until the next and the estimates stand,
-    but a gap is found only past GAP_PERIODS of the map's period (a warning)."""
+    but a gap is found only past GAP_PERIODS of the map's period (a warning). Not judged where the reader dropped
+    more than DROPPED_WARN_SHARE of the rows (the rows left lie further apart for that reason)."""
     from tools.scada.reader import GAP_PERIODS
 
     t = np.asarray(record.time_s, dtype=float)
-    if t.size < 3:
-        return None
+    c = record.counts
+    dropped = c.get("bad_line", 0) + c.get("bad_time", 0)
+    if t.size < 3 or dropped > DROPPED_WARN_SHARE * (t.size + dropped):
+        return None  # rows dropped between the others: their own warning says so, not the map's period
     spacing_s, period_s = float(np.median(np.diff(t))), float(record.cmap.period_s)
     fix = f"if the file's rows are {spacing_s:g}-s averages, set period_s = {spacing_s:g} in a copy of the column map"
     if spacing_s > SPACING_TOLERANCE * period_s:
