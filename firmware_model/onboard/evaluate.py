@@ -142,6 +142,8 @@ class ReducedParams(NamedNodes):
     needle_c: np.ndarray  # (6,)
     sync_coef: np.ndarray  # (17,) sum_k c_k rel_k^2: P_sync = mu omega_in^2 sync_coef
     pump_coef: np.ndarray  # (17,) P_pump = pump_coef omega_in^2
+    # (17,) bool: the description has this gear; a gear input it has not is unknown (rejected, the last good gear held)
+    gear_defined: np.ndarray
     churn_omega_max_rad_s: float
     churn_table: np.ndarray  # (N_U_CHURN, nT) W at the layshaft speed u^2 w_max
     churn_heat_sf: float

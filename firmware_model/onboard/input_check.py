@@ -24,6 +24,7 @@ from firmware_model.onboard.records import (
     TWIN,
     SensorState,
 )
+from firmware_model.physics.kinematics import GEAR_MIN
 
 #: reject counters of the input checks, in REJECT_REASONS order (the time checks come after them)
 _INPUT_REASONS = REJECT_REASONS[: REJECT_INDEX["aux_missing"] + 1]
@@ -53,9 +54,9 @@ class InputCheck(NamedTuple):
 
 def check_inputs(state: SensorState, raw: np.ndarray, sp: SensorParams) -> InputCheck:
     """Check the raw inputs (B + (8,), NaN missing) against the state's holds: a good speed or torque is clamped to
-    the engine's range, a gear must be an integer in range, the measured oil plausible, steady (no step above
-    ``oil_step_c`` from a recent good value) and not frozen, the auxiliary inputs in range (a missing one takes its
-    default, it is not held)."""
+    the engine's range, a gear must be an integer in range and a gear of the description, the measured oil
+    plausible, steady (no step above ``oil_step_c`` from a recent good value) and not frozen, the auxiliary inputs
+    in range (a missing one takes its default, it is not held)."""
     opt, dt = sp.options, sp.dt_s
     finite = np.isfinite(raw)
     in_range = finite & (raw >= sp.input_lo) & (raw <= sp.input_hi)
@@ -64,6 +65,8 @@ def check_inputs(state: SensorState, raw: np.ndarray, sp: SensorParams) -> Input
     clamped = in_range & (fixed != raw)  # beyond the plausible range a speed or torque is missing, not clamped
     gear = raw[..., I_GEAR]
     gear_ok = in_range[..., I_GEAR] & (gear == np.rint(gear))
+    # and a gear of the description (a table lookup, as the kernel's): another gearbox's number is unknown too
+    gear_ok &= sp.reduced.gear_defined[np.where(gear_ok, gear, GEAR_MIN).astype(np.int64) - GEAR_MIN]
     # oil: plausible range, no implausible step from a recent good value, not frozen while the twin's sump moves
     oil = raw[..., I_OIL]
     oil_in_range = in_range[..., I_OIL]

@@ -259,6 +259,7 @@ _TABLES = (
     Field("pump_code", I32, doc="GVS_PUMP_*: the oil flow follows pump_speed_col (shaft) or is pump_flow_m3_s (motor)"),
     Field("oil_inlet", I32, doc="1: a forced oil system, the step outputs its oil inlet (sump - inlet drop); 0: NaN"),
     Field("gear_min", I32, doc="gear of row 0"),
+    Field("gear_defined", I32, doc="bit r: the description has gear gear_min + r (another gear input is unknown)"),
     Field("oil_mode_measured", I32, doc="1: a measured sump is used"),
     Field("ttl_every", I32, doc="steps between time-to-limit refreshes"),
     "network",

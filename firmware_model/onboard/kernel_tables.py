@@ -40,6 +40,14 @@ def _f64(a) -> np.ndarray:
     return np.ascontiguousarray(np.asarray(a, dtype=float).reshape(-1))
 
 
+def _gear_bits(defined) -> int:
+    """The description's gears as the bits of one int32 (bit r: gear row r), a flag per gear in 4 B of flash."""
+    defined = np.asarray(defined, dtype=bool).reshape(-1)
+    if defined.size > 31:  # bit 31 would be the sign of the int32
+        raise ValueError(f"{defined.size} gear rows do not fit the int32 gear_defined (at most 31)")
+    return int(sum(1 << r for r in np.flatnonzero(defined)))
+
+
 def _streams(sp: SensorParams) -> tuple[np.ndarray, np.ndarray]:
     """(t2 term of each table stream, component node of every stream) from the stream scatter matrix (its row:
     -1 at the component, +1 at the sump)."""
@@ -101,6 +109,7 @@ def _network(sp: SensorParams) -> dict:
         pump_code=rp.pump_code,
         oil_inlet=int(rp.oil_inlet),
         gear_min=GEAR_MIN,
+        gear_defined=_gear_bits(rp.gear_defined),
         dt_over_C=_f64(sp.dt_over_C_s_k_per_j),
         link_a=_i32(rp.link_a),
         link_b=_i32(rp.link_b),

@@ -848,6 +848,7 @@ def build_reduced(
         needle_c=_ro(lm.needle_c),
         sync_coef=_ro(lm.sync_coef),
         pump_coef=_ro(lm.pump_coef),
+        gear_defined=_ro(np.isin(np.arange(N_GEARS) + GEAR_MIN, [g.number for g in d.gears]), bool),
         churn_omega_max_rad_s=float(lm.churn_omega_max_rad_s),
         churn_table=_ro(lm.churn_table),
         churn_heat_sf=float(p["scale.churn_to_heat"]),

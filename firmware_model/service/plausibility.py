@@ -55,7 +55,7 @@ REPAIR_UNTRUSTED_SHARE = 0.05
 REPAIR_REASONS = {
     "speed_clamped": "engine speed clamped to the engine's range",
     "torque_clamped": "engine torque clamped to the engine's range",
-    "gear_unknown": "gear not an integer in -2..14 (last good gear held)",
+    "gear_unknown": "gear not an integer in -2..14 or no gear of the gearbox (last good gear held)",
     "oil_implausible": "oil reading out of range or jumping (modelled instead)",
 }
 #: where a column comes from: a run table's column, or a CAN log's decoded signal (the DBC fixes its unit)

@@ -15,12 +15,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from firmware_model.components import MODE_HOLDING
 from firmware_model.description import description_of
 from firmware_model.errors import ParameterError
 from firmware_model.network import K_STREAM, build_network
 from firmware_model.onboard import evaluate as E
 from firmware_model.onboard import reduce as R
-from firmware_model.onboard.records import I_AMB, I_GEAR, I_OIL, I_SPEED, I_TORQUE, I_VKMH, N_INPUTS
+from firmware_model.onboard.records import I_AMB, I_GEAR, I_OIL, I_SPEED, I_TORQUE, I_VKMH, N_INPUTS, REJECT_INDEX
 from firmware_model.onboard.sensor import VirtualSensor
 from firmware_model.parameters import PARAM_DIR, load_parameters
 from firmware_model.physics.drivetrain import speed_names
@@ -361,3 +362,36 @@ def test_a_splash_gearbox_has_no_oil_inlet(r1):
         assert not s.oil_inlet and np.isnan(o.oil_inlet_temp_c).all()
         _, one = s.step(s.initial_state(T_oil_c=40.0), s.Inputs(*raw[0]))
         assert np.isnan(one.status.oil_inlet_temp_c)
+
+
+def test_a_gear_the_description_lacks_is_unknown_on_both_cores(r1):
+    """R1 has gear 1 only: a 2 (in -2..14, but no gear of R1) was used as neutral's row, gear_valid 1 and no reject
+    counted. Now it is rejected as any unknown gear: counted in gear_unknown, the last good gear held, mode 2, on
+    the numpy step and the C kernel alike, bit for bit."""
+    rp = R.build_reduced(r1)
+    assert rp.gear_defined.tolist() == [n == 1 for n in range(-2, 15)]
+    raw = _drive(300, 1500.0, 400.0, 40.0, 1)
+    raw[100:200, I_GEAR] = 2.0  # no gear of R1
+    runs = {}
+    for core in ("numpy", "c"):
+        s = VirtualSensor(r1, core=core)
+        st = s.initial_state(T_oil_c=40.0)
+        st, o = s.step_table(st, raw)
+        held = raw.copy()
+        held[:, I_GEAR] = 1.0  # what the sensor must have used: the last good gear
+        _, o_held = s.step_table(s.initial_state(T_oil_c=40.0), held)
+        runs[core] = o
+        unknown = o.rejects[:, REJECT_INDEX["gear_unknown"]]
+        assert int(st.rejects[REJECT_INDEX["gear_unknown"]]) == 100 and unknown[99] == 0 and unknown[199] == 100
+        gear_valid = o.valid[:, 2]
+        assert not gear_valid[100:200].any() and gear_valid[:100].all() and gear_valid[200:].all()
+        assert (o.degraded_mode[100:200] == MODE_HOLDING).all()
+        np.testing.assert_array_equal(o.T_c, o_held.T_c)
+    np.testing.assert_allclose(runs["c"].T_c, runs["numpy"].T_c, rtol=0, atol=1e-9)
+    np.testing.assert_array_equal(runs["c"].rejects, runs["numpy"].rejects)
+    np.testing.assert_array_equal(runs["c"].valid, runs["numpy"].valid)
+
+
+def test_every_grs905_gear_is_defined():
+    """The GRS905 numbers every gear of -2..14 (seed Table 1): the new flag changes nothing there."""
+    assert R.build_reduced(load_parameters("GRS905")).gear_defined.all()

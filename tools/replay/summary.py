@@ -33,7 +33,7 @@ REJECT_WORDS = {
     "oil_missing": "oil reading missing (modelled instead)",
     "speed_clamped": "engine speed outside the engine's range (clamped)",
     "torque_clamped": "engine torque outside the engine's range (clamped)",
-    "gear_unknown": "gear not an integer in -2..14 (last good gear held)",
+    "gear_unknown": "gear not an integer in -2..14 or no gear of the gearbox (last good gear held)",
     "time_jump": "forward time jumps (state propagated over the gap)",
     "time_backward": "frames whose time went back (step skipped)",
 }

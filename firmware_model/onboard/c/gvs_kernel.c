@@ -443,7 +443,9 @@ static void check_inputs(const gvs_tables *tb, gvs_state *st, const double *raw_
         clamped[i] = in_range[i] && d_key(f) != kr;    /* beyond the plausible range: missing, not clamped */
         fixed[i] = finite[i] ? (gvs_real)(f) : raw[i];
     }
-    gear_ok = in_range[GVS_I_GEAR] && raw[GVS_I_GEAR] == RINT(raw[GVS_I_GEAR]);
+    /* an integer in range and a gear of the description (its bit in gear_defined) */
+    gear_ok = in_range[GVS_I_GEAR] && raw[GVS_I_GEAR] == RINT(raw[GVS_I_GEAR])
+        && ((tb->gear_defined >> ((int32_t)raw[GVS_I_GEAR] - tb->gear_min)) & 1);
     oil_in_range = in_range[GVS_I_OIL];
     jumpy = oil_in_range && st->age_s[GVS_I_OIL] <= R_(1.0)
         && FABS(raw[GVS_I_OIL] - st->hold[GVS_I_OIL]) > tb->oil_step_c;

@@ -161,6 +161,8 @@ typedef struct {
     /* 1: a forced oil system, the step outputs its oil inlet (sump - inlet drop); 0: NaN */
     int32_t oil_inlet;
     int32_t gear_min;                   /* gear of row 0 */
+    /* bit r: the description has gear gear_min + r (another gear input is unknown) */
+    int32_t gear_defined;
     int32_t oil_mode_measured;          /* 1: a measured sump is used */
     int32_t ttl_every;                  /* steps between time-to-limit refreshes */
     /* network */
