@@ -472,3 +472,49 @@ def test_plot_of_a_derived_temperature_draws_no_limit(tmp_path):
     args = ["simulate", "--gearbox", "MM82", "--cycle", str(cyc), "--out", str(out), "--quiet"]
     assert main([*args, "--plot", str(tmp_path / "p.png")]) == 0
     assert "T_oil.inlet_c" in read_run_table(out).columns and (tmp_path / "p.png").exists()
+
+
+def _without_top_gears(tmp_path):
+    """The GRS905's file without gears 9..14 (4L..6H): a gearbox whose gears are -2..8."""
+    import re
+
+    from firmware_model.parameters import PARAM_DIR
+
+    text = (PARAM_DIR / "GRS905.toml").read_text()
+    for name in ("4L", "4H", "5L", "5H", "6L", "6H"):
+        text = re.sub(rf"^\[topology\.gear\.{name}\]\n(?:(?!\[).*\n)*", "", text, flags=re.M)
+    path = tmp_path / "LOW8.toml"
+    path.write_text(text)
+    return path
+
+
+@pytest.mark.parametrize(
+    "cycle, words",
+    [
+        ("steady:gear=12,rpm=1500,nm=2000,s=600", "steady cycle spec 'steady:gear=12,rpm=1500,nm=2000,s=600': gear=12"),
+        ("csv", "column gear row 6 (time_s 5 s): gear 12"),
+    ],
+)
+def test_a_gear_the_gearbox_does_not_have_is_refused(tmp_path, capsys, cycle, words):
+    """A gear number the description has no gear for ran as neutral's row: the engine's power vanished without a
+    mesh loss (a 6-speed gearbox's gear 7: 314 kW in, no mesh heat), exit 0. Now one sentence naming the gear,
+    where, and the gearbox's gears; exit 2. (A named road cycle is fitted to the gearbox's own gears instead:
+    tests/tools/test_cycles_other_gearbox.py.)"""
+    gearbox = _without_top_gears(tmp_path)
+    if cycle == "csv":
+        t = np.arange(0.0, 20.0, 1.0)
+        gear = np.full(t.size, 8.0)
+        gear[5] = 12.0
+        cycle = str(tmp_path / "c.csv")
+        write_run_table(
+            RunTable(
+                {"time_s": t, "engine_speed_rpm": t * 0 + 1300.0, "engine_torque_nm": t * 0 + 1500.0, "gear": gear}
+            ),
+            cycle,
+        )
+    out = tmp_path / "run.csv"
+    rc = main(["simulate", "--gearbox", str(gearbox), "--cycle", cycle, "--out", str(out), "--quiet"])
+    err = capsys.readouterr().err.strip()
+    assert rc == 2 and len(err.splitlines()) == 1, err
+    assert words in err and ("-2, -1, 0, 1, 2, 3, 4, 5, 6, 7, 8" in err or "8 (3H)" in err), err
+    assert not out.exists()

@@ -327,3 +327,29 @@ def test_shift_strategy_upshifts_an_overrevving_engine():
     # right after a shift and in the engine's comfortable range: keep the gear
     st.since_shift_s, st.rpm = 0.5, 1300.0
     assert choose_gear(st, dt, 0.0, SpeedTarget(st.v_m_s, 0.0), Traction(2000.0, 500.0, 2500.0, 0.0)).gear is None
+
+
+def test_all_gears_on_another_gearbox_runs_its_own_gears():
+    """all_gears ran the GRS905's -2..14 on any gearbox: on a 6-speed one gears 7..14 as neutral (the power lost
+    without a loss). On a description whose gears are not seed Table 1's it runs its own, ascending, neutral
+    skipped, at their own ratios' vehicle speeds; on the GRS905 (and its variants) it is unchanged."""
+    from dataclasses import replace
+
+    from firmware_model.description import load_description
+    from firmware_model.physics.drivetrain import kinematic_table
+    from tools.cycles.named import get_cycle
+
+    grs = load_description("GRS905")
+    low = replace(grs, gears=tuple(g for g in grs.gears if g.number <= 4 and g.number != -2))
+    table = get_cycle("all_gears", description=low)
+    gears = np.asarray(table["gear"])
+    assert tuple(dict.fromkeys(gears.tolist())) == (-1.0, 1.0, 2.0, 3.0, 4.0)
+    assert np.asarray(table["engine_torque_nm"])[gears < 0].max() == 700.0
+    assert np.asarray(table["engine_torque_nm"])[gears > 0].max() == 1000.0
+    ratio = abs(kinematic_table(low).ratio[4 + 2])
+    v = np.asarray(table["vehicle_speed_kmh"])[gears == 4.0]
+    np.testing.assert_allclose(v, 1300.0 * 2 * np.pi / 60 / (ratio * 3.07) * 0.5 * 3.6, rtol=1e-12)
+    thesis = get_cycle("all_gears")
+    for d in (grs, load_description("GRSO905")):
+        other = get_cycle("all_gears", description=d)
+        assert all(np.array_equal(thesis[c], other[c]) for c in thesis.columns)

@@ -776,12 +776,12 @@ def _check_range(col: str, v: np.ndarray, ok: np.ndarray, lo: float, hi: float) 
 
 def validate_drive(table: RunTable, p: Parameters) -> None:
     """InputError (column and row) for a run table's drive values that no engine or gearbox of ``p`` produces:
-    engine speed and torque outside the engine's range, a gear not in seed Table 1 (missing values are left to the
-    caller: a measured file may have gaps)."""
+    engine speed and torque outside the engine's range, a gear not in seed Table 1 or not of the description
+    (missing values are left to the caller: a measured file may have gaps)."""
     _check_drive_ranges(
         {
             c: np.asarray(table[c], dtype=float)
-            for c in ("engine_speed_rpm", "engine_torque_nm", "gear")
+            for c in ("engine_speed_rpm", "engine_torque_nm", "gear", "time_s")
             if table.has(c)
         },
         p,
@@ -819,6 +819,23 @@ def _check_drive_ranges(cols: dict, p: Parameters) -> None:
             if bad.any():
                 i = int(np.flatnonzero(bad)[0])
                 raise InputError(f"column {col} row {i + 1}: {v[i]:g} {what(v[i]) if callable(what) else what}")
+    if "gear" in cols:
+        _check_gears_defined(cols["gear"], description_of(p), cols.get("time_s"))
+
+
+def _check_gears_defined(gear: np.ndarray, d, t_s: np.ndarray | None = None) -> None:
+    """InputError (row, time, the description's gears) for a gear number the description has no gear for: its
+    kinematic row is neutral's, so the engine's power would vanish without a loss (a GRS905 cycle's gear 7 on a
+    6-speed gearbox)."""
+    numbers = sorted(g.number for g in d.gears)
+    bad = np.isfinite(gear) & ~np.isin(gear, numbers)
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        at = f" (time_s {t_s[i]:g} s)" if t_s is not None else ""
+        raise InputError(
+            f"column gear row {i + 1}{at}: gear {gear[i]:g} is no gear of {d.name} (its gears: "
+            f"{', '.join(map(str, numbers))})"
+        )
 
 
 def _validate_inputs(t, spd, trq, gear, p: Parameters):
@@ -831,4 +848,4 @@ def _validate_inputs(t, spd, trq, gear, p: Parameters):
             raise InputError(f"column {name} row {first_bad(bad)}: value is missing or not a number")
     if np.any(np.diff(t) <= 0):
         raise InputError(f"column time_s row {first_bad(np.append(np.diff(t) <= 0, False)) + 1}: time must increase")
-    _check_drive_ranges({"engine_speed_rpm": spd, "engine_torque_nm": trq, "gear": gear}, p)
+    _check_drive_ranges({"engine_speed_rpm": spd, "engine_torque_nm": trq, "gear": gear, "time_s": t}, p)
