@@ -65,6 +65,7 @@ class Sims(NamedTuple):
     base_tr: list
     warm_tr: list
     ref_tr: list | None  # the model's error reference: plant, itself at half the step; onboard, the plant
+    thin_tr: list | None  # plant: itself on thinned inputs (the inputs' sampling error, model_error_floor)
     grid_outs: list
     base_te: list
     warm_te: list
@@ -74,7 +75,9 @@ class Sims(NamedTuple):
 
 
 def _simulate(ctx: Context, train: list, test: list, grid: GridPlan) -> Sims:
-    head = [Run.of(), Run.of(initial_offset_c=2.0)] + ([Run.of(fine=True)] if ctx.is_plant else [])
+    head = [Run.of(), Run.of(initial_offset_c=2.0)] + (
+        [Run.of(fine=True), Run.of(thinned=True)] if ctx.is_plant else []
+    )
     out_tr = ctx.sim.run(train, head + grid.runs)
     out_te = ctx.sim.run(test, head[:2])
     house = (None, None)
@@ -100,6 +103,7 @@ def _simulate(ctx: Context, train: list, test: list, grid: GridPlan) -> Sims:
         out_tr[0],
         out_tr[1],
         out_tr[2] if ctx.is_plant else ref_tr,
+        out_tr[3] if ctx.is_plant else None,
         out_tr[len(head) :],
         out_te[0],
         out_te[1],
@@ -111,7 +115,10 @@ def _simulate(ctx: Context, train: list, test: list, grid: GridPlan) -> Sims:
 def model_error_floor(ctx: Context, train: list, sims: Sims, lag: dict, channels) -> dict:
     """Per channel, the model's own error, at least model_floor_c: the plant's numerical error (BDF2: error ~ dt^2,
     so the full step's error is about 4/3 of its difference to the half step); the onboard model's reduction error,
-    its RMS difference to the reference plant on the same files (``ref_tr``): where
+    its RMS difference to the reference plant on the same files (``ref_tr``). The plant's adds, in quadrature, its
+    inputs' sampling error: its RMS difference on inputs thinned (``thin_tr``: every second row's drive inputs from
+    its neighbours, about the same error again where the drive varies faster than the rows, next to none where it
+    moves smoothly between them). Where
     the reduced model departs from the plant no effect is to absorb it (a third effect took up a rig's reduction
     error of 1.2 times the threshold beside a planted pair; an arctic start without any effect was called
     synchronizer heat)."""
@@ -120,15 +127,27 @@ def model_error_floor(ctx: Context, train: list, sims: Sims, lag: dict, channels
     if sims.ref_tr is None:
         return floor
     factor = 4.0 / 3.0 if ctx.is_plant else 1.0
-    pb, pf = predictions(train, sims.base_tr, lag), predictions(train, sims.ref_tr, lag)
-    acc = {}
-    for (cid, _), a, b in zip([(c, h) for ds in train for c, h in ds.channels.items()], pb, pf):
+    err = _rms_by_channel(train, predictions(train, sims.base_tr, lag), predictions(train, sims.ref_tr, lag))
+    # the plant: its step's error and, in quadrature, its inputs' sampling error (their odd rows from their
+    # neighbours: noise-free 1 s rows of a 10 Hz drive, 0.19 K on the LI teeth, read as a gap beyond the step's)
+    samp = (
+        _rms_by_channel(train, predictions(train, sims.base_tr, lag), predictions(train, sims.thin_tr, lag))
+        if sims.thin_tr is not None
+        else {}
+    )
+    for cid, e in err.items():
+        floor[cid] = max(o.model_floor_c, math.hypot(factor * e, samp.get(cid, 0.0)))
+    return floor
+
+
+def _rms_by_channel(datasets: list, a_preds: list, b_preds: list) -> dict:
+    """Per channel id, the RMS difference of two prediction lists over the data sets' channels."""
+    acc: dict = {}
+    for (cid, _), a, b in zip([(c, h) for ds in datasets for c, h in ds.channels.items()], a_preds, b_preds):
         x = acc.setdefault(cid, [0.0, 0])
         x[0] += float(np.sum((a - b) ** 2))
         x[1] += a.size
-    for cid, (ss, n) in acc.items():
-        floor[cid] = max(o.model_floor_c, factor * math.sqrt(ss / max(n, 1)))
-    return floor
+    return {cid: math.sqrt(ss / max(n, 1)) for cid, (ss, n) in acc.items()}
 
 
 def _role(

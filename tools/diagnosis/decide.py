@@ -130,7 +130,11 @@ def _none_reason(sys_rms: dict, thr: dict, base: Baseline, o: Options, is_plant:
     by_floor = [c for c in sys_rms if base.floor[c] > max(o.none_k * base.sigma[c], o.none_floor_c, o.model_floor_c)]
     if not by_floor:
         return f"the model agrees with the measurement within its noise on every channel ({listing})"
-    what = "the plant's numerical error" if is_plant else "the onboard model's difference from the reference plant"
+    what = (
+        "the plant's numerical error and its inputs' sampling error"
+        if is_plant
+        else "the onboard model's difference from the reference plant"
+    )
     return (
         f"no gap beyond what this model can resolve: on {', '.join(by_floor)} the threshold is the model's own "
         f"error ({what} on these drives, {', '.join(f'{c} {base.floor[c]:.3f} degC' for c in by_floor)}), "

@@ -71,6 +71,7 @@ class Run:
     fine: bool = False  # half the step (the model's own numerical error), where it has one
     start: tuple = ()  # (oil-sensor effect, value) the files start from; () the reading itself
     housing_offset_c: float = 0.0  # the housings start this far from the others (tools/diagnosis/start.py)
+    thinned: bool = False  # every second row's drive inputs from its neighbours (the inputs' sampling error)
 
     @staticmethod
     def of(
@@ -81,6 +82,7 @@ class Run:
         fine: bool = False,
         start: tuple | None = None,
         housing_offset_c: float = 0.0,
+        thinned: bool = False,
     ) -> Run:
         return Run(
             tuple(sorted((effects or {}).items())),
@@ -90,6 +92,7 @@ class Run:
             bool(fine),
             tuple(start or ()),
             float(housing_offset_c),
+            bool(thinned),
         )
 
     def initial_offsets_c(self, housings: tuple) -> dict | None:
@@ -143,8 +146,31 @@ def _init_worker(params, cooler, dt_s, out_dt_s, full_dt_s, coarse_dt_s):
     warnings.filterwarnings("ignore", category=RuntimeWarning)
 
 
+#: the drive inputs a thinned run takes from every second row's neighbours: linearly for these, held for the gear
+THIN_LINEAR, THIN_HELD = ("engine_speed_rpm", "engine_torque_nm", "retarder_torque_nm"), ("gear",)
+
+
+def thinned_inputs(table):
+    """``table`` with every odd row's drive inputs taken from its neighbours (the mean of the two rows around it;
+    the gear of the row before): inputs that move smoothly between rows are almost unchanged, inputs that vary
+    faster than the rows are sampled (a 10 Hz drive written every 1 s) differ by about their sampling error, which
+    the diagnosis's error floor then covers (tools.diagnosis.baseline.model_error_floor)."""
+    out = table.copy()
+    n = table.n
+    odd = np.arange(1, n - 1, 2)
+    for c in THIN_LINEAR + THIN_HELD:
+        if not out.has(c) or odd.size == 0:
+            continue
+        v = np.array(table[c], dtype=float)
+        v[odd] = 0.5 * (v[odd - 1] + v[odd + 1]) if c in THIN_LINEAR else v[odd - 1]
+        out[c] = v
+    return out
+
+
 def _plant_job(job):
     table, run, columns = job
+    if run.thinned:
+        table = thinned_inputs(table)
     from tools.plant.reference import ReferencePlant
 
     w = _WORKER
