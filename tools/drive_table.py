@@ -124,6 +124,18 @@ def map_fixed_ratio(table, description, name: str | None = None, strict: bool = 
     return RunTable(cols, meta=meta, source=getattr(table, "source", None))
 
 
+def as_fixed_ratio_output(table):
+    """A plant output table of a fixed-ratio drive with its inputs named as a fixed-ratio run table names them
+    (``input_speed_rpm``, ``input_torque_nm``; the single gear, the zero vehicle speed and retarder torque left
+    out), so that `simulate`'s output is a `replay` input as it is for a vehicle. The other columns as they are."""
+    from tools.runtable import RunTable
+
+    rename = {"engine_speed_rpm": "input_speed_rpm", "engine_torque_nm": "input_torque_nm"}
+    drop = {"gear", "vehicle_speed_kmh", "retarder_torque_nm"}
+    cols = {rename.get(c, c): table[c] for c in table.columns if c not in drop}
+    return RunTable(cols, meta=dict(getattr(table, "meta", {}) or {}), source=getattr(table, "source", None))
+
+
 def read_drive_table(path: str | os.PathLike, description=None):
     """A run table (CSV) read for the plant: a vehicle's as before (tools.runtable.read_run_table), a fixed-ratio
     drive's mapped (:func:`map_fixed_ratio`) and checked as the contract checks a vehicle's. ``description``: the

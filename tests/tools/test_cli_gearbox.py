@@ -275,7 +275,7 @@ def test_another_topology_runs_through_simulate_and_replay(tmp_path):
     table = _fixed_ratio_table(tmp_path / "hr.csv", 1480.0, 600.0)
     plant, est = tmp_path / "plant.csv", tmp_path / "est.csv"
     assert main(["simulate", "--gearbox", "HR225", "--cycle", str(table), "--out", str(plant), "--quiet"]) == 0
-    pl = read_run_table(plant)
+    pl = read_run_table(plant, required=("time_s",))
     assert "T_P_c" in pl.columns and "T_LI.teeth_c" not in pl.columns
     assert pl.n == 31
     # the sensor fed the plant's sump, row by row
@@ -289,8 +289,26 @@ def test_another_topology_runs_through_simulate_and_replay(tmp_path):
     # each output row is the state at the end of its input row's interval: the plant at the same times
     plant_p_c = np.interp(es["time_s"], pl["time_s"], pl["T_P_c"])
     assert np.max(np.abs(es["T_P_c"] - plant_p_c)) < 1.0
+    # simulate's output names its inputs as the input table did (it had a vehicle's engine_*, gear: replay refused
+    # it in one sentence): it replays as it stands, its oil_temp_c the plant's oil sensor
+    assert "input_speed_rpm" in pl.columns and "gear" not in pl.columns and "engine_speed_rpm" not in pl.columns
+    assert main(["replay", str(plant), "--out", str(est), "--quiet", "--gearbox", "HR225"]) == 0
+    again = read_run_table(est)
+    assert again.n == 31 and np.max(np.abs(again["T_P_c"] - plant_p_c)) < 1.0
     # a vehicle's columns for a fixed-ratio gearbox: one sentence
-    assert main(["replay", str(plant), "--out", str(est), "--quiet", "--gearbox", "HR225"]) == 2
+    vehicle = tmp_path / "vehicle.csv"
+    write_run_table(
+        RunTable(
+            {
+                "time_s": [0.0, 1.0],
+                "engine_speed_rpm": [1000.0, 1000.0],
+                "engine_torque_nm": [100.0, 100.0],
+                "gear": [1.0, 1.0],
+            }
+        ),
+        vehicle,
+    )
+    assert main(["replay", str(vehicle), "--out", str(est), "--quiet", "--gearbox", "HR225"]) == 2
 
 
 def test_the_mm82_runs_through_simulate_and_replay(tmp_path):
@@ -302,7 +320,7 @@ def test_the_mm82_runs_through_simulate_and_replay(tmp_path):
     table = _fixed_ratio_table(tmp_path / "mm.csv", 15.0, 8.0e5)
     plant, est = tmp_path / "plant.csv", tmp_path / "est.csv"
     assert main(["simulate", "--gearbox", "MM82", "--cycle", str(table), "--out", str(plant), "--quiet"]) == 0
-    pl = read_run_table(plant)
+    pl = read_run_table(plant, required=("time_s",))
     measured = read_run_table(table, required=("time_s",))
     measured["oil_temp_c"] = pl["T_oil_c"]
     write_run_table(measured, tmp_path / "mm_oil.csv")
@@ -359,7 +377,7 @@ def test_a_gearbox_s_own_can_log_replays_with_its_own_frames(tmp_path):
     est, frames, dbc = tmp_path / "est.csv", tmp_path / "out.log", tmp_path / "hr225.dbc"
     rc = main(["replay", str(log), "--gearbox", "HR225", "--out", str(est), "--frames-out", str(frames), "--quiet"])
     assert rc in (0, 3)
-    es, pl = read_run_table(est, required=("time_s",)), read_run_table(plant)
+    es, pl = read_run_table(est, required=("time_s",)), read_run_table(plant, required=("time_s",))
     assert "T_P_c" in es.columns and "T_LI.teeth_c" not in es.columns
     assert np.max(np.abs(es["T_P_c"][-1] - np.interp(es["time_s"][-1], pl["time_s"], pl["T_P_c"]))) < 1.0
     assert main(["export-dbc", "--gearbox", "HR225", "--out", str(dbc)]) == 0

@@ -359,8 +359,13 @@ def _write_outputs(args, table, res, params, cfg, tmp, start_time_s: float) -> N
     from tools.runtable import write_run_table
 
     out_tmp, log_tmp, plot_tmp, heat_tmp = tmp
+    written = res.table
+    if table.meta.get("drive") == "fixed_ratio":  # named as its input table: a replay input as it stands
+        from tools.drive_table import as_fixed_ratio_output
+
+        written = as_fixed_ratio_output(res.table)
     with naming(out_tmp):
-        write_run_table(res.table, out_tmp)
+        write_run_table(written, out_tmp)
     if log_tmp:
         from tools.can.logsynth import write_can_log
 
