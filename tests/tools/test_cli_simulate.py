@@ -383,6 +383,24 @@ def test_an_effect_the_runs_cooler_makes_act_on_nothing_is_refused(tmp_path, cap
     assert main([*argv, "--config", str(cfg)]) == 0 and out.exists()
 
 
+@pytest.mark.parametrize(
+    "effect, words",
+    [
+        ("planetary_loss_scale:factor=1.3", "acts on a planetary set, and gearbox HR225 has none"),
+        ("hot_surroundings_offset:offset_c=10", "acts on a hot_surroundings boundary, and gearbox HR225 has none"),
+        ("synchronizer_shift_heat:energy_j=1000", "acts on a synchronizer, and gearbox HR225 has none"),
+    ],
+)
+def test_an_effect_on_a_part_the_gearbox_lacks_is_refused(tmp_path, capsys, effect, words):
+    """planetary_loss_scale and hot_surroundings_offset on a user's 6-speed gearbox changed nothing (0.0000 K)
+    and exited 0: a run that asked for the effect passed for one with it."""
+    cyc = _fixed_ratio_cycle(tmp_path / "c.csv", 1480.0, 600.0, s=60)
+    out = tmp_path / "x.csv"
+    argv = ["simulate", "--gearbox", "HR225", "--cycle", str(cyc), "--out", str(out), "--quiet", "--effect", effect]
+    assert main(argv) == 2
+    assert words in capsys.readouterr().err and not out.exists()
+
+
 def test_a_named_cycle_setting_in_the_config_is_said_to_be_ignored_for_a_run_table(tmp_path, capsys):
     """[simulate] rate_hz in a project's configuration with a CSV cycle changed nothing without a word (the option
     is refused): a warning names the key and the file; the run goes on (the file serves named cycles too)."""

@@ -9,7 +9,6 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from firmware_model.components import meaning
 from firmware_model.effects import CATALOG, CHANNEL_EFFECTS, parse_effect
 from firmware_model.errors import InputError
 from firmware_model.physics.oil import check_temperature_c
@@ -239,7 +238,7 @@ def run(args) -> int:
         if fixed_ratio:  # one output row per input row of a table slower than the output period (a SCADA table)
             s.out_dt_s = max(s.out_dt_s, table.meta["row_period_s"])
         plant = ReferencePlant(params, effects, cooler=s.cooler, dt_s=s.dt_s)
-        _refuse_idle_effects(effects, plant.kind)
+        _refuse_idle_effects(effects, plant.kind, description_of(params))
         try:
             res = plant.run(
                 table,
@@ -254,7 +253,7 @@ def run(args) -> int:
             raise InputError(f"{cycle_file}: {exc}") from None
         _write_outputs(args, table, res, params, cfg, tmp, s.start_time)
     if not args.quiet:
-        _print_summary(args, res)
+        _print_summary(args, res, description_of(params))
     held_c = (
         s.hold_oil_c if s.hold_oil_c is not None else (plant.p["cooler.hold_temp"] if plant.kind == "hold" else None)
     )
@@ -281,13 +280,33 @@ def _note_cold_parts_beside_a_held_sump(table, hold_c: float | None) -> None:
 EFFECT_COOLERS = {"thermostat_offset": ("air",), "cooler_effectiveness_scale": ("liquid", "air")}
 
 
-def _refuse_idle_effects(effects: dict, cooler: str) -> None:
-    """InputError for an --effect that the run's cooler makes act on nothing."""
+#: the effects that act on a part of the gearbox only (its description): on a gearbox without it they change nothing
+EFFECT_PARTS = {
+    "planetary_loss_scale": ("a planetary set", lambda d: bool(d.planetary)),
+    "planet_oil_h_scale": ("a planetary set", lambda d: bool(d.planetary)),
+    "hot_surroundings_offset": (
+        "a hot_surroundings boundary",
+        lambda d: any(b.id == "hot_surroundings" for b in d.boundaries),
+    ),
+    "synchronizer_shift_heat": ("a synchronizer", lambda d: any(c.kind == "sync" for c in d.couplings)),
+}
+
+
+def _refuse_idle_effects(effects: dict, cooler: str, description=None) -> None:
+    """InputError for an --effect that the run's cooler, or the gearbox (``description``), makes act on nothing: a
+    run that asked for one would pass for a run with it (planetary_loss_scale on a 6-speed gearbox without a
+    planetary set: 0.0000 K of difference, exit 0)."""
     for eid, kinds in EFFECT_COOLERS.items():
         if eid in effects and cooler not in kinds:
             raise InputError(
                 f"--effect {eid} acts on {' or '.join(kinds)} coolers, and this run's cooler is {cooler}: it would "
                 f'change nothing; choose the cooler ([cooler] kind = "{kinds[0]}") or leave the effect out'
+            )
+    for eid, (what, has) in EFFECT_PARTS.items():
+        if eid in effects and description is not None and not has(description):
+            raise InputError(
+                f"--effect {eid} acts on {what}, and gearbox {description.name} has none: it would change nothing; "
+                "leave the effect out"
             )
 
 
@@ -301,15 +320,18 @@ def _effects(given_effects) -> dict:
     return effects
 
 
-def _print_summary(args, res) -> None:
-    """The span simulated, the five hottest nodes and the energy balance; the plant's warnings on stderr."""
+def _print_summary(args, res, description=None) -> None:
+    """The span simulated, the five hottest nodes (named as ``description`` names them) and the energy balance; the
+    plant's warnings on stderr."""
+    from tools.published import words
+
     eb = res.energy_balance()
     tb = res.table
     hot = sorted(
         ((float(tb[c].max()), c[2:-2]) for c in tb.columns if c.startswith("T_") and c.endswith("_c")), reverse=True
     )[:5]
     print(f"simulated {tb['time_s'][-1] - tb['time_s'][0]:.0f} s of '{args.cycle}' in {res.wall_s:.1f} s -> {args.out}")
-    print("hottest:\n" + "\n".join(f"  {n:10s} {v:6.1f} degC  {meaning(n) or ''}" for v, n in hot))
+    print("hottest:\n" + "\n".join(f"  {n:10s} {v:6.1f} degC  {words(n, description) or ''}" for v, n in hot))
     net_in = " (negative: the cooler and boundaries heated the gearbox on balance)" if eb["rejected_j"] < 0 else ""
     print(
         f"energy: generated {eb['generated_j'] / 1e6:.2f} MJ = stored {eb['stored_j'] / 1e6:.2f} MJ + rejected "
