@@ -482,6 +482,15 @@ def test_plots_of_another_gearbox_draw_its_own_limits(tmp_path, monkeypatch):
     assert _limit_lines(figures[0].axes[1])
 
 
+def test_a_fixed_ratio_table_s_bad_value_is_named_by_its_own_column(tmp_path, capsys):
+    """A torque beyond the HR225's drive limits was said of "column engine_torque_nm", a column the user's table
+    does not have (it has input_torque_nm)."""
+    cyc = _fixed_ratio_cycle(tmp_path / "c.csv", 1480.0, 5000.0, s=60)
+    assert main(["simulate", "--gearbox", "HR225", "--cycle", str(cyc), "--out", str(tmp_path / "x.csv")]) == 2
+    err = capsys.readouterr().err
+    assert "column input_torque_nm row 1: 5000 Nm is outside the input shaft's range" in err, err
+
+
 def test_plot_of_a_derived_temperature_draws_no_limit(tmp_path):
     """The MM82's forced oil inlet (a derived temperature, no node of the sensor, so no limit of its own) is in
     its plant table: `simulate --plot` draws it without a limit rather than failing to find one."""

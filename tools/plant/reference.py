@@ -774,6 +774,10 @@ def _check_range(col: str, v: np.ndarray, ok: np.ndarray, lo: float, hi: float) 
         raise InputError(f"column {col} row {i + 1}: {v[i]:g} degC is outside {lo:g}..{hi:g} degC")
 
 
+#: the run-table names of a fixed-ratio drive's inputs, which the plant reads as an engine's (tools.drive_table)
+FIXED_RATIO_NAMES = {"engine_speed_rpm": "input_speed_rpm", "engine_torque_nm": "input_torque_nm"}
+
+
 def validate_drive(table: RunTable, p: Parameters) -> None:
     """InputError (column and row) for a run table's drive values that no engine or gearbox of ``p`` produces:
     engine speed and torque outside the engine's range, a gear not in seed Table 1 or not of the description
@@ -812,13 +816,17 @@ def _check_drive_ranges(cols: dict, p: Parameters) -> None:
             f"is not a gear in {GEAR_MIN}..{GEAR_MAX} (seed Table 1)",
         ),
     )
+    # a fixed-ratio drive's table names its columns input_speed_rpm, input_torque_nm (tools.drive_table)
+    shown = FIXED_RATIO_NAMES if drive.kind != "vehicle" else {}
     for col, bad_of, what in rules:
         if col in cols:
             v = cols[col]
             bad = np.isfinite(v) & bad_of(np.where(np.isfinite(v), v, 0.0))
             if bad.any():
                 i = int(np.flatnonzero(bad)[0])
-                raise InputError(f"column {col} row {i + 1}: {v[i]:g} {what(v[i]) if callable(what) else what}")
+                raise InputError(
+                    f"column {shown.get(col, col)} row {i + 1}: {v[i]:g} {what(v[i]) if callable(what) else what}"
+                )
     if "gear" in cols:
         _check_gears_defined(cols["gear"], description_of(p), cols.get("time_s"))
 
@@ -842,10 +850,11 @@ def _validate_inputs(t, spd, trq, gear, p: Parameters):
     def first_bad(mask):
         return int(np.flatnonzero(mask)[0]) + 1
 
+    shown = FIXED_RATIO_NAMES if description_of(p).drive.kind != "vehicle" else {}
     for name, arr in (("time_s", t), ("engine_speed_rpm", spd), ("engine_torque_nm", trq), ("gear", gear)):
         bad = ~np.isfinite(arr)
         if bad.any():
-            raise InputError(f"column {name} row {first_bad(bad)}: value is missing or not a number")
+            raise InputError(f"column {shown.get(name, name)} row {first_bad(bad)}: value is missing or not a number")
     if np.any(np.diff(t) <= 0):
         raise InputError(f"column time_s row {first_bad(np.append(np.diff(t) <= 0, False)) + 1}: time must increase")
     _check_drive_ranges({"engine_speed_rpm": spd, "engine_torque_nm": trq, "gear": gear, "time_s": t}, p)
