@@ -516,7 +516,11 @@ class _Reader:
         if u not in DESC_UNITS or DESC_UNITS[u][0] not in dims:
             allowed = " or ".join(f'"{x}"' for x, (d, _) in DESC_UNITS.items() if d in dims)
             what = " or ".join(DESC_DIM_NAMES.get(d, d) for d in dims)
-            self.fail(key, f"has unit {u!r}, but it is {what}: write it with u = {allowed}")
+            known = u in DESC_UNITS
+            given = f"{u!r} ({DESC_DIM_NAMES.get(DESC_UNITS[u][0], DESC_UNITS[u][0])})" if known else f"{u!r}"
+            if u == "K" and "degC" in DESC_UNITS and DESC_UNITS["degC"][0] in dims:
+                given = "'K' (a temperature difference, or kelvin)"
+            self.fail(key, f"has unit {given}, but it is {what}: write it with u = {allowed}")
         x = float(v) * DESC_UNITS[u][1]
         if not math.isfinite(x):
             self.fail(key, f"= {v} is not a finite number")
@@ -1154,6 +1158,13 @@ def _gears(r: _Reader, topo: dict, parts: dict, drive: Drive, check: dict) -> tu
                 f"{key}.ratio",
                 f"= 0 is no ratio of a gear that transmits power: state input/output speed, {ratio:.6g} by the "
                 f"teeth along its path (neutral is gear number 0, without a ratio)",
+            )
+        if stated != 0 and ratio != 0 and (ratio > 0) != (stated > 0):
+            r.fail(
+                f"{key}.ratio",
+                f"= {stated:g} has the wrong sign: the teeth along its path turn the output "
+                f"{'the same way as' if ratio > 0 else 'against'} the input (ratio {ratio:.6g}; a reverse gear's "
+                "ratio is negative, an idler in its path turns it back)",
             )
         if abs(ratio - stated) > tol * abs(stated):
             r.fail(

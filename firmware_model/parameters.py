@@ -81,6 +81,7 @@ UNITS = {
     "Pa": ("Pa", 1.0),
     "N": ("N", 1.0),
     "Nm": ("N m", 1.0),
+    "N m": ("N m", 1.0),  # as the SCADA column maps write it
     "s": ("s", 1.0),
     "degC": ("degC", 1.0),
     "rpm": ("rad/s", RAD_S_PER_RPM),

@@ -370,7 +370,7 @@ MALFORMED = [
         "unit of another dimension",
         '[topology.wheel.LI]\nwidth = { v = 45, u = "kg", src = "assumed" }',
         "topology.wheel.LI.width",
-        "has unit 'kg', but it is a length",
+        "has unit 'kg' (a mass), but it is a length",
     ),
     (
         "value from a missing parameter",
@@ -793,3 +793,25 @@ def test_an_oil_cooler_without_a_pump_or_against_the_description_is_one_sentence
                 description_of(cfg.load_params())
         else:
             description_of(cfg.load_params())
+
+
+def test_unit_and_sign_mistakes_are_said_as_such(tmp_path):
+    """A reverse gear written with a positive ratio was "off the ratio of the teeth by 200.00%"; a temperature in
+    "K" read like a dimension error; "N m" (as the SCADA maps write it) was no unit. Now: the sign named, kelvin
+    named, "N m" a torque."""
+    text = (PARAM_DIR / "GRS905.toml").read_text()
+    flipped = tmp_path / "flip.toml"
+    flipped.write_text(text.replace('ratio = { v = -15.27, u = "-"', 'ratio = { v = 15.27, u = "-"', 1))
+    with pytest.raises(
+        ParameterError, match=r"topology.gear.RL.ratio = 15.27 has the wrong sign: .* against the input"
+    ):
+        load_description(str(flipped))
+    nm = tmp_path / "nm.toml"
+    nm.write_text(text.replace('max_torque = { v = 4200, u = "Nm"', 'max_torque = { v = 4200, u = "N m"', 1))
+    assert load_description(str(nm)).drive.max_torque_nm == 4200.0
+    r1 = (PARAM_DIR / "R1.toml").read_text()
+    kelvin = tmp_path / "k.toml"
+    line = next(ln for ln in r1.splitlines() if ln.startswith("temperature = ") and '"degC"' in ln)
+    kelvin.write_text(r1.replace(line, line.replace('"degC"', '"K"'), 1))
+    with pytest.raises(ParameterError, match=r"has unit 'K' \(a temperature difference, or kelvin\), but it is a temp"):
+        load_description(str(kelvin))
