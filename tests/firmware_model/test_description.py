@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import math
 import re
+from pathlib import Path
 
 import pytest
 
@@ -815,3 +816,18 @@ def test_unit_and_sign_mistakes_are_said_as_such(tmp_path):
     kelvin.write_text(r1.replace(line, line.replace('"degC"', '"K"'), 1))
     with pytest.raises(ParameterError, match=r"has unit 'K' \(a temperature difference, or kelvin\), but it is a temp"):
         load_description(str(kelvin))
+
+
+def test_describe_names_every_physics_parameter_simulate_and_replay_would_ask_for(tmp_path, capsys):
+    """A user's description passed describe and then simulate asked for one missing physics parameter per run
+    (ten runs for ten keys). describe now builds the plant and the sensor and names them all at once."""
+    src = (Path(__file__).parent / "gearboxes" / "T6.toml").read_text()
+    gone = ("h_t0 = ", "side_width_in_frac = ", "sf_radial_needle = ")
+    lacking = tmp_path / "T6lacking.toml"
+    lacking.write_text("\n".join(ln for ln in src.splitlines() if not ln.startswith(gone)) + "\n")
+    assert main(["describe", "--gearbox", str(lacking)]) == 2
+    err = capsys.readouterr().err
+    for key in ("oil.h_t0", "wheel.side_width_in_frac", "wheel_bearing.sf_radial_needle"):
+        assert key in err, err
+    assert len(err.strip().splitlines()) == 1
+    assert main(["describe", "--gearbox", str(Path(__file__).parent / "gearboxes" / "T6.toml")]) == 0

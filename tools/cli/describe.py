@@ -115,14 +115,89 @@ def _summary_rest(d) -> list[str]:
     return out
 
 
+#: how many missing parameters describe looks for before it stops (each one found costs a model build)
+MISSING_MAX = 40
+
+
+def missing_physics(params) -> list[str]:
+    """The physics parameters the reference plant and the onboard sensor read that ``params`` lacks, all of them
+    (simulate and replay name one per run): the plant and the sensor are built, and a short drive run in each gear,
+    with each missing key borrowed from the GRS905 until none is missing."""
+    import dataclasses
+    import re
+
+    from firmware_model.errors import ParameterError
+    from firmware_model.parameters import load_parameters
+
+    ref = load_parameters("GRS905")
+    missing: list[str] = []
+    p = params
+    while len(missing) < MISSING_MAX:
+        try:
+            _exercise(p)
+            return missing
+        except ParameterError as exc:
+            m = re.match(r"parameter '([^']+)' is missing from parameter set", str(exc))
+            if m is None or m.group(1) not in ref.values or m.group(1) in missing:
+                return missing  # another problem: the commands say it themselves
+            key = m.group(1)
+            missing.append(key)
+            p = dataclasses.replace(
+                p,
+                values={**p.values, key: ref.values[key]},
+                units={**p.units, key: ref.units[key]},
+                sources={**p.sources, key: "assumed"},
+            )
+    return missing
+
+
+def _exercise(p) -> None:
+    """Build the reference plant and the onboard sensor of ``p`` and run the plant two seconds in each gear."""
+    import numpy as np
+
+    from firmware_model.description import description_of
+    from firmware_model.onboard.sensor import VirtualSensor
+    from tools.plant.reference import ReferencePlant
+    from tools.runtable import RunTable
+
+    d = description_of(p)
+    gears = [g.number for g in d.gears if g.number != 0] or [0]
+    t = np.arange(0.0, 2.0 * len(gears) + 1.0)
+    gear = np.repeat(np.asarray(gears + [gears[-1]], dtype=float), 2)[: t.size]
+    rpm = min(1000.0, 0.5 * d.drive.max_speed_rad_s * 30.0 / np.pi)
+    nm = 0.3 * d.drive.max_torque_nm
+    table = RunTable(
+        {
+            "time_s": t,
+            "engine_speed_rpm": np.full(t.size, rpm),
+            "engine_torque_nm": np.full(t.size, nm),
+            "gear": gear,
+            "ambient_temp_c": np.full(t.size, 20.0),
+        }
+    )
+    ReferencePlant(p).run(table, out_dt_s=1.0, progress=False)
+    VirtualSensor(p)
+
+
 def run(args) -> int:
+    from pathlib import Path
+
     from firmware_model.description import description_of, limit_notes, load_description
+    from firmware_model.errors import ParameterError
     from firmware_model.parameters import load_parameters
 
     load_description(args.gearbox)  # the description's own sentences first (a missing [topology], a bad key)
     # then its parameter values, as every other command loads them (a cp of 0, a value outside its bounds, a unit
     # typo: one sentence here too)
-    d = description_of(load_parameters(args.gearbox))
+    params = load_parameters(args.gearbox)
+    d = description_of(params)
+    missing = missing_physics(params)
+    if missing:
+        raise ParameterError(
+            f"{Path(params.path).name if params.path else params.variant}: simulate and replay need physics "
+            f"parameters the file lacks: {', '.join(missing)} (the GRS905's, with their notes and provenance, are in "
+            "firmware_model/params/GRS905.toml: copy them with values for this gearbox)"
+        )
     print("\n".join(summary(d)))
     for note in limit_notes(d):  # plausible but suspect: on stderr, as the other commands' notes
         print(f"note: {note}", file=sys.stderr)
