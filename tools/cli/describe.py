@@ -65,7 +65,8 @@ def summary(d) -> list[str]:
             f"(standard {m.standard_m * 1e3:.4g} mm)"
         )
     out.append("couplings: " + ", ".join(f"{c.id} ({c.kind})" for c in d.couplings))
-    out.append(f"gears ({sum(g.number != 0 for g in d.gears)} and neutral):" if d.gears else "gears: none")
+    neutral = " and neutral" if any(g.number == 0 for g in d.gears) else ""
+    out.append(f"gears ({sum(g.number != 0 for g in d.gears)}{neutral}):" if d.gears else "gears: none")
     for g in d.gears:
         ratio = "neutral" if g.number == 0 else f"ratio {g.ratio:.6g} (stated {g.stated_ratio:g})"
         out.append(f"  {g.number:>3} {g.name}: {ratio}; path {' '.join(g.path)}")
