@@ -322,8 +322,9 @@ def _conversion(entry: dict, unit_key: str, scale_key: str, offset_key: str | No
         raise InputError(
             f"column map {where}: {unit_key} = {unit!r} in {target} is {scale_key} {implied[0]:.6g}"
             + (f", {offset_key} {implied[1]:.6g}" if offset_key else "")
-            + f"; the map gives {scale_key} {given[0]:g}"
-            + (f", {offset_key} {given[1]:g}" if offset_key else "")
-            + f" (leave {scale_key} out and {unit!r} converts)"
+            + "; the map gives "
+            + ", ".join(f"{k} {v:g}" for k, v in ((scale_key, given[0]), (offset_key, given[1])) if k and k in entry)
+            + f" (leave {' and '.join(k for k in (scale_key, offset_key) if k and k in entry)} out and {unit!r} "
+            "converts)"
         )
     return given

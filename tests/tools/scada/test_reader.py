@@ -202,7 +202,11 @@ def test_a_file_of_another_format_is_one_sentence(tmp_path, content, words):
         (("[measured.Gb1t_avg]", "[measure.Gb1t_avg]"), "unknown key 'measure'"),
         (('column = "Yt_avg"\nunit = "degC"', 'column = "Yt_avg"\nunit = "furlongs"'), "'furlongs' is not a unit"),
         (('column = "Yt_avg"\nunit = "degC"', 'column = "Yt_avg"\nunit = "rpm"'), "'rpm' is a speed"),
-        (('column = "Yt_avg"\nunit = "degC"', 'column = "Yt_avg"\nunit = "degF"\nscale = 1.0'), "is scale 0.555556"),
+        # (the map gave no offset: the sentence names only the scale it gave)
+        (
+            ('column = "Yt_avg"\nunit = "degC"', 'column = "Yt_avg"\nunit = "degF"\nscale = 1.0'),
+            "offset -17.7778; the map gives scale 1 (leave scale out and 'degF' converts)",
+        ),
         (('column = "Yt_avg"\nunit = "degC"', 'column = "Yt_avg"\nunit = "degC"\nscale = 0'), "scale must not be 0"),
         (('power_unit = "kW"', 'power_unit = "kW"\npower_scale = 1.0'), "is power_scale 1000"),
         (('power_unit = "kW"', 'power_unit = "kW"\nspeed_unit = "knots"'), "speed_unit = 'knots' is none of"),
