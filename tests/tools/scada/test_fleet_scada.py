@@ -158,3 +158,23 @@ def test_a_period_starts_on_its_own_first_day_not_on_its_first_row():
     ]
     spans = periods_of(rec, days=7.0)  # the epoch began on a Thursday: 7-day spans start on Thursdays
     assert spans[0][1] == "2017-06-15" and all(datetime.fromisoformat(s).weekday() == 3 for _, s, _ in spans)
+
+
+def test_a_partial_first_period_and_a_week_standing_still_do_not_make_the_baseline():
+    """A record that began with a partial week and a week standing still took those two as its baseline (+- 0.21)
+    and hid a drift of +0.3..+0.65 for nine weeks ("0 flagged"). The baseline is now the two most precise of the
+    first four usable periods: the drift is flagged from its first period."""
+    from tools.scada.fleet import PeriodFit
+
+    def fit(unit, k, value, se):
+        values = {"bearing_loss_scale": value, "cooler_effectiveness_scale": 1.0}
+        ses = {"bearing_loss_scale": se, "cooler_effectiveness_scale": float("inf")}  # (the cooler not identified)
+        return PeriodFit(unit, k, f"2017-01-{k + 1:02d}", 500, values, ses, 1.0)
+
+    fits = []
+    for k in range(12):
+        se = 0.6 if k < 2 else 0.05  # the partial week and the week standing still: poorly fitted
+        drift = 0.4 if k >= 6 else 0.0
+        fits += [fit("A", k, 1.0, se), fit("B", k, 1.02, se), fit("C", k, 1.0 + drift + (0.3 if k < 2 else 0.0), se)]
+    flags = [f for f in flag_units(fits) if f.effect == "bearing_loss_scale"]
+    assert [(f.vehicle, f.period) for f in flags] == [("C", 6)], flags
