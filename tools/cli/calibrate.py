@@ -259,6 +259,8 @@ def _run_scada(args, cfg, params) -> int:
     for note in notes:
         print(f"note: {note}", file=sys.stderr)
     cal = calibrate_records(setup, train, test, keys)
+    for note in cal.notes:
+        print(f"note: {note}", file=sys.stderr)
     nbm = nbm_beside(setup, train, test, params.with_overrides(cal.fitted))
     if not args.quiet:
         _print_scada(cal, nbm)

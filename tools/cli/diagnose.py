@@ -203,7 +203,7 @@ def _run_scada(args) -> int:
     setup, notes = setup_of(cfg, train[0].cmap)
     res = diagnose_records(setup, train, test, thermostat_of(cfg.load_params()))
     if notes:
-        res["warnings"] = notes
+        res["warnings"] = notes + res.get("warnings", [])
     write_json_atomic(res, args.json)
     if not args.quiet:
         _print_summary_scada(args, res)

@@ -81,6 +81,7 @@ class Calibration:
     starts: tuple = ()  # start.StartOf per file (rest, or running with --start running)
     n_eff: float = math.inf  # effective samples of the training residual after the fit
     n_eff_needed: int = 0  # ... needed to decide the fitted values (options.n_eff_needed)
+    notes: list = field(default_factory=list)  # what the records' screening left out (SCADA: a channel far off)
     n_cells: int = 0  # cells of the training residual
     train_s: float = 0.0  # training time scored [s]
 

@@ -92,8 +92,9 @@ def calibrate_records(
     params = setup.config.load_params()
     keys = sorted(params.bounds) if keys is None else list(keys)
     params = with_fit_bounds(params, keys)  # the thermostat's open below its full, whatever the trial
-    r0 = neutral_residuals(setup, train, "training", params)
-    t0 = neutral_residuals(setup, test, "test", params, require=False)  # (its readings: the command's check)
+    train, r0, notes = neutral_residuals(setup, train, "training", params)
+    test, t0, test_notes = neutral_residuals(setup, test, "test", params, require=False)  # (readings: the command's)
+    notes += test_notes
     ident, cols = identifiability(setup, train, params, keys, r0)
     fit_keys = [x.key for x in ident if x.identifiable]
     if not fit_keys:
@@ -145,6 +146,7 @@ def calibrate_records(
         test=[str(f) for r in test for f in r.files],
         n_eff=n_eff,
         n_cells=n,
+        notes=notes,
     )
 
 

@@ -151,31 +151,32 @@ def record_residuals(
     return [{ch: r.values[ch] - e[ch] for ch in setup.channels} for r, e in zip(records, est)]
 
 
-def joined(per_record: Sequence[dict], channels: Sequence[str]) -> dict[str, np.ndarray]:
+def join_records(per_record: Sequence[dict], channels: Sequence[str]) -> dict[str, np.ndarray]:
     """The records' residuals joined per channel."""
     return {ch: np.concatenate([r[ch] for r in per_record]) for ch in channels}
 
 
 def _residuals(setup: Setup, records: Sequence[ScadaRecord], effects: dict) -> dict[str, np.ndarray]:
     """{channel: measured - model} over ``records`` joined (NaN where either is missing)."""
-    return joined(record_residuals(setup, records, effects), setup.channels)
+    return join_records(record_residuals(setup, records, effects), setup.channels)
 
 
 def neutral_residuals(
     setup: Setup, records: Sequence[ScadaRecord], role: str, params=None, require: bool = True
-) -> dict[str, np.ndarray]:
-    """The records' residuals at the neutral effects, joined, after refusing a record whose units look wrong
-    (tools.scada.replay.refuse_untrusted: what makes replay exit 3 would be fitted as a gearbox effect) and, with
-    ``require``, records without a reading beside an estimate. ``params``: the gearbox's in place of the setup's."""
-    from tools.scada.replay import refuse_untrusted
+) -> tuple[list[ScadaRecord], dict[str, np.ndarray], list[str]]:
+    """(the records screened, their residuals at the neutral effects joined, a note per channel left out): a record
+    whose units look wrong is refused (tools.scada.replay.screen_untrusted: what makes replay exit 3 would be fitted
+    as a gearbox effect), a measured channel alone far off its estimate left out of its record; with ``require``,
+    records without a reading beside an estimate are refused. ``params``: the gearbox's in place of the setup's."""
+    from tools.scada.replay import screen_untrusted
 
     params = setup.params if params is None else params
     per = record_residuals(setup, records, {}, params)
-    refuse_untrusted(records, per, params, role)
-    out = joined(per, setup.channels)
+    records, per, notes = screen_untrusted(records, per, params, role, setup.sump)
+    out = join_records(per, setup.channels)
     if require:
         require_readings(out, role)
-    return out
+    return records, out, notes
 
 
 def require_readings(res: dict[str, np.ndarray], which: str) -> None:
@@ -321,7 +322,9 @@ def diagnose_records(
 ) -> dict:
     """The gap-diagnosis/1 result of ``setup``'s model on the SCADA records (``train`` fits, ``test`` scores)."""
     t0 = time.perf_counter()
-    r0, t_before = neutral_residuals(setup, train, "training"), neutral_residuals(setup, test, "test")
+    train, r0, notes = neutral_residuals(setup, train, "training")
+    test, t_before, test_notes = neutral_residuals(setup, test, "test")
+    notes += test_notes
     sse0, n = _sse(r0), int(_pooled(r0).size)
     n_eff = effective_n(r0)
     masks = [regimes(r, thermostat_c, setup.sump or oil_channel(r)) for r in train]
@@ -385,7 +388,7 @@ def diagnose_records(
         "verdict": verdict,
         "model": {"kind": "onboard", "rows_train": n, "effective_samples": n_eff},
         "timing": {"total_s": time.perf_counter() - t0},
-    }
+    } | ({"warnings": notes} if notes else {})
 
 
 def _thin_verdict(verdict: dict, cands: list[dict], n: int, n_eff: float) -> dict:

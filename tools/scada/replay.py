@@ -163,6 +163,7 @@ class RecordFinding:
     kind: str
     severity: int
     sentence: str
+    channel: str | None = None  # the measured channel it is about (an estimate far off its readings), if one
 
 
 def record_findings(record: ScadaRecord, result: ScadaReplay) -> list:
@@ -286,6 +287,7 @@ def bias_finding(name: str, est_minus_measured) -> RecordFinding | None:
             else "the model and this unit disagree (a bearing running hot, a sensor offset: "
             "gearbox-vsensor diagnose) or a unit or a channel of the column map is wrong"
         ),
+        name,
     )
 
 
@@ -310,17 +312,37 @@ def untrusted_findings(record: ScadaRecord, residual: dict, params) -> list[Reco
     return found
 
 
-def refuse_untrusted(records, residuals, params, role: str) -> None:
-    """InputError naming the first of ``records`` (with its residuals at the neutral effects, ``residuals``) whose
-    units look wrong (:func:`untrusted_findings`); ``role``: "training" or "test"."""
+def screen_untrusted(records, residuals, params, role: str, sump: str | None = None) -> tuple[list, list, list]:
+    """``records`` and their residuals at the neutral effects (``residuals``) screened by :func:`untrusted_findings`:
+    an InputError naming the first record whose inputs or sump look wrong (a column out of range, the torque in
+    kN m, the sump channel ``sump`` far off the model, or every other channel off: the sump drives their estimates);
+    a measured channel far off its estimate beside others that are not (a thermocouple reading 0 degC, tied to the
+    wrong node) is left out of that record instead, the rest of it kept: (records, residuals, one note per channel
+    left out). ``role``: "training" or "test"."""
+    kept, kept_res, notes = [], [], []
     for record, residual in zip(records, residuals):
         found = untrusted_findings(record, residual, params)
-        if found:
-            files = ", ".join(Path(f).name for f in record.files[:3]) + (" ..." if len(record.files) > 3 else "")
+        files = ", ".join(Path(f).name for f in record.files[:3]) + (" ..." if len(record.files) > 3 else "")
+        off = {f.channel for f in found if f.channel is not None}
+        sound = [ch for ch, r in residual.items() if ch != sump and ch not in off and np.isfinite(r).sum()]
+        # every channel off alike (or the sump, which drives them): an input's unit, not one channel's fault
+        fatal = [f for f in found if f.channel is None or f.channel == sump or not sound]
+        if fatal:
             raise InputError(
-                f"the {role} record of {record.unit} ({files}): {found[0].sentence} (replay exits 3 on it; fix the "
+                f"the {role} record of {record.unit} ({files}): {fatal[0].sentence} (replay exits 3 on it; fix the "
                 "file or the column map)"
             )
+        drop = [f for f in found if f.channel is not None]
+        if drop:
+            record = record.select(np.ones(record.n, dtype=bool))
+            residual = dict(residual)
+            for f in drop:
+                record.values[f.channel] = np.full(record.n, np.nan)
+                residual[f.channel] = np.full(record.n, np.nan)
+                notes.append(f"the {role} record of {record.unit} ({files}): {f.channel} left out: {f.sentence}")
+        kept.append(record)
+        kept_res.append(residual)
+    return kept, kept_res, notes
 
 
 def error_lines(result: ScadaReplay) -> list[str]:

@@ -249,6 +249,19 @@ def test_a_record_replay_distrusts_is_refused_by_diagnose_and_calibrate_naming_i
     assert diagnose_records(s, *good)["verdict"]["effect"] == "none"  # the same records in degC
 
 
+def test_one_thermocouple_far_off_beside_sound_ones_is_left_out_not_the_record(setup):
+    """A bearing channel reading 50 K under its estimate (a dead or misplaced thermocouple) beside a sound one and a
+    sound sump: that channel is left out of the record, said in the warnings, and the rest diagnosed (a whole real
+    turbine-year refused for one channel would leave nothing to diagnose)."""
+    s, train, test = setup
+    good = [_measured(s, train, {}, 3)], [_measured(s, test, {}, 4)]
+    broken = good[0][0].select(np.ones(good[0][0].n, dtype=bool))
+    broken.values["Gb1t_avg"] = broken.values["Gb1t_avg"] - 50.0
+    res = diagnose_records(s, [broken], good[1])
+    assert res["verdict"]["effect"] == "none", res["verdict"]
+    assert any("Gb1t_avg left out: Gb1t_avg: the estimate is +50.0 K off" in w for w in res["warnings"]), res
+
+
 def test_options_for_run_tables_or_logs_are_refused_on_scada_not_ignored(tmp_path):
     """`diagnose --columns ... --model plant` diagnosed the onboard model, and `fleet --columns` dropped --prune
     and --vehicle-from, each with exit 0."""
