@@ -246,8 +246,9 @@ def _run_scada(args) -> int:
     with progress(len(records), "fleet", unit="unit") as bar:
         fits = fit_fleet(setup, records, days, progress=lambda: bar.update(1), rejected=rejected)
     for unit, why in rejected:
-        print(f"left out {unit}: {why} (replay exits 3 on it; fix the file or the column map)", file=sys.stderr)
-        skipped.append((", ".join(str(p) for p in records[unit].files), f"unit {unit} left out: {why}"))
+        print(f"{'note' if ' left out: ' in why else 'left out ' + unit}: {why}", file=sys.stderr)
+        skipped.append((", ".join(str(p) for p in records[unit].files), why))
+    rejected = [r for r in rejected if " left out: " not in r[1]]  # (a channel left out: the unit is fitted)
     flags = flag_units(fits)
     root = Path(args.out) / "health"
     _write_health(root, fits, flags)

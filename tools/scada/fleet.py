@@ -187,18 +187,23 @@ def fit_fleet(
     """Every unit's PeriodFit (units in name order, periods in time order). Each unit's whole record is replayed
     once at the neutral effects and once per effect stepped (a period keeps the state the ones before left: no
     start-up transient at each period's first rows), then each period is fitted on its rows. A unit whose units
-    look wrong (tools.scada.replay.untrusted_findings: what makes replay exit 3) is left out, its fits would move
-    the fleet's median: (unit, sentence) appended to ``rejected``."""
-    from tools.scada.replay import untrusted_findings
+    look wrong (tools.scada.replay.screen_untrusted: what makes replay exit 3) is left out, its fits would move the
+    fleet's median; a single channel far off beside sound ones is left out of the unit instead: (unit, sentence)
+    appended to ``rejected`` either way."""
+    from firmware_model.errors import InputError
+    from tools.scada.replay import screen_untrusted
 
     fits = []
     for unit, rec in sorted(records.items()):
         r0 = _residual(setup, rec, {})
-        found = untrusted_findings(rec, r0, setup.params)
-        if found:
+        try:
+            (rec,), (r0,), notes = screen_untrusted([rec], [r0], setup.params, "fleet", setup.sump)
+        except InputError as exc:
             if rejected is not None:
-                rejected.append((unit, found[0].sentence))
+                rejected.append((unit, str(exc)))
         else:
+            if rejected is not None:  # a channel left out, the unit kept
+                rejected += [(unit, note) for note in notes]
             resid = r0, stepped_residuals(setup, rec)
             fits += fit_unit(setup, rec, days, resid=resid, unit=unit)
         if progress is not None:
