@@ -36,7 +36,8 @@ def add_subparser(sub):
         help="regular expression searched in each log's file name, else in its whole path (a pattern with a "
         "folder in it: '(?P<vehicle>[^/]+)/[^/]+$'): the vehicle is its group (?P<vehicle>...), else its first "
         "group, else what it matches (optional (?P<variant>...), (?P<date>...)); a file it does not match stops "
-        "the run naming it. Default: the folder holding the log inside a folder given (logs/V/*.log), else one "
+        "the run naming it. Default: the folder directly inside a folder given that holds the log (logs/V/*.log, "
+        "logs/V/2026-01/*.log), else one "
         "vehicle per log (its file name without the suffix); the run says which in one line",
     )
     p.add_argument("--scheduler", metavar="ADDRESS", help="an existing Dask scheduler, tcp://HOST:PORT")

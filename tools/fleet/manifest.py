@@ -140,9 +140,12 @@ def entries_from_paths(paths, pattern: str | None = None, vehicle_from: str | No
     return entries_and_rule(paths, pattern, vehicle_from)[0]
 
 
-def _log_files(paths) -> list[tuple[Path, bool]]:
-    """(log file, whether it lies in a subfolder of a folder given) for every log among ``paths``."""
-    files: list[tuple[Path, bool]] = []
+def _log_files(paths) -> list[tuple[Path, str | None]]:
+    """(log file, the name of the folder directly inside a folder given that holds it, at any depth: its vehicle
+    by default; None for a log directly in a folder given or given itself) for every log among ``paths``. A truck's
+    folder with month folders in it (logs/truck1/2026-01/*.log) is still truck1's (the folder holding the log, the
+    month, made every truck's January one vehicle)."""
+    files: list[tuple[Path, str | None]] = []
     for given in paths:
         p = Path(given)
         if p.is_dir():
@@ -156,9 +159,9 @@ def _log_files(paths) -> list[tuple[Path, bool]]:
                     or (f.suffix.lower() == ".gz" and Path(f.stem).suffix.lower() in LOG_SUFFIXES)
                 )
             )
-            files.extend((f, f.parent != p) for f in found)
+            files.extend((f, f.relative_to(p).parts[0] if f.parent != p else None) for f in found)
         elif p.exists():
-            files.append((p, False))
+            files.append((p, None))
         else:
             raise InputError(f"{p} does not exist")
     return files
@@ -212,9 +215,9 @@ def _vehicle_from(files: list[Path], vehicle_from: str, option: str = "--vehicle
 def entries_and_rule(paths, pattern: str | None = None, vehicle_from: str | None = None) -> tuple[list[LogEntry], str]:
     """The logs among ``paths`` with their vehicles, and one sentence saying how the vehicles were read. The
     vehicle: what ``vehicle_from`` finds in the file name, else in the path (:func:`_vehicle_from`; ``pattern`` is
-    the same, the former --vehicle-pattern); else the name of the folder holding the log when that folder lies
-    inside a folder given (logs/<vehicle>/*.log), and otherwise the log itself, its file name without the suffix: a
-    flat folder of logs is one vehicle per log (it was one vehicle, the folder's)."""
+    the same, the former --vehicle-pattern); else the name of the folder directly inside a folder given that holds
+    the log, at any depth (logs/<vehicle>/*.log, logs/<vehicle>/<month>/*.log), and otherwise the log itself, its
+    file name without the suffix: a flat folder of logs is one vehicle per log (it was one vehicle, the folder's)."""
     if pattern and vehicle_from:
         raise InputError("give either --vehicle-pattern (on the path) or --vehicle-from (on the file name), not both")
     listed = _log_files(paths)
@@ -227,17 +230,18 @@ def entries_and_rule(paths, pattern: str | None = None, vehicle_from: str | None
         n = len({v for _, v, _, _ in found})
         where = "paths" if on_path else "file names"
         return check_entries(entries, "the logs given"), f"vehicles: {n} read from the {where} by {option} '{regex}'"
-    entries = [_entry(f, f.parent.resolve().name if nested else _stem(f)) for f, nested in listed]
+    entries = [_entry(f, folder if folder is not None else _stem(f)) for f, folder in listed]
     check_entries(entries, "the logs given")
-    n_nested = sum(nested for _, nested in listed)
+    n_nested = sum(folder is not None for _, folder in listed)
     loose = len(listed) - n_nested
     parts = []
     if n_nested:
         parts.append(
-            f"{len({e.vehicle for e, (_, n) in zip(entries, listed) if n})} from the folders holding {n_nested} logs"
+            f"{len({e.vehicle for e, (_, n) in zip(entries, listed) if n is not None})} from the folders holding "
+            f"{n_nested} logs"
         )
     if loose:
-        names = [e.vehicle for e, (_, n) in zip(entries, listed) if not n]
+        names = [e.vehicle for e, (_, n) in zip(entries, listed) if n is None]
         parts.append(
             f"one per log for the {loose} logs not in a vehicle's folder (the file name without its suffix: "
             f"{', '.join(names[:3])}{' ...' if loose > 3 else ''}; --vehicle-from REGEX reads a vehicle "

@@ -1,0 +1,33 @@
+"""Which vehicle a log of a fleet folder belongs to (tools.fleet.manifest.entries_and_rule, without a manifest)."""
+
+from __future__ import annotations
+
+from tools.fleet.manifest import entries_and_rule
+
+
+def _touch(path):
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text("(0.000000) can0 0CF00400#0000000000000000\n")
+    return path
+
+
+def test_a_truck_s_folder_with_month_folders_is_still_that_truck(tmp_path):
+    """logs/truck1/2026-01/d05.log and logs/truck3/2026-01/d05.log were one vehicle, "2026-01" (the folder holding
+    each log), their health fits blended into one (a healthy cooler and a fouled one: 0.69). The vehicle is the
+    folder directly inside the folder given, at any depth; a log directly in it is its own vehicle, as before."""
+    for truck in ("truck1", "truck3"):
+        for month in ("2026-01", "2026-02"):
+            _touch(tmp_path / truck / month / "d05.log")
+    _touch(tmp_path / "truck2" / "d05.log")
+    _touch(tmp_path / "loose_truck9.log")
+    entries, rule = entries_and_rule([tmp_path])
+    by_vehicle = sorted({(e.vehicle, e.log.relative_to(tmp_path).as_posix()) for e in entries})
+    assert by_vehicle == [
+        ("loose_truck9", "loose_truck9.log"),
+        ("truck1", "truck1/2026-01/d05.log"),
+        ("truck1", "truck1/2026-02/d05.log"),
+        ("truck2", "truck2/d05.log"),
+        ("truck3", "truck3/2026-01/d05.log"),
+        ("truck3", "truck3/2026-02/d05.log"),
+    ]
+    assert rule.startswith("vehicles: 4: 3 from the folders holding 5 logs")
