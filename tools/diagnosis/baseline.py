@@ -51,6 +51,9 @@ class Baseline:
     p0_te: list  # the same on the test files
     S0: float  # misfit of the baseline (training files)
     S_noise: float  # the part of S the noise and the model error floor explain
+    #: per channel, the model's error the verdict's thresholds take: the floor and, for the plant, its inputs'
+    #: sampling error in quadrature (model_error_floor); the weights keep the floor alone
+    thr_floor: dict = None
 
     @property
     def train(self) -> RoleData:
@@ -112,20 +115,27 @@ def _simulate(ctx: Context, train: list, test: list, grid: GridPlan) -> Sims:
     )
 
 
-def model_error_floor(ctx: Context, train: list, sims: Sims, lag: dict, channels) -> dict:
+#: a channel whose noise per sample is under this is noise-free (the J1939 quantisation alone is 0.009 degC): there
+#: the thresholds fall to the model's error, and the plant's include its inputs' sampling error [degC]
+NOISE_FREE_C = 0.02
+
+
+def model_error_floor(ctx: Context, train: list, sims: Sims, lag: dict, channels) -> tuple[dict, dict]:
     """Per channel, the model's own error, at least model_floor_c: the plant's numerical error (BDF2: error ~ dt^2,
     so the full step's error is about 4/3 of its difference to the half step); the onboard model's reduction error,
-    its RMS difference to the reference plant on the same files (``ref_tr``). The plant's adds, in quadrature, its
-    inputs' sampling error: its RMS difference on inputs thinned (``thin_tr``: every second row's drive inputs from
-    its neighbours, about the same error again where the drive varies faster than the rows, next to none where it
-    moves smoothly between them). Where
+    its RMS difference to the reference plant on the same files (``ref_tr``). Returns (that floor, the floor the
+    thresholds take): for the plant the latter adds, in quadrature, its inputs' sampling error: its RMS difference
+    on inputs thinned (``thin_tr``: every second row's drive inputs from its neighbours, about the same error again
+    where the drive varies faster than the rows, next to none where it moves smoothly between them). The weights
+    keep the floor alone, and the sampling error counts on noise-free channels only (``channels``: the noise per
+    channel; NOISE_FREE_C). Where
     the reduced model departs from the plant no effect is to absorb it (a third effect took up a rig's reduction
     error of 1.2 times the threshold beside a planted pair; an arctic start without any effect was called
     synchronizer heat)."""
     o = ctx.opts
     floor = {c: o.model_floor_c for c in channels}
     if sims.ref_tr is None:
-        return floor
+        return floor, dict(floor)
     factor = 4.0 / 3.0 if ctx.is_plant else 1.0
     err = _rms_by_channel(train, predictions(train, sims.base_tr, lag), predictions(train, sims.ref_tr, lag))
     # the plant: its step's error and, in quadrature, its inputs' sampling error (their odd rows from their
@@ -135,9 +145,15 @@ def model_error_floor(ctx: Context, train: list, sims: Sims, lag: dict, channels
         if sims.thin_tr is not None
         else {}
     )
+    thr = dict(floor)
     for cid, e in err.items():
-        floor[cid] = max(o.model_floor_c, math.hypot(factor * e, samp.get(cid, 0.0)))
-    return floor
+        floor[cid] = max(o.model_floor_c, factor * e)
+        # only on a channel without measurement noise: with noise, its threshold covers the inputs' error (with the
+        # sampling error in the thresholds of noisy channels a rig's weak cooler, bench-diagnosis' scenario 1,
+        # went unseen)
+        s_c = samp.get(cid, 0.0) if channels.get(cid, 0.0) < NOISE_FREE_C else 0.0
+        thr[cid] = max(o.model_floor_c, math.hypot(factor * e, s_c))
+    return floor, thr
 
 
 def _rms_by_channel(datasets: list, a_preds: list, b_preds: list) -> dict:
@@ -176,7 +192,7 @@ def establish_baseline(ctx: Context, train: list, test: list, grid: GridPlan) ->
     # noise per channel (pooled median over the files), nuisance lags
     sigma = noise_per_channel(train + test, sims.base_tr + sims.base_te)
     lag = fit_nuisance_lags(train, sims.base_tr, ctx.opts)
-    floor = model_error_floor(ctx, train, sims, lag, sigma)
+    floor, thr_floor = model_error_floor(ctx, train, sims, lag, sigma)
     scorer = Scorer(
         _role(train, sims.base_tr, sims.warm_tr, lag, sigma, floor, ctx, sims.house_tr),
         _role(test, sims.base_te, sims.warm_te, lag, sigma, floor, ctx, sims.house_te),
@@ -208,4 +224,5 @@ def establish_baseline(ctx: Context, train: list, test: list, grid: GridPlan) ->
         p0_te,
         S0,
         S_noise,
+        thr_floor,
     )

@@ -80,6 +80,11 @@ class Verdict:
         return {c: v for c, v in self.post_c.items() if v > self.gap_thr_c[c]}
 
 
+def _thr_floor(base: Baseline) -> dict:
+    """The model error the thresholds take (tools.diagnosis.baseline.model_error_floor)."""
+    return base.thr_floor if base.thr_floor is not None else base.floor
+
+
 def systematic(base: Baseline, preds: list, opts: Options) -> Systematic:
     """Per channel: RMS of the training residual with the noise removed, and the 'none' threshold."""
     rd = base.train
@@ -94,7 +99,7 @@ def systematic(base: Baseline, preds: list, opts: Options) -> Systematic:
             a[1] += float(np.sum(base.sigma[cid] ** 2 / ch.cell_n))
             a[2] += r.size
     sys_rms = {c: math.sqrt(max(a[0] - a[1], 0.0) / max(a[2], 1)) for c, a in acc.items()}
-    thr = {c: max(opts.none_k * base.sigma[c], opts.none_floor_c, base.floor[c]) for c in acc}
+    thr = {c: max(opts.none_k * base.sigma[c], opts.none_floor_c, _thr_floor(base)[c]) for c in acc}
     return Systematic(sys_rms, thr)
 
 
@@ -127,7 +132,8 @@ def _none_reason(sys_rms: dict, thr: dict, base: Baseline, o: Options, is_plant:
     """Why the verdict is none: within the noise, or within the model's own measured error where that sets the
     threshold (a residual 7.6 times the noise is not "within its noise")."""
     listing = "systematic residual " + _listing(sys_rms, thr, "<=", sys_rms)
-    by_floor = [c for c in sys_rms if base.floor[c] > max(o.none_k * base.sigma[c], o.none_floor_c, o.model_floor_c)]
+    fl = _thr_floor(base)
+    by_floor = [c for c in sys_rms if fl[c] > max(o.none_k * base.sigma[c], o.none_floor_c, o.model_floor_c)]
     if not by_floor:
         return f"the model agrees with the measurement within its noise on every channel ({listing})"
     what = (
@@ -137,7 +143,7 @@ def _none_reason(sys_rms: dict, thr: dict, base: Baseline, o: Options, is_plant:
     )
     return (
         f"no gap beyond what this model can resolve: on {', '.join(by_floor)} the threshold is the model's own "
-        f"error ({what} on these drives, {', '.join(f'{c} {base.floor[c]:.3f} degC' for c in by_floor)}), "
+        f"error ({what} on these drives, {', '.join(f'{c} {fl[c]:.3f} degC' for c in by_floor)}), "
         f"larger than the noise, so an effect smaller than that goes unseen ({listing})"
     )
 
@@ -151,7 +157,7 @@ def decide(ctx: Context, base: Baseline, crit: Criterion) -> Verdict:
     o = ctx.opts
     sy = systematic(base, base.p0_tr, o)
     sys_rms, thr = sy.rms_c, sy.none_thr_c
-    gap_thr = {c: max(o.gap_k * base.sigma[c], o.gap_floor_c, 2.0 * base.floor[c]) for c in sys_rms}
+    gap_thr = {c: max(o.gap_k * base.sigma[c], o.gap_floor_c, 2.0 * _thr_floor(base)[c]) for c in sys_rms}
     top = crit.candidates[0]
     post = systematic(base, top.fit.preds_train, o).rms_c
     gap_left = any(post[c] > gap_thr[c] for c in post)
