@@ -43,6 +43,7 @@ from firmware_model.service.options import (
     NOMINAL_PERIOD_S,
     SOURCE_ADDRESS_KEYS,
     SOURCE_ADDRESS_TABLE,
+    STALE_FACTOR_MAX,
     TIME_BASE_WINDOW_S,
     TIME_BASE_WINDOWS,
     wanted_pgns,
@@ -502,11 +503,17 @@ def _slow_message(msg: str, arrivals: int, steps: int, stale_factor: float, stal
     if period_s <= max_age_s or abs(stale / steps - (1.0 - max_age_s / period_s)) > SLOW_SHARE_TOL:
         return ""
     need = math.ceil(1.5 * period_s / nominal_s)
-    return (
+    said = (
         f"{msg} arrived every {1000 * period_s:.0f} ms on average, while a value older than {stale_factor:g} x "
-        f"its J1939 period ({1000 * nominal_s:.0f} ms) is stale (a logger that down-samples, or a slow node?): "
-        f"[can] stale_factor = {need} accepts it"
+        f"its J1939 period ({1000 * nominal_s:.0f} ms) is stale"
     )
+    if need > STALE_FACTOR_MAX:
+        # advice the option would refuse is no advice (a log in milliseconds asked for 70 and 91)
+        return (
+            f"{said}, far slower than any [can] stale_factor (at most {STALE_FACTOR_MAX:g}) accepts (time stamps "
+            f"in milliseconds, or a node that slow?)"
+        )
+    return f"{said} (a logger that down-samples, or a slow node?): [can] stale_factor = {need} accepts it"
 
 
 @dataclass(frozen=True)

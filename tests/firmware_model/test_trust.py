@@ -322,6 +322,26 @@ def test_a_message_slower_than_the_staleness_rule_is_named_with_the_stale_factor
     assert not any("stale_factor" in c for c in gaps), gaps
 
 
+def test_the_stale_factor_advice_never_names_a_value_the_option_refuses():
+    """A message far slower than any [can] stale_factor accepts (a log in milliseconds: EEC1 every 926 ms of steps)
+    is said without advice: it used to say "stale_factor = 70 accepts it", which ServiceOptions refuses (1..20).
+    Every factor the advice names is one the option takes."""
+    from firmware_model.service import ServiceOptions
+    from firmware_model.service.options import STALE_FACTOR_MAX
+    from firmware_model.service.trust import input_causes
+
+    steps = 108685
+    slow = input_causes({"arrivals": {"EEC1": 11733}, "tp": {"ec1_received": 20}}, {"engine_speed_rpm": steps}, steps)
+    assert len(slow) == 1 and "stale_factor =" not in slow[0], slow
+    assert f"far slower than any [can] stale_factor (at most {STALE_FACTOR_MAX:g}) accepts" in slow[0]
+    for arrivals in (100, 200, 400, 700, 1000):  # EEC1 at 1000 ms down to 100 ms over 1000 steps
+        stale = int(1000 * (1.0 - 0.06 / (100.0 / arrivals)))
+        for cause in input_causes({"arrivals": {"EEC1": arrivals}}, {"engine_speed_rpm": stale}, 1000):
+            if "stale_factor = " in cause:
+                factor = float(cause.split("stale_factor = ")[1].split()[0])
+                assert ServiceOptions(stale_factor=factor).stale_factor == factor
+
+
 def test_a_run_without_any_oil_reading_is_told_how_to_model_the_oil_by_request():
     """A table without oil_temp_c is degraded throughout (the oil modelled as a fault); the sentence says how to ask
     for the model instead. A run missing the oil for part of the time gets no such advice."""
