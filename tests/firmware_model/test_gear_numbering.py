@@ -82,3 +82,26 @@ def test_the_real_trucks_gear_numbers_are_not_the_grs905s(tmp_path, capsys):
         "(steps 1.30 : 1.41, where the GRS905's ratios step 1.17 : 1.24; over the GRS905's ratios an axle ratio" in err
     )
     assert "of 0.57-0.72 on 0.5 m tyres, where road vehicles have 2-7)" in err
+
+
+@needs_captures
+def test_replay_and_fleet_give_a_log_the_same_findings_the_gear_rule_included(tmp_path):
+    """The findings of a log are one list (tools.replay.log.log_findings over replay_log's table): `fleet` used to
+    drop the gear-numbering warning that `replay` added beside it (trusted, no trust_warnings, on the same
+    capture)."""
+    from firmware_model.service import build_service
+    from tools.fleet.manifest import LogEntry
+    from tools.fleet.run import process_log
+    from tools.replay.log import log_findings, replay_log, replay_log_file
+
+    log = DATA / "normal.candump.log"
+    service = build_service(None, record=True, emit_frames=False, log_findings=False)
+    found = log_findings(service, replay_log(log, service))
+    gear = [f for f in found if "does not follow the GRS905's ratios" in f.sentence]
+    assert len(gear) == 1 and gear[0].severity == Severity.WARNING, [f.sentence for f in found]
+    status, row = process_log(LogEntry(log, "truck", None, None, None, "k"))
+    assert status == "ok" and row["trusted"], row
+    assert row["trust_warnings"] == " | ".join(f.sentence for f in found if f.severity >= Severity.WARNING)
+    assert gear[0].sentence in row["trust_warnings"]
+    replayed = replay_log_file(log, tmp_path / "e.csv")
+    assert [f.sentence for f in replayed.findings] == [f.sentence for f in found]

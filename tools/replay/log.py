@@ -111,11 +111,20 @@ def replay_log(
             _no_step_reason(path, service.decoder.counters)
             + (f" ({malformed.summary})" if malformed is not None else "")
         )
-    return RunTable(
-        columns,
-        meta={"counters": service.all_counters(), "log": os.fspath(path), "reader": reader, "malformed": malformed},
-        source=os.fspath(path),
-    )
+    meta = {"counters": service.all_counters(), "log": os.fspath(path), "reader": reader, "malformed": malformed}
+    # the gear-numbering rule's ratios travel with the table, so every caller of log_findings judges the gear
+    meta.update(_gear_meta(service.sensor))
+    return RunTable(columns, meta=meta, source=os.fspath(path))
+
+
+def _gear_meta(sensor) -> dict:
+    """The gear-numbering rule's inputs of the gearbox ``sensor`` replays (tools.replay.table.gear_meta); none for
+    a sensor without a parameter set."""
+    from firmware_model.description import description_of
+    from tools.replay.table import gear_meta
+
+    params = getattr(sensor, "params", None)
+    return {} if params is None else gear_meta(description_of(params))
 
 
 def _no_step_reason(path, d: dict) -> str:
@@ -181,9 +190,7 @@ def replay_log_file(
     a log with a malformed line (else skipped, counted, and among the findings when they make it untrusted)."""
     import can
 
-    from firmware_model.description import description_of
     from firmware_model.service import build_service
-    from tools.replay.table import gear_meta
     from tools.runtable import write_run_table
 
     service = build_service(
@@ -208,7 +215,6 @@ def replay_log_file(
             with naming(frames_out):
                 writer.stop()
     table.meta["limits"] = service.sensor.limits  # the summary's margins: this gearbox's limits, not the GRS905's
-    table.meta.update(gear_meta(description_of(service.sensor.params)))  # the gear-numbering rule's ratios
     with naming(out):
         written = write_run_table(table, out)
     return LogReplay(
@@ -231,9 +237,10 @@ def with_malformed(findings, malformed) -> list:
 
 
 def log_findings(service, table) -> list:
-    """The trust findings of a replayed log: the service's (firmware_model.service.trust) and the whole record's
-    (firmware_model.service.plausibility: unit and sign of the decoded inputs, clamps or repairs on more than 5 % of
-    the steps), most severe first."""
+    """The trust findings of a replayed log (``table`` from :func:`replay_log`), the one list `replay` and `fleet`
+    give: the service's (firmware_model.service.trust) and the whole record's (firmware_model.service.plausibility:
+    unit and sign of the decoded inputs, gear numbers that are not this gearbox's, clamps or repairs on more than
+    5 % of the steps), most severe first."""
     from firmware_model.service.plausibility import min_torque_nm, with_record_findings
 
     return with_record_findings(service.findings(), table, min_torque_nm(service.sensor), "can")
