@@ -12,6 +12,8 @@ Three findings, each a typed record with a :class:`Severity` and one sentence (`
   none from the configured one: almost always a wrong address in the config; it names the key that fixes it
   without moving another input.
 - :class:`DegradedFinding`: the sensor ran degraded (``degraded_mode`` not 0) on a large share of its steps.
+- :class:`MillisecondsFinding` (a whole log, :func:`milliseconds_finding`): the input messages arrived about 1000
+  times more slowly than their J1939 periods over the whole log: its time stamps are milliseconds.
 
 :func:`trust_findings` derives them from the service's counters (``SensorService.all_counters()``);
 :func:`degraded_finding` also serves a run-table replay, which has no CAN counters. The thresholds are the constants
@@ -294,6 +296,52 @@ class TimeBaseCheck:
         ratio = math.sqrt(low * high) if direction == "faster" else 1.0 / math.sqrt(low * high)
         self.finding = TimeBaseFinding(direction, ratio, len(self._run), self.window_s, periods)
         return self.finding
+
+
+#: a whole log whose input messages agree on arriving about this many times slower than their J1939 periods has
+#: its time stamps in milliseconds, read as seconds (give or take MS_SPREAD either way); the windows of the time-base
+#: check cannot see it: EEC1 every 15 "s" puts too few frames into 10 s to judge a rate
+MS_RATIO, MS_SPREAD = 1000.0, 3.0
+
+
+@dataclass(frozen=True)
+class MillisecondsFinding:
+    """Over a whole log of ``span_s`` frame time the input messages arrived about ``ratio`` times more slowly than
+    their J1939 periods (``periods_s``: message -> mean period): time stamps in milliseconds read as seconds."""
+
+    kind: ClassVar[str] = "milliseconds"
+    ratio: float
+    span_s: float
+    periods_s: dict = field(default_factory=dict)
+    time_jumps: int = 0
+
+    @property
+    def severity(self) -> Severity:
+        return Severity.UNTRUSTED
+
+    @property
+    def sentence(self) -> str:
+        shown = [m for m in PERIOD_RANGE_S if m in self.periods_s][:3]
+        seen = ", ".join(f"{m} every {_ms(self.periods_s[m])} against {_period_range(m)}" for m in shown)
+        jumps = f", and {self.time_jumps} of the gaps between them were taken for time jumps" if self.time_jumps else ""
+        return (
+            f"the log's time stamps look like milliseconds, not seconds: over its {self.span_s:.0f} s of frame time "
+            f"the input messages arrive about {self.ratio:.0f}x more slowly than their J1939 periods ({seen}){jumps}; "
+            f"give the time stamps in seconds (candump -L writes seconds: divide them by 1000)"
+        )
+
+
+def milliseconds_finding(arrivals: Mapping[str, int], span_s: float, time_jumps: int = 0):
+    """The :class:`MillisecondsFinding` of a whole log (``arrivals``: message -> frames from its expected source,
+    ``span_s``: the log's frame time), or None: every message with a few frames agrees on MS_RATIO, within
+    MS_SPREAD (one slow sender, or a log that is mostly a logger's pause, does not)."""
+    judged = window_ratio({m: arrivals.get(m, 0) for m in PERIOD_RANGE_S}, span_s)
+    if judged is None:
+        return None
+    low, high, periods = judged
+    if not (MS_RATIO / MS_SPREAD <= 1.0 / high and 1.0 / low <= MS_RATIO * MS_SPREAD):
+        return None
+    return MillisecondsFinding(1.0 / math.sqrt(low * high), float(span_s), periods, int(time_jumps))
 
 
 # -- findings from the counters ----------------------------------------------------------------------------------

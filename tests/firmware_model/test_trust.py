@@ -342,6 +342,22 @@ def test_the_stale_factor_advice_never_names_a_value_the_option_refuses():
                 assert ServiceOptions(stale_factor=factor).stale_factor == factor
 
 
+def test_a_whole_log_about_1000x_too_slow_looks_like_milliseconds():
+    """Every input message 1000x slower than its J1939 period over the whole log (a log in milliseconds read as
+    seconds: EEC1 every 15 "s", too few frames for any 10 s window of the time-base check) is said; 10x slower (the
+    time-base check's), at its rate, or one message alone that slow (a log mostly paused agrees on no ratio) is not."""
+    from firmware_model.service.trust import milliseconds_finding
+
+    at_rate = {"EEC1": 9000, "ETC2": 1800, "TRF1": 180, "ET1": 180, "AMB": 180, "CCVS1": 180, "ERC1": 1800}
+    found = milliseconds_finding(at_rate, 180_000.0, 12370)
+    assert found is not None and found.severity == Severity.UNTRUSTED and 700 < found.ratio < 1400
+    assert found.sentence.startswith("the log's time stamps look like milliseconds, not seconds: over its 180000 s")
+    assert "ETC2 every 100 s against 100 ms" in found.sentence and "12370 of the gaps" in found.sentence
+    assert milliseconds_finding(at_rate, 180.0) is None
+    assert milliseconds_finding(at_rate, 1800.0) is None
+    assert milliseconds_finding({**at_rate, "EEC1": 9}, 180.0) is None
+
+
 def test_a_run_without_any_oil_reading_is_told_how_to_model_the_oil_by_request():
     """A table without oil_temp_c is degraded throughout (the oil modelled as a fault); the sentence says how to ask
     for the model instead. A run missing the oil for part of the time gets no such advice."""

@@ -21,6 +21,7 @@ import threading
 from pathlib import Path
 from typing import Any, NamedTuple
 
+from firmware_model.components import STEP_S
 from firmware_model.errors import InputError
 from tools.outputs import naming
 from tools.replay.formats import LOG_SUFFIXES, check_log, is_can_log, read_log  # noqa: F401 (re-exported)
@@ -240,10 +241,18 @@ def log_findings(service, table) -> list:
     """The trust findings of a replayed log (``table`` from :func:`replay_log`), the one list `replay` and `fleet`
     give: the service's (firmware_model.service.trust) and the whole record's (firmware_model.service.plausibility:
     unit and sign of the decoded inputs, gear numbers that are not this gearbox's, clamps or repairs on more than
-    5 % of the steps), most severe first."""
+    5 % of the steps) and the whole log's (time stamps in milliseconds), most severe first."""
     from firmware_model.service.plausibility import min_torque_nm, with_record_findings
+    from firmware_model.service.trust import milliseconds_finding
 
-    return with_record_findings(service.findings(), table, min_torque_nm(service.sensor), "can")
+    found = with_record_findings(service.findings(), table, min_torque_nm(service.sensor), "can")
+    t = table["can_time_s"]
+    ms = milliseconds_finding(
+        service.decoder.counters.get("arrivals", {}),
+        float(t[-1] - t[0]) + STEP_S if table.n else 0.0,
+        int(service.counters.get("time_jumps", 0)),
+    )
+    return found if ms is None else sorted([ms, *found], key=lambda f: -f.severity)
 
 
 def play_log(

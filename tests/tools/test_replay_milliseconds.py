@@ -1,0 +1,55 @@
+"""A CAN log whose time stamps are milliseconds (read as seconds: every frame ~1000x too far apart for its J1939
+period) is said to look like milliseconds, by `replay` and by `fleet` alike, without stale_factor advice the option
+refuses."""
+
+from __future__ import annotations
+
+import pytest
+
+from firmware_model.service.options import STALE_FACTOR_MAX
+from tools.cli import main
+
+#: a one-minute steady drive: every input message at its J1939 rate
+SPEC = "steady:gear=4L,rpm=1300,nm=2000,s=60"
+UNIX_S = 1767600000.0  # 2026-01-05
+
+
+def _scaled(lines: list[bytes], scale: float, offset_s: float) -> bytes:
+    out = []
+    for line in lines:
+        stamp, rest = line.split(b")", 1)
+        out.append(b"(%.3f" % (offset_s + scale * float(stamp[1:])) + b")" + rest)
+    return b"\n".join(out) + b"\n"
+
+
+@pytest.fixture(scope="module")
+def logs(tmp_path_factory):
+    d = tmp_path_factory.mktemp("ms")
+    assert main(["simulate", "--cycle", SPEC, "--can-log", str(d / "s.log"), "--out", str(d / "run.csv")]) == 0
+    lines = (d / "s.log").read_bytes().split(b"\n")[:-1]
+    t0 = float(lines[0].split(b")")[0][1:])
+    (d / "ms_rel.log").write_bytes(_scaled(lines, 1000.0, -1000.0 * t0))
+    (d / "ms_unix.log").write_bytes(_scaled(lines, 1000.0, 1000.0 * (UNIX_S - t0)))
+    return d
+
+
+def test_replay_says_milliseconds_and_names_no_refused_stale_factor(logs, capsys):
+    rc = main(["replay", str(logs / "ms_rel.log"), "--out", str(logs / "e.csv")])
+    err = capsys.readouterr().err
+    assert rc == 3, err
+    assert "warning: the log's time stamps look like milliseconds, not seconds" in err
+    assert "give the time stamps in seconds" in err
+    advised = [float(x.split()[0].rstrip(")")) for x in err.split("stale_factor = ")[1:]]
+    assert all(f <= STALE_FACTOR_MAX for f in advised), advised
+    # the same drive in seconds: no such finding
+    assert main(["replay", str(logs / "s.log"), "--out", str(logs / "s.csv")]) == 0
+    assert "milliseconds" not in capsys.readouterr().err
+
+
+def test_fleet_marks_a_millisecond_log_untrusted(logs):
+    from tools.fleet.manifest import LogEntry
+    from tools.fleet.run import process_log
+
+    status, row = process_log(LogEntry(logs / "ms_rel.log", "truck", None, None, None, "a"))
+    assert status == "ok" and not row["trusted"], row
+    assert "the log's time stamps look like milliseconds" in row["trust_warnings"]
