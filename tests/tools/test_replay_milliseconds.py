@@ -1,11 +1,12 @@
 """A CAN log whose time stamps are milliseconds (read as seconds: every frame ~1000x too far apart for its J1939
 period) is said to look like milliseconds, by `replay` and by `fleet` alike, without stale_factor advice the option
-refuses."""
+refuses; in Unix milliseconds `fleet` puts it in its errors table with that sentence, not a raw "year 57983"."""
 
 from __future__ import annotations
 
 import pytest
 
+from firmware_model.errors import InputError
 from firmware_model.service.options import STALE_FACTOR_MAX
 from tools.cli import main
 
@@ -46,10 +47,26 @@ def test_replay_says_milliseconds_and_names_no_refused_stale_factor(logs, capsys
     assert "milliseconds" not in capsys.readouterr().err
 
 
-def test_fleet_marks_a_millisecond_log_untrusted(logs):
+def test_fleet_marks_a_millisecond_log_untrusted_or_refuses_it_in_one_sentence(logs):
     from tools.fleet.manifest import LogEntry
     from tools.fleet.run import process_log
 
     status, row = process_log(LogEntry(logs / "ms_rel.log", "truck", None, None, None, "a"))
     assert status == "ok" and not row["trusted"], row
     assert "the log's time stamps look like milliseconds" in row["trust_warnings"]
+    status, row = process_log(LogEntry(logs / "ms_unix.log", "truck", None, None, None, "b"))
+    assert status == "error", row
+    assert row["reason"].startswith("the log's first frame time 17676000000")
+    assert row["reason"].endswith(
+        "s is no date in seconds, but 2026-01-05 in milliseconds: its time stamps look like milliseconds; give "
+        "seconds (candump -L writes seconds)"
+    )
+
+
+def test_log_date_has_an_upper_bound():
+    from tools.fleet.summary import log_date
+
+    assert log_date(UNIX_S) == "2026-01-05" and log_date(45.4) is None
+    with pytest.raises(InputError, match="look like milliseconds"):
+        log_date(1000 * UNIX_S)
+    assert log_date(5e9) is None and log_date(1e18) is None  # no logger's clock, and no date in ms either

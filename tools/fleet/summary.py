@@ -18,8 +18,10 @@ from can_dbc.decoder import REJECT_REASONS
 from firmware_model.components import MODE_NORMAL, MODE_OIL_MODEL, STEP_S
 from tools.published import ids
 
-#: a log's frame time at or above this is taken as Unix time (after 1973): its date is the log's date
+#: a log's frame time at or above this is taken as Unix time (after 1973): its date is the log's date ...
 EPOCH_MIN_S = 1e8
+#: ... below this (2100-01-01); at or above it, Unix time in milliseconds is said (tools.fleet.summary.log_date)
+EPOCH_MAX_S = 4102444800.0
 #: per component, the summary's columns (with the component id in place of {c})
 COMPONENT_COLUMNS = (
     "peak_{c}_c",
@@ -64,9 +66,20 @@ def asc_date(path) -> str | None:
 
 
 def log_date(start_s: float) -> str | None:
-    """The UTC date of a frame time that is Unix time, else None."""
+    """The UTC date of a frame time that is Unix time, else None; InputError for a frame time that is Unix time in
+    milliseconds (it was the raw "year 57983 is out of range", and the log's times 1000x too long)."""
     if not (math.isfinite(start_s) and start_s >= EPOCH_MIN_S):
         return None
+    if start_s >= EPOCH_MAX_S:  # past 2099: no logger's clock, and no date Python can name past 9999
+        if not EPOCH_MIN_S <= start_s / 1e3 < EPOCH_MAX_S:
+            return None
+        from firmware_model.errors import InputError
+
+        as_ms = dt.datetime.fromtimestamp(start_s / 1e3, tz=dt.timezone.utc).date().isoformat()
+        raise InputError(
+            f"the log's first frame time {start_s:.0f} s is no date in seconds, but {as_ms} in milliseconds: its "
+            f"time stamps look like milliseconds; give seconds (candump -L writes seconds)"
+        )
     return dt.datetime.fromtimestamp(start_s, tz=dt.timezone.utc).date().isoformat()
 
 
