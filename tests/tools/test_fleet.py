@@ -645,3 +645,67 @@ def test_the_vehicles_of_logs_without_a_manifest_are_said(tmp_path, capsys):
     )
     assert "spare.log: --vehicle-from '^(truck\\d+)_' finds no vehicle in its file name spare.log" in msg, msg
     assert not (tmp_path / "o").exists()
+
+
+def test_a_rerun_with_other_settings_replays_the_log_instead_of_keeping_its_row(tmp_path, synthetic):
+    """A re-run into the same --out skipped every log with a row, whatever had changed: the --config that sets the
+    source address its verdict advised ("1 done before, 0 summarised", the old verdict kept), a manifest renaming
+    the vehicle (the row stayed under the old name), [fleet] estimates = true (no estimates, no word). A log whose
+    settings differ from its row's is now replayed again, and said; rows of an earlier version, which do not record
+    their settings, are kept and said."""
+    good = read_manifest(synthetic)[0].log
+    logs = tmp_path / "logs" / "truckY"
+    logs.mkdir(parents=True)
+    # the gearbox sends TRF1 (PGN 65272) from 0x21, not the default 0x03
+    (logs / "day1.log").write_text(good.read_text().replace("18FEF803#", "18FEF821#"))
+    out = tmp_path / "out"
+    base = ["--out", str(out), "--workers", "1", "--no-report"]
+    fleet(str(tmp_path / "logs"), *base)
+    row = read_table(out).to_pylist()[0]
+    assert row["trusted"] is False and "TRF1 = 0x21" in row["trust_warnings"], row["trust_warnings"]
+    ok = tmp_path / "ok.toml"
+    ok.write_text("[can.source_address]\nTRF1 = 0x21\n")
+    res = fleet(str(tmp_path / "logs"), *base, "--config", str(ok))
+    assert "0 done before, 1 summarised" in res.stdout and "1 of the logs summarised before" in res.stdout, res.stdout
+    rows = read_table(out).to_pylist()
+    assert len(rows) == 1 and rows[0]["trusted"] is True, rows[0]["trust_warnings"]
+    assert "1 done before, 0 summarised" in fleet(str(tmp_path / "logs"), *base, "--config", str(ok)).stdout
+    # a manifest that names the vehicle otherwise: the row moves to the new name
+    m = tmp_path / "m.csv"
+    m.write_text(f"log,vehicle\n{logs / 'day1.log'},truckZ\n")
+    res = fleet("--manifest", str(m), *base, "--config", str(ok))
+    assert "0 done before, 1 summarised" in res.stdout, res.stdout
+    assert read_table(out).column("vehicle").to_pylist() == ["truckZ"]
+    # estimates asked of a log summarised without them: replayed, written
+    est = tmp_path / "est.toml"
+    est.write_text("[can.source_address]\nTRF1 = 0x21\n[fleet]\nestimates = true\n")
+    res = fleet("--manifest", str(m), *base, "--config", str(est))
+    assert "0 done before, 1 summarised" in res.stdout, res.stdout
+    assert [f.parent.parent.name for f in (out / "estimates").rglob("*.parquet")] == ["vehicle=truckZ"]
+    assert "1 done before" in fleet("--manifest", str(m), *base, "--config", str(est)).stdout
+    # a row of an earlier version (no settings recorded): kept, and said
+    for f in (out / "summary").rglob("*.parquet"):
+        t = pq.read_table(f)
+        pq.write_table(t.drop_columns(["settings"]), f)
+    res = fleet("--manifest", str(m), *base, "--config", str(est))
+    assert "1 done before" in res.stdout and "summarised by an earlier version" in res.stderr, res.stderr
+
+
+def test_a_fit_of_an_earlier_replay_of_its_log_is_not_used(tmp_path):
+    """A log replayed again without --diagnose (its settings changed: here its vehicle renamed) kept the fit of its
+    old replay, under the old vehicle: the health used it. Only a fit of the log's current row counts."""
+    from tools.fleet.health import COOLER_GRID, NO_FIT_HERE, VOLUME_GRID_L, fleet_health
+    from tools.fleet.store import FleetStore
+
+    v, c = np.meshgrid(VOLUME_GRID_L, COOLER_GRID, indexing="ij")
+    fit = {"sse": ((v - 12.0) ** 2 + 10 * (c - 0.8) ** 2).ravel().tolist(), "points": 100, "span_s": 600.0}
+    fit |= {"cooler_grid": list(COOLER_GRID), "volume_grid_l": list(VOLUME_GRID_L), "level_pct": float("nan")}
+    row = {"log": "day1.log", "log_key": "k1", "date": "2026-01-05", "start_s": 1.7e9, "duration_s": 600.0}
+    store = FleetStore(tmp_path)
+    store.write_batch("a", [{**row, "vehicle": "truckY", "replayed_at_s": 1.0, "_fit": dict(fit)}], [])
+    assert fleet_health(tmp_path).periods == 1
+    store.write_batch("b", [{**row, "vehicle": "truckZ", "replayed_at_s": 2.0}], [])  # replayed, no --diagnose
+    health = fleet_health(tmp_path)
+    assert health.periods == 0 and health.why_none == NO_FIT_HERE, health
+    store.write_batch("c", [{**row, "vehicle": "truckZ", "replayed_at_s": 3.0, "_fit": dict(fit)}], [])
+    assert [f.vehicle for f in fleet_health(tmp_path).fits] == ["truckZ"]

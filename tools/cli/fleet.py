@@ -359,6 +359,19 @@ def run(args) -> int:
         f"{res.summarised} summarised, {res.failed} in the errors table; {res.tasks} tasks on {res.workers} "
         f"workers in {wall_s:.1f} s"
     )
+    if res.resettled:
+        print(
+            f"fleet: {res.resettled} of the logs summarised before were replayed again: their settings changed since "
+            "(the gearbox, the [can], [sensor], [cooler] or [boundary] configuration, the vehicle name or the "
+            "manifest's date) or [fleet] estimates asked for estimates they did not have"
+        )
+    if res.unrecorded:
+        print(
+            f"note: {res.unrecorded} logs in {args.out} were summarised by an earlier version, whose rows do not "
+            "record their configuration: kept, so a changed --config is not seen for them (use a new --out, or "
+            "remove their rows, to replay them with it)",
+            file=sys.stderr,
+        )
     _print_errors(args.out)
     _warn_duplicates(args.out)
     _warn_gone(args.out)

@@ -344,8 +344,8 @@ NO_FIT = (
 NO_FIT_HERE = (
     "no log in this folder has a health fit: either none was long enough ("
     + NO_FIT.split(": ", 1)[1]
-    + "), or its logs were summarised by a run without --diagnose, which a re-run skips: run --diagnose "
-    "into a new --out folder"
+    + "), or its logs were summarised (or replayed again, their settings changed) by a run without --diagnose, "
+    "which a re-run skips: run --diagnose into a new --out folder"
 )
 #: the periods a vehicle needs before a drift can be flagged: a baseline, then a run of drifting periods
 JUDGED_PERIODS = BASELINE_PERIODS + CONSECUTIVE
@@ -375,6 +375,23 @@ def _drop_far_dates(rows: list, dates: dict) -> tuple[list, int]:
     return keep, len(rows) - len(keep)
 
 
+def _current_fits(summary, fits) -> dict:
+    """{log key: its fit} for the fits made with the log's current summary row (the same replay time), under that
+    row's vehicle: a log replayed again without --diagnose (its file or settings changed, its vehicle renamed) keeps
+    no fit of its old replay. One per log (a log fitted twice: a run killed between files)."""
+    from tools.fleet.store import REPLAYED
+
+    keys = summary.column("log_key").to_pylist()
+    vehicles = dict(zip(keys, summary.column("vehicle").to_pylist()))
+    at = dict(zip(keys, summary.column(REPLAYED).to_pylist())) if REPLAYED in summary.column_names else {}
+    unique = {}
+    for r in fits.to_pylist():
+        made, fitted = at.get(r["log_key"]), r.get(REPLAYED)
+        if r["log_key"] in vehicles and (made is None or fitted is None or made == fitted):
+            unique[r["log_key"]] = {**r, "vehicle": vehicles[r["log_key"]]}
+    return unique
+
+
 def fleet_health(out: str | Path, period_days: float = 7.0) -> Health:
     """Fit every vehicle-period from DIR/fits, flag drifting vehicles; writes DIR/health/periods.parquet,
     DIR/health/flags.parquet and DIR/health/watch.parquet. Returns the fits, the flags and the watches."""
@@ -387,7 +404,9 @@ def fleet_health(out: str | Path, period_days: float = 7.0) -> Health:
     if fits is None or summary is None or not fits.num_rows:
         return Health(0, [], [], why_none=NO_FIT_HERE if summary is not None and summary.num_rows else NO_FIT)
     dates = dict(zip(summary.column("log_key").to_pylist(), summary.column("date").to_pylist()))
-    unique = {r["log_key"]: r for r in fits.to_pylist()}  # a log fitted twice (a run killed between files)
+    unique = _current_fits(summary, fits)
+    if not unique:
+        return Health(0, [], [], why_none=NO_FIT_HERE)
     _check_grids(out, list(unique.values()))
     rows = [r for r in unique.values() if dates.get(r["log_key"], "unknown") != "unknown"]
     undated = len(unique) - len(rows)

@@ -6,13 +6,15 @@ at most :data:`BATCH_MAX_LOGS` per task for a big one, so that 100 000 logs are 
 rows as it completes (tools/fleet/store.py). Workers only compute: they read, replay and summarise
 (:func:`process_batch`, the whole-log path of ``tools.replay.log``) and return rows; this process alone writes. A
 worker that dies mid-run (its tasks go to another worker: Dask) costs time, never a row twice; a log that cannot be
-read becomes an error row with its reason; a re-run skips the logs already written.
+read becomes an error row with its reason; a re-run skips the logs already written, unless the log file or its
+settings (:func:`settings_of`) changed since.
 """
 
 from __future__ import annotations
 
 import functools
 import hashlib
+import json
 import logging
 import math
 import os
@@ -22,7 +24,16 @@ from typing import NamedTuple
 
 from firmware_model.errors import InputError
 from tools.fleet.manifest import LogEntry, vehicle_config
-from tools.fleet.store import ESTIMATES, LOG_BYTES, LOG_MTIME, REPLAYED, FleetStore, log_stamp, partition_dir
+from tools.fleet.store import (
+    ESTIMATES,
+    LOG_BYTES,
+    LOG_MTIME,
+    REPLAYED,
+    SETTINGS,
+    FleetStore,
+    log_stamp,
+    partition_dir,
+)
 
 #: logs per task at most; a small fleet gets about TASKS_PER_WORKER tasks per worker
 BATCH_MAX_LOGS = 64
@@ -36,7 +47,9 @@ _SENSORS: dict = {}
 
 
 class FleetRun(NamedTuple):
-    """What a run did: logs given, skipped (done before), summarised, failed; the tasks; the workers."""
+    """What a run did: logs given, skipped (done before), summarised, failed; the tasks; the workers; of the logs
+    summarised before, those replayed again because their settings changed or estimates were asked (``resettled``),
+    and those kept whose row does not record its settings (``unrecorded``: a row of an earlier version)."""
 
     logs: int
     skipped: int
@@ -44,6 +57,8 @@ class FleetRun(NamedTuple):
     failed: int
     tasks: int
     workers: int
+    resettled: int = 0
+    unrecorded: int = 0
 
 
 def _sensor(variant: str | None, config: str | None):
@@ -137,6 +152,7 @@ def process_log(
         findings = with_malformed(log_findings(service, table), malformed)
         row.update(malformed_columns(malformed))
         row["variant"] = gearbox_of(entry.variant, entry.config)
+        row[SETTINGS] = settings_of(entry)
         row[LOG_BYTES], row[LOG_MTIME] = stamp if stamp is not None else (None, None)
         row[REPLAYED] = time.time()
         row["trusted"] = not untrusted(findings)
@@ -301,6 +317,57 @@ def gearbox_of(variant: str | None, config: str | None) -> str:
     return os.fspath(cfg.params_path) if cfg.params_path else cfg.variant
 
 
+@functools.lru_cache(maxsize=256)
+def _model_settings(variant: str | None, config: str | None) -> str:
+    """What of a (variant, configuration) changes a log's replay, as canonical text: the gearbox, the [cooler],
+    [boundary], [can] and [sensor] sections (not [fleet] or the commands' settings)."""
+    cfg = vehicle_config(variant, config)
+    sections = {"gearbox": gearbox_of(variant, config), "cooler": cfg.cooler, "boundary": cfg.boundary}
+    return json.dumps({**sections, "can": cfg.can, "sensor": cfg.sensor}, sort_keys=True, default=str)
+
+
+def settings_of(entry: LogEntry) -> str:
+    """A hash of what a log's summary row depends on besides the log file: its gearbox and configuration
+    (:func:`_model_settings`), its vehicle name and its manifest date. A re-run replays a log whose row has another
+    (a --config that sets the source address, a manifest that renames a vehicle), else it would keep the old row."""
+    text = "\n".join((_model_settings(entry.variant, entry.config), entry.vehicle, entry.date or ""))
+    return hashlib.sha1(text.encode()).hexdigest()[:16]
+
+
+def _stale(entry: LogEntry, done, estimates: bool, with_estimates: set) -> str | None:
+    """Why the summary row ``done`` (a DoneRow; None: no row) of a log is not kept: "new", "changed" (the log file),
+    "settings" (they differ, or estimates are asked and it has none), "unrecorded" (kept: an earlier version's
+    row, which does not record its settings; its vehicle and gearbox match); None: kept."""
+    if done is None:
+        return "new"
+    if done.stamp is not None and done.stamp != log_stamp(entry.log):
+        return "changed"
+    if done.vehicle != entry.vehicle or (done.variant and done.variant != gearbox_of(entry.variant, entry.config)):
+        return "settings"
+    if estimates and entry.key not in with_estimates:
+        return "settings"
+    if done.settings is None:
+        return "unrecorded"
+    return None if done.settings == settings_of(entry) else "settings"
+
+
+def _todo(store: FleetStore, entries: list[LogEntry], estimates: bool) -> tuple[list[LogEntry], dict]:
+    """(the logs to replay, {log key: why (:func:`_stale`)}): a log not done yet, changed since its row was written
+    (a log still being written then: its size and time moved, and its partial summary must not be kept for good), or
+    whose settings changed since (else the row of the old settings is kept for good); rows of an earlier version
+    have no stamp and no settings. A log replayed again loses its old estimates (of the old log, settings or
+    vehicle)."""
+    done = store.done_rows()
+    old_estimates = store.estimate_files()
+    has_estimates = set(old_estimates)
+    why = {e.key: _stale(e, done.get(e.key), estimates, has_estimates) for e in entries}
+    todo = [e for e in entries if why[e.key] not in (None, "unrecorded")]
+    for e in todo:
+        for f in old_estimates.get(e.key, ()) if e.key in done else ():
+            f.unlink(missing_ok=True)
+    return todo, why
+
+
 def _check_variants(store: FleetStore, entries: list[LogEntry]) -> None:
     """InputError when a vehicle of ``entries`` already has rows in the output replayed as another gearbox variant
     (a vehicle is one gearbox: otherwise a corrected manifest would keep the rows of the wrong variant)."""
@@ -360,12 +427,7 @@ def run_fleet(
         store = FleetStore(out)
         store.prepare()
         _check_variants(store, entries)
-        done = store.done_keys()
-        # a log not done yet, or changed since its row was written (a log still being written then: its size and
-        # time moved, and its partial summary must not be kept for good); rows of an earlier version have no stamp
-        todo = [
-            e for e in entries if e.key not in done or (done[e.key] is not None and done[e.key] != log_stamp(e.log))
-        ]
+        todo, why = _todo(store, entries, estimates)
         n_workers = _worker_count(client)
         tasks = batches(todo, n_workers, max_logs)
 
@@ -399,11 +461,31 @@ def run_fleet(
                 if on_batch is not None:
                     on_batch(written)
         store.compact_errors()
-        return FleetRun(len(entries), len(entries) - len(todo), ok, failed, written, n_workers)
+        counts = list(why.values())
+        return FleetRun(
+            len(entries),
+            len(entries) - len(todo),
+            ok,
+            failed,
+            written,
+            n_workers,
+            counts.count("settings"),
+            counts.count("unrecorded"),
+        )
     finally:
         client.close()
         if cluster is not None:
             cluster.close()
 
 
-__all__ = ["BATCH_MAX_LOGS", "FleetRun", "batch_id", "batches", "connect", "process_batch", "process_log", "run_fleet"]
+__all__ = [
+    "BATCH_MAX_LOGS",
+    "FleetRun",
+    "batch_id",
+    "batches",
+    "connect",
+    "process_batch",
+    "process_log",
+    "run_fleet",
+    "settings_of",
+]

@@ -6,7 +6,8 @@ partitioning="hive")``, ``dask.dataframe.read_parquet``, pandas). ``DIR/errors/p
 log that could not be read, with the reason. ``DIR/estimates/vehicle=<V>/date=<D>/<log>-<key>.parquet`` (with
 ``--estimates``): the 10 Hz sensor output of each log. Every file is written under a temporary name and renamed:
 ``DIR/fits/...`` (with ``--diagnose``): each log's health fit (tools/fleet/health.py). A run killed at any moment
-leaves whole files only. A re-run skips the logs that have a summary row (:meth:`FleetStore.done_keys`) and tries
+leaves whole files only. A re-run skips the logs that have a summary row of the same log file and settings
+(:meth:`FleetStore.done_rows`, tools/fleet/run.py) and tries
 the logs of the errors table again (a log finished or repaired since); at the end of a run the errors table is
 rewritten with one row per log that still fails (:meth:`FleetStore.compact_errors`), and :func:`read_table` drops
 error rows of logs that have a summary, so no log ever has two rows, even after a run killed in between.
@@ -17,7 +18,8 @@ from __future__ import annotations
 import os
 import uuid
 from pathlib import Path
-from urllib.parse import quote
+from typing import NamedTuple
+from urllib.parse import quote, unquote
 
 from firmware_model.errors import InputError
 
@@ -26,6 +28,19 @@ ERROR_COLUMNS = ("vehicle", "log", "log_key", "stage", "reason")
 #: a summary row's record of the log file it came from (a re-run replays a log whose size or time changed) and when
 #: it was written (a log replayed again: the newest row wins)
 LOG_BYTES, LOG_MTIME, REPLAYED = "log_bytes", "log_mtime_ns", "replayed_at_s"
+#: a summary row's record of the settings it was made with besides the log file (tools/fleet/run.py, settings_of):
+#: a re-run replays a log whose settings changed
+SETTINGS = "settings"
+
+
+class DoneRow(NamedTuple):
+    """What a re-run compares of a log's newest summary row: the log file's (size, modification time) and the
+    settings hash (None: a row of an earlier version, which did not record them), its vehicle and gearbox."""
+
+    stamp: tuple | None
+    settings: str | None
+    vehicle: str
+    variant: str | None
 
 
 def log_stamp(path) -> tuple[int, int] | None:
@@ -87,19 +102,32 @@ class FleetStore:
         """The keys of the logs that have a summary row (done; the errors table's logs are tried again), each with
         the (size, modification time) of the log it was made from (None: a row of an earlier version, which did not
         record them)."""
+        return {k: r.stamp for k, r in self.done_rows().items()}
+
+    def done_rows(self) -> dict:
+        """{log key: :class:`DoneRow`} of the logs that have a summary row, from the newest row of each."""
         _, pq = _pa()
-        keys: dict = {}
+        rows: dict = {}
+        wanted = ("log_key", LOG_BYTES, LOG_MTIME, REPLAYED, SETTINGS, "variant")
         for f in (self.out / SUMMARY).rglob("*.parquet") if (self.out / SUMMARY).is_dir() else ():
             names = pq.read_schema(f).names  # only the columns needed (a row has ~300)
-            t = pq.read_table(f, columns=[c for c in ("log_key", LOG_BYTES, LOG_MTIME, REPLAYED) if c in names])
-            k = t.column("log_key").to_pylist()
-            b = t.column(LOG_BYTES).to_pylist() if LOG_BYTES in names else [None] * len(k)
-            m = t.column(LOG_MTIME).to_pylist() if LOG_MTIME in names else [None] * len(k)
-            r = t.column(REPLAYED).to_pylist() if REPLAYED in names else [None] * len(k)
-            for key, nb, mt, at in zip(k, b, m, r):
-                if key not in keys or (at or 0.0) >= keys[key][1]:
-                    keys[key] = (None if nb is None or mt is None else (int(nb), int(mt)), at or 0.0)
-        return {k: v[0] for k, v in keys.items()}
+            t = pq.read_table(f, columns=[c for c in wanted if c in names])
+            n = t.num_rows
+            col = {c: t.column(c).to_pylist() if c in names else [None] * n for c in wanted}
+            vehicle = unquote(f.parent.parent.name.removeprefix("vehicle="))  # the partition
+            for key, nb, mt, at, st, var in zip(*(col[c] for c in wanted)):
+                if key not in rows or (at or 0.0) >= rows[key][1]:
+                    stamp = None if nb is None or mt is None else (int(nb), int(mt))
+                    rows[key] = (DoneRow(stamp, st, vehicle, var), at or 0.0)
+        return {k: v[0] for k, v in rows.items()}
+
+    def estimate_files(self) -> dict:
+        """{log key: [its estimates files]} (``<log>-<key>.parquet`` under DIR/estimates)."""
+        root = self.out / ESTIMATES
+        found: dict = {}
+        for f in root.rglob("*.parquet") if root.is_dir() else ():
+            found.setdefault(f.stem.rsplit("-", 1)[-1], []).append(f)
+        return found
 
     def vehicle_variants(self) -> dict:
         """{vehicle: the gearbox variant its rows were replayed with}, from the rows that record it."""
@@ -241,7 +269,9 @@ __all__ = [
     "LOG_BYTES",
     "LOG_MTIME",
     "REPLAYED",
+    "SETTINGS",
     "SUMMARY",
+    "DoneRow",
     "FleetStore",
     "log_stamp",
     "newest_rows",
