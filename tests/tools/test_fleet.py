@@ -709,3 +709,34 @@ def test_a_fit_of_an_earlier_replay_of_its_log_is_not_used(tmp_path):
     assert health.periods == 0 and health.why_none == NO_FIT_HERE, health
     store.write_batch("c", [{**row, "vehicle": "truckZ", "replayed_at_s": 3.0, "_fit": dict(fit)}], [])
     assert [f.vehicle for f in fleet_health(tmp_path).fits] == ["truckZ"]
+
+
+def test_two_trucks_logs_overlapping_in_one_vehicle_are_said(tmp_path, synthetic):
+    """Two trucks' logs in one vehicle's folder, overlapping in time, were summarised and fitted as one truck
+    without a word; now the run warns naming the vehicle and both logs, and the report lists them. Logs that follow
+    each other (a frame repeated at the seam) and copies (reported as such) are no overlap."""
+    from tools.fleet.report import overlapping_logs
+
+    by_name = {e.log.name: e.log for e in read_manifest(synthetic)}
+    folder = tmp_path / "logs" / "truckX"
+    folder.mkdir(parents=True)
+    # truck001's and truck002's drives of 2026-01-06 overlap by about 30 s; truck000's of 2026-01-05 overlaps neither
+    for name in ("truck001_2026-01-06.log", "truck002_2026-01-06.log", "truck000_2026-01-05.log"):
+        shutil.copy(by_name[name], folder / name)
+    out = tmp_path / "out"
+    res = fleet(str(tmp_path / "logs"), "--out", str(out), "--workers", "1")
+    warned = [ln for ln in res.stderr.splitlines() if "overlap in time" in ln]
+    assert len(warned) == 1 and "vehicle truckX" in warned[0], res.stderr
+    assert "truck001_2026-01-06.log" in warned[0] and "truck002_2026-01-06.log" in warned[0], warned
+    report = (out / "report.md").read_text()
+    assert "## Logs of one vehicle that overlap in time (1 pairs)" in report, report
+    assert "| truckX | truck001_2026-01-06.log | truck002_2026-01-06.log |" in report, report
+    t0 = 1.7e9
+    c = {
+        "vehicle": ["v"] * 4,
+        "log": ["a", "b", "a_copy", "c"],
+        "start_s": [t0, t0 + 600.0, t0 + 600.0, t0 + 1199.5],
+        "end_s": [t0 + 600.5, t0 + 1200.0, t0 + 1200.0, t0 + 1800.0],
+        "frames": [10, 20, 20, 30],
+    }
+    assert overlapping_logs(c) == []  # seams of half a second, and a copy

@@ -165,6 +165,28 @@ def _warn_duplicates(out) -> None:
         print(f"warning: ... {len(dups) - 5} more groups of copies (report.md lists the first 50)", file=sys.stderr)
 
 
+def _warn_overlaps(out) -> None:
+    """A warning for logs of one vehicle that overlap in time (tools.fleet.report.overlapping_logs)."""
+    from tools.fleet.report import overlapping_logs
+    from tools.fleet.store import read_table
+
+    summary = read_table(out)
+    if summary is None:
+        return
+    found = overlapping_logs(
+        {n: summary.column(n).to_pylist() for n in ("vehicle", "log", "start_s", "end_s", "frames")}
+    )
+    for vehicle, a, b, overlap_s in found[:5]:
+        print(
+            f"warning: vehicle {vehicle}: the logs {a} and {b} overlap in time by {overlap_s:.0f} s (one truck "
+            "drives one log at a time: two trucks' logs under one vehicle, or one drive logged twice; its peaks "
+            "and health fit mix them)",
+            file=sys.stderr,
+        )
+    if len(found) > 5:
+        print(f"warning: ... {len(found) - 5} more overlapping pairs (report.md lists the first 50)", file=sys.stderr)
+
+
 def _warn_gone(out) -> None:
     """A warning for rows whose log is no longer at its path (``--prune`` removes them)."""
     from tools.fleet.store import read_table
@@ -374,6 +396,7 @@ def run(args) -> int:
         )
     _print_errors(args.out)
     _warn_duplicates(args.out)
+    _warn_overlaps(args.out)
     _warn_gone(args.out)
     why_none = _health(args.out, period_days) if args.diagnose else ""
     if report:

@@ -217,6 +217,59 @@ def duplicate_logs(c: dict) -> list[list[str]]:
     return [sorted(logs) for logs in groups.values() if len(logs) > 1]
 
 
+#: logs of one vehicle overlapping by more than this are reported (a logger that rotates its files may repeat a
+#: frame or two at the seam) [s]
+OVERLAP_MIN_S = 1.0
+
+
+def overlapping_logs(c: dict) -> list[tuple[str, str, str, float]]:
+    """(vehicle, log, other log, overlap [s]) for every two logs of one vehicle whose frame times overlap by more
+    than OVERLAP_MIN_S: one truck drives one log at a time, so two overlapping logs are two trucks' (or one drive
+    logged twice) under one vehicle. Only logs whose frame times are Unix time (a logger's relative times all start
+    near 0); copies (:func:`duplicate_logs`, reported as such) are left out."""
+    from tools.fleet.summary import EPOCH_MIN_S
+
+    per_vehicle: dict = {}
+    for i, log in enumerate(c["log"]):
+        start, end = c["start_s"][i], c["end_s"][i]
+        if c["frames"][i] and start is not None and end is not None and start >= EPOCH_MIN_S:
+            per_vehicle.setdefault(c["vehicle"][i], []).append((start, end, c["frames"][i], log))
+    found = []
+    for vehicle, logs in sorted(per_vehicle.items()):
+        logs.sort()
+        for j, (s1, e1, n1, a) in enumerate(logs):
+            for s2, e2, n2, b in logs[j + 1 :]:
+                if s2 >= e1 - OVERLAP_MIN_S:  # sorted by start: no later log overlaps this one
+                    break
+                overlap_s = min(e1, e2) - s2
+                if overlap_s > OVERLAP_MIN_S and (s1, e1, n1) != (s2, e2, n2):
+                    found.append((vehicle, a, b, overlap_s))
+    return found
+
+
+def _overlaps(c: dict, lines: list) -> None:
+    found = overlapping_logs(c)
+    if not found:
+        return
+    lines += [
+        f"## Logs of one vehicle that overlap in time ({len(found)} pairs)",
+        "",
+        "One truck drives one log at a time: these logs are two trucks' under one vehicle name (or one drive logged "
+        "twice), and the vehicle's peaks, hours and health fit mix them. Put each truck's logs under its own "
+        "vehicle (a folder per truck, --vehicle-from or a --manifest), then run again.",
+        "",
+        "| vehicle | log | overlaps | by |",
+        "|---|---|---|---|",
+    ]
+    lines += [
+        f"| {_cell(v)} | {_cell(os.path.basename(a))} | {_cell(os.path.basename(b))} | {_fmt_s(s)} |"
+        for v, a, b, s in found[:50]
+    ]
+    if len(found) > 50:
+        lines.append(f"\n... and {len(found) - 50} more pairs")
+    lines.append("")
+
+
 def _duplicates(c: dict, lines: list) -> None:
     dups = duplicate_logs(c)
     if not dups:
@@ -556,6 +609,7 @@ def write_report(out: str | os.PathLike, health_why_none: str = "") -> Path:
         ]
         _undated(c, lines)
         _duplicates(c, lines)
+        _overlaps(c, lines)
         _gone(c, lines)
         _malformed(c, lines)
         c = _trusted_only(c, lines)
@@ -595,4 +649,4 @@ def write_report(out: str | os.PathLike, health_why_none: str = "") -> Path:
     return path
 
 
-__all__ = ["period_axis", "write_report"]
+__all__ = ["OVERLAP_MIN_S", "duplicate_logs", "overlapping_logs", "period_axis", "write_report"]
