@@ -353,3 +353,41 @@ def test_the_health_plot_ticks_whole_periods_by_their_first_day(n_periods):
     assert all(float(t).is_integer() for t in ticks)
     assert 2 <= len(labels) <= 9
     assert labels[0] == "2026-01-05" and all(s in periods["start"] for s in labels)
+
+
+def test_a_level_read_in_one_log_of_a_period_is_said_not_dropped_silently(tmp_path):
+    """A period's level needs two logs with one (docs/fleet.md); a truck that sends SPN 124 in one log per period
+    had its level dropped without a word. Now the health names it and why, and so does the report."""
+    pytest.importorskip("pyarrow", reason="the fleet output is Parquet: pip install '.[fleet]' (pyarrow)")
+    import pyarrow.parquet as pq
+
+    from tools.fleet.health import COOLER_GRID, VOLUME_GRID_L, fleet_health
+    from tools.fleet.report import write_report
+    from tools.fleet.store import HEALTH, FleetStore
+
+    v, c = np.meshgrid(VOLUME_GRID_L, COOLER_GRID, indexing="ij")
+    grid = {"sse": ((v - 12.0) ** 2 + 10 * (c - 0.8) ** 2).ravel().tolist(), "points": 100, "span_s": 600.0}
+    grid |= {"cooler_grid": list(COOLER_GRID), "volume_grid_l": list(VOLUME_GRID_L)}
+    rows, k = [], 0
+    # "single": one log a week, with a level; "pair": two logs a week, both with one; "mute": two, without
+    for vehicle, days, level in (("single", (5,), 90.0), ("pair", (5, 6), 90.0), ("mute", (5, 6), math.nan)):
+        for week in range(2):
+            for day in days:
+                date = f"2026-01-{day + 7 * week:02d}"
+                fit = {**grid, "level_pct": level, "level_readings": 600 if math.isfinite(level) else 0}
+                rows.append({"vehicle": vehicle, "log": f"l{k}.log", "log_key": f"k{k}", "date": date, "_fit": fit})
+                rows[-1] |= {"start_s": 1.7e9 + k * 1e4, "end_s": 1.7e9 + k * 1e4 + 600, "duration_s": 600.0}
+                rows[-1] |= {"degraded_share": 0.0, "frames": 100, "peak_PS_c": 90.0, "above_warning_PS_s": 0.0}
+                rows[-1] |= {"above_critical_PS_s": 0.0}
+                k += 1
+    FleetStore(tmp_path).write_batch("a", rows, [])
+    health = fleet_health(tmp_path, period_days=7)
+    assert health.level_short == [("single", 2)], health.level_short
+    periods = pq.read_table(tmp_path / HEALTH / "periods.parquet").to_pylist()
+    logs = {(p["vehicle"], p["period"]): (p["level_logs"], p["oil_level_pct"]) for p in periods}
+    assert logs[("single", 0)][0] == 1 and math.isnan(logs[("single", 0)][1])
+    assert logs[("pair", 1)] == (2, 90.0) and logs[("mute", 0)][0] == 0
+    report = write_report(tmp_path).read_text()
+    said = [ln for ln in report.splitlines() if "SPN 124) is left out of periods" in ln]
+    assert len(said) == 1 and "single (2 periods)" in said[0] and "pair" not in said[0], report
+    assert "at least 2 logs" in said[0]

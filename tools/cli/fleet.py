@@ -432,7 +432,7 @@ def _print_errors(out) -> None:
 def _health(out, period_days: int) -> str:
     """--diagnose: the fleet health per vehicle and period, its summary lines; why nothing was written ('' when
     something was)."""
-    from tools.fleet.health import JUDGED_PERIODS, fleet_health
+    from tools.fleet.health import JUDGED_PERIODS, fleet_health, level_short_sentence
 
     health = fleet_health(out, period_days=period_days)
     if health.periods:
@@ -457,6 +457,8 @@ def _health(out, period_days: int) -> str:
         + "; to watch (oil level from the oil temperature, not identifiable: check it): "
         + (", ".join(f.vehicle for f in health.watch) or "none")
     )
+    if health.level_short:
+        print(f"health: {level_short_sentence(health.level_short)}")
     if health.why_none:
         print(f"health: nothing written to {out}/health: {health.why_none}")
     return health.why_none or ""

@@ -135,6 +135,7 @@ class PeriodFit(NamedTuple):
     rms_c: float
     oil_level_pct: float = math.nan  # the measured level (SPN 124): median over the period's logs
     oil_level_se: float = math.nan
+    level_logs: int = 0  # the period's logs with a measured level (fewer than LEVEL_MIN_LOGS: no period level)
 
 
 def fit_period(vehicle: str, period: int, start: str, fits: list[dict]) -> PeriodFit:
@@ -155,7 +156,17 @@ def fit_period(vehicle: str, period: int, start: str, fits: list[dict]) -> Perio
         return math.sqrt(2 * s2 * infl / curv) if curv > 0 else math.inf
 
     return PeriodFit(
-        vehicle, period, start, len(fits), c_hat, se(c_curv), v_hat, se(v_curv), math.sqrt(s2), *period_level(fits)
+        vehicle,
+        period,
+        start,
+        len(fits),
+        c_hat,
+        se(c_curv),
+        v_hat,
+        se(v_curv),
+        math.sqrt(s2),
+        *period_level(fits),
+        int(np.isfinite(np.array([f.get("level_pct", math.nan) for f in fits], dtype=float)).sum()),
     )
 
 
@@ -194,6 +205,33 @@ class Health(NamedTuple):
     judged: int = 0  # of them, those with the periods a judgement needs (JUDGED_PERIODS)
     undated: int = 0  # fitted logs left out: no date (frame times not Unix time, none in the manifest)
     far: int = 0  # fitted logs left out: dated far before or after the rest of the fleet
+    #: (vehicle, periods) whose measured level (SPN 124) was read in too few of a period's logs to count
+    level_short: tuple | list = ()
+
+
+def level_short(periods) -> list[tuple[str, int]]:
+    """(vehicle, how many of its periods) for the vehicles that send the measured level (SPN 124) in some period
+    with fewer than :data:`LEVEL_MIN_LOGS` logs reading it: those periods have no level (the median of one log is
+    no period's level), which would otherwise go unsaid. ``periods``: PeriodFit rows (or dicts of their fields)."""
+    short: dict = {}
+    for r in periods:
+        r = r if isinstance(r, dict) else r._asdict()
+        if 0 < (r.get("level_logs") or 0) < LEVEL_MIN_LOGS:
+            short[r["vehicle"]] = short.get(r["vehicle"], 0) + 1
+    return sorted(short.items())
+
+
+def level_short_sentence(short: list) -> str:
+    """One sentence on :func:`level_short`'s vehicles ('' when none)."""
+    if not short:
+        return ""
+    names = ", ".join(f"{v} ({n} period{'s' if n != 1 else ''})" for v, n in short[:10])
+    more = f" and {len(short) - 10} more vehicles" if len(short) > 10 else ""
+    return (
+        f"the measured oil level (SPN 124) is left out of periods in which only one log has it: {names}{more}; a "
+        f"period's level needs it from at least {LEVEL_MIN_LOGS} logs (more logs per period, or a longer [fleet] "
+        "period_days, would use it)"
+    )
 
 
 def _level_rows(rows: list) -> list:
@@ -454,7 +492,15 @@ def fleet_health(out: str | Path, period_days: float = 7.0) -> Health:
         per_vehicle[f.vehicle] = per_vehicle.get(f.vehicle, 0) + 1
     judged = sum(n >= JUDGED_PERIODS for n in per_vehicle.values())
     return Health(
-        len(period_fits), period_fits, flags, watch, vehicles=len(per_vehicle), judged=judged, undated=undated, far=far
+        len(period_fits),
+        period_fits,
+        flags,
+        watch,
+        vehicles=len(per_vehicle),
+        judged=judged,
+        undated=undated,
+        far=far,
+        level_short=level_short(period_fits),
     )
 
 
@@ -473,5 +519,7 @@ __all__ = [
     "flag_vehicles",
     "fleet_health",
     "health_model",
+    "level_short",
+    "level_short_sentence",
     "period_level",
 ]

@@ -335,7 +335,7 @@ def _health(out: Path, lines: list) -> bool:
     periods = _cols(pq.read_table(p))
     fl = _read_flags(out / HEALTH / "flags.parquet")
     wt = _read_flags(out / HEALTH / "watch.parquet")
-    from tools.fleet.health import JUDGED_PERIODS
+    from tools.fleet.health import JUDGED_PERIODS, level_short, level_short_sentence
 
     counts: dict = {}
     for v in periods["vehicle"]:
@@ -351,6 +351,13 @@ def _health(out: Path, lines: list) -> bool:
         f"(From the health tables of the last --diagnose run into this folder.)",
         "",
     ]
+    short = level_short(
+        {"vehicle": v, "level_logs": n}
+        for v, n in zip(periods["vehicle"], periods.get("level_logs", [0] * len(periods["vehicle"])))
+    )
+    if short:
+        text = level_short_sentence(short)
+        lines += [text[0].upper() + text[1:] + ".", ""]
     if fl["vehicle"]:
         lines += _flag_table(fl, range(len(fl["vehicle"])))
     order = _vehicle_order(periods, sorted(set(fl["vehicle"])), sorted(set(wt["vehicle"])))
