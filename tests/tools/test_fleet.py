@@ -740,3 +740,29 @@ def test_two_trucks_logs_overlapping_in_one_vehicle_are_said(tmp_path, synthetic
         "frames": [10, 20, 20, 30],
     }
     assert overlapping_logs(c) == []  # seams of half a second, and a copy
+
+
+def test_the_hottest_vehicles_rank_by_the_margin_to_each_parts_own_warning_limit(tmp_path, synthetic):
+    """The report's "Hottest vehicles" ranked by degC across parts with different limits: a truck whose LI.teeth
+    peaked at 142 degC under its 150 degC limit led one whose sun wheel (PS) sat 6 K over its 130 degC limit. Now
+    the margin to each part's own warning limit (recorded in the row) ranks, and the limit is shown."""
+    from tools.fleet.run import process_log
+    from tools.fleet.store import FleetStore
+
+    entry = read_manifest(synthetic)[0]
+    kind, row = process_log(entry)
+    assert kind == "ok" and row["warning_limit_PS_c"] == 130.0 and row["warning_limit_LI.teeth_c"] == 150.0, row
+    base = {k: v for k, v in row.items() if not k.startswith(("peak_", "vehicle", "log"))}
+    rows = []
+    for vehicle, li_c, ps_c in (("teeth142", 142.0, 120.0), ("sun136", 120.0, 136.3), ("cool", 100.0, 100.0)):
+        peaks = {k: 80.0 for k in row if k.startswith("peak_") and k.endswith("_c")}
+        peaks |= {"peak_LI.teeth_c": li_c, "peak_PS_c": ps_c}
+        rows.append({**base, **peaks, "vehicle": vehicle, "log": f"{vehicle}.log", "log_key": vehicle})
+    FleetStore(tmp_path).write_batch("a", rows, [])
+    from tools.fleet.report import write_report
+
+    report = write_report(tmp_path).read_text()
+    table = report.split("## Hottest vehicles")[1].split("\n\n")[1].splitlines()[2:]
+    assert [r.split(" | ")[0].strip("| ") for r in table] == ["sun136", "teeth142", "cool"], table
+    assert "| sun136 | 136.3 degC | PS | 130.0 degC | +6.3 K |" in table[0], table
+    assert "| teeth142 | 142.0 degC | LI.teeth | 150.0 degC | -8.0 K |" in table[1], table

@@ -53,31 +53,60 @@ def published_in(c: dict) -> tuple:
     return tuple(k[len("peak_") : -len("_c")] for k in c if k.startswith("peak_") and k.endswith("_c"))
 
 
+def _limits(c: dict, pub: tuple, n: int) -> np.ndarray:
+    """Each log's warning limit per component [degC] (NaN: a row of an earlier version, which does not record it)."""
+    cols = [c.get(f"warning_limit_{k}_c") or [None] * n for k in pub]
+    return np.array(cols, dtype=float).reshape(len(pub), n).T
+
+
+def _margin_key(margin: float, peak: float) -> tuple:
+    """Sort key: the largest margin over the warning limit first (the closest below it next); without a known
+    limit, after those with one, by peak."""
+    return (0, -margin) if np.isfinite(margin) else (1, -peak)
+
+
 def _hottest(c: dict, lines: list) -> None:
+    """The vehicles and components ranked by their peak's margin to the component's own warning limit (peak -
+    limit: parts have different limits, so the hottest in degC need not be the nearest to its limit)."""
     n = len(c["log"])
     pub = published_in(c)
     peaks = np.array([[c[f"peak_{k}_c"][i] for k in pub] for i in range(n)], dtype=float).reshape(n, -1)
-    best = np.nanargmax(np.where(np.isfinite(peaks), peaks, -np.inf), axis=1)
+    limits = _limits(c, pub, n)
+    margin = peaks - limits
+    # per log the component with the largest margin, else (no limit recorded) the hottest
+    score = np.where(np.isfinite(margin), margin + 1e6, np.where(np.isfinite(peaks), peaks, -np.inf))
+    best = np.argmax(score, axis=1)
     per_vehicle: dict = {}
     for i in range(n):
-        v, comp, T = c["vehicle"][i], pub[best[i]], peaks[i, best[i]]
-        if np.isfinite(T) and (v not in per_vehicle or T > per_vehicle[v][0]):
-            per_vehicle[v] = (T, comp, c["date"][i], os.path.basename(c["log"][i]))
-    lines += ["## Hottest vehicles", "", "| vehicle | peak | component | date | log |", "|---|---|---|---|---|"]
-    for v, (T, comp, date, log) in sorted(per_vehicle.items(), key=lambda kv: -kv[1][0])[:10]:
-        lines.append(f"| {_cell(v)} | {T:.1f} degC | {comp} | {date} | {_cell(log)} |")
+        j, v = best[i], c["vehicle"][i]
+        T, lim, m = peaks[i, j], limits[i, j], margin[i, j]
+        if np.isfinite(T) and (v not in per_vehicle or _margin_key(m, T) < _margin_key(*per_vehicle[v][:2])):
+            per_vehicle[v] = (m, T, lim, pub[j], c["date"][i], os.path.basename(c["log"][i]))
+    lines += [
+        "## Hottest vehicles (nearest to, or furthest over, a component's warning limit)",
+        "",
+        "| vehicle | peak | component | warning limit | peak - limit | date | log |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for v, (m, T, lim, comp, date, log) in sorted(per_vehicle.items(), key=lambda kv: _margin_key(*kv[1][:2]))[:10]:
+        lim_txt, m_txt = (f"{lim:.1f} degC", f"{m:+.1f} K") if np.isfinite(m) else ("-", "-")
+        lines.append(f"| {_cell(v)} | {T:.1f} degC | {comp} | {lim_txt} | {m_txt} | {date} | {_cell(log)} |")
     lines += [
         "",
-        "## Hottest components (peak over the fleet, median of the per-log peaks)",
+        "## Hottest components (fleet peak against the warning limit, median of the per-log peaks)",
         "",
-        "| component | fleet peak | median peak | time above warning | time above critical |",
-        "|---|---|---|---|---|",
+        "| component | fleet peak | warning limit | peak - limit | median peak | time above warning | "
+        "time above critical |",
+        "|---|---|---|---|---|---|---|",
     ]
-    order = np.argsort(-np.nanmax(np.where(np.isfinite(peaks), peaks, -np.inf), axis=0))
-    for j in order[:10]:
-        k = pub[j]
+    fleet_peak = np.nanmax(np.where(np.isfinite(peaks), peaks, -np.inf), axis=0)
+    fleet_margin = np.where(np.isfinite(margin), margin, -np.inf)
+    top = np.argmax(fleet_margin, axis=0)  # per component the log furthest over (or nearest to) its limit
+    for j in sorted(range(len(pub)), key=lambda j: _margin_key(fleet_margin[top[j], j], fleet_peak[j]))[:10]:
+        k, m, lim = pub[j], fleet_margin[top[j], j], limits[top[j], j]
+        lim_txt, m_txt = (f"{lim:.1f} degC", f"{m:+.1f} K") if np.isfinite(m) else ("-", "-")
         lines.append(
-            f"| {k} | {np.nanmax(peaks[:, j]):.1f} degC | {np.nanmedian(peaks[:, j]):.1f} degC | "
+            f"| {k} | {np.nanmax(peaks[:, j]):.1f} degC | {lim_txt} | {m_txt} | {np.nanmedian(peaks[:, j]):.1f} degC | "
             f"{_fmt_s(float(np.sum(c[f'above_warning_{k}_s'])))} | "
             f"{_fmt_s(float(np.sum(c[f'above_critical_{k}_s'])))} |"
         )

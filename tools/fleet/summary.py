@@ -16,6 +16,7 @@ import numpy as np
 
 from can_dbc.decoder import REJECT_REASONS
 from firmware_model.components import MODE_NORMAL, MODE_OIL_MODEL, STEP_S
+from firmware_model.limits import load_limits
 from tools.published import ids
 
 #: a log's frame time at or above this is taken as Unix time (after 1973): its date is the log's date ...
@@ -30,6 +31,7 @@ COMPONENT_COLUMNS = (
     "above_critical_{c}_s",
     "warnings_{c}",
     "min_ttl_{c}_s",
+    "warning_limit_{c}_c",
 )
 
 
@@ -155,8 +157,11 @@ def summarize(
     }
     for reason in REJECT_REASONS:
         row[f"rejected_{reason}"] = int(rejected.get(reason, 0))
+    # the sensor's warning limits (the report ranks against them); without a gearbox, the default gearbox's
+    limits = load_limits() if gearbox is None else getattr(gearbox, "limits", None)
     for c in ids(gearbox):
         _component(row, c, table)
+        row[f"warning_limit_{c}_c"] = limits.of(c)[0] if limits is not None else math.nan
     return row
 
 
