@@ -453,7 +453,7 @@ def check_column_names(columns: Iterable[str], name: str) -> None:
             if known not in present and plain in (_plain_name(known), _plain_name(stem)):
                 raise InputError(
                     f'{name}: column "{col}" looks like {known}, which the tools read by that exact name (in its '
-                    f"unit): rename it, else it is ignored and the run goes without it"
+                    f"unit): rename it (as it is, it would be ignored and the run would go without it)"
                 )
             if (
                 known.endswith("_c")
@@ -463,14 +463,20 @@ def check_column_names(columns: Iterable[str], name: str) -> None:
                 unit = "degF" if plain.endswith("f") else "kelvin"
                 raise InputError(
                     f'{name}: column "{col}" looks like {known} in {unit}, which the tools read in degC under that '
-                    "name: convert it, else it is ignored and the run goes without it"
+                    "name: convert it (as it is, it would be ignored and the run would go without it)"
                 )
         m = re.fullmatch(r"meas_?t_?(.+?)(?:_?c)?", plain) if col.lower().startswith("meas") else None
         if m:
-            ident = re.sub(r"[\[(].*?[\])]", "", col).strip()[len("meas_T_") :].removesuffix("_c").strip(" _")
+            ident = re.sub(r"[\[(].*?[\])]", "", col).strip()[len("meas_T_") :].strip(" _")
+            unit = re.search(r"_(degc|degf|c|f|k)$", ident, flags=re.IGNORECASE)
+            ident = ident[: unit.start()] if unit else ident
+            other = (unit is not None and unit.group(1).lower() in ("degf", "f", "k")) or bool(
+                re.search(r"[\[(]\s*(degf|f|k|kelvin)\s*[\])]", col, flags=re.IGNORECASE)
+            )
             raise InputError(
                 f'{name}: column "{col}" looks like a measured channel, which the tools read as meas_T_<id>_c in degC '
-                f"(meas_T_{ident}_c): rename it, else it is ignored"
+                f"(meas_T_{ident}_c): {'convert it to degC and ' if other else ''}rename it (as it is, it would be "
+                "ignored)"
             )
 
 

@@ -545,3 +545,19 @@ def test_a_gear_the_gearbox_does_not_have_is_refused(tmp_path, capsys, cycle, wo
     assert rc == 2 and len(err.splitlines()) == 1, err
     assert words in err and ("-2, -1, 0, 1, 2, 3, 4, 5, 6, 7, 8" in err or "8 (3H)" in err), err
     assert not out.exists()
+
+
+def test_a_can_log_of_a_cycle_with_its_own_boundaries_says_it_cannot_carry_them(capsys):
+    """An effect-free uphill drive written as a CAN log was diagnosed as hot_surroundings_offset +29.5 K: the cycle's
+    engine-side boundaries (hot surroundings 100 degC) are in no frame, so the log's reader takes the gearbox's
+    own (90). simulate --can-log says so; a steady spec at the gearbox's own boundaries says nothing."""
+    from firmware_model.description import load_description
+    from tools.cli.simulate import _note_boundaries_a_log_cannot_carry
+    from tools.cycles.named import get_cycle
+
+    d = load_description("GRS905")
+    _note_boundaries_a_log_cannot_carry(get_cycle("uphill", description=d), d)
+    err = capsys.readouterr().err
+    assert "the CAN log carries no boundary temperatures" in err and "hot_surroundings 100 (its own 90)" in err
+    _note_boundaries_a_log_cannot_carry(get_cycle("steady:s=20", description=d), d)
+    assert capsys.readouterr().err == ""

@@ -385,6 +385,10 @@ def test_parquet_output_holds_the_same_numbers(tmp_path):
             "meas_T_PS [degC]",
             "looks like a measured channel, which the tools read as meas_T_<id>_c in degC (meas_T_PS_c)",
         ),
+        # the unit in the name: not kept in the suggestion (it said meas_T_PS_C_c and meas_T_PS_degF_c)
+        ("meas_T_PS_C", "(meas_T_PS_c): rename it (as it is"),
+        ("meas_T_PS_degF", "(meas_T_PS_c): convert it to degC and rename it"),
+        ("meas_T_BLR [degF]", "(meas_T_BLR_c): convert it to degC and rename it"),
     ],
 )
 def test_a_known_column_written_otherwise_is_refused_not_ignored(tmp_path, column, words):

@@ -175,7 +175,7 @@ def run(args) -> int:
         write_report(res, d.plot_data, args.report)
     write_json_atomic(res, args.json)
     if not args.quiet:
-        _print_summary(args, res)
+        print_summary(args, res)
     for w in res.get("warnings", []):  # the data's warnings (a frozen sensor ...), even with --quiet
         print(f"warning: {w}", file=sys.stderr)
     return 0
@@ -256,7 +256,7 @@ def _diagnose_with_progress(args, params, cooler, opts, diagnose):
     return out
 
 
-def _print_summary(args, res) -> None:
+def print_summary(args, res) -> None:
     """The verdict, its shrink on the test files, the reason, the files taken running and the time."""
     v = res["verdict"]
     extra = ""
@@ -271,6 +271,9 @@ def _print_summary(args, res) -> None:
     )
     if v.get("evidence") == "thin":
         print(v["thin_evidence"]["text"])
+    confusable = [c["effect"] if isinstance(c, dict) else str(c) for c in v.get("confusable_with") or []]
+    if confusable:  # (the JSON and the report list them: the console named the verdict alone)
+        print(f"confusable with: {', '.join(confusable)} (they fit these files about as well; the JSON says more)")
     print(f"reason: {v['reason']}")
     running = [n for n, st in res.get("starts", {}).items() if st["start"] == "running"]
     if running:

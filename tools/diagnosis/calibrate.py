@@ -29,7 +29,7 @@ import numpy as np
 from firmware_model.errors import InputError
 from firmware_model.parameters import Parameters, with_fit_bounds
 from tools.diagnosis.measurement import model_at_cells
-from tools.diagnosis.options import HOUSING_PERTURB_C, Options, n_eff_needed
+from tools.diagnosis.options import HOUSING_PERTURB_C, Options, how_much_more, n_eff_needed
 from tools.diagnosis.prepare import prepare_runs
 
 #: a parameter is identifiable when moving it over half its plausible range moves some channel by at least this [K]
@@ -89,14 +89,14 @@ class Calibration:
         """One sentence when the fitted values rest on too few effective samples ('' otherwise), with the advice."""
         if not self.n_eff < self.n_eff_needed:
             return ""
-        (b, a), more = self.test_rms_c, self.n_eff_needed / max(self.n_eff, 1e-9)
+        b, a = self.test_rms_c
         return (
             f"thin evidence: the training residual after the fit holds n_eff = {self.n_eff:.0f} effective samples "
             f"of {self.n_cells} cells and fitting {len(self.keys)} value{'s' if len(self.keys) > 1 else ''} needs "
             f"at least {self.n_eff_needed}; the fit {'cuts' if a < b else 'does not cut'} the held-out RMS "
             f"{b:.2f} -> {a:.2f} K {'but' if a < b else 'and'} rests on too little to trust: add more training "
-            f"files, or longer ones (at this autocorrelation about {more:.0f} times the {self.train_s / 3600.0:.1f} h "
-            "scored), and calibrate again"
+            f"files, or longer ones ({how_much_more(self.n_eff_needed, self.n_eff, self.train_s)}), and calibrate "
+            "again"
         )
 
 

@@ -21,7 +21,7 @@ from tools.diagnosis.baseline import Baseline
 from tools.diagnosis.context import Context
 from tools.diagnosis.fit import Candidate, Criterion, Fit
 from tools.diagnosis.models import Run
-from tools.diagnosis.options import OIL, Options, json_number, n_eff_needed
+from tools.diagnosis.options import OIL, Options, how_much_more, json_number, n_eff_needed
 from tools.published import description, housings, ids
 
 NO_EFFECT = ("none", "unexplained")
@@ -48,11 +48,8 @@ class ThinEvidence:
     train_s: float
 
     def advice(self) -> str:
-        more = self.needed / max(self.n_eff, 1e-9)
-        return (
-            f"add more training files, or longer ones (at this autocorrelation about {more:.0f} times the "
-            f"{self.train_s / 3600.0:.1f} h scored), and diagnose again"
-        )
+        more = how_much_more(self.needed, self.n_eff, self.train_s)
+        return f"add more training files, or longer ones ({more}), and diagnose again"
 
     def what_it_would_cut(self) -> str:
         f = self.best.fit
