@@ -104,8 +104,7 @@ class TimeBaseFinding:
 
     @property
     def sentence(self) -> str:
-        shown = [m for m in PERIOD_RANGE_S if m in self.periods_s][:3]
-        seen = ", ".join(f"{m} every {_ms(self.periods_s[m])} against {_period_range(m)}" for m in shown)
+        seen = _periods_seen(self.periods_s)
         clock = "slow" if self.direction == "faster" else "fast"
         return (
             f"time base suspect: the input messages arrive about {self.ratio:.1f}x {self.direction} than their "
@@ -205,6 +204,12 @@ def config_key_words(key: str, bare: bool = False) -> str:
     if message:
         return f"[can.{table}] {message}"
     return key if bare else f"[can] {key}"
+
+
+def _periods_seen(periods_s: dict) -> str:
+    """The first three input messages' mean periods against their J1939 ranges, in words."""
+    shown = [m for m in PERIOD_RANGE_S if m in periods_s][:3]
+    return ", ".join(f"{m} every {_ms(periods_s[m])} against {_period_range(m)}" for m in shown)
 
 
 def _ms(period_s: float) -> str:
@@ -321,8 +326,7 @@ class MillisecondsFinding:
 
     @property
     def sentence(self) -> str:
-        shown = [m for m in PERIOD_RANGE_S if m in self.periods_s][:3]
-        seen = ", ".join(f"{m} every {_ms(self.periods_s[m])} against {_period_range(m)}" for m in shown)
+        seen = _periods_seen(self.periods_s)
         jumps = f", and {self.time_jumps} of the gaps between them were taken for time jumps" if self.time_jumps else ""
         return (
             f"the log's time stamps look like milliseconds, not seconds: over its {self.span_s:.0f} s of frame time "
