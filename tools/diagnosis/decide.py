@@ -79,7 +79,8 @@ class Verdict:
 
 def _thr_floor(base: Baseline) -> dict:
     """The model error the thresholds take (tools.diagnosis.baseline.model_error_floor)."""
-    return base.thr_floor if base.thr_floor is not None else base.floor
+    thr = getattr(base, "thr_floor", None)  # (a baseline made before it, or a test's stand-in: the floor)
+    return thr if thr is not None else base.floor
 
 
 def systematic(base: Baseline, preds: list, opts: Options) -> Systematic:
