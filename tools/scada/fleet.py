@@ -13,8 +13,9 @@ MIN_BLOCKS blocks with rows.
 Per period, each effect's median over the units that identify it is the fleet's (seasons, the farm's weather move
 every unit alike); only with MIN_UNITS units or more, where one drifting unit cannot move it. A unit's *deviation*
 is its value minus that median (its error: the unit's and the median unit's errors together), its *baseline* the
-precision-weighted mean of the BASELINE_PERIODS most precise of its first BASELINE_WINDOW deviations (a unit may
-always differ a little; a partial first period or one standing still is left out of it), and it is
+precision-weighted mean of its first BASELINE_PERIODS deviations no poorer than POOR_SE_FACTOR times its median
+standard error (a unit may always differ a little; a partial first period or one standing still is left out of
+it), and it is
 flagged when its deviation leaves the baseline by more than DRIFT_MIN and 3 standard errors (the deviation's and the
 baseline's together) for CONSECUTIVE of its periods in a row: the first of them is the date in the flag.
 """
@@ -37,11 +38,11 @@ EFFECTS = ("bearing_loss_scale", "cooler_effectiveness_scale")
 #: the finite-difference step of each effect (a scale: relative)
 STEP = {"bearing_loss_scale": 0.2, "cooler_effectiveness_scale": -0.2}
 #: periods of baseline, periods in a row that make a flag, smallest drift that counts (per effect); the baseline
-#: periods are the BASELINE_PERIODS most precise of a unit's first BASELINE_WINDOW usable ones (a record that begins
-#: with a partial week and a week standing still took those two: a baseline of +- 0.21 that hid a drift of
-#: +0.3..+0.65 for nine weeks)
+#: periods are a unit's first BASELINE_PERIODS usable ones that are no poorer than POOR_SE_FACTOR times its median
+#: standard error (a record that begins with a partial week and a week standing still took those two: a baseline
+#: of +- 0.21 that hid a drift of +0.3..+0.65 for nine weeks)
 BASELINE_PERIODS = 2
-BASELINE_WINDOW = 4
+POOR_SE_FACTOR = 2.0
 CONSECUTIVE = 2
 DRIFT_MIN = {"bearing_loss_scale": 0.15, "cooler_effectiveness_scale": 0.15}
 #: a period needs this many rows with every channel measured
@@ -249,10 +250,11 @@ def drifts(
     for unit, rows in sorted(deviations(fits, eid).items()):
         if len(rows) <= baseline_periods:
             continue
-        window = rows[: max(baseline_periods, min(BASELINE_WINDOW, len(rows) - 1))]
-        chosen = sorted(sorted(range(len(window)), key=lambda i: window[i][2])[:baseline_periods])
-        w = np.array([1.0 / window[i][2] ** 2 for i in chosen])
-        baseline = float(np.sum(w * [window[i][1] for i in chosen]) / np.sum(w))
+        typical = float(np.median([se for _, _, se in rows]))
+        fine = [i for i, (_, _, se) in enumerate(rows[:-1]) if se <= POOR_SE_FACTOR * typical]
+        chosen = fine[:baseline_periods] if len(fine) >= baseline_periods else list(range(baseline_periods))
+        w = np.array([1.0 / rows[i][2] ** 2 for i in chosen])
+        baseline = float(np.sum(w * [rows[i][1] for i in chosen]) / np.sum(w))
         se_base = float(1.0 / np.sqrt(np.sum(w)))
         out[unit] = (
             baseline,
