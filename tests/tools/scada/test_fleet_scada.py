@@ -162,8 +162,8 @@ def test_a_period_starts_on_its_own_first_day_not_on_its_first_row():
 
 def test_a_partial_first_period_and_a_week_standing_still_do_not_make_the_baseline():
     """A record that began with a partial week and a week standing still took those two as its baseline (+- 0.21)
-    and hid a drift of +0.3..+0.65 for nine weeks ("0 flagged"). The baseline is now the two most precise of the
-    first four usable periods: the drift is flagged from its first period."""
+    and hid a drift of +0.3..+0.65 for nine weeks ("0 flagged"). The baseline is now the first two periods no
+    poorer than twice the unit's median standard error: the drift is flagged from its first period."""
     from tools.scada.fleet import PeriodFit
 
     def fit(unit, k, value, se):
