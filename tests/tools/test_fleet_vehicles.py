@@ -31,3 +31,16 @@ def test_a_truck_s_folder_with_month_folders_is_still_that_truck(tmp_path):
         ("truck3", "truck3/2026-02/d05.log"),
     ]
     assert rule.startswith("vehicles: 4: 3 from the folders holding 5 logs")
+
+
+def test_the_report_counts_the_trusted_logs_hours_and_the_untrusted_apart():
+    """A 3-minute log in milliseconds (untrusted) added 3.0 truck-hours to the report."""
+    from tools.fleet.report import truck_hours
+
+    c = {"duration_s": [3600.0, 10800.0, 1800.0], "trusted": [True, False, True]}
+    assert (
+        truck_hours(c)
+        == "1.5 truck-hours (3.0 h more in 1 untrusted logs, not counted: their time base or inputs are suspect)"
+    )
+    assert truck_hours({"duration_s": [3600.0], "trusted": [True]}) == "1.0 truck-hours"
+    assert truck_hours({"duration_s": [3600.0, 1800.0], "trusted": [None, True]}) == "1.5 truck-hours"  # (old rows)

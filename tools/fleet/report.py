@@ -588,6 +588,20 @@ def _health_plot(periods: dict, order: list, marked: set, out: Path, lines: list
     lines += ["![health](report_health.png)", ""]
 
 
+def truck_hours(c: dict) -> str:
+    """The trusted logs' hours, and those of the untrusted ones apart: a log whose time stamps are milliseconds read as
+    seconds (untrusted) added 3.0 h for 3 minutes of driving."""
+    duration = np.asarray(c["duration_s"], dtype=float)
+    trusted = np.array([t is not False for t in c.get("trusted", [None] * duration.size)], dtype=bool)
+    text = f"{float(np.sum(duration[trusted])) / 3600:.1f} truck-hours"
+    if (~trusted).any():
+        text += (
+            f" ({float(np.sum(duration[~trusted])) / 3600:.1f} h more in {int(np.sum(~trusted))} untrusted "
+            "logs, not counted: their time base or inputs are suspect)"
+        )
+    return text
+
+
 def _undated(c: dict, lines: list) -> None:
     """The logs without a date, and why: they are left out of --diagnose's periods."""
     from tools.fleet.summary import EPOCH_MIN_S
@@ -627,7 +641,6 @@ def write_report(out: str | os.PathLike, health_why_none: str = "") -> Path:
         lines += ["No log was summarised."]
     else:
         c = _cols(summary)
-        hours = float(np.sum(c["duration_s"])) / 3600
         dated = sorted(d for d in c["date"] if d != "unknown")
         undated = len(c["date"]) - len(dated)
         span = (f"dates {dated[0]} to {dated[-1]}" if dated else "no dates") + (
@@ -637,7 +650,7 @@ def write_report(out: str | os.PathLike, health_why_none: str = "") -> Path:
             else ""
         )
         lines += [
-            f"{len(c['log'])} logs, {len(set(c['vehicle']))} vehicles, {hours:.1f} truck-hours; "
+            f"{len(c['log'])} logs, {len(set(c['vehicle']))} vehicles, {truck_hours(c)}; "
             f"{span}. Mean degraded share "
             f"{100 * float(np.mean(c['degraded_share'])):.1f} %; frames rejected: "
             f"{sum(sum(c[k]) for k in c if k.startswith('rejected_'))} of {sum(c['frames'])}.",
