@@ -162,3 +162,11 @@ def params_grs905():
     from firmware_model.parameters import load_parameters
 
     return load_parameters("GRS905")
+
+
+def test_the_advice_under_one_effective_sample_gives_no_ratio():
+    """n_eff near 0 printed "about 19000000000.0 times the 1.0 h scored"."""
+    from tools.diagnosis.options import how_much_more
+
+    assert how_much_more(19, 0.0, 3600.0) == "at this autocorrelation far more than the 1.0 h scored"
+    assert how_much_more(19, 2.0, 3600.0) == "at this autocorrelation about 9.5 times the 1.0 h scored in all, 9.5 h"

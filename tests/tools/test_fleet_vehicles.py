@@ -44,3 +44,4 @@ def test_the_report_counts_the_trusted_logs_hours_and_the_untrusted_apart():
     )
     assert truck_hours({"duration_s": [3600.0], "trusted": [True]}) == "1.0 truck-hours"
     assert truck_hours({"duration_s": [3600.0, 1800.0], "trusted": [None, True]}) == "1.5 truck-hours"  # (old rows)
+    assert truck_hours({"duration_s": [3600.0, float("nan")]}) == "1.0 truck-hours"  # a row without a duration

@@ -200,5 +200,7 @@ def json_number(x, nd=4):
 
 def how_much_more(needed: float, n_eff: float, train_s: float) -> str:
     """How much training time the decision needs at this autocorrelation, in words ("1 times" read as enough)."""
-    more, hours = needed / max(n_eff, 1e-9), train_s / 3600.0
+    if not n_eff >= 1.0:  # (under one effective sample no ratio means anything)
+        return f"at this autocorrelation far more than the {train_s / 3600.0:.1f} h scored"
+    more, hours = needed / n_eff, train_s / 3600.0
     return f"at this autocorrelation about {more:.1f} times the {hours:.1f} h scored in all, {more * hours:.1f} h"

@@ -593,10 +593,10 @@ def truck_hours(c: dict) -> str:
     seconds (untrusted) added 3.0 h for 3 minutes of driving."""
     duration = np.asarray(c["duration_s"], dtype=float)
     trusted = np.array([t is not False for t in c.get("trusted", [None] * duration.size)], dtype=bool)
-    text = f"{float(np.sum(duration[trusted])) / 3600:.1f} truck-hours"
+    text = f"{float(np.nansum(duration[trusted])) / 3600:.1f} truck-hours"
     if (~trusted).any():
         text += (
-            f" ({float(np.sum(duration[~trusted])) / 3600:.1f} h more in {int(np.sum(~trusted))} untrusted "
+            f" ({float(np.nansum(duration[~trusted])) / 3600:.1f} h more in {int(np.sum(~trusted))} untrusted "
             "logs, not counted: their time base or inputs are suspect)"
         )
     return text
