@@ -221,11 +221,6 @@ def _scada_files(paths) -> list[Path]:
 
 def _run_scada(args) -> int:
     """`fleet --gearbox NAME --columns MAP DIR... --out OUT`: the fleet's health on SCADA records."""
-    try:
-        import pyarrow as pa
-    except ImportError:
-        raise InputError("the fleet command writes Parquet: pip install 'gearbox-vsensor[fleet]' (pyarrow)") from None
-
     from firmware_model.config import load_config
     from tools.fleet.store import write_atomic
     from tools.progress import progress
@@ -248,6 +243,10 @@ def _run_scada(args) -> int:
             f"{', '.join(named)}: for CAN logs, not with --columns (a SCADA unit is its files' "
             "Wind_turbine_name column, or the map's unit_id)"
         )
+    try:  # (after the options: a misplaced one is said whether or not pyarrow is installed)
+        import pyarrow as pa
+    except ImportError:
+        raise InputError("the fleet command writes Parquet: pip install 'gearbox-vsensor[fleet]' (pyarrow)") from None
     cfg = resolve_gearbox(args, load_config(args.config))
     # the CAN logs' [fleet] settings a shared configuration may hold: said, not silently dropped
     for key, default in (("fleet.estimates", False), ("fleet.report", True)):
