@@ -539,6 +539,64 @@ def test_status_says_restored_stopped_and_the_mode_now(params, tmp_path, capsys)
     assert "stopped cleanly" in capsys.readouterr().out
 
 
+def test_status_of_a_service_long_stopped_gives_ages_counted_to_now(params, tmp_path, capsys):
+    """A health file left 2 h ago (the service killed, or stopped cleanly) printed "last step ... (0 s ago)" and
+    "last 0 s ago" for the state save: the ages as the service wrote them, not counted to now. Now the stale lines
+    say since when the figures are and every age includes the file's own age."""
+    from tools.cli import main
+
+    svc = _service(params)
+    _drive(svc, 0.0, 5.0)
+    store = StateStore(tmp_path / "state.json")
+    store.save(svc)
+    path = tmp_path / "health.json"
+    for stopped in (False, True):
+        assert HealthFile(path).maybe_write(svc, store, stopped=stopped)
+        doc = read_health(path)
+        assert doc["last_step_age_s"] < 1.0 and doc["state"]["last_save_age_s"] < 1.0
+        doc["written_wall_s"] -= 7200.0
+        doc["written_boottime_s"] -= 7200.0
+        path.write_text(json.dumps(doc))
+        assert main(["status", "--health-file", str(path)]) == 1
+        lines = capsys.readouterr().out.splitlines()
+        assert lines[0].startswith("service: stopped cleanly" if stopped else "service: NOT RUNNING"), lines[0]
+        assert lines[1].startswith("stale: the lines below are the service's last health, written ") and (
+            "(7200 s ago)" in lines[1]
+        ), lines[1]
+        (sensor,) = [x for x in lines if x.startswith("sensor:")]
+        (state,) = [x for x in lines if x.startswith("state:")]
+        assert "(7200 s ago)" in sensor and "last 7200 s ago" in state, (sensor, state)
+        assert "(0 s ago)" not in "\n".join(lines) and "uptime" not in lines[0]
+
+
+def test_status_of_a_file_written_on_an_earlier_boot_is_not_running(params, tmp_path, capsys):
+    """A health file kept on disk across a reboot, read on a gateway whose wall clock is behind it (no RTC): its
+    wall-clock age was negative and status said 'running' with exit 0. A file of another boot was written by a
+    process that is not running: exit 1, and the age the wall clock cannot give is said to be unknown."""
+    from firmware_model.service.persist import boot_id
+    from tools.cli import main
+
+    if boot_id() is None:
+        pytest.skip("no boot id on this system (Linux /proc/sys/kernel/random/boot_id)")
+    svc = _service(params)
+    _drive(svc, 0.0, 5.0)
+    path = tmp_path / "health.json"
+    assert HealthFile(path).maybe_write(svc)
+    doc = read_health(path)
+    doc["boot_id"] = "an-earlier-boot"
+    doc["written_wall_s"] += 3600.0  # this boot's wall clock is an hour behind the file's
+    path.write_text(json.dumps(doc))
+    assert main(["status", "--health-file", str(path)]) == 1
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[0].startswith("service: NOT RUNNING (written on an earlier boot of this machine"), lines[0]
+    assert "age unknown" in lines[1] and "(0 s ago)" not in "\n".join(lines), lines
+    doc["written_wall_s"] -= 3600.0 + 600.0  # a wall clock that is right: the age it gives is shown
+    path.write_text(json.dumps(doc))
+    assert main(["status", "--health-file", str(path)]) == 1
+    out = capsys.readouterr().out
+    assert "NOT RUNNING (written on an earlier boot" in out and "(600 s ago)" in out
+
+
 def test_a_restored_state_is_cooled_until_the_first_frame(params, tmp_path):
     """The time off runs until the first frame, not until the service starts: a gateway restarted while the truck
     sleeps would otherwise restore a state too hot by the whole wait."""

@@ -28,7 +28,9 @@ def add_subparser(sub):
         "health file, 3 when the service runs but has not stepped for 5 s (its input frames stopped, or "
         "none came in its first 5 s: it publishes nothing; the first line says which and what to "
         "check). Within its first 5 s a service that has not stepped yet is `waiting for inputs`, "
-        "exit 0.",
+        "exit 0. A file written on an earlier boot is not running either (exit 1). When the service is not "
+        "running, a second line `stale: ...` gives when the file was written and every age shown is counted "
+        "to now (the file's age on the time since boot, not the ages as the service wrote them).",
     )
     p.add_argument(
         "--health-file",
@@ -55,7 +57,7 @@ def run(args) -> int:
         raise InputError(f"{args.health_file}: not a gearbox-vsensor health file ({exc})") from None
     try:  # a health file edited or damaged by hand: its fields of the wrong type are one sentence, exit 2
         age_s = health_age_s(doc)
-        gone = process_gone(doc)
+        gone = process_gone(doc) or earlier_boot(doc)
         lines = status_lines(doc, age_s, gone)
         stepping = not not_stepping(doc)
     except (TypeError, ValueError, AttributeError) as exc:
@@ -123,6 +125,15 @@ def health_age_s(doc: dict) -> float:
     return wall_age_s
 
 
+def earlier_boot(doc: dict) -> bool:
+    """Whether ``doc`` was written on another boot of this machine (a file kept on disk across a reboot): its writer
+    is not running, whatever the wall clock says (a gateway without RTC may boot with its clock behind the file)."""
+    from firmware_model.service.persist import boot_id
+
+    here = boot_id()
+    return bool(doc.get("boot_id")) and here is not None and doc.get("boot_id") != here
+
+
 def process_gone(doc: dict) -> bool:
     """Whether the service that wrote ``doc`` on this boot has no process any more (killed, crashed): its pid is no
     live process here. Only for a file of this boot (a pid of another boot says nothing) and a service in this
@@ -141,44 +152,72 @@ def process_gone(doc: dict) -> bool:
     return False
 
 
+def ago(age_s: float | None, file_age_s: float) -> str:
+    """An age the service wrote (at its last write) counted to now: plus the file's own age; unknown when the file's
+    age is (negative: a wall clock behind the file's)."""
+    return "unknown" if age_s is None or file_age_s < 0 else f"{float(age_s) + file_age_s:.0f} s"
+
+
+def service_line(doc: dict, age_s: float, gone: bool) -> str:
+    """The first line: running (and stepping or not), or why not and since when; a service not running has no
+    uptime now, only the time it had run."""
+    old = f"health {ago(0.0, age_s)} old" if age_s >= 0 else "health of unknown age"
+    if doc.get("stopped"):
+        state = f"stopped cleanly {ago(0.0, age_s)} ago" if age_s >= 0 else "stopped cleanly (when: unknown)"
+    elif gone and earlier_boot(doc):
+        state = f"NOT RUNNING (written on an earlier boot of this machine; {old})"
+    elif gone:
+        state = f"NOT RUNNING (its process {doc.get('pid')} is gone: killed or crashed; {old})"
+    elif age_s > STALE_S:
+        state = (
+            f"NOT RUNNING ({old}; or running but unable to rewrite this file: its log says "
+            f"'cannot write the health file')"
+        )
+    elif never_stepped(doc):
+        state = f"running, but NEVER STEPPED in {float(doc['uptime_s']):.0f} s"
+    elif not_stepping(doc):
+        state = (
+            f"running, but NO STEP for {ago(doc['last_step_age_s'], age_s)} (its input frames stopped: "
+            f"engine speed or the bus; it publishes nothing)"
+        )
+    else:
+        state = "running"
+    run_for = "uptime" if state.startswith("running") else "had run"
+    return f"service: {state}, pid {doc.get('pid')}, {run_for} {float(doc.get('uptime_s', 0.0)):.0f} s"
+
+
+def stale_line(doc: dict, age_s: float) -> str:
+    """For a service not running: the figures are its last health, from when (the wall clock of the writing), and
+    every age below is counted to now."""
+    when = time.strftime("%Y-%m-%d %H:%M:%S %z", time.localtime(float(doc.get("written_wall_s", 0.0))))
+    age = f"({ago(0.0, age_s)} ago)" if age_s >= 0 else "(age unknown: this machine's wall clock is behind it)"
+    return f"stale: the lines below are the service's last health, written {when} {age}; not live"
+
+
 def status_lines(doc: dict, age_s: float, gone: bool = False) -> list[str]:
     from firmware_model.components import MODE_NAMES
 
     state = doc.get("state") or {}
     last = doc.get("last_step_frame_time_s")
-    stale = (
-        f"NOT RUNNING (health {age_s:.0f} s old; or running but unable to rewrite this file: its log says "
-        f"'cannot write the health file')"
-    )
-    if gone:
-        stale = f"NOT RUNNING (its process {doc.get('pid')} is gone: killed or crashed; health {age_s:.0f} s old)"
-    if doc.get("stopped"):
-        stale = f"stopped cleanly {age_s:.0f} s ago"
+    live = age_s <= STALE_S and not doc.get("stopped") and not gone
     now = doc.get("degraded_mode_now")
     j = doc.get("j1939")
-    running = "running"
-    if never_stepped(doc):
-        running = f"running, but NEVER STEPPED in {float(doc['uptime_s']):.0f} s"
-    elif not_stepping(doc):
-        running = (
-            f"running, but NO STEP for {float(doc['last_step_age_s']):.0f} s (its input frames stopped: "
-            f"engine speed or the bus; it publishes nothing)"
-        )
     step_age = doc.get("last_step_age_s")
     lines = [
-        f"service: {running if age_s <= STALE_S and not doc.get('stopped') and not gone else stale}, "
-        f"pid {doc.get('pid')}, uptime {doc.get('uptime_s', 0.0):.0f} s",
+        service_line(doc, age_s, gone),
         f"sensor: {'initialised' if doc.get('initialised') else 'waiting for inputs'}, {doc.get('steps', 0)} "
         f"steps, last step at frame time {'-' if last is None else f'{last:.1f} s'}"
-        + ("" if step_age is None else f" ({float(step_age):.0f} s ago)")
-        + ("" if now is None else f"; mode now {now} ({MODE_NAMES.get(int(now), '?')})"),
+        + ("" if step_age is None else f" ({ago(step_age, age_s)} ago)")
+        + ("" if now is None else f"; mode {'now' if live else 'last'} {now} ({MODE_NAMES.get(int(now), '?')})"),
         f"degraded modes (steps since start): {doc.get('degraded_mode_steps') or 'none'}; time jumps "
         f"{doc.get('time_jumps', 0)}; clock steps {doc.get('clock_steps', 0)}; frames sent "
         f"{doc.get('frames_sent', 0)}"
         + (f" ({doc['frames_held_no_address']} held: no J1939 address)" if doc.get("frames_held_no_address") else ""),
         "frames: " + ", ".join(f"{k.replace('_', ' ')} {v}" for k, v in (doc.get("decoder") or {}).items()),
     ]
-    if never_stepped(doc) and age_s <= STALE_S and not doc.get("stopped"):
+    if not live:
+        lines.insert(1, stale_line(doc, age_s))
+    elif never_stepped(doc):
         lines.insert(1, never_stepped_sentence(doc))
     if j:
         a = j.get("address")
@@ -216,7 +255,7 @@ def status_lines(doc: dict, age_s: float, gone: bool = False) -> list[str]:
         lines.append(
             f"state: {state.get('path')}, {restored}"
             f", {state.get('saves', 0)} saves ({state.get('save_errors', 0)} "
-            f"errors), last {'never' if age is None else f'{age:.0f} s ago'}; cold starts "
+            f"errors), last {'never' if age is None else f'{ago(age, age_s)} ago'}; cold starts "
             f"{state.get('cold_starts', 0)}{' (' + str(state.get('reason')) + ')' if state.get('reason') else ''}"
         )
     return lines
