@@ -561,3 +561,48 @@ def test_a_can_log_of_a_cycle_with_its_own_boundaries_says_it_cannot_carry_them(
     assert "the CAN log carries no boundary temperatures" in err and "hot_surroundings 100 (its own 90)" in err
     _note_boundaries_a_log_cannot_carry(get_cycle("steady:s=20", description=d), d)
     assert capsys.readouterr().err == ""
+
+
+@pytest.mark.parametrize("kind", ["liquid", "air", "none", "measured"])
+def test_a_held_sump_of_the_cycle_with_a_configured_cooler_is_refused(tmp_path, capsys, kind):
+    """steady:...,oil=60 with [cooler] kind = "liquid" held the sump at 60 degC and the liquid cooler took no part
+    (its heat 0 W), without a word, where [simulate] hold_oil_c with that cooler is refused; with "measured" the
+    oil= was dropped instead. One sentence, exit 2, nothing written."""
+    cfg = tmp_path / "c.toml"
+    cfg.write_text(f'[cooler]\nkind = "{kind}"\n')
+    out = tmp_path / "s.csv"
+    argv = ["simulate", "--cycle", "steady:s=30,oil=60", "--config", str(cfg), "--out", str(out), "--quiet"]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert "the cycle steady:s=30,oil=60 holds the sump at 60 degC (its oil=)" in err, err
+    assert f"this run's cooler is {kind}" in err and "leave oil= out" in err and not out.exists()
+    argv[1:3] = ["--cycle", "all_gears"]  # a cycle that always holds its sump: no oil= to leave out
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert "the cycle all_gears holds the sump at 100 degC" in err and "oil=" not in err and not out.exists()
+    from firmware_model.errors import InputError
+    from tools.can.hil import prepare
+
+    with pytest.raises(InputError, match=f"this run's cooler is {kind}"):  # `plant` (HIL) runs the same plant
+        prepare("steady:s=30,oil=60", cfg)
+
+
+def test_the_cycles_oil_holds_the_sump_in_place_of_the_gearbox_cooler(tmp_path, capsys):
+    """Without a configured cooler (or with "hold") the spec's oil= holds the sump, in place of the description's
+    liquid cooler: the sump stays at 60 degC, the cooler carries no heat, the held sump takes it; a [simulate]
+    hold_oil_c that differs from oil= is refused (it silently won)."""
+    out = tmp_path / "s.csv"
+    argv = ["simulate", "--cycle", "steady:s=600,oil=60", "--out", str(out), "--quiet"]
+    assert main(argv) == 0
+    t = read_run_table(out)
+    assert np.max(np.abs(np.asarray(t["T_oil_c"], dtype=float) - 60.0)) < 1e-9
+    assert np.all(np.asarray(t["Q_out_cooler_w"], dtype=float) == 0.0)
+    assert np.asarray(t["Q_out_oil_boundary_w"], dtype=float)[-1] > 1000.0  # the losses leave through the hold
+    cfg = tmp_path / "h.toml"
+    cfg.write_text('[cooler]\nkind = "hold"\n[simulate]\nhold_oil_c = 90\n')
+    assert main([*argv, "--config", str(cfg)]) == 2
+    err = capsys.readouterr().err
+    assert "holds the sump at 60 degC (its oil=)" in err and "hold_oil_c 90 degC" in err
+    cfg.write_text('[cooler]\nkind = "hold"\n')
+    assert main([*argv, "--config", str(cfg)]) == 0
+    assert np.max(np.abs(np.asarray(read_run_table(out)["T_oil_c"], dtype=float) - 60.0)) < 1e-9

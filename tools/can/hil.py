@@ -30,7 +30,7 @@ def prepare(
     from firmware_model.config import load_config
     from firmware_model.effects import parse_effect
     from tools.can.logsynth import synth_frames
-    from tools.cycles.named import get_cycle
+    from tools.cycles.named import check_cycle_hold, get_cycle
     from tools.plant.reference import ReferencePlant
     from tools.runtable import RunTable
 
@@ -39,6 +39,7 @@ def prepare(
     from firmware_model.description import description_of
 
     table = get_cycle(cycle, description=description_of(params))
+    check_cycle_hold(table.meta, None, cfg.cooler)  # a held sump against the configured cooler
     if duration_s is not None:
         t_s = table["time_s"]
         keep = t_s <= t_s[0] + duration_s

@@ -33,7 +33,10 @@ def _help_texts() -> tuple[str, str]:
         "over a drive cycle and write a run table with every node temperature, every loss and every "
         "heat flow to the outside.\n\nNamed cycles are SYNTHETIC, modelled on the thesis's load cases: "
         + ", ".join(CYCLE_NAMES)
-        + "; or 'steady:gear=4L,rpm=1300,nm=2000,s=3600,oil=100'; or a CSV "
+        + "; or 'steady:gear=4L,rpm=1300,nm=2000,s=3600,oil=100' (oil=: the sump held at that temperature "
+        "in place of the gearbox's cooler, as a rig's oil conditioning does; all_gears holds it at 100 degC; "
+        "with a --config [cooler] kind other than hold, or a [simulate] hold_oil_c of another temperature, "
+        "either is an error); or a CSV "
         "run table (docs/interfaces.md section 3). Component codes (PS, BLR, LS@1L ...): "
         "docs/glossary.md."
     )
@@ -201,7 +204,7 @@ def parse_start_time(text: str | None) -> float:
 
 def run(args) -> int:
     from firmware_model.description import description_of
-    from tools.cycles.named import get_cycle
+    from tools.cycles.named import check_cycle_hold, get_cycle
     from tools.plant.reference import ReferencePlant
     from tools.replay.table import drive_limits
 
@@ -223,6 +226,7 @@ def run(args) -> int:
         table = get_cycle(
             args.cycle, rate_hz=s.rate_hz, noise=s.noise, seed=args.seed, description=description_of(params)
         )
+        check_cycle_hold(table.meta, s.hold_oil_c, s.cooler)  # a held sump against the configured cooler
         fixed_ratio = table.meta.get("drive") == "fixed_ratio"
         if table.meta.get("fitted"):  # a GRS905 cycle fitted to another gearbox: said once (tools.cycles.fit)
             print(f"note: {table.meta['fitted']}", file=sys.stderr)

@@ -38,6 +38,7 @@ __all__ = [
     "Segment",
     "Vehicle",
     "all_gears",
+    "check_cycle_hold",
     "cold_start",
     "get_cycle",
     "gearbox_kinematics",
@@ -54,7 +55,7 @@ __all__ = [
 CYCLE_NAMES = ("steady", "all_gears", "long_haul", "uphill", "mining")
 CYCLE_HELP = {
     "steady": "steady:gear=4L,rpm=1300,nm=2000,s=3600,oil=100 - one gear at constant speed and torque "
-    "(seed 5.3/5.4); oil= holds the sump",
+    "(seed 5.3/5.4); oil= holds the sump in place of the cooler",
     "all_gears": "RL to 6H, 100 s each at 1300 rpm / 1000 Nm, sump held at 100 degC (seed Fig 4), 1600 s",
     "long_haul": "1 h level cruising, 40 t, mostly 6H at ~1300 rpm and 300-900 Nm, cold start 33.5 degC "
     "(seed 4.4 load case 1)",
@@ -287,6 +288,39 @@ STEADY_KEYS = {
     "s": "duration in seconds",
     "oil": "held sump temperature in degC",
     "init": "initial temperature in degC",
+}
+
+
+def check_cycle_hold(meta: dict, hold_oil_c: float | None, cooler: str | None) -> None:
+    """InputError when a cycle that holds its sump (``meta["hold_oil_c"]``: a steady spec's oil=, all_gears) meets
+    a configured cooler other than hold (the plant holds the sump in place of the cooler: a liquid cooler would carry
+    0 W, a measured sump would drop the hold) or a configured held temperature that differs (it silently won)."""
+    held_c = meta.get("hold_oil_c")
+    if held_c is None:
+        return
+    cycle = str(meta.get("cycle", "of this run"))
+    steady = cycle.startswith("steady")
+    what = f"the cycle {cycle} holds the sump at {float(held_c):g} degC" + (" (its oil=)" if steady else "")
+    if hold_oil_c is not None and float(hold_oil_c) != float(held_c):
+        raise InputError(
+            f"{what} and hold_oil_c {float(hold_oil_c):g} degC ([simulate] hold_oil_c, --hold-oil) another "
+            "temperature: give the held sump once"
+        )
+    if hold_oil_c is None and cooler not in (None, "hold"):
+        raise InputError(
+            f"{what}, which replaces the cooler, and this run's cooler is {cooler} ([cooler] kind): use "
+            '[cooler] kind = "hold" or no [cooler] to hold the sump'
+            + (f", or leave oil= out to {LET_SET.get(cooler, 'let the cooler set it')}" if steady else "")
+            + ("" if steady else " (this cycle always holds it)")
+        )
+
+
+#: what leaving a steady spec's oil= out gives, by cooler (check_cycle_hold)
+LET_SET = {
+    "liquid": "let the liquid cooler set it",
+    "air": "let the air cooler set it",
+    "none": "let it run free (no cooler)",
+    "measured": "take it from the run table's oil_temp_c",
 }
 
 
