@@ -140,15 +140,18 @@ INPUT_COMMENTS = (
     'CM_ SG_ 2566844672 WheelBasedVehicleSpeed "SPN 84 wheel-based vehicle speed, bytes 2-3.";',
     (
         'CM_ BO_ 2565865488 "Electronic Retarder Controller 1, PGN 61440 (0xF000), input from the '
-        "driveline retarder (default source address 0x10); Nm = percent / 100 x the configured retarder "
-        'reference torque.";'
+        "driveline retarder (default source address 0x10); Nm = percent / 100 x the retarder's reference "
+        "torque: RC (PGN 65249, SPN 556, by TP.BAM from the retarder's source address) once received, else "
+        'the configured one ([can] retarder_reference_torque_nm).";'
     ),
     'CM_ SG_ 2565865488 ActualRetarderPercentTorque "SPN 520 actual retarder percent torque, byte 2.";',
     (
         'CM_ BO_ 2632777472 "Transport Protocol Connection Management, PGN 60416 (0xEC00), J1939-21, '
         "shown for the global destination 0xFF. The sensor reassembles EC1 (PGN 65251, 0xFEE3, longer "
-        "than 8 bytes) from a BAM (control byte 32) and the TP.DT packets that follow, then takes bytes "
-        "20-21 as SPN 544 engine reference torque (1 Nm/bit). This is done in code (can_dbc/adapter.py); "
+        "than 8 bytes) and RC (PGN 65249, 0xFEE1, from the retarder) from a BAM (control byte 32) and the "
+        "TP.DT packets that follow, then takes EC1's bytes 20-21 as SPN 544 engine reference torque and "
+        "RC's bytes 17-18 as SPN 556 retarder reference torque (1 Nm/bit). This is done in code "
+        "(can_dbc/adapter.py); "
         'a DBC cannot describe a reassembled message.";'
     ),
     'CM_ SG_ 2632777472 TP_CM_Control "Control byte: 16 RTS, 17 CTS, 19 EndOfMsgAck, 32 BAM, 255 Abort.";',

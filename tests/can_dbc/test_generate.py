@@ -45,6 +45,21 @@ def test_the_grs905_dbc_is_generated_byte_for_byte(tmp_path, capsys):
     assert "28 published components" in capsys.readouterr().out
 
 
+def test_the_dbc_says_what_the_retarder_torque_refers_to_as_the_decoder_takes_it():
+    """The ERC1 comment said "Nm = percent / 100 x the configured retarder reference torque", where the decoder (and
+    docs/can.md) takes RC's SPN 556 from the retarder once received, the configured one only until then; the TP
+    comment named EC1 only, where RC is reassembled too."""
+    db = cantools.database.load_file(str(SHIPPED), strict=True)
+    erc1 = db.get_message_by_name("ERC1").comment
+    assert "RC (PGN 65249, SPN 556, by TP.BAM from the retarder's source address) once received" in erc1, erc1
+    assert "else the configured one ([can] retarder_reference_torque_nm)" in erc1, erc1
+    tp = db.get_message_by_name("TP_CM").comment
+    assert "RC (PGN 65249" in tp and "SPN 556" in tp, tp
+    ref = J1939Decoder(retarder_ref_torque_nm=1000.0)  # the precedence the comment states
+    ref.rc_ref_torque_nm = 3500.0
+    assert ref.retarder_ref_in_use_nm == 3500.0
+
+
 def test_the_layout_rule_reproduces_todays_pgns_and_extends():
     ids = [f"C{i}" for i in range(28)]
     lay = generate.frame_layout(ids)

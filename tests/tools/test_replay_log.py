@@ -281,6 +281,36 @@ def test_retarder_frames_without_a_reference_torque_are_named(tmp_path):
         assert "retarder" not in lines[key] and "not given" not in lines[key], lines[key]
 
 
+def test_retarder_frames_without_a_usable_percent_are_not_blamed_on_the_reference(tmp_path):
+    """ERC1 frames whose percent torque is "not available" (0xFF), with the reference known (RC from the retarder,
+    or [can] retarder_reference_torque_nm): the summary said "without a retarder reference torque (no RC ...)",
+    which is not what happened (docs/can.md: the Nm is percent / 100 x that reference); it now says the frames
+    carried no usable value."""
+    from tools.can.logsynth import SynthFrames
+    from tools.replay.summary import summary_lines
+
+    inp = cycle()
+    inp["retarder_torque_nm"] = np.full(inp.n, 700.0)
+    fr = synth_frames(inp, plant(inp)).frames
+    data = fr.data.copy()
+    erc1 = fr.can_id == 0x18F00010
+    assert erc1.any()
+    data[erc1, 1] = 0xFF  # SPN 520, byte 2: not available
+    has_rc = write_frames(SynthFrames(fr.timestamp_s, fr.can_id, data), tmp_path / "na.log")
+    no_rc = ~np.isin(fr.can_id, [0x1CECFF10, 0x1CEBFF10])
+    configured = write_frames(SynthFrames(fr.timestamp_s[no_rc], fr.can_id[no_rc], data[no_rc]), tmp_path / "na2.log")
+    for path, ref in ((has_rc, None), (configured, 3500.0)):
+        service = SensorService(
+            make_sensor(), ServiceOptions(configured_ref_torque_nm=None, retarder_ref_torque_nm=ref), record=True
+        )
+        out = replay_log(path, service)
+        rc_received = out.meta["counters"]["decoder"]["tp"]["rc_received"]
+        assert (rc_received == 0) if ref else (rc_received > 0)  # the reference: configured, else from RC
+        line = summary_lines(out)[-1]
+        assert "without a retarder reference torque" not in line, line
+        assert f"retarder_torque_nm ({int(erc1.sum())} ERC1 frames), none with a usable value" in line, line
+
+
 def test_a_line_that_is_no_frame_is_named(tmp_path):
     """A candump -L line that is no frame is named by its number and text, not python-can's unpacking error."""
     log = tmp_path / "mixed.log"

@@ -23,7 +23,8 @@ def add_subparser(sub):
         summary="HIL: stream a cycle's J1939 inputs and the plant's true temperatures onto a CAN bus",
         description="Run the reference plant over a drive cycle and play it onto a CAN bus as a truck and a rig "
         "would: EEC1 every 10-20 ms, ETC2 100 ms, TRF1/ET1/AMB/CCVS1 1 s, ERC1 100 ms (if the cycle has "
-        "retarder torque), EC1 by TP.BAM every 5 s, RIG_TC_1..7 (the plant's true component "
+        "retarder torque, with RC, its reference torque, by TP.BAM every 5 s), EC1 by TP.BAM every 5 s, "
+        "RIG_TC_1..7 (the plant's true component "
         "temperatures) every 100 ms. The bus is opened first, then the plant run is computed (a few "
         "seconds), then the frames are streamed with their timing, --speed times faster. Named "
         "cycles: " + ", ".join(CYCLE_NAMES) + ", 'steady:...', or a CSV run table.",

@@ -122,6 +122,15 @@ def _unused_inputs(desc) -> tuple:
     return () if cooler == "liquid" else ("coolant_temp_c",)
 
 
+def _usable_erc1(out, erc1: int) -> int:
+    """The ERC1 frames from the retarder's address whose percent torque (SPN 520) was usable: those that arrived,
+    less the short ones and those whose value the decoder rejected (not available, error, out of range)."""
+    counters = (getattr(out, "meta", None) or {}).get("counters", {})
+    decoder = counters.get("decoder", {}) if isinstance(counters, dict) else {}
+    rejected = sum((decoder.get("signal_rejected", {}).get("retarder_torque_pct") or {}).values())
+    return erc1 - rejected - int(decoder.get("short_frames", {}).get("ERC1", 0))
+
+
 def _reject_line(out, unused: tuple = ()) -> str:
     n = out.n
     counts = {
@@ -134,12 +143,15 @@ def _reject_line(out, unused: tuple = ()) -> str:
         absent = [c for c in AUX_COLUMNS if c not in given and c not in unused]
         idle = [c for c in AUX_COLUMNS if c not in given and c in unused]  # absent and never read: no line
         erc1 = _arrivals(out).get("ERC1", 0)
-        unreferenced = "retarder_torque_nm" in absent and erc1 > 0
+        # no torque in Nm although ERC1 carried a usable percent: only then was the reference missing (docs/can.md:
+        # Nm = percent / 100 x RC's, else the configured one); frames without one are "sent but never usable"
+        unreferenced = "retarder_torque_nm" in absent and _usable_erc1(out, erc1) > 0
         if unreferenced:
             absent.remove("retarder_torque_nm")
             words.append(
-                f"{erc1} retarder frames (ERC1) arrived, but without a retarder reference torque (no RC "
-                f"from the retarder's address, no [can] retarder_reference_torque_nm) their percent torque "
+                f"{erc1} retarder frames (ERC1) arrived, but without a retarder reference torque (no RC, SPN 556 "
+                f"by TP.BAM, from the retarder's source address, no [can] retarder_reference_torque_nm) their "
+                f"percent torque "
                 f"is no torque: the retarder's heat is left out"
             )
         arrivals = _arrivals(out)
