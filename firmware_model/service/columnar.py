@@ -44,7 +44,7 @@ from firmware_model.service.options import GEAR_RANGE, NOMINAL_PERIOD_S, SENSOR_
 from firmware_model.service.protocol import start_state
 from firmware_model.service.recorder import StepRecorder
 from firmware_model.service.records import RecordedOutputs, StepKind
-from firmware_model.service.trust import TimeBaseCheck, log_time_glitch
+from firmware_model.service.trust import TIME_EVENT, TimeBaseCheck, log_time_glitch
 
 #: timing frames examined per vectorised pass of the step grid (fewer right after a time jump)
 _GRID_CHUNK_MAX = 65536
@@ -248,6 +248,8 @@ class FrameHalf(NamedTuple):
 
 #: the whole-log path logs this many time jumps one by one, then how many more there were
 JUMPS_LOGGED = 20
+#: ... in this line
+JUMPS_MORE = "%d more frame time jumps (not logged one by one)"
 
 
 def _count_out_of_order(counters: dict, t_frame_s: np.ndarray, max_back_s: float) -> None:
@@ -280,9 +282,10 @@ def _log_jumps(log, grid: Grid, t_frame_s: np.ndarray) -> None:
             abs(t_s - last_s),
             last_s,
             t_s,
+            extra={TIME_EVENT: "jump"},
         )
     if grid.jump_frames.size > JUMPS_LOGGED:
-        log.warning("%d more frame time jumps (not logged one by one)", grid.jump_frames.size - JUMPS_LOGGED)
+        log.warning(JUMPS_MORE, grid.jump_frames.size - JUMPS_LOGGED, extra={TIME_EVENT: "jumps_more"})
 
 
 def frame_half(service, cols: FrameColumns, decoded: DecodedColumns, meas_names: tuple) -> FrameHalf:

@@ -24,7 +24,7 @@ from firmware_model.service.plausibility import FINDING_SPNS, RecordCheck, min_t
 from firmware_model.service.protocol import StepSensor, check_sensor, start_state
 from firmware_model.service.recorder import StepRecorder
 from firmware_model.service.records import GbxStatus, StepInputs, StepKind, StepRequest
-from firmware_model.service.trust import Severity, TimeBaseCheck, log_time_glitch, trust_findings
+from firmware_model.service.trust import TIME_EVENT, Severity, TimeBaseCheck, log_time_glitch, trust_findings
 
 log = logging.getLogger("gearbox_vsensor.can_service")
 
@@ -383,6 +383,7 @@ class SensorService:
             abs(timestamp_s - last_s),
             last_s,
             timestamp_s,
+            extra={TIME_EVENT: "jump"},
         )
         if direction == "backward":
             # the frame that went back stands where the last step stood: the next step comes STEP_S after it, as

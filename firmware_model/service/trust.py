@@ -689,6 +689,10 @@ def trust_findings(
 
 #: time-stamp glitches logged one by one (a run counts them all: the service's frames_time_glitch)
 GLITCHES_LOGGED = 20
+#: the log record attribute that marks the time-base events (``extra={TIME_EVENT: ...}``): "jump", "jumps_more"
+#: (how many more jumps, not logged one by one) and "glitch"; an offline replay holds these records until the whole
+#: log is judged (tools/replay/timelog.py: a log in milliseconds explains them all)
+TIME_EVENT = "gvs_time_event"
 
 
 def log_time_glitch(log, glitch_s: float, grid_s: float | None, next_s: float | None, count: int) -> None:
@@ -704,4 +708,5 @@ def log_time_glitch(log, glitch_s: float, grid_s: float | None, next_s: float | 
         glitch_s,
         grid_s if grid_s is not None else float("nan"),
         nxt,
+        extra={TIME_EVENT: "glitch"},
     )

@@ -298,6 +298,33 @@ def _report_trust(args, findings) -> int:
     return 0
 
 
+def _time_notes(result) -> list[str]:
+    """The summary's notes on a log's time jumps and time-stamp glitches (counted by the service): where each is
+    logged, or, when the time stamps look like milliseconds, one note that the finding explains them all (they are
+    then not logged one by one: tools/replay/timelog.py)."""
+    jumps = result.service_counters["time_jumps"]
+    glitches = result.service_counters.get("frames_time_glitch", 0)
+    counted = [
+        f"{n} {what}{'s' if n > 1 else ''}"
+        for n, what in ((jumps, "time jump"), (glitches, "frame time stamp glitch"))
+        if n
+    ]
+    if counted and any(f.kind == "milliseconds" for f in result.findings):
+        return [
+            f"note: {' and '.join(counted)} in the log, all from its time stamps in milliseconds read as seconds "
+            "(the warning below), so not listed one by one"
+        ]
+    notes = []
+    if jumps:
+        notes.append(f"note: {jumps} time jump{'s' if jumps > 1 else ''} in the log (the warnings above say where)")
+    if glitches:
+        notes.append(
+            f"note: {glitches} frame time stamp{'s' if glitches > 1 else ''} far ahead of the frames around: "
+            "taken for glitches, not time jumps (the warnings above say where)"
+        )
+    return notes
+
+
 def _run_log(args, path: Path) -> int:
     """`gearbox-vsensor replay LOG --out EST.csv ...`: the sensor's outputs over a CAN log, offline."""
     from tools.replay.log import replay_log_file
@@ -331,15 +358,8 @@ def _run_log(args, path: Path) -> int:
         malformed = table.meta.get("malformed")
         if malformed is not None:
             print(malformed.summary)
-        jumps = result.service_counters["time_jumps"]
-        if jumps:
-            print(f"note: {jumps} time jump{'s' if jumps > 1 else ''} in the log (the warnings above say where)")
-        glitches = result.service_counters.get("frames_time_glitch", 0)
-        if glitches:
-            print(
-                f"note: {glitches} frame time stamp{'s' if glitches > 1 else ''} far ahead of the frames around: "
-                "taken for glitches, not time jumps (the warnings above say where)"
-            )
+        for line in _time_notes(result):
+            print(line)
         if table.n:
             from tools.replay.summary import summary_lines
 

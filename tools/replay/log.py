@@ -192,10 +192,18 @@ def replay_log_file(
     import can
 
     from firmware_model.service import build_service
+    from firmware_model.service.core import log as service_log
+    from tools.replay.timelog import HeldLog
     from tools.runtable import write_run_table
 
+    held = HeldLog(service_log)  # its time jumps said after the whole log is judged (tools/replay/timelog.py)
     service = build_service(
-        config_path, record=True, sensor_options=sensor_options, emit_frames=bool(frames_out), log_findings=False
+        config_path,
+        record=True,
+        sensor_options=sensor_options,
+        emit_frames=bool(frames_out),
+        logger=held.logger,
+        log_findings=False,
     )
     writer = None
     on_frames = None
@@ -211,20 +219,19 @@ def replay_log_file(
 
     try:
         table = replay_log(path, service, on_frames=on_frames, strict=strict)
+    except BaseException:
+        held.pass_on(False, service.counters["time_jumps"])
+        raise
     finally:
         if writer is not None:
             with naming(frames_out):
                 writer.stop()
+    findings = tuple(with_malformed(log_findings(service, table), table.meta.get("malformed")))
+    held.pass_on(any(f.kind == "milliseconds" for f in findings), service.counters["time_jumps"])
     table.meta["limits"] = service.sensor.limits  # the summary's margins: this gearbox's limits, not the GRS905's
     with naming(out):
         written = write_run_table(table, out)
-    return LogReplay(
-        table,
-        written,
-        service.decoder.counters,
-        service.counters,
-        tuple(with_malformed(log_findings(service, table), table.meta.get("malformed"))),
-    )
+    return LogReplay(table, written, service.decoder.counters, service.counters, findings)
 
 
 def with_malformed(findings, malformed) -> list:
