@@ -31,6 +31,15 @@ OIL_FIT_SHARE = 0.95
 #: ... and it rises no faster than this over the window [K/min, s] (twice the fastest honest rise of the named
 #: cycles, 8.1 K/min over 5 min at steady full load)
 OIL_MAX_RATE_C_PER_MIN, OIL_RATE_WINDOW_S = 16.0, 300.0
+#: the time column's unit, judged by the oil: a gearbox sump's oil (with the housing it heats) changes at most
+#: OIL_FAST_K_S over OIL_FAST_WINDOW_S (or 3 rows, if further apart) [K/s, s]; the fastest honest change of the
+#: shipped gearboxes' plants is 0.45 K/s (the GRSO905 at 272 kW from a 20 degC sump; the fixed-ratio ones below
+#: 0.03 K/s), while a truck's drive one row a minute read as seconds rises 2.2-2.8 K/s. Found when the oil is that
+#: fast over at least OIL_FAST_WINDOWS windows' worth of the record and gradually (no one row carries more than
+#: OIL_FAST_STEP_SHARE of a window's change: a sensor reconnecting steps once)
+OIL_FAST_K_S, OIL_FAST_WINDOW_S, OIL_FAST_WINDOWS, OIL_FAST_STEP_SHARE = 1.0, 10.0, 2, 0.5
+#: ... each window judged on a grid of this many bins (a row's step is looked for within the bins)
+OIL_FAST_BINS = 10
 #: a record needs this much oil reading (or driving) before a whole-record rule judges it [s]
 OIL_MIN_S = 60.0
 #: the other units an oil column is tried in: name, words, conversion to degC, the fix
@@ -283,6 +292,60 @@ def oil_unit_finding(oil, dt_s: float = STEP_S, source: str = "table") -> Plausi
     )
 
 
+def _fast_windows(t: np.ndarray, x: np.ndarray, window_s: float) -> tuple[np.ndarray, np.ndarray, float]:
+    """The windows of ``window_s`` (on a grid of OIL_FAST_BINS bins a window) over readings ``x`` at times ``t``:
+    (first and last row of each window, 2 x windows; which change faster than OIL_FAST_K_S and gradually; the
+    time [s] the fast windows cover)."""
+    bin_s = window_s / OIL_FAST_BINS
+    edges = t[0] + bin_s * np.arange(int((t[-1] - t[0]) / bin_s) + 1)
+    rows = np.searchsorted(t, edges, side="right") - 1  # the last row at or before each edge
+    if rows.size <= OIL_FAST_BINS:
+        return np.zeros((2, 0), dtype=int), np.zeros(0, dtype=bool), 0.0
+    step = np.abs(np.diff(x))[: rows[-1]]
+    bin_max = np.zeros(rows.size - 1)
+    full = rows[1:] > rows[:-1]  # bins holding a row's step; the rest hold none
+    if full.any():
+        bin_max[full] = np.maximum.reduceat(step, rows[:-1][full])
+    largest = np.lib.stride_tricks.sliding_window_view(bin_max, OIL_FAST_BINS).max(axis=1)
+    ends = np.stack([rows[:-OIL_FAST_BINS], rows[OIL_FAST_BINS:]])
+    rise, dt_s = x[ends[1]] - x[ends[0]], t[ends[1]] - t[ends[0]]
+    fast = (dt_s > 0) & (np.abs(rise) > OIL_FAST_K_S * dt_s) & (largest <= OIL_FAST_STEP_SHARE * np.abs(rise))
+    covered = np.convolve(fast.astype(float), np.ones(OIL_FAST_BINS))[: bin_max.size] > 0
+    return ends, fast, float(covered.sum()) * bin_s
+
+
+def oil_rate_finding(time_s, oil, source: str = "table") -> PlausibilityFinding | None:
+    """The time-unit rule (OIL_FAST_K_S): the oil readings, over the record's own time column, change faster than a
+    gearbox sump can (a table's time_s in minutes, or an oil sensor ramping wrong); None when they do not."""
+    t, x = _finite(time_s), _finite(oil)
+    ok = np.isfinite(t) & np.isfinite(x)
+    t, x = t[ok], x[ok]
+    if t.size < 2 * OIL_FAST_BINS or not np.all(np.diff(t) > 0):
+        return None
+    window_s = max(OIL_FAST_WINDOW_S, 3.0 * float(np.median(np.diff(t))))
+    ends, fast, covered_s = _fast_windows(t, x, window_s)
+    if covered_s < OIL_FAST_WINDOWS * window_s:
+        return None
+    i0, i1 = ends[:, fast][:, np.argmax(np.abs(x[ends[1]] - x[ends[0]])[fast] / (t[ends[1]] - t[ends[0]])[fast])]
+    rate = abs(x[i1] - x[i0]) / (t[i1] - t[i0])
+    col, when = (("column oil_temp_c", "time_s"), ("the oil temperature (TRF1 SPN 177)", "frame time"))[
+        source != "table"
+    ]
+    fix = (
+        "if time_s is in minutes, give seconds (time_s x 60)"
+        if source == "table"
+        else "is the log's time base right (a log played faster than real time and stamped on arrival)?"
+    )
+    return PlausibilityFinding(
+        "time_s",
+        "minutes",
+        f"{col} changes up to {rate:.1f} K/s over {window_s:g} s of {when} (from {x[i0]:.0f} to {x[i1]:.0f} degC at "
+        f"{t[i0]:g}-{t[i1]:g} s) and faster than {OIL_FAST_K_S:g} K/s over {covered_s:.0f} s of the record, where a "
+        f"gearbox sump with its housing changes at most about 0.5 K/s (at full load); {fix}; if the oil really "
+        "changed that fast, check its sensor",
+    )
+
+
 def _driving(speed_rpm, gear, n: int) -> np.ndarray:
     speed = _finite(speed_rpm) if speed_rpm is not None else np.full(n, np.nan)
     if gear is None:
@@ -470,6 +533,8 @@ def record_findings(
     oil, speed, torque, gear = (col(c) for c in ("oil_temp_c", "engine_speed_rpm", "engine_torque_nm", "gear"))
     if oil is not None:
         out.append(oil_unit_finding(oil, dt_s, source))
+        if col("time_s") is not None:  # (a live check's samples carry none: its clock is the bus's)
+            out.append(oil_rate_finding(col("time_s"), oil, source))
     if speed is not None and torque is not None:
         out.append(torque_sign_finding(speed, torque, gear, dt_s, min_torque_nm, source))
         out.append(torque_percent_finding(speed, torque, gear, dt_s, source))

@@ -6,7 +6,9 @@ import pytest
 
 from firmware_model.service.degraded import Severity
 from firmware_model.service.plausibility import (
+    OIL_FAST_K_S,
     RecordCheck,
+    oil_rate_finding,
     oil_unit_finding,
     record_findings,
     repair_finding,
@@ -206,3 +208,33 @@ def test_an_ambient_or_coolant_in_kelvin_is_found_honest_ones_are_not():
     assert aux_unit_finding("ambient_temp_c", np.r_[np.full(10, 400.0), np.full(90, 20.0)]) is None  # a few glitches
     assert [x.likely for x in record_findings({"ambient_temp_c": hot * 0 + 293.0}, DT)] == ["K"]
     assert record_findings({"ambient_temp_c": hot * 0 + 293.0}, DT, source="can") == []
+
+
+def _ramp(rate_k_s, seconds, dt_s=1.0, start_c=20.0):
+    t = np.arange(0.0, seconds, dt_s)
+    return t, start_c + rate_k_s * t
+
+
+def test_an_oil_faster_than_any_sump_is_found_over_its_time_column():
+    """Sustained (two windows' worth) and gradual: a sump warming 2.5 K per row of a table whose rows are minutes
+    read as seconds; not the fastest honest rise (0.45 K/s, the GRSO905 plant at 272 kW from 20 degC), nor the same
+    rows a minute apart, nor a sensor that steps once (a reconnect), nor a ramp shorter than two windows."""
+    t, oil = _ramp(2.5, 30.0)
+    f = oil_rate_finding(t, oil)
+    assert f is not None and f.severity == Severity.UNTRUSTED and f.column == "time_s"
+    assert "column oil_temp_c changes up to 2.5 K/s" in f.sentence
+    assert oil_rate_finding(*_ramp(-2.5, 30.0, start_c=100.0)) is not None  # cooling as fast: as implausible
+    assert oil_rate_finding(*_ramp(0.45, 200.0)) is None
+    assert oil_rate_finding(t * 60.0, oil) is None
+    t, oil = np.arange(0.0, 600.0), np.where(np.arange(600) < 300, 20.0, 80.0)
+    assert oil_rate_finding(t, oil) is None
+    t, oil = _ramp(2.5 * OIL_FAST_K_S, 15.0)
+    assert oil_rate_finding(np.r_[t, 15.0 + np.arange(300.0)], np.r_[oil, np.full(300, oil[-1])]) is None
+
+
+def test_record_findings_judge_the_oils_rate_only_with_a_time_column():
+    t, oil = _ramp(2.5, 30.0)
+    assert [f.column for f in record_findings({"time_s": t, "oil_temp_c": oil})] == ["time_s"]
+    assert record_findings({"oil_temp_c": oil}) == []  # the live check's samples carry no time column
+    # a CAN log's table: the same rule, its words the decoded signal's and the log's time base
+    assert oil_rate_finding(t, oil, "can").sentence.startswith("the oil temperature (TRF1 SPN 177) changes up to")

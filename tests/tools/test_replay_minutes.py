@@ -1,0 +1,55 @@
+"""A run table whose time_s is in minutes (one row a minute, a drive of hours stored as 0..N): its oil, read over
+seconds, changes faster than any gearbox sump can, and `replay` says so (exit 3) instead of silently stepping
+hours of drive as minutes; the same rows in seconds, and the honest 1 s table, draw no such finding. The rule:
+firmware_model.service.plausibility.oil_rate_finding (docs/can.md "Trust findings")."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from tools.cli import main
+from tools.runtable import RunTable, read_run_table, write_run_table
+
+INPUTS = (
+    "time_s",
+    "engine_speed_rpm",
+    "engine_torque_nm",
+    "gear",
+    "vehicle_speed_kmh",
+    "ambient_temp_c",
+    "coolant_temp_c",
+    "retarder_torque_nm",
+    "oil_temp_c",
+)
+
+
+@pytest.fixture(scope="module")
+def tables(tmp_path_factory):
+    """The long-haul cycle's plant (1 h from a cold sump, one row a second), as recorded and as one row a minute
+    with time_s in seconds and in minutes."""
+    d = tmp_path_factory.mktemp("minutes")
+    assert main(["simulate", "--cycle", "long_haul", "--out", str(d / "plant.csv"), "--quiet"]) == 0
+    plant = read_run_table(d / "plant.csv")
+    cols = {c: np.asarray(plant[c], dtype=float) for c in INPUTS}
+    write_run_table(RunTable(cols), d / "s1.csv")
+    rows = {c: v[::60] for c, v in cols.items()}
+    write_run_table(RunTable(rows), d / "s60.csv")
+    write_run_table(RunTable({**rows, "time_s": rows["time_s"] / 60.0}), d / "minutes.csv")
+    return d
+
+
+def test_a_table_in_minutes_is_untrusted_with_the_oils_rate(tables, capsys):
+    rc = main(["replay", str(tables / "minutes.csv"), "--out", str(tables / "e.csv")])
+    err = capsys.readouterr().err
+    assert rc == 3, err
+    [line] = [x for x in err.splitlines() if "where a gearbox sump" in x]
+    assert line.startswith("warning: column oil_temp_c changes")
+    assert "if time_s is in minutes, give seconds (time_s x 60)" in line
+
+
+@pytest.mark.parametrize("name", ["s1.csv", "s60.csv"])
+def test_the_same_drive_in_seconds_has_no_such_finding(tables, capsys, name):
+    rc = main(["replay", str(tables / name), "--out", str(tables / "e.csv")])
+    err = capsys.readouterr().err
+    assert "where a gearbox sump" not in err and rc == 0, err
