@@ -349,11 +349,64 @@ def test_a_thermocouple_in_degf_or_kelvin_is_told_by_the_oil_beside_it(tmp_path,
     cols["meas_T_PS_c"] = to_unit(cols["oil_temp_c"] + 5.0)
     err = _run_bad(tmp_path, capsys, cols)
     assert 'column "meas_T_PS_c" reads a median' in err and f"the column looks like {unit}, not degC" in err
-    cols["meas_T_PS_c"] = cols["oil_temp_c"] + 35.0  # a hot part in degC: no finding
+    # a hot part in degC: no finding (it starts at the oil: at a rest start from cold, 35 K over the oil from the first
+    # sample is what a degF reading shows, test_a_thermocouple_in_degf_on_a_cold_run_is_told_by_its_start)
+    cols["meas_T_PS_c"] = cols["oil_temp_c"] + 35.0 * (1.0 - np.exp(-np.arange(cols["time_s"].size) / 60.0))
     from tools.diagnosis.options import Options
     from tools.diagnosis.prepare import prepare
 
     assert "PS" in prepare(RunTable(cols), "t.csv", "train", Options()).channels
+
+
+def _cold_run(start_c: float, rise_c: float, n: int = 900) -> dict:
+    """A run from a cold-soaked gearbox (the oil starts at the ambient): the oil warms by rise_c, the planet shaft
+    follows it 1 K over, a bearing starts at the oil and rises 2 K over it."""
+    cols = _table(n=n)
+    t = np.arange(n, dtype=float)
+    rng = np.random.default_rng(5)
+    cols["ambient_temp_c"] = np.full(n, start_c)
+    cols["oil_temp_c"] = start_c + rise_c * (1.0 - np.exp(-t / 600.0)) + rng.normal(0, 0.1, n)
+    cols["meas_T_PS_c"] = cols["oil_temp_c"] + 1.0 * (1.0 - np.exp(-t / 60.0)) + rng.normal(0, 0.1, n)
+    cols["meas_T_BLR_c"] = cols["oil_temp_c"] + 2.0 * (1.0 - np.exp(-t / 60.0)) + rng.normal(0, 0.1, n)
+    return cols
+
+
+@pytest.mark.parametrize("start_c, rise_c", [(23.0, 3.0), (20.0, 35.0)])
+def test_a_thermocouple_in_degf_on_a_cold_run_is_told_by_its_start(tmp_path, capsys, start_c, rise_c):
+    """On a cold run a part in degF sits only 50-75 K over the oil (23 degC reads 73): under the 80 K of the rule
+    above, it was taken as a reading and the diagnosis named a candidate for its 47 K gap. A run from a
+    cold-soaked gearbox (the oil at the ambient) starts with every part at the oil: a channel that starts there
+    when read in degF, 48 K over it in degC, and never comes near it is in degF; the same with its neighbours in
+    place of the ambient."""
+    cols = _cold_run(start_c, rise_c)
+    cols["meas_T_PS_c"] = cols["meas_T_PS_c"] * 1.8 + 32.0
+    err = _run_bad(tmp_path, capsys, cols)
+    assert 'column "meas_T_PS_c" starts' in err and "the column looks like degF, not degC" in err
+    no_ambient = dict(cols)
+    del no_ambient["ambient_temp_c"]  # a rig file without the ambient: the bearing beside the oil says the same
+    err = _run_bad(tmp_path, capsys, no_ambient)
+    assert 'column "meas_T_PS_c" starts' in err and "the column looks like degF, not degC" in err
+
+
+def test_an_honest_hot_bearing_is_not_taken_for_degf(tmp_path):
+    """No false alarm: a bearing in degC really 30-60 K over the oil under load, from a cold-soaked start (it starts
+    at the oil), or over a whole run that starts running warm (the oil 40 K over the ambient), or over a cold run
+    without the ambient and without neighbours (nothing tells the start), is kept."""
+    from tools.diagnosis.options import Options
+    from tools.diagnosis.prepare import prepare
+
+    t = np.arange(900, dtype=float)
+    cold = _cold_run(20.0, 10.0)
+    cold["meas_T_BLR_c"] = cold["oil_temp_c"] + 30.0 + 30.0 * np.sin(t / 150.0) ** 2 * (1.0 - np.exp(-t / 60.0))
+    assert "BLR" in prepare(RunTable(cold), "t.csv", "train", Options()).channels
+    warm = _cold_run(20.0, 10.0)
+    warm["oil_temp_c"] = warm["oil_temp_c"] + 40.0
+    warm["meas_T_BLR_c"] = warm["oil_temp_c"] + 45.0 + 15.0 * np.sin(t / 150.0)
+    assert "BLR" in prepare(RunTable(warm), "t.csv", "train", Options()).channels
+    alone = _cold_run(10.0, 5.0)  # a bearing 40 K over a 10 degC oil from the first sample reads 1.8 * 10 + 32
+    del alone["ambient_temp_c"], alone["meas_T_PS_c"]
+    alone["meas_T_BLR_c"] = alone["oil_temp_c"] + 40.0 + np.random.default_rng(1).normal(0, 0.1, 900)
+    assert "BLR" in prepare(RunTable(alone), "t.csv", "train", Options()).channels
 
 
 def test_a_sensor_frozen_for_minutes_is_left_out_of_the_fit(tmp_path, capsys):

@@ -319,16 +319,74 @@ def _check_values(y: np.ndarray, ok: np.ndarray, name: str, col: str, dur_s: flo
 #: a measured part sits at most this far above the sump on the median of a run [K] (bearings and wheels run up to
 #: ~40 K over it); a reading further off that lies within UNIT_FIT_K of the sump in degF or kelvin is in that unit
 PART_OVER_OIL_K, UNIT_FIT_K = 80.0, 40.0
+#: a cold run in degF sits only 0.8 T + 32 over the sump (50 K at 23 degC: under PART_OVER_OIL_K). It is told by its
+#: start: a gearbox that starts cold-soaked (its oil less than SOAKED_K over the ambient; without the ambient column:
+#: another thermocouple starting within START_FIT_K of the oil) has every part at the oil, so a channel that starts
+#: within START_FIT_K of it read as degF, at least COLD_OVER_K over it in degC, and stays COLD_OVER_K over it in
+#: 95 % of the run (an honest part under load starts at the oil, and a degF reading's excess never fades) is degF.
+#: The means over the first START_S of the run are read [K, K, K, s]
+SOAKED_K, START_FIT_K, COLD_OVER_K, START_S = 15.0, 3.0, 15.0, 5.0
 
 
-def _check_unit_against_oil(y: np.ndarray, oil_c: np.ndarray, name: str, col: str) -> None:
+class UnitInputs(NamedTuple):
+    """What the unit check of a part's column reads beside it: the sump, and the ambient and the other
+    thermocouples (None, or an array per row) that tell a cold-soaked start."""
+
+    oil_c: np.ndarray
+    ambient_c: np.ndarray | None
+    others_c: tuple
+
+
+def _start_mean(y: np.ndarray, t: np.ndarray) -> float:
+    """The mean of the valid values within START_S of the run's first row (nan when there is none)."""
+    sel = (t <= t[0] + START_S) & np.isfinite(y)
+    return float(np.mean(y[sel])) if sel.any() else float("nan")
+
+
+def _soaked_start(ref: UnitInputs, t: np.ndarray) -> str:
+    """Why the run starts cold-soaked, every part at the oil ('' when nothing says so): its oil starts less than
+    SOAKED_K over the ambient, or (without the ambient) another thermocouple starts within START_FIT_K of it."""
+    oil0 = _start_mean(ref.oil_c, t)
+    amb0 = _start_mean(ref.ambient_c, t) if ref.ambient_c is not None else float("nan")
+    if np.isfinite(amb0):
+        return f"the oil starts {oil0 - amb0:.0f} K from the ambient" if oil0 - amb0 < SOAKED_K else ""
+    for o in ref.others_c:
+        if abs(_start_mean(o, t) - oil0) <= START_FIT_K:
+            return "another thermocouple starts at the oil"
+    return ""
+
+
+def _cold_degf(y: np.ndarray, ref: UnitInputs, t: np.ndarray, name: str, col: str) -> None:
+    """InputError for a part's column in degF on a cold run (module note above SOAKED_K)."""
+    oil0, y0 = _start_mean(ref.oil_c, t), _start_mean(y, t)
+    if not (np.isfinite(oil0) and np.isfinite(y0)):
+        return
+    over0, off_f0 = y0 - oil0, (y0 - 32.0) / 1.8 - oil0
+    if over0 < COLD_OVER_K or abs(off_f0) > START_FIT_K:
+        return
+    both = np.isfinite(y) & np.isfinite(ref.oil_c)
+    low = float(np.percentile(y[both] - ref.oil_c[both], 5.0))
+    if low < COLD_OVER_K:
+        return
+    why = _soaked_start(ref, t)
+    if why:
+        raise InputError(
+            f'{name}: column "{col}" starts {over0:.0f} K above the oil (oil_temp_c) on a cold-soaked start ({why}: '
+            f"every part at the oil) and stays {low:.0f} K or more over it in 95 % of the run; as degF it starts "
+            f"{abs(off_f0):.1f} K from the oil: the column looks like degF, not degC; give degC: (degF - 32) / 1.8"
+        )
+
+
+def _check_unit_against_oil(y: np.ndarray, ref: UnitInputs, t: np.ndarray, name: str, col: str) -> None:
     """InputError for a measured part's column in degF or kelvin, told by the sump beside it (a part in degF passes
-    the range check: 130 degC reads 266)."""
+    the range check: 130 degC reads 266), or on a cold run by its start (:func:`_cold_degf`)."""
+    oil_c = ref.oil_c
     both = np.isfinite(y) & np.isfinite(oil_c)
     if both.sum() < 10:
         return
     over = float(np.median(y[both] - oil_c[both]))
     if over <= PART_OVER_OIL_K:
+        _cold_degf(y, ref, t, name, col)
         return
     for unit, to_c, fix in (("degF", (y - 32.0) / 1.8, "(degF - 32) / 1.8"), ("kelvin", y - 273.15, "K - 273.15")):
         if abs(float(np.median(to_c[both] - oil_c[both]))) <= UNIT_FIT_K:
@@ -339,6 +397,16 @@ def _check_unit_against_oil(y: np.ndarray, oil_c: np.ndarray, name: str, col: st
             )
 
 
+def _unit_inputs(table: RunTable, col: str) -> UnitInputs:
+    """The sump, the ambient and the other thermocouples beside the column ``col``."""
+
+    def col_of(c):
+        return np.asarray(table[c], dtype=float)
+
+    others = tuple(col_of(c.column) for c in channel_columns(table).values() if c.column not in (col, "oil_temp_c"))
+    return UnitInputs(col_of("oil_temp_c"), col_of("ambient_temp_c") if table.has("ambient_temp_c") else None, others)
+
+
 def _valid_samples(table: RunTable, t: np.ndarray, name: str, col: str, opts: Options) -> ValidSamples:
     """The valid samples of a measured column; refuses dead, stuck, implausible and long-missing ones and warns
     about a sensor frozen for a long stretch."""
@@ -347,7 +415,7 @@ def _valid_samples(table: RunTable, t: np.ndarray, name: str, col: str, opts: Op
     ok = np.isfinite(y)
     _check_values(y, ok, name, col, dur, t)
     if col != "oil_temp_c" and table.has("oil_temp_c"):
-        _check_unit_against_oil(y, np.asarray(table["oil_temp_c"], dtype=float), name, col)
+        _check_unit_against_oil(y, _unit_inputs(table, col), t, name, col)
     yv = y[ok]
     g0, glen = _longest_nan_run(t, ok)
     limit_s = max(opts.max_channel_gap_frac * dur, 300.0)
