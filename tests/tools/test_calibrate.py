@@ -128,6 +128,28 @@ def test_bounds_are_checked_when_the_file_is_read(tmp_path):
     assert np.isclose(p.bounds["oil_system.flow_m3_per_rad"][1], 1.59e-06)
 
 
+def test_a_held_out_file_cut_from_a_training_file_is_refused(rig_files, tmp_path, capsys):
+    """A held-out file cut from a training run (its minutes 2-8, time from 0, temperatures rounded to 0.1 K) was
+    taken as held out: the held-out RMS scored the fit on rows it was fitted to. Refused before any fit, nothing
+    written; the real held-out file of the same cycles passes (test_calibration_holds_on_held_out_data)."""
+    from tools.runtable import RunTable, read_run_table
+
+    d, (tr1, tr2, te) = rig_files
+    src = read_run_table(tr2)
+    cut = {c: np.asarray(src[c], dtype=float)[120:480] for c in src.columns}
+    cut["time_s"] = cut["time_s"] - cut["time_s"][0]
+    for c in cut:
+        if c == "oil_temp_c" or c.startswith("meas_T_"):
+            cut[c] = np.round(cut[c], 1)
+    write_run_table(RunTable(cut), tmp_path / "held_out.csv")
+    out = tmp_path / "bad" / "cal.toml"
+    rc = main(["calibrate", "--train", tr1, tr2, "--test", str(tmp_path / "held_out.csv"), "--auto", "--out", str(out)])
+    err = capsys.readouterr().err
+    assert rc == 2 and not out.exists() and not out.parent.exists(), err
+    assert "held_out.csv repeats 360 of its 360 rows from the training file" in err and "train2.csv" in err
+    assert len([line for line in err.strip().splitlines() if line.strip()]) == 1
+
+
 def test_training_thermocouples_in_degf_write_no_parameter_file(params, tmp_path, capsys):
     """No parameter file from training thermocouples in degF: they gave a 'fitted' file (a value at its bound, the
     held-out RMS 15 times larger, printed as '-1458 % down') with exit 0; then the fit was refused as making the

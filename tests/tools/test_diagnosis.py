@@ -525,6 +525,72 @@ def test_train_and_test_the_same_data(tmp_path, capsys):
     assert "both a training and a test file" in err
 
 
+def _measured(n=900, seed=3, start_c=40.0):
+    """A run with the oil and a planet-shaft thermocouple that warm from start_c."""
+    cols = _table(n=n, seed=seed)
+    t = np.arange(n, dtype=float)
+    rng = np.random.default_rng(seed + 10)
+    cols["oil_temp_c"] = start_c + 30.0 * (1.0 - np.exp(-t / 500.0)) + rng.normal(0, 0.1, n)
+    cols["meas_T_PS_c"] = cols["oil_temp_c"] + 8.0 * (1.0 - np.exp(-t / 60.0)) + rng.normal(0, 0.1, n)
+    return cols
+
+
+def _window(cols, i0, i1, rebase=False, decimals=None, step=1):
+    out = {k: np.array(v[i0:i1:step], dtype=float) for k, v in cols.items()}
+    if rebase:
+        out["time_s"] = out["time_s"] - out["time_s"][0]
+    if decimals is not None:
+        for k in ("oil_temp_c", "meas_T_PS_c"):
+            out[k] = np.round(out[k], decimals)
+    return out
+
+
+@pytest.mark.parametrize(
+    "cut",
+    [
+        {},  # the rows 300..699, their time stamps kept
+        {"rebase": True, "decimals": 1},  # the window's time from 0, the temperatures rounded to 0.1 K
+        {"rebase": True, "decimals": 0, "step": 2},  # every other row, rounded to 1 K
+    ],
+)
+def test_a_test_file_cut_from_a_training_file_is_refused(tmp_path, capsys, cut):
+    """A test file cut from a training file (a time window, possibly shifted to start at 0 and rounded) passed the
+    same-data check and was scored as held out: the held-out RMS measured the fit on rows it had seen."""
+    cols = _measured()
+    err = _run_bad(tmp_path, capsys, cols, test_cols=_window(cols, 300, 700, **cut))
+    assert "test.csv repeats" in err and "from the training file" in err and "train.csv" in err
+    assert "give a test run that is not cut from a training file" in err
+
+
+def test_two_runs_of_one_cycle_are_not_an_overlap():
+    """No false alarm: two runs of one cycle (the same inputs, the same time stamps) with other measured
+    temperatures, with the same temperatures but other sensor noise rounded to 0.1 K, or from starts 5 K apart that
+    meet after 37 s (a steady cycle: 96 % of the rows the same, but not the start), are two runs; a training file
+    longer than its test run is judged the same."""
+    from tools.diagnosis.options import Options
+    from tools.diagnosis.prepare import prepare_runs
+
+    a = _measured(seed=3, start_c=40.0)
+
+    def runs(test_cols):
+        return prepare_runs([RunTable(a)], [RunTable(test_cols)], Options(), False, ["a"], ["b"])
+
+    other = _measured(seed=3, start_c=35.0)
+    assert len(runs(other).test) == 1
+    noise = {k: np.array(v) for k, v in a.items()}
+    rng = np.random.default_rng(99)
+    for k in ("oil_temp_c", "meas_T_PS_c"):
+        a[k] = np.round(a[k], 1)
+        noise[k] = np.round(noise[k] + rng.normal(0, 0.1, noise[k].size), 1)
+    assert len(runs(noise).test) == 1
+    meet = {k: np.array(v) for k, v in a.items()}
+    t = np.arange(meet["time_s"].size, dtype=float)
+    for k in ("oil_temp_c", "meas_T_PS_c"):
+        meet[k] = np.round(meet[k] + 5.0 * np.exp(-t / 8.0), 1)  # the same after 37 s: 96 % of the rows
+    assert len(runs(meet).test) == 1
+    assert len(runs(_window(meet, 0, 400)).test) == 1
+
+
 def test_missing_file(tmp_path, capsys):
     rc = main(
         [

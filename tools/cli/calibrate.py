@@ -49,7 +49,13 @@ def add_subparser(sub):
         "housing.hot_frac --out my_gearbox.toml",
     )
     p.add_argument("--train", nargs="+", required=True, metavar="FILE", help="training runs (.csv or CAN logs)")
-    p.add_argument("--test", nargs="+", required=True, metavar="FILE", help="held-out runs, never used by the fit")
+    p.add_argument(
+        "--test",
+        nargs="+",
+        required=True,
+        metavar="FILE",
+        help="held-out runs, never used by the fit (a file that repeats rows of a training file is refused)",
+    )
     keys = p.add_mutually_exclusive_group(required=True)
     keys.add_argument(
         "--params", metavar="KEY,KEY,...", help="dotted keys of the parameter file to fit (each with lo/hi bounds)"

@@ -43,7 +43,8 @@ def add_subparser(sub):
         nargs="+",
         required=True,
         metavar="FILE",
-        help="test runs (.csv or CAN logs), different runs from the training files",
+        help="test runs (.csv or CAN logs), different runs from the training files (a file that repeats rows of one, "
+        "e.g. a time window cut from it, is refused)",
     )
     p.add_argument(
         "--config",

@@ -17,6 +17,7 @@ import numpy as np
 from firmware_model.errors import InputError
 from firmware_model.physics.oil import check_temperature_c
 from tools.diagnosis.options import INPUT_COLUMNS, J1939_RES_C, LOG_SUFFIXES, OIL, OIL_RIG, Options
+from tools.diagnosis.overlap import check_held_out
 from tools.runtable import REQUIRED, RunTable, read_run_table, validate_run_table
 
 
@@ -222,6 +223,7 @@ def prepare_runs(
     tr = _load_all(train_tables, train_names, "train", config_path)
     te = _load_all(test_tables, test_names, "test", config_path)
     _check_distinct(tr, te)
+    check_held_out(tr, te)
     if params is not None:
         from tools.plant.reference import validate_drive
 

@@ -271,15 +271,27 @@ def read_units(
     return {u: _record(u, parts, cmap) for u, parts in sorted(by_unit.items())}
 
 
+def rows_near(t_ref_s: np.ndarray, t_s: np.ndarray, within_s: float) -> int:
+    """How many of the sorted times ``t_s`` lie closer than ``within_s`` to one of the sorted ``t_ref_s``."""
+    if not (t_ref_s.size and t_s.size):
+        return 0
+    j = np.searchsorted(t_ref_s, t_s)
+    before = np.abs(t_s - t_ref_s[np.maximum(j - 1, 0)])
+    after = np.abs(t_ref_s[np.minimum(j, t_ref_s.size - 1)] - t_s)
+    return int(np.sum(np.minimum(before, after) < within_s))
+
+
 def read_held_out(train_paths, test_paths, columns) -> tuple[list[ScadaRecord], list[ScadaRecord]]:
     """The training and the test records (each unit's files one record), refused with one sentence when a test
-    record shares rows (its unit, the same time stamps) with a training one: its error would not be held out."""
+    record shares rows with a training one: its unit, and a time stamp within half the map's period of one of
+    the training record's (the same stamps, or the same hours exported on a shifted grid): its error would not be
+    held out."""
     train = list(read_units(train_paths, columns).values())
     test = list(read_units(test_paths, columns).values())
     for te in test:
         for tr in train:
             if te.unit == tr.unit:
-                shared = int(np.isin(te.time_s, tr.time_s).sum())
+                shared = rows_near(tr.time_s, te.time_s, 0.5 * te.cmap.period_s)
                 if shared:
                     raise InputError(
                         f"the test records of {te.unit} share {shared} of their {te.n} rows with the training ones: "

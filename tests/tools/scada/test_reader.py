@@ -362,8 +362,8 @@ def test_engie_s_semicolon_export_with_decimal_commas_reads_as_the_comma_file(tm
 
 def test_held_out_records_may_not_share_rows_with_the_training_ones(tmp_path, two_files):
     """diagnose and calibrate on SCADA read train and test through read_held_out: the same file (or overlapping
-    files of one unit) as both is one sentence (a 'held-out' RMS over training rows said nothing), another unit or
-    other dates pass."""
+    files of one unit, or its hours exported on a shifted grid) as both is one sentence (a 'held-out' RMS over
+    training rows said nothing), another unit or other dates pass."""
     from tools.scada.reader import read_held_out
 
     fa, fb, _ = two_files
@@ -376,3 +376,10 @@ def test_held_out_records_may_not_share_rows_with_the_training_ones(tmp_path, tw
         [ln.replace("R1,", "R2,", 1) for ln in gzip.decompress(fa.read_bytes()).decode().splitlines()[1:]],
     )
     assert read_held_out([fa], [other], "engie")[1][0].unit == "R2"
+    # the same unit's hours exported on a grid 3 minutes later: no stamp equal, every row the same time (it passed)
+    t0 = datetime(2017, 3, 26, 0, 3, tzinfo=timezone.utc)
+    shifted = write(tmp_path / "r1_shifted.csv", [row(t0 + k * timedelta(minutes=10)) for k in range(6)])
+    with pytest.raises(InputError, match=r"the test records of R1 share 6 of their 6 rows with the training ones"):
+        read_held_out([fa], [shifted], "engie")
+    later = write(tmp_path / "r1_later.csv", [row(t0 + timedelta(days=1, minutes=10 * k)) for k in range(6)])
+    assert read_held_out([fa], [later], "engie")[1][0].n == 6
