@@ -589,6 +589,13 @@ def test_two_runs_of_one_cycle_are_not_an_overlap():
         meet[k] = np.round(meet[k] + 5.0 * np.exp(-t / 8.0), 1)  # the same after 37 s: 96 % of the rows
     assert len(runs(meet).test) == 1
     assert len(runs(_window(meet, 0, 400)).test) == 1
+    # a sump held at 100 degC (cooler "hold": the oil an input) is a set point, the same in two runs of one cycle
+    from tools.diagnosis.overlap import find_overlap
+
+    held = {k: np.array(v) for k, v in a.items()} | {"oil_temp_c": np.full(a["time_s"].size, 100.0)}
+    held_test = {k: v for k, v in held.items() if k != "meas_T_PS_c"}
+    assert find_overlap(RunTable(held), RunTable(held_test), oil_is_input=True) is None
+    assert find_overlap(RunTable(held), RunTable(held), oil_is_input=True).shared == a["time_s"].size
 
 
 def test_missing_file(tmp_path, capsys):

@@ -1,11 +1,12 @@
 """Test files that are not held out: a test file that repeats rows of a training file (the same rows, a time window
 cut from it, its time stamps kept or shifted to start at 0, every other row, its values rounded).
 
-Two rows are the same row when the drive (engine speed, torque, gear) and every measured channel both files carry
-agree within the files' rounding (half the coarser of their steps: :func:`column_step`). A test file overlaps a
-training file when, at one time shift between them, at least MIN_SHARED_ROWS rows and AGREE_SHARE of the rows in
-their common time span are the same, also at the span's start. Two runs of one cycle (the same inputs) differ in
-their measured temperatures; two runs from different starts that meet later (a steady load) differ at the start.
+Two rows are the same row when the drive (engine speed, torque, gear; and the oil when it is an input) and every
+measured channel both files carry agree within the files' rounding (half the coarser of their steps:
+:func:`column_step`). A test file overlaps a training file when, at one time shift between them, at least
+MIN_SHARED_ROWS rows and AGREE_SHARE of the rows in their common time span are the same, also at the span's start.
+Two runs of one cycle (the same inputs) differ in their measured temperatures; two runs from different starts that
+meet later (a steady load) differ at the start.
 """
 
 from __future__ import annotations
@@ -46,10 +47,13 @@ def column_step(v: np.ndarray) -> float:
     return min(float(np.min(np.diff(u))), MAX_STEP) if u.size > 1 else 0.0
 
 
-def _columns(a, b) -> list[str]:
-    """The drive and the measured columns (oil_temp_c, meas_T_*_c) both tables carry."""
-    meas = [c for c in a.columns if c == "oil_temp_c" or (c.startswith("meas_T_") and c.endswith("_c"))]
-    return [c for c in DRIVE if a.has(c) and b.has(c)] + [c for c in meas if b.has(c)]
+def _columns(a, b, oil_is_input: bool) -> tuple:
+    """(the inputs, the measured columns) both tables carry: the drive, and the oil when it is an input (a held sump
+    is a set point, the same in every run at it); the thermocouples (meas_T_*_c), and the oil when it is measured."""
+    oil = ["oil_temp_c"] if a.has("oil_temp_c") and b.has("oil_temp_c") else []
+    inputs = [c for c in DRIVE if a.has(c) and b.has(c)] + (oil if oil_is_input else [])
+    meas = [c for c in a.columns if c.startswith("meas_T_") and c.endswith("_c") and b.has(c)]
+    return inputs, meas + ([] if oil_is_input else oil)
 
 
 class _Side(NamedTuple):
@@ -102,12 +106,12 @@ def _agreement(short: _Side, long: _Side, tols: list, n_drive: int, shift: float
     return span.size, int(same.sum()), float(head.mean()), span
 
 
-def find_overlap(train, test) -> Overlap | None:
+def find_overlap(train, test, oil_is_input: bool = False) -> Overlap | None:
     """The rows of the RunTable ``test`` that repeat rows of the RunTable ``train`` (module note), or None."""
-    cols = _columns(train, test)
-    n_drive = sum(c in DRIVE for c in cols)
-    if len(cols) == n_drive:
+    inputs, meas = _columns(train, test, oil_is_input)
+    if not meas:
         return None  # no measured channel in common: the same inputs alone are the same cycle, not the same run
+    cols, n_drive = inputs + meas, len(inputs)
     tr, te = _side(train, cols), _side(test, cols)
     tols = [0.5 * max(column_step(a), column_step(b)) * (1 + 1e-6) + 1e-9 for a, b in zip(tr.cols, te.cols)]
     flip = te.t.size > tr.t.size  # anchors from the shorter file
@@ -121,12 +125,12 @@ def find_overlap(train, test) -> Overlap | None:
     return None
 
 
-def check_held_out(train: list, test: list) -> None:
+def check_held_out(train: list, test: list, oil_is_input: bool = False) -> None:
     """InputError when a test file repeats rows of a training file (``train``, ``test``: items with ``name`` and
     ``table``): its held-out figures would score rows the fit has seen."""
     for te in test:
         for tr in train:
-            o = find_overlap(tr.table, te.table)
+            o = find_overlap(tr.table, te.table, oil_is_input)
             if o is None:
                 continue
             shifted = f", its time shifted by {o.shift_s:.10g} s" if o.shift_s else ""

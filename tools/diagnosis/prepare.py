@@ -223,7 +223,7 @@ def prepare_runs(
     tr = _load_all(train_tables, train_names, "train", config_path)
     te = _load_all(test_tables, test_names, "test", config_path)
     _check_distinct(tr, te)
-    check_held_out(tr, te)
+    check_held_out(tr, te, oil_is_input)
     if params is not None:
         from tools.plant.reference import validate_drive
 
