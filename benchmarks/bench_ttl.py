@@ -19,11 +19,8 @@
 (c) warnings: every named cycle replayed (C core, oil measured as the plant's and absent), the onsets of level 1
     per component with both methods: counts, and any onset later than today's.
 (d) --attribute: every crossing of (a) the bounded method predicts early by more than 20 % or late by more than
-    10 %: the march that gave it, the sensor's own run with the inputs held (C, oil absent: the model's own
-    crossing), and the sensor's held model integrated (implicit Euler, 1 s, frozen at each step's sump) exactly and
-    with one of the method's linearisations at a time: the cooler's line (Q), the first system's inlet drop (D:
-    frozen at a clip it starts on, else coupled along the cooler line's slope), the loss chord (L), the step's
-    conductances (G); the largest of them is named the source (a few minutes).
+    10 %: the sensor's own run with the inputs held (C, oil absent: the model's own crossing) and the sump's path as
+    the method cut it (the parts' ends and how far their lines lie under the cooler's and the inlet drop's curves).
 
 The plant's held runs are cached on disk (--cache, default ~/.cache/gearbox-vsensor/bench_ttl; --no-cache).
 CPU: one process, one BLAS thread (the machine may be shared).
@@ -326,75 +323,39 @@ def section_speed(params, repeat: int) -> None:
     )
 
 
-def held_model_crossings(bench: Bench, p, first, swap: str, t_end_s: float) -> np.ndarray:
-    """(n_pub,) first crossing [s] of the sensor's held model from the point (the bounded method's first system's
-    parts in ``first``: ttl_bound.Chord), integrated by implicit Euler (1 s) with the losses, conductances, cooler
-    and inlet drop at each step's sump, except the one linearisation named in ``swap`` (Q, D, L, G; "": none)."""
-    from firmware_model.onboard import ttl_bound as tb
-    from firmware_model.onboard.time_to_limit import held_system, loss_heat_w, oil_flow_m3_s
-    from firmware_model.physics.cooler import INLET_DROP_MAX_K as MAX_K
-
-    sp, cache = bench.c_sensor.sp, bench.c_sensor.cache
-    rp, C, lim = sp.reduced, sp.helpers.C, sp.limits.warning_c
-    T0, T_far, mcp = p.T_oil_c, first.T_far_c, p.rho_cp_j_per_m3k * oil_flow_m3_s(sp, p.row, p.omega_in_rad_s)
-    T, t, out = p.T_main_c.copy(), 0.0, np.where(p.T_main_c[rp.published_index] >= lim, 0.0, np.inf)
-    while t < t_end_s:
-        Ts = float(T[rp.i_oil])
-        src = first.src_w + (p.src_w - first.src_w) * (Ts - T_far) / (T0 - T_far) if swap == "L" else None
-        src = loss_heat_w(sp, p, Ts) if src is None else src
-        bins = cache.bins.get(sp, p.row, *tb.bin_centre(p.omega_in_rad_s, Ts, rp.speed_bin_min_rad_s))
-        G, Gs = (p.G_w_per_k, p.G_streams_w_per_k) if swap == "G" else (bins.G_w_per_k, bins.G_streams_w_per_k)
-        Q_w = tb.cooler_heat_w(sp, p, Ts)
-        d_k = min(max(Q_w / mcp, -MAX_K), MAX_K)
-        if swap == "D":
-            d_k = p.dT_in_k + (first.slope_w_per_k / mcp * (Ts - T0) if abs(p.dT_in_k) < MAX_K else 0.0)
-        if swap == "Q":
-            Q_w = first.p.Q_cool_w + first.slope_w_per_k * (Ts - T0)
-        held, _ = held_system(sp, p._replace(T_oil_c=Ts, Q_cool_w=Q_w, dT_in_k=d_k), src, G, Gs, Ts, False, None, 0.0)
-        T_new = np.linalg.solve(np.diag(C) + held.A_w_per_k, C * T + held.b_w)
-        f0, f1 = T[rp.published_index] - lim, T_new[rp.published_index] - lim
-        hit = (f1 >= 0.0) & ~np.isfinite(out)
-        out[hit] = t - f0[hit] / (f1[hit] - f0[hit])
-        T, t = T_new, t + 1.0
-    return out
-
-
 def section_attribute(bench: Bench, n_points: int, seed: int) -> None:
-    """(d): which of the bounded method's linearisations makes each crossing early (or late)."""
+    """(d): every crossing the bounded method predicts early by more than 20 % or late by more than 10 %: the sensor's
+    own run with the inputs held (a model mismatch shows there) and the sump's path as the method cut it (the parts'
+    ends and how far each part's lines lie under the cooler's and the inlet drop's curves)."""
     from firmware_model.onboard import ttl_bound as tb
-    from firmware_model.onboard.time_to_limit import held_system
 
     sp, cache = bench.c_sensor.sp, bench.c_sensor.cache
     own = VirtualSensor(bench.params, core="c", ttl_method="march", oil_frozen_s=math.inf, drive_frozen_s=math.inf)
-    names, count, rows = ids(bench.params), {}, 0
-    print("(d) crossings the bounded method predicts early by more than 20 % or late by more than 10 %; error of:")
-    print("    point kind/oil         component  plant s   bound (march)   own run | held model: exact Q D L G")
+    names, rows = ids(bench.params), 0
+    print("(d) crossings the bounded method predicts early by more than 20 % or late by more than 10 %:")
+    print("    point kind/oil         component  plant s  bound  own run | the path's parts [degC] (gap under [W])")
     for i, pt in enumerate(make_points(n_points, seed)):
         tp, p = bench.plant_crossings(pt), bench.ttl_point(pt)
         with np.errstate(invalid="ignore"):
             err = (tb.time_to_limit_bound(sp, cache, p) - tp) / tp
         bad = np.flatnonzero((tp >= BINS_S[0][0]) & (tp <= BINS_S[-1][1]) & ((err < -WITHIN) | (err > LATE)))
-        system, _ = held_system(sp, p, p.src_w, p.G_w_per_k, p.G_streams_w_per_k, p.T_oil_c, False, None)
-        systems = tb.chord_systems(sp, cache, p, system, None) if bad.size else []
-        if len(systems) != 3:
+        if not bad.size:
             continue
-        which, own_s = _which_march(sp, cache, p, systems), _own_run_s(bench, own, pt)
-        t_end = float(min(1.2 * tp[bad].max(), HELD_S))
-        model = {k: held_model_crossings(bench, p, systems[2], k, t_end) for k in ("", "Q", "D", "L", "G")}
+        own_s = _own_run_s(bench, own, pt)
+        mcp = p.rho_cp_j_per_m3k * tb.oil_flow_m3_s(sp, p.row, p.omega_in_rad_s)
+        curves = tb.Curves(sp, p, mcp)
+        grid, cuts = tb.cut_path(curves, p.T_oil_c, tb.far_sump_c(sp, p, curves))
+        path = " ".join(
+            f"{grid[a]:.0f}-{grid[b]:.0f} ({tb.part_gap_w(curves, grid, a, b):.0f})"
+            for a, b in zip(cuts[:-1], cuts[1:])
+        )
         for j in bad:
-            e = {k: (v[j] - tp[j]) / tp[j] for k, v in model.items()}
-            src = min("QDLG", key=lambda k: e[k]) if err[j] < 0 else max("QDLG", key=lambda k: e[k])
-            src = "D" if which[j] == "secant" else src  # the inlet drop's secant under its clipped curve
-            count[src] = count.get(src, 0) + 1
             rows += 1
-            cells = " ".join(f"{_pct(e[k]):>6s}" for k in ("", *"QDLG"))
             print(
                 f"    {i:5d} {pt['kind'] + '/' + pt['oil']:16s} {names[j]:10s} {tp[j]:8.0f}  {_pct(err[j]):>6s}"
-                f" {'(' + which[j] + ')':8s}  {_pct((own_s[j] - tp[j]) / tp[j]):>6s} | {cells}  <{src}>"
+                f"  {_pct((own_s[j] - tp[j]) / tp[j]):>6s} | {path}"
             )
-    tally = ", ".join(f"{k} {v}" for k, v in sorted(count.items()))
-    print(f"    {rows} crossings; the largest single source (Q cooler line, D inlet drop, L loss chord, G the step's")
-    print(f"    conductances): {tally}")
+    print(f"    {rows} crossings")
 
 
 def _own_run_s(bench: Bench, own: VirtualSensor, pt: dict) -> np.ndarray:
@@ -406,34 +367,6 @@ def _own_run_s(bench: Bench, own: VirtualSensor, pt: dict) -> np.ndarray:
     _, out = own.step_table(st, raw)
     hot = np.asarray(out.T_c) >= np.asarray(own.limits.warning_c)
     return np.where(hot.any(axis=0), 0.1 * (np.argmax(hot, axis=0) + 1), np.inf)
-
-
-def _which_march(sp, cache, p, systems) -> list:
-    """Per published component, which of the bounded method's marches gave its time: first (the step's
-    conductances), second (the far sump's bin), secant (the first again with the inlet drop's secant) or march
-    (the march alone, where within the gate)."""
-    from firmware_model.onboard.held_march import march_time_to_limit
-    from firmware_model.onboard.kernel_interface import TTL_BOUND_GATE_S, TTL_BOUND_RATIO
-    from firmware_model.onboard.time_to_limit import time_to_limit
-
-    h, i_oil, n_pub = sp.helpers, sp.reduced.i_oil, len(sp.reduced.published)
-    rows, pub, lim = h.pub_rows_all, h.pub_free_all, sp.limits.warning_c[h.pub_free_all]
-    got, T_x = {}, math.nan
-    for k, sys_ in zip(("first", "second"), systems[:2]):
-        m = march_time_to_limit(sys_, p.T_main_c, rows, lim, h.ttl_relin_pub, i_oil, None, TTL_BOUND_RATIO)
-        got[k] = np.full(n_pub, np.inf)
-        if m is not None:
-            got[k][pub] = m.ttl_s
-            T_x = m.watch_T_c if math.isnan(T_x) else T_x
-    k_in = systems[2].clipped_inlet_k_per_k(sp, T_x)
-    if k_in is not None:
-        m = march_time_to_limit(systems[2].system(sp, None, k_in), p.T_main_c, rows, lim, ratio=TTL_BOUND_RATIO)
-        got["secant"] = np.full(n_pub, np.inf)
-        got["secant"][pub] = np.inf if m is None else m.ttl_s
-    bound = np.min(np.stack(list(got.values())), axis=0)
-    got["march"] = time_to_limit(sp, cache, p) if np.any(bound <= TTL_BOUND_GATE_S) else np.full(n_pub, np.inf)
-    best = np.stack(list(got.values()))
-    return [list(got)[int(np.argmin(best[:, j]))] for j in range(n_pub)]
 
 
 def section_warnings(bench: Bench) -> None:
@@ -507,7 +440,11 @@ def main() -> int:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--repeat", type=int, default=7, help="runs of the speed measurement (median)")
     ap.add_argument("--only", choices=("accuracy", "speed", "warnings"))
-    ap.add_argument("--attribute", action="store_true", help="(d): the source of every early or late crossing")
+    ap.add_argument(
+        "--attribute",
+        action="store_true",
+        help="(d): every early or late crossing with the model's own and the path's parts",
+    )
     ap.add_argument("--cache", type=Path, default=Path.home() / ".cache" / "gearbox-vsensor" / "bench_ttl")
     ap.add_argument("--no-cache", action="store_true", help="run every plant run again, keep nothing on disk")
     a = ap.parse_args()

@@ -65,6 +65,10 @@ class March(NamedTuple):
     watch_t_s: float  # the first crossing (before the quantum) of a watched row; NaN: none crosses
     watch_T_c: float  # the watched node's temperature then (the Hermite interpolant of its step)
     steps: int = 0  # the march's steps (each one factorisation and two solves): its cost
+    #: the event (``event``): when the node first reached its temperature [s] (NaN: never within the march) and
+    #: every free node's temperature then (the Hermite interpolant of that step); the march stopped there
+    event_t_s: float = math.nan
+    event_T_c: np.ndarray | None = None
 
 
 def _hermite(s, h, f0, g0, f1, g1):
@@ -113,7 +117,13 @@ def _bound_scale(sys: HeldSystem, x: np.ndarray) -> float:
 
 
 def _skip_to(
-    open_: np.ndarray, gap_k: np.ndarray, rate_max_k_per_s: float, w_rows: np.ndarray, ratio: float = MARCH_RATIO
+    open_: np.ndarray,
+    gap_k: np.ndarray,
+    rate_max_k_per_s: float,
+    w_rows: np.ndarray,
+    ratio: float = MARCH_RATIO,
+    t_cap_s: float = math.inf,
+    t_end_s: float = TTL_HORIZON_S,
 ) -> tuple[float, float]:
     """The first step's end and the step after it (t_skip, h). With the maximum principle applied to the
     derivative (which obeys the same equation), no node warms faster than ``rate = max_j max(de_j/dt(0), 0)`` at any
@@ -122,17 +132,92 @@ def _skip_to(
     warms and every open row is closed (in place). NaN: no skip. Without the Metzler structure but with weights
     (HeldSystem.weights) row i warms no faster than ``rate w_i``, ``rate = max_j |de_j/dt(0)| / w_j``
     (:func:`_bound_scale`; w_rows: the rows' weights, 1 when Metzler; ratio: the grid's, MARCH_RATIO or the bounded
-    method's)."""
+    method's). ``t_cap_s``: no skip past it (an event's earliest time); ``t_end_s``: the march's horizon."""
     t_skip, h = 0.0, MARCH_H0_S
     if not rate_max_k_per_s > 0.0:
         if rate_max_k_per_s <= 0.0:
             open_[:] = False
-        return t_skip, h
-    t_min = float(np.min(gap_k[open_] / (rate_max_k_per_s * w_rows[open_])))
-    while t_skip + h <= t_min and t_skip + h < TTL_HORIZON_S:
+        if not t_cap_s < math.inf:
+            return t_skip, h
+    t_min = t_cap_s
+    if open_.any():
+        t_min = min(t_min, float(np.min(gap_k[open_] / (rate_max_k_per_s * w_rows[open_]))))
+    while t_skip + h <= t_min and t_skip + h < t_end_s:
         t_skip = t_skip + h
         h = h * ratio
     return t_skip, h
+
+
+def _tr_bdf2(A: np.ndarray, C: np.ndarray, e: np.ndarray, h_step: float) -> np.ndarray | None:
+    """One TR-BDF2 step of ``C de/dt = -A e`` (both stages with ``C + d A``); None: singular."""
+    d = MARCH_D_FRAC * h_step
+    M = np.diag(C) + d * A
+    try:
+        e_g = np.linalg.solve(M, C * e - d * (A @ e))
+        return np.linalg.solve(M, C * (MARCH_A1 * e_g - MARCH_A0 * e))
+    except np.linalg.LinAlgError:
+        return None
+
+
+class _Event:
+    """A node rising to a temperature (march_time_to_limit's ``event``): open while the bounds let it get there."""
+
+    def __init__(self, sys: HeldSystem, event, T0_c: np.ndarray, T_inf: np.ndarray, e: np.ndarray, bounded: bool):
+        self.open, self.bounded, self.j, self.T_c, self.w = False, bounded, 0, 0.0, 1.0
+        if event is None:
+            return
+        self.j, self.T_c = event
+        self.w = 1.0 if not bounded or sys.metzler else float(sys.weights[self.j])
+        self.open = bool(T0_c[self.j] < self.T_c)
+        self.close_unless_reachable(sys, T_inf, e)
+
+    def close_unless_reachable(self, sys: HeldSystem, T_inf: np.ndarray, e: np.ndarray) -> None:
+        if self.open and self.bounded:
+            self.open = bool(T_inf[self.j] + _bound_scale(sys, e) * self.w >= self.T_c)
+
+    def earliest_s(self, sys: HeldSystem, T0_c: np.ndarray, de: np.ndarray) -> float:
+        """No earlier than this [s] (inf: no bound); the event closes when nothing warms now."""
+        if not self.open:
+            return math.inf
+        rate = _bound_scale(sys, de)
+        self.open = not rate <= 0.0  # (NaN: open)
+        return (self.T_c - T0_c[self.j]) / (rate * self.w) if self.open and rate > 0.0 else math.inf
+
+    def root(self, h_step: float, T_inf, e, de, e_new, de_new) -> float:
+        """Where in the step (0..1] the node reaches it (inf: not in this step)."""
+        j, T = self.j, self.T_c
+        if not self.open or not T_inf[j] + e_new[j] >= T:
+            return math.inf
+        return _first_root(h_step, T_inf[j] + e[j] - T, de[j], T_inf[j] + e_new[j] - T, de_new[j])
+
+
+def _cross(open_, out, rows, f0, f1, de, de_new, h_step: float, t_s: float, s_ev: float, watch) -> float:
+    """The open rows that reach their limit in the step from t_s (before the event's s_ev) closed with their time in
+    ``out``; returns the first watched row's s in the step (inf: none)."""
+    s_watch = math.inf
+    for i in np.flatnonzero(open_ & (f1 >= 0.0)):
+        r = rows[i]
+        s = _first_root(h_step, f0[i], de[r], f1[i], de_new[r])
+        if s > s_ev:
+            continue  # after the event: the next system decides
+        out[i] = min(_quantum_ceil(t_s + s * h_step), TTL_HORIZON_S)
+        open_[i] = False
+        if watch[i] and s < s_watch:
+            s_watch = s
+    return s_watch
+
+
+def _start_rows(sys, T0_rows, Tinf_rows, lim, Crow, w_rows, scale, energy, done) -> tuple[np.ndarray, np.ndarray]:
+    """(0 for the rows at their limit now, else inf; the rows the bounds leave open) at the march's start (``done``
+    rows: inf, never open)."""
+    todo = np.ones(T0_rows.size, dtype=bool) if done is None else ~np.asarray(done, dtype=bool)
+    out = np.where(todo & (T0_rows >= lim), 0.0, np.inf)
+    open_ = todo & (T0_rows < lim)
+    if sys.metzler or sys.weights is not None:
+        open_ &= Tinf_rows + scale * w_rows >= lim
+    if not sys.coupled:
+        open_ &= Tinf_rows + np.sqrt(energy / Crow) >= lim
+    return out, open_
 
 
 def march_time_to_limit(
@@ -142,14 +227,17 @@ def march_time_to_limit(
     limit_c: np.ndarray,
     watch: np.ndarray | None = None,
     watch_node: int = 0,
-    stop_s: np.ndarray | None = None,
     ratio: float = MARCH_RATIO,
+    event: tuple[int, float] | None = None,
+    t_start_s: float = 0.0,
+    done: np.ndarray | None = None,
 ) -> March | None:
-    """First time [s] each free node ``rows`` reaches ``limit_c`` with the inputs held (module doc); None when the
-    held system has no finite steady state (the caller publishes "not available"). ``watch`` (bool per row): the
-    temperature of free node ``watch_node`` is recorded at the first crossing of a watched row (the time to limit's
-    re-linearisation). ``stop_s`` (per row): an earlier crossing is known, so a row closes after the step that
-    passes it (inf unless it crossed by then). ``ratio``: the grid's (the bounded method's: TTL_BOUND_RATIO)."""
+    """First time [s] each free node ``rows`` reaches ``limit_c`` with the inputs held (module doc); None: no finite
+    steady state ("not available"). ``watch`` (bool per row): free node ``watch_node``'s temperature at the first
+    crossing of a watched row (the re-linearisation's). ``ratio``: the grid's (the bounded method's:
+    TTL_BOUND_RATIO). ``event`` (free node, a temperature above its start): the march stops where the node reaches
+    it, the rows not crossed by then inf, the state then returned (the bounded method's next part starts there).
+    ``t_start_s``: the march's start time (in the times returned). ``done`` (bool per row): decided, never open."""
     A, C, b = sys.A_w_per_k, sys.C_j_per_k, sys.b_w
     try:
         T_inf = np.linalg.solve(A, b)
@@ -159,59 +247,51 @@ def march_time_to_limit(
         return None
     e = T0_c - T_inf
     de = -(A @ e) / C
-    out = np.full(rows.size, np.inf)
-    T0_rows = T0_c[rows]
-    out[T0_rows >= limit_c] = 0.0
-    lim = limit_c
-    Tinf_rows = T_inf[rows]
-    Crow = C[rows]
-    open_ = T0_rows < lim
+    T0_rows, lim, Tinf_rows, Crow = T0_c[rows], limit_c, T_inf[rows], C[rows]
     energy = float(np.sum(C * e * e))
     bounded = sys.metzler or sys.weights is not None
     w_rows = np.ones(rows.size) if sys.metzler or sys.weights is None else sys.weights[rows]
-    if bounded:
-        open_ &= Tinf_rows + _bound_scale(sys, e) * w_rows >= lim
-    if not sys.coupled:
-        open_ &= Tinf_rows + np.sqrt(energy / Crow) >= lim
+    scale = _bound_scale(sys, e) if bounded else 0.0
+    out, open_ = _start_rows(sys, T0_rows, Tinf_rows, lim, Crow, w_rows, scale, energy, done)
+    out[np.isfinite(out)] = _quantum_ceil(t_start_s)
     watch = np.zeros(rows.size, dtype=bool) if watch is None else np.asarray(watch, dtype=bool)
     watch_t, watch_T = math.nan, math.nan
+    ev = _Event(sys, event, T0_c, T_inf, e, bounded)
+    ev_t, ev_T = math.nan, None
     t, h, t_skip, steps = 0.0, MARCH_H0_S, 0.0, 0
-    if bounded and open_.any():
-        t_skip, h = _skip_to(open_, lim - T0_rows, _bound_scale(sys, de), w_rows, ratio)
-    while open_.any() and t < TTL_HORIZON_S:
-        h_step = t_skip if t_skip > 0.0 else min(h, TTL_HORIZON_S - t)
-        d, steps = MARCH_D_FRAC * h_step, steps + 1
-        M = np.diag(C) + d * A
-        try:
-            e_g = np.linalg.solve(M, C * e - d * (A @ e))
-            e_new = np.linalg.solve(M, C * (MARCH_A1 * e_g - MARCH_A0 * e))
-        except np.linalg.LinAlgError:  # singular (as the kernel's failed factorisation): not available
+    t_end = TTL_HORIZON_S - t_start_s
+    if bounded and (open_.any() or ev.open):
+        t_cap = ev.earliest_s(sys, T0_c, de)
+        t_skip, h = _skip_to(open_, lim - T0_rows, _bound_scale(sys, de), w_rows, ratio, t_cap, t_end)
+    while (open_.any() or ev.open) and t < t_end:
+        h_step = t_skip if t_skip > 0.0 else min(h, t_end - t)
+        steps += 1
+        e_new = _tr_bdf2(A, C, e, h_step)
+        if e_new is None:  # singular (as the kernel's failed factorisation): not available
             return None
         de_new = -(A @ e_new) / C
         t_new = t + h_step
         f0 = Tinf_rows + e[rows] - lim
         f1 = Tinf_rows + e_new[rows] - lim
-        s_watch = math.inf
-        for i in np.flatnonzero(open_ & (f1 >= 0.0)):
-            r = rows[i]
-            s = _first_root(h_step, f0[i], de[r], f1[i], de_new[r])
-            out[i] = min(_quantum_ceil(t + s * h_step), TTL_HORIZON_S)
-            open_[i] = False
-            if watch[i] and s < s_watch:
-                s_watch = s
+        s_ev = ev.root(h_step, T_inf, e, de, e_new, de_new)
+        s_watch = _cross(open_, out, rows, f0, f1, de, de_new, h_step, t_start_s + t, s_ev, watch)
         if s_watch < math.inf and math.isnan(watch_t):
-            watch_t = t + s_watch * h_step
             j = watch_node
-            watch_T = float(T_inf[j] + _hermite(s_watch, h_step, e[j], de[j], e_new[j], de_new[j]))
+            watch_t, watch_T = (
+                t + s_watch * h_step,
+                float(T_inf[j] + _hermite(s_watch, h_step, e[j], de[j], e_new[j], de_new[j])),
+            )
+        if s_ev < math.inf:
+            ev_t = t_start_s + t + s_ev * h_step
+            ev_T = T_inf + _hermite(s_ev, h_step, e, de, e_new, de_new)
+            break
         energy_new = float(np.sum(C * e_new * e_new))
         if bounded:
+            ev.close_unless_reachable(sys, T_inf, e_new)
             open_ &= Tinf_rows + _bound_scale(sys, e_new) * w_rows >= lim
         if not sys.coupled or energy_new <= energy:
             open_ &= Tinf_rows + np.sqrt(energy_new / Crow) >= lim
-        open_ &= ~np.greater_equal(t_new, math.inf if stop_s is None else stop_s)
         e, de, t, energy = e_new, de_new, t_new, energy_new
-        if t_skip > 0.0:
-            t_skip = 0.0  # the skip's step was the grid's steps up to t_skip: h is the next one
-        else:
-            h = h * ratio
-    return March(out, T_inf, watch_t, watch_T, steps)
+        # after the skip's step (the grid's steps up to t_skip) h is already the next one
+        h, t_skip = (h if t_skip > 0.0 else h * ratio), 0.0
+    return March(out, T_inf, watch_t, watch_T, steps, ev_t, ev_T)

@@ -81,9 +81,8 @@ COUPLING_MARGIN = 1.0e-6
 TTL_RELINEARISE_STEPS = 2
 #: ... until the operating point's sump temperature moves less than this [K]
 TTL_RELINEARISE_TOL_K = 0.5
-#: the bounded time to limit (ttl_bound): steady solves of the chord system looking for its steady sump, at most ...
-TTL_BOUND_ITERS = 4
-#: ... until it moves less than this [K]; a sump within this of it is settled (no chord)
+#: the bounded time to limit (ttl_bound): a sump within this of its far value is settled (the step's own system
+#: is marched) [K]
 TTL_BOUND_TOL_K = 0.5
 #: ... and where it predicts a crossing within this, today's method too, the earlier kept (the early warning's
 #: lead is 30 s: a warning never comes later than today's) [s]
@@ -92,9 +91,20 @@ TTL_BOUND_GATE_S = 60.0
 #: held points of benchmarks/bench_ttl.py 2.5 is late as rarely as 1.4 and within 20 % as often but in 1-3 min
 #: (90 % against 96 %), in about 60 % of the steps (docs/sensor.md)
 TTL_BOUND_RATIO = 2.5
-#: ... and the line its cooler follows: through the cooler's heat at the far sump, at or below it at the step's sump
-#: and at this many sumps evenly between (the secants' extreme; the chord was late from cold starts, docs/sensor.md)
-TTL_BOUND_SAMPLES = 3
+#: ... its far sump, where the held model's own steady sump is the sump it is evaluated at: at most this many
+#: solves after the bracket's ends ...
+TTL_FAR_ITERS = 12
+#: ... until the bracket, or the steady sump's miss, is narrower than this [K]
+TTL_FAR_TOL_K = 0.05
+#: ... the sump's path to its far value cut into at most this many parts, each with its own lines under the
+#: cooler's and the inlet drop's curves (one line lay kilowatts under a curve with a kink: 20-95 % early) ...
+TTL_SEG_MAX = 3
+#: ... the path sampled at this many sumps evenly between its ends (and each part at as many inside it) ...
+TTL_SEG_SAMPLES = 16
+#: ... and cut while a part's lines lie more than this under the curves [W]
+TTL_SEG_GAP_W = 200.0
+#: ... at the first cuts whose worst gap is within this of the best (clipped curves tie: rounding must not decide) [W]
+TTL_SEG_TIE_W = 1.0
 #: an early warning (Limits.lead_s) is judged only on a time to limit refreshed at most this long ago [s] (every live
 #: and 0.1 s offline configuration refreshes at least this often; a held replay's coarse step refreshes once per row
 #: and publishes the countdown in between, which neither raises nor holds an early warning: docs/sensor.md)
@@ -161,11 +171,17 @@ DEFINES = (
     Constant("TTL_RELINEARISE_STEPS", TTL_RELINEARISE_STEPS, "re-linearisations at the predicted sump"),
     Constant("TTL_RELINEARISE_TOL_K", TTL_RELINEARISE_TOL_K, "... until the sump moves less than this [K]"),
     Constant("COUPLING_MARGIN", COUPLING_MARGIN, "the coupled held system needs 1 - e^T K^-1 u above this"),
-    Constant("TTL_BOUND_ITERS", TTL_BOUND_ITERS, "bounded time to limit: steady solves for the chord's far sump"),
-    Constant("TTL_BOUND_TOL_K", TTL_BOUND_TOL_K, "... until it moves less than this [K]"),
+    Constant(
+        "TTL_BOUND_TOL_K", TTL_BOUND_TOL_K, "bounded time to limit: a sump this close to its far value is settled [K]"
+    ),
     Constant("TTL_BOUND_GATE_S", TTL_BOUND_GATE_S, "a crossing within this: today's march too, the earlier [s]"),
     Constant("TTL_BOUND_RATIO", TTL_BOUND_RATIO, "... its marches: each step this many times longer than the last"),
-    Constant("TTL_BOUND_SAMPLES", TTL_BOUND_SAMPLES, "... its cooler line: under the cooler at this many sumps"),
+    Constant("TTL_FAR_ITERS", TTL_FAR_ITERS, "... its far sump: at most this many solves in the bracket"),
+    Constant("TTL_FAR_TOL_K", TTL_FAR_TOL_K, "... until the bracket is narrower than this [K]"),
+    Constant("TTL_SEG_MAX", TTL_SEG_MAX, "... the sump's path to its far value in at most this many parts"),
+    Constant("TTL_SEG_SAMPLES", TTL_SEG_SAMPLES, "... sampled at this many sumps between"),
+    Constant("TTL_SEG_GAP_W", TTL_SEG_GAP_W, "... cut where its lines lie this far under the curves [W]"),
+    Constant("TTL_SEG_TIE_W", TTL_SEG_TIE_W, "... at the first sample within this of the best [W]"),
     Constant("TTL_FRESH_S", TTL_FRESH_S, "an early warning judges a time to limit at most this old [s]"),
 )
 #: the structs gvs_sizeof() measures, in its argument's order ("real": sizeof(gvs_real))
@@ -231,7 +247,7 @@ class Struct(NamedTuple):
         return tuple(i for i in self.items if isinstance(i, Field))
 
 
-I32, I64, I8, F64, REAL, PREAL, PIDX = (
+I32, I64, I8, F64, REAL, PREAL, PIDX, PT2 = (
     "int32_t",
     "int64_t",
     "int8_t",
@@ -239,6 +255,7 @@ I32, I64, I8, F64, REAL, PREAL, PIDX = (
     "gvs_real",
     "const gvs_real *",
     "const gvs_idx *",
+    "const gvs_t2 *",
 )
 
 
@@ -277,7 +294,8 @@ _TABLES = (
     Field("t2_link", PIDX, ("n2",)),
     Field("t2_speed_coef", PREAL, ("gears", "n2")),
     Field("t2_omega_max_rad_s", PREAL, ("n2",), "rad/s"),
-    Field("t2_table", PREAL, ("n2", "n_u", "nT2"), "W/K"),
+    Field("t2_table", PT2, ("n2", "n_u", "nT2"), "W/K", "times t2_scale"),
+    Field("t2_scale", PREAL, ("n2",), doc="per table: 1, or the step of an export's int16 table (GVS_T2_Q16)"),
     Field("t2_stride", I32, doc="the tables use every t2_stride-th temperature of the grid"),
     "immersed wheels, Nusselt in closed form",
     Field("cyl_link", PIDX, ("nc",)),
@@ -500,11 +518,12 @@ def ctypes_fields(struct: Struct, real) -> list:
         REAL: real,
         PREAL: C.POINTER(real),
         PIDX: C.POINTER(C.c_int32),
+        PT2: C.POINTER(real),
     }
     out = []
     for f in struct.fields:
         t = scalars[f.ctype]
-        if f.ctype not in (PREAL, PIDX):
+        if f.ctype not in (PREAL, PIDX, PT2):
             for dim in reversed(f.shape):
                 t = t * (dim if isinstance(dim, int) else DIMENSIONS[dim])
         out.append((f.name, t))
@@ -513,7 +532,7 @@ def ctypes_fields(struct: Struct, real) -> list:
 
 def table_kind(f: Field) -> str:
     """gvs_tables fields as the table writers sort them: "i" int32, "r" real, "pr" real table, "pi" index table."""
-    return {I32: "i", REAL: "r", PREAL: "pr", PIDX: "pi"}[f.ctype]
+    return {I32: "i", REAL: "r", PREAL: "pr", PIDX: "pi", PT2: "pr"}[f.ctype]
 
 
 def struct_values(struct: Struct, values: dict) -> dict:
@@ -585,6 +604,14 @@ typedef double gvs_real;
 typedef int16_t gvs_idx;
 #else
 typedef int32_t gvs_idx;
+#endif
+
+/* the bilinear conductance tables (t2_table): gvs_real, or int16 steps of a per-table scale (t2_scale) in an
+ * exported float build (GVS_T2_Q16, set by the export: 9 KB of flash; within 1.6e-5 of each table's largest value) */
+#ifdef GVS_T2_Q16
+typedef int16_t gvs_t2;
+#else
+typedef gvs_real gvs_t2;
 #endif
 """
 
@@ -680,7 +707,7 @@ def _wrap_enum(body: str) -> list:
 def _decl(group: list) -> str:
     """One declaration of fields that share their type and shape: ``int32_t n, nl;``, ``const gvs_real *a, *b;``."""
     f = group[0]
-    if f.ctype in (PREAL, PIDX):
+    if f.ctype in (PREAL, PIDX, PT2):
         return f"    {f.ctype}" + ", *".join(g.name for g in group) + ";"
     dims = "".join(f"[{d}]" for d in f.shape)
     return f"    {f.ctype} " + ", ".join(g.name + dims for g in group) + ";"
@@ -688,7 +715,7 @@ def _decl(group: list) -> str:
 
 def _group_text(group: list) -> list:
     f = group[0]
-    shape = f"({' x '.join(str(d) for d in f.shape)}) " if f.shape and f.ctype in (PREAL, PIDX) else ""
+    shape = f"({' x '.join(str(d) for d in f.shape)}) " if f.shape and f.ctype in (PREAL, PIDX, PT2) else ""
     note = (shape + (f"[{f.unit}] " if f.unit else "") + f.doc).strip()
     decls, part = [], []
     for g in group:  # long groups: one declaration per line that fits

@@ -125,6 +125,7 @@ def _network(sp: SensorParams) -> dict:
         t2_speed_coef=_f64(rp.t2_speed_coef),
         t2_omega_max_rad_s=_f64(rp.t2_omega_max_rad_s),
         t2_table=_f64(rp.t2_table),
+        t2_scale=np.ones(rp.t2_table.shape[0]),
         t2_stride=E.T2_STRIDE,
         cyl_link=_i32(rp.cyl_link),
         cyl_speed_coef=_f64(rp.cyl_speed_coef),

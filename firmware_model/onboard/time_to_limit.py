@@ -151,13 +151,16 @@ def _inlet_follows_sump(
     a slope, and the inlet drop is inside the step's clip both now and, on the linearised cooler (or the bounded
     method's inlet line ``inlet_k_per_k``), at the operating point's sump T_op (a clipped inlet drop does not follow
     the sump)."""
-    if not TTL_INLET_COUPLING or measured or slope_w_per_k == 0 or not abs(p.dT_in_k) < INLET_DROP_MAX_K:
+    if not TTL_INLET_COUPLING or measured:
         return False
     mcp = p.rho_cp_j_per_m3k * oil_flow_m3_s(sp, p.row, p.omega_in_rad_s)
     if not mcp > 0.0:
         return False
     if inlet_k_per_k is not None:
-        return inlet_k_per_k != 0.0 and abs(p.dT_in_k + inlet_k_per_k * (T_op_c - p.T_oil_c)) < INLET_DROP_MAX_K
+        # the bounded method's inlet line: under the clipped drop by construction, followed as it is
+        return inlet_k_per_k != 0.0
+    if slope_w_per_k == 0 or not abs(p.dT_in_k) < INLET_DROP_MAX_K:
+        return False
     return abs((p.Q_cool_w + slope_w_per_k * (T_op_c - p.T_oil_c)) / mcp) < INLET_DROP_MAX_K
 
 

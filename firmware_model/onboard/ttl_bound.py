@@ -1,36 +1,33 @@
-"""Time to limit with the losses following the warming sump (``ttl_method = "bound"``; docs/sensor.md).
+"""Time to limit with the losses, the cooler and the inlet drop following the warming sump (``ttl_method =
+"bound"``, the default; docs/sensor.md, "Time to limit").
 
-The march alone (:func:`firmware_model.onboard.time_to_limit.time_to_limit`, ``ttl_method = "march"``; the default
-until 2026-12-04) takes the losses, the cooler and the conductances at one sump temperature, the one predicted at
-the first crossing. While the sump warms from cold the oil is more viscous at first and the losses are higher than
-there, and the cooler's thermostat is still closed, so the components warm faster than predicted: late, or "never".
-This method
-keeps the held system linear and lets the heat of every loss source follow the sump along its chord between the
-current sump T0 and the far sump T_far:
+The march alone (:func:`firmware_model.onboard.time_to_limit.time_to_limit`, ``ttl_method = "march"``) takes the
+losses, the cooler and the conductances at one sump temperature. While the sump warms from cold the oil is more
+viscous at first, the liquid cooler still heats it and the oil-system inlet runs hotter than the sump, so the
+components warm faster than predicted there: late, or "never". This method follows the sump's own path instead:
 
-    q(T_sump) = q(T_far) + beta (T_sump - T_far),  beta = (q(T0) - q(T_far)) / (T0 - T_far)
+1. the far sump T_far (:func:`far_sump_c`): where the held model's steady sump, with the losses, the cooler's heat and
+   the clipped inlet drop taken at the sump it is evaluated at, is that sump (Illinois method in a bracket);
+2. the path T0 -> T_far cut into at most TTL_SEG_MAX parts (:func:`cut_path`) where one line per part fits the
+   cooler's heat Q(T) and the inlet drop D(T) = clip(Q / mdot cp, +-30 K) (:class:`Curves`): both have kinks (the
+   cooler's 14 kW clip, the thermostat, the drop's clip) that a single line missed by kilowatts;
+3. per part (:func:`part_system`) one linear held system: the losses along their chord between the part's ends
+   (``A - beta e_sump^T``: :func:`chord_system`), the cooler and the inlet drop along lines through their values at
+   the part's end and at or under the curves at TTL_SEG_SAMPLES sumps inside it (:func:`part_lines`: the sump and the
+   inlet run at least as warm as with the curves, so the prediction errs early), the conductances of the part's start
+   (the step's own in the first part);
+4. the parts marched one after the other (:func:`march_segments`): each march stops where the sump reaches its part's
+   end (held_march's ``event``) and the next starts from that state and time.
 
-(q: the sources' heat on the nodes). beta enters A as one more column on the sump (``A - beta e_sump^T``, merged
-with the oil-inlet coupling: one Sherman-Morrison column in the kernel). T_far is the fixed point of the chord
-system's steady sump (secant method, at most TTL_BOUND_ITERS steady solves), so the steady state is the held
-system's own. The cooler then follows a line through its heat at T_far that lies at or below its curve at T0 and at
-TTL_BOUND_SAMPLES sumps between (:func:`cooler_line`; its chord lay above the convex part of the curve and was late
-from cold starts). Two chord systems are marched (firmware_model.onboard.held_march):
-with the step's conductances (right for the fast components, which cross while the sump is still near T0) and with
-those of T_far's bin (right for the slow ones); the earlier crossing is kept, so the second march closes a
-component once it passes the first's crossing (``stop_s``). Both march on a coarser grid than today's
-(TTL_BOUND_RATIO) and close their rows with weights ``B w = C`` (:func:`positive_weights`). Where that is within
-TTL_BOUND_GATE_S, today's method runs too and the earlier is kept, so that no early warning comes later than
-today's. Where the first system's coupled inlet drop (the cooler's slope over mdot cp) passes its clip before the
-first crossing, the first system is marched once more with the drop's secant to the sump there, the earlier kept
-(:meth:`Chord.clipped_inlet_k_per_k`; a drop growing past 30 K made the inlet too cold: late). The compiled
-kernel (``ttl_refresh_bound`` in gvs_kernel.c, from ``gvs_ttl_refresh`` when the tables'
-``ttl_bound`` is set) runs the same steps; it finds T_far from one factorisation of K (every trial's steady sump by
-Sherman-Morrison, ``bound_steady_sump``) and solves the chord systems' march by the sump's row (``held_t.by_row``).
+Where the result is within TTL_BOUND_GATE_S, today's method runs too and the earlier is kept, so that no early warning
+comes later than today's. The compiled kernel (``ttl_refresh_bound`` in gvs_kernel.c, from ``gvs_ttl_refresh`` when
+the tables' ``ttl_bound`` is set) runs the same steps: the far sump from one factorisation of K (every trial's steady
+sump r.b with r = K^-1 e_sump), the parts' marches solved by the sump's row (``held_t.by_row``).
 """
 
 from __future__ import annotations
 
+import itertools
 import math
 from typing import NamedTuple
 
@@ -41,12 +38,15 @@ from firmware_model.onboard.conductance_bins import LN_SPEED_BIN, OIL_BIN_C
 from firmware_model.onboard.held_march import HeldSystem, march_time_to_limit
 from firmware_model.onboard.kernel_interface import (
     COUPLING_MARGIN,
-    MARCH_RATIO,
     TTL_BOUND_GATE_S,
-    TTL_BOUND_ITERS,
     TTL_BOUND_RATIO,
-    TTL_BOUND_SAMPLES,
     TTL_BOUND_TOL_K,
+    TTL_FAR_ITERS,
+    TTL_FAR_TOL_K,
+    TTL_SEG_GAP_W,
+    TTL_SEG_MAX,
+    TTL_SEG_SAMPLES,
+    TTL_SEG_TIE_W,
 )
 from firmware_model.onboard.params import SensorParams, vehicle_value
 from firmware_model.onboard.records import I_AMB, I_COOL, I_VKMH, SensorState
@@ -62,49 +62,38 @@ from firmware_model.onboard.time_to_limit import (
 from firmware_model.physics.cooler import INLET_DROP_MAX_K
 
 
+class Segments(NamedTuple):
+    """The sump's path to its far value cut where one line per part fits the curves: the sumps where the parts end
+    (T0 first, T_far last) and each part's held system."""
+
+    T_c: list
+    systems: list
+
+
 def time_to_limit_bound(sp: SensorParams, cache: StepCache, p: TtlPoint, vehicle=None) -> np.ndarray:
-    """Time [s] until each published component reaches its warning limit with the inputs held, the losses and the
-    cooler following the sump along their chords to the far sump, the earlier of the two chord systems (the
-    conductances at the step's sump and at the far sump's bin; module doc). A settled sump, a measured sump held
-    (``ttl_sump = "held"``) or per-vehicle effects: the step's own held system, marched once."""
-    h = sp.helpers
+    """Time [s] until each published component reaches its warning limit with the inputs held, the losses, the
+    cooler and the inlet drop following the sump along lines under their curves, part by part of the sump's path to
+    its far value (module doc). A settled sump, a measured sump held
+    (``ttl_sump = "held"``), per-vehicle effects or no far sump: the step's own held system, marched once."""
+    h, rp = sp.helpers, sp.reduced
     measured = p.measured and sp.options.ttl_sump != "model"
     pub_free, rows = (h.pub_free_meas, h.pub_rows_meas) if measured else (h.pub_free_all, h.pub_rows_all)
     warning_c = sp.limits.warning_c
-    system, free = held_system(sp, p, p.src_w, p.G_w_per_k, p.G_streams_w_per_k, p.T_oil_c, measured, vehicle)
-    systems = [system]
-    if not measured and sp.scalar_effects:
-        systems = chord_systems(sp, cache, p, system, vehicle)
+    seg = None if measured or not sp.scalar_effects else segments(sp, cache, p, vehicle)
     ttl_s = None
-    ratio = TTL_BOUND_RATIO if len(systems) == 3 else MARCH_RATIO
-    first = systems[2] if len(systems) == 3 else None
-    watch = None if first is None else h.ttl_relin_pub
-    T_x_c = math.nan
-    for sys_ in systems[:2]:
-        # the second march only looks for crossings before the first's (the earlier is kept); each watches the
-        # sump at its first crossing
-        march = march_time_to_limit(
-            sys_, p.T_main_c[free], rows, warning_c[pub_free], watch, sp.reduced.i_oil, ttl_s, ratio
-        )
-        if march is not None:
-            ttl_s = march.ttl_s if ttl_s is None else np.minimum(ttl_s, march.ttl_s)
-            if math.isnan(T_x_c):
-                T_x_c = march.watch_T_c
-    k_in = None if first is None else first.clipped_inlet_k_per_k(sp, T_x_c)
-    if k_in is not None:
-        # the first system's coupled inlet drop passes its clip before that crossing: the first system once more
-        # with the drop's secant to the sump there (Chord.clipped_inlet_k_per_k), the earlier kept
-        again_sys = first.system(sp, vehicle, k_in)
-        again = march_time_to_limit(again_sys, p.T_main_c[free], rows, warning_c[pub_free], ratio=ratio)
-        if again is not None:
-            ttl_s = again.ttl_s if ttl_s is None else np.minimum(ttl_s, again.ttl_s)
-    if ttl_s is None:
-        out = np.full(len(sp.reduced.published), np.nan)
+    if seg is None:
+        system, free = held_system(sp, p, p.src_w, p.G_w_per_k, p.G_streams_w_per_k, p.T_oil_c, measured, vehicle)
+        march = march_time_to_limit(system, p.T_main_c[free], rows, warning_c[pub_free])
+        ttl_s = None if march is None else march.ttl_s
     else:
-        out = np.full(len(sp.reduced.published), np.inf)
+        ttl_s = march_segments(seg.systems, seg.T_c, p.T_main_c, rows, warning_c[pub_free], rp.i_oil)
+    if ttl_s is None:
+        out = np.full(len(rp.published), np.nan)
+    else:
+        out = np.full(len(rp.published), np.inf)
         out[pub_free] = ttl_s
         if measured:
-            oil = sp.reduced.published_index == sp.reduced.i_oil  # the published sump's column (if published)
+            oil = rp.published_index == rp.i_oil  # the published sump's column (if published)
             out[oil] = np.where(p.T_oil_c >= warning_c[oil], 0.0, np.inf)
     if np.any(out <= TTL_BOUND_GATE_S):
         # a crossing soon: today's method too, the earlier of the two (no warning later than today's)
@@ -113,105 +102,179 @@ def time_to_limit_bound(sp: SensorParams, cache: StepCache, p: TtlPoint, vehicle
     return out
 
 
-def chord_systems(sp: SensorParams, cache: StepCache, p: TtlPoint, system: HeldSystem, vehicle=None) -> list:
-    """The chord systems from the step's sump T0 to the far sump T_far: [with the step's conductances, with those
-    of T_far's bin]; [``system``] (the step's own) when the sump is settled or T_far cannot be found. T_far is the
-    fixed point S(T_far) = T_far of the first chord system's steady sump, by the secant method from T0 (where
-    S(T0) is the steady sump of the step's own system), at most TTL_BOUND_ITERS chord systems, within the oil
-    tables' range."""
-    rp = sp.reduced
-    T0_c = p.T_oil_c
-    q0_w = p.src_w @ rp.src_matrix
-    t_prev, g_prev = T0_c, _steady_sump_c(system, rp.i_oil) - T0_c
-    if not abs(g_prev) >= TTL_BOUND_TOL_K:
-        return [system]
-    T_far_c = _clip_oil_c(T0_c + g_prev)
-    found = None
-    for _ in range(TTL_BOUND_ITERS):
-        if abs(T_far_c - T0_c) < TTL_BOUND_TOL_K:
-            break
-        src_w = loss_heat_w(sp, p, T_far_c)
-        beta_w_per_k = (q0_w - src_w @ rp.src_matrix) / (T0_c - T_far_c)
-        slope_w_per_k = cooler_chord_slope(sp, p, T_far_c, vehicle)
-        base, _ = held_system(sp, p, src_w, p.G_w_per_k, p.G_streams_w_per_k, T0_c, False, vehicle, slope_w_per_k)
-        chord = chord_system(base, beta_w_per_k, T_far_c, rp.i_oil)
-        g = _steady_sump_c(chord, rp.i_oil) - T_far_c
-        if not math.isfinite(g):
-            break  # no finite steady state there: the last chord that has one
-        found = (T_far_c, src_w, beta_w_per_k, slope_w_per_k, chord)
-        if not abs(g) >= TTL_BOUND_TOL_K or g == g_prev:
-            break
-        t_prev, g_prev, T_far_c = T_far_c, g, _clip_oil_c(T_far_c - g * (T_far_c - t_prev) / (g - g_prev))
-    if found is None:
-        return [system]
-    T_far_c, src_w, beta_w_per_k, slope_w_per_k, chord = found
-    # the cooler along a line below its curve (cooler_line), not its chord: the point's heat at T0 on that line
-    slope_w_per_k, Q0_w = cooler_line(sp, p, T_far_c, vehicle)
-    p = p._replace(Q_cool_w=Q0_w)
-    first = Chord(p, src_w, beta_w_per_k, T_far_c, slope_w_per_k)
-    bins = cache.bins.get(sp, p.row, *bin_centre(p.omega_in_rad_s, T_far_c, rp.speed_bin_min_rad_s))
-    G, Gs = bins.G_w_per_k, bins.G_streams_w_per_k
-    base, _ = held_system(sp, p, src_w, G, Gs, T_far_c, False, vehicle, slope_w_per_k)
-    return [first.system(sp, vehicle), chord_system(base, beta_w_per_k, T_far_c, rp.i_oil), first]
-
-
-class Chord(NamedTuple):
-    """The first chord system's parts (the step's conductances), to build it again with another inlet slope."""
-
-    p: TtlPoint  # the point, its cooler heat on the cooler's line
-    src_w: np.ndarray
-    beta_w_per_k: np.ndarray
-    T_far_c: float
-    slope_w_per_k: float
-
-    def system(self, sp: SensorParams, vehicle=None, inlet_k_per_k: float | None = None) -> HeldSystem:
-        p = self.p
-        base, _ = held_system(
-            sp,
-            p,
-            self.src_w,
-            p.G_w_per_k,
-            p.G_streams_w_per_k,
-            p.T_oil_c,
-            False,
-            vehicle,
-            self.slope_w_per_k,
-            inlet_k_per_k,
+def march_segments(chain: list, T_c: list, T0_c: np.ndarray, rows, limit_c, i_oil: int):
+    """The first crossings [s] marching chain[j] from where the sump reached T_c[j] until it reaches T_c[j + 1],
+    then the next part's system from that state (None: a part has no finite steady state)."""
+    out, T_now_c, t_s = None, T0_c, 0.0
+    for j, system in enumerate(chain):
+        event = (i_oil, T_c[j + 1]) if j + 1 < len(chain) else None
+        done = None if out is None else np.isfinite(out)
+        m = march_time_to_limit(
+            system, T_now_c, rows, limit_c, ratio=TTL_BOUND_RATIO, event=event, t_start_s=t_s, done=done
         )
-        return chord_system(base, self.beta_w_per_k, self.T_far_c, sp.reduced.i_oil)
-
-    def clipped_inlet_k_per_k(self, sp: SensorParams, T_x_c: float) -> float | None:
-        """The inlet drop's secant from the step's sump to T_x [K/K] when the first system's coupled inlet drop
-        (the cooler's slope over mdot cp, from the step's drop) is beyond the step's clip at T_x (else None): the
-        line at or under the clipped drop between them, exact at T_x."""
-        p = self.p
-        mcp = p.rho_cp_j_per_m3k * oil_flow_m3_s(sp, p.row, p.omega_in_rad_s)
-        if not mcp > 0.0 or not abs(p.dT_in_k) < INLET_DROP_MAX_K or not T_x_c != p.T_oil_c:
+        if m is None:
             return None
-        d_x = p.dT_in_k + self.slope_w_per_k / mcp * (T_x_c - p.T_oil_c)
-        if not abs(d_x) > INLET_DROP_MAX_K:
-            return None
-        return (min(max(d_x, -INLET_DROP_MAX_K), INLET_DROP_MAX_K) - p.dT_in_k) / (T_x_c - p.T_oil_c)
+        out = m.ttl_s if out is None else np.where(np.isfinite(out), out, m.ttl_s)
+        if event is None or math.isnan(m.event_t_s):
+            break
+        T_now_c, t_s = m.event_T_c, m.event_t_s
+    return out
 
 
-def cooler_line(sp: SensorParams, p: TtlPoint, T_far_c: float, vehicle=None) -> tuple[float, float]:
-    """(slope [W/K], heat at the step's sump T0 [W]) of the cooler line the chord systems march: through the cooler's
-    heat at the far sump, at or below its heat at T0 and at TTL_BOUND_SAMPLES sumps evenly between T0 and T_far
-    (the secants' extreme; slope at least 0). Below the curve, the sump warms at least as fast as with the true
-    cooler. The chord lay above it where the curve is convex, and so was late from cold starts: there the liquid
-    cooler heats the oil at its clip (14 kW) until the sump nears the coolant, and the chord took that heating away
-    linearly from the start (docs/sensor.md). The far sump's heat, and so the steady state, is unchanged."""
-    T0_c = p.T_oil_c
-    Q_far_w = cooler_heat_w(sp, p, T_far_c, vehicle)
-    d0 = T0_c - T_far_c
-    slope_w_per_k = (p.Q_cool_w - Q_far_w) / d0
-    for k in range(1, TTL_BOUND_SAMPLES + 1):
-        T_c = T0_c + (T_far_c - T0_c) * (k / (TTL_BOUND_SAMPLES + 1))
-        sec = (cooler_heat_w(sp, p, T_c, vehicle) - Q_far_w) / (T_c - T_far_c)
-        # below the curve at T_c: slope (T_c - T_far) <= Q(T_c) - Q(T_far)
-        slope_w_per_k = max(slope_w_per_k, sec) if d0 < 0.0 else min(slope_w_per_k, sec)
-    slope_w_per_k = max(slope_w_per_k, 0.0)
-    return slope_w_per_k, Q_far_w + slope_w_per_k * d0
+def segments(sp: SensorParams, cache: StepCache, p: TtlPoint, vehicle=None) -> Segments | None:
+    """The sump's path from the step's T0 to the far sump T_far (:func:`far_sump_c`) cut into at most TTL_SEG_MAX
+    parts (:func:`cut_path`), and each part's held system (:func:`part_system`); None when
+    the sump is settled (within TTL_BOUND_TOL_K of T_far) or T_far cannot be found."""
+    rp = sp.reduced
+    mcp = p.rho_cp_j_per_m3k * oil_flow_m3_s(sp, p.row, p.omega_in_rad_s)
+    curves = Curves(sp, p, mcp, vehicle)
+    T_far_c = far_sump_c(sp, p, curves, vehicle)
+    if not abs(T_far_c - p.T_oil_c) >= TTL_BOUND_TOL_K:
+        return None
+    grid, cuts = cut_path(curves, p.T_oil_c, T_far_c)
+    src = [p.src_w] + [loss_heat_w(sp, p, grid[k]) for k in cuts[1:]]
+    chain = []
+    for j in range(len(cuts) - 1):
+        # the conductances at the part's start sump (the step's own in the first part): on the 240 held points of
+        # benchmarks/bench_ttl.py those at its end as well (the earlier kept) changed no prediction's class and were
+        # late alone
+        if j == 0:
+            G, Gs = p.G_w_per_k, p.G_streams_w_per_k
+        else:
+            bins = cache.bins.get(sp, p.row, *bin_centre(p.omega_in_rad_s, grid[cuts[j]], rp.speed_bin_min_rad_s))
+            G, Gs = bins.G_w_per_k, bins.G_streams_w_per_k
+        chain.append(part_system(sp, p, curves, grid, cuts, src, j, G, Gs, vehicle))
+    return Segments([grid[k] for k in cuts], chain)
+
+
+class Curves:
+    """The cooler's heat Q(T) [W] and the clipped inlet drop D(T) = clip(Q / mdot cp, +-30 K) [K] at sump T with the
+    point's inputs (the step's own values at its sump), each evaluated once."""
+
+    def __init__(self, sp: SensorParams, p: TtlPoint, mcp_w_per_k: float, vehicle=None):
+        self.sp, self.p, self.mcp, self.vehicle = sp, p, mcp_w_per_k, vehicle
+        self.memo = {p.T_oil_c: (p.Q_cool_w, p.dT_in_k)}
+
+    def at(self, T_c: float) -> tuple[float, float]:
+        if T_c not in self.memo:
+            Q = cooler_heat_w(self.sp, self.p, T_c, self.vehicle)
+            d = min(max(Q / self.mcp, -INLET_DROP_MAX_K), INLET_DROP_MAX_K) if self.mcp > 0.0 else 0.0
+            self.memo[T_c] = (Q, d)
+        return self.memo[T_c]
+
+
+def far_sump_c(sp: SensorParams, p: TtlPoint, curves: Curves, vehicle=None) -> float:
+    """The held model's own steady sump [degC]: T with S(T) = T, S the steady sump of the system whose losses,
+    cooler heat and inlet drop are those at T (the step's conductances): S(T) - T changes sign between the step's
+    sump T0 and S(T0) (within the oil tables' range), and the Illinois method narrows it (at most TTL_FAR_ITERS
+    more solves, to TTL_FAR_TOL_K). NaN: no finite steady state."""
+    rp = sp.reduced
+
+    def g(T_c):
+        Q, d = curves.at(T_c)
+        frozen = p._replace(Q_cool_w=Q, dT_in_k=d)
+        src = p.src_w if T_c == p.T_oil_c else loss_heat_w(sp, p, T_c)
+        system, _ = held_system(sp, frozen, src, p.G_w_per_k, p.G_streams_w_per_k, p.T_oil_c, False, vehicle, 0.0)
+        return _steady_sump_c(system, rp.i_oil) - T_c
+
+    a = p.T_oil_c
+    ga = g(a)
+    if not math.isfinite(ga):
+        return math.nan
+    b = _clip_oil_c(a + ga)
+    gb = g(b) if b != a else 0.0
+    if not math.isfinite(gb):
+        return math.nan
+    if gb * ga > 0.0:
+        return b  # beyond the oil tables' range, or no sign change: the end of the range
+    # Illinois (regula falsi that halves the stale end's value): g falls through its root once, with kinks
+    for _ in range(TTL_FAR_ITERS):
+        if not abs(b - a) >= TTL_FAR_TOL_K:
+            break
+        c = b - gb * (b - a) / (gb - ga)
+        gc = g(c)
+        if not math.isfinite(gc):
+            return math.nan
+        if not abs(gc) >= TTL_FAR_TOL_K:
+            return c
+        if gc * gb < 0.0:
+            a, ga = b, gb
+        else:
+            ga = 0.5 * ga
+        b, gb = c, gc
+    return b
+
+
+def cut_path(curves: Curves, T0_c: float, T_far_c: float) -> tuple[list, list]:
+    """(the path's samples [degC], the indices of the sumps where its parts end): T0, TTL_SEG_SAMPLES sumps evenly
+    between and T_far. The fewest parts (at most TTL_SEG_MAX) whose lines all lie within TTL_SEG_GAP_W of
+    the curves (:func:`part_gap_w`), else TTL_SEG_MAX parts with the smallest worst gap: every choice of cuts tried
+    (a cut chosen one at a time, the worst part's best first, missed kinks a later cut needed)."""
+    n = TTL_SEG_SAMPLES + 1
+    grid = [T0_c + (T_far_c - T0_c) * (k / n) for k in range(n)] + [T_far_c]
+    if not T_far_c > T0_c:
+        return grid, [0, n]  # a cooling sump's path stays one part (the parts' events are the sump rising)
+    gap = {}
+
+    def g(a, b):
+        if (a, b) not in gap:
+            gap[(a, b)] = part_gap_w(curves, grid, a, b)
+        return gap[(a, b)]
+
+    best = ([0, n], g(0, n))
+    for m in range(1, TTL_SEG_MAX):
+        if not best[1] > TTL_SEG_GAP_W:
+            break
+        # every m cuts, in order; the first within TTL_SEG_TIE_W of the least worst gap (no tie by rounding)
+        combos = [[0, *c, n] for c in itertools.combinations(range(1, n), m)]
+        worst = [max(g(a, b) for a, b in zip(c[:-1], c[1:])) for c in combos]
+        k = next(i for i, w in enumerate(worst) if w <= min(worst) + TTL_SEG_TIE_W)
+        best = (combos[k], worst[k])
+    return grid, best[0]
+
+
+def part_gap_w(curves: Curves, grid: list, a: int, b: int) -> float:
+    """How far the part's lines lie under the curves at its samples, at most [W]: the cooler's gap plus the inlet
+    drop's times mdot cp."""
+    (sq, q_a), (sd, d_a) = part_lines(curves, grid, a, b)
+    gap_w = 0.0
+    for k in range(a, b):
+        Q, d = curves.at(grid[k])
+        x = grid[k] - grid[a]
+        gap_w = max(gap_w, (Q - q_a - sq * x) + curves.mcp * (d - d_a - sd * x))
+    return gap_w
+
+
+def part_lines(curves: Curves, grid: list, a: int, b: int) -> tuple[tuple[float, float], tuple[float, float]]:
+    """((slope [W/K], value at grid[a] [W]) of the cooler's line, (slope [K/K], value [K]) of the inlet drop's) for the
+    part grid[a]..grid[b]: through the curve at its end, at or under it at every sample from its start (the
+    secants' extreme): along the path the sump and the inlet are at least as warm as with the curves."""
+    T_b = grid[b]
+    ends = curves.at(T_b)
+    out = []
+    for i in (0, 1):
+        slope = math.nan
+        for k in range(a, b):
+            sec = (curves.at(grid[k])[i] - ends[i]) / (grid[k] - T_b)
+            # under the curve at grid[k]: slope (T_k - T_b) <= f(T_k) - f(T_b)
+            slope = sec if math.isnan(slope) else (max(slope, sec) if grid[k] < T_b else min(slope, sec))
+        out.append((slope, ends[i] + slope * (grid[a] - T_b)))
+    return out[0], out[1]
+
+
+def part_system(sp, p: TtlPoint, curves: Curves, grid, cuts, src: list, j: int, G, Gs, vehicle=None) -> HeldSystem:
+    """Part j's held system (the sump from grid[cuts[j]] to grid[cuts[j + 1]]): the losses along their chord between
+    the ends, the cooler and the inlet drop along lines under their curves at TTL_SEG_SAMPLES sumps evenly inside
+    the part (:func:`part_lines`; the cooler's slope at least 0), every node free."""
+    rp = sp.reduced
+    T_a, T_b = grid[cuts[j]], grid[cuts[j + 1]]
+    n = TTL_SEG_SAMPLES + 1
+    fine = [T_a + (T_b - T_a) * (k / n) for k in range(n)] + [T_b]
+    (sq, q_a), (sd, d_a) = part_lines(curves, fine, 0, n)
+    beta_w_per_k = (src[j] @ rp.src_matrix - src[j + 1] @ rp.src_matrix) / (T_a - T_b)
+    start = p._replace(T_oil_c=T_a, Q_cool_w=q_a, dT_in_k=d_a)
+    base, _ = held_system(sp, start, src[j + 1], G, Gs, T_a, False, vehicle, max(sq, 0.0), sd)
+    return chord_system(base, beta_w_per_k, T_b, rp.i_oil)
 
 
 def bin_centre(omega_in_rad_s: float, T_oil_c: float, speed_min_rad_s: float) -> tuple[float, float]:
@@ -256,15 +319,6 @@ def cooler_heat_w(sp: SensorParams, p: TtlPoint, T_c: float, vehicle=None) -> fl
         vehicle_value(sp.effects.thermostat_offset_c, vehicle),
     )
     return float(Q_w)
-
-
-def cooler_chord_slope(sp: SensorParams, p: TtlPoint, T_far_c: float, vehicle=None) -> float:
-    """The cooler's chord from the step's sump to T_far [W/K]: (Q(T_far) - Q_step) / (T_far - T_step), at least 0
-    (firmware_model.onboard.evaluate.cooler_heat with the point's inputs, as held_inputs.cooler_slope_w_per_k)."""
-    rp = sp.reduced
-    if rp.cooler_code == E.COOLER_CODES["none"] or float(E.pump_drive(rp, p.row, p.omega_in_rad_s)) <= 0.0:
-        return 0.0
-    return max((cooler_heat_w(sp, p, T_far_c, vehicle) - p.Q_cool_w) / (T_far_c - p.T_oil_c), 0.0)
 
 
 def chord_system(base: HeldSystem, beta_w_per_k: np.ndarray, T_far_c: float, i_oil: int) -> HeldSystem:

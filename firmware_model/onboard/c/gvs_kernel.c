@@ -222,6 +222,18 @@ static gvs_real bilinear(const gvs_real *tab, int32_t stride, gvs_real fu, gvs_r
     return lo + (hi - lo) * fu;
 }
 
+/* bilinear() of a conductance table: its int16 steps in an export's float build (GVS_T2_Q16) */
+#ifdef GVS_T2_Q16
+static gvs_real bilinear_t2(const gvs_t2 *tab, int32_t stride, gvs_real fu, gvs_real fT)
+{
+    gvs_real lo = (gvs_real)tab[0] * (R_(1.0) - fT) + (gvs_real)tab[1] * fT;
+    gvs_real hi = (gvs_real)tab[stride] * (R_(1.0) - fT) + (gvs_real)tab[stride + 1] * fT;
+    return lo + (hi - lo) * fu;
+}
+#else
+#define bilinear_t2 bilinear
+#endif
+
 /* ---- conductance of every link at a bin centre (conductance_bins.bin_conductances -> evaluate.conductances) -
  * G [W/K] of every link and of the oil-system streams at (gear row, speed omega_q, oil T_q): radiation (Eq 81)
  * with every node at T_q and the boundaries at their defaults. */
@@ -249,7 +261,8 @@ static void bin_conductances(const gvs_tables *tb, const gvs_vehicle *veh, int32
         for (t = 0; t < tb->n2; ++t) {
             gvs_real omega_t_rad_s = tb->t2_speed_coef[gear_row * tb->n2 + t] * omega_in_rad_s;
             iu = sqrt_speed_index(omega_t_rad_s, tb->t2_omega_max_rad_s[t], tb->n_u, &fu);
-            G2[t] = bilinear(tb->t2_table + ((int64_t)t * tb->n_u + iu) * tb->nT2 + jT, tb->nT2, fu, fT);
+            G2[t] = bilinear_t2(tb->t2_table + ((int64_t)t * tb->n_u + iu) * tb->nT2 + jT, tb->nT2, fu, fT)
+                * tb->t2_scale[t];
             G[tb->t2_link[t]] += G2[t];
         }
     }
@@ -989,15 +1002,23 @@ static void sump_column(const gvs_tables *tb, const held_t *hs, gvs_real *col)
     }
 }
 
-/* ---- the bounded time to limit (ttl_bound): the losses and the cooler along their chords to the far sump ---------
- * q(T_sump) = q(T_far) + beta (T_sump - T_far): beta joins the coupling column on the sump (ttl_bound.chord_system) */
+/* ---- the bounded time to limit (ttl_bound): the sump's path to its far value in parts ------------------------
+ * in each part the losses follow their chord, q(T_sump) = q(T_end) + beta (T_sump - T_end), and the cooler and the
+ * inlet drop lines under their curves; beta joins the coupling column on the sump (ttl_bound.chord_system) */
 typedef struct {
-    gvs_real slope;                     /* the cooler's line from the step's sump to T_far [W/K] */
-    gvs_real Q0;                        /* ... its heat at the step's sump [W] (ttl_bound.cooler_line) */
-    gvs_real inlet;                     /* the inlet drop's slope [K/K]; NaN: the cooler's slope over mdot cp */
-    gvs_real T_far;                     /* the far sump [degC] */
-    gvs_real beta[GVS_MAX_NODES];       /* the node heat's chord [W/K] */
-    const gvs_real *stop;               /* per published component: only a crossing before it is wanted (or NULL) */
+    gvs_real slope;                     /* the part's cooler line [W/K] (at least 0) */
+    gvs_real Q0;                        /* ... its heat at the part's start sump [W] */
+    gvs_real inlet;                     /* the part's inlet-drop line [K/K] (0: the drop held at dT0) */
+    gvs_real T0;                        /* the part's start sump [degC] */
+    gvs_real dT0;                       /* ... and the inlet-drop line there [K] */
+    gvs_real T_far;                     /* the part's end sump [degC] */
+    gvs_real beta[GVS_MAX_NODES];       /* the node heat's chord over the part [W/K] */
+    const gvs_real *T_start;            /* the march's start state (NULL: the point's) */
+    const gvs_real *done;               /* per published component: finite, decided by an earlier part (or NULL) */
+    march_t t0;                         /* the march's start time [s] */
+    gvs_real T_ev;                      /* the sump at which the march stops (NaN: none) */
+    march_t t_ev;                       /* out: when the sump reached it (NaN: never in the march) */
+    gvs_real *T_at;                     /* out: every node then */
 } ttl_chord_t;
 
 #ifndef GVS_NO_TTL_BOUND
@@ -1037,10 +1058,9 @@ static int held_build(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_tt
                       gvs_real *T_inf, const ttl_chord_t *chord)
 {
     int32_t n = tb->n, k, i, io = tb->i_oil;
-    gvs_real T_oil = p->T_oil_c, mcp, dT_in;
+    gvs_real T_oil = chord ? chord->T0 : p->T_oil_c, mcp, dT_in;  /* a part: linearised at its start sump */
     gvs_real w_ls = pump_drive(tb, p->row, p->omega_in_rad_s);
-    gvs_real k_in = chord ? chord->inlet : (gvs_real)NAN;     /* the bounded method's inlet line [K/K] */
-    gvs_real Q_c = chord ? chord->Q0 : p->Q_cool_w;            /* ... and its cooler line's heat at the sump */
+    gvs_real Q_c = chord ? chord->Q0 : p->Q_cool_w;            /* ... its cooler line's heat there */
     mcp = p->rho_cp_j_per_m3k * flow_per_drive(tb) * w_ls;
     hs->G = G;
     hs->held = measured;
@@ -1051,11 +1071,14 @@ static int held_build(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_tt
     hs->slope = measured ? R_(0.0) : (chord ? chord->slope : cooler_slope(tb, veh, p, T_op));
     hs->coupled = 0;
     for (i = 0; i < n; ++i) hs->u[i] = R_(0.0);
-    if (!measured && hs->slope != R_(0.0) && FABS(p->dT_in_k) < tb->inlet_drop_max_k && mcp > R_(0.0)
-        && (k_in == k_in ? k_in != R_(0.0) && FABS(p->dT_in_k + k_in * (T_op - T_oil)) < tb->inlet_drop_max_k
-                         : FABS((Q_c + hs->slope * (T_op - T_oil)) / mcp) < tb->inlet_drop_max_k)) {
+    /* a part's inlet follows its line (held where the line is flat); else the cooler's slope over mdot cp while the
+     * drop is inside its clip now and at T_op */
+    if (!measured && mcp > R_(0.0)
+        && (chord ? chord->inlet != R_(0.0)
+                  : hs->slope != R_(0.0) && FABS(p->dT_in_k) < tb->inlet_drop_max_k
+                        && FABS((Q_c + hs->slope * (T_op - T_oil)) / mcp) < tb->inlet_drop_max_k)) {
         for (k = 0; k < tb->nst; ++k) {
-            gvs_real f = Gs[k] * (k_in == k_in ? k_in : hs->slope / mcp);
+            gvs_real f = Gs[k] * (chord ? chord->inlet : hs->slope / mcp);
             hs->u[tb->stream_node[k]] -= f;
             hs->u[io] += f;
         }
@@ -1090,10 +1113,9 @@ static int held_build(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_tt
     }
     /* b: heat, inlet drop, boundaries, the sump */
     scatter_heat(tb, src, T_inf);
-    dT_in = p->dT_in_k;
+    dT_in = chord ? chord->dT0 : p->dT_in_k;
     if (!hs->coupled && T_op != T_oil && !measured)
-        dT_in = clip_r(k_in == k_in ? p->dT_in_k + k_in * (T_op - T_oil)
-                       : mcp > R_(0.0) ? (Q_c + hs->slope * (T_op - T_oil)) / mcp : R_(0.0),
+        dT_in = clip_r(mcp > R_(0.0) ? (Q_c + hs->slope * (T_op - T_oil)) / mcp : R_(0.0),
                        -tb->inlet_drop_max_k, tb->inlet_drop_max_k);
     for (k = 0; k < tb->nst; ++k) {
         gvs_real f = Gs[k] * dT_in;
@@ -1157,38 +1179,47 @@ static gvs_real bound_max(const held_t *hs, const gvs_real *x, int32_t i, gvs_re
 
 /* held_march._skip_to: no node warms faster than the largest de/dt now (the maximum principle on the derivative;
  * absolute: the largest |de/dt|, rows diagonally dominant), so no open row crosses before min gap / rate: the first
- * step ends at the last grid point before that (*t_skip, *h the step after it). Nothing warming now closes every row
- * (returns 0); NaN: no skip. */
-static int skip_to(const gvs_tables *tb, const gvs_ttl_point *p, const gvs_real *de, const held_t *hs, int8_t *open,
-                   march_t *t_skip, march_t *h, march_t ratio)
+ * step ends at the last grid point before that or t_cap (an event's earliest time), before t_end (*t_skip, *h the
+ * step after it). Nothing warming now closes every row; NaN: no skip unless capped. Returns whether a row is open. */
+static int skip_to(const gvs_tables *tb, const gvs_real *T0, const gvs_real *de, const held_t *hs, int8_t *open,
+                   march_t *t_skip, march_t *h, march_t ratio, march_t t_cap, march_t t_end)
 {
     gvs_real rate = hs->metzler ? de[0] : FABS(de[0]) / hs->wt[0];
-    march_t t_min = (march_t)INFINITY;
+    march_t t_min = t_cap;
     int32_t i, j;
+    int any = 0;
     for (i = 1; i < tb->n; ++i) {
         gvs_real x = hs->metzler ? de[i] : FABS(de[i]) / hs->wt[i];
         if (x > rate || x != x) rate = x;
     }
-    if (!(rate > R_(0.0))) {
-        if (rate <= R_(0.0)) {
-            for (j = 0; j < tb->n_pub; ++j) open[j] = 0;
-            return 0;
-        }
-        return 1;
-    }
+    if (rate <= R_(0.0))
+        for (j = 0; j < tb->n_pub; ++j) open[j] = 0;
     for (j = 0; j < tb->n_pub; ++j)
         if (open[j]) {
             int32_t r = tb->published_index[j];
-            march_t tj = (march_t)(tb->warning_c[j] - p->T_main_c[r])
+            march_t tj = (march_t)(tb->warning_c[j] - T0[r])
                 / ((march_t)rate * (hs->metzler ? M_(1.0) : (march_t)hs->wt[r]));
             if (tj < t_min) t_min = tj;
+            any = 1;
         }
-    while (*t_skip + *h <= t_min && *t_skip + *h < M_(GVS_TTL_HORIZON_S)) {
+    if (!(rate > R_(0.0)) && !(t_cap < (march_t)INFINITY)) return any;
+    while (*t_skip + *h <= t_min && *t_skip + *h < t_end) {
         *t_skip += *h;
         *h *= ratio;
     }
-    return 1;
+    return any;
 }
+
+#ifndef GVS_NO_TTL_BOUND
+/* held_march._bound_scale: no node of the solution x exceeds it (times wt) later */
+static gvs_real scale_of(const gvs_tables *tb, const held_t *hs, const gvs_real *x)
+{
+    gvs_real m = R_(0.0);
+    int32_t i;
+    for (i = 0; i < tb->n; ++i) m = bound_max(hs, x, i, m);
+    return m;
+}
+#endif
 
 /* the loss sources' heat with the point's load at sump T [W] (ttl_bound.loss_heat_w; the re-linearised march's) */
 static void point_heat(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl_point *p, gvs_real T, gvs_real *src)
@@ -1209,20 +1240,24 @@ static void point_conductances(const gvs_tables *tb, const gvs_vehicle *veh, con
 }
 
 /* one held-input solution (time_to_limit._solve + held_march.march_time_to_limit): ttl[GVS_MAX_PUB]; *T_watch the sump at
- * the first crossing of a re-linearising component (NaN: none) */
+ * the first crossing of a re-linearising component (NaN: none). A part of the bounded method's path (chord) may start
+ * from another state and time, skip the components an earlier part decided, and stop where the sump reaches T_ev
+ * (held_march's event: the state then in chord->T_at) */
 static int ttl_solve(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl_point *p, const gvs_real *src,
                      const gvs_real *G, const gvs_real *Gs, gvs_real T_op, int measured, gvs_real *ttl,
-                     gvs_real *T_watch, const ttl_chord_t *chord)
+                     gvs_real *T_watch, ttl_chord_t *chord)
 {
     held_t hs;
     gvs_real T_inf[GVS_MAX_NODES], e[GVS_MAX_NODES], de[GVS_MAX_NODES], e_g[GVS_MAX_NODES], e_new[GVS_MAX_NODES];
     gvs_real de_new[GVS_MAX_NODES], Ae[GVS_MAX_NODES], energy = R_(0.0), energy_new, e_max = R_(0.0), bnd;
-    const gvs_real *C = tb->C_j_per_k;
+    const gvs_real *C = tb->C_j_per_k, *T0 = p->T_main_c;
     int8_t open[GVS_MAX_PUB];
     int32_t n = tb->n, i, j, any = 0, io = tb->i_oil;
-    march_t t = M_(0.0), h = M_(GVS_MARCH_H0_S), t_skip = M_(0.0);
+    march_t t = M_(0.0), h = M_(GVS_MARCH_H0_S), t_skip = M_(0.0), t0 = M_(0.0), t_end = M_(GVS_TTL_HORIZON_S);
 #ifndef GVS_NO_TTL_BOUND
-    const march_t ratio = chord ? M_(GVS_TTL_BOUND_RATIO) : M_(GVS_MARCH_RATIO);   /* the chord systems' grid */
+    const march_t ratio = chord ? M_(GVS_TTL_BOUND_RATIO) : M_(GVS_MARCH_RATIO);   /* the parts' grid */
+    int ev = 0;
+    gvs_real w_ev = R_(1.0), T_ev = (gvs_real)NAN;
 #else
     const march_t ratio = M_(GVS_MARCH_RATIO);
 #endif
@@ -1233,8 +1268,15 @@ static int ttl_solve(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl
     if (held_build(tb, veh, p, src, G, Gs, T_op, measured, &hs, T_inf, chord) != 0) return -1;
 #ifndef GVS_NO_TTL_BOUND
     hs.by_row = chord != NULL && tb->ldl_perm[n - 1] == io;  /* the chord systems' march: Sherman-Morrison by row */
+    if (chord) {
+        if (chord->T_start) T0 = chord->T_start;
+        t0 = chord->t0;
+        t_end = M_(GVS_TTL_HORIZON_S) - t0;
+        T_ev = chord->T_ev;
+        chord->t_ev = (march_t)NAN;
+    }
 #endif
-    for (i = 0; i < n; ++i) e[i] = p->T_main_c[i] - T_inf[i];
+    for (i = 0; i < n; ++i) e[i] = T0[i] - T_inf[i];
     if (measured) e[io] = R_(0.0);
     held_apply(tb, &hs, e, Ae);
     for (i = 0; i < n; ++i) {
@@ -1247,21 +1289,46 @@ static int ttl_solve(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl
         int32_t r = tb->published_index[j];
         gvs_real lim = tb->warning_c[j];
         open[j] = 0;
+#ifndef GVS_NO_TTL_BOUND
+        if (chord && chord->done && chord->done[j] < (gvs_real)INFINITY) {
+            ttl[j] = (gvs_real)INFINITY;            /* decided by an earlier part */
+            continue;
+        }
+#endif
         if (measured && r == io) {
             ttl[j] = p->T_oil_c >= lim ? R_(0.0) : (gvs_real)INFINITY;
             continue;
         }
-        ttl[j] = p->T_main_c[r] >= lim ? R_(0.0) : (gvs_real)INFINITY;
-        open[j] = p->T_main_c[r] < lim
+        ttl[j] = T0[r] >= lim ? (gvs_real)(CEIL(t0 / M_(GVS_TTL_QUANTUM_S)) * M_(GVS_TTL_QUANTUM_S))
+                              : (gvs_real)INFINITY;
+        open[j] = T0[r] < lim
             && (!(hs.metzler || hs.weighted) || T_inf[r] + bnd * (hs.metzler ? R_(1.0) : hs.wt[r]) >= lim)
             && (hs.coupled || T_inf[r] + SQRT(energy / C[r]) >= lim);
         any |= open[j];
     }
+#ifndef GVS_NO_TTL_BOUND
+    if (T_ev == T_ev) {                              /* the sump rises to T_ev: open while the bounds allow it */
+        if (!hs.metzler && hs.weighted) w_ev = hs.wt[io];
+        ev = T0[io] < T_ev;
+        if (ev && (hs.metzler || hs.weighted)) ev = T_inf[io] + bnd * w_ev >= T_ev;
+    }
+    if ((hs.metzler || hs.weighted) && (any || ev)) {
+        march_t t_cap = (march_t)INFINITY;
+        if (ev) {
+            gvs_real rate_ev = scale_of(tb, &hs, de);
+            ev = !(rate_ev <= R_(0.0));
+            if (ev && rate_ev > R_(0.0)) t_cap = (march_t)(T_ev - T0[io]) / ((march_t)rate_ev * (march_t)w_ev);
+        }
+        any = skip_to(tb, T0, de, &hs, open, &t_skip, &h, ratio, t_cap, t_end);
+    }
+    while ((any || ev) && t < t_end) {
+#else
     if (any && (hs.metzler || hs.weighted))
-        any = skip_to(tb, p, de, &hs, open, &t_skip, &h, ratio);
-    while (any && t < M_(GVS_TTL_HORIZON_S)) {
-        march_t h_step = t_skip > M_(0.0) ? t_skip : (h < M_(GVS_TTL_HORIZON_S) - t ? h : M_(GVS_TTL_HORIZON_S) - t);
-        gvs_real d = (gvs_real)(M_(GVS_MARCH_D_FRAC) * h_step), s_watch = R_(2.0);
+        any = skip_to(tb, T0, de, &hs, open, &t_skip, &h, ratio, (march_t)INFINITY, t_end);
+    while (any && t < t_end) {
+#endif
+        march_t h_step = t_skip > M_(0.0) ? t_skip : (h < t_end - t ? h : t_end - t);
+        gvs_real d = (gvs_real)(M_(GVS_MARCH_D_FRAC) * h_step), s_watch = R_(2.0), s_ev = R_(2.0);
         if (held_factor(tb, &hs, R_(1.0), d) != 0) return -1;
         for (i = 0; i < n; ++i) e_g[i] = C[i] * e[i] - d * Ae[i];
         held_solve(tb, &hs, e_g);
@@ -1275,6 +1342,11 @@ static int ttl_solve(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl
             energy_new += C[i] * e_new[i] * e_new[i];
             e_max = bound_max(&hs, e_new, i, e_max);
         }
+#ifndef GVS_NO_TTL_BOUND
+        if (ev && T_inf[io] + e_new[io] >= T_ev)
+            s_ev = first_root((gvs_real)h_step, T_inf[io] + e[io] - T_ev, de[io], T_inf[io] + e_new[io] - T_ev,
+                              de_new[io]);
+#endif
         any = 0;
         for (j = 0; j < tb->n_pub; ++j) {
             int32_t r = tb->published_index[j];
@@ -1283,7 +1355,12 @@ static int ttl_solve(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl
             f1 = T_inf[r] + e_new[r] - lim;
             if (f1 >= R_(0.0)) {
                 gvs_real s = first_root((gvs_real)h_step, T_inf[r] + e[r] - lim, de[r], f1, de_new[r]);
-                march_t tc = CEIL((t + (march_t)s * h_step) / M_(GVS_TTL_QUANTUM_S)) * M_(GVS_TTL_QUANTUM_S);
+                march_t tc;
+                if (s > s_ev) {                     /* after the event: the next part decides */
+                    any = 1;
+                    continue;
+                }
+                tc = CEIL((t0 + t + (march_t)s * h_step) / M_(GVS_TTL_QUANTUM_S)) * M_(GVS_TTL_QUANTUM_S);
                 ttl[j] = (gvs_real)(tc < M_(GVS_TTL_HORIZON_S) ? tc : M_(GVS_TTL_HORIZON_S));
                 open[j] = 0;
                 if (tb->ttl_relin[j] && s < s_watch) s_watch = s;
@@ -1292,13 +1369,19 @@ static int ttl_solve(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl
             if ((hs.metzler || hs.weighted) && T_inf[r] + e_max * (hs.metzler ? R_(1.0) : hs.wt[r]) < lim)
                 open[j] = 0;
             if ((!hs.coupled || energy_new <= energy) && T_inf[r] + SQRT(energy_new / C[r]) < lim) open[j] = 0;
-#ifndef GVS_NO_TTL_BOUND
-            if (chord && chord->stop && t + h_step >= (march_t)chord->stop[j]) open[j] = 0;
-#endif
             any |= open[j];
         }
         if (s_watch <= R_(1.0) && *T_watch != *T_watch && !measured)
             *T_watch = T_inf[io] + hermite(s_watch, (gvs_real)h_step, e[io], de[io], e_new[io], de_new[io]);
+#ifndef GVS_NO_TTL_BOUND
+        if (s_ev <= R_(1.0)) {                      /* the event: the state then, the march stops */
+            chord->t_ev = t0 + t + (march_t)s_ev * h_step;
+            for (i = 0; i < n; ++i)
+                chord->T_at[i] = T_inf[i] + hermite(s_ev, (gvs_real)h_step, e[i], de[i], e_new[i], de_new[i]);
+            return 0;
+        }
+        if (ev && (hs.metzler || hs.weighted) && !(T_inf[io] + e_max * w_ev >= T_ev)) ev = 0;
+#endif
         copy_r(e, e_new, n);
         copy_r(de, de_new, n);
         energy = energy_new;
@@ -1317,29 +1400,6 @@ static gvs_real bound_cooler_heat(const gvs_tables *tb, const gvs_vehicle *veh, 
     return point_cooler(tb, veh, p, &op) ? cooler_heat(tb, veh, &op, T) : R_(0.0);
 }
 
-/* ttl_bound.cooler_chord_slope: (Q(T_far) - Q_step) / (T_far - T_step), at least 0 */
-static gvs_real bound_cooler_slope(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl_point *p, gvs_real T)
-{
-    if (tb->cooler_code == GVS_COOLER_NONE || !(pump_drive(tb, p->row, p->omega_in_rad_s) > R_(0.0))) return R_(0.0);
-    return max_r((bound_cooler_heat(tb, veh, p, T) - p->Q_cool_w) / (T - p->T_oil_c), R_(0.0));
-}
-
-/* ttl_bound.cooler_line: the line through the cooler's heat at T_far, at or below its heat at the step's sump and at
- * GVS_TTL_BOUND_SAMPLES sumps evenly between (the secants' extreme, slope at least 0): ch->slope, ch->Q0 */
-static void bound_cooler_line(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl_point *p, ttl_chord_t *ch)
-{
-    gvs_real T0 = p->T_oil_c, T_far = ch->T_far, Q_far = bound_cooler_heat(tb, veh, p, T_far), d0 = T0 - T_far;
-    gvs_real slope = (p->Q_cool_w - Q_far) / d0;
-    int k;
-    for (k = 1; k <= GVS_TTL_BOUND_SAMPLES; ++k) {
-        gvs_real T = T0 + (T_far - T0) * ((gvs_real)k / (gvs_real)(GVS_TTL_BOUND_SAMPLES + 1));
-        gvs_real sec = (bound_cooler_heat(tb, veh, p, T) - Q_far) / (T - T_far);
-        if (d0 < R_(0.0) ? sec > slope : sec < slope) slope = sec;     /* Python's max / min, NaN alike */
-    }
-    ch->slope = R_(0.0) > slope ? R_(0.0) : slope;
-    ch->Q0 = Q_far + ch->slope * d0;
-}
-
 /* the oil system's m cp at the point [W/K] (ttl_bound's, in its order of products) */
 static gvs_real bound_mcp(const gvs_tables *tb, const gvs_ttl_point *p)
 {
@@ -1353,107 +1413,8 @@ GVS_OUTLINE static gvs_real bound_clip(const gvs_tables *tb, gvs_real T)
     return clip_r(T, tb->T_grid0_c, tb->T_grid0_c + tb->T_grid_step_k * (gvs_real)(tb->nT - 1));
 }
 
-/* a trial's steady sump (ttl_bound._steady_sump_c of time_to_limit.held_system with the cooler's slope s at the step's
- * sump, then ttl_bound.chord_system) from dot products with r = K^-1 e_sump (K: the links, no cooler): K + s e e^T
- * differs from K in the sump's diagonal only, so e^T (K + s e e^T)^-1 x = r.x / (1 + s r_sump); the inlet coupling
- * u and the chord beta are columns on the sump (Sherman-Morrison: e^T A^-1 x = e^T K^-1 x / (1 - e^T K^-1 u)).
- * rb: r.b without the cooler's and the coupling's terms; ru: r.u / s; rbeta: r.beta (chord: T_far finite). NaN:
- * no finite steady sump */
-static gvs_real bound_steady_sump(const gvs_tables *tb, const gvs_ttl_point *p, gvs_real r_io, gvs_real rb,
-                                  gvs_real ru, gvs_real s, gvs_real mcp, gvs_real rbeta, gvs_real T_far)
-{
-    gvs_real den = R_(1.0) + s * r_io, cu = R_(0.0), a, c;
-    rb += s * p->T_oil_c * r_io;
-    if (s != R_(0.0) && FABS(p->dT_in_k) < tb->inlet_drop_max_k && mcp > R_(0.0)
-        && FABS(p->Q_cool_w / mcp) < tb->inlet_drop_max_k && R_(1.0) - ru * (s / mcp) / den > R_(GVS_COUPLING_MARGIN)) {
-        cu = ru * (s / mcp) / den;                   /* the inlet follows the sump: e^T K^-1 u */
-        rb -= p->T_oil_c * ru * (s / mcp);
-    }
-    a = rb / den / (R_(1.0) - cu);
-    if (T_far == T_far) {
-        c = rbeta / den / (R_(1.0) - cu);            /* e^T A^-1 beta: the chord's column when its margin holds */
-        if (R_(1.0) - c > R_(GVS_COUPLING_MARGIN)) a = (a - T_far * c) / (R_(1.0) - c);
-    }
-    return finite_g(a) ? a : (gvs_real)NAN;
-}
-
-/* ttl_bound.chord_systems: the far sump T_far by the secant method on the chord system's steady sump (conductances
- * of the step), one factorisation of K for every trial (bound_steady_sump); 0 when found (ch filled, src its losses),
- * -1 when the sump is settled or none is found */
-static int bound_far_sump(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl_point *p, ttl_chord_t *ch,
-                          gvs_real *src)
-{
-    held_t hs;
-    gvs_real r[GVS_MAX_NODES], rw[GVS_MAX_SRC], src_k[GVS_MAX_SRC], qf[GVS_MAX_NODES];
-    gvs_real T0 = p->T_oil_c, t_prev = T0, g_prev, g, T_far, rb = R_(0.0), ru = R_(0.0), rq0 = R_(0.0), rqf, slope_k;
-    gvs_real mcp = bound_mcp(tb, p);
-    int32_t n = tb->n, i, k, it, io = tb->i_oil, found = 0;
-    hs.G = p->G_w_per_k;
-    hs.slope = R_(0.0);
-    hs.held = 0;
-    hs.coupled = 0;
-    hs.by_row = 0;
-    if (held_factor(tb, &hs, R_(0.0), R_(1.0)) != 0) return -1;
-    for (i = 0; i < n; ++i) r[i] = i == io ? R_(1.0) : R_(0.0);
-    ldl_solve(tb, hs.S, r);
-    /* r.b of the parts no trial changes: the inlet drop at the step's sump, the boundaries, -Q_cool on the sump */
-    for (k = 0; k < tb->nst; ++k) ru += p->G_streams_w_per_k[k] * (r[io] - r[tb->stream_node[k]]);
-    for (k = 0; k < tb->nl; ++k)
-        if (tb->link_b[k] >= n) rb += p->G_w_per_k[k] * p->T_bc_c[tb->link_b[k] - n] * r[tb->link_a[k]];
-    rb += ru * p->dT_in_k - r[io] * p->Q_cool_w;
-    for (i = 0; i < tb->ns; ++i) rw[i] = R_(0.0);         /* r.q = rw.src: the sources' weights on r */
-    for (k = 0; k < tb->nsrc_nz; ++k) rw[tb->src_nz_src[k]] += tb->src_nz_w[k] * r[tb->src_nz_node[k]];
-    for (i = 0; i < tb->ns; ++i) rq0 += rw[i] * p->src_w[i];
-    g_prev = bound_steady_sump(tb, p, r[io], rb + rq0, ru, cooler_slope(tb, veh, p, T0), mcp, R_(0.0),
-                               (gvs_real)NAN) - T0;
-    if (!(FABS(g_prev) >= R_(GVS_TTL_BOUND_TOL_K))) return -1;
-    T_far = bound_clip(tb, T0 + g_prev);
-    for (it = 0; it < GVS_TTL_BOUND_ITERS; ++it) {
-        gvs_real T_s;
-        if (FABS(T_far - T0) < R_(GVS_TTL_BOUND_TOL_K)) break;
-        point_heat(tb, veh, p, T_far, src_k);
-        rqf = R_(0.0);
-        for (i = 0; i < tb->ns; ++i) rqf += rw[i] * src_k[i];
-        slope_k = bound_cooler_slope(tb, veh, p, T_far);
-        T_s = bound_steady_sump(tb, p, r[io], rb + rqf, ru, slope_k, mcp, (rq0 - rqf) / (T0 - T_far), T_far);
-        if (T_s != T_s) break;                              /* no finite steady state there: the last that has one */
-        ch->slope = slope_k;
-        ch->T_far = T_far;
-        copy_r(src, src_k, tb->ns);
-        found = 1;
-        g = T_s - T_far;
-        if (!(FABS(g) >= R_(GVS_TTL_BOUND_TOL_K)) || g == g_prev) break;
-        {
-            gvs_real t_next = bound_clip(tb, T_far - g * (T_far - t_prev) / (g - g_prev));
-            t_prev = T_far;
-            g_prev = g;
-            T_far = t_next;
-        }
-    }
-    if (!found) return -1;
-    bound_cooler_line(tb, veh, p, ch);
-    scatter_heat(tb, p->src_w, r);                          /* the node heat's chord to the found far sump */
-    scatter_heat(tb, src, qf);
-    for (i = 0; i < n; ++i) ch->beta[i] = (r[i] - qf[i]) / (T0 - ch->T_far);
-    return 0;
-}
-
 static int ttl_refresh(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl_point *p, gvs_real *ttl_s,
                        int bound);
-
-/* ttl_bound.Chord.clipped_inlet_k_per_k: the inlet drop's secant [K/K] from the step's sump to T_x when the first
- * chord system's coupled drop (the cooler line's slope over mdot cp, from the step's drop) is beyond the clip at T_x;
- * NaN: not */
-static gvs_real bound_clipped_inlet(const gvs_tables *tb, const gvs_ttl_point *p, const ttl_chord_t *ch, gvs_real T_x)
-{
-    gvs_real mcp = bound_mcp(tb, p);
-    gvs_real d_x;
-    if (!(mcp > R_(0.0)) || !(FABS(p->dT_in_k) < tb->inlet_drop_max_k) || !(T_x != p->T_oil_c))
-        return (gvs_real)NAN;
-    d_x = p->dT_in_k + ch->slope / mcp * (T_x - p->T_oil_c);
-    if (!(FABS(d_x) > tb->inlet_drop_max_k)) return (gvs_real)NAN;
-    return (clip_r(d_x, -tb->inlet_drop_max_k, tb->inlet_drop_max_k) - p->dT_in_k) / (T_x - p->T_oil_c);
-}
 
 /* a crossing within GVS_TTL_BOUND_GATE_S: today's march too, the earlier of the two (no warning later than today's) */
 static void bound_gate(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl_point *p, gvs_real *ttl_s)
@@ -1467,44 +1428,212 @@ static void bound_gate(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_t
         if (today[j] < ttl_s[j]) ttl_s[j] = today[j];
 }
 
-/* the bounded time to limit (ttl_bound.time_to_limit_bound): the earlier of the two chord systems (the step's
- * conductances, those of T_far's bin); the step's own system when the sump is settled, held or not found */
+#define SEG_N (GVS_TTL_SEG_SAMPLES + 1)  /* a sampled stretch of the path: SEG_N + 1 sumps, both ends included */
+
+/* ttl_bound.Curves.at: the cooler's heat [W] and the clipped inlet drop [K] at sump T (the step's own at its sump) */
+static void seg_curve(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl_point *p, gvs_real mcp, gvs_real T,
+                      gvs_real *Q, gvs_real *d)
+{
+    if (T == p->T_oil_c) {
+        *Q = p->Q_cool_w;
+        *d = p->dT_in_k;
+        return;
+    }
+    *Q = bound_cooler_heat(tb, veh, p, T);
+    *d = mcp > R_(0.0) ? clip_r(*Q / mcp, -tb->inlet_drop_max_k, tb->inlet_drop_max_k) : R_(0.0);
+}
+
+/* T_a, SEG_N - 1 sumps evenly between and T_b, with the curves there */
+static void seg_samples(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl_point *p, gvs_real mcp,
+                        gvs_real T_a, gvs_real T_b, gvs_real *Tg, gvs_real *Qg, gvs_real *dg)
+{
+    int k;
+    for (k = 0; k <= SEG_N; ++k) {
+        Tg[k] = k < SEG_N ? T_a + (T_b - T_a) * ((gvs_real)k / (gvs_real)SEG_N) : T_b;
+        seg_curve(tb, veh, p, mcp, Tg[k], &Qg[k], &dg[k]);
+    }
+}
+
+/* ttl_bound.part_lines over samples a..b: sl = {cooler slope, its heat at Tg[a], drop slope, the drop at Tg[a]} */
+static void seg_lines(const gvs_real *Tg, const gvs_real *Qg, const gvs_real *dg, int a, int b, gvs_real *sl)
+{
+    int i, k;
+    for (i = 0; i < 2; ++i) {
+        const gvs_real *f = i ? dg : Qg;
+        gvs_real slope = (gvs_real)NAN;
+        for (k = a; k < b; ++k) {
+            gvs_real sec = (f[k] - f[b]) / (Tg[k] - Tg[b]);
+            if (slope != slope || (Tg[k] < Tg[b] ? sec > slope : sec < slope)) slope = sec;   /* under the curve */
+        }
+        sl[2 * i] = slope;
+        sl[2 * i + 1] = f[b] + slope * (Tg[a] - Tg[b]);
+    }
+}
+
+/* ttl_bound.part_gap_w: how far the lines of samples a..b lie under the curves, at most [W] */
+static gvs_real seg_gap(const gvs_real *Tg, const gvs_real *Qg, const gvs_real *dg, gvs_real mcp, int a, int b)
+{
+    gvs_real sl[4], gap = R_(0.0);
+    int k;
+    seg_lines(Tg, Qg, dg, a, b, sl);
+    for (k = a; k < b; ++k) {
+        gvs_real x = Tg[k] - Tg[a], v = (Qg[k] - sl[1] - sl[0] * x) + mcp * (dg[k] - sl[3] - sl[2] * x);
+        if (v > gap) gap = v;
+    }
+    return gap;
+}
+
+/* ttl_bound.far_sump_c: T where the steady sump of the system with the losses, the cooler's heat and the inlet drop
+ * at T is T (the step's conductances): K factorised once, every trial's steady sump r.b with r = K^-1 e_sump; the
+ * Illinois method in the bracket [T0, S(T0)] (within the oil tables). NaN: no finite steady state */
+static gvs_real seg_far_sump(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl_point *p, gvs_real mcp)
+{
+    held_t hs;
+    gvs_real r[GVS_MAX_NODES], rw[GVS_MAX_SRC], src[GVS_MAX_SRC], x[2] = {0}, g[2] = {0}, c = R_(0.0), gc;
+    gvs_real rb = R_(0.0), ru = R_(0.0);
+    int32_t n = tb->n, i, k, it, io = tb->i_oil;
+    hs.G = p->G_w_per_k;
+    hs.slope = R_(0.0);
+    hs.held = 0;
+    hs.coupled = 0;
+    hs.by_row = 0;
+    if (held_factor(tb, &hs, R_(0.0), R_(1.0)) != 0) return (gvs_real)NAN;
+    for (i = 0; i < n; ++i) r[i] = i == io ? R_(1.0) : R_(0.0);
+    ldl_solve(tb, hs.S, r);
+    for (k = 0; k < tb->nst; ++k) ru += p->G_streams_w_per_k[k] * (r[io] - r[tb->stream_node[k]]);
+    for (k = 0; k < tb->nl; ++k)
+        if (tb->link_b[k] >= n) rb += p->G_w_per_k[k] * p->T_bc_c[tb->link_b[k] - n] * r[tb->link_a[k]];
+    for (i = 0; i < tb->ns; ++i) rw[i] = R_(0.0);         /* r.q = rw.src: the sources' weights on r */
+    for (k = 0; k < tb->nsrc_nz; ++k) rw[tb->src_nz_src[k]] += tb->src_nz_w[k] * r[tb->src_nz_node[k]];
+    for (it = -2; it < GVS_TTL_FAR_ITERS; ++it) {
+        gvs_real T = it == -2 ? p->T_oil_c : it == -1 ? x[1] : c, Q, d, S = rb;
+        if (it >= 0 && !(FABS(x[1] - x[0]) >= R_(GVS_TTL_FAR_TOL_K))) break;
+        seg_curve(tb, veh, p, mcp, T, &Q, &d);
+        if (T == p->T_oil_c) copy_r(src, p->src_w, tb->ns);
+        else point_heat(tb, veh, p, T, src);
+        for (i = 0; i < tb->ns; ++i) S += rw[i] * src[i];
+        gc = S + ru * d - r[io] * Q - T;                    /* S(T) - T */
+        if (!finite_g(gc)) return (gvs_real)NAN;
+        if (it == -2) {
+            x[0] = T;
+            g[0] = gc;
+            x[1] = bound_clip(tb, T + gc);
+            if (x[1] == T) return T;
+            continue;
+        }
+        if (it == -1) {
+            g[1] = gc;
+            if (g[1] * g[0] > R_(0.0)) return x[1];         /* beyond the oil tables, or no sign change */
+        } else {
+            if (!(FABS(gc) >= R_(GVS_TTL_FAR_TOL_K))) return c;
+            if (gc * g[1] < R_(0.0)) {
+                x[0] = x[1];
+                g[0] = g[1];
+            } else {
+                g[0] *= R_(0.5);
+            }
+            x[1] = c;
+            g[1] = gc;
+        }
+        c = x[1] - g[1] * (x[1] - x[0]) / (g[1] - g[0]);
+    }
+    return x[1];
+}
+
+/* ttl_bound.march_segments: part j's system from Tc[j] to Tc[j + 1] (the losses' chord, the lines under the curves
+ * at SEG_N + 1 sumps inside it, the conductances at its start: the step's in the first), marched from the state where
+ * the sump reached Tc[j]; acc the first crossings; -1: a part has no finite steady state */
+static int seg_chain(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl_point *p, gvs_real mcp,
+                     const gvs_real *Tc, int parts, gvs_real (*srcs)[GVS_MAX_SRC], gvs_real *acc)
+{
+    ttl_chord_t ch;
+    gvs_real part[GVS_MAX_PUB], T_at[GVS_MAX_NODES], G[GVS_MAX_LINKS], Gs[GVS_MAX_STREAMS], qb[GVS_MAX_NODES];
+    gvs_real Tf[SEG_N + 1], Qf[SEG_N + 1], df[SEG_N + 1], sl[4], T_watch;
+    int j, i;
+    ch.t0 = M_(0.0);
+    for (j = 0; j < parts; ++j) {
+        seg_samples(tb, veh, p, mcp, Tc[j], Tc[j + 1], Tf, Qf, df);
+        seg_lines(Tf, Qf, df, 0, SEG_N, sl);
+        ch.slope = sl[0] < R_(0.0) ? R_(0.0) : sl[0];
+        ch.Q0 = sl[1];
+        ch.inlet = sl[2];
+        ch.dT0 = sl[3];
+        ch.T0 = Tc[j];
+        ch.T_far = Tc[j + 1];
+        scatter_heat(tb, srcs[j], ch.beta);
+        scatter_heat(tb, srcs[j + 1], qb);
+        for (i = 0; i < tb->n; ++i) ch.beta[i] = (ch.beta[i] - qb[i]) / (Tc[j] - Tc[j + 1]);
+        if (j) point_conductances(tb, veh, p, Tc[j], G, Gs);
+        ch.T_start = j ? T_at : NULL;
+        ch.done = j ? acc : NULL;
+        ch.T_ev = j + 1 < parts ? Tc[j + 1] : (gvs_real)NAN;
+        ch.T_at = T_at;
+        if (ttl_solve(tb, veh, p, srcs[j + 1], j ? G : p->G_w_per_k, j ? Gs : p->G_streams_w_per_k, Tc[j], 0,
+                      j ? part : acc, &T_watch, &ch) != 0)
+            return -1;
+        if (j)
+            for (i = 0; i < tb->n_pub; ++i)
+                if (!(acc[i] < (gvs_real)INFINITY)) acc[i] = part[i];
+        if (ch.t_ev != ch.t_ev) break;
+        ch.t0 = ch.t_ev;
+    }
+    return 0;
+}
+
+/* the bounded time to limit (ttl_bound.time_to_limit_bound): the sump's path from T0 to the far sump cut into at most
+ * GVS_TTL_SEG_MAX parts (ttl_bound.cut_path), marched part by part with the conductances at each part's start and at
+ * its end, the earlier kept; the step's own system when the sump is settled, held or the far sump is not found */
 static int ttl_refresh_bound(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl_point *p, gvs_real *ttl_s)
 {
-    gvs_real T_watch, src[GVS_MAX_SRC], G[GVS_MAX_LINKS], Gs[GVS_MAX_STREAMS], other[GVS_MAX_PUB];
-    int measured = p->measured && !tb->ttl_sump_model, rc_a, rc_b, j;
-    ttl_chord_t ch;
-    gvs_real T_x, k_in;
-    ch.stop = NULL;
-    ch.inlet = (gvs_real)NAN;
-    if (measured || !tb->ttl_relinearise || bound_far_sump(tb, veh, p, &ch, src) != 0) {
+    gvs_real T_watch, srcs[GVS_TTL_SEG_MAX + 1][GVS_MAX_SRC], Tg[SEG_N + 1], Qg[SEG_N + 1];
+    gvs_real dg[SEG_N + 1], Tc[GVS_TTL_SEG_MAX + 1], gt[SEG_N + 1][SEG_N + 1], mcp = bound_mcp(tb, p), T_far, best;
+    int measured = p->measured && !tb->ttl_sump_model, cuts[GVS_TTL_SEG_MAX + 1], nc = 2, j, k, m;
+    if (measured || !tb->ttl_relinearise || !(FABS((T_far = seg_far_sump(tb, veh, p, mcp)) - p->T_oil_c)
+                                              >= R_(GVS_TTL_BOUND_TOL_K))) {
         ttl_solve(tb, veh, p, p->src_w, p->G_w_per_k, p->G_streams_w_per_k, p->T_oil_c, measured, ttl_s, &T_watch,
                   NULL);
         bound_gate(tb, veh, p, ttl_s);
         return GVS_OK;
     }
-    rc_a = ttl_solve(tb, veh, p, src, p->G_w_per_k, p->G_streams_w_per_k, p->T_oil_c, 0, ttl_s, &T_x, &ch);
-    point_conductances(tb, veh, p, ch.T_far, G, Gs);
-    if (rc_a == 0) ch.stop = ttl_s;                /* the second march: only crossings before the first's */
-    rc_b = ttl_solve(tb, veh, p, src, G, Gs, ch.T_far, 0, other, &T_watch, &ch);
-    if (rc_b != 0) {
-        if (rc_a != 0)
-            for (j = 0; j < tb->n_pub; ++j) ttl_s[j] = (gvs_real)NAN;
-    } else {
-        for (j = 0; j < tb->n_pub; ++j)
-            if (rc_a != 0 || other[j] < ttl_s[j]) ttl_s[j] = other[j];
+    seg_samples(tb, veh, p, mcp, p->T_oil_c, T_far, Tg, Qg, dg);
+    /* ttl_bound.cut_path: the fewest parts whose lines lie within GVS_TTL_SEG_GAP_W of the curves, else
+     * GVS_TTL_SEG_MAX (3) parts with the least worst gap, every choice of cuts tried in order, the first within
+     * GVS_TTL_SEG_TIE_W of the least taken */
+    for (j = 0; j < SEG_N; ++j)
+        for (k = j + 1; k <= SEG_N; ++k) gt[j][k] = seg_gap(Tg, Qg, dg, mcp, j, k);
+    cuts[0] = 0;
+    cuts[1] = SEG_N;
+    best = gt[0][SEG_N];
+    for (m = 1; m < GVS_TTL_SEG_MAX && best > R_(GVS_TTL_SEG_GAP_W) && T_far > p->T_oil_c; ++m) {
+        gvs_real least = (gvs_real)INFINITY;
+        int pass, found = 0;
+        for (pass = 0; pass < 2 && !found; ++pass)     /* the least worst gap, then the first within the tie */
+            for (j = 1; j < SEG_N && !found; ++j)
+                for (k = m == 1 ? SEG_N : j + 1; k <= SEG_N - (m == 1 ? 0 : 1) && !found; ++k) {
+                    gvs_real w = gt[0][j], x = gt[j][k];
+                    if (x > w) w = x;
+                    if (m > 1 && gt[k][SEG_N] > w) w = gt[k][SEG_N];
+                    if (!pass) {
+                        if (w < least) least = w;
+                    } else if (w <= least + R_(GVS_TTL_SEG_TIE_W)) {
+                        found = 1;
+                        best = w;
+                        cuts[1] = j;
+                        cuts[2] = k;
+                    }
+                }
+        if (!found) break;
+        nc = m + 2;
+        if (m == 1) cuts[2] = SEG_N;
+        else cuts[3] = SEG_N;
     }
-    /* the sump at the first crossing (the first march's, else the second's): where the first system's coupled
-     * inlet drop passes its clip before it, the first system once more with the drop's secant to it */
-    if (rc_a != 0 || T_x != T_x) T_x = rc_b == 0 ? T_watch : (gvs_real)NAN;
-    k_in = bound_clipped_inlet(tb, p, &ch, T_x);
-    if (k_in == k_in) {                            /* (other: merged above, free for this march) */
-        ch.stop = NULL;
-        ch.inlet = k_in;
-        if (ttl_solve(tb, veh, p, src, p->G_w_per_k, p->G_streams_w_per_k, p->T_oil_c, 0, other, &T_watch, &ch) == 0)
-            for (j = 0; j < tb->n_pub; ++j)
-                if ((rc_a != 0 && rc_b != 0) || other[j] < ttl_s[j]) ttl_s[j] = other[j];
+    for (j = 0; j < nc; ++j) {
+        Tc[j] = Tg[cuts[j]];
+        if (j) point_heat(tb, veh, p, Tc[j], srcs[j]);
+        else copy_r(srcs[0], p->src_w, tb->ns);
     }
+    if (seg_chain(tb, veh, p, mcp, Tc, nc - 1, srcs, ttl_s) != 0)
+        for (j = 0; j < tb->n_pub; ++j) ttl_s[j] = (gvs_real)NAN;
     bound_gate(tb, veh, p, ttl_s);
     return GVS_OK;
 }

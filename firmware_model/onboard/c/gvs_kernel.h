@@ -54,6 +54,14 @@ typedef int16_t gvs_idx;
 typedef int32_t gvs_idx;
 #endif
 
+/* the bilinear conductance tables (t2_table): gvs_real, or int16 steps of a per-table scale (t2_scale) in an
+ * exported float build (GVS_T2_Q16, set by the export: 9 KB of flash; within 1.6e-5 of each table's largest value) */
+#ifdef GVS_T2_Q16
+typedef int16_t gvs_t2;
+#else
+typedef gvs_real gvs_t2;
+#endif
+
 /* capacities of the plain structs (the tables give the actual sizes; gvs_check_tables() refuses larger ones);
  * an ECU build sets them to the exported variant's sizes (-DGVS_MAX_NODES=61 ...) to save RAM */
 #ifndef GVS_MAX_NODES
@@ -108,11 +116,15 @@ typedef int32_t gvs_idx;
 #define GVS_TTL_RELINEARISE_STEPS 2             /* re-linearisations at the predicted sump */
 #define GVS_TTL_RELINEARISE_TOL_K 0.5           /* ... until the sump moves less than this [K] */
 #define GVS_COUPLING_MARGIN 1e-06               /* the coupled held system needs 1 - e^T K^-1 u above this */
-#define GVS_TTL_BOUND_ITERS 4                   /* bounded time to limit: steady solves for the chord's far sump */
-#define GVS_TTL_BOUND_TOL_K 0.5                 /* ... until it moves less than this [K] */
+#define GVS_TTL_BOUND_TOL_K 0.5                 /* bounded time to limit: a sump this close to its far value is settled [K] */
 #define GVS_TTL_BOUND_GATE_S 60.0               /* a crossing within this: today's march too, the earlier [s] */
 #define GVS_TTL_BOUND_RATIO 2.5                 /* ... its marches: each step this many times longer than the last */
-#define GVS_TTL_BOUND_SAMPLES 3                 /* ... its cooler line: under the cooler at this many sumps */
+#define GVS_TTL_FAR_ITERS 12                    /* ... its far sump: at most this many solves in the bracket */
+#define GVS_TTL_FAR_TOL_K 0.05                  /* ... until the bracket is narrower than this [K] */
+#define GVS_TTL_SEG_MAX 3                       /* ... the sump's path to its far value in at most this many parts */
+#define GVS_TTL_SEG_SAMPLES 16                  /* ... sampled at this many sumps between */
+#define GVS_TTL_SEG_GAP_W 200.0                 /* ... cut where its lines lie this far under the curves [W] */
+#define GVS_TTL_SEG_TIE_W 1.0                   /* ... at the first sample within this of the best [W] */
 #define GVS_TTL_FRESH_S 10.0                    /* an early warning judges a time to limit at most this old [s] */
 
 /* input fields (records.INPUT_FIELDS order) */
@@ -180,7 +192,8 @@ typedef struct {
     const gvs_idx *t2_link;             /* (n2) */
     const gvs_real *t2_speed_coef;      /* (gears x n2) */
     const gvs_real *t2_omega_max_rad_s; /* (n2) [rad/s] */
-    const gvs_real *t2_table;           /* (n2 x n_u x nT2) [W/K] */
+    const gvs_t2 *t2_table;             /* (n2 x n_u x nT2) [W/K] times t2_scale */
+    const gvs_real *t2_scale;           /* (n2) per table: 1, or the step of an export's int16 table (GVS_T2_Q16) */
     int32_t t2_stride;                  /* the tables use every t2_stride-th temperature of the grid */
     /* immersed wheels, Nusselt in closed form */
     const gvs_idx *cyl_link;            /* (nc) */
