@@ -112,7 +112,8 @@ def _description() -> str:
         "a night, a rig run from cold), 'running' (cut from a longer drive, a warm restart: each file scored "
         "after its first 600 s, a thermocouple's after 900 s, with its housings' start fitted), or 'auto' "
         "(default: at rest, then running for the files whose first minutes show a real gap and which the "
-        "housings' start then fits far better; diagnosed again; the JSON's 'starts' says which and why)."
+        "housings' start then fits far better, unless they begin less than 15 K above the ambient; diagnosed "
+        "again; the JSON's 'starts' says which and why)."
     )
 
 

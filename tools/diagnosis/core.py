@@ -52,7 +52,7 @@ from tools.diagnosis.options import OIL, STAGES, Options
 from tools.diagnosis.prepare import load_table, prepare, prepare_runs
 from tools.diagnosis.regimes import regimes_before_after, residual_structure, where_residual
 from tools.diagnosis.result import Outcome, PlotData, build_json, plot_data
-from tools.diagnosis.start import decide_starts, starts_after_verdict, starts_json
+from tools.diagnosis.start import decide_starts, start_caveat, starts_after_verdict, starts_json
 
 __all__ = ["Diagnosis", "Options", "diagnose", "lag_filter", "load_table", "make_model", "prepare"]
 
@@ -106,10 +106,15 @@ class Diagnosis:
         self.starts = decide_starts(ctx.opts, self.train, self.test)
         self._run_once(self.starts)
         if ctx.opts.start == "auto":
-            recs = starts_after_verdict(ctx, self.outcome.base, self.outcome.residuals)
+            recs = starts_after_verdict(ctx, self.outcome.base, self.outcome.start_residuals)
             self.starts = decide_starts(ctx.opts, self.train, self.test, recs)
             if self.starts.running:  # every stage again (the progress callback is told so)
                 self._run_once(self.starts)
+        caveat = start_caveat(self.starts.records)
+        if caveat and self.outcome.verdict.effect != "none":  # said in the verdict, not only in the warnings
+            v = self.outcome.verdict
+            sep = " " if v.reason.rstrip().endswith(".") else ". "
+            self.outcome = replace(self.outcome, verdict=replace(v, reason=v.reason.rstrip() + sep + caveat))
         self.plot_data = plot_data(self.outcome)
         res = build_json(ctx, self.outcome, time.perf_counter() - wall0_s)
         res["starts"] = starts_json(self.starts.records)
@@ -147,6 +152,7 @@ class Diagnosis:
             verdict = replace(verdict, reason=verdict.reason + set_note)
         res = residuals(base, verdict, crit, combo)
         checked = held_out_check(ctx, base, verdict, res, where.where)
+        start_res = res  # the starts are judged on the effect's residual even when the held-out files refuse it
         if checked.effect != verdict.effect:  # refused: "unexplained", the baseline's residuals
             verdict, combo = checked, None
             res = residuals(base, verdict, crit)
@@ -159,7 +165,7 @@ class Diagnosis:
         sugg = suggestions(ctx, train, verdict, crit, conf)
         regs = regimes_before_after(test, base.base_te, res.test_before, res.test_after, p, ctx.cooler, ctx.opts)
         self.outcome = Outcome(
-            base, where, heat, crit, ident, verdict, conf, sugg, res, regs, structure, combo, tuple(nex)
+            base, where, heat, crit, ident, verdict, conf, sugg, res, regs, structure, combo, tuple(nex), start_res
         )
 
     def _not_excluded(self, base, crit, fits: list, verdict, combo, ident: dict) -> list:

@@ -32,6 +32,9 @@ class Outcome:
     structure: dict  # channel -> the baseline residual's regime structure (regimes.residual_structure)
     combination: object = None  # the effects found together (combine.Combination), None for one effect
     not_excluded: tuple = ()  # exclude.NotExcluded: effects the data cannot rule out beside the verdict
+    # the residuals a file's start is judged on (start.starts_after_verdict): the verdict's, or those of the effect
+    # the held-out check refused (a held-out file that starts running, scored at rest, refuses the right effect)
+    start_residuals: Residuals | None = None
 
 
 @dataclass(frozen=True)

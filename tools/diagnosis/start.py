@@ -19,7 +19,7 @@ from tools.diagnosis.context import Context
 from tools.diagnosis.fit import lag1_rho
 from tools.diagnosis.measurement import model_at_cells
 from tools.diagnosis.models import Run
-from tools.diagnosis.options import HOUSING_PERTURB_C, OIL, OIL_RIG, Options
+from tools.diagnosis.options import HOUSING_PERTURB_C, OIL, OIL_RIG, WARM_ABOVE_AMBIENT_K, Options
 from tools.diagnosis.scoring import box_lsq
 
 #: how a user asks for files that start running (the configuration's key; the command line's hidden option too)
@@ -38,6 +38,8 @@ class StartOf:
     evidence: float | None  # -dBIC of the housings' offset on the cells after the burn-in (None: not tested)
     hint: str | None = None  # a file kept at rest that looks cut from a drive (:func:`driving_at_start`),
     #                                  or one that --start running could not take running (why)
+    cut_like: bool = False  # kept at rest while it begins driving and warm (:func:`driving_at_start`), and no
+    #                           thermocouple shows its components at the oil (:func:`components_at_oil`)
 
     def to_json(self) -> dict:
         from tools.diagnosis.options import json_number
@@ -134,7 +136,8 @@ def _early_gap(ds, resid: list, sigma: dict, opts: Options) -> tuple | None:
 def judge(ds, resid: list, sens: list, sens_h: list, w: list, sigma: dict, opts: Options) -> StartOf:
     """The start of one file from the residual a diagnosis left on it (per channel entry: residual, sensitivity to a
     uniform start, to the housings' start, weights; `sigma`: the noise per channel): running when the first minutes
-    show a real gap (the components' unknown start) and, after them, the housings' start fits far better."""
+    show a real gap (the components' unknown start) and, after them, the housings' start fits far better, unless
+    its first reading lies within ``start_cold_k`` of the ambient (a gearbox that had not been running)."""
     span = ds.t_end_s - (ds.t_start_s + opts.burn_in_s)
     if span < opts.start_min_span_s:
         return StartOf(
@@ -149,27 +152,25 @@ def judge(ds, resid: list, sens: list, sens_h: list, w: list, sigma: dict, opts:
         )
     early = _early_gap(ds, resid, sigma, opts)
     has_oil = any(c in (OIL, OIL_RIG) for c in ds.channels)
-    rs, su, sh, ws = [], [], [], []
-    for (cid, ch), r, s_u, s_h, wk in zip(ds.channels.items(), resid, sens, sens_h, w):
-        keep = ch.cell_t_s >= scored_from(ds, cid, opts)
-        if np.any(keep):
-            rs.append(r[keep])
-            su.append(s_u[keep])
-            sh.append(s_h[keep])
-            ws.append(np.broadcast_to(wk, r.shape)[keep])
-    if not rs:
+    fitted = _housings_fit(ds, resid, sens, sens_h, w, opts)
+    if fitted is None:
         return StartOf(
             ds.name, ds.role, "rest", "at rest: no cell after the burn-in to judge a running start by", None, None
         )
-    r, wt = np.concatenate(rs), np.concatenate(ws)
-    d = opts.initial_offset_max_c
-    _, S_rest = box_lsq(r, wt, np.concatenate(su)[:, None], np.array([-d]), np.array([d]))
-    A = np.stack([np.concatenate(su), np.concatenate(sh)], axis=1)
-    x2, S_run = box_lsq(r, wt, A, np.array([-d, opts.housing_offset_lo_c]), np.array([d, opts.housing_offset_hi_c]))
-    n_eff = _n_eff(rs)
-    ev = n_eff * math.log(max(S_rest, 1e-12) / max(S_run, 1e-12)) - math.log(max(n_eff, 2.0))
-    beta = float(x2[1])
+    beta, ev = fitted
     house = f"the housings starting {abs(beta):.1f} K {'below' if beta < 0 else 'above'} the oil (evidence {ev:.0f})"
+    cold_k = above_ambient_k(ds)
+    if ev >= opts.evidence_min and early is not None and cold_k < opts.start_cold_k:
+        return StartOf(
+            ds.name,
+            ds.role,
+            "rest",
+            f"at rest: its first reading is {cold_k:.0f} K above the ambient (less than {opts.start_cold_k:g} K), a "
+            f"gearbox that had not been running; {house} would fit it better, as an effect that grows from rest "
+            f"does too",
+            beta,
+            ev,
+        )
     if ev >= opts.evidence_min and early is not None:
         return StartOf(
             ds.name,
@@ -208,10 +209,44 @@ def judge(ds, resid: list, sens: list, sens_h: list, w: list, sigma: dict, opts:
     )
 
 
+def _housings_fit(ds, resid: list, sens: list, sens_h: list, w: list, opts: Options) -> tuple | None:
+    """(the housings' start from the sump [K], its evidence -dBIC) on the cells after each channel's burn-in: the
+    uniform start alone against the uniform start and the housings' (both bounded); None without such cells."""
+    rs, su, sh, ws = [], [], [], []
+    for (cid, ch), r, s_u, s_h, wk in zip(ds.channels.items(), resid, sens, sens_h, w):
+        keep = ch.cell_t_s >= scored_from(ds, cid, opts)
+        if np.any(keep):
+            rs.append(r[keep])
+            su.append(s_u[keep])
+            sh.append(s_h[keep])
+            ws.append(np.broadcast_to(wk, r.shape)[keep])
+    if not rs:
+        return None
+    r, wt = np.concatenate(rs), np.concatenate(ws)
+    d = opts.initial_offset_max_c
+    _, S_rest = box_lsq(r, wt, np.concatenate(su)[:, None], np.array([-d]), np.array([d]))
+    A = np.stack([np.concatenate(su), np.concatenate(sh)], axis=1)
+    x2, S_run = box_lsq(r, wt, A, np.array([-d, opts.housing_offset_lo_c]), np.array([d, opts.housing_offset_hi_c]))
+    n_eff = _n_eff(rs)
+    ev = n_eff * math.log(max(S_rest, 1e-12) / max(S_run, 1e-12)) - math.log(max(n_eff, 2.0))
+    return float(x2[1]), ev
+
+
 def _n_eff(resid: list) -> float:
     """The effective sample size of residual pieces (each shrunk by its autocorrelation, as the criterion counts)."""
     rhos = [lag1_rho(r) for r in resid]
     return max(sum(r.size * (1 - q) / (1 + q) for r, q in zip(resid, rhos)), 2.0)
+
+
+def above_ambient_k(ds) -> float:
+    """How far the file's first reading (the model's start) lies above the ambient's first valid value [K]; NaN
+    without an ambient column."""
+    tb = getattr(ds, "inputs", None)
+    if tb is None or not tb.has("ambient_temp_c"):
+        return math.nan
+    v = np.asarray(tb["ambient_temp_c"], dtype=float)
+    ok = np.isfinite(v)
+    return float(ds.initial_temp_c - v[ok][0]) if ok.any() else math.nan
 
 
 def driving_at_start(ds) -> str | None:
@@ -227,12 +262,10 @@ def driving_at_start(ds) -> str | None:
         ok = np.isfinite(v)
         return float(v[ok][0]) if ok.any() else math.nan
 
-    v, tq, rpm, amb = (
-        first(c) for c in ("vehicle_speed_kmh", "engine_torque_nm", "engine_speed_rpm", "ambient_temp_c")
-    )
-    warm = ds.initial_temp_c - amb if math.isfinite(amb) else math.nan
+    v, tq, rpm = (first(c) for c in ("vehicle_speed_kmh", "engine_torque_nm", "engine_speed_rpm"))
+    warm = above_ambient_k(ds)
     driving = v > 10.0 or (abs(tq) > 500.0 and rpm > 600.0)
-    if not (driving and warm >= 15.0):
+    if not (driving and warm >= WARM_ABOVE_AMBIENT_K):
         return None
     what = f"{v:.0f} km/h" if math.isfinite(v) and v > 10.0 else f"{tq:.0f} Nm at {rpm:.0f} rpm"
     return f"it begins with the truck driving ({what}) and the oil {warm:.0f} K above the ambient"
@@ -283,12 +316,43 @@ def decide_starts(opts: Options, train: list, test: list, records: tuple = ()) -
                     rec,
                     hint=f"{hint}: if it was cut from a longer drive or logged after a short stop, "
                     f"diagnose with {RUNNING} (a running start scored at rest shows a false gap)",
+                    cut_like=not components_at_oil(ds),
                 )
             elif opts.start == "running" and rec.start == "rest":  # asked for, not possible: say so
                 rec = replace(rec, hint=f"--start running was asked, but it is {rec.reason}")
             recs.append(rec)
             new[role].append(cut if cut is not None else ds)
     return Starts(new["train"], new["test"], tuple(recs))
+
+
+def components_at_oil(ds, tol_k: float = 3.0) -> bool:
+    """Whether the file's rig thermocouples show a uniform start: it has one, and every one's first reading lies
+    within `tol_k` of the model's start (the components of a gearbox cut from a drive run kelvins off the oil: the
+    sun wheel 15 K above it 40 minutes into a drive). An oil sensor alone cannot show it."""
+    firsts = [
+        float(ch.y_c[np.isfinite(ch.y_c)][0])
+        for cid, ch in ds.channels.items()
+        if cid not in (OIL, OIL_RIG) and np.isfinite(ch.y_c).any()
+    ]
+    return bool(firsts) and all(abs(f - ds.initial_temp_c) <= tol_k for f in firsts)
+
+
+def start_caveat(records: tuple) -> str | None:
+    """The sentence a verdict other than "none" carries when files that begin driving and warm were scored at rest
+    (their channels showed no running start, e.g. the oil alone, or a false effect of the first pass took their
+    start error up): the model started them uniform at their first reading, which a file cut from a drive is not,
+    so the gap the verdict explains may be their start's. None when there is no such file."""
+    names = [r.name for r in records if r.start == "rest" and r.cut_like]
+    if not names:
+        return None
+    many = len(names) > 1
+    return (
+        f"{', '.join(names)} {'begin' if many else 'begins'} with the truck driving and the gearbox warm, but "
+        f"{'their' if many else 'its'} start could not be set from {'their' if many else 'its'} channels and "
+        f"{'they were' if many else 'it was'} scored at rest: the gap this verdict explains may be "
+        f"{'their' if many else 'its'} unknown start rather than the gearbox; if cut from a longer drive, "
+        f"diagnose with {RUNNING}."
+    )
 
 
 def starts_json(records: tuple) -> dict:
@@ -301,7 +365,9 @@ def starts_json(records: tuple) -> dict:
 
 def starts_after_verdict(ctx: Context, base, res, which: str = "after") -> tuple:
     """Every file's start judged on a residual of a diagnosis at rest (:func:`judge`): the unmodified model's
-    (``before``) or the verdict's (``after``); the housings' start re-simulated once per file (one run)."""
+    (``before``) or the verdict's (``after``; core passes that of an effect the held-out check refused, since a
+    held-out file that starts running refuses the right effect, and on the unmodified model's residual that effect
+    looks like a running start of the files from rest); the housings' start re-simulated once per file (one run)."""
     out = []
     for role, rd, resid in (
         ("train", base.train, getattr(res, f"train_{which}")),
