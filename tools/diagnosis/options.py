@@ -45,8 +45,8 @@ class ReadingOptions:
     max_channel_gap_frac: float = 0.25
 
 
-#: a file whose first reading lies this far above the ambient begins warm (start.driving_at_start), and the default
-#: of ``StartOptions.start_cold_k``, below which a file starts at rest (start.judge)
+#: a file whose first reading lies this far above the ambient begins warm (start.driving_at_start); less than this
+#: above it, a file starts at rest whatever its residual (start.judge: a gearbox that had been running is warmer)
 WARM_ABOVE_AMBIENT_K = 15.0
 
 
@@ -62,8 +62,6 @@ class StartOptions:
     start_min_cells: int = 30  # a running file's channel keeps at least this many cells, else it is dropped
     housing_offset_lo_c: float = -25.0  # a running start: the housings' start within these of the sump
     housing_offset_hi_c: float = 5.0
-    start_cold_k: float = WARM_ABOVE_AMBIENT_K  # a file whose first reading is less than this above the ambient
-    # starts at rest: a gearbox that had been running would be warmer
 
 
 @dataclass

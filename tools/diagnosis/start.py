@@ -137,7 +137,7 @@ def judge(ds, resid: list, sens: list, sens_h: list, w: list, sigma: dict, opts:
     """The start of one file from the residual a diagnosis left on it (per channel entry: residual, sensitivity to a
     uniform start, to the housings' start, weights; `sigma`: the noise per channel): running when the first minutes
     show a real gap (the components' unknown start) and, after them, the housings' start fits far better, unless
-    its first reading lies within ``start_cold_k`` of the ambient (a gearbox that had not been running)."""
+    its first reading lies within WARM_ABOVE_AMBIENT_K of the ambient (a gearbox that had not been running)."""
     span = ds.t_end_s - (ds.t_start_s + opts.burn_in_s)
     if span < opts.start_min_span_s:
         return StartOf(
@@ -160,12 +160,12 @@ def judge(ds, resid: list, sens: list, sens_h: list, w: list, sigma: dict, opts:
     beta, ev = fitted
     house = f"the housings starting {abs(beta):.1f} K {'below' if beta < 0 else 'above'} the oil (evidence {ev:.0f})"
     cold_k = above_ambient_k(ds)
-    if ev >= opts.evidence_min and early is not None and cold_k < opts.start_cold_k:
+    if ev >= opts.evidence_min and early is not None and cold_k < WARM_ABOVE_AMBIENT_K:
         return StartOf(
             ds.name,
             ds.role,
             "rest",
-            f"at rest: its first reading is {cold_k:.0f} K above the ambient (less than {opts.start_cold_k:g} K), a "
+            f"at rest: its first reading is {cold_k:.0f} K above the ambient (less than {WARM_ABOVE_AMBIENT_K:g} K), a "
             f"gearbox that had not been running; {house} would fit it better, as an effect that grows from rest "
             f"does too",
             beta,
