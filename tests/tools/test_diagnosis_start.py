@@ -85,9 +85,9 @@ def test_a_running_start_needs_an_early_gap_and_the_housings_evidence():
 
 def test_a_cold_file_starts_at_rest_whatever_its_residual():
     """A file whose first reading is within 15 K of the ambient (WARM_ABOVE_AMBIENT_K) had not been running: the
-    signature of a running start on its residual (an early gap, the housings fitting far better above the oil) is an effect that
-    grows from rest (the cold training files beside a warm held-out file were called running on the unmodified
-    model's residual of a bearing-loss gearbox). Warm, the same residual is a running start."""
+    signature of a running start on its residual (an early gap, the housings fitting far better above the oil) is an
+    effect that grows from rest (the cold training files beside a warm held-out file were called running on the
+    unmodified model's residual of a bearing-loss gearbox). Warm, the same residual is a running start."""
     bump = lambda t, s_h: 0.6 * np.exp(-t / 80.0) + 5.0 * s_h  # noqa: E731
 
     def with_ambient(ambient_c):
