@@ -607,7 +607,7 @@ typedef int32_t gvs_idx;
 #endif
 
 /* the bilinear conductance tables (t2_table): gvs_real, or int16 steps of a per-table scale (t2_scale) in an
- * exported float build (GVS_T2_Q16, set by the export: 9 KB of flash; within 1.6e-5 of each table's largest value) */
+ * exported float build (GVS_T2_Q16, set by the export: 9 KB of flash; within 1.5e-5 of each table's largest value) */
 #ifdef GVS_T2_Q16
 typedef int16_t gvs_t2;
 #else
