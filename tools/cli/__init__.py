@@ -103,9 +103,10 @@ def build_parser(only: str | None = None) -> argparse.ArgumentParser:
     command imports its own module and not the fifteen others (the service's start-up on a small gateway)."""
     parser = CommandParser(
         prog="gearbox-vsensor",
-        description="Virtual temperature sensor for Scania GRS905-type range-splitter gearboxes: the reference "
-        "thermal plant (simulate), the onboard sensor (replay, run), the HIL plant on CAN (plant) and "
-        "the sim-to-real gap diagnosis (diagnose, bench-diagnosis).",
+        description="Virtual temperature sensor for gearboxes, each from one description file (--gearbox: the "
+        "Scania GRS905 range-splitter by default, others shipped or your own; describe checks one): the reference "
+        "thermal plant (simulate), the onboard sensor (replay, run), the HIL plant on CAN (plant), the sim-to-real "
+        "gap diagnosis (diagnose, calibrate, bench-diagnosis) and the fleet (fleet).",
     )
     parser.add_argument(
         "--version",
