@@ -569,6 +569,41 @@ def test_status_of_a_service_long_stopped_gives_ages_counted_to_now(params, tmp_
         assert "(0 s ago)" not in "\n".join(lines) and "uptime" not in lines[0]
 
 
+def test_status_json_says_whether_live_and_counts_ages_to_now(params, tmp_path, capsys):
+    """`status --json` printed the raw health file: a service stopped 2 h ago showed "last_step_age_s": 0.0 and
+    nothing said the figures were stale. The document is kept as written and a "status" object adds the text's
+    judgement: live or not, the state in one word, the exit status and the ages counted to now."""
+    from tools.cli import main
+
+    svc = _service(params)
+    _drive(svc, 0.0, 5.0)
+    store = StateStore(tmp_path / "state.json")
+    store.save(svc)
+    path = tmp_path / "health.json"
+    assert HealthFile(path).maybe_write(svc, store)
+    assert main(["status", "--health-file", str(path), "--json"]) == 0
+    fresh = json.loads(capsys.readouterr().out)
+    assert fresh["status"]["live"] is True and fresh["status"]["service"] == "running"
+    assert fresh["status"]["exit_status"] == 0 and fresh["status"]["health_age_s"] < 5.0
+    for stopped, word in ((False, "stale"), (True, "stopped")):
+        assert HealthFile(path).maybe_write(svc, store, stopped=stopped)
+        doc = read_health(path)
+        doc["written_wall_s"] -= 7200.0
+        doc["written_boottime_s"] -= 7200.0
+        path.write_text(json.dumps(doc))
+        assert main(["status", "--health-file", str(path), "--json"]) == 1
+        out = json.loads(capsys.readouterr().out)
+        judged = out.pop("status")
+        assert out == doc  # every key of the document as the service wrote it (extended, not changed)
+        assert judged["live"] is False and judged["service"] == word and judged["exit_status"] == 1
+        assert judged["health_age_s"] == pytest.approx(7200.0, abs=60.0)
+        assert judged["last_step_age_s"] == pytest.approx(doc["last_step_age_s"] + judged["health_age_s"])
+        assert judged["last_save_age_s"] == pytest.approx(doc["state"]["last_save_age_s"] + judged["health_age_s"])
+    path.write_text(json.dumps({**doc, "state": {**doc["state"], "last_save_age_s": "long"}}))  # damaged by hand
+    assert main(["status", "--health-file", str(path), "--json"]) == 2
+    assert "not a gearbox-vsensor health file" in capsys.readouterr().err
+
+
 def test_status_of_a_file_written_on_an_earlier_boot_is_not_running(params, tmp_path, capsys):
     """A health file kept on disk across a reboot, read on a gateway whose wall clock is behind it (no RTC): its
     wall-clock age was negative and status said 'running' with exit 0. A file of another boot was written by a

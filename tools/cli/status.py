@@ -38,7 +38,14 @@ def add_subparser(sub):
         metavar="PATH",
         help=f"the service's health file (default {DEFAULT_HEALTH}, as the systemd unit writes it)",
     )
-    p.add_argument("--json", action="store_true", help="print the health document as JSON")
+    p.add_argument(
+        "--json",
+        action="store_true",
+        help="print the health document as JSON, as the service wrote it, plus a `status` object: live (false when "
+        "not running: the figures are stale), service (running, not_stepping, never_stepped, stale, stopped, "
+        "process_gone, earlier_boot), exit_status, and health_age_s, last_step_age_s, last_save_age_s counted to "
+        "now (null when unknown)",
+    )
     p.set_defaults(func=run)
 
 
@@ -59,14 +66,15 @@ def run(args) -> int:
         age_s = health_age_s(doc)
         gone = process_gone(doc) or earlier_boot(doc)
         lines = status_lines(doc, age_s, gone)
-        stepping = not not_stepping(doc)
+        code = exit_status(doc, age_s, gone, not not_stepping(doc))
+        judged = status_json(doc, age_s, gone, code)
     except (TypeError, ValueError, AttributeError) as exc:
         raise InputError(
             f"{args.health_file}: not a gearbox-vsensor health file (a field of the wrong type: {exc})"
         ) from None
     try:
-        if args.json:
-            print(json.dumps(doc, indent=2))
+        if args.json:  # the document as the service wrote it, and the judgement of it now under "status"
+            print(json.dumps({**doc, "status": judged}, indent=2))
         else:
             for line in lines:
                 print(line)
@@ -75,9 +83,34 @@ def run(args) -> int:
         import sys
 
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+    return code
+
+
+def exit_status(doc: dict, age_s: float, gone: bool, stepping: bool) -> int:
+    """1 not running (stale, stopped, process gone, earlier boot), 3 running without steps, 0 running."""
     if age_s > STALE_S or doc.get("stopped") or gone:
         return 1
     return 0 if stepping else 3
+
+
+def status_json(doc: dict, age_s: float, gone: bool, code: int) -> dict:
+    """What `--json` adds to the health document: the text lines' judgement as fields. Whether the figures are live,
+    the service's state in one word, the exit status, and the file's and the service's ages counted to now (the
+    document's own ages are as at its writing; None when the file's age is unknown: a wall clock behind it)."""
+    state = doc.get("state") or {}
+    return {
+        "live": is_live(doc, age_s, gone),
+        "service": service_state(doc, age_s, gone),
+        "exit_status": code,
+        "health_age_s": age_now(0.0, age_s),
+        "last_step_age_s": age_now(doc.get("last_step_age_s"), age_s),
+        "last_save_age_s": age_now(state.get("last_save_age_s"), age_s),
+    }
+
+
+def is_live(doc: dict, age_s: float, gone: bool) -> bool:
+    """Whether the document is the health of a service running now (else its last health: stale)."""
+    return age_s <= STALE_S and not doc.get("stopped") and not gone
 
 
 def not_stepping(doc: dict) -> bool:
@@ -152,30 +185,50 @@ def process_gone(doc: dict) -> bool:
     return False
 
 
+def age_now(age_s: float | None, file_age_s: float) -> float | None:
+    """An age the service wrote (at its last write) counted to now: plus the file's own age; None when either is
+    unknown (the file's age negative: a wall clock behind the file's)."""
+    return None if age_s is None or file_age_s < 0 else float(age_s) + file_age_s
+
+
 def ago(age_s: float | None, file_age_s: float) -> str:
-    """An age the service wrote (at its last write) counted to now: plus the file's own age; unknown when the file's
-    age is (negative: a wall clock behind the file's)."""
-    return "unknown" if age_s is None or file_age_s < 0 else f"{float(age_s) + file_age_s:.0f} s"
+    """``age_now`` as text: "N s", or "unknown"."""
+    now = age_now(age_s, file_age_s)
+    return "unknown" if now is None else f"{now:.0f} s"
+
+
+def service_state(doc: dict, age_s: float, gone: bool) -> str:
+    """The service's state in one word, the first line's cases in its order."""
+    if doc.get("stopped"):
+        return "stopped"
+    if gone:
+        return "earlier_boot" if earlier_boot(doc) else "process_gone"
+    if age_s > STALE_S:
+        return "stale"
+    if never_stepped(doc):
+        return "never_stepped"
+    return "not_stepping" if not_stepping(doc) else "running"
 
 
 def service_line(doc: dict, age_s: float, gone: bool) -> str:
     """The first line: running (and stepping or not), or why not and since when; a service not running has no
     uptime now, only the time it had run."""
     old = f"health {ago(0.0, age_s)} old" if age_s >= 0 else "health of unknown age"
-    if doc.get("stopped"):
+    word = service_state(doc, age_s, gone)
+    if word == "stopped":
         state = f"stopped cleanly {ago(0.0, age_s)} ago" if age_s >= 0 else "stopped cleanly (when: unknown)"
-    elif gone and earlier_boot(doc):
+    elif word == "earlier_boot":
         state = f"NOT RUNNING (written on an earlier boot of this machine; {old})"
-    elif gone:
+    elif word == "process_gone":
         state = f"NOT RUNNING (its process {doc.get('pid')} is gone: killed or crashed; {old})"
-    elif age_s > STALE_S:
+    elif word == "stale":
         state = (
             f"NOT RUNNING ({old}; or running but unable to rewrite this file: its log says "
             f"'cannot write the health file')"
         )
-    elif never_stepped(doc):
+    elif word == "never_stepped":
         state = f"running, but NEVER STEPPED in {float(doc['uptime_s']):.0f} s"
-    elif not_stepping(doc):
+    elif word == "not_stepping":
         state = (
             f"running, but NO STEP for {ago(doc['last_step_age_s'], age_s)} (its input frames stopped: "
             f"engine speed or the bus; it publishes nothing)"
@@ -199,7 +252,7 @@ def status_lines(doc: dict, age_s: float, gone: bool = False) -> list[str]:
 
     state = doc.get("state") or {}
     last = doc.get("last_step_frame_time_s")
-    live = age_s <= STALE_S and not doc.get("stopped") and not gone
+    live = is_live(doc, age_s, gone)
     now = doc.get("degraded_mode_now")
     j = doc.get("j1939")
     step_age = doc.get("last_step_age_s")
