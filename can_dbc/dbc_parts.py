@@ -151,7 +151,7 @@ INPUT_COMMENTS = (
         "than 8 bytes) and RC (PGN 65249, 0xFEE1, from the retarder) from a BAM (control byte 32) and the "
         "TP.DT packets that follow, then takes EC1's bytes 20-21 as SPN 544 engine reference torque and "
         "RC's bytes 17-18 as SPN 556 retarder reference torque (1 Nm/bit). This is done in code "
-        "(can_dbc/adapter.py); "
+        "(can_dbc/decoder.py); "
         'a DBC cannot describe a reassembled message.";'
     ),
     'CM_ SG_ 2632777472 TP_CM_Control "Control byte: 16 RTS, 17 CTS, 19 EndOfMsgAck, 32 BAM, 255 Abort.";',

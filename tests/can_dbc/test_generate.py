@@ -48,13 +48,18 @@ def test_the_grs905_dbc_is_generated_byte_for_byte(tmp_path, capsys):
 def test_the_dbc_says_what_the_retarder_torque_refers_to_as_the_decoder_takes_it():
     """The ERC1 comment said "Nm = percent / 100 x the configured retarder reference torque", where the decoder (and
     docs/can.md) takes RC's SPN 556 from the retarder once received, the configured one only until then; the TP
-    comment named EC1 only, where RC is reassembled too."""
+    comment named EC1 only, where RC is reassembled too, and cited can_dbc/adapter.py for the reassembly."""
     db = cantools.database.load_file(str(SHIPPED), strict=True)
     erc1 = db.get_message_by_name("ERC1").comment
     assert "RC (PGN 65249, SPN 556, by TP.BAM from the retarder's source address) once received" in erc1, erc1
     assert "else the configured one ([can] retarder_reference_torque_nm)" in erc1, erc1
     tp = db.get_message_by_name("TP_CM").comment
     assert "RC (PGN 65249" in tp and "SPN 556" in tp, tp
+    # the file the TP comment cites for the reassembly is the one that does it (it cited can_dbc/adapter.py, the
+    # public API's re-exports, where the TP.CM/TP.DT handling is the decoder's)
+    (cited,) = re.findall(r"\(((?:can_dbc/)\w+\.py)\)", tp)
+    assert (REPO / cited).is_file(), cited
+    assert Path(J1939Decoder._tp_dt.__code__.co_filename) == REPO / cited, cited
     ref = J1939Decoder(retarder_ref_torque_nm=1000.0)  # the precedence the comment states
     ref.rc_ref_torque_nm = 3500.0
     assert ref.retarder_ref_in_use_nm == 3500.0
