@@ -195,3 +195,34 @@ def test_the_walk_stops_where_the_profile_has_turned_away(st):
     flat = _FakeProfile(lambda y: st.S)
     walked = X._walk(flat, st, EID, -1, factor)
     assert len(walked) == len(X.FRACTIONS) and walked[-1][0] == CATALOG[EID].low
+
+
+def test_a_held_out_note_and_what_is_not_excluded_read_as_sentences():
+    """The held-out check's note ends the reason with a full stop ("... the claim rests on the training files
+    alone."); the regime structure and the effects not excluded were then appended after "; ", so the reason read
+    "alone.; beside it the data cannot exclude". After a full stop they start a sentence of their own."""
+    import re
+
+    import numpy as np
+
+    from tools.diagnosis.decide import Residuals, Verdict, held_out_check, with_not_excluded, with_structure
+
+    chan = SimpleNamespace(cell_n=np.ones(200))
+    base = SimpleNamespace(test=SimpleNamespace(datasets=[SimpleNamespace(channels={"oil": chan})]), sigma={})
+    res = Residuals([], [], [np.full(200, 0.05)], [np.full(200, 0.049)])  # no held-out gap: nothing to shrink
+    v = Verdict("oil_sensor_offset", "oil_sensor_offset has the strongest evidence", None, {"oil": 0.1}, {})
+    v = held_out_check(CTX, base, v, res, [])
+    assert v.reason.endswith("the claim rests on the training files alone."), v.reason
+    regs = [{"regime": "high range, torque 0-800 Nm", "mean_c": 2.2, "time_share": 0.9}]
+    structure = {"oil": {"kind": "constant", "mean_c": 2.2, "spread_c": 0.1, "regimes": regs}}
+    v = with_structure(v, structure, "oil_sensor_offset")
+    item = X.NotExcluded(EID, 0.8, 1.2, 0.4, 0.4, 1.0, False)
+    reason = with_not_excluded(v, [item]).reason
+    assert ".;" not in reason and not re.search(r"\. [a-z]", reason), reason
+    assert "alone. The oil sensor's residual is about the same in every operating regime" in reason, reason
+    assert "; beside it the data cannot exclude (" in reason and f": {EID} " in reason, reason
+    heat = held_out_check(CTX, base, Verdict("churning_scale", "churning_scale", None, {"oil": 0.1}, {}), res, [])
+    heat = with_not_excluded(with_structure(heat, structure, "churning_scale"), [item]).reason  # no structure said
+    assert "alone. Beside it the data cannot exclude (" in heat and ".;" not in heat, heat
+    plain = with_not_excluded(Verdict("oil_sensor_offset", "the best", None, {}, {}), [item]).reason
+    assert plain.startswith("the best; beside it the data cannot exclude ("), plain  # no full stop: a clause

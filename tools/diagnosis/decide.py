@@ -258,11 +258,17 @@ def with_not_excluded(v: Verdict, items: list) -> Verdict:
     shown = ", ".join(rng(n) + (" (indicated)" if n.indicated else "") for n in items[:3]) + (
         f" and {len(items) - 3} more" if len(items) > 3 else ""
     )
-    return replace(
-        v,
-        reason=v.reason + f"; beside it the data cannot exclude (no strong evidence against, the "
-        f"verdict's effects refitted): {shown}",
-    )
+    clause = f"beside it the data cannot exclude (no strong evidence against, the verdict's effects refitted): {shown}"
+    return replace(v, reason=add_clause(v.reason, clause))
+
+
+def add_clause(reason: str, clause: str) -> str:
+    """``reason`` with ``clause`` appended: after "; " while its last sentence runs on, as a sentence of its own
+    (capitalised) after one that ended with a full stop (the held-out check's notes), not "alone.; beside it"."""
+    head = reason.rstrip()
+    if head.endswith("."):
+        return f"{head} {clause[:1].upper()}{clause[1:]}"
+    return f"{reason}; {clause}"
 
 
 def with_structure(v: Verdict, structure: dict, best: str | None = None) -> Verdict:
@@ -282,7 +288,7 @@ def with_structure(v: Verdict, structure: dict, best: str | None = None) -> Verd
     said = "; ".join(
         structure_sentence(c, structure[c], None if c == sensor_of else best) for c in cids if c in structure
     )
-    return replace(v, reason=v.reason + "; " + said) if said else v
+    return replace(v, reason=add_clause(v.reason, said)) if said else v
 
 
 def _sensor_channel(eid: str | None) -> str | None:
