@@ -3,9 +3,10 @@ findings").
 
 Makes fresh copies of the bundled drive (the demo's synthetic uphill drive, 2 h), of its first 12 and 30 minutes,
 of its CAN log and of a real truck capture (when found: ``--captures DIR`` or ``$GVS_REAL_J1939``), spoils each
-copy in one way (degF or kelvin oil, negative torque, torque in percent, speed in rad/s, a garbage line, a
-truncated last line), replays it with ``gearbox-vsensor replay`` and prints a Markdown table: the exit status and
-the first sentence said about the mistake. None may exit 0 with wrong numbers.
+copy in one way (degF or kelvin oil, negative torque, torque in percent, speed in rad/s, time_s in minutes, a
+garbage line, a truncated last line), replays it with ``gearbox-vsensor replay`` and prints a Markdown table: the
+exit status and the first sentence said about the mistake. None may exit 0 with wrong numbers (one still does: the
+12 min table in minutes, too short for the oil-rate rule; docs/can.md says so).
 
     python benchmarks/new_user_mistakes.py [--captures DIR] [--keep DIR]
 """
@@ -87,6 +88,7 @@ def table_cases(work: Path, drive: Path) -> list[tuple[str, str, Path]]:
         ("torque sign flipped", "engine_torque_nm", lambda t: -t),
         ("torque in percent", "engine_torque_nm", lambda t: 100.0 * t / REF_TORQUE_NM),
         ("speed in rad/s", "engine_speed_rpm", lambda n: n * RAD_S_PER_RPM),
+        ("time_s in minutes", "time_s", lambda t: t / 60.0),  # a logger's time column in minutes, 1 s rows kept
     ):
         for label, src in (("12 min", short), ("2 h (bundled)", drive)):
             dst = work / f"{column}_{len(cases)}.csv"
