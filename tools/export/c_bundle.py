@@ -402,7 +402,9 @@ def export_c(out_dir, variant: str | None = None, config_path=None, real: str = 
                 variant=params.variant,
                 real=real,
                 tol=tol,
-                ttl_text=_ttl_text(ttl, real, float(limits.lead_s), len(sensor.published)),
+                ttl_text=_ttl_text(
+                    ttl, real, float(limits.lead_s), len(sensor.published), sensor.sp.options.ttl_method
+                ),
                 source_id=source_id(),
                 n=sensor.reduced.n,
                 n_pub=len(sensor.published),
@@ -482,21 +484,28 @@ def export_config(variant: str | None, config_path):
     return cfg, cfg.load_params()
 
 
-def _ttl_text(ttl: bool, real: str, lead_s: float, n_pub: int) -> str:
-    """The README's paragraph on the time to limit."""
+def _ttl_text(ttl: bool, real: str, lead_s: float, n_pub: int, method: str = "bound") -> str:
+    """The README's paragraph on the time to limit (``method``: the tables' ttl_method)."""
     if not ttl:
         return (
-            "**Time to limit**: not in this build (`export-c --no-ttl`); `ttl_s` is NaN and the early warning is "
-            "off\n(warnings fire at the limits themselves, with hysteresis and debounce)."
+            "**Time to limit**: not in this build (`[export] time_to_limit = false`); `ttl_s` is NaN and the early "
+            "warning is\noff (warnings fire at the limits themselves, with hysteresis and debounce)."
         )
     ttl_abs, ttl_rel = TTL_TOL[real]
+    how = (
+        "the bounded method: the held model's far sump, its path cut into up to 3 parts,\nand one march of the "
+        "held-input network per part (a sparse LDL^T, up to 41 steps each)"
+        if method == "bound"
+        else "the march alone: one march of the held-input network (a sparse LDL^T, up to 41 steps),\nre-linearised "
+        "up to twice"
+    )
     return (
         f"**Time to limit**: `ttl_s[{n_pub}]` [s] until each component reaches its warning limit if the current inputs "
         "were held\n(0: at or above it, inf: not within 23 days, NaN: not available), refreshed every 1 s by "
         "`gvs_ttl_refresh` inside\n`gvs_sensor_step` and counted down in between; the early warning (level 1) "
-        f"fires when it is {lead_s:g} s or less.\nThe refresh marches the held-input network (a sparse LDL^T, at "
-        "most 41 steps; no eigen-decomposition, no\nallocation): it is the step's costly part, about 100 times "
-        f"one step when a limit is within reach. `make test`\nchecks it within {ttl_abs} s or {ttl_rel:g} of "
+        f"fires when it is {lead_s:g} s or less.\nThe refresh runs {how};\nno eigen-decomposition, no allocation. "
+        "It is the step's costly part, about 100 times one step when a limit is\nwithin reach (docs/deploy.md in "
+        f"gearbox-vsensor: instructions per step). `make test` checks it within {ttl_abs} s or {ttl_rel:g}\nof "
         "the reference."
     )
 
