@@ -86,7 +86,10 @@ def test_play_plays_the_log_onto_a_bus(sim, capsys):
     mon.shutdown()
     want = list(can.LogReader(sim / "run.log"))
     assert [(m.arbitration_id, bytes(m.data)) for m in got] == [(m.arbitration_id, bytes(m.data)) for m in want]
-    assert f"played {len(want)} frames" in capsys.readouterr().out
+    out = capsys.readouterr()
+    assert f"played {len(want)} frames" in out.out
+    # as run and plant say: a virtual bus reaches this process only (its --help example reached nobody)
+    assert "note: --interface virtual joins only buses inside this one process" in out.err
 
 
 def test_replay_errors_are_one_sentence(sim, capsys, monkeypatch):
@@ -279,3 +282,34 @@ def test_a_kernel_without_socketcan_is_said_so(monkeypatch):
     monkeypatch.setattr(can, "Bus", no_af_can)
     with pytest.raises(InputError, match=r"\[Errno 97\].*this kernel has no SocketCAN: load its modules"):
         open_bus("socketcan", "can0")
+
+
+def test_plant_sends_another_gearboxs_rig_frames_in_its_own_dbc(tmp_path):
+    """plant --gearbox HR225 sent the GRS905's seven RIG_TC messages (0xFF50-0xFF56), every value but the oil "not
+    available": the true temperatures of P, W and B1-B4 never reached the bus. Now the HR225's own DBC's rig
+    messages (as simulate --can-log and export-dbc lay them out), every published component decoded."""
+    from can_dbc.dbc import for_components
+    from firmware_model.description import description_of
+    from firmware_model.onboard.reduce import published_ids
+    from firmware_model.parameters import load_parameters
+
+    cycle = tmp_path / "hr.csv"  # a fixed-ratio drive: the input shaft at 1100 rpm and 1000 N m for 10 s
+    cycle.write_text(
+        "time_s,input_speed_rpm,input_torque_nm,ambient_temp_c\n" + "".join(f"{t},1100,1000,25\n" for t in range(11))
+    )
+    ch = f"hil-{uuid.uuid4()}"
+    mon = can.Bus(interface="virtual", channel=ch)
+    argv = ["plant", "--gearbox", "HR225", "--interface", "virtual", "--channel", ch, "--speed", "100"]
+    assert main([*argv, "--cycle", str(cycle), "--quiet"]) == 0
+    got = drain(mon)
+    mon.shutdown()
+    ids = published_ids(description_of(load_parameters("HR225")))
+    db = for_components(ids)
+    rig_ids = {m.frame_id for m in db.database.messages if m.name.startswith("RIG_TC")}
+    assert rig_ids and rig_ids.isdisjoint({0x18FF50F0 + (k << 8) for k in range(7)} - rig_ids)
+    seen = {}
+    for m in got:
+        if m.arbitration_id in rig_ids:
+            seen.update(db.database.decode_message(m.arbitration_id, m.data, decode_choices=False))
+    temps = {k: v for k, v in seen.items() if k.startswith("TC_")}
+    assert {f"TC_{c}" for c in ids} <= set(temps) and all(10.0 < v < 200.0 for v in temps.values()), temps

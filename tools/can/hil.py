@@ -29,7 +29,7 @@ def prepare(
     given) with the unmodelled ``effects`` ("ID:PARAM=VALUE") switched on, and synthesize its frames."""
     from firmware_model.config import load_config
     from firmware_model.effects import parse_effect
-    from tools.can.logsynth import synth_frames
+    from tools.can.logsynth import rig_dbc, synth_frames
     from tools.cycles.named import check_cycle_hold, get_cycle
     from tools.plant.reference import ReferencePlant
     from tools.runtable import RunTable
@@ -48,7 +48,8 @@ def prepare(
         table = RunTable({c: table[c][keep] for c in table.columns}, meta=table.meta)
     plant = ReferencePlant(params, dict(parse_effect(e) for e in effects), cooler=cfg.cooler)
     res = plant.run(table, out_dt_s=PLANT_OUTPUT_DT_S, progress=False)
-    return synth_frames(table, res.table, config=cfg, seed=seed, rig=rig)
+    # the rig frames of this gearbox's DBC (its published components), as simulate --can-log writes them
+    return synth_frames(table, res.table, config=cfg, seed=seed, rig=rig, db=rig_dbc(params))
 
 
 def stream(

@@ -513,6 +513,14 @@ def _check_cycle(input_table) -> None:
         raise InputError("the drive cycle needs at least two samples with strictly increasing time_s")
 
 
+def rig_dbc(params):
+    """The DBC whose rig messages carry the published components of the gearbox ``params`` describe."""
+    from firmware_model.description import description_of
+    from firmware_model.onboard.reduce import published_ids
+
+    return dbc.for_components(published_ids(description_of(params)))
+
+
 def synth_frames(
     input_table,
     plant_output_table=None,
@@ -620,12 +628,7 @@ def write_can_log(
     every other value comes from the two tables and the config's ``[can]`` section. Returns the path, frame count,
     duration and a count per message.
     """
-    db = None
-    if params is not None:
-        from firmware_model.description import description_of
-        from firmware_model.onboard.reduce import published_ids
-
-        db = dbc.for_components(published_ids(description_of(params)))
+    db = None if params is None else rig_dbc(params)
     frames, counts = synth_frames(
         input_table,
         plant_output_table,

@@ -24,7 +24,7 @@ def add_subparser(sub):
         "offline.",
         examples=[
             "gearbox-vsensor play drive.blf --interface socketcan --channel vcan0",
-            "gearbox-vsensor play drive.log --interface virtual --channel bench --speed 10",
+            "gearbox-vsensor play drive.log --interface udp_multicast --channel 239.74.163.2 --speed 10",
         ],
     )
     p.add_argument("input", metavar="LOG", help="CAN log (.log .asc .blf .mf4 .trc)")
@@ -43,7 +43,7 @@ def add_subparser(sub):
 
 
 def run(args) -> int:
-    from tools.can.bus import speed_warning
+    from tools.can.bus import speed_warning, virtual_note
     from tools.replay.log import play_log_on
 
     check_paths([("the input", args.input)], {})
@@ -52,6 +52,9 @@ def run(args) -> int:
     warning = speed_warning(args.interface, args.speed)
     if warning:
         print(f"warning: {warning}", file=sys.stderr)
+    note = virtual_note(args.interface)  # as run and plant say it: a virtual bus reaches this process only
+    if note:
+        print(f"note: {note}", file=sys.stderr)
     n = play_log_on(args.input, args.interface, args.channel, args.bitrate, speedup=args.speed)
     if not args.quiet:
         print(f"played {n} frames onto {args.interface} {args.channel}")
