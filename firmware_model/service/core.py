@@ -461,6 +461,7 @@ class SensorService:
             return
         if tb["finding"] is None:
             tb["finding"] = dataclasses.asdict(event)
+            tb["sentence"] = event.sentence  # (a property: not in the dict) for the health file
         if self.options.log_findings:
             self.log.warning("%s", event.sentence)
 

@@ -331,6 +331,8 @@ class HealthFile:
             "bus": dict(bus_events or getattr(service, "bus_events", None) or {}),
             # the whole-record findings (firmware_model.service.plausibility), judged after the first minute
             "findings": list(c.get("record_findings", [])),
+            # the live time-base check (firmware_model.service.trust): suspect now, and its first sentence
+            "time_base": time_base_health(c.get("time_base") or {}),
             "health_write_errors": self.errors,
         }
         try:
@@ -350,6 +352,17 @@ class HealthFile:
             return False
         self.last_write_s = now
         return True
+
+
+def time_base_health(tb: dict) -> dict:
+    """The health file's ``time_base``: suspect now (the frames' time stamps against their J1939 periods), the
+    windows checked and suspect, and the sentence of the first suspect window (None: none yet)."""
+    return {
+        "suspect": bool(tb.get("suspect", False)),
+        "windows_checked": int(tb.get("windows_checked", 0)),
+        "windows_suspect": int(tb.get("windows_suspect", 0)),
+        "sentence": tb.get("sentence"),
+    }
 
 
 def read_health(path) -> dict:

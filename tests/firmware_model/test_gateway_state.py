@@ -669,3 +669,31 @@ def test_dm1_names_a_missing_engine_speed_instead_of_clearing(params):
     assert last["amber_warning_lamp"] == 1 and last["red_stop_lamp"] == 0
     after = dm1s(svc.feed_all(traffic(40.0, 45.0, rpm=1500.0, gear=9)))
     assert after[-1]["dtc"] is None and after[-1]["amber_warning_lamp"] == 0
+
+
+def test_status_warns_of_a_suspect_time_base(params, tmp_path, capsys, monkeypatch):
+    """A log played 10 x faster onto a bus that stamps frames on arrival: the service logged "time base suspect" and
+    sent TimeBaseSuspect, but `status` said "mode now 0 (normal)" and nothing else, and the health file had no
+    trace of it. The health file now carries the live check (suspect, windows, its sentence) and status warns."""
+    import tools.cli.status as status_cli
+    from tools.cli import main
+
+    svc = _service(params)
+    _drive(svc, 0.0, 5.0)
+    health = HealthFile(tmp_path / "health.json", period_s=0.0, timer=Clock(100.0))
+    monkeypatch.setattr(status_cli, "health_age_s", lambda doc: 0.5)
+    assert health.maybe_write(svc)
+    assert read_health(tmp_path / "health.json")["time_base"] == {
+        "suspect": False,
+        "windows_checked": 0,
+        "windows_suspect": 0,
+        "sentence": None,
+    }
+    assert main(["status", "--health-file", str(tmp_path / "health.json")]) == 0
+    assert "time base" not in capsys.readouterr().out
+    sentence = "time base suspect: the input messages arrive about 10.0x faster than their J1939 periods"
+    svc.counters["time_base"].update(suspect=True, windows_checked=4, windows_suspect=2, sentence=sentence)
+    assert health.maybe_write(svc)
+    assert read_health(tmp_path / "health.json")["time_base"]["suspect"] is True
+    main(["status", "--health-file", str(tmp_path / "health.json")])
+    assert f"WARNING time base suspect now: {sentence}" in capsys.readouterr().out

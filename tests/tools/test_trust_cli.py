@@ -145,6 +145,11 @@ def test_a_bus_replayed_20x_faster_with_arrival_stamps_is_flagged(hil_frames, ca
     assert len(found) == 1 and found[0].direction == "faster" and 15.0 < found[0].ratio < 25.0
     assert sum("time base suspect" in r.getMessage() for r in caplog.records) == 1
     assert statuses[0] is None and statuses[-1] is True  # GBX_STATUS TimeBaseSuspect: no finding, then suspect
+    # the health file's time_base (status warns with it) carries the logged sentence
+    from firmware_model.service.persist import time_base_health
+
+    tb = time_base_health(service.counters["time_base"])
+    assert tb["suspect"] and tb["sentence"] == found[0].sentence
 
 
 def test_the_same_stream_with_the_plants_timestamps_is_not_flagged(hil_frames):

@@ -291,6 +291,9 @@ def status_lines(doc: dict, age_s: float, gone: bool = False) -> list[str]:
             f"{bus.get('reopens', 0)} reopens ({bus.get('reopen_failures', 0)} failed attempts), "
             f"{doc.get('bus_off', 0)} bus-off error frames"
         )
+    tb = doc.get("time_base") or {}
+    if tb.get("suspect"):  # every output rests on the frames' clock: a wrong one is a wrong sensor
+        lines.append(f"WARNING time base suspect {'now' if live else 'at the last health'}: {tb.get('sentence')}")
     for f in doc.get("findings") or []:  # the whole-record findings of the run (after its first minute)
         lines.append(f"finding ({f.get('severity')}): {f.get('sentence')}")
     if doc.get("health_write_errors"):
