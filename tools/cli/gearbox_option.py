@@ -20,7 +20,9 @@ from firmware_model.errors import InputError, ParameterError
 
 GEARBOX_HELP = (
     "the gearbox: a description shipped in firmware_model/params/ (NAME: {names}) or the path of a parameter "
-    "file with a [topology] (FILE) (default: the --config's [gearbox], else GRS905)"
+    "file with a [topology] (FILE) (default: the --config's [gearbox], else GRS905). Name the gearbox the data "
+    "comes from: another one whose gears step alike (the GRS905 and GRSO905) is not told apart by the gear check, "
+    "and its estimates are off by many kelvin"
 )
 
 
