@@ -199,3 +199,25 @@ def test_fmpy_rebuilds_the_binary_from_the_sources(fmu, tmp_path):
     run = dict(stop_time=30.0, output_interval=0.1, start_values={"initial_temp_c": 60.0}, output=["T_PS_c", "T_oil_c"])
     a, b = fmpy.simulate_fmu(str(fmu), **run), fmpy.simulate_fmu(str(rebuilt), **run)
     np.testing.assert_allclose(b["T_PS_c"], a["T_PS_c"], rtol=0, atol=1e-9)
+
+
+def test_a_refused_limit_or_start_names_itself_and_its_value(fmu):
+    """A warning limit of 300 degC was refused with 'every warning limit must lie below its critical limit by more
+    than the hysteresis' (the range check tested the warning limit's lower end and the critical's upper end only);
+    no sentence named the limit or the value, nor the initial temperature's range. Each names them now."""
+    msgs = []
+
+    def logger(*args):  # FMI 2: (env, instance name, status, category, message); FMI 3: (env, status, ...)
+        message = args[-1]
+        msgs.append(message.decode() if isinstance(message, bytes) else str(message))
+
+    run = dict(stop_time=1.0, output_interval=0.1, logger=logger)
+    for values, sentence in (
+        ({"limit_warning_PS_c": 300.0}, "the limits of PS (warning 300, critical 150 degC) must lie in -40..250 degC"),
+        ({"limit_warning_PS_c": 149.0}, "the warning limit of PS (149 degC) must lie below its critical limit (150"),
+        ({"initial_temp_c": 500.0}, "initial_temp_c = 500 degC must be NaN (the first oil input) or within the oil"),
+    ):
+        msgs.clear()
+        with pytest.raises(Exception):  # noqa: B017 (fmpy raises a bare Exception)
+            fmpy.simulate_fmu(str(fmu), start_values=values, **run)
+        assert any(sentence in m for m in msgs), msgs

@@ -358,6 +358,11 @@ def _blocks(variant: str, guid: str, gearbox=None) -> str:
     exposed = ", ".join(str(int(e)) for *_, e in inputs)
     lo, hi = LIMIT_RANGE_C
     lines += [f"#define LIMIT_LO_C {lo!r}", f"#define LIMIT_HI_C {hi!r}", f'#define LIMIT_RANGE_TEXT "{lo:g}..{hi:g}"']
+    from firmware_model.components import PUBLISHED
+
+    pub = tuple(getattr(gearbox, "published", None) or PUBLISHED)  # the published ids, for the refusals' sentences
+    names = ", ".join(f'"{c}"' for c in pub)
+    lines += [f"static const char *const PUB_NAMES[] = {{{names}}};", f"#define N_PUB_NAMES {len(pub)}"]
     lines += [
         f"static const double INPUT_START[GVS_N_INPUTS] = {{{start}}};",
         "/* 1: an input of the FMU; 0: fixed at its start (a fixed-ratio drive's gear, vehicle speed ...) */",

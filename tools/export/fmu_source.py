@@ -90,12 +90,20 @@ static int exit_init(Instance *m)
         return -1;
     }
     for (i = 0; i < GVS_MAX_PUB; ++i) {
-        if (!(m->warning_c[i] >= (gvs_real)LIMIT_LO_C && m->critical_c[i] <= (gvs_real)LIMIT_HI_C)) {
-            m->log(m, 1, "every limit must be a temperature in " LIMIT_RANGE_TEXT " degC (as the limits file)");
+        char msg[200];
+        const char *name = i < N_PUB_NAMES ? PUB_NAMES[i] : "?";
+        if (!(m->warning_c[i] >= (gvs_real)LIMIT_LO_C && m->warning_c[i] <= (gvs_real)LIMIT_HI_C
+              && m->critical_c[i] >= (gvs_real)LIMIT_LO_C && m->critical_c[i] <= (gvs_real)LIMIT_HI_C)) {
+            snprintf(msg, sizeof msg, "the limits of %s (warning %g, critical %g degC) must lie in " LIMIT_RANGE_TEXT
+                     " degC (as the limits file)", name, (double)m->warning_c[i], (double)m->critical_c[i]);
+            m->log(m, 1, msg);
             return -1;
         }
         if (!(m->warning_c[i] < m->critical_c[i] && m->critical_c[i] - m->warning_c[i] > GVS_TABLES.hysteresis_k[i])) {
-            m->log(m, 1, "every warning limit must lie below its critical limit by more than the hysteresis");
+            snprintf(msg, sizeof msg, "the warning limit of %s (%g degC) must lie below its critical limit (%g degC) "
+                     "by more than its hysteresis (%g K)", name, (double)m->warning_c[i], (double)m->critical_c[i],
+                     (double)GVS_TABLES.hysteresis_k[i]);
+            m->log(m, 1, msg);
             return -1;
         }
         m->rest_c[i] = m->warning_c[i] - GVS_TABLES.hysteresis_k[i];
@@ -105,7 +113,11 @@ static int exit_init(Instance *m)
     m->tb.warning_rest_c = m->rest_c;
     if (m->initial_temp_c == m->initial_temp_c && !(m->initial_temp_c >= (double)GVS_TABLES.input_lo[GVS_I_OIL]
                                                      && m->initial_temp_c <= (double)GVS_TABLES.input_hi[GVS_I_OIL])) {
-        m->log(m, 1, "initial_temp_c must be NaN (the first oil input) or within the oil input's plausible range");
+        char msg[200];
+        snprintf(msg, sizeof msg, "initial_temp_c = %g degC must be NaN (the first oil input) or within the oil "
+                 "input's plausible range, %g..%g degC", m->initial_temp_c, (double)GVS_TABLES.input_lo[GVS_I_OIL],
+                 (double)GVS_TABLES.input_hi[GVS_I_OIL]);
+        m->log(m, 1, msg);
         return -1;
     }
     start_state(m);
