@@ -120,11 +120,16 @@ class PlausibilityFinding:
         return self.column
 
 
-#: the gear-numbering rule: steps in gear while driving (over GEAR_MIN_KMH, past a launch's slip, and GEAR_MIN_RPM)
-#: give each gear's engine speed per km/h, which over the gear's ratio is the axle and wheel's constant, the same in
-#: every gear; gears whose constants differ by more than GEAR_RATIO_TOL (each with GEAR_MIN_S of driving) are not
+#: the gear-numbering rule: steps in gear while driving (over GEAR_MIN_KMH and GEAR_MIN_RPM) and steady give each
+#: gear's engine speed per km/h, which over the gear's ratio is the axle and wheel's constant, the same in every
+#: gear; gears whose constants differ by more than GEAR_RATIO_TOL (each with GEAR_MIN_S of steady driving) are not
 #: this gearbox's (another transmission, or another numbering: [can] gear_map); docs/can.md gives the margins.
 GEAR_MIN_KMH, GEAR_MIN_RPM, GEAR_MIN_S, GEAR_RATIO_TOL = 5.0, 500.0, 3.0, 0.10
+#: ... steady: the clutch locked, its engine speed per km/h within GEAR_STEADY_TOL of every step GEAR_STEADY_S
+#: before and after it that drives in the same gear (at least one does). A launch's slipping clutch holds the engine
+#: while the truck gathers speed (20-30 % a second at 10 km/h) and reads the launch gear's constant 10 % high; a
+#: locked gear's stays put but for noise (the real captures: 3 % a step) and a vehicle speed sent once a second
+GEAR_STEADY_S, GEAR_STEADY_TOL = 1.0, 0.08
 #: ... and that constant is a road vehicle's: its axle ratio on a tyre of WHEEL_RADIUS_M within AXLE_RANGE (assumed:
 #: trucks' final drives 2.5-6.5, hub reductions to ~7; dynamic radii 0.47-0.53 m; a shift within a geometric
 #: ladder, as the GRS905's upper gears, keeps the constants equal and only this range can catch it)
@@ -191,6 +196,7 @@ def gear_ratio_finding(
     ``ratios``: gear number -> this gearbox's ratio (input over output speed)."""
     s, v, g = (_finite(x) for x in (speed_rpm, vehicle_kmh, gear))
     driving = np.isfinite(s) & np.isfinite(v) & np.isfinite(g) & (v > GEAR_MIN_KMH) & (s > GEAR_MIN_RPM)
+    driving = _steady(s, v, g, driving, dt_s)
     per = {}
     for n in np.unique(g[driving]).astype(int):
         r = abs(float(ratios.get(int(n), math.nan)))
@@ -207,6 +213,23 @@ def gear_ratio_finding(
     lo, hi = AXLE_RANGE
     spread = len(per) >= 2 and max(axles) > (1.0 + GEAR_RATIO_TOL) * min(axles)
     return found if spread or min(axles) < lo or max(axles) > hi else None
+
+
+def _steady(speed_rpm, vehicle_kmh, gear, driving, dt_s: float) -> np.ndarray:
+    """The driving steps whose engine speed per km/h is steady (GEAR_STEADY_S, GEAR_STEADY_TOL): a step compares
+    with the steps GEAR_STEADY_S before and after it (the neighbouring rows of a table further apart) that drive in
+    the same gear; it needs one such step and none off by more than GEAR_STEADY_TOL."""
+    k = max(1, int(round(GEAR_STEADY_S / dt_s)))
+    if driving.size <= k:
+        return np.zeros(driving.size, dtype=bool)
+    q = np.where(driving, speed_rpm / np.where(driving, vehicle_kmh, 1.0), 1.0)
+    pair = driving[k:] & driving[:-k] & (gear[k:] == gear[:-k])  # step i and step i + k, same gear
+    off = pair & (np.abs(np.log(q[k:] / q[:-k])) > math.log1p(GEAR_STEADY_TOL))
+    compared, unsteady = np.zeros(driving.size, dtype=bool), np.zeros(driving.size, dtype=bool)
+    for flags, out in ((pair, compared), (off, unsteady)):
+        out[k:] |= flags
+        out[:-k] |= flags
+    return driving & compared & ~unsteady
 
 
 @dataclass(frozen=True)

@@ -105,3 +105,54 @@ def test_replay_and_fleet_give_a_log_the_same_findings_the_gear_rule_included(tm
     assert gear[0].sentence in row["trust_warnings"]
     replayed = replay_log_file(log, tmp_path / "e.csv")
     assert [f.sentence for f in replayed.findings] == [f.sentence for f in found]
+
+
+def test_a_launch_on_a_slipping_clutch_is_not_judged():
+    """Pulling away, the clutch holds the engine at ~1000 rpm while the truck gathers speed: its engine speed per
+    km/h falls from 185 to the gear's 100 over 5 s and would read the launch gear's constant 10 % high (a false
+    warning on the GRS905's own drive). Only steady rows count: over 1 s in the same gear the engine speed per km/h
+    moves by at most GEAR_STEADY_TOL, which a slipping clutch's does not."""
+    ratios = META["gear_ratios"]
+    t = np.arange(0.0, 5.0, 0.1)
+    slip_kmh = 5.0 + t  # 5 -> 10 km/h at 1000 rpm: a locked gear 6 would turn 1000 rpm at 10 km/h
+    const = 1000.0 / 10.0 / ratios[6]  # rpm per km/h per unit of gearbox ratio (axle 3.1 on 0.5 m tyres)
+    locked_s = 2.5  # the launch gear held briefly once locked, then the upper gears, each for 10 s
+    rpm, kmh, gear = [np.full(t.size, 1000.0)], [slip_kmh], [np.full(t.size, 6.0)]
+    for g, s in ((6, locked_s), (8, 10.0), (9, 10.0), (10, 10.0), (12, 10.0)):
+        n = int(round(s / 0.1))
+        v = np.full(n, 1300.0 / (const * ratios[g]))
+        rpm.append(np.full(n, 1300.0))
+        kmh.append(v)
+        gear.append(np.full(n, float(g)))
+    rpm, kmh, gear = (np.concatenate(x) for x in (rpm, kmh, gear))
+    assert gear_ratio_finding(rpm, kmh, gear, ratios, "GRS905") is None
+    # the same drive with gear 12 sent as 11 (a numbering that skips one) is still another gearbox's
+    f = gear_ratio_finding(rpm, kmh, np.where(gear == 12.0, 11.0, gear), ratios, "GRS905")
+    assert f is not None and f.gears == (8, 9, 10, 11), f
+
+
+@pytest.fixture(scope="module")
+def uphill_can_log(tmp_path_factory):
+    """The tool's own synthetic GRS905 drive (simulate --cycle uphill --can-log)."""
+    d = tmp_path_factory.mktemp("uphill")
+    rc = main(["simulate", "--cycle", "uphill", "--out", str(d / "run.csv"), "--can-log", str(d / "up.log"), "--quiet"])
+    assert rc == 0
+    return d / "up.log"
+
+
+@pytest.mark.parametrize("seconds", [45.0, 60.0, 120.0])
+def test_a_short_launch_of_the_grs905_s_own_drive_gives_no_gear_warning(uphill_can_log, tmp_path, capsys, seconds):
+    """The first minute of the synthetic uphill drive (a launch in gear 6 on a slipping clutch, gears 7-12 held
+    for 2-10 s each, the vehicle speed sent once a second) replayed alone: it warned that the GRS905's own gears
+    "do not follow the GRS905's ratios" (gear 6 at 111.6 rpm per km/h, the launch's slip), the full log did not."""
+    cut = tmp_path / "cut.log"
+    with open(uphill_can_log) as src, open(cut, "w") as out:
+        for line in src:
+            if float(line[1 : line.index(")")]) >= seconds:
+                break
+            out.write(line)
+    capsys.readouterr()
+    rc = main(["replay", str(cut), "--out", str(tmp_path / "e.csv"), "--quiet"])
+    err = capsys.readouterr().err
+    assert rc == 0 and (tmp_path / "e.csv").exists()
+    assert "does not follow" not in err, err
