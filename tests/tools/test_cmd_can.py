@@ -313,3 +313,14 @@ def test_plant_sends_another_gearboxs_rig_frames_in_its_own_dbc(tmp_path):
             seen.update(db.database.decode_message(m.arbitration_id, m.data, decode_choices=False))
     temps = {k: v for k, v in seen.items() if k.startswith("TC_")}
     assert {f"TC_{c}" for c in ids} <= set(temps) and all(10.0 < v < 200.0 for v in temps.values()), temps
+
+
+def test_plant_says_which_boundary_temperatures_the_bus_cannot_carry(capsys):
+    """simulate --can-log says that a log carries no boundary temperatures where the cycle's differ from the
+    gearbox's own (the sensor then takes its own: a gap in a diagnosis); plant streamed the same frames without a
+    word. Both say it now, in one sentence each."""
+    ch = f"hil-{uuid.uuid4()}"
+    argv = ["plant", "--interface", "virtual", "--channel", ch, "--cycle", "uphill", "--duration", "5"]
+    assert main([*argv, "--speed", "100", "--quiet"]) == 0
+    err = capsys.readouterr().err
+    assert "note: the bus carries no boundary temperatures" in err and "hot_surroundings 100 (its own 90)" in err

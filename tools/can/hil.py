@@ -23,14 +23,22 @@ PLANT_OUTPUT_DT_S = 1.0
 
 
 def prepare(
-    cycle: str, config_path=None, effects=(), *, duration_s: float | None = None, seed: int = 0, rig: bool = True
+    cycle: str,
+    config_path=None,
+    effects=(),
+    *,
+    duration_s: float | None = None,
+    seed: int = 0,
+    rig: bool = True,
+    notes: list | None = None,
 ) -> SynthResult:
     """Run the plant over the cycle (a name, a ``steady:`` spec or a CSV; the first ``duration_s`` seconds only if
-    given) with the unmodelled ``effects`` ("ID:PARAM=VALUE") switched on, and synthesize its frames."""
+    given) with the unmodelled ``effects`` ("ID:PARAM=VALUE") switched on, and synthesize its frames. ``notes``:
+    what the caller should say appended (the boundary temperatures the frames cannot carry)."""
     from firmware_model.config import load_config
     from firmware_model.effects import parse_effect
     from tools.can.logsynth import rig_dbc, synth_frames
-    from tools.cycles.named import check_cycle_hold, get_cycle
+    from tools.cycles.named import boundaries_a_log_cannot_carry, check_cycle_hold, get_cycle
     from tools.plant.reference import ReferencePlant
     from tools.runtable import RunTable
 
@@ -40,6 +48,9 @@ def prepare(
 
     table = get_cycle(cycle, description=description_of(params))
     check_cycle_hold(table.meta, None, cfg.cooler)  # a held sump against the configured cooler
+    note = boundaries_a_log_cannot_carry(table, description_of(params))
+    if note is not None and notes is not None:
+        notes.append(f"the bus {note}")
     if duration_s is not None:
         t_s = table["time_s"]
         keep = t_s <= t_s[0] + duration_s

@@ -119,7 +119,10 @@ def run(args) -> int:
     try:
         t0_s = time.perf_counter()
         with _term_interrupts():  # SIGTERM while the plant computes: "interrupted", the bus shut down
-            frames, _ = prepare(args.cycle, cfg, args.effect, duration_s=args.duration, seed=seed, rig=rig)
+            notes: list = []
+            frames, _ = prepare(args.cycle, cfg, args.effect, duration_s=args.duration, seed=seed, rig=rig, notes=notes)
+        for note in notes:
+            _say(f"note: {note}")
         span_s = float(frames.timestamp_s[-1] - frames.timestamp_s[0]) if len(frames) else 0.0
         if not args.quiet:
             _say(

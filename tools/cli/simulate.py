@@ -204,7 +204,7 @@ def parse_start_time(text: str | None) -> float:
 
 def run(args) -> int:
     from firmware_model.description import description_of
-    from tools.cycles.named import check_cycle_hold, get_cycle
+    from tools.cycles.named import boundaries_a_log_cannot_carry, check_cycle_hold, get_cycle
     from tools.plant.reference import ReferencePlant
     from tools.replay.table import drive_limits
 
@@ -234,7 +234,9 @@ def run(args) -> int:
             from tools.can.logsynth import reference_torques_nm
 
             reference_torques_nm(table, cfg)
-            _note_boundaries_a_log_cannot_carry(table, description_of(params))
+            note = boundaries_a_log_cannot_carry(table, description_of(params))
+            if note:
+                print(f"note: the CAN log {note}", file=sys.stderr)
         if cycle_file is not None and not args.allow_untrusted:
             # the oil column is used as the sump (--cooler measured) or, without --initial-temp, as every node's start
             oil_used = s.cooler == "measured" or (s.initial_temp_c is None and table.has("oil_temp_c"))
@@ -264,28 +266,6 @@ def run(args) -> int:
     )
     _note_cold_parts_beside_a_held_sump(res.table, held_c)
     return 0
-
-
-def _note_boundaries_a_log_cannot_carry(table, description) -> None:
-    """A note when the cycle's boundary temperatures (bc_<id>_c: the named cycles' engine-side ones) differ from the
-    gearbox's own: a CAN log carries none of them, so a replay or a diagnosis of the log takes the description's,
-    and the difference shows as a gap (an effect-free uphill log diagnosed as hot_surroundings_offset +29.5 K)."""
-    own = {b.id: b.temperature_c for b in description.boundaries}
-    differ = []
-    for bid, own_c in own.items():
-        col = f"bc_{bid}_c"
-        if table.has(col):
-            v = np.asarray(table[col], dtype=float)
-            v = v[np.isfinite(v)]
-            if v.size and abs(float(np.mean(v)) - own_c) > 0.5:
-                differ.append(f"{bid} {float(np.mean(v)):.0f} (its own {own_c:g})")
-    if differ:
-        print(
-            f"note: the CAN log carries no boundary temperatures, and this cycle's differ from the gearbox's own: "
-            f"{', '.join(differ)} degC; a replay or a diagnosis of the log takes its own, so the difference shows "
-            "as a gap there (the run table keeps them as bc_ columns)",
-            file=sys.stderr,
-        )
 
 
 def _note_cold_parts_beside_a_held_sump(table, hold_c: float | None) -> None:

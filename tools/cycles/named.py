@@ -632,3 +632,25 @@ def summarize(table: RunTable) -> dict:
     if table.has("vehicle_speed_kmh"):
         res["distance_km"] = float(np.sum(table["vehicle_speed_kmh"] / KMH_PER_M_S * dt) / 1000.0)
     return res
+
+
+def boundaries_a_log_cannot_carry(table, description) -> str | None:
+    """The rest of a note ("... carries no boundary temperatures ...") when the cycle's boundary temperatures
+    (bc_<id>_c: the named cycles' engine-side ones) differ from the gearbox's own by more than 0.5 K: a CAN log or
+    bus carries none of them, so a sensor reading the frames takes the description's, and the difference shows as a
+    gap (an effect-free uphill log diagnosed as hot_surroundings_offset +29.5 K); None: they agree."""
+    differ = []
+    for b in description.boundaries:
+        col = f"bc_{b.id}_c"
+        if table.has(col):
+            v = np.asarray(table[col], dtype=float)
+            v = v[np.isfinite(v)]
+            if v.size and abs(float(np.mean(v)) - b.temperature_c) > 0.5:
+                differ.append(f"{b.id} {float(np.mean(v)):.0f} (its own {b.temperature_c:g})")
+    if not differ:
+        return None
+    return (
+        f"carries no boundary temperatures, and this cycle's differ from the gearbox's own: {', '.join(differ)} "
+        "degC; a sensor reading its frames (replay, run, diagnose) takes its own, so the difference shows as a gap "
+        "there (the run table keeps them as bc_ columns)"
+    )
