@@ -73,14 +73,13 @@ class Segments(NamedTuple):
 def time_to_limit_bound(sp: SensorParams, cache: StepCache, p: TtlPoint, vehicle=None) -> np.ndarray:
     """Time [s] until each published component reaches its warning limit with the inputs held, the losses, the
     cooler and the inlet drop following the sump along lines under their curves, part by part of the sump's path to
-    its far value (module doc). A settled sump, a measured sump held
-    (``ttl_sump = "held"``), per-vehicle effects or no far sump: the step's own held system, marched once."""
+    its far value (module doc). A settled sump, a measured sump held (``ttl_sump = "held"``), per-vehicle effects or
+    no far sump: the step's own held system, marched once."""
     h, rp = sp.helpers, sp.reduced
     measured = p.measured and sp.options.ttl_sump != "model"
     pub_free, rows = (h.pub_free_meas, h.pub_rows_meas) if measured else (h.pub_free_all, h.pub_rows_all)
     warning_c = sp.limits.warning_c
     seg = None if measured or not sp.scalar_effects else segments(sp, cache, p, vehicle)
-    ttl_s = None
     if seg is None:
         system, free = held_system(sp, p, p.src_w, p.G_w_per_k, p.G_streams_w_per_k, p.T_oil_c, measured, vehicle)
         march = march_time_to_limit(system, p.T_main_c[free], rows, warning_c[pub_free])
@@ -123,8 +122,8 @@ def march_segments(chain: list, T_c: list, T0_c: np.ndarray, rows, limit_c, i_oi
 
 def segments(sp: SensorParams, cache: StepCache, p: TtlPoint, vehicle=None) -> Segments | None:
     """The sump's path from the step's T0 to the far sump T_far (:func:`far_sump_c`) cut into at most TTL_SEG_MAX
-    parts (:func:`cut_path`), and each part's held system (:func:`part_system`); None when
-    the sump is settled (within TTL_BOUND_TOL_K of T_far) or T_far cannot be found."""
+    parts (:func:`cut_path`), and each part's held system (:func:`part_system`); None when the sump is settled
+    (within TTL_BOUND_TOL_K of T_far) or T_far cannot be found."""
     rp = sp.reduced
     mcp = p.rho_cp_j_per_m3k * oil_flow_m3_s(sp, p.row, p.omega_in_rad_s)
     curves = Curves(sp, p, mcp, vehicle)

@@ -9,19 +9,11 @@ import numpy as np
 import pytest
 
 from tools.cli import main
+from tools.cycles.named import BC_COLUMNS, COLUMNS
 from tools.runtable import RunTable, read_run_table, write_run_table
 
-INPUTS = (
-    "time_s",
-    "engine_speed_rpm",
-    "engine_torque_nm",
-    "gear",
-    "vehicle_speed_kmh",
-    "ambient_temp_c",
-    "coolant_temp_c",
-    "retarder_torque_nm",
-    "oil_temp_c",
-)
+#: the named cycles' input columns (not their boundary temperatures, which no replay reads) and the plant's oil
+INPUTS = (*COLUMNS[: -len(BC_COLUMNS)], "oil_temp_c")
 
 
 @pytest.fixture(scope="module")
