@@ -88,8 +88,7 @@ TTL_BOUND_TOL_K = 0.5
 #: lead is 30 s: a warning never comes later than today's) [s]
 TTL_BOUND_GATE_S = 60.0
 #: ... and its marches' grid: each step this many times longer than the last (today's: MARCH_RATIO); on the 240
-#: held points of benchmarks/bench_ttl.py 2.5 is late as rarely as 1.4 and within 20 % as often but in 1-3 min
-#: (90 % against 96 %), in about 60 % of the steps (docs/sensor.md)
+#: held points of benchmarks/bench_ttl.py 1.8 or 1.4 put one crossing more of 211 within 20 % (docs/sensor.md)
 TTL_BOUND_RATIO = 2.5
 #: ... its far sump, where the held model's own steady sump is the sump it is evaluated at: at most this many
 #: solves after the bracket's ends ...
