@@ -260,8 +260,11 @@ def cooler_hA_bound_w_per_k(
 ) -> float:
     """An upper bound of the cooler's hA over the operating range (the stability proof): the highest flows, the
     effect scale at its maximum; the air cooler's outer flow factor bounded by AIR_FLOW_MAX_REL^exp_outer. A motor
-    pump (``motor_pump``) runs at its data-sheet flow: inner flow ratio 1, whatever the layshaft. An air cooler whose
-    thermostat reads the sump: the slope of its open ramp, with the air down to ``air_min_c``."""
+    pump (``motor_pump``) runs at its data-sheet flow: inner flow ratio 1, whatever the layshaft. The thermostat, at
+    the return or at the sump, only scales it: ``Q = hA x (T_oil - T_air)`` with the opening ``0 <= x <= 1``, a
+    conductance of at most hA between the sump and the air, which the proof takes at its bound as it takes every
+    conductance that depends on the oil temperature (docs/sensor.md, "Stability"). ``air_min_c`` is not used (kept
+    for callers)."""
     inner = 1.0 if motor_pump else (omega_ls_max_rad_s / c.ref_ls_speed_rad_s) ** c.exp_inner
     if kind == "liquid":
         return (
@@ -272,10 +275,5 @@ def cooler_hA_bound_w_per_k(
         )
     if kind == "air":
         hA = c.air_hA_ref_w_per_k * inner * AIR_FLOW_MAX_REL**c.exp_outer * scale_max
-        if c.thermostat_sump > 0.5:
-            # read at the sump, the ramp Q = hA (T - T_air)(T - T_open)/D has the slope hA (2 T - T_air - T_open)/D,
-            # at most hA (2 D + T_open - T_air)/D on it (T <= T_open + D), the air down to air_min_c
-            D = c.thermostat_full_c - c.thermostat_open_c
-            return hA * max(1.0, (2.0 * D + c.thermostat_open_c - air_min_c) / D)
         return hA
     return 0.0

@@ -24,7 +24,9 @@ from firmware_model.onboard import reduce as R
 from firmware_model.onboard.records import I_AMB, I_GEAR, I_OIL, I_SPEED, I_TORQUE, I_VKMH, N_INPUTS, REJECT_INDEX
 from firmware_model.onboard.sensor import VirtualSensor
 from firmware_model.parameters import PARAM_DIR, load_parameters
+from firmware_model.physics.cooler import air_temperature_c
 from firmware_model.physics.drivetrain import speed_names
+from firmware_model.physics.oil import oil_properties
 
 #: section -> (key, TOML value) the gear losses read, the GRS905's values, added where R1.toml lacks them
 _LOSS_STANDINS = {
@@ -214,8 +216,8 @@ def test_r1_follows_the_reference_plant(r1, oil_mode):
 # MM82: a motor-driven pump, an air cooler behind a thermostatic bypass, a rotor at <= 20 rpm and 2.5 MN m
 
 
-#: the MM82's thermostat band (derived from the shared turbines' sump, MM82.toml) [degC]
-THERMOSTAT_C = (55.0, 60.0)
+#: the MM82's thermostat band (calibrated on the shared turbines' sump, MM82.toml) [degC]
+THERMOSTAT_C = (55.7, 60.0)
 
 
 @pytest.fixture(scope="module")
@@ -229,7 +231,7 @@ def test_mm82_builds_with_its_motor_pump_and_air_cooler(mm82):
     d = description_of(mm82)
     rp = R.build_reduced(mm82)
     assert (rp.pump_code, rp.pump_speed_col, rp.flow_m3_per_rad) == (E.PUMP_CODES["motor"], -1, 0.0)
-    assert rp.pump_flow_m3_s == pytest.approx(80e-3 / 60.0)  # 80 L/min
+    assert rp.pump_flow_m3_s == pytest.approx(140e-3 / 60.0)  # 140 L/min
     assert rp.cooler_code == E.COOLER_CODES["air"]
     assert (
         (rp.cooler["thermostat_open"], rp.cooler["thermostat_full"])
@@ -320,10 +322,10 @@ def test_mm82_follows_the_reference_plant_and_the_c_kernel_agrees(mm82_replays, 
 def test_mm82_oil_inlet_follows_the_reference_plant_and_the_c_kernel_agrees(mm82_replays, mm82_drive, oil_mode):
     """A forced oil system's inlet (the description's derived oil.inlet: the sump minus the cooler's drop Q / (mdot
     cp)) is a status output: the C kernel equal to the numpy step within 1e-9 K, below the sensor's sump by the drop
-    once the thermostat opens, and within 0.5 K of the plant's inlet (T_oil.inlet_c) with the oil measured and
-    modelled. The sensor takes a missing vehicle speed as 50 km/h (SensorOptions.default_vehicle_speed_kmh: the air
-    cooler's air recirculated), the plant a stationary machine's none: its cooler's drop is ~3.5 % smaller (0.2 K);
-    given the plant's air speed, the sensor's inlet is the plant's within a few mK."""
+    once the thermostat opens, and within hA 2 K / (mdot cp) of the plant's inlet (T_oil.inlet_c) with the oil
+    measured and modelled. The sensor takes a missing vehicle speed as 50 km/h
+    (SensorOptions.default_vehicle_speed_kmh: the air cooler's air recirculated, 2 K warmer), the plant a stationary
+    machine's none; given the plant's air speed, the sensor's inlet is the plant's within a few mK."""
     out, raw, start_c = mm82_drive
     res = {}
     for core in ("numpy", "c"):
@@ -342,7 +344,15 @@ def test_mm82_oil_inlet_follows_the_reference_plant_and_the_c_kernel_agrees(mm82
     row = np.clip(np.round(t_out / 0.1).astype(int) - 1, 0, len(raw) - 1)
     plant_c = np.asarray(out["T_oil.inlet_c"])
     assert np.max(np.asarray(out["T_oil_c"]) - plant_c) > 3.0  # the plant's thermostat open too
-    assert np.max(np.abs(inlet[row] - plant_c)) <= 0.5
+    # the sensor's missing vehicle speed is 50 km/h (recirculated air, +2 K at the cooler), the plant's none: with the
+    # thermostat at the sump the cooler takes hA x 2 K more or less at the same sump, so the return differs by up to
+    # hA 2 K / (mdot cp) (measured 0.62 K with the oil measured, 0.33 K modelled; 0.5 K bounded both with the
+    # thermostat at the return, before 2026-12-05)
+    recirc_k = float(air_temperature_c(0.0, s.options.default_vehicle_speed_kmh))
+    props = oil_properties(THERMOSTAT_C[1])
+    mcp_w_per_k = props.rho_kg_m3 * props.cp_j_per_kgk * s.sp.reduced.pump_flow_m3_s
+    assert recirc_k == pytest.approx(2.0)
+    assert np.max(np.abs(inlet[row] - plant_c)) <= s.sp.reduced.cooler["air_hA_ref"] * recirc_k / mcp_w_per_k
     # the same state: the sensor given the plant's air speed (a stationary machine's, no recirculation) derives the
     # plant's inlet (measured: 0.5 mK with the oil measured, 2.6 mK modelled: the sump's own residual)
     raw_v = raw.copy()

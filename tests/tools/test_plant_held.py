@@ -12,9 +12,12 @@ from tools.cycles.scada_rows import scada_rows
 from tools.plant.reference import ReferencePlant
 
 #: the held path's bound against the step path at the row times, every node [K]: measured over two days of 10-minute
-#: rows (bench_held_month.py) 0.038 K on the HR225, 0.027 K on the R1, 0.058 K on the MM82 (a planet, 50 K above the
-#: sump: 0.1 % of its rise); the step path's own step error (0.5 s against 0.1 s) is 0.011 K on the HR225
-HELD_BOUND_K = 0.06
+#: rows (bench_held_month.py) 0.038 K on the HR225, 0.027 K on the R1, 0.058 K on the MM82 while its thermostat read
+#: the return (a planet, 50 K above the sump: 0.1 % of its rise); the step path's own step error (0.5 s against
+#: 0.1 s) is 0.011 K on the HR225. The MM82's thermostat reads the sump since 2026-12-05: the jets' oil, the sump minus
+#: the cooler's drop, moves ~9 K for a kelvin of sump in the valve's band, and on this test's 6 hours the 0.5 s step
+#: path itself errs by 0.080 K (P2, against 0.1 s), the held path by 0.068 K (PS): 0.087 K apart (P2)
+HELD_BOUND_K = {"HR225": 0.06, "MM82": 0.09}
 #: the ledger: generated = stored + rejected, and the held path's books against the step path's, share of generated
 LEDGER_CLOSURE = 1e-9
 LEDGER_VS_STEP = 1e-3
@@ -41,7 +44,7 @@ def test_the_held_path_agrees_with_the_step_path_at_every_node(both_paths):
     name, _, held, step = both_paths
     nodes = [c for c in step.table.columns if c.startswith("T_") and c.endswith("_c")]
     err = {c: float(np.max(np.abs(held.table[c] - step.table[c]))) for c in nodes}
-    assert max(err.values()) <= HELD_BOUND_K, f"{name}: {sorted(err.items(), key=lambda kv: -kv[1])[:4]}"
+    assert max(err.values()) <= HELD_BOUND_K[name], f"{name}: {sorted(err.items(), key=lambda kv: -kv[1])[:4]}"
     oil = step.table["T_oil_c"]
     assert np.ptp(oil) > 20.0  # a warm-up: the sump moved, the losses with it
     if name == "MM82":  # its thermostat's bypass band (55-60 degC), crossed inside row intervals
