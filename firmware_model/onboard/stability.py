@@ -6,7 +6,9 @@ the old ones and the sources, so no overshoot) when ``dt <= C_i / sum_j G_ij`` f
 every eigenvalue of ``C^-1 K`` lies in ``[0, 2 max_i sum_j G_ij / C_i]``). :func:`check_stability` bounds every
 link's conductance over the whole operating range (every gear, 0..max engine speed, oil -40..150 degC) from the
 laws themselves (power laws are monotone in speed, bilinear tables stay inside their corner values, the oil-
-temperature columns are piecewise linear), adds the cooler and its inlet-temperature coupling, and raises
+temperature columns are piecewise linear), adds the cooler (a conductance of at most hA to the air, the thermostat's
+opening a coefficient in 0..1 taken at its bound as the oil-dependent conductances are) and its inlet-temperature
+coupling, and raises
 :class:`~firmware_model.errors.StabilityError` naming the node when ``dt > margin x C_i / max sum_j G_ij``.
 """
 
@@ -104,7 +106,7 @@ def max_conductances(rp: ReducedParams) -> dict:
         np.add.at(G, rp.cyl_link, 1.02 * Gc.max(axis=0))
     if rp.rad_link.size:
         G[rp.rad_link] = radiation_w_per_k(rp.rad_area_eps, RAD_T_RANGE_C[1] + KELVIN_OFFSET_K, 250.0 + KELVIN_OFFSET_K)
-    # cooler: the largest slope dQ/dT_oil (hA at the highest flows, effectiveness scale at its maximum)
+    # cooler: its largest conductance hA (the highest flows, effectiveness scale at its maximum; the opening <= 1)
     hA = 0.0  # no cooler (cooler_code 0): the housing sheds the heat
     if rp.cooler_code:
         hA = cooler_hA_bound_w_per_k(

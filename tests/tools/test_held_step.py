@@ -32,7 +32,7 @@ def _proof(*dt_max_s):
 @pytest.mark.parametrize(
     ("dt_max", "period", "expected"),
     [
-        ((15.7, 21.4, 24.2), 600.0, 15.0),  # the MM82's: 15 s (P2 allows 15.7 s), 40 steps a row
+        ((15.7, 20.6, 22.8), 600.0, 15.0),  # the MM82's: 15 s (P2 allows 15.7 s), 40 steps a row
         ((25.0,), 600.0, 20.0),  # capped at 2 TTL_FRESH_S: the one refresh per row still judged
         ((3.3,), 600.0, 3.0),  # the largest multiple of 0.1 s under the proof that divides 600 s
         ((4.34,), 600.0, 4.0),  # the HR225's P: 4.3 s does not divide 600 s, 4 s does

@@ -17,7 +17,9 @@ precision-weighted mean of its first BASELINE_PERIODS deviations no poorer than 
 standard error (a unit may always differ a little; a partial first period or one standing still is left out of
 it), and it is
 flagged when its deviation leaves the baseline by more than DRIFT_MIN and 3 standard errors (the deviation's and the
-baseline's together) for CONSECUTIVE of its periods in a row: the first of them is the date in the flag.
+baseline's together) for CONSECUTIVE of its periods in a row: the first of them is the date in the flag. Flags are
+taken in time order, and a flagged unit leaves the fleet from its flag's period on: a failing unit is no sibling's
+reference (:func:`flag_units`).
 """
 
 from __future__ import annotations
@@ -223,11 +225,17 @@ def _median_se(values: list[float], ses: list[float]) -> tuple[float, float]:
     return float(0.5 * (v[k - 1] + v[k])), float(0.5 * np.hypot(s[k - 1], s[k]))
 
 
-def deviations(fits: Sequence[PeriodFit], eid: str) -> dict[str, list[tuple[PeriodFit, float, float]]]:
+def deviations(
+    fits: Sequence[PeriodFit], eid: str, flagged: dict | None = None
+) -> dict[str, list[tuple[PeriodFit, float, float]]]:
     """unit -> [(its period fit, deviation from the fleet median, its standard error)] in time order, over the
-    periods where MIN_UNITS units or more identify ``eid``."""
+    periods where MIN_UNITS units or more identify ``eid``; ``flagged`` (unit -> period): a unit already flagged
+    is left out of the fleet from that period on (not the siblings' reference, not judged again)."""
+    flagged = flagged or {}
     by_period: dict = {}
     for f in fits:
+        if f.unit in flagged and f.period >= flagged[f.unit]:
+            continue
         if np.isfinite(f.se[eid]):
             by_period.setdefault(f.period, []).append(f)
     out: dict = {}
@@ -242,12 +250,13 @@ def deviations(fits: Sequence[PeriodFit], eid: str) -> dict[str, list[tuple[Peri
 
 
 def drifts(
-    fits: Sequence[PeriodFit], eid: str, baseline_periods: int = BASELINE_PERIODS
+    fits: Sequence[PeriodFit], eid: str, baseline_periods: int = BASELINE_PERIODS, flagged: dict | None = None
 ) -> dict[str, tuple[float, float, list[tuple[PeriodFit, float, float]]]]:
     """unit -> (baseline, its standard error, [(period fit, drift from the baseline, the drift's standard error)]
-    over the periods after the baseline), for the units with more than ``baseline_periods`` usable periods."""
+    over the periods after the baseline), for the units with more than ``baseline_periods`` usable periods
+    (``flagged``: as :func:`deviations`)."""
     out = {}
-    for unit, rows in sorted(deviations(fits, eid).items()):
+    for unit, rows in sorted(deviations(fits, eid, flagged).items()):
         if len(rows) <= baseline_periods:
             continue
         typical = float(np.median([se for _, _, se in rows]))
@@ -267,27 +276,51 @@ def drifts(
 def flag_units(
     fits: Sequence[PeriodFit], baseline_periods: int = BASELINE_PERIODS, consecutive: int = CONSECUTIVE
 ) -> list[Flag]:
-    """The units that drift from their siblings (the module doc says how)."""
+    """The units that drift from their siblings (the module doc says how). Flags are taken in time order: the
+    earliest flagged unit leaves the fleet from its flag's period on and the others are judged again without it, so
+    a failing unit cannot move the siblings' median (a cooler failing on one of three turbines moved its bearing
+    effect too, the median passed to a sibling, and that sibling seemed to drift)."""
+    flagged: dict = {}
+    taken: list[Flag] = []
+    while True:
+        new = [
+            (f, k) for f, k in _drift_flags(fits, baseline_periods, consecutive, flagged) if f.vehicle not in flagged
+        ]
+        if not new:
+            return sorted(taken, key=lambda f: (f.vehicle, f.effect))
+        # the earliest flag, of two in one period the stronger (its drift over its threshold): all its unit's flags
+        first, _ = min(new, key=lambda fk: (fk[0].period, -fk[1]))
+        taken += [f for f, _ in new if f.vehicle == first.vehicle]
+        flagged[first.vehicle] = first.period
+
+
+def _drift_flags(fits, baseline_periods: int, consecutive: int, flagged: dict) -> list[tuple[Flag, float]]:
+    """Every unit's first drifting run per effect, the units in ``flagged`` left out from their periods on: (flag,
+    its drift over its threshold, the larger of DRIFT_MIN and 3 standard errors, at the run's last period)."""
     flags = []
     for eid in EFFECTS:
-        for unit, (baseline, se_base, rows) in drifts(fits, eid, baseline_periods).items():
+        for unit, (baseline, se_base, rows) in drifts(fits, eid, baseline_periods, flagged).items():
             run = 0
             for i, (f, drift, se) in enumerate(rows):
                 run = run + 1 if abs(drift) > DRIFT_MIN[eid] and abs(drift) > 3.0 * se else 0
                 if run >= consecutive:
                     first = rows[i - consecutive + 1][0]
+                    strength = abs(drift) / max(DRIFT_MIN[eid], 3.0 * se)
                     flags.append(
-                        Flag(
-                            unit,
-                            eid,
-                            first.period,
-                            first.start,
-                            f.values[eid],
-                            baseline,
-                            f"drift from its siblings by {drift:+.2f} (its own baseline {baseline:+.2f} +- "
-                            f"{se_base:.2f}) for {consecutive} periods",
-                            "flag",
+                        (
+                            Flag(
+                                unit,
+                                eid,
+                                first.period,
+                                first.start,
+                                f.values[eid],
+                                baseline,
+                                f"drift from its siblings by {drift:+.2f} (its own baseline {baseline:+.2f} +- "
+                                f"{se_base:.2f}) for {consecutive} periods",
+                                "flag",
+                            ),
+                            strength,
                         )
                     )
                     break
-    return sorted(flags, key=lambda f: (f.vehicle, f.effect))
+    return flags

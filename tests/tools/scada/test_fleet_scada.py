@@ -12,7 +12,7 @@ from tests.tools.scada.test_reader import write
 from tests.tools.scada.test_replay_scada import _map, _rows
 from tools.cli.gearbox_option import with_gearbox
 from tools.scada.diagnose import Setup, estimates
-from tools.scada.fleet import fit_fleet, flag_units, periods_of
+from tools.scada.fleet import drifts, fit_fleet, flag_units, periods_of
 from tools.scada.reader import read_record
 
 PERIOD_ROWS = 36
@@ -178,3 +178,34 @@ def test_a_partial_first_period_and_a_week_standing_still_do_not_make_the_baseli
         fits += [fit("A", k, 1.0, se), fit("B", k, 1.02, se), fit("C", k, 1.0 + drift + (0.3 if k < 2 else 0.0), se)]
     flags = [f for f in flag_units(fits) if f.effect == "bearing_loss_scale"]
     assert [(f.vehicle, f.period) for f in flags] == [("C", 6)], flags
+
+
+def test_a_flagged_unit_leaves_the_siblings_median_so_a_sound_sibling_is_not_flagged():
+    """Three units: C's cooler fails from period 6 and its fitted bearing effect falls with it (the two effects are
+    fitted together); with C in the median the median passes from C to B, and A, sound, seems to drift by B's offset
+    from C (a cooler planted at 0.3 on R80736 flagged R80790's bearings). C is flagged first (of two flags in one
+    period the stronger); from its flag's period on it is no sibling's reference, and A is not flagged."""
+    from tools.scada.fleet import PeriodFit
+
+    def fit(unit, k, bearing, cooler):
+        values = {"bearing_loss_scale": bearing, "cooler_effectiveness_scale": cooler}
+        ses = {"bearing_loss_scale": 0.03, "cooler_effectiveness_scale": 0.05}
+        return PeriodFit(unit, k, f"2017-01-{k + 1:02d}", 500, values, ses, 1.0)
+
+    fits = []
+    for k in range(14):
+        failing = k >= 6
+        fits += [
+            fit("A", k, 1.25, 1.0),
+            fit("B", k, 0.95, 1.0),
+            fit("C", k, 0.70 if failing else 1.20, -1.0 if failing else 1.0),
+        ]
+    flags = flag_units(fits)
+    assert [(f.vehicle, f.effect, f.period) for f in flags if f.vehicle == "C"] == [
+        ("C", "bearing_loss_scale", 6),
+        ("C", "cooler_effectiveness_scale", 6),
+    ]
+    assert all(f.vehicle == "C" for f in flags), flags
+    # without the rule: A (and B) judged against a median that passed from C to B, A by +0.25 from period 6
+    _, _, rows = drifts(fits, "bearing_loss_scale")["A"]
+    assert all(abs(d) > 0.15 for f, d, _ in rows if f.period >= 6)
