@@ -14,10 +14,10 @@ of its range), the verdict of the rule before one at a bound was refused, and th
 fitted value on every split, to compare the turbines. ``--out DIR`` also writes each
 gap-diagnosis/1 JSON there.
 
-``--sump-thermostat 140`` diagnoses instead the copy of the MM82 whose thermostat reads the sump
-(benchmarks/bench_mm82_thermostat.py; its held step is shorter: each split takes about four times as long).
+``--return-thermostat 80`` diagnoses instead the copy of the MM82 whose thermostat reads the return, with that oil
+flow [L/min] (benchmarks/bench_mm82_thermostat.py: the form of before 2026-12-05, the values calibrated since).
 
-    python benchmarks/bench_scada_verdicts.py DATA_DIR [--cross] [--only R80721]... [--out DIR] [--sump-thermostat F]
+    python benchmarks/bench_scada_verdicts.py DATA_DIR [--cross] [--only R80721]... [--out DIR] [--return-thermostat F]
 """
 
 from __future__ import annotations
@@ -151,20 +151,20 @@ def main(argv: list[str]) -> int:
     ap.add_argument("--only", action="append", default=[], help="only this test turbine (repeatable)")
     ap.add_argument("--out", type=Path, help="write each gap-diagnosis/1 JSON into this folder")
     ap.add_argument(
-        "--sump-thermostat",
+        "--return-thermostat",
         type=float,
         metavar="L_PER_MIN",
-        help="diagnose a copy of the MM82 whose thermostat reads the sump, with this oil flow (140: "
-        "benchmarks/bench_mm82_thermostat.py), in place of the shipped one",
+        help="diagnose a copy of the MM82 whose thermostat reads the return (seed Eq 82, the form before "
+        "2026-12-05), with this oil flow (80: the value of before), in place of the shipped one",
     )
     args = ap.parse_args(argv)
     with tempfile.TemporaryDirectory() as tmp:
         gearbox = "MM82"
-        if args.sump_thermostat is not None:
-            from bench_mm82_thermostat import sump_thermostat_copy
+        if args.return_thermostat is not None:
+            from bench_mm82_thermostat import return_thermostat_copy
 
-            gearbox = str(sump_thermostat_copy(args.sump_thermostat, Path(tmp)))
-            print(f"MM82 with its thermostat at the sump, oil flow {args.sump_thermostat:g} L/min\n")
+            gearbox = str(return_thermostat_copy(args.return_thermostat, Path(tmp)))
+            print(f"MM82 with its thermostat at the return, oil flow {args.return_thermostat:g} L/min\n")
         run(args, with_gearbox(load_config(None), gearbox))
     return 0
 
