@@ -175,6 +175,9 @@ class ReducedParams(NamedNodes):
     # a forced oil system (the description's derived oil.inlet): the step outputs its oil inlet, the sump minus the
     # cooler's drop (SensorStatus.oil_inlet_temp_c); False: NaN
     oil_inlet: bool = False
+    # the auxiliary inputs (ambient, coolant, vehicle speed, retarder) the description's drive has
+    # (reduce.aux_inputs_expected); a missing one it has not is not counted in aux_missing
+    aux_expected: tuple = (True, True, True, True)
 
     def footprint(self, dtype=np.float32) -> dict:
         """Bytes an ECU would hold for these parameters: every float table as ``dtype``, index arrays as int16.

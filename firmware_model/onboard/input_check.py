@@ -56,7 +56,7 @@ def check_inputs(state: SensorState, raw: np.ndarray, sp: SensorParams) -> Input
     """Check the raw inputs (B + (8,), NaN missing) against the state's holds: a good speed or torque is clamped to
     the engine's range, a gear must be an integer in range and a gear of the description, the measured oil
     plausible, steady (no step above ``oil_step_c`` from a recent good value) and not frozen, the auxiliary inputs
-    in range (a missing one takes its default, it is not held)."""
+    in range (a missing one takes its default, it is not held; counted only if the drive has it)."""
     opt, dt = sp.options, sp.dt_s
     finite = np.isfinite(raw)
     in_range = finite & (raw >= sp.input_lo) & (raw <= sp.input_hi)
@@ -98,7 +98,8 @@ def check_inputs(state: SensorState, raw: np.ndarray, sp: SensorParams) -> Input
     counts[..., _OIL_IMPLAUSIBLE] = (finite[..., I_OIL] & ~oil_in_range) | jumpy
     counts[..., _OIL_FROZEN] = oil_frozen
     counts[..., _DRIVE_FROZEN] = drive_frozen
-    counts[..., _AUX_MISSING] = np.add.reduce(~ok[..., I_AMB:], axis=-1)
+    # an auxiliary input the drive has not (a wind turbine's coolant) is not applicable: its default, not counted
+    counts[..., _AUX_MISSING] = np.add.reduce(~ok[..., I_AMB:] & np.array(sp.reduced.aux_expected), axis=-1)
     measured = oil_ok if opt.oil_mode == "measured" else np.zeros(oil_ok.shape, dtype=bool)
     drive_ok = ok[..., I_SPEED] & ok[..., I_TORQUE] & ok[..., I_GEAR]
     drive_age = np.maximum(np.maximum(age[..., I_SPEED], age[..., I_TORQUE]), age[..., I_GEAR])

@@ -276,6 +276,7 @@ _TABLES = (
     Field("oil_inlet", I32, doc="1: a forced oil system, the step outputs its oil inlet (sump - inlet drop); 0: NaN"),
     Field("gear_min", I32, doc="gear of row 0"),
     Field("gear_defined", I32, doc="bit r: the description has gear gear_min + r (another gear input is unknown)"),
+    Field("aux_expected", I32, doc="bit i: the drive has auxiliary input I_AMB + i (another one is not counted)"),
     Field("oil_mode_measured", I32, doc="1: a measured sump is used"),
     Field("ttl_every", I32, doc="steps between time-to-limit refreshes"),
     "network",

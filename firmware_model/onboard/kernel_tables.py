@@ -110,6 +110,7 @@ def _network(sp: SensorParams) -> dict:
         oil_inlet=int(rp.oil_inlet),
         gear_min=GEAR_MIN,
         gear_defined=_gear_bits(rp.gear_defined),
+        aux_expected=int(sum(1 << i for i, has in enumerate(rp.aux_expected) if has)),
         dt_over_C=_f64(sp.dt_over_C_s_k_per_j),
         link_a=_i32(rp.link_a),
         link_b=_i32(rp.link_b),

@@ -132,6 +132,18 @@ BUILD_EFFECTS = ("oil_level_low",)
 #: the boundaries the step writes from its inputs (ambient, coolant) or an effect shifts (hot_surroundings)
 STEP_BOUNDARIES = ("ambient", "coolant", "hot_surroundings")
 
+
+def aux_inputs_expected(d: Description) -> tuple:
+    """Whether the description's drive has each auxiliary input (ambient, coolant, vehicle speed, retarder torque:
+    records.INPUT_FIELDS from I_AMB on). Every drive has an ambient; a coolant only with a coolant boundary or a
+    liquid cooler (the MM82's air cooler, the HR225's none: no coolant); a vehicle speed and a retarder only a
+    vehicle. An input the drive has not is not applicable: missing, it takes its default and is not counted
+    (aux_missing would say an input fails at every step of a wind turbine)."""
+    coolant = any(b.id == "coolant" for b in d.boundaries) or d.oil.cooler == "liquid"
+    vehicle = d.drive.kind == "vehicle"
+    return (True, coolant, vehicle, vehicle)
+
+
 # ---------------------------------------------------------------------------------------------------------------
 # partitions
 
@@ -775,6 +787,7 @@ def _surroundings_fields(p: Parameters, net: Network) -> dict:
         i_ambient=bcs.index("ambient"),
         i_coolant=bcs.index("coolant"),
         i_hot=bcs.index("hot_surroundings"),
+        aux_expected=aux_inputs_expected(d),
         max_speed_rpm=float(d.drive.max_speed_rad_s / RAD_S_PER_RPM),
         min_torque_nm=float(d.drive.min_torque_nm),
         max_torque_nm=float(d.drive.max_torque_nm),

@@ -21,7 +21,18 @@ from firmware_model.errors import ParameterError
 from firmware_model.network import K_STREAM, build_network
 from firmware_model.onboard import evaluate as E
 from firmware_model.onboard import reduce as R
-from firmware_model.onboard.records import I_AMB, I_GEAR, I_OIL, I_SPEED, I_TORQUE, I_VKMH, N_INPUTS, REJECT_INDEX
+from firmware_model.onboard.records import (
+    I_AMB,
+    I_COOL,
+    I_GEAR,
+    I_OIL,
+    I_RET,
+    I_SPEED,
+    I_TORQUE,
+    I_VKMH,
+    N_INPUTS,
+    REJECT_INDEX,
+)
 from firmware_model.onboard.sensor import VirtualSensor
 from firmware_model.parameters import PARAM_DIR, load_parameters
 from firmware_model.physics.cooler import air_temperature_c
@@ -405,3 +416,52 @@ def test_a_gear_the_description_lacks_is_unknown_on_both_cores(r1):
 def test_every_grs905_gear_is_defined():
     """The GRS905 numbers every gear of -2..14 (seed Table 1): the new flag changes nothing there."""
     assert R.build_reduced(load_parameters("GRS905")).gear_defined.all()
+
+
+def _aux_missing_runs(params, raw: np.ndarray, oil_c: float) -> dict:
+    """core -> (final state, step_table output) of both cores over ``raw`` from the oil at ``oil_c``."""
+    out = {}
+    for core in ("numpy", "c"):
+        s = VirtualSensor(params, core=core)
+        out[core] = s.step_table(s.initial_state(T_oil_c=oil_c), raw)
+    np.testing.assert_array_equal(out["c"][1].rejects, out["numpy"][1].rejects)
+    np.testing.assert_allclose(out["c"][1].T_c, out["numpy"][1].T_c, rtol=0, atol=1e-9)
+    return out
+
+
+@pytest.mark.parametrize("name", ["MM82", "HR225"])
+def test_an_input_the_drive_has_not_is_not_counted_missing_on_both_cores(name):
+    """A fixed-ratio drive (the MM82's air cooler, the HR225's none; no coolant boundary) has no coolant, vehicle
+    speed or retarder: their absence was counted in aux_missing at every step, as if an auxiliary input failed. Not
+    applicable now: not counted, and the coolant is never read (the temperatures are those with one given); a
+    missing ambient, which every drive has, still counts, on the numpy step and the C kernel alike."""
+    from firmware_model.units import RPM_PER_RAD_S
+    from tools.drive_table import fixed_ratio_gear
+
+    params = load_parameters(name)
+    d = description_of(params)
+    speed_rpm = 0.7 * d.drive.max_speed_rad_s * RPM_PER_RAD_S
+    raw = _drive(300, speed_rpm, 0.5 * d.drive.max_torque_nm, 50.0, fixed_ratio_gear(d))
+    raw[100:140, I_AMB] = np.nan  # the ambient sensor fails for 40 steps
+    with_coolant = raw.copy()
+    with_coolant[:, I_COOL] = 90.0
+    runs = _aux_missing_runs(params, raw, 50.0)
+    given = _aux_missing_runs(params, with_coolant, 50.0)
+    for core in ("numpy", "c"):
+        st, o = runs[core]
+        assert int(st.rejects[REJECT_INDEX["aux_missing"]]) == 40, core
+        assert o.rejects[99, REJECT_INDEX["aux_missing"]] == 0 and o.rejects[139, REJECT_INDEX["aux_missing"]] == 40
+        np.testing.assert_array_equal(o.T_c, given[core][1].T_c)
+
+
+def test_a_missing_coolant_the_drive_has_is_still_counted_on_both_cores():
+    """The GRS905 (a vehicle, a liquid cooler on the engine's coolant) expects its coolant: missing, it is counted
+    at every step it is missing on both cores, as are a missing vehicle speed and retarder torque."""
+    params = load_parameters("GRS905")
+    raw = _drive(200, 1400.0, 1500.0, 70.0, 12)
+    raw[:, I_COOL], raw[:, I_VKMH], raw[:, I_RET] = 85.0, 80.0, 0.0
+    raw[50:80, I_COOL] = np.nan  # 30 steps without a coolant
+    raw[120:130, I_VKMH] = raw[120:130, I_RET] = np.nan  # 10 steps without vehicle speed and retarder: 2 each
+    runs = _aux_missing_runs(params, raw, 70.0)
+    for core in ("numpy", "c"):
+        assert int(runs[core][0].rejects[REJECT_INDEX["aux_missing"]]) == 30 + 2 * 10, core

@@ -283,3 +283,23 @@ def test_a_fixed_input_of_a_fixed_ratio_fmu_cannot_be_set(gearbox, fmu):
         with pytest.raises(Exception):  # noqa: B017 (fmpy raises a bare Exception)
             get([vr])
     slave.freeInstance()
+
+
+def test_the_fmu_counts_a_missing_auxiliary_input_only_where_the_drive_has_it(gearbox, fmu):
+    """A fixed-ratio FMU's coolant (fixed at not available: the drive has none) was counted in rejects_aux_missing at
+    every step, as if an input failed; it is not counted now. A vehicle's (the GRSO905: its liquid cooler on the
+    engine's coolant) missing coolant, vehicle speed and retarder torque still count, 3 every step."""
+    import fmpy
+
+    name, sensor = gearbox
+    res = fmpy.simulate_fmu(
+        str(fmu),
+        start_values={"ambient_temp_c": 20.0},
+        stop_time=1.0,
+        output_interval=0.1,
+        output=["rejects_aux_missing"],
+    )
+    aux = np.asarray(res["rejects_aux_missing"], dtype=float)
+    assert len(aux) >= 10
+    per_step = 0 if description_of(sensor.params).drive.kind == "fixed_ratio" else 3
+    np.testing.assert_array_equal(np.diff(aux), per_step, err_msg=name)

@@ -489,7 +489,10 @@ static void check_inputs(const gvs_tables *tb, gvs_state *st, const double *raw_
     counts[GVS_RJ_OIL_IMPLAUSIBLE] = (finite[GVS_I_OIL] && !oil_in_range) || jumpy;
     counts[GVS_RJ_OIL_FROZEN] = c->oil_frozen;
     counts[GVS_RJ_DRIVE_FROZEN] = c->drive_frozen;
-    counts[GVS_RJ_AUX_MISSING] = !c->ok[GVS_I_AMB] + !c->ok[GVS_I_COOL] + !c->ok[GVS_I_VKMH] + !c->ok[GVS_I_RET];
+    /* an auxiliary input the drive has not (its bit in aux_expected clear) is not applicable: not counted */
+    counts[GVS_RJ_AUX_MISSING] = 0;
+    for (i = GVS_I_AMB; i < GVS_N_INPUTS; ++i)
+        counts[GVS_RJ_AUX_MISSING] += !c->ok[i] && ((tb->aux_expected >> (i - GVS_I_AMB)) & 1);
     c->measured = tb->oil_mode_measured ? c->ok[GVS_I_OIL] : 0;
     c->drive_ok = c->ok[GVS_I_SPEED] && c->ok[GVS_I_TORQUE] && c->ok[GVS_I_GEAR];
     c->drive_age_s = max_r(max_r(age[GVS_I_SPEED], age[GVS_I_TORQUE]), age[GVS_I_GEAR]);

@@ -175,6 +175,8 @@ typedef struct {
     int32_t gear_min;                   /* gear of row 0 */
     /* bit r: the description has gear gear_min + r (another gear input is unknown) */
     int32_t gear_defined;
+    /* bit i: the drive has auxiliary input I_AMB + i (another one is not counted) */
+    int32_t aux_expected;
     int32_t oil_mode_measured;          /* 1: a measured sump is used */
     int32_t ttl_every;                  /* steps between time-to-limit refreshes */
     /* network */

@@ -165,6 +165,32 @@ def test_the_mm82_s_oil_inlet_is_estimated_below_its_sump(tmp_path):
     assert np.all(sump > 60.0) and np.all(inlet < sump - 0.5)
 
 
+def test_an_mm82_scada_replay_counts_no_coolant_missing(tmp_path):
+    """The MM82 (a wind turbine: an air cooler, no engine coolant) on the shipped engie map, every channel given:
+    rejects_aux_missing counted the coolant it has not at every held step (6000 per 10-minute row); it stays 0, as
+    every other counter."""
+    rows = [
+        row(
+            T0 + timedelta(minutes=10 * k),
+            p_kw=800.0 + 100.0 * math.sin(k / 3.0),  # a load that moves (a held one is a frozen drive)
+            rs=14.0 + 0.5 * math.sin(k / 4.0),
+            Gost_avg=58.0 + 2.0 * math.sin(k / 5.0),
+            Yt_avg=20.0,
+        )
+        for k in range(12)
+    ]
+    scada = write(tmp_path / "mm82.csv", rows)
+    args = ["replay", str(scada), "--gearbox", "MM82", "--columns", "engie", "--out", str(tmp_path / "est.csv")]
+    p = subprocess.run(
+        [sys.executable, "-m", "tools.cli", *args], cwd=REPO, capture_output=True, text=True, timeout=300
+    )
+    assert p.returncode == 0, p.stderr
+    est = read_run_table(tmp_path / "est.csv", required=("time_s",))
+    assert est.n == len(rows) and est.has("rejects_aux_missing")
+    counters = [c for c in est.columns if c.startswith("rejects_")]
+    assert {c: float(est[c][-1]) for c in counters if est[c][-1] != 0} == {}
+
+
 @pytest.mark.parametrize("oil_mode", ["measured", "model"])
 def test_a_replay_for_estimates_only_gives_the_same_estimates_without_the_time_to_limit(tmp_path, oil_mode):
     """The diagnosis and the calibration replay with ESTIMATES_ONLY (the time to limit refreshed once, not every
