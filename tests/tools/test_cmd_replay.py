@@ -314,21 +314,51 @@ def test_batched_vehicles_start_at_their_own_ambient(sensor):
 
 def test_a_gearbox_without_a_liquid_cooler_is_not_told_its_coolant_is_missing():
     """An R1 or HR225 (no cooler) replay said 'auxiliary inputs not given (coolant_temp_c): defaults used': an input
-    its model never reads. The coolant is left out of that line for a gearbox without a liquid cooler; another
-    missing input is still named."""
+    its drive has not. The coolant is left out of that line for a drive without one (nor does the sensor count it,
+    test_a_fixed_ratio_replay_counts_only_the_auxiliary_inputs_its_drive_has); another missing input is still named,
+    and a counter of the inputs the drive has is said as steps, not hidden."""
     from firmware_model.description import load_description
     from tools.replay.summary import _reject_line, _unused_inputs
     from tools.runtable import RunTable
 
     n = 5
-    cols = {"time_s": np.arange(n) * 0.1, "rejects_aux_missing": np.full(n, 5.0), "ambient_temp_c": np.full(n, 20.0)}
+    cols = {"time_s": np.arange(n) * 0.1, "rejects_aux_missing": np.zeros(n), "ambient_temp_c": np.full(n, 20.0)}
     cols.update(vehicle_speed_kmh=np.zeros(n), retarder_torque_nm=np.zeros(n))
     out = RunTable(cols)
-    assert _unused_inputs(load_description("R1")) == ("coolant_temp_c",)
+    unused = _unused_inputs(load_description("R1"))
+    assert unused == ("coolant_temp_c", "vehicle_speed_kmh", "retarder_torque_nm")
     assert _unused_inputs(load_description("GRS905")) == ()
-    assert "coolant_temp_c" not in _reject_line(out, ("coolant_temp_c",)) and "auxiliary" not in _reject_line(
-        out, ("coolant_temp_c",)
-    )
+    assert "auxiliary" not in _reject_line(out, unused)  # nothing counted: no line
+    out._cols["rejects_aux_missing"] = np.full(n, 5.0)  # 5 steps of an input the drive has out of range
+    assert "auxiliary inputs missing or out of range on 5 steps" in _reject_line(out, unused)
+    assert "coolant_temp_c" not in _reject_line(out, unused)
     assert "auxiliary inputs not given (coolant_temp_c)" in _reject_line(out, ())
     del out._cols["ambient_temp_c"]
-    assert "auxiliary inputs not given (ambient_temp_c)" in _reject_line(out, ("coolant_temp_c",))
+    assert "auxiliary inputs not given (ambient_temp_c)" in _reject_line(out, unused)
+
+
+def test_a_fixed_ratio_replay_counts_only_the_auxiliary_inputs_its_drive_has(tmp_path, capsys):
+    """An MM82 run table (a wind turbine: no coolant) counted rejects_aux_missing at every step for the coolant it has
+    not, and the summary then hid every auxiliary line (an ambient really missing on 5 steps read "none"). Now the
+    counter holds those 5 steps only and the summary says so."""
+    from firmware_model.description import load_description
+    from firmware_model.units import RPM_PER_RAD_S
+
+    d = load_description("MM82")
+    n = 40
+    ambient = np.full(n, 15.0)
+    ambient[10:15] = np.nan  # the ambient sensor fails on 5 rows, each driving one step
+    cols = {
+        "time_s": np.arange(n) * 0.1,
+        "input_speed_rpm": np.full(n, 0.7 * d.drive.max_speed_rad_s * RPM_PER_RAD_S),
+        "input_torque_nm": np.full(n, 0.5 * d.drive.max_torque_nm),
+        "oil_temp_c": 55.0 + 0.01 * np.arange(n),
+        "ambient_temp_c": ambient,
+    }
+    src = write_run_table(RunTable(cols), tmp_path / "mm82.csv")
+    assert main(["replay", str(src), "--gearbox", "MM82", "--out", str(tmp_path / "est.csv")]) == 0
+    est = read_run_table(tmp_path / "est.csv", required=("time_s",))
+    aux = est["rejects_aux_missing"]
+    assert aux[-1] == 5 and aux[9] == 0 and aux[14] == 5
+    line = next(s for s in capsys.readouterr().out.splitlines() if s.startswith("rejected or repaired inputs:"))
+    assert "auxiliary inputs missing or out of range on 5 steps" in line and "coolant" not in line

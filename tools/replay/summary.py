@@ -116,10 +116,14 @@ def _arrivals(out) -> dict:
 
 
 def _unused_inputs(desc) -> tuple:
-    """The auxiliary inputs a gearbox's model never reads: the coolant without a liquid cooler (a fixed-ratio
-    reducer's, the MM82's air cooler), so that its absence is no line of the summary."""
-    cooler = getattr(getattr(desc, "oil", None), "cooler", "liquid")
-    return () if cooler == "liquid" else ("coolant_temp_c",)
+    """The auxiliary inputs the gearbox's drive has not (firmware_model.onboard.reduce.aux_inputs_expected: a
+    fixed-ratio drive's vehicle speed and retarder, its coolant without a coolant boundary or liquid cooler), which
+    the sensor does not count missing, so that their absence is no line of the summary either."""
+    from firmware_model.onboard.reduce import aux_inputs_expected
+
+    if desc is None:
+        return ()
+    return tuple(c for c, has in zip(AUX_COLUMNS, aux_inputs_expected(desc)) if not has)
 
 
 def _usable_erc1(out, erc1: int) -> int:
@@ -140,8 +144,7 @@ def _reject_line(out, unused: tuple = ()) -> str:
     aux = counts.pop("aux_missing", 0)
     if aux:
         given = [c for c in AUX_COLUMNS if out.has(c) and np.any(np.isfinite(out[c]))]
-        absent = [c for c in AUX_COLUMNS if c not in given and c not in unused]
-        idle = [c for c in AUX_COLUMNS if c not in given and c in unused]  # absent and never read: no line
+        absent = [c for c in AUX_COLUMNS if c not in given and c not in unused]  # the counter counts no unused one
         erc1 = _arrivals(out).get("ERC1", 0)
         # no torque in Nm although ERC1 carried a usable percent: only then was the reference missing (docs/can.md:
         # Nm = percent / 100 x RC's, else the configured one); frames without one are "sent but never usable"
@@ -165,7 +168,7 @@ def _reject_line(out, unused: tuple = ()) -> str:
             )
         if absent:
             words.append(f"auxiliary inputs not given ({', '.join(absent)}): defaults used, as documented")
-        elif not unreferenced and not rejected and not idle:
+        elif not unreferenced and not rejected:
             words.append(f"auxiliary inputs missing or out of range on {aux} steps: defaults used")
     held = is_held(getattr(out, "meta", None) or {})
     for k, v in counts.items():
