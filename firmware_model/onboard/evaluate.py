@@ -37,6 +37,9 @@ from firmware_model.physics.cooler import COOLER_KINDS, cooler_params, oil_coole
 from firmware_model.physics.heat_lag import heat_lag
 from firmware_model.units import KELVIN_OFFSET_K, RPM_PER_RAD_S, SIGMA_W_PER_M2K4
 
+#: the vehicle speed's place in ReducedParams.aux_expected (ambient, coolant, vehicle speed, retarder)
+AUX_VKMH = 2
+
 #: oil-temperature grid of the property and conductance tables [degC]; outside it the end rows are held
 T_GRID_C = np.arange(-40.0, 200.0 + 1e-9, 5.0)
 #: number of speed points of the bilinear conductance tables (in sqrt(omega / omega_max))
@@ -563,7 +566,7 @@ def cooler_heat(
     """Heat from the sump to the cooler [W] (Eq 83), the oil-system flow capacity mdot cp [W/K] and the cooler's hA
     [W/K] at this operating point: :func:`firmware_model.physics.cooler.oil_cooler_heat`, the plant's model, with
     the oil flow flow_per_drive x ``drive`` (:func:`pump_drive`: the layshaft speed of the GRS905's pump) and a
-    missing vehicle speed taken as rp.default_v_kmh; the inner flow over the data sheet's: a shaft pump's speed over
+    missing vehicle speed (or any, for a drive that has none) taken as rp.default_v_kmh; the inner flow over the data sheet's: a shaft pump's speed over
     the reference speed, a motor pump's 1 (it runs at its own flow, as the plant's); ``effectiveness_scale``: the
     effect cooler_effectiveness_scale. C: cooler_op and cooler_heat."""
     drive = np.asarray(drive, dtype=float)
@@ -580,7 +583,9 @@ def cooler_heat(
         omega_eng_rad_s,
         T_coolant_c,
         T_ambient_c,
-        np.nan_to_num(v_kmh, nan=rp.default_v_kmh),
+        # a drive without a vehicle speed (a wind turbine, a rig) has no ram air and no recirculation at low speed:
+        # rp.default_v_kmh whatever the input holds (the plant's stationary machine), as the C kernel's cooler_op
+        np.nan_to_num(v_kmh, nan=rp.default_v_kmh) if rp.aux_expected[AUX_VKMH] else rp.default_v_kmh,
         mcp_w_per_k,
         effectiveness_scale,
         thermostat_offset_c,

@@ -383,7 +383,8 @@ static void cooler_op(const gvs_tables *tb, const gvs_vehicle *veh, gvs_real w_l
     op->T_cool = T_cool;
     op->hA = op->T_air = R_(0.0);
     if (tb->cooler_code == GVS_COOLER_NONE) return;
-    if (v_kmh != v_kmh) v_kmh = tb->default_vkmh;
+    /* a missing vehicle speed, or any for a drive that has none (no ram air, no recirculation): the default */
+    if (v_kmh != v_kmh || !((tb->aux_expected >> (GVS_I_VKMH - GVS_I_AMB)) & 1)) v_kmh = tb->default_vkmh;
     /* the inner flow over the data sheet's: a shaft pump's speed over the reference, a motor pump's 1 (w_ls: the
      * pump_drive) */
     inner = POW(tb->pump_code == GVS_PUMP_MOTOR ? w_ls : w_ls / tb->ref_ls_speed, tb->exp_inner);
