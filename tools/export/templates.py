@@ -268,14 +268,22 @@ int main(void)
 REPLAY_PROGRAM = r"""/* gearbox-vsensor export-c: `gvs_replay IN OUT` steps the exported sensor over a whole drive and writes every
  * step's outputs, to compare two builds of the same sources (the host's and the Cortex-M4F's, `make replay` and
  * `make qemu-replay`). IN: per step 8 little-endian float64 inputs (the order of gvs_inputs.raw; NaN = not
- * available), 0.1 s apart. OUT: per step float32 T_c[GVS_MAX_PUB], float32 ttl_s[GVS_MAX_PUB], int8 level[GVS_MAX_PUB],
- * int8 degraded_mode.
+ * available), 0.1 s apart, no header; from numpy: np.ascontiguousarray(d[:, :8], '<f8').tofile('drive.bin').
+ * OUT: per step float32 T_c[GVS_MAX_PUB], float32 ttl_s[GVS_MAX_PUB], int8 level[GVS_MAX_PUB], int8 degraded_mode.
+ * IN has no header, so before writing OUT the harness refuses (one sentence on stderr, exit 2, no OUT) what would
+ * replay garbage or a partial record: an empty file, text, a size that is not whole 64-byte records (truncated, or
+ * float32), and float32 values (told by the values, below). Bad values inside float64 records (NaN, inf, out of
+ * range) are the sensor's to handle (its degraded modes): replayed, and its reject counters printed at the end.
  * Built with -DGVS_SYSTICK (the Cortex-M4F build), it also counts the processor clock cycles of each step with the
  * SysTick timer: under QEMU with -icount the emulated clock advances a fixed time per instruction, so the cycles
  * count instructions (`make qemu-replay` prints both). */
+#include <errno.h>
+#include <float.h>
 #include <math.h>
+#include <stdarg.h>
 #include <stdint.h>
 #include <stdio.h>
+#include <string.h>
 #include "gvs_sensor.h"
 
 #ifdef GVS_SYSTICK
@@ -284,33 +292,118 @@ REPLAY_PROGRAM = r"""/* gearbox-vsensor export-c: `gvs_replay IN OUT` steps the 
 #define SYST_CVR (*(volatile uint32_t *)0xE000E018u)
 #endif
 
-static gvs_state state;
+#define RECORD_BYTES (8 * GVS_N_INPUTS)   /* one step of IN */
+#define PROBE_RECORDS 256                 /* the records the float32 check reads */
+#define HOW_TO_WRITE " (write it from numpy: np.ascontiguousarray(d[:, :8], '<f8').tofile(path); README.md)"
 
-int main(int argc, char **argv)
+/* IN is IEEE-754 binary64: a build where double is anything else stops here */
+typedef char gvs_double_is_binary64[(sizeof(double) == 8 && DBL_MANT_DIG == 53) ? 1 : -1];
+
+static gvs_state state;
+#ifdef GVS_SYSTICK
+static uint64_t cycles_total;           /* over the replay's steps */
+static uint32_t cycles_worst;
+#endif
+
+/* One sentence on stderr, prefixed with the program's name; returns the exit status of a refusal. */
+static int refuse(const char *fmt, ...)
 {
-    FILE *fi, *fo;
+    va_list ap;
+    fputs("gvs_replay: ", stderr);
+    va_start(ap, fmt);
+    vfprintf(stderr, fmt, ap);
+    va_end(ap);
+    fputc('\n', stderr);
+    return 2;
+}
+
+/* Values no sensor input holds but two float32 read as one float64 give: subnormal (a float32 0.0 in the high
+ * half) or 1e9..1e100 (a float32 above ~30 in the high half makes 2^33 and up). The hostile values of a test
+ * (+-1e308, inf, NaN, a few orders out of range) are neither. */
+static int odd64(double v)
+{
+    double a = fabs(v);
+    return isfinite(v) && v != 0.0 && (a < DBL_MIN || (a > 1e9 && a < 1e100));
+}
+
+static int odd32(float v)
+{
+    float a = fabsf(v);
+    return isfinite(v) && v != 0.0f && (a < FLT_MIN || a > 1e9f);
+}
+
+/* float32 values: most of the first records hold an odd value read as float64 and few read as 16 float32. The low
+ * halves of real float64 values read as float32 are random bits (odd in nearly every record) or zeros (round
+ * values), so a float64 file does not look like this; a drive of float32 values does (oil above ~30 degC, or a
+ * zero torque or retarder beside a nonzero value, in nearly every record). Leaves fi at the start. */
+static int looks_float32(FILE *fi, long records)
+{
+    unsigned char b[RECORD_BYTES];
+    long k, n = records < PROBE_RECORDS ? records : PROBE_RECORDS, n64 = 0, n32 = 0;
+    for (k = 0; k < n && fread(b, sizeof b, 1, fi) == 1; ++k) {
+        double d[GVS_N_INPUTS];
+        float f[2 * GVS_N_INPUTS];
+        int i, o64 = 0, o32 = 0;
+        memcpy(d, b, sizeof d);
+        memcpy(f, b, sizeof f);
+        for (i = 0; i < GVS_N_INPUTS; ++i) o64 |= odd64(d[i]);
+        for (i = 0; i < 2 * GVS_N_INPUTS; ++i) o32 |= odd32(f[i]);
+        n64 += o64;
+        n32 += o32;
+    }
+    rewind(fi);
+    return 2 * n64 > n && 2 * n32 < n;
+}
+
+/* Checks IN (module comment) and sets *records; returns 0, or 2 after one sentence on stderr. */
+static int check_input(FILE *fi, const char *path, long *records)
+{
+    unsigned char b[RECORD_BYTES];
+    const uint16_t one = 1;
+    long bytes = -1;
+    size_t n, i;
+    int text = 1;
+    memcpy(b, &one, 1);
+    if (b[0] != 1) return refuse("this build's machine is big-endian and IN holds little-endian float64.");
+    if (fseek(fi, 0L, SEEK_END) == 0) bytes = ftell(fi);
+    if (bytes < 0 || fseek(fi, 0L, SEEK_SET) != 0)
+        return refuse("cannot tell the size of %s: give IN as a regular file, not a pipe.", path);
+    n = fread(b, 1, sizeof b, fi);
+    if (ferror(fi)) return refuse("cannot read %s: give IN as a regular file of float64 records.", path);
+    rewind(fi);
+    if (bytes == 0)
+        return refuse("%s is empty (0 bytes): IN holds %d little-endian float64 inputs per 0.1 s step, %d bytes a "
+                      "record" HOW_TO_WRITE ".", path, GVS_N_INPUTS, RECORD_BYTES);
+    /* text: the first bytes all printable or white space, which the bytes of float64 values practically never are */
+    for (i = 0; i < n; ++i) text &= (b[i] >= 0x20 && b[i] < 0x7F) || b[i] == '\t' || b[i] == '\n' || b[i] == '\r';
+    if (text)
+        return refuse("%s looks like text (its first %lu bytes are all printable), not float64 records"
+                      HOW_TO_WRITE ".", path, (unsigned long)n);
+    if (bytes % RECORD_BYTES != 0)
+        return refuse("%s is %ld bytes, not a whole number of %d-byte records (%d float64 inputs per step; %ld bytes "
+                      "left over): truncated, or written as float32" HOW_TO_WRITE ".", path, bytes, RECORD_BYTES,
+                      GVS_N_INPUTS, bytes % RECORD_BYTES);
+    *records = bytes / RECORD_BYTES;
+    if (looks_float32(fi, *records))
+        return refuse("%s looks like float32 values, not float64: read as float64 most of its first records hold "
+                      "values no input has (subnormal, or 1e9 to 1e100), read as float32 they do not"
+                      HOW_TO_WRITE ".", path);
+    return 0;
+}
+/* Steps the sensor over IN's records (at most the records its size held) into OUT; returns the steps, or -1 when
+ * OUT could not be written. */
+static long replay(FILE *fi, FILE *fo, long records)
+{
     double raw[GVS_N_INPUTS];
     long steps = 0;
     int i;
     gvs_outputs out;
 #ifdef GVS_SYSTICK
-    uint64_t total = 0;
-    uint32_t worst = 0;
     SYST_RVR = 0xFFFFFFu;
     SYST_CVR = 0u;
     SYST_CSR = 5u;                      /* enabled, processor clock, no interrupt */
 #endif
-    if (argc < 3) {
-        fprintf(stderr, "usage: gvs_replay IN OUT\n");
-        return 2;
-    }
-    fi = fopen(argv[1], "rb");
-    fo = fopen(argv[2], "wb");
-    if (!fi || !fo) {
-        fprintf(stderr, "gvs_replay: cannot open %s or %s\n", argv[1], argv[2]);
-        return 2;
-    }
-    while (fread(raw, sizeof raw, 1, fi) == 1) {
+    while (steps < records && fread(raw, sizeof raw, 1, fi) == 1) {
         gvs_inputs in;
         float T[GVS_MAX_PUB], ttl[GVS_MAX_PUB];
         int8_t lv[GVS_MAX_PUB + 1];
@@ -324,8 +417,8 @@ int main(int argc, char **argv)
         t0 = SYST_CVR;
         gvs_sensor_step(&state, &in, &out);
         d = (t0 - SYST_CVR) & 0xFFFFFFu;    /* a down-counter: wraps after 2^24 cycles, far more than a step */
-        total += d;
-        if (d > worst) worst = d;
+        cycles_total += d;
+        if (d > cycles_worst) cycles_worst = d;
 #else
         gvs_sensor_step(&state, &in, &out);
 #endif
@@ -335,19 +428,60 @@ int main(int argc, char **argv)
             lv[i] = (int8_t)out.level[i];
         }
         lv[GVS_MAX_PUB] = (int8_t)out.degraded_mode;
-        if (fwrite(T, sizeof T, 1, fo) != 1 || fwrite(ttl, sizeof ttl, 1, fo) != 1 || fwrite(lv, sizeof lv, 1, fo) != 1) {
-            fprintf(stderr, "gvs_replay: cannot write %s\n", argv[2]);
-            return 2;
-        }
+        if (fwrite(T, sizeof T, 1, fo) != 1 || fwrite(ttl, sizeof ttl, 1, fo) != 1 || fwrite(lv, sizeof lv, 1, fo) != 1)
+            return -1;
         ++steps;
     }
+    return steps;
+}
+
+int main(int argc, char **argv)
+{
+    FILE *fi, *fo;
+    long records = 0, steps;
+    int i, rc;
+    if (argc != 3) {
+        fprintf(stderr, "usage: gvs_replay IN OUT (IN: 8 little-endian float64 inputs per step; gvs_replay.c)\n");
+        return 2;
+    }
+    if (strcmp(argv[1], argv[2]) == 0)
+        return refuse("IN and OUT are both %s: opening OUT would erase the drive before it is read; name another OUT.",
+                      argv[1]);
+    fi = fopen(argv[1], "rb");
+    if (!fi) return refuse("cannot open IN %s: %s.", argv[1], strerror(errno));
+    rc = check_input(fi, argv[1], &records);
+    if (rc != 0) return rc;             /* no OUT: nothing that could be taken for a replay */
+    fo = fopen(argv[2], "wb");
+    if (!fo) return refuse("cannot open OUT %s: %s.", argv[2], strerror(errno));
+    /* OUT another name of IN (a link): opening it emptied IN, whose reads would then return the outputs written */
+    if (fseek(fi, 0L, SEEK_END) != 0 || ftell(fi) != records * RECORD_BYTES || fseek(fi, 0L, SEEK_SET) != 0) {
+        fclose(fo);
+        return refuse("opening OUT %s changed IN %s (one file under two names?): name another OUT.", argv[2],
+                      argv[1]);
+    }
+    steps = replay(fi, fo, records);
+    /* IN changed or became unreadable while replayed (also OUT the same file under another name), or OUT could not
+     * be written: OUT is emptied, not removed (it may be a device), so no partial replay stands */
+    rc = steps < 0 ? refuse("cannot write OUT %s.", argv[2])
+         : ferror(fi) || steps != records ? refuse("read %ld of the %ld records of %s: it changed or could not be "
+                                                   "read while replayed.", steps, records, argv[1])
+                                          : 0;
     fclose(fi);
-    fclose(fo);
+    if (fclose(fo) != 0 && rc == 0) rc = refuse("cannot write OUT %s.", argv[2]);
+    if (rc != 0) {
+        fo = fopen(argv[2], "wb");
+        if (fo) fclose(fo);
+        return rc;
+    }
     printf("steps %ld\n", steps);
 #ifdef GVS_SYSTICK
-    if (steps > 0)
-        printf("SysTick cycles per step: mean %.1f, max %lu\n", (double)total / (double)steps, (unsigned long)worst);
+    printf("SysTick cycles per step: mean %.1f, max %lu\n", (double)cycles_total / (double)steps,
+           (unsigned long)cycles_worst);
 #endif
+    /* the sensor's own handling of bad values, visible (README.md names the 13 counters in this order) */
+    printf("rejected or repaired inputs:");
+    for (i = 0; i < GVS_N_REJECT; ++i) printf(" %ld", (long)state.rejects[i]);
+    printf("\n");
     return 0;
 }
 """
