@@ -78,6 +78,12 @@ def test_a_whole_float64_drive_replays_every_record(bundle):
     assert res.returncode == 0, res.stdout + res.stderr
     assert "steps 300" in res.stdout
     assert (bundle / "out.bin").stat().st_size == 300 * out_record_bytes(bundle)
+    # the bundle's README says how to write IN and how to read OUT, and both are what the harness does
+    readme = (bundle / "README.md").read_text()
+    assert "np.ascontiguousarray(inputs[:, :8], '<f8').tofile('drive.bin')" in readme
+    out_dtype = eval(readme.split("(numpy: `")[1].split("`)")[0], {"np": np})
+    rec = np.fromfile(bundle / "out.bin", dtype=out_dtype)
+    assert len(rec) == 300 and np.isfinite(rec["T"]).all() and set(np.unique(rec["mode"])) <= {0, 1, 2}
 
 
 @pytest.mark.parametrize("cut", [1, 20, RECORD - 1, RECORD + 8])

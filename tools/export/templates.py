@@ -573,7 +573,7 @@ warning levels, degraded modes and the time to limit with the Python reference (
 | `gvs_tables.c` | the generated tables of {variant} ({n} thermal nodes): loss maps, conductance laws, cooler, limits, options (`const`, flash) |
 | `gvs_sensor.h`, `gvs_sensor.c` | the API below |
 | `gvs_vectors.c`, `gvs_test.c`, `Makefile` | the test |
-| `gvs_replay.c` | a whole drive through a build (`make replay IN=drive.bin`, `make qemu-replay` on the emulated Cortex-M4F, which also counts instructions per step); the formats are in the file |
+| `gvs_replay.c` | a whole drive through a build (`make replay IN=drive.bin`, `make qemu-replay` on the emulated Cortex-M4F, which also counts instructions per step); [Replaying a drive](#replaying-a-drive) says the formats |
 
 This export's real type ({real}), struct sizes and index width are fixed in `gvs_kernel.h`: compile every file with
 the Makefile's flags or with none of them (another value stops the build with `#error`). Never with fast-math:
@@ -635,6 +635,27 @@ returns -1 (contents that are no sensor state), start cold with `gvs_sensor_init
 the time base (your `t_s` may restart from 0) and applies the oil reading as the Python sensor does. It does not
 cool the saved state over the stop: after a long stop with no oil reading at start-up, `gvs_sensor_init` (the ambient
 default) is closer than the state of the last shutdown.
+
+## Replaying a drive
+
+`make replay IN=drive.bin` (host) and `make qemu-replay IN=drive.bin` (Cortex-M4F on QEMU) step the sensor over a
+whole drive and write every step's outputs to `host.out` and `m4.out`. IN is raw binary with no header: per 0.1 s
+step the 8 inputs above in `gvs_inputs.raw`'s order as little-endian float64 (64 bytes a record; NaN = not
+available). Write it from numpy, as float64 whatever the array's type (float32 values written as they are make a file
+of half the steps of garbage):
+
+```python
+np.ascontiguousarray(inputs[:, :8], '<f8').tofile('drive.bin')   # inputs: one row per step
+```
+
+OUT: per step float32 `T_c[{n_pub}]`, float32 `ttl_s[{n_pub}]`, int8 `level[{n_pub}]`, int8 `degraded_mode`
+(numpy: `np.dtype([('T', '<f4', ({n_pub},)), ('ttl', '<f4', ({n_pub},)), ('level', 'i1', ({n_pub},)), ('mode', 'i1')])`).
+Since IN cannot say its own type, `gvs_replay` refuses, with one sentence, exit 2 and no OUT, a file that is empty,
+text (a CSV), not a whole number of 64-byte records (truncated, or float32 with an odd number of steps), or float32
+values (told by their values: read as float64, float32 values give subnormal or 1e9..1e100 magnitudes in nearly every
+record, which no input has; a float32 drive of a cold gearbox at rest can pass that check, so write float64 as
+above); it also refuses OUT naming IN. Bad values inside float64 records (NaN, inf, out of range) are the sensor's
+to handle: replayed, and the last line printed is the 13 reject counters in the order above.
 """
 
 STARTUP = """/* Minimal start-up of an ARM Cortex-M4F as QEMU's mps2-an386 board emulates it: the vector table, the FPU
