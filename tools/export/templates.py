@@ -390,6 +390,7 @@ static int check_input(FILE *fi, const char *path, long *records)
                       HOW_TO_WRITE ".", path);
     return 0;
 }
+
 /* Steps the sensor over IN's records (at most the records its size held) into OUT; returns the steps, or -1 when
  * OUT could not be written. */
 static long replay(FILE *fi, FILE *fo, long records)
@@ -460,8 +461,8 @@ int main(int argc, char **argv)
                       argv[1]);
     }
     steps = replay(fi, fo, records);
-    /* IN changed or became unreadable while replayed (also OUT the same file under another name), or OUT could not
-     * be written: OUT is emptied, not removed (it may be a device), so no partial replay stands */
+    /* IN changed or became unreadable while replayed, or OUT could not be written: OUT is emptied, not removed (it
+     * may be a device), so no partial replay stands */
     rc = steps < 0 ? refuse("cannot write OUT %s.", argv[2])
          : ferror(fi) || steps != records ? refuse("read %ld of the %ld records of %s: it changed or could not be "
                                                    "read while replayed.", steps, records, argv[1])
