@@ -566,9 +566,9 @@ def cooler_heat(
     """Heat from the sump to the cooler [W] (Eq 83), the oil-system flow capacity mdot cp [W/K] and the cooler's hA
     [W/K] at this operating point: :func:`firmware_model.physics.cooler.oil_cooler_heat`, the plant's model, with
     the oil flow flow_per_drive x ``drive`` (:func:`pump_drive`: the layshaft speed of the GRS905's pump) and a
-    missing vehicle speed (or any, for a drive that has none) taken as rp.default_v_kmh; the inner flow over the data sheet's: a shaft pump's speed over
-    the reference speed, a motor pump's 1 (it runs at its own flow, as the plant's); ``effectiveness_scale``: the
-    effect cooler_effectiveness_scale. C: cooler_op and cooler_heat."""
+    missing vehicle speed (or any, for a drive that has none) taken as rp.default_v_kmh; the inner flow over the data
+    sheet's: a shaft pump's speed over the reference speed, a motor pump's 1 (it runs at its own flow, as the
+    plant's); ``effectiveness_scale``: the effect cooler_effectiveness_scale. C: cooler_op and cooler_heat."""
     drive = np.asarray(drive, dtype=float)
     mcp_w_per_k = rho_cp_j_per_m3k * flow_per_drive(rp) * drive
     if rp.cooler_code == 0:
