@@ -143,7 +143,7 @@ def test_what_cannot_be_replayed_is_one_sentence(tmp_path, case):
 
 
 def test_the_mm82_s_oil_inlet_is_estimated_below_its_sump(tmp_path):
-    """The MM82 (forced lubrication: a motor pump through an air cooler behind a thermostat open from 55 to 60 degC)
+    """The MM82 (forced lubrication: a motor pump through an air cooler behind a thermostat at the sump, 56.6-60 degC)
     on the shipped engie map: the measured inlet channel (Git_avg, tied to the derived oil.inlet) is estimated by the
     sensor's oil inlet, below the sump estimate by the cooler's drop while the thermostat is open (a sump above it)."""
     rows = [
