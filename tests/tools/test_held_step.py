@@ -194,7 +194,7 @@ def test_the_time_to_limit_is_refreshed_once_per_row_near_its_end(mm82):
     from tools.replay.table import held_options, replay_table
 
     table = _rows(mm82, 12.0)
-    # above the thermostat's band (55-60 degC): the MM82's thermostat reads the sump and holds it in the band, so a
+    # above the thermostat's band (56.6-60 degC): the MM82's thermostat reads the sump and holds it in the band, so a
     # limit where the held sump settles is approached asymptotically and its crossing moves by any amount with a
     # millikelvin of state (at 56 degC: 876 s at 15 s against 2 134 s at 0.1 s, the states 0.005 K apart; 53, 54,
     # 55, 58, 64 and 66 degC pass as 62 does)
