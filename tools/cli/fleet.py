@@ -275,13 +275,15 @@ def _run_scada(args) -> int:
     root = Path(args.out) / "health"
     _write_health(root, fits, flags)
     kind = "unit-months" if days is None else "unit-periods"
+    used = len(records) - len(rejected)
+    # the units read and those fitted: a unit left out (a sump in degF) is said on stdout too, not only on stderr
+    left = f" ({len(rejected)} of {len(records)} read left out, above)" if rejected else ""
     print(
-        f"fleet: {len(records)} units, {len(fits)} {kind} fitted in {time.perf_counter() - t0:.1f} s; "
-        f"{len(flags)} flagged -> {root}"
+        f"fleet: {used} unit{'s' if used != 1 else ''} fitted{left}, {len(fits)} {kind} in "
+        f"{time.perf_counter() - t0:.1f} s; {len(flags)} flagged -> {root}"
     )
     for f in flags:
         print(f"  {f.vehicle}: {f.effect} from {f.start}: {f.reason}")
-    used = len(records) - len(rejected)
     if used < MIN_UNITS:
         print(
             f"note: {used} unit{'s' if used != 1 else ''} fitted: a unit is flagged against its siblings' "

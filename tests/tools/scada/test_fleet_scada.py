@@ -4,6 +4,8 @@ are not. On the HR225 with the column map of test_replay_scada.py, periods of 6 
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 
@@ -209,3 +211,36 @@ def test_a_flagged_unit_leaves_the_siblings_median_so_a_sound_sibling_is_not_fla
     # without the rule: A (and B) judged against a median that passed from C to B, A by +0.25 from period 6
     _, _, rows = drifts(fits, "bearing_loss_scale")["A"]
     assert all(abs(d) > 0.15 for f, d, _ in rows if f.period >= 6)
+
+
+def test_the_fleet_summary_counts_the_units_fitted_not_those_read(tmp_path):
+    """Three units read, one left out (its sump in degF, said on stderr): the summary said "fleet: 3 units, ... 0
+    flagged" on stdout, a cron log's whole fleet checked; it says the units fitted and how many were left out."""
+    import subprocess
+    import sys
+
+    from tests.tools.scada.test_replay_scada import REPO
+
+    pytest.importorskip("pyarrow.parquet", reason="fleet --columns writes Parquet: pip install '.[fleet]'")
+    data = tmp_path / "scada"
+    data.mkdir()
+    for unit in ("T1", "T2", "T3"):
+        oil = (lambda k: (55.0 + 4.0 * math.sin(k / 7.0)) * 9.0 / 5.0 + 32.0) if unit == "T3" else None
+        rows = _rows(0, 6 * 144, oil_c=oil) if oil else _rows(0, 6 * 144)
+        write(data / f"{unit}.csv", [line.replace("R1,", f"{unit},", 1) for line in rows])
+    cmd = [
+        sys.executable,
+        "-m",
+        "tools.cli",
+        "fleet",
+        str(data),
+        "--gearbox",
+        "HR225",
+        "--columns",
+        str(_map(tmp_path)),
+    ]
+    p = subprocess.run([*cmd, "--out", str(tmp_path / "out")], cwd=REPO, capture_output=True, text=True, timeout=600)
+    assert p.returncode == 0, p.stderr
+    assert "left out T3" in p.stderr
+    summary = [ln for ln in p.stdout.splitlines() if ln.startswith("fleet: ")]
+    assert summary and summary[0].startswith("fleet: 2 units fitted (1 of 3 read left out, above), "), summary
