@@ -172,7 +172,12 @@ def record_findings(record: ScadaRecord, result: ScadaReplay) -> list:
     (a column in another unit than its map says), and measured channels whose estimate is far off on average."""
     from tools.replay.table import table_findings
 
-    found = list(table_findings(result.table, oil_model=result.oil_mode == "model"))
+    found = [
+        RecordFinding("plausibility", int(f.severity), torque_unit_hint(record, f.sentence))
+        if "looks like kN m" in f.sentence
+        else f
+        for f in table_findings(result.table, oil_model=result.oil_mode == "model")
+    ]
     spacing = spacing_finding(record)
     if spacing is not None:
         # it says why the held table's time jumps forward on most rows (the run-table sentence's advice, "rows at
@@ -248,6 +253,31 @@ def spacing_finding(record: ScadaRecord) -> RecordFinding | None:
     return None
 
 
+def torque_unit_hint(record: ScadaRecord, sentence: str) -> str:
+    """The kN m finding of a fixed-ratio table (firmware_model.service.plausibility) names run-table columns and
+    says "give N m"; on a SCADA record the fix is the column map's unit of the column the input torque comes from."""
+    ch = record.cmap.channels.get("input_torque_nm")
+    if ch is None or "looks like kN m" not in sentence:
+        return sentence
+    name = record.cmap.name
+    if ch.derive == "power_over_speed":
+        unit = {1.0: "W", 1e3: "kW", 1e6: "MW"}.get(ch.source_scale, f"units of {ch.source_scale:g} W")
+        return (
+            f"{sentence}. On this SCADA record the column map {name} derives the torque from {ch.sources['power']} "
+            f'read in {unit}: a power column in MW wants power_unit = "MW" in the map (in kW, "kW")'
+        )
+    if ch.derive:
+        unit = {1.0: "N m", 1e3: "kN m"}.get(ch.source_scale, f"units of {ch.source_scale:g} N m")
+        return (
+            f"{sentence}. On this SCADA record the column map {name} derives the torque from "
+            f'{ch.sources["torque"]} read in {unit}: a torque column in kN m wants torque_unit = "kN m" in the map'
+        )
+    return (
+        f"{sentence}. On this SCADA record the column map {name} reads the torque from {ch.column} in {ch.unit}: a "
+        'torque column in kN m wants unit = "kN m" in the map'
+    )
+
+
 def range_findings(record: ScadaRecord) -> list[RecordFinding]:
     """The channels whose values the reader mostly rejected as implausible (a column in another unit than its map
     says: a nacelle air in kelvin)."""
@@ -262,8 +292,8 @@ def range_findings(record: ScadaRecord) -> list[RecordFinding]:
                     "units",
                     UNTRUSTED,
                     f"{name} ({', '.join(ch.columns)}): {bad} of {record.n} "
-                    f"rows outside its plausible range {lo:g}..{hi:g} ({ch.unit} in the map): is the column "
-                    "in another unit?",
+                    f"rows outside its plausible range {lo:g}..{hi:g} (in the unit its name ends with, converted "
+                    f"from the map's {ch.unit}): is the column in another unit?",
                 )
             )
     return found
@@ -304,7 +334,7 @@ def untrusted_findings(record: ScadaRecord, residual: dict, params) -> list[Reco
             v["input_speed_rpm"], v["input_torque_nm"], description_of(params), float(record.cmap.period_s)
         )
         if knm is not None:
-            found.append(RecordFinding("plausibility", UNTRUSTED, knm.sentence))
+            found.append(RecordFinding("plausibility", UNTRUSTED, torque_unit_hint(record, knm.sentence)))
     for name, r in residual.items():
         f = bias_finding(name, -np.asarray(r, dtype=float))
         if f is not None and f.severity >= UNTRUSTED:

@@ -258,7 +258,8 @@ def test_a_record_in_another_unit_or_with_dropped_rows_is_said_and_exits_3_when_
 
 def test_a_power_in_kw_read_as_w_is_said_and_exits_3(tmp_path):
     """A column map that reads the kW of P_avg as W derives a torque 1000 times too small (the HR225's 250-700 N m
-    as 0.25-0.7): every value within its range, the sensor cool, exit 0 before the fixed-ratio drive's kN m rule."""
+    as 0.25-0.7): every value within its range, the sensor cool, exit 0 before the fixed-ratio drive's kN m rule;
+    the sentence names the map's power column and its unit."""
     scada = write(tmp_path / "a.csv", _rows(0, ROWS))
     path = _map(tmp_path)
     path.write_text(path.read_text().replace('power_unit = "kW"', 'power_unit = "W"'))
@@ -272,6 +273,8 @@ def test_a_power_in_kw_read_as_w_is_said_and_exits_3(tmp_path):
     )
     assert p.returncode == 3, p.stderr
     assert "looks like kN m (or derived from a power 1000 times too small: in MW read as kW, in kW" in p.stderr
+    # the fix a SCADA user needs is in the column map (it said only "give N m (x 1000)", a run table's advice)
+    assert "derives the torque from P_avg read in W: a power column in MW wants power_unit" in p.stderr
 
 
 @pytest.mark.parametrize(
