@@ -207,11 +207,36 @@ def record_findings(record: ScadaRecord, result: ScadaReplay) -> list:
         )
     found += range_findings(record)
     t = result.table
+    biases = {}
     for name in result.estimated:
-        f = bias_finding(name, np.asarray(t[f"est_{name}"], dtype=float) - np.asarray(t[name], dtype=float))
+        e = np.asarray(t[f"est_{name}"], dtype=float) - np.asarray(t[name], dtype=float)
+        f = bias_finding(name, e)
         if f is not None:
             found.append(f)
-    return sorted(found, key=lambda f: -f.severity)
+            biases[name] = float(np.nanmean(e))
+    shared = shared_sump_finding(record, result.oil_mode, biases)
+    return sorted(found + ([shared] if shared else []), key=lambda f: -f.severity)
+
+
+def shared_sump_finding(record: ScadaRecord, oil_mode: str, biases: dict) -> RecordFinding | None:
+    """With the sump measured, every other channel's estimate starts from the sump reading: all of them off by more
+    than BIAS_UNTRUSTED_K the same way points at that reading (a sump in degF put the bearings and the inlet 63-65 K
+    over theirs, and the warnings named every channel but the sump's)."""
+    sump = oil_channel(record)
+    others = [n for n in record.cmap.nodes if n != sump]
+    if oil_mode != "measured" or sump is None or len(others) < 2 or set(others) - set(biases):
+        return None
+    signs = {np.sign(biases[n]) for n in others}
+    if len(signs) != 1 or min(abs(biases[n]) for n in others) <= BIAS_UNTRUSTED_K:
+        return None
+    lo, hi = (f"{v:+.0f}" for v in sorted((min(biases[n] for n in others), max(biases[n] for n in others))))
+    return RecordFinding(
+        "units",
+        UNTRUSTED,
+        f"the estimates of {', '.join(others)} all sit {lo}..{hi} K off their readings, and each starts from the sump "
+        f"reading {sump} the sensor used: is {sump} in another unit than its map says (degF: 58 degC reads 136)?",
+        sump,
+    )
 
 
 #: a record whose rows lie further apart than this share over its map's period_s (median spacing) has every row

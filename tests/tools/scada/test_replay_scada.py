@@ -240,6 +240,8 @@ def _edit(lines, column: str, f) -> list[str]:
     [
         # the sump in degF: an input; the bearings' estimates 70 K over their readings
         ("Gost_avg", lambda c: repr(float(c) * 9 / 5 + 32), 3, "Gb1t_avg: the estimate is +"),
+        # ... and the sentence points at the sump reading they all start from (it named every channel but it)
+        ("Gost_avg", lambda c: repr(float(c) * 9 / 5 + 32), 3, "each starts from the sump reading Gost_avg the sensor"),
         # the nacelle air in kelvin: every value outside its range
         ("Yt_avg", lambda c: repr(float(c) + 273.15), 3, "ambient_temp_c (Yt_avg): 72 of 72 rows outside"),
         # half the stamps without their UTC offset: dropped, said, and the rest replayed
