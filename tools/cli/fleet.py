@@ -219,6 +219,17 @@ def _scada_files(paths) -> list[Path]:
     return out
 
 
+def _check_scada_drive(cfg, records) -> None:
+    """SCADA records are a fixed-ratio drive's run tables: a gearbox with a vehicle drive (no --gearbox: the GRS905)
+    is refused before any work, not after notes on channels its description does not have."""
+    from firmware_model.description import description_of
+    from tools.drive_table import check_drive
+    from tools.scada.runtable import INPUTS
+
+    unit = next(iter(records))
+    check_drive(("time_s", *INPUTS), description_of(cfg.load_params()), f"SCADA of {unit}")
+
+
 def _run_scada(args) -> int:
     """`fleet --gearbox NAME --columns MAP DIR... --out OUT`: the fleet's health on SCADA records."""
     from firmware_model.config import load_config
@@ -228,16 +239,9 @@ def _run_scada(args) -> int:
     from tools.scada.fleet import MIN_UNITS, fit_fleet, flag_units
     from tools.scada.reader import read_units
 
-    logs_only = {
-        "--scheduler": args.scheduler,
-        "--workers": args.workers,
-        "--diagnose": args.diagnose,
-        "--manifest": args.manifest,
-        "--prune": args.prune,
-        "--vehicle-from": args.vehicle_from,
-        "--vehicle-pattern": args.vehicle_pattern,
-    }
-    named = [o for o, v in logs_only.items() if v] + given(args, ("fleet.estimates", "fleet.report"))
+    logs_only = ("scheduler", "workers", "diagnose", "manifest", "prune", "vehicle_from", "vehicle_pattern")
+    named = [f"--{o.replace('_', '-')}" for o in logs_only if getattr(args, o)]
+    named += given(args, ("fleet.estimates", "fleet.report"))
     if named:
         raise InputError(
             f"{', '.join(named)}: for CAN logs, not with --columns (a SCADA unit is its files' "
@@ -258,6 +262,7 @@ def _run_scada(args) -> int:
     records = read_units(_scada_files(args.logs), args.columns, skipped)
     for path, why in skipped:
         print(f"skipped {path}: {why}", file=sys.stderr)
+    _check_scada_drive(cfg, records)  # before the notes: a gearbox of another drive is the one sentence
     setup, notes = setup_of(cfg, next(iter(records.values())).cmap)
     for note in notes:
         print(f"note: {note}", file=sys.stderr)

@@ -244,3 +244,23 @@ def test_the_fleet_summary_counts_the_units_fitted_not_those_read(tmp_path):
     assert "left out T3" in p.stderr
     summary = [ln for ln in p.stdout.splitlines() if ln.startswith("fleet: ")]
     assert summary and summary[0].startswith("fleet: 2 units fitted (1 of 3 read left out, above), "), summary
+
+
+def test_a_fleet_without_a_fixed_ratio_gearbox_is_one_sentence_before_any_note(tmp_path):
+    """`fleet DIR --columns MAP` without --gearbox (the GRS905: a vehicle drive) printed a note per measured channel
+    ("... 'BHG' is not a published component") before the sentence that the gearbox was the wrong one: the
+    sentence alone now, exit 2."""
+    import subprocess
+    import sys
+
+    from tests.tools.scada.test_replay_scada import REPO
+
+    pytest.importorskip("pyarrow.parquet", reason="fleet --columns writes Parquet: pip install '.[fleet]'")
+    data = tmp_path / "scada"
+    data.mkdir()
+    write(data / "T1.csv", [line.replace("R1,", "T1,", 1) for line in _rows(0, 144)])
+    cmd = [sys.executable, "-m", "tools.cli", "fleet", str(data), "--columns", str(_map(tmp_path))]
+    p = subprocess.run([*cmd, "--out", str(tmp_path / "out")], cwd=REPO, capture_output=True, text=True, timeout=300)
+    assert p.returncode == 2, p.stderr
+    assert "--gearbox a fixed-ratio description" in p.stderr and "note:" not in p.stderr, p.stderr
+    assert not (tmp_path / "out").exists()
