@@ -353,8 +353,7 @@ def test_mm82_oil_inlet_follows_the_reference_plant_and_the_c_kernel_agrees(mm82
     plant_c = np.asarray(out["T_oil.inlet_c"])
     assert np.max(np.asarray(out["T_oil_c"]) - plant_c) > 3.0  # the plant's thermostat open too
     # the plant's inlet within a few mK (measured: 0.5 mK with the oil measured, 2.6 mK modelled: the sump's own
-    # residual). Until 2026-12-05 a missing vehicle speed was 50 km/h and a fed 0 km/h 0 km/h: the cooler's air 2 or
-    # 12 K over the nacelle's (the truck's recirculation at low vehicle speed), 0.62 K off the plant's inlet here
+    # residual); a vehicle speed read as a truck's would warm the cooler's air by 2-12 K and miss it by ~0.6 K
     assert np.isnan(raw[:, I_VKMH]).all()
     tol_k = 0.005 if oil_mode == "measured" else 0.02
     assert np.max(np.abs(inlet[row] - plant_c)) <= tol_k

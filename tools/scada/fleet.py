@@ -39,8 +39,7 @@ from tools.scada.reader import ScadaRecord
 EFFECTS = ("bearing_loss_scale", "cooler_effectiveness_scale")
 #: the finite-difference step of each effect (a scale: relative). The cooler's is a secant over the range a failing
 #: cooler spans: behind a thermostat that reads the sump a cooler losing a fifth moves nothing (the valve opens
-#: further), so a step of -0.2 found a cooler at 0.3 on none of three real turbines (its fitted drift -0.3..-0.7
-#: against 3 standard errors of 1.0-1.5); with -0.5, on three of three (bench_fleet_scada_planted.py)
+#: further), and a local slope would not see one at 0.3 (docs/real-data.md, "Planted effects")
 STEP = {"bearing_loss_scale": 0.2, "cooler_effectiveness_scale": -0.5}
 #: periods of baseline, periods in a row that make a flag, smallest drift that counts (per effect); the baseline
 #: periods are a unit's first BASELINE_PERIODS usable ones that are no poorer than POOR_SE_FACTOR times its median

@@ -70,32 +70,30 @@ def test_a_unit_whose_sump_is_in_degf_is_left_out_and_said(tmp_path):
     assert [u for u, _ in rejected] == ["C"] and "Gost_avg: the estimate is" in rejected[0][1]
 
 
+def _scada_folder(tmp_path, units: dict, rows: int = 6 * 144):
+    """A folder of one file per unit (unit -> the sump reading's function of the row, None for _rows' own) and the
+    `fleet DIR --columns MAP` command line (without --gearbox or --out)."""
+    import sys
+
+    data = tmp_path / "scada"
+    data.mkdir()
+    for unit, oil in units.items():
+        lines = _rows(0, rows, oil_c=oil) if oil else _rows(0, rows)
+        write(data / f"{unit}.csv", [line.replace("R1,", f"{unit},", 1) for line in lines])
+    return [sys.executable, "-m", "tools.cli", "fleet", str(data), "--columns", str(_map(tmp_path))]
+
+
 def test_fleet_columns_writes_the_fits_and_the_flags_of_a_folder(tmp_path):
     """`fleet --gearbox HR225 --columns MAP DIR --out OUT`: one row per unit, month and effect (a month needs
     MIN_BLOCKS days with rows: six days here); no flag on two units of one month (no baseline yet, and two units
     make no fleet median); an option of CAN logs is one sentence."""
     import subprocess
-    import sys
 
     from tests.tools.scada.test_replay_scada import REPO
 
     pq = pytest.importorskip("pyarrow.parquet", reason="fleet --columns writes Parquet: pip install '.[fleet]'")
-
+    cmd = [*_scada_folder(tmp_path, {"T1": None, "T2": None}), "--gearbox", "HR225"]
     data = tmp_path / "scada"
-    data.mkdir()
-    for unit in ("T1", "T2"):
-        write(data / f"{unit}.csv", [line.replace("R1,", f"{unit},", 1) for line in _rows(0, 6 * 144)])
-    cmd = [
-        sys.executable,
-        "-m",
-        "tools.cli",
-        "fleet",
-        str(data),
-        "--gearbox",
-        "HR225",
-        "--columns",
-        str(_map(tmp_path)),
-    ]
     p = subprocess.run([*cmd, "--out", str(tmp_path / "out")], cwd=REPO, capture_output=True, text=True, timeout=600)
     assert p.returncode == 0, p.stderr
     effects = pq.read_table(tmp_path / "out" / "health" / "effects.parquet").to_pylist()
@@ -217,28 +215,12 @@ def test_the_fleet_summary_counts_the_units_fitted_not_those_read(tmp_path):
     """Three units read, one left out (its sump in degF, said on stderr): the summary said "fleet: 3 units, ... 0
     flagged" on stdout, a cron log's whole fleet checked; it says the units fitted and how many were left out."""
     import subprocess
-    import sys
 
     from tests.tools.scada.test_replay_scada import REPO
 
     pytest.importorskip("pyarrow.parquet", reason="fleet --columns writes Parquet: pip install '.[fleet]'")
-    data = tmp_path / "scada"
-    data.mkdir()
-    for unit in ("T1", "T2", "T3"):
-        oil = (lambda k: (55.0 + 4.0 * math.sin(k / 7.0)) * 9.0 / 5.0 + 32.0) if unit == "T3" else None
-        rows = _rows(0, 6 * 144, oil_c=oil) if oil else _rows(0, 6 * 144)
-        write(data / f"{unit}.csv", [line.replace("R1,", f"{unit},", 1) for line in rows])
-    cmd = [
-        sys.executable,
-        "-m",
-        "tools.cli",
-        "fleet",
-        str(data),
-        "--gearbox",
-        "HR225",
-        "--columns",
-        str(_map(tmp_path)),
-    ]
+    in_degf = lambda k: (55.0 + 4.0 * math.sin(k / 7.0)) * 9.0 / 5.0 + 32.0  # noqa: E731
+    cmd = [*_scada_folder(tmp_path, {"T1": None, "T2": None, "T3": in_degf}), "--gearbox", "HR225"]
     p = subprocess.run([*cmd, "--out", str(tmp_path / "out")], cwd=REPO, capture_output=True, text=True, timeout=600)
     assert p.returncode == 0, p.stderr
     assert "left out T3" in p.stderr
@@ -251,15 +233,11 @@ def test_a_fleet_without_a_fixed_ratio_gearbox_is_one_sentence_before_any_note(t
     ("... 'BHG' is not a published component") before the sentence that the gearbox was the wrong one: the
     sentence alone now, exit 2."""
     import subprocess
-    import sys
 
     from tests.tools.scada.test_replay_scada import REPO
 
     pytest.importorskip("pyarrow.parquet", reason="fleet --columns writes Parquet: pip install '.[fleet]'")
-    data = tmp_path / "scada"
-    data.mkdir()
-    write(data / "T1.csv", [line.replace("R1,", "T1,", 1) for line in _rows(0, 144)])
-    cmd = [sys.executable, "-m", "tools.cli", "fleet", str(data), "--columns", str(_map(tmp_path))]
+    cmd = _scada_folder(tmp_path, {"T1": None}, rows=144)
     p = subprocess.run([*cmd, "--out", str(tmp_path / "out")], cwd=REPO, capture_output=True, text=True, timeout=300)
     assert p.returncode == 2, p.stderr
     assert "--gearbox a fixed-ratio description" in p.stderr and "note:" not in p.stderr, p.stderr
