@@ -9,6 +9,8 @@ cooler exponent), measured like a rig (oil + PS, LI.teeth, BLR thermocouples: la
 
 from __future__ import annotations
 
+import contextlib
+import io
 import warnings
 
 import numpy as np
@@ -58,15 +60,17 @@ def calibrated(rig_files):
     d, (tr1, tr2, te) = rig_files
     out = d / "out" / "my_gearbox.toml"
     rep = d / "out" / "report.md"
-    rc = main(
-        ["calibrate", "--train", tr1, tr2, "--test", te, "--auto", "--out", str(out), "--report", str(rep), "--quiet"]
-    )
+    printed = io.StringIO()
+    with contextlib.redirect_stdout(printed):
+        rc = main(["calibrate", "--train", tr1, tr2, "--test", te, "--auto", "--out", str(out), "--report", str(rep)])
     assert rc == 0
-    return out, rep
+    return out, rep, printed.getvalue()
 
 
 def test_calibration_holds_on_held_out_data(calibrated, params, truth):
-    out, rep = calibrated
+    out, rep, printed = calibrated
+    # the last line says where the file went (replay's and diagnose's "-> PATH")
+    assert printed.rstrip().splitlines()[-1].endswith(f"-> {out}"), printed
     cal = load_parameters(out)  # the written file is a valid parameter file
     fitted = [k for k in cal.values if cal.provenance(k) == "fitted"]
     assert "oil_system.flow_m3_per_rad" in fitted and "housing.hot_frac" in fitted

@@ -290,6 +290,8 @@ def _run_scada(args, cfg, params) -> int:
         args.out,
         calibrated_toml(parameter_path(cfg.params_path or cfg.variant), params, cal, dt.date.today().isoformat()),
     )
+    if not args.quiet:  # where the file went, on the last line as the run tables' summary and replay say it
+        print(f"held-out RMS {b:.2f} -> {a:.2f} K ({100 * (1 - a / b):.0f} % down) -> {args.out}")
     return 0
 
 

@@ -192,6 +192,8 @@ def test_calibrate_finds_a_planted_value_and_prints_the_nbm_beside_it(setup, tmp
         assert all(np.isfinite([nbm_k, informed_k])) and calibrated_k < min(nbm_k, informed_k), row
     text = (tmp_path / "cal.toml").read_text()
     assert 'src = "fitted"' in text and "f0_tapered" in text
+    # where it wrote, on the last line as replay and diagnose say it (it wrote the file and said nothing)
+    assert p.stdout.rstrip().splitlines()[-1].endswith(f"-> {tmp_path / 'cal.toml'}"), p.stdout
     # held-out records of three rows cannot test the fit: no file, exit 3 (it wrote one, exit 0, its table nan)
     short = _write_measured(tmp_path / "short.csv", test.select(np.arange(test.n) < 3))
     cmd[cmd.index("--test") + 1], cmd[-1] = str(short), str(tmp_path / "short.toml")
