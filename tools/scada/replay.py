@@ -48,6 +48,7 @@ class ScadaReplay:
     oil_mode: str
     estimated: dict  # measured channel -> the output column its estimate comes from
     notes: list  # the channels left without an estimate, and why
+    stretch: np.ndarray  # the record's gap-free stretch of each row (ScadaRecord.stretch): where a plot breaks
 
 
 def estimate_columns(record: ScadaRecord, published, parts=(), outputs=()) -> tuple[dict, list[str]]:
@@ -139,7 +140,7 @@ def replay_record(
     meta = {**out.meta, "unit": record.unit, "t0_utc_s": table.meta["t0_utc_s"], "drive": "fixed_ratio"}
     result = RunTable(cols, meta=meta, source=f"replay of {record.unit}")
     mark_for_findings(result, sensor)  # (a rotor's drive: no idle-speed rule; its own kN m rule)
-    return ScadaReplay(result, oil_mode, estimated, notes)
+    return ScadaReplay(result, oil_mode, estimated, notes, np.asarray(record.stretch))
 
 
 #: a record's findings: rows dropped by the reader beyond this share of the rows read; a channel's values rejected

@@ -332,3 +332,38 @@ def test_the_record_findings_severities_are_the_service_s():
     from tools.scada import replay
 
     assert (replay.WARNING, replay.UNTRUSTED) == (Severity.WARNING, Severity.UNTRUSTED)
+
+
+def test_the_plot_breaks_its_lines_at_a_gap_between_stretches(tmp_path, monkeypatch):
+    """A record of two stretches three days apart: every line of `replay --plot` (the power, the air, each estimate,
+    each residual) stops at the first stretch's last row and starts again at the second's first (it drew a straight
+    line across the gap, across months on a turbine's year); the dots and every row's value are still drawn."""
+    import tools.plots
+    from firmware_model.config import load_config
+    from tools.cli.gearbox_option import with_gearbox
+    from tools.scada.plot import plot_estimates
+    from tools.scada.reader import read_record
+    from tools.scada.replay import replay_record
+
+    gap_rows = 3 * 144  # three days of 10-minute rows left out
+    scada = write(tmp_path / "gap.csv", _rows(0, 36) + _rows(36 + gap_rows, 72 + gap_rows))
+    record = read_record([scada], _map(tmp_path))
+    assert record.n_stretches == 2
+    result = replay_record(record, with_gearbox(load_config(None), "HR225"))
+    figures = []
+    monkeypatch.setattr(tools.plots, "save_figure", lambda fig, path, dpi=110: figures.append(fig))
+    plot_estimates(result, tmp_path / "est.png")
+    (fig,) = figures
+    lines = [
+        ln
+        for ax in fig.axes
+        for ln in ax.get_lines()
+        if ln.get_linestyle() not in ("None", "") and len(ln.get_xdata()) > 2
+    ]
+    assert len(lines) == 2 + 2 * len(result.estimated)  # power, air; each channel's estimate and residual
+    for ln in lines:
+        x, y = (np.asarray(v, dtype=float) for v in (ln.get_xdata(), ln.get_ydata()))
+        ok = np.isfinite(x) & np.isfinite(y)
+        joined = ok[:-1] & ok[1:]  # consecutive points matplotlib joins with a segment
+        assert not np.any(joined & (np.diff(x) > 1.0)), ln.get_label()  # none across the three days
+        assert np.sum(ok) == record.n, ln.get_label()  # every row still drawn
