@@ -261,7 +261,7 @@ def _run_scada(args) -> int:
         result = replay_record(record, config, _sensor_options(args))
         findings = record_findings(record, result)
         with naming(out_tmp):
-            write_run_table(result.table, out_tmp)
+            write_run_table(result.written(), out_tmp)  # the columns the drive has
         if plot_tmp:
             from tools.scada.plot import plot_estimates
 

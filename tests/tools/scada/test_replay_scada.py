@@ -367,3 +367,36 @@ def test_the_plot_breaks_its_lines_at_a_gap_between_stretches(tmp_path, monkeypa
         joined = ok[:-1] & ok[1:]  # consecutive points matplotlib joins with a segment
         assert not np.any(joined & (np.diff(x) > 1.0)), ln.get_label()  # none across the three days
         assert np.sum(ok) == record.n, ln.get_label()  # every row still drawn
+
+
+def test_an_mm82_s_est_csv_holds_only_the_columns_its_drive_has(tmp_path):
+    """est.csv of a wind turbine (MM82, fixed ratio, an air cooler) carried a truck's columns: engine speed and
+    torque (the input speed and torque again under a vehicle's names), the gear (the description's one, on every
+    row), a vehicle speed and a retarder torque (0 on every row), a coolant (empty on every row: the drive has none)
+    and the gear's validity and reject counters (1 and 0 on every row: the gear is not an input of the drive). They
+    are left out; every column docs/real-data.md names stays."""
+    rows = [
+        row(
+            T0 + timedelta(minutes=10 * k),
+            p_kw=800.0 + 100.0 * math.sin(k / 3.0),
+            rs=14.0 + 0.5 * math.sin(k / 4.0),
+            Gost_avg=58.0 + 2.0 * math.sin(k / 5.0),
+            Yt_avg=20.0,
+        )
+        for k in range(12)
+    ]
+    scada = write(tmp_path / "mm82.csv", rows)
+    args = ["replay", str(scada), "--gearbox", "MM82", "--columns", "engie", "--out", str(tmp_path / "est.csv")]
+    p = subprocess.run(
+        [sys.executable, "-m", "tools.cli", *args], cwd=REPO, capture_output=True, text=True, timeout=300
+    )
+    assert p.returncode == 0, p.stderr
+    est = read_run_table(tmp_path / "est.csv", required=("time_s",))
+    truck = {"engine_speed_rpm", "engine_torque_nm", "gear", "vehicle_speed_kmh", "retarder_torque_nm"}
+    truck |= {"coolant_temp_c", "gear_valid", "rejects_gear_missing", "rejects_gear_unknown"}
+    assert truck & set(est.columns) == set(), est.columns
+    kept = ["time_s", "time_utc_s", "input_speed_rpm", "input_torque_nm", "ambient_temp_c", "oil_temp_c"]
+    kept += [f"{p}{ch}" for ch in ("Gost_avg", "Git_avg", "Gb1t_avg", "Gb2t_avg") for p in ("", "est_")]
+    kept += ["T_BHG_c", "W_BHG", "ttl_BHG_s", "degraded", "degraded_mode", "speed_valid", "torque_valid", "oil_valid"]
+    kept += ["oil_innovation_c", "model_oil_temp_c", "oil_inlet_temp_c", "rejects_speed_missing", "rejects_aux_missing"]
+    assert [c for c in kept if not est.has(c)] == []
