@@ -62,9 +62,9 @@ def add_subparser(sub):
         "--config",
         metavar="TOML",
         help="project configuration of the logs whose manifest row names none (variant, [can], [sensor]), and "
-        "[fleet]: estimates (write each log's 10 Hz outputs, false), period_days (the --diagnose period, 7; a "
-        "drift is flagged after 4 periods at the earliest), report (report.md and its plots, true) "
-        "(docs/interfaces.md section 8)",
+        "[fleet]: estimates (write each log's 10 Hz outputs, false), period_days (the --diagnose period, 7; with "
+        "--columns calendar months unless set; a drift is flagged after 4 periods at the earliest), report "
+        "(report.md and its plots, true) (docs/interfaces.md section 8)",
     )
     # moved to the configuration, still accepted (hidden) and overriding it: [fleet] estimates, period_days,
     # report; --vehicle-pattern is --vehicle-from
@@ -72,9 +72,10 @@ def add_subparser(sub):
         "--columns",
         metavar="NAME|FILE",
         help="LOGS are SCADA files and folders (.csv, .csv.gz) read through this column map (NAME: one shipped, "
-        "engie; FILE: your own): per unit and calendar month (--period-days N: spans of N days) the effects of a "
-        "gearbox ageing fitted with the onboard model of --gearbox, and the units that drift from the fleet "
-        "flagged (DIR/health/effects.parquet, flags.parquet; docs/real-data.md)",
+        "engie; FILE: your own): per unit and calendar month ([fleet] period_days = N in --config, or "
+        "--period-days N: spans of N days) the effects of a gearbox ageing fitted with the onboard model of "
+        "--gearbox, and the units that drift from the fleet flagged (DIR/health/effects.parquet, flags.parquet; "
+        "docs/real-data.md)",
     )
     p.add_argument("--vehicle-pattern", metavar="REGEX", help=argparse.SUPPRESS)
     for key in FLEET_KEYS:
@@ -267,8 +268,10 @@ def _run_scada(args) -> int:
     for note in notes:
         print(f"note: {note}", file=sys.stderr)
     t0 = time.perf_counter()
-    # calendar months unless --period-days is given (the [fleet] setting's default, 7, is the trucks')
-    days = float(setting(args, cfg, "fleet.period_days")) if given(args, ("fleet.period_days",)) else None
+    # calendar months unless --period-days or the file's [fleet] period_days is given (the setting's default, 7,
+    # is the trucks'; a file's value was ignored in silence)
+    chosen = given(args, ("fleet.period_days",)) or "fleet.period_days" in cfg.settings
+    days = float(setting(args, cfg, "fleet.period_days")) if chosen else None
     rejected: list = []
     with progress(len(records), "fleet", unit="unit") as bar:
         fits = fit_fleet(setup, records, days, progress=lambda: bar.update(1), rejected=rejected)

@@ -128,6 +128,33 @@ def test_fleet_columns_writes_the_fits_and_the_flags_of_a_folder(tmp_path):
     assert p.returncode == 2 and "not with --columns" in p.stderr and len(p.stderr.strip().splitlines()) == 1
 
 
+def test_fleet_columns_reads_period_days_from_the_configuration(tmp_path):
+    """`[fleet] period_days = N` in --config is the --period-days the --help and docs/interfaces.md section 8 name
+    (the option is hidden: moved to the configuration); the SCADA fleet read only the option, and a file's
+    period_days was ignored in silence (calendar months, "unit-months"). A file without the key keeps the months."""
+    import subprocess
+
+    from tests.tools.scada.test_replay_scada import REPO
+
+    pq = pytest.importorskip("pyarrow.parquet", reason="fleet --columns writes Parquet: pip install '.[fleet]'")
+    cmd = [*_scada_folder(tmp_path, {"T1": None, "T2": None}), "--gearbox", "HR225"]
+    starts = {}
+    for name, text in (("days", "[fleet]\nperiod_days = 2\n"), ("none", "[sensor]\n")):
+        (tmp_path / f"{name}.toml").write_text(text)
+        out = tmp_path / name
+        p = subprocess.run(
+            [*cmd, "--config", str(tmp_path / f"{name}.toml"), "--out", str(out)],
+            cwd=REPO,
+            capture_output=True,
+            text=True,
+        )
+        assert p.returncode == 0, p.stderr
+        effects = pq.read_table(out / "health" / "effects.parquet").to_pylist()
+        starts[name] = {r["start"] for r in effects if r["unit"] == "T1"}
+        assert ("unit-periods" if name == "days" else "unit-months") in p.stdout, p.stdout
+    assert len(starts["days"]) >= 2 and len(starts["none"]) == 1, starts
+
+
 def test_fleet_columns_without_pyarrow_is_one_sentence(tmp_path, monkeypatch, capsys):
     """Installed without the fleet extra: `fleet --columns` says what to install, in one sentence, before reading."""
     import sys
