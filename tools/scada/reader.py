@@ -3,14 +3,15 @@
 Each file is read with the csv module through its column map (:mod:`tools.scada.columns`); only the map's columns
 are converted (numpy float64, an empty cell NaN). Time stamps with a UTC offset become UTC seconds; a stamp without
 one, or one that does not parse, drops its row (``bad_time``), as does a line with the wrong number of fields
-(``bad_line``). The files of one unit are joined in time order: a row earlier than one before it in its file is
-counted (``out_of_order``) and sorted into place; a repeated time stamp keeps its first row (``duplicate_time``). A
-step longer than 1.5 periods starts a new stretch (``gap``): the record keeps the true times, no row is invented,
-and a model resets its state at each stretch's first row. The values' rules (missing, implausible, spikes,
-standstill, negative power) are :mod:`tools.scada.clean`'s.
+(``bad_line``); the first such lines of each file, and those with a value that is no number, are kept by number and
+reason (:class:`BadLines`) for the replay's note. The files of one unit are joined in time order: a row earlier than
+one before it in its file is counted (``out_of_order``) and sorted into place; a repeated time stamp keeps its first
+row (``duplicate_time``). A step longer than 1.5 periods starts a new stretch (``gap``): the record keeps the true
+times, no row is invented, and a model resets its state at each stretch's first row. The values' rules (missing,
+implausible, spikes, standstill, negative power) are :mod:`tools.scada.clean`'s.
 
-A file that is not such a SCADA file (binary, a damaged gzip, a header without the map's columns, no rows) raises
-an :class:`~firmware_model.errors.InputError` with one sentence naming the file.
+A file that is not such a SCADA file (binary, a damaged gzip, a header without the map's columns, no rows) raises an
+:class:`~firmware_model.errors.InputError` with one sentence naming the file.
 """
 
 from __future__ import annotations
@@ -32,6 +33,30 @@ from tools.scada.columns import ColumnMap, load_column_map
 
 #: a step longer than this many periods is a gap
 GAP_PERIODS = 1.5
+#: the damaged lines of a file kept by number and reason (the rest only counted)
+SHOWN_LINES = 5
+
+
+@dataclass
+class BadLines:
+    """A file's damaged lines: ``total`` lines dropped or holding a value that is no number, the first SHOWN_LINES
+    of them as (line number in the file, the header being line 1; what was wrong, in words)."""
+
+    path: Path
+    total: int = 0
+    first: list = field(default_factory=list)
+
+    def add(self, line: int, why: str) -> None:
+        self.total += 1
+        if len(self.first) < SHOWN_LINES:
+            self.first.append((line, why))
+
+    @property
+    def sentence(self) -> str:
+        """One sentence: the file, its first damaged lines and why, and how many more."""
+        more = f", and {self.total - len(self.first)} more" if self.total > len(self.first) else ""
+        lines = "; ".join(f"line {n} {why}" for n, why in self.first)
+        return f"{self.path.name}: {lines}{more}; the rest is replayed"
 
 
 @dataclass
@@ -43,13 +68,15 @@ class FileRows:
     unit: np.ndarray
     raw: dict[str, np.ndarray]
     counts: dict[str, int]
+    bad: BadLines | None = None
 
 
 @dataclass
 class ScadaRecord:
     """One unit's rows in time order. ``stretch`` numbers the gap-free stretches (0, 1, ...) row by row; ``values``
     holds every input and measured channel of the map after the rules of :mod:`tools.scada.clean` (a rejected value
-    is NaN); ``counts`` the rows or values each reason (REASONS) touched, ``by_channel`` the same per channel."""
+    is NaN); ``counts`` the rows or values each reason (REASONS) touched, ``by_channel`` the same per channel;
+    ``bad_lines`` each file's damaged lines by number (files without any left out)."""
 
     unit: str
     time_s: np.ndarray
@@ -59,6 +86,7 @@ class ScadaRecord:
     by_channel: dict[str, dict[str, int]]
     cmap: ColumnMap
     files: list[Path] = field(default_factory=list)
+    bad_lines: list[BadLines] = field(default_factory=list)
 
     @property
     def n(self) -> int:
@@ -88,6 +116,7 @@ class ScadaRecord:
             by_channel={k: dict(v) for k, v in self.by_channel.items()},
             cmap=self.cmap,
             files=list(self.files),
+            bad_lines=list(self.bad_lines),
         )
 
 
@@ -160,20 +189,27 @@ def read_file(path: str | Path, cmap: ColumnMap) -> FileRows:
         )
     idx = {c: header.index(c) for c in cmap.columns}
     value_cols = [c for c in cmap.columns if c not in (cmap.time_column, cmap.unit_column)]
-    times, units, rows = [], [], []
+    times, units, rows, bad = [], [], [], BadLines(path)
     for row in reader:
         if not row or (len(row) == 1 and not row[0].strip()):
             continue
         if len(row) != len(header):
             counts["bad_line"] += 1
+            fault = "cut short or a field missing" if len(row) < len(header) else "a separator too many"
+            bad.add(reader.line_num, f"dropped ({len(row)} of the header's {len(header)} fields: {fault})")
             continue
-        t = parse_time(row[idx[cmap.time_column]], cmap.time_kind)
+        stamp = row[idx[cmap.time_column]]
+        t = parse_time(stamp, cmap.time_kind)
         if t is None:
             counts["bad_time"] += 1
+            bad.add(reader.line_num, f"dropped (time stamp {stamp.strip()[:30]!r}: {_stamp_fault(stamp, cmap)})")
             continue
         times.append(t)
         units.append(row[idx[cmap.unit_column]].strip() if cmap.unit_column else path.stem)
         rows.append([number(row[idx[c]]) for c in value_cols])
+        if np.isinf(rows[-1]).any():  # a cell that is no number: its value left out (clean counts it implausible)
+            c = next(c for c, v in zip(value_cols, rows[-1]) if np.isinf(v))
+            bad.add(reader.line_num, f"kept without its {c} {row[idx[c]].strip()[:30]!r} (no number)")
     if not times:
         example = next((r[idx[cmap.time_column]] for r in _rows_of(path, semicolon, len(header))), "")
         plain = cmap.time_kind == "iso8601_offset" and parse_time(example + "+00:00", cmap.time_kind) is not None
@@ -190,7 +226,15 @@ def read_file(path: str | Path, cmap: ColumnMap) -> FileRows:
         unit=np.array(units, dtype=object),
         raw={c: arr[:, i] for i, c in enumerate(value_cols)},
         counts=counts,
+        bad=bad if bad.total else None,
     )
+
+
+def _stamp_fault(stamp: str, cmap: ColumnMap) -> str:
+    """Why a time stamp was not read, in words."""
+    if cmap.time_kind == "iso8601_offset" and parse_time(stamp.strip() + "+00:00", cmap.time_kind) is not None:
+        return "no UTC offset"
+    return "does not parse"
 
 
 def _rows_of(path: Path, semicolon: bool, width: int):
@@ -233,6 +277,7 @@ def _record(unit: str, parts: list[FileRows], cmap: ColumnMap) -> ScadaRecord:
         by_channel=by_channel,
         cmap=cmap,
         files=[p.path for p in parts],
+        bad_lines=[p.bad for p in parts if p.bad is not None],
     )
 
 
@@ -240,9 +285,10 @@ def _split_units(f: FileRows) -> dict[str, FileRows]:
     out = {}
     for u in dict.fromkeys(f.unit.tolist()):
         m = f.unit == u
-        first = not out  # the file's line counts go with its first unit
+        first = not out  # the file's line counts (and damaged lines) go with its first unit
         counts = dict(f.counts) if first else dict.fromkeys(REASONS, 0)
-        out[u] = FileRows(f.path, f.time_s[m], f.unit[m], {c: v[m] for c, v in f.raw.items()}, counts)
+        raw = {c: v[m] for c, v in f.raw.items()}
+        out[u] = FileRows(f.path, f.time_s[m], f.unit[m], raw, counts, f.bad if first else None)
     return out
 
 

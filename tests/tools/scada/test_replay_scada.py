@@ -327,11 +327,11 @@ def test_the_modelled_sump_starts_at_the_first_reading_of_the_first_hour_and_one
 
 
 def test_the_record_findings_severities_are_the_service_s():
-    """tools.scada imports no service module: its two severities are Severity's values, written again here."""
+    """tools.scada imports no service module: its three severities are Severity's values, written again here."""
     from firmware_model.service.degraded import Severity
     from tools.scada import replay
 
-    assert (replay.WARNING, replay.UNTRUSTED) == (Severity.WARNING, Severity.UNTRUSTED)
+    assert (replay.NOTE, replay.WARNING, replay.UNTRUSTED) == (Severity.NOTE, Severity.WARNING, Severity.UNTRUSTED)
 
 
 def test_the_plot_breaks_its_lines_at_a_gap_between_stretches(tmp_path, monkeypatch):
@@ -400,3 +400,24 @@ def test_an_mm82_s_est_csv_holds_only_the_columns_its_drive_has(tmp_path):
     kept += ["T_BHG_c", "W_BHG", "ttl_BHG_s", "degraded", "degraded_mode", "speed_valid", "torque_valid", "oil_valid"]
     kept += ["oil_innovation_c", "model_oil_temp_c", "oil_inlet_temp_c", "rejects_speed_missing", "rejects_aux_missing"]
     assert [c for c in kept if not est.has(c)] == []
+
+
+def test_each_damaged_line_is_named_with_its_file_and_line_even_when_few(tmp_path):
+    """One line cut short, one missing a field, one whose time stamp is letters and one whose power is letters, of
+    72 rows (under the 5 % that make a warning): replayed (exit 0), and one sentence on stderr names the file, the
+    first line numbers (the header is line 1) and why each was dropped or its value left out."""
+    lines = _rows(0, ROWS)
+    lines[10] = lines[10][: len(lines[10]) // 2]  # line 12: cut short mid-row
+    cells = lines[20].split(",")
+    lines[20] = ",".join(cells[:5] + cells[6:])  # line 22: a field missing
+    lines[30] = ",".join(["R1", "yesterday"] + lines[30].split(",")[2:])  # line 32: a time stamp of letters
+    lines[40] = ",".join(lines[40].split(",")[:2] + ["abc"] + lines[40].split(",")[3:])  # line 42: P_avg letters
+    scada = write(tmp_path / "a.csv", lines)
+    p = _replay(tmp_path, [scada], "--out", tmp_path / "est.csv")
+    assert p.returncode == 0, p.stderr
+    [said] = [x for x in p.stderr.splitlines() if "a.csv" in x]
+    assert said.startswith("note: a.csv: ")
+    for words in ("line 12 dropped", "line 22 dropped", "line 32 dropped", "line 42"):
+        assert words in said, said
+    assert "'yesterday'" in said and "P_avg 'abc'" in said and "of the header's 13" in said
+    assert "rows were dropped" not in p.stderr  # 3 of 72: the share's warning stays for more
