@@ -66,7 +66,8 @@ def test_a_garbage_line_in_the_middle_is_skipped_counted_and_said(tmp_path, driv
     assert table.meta["counters"]["decoder"]["frames_seen"] == len(drive) - 1
     rc, out, err = _replay(path, capsys)
     assert rc == 0, err
-    assert "\n1 malformed line skipped (line 5000)\n" in out
+    # said on stderr with the file's name, not among the summary's lines
+    assert "\nnote: one.log: 1 malformed line skipped (line 5000)\n" in "\n" + err and "malformed" not in out
 
 
 def test_a_truncated_last_line_alone_is_counted_not_untrusted(tmp_path, drive, capsys):
@@ -75,7 +76,7 @@ def test_a_truncated_last_line_alone_is_counted_not_untrusted(tmp_path, drive, c
     assert table.meta["counters"]["decoder"]["frames_seen"] == len(drive) - 1
     rc, out, err = _replay(path, capsys)
     assert rc == 0, err
-    assert f"1 malformed line skipped (line {len(drive)}, the last, cut short" in out
+    assert f"note: cut.log: 1 malformed line skipped (line {len(drive)}, the last, cut short" in err
     rc, out, err = _replay(path, capsys, "--strict")
     assert rc == 2 and err.count("\n") == 1
     assert f"the log ends in the middle of a line (line {len(drive)}:" in err
@@ -90,8 +91,8 @@ def test_more_than_one_percent_garbage_is_untrusted(tmp_path, drive, capsys):
     rc, out, err = _replay(path, capsys)
     assert rc == 3
     assert (
-        f"warning: {n_bad} malformed lines skipped (lines 8, 58, 108, 158, 208 and {n_bad - 5} more; the last "
-        f"one cut short" in err
+        f"warning: many.log: {n_bad} malformed lines skipped (lines 8, 58, 108, 158, 208 and {n_bad - 5} more; "
+        f"the last one cut short" in err
     )
     assert f"of the log's {len(drive)} lines, more than 1 %" in err
     rc, out, err = _replay(path, capsys, "--allow-untrusted")
@@ -150,7 +151,8 @@ def test_a_cut_blf_keeps_its_frames_and_says_so(tmp_path, drive, capsys):
     assert scan_log(cut).note.startswith("the BLF log is shorter than its header records")
     rc, out, err = _replay(str(cut), capsys)
     assert rc in (0, 3), err
-    assert "the BLF log is shorter than its header records" in out and "the frames before the cut were replayed" in out
+    assert "cut.blf: the BLF log is shorter than its header records" in err
+    assert "the frames before the cut were replayed" in err
     rc, out, err = _replay(str(cut), capsys, "--strict")
     assert rc == 2 and err.count("\n") == 1 and "shorter than its header records" in err
 
@@ -168,7 +170,7 @@ def test_a_real_capture_with_a_garbage_line_and_a_cut_last_line(tmp_path, capsys
     assert f.skipped == 2 and f.first == (len(lines) // 2 + 1, len(lines))
     rc, out, err = _replay(path, capsys, "--allow-untrusted")
     assert rc == 0
-    assert f"2 malformed lines skipped (lines {len(lines) // 2 + 1}, {len(lines)}; the last one cut short" in out
+    assert f"normal.log: 2 malformed lines skipped (lines {len(lines) // 2 + 1}, {len(lines)}; the last one cut" in err
 
 
 def test_a_log_with_no_frame_at_all_is_one_sentence_without_the_strict_hint(tmp_path, capsys):

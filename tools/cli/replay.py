@@ -9,6 +9,7 @@ tools/replay/log.py, so a log replays bit-identically to a live run. An option o
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import sys
 from pathlib import Path
 
@@ -357,9 +358,6 @@ def _run_log(args, path: Path) -> int:
             f"replayed {d['frames_seen']} frames ({d['frames_used']} used; rejected: {rejected}) -> "
             f"{table.n} steps of {table['time_s'][-1]:.1f} s -> {Path(args.out)}"
         )
-        malformed = table.meta.get("malformed")
-        if malformed is not None:
-            print(malformed.summary)
         for line in _time_notes(result):
             print(line)
         if table.n:
@@ -368,4 +366,15 @@ def _run_log(args, path: Path) -> int:
             oil_mode = args.oil_mode or _config(args).sensor.get("oil_mode", "measured")
             for line in summary_lines(table, oil_model=oil_mode == "model", gearbox=gearbox):
                 print(line)
-    return _report_trust(args, result.findings)
+    return _report_trust(args, _with_log_name(result.findings, table.meta.get("malformed"), path.name))
+
+
+def _with_log_name(findings, malformed, name: str) -> list:
+    """The findings with the log's skipped lines named after its file: among them when they make the outputs
+    untrusted (a warning), else added as a note (stderr, like the other notes)."""
+    if malformed is None:
+        return list(findings)
+    named = dataclasses.replace(malformed, name=name)
+    if any(f is malformed for f in findings):
+        return [named if f is malformed else f for f in findings]
+    return [*findings, named]

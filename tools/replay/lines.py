@@ -255,6 +255,7 @@ class MalformedLinesFinding:
     cut_last: bool
     broken: tuple = ()
     note: str = ""
+    name: str = ""  # the log's file name, put before the sentence where the file is not otherwise named
 
     @property
     def share(self) -> float:
@@ -268,14 +269,15 @@ class MalformedLinesFinding:
 
     @property
     def summary(self) -> str:
-        """One sentence: how many lines were skipped and the first line numbers."""
+        """One sentence: how many lines were skipped and the first line numbers (after the file's ``name``, if set)."""
+        named = f"{self.name}: " if self.name else ""
         if self.note:
-            return f"{self.note}: the frames before the cut were replayed"
+            return f"{named}{self.note}: the frames before the cut were replayed"
         cut = "; the last one cut short, as by a logger stopped mid-write" if self.cut_last else ""
         if self.cut_last and self.skipped == 1:
             cut = ", the last, cut short as by a logger stopped mid-write"
         return (
-            f"{self.skipped} malformed line{'s' if self.skipped > 1 else ''} skipped "
+            f"{named}{self.skipped} malformed line{'s' if self.skipped > 1 else ''} skipped "
             f"({_numbers(self.first, self.skipped)}{cut})"
         )
 
