@@ -277,7 +277,7 @@ def parse_numeric_csv(path: Path, names: list[str]) -> np.ndarray | None:
 
 
 def parse_careful(path: Path, names: list[str], name: str) -> np.ndarray:
-    """csv module, cell by cell: slower, but names the first bad row and cell precisely."""
+    """csv module, cell by cell: slower, but names the first bad row (and its line in the file) and cell precisely."""
     ncol = len(names)
     rows: list[list[float]] = []
     try:
@@ -293,11 +293,10 @@ def parse_careful(path: Path, names: list[str], name: str) -> np.ndarray:
                 if not cells or all(not c.strip() for c in cells) and len(cells) <= 1:
                     continue  # blank line
                 row_no += 1
+                where = f"row {row_no} (line {reader.line_num + 1})"  # the data row, and the file's line (header: 1)
                 if len(cells) != ncol:
                     hint = " (a decimal comma? run tables use '.' as the decimal point)" if len(cells) > ncol else ""
-                    raise InputError(
-                        f"{name}: row {row_no} has {len(cells)} cells but the header has {ncol} columns{hint}"
-                    )
+                    raise InputError(f"{name}: {where} has {len(cells)} cells but the header has {ncol} columns{hint}")
                 vals = []
                 for j, c in enumerate(cells):
                     s = c.strip()
@@ -310,7 +309,7 @@ def parse_careful(path: Path, names: list[str], name: str) -> np.ndarray:
                         vals.append(float(s))
                     except ValueError:
                         raise InputError(
-                            f'{name}: column "{names[j]}" row {row_no}: {s!r} is not a number '
+                            f'{name}: column "{names[j]}" {where}: {s!r} is not a number '
                             f"(cells hold a number with '.' as the decimal point, or are empty "
                             f"when missing){scada_hint(path)}"
                         ) from None

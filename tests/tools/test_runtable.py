@@ -220,12 +220,12 @@ def test_non_numeric_cell_in_extra_column(tmp_path):
 def test_decimal_comma_gives_a_hint(tmp_path):
     p = write_text(tmp_path, HEADER + "\n0,1300,2,3\n0,5,1300,2,3\n")
     msg = error_of(p)
-    assert "row 2 has 5 cells but the header has 4 columns" in msg and "decimal" in msg
+    assert "row 2 (line 3) has 5 cells but the header has 4 columns" in msg and "decimal" in msg
 
 
 def test_missing_cells_in_a_row(tmp_path):
     p = write_text(tmp_path, HEADER + "\n0,1300,2,3\n1,1300\n")
-    assert "row 2 has 2 cells but the header has 4 columns" in error_of(p)
+    assert "row 2 (line 3) has 2 cells but the header has 4 columns" in error_of(p)
 
 
 def test_file_not_found(tmp_path):
@@ -405,3 +405,19 @@ def test_a_known_column_written_otherwise_is_refused_not_ignored(tmp_path, colum
         "time_s,engine_speed_rpm,engine_torque_nm,gear,oil_temp_c,meas_T_PS_c,T_PS_c,note\n0,1,2,9,80,81,82,3\n"
     )
     assert read_run_table(path).has("meas_T_PS_c")
+
+
+@pytest.mark.parametrize(
+    "bad, words",
+    [
+        ("0.3,1300", "row 3 (line 5) has 2 cells but the header has 4 columns"),  # cut short
+        ("0.3,1300,5", "row 3 (line 5) has 3 cells"),  # a field missing
+        ("0.3,1300,abc,4", "column \"engine_torque_nm\" row 3 (line 5): 'abc' is not a number"),
+    ],
+)
+def test_a_damaged_row_is_named_with_its_line_in_the_file(tmp_path, bad, words):
+    """The data row and the file's line (the header line 1, a blank line skipped but counted): an editor's line."""
+    rows = good_rows(6)
+    text = HEADER + "\n" + rows[0] + "\n\n" + rows[1] + "\n" + bad + "\n" + "\n".join(rows[3:]) + "\n"
+    msg = error_of(write_text(tmp_path, text))
+    assert "run.csv: " in msg and words in msg, msg
