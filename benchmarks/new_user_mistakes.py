@@ -5,8 +5,7 @@ Makes fresh copies of the bundled drive (the demo's synthetic uphill drive, 2 h)
 of its CAN log and of a real truck capture (when found: ``--captures DIR`` or ``$GVS_REAL_J1939``), spoils each
 copy in one way (degF or kelvin oil, negative torque, torque in percent, speed in rad/s, time_s in minutes, a
 garbage line, a truncated last line), replays it with ``gearbox-vsensor replay`` and prints a Markdown table: the
-exit status and the first sentence said about the mistake. None may exit 0 with wrong numbers (one still does: the
-12 min table in minutes, too short for the oil-rate rule; docs/can.md says so).
+exit status and the first sentence said about the mistake. None may exit 0 with wrong numbers.
 
     python benchmarks/new_user_mistakes.py [--captures DIR] [--keep DIR]
 """

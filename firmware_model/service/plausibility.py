@@ -35,7 +35,8 @@ OIL_MAX_RATE_C_PER_MIN, OIL_RATE_WINDOW_S = 16.0, 300.0
 #: OIL_FAST_K_S over OIL_FAST_WINDOW_S (or 3 rows, if further apart) [K/s, s]; the fastest honest change of the
 #: shipped gearboxes' plants is 0.45 K/s (the GRSO905 at 272 kW from a 20 degC sump; the fixed-ratio ones below
 #: 0.03 K/s), while a truck's drive one row a minute read as seconds rises 2.2-2.8 K/s. Found when the oil is that
-#: fast over at least OIL_FAST_WINDOWS windows' worth of the record and gradually (no one row carries more than
+#: fast over at least OIL_FAST_WINDOWS windows' worth of the record (a shorter record, of at least one window:
+#: over all of it, as a 12-minute drive stored in minutes is) and gradually (no one row carries more than
 #: OIL_FAST_STEP_SHARE of a window's change: a sensor reconnecting steps once)
 OIL_FAST_K_S, OIL_FAST_WINDOW_S, OIL_FAST_WINDOWS, OIL_FAST_STEP_SHARE = 1.0, 10.0, 2, 0.5
 #: ... each window judged on a grid of this many bins (a row's step is looked for within the bins)
@@ -343,11 +344,13 @@ def oil_rate_finding(time_s, oil, source: str = "table") -> PlausibilityFinding 
     t, x = _finite(time_s), _finite(oil)
     ok = np.isfinite(t) & np.isfinite(x)
     t, x = t[ok], x[ok]
-    if t.size < 2 * OIL_FAST_BINS or not np.all(np.diff(t) > 0):
+    if t.size < 4 or not np.all(np.diff(t) > 0):  # (a window holds at least 3 rows' steps)
         return None
     window_s = max(OIL_FAST_WINDOW_S, 3.0 * float(np.median(np.diff(t))))
     ends, fast, covered_s = _fast_windows(t, x, window_s)
-    if covered_s < OIL_FAST_WINDOWS * window_s:
+    # two windows' worth, or all of a record shorter than that (on the windows' grid)
+    bin_s = window_s / OIL_FAST_BINS
+    if not fast.any() or covered_s < min(OIL_FAST_WINDOWS * window_s, bin_s * int((t[-1] - t[0]) / bin_s)):
         return None
     i0, i1 = ends[:, fast][:, np.argmax(np.abs(x[ends[1]] - x[ends[0]])[fast] / (t[ends[1]] - t[ends[0]])[fast])]
     rate = abs(x[i1] - x[i0]) / (t[i1] - t[i0])

@@ -232,6 +232,18 @@ def test_an_oil_faster_than_any_sump_is_found_over_its_time_column():
     assert oil_rate_finding(np.r_[t, 15.0 + np.arange(300.0)], np.r_[oil, np.full(300, oil[-1])]) is None
 
 
+def test_a_record_shorter_than_two_windows_is_judged_when_fast_over_all_of_it():
+    """A 12-minute drive with time_s in minutes is 12 s long: fast over the whole of it (13 rows or 721), found;
+    the fastest honest rise, a record shorter than one window, or a fast start that then stops, not."""
+    for dt_s in (1.0, 1.0 / 60.0):
+        f = oil_rate_finding(*_ramp(2.0, 12.0 + dt_s / 2, dt_s=dt_s))
+        assert f is not None and "faster than 1 K/s over 12 s of the record" in f.sentence, dt_s
+    assert oil_rate_finding(*_ramp(0.45, 12.5)) is None
+    assert oil_rate_finding(*_ramp(2.5, 9.5)) is None  # 9 s: no window of 10 s to judge
+    t, oil = _ramp(2.5, 18.5)
+    assert oil_rate_finding(t, np.minimum(oil, oil[6])) is None  # fast for 6 s, then flat: not all of it
+
+
 def test_record_findings_judge_the_oils_rate_only_with_a_time_column():
     t, oil = _ramp(2.5, 30.0)
     assert [f.column for f in record_findings({"time_s": t, "oil_temp_c": oil})] == ["time_s"]

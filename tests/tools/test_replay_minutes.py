@@ -45,3 +45,28 @@ def test_the_same_drive_in_seconds_has_no_such_finding(tables, capsys, name):
     rc = main(["replay", str(tables / name), "--out", str(tables / "e.csv")])
     err = capsys.readouterr().err
     assert "where a gearbox sump" not in err and rc == 0, err
+
+
+@pytest.mark.parametrize("every_s", [60, 1])
+def test_a_12_minute_table_in_minutes_is_found_too(tables, capsys, every_s):
+    """The drive's first 12 minutes with time_s in minutes (one row a minute: 0..12, 13 rows; or every second's row:
+    0..12 in steps of 1/60): 12 s of time_s hold less than two windows, so the whole record must be that fast."""
+    s1 = read_run_table(tables / "s1.csv")
+    rows = {c: np.asarray(s1[c], dtype=float)[: 12 * 60 + 1 : every_s] for c in INPUTS}
+    path = tables / f"short_minutes_{every_s}.csv"
+    write_run_table(RunTable({**rows, "time_s": rows["time_s"] / 60.0}), path)
+    rc = main(["replay", str(path), "--out", str(tables / "e.csv")])
+    err = capsys.readouterr().err
+    assert rc == 3, err
+    assert "if time_s is in minutes, give seconds (time_s x 60)" in err
+
+
+@pytest.mark.parametrize("seconds", [12, 15, 25])
+def test_the_first_seconds_of_the_drive_have_no_such_finding(tables, capsys, seconds):
+    """Honest short tables (the drive's first 12-25 s, one row a second) are not judged faster than a sump."""
+    s1 = read_run_table(tables / "s1.csv")
+    path = tables / f"first_{seconds}.csv"
+    write_run_table(RunTable({c: np.asarray(s1[c], dtype=float)[: seconds + 1] for c in INPUTS}), path)
+    rc = main(["replay", str(path), "--out", str(tables / "e.csv")])
+    err = capsys.readouterr().err
+    assert "where a gearbox sump" not in err and rc == 0, err
