@@ -43,8 +43,8 @@ from firmware_model.physics.losses import ADDENDUM_COEF, DEDENDUM_COEF
 from firmware_model.physics.oil import T_MAX_C, T_MIN_C
 
 #: units a description may use: the parameter files' and volume flows (a motor-driven pump)
-DESC_UNITS = {**UNITS, "L/min": ("m3/s", 1e-3 / 60.0), "m3/s": ("m3/s", 1.0)}
-DESC_DIM_NAMES = {**DIM_NAMES, "m3/s": "a volume flow"}
+DESC_UNITS = {**UNITS, "L/min": ("m3/s", 1e-3 / 60.0), "m3/s": ("m3/s", 1.0), "K": ("K", 1.0)}
+DESC_DIM_NAMES = {**DIM_NAMES, "m3/s": "a volume flow", "K": "a temperature difference"}
 #: the unit of each SI dimension whose factor is 1 (a parameter set's SI value written as an entry, unchanged)
 SI_UNIT = {}
 for _u, (_dim, _fac) in DESC_UNITS.items():
@@ -191,6 +191,8 @@ SINGLE_SPECS = {
         "thermostat_full": _n("degC", False, "any"),
         "thermostat_senses": _t,
         "heater": _n("W", False, "0+"),
+        "heater_set": _n("degC", False, "any"),
+        "heater_band": _n("K", False),
         "inside_area": _n("m2", False),
         "flow_share": ("table", False, "1", "0+"),
     },
@@ -344,6 +346,8 @@ class OilSystem:
     inside_area_m2: float | None = None  # the housings' inside area, shared by their internal_split
     flow_share: dict = field(default_factory=dict)  # shaft (its bore), bearing or planetary set -> share of the flow
     thermostat_senses: str = "return"  # where the thermostat reads the oil (THERMOSTAT_SENSES)
+    heater_set_c: float | None = None  # the sump heater is off above it [degC]
+    heater_band_k: float | None = None  # ... and at full power below heater_set - heater_band [K]
 
 
 @dataclass(frozen=True)
@@ -983,6 +987,7 @@ def _oil(r: _Reader, topo: dict, shafts: dict, nodes: set) -> OilSystem:
         r.fail(f"{key}.thermostat_senses", f"= {senses!r} must be one of {', '.join(THERMOSTAT_SENSES)}")
     elif f["thermostat_senses"] is not None and t_open is None:
         r.fail(f"{key}.thermostat_senses", "is given, but there is no thermostat (thermostat_open, thermostat_full)")
+    _check_heater(r, key, f)
     return OilSystem(
         f["lubrication"],
         f["volume"],
@@ -999,7 +1004,21 @@ def _oil(r: _Reader, topo: dict, shafts: dict, nodes: set) -> OilSystem:
         f["inside_area"],
         f["flow_share"] or {},
         senses,
+        f["heater_set"],
+        f["heater_band"],
     )
+
+
+def _check_heater(r: _Reader, key: str, f: dict) -> None:
+    """A heater (power above 0) says the sump temperature it holds and its band; neither without one."""
+    if (f["heater"] or 0.0) > 0.0:
+        for k, what in (("heater_set", "the sump temperature it holds"), ("heater_band", "its band below it")):
+            if f[k] is None:
+                r.fail(f"{key}.{k}", f"is needed: the heater (heater = {f['heater'] / 1e3:g} kW) needs {what}")
+    else:
+        for k in ("heater_set", "heater_band"):
+            if f[k] is not None:
+                r.fail(f"{key}.{k}", "is given, but there is no heater (heater = 0 or left out)")
 
 
 def _check_oil_fits(r: _Reader, oil: OilSystem, housings: tuple) -> None:

@@ -33,7 +33,7 @@ from firmware_model.onboard.kernel_interface import (
 from firmware_model.physics import heat_transfer as ht
 from firmware_model.physics import losses as L
 from firmware_model.physics.conductance_matrix import link_topology
-from firmware_model.physics.cooler import COOLER_KINDS, cooler_params, oil_cooler_heat
+from firmware_model.physics.cooler import COOLER_KINDS, cooler_params, heater_heat_w, oil_cooler_heat
 from firmware_model.physics.heat_lag import heat_lag
 from firmware_model.units import KELVIN_OFFSET_K, RPM_PER_RAD_S, SIGMA_W_PER_M2K4
 
@@ -568,13 +568,15 @@ def cooler_heat(
     the oil flow flow_per_drive x ``drive`` (:func:`pump_drive`: the layshaft speed of the GRS905's pump) and a
     missing vehicle speed (or any, for a drive that has none) taken as rp.default_v_kmh; the inner flow over the data
     sheet's: a shaft pump's speed over the reference speed, a motor pump's 1 (it runs at its own flow, as the
-    plant's); ``effectiveness_scale``: the effect cooler_effectiveness_scale. C: cooler_op and cooler_heat."""
+    plant's); ``effectiveness_scale``: the effect cooler_effectiveness_scale. The sump heater's heat
+    (:func:`firmware_model.physics.cooler.heater_heat_w`) is taken off: the heat the sump gives the oil system,
+    net. C: cooler_op, cooler_heat and heater_heat."""
     drive = np.asarray(drive, dtype=float)
     mcp_w_per_k = rho_cp_j_per_m3k * flow_per_drive(rp) * drive
+    c = rp.helpers.cooler
     if rp.cooler_code == 0:
         z = np.zeros(np.broadcast(T_oil_c, drive).shape)
-        return z, mcp_w_per_k, z
-    c = rp.helpers.cooler
+        return z - heater_heat_w(c, T_oil_c), mcp_w_per_k, z
     Q_w, hA_w_per_k = oil_cooler_heat(
         c,
         COOLER_KINDS[rp.cooler_code],
@@ -590,4 +592,4 @@ def cooler_heat(
         effectiveness_scale,
         thermostat_offset_c,
     )
-    return Q_w, mcp_w_per_k, hA_w_per_k
+    return Q_w - heater_heat_w(c, T_oil_c), mcp_w_per_k, hA_w_per_k

@@ -30,7 +30,7 @@ from firmware_model.onboard.records import (
 )
 from firmware_model.onboard.step_cache import StepCache
 from firmware_model.physics.conductance_matrix import conductance_matrix
-from firmware_model.physics.cooler import inlet_drop_k
+from firmware_model.physics.cooler import heater_heat_w, heater_slope_w_per_k, inlet_drop_k
 from firmware_model.physics.kinematics import GEAR_MIN
 from firmware_model.units import RAD_S_PER_RPM
 
@@ -73,13 +73,14 @@ def linear_system(
 def cooler_slope_w_per_k(
     sp: SensorParams, T_oil_c: float, omega_in_rad_s: float, row: int, used, rho_cp_j_per_m3k: float, vehicle=None
 ) -> float:
-    """dQ_cooler/dT_oil [W/K] at this operating point (liquid: its hA unless saturated; air: a finite difference),
-    from firmware_model.onboard.evaluate.cooler_heat; ``used``: the step's inputs (INPUT_FIELDS order); ``vehicle``:
-    the batch index whose effects apply (None: the first vehicle's)."""
+    """dQ_cooler/dT_oil [W/K] at this operating point, the sump heater's taken off (liquid: its hA unless saturated;
+    air: a finite difference; no cooler or drive: the heater's alone), from
+    firmware_model.onboard.evaluate.cooler_heat; ``used``: the step's inputs (INPUT_FIELDS order); ``vehicle``: the
+    batch index whose effects apply (None: the first vehicle's). C: cooler_slope."""
     rp = sp.reduced
     drive = E.pump_drive(rp, row, omega_in_rad_s)
     if rp.cooler_code == E.COOLER_CODES["none"] or drive <= 0.0:
-        return 0.0
+        return heater_slope_w_per_k(rp.helpers.cooler, T_oil_c)
     args = (
         drive,
         omega_in_rad_s,
@@ -93,7 +94,10 @@ def cooler_slope_w_per_k(
     if rp.cooler_code == E.COOLER_CODES["liquid"]:
         Q, _, hA = E.cooler_heat(rp, T_oil_c, *args)
         c = rp.cooler
-        return float(hA) if -c["liquid_Qmax_heat"] < float(Q) < c["liquid_Qmax_cool"] else 0.0
+        # Q is net of the heater: the liquid cooler's own heat decides its saturation
+        Q_cooler = float(Q) + heater_heat_w(rp.helpers.cooler, T_oil_c)
+        slope = float(hA) if -c["liquid_Qmax_heat"] < Q_cooler < c["liquid_Qmax_cool"] else 0.0
+        return slope + heater_slope_w_per_k(rp.helpers.cooler, T_oil_c)
     Q_hi_w, _, _ = E.cooler_heat(rp, T_oil_c + 0.05, *args)
     Q_lo_w, _, _ = E.cooler_heat(rp, T_oil_c - 0.05, *args)
     return max(float((Q_hi_w - Q_lo_w) / 0.1), 0.0)

@@ -99,7 +99,13 @@ from firmware_model.parameters import Parameters
 from firmware_model.physics import heat_transfer as ht
 from firmware_model.physics import losses as L
 from firmware_model.physics import oil as oilprops
-from firmware_model.physics.cooler import AIR_RECIRC_V_KMH, COOLER_KEYS, DEFAULT_VEHICLE_SPEED_KMH, cooler_values
+from firmware_model.physics.cooler import (
+    AIR_RECIRC_V_KMH,
+    COOLER_KEYS,
+    DEFAULT_VEHICLE_SPEED_KMH,
+    cooler_values,
+    heater_values,
+)
 from firmware_model.physics.drivetrain import kinematics_of, speed_names
 from firmware_model.physics.gearbox_losses import ROLL_POINTS, GearboxLosses
 from firmware_model.physics.kinematics import GEAR_MIN, MESHES, N_GEARS
@@ -776,7 +782,7 @@ def _surroundings_fields(p: Parameters, net: Network) -> dict:
     d, bcs = net.geometry.description, onboard_boundaries(net)
     return dict(
         cooler_code=COOLER_CODES.get(kind, 0),
-        cooler=cooler_values(p) if COOLER_CODES.get(kind, 0) else {k: 0.0 for k in COOLER_KEYS},
+        cooler=cooler_values(p) if COOLER_CODES.get(kind, 0) else {**{k: 0.0 for k in COOLER_KEYS}, **heater_values(p)},
         flow_m3_per_rad=_pump_flow_m3_per_rad(d),
         pump_code=_pump_code(d),
         pump_flow_m3_s=_motor_pump_flow_m3_s(d),

@@ -117,6 +117,11 @@ def max_conductances(rp: ReducedParams) -> dict:
             CATALOG["cooler_effectiveness_scale"].high,
             motor_pump=rp.pump_code == PUMP_CODES["motor"],
         )
+    # the sump heater: Q = heater_w x (heater_set - T) / band on its band, a conductance of heater_w / band to a
+    # temperature, taken into the cooler's bound (the net heat's slope; physics.cooler.heater_slope_w_per_k)
+    c = cooler_params(rp.cooler)
+    if c.heater_w > 0.0:
+        hA += c.heater_w / c.heater_band_k
     return {"G": G, "cooler_hA": float(hA)}
 
 

@@ -59,7 +59,7 @@ from firmware_model.onboard.time_to_limit import (
     oil_flow_m3_s,
     time_to_limit,
 )
-from firmware_model.physics.cooler import INLET_DROP_MAX_K
+from firmware_model.physics.cooler import INLET_DROP_MAX_K, heater_heat_w
 
 
 class Segments(NamedTuple):
@@ -300,11 +300,12 @@ def _steady_sump_c(system: HeldSystem, i_oil: int) -> float:
 
 
 def cooler_heat_w(sp: SensorParams, p: TtlPoint, T_c: float, vehicle=None) -> float:
-    """The cooler's heat [W] at sump T with the point's inputs (0 without a cooler or its drive)."""
+    """The cooler's heat [W] at sump T with the point's inputs, net of the sump heater's (without a cooler or its
+    drive: the heater's alone, negative). C: bound_cooler_heat."""
     rp = sp.reduced
     drive = float(E.pump_drive(rp, p.row, p.omega_in_rad_s))
     if rp.cooler_code == E.COOLER_CODES["none"] or drive <= 0.0:
-        return 0.0
+        return -float(heater_heat_w(rp.helpers.cooler, T_c))
     Q_w, _, _ = E.cooler_heat(
         rp,
         T_c,

@@ -48,7 +48,13 @@ COOLER_KEYS = (
     "exp_outer",
     "air_flow_min_frac",
     "thermostat_sump",
+    "heater_w",
+    "heater_set",
+    "heater_band",
 )
+#: CoolerParams fields a stored copy may lack (it was stored before they existed) and what they then are: the
+#: thermostat at the return (Eq 82), no heater
+COOLER_LATER_KEYS = {"thermostat_sump": 0.0, "heater_w": 0.0, "heater_set": 0.0, "heater_band": 1.0}
 
 
 class CoolerParams(NamedTuple):
@@ -67,6 +73,9 @@ class CoolerParams(NamedTuple):
     exp_outer: float
     air_flow_min_frac: float  # air outer flow at standstill (fan) relative to the reference
     thermostat_sump: float = 0.0  # 1: the thermostat reads the sump (before the cooler); 0: the return (Eq 82)
+    heater_w: float = 0.0  # the sump heater's power (0: none)
+    heater_set_c: float = 0.0  # it is off above this sump temperature ...
+    heater_band_k: float = 1.0  # ... and at full power below heater_set - heater_band
 
 
 class CoolerHeat(NamedTuple):
@@ -77,19 +86,53 @@ class CoolerHeat(NamedTuple):
 def cooler_values(p) -> dict:
     """{name: SI value} of the cooler parameters (COOLER_KEYS) of a parameter set. A gearbox's file may leave out the
     keys of a cooler it does not have (MM82: the liquid cooler's, the layshaft and engine reference speeds; HR225:
-    all): those are NaN, and a model that reads one gives NaN, never a silent number. ``thermostat_sump`` is no
-    parameter: 1.0 where the gearbox's description has its thermostat read the sump (``thermostat_senses``), else 0."""
+    all): those are NaN, and a model that reads one gives NaN, never a silent number. ``thermostat_sump`` and the
+    heater's are the description's (``topology.oil``): 1.0 where its thermostat reads the sump
+    (``thermostat_senses``), else 0; the heater's power, set point and band (none: 0 W)."""
     from firmware_model.description import description_of
 
-    out = {k: p.values.get(f"cooler.{k}", math.nan) for k in COOLER_KEYS if k != "thermostat_sump"}
-    out["thermostat_sump"] = 1.0 if description_of(p).oil.thermostat_senses == "sump" else 0.0
-    return out
+    oil = description_of(p).oil
+    out = {k: p.values.get(f"cooler.{k}", math.nan) for k in COOLER_KEYS if k not in COOLER_LATER_KEYS}
+    out["thermostat_sump"] = 1.0 if oil.thermostat_senses == "sump" else 0.0
+    return {**out, **heater_values(p)}
+
+
+def heater_values(p) -> dict:
+    """The sump heater's CoolerParams values of a parameter set's description (``topology.oil.heater``,
+    ``heater_set``, ``heater_band``; none: 0 W), whatever the cooler."""
+    from firmware_model.description import description_of
+
+    oil = description_of(p).oil
+    if not oil.heater_w > 0.0:
+        return {"heater_w": 0.0, "heater_set": 0.0, "heater_band": 1.0}
+    return {"heater_w": oil.heater_w, "heater_set": oil.heater_set_c, "heater_band": oil.heater_band_k}
 
 
 def cooler_params(values: dict) -> CoolerParams:
     """CoolerParams from {name: SI value} (cooler_values, or the onboard model's stored copy; a copy stored before
-    ``thermostat_sump`` existed reads the return, Eq 82)."""
-    return CoolerParams(*(values[k] if k != "thermostat_sump" else values.get(k, 0.0) for k in COOLER_KEYS))
+    a key of COOLER_LATER_KEYS existed takes its value there)."""
+    return CoolerParams(*(values[k] if k in values else COOLER_LATER_KEYS[k] for k in COOLER_KEYS))
+
+
+def heater_heat_w(c: CoolerParams, T_oil_c):
+    """Heat of the sump heater into the oil [W]: its full power at or below heater_set - heater_band, none at or
+    above heater_set, linear between (a thermostat's on/off cycles over its hysteresis, averaged over them). The
+    heater heats the sump whether the pump runs or not; as a cooler's heat it is monotone in the sump temperature
+    (here falling), so the sump's heat balance stays a contraction (docs/sensor.md, "Stability proof")."""
+    if not c.heater_w > 0.0:
+        return 0.0 * np.asarray(T_oil_c, dtype=float) if np.ndim(T_oil_c) else 0.0
+    x = (c.heater_set_c - np.asarray(T_oil_c, dtype=float)) / c.heater_band_k
+    on = np.clip(x, 0.0, 1.0)
+    return c.heater_w * (on if np.ndim(on) else float(on))
+
+
+def heater_slope_w_per_k(c: CoolerParams, T_oil_c) -> float:
+    """d(-heater heat)/dT_oil [W/K] at the sump temperature: heater_w / heater_band inside the band, else 0 (the
+    net cooler's slope is the cooler's plus this)."""
+    if not c.heater_w > 0.0:
+        return 0.0
+    x = (c.heater_set_c - float(T_oil_c)) / c.heater_band_k
+    return c.heater_w / c.heater_band_k if 0.0 < x < 1.0 else 0.0
 
 
 # --- Eq 82-83 ----------------------------------------------------------------------------------------------

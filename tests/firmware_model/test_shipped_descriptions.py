@@ -66,7 +66,10 @@ def test_mm82_publishes_what_its_scada_measures():
     d = load_description("MM82")
     assert d.oil.lubrication == "forced" and d.oil.pump_shaft is None and d.oil.cooler == "air"
     # the band the shared turbines' sump is held in (calibrated on their SCADA, MM82.toml)
-    assert (d.oil.thermostat_open_c, d.oil.thermostat_full_c) == (56.6, 60.0)
+    assert (d.oil.thermostat_open_c, d.oil.thermostat_full_c) == (57.1, 60.0)
+    # the housings shed their heat to the nacelle air the run table gives; a heater holds a cold sump
+    assert all(h.faces[0] == "ambient" for h in d.housings)
+    assert (d.oil.heater_w, d.oil.heater_set_c, d.oil.heater_band_k) == (3000.0, 22.3, 5.0)
     first = [c.id for c in d.published][:4]
     assert first == ["oil", OIL_INLET, "BHG", "BHR"]  # sump, inlet, Gb1t, Gb2t
     assert {c.group for c in d.published[:2]} == {"oil"} and {c.group for c in d.published[2:4]} == {"bearing"}

@@ -82,7 +82,10 @@ def test_hours_of_varying_load_give_finite_temperatures_and_closed_books(name):
     bc = {b: lo + (hi - lo) * (0.5 + 0.5 * np.sin(2 * np.pi * t / 86400.0)) for b, (lo, hi) in bcs.items()}
     res = ReferencePlant(load_parameters(name), dt_s=PLANT_DT_S).run(_table(name, t, rpm, torque, bc), out_dt_s=60.0)
     _check_books(res)
-    assert np.all(np.diff(np.asarray(res.table["T_oil_c"])[:60]) >= -1e-9)  # a cold start under load warms
+    # a cold start under load warms: steadily over the first half hour, and by kelvins over the hour (the housings
+    # face the run's air: the MM82's sump reaches its plateau for the load near the hour, where the load falls)
+    T_oil = np.asarray(res.table["T_oil_c"])
+    assert np.all(np.diff(T_oil[:30]) >= -1e-9) and T_oil[59] - T_oil[0] > 5.0
 
 
 #: (description, rpm, torque [N m], boundaries [degC], hours) at a constant rated load

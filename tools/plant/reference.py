@@ -45,6 +45,7 @@ from firmware_model.physics.cooler import (
     DEFAULT_VEHICLE_SPEED_KMH,
     cooler_params,
     cooler_values,
+    heater_heat_w,
     inlet_drop_k,
     oil_cooler_heat,
 )
@@ -263,9 +264,19 @@ class ReferencePlant:
         return T_bc[self.boundaries.index(name)] if name in self.boundaries else math.nan
 
     def cooler_heat(self, T_oil, w_ls, w_eng, T_cool, T_amb, v_kmh, slope: bool = True):
-        """Heat from the sump to the cooler [W] (physics.cooler.oil_cooler_heat, the onboard model's cooler) and its
-        derivative with respect to the sump temperature (forward difference over COOLER_SLOPE_DT_K; 0 without
-        ``slope``)."""
+        """Heat from the sump to the cooler [W] (physics.cooler.oil_cooler_heat, the onboard model's cooler), net of
+        the sump heater's (physics.cooler.heater_heat_w), and its derivative with respect to the sump temperature
+        (forward difference over COOLER_SLOPE_DT_K; 0 without ``slope``)."""
+        q_w, g_w_per_k = self._cooler_alone(T_oil, w_ls, w_eng, T_cool, T_amb, v_kmh, slope)
+        if not self.cooler.heater_w > 0.0 or self.kind in ("hold", "measured"):
+            return q_w, g_w_per_k
+        h0_w = heater_heat_w(self.cooler, T_oil)
+        if slope:
+            g_w_per_k += (h0_w - heater_heat_w(self.cooler, T_oil + COOLER_SLOPE_DT_K)) / COOLER_SLOPE_DT_K
+        return q_w - h0_w, g_w_per_k
+
+    def _cooler_alone(self, T_oil, w_ls, w_eng, T_cool, T_amb, v_kmh, slope: bool):
+        """The cooler's heat and slope of :meth:`cooler_heat`, without the heater."""
         if self.kind not in ("liquid", "air"):
             return 0.0, 0.0
         op = oilprops.oil_properties(T_oil)

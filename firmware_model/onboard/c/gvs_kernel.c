@@ -420,6 +420,23 @@ static gvs_real cooler_heat(const gvs_tables *tb, const gvs_vehicle *veh, const 
     return cap > R_(0.0) ? Q : R_(0.0);
 }
 
+/* the sump heater's heat into the oil at T_oil [W] (physics.cooler.heater_heat_w): full power at or below
+ * heater_set - heater_band, none at or above heater_set, linear between; the cooler's heat is taken net of it */
+static gvs_real heater_heat(const gvs_tables *tb, gvs_real T_oil)
+{
+    if (!(tb->heater_w > R_(0.0))) return R_(0.0);
+    return tb->heater_w * clip_r((tb->heater_set_c - T_oil) / tb->heater_band_k, R_(0.0), R_(1.0));
+}
+
+/* d(-heater)/dT_oil [W/K] (physics.cooler.heater_slope_w_per_k) */
+static gvs_real heater_slope(const gvs_tables *tb, gvs_real T_oil)
+{
+    gvs_real x;
+    if (!(tb->heater_w > R_(0.0))) return R_(0.0);
+    x = (tb->heater_set_c - T_oil) / tb->heater_band_k;
+    return (x > R_(0.0) && x < R_(1.0)) ? tb->heater_w / tb->heater_band_k : R_(0.0);
+}
+
 GVS_OUTLINE static gvs_real inlet_drop_k(const gvs_tables *tb, gvs_real Q, gvs_real mcp)
 {
     return clip_r(mcp > R_(0.0) ? Q / mcp : R_(0.0), -tb->inlet_drop_max_k, tb->inlet_drop_max_k);
@@ -693,7 +710,7 @@ static void network_step(const gvs_tables *tb, const gvs_vehicle *veh, gvs_state
     mcp = nt->rho_cp * flow_per_drive(tb) * w_ls;
     cooler_op(tb, veh, w_ls, w, c->used[GVS_I_COOL], c->used[GVS_I_AMB], c->used[GVS_I_VKMH], mcp, &cop);
     for (cp = 0; cp < 2; ++cp) {
-        nt->Q_cool[cp] = cooler_heat(tb, veh, &cop, T[cp][tb->i_oil]);
+        nt->Q_cool[cp] = cooler_heat(tb, veh, &cop, T[cp][tb->i_oil]) - heater_heat(tb, T[cp][tb->i_oil]);
         nt->dT_in[cp] = inlet_drop_k(tb, nt->Q_cool[cp], mcp);
     }
 #ifdef GVS_STEP_MEMO
@@ -953,19 +970,19 @@ static int point_cooler(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_
     return 1;
 }
 
-/* dQ_cooler/dT_oil [W/K] (held_inputs.cooler_slope_w_per_k): liquid its hA unless saturated, air a finite
- * difference */
+/* dQ_cooler/dT_oil [W/K] (held_inputs.cooler_slope_w_per_k), the heater's taken off: liquid its hA unless saturated,
+ * air a finite difference, no cooler or drive the heater's alone */
 static gvs_real cooler_slope(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl_point *p, gvs_real T)
 {
     gvs_real Q, Q_hi, Q_lo;
     cooler_op_t op;
-    if (!point_cooler(tb, veh, p, &op)) return R_(0.0);
+    if (!point_cooler(tb, veh, p, &op)) return heater_slope(tb, T);
     if (tb->cooler_code == GVS_COOLER_LIQUID) {
         Q = cooler_heat(tb, veh, &op, T);
-        return (-tb->liquid_Qmax_heat < Q && Q < tb->liquid_Qmax_cool) ? op.hA : R_(0.0);
+        return ((-tb->liquid_Qmax_heat < Q && Q < tb->liquid_Qmax_cool) ? op.hA : R_(0.0)) + heater_slope(tb, T);
     }
-    Q_hi = cooler_heat(tb, veh, &op, T + R_(0.05));
-    Q_lo = cooler_heat(tb, veh, &op, T - R_(0.05));
+    Q_hi = cooler_heat(tb, veh, &op, T + R_(0.05)) - heater_heat(tb, T + R_(0.05));
+    Q_lo = cooler_heat(tb, veh, &op, T - R_(0.05)) - heater_heat(tb, T - R_(0.05));
     return max_r((Q_hi - Q_lo) / R_(0.1), R_(0.0));
 }
 
@@ -1397,11 +1414,11 @@ static int ttl_solve(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl
 }
 
 #ifndef GVS_NO_TTL_BOUND /* an export whose tables use today's march leaves the bounded method out (flash) */
-/* ttl_bound.cooler_heat_w: the cooler's heat with the point's inputs at sump T [W] (0 without a cooler or drive) */
+/* ttl_bound.cooler_heat_w: the cooler's heat with the point's inputs at sump T, net of the heater's [W] */
 static gvs_real bound_cooler_heat(const gvs_tables *tb, const gvs_vehicle *veh, const gvs_ttl_point *p, gvs_real T)
 {
     cooler_op_t op;
-    return point_cooler(tb, veh, p, &op) ? cooler_heat(tb, veh, &op, T) : R_(0.0);
+    return (point_cooler(tb, veh, p, &op) ? cooler_heat(tb, veh, &op, T) : R_(0.0)) - heater_heat(tb, T);
 }
 
 /* the oil system's m cp at the point [W/K] (ttl_bound's, in its order of products) */

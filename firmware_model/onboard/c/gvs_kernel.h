@@ -246,6 +246,9 @@ typedef struct {
     gvs_real air_Qmax_cool;             /* [W] */
     gvs_real thermostat_open_c, thermostat_full_c; /* [degC] */
     gvs_real thermostat_sump;           /* 1: the thermostat reads the sump (before the cooler); 0: the return, Eq 82 */
+    gvs_real heater_w;                  /* [W] the sump heater's power (0: none) */
+    gvs_real heater_set_c;              /* [degC] the heater is off above this sump temperature ... */
+    gvs_real heater_band_k;             /* [K] ... and at full power below heater_set_c - heater_band_k */
     gvs_real ref_ls_speed, ref_engine_speed; /* [rad/s] */
     gvs_real exp_inner, exp_outer, air_flow_min_frac;
     gvs_real air_ref_speed_kmh;         /* [km/h] */
