@@ -13,6 +13,7 @@ from firmware_model.errors import InputError
 from tools.cli.core_option import add_core_option, apply_core
 from tools.cli.gearbox_option import add_gearbox_option, require_vehicle_drive, resolve_gearbox
 from tools.cli.paths import check_paths
+from tools.cli.scada_notes import say_damaged_lines
 from tools.cli.settings import add_hidden, setting
 
 
@@ -203,6 +204,7 @@ def _run_scada(args) -> int:
     cfg = resolve_gearbox(args, load_config(args.config))
     train, test = read_held_out(args.train, args.test, args.columns)
     setup, notes = setup_of(cfg, train[0].cmap)
+    say_damaged_lines([*train, *test], "read", args.quiet)
     res = diagnose_records(setup, train, test, thermostat_of(cfg.load_params()))
     if notes:
         res["warnings"] = notes + res.get("warnings", [])

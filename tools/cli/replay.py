@@ -18,6 +18,7 @@ from tools.can.bus import can_subcommand
 from tools.cli.core_option import add_core_option, apply_core
 from tools.cli.gearbox_option import add_gearbox_option, resolve_gearbox
 from tools.cli.paths import check_paths, figure_path
+from tools.cli.scada_notes import say_damaged_lines
 from tools.cli.settings import add_hidden, given, setting
 from tools.outputs import naming, outputs
 
@@ -280,6 +281,7 @@ def _run_scada(args) -> int:
             print("  rows: " + ", ".join(f"{k.replace('_', ' ')} {v}" for k, v in dropped.items()))
         for line in error_lines(result):
             print(line)
+    say_damaged_lines([record], "replayed", args.quiet)
     return _report_trust(args, findings)
 
 

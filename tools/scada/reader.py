@@ -4,11 +4,12 @@ Each file is read with the csv module through its column map (:mod:`tools.scada.
 are converted (numpy float64, an empty cell NaN). Time stamps with a UTC offset become UTC seconds; a stamp without
 one, or one that does not parse, drops its row (``bad_time``), as does a line with the wrong number of fields
 (``bad_line``); the first such lines of each file, and those with a value that is no number, are kept by number and
-reason (:class:`BadLines`) for the replay's note. The files of one unit are joined in time order: a row earlier than
-one before it in its file is counted (``out_of_order``) and sorted into place; a repeated time stamp keeps its first
-row (``duplicate_time``). A step longer than 1.5 periods starts a new stretch (``gap``): the record keeps the true
-times, no row is invented, and a model resets its state at each stretch's first row. The values' rules (missing,
-implausible, spikes, standstill, negative power) are :mod:`tools.scada.clean`'s.
+reason (:class:`BadLines`) for the note every command reading SCADA prints (tools/cli/scada_notes.py). The files of
+one unit are joined in time order: a row earlier than one before it in its file is counted (``out_of_order``) and
+sorted into place; a repeated time stamp keeps its first row (``duplicate_time``). A step longer than 1.5 periods
+starts a new stretch (``gap``): the record keeps the true times, no row is invented, and a model resets its state at
+each stretch's first row. The values' rules (missing, implausible, spikes, standstill, negative power) are
+:mod:`tools.scada.clean`'s.
 
 A file that is not such a SCADA file (binary, a damaged gzip, a header without the map's columns, no rows) raises an
 :class:`~firmware_model.errors.InputError` with one sentence naming the file.
@@ -51,12 +52,12 @@ class BadLines:
         if len(self.first) < SHOWN_LINES:
             self.first.append((line, why))
 
-    @property
-    def sentence(self) -> str:
-        """One sentence: the file, its first damaged lines and why, and how many more."""
+    def sentence(self, rest: str = "replayed") -> str:
+        """One sentence: the file, its first damaged lines and why, how many more, and what became of its other
+        rows (``rest``: replayed, read)."""
         more = f", and {self.total - len(self.first)} more" if self.total > len(self.first) else ""
         lines = "; ".join(f"line {n} {why}" for n, why in self.first)
-        return f"{self.path.name}: {lines}{more}; the rest is replayed"
+        return f"{self.path.name}: {lines}{more}; the rest is {rest}"
 
 
 @dataclass

@@ -179,7 +179,7 @@ BIAS_WARN_K, BIAS_UNTRUSTED_K, BIAS_MIN_ROWS = 10.0, 30.0, 36
 
 #: the severities of the findings (firmware_model.service.degraded.Severity's values, compared as ints: this room
 #: imports no service module; tests/tools/scada/test_replay_scada.py holds them equal)
-NOTE, WARNING, UNTRUSTED = 0, 1, 2
+WARNING, UNTRUSTED = 1, 2
 
 
 @dataclass(frozen=True)
@@ -195,8 +195,9 @@ class RecordFinding:
 def record_findings(record: ScadaRecord, result: ScadaReplay) -> list:
     """The trust findings of a SCADA replay, most severe first: the sensor's on its output table (degraded share,
     repairs: tools.replay.table.table_findings), rows the reader dropped, channels mostly rejected as implausible
-    (a column in another unit than its map says), and measured channels whose estimate is far off on average; a
-    note per file with damaged lines, naming the first."""
+    (a column in another unit than its map says), and measured channels whose estimate is far off on average (each
+    file's damaged lines by number are said apart, by tools.cli.scada_notes, as fleet, diagnose and calibrate say
+    them)."""
     from tools.replay.table import table_findings
 
     found = [
@@ -232,8 +233,6 @@ def record_findings(record: ScadaRecord, result: ScadaReplay) -> list:
                 ),
             )
         )
-    # each file's damaged lines by number, whatever their share (the warning above says when they are many)
-    found += [RecordFinding("lines", NOTE, bad.sentence) for bad in record.bad_lines]
     found += range_findings(record)
     t = result.table
     biases = {}

@@ -379,3 +379,28 @@ def test_a_physics_informed_nbm_without_estimates_leaves_its_column_nan_not_the_
     assert set(out) == {"Gost_avg", "Gb1t_avg", "Gb2t_avg"}
     for ch, (nbm_k, informed_k) in out.items():
         assert np.isfinite(nbm_k) and np.isnan(informed_k), (ch, nbm_k, informed_k)
+
+
+@pytest.mark.parametrize("command, extra", [("diagnose", []), ("calibrate", ["--params", "bearing.f0_tapered"])])
+def test_a_damaged_line_of_a_training_file_is_named_with_its_file_and_line(tmp_path, command, extra):
+    """A line of the training file cut short was dropped and counted, and diagnose and calibrate fitted on the rest
+    in silence: the note replay prints names the file, the line and why, on stderr; --quiet leaves it out, as
+    replay's."""
+    lines = _rows(0, ROWS)
+    lines[5] = lines[5][: len(lines[5]) // 2]  # line 7 of the file (the header is line 1)
+    train = write(tmp_path / "train.csv", lines)
+    test = write(tmp_path / "test.csv", _rows(ROWS, 2 * ROWS, load=1.3))
+    written = ["--json", str(tmp_path / "d.json")] if command == "diagnose" else ["--out", str(tmp_path / "c.toml")]
+    cmd = [command, "--gearbox", "HR225", "--columns", str(_map(tmp_path)), "--train", str(train)]
+    cmd += ["--test", str(test), *extra, *written]
+    for quiet in ((), ("--quiet",)):
+        run = [sys.executable, "-m", "tools.cli", *cmd, *quiet]
+        p = subprocess.run(run, cwd=REPO, capture_output=True, text=True, timeout=300)
+        assert p.returncode == 0, p.stderr
+        said = [x for x in p.stderr.splitlines() if "train.csv" in x]
+        if quiet:
+            assert said == [], p.stderr
+            continue
+        assert len(said) == 1 and said[0].startswith("note: train.csv: line 7 dropped ("), p.stderr
+        assert "of the header's 13 fields: cut short or a field missing)" in said[0]
+        assert "test.csv" not in p.stderr and "train.csv" not in p.stdout

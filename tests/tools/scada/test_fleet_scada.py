@@ -269,3 +269,24 @@ def test_a_fleet_without_a_fixed_ratio_gearbox_is_one_sentence_before_any_note(t
     assert p.returncode == 2, p.stderr
     assert "--gearbox a fixed-ratio description" in p.stderr and "note:" not in p.stderr, p.stderr
     assert not (tmp_path / "out").exists()
+
+
+def test_a_damaged_line_of_a_unit_s_file_is_named_with_its_file_and_line(tmp_path):
+    """A line of T1.csv cut short (as by an export stopped mid-row) was dropped and counted, and the fleet said
+    nothing of it: the note replay prints names the file, the line and why, on stderr (the fleet has no --quiet)."""
+    import subprocess
+
+    from tests.tools.scada.test_replay_scada import REPO
+
+    pytest.importorskip("pyarrow.parquet", reason="fleet --columns writes Parquet: pip install '.[fleet]'")
+    cmd = [*_scada_folder(tmp_path, {"T1": None, "T2": None}, rows=144), "--gearbox", "HR225"]
+    path = tmp_path / "scada" / "T1.csv"
+    lines = path.read_text().splitlines()
+    lines[11] = lines[11][: len(lines[11]) // 2]  # line 12 of the file (the header is line 1)
+    path.write_text("\n".join(lines) + "\n")
+    p = subprocess.run([*cmd, "--out", str(tmp_path / "out")], cwd=REPO, capture_output=True, text=True, timeout=300)
+    assert p.returncode == 0, p.stderr
+    said = [x for x in p.stderr.splitlines() if "T1.csv" in x]
+    assert len(said) == 1 and said[0].startswith("note: T1.csv: line 12 dropped ("), p.stderr
+    assert "of the header's 13 fields: cut short or a field missing)" in said[0]
+    assert "T2.csv" not in p.stderr and "T1.csv" not in p.stdout

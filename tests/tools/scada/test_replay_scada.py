@@ -327,11 +327,11 @@ def test_the_modelled_sump_starts_at_the_first_reading_of_the_first_hour_and_one
 
 
 def test_the_record_findings_severities_are_the_service_s():
-    """tools.scada imports no service module: its three severities are Severity's values, written again here."""
+    """tools.scada imports no service module: its two severities are Severity's values, written again here."""
     from firmware_model.service.degraded import Severity
     from tools.scada import replay
 
-    assert (replay.NOTE, replay.WARNING, replay.UNTRUSTED) == (Severity.NOTE, Severity.WARNING, Severity.UNTRUSTED)
+    assert (replay.WARNING, replay.UNTRUSTED) == (Severity.WARNING, Severity.UNTRUSTED)
 
 
 def test_the_plot_breaks_its_lines_at_a_gap_between_stretches(tmp_path, monkeypatch):
@@ -421,3 +421,5 @@ def test_each_damaged_line_is_named_with_its_file_and_line_even_when_few(tmp_pat
         assert words in said, said
     assert "'yesterday'" in said and "P_avg 'abc'" in said and "of the header's 13" in said
     assert "rows were dropped" not in p.stderr  # 3 of 72: the share's warning stays for more
+    p = _replay(tmp_path, [scada], "--out", tmp_path / "est.csv", "--quiet")
+    assert p.returncode == 0 and "a.csv" not in p.stderr, p.stderr  # a note: left out with --quiet
