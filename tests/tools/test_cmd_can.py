@@ -63,7 +63,8 @@ def test_play_at_a_speed_that_is_no_positive_number_is_one_sentence(sim, capsys,
 
 def test_play_skips_a_malformed_line_as_replay_does_and_says_so(sim, tmp_path, capsys):
     """A line of noise in the middle of a log stopped play half-way (exit 2, the frames before it already on the
-    bus); replay skips and counts it. play now checks the log first and plays every frame around it."""
+    bus); replay skips and counts it. play now checks the log first, plays every frame around it and names the log
+    and the line in its note."""
     lines = (sim / "run.log").read_text().splitlines()
     mid = len(lines) // 2
     (tmp_path / "noisy.log").write_text("\n".join(lines[:mid] + ["#### logger hiccup ####"] + lines[mid:]) + "\n")
@@ -75,7 +76,8 @@ def test_play_skips_a_malformed_line_as_replay_does_and_says_so(sim, tmp_path, c
     got = drain(mon)
     mon.shutdown()
     assert len(got) == len(lines)
-    assert f"note: 1 malformed line skipped (line {mid + 1})" in capsys.readouterr().err
+    # named with the log's file, as replay says it (the sentence alone did not say which log)
+    assert f"note: noisy.log: 1 malformed line skipped (line {mid + 1})\n" in capsys.readouterr().err
 
 
 def test_play_plays_the_log_onto_a_bus(sim, capsys):

@@ -311,6 +311,7 @@ def play_log(
 def play_log_on(path, interface: str, channel: str, bitrate_bit_s: int | None = None, *, speedup: float = 1.0) -> int:
     """:func:`play_log` onto a bus it opens (and shuts down; on python-can's virtual bus the frames keep the log's
     timestamps, ``tools.can.bus.open_player``); SIGINT/SIGTERM stop it. Returns the frames sent."""
+    import dataclasses
     import sys
 
     from tools.can.bus import open_player, stop_on_signals
@@ -321,8 +322,8 @@ def play_log_on(path, interface: str, channel: str, bitrate_bit_s: int | None = 
     # the whole log is checked before a frame is sent: malformed lines skipped and said, as replay does
     damage = scan_log(p)
     found = damage_finding(damage)
-    if found is not None:
-        print(f"note: {found.summary}", file=sys.stderr)
+    if found is not None:  # named with the log's file, as replay says it
+        print(f"note: {dataclasses.replace(found, name=p.name).summary}", file=sys.stderr)
     bus = open_player(interface, channel, bitrate_bit_s)
     try:
         with stop_on_signals() as stop:
