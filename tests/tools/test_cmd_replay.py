@@ -101,6 +101,9 @@ def test_records_are_the_plug_point_for_other_sources(sensor):
     [
         ("time_s,engine_speed_rpm\n0,1\n", "required column"),
         ("time_s,engine_speed_rpm,engine_torque_nm,gear\n0,1,1,1\n0,1,1,1\n", "duplicated"),
+        # the data row and the file's line (a blank line between): as the parse errors name them
+        ("time_s,engine_speed_rpm,engine_torque_nm,gear\n0,1,1,1\n\n0,1,1,1\n", "row 2 (line 4): 0 s is duplicated"),
+        ("time_s,engine_speed_rpm,engine_torque_nm,gear\n0,1,1,1\n\n,1,1,1\n", '"time_s" row 2 (line 4): the cell'),
     ],
 )
 def test_bad_files_fail_with_one_sentence(tmp_path, capsys, content, words):

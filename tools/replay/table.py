@@ -101,7 +101,7 @@ def read_inputs_table(path, description=None):
         if col not in names:
             raise InputError(f'{name}: required column "{col}" is missing; the columns are {", ".join(names)}')
     table = rt.RunTable({c: arr[:, j] for j, c in enumerate(names)}, source=name)
-    rt.validate_run_table(rt.RunTable({"time_s": table["time_s"]}, source=name), ("time_s",), name)
+    rt.validate_run_table(rt.RunTable({"time_s": table["time_s"]}, source=name), ("time_s",), name, rt.lines_of(p))
     return map_fixed_ratio(table, description, name, strict=False) if fixed else table
 
 
