@@ -187,7 +187,9 @@ def test_describe_prints_the_summary(capsys):
     assert out.startswith("gearbox GRS905 (GRS905.toml): vehicle drive, IS -> OS")
     assert "    9 4L: ratio 3.03361 (stated 3.034); path LI/IS L 1 1M/MS range/locked" in out
     assert "oil system: splash lubrication, 13.5 L, pump on LS reaching 21 parts" in out
-    assert "thermostatic bypass opens at 80 degC" in out and "PS 130/150" in out
+    assert "thermostatic bypass opens at 80 degC" in out and "PS 130/150" in out and ", no heater" in out
+    assert main(["describe", "--gearbox", "MM82"]) == 0
+    assert "heater 3000 W below 22.3 degC (all of it below 17.3)" in capsys.readouterr().out
     assert main(["describe", "--gearbox", "GRSO905"]) == 0
     assert "   14 6H: ratio 0.807563 (stated 0.8076); path LI/IS L 3 3M/MS range/locked" in capsys.readouterr().out
 

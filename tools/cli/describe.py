@@ -93,7 +93,10 @@ def _summary_rest(d) -> list[str]:
         if o.thermostat_open_c is not None
         else ""
     )
-    heater = f", heater {o.heater_w:g} W" if o.heater_w else ", no heater"
+    heater = ", no heater"
+    if o.heater_w:
+        full_c = o.heater_set_c - o.heater_band_k
+        heater = f", heater {o.heater_w:g} W below {o.heater_set_c:g} degC (all of it below {full_c:g})"
     out.append(
         f"oil system: {o.lubrication} lubrication, {o.volume_m3 * 1e3:g} L, {pump} reaching {len(o.jets)} parts, "
         f"filter {o.filter}; cooler {o.cooler}{thermo}{heater}"
