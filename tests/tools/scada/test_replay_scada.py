@@ -165,10 +165,9 @@ def test_the_mm82_s_oil_inlet_is_estimated_below_its_sump(tmp_path):
     assert np.all(sump > 60.0) and np.all(inlet < sump - 0.5)
 
 
-def test_an_mm82_scada_replay_counts_no_coolant_missing(tmp_path):
-    """The MM82 (a wind turbine: an air cooler, no engine coolant) on the shipped engie map, every channel given:
-    rejects_aux_missing counted the coolant it has not at every held step (6000 per 10-minute row); it stays 0, as
-    every other counter."""
+def _moving_mm82_replay(tmp_path):
+    """Two hours of MM82 rows whose load moves, replayed by `replay --columns engie` (exit 0): the rows and
+    est.csv read back."""
     rows = [
         row(
             T0 + timedelta(minutes=10 * k),
@@ -186,6 +185,14 @@ def test_an_mm82_scada_replay_counts_no_coolant_missing(tmp_path):
     )
     assert p.returncode == 0, p.stderr
     est = read_run_table(tmp_path / "est.csv", required=("time_s",))
+    return rows, est
+
+
+def test_an_mm82_scada_replay_counts_no_coolant_missing(tmp_path):
+    """The MM82 (a wind turbine: an air cooler, no engine coolant) on the shipped engie map, every channel given:
+    rejects_aux_missing counted the coolant it has not at every held step (6000 per 10-minute row); it stays 0, as
+    every other counter."""
+    rows, est = _moving_mm82_replay(tmp_path)
     assert est.n == len(rows) and est.has("rejects_aux_missing")
     counters = [c for c in est.columns if c.startswith("rejects_")]
     assert {c: float(est[c][-1]) for c in counters if est[c][-1] != 0} == {}
@@ -375,23 +382,7 @@ def test_an_mm82_s_est_csv_holds_only_the_columns_its_drive_has(tmp_path):
     row), a vehicle speed and a retarder torque (0 on every row), a coolant (empty on every row: the drive has none)
     and the gear's validity and reject counters (1 and 0 on every row: the gear is not an input of the drive). They
     are left out; every column docs/real-data.md names stays."""
-    rows = [
-        row(
-            T0 + timedelta(minutes=10 * k),
-            p_kw=800.0 + 100.0 * math.sin(k / 3.0),
-            rs=14.0 + 0.5 * math.sin(k / 4.0),
-            Gost_avg=58.0 + 2.0 * math.sin(k / 5.0),
-            Yt_avg=20.0,
-        )
-        for k in range(12)
-    ]
-    scada = write(tmp_path / "mm82.csv", rows)
-    args = ["replay", str(scada), "--gearbox", "MM82", "--columns", "engie", "--out", str(tmp_path / "est.csv")]
-    p = subprocess.run(
-        [sys.executable, "-m", "tools.cli", *args], cwd=REPO, capture_output=True, text=True, timeout=300
-    )
-    assert p.returncode == 0, p.stderr
-    est = read_run_table(tmp_path / "est.csv", required=("time_s",))
+    _, est = _moving_mm82_replay(tmp_path)
     truck = {"engine_speed_rpm", "engine_torque_nm", "gear", "vehicle_speed_kmh", "retarder_torque_nm"}
     truck |= {"coolant_temp_c", "gear_valid", "rejects_gear_missing", "rejects_gear_unknown"}
     assert truck & set(est.columns) == set(), est.columns
