@@ -182,6 +182,7 @@ SINGLE_SPECS = {
         "volume": _n("m3"),
         "pump_shaft": _t,
         "pump_flow": ("number", False, ("m3/rad", "m3/s"), "+"),
+        "pump_stops_below": _n("rad/s", False),
         "jets": _l,
         "dipping": _l,
         "splashed": _l,
@@ -348,6 +349,7 @@ class OilSystem:
     thermostat_senses: str = "return"  # where the thermostat reads the oil (THERMOSTAT_SENSES)
     heater_set_c: float | None = None  # the sump heater is off above it [degC]
     heater_band_k: float | None = None  # ... and at full power below heater_set - heater_band [K]
+    pump_stops_below_rad_s: float | None = None  # a motor pump runs only while the input shaft turns faster
 
 
 @dataclass(frozen=True)
@@ -987,7 +989,7 @@ def _oil(r: _Reader, topo: dict, shafts: dict, nodes: set) -> OilSystem:
         r.fail(f"{key}.thermostat_senses", f"= {senses!r} must be one of {', '.join(THERMOSTAT_SENSES)}")
     elif f["thermostat_senses"] is not None and t_open is None:
         r.fail(f"{key}.thermostat_senses", "is given, but there is no thermostat (thermostat_open, thermostat_full)")
-    _check_heater(r, key, f)
+    _check_heater_and_pump(r, key, f)
     return OilSystem(
         f["lubrication"],
         f["volume"],
@@ -1006,11 +1008,18 @@ def _oil(r: _Reader, topo: dict, shafts: dict, nodes: set) -> OilSystem:
         senses,
         f["heater_set"],
         f["heater_band"],
+        f["pump_stops_below"],
     )
 
 
-def _check_heater(r: _Reader, key: str, f: dict) -> None:
-    """A heater (power above 0) says the sump temperature it holds and its band; neither without one."""
+def _check_heater_and_pump(r: _Reader, key: str, f: dict) -> None:
+    """A heater (power above 0) says the sump temperature it holds and its band; neither without one. A pump that
+    stops with the machine is a motor-driven one (a shaft's pump stops with its shaft)."""
+    if f["pump_stops_below"] is not None and (f["pump_shaft"] is not None or f["pump_flow"] is None):
+        r.fail(
+            f"{key}.pump_stops_below",
+            "is given, but there is no motor-driven pump (pump_flow without pump_shaft): a shaft's pump stops with it",
+        )
     if (f["heater"] or 0.0) > 0.0:
         for k, what in (("heater_set", "the sump temperature it holds"), ("heater_band", "its band below it")):
             if f[k] is None:

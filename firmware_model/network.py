@@ -676,6 +676,10 @@ class ConductanceEvaluator:
         self.pump_speed = None if oil.pump_shaft is None else net.speed_names.index(oil.pump_shaft)
         self.flow_m3_per_rad = (oil.pump_flow or 0.0) if oil.pump_shaft is not None else 0.0
         self.flow_m3_s = (oil.pump_flow or 0.0) if oil.pump_shaft is None else 0.0
+        # a motor pump that stops with the machine (oil.pump_stops_below): it reads the input shaft's speed
+        self.pump_stop_rad_s = oil.pump_stops_below_rad_s or 0.0
+        d = net.geometry.description
+        self.pump_col = self.pump_speed if self.pump_speed is not None else net.speed_names.index(d.drive.input_shaft)
         self.n_nodes = net.n
         self.ext_rad_idx = self.idx[K_EXT_RAD]
         self.ext_rad_a = net.link_a[self.ext_rad_idx]
@@ -684,8 +688,11 @@ class ConductanceEvaluator:
 
     def oil_mass_flow_kg_s(self, omega_ls_rad_s, rho_kg_m3):
         """Oil-system mass flow: linear in the pump shaft's (the layshaft's) speed (seed 3.3, Fig 12); a
-        motor-driven pump's is its flow."""
+        motor-driven pump's is its flow, none while the input shaft (``omega_ls_rad_s`` then: the speed at
+        ``pump_col``) turns at or below ``oil.pump_stops_below`` when the description gives it."""
         if self.pump_speed is None:
+            if self.pump_stop_rad_s > 0.0:
+                return rho_kg_m3 * self.flow_m3_s * (np.abs(omega_ls_rad_s) > self.pump_stop_rad_s)
             return rho_kg_m3 * self.flow_m3_s
         return rho_kg_m3 * self.flow_m3_per_rad * abs(omega_ls_rad_s)
 
@@ -749,7 +756,7 @@ class ConductanceEvaluator:
         if not i.size:
             return
         kp = self.kp[K_STREAM]
-        omega_ls_rad_s = speeds[..., self.pump_speed or 0]
+        omega_ls_rad_s = speeds[..., self.pump_col]
         if np.ndim(omega_ls_rad_s):
             omega_ls_rad_s = omega_ls_rad_s[..., None]  # a batch of operating points (evaluate)
         mdot_tot = self.oil_mass_flow_kg_s(omega_ls_rad_s, op.rho_kg_m3)

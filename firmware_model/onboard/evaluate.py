@@ -158,6 +158,7 @@ class ReducedParams(NamedNodes):
     flow_m3_per_rad: float  # oil-system flow per radian of the pump shaft (a shaft-driven pump; else 0)
     pump_code: int  # PUMP_CODES: none, shaft, motor
     pump_flow_m3_s: float  # a motor-driven pump's fixed volume flow (else 0)
+    pump_stop_rad_s: float  # a motor-driven pump runs only while the input shaft turns faster (0: always)
     default_v_kmh: float  # the cooler's air speed when the input has none (the plant's: a vehicle's 50, else 200)
     # --- boundaries
     bc_default_c: np.ndarray  # (nb,)
@@ -229,9 +230,12 @@ def speed_bin_min_rad_s(max_speed_rad_s: float) -> float:
 def pump_drive(rp: ReducedParams, gear_row, omega_in_rad_s):
     """What the oil-system flow is proportional to (flow = flow_per_drive(rp) x it): a shaft-driven pump's shaft speed
     |w| [rad/s], a motor-driven pump's 1 (its volume flow is fixed, as the plant's
-    network.ConductanceEvaluator.oil_mass_flow_kg_s: rho x pump_flow, no speed, no viscosity law), 0 without a pump.
+    network.ConductanceEvaluator.oil_mass_flow_kg_s: rho x pump_flow, no speed, no viscosity law) and 0 while the
+    input shaft turns at or below rp.pump_stop_rad_s (a pump that stops with the machine), 0 without a pump.
     C: pump_drive."""
     if rp.pump_code == PUMP_CODES["motor"]:
+        if rp.pump_stop_rad_s > 0.0:
+            return np.where(np.abs(omega_in_rad_s) > rp.pump_stop_rad_s, 1.0, 0.0)
         return np.ones(np.shape(omega_in_rad_s))
     return shaft_speed_rad_s(rp, gear_row, rp.pump_speed_col, omega_in_rad_s)
 

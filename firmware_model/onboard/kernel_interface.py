@@ -340,6 +340,7 @@ _TABLES = (
     "cooler (seed 3.4, Eq 82-83)",
     Field("flow_m3_per_rad", REAL, (), "m3/rad"),
     Field("pump_flow_m3_s", REAL, (), "m3/s", doc="a motor-driven pump's fixed flow"),
+    Field("pump_stop_rad_s", REAL, (), "rad/s", doc="... none while the input shaft turns at or below it (0: always)"),
     *_f("liquid_hA_ref", REAL, (), "W/K"),
     *_f("liquid_Qmax_cool liquid_Qmax_heat", REAL, (), "W"),
     Field("air_hA_ref", REAL, (), "W/K"),

@@ -184,6 +184,7 @@ def _cooler(sp: SensorParams) -> dict:
     return dict(
         flow_m3_per_rad=rp.flow_m3_per_rad,
         pump_flow_m3_s=rp.pump_flow_m3_s,
+        pump_stop_rad_s=rp.pump_stop_rad_s,
         speed_bin_min=rp.speed_bin_min_rad_s,
         liquid_hA_ref=c.liquid_hA_ref_w_per_k,
         liquid_Qmax_cool=c.liquid_Q_max_cool_w,

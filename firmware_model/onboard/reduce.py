@@ -786,6 +786,7 @@ def _surroundings_fields(p: Parameters, net: Network) -> dict:
         flow_m3_per_rad=_pump_flow_m3_per_rad(d),
         pump_code=_pump_code(d),
         pump_flow_m3_s=_motor_pump_flow_m3_s(d),
+        pump_stop_rad_s=float(d.oil.pump_stops_below_rad_s or 0.0),
         # the plant's (tools.plant.reference: v_default_kmh): a vehicle's default speed, else no recirculation
         default_v_kmh=DEFAULT_VEHICLE_SPEED_KMH if d.drive.kind == "vehicle" else float(AIR_RECIRC_V_KMH[-1]),
         bc_default_c=_ro(_boundary_defaults_c(p, net)),

@@ -84,9 +84,9 @@ def max_conductances(rp: ReducedParams) -> dict:
         G[rp.t2_link[t]] += np.max(rp.t2_table[t][:, jT2])
     prop = rp.prop[jT]
     # the pump's largest drive: its shaft at the top input speed (pump_drive is linear in it), a motor pump's 1
-    drive_max = np.max(pump_drive(rp, slice(None), 1.0)) * (
-        1.0 if rp.pump_code == PUMP_CODES["motor"] else omega_in_max_rad_s
-    )
+    # (whatever speed it may stop below)
+    motor = rp.pump_code == PUMP_CODES["motor"]
+    drive_max = 1.0 if motor else np.max(pump_drive(rp, slice(None), 1.0)) * omega_in_max_rad_s
     for t in range(len(rp.ef_link)):
         planet = eff_max[EFFECT_PLANET_OIL_H] if rp.ef_effect[t] == EFFECT_PLANET_OIL_H else 1.0
         hA = rp.ef_alpha[t] * np.max(prop[:, P_K]) + rp.ef_beta[t] * planet

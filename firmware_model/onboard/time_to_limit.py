@@ -166,10 +166,10 @@ def _inlet_follows_sump(
 
 def oil_flow_m3_s(sp: SensorParams, row: int, omega_in_rad_s: float) -> float:
     """Oil-system volume flow [m3/s] at this gear and input speed: a shaft pump's turns with its shaft, a motor
-    pump's is fixed (evaluate.pump_drive)."""
+    pump's is fixed, or none while the machine stands (evaluate.pump_drive)."""
     rp = sp.reduced
     if rp.pump_code == E.PUMP_CODES["motor"]:
-        return rp.pump_flow_m3_s
+        return rp.pump_flow_m3_s * float(E.pump_drive(rp, row, omega_in_rad_s))
     return rp.flow_m3_per_rad * float(E.shaft_speed_rad_s(rp, row, rp.pump_speed_col, 1.0)) * omega_in_rad_s
 
 

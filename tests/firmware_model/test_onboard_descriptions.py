@@ -352,10 +352,13 @@ def test_mm82_oil_inlet_follows_the_reference_plant_and_the_c_kernel_agrees(mm82
     row = np.clip(np.round(t_out / 0.1).astype(int) - 1, 0, len(raw) - 1)
     plant_c = np.asarray(out["T_oil.inlet_c"])
     assert np.max(np.asarray(out["T_oil_c"]) - plant_c) > 3.0  # the plant's thermostat open too
-    # the plant's inlet within a few mK (measured: 0.5 mK with the oil measured, 2.6 mK modelled: the sump's own
-    # residual); a vehicle speed read as a truck's would warm the cooler's air by 2-12 K and miss it by ~0.6 K
+    # the plant's inlet within a few mK with the oil measured (0.5 mK); modelled, within the sump's own residual
+    # times the thermostat ramp's gain: 7 mK before the 10-minute standstill, 41 mK after it (since the MM82's pump
+    # stops with the rotor, 2026-12-05: without jets the modelled sump drifts 17-21 mK from the plant's, and at the
+    # restart the valve's ramp, dQ/dT ~ 12 kW/K over mdot cp ~ 3.9 kW/K, triples that in the inlet); a vehicle speed
+    # read as a truck's would warm the cooler's air by 2-12 K and miss it by ~0.6 K
     assert np.isnan(raw[:, I_VKMH]).all()
-    tol_k = 0.005 if oil_mode == "measured" else 0.02
+    tol_k = 0.005 if oil_mode == "measured" else 0.05
     assert np.max(np.abs(inlet[row] - plant_c)) <= tol_k
     for v_kmh in (0.0, 50.0, s.sp.reduced.default_v_kmh):  # a fed vehicle speed changes nothing (C core here)
         raw_v = raw.copy()

@@ -9,6 +9,7 @@ import pytest
 
 from firmware_model.description import description_of
 from firmware_model.errors import ParameterError
+from firmware_model.onboard import evaluate as E
 from firmware_model.parameters import PARAM_DIR, load_parameters
 from firmware_model.physics import cooler as CO
 from tools.drive_table import map_fixed_ratio
@@ -116,3 +117,53 @@ def test_a_cold_standing_gearbox_is_held_near_the_heater_s_set_point_by_the_plan
         assert heater_set_c - band <= T_plant <= heater_set_c and heater_set_c - band <= T_sensor <= heater_set_c
     else:
         assert T_plant < 22.3 - band and T_sensor < 22.3 - band
+
+
+def test_a_pump_on_a_shaft_cannot_be_told_to_stop_with_the_machine(tmp_path):
+    text = (PARAM_DIR / "GRS905.toml").read_text()
+    old = 'pump_shaft = { v = "LS"'
+    assert text.count(old) == 1
+    f = tmp_path / "GRS905x.toml"
+    f.write_text(text.replace(old, 'pump_stops_below = { v = 1, u = "rpm", src = "assumed" }\n' + old))
+    with pytest.raises(ParameterError, match=r"topology\.oil\.pump_stops_below is given, but there is no motor-driven"):
+        description_of(load_parameters(f))
+
+
+def test_the_mm82_s_pump_stops_with_the_rotor_on_the_plant_and_both_cores(mm82):
+    """Rows of a producing turbine, then four hours parked (0 rpm), then producing again, the sump modelled: while
+    the rotor turns the pump feeds the cooler and the inlet lies under the sump (the cooler's drop); parked, the
+    pump stops (oil.pump_stops_below 0.5 rpm): no drop, the inlet is the sump's (within a step's cooling), on the
+    plant and on both cores, the cores equal within 1e-9 K; a rotor idling at 1 rpm keeps its pump."""
+    from firmware_model.onboard.sensor import VirtualSensor
+    from tools.plant.reference import ReferencePlant
+    from tools.replay.table import held_options, replay_table
+
+    assert description_of(mm82).oil.pump_stops_below_rad_s == pytest.approx(0.5 * np.pi / 30.0)
+    n = 6 * 14
+    t = 600.0 * np.arange(n)
+    parked = (t >= 6 * 3600.0) & (t < 10 * 3600.0)
+    cols = {
+        "time_s": t,
+        "input_speed_rpm": np.where(parked, 0.0, 15.5),
+        "input_torque_nm": np.where(parked, 0.0, 1.1e6),
+        "ambient_temp_c": np.full(n, 25.0),
+    }
+    table = map_fixed_ratio(RunTable(cols, source="a turbine parked for four hours"), description_of(mm82))
+    out = {}
+    for core in ("numpy", "c"):
+        s = VirtualSensor(mm82, core=core, oil_mode="model", ttl_period_s=600.0, **held_options(table))
+        out[core] = replay_table(table, s, initial_oil_c=57.0)
+    for col in out["c"].columns:
+        np.testing.assert_allclose(out["c"][col], out["numpy"][col], rtol=0, atol=1e-9, equal_nan=True, err_msg=col)
+    drop_k = np.asarray(out["numpy"]["T_oil_c"]) - np.asarray(out["numpy"]["oil_inlet_temp_c"])
+    # parked, no drop: the inlet is the sump at the step's start, within the step's cooling (15 s: < 0.02 K here)
+    assert np.all(np.abs(drop_k[parked][1:]) < 0.02)  # (the first parked row ends an interval that began turning)
+    assert np.all(drop_k[:36][6:] > 1.0)
+    # a rotor idling at 1 rpm keeps the pump running, one at 0.4 rpm has stopped it (the kernel's is the same rule)
+    rp = s.sp.reduced
+    assert list(E.pump_drive(rp, 0, np.array([0.0, 0.4, 1.0, 15.0]) * np.pi / 30.0)) == [0.0, 0.0, 1.0, 1.0]
+    plant = ReferencePlant(mm82, dt_s=2.0).run(table, initial_temp_c=57.0, out_dt_s=600.0, progress=False).table
+    p_drop_k = np.asarray(plant["T_oil_c"]) - np.asarray(plant["T_oil.inlet_c"])
+    t_p = np.asarray(plant["time_s"])
+    assert np.all(np.abs(p_drop_k[(t_p > 6 * 3600.0 + 600.0) & (t_p < 10 * 3600.0)]) < 0.02)
+    assert np.all(p_drop_k[(t_p > 3600.0) & (t_p < 6 * 3600.0)] > 1.0)

@@ -255,8 +255,10 @@ class ReferencePlant:
 
     # ------------------------------------------------------------------ cooler (seed 3.4, Eq 82-83)
     def _pump_speed(self, omega: np.ndarray) -> float:
-        """|speed| of the oil pump's shaft (the GRS905's layshaft); 0 for a motor-driven pump (its flow is fixed)."""
-        return 0.0 if self.i_pump is None else omega[self.i_pump]
+        """|speed| of the oil pump's shaft (the GRS905's layshaft); a motor-driven pump's flow is fixed, but it may
+        stop with the machine (oil.pump_stops_below): the input shaft's speed, which its flow reads
+        (network.ConductanceEvaluator.oil_mass_flow_kg_s)."""
+        return omega[self.i_input] if self.i_pump is None else omega[self.i_pump]
 
     def _bc_or_nan(self, T_bc, name: str) -> float:
         """A boundary's temperature; NaN for one the gearbox lacks (the coolant of a gearbox without a liquid

@@ -111,7 +111,9 @@ static gvs_real shaft_speed(const gvs_tables *tb, int32_t row, int32_t col, gvs_
  * pump's 1 (its flow is fixed) */
 static gvs_real pump_drive(const gvs_tables *tb, int32_t row, gvs_real omega_in_rad_s)
 {
-    return tb->pump_code == GVS_PUMP_MOTOR ? R_(1.0) : shaft_speed(tb, row, tb->pump_speed_col, omega_in_rad_s);
+    if (tb->pump_code == GVS_PUMP_MOTOR)  /* 0 while the machine stands (pump_stop_rad_s > 0), else 1 */
+        return (tb->pump_stop_rad_s > R_(0.0) && !(FABS(omega_in_rad_s) > tb->pump_stop_rad_s)) ? R_(0.0) : R_(1.0);
+    return shaft_speed(tb, row, tb->pump_speed_col, omega_in_rad_s);
 }
 /* the oil-system flow per unit of pump_drive (evaluate.flow_per_drive): m3/rad of a shaft pump, m3/s of a motor's */
 static gvs_real flow_per_drive(const gvs_tables *tb)
@@ -1424,7 +1426,8 @@ static gvs_real bound_cooler_heat(const gvs_tables *tb, const gvs_vehicle *veh, 
 /* the oil system's m cp at the point [W/K] (ttl_bound's, in its order of products) */
 static gvs_real bound_mcp(const gvs_tables *tb, const gvs_ttl_point *p)
 {
-    return tb->pump_code == GVS_PUMP_MOTOR ? p->rho_cp_j_per_m3k * tb->pump_flow_m3_s
+    return tb->pump_code == GVS_PUMP_MOTOR
+        ? p->rho_cp_j_per_m3k * (tb->pump_flow_m3_s * pump_drive(tb, p->row, p->omega_in_rad_s))
         : p->rho_cp_j_per_m3k * tb->flow_m3_per_rad * shaft_speed(tb, p->row, tb->pump_speed_col, R_(1.0))
             * p->omega_in_rad_s;
 }

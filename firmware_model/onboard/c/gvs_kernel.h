@@ -240,6 +240,7 @@ typedef struct {
     /* cooler (seed 3.4, Eq 82-83) */
     gvs_real flow_m3_per_rad;           /* [m3/rad] */
     gvs_real pump_flow_m3_s;            /* [m3/s] a motor-driven pump's fixed flow */
+    gvs_real pump_stop_rad_s;           /* [rad/s] ... none while the input shaft turns at or below it (0: always) */
     gvs_real liquid_hA_ref;             /* [W/K] */
     gvs_real liquid_Qmax_cool, liquid_Qmax_heat; /* [W] */
     gvs_real air_hA_ref;                /* [W/K] */
