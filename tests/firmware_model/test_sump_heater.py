@@ -10,6 +10,7 @@ import pytest
 from firmware_model.description import description_of
 from firmware_model.errors import ParameterError
 from firmware_model.onboard import evaluate as E
+from firmware_model.onboard import reduce as R
 from firmware_model.parameters import PARAM_DIR, load_parameters
 from firmware_model.physics import cooler as CO
 from tools.drive_table import map_fixed_ratio
@@ -90,24 +91,32 @@ def _standing(mm82, days: float, ambient_c: float) -> RunTable:
     return map_fixed_ratio(RunTable(cols, source="a standing MM82"), description_of(mm82))
 
 
+def _both_cores(params, table, initial_oil_c: float) -> dict:
+    """core -> the held replay of ``table`` with the sump modelled, the C kernel's equal to the numpy step's within
+    1e-9 K in every column (asserted)."""
+    from firmware_model.onboard.sensor import VirtualSensor
+    from tools.replay.table import held_options, replay_table
+
+    out = {}
+    for core in ("numpy", "c"):
+        s = VirtualSensor(params, core=core, oil_mode="model", ttl_period_s=600.0, **held_options(table))
+        out[core] = replay_table(table, s, initial_oil_c=initial_oil_c)
+    for col in out["c"].columns:
+        np.testing.assert_allclose(out["c"][col], out["numpy"][col], rtol=0, atol=1e-9, equal_nan=True, err_msg=col)
+    return out
+
+
 @pytest.mark.parametrize("heater_set_c", [22.3, 5.0])
 def test_a_cold_standing_gearbox_is_held_near_the_heater_s_set_point_by_the_plant_and_both_cores(mm82, heater_set_c):
     """Three days at rest in a -5 degC nacelle from a 35 degC sump, the sump modelled: with the MM82's heater the
     sump ends inside its band (set point - band .. set point) on the plant, the numpy step and the C kernel, the two
     cores equal within 1e-9 K and the sensor within 0.3 K of the plant; a heater set at 5 degC lets it fall below
     the band of the shipped one, towards the nacelle's air."""
-    from firmware_model.onboard.sensor import VirtualSensor
     from tools.plant.reference import ReferencePlant
-    from tools.replay.table import held_options, replay_table
 
     p = mm82.with_overrides({"cooler.heater_set": heater_set_c})
     table = _standing(p, 3.0, -5.0)
-    out = {}
-    for core in ("numpy", "c"):
-        s = VirtualSensor(p, core=core, oil_mode="model", ttl_period_s=600.0, **held_options(table))
-        out[core] = replay_table(table, s, initial_oil_c=35.0)
-    for col in out["c"].columns:
-        np.testing.assert_allclose(out["c"][col], out["numpy"][col], rtol=0, atol=1e-9, equal_nan=True, err_msg=col)
+    out = _both_cores(p, table, 35.0)
     plant = ReferencePlant(p, dt_s=2.0).run(table, initial_temp_c=35.0, out_dt_s=600.0, progress=False)
     T_plant = float(np.asarray(plant.table["T_oil_c"])[-1])
     T_sensor = float(np.asarray(out["numpy"]["T_oil_c"])[-1])
@@ -134,9 +143,7 @@ def test_the_mm82_s_pump_stops_with_the_rotor_on_the_plant_and_both_cores(mm82):
     the rotor turns the pump feeds the cooler and the inlet lies under the sump (the cooler's drop); parked, the
     pump stops (oil.pump_stops_below 0.5 rpm): no drop, the inlet is the sump's (within a step's cooling), on the
     plant and on both cores, the cores equal within 1e-9 K; a rotor idling at 1 rpm keeps its pump."""
-    from firmware_model.onboard.sensor import VirtualSensor
     from tools.plant.reference import ReferencePlant
-    from tools.replay.table import held_options, replay_table
 
     assert description_of(mm82).oil.pump_stops_below_rad_s == pytest.approx(0.5 * np.pi / 30.0)
     n = 6 * 14
@@ -149,18 +156,13 @@ def test_the_mm82_s_pump_stops_with_the_rotor_on_the_plant_and_both_cores(mm82):
         "ambient_temp_c": np.full(n, 25.0),
     }
     table = map_fixed_ratio(RunTable(cols, source="a turbine parked for four hours"), description_of(mm82))
-    out = {}
-    for core in ("numpy", "c"):
-        s = VirtualSensor(mm82, core=core, oil_mode="model", ttl_period_s=600.0, **held_options(table))
-        out[core] = replay_table(table, s, initial_oil_c=57.0)
-    for col in out["c"].columns:
-        np.testing.assert_allclose(out["c"][col], out["numpy"][col], rtol=0, atol=1e-9, equal_nan=True, err_msg=col)
+    out = _both_cores(mm82, table, 57.0)
     drop_k = np.asarray(out["numpy"]["T_oil_c"]) - np.asarray(out["numpy"]["oil_inlet_temp_c"])
     # parked, no drop: the inlet is the sump at the step's start, within the step's cooling (15 s: < 0.02 K here)
     assert np.all(np.abs(drop_k[parked][1:]) < 0.02)  # (the first parked row ends an interval that began turning)
     assert np.all(drop_k[:36][6:] > 1.0)
     # a rotor idling at 1 rpm keeps the pump running, one at 0.4 rpm has stopped it (the kernel's is the same rule)
-    rp = s.sp.reduced
+    rp = R.build_reduced(mm82)
     assert list(E.pump_drive(rp, 0, np.array([0.0, 0.4, 1.0, 15.0]) * np.pi / 30.0)) == [0.0, 0.0, 1.0, 1.0]
     plant = ReferencePlant(mm82, dt_s=2.0).run(table, initial_temp_c=57.0, out_dt_s=600.0, progress=False).table
     p_drop_k = np.asarray(plant["T_oil_c"]) - np.asarray(plant["T_oil.inlet_c"])
