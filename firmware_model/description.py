@@ -41,6 +41,7 @@ from firmware_model.parameters import (
 )
 from firmware_model.physics.losses import ADDENDUM_COEF, DEDENDUM_COEF
 from firmware_model.physics.oil import T_MAX_C, T_MIN_C
+from firmware_model.units import RAD_S_PER_RPM
 
 #: units a description may use: the parameter files' and volume flows (a motor-driven pump)
 DESC_UNITS = {**UNITS, "L/min": ("m3/s", 1e-3 / 60.0), "m3/s": ("m3/s", 1.0), "K": ("K", 1.0)}
@@ -1044,6 +1045,24 @@ def _check_oil_fits(r: _Reader, oil: OilSystem, housings: tuple) -> None:
         )
 
 
+def _check_oil_controls(r: _Reader, oil: OilSystem, drive) -> None:
+    """A heater's set point within the oil model's range, a pump that stops below a speed the drive reaches (else it
+    would heat or stand always: a unit or a digit wrong, no model)."""
+    lo, hi = BOUNDARY_RANGE_C
+    if oil.heater_set_c is not None and not lo <= oil.heater_set_c <= hi:
+        r.fail(
+            f"{TOPOLOGY}.oil.heater_set",
+            f"= {oil.heater_set_c:g} degC lies outside the oil model's range {lo:g}..{hi:g} degC",
+        )
+    stop = oil.pump_stops_below_rad_s
+    if stop is not None and drive is not None and not stop < drive.max_speed_rad_s:
+        r.fail(
+            f"{TOPOLOGY}.oil.pump_stops_below",
+            f"= {stop / RAD_S_PER_RPM:g} rpm is not below the drive's top input speed "
+            f"({drive.max_speed_rad_s / RAD_S_PER_RPM:g} rpm): the pump would never run",
+        )
+
+
 def _boundaries(r: _Reader, topo: dict) -> tuple:
     out = []
     for b, key, f in _per_id(r, topo, "boundary"):
@@ -1436,6 +1455,7 @@ def _describe(path: Path, entries: dict, params: Parameters | None = None) -> De
     _check_touches(r, boundaries, nodes)
     oil = _oil(r, topo, by_shaft, nodes)
     _check_oil_fits(r, oil, housings)
+    _check_oil_controls(r, oil, drive)
     with_oil = replace(desc, oil=oil)
     published = _published(r, topo, set(with_oil.nodes) | set(with_oil.derived))  # a forced system's oil inlet too
     return Description(

@@ -104,7 +104,7 @@ def heater_values(p) -> dict:
 
     oil = description_of(p).oil
     if not oil.heater_w > 0.0:
-        return {"heater_w": 0.0, "heater_set": 0.0, "heater_band": 1.0}
+        return {k: COOLER_LATER_KEYS[k] for k in ("heater_w", "heater_set", "heater_band")}
     return {"heater_w": oil.heater_w, "heater_set": oil.heater_set_c, "heater_band": oil.heater_band_k}
 
 

@@ -70,9 +70,20 @@ def _mm82_text(edits: dict) -> str:
             {'heater_band = { v = 5, u = "K"': 'heater_band = { v = 5, u = "degC"'},
             r"topology\.oil\.heater_band has unit 'degC'",
         ),
+        (
+            {
+                'heater_set = { from = "cooler.heater_set" }': 'heater_set = { v = 500, u = "degC", src = "assumed" }',
+                "heater_set = { v = 22.3": "",
+            },
+            r"topology\.oil\.heater_set = 500 degC lies outside the oil model's range",
+        ),
+        (
+            {"pump_stops_below = { v = 0.5,": "pump_stops_below = { v = 500,"},
+            r"topology\.oil\.pump_stops_below = 500 rpm is not below the drive's top input speed \(20 rpm\)",
+        ),
     ],
 )
-def test_a_heater_without_its_set_point_or_a_set_point_without_a_heater_is_one_sentence(tmp_path, edits, message):
+def test_a_heater_or_a_pump_stop_that_cannot_be_is_one_sentence(tmp_path, edits, message):
     f = tmp_path / "MM82x.toml"
     f.write_text(_mm82_text(edits))
     with pytest.raises(ParameterError, match=message):
