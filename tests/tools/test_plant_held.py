@@ -16,7 +16,8 @@ from tools.plant.reference import ReferencePlant
 #: the return (a planet, 50 K above the sump: 0.1 % of its rise); the step path's own step error (0.5 s against
 #: 0.1 s) is 0.011 K on the HR225. The MM82's thermostat reads the sump since 2026-12-05: the jets' oil, the sump minus
 #: the cooler's drop, moves ~9 K for a kelvin of sump in the valve's band, and on this test's 6 hours the 0.5 s step
-#: path itself errs by 0.080 K (P2, against 0.1 s), the held path by 0.068 K (PS): 0.087 K apart (P2)
+#: path itself errs by 0.080 K (P2, against 0.1 s), the held path by 0.068 K (PS): 0.087 K apart (P2); with the
+#: seats HB and the bearing factors of 2026-12-06: 0.076 K apart (P2; the step path's own 0.078 K against 0.1 s)
 HELD_BOUND_K = {"HR225": 0.06, "MM82": 0.09}
 #: the ledger: generated = stored + rejected, and the held path's books against the step path's, share of generated
 LEDGER_CLOSURE = 1e-9
