@@ -365,3 +365,27 @@ def test_a_fixed_ratio_replay_counts_only_the_auxiliary_inputs_its_drive_has(tmp
     assert aux[-1] == 5 and aux[9] == 0 and aux[14] == 5
     line = next(s for s in capsys.readouterr().out.splitlines() if s.startswith("rejected or repaired inputs:"))
     assert "auxiliary inputs missing or out of range on 5 steps" in line and "coolant" not in line
+
+
+def test_a_fixed_ratio_est_csv_names_its_inputs_as_its_run_table_does(tmp_path):
+    """est.csv of an MM82 run table carried a truck's columns: its input speed and torque as engine_speed_rpm and
+    engine_torque_nm, a gear of 1 on every row, the coolant, vehicle speed and retarder at their defaults. Now it
+    holds input_speed_rpm and input_torque_nm (the run table's values, held as the sensor held them) and none of
+    the columns of a vehicle, as the SCADA path's est.csv; a truck's est.csv is unchanged."""
+    from firmware_model.description import load_description
+    from firmware_model.units import RPM_PER_RAD_S
+
+    d = load_description("MM82")
+    n = 40
+    speed = np.linspace(0.3, 0.8, n) * d.drive.max_speed_rad_s * RPM_PER_RAD_S
+    torque = np.linspace(0.2, 0.6, n) * d.drive.max_torque_nm
+    cols = {"time_s": np.arange(n) * 0.1, "input_speed_rpm": speed, "input_torque_nm": torque}
+    cols.update({"oil_temp_c": np.full(n, 55.0), "ambient_temp_c": np.full(n, 15.0)})
+    src = write_run_table(RunTable(cols), tmp_path / "mm82.csv")
+    assert main(["replay", str(src), "--gearbox", "MM82", "--out", str(tmp_path / "est.csv"), "--quiet"]) == 0
+    est = read_run_table(tmp_path / "est.csv", required=("time_s",))
+    vehicle = ("engine_speed_rpm", "engine_torque_nm", "gear", "coolant_temp_c", "vehicle_speed_kmh")
+    assert not set(vehicle + ("retarder_torque_nm", "gear_valid")) & set(est.columns)
+    np.testing.assert_allclose(est["input_speed_rpm"], speed, rtol=1e-4)
+    np.testing.assert_allclose(est["input_torque_nm"], torque, rtol=1e-4)
+    assert {"T_oil_c", "T_BHG_c", "oil_inlet_temp_c", "rejects_aux_missing"} <= set(est.columns)

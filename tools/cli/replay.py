@@ -215,8 +215,9 @@ def run(args) -> int:
     )
     if not args.out:
         raise InputError("--out EST.csv is required")
+    from firmware_model.description import description_of
     from tools.replay.plot import plot_replay
-    from tools.replay.table import held_step_line, replay_csv, summarize, table_findings
+    from tools.replay.table import held_step_line, replay_csv, summarize, table_findings, written_table
     from tools.runtable import write_run_table
 
     # the outputs to temporary files first: a failure leaves none of them (tools.outputs)
@@ -224,7 +225,7 @@ def run(args) -> int:
         out, variant, oil_mode = replay_csv(path, _config(args), _sensor_options(args))
         gearbox = _config(args).load_params()
         with naming(out_tmp):
-            write_run_table(out, out_tmp)
+            write_run_table(written_table(out, description_of(gearbox)), out_tmp)  # the columns the drive has
         if plot_tmp:
             with naming(plot_tmp):
                 plot_replay(out, plot_tmp, f"{variant} onboard sensor, replay of {path.name}", gearbox=gearbox)

@@ -436,6 +436,25 @@ def mark_for_findings(out, sensor) -> None:
     out.meta.update(gear_meta(description))
 
 
+#: a fixed-ratio drive's est.csv names the sensor's speed and torque inputs as its run table does
+FIXED_RATIO_NAMES = {"engine_speed_rpm": "input_speed_rpm", "engine_torque_nm": "input_torque_nm"}
+
+
+def written_table(out, description):
+    """What a run table's est.csv holds: ``out`` itself for a vehicle's drive; for a fixed-ratio drive the speed and
+    torque under its run table's names (input_speed_rpm, input_torque_nm) and without the columns of a vehicle it
+    has not (tools.scada.replay.not_written: the gear, the vehicle speed, the retarder, an air cooler's coolant),
+    as the SCADA path writes. The findings and the summary read ``out``."""
+    if description.drive.kind == "vehicle":
+        return out
+    from tools.runtable import RunTable
+    from tools.scada.replay import not_written
+
+    left = set(not_written(description)) - set(FIXED_RATIO_NAMES)  # (the SCADA path has the record's own)
+    cols = {FIXED_RATIO_NAMES.get(c, c): out[c] for c in out.columns if c not in left}
+    return RunTable(cols, meta=out.meta, source=out.source)
+
+
 def drive_limits(description) -> tuple | None:
     """A fixed-ratio drive's (max speed [rpm], max torque [N m]) for the plausibility's kN m rule; None for a
     vehicle's (the engine's own rule)."""
