@@ -284,7 +284,7 @@ def test_another_topology_runs_through_simulate_and_replay(tmp_path):
     write_run_table(measured, tmp_path / "hr_oil.csv")
     argv = ["replay", str(tmp_path / "hr_oil.csv"), "--out", str(est), "--quiet", "--allow-untrusted"]
     assert main(argv + ["--gearbox", "HR225"]) == 0
-    es = read_run_table(est)
+    es = read_run_table(est, required=("time_s",))
     assert es.n == 31 and "T_P_c" in es.columns and "T_LI.teeth_c" not in es.columns
     # each output row is the state at the end of its input row's interval: the plant at the same times
     plant_p_c = np.interp(es["time_s"], pl["time_s"], pl["T_P_c"])
@@ -293,7 +293,7 @@ def test_another_topology_runs_through_simulate_and_replay(tmp_path):
     # it in one sentence): it replays as it stands, its oil_temp_c the plant's oil sensor
     assert "input_speed_rpm" in pl.columns and "gear" not in pl.columns and "engine_speed_rpm" not in pl.columns
     assert main(["replay", str(plant), "--out", str(est), "--quiet", "--gearbox", "HR225"]) == 0
-    again = read_run_table(est)
+    again = read_run_table(est, required=("time_s",))
     assert again.n == 31 and np.max(np.abs(again["T_P_c"] - plant_p_c)) < 1.0
     # a vehicle's columns for a fixed-ratio gearbox: one sentence
     vehicle = tmp_path / "vehicle.csv"
@@ -329,7 +329,7 @@ def test_the_mm82_runs_through_simulate_and_replay(tmp_path):
     # the oil measured, then modelled: the sump unread (the table has no oil_temp_c)
     for argv in (["--gearbox", "MM82", str(tmp_path / "mm_oil.csv")], ["--config", str(cfg), str(table)]):
         assert main(["replay", *argv, "--out", str(est), "--quiet"]) == 0
-        es = read_run_table(est)
+        es = read_run_table(est, required=("time_s",))
         assert es.n == 31 and "T_BHG_c" in es.columns and "T_oil.inlet_c" not in es.columns
         for c in ("oil", "BHG", "BHR", "P2"):
             plant_c = np.interp(es["time_s"], pl["time_s"], pl[f"T_{c}_c"])
