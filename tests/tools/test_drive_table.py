@@ -66,6 +66,17 @@ def test_a_missing_column_or_a_bad_value_is_one_sentence_naming_it(fixed_grs905)
     map_fixed_ratio(src, fixed_grs905, strict=False)  # the sensor takes bad values as data
 
 
+def test_a_bad_value_of_a_table_read_from_a_file_names_its_line(tmp_path, capsys):
+    """`simulate --cycle F --gearbox MM82` on a table whose second data row (the file's line 4, after a blank line)
+    holds a negative input speed named the data row alone ("row 2"); the run table's reader names the line too."""
+    path = tmp_path / "mm82.csv"
+    lines = ["time_s,input_speed_rpm,input_torque_nm,ambient_temp_c", "0,10,1e5,15", "", "600,-3,1e5,15"]
+    path.write_text("\n".join(lines + ["1200,10,1e5,15"]) + "\n")
+    assert main(["simulate", "--cycle", str(path), "--gearbox", "MM82", "--out", str(tmp_path / "s.csv")]) == 2
+    err = capsys.readouterr().err
+    assert 'column "input_speed_rpm" row 2 (line 4): -3 is not a valid input speed' in err, err
+
+
 def test_a_table_of_two_drives_or_of_the_other_drive_is_one_sentence(fixed_grs905):
     assert table_drive(["time_s", "input_speed_rpm"], "x.csv") == "fixed_ratio"
     assert table_drive(["time_s", "engine_speed_rpm"], "x.csv") == "vehicle"
