@@ -436,6 +436,24 @@ def mark_for_findings(out, sensor) -> None:
     out.meta.update(gear_meta(description))
 
 
+#: the sensor's outputs of a vehicle's inputs that a fixed-ratio drive's est.csv leaves out: its input speed and
+#: torque again under the engine's names (input_speed_rpm and input_torque_nm hold them), and the gear with its
+#: validity and reject counters (the description's one gear on every row: valid, never missing, never unknown)
+VEHICLE_OUTPUTS = ("engine_speed_rpm", "engine_torque_nm", "gear", "gear_valid", "rejects_gear_missing")
+VEHICLE_OUTPUTS += ("rejects_gear_unknown",)
+
+
+def not_written(description) -> tuple:
+    """The columns a fixed-ratio drive's est.csv leaves out: :data:`VEHICLE_OUTPUTS` and each auxiliary input the
+    drive has not (firmware_model.onboard.reduce.aux_inputs_expected: the vehicle speed, the retarder torque, and
+    the coolant of the MM82's air cooler), which the sensor fills with its default on every row."""
+    from firmware_model.onboard.records import I_AMB, INPUT_FIELDS
+    from firmware_model.onboard.reduce import aux_inputs_expected
+
+    aux = zip(INPUT_FIELDS[I_AMB:], aux_inputs_expected(description))
+    return VEHICLE_OUTPUTS + tuple(c for c, has in aux if not has)
+
+
 #: a fixed-ratio drive's est.csv names the sensor's speed and torque inputs as its run table does
 FIXED_RATIO_NAMES = {"engine_speed_rpm": "input_speed_rpm", "engine_torque_nm": "input_torque_nm"}
 
@@ -443,12 +461,11 @@ FIXED_RATIO_NAMES = {"engine_speed_rpm": "input_speed_rpm", "engine_torque_nm": 
 def written_table(out, description):
     """What a run table's est.csv holds: ``out`` itself for a vehicle's drive; for a fixed-ratio drive the speed and
     torque under its run table's names (input_speed_rpm, input_torque_nm) and without the columns of a vehicle it
-    has not (tools.scada.replay.not_written: the gear, the vehicle speed, the retarder, an air cooler's coolant),
+    has not (:func:`not_written`: the gear, the vehicle speed, the retarder, an air cooler's coolant),
     as the SCADA path writes. The findings and the summary read ``out``."""
     if description.drive.kind == "vehicle":
         return out
     from tools.runtable import RunTable
-    from tools.scada.replay import not_written
 
     left = set(not_written(description)) - set(FIXED_RATIO_NAMES)  # (the SCADA path has the record's own)
     cols = {FIXED_RATIO_NAMES.get(c, c): out[c] for c in out.columns if c not in left}

@@ -10,7 +10,7 @@ first row (the model's start) and the sump channel's estimate is the model's; wi
 of the sump is the reading the sensor used (its model's own sump is the ``model_oil_temp_c`` column). A channel
 tied to a forced oil system's inlet (``oil.inlet``) is estimated by the status column ``oil_inlet_temp_c``. The
 sensor's full output (``T_<id>_c``, ``W_<id>``, ``ttl_<id>_s``, the status) follows; est.csv leaves out the
-columns of a vehicle the drive has not (:func:`not_written`).
+columns of a vehicle the drive has not (tools.replay.table.not_written).
 """
 
 from __future__ import annotations
@@ -23,7 +23,7 @@ import numpy as np
 
 from firmware_model.description import OIL_INLET, description_of
 from firmware_model.errors import InputError
-from tools.replay.table import INLET_COLUMN, drive_knm_finding
+from tools.replay.table import INLET_COLUMN, drive_knm_finding, not_written
 from tools.runtable import RunTable
 from tools.scada.reader import ScadaRecord
 from tools.scada.runtable import INPUTS, oil_channel, run_table_of
@@ -50,30 +50,12 @@ class ScadaReplay:
     estimated: dict  # measured channel -> the output column its estimate comes from
     notes: list  # the channels left without an estimate, and why
     stretch: np.ndarray  # the record's gap-free stretch of each row (ScadaRecord.stretch): where a plot breaks
-    left_out: tuple = ()  # columns of ``table`` that est.csv leaves out (:func:`not_written`)
+    left_out: tuple = ()  # columns of ``table`` that est.csv leaves out (tools.replay.table.not_written)
 
     def written(self) -> RunTable:
         """What est.csv holds: :attr:`table` without :attr:`left_out` (the findings read the whole table)."""
         t = self.table
         return RunTable({c: t[c] for c in t.columns if c not in self.left_out}, meta=t.meta, source=t.source)
-
-
-#: the sensor's outputs of a vehicle's inputs that a fixed-ratio drive's est.csv leaves out: its input speed and
-#: torque again under the engine's names (input_speed_rpm and input_torque_nm hold them), and the gear with its
-#: validity and reject counters (the description's one gear on every row: valid, never missing, never unknown)
-VEHICLE_OUTPUTS = ("engine_speed_rpm", "engine_torque_nm", "gear", "gear_valid", "rejects_gear_missing")
-VEHICLE_OUTPUTS += ("rejects_gear_unknown",)
-
-
-def not_written(description) -> tuple:
-    """The columns a fixed-ratio drive's est.csv leaves out: :data:`VEHICLE_OUTPUTS` and each auxiliary input the
-    drive has not (firmware_model.onboard.reduce.aux_inputs_expected: the vehicle speed, the retarder torque, and
-    the coolant of the MM82's air cooler), which the sensor fills with its default on every row."""
-    from firmware_model.onboard.records import I_AMB, INPUT_FIELDS
-    from firmware_model.onboard.reduce import aux_inputs_expected
-
-    aux = zip(INPUT_FIELDS[I_AMB:], aux_inputs_expected(description))
-    return VEHICLE_OUTPUTS + tuple(c for c, has in aux if not has)
 
 
 def estimate_columns(record: ScadaRecord, published, parts=(), outputs=()) -> tuple[dict, list[str]]:
