@@ -499,15 +499,21 @@ def fixed_torque_knm_finding(
     p99, median = (float(v) for v in np.percentile(torque[fast], [99, 50]))
     if not (median > 0 and p99 <= FIXED_KNM_SHARE * max_nm):
         return None
-    col = "column engine_torque_nm (input_torque_nm)" if source == "table" else SOURCES[source]["engine_torque_nm"]
+    # x 1000 that would still leave the torque inside the rule is no fix: MN m (a power 10^6 times too small)
+    unit, times, power = (
+        ("MN m", "1e6", "10^6 times too small: in MW read as W")
+        if 1e3 * p99 <= FIXED_KNM_SHARE * max_nm
+        else ("kN m", "1000", "1000 times too small: in MW read as kW, in kW read as W")
+    )
+    col = "column input_torque_nm" if source == "table" else SOURCES[source]["engine_torque_nm"]
     return PlausibilityFinding(
         "engine_torque_nm",
-        "kN m",
+        unit,
         f"{col} stays at or below {p99:.4g} N m (99th percentile; median {median:.4g}) over the "
         f"{n * dt_s / 3600.0:.1f} h the input shaft turns at {FIXED_FAST_SHARE * max_rpm:.3g} rpm or more, within "
         f"{FIXED_KNM_SHARE * 100:g} % of the drive's {max_nm:.3g} N m: no gearbox turns that fast on so little "
-        f"(its own drag is more), so the torque looks like kN m (or derived from a power 1000 times too small: in "
-        f"MW read as kW, in kW read as W); give N m (x 1000)",
+        f"(its own drag is more), so the torque looks like {unit} (or derived from a power {power}); give N m "
+        f"(x {times})",
     )
 
 

@@ -145,6 +145,24 @@ def test_a_fixed_ratio_drive_s_torque_in_kn_m_is_found_and_its_idle_drag_is_not(
     assert record_findings(cols, 600.0, engine=False) == []  # no limits given: not judged
 
 
+def test_a_fixed_ratio_drive_s_torque_in_mn_m_is_told_apart_from_kn_m():
+    """The MM82's rotor torque written in MN m (1.25 for 1.25 MN m) fits the kN m rule too, but the fix it gave, x
+    1000, leaves the torque inside the rule (1250 N m at 15 rpm is still no rotor's): the sentence says MN m and x
+    1e6. The sentence names the run table's column, input_torque_nm (engine_torque_nm is no fixed-ratio table's)."""
+    from firmware_model.service.plausibility import fixed_torque_knm_finding
+
+    rng = np.random.default_rng(3)
+    rpm = 10.0 + 6.0 * rng.random(432)
+    nm = 1.0e6 * (rpm / 16.0) ** 3
+    mm82 = (20.0, 2.5e6)
+    f = fixed_torque_knm_finding(rpm, nm / 1.0e6, mm82, 600.0)
+    assert f is not None and f.likely == "MN m"
+    assert "x 1e6" in f.sentence and "x 1000" not in f.sentence and "looks like MN m" in f.sentence
+    assert "column input_torque_nm" in f.sentence and "engine_torque_nm" not in f.sentence
+    k = fixed_torque_knm_finding(rpm, nm / 1.0e3, mm82, 600.0)  # kN m stays kN m
+    assert k.likely == "kN m" and "x 1000" in k.sentence and "column input_torque_nm" in k.sentence
+
+
 def test_a_held_low_load_is_not_taken_for_percent():
     """A rig's steady point at 60 or 100 N m (with a few N m of noise) is an honest light load, not percent: the
     rule needs a load that varies like a drive."""

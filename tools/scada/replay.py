@@ -184,7 +184,7 @@ def record_findings(record: ScadaRecord, result: ScadaReplay) -> list:
 
     found = [
         RecordFinding("plausibility", int(f.severity), torque_unit_hint(record, f.sentence))
-        if "looks like kN m" in f.sentence
+        if is_torque_unit_sentence(f.sentence)
         else f
         for f in table_findings(result.table, oil_model=result.oil_mode == "model")
     ]
@@ -288,11 +288,16 @@ def spacing_finding(record: ScadaRecord) -> RecordFinding | None:
     return None
 
 
+def is_torque_unit_sentence(sentence: str) -> bool:
+    """Whether ``sentence`` is the fixed-ratio drive's torque-unit finding (kN m, or MN m: 10^6 too small)."""
+    return "looks like kN m" in sentence or "looks like MN m" in sentence
+
+
 def torque_unit_hint(record: ScadaRecord, sentence: str) -> str:
     """The kN m finding of a fixed-ratio table (firmware_model.service.plausibility) names run-table columns and
     says "give N m"; on a SCADA record the fix is the column map's unit of the column the input torque comes from."""
     ch = record.cmap.channels.get("input_torque_nm")
-    if ch is None or "looks like kN m" not in sentence:
+    if ch is None or not is_torque_unit_sentence(sentence):
         return sentence
     name = record.cmap.name
     if ch.derive == "power_over_speed":

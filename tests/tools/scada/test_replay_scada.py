@@ -286,6 +286,25 @@ def test_a_power_in_kw_read_as_w_is_said_and_exits_3(tmp_path):
     assert "derives the torque from P_avg read in W: a power column in MW wants power_unit" in p.stderr
 
 
+def test_a_power_in_mw_read_as_w_says_x_1e6_and_the_map_s_unit(tmp_path):
+    """A power column in MW read as W derives a torque 10^6 times too small: the sentence said kN m and x 1000,
+    which would leave it too small; it says MN m and x 1e6, and the column map's fix is still added."""
+    scada = write(tmp_path / "a.csv", _rows(0, ROWS, load=1.0e-3))
+    path = _map(tmp_path)
+    path.write_text(path.read_text().replace('power_unit = "kW"', 'power_unit = "W"'))
+    p = subprocess.run(
+        [sys.executable, "-m", "tools.cli", "replay", str(scada), "--gearbox", "HR225", "--columns", str(path)]
+        + ["--out", str(tmp_path / "est.csv")],
+        cwd=REPO,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert p.returncode == 3, p.stderr
+    assert "looks like MN m" in p.stderr and "x 1e6" in p.stderr and "x 1000" not in p.stderr
+    assert "derives the torque from P_avg read in W: a power column in MW wants power_unit" in p.stderr
+
+
 @pytest.mark.parametrize(
     "minutes, status, words",
     [(60, 3, "every row is taken for its own stretch"), (1, 0, "each row is held until the next")],
