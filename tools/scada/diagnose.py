@@ -101,12 +101,19 @@ def setup_of(config, cmap) -> tuple[Setup, list[str]]:
     published = set(VirtualSensor(config.load_params(), config=config).published)
     tied = {ch: node for ch, node in cmap.nodes.items() if node in published}
     sump = next((ch for ch, node in tied.items() if node == "oil"), None)
-    notes = [
-        f"{ch} is left out of the fit: {n!r} is not a published component (replay estimates a derived one beside them)"
-        for ch, n in cmap.nodes.items()
-        if ch not in tied
-    ]
+    notes = [f"{ch} is left out of the fit: {_why_left_out(n)}" for ch, n in cmap.nodes.items() if ch not in tied]
     return Setup(config, sump, tuple(ch for ch in tied if ch != sump)), notes
+
+
+def _why_left_out(node: str) -> str:
+    """Why a channel tied to ``node`` is not scored: a derived temperature (the forced oil system's inlet, which replay
+    writes as a status column beside the published nodes) or a part the sensor does not publish."""
+    from tools.scada.replay import DERIVED_COLUMNS
+
+    if node in DERIVED_COLUMNS:
+        column = DERIVED_COLUMNS[node]
+        return f"{node!r} is a derived temperature, not a node of the model (replay writes it as {column})"
+    return f"{node!r} is not a component the sensor publishes"
 
 
 def thermostat_of(params) -> tuple[float, float] | None:
