@@ -78,6 +78,8 @@ def _check_values(table, name: str, strict: bool) -> None:
     finite and >= 0, torque finite (``strict``: the plant's; the sensor takes bad values as data)."""
     if not strict:
         return
+    from tools.runtable import row_namer
+
     for col, what in (("input_speed_rpm", "input speed"), ("input_torque_nm", "input torque")):
         v = np.asarray(table[col], dtype=float)
         bad = np.flatnonzero(~np.isfinite(v) | ((v < 0) if col == "input_speed_rpm" else False))
@@ -85,17 +87,8 @@ def _check_values(table, name: str, strict: bool) -> None:
             r = int(bad[0])
             rule = "finite and >= 0" if col == "input_speed_rpm" else "a finite number"
             raise InputError(
-                f'{name}: column "{col}" {_where(table, r)}: {v[r]:.10g} is not a valid {what}; it must be {rule}'
+                f'{name}: column "{col}" {row_namer(table)(r)}: {v[r]:.10g} is not a valid {what}; it must be {rule}'
             )
-
-
-def _where(table, row: int) -> str:
-    """A 0-based data row with its line in the file the table was read from ("row 4 (line 5)", as the run table's
-    reader names it), the row alone for a table without a file."""
-    from tools.runtable import lines_of
-
-    src = getattr(table, "source", None)
-    return lines_of(Path(src))(row) if src and Path(src).is_file() else f"row {row + 1}"
 
 
 def map_fixed_ratio(table, description, name: str | None = None, strict: bool = True):

@@ -355,6 +355,13 @@ def lines_of(path: Path):
     return where
 
 
+def row_namer(table):
+    """A function naming a 0-based data row of ``table``: with its line in the file it was read from (:func:`lines_of`,
+    "row 4 (line 5)"), the row alone ("row 4") for a table without a file."""
+    src = getattr(table, "source", None)
+    return lines_of(Path(src)) if src and Path(src).is_file() else _row
+
+
 def _row(row: int) -> str:
     """A 0-based data row named for a table without a file (in memory)."""
     return f"row {row + 1}"

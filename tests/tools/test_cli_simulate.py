@@ -488,7 +488,7 @@ def test_a_fixed_ratio_table_s_bad_value_is_named_by_its_own_column(tmp_path, ca
     cyc = _fixed_ratio_cycle(tmp_path / "c.csv", 1480.0, 5000.0, s=60)
     assert main(["simulate", "--gearbox", "HR225", "--cycle", str(cyc), "--out", str(tmp_path / "x.csv")]) == 2
     err = capsys.readouterr().err
-    assert "column input_torque_nm row 1: 5000 Nm is outside the input shaft's range" in err, err
+    assert "column input_torque_nm row 1 (line 2): 5000 Nm is outside the input shaft's range" in err, err
 
 
 def test_plot_of_a_derived_temperature_draws_no_limit(tmp_path):

@@ -197,3 +197,14 @@ def test_the_plant_writes_one_row_per_slow_input_row(tmp_path, fixed_grs905):
     )
     np.testing.assert_array_equal(res.table["time_s"], table["time_s"])
     np.testing.assert_array_equal(res.table["engine_speed_rpm"], table["engine_speed_rpm"])
+
+
+def test_a_speed_over_the_drive_s_top_names_its_line_in_the_file(tmp_path, capsys):
+    """`simulate --cycle F --gearbox MM82` on a table whose second data row (the file's line 4, after a blank line)
+    turns the rotor at 45 rpm (the MM82's top: 20) said "row 2" only; the plant's range rules name the line too."""
+    path = tmp_path / "mm82.csv"
+    lines = ["time_s,input_speed_rpm,input_torque_nm,ambient_temp_c", "0,10,1e5,15", "", "600,45,1e5,15"]
+    path.write_text("\n".join(lines + ["1200,10,1e5,15"]) + "\n")
+    assert main(["simulate", "--cycle", str(path), "--gearbox", "MM82", "--out", str(tmp_path / "s.csv")]) == 2
+    err = capsys.readouterr().err
+    assert "column input_speed_rpm row 2 (line 4): 45 rpm exceeds 20 rpm" in err, err

@@ -55,7 +55,7 @@ from firmware_model.physics.kinematics import GEAR_MAX, GEAR_MIN, gear_state
 from firmware_model.units import RAD_S_PER_RPM
 from tools.plant.held import N_OUT, HeldIntegrator, takes_held_path
 from tools.progress import progress as progress_bar
-from tools.runtable import RunTable
+from tools.runtable import RunTable, row_namer
 
 
 def bc_columns(boundaries) -> dict:
@@ -428,7 +428,7 @@ class ReferencePlant:
         spd = np.asarray(table["engine_speed_rpm"], dtype=float)
         trq = np.asarray(table["engine_torque_nm"], dtype=float)
         gear = np.asarray(table["gear"], dtype=float)
-        _validate_inputs(t, spd, trq, gear, self.p)
+        _validate_inputs(t, spd, trq, gear, self.p, row_namer(table))
         meta = getattr(table, "meta", {}) or {}
         if initial_temp_c is None:
             initial_temp_c = meta.get("initial_temp_c")
@@ -802,12 +802,15 @@ def validate_drive(table: RunTable, p: Parameters) -> None:
             if table.has(c)
         },
         p,
+        row_namer(table),
     )
 
 
-def _check_drive_ranges(cols: dict, p: Parameters) -> None:
+def _check_drive_ranges(cols: dict, p: Parameters, row_of=None) -> None:
     """The range rules of the drive columns, on their finite values (validate_drive, _validate_inputs): the
-    description's drive (the GRS905's: its engine; a fixed-ratio gearbox's: its input shaft)."""
+    description's drive (the GRS905's: its engine; a fixed-ratio gearbox's: its input shaft). ``row_of``: names a
+    0-based row (tools.runtable.row_namer: with its file's line)."""
+    row_of = row_of or _row_alone
     drive = description_of(p).drive
     vmax = drive.max_speed_rad_s / RAD_S_PER_RPM
     lo, hi = drive.min_torque_nm, drive.max_torque_nm
@@ -838,10 +841,14 @@ def _check_drive_ranges(cols: dict, p: Parameters) -> None:
             if bad.any():
                 i = int(np.flatnonzero(bad)[0])
                 raise InputError(
-                    f"column {shown.get(col, col)} row {i + 1}: {v[i]:g} {what(v[i]) if callable(what) else what}"
+                    f"column {shown.get(col, col)} {row_of(i)}: {v[i]:g} {what(v[i]) if callable(what) else what}"
                 )
     if "gear" in cols:
         _check_gears_defined(cols["gear"], description_of(p), cols.get("time_s"))
+
+
+def _row_alone(i: int) -> str:
+    return f"row {i + 1}"
 
 
 def _check_gears_defined(gear: np.ndarray, d, t_s: np.ndarray | None = None) -> None:
@@ -859,15 +866,20 @@ def _check_gears_defined(gear: np.ndarray, d, t_s: np.ndarray | None = None) -> 
         )
 
 
-def _validate_inputs(t, spd, trq, gear, p: Parameters):
+def _validate_inputs(t, spd, trq, gear, p: Parameters, row_of=None):
     def first_bad(mask):
-        return int(np.flatnonzero(mask)[0]) + 1
+        return int(np.flatnonzero(mask)[0])
 
+    row_of = row_of or _row_alone
     shown = FIXED_RATIO_NAMES if description_of(p).drive.kind != "vehicle" else {}
     for name, arr in (("time_s", t), ("engine_speed_rpm", spd), ("engine_torque_nm", trq), ("gear", gear)):
         bad = ~np.isfinite(arr)
         if bad.any():
-            raise InputError(f"column {shown.get(name, name)} row {first_bad(bad)}: value is missing or not a number")
+            raise InputError(
+                f"column {shown.get(name, name)} {row_of(first_bad(bad))}: value is missing or not a number"
+            )
     if np.any(np.diff(t) <= 0):
-        raise InputError(f"column time_s row {first_bad(np.append(np.diff(t) <= 0, False)) + 1}: time must increase")
-    _check_drive_ranges({"engine_speed_rpm": spd, "engine_torque_nm": trq, "gear": gear, "time_s": t}, p)
+        raise InputError(
+            f"column time_s {row_of(first_bad(np.append(np.diff(t) <= 0, False)) + 1)}: time must increase"
+        )
+    _check_drive_ranges({"engine_speed_rpm": spd, "engine_torque_nm": trq, "gear": gear, "time_s": t}, p, row_of)
