@@ -19,6 +19,9 @@ import numpy as np
 
 from firmware_model.errors import InputError
 
+#: the names a fixed-ratio drive's tables give the inputs the code reads as an engine's (its run table, simulate's
+#: output, replay's est.csv)
+FIXED_RATIO_NAMES = {"engine_speed_rpm": "input_speed_rpm", "engine_torque_nm": "input_torque_nm"}
 #: the columns of a fixed-ratio drive's run table that must be there, and the optional one
 FIXED_RATIO_REQUIRED = ("time_s", "input_speed_rpm", "input_torque_nm", "ambient_temp_c")
 FIXED_RATIO_OPTIONAL = ("oil_temp_c",)
@@ -132,9 +135,8 @@ def as_fixed_ratio_output(table):
     out), so that `simulate`'s output is a `replay` input as it is for a vehicle. The other columns as they are."""
     from tools.runtable import RunTable
 
-    rename = {"engine_speed_rpm": "input_speed_rpm", "engine_torque_nm": "input_torque_nm"}
     drop = {"gear", "vehicle_speed_kmh", "retarder_torque_nm"}
-    cols = {rename.get(c, c): table[c] for c in table.columns if c not in drop}
+    cols = {FIXED_RATIO_NAMES.get(c, c): table[c] for c in table.columns if c not in drop}
     return RunTable(cols, meta=dict(getattr(table, "meta", {}) or {}), source=getattr(table, "source", None))
 
 

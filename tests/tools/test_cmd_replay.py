@@ -389,3 +389,15 @@ def test_a_fixed_ratio_est_csv_names_its_inputs_as_its_run_table_does(tmp_path):
     np.testing.assert_allclose(est["input_speed_rpm"], speed, rtol=1e-4)
     np.testing.assert_allclose(est["input_torque_nm"], torque, rtol=1e-4)
     assert {"T_oil_c", "T_BHG_c", "oil_inlet_temp_c", "rejects_aux_missing"} <= set(est.columns)
+
+
+def test_a_fixed_ratio_table_of_one_row_is_one_sentence(tmp_path, capsys):
+    """`replay --gearbox MM82` on a table of one row "replayed 0.1 s in 1 steps ... rows of 0 s", exit 0: a 10-minute
+    row stepped for 0.1 s. A fixed-ratio row holds over the interval to the next row; one row has none: one
+    sentence, exit 2, as the plant's "needs at least two samples"."""
+    src = tmp_path / "one.csv"
+    src.write_text("time_s,input_speed_rpm,input_torque_nm,ambient_temp_c\n0,10,100000,15\n")
+    assert main(["replay", str(src), "--gearbox", "MM82", "--out", str(tmp_path / "est.csv")]) == 2
+    err = capsys.readouterr().err
+    assert "one.csv: one row; a fixed-ratio drive's row holds over the interval to the next row" in err, err
+    assert not (tmp_path / "est.csv").exists()

@@ -53,6 +53,7 @@ from firmware_model.physics.gearbox_losses import GearboxLosses
 from firmware_model.physics.heat_lag import HeatLag, first_order_lag_step, heat_lag, heat_lag_step
 from firmware_model.physics.kinematics import GEAR_MAX, GEAR_MIN, gear_state
 from firmware_model.units import RAD_S_PER_RPM
+from tools.drive_table import FIXED_RATIO_NAMES
 from tools.plant.held import N_OUT, HeldIntegrator, takes_held_path
 from tools.progress import progress as progress_bar
 from tools.runtable import RunTable, row_namer
@@ -785,10 +786,6 @@ def _check_range(col: str, v: np.ndarray, ok: np.ndarray, lo: float, hi: float) 
     if bad.any():
         i = int(np.flatnonzero(bad)[0])
         raise InputError(f"column {col} row {i + 1}: {v[i]:g} degC is outside {lo:g}..{hi:g} degC")
-
-
-#: the run-table names of a fixed-ratio drive's inputs, which the plant reads as an engine's (tools.drive_table)
-FIXED_RATIO_NAMES = {"engine_speed_rpm": "input_speed_rpm", "engine_torque_nm": "input_torque_nm"}
 
 
 def validate_drive(table: RunTable, p: Parameters) -> None:

@@ -102,7 +102,15 @@ def read_inputs_table(path, description=None):
             raise InputError(f'{name}: required column "{col}" is missing; the columns are {", ".join(names)}')
     table = rt.RunTable({c: arr[:, j] for j, c in enumerate(names)}, source=name)
     rt.validate_run_table(rt.RunTable({"time_s": table["time_s"]}, source=name), ("time_s",), name, rt.lines_of(p))
-    return map_fixed_ratio(table, description, name, strict=False) if fixed else table
+    if not fixed:
+        return table
+    mapped = map_fixed_ratio(table, description, name, strict=False)
+    if not mapped.meta["row_period_s"] > 0:  # one row: no interval to hold it over (the plant refuses it too)
+        raise InputError(
+            f"{name}: one row; a fixed-ratio drive's row holds over the interval to the next row, so a table of one "
+            "row has none: give at least two rows"
+        )
+    return mapped
 
 
 class _Segment(NamedTuple):
@@ -454,10 +462,6 @@ def not_written(description) -> tuple:
     return VEHICLE_OUTPUTS + tuple(c for c, has in aux if not has)
 
 
-#: a fixed-ratio drive's est.csv names the sensor's speed and torque inputs as its run table does
-FIXED_RATIO_NAMES = {"engine_speed_rpm": "input_speed_rpm", "engine_torque_nm": "input_torque_nm"}
-
-
 def written_table(out, description):
     """What a run table's est.csv holds: ``out`` itself for a vehicle's drive; for a fixed-ratio drive the speed and
     torque under its run table's names (input_speed_rpm, input_torque_nm) and without the columns of a vehicle it
@@ -465,6 +469,7 @@ def written_table(out, description):
     as the SCADA path writes. The findings and the summary read ``out``."""
     if description.drive.kind == "vehicle":
         return out
+    from tools.drive_table import FIXED_RATIO_NAMES
     from tools.runtable import RunTable
 
     left = set(not_written(description)) - set(FIXED_RATIO_NAMES)  # (the SCADA path has the record's own)
