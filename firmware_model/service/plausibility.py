@@ -68,6 +68,11 @@ REPAIR_REASONS = {
     "gear_unknown": "gear not an integer in -2..14 or no gear of the gearbox (last good gear held)",
     "oil_implausible": "oil reading out of range or jumping (modelled instead)",
 }
+#: the same of a fixed-ratio drive (its input shaft, clamped to the description's drive ranges): it has no engine
+DRIVE_REPAIR_REASONS = {
+    "speed_clamped": "input speed clamped to the drive's range",
+    "torque_clamped": "input torque clamped to the drive's range",
+}
 #: where a column comes from: a run table's column, or a CAN log's decoded signal (the DBC fixes its unit)
 SOURCES = {
     "table": {"oil_temp_c": "column oil_temp_c", "engine_torque_nm": "column engine_torque_nm"},
@@ -241,6 +246,7 @@ class RepairFinding:
     kind: ClassVar[str] = "repair"
     steps: int
     repaired: dict
+    engine: bool = True  # a vehicle's engine drives it (else a fixed-ratio drive's input shaft: DRIVE_REPAIR_REASONS)
 
     @property
     def severity(self) -> Severity:
@@ -256,7 +262,8 @@ class RepairFinding:
         worst = sorted(
             ((n, r) for r, n in self.repaired.items() if n > REPAIR_UNTRUSTED_SHARE * self.steps), reverse=True
         )
-        said = "; ".join(f"{REPAIR_REASONS[r]} on {pct(n, self.steps)}" for n, r in worst)
+        words = REPAIR_REASONS if self.engine else {**REPAIR_REASONS, **DRIVE_REPAIR_REASONS}
+        said = "; ".join(f"{words[r]} on {pct(n, self.steps)}" for n, r in worst)
         return (
             f"the sensor clamped or repaired an input on more than {100 * REPAIR_UNTRUSTED_SHARE:.0f} % of its "
             f"{self.steps} steps ({said}): its temperatures rest on values it had to change, not on the "
@@ -579,12 +586,13 @@ def record_findings(
     return [f for f in out if f is not None]
 
 
-def repair_finding(rejects: Mapping[str, int], steps: int) -> RepairFinding | None:
-    """The clamp/repair finding from the sensor's cumulative reject counters over ``steps`` steps, or None."""
+def repair_finding(rejects: Mapping[str, int], steps: int, engine: bool = True) -> RepairFinding | None:
+    """The clamp/repair finding from the sensor's cumulative reject counters over ``steps`` steps, or None;
+    ``engine``: a vehicle's engine drives the gearbox (False: a fixed-ratio drive's input shaft, said so)."""
     repaired = {r: int(rejects.get(r, 0)) for r in REPAIR_REASONS if int(rejects.get(r, 0))}
     if not steps or not any(n > REPAIR_UNTRUSTED_SHARE * steps for n in repaired.values()):
         return None
-    return RepairFinding(int(steps), repaired)
+    return RepairFinding(int(steps), repaired, engine)
 
 
 def is_held(meta) -> bool:
@@ -623,7 +631,7 @@ def table_record_findings(out, min_torque_nm: float | None = None, source: str =
         for k in out.columns
         if k.startswith("rejects_") and np.isfinite(out[k][-1])
     }
-    repair = repair_finding(rejects, steps)
+    repair = repair_finding(rejects, steps, bool(meta.get("engine_drive", True)))
     return found + ([repair] if repair is not None else [])
 
 

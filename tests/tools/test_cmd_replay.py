@@ -401,3 +401,18 @@ def test_a_fixed_ratio_table_of_one_row_is_one_sentence(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "one.csv: one row; a fixed-ratio drive's row holds over the interval to the next row" in err, err
     assert not (tmp_path / "est.csv").exists()
+
+
+def test_a_turbine_s_clamped_speed_is_the_input_shaft_s_not_an_engine_s(tmp_path, capsys):
+    """An MM82 table whose rotor reads 45 rpm on a row (its drive's top: 20) was told "engine speed outside the
+    engine's range (clamped)" in the summary and "engine speed clamped to the engine's range" in the warning: a
+    wind turbine has no engine. Both now name the input speed and the drive's range; a truck's words are unchanged."""
+    src = tmp_path / "over.csv"
+    rows = ["0,10,100000,15,50", "600,45,100000,15,50", "1200,10,100000,15,50", "1800,10,100000,15,50"]
+    src.write_text("time_s,input_speed_rpm,input_torque_nm,ambient_temp_c,oil_temp_c\n" + "\n".join(rows) + "\n")
+    assert main(["replay", str(src), "--gearbox", "MM82", "--out", str(tmp_path / "est.csv")]) == 3
+    said = capsys.readouterr()
+    text = said.out + said.err
+    assert "input speed outside the drive's range (clamped): 600 s" in said.out, said.out
+    assert "input speed clamped to the drive's range on 25 %" in said.err, said.err
+    assert "engine" not in text.replace("engine_", ""), text

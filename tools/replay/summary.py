@@ -37,6 +37,12 @@ REJECT_WORDS = {
     "time_jump": "forward time jumps (state propagated over the gap)",
     "time_backward": "frames whose time went back (step skipped)",
 }
+#: the same of a fixed-ratio drive (a turbine's rotor, a motor's input shaft: the table's input_speed_rpm and
+#: input_torque_nm, clamped to the description's drive ranges), which has no engine
+DRIVE_REJECT_WORDS = {
+    "speed_clamped": "input speed outside the drive's range (clamped)",
+    "torque_clamped": "input torque outside the drive's range (clamped)",
+}
 
 
 def _row_durations_s(time_s) -> np.ndarray:
@@ -170,11 +176,13 @@ def _reject_line(out, unused: tuple = ()) -> str:
             words.append(f"auxiliary inputs not given ({', '.join(absent)}): defaults used, as documented")
         elif not unreferenced and not rejected:
             words.append(f"auxiliary inputs missing or out of range on {aux} steps: defaults used")
-    held = is_held(getattr(out, "meta", None) or {})
+    meta = getattr(out, "meta", None) or {}
+    held = is_held(meta)
+    said = {**REJECT_WORDS, **(DRIVE_REJECT_WORDS if meta.get("engine_drive") is False else {})}
     for k, v in counts.items():
         # a held table's rows stand for many 0.1 s steps, which its counters count: said as time, not as steps
         amount = f"{v * STEP_S:g} s" if held else f"{v} steps"
-        words.append(f"{REJECT_WORDS.get(k, k.replace('_', ' '))}: {amount}")
+        words.append(f"{said.get(k, k.replace('_', ' '))}: {amount}")
     return "rejected or repaired inputs: " + ("; ".join(words) if words else "none")
 
 
