@@ -24,6 +24,9 @@ from firmware_model.service.degraded import Severity, pct
 
 #: the plausible range of a gearbox sump read in degC [degC]
 OIL_ENVELOPE_C = (-40.0, 150.0)
+#: a gearbox with limits of its own: the envelope's top is its sump's warning limit plus this [K] (the GRS905's 120
+#: degC gives the 150 above; the MM82's 75 gives 105, so a turbine's 40-60 degC sump logged in degF is found)
+OIL_ABOVE_WARNING_K = 30.0
 #: degC does not fit when at least this share of the readings is above the envelope ...
 OIL_HOT_SHARE = 0.5
 #: ... and another unit fits when this share of its converted readings lies in the envelope ...
@@ -285,11 +288,16 @@ def _max_rate_c_per_min(oil_c: np.ndarray, dt_s: float) -> float:
     return float(rise.max()) / (lag * dt_s / 60.0) if rise.size else 0.0
 
 
-def oil_unit_finding(oil, dt_s: float = STEP_S, source: str = "table") -> PlausibilityFinding | None:
-    """The oil rule (module doc) over the readings of a record, one every ``dt_s``; None when degC fits."""
+def oil_unit_finding(
+    oil, dt_s: float = STEP_S, source: str = "table", warning_c: float | None = None
+) -> PlausibilityFinding | None:
+    """The oil rule (module doc) over the readings of a record, one every ``dt_s``; None when degC fits.
+    ``warning_c``: the gearbox's own sump warning limit (the envelope's top then lies OIL_ABOVE_WARNING_K above it,
+    at most OIL_ENVELOPE_C's); None: the GRS905's 120 degC."""
     raw = _finite(oil)
     x = raw[np.isfinite(raw)]
-    lo, hi = OIL_ENVELOPE_C
+    warning_c = 120.0 if warning_c is None else float(warning_c)
+    lo, hi = OIL_ENVELOPE_C[0], min(OIL_ENVELOPE_C[1], warning_c + OIL_ABOVE_WARNING_K)
     if x.size * dt_s < OIL_MIN_S or np.mean(x > hi) < OIL_HOT_SHARE:
         return None
     fits = []
@@ -317,9 +325,9 @@ def oil_unit_finding(oil, dt_s: float = STEP_S, source: str = "table") -> Plausi
         " or ".join(n for n, *_ in fits),
         f"{col} reads {np.percentile(x, 1):.0f}-{np.percentile(x, 99):.0f} (median {np.median(x):.0f}) over "
         f"{span_min:.1f} min, above {hi:.0f} degC on {pct(int(np.sum(x > hi)), x.size)} of the readings, where a "
-        f"gearbox sump in degC does not stay (its warning limit is 120 degC); {as_units}, a plausible drive: the "
-        f"oil looks like {' or '.join(w for _, w, *_ in fits)}, not degC; {fix} (if the sump really ran above "
-        f"{hi:.0f} degC: stop and check the gearbox)",
+        f"gearbox sump in degC does not stay (its warning limit is {warning_c:.0f} degC); {as_units}, a plausible "
+        f"drive: the oil looks like {' or '.join(w for _, w, *_ in fits)}, not degC; {fix} (if the sump really ran "
+        f"above {hi:.0f} degC: stop and check the gearbox)",
     )
 
 
@@ -557,12 +565,14 @@ def record_findings(
     source: str = "table",
     engine: bool = True,
     drive_limits: tuple | None = None,
+    oil_warning_c: float | None = None,
 ) -> list[PlausibilityFinding]:
     """The unit and sign findings of a whole record: ``columns`` maps run-table names (``oil_temp_c``,
     ``engine_speed_rpm``, ``engine_torque_nm``, ``gear``) to one value per ``dt_s`` (a RunTable or a dict;
     an absent column is not judged); ``source``: "table" or "can" (the sentence's words and fix); ``engine``: the
     drive is a vehicle's engine (a fixed-ratio drive's input, an idling reducer's few N m, is no kN m mistake by the
-    engine's rule); ``drive_limits``: a fixed-ratio drive's (max speed [rpm], max torque [N m]), for its kN m rule."""
+    engine's rule); ``drive_limits``: a fixed-ratio drive's (max speed [rpm], max torque [N m]), for its kN m rule;
+    ``oil_warning_c``: the gearbox's sump warning limit, for the oil's unit rule (None: the GRS905's)."""
 
     def col(name):
         has = columns.has(name) if hasattr(columns, "has") else name in columns
@@ -571,7 +581,7 @@ def record_findings(
     out = []
     oil, speed, torque, gear = (col(c) for c in ("oil_temp_c", "engine_speed_rpm", "engine_torque_nm", "gear"))
     if oil is not None:
-        out.append(oil_unit_finding(oil, dt_s, source))
+        out.append(oil_unit_finding(oil, dt_s, source, oil_warning_c))
         if col("time_s") is not None:  # (a live check's samples carry none: its clock is the bus's)
             out.append(oil_rate_finding(col("time_s"), oil, source))
     if speed is not None and torque is not None:
@@ -584,6 +594,13 @@ def record_findings(
     if source == "table":  # (a CAN source decodes them in degC, its range checked by the decoder)
         out.extend(aux_unit_finding(c, col(c)) for c in AUX_COLUMNS_C if col(c) is not None)
     return [f for f in out if f is not None]
+
+
+def _oil_warning_c(limits) -> float | None:
+    """The sump's warning limit of a gearbox's limits (firmware_model.limits.Limits), None without one."""
+    if limits is None or "oil" not in getattr(limits, "components", ()):
+        return None
+    return limits.of("oil")[0]
 
 
 def repair_finding(rejects: Mapping[str, int], steps: int, engine: bool = True) -> RepairFinding | None:
@@ -613,7 +630,13 @@ def table_record_findings(out, min_torque_nm: float | None = None, source: str =
     dt_s = float(meta.get("row_period_s") or STEP_S) if held else STEP_S
     steps = int(round(meta["steps"] * meta["step_s"] / STEP_S)) if held else out.n
     found: list = record_findings(
-        out, dt_s, min_torque_nm, source, bool(meta.get("engine_drive", True)), meta.get("drive_limits")
+        out,
+        dt_s,
+        min_torque_nm,
+        source,
+        bool(meta.get("engine_drive", True)),
+        meta.get("drive_limits"),
+        _oil_warning_c(meta.get("limits")),
     )
     if meta.get("gear_ratios") and all(out.has(c) for c in ("engine_speed_rpm", "vehicle_speed_kmh", "gear")):
         gears = gear_ratio_finding(

@@ -416,3 +416,21 @@ def test_a_turbine_s_clamped_speed_is_the_input_shaft_s_not_an_engine_s(tmp_path
     assert "input speed outside the drive's range (clamped): 600 s" in said.out, said.out
     assert "input speed clamped to the drive's range on 25 %" in said.err, said.err
     assert "engine" not in text.replace("engine_", ""), text
+
+
+def test_a_turbine_s_sump_logged_in_degf_is_found_against_its_own_limits(tmp_path, capsys):
+    """An MM82 table whose 52-58 degC sump is logged in degF (126-136) passed with exit 0: the oil rule's envelope
+    ended at 150 degC, the GRS905's warning limit 120 plus 30 K. With the gearbox's own limits (the MM82's sump
+    warning 75 degC: its envelope ends at 105) it is the degF finding, exit 3; the same sump in degC is not."""
+    t = np.arange(0.0, 48 * 600.0, 600.0)
+    k = np.arange(t.size)
+    sump_c = 55.0 + 3.0 * np.sin(k / 7.0)
+    for unit, oil, code in (("degF", sump_c * 1.8 + 32.0, 3), ("degC", sump_c, 0)):
+        cols = {"time_s": t, "input_speed_rpm": np.full(t.size, 14.0), "input_torque_nm": 7e5 + 2e5 * np.sin(k / 5)}
+        cols.update({"ambient_temp_c": np.full(t.size, 15.0), "oil_temp_c": oil})
+        src = write_run_table(RunTable(cols), tmp_path / f"mm82_{unit}.csv")
+        argv = ["replay", str(src), "--gearbox", "MM82", "--out", str(tmp_path / f"est_{unit}.csv"), "--quiet"]
+        assert main(argv) == code, capsys.readouterr().err
+        err = capsys.readouterr().err
+        assert ("the oil looks like degF, not degC" in err) == (unit == "degF"), err
+        assert unit == "degC" or "its warning limit is 75 degC" in err, err
