@@ -66,15 +66,23 @@ def test_a_missing_column_or_a_bad_value_is_one_sentence_naming_it(fixed_grs905)
     map_fixed_ratio(src, fixed_grs905, strict=False)  # the sensor takes bad values as data
 
 
-def test_a_bad_value_of_a_table_read_from_a_file_names_its_line(tmp_path, capsys):
+@pytest.mark.parametrize(
+    "speed, words",
+    [
+        ("-3", 'column "input_speed_rpm" row 2 (line 4): -3 is not a valid input speed'),
+        ("45", "column input_speed_rpm row 2 (line 4): 45 rpm exceeds 20 rpm"),
+    ],
+)
+def test_a_bad_value_of_a_table_read_from_a_file_names_its_line(tmp_path, capsys, speed, words):
     """`simulate --cycle F --gearbox MM82` on a table whose second data row (the file's line 4, after a blank line)
-    holds a negative input speed named the data row alone ("row 2"); the run table's reader names the line too."""
+    holds a negative input speed, or turns the rotor at 45 rpm (the MM82's top: 20), named the data row alone
+    ("row 2"); the drive table's and the plant's rules name the line too, as the run table's reader does."""
     path = tmp_path / "mm82.csv"
-    lines = ["time_s,input_speed_rpm,input_torque_nm,ambient_temp_c", "0,10,1e5,15", "", "600,-3,1e5,15"]
+    lines = ["time_s,input_speed_rpm,input_torque_nm,ambient_temp_c", "0,10,1e5,15", "", f"600,{speed},1e5,15"]
     path.write_text("\n".join(lines + ["1200,10,1e5,15"]) + "\n")
     assert main(["simulate", "--cycle", str(path), "--gearbox", "MM82", "--out", str(tmp_path / "s.csv")]) == 2
     err = capsys.readouterr().err
-    assert 'column "input_speed_rpm" row 2 (line 4): -3 is not a valid input speed' in err, err
+    assert words in err, err
 
 
 def test_a_table_of_two_drives_or_of_the_other_drive_is_one_sentence(fixed_grs905):
@@ -197,14 +205,3 @@ def test_the_plant_writes_one_row_per_slow_input_row(tmp_path, fixed_grs905):
     )
     np.testing.assert_array_equal(res.table["time_s"], table["time_s"])
     np.testing.assert_array_equal(res.table["engine_speed_rpm"], table["engine_speed_rpm"])
-
-
-def test_a_speed_over_the_drive_s_top_names_its_line_in_the_file(tmp_path, capsys):
-    """`simulate --cycle F --gearbox MM82` on a table whose second data row (the file's line 4, after a blank line)
-    turns the rotor at 45 rpm (the MM82's top: 20) said "row 2" only; the plant's range rules name the line too."""
-    path = tmp_path / "mm82.csv"
-    lines = ["time_s,input_speed_rpm,input_torque_nm,ambient_temp_c", "0,10,1e5,15", "", "600,45,1e5,15"]
-    path.write_text("\n".join(lines + ["1200,10,1e5,15"]) + "\n")
-    assert main(["simulate", "--cycle", str(path), "--gearbox", "MM82", "--out", str(tmp_path / "s.csv")]) == 2
-    err = capsys.readouterr().err
-    assert "column input_speed_rpm row 2 (line 4): 45 rpm exceeds 20 rpm" in err, err

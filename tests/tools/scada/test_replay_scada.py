@@ -265,6 +265,14 @@ def test_a_record_in_another_unit_or_with_dropped_rows_is_said_and_exits_3_when_
     assert (status == 3) == ("exit status 3" in p.stderr)
 
 
+def _replay_hr225(tmp_path, scada, cmap) -> subprocess.CompletedProcess:
+    """`replay SCADA --gearbox HR225 --columns MAP --out est.csv`, its output captured."""
+    argv = ["replay", str(scada), "--gearbox", "HR225", "--columns", str(cmap), "--out", str(tmp_path / "est.csv")]
+    return subprocess.run(
+        [sys.executable, "-m", "tools.cli", *argv], cwd=REPO, capture_output=True, text=True, timeout=300
+    )
+
+
 def test_a_power_in_kw_read_as_w_is_said_and_exits_3(tmp_path):
     """A column map that reads the kW of P_avg as W derives a torque 1000 times too small (the HR225's 250-700 N m
     as 0.25-0.7): every value within its range, the sensor cool, exit 0 before the fixed-ratio drive's kN m rule;
@@ -272,14 +280,7 @@ def test_a_power_in_kw_read_as_w_is_said_and_exits_3(tmp_path):
     scada = write(tmp_path / "a.csv", _rows(0, ROWS))
     path = _map(tmp_path)
     path.write_text(path.read_text().replace('power_unit = "kW"', 'power_unit = "W"'))
-    p = subprocess.run(
-        [sys.executable, "-m", "tools.cli", "replay", str(scada), "--gearbox", "HR225", "--columns", str(path)]
-        + ["--out", str(tmp_path / "est.csv")],
-        cwd=REPO,
-        capture_output=True,
-        text=True,
-        timeout=300,
-    )
+    p = _replay_hr225(tmp_path, scada, path)
     assert p.returncode == 3, p.stderr
     assert "looks like kN m (or derived from a power 1000 times too small: in MW read as kW, in kW" in p.stderr
     # the fix a SCADA user needs is in the column map (it said only "give N m (x 1000)", a run table's advice)
@@ -292,14 +293,7 @@ def test_a_power_in_mw_read_as_w_says_x_1e6_and_the_map_s_unit(tmp_path):
     scada = write(tmp_path / "a.csv", _rows(0, ROWS, load=1.0e-3))
     path = _map(tmp_path)
     path.write_text(path.read_text().replace('power_unit = "kW"', 'power_unit = "W"'))
-    p = subprocess.run(
-        [sys.executable, "-m", "tools.cli", "replay", str(scada), "--gearbox", "HR225", "--columns", str(path)]
-        + ["--out", str(tmp_path / "est.csv")],
-        cwd=REPO,
-        capture_output=True,
-        text=True,
-        timeout=300,
-    )
+    p = _replay_hr225(tmp_path, scada, path)
     assert p.returncode == 3, p.stderr
     assert "looks like MN m" in p.stderr and "x 1e6" in p.stderr and "x 1000" not in p.stderr
     assert "derives the torque from P_avg read in W: a power column in MW wants power_unit" in p.stderr
