@@ -24,9 +24,10 @@ from firmware_model.service.degraded import Severity, pct
 
 #: the plausible range of a gearbox sump read in degC [degC]
 OIL_ENVELOPE_C = (-40.0, 150.0)
-#: a gearbox with limits of its own: the envelope's top is its sump's warning limit plus this [K] (the GRS905's 120
-#: degC gives the 150 above; the MM82's 75 gives 105, so a turbine's 40-60 degC sump logged in degF is found)
-OIL_ABOVE_WARNING_K = 30.0
+#: a gearbox with limits of its own: the envelope's top is its sump's warning limit plus this [K] (the GRS905's,
+#: OIL_WARNING_DEFAULT_C, gives the 150 above; the MM82's 75 gives 105, so a turbine's 40-60 degC sump logged in
+#: degF is found)
+OIL_ABOVE_WARNING_K, OIL_WARNING_DEFAULT_C = 30.0, 120.0
 #: degC does not fit when at least this share of the readings is above the envelope ...
 OIL_HOT_SHARE = 0.5
 #: ... and another unit fits when this share of its converted readings lies in the envelope ...
@@ -293,10 +294,10 @@ def oil_unit_finding(
 ) -> PlausibilityFinding | None:
     """The oil rule (module doc) over the readings of a record, one every ``dt_s``; None when degC fits.
     ``warning_c``: the gearbox's own sump warning limit (the envelope's top then lies OIL_ABOVE_WARNING_K above it,
-    at most OIL_ENVELOPE_C's); None: the GRS905's 120 degC."""
+    at most OIL_ENVELOPE_C's); None: OIL_WARNING_DEFAULT_C, the GRS905's."""
     raw = _finite(oil)
     x = raw[np.isfinite(raw)]
-    warning_c = 120.0 if warning_c is None else float(warning_c)
+    warning_c = OIL_WARNING_DEFAULT_C if warning_c is None else float(warning_c)
     lo, hi = OIL_ENVELOPE_C[0], min(OIL_ENVELOPE_C[1], warning_c + OIL_ABOVE_WARNING_K)
     if x.size * dt_s < OIL_MIN_S or np.mean(x > hi) < OIL_HOT_SHARE:
         return None

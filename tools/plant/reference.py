@@ -807,7 +807,7 @@ def _check_drive_ranges(cols: dict, p: Parameters, row_of=None) -> None:
     """The range rules of the drive columns, on their finite values (validate_drive, _validate_inputs): the
     description's drive (the GRS905's: its engine; a fixed-ratio gearbox's: its input shaft). ``row_of``: names a
     0-based row (tools.runtable.row_namer: with its file's line)."""
-    row_of = row_of or _row_alone
+    row_of = row_of or row_namer(None)
     drive = description_of(p).drive
     vmax = drive.max_speed_rad_s / RAD_S_PER_RPM
     lo, hi = drive.min_torque_nm, drive.max_torque_nm
@@ -844,10 +844,6 @@ def _check_drive_ranges(cols: dict, p: Parameters, row_of=None) -> None:
         _check_gears_defined(cols["gear"], description_of(p), cols.get("time_s"))
 
 
-def _row_alone(i: int) -> str:
-    return f"row {i + 1}"
-
-
 def _check_gears_defined(gear: np.ndarray, d, t_s: np.ndarray | None = None) -> None:
     """InputError (row, time, the description's gears) for a gear number the description has no gear for: its
     kinematic row is neutral's, so the engine's power would vanish without a loss (a GRS905 cycle's gear 7 on a
@@ -867,7 +863,7 @@ def _validate_inputs(t, spd, trq, gear, p: Parameters, row_of=None):
     def first_bad(mask):
         return int(np.flatnonzero(mask)[0])
 
-    row_of = row_of or _row_alone
+    row_of = row_of or row_namer(None)
     shown = FIXED_RATIO_NAMES if description_of(p).drive.kind != "vehicle" else {}
     for name, arr in (("time_s", t), ("engine_speed_rpm", spd), ("engine_torque_nm", trq), ("gear", gear)):
         bad = ~np.isfinite(arr)
