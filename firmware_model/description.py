@@ -78,6 +78,10 @@ SHOULDER_MAX = 1.5
 #: where the thermostat reads the oil: "return" the oil leaving the cooler and bypass, T_sump - Q / (mdot cp) (seed
 #: Eq 82, the default); "sump" the oil the pump draws, before the cooler (a valve upstream of the cooler)
 THERMOSTAT_SENSES = ("return", "sump")
+#: what the cooler takes while the sump is measured: "thermostat" its law at the measured sump (the default, as
+#: with the sump modelled); "balance" the heat the sump's balance leaves at its reading (an air cooler's, bounded by
+#: its fully open valve): a thermostat's band is too narrow a guide once a real sump sits a few kelvin off it
+MEASURED_COOLER = ("thermostat", "balance")
 
 # field specifications: name -> (kind, required, dimension, sign); kind text | list | number | int | table;
 # sign "+" (> 0), "0+" (>= 0), "-0" (<= 0), "share" (> 0 and <= 1: a share of a whole) or "any"
@@ -192,6 +196,7 @@ SINGLE_SPECS = {
         "thermostat_open": _n("degC", False, "any"),
         "thermostat_full": _n("degC", False, "any"),
         "thermostat_senses": _t,
+        "measured_cooler": _t,
         "heater": _n("W", False, "0+"),
         "heater_set": _n("degC", False, "any"),
         "heater_band": _n("K", False),
@@ -351,6 +356,7 @@ class OilSystem:
     heater_set_c: float | None = None  # the sump heater is off above it [degC]
     heater_band_k: float | None = None  # ... and at full power below heater_set - heater_band [K]
     pump_stops_below_rad_s: float | None = None  # a motor pump runs only while the input shaft turns faster
+    measured_cooler: str = "thermostat"  # the cooler's heat while the sump is measured (MEASURED_COOLER)
 
 
 @dataclass(frozen=True)
@@ -990,6 +996,7 @@ def _oil(r: _Reader, topo: dict, shafts: dict, nodes: set) -> OilSystem:
         r.fail(f"{key}.thermostat_senses", f"= {senses!r} must be one of {', '.join(THERMOSTAT_SENSES)}")
     elif f["thermostat_senses"] is not None and t_open is None:
         r.fail(f"{key}.thermostat_senses", "is given, but there is no thermostat (thermostat_open, thermostat_full)")
+    measured_cooler = _measured_cooler(r, key, f, t_open)
     _check_heater_and_pump(r, key, f)
     return OilSystem(
         f["lubrication"],
@@ -1010,7 +1017,22 @@ def _oil(r: _Reader, topo: dict, shafts: dict, nodes: set) -> OilSystem:
         f["heater_set"],
         f["heater_band"],
         f["pump_stops_below"],
+        measured_cooler,
     )
+
+
+def _measured_cooler(r: _Reader, key: str, f: dict, t_open) -> str:
+    """``measured_cooler`` (MEASURED_COOLER, default "thermostat"); "balance" only for an air cooler behind a
+    thermostat."""
+    measured_cooler = f["measured_cooler"] or "thermostat"
+    if measured_cooler not in MEASURED_COOLER:
+        r.fail(f"{key}.measured_cooler", f"= {measured_cooler!r} must be one of {', '.join(MEASURED_COOLER)}")
+    elif measured_cooler == "balance" and (f["cooler"] != "air" or t_open is None):
+        r.fail(
+            f"{key}.measured_cooler",
+            '= "balance" needs an air cooler behind a thermostat (cooler = "air", thermostat_open, thermostat_full)',
+        )
+    return measured_cooler
 
 
 def _check_heater_and_pump(r: _Reader, key: str, f: dict) -> None:

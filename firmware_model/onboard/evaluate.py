@@ -33,7 +33,14 @@ from firmware_model.onboard.kernel_interface import (
 from firmware_model.physics import heat_transfer as ht
 from firmware_model.physics import losses as L
 from firmware_model.physics.conductance_matrix import link_topology
-from firmware_model.physics.cooler import COOLER_KINDS, cooler_params, heater_heat_w, oil_cooler_heat
+from firmware_model.physics.cooler import (
+    COOLER_KINDS,
+    air_temperature_c,
+    cooler_params,
+    heater_heat_w,
+    measured_balance_heat_w,
+    oil_cooler_heat,
+)
 from firmware_model.physics.heat_lag import heat_lag
 from firmware_model.units import KELVIN_OFFSET_K, RPM_PER_RAD_S, SIGMA_W_PER_M2K4
 
@@ -597,3 +604,24 @@ def cooler_heat(
         thermostat_offset_c,
     )
     return Q_w - heater_heat_w(c, T_oil_c), mcp_w_per_k, hA_w_per_k
+
+
+def measured_cooler_heat(rp, H_w, G_streams_sum_w_per_k, mcp_w_per_k, hA_w_per_k, T_oil_c, T_ambient_c, v_kmh):
+    """The cooler's heat net of the heater [W] with the sump measured and the description's ``measured_cooler`` =
+    "balance" (:func:`firmware_model.physics.cooler.measured_balance_heat_w`): the sump's gain ``H_w``, the jets'
+    stream conductances summed over mdot cp, the cooler's hA and air as :func:`cooler_heat`'s (a drive without a
+    vehicle speed: rp.default_v_kmh); no oil flow: 0. C: balance_heat."""
+    m = np.asarray(mcp_w_per_k, dtype=float)
+    frac = np.where(m > 0.0, G_streams_sum_w_per_k / np.where(m > 0.0, m, 1.0), 0.0)
+    v = np.nan_to_num(v_kmh, nan=rp.default_v_kmh) if rp.aux_expected[AUX_VKMH] else rp.default_v_kmh
+    T_air_c = air_temperature_c(T_ambient_c, v)
+    Q_w = measured_balance_heat_w(rp.helpers.cooler, H_w, frac, hA_w_per_k, T_oil_c, T_air_c)
+    return np.where(m > 0.0, Q_w, 0.0)
+
+
+def sump_gain_w(h, i_oil: int, T_c, q_nodes_w, G_int_w_per_k, G_ext_w_per_k, T_bc_c):
+    """The heat into the sump node [W] at temperatures ``T_c`` (B + (n,)): its share of the sources ``q_nodes_w`` and
+    its links to the other nodes and to the boundaries (the jets' streams and the cooler left out). C: the sum in
+    network_step."""
+    gain_w = q_nodes_w[..., i_oil] - (G_int_w_per_k * (T_c[..., h.ib] - T_c[..., h.ia])) @ h.B_int[:, i_oil]
+    return gain_w - (G_ext_w_per_k * (T_bc_c[..., h.eb] - T_c[..., h.ea])) @ h.B_ext[:, i_oil]

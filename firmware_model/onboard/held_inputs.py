@@ -203,7 +203,7 @@ def _held_propagate(sp: SensorParams, state: SensorState, v: tuple, copy: int, t
     rho_cp_j_per_m3k = float(prop[P_RHO] * prop[P_CP])
     drive = E.pump_drive(rp, row, omega_in_rad_s)
     used = np.array([speed_rpm, torque_nm, row + GEAR_MIN, T_oil_c, T_amb_c, T_cool_c, v_kmh, retarder_nm])
-    Q_cool_w, mcp_w_per_k, _ = E.cooler_heat(
+    Q_cool_w, mcp_w_per_k, hA_w_per_k = E.cooler_heat(
         rp,
         T_oil_c,
         drive,
@@ -215,6 +215,13 @@ def _held_propagate(sp: SensorParams, state: SensorState, v: tuple, copy: int, t
         first_value(e.cooler_scale),
         first_value(e.thermostat_offset_c),
     )
+    if measured and h.cooler.measured_balance > 0.5:
+        # the cooler from the sump's balance at the start of the hold, held with the inputs (as the step's would be)
+        q_nodes_w = src_w @ rp.src_matrix
+        gain_w = E.sump_gain_w(h, rp.i_oil, T0_c, q_nodes_w, G_w_per_k[h.int_idx], G_w_per_k[h.ext_idx], T_bc_c)
+        Q_cool_w = E.measured_cooler_heat(
+            rp, gain_w, G_streams_w_per_k.sum(), mcp_w_per_k, hA_w_per_k, T_oil_c, T_amb_c, v_kmh
+        )
     dT_in_k = float(inlet_drop_k(Q_cool_w, mcp_w_per_k))
     slope_w_per_k = 0.0 if measured else cooler_slope_w_per_k(sp, T_oil_c, omega_in_rad_s, row, used, rho_cp_j_per_m3k)
     system = linear_system(

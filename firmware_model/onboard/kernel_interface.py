@@ -350,6 +350,8 @@ _TABLES = (
     Field("heater_w", REAL, (), "W", doc="the sump heater's power (0: none)"),
     Field("heater_set_c", REAL, (), "degC", doc="the heater is off above this sump temperature ..."),
     Field("heater_band_k", REAL, (), "K", doc="... and at full power below heater_set_c - heater_band_k"),
+    Field("measured_balance", REAL, doc="1: a measured sump's cooler takes what the sump's balance leaves"),
+    Field("balance_keep_min", REAL, doc="... dividing by at least this share kept (BALANCE_KEEP_MIN)"),
     *_f("ref_ls_speed ref_engine_speed", REAL, (), "rad/s"),
     *_f("exp_inner exp_outer air_flow_min_frac", REAL),
     Field("air_ref_speed_kmh", REAL, (), "km/h"),

@@ -26,6 +26,7 @@ from firmware_model.physics.cooler import (
     AIR_RECIRC_DT_K,
     AIR_RECIRC_V_KMH,
     AIR_REF_SPEED_KMH,
+    BALANCE_KEEP_MIN,
     INLET_DROP_MAX_K,
 )
 from firmware_model.physics.kinematics import GEAR_MIN
@@ -197,6 +198,8 @@ def _cooler(sp: SensorParams) -> dict:
         heater_w=c.heater_w,
         heater_set_c=c.heater_set_c,
         heater_band_k=c.heater_band_k,
+        measured_balance=c.measured_balance,
+        balance_keep_min=BALANCE_KEEP_MIN,
         ref_ls_speed=c.ref_ls_speed_rad_s,
         ref_engine_speed=c.ref_engine_speed_rad_s,
         exp_inner=c.exp_inner,

@@ -87,6 +87,9 @@ class NetworkStep(NamedTuple):
     row: np.ndarray  # B: gear row
     omega_in_rad_s: np.ndarray  # B: input speed
     rho_cp_j_per_m3k: np.ndarray  # B: oil volumetric heat capacity at the main sump
+    #: B + (2,): the main copy's cooler heat [W] and inlet drop [K] by the cooler's law at its sump (Q_cool_w's and
+    #: dT_in_k's but where a measured sump's cooler is its balance): the time to limit's with the sump modelled
+    law_main: np.ndarray
 
 
 def step(state: SensorState, inputs: SensorInputs, sp: SensorParams, cache: StepCache | None = None):
@@ -227,19 +230,11 @@ def _network_step(state: SensorState, chk: InputCheck, oil_c, sp: SensorParams, 
     G_w_per_k, G_streams_w_per_k, G_int, G_ext = _conductances(sp, cache, row, omega_in_rad_s, T_oil_main_c)
     drive = E.pump_drive(rp, row, omega_in_rad_s)
     rho_cp_j_per_m3k = prop[..., P_RHO] * prop[..., P_CP]
-    Q_cool_w, mcp_w_per_k, _ = E.cooler_heat(
-        rp,
-        T_c[..., :, rp.i_oil],
-        drive[..., None],
-        omega_in_rad_s[..., None],
-        used[..., I_COOL, None],
-        used[..., I_AMB, None],
-        used[..., I_VKMH, None],
-        rho_cp_j_per_m3k[..., None],
-        sp.cooler_scale,
-        sp.thermostat_offset_c,
+    Q_law_w, Q_cool_w, mcp_w_per_k = _coolers(
+        sp, T_c, q_nodes_w, G_int, G_ext, T_bc_c, G_streams_w_per_k, drive, rho_cp_j_per_m3k, chk
     )
     dT_in_k = inlet_drop_k(Q_cool_w, mcp_w_per_k)
+    law_main = np.stack([Q_law_w[..., MAIN], inlet_drop_k(Q_law_w, mcp_w_per_k)[..., MAIN]], axis=-1)
     q_copies_w = (
         q_nodes_w[..., None, :] + (G_streams_w_per_k[..., None, :] * dT_in_k[..., :, None]) @ h.stream_scatter
     )  # B + (2, n)
@@ -276,7 +271,67 @@ def _network_step(state: SensorState, chk: InputCheck, oil_c, sp: SensorParams, 
         row,
         omega_in_rad_s,
         rho_cp_j_per_m3k,
+        law_main,
     )
+
+
+def _coolers(sp: SensorParams, T_c, q_nodes_w, G_int, G_ext, T_bc_c, G_streams_w_per_k, drive, rho_cp_j_per_m3k, chk):
+    """(the cooler's heat net of the heater by its law, the cooler's heat the step takes: B + (2,) each; mdot cp
+    B + (1,)) of both copies: the cooler's law at each copy's sump (E.cooler_heat); the step takes the main copy's
+    from the sump's balance where it is measured and the description says so (``measured_cooler`` = "balance",
+    :func:`_measured_balance`)."""
+    rp, used = sp.reduced, chk.used
+    Q_cool_w, mcp_w_per_k, hA_w_per_k = E.cooler_heat(
+        rp,
+        T_c[..., :, rp.i_oil],
+        drive[..., None],
+        (used[..., I_SPEED] * RAD_S_PER_RPM)[..., None],
+        used[..., I_COOL, None],
+        used[..., I_AMB, None],
+        used[..., I_VKMH, None],
+        rho_cp_j_per_m3k[..., None],
+        sp.cooler_scale,
+        sp.thermostat_offset_c,
+    )
+    Q_law_w = Q_cool_w
+    if sp.helpers.cooler.measured_balance > 0.5:
+        Q_cool_w = _measured_balance(
+            sp,
+            T_c[..., MAIN, :],
+            q_nodes_w,
+            G_int,
+            G_ext,
+            T_bc_c,
+            G_streams_w_per_k,
+            Q_cool_w,
+            mcp_w_per_k,
+            hA_w_per_k,
+            used,
+            chk.measured,
+        )
+    return Q_law_w, Q_cool_w, mcp_w_per_k
+
+
+def _measured_balance(
+    sp, T_main_c, q_nodes_w, G_int, G_ext, T_bc_c, G_streams_w_per_k, Q_cool_w, mcp_w_per_k, hA_w_per_k, used, measured
+):
+    """Both copies' cooler heat with the main copy's taken from the sump's balance where its sump is measured (the
+    description's ``measured_cooler`` = "balance", E.measured_cooler_heat): the sump's gain, its sources and its
+    links at the step's start temperatures. C: network_step's balance_heat."""
+    rp = sp.reduced
+    Q_main_w = E.measured_cooler_heat(
+        rp,
+        E.sump_gain_w(sp.helpers, rp.i_oil, T_main_c, q_nodes_w, G_int, G_ext, T_bc_c),
+        G_streams_w_per_k.sum(axis=-1),
+        mcp_w_per_k[..., 0],
+        hA_w_per_k[..., 0],
+        T_main_c[..., rp.i_oil],
+        used[..., I_AMB],
+        used[..., I_VKMH],
+    )
+    out = np.array(Q_cool_w, dtype=float, copy=True)
+    out[..., MAIN] = np.where(measured, Q_main_w, out[..., MAIN])
+    return out
 
 
 def _levels(state: SensorState, T_pub_c, available, ttl_now_s, sp: SensorParams):
@@ -304,14 +359,16 @@ def _ttl_job(state: SensorState, chk: InputCheck, net: NetworkStep, sp: SensorPa
         return None
     B = state.t_last_s.shape
     vehicles = tuple(v for v in (np.ndindex(B) if B else [()]) if due[v])
+    law = sp.options.ttl_sump == "model"
     points = tuple(
         TtlPoint(
             net.T_c[v][MAIN].copy(),
             net.src_w[v],
             net.G_w_per_k[v],
             net.G_streams_w_per_k[v],
-            float(net.dT_in_k[v][MAIN]),
-            float(net.Q_cool_w[v][MAIN]),
+            # the sump modelled ahead (ttl_sump "model"): the cooler's law, whatever the step took for a measured one
+            float(net.law_main[v][1] if law else net.dT_in_k[v][MAIN]),
+            float(net.law_main[v][0] if law else net.Q_cool_w[v][MAIN]),
             bool(chk.measured[v]),
             int(net.row[v]),
             float(net.omega_in_rad_s[v]),

@@ -51,10 +51,17 @@ COOLER_KEYS = (
     "heater_w",
     "heater_set",
     "heater_band",
+    "measured_balance",
 )
 #: CoolerParams fields a stored copy may lack (it was stored before they existed) and what they then are: the
 #: thermostat at the return (Eq 82), no heater
-COOLER_LATER_KEYS = {"thermostat_sump": 0.0, "heater_w": 0.0, "heater_set": 0.0, "heater_band": 1.0}
+COOLER_LATER_KEYS = {
+    "thermostat_sump": 0.0,
+    "heater_w": 0.0,
+    "heater_set": 0.0,
+    "heater_band": 1.0,
+    "measured_balance": 0.0,
+}
 
 
 class CoolerParams(NamedTuple):
@@ -76,6 +83,7 @@ class CoolerParams(NamedTuple):
     heater_w: float = 0.0  # the sump heater's power (0: none)
     heater_set_c: float = 0.0  # it is off above this sump temperature ...
     heater_band_k: float = 1.0  # ... and at full power below heater_set - heater_band
+    measured_balance: float = 0.0  # 1: with the sump measured the cooler takes what its balance leaves (0: the law)
 
 
 class CoolerHeat(NamedTuple):
@@ -94,6 +102,7 @@ def cooler_values(p) -> dict:
     oil = description_of(p).oil
     out = {k: p.values.get(f"cooler.{k}", math.nan) for k in COOLER_KEYS if k not in COOLER_LATER_KEYS}
     out["thermostat_sump"] = 1.0 if oil.thermostat_senses == "sump" else 0.0
+    out["measured_balance"] = 1.0 if oil.measured_cooler == "balance" else 0.0
     return {**out, **heater_values(p)}
 
 
@@ -280,6 +289,29 @@ def oil_cooler_heat(
             c.thermostat_sump,
         )
     return CoolerHeat(np.where(flow_capacity_w_per_k > 0.0, Q, 0.0), hA)
+
+
+#: the least share of the cooler's heat the sump keeps (1 - sum of the jets' stream conductances over mdot cp) that
+#: measured_balance_heat_w divides by: jets as conductive as the whole flow would make the sump's balance blind
+BALANCE_KEEP_MIN = 0.05
+
+
+def measured_balance_heat_w(c: CoolerParams, H_w, stream_frac, hA_w_per_k, T_oil_c, T_air_c):
+    """The cooler's heat net of the sump heater [W] while the sump is measured, for a description whose
+    ``measured_cooler`` is "balance": the heat the sump must lose to stay at its reading, in place of the
+    thermostat's law at it (Eq 82-83), whose narrow band a real sump sits a few kelvin off while its cooler works.
+
+    The sump gains ``H_w`` at this step's temperatures (the heat its sources put in, its links to the parts,
+    housings and boundaries) and, through the jets, ``stream_frac`` of the net heat Q the cooler took (the cooled oil
+    the parts warm again: the jets' stream conductances over mdot cp); at rest ``(1 - stream_frac) Q = H``. The
+    cooler itself takes 0 (bypass closed) up to its fully open valve, hA (T_oil - T_air) and at most Q_max_cool;
+    the heater's heat is added before that bound and taken off after, as the law's is. The oil's own storage is left
+    out: 0.5 MJ/K for 300 L, 0.2 K of drop at a sump moving 5 K/h, where a 0.1 s difference of a 1/32 K sensor
+    would be noise."""
+    heater = heater_heat_w(c, T_oil_c)
+    keep = np.maximum(1.0 - np.asarray(stream_frac, dtype=float), BALANCE_KEEP_MIN)
+    a = np.minimum(hA_w_per_k * np.maximum(np.asarray(T_oil_c, dtype=float) - T_air_c, 0.0), c.air_Q_max_cool_w)
+    return np.clip(np.asarray(H_w, dtype=float) / keep + heater, 0.0, a) - heater
 
 
 def inlet_drop_k(Q_w, mcp_w_per_k):

@@ -105,6 +105,23 @@ def test_the_stability_bound_takes_the_cooler_as_a_conductance_at_either_thermos
                 assert np.max(G) == pytest.approx(1400.0)
 
 
+def test_a_measured_sump_s_balance_gives_the_cooler_what_the_sump_does_not_keep():
+    """measured_cooler = "balance" (physics.cooler.measured_balance_heat_w): the sump gains H and gets back the jets'
+    share s of the cooler's net heat Q, so Q = H / (1 - s); the cooler itself between a shut bypass and its fully
+    open valve hA (T_oil - T_air) (at most Q_max_cool); the heater's heat added before those bounds, taken off after;
+    a share near 1 divided as BALANCE_KEEP_MIN, never by 0."""
+    c = CO.CoolerParams(0, 0, 0, 1400.0, 6e4, 55.0, 60.0, 1.0, 1.0, 0.5, 0.3, 1.0, 1.0, 3000.0, 20.0, 5.0, 1.0)
+    Q = CO.measured_balance_heat_w(c, np.array([1e4, -5e3, 1e5]), 0.5, 1400.0, 58.0, 20.0)
+    np.testing.assert_allclose(Q, [2e4, 0.0, 1400.0 * 38.0])
+    assert CO.measured_balance_heat_w(c, 1e4, 0.5, 1400.0, 15.0, 20.0) == pytest.approx(-3000.0)  # heater on, no Q
+    assert CO.measured_balance_heat_w(c, 1e4, 0.5, 1400.0, 15.0, 10.0) == pytest.approx(1400.0 * 5.0 - 3000.0)
+    assert CO.measured_balance_heat_w(c, 1e4, 0.5, 5000.0, 58.0, 20.0) == pytest.approx(2e4)
+    assert CO.measured_balance_heat_w(c, 1e4, 0.5, 1e4, 58.0, 20.0) == pytest.approx(2e4)
+    assert CO.measured_balance_heat_w(c, 1e4, 0.5, 1e5, 100.0, 20.0) == pytest.approx(2e4)
+    assert CO.measured_balance_heat_w(c, 1e5, 0.5, 1e5, 100.0, 20.0) == pytest.approx(6e4)  # at Q_max_cool
+    assert CO.measured_balance_heat_w(c, 100.0, 1.2, 1e5, 58.0, 20.0) == pytest.approx(100.0 / CO.BALANCE_KEEP_MIN)
+
+
 @pytest.fixture(scope="module")
 def models():
     """(parameters, onboard model) of the default gearbox."""

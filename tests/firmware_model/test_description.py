@@ -370,6 +370,12 @@ MALFORMED = [
         "= 'cooler' must be one of return, sump",
     ),
     (
+        "a measured sump's cooler taken some unknown way",
+        '[topology.oil]\nmeasured_cooler = { v = "guess", u = "-", src = "assumed" }',
+        "topology.oil.measured_cooler",
+        "= 'guess' must be one of thermostat, balance",
+    ),
+    (
         "unit of another dimension",
         '[topology.wheel.LI]\nwidth = { v = 45, u = "kg", src = "assumed" }',
         "topology.wheel.LI.width",

@@ -180,11 +180,19 @@ def _low_limits(params, warning_c: float = 56.0, debounce_s: float = 1.0):
 
 def _explained(j: int, T_c, ttls, lim) -> bool:
     """A warning level that differs between the coarse and the 0.1 s replay at row ``j``: the time to limit of one
-    of them (``ttls``) within 2 lead (the early warning, judged at the coarse step once per row), or the temperature
-    within COARSE_BOUND_K of a threshold (crossed at slightly different times)."""
+    of them (``ttls``) within 2 lead (the early warning, judged at the coarse step once per row) at ``j`` or on the
+    rows before it through which the temperature stayed above the hysteresis (a level raised there is held until
+    the temperature falls under warning - hysteresis), or the temperature within COARSE_BOUND_K of a threshold
+    (crossed at slightly different times)."""
     w, hy = lim.warning_c[0], lim.hysteresis_k[0]
-    by_ttl = any(np.asarray(t)[j] <= 2.0 * lim.lead_s for t in ttls)
-    return bool(by_ttl or min(abs(T_c[j] - w), abs(T_c[j] - (w - hy))) <= COARSE_BOUND_K)
+    k = j
+    while True:
+        if any(np.asarray(t)[k] <= 2.0 * lim.lead_s for t in ttls):
+            return True
+        if k == 0 or not T_c[k] > w - hy:
+            break
+        k -= 1
+    return bool(min(abs(T_c[j] - w), abs(T_c[j] - (w - hy))) <= COARSE_BOUND_K)
 
 
 def test_the_time_to_limit_is_refreshed_once_per_row_near_its_end(mm82):

@@ -439,6 +439,18 @@ static gvs_real heater_slope(const gvs_tables *tb, gvs_real T_oil)
     return (x > R_(0.0) && x < R_(1.0)) ? tb->heater_w / tb->heater_band_k : R_(0.0);
 }
 
+/* the cooler's heat net of the heater with the sump measured and tables.measured_balance set
+ * (physics.cooler.measured_balance_heat_w): what the sump's gain H leaves, the jets giving back gs / mcp of it,
+ * between a closed bypass and the fully open valve */
+static gvs_real balance_heat(const gvs_tables *tb, const cooler_op_t *op, gvs_real H, gvs_real gs, gvs_real T_oil)
+{
+    gvs_real heat = heater_heat(tb, T_oil), keep, a;
+    if (!(op->cap > R_(0.0))) return R_(0.0);
+    keep = max_r(R_(1.0) - gs / op->cap, tb->balance_keep_min);
+    a = min_r(op->hA * max_r(T_oil - op->T_air, R_(0.0)), tb->air_Qmax_cool);
+    return clip_r(H / keep + heat, R_(0.0), a) - heat;
+}
+
 GVS_OUTLINE static gvs_real inlet_drop_k(const gvs_tables *tb, gvs_real Q, gvs_real mcp)
 {
     return clip_r(mcp > R_(0.0) ? Q / mcp : R_(0.0), -tb->inlet_drop_max_k, tb->inlet_drop_max_k);
@@ -621,6 +633,7 @@ typedef struct {
     gvs_real src[GVS_MAX_SRC], T_bc[GVS_MAX_BC];
     const gvs_real *G, *Gs;             /* the bin's conductances: the state's memo, read in place */
     gvs_real dT_in[2], Q_cool[2], rho_cp, omega_in, T_oil_main;
+    gvs_real Q_law, dT_law;             /* the main copy's by the cooler's law (step.NetworkStep.law_main) */
     int32_t row;
 } net_t;
 
@@ -715,6 +728,21 @@ static void network_step(const gvs_tables *tb, const gvs_vehicle *veh, gvs_state
         nt->Q_cool[cp] = cooler_heat(tb, veh, &cop, T[cp][tb->i_oil]) - heater_heat(tb, T[cp][tb->i_oil]);
         nt->dT_in[cp] = inlet_drop_k(tb, nt->Q_cool[cp], mcp);
     }
+    nt->Q_law = nt->Q_cool[GVS_MAIN];
+    nt->dT_law = nt->dT_in[GVS_MAIN];
+    if (c->measured && tb->measured_balance > R_(0.5)) {
+        /* the main copy's cooler from the sump's balance (step._measured_balance): its sources, its links */
+        const gvs_real *T0 = T[GVS_MAIN];
+        gvs_real H = rate[GVS_MAIN][tb->i_oil], gs = R_(0.0);
+        for (k = 0; k < tb->nl; ++k) {
+            int32_t a = tb->link_a[k], b = tb->link_b[k];
+            if (a == tb->i_oil) H += nt->G[k] * ((b < tb->n ? T0[b] : nt->T_bc[b - tb->n]) - T0[a]);
+            else if (b == tb->i_oil) H += nt->G[k] * (T0[a] - T0[b]);
+        }
+        for (k = 0; k < tb->nst; ++k) gs += nt->Gs[k];
+        nt->Q_cool[GVS_MAIN] = balance_heat(tb, &cop, H, gs, T0[tb->i_oil]);
+        nt->dT_in[GVS_MAIN] = inlet_drop_k(tb, nt->Q_cool[GVS_MAIN], mcp);
+    }
 #ifdef GVS_STEP_MEMO
     /* the host's build: with the sump modelled the twin is the main copy bit for bit (same heat, conductances and
      * start): one copy stepped, the twin copied, the same bits as stepping both */
@@ -773,8 +801,9 @@ static void ttl_point(const gvs_tables *tb, const gvs_state *st, const check_t *
     for (i = 0; i < tb->nst; ++i) p->G_streams_w_per_k[i] = nt->Gs[i];
     for (i = 0; i < tb->nb; ++i) p->T_bc_c[i] = nt->T_bc[i];
     for (i = 0; i < GVS_N_INPUTS; ++i) p->used[i] = c->used[i];
-    p->dT_in_k = nt->dT_in[GVS_MAIN];
-    p->Q_cool_w = nt->Q_cool[GVS_MAIN];
+    /* the sump modelled ahead (ttl_sump "model"): the cooler's law, whatever the step took for a measured one */
+    p->dT_in_k = tb->ttl_sump_model ? nt->dT_law : nt->dT_in[GVS_MAIN];
+    p->Q_cool_w = tb->ttl_sump_model ? nt->Q_law : nt->Q_cool[GVS_MAIN];
     p->omega_in_rad_s = nt->omega_in;
     p->T_oil_c = nt->T_oil_main;
     p->rho_cp_j_per_m3k = nt->rho_cp;

@@ -250,6 +250,8 @@ typedef struct {
     gvs_real heater_w;                  /* [W] the sump heater's power (0: none) */
     gvs_real heater_set_c;              /* [degC] the heater is off above this sump temperature ... */
     gvs_real heater_band_k;             /* [K] ... and at full power below heater_set_c - heater_band_k */
+    gvs_real measured_balance;          /* 1: a measured sump's cooler takes what the sump's balance leaves */
+    gvs_real balance_keep_min;          /* ... dividing by at least this share kept (BALANCE_KEEP_MIN) */
     gvs_real ref_ls_speed, ref_engine_speed; /* [rad/s] */
     gvs_real exp_inner, exp_outer, air_flow_min_frac;
     gvs_real air_ref_speed_kmh;         /* [km/h] */
