@@ -7,7 +7,11 @@ sump temperature and, above 1 MW, by nacelle air; the model's inlet error; the b
 after a least-squares line on the inlet's error per turbine and channel (how much of them the inlet explains). Then
 the drop law of the model's form, opening x hA x (sump - nacelle air) / (mdot cp) with the opening linear over a
 band, fitted to the measured drop (scipy): the valve reading the sump, and reading the sump plus a term in the
-turbine's power (a valve that sees the oil heated by the load). Read-only: nothing is fitted into the MM82.
+turbine's power (a valve that sees the oil heated by the load); and the drop of a heat balance, the cooler taking
+the losses (a quadratic in the power) less the housings' loss to the nacelle air less the heat the gearbox stores as
+the sump moves (its capacity times the sump's slope over the row), over mdot cp: the form the MM82 takes with its
+sump measured (topology.oil.measured_cooler = "balance", since 2026-12-06). Read-only: nothing is fitted into the
+MM82.
 
     python benchmarks/bench_mm82_inlet_drop.py DATA_DIR [--units R80736,R80790] [--years 2017-2020]
 """
@@ -30,6 +34,8 @@ from tools.scada.replay import ESTIMATES_ONLY, replay_record  # noqa: E402
 
 #: the pump's stop [rpm] (MM82.toml topology.oil.pump_stops_below): running rows lie above it
 RUNNING_RPM = 0.5
+#: the records' row period [s]
+ROW_S = 600.0
 #: the MM82's oil flow capacity mdot cp at 140 L/min [W/K] (rho ~870 kg/m3, cp ~2050 J/(kg K) near 60 degC)
 MCP_W_PER_K = 140.0 / 60000.0 * 870.0 * 2050.0
 
@@ -48,6 +54,10 @@ def running_rows(units, folder: Path, years: str):
         cols["power_kw"] = np.asarray(rec.values["power_kw"], float)
         cols["air_c"] = np.asarray(rec.values["ambient_temp_c"], float)
         rpm = np.asarray(rec.values["input_speed_rpm"], float)
+        # the sump's slope over the row before [K/s] (NaN after a gap)
+        sump, t_s = cols["Gost_avg"], np.asarray(rec.time_s, float)
+        cols["dsump_k_s"] = np.full(sump.size, np.nan)
+        cols["dsump_k_s"][1:] = np.where(np.diff(t_s) == ROW_S, np.diff(sump) / ROW_S, np.nan)
         need = ("Gost_avg", "Git_avg", "est_Git_avg", "power_kw", "air_c")
         keep = (rpm > RUNNING_RPM) & np.all([np.isfinite(cols[c]) for c in need], axis=0)
         out[unit] = {c: v[keep] for c, v in cols.items()}
@@ -118,6 +128,39 @@ def fit_drop_laws(rows: dict) -> None:
         print(f"| {label} | {cells} |")
 
 
+def fit_balance(rows: dict) -> None:
+    """The drop of a heat balance fitted to the measured drop: max(0, l0 + l1 P + l2 P^2 - UA (sump - air)
+    - C dsump/dt) / (mdot cp) + offset, over the running rows with the row before them."""
+    from scipy.optimize import least_squares
+
+    cat = {c: np.concatenate([r[c] for r in rows.values()]) for c in ("Gost_avg", "Git_avg", "power_kw", "air_c")}
+    ds = np.concatenate([r["dsump_k_s"] for r in rows.values()])
+    ok = np.isfinite(ds)
+    s, p_mw, air, ds = cat["Gost_avg"][ok], cat["power_kw"][ok] / 1000.0, cat["air_c"][ok], ds[ok]
+    drop = s - cat["Git_avg"][ok]
+
+    def law(x):  # x: losses [kW], [kW/MW], [kW/MW^2]; UA [W/K]; capacity [MJ/K]; offset [K]
+        q_w = 1e3 * (x[0] + x[1] * p_mw + x[2] * p_mw**2) - x[3] * (s - air) - 1e6 * x[4] * ds
+        return np.maximum(q_w, 0.0) / MCP_W_PER_K + x[5]
+
+    fit = least_squares(lambda x: law(x) - drop, [5.0, 20.0, 5.0, 300.0, 0.5, 1.0])
+    e = law(fit.x) - drop
+    l0, l1, l2, ua, cap, off = fit.x
+    print(f"\nthe drop of a heat balance fitted to the measured drop ({ok.sum()} running rows after a row):")
+    print(
+        f"losses {l0:.1f} + {l1:.1f} P + {l2:.1f} P^2 kW (P in MW; {l0 + 2 * l1 + 4 * l2:.1f} kW at 2 MW), "
+        f"housings to the air {ua:.0f} W/K, stored {cap:.2f} MJ/K, offset {off:+.2f} K: "
+        f"RMS {np.sqrt(np.mean(e**2)):.2f} K"
+    )
+    print("| power [kW] | rows | measured drop [K] | balance [K] | RMS [K] |")
+    print("|---|---:|---:|---:|---:|")
+    for lo, hi in ((0, 100), (100, 500), (500, 1000), (1000, 3000)):
+        k = (p_mw * 1000 > lo) & (p_mw * 1000 <= hi)
+        if k.any():
+            cells = f"{drop[k].mean():.2f} | {law(fit.x)[k].mean():.2f} | {np.sqrt(np.mean(e[k] ** 2)):.2f}"
+            print(f"| {lo}-{hi} | {k.sum()} | {cells} |")
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("data_dir", type=Path)
@@ -131,6 +174,7 @@ def main() -> int:
     for unit, r in rows.items():
         print_bearings_on_inlet(unit, r)
     fit_drop_laws(rows)
+    fit_balance(rows)
     return 0
 
 

@@ -342,12 +342,17 @@ def test_mm82_oil_inlet_follows_the_reference_plant_and_the_c_kernel_agrees(mm82
     inlet = res["numpy"].oil_inlet_temp_c
     assert np.isfinite(inlet).all() and np.isfinite(res["c"].oil_inlet_temp_c).all()
     assert np.max(np.abs(res["c"].oil_inlet_temp_c - inlet)) <= 1e-9
-    # the inlet lies below the sump the step took by the cooler's drop (zero with the thermostat shut)
+    # the inlet lies below the sump the step took by the cooler's drop: modelled, zero with the thermostat shut;
+    # measured, the MM82's cooler takes what the sump's balance leaves (measured_cooler = "balance"), the valve's
+    # band no guide, at most the fully open valve's hA (T_oil - T_air) / mdot cp
     i_oil = s.published.index("oil")
     sump_c = raw[:, I_OIL] if oil_mode == "measured" else np.concatenate([[start_c], res["numpy"].T_c[:-1, i_oil]])
     drop_k = sump_c - inlet
     assert drop_k.min() >= 0.0 and drop_k.max() > 3.0
-    assert np.all(drop_k[sump_c < THERMOSTAT_C[0] - 1e-9] < 1e-12)
+    if oil_mode == "model":
+        assert np.all(drop_k[sump_c < THERMOSTAT_C[0] - 1e-9] < 1e-12)
+    else:
+        assert np.any(drop_k[sump_c < THERMOSTAT_C[0] - 1e-9] > 0.5)
     t_out = np.asarray(out["time_s"])
     row = np.clip(np.round(t_out / 0.1).astype(int) - 1, 0, len(raw) - 1)
     plant_c = np.asarray(out["T_oil.inlet_c"])
@@ -358,13 +363,48 @@ def test_mm82_oil_inlet_follows_the_reference_plant_and_the_c_kernel_agrees(mm82
     # restart the valve's ramp, dQ/dT ~ 12 kW/K over mdot cp ~ 3.9 kW/K, triples that in the inlet); a vehicle speed
     # read as a truck's would warm the cooler's air by 2-12 K and miss it by ~0.6 K
     assert np.isnan(raw[:, I_VKMH]).all()
-    tol_k = 0.005 if oil_mode == "measured" else 0.05
-    assert np.max(np.abs(inlet[row] - plant_c)) <= tol_k
+    if oil_mode == "model":
+        assert np.max(np.abs(inlet[row] - plant_c)) <= 0.05
+    else:
+        # the balance leaves out the sump's own storage (300 L: 0.54 MJ/K): on this drive's load steps the sump
+        # moves up to 53 K/h and the drop misses the plant's law by up to 3.8 K (C_oil dS/dt over the share the
+        # sump keeps of mdot cp, ~250 s x dS/dt); 0.54 K RMS over the hour, 0.21 K while it moves under 0.36 K/h
+        dS = np.gradient(np.asarray(out["T_oil_c"]), t_out)
+        err = inlet[row] - plant_c
+        assert np.sqrt(np.mean(err**2)) <= 0.6
+        assert np.max(np.abs(err[np.abs(dS) < 1e-4])) <= 0.25
     for v_kmh in (0.0, 50.0, s.sp.reduced.default_v_kmh):  # a fed vehicle speed changes nothing (C core here)
         raw_v = raw.copy()
         raw_v[:, I_VKMH] = v_kmh
         _, o = s.step_table(s.initial_state(T_oil_c=start_c), raw_v)
         assert np.max(np.abs(o.oil_inlet_temp_c - inlet)) <= 1e-9
+
+
+@pytest.mark.parametrize("torque_frac", [0.2, 0.35])
+def test_mm82_measured_cooler_balance_is_the_thermostat_s_heat_at_rest(mm82, torque_frac):
+    """measured_cooler = "balance": with the sump measured the cooler takes what the sump's balance leaves. Where the
+    modelled network is at rest (12 h of one load, the sump settled inside the thermostat's band, the valve part
+    open) that is the heat the thermostat's law gives: the same network's state stepped on with its own sump as the
+    measured oil gives the modelled run's inlet within 0.1 mK."""
+    from tools.scada.replay import ESTIMATES_ONLY
+
+    d = description_of(mm82)
+    n = 12 * 36000
+    raw = np.full((n, N_INPUTS), np.nan)
+    raw[:, I_SPEED] = 0.8 * d.drive.max_speed_rad_s * 30.0 / np.pi
+    raw[:, I_TORQUE] = torque_frac * d.drive.max_torque_nm
+    raw[:, I_GEAR], raw[:, I_AMB] = d.gears[0].number, 20.0
+    model = VirtualSensor(mm82, oil_mode="model", **ESTIMATES_ONLY)
+    st, o = model.step_table(model.initial_state(T_oil_c=50.0), raw)
+    sump_c = float(o.T_c[-1, model.published.index("oil")])
+    assert THERMOSTAT_C[0] < sump_c < THERMOSTAT_C[1]  # the valve part open: the law's heat inside its bounds
+    assert abs(sump_c - o.T_c[-36000, model.published.index("oil")]) < 1e-3  # settled
+    ten = raw[-10:].copy()
+    ten[:, I_OIL] = sump_c
+    measured = VirtualSensor(mm82, oil_mode="measured", **ESTIMATES_ONLY)
+    _, o_meas = measured.step_table(st, ten)
+    assert sump_c - o.oil_inlet_temp_c[-1] > 3.0
+    assert np.max(np.abs(o_meas.oil_inlet_temp_c - o.oil_inlet_temp_c[-1])) < 1e-4
 
 
 def test_a_splash_gearbox_has_no_oil_inlet(r1):
