@@ -5,7 +5,9 @@ of its effects (firmware_model.onboard.reduce.EFFECT_HOOKS) fitted on training r
 Each task fits the effects that move what it predicts, each with bounds that keep it physical:
 
 - ``bearings`` (each bearing from the measured oil and the load): the bearings' own losses and the housing's
-  convection to the nacelle air (how far the bearings sit above the oil, and how much the air pulls them down);
+  convection to the nacelle air (how far the bearings sit above the oil, and how much the air pulls them down), and
+  each bearing channel's reading offset (the catalog's thermocouple_offset, added to the estimate after the replay:
+  the NBM's intercept);
 - ``oil`` (the sump without any oil reading): the mesh friction, the cooler's effectiveness, the housing's
   convection and the thermostat's opening temperature.
 
@@ -37,19 +39,30 @@ class FitParam:
     step: float
 
     @property
+    def entry(self):
+        """The catalog's entry (a channel's reading offset, ``thermocouple_offset:<channel>``: its base id's)."""
+        return CATALOG[self.effect.split(":", 1)[0]]
+
+    @property
     def start(self) -> float:
-        return float(CATALOG[self.effect].neutral)
+        return float(self.entry.neutral)
 
     @property
     def lo(self) -> float:
-        return float(CATALOG[self.effect].low)
+        return float(self.entry.low)
 
     @property
     def hi(self) -> float:
-        return float(CATALOG[self.effect].high)
+        return float(self.entry.high)
 
 
-#: the effects each task fits (ids of the effect catalog; scales are relative, offsets in K)
+#: the reading offset of a measured channel (the catalog's thermocouple_offset, one per channel): added to the
+#: estimate after the replay, as the diagnosis does (tools/scada/diagnose.py), not an effect of the sensor's
+OFFSET = "thermocouple_offset"
+
+#: the effects each task fits (ids of the effect catalog; scales are relative, offsets in K); the bearings' task also
+#: fits each bearing channel's reading offset (the NBM's intercept, in the catalog's words: a thermocouple reading
+#: a constant off)
 FIT = {
     "bearings": (FitParam("bearing_loss_scale", 0.05), FitParam("housing_air_h_scale", 0.05)),
     "oil": (
@@ -91,12 +104,23 @@ class PhysicsModel:
             self.params = self._config().load_params()
         return self.params
 
+    def _fit_params(self) -> tuple:
+        """The task's effects (FIT), then a reading offset of each target channel the task measures with a
+        thermocouple (the bearings' task: every target; the oil's: none, its sump's offset is the oil sensor's)."""
+        offsets = tuple(FitParam(f"{OFFSET}:{ch}", 0.5) for ch in self.task.targets) if self.task.oil_input else ()
+        return FIT[self.task.name] + offsets
+
     def _estimates(self, record: ScadaRecord, effects: dict) -> dict[str, np.ndarray]:
         from tools.scada.replay import ESTIMATES_ONLY, replay_record
 
         options = {**ESTIMATES_ONLY, "oil_mode": self.oil_mode}
-        res = replay_record(record, self._config(), options, effects=effects, params=self._params())
-        return {ch: res.table[f"est_{ch}"] for ch in self.task.targets if res.table.has(f"est_{ch}")}
+        hooks = {k: v for k, v in effects.items() if not k.startswith(OFFSET + ":")}
+        res = replay_record(record, self._config(), options, effects=hooks, params=self._params())
+        return {
+            ch: res.table[f"est_{ch}"] + effects.get(f"{OFFSET}:{ch}", 0.0)
+            for ch in self.task.targets
+            if res.table.has(f"est_{ch}")
+        }
 
     def fit(self, records: Sequence[ScadaRecord]) -> PhysicsModel:
         """Fit the task's effects on ``records``: first which of them move the estimates at all (identifiability:
@@ -106,7 +130,7 @@ class PhysicsModel:
             self.report = {"effects": dict(self.effects), "fitted": False}
             return self
         train = [r.select(np.arange(r.n) >= r.n - self.max_fit_rows) for r in records]
-        all_params = FIT[self.task.name]
+        all_params = self._fit_params()
 
         def residuals(eff: dict) -> np.ndarray:
             out = []
