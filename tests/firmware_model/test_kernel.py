@@ -155,6 +155,43 @@ def test_random_hostile_sequences_match_the_numpy_step(params, per_vehicle_effec
 
 
 @needs_c
+def test_hostile_sequences_on_the_mm82_s_cooler_balance_match_the_numpy_step():
+    """The MM82 with its sump measured takes its cooler's heat from the sump's balance (measured_cooler = "balance"):
+    300 vehicles x 60 steps of hostile inputs scaled to its drive (rotor rpm, MN m, its one gear mostly) give the
+    numpy step's outputs in C, finite temperatures at every step, and an oil inlet NaN only while the sensor holds
+    (degraded mode 2: time went back), as with the thermostat's law."""
+    from firmware_model.components import MODE_HOLDING
+    from firmware_model.description import description_of
+
+    mm82 = load_parameters("MM82")
+    assert description_of(mm82).oil.measured_cooler == "balance"
+    rng = np.random.default_rng(5)
+    V, L = 300, 60
+    ref = VirtualSensor(mm82, core="numpy", ttl_period_s=10.0)
+    cc = VirtualSensor(mm82, core="c", ttl_period_s=10.0)
+    raw, t_s = hostile_inputs(rng, V, L)
+    fin = np.isfinite(raw)
+    with np.errstate(over="ignore"):
+        raw[..., 0] = np.where(fin[..., 0], raw[..., 0] / 100.0, raw[..., 0])  # 0-26 rpm at the rotor
+        raw[..., 1] = np.where(fin[..., 1], raw[..., 1] * 800.0, raw[..., 1])  # up to 2.6 MN m
+    one_gear = fin[..., 2] & (rng.random(raw.shape[:2]) < 0.9)
+    raw[..., 2] = np.where(one_gear, description_of(mm82).gears[0].number, raw[..., 2])
+    s_np = ref.initial_state(T_oil_c=rng.uniform(-30.0, 90.0, V), n_vehicles=V)
+    s_c = s_np
+    for j in range(L):
+        inp = SensorInputs(*(raw[j, :, i] for i in range(8)), t_s=t_s[j])
+        s_np, o_np, j_np = ref.step_deferred(s_np, inp)
+        s_c, o_c, j_c = cc.step_deferred(s_c, inp)
+        _compare_outputs(o_np, o_c, f"step {j}")
+        _compare_jobs(j_np, j_c, f"step {j}")
+        s_np, s_c = ref.refresh_ttl(s_np, j_np), cc.refresh_ttl(s_c, j_c)
+        assert np.isfinite(s_np.T_c).all(), j
+        no_inlet = ~np.isfinite(o_np.status.oil_inlet_temp_c)
+        assert np.all(o_np.status.degraded_mode[no_inlet] == MODE_HOLDING), j
+    np.testing.assert_allclose(s_c.T_c, s_np.T_c, rtol=0, atol=1e-9)
+
+
+@needs_c
 def test_one_vehicle_table_matches_step_by_step(params):
     """``step_table`` (whole table per kernel call, refreshes and jumps between calls) equals the numpy core row by
     row on one hostile vehicle, including forward and backward time jumps."""
