@@ -87,9 +87,9 @@ class NetworkStep(NamedTuple):
     row: np.ndarray  # B: gear row
     omega_in_rad_s: np.ndarray  # B: input speed
     rho_cp_j_per_m3k: np.ndarray  # B: oil volumetric heat capacity at the main sump
-    #: B + (2,): the main copy's cooler heat [W] and inlet drop [K] by the cooler's law at its sump (Q_cool_w's and
-    #: dT_in_k's but where a measured sump's cooler is its balance): the time to limit's with the sump modelled
-    law_main: np.ndarray
+    #: B + (2,): the main copy's cooler heat [W] and inlet drop [K] by the cooler's law at its sump, for the time to
+    #: limit with the sump modelled; None where the step took the law itself (no measured_cooler = "balance")
+    law_main: np.ndarray | None
 
 
 def step(state: SensorState, inputs: SensorInputs, sp: SensorParams, cache: StepCache | None = None):
@@ -234,7 +234,9 @@ def _network_step(state: SensorState, chk: InputCheck, oil_c, sp: SensorParams, 
         sp, T_c, q_nodes_w, G_int, G_ext, T_bc_c, G_streams_w_per_k, drive, rho_cp_j_per_m3k, chk
     )
     dT_in_k = inlet_drop_k(Q_cool_w, mcp_w_per_k)
-    law_main = np.stack([Q_law_w[..., MAIN], inlet_drop_k(Q_law_w, mcp_w_per_k)[..., MAIN]], axis=-1)
+    law_main = None
+    if Q_law_w is not Q_cool_w:  # a measured sump's balance: the law's kept for the time to limit
+        law_main = np.stack([Q_law_w[..., MAIN], inlet_drop_k(Q_law_w, mcp_w_per_k)[..., MAIN]], axis=-1)
     q_copies_w = (
         q_nodes_w[..., None, :] + (G_streams_w_per_k[..., None, :] * dT_in_k[..., :, None]) @ h.stream_scatter
     )  # B + (2, n)
@@ -359,7 +361,7 @@ def _ttl_job(state: SensorState, chk: InputCheck, net: NetworkStep, sp: SensorPa
         return None
     B = state.t_last_s.shape
     vehicles = tuple(v for v in (np.ndindex(B) if B else [()]) if due[v])
-    law = sp.options.ttl_sump == "model"
+    law = sp.options.ttl_sump == "model" and net.law_main is not None
     points = tuple(
         TtlPoint(
             net.T_c[v][MAIN].copy(),
