@@ -385,3 +385,34 @@ def test_a_debounce_longer_than_the_step_leaves_the_early_warning_out_and_no_war
         slack_k = fall_k * lim.debounce_s / ROW_S
         assert np.all(np.asarray(T_c)[on] > lim.warning_c[0] - lim.hysteresis_k[0] - slack_k - 1e-9), c
     assert moved >= 2  # warnings raised and cleared: the comparison is not on a constant level
+
+
+#: the largest |row mean from ROW_MEAN_SAMPLES steps - the mean of all 40| of a published component or of the model's
+#: sump or oil inlet on 12 hours of the MM82's synthetic rows after the first (which starts from the initial state:
+#: 0.23 K there), either oil mode: measured 0.043 K (P1, the oil measured; the midpoint rule's error, second order in
+#: the spacing of its samples), with one J1939 temperature bit (0.03125 K) of margin
+ROW_MEAN_BOUND_K = 0.043 + 0.03125
+
+
+@pytest.mark.parametrize("oil_mode", ["measured", "model"])
+def test_row_means_leave_the_row_end_outputs_as_they_are_and_follow_every_step_s_mean(mm82, oil_mode, monkeypatch):
+    """replay_held(row_means=True) (a SCADA row's estimate: its interval's mean): the outputs at each row's end
+    unchanged to the bit, the means within ROW_MEAN_BOUND_K of the mean of every step of the row, much nearer it
+    than the row's end is."""
+    import tools.replay.table as held
+
+    table = _rows(mm82, 12.0, oil=oil_mode == "measured")
+    s = _sensor(mm82, oil_mode=oil_mode, **held.held_options(table))
+    plain = held.replay_held(table, s)
+    means = held.replay_held(table, s, row_means=True)
+    for c in plain.columns:
+        np.testing.assert_array_equal(plain[c], means[c], err_msg=c)
+    mean4 = means.meta["row_mean"]
+    monkeypatch.setattr(held, "row_mean_steps", lambda n: np.tile(np.arange(int(n.max())), (n.size, 1)))
+    every = held.replay_held(table, s, row_means=True).meta["row_mean"]
+    assert set(mean4) == {*(f"T_{p}_c" for p in s.published), "oil_inlet_temp_c", "model_oil_temp_c"}
+    worst = max(float(np.max(np.abs(mean4[c][1:] - every[c][1:]))) for c in mean4)
+    assert worst <= ROW_MEAN_BOUND_K, worst
+    # the row's end stands for its mean far worse than the samples do (the bearing Gb2t is tied to: BHR)
+    end, mean, exact = plain["T_BHR_c"][1:], mean4["T_BHR_c"][1:], every["T_BHR_c"][1:]
+    assert np.sqrt(np.mean((mean - exact) ** 2)) < 0.25 * np.sqrt(np.mean((end - exact) ** 2))

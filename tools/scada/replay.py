@@ -5,11 +5,13 @@ The record becomes a fixed-ratio run table (:mod:`tools.scada.runtable`: each 10
 the measured sump as ``oil_temp_c`` unless the oil is modelled), the sensor replays it with one output row per input
 row (tools.replay.table.replay_held), and the estimates are written beside the measurements: for every measured
 channel of the column map its cleaned reading under its own name and the sensor's estimate of the description's
-part it is tied to as ``est_<name>`` (``est_Gb1t_avg``). With ``oil_mode = "model"`` the sump is read only in the
-first row (the model's start) and the sump channel's estimate is the model's; with the oil measured, the estimate
-of the sump is the reading the sensor used (its model's own sump is the ``model_oil_temp_c`` column). A channel
-tied to a forced oil system's inlet (``oil.inlet``) is estimated by the status column ``oil_inlet_temp_c``. The
-sensor's full output (``T_<id>_c``, ``W_<id>``, ``ttl_<id>_s``, the status) follows; est.csv leaves out the
+part it is tied to as ``est_<name>`` (``est_Gb1t_avg``): the estimate's mean over the row's interval, as the
+reading is its interval's mean (the sensor's output at the interval's end is ``T_<id>_c``). With ``oil_mode =
+"model"`` the sump is read only in the first row (the model's start) and the sump channel's estimate is the
+model's; with the oil measured, the estimate of the sump is the reading the sensor used (its model's own sump is
+the ``model_oil_temp_c`` column). A channel tied to a forced oil system's inlet (``oil.inlet``) is estimated by the
+status column ``oil_inlet_temp_c``. The sensor's full output (``T_<id>_c``, ``W_<id>``, ``ttl_<id>_s``, the
+status) follows; est.csv leaves out the
 columns of a vehicle the drive has not (tools.replay.table.not_written).
 """
 
@@ -110,7 +112,7 @@ def replay_record(
     from firmware_model.description import description_of
     from firmware_model.onboard.sensor import VirtualSensor
     from tools.drive_table import map_fixed_ratio
-    from tools.replay.table import held_options, mark_for_findings, replay_table
+    from tools.replay.table import held_options, mark_for_findings, replay_held
 
     params = config.load_params() if params is None else params
     # an offline batch: the time to limit refreshed every 10 s (the live service: every 1 s), a quarter less time
@@ -123,7 +125,8 @@ def replay_record(
     d = description_of(params)
     start = first_sump(record) if oil_mode == "model" else None
     start_c = start[0] if start is not None else None
-    out = replay_table(drive, sensor, initial_oil_c=start_c)
+    out = replay_held(drive, sensor, initial_oil_c=start_c, row_means=True)
+    row_mean = out.meta.pop("row_mean")
     estimated, notes = estimate_columns(record, tuple(sensor.published), (*d.nodes, *d.derived), out.columns)
     if start is not None:
         which = "the first sump reading" if start[1] == 0 else f"the first sump reading (row {start[1] + 1})"
@@ -138,7 +141,8 @@ def replay_record(
         cols[name] = table[name]
     for name in record.cmap.nodes:
         cols[name] = np.asarray(record.values[name], dtype=float)
-        cols[f"est_{name}"] = np.array(out[estimated[name]], dtype=float) if name in estimated else np.full(n, np.nan)
+        # the estimate is the interval's mean, as the reading is (the sensor's output at the row's end: T_<id>_c)
+        cols[f"est_{name}"] = np.array(row_mean[estimated[name]]) if name in estimated else np.full(n, np.nan)
         if start is not None and record.cmap.nodes[name] == "oil":
             cols[f"est_{name}"][start[1]] = np.nan  # the reading the model starts from: not compared with itself
     for name in out.columns:

@@ -68,7 +68,13 @@ def test_each_measured_channel_is_written_beside_its_estimate_one_row_per_record
     assert est.n == ROWS
     for name, node in (("Gost_avg", "oil"), ("Gb1t_avg", "B1"), ("Gb2t_avg", "B2")):
         assert est.has(name) and est.has(f"est_{name}")
-        np.testing.assert_array_equal(est[f"est_{name}"], est[f"T_{node}_c"])
+        # the estimate is the interval's mean, as the reading is: between the part's temperatures at the interval's
+        # start and end (T_<id>_c: the sensor at each row's end), off the end where the part moved
+        e, t = est[f"est_{name}"], est[f"T_{node}_c"]
+        lo, hi = np.minimum(t[:-1], t[1:]), np.maximum(t[:-1], t[1:])
+        assert np.all(e[1:] >= lo - 0.03) and np.all(e[1:] <= hi + 0.03), name
+        moved = np.abs(np.diff(t)) > 0.3
+        assert node == "oil" or (moved.any() and np.all(np.abs(e[1:] - t[1:])[moved] > 0.05)), name
     # the oil measured: the sump's estimate is the reading the sensor used
     np.testing.assert_allclose(est["est_Gost_avg"], est["Gost_avg"], atol=1e-9)
     # the bearings between the air and the oil plus their own heating; the time stamps are the SCADA rows' (the end
@@ -159,7 +165,8 @@ def test_the_mm82_s_oil_inlet_is_estimated_below_its_sump(tmp_path):
     assert "not estimated" not in p.stdout and "Git_avg" in p.stdout
     est = read_run_table(tmp_path / "est.csv", required=("time_s",))
     assert est.n == len(rows)
-    np.testing.assert_array_equal(est["est_Git_avg"], est["oil_inlet_temp_c"])
+    # the inlet's mean over each row's interval (tests/tools/test_held_step.py): near the sensor's inlet at its end
+    assert np.all(np.abs(est["est_Git_avg"] - est["oil_inlet_temp_c"]) < 1.0)
     inlet, sump = est["est_Git_avg"], est["est_Gost_avg"]
     assert np.isfinite(inlet).all()
     assert np.all(sump > 60.0) and np.all(inlet < sump - 0.5)
