@@ -371,14 +371,7 @@ def replay_held(
         ("W_", ""): np.concatenate(kept["W"]),
         ("ttl_", "_s"): np.concatenate(kept["ttl"]),
     }
-    status = np.concatenate(kept["status"])
-    per_base = sensor.dt_s / base.dt_s
-    if per_base != 1.0:
-        # a coarse step stands for per_base steps of 0.1 s: its step counters count them (events count one)
-        n_st = status.shape[1] - len(sensor.reject_reasons)
-        for j, reason in enumerate(sensor.reject_reasons):
-            if reason not in EVENT_REJECTS:
-                status[:, n_st + j] = np.rint(status[:, n_st + j] * per_base)
+    status = _counted_per_base_step(np.concatenate(kept["status"]), sensor, base)
     out_table = _output_table(ends_s, data, rows_out, status, sensor, state)
     proof = base.reduced.stability or {}
     out_table.meta.update(
@@ -392,6 +385,18 @@ def replay_held(
     if means is not None:
         out_table.meta["row_mean"] = means.columns(sensor.published)
     return out_table
+
+
+def _counted_per_base_step(status: np.ndarray, sensor, base) -> np.ndarray:
+    """The status rows of a coarse step, which stands for dt / 0.1 s steps of ``base``: its reject counters count
+    those steps (the events, one each)."""
+    per_base = sensor.dt_s / base.dt_s
+    if per_base != 1.0:
+        n_st = status.shape[1] - len(sensor.reject_reasons)
+        for j, reason in enumerate(sensor.reject_reasons):
+            if reason not in EVENT_REJECTS:
+                status[:, n_st + j] = np.rint(status[:, n_st + j] * per_base)
+    return status
 
 
 class _RowMeans:
