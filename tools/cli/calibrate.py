@@ -271,7 +271,7 @@ def _run_scada(args, cfg, params) -> int:
         print(f"note: {note}", file=sys.stderr)
     nbm = nbm_beside(setup, train, test, params.with_overrides(cal.fitted))
     if not args.quiet:
-        _print_scada(cal, nbm)
+        _print_scada(cal, nbm, params.bounds)
     (b, a) = cal.test_rms_c
     held = max((int(np.sum(np.isfinite(r.values[ch]))) for r in test for ch in r.cmap.measured), default=0)
     why = (
@@ -285,9 +285,13 @@ def _run_scada(args, cfg, params) -> int:
         if not (a < b and any(y < x * (1.0 - SCADA_TEST_MIN_SHRINK) for x, y in cal.test_by_channel.values()))
         else ""
     )
+    bound = [k for k in cal.keys if cal.at_bound[k]]
     if why:
-        print(f"calibrate: {why}, so no parameter file was written", file=sys.stderr)
+        at = f" (at a bound: {', '.join(bound)})" if bound else ""
+        print(f"calibrate: {why}{at}, so no parameter file was written", file=sys.stderr)
         return 3
+    for line in _cautions(cal, params):  # as for run tables: a value at a bound, one not pinned down
+        print(f"warning: {line}", file=sys.stderr)
     _write_atomic(
         args.out,
         calibrated_toml(parameter_path(cfg.params_path or cfg.variant), params, cal, dt.date.today().isoformat()),
@@ -297,14 +301,16 @@ def _run_scada(args, cfg, params) -> int:
     return 0
 
 
-def _print_scada(cal, nbm: dict) -> None:
-    """Identifiability, the fitted values and the held-out table: physics before and after beside the NBM and the
-    NBM with the calibrated physics among its features."""
+def _print_scada(cal, nbm: dict, bounds: dict) -> None:
+    """Identifiability, the fitted values (and which ended at a bound of their plausible range) and the held-out
+    table: physics before and after beside the NBM and the NBM with the calibrated physics among its features."""
     for x in cal.ident:
         sig = ", ".join(f"{ch} {v:.2f}" for ch, v in x.signature_c.items())
         print(f"{x.key}: signature [K over half its range] {sig}" + ("" if x.identifiable else f"; {x.reason}"))
     for k in cal.keys:
-        print(f"fitted {k} = {cal.fitted[k]:.6g} +- {cal.sigma[k]:.2g} (was {cal.start[k]:.6g})")
+        lo, hi = bounds[k]
+        at = f"; at a bound of its plausible range {lo:.6g}..{hi:.6g}" if cal.at_bound[k] else ""
+        print(f"fitted {k} = {cal.fitted[k]:.6g} +- {cal.sigma[k]:.2g} (was {cal.start[k]:.6g}){at}")
     print(
         "| channel | held-out RMS, physics as shipped [K] | physics calibrated [K] | linear NBM [K] "
         "| physics-informed NBM [K] |"

@@ -216,6 +216,30 @@ def test_calibrate_finds_a_planted_value_and_prints_the_nbm_beside_it(setup, tmp
     assert not (tmp_path / "standing.toml").exists()
 
 
+def test_calibrate_says_a_fitted_value_that_ended_at_a_bound_of_its_range(setup, tmp_path):
+    """Readings made with f0_tapered = 5.0, beyond the file's plausible 2..4: the fit ends at 4.0 and improves the
+    held-out record, so the file is written, and the console says the value sits at a bound, as it does for run
+    tables (it printed `fitted ... = 4 +- ...` alone: on R80736+R80790 -> R80721 cooler.air_hA_ref went to its
+    upper bound 2200 without a word)."""
+    s, train, test = setup
+    params = s.config.load_params().with_overrides({"bearing.f0_tapered": 5.0})
+    files = []
+    for rec, seed, name in ((train, 7, "train.csv"), (test, 8, "test.csv")):
+        rec = rec.select(np.ones(rec.n, dtype=bool))
+        rng = np.random.default_rng(seed)
+        for chans in ((s.sump,), s.others):
+            _model_readings(s, rec, chans, estimates(s, rec, {}, params), rng)
+        files.append(_write_measured(tmp_path / name, rec))
+    cmd = ["calibrate", "--gearbox", "HR225", "--columns", str(_map(tmp_path)), "--train", str(files[0])]
+    cmd += ["--test", str(files[1]), "--params", "bearing.f0_tapered", "--out", str(tmp_path / "cal.toml")]
+    p = subprocess.run([sys.executable, "-m", "tools.cli", *cmd], cwd=REPO, capture_output=True, text=True, timeout=600)
+    assert p.returncode == 0, p.stderr
+    line = next(x for x in p.stdout.splitlines() if x.startswith("fitted bearing.f0_tapered = "))
+    assert float(line.split(" = ", 1)[1].split()[0]) == pytest.approx(4.0, rel=1e-3), line
+    assert "at a bound of its plausible range 2..4" in line, line
+    assert "bearing.f0_tapered ended at a bound of its plausible range" in p.stderr, p.stderr
+
+
 def test_records_without_a_reading_are_one_sentence_not_a_verdict(setup):
     s, train, test = setup
     blank = train.select(np.ones(train.n, dtype=bool))
