@@ -33,6 +33,27 @@ def test_a_truck_s_folder_with_month_folders_is_still_that_truck(tmp_path):
     assert rule.startswith("vehicles: 4: 3 from the folders holding 5 logs")
 
 
+def test_a_folder_of_scada_files_without_columns_says_to_give_columns(tmp_path):
+    """`fleet turbines/ --out o` on a folder of SCADA .csv.gz files said only "no CAN log (...) to run": the user
+    who forgot --columns is told the folder's files are read with it."""
+    import pytest
+
+    from firmware_model.errors import InputError
+
+    (tmp_path / "turbine_A_1.csv.gz").write_bytes(b"")
+    (tmp_path / "turbine_B_1.csv").write_text("Date_time\n")
+    with pytest.raises(
+        InputError,
+        match=r"no CAN log .* 2 SCADA file\(s\) \(\.csv, \.csv\.gz, e\.g\. turbine_A_1\.csv\.gz\).*--columns",
+    ):
+        entries_and_rule([tmp_path])
+    (tmp_path / "turbine_A_1.csv.gz").unlink()
+    (tmp_path / "turbine_B_1.csv").unlink()
+    with pytest.raises(InputError, match=r"no CAN log") as err:  # an empty folder: no word of SCADA
+        entries_and_rule([tmp_path])
+    assert "--columns" not in str(err.value)
+
+
 def test_the_report_counts_the_trusted_logs_hours_and_the_untrusted_apart():
     """A 3-minute log in milliseconds (untrusted) added 3.0 truck-hours to the report."""
     from tools.fleet.report import truck_hours

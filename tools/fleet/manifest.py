@@ -230,6 +230,8 @@ def entries_and_rule(paths, pattern: str | None = None, vehicle_from: str | None
         n = len({v for _, v, _, _ in found})
         where = "paths" if on_path else "file names"
         return check_entries(entries, "the logs given"), f"vehicles: {n} read from the {where} by {option} '{regex}'"
+    if not listed:
+        _no_logs_but_scada(paths)
     entries = [_entry(f, folder if folder is not None else _stem(f)) for f, folder in listed]
     check_entries(entries, "the logs given")
     n_nested = sum(folder is not None for _, folder in listed)
@@ -249,6 +251,24 @@ def entries_and_rule(paths, pattern: str | None = None, vehicle_from: str | None
             f"them one vehicle, a --manifest names each)"
         )
     return entries, f"vehicles: {len({e.vehicle for e in entries})}: " + "; ".join(parts)
+
+
+def _no_logs_but_scada(paths) -> None:
+    """InputError when the folders given hold no CAN log but SCADA files: the user forgot --columns (the fleet
+    without it said only that there was no CAN log to run)."""
+    scada = sorted(
+        f
+        for given in paths
+        if Path(given).is_dir()
+        for f in Path(given).rglob("*")
+        if f.is_file() and f.name.lower().endswith((".csv", ".csv.gz"))
+    )
+    if scada:
+        raise InputError(
+            f"the logs given: no CAN log ({', '.join(LOG_SUFFIXES)}) to run, but {len(scada)} SCADA file(s) (.csv, "
+            f".csv.gz, e.g. {scada[0].name}): read them through a column map with --columns NAME|FILE (--columns "
+            "engie for ENGIE's La Haute Borne format; docs/real-data.md)"
+        )
 
 
 def check_entries(entries: list[LogEntry], where: str, at=None) -> list[LogEntry]:
