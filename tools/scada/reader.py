@@ -184,9 +184,16 @@ def read_file(path: str | Path, cmap: ColumnMap) -> FileRows:
     header = [h.strip() for h in header]
     lacking = [c for c in cmap.columns if c not in header]
     if lacking:
+        # the columns all in one field: another separator (a tab-separated export), not other columns
+        one = len(header) == 1 and "\t" in header[0] and any(c in header[0] for c in cmap.columns)
         raise InputError(
             f"{path.name}: not a SCADA file of the column map {cmap.name}: its header lacks the column(s) "
             f"{', '.join(lacking[:4])}{' ...' if len(lacking) > 4 else ''}"
+            + (
+                "; its header is one field holding tabs: give the file separated by ',' or ';' (the separators read)"
+                if one
+                else ""
+            )
         )
     idx = {c: header.index(c) for c in cmap.columns}
     value_cols = [c for c in cmap.columns if c not in (cmap.time_column, cmap.unit_column)]

@@ -177,6 +177,11 @@ def test_a_stray_latin_1_byte_costs_its_cell_not_the_file(tmp_path):
         (b"\x89PNG\r\n\x1a\n\x00\x00\x00\rIHDR\xff\xfe", "binary content"),
         (b"\x1f\x8b\x08\x00garbage", "a damaged gzip file"),
         (b"", "empty"),
+        # a tab-separated export: the columns are there, in one field (it said only that they were lacking)
+        (
+            "\t".join(HEADER).encode() + b"\n",
+            "its header is one field holding tabs: give the file separated by ',' or ';'",
+        ),
         (",".join(HEADER).encode() + b"\nR1,yesterday,1,2,3,4,5,6,7,8,9,10,11\n", "no row with a readable time stamp"),
     ],
 )
