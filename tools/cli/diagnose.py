@@ -206,12 +206,15 @@ def _run_scada(args) -> int:
     setup, notes = setup_of(cfg, train[0].cmap)
     say_damaged_lines([*train, *test], "read", args.quiet)
     res = diagnose_records(setup, train, test, thermostat_of(cfg.load_params()))
+    data_warnings = res.get("warnings", [])
     if notes:
-        res["warnings"] = notes + res.get("warnings", [])
+        res["warnings"] = notes + data_warnings
     write_json_atomic(res, args.json)
     if not args.quiet:
         _print_summary_scada(args, res)
-    for w in res.get("warnings", []):
+    for note in [] if args.quiet else notes:  # what the fit leaves out by design: a note, as calibrate says it
+        print(f"note: {note}", file=sys.stderr)
+    for w in data_warnings:
         print(f"warning: {w}", file=sys.stderr)
     return 0
 
