@@ -46,11 +46,21 @@ def table_drive(columns, name: str) -> str:
     return "fixed_ratio" if fixed else "vehicle"
 
 
+#: how a SCADA record's run table is named (tools.scada.runtable: "SCADA of <unit>"): its fix is a --gearbox
+SCADA_SOURCE = "SCADA of "
+
+
 def check_drive(columns, description, name: str) -> str:
     """The table's drive (:func:`table_drive`), which must be the gearbox's; InputError otherwise."""
     kind = table_drive(columns, name)
     gearbox_kind = "vehicle" if description is None else description.drive.kind
     gearbox = "the GRS905" if description is None else f"gearbox {description.name}"
+    if kind == "fixed_ratio" and gearbox_kind != "fixed_ratio" and name.startswith(SCADA_SOURCE):
+        raise InputError(
+            f"{name}: a SCADA record is a fixed-ratio drive's (input speed and torque), but {gearbox} has a "
+            f"{gearbox_kind} drive: give --gearbox a fixed-ratio description (MM82 for ENGIE's Senvion MM82 "
+            "turbines, the engie map's; or your own file)"
+        )
     if kind == "fixed_ratio" and gearbox_kind != "fixed_ratio":
         raise InputError(
             f"{name}: its columns {', '.join(c for c in columns if c in FIXED_RATIO_COLUMNS)} are a fixed-ratio "

@@ -49,13 +49,14 @@ def add_subparser(sub):
         "  gearbox-vsensor calibrate --train a.csv --test b.csv --params oil_system.flow_m3_per_rad,"
         "housing.hot_frac --out my_gearbox.toml",
     )
-    p.add_argument("--train", nargs="+", required=True, metavar="FILE", help="training runs (.csv or CAN logs)")
+    p.add_argument("--train", nargs="+", required=True, metavar="FILE", help="training runs (the kinds --test takes)")
     p.add_argument(
         "--test",
         nargs="+",
         required=True,
         metavar="FILE",
-        help="held-out runs, never used by the fit (a file that repeats rows of a training file is refused)",
+        help="held-out runs, never used by the fit (a file that repeats rows of a training file is refused): run "
+        "tables (.csv), CAN logs, or SCADA files (.csv, .csv.gz) with --columns",
     )
     keys = p.add_mutually_exclusive_group(required=True)
     keys.add_argument(

@@ -37,15 +37,16 @@ def add_subparser(sub):
         required=True,
         metavar="FILE",
         help="training runs: run tables (.csv) or CAN logs (.log candump -L, .asc, .blf, .mf4, .trc; decoded "
-        "with the sensor's CAN service: TRF1 oil temperature and rig thermocouple frames)",
+        "with the sensor's CAN service: TRF1 oil temperature and rig thermocouple frames); SCADA files (.csv, "
+        ".csv.gz) with --columns",
     )
     p.add_argument(
         "--test",
         nargs="+",
         required=True,
         metavar="FILE",
-        help="test runs (.csv or CAN logs), different runs from the training files (a file that repeats rows of one, "
-        "e.g. a time window cut from it, is refused)",
+        help="test runs (run tables, CAN logs, or SCADA files with --columns), different runs from the training "
+        "files (a file that repeats rows of one, e.g. a time window cut from it, is refused)",
     )
     p.add_argument(
         "--config",

@@ -225,11 +225,11 @@ def _check_scada_drive(cfg, records) -> None:
     """SCADA records are a fixed-ratio drive's run tables: a gearbox with a vehicle drive (no --gearbox: the GRS905)
     is refused before any work, not after notes on channels its description does not have."""
     from firmware_model.description import description_of
-    from tools.drive_table import check_drive
+    from tools.drive_table import SCADA_SOURCE, check_drive
     from tools.scada.runtable import INPUTS
 
     unit = next(iter(records))
-    check_drive(("time_s", *INPUTS), description_of(cfg.load_params()), f"SCADA of {unit}")
+    check_drive(("time_s", *INPUTS), description_of(cfg.load_params()), f"{SCADA_SOURCE}{unit}")
 
 
 def _run_scada(args) -> int:

@@ -5,6 +5,7 @@ written. Each is one sentence (InputError), raised before anything is written.""
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 from firmware_model.errors import InputError
@@ -43,7 +44,8 @@ def check_paths(
     ins = [(role, p, Path(p).resolve()) for role, p in inputs if p]
     for role, p, full in ins:
         if full.is_dir():
-            raise InputError(f"{role} {p} is a directory, not a file")
+            glob = os.path.join(os.fspath(p), "*")
+            raise InputError(f"{role} {p} is a directory, not a file: give the files in it (e.g. {glob})")
     seen: dict = {}
     for opt, p in outputs.items():
         if not p:

@@ -23,8 +23,9 @@ except ModuleNotFoundError:  # Python 3.10
     import tomli as tomllib
 
 MAP_DIR = Path(__file__).resolve().parent / "maps"
-#: the kinds of time column a map may name
-TIME_KINDS = ("iso8601_offset", "seconds")
+#: the kinds of time column a map may name: ISO 8601 stamps with their UTC offset, ISO 8601 stamps in UTC (an offset,
+#: where a stamp has one, still counts), UTC seconds
+TIME_KINDS = ("iso8601_offset", "iso8601_utc", "seconds")
 #: the ways an input may be derived from other columns, with the columns each needs
 DERIVATIONS = {
     "power_over_speed": ("power", "speed"),

@@ -23,7 +23,7 @@ import io
 import zlib
 from collections.abc import Iterable
 from dataclasses import dataclass, field
-from datetime import datetime
+from datetime import datetime, timezone
 from pathlib import Path
 
 import numpy as np
@@ -157,6 +157,8 @@ def parse_time(stamp: str, kind: str) -> float | None:
         dt = datetime.fromisoformat(stamp.strip().replace("Z", "+00:00"))
     except ValueError:
         return None
+    if dt.utcoffset() is None and kind == "iso8601_utc":  # the map says its stamps are UTC
+        dt = dt.replace(tzinfo=timezone.utc)
     return dt.timestamp() if dt.utcoffset() is not None else None
 
 
@@ -223,7 +225,8 @@ def read_file(path: str | Path, cmap: ColumnMap) -> FileRows:
         plain = cmap.time_kind == "iso8601_offset" and parse_time(example + "+00:00", cmap.time_kind) is not None
         raise InputError(
             f"{path.name}: its time stamps ({cmap.time_column}, e.g. {example!r}) have no UTC offset: give them with "
-            "theirs (2017-01-01T00:10:00+01:00); a stamp in local time without one is ambiguous"
+            'theirs (2017-01-01T00:10:00+01:00), or, if they are UTC, set time.kind = "iso8601_utc" in a copy of '
+            "the column map; a stamp in local time without one is ambiguous"
             if plain
             else f"{path.name}: no row with a readable time stamp ({cmap.time_column}), no SCADA data"
         )

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from tools.drive_table import SCADA_SOURCE
 from tools.runtable import RunTable
 from tools.scada.reader import ScadaRecord
 
@@ -43,6 +44,6 @@ def run_table_of(record: ScadaRecord, with_oil: bool = True) -> RunTable:
     if oil is not None:
         cols["oil_temp_c"] = np.asarray(record.values[oil], dtype=float)
     meta = {"drive": "fixed_ratio", "unit": record.unit, "t0_utc_s": t0_s, "row_period_s": period_s}
-    table = RunTable(cols, meta=meta, source=f"SCADA of {record.unit}")
+    table = RunTable(cols, meta=meta, source=f"{SCADA_SOURCE}{record.unit}")
     table.meta["stretch"] = np.asarray(record.stretch).copy()
     return table

@@ -154,6 +154,21 @@ def test_a_stamp_without_utc_offset_drops_its_row(tmp_path):
     assert rec.n == 3 and rec.counts["bad_time"] == 1
 
 
+def test_stamps_in_utc_without_offset_read_with_a_map_that_says_so(tmp_path):
+    """A map with time.kind = "iso8601_utc" takes stamps without an offset as UTC (and one with an offset by it); with
+    the shipped map (offsets needed) such a file is one sentence that names that kind."""
+    t0 = datetime(2017, 6, 1, tzinfo=timezone.utc)
+    naive = [row((t0 + timedelta(minutes=10 * k)).strftime("%Y-%m-%d %H:%M:%S")) for k in range(3)]
+    path = write(tmp_path / "utc.csv", naive + [row(t0 + timedelta(minutes=30))])
+    with pytest.raises(InputError, match='set time.kind = "iso8601_utc" in a copy of the column map'):
+        read_record([write(tmp_path / "utc_only.csv", naive)])
+    text = (MAP_DIR / "engie.toml").read_text().replace('kind = "iso8601_offset"', 'kind = "iso8601_utc"')
+    (tmp_path / "utc.toml").write_text(text)
+    rec = read_record([path], tmp_path / "utc.toml")
+    assert rec.n == 4 and rec.counts["bad_time"] == 0
+    np.testing.assert_array_equal(rec.time_s, t0.timestamp() + 600.0 * np.arange(4))
+
+
 def test_a_stray_latin_1_byte_costs_its_cell_not_the_file(tmp_path):
     """A Latin-1 byte (a degree sign in a column the map does not read, a bad byte in one sump cell) is no reason to
     refuse a year of data: the lines are counted, the cell is dropped as not a number, the rest is read (was: the

@@ -130,6 +130,9 @@ def test_several_files_of_one_unit_are_one_record(tmp_path):
     [
         ("a channel tied to a part the gearbox lacks", "BHG", "does not have"),
         ("several files without --columns", None, "only with --columns"),
+        # (was: "give time_s, engine_speed_rpm, engine_torque_nm, gear", a run table's fix, not a SCADA file's)
+        ("no --gearbox: the GRS905's vehicle drive", "no gearbox", "give --gearbox a fixed-ratio description (MM82"),
+        ("a folder for its files", "folder", "is a directory, not a file: give the files in it (e.g. "),
     ],
     ids=lambda c: c[0],
 )
@@ -138,6 +141,10 @@ def test_what_cannot_be_replayed_is_one_sentence(tmp_path, case):
     scada = write(tmp_path / "a.csv", _rows(0, 6))
     if node is None:
         cmd = ["replay", str(scada), str(scada), "--gearbox", "HR225", "--out", str(tmp_path / "e.csv")]
+    elif node == "no gearbox":
+        cmd = ["replay", str(scada), "--columns", "engie", "--out", str(tmp_path / "e.csv")]
+    elif node == "folder":
+        cmd = ["replay", str(tmp_path), "--gearbox", "MM82", "--columns", "engie", "--out", str(tmp_path / "e.csv")]
     else:
         cmd = ["replay", str(scada), "--gearbox", "HR225", "--columns", str(_map(tmp_path, node))]
         cmd += ["--out", str(tmp_path / "e.csv")]
