@@ -62,7 +62,19 @@ SOURCE_UNITS = {
     "torque_times_ratio": ("torque_unit", "torque_scale", "N m"),
 }
 #: the keys an entry may carry
-ENTRY_KEYS = {"column", "unit", "scale", "offset", "range", "jump_k", "node", "what", "derive", "speed_unit"} | {
+ENTRY_KEYS = {
+    "column",
+    "unit",
+    "scale",
+    "offset",
+    "range",
+    "jump_k",
+    "node",
+    "what",
+    "derive",
+    "speed_unit",
+    "response_s",
+} | {
     "power_unit",
     "power_scale",
     "torque_unit",
@@ -90,6 +102,9 @@ class Channel:
     source_scale: float = 1.0
     #: a derived input's speed columns to rpm (``speed_unit``, rpm by default)
     speed_scale: float = 1.0
+    #: a measured channel's response [s]: the reading follows its part's rise over the sump through a first-order
+    #: lag of this time constant (0: the part's temperature itself; tools.scada.replay.reading_response)
+    response_s: float = 0.0
 
     @property
     def columns(self) -> tuple[str, ...]:
@@ -185,6 +200,7 @@ def load_column_map(spec: str | Path) -> ColumnMap:
             f'column map {where}: {" and ".join(sumps)} are both tied to the sump (node "oil"), which the '
             "sensor reads from one channel: tie one of them elsewhere or leave it out"
         )
+    _check_responses(inputs, measured, where)
     standstill = _number(raw, "standstill_rpm", where, default=0.0)
     top = (inputs["input_speed_rpm"].range or (0.0, math.inf))[1]
     if not 0.0 <= standstill < top:
@@ -219,6 +235,26 @@ def _text(entry: dict, key: str, where: str) -> str:
     return val
 
 
+def _check_responses(inputs: dict, measured: dict, where: str) -> None:
+    """``response_s`` belongs to a measured channel that is not the sump's, in a map that reads the sump (the
+    response is of the channel's rise over it)."""
+    for k, ch in inputs.items():
+        if ch.response_s:
+            raise InputError(f"column map {where}: inputs.{k} has response_s, which only a measured channel has")
+    sump = any(ch.node == "oil" for ch in measured.values())
+    for k, ch in measured.items():
+        if ch.response_s and ch.node == "oil":
+            raise InputError(
+                f"column map {where}: measured.{k} is the sump's and has response_s: a response is of a channel's "
+                "rise over the sump"
+            )
+        if ch.response_s and not sump:
+            raise InputError(
+                f"column map {where}: measured.{k} has response_s, a response to its rise over the sump, but no "
+                'channel is tied to the sump (node "oil")'
+            )
+
+
 def _number(entry: dict, key: str, where: str, default=None, positive=False) -> float:
     val = entry.get(key, default)
     if isinstance(val, bool) or not isinstance(val, (int, float)) or not math.isfinite(val):
@@ -226,6 +262,14 @@ def _number(entry: dict, key: str, where: str, default=None, positive=False) -> 
     if positive and val <= 0:
         raise InputError(f"column map {where}: {key} must be positive, not {val!r}")
     return float(val)
+
+
+def _response_s(entry: dict, where: str) -> float:
+    """A measured channel's ``response_s`` (0 without one): a finite number of seconds, 0 or more."""
+    val = _number(entry, "response_s", where, default=0.0)
+    if val < 0.0:
+        raise InputError(f"column map {where}: response_s must be 0 or more seconds, not {val!r}")
+    return val
 
 
 def _range(entry: dict, where: str) -> tuple[float, float] | None:
@@ -256,6 +300,7 @@ def _channel(name: str, entry: dict, where: str, target: str | None = "") -> Cha
         jump_k=_number(entry, "jump_k", where, positive=True) if "jump_k" in entry else None,
         node=entry.get("node"),
         what=str(entry.get("what", "")),
+        response_s=_response_s(entry, where),
     )
     derive = entry.get("derive")
     if derive is None:

@@ -143,6 +143,11 @@ def replay_record(
         cols[name] = np.asarray(record.values[name], dtype=float)
         # the estimate is the interval's mean, as the reading is (the sensor's output at the row's end: T_<id>_c)
         cols[f"est_{name}"] = np.array(row_mean[estimated[name]]) if name in estimated else np.full(n, np.nan)
+        tau_s = record.cmap.measured[name].response_s
+        if tau_s > 0.0 and name in estimated:
+            cols[f"est_{name}"] = reading_response(
+                cols[f"est_{name}"], row_mean["T_oil_c"], np.asarray(record.time_s, dtype=float), record.stretch, tau_s
+            )
         if start is not None and record.cmap.nodes[name] == "oil":
             cols[f"est_{name}"][start[1]] = np.nan  # the reading the model starts from: not compared with itself
     for name in out.columns:
@@ -152,6 +157,26 @@ def replay_record(
     result = RunTable(cols, meta=meta, source=f"replay of {record.unit}")
     mark_for_findings(result, sensor)  # (a rotor's drive: no idle-speed rule; its own kN m rule)
     return ScadaReplay(result, oil_mode, estimated, notes, np.asarray(record.stretch), not_written(d))
+
+
+def reading_response(est_c, sump_c, time_s, stretch, tau_s: float) -> np.ndarray:
+    """What a reading with a response of ``tau_s`` [s] shows of its part's estimate ``est_c`` (row means): the sump
+    ``sump_c`` plus the part's rise over it through a first-order lag, ``y += (1 - exp(-dt / tau)) (rise - y)`` row
+    by row (``dt`` the time since the last row with a rise), started at the rise at each stretch's first row
+    (``stretch``: the record's gap-free stretch of each row). A reading sitting in metal that the part warms and the
+    oil's spray cools (docs/real-data.md, "The bearings' reading"). A row without a rise is NaN and leaves the lag
+    where it was."""
+    est_c, sump_c, time_s = (np.asarray(v, dtype=float) for v in (est_c, sump_c, time_s))
+    rise, out = est_c - sump_c, np.full(est_c.shape, np.nan)
+    stretch = np.asarray(stretch)
+    y, t_y = math.nan, math.nan  # the lagged rise and the time it stands for
+    for i in range(rise.size):
+        if i == 0 or stretch[i] != stretch[i - 1]:
+            y = math.nan
+        if math.isfinite(rise[i]):
+            y = rise[i] if not math.isfinite(y) else rise[i] + math.exp(-(time_s[i] - t_y) / tau_s) * (y - rise[i])
+            t_y, out[i] = time_s[i], sump_c[i] + y
+    return out
 
 
 #: a record's findings: rows dropped by the reader beyond this share of the rows read; a channel's values rejected

@@ -234,6 +234,17 @@ def test_a_file_of_another_format_is_one_sentence(tmp_path, content, words):
         (('node = "BHG"\n', ""), "measured.Gb1t_avg needs node"),
         (('node = "BHG"', 'node = "oil"'), "Gost_avg and Gb1t_avg are both tied to the sump"),
         (("[inputs.ambient_temp_c]", "[inputs.nacelle_temp_c]"), "needs [inputs.ambient_temp_c]"),
+        (("response_s = 600.0", "response_s = -1.0"), "measured.Gb1t_avg: response_s must be 0 or more seconds"),
+        (("response_s = 600.0", 'response_s = "10 min"'), "response_s must be a finite number, not '10 min'"),
+        (('node = "oil"', 'node = "oil"\nresponse_s = 60'), "measured.Gost_avg is the sump's and has response_s"),
+        (
+            ('node = "oil"', 'node = "PS"'),
+            "measured.Gb1t_avg has response_s, a response to its rise over the sump, but",
+        ),
+        (
+            ('column = "Yt_avg"\nunit = "degC"', 'column = "Yt_avg"\nunit = "degC"\nresponse_s = 5'),
+            "inputs.ambient_temp_c has response_s, which only a measured channel has",
+        ),
     ],
 )
 def test_a_bad_column_map_names_its_key(tmp_path, edit, words):

@@ -26,9 +26,12 @@ T0 = datetime(2018, 6, 1, 0, 0, tzinfo=timezone.utc)
 ROWS = 72  # half a day of 10-minute rows
 
 
-def _map(tmp_path: Path, bearing_node: str = "B1") -> Path:
-    """The engie map for the HR225: its input speed up to 1800 rpm; the bearings tied to B1 and B2, no inlet."""
+def _map(tmp_path: Path, bearing_node: str = "B1", response_s: float = 0.0) -> Path:
+    """The engie map for the HR225: its input speed up to 1800 rpm; the bearings tied to B1 and B2, no inlet; the
+    bearings' readings with a response of ``response_s`` (the shipped map's 600 s: test_a_reading_s_response...)."""
     text = (MAP_DIR / "engie.toml").read_text()
+    assert text.count("response_s = 600.0") == 2
+    text = text.replace("response_s = 600.0", f"response_s = {response_s!r}")
     text = text.replace("range = [0.0, 25.0]", "range = [0.0, 2000.0]")
     text = text.replace("range = [0.0, 2.0e6]", "range = [0.0, 3000.0]")
     text = text.replace('node = "BHG"', f'node = "{bearing_node}"').replace('node = "BHR"', 'node = "B2"')
@@ -53,8 +56,9 @@ def _rows(k0: int, k1: int, oil_c=lambda k: 55.0 + 4.0 * math.sin(k / 7.0), load
     ]
 
 
-def _replay(tmp_path: Path, files, *extra) -> subprocess.CompletedProcess:
-    args = ["replay", *map(str, files), "--gearbox", "HR225", "--columns", str(_map(tmp_path)), *extra]
+def _replay(tmp_path: Path, files, *extra, response_s: float = 0.0) -> subprocess.CompletedProcess:
+    cmap = _map(tmp_path, response_s=response_s)
+    args = ["replay", *map(str, files), "--gearbox", "HR225", "--columns", str(cmap), *extra]
     return subprocess.run(
         [sys.executable, "-m", "tools.cli", *args], cwd=REPO, capture_output=True, text=True, timeout=300
     )
@@ -153,6 +157,46 @@ def test_what_cannot_be_replayed_is_one_sentence(tmp_path, case):
     assert words in p.stderr and "Traceback" not in p.stderr
     assert len(p.stderr.strip().splitlines()) == 1, p.stderr
     assert not (tmp_path / "e.csv").exists()
+
+
+def test_a_reading_s_response_lags_the_part_s_rise_over_the_sump(tmp_path):
+    """A measured channel's response_s: its estimate is the sump plus the part's rise over it (the row means of
+    response_s = 0) through a first-order lag, row by row; the sump's estimate is untouched."""
+    from tools.scada.replay import reading_response
+
+    scada = write(tmp_path / "a.csv", _rows(0, ROWS))
+    runs = {}
+    for tau in (0.0, 1800.0):
+        out = tmp_path / f"est_{tau:g}.csv"
+        p = _replay(tmp_path, [scada], "--out", out, response_s=tau)
+        assert p.returncode == 0, p.stderr
+        runs[tau] = read_run_table(out, required=("time_s",))
+    plain, lagged = runs[0.0], runs[1800.0]
+    np.testing.assert_array_equal(lagged["est_Gost_avg"], plain["est_Gost_avg"])
+    t = plain["time_utc_s"]
+    for name in ("est_Gb1t_avg", "est_Gb2t_avg"):
+        want = reading_response(plain[name], plain["est_Gost_avg"], t, np.zeros(t.size), 1800.0)
+        np.testing.assert_allclose(lagged[name], want, rtol=0, atol=1e-6)
+        assert lagged[name][0] == pytest.approx(plain[name][0], abs=1e-6)  # started at the rise: no lag to fill
+        assert np.max(np.abs(lagged[name] - plain[name])) > 0.2  # the bearings' rise moves with the load
+
+
+def test_reading_response_is_a_first_order_lag_restarted_at_each_stretch():
+    """A step of the rise reaches 1 - exp(-dt / tau) of its size per row; a new stretch starts at its own rise; a
+    row without a rise is NaN and leaves the lag as it was."""
+    from tools.scada.replay import reading_response
+
+    t = np.arange(8) * 600.0
+    sump = np.full(8, 50.0)
+    est = np.array([52.0, 52.0, 56.0, 56.0, np.nan, 56.0, 60.0, 60.0])
+    stretch = np.array([0, 0, 0, 0, 0, 0, 1, 1])
+    out = reading_response(est, sump, t, stretch, 600.0)
+    a = 1.0 - math.exp(-1.0)
+    np.testing.assert_allclose(out[:4], [52.0, 52.0, 52.0 + 4.0 * a, 56.0 - 4.0 * (1 - a) ** 2])
+    assert math.isnan(out[4])
+    # the NaN row left the lag where it was; the next row is 1200 s on
+    np.testing.assert_allclose(out[5], 56.0 - 4.0 * (1 - a) ** 2 * math.exp(-2.0))
+    np.testing.assert_allclose(out[6:], [60.0, 60.0])
 
 
 def test_the_mm82_s_oil_inlet_is_estimated_below_its_sump(tmp_path):
