@@ -165,13 +165,12 @@ def test_a_training_record_of_a_few_rows_is_thin_evidence_naming_no_regime(setup
     assert "regime" not in v["reason"] and "largest share" not in v["reason"]
 
 
-def test_calibrate_finds_a_planted_value_and_prints_the_nbm_beside_it(setup, tmp_path):
-    """`calibrate --gearbox HR225 --columns MAP --train F --test F --params bearing.f0_tapered --out OUT.toml`:
-    readings made by the sensor with the tapered bearings' f0 = 3.6 (the file says 3.0) give back 3.6."""
-    s, train, test = setup
-    params = s.config.load_params().with_overrides({"bearing.f0_tapered": 3.6})
+def _calibrate_f0_on_readings_made_with(s, params, train, test, tmp_path):
+    """`calibrate ... --params bearing.f0_tapered` on copies of ``train`` and ``test`` whose readings the sensor
+    made with ``params`` (noise of their own seeds): (the command, the finished process)."""
     files = []
     for rec, seed, name in ((train, 7, "train.csv"), (test, 8, "test.csv")):
+        rec = rec.select(np.ones(rec.n, dtype=bool))
         rng = np.random.default_rng(seed)
         for chans in ((s.sump,), s.others):
             _model_readings(s, rec, chans, estimates(s, rec, {}, params), rng)
@@ -179,6 +178,15 @@ def test_calibrate_finds_a_planted_value_and_prints_the_nbm_beside_it(setup, tmp
     cmd = ["calibrate", "--gearbox", "HR225", "--columns", str(_map(tmp_path)), "--train", str(files[0])]
     cmd += ["--test", str(files[1]), "--params", "bearing.f0_tapered", "--out", str(tmp_path / "cal.toml")]
     p = subprocess.run([sys.executable, "-m", "tools.cli", *cmd], cwd=REPO, capture_output=True, text=True, timeout=600)
+    return cmd, p
+
+
+def test_calibrate_finds_a_planted_value_and_prints_the_nbm_beside_it(setup, tmp_path):
+    """`calibrate --gearbox HR225 --columns MAP --train F --test F --params bearing.f0_tapered --out OUT.toml`:
+    readings made by the sensor with the tapered bearings' f0 = 3.6 (the file says 3.0) give back 3.6."""
+    s, train, test = setup
+    params = s.config.load_params().with_overrides({"bearing.f0_tapered": 3.6})
+    cmd, p = _calibrate_f0_on_readings_made_with(s, params, train, test, tmp_path)
     assert p.returncode == 0, p.stderr
     fitted = float(p.stdout.split("fitted bearing.f0_tapered = ", 1)[1].split()[0])
     assert fitted == pytest.approx(3.6, rel=0.03), p.stdout
@@ -223,16 +231,7 @@ def test_calibrate_says_a_fitted_value_that_ended_at_a_bound_of_its_range(setup,
     upper bound 2200 without a word)."""
     s, train, test = setup
     params = s.config.load_params().with_overrides({"bearing.f0_tapered": 5.0})
-    files = []
-    for rec, seed, name in ((train, 7, "train.csv"), (test, 8, "test.csv")):
-        rec = rec.select(np.ones(rec.n, dtype=bool))
-        rng = np.random.default_rng(seed)
-        for chans in ((s.sump,), s.others):
-            _model_readings(s, rec, chans, estimates(s, rec, {}, params), rng)
-        files.append(_write_measured(tmp_path / name, rec))
-    cmd = ["calibrate", "--gearbox", "HR225", "--columns", str(_map(tmp_path)), "--train", str(files[0])]
-    cmd += ["--test", str(files[1]), "--params", "bearing.f0_tapered", "--out", str(tmp_path / "cal.toml")]
-    p = subprocess.run([sys.executable, "-m", "tools.cli", *cmd], cwd=REPO, capture_output=True, text=True, timeout=600)
+    _, p = _calibrate_f0_on_readings_made_with(s, params, train, test, tmp_path)
     assert p.returncode == 0, p.stderr
     line = next(x for x in p.stdout.splitlines() if x.startswith("fitted bearing.f0_tapered = "))
     assert float(line.split(" = ", 1)[1].split()[0]) == pytest.approx(4.0, rel=1e-3), line
