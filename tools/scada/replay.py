@@ -362,10 +362,40 @@ def range_findings(record: ScadaRecord) -> list[RecordFinding]:
                     UNTRUSTED,
                     f"{name} ({', '.join(ch.columns)}): {bad} of {record.n} "
                     f"rows outside its plausible range {lo:g}..{hi:g} (in the unit its name ends with, converted "
-                    f"from the map's {ch.unit}): is the column in another unit?",
+                    f"from the map's {ch.unit}): "
+                    + (speed_unit_hint(record, name) or "is the column in another unit?"),
                 )
             )
     return found
+
+
+#: a derived torque P / omega out of its range because the speed is in rad/s read as rpm: the torque at the speed
+#: in rad/s (the read torque times 2 pi / 60) fits its range on at least this share of the producing rows where the
+#: read one does not
+RAD_S_FIT_SHARE = 0.95
+
+
+def speed_unit_hint(record: ScadaRecord, name: str) -> str:
+    """For a torque derived as power over speed that is mostly out of its range: when the speed column read as
+    rad/s would put it back in range, the end of the finding's sentence saying so (else "")."""
+    ch = record.cmap.channels.get(name)
+    if name != "input_torque_nm" or ch is None or ch.derive != "power_over_speed" or "power_kw" not in record.values:
+        return ""
+    lo, hi = ch.range or (-math.inf, math.inf)
+    speed_rpm = np.asarray(record.values["input_speed_rpm"], dtype=float)
+    power_w = np.asarray(record.values["power_kw"], dtype=float) * 1e3
+    running = (speed_rpm > record.cmap.standstill_rpm) & (power_w > 0.0)
+    read_nm = power_w[running] / (speed_rpm[running] * math.pi / 30.0)
+    out = (read_nm < lo) | (read_nm > hi)
+    as_rad_s = read_nm[out] * math.pi / 30.0  # the same power over the column's values taken as rad/s
+    if out.sum() < 3 or np.mean((as_rad_s >= lo) & (as_rad_s <= hi)) < RAD_S_FIT_SHARE:
+        return ""
+    speed = ch.sources["speed"]
+    return (
+        f"the torque is {ch.sources['power']} over {speed}, and with {speed} read as rad/s it fits its range on "
+        f"{np.mean((as_rad_s >= lo) & (as_rad_s <= hi)):.0%} of those rows: if {speed} is in rad/s, set unit = "
+        f'"rad/s" for the speed and speed_unit = "rad/s" for the torque in the column map'
+    )
 
 
 def bias_finding(name: str, est_minus_measured) -> RecordFinding | None:

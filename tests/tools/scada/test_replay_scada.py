@@ -357,6 +357,37 @@ def test_a_power_in_mw_read_as_w_says_x_1e6_and_the_map_s_unit(tmp_path):
     assert "derives the torque from P_avg read in W: a power column in MW wants power_unit" in p.stderr
 
 
+def test_a_rotor_speed_in_rad_s_read_as_rpm_is_named_with_the_map_s_fix(tmp_path):
+    """The MM82's rotor speed in rad/s read as rpm (ENGIE's map) derives a torque 9.5 times too large, out of its
+    range on most producing rows: the finding said only "is the column in another unit?" of the torque; it names the
+    speed column, rad/s and the two keys of the map. A torque out of range for another reason (a power in W read as
+    kW: 100 times too large even at rad/s) keeps the plain question."""
+    rows = [
+        row(T0 + timedelta(minutes=10 * k), p_kw=900.0 + 300.0 * math.sin(k / 4.0), rs=14.0 * math.pi / 30.0)
+        for k in range(ROWS)
+    ]
+    scada = write(tmp_path / "a.csv", rows)
+    args = ["replay", str(scada), "--gearbox", "MM82", "--columns", "engie", "--out", str(tmp_path / "est.csv")]
+    p = subprocess.run(
+        [sys.executable, "-m", "tools.cli", *args], cwd=REPO, capture_output=True, text=True, timeout=300
+    )
+    assert p.returncode == 3, p.stderr
+    assert (
+        'with Rs_avg read as rad/s it fits its range on 100% of those rows: if Rs_avg is in rad/s, set unit = "rad/s"'
+        in p.stderr
+    )
+    watts = [row(T0 + timedelta(minutes=10 * k), p_kw=9.0e5 + 3.0e5 * math.sin(k / 4.0), rs=14.0) for k in range(ROWS)]
+    p = subprocess.run(
+        [sys.executable, "-m", "tools.cli", *args[:1], str(write(tmp_path / "w.csv", watts)), *args[2:]],
+        cwd=REPO,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert p.returncode == 3 and "input_torque_nm (P_avg, Rs_avg)" in p.stderr, p.stderr
+    assert "is the column in another unit?" in p.stderr and "read as rad/s" not in p.stderr
+
+
 @pytest.mark.parametrize(
     "minutes, status, words",
     [(60, 3, "every row is taken for its own stretch"), (1, 0, "each row is held until the next")],
