@@ -129,6 +129,23 @@ def _compare_jobs(j_np, j_c, where: str):
             )
 
 
+def _lockstep(ref, cc, s0, raw, t_s, label: str = "", each=None):
+    """Step the numpy sensor ``ref`` and the C one ``cc`` side by side from state ``s0`` through ``raw`` (L, V, 8) at
+    ``t_s`` (L, V), comparing every step's outputs and time-to-limit jobs; ``each(step, numpy state, numpy
+    outputs)`` after each step's refresh. Returns the final (numpy state, C state)."""
+    s_np = s_c = s0
+    for j in range(raw.shape[0]):
+        inp = SensorInputs(*(raw[j, :, i] for i in range(8)), t_s=t_s[j])
+        s_np, o_np, j_np = ref.step_deferred(s_np, inp)
+        s_c, o_c, j_c = cc.step_deferred(s_c, inp)
+        _compare_outputs(o_np, o_c, f"{label}step {j}")
+        _compare_jobs(j_np, j_c, f"{label}step {j}")
+        s_np, s_c = ref.refresh_ttl(s_np, j_np), cc.refresh_ttl(s_c, j_c)
+        if each is not None:
+            each(j, s_np, o_np)
+    return s_np, s_c
+
+
 @needs_c
 @pytest.mark.parametrize("per_vehicle_effects", [False, True])
 def test_random_hostile_sequences_match_the_numpy_step(params, per_vehicle_effects):
@@ -140,16 +157,8 @@ def test_random_hostile_sequences_match_the_numpy_step(params, per_vehicle_effec
         ref = VirtualSensor(params, effects=eff, core="numpy", ttl_period_s=10.0)
         cc = VirtualSensor(params, effects=eff, core="c", ttl_period_s=10.0)
         raw, t_s = hostile_inputs(rng, V, L)
-        s_np = ref.initial_state(T_oil_c=rng.uniform(-30.0, 120.0, V), n_vehicles=V)
-        s_c = s_np
-        for j in range(L):
-            inp = SensorInputs(*(raw[j, :, i] for i in range(8)), t_s=t_s[j])
-            s_np, o_np, j_np = ref.step_deferred(s_np, inp)
-            s_c, o_c, j_c = cc.step_deferred(s_c, inp)
-            where = f"batch {b} step {j}"
-            _compare_outputs(o_np, o_c, where)
-            _compare_jobs(j_np, j_c, where)
-            s_np, s_c = ref.refresh_ttl(s_np, j_np), cc.refresh_ttl(s_c, j_c)
+        s0 = ref.initial_state(T_oil_c=rng.uniform(-30.0, 120.0, V), n_vehicles=V)
+        s_np, s_c = _lockstep(ref, cc, s0, raw, t_s, f"batch {b} ")
         np.testing.assert_allclose(s_c.T_c, s_np.T_c, rtol=0, atol=1e-9)
         np.testing.assert_array_equal(s_c.rejects, s_np.rejects)
 
@@ -176,18 +185,14 @@ def test_hostile_sequences_on_the_mm82_s_cooler_balance_match_the_numpy_step():
         raw[..., 1] = np.where(fin[..., 1], raw[..., 1] * 800.0, raw[..., 1])  # up to 2.6 MN m
     one_gear = fin[..., 2] & (rng.random(raw.shape[:2]) < 0.9)
     raw[..., 2] = np.where(one_gear, description_of(mm82).gears[0].number, raw[..., 2])
-    s_np = ref.initial_state(T_oil_c=rng.uniform(-30.0, 90.0, V), n_vehicles=V)
-    s_c = s_np
-    for j in range(L):
-        inp = SensorInputs(*(raw[j, :, i] for i in range(8)), t_s=t_s[j])
-        s_np, o_np, j_np = ref.step_deferred(s_np, inp)
-        s_c, o_c, j_c = cc.step_deferred(s_c, inp)
-        _compare_outputs(o_np, o_c, f"step {j}")
-        _compare_jobs(j_np, j_c, f"step {j}")
-        s_np, s_c = ref.refresh_ttl(s_np, j_np), cc.refresh_ttl(s_c, j_c)
+    s0 = ref.initial_state(T_oil_c=rng.uniform(-30.0, 90.0, V), n_vehicles=V)
+
+    def finite_and_inlet_only_while_holding(j, s_np, o_np):
         assert np.isfinite(s_np.T_c).all(), j
         no_inlet = ~np.isfinite(o_np.status.oil_inlet_temp_c)
         assert np.all(o_np.status.degraded_mode[no_inlet] == MODE_HOLDING), j
+
+    s_np, s_c = _lockstep(ref, cc, s0, raw, t_s, each=finite_and_inlet_only_while_holding)
     np.testing.assert_allclose(s_c.T_c, s_np.T_c, rtol=0, atol=1e-9)
 
 
@@ -590,14 +595,8 @@ def test_a_batch_whose_vehicles_go_back_differently_matches_the_numpy_step(param
     t_s[20:, 40:50] -= 9.95  # some just short of it (gap -9.85 s): skipped until caught up
     ref = VirtualSensor(params, core="numpy", ttl_period_s=1.0)
     cc = VirtualSensor(params, core="c", ttl_period_s=1.0)
-    s_np = s_c = ref.initial_state(T_oil_c=rng.uniform(20.0, 90.0, V), n_vehicles=V)
-    for j in range(L):
-        inp = SensorInputs(*(raw[j, :, i] for i in range(8)), t_s=t_s[j])
-        s_np, o_np, j_np = ref.step_deferred(s_np, inp)
-        s_c, o_c, j_c = cc.step_deferred(s_c, inp)
-        _compare_outputs(o_np, o_c, f"step {j}")
-        _compare_jobs(j_np, j_c, f"step {j}")
-        s_np, s_c = ref.refresh_ttl(s_np, j_np), cc.refresh_ttl(s_c, j_c)
+    s0 = ref.initial_state(T_oil_c=rng.uniform(20.0, 90.0, V), n_vehicles=V)
+    s_np, s_c = _lockstep(ref, cc, s0, raw, t_s)
     np.testing.assert_allclose(s_c.T_c, s_np.T_c, rtol=0, atol=1e-9)
     np.testing.assert_array_equal(s_c.rejects, s_np.rejects)
     np.testing.assert_array_equal(s_c.k, s_np.k)
