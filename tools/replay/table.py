@@ -269,9 +269,9 @@ HELD_CHUNK_STEPS = 100_000
 #: the reject counters that count events (one per jump), not steps: a coarse held step does not scale them
 EVENT_REJECTS = ("time_jump", "time_backward")
 #: a row's mean over its interval (``replay_held(row_means=True)``) from this many samples, the states at the ends
-#: of the steps nearest the midpoints of its equal parts (the midpoint rule: at the MM82's 15 s step, 75, 225, 375
-#: and 525 s into a 10-minute row; against the mean of every step 0.05 K RMS on a bearing over R80790's 2017-2020
-#: files, 0.9 K at most where the oil reading jumps; 6 % of the replay's time, every step's outputs 66 %)
+#: of the steps nearest the midpoints of its equal parts (the midpoint rule; at the MM82's 15 s step 75, 225, 375
+#: and 525 s into a 10-minute row): near every step's mean for a fraction of keeping every step's outputs
+#: (docs/real-data.md, "The estimate is its row's mean")
 ROW_MEAN_SAMPLES = 4
 
 
@@ -356,14 +356,12 @@ def replay_held(
         k = np.arange(k0, min(k0 + chunk_steps, int(first[-1])))
         row = np.searchsorted(first, k, side="right") - 1
         last = k == first[row + 1] - 1
+        keep = last | sampled[k]  # each row's last step, and its samples for the mean
         state, out = sensor.step_table(
-            state,
-            data[row][:, : len(sensor.input_fields)],
-            t_s[row] + sensor.dt_s * (k - first[row] + 1),
-            last | sampled[k],
+            state, data[row][:, : len(sensor.input_fields)], t_s[row] + sensor.dt_s * (k - first[row] + 1), keep
         )
         if means is not None:
-            out = means.add(out, row[last | sampled[k]], sampled[k][last | sampled[k]], last[last | sampled[k]])
+            out = means.add(out, row[keep], sampled[k][keep], last[keep])
         for key, block in (("T", out.T_c), ("W", out.level), ("ttl", out.ttl_s), ("status", _status_rows(out))):
             kept[key].append(np.asarray(block))
     rows_out = {
