@@ -171,6 +171,7 @@ KEY_RULES = [
     ("bearing.f0_*", 0.5, 10.0, False),
     ("wheel_bearing.f0_*", 0.5, 10.0, False),
     ("bearing.f1_*", 0.0, 0.01, False),
+    ("bearing.R1_*", 0.0, 1e-5, False),
     ("wheel.hub_mass_factor", 1.0, 3.0, False),
     ("engine.max_speed_rad_s", 100.0, 1000.0, False),
 ]
@@ -480,6 +481,7 @@ PER_KIND = (
     ("bearing.sf_radial_*", "bearing.sf_radial_tapered"),
     ("bearing.f0_*", "bearing.f0_tapered"),  # Palmgren's coefficients and Eq 40's load factors of a bearing kind
     ("bearing.f1_*", "bearing.f1_tapered"),
+    ("bearing.R1_*", "bearing.f2"),  # SKF's rolling term (physics.losses.skf_rolling_coef), optional: none if absent
     ("bearing.e_*", "bearing.e_tapered"),
     ("bearing.X1_*", "bearing.X1_tapered"),
     ("bearing.Y1_*", "bearing.Y1_tapered"),

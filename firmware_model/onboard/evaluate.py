@@ -148,6 +148,7 @@ class ReducedParams(NamedNodes):
     bear_speed: np.ndarray  # (17, 6) |bearing speed| per unit input speed
     bear_c: np.ndarray  # (6,) Palmgren M0 coefficient 9.78e-2 f0 Dm^3
     bear_load: np.ndarray  # (17, 6) load torque per N m of input torque
+    bear_rr: np.ndarray  # (17, 6) SKF rolling moment per |T|^0.31 (nu n)^0.6 (0: Palmgren alone)
     needle_rel: np.ndarray  # (17, 6)
     needle_c: np.ndarray  # (6,)
     sync_coef: np.ndarray  # (17,) sum_k c_k rel_k^2: P_sync = mu omega_in^2 sync_coef
@@ -503,7 +504,8 @@ def heat_sources(
     h: Helpers | None = None,
 ):
     """Heat of every source [W], shape (..., ns: rp.src_names): meshes (Eq 7-22, x seed heat factors), shaft bearings
-    (Eq 35-40), the oil-lumped sources (churning x 1.33, needle bearings, synchronizers, pump) and the retarder
+    (Eq 35-40, with SKF's rolling term where a description gives one: physics.losses.skf_rolling_torque_nm), the
+    oil-lumped sources (churning x 1.33, needle bearings, synchronizers, pump) and the retarder
     (:func:`retarder_heat_w`). C: heat_sources."""
     h = h or rp.helpers
     omega_in_rad_s = np.asarray(omega_in_rad_s, dtype=float)
@@ -514,7 +516,15 @@ def heat_sources(
     omega_b_rad_s = rp.bear_speed[gear_row] * omega_in_col
     nu_cst = np.exp(prop[..., P_LN_NU_CST, None])
     M0_nm = rp.bear_c * np.maximum(nu_cst * omega_b_rad_s * RPM_PER_RAD_S, L.PALMGREN_NU_N_MIN) ** (2.0 / 3.0)
-    P_bear_w = (M0_nm + rp.bear_load[gear_row] * torque_nm[..., None]) * omega_b_rad_s
+    M_load_nm = rp.bear_load[gear_row] * torque_nm[..., None]
+    if rp.bear_rr.any():  # SKF's rolling term, where a description gives bearing.R1_<kind>
+        M_load_nm = (
+            M_load_nm
+            + rp.bear_rr[gear_row]
+            * torque_nm[..., None] ** L.SKF_RR_LOAD_EXP
+            * (nu_cst * omega_b_rad_s * RPM_PER_RAD_S) ** L.SKF_RR_NU_N_EXP
+        )
+    P_bear_w = (M0_nm + M_load_nm) * omega_b_rad_s
     # lumped into the sump: needle bearings (Eq 36-37 on relative speed), synchronizers (Eq 41), pump (Eq 42),
     # churning (Eq 23-34, table)
     omega_rel_rad_s = rp.needle_rel[gear_row] * omega_in_col

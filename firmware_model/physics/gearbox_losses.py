@@ -218,6 +218,7 @@ class GearboxLosses:
         and the idle wheels' needle bearings."""
         p, d = self.p, self.d
         self.load_torque_coef = np.zeros_like(self.Fr_coef)
+        self.rr_coef = np.zeros_like(self.Fr_coef)  # SKF's rolling term (none unless bearing.R1_<kind> is given)
         self.f0 = np.zeros(len(shaft_bearings))
         self.Dm = np.zeros(len(shaft_bearings))
         for j, b in enumerate(shaft_bearings):
@@ -237,6 +238,9 @@ class GearboxLosses:
                 p[f"bearing.f1_{typ}"] * (p["bearing.P0"] + P1) * self.Dm[j]
                 + p["bearing.f2"] * self.Fa_coef[:, j] * self.Dm[j]
             )
+            R1 = p.values.get(f"bearing.R1_{typ}", 0.0)
+            if R1 > 0.0:
+                self.rr_coef[:, j] = L.skf_rolling_coef(R1, self.Dm[j], P1, typ)
         # a bearing turns with its shaft; a pilot bearing at the difference of its shaft and the one around it
         seg_shaft = {s.id: sh.id for sh in d.shafts for s in sh.segments}
         names = self.kin.speed_names
@@ -323,6 +327,8 @@ class GearboxLosses:
             wb = np.abs(wb)
             T_oil = L.bearing_torque_nm(self.f0[j], 0.0, 0.0, self.Dm[j], nu, wb, 0.0, 0.0, 0.0)
             T_load = self.load_torque_coef[row, j] * T_in
+            if self.rr_coef[:, j].any():
+                T_load = T_load + L.skf_rolling_torque_nm(self.rr_coef[row, j], T_in, nu, wb)
             out[f"bearing:{b}"] = (T_oil + T_load) * wb
         # churning (Eq 23-34) of the wheels dipping into the sump, each at its own speed
         wc = np.abs(sp[:, self.ch_col])

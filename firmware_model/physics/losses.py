@@ -44,6 +44,12 @@ DEDENDUM_COEF = 1.25
 PALMGREN_SEED_C = 9.78e-2
 #: Palmgren threshold of nu*n [cSt rpm] (Eq 36-37)
 PALMGREN_NU_N_MIN = 2000.0
+#: SKF's rolling frictional moment M_rr = R1 dm^a P^0.31 (nu n)^0.6 [N mm] (dm mm, load N, nu cSt, n rpm): the
+#: exponents of the load and of nu n, and of dm by bearing kind (SKF General Catalogue, friction: the SKF model's
+#: rolling term, its G_rr). Not in the seed: an optional term (bearing.R1_<kind>, none where absent).
+SKF_RR_LOAD_EXP = 0.31
+SKF_RR_NU_N_EXP = 0.6
+SKF_RR_DM_EXP = {"cylindrical": 2.41, "tapered": 2.38, "spherical": 2.3}
 
 #: share of planetary losses sent to sun (PS), planets (PP) and ring (PR) (section 3.2).
 #: Looman's rule as used at Scania: the sun-planet (external) contacts lose twice as much as the
@@ -416,6 +422,26 @@ def bearing_torque_nm(f0, f1, f2, Dm_m, nu_m2_s, omega_rad_s, P0_n, P1_n, Fa_n):
     T_rad = f1 * (np.asarray(P0_n, dtype=float) + np.asarray(P1_n, dtype=float)) * Dm_m  # Eq 38
     T_ax = f2 * np.abs(np.asarray(Fa_n, dtype=float)) * Dm_m  # Eq 39
     return T_oil + T_rad + T_ax  # Eq 35
+
+
+def skf_rolling_coef(R1, Dm_m, P1_per_nm, kind: str):
+    """The coefficient c of SKF's rolling frictional moment as ``M_rr = c |T|^0.31 (nu n)^0.6`` [N m] for a bearing
+    whose equivalent load is P1_per_nm [N per N m of input torque] (Eq 40's P1 in place of SKF's load of each kind:
+    Fr for cylindrical bearings, Fr + R2 Y Fa for tapered ones), nu in cSt, n in rpm: 1e-3 R1 dm^a P1^0.31 with dm
+    in mm (SKF_RR_DM_EXP)."""
+    if kind not in SKF_RR_DM_EXP:
+        raise ParameterError(f"bearing.R1_{kind}: SKF's rolling term is known for {', '.join(SKF_RR_DM_EXP)} bearings")
+    P1 = np.abs(np.asarray(P1_per_nm, dtype=float))
+    return 1e-3 * R1 * (Dm_m * 1e3) ** SKF_RR_DM_EXP[kind] * P1**SKF_RR_LOAD_EXP
+
+
+def skf_rolling_torque_nm(coef, torque_nm, nu_m2_s, omega_rad_s):
+    """SKF's rolling frictional moment [N m] of :func:`skf_rolling_coef`'s bearing at input torque ``torque_nm``:
+    ``coef |T|^0.31 (nu n)^0.6``, nu in cSt and n in rpm (converted here), zero at rest or without load. It grows
+    with the load as its 0.31th power where Palmgren's load term (Eq 38) grows linearly."""
+    nu_n = (np.asarray(nu_m2_s, dtype=float) * 1e6) * (np.abs(np.asarray(omega_rad_s, dtype=float)) * RPM_PER_RAD_S)
+    T = np.abs(np.asarray(torque_nm, dtype=float))
+    return coef * T**SKF_RR_LOAD_EXP * nu_n**SKF_RR_NU_N_EXP
 
 
 def needle_bearing_torque_nm(f0, Dm_m, nu_m2_s, rel_omega_rad_s):

@@ -289,6 +289,27 @@ def test_bearing_load_terms():
     assert T == pytest.approx(4e-4 * 5100.0 * 0.08 + 2e-3 * 800.0 * 0.08)
 
 
+def test_skf_rolling_moment_is_skfs_formula():
+    """SKF's rolling frictional moment M_rr = R1 dm^2.41 Fr^0.31 (nu n)^0.6 [N mm] of a cylindrical roller bearing,
+    in its own units, from the coefficient per N m of input torque: it grows as the load's 0.31th power."""
+    R1, Dm, P1_per_nm, nu_cst, n_rpm = 1.1e-6, 0.18, 0.07, 108.0, 1500.0
+    c = L.skf_rolling_coef(R1, Dm, P1_per_nm, "cylindrical")
+    for T_nm in (1e4, 1e6):
+        Fr_n = P1_per_nm * T_nm
+        M_rr_nmm = R1 * 180.0**2.41 * Fr_n**0.31 * (nu_cst * n_rpm) ** 0.6
+        T = float(L.skf_rolling_torque_nm(c, T_nm, nu_cst * 1e-6, n_rpm * math.pi / 30))
+        assert T == pytest.approx(M_rr_nmm / 1e3, rel=1e-12)
+    T1, T2 = (float(L.skf_rolling_torque_nm(c, T_nm, 1e-4, 150.0)) for T_nm in (1e5, 2e5))
+    assert T2 / T1 == pytest.approx(2.0**0.31)  # Palmgren's load term (Eq 38) would double
+    assert float(L.skf_rolling_torque_nm(c, 0.0, 1e-4, 150.0)) == 0.0
+    assert float(L.skf_rolling_torque_nm(c, 1e5, 1e-4, 0.0)) == 0.0
+    assert float(L.skf_rolling_torque_nm(c, -1e5, 1e-4, -150.0)) == T1  # magnitudes
+    # tapered: dm^2.38; a ball bearing's rolling term has another load exponent (0.54): not this one
+    assert L.skf_rolling_coef(R1, Dm, P1_per_nm, "tapered") == pytest.approx(c * 180.0 ** (2.38 - 2.41))
+    with pytest.raises(ParameterError, match="bearing.R1_ball"):
+        L.skf_rolling_coef(R1, Dm, P1_per_nm, "ball")
+
+
 def test_needle_bearing_relative_speed():
     f0, Dm, nu = 3.0, 0.06, 25.8e-6
     T = L.needle_bearing_torque_nm(f0, Dm, nu, np.array([0.0, 100.0, -100.0]))

@@ -100,6 +100,8 @@ def test_the_grs905_sources_are_its_description_s():
     assert R.source_names(d) == R.SRC_NAMES
     assert R.planetary_meshes(d) == ("PSP", "PPR")
     assert R.churn_column(d) == speed_names(d).index("LS")
+    # Palmgren alone (Eq 35-40): no bearing.R1_<kind>, so no SKF rolling term on either core
+    assert not np.any(R.build_reduced(load_parameters("GRS905")).bear_rr)
 
 
 def test_r1_builds_from_its_description(r1):
@@ -258,6 +260,12 @@ def test_mm82_builds_with_its_motor_pump_and_air_cooler(mm82):
     assert rp.default_v_kmh == AIR_RECIRC_V_KMH[-1]
     # the rotor turns below the GRS905's standstill speed of the conductances: its own is 1 % of its top speed
     assert rp.speed_bin_min_rad_s == pytest.approx(0.01 * d.drive.max_speed_rad_s)
+    # SKF's rolling term (bearing.R1_cylindrical) on cylindrical bearings only (R1_tapered is not given), among them
+    # the high-speed shaft's BHR (SCADA Gb2t); the replays below check it on both cores and against the plant
+    names = [s.split(":")[1] for s in rp.src_names if s.startswith("bearing:")]
+    kind = {b.id: b.kind for b in d.bearings}
+    with_rr = {b for b, on in zip(names, np.any(rp.bear_rr > 0.0, axis=0)) if on}
+    assert "BHR" in with_rr and {kind[b] for b in with_rr} == {"cylindrical"}
 
 
 @pytest.fixture(scope="module")

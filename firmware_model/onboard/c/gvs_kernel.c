@@ -329,7 +329,12 @@ static void heat_sources(const gvs_tables *tb, const gvs_vehicle *veh, int32_t g
         gvs_real omega_b_rad_s = tb->bear_speed[gear_row * tb->n_bear + b] * omega_in_rad_s;
         gvs_real M0 = tb->bear_c[b]
             * POW(max_r(nu * omega_b_rad_s * tb->rpm_per_rad_s, tb->palmgren_min), R_(2.0) / R_(3.0));
-        src[i] = (M0 + tb->bear_load[gear_row * tb->n_bear + b] * torque_nm) * omega_b_rad_s;
+        gvs_real M_load = tb->bear_load[gear_row * tb->n_bear + b] * torque_nm;
+        gvs_real rr = tb->bear_rr[gear_row * tb->n_bear + b];
+        if (rr != R_(0.0) && torque_nm > R_(0.0) && omega_b_rad_s > R_(0.0))  /* SKF's rolling term, if given */
+            M_load += rr * POW(torque_nm, R_(GVS_SKF_RR_LOAD_EXP))
+                * POW(nu * omega_b_rad_s * tb->rpm_per_rad_s, R_(GVS_SKF_RR_NU_N_EXP));
+        src[i] = (M0 + M_load) * omega_b_rad_s;
     }
     for (b = 0; b < tb->n_needle; ++b) {                     /* needle bearings on relative speed (Eq 36-37) */
         gvs_real omega_rel_rad_s = tb->needle_rel[gear_row * tb->n_needle + b] * omega_in_rad_s;
