@@ -149,6 +149,7 @@ class ReducedParams(NamedNodes):
     bear_c: np.ndarray  # (6,) Palmgren M0 coefficient 9.78e-2 f0 Dm^3
     bear_load: np.ndarray  # (17, 6) load torque per N m of input torque
     bear_rr: np.ndarray  # (17, 6) SKF rolling moment per |T|^0.31 (nu n)^0.6 (0: Palmgren alone)
+    bear_ish: np.ndarray  # (6,) SKF inlet shear: the rolling moment over 1 + bear_ish (n^2 nu)^0.64
     needle_rel: np.ndarray  # (17, 6)
     needle_c: np.ndarray  # (6,)
     sync_coef: np.ndarray  # (17,) sum_k c_k rel_k^2: P_sync = mu omega_in^2 sync_coef
@@ -517,12 +518,13 @@ def heat_sources(
     nu_cst = np.exp(prop[..., P_LN_NU_CST, None])
     M0_nm = rp.bear_c * np.maximum(nu_cst * omega_b_rad_s * RPM_PER_RAD_S, L.PALMGREN_NU_N_MIN) ** (2.0 / 3.0)
     M_load_nm = rp.bear_load[gear_row] * torque_nm[..., None]
-    if rp.bear_rr.any():  # SKF's rolling term, where a description gives bearing.R1_<kind>
-        M_load_nm = (
-            M_load_nm
-            + rp.bear_rr[gear_row]
+    if rp.bear_rr.any():  # SKF's rolling term over its inlet shear, where a description gives bearing.R1_<kind>
+        n_b_rpm = omega_b_rad_s * RPM_PER_RAD_S
+        M_load_nm = M_load_nm + (
+            rp.bear_rr[gear_row]
             * torque_nm[..., None] ** L.SKF_RR_LOAD_EXP
-            * (nu_cst * omega_b_rad_s * RPM_PER_RAD_S) ** L.SKF_RR_NU_N_EXP
+            * (nu_cst * n_b_rpm) ** L.SKF_RR_NU_N_EXP
+            / (1.0 + rp.bear_ish * (n_b_rpm * n_b_rpm * nu_cst) ** L.SKF_ISH_EXP)
         )
     P_bear_w = (M0_nm + M_load_nm) * omega_b_rad_s
     # lumped into the sump: needle bearings (Eq 36-37 on relative speed), synchronizers (Eq 41), pump (Eq 42),

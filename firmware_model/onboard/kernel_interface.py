@@ -35,7 +35,7 @@ from firmware_model.components import (
 )
 from firmware_model.onboard.records import MAIN, N_INPUTS, N_REJECT, REJECT_REASONS, TWIN
 from firmware_model.physics.cooler import COOLER_KINDS
-from firmware_model.physics.losses import SKF_RR_LOAD_EXP, SKF_RR_NU_N_EXP
+from firmware_model.physics.losses import SKF_ISH_EXP, SKF_RR_LOAD_EXP, SKF_RR_NU_N_EXP
 
 HEADER_PATH = Path(__file__).resolve().parent / "c" / "gvs_kernel.h"
 REGENERATE = "python -m firmware_model.onboard.kernel_interface --write"
@@ -161,6 +161,7 @@ DEFINES = (
     Constant("N_PROP", N_PROP, "columns of the oil property table"),
     Constant("SKF_RR_LOAD_EXP", SKF_RR_LOAD_EXP, "SKF's rolling moment: exponent of the load (tables.bear_rr)"),
     Constant("SKF_RR_NU_N_EXP", SKF_RR_NU_N_EXP, "... and of nu n [cSt rpm]"),
+    Constant("SKF_ISH_EXP", SKF_ISH_EXP, "... its inlet shear factor: exponent of n^2 nu [rpm2 cSt]"),
     Constant("MARCH_H0_S", MARCH_H0_S, "time to limit: first march step [s]"),
     Constant("MARCH_RATIO", MARCH_RATIO, "each march step this many times longer than the last"),
     Constant("TTL_HORIZON_S", TTL_HORIZON_S, "time to limit beyond this is never (inf) [s]"),
@@ -330,6 +331,7 @@ _TABLES = (
     Field("mesh_roll_lt_min", PREAL, ("n_mesh",), doc="log10 T1 below which the rolling loss ramps to 0"),
     *_f("bear_speed bear_c bear_load", PREAL, ("gears", "n_bear")),
     Field("bear_rr", PREAL, ("gears", "n_bear"), doc="SKF rolling moment per |T|^0.31 (nu n)^0.6; all 0: none"),
+    Field("bear_ish", PREAL, ("n_bear",), doc="... over 1 + bear_ish (n^2 nu)^0.64 (SKF's inlet shear)"),
     Field("needle_rel", PREAL, ("gears", "n_needle"), doc="needle bearings' relative speed per unit input speed"),
     Field("needle_c", PREAL, ("n_needle",)),
     *_f("sync_coef pump_coef", PREAL, ("gears",)),

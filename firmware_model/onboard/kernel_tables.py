@@ -165,6 +165,7 @@ def _losses(sp: SensorParams) -> dict:
         bear_c=_f64(rp.bear_c),
         bear_load=_f64(rp.bear_load),
         bear_rr=_f64(rp.bear_rr),
+        bear_ish=_f64(rp.bear_ish),
         needle_rel=_f64(rp.needle_rel),
         needle_c=_f64(rp.needle_c),
         sync_coef=_f64(rp.sync_coef),

@@ -619,6 +619,7 @@ class LossMaps(NamedTuple):
     bear_c: np.ndarray
     bear_load: np.ndarray
     bear_rr: np.ndarray
+    bear_ish: np.ndarray
     needle_c: np.ndarray
     sync_coef: np.ndarray
     pump_coef: np.ndarray
@@ -687,6 +688,7 @@ def _loss_maps(p: Parameters, net: Network, w_ls_max_rad_s: float) -> LossMaps:
         L.PALMGREN_SEED_C * gl.f0 * gl.Dm**3,
         gl.load_torque_coef,
         gl.rr_coef,
+        L.skf_inlet_shear_coef(gl.Dm),
         L.PALMGREN_SEED_C * gl.needle_f0 * gl.needle_Dm**3,
         (kin.sync_rel**2) @ sync_c,
         pump,
@@ -867,6 +869,7 @@ def build_reduced(
         bear_c=_ro(lm.bear_c),
         bear_load=_ro(lm.bear_load),
         bear_rr=_ro(lm.bear_rr),
+        bear_ish=_ro(lm.bear_ish),
         needle_rel=_ro(kin.wheel_bearing_rel),
         needle_c=_ro(lm.needle_c),
         sync_coef=_ro(lm.sync_coef),

@@ -328,7 +328,9 @@ class GearboxLosses:
             T_oil = L.bearing_torque_nm(self.f0[j], 0.0, 0.0, self.Dm[j], nu, wb, 0.0, 0.0, 0.0)
             T_load = self.load_torque_coef[row, j] * T_in
             if self.rr_coef[:, j].any():
-                T_load = T_load + L.skf_rolling_torque_nm(self.rr_coef[row, j], T_in, nu, wb)
+                T_load = T_load + L.skf_rolling_torque_nm(
+                    self.rr_coef[row, j], L.skf_inlet_shear_coef(self.Dm[j]), T_in, nu, wb
+                )
             out[f"bearing:{b}"] = (T_oil + T_load) * wb
         # churning (Eq 23-34) of the wheels dipping into the sump, each at its own speed
         wc = np.abs(sp[:, self.ch_col])

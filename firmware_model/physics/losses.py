@@ -50,6 +50,10 @@ PALMGREN_NU_N_MIN = 2000.0
 SKF_RR_LOAD_EXP = 0.31
 SKF_RR_NU_N_EXP = 0.6
 SKF_RR_DM_EXP = {"cylindrical": 2.41, "tapered": 2.38, "spherical": 2.3}
+#: ... times SKF's inlet shear heating reduction factor 1 / (1 + 1.84e-9 (n dm)^1.28 nu^0.64) (the same source), written
+#: as 1 / (1 + c (n^2 nu)^0.64) with c = 1.84e-9 dm^1.28 (one power per step)
+SKF_ISH_C = 1.84e-9
+SKF_ISH_EXP = 0.64
 
 #: share of planetary losses sent to sun (PS), planets (PP) and ring (PR) (section 3.2).
 #: Looman's rule as used at Scania: the sun-planet (external) contacts lose twice as much as the
@@ -435,13 +439,27 @@ def skf_rolling_coef(R1, Dm_m, P1_per_nm, kind: str):
     return 1e-3 * R1 * (Dm_m * 1e3) ** SKF_RR_DM_EXP[kind] * P1**SKF_RR_LOAD_EXP
 
 
-def skf_rolling_torque_nm(coef, torque_nm, nu_m2_s, omega_rad_s):
+def skf_inlet_shear_coef(Dm_m):
+    """c of SKF's inlet shear heating reduction factor ``1 / (1 + c (n^2 nu)^0.64)`` (n rpm, nu cSt) of a bearing of
+    mean diameter Dm_m: 1.84e-9 dm^1.28 with dm in mm."""
+    return SKF_ISH_C * (np.asarray(Dm_m, dtype=float) * 1e3) ** (2.0 * SKF_ISH_EXP)
+
+
+def skf_rolling_torque_nm(coef, ish_coef, torque_nm, nu_m2_s, omega_rad_s):
     """SKF's rolling frictional moment [N m] of :func:`skf_rolling_coef`'s bearing at input torque ``torque_nm``:
-    ``coef |T|^0.31 (nu n)^0.6``, nu in cSt and n in rpm (converted here), zero at rest or without load. It grows
-    with the load as its 0.31th power where Palmgren's load term (Eq 38) grows linearly."""
-    nu_n = (np.asarray(nu_m2_s, dtype=float) * 1e6) * (np.abs(np.asarray(omega_rad_s, dtype=float)) * RPM_PER_RAD_S)
+    ``coef |T|^0.31 (nu n)^0.6`` times the inlet shear heating reduction ``1 / (1 + ish_coef (n^2 nu)^0.64)``
+    (:func:`skf_inlet_shear_coef`: thick cold oil heats in the rollers' inlet and carries less of the rolling),
+    nu in cSt and n in rpm (converted here); zero at rest or without load. It grows with the load as its 0.31th
+    power where Palmgren's load term (Eq 38) grows linearly."""
+    nu_cst = np.asarray(nu_m2_s, dtype=float) * 1e6
+    n_rpm = np.abs(np.asarray(omega_rad_s, dtype=float)) * RPM_PER_RAD_S
     T = np.abs(np.asarray(torque_nm, dtype=float))
-    return coef * T**SKF_RR_LOAD_EXP * nu_n**SKF_RR_NU_N_EXP
+    return (
+        coef
+        * T**SKF_RR_LOAD_EXP
+        * (nu_cst * n_rpm) ** SKF_RR_NU_N_EXP
+        / (1.0 + ish_coef * (n_rpm * n_rpm * nu_cst) ** SKF_ISH_EXP)
+    )
 
 
 def needle_bearing_torque_nm(f0, Dm_m, nu_m2_s, rel_omega_rad_s):

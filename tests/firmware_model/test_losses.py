@@ -290,20 +290,23 @@ def test_bearing_load_terms():
 
 
 def test_skf_rolling_moment_is_skfs_formula():
-    """SKF's rolling frictional moment M_rr = R1 dm^2.41 Fr^0.31 (nu n)^0.6 [N mm] of a cylindrical roller bearing,
-    in its own units, from the coefficient per N m of input torque: it grows as the load's 0.31th power."""
-    R1, Dm, P1_per_nm, nu_cst, n_rpm = 1.1e-6, 0.18, 0.07, 108.0, 1500.0
-    c = L.skf_rolling_coef(R1, Dm, P1_per_nm, "cylindrical")
-    for T_nm in (1e4, 1e6):
+    """SKF's rolling frictional moment phi_ish R1 dm^2.41 Fr^0.31 (nu n)^0.6 [N mm] of a cylindrical roller bearing,
+    phi_ish = 1 / (1 + 1.84e-9 (n dm)^1.28 nu^0.64), in its own units, from the coefficients per N m of input torque
+    and of the bearing's size: it grows as the load's 0.31th power."""
+    R1, Dm, P1_per_nm, n_rpm = 1.1e-6, 0.18, 0.07, 1500.0
+    c, ish = L.skf_rolling_coef(R1, Dm, P1_per_nm, "cylindrical"), L.skf_inlet_shear_coef(Dm)
+    for T_nm, nu_cst in ((1e4, 108.0), (1e6, 108.0), (1e6, 1337.0)):
         Fr_n = P1_per_nm * T_nm
-        M_rr_nmm = R1 * 180.0**2.41 * Fr_n**0.31 * (nu_cst * n_rpm) ** 0.6
-        T = float(L.skf_rolling_torque_nm(c, T_nm, nu_cst * 1e-6, n_rpm * math.pi / 30))
+        phi_ish = 1.0 / (1.0 + 1.84e-9 * (n_rpm * 180.0) ** 1.28 * nu_cst**0.64)
+        M_rr_nmm = phi_ish * R1 * 180.0**2.41 * Fr_n**0.31 * (nu_cst * n_rpm) ** 0.6
+        T = float(L.skf_rolling_torque_nm(c, ish, T_nm, nu_cst * 1e-6, n_rpm * math.pi / 30))
         assert T == pytest.approx(M_rr_nmm / 1e3, rel=1e-12)
-    T1, T2 = (float(L.skf_rolling_torque_nm(c, T_nm, 1e-4, 150.0)) for T_nm in (1e5, 2e5))
+        assert 0.3 < phi_ish < 0.9  # a large, fast bearing: cold thick oil (1337 cSt) carries a third of it
+    T1, T2 = (float(L.skf_rolling_torque_nm(c, ish, T_nm, 1e-4, 150.0)) for T_nm in (1e5, 2e5))
     assert T2 / T1 == pytest.approx(2.0**0.31)  # Palmgren's load term (Eq 38) would double
-    assert float(L.skf_rolling_torque_nm(c, 0.0, 1e-4, 150.0)) == 0.0
-    assert float(L.skf_rolling_torque_nm(c, 1e5, 1e-4, 0.0)) == 0.0
-    assert float(L.skf_rolling_torque_nm(c, -1e5, 1e-4, -150.0)) == T1  # magnitudes
+    assert float(L.skf_rolling_torque_nm(c, ish, 0.0, 1e-4, 150.0)) == 0.0
+    assert float(L.skf_rolling_torque_nm(c, ish, 1e5, 1e-4, 0.0)) == 0.0
+    assert float(L.skf_rolling_torque_nm(c, ish, -1e5, 1e-4, -150.0)) == T1  # magnitudes
     # tapered: dm^2.38; a ball bearing's rolling term has another load exponent (0.54): not this one
     assert L.skf_rolling_coef(R1, Dm, P1_per_nm, "tapered") == pytest.approx(c * 180.0 ** (2.38 - 2.41))
     with pytest.raises(ParameterError, match="bearing.R1_ball"):

@@ -173,6 +173,27 @@ static int ttl_close(double got, double want, double *worst)
     return d <= @TTL_ABS@ || d <= @TTL_REL@ * fabs(want);
 }
 
+/* a kept step where the reference's own time to limit moved by more than the tolerance (beyond its countdown) since
+   the last kept step or moves so by the next: a path that grazes the limit, where the rounding of the far sump's
+   bracket decides the time and a refresh a second later moves it by more than the tolerance. A value within the
+   span of the neighbouring kept steps' references (and the tolerance) agrees with the reference's path there; it is
+   counted apart, and one outside that span fails */
+static int ttl_in_jump(int kept, int i, double got)
+{
+    double prev, want, next, lo, hi, tick_s = (double)GVS_VEC_EVERY * (double)GVS_TABLES.dt_s;
+    if (kept == 0 || kept + 1 >= GVS_VEC_KEPT) return 0;
+    prev = GVS_VEC_TTL[(kept - 1) * GVS_MAX_PUB + i];
+    want = GVS_VEC_TTL[kept * GVS_MAX_PUB + i];
+    next = GVS_VEC_TTL[(kept + 1) * GVS_MAX_PUB + i];
+    if (!(isfinite(prev) && isfinite(want) && isfinite(next) && isfinite(got))) return 0;
+    if (fabs(want - (prev - tick_s)) <= @TTL_ABS@ + @TTL_REL@ * fabs(want)
+        && fabs(next - (want - tick_s)) <= @TTL_ABS@ + @TTL_REL@ * fabs(next))
+        return 0;
+    lo = prev < next ? prev : next;
+    hi = prev < next ? next : prev;
+    return got >= lo - @TTL_ABS@ - @TTL_REL@ * fabs(lo) && got <= hi + @TTL_ABS@ + @TTL_REL@ * fabs(hi);
+}
+
 /* the early warning's thresholds (lead, 2 lead) within the time-to-limit tolerance */
 static int near_lead(double ttl)
 {
@@ -211,7 +232,7 @@ int main(void)
 {
     const double tol = @TOL@;
     double worst = 0.0, ttl_worst = 0.0;
-    int j, i, kept = 0, level_bad = 0, level_near = 0, mode_bad = 0, nan_out = 0, ttl_bad = 0;
+    int j, i, kept = 0, level_bad = 0, level_near = 0, mode_bad = 0, nan_out = 0, ttl_bad = 0, ttl_jump = 0;
     gvs_outputs out;
     for (i = 0; i < GVS_MAX_PUB; ++i) last_near[i] = -1000000L;
     gvs_sensor_init(&state, GVS_VEC_INPUTS[3]);
@@ -234,7 +255,15 @@ int main(void)
 #if GVS_EXPORT_TTL
             {
                 double tw = GVS_VEC_TTL[kept * GVS_MAX_PUB + i];
-                ttl_bad += !ttl_close((double)out.ttl_s[i], tw, &ttl_worst);
+                double worst_before = ttl_worst;
+                if (!ttl_close((double)out.ttl_s[i], tw, &ttl_worst)) {
+                    if (ttl_in_jump(kept, i, (double)out.ttl_s[i])) {
+                        ++ttl_jump;
+                        ttl_worst = worst_before;  /* the largest difference is of the values judged by it */
+                    } else {
+                        ++ttl_bad;
+                    }
+                }
                 if (out.level[i] != GVS_VEC_LEVEL[kept * GVS_MAX_PUB + i]) {
                     if (near_threshold(i, e) || near_lead(tw) || debounced(i, j)) ++level_near; else ++level_bad;
                 }
@@ -252,13 +281,15 @@ int main(void)
            "tolerance of a threshold), mode mismatches %d, NaN outputs %d, ",
            (int)GVS_VEC_STEPS, kept, worst, tol, level_bad, level_near, mode_bad, nan_out);
 #if GVS_EXPORT_TTL
-    printf("time to limit outside max(@TTL_ABS@ s, @TTL_REL@ x) %d (largest difference %.3g s), ", ttl_bad, ttl_worst);
+    printf("time to limit outside max(@TTL_ABS@ s, @TTL_REL@ x) %d (largest difference %.3g s; +%d within the "
+           "reference's own jump between refreshes), ", ttl_bad, ttl_worst, ttl_jump);
 #else
     printf("time to limit not in this build (not checked), ");
 #endif
     printf("counters");
     for (i = 0; i < GVS_N_REJECT; ++i) printf(" %ld", (long)state.rejects[i]);
     (void)ttl_worst;
+    (void)ttl_jump;
     j = worst <= tol && level_bad == 0 && mode_bad == 0 && nan_out == 0 && ttl_bad == 0;
     printf("\\n%s\\n", j ? "PASS" : "FAIL");
     return j ? 0 : 1;

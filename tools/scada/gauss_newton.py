@@ -44,7 +44,7 @@ def fit(
         jac = np.stack(cols, axis=1)
     r = r0
     for _ in range(STEPS):
-        d, *_ = np.linalg.lstsq(jac, -r, rcond=None)
+        d = bounded_step(jac, r, x, lo, hi)
         for _ in range(2):  # the step, then half of it
             x1 = np.clip(x + d, lo, hi)
             r1 = residual(x1)
@@ -56,3 +56,23 @@ def fit(
         else:
             break
     return {"x": x, "r": r, "jac": jac, "evaluations": n_eval}
+
+
+def bounded_step(jac: np.ndarray, r: np.ndarray, x: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """The linearised least-squares step d (minimising |r + jac d|) with x + d within [lo, hi]: a parameter whose
+    unconstrained step would leave its range is held at the bound it would cross and the others solved again with it
+    there (an active set, at most one pass per parameter). Clipping the unconstrained step instead moves the others
+    as if the held one had gone all the way: with one parameter at its bound that step is often worse than none."""
+    n = x.size
+    held = np.zeros(n, dtype=bool)
+    d = np.zeros(n)
+    for _ in range(n):
+        free = ~held
+        d_free, *_ = np.linalg.lstsq(jac[:, free], -r - jac[:, held] @ d[held], rcond=None)
+        d[free] = d_free
+        out = free & ((x + d < lo) | (x + d > hi))
+        if not out.any():
+            break
+        d[out] = np.where(x[out] + d[out] < lo[out], lo[out] - x[out], hi[out] - x[out])
+        held |= out
+    return d

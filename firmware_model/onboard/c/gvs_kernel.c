@@ -331,9 +331,11 @@ static void heat_sources(const gvs_tables *tb, const gvs_vehicle *veh, int32_t g
             * POW(max_r(nu * omega_b_rad_s * tb->rpm_per_rad_s, tb->palmgren_min), R_(2.0) / R_(3.0));
         gvs_real M_load = tb->bear_load[gear_row * tb->n_bear + b] * torque_nm;
         gvs_real rr = tb->bear_rr[gear_row * tb->n_bear + b];
-        if (rr != R_(0.0) && torque_nm > R_(0.0) && omega_b_rad_s > R_(0.0))  /* SKF's rolling term, if given */
-            M_load += rr * POW(torque_nm, R_(GVS_SKF_RR_LOAD_EXP))
-                * POW(nu * omega_b_rad_s * tb->rpm_per_rad_s, R_(GVS_SKF_RR_NU_N_EXP));
+        if (rr != R_(0.0) && torque_nm > R_(0.0) && omega_b_rad_s > R_(0.0)) {  /* SKF's rolling term, if given */
+            gvs_real n_rpm = omega_b_rad_s * tb->rpm_per_rad_s;
+            M_load += rr * POW(torque_nm, R_(GVS_SKF_RR_LOAD_EXP)) * POW(nu * n_rpm, R_(GVS_SKF_RR_NU_N_EXP))
+                / (R_(1.0) + tb->bear_ish[b] * POW(n_rpm * n_rpm * nu, R_(GVS_SKF_ISH_EXP)));   /* inlet shear */
+        }
         src[i] = (M0 + M_load) * omega_b_rad_s;
     }
     for (b = 0; b < tb->n_needle; ++b) {                     /* needle bearings on relative speed (Eq 36-37) */

@@ -106,6 +106,7 @@ typedef gvs_real gvs_t2;
 #define GVS_N_PROP 8                            /* columns of the oil property table */
 #define GVS_SKF_RR_LOAD_EXP 0.31                /* SKF's rolling moment: exponent of the load (tables.bear_rr) */
 #define GVS_SKF_RR_NU_N_EXP 0.6                 /* ... and of nu n [cSt rpm] */
+#define GVS_SKF_ISH_EXP 0.64                    /* ... its inlet shear factor: exponent of n^2 nu [rpm2 cSt] */
 #define GVS_MARCH_H0_S 1.0                      /* time to limit: first march step [s] */
 #define GVS_MARCH_RATIO 1.4                     /* each march step this many times longer than the last */
 #define GVS_TTL_HORIZON_S 2000000.0             /* time to limit beyond this is never (inf) [s] */
@@ -230,6 +231,7 @@ typedef struct {
     const gvs_real *mesh_roll_lt_min;   /* (n_mesh) log10 T1 below which the rolling loss ramps to 0 */
     const gvs_real *bear_speed, *bear_c, *bear_load; /* (gears x n_bear) */
     const gvs_real *bear_rr;            /* (gears x n_bear) SKF rolling moment per |T|^0.31 (nu n)^0.6; all 0: none */
+    const gvs_real *bear_ish;           /* (n_bear) ... over 1 + bear_ish (n^2 nu)^0.64 (SKF's inlet shear) */
     const gvs_real *needle_rel;         /* (gears x n_needle) needle bearings' relative speed per unit input speed */
     const gvs_real *needle_c;           /* (n_needle) */
     const gvs_real *sync_coef, *pump_coef; /* (gears) */
