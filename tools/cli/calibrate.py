@@ -274,15 +274,21 @@ def _run_scada(args, cfg, params) -> int:
     if not args.quiet:
         _print_scada(cal, nbm, params.bounds)
     (b, a) = cal.test_rms_c
+    same = all(abs(cal.fitted[k] - params[k]) <= 2.0 * cal.sigma[k] for k in cal.fitted)  # the file's values: the fit's
     held = max((int(np.sum(np.isfinite(r.values[ch]))) for r in test for ch in r.cmap.measured), default=0)
     why = (
         f"the held-out records hold at most {held} readings of a channel, too few to test it (at least "
         f"{SCADA_TEST_MIN_ROWS})"
         if held < SCADA_TEST_MIN_ROWS
         else f"the fit made the held-out records worse (RMS {b:.2f} -> {a:.2f} K)"
-        if a > b or not np.isfinite(a)
+        if (a > b or not np.isfinite(a)) and not same
         else f"the fit changed no channel's held-out error by {100 * SCADA_TEST_MIN_SHRINK:g} % or more (RMS {b:.3f} "
-        f"-> {a:.3f} K): those records do not test it (a unit standing still, or channels the keys do not move)"
+        f"-> {a:.3f} K): "
+        + (
+            "every fitted value lies within two standard deviations of the file's, whose values are this fit's already"
+            if same
+            else "those records do not test it (a unit standing still, or channels the keys do not move)"
+        )
         if not (a < b and any(y < x * (1.0 - SCADA_TEST_MIN_SHRINK) for x, y in cal.test_by_channel.values()))
         else ""
     )

@@ -224,6 +224,20 @@ def test_calibrate_finds_a_planted_value_and_prints_the_nbm_beside_it(setup, tmp
     assert not (tmp_path / "standing.toml").exists()
 
 
+def test_calibrate_on_readings_made_with_the_file_s_value_says_so_and_writes_nothing(setup, tmp_path):
+    """Readings made with the file's own f0_tapered (3.0): the fit gives it back within two standard deviations, and
+    calibrate says the file's values are the fit's already, writing nothing (exit 3). It said the records 'do not
+    test it (a unit standing still, or channels the keys do not move)': on the shipped MM82's documented calibrate
+    run, whose four values are that run's, neither was so."""
+    s, train, test = setup
+    params = s.config.load_params()
+    _, p = _calibrate_f0_on_readings_made_with(s, params, train, test, tmp_path)
+    fitted = float(p.stdout.split("fitted bearing.f0_tapered = ", 1)[1].split()[0])
+    assert fitted == pytest.approx(3.0, rel=0.01), p.stdout
+    assert p.returncode == 3 and "within two standard deviations of the file's" in p.stderr, p.stdout + p.stderr
+    assert not (tmp_path / "cal.toml").exists()
+
+
 def test_calibrate_says_a_fitted_value_that_ended_at_a_bound_of_its_range(setup, tmp_path):
     """Readings made with f0_tapered = 5.0, beyond the file's plausible 2..4: the fit ends at 4.0 and improves the
     held-out record, so the file is written, and the console says the value sits at a bound, as it does for run
