@@ -277,6 +277,12 @@ class GearboxLosses:
         self.V0 = d.oil.volume_m3
         self.h_t0 = self.p["oil.h_t0"] if dipping else 0.0  # Eq 34's reference tooth height (no wheel dips: unused)
 
+    def _rolling_nm(self, j: int, row, T_in, nu, wb):
+        """SKF's rolling frictional moment of shaft bearing j [N m] (0 where its kind gives no bearing.R1_<kind>)."""
+        if not self.rr_coef[:, j].any():
+            return 0.0
+        return L.skf_rolling_torque_nm(self.rr_coef[row, j], L.skf_inlet_shear_coef(self.Dm[j]), T_in, nu, wb)
+
     # ------------------------------------------------------------------ evaluation
     def evaluate(self, omega_in_rad_s, torque_in_nm, gear, T_oil_c, churn_validity: bool = False) -> dict:
         """Mechanical loss [W] of every source in ``self.sources``, as arrays over the samples.
@@ -326,11 +332,7 @@ class GearboxLosses:
                 wb = wb - sp[:, self.bearing_outer_idx[j]]
             wb = np.abs(wb)
             T_oil = L.bearing_torque_nm(self.f0[j], 0.0, 0.0, self.Dm[j], nu, wb, 0.0, 0.0, 0.0)
-            T_load = self.load_torque_coef[row, j] * T_in
-            if self.rr_coef[:, j].any():
-                T_load = T_load + L.skf_rolling_torque_nm(
-                    self.rr_coef[row, j], L.skf_inlet_shear_coef(self.Dm[j]), T_in, nu, wb
-                )
+            T_load = self.load_torque_coef[row, j] * T_in + self._rolling_nm(j, row, T_in, nu, wb)
             out[f"bearing:{b}"] = (T_oil + T_load) * wb
         # churning (Eq 23-34) of the wheels dipping into the sump, each at its own speed
         wc = np.abs(sp[:, self.ch_col])
