@@ -481,7 +481,6 @@ PER_KIND = (
     ("bearing.sf_radial_*", "bearing.sf_radial_tapered"),
     ("bearing.f0_*", "bearing.f0_tapered"),  # Palmgren's coefficients and Eq 40's load factors of a bearing kind
     ("bearing.f1_*", "bearing.f1_tapered"),
-    ("bearing.R1_*", "bearing.f2"),  # SKF's rolling term (physics.losses.skf_rolling_coef), optional: none if absent
     ("bearing.e_*", "bearing.e_tapered"),
     ("bearing.X1_*", "bearing.X1_tapered"),
     ("bearing.Y1_*", "bearing.Y1_tapered"),
@@ -489,6 +488,9 @@ PER_KIND = (
     ("bearing.Y2_*", "bearing.Y2_tapered"),
     ("wheel_bearing.sf_radial_*", "wheel_bearing.sf_radial_needle"),
 )
+#: optional parameters of a kind, which any file may add, its base having them or not: (pattern, the shipped key whose
+#: unit it takes). SKF's rolling term of a bearing kind (physics.losses.skf_rolling_coef): none where absent
+OPTIONAL_PER_KIND = (("bearing.R1_*", "bearing.f2"),)
 #: what a file with its own [topology] must hold: the physics every network needs (the per-kind ones its
 #: description implies are named by the network when missing)
 REQUIRED_GENERIC = (
@@ -570,7 +572,7 @@ def _check_own_keys(path: Path, entries: dict) -> None:
         if key in base:
             _check_entry_kind(path, key, e, base[key])
             continue
-        kind = next((ref for pat, ref in PER_KIND if fnmatch.fnmatchcase(key, pat)), None)
+        kind = next((ref for pat, ref in PER_KIND + OPTIONAL_PER_KIND if fnmatch.fnmatchcase(key, pat)), None)
         if kind is not None:
             reference = _reference_entries() if reference is None else reference
             _check_entry_kind(path, key, e, reference[kind])
@@ -617,7 +619,11 @@ def _check_keys(path: Path, entries: dict, base: dict, base_name: str) -> None:
         if is_topology(key):
             continue  # checked by firmware_model.description against what a topology may hold
         if key not in base:
-            raise ParameterError(_unknown_key(path, key, base, base_name))
+            optional = next((ref for pat, ref in OPTIONAL_PER_KIND if fnmatch.fnmatchcase(key, pat)), None)
+            if optional is None:
+                raise ParameterError(_unknown_key(path, key, base, base_name))
+            _check_entry_kind(path, key, e, _reference_entries()[optional])
+            continue
         _check_entry_kind(path, key, e, base[key])
 
 
@@ -868,8 +874,9 @@ def _key_rule(key: str):
 
 @functools.lru_cache(maxsize=4096)
 def _ranged(key: str) -> bool:
-    """Whether a key's value is held to the ranges here: the shipped files' keys and the per-kind ones (PER_KIND)."""
-    return key in _reference_keys() or any(fnmatch.fnmatchcase(key, pat) for pat, _ in PER_KIND)
+    """Whether a key's value is held to the ranges here: the shipped files' keys and the per-kind ones (PER_KIND,
+    OPTIONAL_PER_KIND)."""
+    return key in _reference_keys() or any(fnmatch.fnmatchcase(key, pat) for pat, _ in PER_KIND + OPTIONAL_PER_KIND)
 
 
 @functools.lru_cache(maxsize=1)

@@ -186,3 +186,31 @@ def test_fit_bounds_keep_the_thermostat_open_below_full_for_every_trial():
     assert both.values == p.values and both.bounds["housing.h_air"] == p.bounds["housing.h_air"]
     for lo_o in (both.bounds[o][1], alone.bounds[o][1]):  # the extreme trials describe a gearbox
         description_of(p.with_overrides({o: lo_o, f: both.bounds[f][0] if lo_o == both.bounds[o][1] else p[f]}))
+
+
+def test_a_file_that_inherits_may_add_skf_s_rolling_term_of_a_kind(tmp_path):
+    """bearing.R1_<kind> is optional in any file, its base having it or not (the GRS905 has none): a file that
+    inherits the GRS905 and adds R1_tapered gives its tapered bearings SKF's rolling term and no other bearing;
+    a value outside 0..1e-5, a kind SKF's term does not fit (ball) and a misspelt key are refused in one sentence."""
+    from firmware_model.description import description_of
+    from firmware_model.onboard.reduce import build_reduced
+
+    def file_with(line: str):
+        f = tmp_path / "own.toml"
+        f.write_text(f'[meta]\ninherit = "GRS905"\n[bearing]\n{line}\n')
+        return f
+
+    p = load_parameters(file_with('R1_tapered = { v = 1e-6, u = "-", src = "assumed" }'))
+    assert p["bearing.R1_tapered"] == 1e-6
+    rp = build_reduced(p)
+    kind = {b.id: b.kind for b in description_of(p).bearings}
+    names = [s.split(":")[1] for s in rp.src_names if s.startswith("bearing:")]
+    with_rr = {b for b, on in zip(names, (rp.bear_rr > 0).any(axis=0)) if on}
+    assert with_rr and {kind[b] for b in with_rr} == {"tapered"}
+    assert not build_reduced(load_parameters("GRS905")).bear_rr.any()
+    with pytest.raises(ParameterError, match=r"bearing.R1_tapered = 0.001 is outside its allowed range 0..1e-05"):
+        load_parameters(file_with('R1_tapered = { v = 1e-3, u = "-", src = "assumed" }'))
+    with pytest.raises(ParameterError, match="bearing.R1_ball: SKF's rolling term is known for cylindrical"):
+        build_reduced(load_parameters(file_with('R1_ball = { v = 1e-6, u = "-", src = "assumed" }')))
+    with pytest.raises(ParameterError, match="unknown parameter bearing.R1x_tapered"):
+        load_parameters(file_with('R1x_tapered = { v = 1e-6, u = "-", src = "assumed" }'))
