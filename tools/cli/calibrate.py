@@ -274,7 +274,7 @@ def _run_scada(args, cfg, params) -> int:
     if not args.quiet:
         _print_scada(cal, nbm, params.bounds)
     (b, a) = cal.test_rms_c
-    same = all(abs(cal.fitted[k] - params[k]) <= 2.0 * cal.sigma[k] for k in cal.fitted)  # the file's values: the fit's
+    same = fit_returns_the_file(cal, params)
     held = max((int(np.sum(np.isfinite(r.values[ch]))) for r in test for ch in r.cmap.measured), default=0)
     why = (
         f"the held-out records hold at most {held} readings of a channel, too few to test it (at least "
@@ -306,6 +306,12 @@ def _run_scada(args, cfg, params) -> int:
     if not args.quiet:  # where the file went, on the last line as the run tables' summary and replay say it
         print(f"held-out RMS {b:.2f} -> {a:.2f} K ({100 * (1 - a / b):.0f} % down) -> {args.out}")
     return 0
+
+
+def fit_returns_the_file(cal, params) -> bool:
+    """Whether every fitted value lies within two standard deviations of the file's: the file's values are this
+    fit's already. A key the fit could not pin down (an infinite or undefined deviation) never counts as returned."""
+    return all(math.isfinite(cal.sigma[k]) and abs(cal.fitted[k] - params[k]) <= 2.0 * cal.sigma[k] for k in cal.fitted)
 
 
 def _print_scada(cal, nbm: dict, bounds: dict) -> None:

@@ -441,3 +441,21 @@ def test_a_damaged_line_of_a_training_file_is_named_with_its_file_and_line(tmp_p
         assert len(said) == 1 and said[0].startswith("note: train.csv: line 7 dropped ("), p.stderr
         assert "of the header's 13 fields: cut short or a field missing)" in said[0]
         assert "test.csv" not in p.stderr and "train.csv" not in p.stdout
+
+
+def test_a_fit_returns_the_file_only_with_every_deviation_finite():
+    """calibrate's 'the file's values are this fit's already': each fitted value within two standard deviations of
+    the file's; a key the fit could not pin down (deviation inf or NaN) never counts as returned, however far it
+    moved."""
+    from types import SimpleNamespace
+
+    from tools.cli.calibrate import fit_returns_the_file
+
+    params = {"a": 1.0, "b": 2.0}
+    cal = SimpleNamespace(fitted={"a": 1.1, "b": 2.0}, sigma={"a": 0.06, "b": 0.01})
+    assert fit_returns_the_file(cal, params)
+    cal.sigma["a"] = 0.04  # 2.5 deviations away
+    assert not fit_returns_the_file(cal, params)
+    for undefined in (float("inf"), float("nan")):
+        cal.fitted["a"], cal.sigma["a"] = 1.0, undefined
+        assert not fit_returns_the_file(cal, params)
