@@ -21,10 +21,15 @@ and prints each fit's effects.
 (repeatable) keeps the splits whose label contains TEXT (e.g. `--only "-> R80721" --only "R80736: first year"`),
 so that one split per kind can be run with the physics model.
 
-`--informed` fills them with the physics-informed NBM (tools/scada/hybrid.py: the NBM with the physics model's
-estimate as one more feature, both fitted on the training records) and prints each fit's weight on the physics.
+`--boosted` fills them with the boosted NBM (tools/scada/nbm.py: the same features with gradient-boosted trees in
+place of the least squares, scikit-learn's defaults; the `boosted` extra), the nonlinear data-driven reference.
 
-    python benchmarks/bench_scada.py [--vs-mean | --physics | --informed [--fit-rows N]] [--period P] [--only T]... DIR
+`--informed` fills them with the physics-informed NBM (tools/scada/hybrid.py: the NBM with the physics model's
+estimate as one more feature, both fitted on the training records) and prints each fit's weight on the physics;
+`--informed --boosted` with the physics-informed boosted NBM (the boosted NBM's trees over the same features).
+
+    python benchmarks/bench_scada.py [--vs-mean | --boosted | --physics | --informed [--boosted] [--fit-rows N]]
+        [--period P] [--only T]... DIR
 """
 
 from __future__ import annotations
@@ -41,7 +46,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from tools.scada.holdout import TrainingMean, cross_unit_splits, errors, evaluate, table, time_splits  # noqa: E402
-from tools.scada.nbm import TASKS, LinearNBM  # noqa: E402
+from tools.scada.nbm import TASKS, BoostedNBM, LinearNBM  # noqa: E402
 from tools.scada.reader import read_units  # noqa: E402
 
 #: a row counts as producing above this power [kW]
@@ -106,7 +111,8 @@ def run(
                 t1 = time.perf_counter()
                 phys.extend(evaluate(other, task, split))
                 print(
-                    f"{split[0]} {task.name}: physics fitted and scored in {time.perf_counter() - t1:.0f} s", flush=True
+                    f"{split[0]} {task.name}: {other_name} fitted and scored in {time.perf_counter() - t1:.0f} s",
+                    flush=True,
                 )
     total = time.perf_counter() - t0
     rows = sum(r.n for r in records.values())
@@ -141,14 +147,16 @@ def physics_factory(fit_rows: int | None, fits: list):
     return make
 
 
-def informed_factory(fit_rows: int | None, fits: list):
-    """A factory task -> PhysicsInformedNBM over the MM82's physics predictor (fitted models kept in ``fits``)."""
-    from tools.scada.hybrid import PhysicsInformedNBM
+def informed_factory(fit_rows: int | None, fits: list, boosted: bool = False):
+    """A factory task -> PhysicsInformedNBM (PhysicsInformedBoostedNBM with ``boosted``) over the MM82's physics
+    predictor (fitted models kept in ``fits``)."""
+    from tools.scada.hybrid import PhysicsInformedBoostedNBM, PhysicsInformedNBM
 
     physics = physics_factory(fit_rows, [])
+    kind = PhysicsInformedBoostedNBM if boosted else PhysicsInformedNBM
 
     def make(task):
-        m = PhysicsInformedNBM(task, physics(task))
+        m = kind(task, physics(task))
         fits.append(m)
         return m
 
@@ -156,7 +164,7 @@ def informed_factory(fit_rows: int | None, fits: list):
 
 
 def main(argv: list[str]) -> int:
-    flags = {a for a in argv if a in ("--vs-mean", "--physics", "--informed")}
+    flags = {a for a in argv if a in ("--vs-mean", "--boosted", "--physics", "--informed")}
     args = [a for a in argv if a not in flags]
     fit_rows, period, only = None, None, []
     while any(a in args for a in ("--fit-rows", "--period", "--only")):
@@ -172,12 +180,14 @@ def main(argv: list[str]) -> int:
     where = args[0] if args else os.environ.get("GVS_REAL_SCADA")
     if not where or not Path(where).is_dir():
         print(
-            "usage: bench_scada.py [--vs-mean | --physics | --informed [--fit-rows N]] [--period YYYY[-MM]] "
-            "[--only TEXT]... DATA_DIR (or set GVS_REAL_SCADA)"
+            "usage: bench_scada.py [--vs-mean | --boosted | --physics | --informed [--boosted] [--fit-rows N]] "
+            "[--period YYYY[-MM]] [--only TEXT]... DATA_DIR (or set GVS_REAL_SCADA)"
         )
         return 2
     if "--vs-mean" in flags:
         print(run(Path(where), TrainingMean, "training mean", period, only))
+    elif "--boosted" in flags and "--informed" not in flags:
+        print(run(Path(where), BoostedNBM, "boosted NBM", period, only))
     elif "--physics" in flags:
         fits: list = []
         print(run(Path(where), physics_factory(fit_rows, fits), "physics", period, only))
@@ -186,10 +196,12 @@ def main(argv: list[str]) -> int:
             print(f"- {m.task.name}: {m.report}")
     elif "--informed" in flags:
         fits = []
-        print(run(Path(where), informed_factory(fit_rows, fits), "physics-informed NBM", period, only))
+        boosted = "--boosted" in flags
+        name = "physics-informed boosted NBM" if boosted else "physics-informed NBM"
+        print(run(Path(where), informed_factory(fit_rows, fits, boosted), name, period, only))
         print("\nEach fit's coefficient on the physics estimate (in split order, bearings then oil):\n")
         for m in fits:
-            weights = ", ".join(f"{t} {w:.2f}" for t, w in m.physics_weight().items())
+            weights = ", ".join(f"{t} {w:.2f}" for t, w in m.physics_weight().items()) or "none (trees)"
             print(f"- {m.task.name}: {weights}; physics effects {m.physics.effects}")
     else:
         print(run(Path(where), period=period, only=only))

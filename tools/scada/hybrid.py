@@ -8,6 +8,10 @@ that channel's physics estimate. The physics carries what a linear function of t
 band, the cooling down at standstill, the heat paths' time constants); the regression carries what the physics
 gets wrong in a way the load and the weather predict (a regime's bias). Its coefficient on the physics estimate
 says how much of the prediction the physics makes. Rows without a physics estimate get no prediction.
+
+``PhysicsInformedBoostedNBM`` is the same with the boosted NBM's trees in place of the line (the ``boosted``
+extra): it can follow a physics estimate that is off in a way no line in the load describes, and has no single
+weight on it.
 """
 
 from __future__ import annotations
@@ -16,7 +20,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from tools.scada.nbm import LinearNBM, Task
+from tools.scada.nbm import BoostedNBM, LinearNBM, Task
 from tools.scada.reader import ScadaRecord
 
 
@@ -58,3 +62,13 @@ class PhysicsInformedNBM(LinearNBM):
     def physics_weight(self) -> dict[str, float]:
         """Per target, the coefficient on the physics estimate (1: the physics' own scale; 0: not used)."""
         return {t: float(c[-1]) for t, (c, _) in self.coef.items()}
+
+
+class PhysicsInformedBoostedNBM(PhysicsInformedNBM, BoostedNBM):
+    """The boosted NBM with the physics estimate as one more feature (the module's docstring); a predictor."""
+
+    name = "physics-informed boosted NBM"
+
+    def physics_weight(self) -> dict[str, float]:
+        """None: trees have no single coefficient on the physics estimate."""
+        return {}

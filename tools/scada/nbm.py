@@ -8,6 +8,10 @@ bearings also the measured oil. Two tasks: ``bearings`` (each bearing from the m
 ``oil`` (the sump and the inlet without any oil reading). Rows where a feature or the target is NaN are left out
 of the fit and get a NaN prediction.
 
+``BoostedNBM`` is the same model with gradient-boosted regression trees in place of the least squares (scikit-learn's
+HistGradientBoostingRegressor, its default settings, not tuned here): the nonlinear kind of NBM the field also uses,
+on the same features and rows. It needs the ``boosted`` extra (``pip install -e ".[boosted]"``).
+
 Any model compared on these tasks is a *predictor*: ``fit(records)`` on training records, then
 ``predict(record)`` -> {channel: prediction}, NaN where it has none (:mod:`tools.scada.holdout` scores them).
 """
@@ -111,7 +115,8 @@ def least_squares(
 
 class LinearNBM:
     """The linear NBM of one task (the module's docstring); a predictor. A subclass adds feature columns per target
-    through ``_extra`` (and their names through ``_extra_names``)."""
+    through ``_extra`` (and their names through ``_extra_names``), or fits another regression through ``_solve``
+    and ``_apply``."""
 
     name = "linear NBM"
 
@@ -119,7 +124,8 @@ class LinearNBM:
         if isinstance(task, str) and task not in TASKS:
             raise InputError(f"no NBM task {task!r}: the tasks are {', '.join(TASKS)}")
         self.task = TASKS[task] if isinstance(task, str) else task
-        self.coef: dict[str, tuple[np.ndarray, float]] = {}
+        #: per target, the fitted regression (here (coefficients, intercept))
+        self.coef: dict[str, object] = {}
         self.feature_names: list[str] = []
 
     def _extra(self, record: ScadaRecord, target: str) -> list[np.ndarray]:
@@ -129,17 +135,53 @@ class LinearNBM:
     def _extra_names(self) -> list[str]:
         return []
 
+    def _solve(self, x: np.ndarray, y: np.ndarray, target: str):
+        """The regression of y on x's columns (rows with a NaN left out)."""
+        return least_squares(x, y, self.feature_names, target)
+
+    def _apply(self, fitted, x: np.ndarray) -> np.ndarray:
+        """The fitted regression's prediction on x's rows (NaN where a feature is)."""
+        c, b = fitted
+        return x @ c + b
+
     def fit(self, records: Sequence[ScadaRecord]) -> LinearNBM:
         mats = [features(r, self.task) for r in records]
         self.feature_names = mats[0][1] + self._extra_names()
         for target in self.task.targets:
             x = np.vstack([np.column_stack([m[0], *self._extra(r, target)]) for m, r in zip(mats, records)])
             y = np.concatenate([r.values[target] for r in records])
-            self.coef[target] = least_squares(x, y, self.feature_names, target)
+            self.coef[target] = self._solve(x, y, target)
         return self
 
     def predict(self, record: ScadaRecord) -> dict[str, np.ndarray]:
         if not self.coef:
             raise InputError(f"the {self.name} predicts only after fit()")
         x = features(record, self.task)[0]
-        return {t: np.column_stack([x, *self._extra(record, t)]) @ c + b for t, (c, b) in self.coef.items()}
+        return {t: self._apply(f, np.column_stack([x, *self._extra(record, t)])) for t, f in self.coef.items()}
+
+
+class BoostedNBM(LinearNBM):
+    """The NBM of one task with gradient-boosted trees (the module's docstring): scikit-learn's
+    HistGradientBoostingRegressor at its defaults, seeded; like the linear NBM it is fitted on the rows where every
+    feature and the target exist and predicts NaN where a feature is missing, so both score the same rows."""
+
+    name = "boosted NBM"
+
+    def _solve(self, x: np.ndarray, y: np.ndarray, target: str):
+        try:
+            from sklearn.ensemble import HistGradientBoostingRegressor
+        except ImportError as exc:
+            raise InputError(
+                'the boosted NBM needs scikit-learn: pip install -e ".[boosted]" (or pip install scikit-learn)'
+            ) from exc
+        ok = np.all(np.isfinite(x), axis=1) & np.isfinite(y)
+        if ok.sum() <= x.shape[1] + 1:
+            least_squares(x, y, self.feature_names, target)  # its sentence names the emptiest column
+        return HistGradientBoostingRegressor(random_state=0).fit(x[ok], y[ok])
+
+    def _apply(self, fitted, x: np.ndarray) -> np.ndarray:
+        ok = np.all(np.isfinite(x), axis=1)
+        pred = np.full(len(x), np.nan)
+        if ok.any():
+            pred[ok] = fitted.predict(x[ok])
+        return pred

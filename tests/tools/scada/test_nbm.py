@@ -3,6 +3,8 @@ recovers known coefficients, and the held-out scoring takes any predictor."""
 
 from __future__ import annotations
 
+import sys
+
 import numpy as np
 import pytest
 
@@ -10,7 +12,7 @@ from firmware_model.errors import InputError
 from tools.scada.clean import REASONS
 from tools.scada.columns import load_column_map
 from tools.scada.holdout import TrainingMean, cross_unit_splits, errors, evaluate, table, time_splits
-from tools.scada.nbm import LAG_TAUS_S, TASKS, LinearNBM, exp_lag, features
+from tools.scada.nbm import LAG_TAUS_S, TASKS, BoostedNBM, LinearNBM, exp_lag, features
 from tools.scada.reader import ScadaRecord
 
 CMAP = load_column_map("engie")
@@ -120,6 +122,40 @@ def test_the_bearings_task_needs_the_measured_oil():
         LinearNBM("bearings").fit([rec])
     with pytest.raises(InputError, match="after fit"):
         LinearNBM("oil").predict(rec)
+
+
+def _saturating(rec):
+    """Bearing readings a line in the features cannot follow: a rise over the oil that saturates with the 1 h power
+    lag, the oil's own part linear."""
+    lag = exp_lag(rec.values["power_kw"], rec.time_s, rec.stretch, 3600.0)
+    for k, ch in enumerate(TASKS["bearings"].targets):
+        rec.values[ch] = rec.values["Gost_avg"] + (8.0 + 4 * k) * np.tanh(np.maximum(lag, 0.0) / 600.0)
+
+
+def test_the_boosted_nbm_follows_what_a_line_cannot_on_a_record_it_was_not_fitted_on():
+    pytest.importorskip("sklearn")
+    train, test = synthetic(seed=0), synthetic(seed=1, t0=1e8)
+    for rec in (train, test):
+        _saturating(rec)
+    test.values["outdoor_temp_c"][500] = np.nan
+    boosted = BoostedNBM("bearings").fit([train]).predict(test)
+    linear = LinearNBM("bearings").fit([train]).predict(test)
+    for ch in TASKS["bearings"].targets:
+        n_b, rms_b, _ = errors(test.values[ch], boosted[ch])
+        n_l, rms_l, _ = errors(test.values[ch], linear[ch])
+        assert n_b == n_l == test.n - 1  # the same rows: none where a feature is missing
+        assert np.isnan(boosted[ch][500])
+        assert rms_b < 0.5 * rms_l, (ch, rms_b, rms_l)
+
+
+def test_the_boosted_nbm_without_scikit_learn_says_how_to_get_it(monkeypatch):
+    monkeypatch.setitem(sys.modules, "sklearn.ensemble", None)  # import fails as if not installed
+    rec = synthetic()
+    _saturating(rec)
+    with pytest.raises(InputError, match=r"needs scikit-learn: pip install"):
+        BoostedNBM("bearings").fit([rec])
+    with pytest.raises(InputError, match="after fit"):
+        BoostedNBM("bearings").predict(rec)
 
 
 def test_errors_are_rms_and_p99_over_rows_where_both_exist():
