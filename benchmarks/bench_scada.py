@@ -28,8 +28,11 @@ place of the least squares, scikit-learn's defaults; the `boosted` extra), the n
 estimate as one more feature, both fitted on the training records) and prints each fit's weight on the physics;
 `--informed --boosted` with the physics-informed boosted NBM (the boosted NBM's trees over the same features).
 
-    python benchmarks/bench_scada.py [--vs-mean | --boosted | --physics | --informed [--boosted] [--fit-rows N]]
-        [--period P] [--only T]... DIR
+`--compare` prints one table of all five on the same splits: the linear NBM's RMS and, with their ratios to it, the
+boosted NBM's, the physics model's and both physics-informed NBMs' (the physics fitted once per split and task).
+
+    python benchmarks/bench_scada.py [--vs-mean | --boosted | --physics | --informed [--boosted] | --compare]
+        [--fit-rows N] [--period P] [--only T]... DIR
 """
 
 from __future__ import annotations
@@ -45,7 +48,15 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from tools.scada.holdout import TrainingMean, cross_unit_splits, errors, evaluate, table, time_splits  # noqa: E402
+from tools.scada.holdout import (  # noqa: E402
+    TrainingMean,
+    cross_unit_splits,
+    errors,
+    evaluate,
+    ratio_table,
+    table,
+    time_splits,
+)
 from tools.scada.nbm import TASKS, BoostedNBM, LinearNBM  # noqa: E402
 from tools.scada.reader import read_units  # noqa: E402
 
@@ -91,18 +102,35 @@ def period_of(records: dict, period: str) -> dict:
     return out
 
 
+def records_and_splits(data_dir: Path, period: str | None, only: list[str] | None):
+    """The folder's records (of ``period``, when given) and the held-out splits whose label holds one of ``only``."""
+    records = read_units(sorted(data_dir.glob("*.csv*")), "engie")
+    if period:
+        records = period_of(records, period)
+    splits = cross_unit_splits(records) + time_splits(records) + time_splits(records, cut="2017-01-01")
+    if only:
+        splits = [s for s in splits if any(o in s[0] for o in only)]
+    return records, splits
+
+
+def headline(records: dict, splits: list, period: str | None, t_read: float, total: float) -> str:
+    """The first line of a run: the records, the splits and the time taken."""
+    rows = sum(r.n for r in records.values())
+    return (
+        (f"period {period}: " if period else "")
+        + f"{len(records)} turbines, {rows} rows of 10 min ({', '.join(f'{u}: {r.n}' for u, r in records.items())}); "
+        f"read in {t_read:.1f} s, {len(splits)} splits x {len(TASKS)} tasks fitted and scored in "
+        f"{total - t_read:.1f} s (total {total:.1f} s)"
+    )
+
+
 def run(
     data_dir: Path, other=None, other_name: str = "physics", period: str | None = None, only: list[str] | None = None
 ) -> str:
     """The held-out table of the NBM (and of ``other``, a predictor factory task -> predictor, when given)."""
     t0 = time.perf_counter()
-    records = read_units(sorted(data_dir.glob("*.csv*")), "engie")
-    if period:
-        records = period_of(records, period)
+    records, splits = records_and_splits(data_dir, period, only)
     t_read = time.perf_counter() - t0
-    splits = cross_unit_splits(records) + time_splits(records) + time_splits(records, cut="2017-01-01")
-    if only:
-        splits = [s for s in splits if any(o in s[0] for o in only)]
     nbm, phys = [], []
     for split in splits:
         for task in TASKS.values():
@@ -114,16 +142,8 @@ def run(
                     f"{split[0]} {task.name}: {other_name} fitted and scored in {time.perf_counter() - t1:.0f} s",
                     flush=True,
                 )
-    total = time.perf_counter() - t0
-    rows = sum(r.n for r in records.values())
-    head = (
-        (f"period {period}: " if period else "")
-        + f"{len(records)} turbines, {rows} rows of 10 min ({', '.join(f'{u}: {r.n}' for u, r in records.items())}); "
-        f"read in {t_read:.1f} s, {len(splits)} splits x {len(TASKS)} tasks fitted and scored in "
-        f"{total - t_read:.1f} s (total {total:.1f} s)"
-    )
     return (
-        head
+        headline(records, splits, period, t_read, time.perf_counter() - t0)
         + "\n\n"
         + table(nbm, phys, other_name)
         + f"\n\nThe NBM's oil task across turbines, producing (P > {PRODUCING_KW:.0f} kW) and other rows:\n\n"
@@ -163,8 +183,55 @@ def informed_factory(fit_rows: int | None, fits: list, boosted: bool = False):
     return make
 
 
+class FittedOnce:
+    """A predictor fitted once per set of training records, however many predictors fit it (the physics model shared
+    by the physics-informed NBMs of one split and task in ``--compare``)."""
+
+    def __init__(self, model):
+        self.model, self.name, self._on = model, getattr(model, "name", "physics"), None
+
+    def fit(self, records):
+        if self._on != tuple(map(id, records)):
+            self.model.fit(records)
+            self._on = tuple(map(id, records))
+        return self
+
+    def predict(self, record):
+        return self.model.predict(record)
+
+
+def compare(data_dir: Path, fit_rows: int | None, period: str | None = None, only: list[str] | None = None) -> str:
+    """The held-out RMS of the linear NBM and, beside it with their ratios to it, of the boosted NBM, the physics
+    model and both physics-informed NBMs, on the same splits (the physics fitted once per split and task)."""
+    from tools.scada.hybrid import PhysicsInformedBoostedNBM, PhysicsInformedNBM
+
+    t0 = time.perf_counter()
+    records, splits = records_and_splits(data_dir, period, only)
+    t_read = time.perf_counter() - t0
+    physics = physics_factory(fit_rows, [])
+    names = ("linear NBM", "boosted NBM", "physics", "physics-informed NBM", "physics-informed boosted NBM")
+    scores: dict[str, list] = {n: [] for n in names}
+    for split in splits:
+        for task in TASKS.values():
+            t1 = time.perf_counter()
+            shared = FittedOnce(physics(task))
+            makes = (
+                LinearNBM,
+                BoostedNBM,
+                lambda t, shared=shared: shared,
+                lambda t, shared=shared: PhysicsInformedNBM(t, shared),
+                lambda t, shared=shared: PhysicsInformedBoostedNBM(t, shared),
+            )
+            for name, make in zip(names, makes):
+                scores[name].extend(evaluate(make, task, split))
+            print(f"{split[0]} {task.name}: five predictors fitted and scored in {time.perf_counter() - t1:.0f} s")
+    return (
+        headline(records, splits, period, t_read, time.perf_counter() - t0) + "\n\n" + ratio_table(scores, "linear NBM")
+    )
+
+
 def main(argv: list[str]) -> int:
-    flags = {a for a in argv if a in ("--vs-mean", "--boosted", "--physics", "--informed")}
+    flags = {a for a in argv if a in ("--vs-mean", "--boosted", "--physics", "--informed", "--compare")}
     args = [a for a in argv if a not in flags]
     fit_rows, period, only = None, None, []
     while any(a in args for a in ("--fit-rows", "--period", "--only")):
@@ -180,11 +247,13 @@ def main(argv: list[str]) -> int:
     where = args[0] if args else os.environ.get("GVS_REAL_SCADA")
     if not where or not Path(where).is_dir():
         print(
-            "usage: bench_scada.py [--vs-mean | --boosted | --physics | --informed [--boosted] [--fit-rows N]] "
-            "[--period YYYY[-MM]] [--only TEXT]... DATA_DIR (or set GVS_REAL_SCADA)"
+            "usage: bench_scada.py [--vs-mean | --boosted | --physics | --informed [--boosted] | --compare] "
+            "[--fit-rows N] [--period YYYY[-MM]] [--only TEXT]... DATA_DIR (or set GVS_REAL_SCADA)"
         )
         return 2
-    if "--vs-mean" in flags:
+    if "--compare" in flags:
+        print(compare(Path(where), fit_rows, period, only))
+    elif "--vs-mean" in flags:
         print(run(Path(where), TrainingMean, "training mean", period, only))
     elif "--boosted" in flags and "--informed" not in flags:
         print(run(Path(where), BoostedNBM, "boosted NBM", period, only))

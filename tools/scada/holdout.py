@@ -116,3 +116,25 @@ def table(nbm: Sequence[Score], other: Sequence[Score] = (), other_name: str = "
             f"| {s.split} | {s.task} | {s.channel} | {s.n} | {s.rms_k:.2f} | {s.p99_k:.2f} | {_cell(others, key)} |"
         )
     return "\n".join(lines)
+
+
+def ratio_table(scores: dict[str, Sequence[Score]], reference: str) -> str:
+    """A Markdown table: per split, task and channel, the rows scored and each predictor's RMS [K] (``scores``:
+    predictor name -> its scores on the same splits), every one but ``reference``'s with its ratio to the
+    reference's in brackets; '-' where a predictor has no score."""
+    ref = scores[reference]
+    others = {name: {(s.split, s.task, s.channel): s for s in sc} for name, sc in scores.items() if name != reference}
+    lines = [
+        f"| split | task | channel | rows | {reference} RMS [K] | "
+        + " | ".join(f"{name} RMS [K] (ratio)" for name in others)
+        + " |",
+        "|---|---|---|---:|---:|" + "---:|" * len(others),
+    ]
+    for s in ref:
+        cells = []
+        for by_key in others.values():
+            o = by_key.get((s.split, s.task, s.channel))
+            ratio = o.rms_k / s.rms_k if o is not None and s.rms_k > 0 else float("nan")
+            cells.append("-" if o is None else f"{o.rms_k:.2f} ({ratio:.2f})")
+        lines.append(f"| {s.split} | {s.task} | {s.channel} | {s.n} | {s.rms_k:.2f} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)

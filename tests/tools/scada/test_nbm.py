@@ -11,7 +11,7 @@ import pytest
 from firmware_model.errors import InputError
 from tools.scada.clean import REASONS
 from tools.scada.columns import load_column_map
-from tools.scada.holdout import TrainingMean, cross_unit_splits, errors, evaluate, table, time_splits
+from tools.scada.holdout import TrainingMean, cross_unit_splits, errors, evaluate, ratio_table, table, time_splits
 from tools.scada.nbm import LAG_TAUS_S, TASKS, BoostedNBM, LinearNBM, exp_lag, features
 from tools.scada.reader import ScadaRecord
 
@@ -189,6 +189,11 @@ def test_any_predictor_is_scored_on_the_same_splits_side_by_side():
     assert len({line.count("|") for line in lines}) == 1
     alone = table(nbm).splitlines()
     assert all(line.endswith("| - | - |") for line in alone[2:]) and len({line.count("|") for line in alone}) == 1
+    ratios = ratio_table({"NBM": const, "zero": nbm, "none": []}, "NBM").splitlines()
+    assert ratios[0].startswith("| split | task | channel | rows | NBM RMS [K] | zero RMS [K] (ratio) | none RMS")
+    assert len(ratios) == 2 + len(const) and len({line.count("|") for line in ratios}) == 1
+    for line, c, z in zip(ratios[2:], const, nbm):
+        assert f"| {c.rms_k:.2f} | {z.rms_k:.2f} ({z.rms_k / c.rms_k:.2f}) | - |" in line
 
 
 def test_a_time_split_fits_before_the_cut_and_tests_after():
