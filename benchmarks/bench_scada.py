@@ -29,10 +29,11 @@ estimate as one more feature, both fitted on the training records) and prints ea
 `--informed --boosted` with the physics-informed boosted NBM (the boosted NBM's trees over the same features).
 
 `--compare` prints one table of all five on the same splits: the linear NBM's RMS and, with their ratios to it, the
-boosted NBM's, the physics model's and both physics-informed NBMs' (the physics fitted once per split and task).
+boosted NBM's, the physics model's and both physics-informed NBMs' (the physics fitted once per split and task);
+`--plot PNG` draws them as bars, a fraction of the linear NBM's RMS, with the goals.
 
-    python benchmarks/bench_scada.py [--vs-mean | --boosted | --physics | --informed [--boosted] | --compare]
-        [--fit-rows N] [--period P] [--only T]... DIR
+    python benchmarks/bench_scada.py [--vs-mean | --boosted | --physics | --informed [--boosted]
+        | --compare [--plot PNG]] [--fit-rows N] [--period P] [--only T]... DIR
 """
 
 from __future__ import annotations
@@ -200,9 +201,10 @@ class FittedOnce:
         return self.model.predict(record)
 
 
-def compare(data_dir: Path, fit_rows: int | None, period: str | None = None, only: list[str] | None = None) -> str:
+def compare(data_dir: Path, fit_rows: int | None, period: str | None = None, only: list[str] | None = None):
     """The held-out RMS of the linear NBM and, beside it with their ratios to it, of the boosted NBM, the physics
-    model and both physics-informed NBMs, on the same splits (the physics fitted once per split and task)."""
+    model and both physics-informed NBMs, on the same splits (the physics fitted once per split and task): (the
+    table, the scores per predictor)."""
     from tools.scada.hybrid import PhysicsInformedBoostedNBM, PhysicsInformedNBM
 
     t0 = time.perf_counter()
@@ -225,34 +227,79 @@ def compare(data_dir: Path, fit_rows: int | None, period: str | None = None, onl
             for name, make in zip(names, makes):
                 scores[name].extend(evaluate(make, task, split))
             print(f"{split[0]} {task.name}: five predictors fitted and scored in {time.perf_counter() - t1:.0f} s")
-    return (
-        headline(records, splits, period, t_read, time.perf_counter() - t0) + "\n\n" + ratio_table(scores, "linear NBM")
+    text = headline(records, splits, period, t_read, time.perf_counter() - t0)
+    return text + "\n\n" + ratio_table(scores, "linear NBM"), scores
+
+
+#: the issue's goals as a fraction of the linear NBM's RMS, per channel (drawn on the figure)
+GOALS = {"Gb1t_avg": 0.8, "Gb2t_avg": 0.8, "Gost_avg": 0.6}
+
+
+def plot_compare(scores: dict, path: Path, title: str) -> None:
+    """Each predictor's held-out RMS as a fraction of the linear NBM's, one panel per channel, one group of bars per
+    split, the goals drawn as lines."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    ref = {(s.split, s.channel): s.rms_k for s in scores["linear NBM"]}
+    names = [n for n in scores if n != "linear NBM"]
+    channels = list(dict.fromkeys(s.channel for s in scores["linear NBM"]))
+    splits = list(dict.fromkeys(s.split for s in scores["linear NBM"]))
+    fig, axes = plt.subplots(len(channels), 1, figsize=(10, 2.2 * len(channels) + 1), sharex=True, squeeze=False)
+    axes = axes[:, 0]
+    width = 0.8 / len(names)
+    for ax, ch in zip(axes, channels):
+        for k, name in enumerate(names):
+            got = {s.split: s.rms_k for s in scores[name] if s.channel == ch}
+            ratios = [got.get(sp, np.nan) / ref[(sp, ch)] for sp in splits]
+            ax.bar(np.arange(len(splits)) + (k - (len(names) - 1) / 2) * width, ratios, width, label=name)
+        ax.axhline(1.0, color="k", lw=0.8)
+        if ch in GOALS:
+            ax.axhline(GOALS[ch], color="k", ls="--", lw=0.8)
+        ax.set_ylabel(f"{ch}\nRMS / linear NBM")
+        ax.set_ylim(0, min(2.2, max(1.2, ax.get_ylim()[1])))
+    axes[-1].set_xticks(
+        range(len(splits)), [sp.replace(": ", ":\n").replace(" -> ", "\n-> ") for sp in splits], fontsize=8
     )
+    axes[0].legend(fontsize=8, ncol=2, loc="upper right")
+    axes[0].set_title(title + " (dashed: the goal; 1: the linear NBM)")
+    fig.tight_layout()
+    fig.savefig(path, dpi=80)
+    plt.close(fig)
 
 
 def main(argv: list[str]) -> int:
     flags = {a for a in argv if a in ("--vs-mean", "--boosted", "--physics", "--informed", "--compare")}
     args = [a for a in argv if a not in flags]
-    fit_rows, period, only = None, None, []
-    while any(a in args for a in ("--fit-rows", "--period", "--only")):
-        i = next(i for i, a in enumerate(args) if a in ("--fit-rows", "--period", "--only"))
+    fit_rows, period, only, plot = None, None, [], None
+    while any(a in args for a in ("--fit-rows", "--period", "--only", "--plot")):
+        i = next(i for i, a in enumerate(args) if a in ("--fit-rows", "--period", "--only", "--plot"))
         flag, value = args[i], args[i + 1]
         del args[i : i + 2]
         if flag == "--fit-rows":
             fit_rows = int(value)
         elif flag == "--period":
             period = value
+        elif flag == "--plot":
+            plot = value
         else:
             only.append(value)
     where = args[0] if args else os.environ.get("GVS_REAL_SCADA")
     if not where or not Path(where).is_dir():
         print(
-            "usage: bench_scada.py [--vs-mean | --boosted | --physics | --informed [--boosted] | --compare] "
-            "[--fit-rows N] [--period YYYY[-MM]] [--only TEXT]... DATA_DIR (or set GVS_REAL_SCADA)"
+            "usage: bench_scada.py [--vs-mean | --boosted | --physics | --informed [--boosted] "
+            "| --compare [--plot PNG]] [--fit-rows N] [--period YYYY[-MM]] [--only TEXT]... DATA_DIR "
+            "(or set GVS_REAL_SCADA)"
         )
         return 2
     if "--compare" in flags:
-        print(compare(Path(where), fit_rows, period, only))
+        text, scores = compare(Path(where), fit_rows, period, only)
+        print(text)
+        if plot:
+            plot_compare(scores, Path(plot), f"Held-out RMS{f', {period}' if period else ''}")
+            print(f"\nfigure: {plot}")
     elif "--vs-mean" in flags:
         print(run(Path(where), TrainingMean, "training mean", period, only))
     elif "--boosted" in flags and "--informed" not in flags:
