@@ -49,6 +49,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from firmware_model.errors import InputError  # noqa: E402
 from tools.scada.holdout import (  # noqa: E402
     TrainingMean,
     cross_unit_splits,
@@ -111,6 +112,12 @@ def records_and_splits(data_dir: Path, period: str | None, only: list[str] | Non
     splits = cross_unit_splits(records) + time_splits(records) + time_splits(records, cut="2017-01-01")
     if only:
         splits = [s for s in splits if any(o in s[0] for o in only)]
+    if not splits:
+        raise InputError(
+            "no held-out split to score"
+            + (f": none of the split labels holds {' or '.join(map(repr, only))}" if only else "")
+            + f" ({len(records)} turbines{f' in {period}' if period else ''})"
+        )
     return records, splits
 
 
@@ -294,19 +301,32 @@ def main(argv: list[str]) -> int:
             "(or set GVS_REAL_SCADA)"
         )
         return 2
+    if plot and not Path(plot).resolve().parent.is_dir():
+        print(f"error: the folder of --plot {plot} does not exist")
+        return 2
+    try:
+        report(flags, Path(where), fit_rows, period, only, plot)
+    except InputError as exc:
+        print(f"error: {exc}")
+        return 2
+    return 0
+
+
+def report(flags: set, where: Path, fit_rows: int | None, period: str | None, only: list, plot: str | None) -> None:
+    """Runs and prints what the flags ask for (main's usage)."""
     if "--compare" in flags:
-        text, scores = compare(Path(where), fit_rows, period, only)
+        text, scores = compare(where, fit_rows, period, only)
         print(text)
         if plot:
             plot_compare(scores, Path(plot), f"Held-out RMS{f', {period}' if period else ''}")
             print(f"\nfigure: {plot}")
     elif "--vs-mean" in flags:
-        print(run(Path(where), TrainingMean, "training mean", period, only))
+        print(run(where, TrainingMean, "training mean", period, only))
     elif "--boosted" in flags and "--informed" not in flags:
-        print(run(Path(where), BoostedNBM, "boosted NBM", period, only))
+        print(run(where, BoostedNBM, "boosted NBM", period, only))
     elif "--physics" in flags:
         fits: list = []
-        print(run(Path(where), physics_factory(fit_rows, fits), "physics", period, only))
+        print(run(where, physics_factory(fit_rows, fits), "physics", period, only))
         print("\nThe physics fits (in split order, bearings then oil):\n")
         for m in fits:
             print(f"- {m.task.name}: {m.report}")
@@ -314,14 +334,13 @@ def main(argv: list[str]) -> int:
         fits = []
         boosted = "--boosted" in flags
         name = "physics-informed boosted NBM" if boosted else "physics-informed NBM"
-        print(run(Path(where), informed_factory(fit_rows, fits, boosted), name, period, only))
+        print(run(where, informed_factory(fit_rows, fits, boosted), name, period, only))
         print("\nEach fit's coefficient on the physics estimate (in split order, bearings then oil):\n")
         for m in fits:
             weights = ", ".join(f"{t} {w:.2f}" for t, w in m.physics_weight().items()) or "none (trees)"
             print(f"- {m.task.name}: {weights}; physics effects {m.physics.effects}")
     else:
-        print(run(Path(where), period=period, only=only))
-    return 0
+        print(run(where, period=period, only=only))
 
 
 if __name__ == "__main__":
