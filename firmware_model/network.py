@@ -107,6 +107,8 @@ class Network(NamedNodes):
     boundaries: tuple = BOUNDARIES
     #: the speeds a link's ``speed`` parameter indexes (`speed_names`)
     speed_names: tuple = ()
+    #: the description's oil (its [oil] grade; the seed's where it gives none): every oil property of its laws
+    oil: oilprops.Oil = oilprops.SEED_OIL
 
     def links_of_kind(self, kind: int) -> np.ndarray:
         return np.flatnonzero(self.link_kind == kind)
@@ -150,6 +152,7 @@ class _Builder:
         self.shaft_brgs = tuple(x.id for x in self.desc.bearings if x.wheel is None)
         self.wheel_brgs = tuple((x.wheel, x.id) for x in self.desc.bearings if x.wheel is not None)
         self.st_rho, self.st_k, self.st_cp = p["material.steel.rho"], p["material.steel.k"], p["material.steel.cp"]
+        self.oil = oilprops.oil_of(p)
         self.nodes: list = []
         self.C: list = []
         self.ix: dict = {}
@@ -195,6 +198,7 @@ class _Builder:
             self.seg_len,
             self.boundaries,
             self.speeds,
+            self.oil,
         )
 
     def spd(self, name: str) -> int:
@@ -263,8 +267,8 @@ def _other_nodes(b: _Builder) -> None:
     for h in b.housing:
         b.add(h, b.housing[h].mass_kg * p[f"material.{b.housing[h].material}.cp"])
     T_cap = p["oil.capacity_temp"]
-    rho_oil = float(oilprops.density_kg_m3(T_cap))
-    cp_oil = float(oilprops.specific_heat_j_per_kgk(T_cap))
+    op = b.oil.properties(float(T_cap))
+    rho_oil, cp_oil = float(op.rho_kg_m3), float(op.cp_j_per_kgk)
     b.add("oil", d.oil.volume_m3 * rho_oil * cp_oil)
 
 
@@ -661,6 +665,7 @@ class ConductanceEvaluator:
     def __init__(self, net: Network, p: Parameters, scales: EffectScales | None = None):
         self.net = net
         self.p = p
+        self.oil = net.oil
         self.scales = scales or EffectScales()
         self.G = net.link_G0.copy()
         self.idx = {k: net.links_of_kind(k) for k in range(N_KINDS)}
@@ -796,7 +801,7 @@ class ConductanceEvaluator:
         speeds = np.asarray(speeds)
         self.generation += 1  # every full evaluation (radiation alone keeps it: it moves only boundary links)
         G = self.G if speeds.ndim < 2 else np.broadcast_to(self.net.link_G0, speeds.shape[:-1] + self.G.shape).copy()
-        op = oilprops.oil_properties(T_oil_c)
+        op = self.oil.properties(T_oil_c)
         i = self.idx[K_CONTACT]  # contacts: active when the mesh carries torque (Eq 45)
         if i.size:
             G[..., i] = self.net.link_G0[i] * (mesh_torque_row[self.kp[K_CONTACT]["mesh"].astype(int)] != 0)

@@ -36,8 +36,9 @@ import warnings
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
-from firmware_model.errors import ParameterError
+from firmware_model.errors import InputError, ParameterError
 from firmware_model.physics.kinematics import KinematicTable, Teeth, build_table
+from firmware_model.physics.oil import oil_of
 from firmware_model.units import L_PER_M3, RAD_S_PER_RPM, S_PER_MIN
 
 try:
@@ -89,6 +90,11 @@ UNITS = {
     "Nm/rpm": ("N m s/rad", 1.0 / RAD_S_PER_RPM),  # torque per speed
     "L/min/rpm": ("m3/rad", 1.0 / L_PER_M3 / S_PER_MIN / RAD_S_PER_RPM),  # volume flow per speed
     "m3/rad": ("m3/rad", 1.0),
+    "mm2/s": ("m2/s", 1e-6),  # a kinematic viscosity (cSt)
+    "cSt": ("m2/s", 1e-6),
+    "m2/s": ("m2/s", 1.0),
+    "1/GPa": ("1/Pa", 1e-9),  # a piezo-viscosity coefficient
+    "1/Pa": ("1/Pa", 1.0),
 }
 #: what a quantity of each SI dimension is, for messages
 DIM_NAMES = {
@@ -108,6 +114,8 @@ DIM_NAMES = {
     "N": "a force",
     "N m": "a torque",
     "s": "a time",
+    "m2/s": "a kinematic viscosity",
+    "1/Pa": "a piezo-viscosity coefficient",
     "degC": "a temperature",
     "rad/s": "a speed",
     "N m s/rad": "a torque per speed",
@@ -491,6 +499,9 @@ PER_KIND = (
 #: optional parameters of a kind, which any file may add, its base having them or not: (pattern, the shipped key whose
 #: unit it takes). SKF's rolling term of a bearing kind (physics.losses.skf_rolling_coef): none where absent
 OPTIONAL_PER_KIND = (("bearing.R1_*", "bearing.f2"),)
+#: optional parameters no shipped reference file has, with the unit their dimension is checked against: an oil's
+#: grade (physics.oil.oil_of; absent: the seed's oil)
+OPTIONAL_KEYS = {"oil.nu_40": "mm2/s", "oil.nu_100": "mm2/s", "oil.rho_15": "kg/m3", "oil.piezo_40": "1/GPa"}
 #: what a file with its own [topology] must hold: the physics every network needs (the per-kind ones its
 #: description implies are named by the network when missing)
 REQUIRED_GENERIC = (
@@ -562,15 +573,16 @@ def _generic_entries() -> dict:
 def _check_own_keys(path: Path, entries: dict) -> None:
     """A file with its own [topology] holds the generic physics parameters (`_generic_entries`), parameters of a
     kind the shipped files lack (PER_KIND, in the unit of their pattern's shipped key) and its own parameters that
-    its [topology] takes (``{ from = ... }``; their units are checked by the description keys that take them)."""
+    its [topology] takes (``{ from = ... }``; their units are checked by the description keys that take them), and
+    the OPTIONAL_KEYS (an oil's grade)."""
     base = _generic_entries()
     own = {e["from"] for k, e in entries.items() if is_topology(k) and isinstance(e, dict) and "from" in e}
     reference = None  # the shipped files' entries, read once (not once per key)
     for key, e in entries.items():
         if key == "meta.inherit" or is_topology(key) or (key.startswith("meta.") and isinstance(e, str)):
             continue
-        if key in base:
-            _check_entry_kind(path, key, e, base[key])
+        if key in base or key in OPTIONAL_KEYS:
+            _check_entry_kind(path, key, e, base.get(key) or {"v": 0.0, "u": OPTIONAL_KEYS[key]})
             continue
         kind = next((ref for pat, ref in PER_KIND + OPTIONAL_PER_KIND if fnmatch.fnmatchcase(key, pat)), None)
         if kind is not None:
@@ -619,6 +631,9 @@ def _check_keys(path: Path, entries: dict, base: dict, base_name: str) -> None:
         if is_topology(key):
             continue  # checked by firmware_model.description against what a topology may hold
         if key not in base:
+            if key in OPTIONAL_KEYS:
+                _check_entry_kind(path, key, e, {"v": 0.0, "u": OPTIONAL_KEYS[key]})
+                continue
             optional = next((ref for pat, ref in OPTIONAL_PER_KIND if fnmatch.fnmatchcase(key, pat)), None)
             if optional is None:
                 raise ParameterError(_unknown_key(path, key, base, base_name))
@@ -757,6 +772,10 @@ def load_parameters(variant_or_path: str | Path = "GRS905") -> Parameters:
     kind = params.strings.get("cooler.kind", "liquid")
     if kind not in COOLER_KINDS:
         raise ParameterError(f"cooler.kind = {kind!r} must be one of {', '.join(COOLER_KINDS)}")
+    try:
+        oil_of(params)  # the [oil]'s grade, where it gives one: both viscosities, values an oil can have
+    except InputError as exc:
+        raise ParameterError(f"{path.name}: {exc}") from None
     return params
 
 

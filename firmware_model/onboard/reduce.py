@@ -357,8 +357,10 @@ def aggregate(net: Network, partition: dict) -> Aggregation:
 # build
 
 
-def oil_property_table(T_c: np.ndarray) -> np.ndarray:
-    op = oilprops.oil_properties(T_c)
+def oil_property_table(T_c: np.ndarray, oil: oilprops.Oil = oilprops.SEED_OIL) -> np.ndarray:
+    """The kernel's oil row at each temperature of ``T_c`` (evaluate.oil_row interpolates it): the properties of
+    ``oil`` (the description's) its laws read."""
+    op = oil.properties(T_c)
     prop = np.empty((T_c.size, N_PROP))
     prop[:, P_LOG10_MU] = np.log10(op.mu_pa_s)
     prop[:, P_LN_NU_CST] = np.log(op.nu_m2_s * 1e6)
@@ -537,7 +539,7 @@ class _Laws:
         R_p = float(_link_param(net, k, "R_p"))
         fo = _fling_off_table(net, k, w, T_GRID_C)
         law = _separable_power_law(fo, w)
-        nus = _cyl_table(net.link_G0[k] / R_p, R_p, w, T_GRID_C)
+        nus = _cyl_table(net.link_G0[k] / R_p, R_p, w, T_GRID_C, net.oil)
         tab = self.grid.tables[s][:, :, k]
         if law is None or np.max(np.abs(nus + fo - tab)) > 1e-9 * np.abs(tab).max():
             raise ParameterError(
@@ -855,7 +857,7 @@ def build_reduced(
         link_b=_ro(agg.link_b, np.int64),
         link_name=agg.link_name,
         **_law_fields(laws),
-        prop=_ro(oil_property_table(T_GRID_C)),
+        prop=_ro(oil_property_table(T_GRID_C, net.oil)),
         speed_coef=_ro(kin.speed),
         **cols,
         mesh_torque=_ro(kin.mesh_torque),
@@ -923,8 +925,8 @@ def _separable_power_law(tab: np.ndarray, w: np.ndarray):
     return None
 
 
-def _cyl_table(c, R_p, w, T):
-    op = oilprops.oil_properties(T)
+def _cyl_table(c, R_p, w, T, oil: oilprops.Oil):
+    op = oil.properties(T)
     wf = np.maximum(w, MIN_SPEED_RAD_S)[:, None]
     re = R_p * R_p * wf / op.nu_m2_s[None, :]
     return c * op.k_w_per_mk[None, :] * ht.nusselt_rotating_cylinder(re, op.pr[None, :])
@@ -932,7 +934,7 @@ def _cyl_table(c, R_p, w, T):
 
 def _fling_off_table(net: Network, k: int, w, T):
     kp = {key: float(_link_param(net, k, key)) for key in ("z", "width", "h_t", "R_p", "h_i")}
-    op = oilprops.oil_properties(T)
+    op = net.oil.properties(T)
     wf = np.maximum(w, MIN_SPEED_RAD_S)[:, None]
     return ht.fling_off_hA(
         kp["z"],
@@ -1011,7 +1013,7 @@ def _churn_table(gl: GearboxLosses, w_ls: np.ndarray, T2: np.ndarray, kin, col: 
     ratio = churn_ratios(gl, kin, col)
     out = np.zeros((w_ls.size, T2.size))
     for j, T in enumerate(T2):
-        op = oilprops.oil_properties(T)
+        op = gl.oil.properties(T)
         wc = np.where(ratio[None, :] != 1.0, w_ls[:, None] * ratio[None, :], w_ls[:, None])
         ch = L.churning_loss(
             wc, gl.ch_Ra, gl.ch_Rp, gl.ch_ht, gl.ch_w, gl.ch_hi, gl.ch_Vp, gl.V0, op.rho_kg_m3, op.nu_m2_s, gl.h_t0

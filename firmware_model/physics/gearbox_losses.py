@@ -103,6 +103,7 @@ class GearboxLosses:
 
     def __init__(self, p: Parameters, geometry: Geometry | None = None):
         self.p = p
+        self.oil = oilprops.oil_of(p)  # the description's oil ([oil]; the seed's where it gives none)
         self.kin = kinematics_of(p)  # the gearbox's own description (docs/description.md)
         self.geo = geometry or build_geometry(p)
         d = self.d = self.geo.description
@@ -294,7 +295,7 @@ class GearboxLosses:
         row = np.atleast_1d(np.asarray(gear, dtype=np.int64)) - GEAR_MIN
         n = max(w_in.size, T_in.size, row.size)
         w_in, T_in, row = (np.broadcast_to(a, (n,)) for a in (w_in, T_in, row))
-        op = oilprops.oil_properties(T_oil_c)
+        op = self.oil.properties(T_oil_c)
         rho, mu, nu, piezo = op.rho_kg_m3, op.mu_pa_s, op.nu_m2_s, op.piezo_per_pa
         kin = self.kin
         out = {}

@@ -63,23 +63,18 @@ _RHO_SLOPE_KG_M3K = (TABLE_RHO_KG_M3[-1] - TABLE_RHO_KG_M3[0]) / (TABLE_T_C[-1] 
 
 # Walther (ASTM D341): W = log10(log10(nu_cSt + 0.7)), X = log10(T_K); W is piecewise linear in X.
 _WALTHER_C = 0.7
-_X_ROWS = np.log10(TABLE_T_C + KELVIN_OFFSET_K)
-_W_ROWS = np.log10(np.log10(TABLE_NU_CST + _WALTHER_C))
-_W_SLOPE_FIRST = (_W_ROWS[1] - _W_ROWS[0]) / (_X_ROWS[1] - _X_ROWS[0])
-_W_SLOPE_LAST = (_W_ROWS[-1] - _W_ROWS[-2]) / (_X_ROWS[-1] - _X_ROWS[-2])
-_X_FIRST = float(_X_ROWS[0])
-_X_LAST = float(_X_ROWS[-1])
-
-_PIEZO_SLOPE_FIRST = (TABLE_PIEZO_PER_PA[1] - TABLE_PIEZO_PER_PA[0]) / (TABLE_PIEZO_T_C[1] - TABLE_PIEZO_T_C[0])
-_PIEZO_SLOPE_LAST = (TABLE_PIEZO_PER_PA[-1] - TABLE_PIEZO_PER_PA[-2]) / (TABLE_PIEZO_T_C[-1] - TABLE_PIEZO_T_C[-2])
-_PIEZO_T_FIRST = float(TABLE_PIEZO_T_C[0])
-_PIEZO_T_LAST = float(TABLE_PIEZO_T_C[-1])
 
 # Assumed, typical gear oil (not in the seed's table): k = K0 + K1*T_c, cp = CP0 + CP1*T_c
 K0_W_PER_MK = 0.134
 K1_W_PER_MK2 = -7.0e-5
 CP0_J_PER_KGK = 1880.0
 CP1_J_PER_KGK2 = 3.7
+
+#: a grade's density falls by this share of its 15 degC value per kelvin [1/K] (assumed: mineral gear oils,
+#: 6.3-6.9e-4 /K (ASTM D1250 for 880-920 kg/m3); the seed's table: 6.0e-4)
+GRADE_EXPANSION_PER_K = 6.7e-4
+#: the temperatures of an ISO VG grade's data sheet viscosities [degC]
+GRADE_T_C = (40.0, 100.0)
 
 
 class OilProperties(NamedTuple):
@@ -100,31 +95,6 @@ def _clip_t(T_c):
     return np.clip(T_c, T_MIN_C, T_MAX_C)
 
 
-def _density(Tc):
-    return _RHO_0_KG_M3 + _RHO_SLOPE_KG_M3K * Tc
-
-
-def _kinematic(Tc):
-    x = np.log10(Tc + KELVIN_OFFSET_K)
-    # np.interp holds the end rows; add the end-segment slopes outside the table (linear extrapolation of W)
-    w = (
-        np.interp(x, _X_ROWS, _W_ROWS)
-        + _W_SLOPE_FIRST * np.minimum(x - _X_FIRST, 0.0)
-        + _W_SLOPE_LAST * np.maximum(x - _X_LAST, 0.0)
-    )
-    nu_cst = 10.0 ** (10.0**w) - _WALTHER_C  # always > 0.3 cSt: 10**(10**w) > 1
-    return nu_cst * 1e-6
-
-
-def _piezo(Tc):
-    a = (
-        np.interp(Tc, TABLE_PIEZO_T_C, TABLE_PIEZO_PER_PA)
-        + _PIEZO_SLOPE_FIRST * np.minimum(Tc - _PIEZO_T_FIRST, 0.0)
-        + _PIEZO_SLOPE_LAST * np.maximum(Tc - _PIEZO_T_LAST, 0.0)
-    )
-    return np.maximum(a, PIEZO_FLOOR_PER_PA)
-
-
 def _conductivity(Tc):
     return K0_W_PER_MK + K1_W_PER_MK2 * Tc
 
@@ -133,25 +103,168 @@ def _specific_heat(Tc):
     return CP0_J_PER_KGK + CP1_J_PER_KGK2 * Tc
 
 
+class Oil:
+    """One oil's properties as functions of its temperature: the viscosity by Walther (ASTM D341) through rows
+    (T degC, nu cSt), piecewise linear in W = log10(log10(nu + 0.7)) against log10(T_K) and extended by the end
+    rows' slopes; the density a straight line; the piezo-viscosity coefficient the seed's table times
+    ``piezo_scale``; conductivity and specific heat the assumed typical gear oil's. :data:`SEED_OIL` is the seed's
+    Appendix 2 oil (the GRS905's); :meth:`grade` an oil from its data sheet (a description's ``[oil]``)."""
+
+    def __init__(self, name, visc_T_c, visc_nu_cst, rho_0_kg_m3, rho_slope_kg_m3k, piezo_scale=1.0):
+        self.name = str(name)
+        self.visc_T_c = np.asarray(visc_T_c, dtype=float)
+        self.visc_nu_cst = np.asarray(visc_nu_cst, dtype=float)
+        self.rho_0_kg_m3 = float(rho_0_kg_m3)
+        self.rho_slope_kg_m3k = float(rho_slope_kg_m3k)
+        self.piezo_scale = float(piezo_scale)
+        x = np.log10(self.visc_T_c + KELVIN_OFFSET_K)
+        w = np.log10(np.log10(self.visc_nu_cst + _WALTHER_C))
+        self._x_rows, self._w_rows = x, w
+        self._w_slope_first = (w[1] - w[0]) / (x[1] - x[0])
+        self._w_slope_last = (w[-1] - w[-2]) / (x[-1] - x[-2])
+        self._x_first, self._x_last = float(x[0]), float(x[-1])
+        #: the last few scalar temperatures' properties: a plant step asks for the sump's three times (cooler,
+        #: inlet drop, conductances); the tuple is immutable, so a hit returns the same values bit for bit
+        self._memo: dict = {}
+
+    @classmethod
+    def grade(cls, nu_40_cst: float, nu_100_cst: float, rho_15_kg_m3: float, piezo_40_per_pa: float | None = None):
+        """An oil from its data sheet: the kinematic viscosity at 40 and 100 degC [cSt] (Walther's line through
+        the two: ASTM D341 with two points), the density at 15 degC (falling by GRADE_EXPANSION_PER_K), the
+        piezo-viscosity coefficient at 40 degC (None: the seed oil's; the seed's table's shape scaled to it).
+        InputError when the values are not a plausible oil's."""
+        nu40, nu100, rho15 = float(nu_40_cst), float(nu_100_cst), float(rho_15_kg_m3)
+        if not (math.isfinite(nu40) and math.isfinite(nu100) and 0.0 < nu100 < nu40):
+            raise InputError(
+                f"an oil's viscosity at 40 degC ({nu40:g} mm2/s) must be above its viscosity at 100 degC "
+                f"({nu100:g} mm2/s), both positive"
+            )
+        if not (math.isfinite(rho15) and 600.0 <= rho15 <= 1200.0):
+            raise InputError(f"an oil's density at 15 degC of {rho15:g} kg/m3 is not a plausible oil's (600-1200)")
+        scale = 1.0
+        if piezo_40_per_pa is not None:
+            a40 = float(piezo_40_per_pa)
+            if not (math.isfinite(a40) and 1.0e-9 <= a40 <= 1.0e-7):
+                raise InputError(
+                    f"an oil's piezo-viscosity coefficient of {a40 * 1e9:g} 1/GPa is not a plausible oil's (1-100)"
+                )
+            scale = a40 / float(TABLE_PIEZO_PER_PA[1])
+        slope = -rho15 * GRADE_EXPANSION_PER_K
+        name = f"VG-like oil, {nu40:g} / {nu100:g} mm2/s at 40 / 100 degC"
+        return cls(name, GRADE_T_C, (nu40, nu100), rho15 - 15.0 * slope, slope, scale)
+
+    # --- the properties (each clips T_c to T_MIN_C..T_MAX_C first) ----------------------------------------------
+    def _density(self, Tc):
+        return self.rho_0_kg_m3 + self.rho_slope_kg_m3k * Tc
+
+    def _kinematic(self, Tc):
+        x = np.log10(Tc + KELVIN_OFFSET_K)
+        # np.interp holds the end rows; add the end-segment slopes outside the table (linear extrapolation of W)
+        w = (
+            np.interp(x, self._x_rows, self._w_rows)
+            + self._w_slope_first * np.minimum(x - self._x_first, 0.0)
+            + self._w_slope_last * np.maximum(x - self._x_last, 0.0)
+        )
+        nu_cst = 10.0 ** (10.0**w) - _WALTHER_C  # always > 0.3 cSt: 10**(10**w) > 1
+        return nu_cst * 1e-6
+
+    def _piezo(self, Tc):
+        a = (
+            np.interp(Tc, TABLE_PIEZO_T_C, TABLE_PIEZO_PER_PA)
+            + _PIEZO_SLOPE_FIRST * np.minimum(Tc - _PIEZO_T_FIRST, 0.0)
+            + _PIEZO_SLOPE_LAST * np.maximum(Tc - _PIEZO_T_LAST, 0.0)
+        )
+        if self.piezo_scale != 1.0:
+            a = a * self.piezo_scale
+        return np.maximum(a, PIEZO_FLOOR_PER_PA)
+
+    def density_kg_m3(self, T_c):
+        """Density [kg/m3], a straight line in T."""
+        return self._density(_clip_t(T_c))
+
+    def kinematic_viscosity_m2_s(self, T_c):
+        """Kinematic viscosity [m2/s], Walther/ASTM D341 through the oil's rows."""
+        return self._kinematic(_clip_t(T_c))
+
+    def dynamic_viscosity_pa_s(self, T_c):
+        """Dynamic viscosity [Pa s] = rho * nu (section 2.5)."""
+        Tc = _clip_t(T_c)
+        return self._density(Tc) * self._kinematic(Tc)
+
+    def piezo_viscosity_per_pa(self, T_c):
+        """Barus piezo-viscosity coefficient [1/Pa] (Appendix 2's shape; linear, floored at 1e-9 /Pa)."""
+        return self._piezo(_clip_t(T_c))
+
+    def properties(self, T_c) -> OilProperties:
+        """Every property at once (one clip, one Walther evaluation); for the solver loop."""
+        if type(T_c) in (float, np.float64):
+            hit = self._memo.get(T_c)
+            if hit is None:
+                hit = self._properties(T_c)
+                if len(self._memo) >= _SCALAR_MEMO_SIZE:
+                    self._memo.clear()
+                self._memo[T_c] = hit
+            return hit
+        return self._properties(T_c)
+
+    def _properties(self, T_c) -> OilProperties:
+        Tc = _clip_t(T_c)
+        rho = self._density(Tc)
+        nu = self._kinematic(Tc)
+        k = _conductivity(Tc)
+        cp = _specific_heat(Tc)
+        alpha = k / (rho * cp)
+        return OilProperties(Tc, rho, nu, rho * nu, self._piezo(Tc), k, cp, alpha, nu / alpha)
+
+
+_PIEZO_SLOPE_FIRST = (TABLE_PIEZO_PER_PA[1] - TABLE_PIEZO_PER_PA[0]) / (TABLE_PIEZO_T_C[1] - TABLE_PIEZO_T_C[0])
+_PIEZO_SLOPE_LAST = (TABLE_PIEZO_PER_PA[-1] - TABLE_PIEZO_PER_PA[-2]) / (TABLE_PIEZO_T_C[-1] - TABLE_PIEZO_T_C[-2])
+_PIEZO_T_FIRST = float(TABLE_PIEZO_T_C[0])
+_PIEZO_T_LAST = float(TABLE_PIEZO_T_C[-1])
+_SCALAR_MEMO_SIZE = 8
+
+#: the seed's oil (Appendix 2; the GRS905's, and every description's without an oil of its own)
+SEED_OIL = Oil("the seed's gear oil (Appendix 2)", TABLE_T_C, TABLE_NU_CST, _RHO_0_KG_M3, _RHO_SLOPE_KG_M3K)
+
+#: the [oil] keys of a grade (oil_of): the viscosity at 40 and 100 degC, the density at 15 degC, the piezo-viscosity
+#: coefficient at 40 degC
+GRADE_KEYS = ("oil.nu_40", "oil.nu_100", "oil.rho_15", "oil.piezo_40")
+
+
+def oil_of(p) -> Oil:
+    """The oil of a parameter set ``p`` (anything with ``get(key)``, values in SI): its grade where its [oil] gives
+    one (oil.nu_40 and oil.nu_100 [m2/s], optionally oil.rho_15 [kg/m3] and oil.piezo_40 [1/Pa]), else the seed's.
+    InputError for half a grade."""
+    nu40, nu100, rho15, a40 = (p.get(k) for k in GRADE_KEYS)
+    if nu40 is None and nu100 is None:
+        if rho15 is not None or a40 is not None:
+            raise InputError("oil.rho_15 or oil.piezo_40 needs the viscosity too: give oil.nu_40 and oil.nu_100")
+        return SEED_OIL
+    if nu40 is None or nu100 is None:
+        raise InputError("an oil's grade needs both oil.nu_40 and oil.nu_100 (its viscosity at 40 and 100 degC)")
+    rho = float(SEED_OIL.density_kg_m3(15.0)) if rho15 is None else rho15
+    return Oil.grade(nu40 * 1e6, nu100 * 1e6, rho, a40)
+
+
 def density_kg_m3(T_c):
-    """Oil density [kg/m3] (Appendix 2 table, exactly linear in T)."""
-    return _density(_clip_t(T_c))
+    """The seed oil's density [kg/m3] (Appendix 2 table, exactly linear in T)."""
+    return SEED_OIL.density_kg_m3(T_c)
 
 
 def kinematic_viscosity_m2_s(T_c):
-    """Oil kinematic viscosity [m2/s], Walther/ASTM D341 interpolation of the Appendix 2 table."""
-    return _kinematic(_clip_t(T_c))
+    """The seed oil's kinematic viscosity [m2/s], Walther/ASTM D341 interpolation of the Appendix 2 table."""
+    return SEED_OIL.kinematic_viscosity_m2_s(T_c)
 
 
 def dynamic_viscosity_pa_s(T_c):
-    """Oil dynamic viscosity [Pa s] = rho * nu (section 2.5)."""
-    Tc = _clip_t(T_c)
-    return _density(Tc) * _kinematic(Tc)
+    """The seed oil's dynamic viscosity [Pa s] = rho * nu (section 2.5)."""
+    return SEED_OIL.dynamic_viscosity_pa_s(T_c)
 
 
 def piezo_viscosity_per_pa(T_c):
-    """Barus piezo-viscosity coefficient [1/Pa] (Appendix 2; linear, floored at 1e-9 /Pa outside 20..120 degC)."""
-    return _piezo(_clip_t(T_c))
+    """The seed oil's Barus piezo-viscosity coefficient [1/Pa] (Appendix 2; linear, floored at 1e-9 /Pa outside
+    20..120 degC)."""
+    return SEED_OIL.piezo_viscosity_per_pa(T_c)
 
 
 def thermal_conductivity_w_per_mk(T_c):
@@ -165,41 +278,17 @@ def specific_heat_j_per_kgk(T_c):
 
 
 def thermal_diffusivity_m2_s(T_c):
-    """Oil thermal diffusivity alpha = k / (rho cp) [m2/s] (section 2.5)."""
+    """The seed oil's thermal diffusivity alpha = k / (rho cp) [m2/s] (section 2.5)."""
     Tc = _clip_t(T_c)
-    return _conductivity(Tc) / (_density(Tc) * _specific_heat(Tc))
+    return _conductivity(Tc) / (SEED_OIL._density(Tc) * _specific_heat(Tc))
 
 
 def prandtl(T_c):
-    """Oil Prandtl number Pr = nu / alpha [-] (section 2.5)."""
+    """The seed oil's Prandtl number Pr = nu / alpha [-] (section 2.5)."""
     Tc = _clip_t(T_c)
-    return _kinematic(Tc) * _density(Tc) * _specific_heat(Tc) / _conductivity(Tc)
-
-
-#: the last few scalar temperatures' properties: a plant step asks for the sump's three times (cooler, inlet drop,
-#: conductances); the tuple is immutable, so a hit returns the same values bit for bit
-_SCALAR_MEMO: dict = {}
-_SCALAR_MEMO_SIZE = 8
+    return SEED_OIL._kinematic(Tc) * SEED_OIL._density(Tc) * _specific_heat(Tc) / _conductivity(Tc)
 
 
 def oil_properties(T_c) -> OilProperties:
-    """Every oil property at once (one clip, one Walther evaluation); for the solver loop."""
-    if type(T_c) in (float, np.float64):
-        hit = _SCALAR_MEMO.get(T_c)
-        if hit is None:
-            hit = _oil_properties(T_c)
-            if len(_SCALAR_MEMO) >= _SCALAR_MEMO_SIZE:
-                _SCALAR_MEMO.clear()
-            _SCALAR_MEMO[T_c] = hit
-        return hit
-    return _oil_properties(T_c)
-
-
-def _oil_properties(T_c) -> OilProperties:
-    Tc = _clip_t(T_c)
-    rho = _density(Tc)
-    nu = _kinematic(Tc)
-    k = _conductivity(Tc)
-    cp = _specific_heat(Tc)
-    alpha = k / (rho * cp)
-    return OilProperties(Tc, rho, nu, rho * nu, _piezo(Tc), k, cp, alpha, nu / alpha)
+    """Every property of the seed oil at once (:meth:`Oil.properties`)."""
+    return SEED_OIL.properties(T_c)

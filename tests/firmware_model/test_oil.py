@@ -97,3 +97,71 @@ def test_oil_properties_matches_individual_functions_and_broadcasts():
     np.testing.assert_allclose(p.pr, oil.prandtl(T))
     s = oil.oil_properties(90.0)
     assert float(s.mu_pa_s) == pytest.approx(float(oil.dynamic_viscosity_pa_s(90.0)))
+
+
+# --- an oil from its data sheet (Oil.grade, a description's [oil]) ------------------------------------------------
+
+
+def test_grade_passes_through_its_data_sheet_points_and_is_one_walther_line():
+    g = oil.Oil.grade(320.0, 24.0, 900.0)
+    assert g.kinematic_viscosity_m2_s(40.0) * 1e6 == pytest.approx(320.0, rel=1e-12)
+    assert g.kinematic_viscosity_m2_s(100.0) * 1e6 == pytest.approx(24.0, rel=1e-12)
+    # ASTM D341 by hand: W linear in log10(T_K) through the two points, also outside them
+    x40, x100 = math.log10(313.15), math.log10(373.15)
+    for t in (0.0, 60.0, 140.0):
+        x = math.log10(t + 273.15)
+        w = _walther(320.0) + (_walther(24.0) - _walther(320.0)) * (x - x40) / (x100 - x40)
+        assert g.kinematic_viscosity_m2_s(t) * 1e6 == pytest.approx(10 ** (10**w) - 0.7, rel=1e-10)
+    # a VG 320 is thicker than the seed's oil everywhere in the working range, and falls more steeply
+    T = np.linspace(0.0, 120.0, 13)
+    assert np.all(g.kinematic_viscosity_m2_s(T) > oil.kinematic_viscosity_m2_s(T))
+    assert g.density_kg_m3(15.0) == pytest.approx(900.0, rel=1e-12)
+    assert g.density_kg_m3(115.0) == pytest.approx(900.0 * (1.0 - 100.0 * oil.GRADE_EXPANSION_PER_K), rel=1e-12)
+
+
+def test_grade_piezo_is_the_seed_shape_scaled():
+    g = oil.Oil.grade(320.0, 24.0, 900.0, 25.0e-9)
+    assert g.piezo_viscosity_per_pa(40.0) == pytest.approx(25.0e-9, rel=1e-12)
+    assert g.piezo_viscosity_per_pa(80.0) == pytest.approx(16.9e-9 * 25.0 / 21.6, rel=1e-12)
+    # beyond the clip (200 degC) the seed's extrapolation, scaled, never under the floor
+    assert g.piezo_viscosity_per_pa(400.0) == pytest.approx(oil.piezo_viscosity_per_pa(200.0) * 25.0 / 21.6, rel=1e-12)
+    assert g.piezo_viscosity_per_pa(400.0) >= oil.PIEZO_FLOOR_PER_PA
+    assert oil.Oil.grade(320.0, 24.0, 900.0).piezo_viscosity_per_pa(40.0) == oil.piezo_viscosity_per_pa(40.0)
+
+
+@pytest.mark.parametrize(
+    "args, words",
+    [
+        ((24.0, 320.0, 900.0), "above its viscosity at 100 degC"),
+        ((320.0, float("nan"), 900.0), "above its viscosity at 100 degC"),
+        ((320.0, 0.0, 900.0), "both positive"),
+        ((320.0, 24.0, 9.0), "density at 15 degC"),
+        ((320.0, 24.0, 900.0, 25.0), "piezo-viscosity"),
+    ],
+)
+def test_grade_refuses_values_no_oil_has(args, words):
+    with pytest.raises(oil.InputError, match=words):
+        oil.Oil.grade(*args)
+
+
+def test_oil_of_a_parameter_set():
+    assert oil.oil_of({}) is oil.SEED_OIL
+    g = oil.oil_of({"oil.nu_40": 220e-6, "oil.nu_100": 19e-6})
+    assert g.kinematic_viscosity_m2_s(40.0) == pytest.approx(220e-6, rel=1e-12)
+    assert g.density_kg_m3(15.0) == pytest.approx(float(oil.density_kg_m3(15.0)), rel=1e-12)  # the seed's density
+    with pytest.raises(oil.InputError, match="both oil.nu_40 and oil.nu_100"):
+        oil.oil_of({"oil.nu_40": 220e-6})
+    with pytest.raises(oil.InputError, match="needs the viscosity too"):
+        oil.oil_of({"oil.rho_15": 880.0})
+
+
+def test_seed_oil_functions_are_the_seed_oils_properties_bit_for_bit():
+    T = np.linspace(-50.0, 210.0, 53)
+    p = oil.SEED_OIL.properties(T)
+    for name, fn in (
+        ("rho_kg_m3", oil.density_kg_m3),
+        ("nu_m2_s", oil.kinematic_viscosity_m2_s),
+        ("mu_pa_s", oil.dynamic_viscosity_pa_s),
+        ("piezo_per_pa", oil.piezo_viscosity_per_pa),
+    ):
+        np.testing.assert_array_equal(getattr(p, name), fn(T), err_msg=name)

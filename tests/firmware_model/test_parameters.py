@@ -3,6 +3,7 @@
 import math
 import re
 
+import numpy as np
 import pytest
 
 from firmware_model.errors import InputError, ParameterError
@@ -214,3 +215,33 @@ def test_a_file_that_inherits_may_add_skf_s_rolling_term_of_a_kind(tmp_path):
         build_reduced(load_parameters(file_with('R1_ball = { v = 1e-6, u = "-", src = "assumed" }')))
     with pytest.raises(ParameterError, match="unknown parameter bearing.R1x_tapered"):
         load_parameters(file_with('R1x_tapered = { v = 1e-6, u = "-", src = "assumed" }'))
+
+
+def test_a_description_s_oil_reaches_the_plant_and_the_onboard_tables(tmp_path):
+    """[oil] nu_40 and nu_100 (and rho_15, piezo_40) give a gearbox its own oil (physics.oil.Oil.grade); absent, the
+    seed's: the onboard tables' viscosity row and the plant's bearing losses follow it; half a grade, a unit of
+    another dimension or a viscosity that rises with temperature is refused in one sentence."""
+    from firmware_model.onboard.evaluate import T_GRID_C
+    from firmware_model.onboard.reduce import P_LN_NU_CST, build_reduced
+    from firmware_model.physics.gearbox_losses import GearboxLosses
+
+    def file_with(lines: str):
+        f = tmp_path / "own.toml"
+        f.write_text(f'[meta]\ninherit = "GRS905"\n[oil]\n{lines}\n')
+        return f
+
+    vg320 = 'nu_40 = { v = 320, u = "mm2/s", src = "assumed" }\nnu_100 = { v = 24, u = "cSt", src = "assumed" }'
+    p, seed = load_parameters(file_with(vg320)), load_parameters("GRS905")
+    assert p["oil.nu_40"] == pytest.approx(320e-6, rel=1e-12)
+    i40 = int(np.flatnonzero(T_GRID_C == 40.0)[0])
+    assert math.exp(build_reduced(p).prop[i40, P_LN_NU_CST]) == pytest.approx(320.0, rel=1e-9)
+    assert math.exp(build_reduced(seed).prop[i40, P_LN_NU_CST]) == pytest.approx(115.0, rel=1e-9)
+    own, base = (GearboxLosses(x).evaluate(150.0, 800.0, 12, 60.0) for x in (p, seed))
+    bearings = [k for k in own if k.startswith("bearing:")]
+    assert bearings and all(own[k][0] > base[k][0] for k in bearings)  # the thicker oil's drag
+    with pytest.raises(ParameterError, match="needs both oil.nu_40 and oil.nu_100"):
+        load_parameters(file_with('nu_40 = { v = 320, u = "mm2/s", src = "assumed" }'))
+    with pytest.raises(ParameterError, match=r"oil.nu_40 has unit 'm' \(a length\) but the key is a kinematic"):
+        load_parameters(file_with(vg320.replace('"mm2/s"', '"m"')))
+    with pytest.raises(ParameterError, match="above its viscosity at 100 degC"):
+        load_parameters(file_with(vg320.replace("v = 320", "v = 20")))

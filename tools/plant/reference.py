@@ -282,7 +282,7 @@ class ReferencePlant:
         """The cooler's heat and slope of :meth:`cooler_heat`, without the heater."""
         if self.kind not in ("liquid", "air"):
             return 0.0, 0.0
-        op = oilprops.oil_properties(T_oil)
+        op = self.ev.oil.properties(T_oil)
         mdot_kg_s = self.ev.oil_mass_flow_kg_s(w_ls, op.rho_kg_m3)
         if mdot_kg_s <= 0:
             return 0.0, 0.0
@@ -622,7 +622,7 @@ class ReferencePlant:
         far below the sump at ``T_oil_c``; 0 without a modelled cooler, its heat or an oil flow."""
         if kind not in ("liquid", "air") or q0 == 0.0:
             return 0.0
-        op = oilprops.oil_properties(T_oil_c)
+        op = self.ev.oil.properties(T_oil_c)
         mdot = self.ev.oil_mass_flow_kg_s(self._pump_speed(omega), op.rho_kg_m3)
         return float(inlet_drop_k(q0, mdot * op.cp_j_per_kgk)) if mdot > 0 else 0.0
 
