@@ -17,10 +17,11 @@ from tools.drive_table import map_fixed_ratio
 from tools.runtable import RunTable
 
 #: the largest |coarse - 0.1 s| of a published component or of the modelled sump on 12 hours of the MM82's synthetic
-#: 10-minute rows with the sump measured or modelled: measured 0.046 K (P1) at 15 s (0.031 K at 10 s, 0.015 K at 5 s;
-#: benchmarks/bench_held_month.py --sensor gives the month's); explicit Euler's error is first order in the step, so
-#: the bound is that figure with the margin of one J1939 temperature bit (0.03125 K), not a tolerance chosen to pass
-COARSE_BOUND_K = 0.046 + 0.03125
+#: 10-minute rows with the sump measured or modelled: measured 0.043 K (P1, P2) at 15 s (0.029 K at 10 s, 0.014 K at
+#: 5 s; 0.046 K with the seed's oil before 2026-12-06; benchmarks/bench_held_month.py --sensor gives the month's);
+#: explicit Euler's error is first order in the step, so the bound is that figure with the margin of one J1939
+#: temperature bit (0.03125 K), not a tolerance chosen to pass
+COARSE_BOUND_K = 0.043 + 0.03125
 #: the synthetic SCADA rows' period [s]
 ROW_S = 600.0
 #: the MM82's held step: the largest multiple of 0.1 s under its proof (P2: 15.7 s) that divides 600 s
@@ -116,11 +117,12 @@ def test_the_coarse_step_equals_the_reference_step_within_a_measured_bound(mm82,
 def test_a_thermostat_at_the_sump_in_a_cold_nacelle_holds_the_coarse_step(mm82):
     """The MM82's thermostat reads the sump: its opening is steepest with the coldest air (the proof takes the cooler
     as a conductance of at most hA, the opening a coefficient: docs/sensor.md, "Stability proof"). A day of rows
-    with the nacelle at -21..-5 degC, the sump modelled: after the first hour (a cold start's -7 degC oil under
-    load, whose first rows differ by 0.2 K at 15 s with either thermostat) every published component and the sump at
-    15 s within COARSE_BOUND_K of the 0.1 s replay (measured 0.030 K; the thermostat at the return the same, where
-    the valve is shut), while the sump sits in the thermostat's band on most rows: no chatter of the valve between
-    steps."""
+    with the nacelle at -21..-5 degC, the sump modelled: after the first two hours (a cold start's -7 degC VG 320
+    under load: the sump reaches 13 degC in the first hour, where the 15 s step differs from the 0.1 s one by up to
+    1.5 K at bearing 1 as its heat falls steeply with the oil's viscosity, and by half that at 7.5 s: the step's
+    first-order error, not a bug's; 0.12 K in the second hour) every published component and the sump at 15 s within
+    COARSE_BOUND_K of the 0.1 s replay (measured 0.033 K; with the seed's oil, before 2026-12-06, 0.030 K after the
+    first hour), while the sump sits in the thermostat's band on most rows: no chatter of the valve between steps."""
     from tools.replay.table import held_options, replay_table
 
     assert description_of(mm82).oil.thermostat_senses == "sump"
@@ -129,10 +131,14 @@ def test_a_thermostat_at_the_sump_in_a_cold_nacelle_holds_the_coarse_step(mm82):
     s = _sensor(mm82, oil_mode="model", **held_options(table))
     coarse, ref = replay_table(table, s), replay_table(table, s, step_s=0.1)
     assert coarse.meta["step_s"] == MM82_STEP_S
-    later = slice(6, None)
+    start, later = slice(0, 12), slice(12, None)
     cols = [f"T_{c}_c" for c in s.published] + ["model_oil_temp_c"]
     worst = max(float(np.max(np.abs(coarse[c][later] - ref[c][later]))) for c in cols)
     assert worst <= COARSE_BOUND_K, worst
+    half = replay_table(table, s, step_s=MM82_STEP_S / 2)
+    e_full = max(float(np.max(np.abs(coarse[c][start] - ref[c][start]))) for c in cols)
+    e_half = max(float(np.max(np.abs(half[c][start] - ref[c][start]))) for c in cols)
+    assert e_full < 2.0 and 1.5 <= e_full / e_half <= 2.5, (e_full, e_half)  # the cold start: first order
     sump = ref["model_oil_temp_c"][later]
     assert np.mean((sump >= 55.0) & (sump <= 60.0)) > 0.5  # the valve regulates: the steep ramp is exercised
     assert np.max(table["ambient_temp_c"]) < -4.0
