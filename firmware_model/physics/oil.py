@@ -73,6 +73,8 @@ CP1_J_PER_KGK2 = 3.7
 #: a grade's density falls by this share of its 15 degC value per kelvin [1/K] (assumed: mineral gear oils,
 #: 6.3-6.9e-4 /K (ASTM D1250 for 880-920 kg/m3); the seed's table: 6.0e-4)
 GRADE_EXPANSION_PER_K = 6.7e-4
+#: the ISO 3448 viscosity grades: the mid-point of each grade's +-10 % band at 40 degC [mm2/s]
+ISO_VG = (2, 3, 5, 7, 10, 15, 22, 32, 46, 68, 100, 150, 220, 320, 460, 680, 1000, 1500, 2200, 3200)
 #: the temperatures of an ISO VG grade's data sheet viscosities [degC]
 GRADE_T_C = (40.0, 100.0)
 
@@ -150,7 +152,8 @@ class Oil:
                 )
             scale = a40 / float(TABLE_PIEZO_PER_PA[1])
         slope = -rho15 * GRADE_EXPANSION_PER_K
-        name = f"VG-like oil, {nu40:g} / {nu100:g} mm2/s at 40 / 100 degC"
+        vg = next((g for g in ISO_VG if abs(nu40 - g) <= 0.1 * g), None)
+        name = f"ISO VG {vg:g} (its data sheet)" if vg else f"an oil of {nu40:g} mm2/s at 40 degC (its data sheet)"
         return cls(name, GRADE_T_C, (nu40, nu100), rho15 - 15.0 * slope, slope, scale)
 
     # --- the properties (each clips T_c to T_MIN_C..T_MAX_C first) ----------------------------------------------

@@ -188,8 +188,11 @@ def test_describe_prints_the_summary(capsys):
     assert "    9 4L: ratio 3.03361 (stated 3.034); path LI/IS L 1 1M/MS range/locked" in out
     assert "oil system: splash lubrication, 13.5 L, pump on LS reaching 21 parts" in out
     assert "thermostatic bypass opens at 80 degC" in out and "PS 130/150" in out and ", no heater" in out
+    assert "  oil: the seed's gear oil (Appendix 2): 115 / 49.9 / 15.2 mm2/s at 40 / 60 / 100 degC" in out
     assert main(["describe", "--gearbox", "MM82"]) == 0
-    assert "heater 3000 W below 22.3 degC (all of it below 17.3)" in capsys.readouterr().out
+    out = capsys.readouterr().out
+    assert "heater 3000 W below 22.3 degC (all of it below 17.3)" in out
+    assert "  oil: ISO VG 320 (its data sheet): 320 / 108 / 24 mm2/s at 40 / 60 / 100 degC" in out
     assert main(["describe", "--gearbox", "GRSO905"]) == 0
     assert "   14 6H: ratio 0.807563 (stated 0.8076); path LI/IS L 3 3M/MS range/locked" in capsys.readouterr().out
 

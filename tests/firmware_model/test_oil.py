@@ -116,6 +116,7 @@ def test_grade_passes_through_its_data_sheet_points_and_is_one_walther_line():
     T = np.linspace(0.0, 120.0, 13)
     assert np.all(g.kinematic_viscosity_m2_s(T) > oil.kinematic_viscosity_m2_s(T))
     assert g.density_kg_m3(15.0) == pytest.approx(900.0, rel=1e-12)
+    assert g.name == "ISO VG 320 (its data sheet)" and "250 mm2/s" in oil.Oil.grade(250.0, 20.0, 900.0).name
     assert g.density_kg_m3(115.0) == pytest.approx(900.0 * (1.0 - 100.0 * oil.GRADE_EXPANSION_PER_K), rel=1e-12)
 
 

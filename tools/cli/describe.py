@@ -183,6 +183,18 @@ def _exercise(p) -> None:
     VirtualSensor(p)
 
 
+def oil_line(params) -> str:
+    """The oil the plant and the sensor take: its [oil] grade or the seed's, with its viscosity and density."""
+    from firmware_model.physics.oil import oil_of
+
+    oil = oil_of(params)
+    nu = [float(oil.kinematic_viscosity_m2_s(t)) * 1e6 for t in (40.0, 60.0, 100.0)]
+    return (
+        f"  oil: {oil.name}: {nu[0]:.3g} / {nu[1]:.3g} / {nu[2]:.3g} mm2/s at 40 / 60 / 100 degC, "
+        f"{float(oil.density_kg_m3(40.0)):.0f} kg/m3 at 40 degC"
+    )
+
+
 def run(args) -> int:
     from pathlib import Path
 
@@ -202,7 +214,9 @@ def run(args) -> int:
             f"parameters the file lacks: {', '.join(missing)} (the GRS905's, with their notes and provenance, are in "
             "firmware_model/params/GRS905.toml: copy them with values for this gearbox)"
         )
-    print("\n".join(summary(d)))
+    lines = summary(d)
+    at = next((i + 1 for i, x in enumerate(lines) if x.startswith("  splashed:")), len(lines))
+    print("\n".join(lines[:at] + [oil_line(params)] + lines[at:]))
     for note in limit_notes(d):  # plausible but suspect: on stderr, as the other commands' notes
         print(f"note: {note}", file=sys.stderr)
     return 0
