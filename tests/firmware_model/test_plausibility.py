@@ -123,8 +123,8 @@ def test_torque_in_kn_m_is_found_a_coast_and_a_reducer_are_not():
 def test_a_fixed_ratio_drive_s_torque_in_kn_m_is_found_and_its_idle_drag_is_not():
     """The MM82's rotor torque written in kN m (a median of 650 where 650 kN m is meant) replayed 37 K cool with
     exit 0; the rule judges where the shaft turns fast, against the drive's own max torque. A motor's reducer
-    idling at its drag (HR225: 3.9 N m at 1485 rpm, the reference plant's loss at 0 N m) and a short record are no
-    such mistake, and neither is an input with no torque at all."""
+    idling at its drag (HR225: 3.3 N m at 1485 rpm after a day in 20 degC air, the reference plant's loss at 0 N m;
+    3.9 N m here) and a short record are no such mistake, and neither is an input with no torque at all."""
     from firmware_model.service.plausibility import fixed_torque_knm_finding, record_findings
 
     rng = np.random.default_rng(3)
