@@ -5,8 +5,8 @@ until 2026-12-06 (the same file without the oil keys, so the seed's truck oil, w
 then: BEFORE) over each turbine's rows of a period, the oil measured, in the same run; prints per turbine and bearing
 the RMS of estimate - measured [K] and its mean over the rows of three regimes: under load with a warm sump (P > 100
 kW, sump >= 54 degC: each turbine's own offset), under load with a cold sump (P > 100 kW, sump < 50 degC) and their
-difference (the cold sump's excess beyond the offset), and at low power (0 < P <= 100 kW). Turbines other than those
-given are not read.
+difference (the cold sump's excess beyond the offset), and at low power (0 < P <= 100 kW); then mean / RMS per
+power bin (all | <=10 | 10-250 | 250-750 | 750-1500 | >1500 kW). Turbines other than those given are not read.
 
     python benchmarks/bench_mm82_oil.py DATA_DIR [--units R80736,R80790,R80721] [--period 2017-2020]
 """
@@ -23,6 +23,8 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
+
+from bench_mm82_thermostat import by_bin  # noqa: E402
 
 from firmware_model.config import load_config  # noqa: E402
 from tools.cli.gearbox_option import with_gearbox  # noqa: E402
@@ -86,6 +88,7 @@ def main() -> int:
                 for ch in ("Gb1t_avg", "Gb2t_avg"):
                     est, meas = np.asarray(t[f"est_{ch}"], dtype=float), np.asarray(t[ch], dtype=float)
                     print(f"{unit} {ch} {name:20s} {regimes(est, meas, power_kw, sump_c)}", flush=True)
+                    print(f"{'':15s} {'by power':20s} {by_bin(est, meas, power_kw)}")
     return 0
 
 

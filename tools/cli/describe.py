@@ -190,7 +190,7 @@ def oil_line(params) -> str:
     oil = oil_of(params)
     nu = [float(oil.kinematic_viscosity_m2_s(t)) * 1e6 for t in (40.0, 60.0, 100.0)]
     return (
-        f"  oil: {oil.name}: {nu[0]:.3g} / {nu[1]:.3g} / {nu[2]:.3g} mm2/s at 40 / 60 / 100 degC, "
+        f"  oil: {oil.name}: {nu[0]:.4g} / {nu[1]:.3g} / {nu[2]:.3g} mm2/s at 40 / 60 / 100 degC, "
         f"{float(oil.density_kg_m3(40.0)):.0f} kg/m3 at 40 degC"
     )
 
