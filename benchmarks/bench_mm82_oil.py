@@ -27,21 +27,20 @@ sys.path.insert(0, str(ROOT))
 from bench_mm82_thermostat import by_bin  # noqa: E402
 
 from firmware_model.config import load_config  # noqa: E402
+from firmware_model.physics.oil import GRADE_KEYS  # noqa: E402
 from tools.cli.gearbox_option import with_gearbox  # noqa: E402
 from tools.scada.reader import read_units  # noqa: E402
 from tools.scada.replay import ESTIMATES_ONLY, replay_record  # noqa: E402
 
 #: the bearing factors the MM82 shipped with on the seed's oil (until 2026-12-06; each one's note in MM82.toml)
 BEFORE = {"f0_tapered": 6.88, "f1_tapered": 0.00019, "f0_cylindrical": 2.2, "R1_cylindrical": 5.33e-7}
-#: the oil keys the copy leaves out (physics.oil.GRADE_KEYS, the [oil] section's)
-OIL_KEYS = ("nu_40", "nu_100", "rho_15", "piezo_40")
 WARM_C, COLD_C, LOAD_KW, LOW_KW = 54.0, 50.0, 100.0, 100.0
 
 
 def seed_oil_copy(folder: Path) -> Path:
     """The shipped MM82.toml without its oil grade and with the BEFORE bearing factors."""
     text = (ROOT / "firmware_model" / "params" / "MM82.toml").read_text()
-    for key in OIL_KEYS:
+    for key in (k.split(".", 1)[1] for k in GRADE_KEYS):  # the [oil] grade's keys: left out
         text, n = re.subn(rf"^{key} = \{{[^\n]*\n", "", text, flags=re.M)
         if n != 1:
             raise SystemExit(f"MM82.toml: no single oil.{key} line to leave out")

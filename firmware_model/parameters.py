@@ -38,7 +38,7 @@ from pathlib import Path
 
 from firmware_model.errors import InputError, ParameterError
 from firmware_model.physics.kinematics import KinematicTable, Teeth, build_table
-from firmware_model.physics.oil import oil_of
+from firmware_model.physics.oil import GRADE_KEYS, oil_of
 from firmware_model.units import L_PER_M3, RAD_S_PER_RPM, S_PER_MIN
 
 try:
@@ -501,7 +501,7 @@ PER_KIND = (
 OPTIONAL_PER_KIND = (("bearing.R1_*", "bearing.f2"),)
 #: optional parameters no shipped reference file has, with the unit their dimension is checked against: an oil's
 #: grade (physics.oil.oil_of; absent: the seed's oil)
-OPTIONAL_KEYS = {"oil.nu_40": "mm2/s", "oil.nu_100": "mm2/s", "oil.rho_15": "kg/m3", "oil.piezo_40": "1/GPa"}
+OPTIONAL_KEYS = dict(zip(GRADE_KEYS, ("mm2/s", "mm2/s", "kg/m3", "1/GPa")))
 #: what a file with its own [topology] must hold: the physics every network needs (the per-kind ones its
 #: description implies are named by the network when missing)
 REQUIRED_GENERIC = (
