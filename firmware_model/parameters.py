@@ -748,7 +748,9 @@ def load_parameters(variant_or_path: str | Path = "GRS905") -> Parameters:
             sources[key] = src
             continue
         if u not in UNITS:
-            raise ParameterError(f"{path.name}: {key} has unit {u!r}, which is not one of {sorted(UNITS)}")
+            raise ParameterError(f"{path.name}: {key} has unit {u!r}, {_unit_hint(key)}")
+        if isinstance(e["v"], bool):  # TOML's true / false: float() would read them as 1 and 0
+            raise ParameterError(f"{path.name}: {key} = {str(e['v']).lower()} is true or false, not a number")
         dim, fac = UNITS[u]
         try:
             v = float(e["v"]) * fac
@@ -856,6 +858,17 @@ def _sign_rule(key: str, v: float, dim: str) -> str | None:
     if any(fnmatch.fnmatchcase(key, pat) for pat in ZERO_ALLOWED):
         return None if v == 0 else "must not be negative"
     return "must be greater than zero"
+
+
+def _unit_hint(key: str) -> str:
+    """The end of the sentence refusing an unknown unit of ``key``: the units of its dimension where the key is
+    known (a shipped file's or an optional one), else every unit."""
+    ref = OPTIONAL_KEYS.get(key) or (_reference_entries().get(key) or {}).get("u")
+    if ref not in UNITS:
+        return f"which is not one of {sorted(UNITS)}"
+    dim = UNITS[ref][0]
+    same = " or ".join(f'u = "{x}"' for x, (d, _) in UNITS.items() if d == dim)
+    return f"which is not a unit this program knows: the key is {DIM_NAMES.get(dim, dim)}, write it with {same}"
 
 
 def _check_values(p: Parameters, written: dict | None = None):

@@ -4,9 +4,11 @@ Every function takes a float or a numpy array ``T_c`` and broadcasts. The input 
 ``T_MIN_C .. T_MAX_C`` (-40..200 degC) before any property is evaluated, so a wild sensor value cannot
 produce NaN or a negative viscosity inside the solver loop.
 
-Density, viscosity and the piezo-viscosity coefficient come from the seed's Appendix 2 table (Walther / ASTM D341
-between the viscosity rows), conductivity and specific heat are assumed: docs/physics.md, "Oil properties", says
-where each property comes from and how it is extended beyond the table.
+Each gearbox has its oil (:class:`Oil`): the seed's Appendix 2 oil (:data:`SEED_OIL`: density, viscosity and the
+piezo-viscosity coefficient from its table, Walther / ASTM D341 between the viscosity rows), or an oil from its data
+sheet (:meth:`Oil.grade`, a description's ``[oil]``: :func:`oil_of`); conductivity and specific heat are assumed.
+The module-level functions below are the seed oil's. docs/physics.md, "Oil properties", says where each property
+comes from, how it is extended beyond its data, and where an oil stops being described.
 """
 
 from __future__ import annotations
@@ -70,13 +72,28 @@ K1_W_PER_MK2 = -7.0e-5
 CP0_J_PER_KGK = 1880.0
 CP1_J_PER_KGK2 = 3.7
 
-#: a grade's density falls by this share of its 15 degC value per kelvin [1/K] (assumed: mineral gear oils,
-#: 6.3-6.9e-4 /K (ASTM D1250 for 880-920 kg/m3); the seed's table: 6.0e-4)
-GRADE_EXPANSION_PER_K = 6.7e-4
+#: a grade's density falls by this much per kelvin from its 15 degC value [kg/m3/K] (ASTM D1250 / API MPMS 11.1,
+#: table 54D, lubricating oils: the thermal expansion coefficient at 15 degC is K1 / rho_15 with K1 = 0.6278 kg/(m3 K),
+#: 6.8-7.1e-4 /K for 880-920 kg/m3, so rho_15 alpha_15 = K1 whatever the density; the standard's exponential form
+#: linearised at 15 degC, within 0.1 % of it to 100 degC. The seed's table: 0.5268)
+GRADE_DENSITY_SLOPE_KG_M3K = -0.6278
 #: the ISO 3448 viscosity grades: the mid-point of each grade's +-10 % band at 40 degC [mm2/s]
 ISO_VG = (2, 3, 5, 7, 10, 15, 22, 32, 46, 68, 100, 150, 220, 320, 460, 680, 1000, 1500, 2200, 3200)
 #: the temperatures of an ISO VG grade's data sheet viscosities [degC]
 GRADE_T_C = (40.0, 100.0)
+#: the dynamic viscosity at a gear oil's coldest temperature of use [Pa s] (SAE J306: a gear lubricant's winter grade
+#: is the temperature it reaches 150 Pa s at); colder, the loss laws run on an oil that no longer flows to the
+#: bearings and meshes as they assume
+COLDEST_USE_MU_PA_S = 150.0
+#: a grade's viscosity at 40 degC: from ISO VG 2's lower to ISO VG 3200's upper tolerance (ISO 3448, +-10 %) [mm2/s]
+GRADE_NU_40_CST = (1.98, 3520.0)
+#: the least viscosity Walther's equation with its constant 0.7 holds at (ASTM D341: 2 cSt) [mm2/s]: a grade's at
+#: 100 degC
+GRADE_NU_100_MIN_CST = 2.0
+#: a grade's ASTM D341 slope, -dW/dlog10(T_K) between 40 and 100 degC: mineral gear oils of viscosity index 0-100
+#: about 3.3-4.2, PAO and other synthetics 2.2-3.0, the highest-index polyglycols about 2 (derived from data sheets
+#: through Walther); outside 1.5-5 the two points are not one oil's
+GRADE_SLOPE = (1.5, 5.0)
 
 
 class OilProperties(NamedTuple):
@@ -132,7 +149,7 @@ class Oil:
     @classmethod
     def grade(cls, nu_40_cst: float, nu_100_cst: float, rho_15_kg_m3: float, piezo_40_per_pa: float | None = None):
         """An oil from its data sheet: the kinematic viscosity at 40 and 100 degC [cSt] (Walther's line through
-        the two: ASTM D341 with two points), the density at 15 degC (falling by GRADE_EXPANSION_PER_K), the
+        the two: ASTM D341 with two points), the density at 15 degC (falling by GRADE_DENSITY_SLOPE_KG_M3K), the
         piezo-viscosity coefficient at 40 degC (None: the seed oil's; the seed's table's shape scaled to it).
         InputError when the values are not a plausible oil's."""
         nu40, nu100, rho15 = float(nu_40_cst), float(nu_100_cst), float(rho_15_kg_m3)
@@ -141,6 +158,7 @@ class Oil:
                 f"an oil's viscosity at 40 degC ({nu40:g} mm2/s) must be above its viscosity at 100 degC "
                 f"({nu100:g} mm2/s), both positive"
             )
+        _check_grade_viscosity(nu40, nu100)
         if not (math.isfinite(rho15) and 600.0 <= rho15 <= 1200.0):
             raise InputError(f"an oil's density at 15 degC of {rho15:g} kg/m3 is not a plausible oil's (600-1200)")
         scale = 1.0
@@ -151,10 +169,24 @@ class Oil:
                     f"an oil's piezo-viscosity coefficient of {a40 * 1e9:g} 1/GPa is not a plausible oil's (1-100)"
                 )
             scale = a40 / float(TABLE_PIEZO_PER_PA[1])
-        slope = -rho15 * GRADE_EXPANSION_PER_K
+        slope = GRADE_DENSITY_SLOPE_KG_M3K
         vg = next((g for g in ISO_VG if abs(nu40 - g) <= 0.1 * g), None)
         name = f"ISO VG {vg:g} (its data sheet)" if vg else f"an oil of {nu40:g} mm2/s at 40 degC (its data sheet)"
         return cls(name, GRADE_T_C, (nu40, nu100), rho15 - 15.0 * slope, slope, scale)
+
+    def temperature_at_mu_c(self, mu_pa_s: float) -> float:
+        """The temperature [degC] at which the oil's dynamic viscosity is ``mu_pa_s``, within T_MIN_C..T_MAX_C
+        (an end where the oil is thinner or thicker than that over the whole range): bisection, the viscosity
+        falls with temperature."""
+        lo, hi = T_MIN_C, T_MAX_C
+        if self.dynamic_viscosity_pa_s(lo) <= mu_pa_s:
+            return lo
+        if self.dynamic_viscosity_pa_s(hi) >= mu_pa_s:
+            return hi
+        for _ in range(60):
+            mid = 0.5 * (lo + hi)
+            lo, hi = (mid, hi) if self.dynamic_viscosity_pa_s(mid) > mu_pa_s else (lo, mid)
+        return 0.5 * (lo + hi)
 
     # --- the properties (each clips T_c to T_MIN_C..T_MAX_C first) ----------------------------------------------
     def _density(self, Tc):
@@ -177,8 +209,8 @@ class Oil:
             + _PIEZO_SLOPE_FIRST * np.minimum(Tc - _PIEZO_T_FIRST, 0.0)
             + _PIEZO_SLOPE_LAST * np.maximum(Tc - _PIEZO_T_LAST, 0.0)
         )
-        if self.piezo_scale != 1.0:
-            a = a * self.piezo_scale
+        if self.piezo_scale != 1.0:  # the floor scaled too: the seed's shape throughout, positive
+            return np.maximum(a * self.piezo_scale, PIEZO_FLOOR_PER_PA * self.piezo_scale)
         return np.maximum(a, PIEZO_FLOOR_PER_PA)
 
     def density_kg_m3(self, T_c):
@@ -218,6 +250,36 @@ class Oil:
         cp = _specific_heat(Tc)
         alpha = k / (rho * cp)
         return OilProperties(Tc, rho, nu, rho * nu, self._piezo(Tc), k, cp, alpha, nu / alpha)
+
+
+def walther_slope(nu_a_cst: float, T_a_c: float, nu_b_cst: float, T_b_c: float) -> float:
+    """ASTM D341's slope between two (T degC, nu cSt) points: -dW/dlog10(T_K), W = log10(log10(nu + 0.7))."""
+    w_a, w_b = (math.log10(math.log10(n + _WALTHER_C)) for n in (nu_a_cst, nu_b_cst))
+    return (w_a - w_b) / (math.log10(T_b_c + KELVIN_OFFSET_K) - math.log10(T_a_c + KELVIN_OFFSET_K))
+
+
+def _check_grade_viscosity(nu40: float, nu100: float) -> None:
+    """InputError when a data sheet's two viscosities [mm2/s] are not one oil's: 40 degC outside the ISO 3448
+    grades (most often a unit slip), 100 degC under Walther's range, or a fall between them no oil has."""
+    lo, hi = GRADE_NU_40_CST
+    if not lo <= nu40 <= hi:
+        raise InputError(
+            f"an oil's viscosity at 40 degC of {nu40:g} mm2/s is outside the ISO 3448 grades ({lo:g}-{hi:g} mm2/s, "
+            "VG 2 to VG 3200 with their tolerance): check the value and its unit"
+        )
+    if nu100 < GRADE_NU_100_MIN_CST:
+        raise InputError(
+            f"an oil's viscosity at 100 degC of {nu100:g} mm2/s is under the {GRADE_NU_100_MIN_CST:g} mm2/s down to "
+            "which Walther's equation (ASTM D341) describes it: check the value and its unit"
+        )
+    b = walther_slope(nu40, GRADE_T_C[0], nu100, GRADE_T_C[1])
+    if not GRADE_SLOPE[0] <= b <= GRADE_SLOPE[1]:
+        how = "less" if b < GRADE_SLOPE[0] else "more"
+        raise InputError(
+            f"an oil of {nu40:g} mm2/s at 40 degC and {nu100:g} mm2/s at 100 degC thins {how} with temperature than "
+            f"any oil does (ASTM D341 slope {b:.2f}; mineral and synthetic oils "
+            f"{GRADE_SLOPE[0]:g}-{GRADE_SLOPE[1]:g}): check both values"
+        )
 
 
 _PIEZO_SLOPE_FIRST = (TABLE_PIEZO_PER_PA[1] - TABLE_PIEZO_PER_PA[0]) / (TABLE_PIEZO_T_C[1] - TABLE_PIEZO_T_C[0])

@@ -117,7 +117,14 @@ def test_grade_passes_through_its_data_sheet_points_and_is_one_walther_line():
     assert np.all(g.kinematic_viscosity_m2_s(T) > oil.kinematic_viscosity_m2_s(T))
     assert g.density_kg_m3(15.0) == pytest.approx(900.0, rel=1e-12)
     assert g.name == "ISO VG 320 (its data sheet)" and "250 mm2/s" in oil.Oil.grade(250.0, 20.0, 900.0).name
-    assert g.density_kg_m3(115.0) == pytest.approx(900.0 * (1.0 - 100.0 * oil.GRADE_EXPANSION_PER_K), rel=1e-12)
+    # ASTM D1250 table 54D: alpha_15 = 0.6278 / rho_15, the slope the same for every density
+    for rho15 in (860.0, 900.0, 940.0):
+        d = oil.Oil.grade(320.0, 24.0, rho15)
+        alpha15 = -(d.density_kg_m3(16.0) - d.density_kg_m3(14.0)) / 2.0 / rho15
+        assert alpha15 == pytest.approx(0.6278 / rho15, rel=1e-9)
+    # within 0.15 % of the standard's exponential form, rho_15 exp(-a dT (1 + 0.8 a dT)), up to 100 degC
+    a, dT = 0.6278 / 900.0, 85.0
+    assert float(g.density_kg_m3(100.0)) == pytest.approx(900.0 * math.exp(-a * dT * (1.0 + 0.8 * a * dT)), rel=1.5e-3)
 
 
 def test_grade_piezo_is_the_seed_shape_scaled():
@@ -138,11 +145,50 @@ def test_grade_piezo_is_the_seed_shape_scaled():
         ((320.0, 0.0, 900.0), "both positive"),
         ((320.0, 24.0, 9.0), "density at 15 degC"),
         ((320.0, 24.0, 900.0, 25.0), "piezo-viscosity"),
+        # a unit slip (320 written as m2/s: 3.2e8 mm2/s), and its thin counterpart
+        ((3.2e8, 2.4e7, 900.0), "outside the ISO 3448 grades"),
+        ((0.001, 0.0001, 900.0), "outside the ISO 3448 grades"),
+        ((320.0, 1.0, 900.0), "under the 2 mm2/s"),  # below Walther's range
+        ((320.0, 300.0, 900.0), "thins less with temperature than any oil"),
+        ((40.0, 2.5, 900.0), "thins more with temperature than any oil"),
     ],
 )
 def test_grade_refuses_values_no_oil_has(args, words):
     with pytest.raises(oil.InputError, match=words):
         oil.Oil.grade(*args)
+
+
+@pytest.mark.parametrize("nu40, nu100", [(32.0, 5.4), (220.0, 19.0), (320.0, 24.0), (320.0, 35.0), (320.0, 20.0)])
+def test_grade_takes_real_oils(nu40, nu100):
+    # mineral VG 32 to VG 320, a PAO (high index) and a low-index mineral VG 320: within the slope's band
+    assert oil.GRADE_SLOPE[0] < oil.walther_slope(nu40, 40.0, nu100, 100.0) < oil.GRADE_SLOPE[1]
+    assert oil.Oil.grade(nu40, nu100, 880.0).kinematic_viscosity_m2_s(40.0) == pytest.approx(nu40 * 1e-6)
+
+
+def test_two_points_give_the_seed_tables_other_rows():
+    # an outside check of the two-point line: the seed's Appendix 2 table (its oil's rows from -20 to 140 degC) from
+    # its 40 and 100 degC rows alone, within 0.2 % at every other row
+    g = oil.Oil.grade(float(oil.TABLE_NU_CST[3]), float(oil.TABLE_NU_CST[6]), 878.0)
+    nu = g.kinematic_viscosity_m2_s(oil.TABLE_T_C) * 1e6
+    np.testing.assert_allclose(nu, oil.TABLE_NU_CST, rtol=2e-3)
+
+
+def test_coldest_use_temperature():
+    # SAE J306's 150 Pa s: where the VG 320 reaches it, the oil is that thick (and thicker below)
+    g = oil.Oil.grade(320.0, 24.0, 900.0)
+    t = g.temperature_at_mu_c(oil.COLDEST_USE_MU_PA_S)
+    assert -25.0 < t < -18.0
+    assert g.dynamic_viscosity_pa_s(t) == pytest.approx(oil.COLDEST_USE_MU_PA_S, rel=1e-6)
+    assert g.dynamic_viscosity_pa_s(t - 1.0) > oil.COLDEST_USE_MU_PA_S
+    # an oil that never gets that thick within the model's range: its coldest end
+    assert oil.SEED_OIL.temperature_at_mu_c(oil.COLDEST_USE_MU_PA_S) == oil.T_MIN_C
+
+
+def test_a_low_piezo_oil_keeps_the_seed_shape():
+    # the floor scales with the oil: a 10 /GPa oil is the seed's shape scaled at every temperature
+    g = oil.Oil.grade(320.0, 24.0, 900.0, 10.0e-9)
+    T = np.array([20.0, 80.0, 140.0, 200.0])
+    np.testing.assert_allclose(g.piezo_viscosity_per_pa(T), oil.piezo_viscosity_per_pa(T) * 10.0 / 21.6, rtol=1e-12)
 
 
 def test_oil_of_a_parameter_set():

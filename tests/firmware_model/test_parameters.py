@@ -88,6 +88,15 @@ def test_out_of_range_and_bad_unit_are_refused(tmp_path):
     bad.write_text(src.replace('emissivity = { v = 0.8, u = "-"', 'emissivity = { v = 0.8, u = "furlong"'))
     with pytest.raises(ParameterError, match="unit"):
         load_parameters(bad)
+    # an unknown unit of a known key: the units of its dimension named
+    bad.write_text(src.replace('h_nom = { v = 325, u = "W/(m2 K)"', 'h_nom = { v = 325, u = "BTU"'))
+    known = r'has unit .BTU., which is not a unit this program knows: the key is .*"W/\(m2 K\)"'
+    with pytest.raises(ParameterError, match=known):
+        load_parameters(bad)
+    # TOML's true is no number (float() would read it as 1)
+    bad.write_text(src.replace('emissivity = { v = 0.8, u = "-"', 'emissivity = { v = true, u = "-"'))
+    with pytest.raises(ParameterError, match="housing.emissivity = true is true or false, not a number"):
+        load_parameters(bad)
     bad.write_text(src.replace('src = "seed", ref = "Eq 45" }', 'src = "guess", ref = "Eq 45" }', 1))
     with pytest.raises(ParameterError, match="provenance"):
         load_parameters(bad)

@@ -185,14 +185,21 @@ def _exercise(p) -> None:
 
 def oil_line(params) -> str:
     """The oil the plant and the sensor take: its [oil] grade or the seed's, with its viscosity and density."""
-    from firmware_model.physics.oil import oil_of
+    from firmware_model.physics.oil import COLDEST_USE_MU_PA_S, T_MIN_C, oil_of
 
     oil = oil_of(params)
     nu = [float(oil.kinematic_viscosity_m2_s(t)) * 1e6 for t in (40.0, 60.0, 100.0)]
-    return (
+    line = (
         f"  oil: {oil.name}: {nu[0]:.4g} / {nu[1]:.3g} / {nu[2]:.3g} mm2/s at 40 / 60 / 100 degC, "
         f"{float(oil.density_kg_m3(40.0)):.0f} kg/m3 at 40 degC"
     )
+    cold_c = oil.temperature_at_mu_c(COLDEST_USE_MU_PA_S)
+    if cold_c > T_MIN_C:  # an oil that reaches it within the model's range: say where the model stops being one
+        line += (
+            f"; below {cold_c:.0f} degC thicker than {COLDEST_USE_MU_PA_S:g} Pa s (SAE J306's coldest use of a gear "
+            'oil): a start there is outside the loss model (docs/physics.md, "Oil properties")'
+        )
+    return line
 
 
 def run(args) -> int:

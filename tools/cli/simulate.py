@@ -261,6 +261,9 @@ def run(args) -> int:
         _write_outputs(args, table, res, params, cfg, tmp, s.start_time)
     if not args.quiet:
         _print_summary(args, res, description_of(params))
+    else:  # the plant's notes say where the run left its model: quiet or not
+        for w in res.warnings:
+            print(f"note: {w}", file=sys.stderr)
     held_c = (
         s.hold_oil_c if s.hold_oil_c is not None else (plant.p["cooler.hold_temp"] if plant.kind == "hold" else None)
     )

@@ -391,7 +391,7 @@ class ReferencePlant:
                 bar.update(done)
                 s0 += done
         res = self._output(table, inp, step_t, ledger.T_c, ledger.Q_w, out_dt_s)
-        warnings = _churn_note(ledger.churn_invalid_s, t_end - t0)
+        warnings = _churn_note(ledger.churn_invalid_s, t_end - t0) + self._range_notes(ledger.T_c, step_t)
         return SimResult(res, self.net.nodes, ledger.energy(), warnings, time.perf_counter() - wall0)
 
     def _run_held(self, table: RunTable, inp: RunInputs, T0_c: np.ndarray, out_dt_s: float, wall0: float):
@@ -406,8 +406,29 @@ class ReferencePlant:
         t = inp.t_s
         res = self._output(table, inp, t, ledger.T_c, ledger.Q_w, out_dt_s)
         res.meta.update(held_sub_intervals=rows.sub_intervals)
-        warnings = _churn_note(ledger.churn_invalid_s, float(t[-1] - t[0]))
+        warnings = _churn_note(ledger.churn_invalid_s, float(t[-1] - t[0])) + self._range_notes(ledger.T_c, t)
         return SimResult(res, self.net.nodes, ledger.energy(), warnings, time.perf_counter() - wall0)
+
+    def _range_notes(self, T_c: np.ndarray, t_s: np.ndarray) -> list:
+        """The run's notes where it left the oil model (docs/physics.md, "Oil properties"): a part hotter than the
+        T_MAX_C its properties are defined to (clipped there), a sump thicker than SAE J306's coldest use."""
+        notes = []
+        hot = T_c > oilprops.T_MAX_C
+        if hot.any():
+            names = [self.net.nodes[j] for j in np.flatnonzero(hot.any(axis=0))]
+            notes.append(
+                f"{', '.join(names[:4])}{' and more' if len(names) > 4 else ''} reached {float(T_c.max()):.0f} degC "
+                f"(from t = {float(t_s[np.argmax(hot.any(axis=1))]):.0f} s), above the {oilprops.T_MAX_C:g} degC the "
+                "oil's properties are defined to: the run has left the model there (a loaded start in oil too thick "
+                'for its loss laws: docs/physics.md, "Oil properties")'
+            )
+        cold_c = self.ev.oil.temperature_at_mu_c(oilprops.COLDEST_USE_MU_PA_S)
+        if cold_c > oilprops.T_MIN_C and (T_c[:, self.i_oil] < cold_c).any():
+            notes.append(
+                f"the sump was below {cold_c:.0f} degC, where its oil is thicker than {oilprops.COLDEST_USE_MU_PA_S:g} "
+                "Pa s (SAE J306's coldest use of a gear oil): the loss model is extrapolated there"
+            )
+        return notes
 
     def _ledger(self, n_steps: int, T0_c: np.ndarray) -> Ledger:
         """Empty books for a run of ``n_steps`` thermal steps starting at node temperatures ``T0_c``."""
