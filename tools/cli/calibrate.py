@@ -66,7 +66,12 @@ def add_subparser(sub):
     p.add_argument(
         "--out", required=True, metavar="OUT.toml", help="the calibrated parameter file (written atomically)"
     )
-    p.add_argument("--report", metavar="OUT.md", help="also write a Markdown report with a held-out plot next to it")
+    p.add_argument(
+        "--report",
+        metavar="OUT.md",
+        help="also write a Markdown report with a held-out plot next to it (run tables and CAN logs; on SCADA "
+        "records calibrate prints its tables)",
+    )
     p.add_argument(
         "--config",
         metavar="TOML",
@@ -101,8 +106,6 @@ CALIBRATION_KEYS = ("calibration.plant_dt_s", "calibration.workers", "calibratio
 #: a fit that leaves the training files this far off (pooled RMS) explains nothing a sensor could be off by: a unit,
 #: a column, a variant or a start that is not at rest [degC]
 TRAIN_RMS_REFUSE_C = 5.0
-#: the fewest readings of a measured channel held-out SCADA records must have to test a fit (6 h of 10-minute rows)
-SCADA_TEST_MIN_ROWS = 36
 #: a fit that takes no channel's held-out RMS down by this share was not tested by those records (a held-out turbine
 #: standing still on 1337 of its 1346 rows: pooled 7.580 -> 7.577 K while f0_tapered moved 4.64 -> 2.05); the
 #: shipped MM82 calibrations took their channel down by 5 % (f0_cylindrical, Gb2t 2.62 -> 2.49 K, the pooled RMS
@@ -252,7 +255,7 @@ def _run_scada(args, cfg, params) -> int:
     from tools.diagnosis.calibrate import calibrated_toml, check_keys
     from tools.scada.calibrate import calibrate_records, nbm_beside
     from tools.scada.diagnose import setup_of
-    from tools.scada.reader import read_held_out
+    from tools.scada.reader import TEST_MIN_READINGS, held_readings, read_held_out
 
     check_paths(
         [*(("a training file", f) for f in args.train), *(("a test file", f) for f in args.test)],
@@ -275,11 +278,11 @@ def _run_scada(args, cfg, params) -> int:
         _print_scada(cal, nbm, params.bounds)
     (b, a) = cal.test_rms_c
     same = fit_returns_the_file(cal, params)
-    held = max((int(np.sum(np.isfinite(r.values[ch]))) for r in test for ch in r.cmap.measured), default=0)
+    held = max(held_readings(test).values(), default=0)
     why = (
         f"the held-out records hold at most {held} readings of a channel, too few to test it (at least "
-        f"{SCADA_TEST_MIN_ROWS})"
-        if held < SCADA_TEST_MIN_ROWS
+        f"{TEST_MIN_READINGS})"
+        if held < TEST_MIN_READINGS
         else f"the fit made the held-out records worse (RMS {b:.2f} -> {a:.2f} K)"
         if (a > b or not np.isfinite(a)) and not same
         else f"the fit changed no channel's held-out error by {100 * SCADA_TEST_MIN_SHRINK:g} % or more (RMS {b:.3f} "

@@ -188,7 +188,7 @@ def run(args) -> int:
 def _run_scada(args) -> int:
     """`diagnose --columns MAP --train SCADA... --test SCADA...`: the gap of the onboard model on real records."""
     from tools.scada.diagnose import diagnose_records, setup_of, thermostat_of
-    from tools.scada.reader import read_held_out
+    from tools.scada.reader import TEST_MIN_READINGS, held_readings, read_held_out
 
     check_paths(
         [*(("a training file", f) for f in args.train), *(("a test file", f) for f in args.test)],
@@ -206,8 +206,19 @@ def _run_scada(args) -> int:
     train, test = read_held_out(args.train, args.test, args.columns)
     setup, notes = setup_of(cfg, train[0].cmap)
     say_damaged_lines([*train, *test], "read", args.quiet)
+    held = held_readings(test)
+    if max(held.values(), default=0) < TEST_MIN_READINGS:  # as calibrate: a verdict those rows cannot test
+        raise InputError(
+            f"the held-out records hold at most {max(held.values(), default=0)} readings of a channel, too few to "
+            f"test a diagnosis (at least {TEST_MIN_READINGS}, 6 h of 10-minute rows): give more test files"
+        )
     res = diagnose_records(setup, train, test, thermostat_of(cfg.load_params()))
-    data_warnings = res.get("warnings", [])
+    unread = [ch for ch, n in held.items() if n == 0]
+    data_warnings = res.get("warnings", []) + [
+        f"the held-out records hold no reading of {ch}: its held-out error is not known (nan in the JSON)"
+        for ch in unread
+    ]
+    res["warnings"] = data_warnings
     if notes:
         res["warnings"] = notes + data_warnings
     write_json_atomic(res, args.json)
@@ -228,7 +239,12 @@ def _print_summary_scada(args, res) -> None:
         f"(shrink {100 * v['shrink']:.0f} %) -> {args.json}"
     )
     print(f"reason: {v['reason']}")
-    per = ", ".join(f"{ch} {c['test_rms_c']:.2f} -> {c['test_rms_after_c']:.2f}" for ch, c in res["channels"].items())
+    per = ", ".join(
+        f"{ch} {c['test_rms_c']:.2f} -> {c['test_rms_after_c']:.2f}"
+        if c["test_rms_c"] is not None and math.isfinite(c["test_rms_c"])
+        else f"{ch} not read in the held-out records"
+        for ch, c in res["channels"].items()
+    )
     print(f"held-out RMS per channel [K]: {per}")
     for w in res["where"][:3] if v.get("evidence") != "thin" else []:  # (thin: too few rows to say where)
         print(f"  gap: {w['channel']} in '{w['regime']}': mean {w['mean_c']:+.2f} K, {100 * w['share']:.0f} % of it")

@@ -105,7 +105,13 @@ DESCRIPTION = (
     "skips the logs already done and never writes a row twice.\n\n"
     "Runs on a Dask LocalCluster on this machine (no set-up; --workers N processes, default one per "
     "core) or on an existing cluster (--scheduler tcp://HOST:PORT; the workers need gearbox-vsensor "
-    "installed)."
+    "installed).\n\n"
+    "SCADA records (--gearbox MM82 --columns engie DIR...): each unit's files (the unit from the map's unit "
+    "column) are replayed in this process and its effects fitted per calendar month (--period-days N: spans of "
+    "N days); OUT/health/effects.parquet holds every unit-period's fitted values with their standard errors, "
+    "flags.parquet the units that drift from their siblings, errors.parquet the files or units that could not be "
+    "used. A unit read but never judged against two siblings in the same periods is said in a note; no report.md, "
+    'and a re-run writes the folder again (docs/real-data.md, "The fleet on SCADA").'
 )
 EPILOG = (
     "examples:\n"
@@ -114,7 +120,8 @@ EPILOG = (
     "  gearbox-vsensor fleet --manifest fleet.csv --out fleet_out --workers 2\n"
     "  gearbox-vsensor fleet --manifest fleet.csv --out fleet_out --scheduler tcp://10.0.0.5:8786\n"
     "  gearbox-vsensor fleet logs/ --out fleet_out --diagnose  # + cooler and oil-level health per week\n"
-    "  gearbox-vsensor fleet logs/ --out o --vehicle-from '(?P<vehicle>truck\\d+)_(?P<date>[-\\d]+)'"
+    "  gearbox-vsensor fleet logs/ --out o --vehicle-from '(?P<vehicle>truck\\d+)_(?P<date>[-\\d]+)'\n"
+    "  gearbox-vsensor fleet scada/ --gearbox MM82 --columns engie --out turbines   # SCADA files, one folder"
 )
 
 
@@ -238,7 +245,7 @@ def _run_scada(args) -> int:
     from tools.fleet.store import write_atomic
     from tools.progress import progress
     from tools.scada.diagnose import setup_of
-    from tools.scada.fleet import MIN_UNITS, fit_fleet, flag_units
+    from tools.scada.fleet import MIN_UNITS, coverage, fit_fleet, flag_units
     from tools.scada.reader import read_units
 
     logs_only = ("scheduler", "workers", "diagnose", "manifest", "prune", "vehicle_from", "vehicle_pattern")
@@ -281,16 +288,23 @@ def _run_scada(args) -> int:
         print(f"{'note' if ' left out: ' in why else 'left out ' + unit}: {why}", file=sys.stderr)
         skipped.append((", ".join(str(p) for p in records[unit].files), why))
     rejected = [r for r in rejected if " left out: " not in r[1]]  # (a channel left out: the unit is fitted)
+    _say_rows_dropped(records)
     flags = flag_units(fits)
     root = Path(args.out) / "health"
     _write_health(root, fits, flags)
     kind = "unit-months" if days is None else "unit-periods"
     used = len(records) - len(rejected)
+    # the units judged against their siblings: a unit read but never compared is said, not counted as sound
+    out_of = {u: why for u, why in coverage(fits, sorted(set(records) - {u for u, _ in rejected})).items() if why}
+    for unit, why in out_of.items():
+        print(f"note: {unit}: {why}", file=sys.stderr)
+    judged = used - len(out_of)
+    used = len({f.unit for f in fits})  # fitted: a unit read without a fitted period is in the notes above
     # the units read and those fitted: a unit left out (a sump in degF) is said on stdout too, not only on stderr
     left = f" ({len(rejected)} of {len(records)} read left out, above)" if rejected else ""
     print(
-        f"fleet: {used} unit{'s' if used != 1 else ''} fitted{left}, {len(fits)} {kind} in "
-        f"{time.perf_counter() - t0:.1f} s; {len(flags)} flagged -> {root}"
+        f"fleet: {used} unit{'s' if used != 1 else ''} fitted{left}, {judged} judged against their siblings, "
+        f"{len(fits)} {kind} in {time.perf_counter() - t0:.1f} s; {len(flags)} flagged -> {root}"
     )
     for f in flags:
         print(f"  {f.vehicle}: {f.effect} from {f.start}: {f.reason}")
@@ -300,6 +314,8 @@ def _run_scada(args) -> int:
             f"median, which needs at least {MIN_UNITS}; none could be flagged",
             file=sys.stderr,
         )
+    if not skipped:  # a run into the folder of an earlier one: its errors are not this run's
+        (root / "errors.parquet").unlink(missing_ok=True)
     if skipped:
         write_atomic(
             pa.Table.from_pylist([{"file": str(p), "error": why} for p, why in skipped]), root / "errors.parquet"
@@ -311,11 +327,24 @@ def _run_scada(args) -> int:
     return 0
 
 
+def _say_rows_dropped(records) -> None:
+    """On stderr, each unit's rows the reader dropped or sorted (duplicate, unreadable or unstamped rows, rows out of
+    order), as replay says them: a file whose turbine column names another unit folds into that unit's record."""
+    from tools.scada.clean import REASON_WORDS
+
+    for unit, rec in sorted(records.items()):
+        c = {k: rec.counts.get(k, 0) for k in ("bad_line", "bad_time", "duplicate_time", "out_of_order")}
+        if any(c.values()):
+            said = "; ".join(f"{v} {REASON_WORDS[k]}" for k, v in c.items() if v)
+            print(f"note: {unit} ({rec.n} rows kept): {said}", file=sys.stderr)
+
+
 def _write_health(root: Path, fits, flags) -> None:
     """health/effects.parquet (one row per unit, period and effect) and health/flags.parquet under ``root``."""
     import pyarrow as pa
 
     from tools.fleet.store import write_atomic
+    from tools.scada.fleet import in_range
 
     root.mkdir(parents=True, exist_ok=True)
     rows = [
@@ -328,6 +357,7 @@ def _write_health(root: Path, fits, flags) -> None:
             "value": f.values[e],
             "se": f.se[e],
             "rms_c": f.rms_c,
+            "in_range": in_range(f, e),  # identified and within the effect's plausible range
         }
         for f in fits
         for e in f.values

@@ -54,7 +54,8 @@ def add_subparser(sub):
         "coolant_temp_c, vehicle_speed_kmh, retarder_torque_nm) or a CAN log (.log candump -L, .asc, .blf, .mf4, "
         ".trc) decoded like the live service, or a fixed-ratio gearbox's SCADA record (--columns MAP: one output "
         "row per row, est_<channel> beside each measured one; docs/real-data.md). Writes the sensor's output at "
-        "10 Hz: the inputs it read, T_<id>_c, W_<id> (0 normal, 1 warning, 2 critical, 3 not available), "
+        "10 Hz (a SCADA record's: one row per its rows): the inputs it read, T_<id>_c, W_<id> (0 normal, 1 "
+        "warning, 2 critical, 3 not available), "
         "ttl_<id>_s (time to the warning limit with held inputs, empty when never, and where not available: "
         "W_<id> = 3, the first second; docs/interfaces.md) for the gearbox's published "
         "components (28 for the GRS905), and the status (degraded, degraded_mode, input validity, "
@@ -248,6 +249,7 @@ def _run_scada(args) -> int:
     from tools.runtable import write_run_table
     from tools.scada.reader import read_record
     from tools.scada.replay import error_lines, record_findings, replay_record
+    from tools.scada.runtable import oil_channel
 
     check_paths(
         [*(("an input", p) for p in args.input), ("the --config", args.config)],
@@ -280,7 +282,7 @@ def _run_scada(args) -> int:
         dropped = {k: v for k, v in record.counts.items() if v}
         if dropped:
             print("  rows: " + ", ".join(f"{k.replace('_', ' ')} {v}" for k, v in dropped.items()))
-        for line in error_lines(result):
+        for line in error_lines(result, oil_channel(record)):
             print(line)
     say_damaged_lines([record], "replayed", args.quiet)
     return _report_trust(args, findings)

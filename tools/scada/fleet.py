@@ -227,6 +227,15 @@ def _median_se(values: list[float], ses: list[float]) -> tuple[float, float]:
     return float(0.5 * (v[k - 1] + v[k])), float(0.5 * np.hypot(s[k - 1], s[k]))
 
 
+def in_range(f: PeriodFit, eid: str) -> bool:
+    """Whether a period's fitted ``eid`` is identified (a finite standard error) and within the effect's plausible
+    range (firmware_model.effects.CATALOG). Outside it a value is a short period's noise (a cooler at -4 x its
+    effectiveness, +-2.8) or a failure beyond the range (a dead cooler near 0): the fleet's medians and drifts keep
+    it, with its standard error, and effects.parquet marks it."""
+    e = CATALOG[eid]
+    return bool(np.isfinite(f.se[eid]) and e.low <= f.values[eid] <= e.high)
+
+
 def deviations(
     fits: Sequence[PeriodFit], eid: str, flagged: dict | None = None
 ) -> dict[str, list[tuple[PeriodFit, float, float]]]:
@@ -248,6 +257,32 @@ def deviations(
         med, se_med = _median_se([f.values[eid] for f in group], [f.se[eid] for f in group])
         for f in group:
             out.setdefault(f.unit, []).append((f, f.values[eid] - med, float(np.hypot(f.se[eid], se_med))))
+    return out
+
+
+def coverage(fits: Sequence[PeriodFit], units, baseline_periods: int = BASELINE_PERIODS) -> dict[str, str]:
+    """unit -> why it was not judged against its siblings ('' when it was, for some effect): no period fitted (each
+    needs MIN_ROWS rows with every channel read over MIN_BLOCKS blocks), or too few periods shared with MIN_UNITS
+    units for a baseline and a drift after it."""
+    fitted: dict = {}
+    for f in fits:
+        fitted[f.unit] = fitted.get(f.unit, 0) + 1
+    judged = {u for eid in EFFECTS for u in drifts(fits, eid, baseline_periods)}
+    out = {}
+    for u in units:
+        if u in judged:
+            out[u] = ""
+        elif not fitted.get(u):
+            out[u] = (
+                f"no period could be fitted (each needs {MIN_ROWS} rows with every measured channel read, over "
+                f"{MIN_BLOCKS} days or more): not judged"
+            )
+        else:
+            shared = max((len(r) for eid in EFFECTS for uu, r in deviations(fits, eid).items() if uu == u), default=0)
+            out[u] = (
+                f"{fitted[u]} period(s) fitted, {shared} of them beside {MIN_UNITS - 1} or more siblings fitted in the "
+                f"same period; a drift needs more than {baseline_periods} such periods: not judged"
+            )
     return out
 
 

@@ -338,11 +338,42 @@ def rows_near(t_ref_s: np.ndarray, t_s: np.ndarray, within_s: float) -> int:
     return int(np.sum(np.minimum(before, after) < within_s))
 
 
+#: the fewest readings of a measured channel held-out records must hold to test a fit or a diagnosis (6 h of
+#: 10-minute rows)
+TEST_MIN_READINGS = 36
+
+
+def held_readings(records: list[ScadaRecord]) -> dict[str, int]:
+    """measured channel -> its readings (not NaN) over ``records``."""
+    out: dict[str, int] = {}
+    for r in records:
+        for ch in r.cmap.measured:
+            out[ch] = out.get(ch, 0) + int(np.sum(np.isfinite(r.values[ch])))
+    return out
+
+
+def same_readings(a: ScadaRecord, b: ScadaRecord) -> int:
+    """How many rows of ``b`` repeat one of ``a``'s: the same time stamp and every measured channel's reading the
+    same (and one at least read): one turbine's rows under two names."""
+    t, ia, ib = np.intersect1d(a.time_s, b.time_s, assume_unique=False, return_indices=True)
+    if not t.size:
+        return 0
+    same = np.ones(t.size, dtype=bool)
+    read = np.zeros(t.size, dtype=bool)
+    for ch in a.cmap.measured:
+        if ch in b.values:
+            x, y = a.values[ch][ia], b.values[ch][ib]
+            same &= (x == y) | (np.isnan(x) & np.isnan(y))
+            read |= np.isfinite(x)
+    return int(np.sum(same & read))
+
+
 def read_held_out(train_paths, test_paths, columns) -> tuple[list[ScadaRecord], list[ScadaRecord]]:
     """The training and the test records (each unit's files one record), refused with one sentence when a test
     record shares rows with a training one: its unit, and a time stamp within half the map's period of one of
-    the training record's (the same stamps, or the same hours exported on a shifted grid): its error would not be
-    held out."""
+    the training record's (the same stamps, or the same hours exported on a shifted grid), or another unit's name
+    on TEST_MIN_READINGS or more of the training rows' time stamps and readings (a copy renamed): its error would not
+    be held out."""
     train = list(read_units(train_paths, columns).values())
     test = list(read_units(test_paths, columns).values())
     for te in test:
@@ -354,6 +385,11 @@ def read_held_out(train_paths, test_paths, columns) -> tuple[list[ScadaRecord], 
                         f"the test records of {te.unit} share {shared} of their {te.n} rows with the training ones: "
                         "held-out figures need other rows (another unit, or other dates)"
                     )
+            elif (copied := same_readings(tr, te)) >= TEST_MIN_READINGS:
+                raise InputError(
+                    f"{copied} of the {te.n} test rows of {te.unit} repeat training rows of {tr.unit} (the same time "
+                    f"stamps and readings): one turbine under two names is not held out"
+                )
     return train, test
 
 

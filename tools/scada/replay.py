@@ -60,6 +60,39 @@ class ScadaReplay:
         return RunTable({c: t[c] for c in t.columns if c not in self.left_out}, meta=t.meta, source=t.source)
 
 
+#: a gap in a record this long [s] is said when the sump is modelled: the model's sump comes out of it cooled over
+#: the gap, where the real one may have been kept warm (a heater) or the turbine restarted hours before its rows do
+LONG_GAP_S = 86400.0
+#: ... with the largest sump error in this long after the gap [s]
+AFTER_GAP_S = 6 * 3600.0
+
+
+def _long_gap_notes(record: ScadaRecord, cols: dict) -> list[str]:
+    """With the sump modelled: one note on the record's gaps of LONG_GAP_S or more, the longest and the largest
+    sump error in the AFTER_GAP_S after any of them (the model's sump restarts from its state cooled over the gap,
+    not from a reading)."""
+    oil = oil_channel(record)
+    t = np.asarray(record.time_s, dtype=float)
+    starts = [a for a, _ in record.stretch_bounds()[1:] if t[a] - t[a - 1] >= LONG_GAP_S]
+    if oil is None or not starts:
+        return []
+    err = np.abs(np.asarray(cols[f"est_{oil}"]) - np.asarray(cols[oil]))
+    worst = max(
+        (
+            float(np.nanmax(err[a:b], initial=0.0))
+            for a in starts
+            for b in [int(np.searchsorted(t, t[a] + AFTER_GAP_S))]
+        ),
+        default=0.0,
+    )
+    longest = max(t[a] - t[a - 1] for a in starts) / 86400.0
+    return [
+        f"{len(starts)} gap(s) of a day or more (the longest {longest:.1f} days): the modelled sump comes out of each "
+        f"cooled over it, not from a reading; in the {AFTER_GAP_S / 3600:g} h after them it is up to {worst:.1f} K off "
+        f"{oil}"
+    ]
+
+
 def estimate_columns(record: ScadaRecord, published, parts=(), outputs=()) -> tuple[dict, list[str]]:
     """({measured channel: the sensor's output column that estimates it}, notes): ``T_<node>_c`` of the published
     part each channel is tied to; a channel tied to a derived temperature, its status column when the output
@@ -153,6 +186,8 @@ def replay_record(
     for name in out.columns:
         if name not in cols and name not in INPUTS:
             cols[name] = out[name]
+    if oil_mode == "model":
+        notes += _long_gap_notes(record, cols)
     meta = {**out.meta, "unit": record.unit, "t0_utc_s": table.meta["t0_utc_s"], "drive": "fixed_ratio"}
     result = RunTable(cols, meta=meta, source=f"replay of {record.unit}")
     mark_for_findings(result, sensor)  # (a rotor's drive: no idle-speed rule; its own kN m rule)
@@ -474,11 +509,15 @@ def screen_untrusted(records, residuals, params, role: str, sump: str | None = N
     return kept, kept_res, notes
 
 
-def error_lines(result: ScadaReplay) -> list[str]:
-    """One line per measured channel: rows compared, mean, RMS and 99th percentile of |estimate - measured|."""
+def error_lines(result: ScadaReplay, sump: str | None = None) -> list[str]:
+    """One line per measured channel: rows compared, mean, RMS and 99th percentile of |estimate - measured|; the sump
+    channel ``sump`` (tools.scada.runtable.oil_channel), measured, said to be the reading the sensor used."""
     t = result.table
     lines = [f"  note: {x}" for x in result.notes]
     for name in result.estimated:
+        if name == sump and result.oil_mode != "model":  # the estimate is the reading the sensor used: 0 K says nothing
+            lines.append(f"  {name}: the reading the sensor used (the oil measured; --oil-mode model estimates it)")
+            continue
         e = t[f"est_{name}"] - t[name]
         ok = np.isfinite(e)
         if not ok.any():

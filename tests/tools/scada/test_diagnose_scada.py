@@ -459,3 +459,23 @@ def test_a_fit_returns_the_file_only_with_every_deviation_finite():
     for undefined in (float("inf"), float("nan")):
         cal.fitted["a"], cal.sigma["a"] = 1.0, undefined
         assert not fit_returns_the_file(cal, params)
+
+
+def test_held_out_records_too_short_or_without_a_channel_are_said(setup, tmp_path):
+    """diagnose gave a verdict on a held-out file of 3 rows ("held-out RMS falls", 1.64 -> 1.64 K) and printed
+    "Gost_avg nan -> nan" for a held-out sump never read, exit 0 both: too few readings are one sentence (as
+    calibrate's), a channel without one a warning and its own words."""
+    s, train, test = setup
+    tr = _write_measured(tmp_path / "train.csv", _measured(s, train, {}, 5))
+    rec = _measured(s, test, {}, 6)
+    short = _write_measured(tmp_path / "short.csv", rec.select(np.arange(rec.n) < 3))
+    cmd = ["diagnose", "--gearbox", "HR225", "--columns", str(_map(tmp_path)), "--train", str(tr), "--json"]
+    cmd += [str(tmp_path / "d.json"), "--test"]
+    p = subprocess.run([sys.executable, "-m", "tools.cli", *cmd, str(short)], cwd=REPO, capture_output=True, text=True)
+    assert p.returncode == 2 and "hold at most 3 readings of a channel, too few to test a diagnosis" in p.stderr
+    rec.values["Gost_avg"][:] = np.nan
+    blank = _write_measured(tmp_path / "blank.csv", rec)
+    p = subprocess.run([sys.executable, "-m", "tools.cli", *cmd, str(blank)], cwd=REPO, capture_output=True, text=True)
+    assert p.returncode == 0, p.stderr
+    assert "warning: the held-out records hold no reading of Gost_avg" in p.stderr
+    assert "Gost_avg not read in the held-out records" in p.stdout and "nan" not in p.stdout

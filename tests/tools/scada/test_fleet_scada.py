@@ -114,6 +114,10 @@ def test_fleet_columns_writes_the_fits_and_the_flags_of_a_folder(tmp_path):
     p = subprocess.run([*cmd, "--out", str(tmp_path / "a_file")], cwd=REPO, capture_output=True, text=True)
     assert p.returncode == 2 and "is a file; the fleet writes a folder" in p.stderr
     (data / "notes.csv").unlink()
+    # a clean run into that folder again: the earlier run's errors are not this one's
+    p = subprocess.run([*cmd, "--out", str(tmp_path / "o3")], cwd=REPO, capture_output=True, text=True, timeout=600)
+    assert p.returncode == 0 and not (tmp_path / "o3" / "health" / "errors.parquet").exists(), p.stderr
+    assert "in_range" in pq.read_table(tmp_path / "o3" / "health" / "effects.parquet").column_names
     # --period-days N: spans of N days instead of calendar months (each needs MIN_BLOCKS blocks: a sixth of it)
     p = subprocess.run(
         [*cmd, "--period-days", "2", "--out", str(tmp_path / "o1")], cwd=REPO, capture_output=True, text=True
@@ -290,3 +294,30 @@ def test_a_damaged_line_of_a_unit_s_file_is_named_with_its_file_and_line(tmp_pat
     assert len(said) == 1 and said[0].startswith("note: T1.csv: line 12 dropped ("), p.stderr
     assert "of the header's 13 fields: cut short or a field missing)" in said[0]
     assert "T2.csv" not in p.stderr and "T1.csv" not in p.stdout
+
+
+def test_a_unit_never_set_beside_two_siblings_is_said_not_judged():
+    """fleet said "4 units fitted ... 0 flagged" for a unit with no fitted period, or with periods no sibling shared:
+    coverage() says why each such unit was not judged; effects.parquet marks a fit outside its effect's range."""
+    from tools.scada.fleet import EFFECTS, MIN_ROWS, PeriodFit, coverage, in_range
+
+    def fit(unit, period, value=1.0):
+        return PeriodFit(
+            unit,
+            period,
+            f"2017-{period:02d}-01",
+            100,
+            dict.fromkeys(EFFECTS, value),
+            dict.fromkeys(EFFECTS, 0.05),
+            1.0,
+            10,
+        )
+
+    fits = [fit(u, k) for u in ("A", "B", "C") for k in range(1, 6)] + [fit("D", k) for k in range(7, 10)]
+    why = coverage(fits, ["A", "B", "C", "D", "E"])
+    assert why["A"] == why["B"] == why["C"] == ""
+    assert why["D"].startswith("3 period(s) fitted, 0 of them beside 2 or more siblings") and "not judged" in why["D"]
+    assert why["E"].startswith(f"no period could be fitted (each needs {MIN_ROWS} rows")
+    assert in_range(fit("A", 1), "cooler_effectiveness_scale")
+    assert not in_range(fit("A", 1, -4.16), "cooler_effectiveness_scale")
+    assert not in_range(fit("A", 1)._replace(se=dict.fromkeys(EFFECTS, math.inf)), "bearing_loss_scale")

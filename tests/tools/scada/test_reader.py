@@ -414,3 +414,20 @@ def test_held_out_records_may_not_share_rows_with_the_training_ones(tmp_path, tw
         read_held_out([fa], [shifted], "engie")
     later = write(tmp_path / "r1_later.csv", [row(t0 + timedelta(days=1, minutes=10 * k)) for k in range(6)])
     assert read_held_out([fa], [later], "engie")[1][0].n == 6
+
+
+def test_a_training_unit_renamed_is_not_held_out(tmp_path):
+    """A copy of training files under another turbine's name (its Wind_turbine_name changed) passed as held out,
+    with a verdict and a shrink; rows of another unit at the same times, read differently, still pass."""
+    from tests.tools.scada.test_replay_scada import _rows
+    from tools.scada.reader import TEST_MIN_READINGS, read_held_out
+
+    n = TEST_MIN_READINGS + 4
+    a = write(tmp_path / "a.csv", _rows(0, n))
+    copy = write(tmp_path / "copy.csv", [ln.replace("R1,", "R9,", 1) for ln in _rows(0, n)])
+    with pytest.raises(InputError, match=rf"{n} of the {n} test rows of R9 repeat training rows of R1 \(the same time"):
+        read_held_out([a], [copy], "engie")
+    sibling = write(
+        tmp_path / "sib.csv", [ln.replace("R1,", "R9,", 1) for ln in _rows(0, n, oil_c=lambda k: 50.0 + k / 10.0)]
+    )
+    assert read_held_out([a], [sibling], "engie")[1][0].unit == "R9"
