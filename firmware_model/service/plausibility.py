@@ -275,6 +275,13 @@ class RepairFinding:
         )
 
 
+def span_words(minutes: float) -> str:
+    """A span in the unit a reader takes in: minutes under two hours, hours under two days, else days."""
+    if minutes < 120.0:
+        return f"{minutes:.1f} min"
+    return f"{minutes / 60.0:.1f} h" if minutes < 2880.0 else f"{minutes / 1440.0:.1f} days"
+
+
 def _finite(values) -> np.ndarray:
     return np.asarray(values, dtype=float).ravel()
 
@@ -325,7 +332,7 @@ def oil_unit_finding(
         "oil_temp_c",
         " or ".join(n for n, *_ in fits),
         f"{col} reads {np.percentile(x, 1):.0f}-{np.percentile(x, 99):.0f} (median {np.median(x):.0f}) over "
-        f"{span_min:.1f} min, above {hi:.0f} degC on {pct(int(np.sum(x > hi)), x.size)} of the readings, where a "
+        f"{span_words(span_min)}, above {hi:.0f} degC on {pct(int(np.sum(x > hi)), x.size)} of the readings, where a "
         f"gearbox sump in degC does not stay (its warning limit is {warning_c:.0f} degC); {as_units}, a plausible "
         f"drive: the oil looks like {' or '.join(w for _, w, *_ in fits)}, not degC; {fix} (if the sump really ran "
         f"above {hi:.0f} degC: stop and check the gearbox)",
@@ -460,7 +467,7 @@ def torque_percent_finding(
     return PlausibilityFinding(
         "engine_torque_nm",
         "percent",
-        f"{col} never exceeds {PERCENT_MAX:.0f} over {n * dt_s / 60.0:.1f} min of driving (peak {peak:.0f}, median "
+        f"{col} never exceeds {PERCENT_MAX:.0f} over {span_words(n * dt_s / 60.0)} of driving (peak {peak:.0f}, median "
         f"{np.median(t):.0f}): a truck engine gives 1000-3500 N m and moves no truck for minutes on at most "
         f"{PERCENT_MAX:.0f} N m, so the torque looks like percent of the reference torque, not N m; {fix}",
     )
@@ -486,7 +493,7 @@ def torque_knm_finding(
     return PlausibilityFinding(
         "engine_torque_nm",
         "kN m",
-        f"{col} never exceeds {KNM_MAX:.0f} over {n * dt_s / 60.0:.1f} min of driving (peak {peak:.3g}): a truck "
+        f"{col} never exceeds {KNM_MAX:.0f} over {span_words(n * dt_s / 60.0)} of driving (peak {peak:.3g}): a truck "
         f"engine gives 1000-3500 N m, so the torque looks like kN m; give N m (x 1000)",
     )
 

@@ -64,7 +64,7 @@ def summary(d) -> list[str]:
             f"  {m.id}: {m.wheels[0]}-{m.wheels[1]} {kind}, centre distance {m.centre_distance_m * 1e3:.4g} mm "
             f"(standard {m.standard_m * 1e3:.4g} mm)"
         )
-    out.append("couplings: " + ", ".join(f"{c.id} ({c.kind})" for c in d.couplings))
+    out.append("couplings: " + (", ".join(f"{c.id} ({c.kind})" for c in d.couplings) or "none (a fixed ratio)"))
     neutral = " and neutral" if any(g.number == 0 for g in d.gears) else ""
     out.append(f"gears ({sum(g.number != 0 for g in d.gears)}{neutral}):" if d.gears else "gears: none")
     for g in d.gears:
