@@ -246,8 +246,11 @@ def _print_summary_scada(args, res) -> None:
         for ch, c in res["channels"].items()
     )
     print(f"held-out RMS per channel [K]: {per}")
-    for w in res["where"][:3] if v.get("evidence") != "thin" else []:  # (thin: too few rows to say where)
+    shown = res["where"][:3] if v.get("evidence") != "thin" else []  # (thin: too few rows to say where)
+    for w in shown:
         print(f"  gap: {w['channel']} in '{w['regime']}': mean {w['mean_c']:+.2f} K, {100 * w['share']:.0f} % of it")
+    if shown:  # a row lies in one regime of each kind (power, nacelle, thermostat...): the shares overlap
+        print("  (% of it: of the channel's squared error on the training records; regimes of different kinds overlap)")
     print(f"time: {res['timing']['total_s']:.1f} s")
 
 
