@@ -52,6 +52,12 @@ OIL_UNITS = (
     ("degF", "degF", lambda x: (x - 32.0) / 1.8, "(degF - 32) / 1.8"),
     ("K", "kelvin", lambda x: x - 273.15, "K - 273.15"),
 )
+#: the oil against the sensor's own modelled sump (model_oil_temp_c, the twin): degC does not fit when the readings
+#: lie at least OIL_MODEL_OFF_K from it on median over at least OIL_MODEL_MIN_S of readings, and another unit fits
+#: when its converted readings lie within OIL_MODEL_FIT_SHARE of that, and OIL_MODEL_FIT_K, on median [K, s, -, K]
+#: (the range rule above misses a sump read in degF while it warms: 68-136 degF read as degC is a hot gearbox, not
+#: an impossible one; the twin says 43-69 degC beside it)
+OIL_MODEL_OFF_K, OIL_MODEL_MIN_S, OIL_MODEL_FIT_SHARE, OIL_MODEL_FIT_K = 20.0, 1800.0, 0.25, 15.0
 #: a driving row: the engine at least this fast [rpm] with a gear engaged
 DRIVE_MIN_RPM = 500.0
 #: torque sign: below this torque [Nm] on more than SIGN_SHARE of at least SIGN_MIN_DRIVE_S [s] of driving, and
@@ -339,6 +345,35 @@ def oil_unit_finding(
     )
 
 
+def oil_model_unit_finding(oil, model_oil, dt_s: float = STEP_S, source: str = "table") -> PlausibilityFinding | None:
+    """The oil against the sensor's modelled sump (OIL_MODEL_OFF_K ...): a finding when degC lies far off the model
+    and another unit lies near it; None otherwise."""
+    x, m = _finite(oil), _finite(model_oil)
+    ok = np.isfinite(x) & np.isfinite(m)
+    if ok.sum() * dt_s < OIL_MODEL_MIN_S:
+        return None
+    off = float(np.median(x[ok] - m[ok]))
+    if abs(off) < OIL_MODEL_OFF_K:
+        return None
+    near = [
+        (float(np.median(np.abs(to_c(x[ok]) - m[ok]))), name, words, fix)
+        for name, words, to_c, fix in OIL_UNITS
+    ]
+    best = min(near)
+    if not best[0] <= min(OIL_MODEL_FIT_SHARE * abs(off), OIL_MODEL_FIT_K):
+        return None
+    col = "oil_temp_c" if source == "table" else "the oil temperature"
+    fix = f"give degC: {best[3]}" if source == "table" else "check the node that sends it"
+    return PlausibilityFinding(
+        "oil_temp_c",
+        best[1],
+        f"{col} reads {abs(off):.0f} K {'above' if off > 0 else 'below'} the sensor's own modelled sump on median "
+        f"over {span_words(ok.sum() * dt_s / 60.0)}, where as {best[2]} it would lie {best[0]:.0f} K from it: the oil "
+        f"looks like {best[2]}, not degC; {fix} (if it is degC, the gearbox or its cooler is not the one modelled: "
+        "check --gearbox and the configuration's [cooler])",
+    )
+
+
 def _fast_windows(t: np.ndarray, x: np.ndarray, window_s: float) -> tuple[np.ndarray, np.ndarray, float]:
     """The windows of ``window_s`` (on a grid of OIL_FAST_BINS bins a window) over readings ``x`` at times ``t``:
     (first and last row of each window, 2 x windows; which change faster than OIL_FAST_K_S and gradually; the
@@ -590,6 +625,8 @@ def record_findings(
     oil, speed, torque, gear = (col(c) for c in ("oil_temp_c", "engine_speed_rpm", "engine_torque_nm", "gear"))
     if oil is not None:
         out.append(oil_unit_finding(oil, dt_s, source, oil_warning_c))
+        if out[-1] is None and col("model_oil_temp_c") is not None:  # a replay's output: its twin beside the oil
+            out.append(oil_model_unit_finding(oil, col("model_oil_temp_c"), dt_s, source))
         if col("time_s") is not None:  # (a live check's samples carry none: its clock is the bus's)
             out.append(oil_rate_finding(col("time_s"), oil, source))
     if speed is not None and torque is not None:

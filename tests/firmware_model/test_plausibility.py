@@ -268,3 +268,21 @@ def test_record_findings_judge_the_oils_rate_only_with_a_time_column():
     assert record_findings({"oil_temp_c": oil}) == []  # the live check's samples carry no time column
     # a CAN log's table: the same rule, its words the decoded signal's and the log's time base
     assert oil_rate_finding(t, oil, "can").sentence.startswith("the oil temperature (TRF1 SPN 177) changes up to")
+
+
+def test_an_oil_in_degf_beside_the_sensor_s_own_sump_is_found():
+    """A fixed-ratio gearbox's sump read in degF while it warms (68-136 degF) lies inside the range rule's degC (a hot
+    gearbox); the sensor's own modelled sump (43-69 degC) says otherwise: 63 K off on median, 8 K as degF."""
+    from firmware_model.service.plausibility import oil_model_unit_finding
+
+    t = np.arange(0.0, 4 * 3600.0)
+    model = 43.0 + 26.0 * (1.0 - np.exp(-t / 3600.0))
+    real_c = model - 8.0 * np.exp(-t / 7200.0)  # the real sump a little behind the model
+    f = oil_model_unit_finding(real_c * 1.8 + 32.0, model, 1.0)
+    assert f is not None and f.likely == "degF" and "looks like degF, not degC; give degC: (degF - 32) / 1.8" in f.what
+    assert oil_model_unit_finding(real_c + 273.15, model, 1.0).likely == "K"
+    # degC: a model a few kelvin off, or far off with no other unit near it (a hold cycle's sump at 100 degC beside a
+    # model of 70), is not this finding; nor less than half an hour of readings
+    assert oil_model_unit_finding(real_c, model, 1.0) is None
+    assert oil_model_unit_finding(np.full(t.size, 100.0), np.full(t.size, 70.0), 1.0) is None
+    assert oil_model_unit_finding(real_c[:1700] * 1.8 + 32.0, model[:1700], 1.0) is None

@@ -203,3 +203,43 @@ def test_simulate_refuses_a_cycle_in_the_wrong_unit(tmp_path, capsys):
         == 2
     )
     assert "looks like degF" in capsys.readouterr().err
+
+
+def test_a_fixed_ratio_gearbox_s_oil_in_degf_while_it_warms_is_untrusted(tmp_path, capsys):
+    """The HR225 warming from 20 degC at rated load, its sump written in degF (68-136): within the range rule's degC
+    (a hot gearbox), it passed with exit 0 and false warnings; beside the sensor's own sump it is exit 3."""
+    import numpy as np
+
+    from tools.runtable import RunTable, read_run_table, write_run_table
+
+    t = np.arange(0.0, 4 * 3600.0 + 1.0, 10.0)
+    cyc = tmp_path / "rig.csv"
+    write_run_table(
+        RunTable(
+            {
+                "time_s": t,
+                "input_speed_rpm": np.full(t.size, 1480.0),
+                "input_torque_nm": np.full(t.size, 700.0),
+                "ambient_temp_c": np.full(t.size, 25.0),
+            }
+        ),
+        cyc,
+    )
+    run = tmp_path / "run.csv"
+    assert main(["simulate", "--gearbox", "HR225", "--cycle", str(cyc), "--out", str(run), "--quiet"]) == 0
+    tb = read_run_table(run, required=("time_s",))
+    rows = {
+        "time_s": tb["time_s"],
+        "input_speed_rpm": tb["input_speed_rpm"],
+        "input_torque_nm": tb["input_torque_nm"],
+        "ambient_temp_c": tb["ambient_temp_c"],
+    }
+    good, bad = tmp_path / "good.csv", tmp_path / "degf.csv"
+    write_run_table(RunTable({**rows, "oil_temp_c": tb["T_oil_c"]}), good)
+    write_run_table(RunTable({**rows, "oil_temp_c": tb["T_oil_c"] * 1.8 + 32.0}), bad)
+    capsys.readouterr()
+    assert main(["replay", str(good), "--gearbox", "HR225", "--out", str(tmp_path / "g.csv")]) == 0
+    assert "looks like degF" not in capsys.readouterr().err
+    assert main(["replay", str(bad), "--gearbox", "HR225", "--out", str(tmp_path / "b.csv")]) == 3
+    err = capsys.readouterr().err
+    assert "above the sensor's own modelled sump on median" in err and "the oil looks like degF, not degC" in err
