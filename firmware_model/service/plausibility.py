@@ -197,9 +197,22 @@ class GearRatioFinding:
                 f"{WHEEL_RADIUS_M:g} m tyres, where road vehicles have {lo:g}-{hi:g}"
             )
         why = "; ".join(why)
+        x = self.rpm_per_kmh
+        up = [g for g, a, b in zip(self.gears[1:], x, x[1:]) if b > (1.0 + GEAR_RATIO_TOL) * a]
+        if up:  # a higher gear turning the engine faster per km/h: no numbering does that
+            speeds = (
+                "the engine and vehicle speeds" if self.source == "can" else "engine_speed_rpm and vehicle_speed_kmh"
+            )
+            gears, turns = ", ".join(map(str, self.gears)), ", ".join(f"{v:.1f}" for v in x)
+            return (
+                f"{col} does not follow the {self.gearbox}'s ratios: driving in gears {gears}, the engine turns "
+                f"{turns} rpm per km/h, more in gear {', '.join(map(str, up))} than in the gear below: no gearbox's "
+                f"numbering does that; check that {speeds} are those quantities in rpm and km/h (a swapped or "
+                "mislabelled column)"
+            )
         return (
             f"{col} does not follow the {self.gearbox}'s ratios: driving in gears "
-            f"{', '.join(map(str, self.gears))}, the engine turns {', '.join(f'{x:.1f}' for x in self.rpm_per_kmh)} "
+            f"{', '.join(map(str, self.gears))}, the engine turns {', '.join(f'{v:.1f}' for v in x)} "
             f"rpm per km/h ({why}): these gear numbers are another gearbox's, and the losses those of other gears; "
             f"{fix} to this gearbox's numbers, or replay with its own description (--gearbox)"
         )
@@ -355,10 +368,7 @@ def oil_model_unit_finding(oil, model_oil, dt_s: float = STEP_S, source: str = "
     off = float(np.median(x[ok] - m[ok]))
     if abs(off) < OIL_MODEL_OFF_K:
         return None
-    near = [
-        (float(np.median(np.abs(to_c(x[ok]) - m[ok]))), name, words, fix)
-        for name, words, to_c, fix in OIL_UNITS
-    ]
+    near = [(float(np.median(np.abs(to_c(x[ok]) - m[ok]))), name, words, fix) for name, words, to_c, fix in OIL_UNITS]
     best = min(near)
     if not best[0] <= min(OIL_MODEL_FIT_SHARE * abs(off), OIL_MODEL_FIT_K):
         return None

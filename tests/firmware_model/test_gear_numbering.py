@@ -156,3 +156,15 @@ def test_a_short_launch_of_the_grs905_s_own_drive_gives_no_gear_warning(uphill_c
     err = capsys.readouterr().err
     assert rc == 0 and (tmp_path / "e.csv").exists()
     assert "does not follow" not in err, err
+
+
+def test_a_higher_gear_turning_the_engine_faster_names_the_speed_columns_not_the_numbering():
+    """Swapped speed and torque columns: the engine turned 51.2 then 56.3 then 32.2 then 38.3 rpm per km/h in
+    gears 10 to 13, and the warning advised renumbering the gears, which no numbering mends."""
+    from firmware_model.service.plausibility import GearRatioFinding
+
+    f = GearRatioFinding((10, 11, 12, 13), (51.2, 56.3, 32.2, 45.0), (1.6, 1.29, 1.0, 0.8), "GRS905")
+    assert "more in gear 13 than in the gear below: no gearbox's numbering does that" in f.sentence
+    assert "engine_speed_rpm and vehicle_speed_kmh" in f.sentence and "renumber" not in f.sentence
+    ok = GearRatioFinding((10, 11, 12), (60.0, 40.0, 30.0), (1.6, 1.29, 1.0), "GRS905")
+    assert "renumber the gears" in ok.sentence
