@@ -55,6 +55,7 @@ class DegradedFinding:
     causes: tuple = ()  # why inputs were missing, as far as the CAN decoder's counters tell (trust)
     rejected: dict = field(default_factory=dict)  # the sensor's own input checks: reject reason -> steps
     oil_frozen_at_c: float | None = None  # the oil reading on the last step it was rejected as frozen
+    engine: bool = True  # a vehicle's engine drives the gearbox (False: a fixed-ratio drive's input shaft)
 
     @property
     def share(self) -> float:
@@ -73,8 +74,12 @@ class DegradedFinding:
             for m, n in sorted(self.by_mode.items(), key=lambda kv: -kv[1])
             if m != MODE_NORMAL and n
         )
+
+        def name(k):  # a fixed-ratio drive's input shaft is no engine
+            return INPUT_NAMES[k] if self.engine else INPUT_NAMES[k].replace("engine ", "input ")
+
         worst = sorted(
-            ((n, f"{INPUT_NAMES[k]} {pct(n, self.steps)}") for k, n in self.missing.items() if n and k in INPUT_NAMES),
+            ((n, f"{name(k)} {pct(n, self.steps)}") for k, n in self.missing.items() if n and k in INPUT_NAMES),
             reverse=True,
         )
         # the sensor's own checks (a frozen or implausible reading) next to the missing inputs, the most steps
@@ -132,6 +137,7 @@ def degraded_finding(
     oil_model: bool = False,
     rejected: Mapping[str, int] | None = None,
     oil_frozen_at_c: float | None = None,
+    engine: bool = True,
 ) -> DegradedFinding:
     """The degraded share of a run from its steps per degraded mode (and the steps each input was missing; the
     steps the sensor's own checks rejected one, ``rejected``: reason -> steps, with the frozen oil reading).
@@ -152,6 +158,7 @@ def degraded_finding(
         dict(missing or {}),
         rejected=rejected,
         oil_frozen_at_c=oil_frozen_at_c,
+        engine=engine,
     )
 
 

@@ -19,7 +19,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from firmware_model.components import STEP_S
+from firmware_model.components import MODE_NORMAL, STEP_S
 from firmware_model.service.degraded import Severity, pct
 
 #: the plausible range of a gearbox sump read in degC [degC]
@@ -58,6 +58,8 @@ OIL_UNITS = (
 #: (the range rule above misses a sump read in degF while it warms: 68-136 degF read as degC is a hot gearbox, not
 #: an impossible one; the twin says 43-69 degC beside it)
 OIL_MODEL_OFF_K, OIL_MODEL_MIN_S, OIL_MODEL_FIT_SHARE, OIL_MODEL_FIT_K = 20.0, 1800.0, 0.25, 15.0
+#: ... judged only when the sensor ran degraded (holding or modelling an input) on at most this share of the steps
+OIL_MODEL_DEGRADED_SHARE = 0.2
 #: a driving row: the engine at least this fast [rpm] with a gear engaged
 DRIVE_MIN_RPM = 500.0
 #: torque sign: below this torque [Nm] on more than SIGN_SHARE of at least SIGN_MIN_DRIVE_S [s] of driving, and
@@ -553,6 +555,31 @@ def torque_knm_finding(
 FIXED_FAST_SHARE, FIXED_KNM_SHARE, FIXED_KNM_MIN_S = 0.6, 1e-3, 3600.0
 
 
+#: a fixed-ratio drive's input turning above this multiple of its description's largest speed on more than half of
+#: its running rows (at least FIXED_KNM_MIN_S) is another gearbox's record, or a speed in another unit
+FIXED_OVERSPEED = 2.0
+
+
+def fixed_speed_finding(speed_rpm, drive_limits, dt_s: float = STEP_S, source: str = "table"):
+    """FIXED_OVERSPEED's rule: a record of a much faster input than the gearbox described (a 1480 rpm reducer's run
+    replayed on the MM82, whose rotor turns 17 rpm, read as a torque in kN m before)."""
+    max_rpm = float(drive_limits[0])
+    speed = _finite(speed_rpm)
+    running = np.isfinite(speed) & (speed > 0.0)
+    n = int(running.sum())
+    if n * dt_s < FIXED_KNM_MIN_S or not max_rpm > 0 or np.mean(speed[running] > FIXED_OVERSPEED * max_rpm) <= 0.5:
+        return None
+    median = float(np.median(speed[running]))
+    col = "column input_speed_rpm" if source == "table" else SOURCES[source]["engine_speed_rpm"]
+    return PlausibilityFinding(
+        "engine_speed_rpm",
+        "another gearbox",
+        f"{col} turns at a median {median:.4g} rpm, {median / max_rpm:.3g} times the {max_rpm:.4g} rpm this gearbox's "
+        "input turns at most: the record is another gearbox's (replay it with --gearbox of the one it comes from), "
+        "or its speed is in another unit",
+    )
+
+
 def fixed_torque_knm_finding(
     speed_rpm, torque_nm, drive_limits, dt_s: float = STEP_S, source: str = "table"
 ) -> PlausibilityFinding | None:
@@ -635,7 +662,15 @@ def record_findings(
     oil, speed, torque, gear = (col(c) for c in ("oil_temp_c", "engine_speed_rpm", "engine_torque_nm", "gear"))
     if oil is not None:
         out.append(oil_unit_finding(oil, dt_s, source, oil_warning_c))
-        if out[-1] is None and col("model_oil_temp_c") is not None:  # a replay's output: its twin beside the oil
+        modes = col("degraded_mode")
+        # a replay's output: its twin beside the oil, a reference while the drive's inputs were the sensor's own
+        # (degraded on more than OIL_MODEL_DEGRADED_SHARE, its modelled sump rests on held inputs: another gearbox's
+        # record read as this one's, whose sump the twin misses by tens of kelvin in degC)
+        if (
+            out[-1] is None
+            and col("model_oil_temp_c") is not None
+            and (modes is None or np.mean(np.asarray(modes, dtype=float) != MODE_NORMAL) <= OIL_MODEL_DEGRADED_SHARE)
+        ):
             out.append(oil_model_unit_finding(oil, col("model_oil_temp_c"), dt_s, source))
         if col("time_s") is not None:  # (a live check's samples carry none: its clock is the bus's)
             out.append(oil_rate_finding(col("time_s"), oil, source))
@@ -644,8 +679,9 @@ def record_findings(
         out.append(torque_percent_finding(speed, torque, gear, dt_s, source))
         if engine:
             out.append(torque_knm_finding(speed, torque, gear, dt_s, source))
-        elif drive_limits is not None:
-            out.append(fixed_torque_knm_finding(speed, torque, drive_limits, dt_s, source))
+        elif drive_limits is not None:  # (a far faster input than described: its torque is no unit's mistake)
+            over = fixed_speed_finding(speed, drive_limits, dt_s, source)
+            out.append(over or fixed_torque_knm_finding(speed, torque, drive_limits, dt_s, source))
     if source == "table":  # (a CAN source decodes them in degC, its range checked by the decoder)
         out.extend(aux_unit_finding(c, col(c)) for c in AUX_COLUMNS_C if col(c) is not None)
     return [f for f in out if f is not None]

@@ -286,3 +286,22 @@ def test_an_oil_in_degf_beside_the_sensor_s_own_sump_is_found():
     assert oil_model_unit_finding(real_c, model, 1.0) is None
     assert oil_model_unit_finding(np.full(t.size, 100.0), np.full(t.size, 70.0), 1.0) is None
     assert oil_model_unit_finding(real_c[:1700] * 1.8 + 32.0, model[:1700], 1.0) is None
+
+
+def test_a_far_faster_input_than_the_gearbox_described_is_another_gearbox_not_a_torque_unit():
+    """A 1480 rpm reducer's run replayed on the MM82 (its rotor at most 20 rpm) was told its torque looks like kN m;
+    it is another gearbox's record. Its own speeds pass."""
+    from firmware_model.service.degraded import degraded_finding
+    from firmware_model.service.plausibility import fixed_speed_finding, record_findings
+
+    n = 7200
+    speed, torque = np.full(n, 1480.0), np.full(n, 700.0)
+    f = fixed_speed_finding(speed, (20.0, 1.2e6), 1.0)
+    assert f is not None and "74 times the 20 rpm this gearbox's input turns at most" in f.what
+    cols = {"engine_speed_rpm": speed, "engine_torque_nm": torque}
+    found = record_findings(cols, 1.0, engine=False, drive_limits=(20.0, 1.2e6))
+    assert [x.likely for x in found] == ["another gearbox"]  # (not the kN m rule)
+    assert fixed_speed_finding(np.full(n, 15.0), (20.0, 1.2e6), 1.0) is None
+    # a fixed-ratio drive's degraded inputs are its input shaft's, not an engine's
+    d = degraded_finding({0: 25, 2: 75}, {"torque_valid": 75}, engine=False)
+    assert "input torque 75 %" in d.sentence and "engine" not in d.sentence

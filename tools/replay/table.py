@@ -584,7 +584,8 @@ def table_findings(out, oil_model: bool = False) -> list:
         for c in ("speed_valid", "torque_valid", "gear_valid", "oil_valid")
         if out.has(c)
     }
-    finding = degraded_finding(dict(zip(values.tolist(), counts.tolist())), missing, oil_model)
+    engine = (out.meta or {}).get("engine_drive", True)
+    finding = degraded_finding(dict(zip(values.tolist(), counts.tolist())), missing, oil_model, engine=engine)
     jumps = int(out["rejects_time_jump"][-1]) if out.n and out.has("rejects_time_jump") else 0
     units = unit_findings(
         out.n,
@@ -593,7 +594,7 @@ def table_findings(out, oil_model: bool = False) -> list:
         out["engine_speed_rpm"] if out.has("engine_speed_rpm") else [],
         out["engine_torque_nm"] if out.has("engine_torque_nm") else [],
         hold_s=SensorOptions().time_jump_hold_s,
-        engine=(out.meta or {}).get("engine_drive", True),
+        engine=engine,
     )
     units += table_record_findings(out, (out.meta or {}).get("min_torque_nm"))
     return units + ([finding] if finding.severity >= Severity.WARNING else [])
