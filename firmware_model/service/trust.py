@@ -169,6 +169,14 @@ class ForeignSourceFinding:
     @property
     def sentence(self) -> str:
         data = "" if self.with_data == self.frames else f" ({self.with_data} with data)"
+        brake = NON_DRIVELINE_RETARDERS.get(self.source) if self.message in ("ERC1", RC_KEY) else None
+        if brake and not self.expected_frames and not self.moved:  # no advice to take an engine brake's heat
+            return (
+                f"{self.message} (PGN {self.pgn}) arrived {self.frames} times from SA 0x{self.source:02X}{data}, "
+                f"J1939's preferred address of the {brake}, not the driveline retarder (SA 0x{self.expected:02X}) "
+                "whose heat reaches the gearbox oil: left out, rightly (a driveline retarder that really sends from "
+                f"there: set {config_key_words(self.fix_key or self.config_key)} = 0x{self.source:02X})"
+            )
         if not self.configured:
             where = f"the DBC's default SA 0x{self.expected:02X} is expected ({self.advice})"
         elif self.also_moved:
@@ -195,6 +203,9 @@ class ForeignSourceFinding:
 
 
 Finding = TimeBaseFinding | ForeignSourceFinding | DegradedFinding
+
+#: J1939's preferred source addresses of retarders whose heat does not reach the gearbox (SAE J1939 appendix B)
+NON_DRIVELINE_RETARDERS = {0x0F: "engine retarder", 0x29: "exhaust retarder"}
 
 
 def config_key_words(key: str, bare: bool = False) -> str:

@@ -367,3 +367,15 @@ def test_a_run_without_any_oil_reading_is_told_how_to_model_the_oil_by_request()
     whole = degraded_finding({MODE_OIL_MODEL: 600}, {"oil_valid": 600})
     part = degraded_finding({MODE_OIL_MODEL: 400, MODE_NORMAL: 200}, {"oil_valid": 400})
     assert 'oil_mode = "model"' in whole.sentence and "oil_mode" not in part.sentence
+
+
+def test_an_engine_or_exhaust_retarder_s_erc1_is_left_out_rightly_not_advised_in():
+    """The real captures' ERC1 from SA 0x29 and 0x0F (J1939's exhaust and engine retarders) came with the advice
+    "set [can] retarder_source_address = 0x29", which would feed an engine brake's heat into the gearbox."""
+    from firmware_model.service.trust import ForeignSourceFinding
+
+    f = ForeignSourceFinding("ERC1", 61440, 0x29, 300, 300, 0x10, 0, "retarder_source_address", False, False)
+    assert "J1939's preferred address of the exhaust retarder, not the driveline retarder (SA 0x10)" in f.sentence
+    assert "left out, rightly" in f.sentence and f.severity == Severity.NOTE
+    other = ForeignSourceFinding("ERC1", 61440, 0x11, 300, 300, 0x10, 0, "retarder_source_address", False, False)
+    assert "left out, rightly" not in other.sentence and "set [can] retarder_source_address = 0x11" in other.sentence
