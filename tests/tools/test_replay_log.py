@@ -427,3 +427,20 @@ def test_a_log_named_for_another_format_says_what_it_is(tmp_path, capsys):
         assert main(["replay", str(path), "--out", str(tmp_path / "o.csv")]) == 2
         err = capsys.readouterr().err
         assert words in err and len(err.strip().splitlines()) == 1, err
+
+
+def test_a_log_written_backwards_says_so_and_how_to_sort_it(tmp_path, frames):
+    """Every frame a step back in time gives no sensor step; the error said 'less than 100 ms of traffic ... are
+    all time stamps equal?'."""
+    _, fr = frames
+    fwd = tmp_path / "fwd.log"
+    write_frames(fr, fwd)
+    back = tmp_path / "back.log"
+    back.write_text("".join(reversed(fwd.read_text().splitlines(keepends=True))))
+    with pytest.raises(
+        InputError,
+        match=r"back.log: no sensor step: its frame time falls at 100 % of its changes over .* the log "
+        r"runs backwards; sort it by time \(candump -L: LC_ALL=C sort -s -n -k1.2 back.log",
+    ):
+        replay(back)
+    assert replay(fwd).n > 0

@@ -66,12 +66,7 @@ def add_subparser(sub):
     p.add_argument(
         "--out", required=True, metavar="OUT.toml", help="the calibrated parameter file (written atomically)"
     )
-    p.add_argument(
-        "--report",
-        metavar="OUT.md",
-        help="also write a Markdown report with a held-out plot next to it (run tables and CAN logs; on SCADA "
-        "records calibrate prints its tables)",
-    )
+    p.add_argument("--report", metavar="OUT.md", help="also write a Markdown report and its plot (run tables only)")
     p.add_argument(
         "--config",
         metavar="TOML",

@@ -245,17 +245,10 @@ def _run_scada(args) -> int:
     from tools.fleet.store import write_atomic
     from tools.progress import progress
     from tools.scada.diagnose import setup_of
-    from tools.scada.fleet import MIN_UNITS, coverage, fit_fleet, flag_units
+    from tools.scada.fleet import MIN_UNITS, fit_fleet, flag_units
     from tools.scada.reader import read_units
 
-    logs_only = ("scheduler", "workers", "diagnose", "manifest", "prune", "vehicle_from", "vehicle_pattern")
-    named = [f"--{o.replace('_', '-')}" for o in logs_only if getattr(args, o)]
-    named += given(args, ("fleet.estimates", "fleet.report"))
-    if named:
-        raise InputError(
-            f"{', '.join(named)}: for CAN logs, not with --columns (a SCADA unit is its files' "
-            "Wind_turbine_name column, or the map's unit_id)"
-        )
+    _refuse_log_options(args)
     try:  # (after the options: a misplaced one is said whether or not pyarrow is installed)
         import pyarrow as pa
     except ImportError:
@@ -294,11 +287,7 @@ def _run_scada(args) -> int:
     _write_health(root, fits, flags)
     kind = "unit-months" if days is None else "unit-periods"
     used = len(records) - len(rejected)
-    # the units judged against their siblings: a unit read but never compared is said, not counted as sound
-    out_of = {u: why for u, why in coverage(fits, sorted(set(records) - {u for u, _ in rejected})).items() if why}
-    for unit, why in out_of.items():
-        print(f"note: {unit}: {why}", file=sys.stderr)
-    judged = used - len(out_of)
+    judged = _say_not_judged(fits, sorted(set(records) - {u for u, _ in rejected}))
     used = len({f.unit for f in fits})  # fitted: a unit read without a fitted period is in the notes above
     # the units read and those fitted: a unit left out (a sump in degF) is said on stdout too, not only on stderr
     left = f" ({len(rejected)} of {len(records)} read left out, above)" if rejected else ""
@@ -325,6 +314,30 @@ def _run_scada(args) -> int:
             file=sys.stderr,
         )
     return 0
+
+
+def _refuse_log_options(args) -> None:
+    """One sentence for the CAN logs' options given with --columns."""
+    logs_only = ("scheduler", "workers", "diagnose", "manifest", "prune", "vehicle_from", "vehicle_pattern")
+    named = [f"--{o.replace('_', '-')}" for o in logs_only if getattr(args, o)]
+    named += given(args, ("fleet.estimates", "fleet.report"))
+    if named:
+        raise InputError(
+            f"{', '.join(named)}: for CAN logs, not with --columns (a SCADA unit is its files' "
+            "Wind_turbine_name column, or the map's unit_id)"
+        )
+
+
+def _say_not_judged(fits, units) -> int:
+    """On stderr, a note per unit of ``units`` never judged against its siblings, and why (a unit read but never
+    compared is not a sound one); the number judged."""
+    from tools.scada.fleet import coverage
+
+    why = coverage(fits, units)
+    for unit in units:
+        if why[unit]:
+            print(f"note: {unit}: {why[unit]}", file=sys.stderr)
+    return sum(not w for w in why.values())
 
 
 def _say_rows_dropped(records) -> None:

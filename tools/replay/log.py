@@ -21,6 +21,8 @@ import threading
 from pathlib import Path
 from typing import Any, NamedTuple
 
+import numpy as np
+
 from firmware_model.components import STEP_S
 from firmware_model.errors import InputError
 from tools.outputs import naming
@@ -108,8 +110,9 @@ def replay_log(
         kept = read_columns(path, False, damage).columns  # the frames kept, for the sequences the lines broke
     malformed = damage_finding(damage, kept, service.options.stale_factor)
     if not len(columns["time_s"]):
+        backwards = _runs_backwards(path, kept, damage)
         raise InputError(
-            _no_step_reason(path, service.decoder.counters)
+            (backwards or _no_step_reason(path, service.decoder.counters))
             + (f" ({malformed.summary})" if malformed is not None else "")
         )
     meta = {"counters": service.all_counters(), "log": os.fspath(path), "reader": reader, "malformed": malformed}
@@ -126,6 +129,27 @@ def _gear_meta(sensor) -> dict:
 
     params = getattr(sensor, "params", None)
     return {} if params is None else gear_meta(description_of(params))
+
+
+def _runs_backwards(path, kept, damage) -> str | None:
+    """The sentence for a log whose frame times mostly fall (written in reverse, or sorted the wrong way), None
+    otherwise: its every frame a step back, the sensor takes none (and 'less than 100 ms of traffic' misleads)."""
+    from tools.replay.columns import read_columns
+
+    try:
+        t = np.asarray((kept if kept is not None else read_columns(path, False, damage).columns).timestamp_s)
+    except (OSError, ValueError, InputError):
+        return None
+    dt = np.diff(t[np.isfinite(t)])
+    dt = dt[dt != 0.0]  # (frames of one time stamp neither rise nor fall)
+    if dt.size < 10 or np.mean(dt < 0) <= 0.5:
+        return None
+    return (
+        f"{path}: no sensor step: its frame time falls at {100 * np.mean(dt < 0):.0f} % of its changes over {t.size} "
+        f"frames (from "
+        f"{t[0]:.3f} to {t[-1]:.3f} s): the log runs backwards; sort it by time (candump -L: LC_ALL=C sort -s -n -k1.2 "
+        f"{Path(path).name} > sorted.log)"
+    )
 
 
 def _no_step_reason(path, d: dict) -> str:
