@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import functools
 import math
+import re
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 
@@ -60,7 +61,10 @@ def _check_address(key: str, value) -> int:
             if isinstance(value, int) and not isinstance(value, bool) and value >= 0
             else repr(value)
         )
-        raise ParameterError(f"can.{key} = {shown} is not a J1939 source address 0..253 (0x00..0xFD)")
+        quoted = ""
+        if isinstance(value, str) and re.fullmatch(r"\s*(0[xX][0-9a-fA-F]+|\d+)\s*", value):
+            quoted = f": write it without quotes, {key} = {value.strip()}"
+        raise ParameterError(f"can.{key} = {shown} is not a J1939 source address 0..253 (0x00..0xFD){quoted}")
     return value
 
 

@@ -182,3 +182,12 @@ def test_a_log_with_no_frame_at_all_is_one_sentence_without_the_strict_hint(tmp_
     err = capsys.readouterr().err.strip()
     assert "none of its 2 lines is a CAN frame" in err and "--strict" not in err and len(err.splitlines()) == 1
     assert not (tmp_path / "e.csv").exists()
+
+
+def test_candump_s_default_output_is_told_to_write_with_minus_l(tmp_path, capsys):
+    """candump's default and -ta output ('  can0  18FEF100   [8]  00 ...') were refused as 'not a .log text CAN log,
+    or one damaged throughout', without the fix."""
+    log = tmp_path / "plain.log"
+    log.write_text("".join(f" ({k * 0.01:.6f})  can0  18FEF100   [8]  00 11 22 33 44 55 66 77\n" for k in range(20)))
+    assert main(["replay", str(log), "--out", str(tmp_path / "o.csv")]) == 2
+    assert "a .log is candump -L's form" in capsys.readouterr().err

@@ -92,7 +92,11 @@ def test_the_table_sets_one_message_over_its_group_key():
         ({"TRF1": 0x121}, r"can\.source_address\.TRF1 = 289 \(0x121\) is not a J1939 source address"),
         ({"TRF1": -1}, r"can\.source_address\.TRF1 = -1 is not a J1939 source address"),
         ({"TRF1": True}, r"can\.source_address\.TRF1 = True is not a J1939 source address"),
-        ({"TRF1": "0x21"}, r"can\.source_address\.TRF1 = '0x21' is not a J1939 source address"),
+        (
+            {"TRF1": "0x21"},
+            r"can\.source_address\.TRF1 = '0x21' is not a J1939 source address .*: write it without quotes, "
+            r"source_address\.TRF1 = 0x21",
+        ),
         (0x21, r"can\.source_address = 33 must be a table of message = address"),
     ],
 )

@@ -29,7 +29,8 @@ def _help_texts() -> tuple[str, str]:
         if e.id not in CHANNEL_EFFECTS
     )
     description = (
-        "Run the reference thermal plant (61 thermal masses, every loss and heat path of the seed) "
+        "Run the reference thermal plant (the GRS905's 61 thermal masses, or the --gearbox description's; every loss "
+        "and heat path of the seed) "
         "over a drive cycle and write a run table with every node temperature, every loss and every "
         "heat flow to the outside.\n\nNamed cycles are SYNTHETIC, modelled on the thesis's load cases: "
         + ", ".join(CYCLE_NAMES)

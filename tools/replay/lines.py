@@ -171,9 +171,15 @@ def scan_text_log(path: Path, raw: bytes | None = None) -> LogDamage:
         if kind is not None and kind[1] != suffix:
             raise InputError(f"{path}: no CAN frame read as {suffix}: it looks like {kind[0]}; name it {kind[1]}")
         what = "it holds binary data" if damage.binary else f"line {bad[0]}: {damage.first_text!r}"
+        # candump's default and -ta output ("  can0  18FEF100   [8]  00 ...") are for reading, not replaying
+        hint = (
+            "; a .log is candump -L's form, '(1690000000.123456) can0 18FEF100#0011...': write it with candump -L"
+            if suffix == ".log" and not damage.binary and re.search(r"\[\d\]", damage.first_text or "")
+            else ""
+        )
         raise InputError(
             f"{path}: none of its {lines} lines is a CAN frame ({what}): not a {suffix} text CAN log, "
-            f"or one damaged throughout"
+            f"or one damaged throughout{hint}"
         )
     return damage
 
