@@ -215,8 +215,10 @@ def replay_log_file(
     a log with a malformed line (else skipped, counted, and among the findings when they make it untrusted)."""
     import can
 
+    from firmware_model.description import description_of
     from firmware_model.service import build_service
     from firmware_model.service.core import log as service_log
+    from tools.replay.table import written_table
     from tools.replay.timelog import HeldLog
     from tools.runtable import write_run_table
 
@@ -253,8 +255,8 @@ def replay_log_file(
     findings = tuple(with_malformed(log_findings(service, table), table.meta.get("malformed")))
     held.pass_on(any(f.kind == "milliseconds" for f in findings), service.counters["time_jumps"])
     table.meta["limits"] = service.sensor.limits  # the summary's margins: this gearbox's limits, not the GRS905's
-    with naming(out):
-        written = write_run_table(table, out)
+    with naming(out):  # a fixed-ratio drive's columns under its own names, as the CSV and SCADA paths write them
+        written = write_run_table(written_table(table, description_of(service.sensor.params)), out)
     return LogReplay(table, written, service.decoder.counters, service.counters, findings)
 
 
