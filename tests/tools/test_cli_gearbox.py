@@ -391,12 +391,16 @@ def test_a_trucks_named_cycle_on_a_fixed_ratio_gearbox_is_one_sentence(tmp_path,
     """The named cycles drive a truck; a fixed-ratio gearbox is refused with what to give instead, not run (or
     stopped by a range check that only happens to fire)."""
     out = tmp_path / "o.csv"
+    assert main(["simulate", "--gearbox", "HR225", "--cycle", "uphill", "--out", str(out)]) == 2
+    err = _one_sentence(capsys, "simulate")
+    assert "truck" in err and "fixed_ratio" in err and "input_speed_rpm" in err and "steady:rpm=N,nm=N" in err
+    assert not out.exists()
+    # a truck's steady spec, its gear given: the drive has one (its own steady spec holds the input shaft)
     assert (
         main(["simulate", "--gearbox", "HR225", "--cycle", "steady:gear=4L,rpm=1000,nm=300,s=60", "--out", str(out)])
         == 2
     )
-    err = _one_sentence(capsys, "simulate")
-    assert "truck" in err and "fixed_ratio" in err and "input_speed_rpm" in err
+    assert "gearbox HR225 has one gear; leave gear= out" in _one_sentence(capsys, "simulate")
     assert not out.exists()
 
 

@@ -624,3 +624,27 @@ def test_a_run_that_leaves_the_oil_model_says_so_quiet_or_not(tmp_path, capsys):
     warm = _fixed_ratio_cycle(tmp_path / "warm.csv", 1485.0, 700.0, s=600)
     assert main(["simulate", "--gearbox", "HR225", "--cycle", str(warm), "--out", str(out), "--quiet"]) == 0
     assert "left the model" not in capsys.readouterr().err
+
+
+def test_a_fixed_ratio_gearbox_takes_a_steady_spec_of_its_input_shaft(tmp_path, capsys):
+    """A rig's steady point on the HR225 needed a CSV written by hand ('is a truck's'); the spec holds its input
+    shaft: the same run as the CSV of that speed, torque and air. rpm= and nm= are both asked for, gear= refused."""
+    out, csv_out = tmp_path / "s.csv", tmp_path / "c.csv"
+    spec = "steady:rpm=1480,nm=700,s=600"
+    assert main(["simulate", "--gearbox", "HR225", "--cycle", spec, "--out", str(out), "--quiet"]) == 0
+    cyc = _fixed_ratio_cycle(tmp_path / "rig.csv", 1480.0, 700.0, s=600)
+    assert main(["simulate", "--gearbox", "HR225", "--cycle", str(cyc), "--out", str(csv_out), "--quiet"]) == 0
+    a, b = read_run_table(out, required=("time_s",)), read_run_table(csv_out, required=("time_s",))
+    t_a, t_b = np.asarray(a["time_s"]), np.asarray(b["time_s"])
+    both = np.intersect1d(t_a, t_b)
+    assert both.size > 500
+    np.testing.assert_allclose(
+        np.asarray(a["T_oil_c"])[np.isin(t_a, both)], np.asarray(b["T_oil_c"])[np.isin(t_b, both)], atol=1e-6
+    )
+    for bad, words in (
+        ("steady:rpm=1480", "give rpm= and nm= of gearbox HR225's input shaft"),
+        ("steady:gear=1,rpm=1480,nm=700", "gearbox HR225 has one gear; leave gear= out"),
+        ("steady:rpm=5000,nm=700", "rpm=5000 must be in 0..1800"),
+    ):
+        assert main(["simulate", "--gearbox", "HR225", "--cycle", bad, "--out", str(out)]) == 2
+        assert words in capsys.readouterr().err

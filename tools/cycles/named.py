@@ -535,10 +535,13 @@ def get_cycle(
     low = s.lower()
     is_file = low.endswith(".csv") or os.sep in s or "/" in s or Path(s).is_file()
     if not is_file and description is not None and description.drive.kind != "vehicle":
+        if low.startswith("steady:"):  # its input shaft's speed and torque held, as a rig holds them
+            return _fixed_steady(s, description, rate_hz)
         # the named cycles drive a truck (engine speed, torque, gear): another drive takes its own run table
         raise InputError(
             f"drive cycle {s!r} is a truck's, but gearbox {description.name} has a {description.drive.kind} drive: "
-            f"give a CSV run table with time_s, input_speed_rpm, input_torque_nm, ambient_temp_c"
+            f"give a CSV run table with time_s, input_speed_rpm, input_torque_nm, ambient_temp_c, or "
+            f"'steady:rpm=N,nm=N' (its input shaft held)"
         )
     if low == "steady" or low.startswith("steady:"):
         limits = {}
@@ -572,6 +575,42 @@ def get_cycle(
         f"unknown drive cycle {s!r}: give one of {', '.join(CYCLE_NAMES)} "
         f"(steady:gear=4L,rpm=1300,nm=2000,s=3600,oil=100) or the path of a CSV run table"
     )
+
+
+#: the air around a fixed-ratio drive's steady spec [degC] (the start's default too, as a truck's steady spec)
+FIXED_STEADY_AMBIENT_C = 20.0
+
+
+def _fixed_steady(spec: str, description, rate_hz: float) -> RunTable:
+    """A fixed-ratio drive's 'steady:rpm=N,nm=N[,s=..,oil=..,init=..]': its input shaft at that speed [rpm] and
+    torque [N m] (both given: the truck's defaults are no other drive's) in FIXED_STEADY_AMBIENT_C air, mapped as
+    its CSV run table is (tools.drive_table)."""
+    from tools.drive_table import map_fixed_ratio
+    from tools.runtable import validate_run_table
+
+    keys = [p.partition("=")[0].strip().lower() for p in spec.partition(":")[2].split(",") if p.strip()]
+    if "gear" in keys:
+        raise InputError(f"steady cycle spec {spec!r}: gearbox {description.name} has one gear; leave gear= out")
+    if not {"rpm", "nm"} <= set(keys):
+        raise InputError(
+            f"steady cycle spec {spec!r}: give rpm= and nm= of gearbox {description.name}'s input shaft (its drive "
+            f"turns up to {description.drive.max_speed_rad_s * 30.0 / math.pi:.4g} rpm and "
+            f"{description.drive.max_torque_nm:.4g} N m)"
+        )
+    p = parse_steady_spec(
+        spec, max_rpm=description.drive.max_speed_rad_s * 30.0 / math.pi, max_nm=description.drive.max_torque_nm
+    )
+    t = _out_time(p["s"], rate_hz)
+    cols = {
+        "time_s": t,
+        "input_speed_rpm": np.full(t.size, p["rpm"]),
+        "input_torque_nm": np.full(t.size, p["nm"]),
+        "ambient_temp_c": np.full(t.size, FIXED_STEADY_AMBIENT_C),
+    }
+    init_c = p["init"] if p["init"] is not None else (p["oil"] if p["oil"] is not None else FIXED_STEADY_AMBIENT_C)
+    meta = {"cycle": spec, "initial_temp_c": float(init_c), "hold_oil_c": p["oil"], "rate_hz": float(rate_hz)}
+    meta.update(noise=False, seed=0, synthetic=True)
+    return validate_run_table(map_fixed_ratio(RunTable(cols, meta=meta), description, spec), name=spec)
 
 
 def _own_steady_gear(spec: str, description) -> tuple[str, int]:
