@@ -268,6 +268,10 @@ def coverage(fits: Sequence[PeriodFit], units, baseline_periods: int = BASELINE_
     for f in fits:
         fitted[f.unit] = fitted.get(f.unit, 0) + 1
     judged = {u for eid in EFFECTS for u in drifts(fits, eid, baseline_periods)}
+    shared: dict = {}  # unit -> its most periods beside MIN_UNITS - 1 siblings, over the effects
+    for eid in EFFECTS:
+        for u, rows in deviations(fits, eid).items():
+            shared[u] = max(shared.get(u, 0), len(rows))
     out = {}
     for u in units:
         if u in judged:
@@ -278,10 +282,9 @@ def coverage(fits: Sequence[PeriodFit], units, baseline_periods: int = BASELINE_
                 f"{MIN_BLOCKS} days or more): not judged"
             )
         else:
-            shared = max((len(r) for eid in EFFECTS for uu, r in deviations(fits, eid).items() if uu == u), default=0)
             out[u] = (
-                f"{fitted[u]} period(s) fitted, {shared} of them beside {MIN_UNITS - 1} or more siblings fitted in the "
-                f"same period; a drift needs more than {baseline_periods} such periods: not judged"
+                f"{fitted[u]} period(s) fitted, {shared.get(u, 0)} of them beside {MIN_UNITS - 1} or more siblings "
+                f"fitted in the same period; a drift needs more than {baseline_periods} such periods: not judged"
             )
     return out
 

@@ -238,11 +238,6 @@ class RecordFinding:
     channel: str | None = None  # the measured channel it is about (an estimate far off its readings), if one
 
 
-def _drive_words(sentence: str) -> str:
-    """A run-table finding in a fixed-ratio drive's words: its input shaft, not an engine."""
-    return sentence.replace("engine speed", "input speed").replace("engine torque", "input torque")
-
-
 def record_findings(record: ScadaRecord, result: ScadaReplay) -> list:
     """The trust findings of a SCADA replay, most severe first: the sensor's on its output table (degraded share,
     repairs: tools.replay.table.table_findings), rows the reader dropped, channels mostly rejected as implausible
@@ -254,8 +249,6 @@ def record_findings(record: ScadaRecord, result: ScadaReplay) -> list:
     found = [
         RecordFinding("plausibility", int(f.severity), torque_unit_hint(record, f.sentence))
         if is_torque_unit_sentence(f.sentence)
-        else RecordFinding(getattr(f, "kind", "degraded"), int(f.severity), _drive_words(f.sentence))
-        if "engine " in f.sentence
         else f
         for f in table_findings(result.table, oil_model=result.oil_mode == "model")
     ]
