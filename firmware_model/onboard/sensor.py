@@ -141,9 +141,11 @@ class VirtualSensor:
                 f"(time back by more than it is a reset clock; less is skipped)"
             )
         if params.strings.get("cooler.kind") in ("hold", "measured"):
-            # a rig: the sump is conditioned from outside (no cooler to model, a constant reading is normal)
+            # a rig: the sump is conditioned from outside (no cooler to model, a constant reading is normal, and
+            # the time to limit holds the measured sump where it is: the twin's, with no cooler, climbs without end)
             params = params.with_cooler_kind("none")
             options.setdefault("oil_frozen_s", math.inf)
+            options.setdefault("ttl_sump", "held")
         try:
             opts = SensorOptions(oil_mode=oil_mode, **options)
         except TypeError as exc:

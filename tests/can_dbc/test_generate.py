@@ -185,7 +185,7 @@ def test_too_many_components_is_one_sentence_exit_2(monkeypatch, capsys):
 
 
 @pytest.mark.parametrize("name", shipped_descriptions())
-def test_every_shipped_description_s_dbc_loads_strictly(name, tmp_path):
+def test_every_shipped_description_s_dbc_loads_strictly(name, tmp_path, capsys):
     """Every shipped description's generated DBC (no onboard sensor needed: the MM82's too) loads with cantools
     strict=True, carries a temperature, warning level, time to limit and rig signal per component the sensor
     publishes, in the description's order, and the project's loader reads those components back from it: the
@@ -207,6 +207,9 @@ def test_every_shipped_description_s_dbc_loads_strictly(name, tmp_path):
         assert {f"T_{stem}", f"W_{stem}", f"TTL_{stem}", f"TC_{stem}"} <= signals, c
     assert dbc.load_dbc(out).published_components() == tuple(ids)
     _roundtrip(dbc.load_dbc(out), ids)
+    # a drive whose torque EEC1 cannot carry (the MM82's rotor, 2.5 MN m) is told so: its inputs come another way
+    err = capsys.readouterr().err
+    assert ("cannot come over this DBC's J1939 frames" in err) == (d.drive.max_torque_nm > 1.25 * 64255), err
 
 
 def test_export_dbc_never_writes_over_its_description_and_writes_only_a_dbc(tmp_path, capsys):

@@ -207,6 +207,23 @@ def test_time_to_limit_matches_a_held_input_simulation(params, comp):
     assert abs(pred - crossed) <= 0.02 * (crossed - 60.0) + 0.5
 
 
+def test_a_rigs_held_sump_is_held_in_the_time_to_limit(params):
+    """A rig's configuration ([cooler] kind = "hold": the sump conditioned from outside) holds the measured sump in
+    the time to limit. 1M's teeth settle just under their 150 degC warning limit at a sump held at 106 degC: "never"
+    and no early warning (the twin's sump, with no cooler, had climbed without end and kept an early warning of a
+    20 s time to limit up for good)."""
+    s = VirtualSensor(params.with_cooler_kind("hold"))
+    assert s.options.ttl_sump == "held" and s.options.oil_frozen_s == math.inf
+    st = s.initial_state(T_oil_c=106.0)
+    inp = SensorInputs(1300.0, 2000.0, 10, 106.0, 25.0, 85.0, 60.0, 0.0)
+    i, warn = I["1M.teeth"], s.limits.warning_c[I["1M.teeth"]]
+    for _ in range(12000):
+        st, out = s.step(st, inp)
+    assert warn - 2.0 < out.T_c[i] < warn  # just under the limit, and settled
+    assert out.ttl_s[i] == math.inf and out.level[i] == 0
+    assert VirtualSensor(params.with_cooler_kind("hold"), ttl_sump="model").options.ttl_sump == "model"  # asked for
+
+
 @pytest.mark.parametrize("comp", ["PS", "2M.teeth"])
 def test_time_to_limit_with_the_sump_heating_matches_a_simulation(params, comp):
     """Default (ttl_sump="model"): the load is held and the sump heats with it from its measured value; against the

@@ -443,6 +443,82 @@ def test_restoring_a_saved_state(bundles, tmp_path):
     assert len({keys["float"], keys["double"], grso[2:]}) == 3
 
 
+START_PROGRAM = r"""#include <math.h>
+#include <stdio.h>
+#include <string.h>
+#include "gvs_sensor.h"
+
+static gvs_state st, ref;
+
+/* drive 60 s at 1300 rpm, 2000 N m in 10th with the oil at 80 degC from t0 on (NaN before), started with
+ * gvs_sensor_start; returns the steps it waited, the last outputs in *out */
+static int drive(gvs_state *s, double oil_from_s, double ambient, gvs_outputs *out)
+{
+    int k, started = 0, waited = 0;
+    for (k = 0; k < 600; ++k) {
+        double oil = 0.1 * k >= oil_from_s - 1e-9 ? 80.0 : NAN;
+        gvs_inputs in = {{1300.0, 2000.0, 10.0, oil, ambient, 85.0, 60.0, 0.0}, NAN};
+        if (!started) {
+            started = gvs_sensor_start(s, 0.1 * k, oil, ambient, out);
+            if (!started) {
+                int i;
+                ++waited;
+                for (i = 0; i < GVS_TABLES.n_pub; ++i)
+                    if (out->T_c[i] == out->T_c[i] || out->level[i] != 3 || out->ttl_s[i] == out->ttl_s[i])
+                        return -1;
+                if (out->degraded_mode != GVS_MODE_NOT_INITIALISED) return -1;
+                continue;
+            }
+        }
+        gvs_sensor_step(s, &in, out);
+    }
+    return waited;
+}
+
+int main(void)
+{
+    gvs_outputs a, b;
+    int bad = 0, w;
+    /* the oil at boot: started at once, every node at 80 degC */
+    if (drive(&ref, 0.0, 20.0, &a) != 0) bad = 1;
+    /* the oil 1 s late: 10 steps "not initialised", then every node at 80 degC (not the ambient's 20) */
+    w = drive(&st, 1.0, 20.0, &b);
+    if (w != 10) bad = 2;
+    if (fabs((double)(b.T_c[GVS_PUB_1M_TEETH] - a.T_c[GVS_PUB_1M_TEETH])) > 1.0 || b.degraded_mode != 0) bad = 3;
+    /* no oil at all: after GVS_INIT_WAIT_S, from the ambient reading */
+    memset(&st, 0, sizeof st);
+    if (gvs_sensor_start(&st, GVS_INIT_WAIT_S, NAN, -15.0, &b) != 1 || st.T_c[0][0] != (gvs_real)-15.0) bad = 4;
+    /* an implausible oil reading is none: it waits */
+    if (gvs_sensor_start(&st, 1.0, 999.0, 20.0, &b) != 0) bad = 5;
+    printf("%s %d 1M %.3f %.3f\n", bad ? "FAIL" : "PASS", bad, (double)a.T_c[GVS_PUB_1M_TEETH],
+           (double)b.T_c[GVS_PUB_1M_TEETH]);
+    return bad;
+}
+"""
+
+
+@pytest.mark.skipif(not HAVE_CC, reason="no make or C compiler on this machine")
+def test_the_start_waits_for_the_oil_reading(bundles, tmp_path):
+    """gvs_sensor_start waits up to GVS_INIT_WAIT_S for a plausible oil reading, as the CAN service does, with
+    outputs that say "not initialised"; an oil reading 1 s late starts every node at it (started from the ambient
+    instead, the 1M teeth read 61 against 99 degC after 60 s, in mode 0); no reading: the ambient after the wait. The
+    published components' indices are named (GVS_PUB_1M_TEETH)."""
+    (tmp_path / "start.c").write_text(START_PROGRAM)
+    cc = shutil.which("cc") or shutil.which("gcc")
+    d = bundles["double"]
+    exe = tmp_path / "start"
+    build = subprocess.run(
+        [cc, "-std=c99", "-Wall", "-Wextra", "-Werror", f"-I{d}", "-o", str(exe), str(tmp_path / "start.c")]
+        + [str(d / f) for f in ("gvs_kernel.c", "gvs_sensor.c", "gvs_tables.c")]
+        + ["-lm"],
+        capture_output=True,
+        text=True,
+    )
+    assert build.returncode == 0, build.stderr
+    run = subprocess.run([str(exe)], capture_output=True, text=True, timeout=120)
+    assert run.returncode == 0 and "PASS" in run.stdout, run.stdout
+
+
 @pytest.mark.skipif(not HAVE_CC, reason="no make or C compiler on this machine")
 def test_a_file_built_with_other_sizes_or_real_type_stops_the_build(bundles, tmp_path):
     """The exported header fixes the sizes and the real type: a file built without flags gets the export's, one with

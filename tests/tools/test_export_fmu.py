@@ -183,6 +183,44 @@ def test_a_rig_s_own_sampling_and_life_cycle(fmu):
     slave.freeInstance()
 
 
+def test_a_late_oil_reading_starts_the_state_and_unconnected_inputs_read_missing(fmu):
+    """The oil input 1 s late (NaN before; TRF1 comes once a second): the FMU waits for it as the CAN service does,
+    "not initialised" meanwhile (temperatures NaN, levels 3, degraded_mode 3), then starts every node at it: the run
+    is the on-time run 1 s later, bit for bit (it started every part at the ambient, 1M's teeth 61 against 99 degC
+    after 60 s, in mode 0). An input never set is missing, not a neutral gear or a stopped engine."""
+    from firmware_model.service.options import SENSOR_INPUTS
+
+    names = [col for _, col in SENSOR_INPUTS]
+    t = np.arange(0.0, 30.0, 0.1)
+    sig = np.zeros(t.size, dtype=[("time", float)] + [(c, float) for c in names])
+    sig["time"] = t
+    sig["engine_speed_rpm"], sig["engine_torque_nm"], sig["gear"] = 1300.0, 2000.0, 10.0
+    sig["ambient_temp_c"], sig["coolant_temp_c"], sig["vehicle_speed_kmh"], sig["retarder_torque_nm"] = 20, 85, 60, 0
+    sig["oil_temp_c"] = 80.0
+    late = sig.copy()
+    late["oil_temp_c"][t < 0.95] = np.nan
+    out = ["T_1M.teeth_c", "W_1M.teeth", "ttl_1M.teeth_s", "degraded_mode"]
+    run = dict(stop_time=29.9, output_interval=0.1, output=out)
+    ref = fmpy.simulate_fmu(str(fmu), input=sig, **run)
+    got = fmpy.simulate_fmu(str(fmu), input=late, **run)
+    assert np.isnan(got["T_1M.teeth_c"][:11]).all() and (got["W_1M.teeth"][:11] == 3).all()
+    assert (got["degraded_mode"][:11] == 3).all() and ref["T_1M.teeth_c"][0] == 80.0
+    n = ref["time"].size - 10
+    for c in out:
+        assert np.array_equal(got[c][11:], ref[c][1:n], equal_nan=True), c
+    md = fmpy.read_model_description(str(fmu))
+    starts = {v.name: v.start for v in md.modelVariables if v.causality == "input"}
+    assert all(np.isnan(float(starts[c])) for c in names)
+    idle = fmpy.simulate_fmu(
+        str(fmu),
+        stop_time=12.0,
+        output_interval=0.1,
+        output=["degraded_mode", "W_1M.teeth"],
+        start_values={"oil_temp_c": 80.0},
+    )
+    assert idle["degraded_mode"][-1] == 2 and idle["W_1M.teeth"][-1] == 3  # the drive inputs missing: holding
+
+
 @pytest.mark.skipif(shutil.which("cmake") is None, reason="fmpy compile builds with CMake: not installed here")
 def test_fmpy_rebuilds_the_binary_from_the_sources(fmu, tmp_path):
     """The sources an importer rebuilds the binary from (deploy.md: `python -m fmpy compile`): the rebuilt FMU

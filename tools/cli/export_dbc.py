@@ -80,4 +80,21 @@ def run(args) -> int:
     left = [p.id for p in d.published if p.id not in on_bus]
     note = f" ({', '.join(left)}: derived, the plant's only, not on the bus)" if left else ""
     print(f"wrote {args.out}: the DBC of {d.name}'s {len(on_bus)} published components{note}")
+    _say_inputs_not_carried(d)
     return 0
+
+
+def _say_inputs_not_carried(description) -> None:
+    """A note where the J1939 inputs cannot carry the drive's torque (EEC1's percent of at most the largest reference
+    torque: a wind turbine's rotor): the output frames still serve, the inputs must come another way."""
+    from tools.can.logsynth import PCT_RANGE, REF_TORQUE_MAX_NM
+
+    top_nm = PCT_RANGE[1] / 100.0 * REF_TORQUE_MAX_NM
+    if description.drive.max_torque_nm > top_nm:
+        print(
+            f"note: {description.name}'s largest input torque, {description.drive.max_torque_nm:.4g} N m, is past "
+            f"the most J1939's EEC1 carries ({top_nm:.0f} N m, {PCT_RANGE[1]:g} % of the largest reference torque): "
+            "its inputs cannot come over this DBC's J1939 frames; its output frames (temperatures, warnings, time "
+            "to limit, status) can, with the sensor fed from its run table or records (replay)",
+            file=sys.stderr,
+        )

@@ -17,6 +17,7 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -409,6 +410,7 @@ def export_c(out_dir, variant: str | None = None, config_path=None, real: str = 
                 n=sensor.reduced.n,
                 n_pub=len(sensor.published),
                 reset=reset_s,
+                pub_example=_pub_example(sensor.published),
                 **_drive_text(d, sensor.options.oil_mode),
                 **_check_text(sensor),
             ),
@@ -468,9 +470,33 @@ def sensor_files(sensor, real: str, ttl: bool = True) -> dict:
         ttl=int(ttl),
         key=f"0x{state_key(files, real, ttl):08x}u",
         reset=f"{sensor.options.clock_reset_s:g}",
+        published=published_defines(sensor.published),
     )
     files["gvs_sensor.c"] = SENSOR_SOURCE
     return files
+
+
+def _pub_example(published) -> str:
+    """The README's example of a named index: the first published component's."""
+    return "GVS_PUB_" + re.sub(r"[^0-9A-Za-z]+", "_", published[0]).upper()
+
+
+def published_defines(published) -> str:
+    """gvs_sensor.h's index of each published component in the outputs' arrays (``T_c``, ``level``, ``ttl_s``):
+    ``#define GVS_PUB_1M_TEETH 3`` with the component's meaning, so an integrator never counts by hand."""
+    from firmware_model.components import describe
+
+    lines = [
+        "/* the published components: index i of out->T_c, out->level and out->ttl_s (the CAN outputs' order) */",
+        f"#define GVS_N_PUBLISHED {len(published)}",
+    ]
+    used = set()
+    for i, comp in enumerate(published):
+        name = "GVS_PUB_" + re.sub(r"[^0-9A-Za-z]+", "_", comp).upper()
+        name = name if name not in used else f"{name}_{i}"  # two ids alike but for their punctuation
+        used.add(name)
+        lines.append(f"#define {name:<24} {i:>2}  /* {describe(comp).replace('*/', '* /')} */")
+    return "\n".join(lines)
 
 
 def export_config(variant: str | None, config_path):
@@ -540,6 +566,8 @@ def _drive_text(description, oil_mode: str = "measured") -> dict:
                 f"x{brake_f:.3g} braking, its own boundaries)"
             )
         return dict(
+            calling="speed_rpm, torque_nm, gear, oil_temp_c, ambient_c, coolant_c, vehicle_speed_kmh,\n"
+            "                   retarder_torque_nm",
             vectors="the uphill cycle" + fitted,
             inputs_text="Inputs: engine speed [rpm], engine torque [N m] (net, signed), selected gear (-2..14; 0 "
             "neutral), measured sump oil\n[degC], ambient and coolant [degC], vehicle speed [km/h], retarder torque "
@@ -547,6 +575,8 @@ def _drive_text(description, oil_mode: str = "measured") -> dict:
         )
     (s0, s1), (q0, q1) = FIXED_RATIO_SPEED, FIXED_RATIO_TORQUE
     return dict(
+        calling=f"input_speed_rpm, input_torque_nm, {fixed_ratio_gear(description)} /* its one gear */, oil_temp_c, "
+        "ambient_c,\n                   NAN, 0.0, 0.0",
         vectors=f"a fixed-ratio test drive: input speed {s0:.0%}-{s1:.0%},\ninput torque {q0:.0%}-{q1:.0%} of the "
         f"maximum, from {fixed_ratio_start_c(description):g} degC",
         inputs_text="Inputs (a fixed-ratio drive, its input shaft in an engine's place, as `gearbox-vsensor replay` "

@@ -70,8 +70,9 @@ INPUT_TEXT = {
 }
 #: the bits of valid_flags and frozen_flags (bit i: input i)
 _BITS = "bit 0 speed, 1 torque, 2 gear, 3 oil, 4 ambient, 5 coolant, 6 vehicle speed, 7 retarder"
-#: start values of the inputs (speed, torque and gear 0; oil and the auxiliary inputs not available)
-INPUT_START = (0.0, 0.0, 0.0) + (float("nan"),) * 5
+#: start values of the inputs: not available (NaN), so an input left unconnected reads as missing (the drive
+#: inputs: degraded mode 2, levels 3 after 10 s) and not as a neutral gear or a stopped engine
+INPUT_START = (float("nan"),) * 8
 #: a fixed-ratio drive's inputs (docs/interfaces.md section 3.2, tools.drive_table): sensor input field -> (variable,
 #: description); the others are not inputs of its FMU and hold what replay gives a fixed-ratio run table (the one
 #: gear, coolant not available, vehicle speed and retarder torque 0: tools.drive_table.map_fixed_ratio)

@@ -23,6 +23,8 @@ struct Instance_ {
     double initial_temp_c, time_s;
     gvs_outputs out;
     int initialised;                             /* PHASE_*: stepping only when PHASE_STEPPING */
+    int awaiting;                                /* waiting for the first oil reading (gvs_sensor_start) */
+    long waited;                                 /* the 0.1 s steps waited for it */
     const char *name;
     void *env;                                   /* the importer's logger and its environment */
     void (*log)(Instance *m, int error, const char *msg);
@@ -43,6 +45,8 @@ static void reset(Instance *m)
     m->initial_temp_c = NAN;
     m->time_s = 0.0;
     m->initialised = PHASE_SETUP;
+    m->awaiting = 0;
+    m->waited = 0;
     memset(&m->out, 0, sizeof m->out);
     memset(&m->st, 0, sizeof m->st);             /* no counter of the run before a reset reads on */
 }
@@ -65,13 +69,15 @@ static void publish_state(Instance *m)
     memcpy(m->out.rejects, m->st.rejects, sizeof m->out.rejects);
 }
 
-/* the state as the parameters and inputs set so far start it, and its outputs (publish_state) */
+/* the state as the parameters and inputs set so far start it, and its outputs (publish_state); without
+ * initial_temp_c and a plausible oil input: waiting for the oil (gvs_sensor_start: outputs "not initialised"),
+ * as the CAN service waits, so that a reading one step late does not leave every part at the ambient */
 static void start_state(Instance *m)
 {
-    gvs_sensor_init_ambient(&m->st, m->initial_temp_c == m->initial_temp_c ? m->initial_temp_c
-                                                                          : m->inputs[GVS_I_OIL],
-                            m->inputs[GVS_I_AMB]);
-    publish_state(m);
+    double T0 = m->initial_temp_c == m->initial_temp_c ? m->initial_temp_c : m->inputs[GVS_I_OIL];
+    m->waited = 0;
+    m->awaiting = !gvs_sensor_start(&m->st, 0.0, T0, m->inputs[GVS_I_AMB], &m->out);
+    if (!m->awaiting) publish_state(m);
 }
 
 /* outputs read before the end of initialisation: the state the values set so far would start (not zeros: a time
@@ -132,6 +138,7 @@ static int do_step(Instance *m, double t, double h)
     long n, k;
     gvs_inputs in;
     int i;
+    char msg[200];
     if (m->initialised != PHASE_STEPPING) {
         m->log(m, 1, m->initialised == PHASE_TERMINATED ? "no step after terminate (reset and initialise again)"
                                                         : "no step before the end of initialisation");
@@ -139,12 +146,14 @@ static int do_step(Instance *m, double t, double h)
     }
     if (!(n_real >= 0.5 && n_real < 1e9)) {                /* NaN, inf, zero, negative, or beyond any run (and a
                                                               * long of 32 bits, as on Windows, holds the count) */
-        m->log(m, 1, "the communication step must be a positive multiple of 0.1 s");
+        snprintf(msg, sizeof msg, "the communication step must be a positive multiple of 0.1 s (it is %g s)", h);
+        m->log(m, 1, msg);
         return -1;
     }
     n = (long)floor(n_real + 0.5);
     if (fabs(n_real - (double)n) > 1e-6) {
-        m->log(m, 1, "the communication step must be a positive multiple of 0.1 s");
+        snprintf(msg, sizeof msg, "the communication step must be a positive multiple of 0.1 s (it is %.9g s)", h);
+        m->log(m, 1, msg);
         return -1;
     }
     if (!(t - t == 0.0)) {                                  /* NaN or inf */
@@ -152,12 +161,22 @@ static int do_step(Instance *m, double t, double h)
         return -1;
     }
     if (!(fabs(t - m->time_s) <= 1e-3 * (double)GVS_TABLES.dt_s + 1e-12 * fabs(t))) {   /* rounding, not a skip */
-        m->log(m, 1, "a communication step must start where the last one ended (this FMU cannot skip or go back)");
+        snprintf(msg, sizeof msg, "a communication step must start where the last one ended, at %.9g s (this one "
+                 "starts at %.9g s; this FMU cannot skip or go back)", m->time_s, t);
+        m->log(m, 1, msg);
         return -1;
     }
     for (i = 0; i < GVS_N_INPUTS; ++i) in.raw[i] = m->inputs[i];
     in.t_s = NAN;
     for (k = 0; k < n; ++k) {
+        if (m->awaiting) {                 /* started at the first plausible oil input, or after the wait */
+            if (!gvs_sensor_start(&m->st, (double)m->waited * (double)GVS_TABLES.dt_s, in.raw[GVS_I_OIL],
+                                  in.raw[GVS_I_AMB], &m->out)) {
+                ++m->waited;
+                continue;
+            }
+            m->awaiting = 0;
+        }
 #if GVS_EXPORT_TTL
         gvs_ttl_point point;           /* the time to limit refreshed after the step that is due (tuned limits) */
         gvs_step(&m->tb, &GVS_VEHICLE, &m->st, &in, 1, &m->out, &point);

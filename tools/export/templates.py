@@ -8,12 +8,14 @@ API_HEADER = """/* gearbox-vsensor: the onboard virtual temperature sensor of a 
 #include "gvs_kernel.h"
 
 /* 1: the time to limit is refreshed every 1 s (gvs_ttl_refresh) and the early warning is on; 0: a build without it
- * (export-c --no-ttl: ttl_s NaN, no early warning, less flash and stack) */
+ * ([export] time_to_limit = false: ttl_s NaN, no early warning, less flash and stack) */
 #define GVS_EXPORT_TTL {ttl}
 
 /* the generated tables of this variant and configuration (gvs_tables.c) and its vehicle (no effects) */
 extern const gvs_tables GVS_TABLES;
 extern const gvs_vehicle GVS_VEHICLE;
+
+{published}
 
 /* the key of a saved gvs_state: kernel sources, tables (variant, configuration), real type, sizes and the time to
  * limit of this export; store it with the state and restore only a state saved under the same key */
@@ -26,6 +28,21 @@ void gvs_sensor_init(gvs_state *st, double T_oil_c);
 /* Cold start as the Python sensor makes it: at the oil reading when plausible, else at the ambient reading
  * T_ambient_c when plausible (a gearbox that stood long is at ambient), else the tables' ambient default. */
 void gvs_sensor_init_ambient(gvs_state *st, double T_oil_c, double T_ambient_c);
+
+/* degraded_mode while gvs_sensor_start waits for the first oil reading (the CAN service's DegradedMode 3) */
+#define GVS_MODE_NOT_INITIALISED 3
+/* how long gvs_sensor_start waits for a plausible oil reading [s] (the CAN service's init_wait_s) */
+#define GVS_INIT_WAIT_S 3.0
+
+/* Start-up as the CAN service makes it: call every 100 ms from power-on, with the time waited since then [s] and
+ * the latest oil and ambient readings (NaN: none yet), until it returns 1; from then on call gvs_sensor_step. At the
+ * first plausible oil reading it starts every node at it; after GVS_INIT_WAIT_S without one, at the ambient reading
+ * (gvs_sensor_init_ambient), and returns 1. While it returns 0, *out says "not initialised": every temperature and
+ * time to limit NaN, every level 3, degraded_mode GVS_MODE_NOT_INITIALISED. Why wait: a state started without the
+ * oil (from the ambient) takes a later reading into the sump only, and the parts of a warm gearbox then read tens of
+ * kelvin low for many minutes in mode 0; the oil's frame comes once a second on J1939 (TRF1), so a start that does
+ * not wait misses it half the time. */
+int gvs_sensor_start(gvs_state *st, double waited_s, double T_oil_c, double T_ambient_c, gvs_outputs *out);
 
 /* Warm start from a state saved on shutdown (same GVS_STATE_KEY, CRC checked by the caller): 0, or -1 when its
  * contents are not a sensor state (a temperature not finite or outside -100..500 degC, a level outside 0..3, a
@@ -78,6 +95,26 @@ void gvs_sensor_init_ambient(gvs_state *st, double T_oil_c, double T_ambient_c)
     st->oil_ref_c = T0;
     for (i = 0; i < GVS_MAX_PUB; ++i) st->ttl_s[i] = (gvs_real)NAN;
     st->t_last_s = NAN;
+}
+
+int gvs_sensor_start(gvs_state *st, double waited_s, double T_oil_c, double T_ambient_c, gvs_outputs *out)
+{
+    int i;
+    int oil_ok = T_oil_c >= (double)GVS_TABLES.input_lo[GVS_I_OIL] && T_oil_c <= (double)GVS_TABLES.input_hi[GVS_I_OIL];
+    if (oil_ok || !(waited_s < GVS_INIT_WAIT_S - 1e-9)) {     /* (a NaN wait: started at once) */
+        gvs_sensor_init_ambient(st, T_oil_c, T_ambient_c);
+        return 1;
+    }
+    memset(out, 0, sizeof *out);
+    for (i = 0; i < GVS_MAX_PUB; ++i) {
+        out->T_c[i] = (gvs_real)NAN;
+        out->level[i] = 3;
+        out->ttl_s[i] = (gvs_real)NAN;
+    }
+    out->degraded_mode = GVS_MODE_NOT_INITIALISED;
+    out->model_oil_temp_c = out->oil_innovation_c = out->oil_inlet_temp_c = (gvs_real)NAN;
+    out->oil_source = 1;
+    return 0;
 }
 
 /* a finite value (a real of the state that may not be NaN) */
@@ -617,13 +654,21 @@ remove the NaN checks of the input validation (and a build whose NaN comparisons
 ```c
 #include "gvs_sensor.h"
 static gvs_state state;                 /* RAM: sizeof(gvs_state); keep it across calls */
-gvs_sensor_init_ambient(&state, oil_temp_c, ambient_c);   /* at start-up (NaN: no reading yet) */
-/* every 100 ms: */
-gvs_inputs in = {{{{speed_rpm, torque_nm, gear, oil_temp_c, ambient_c, coolant_c, vehicle_speed_kmh,
-                   retarder_torque_nm}}, NAN}};      /* NaN = not available; t_s NaN: on the 100 ms grid */
+static int started;
+/* every 100 ms from power-on (waited_s: the time since then): */
+gvs_inputs in = {{{{{calling}}}, NAN}};      /* NaN = not available; t_s NaN: on the 100 ms grid */
 gvs_outputs out;
-gvs_sensor_step(&state, &in, &out);
+if (!started)      /* waits up to GVS_INIT_WAIT_S (3 s) for the oil reading, then starts every node at it */
+    started = gvs_sensor_start(&state, waited_s, in.raw[GVS_I_OIL], in.raw[GVS_I_AMB], &out);
+if (started)
+    gvs_sensor_step(&state, &in, &out);
 ```
+
+Start with `gvs_sensor_start` (or `gvs_sensor_resume`, below), not `gvs_sensor_init_ambient` with a reading that has
+not come yet: a state started without the oil (from the ambient) takes a later reading into the sump only, and the
+parts of a warm gearbox then read tens of kelvin low for many minutes with `degraded_mode` 0. While it waits, `out`
+says "not initialised" (temperatures and time to limit NaN, levels 3, `degraded_mode` 3), as the CAN service sends.
+Each index of the outputs' arrays has a name in `gvs_sensor.h` (`GVS_PUB_<component>`, e.g. `out.T_c[{pub_example}]`).
 
 {inputs_text} Outputs (`gvs_outputs`): `T_c[{n_pub}]`
 the published component temperatures [degC] (order: the CAN outputs' component ids), `level[{n_pub}]` 0 normal,
@@ -635,7 +680,7 @@ time_backward).
 
 Bad input never produces a NaN temperature: a missing or implausible value is held, clamped or replaced by its
 default and counted; drive inputs missing for more than 10 s make every level 3 (not available). That promise is
-about the inputs: a state never started with `gvs_sensor_init` (or `gvs_sensor_resume`), or overwritten in RAM, is
+about the inputs: a state never started with `gvs_sensor_start`, `gvs_sensor_init` (or `gvs_sensor_resume`), or overwritten in RAM, is
 outside it.
 
 Timing: each accepted call advances the model by exactly 0.1 s, so call it from a 100 ms task; a scheduler that
