@@ -15,6 +15,7 @@ import numpy as np
 
 from firmware_model.components import LAYSHAFT_WHEELS
 from firmware_model.description import Description, description_of
+from firmware_model.errors import ParameterError
 from firmware_model.parameters import Parameters
 from firmware_model.physics.losses import ADDENDUM_COEF, DEDENDUM_COEF, mesh_geometry
 
@@ -100,7 +101,10 @@ def _meshes(p: Parameters, d: Description) -> dict:
     meshes = {}
     for m in d.meshes:
         (z1, m_n, beta, b1), (z2, _, _, b2) = size[m.wheels[0]], size[m.wheels[1]]
-        meshes[m.id] = mesh_geometry(z1, z2, m_n, an, beta, m.centre_distance_m, min(b1, b2), internal=m.internal)
+        try:
+            meshes[m.id] = mesh_geometry(z1, z2, m_n, an, beta, m.centre_distance_m, min(b1, b2), internal=m.internal)
+        except ParameterError as exc:  # the sentence names the mesh, its wheels and their teeth
+            raise ParameterError(f"mesh {m.id} ({m.wheels[0]} z {z1}, {m.wheels[1]} z {z2}): {exc}") from None
     return meshes
 
 

@@ -135,8 +135,9 @@ def _path_of_contact(R_b1, R_b2, R_a1, R_a2, base_span, a, sign):
     rho2_end = R_w2 * sin_tw - sign * g_a
     if rho1_start <= 0.0 or rho2_end <= 0.0:
         raise ParameterError(
-            "mesh path of contact runs past a base-circle tangent point (involute interference); "
-            "check z, x and the centre distance"
+            "mesh path of contact runs past a base-circle tangent point (involute interference: too few teeth on "
+            "the pinion for its pressure angle and helix without a profile shift, which the model does not take); "
+            "give the pinion more teeth or check the centre distance"
         )
     return alpha_tw, R_w1, R_w2, g_f, g_a
 

@@ -517,6 +517,24 @@ MALFORMED = [
         "= 50 mm is too small for its shaft OS (d_out = 80 mm, 1.60 times the bore): a bearing seat is a journal",
     ),
     ("a file without a topology", ("whole", '[meta]\nvariant = "X"\n'), "[topology]", "is missing: the file describes"),
+    (
+        "wheel position in metres for millimetres",
+        '[topology.wheel.LL]\nx = { v = 85, u = "m", src = "assumed" }',
+        "topology.wheel.LL.x",
+        '= 85 m lies outside shaft LS, 0.031..0.53 m (another unit? millimetres are written u = "mm")',
+    ),
+    (
+        "bearing beyond its shaft's end",
+        '[topology.bearing.BLR]\nx = { v = 0.9, u = "m", src = "assumed" }',
+        "topology.bearing.BLR.x",
+        "= 0.9 m lies outside shaft LS, 0.031..0.53 m",
+    ),
+    (
+        "wheel nearer another segment than its own",
+        '[topology.wheel.LL]\nx = { v = 0.3, u = "m", src = "assumed" }',
+        "topology.wheel.LL.x",
+        "= 0.3 m is nearer segment LS@1L (0.319 m) than its own segment LS@LL (0.085 m)",
+    ),
 ]
 
 
@@ -842,3 +860,26 @@ def test_describe_names_every_physics_parameter_simulate_and_replay_would_ask_fo
         assert key in err, err
     assert len(err.strip().splitlines()) == 1
     assert main(["describe", "--gearbox", str(Path(__file__).parent / "gearboxes" / "T6.toml")]) == 0
+
+
+def test_describe_refuses_what_simulate_cannot_build(tmp_path, capsys):
+    """describe passed a file simulate then refused: a spherical bearing without the spherical kind's keys (which
+    the GRS905, the first donor of missing keys, has not), and a mesh whose teeth interfere (simulate's sentence
+    named neither the mesh nor the file)."""
+    src = (Path(__file__).parent / "gearboxes" / "T6.toml").read_text()
+    assert "bearing.f0_spherical" not in src
+    f = tmp_path / "T6sph.toml"
+    f.write_text(src.replace('kind = { v = "tapered"', 'kind = { v = "spherical"', 1))
+    assert main(["describe", "--gearbox", str(f)]) == 2
+    err = capsys.readouterr().err
+    assert "T6sph.toml: simulate and replay need physics parameters the file lacks: " in err
+    assert "bearing.f0_spherical" in err and "the GRS905 has none" in err and len(err.strip().splitlines()) == 1
+    out = str(tmp_path / "s.csv")
+    assert main(["simulate", "--gearbox", str(f), "--cycle", "steady:gear=1,rpm=1000,nm=100,s=10", "--out", out]) == 2
+    capsys.readouterr()
+    g = tmp_path / "T6flat.toml"  # a 14 deg normal pressure angle: the 20-tooth pinion's mesh interferes
+    g.write_text(re.sub(r"^alpha_n = \{ v = 20,", "alpha_n = { v = 14,", src, count=1, flags=re.M))
+    assert main(["describe", "--gearbox", str(g)]) == 2
+    err = capsys.readouterr().err
+    assert "T6flat.toml: simulate and replay cannot build this gearbox: mesh K (KI z 20, KC z 40): " in err, err
+    assert "involute interference" in err

@@ -123,28 +123,37 @@ def _summary_rest(d) -> list[str]:
 MISSING_MAX = 40
 
 
-def missing_physics(params) -> list[str]:
-    """The physics parameters the reference plant and the onboard sensor read that ``params`` lacks, all of them
-    (simulate and replay name one per run): the plant and the sensor are built, and a short drive run in each gear,
-    with each missing key borrowed from the GRS905 until none is missing."""
+#: the shipped descriptions whose physics keys stand in for a user's missing ones while describe looks for more
+KEY_DONORS = ("GRS905", "MM82")
+
+
+def missing_physics(params) -> tuple[list[str], str | None]:
+    """(the physics parameters the reference plant and the onboard sensor read that ``params`` lacks, all of them
+    (simulate and replay name one per run), another problem building or running them (a mesh whose teeth
+    interfere) or None): the plant and the sensor are built, and a short drive run in each gear, with each missing
+    key borrowed from the GRS905, else the MM82 (the cylindrical and spherical bearings' keys), until none is
+    missing (a key neither has ends the search: it is named)."""
     import dataclasses
     import re
 
-    from firmware_model.errors import ParameterError
+    from firmware_model.errors import InputError, ParameterError
     from firmware_model.parameters import load_parameters
 
-    ref = load_parameters("GRS905")
+    donors = [load_parameters(name) for name in KEY_DONORS]
     missing: list[str] = []
     p = params
     while len(missing) < MISSING_MAX:
         try:
             _exercise(p)
-            return missing
-        except ParameterError as exc:
+            return missing, None
+        except (ParameterError, InputError) as exc:
             m = re.match(r"parameter '([^']+)' is missing from parameter set", str(exc))
-            if m is None or m.group(1) not in ref.values or m.group(1) in missing:
-                return missing  # another problem: the commands say it themselves
+            if m is None:
+                return missing, str(exc)  # what simulate and replay would refuse the file for
             key = m.group(1)
+            ref = next((d for d in donors if key in d.values), None)
+            if ref is None or key in missing:
+                return missing + [key] * (key not in missing), None
             missing.append(key)
             p = dataclasses.replace(
                 p,
@@ -152,7 +161,7 @@ def missing_physics(params) -> list[str]:
                 units={**p.units, key: ref.units[key]},
                 sources={**p.sources, key: "assumed"},
             )
-    return missing
+    return missing, None
 
 
 def _exercise(p) -> None:
@@ -214,13 +223,25 @@ def run(args) -> int:
     # typo: one sentence here too)
     params = load_parameters(args.gearbox)
     d = description_of(params)
-    missing = missing_physics(params)
+    missing, problem = missing_physics(params)
+    name = Path(params.path).name if params.path else params.variant
     if missing:
+        ref = load_parameters("GRS905")
+        own = [k for k in missing if k not in ref.values]
         raise ParameterError(
-            f"{Path(params.path).name if params.path else params.variant}: simulate and replay need physics "
-            f"parameters the file lacks: {', '.join(missing)} (the GRS905's, with their notes and provenance, are in "
-            "firmware_model/params/GRS905.toml: copy them with values for this gearbox)"
+            f"{name}: simulate and replay need physics parameters the file lacks: {', '.join(missing)} (the "
+            "GRS905's, with their notes and provenance, are in firmware_model/params/GRS905.toml: copy them with "
+            "values for this gearbox"
+            + (
+                f"; {', '.join(own)}: the GRS905 has none, the MM82 has a cylindrical and a spherical bearing's in "
+                "firmware_model/params/MM82.toml, and docs/description.md says where such values come from"
+                if own
+                else ""
+            )
+            + ")"
         )
+    if problem:
+        raise ParameterError(f"{name}: simulate and replay cannot build this gearbox: {problem}")
     lines = summary(d)
     at = next((i + 1 for i, x in enumerate(lines) if x.startswith("  splashed:")), len(lines))
     print("\n".join(lines[:at] + [oil_line(params)] + lines[at:]))

@@ -97,6 +97,8 @@ def calibrate_records(
     notes += test_notes
     ident, cols = identifiability(setup, train, params, keys, r0)
     fit_keys = [x.key for x in ident if x.identifiable]
+    if not keys:
+        raise InputError(f"{params.origin} declares no parameter with plausible bounds (lo, hi): nothing to calibrate")
     if not fit_keys:
         raise InputError(
             "none of the parameters can be identified from these records: "
@@ -156,11 +158,12 @@ def nbm_beside(setup: Setup, train: Sequence[ScadaRecord], test: Sequence[ScadaR
     (tools/scada/hybrid.py) takes the sensor with ``params`` (the calibrated values) as its physics; NaN without."""
     from tools.scada.holdout import errors
     from tools.scada.hybrid import PhysicsInformedNBM
-    from tools.scada.nbm import LinearNBM, Task
+    from tools.scada.nbm import LinearNBM, task_for
     from tools.scada.physics import PhysicsModel
 
-    tasks = ([Task("oil", (setup.sump,))] if setup.sump else []) + (
-        [Task("bearings", setup.others, oil_input=setup.sump)] if setup.others else []
+    both = [*train, *test]
+    tasks = ([task_for(both, "oil", (setup.sump,))] if setup.sump else []) + (
+        [task_for(both, "bearings", setup.others, oil_input=setup.sump)] if setup.others else []
     )
     out = {}
     for task in tasks:

@@ -72,15 +72,41 @@ def exp_lag(x: np.ndarray, time_s: np.ndarray, stretch: np.ndarray, tau_s: float
     return y
 
 
+def channel(record: ScadaRecord, name: str) -> np.ndarray | None:
+    """``record``'s channel ``name``, the power [kW] from the input speed and torque where a map gives no
+    ``power_kw`` (a rig's reducer: speed and torque, no electrical power), or None."""
+    if name in record.values:
+        return record.values[name]
+    if name == "power_kw" and {"input_speed_rpm", "input_torque_nm"} <= record.values.keys():
+        v = record.values
+        return (
+            np.asarray(v["input_speed_rpm"], dtype=float)
+            * np.asarray(v["input_torque_nm"], dtype=float)
+            * (np.pi / 30.0 / 1000.0)
+        )
+    return None
+
+
+def task_for(records: Sequence[ScadaRecord], name: str, targets: tuple, oil_input: str | None = None) -> Task:
+    """The task ``name`` on ``records`` with the default inputs every one of them has (a rig without outdoor air
+    or a nacelle leaves those out): the ENGIE records have them all, the task as :data:`TASKS`'s."""
+    inputs = tuple(c for c in Task.inputs if all(channel(r, c) is not None for r in records))
+    return Task(name, tuple(targets), oil_input=oil_input, inputs=inputs)
+
+
 def features(record: ScadaRecord, task: Task) -> tuple[np.ndarray, list[str]]:
     """(rows x features matrix without the constant, the features' names) of ``record`` for ``task``."""
-    missing = [c for c in (*task.inputs, task.lagged, task.oil_input) if c and c not in record.values]
+    missing = [c for c in (*task.inputs, task.lagged, task.oil_input) if c and channel(record, c) is None]
     if missing:
-        raise InputError(f"the record of {record.unit} has no channel {missing[0]} the {task.name} task needs")
-    cols = [record.values[c] for c in task.inputs]
+        need = "the power (power_kw, or input_speed_rpm and input_torque_nm)" if missing[0] == "power_kw" else ""
+        raise InputError(
+            f"the record of {record.unit} has no channel {missing[0]} the {task.name} task's NBM needs"
+            + (f": it takes {need}" if need else "")
+        )
+    cols = [channel(record, c) for c in task.inputs]
     names = list(task.inputs)
     for tau in LAG_TAUS_S:
-        cols.append(exp_lag(record.values[task.lagged], record.time_s, record.stretch, tau))
+        cols.append(exp_lag(channel(record, task.lagged), record.time_s, record.stretch, tau))
         names.append(f"{task.lagged}_lag{tau / 60:.0f}min")
     if task.oil_input:
         cols.append(record.values[task.oil_input])

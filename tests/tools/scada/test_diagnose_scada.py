@@ -479,3 +479,21 @@ def test_held_out_records_too_short_or_without_a_channel_are_said(setup, tmp_pat
     assert p.returncode == 0, p.stderr
     assert "warning: the held-out records hold no reading of Gost_avg" in p.stderr
     assert "Gost_avg not read in the held-out records" in p.stdout and "nan" not in p.stdout
+
+
+def test_calibrate_on_a_description_without_bounds_says_so(tmp_path, capsys):
+    """`calibrate --auto` on a description that declares no plausible bounds: the vehicle path's sentence, not
+    "none of the parameters can be identified from these records: " with nothing after the colon."""
+    import re
+
+    from firmware_model.parameters import load_parameters
+    from tools.cli import main
+
+    text = open(load_parameters("HR225").path, encoding="utf-8").read()
+    bare = tmp_path / "HR225_bare.toml"
+    bare.write_text(re.sub(r"lo = [^,]+, hi = [^,]+, ", "", text), encoding="utf-8")
+    f, g = write(tmp_path / "train.csv", _rows(0, ROWS)), write(tmp_path / "test.csv", _rows(ROWS, 2 * ROWS))
+    cmd = ["calibrate", "--gearbox", str(bare), "--columns", str(_map(tmp_path)), "--train", str(f), "--test", str(g)]
+    assert main([*cmd, "--auto", "--out", str(tmp_path / "cal.toml")]) == 2
+    err = capsys.readouterr().err
+    assert "HR225_bare.toml declares no parameter with plausible bounds (lo, hi): nothing to calibrate" in err, err

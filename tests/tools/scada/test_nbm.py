@@ -12,7 +12,7 @@ from firmware_model.errors import InputError
 from tools.scada.clean import REASONS
 from tools.scada.columns import load_column_map
 from tools.scada.holdout import TrainingMean, cross_unit_splits, errors, evaluate, ratio_table, table, time_splits
-from tools.scada.nbm import LAG_TAUS_S, TASKS, BoostedNBM, LinearNBM, exp_lag, features
+from tools.scada.nbm import LAG_TAUS_S, TASKS, BoostedNBM, LinearNBM, exp_lag, features, task_for
 from tools.scada.reader import ScadaRecord
 
 CMAP = load_column_map("engie")
@@ -122,6 +122,28 @@ def test_the_bearings_task_needs_the_measured_oil():
         LinearNBM("bearings").fit([rec])
     with pytest.raises(InputError, match="after fit"):
         LinearNBM("oil").predict(rec)
+
+
+def test_a_rigs_record_without_power_or_outdoor_air_gets_an_nbm_of_what_it_has():
+    """A rig's reducer (input speed and torque, the room's air; no electrical power, no outdoor or nacelle
+    reading): the NBM takes the power from speed x torque and the inputs the records have (calibrate said "no
+    channel power_kw the oil task needs", then "no channel outdoor_temp_c"); the ENGIE records' task is the
+    shipped one; without speed and torque either, one sentence naming both ways to the power."""
+    rec = synthetic()
+    assert task_for([rec], "oil", ("Gost_avg",)).inputs == TASKS["oil"].inputs
+    power = rec.values.pop("power_kw")
+    del rec.values["outdoor_temp_c"]
+    rec.values["input_torque_nm"] = power * 1000.0 / (rec.values["input_speed_rpm"] * np.pi / 30.0)
+    rec.values["Gost_avg"] = 40.0 + 0.01 * power + 0.5 * rec.values["ambient_temp_c"]
+    task = task_for([rec], "oil", ("Gost_avg",))
+    assert task.inputs == ("power_kw", "input_speed_rpm", "ambient_temp_c")
+    x, names = features(rec, task)
+    assert names[0] == "power_kw" and np.allclose(x[:, 0], power)
+    pred = LinearNBM(task).fit([rec]).predict(rec)["Gost_avg"]
+    assert np.nanmax(np.abs(pred - rec.values["Gost_avg"])) < 1e-6
+    del rec.values["input_torque_nm"]
+    with pytest.raises(InputError, match="power_kw, or input_speed_rpm and input_torque_nm"):
+        LinearNBM(task).fit([rec])
 
 
 def _saturating(rec):
