@@ -942,11 +942,35 @@ def _housings(r: _Reader, topo: dict, boundaries: set) -> tuple:
         shares = f["share"] or {}
         _check_shares(r, key, shares, f["faces"])
         h = Housing(hid, f["name"] or hid, f["material"], f["mass"], f["area"], f["internal_split"], f["faces"])
+        _check_wall(r, key, h)
         out.append(replace(h, x_m=f["x"], joined_to=f["joined_to"], joint_area_m2=f["joint_area"], shares=shares))
     split = sum(h.internal_split for h in out)
     if out and abs(split - 1.0) > 1e-6:
         r.fail(f"{TOPOLOGY}.housing.*.internal_split", f"add up to {split:g}; the housings share the inside: 1")
     return tuple(out)
+
+
+#: a housing's mass over its material's density and its outside area: the wall it makes [mm], plausible between
+#: these (the shipped housings: 6-62 mm); outside, the mass or the area is in another unit (tonnes as kg, mm2 as m2)
+WALL_MM = (1.0, 300.0)
+
+
+def _check_wall(r: _Reader, key: str, h) -> None:
+    """The wall a housing's mass, material and area make lies within WALL_MM (a housing of 700 m2 and 550 kg, a
+    0.1 mm wall, read its sump at the air's temperature while a bearing ran 58 K over it, exit 0)."""
+    rho = r.entries.get(f"material.{h.material}.rho")
+    if not isinstance(rho, dict) or rho.get("u") != "kg/m3" or not isinstance(rho.get("v"), (int, float)):
+        return  # (a density in another unit or from elsewhere: its own checks)
+    if not (rho["v"] > 0 and h.mass_kg > 0 and h.area_m2 > 0):
+        return
+    wall_mm = h.mass_kg / (float(rho["v"]) * h.area_m2) * 1e3
+    if not WALL_MM[0] <= wall_mm <= WALL_MM[1]:
+        r.fail(
+            key,
+            f"has a mass of {h.mass_kg:g} kg over {h.area_m2:g} m2 of {h.material} ({rho['v']:g} kg/m3): a wall "
+            f"{wall_mm:.3g} mm thick, where a housing's walls are {WALL_MM[0]:g}-{WALL_MM[1]:g} mm; is the mass or "
+            "the area in another unit?",
+        )
 
 
 def _single(r: _Reader, topo: dict, section: str) -> dict:

@@ -80,16 +80,25 @@ def save_figure(fig, path, dpi: int = 110) -> Path:
     return Path(path)
 
 
-def input_panel(ax, t, table) -> None:
-    """Engine speed and torque, and the gear on a second axis, with one legend outside the panel."""
-    if table.has("engine_speed_rpm"):
-        ax.plot(t, table["engine_speed_rpm"], lw=0.7, color="tab:blue", label="engine speed [rpm]")
-    if table.has("engine_torque_nm"):
-        ax.plot(t, table["engine_torque_nm"], lw=0.7, color="tab:red", label="engine torque [N m]")
+def input_panel(ax, t, table, fixed_ratio: bool | None = None) -> None:
+    """Engine speed and torque, and the gear on a second axis, with one legend outside the panel; a fixed-ratio
+    drive's (``fixed_ratio``; None: from the table, its meta or its input_* columns) input shaft's speed and torque
+    and no gear (a reducer's plot said "engine speed" and drew its one gear)."""
+    meta = getattr(table, "meta", None) or {}
+    if fixed_ratio is None:
+        fixed_ratio = meta.get("drive") == "fixed_ratio" or table.has("input_speed_rpm")
+    what = "input shaft" if fixed_ratio else "engine"
+    for names, color, unit in (
+        (("input_speed_rpm", "engine_speed_rpm"), "tab:blue", "speed [rpm]"),
+        (("input_torque_nm", "engine_torque_nm"), "tab:red", "torque [N m]"),
+    ):
+        col = next((c for c in names if table.has(c)), None)
+        if col is not None:
+            ax.plot(t, table[col], lw=0.7, color=color, label=f"{what} {unit}")
     ax.set_ylabel("speed, torque")
     ax.grid(alpha=0.3)
     handles, labels = ax.get_legend_handles_labels()
-    if table.has("gear"):
+    if table.has("gear") and not fixed_ratio:
         g = ax.twinx()
         g.step(t, table["gear"], where="post", lw=0.7, color="tab:green", label="gear (right axis)")
         g.set_ylabel("gear", color="tab:green")
@@ -165,7 +174,7 @@ def plot_simulation(table, path, title="", limits=None, gearbox=None):
     fig = plt.figure(figsize=(20, 5 + 4 * rows))
     grid = fig.add_gridspec(2 + rows, 2, height_ratios=[1.2, 0.9] + [2] * rows)
     inputs = fig.add_subplot(grid[0, :])
-    input_panel(inputs, t, table)
+    input_panel(inputs, t, table, fixed_ratio=getattr(getattr(gearbox, "drive", None), "kind", None) == "fixed_ratio")
     inputs.set_title(title)
     input_temperature_panel(fig.add_subplot(grid[1, :], sharex=inputs), t, table)
     oil = table["T_oil_c"] if table.has("T_oil_c") else None

@@ -140,7 +140,9 @@ class VirtualSensor:
                 f"sensor option clock_reset_s = {reset_s!r} must be a number of seconds, at least 1 "
                 f"(time back by more than it is a reset clock; less is skipped)"
             )
-        if params.strings.get("cooler.kind") in ("hold", "measured"):
+        #: a rig's configuration: the sump is conditioned from outside, the model's own sump (the twin) means nothing
+        self.rig = params.strings.get("cooler.kind") in ("hold", "measured")
+        if self.rig:
             # a rig: the sump is conditioned from outside (no cooler to model, a constant reading is normal, and
             # the time to limit holds the measured sump where it is: the twin's, with no cooler, climbs without end)
             params = params.with_cooler_kind("none")

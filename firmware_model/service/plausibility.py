@@ -60,6 +60,11 @@ OIL_UNITS = (
 OIL_MODEL_OFF_K, OIL_MODEL_MIN_S, OIL_MODEL_FIT_SHARE, OIL_MODEL_FIT_K = 20.0, 1800.0, 0.25, 15.0
 #: ... judged only when the sensor ran degraded (holding or modelling an input) on at most this share of the steps
 OIL_MODEL_DEGRADED_SHARE = 0.2
+#: the oil in degC but at least OIL_MODEL_GAP_K from the sensor's own modelled sump on median (over OIL_MODEL_MIN_S,
+#: degraded as above): a warning that the model's cooler or boundaries are not this gearbox's [K]. A coolant left to
+#: its default (80 degC, the uphill drive's ran at 93) put the GRS905's modelled sump 12.6 K under the measured one
+#: and its sun wheel 29 K under the truth, exit 0: the cooler sets the oil the jets spray on the parts
+OIL_MODEL_GAP_K = 8.0
 #: a driving row: the engine at least this fast [rpm] with a gear engaged
 DRIVE_MIN_RPM = 500.0
 #: torque sign: below this torque [Nm] on more than SIGN_SHARE of at least SIGN_MIN_DRIVE_S [s] of driving, and
@@ -152,6 +157,14 @@ GEAR_STEADY_S, GEAR_STEADY_TOL = 1.0, 0.08
 #: trucks' final drives 2.5-6.5, hub reductions to ~7; dynamic radii 0.47-0.53 m; a shift within a geometric
 #: ladder, as the GRS905's upper gears, keeps the constants equal and only this range can catch it)
 WHEEL_RADIUS_M, AXLE_RANGE = 0.5, (2.0, 7.0)
+
+
+def _span(lo: float, hi: float) -> str:
+    """``lo-hi`` to two figures, or the one value where they round alike ("11", not "11-11")."""
+    a, b = f"{lo:.2g}", f"{hi:.2g}"
+    return a if a == b else f"{a}-{b}"
+
+
 #: the axle ratio on a WHEEL_RADIUS_M tyre per rpm per km/h per unit of gearbox ratio (2 pi r 3.6 / 60)
 AXLE_PER_RPM_PER_KMH = 2.0 * math.pi * WHEEL_RADIUS_M * 3.6 / 60.0
 
@@ -195,7 +208,7 @@ class GearRatioFinding:
             why.append(f"steps {steps(self.rpm_per_kmh)}, where the {self.gearbox}'s ratios step {steps(self.ratios)}")
         if min(axles) < lo or max(axles) > hi:
             why.append(
-                f"over the {self.gearbox}'s ratios an axle ratio of {min(axles):.2g}-{max(axles):.2g} on "
+                f"over the {self.gearbox}'s ratios an axle ratio of {_span(min(axles), max(axles))} on "
                 f"{WHEEL_RADIUS_M:g} m tyres, where road vehicles have {lo:g}-{hi:g}"
             )
         why = "; ".join(why)
@@ -211,6 +224,17 @@ class GearRatioFinding:
                 f"{turns} rpm per km/h, more in gear {', '.join(map(str, up))} than in the gear below: no gearbox's "
                 f"numbering does that; check that {speeds} are those quantities in rpm and km/h (a swapped or "
                 "mislabelled column)"
+            )
+        if len(self.gears) > 1 and max(axles) <= (1.0 + GEAR_RATIO_TOL) * min(axles):
+            # every gear steps as this gearbox's, only the overall scale is off: a speed's unit, or a numbering
+            # shifted along a geometric ladder (the two look alike; a unit was blamed on the gears alone)
+            speeds = "the engine or vehicle speed" if self.source == "can" else "engine_speed_rpm or vehicle_speed_kmh"
+            return (
+                f"{col} does not follow the {self.gearbox}'s ratios: driving in gears "
+                f"{', '.join(map(str, self.gears))}, the engine turns {', '.join(f'{v:.1f}' for v in x)} rpm per "
+                f"km/h, which steps as the {self.gearbox}'s ratios do but means {why}: either {speeds} is in another "
+                "unit or scale (m/s for km/h is 3.6 x, rad/s for rpm 9.5 x: give rpm and km/h), or the gear numbers "
+                f"are shifted along its ladder ({fix} to this gearbox's numbers)"
             )
         return (
             f"{col} does not follow the {self.gearbox}'s ratios: driving in gears "
@@ -384,6 +408,58 @@ def oil_model_unit_finding(oil, model_oil, dt_s: float = STEP_S, source: str = "
         f"looks like {best[2]}, not degC; {fix} (if it is degC, the gearbox or its cooler is not the one modelled: "
         "check --gearbox and the configuration's [cooler])",
     )
+
+
+@dataclass(frozen=True)
+class OilModelGapFinding:
+    """The measured oil ``off_k`` [K] from the sensor's own modelled sump on median over ``span_min`` minutes, no
+    unit explaining it (:data:`OIL_MODEL_GAP_K`); ``defaulted``: the auxiliary inputs the record never gave. A
+    warning: the outputs are written and the exit status stays 0."""
+
+    kind: ClassVar[str] = "plausibility"
+    off_k: float
+    span_min: float
+    defaulted: tuple = ()
+    source: str = "table"
+
+    @property
+    def severity(self) -> Severity:
+        return Severity.WARNING
+
+    @property
+    def spn_key(self) -> str:
+        return "oil_temp_c"
+
+    @property
+    def sentence(self) -> str:
+        col = "oil_temp_c" if self.source == "table" else "the oil temperature"
+        why = (
+            f"; {' and '.join(self.defaulted)} never given: the sensor takes its configured default in its place, and "
+            "the cooler it sets decides the oil the jets spray on the parts, so their estimates rest on it: give "
+            f"{'them' if len(self.defaulted) > 1 else 'it'}"
+            if self.defaulted
+            else ""
+        )
+        return (
+            f"{col} runs {abs(self.off_k):.0f} K {'above' if self.off_k > 0 else 'below'} the sensor's own modelled "
+            f"sump on median over {span_words(self.span_min)}: the model's cooler or boundaries are not this "
+            "gearbox's as it ran; the part estimates take the measured sump, but the oil the cooler leaves for the "
+            f"jets and the boundaries are the model's, so they may be off by as much or more{why} (else check "
+            "--gearbox and the configuration's [cooler])"
+        )
+
+
+def oil_model_gap_finding(oil, model_oil, defaulted=(), dt_s: float = STEP_S, source: str = "table"):
+    """:class:`OilModelGapFinding` when the oil lies at least OIL_MODEL_GAP_K from the modelled sump on median over
+    at least OIL_MODEL_MIN_S; None otherwise."""
+    x, m = _finite(oil), _finite(model_oil)
+    ok = np.isfinite(x) & np.isfinite(m)
+    if ok.sum() * dt_s < OIL_MODEL_MIN_S:
+        return None
+    off = float(np.median(x[ok] - m[ok]))
+    if abs(off) < OIL_MODEL_GAP_K:
+        return None
+    return OilModelGapFinding(off, ok.sum() * dt_s / 60.0, tuple(defaulted), source)
 
 
 def _fast_windows(t: np.ndarray, x: np.ndarray, window_s: float) -> tuple[np.ndarray, np.ndarray, float]:
@@ -646,13 +722,17 @@ def record_findings(
     engine: bool = True,
     drive_limits: tuple | None = None,
     oil_warning_c: float | None = None,
+    twin: bool = True,
+    aux_expected: tuple = AUX_COLUMNS_C,
 ) -> list[PlausibilityFinding]:
     """The unit and sign findings of a whole record: ``columns`` maps run-table names (``oil_temp_c``,
     ``engine_speed_rpm``, ``engine_torque_nm``, ``gear``) to one value per ``dt_s`` (a RunTable or a dict;
     an absent column is not judged); ``source``: "table" or "can" (the sentence's words and fix); ``engine``: the
     drive is a vehicle's engine (a fixed-ratio drive's input, an idling reducer's few N m, is no kN m mistake by the
     engine's rule); ``drive_limits``: a fixed-ratio drive's (max speed [rpm], max torque [N m]), for its kN m rule;
-    ``oil_warning_c``: the gearbox's sump warning limit, for the oil's unit rule (None: the GRS905's)."""
+    ``oil_warning_c``: the gearbox's sump warning limit, for the oil's unit rule (None: the GRS905's); ``twin``: the
+    sensor's own modelled sump is judged beside the oil (False: a rig conditions the sump); ``aux_expected``: the
+    auxiliary columns the gearbox reads (a missing one is named when the oil lies far from the model)."""
 
     def col(name):
         has = columns.has(name) if hasattr(columns, "has") else name in columns
@@ -668,10 +748,14 @@ def record_findings(
         # record read as this one's, whose sump the twin misses by tens of kelvin in degC)
         if (
             out[-1] is None
+            and twin
             and col("model_oil_temp_c") is not None
             and (modes is None or np.mean(np.asarray(modes, dtype=float) != MODE_NORMAL) <= OIL_MODEL_DEGRADED_SHARE)
         ):
             out.append(oil_model_unit_finding(oil, col("model_oil_temp_c"), dt_s, source))
+            if out[-1] is None:  # degC, and still far from the model: its cooler's inputs or the gearbox
+                never = tuple(c for c in aux_expected if col(c) is None or not np.isfinite(_finite(col(c))).any())
+                out.append(oil_model_gap_finding(oil, col("model_oil_temp_c"), never, dt_s, source))
         if col("time_s") is not None:  # (a live check's samples carry none: its clock is the bus's)
             out.append(oil_rate_finding(col("time_s"), oil, source))
     if speed is not None and torque is not None:
@@ -728,6 +812,8 @@ def table_record_findings(out, min_torque_nm: float | None = None, source: str =
         bool(meta.get("engine_drive", True)),
         meta.get("drive_limits"),
         _oil_warning_c(meta.get("limits")),
+        bool(meta.get("twin_judged", True)),
+        tuple(meta.get("aux_expected", AUX_COLUMNS_C)),
     )
     if meta.get("gear_ratios") and all(out.has(c) for c in ("engine_speed_rpm", "vehicle_speed_kmh", "gear")):
         gears = gear_ratio_finding(

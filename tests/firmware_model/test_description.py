@@ -530,6 +530,12 @@ MALFORMED = [
         "= 0.9 m lies outside shaft LS, 0.031..0.53 m",
     ),
     (
+        "housing mass in tonnes written as kilograms",
+        '[topology.housing.H1]\nmass = { v = 0.048, u = "kg", src = "assumed" }',
+        "topology.housing.H1",
+        "has a mass of 0.048 kg over 2.4 m2 of aluminium (2700 kg/m3): a wall 0.00741 mm thick",
+    ),
+    (
         "wheel nearer another segment than its own",
         '[topology.wheel.LL]\nx = { v = 0.3, u = "m", src = "assumed" }',
         "topology.wheel.LL.x",

@@ -58,6 +58,10 @@ def test_a_shift_along_a_geometric_ladder_is_caught_by_the_axle_it_would_need():
     f = gear_ratio_finding(rpm, kmh, gear - 4.0, META["gear_ratios"], "GRS905")
     assert f is not None and "axle ratio of" in f.sentence and "where road vehicles have 2-7" in f.sentence
     assert "column gear" in f.sentence and "renumber the gears" in f.sentence
+    # the same steps, scaled: a vehicle speed in m/s looks alike, and was blamed on the gear numbers alone
+    assert "either engine_speed_rpm or vehicle_speed_kmh is in another unit or scale (m/s for km/h" in f.sentence
+    g = gear_ratio_finding(rpm, kmh / 3.6, gear, META["gear_ratios"], "GRS905")
+    assert g is not None and "an axle ratio of 11 on 0.5 m tyres" in g.sentence and "give rpm and km/h" in g.sentence
 
 
 @pytest.mark.parametrize("name", ["all_gears", "long_haul", "uphill", "mining"])

@@ -288,6 +288,32 @@ def test_an_oil_in_degf_beside_the_sensor_s_own_sump_is_found():
     assert oil_model_unit_finding(real_c[:1700] * 1.8 + 32.0, model[:1700], 1.0) is None
 
 
+def test_an_oil_far_from_the_sensors_own_sump_in_degc_is_a_warning_naming_a_missing_coolant():
+    """The uphill drive replayed without its coolant column: the GRS905's cooler took the default 80 degC where
+    the drive's coolant ran at 93, the modelled sump lay 12.6 K under the measured one and the sun wheel 29 K under
+    the truth, exit 0 with "defaults used, as documented". No unit explains such a gap: a warning (exit 0) that
+    names the coolant never given; none for a model a few kelvin off, for a rig (the twin means nothing there) or
+    for less than half an hour."""
+    from firmware_model.service.degraded import Severity
+    from firmware_model.service.plausibility import record_findings
+
+    t = np.arange(0.0, 2 * 3600.0)
+    model = 70.0 + 12.0 * (1.0 - np.exp(-t / 1800.0))
+    cols = {"oil_temp_c": model + 12.6, "model_oil_temp_c": model, "coolant_temp_c": np.full(t.size, np.nan)}
+    cols["ambient_temp_c"] = np.full(t.size, 20.0)
+    found = record_findings(cols, 1.0)
+    assert len(found) == 1 and found[0].severity == Severity.WARNING, found
+    text = found[0].sentence
+    assert text.startswith("oil_temp_c runs 13 K above the sensor's own modelled sump on median over 2.0 h"), text
+    assert "coolant_temp_c never given" in text and "ambient_temp_c" not in text
+    given = {**cols, "coolant_temp_c": np.full(t.size, 80.0)}
+    assert "never given" not in record_findings(given, 1.0)[0].sentence
+    assert record_findings({**cols, "oil_temp_c": model + 3.0}, 1.0) == []
+    assert record_findings(cols, 1.0, twin=False) == []
+    short = {k: v[:1700] for k, v in cols.items()}
+    assert record_findings(short, 1.0) == []
+
+
 def test_a_far_faster_input_than_the_gearbox_described_is_another_gearbox_not_a_torque_unit():
     """A 1480 rpm reducer's run replayed on the MM82 (its rotor at most 20 rpm) was told its torque looks like kN m;
     it is another gearbox's record. Its own speeds pass."""

@@ -270,3 +270,15 @@ def test_a_fit_that_changes_nothing_is_said_so_and_a_worse_one_is_never_called_a
     )
     text = Calibration.thin_evidence(thin)
     assert "does not cut the held-out RMS 0.24 -> 7.25 K and rests on too little" in text and "cuts" not in text
+
+
+def test_the_calibration_counts_its_cells_and_training_time(rig_files, params):
+    """The thin-evidence sentence's figures: the residual's cells and the training time scored (the result was built
+    positionally past a field, and said "n_eff = 3 effective samples of 2998.0 cells ... the 0.0 h scored")."""
+    from tools.diagnosis.calibrate import calibrate
+    from tools.runtable import read_run_table
+
+    _, (tr1, tr2, te) = rig_files
+    cal = calibrate([read_run_table(tr1), read_run_table(tr2)], [read_run_table(te)], params, ["housing.hot_frac"])
+    assert isinstance(cal.n_cells, int) and cal.n_cells > 100 and cal.notes == []
+    assert cal.train_s == pytest.approx(2 * SHORT_S, rel=0.05)

@@ -368,6 +368,12 @@ def test_an_asc_log_takes_its_date_from_its_header(tmp_path):
     assert asc_date(p) == "2026-10-07"
     p.write_text("base hex  timestamps absolute\n")
     assert asc_date(p) is None
+    # python-can's ASCWriter stamps the trigger block with the epoch: the header's own date, not 1970-01-01
+    p.write_text(
+        "date Sun Dec 06 20:40:01.000 2026\nbase hex  timestamps absolute\n"
+        "Begin Triggerblock Thu Jan 01 00:00:00.0 1970\n   0.100000 1  18FEF100x  Rx   d 8 FF FF\n"
+    )
+    assert asc_date(p) == "2026-12-06"
 
 
 def _error(capsys, args) -> str:
@@ -486,6 +492,17 @@ def test_a_manifest_date_that_is_no_day_is_one_sentence_before_anything_runs(tmp
     m.write_text(f"log,vehicle,date\n{log},t1,2026-02-30\n")
     err = _error(capsys, ["fleet", "--manifest", str(m), "--out", str(tmp_path / "out")])
     assert "'2026-02-30' is not a day of the calendar" in err and not (tmp_path / "out").exists()
+
+
+def test_a_manifest_may_leave_a_rows_optional_fields_blank(tmp_path, synthetic):
+    """The date and the variant are optional: a row that leaves them blank takes the defaults (the date from the
+    log), as a manifest without those columns does ('date '' is not YYYY-MM-DD' refused mixing dated rows with
+    undated ones)."""
+    a, b = (e.log for e in read_manifest(synthetic)[:2])
+    m = tmp_path / "m.csv"
+    m.write_text(f"log,vehicle,variant,date\n{a},t1,,2026-01-05\n{b},t2,,\n")
+    got = read_manifest(m)
+    assert [(e.vehicle, e.date, e.variant) for e in got] == [("t1", "2026-01-05", None), ("t2", None, None)]
 
 
 def test_a_manifest_that_is_not_text_is_one_sentence(tmp_path, capsys):
@@ -766,3 +783,26 @@ def test_the_hottest_vehicles_rank_by_the_margin_to_each_parts_own_warning_limit
     assert [r.split(" | ")[0].strip("| ") for r in table] == ["sun136", "teeth142", "cool"], table
     assert "| sun136 | 136.3 degC | PS | 130.0 degC | +6.3 K |" in table[0], table
     assert "| teeth142 | 142.0 degC | LI.teeth | 150.0 degC | -8.0 K |" in table[1], table
+
+
+def test_the_report_lists_the_trusted_logs_with_warnings():
+    """A trusted log with a warning (gear numbers of another gearbox: `replay` exits 0 and says it) stayed among the
+    hottest vehicles without a word in the report; it is listed with its warning, and a fleet without any adds
+    nothing."""
+    from tools.fleet.report import warned_section
+
+    c = {
+        "vehicle": ["t1", "t2"],
+        "log": ["/x/a.log", "/x/b.asc"],
+        "trust_warnings": ["", "the gear (ETC2 SPN 523) does not follow the GRS905's ratios"],
+    }
+    lines: list = []
+    warned_section(c, lines)
+    text = "\n".join(lines)
+    assert "## Logs with warnings (1, kept in the peaks and times below)" in text
+    assert (
+        "| t2 | b.asc | the gear (ETC2 SPN 523) does not follow the GRS905's ratios |" in text and "a.log" not in text
+    )
+    lines = []
+    warned_section({**c, "trust_warnings": ["", ""]}, lines)
+    assert lines == []

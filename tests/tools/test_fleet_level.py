@@ -391,3 +391,22 @@ def test_a_level_read_in_one_log_of_a_period_is_said_not_dropped_silently(tmp_pa
     said = [ln for ln in report.splitlines() if "SPN 124) is left out of periods" in ln]
     assert len(said) == 1 and "single (2 periods)" in said[0] and "pair" not in said[0], report
     assert "at least 2 logs" in said[0]
+
+
+def test_a_fit_at_the_grids_edge_stays_out_of_the_fleets_spread():
+    """A truck of another gearbox replayed as this one's fitted a cooler of 1.2 (the grid's top), trusted: it
+    widened the fleet's spread so that a fouled cooler (0.36 against 0.8) was no longer outside it. A value on the
+    grid's first or last point is a bound and stays out of the median and spread; the fouled one is still judged."""
+    from tools.fleet.health import at_grid_edge
+
+    assert at_grid_edge("cooler_scale", 1.2) and at_grid_edge("cooler_scale", 0.2) and at_grid_edge("oil_volume_l", 8.0)
+    assert not at_grid_edge("cooler_scale", 0.83) and not at_grid_edge("oil_level_pct", 100.0)
+
+    def fit(vehicle, period, cooler):
+        return PeriodFit(vehicle, period, f"2026-01-{1 + 7 * period:02d}", 7, cooler, 0.02, 11.5, 0.5, 0.3)
+
+    fits = []
+    for p in range(4):
+        fits += [fit("t1", p, 0.8), fit("t2", p, 0.85), fit("t9", p, 1.2), fit("t3", p, 0.8 if p < 2 else 0.36)]
+    flags = [f for f in flag_vehicles(fits) if f.effect == "cooler_effectiveness_scale"]
+    assert [f.vehicle for f in flags] == ["t3"] and "outside the fleet's spread" in flags[0].reason, flags

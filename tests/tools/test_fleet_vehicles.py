@@ -66,3 +66,16 @@ def test_the_report_counts_the_trusted_logs_hours_and_the_untrusted_apart():
     assert truck_hours({"duration_s": [3600.0], "trusted": [True]}) == "1.0 truck-hours"
     assert truck_hours({"duration_s": [3600.0, 1800.0], "trusted": [None, True]}) == "1.5 truck-hours"  # (old rows)
     assert truck_hours({"duration_s": [3600.0, float("nan")]}) == "1.0 truck-hours"  # a row without a duration
+
+
+def test_files_of_a_folder_that_are_no_log_by_their_suffix_are_named(tmp_path):
+    """A candump log saved as .candump or .txt was dropped without a word (22 files, "20 logs"): the vehicles'
+    sentence counts and names the files not taken; a folder of logs only says nothing more."""
+    _touch(tmp_path / "a.log")
+    _, rule = entries_and_rule([tmp_path])
+    assert "not taken" not in rule
+    _touch(tmp_path / "tsc1.candump")
+    _touch(tmp_path / "tsc1.txt")
+    entries, rule = entries_and_rule([tmp_path])
+    assert [e.log.name for e in entries] == ["a.log"]
+    assert "; 2 other file(s) not taken, no CAN log by their suffix (tsc1.candump, tsc1.txt)" in rule, rule

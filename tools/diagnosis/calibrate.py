@@ -480,8 +480,9 @@ def calibrate(
             starts.records,
             _effective_n(r_tr),
             n_eff_needed(opts, len(keys_ok)),
-            int(r_tr.size),
-            train_s,
+            # by name: ``notes`` lies between (positional, the cells landed in it, the training seconds in n_cells)
+            n_cells=int(r_tr.size),
+            train_s=train_s,
         )
     finally:
         runs.close()

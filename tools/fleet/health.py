@@ -333,7 +333,8 @@ def flag_vehicles(period_fits: list[PeriodFit]) -> list[Flag]:
         per_vehicle.setdefault(f.vehicle, []).append(f)
     for effect, attr in (("cooler_effectiveness_scale", "cooler_scale"), ("oil_level_low", "oil_volume_l")):
         for p in {f.period for f in period_fits}:
-            med, spread = fleet_spread([getattr(f, attr) for f in period_fits if f.period == p])
+            values = [getattr(f, attr) for f in period_fits if f.period == p]
+            med, spread = fleet_spread([x for x in values if not at_grid_edge(attr, x)])
             stats_med[(effect, p)] = med
             stats_mad[(effect, p)] = spread
     return _drift_flags(per_vehicle, stats_med, stats_mad)
@@ -341,6 +342,18 @@ def flag_vehicles(period_fits: list[PeriodFit]) -> list[Flag]:
 
 #: a vehicle-period's value this many spreads below the fleet's median is "outside the fleet's spread"
 SPREAD_OUTSIDE = 4.0
+
+
+#: the grid of each fitted value (PeriodFit's attribute): a value on its first or last point is a bound, not an estimate
+GRIDS = {"cooler_scale": COOLER_GRID, "oil_volume_l": VOLUME_GRID_L}
+
+
+def at_grid_edge(attr: str, value: float) -> bool:
+    """Whether a vehicle-period's fitted ``attr`` sits on its grid's first or last point: the fit ran to the end of
+    what it tries (another gearbox's log replayed as this one's fitted a cooler of 1.2, the grid's top), so it is a
+    bound, kept out of the fleet's median and spread (that one widened the spread and hid a fouled cooler)."""
+    grid = GRIDS.get(attr)
+    return grid is not None and math.isfinite(value) and (value <= grid[0] or value >= grid[-1])
 
 
 def fleet_spread(values) -> tuple[float, float]:
@@ -516,6 +529,7 @@ __all__ = [
     "fit_log",
     "fit_period",
     "fleet_spread",
+    "at_grid_edge",
     "flag_vehicles",
     "fleet_health",
     "health_model",

@@ -115,7 +115,8 @@ def _read_manifest(m: Path) -> list[LogEntry]:
         if config and not Path(config).is_absolute():  # relative to the manifest, as the logs
             config = str(m.parent / config)
         try:
-            entries.append(_entry(p, r["vehicle"], r.get("variant"), config, r.get("date")))
+            # an empty optional field is the default (a blank date: from the log), as a column left out
+            entries.append(_entry(p, r["vehicle"], r.get("variant") or None, config, r.get("date") or None))
         except InputError as exc:
             raise InputError(f"manifest {m} line {line}: {exc}") from None
         lines[id(entries[-1])] = line
@@ -250,7 +251,29 @@ def entries_and_rule(paths, pattern: str | None = None, vehicle_from: str | None
             f"from the file names, --vehicle-from '(?P<vehicle>[^/]+)/[^/]+$' makes the folder holding "
             f"them one vehicle, a --manifest names each)"
         )
-    return entries, f"vehicles: {len({e.vehicle for e in entries})}: " + "; ".join(parts)
+    return entries, f"vehicles: {len({e.vehicle for e in entries})}: " + "; ".join(parts) + _others_words(paths)
+
+
+def _others_words(paths) -> str:
+    """The rest of the vehicles' sentence on the files in the folders given that are no CAN log by their suffix
+    (a candump log saved as .candump or .txt was dropped without a word): how many, the first three."""
+    others = sorted(
+        f
+        for given in paths
+        if Path(given).is_dir()
+        for f in Path(given).rglob("*")
+        if f.is_file()
+        and not f.name.startswith(".")
+        and f.suffix.lower() not in LOG_SUFFIXES
+        and not (f.suffix.lower() == ".gz" and Path(f.stem).suffix.lower() in LOG_SUFFIXES)
+    )
+    if not others:
+        return ""
+    names = ", ".join(str(f.name) for f in others[:3]) + (" ..." if len(others) > 3 else "")
+    return (
+        f"; {len(others)} other file(s) not taken, no CAN log by their suffix ({names}): a log among them runs "
+        f"renamed to one of {', '.join(LOG_SUFFIXES)}"
+    )
 
 
 def _no_logs_but_scada(paths) -> None:

@@ -234,6 +234,30 @@ def _trusted_only(c: dict, lines: list) -> dict:
     return {k: [v[i] for i in range(len(v)) if trusted[i]] for k, v in c.items()}
 
 
+def warned_section(c: dict, lines: list) -> None:
+    """The trusted logs with warnings (`replay` exits 0 and says them: gear numbers of another gearbox, an oil far
+    from the model's own sump), listed: they stay in the peaks below, which rest on them (the report showed such a
+    log among the hottest vehicles without a word)."""
+    warned = [i for i, w in enumerate(c.get("trust_warnings", [])) if w]
+    if not warned:
+        return
+    lines += [
+        f"## Logs with warnings ({len(warned)}, kept in the peaks and times below)",
+        "",
+        "What `gearbox-vsensor replay` would warn about (exit status 0) for each: its estimates rest on what it says.",
+        "",
+        "| vehicle | log | warnings |",
+        "|---|---|---|",
+    ]
+    lines += [
+        f"| {_cell(c['vehicle'][i])} | {_cell(os.path.basename(c['log'][i]))} | {_cell(c['trust_warnings'][i])} |"
+        for i in warned[:50]
+    ]
+    if len(warned) > 50:
+        lines.append(f"\n... and {len(warned) - 50} more (the summary's column trust_warnings)")
+    lines.append("")
+
+
 def duplicate_logs(c: dict) -> list[list[str]]:
     """Groups of logs of one vehicle that look like copies of each other: the same first and last frame time and the
     same number of frames (a log copied under another name is summarised twice and its hours counted twice)."""
@@ -433,11 +457,15 @@ SPREAD_MIN_VEHICLES = 3
 
 def _period_spread(periods: dict, attr: str) -> dict:
     """Per period: (the fleet's median, its spread, how many vehicles have a value) of column ``attr``."""
-    from tools.fleet.health import fleet_spread
+    from tools.fleet.health import at_grid_edge, fleet_spread
 
     out = {}
     for q in sorted(set(periods["period"])):
-        vals = [x for x, p in zip(periods[attr], periods["period"]) if p == q and math.isfinite(x)]
+        vals = [
+            x
+            for x, p in zip(periods[attr], periods["period"])
+            if p == q and math.isfinite(x) and not at_grid_edge(attr, x)
+        ]
         out[q] = (*fleet_spread(vals), len(vals))
     return out
 
@@ -475,7 +503,7 @@ def _vehicle_order(periods: dict, flagged: list, watched: list) -> list:
 
 def _fitted_tables(periods: dict, order: list, lines: list) -> None:
     """Per fitted value a table vehicle x period, with the fleet's median and spread of each period."""
-    from tools.fleet.health import DRIFT_MIN, SPREAD_OUTSIDE
+    from tools.fleet.health import COOLER_GRID, DRIFT_MIN, SPREAD_OUTSIDE, VOLUME_GRID_L, at_grid_edge
 
     per = sorted(set(periods["period"]))[-TABLE_PERIODS:]
     start = {}
@@ -494,7 +522,10 @@ def _fitted_tables(periods: dict, order: list, lines: list) -> None:
         f"with at least {SPREAD_MIN_VEHICLES} vehicles in the period), where a "
         f"fouled cooler or a low oil level goes (a weak cooler also pulls the oil volume's estimate down); a "
         f"flag needs a drift from the vehicle's own baseline as well. Flagged and watched vehicles first, "
-        f"then the farthest below the fleet's cooler median.",
+        f"then the farthest below the fleet's cooler median. (grid edge): the fit ran to the end of what it tries "
+        f"(cooler {COOLER_GRID[0]:g}-{COOLER_GRID[-1]:g}, oil {VOLUME_GRID_L[0]:g}-{VOLUME_GRID_L[-1]:g} L): a bound, "
+        "not an estimate, left out of the fleet's median and spread; at the top, the log is likely another "
+        "gearbox's (check --gearbox) or one the model misses.",
         "",
     ]
     n_periods = len(set(periods["period"]))
@@ -523,6 +554,7 @@ def _fitted_tables(periods: dict, order: list, lines: list) -> None:
                     continue
                 e = periods[se][i]
                 txt = fmt.format(x) + (f" +/- {fmt.format(e)}" if math.isfinite(e) else "")
+                txt += " (grid edge)" if at_grid_edge(attr, x) else ""
                 cells.append(f"**{txt} below**" if _below(attr, x, e, spread[q]) else txt)
             lines.append(f"| {_cell(v)} | " + " | ".join(cells) + " |")
         lines.append(
@@ -662,6 +694,7 @@ def write_report(out: str | os.PathLike, health_why_none: str = "") -> Path:
         _gone(c, lines)
         _malformed(c, lines)
         c = _trusted_only(c, lines)
+        warned_section(c, lines)
         if c["log"]:
             _hottest(c, lines)
             _plots(c, out, lines)

@@ -23,6 +23,8 @@ from tools.published import ids
 EPOCH_MIN_S = 1e8
 #: ... below this (2100-01-01); at or above it, Unix time in milliseconds is said (tools.fleet.summary.log_date)
 EPOCH_MAX_S = 4102444800.0
+#: the date of EPOCH_MIN_S: an ASC header's date before it is no date either
+EPOCH_MIN_DATE = dt.datetime.fromtimestamp(EPOCH_MIN_S, tz=dt.timezone.utc).date()
 #: per component, the summary's columns (with the component id in place of {c})
 COMPONENT_COLUMNS = (
     "peak_{c}_c",
@@ -54,12 +56,14 @@ def asc_date(path) -> str | None:
                 if m and m.group(2).capitalize() in _MONTHS:
                     kind = "trigger" if m.group(1).lower() != "date" else "date"
                     try:
-                        found.setdefault(
-                            kind,
-                            dt.date(int(m.group(4)), _MONTHS[m.group(2).capitalize()], int(m.group(3))).isoformat(),
-                        )
+                        day = dt.date(int(m.group(4)), _MONTHS[m.group(2).capitalize()], int(m.group(3)))
                     except ValueError:
                         continue
+                    # a writer without the start time stamps the epoch (python-can's ASCWriter: "Begin Triggerblock
+                    # Thu Jan 01 00:00:00.0 1970"): no date, as a frame time before EPOCH_MIN_S is none
+                    if day < EPOCH_MIN_DATE:
+                        continue
+                    found.setdefault(kind, day.isoformat())
                     if kind == "trigger":
                         break
     except OSError:

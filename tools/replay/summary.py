@@ -23,7 +23,8 @@ AUX_MESSAGES = {
 REJECT_WORDS = {
     "drive_frozen": (
         "speed and torque bit-identical for over 120 s while turning (flagged, still used: a synthetic "
-        "cycle without --noise holds them so; on a truck it is a frozen signal)"
+        "cycle without --noise or a test bench holds them so; from a vehicle's or a machine's own sensors it is a "
+        "frozen signal)"
     ),
     "oil_frozen": (
         "oil reading frozen while the model's sump moved (modelled instead; a rig or plant run that holds "
