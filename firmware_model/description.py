@@ -1116,6 +1116,27 @@ def _check_oil_fits(r: _Reader, oil: OilSystem, housings: tuple) -> None:
         )
 
 
+def _check_oil_covers_the_dipping(r: _Reader, oil: OilSystem, wheels: tuple) -> None:
+    """The sump holds at least what its dipping wheels' immersed parts displace (the circular segment of each tip
+    circle under its immersion, over its face width): a volume in the wrong unit (0.04 L for 40 L) passed and cut
+    the churning sevenfold."""
+    displaced_m3 = 0.0
+    for w in wheels:
+        if w.immersion is None or w.id not in oil.dipping:
+            continue
+        R = (w.module_m * w.teeth / math.cos(w.helix_rad) + 2 * ADDENDUM_COEF * w.module_m) / 2
+        h = min(w.immersion, 1.0) * 2 * R
+        segment_m2 = R * R * math.acos((R - h) / R) - (R - h) * math.sqrt(max(2 * R * h - h * h, 0.0))
+        displaced_m3 += segment_m2 * w.width_m
+    if displaced_m3 > oil.volume_m3:
+        r.fail(
+            f"{TOPOLOGY}.oil.volume",
+            f"= {oil.volume_m3 * 1e3:g} L is less than the dipping wheels' immersed parts displace "
+            f"({displaced_m3 * 1e3:.3g} L, from their tip circles, immersion and face widths); is the volume in "
+            "another unit, or an immersion too deep?",
+        )
+
+
 def _check_oil_controls(r: _Reader, oil: OilSystem, drive) -> None:
     """A heater's set point within the oil model's range, a pump that stops below a speed the drive reaches (else it
     would heat or stand always: a unit or a digit wrong, no model)."""
@@ -1526,6 +1547,7 @@ def _describe(path: Path, entries: dict, params: Parameters | None = None) -> De
     _check_touches(r, boundaries, nodes)
     oil = _oil(r, topo, by_shaft, nodes)
     _check_oil_fits(r, oil, housings)
+    _check_oil_covers_the_dipping(r, oil, wheels)
     _check_oil_controls(r, oil, drive)
     with_oil = replace(desc, oil=oil)
     published = _published(r, topo, set(with_oil.nodes) | set(with_oil.derived))  # a forced system's oil inlet too

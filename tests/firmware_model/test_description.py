@@ -889,3 +889,13 @@ def test_describe_refuses_what_simulate_cannot_build(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "T6flat.toml: simulate and replay cannot build this gearbox: mesh K (KI z 20, KC z 40): " in err, err
     assert "involute interference" in err
+
+
+def test_a_sump_smaller_than_its_dipping_wheels_immersed_part_is_one_sentence(tmp_path):
+    """The HR225's wheel dips 6 % of its tip diameter: 0.19 L under the oil; a volume of 0.02 L (litres for
+    millilitres, or cm3 for litres) passed and cut the churning sevenfold. Its own 14 L passes."""
+    f = tmp_path / "p.toml"
+    f.write_text('[meta]\ninherit = "HR225"\n\n[topology.oil]\nvolume = { v = 0.02, u = "L", src = "assumed" }\n')
+    with pytest.raises(ParameterError, match=r"p.toml: topology.oil.volume = 0.02 L is less than the dipping wheels' "):
+        load_description(str(f))
+    assert load_description("HR225").oil.volume_m3 == pytest.approx(0.014)

@@ -259,3 +259,16 @@ def test_a_refused_limit_or_start_names_itself_and_its_value(fmu):
         with pytest.raises(Exception):  # noqa: B017 (fmpy raises a bare Exception)
             fmpy.simulate_fmu(str(fmu), start_values=values, **run)
         assert any(sentence in m for m in msgs), msgs
+
+
+def test_a_rigs_fmu_says_its_configuration(fmu, tmp_path):
+    """FMUs of one gearbox built with two configurations (a rig's held sump, a vehicle's) differed only in their
+    GUID: the description names the rig and the options that differ from the defaults."""
+    md = fmpy.read_model_description(str(fmu))
+    assert md.description.endswith("(0.1 s step)"), md.description
+    cfg = tmp_path / "rig.toml"
+    cfg.write_text('[cooler]\nkind = "hold"\n')
+    rig = tmp_path / "rig.fmu"
+    assert main(["export-fmu", "--config", str(cfg), "--out", str(rig), "--quiet"]) == 0
+    text = fmpy.read_model_description(str(rig)).description
+    assert "a rig's configuration (the sump conditioned from outside)" in text and "ttl_sump = 'held'" in text, text

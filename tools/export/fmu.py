@@ -273,7 +273,7 @@ def model_description(variant: str, limits, guid: str, fmi_version: int = 2, gea
     sources = "\n".join(f'      <File name="{n}"/>' for n in SOURCE_FILES)
     return f"""<?xml version="1.0" encoding="UTF-8"?>
 <fmiModelDescription fmiVersion="2.0" modelName="gearbox-vsensor {escape(variant)}" guid="{guid}"
-  description="Onboard virtual temperature sensor of a {escape(variant)} {_kind(gearbox)} (0.1 s step)"
+  description="Onboard virtual temperature sensor of a {escape(variant)} {_kind(gearbox)} (0.1 s step{_said(gearbox)})"
   generationTool="gearbox-vsensor export-fmu" variableNamingConvention="flat" numberOfEventIndicators="0">
   <CoSimulation modelIdentifier="{MODEL_ID}" canHandleVariableCommunicationStepSize="false"
     canBeInstantiatedOnlyOncePerProcess="false" canNotUseMemoryManagementFunctions="false">
@@ -309,6 +309,31 @@ def _kind(gearbox) -> str:
     return "fixed-ratio gearbox" if desc is not None and desc.drive.kind == "fixed_ratio" else "range-splitter gearbox"
 
 
+def _options_words(sensor) -> str:
+    """The sensor options of this build that differ from the defaults, for the FMU's description (FMUs of one
+    gearbox built with two configurations, a rig's held sump and a vehicle's, differed only in their GUID)."""
+    import dataclasses
+
+    from firmware_model.onboard.records import SensorOptions
+
+    options = getattr(sensor, "options", None)
+    if options is None:
+        return ""
+    default = SensorOptions()
+    moved = [
+        f"{f.name} = {getattr(options, f.name)!r}"
+        for f in dataclasses.fields(SensorOptions)
+        if getattr(options, f.name) != getattr(default, f.name)
+    ]
+    rig = " a rig's configuration (the sump conditioned from outside);" if getattr(sensor, "rig", False) else ""
+    return f";{rig} options {', '.join(moved)}" if moved or rig else ""
+
+
+def _said(sensor) -> str:
+    """:func:`_options_words`, escaped for an XML attribute."""
+    return escape(_options_words(sensor), {'"': "&quot;"})
+
+
 def _model_description_3(variant: str, limits, guid: str, gearbox=None) -> str:
     rows, outputs = [], []
     for name, vr, typ, caus, var, start, desc in _variables(limits, gearbox):
@@ -336,7 +361,7 @@ def _model_description_3(variant: str, limits, guid: str, gearbox=None) -> str:
     structure += "\n" + "\n".join(f'    <InitialUnknown valueReference="{vr}"/>' for vr in outputs)
     return f"""<?xml version="1.0" encoding="UTF-8"?>
 <fmiModelDescription fmiVersion="3.0" modelName="gearbox-vsensor {escape(variant)}" instantiationToken="{guid}"
-  description="Onboard virtual temperature sensor of a {escape(variant)} {_kind(gearbox)} (0.1 s step)"
+  description="Onboard virtual temperature sensor of a {escape(variant)} {_kind(gearbox)} (0.1 s step{_said(gearbox)})"
   generationTool="gearbox-vsensor export-fmu" variableNamingConvention="flat">
   <CoSimulation modelIdentifier="{MODEL_ID}" canHandleVariableCommunicationStepSize="false"
     fixedInternalStepSize="0.1" canGetAndSetFMUState="false" canSerializeFMUState="false"/>
