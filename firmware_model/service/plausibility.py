@@ -169,23 +169,28 @@ def _span(lo: float, hi: float) -> str:
 AXLE_PER_RPM_PER_KMH = 2.0 * math.pi * WHEEL_RADIUS_M * 3.6 / 60.0
 
 
+class RecordWarning:
+    """A whole-record finding that is a warning: the outputs are written and the exit status stays 0."""
+
+    kind: ClassVar[str] = "plausibility"
+
+    @property
+    def severity(self) -> Severity:
+        return Severity.WARNING
+
+
 @dataclass(frozen=True)
-class GearRatioFinding:
+class GearRatioFinding(RecordWarning):
     """The gears ``gears`` drove at ``rpm_per_kmh`` (median engine speed per km/h each), whose ratios in this
     gearbox are ``ratios``: from one gear to the next they step otherwise than the gearbox's ratios (by more than
     GEAR_RATIO_TOL), or they need an axle ratio outside AXLE_RANGE. A warning: the outputs are written and the exit
     status stays 0, but the losses are those of other gears."""
 
-    kind: ClassVar[str] = "plausibility"
     gears: tuple
     rpm_per_kmh: tuple
     ratios: tuple
     gearbox: str
     source: str = "table"
-
-    @property
-    def severity(self) -> Severity:
-        return Severity.WARNING
 
     @property
     def spn_key(self) -> str:
@@ -411,20 +416,15 @@ def oil_model_unit_finding(oil, model_oil, dt_s: float = STEP_S, source: str = "
 
 
 @dataclass(frozen=True)
-class OilModelGapFinding:
+class OilModelGapFinding(RecordWarning):
     """The measured oil ``off_k`` [K] from the sensor's own modelled sump on median over ``span_min`` minutes, no
     unit explaining it (:data:`OIL_MODEL_GAP_K`); ``defaulted``: the auxiliary inputs the record never gave. A
     warning: the outputs are written and the exit status stays 0."""
 
-    kind: ClassVar[str] = "plausibility"
     off_k: float
     span_min: float
     defaulted: tuple = ()
     source: str = "table"
-
-    @property
-    def severity(self) -> Severity:
-        return Severity.WARNING
 
     @property
     def spn_key(self) -> str:

@@ -216,21 +216,14 @@ def _trusted_only(c: dict, lines: list) -> dict:
     bad = [i for i, t in enumerate(trusted) if not t]
     if not bad:
         return c
-    lines += [
+    _warnings_table(
+        c,
+        bad,
+        lines,
         f"## Logs whose outputs should not be trusted ({len(bad)}, left out of the peaks and times below)",
-        "",
         "What `gearbox-vsensor replay` would warn about (exit status 3) for each:",
-        "",
-        "| vehicle | log | warnings |",
-        "|---|---|---|",
-    ]
-    lines += [
-        f"| {_cell(c['vehicle'][i])} | {_cell(os.path.basename(c['log'][i]))} | {_cell(c['trust_warnings'][i])} |"
-        for i in bad[:50]
-    ]
-    if len(bad) > 50:
-        lines.append(f"\n... and {len(bad) - 50} more (the summary's column trusted is false)")
-    lines.append("")
+        "trusted is false",
+    )
     return {k: [v[i] for i in range(len(v)) if trusted[i]] for k, v in c.items()}
 
 
@@ -239,22 +232,27 @@ def warned_section(c: dict, lines: list) -> None:
     from the model's own sump), listed: they stay in the peaks below, which rest on them (the report showed such a
     log among the hottest vehicles without a word)."""
     warned = [i for i, w in enumerate(c.get("trust_warnings", [])) if w]
-    if not warned:
-        return
-    lines += [
-        f"## Logs with warnings ({len(warned)}, kept in the peaks and times below)",
-        "",
-        "What `gearbox-vsensor replay` would warn about (exit status 0) for each: its estimates rest on what it says.",
-        "",
-        "| vehicle | log | warnings |",
-        "|---|---|---|",
-    ]
+    if warned:
+        _warnings_table(
+            c,
+            warned,
+            lines,
+            f"## Logs with warnings ({len(warned)}, kept in the peaks and times below)",
+            "What `gearbox-vsensor replay` would warn about (exit status 0) for each: its estimates rest on what it "
+            "says.",
+            "trust_warnings",
+        )
+
+
+def _warnings_table(c: dict, rows: list, lines: list, heading: str, intro: str, column: str) -> None:
+    """A section listing the logs ``rows`` of the summary's columns ``c`` with their warnings (at most 50)."""
+    lines += [heading, "", intro, "", "| vehicle | log | warnings |", "|---|---|---|"]
     lines += [
         f"| {_cell(c['vehicle'][i])} | {_cell(os.path.basename(c['log'][i]))} | {_cell(c['trust_warnings'][i])} |"
-        for i in warned[:50]
+        for i in rows[:50]
     ]
-    if len(warned) > 50:
-        lines.append(f"\n... and {len(warned) - 50} more (the summary's column trust_warnings)")
+    if len(rows) > 50:
+        lines.append(f"\n... and {len(rows) - 50} more (the summary's column {column})")
     lines.append("")
 
 
