@@ -243,3 +243,20 @@ def test_a_fixed_ratio_gearbox_s_oil_in_degf_while_it_warms_is_untrusted(tmp_pat
     assert main(["replay", str(bad), "--gearbox", "HR225", "--out", str(tmp_path / "b.csv")]) == 3
     err = capsys.readouterr().err
     assert "above the sensor's own modelled sump on median" in err and "the oil looks like degF, not degC" in err
+
+
+def test_a_rigs_held_sump_is_not_judged_against_the_model_in_a_log_or_a_table(tmp_path, capsys):
+    """A rig holding its sump at 100 degC (`[cooler] kind = "hold"`), its run written as a CAN log and a run table,
+    replayed with the rig's configuration: the model's own sump (no cooler) means nothing there, and the log's
+    replay said "the oil temperature runs 26 K below the sensor's own modelled sump" (the run table's did not)."""
+    cfg = tmp_path / "rig.toml"
+    cfg.write_text('[cooler]\nkind = "hold"\n[simulate]\nhold_oil_c = 100\n')
+    log, csv = tmp_path / "rig.log", tmp_path / "rig.csv"
+    cycle = "steady:gear=10,rpm=1300,nm=2000,s=1900,oil=100"
+    sim = ["simulate", "--cycle", cycle, "--config", str(cfg), "--out", str(csv), "--can-log", str(log), "--quiet"]
+    assert main(sim) == 0
+    capsys.readouterr()
+    for source in (log, csv):
+        assert main(["replay", str(source), "--config", str(cfg), "--out", str(tmp_path / "e.csv")]) == 0
+        err = capsys.readouterr().err
+        assert "modelled sump" not in err, (source.name, err)

@@ -275,9 +275,15 @@ def log_findings(service, table) -> list:
     give: the service's (firmware_model.service.trust) and the whole record's (firmware_model.service.plausibility:
     unit and sign of the decoded inputs, gear numbers that are not this gearbox's, clamps or repairs on more than
     5 % of the steps) and the whole log's (time stamps in milliseconds), most severe first."""
+    from firmware_model.description import description_of
     from firmware_model.service.plausibility import min_torque_nm, with_record_findings
     from firmware_model.service.trust import milliseconds_finding
+    from tools.replay.table import twin_meta
 
+    meta = getattr(table, "meta", None)
+    if meta is not None:  # a rig's log: its held sump is not judged against the model's (as a run table's replay)
+        for k, v in twin_meta(service.sensor, description_of(service.sensor.params)).items():
+            meta.setdefault(k, v)
     found = with_record_findings(service.findings(), table, min_torque_nm(service.sensor), "can")
     t = table["can_time_s"]
     ms = milliseconds_finding(

@@ -495,7 +495,6 @@ def mark_for_findings(out, sensor) -> None:
     """What :func:`table_findings` and the summary need of the sensor, in ``out.meta``: the torque's lower clamp,
     whether the drive is a vehicle's engine (the speed-unit and kN m checks) and this gearbox's limits."""
     from firmware_model.description import description_of
-    from firmware_model.onboard.reduce import aux_inputs_expected
     from firmware_model.service.plausibility import min_torque_nm
 
     description = description_of(sensor.params)
@@ -504,11 +503,20 @@ def mark_for_findings(out, sensor) -> None:
     out.meta["drive_limits"] = drive_limits(description)
     out.meta["limits"] = sensor.limits  # the summary's margins: this gearbox's limits, not the GRS905's
     out.meta.update(gear_meta(description))
-    # the model's own sump beside the oil is judged unless a rig conditions the sump; the auxiliary inputs the
-    # gearbox's cooler and boundaries read (a missing one named when the sump is off)
-    out.meta["twin_judged"] = not getattr(sensor, "rig", False)
+    out.meta.update(twin_meta(sensor, description))
+
+
+def twin_meta(sensor, description) -> dict:
+    """The model's own sump beside the oil is judged unless a rig conditions the sump (``twin_judged``); the
+    auxiliary inputs the gearbox's cooler and boundaries read (``aux_expected``: a missing one is named when the
+    oil lies far from that sump). For a run table's replay and a log's alike."""
+    from firmware_model.onboard.reduce import aux_inputs_expected
+
     expected = aux_inputs_expected(description)
-    out.meta["aux_expected"] = tuple(c for c, e in zip(("ambient_temp_c", "coolant_temp_c"), expected) if e)
+    return {
+        "twin_judged": not getattr(sensor, "rig", False),
+        "aux_expected": tuple(c for c, e in zip(("ambient_temp_c", "coolant_temp_c"), expected) if e),
+    }
 
 
 #: the sensor's outputs of a vehicle's inputs that a fixed-ratio drive's est.csv leaves out: its input speed and
