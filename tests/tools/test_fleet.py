@@ -806,3 +806,18 @@ def test_the_report_lists_the_trusted_logs_with_warnings():
     lines = []
     warned_section({**c, "trust_warnings": ["", ""]}, lines)
     assert lines == []
+
+
+def test_a_fleet_of_logs_too_short_to_fit_says_so_not_either_reason(tmp_path):
+    """Logs of 30 s summarised with --diagnose: the health said "either none was long enough ... or its logs were
+    summarised by a run without --diagnose"; every log is shorter than a fit needs, so it says that, with the
+    longest."""
+    from tools.fleet.health import NO_FIT, NO_FIT_HERE, fleet_health
+    from tools.fleet.store import FleetStore
+
+    row = {"log": "a.log", "log_key": "k1", "date": "2026-01-05", "start_s": 1.7e9, "duration_s": 30.0}
+    FleetStore(tmp_path).write_batch("a", [{**row, "vehicle": "t1", "replayed_at_s": 1.0}], [])
+    assert fleet_health(tmp_path).why_none == f"{NO_FIT} (the longest log here: 0.5 min)"
+    long = {**row, "vehicle": "t1", "log_key": "k2", "duration_s": 3600.0, "replayed_at_s": 2.0}
+    FleetStore(tmp_path).write_batch("b", [long], [])
+    assert fleet_health(tmp_path).why_none == NO_FIT_HERE

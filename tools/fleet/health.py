@@ -398,6 +398,20 @@ NO_FIT_HERE = (
     + "), or its logs were summarised (or replayed again, their settings changed) by a run without --diagnose, "
     "which a re-run skips: run --diagnose into a new --out folder"
 )
+
+
+def _why_no_fit(summary) -> str:
+    """Why no log has a fit: every summarised log shorter than a fit needs (said with the longest), else either
+    reason (:data:`NO_FIT_HERE`: the folder's logs may have been summarised by a run without --diagnose)."""
+    if summary is None or not summary.num_rows:
+        return NO_FIT
+    column = summary.column("duration_s").to_pylist() if "duration_s" in summary.column_names else []
+    spans = [s for s in column if s is not None]
+    if spans and max(spans) < 2 * DECORRELATION_S:
+        return f"{NO_FIT} (the longest log here: {max(spans) / 60:.1f} min)"
+    return NO_FIT_HERE
+
+
 #: the periods a vehicle needs before a drift can be flagged: a baseline, then a run of drifting periods
 JUDGED_PERIODS = BASELINE_PERIODS + CONSECUTIVE
 
@@ -453,7 +467,7 @@ def fleet_health(out: str | Path, period_days: float = 7.0) -> Health:
     fits = read_table(out, "fits")
     summary = read_table(out)
     if fits is None or summary is None or not fits.num_rows:
-        return Health(0, [], [], why_none=NO_FIT_HERE if summary is not None and summary.num_rows else NO_FIT)
+        return Health(0, [], [], why_none=_why_no_fit(summary))
     dates = dict(zip(summary.column("log_key").to_pylist(), summary.column("date").to_pylist()))
     unique = _current_fits(summary, fits)
     if not unique:
