@@ -79,3 +79,24 @@ def test_files_of_a_folder_that_are_no_log_by_their_suffix_are_named(tmp_path):
     entries, rule = entries_and_rule([tmp_path])
     assert [e.log.name for e in entries] == ["a.log"]
     assert "; 2 other file(s) not taken, no CAN log by their suffix (tsc1.candump, tsc1.txt)" in rule, rule
+
+
+def test_a_log_copied_under_another_vehicle_is_named_a_copy():
+    """A logger's log (Unix frame times) copied into two trucks' folders gave one drive to both without a word (a
+    review: copies were looked for within a vehicle only). Two trucks' equally long logs with relative frame times
+    (both from 0 s) are no copies of each other; within one vehicle they are, as before."""
+    from tools.fleet.report import copy_vehicles, duplicate_logs
+
+    t0 = 1.77e9
+    c = {
+        "vehicle": ["truck1", "truck2", "truck3", "truck4", "truck4", "truck5"],
+        "log": ["a/d1.log", "b/d1.log", "c/r.log", "d/r.log", "d/r2.log", "e/other.log"],
+        "start_s": [t0, t0, 0.0, 0.0, 0.0, t0 + 1.0],
+        "end_s": [t0 + 3600.0, t0 + 3600.0, 3600.0, 3600.0, 3600.0, t0 + 3600.0],
+        "frames": [9000, 9000, 9000, 9000, 9000, 9000],
+    }
+    groups = duplicate_logs(c)
+    assert sorted(groups) == [["a/d1.log", "b/d1.log"], ["d/r.log", "d/r2.log"]]
+    assert copy_vehicles(c, ["a/d1.log", "b/d1.log"]) == ["truck1", "truck2"]
+    c["start_s"][1] += 0.001  # one frame time apart: two drives
+    assert duplicate_logs(c) == [["d/r.log", "d/r2.log"]]

@@ -156,17 +156,20 @@ def _entries(args):
 
 
 def _warn_duplicates(out) -> None:
-    """A warning for logs of one vehicle that look like copies of each other (tools.fleet.report.duplicate_logs)."""
-    from tools.fleet.report import duplicate_logs
+    """A warning for logs that look like copies of each other (tools.fleet.report.duplicate_logs)."""
+    from tools.fleet.report import copy_vehicles, duplicate_logs
     from tools.fleet.store import read_table
 
     summary = read_table(out)
     if summary is None:
         return
-    dups = duplicate_logs({n: summary.column(n).to_pylist() for n in ("vehicle", "log", "start_s", "end_s", "frames")})
+    c = {n: summary.column(n).to_pylist() for n in ("vehicle", "log", "start_s", "end_s", "frames")}
+    dups = duplicate_logs(c)
     for g in dups[:5]:
+        vehicles = copy_vehicles(c, g)
+        whose = "of one vehicle" if len(vehicles) == 1 else f"under {len(vehicles)} vehicles ({', '.join(vehicles)})"
         print(
-            f"warning: {len(g)} logs of one vehicle look like copies of each other (the same first and last frame "
+            f"warning: {len(g)} logs {whose} look like copies of each other (the same first and last frame "
             f"time and frame count), each summarised and counted: {', '.join(g)}",
             file=sys.stderr,
         )

@@ -257,15 +257,27 @@ def _warnings_table(c: dict, rows: list, lines: list, heading: str, intro: str, 
 
 
 def duplicate_logs(c: dict) -> list[list[str]]:
-    """Groups of logs of one vehicle that look like copies of each other: the same first and last frame time and the
-    same number of frames (a log copied under another name is summarised twice and its hours counted twice)."""
+    """Groups of logs that look like copies of each other: the same first and last frame time and the same number
+    of frames (a log copied under another name is summarised twice and its hours counted twice). Within a vehicle
+    any such logs; across vehicles only logs whose frame times are Unix time (a logger's relative times all start
+    near 0, so two trucks' equally long logs could match)."""
+    from tools.fleet.summary import EPOCH_MIN_S
+
     groups: dict = {}
     for i, log in enumerate(c["log"]):
         if not c["frames"][i]:
             continue
-        key = (c["vehicle"][i], c["start_s"][i], c["end_s"][i], c["frames"][i])
+        start = c["start_s"][i]
+        owner = None if start is not None and start >= EPOCH_MIN_S else c["vehicle"][i]
+        key = (owner, start, c["end_s"][i], c["frames"][i])
         groups.setdefault(key, []).append(log)
     return [sorted(logs) for logs in groups.values() if len(logs) > 1]
+
+
+def copy_vehicles(c: dict, group: list) -> list:
+    """The vehicles a group of copies (:func:`duplicate_logs`) is summarised under, in order."""
+    of = dict(zip(c["log"], c["vehicle"]))
+    return sorted({str(of[log]) for log in group})
 
 
 #: logs of one vehicle overlapping by more than this are reported (a logger that rotates its files may repeat a
@@ -328,14 +340,18 @@ def _duplicates(c: dict, lines: list) -> None:
     lines += [
         f"## Logs that look like copies ({len(dups)} groups)",
         "",
-        "Same vehicle, same first and last frame time, same number of frames: each copy is summarised and its "
-        "hours counted again above. Remove the copies, then run again with --prune (it removes the rows of logs "
-        "no longer at their path; a re-run skips what is done).",
+        "Same first and last frame time, same number of frames: each copy is summarised and its hours counted again "
+        "above; copies under two vehicles (Unix frame times only) also give one truck's drive to another. Remove "
+        "the copies, then run again with --prune (it removes the rows of logs no longer at their path; a re-run "
+        "skips what is done).",
         "",
-        "| logs |",
-        "|---|",
+        "| logs | vehicles |",
+        "|---|---|",
     ]
-    lines += ["| " + _cell(", ".join(os.path.basename(x) for x in g)) + " |" for g in dups[:50]]
+    lines += [
+        "| " + _cell(", ".join(os.path.basename(x) for x in g)) + " | " + _cell(", ".join(copy_vehicles(c, g))) + " |"
+        for g in dups[:50]
+    ]
     lines.append("")
 
 
