@@ -145,6 +145,7 @@ class CompiledCore:
             "t_last_s",
             "k",
             "rejects",
+            "recover_s",
         ):
             buf[f] = getattr(state, f)
         for f in ("pending_s", "ttl_s", "level"):
@@ -167,6 +168,7 @@ class CompiledCore:
             buf["t_last_s"],
             buf["k"],
             buf["rejects"],
+            buf["recover_s"],
         )
         st.buf, st.owner = buf, self
         return st

@@ -109,6 +109,11 @@ TTL_SEG_TIE_W = 1.0
 #: and 0.1 s offline configuration refreshes at least this often; a held replay's coarse step refreshes once per row
 #: and publishes the countdown in between, which neither raises nor holds an early warning: docs/sensor.md)
 TTL_FRESH_S = 10.0
+#: drive inputs back after an outage longer than the hold (hold_s): the warning levels stay "not available" for as
+#: long as the outage went on past the hold, at most this long [s] (assumed: three time constants of the quickest
+#: published parts, ~200 s; after a 5-min torque outage on the uphill cycle the sun wheel read 11 K high in mode 0
+#: and warned, the true one 10 K under its limit, the error down to 4 K after 200 s: docs/sensor.md "Bad input")
+RECOVER_MAX_S = 600.0
 #: the C names of the input fields (records.INPUT_FIELDS, same order)
 INPUT_C_NAMES = ("SPEED", "TORQUE", "GEAR", "OIL", "AMB", "COOL", "VKMH", "RET")
 if len(INPUT_C_NAMES) != N_INPUTS:
@@ -186,6 +191,7 @@ DEFINES = (
     Constant("TTL_SEG_GAP_W", TTL_SEG_GAP_W, "... cut where its lines lie this far under the curves [W]"),
     Constant("TTL_SEG_TIE_W", TTL_SEG_TIE_W, "... at the first sample within this of the best [W]"),
     Constant("TTL_FRESH_S", TTL_FRESH_S, "an early warning judges a time to limit at most this old [s]"),
+    Constant("RECOVER_MAX_S", RECOVER_MAX_S, "levels not available after an outage: at most this long [s]"),
 )
 #: the structs gvs_sizeof() measures, in its argument's order ("real": sizeof(gvs_real))
 SIZEOF_IDS = ("tables", "vehicle", "state", "inputs", "outputs", "ttl_point", "real")
@@ -427,6 +433,7 @@ _STATE = (
     Field("t_last_s", F64, (), "s", "frame time of the last step (NaN unknown)"),
     Field("k", I64, doc="steps done"),
     Field("rejects", I64, ("GVS_N_REJECT",)),
+    Field("recover_s", REAL, (), "s", "the drive inputs' outage past the hold still to recover from"),
     "memo of the last conductance bin (a pure function of its key: the outputs never depend on it; a state packed "
     "from elsewhere starts with memo_valid = 0)",
     Field("memo_G", REAL, ("GVS_MAX_LINKS",), "W/K"),

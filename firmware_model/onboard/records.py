@@ -78,6 +78,7 @@ class SensorState(NamedTuple):
     t_last_s: np.ndarray  # B: frame time of the last step (NaN unknown)
     k: np.ndarray  # B: steps done (int64)
     rejects: np.ndarray  # B + (N_REJECT,): reject counters (int64)
+    recover_s: np.ndarray  # B: the drive inputs' outage past the hold still to recover from [s] (levels 3 meanwhile)
 
 
 class SensorStatus(NamedTuple):

@@ -276,6 +276,7 @@ class VirtualSensor:
             t_last_s=np.full(B, np.nan),
             k=np.zeros(B, dtype=np.int64),
             rejects=np.zeros(B + (N_REJECT,), dtype=np.int64),
+            recover_s=np.zeros(B),
         )
 
     def _plausible_oil_c(self, T_oil_c) -> np.ndarray:

@@ -24,6 +24,9 @@ SNAPSHOT_SCHEMA = "vsensor-snapshot/1"
 STATE_TEMP_RANGE_C = (-273.15, 2000.0)
 #: warning levels a state may hold (0 normal, 1 warning, 2 critical, 3 not available)
 LEVEL_MAX = 3
+#: state fields added after the schema's first version: a snapshot without one restores it as zeros (it was saved
+#: before the field existed; a field after T_c, so the batch shape is known by then)
+ADDED_FIELDS = ("recover_s",)
 
 
 def _crc32(doc: dict) -> int:
@@ -50,6 +53,7 @@ def _trailing_shapes(reduced: ReducedParams) -> dict:
         "t_last_s": (),
         "k": (),
         "rejects": (N_REJECT,),
+        "recover_s": (),
     }
 
 
@@ -70,6 +74,7 @@ def _check_values(vals: dict) -> None:
         "t_last_s": not np.any(np.isinf(vals["t_last_s"])),
         "k": np.all(vals["k"] >= 0),
         "rejects": np.all(vals["rejects"] >= 0),
+        "recover_s": np.all(vals["recover_s"] >= 0.0),
     }
     for name, ok in checks.items():
         if not ok:
@@ -116,6 +121,9 @@ def decode_snapshot(snap, reduced: ReducedParams) -> SensorState:
     vals, batch = {}, None
     for name in SensorState._fields:
         d = snap.get(name)
+        if d is None and name in ADDED_FIELDS and batch is not None:
+            vals[name] = np.zeros(batch)  # a snapshot of a version before the field: nothing to recover from
+            continue
         if not isinstance(d, dict):
             raise InputError(f"snapshot field {name!r} is missing")
         try:

@@ -37,7 +37,7 @@ from firmware_model.onboard import evaluate as E
 from firmware_model.onboard.conductance_bins import bin_centre, bin_conductances, quantise
 from firmware_model.onboard.held_inputs import jump_state
 from firmware_model.onboard.input_check import DRIVE_FROZEN_BITS, INPUT_BITS, OIL_FROZEN_BITS, InputCheck, check_inputs
-from firmware_model.onboard.kernel_interface import P_CP, P_RHO, TTL_FRESH_S
+from firmware_model.onboard.kernel_interface import P_CP, P_RHO, RECOVER_MAX_S, TTL_FRESH_S
 from firmware_model.onboard.params import SensorParams
 from firmware_model.onboard.records import (
     I_AMB,
@@ -389,7 +389,12 @@ def _finish(state: SensorState, raw, t_now, chk: InputCheck, net: NetworkStep, c
     state and the time-to-limit job."""
     rp, lim, dt = sp.reduced, sp.limits, sp.dt_s
     T_pub_c = net.T_c[..., MAIN, rp.published_index]
-    available = chk.drive_age_s <= sp.options.hold_s
+    # drive inputs missing past the hold: levels not available, and for as long again (at most RECOVER_MAX_S) once
+    # they are back: the parts' temperatures still rest on the held inputs of the outage
+    in_hold = chk.drive_age_s <= sp.options.hold_s
+    available = in_hold & ~(state.recover_s > 0.5 * dt)
+    back_s = np.maximum(state.recover_s - dt, 0.0)
+    recover_s = np.where(in_hold, back_s, np.minimum(state.recover_s + dt, RECOVER_MAX_S))
     k = state.k
     steps_since_refresh = np.minimum(k, (k - 1) % sp.ttl_every + 1)  # 0 at k = 0
     ttl_now_s = np.maximum(state.ttl_s - (steps_since_refresh * dt)[..., None], 0.0)
@@ -443,6 +448,7 @@ def _finish(state: SensorState, raw, t_now, chk: InputCheck, net: NetworkStep, c
         np.where(np.isfinite(t_now), t_now, state.t_last_s + sp.dt_s),
         state.k + 1,
         rejects,
+        recover_s,
     )
     return new_state, SensorOutputs(T_pub_c, level, ttl_out_s, status), _ttl_job(state, chk, net, sp, skipped)
 

@@ -354,8 +354,36 @@ def test_missing_drive_inputs_for_too_long_make_the_estimates_not_available(sens
         int(sensor.options.hold_s / 0.1) + 5,
     )
     assert np.all(out.level == 3) and np.all(np.isnan(out.ttl_s)) and np.all(np.isfinite(out.T_c))
-    st, out = run(sensor, st, NOMINAL, 2)  # back: available at once
+    # back: normal mode at once, the levels not available for as long as the outage went on past the hold (0.5 s)
+    st, out = run(sensor, st, NOMINAL, 5)
+    assert np.all(out.level == 3) and int(out.status.degraded_mode) == MODE_NORMAL
+    st, out = run(sensor, st, NOMINAL, 1)
     assert np.all(out.level < 3) and int(out.status.degraded_mode) == MODE_NORMAL
+
+
+@pytest.mark.parametrize("core", ["numpy", "c"])
+def test_after_a_long_outage_the_levels_wait_until_the_held_inputs_are_forgotten(params, core):
+    """A 5-minute torque outage on a climb (a new user's capture): the sensor held 2400 N m, and once the frames were
+    back its sun wheel read 11 K high in mode 0 with a warning the true one never had. Now the levels stay 'not
+    available' for as long as the outage went on past the hold, at most RECOVER_MAX_S, in both cores alike."""
+    from firmware_model.onboard.kernel_interface import RECOVER_MAX_S
+
+    sensor = VirtualSensor(params, core=core)
+    hold = sensor.options.hold_s
+    climb = NOMINAL._replace(speed_rpm=1600.0, torque_nm=2400.0, gear=3)
+    st, _ = run(sensor, sensor.initial_state(T_oil_c=80.0), climb, 100)
+    st, out = run(sensor, st, climb._replace(torque_nm=math.nan), 3000)  # 300 s without torque
+    assert np.all(out.level == 3) and float(st.recover_s) == pytest.approx(300.0 - hold, abs=0.15)
+    levels = []
+    for _ in range(3000):
+        st, out = sensor.step(st, climb._replace(torque_nm=800.0))
+        levels.append(int(out.level.max()))
+        assert int(out.status.degraded_mode) != MODE_HOLDING  # (the oil, held at 80 degC, reads frozen after 300 s)
+    back = levels.index(next(v for v in levels if v < 3))  # steps until the levels are known again
+    assert back * 0.1 == pytest.approx(300.0 - hold, abs=0.25) and all(v < 3 for v in levels[back:])
+    # an outage of an hour: its recovery is capped
+    st, _ = run(sensor, st, climb._replace(torque_nm=math.nan), int(2 * RECOVER_MAX_S / 0.1))
+    assert float(st.recover_s) == RECOVER_MAX_S
 
 
 def test_missing_oil_integrates_the_sump_and_flags_it(sensor, warm):

@@ -143,7 +143,7 @@ int gvs_sensor_resume(gvs_state *st, double T_oil_c)
         if (!(st->age_s[i] >= (gvs_real)0.0) || !(st->same_s[i] >= (gvs_real)0.0) || !finite_value(st->same_s[i])
             || (st->hold[i] == st->hold[i] && !finite_value(st->hold[i]))) return -1;
     /* raw_prev holds the last raw input as it came, +-inf and values beyond the real type's range included */
-    if (!finite_value(st->oil_ref_c)) return -1;
+    if (!finite_value(st->oil_ref_c) || !(st->recover_s >= (gvs_real)0.0) || !finite_value(st->recover_s)) return -1;
     st->memo_valid = 0;                 /* the conductance memo is recomputed, never trusted from storage */
     st->memo_heat_valid = 0;            /* and the heat memo of a build with GVS_STEP_MEMO */
     /* an ignition cycle lies between: every input's last value is older than any check's window (the oil reading

@@ -95,6 +95,10 @@ def _component(row: dict, c: str, table) -> None:
     ttl = np.asarray(table[f"ttl_{c}_s"], dtype=float)
     t = np.asarray(table["time_s"], dtype=float)
     finite = np.isfinite(T)
+    # the peak of the steps the sensor vouches for (level known): not an outage's held inputs nor its recovery
+    # (docs/sensor.md, "Bad input"), unless no step is known
+    if (finite & (level <= 2)).any():
+        finite &= level <= 2
     if finite.any():
         i = int(np.nanargmax(np.where(finite, T, -np.inf)))
         row[f"peak_{c}_c"], row[f"peak_{c}_t_s"] = float(T[i]), float(t[i])

@@ -1741,7 +1741,7 @@ int gvs_step(const gvs_tables *tb, const gvs_vehicle *veh, gvs_state *st, const 
     int64_t k = st->k;
     int32_t since;                  /* steps since the last refresh, at most ttl_every: a float from an int32 (an
                                      * int64's conversion is soft-float code on an M4F) */
-    int i, available, any = 0, due, fresh;
+    int i, in_hold, available, any = 0, due, fresh;
     check_t c;
     net_t nt;
     if (ttl) ttl->due = 0;
@@ -1767,7 +1767,12 @@ int gvs_step(const gvs_tables *tb, const gvs_vehicle *veh, gvs_state *st, const 
     network_step(tb, veh, st, &c, in->raw[GVS_I_OIL], &nt);
     /* published temperatures, warnings, the time to limit counted down */
     for (i = 0; i < tb->n_pub; ++i) T_pub[i] = st->T_c[GVS_MAIN][tb->published_index[i]];
-    available = c.drive_age_s <= tb->hold_s;
+    /* drive inputs missing past the hold: levels not available, and for as long again (at most GVS_RECOVER_MAX_S)
+     * once they are back: the parts' temperatures still rest on the outage's held inputs (step._finish) */
+    in_hold = c.drive_age_s <= tb->hold_s;
+    available = in_hold && !(st->recover_s > R_(0.5) * tb->dt_s);
+    st->recover_s = in_hold ? max_r(st->recover_s - tb->dt_s, R_(0.0))
+                            : min_r(st->recover_s + tb->dt_s, R_(GVS_RECOVER_MAX_S));
     since = k == 0 ? 0 : (int32_t)(steps_mod(k - 1, tb->ttl_every) + 1);
     /* the early warning judges only a time to limit refreshed at most GVS_TTL_FRESH_S ago; an older one neither
      * raises nor holds one: it reads as "never" (step._finish) */

@@ -129,6 +129,7 @@ typedef gvs_real gvs_t2;
 #define GVS_TTL_SEG_GAP_W 200.0                 /* ... cut where its lines lie this far under the curves [W] */
 #define GVS_TTL_SEG_TIE_W 1.0                   /* ... at the first sample within this of the best [W] */
 #define GVS_TTL_FRESH_S 10.0                    /* an early warning judges a time to limit at most this old [s] */
+#define GVS_RECOVER_MAX_S 600.0                 /* levels not available after an outage: at most this long [s] */
 
 /* input fields (records.INPUT_FIELDS order) */
 enum { GVS_I_SPEED = 0, GVS_I_TORQUE = 1, GVS_I_GEAR = 2, GVS_I_OIL = 3, GVS_I_AMB = 4, GVS_I_COOL = 5, GVS_I_VKMH = 6,
@@ -325,6 +326,7 @@ typedef struct {
     double t_last_s;                    /* [s] frame time of the last step (NaN unknown) */
     int64_t k;                          /* steps done */
     int64_t rejects[GVS_N_REJECT];
+    gvs_real recover_s;                 /* [s] the drive inputs' outage past the hold still to recover from */
     /* memo of the last conductance bin (a pure function of its key: the outputs never depend on it; a state packed
      * from elsewhere starts with memo_valid = 0) */
     gvs_real memo_G[GVS_MAX_LINKS];     /* [W/K] */
