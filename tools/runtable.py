@@ -573,7 +573,8 @@ def atomic_text_file(target: str | os.PathLike):
 def write_run_table(table: RunTable, path: str | os.PathLike, formats: Mapping[str, str] | None = None) -> Path:
     """Write `table` as CSV atomically (temp file in the same directory, then os.replace). NaN -> empty cell.
 
-    `formats` maps a column name to a printf format (default '%.10g', time_s '%.15g'). `meta` is not written.
+    `formats` maps a column name to a printf format (default '%.10g', time_s and <x>_time_s '%.15g'). `meta` is not
+    written.
     """
     target = Path(path)
     cols = table.columns
@@ -583,7 +584,9 @@ def write_run_table(table: RunTable, path: str | os.PathLike, formats: Mapping[s
         return write_parquet(table, target)
     fmts = []
     for c in cols:
-        f = (formats or {}).get(c) or (TIME_FORMAT if c == "time_s" else DEFAULT_FORMAT)
+        # every time column with the time's digits: a CAN frame's Unix time (can_time_s, 1.5e9 s) in '%.10g' read
+        # whole seconds, ten rows alike (a new user's review)
+        f = (formats or {}).get(c) or (TIME_FORMAT if c == "time_s" or c.endswith("_time_s") else DEFAULT_FORMAT)
         fmts.append(f)
     row_fmt = ",".join(fmts)
     data = np.column_stack([table[c] for c in cols]) if table.n else np.empty((0, len(cols)))

@@ -56,6 +56,7 @@ class DegradedFinding:
     rejected: dict = field(default_factory=dict)  # the sensor's own input checks: reject reason -> steps
     oil_frozen_at_c: float | None = None  # the oil reading on the last step it was rejected as frozen
     engine: bool = True  # a vehicle's engine drives the gearbox (False: a fixed-ratio drive's input shaft)
+    step_word: str = "steps"  # what ``steps`` counts: "rows" for a held table's (its input rows)
 
     @property
     def share(self) -> float:
@@ -111,7 +112,8 @@ class DegradedFinding:
             else ""
         )
         return (
-            f"the sensor ran degraded on {pct(self.degraded, self.steps)} of {self.steps} steps ({modes}){inputs}"
+            f"the sensor ran degraded on {pct(self.degraded, self.steps)} of {self.steps} {self.step_word} "
+            f"({modes}){inputs}"
             f"{why}: its temperatures rest on held, modelled or default inputs{advice}"
         )
 
@@ -138,6 +140,7 @@ def degraded_finding(
     rejected: Mapping[str, int] | None = None,
     oil_frozen_at_c: float | None = None,
     engine: bool = True,
+    step_word: str = "steps",
 ) -> DegradedFinding:
     """The degraded share of a run from its steps per degraded mode (and the steps each input was missing; the
     steps the sensor's own checks rejected one, ``rejected``: reason -> steps, with the frozen oil reading).
@@ -159,6 +162,7 @@ def degraded_finding(
         rejected=rejected,
         oil_frozen_at_c=oil_frozen_at_c,
         engine=engine,
+        step_word=step_word,
     )
 
 

@@ -301,6 +301,7 @@ class RepairFinding:
     steps: int
     repaired: dict
     engine: bool = True  # a vehicle's engine drives it (else a fixed-ratio drive's input shaft: DRIVE_REPAIR_REASONS)
+    step_word: str = "steps"  # what ``steps`` and the counts count: "rows" for a held table's (its input rows)
 
     @property
     def severity(self) -> Severity:
@@ -320,7 +321,7 @@ class RepairFinding:
         said = "; ".join(f"{words[r]} on {pct(n, self.steps)}" for n, r in worst)
         return (
             f"the sensor clamped or repaired an input on more than {100 * REPAIR_UNTRUSTED_SHARE:.0f} % of its "
-            f"{self.steps} steps ({said}): its temperatures rest on values it had to change, not on the "
+            f"{self.steps} {self.step_word} ({said}): its temperatures rest on values it had to change, not on the "
             f"record; check the column's unit and sign (or the sender's scaling)"
         )
 
@@ -778,12 +779,19 @@ def _oil_warning_c(limits) -> float | None:
     return limits.of("oil")[0]
 
 
-def repair_finding(rejects: Mapping[str, int], steps: int, engine: bool = True) -> RepairFinding | None:
+def repair_finding(
+    rejects: Mapping[str, int], steps: int, engine: bool = True, rows: int | None = None
+) -> RepairFinding | None:
     """The clamp/repair finding from the sensor's cumulative reject counters over ``steps`` steps, or None;
-    ``engine``: a vehicle's engine drives the gearbox (False: a fixed-ratio drive's input shaft, said so)."""
+    ``engine``: a vehicle's engine drives the gearbox (False: a fixed-ratio drive's input shaft, said so); ``rows``:
+    a held table's input rows, which the finding then counts in (its counters count 0.1 s steps, 6000 to a
+    10-minute row: a sentence in those read as another run's)."""
     repaired = {r: int(rejects.get(r, 0)) for r in REPAIR_REASONS if int(rejects.get(r, 0))}
     if not steps or not any(n > REPAIR_UNTRUSTED_SHARE * steps for n in repaired.values()):
         return None
+    if rows is not None:
+        per_row = rows / steps
+        return RepairFinding(int(rows), {r: int(round(n * per_row)) for r, n in repaired.items()}, engine, "rows")
     return RepairFinding(int(steps), repaired, engine)
 
 
@@ -831,7 +839,7 @@ def table_record_findings(out, min_torque_nm: float | None = None, source: str =
         for k in out.columns
         if k.startswith("rejects_") and np.isfinite(out[k][-1])
     }
-    repair = repair_finding(rejects, steps, bool(meta.get("engine_drive", True)))
+    repair = repair_finding(rejects, steps, bool(meta.get("engine_drive", True)), out.n if held else None)
     return found + ([repair] if repair is not None else [])
 
 

@@ -331,3 +331,19 @@ def test_a_far_faster_input_than_the_gearbox_described_is_another_gearbox_not_a_
     # a fixed-ratio drive's degraded inputs are its input shaft's, not an engine's
     d = degraded_finding({0: 25, 2: 75}, {"torque_valid": 75}, engine=False)
     assert "input torque 75 %" in d.sentence and "engine" not in d.sentence
+
+
+def test_a_held_table_s_repairs_and_degraded_share_are_counted_in_its_rows():
+    """A SCADA record's replay said 'on more than 5 % of its 167778000 steps' beside '1118520 steps' of 15 s: its
+    counters count 0.1 s steps. The sentences now count the record's rows (a new user's review)."""
+    from firmware_model.service.degraded import degraded_finding
+    from firmware_model.service.plausibility import repair_finding
+
+    rows, steps = 27948, 27948 * 6000
+    f = repair_finding({"speed_clamped": int(0.9 * steps)}, steps, engine=False, rows=rows)
+    assert f.steps == rows and f.repaired == {"speed_clamped": round(0.9 * rows)}
+    assert f"of its {rows} rows (input speed clamped to the drive's range on 90 %)" in f.sentence
+    assert "167688000" not in f.sentence and "steps" not in f.sentence
+    assert repair_finding({"speed_clamped": 10}, steps, rows=rows) is None  # under 5 %: no finding either way
+    d = degraded_finding({0: 10, 2: rows - 10}, step_word="rows")
+    assert f"of {rows} rows" in d.sentence

@@ -170,3 +170,6 @@ def test_the_advice_under_one_effective_sample_gives_no_ratio():
 
     assert how_much_more(19, 0.0, 3600.0) == "at this autocorrelation far more than the 1.0 h scored"
     assert how_much_more(19, 2.0, 3600.0) == "at this autocorrelation about 9.5 times the 1.0 h scored in all, 9.5 h"
+    # a real truck's few-minute capture: "about 1.3 times the 0.0 h scored in all, 0.0 h" (a new user's review)
+    assert how_much_more(19, 14.6, 0.0) == "far more than these files give: none of their time was scored"
+    assert how_much_more(19, 2.0, 300.0) == "at this autocorrelation about 9.5 times the 5 min scored in all, 48 min"

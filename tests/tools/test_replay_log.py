@@ -355,6 +355,19 @@ def test_a_log_of_two_can_channels_is_one_sentence(tmp_path, frames):
         replay(two)
 
 
+def test_the_channels_of_a_trc_and_an_asc_are_named_as_the_files_number_them():
+    """A TRC of buses 1 and 2 was said to hold channels (2, 3): python-can reads a .trc's numbers as they are, an
+    .asc's and a .blf's from 0 (a new user's review)."""
+    from pathlib import Path
+
+    from tools.replay.formats import mixed_channels
+
+    assert "2 CAN channels (1, 2)" in mixed_channels(Path("t.trc"), [1, 2])
+    assert "2 CAN channels (1, 2)" in mixed_channels(Path("t.asc"), [0, 1])
+    assert "2 CAN channels (1, 2)" in mixed_channels(Path("t.blf"), [0, 1])
+    assert "2 CAN channels (can0, can1)" in mixed_channels(Path("t.log"), ["can0", "can1"])
+
+
 def test_a_trc_cut_mid_line_is_refused(tmp_path, frames):
     """A PCAN-View trace cut in the middle of its last line is refused as the other text logs are (python-can would
     read the cut line as a shorter frame)."""

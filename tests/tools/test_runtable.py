@@ -111,6 +111,22 @@ def test_integral_values_written_without_decimals(tmp_path):
     assert lines[1:] == ["0,600,0,0", "1,1300.5,-250,14"]
 
 
+def test_a_frame_s_unix_time_keeps_its_fraction(tmp_path):
+    """can_time_s of a real capture (1543509533.x s) was written '%.10g': ten rows of 1543509533 (a review)."""
+    t0 = 1543509533.0
+    t = RunTable(
+        {
+            "time_s": [0.0, 0.1],
+            "engine_speed_rpm": [1, 2],
+            "engine_torque_nm": [1, 2],
+            "gear": [1, 2],
+            "can_time_s": [t0 + 0.012345, t0 + 0.112345],
+        }
+    )
+    back = read_run_table(write_run_table(t, tmp_path / "f.csv"))
+    np.testing.assert_allclose(back["can_time_s"] - t0, [0.012345, 0.112345], atol=1e-5)
+
+
 def test_write_accepts_per_column_formats(tmp_path):
     t = RunTable(
         {

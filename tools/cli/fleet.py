@@ -12,7 +12,7 @@ from pathlib import Path
 from firmware_model.errors import InputError
 from tools.cli.gearbox_option import add_gearbox_option, resolve_gearbox
 from tools.cli.paths import check_paths
-from tools.cli.scada_notes import say_damaged_lines
+from tools.cli.scada_notes import say_damaged_lines, say_stuck_channels
 from tools.cli.settings import add_hidden, given, setting
 
 
@@ -269,6 +269,7 @@ def _run_scada(args) -> int:
         print(f"skipped {path}: {why}", file=sys.stderr)
     _check_scada_drive(cfg, records)  # before the notes: a gearbox of another drive is the one sentence
     say_damaged_lines(records.values(), "read")
+    say_stuck_channels(records.values())
     setup, notes = setup_of(cfg, next(iter(records.values())).cmap)
     for note in notes:
         print(f"note: {note}", file=sys.stderr)

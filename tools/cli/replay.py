@@ -18,7 +18,7 @@ from tools.can.bus import can_subcommand
 from tools.cli.core_option import add_core_option, apply_core
 from tools.cli.gearbox_option import add_gearbox_option, resolve_gearbox
 from tools.cli.paths import check_paths, figure_path
-from tools.cli.scada_notes import say_damaged_lines
+from tools.cli.scada_notes import say_damaged_lines, say_stuck_channels
 from tools.cli.settings import add_hidden, given, setting
 from tools.outputs import naming, outputs
 
@@ -285,6 +285,7 @@ def _run_scada(args) -> int:
         for line in error_lines(result, oil_channel(record)):
             print(line)
     say_damaged_lines([record], "replayed", args.quiet)
+    say_stuck_channels([record])
     return _report_trust(args, findings)
 
 
@@ -313,8 +314,11 @@ def _time_notes(result) -> list[str]:
     jumps = result.service_counters["time_jumps"]
     glitches = result.service_counters.get("frames_time_glitch", 0)
     counted = [
-        f"{n} {what}{'s' if n > 1 else ''}"
-        for n, what in ((jumps, "time jump"), (glitches, "frame time stamp glitch"))
+        f"{n} {what if n == 1 else plural}"
+        for n, what, plural in (
+            (jumps, "time jump", "time jumps"),
+            (glitches, "frame time stamp glitch", "frame time stamp glitches"),
+        )
         if n
     ]
     if counted and any(f.kind == "milliseconds" for f in result.findings):

@@ -205,7 +205,16 @@ def json_number(x, nd=4):
 
 def how_much_more(needed: float, n_eff: float, train_s: float) -> str:
     """How much training time the decision needs at this autocorrelation, in words ("1 times" read as enough)."""
+    if not train_s > 0.0:  # (a real truck's capture of a few minutes: its time all before scoring starts)
+        return "far more than these files give: none of their time was scored"
     if not n_eff >= 1.0:  # (under one effective sample no ratio means anything)
-        return f"at this autocorrelation far more than the {train_s / 3600.0:.1f} h scored"
-    more, hours = needed / n_eff, train_s / 3600.0
-    return f"at this autocorrelation about {more:.1f} times the {hours:.1f} h scored in all, {more * hours:.1f} h"
+        return f"at this autocorrelation far more than the {_span(train_s)} scored"
+    more = needed / n_eff
+    return f"at this autocorrelation about {more:.1f} times the {_span(train_s)} scored in all, {_span(more * train_s)}"
+
+
+def _span(seconds: float) -> str:
+    """A duration in the unit a reader takes in: seconds under 2 min, minutes under an hour, else hours."""
+    if seconds < 120.0:
+        return f"{seconds:.0f} s"
+    return f"{seconds / 60.0:.0f} min" if seconds < 3600.0 else f"{seconds / 3600.0:.1f} h"

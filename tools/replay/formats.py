@@ -36,9 +36,10 @@ def is_can_log(path: str | os.PathLike) -> bool:
 def mixed_channels(path: Path, channels) -> str:
     """The sentence for a log that holds the frames of several CAN channels (one J1939 bus is replayed at a time).
     candump names its interfaces (can0); python-can numbers the channels of .asc and .blf files from 0, the files
-    from 1: those are named as the file does."""
+    from 1: those are named as the file does (a .trc's it reads as the file numbers them: 1, 2)."""
     text = path.suffix.lower() == ".log"
-    names = [str(c) if text or not isinstance(c, int) else str(c + 1) for c in channels]
+    zero_based = path.suffix.lower() in (".asc", ".blf")
+    names = [str(c + 1) if zero_based and isinstance(c, int) else str(c) for c in channels]
     how = f"grep ' {names[0]} ' {path.name} > {names[0]}.log" if text else "export one channel with the logger's tool"
     return (
         f"{path}: holds the frames of {len(names)} CAN channels ({', '.join(names[:4])}); the sensor listens to "

@@ -589,7 +589,7 @@ def table_findings(out, oil_model: bool = False) -> list:
         degraded_finding,  # (not trust: that imports python-can)
         unit_findings,
     )
-    from firmware_model.service.plausibility import table_record_findings
+    from firmware_model.service.plausibility import is_held, table_record_findings
 
     modes = np.asarray(out["degraded_mode"], dtype=float) if out.n else np.zeros(0)
     values, counts = np.unique(modes[np.isfinite(modes)].astype(int), return_counts=True)
@@ -599,7 +599,10 @@ def table_findings(out, oil_model: bool = False) -> list:
         if out.has(c)
     }
     engine = (out.meta or {}).get("engine_drive", True)
-    finding = degraded_finding(dict(zip(values.tolist(), counts.tolist())), missing, oil_model, engine=engine)
+    word = "rows" if is_held(out.meta or {}) else "steps"  # a held table's rows are its input rows
+    finding = degraded_finding(
+        dict(zip(values.tolist(), counts.tolist())), missing, oil_model, engine=engine, step_word=word
+    )
     jumps = int(out["rejects_time_jump"][-1]) if out.n and out.has("rejects_time_jump") else 0
     units = unit_findings(
         out.n,

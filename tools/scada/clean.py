@@ -2,11 +2,12 @@
 
 Per channel of the column map, in this order: an empty cell is ``missing``; a value that is no number or lies
 outside the channel's ``range`` is ``implausible``; a value further than ``jump_k`` from both neighbours of its
-stretch, on the same side (a one-row spike), is a ``jump``. Each of these leaves NaN in the channel, the row stays.
-A derived input torque is 0 where the rotor stands still (speed below the map's ``standstill_rpm``: ``standstill``)
-and where the power (or the converter torque) is negative, the turbine drawing from the grid (``negative_power``):
-those rows stay, counted, with no load on the gearbox. The reader's own reasons (lines, time stamps, gaps) are
-counted in the same dictionary.
+stretch, on the same side (a one-row spike), is a ``jump``; a measured temperature the same to the bit for
+STUCK_MIN_S or more while the load or the air moved is ``stuck`` after its first row. Each of these leaves NaN in
+the channel, the row stays. A derived input torque is 0 where the rotor stands still (speed below the map's
+``standstill_rpm``: ``standstill``) and where the power (or the converter torque) is negative, the turbine drawing
+from the grid (``negative_power``): those rows stay, counted, with no load on the gearbox. The reader's own reasons
+(lines, time stamps, gaps) are counted in the same dictionary.
 """
 
 from __future__ import annotations
@@ -27,6 +28,7 @@ REASONS = (
     "missing",
     "implausible",
     "jump",
+    "stuck",
     "standstill",
     "negative_power",
 )
@@ -41,11 +43,20 @@ REASON_WORDS = {
     "missing": "empty cells (NaN)",
     "implausible": "values outside the channel's range or not numbers (NaN)",
     "jump": "one-row spikes beyond the channel's jump_k (NaN)",
+    "stuck": "measured temperatures stuck at one value for a day or more while the load or the air moved (NaN after "
+    "the run's first)",
     "standstill": "rows with the rotor standing still (input torque 0)",
     "negative_power": "rows drawing power from the grid (input torque 0)",
 }
 #: the reasons counted per channel
-CHANNEL_REASONS = ("missing", "implausible", "jump")
+CHANNEL_REASONS = ("missing", "implausible", "jump", "stuck")
+#: a temperature reading the same to the bit for this long is a stuck sensor or logger [s] (the shared turbines'
+#: longest such runs: 14-33 rows of 10 min, 5.5 h, a cold bearing at standstill; a stuck channel read as the
+#: gearbox's put a bearing 6.8 K RMS off and fitted a fleet month's bearing loss at 0.58: a new user's review)
+STUCK_MIN_S = 86400.0
+#: ... while the turbine's load or air moved: the input torque over this share of its record's largest, or the air
+#: around the gearbox over this many kelvin (a steady run, a plant's or a rig's, settles to the bit: not stuck)
+STUCK_LOAD_SHARE, STUCK_AIR_K = 0.2, 5.0
 
 
 def spikes(x: np.ndarray, stretch: np.ndarray, jump: float) -> np.ndarray:
@@ -65,8 +76,43 @@ def spikes(x: np.ndarray, stretch: np.ndarray, jump: float) -> np.ndarray:
     return inner | first
 
 
-def _checked(name: str, x: np.ndarray, ch: Channel, stretch: np.ndarray, by: dict) -> np.ndarray:
-    """``x`` with its missing, implausible and spike values NaN, each counted in ``by[name]``."""
+def stuck_runs(x: np.ndarray, stretch: np.ndarray, min_rows: int) -> list[tuple[int, int]]:
+    """[start, stop) of each run of at least ``min_rows`` rows of one stretch whose finite values are the same to
+    the bit (NaN ends a run)."""
+    if x.size < 2:
+        return []
+    same = (x[1:] == x[:-1]) & (stretch[1:] == stretch[:-1])
+    edges = np.flatnonzero(np.diff(np.r_[0, same.astype(np.int8), 0]))
+    return [(int(a), int(b) + 1) for a, b in zip(edges[::2], edges[1::2]) if b + 1 - a >= min_rows]
+
+
+def _moved(values: dict, a: int, b: int) -> bool:
+    """Whether the load or the air around the gearbox moved over rows [a, b) (STUCK_LOAD_SHARE, STUCK_AIR_K)."""
+
+    def span(x):
+        x = x[a:b][np.isfinite(x[a:b])]
+        return float(x.max() - x.min()) if x.size else 0.0
+
+    torque, air = values.get("input_torque_nm"), values.get("ambient_temp_c")
+    if torque is not None and np.isfinite(torque).any():
+        if span(torque) > STUCK_LOAD_SHARE * float(np.nanmax(np.abs(torque))):
+            return True
+    return air is not None and span(air) > STUCK_AIR_K
+
+
+def _checked(
+    name: str,
+    x: np.ndarray,
+    ch: Channel,
+    stretch: np.ndarray,
+    by: dict,
+    stuck: dict,
+    stuck_rows: int = 0,
+    inputs: dict | None = None,
+) -> np.ndarray:
+    """``x`` with its missing, implausible, spike and (``stuck_rows``: runs that long while ``inputs`` moved, see
+    :func:`_moved`) stuck values NaN, each counted in ``by[name]``; each stuck run in ``stuck[name]``: (start, stop,
+    value)."""
     x = x.copy()
     miss = np.isnan(x)
     bad = ~miss & ~np.isfinite(x)
@@ -76,7 +122,14 @@ def _checked(name: str, x: np.ndarray, ch: Channel, stretch: np.ndarray, by: dic
     x[bad] = np.nan
     jump = spikes(x, stretch, ch.jump_k) if ch.jump_k else np.zeros(x.shape, bool)
     x[jump] = np.nan
+    runs = [r for r in stuck_runs(x, stretch, stuck_rows) if _moved(inputs or {}, *r)] if stuck_rows else []
+    values = [float(x[a]) for a, _ in runs]
+    for a, b in runs:
+        x[a + 1 : b] = np.nan  # the first is a reading; the rest repeat it
     by[name] = {"missing": int(miss.sum()), "implausible": int(bad.sum()), "jump": int(jump.sum())}
+    by[name]["stuck"] = sum(b - a - 1 for a, b in runs)
+    if runs:
+        stuck[name] = [(a, b, v) for (a, b), v in zip(runs, values)]
     return x
 
 
@@ -89,7 +142,12 @@ def _derived(ch: Channel, raw: dict, cmap: ColumnMap, counts: dict) -> np.ndarra
         still = speed < cmap.standstill_rpm
         negative = load < 0.0
     moving = ~still & ~negative
-    out = np.where(np.isnan(load) | np.isnan(speed), np.nan, 0.0)
+    # a source cell that is no number (inf: the reader's mark) is no reading either: no torque, not 0
+    unread = ~np.isfinite(load) | ~np.isfinite(speed)
+    if ch.derive != "power_over_speed":
+        unread |= ~np.isfinite(raw[src["fast_speed"]])
+    moving &= ~unread
+    out = np.where(unread, np.nan, 0.0)
     with np.errstate(invalid="ignore", divide="ignore"):
         if ch.derive == "power_over_speed":
             val = load / (speed * RAD_S_PER_RPM)
@@ -101,17 +159,19 @@ def _derived(ch: Channel, raw: dict, cmap: ColumnMap, counts: dict) -> np.ndarra
     return out * ch.scale + ch.offset
 
 
-def clean_values(raw: dict, stretch: np.ndarray, cmap: ColumnMap, counts: dict) -> tuple[dict, dict]:
-    """(channel -> values, channel -> reason -> count) of every input and measured channel of ``cmap``; the totals
-    are added to ``counts``."""
-    values, by = {}, {}
+def clean_values(raw: dict, stretch: np.ndarray, cmap: ColumnMap, counts: dict) -> tuple[dict, dict, dict]:
+    """(channel -> values, channel -> reason -> count, channel -> its stuck runs [(start, stop, value)]) of every
+    input and measured channel of ``cmap``; the totals are added to ``counts``."""
+    values, by, stuck = {}, {}, {}
+    stuck_rows = int(np.ceil(STUCK_MIN_S / cmap.period_s))
     for name, ch in cmap.channels.items():
         if ch.derive:
             x = _derived(ch, raw, cmap, counts)
         else:
             x = raw[ch.column]
             x = np.where(np.isfinite(x), x * ch.scale + ch.offset, x)
-        values[name] = _checked(name, x, ch, stretch, by)
+        measured = name in cmap.measured  # (the map's inputs come first: the load and the air are read by then)
+        values[name] = _checked(name, x, ch, stretch, by, stuck, stuck_rows if measured else 0, values)
     for reason in CHANNEL_REASONS:
         counts[reason] += sum(c[reason] for c in by.values())
-    return values, by
+    return values, by, stuck

@@ -1,15 +1,15 @@
 """SCADA files (``.csv``, ``.csv.gz``) -> one record per unit (turbine), its gaps kept (docs/real-data.md).
 
 Each file is read with the csv module through its column map (:mod:`tools.scada.columns`); only the map's columns
-are converted (numpy float64, an empty cell NaN). Time stamps with a UTC offset become UTC seconds; a stamp without
-one, or one that does not parse, drops its row (``bad_time``), as does a line with the wrong number of fields
-(``bad_line``); the first such lines of each file, and those with a value that is no number, are kept by number and
-reason (:class:`BadLines`) for the note every command reading SCADA prints (tools/cli/scada_notes.py). The files of
-one unit are joined in time order: a row earlier than one before it in its file is counted (``out_of_order``) and
-sorted into place; a repeated time stamp keeps its first row (``duplicate_time``). A step longer than 1.5 periods
-starts a new stretch (``gap``): the record keeps the true times, no row is invented, and a model resets its state at
-each stretch's first row. The values' rules (missing, implausible, spikes, standstill, negative power) are
-:mod:`tools.scada.clean`'s.
+are converted (numpy float64; an empty cell, or a marker such as ``NA``, ``-``, ``#N/A``, NaN). Time stamps with a
+UTC offset become UTC seconds; a stamp without one, or one that does not parse, drops its row (``bad_time``), as
+does a line with the wrong number of fields (``bad_line``); the first such lines of each file, and those with a
+value that is no number, are kept by number and reason (:class:`BadLines`) for the note every command reading SCADA
+prints (tools/cli/scada_notes.py). The files of one unit are joined in time order: a row earlier than one before it
+in its file is counted (``out_of_order``) and sorted into place; a repeated time stamp keeps its first row
+(``duplicate_time``). A step longer than 1.5 periods starts a new stretch (``gap``): the record keeps the true
+times, no row is invented, and a model resets its state at each stretch's first row. The values' rules (missing,
+implausible, spikes, standstill, negative power) are :mod:`tools.scada.clean`'s.
 
 A file that is not such a SCADA file (binary, a damaged gzip, a header without the map's columns, no rows) raises an
 :class:`~firmware_model.errors.InputError` with one sentence naming the file.
@@ -75,9 +75,10 @@ class FileRows:
 @dataclass
 class ScadaRecord:
     """One unit's rows in time order. ``stretch`` numbers the gap-free stretches (0, 1, ...) row by row; ``values``
-    holds every input and measured channel of the map after the rules of :mod:`tools.scada.clean` (a rejected value
-    is NaN); ``counts`` the rows or values each reason (REASONS) touched, ``by_channel`` the same per channel;
-    ``bad_lines`` each file's damaged lines by number (files without any left out)."""
+        holds every input and measured channel of the map after the rules of :mod:`tools.scada.clean` (a rejected value
+        is NaN); ``counts`` the rows or values each reason (REASONS) touched, ``by_channel`` the same per channel;
+        ``bad_lines`` each file's damaged lines by number (files without any left out); ``stuck`` each channel's runs of
+    readings stuck at one value (tools.scada.clean.STUCK_MIN_S)."""
 
     unit: str
     time_s: np.ndarray
@@ -88,6 +89,7 @@ class ScadaRecord:
     cmap: ColumnMap
     files: list[Path] = field(default_factory=list)
     bad_lines: list[BadLines] = field(default_factory=list)
+    stuck: dict = field(default_factory=dict)  # channel -> its stuck runs: (start row, stop row, value)
 
     @property
     def n(self) -> int:
@@ -118,6 +120,7 @@ class ScadaRecord:
             cmap=self.cmap,
             files=list(self.files),
             bad_lines=list(self.bad_lines),
+            stuck={},  # (row numbers of the whole record; its values are NaN already)
         )
 
 
@@ -162,10 +165,16 @@ def parse_time(stamp: str, kind: str) -> float | None:
     return dt.timestamp() if dt.utcoffset() is not None else None
 
 
+#: cells that exports write for "no value" (lower case, stripped): read as an empty cell, missing
+MISSING_MARKERS = frozenset({"na", "n/a", "#n/a", "-", "--", "null", "none", "nil", "?"})
+
+
 def _number(cell: str) -> float:
     try:
         return float(cell) if cell.strip() else np.nan
     except ValueError:
+        if cell.strip().lower() in MISSING_MARKERS:
+            return np.nan
         return np.inf  # marked unparsable; clean_values counts it as implausible
 
 
@@ -278,7 +287,7 @@ def _record(unit: str, parts: list[FileRows], cmap: ColumnMap) -> ScadaRecord:
     gap = np.diff(t, prepend=t[0]) > GAP_PERIODS * cmap.period_s
     counts["gap"] += int(np.sum(gap))
     stretch = np.cumsum(gap)
-    values, by_channel = clean_values(raw, stretch, cmap, counts)
+    values, by_channel, stuck = clean_values(raw, stretch, cmap, counts)
     return ScadaRecord(
         unit=unit,
         time_s=t,
@@ -289,6 +298,7 @@ def _record(unit: str, parts: list[FileRows], cmap: ColumnMap) -> ScadaRecord:
         cmap=cmap,
         files=[p.path for p in parts],
         bad_lines=[p.bad for p in parts if p.bad is not None],
+        stuck=stuck,
     )
 
 

@@ -73,7 +73,8 @@ def two_files(tmp_path):
     a[6] = row(t0 + 6 * step, p_kw=-4.0, rs=0.0)  # standstill (and negative)
     a[8] = row(t0 + 8 * step, Gost_avg=None)  # missing
     a[10] = row(t0 + 10 * step, Gb1t_avg=92.0)  # a one-row spike of 30 K
-    a[14] = row(t0 + 14 * step).replace(",20.0,7.0", ",n/a,7.0")  # a nacelle reading that is no number
+    a[14] = row(t0 + 14 * step).replace(",20.0,7.0", ",#VALUE!,7.0")  # a nacelle reading that is no number
+    a[15] = row(t0 + 15 * step).replace(",20.0,7.0", ",n/a,7.0")  # an export's marker for no value: missing
     a.insert(12, "R1,2017-03-26T02:40:00+01:00,1.0")  # a bad line: too few fields
     tb = t0 + 18 * step + timedelta(hours=1)
     b = [row(tb + k * step) for k in range(6)]
@@ -99,7 +100,8 @@ def test_files_join_in_utc_with_their_gap_and_every_bad_row_counted(two_files):
     by = rec.by_channel
     assert by["outdoor_temp_c"]["implausible"] == 1 and by["ambient_temp_c"]["implausible"] == 1
     assert c["implausible"] == 2 and np.isnan(rec.values["ambient_temp_c"][14])
-    assert by["Gost_avg"]["missing"] == 1 and c["missing"] == 1
+    assert by["Gost_avg"]["missing"] == 1 and by["ambient_temp_c"]["missing"] == 1 and c["missing"] == 2
+    assert np.isnan(rec.values["ambient_temp_c"][15])
     assert by["Gb1t_avg"]["jump"] == 1 and c["jump"] == 1
     v = rec.values
     assert np.isnan(v["outdoor_temp_c"][3]) and np.isnan(v["Gost_avg"][8]) and np.isnan(v["Gb1t_avg"][10])
@@ -431,3 +433,75 @@ def test_a_training_unit_renamed_is_not_held_out(tmp_path):
         tmp_path / "sib.csv", [ln.replace("R1,", "R9,", 1) for ln in _rows(0, n, oil_c=lambda k: 50.0 + k / 10.0)]
     )
     assert read_held_out([a], [sibling], "engie")[1][0].unit == "R9"
+
+
+@pytest.mark.parametrize("marker", ["NA", "-", "#N/A", "x"])
+@pytest.mark.parametrize("derive", ["power_over_speed", "torque_times_ratio"])
+def test_a_speed_cell_that_is_no_number_leaves_no_torque_not_zero(tmp_path, marker, derive):
+    """A rotor speed written 'NA' (or '-', '#N/A', text) made the derived torque 0 N m at full power, exit 0: the
+    reader marks a cell that is no number inf, and power / inf is 0 (a new user's export: estimates 6.9 K off)."""
+    t0 = datetime(2017, 6, 1, tzinfo=timezone.utc)
+    lines = [row(t0 + timedelta(minutes=10 * k), p_kw=1500.0) for k in range(6)]
+    lines[2] = lines[2].replace(",14.0,", f",{marker},", 1)
+    path = write(tmp_path / "f.csv", lines)
+    cmap = None
+    if derive != "power_over_speed":
+        src = (
+            (MAP_DIR / "engie.toml")
+            .read_text()
+            .replace(
+                'derive = "power_over_speed"\npower = "P_avg"\npower_unit = "kW"\nspeed = "Rs_avg"',
+                'derive = "torque_times_ratio"\ntorque = "Cm_avg"\nfast_speed = "Ds_avg"\nslow_speed = "Rs_avg"',
+            )
+        )
+        (tmp_path / "alt.toml").write_text(src)
+        cmap = tmp_path / "alt.toml"
+    rec = read_record([path], cmap or "engie")
+    torque = rec.values["input_torque_nm"]
+    assert np.isnan(torque[2]) and np.isnan(rec.values["input_speed_rpm"][2])
+    assert np.all(torque[[0, 1, 3, 4, 5]] > 1e5)
+    reason = "implausible" if marker == "x" else "missing"
+    assert rec.by_channel["input_speed_rpm"][reason] == 1
+
+
+def test_a_bearing_reading_stuck_for_days_while_the_load_swings_is_left_out_and_said(tmp_path):
+    """A bearing channel held at one value for a month read as the gearbox's: replay 6.8 K RMS off with no word, the
+    fleet fitted that month's bearing loss at 0.58 and flagged a healthy sibling (new users' reviews). A reading the
+    same to the bit for STUCK_MIN_S while the load or the air moved is stuck: NaN after its first, counted, said; a
+    steady run (load and air still, as a plant's or a rig's settles) is not."""
+    from tools.cli.scada_notes import stuck_sentences
+    from tools.scada.clean import STUCK_MIN_S
+
+    t0 = datetime(2017, 6, 1, tzinfo=timezone.utc)
+    n = int(3 * STUCK_MIN_S / 600)  # three days
+    moving = {
+        c: lambda k, c0=c0: c0 + 0.01 * k for c, c0 in (("Gost_avg", 55.0), ("Git_avg", 50.0), ("Gb1t_avg", 62.0))
+    }
+    swing = [
+        row(
+            t0 + timedelta(minutes=10 * k),
+            p_kw=800 + 600 * math.sin(k / 9),
+            Gb2t_avg=61.0 + 0.01 * k,
+            **{c: f(k) for c, f in moving.items()},
+        )
+        for k in range(n)
+    ]
+    stuck_from = 100
+    lines = [ln if k < stuck_from else ln.replace(repr(61.0 + 0.01 * k), "70.5") for k, ln in enumerate(swing)]
+    rec = read_record([write(tmp_path / "s.csv", lines)])
+    b2 = rec.values["Gb2t_avg"]
+    assert b2[stuck_from] == 70.5 and np.isnan(b2[stuck_from + 1 :]).all() and np.isfinite(b2[:stuck_from]).all()
+    assert rec.by_channel["Gb2t_avg"]["stuck"] == n - stuck_from - 1 == rec.counts["stuck"]
+    assert rec.stuck == {"Gb2t_avg": [(stuck_from, n, 70.5)]}
+    [said] = stuck_sentences(rec)
+    assert said.startswith("R1: Gb2t_avg reads one value to the bit for a day or more 70.5 degC for 2.3")
+    assert "2017-06-01 16:40 UTC" in said
+    # the same readings while the load and the air stand still: a settled run, kept
+    still = [
+        ln.replace(repr(61.0 + 0.01 * k), "70.5")
+        for k, ln in enumerate(row(t0 + timedelta(minutes=10 * k)) for k in range(n))
+    ]
+    rec = read_record([write(tmp_path / "still.csv", still)])
+    assert np.isfinite(rec.values["Gb2t_avg"]).all() and rec.counts["stuck"] == 0 and not rec.stuck
+    # the shared turbines' longest natural runs (33 rows) lie far under a day
+    assert STUCK_MIN_S / 600 > 4 * 33

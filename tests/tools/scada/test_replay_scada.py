@@ -43,13 +43,16 @@ def _map(tmp_path: Path, bearing_node: str = "B1", response_s: float = 0.0) -> P
 
 def _rows(k0: int, k1: int, oil_c=lambda k: 55.0 + 4.0 * math.sin(k / 7.0), load=1.0):
     # an industrial drive: 1485 rpm, 40-110 kW in slow swings, warm air; a sump reading that moves (a reading stuck
-    # over several rows is a frozen sensor to the sensor, which then models the oil)
+    # over several rows is a frozen sensor to the sensor, which then models the oil), the bearings 7 and 6 K above it
+    # (a bearing reading the same to the bit for a day while the load swings is a stuck sensor: tools.scada.clean)
     return [
         row(
             T0 + timedelta(minutes=10 * k),
             p_kw=load * (40.0 + 70.0 * (0.5 + 0.5 * math.sin(k / 9.0))),
             rs=1485.0,
             Gost_avg=oil_c(k),
+            Gb1t_avg=oil_c(k) + 7.0,
+            Gb2t_avg=oil_c(k) + 6.0,
             Yt_avg=25.0 + 3.0 * math.sin(k / 20.0),
         )
         for k in range(k0, k1)
