@@ -66,7 +66,12 @@ def add_subparser(sub):
     p.add_argument(
         "--out", required=True, metavar="OUT.toml", help="the calibrated parameter file (written atomically)"
     )
-    p.add_argument("--report", metavar="OUT.md", help="also write a Markdown report and its plot (run tables only)")
+    p.add_argument(
+        "--report",
+        metavar="OUT.md",
+        help="also write a Markdown report and its plot (run tables and CAN logs; not with --columns: the SCADA "
+        "calibration prints its table)",
+    )
     p.add_argument(
         "--config",
         metavar="TOML",

@@ -107,11 +107,11 @@ DESCRIPTION = (
     "core) or on an existing cluster (--scheduler tcp://HOST:PORT; the workers need gearbox-vsensor "
     "installed).\n\n"
     "SCADA records (--gearbox MM82 --columns engie DIR...): each unit's files (the unit from the map's unit "
-    "column) are replayed in this process and its effects fitted per calendar month (--period-days N: spans of "
-    "N days); OUT/health/effects.parquet holds every unit-period's fitted values with their standard errors, "
-    "flags.parquet the units that drift from their siblings, errors.parquet the files or units that could not be "
-    "used. A unit read but never judged against two siblings in the same periods is said in a note; no report.md, "
-    'and a re-run writes the folder again (docs/real-data.md, "The fleet on SCADA").'
+    "column) are replayed in this process and its effects fitted per calendar month ([fleet] period_days = N in "
+    "--config: spans of N days); OUT/health/effects.parquet holds every unit-period's fitted values with their "
+    "standard errors, flags.parquet the units that drift from their siblings, errors.parquet the files or units "
+    "that could not be used. A unit read but never judged against two siblings in the same periods is said in a "
+    'note; no report.md, and a re-run writes the folder again (docs/real-data.md, "The fleet on SCADA").'
 )
 EPILOG = (
     "examples:\n"

@@ -24,8 +24,8 @@ except ModuleNotFoundError:  # Python 3.10
 
 MAP_DIR = Path(__file__).resolve().parent / "maps"
 #: the kinds of time column a map may name: ISO 8601 stamps with their UTC offset, ISO 8601 stamps in UTC (an offset,
-#: where a stamp has one, still counts), UTC seconds
-TIME_KINDS = ("iso8601_offset", "iso8601_utc", "seconds")
+#: where a stamp has one, still counts), UTC seconds, UTC milliseconds
+TIME_KINDS = ("iso8601_offset", "iso8601_utc", "seconds", "milliseconds")
 #: the ways an input may be derived from other columns, with the columns each needs
 DERIVATIONS = {
     "power_over_speed": ("power", "speed"),

@@ -36,6 +36,8 @@ from tools.scada.columns import ColumnMap, load_column_map
 GAP_PERIODS = 1.5
 #: the damaged lines of a file kept by number and reason (the rest only counted)
 SHOWN_LINES = 5
+#: time stamps of kind "seconds" whose median lies beyond this (the year 5138) are milliseconds
+MS_STAMP_MIN_S = 1e11
 
 
 @dataclass
@@ -124,7 +126,7 @@ class ScadaRecord:
         )
 
 
-def open_text(path: Path, counts: dict | None = None):
+def open_text(path: Path, counts: dict | None = None, encoding: str = "utf-8-sig"):
     """The file as text: gzip by its magic bytes, else plain; a binary or damaged file raises InputError. Bytes that
     are not UTF-8 (a name or a unit in Latin-1, a logger's stray byte) become U+FFFD, their lines counted in
     ``counts["bad_bytes"]``: a cell with one does not parse and is dropped and counted like any bad cell."""
@@ -137,6 +139,8 @@ def open_text(path: Path, counts: dict | None = None):
         raise InputError(f"{path.name}: a damaged gzip file (it does not decompress)") from None
     if b"\x00" in data[:4096]:
         raise InputError(f"{path.name}: not a SCADA CSV file (binary content)")
+    if encoding != "utf-8-sig":
+        return io.StringIO(data.decode(encoding, errors="replace"), newline="")
     try:
         text = data.decode("utf-8-sig")
     except UnicodeDecodeError:
@@ -150,12 +154,12 @@ def open_text(path: Path, counts: dict | None = None):
 
 def parse_time(stamp: str, kind: str) -> float | None:
     """UTC seconds of a time stamp, or None when it does not parse (or has no UTC offset where one is needed)."""
-    if kind == "seconds":
+    if kind in ("seconds", "milliseconds"):
         try:
             t = float(stamp)
         except ValueError:
             return None
-        return t if np.isfinite(t) else None
+        return (t / 1e3 if kind == "milliseconds" else t) if np.isfinite(t) else None
     try:
         dt = datetime.fromisoformat(stamp.strip().replace("Z", "+00:00"))
     except ValueError:
@@ -178,22 +182,48 @@ def _number(cell: str) -> float:
         return np.inf  # marked unparsable; clean_values counts it as implausible
 
 
+def _decimal_comma(cell: str) -> float:
+    """A number of a ';'-separated export: a decimal comma, and dots as thousands separators ('1.001.690,5' is
+    1001690.5: read as 1.001690 it was an implausible power; a new user's review)."""
+    if "," in cell:
+        cell = cell.replace(".", "").replace(",", ".")
+    elif cell.count(".") > 1:
+        cell = cell.replace(".", "")
+    return _number(cell)
+
+
 def read_file(path: str | Path, cmap: ColumnMap) -> FileRows:
     """One file's rows (see the module's docstring for what is dropped and counted)."""
     path = Path(path)
     counts = dict.fromkeys(REASONS, 0)
     text = open_text(path, counts)
     first = text.readline()
+    if "\ufffd" in first and not all(c in first for c in cmap.columns):
+        # a header not in UTF-8 that lacks a column of the map (Au\xdfen [\xb0C] written by Windows): the export's
+        # encoding is Windows-1252 (Latin-1's superset) throughout
+        latin = open_text(path, None, "cp1252")
+        header = latin.readline()
+        if all(c in header for c in cmap.columns):
+            counts["bad_bytes"] = 0
+            text = latin
     text.seek(0)
-    # ENGIE's own export separates with ";" (and may write decimal commas): the same columns, read as they are
-    semicolon = ";" in first and "," not in first
+    first = text.readline()
+    text.seek(0)
+    # ENGIE's own export separates with ";" (and may write decimal commas): the same columns, read as they are; the
+    # separator whose header fields hold more of the map's columns (a name may hold a comma: 'Aussen [degC, avg]')
+    semicolon = _semicolon(first, cmap)
     reader = csv.reader(text, delimiter=";" if semicolon else ",")
-    number = (lambda cell: _number(cell.replace(",", "."))) if semicolon else _number
+    number = _decimal_comma if semicolon else _number
     header = next(reader, None)
     if not header:
         raise InputError(f"{path.name}: empty, not a SCADA file of the column map {cmap.name}")
     header = [h.strip() for h in header]
     lacking = [c for c in cmap.columns if c not in header]
+    # a measured channel's column missing from one file (a sensor fitted later, an export of fewer columns): its
+    # readings are missing there, said; an input's or the time's is no file of the map
+    inputs = {c for ch in cmap.inputs.values() for c in ch.columns} | {cmap.time_column, cmap.unit_column}
+    optional = [c for c in lacking if c not in inputs]
+    lacking = [c for c in lacking if c in inputs]
     if lacking:
         # the columns all in one field: another separator (a tab-separated export), not other columns
         one = len(header) == 1 and "\t" in header[0] and any(c in header[0] for c in cmap.columns)
@@ -206,17 +236,22 @@ def read_file(path: str | Path, cmap: ColumnMap) -> FileRows:
                 else ""
             )
         )
+    header += optional  # read as empty cells
     idx = {c: header.index(c) for c in cmap.columns}
     value_cols = [c for c in cmap.columns if c not in (cmap.time_column, cmap.unit_column)]
     times, units, rows, bad = [], [], [], BadLines(path)
+    width = len(header) - len(optional)
+    if optional:
+        bad.add(1, f"(the header) lacks the measured column(s) {', '.join(optional)}: no reading of theirs here")
     for row in reader:
         if not row or (len(row) == 1 and not row[0].strip()):
             continue
-        if len(row) != len(header):
+        if len(row) != width:
             counts["bad_line"] += 1
-            fault = "cut short or a field missing" if len(row) < len(header) else "a separator too many"
-            bad.add(reader.line_num, f"dropped ({len(row)} of the header's {len(header)} fields: {fault})")
+            fault = "cut short or a field missing" if len(row) < width else "a separator too many"
+            bad.add(reader.line_num, f"dropped ({len(row)} of the header's {width} fields: {fault})")
             continue
+        row += [""] * len(optional)
         stamp = row[idx[cmap.time_column]]
         t = parse_time(stamp, cmap.time_kind)
         if t is None:
@@ -230,7 +265,7 @@ def read_file(path: str | Path, cmap: ColumnMap) -> FileRows:
             c = next(c for c, v in zip(value_cols, rows[-1]) if np.isinf(v))
             bad.add(reader.line_num, f"kept without its {c} {row[idx[c]].strip()[:30]!r} (no number)")
     if not times:
-        example = next((r[idx[cmap.time_column]] for r in _rows_of(path, semicolon, len(header))), "")
+        example = next((r[idx[cmap.time_column]] for r in _rows_of(path, semicolon, width)), "")
         plain = cmap.time_kind == "iso8601_offset" and parse_time(example + "+00:00", cmap.time_kind) is not None
         raise InputError(
             f"{path.name}: its time stamps ({cmap.time_column}, e.g. {example!r}) have no UTC offset: give them with "
@@ -238,6 +273,14 @@ def read_file(path: str | Path, cmap: ColumnMap) -> FileRows:
             "the column map; a stamp in local time without one is ambiguous"
             if plain
             else f"{path.name}: no row with a readable time stamp ({cmap.time_column}), no SCADA data"
+        )
+    if cmap.time_kind == "seconds" and np.median(times) > MS_STAMP_MIN_S:
+        mid = float(np.median(times))
+        when = datetime.fromtimestamp(mid / 1e3, tz=timezone.utc).date().isoformat()
+        raise InputError(
+            f"{path.name}: its time stamps ({cmap.time_column}, e.g. {mid:.0f}) look like milliseconds ({when} in "
+            f'milliseconds, the year {1970 + int(mid / 3.15576e7)} in seconds): set time.kind = "milliseconds" in a '
+            "copy of the column map"
         )
     arr = np.array(rows, dtype=float).reshape(len(rows), len(value_cols))
     return FileRows(
@@ -248,6 +291,17 @@ def read_file(path: str | Path, cmap: ColumnMap) -> FileRows:
         counts=counts,
         bad=bad if bad.total else None,
     )
+
+
+def _semicolon(header: str, cmap: ColumnMap) -> bool:
+    """Whether a header line is separated by ';' rather than ','."""
+    if ";" not in header:
+        return False
+    found = {
+        sep: sum(c in {f.strip() for f in next(csv.reader([header], delimiter=sep), [])} for c in cmap.columns)
+        for sep in ";,"
+    }
+    return found[";"] > found[","] or (found[";"] == found[","] and "," not in header)
 
 
 def _stamp_fault(stamp: str, cmap: ColumnMap) -> str:

@@ -187,6 +187,40 @@ def test_a_stray_latin_1_byte_costs_its_cell_not_the_file(tmp_path):
     assert np.all(rec.values["Gost_avg"][[0, 1, 2, 4, 5]] == 55.0)
 
 
+def test_a_file_without_a_measured_channel_s_column_is_read_with_those_readings_missing(tmp_path):
+    """Half a year exported without the oil inlet's column stopped replay ('header lacks the column(s) Git_avg') and
+    left the fleet's unit unjudged (a new user's review): that channel is missing in that file, said in the file's
+    note; a file without an input's column is still no file of the map."""
+    t0 = datetime(2017, 6, 1, tzinfo=timezone.utc)
+    drop = HEADER.index("Git_avg")
+    lines = [
+        ",".join(c for i, c in enumerate(row(t0 + timedelta(minutes=10 * k)).split(",")) if i != drop) for k in range(6)
+    ]
+    path = tmp_path / "noinlet.csv"
+    path.write_text(",".join(h for h in HEADER if h != "Git_avg") + "\n" + "\n".join(lines) + "\n")
+    rec = read_record([path])
+    assert rec.n == 6 and np.isnan(rec.values["Git_avg"]).all() and np.all(rec.values["Gost_avg"] == 55.0)
+    assert rec.by_channel["Git_avg"]["missing"] == 6 and rec.counts["bad_line"] == 0
+    [bad] = rec.bad_lines
+    assert "line 1 (the header) lacks the measured column(s) Git_avg" in bad.sentence("replayed")
+    path.write_text(path.read_text().replace("Yt_avg", "Nacelle"))
+    with pytest.raises(InputError, match="its header lacks the column"):
+        read_record([path])
+
+
+def test_a_windows_1252_export_whose_header_names_the_map_s_columns_is_read_as_such(tmp_path):
+    """An export written by Windows (cp1252) with the map's columns 'Au\xdfen [\xb0C]', ...: 'its header lacks the
+    column(s) Au\ufffden ...', though they were there (a new user's review)."""
+    t0 = datetime(2017, 6, 1, tzinfo=timezone.utc)
+    header = [h if h != "Ot_avg" else "Au\xdfen [\xb0C]" for h in HEADER]
+    text = ",".join(header) + "\n" + "\n".join(row(t0 + timedelta(minutes=10 * k)) for k in range(6)) + "\n"
+    (tmp_path / "w.csv").write_bytes(text.encode("cp1252"))
+    src = (MAP_DIR / "engie.toml").read_text().replace('column = "Ot_avg"', 'column = "Au\xdfen [\xb0C]"')
+    (tmp_path / "w.toml").write_text(src, encoding="utf-8")
+    rec = read_record([tmp_path / "w.csv"], tmp_path / "w.toml")
+    assert rec.n == 6 and np.all(rec.values["outdoor_temp_c"] == 8.0) and rec.counts["bad_bytes"] == 0
+
+
 @pytest.mark.parametrize(
     "content, words",
     [
@@ -342,6 +376,12 @@ def test_a_map_with_time_in_seconds_and_no_unit_column_names_the_unit_after_the_
     lines = [row(repr(1.5e9 + 600.0 * k)) for k in range(5)] + [row("soon")]
     rec = read_record([write(tmp_path / "rig7.csv", lines)], tmp_path / "s.toml")
     assert rec.unit == "rig7" and rec.n == 5 and rec.counts["bad_time"] == 1 and rec.time_s[0] == 1.5e9
+    # stamps in milliseconds were read as the year 49 000 (a new user's review): one sentence, and the kind that reads
+    ms = write(tmp_path / "ms.csv", [row(repr(1.5e12 + 6e5 * k)) for k in range(5)])
+    with pytest.raises(InputError, match=r'look like milliseconds \(2017-07-14 in milliseconds.*time.kind = "millise'):
+        read_record([ms], tmp_path / "s.toml")
+    (tmp_path / "ms.toml").write_text(src.replace('kind = "seconds"', 'kind = "milliseconds"'))
+    assert read_record([ms], tmp_path / "ms.toml").time_s[0] == 1.5e9
 
 
 def test_without_a_unit_column_the_files_given_are_one_unit_s_record(tmp_path):
@@ -384,6 +424,17 @@ def test_engie_s_semicolon_export_with_decimal_commas_reads_as_the_comma_file(tm
     assert got.n == want.n and got.counts == want.counts
     for k in want.values:
         np.testing.assert_array_equal(got.values[k], want.values[k], err_msg=k)
+    # a column name with a comma in it ('Ws_avg [m/s, avg]', a column the map does not read) switched the separator
+    # guess to ',' and every column was 'lacking' (a new user's review)
+    named = tmp_path / "b_named.csv"
+    named.write_text(semi.read_text().replace("Ws_avg", "Ws_avg [m/s, avg]", 1))
+    got = read_record([named])
+    np.testing.assert_array_equal(got.values["Gost_avg"], want.values["Gost_avg"])
+    # thousands separated by dots ('1.001.690,0' W read as 1.001690): the same power
+    from tools.scada.reader import _decimal_comma
+
+    assert _decimal_comma("1.001.690,5") == 1001690.5 and _decimal_comma("800,0") == 800.0
+    assert _decimal_comma("1.001.690") == 1001690.0 and _decimal_comma("-6,25") == -6.25
     bare = tmp_path / "bare.csv"
     bare.write_text("\n".join([lines[0]] + [re.sub(r"[+-]\d\d:\d\d,", ",", ln, count=1) for ln in lines[1:]]) + "\n")
     with pytest.raises(InputError, match=r"bare.csv: its time stamps \(Date_time, e.g. '2017-03-26T0"):
