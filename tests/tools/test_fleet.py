@@ -503,6 +503,10 @@ def test_a_manifest_may_leave_a_rows_optional_fields_blank(tmp_path, synthetic):
     m.write_text(f"log,vehicle,variant,date\n{a},t1,,2026-01-05\n{b},t2,,\n")
     got = read_manifest(m)
     assert [(e.vehicle, e.date, e.variant) for e in got] == [("t1", "2026-01-05", None), ("t2", None, None)]
+    # a spreadsheet's export: ';' separated, names capitalised, a compact date ('has no column log or vehicle')
+    m.write_text(f"Log;Vehicle;Date\n{a};t1;20260105\n{b};t2;\n")
+    got = read_manifest(m)
+    assert [(e.vehicle, e.date) for e in got] == [("t1", "2026-01-05"), ("t2", None)]
 
 
 def test_a_manifest_that_is_not_text_is_one_sentence(tmp_path, capsys):

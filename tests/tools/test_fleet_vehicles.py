@@ -100,3 +100,24 @@ def test_a_log_copied_under_another_vehicle_is_named_a_copy():
     assert copy_vehicles(c, ["a/d1.log", "b/d1.log"]) == ["truck1", "truck2"]
     c["start_s"][1] += 0.001  # one frame time apart: two drives
     assert duplicate_logs(c) == [["d/r.log", "d/r2.log"]]
+
+
+def test_a_clock_at_its_reset_day_dates_no_log_and_a_date_unlike_the_frames_is_named():
+    """Logs from clocks reset to 2000-01-01 or GPS's 1980-01-06 were dated so ('dates 1980-01-06 to 2026-01-07'),
+    and a manifest's date four days off the frames' won without a word (a new user's review)."""
+    import datetime as dt
+
+    from tools.fleet.report import misdated_logs
+    from tools.fleet.summary import log_date
+
+    def unix(day):
+        return dt.datetime.combine(day, dt.time(8), tzinfo=dt.timezone.utc).timestamp()
+
+    assert log_date(unix(dt.date(2000, 1, 1))) is None and log_date(unix(dt.date(1980, 1, 7))) is None
+    assert log_date(unix(dt.date(2026, 1, 5))) == "2026-01-05" and log_date(unix(dt.date(2000, 2, 1))) == "2000-02-01"
+    c = {
+        "log": ["a.log", "b.log", "c.log", "d.log"],
+        "date": ["2026-01-09", "2026-01-06", "unknown", "2026-01-09"],
+        "start_s": [unix(dt.date(2026, 1, 5)), unix(dt.date(2026, 1, 5)), unix(dt.date(2026, 1, 5)), 12.0],
+    }
+    assert misdated_logs(c) == [("a.log", "2026-01-09", "2026-01-05")]  # a day apart (midnight) is no mistake

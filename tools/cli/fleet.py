@@ -177,6 +177,26 @@ def _warn_duplicates(out) -> None:
         print(f"warning: ... {len(dups) - 5} more groups of copies (report.md lists the first 50)", file=sys.stderr)
 
 
+def _warn_dates(out) -> None:
+    """A warning for logs dated (by a manifest or --vehicle-from) otherwise than their Unix frame times say
+    (tools.fleet.report.misdated_logs)."""
+    from tools.fleet.report import misdated_logs
+    from tools.fleet.store import read_table
+
+    summary = read_table(out)
+    if summary is None:
+        return
+    differ = misdated_logs({n: summary.column(n).to_pylist() for n in ("log", "date", "start_s")})
+    for log, date, framed in differ[:5]:
+        print(
+            f"warning: {log} is dated {date} (the manifest or --vehicle-from), its frame times say {framed}: one of "
+            "them is wrong, and the date decides the log's period in the health fit",
+            file=sys.stderr,
+        )
+    if len(differ) > 5:
+        print(f"warning: ... {len(differ) - 5} more logs whose date differs from their frame times", file=sys.stderr)
+
+
 def _warn_overlaps(out) -> None:
     """A warning for logs of one vehicle that overlap in time (tools.fleet.report.overlapping_logs)."""
     from tools.fleet.report import overlapping_logs
@@ -455,6 +475,7 @@ def run(args) -> int:
     _print_errors(args.out)
     _warn_duplicates(args.out)
     _warn_overlaps(args.out)
+    _warn_dates(args.out)
     _warn_gone(args.out)
     why_none = _health(args.out, period_days) if args.diagnose else ""
     if report:

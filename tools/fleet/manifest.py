@@ -58,8 +58,10 @@ def log_key(path: Path) -> str:
 def _entry(path: Path, vehicle: str, variant=None, config=None, date=None) -> LogEntry:
     if not vehicle or not vehicle.strip():
         raise InputError(f"{path}: no vehicle name")
+    if date is not None and re.fullmatch(r"\d{8}", date):  # a file name's compact date (truck7_20260106.log)
+        date = f"{date[:4]}-{date[4:6]}-{date[6:]}"
     if date is not None and not re.fullmatch(r"\d{4}-\d{2}-\d{2}", date):
-        raise InputError(f"{path}: date {date!r} is not YYYY-MM-DD")
+        raise InputError(f"{path}: date {date!r} is not YYYY-MM-DD (nor YYYYMMDD)")
     if date:
         try:
             dt.date.fromisoformat(date)
@@ -81,8 +83,13 @@ def read_manifest(manifest: str | os.PathLike) -> list[LogEntry]:
 
 def _read_manifest(m: Path) -> list[LogEntry]:
     with open(m, newline="", encoding="utf-8-sig") as fh:  # -sig: a byte-order mark is not part of "log"
-        reader = csv.DictReader(fh)
-        header = [h.strip() for h in (reader.fieldnames or [])]
+        first = fh.readline()
+        fh.seek(0)
+        # a spreadsheet's export: ';' separated (a European locale), names capitalised ('Log;Vehicle')
+        reader = csv.DictReader(fh, delimiter=";" if ";" in first and "," not in first else ",")
+        if reader.fieldnames:
+            reader.fieldnames = [h.strip().lower() for h in reader.fieldnames]
+        header = list(reader.fieldnames or [])
         missing = [c for c in MANIFEST_REQUIRED if c not in header]
         if missing:
             raise InputError(

@@ -280,6 +280,32 @@ def copy_vehicles(c: dict, group: list) -> list:
     return sorted({str(of[log]) for log in group})
 
 
+#: a log dated this many days or more from the day its Unix frame times say is misdated (one day: the UTC date of a
+#: drive past midnight is a local one's neighbour)
+MISDATED_DAYS = 2
+
+
+def misdated_logs(c: dict) -> list[tuple[str, str, str]]:
+    """(log, its date, the date of its frame times) of each log dated (by a manifest or --vehicle-from) MISDATED_DAYS
+    or more from the day its Unix frame times say: one of the two is wrong, and the date decides its health period
+    (a manifest's date overrode the frames' without a word)."""
+    import datetime as dt
+
+    from firmware_model.errors import InputError
+    from tools.fleet.summary import log_date
+
+    found = []
+    for log, date, start in zip(c["log"], c["date"], c["start_s"]):
+        try:
+            framed = log_date(float(start)) if start is not None else None
+        except InputError:  # (milliseconds: said apart)
+            framed = None
+        if framed and date not in (None, "unknown"):
+            if abs((dt.date.fromisoformat(date) - dt.date.fromisoformat(framed)).days) >= MISDATED_DAYS:
+                found.append((log, date, framed))
+    return found
+
+
 #: logs of one vehicle overlapping by more than this are reported (a logger that rotates its files may repeat a
 #: frame or two at the seam) [s]
 OVERLAP_MIN_S = 1.0

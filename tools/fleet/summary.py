@@ -25,6 +25,11 @@ EPOCH_MIN_S = 1e8
 EPOCH_MAX_S = 4102444800.0
 #: the date of EPOCH_MIN_S: an ASC header's date before it is no date either
 EPOCH_MIN_DATE = dt.datetime.fromtimestamp(EPOCH_MIN_S, tz=dt.timezone.utc).date()
+#: the days loggers' clocks start from when they lost their time (a real-time clock's 2000-01-01, GPS's 1980-01-06):
+#: a log whose first frame lies within RESET_DAYS after one is dated by no clock (a new user's logs said "dates
+#: 1980-01-06 to 2026-01-07")
+RESET_EPOCHS = (dt.date(1980, 1, 6), dt.date(2000, 1, 1))
+RESET_DAYS = 7
 #: per component, the summary's columns (with the component id in place of {c})
 COMPONENT_COLUMNS = (
     "peak_{c}_c",
@@ -61,7 +66,7 @@ def asc_date(path) -> str | None:
                         continue
                     # a writer without the start time stamps the epoch (python-can's ASCWriter: "Begin Triggerblock
                     # Thu Jan 01 00:00:00.0 1970"): no date, as a frame time before EPOCH_MIN_S is none
-                    if day < EPOCH_MIN_DATE:
+                    if day < EPOCH_MIN_DATE or is_reset_day(day):
                         continue
                     found.setdefault(kind, day.isoformat())
                     if kind == "trigger":
@@ -86,7 +91,15 @@ def log_date(start_s: float) -> str | None:
             f"the log's first frame time {start_s:.0f} s is no date in seconds, but {as_ms} in milliseconds: its "
             f"time stamps look like milliseconds; give seconds (candump -L writes seconds)"
         )
-    return dt.datetime.fromtimestamp(start_s, tz=dt.timezone.utc).date().isoformat()
+    day = dt.datetime.fromtimestamp(start_s, tz=dt.timezone.utc).date()
+    if is_reset_day(day):
+        return None
+    return day.isoformat()
+
+
+def is_reset_day(day: dt.date) -> bool:
+    """Whether a date lies within RESET_DAYS after a clock's reset epoch (RESET_EPOCHS): no real day of a log."""
+    return any(0 <= (day - e).days < RESET_DAYS for e in RESET_EPOCHS)
 
 
 def _component(row: dict, c: str, table) -> None:
