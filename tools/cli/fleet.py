@@ -355,12 +355,20 @@ def _refuse_log_options(args) -> None:
 def _say_not_judged(fits, units) -> int:
     """On stderr, a note per unit of ``units`` never judged against its siblings, and why (a unit read but never
     compared is not a sound one); the number judged."""
-    from tools.scada.fleet import coverage
+    from tools.scada.fleet import MIN_UNITS, alone_periods, coverage
 
     why = coverage(fits, units)
     for unit in units:
         if why[unit]:
             print(f"note: {unit}: {why[unit]}", file=sys.stderr)
+    for unit, starts in alone_periods(fits).items():
+        if not why.get(unit):  # (a unit never judged is said above)
+            which = ", ".join(starts[:3]) + (" ..." if len(starts) > 3 else "")
+            print(
+                f"note: {unit}: {len(starts)} of its periods ({which}) were fitted beside fewer than "
+                f"{MIN_UNITS - 1} siblings: no fleet median there, not judged",
+                file=sys.stderr,
+            )
     return sum(not w for w in why.values())
 
 

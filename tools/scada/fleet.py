@@ -289,6 +289,20 @@ def coverage(fits: Sequence[PeriodFit], units, baseline_periods: int = BASELINE_
     return out
 
 
+def alone_periods(fits: Sequence[PeriodFit]) -> dict[str, list[str]]:
+    """unit -> the start dates of its fitted periods where fewer than MIN_UNITS units (it included) were fitted, for
+    every effect: no fleet median there, so nothing of it is judged (a sibling's records ending left a fouling
+    cooler's worst two months untested, and the run said '3 judged')."""
+    with_units: dict = {}
+    for f in fits:
+        with_units.setdefault(f.period, set()).add(f.unit)
+    return {
+        u: sorted({f.start for f in fits if f.unit == u and len(with_units[f.period]) < MIN_UNITS})
+        for u in sorted({f.unit for f in fits})
+        if any(f.unit == u and len(with_units[f.period]) < MIN_UNITS for f in fits)
+    }
+
+
 def drifts(
     fits: Sequence[PeriodFit], eid: str, baseline_periods: int = BASELINE_PERIODS, flagged: dict | None = None
 ) -> dict[str, tuple[float, float, list[tuple[PeriodFit, float, float]]]]:

@@ -321,3 +321,15 @@ def test_a_unit_never_set_beside_two_siblings_is_said_not_judged():
     assert in_range(fit("A", 1), "cooler_effectiveness_scale")
     assert not in_range(fit("A", 1, -4.16), "cooler_effectiveness_scale")
     assert not in_range(fit("A", 1)._replace(se=dict.fromkeys(EFFECTS, math.inf)), "bearing_loss_scale")
+
+
+def test_the_periods_a_unit_was_fitted_without_two_siblings_are_named():
+    """A sibling's records ending left a fouling cooler's worst months without a fleet median, untested, and the run
+    said '3 units judged' (a new user's review): those periods are now named per unit."""
+    from tools.scada.fleet import PeriodFit, alone_periods
+
+    def fit(unit, period):
+        return PeriodFit(unit, period, f"2017-{period:02d}-01", 100, {}, {}, 1.0)
+
+    fits = [fit(u, p) for p in (1, 2, 3) for u in ("A", "B", "C")] + [fit("A", 4), fit("B", 4), fit("A", 5)]
+    assert alone_periods(fits) == {"A": ["2017-04-01", "2017-05-01"], "B": ["2017-04-01"]}
