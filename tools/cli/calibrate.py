@@ -301,7 +301,7 @@ def _run_scada(args, cfg, params) -> int:
         at = f" (at a bound: {', '.join(bound)})" if bound else ""
         print(f"calibrate: {why}{at}, so no parameter file was written", file=sys.stderr)
         return 3
-    for line in _cautions(cal, params):  # as for run tables: a value at a bound, one not pinned down
+    for line in [*_cautions(cal, params), *cal.rivals]:  # as for run tables: a value at a bound, one not pinned down
         print(f"warning: {line}", file=sys.stderr)
     _write_atomic(
         args.out,

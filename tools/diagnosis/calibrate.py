@@ -84,6 +84,7 @@ class Calibration:
     notes: list = field(default_factory=list)  # what the records' screening left out (SCADA: a channel far off)
     n_cells: int = 0  # cells of the training residual
     train_s: float = 0.0  # training time scored [s]
+    rivals: list = field(default_factory=list)  # SCADA: channels a reading offset explains as well as the fit
 
     def thin_evidence(self) -> str:
         """One sentence when the fitted values rest on too few effective samples ('' otherwise), with the advice."""

@@ -149,7 +149,37 @@ def calibrate_records(
         n_eff=n_eff,
         n_cells=n,
         notes=notes,
+        rivals=offset_rivals(r0, r1),
     )
+
+
+#: a channel's training gap a constant reading offset of at least this explains ...
+RIVAL_OFFSET_C = 0.5
+#: ... leaving at most this share more than the fit leaves on it: the fit may have turned a sensor's offset into a
+#: parameter (a bearing reading +3 K planted into a turbine's year fitted f0_tapered at 5.52 for 3.65, and moved
+#: f0_cylindrical too, written with no word: a reviewer's trial; diagnose named the offset, +4.36 K)
+RIVAL_SHARE = 1.05
+
+
+def offset_rivals(r0: dict, r1: dict) -> list[str]:
+    """A sentence per channel whose training gap before the fit (``r0``, measured - model at the file's values) a
+    constant offset explains about as well as the fit did (``r1``, after it)."""
+    out = []
+    for ch, before in r0.items():
+        ok = np.isfinite(before) & np.isfinite(r1[ch])
+        if ok.sum() < 2:
+            continue
+        offset, left = float(np.mean(before[ok])), float(np.std(before[ok]))
+        fit_left = float(np.sqrt(np.mean(r1[ch][ok] ** 2)))
+        moved = fit_left < float(np.sqrt(np.mean(before[ok] ** 2)))
+        if abs(offset) >= RIVAL_OFFSET_C and moved and left <= RIVAL_SHARE * fit_left:
+            out.append(
+                f"{ch}: a constant reading offset of {offset:+.2f} K explains its training gap as well as the fitted "
+                f"values do ({left:.2f} against {fit_left:.2f} K RMS left): a sensor's offset is no parameter of "
+                "the gearbox, and calibrate may have turned one into the fitted values; check it with `diagnose "
+                "--columns` (thermocouple_offset) before using this file"
+            )
+    return out
 
 
 def nbm_beside(setup: Setup, train: Sequence[ScadaRecord], test: Sequence[ScadaRecord], params=None) -> dict:

@@ -497,3 +497,33 @@ def test_calibrate_on_a_description_without_bounds_says_so(tmp_path, capsys):
     assert main([*cmd, "--auto", "--out", str(tmp_path / "cal.toml")]) == 2
     err = capsys.readouterr().err
     assert "HR225_bare.toml declares no parameter with plausible bounds (lo, hi): nothing to calibrate" in err, err
+
+
+def test_calibrate_warns_where_a_reading_offset_explains_a_channel_as_well_as_its_fit():
+    """A bearing reading +3 K planted into a turbine's year was calibrated into f0_tapered 5.52 (was 3.65), written
+    with no word (a reviewer's trial): a channel whose training gap a constant offset explains about as well as the
+    fit is named, with the offset; a gap that follows the load (what a parameter explains) is not."""
+    from tools.scada.calibrate import offset_rivals
+
+    rng = np.random.default_rng(3)
+    load = rng.uniform(0.0, 1.0, 2000)
+    noise = rng.normal(0.0, 0.3, 2000)
+    offset = {"Gb1t_avg": 3.0 + noise}, {"Gb1t_avg": 2.0 * (load - load.mean()) + noise}  # before, after a fit
+    [said] = offset_rivals(*offset)
+    assert said.startswith("Gb1t_avg: a constant reading offset of +3.00 K explains its training gap")
+    physics = {"Gb1t_avg": 4.0 * load + noise}, {"Gb1t_avg": noise}
+    assert offset_rivals(*physics) == []
+
+
+def test_a_held_out_gap_far_larger_than_the_training_one_is_said():
+    """A cooler fouling only in the held-out files: the verdict named bearing losses and never the sump's 2.0 -> 5.8 K
+    (a reviewer's trial). A channel whose held-out gap is twice its training gap and 1 K more is named."""
+    from tools.scada.diagnose import changed_channels
+
+    stats = {
+        "Gost_avg": {"train_rms_c": 2.0, "test_rms_c": 5.77},
+        "Gb1t_avg": {"train_rms_c": 2.0, "test_rms_c": 2.4},
+        "Gb2t_avg": {"train_rms_c": 0.4, "test_rms_c": 0.9},  # twice, but within a kelvin
+    }
+    [said] = changed_channels(stats)
+    assert said.startswith("Gost_avg's gap on the held-out records (5.77 K RMS) is 2.9 x the training records'")
