@@ -1153,3 +1153,24 @@ def test_the_json_is_strict_json_a_missing_number_is_null(tmp_path):
         "d": "x",
         "e": 2,
     }
+
+
+def test_a_file_whose_gears_are_another_gearbox_s_is_warned_of_as_replay_warns():
+    """diagnose on a real truck's capture said nothing of its gear numbers, which replay and fleet name as another
+    gearbox's (a review): the same warning, in the result's warnings."""
+    from tools.diagnosis.prepare import prepare
+
+    t = np.arange(0.0, 1800.0, 1.0)
+    gear = np.repeat([2.0, 3.0, 4.0], 600)
+    kmh = np.full(t.size, 30.0)
+    columns = {"time_s": t, "engine_speed_rpm": np.select([gear == 2, gear == 3], [50.9, 39.2], 27.8) * kmh}
+    columns |= {"engine_torque_nm": np.full(t.size, 500.0), "gear": gear, "vehicle_speed_kmh": kmh}
+    ds = prepare(RunTable(columns | {"oil_temp_c": 60 + t / 100}), "x.csv", "train", Options())
+    assert any(w.startswith("column gear does not follow the GRS905's ratios") for w in ds.warnings), ds.warnings
+    from firmware_model.description import description_of
+
+    ratio = {g.number: g.ratio for g in description_of(load_parameters("GRS905")).gears}
+    own = np.select([gear == 2, gear == 3], [ratio[2], ratio[3]], ratio[4])  # an axle of 3.0 on 0.5 m tyres
+    columns["engine_speed_rpm"] = kmh / 3.6 / 0.5 * 3.0 * own * 60.0 / (2.0 * math.pi)
+    ds = prepare(RunTable(columns | {"oil_temp_c": 60 + t / 100}), "x.csv", "train", Options())
+    assert not any("ratios" in w for w in ds.warnings), ds.warnings

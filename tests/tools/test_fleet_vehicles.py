@@ -79,6 +79,11 @@ def test_files_of_a_folder_that_are_no_log_by_their_suffix_are_named(tmp_path):
     entries, rule = entries_and_rule([tmp_path])
     assert [e.log.name for e in entries] == ["a.log"]
     assert "; 2 other file(s) not taken, no CAN log by their suffix (tsc1.candump, tsc1.txt)" in rule, rule
+    assert "logconvert" not in rule
+    # a python-can CSV log was told to run 'renamed to .log' (it is no candump text): converted (a review)
+    _touch(tmp_path / "pycan.csv")
+    _, rule = entries_and_rule([tmp_path])
+    assert "a python-can CSV log runs converted (python -m can.logconvert IN.csv OUT.log)" in rule, rule
 
 
 def test_a_log_copied_under_another_vehicle_is_named_a_copy():

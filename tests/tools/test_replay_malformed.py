@@ -191,3 +191,12 @@ def test_candump_s_default_output_is_told_to_write_with_minus_l(tmp_path, capsys
     log.write_text("".join(f" ({k * 0.01:.6f})  can0  18FEF100   [8]  00 11 22 33 44 55 66 77\n" for k in range(20)))
     assert main(["replay", str(log), "--out", str(tmp_path / "o.csv")]) == 2
     assert "a .log is candump -L's form" in capsys.readouterr().err
+
+
+def test_candump_lines_without_their_interface_are_told_so(tmp_path, capsys):
+    """'(0.000000) 18FCF200#E1FF...' (a converter's candump -L without the interface name) got only 'none of its
+    lines is a CAN frame' (a new user's review)."""
+    log = tmp_path / "noiface.log"
+    log.write_text("".join(f"({k * 0.01:.6f}) 18FEF100#0011223344556677\n" for k in range(20)))
+    assert main(["replay", str(log), "--out", str(tmp_path / "o.csv")]) == 2
+    assert "its lines lack the interface name (can0) between the time and the frame" in capsys.readouterr().err

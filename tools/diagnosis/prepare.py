@@ -127,7 +127,7 @@ def _table_from_can_log(p: Path, path, config_path) -> RunTable:
     if not ok.any():
         raise InputError(f"{path}: no step of the log has engine speed, torque and gear together{hint}")
     first = int(np.argmax(ok))
-    t = RunTable({c: v[first:] for c, v in cols.items()}, source=os.fspath(path))
+    t = RunTable({c: v[first:] for c, v in cols.items()}, meta={"source": "can"}, source=os.fspath(path))
     # a drive signal that drops out later is held (the sensor does the same)
     for c in REQUIRED[1:]:
         v = t[c]
@@ -563,6 +563,32 @@ def _refuse_implausible(table: RunTable, t: np.ndarray, name: str, gearbox=None)
         raise InputError(f"{name}: {found[0].sentence}")
 
 
+def _gear_warning(table: RunTable, t: np.ndarray, gearbox=None) -> str:
+    """The gear-numbering warning replay and fleet give (firmware_model.service.plausibility.gear_ratio_finding: a
+    truck whose gears are not this gearbox's), '' without one: the diagnosis fits the losses of other gears (it said
+    nothing of it on a real capture whose truck is no GRS905; a review)."""
+    from firmware_model.description import description_of
+    from firmware_model.parameters import load_parameters
+    from firmware_model.service.plausibility import gear_ratio_finding
+    from tools.replay.table import gear_meta
+
+    if not all(table.has(c) for c in ("engine_speed_rpm", "vehicle_speed_kmh", "gear")) or t.size < 2:
+        return ""
+    meta = gear_meta(description_of(gearbox if gearbox is not None else load_parameters("GRS905")))
+    if not meta.get("gear_ratios"):
+        return ""
+    found = gear_ratio_finding(
+        table["engine_speed_rpm"],
+        table["vehicle_speed_kmh"],
+        table["gear"],
+        meta["gear_ratios"],
+        meta["gearbox"],
+        float(np.median(np.diff(t))),
+        "can" if (getattr(table, "meta", None) or {}).get("source") == "can" else "table",
+    )
+    return found.sentence if found is not None else ""
+
+
 def prepare(table: RunTable, name: str, role: str, opts: Options, oil_is_input: bool = False, gearbox=None) -> Dataset:
     """Validate a measured run table and put its channels on the analysis grid; a measured component must be one
     ``gearbox`` (a parameter set or description; None: the default gearbox) publishes, or one of its housings.
@@ -594,6 +620,8 @@ def prepare(table: RunTable, name: str, role: str, opts: Options, oil_is_input: 
         if s.warning:
             warn.append(s.warning)
         channels[cid] = grid_channel(cid, cc, s, float(t[0]), opts.grid_dt_s)
+    gears = _gear_warning(table, t, gearbox)
+    warn += [gears] if gears else []
     # every node starts there, and the model's oil data span -40..200 degC: said here, with the file's name (the
     # plant refused it later without one)
     T0 = check_temperature_c(

@@ -277,9 +277,16 @@ def _others_words(paths) -> str:
     if not others:
         return ""
     names = ", ".join(str(f.name) for f in others[:3]) + (" ..." if len(others) > 3 else "")
+    csv_ = any(f.suffix.lower() == ".csv" for f in others)
     return (
-        f"; {len(others)} other file(s) not taken, no CAN log by their suffix ({names}): a log among them runs "
-        f"renamed to one of {', '.join(LOG_SUFFIXES)}"
+        f"; {len(others)} other file(s) not taken, no CAN log by their suffix ({names}): a candump log among them "
+        f"runs renamed to one of {', '.join(LOG_SUFFIXES)}"
+        + (
+            "; a python-can CSV log runs converted (python -m can.logconvert IN.csv OUT.log), a run table with "
+            "`replay`, a SCADA record with --columns"
+            if csv_
+            else ""
+        )
     )
 
 

@@ -172,9 +172,14 @@ def scan_text_log(path: Path, raw: bytes | None = None) -> LogDamage:
             raise InputError(f"{path}: no CAN frame read as {suffix}: it looks like {kind[0]}; name it {kind[1]}")
         what = "it holds binary data" if damage.binary else f"line {bad[0]}: {damage.first_text!r}"
         # candump's default and -ta output ("  can0  18FEF100   [8]  00 ...") are for reading, not replaying
+        text = damage.first_text or ""
+        form = "; a .log is candump -L's form, '(1690000000.123456) can0 18FEF100#0011...'"
         hint = (
-            "; a .log is candump -L's form, '(1690000000.123456) can0 18FEF100#0011...': write it with candump -L"
-            if suffix == ".log" and not damage.binary and re.search(r"\[\d\]", damage.first_text or "")
+            f"{form}: write it with candump -L"
+            if suffix == ".log" and not damage.binary and re.search(r"\[\d\]", text)
+            # candump -L's lines without their interface name (a converter's): one word missing
+            else f"{form}: its lines lack the interface name (can0) between the time and the frame"
+            if suffix == ".log" and not damage.binary and re.match(r"\s*\(\d+(\.\d+)?\)\s+[0-9A-Fa-f]+#", text)
             else ""
         )
         raise InputError(
