@@ -33,7 +33,7 @@ DERIVATIONS = {
 }
 #: the keys a map may carry at its top, in its ``time`` and in its ``unit_id``
 MAP_KEYS = {"format", "title", "period_s", "time", "unit_id", "standstill_rpm", "inputs", "measured"}
-TIME_KEYS = {"column", "kind"}
+TIME_KEYS = {"column", "kind", "zone", "format", "at"}
 UNIT_ID_KEYS = {"column"}
 #: the run-table inputs every map gives (the drive and the air around the gearbox: tools/scada/runtable.py)
 REQUIRED_INPUTS = {
@@ -125,6 +125,9 @@ class ColumnMap:
     inputs: dict[str, Channel]
     measured: dict[str, Channel]
     title: str = ""
+    time_zone: str | None = None  # an IANA zone: stamps without a UTC offset are its local time
+    time_format: str | None = None  # a strptime format of the stamps (else ISO 8601)
+    time_at: str = "end"  # what a stamp marks of its row's period: "end" (ENGIE's) or "start"
 
     @property
     def channels(self) -> dict[str, Channel]:
@@ -178,6 +181,7 @@ def load_column_map(spec: str | Path) -> ColumnMap:
     kind = time.get("kind", "iso8601_offset")
     if kind not in TIME_KINDS:
         raise InputError(f"column map {where}: time.kind = {kind!r} is none of {', '.join(TIME_KINDS)}")
+    zone, fmt, at = _time_extras(time, kind, where)
     inputs = {k: _channel(k, v, f"{where}: inputs.{k}") for k, v in _table(raw, "inputs", where).items()}
     measured_raw = raw.get("measured", {})
     if not isinstance(measured_raw, dict):
@@ -218,7 +222,36 @@ def load_column_map(spec: str | Path) -> ColumnMap:
         inputs=inputs,
         measured=measured,
         title=str(raw.get("title", "")),
+        time_zone=zone,
+        time_format=fmt,
+        time_at=at,
     )
+
+
+def _time_extras(time: dict, kind: str, where: str) -> tuple[str | None, str | None, str]:
+    """A map's time.zone (an IANA zone the stamps without an offset are local time of), time.format (a strptime
+    format) and time.at ("end" or "start" of the row's period), checked."""
+    from zoneinfo import ZoneInfo, ZoneInfoNotFoundError
+
+    zone, fmt, at = time.get("zone"), time.get("format"), time.get("at", "end")
+    if at not in ("end", "start"):
+        raise InputError(f'column map {where}: time.at = {at!r} is neither "end" nor "start" of the row\'s period')
+    iso = kind.startswith("iso8601")
+    for key, val in (("zone", zone), ("format", fmt)):
+        if val is not None and (not iso or not isinstance(val, str) or not val):
+            raise InputError(f"column map {where}: time.{key} must be a text, with a time.kind of ISO 8601 stamps")
+    if zone is not None:
+        if kind == "iso8601_utc":
+            raise InputError(f"column map {where}: time.zone with kind iso8601_utc: the stamps are UTC or local")
+        try:
+            ZoneInfo(zone)
+        except (ZoneInfoNotFoundError, ValueError):
+            raise InputError(
+                f"column map {where}: time.zone = {zone!r} is no IANA time zone (e.g. Europe/Paris)"
+            ) from None
+    if fmt is not None and "%" not in fmt:
+        raise InputError(f"column map {where}: time.format = {fmt!r} is no strptime format (e.g. %d.%m.%Y %H:%M)")
+    return zone, fmt, at
 
 
 def _table(raw: dict, key: str, where: str) -> dict:

@@ -20,6 +20,7 @@ from __future__ import annotations
 import csv
 import gzip
 import io
+import math
 import zlib
 from collections.abc import Iterable
 from dataclasses import dataclass, field
@@ -152,8 +153,10 @@ def open_text(path: Path, counts: dict | None = None, encoding: str = "utf-8-sig
     return io.StringIO(text, newline="")
 
 
-def parse_time(stamp: str, kind: str) -> float | None:
-    """UTC seconds of a time stamp, or None when it does not parse (or has no UTC offset where one is needed)."""
+def parse_time(stamp: str, kind: str, fmt: str | None = None, zone=None, fold: int = 0) -> float | None:
+    """UTC seconds of a time stamp, or None when it does not parse (or has no UTC offset where one is needed);
+    ``fmt``: a strptime format (else ISO 8601); ``zone``: a tzinfo the stamps without an offset are local time of,
+    ``fold`` 1 for the second of a repeated hour."""
     if kind in ("seconds", "milliseconds"):
         try:
             t = float(stamp)
@@ -161,12 +164,39 @@ def parse_time(stamp: str, kind: str) -> float | None:
             return None
         return (t / 1e3 if kind == "milliseconds" else t) if np.isfinite(t) else None
     try:
-        dt = datetime.fromisoformat(stamp.strip().replace("Z", "+00:00"))
+        text = stamp.strip()
+        dt = datetime.strptime(text, fmt) if fmt else datetime.fromisoformat(text.replace("Z", "+00:00"))
     except ValueError:
         return None
     if dt.utcoffset() is None and kind == "iso8601_utc":  # the map says its stamps are UTC
         dt = dt.replace(tzinfo=timezone.utc)
+    elif dt.utcoffset() is None and zone is not None:  # local time of the map's zone
+        dt = dt.replace(tzinfo=zone, fold=fold)
     return dt.timestamp() if dt.utcoffset() is not None else None
+
+
+class LocalClock:
+    """A file's stamps, row after row, in UTC seconds: with a map's time.zone, an ambiguous local time (the repeated
+    hour of the autumn change) is read as its second pass (fold 1) once the first pass has gone by (rows in time
+    order, as loggers write them); with time.at = "start", a stamp is moved to its period's end."""
+
+    def __init__(self, cmap: ColumnMap):
+        from zoneinfo import ZoneInfo
+
+        self.cmap = cmap
+        self.zone = ZoneInfo(cmap.time_zone) if cmap.time_zone else None
+        self.last = -math.inf  # the last stamp read [UTC s]
+
+    def __call__(self, stamp: str) -> float | None:
+        c = self.cmap
+        t = parse_time(stamp, c.time_kind, c.time_format, self.zone)
+        if t is not None and self.zone is not None and t <= self.last:
+            second = parse_time(stamp, c.time_kind, c.time_format, self.zone, fold=1)
+            t = second if second is not None and second > t else t
+        if t is None:
+            return None
+        self.last = max(self.last, t)
+        return t + c.period_s if c.time_at == "start" else t
 
 
 #: cells that exports write for "no value" (lower case, stripped): read as an empty cell, missing
@@ -240,6 +270,7 @@ def read_file(path: str | Path, cmap: ColumnMap) -> FileRows:
     idx = {c: header.index(c) for c in cmap.columns}
     value_cols = [c for c in cmap.columns if c not in (cmap.time_column, cmap.unit_column)]
     times, units, rows, bad = [], [], [], BadLines(path)
+    clock = LocalClock(cmap)
     width = len(header) - len(optional)
     if optional:
         bad.add(1, f"(the header) lacks the measured column(s) {', '.join(optional)}: no reading of theirs here")
@@ -253,7 +284,7 @@ def read_file(path: str | Path, cmap: ColumnMap) -> FileRows:
             continue
         row += [""] * len(optional)
         stamp = row[idx[cmap.time_column]]
-        t = parse_time(stamp, cmap.time_kind)
+        t = clock(stamp)
         if t is None:
             counts["bad_time"] += 1
             bad.add(reader.line_num, f"dropped (time stamp {stamp.strip()[:30]!r}: {_stamp_fault(stamp, cmap)})")
@@ -270,9 +301,13 @@ def read_file(path: str | Path, cmap: ColumnMap) -> FileRows:
         raise InputError(
             f"{path.name}: its time stamps ({cmap.time_column}, e.g. {example!r}) have no UTC offset: give them with "
             'theirs (2017-01-01T00:10:00+01:00), or, if they are UTC, set time.kind = "iso8601_utc" in a copy of '
-            "the column map; a stamp in local time without one is ambiguous"
+            'the column map, or, if they are local time, time.zone = "Europe/Paris" (the zone\'s IANA name)'
             if plain
-            else f"{path.name}: no row with a readable time stamp ({cmap.time_column}), no SCADA data"
+            else f"{path.name}: no row with a readable time stamp ({cmap.time_column}, e.g. {example!r}), no SCADA "
+            "data: ISO 8601 stamps (2017-01-01T00:10:00+01:00), or give their form as time.format in a copy of the "
+            'column map (e.g. "%d.%m.%Y %H:%M")'
+            if cmap.time_format is None and cmap.time_kind.startswith("iso")
+            else f"{path.name}: no row with a readable time stamp ({cmap.time_column}, e.g. {example!r}), no SCADA data"
         )
     if cmap.time_kind == "seconds" and np.median(times) > MS_STAMP_MIN_S:
         mid = float(np.median(times))

@@ -367,6 +367,42 @@ def test_the_autumn_change_is_continuous_in_utc_and_a_dropped_repeated_hour_is_a
     assert np.diff(rec.time_s).max() == 600.0 + 3600.0
 
 
+def test_local_stamps_of_a_zone_in_another_form_marking_the_period_s_start(tmp_path):
+    """A vendor's export in Paris local time without offsets ('01.10.2017 00:00'), each stamp the start of its 10
+    minutes: it could be declared neither (a new user's review; declared UTC, every stamp was 1-2 h off and the
+    autumn's repeated hour dropped as duplicates). time.zone, time.format and time.at read it: continuous in UTC across
+    the autumn change, every row kept, each at its period's end."""
+    t0 = datetime(2017, 10, 28, 23, 0, tzinfo=timezone.utc)
+    utc = [t0 + timedelta(minutes=10 * k) for k in range(18)]
+    local = [t.astimezone(CEST if t < datetime(2017, 10, 29, 1, tzinfo=timezone.utc) else CET) for t in utc]
+    lines = [row(s.strftime("%d.%m.%Y %H:%M")) for s in local]
+    assert sum("29.10.2017 02:10" in ln for ln in lines) == 2  # the repeated hour, twice alike
+    src = (
+        (MAP_DIR / "engie.toml")
+        .read_text()
+        .replace(
+            'time = { column = "Date_time", kind = "iso8601_offset" }',
+            'time = { column = "Date_time", zone = "Europe/Paris", format = "%d.%m.%Y %H:%M", at = "start" }',
+        )
+    )
+    (tmp_path / "paris.toml").write_text(src)
+    rec = read_record([write(tmp_path / "paris.csv", lines)], tmp_path / "paris.toml")
+    assert rec.n == 18 and rec.counts["duplicate_time"] == 0 and rec.n_stretches == 1
+    np.testing.assert_array_equal(rec.time_s, [t.timestamp() + 600.0 for t in utc])
+    # without them: one sentence naming the settings
+    (tmp_path / "plain.toml").write_text(
+        src.replace(', zone = "Europe/Paris", format = "%d.%m.%Y %H:%M", at = "start"', "")
+    )
+    with pytest.raises(InputError, match=r'give their form as time.format .*"%d.%m.%Y %H:%M"'):
+        read_record([tmp_path / "paris.csv"], tmp_path / "plain.toml")
+    for bad, words in ((', zone = "Europe/Pariss"', "no IANA time zone"), (', at = "middle"', 'neither "end" nor')):
+        (tmp_path / "bad.toml").write_text(
+            src.replace(', zone = "Europe/Paris", format = "%d.%m.%Y %H:%M", at = "start"', bad)
+        )
+        with pytest.raises(InputError, match=words):
+            read_record([tmp_path / "paris.csv"], tmp_path / "bad.toml")
+
+
 def test_a_map_with_time_in_seconds_and_no_unit_column_names_the_unit_after_the_file(tmp_path):
     src = (MAP_DIR / "engie.toml").read_text()
     src = src.replace('kind = "iso8601_offset"', 'kind = "seconds"').replace(
