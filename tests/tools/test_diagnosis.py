@@ -429,7 +429,8 @@ def test_a_sensor_frozen_for_minutes_is_left_out_of_the_fit(tmp_path, capsys):
     assert prepare(RunTable(short), "t.csv", "train", Options()).warnings == ()
     steady = _table(n=1800)  # a held load at its steady state: no fault
     steady["oil_temp_c"][600:1000] = steady["oil_temp_c"][600]
-    for c in ("engine_speed_rpm", "engine_torque_nm", "gear"):
+    # (the road speed held too: a gear held at a changing road speed is another gearbox's, said since 2026-12-06)
+    for c in ("engine_speed_rpm", "engine_torque_nm", "gear", "vehicle_speed_kmh"):
         steady[c][600:1000] = steady[c][600]
     ds = prepare(RunTable(steady), "t.csv", "train", Options())
     assert ds.warnings == () and ds.channels["oil"].t_s.size == 1800
