@@ -272,7 +272,9 @@ class J1939Decoder:
     node that sends "not available"), ``short_frames`` (message -> frames from the expected source address with
     fewer than 8 data bytes, none of whose values is used), ``foreign_first_arrivals`` (single-frame message ->
     foreign source address -> frames from the expected one before its first frame: a sender that moved to another
-    address, when none came after, told from a second sender).
+    address, when none came after, told from a second sender), ``priorities`` (single-frame message -> J1939
+    priority -> frames from the expected source address: one node sends a message at one priority, so two are two
+    senders at one address, whose values the sensor would mix).
     """
 
     def __init__(
@@ -327,6 +329,7 @@ class J1939Decoder:
             "foreign_source_data": {},
             "short_frames": {},
             "foreign_first_arrivals": {},
+            "priorities": {},
         }
         self._arrivals: dict[str, int] = self.counters["arrivals"]
         self._arrivals.update({route.key: 0 for route in self._routes.values()})
@@ -458,6 +461,9 @@ class J1939Decoder:
             self.counters["foreign_first_arrivals"].setdefault(key, {}).setdefault(sa, self._arrivals[key])
             return "wrong_source_address"
         self._arrivals[key] += 1
+        per_priority = self.counters["priorities"].setdefault(key, {})
+        priority = can_id >> 26
+        per_priority[priority] = per_priority.get(priority, 0) + 1
         if not eight:
             short = self.counters["short_frames"]
             short[key] = short.get(key, 0) + 1

@@ -624,6 +624,52 @@ class StartFinding:
         )
 
 
+#: a message's frames from its expected address at a second J1939 priority on at least this share (and
+#: TWO_SENDERS_MIN frames) are a second sender at that address
+TWO_SENDERS_SHARE, TWO_SENDERS_MIN = 0.01, 10
+
+
+@dataclass(frozen=True)
+class TwoSendersFinding:
+    """A message from its expected source address at two J1939 priorities: one node sends a message at one priority,
+    so two nodes send it from one address (an address conflict, a bridge's copy, a test box), and the sensor takes
+    each frame as it comes: their values mix (a second EEC1 sender at 600 rpm beside the engine's 1526: 39 % of the
+    steps read 600, exit 0 and no word before; a new user's review)."""
+
+    kind: ClassVar[str] = "two_senders"
+    message: str
+    sa: int | None
+    frames: tuple  # ((priority, frames), ...), most first
+
+    @property
+    def severity(self) -> Severity:
+        return Severity.WARNING
+
+    @property
+    def sentence(self) -> str:
+        total = sum(n for _, n in self.frames)
+        at = ", ".join(f"{p}: {pct(n, total)}" for p, n in self.frames)
+        sa = f"SA 0x{self.sa:02X}" if self.sa is not None else "its source address"
+        return (
+            f"{self.message} came from {sa} at {len(self.frames)} J1939 priorities ({at} of its {total} frames): one "
+            "node sends a message at one priority, so two nodes send it from that address (an address conflict, a "
+            "bridge's copy, a test box), and the sensor takes each frame as it comes: if their values differ they "
+            "mix; find the second sender on the bus"
+        )
+
+
+def two_senders_findings(decoder_counters: Mapping, expected_sa: Mapping[str, int | None]) -> list:
+    """A TwoSendersFinding per message whose frames from its expected address came at a second priority on at least
+    TWO_SENDERS_SHARE of them (and TWO_SENDERS_MIN frames)."""
+    out = []
+    for key, per in sorted(decoder_counters.get("priorities", {}).items()):
+        total = sum(per.values())
+        frames = tuple(sorted(per.items(), key=lambda kv: -kv[1]))
+        if len(frames) > 1 and sum(n for _, n in frames[1:]) >= max(TWO_SENDERS_MIN, TWO_SENDERS_SHARE * total):
+            out.append(TwoSendersFinding(key, expected_sa.get(key), frames))
+    return out
+
+
 @dataclass(frozen=True)
 class OrderFinding:
     """Frames out of time order (up to the step plus backward_tolerance_s earlier than the frame before them,
@@ -693,6 +739,7 @@ def trust_findings(
         )
     if service.get("started_without_oil"):
         out.append(StartFinding())
+    out += two_senders_findings(counters["decoder"], expected_sa)
     if service.get("frames_out_of_order"):
         out.append(OrderFinding(int(service["frames_out_of_order"]), float(service.get("out_of_order_max_s", 0.0))))
     return sorted(out, key=lambda f: -f.severity)

@@ -203,6 +203,33 @@ def test_a_sender_that_moved_to_another_address_is_not_called_a_second_sender():
     assert len(f) == 1 and not f[0].moved and "a second sender" in f[0].sentence
 
 
+def test_a_second_sender_at_the_expected_address_is_named_by_its_priority():
+    """A second EEC1 at SA 0x00 with priority 6 (the engine's is 3) carrying 600 rpm: 39 % of the steps read 600
+    rpm, exit 0, no word (a new user's review). Two priorities from one address are two senders: a warning, on both
+    decoders (frame by frame and columnar); one priority, none."""
+    import copy
+
+    from can_dbc.columnar import FrameColumns, decode_columns
+    from firmware_model.service.trust import two_senders_findings
+
+    frames = traffic(0.0, 30.0, oil=80.0)
+    second = [copy.copy(m) for m in frames if pgn_of(m.arbitration_id) == 61444]
+    for m in second:
+        m.arbitration_id = (m.arbitration_id & ~(7 << 26)) | (6 << 26)
+        m.timestamp += 0.001
+    svc = service()
+    svc.feed_all(sorted(frames + second, key=lambda m: m.timestamp))
+    [f] = [f for f in svc.findings() if f.kind == "two_senders"]
+    assert f.message == "EEC1" and f.sa == 0x00 and "at 2 J1939 priorities" in f.sentence
+    assert f.severity == Severity.WARNING
+    dec = type(svc.decoder)(svc.decoder.expected_sa)
+    decode_columns(FrameColumns.from_messages(sorted(frames + second, key=lambda m: m.timestamp)), dec)
+    assert dec.counters["priorities"] == svc.decoder.counters["priorities"]
+    svc = service()
+    svc.feed_all(frames)
+    assert two_senders_findings(svc.decoder.counters, svc.decoder.expected_sa) == []
+
+
 @pytest.mark.parametrize(
     "modes, severity",
     [({0: 90, 3: 10}, Severity.NOTE), ({0: 70, 1: 30}, Severity.WARNING), ({0: 40, 2: 60}, Severity.UNTRUSTED)],
