@@ -264,17 +264,17 @@ class J1939Decoder:
     ConfigError.
 
     ``counters``: ``frames_seen``, ``frames_used``, ``rejected`` (reason -> frames; seen = used + rejected),
-    ``signal_rejected`` (name -> reason -> values not used, also from frames that were used), ``tp``
-    (BAM transfers started, completed, aborted; EC1 and RC received), ``arrivals`` (message -> frames from the expected
-    source address, whatever their content: the service's time-base check counts them), ``foreign_source``
-    (message -> source address -> frames, or EC1 announces, from another source address than expected) and
+    ``signal_rejected`` (name -> reason -> values not used, also from frames that were used), ``tp`` (BAM transfers
+    started, completed, aborted; EC1 and RC received), ``arrivals`` (message -> frames from the expected source
+    address, whatever their content: the service's time-base check counts them), ``foreign_source`` (message ->
+    source address -> frames, or EC1 announces, from another source address than expected) and
     ``foreign_source_data`` (the same, only those with at least one usable value: a source-address mistake, not a
     node that sends "not available"), ``short_frames`` (message -> frames from the expected source address with
-    fewer than 8 data bytes, none of whose values is used), ``foreign_first_arrivals`` (single-frame message ->
-    foreign source address -> frames from the expected one before its first frame: a sender that moved to another
-    address, when none came after, told from a second sender), ``priorities`` (single-frame message -> J1939
-    priority -> frames from the expected source address: one node sends a message at one priority, so two are two
-    senders at one address, whose values the sensor would mix).
+    fewer than 8 data bytes, none of whose values is used), ``foreign_first_arrivals`` (message -> foreign source
+    address -> frames, or for EC1 and RC transfers received, from the expected one before its first frame or
+    announce: a sender that moved to another address, when none came after, told from a second sender),
+    ``priorities`` (single-frame message -> J1939 priority -> frames from the expected source address: one node
+    sends a message at one priority, so two are two senders at one address, whose values the sensor would mix).
     """
 
     def __init__(
@@ -540,6 +540,9 @@ class J1939Decoder:
         elif expected is not None and sa != expected:
             reason = "wrong_source_address"
             self._count_foreign(key, sa, size_bytes >= min_size)
+            # the transfers from the expected address received before this address's first (a sender that moved)
+            done = self.counters["tp"]["ec1_received" if key == EC1_KEY else "rc_received"]
+            self.counters["foreign_first_arrivals"].setdefault(key, {}).setdefault(sa, done)
         elif size_bytes < min_size:
             return "tp_bad_announce"
         else:

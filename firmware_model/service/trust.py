@@ -131,7 +131,7 @@ class ForeignSourceFinding:
     config_key: str
     configured: bool
     primary: bool
-    #: frames from the expected source address before this one's first (None: not known, TP.BAM transfers)
+    #: frames (EC1, RC: transfers received) from the expected source address before this one's first (None: not known)
     expected_before: int | None = None
     #: the key that fixes it without moving another input ("" = ``config_key``): ``source_address.<message>`` when
     #: ``config_key`` would also move ``also_moved``, (message, source address) pairs that arrive as expected
@@ -388,17 +388,19 @@ def _fix(
     set_by: Mapping[str, str],
     expected_sa: Mapping[str, int | None],
     received: Mapping[str, int],
+    moved_with: frozenset = frozenset(),
 ) -> tuple[str, tuple[tuple[str, int], ...]]:
     """(the key that fixes a foreign address of ``message`` without moving another input, the inputs ``key``
     would move that arrive as expected): ``key`` when its other messages moved with this one (none arrives from
-    its expected address), else the message's own ``source_address.<message>`` (a Navistar: ETC2 from 0x03, TRF1
-    from 0x21; transmission_source_address for the oil lost the gear)."""
+    its expected address, or those that do moved to the same address: ``moved_with``), else the message's own
+    ``source_address.<message>`` (a Navistar: ETC2 from 0x03, TRF1 from 0x21; transmission_source_address for the
+    oil lost the gear)."""
     if key.startswith(SOURCE_ADDRESS_TABLE + "."):
         return key, ()
     working = tuple(
         (m, expected_sa[m])
         for m in _moved_along(message, key, set_by)
-        if received.get(m, 0) > 0 and expected_sa.get(m) is not None
+        if received.get(m, 0) > 0 and expected_sa.get(m) is not None and m not in moved_with
     )
     return (f"{SOURCE_ADDRESS_TABLE}.{message}", working) if working else (key, ())
 
@@ -434,11 +436,20 @@ def foreign_findings(
         if expected is None or message not in pgns:
             continue
         key = keys.get(message, "?")
-        fix_key, also_moved = _fix(message, key, set_by, expected_sa, {**arrivals, **received})
         for sa, frames in sorted(per_sa.items()):
             n_data = with_data.get(message, {}).get(sa, 0)
             if n_data < FOREIGN_MIN_FRAMES:
                 continue
+            # the group's messages that moved to this address too (their expected address sent before, not since):
+            # a group key moves them where they are (the engine's messages all moving from 0x00 to 0x01 were said
+            # to "arrive as expected")
+            moved_with = frozenset(
+                m
+                for m, firsts in first_arrivals.items()
+                if with_data.get(m, {}).get(sa, 0) >= FOREIGN_MIN_FRAMES
+                and 0 < {**arrivals, **received}.get(m, 0) == firsts.get(sa)
+            )
+            fix_key, also_moved = _fix(message, key, set_by, expected_sa, {**arrivals, **received}, moved_with)
             expected_frames = received[message] if message in received else arrivals.get(message, 0)
             out.append(
                 ForeignSourceFinding(
@@ -452,7 +463,7 @@ def foreign_findings(
                     key,
                     message in (configured or {}),
                     message in primary,
-                    None if message in received else first_arrivals.get(message, {}).get(sa),
+                    first_arrivals.get(message, {}).get(sa),
                     "" if fix_key == key else fix_key,
                     also_moved,
                 )

@@ -203,6 +203,24 @@ def test_a_sender_that_moved_to_another_address_is_not_called_a_second_sender():
     assert len(f) == 1 and not f[0].moved and "a second sender" in f[0].sentence
 
 
+def test_an_engine_whose_messages_all_moved_is_told_its_group_key():
+    """Every engine message moving from SA 0x00 to 0x01 halfway (a new address claim): EEC1's finding said setting
+    engine_source_address 'would also move EC1, ET1, CCVS1 and AMB ..., which arrive as expected' and EC1 was called
+    'a second sender', though all had moved (a new user's review). The group key, and EC1 moved too."""
+    et1 = [frame(t + 0.3, 65262, 0x00, [125] + [0xFF] * 7) for t in range(60)]  # the coolant, 85 degC
+    frames = sorted(traffic(0.0, 60.0, oil=80.0) + et1, key=lambda m: m.timestamp)
+    for m in frames:
+        if m.timestamp > 30.0 and (m.arbitration_id & 0xFF) == 0x00:
+            m.arbitration_id = (m.arbitration_id & ~0xFF) | 0x01
+    svc = service()
+    svc.feed_all(frames)
+    found = {f.message: f for f in svc.findings() if f.kind == "foreign_source"}
+    assert found["EEC1"].moved and "set [can] engine_source_address = 0x01" in found["EEC1"].sentence
+    assert "would also move" not in found["EEC1"].sentence
+    if "EC1" in found:  # (the traffic's reference torque transfers, when it sends them)
+        assert found["EC1"].moved and "second sender" not in found["EC1"].sentence
+
+
 def test_a_second_sender_at_the_expected_address_is_named_by_its_priority():
     """A second EEC1 at SA 0x00 with priority 6 (the engine's is 3) carrying 600 rpm: 39 % of the steps read 600
     rpm, exit 0, no word (a new user's review). Two priorities from one address are two senders: a warning, on both
