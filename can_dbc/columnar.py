@@ -280,9 +280,8 @@ def _route(dec: _Decoding, pgn: int, key: str, params: tuple, refs: dict) -> Non
         idx, eight = idx[~wrong], eight[~wrong]
     dec.arrivals.setdefault(key, []).append(idx)
     decoder.counters["arrivals"][key] = decoder.counters["arrivals"].get(key, 0) + int(idx.size)
-    per_priority = decoder.counters["priorities"].setdefault(key, {})
     for priority, n in zip(*np.unique(cols.can_id[idx] >> 26, return_counts=True)):
-        _add_count(per_priority, int(priority), int(n))
+        _add_count(decoder.counters["priorities"].setdefault(key, {}), int(priority), int(n))
     dec.reason[idx[~eight]] = REASON_CODES["wrong_dlc"]
     n_short = int(idx.size - np.count_nonzero(eight))
     if n_short:
