@@ -49,6 +49,18 @@ BASELINE_PERIODS = 2
 POOR_SE_FACTOR = 2.0
 CONSECUTIVE = 2
 DRIFT_MIN = {"bearing_loss_scale": 0.15, "cooler_effectiveness_scale": 0.15}
+#: what a drift of each effect means, up and down, in a reliability engineer's words (a flag's reason led with the
+#: effect's id and a signed number alone: a review)
+DRIFT_WORDS = {
+    "bearing_loss_scale": (
+        "its bearings run hotter for their load than its siblings' (more bearing heat: wear, preload)",
+        "its bearings run cooler for their load than its siblings' (or a bearing sensor reads low: diagnose)",
+    ),
+    "cooler_effectiveness_scale": (
+        "its oil runs cooler under load than its siblings' (a cooler taking more heat)",
+        "its oil runs hotter under load than its siblings' (a cooler losing effectiveness: fouled, blocked, a fan)",
+    ),
+}
 #: a period needs this many rows with every channel measured
 MIN_ROWS = 36
 #: the block of the cluster-robust error: a day, or a sixth of a period shorter than six days [s] (assumed: the
@@ -369,8 +381,9 @@ def _drift_flags(fits, baseline_periods: int, consecutive: int, flagged: dict) -
                                 first.start,
                                 f.values[eid],
                                 baseline,
-                                f"drift from its siblings by {drift:+.2f} (its own baseline {baseline:+.2f} +- "
-                                f"{se_base:.2f}) for {consecutive} periods",
+                                f"{DRIFT_WORDS[eid][0 if drift > 0 else 1]}: drift from its siblings by "
+                                f"{drift:+.2f} (its own baseline {baseline:+.2f} +- {se_base:.2f}) for "
+                                f"{consecutive} periods",
                                 "flag",
                             ),
                             strength,

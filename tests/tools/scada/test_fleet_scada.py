@@ -209,6 +209,8 @@ def test_a_partial_first_period_and_a_week_standing_still_do_not_make_the_baseli
         fits += [fit("A", k, 1.0, se), fit("B", k, 1.02, se), fit("C", k, 1.0 + drift + (0.3 if k < 2 else 0.0), se)]
     flags = [f for f in flag_units(fits) if f.effect == "bearing_loss_scale"]
     assert [(f.vehicle, f.period) for f in flags] == [("C", 6)], flags
+    # the reason in words first (it led with a signed number alone: a review)
+    assert flags[0].reason.startswith("its bearings run hotter for their load than its siblings'"), flags[0].reason
 
 
 def test_a_flagged_unit_leaves_the_siblings_median_so_a_sound_sibling_is_not_flagged():
