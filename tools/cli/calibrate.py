@@ -15,6 +15,13 @@ from tools.cli.scada_notes import say_damaged_lines, say_stuck_channels
 from tools.cli.settings import add_hidden, setting
 
 
+#: --report's help
+REPORT_HELP = (
+    "also write a Markdown report and its plot (run tables and CAN logs; not with --columns: the SCADA calibration "
+    "prints its table)"
+)
+
+
 def add_subparser(sub):
     p = sub.add_parser(
         "calibrate",
@@ -66,12 +73,7 @@ def add_subparser(sub):
     p.add_argument(
         "--out", required=True, metavar="OUT.toml", help="the calibrated parameter file (written atomically)"
     )
-    p.add_argument(
-        "--report",
-        metavar="OUT.md",
-        help="also write a Markdown report and its plot (run tables and CAN logs; not with --columns: the SCADA "
-        "calibration prints its table)",
-    )
+    p.add_argument("--report", metavar="OUT.md", help=REPORT_HELP)
     p.add_argument(
         "--config",
         metavar="TOML",

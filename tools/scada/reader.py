@@ -222,56 +222,64 @@ def _decimal_comma(cell: str) -> float:
     return _number(cell)
 
 
-def read_file(path: str | Path, cmap: ColumnMap) -> FileRows:
-    """One file's rows (see the module's docstring for what is dropped and counted)."""
-    path = Path(path)
-    counts = dict.fromkeys(REASONS, 0)
+def _text_of(path: Path, cmap: ColumnMap, counts: dict):
+    """The file as text: UTF-8, or Windows-1252 when the header is not UTF-8 and only that reading holds the map's
+    columns ('Au\xdfen [\xb0C]' written by Windows: the export's encoding throughout)."""
     text = open_text(path, counts)
     first = text.readline()
+    text.seek(0)
     if "\ufffd" in first and not all(c in first for c in cmap.columns):
-        # a header not in UTF-8 that lacks a column of the map (Au\xdfen [\xb0C] written by Windows): the export's
-        # encoding is Windows-1252 (Latin-1's superset) throughout
         latin = open_text(path, None, "cp1252")
         header = latin.readline()
         if all(c in header for c in cmap.columns):
             counts["bad_bytes"] = 0
-            text = latin
-    text.seek(0)
-    first = text.readline()
-    text.seek(0)
-    # ENGIE's own export separates with ";" (and may write decimal commas): the same columns, read as they are; the
-    # separator whose header fields hold more of the map's columns (a name may hold a comma: 'Aussen [degC, avg]')
-    semicolon = _semicolon(first, cmap)
-    reader = csv.reader(text, delimiter=";" if semicolon else ",")
-    number = _decimal_comma if semicolon else _number
-    header = next(reader, None)
+            latin.seek(0)
+            return latin
+    return text
+
+
+def _header_columns(path: Path, header: list | None, cmap: ColumnMap) -> list[str]:
+    """The map's measured columns the header lacks (their readings are missing from this file: a sensor fitted
+    later, an export of fewer columns); InputError when it lacks an input's or the time's (no file of the map)."""
     if not header:
         raise InputError(f"{path.name}: empty, not a SCADA file of the column map {cmap.name}")
-    header = [h.strip() for h in header]
     lacking = [c for c in cmap.columns if c not in header]
-    # a measured channel's column missing from one file (a sensor fitted later, an export of fewer columns): its
-    # readings are missing there, said; an input's or the time's is no file of the map
     inputs = {c for ch in cmap.inputs.values() for c in ch.columns} | {cmap.time_column, cmap.unit_column}
-    optional = [c for c in lacking if c not in inputs]
-    lacking = [c for c in lacking if c in inputs]
-    if lacking:
+    needed = [c for c in lacking if c in inputs]
+    if needed:
         # the columns all in one field: another separator (a tab-separated export), not other columns
         one = len(header) == 1 and "\t" in header[0] and any(c in header[0] for c in cmap.columns)
         raise InputError(
             f"{path.name}: not a SCADA file of the column map {cmap.name}: its header lacks the column(s) "
-            f"{', '.join(lacking[:4])}{' ...' if len(lacking) > 4 else ''}"
+            f"{', '.join(needed[:4])}{' ...' if len(needed) > 4 else ''}"
             + (
                 "; its header is one field holding tabs: give the file separated by ',' or ';' (the separators read)"
                 if one
                 else ""
             )
         )
+    return [c for c in lacking if c not in inputs]
+
+
+def read_file(path: str | Path, cmap: ColumnMap) -> FileRows:
+    """One file's rows (see the module's docstring for what is dropped and counted)."""
+    path = Path(path)
+    counts = dict.fromkeys(REASONS, 0)
+    text = _text_of(path, cmap, counts)
+    # ENGIE's own export separates with ";" (and may write decimal commas): the same columns, read as they are; the
+    # separator whose header fields hold more of the map's columns (a name may hold a comma: 'Aussen [degC, avg]')
+    semicolon = _semicolon(text.readline(), cmap)
+    text.seek(0)
+    reader = csv.reader(text, delimiter=";" if semicolon else ",")
+    number = _decimal_comma if semicolon else _number
+    header = [h.strip() for h in next(reader, None) or []]
+    optional = _header_columns(path, header, cmap)
+    width = len(header)
     header += optional  # read as empty cells
     idx = {c: header.index(c) for c in cmap.columns}
     value_cols = [c for c in cmap.columns if c not in (cmap.time_column, cmap.unit_column)]
     times, units, rows, bad = [], [], [], BadLines(path)
     clock = LocalClock(cmap)
-    width = len(header) - len(optional)
     if optional:
         bad.add(1, f"(the header) lacks the measured column(s) {', '.join(optional)}: no reading of theirs here")
     for row in reader:
@@ -295,8 +303,25 @@ def read_file(path: str | Path, cmap: ColumnMap) -> FileRows:
         if np.isinf(rows[-1]).any():  # a cell that is no number: its value left out (clean counts it implausible)
             c = next(c for c, v in zip(value_cols, rows[-1]) if np.isinf(v))
             bad.add(reader.line_num, f"kept without its {c} {row[idx[c]].strip()[:30]!r} (no number)")
+    _check_times(
+        path, cmap, times, lambda: next((r[idx[cmap.time_column]] for r in _rows_of(path, semicolon, width)), "")
+    )
+    arr = np.array(rows, dtype=float).reshape(len(rows), len(value_cols))
+    return FileRows(
+        path=path,
+        time_s=np.array(times, dtype=float),
+        unit=np.array(units, dtype=object),
+        raw={c: arr[:, i] for i, c in enumerate(value_cols)},
+        counts=counts,
+        bad=bad if bad.total else None,
+    )
+
+
+def _check_times(path: Path, cmap: ColumnMap, times: list, example_of) -> None:
+    """InputError when no row's stamp was read (without a UTC offset, or in another form: the map's keys that read
+    them) or the stamps of kind "seconds" are milliseconds; ``example_of()``: a stamp of the file, for the sentence."""
     if not times:
-        example = next((r[idx[cmap.time_column]] for r in _rows_of(path, semicolon, width)), "")
+        example = example_of()
         plain = cmap.time_kind == "iso8601_offset" and parse_time(example + "+00:00", cmap.time_kind) is not None
         raise InputError(
             f"{path.name}: its time stamps ({cmap.time_column}, e.g. {example!r}) have no UTC offset: give them with "
@@ -317,15 +342,6 @@ def read_file(path: str | Path, cmap: ColumnMap) -> FileRows:
             f'milliseconds, the year {1970 + int(mid / 3.15576e7)} in seconds): set time.kind = "milliseconds" in a '
             "copy of the column map"
         )
-    arr = np.array(rows, dtype=float).reshape(len(rows), len(value_cols))
-    return FileRows(
-        path=path,
-        time_s=np.array(times, dtype=float),
-        unit=np.array(units, dtype=object),
-        raw={c: arr[:, i] for i, c in enumerate(value_cols)},
-        counts=counts,
-        bad=bad if bad.total else None,
-    )
 
 
 def _semicolon(header: str, cmap: ColumnMap) -> bool:
