@@ -14,7 +14,6 @@ from tools.cli.paths import check_paths
 from tools.cli.scada_notes import say_damaged_lines, say_stuck_channels
 from tools.cli.settings import add_hidden, setting
 
-
 #: --report's help
 REPORT_HELP = (
     "also write a Markdown report and its plot (run tables and CAN logs; not with --columns: the SCADA calibration "
