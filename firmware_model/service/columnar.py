@@ -28,6 +28,7 @@ import numpy as np
 from can_dbc.columnar import (
     FLAG_ERROR,
     FLAG_EXTENDED,
+    FLAG_FD,
     FLAG_REMOTE,
     DecodedColumns,
     FrameColumns,
@@ -294,7 +295,7 @@ def frame_half(service, cols: FrameColumns, decoded: DecodedColumns, meas_names:
     flags = cols.flags
     ext_ok = (
         ((flags & FLAG_EXTENDED) != 0)
-        & ((flags & (FLAG_ERROR | FLAG_REMOTE)) == 0)
+        & ((flags & (FLAG_ERROR | FLAG_REMOTE | FLAG_FD)) == 0)
         & (cols.can_id >= 0)
         & (cols.can_id <= ID_MAX)
         & np.isfinite(cols.timestamp_s)

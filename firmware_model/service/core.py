@@ -339,8 +339,15 @@ class SensorService:
     # -- time ---------------------------------------------------------------------------------------------------
 
     def _drives_time(self, msg) -> bool:
-        """Only data frames of the PGNs the service listens to, with a finite frame time, move time."""
-        if not msg.is_extended_id or msg.is_error_frame or msg.is_remote_frame or not math.isfinite(msg.timestamp):
+        """Only data frames of the PGNs the service listens to, with a finite frame time, move time (not a CAN FD
+        frame: the decoder rejects it, and it set the step grid's start before a classic frame could)."""
+        if (
+            not msg.is_extended_id
+            or msg.is_error_frame
+            or msg.is_remote_frame
+            or getattr(msg, "is_fd", False)
+            or not math.isfinite(msg.timestamp)
+        ):
             return False
         can_id = msg.arbitration_id
         known = self._timing_ids.get(can_id)

@@ -654,3 +654,22 @@ def test_bad_can_settings_are_parameter_errors():
         SensorService(StandIn(), ServiceOptions(sensor_source_address=300))
     with pytest.raises(ParameterError, match="expected_sa"):
         SensorService(StandIn(), ServiceOptions(expected_sa={"XYZ": 1}))
+
+
+def test_a_can_fd_frame_moves_no_time():
+    """An FD copy of EEC1 first in a log set the step grid's start (can_time_s 0.102 against 0.111) though the
+    decoder rejects it (a new user's review): FD frames, like error and remote frames, move no time."""
+    first = traffic(1000.0, 1003.0)[0]
+    fd = can.Message(
+        timestamp=first.timestamp - 0.009,
+        arbitration_id=first.arbitration_id,
+        is_extended_id=True,
+        is_fd=True,
+        data=bytes(first.data) + b"\xff" * 4,
+        check=False,
+    )
+    a, b = service(), service()
+    a.feed_all(traffic(1000.0, 1003.0))
+    b.feed_all([fd, *traffic(1000.0, 1003.0)])
+    np.testing.assert_array_equal(b.recorded()["can_time_s"], a.recorded()["can_time_s"])
+    assert b.decoder.counters["rejected"]["fd_frame"] == 1
