@@ -365,7 +365,8 @@ def _say_not_judged(fits, units) -> int:
         if not why.get(unit):  # (a unit never judged is said above)
             which = ", ".join(starts[:3]) + (" ..." if len(starts) > 3 else "")
             print(
-                f"note: {unit}: {len(starts)} of its periods ({which}) were fitted beside fewer than "
+                f"note: {unit}: {len(starts)} of its periods ({which}) {'was' if len(starts) == 1 else 'were'} "
+                f"fitted beside fewer than "
                 f"{MIN_UNITS - 1} siblings: no fleet median there, not judged",
                 file=sys.stderr,
             )
@@ -511,7 +512,11 @@ def _print_errors(out) -> None:
     errors = read_table(out, ERRORS)
     if errors is not None and errors.num_rows:
         for r in errors.slice(0, 5).to_pylist():
-            print(f"  error ({r['stage']}): {r['reason']}", file=sys.stderr)
+            # the reason names its log when the reader raised it; a summary's sentence may not ("the log's first
+            # frame time ..."): the log's name first then
+            name = os.path.basename(str(r.get("log") or ""))
+            why = r["reason"] if not name or name in r["reason"] else f"{name}: {r['reason']}"
+            print(f"  error ({r['stage']}): {why}", file=sys.stderr)
         if errors.num_rows > 5:
             print(f"  ... {errors.num_rows - 5} more in {out}/errors", file=sys.stderr)
 

@@ -21,6 +21,7 @@ import math
 import multiprocessing as mp
 import os
 import signal
+import textwrap
 import warnings
 from dataclasses import dataclass, field
 
@@ -526,6 +527,8 @@ def calibrated_toml(base_file, params: Parameters, cal: Calibration, stamp: str)
     ]
     if cal.thin_evidence():
         lines.append("# " + cal.thin_evidence() + ".")
+    for rival in cal.rivals:  # (SCADA: a channel a reading offset explains as well: the file carries the warning)
+        lines += ["# warning: " + part for part in textwrap.wrap(rival, 110)]
     lines.append("")
     for key, e in entries.items():
         if key in cal.fitted:

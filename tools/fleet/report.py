@@ -687,8 +687,9 @@ def _undated(c: dict, lines: list) -> None:
         f"A log's date is the UTC day of its first frame when its frame times are Unix time (at least "
         f"{EPOCH_MIN_S:.0e} s: candump -L, and .blf, .mf4 and .trc logs that record their start), the date in "
         f"a Vector .asc header, or the manifest's date column. These logs have none of them: their frame times "
-        f"count from the logger's start. Give their dates in a --manifest (column date) or by "
-        f"--vehicle-from's (?P<date>...) in the file name.",
+        f"count from the logger's start, or lie within a week after a clock's reset day (a real-time clock's "
+        f"2000-01-01, GPS's 1980-01-06: a logger that lost its time). Give their dates in a --manifest (column "
+        f"date) or by --vehicle-from's (?P<date>...) in the file name.",
         "",
         "| vehicle | log | first frame time |",
         "|---|---|---|",
@@ -716,8 +717,8 @@ def write_report(out: str | os.PathLike, health_why_none: str = "") -> Path:
         dated = sorted(d for d in c["date"] if d != "unknown")
         undated = len(c["date"]) - len(dated)
         span = (f"dates {dated[0]} to {dated[-1]}" if dated else "no dates") + (
-            f" ({undated} logs without a date: their frame times are not Unix time and the manifest gives none; "
-            f"listed below)"
+            f" ({undated} logs without a date: their frame times are not Unix time, or a clock's reset day, and "
+            f"the manifest gives none; listed below)"
             if undated
             else ""
         )

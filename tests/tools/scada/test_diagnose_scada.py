@@ -513,6 +513,16 @@ def test_calibrate_warns_where_a_reading_offset_explains_a_channel_as_well_as_it
     assert said.startswith("Gb1t_avg: a constant reading offset of +3.00 K explains its training gap")
     physics = {"Gb1t_avg": 4.0 * load + noise}, {"Gb1t_avg": noise}
     assert offset_rivals(*physics) == []
+    # the written file carries the warning too (it was on stderr only: a review)
+    from firmware_model.parameters import load_parameters, parameter_path
+    from tools.diagnosis.calibrate import Calibration, calibrated_toml
+
+    key = "bearing.f0_tapered"
+    params = load_parameters("MM82")
+    cal = Calibration([key], {key: 3.65}, {key: 5.52}, {key: 0.05}, {key: False}, [], (1, 1), (2, 1), {}, 1)
+    cal.rivals = [said]
+    text = calibrated_toml(parameter_path("MM82"), params, cal, "2026-12-07")
+    assert "# warning: Gb1t_avg: a constant reading offset of +3.00 K" in text
 
 
 def test_a_held_out_gap_far_larger_than_the_training_one_is_said():
