@@ -193,7 +193,8 @@ class ForeignSourceFinding:
             tail = (
                 f", after {self.expected_frames} from SA 0x{self.expected:02X} and none from it since: the sender "
                 f"moved to SA 0x{self.source:02X} (a new address claim or another ECU) and the sensor has not "
-                f"used it since"
+                f"used it since (the setting reads one address: a log that holds both is read whole only split at "
+                f"the move, each part with its own address)"
             )
         elif self.expected_frames:
             tail = f" (and {self.expected_frames} times from SA 0x{self.expected:02X}): a second sender"
