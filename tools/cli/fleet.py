@@ -12,7 +12,7 @@ from pathlib import Path
 from firmware_model.errors import InputError
 from tools.cli.gearbox_option import add_gearbox_option, resolve_gearbox
 from tools.cli.paths import check_paths
-from tools.cli.scada_notes import say_damaged_lines, say_stuck_channels
+from tools.cli.scada_notes import say_damaged_lines, say_stuck_channels, stuck_sentences
 from tools.cli.settings import add_hidden, given, setting
 
 
@@ -290,6 +290,8 @@ def _run_scada(args) -> int:
     _check_scada_drive(cfg, records)  # before the notes: a gearbox of another drive is the one sentence
     say_damaged_lines(records.values(), "read")
     say_stuck_channels(records.values())
+    for rec in records.values():  # kept with the output, as a channel left out is (errors.parquet)
+        skipped += [(", ".join(str(p) for p in rec.files), why) for why in stuck_sentences(rec)]
     setup, notes = setup_of(cfg, next(iter(records.values())).cmap)
     for note in notes:
         print(f"note: {note}", file=sys.stderr)
@@ -334,7 +336,8 @@ def _run_scada(args) -> int:
             pa.Table.from_pylist([{"file": str(p), "error": why} for p, why in skipped]), root / "errors.parquet"
         )
         print(
-            f"note: {len(skipped)} file(s) or unit(s) could not be used (above; {root / 'errors.parquet'})",
+            f"note: {len(skipped)} file(s), unit(s) or channels could not be used, in whole or in part (above; "
+            f"{root / 'errors.parquet'})",
             file=sys.stderr,
         )
     return 0
