@@ -335,3 +335,22 @@ def test_the_periods_a_unit_was_fitted_without_two_siblings_are_named():
 
     fits = [fit(u, p) for p in (1, 2, 3) for u in ("A", "B", "C")] + [fit("A", 4), fit("B", 4), fit("A", 5)]
     assert alone_periods(fits) == {"A": ["2017-04-01", "2017-05-01"], "B": ["2017-04-01"]}
+
+
+def test_a_stuck_channel_is_kept_with_the_fleet_s_output(tmp_path):
+    """A stuck sump left nothing in the output folder: a reader of health/ could not tell why its unit's months were
+    thin (a review). It is listed in health/errors.parquet with its sentence, the unit fitted."""
+    import subprocess
+
+    from tests.tools.scada.test_replay_scada import REPO
+
+    pq = pytest.importorskip("pyarrow.parquet", reason="fleet --columns writes Parquet: pip install '.[fleet]'")
+    cmd = [*_scada_folder(tmp_path, {"T1": None, "T2": lambda k: 57.0 if k > 200 else 55.0 + 0.01 * k}), "--gearbox"]
+    p = subprocess.run(
+        [*cmd, "HR225", "--out", str(tmp_path / "out")], cwd=REPO, capture_output=True, text=True, timeout=600
+    )
+    assert p.returncode == 0, p.stderr
+    rows = pq.read_table(tmp_path / "out" / "health" / "errors.parquet").to_pylist()
+    said = [r["error"] for r in rows]  # (the fixture's bearings follow its sump: stuck with it)
+    assert said and all(w.startswith("T2: ") and "reads one value to the bit" in w for w in said), said
+    assert any(w.startswith("T2: Gost_avg reads") for w in said) and "T1" not in " ".join(said)
