@@ -274,6 +274,7 @@ def read_file(path: str | Path, cmap: ColumnMap) -> FileRows:
     number = _decimal_comma if semicolon else _number
     header = [h.strip() for h in next(reader, None) or []]
     optional = _header_columns(path, header, cmap)
+    again = list(header)  # a repeated header line (files joined with their headers)
     width = len(header)
     header += optional  # read as empty cells
     idx = {c: header.index(c) for c in cmap.columns}
@@ -289,6 +290,10 @@ def read_file(path: str | Path, cmap: ColumnMap) -> FileRows:
             counts["bad_line"] += 1
             fault = "cut short or a field missing" if len(row) < width else "a separator too many"
             bad.add(reader.line_num, f"dropped ({len(row)} of the header's {width} fields: {fault})")
+            continue
+        if [c.strip() for c in row] == again:
+            counts["bad_line"] += 1
+            bad.add(reader.line_num, "dropped (the header again: files joined with their headers)")
             continue
         row += [""] * len(optional)
         stamp = row[idx[cmap.time_column]]

@@ -522,6 +522,17 @@ def test_a_training_unit_renamed_is_not_held_out(tmp_path):
     assert read_held_out([a], [sibling], "engie")[1][0].unit == "R9"
 
 
+def test_a_repeated_header_line_is_said_as_such(tmp_path):
+    """Files joined with their headers: the second header read as 'time stamp 'Date_time': does not parse' (a
+    review). It is said as the header again, dropped, counted with the bad lines."""
+    t0 = datetime(2017, 6, 1, tzinfo=timezone.utc)
+    lines = [row(t0 + timedelta(minutes=10 * k)) for k in range(6)]
+    lines.insert(3, ",".join(HEADER))
+    rec = read_record([write(tmp_path / "joined.csv", lines)])
+    assert rec.n == 6 and rec.counts["bad_line"] == 1 and rec.counts["bad_time"] == 0
+    assert "line 5 dropped (the header again: files joined with their headers)" in rec.bad_lines[0].sentence("read")
+
+
 @pytest.mark.parametrize("marker", ["NA", "-", "#N/A", "x"])
 @pytest.mark.parametrize("derive", ["power_over_speed", "torque_times_ratio"])
 def test_a_speed_cell_that_is_no_number_leaves_no_torque_not_zero(tmp_path, marker, derive):
