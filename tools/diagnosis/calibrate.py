@@ -527,7 +527,7 @@ def calibrated_toml(base_file, params: Parameters, cal: Calibration, stamp: str)
     ]
     if cal.thin_evidence():
         lines.append("# " + cal.thin_evidence() + ".")
-    for rival in cal.rivals:  # (SCADA: a channel a reading offset explains as well: the file carries the warning)
+    for rival in getattr(cal, "rivals", ()):  # (SCADA: a channel a reading offset explains as well: said in the file)
         lines += ["# warning: " + part for part in textwrap.wrap(rival, 110)]
     lines.append("")
     for key, e in entries.items():
