@@ -111,7 +111,8 @@ DESCRIPTION = (
     "--config: spans of N days); OUT/health/effects.parquet holds every unit-period's fitted values with their "
     "standard errors, flags.parquet the units that drift from their siblings, errors.parquet the files or units "
     "that could not be used. A unit read but never judged against two siblings in the same periods is said in a "
-    'note; no report.md, and a re-run writes the folder again (docs/real-data.md, "The fleet on SCADA").'
+    "note; OUT/report.md says it in words (the flags, what was not judged or left out, each unit's values), and a "
+    're-run writes the folder again (docs/real-data.md, "The fleet on SCADA").'
 )
 EPILOG = (
     "examples:\n"
@@ -265,7 +266,6 @@ def _check_scada_drive(cfg, records) -> None:
 def _run_scada(args) -> int:
     """`fleet --gearbox NAME --columns MAP DIR... --out OUT`: the fleet's health on SCADA records."""
     from firmware_model.config import load_config
-    from tools.fleet.store import write_atomic
     from tools.progress import progress
     from tools.scada.diagnose import setup_of
     from tools.scada.fleet import MIN_UNITS, fit_fleet, flag_units
@@ -273,7 +273,7 @@ def _run_scada(args) -> int:
 
     _refuse_log_options(args)
     try:  # (after the options: a misplaced one is said whether or not pyarrow is installed)
-        import pyarrow as pa
+        import pyarrow  # noqa: F401
     except ImportError:
         raise InputError("the fleet command writes Parquet: pip install 'gearbox-vsensor[fleet]' (pyarrow)") from None
     cfg = resolve_gearbox(args, load_config(args.config))
@@ -313,7 +313,7 @@ def _run_scada(args) -> int:
     _write_health(root, fits, flags)
     kind = "unit-months" if days is None else "unit-periods"
     used = len(records) - len(rejected)
-    judged = _say_not_judged(fits, sorted(set(records) - {u for u, _ in rejected}))
+    judged, not_judged = _say_not_judged(fits, sorted(set(records) - {u for u, _ in rejected}))
     used = len({f.unit for f in fits})  # fitted: a unit read without a fitted period is in the notes above
     # the units read and those fitted: a unit left out (a sump in degF) is said on stdout too, not only on stderr
     left = f" ({len(rejected)} of {len(records)} read left out, above)" if rejected else ""
@@ -329,6 +329,20 @@ def _run_scada(args) -> int:
             f"median, which needs at least {MIN_UNITS}; none could be flagged",
             file=sys.stderr,
         )
+    _write_left_out(root, skipped)
+    from tools.scada.report import write_report as write_scada_report
+
+    print(f"report: {write_scada_report(Path(args.out) / 'report.md', fits, flags, not_judged, skipped, kind)}")
+    return 0
+
+
+def _write_left_out(root: Path, skipped: list) -> None:
+    """health/errors.parquet: the files, units or channels not used in whole or in part (none: an earlier run's
+    table removed, it is not this run's)."""
+    import pyarrow as pa
+
+    from tools.fleet.store import write_atomic
+
     if not skipped:  # a run into the folder of an earlier one: its errors are not this run's
         (root / "errors.parquet").unlink(missing_ok=True)
     if skipped:
@@ -340,7 +354,6 @@ def _run_scada(args) -> int:
             f"{root / 'errors.parquet'})",
             file=sys.stderr,
         )
-    return 0
 
 
 def _refuse_log_options(args) -> None:
@@ -355,25 +368,23 @@ def _refuse_log_options(args) -> None:
         )
 
 
-def _say_not_judged(fits, units) -> int:
+def _say_not_judged(fits, units) -> tuple[int, dict]:
     """On stderr, a note per unit of ``units`` never judged against its siblings, and why (a unit read but never
-    compared is not a sound one); the number judged."""
+    compared is not a sound one), or judged but for some periods; (the number judged, unit -> what was said)."""
     from tools.scada.fleet import MIN_UNITS, alone_periods, coverage
 
     why = coverage(fits, units)
-    for unit in units:
-        if why[unit]:
-            print(f"note: {unit}: {why[unit]}", file=sys.stderr)
+    said = {u: w for u, w in why.items() if w}
     for unit, starts in alone_periods(fits).items():
-        if not why.get(unit):  # (a unit never judged is said above)
+        if not why.get(unit):  # (a unit never judged is said as such)
             which = ", ".join(starts[:3]) + (" ..." if len(starts) > 3 else "")
-            print(
-                f"note: {unit}: {len(starts)} of its periods ({which}) {'was' if len(starts) == 1 else 'were'} "
-                f"fitted beside fewer than "
-                f"{MIN_UNITS - 1} siblings: no fleet median there, not judged",
-                file=sys.stderr,
+            said[unit] = (
+                f"{len(starts)} of its periods ({which}) {'was' if len(starts) == 1 else 'were'} fitted beside fewer "
+                f"than {MIN_UNITS - 1} siblings: no fleet median there, not judged"
             )
-    return sum(not w for w in why.values())
+    for unit, sentence in said.items():
+        print(f"note: {unit}: {sentence}", file=sys.stderr)
+    return sum(not w for w in why.values()), said
 
 
 def _say_rows_dropped(records) -> None:

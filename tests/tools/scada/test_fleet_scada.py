@@ -5,6 +5,7 @@ are not. On the HR225 with the column map of test_replay_scada.py, periods of 6 
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -354,3 +355,28 @@ def test_a_stuck_channel_is_kept_with_the_fleet_s_output(tmp_path):
     said = [r["error"] for r in rows]  # (the fixture's bearings follow its sump: stuck with it)
     assert said and all(w.startswith("T2: ") and "reads one value to the bit" in w for w in said), said
     assert any(w.startswith("T2: Gost_avg reads") for w in said) and "T1" not in " ".join(said)
+
+
+def test_the_scada_fleet_writes_a_report_in_words():
+    """There was no report.md for a SCADA fleet, only stdout and Parquet (a reliability engineer's review): the flags
+    with what they mean, what was not judged or left out and why, each unit's values per period."""
+    from tools.fleet.health import Flag
+    from tools.scada.fleet import PeriodFit
+    from tools.scada.report import report_lines
+
+    def fit(unit, period, cooler, se=0.05):
+        values = {"bearing_loss_scale": 1.1, "cooler_effectiveness_scale": cooler}
+        ses = {"bearing_loss_scale": 0.02, "cooler_effectiveness_scale": se}
+        return PeriodFit(unit, period, f"2017-{period:02d}-01", 4000, values, ses, 1.5, 20)
+
+    fits = [fit("A", 1, 0.95), fit("B", 1, 1.0), fit("B", 2, -1.3), fit("C", 1, 1.0)]
+    flag = Flag("B", "cooler_effectiveness_scale", 2, "2017-02-01", -1.3, 0.0, "its oil runs hotter under load ...")
+    left = [("x.csv", "stuck"), (Path("d/y.csv"), "no SCADA file")]
+    judged = {"A": "", "C": "1 of its periods (2017-02-01) was ..."}
+    text = "\n".join(report_lines(fits, [flag], judged, left, "unit-months"))
+    assert "3 units fitted, 4 unit-months; 1 flagged" in text
+    assert "| B | cooler_effectiveness_scale | 2017-02-01 | its oil runs hotter under load ... |" in text
+    assert "- C: 1 of its periods (2017-02-01) was ..." in text and "| x.csv | stuck |" in text
+    assert "| y.csv | no SCADA file |" in text
+    assert "| 2017-02-01 | 4000 | 1.10 +- 0.02 | -1.30 +- 0.05 (outside its plausible range) | 1.50 |" in text
+    assert "None: no unit drifted" in "\n".join(report_lines(fits, [], {}, [], "unit-months"))
