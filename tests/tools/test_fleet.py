@@ -507,6 +507,9 @@ def test_a_manifest_may_leave_a_rows_optional_fields_blank(tmp_path, synthetic):
     m.write_text(f"Log;Vehicle;Date\n{a};t1;20260105\n{b};t2;\n")
     got = read_manifest(m)
     assert [(e.vehicle, e.date) for e in got] == [("t1", "2026-01-05"), ("t2", None)]
+    m.write_text(f"Log;Vehicle;Date\n{a};t1;20261399\n")  # said as written, not as read
+    with pytest.raises(InputError, match="date '20261399' is not a day of the calendar"):
+        read_manifest(m)
 
 
 def test_a_manifest_that_is_not_text_is_one_sentence(tmp_path, capsys):

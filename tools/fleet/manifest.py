@@ -58,6 +58,7 @@ def log_key(path: Path) -> str:
 def _entry(path: Path, vehicle: str, variant=None, config=None, date=None) -> LogEntry:
     if not vehicle or not vehicle.strip():
         raise InputError(f"{path}: no vehicle name")
+    given = date
     if date is not None and re.fullmatch(r"\d{8}", date):  # a file name's compact date (truck7_20260106.log)
         date = f"{date[:4]}-{date[4:6]}-{date[6:]}"
     if date is not None and not re.fullmatch(r"\d{4}-\d{2}-\d{2}", date):
@@ -66,7 +67,7 @@ def _entry(path: Path, vehicle: str, variant=None, config=None, date=None) -> Lo
         try:
             dt.date.fromisoformat(date)
         except ValueError:
-            raise InputError(f"{path}: date {date!r} is not a day of the calendar") from None
+            raise InputError(f"{path}: date {given!r} is not a day of the calendar") from None
     return LogEntry(path, vehicle.strip(), variant or None, config or None, date or None, log_key(path))
 
 

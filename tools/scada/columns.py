@@ -238,8 +238,10 @@ def _time_extras(time: dict, kind: str, where: str) -> tuple[str | None, str | N
         raise InputError(f'column map {where}: time.at = {at!r} is neither "end" nor "start" of the row\'s period')
     iso = kind.startswith("iso8601")
     for key, val in (("zone", zone), ("format", fmt)):
-        if val is not None and (not iso or not isinstance(val, str) or not val):
-            raise InputError(f"column map {where}: time.{key} must be a text, with a time.kind of ISO 8601 stamps")
+        if val is not None and not iso:
+            raise InputError(f"column map {where}: time.{key} is for ISO 8601 stamps, not time.kind = {kind!r}")
+        if val is not None and (not isinstance(val, str) or not val):
+            raise InputError(f"column map {where}: time.{key} must be a text, not {val!r}")
     if zone is not None:
         if kind == "iso8601_utc":
             raise InputError(f"column map {where}: time.zone with kind iso8601_utc: the stamps are UTC or local")
