@@ -607,8 +607,10 @@ def test_a_bearing_reading_stuck_for_days_while_the_load_swings_is_left_out_and_
 
 def test_a_zone_for_stamps_in_seconds_says_what_it_is_for(tmp_path):
     """time.zone beside kind = "seconds" said 'must be a text' of a text (a review): it names what it is for."""
-    src = (MAP_DIR / "engie.toml").read_text().replace(
-        'kind = "iso8601_offset" }', 'kind = "seconds", zone = "Europe/Paris" }'
+    src = (
+        (MAP_DIR / "engie.toml")
+        .read_text()
+        .replace('kind = "iso8601_offset" }', 'kind = "seconds", zone = "Europe/Paris" }')
     )
     (tmp_path / "z.toml").write_text(src)
     with pytest.raises(InputError, match="time.zone is for ISO 8601 stamps, not time.kind = 'seconds'"):
