@@ -380,3 +380,30 @@ def test_the_scada_fleet_writes_a_report_in_words():
     assert "| y.csv | no SCADA file |" in text
     assert "| 2017-02-01 | 4000 | 1.10 +- 0.02 | -1.30 +- 0.05 (outside its plausible range) | 1.50 |" in text
     assert "None: no unit drifted" in "\n".join(report_lines(fits, [], {}, [], "unit-months"))
+
+
+def test_the_scada_fleet_report_shows_its_fitted_values_in_a_plot(tmp_path):
+    """The report was words and tables only (the trucks' has its plots): report_fitted.png beside it, linked after
+    the flags, the flagged unit drawn first; none when no period identified an effect (an earlier run's removed)."""
+    from tools.fleet.health import Flag
+    from tools.scada.fleet import PeriodFit
+    from tools.scada.report import PLOT_NAME, period_medians, plotted_units, write_report
+
+    def fit(unit, period, cooler, se=0.05):
+        values = {"bearing_loss_scale": 1.0, "cooler_effectiveness_scale": cooler}
+        ses = {"bearing_loss_scale": 0.02, "cooler_effectiveness_scale": se}
+        return PeriodFit(unit, period, f"2017-{period:02d}-01", 4000, values, ses, 1.5, 20)
+
+    fits = [fit(u, k, 1.0 if (u, k) != ("B", 2) else 0.4) for u in "ABC" for k in (1, 2)]
+    flag = Flag("B", "cooler_effectiveness_scale", 2, "2017-02-01", 0.4, 1.0, "its oil runs hotter ...")
+    assert plotted_units(fits, [flag]) == ["B", "A", "C"]
+    assert period_medians(fits, "cooler_effectiveness_scale") == {"2017-01-01": 1.0, "2017-02-01": 1.0}
+    report = write_report(tmp_path / "report.md", fits, [flag], {}, [], "unit-months")
+    png = tmp_path / PLOT_NAME
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and png.stat().st_size > 10_000
+    text = report.read_text()
+    assert f"![fitted values per period]({PLOT_NAME})" in text
+    assert text.index("## Flags") < text.index(PLOT_NAME) < text.index("## Fitted values per unit")
+    nothing = [f._replace(se=dict.fromkeys(f.se, float("inf"))) for f in fits]
+    write_report(tmp_path / "report.md", nothing, [], {}, [], "unit-months")
+    assert not png.exists() and f"{PLOT_NAME} not written" in (tmp_path / "report.md").read_text()
