@@ -189,6 +189,7 @@ def replay_record(
     if oil_mode == "model":
         notes += _long_gap_notes(record, cols)
     meta = {**out.meta, "unit": record.unit, "t0_utc_s": table.meta["t0_utc_s"], "drive": "fixed_ratio"}
+    meta["air_default_c"] = float(sensor.sp.aux_default[0])  # what a row without its air took (air_finding)
     result = RunTable(cols, meta=meta, source=f"replay of {record.unit}")
     mark_for_findings(result, sensor)  # (a rotor's drive: no idle-speed rule; its own kN m rule)
     return ScadaReplay(result, oil_mode, estimated, notes, np.asarray(record.stretch), not_written(d))
@@ -220,6 +221,11 @@ def reading_response(est_c, sump_c, time_s, stretch, tau_s: float) -> np.ndarray
 #: is that large; a sump read in degF puts the bearings 56 K over theirs) over at least BIAS_MIN_ROWS rows. The
 #: shipped MM82 on the three ENGIE turbines' records: |mean| within 3.3 K on every channel, either oil mode.
 DROPPED_WARN_SHARE, IMPLAUSIBLE_WARN_SHARE = 0.05, 0.05
+#: the air around the gearbox missing on at least this share of the rows: a warning, on at least the second the
+#: outputs are not trusted (the degraded shares of the drive inputs, firmware_model.service.degraded). The sensor
+#: takes the description's default air for such rows (not held: the auxiliary inputs' documented default), and an
+#: empty nacelle column put R80721's modelled sump at 2.59 against 1.32 K RMS over a week with exit 0
+AIR_MISSING_WARN_SHARE, AIR_MISSING_UNTRUSTED_SHARE = 0.2, 0.5
 BIAS_WARN_K, BIAS_UNTRUSTED_K, BIAS_MIN_ROWS = 10.0, 30.0, 36
 
 
@@ -280,6 +286,8 @@ def record_findings(record: ScadaRecord, result: ScadaReplay) -> list:
             )
         )
     found += range_findings(record)
+    air = air_finding(record, result.table.meta.get("air_default_c"))
+    found += [air] if air is not None else []
     t = result.table
     biases = {}
     for name in result.estimated:
@@ -404,6 +412,33 @@ def range_findings(record: ScadaRecord) -> list[RecordFinding]:
     return found
 
 
+def air_finding(record: ScadaRecord, default_c=None) -> RecordFinding | None:
+    """The air around the gearbox (the map's ``ambient_temp_c``) missing on AIR_MISSING_WARN_SHARE of the rows or
+    more (an empty or mostly empty nacelle column; one mostly out of range is range_findings'): the sensor took
+    its default air there. ``default_c``: that default [degC], said when known."""
+    name = "ambient_temp_c"
+    ch = record.cmap.channels.get(name)
+    if (
+        ch is None
+        or not record.n
+        or record.by_channel.get(name, {}).get("implausible", 0) > (IMPLAUSIBLE_WARN_SHARE * record.n)
+    ):
+        return None
+    missing = int(np.sum(~np.isfinite(np.asarray(record.values[name], dtype=float))))
+    share = missing / record.n
+    if share < AIR_MISSING_WARN_SHARE:
+        return None
+    default = f", {float(default_c):g} degC" if default_c is not None and math.isfinite(default_c) else ""
+    return RecordFinding(
+        "inputs",
+        UNTRUSTED if share >= AIR_MISSING_UNTRUSTED_SHARE else WARNING,
+        f"the air around the gearbox ({name} <- {', '.join(ch.columns)}) is missing on {missing} of {record.n} "
+        f"rows ({share:.0%}): the sensor took the gearbox description's default air there{default}, not the "
+        "nacelle's; map a column that has it (an export without a nacelle air: the outdoor air + 12.5 K, "
+        'docs/real-data.md "Without a nacelle air")',
+    )
+
+
 #: a derived torque P / omega out of its range because the speed is in rad/s read as rpm: the torque at the speed
 #: in rad/s (the read torque times 2 pi / 60) fits its range on at least this share of the producing rows where the
 #: read one does not
@@ -461,7 +496,11 @@ def untrusted_findings(record: ScadaRecord, residual: dict, params) -> list[Reco
     torque in kN m (firmware_model.service.plausibility) and an estimate more than BIAS_UNTRUSTED_K off its readings
     on average. ``params``: the gearbox's (its drive's limits). A fit to such a record explains a unit mistake by a
     gearbox effect: diagnose and calibrate refuse it, the fleet leaves the unit out."""
-    found = [f for f in [*range_findings(record), spacing_finding(record)] if f and f.severity >= UNTRUSTED]
+    found = [
+        f
+        for f in [*range_findings(record), spacing_finding(record), air_finding(record)]
+        if f and f.severity >= UNTRUSTED
+    ]
     v = record.values
     if "input_speed_rpm" in v and "input_torque_nm" in v:
         knm = drive_knm_finding(
