@@ -172,6 +172,31 @@ def test_a_held_low_load_is_not_taken_for_percent():
         assert torque_percent_finding(rpm, held_nm + rng.normal(0.0, 3.0, rpm.size), gear) is None
 
 
+def test_a_steady_climb_in_percent_is_found_on_the_road_and_a_rig_s_held_point_is_not():
+    """A 30-minute climb's torque in percent (p10 39, p90 67: under the spread rule's 30) replayed 35 K cool with exit
+    0 (a newcomer's trial): a vehicle that moves a quarter of an hour on at most 125 N m, under load throughout, is
+    no road drive. A rig's held point keeps the spread rule, with a vehicle speed column or without; a descent in
+    N m on engine braking and light throttle is no such mistake."""
+    from firmware_model.service.plausibility import record_findings
+
+    n = 30 * 600
+    rng = np.random.default_rng(1)
+    rpm, gear, kmh = np.full(n, 1400.0), np.full(n, 10.0), np.full(n, 45.0)
+    pct_climb = np.clip(53.0 + 10.0 * np.sin(np.arange(n) / 700.0) + 4.0 * rng.standard_normal(n), 0.0, 77.0)
+    f = torque_percent_finding(rpm, pct_climb, gear, vehicle_kmh=kmh)
+    assert f is not None and f.likely == "percent"
+    cols = {"engine_speed_rpm": rpm, "engine_torque_nm": pct_climb, "gear": gear, "vehicle_speed_kmh": kmh}
+    assert [x.likely for x in record_findings(cols, DT)] == ["percent"]
+    assert torque_percent_finding(rpm, pct_climb, gear) is None  # no vehicle speed: a rig's table, the spread rule
+    assert torque_percent_finding(rpm, pct_climb, gear, vehicle_kmh=np.zeros(n)) is None  # a vehicle standing
+    assert torque_percent_finding(rpm[:6000], pct_climb[:6000], gear[:6000], vehicle_kmh=kmh[:6000]) is None  # 10 min
+    for held_nm in (60.0, 100.0):  # a rig's held point beside a vehicle speed it computes from the output shaft
+        assert torque_percent_finding(rpm, held_nm + rng.normal(0.0, 3.0, n), gear, vehicle_kmh=kmh) is None
+    descent = -150.0 + 200.0 * np.sin(np.arange(n) / 400.0)  # -350..50 N m: below percent's -125, by either rule
+    assert torque_percent_finding(rpm, descent, gear, vehicle_kmh=kmh) is None
+    assert torque_percent_finding(rpm, descent, gear) is None
+
+
 def test_record_findings_of_an_honest_drive_in_the_whole_envelope():
     for seed in range(5):
         rpm, torque, gear = _drive(30.0, seed)
