@@ -417,15 +417,26 @@ MS_CHECK_MIN_ROWS = 20
 #: ... and so is one longer than LONG_CYCLE_S whose rows lie at least LONG_ROWS_S apart: a 20-100 Hz logger in
 #: milliseconds (rows 10-50 "s" apart; a 10-minute file spans about 7 days)
 LONG_CYCLE_S, LONG_ROWS_S = 86400.0, 10.0
+#: a fixed-ratio drive's rows (sparse_ok: SCADA averages) further apart than this [s] (median): no SCADA averages
+#: over more than an hour, while a 10 s logger's time_s in milliseconds puts its rows 10 000 "s" apart
+SCADA_MAX_ROWS_S = 3600.0
 
 
 def milliseconds_sentence(t_s, name: str, sparse_ok: bool = False) -> str | None:
     """The sentence for a table whose time_s looks like milliseconds (None: it does not); ``sparse_ok``: rows far
     apart are expected (a fixed-ratio drive's SCADA averages)."""
     t = np.asarray(t_s, dtype=float)
-    if t.size < MS_CHECK_MIN_ROWS or sparse_ok:
+    if t.size < MS_CHECK_MIN_ROWS:
         return None
     spacing_s = float(np.median(np.diff(t)))
+    if sparse_ok:
+        if spacing_s <= SCADA_MAX_ROWS_S:
+            return None
+        return (
+            f"{name}: its rows lie a median {spacing_s:.0f} s apart ({(t[-1] - t[0]) / 86400.0:.0f} days in all), "
+            f"further than any SCADA average (at most {SCADA_MAX_ROWS_S:.0f} s): if time_s is in milliseconds, "
+            "give seconds"
+        )
     if spacing_s > SPARSE_ROWS_S or (t[-1] - t[0] > LONG_CYCLE_S and spacing_s >= LONG_ROWS_S):
         return (
             f"{name}: its rows lie a median {spacing_s:.0f} s apart ({t[-1] - t[0]:.0f} s in all): if time_s is in "

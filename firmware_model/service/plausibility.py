@@ -81,6 +81,9 @@ PERCENT_MIN_SPREAD = 30.0
 #: 125 N m. A steady 30-minute climb in percent (p10 39, p90 67) escaped the spread rule with exit 0 (a newcomer's
 #: trial); a rig, whose table moves no vehicle, keeps the spread rule
 PERCENT_MOVING_KMH, PERCENT_MOVING_SHARE, PERCENT_MOVING_MIN_S, PERCENT_MOVING_SPREAD = 5.0, 0.5, 900.0, 10.0
+#: ... and a fixed-ratio drive's torque only when the drive takes at least this [N m] (four times PERCENT_MAX: an
+#: input never above a quarter of it; a small motor's reducer, the R1's 600 N m, runs honestly on 20 %)
+PERCENT_FIXED_MIN_NM = 4.0 * PERCENT_MAX
 #: a clamp or repair of an input on more than this share of the steps is untrusted
 REPAIR_UNTRUSTED_SHARE = 0.05
 #: the reject counters that clamp or repair a value the sensor then uses (a missing input is the degraded
@@ -534,10 +537,16 @@ def _driving(speed_rpm, gear, n: int) -> np.ndarray:
 
 
 def torque_sign_finding(
-    speed_rpm, torque_nm, gear=None, dt_s: float = STEP_S, min_torque_nm: float | None = None, source: str = "table"
+    speed_rpm,
+    torque_nm,
+    gear=None,
+    dt_s: float = STEP_S,
+    min_torque_nm: float | None = None,
+    source: str = "table",
+    engine: bool = True,
 ) -> PlausibilityFinding | None:
     """The torque-sign rule (module doc); ``min_torque_nm``: the engine's braking limit (None: only the
-    SIGN_ALL_SHARE branch)."""
+    SIGN_ALL_SHARE branch); ``engine``: a vehicle's engine (False: a fixed-ratio drive's input, said in its words)."""
     torque = _finite(torque_nm)
     drive = _driving(speed_rpm, gear, torque.size) & np.isfinite(torque)
     n = int(drive.sum())
@@ -550,10 +559,20 @@ def torque_sign_finding(
         return None
     col = SOURCES[source]["engine_torque_nm"]
     brake = (
-        f", below the engine's braking limit {min_torque_nm:.0f} Nm on {pct(int(np.sum(t < min_torque_nm)), n)}"
+        f", below the {'engine' if engine else 'drive'}'s braking limit {min_torque_nm:.0f} Nm on "
+        f"{pct(int(np.sum(t < min_torque_nm)), n)}"
         if beyond >= SIGN_BEYOND_SHARE
         else ""
     )
+    if not engine and source == "table":
+        return PlausibilityFinding(
+            "engine_torque_nm",
+            "negative",
+            f"column input_torque_nm is below {SIGN_NEG_NM:.0f} Nm on {pct(int(np.sum(t < SIGN_NEG_NM)), n)} of "
+            f"the {n} steps the input turns at {DRIVE_MIN_RPM:.0f} rpm or more (median {np.median(t):.0f} Nm"
+            f"{brake}): no drive brakes its gearbox for a whole run, so the sign convention looks mixed up; negate "
+            "the column (the input torque is positive when it drives the gearbox)",
+        )
     fix = (
         "negate the column (the engine's output torque is positive when it drives)"
         if source == "table"
@@ -587,12 +606,20 @@ def _on_the_road(speed_rpm, torque_nm, gear, vehicle_kmh, dt_s: float) -> bool:
 
 
 def torque_percent_finding(
-    speed_rpm, torque_nm, gear=None, dt_s: float = STEP_S, source: str = "table", vehicle_kmh=None
+    speed_rpm,
+    torque_nm,
+    gear=None,
+    dt_s: float = STEP_S,
+    source: str = "table",
+    vehicle_kmh=None,
+    drive_max_nm: float | None = None,
 ) -> PlausibilityFinding | None:
     """The percent-torque rule (module doc); ``vehicle_kmh``: the vehicle's speed (None: a rig's table), for the
-    rule of a vehicle on the road (PERCENT_MOVING_*)."""
+    rule of a vehicle on the road (PERCENT_MOVING_*); ``drive_max_nm``: a fixed-ratio drive's largest torque (None:
+    a vehicle's engine), judged only when at least PERCENT_FIXED_MIN_NM (a small motor's reducer honestly runs
+    on at most 125 N m) and said in its words."""
     t = _driven_torque(speed_rpm, torque_nm, gear, dt_s)
-    if t is None:
+    if t is None or (drive_max_nm is not None and not drive_max_nm >= PERCENT_FIXED_MIN_NM):
         return None
     n = t.size
     peak = float(t.max())
@@ -603,6 +630,15 @@ def torque_percent_finding(
     road = p10 > 0.0 and p90 - p10 >= PERCENT_MOVING_SPREAD
     if p90 - p10 < PERCENT_MIN_SPREAD and not (road and _on_the_road(speed_rpm, torque_nm, gear, vehicle_kmh, dt_s)):
         return None
+    if drive_max_nm is not None:
+        return PlausibilityFinding(
+            "engine_torque_nm",
+            "percent",
+            f"column input_torque_nm never exceeds {PERCENT_MAX:.0f} over {span_words(n * dt_s / 60.0)} with the "
+            f"input at {DRIVE_MIN_RPM:.0f} rpm or more (peak {peak:.0f}, median {np.median(t):.0f}) while the drive "
+            f"takes up to {drive_max_nm:.4g} N m, so the torque looks like percent of it, not N m; give N m (if it "
+            "is an honest light load, pass --allow-untrusted)",
+        )
     col = SOURCES[source]["engine_torque_nm"]
     fix = (
         "give N m (percent / 100 x the engine's reference torque, EC1 SPN 544)"
@@ -781,8 +817,11 @@ def record_findings(
         if col("time_s") is not None:  # (a live check's samples carry none: its clock is the bus's)
             out.append(oil_rate_finding(col("time_s"), oil, source))
     if speed is not None and torque is not None:
-        out.append(torque_sign_finding(speed, torque, gear, dt_s, min_torque_nm, source))
-        out.append(torque_percent_finding(speed, torque, gear, dt_s, source, col("vehicle_speed_kmh")))
+        out.append(torque_sign_finding(speed, torque, gear, dt_s, min_torque_nm, source, engine))
+        fixed_max_nm = None if engine or drive_limits is None else float(drive_limits[1])
+        if engine or fixed_max_nm is not None:  # (a fixed-ratio drive without its limits: not judged)
+            kmh = col("vehicle_speed_kmh")
+            out.append(torque_percent_finding(speed, torque, gear, dt_s, source, kmh, fixed_max_nm))
         if engine:
             out.append(torque_knm_finding(speed, torque, gear, dt_s, source))
         elif drive_limits is not None:  # (a far faster input than described: its torque is no unit's mistake)

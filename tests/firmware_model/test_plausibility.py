@@ -197,6 +197,28 @@ def test_a_steady_climb_in_percent_is_found_on_the_road_and_a_rig_s_held_point_i
     assert torque_percent_finding(rpm, descent, gear) is None
 
 
+def test_a_fixed_ratio_drive_s_torque_mistakes_are_said_in_its_words_and_a_small_motor_s_light_load_is_not_percent():
+    """A fixed-ratio drive's torque negated or in percent was said in a truck's words (engine_torque_nm, engine
+    braking, "a truck engine gives 1000-3500 N m", EC1 SPN 544) to a reducer on an electric motor (a newcomer's
+    trial); the percent rule judges it against the drive's own largest torque, and not a drive that takes under
+    PERCENT_FIXED_MIN_NM (a small motor's reducer honestly runs on 125 N m)."""
+    from firmware_model.service.plausibility import PERCENT_FIXED_MIN_NM, record_findings
+
+    n = 30 * 600
+    rpm = np.full(n, 1485.0)
+    load_nm = 300.0 + 250.0 * np.sin(np.arange(n) / 900.0)
+    cols = {"engine_speed_rpm": rpm, "engine_torque_nm": -load_nm}
+    (neg,) = record_findings(cols, DT, -700.0, engine=False, drive_limits=(1800.0, 1450.0))
+    assert neg.likely == "negative" and neg.sentence.startswith("column input_torque_nm is below -50 Nm")
+    assert "no drive brakes its gearbox" in neg.sentence and "engine" not in neg.sentence
+    pct_cols = {"engine_speed_rpm": rpm, "engine_torque_nm": load_nm / 600.0 * 100.0}  # percent of a 600 N m rating
+    (pct,) = record_findings(pct_cols, DT, engine=False, drive_limits=(1800.0, 1450.0))
+    assert pct.likely == "percent" and "while the drive takes up to 1450 N m" in pct.sentence
+    assert "truck" not in pct.sentence and "SPN" not in pct.sentence
+    assert record_findings(pct_cols, DT, engine=False, drive_limits=(1800.0, 0.9 * PERCENT_FIXED_MIN_NM)) == []
+    assert record_findings(pct_cols, DT, engine=False) == []  # no limits: nothing to judge it against
+
+
 def test_record_findings_of_an_honest_drive_in_the_whole_envelope():
     for seed in range(5):
         rpm, torque, gear = _drive(30.0, seed)

@@ -465,3 +465,31 @@ def test_a_table_in_memory_is_named_by_its_row_alone():
     t["gear"] = 4.0
     with pytest.raises(InputError, match=r'mem: column "time_s" row 3: 0.1 s goes backwards from 0.2 s at row 2;'):
         runtable.validate_run_table(t, name="mem")
+
+
+def test_a_fixed_ratio_drive_s_rows_hours_apart_are_taken_for_milliseconds(tmp_path, capsys):
+    """A fixed-ratio drive's rows may lie minutes apart (SCADA averages), so its table was never judged for time_s in
+    milliseconds: a 10 s logger's 4 h read as 173 days, exit 0 (a newcomer's trial). Rows over an hour apart are
+    said, by `replay` (exit 3) and `simulate` (refused); hourly rows are not."""
+    import numpy as np
+
+    from tools.cli import main
+    from tools.runtable import SCADA_MAX_ROWS_S, RunTable, milliseconds_sentence, write_run_table
+
+    t_s = np.arange(100) * 10.0
+    assert milliseconds_sentence(t_s * 1000.0, "x", sparse_ok=True).startswith("x: its rows lie a median 10000 s")
+    assert milliseconds_sentence(np.arange(100) * SCADA_MAX_ROWS_S, "x", sparse_ok=True) is None
+    assert milliseconds_sentence(t_s * 60.0, "x", sparse_ok=True) is None  # 10-minute rows: SCADA
+    n = t_s.size
+    cols = {
+        "time_s": t_s * 1000.0,
+        "input_speed_rpm": np.full(n, 1485.0),
+        "input_torque_nm": np.full(n, 600.0) + np.arange(n),
+        "ambient_temp_c": np.full(n, 22.0),
+    }
+    write_run_table(RunTable(cols), tmp_path / "ms.csv")
+    out = str(tmp_path / "est.csv")
+    assert main(["replay", str(tmp_path / "ms.csv"), "--gearbox", "HR225", "--out", out, "--quiet"]) == 3
+    assert "time_s: its rows lie a median 10000 s apart" in capsys.readouterr().err
+    assert main(["simulate", "--gearbox", "HR225", "--cycle", str(tmp_path / "ms.csv"), "--out", out]) == 2
+    assert "if time_s is in milliseconds, give seconds" in capsys.readouterr().err

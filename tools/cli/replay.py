@@ -110,7 +110,8 @@ def add_subparser(sub):
         "of the steps, a suspect time base, a needed message only from unexpected source "
         "addresses, a unit or sign mistake of the whole record (oil in degF or kelvin, torque "
         "negated or in percent, speed in rad/s, time_s in minutes: the oil changing faster than any gearbox "
-        "sump), an input clamped or repaired on more than 5 %% "
+        "sump; a fixed-ratio drive's rows over an hour apart: time_s in milliseconds; its speed in rad/s or "
+        "time_s in minutes only show as the oil's gap to the model), an input clamped or repaired on more than 5 %% "
         "of the steps, or a log's malformed lines (over 1 %% of them, or one breaking a frame "
         "sequence the step needs) (default: warn on stderr and exit 3, outputs written)",
     )

@@ -111,8 +111,10 @@ def add_subparser(sub):
     p.add_argument(
         "--allow-untrusted",
         action="store_true",
-        help="simulate a CSV cycle whose units look wrong (time_s in milliseconds, engine speed in rad/s) "
-        "anyway; without it such a cycle is refused before anything runs",
+        help="simulate a CSV cycle whose units look wrong (time_s in milliseconds, engine speed in rad/s, a "
+        "torque negated or in percent or kN m; a fixed-ratio drive's rows over an hour apart, its torque in percent "
+        "or kN m, not its speed in rad/s or time_s in minutes, which nothing in a cycle tells apart from a slower "
+        "or faster run) anyway; without it such a cycle is refused before anything runs",
     )
     _add_hidden_options(p)
     p.set_defaults(func=run)

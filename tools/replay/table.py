@@ -614,6 +614,12 @@ def table_findings(out, oil_model: bool = False) -> list:
         engine=engine,
     )
     units += table_record_findings(out, (out.meta or {}).get("min_torque_nm"))
+    if not engine and out.n:  # a fixed-ratio drive's rows may lie minutes apart, not hours: ms read as s
+        from firmware_model.service.degraded import UnitFinding
+        from tools.runtable import milliseconds_sentence
+
+        ms = milliseconds_sentence(out["time_s"], "time_s", sparse_ok=True)
+        units = ([UnitFinding(ms)] if ms else []) + units  # (first: the oil's gap to the model follows from it)
     return units + ([finding] if finding.severity >= Severity.WARNING else [])
 
 
