@@ -28,11 +28,14 @@ place of the least squares, scikit-learn's defaults; the `boosted` extra), the n
 estimate as one more feature, both fitted on the training records) and prints each fit's weight on the physics;
 `--informed --boosted` with the physics-informed boosted NBM (the boosted NBM's trees over the same features).
 
+`--long-lag` fills them with the long-lag linear NBM (tools/scada/nbm.py: the power's lags to 24 h, the nacelle
+air's and whether the turbine produces; a reviewer's stronger linear baseline), its ratio to the linear NBM.
+
 `--compare` prints one table of all five on the same splits: the linear NBM's RMS and, with their ratios to it, the
 boosted NBM's, the physics model's and both physics-informed NBMs' (the physics fitted once per split and task);
 `--plot PNG` draws them as bars, a fraction of the linear NBM's RMS, with the goals.
 
-    python benchmarks/bench_scada.py [--vs-mean | --boosted | --physics | --informed [--boosted]
+    python benchmarks/bench_scada.py [--vs-mean | --long-lag | --boosted | --physics | --informed [--boosted]
         | --compare [--plot PNG]] [--fit-rows N] [--period P] [--only T]... DIR
 """
 
@@ -59,7 +62,7 @@ from tools.scada.holdout import (  # noqa: E402
     table,
     time_splits,
 )
-from tools.scada.nbm import TASKS, BoostedNBM, LinearNBM  # noqa: E402
+from tools.scada.nbm import TASKS, BoostedNBM, LinearNBM, LongLagNBM  # noqa: E402
 from tools.scada.reader import read_units  # noqa: E402
 
 #: a row counts as producing above this power [kW]
@@ -278,7 +281,7 @@ def plot_compare(scores: dict, path: Path, title: str) -> None:
 
 
 def main(argv: list[str]) -> int:
-    flags = {a for a in argv if a in ("--vs-mean", "--boosted", "--physics", "--informed", "--compare")}
+    flags = {a for a in argv if a in ("--vs-mean", "--boosted", "--physics", "--informed", "--compare", "--long-lag")}
     args = [a for a in argv if a not in flags]
     fit_rows, period, only, plot = None, None, [], None
     while any(a in args for a in ("--fit-rows", "--period", "--only", "--plot")):
@@ -296,7 +299,7 @@ def main(argv: list[str]) -> int:
     where = args[0] if args else os.environ.get("GVS_REAL_SCADA")
     if not where or not Path(where).is_dir():
         print(
-            "usage: bench_scada.py [--vs-mean | --boosted | --physics | --informed [--boosted] "
+            "usage: bench_scada.py [--vs-mean | --long-lag | --boosted | --physics | --informed [--boosted] "
             "| --compare [--plot PNG]] [--fit-rows N] [--period YYYY[-MM]] [--only TEXT]... DATA_DIR "
             "(or set GVS_REAL_SCADA)"
         )
@@ -322,6 +325,8 @@ def report(flags: set, where: Path, fit_rows: int | None, period: str | None, on
             print(f"\nfigure: {plot}")
     elif "--vs-mean" in flags:
         print(run(where, TrainingMean, "training mean", period, only))
+    elif "--long-lag" in flags:
+        print(run(where, LongLagNBM, "long-lag NBM", period, only))
     elif "--boosted" in flags and "--informed" not in flags:
         print(run(where, BoostedNBM, "boosted NBM", period, only))
     elif "--physics" in flags:
