@@ -75,6 +75,21 @@ THERMOSTAT_RANGE_C = (40.0, 150.0)
 #: of common shaft design practice, D/d 1.1..1.5; the GRS905's layshaft journals are 50 mm on 62 mm, 1.24); a pilot
 #: bearing (seated inside another shaft) sits on a spigot at the shaft's end and is not held to it
 SHOULDER_MAX = 1.5
+#: a shaft's length (its segments' span and both ends) over the square root of its housings' total area, at most:
+#: a shaft lies mostly inside its housing (the shipped shafts: 0.06-0.26; positions in mm written u = "m" make it
+#: about 1000 times too long, and every wheel and bearing still lies on its shaft)
+SHAFT_LENGTH_PER_HOUSING = 2.0
+#: a bearing's mass over what its rings' annulus pi/4 (D^2 - d^2) B of solid bearing steel would weigh: a bearing is
+#: lighter than that solid ring (the shipped bearings: 0.60-0.87), a mass in grams or tonnes is 1000 times off
+BEARING_MASS_PER_ANNULUS = (0.1, 2.0)
+BEARING_STEEL_KG_M3 = 7850.0
+#: a wheel's (a planetary set's) face width over its (the sun's) pitch diameter, at most (the shipped: up to 1.26;
+#: practice for pinions, b/d 0.5-1.5): a width in mm written u = "m" is 1000 times too wide
+FACE_WIDTH_PER_PITCH = 3.0
+#: the helix angles of helical and spur gears [deg] (the shipped: 0-20 deg); 10 written u = "rad" is 573 deg
+HELIX_RANGE_DEG = (0.0, 45.0)
+#: the boundaries a cooler reaches without touching a part: a liquid cooler's coolant, an air cooler's ambient
+COOLER_BOUNDARIES = ("coolant", "ambient")
 #: where the thermostat reads the oil: "return" the oil leaving the cooler and bypass, T_sump - Q / (mdot cp) (seed
 #: Eq 82, the default); "sump" the oil the pump draws, before the cooler (a valve upstream of the cooler)
 THERMOSTAT_SENSES = ("return", "sump")
@@ -420,6 +435,8 @@ class Description:
     taken: frozenset = frozenset()
     #: the warning-limits file its published.limits names (resolved: beside the description, else a shipped one)
     limits_path: str | None = None
+    #: whether published.limits names the limits file (else the default, limits.toml: the GRS905 truck's)
+    limits_stated: bool = True
 
     def _one(self, items, key: str):
         return next((x for x in items if getattr(x, "id", getattr(x, "name", None)) == key), None)
@@ -669,6 +686,7 @@ def _wheels(r: _Reader, topo: dict, shafts: dict) -> tuple:
             r.fail(key, f"has no bore: a wheel that turns on its {'pin' if mount == 'pin' else 'shaft'} needs one")
         if f["sides"] is not None and f["sides"] not in SIDES:
             r.fail(f"{key}.sides", f"= {f['sides']!r} must be one of {', '.join(SIDES)}")
+        _check_gear_size(r, key, f["teeth"], f["module"], f["helix"], f["width"])
         w = Wheel(wid, mount, f["teeth"], f["module"], f["helix"], f["width"], f["x"], shaft, seg, f["bore"])
         _check_wheel_fits(r, key, w, shafts)
         if mount != "pin" and shaft in shafts:
@@ -696,6 +714,38 @@ def _check_on_shaft(r: _Reader, key: str, x_m: float, shaft: Shaft, seg: str, wh
                 f"= {x_m:g} m is nearer segment {near} ({xs[near]:g} m) than its own segment {seg} ({xs[seg]:g} m): a "
                 f"{what} sits on its segment's piece of the shaft; correct its x or its segment",
             )
+
+
+def _as_written(r: _Reader, key: str, si: float, si_unit: str) -> str:
+    """A value as the file writes it (``10 rad``), or in SI when it is taken from a parameter."""
+    e = r.entries.get(key)
+    if isinstance(e, dict) and isinstance(e.get("v"), (int, float)) and isinstance(e.get("u"), str):
+        return f"{e['v']:g} {e['u']}"
+    return f"{si:g} {si_unit}"
+
+
+def _check_gear_size(r: _Reader, key: str, teeth: int, module_m: float, helix_rad: float, width_m: float) -> None:
+    """A helix angle within HELIX_RANGE_DEG, checked before anything is derived from it (10 written u = "rad", 573
+    deg, was said as a tip diameter of -103 mm), and a face width at most FACE_WIDTH_PER_PITCH times the pitch
+    diameter (50 mm written u = "m" was said as a node's explicit step: merge the node with a neighbour)."""
+    lo, hi = HELIX_RANGE_DEG
+    deg = math.degrees(helix_rad)
+    if not lo <= deg <= hi:
+        written = _as_written(r, f"{key}.helix", deg, "deg")
+        shown = written if written.endswith(" deg") else f"{written} ({deg:.3g} deg)"
+        r.fail(
+            f"{key}.helix",
+            f"= {shown} lies outside {lo:g}..{hi:g} deg, the helix angles of spur and helical gears (another unit? "
+            'degrees are written u = "deg")',
+        )
+    d_pitch = module_m * teeth / math.cos(helix_rad)
+    if width_m > FACE_WIDTH_PER_PITCH * d_pitch:
+        r.fail(
+            f"{key}.width",
+            f"= {_as_written(r, f'{key}.width', width_m, 'm')} is {width_m / d_pitch:.3g} times its pitch diameter "
+            f"{d_pitch * 1e3:.3g} mm (z {teeth}, module {module_m * 1e3:g} mm): a face width is at most "
+            f'{FACE_WIDTH_PER_PITCH:g} times it (another unit? millimetres are written u = "mm")',
+        )
 
 
 def _check_wheel_fits(r: _Reader, key: str, w: Wheel, shafts: dict) -> None:
@@ -731,6 +781,7 @@ def _planetary(r: _Reader, topo: dict, shafts: dict) -> tuple:
             if f[seg_k] is not None and f[seg_k] not in [s.id for s in shafts[f[k]].segments]:
                 r.fail(f"{key}.{seg_k}", f"= {f[seg_k]!r} is no segment of shaft {f[k]}")
         zs, zp, zr, n = f["z_sun"], f["z_planet"], f["z_ring"], f["n_planets"]
+        _check_gear_size(r, key, zs, f["module"], f["helix"], f["width"])  # the sun: the smallest member
         if abs((zr - zs) / 2 - zp) > 0.5:
             r.fail(f"{key}.z_planet", f"= {zp} does not fit between sun and ring: it must be (z_ring - z_sun) / 2")
         if (zs + zr) % n:
@@ -865,6 +916,7 @@ def _bearings(r: _Reader, topo: dict, shafts: dict, wheels: dict, housings: set)
             _check_seat(r, key, f, shafts[shaft])
         if shaft in shafts and f["x"] is not None:
             _check_on_shaft(r, key, f["x"], shafts[shaft], seg, "bearing")
+        _check_bearing_mass(r, key, f)
         out.append(
             Bearing(
                 bid,
@@ -886,6 +938,25 @@ def _bearings(r: _Reader, topo: dict, shafts: dict, wheels: dict, housings: set)
             )
         )
     return tuple(out)
+
+
+def _check_bearing_mass(r: _Reader, key: str, f: dict) -> None:
+    """A bearing's mass (when given, with its bore and outer diameter) within BEARING_MASS_PER_ANNULUS of what its
+    rings' annulus of solid steel would weigh: 6100 kg for a 120 x 215 mm bearing (grams written kg) passed and made
+    its node a heat sink that never warmed."""
+    m, d, D, B = f["mass"], f["bore"], f["outer"], f["width"]
+    if m is None or d is None or D is None or not D > d:
+        return
+    solid_kg = math.pi / 4 * (D * D - d * d) * B * BEARING_STEEL_KG_M3
+    lo, hi = BEARING_MASS_PER_ANNULUS
+    if not lo <= m / solid_kg <= hi:
+        r.fail(
+            f"{key}.mass",
+            f"= {_as_written(r, f'{key}.mass', m, 'kg')} is {m / solid_kg:.3g} times what its rings would weigh as "
+            f"solid steel ({solid_kg:.3g} kg: pi/4 (D^2 - d^2) B x {BEARING_STEEL_KG_M3:g} kg/m3 for "
+            f"{d * 1e3:g} x {D * 1e3:g} x {B * 1e3:g} mm); a bearing weighs {lo:g}-{hi:g} times that (another unit? "
+            'kilograms are written u = "kg")',
+        )
 
 
 def _check_seat(r: _Reader, key: str, f: dict, shaft: Shaft) -> None:
@@ -934,6 +1005,12 @@ def _housings(r: _Reader, topo: dict, boundaries: set) -> tuple:
             r.fail(
                 f"{key}.material",
                 f"= {f['material']!r} has no [material.{f['material']}] in the file; materials: {', '.join(materials)}",
+            )
+        if not f["faces"]:  # its outside would exchange nothing: the sump read what the shafts' ends gave it
+            r.fail(
+                f"{key}.faces",
+                "is empty: the housing's outside (housing.external_frac of its area) would exchange heat with nothing; "
+                "name the boundaries around it (as ambient)",
             )
         for b in f["faces"]:
             if b not in boundaries:
@@ -1005,6 +1082,7 @@ def _oil(r: _Reader, topo: dict, shafts: dict, nodes: set) -> OilSystem:
         for j in f[k] or ():
             if j not in nodes:
                 r.fail(f"{key}.{k}", f"names {j}, which is no part of the description")
+    _check_splash_reaches(r, key, f)
     if f["cooler"] not in COOLERS:
         r.fail(f"{key}.cooler", f"= {f['cooler']!r} must be one of {', '.join(COOLERS)}")
     t_open, t_full = f["thermostat_open"], f["thermostat_full"]
@@ -1068,6 +1146,19 @@ def _oil(r: _Reader, topo: dict, shafts: dict, nodes: set) -> OilSystem:
         f["pump_stops_below"],
         measured_cooler,
     )
+
+
+def _check_splash_reaches(r: _Reader, key: str, f: dict) -> None:
+    """A splash-lubricated oil system names something in the oil: what dips (dipping) or what is splashed (the R1
+    names only what its wheel throws over); with neither, the wheels and bearings exchanged heat with the oil through
+    nothing and a pinion ran at 257 degC, exit 0."""
+    if f["lubrication"] == "splash" and not f["dipping"] and not f["splashed"]:
+        r.fail(
+            f"{key}.dipping",
+            "and splashed are empty: a splash-lubricated gearbox's oil reaches its wheels and bearings by a part "
+            "dipping into the sump that throws it over the others; name what dips (dipping) and what it splashes "
+            "(splashed)",
+        )
 
 
 def _measured_cooler(r: _Reader, key: str, f: dict, t_open) -> str:
@@ -1176,6 +1267,140 @@ def _check_touches(r: _Reader, boundaries: tuple, nodes: set) -> None:
         for n in b.touches:
             if n not in nodes:
                 r.fail(f"{TOPOLOGY}.boundary.{b.id}.touches", f"names {n}, which is no part of the description")
+
+
+def _check_boundaries_used(r: _Reader, boundaries: tuple, housings: tuple, oil: OilSystem) -> None:
+    """Every boundary takes heat from something: a part it touches by conduction (touches with a conductance), a
+    housing facing it (faces), or a cooler reaching it (COOLER_BOUNDARIES, while there is a cooler)."""
+    faced = {f for h in housings for f in h.faces}
+    for b in boundaries:
+        if b.id in faced or (b.touches and b.conductance_w_per_k is not None):
+            continue
+        if oil.cooler != "none" and b.id in COOLER_BOUNDARIES:
+            continue
+        r.fail(
+            f"{TOPOLOGY}.boundary.{b.id}",
+            "touches no part and no housing faces it: it would exchange heat with nothing; name the parts it touches "
+            "by conduction (touches, with a conductance) or face it from a housing (faces)",
+        )
+
+
+def _check_shaft_lengths(r: _Reader, shafts: tuple, housings: tuple) -> None:
+    """A shaft at most SHAFT_LENGTH_PER_HOUSING times the square root of its housings' total area long: positions
+    in mm written u = "m" throughout (shafts, wheels, bearings alike) made 300 m shafts whose wheels and bearings all
+    lay on them, and the sump read 31 degC for 55; an overhang of 210 m did the same."""
+    area_m2 = sum(h.area_m2 for h in housings)
+    if area_m2 <= 0:
+        return
+    most_m = SHAFT_LENGTH_PER_HOUSING * math.sqrt(area_m2)
+    for sh in shafts:
+        length = sh.rear_m - sh.front_m
+        if length <= most_m:
+            continue
+        first, last = sh.segments[0].x_m, sh.segments[-1].x_m
+        r.fail(
+            f"{TOPOLOGY}.shaft.{sh.id}",
+            f"is {length:.4g} m long (its segments over {last - first:.4g} m, ends {first - sh.front_m:.4g} m and "
+            f"{sh.rear_m - last:.4g} m beyond them), more than {SHAFT_LENGTH_PER_HOUSING:g} times the square root of "
+            f"its housings' total area ({math.sqrt(area_m2):.3g} m, of {area_m2:g} m2): a shaft lies mostly inside "
+            'its housing (another unit? millimetres are written u = "mm")',
+        )
+
+
+def conduction_links(d: Description) -> tuple:
+    """The pairs (node, node or boundary id) the thermal network joins by a conductance, as network.build_network
+    links them from the description (the test holds them to the network's): conduction along the shafts, wheels,
+    bearings and planetary members to their seats, the meshes' contact, what dips, is splashed or jetted to the
+    sump, the housings to the sump, to each other and to the boundaries they face, the boundaries' conduction."""
+    out = [(a.id, b.id) for sh in d.shafts for a, b in zip(sh.segments, sh.segments[1:])]
+    idle = {w.id for w in d.wheels if w.mount == "idle"}
+    whole = {w.id for w in d.wheels if w.mount != "idle"}
+    for w in d.wheels:
+        if w.mount == "idle":
+            out.append((f"{w.id}.teeth", f"{w.id}.bulk"))
+        elif w.shaft is not None:
+            out.append((w.id, w.segment))
+    shaft_brgs = {b.id for b in d.bearings if b.wheel is None}
+    for b in d.bearings:
+        seat = f"{b.wheel}.bulk" if b.wheel is not None else b.inside or b.housing
+        out += [(b.id, b.segment), (b.id, seat)]
+    for ps in d.planetary:
+        out += [(ps.planet, ps.carrier_segment), (ps.sun, ps.sun_segment)]
+    out += [tuple(f"{w}.teeth" if w in idle else w for w in m.wheels) for m in d.meshes]
+    oil = d.oil
+    jets = set(oil.jets)  # (a splash gearbox's pump may feed jets too: the GRS905's)
+    forced = jets if oil.lubrication == "forced" else set()
+    segments = {g.id for sh in d.shafts for g in sh.segments}
+    rings = {ps.ring for ps in d.planetary}
+    out += [(x, "oil") for x in oil.dipping if x in whole or x in shaft_brgs]
+    splashed = [x for x in oil.splashed if x.endswith(".teeth") or x in segments | rings | shaft_brgs]
+    out += [(x, "oil") for x in splashed + [w for w in whole if w in set(oil.splashed) | forced]]
+    out += [(x, "oil") for x in _jetted(d, jets)]
+    for h in d.housings:
+        out.append((h.id, "oil"))
+        out += [(h.id, f) for f in h.faces] + ([(h.id, h.joined_to)] if h.joined_to else [])
+    out += [(n, b.id) for b in d.boundaries if b.conductance_w_per_k is not None for n in b.touches]
+    return tuple(dict.fromkeys(x for x in out if None not in x))
+
+
+def _jetted(d: Description, jets: set) -> list:
+    """The parts a forced oil system's streams join to the sump: segments of a shaft with a bore, bearings and
+    planetary members in its jets."""
+    out = [g.id for sh in d.shafts if sh.d_bore_m > 0 for g in sh.segments if g.id in jets]
+    out += [b.id for b in d.bearings if b.id in jets]
+    return out + [m for ps in d.planetary for m in (ps.sun, ps.planet, ps.ring) if m in jets]
+
+
+def _part_of(d: Description, node: str) -> tuple:
+    """(section, id) of the part a node belongs to: a segment's shaft, an idle wheel's teeth or bulk, a planetary
+    member's set, or the part itself."""
+    for sh in d.shafts:
+        if node in {g.id for g in sh.segments}:
+            return "shaft", sh.id
+    for ps in d.planetary:
+        if node in (ps.sun, ps.planet, ps.ring):
+            return "planetary", ps.id
+    base = node.rsplit(".", 1)[0] if node.endswith((".teeth", ".bulk")) else node
+    kinds = [("wheel", d.wheels), ("bearing", d.bearings), ("housing", d.housings)]
+    return next(((k, base) for k, parts in kinds if any(x.id == base for x in parts)), ("oil", None))
+
+
+def _check_connected(r: _Reader, d: Description) -> None:
+    """Every node reaches a boundary through the network's conductances (conduction_links): a shaft with no bearing,
+    wheel or boundary passed, the sensor's step divided by zero and the node stayed at its start temperature."""
+    near: dict = {}
+    for a, b in conduction_links(d):
+        near.setdefault(a, set()).add(b)
+        near.setdefault(b, set()).add(a)
+    reached, todo = set(), [b.id for b in d.boundaries]
+    while todo:
+        x = todo.pop()
+        if x not in reached:
+            reached.add(x)
+            todo += near.get(x, ())
+    cut = [n for n in d.nodes if n not in reached]
+    if not cut:
+        return
+    group, todo = set(), [cut[0]]
+    while todo:
+        x = todo.pop()
+        if x not in group:
+            group.add(x)
+            todo += near.get(x, ())
+    parts = list(dict.fromkeys(_part_of(d, n) for n in d.nodes if n in group))
+    (kind, pid), others = parts[0], parts[1:]
+    key = f"{TOPOLOGY}.{kind}" + (f".{pid}" if pid else "")
+    nodes = ", ".join(n for n in d.nodes if n in group)
+    if not others:
+        why = "is connected to nothing (no bearing, wheel, mesh, boundary or oil joins it to the rest)"
+    else:
+        names = " and ".join(", ".join(f"{k} {i}" for k, i in others).rsplit(", ", 1))
+        why = f"and {names} are joined to one another but to no boundary"
+    r.fail(
+        key,
+        f"{why}: no path of conductances leads from its nodes ({nodes}) to a boundary, so they would stay at their "
+        "start temperature (and the sensor's step divide by zero); seat it in bearings, or take it out",
+    )
 
 
 def _drive(r: _Reader, topo: dict, shafts: dict) -> Drive:
@@ -1381,6 +1606,24 @@ def _published(r: _Reader, topo: dict, nodes: set) -> tuple:
     return _limits(r, limits_name, tuple(Published(c, group_of[c], None, None) for c in order))
 
 
+def default_limits_note(d: Description) -> str | None:
+    """A sentence when the description names no limits file (published.limits): its components take the default,
+    limits.toml, which holds the GRS905 truck's limits (a user's reducer warned at the truck's 120 degC oil limit in
+    silence). None when it names one (the shipped GRS905 and MM82 do)."""
+    if d.limits_stated or d.limits_path is None or Path(d.limits_path) != PARAM_DIR / "limits.toml":
+        return None  # (a limits.toml beside the description is its own)
+    shown = {}
+    for c in d.published:
+        if c.warning_c is not None:
+            shown.setdefault(c.group, c.warning_c)
+    warnings = ", ".join(f"{g} {w:g} degC" for g, w in shown.items())
+    return (
+        f"{d.origin}: {TOPOLOGY}.published.limits is not given, so its components take {Path(d.limits_path).name}, "
+        f"the GRS905 truck's warning limits ({warnings}), not this gearbox's: write its own limits file beside it "
+        'and name it (published.limits = { v = "my_limits.toml", u = "-", src = "assumed" }; docs/description.md)'
+    )
+
+
 def limit_notes(d: Description) -> tuple:
     """Sentences on limits a part cannot stay below: a warning limit at or below every boundary's default
     temperature (without losses the parts settle between the boundaries' temperatures, so such a part warns, or is
@@ -1545,11 +1788,14 @@ def _describe(path: Path, entries: dict, params: Parameters | None = None) -> De
     )
     nodes = set(desc.nodes)
     _check_touches(r, boundaries, nodes)
+    _check_shaft_lengths(r, shafts, housings)
     oil = _oil(r, topo, by_shaft, nodes)
+    _check_boundaries_used(r, boundaries, housings, oil)
     _check_oil_fits(r, oil, housings)
     _check_oil_covers_the_dipping(r, oil, wheels)
     _check_oil_controls(r, oil, drive)
     with_oil = replace(desc, oil=oil)
+    _check_connected(r, with_oil)
     published = _published(r, topo, set(with_oil.nodes) | set(with_oil.derived))  # a forced system's oil inlet too
     return Description(
         desc.name,
@@ -1569,4 +1815,5 @@ def _describe(path: Path, entries: dict, params: Parameters | None = None) -> De
         r.provenance,
         frozenset(r.taken),
         str(limits_file(r, _limits_name(r, topo))),
+        "limits" in (topo.get("published") or {}),
     )

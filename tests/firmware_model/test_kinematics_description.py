@@ -154,6 +154,7 @@ faces = {{ v = ["ambient"], u = "-", src = "assumed" }}
 [topology.oil]
 lubrication = {{ v = "splash", u = "-", src = "assumed" }}
 volume = {{ v = 300, u = "L", src = "assumed" }}
+splashed = {{ v = ["G1", "P1", "G2", "P2"], u = "-", src = "assumed" }}
 cooler = {{ v = "none", u = "-", src = "assumed" }}
 [topology.gear.G]
 number = {{ v = 1, u = "-", src = "assumed" }}

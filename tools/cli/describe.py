@@ -214,7 +214,7 @@ def oil_line(params) -> str:
 def run(args) -> int:
     from pathlib import Path
 
-    from firmware_model.description import description_of, limit_notes, load_description
+    from firmware_model.description import default_limits_note, description_of, limit_notes, load_description
     from firmware_model.errors import ParameterError
     from firmware_model.parameters import load_parameters
 
@@ -245,6 +245,7 @@ def run(args) -> int:
     lines = summary(d)
     at = next((i + 1 for i, x in enumerate(lines) if x.startswith("  splashed:")), len(lines))
     print("\n".join(lines[:at] + [oil_line(params)] + lines[at:]))
-    for note in limit_notes(d):  # plausible but suspect: on stderr, as the other commands' notes
+    default = default_limits_note(d)  # the truck's limits taken in silence: a note, the run may still be meant
+    for note in ((default,) if default else ()) + limit_notes(d):  # plausible but suspect: on stderr, as the others
         print(f"note: {note}", file=sys.stderr)
     return 0
