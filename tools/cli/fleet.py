@@ -73,8 +73,8 @@ def add_subparser(sub):
         "--columns",
         metavar="NAME|FILE",
         help="LOGS are SCADA files and folders (.csv, .csv.gz) read through this column map (NAME: one shipped, "
-        "engie; FILE: your own): per unit and calendar month ([fleet] period_days = N in --config, or "
-        "--period-days N: spans of N days) the effects of a gearbox ageing fitted with the onboard model of "
+        "engie; FILE: your own): per unit and calendar month ([fleet] period_days = N in --config: spans of "
+        "N days) the effects of a gearbox ageing fitted with the onboard model of "
         "--gearbox, and the units that drift from the fleet flagged (DIR/health/effects.parquet, flags.parquet; "
         "docs/real-data.md)",
     )

@@ -171,7 +171,10 @@ def _variables(limits, gearbox=None) -> list[tuple]:
         _output("model_oil_temp_c", VR["VR_MODEL_OIL"], "Real", "the open-loop twin's sump"),
         _output("oil_innovation_c", VR["VR_INNOVATION"], "Real", "measured - model oil [K]"),
         _output(
-            "degraded_mode", VR["VR_MODE"], "Integer", "0 normal, 1 oil modelled, 2 drive inputs missing (holding)"
+            "degraded_mode",
+            VR["VR_MODE"],
+            "Integer",
+            "0 normal, 1 oil modelled, 2 drive inputs missing (holding), 3 not initialised (no oil reading yet)",
         ),
         _output("valid_flags", VR["VR_VALID"], "Integer", "bit i set: input i valid this step (" + bits + ")"),
         _output("frozen_flags", VR["VR_FROZEN"], "Integer", "bit i set: input i frozen (" + bits + ")"),

@@ -672,7 +672,7 @@ Each index of the outputs' arrays has a name in `gvs_sensor.h` (`GVS_PUB_<compon
 
 {inputs_text} Outputs (`gvs_outputs`): `T_c[{n_pub}]`
 the published component temperatures [degC] (order: the CAN outputs' component ids), `level[{n_pub}]` 0 normal,
-1 warning, 2 critical, 3 not available, `degraded_mode` 0 normal, 1 oil modelled, 2 drive inputs missing (holding),
+1 warning, 2 critical, 3 not available, `degraded_mode` 0 normal, 1 oil modelled, 2 drive inputs missing (holding), 3 not initialised,
 the validity bits, the modelled sump and the oil innovation (measured - model) [K], and `rejects[13]` the cumulative
 counters of rejected or repaired inputs (speed_missing, speed_clamped, torque_missing, torque_clamped,
 gear_missing, gear_unknown, oil_missing, oil_implausible, oil_frozen, drive_frozen, aux_missing, time_jump,

@@ -65,6 +65,13 @@ BOUND_FRACTION = 0.01
 SECANT_STEPS = 3
 #: the two oil modes' replays of an evaluation on two threads (the same results; False: one after the other)
 PARALLEL_MODES = True
+#: what a reading offset's verdict cannot tell (a reviewer: +2.01 K on R80721's bearing 1 is its training rows' mean
+#: residual, "a sensor fault" by its name): a reading off by a constant and a model off by one on that part alike
+OFFSET_CAVEAT = (
+    "; a constant gap between this reading and its estimate: a thermocouple reading off by it, or the model off by "
+    "as much on this part on every row, which these records do not tell apart (a second reading of the part, or "
+    "the sensor checked against a reference, does)"
+)
 #: a reading offset's held-out residual is the one before it, shifted (no replay; False: replayed, the same figures
 #: to rounding: benchmarks/bench_scada_speed.py's reference)
 OFFSETS_WITHOUT_REPLAY = True
@@ -508,7 +515,8 @@ def _verdict(r0: dict, t_before: dict, cands: list[dict], where_rows: list[dict]
             "parameters": c["parameters"],
             "test_rms_after_c": c["test_rms_after_c"],
             "shrink": 1.0 - c["test_rms_after_c"] / before if before > 0 else 0.0,
-            "reason": f"score {c['score']:.0f} (BIC drop) on the training records, and the held-out RMS falls",
+            "reason": f"score {c['score']:.0f} (BIC drop) on the training records, and the held-out RMS falls"
+            + (OFFSET_CAVEAT if c["effect"].startswith(("thermocouple_offset", "oil_sensor_offset")) else ""),
         }
     top = where_rows[0] if where_rows else None
     at = f"; the largest share of the gap: {top['channel']} in '{top['regime']}'" if top else ""

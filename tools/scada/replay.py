@@ -405,8 +405,7 @@ def range_findings(record: ScadaRecord) -> list[RecordFinding]:
                     UNTRUSTED,
                     f"{name} ({', '.join(ch.columns)}): {bad} of {record.n} "
                     f"rows outside its plausible range {lo:g}..{hi:g} (in the unit its name ends with, converted "
-                    f"from the map's {ch.unit}): "
-                    + (speed_unit_hint(record, name) or "is the column in another unit?"),
+                    f"from the map's {ch.unit}): " + (speed_unit_hint(record, name) or _unit_question(ch)),
                 )
             )
     return found
@@ -437,6 +436,17 @@ def air_finding(record: ScadaRecord, default_c=None) -> RecordFinding | None:
         "nacelle's; map a column that has it (an export without a nacelle air: the outdoor air + 12.5 K, "
         'docs/real-data.md "Without a nacelle air")',
     )
+
+
+def _unit_question(ch) -> str:
+    """The end of a range finding's sentence: for a temperature, the two units a column of another is likely in and
+    how the map says them (a file in kelvin was asked only "is the column in another unit?")."""
+    if ch.unit in ("degC", "°C", "C"):
+        return (
+            'is the column in another unit? (in kelvin: unit = "K" for it in the column map; in Fahrenheit: '
+            'unit = "degF")'
+        )
+    return "is the column in another unit?"
 
 
 #: a derived torque P / omega out of its range because the speed is in rad/s read as rpm: the torque at the speed
@@ -555,7 +565,12 @@ def error_lines(result: ScadaReplay, sump: str | None = None) -> list[str]:
     lines = [f"  note: {x}" for x in result.notes]
     for name in result.estimated:
         if name == sump and result.oil_mode != "model":  # the estimate is the reading the sensor used: 0 K says nothing
-            lines.append(f"  {name}: the reading the sensor used (the oil measured; --oil-mode model estimates it)")
+            if not np.isfinite(np.asarray(t[name], dtype=float)).any():  # (every reading missing or rejected)
+                lines.append(
+                    f"  {name}: no reading the sensor could use (each row missing or rejected): it modelled the oil"
+                )
+            else:
+                lines.append(f"  {name}: the reading the sensor used (the oil measured; --oil-mode model estimates it)")
             continue
         e = t[f"est_{name}"] - t[name]
         ok = np.isfinite(e)

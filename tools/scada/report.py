@@ -165,7 +165,8 @@ def plot_fitted(fits: Sequence[PeriodFit], flags: Sequence, path: str | os.PathL
         ax.set_ylim(lo, hi)
         ax.set_ylabel(EFFECT_WORDS.get(eid, eid))
         ax.grid(alpha=0.3)
-        outside_legend(ax)
+        if ax.get_legend_handles_labels()[0]:  # (a panel with no identified period: no legend, no warning)
+            outside_legend(ax)
     n = len({f.unit for f in fits})
     axes[0, 0].set_title(
         f"Fitted values per period of {len(units)} of {n} units (1 standard error, at most {PLOT_SE_CAP:g}); red "

@@ -110,6 +110,8 @@ def test_the_verdict_s_held_out_shrink_is_given_per_channel(setup):
         rec.values["Gb1t_avg"] = rec.values["Gb1t_avg"] + 2.0
     res = diagnose_records(s, [tr], [te])
     assert res["verdict"]["effect"] == "thermocouple_offset:Gb1t_avg", res["candidates"][:3]
+    # (its reason says what no record tells apart: a reading off, or the model off on that part alike)
+    assert "a thermocouple reading off by it, or the model off by as much" in res["verdict"]["reason"]
     ch = res["channels"]
     assert ch["Gb1t_avg"]["test_rms_c"] > 1.5 and ch["Gb1t_avg"]["test_rms_after_c"] < 0.3
     assert all(ch[c]["test_rms_after_c"] == ch[c]["test_rms_c"] for c in ("Gost_avg", "Gb2t_avg"))

@@ -317,6 +317,8 @@ def _edit(lines, column: str, f) -> list[str]:
         ("Gost_avg", lambda c: repr(float(c) * 9 / 5 + 32), 3, "each starts from the sump reading Gost_avg the sensor"),
         # the nacelle air in kelvin: every value outside its range
         ("Yt_avg", lambda c: repr(float(c) + 273.15), 3, "ambient_temp_c (Yt_avg): 72 of 72 rows outside"),
+        # ... said with the map's units that fit (it asked only "is the column in another unit?")
+        ("Yt_avg", lambda c: repr(float(c) + 273.15), 3, 'in kelvin: unit = "K" for it in the column map'),
         # the nacelle air's column empty: the description's default air taken (a newcomer's trial: exit 0, no word)
         ("Yt_avg", lambda c: "", 3, "ambient_temp_c <- Yt_avg) is missing on 72 of 72 rows (100%)"),
         # ... on every third row: a warning, outputs trusted
@@ -333,6 +335,16 @@ def test_a_record_in_another_unit_or_with_dropped_rows_is_said_and_exits_3_when_
     assert p.returncode == status, p.stderr
     assert words in p.stderr and (tmp_path / "est.csv").exists()
     assert (status == 3) == ("exit status 3" in p.stderr)
+
+
+def test_an_empty_sump_column_is_not_called_the_reading_the_sensor_used(tmp_path):
+    """A sump column with no value was summed up as "the reading the sensor used" (a reviewer's trial): the summary
+    says none was, and the degraded warning exits 3."""
+    scada = write(tmp_path / "a.csv", _edit(_rows(0, ROWS), "Gost_avg", lambda c: ""))
+    p = _replay(tmp_path, [scada], "--out", tmp_path / "est.csv")
+    assert p.returncode == 3 and "oil modelled 100 %" in p.stderr
+    assert "Gost_avg: no reading the sensor could use (each row missing or rejected): it modelled the oil" in p.stdout
+    assert "the reading the sensor used" not in p.stdout
 
 
 def _replay_hr225(tmp_path, scada, cmap) -> subprocess.CompletedProcess:
