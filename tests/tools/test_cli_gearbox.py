@@ -74,15 +74,19 @@ def test_replay_runs_the_gearbox_named(tmp_path, capsys):
     assert not np.allclose(outs["GRS905"]["T_LI.teeth_c"], outs["GRSO905"]["T_LI.teeth_c"])
 
 
-def test_the_command_line_wins_over_the_configuration(tmp_path):
+def test_the_command_line_wins_over_the_configuration(tmp_path, capsys):
+    """... and says so: a rig's reference configuration overridden in silence (a trial); the same gearbox, none."""
     cfg = tmp_path / "c.toml"
     cfg.write_text('[gearbox]\nvariant = "GRSO905"\n')
     from tools.cli.gearbox_option import resolve_gearbox
 
     args = SUBCOMMANDS["replay"].parse_args(["x.csv", "--config", str(cfg)])
     assert resolve_gearbox(args).variant == "GRSO905"
+    args = SUBCOMMANDS["replay"].parse_args(["x.csv", "--config", str(cfg), "--gearbox", "GRSO905"])
+    assert resolve_gearbox(args).variant == "GRSO905" and "note" not in capsys.readouterr().err
     args = SUBCOMMANDS["replay"].parse_args(["x.csv", "--config", str(cfg), "--gearbox", "GRS905"])
     assert resolve_gearbox(args).variant == "GRS905"
+    assert "note: --gearbox GRS905 overrides config c.toml: gearbox.variant = 'GRSO905'" in capsys.readouterr().err
     own = tmp_path / "own.toml"
     own.write_text('[meta]\ninherit = "GRSO905"\n')
     args = SUBCOMMANDS["replay"].parse_args(["x.csv", "--config", str(cfg), "--gearbox", str(own)])

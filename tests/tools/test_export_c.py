@@ -69,8 +69,14 @@ def test_the_summary_names_what_was_written_and_a_file_as_out_is_one_sentence(tm
     assert main(["export-c", "--out", str(tmp_path / "keep.txt")]) == 2
     assert "is a file, so the bundle's directory cannot be made there" in capsys.readouterr().err
     # an earlier bundle's directory is exported into again; a project's own README.md and Makefile are not
-    # overwritten (they were, exit 0), nor is the current directory taken for an empty --out
+    # overwritten (they were, exit 0), nor is the current directory taken for an empty --out; the earlier bundle's
+    # files replaced and a build's products left are said (a hand-edited source went in silence: a trial)
+    (fresh / "gvs_test").write_text("a build's product")
     assert main(["export-c", "--out", str(fresh), "--quiet"]) == 0
+    err = capsys.readouterr().err
+    assert (
+        f"held an export: {len(BUNDLE_FILES)} of its files replaced; 1 other files left as they were (gvs_test" in err
+    )
     project = tmp_path / "project"
     project.mkdir()
     (project / "README.md").write_text("my project")

@@ -272,3 +272,13 @@ def test_a_rigs_fmu_says_its_configuration(fmu, tmp_path):
     assert main(["export-fmu", "--config", str(cfg), "--out", str(rig), "--quiet"]) == 0
     text = fmpy.read_model_description(str(rig)).description
     assert "a rig's configuration (the sump conditioned from outside)" in text and "ttl_sump = 'held'" in text, text
+
+
+def test_an_fmu_written_over_another_says_so(fmu, capsys):
+    """A rig's FMU was replaced in silence (a trial): written over an existing one, the command says it replaced it;
+    and degraded_mode's description names every mode (mode 3, not initialised, was missing)."""
+    assert main(["export-fmu", "--fmi", "3" if fmu.stem.endswith("3") else "2", "--out", str(fmu), "--quiet"]) == 0
+    assert f"note: {fmu} existed and was replaced" in capsys.readouterr().err
+    md = fmpy.read_model_description(str(fmu))
+    mode = next(v for v in md.modelVariables if v.name == "degraded_mode")
+    assert "3 not initialised" in mode.description

@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import argparse
+import sys
+from pathlib import Path
 
 from tools.cli.gearbox_option import add_gearbox_option, resolve_gearbox
 from tools.cli.settings import add_hidden, setting
@@ -51,8 +53,23 @@ def run(args) -> int:
 
     cfg = resolve_gearbox(args, load_config(args.config))
     ttl = setting(args, cfg, "export.time_to_limit")
+    had = _existing_files(Path(args.out))
     out = export_c(args.out, config_path=cfg, real=args.real, ttl=ttl)
+    replaced = sorted(had & set(BUNDLE_FILES))
+    if replaced:  # an earlier export (a hand-edited source) overwritten, and a build's products left: said
+        others = sorted(had - set(BUNDLE_FILES))
+        shown = ", ".join(others[:5]) + (" ..." if len(others) > 5 else "")
+        left = f"; {len(others)} other files left as they were ({shown}: `make -C {out} clean` removes a build's)"
+        left = left if others else ""
+        print(f"note: {out} held an export: {len(replaced)} of its files replaced{left}", file=sys.stderr)
     if not args.quiet:
         files = sorted(BUNDLE_FILES)  # what was written, not what else the directory holds
         print(f"wrote {len(files)} files to {out}: {', '.join(files)}\nnext: make -C {out} test")
     return 0
+
+
+def _existing_files(out: Path) -> set:
+    """The files under ``out`` before the export, as paths relative to it (the bundle's names)."""
+    if not out.is_dir():
+        return set()
+    return {p.relative_to(out).as_posix() for p in out.rglob("*") if p.is_file()}

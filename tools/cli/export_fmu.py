@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from pathlib import Path
 
 from tools.cli.gearbox_option import add_gearbox_option, resolve_gearbox
 
@@ -58,7 +59,10 @@ def run(args) -> int:
             "to limit as the onboard sensor does (its ttl_<id>_s outputs)",
             file=sys.stderr,
         )
+    existed = Path(args.out).is_file()
     out = export_fmu(args.out, config_path=cfg, fmi_version=int(args.fmi))
+    if existed:  # (a rig's FMU replaced in silence: a trial)
+        print(f"note: {out} existed and was replaced", file=sys.stderr)
     if not args.quiet:
         print(f"wrote {out} ({out.stat().st_size // 1024} KiB, FMI {args.fmi}.0 co-simulation, step 0.1 s)")
     return 0

@@ -14,6 +14,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import functools
+import sys
 from pathlib import Path
 
 from firmware_model.errors import InputError, ParameterError
@@ -131,7 +132,13 @@ def resolve_gearbox(args, cfg=None):
     gearbox = given_gearbox(args)
     if cfg is None:
         cfg = load_config(getattr(args, "config", None))
+    before = cfg
     cfg = with_gearbox(cfg, gearbox)
+    # a configuration that names another gearbox: the command line wins (documented), said (a rig's reference
+    # configuration overridden in silence: a trial)
+    if gearbox is not None and before.origin != "defaults" and (before.params_path or before.variant != "GRS905"):
+        if gearbox_of(before) != gearbox_of(cfg):
+            print(f"note: --gearbox {gearbox} overrides {_config_key(before)}", file=sys.stderr)
     check_gearbox(cfg, f"--gearbox {gearbox}" if gearbox is not None else _config_key(cfg))
     args.resolved_config = cfg
     return cfg
