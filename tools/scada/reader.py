@@ -134,14 +134,13 @@ def open_text(path: Path, counts: dict | None = None, encoding: str = "utf-8-sig
     if not path.is_file():
         raise InputError(f"{path}: no such file")
     data = path.read_bytes()
-    try:
-        data = gzip.decompress(data) if data[:2] == b"\x1f\x8b" else data
-    except (OSError, EOFError, zlib.error):
-        raise InputError(f"{path.name}: a damaged gzip file (it does not decompress)") from None
+    cut = False
+    if data[:2] == b"\x1f\x8b":
+        data, cut = _gunzip(path, data)
     if b"\x00" in data[:4096]:
         raise InputError(f"{path.name}: not a SCADA CSV file (binary content)")
     if encoding != "utf-8-sig":
-        return io.StringIO(data.decode(encoding, errors="replace"), newline="")
+        return _Text(data.decode(encoding, errors="replace"), cut)
     try:
         text = data.decode("utf-8-sig")
     except UnicodeDecodeError:
@@ -150,7 +149,47 @@ def open_text(path: Path, counts: dict | None = None, encoding: str = "utf-8-sig
             raise InputError(f"{path.name}: not a SCADA CSV file (binary content, not UTF-8 text)") from None
         if counts is not None:
             counts["bad_bytes"] += sum("\ufffd" in line for line in text.splitlines())
-    return io.StringIO(text, newline="")
+    return _Text(text, cut)
+
+
+class _Text(io.StringIO):
+    """A file's text; ``cut``: a gzip that ends mid-way, read up to its last whole line (the rest is lost)."""
+
+    def __init__(self, text: str, cut: bool = False):
+        super().__init__(text, newline="")
+        self.cut = cut
+
+
+#: the gzip chunk size read at a time: a damaged stream keeps what decompressed before the damage
+GZIP_CHUNK = 1 << 16
+
+
+def _gunzip(path: Path, data: bytes) -> tuple[bytes, bool]:
+    """(the decompressed bytes, whether the stream ends mid-way). A gzip cut short (a copy interrupted, a logger
+    stopped mid-write) or damaged after its start keeps its whole lines before the cut: they were dropped with the
+    file before (a reviewer's trial), the one line cut in two would be a wrong number. InputError when nothing
+    decompresses."""
+    z = zlib.decompressobj(wbits=31)
+    out, cut = [], False
+    try:
+        for i in range(0, len(data), GZIP_CHUNK):
+            out.append(z.decompress(data[i : i + GZIP_CHUNK]))
+            if z.eof:  # (a second member or trailing bytes: gzip.decompress reads on; this reads the first)
+                break
+        cut = not z.eof
+    except zlib.error:
+        cut = True
+    text = b"".join(out)
+    if z.eof and z.unused_data[:2] == b"\x1f\x8b":  # concatenated members: the whole file, as gzip reads it
+        try:
+            return gzip.decompress(data), False
+        except (OSError, EOFError, zlib.error):
+            cut = True
+    if cut:
+        text = text[: text.rfind(b"\n") + 1]  # the whole lines only
+    if not text:
+        raise InputError(f"{path.name}: a damaged gzip file (it does not decompress)")
+    return text, cut
 
 
 def parse_time(stamp: str, kind: str, fmt: str | None = None, zone=None, fold: int = 0) -> float | None:
@@ -308,6 +347,11 @@ def read_file(path: str | Path, cmap: ColumnMap) -> FileRows:
         if np.isinf(rows[-1]).any():  # a cell that is no number: its value left out (clean counts it implausible)
             c = next(c for c, v in zip(value_cols, rows[-1]) if np.isinf(v))
             bad.add(reader.line_num, f"kept without its {c} {row[idx[c]].strip()[:30]!r} (no number)")
+    if getattr(text, "cut", False):
+        bad.add(
+            reader.line_num + 1,
+            "and after: lost, the gzip ends mid-way there (a copy cut short or damaged)",
+        )
     _check_times(
         path, cmap, times, lambda: next((r[idx[cmap.time_column]] for r in _rows_of(path, semicolon, width)), "")
     )
