@@ -45,8 +45,12 @@ def regimes(record: ScadaRecord, thermostat_c: tuple[float, float] | None = None
         out[label] = (p > lo_kw) & (p <= hi)
     out[f"first {START_ROWS * 10} min after a start"] = _starts(p > PRODUCING_KW, np.asarray(record.stretch))
     air = np.asarray(record.values.get("ambient_temp_c", np.full(record.n, np.nan)), dtype=float)
-    out[f"nacelle < {NACELLE_SPLIT_C:.0f} degC"] = air < NACELLE_SPLIT_C
-    out[f"nacelle >= {NACELLE_SPLIT_C:.0f} degC"] = air >= NACELLE_SPLIT_C
+    # the air's name: the map's (engie: "nacelle"), else words no gearbox is wrong about (a reducer's map said
+    # "nacelle >= 20 degC" of a workshop: a trial)
+    ch = record.cmap.channels.get("ambient_temp_c")
+    name = (ch.what if ch is not None and ch.what else "") or "air around the gearbox"
+    out[f"{name} < {NACELLE_SPLIT_C:.0f} degC"] = air < NACELLE_SPLIT_C
+    out[f"{name} >= {NACELLE_SPLIT_C:.0f} degC"] = air >= NACELLE_SPLIT_C
     if thermostat_c is not None and sump is not None and sump in record.values:
         oil = np.asarray(record.values[sump], dtype=float)
         lo_c, hi_c = thermostat_c

@@ -540,3 +540,21 @@ def test_a_held_out_gap_far_larger_than_the_training_one_is_said():
     test = rng.normal(4.0, 1.5, 5000)  # the sump 4 K hotter
     said = changed_channels({"Gost_avg": train, "Gb2t_avg": train}, {"Gost_avg": test, "Gb2t_avg": train[::-1]})
     assert len(said) == 1 and said[0].startswith("Gost_avg's gap on the held-out records (90 % of its rows within")
+
+
+def test_the_air_s_regimes_take_the_map_s_name_for_it(tmp_path):
+    """A reducer's own map said "nacelle >= 20 degC" of a workshop's air (a trial): the regimes name the air as the
+    map's ambient_temp_c `what` does (engie: "nacelle"), else "air around the gearbox"."""
+    from datetime import datetime, timedelta, timezone
+
+    from tools.scada.columns import MAP_DIR
+    from tools.scada.regimes import regimes
+
+    t0 = datetime(2017, 5, 1, tzinfo=timezone.utc)
+    f = write(tmp_path / "a.csv", [row(t0 + timedelta(minutes=10 * k), Yt_avg=15.0 + k) for k in range(12)])
+    engie = regimes(read_record([f], "engie"))
+    assert engie["nacelle >= 20 degC"].sum() == 7 and engie["nacelle < 20 degC"].sum() == 5
+    own = tmp_path / "own.toml"
+    own.write_text((MAP_DIR / "engie.toml").read_text().replace('what = "nacelle"', ""))
+    plain = regimes(read_record([f], own))
+    assert plain["air around the gearbox >= 20 degC"].sum() == 7 and not any("nacelle" in k for k in plain)
