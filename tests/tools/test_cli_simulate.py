@@ -628,9 +628,12 @@ def test_a_run_that_leaves_the_oil_model_says_so_quiet_or_not(tmp_path, capsys):
 
 def test_a_fixed_ratio_gearbox_takes_a_steady_spec_of_its_input_shaft(tmp_path, capsys):
     """A rig's steady point on the HR225 needed a CSV written by hand ('is a truck's'); the spec holds its input
-    shaft: the same run as the CSV of that speed, torque and air. rpm= and nm= are both asked for, gear= refused."""
+    shaft: the same run as the CSV of that speed, torque and air. rpm= and nm= are both asked for, gear= refused.
+    Its air is ambient=, else the description's ambient (HR225: 25 degC; it took the truck's 20: a trial)."""
     out, csv_out = tmp_path / "s.csv", tmp_path / "c.csv"
-    spec = "steady:rpm=1480,nm=700,s=600"
+    assert main(["simulate", "--gearbox", "HR225", "--cycle", "steady:rpm=1480,nm=700,s=60", "--out", str(out)]) == 0
+    assert set(np.asarray(read_run_table(out, required=("time_s",))["ambient_temp_c"])) == {25.0}
+    spec = "steady:rpm=1480,nm=700,s=600,ambient=20"
     assert main(["simulate", "--gearbox", "HR225", "--cycle", spec, "--out", str(out), "--quiet"]) == 0
     cyc = _fixed_ratio_cycle(tmp_path / "rig.csv", 1480.0, 700.0, s=600)
     assert main(["simulate", "--gearbox", "HR225", "--cycle", str(cyc), "--out", str(csv_out), "--quiet"]) == 0

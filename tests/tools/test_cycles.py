@@ -353,3 +353,12 @@ def test_all_gears_on_another_gearbox_runs_its_own_gears():
     for d in (grs, load_description("GRSO905")):
         other = get_cycle("all_gears", description=d)
         assert all(np.array_equal(thesis[c], other[c]) for c in thesis.columns)
+
+
+def test_a_steady_spec_takes_its_air():
+    """ambient=N sets a steady run's air (a reducer's steady run took the truck's 20 degC for its description's 25:
+    a trial); out of the oil model's range it is one sentence."""
+    tb = get_cycle("steady:s=60,ambient=-5")
+    assert set(np.asarray(tb["ambient_temp_c"])) == {-5.0}
+    with pytest.raises(InputError, match="ambient"):
+        get_cycle("steady:s=60,ambient=400")

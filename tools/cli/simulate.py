@@ -38,7 +38,7 @@ def _help_texts() -> tuple[str, str]:
         "in place of the gearbox's cooler, as a rig's oil conditioning does; all_gears holds it at 100 degC; "
         "with a --config [cooler] kind other than hold, or a [simulate] hold_oil_c of another temperature, "
         "either is an error); a fixed-ratio gearbox (--gearbox HR225, MM82, R1) takes 'steady:rpm=N,nm=N,s=3600' "
-        "(its input shaft held, in 20 degC air, no gear=); or a CSV "
+        "(its input shaft held, in its description's ambient air or ambient=N degC, no gear=); or a CSV "
         "run table (docs/interfaces.md section 3). Component codes (PS, BLR, LS@1L ...): "
         "docs/glossary.md."
     )

@@ -273,6 +273,8 @@ def _table(name: str, cols: dict, meta: dict, rate_hz: float, noise: bool, seed:
     cols = {c: cols[c] for c in COLUMNS}
     if own_gears(description):  # its own boundary temperatures, not the GRS905's Table 11 (tools.cycles.fit)
         cols = with_own_boundaries(cols, description)
+    if meta.get("ambient_c") is not None:  # a steady spec's ambient=
+        cols["ambient_temp_c"] = np.full(t.size, float(meta["ambient_c"]))
     if noise:
         _add_noise(cols, seed)
     meta = dict(
@@ -288,6 +290,7 @@ STEADY_KEYS = {
     "s": "duration in seconds",
     "oil": "held sump temperature in degC",
     "init": "initial temperature in degC",
+    "ambient": "air temperature in degC (default: the gearbox description's ambient)",
 }
 
 
@@ -327,7 +330,7 @@ LET_SET = {
 def parse_steady_spec(spec: str, max_rpm: float = 4000.0, max_nm: float = 4200.0) -> dict:
     """'steady:gear=4L,rpm=1300,nm=2000,s=3600,oil=100' -> dict (defaults gear 4L, 1300 rpm, 2000 Nm, 3600 s); rpm
     and nm within the gearbox's drive limits (its description's max_speed and max_torque; the GRS905's by default)."""
-    out = {"gear": 9, "rpm": 1300.0, "nm": 2000.0, "s": 3600.0, "oil": None, "init": None}
+    out = {"gear": 9, "rpm": 1300.0, "nm": 2000.0, "s": 3600.0, "oil": None, "init": None, "ambient": None}
     _, _, rest = spec.partition(":")
     given = set()
     for item in filter(None, (p.strip() for p in rest.split(","))):
@@ -368,7 +371,7 @@ def parse_steady_spec(spec: str, max_rpm: float = 4000.0, max_nm: float = 4200.0
         raise InputError(f"steady cycle spec {spec!r}: nm={out['nm']:g} must be within -{max_nm:.0f}..{max_nm:.0f} Nm")
     if out["s"] <= 0 or out["s"] > 7 * 86400:
         raise InputError(f"steady cycle spec {spec!r}: s={out['s']:g} must be a positive duration up to a week")
-    for key in ("oil", "init"):
+    for key in ("oil", "init", "ambient"):
         if out[key] is not None:
             check_temperature_c(f"steady cycle spec {spec!r}: {key}", out[key])
     return out
@@ -386,6 +389,7 @@ def steady(
     seed: int = 0,
     spec: str | None = None,
     description=None,
+    ambient: float | None = None,
 ) -> RunTable:
     """One gear at constant engine speed and torque (seed 5.3/5.4). SYNTHETIC. Initial temperature: the held oil
     temperature, else 20 degC (seed 5.4). ``description``: a gearbox outside the GRS905 family (tools.cycles.fit):
@@ -407,10 +411,11 @@ def steady(
     spec = spec or f"steady:gear={gear if own else GEAR_NAMES[gear]},rpm={rpm:g},nm={nm:g},s={s:g}" + (
         f",oil={oil:g}" if oil is not None else ""
     )
+    hold = None if oil is None else float(oil)
     return _table(
         "steady",
         cols,
-        {"cycle": spec, "initial_temp_c": float(init_c), "hold_oil_c": None if oil is None else float(oil)},
+        {"cycle": spec, "initial_temp_c": float(init_c), "hold_oil_c": hold, "ambient_c": ambient},
         rate_hz,
         noise,
         seed,
@@ -582,9 +587,9 @@ FIXED_STEADY_AMBIENT_C = 20.0
 
 
 def _fixed_steady(spec: str, description, rate_hz: float) -> RunTable:
-    """A fixed-ratio drive's 'steady:rpm=N,nm=N[,s=..,oil=..,init=..]': its input shaft at that speed [rpm] and
-    torque [N m] (both given: the truck's defaults are no other drive's) in FIXED_STEADY_AMBIENT_C air, mapped as
-    its CSV run table is (tools.drive_table)."""
+    """A fixed-ratio drive's 'steady:rpm=N,nm=N[,s=..,oil=..,init=..,ambient=..]': its input shaft at that speed
+    [rpm] and torque [N m] (both given: the truck's defaults are no other drive's) in the air of ambient=, else of
+    its description's ambient boundary, mapped as its CSV run table is (tools.drive_table)."""
     from tools.drive_table import map_fixed_ratio
     from tools.runtable import validate_run_table
 
@@ -601,13 +606,17 @@ def _fixed_steady(spec: str, description, rate_hz: float) -> RunTable:
         spec, max_rpm=description.drive.max_speed_rad_s * 30.0 / math.pi, max_nm=description.drive.max_torque_nm
     )
     t = _out_time(p["s"], rate_hz)
+    # the air: ambient=, else the description's ambient boundary (a reducer's steady run took 20 degC for its
+    # description's 25: a trial), else FIXED_STEADY_AMBIENT_C
+    own_air = next((b.temperature_c for b in description.boundaries if b.id == "ambient"), FIXED_STEADY_AMBIENT_C)
+    air_c = float(p["ambient"] if p["ambient"] is not None else own_air)
     cols = {
         "time_s": t,
         "input_speed_rpm": np.full(t.size, p["rpm"]),
         "input_torque_nm": np.full(t.size, p["nm"]),
-        "ambient_temp_c": np.full(t.size, FIXED_STEADY_AMBIENT_C),
+        "ambient_temp_c": np.full(t.size, air_c),
     }
-    init_c = p["init"] if p["init"] is not None else (p["oil"] if p["oil"] is not None else FIXED_STEADY_AMBIENT_C)
+    init_c = p["init"] if p["init"] is not None else (p["oil"] if p["oil"] is not None else air_c)
     meta = {"cycle": spec, "initial_temp_c": float(init_c), "hold_oil_c": p["oil"], "rate_hz": float(rate_hz)}
     meta.update(noise=False, seed=0, synthetic=True)
     return validate_run_table(map_fixed_ratio(RunTable(cols, meta=meta), description, spec), name=spec)
