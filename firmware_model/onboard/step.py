@@ -136,7 +136,8 @@ def _step_all(state, raw, t_now, counts, jump, gap, sp: SensorParams, cache: Ste
     """Steps 1-7 for every vehicle (``skipped``: vehicles whose results will be discarded, left out of the
     time-to-limit job)."""
     if jump is not None and jump.any():
-        state = jump_state(state, np.where(jump, gap - sp.dt_s, 0.0), sp, cache)
+        g_s = np.where(jump, gap - sp.dt_s, 0.0)
+        state = jump_state(state, g_s, sp, cache)._replace(recover_s=jump_recover_s(state, g_s, sp))
     chk = check_inputs(state, raw, sp)
     counts[..., : chk.counts.shape[-1]] = chk.counts
     net = _network_step(state, chk, raw[..., I_OIL], sp, cache)
@@ -382,6 +383,17 @@ def _ttl_job(state: SensorState, chk: InputCheck, net: NetworkStep, sp: SensorPa
         for v in vehicles
     )
     return TtlJob(vehicles, points)
+
+
+def jump_recover_s(state: SensorState, g_s, sp: SensorParams) -> np.ndarray:
+    """The levels' wait after a forward jump of ``g_s`` [s] (per vehicle): entered with the engine turning (the held
+    speed above 0), the drive inputs were unknown through it, an outage as missing frames are; so the wait grows by
+    as much as it went past the hold, at most RECOVER_MAX_S (_finish counts it down). Entered with the engine
+    stopped (parked), the jump's engine-off cool-down is what happened: no wait."""
+    speed = np.asarray(state.hold[..., I_SPEED], dtype=float)
+    running = np.isfinite(speed) & (speed > 0.0)
+    past = np.maximum(np.asarray(g_s, dtype=float) - sp.options.hold_s, 0.0)
+    return np.where(running & (past > 0.0), np.minimum(state.recover_s + past, RECOVER_MAX_S), state.recover_s)
 
 
 def _finish(state: SensorState, raw, t_now, chk: InputCheck, net: NetworkStep, counts, sp: SensorParams, skipped=None):

@@ -386,6 +386,36 @@ def test_after_a_long_outage_the_levels_wait_until_the_held_inputs_are_forgotten
     assert float(st.recover_s) == RECOVER_MAX_S
 
 
+@pytest.mark.parametrize("core", ["numpy", "c"])
+def test_after_a_gap_entered_with_the_engine_running_the_levels_wait_as_after_an_outage(params, core):
+    """Rows missing from a run table while the engine ran (a validation trial: 5 minutes cut from a climb) were
+    propagated with the inputs held for 60 s, then the engine off, and the sensor came back 35 K off in mode 0 with
+    its levels known and its warnings 100 s late. A forward jump entered with the engine turning is an outage of
+    the drive inputs: the levels stay 3 for as long as it went on past the hold (at most RECOVER_MAX_S), as after
+    missing frames; a short one (within the hold) or one entered with the engine stopped (parked: the engine-off
+    cool-down is what happened) leaves them known. Both cores alike, to the bit."""
+    sensor = VirtualSensor(params, core=core)
+    hold = sensor.options.hold_s
+    climb = np.array(NOMINAL._replace(speed_rpm=1600.0, torque_nm=2400.0, gear=3), dtype=float)[:8]
+
+    def levels_after(gap_s, speed_before_rpm):
+        before = np.tile(climb, (100, 1))
+        before[-20:, 0] = speed_before_rpm  # (the last 2 s before the gap)
+        before[-20:, 1] = 2400.0 if speed_before_rpm > 0 else 0.0
+        after = np.tile(climb, (6500, 1))
+        t = np.r_[np.arange(100) * 0.1, 9.9 + gap_s + np.arange(6500) * 0.1]
+        st, out = sensor.step_table(sensor.initial_state(T_oil_c=80.0), np.vstack([before, after]), t)
+        known = np.flatnonzero(out.level[100:].max(axis=1) < 3)
+        return (known[0] * 0.1 if known.size else math.inf), out
+
+    wait_s, out = levels_after(300.0, 1600.0)
+    assert wait_s == pytest.approx(300.0 - 0.1 - hold, abs=0.25)
+    assert np.all(out.level[100 + int(wait_s / 0.1) + 1 :] < 3) and np.isnan(out.ttl_s[100]).all()
+    assert levels_after(5.0, 1600.0)[0] == 0.0  # within the hold: no outage
+    assert levels_after(300.0, 0.0)[0] == 0.0  # parked: the engine-off cool-down is what happened
+    assert levels_after(7200.0, 1600.0)[0] == pytest.approx(600.0, abs=0.25)  # RECOVER_MAX_S
+
+
 def test_missing_oil_integrates_the_sump_and_flags_it(sensor, warm):
     st, out = run(sensor, warm, NOMINAL._replace(oil_temp_c=math.nan), 100)
     assert int(out.status.degraded_mode) == MODE_OIL_MODEL and int(out.status.oil_source) == 1

@@ -1760,6 +1760,12 @@ int gvs_step(const gvs_tables *tb, const gvs_vehicle *veh, gvs_state *st, const 
                 counts[GVS_RJ_TIME_JUMP] = 1;
                 /* the inputs age by the gap (held_inputs.jump_state): a value from before it is no recent one */
                 for (i = 0; i < GVS_N_INPUTS; ++i) st->age_s[i] += (gvs_real)(gap - (double)tb->dt_s);
+                /* entered with the engine turning, the gap was an outage of the drive inputs: the levels wait as
+                 * long as it went past the hold, at most GVS_RECOVER_MAX_S (step.jump_recover_s) */
+                if (st->hold[GVS_I_SPEED] > R_(0.0)) {
+                    gvs_real past = (gvs_real)(gap - (double)tb->dt_s) - tb->hold_s;
+                    if (past > R_(0.0)) st->recover_s = min_r(st->recover_s + past, R_(GVS_RECOVER_MAX_S));
+                }
             }
         }
     }
