@@ -226,3 +226,23 @@ def test_a_held_out_note_and_what_is_not_excluded_read_as_sentences():
     assert "alone. Beside it the data cannot exclude (" in heat and ".;" not in heat, heat
     plain = with_not_excluded(Verdict("oil_sensor_offset", "the best", None, {}, {}), [item]).reason
     assert plain.startswith("the best; beside it the data cannot exclude ("), plain  # no full stop: a clause
+
+
+def test_an_effect_that_would_make_held_out_files_without_a_gap_worse_is_refuted():
+    """A 3-minute training run of a sound gearbox claimed planetary_loss_scale 0.94, and the verdict stood, "neither
+    confirmed nor refuted", although it made the held-out RMS 5 times worse (a trial): held-out files without a gap
+    that the effect would put above a threshold refute it. One that leaves them within still only goes unconfirmed."""
+    import numpy as np
+
+    from tools.diagnosis.decide import Residuals, Verdict, held_out_check
+
+    chan = SimpleNamespace(cell_n=np.ones(200))
+    base = SimpleNamespace(test=SimpleNamespace(datasets=[SimpleNamespace(channels={"PS": chan})]), sigma={})
+    v = Verdict("planetary_loss_scale", "planetary_loss_scale has the strongest evidence", None, {"PS": 0.3}, {})
+    worse = Residuals([], [], [np.full(200, 0.145)], [np.full(200, 1.22)])
+    out = held_out_check(CTX, base, v, worse, [])
+    assert out.effect == "unexplained" and "refuted, no claim" in out.reason, out.reason
+    assert "PS 1.220 > 0.300 degC" in out.reason and "0.145 -> 1.220 degC" in out.reason
+    within = Residuals([], [], [np.full(200, 0.145)], [np.full(200, 0.2)])
+    kept = held_out_check(CTX, base, v, within, [])
+    assert kept.effect == "planetary_loss_scale" and "neither confirms nor refutes" in kept.reason
