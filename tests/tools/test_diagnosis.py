@@ -339,6 +339,18 @@ def test_stuck_sensor(tmp_path, capsys):
     assert "stuck sensor" in err and "oil_temp_c" in err
 
 
+def test_a_warm_thermocouple_in_kelvin_is_said_to_look_like_kelvin(tmp_path, capsys):
+    """A warm part's thermocouple in kelvin (over 300) was refused as "not a plausible temperature" with no word of
+    the unit, unlike degF (a trial): every value fits degC after - 273.15, and the sentence says so."""
+    cols = _table()
+    cols["meas_T_PS_c"] = cols["oil_temp_c"] + 20.0 + 273.15
+    err = _run_bad(tmp_path, capsys, cols)
+    assert "outside -60..300 degC (not a plausible temperature); it looks like kelvin" in err
+    cols["meas_T_PS_c"] = np.full(cols["time_s"].size, 900.0)  # no unit makes it plausible: no hint
+    err = _run_bad(tmp_path, capsys, cols)
+    assert "not a plausible temperature" in err and "kelvin" not in err
+
+
 @pytest.mark.parametrize("unit, to_unit", [("degF", lambda c: c * 1.8 + 32.0), ("kelvin", lambda c: c + 273.15)])
 def test_a_thermocouple_in_degf_or_kelvin_is_told_by_the_oil_beside_it(tmp_path, capsys, unit, to_unit):
     """A part's thermocouple logged in degF passed every range check (130 degC reads 266): the diagnosis took the

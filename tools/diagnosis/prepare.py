@@ -309,8 +309,11 @@ def _check_values(y: np.ndarray, ok: np.ndarray, name: str, col: str, dur_s: flo
     yv = y[ok]
     if np.any((yv < -60) | (yv > 300)):  # before the stuck check: a span of 1e308 overflows to inf
         bad = yv[(yv < -60) | (yv > 300)][0]
+        # a column in kelvin throughout said so, as the oil's degF is (a trial's thermocouple logged in K)
+        kelvin = bool(np.all((yv - 273.15 >= -60) & (yv - 273.15 <= 300)) and np.median(yv) > 213.15)
+        hint = "; it looks like kelvin: give degC (the values - 273.15)" if kelvin else ""
         raise InputError(
-            f'{name}: column "{col}" holds {bad:.5g} degC, outside -60..300 degC (not a plausible temperature)'
+            f'{name}: column "{col}" holds {bad:.5g} degC, outside -60..300 degC (not a plausible temperature){hint}'
         )
     if np.ptp(yv) <= J1939_RES_C * 1.01 and dur_s > 60:
         raise InputError(
