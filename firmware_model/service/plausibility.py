@@ -636,8 +636,8 @@ def torque_percent_finding(
             "percent",
             f"column input_torque_nm never exceeds {PERCENT_MAX:.0f} over {span_words(n * dt_s / 60.0)} with the "
             f"input at {DRIVE_MIN_RPM:.0f} rpm or more (peak {peak:.0f}, median {np.median(t):.0f}) while the drive "
-            f"takes up to {drive_max_nm:.4g} N m, so the torque looks like percent of it, not N m; give N m (if it "
-            "is an honest light load, pass --allow-untrusted)",
+            f"takes up to {drive_max_nm:.4g} N m, so the torque looks like percent of it, not N m; give N m, unless "
+            "it is an honest light load",
         )
     col = SOURCES[source]["engine_torque_nm"]
     fix = (

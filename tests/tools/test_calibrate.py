@@ -208,6 +208,13 @@ def test_a_fit_still_far_off_or_not_pinned_down_is_refused_or_said(params):
     lines = _cautions(ok, params)
     assert any("made oil worse" in x for x in lines) and any("not pinned down" in x for x in lines)
     assert not any("PS" in x for x in lines)
+    # most channels worse and the pooled RMS down through one (a trial's PS thermocouple 1.5 K high): refused
+    by = {"oil": (0.242, 0.352), "LI.teeth": (0.200, 0.265), "BLR": (0.246, 0.400), "PS": (1.15, 0.74)}
+    traded = _refusal(cal((2.0, 0.3), (0.609, 0.473), by, 0.01))
+    assert (
+        traded.startswith("the fit made 3 of the 4 held-out channels worse (oil 0.242 -> 0.352")
+        and "through PS" in traded
+    )
 
 
 def test_bounds_outside_the_allowed_range_are_refused_when_the_file_loads(tmp_path):

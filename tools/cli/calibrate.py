@@ -39,7 +39,8 @@ def add_subparser(sub):
             'came from; use it with --config (params = "OUT.toml") for replay, simulate or diagnose.\n\n'
             "An unknown key, a key without bounds or a key the data cannot identify is refused (one sentence, exit "
             "2, nothing written); --auto fits every bounded key the data can identify and lists the others. A fit "
-            "that makes the held-out RMS worse (on SCADA records also one that leaves it unchanged, or held-out "
+            "that makes the held-out RMS worse, pooled or on most channels (on SCADA records also one that leaves it "
+            "unchanged, or held-out "
             "records with fewer than 36 readings of any channel: they cannot test it) writes no OUT.toml (exit 3; "
             "the report, if asked for, shows why). A fit "
             "whose training residual holds too few effective samples to decide (docs/diagnosis.md, 'Thin evidence') "
@@ -121,8 +122,9 @@ OFFSET_LEFT_C = 0.5
 
 
 def _refusal(cal) -> str:
-    """Why the fit is no calibration ('' when it is one): the held-out error grew, or the training files are still
-    far off after it."""
+    """Why the fit is no calibration ('' when it is one): the held-out error grew, pooled or on most channels (a
+    trial's PS thermocouple 1.5 K high: the fit took PS 1.15 -> 0.74 K and made the oil, LI teeth and BLR worse,
+    and wrote the file), or the training files are still far off after it."""
     bound = [k for k in cal.keys if cal.at_bound[k]]
     at = f" (at a bound: {', '.join(bound)})" if bound else ""
     (before_c, after_c), (_, train_c) = cal.test_rms_c, cal.train_rms_c
@@ -136,6 +138,17 @@ def _refusal(cal) -> str:
         return (
             f"the fit made the held-out error worse (RMS {before_c:.4g} -> {after_c:.4g} degC); check the training "
             f"files' units and channels{at}"
+        )
+    by = getattr(cal, "test_by_channel", None) or {}
+    worse = [ch for ch, (b, a) in by.items() if a > b * (1.0 + WORSE_SHARE) and a - b > 0.05]
+    if len(worse) * 2 > len(by):  # the pooled RMS fell through a minority: one channel traded for the others
+        rest = [ch for ch in by if ch not in worse]
+        said = ", ".join(f"{ch} {by[ch][0]:.3f} -> {by[ch][1]:.3f}" for ch in worse)
+        return (
+            f"the fit made {len(worse)} of the {len(by)} held-out channels worse ({said} degC): the pooled RMS fell "
+            f"only through {', '.join(rest) or 'none'}, which these values bend the model to; a sensor offset or an "
+            f"effect on {'it' if len(rest) == 1 else 'them'} is likelier than the gearbox's values "
+            f"(gearbox-vsensor diagnose tells them apart){at}"
         )
     if not train_c <= TRAIN_RMS_REFUSE_C:
         return (
