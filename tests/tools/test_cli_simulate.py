@@ -651,3 +651,15 @@ def test_a_fixed_ratio_gearbox_takes_a_steady_spec_of_its_input_shaft(tmp_path, 
     ):
         assert main(["simulate", "--gearbox", "HR225", "--cycle", bad, "--out", str(out)]) == 2
         assert words in capsys.readouterr().err
+
+
+def test_a_cycle_with_gaps_between_its_rows_is_noted(tmp_path, capsys):
+    """5 minutes cut from a climb were simulated at the load before them, in silence, while replay took the engine as
+    off after 60 s (a validation trial): simulate names the gaps in a note; a cycle without gaps has none."""
+    from tools.cli.simulate import gap_note
+
+    t = np.r_[np.arange(0.0, 60.0, 0.1), 360.0 + np.arange(0.0, 60.0, 0.1)]
+    note = gap_note(RunTable({"time_s": t}), "c.csv")
+    assert note.startswith("c.csv: 1 gap between rows (the longest 300 s after 59.9 s)") and "60 s" in note
+    assert gap_note(RunTable({"time_s": np.arange(0.0, 60.0, 0.1)}), "c.csv") == ""
+    assert gap_note(RunTable({"time_s": np.r_[np.arange(0.0, 60.0, 0.1), 65.0]}), "c.csv") == ""  # 5 s: no gap

@@ -246,6 +246,10 @@ def run(args) -> int:
             oil_used = s.cooler == "measured" or (s.initial_temp_c is None and table.has("oil_temp_c"))
             limits = drive_limits(description_of(params)) if fixed_ratio else None
             _refuse_unit_mistakes(table, cycle_file, oil_used=oil_used, sparse_ok=fixed_ratio, drive=limits)
+        if cycle_file is not None and not fixed_ratio:  # (a fixed-ratio table's row holds one period: interfaces.md)
+            gaps = gap_note(table, cycle_file)
+            if gaps:
+                print(f"note: {gaps}", file=sys.stderr)
         if fixed_ratio:  # one output row per input row of a table slower than the output period (a SCADA table)
             s.out_dt_s = max(s.out_dt_s, table.meta["row_period_s"])
         plant = ReferencePlant(params, effects, cooler=s.cooler, dt_s=s.dt_s)
@@ -379,6 +383,30 @@ def _refuse_unit_mistakes(
     whole = record_findings(cols, float(np.median(np.diff(t))), engine=engine, drive_limits=drive) if t.size > 1 else []
     if speed or whole:
         raise InputError(f"{name}: {(speed + whole)[0].sentence} (pass --allow-untrusted to simulate it as it is)")
+
+
+#: a CSV cycle's step longer than this many median row spacings (and GAP_NOTE_MIN_S) is a gap the note names
+GAP_NOTE_PERIODS, GAP_NOTE_MIN_S = 2.0, 10.0
+
+
+def gap_note(table, name: str) -> str:
+    """A sentence on a CSV cycle's gaps ('' without): the plant holds the row before each gap through all of it
+    (rows at load in the output where the table has none), while the sensor holds the inputs over a time jump for
+    60 s and then takes the engine as off, so the two part there (a validation trial: 5 minutes cut from a climb,
+    simulated at load in silence, replayed 35 K apart)."""
+    t = np.asarray(table["time_s"], dtype=float)
+    if t.size < 3:
+        return ""
+    dt = np.diff(t)
+    gap = (dt > GAP_NOTE_PERIODS * float(np.median(dt))) & (dt > GAP_NOTE_MIN_S)
+    if not gap.any():
+        return ""
+    k = int(np.argmax(np.where(gap, dt, -np.inf)))
+    return (
+        f"{name}: {int(gap.sum())} gap{'s' if gap.sum() > 1 else ''} between rows (the longest {dt[k]:.0f} s after "
+        f"{t[k]:.1f} s): the plant holds the row before a gap through all of it, while the sensor (replay) holds the "
+        "inputs 60 s and then takes the engine as off, so their outputs part there; fill the gap or split the cycle"
+    )
 
 
 def plot_paths(plot):
