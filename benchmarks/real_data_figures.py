@@ -1,8 +1,9 @@
-"""The figures of docs/real-data.md: the physics model, the linear NBM and the physics-informed NBM on a turbine
-none of them was fitted on.
+"""The figures of docs/real-data.md: the physics model, the linear NBM, the long-lag linear NBM and the
+physics-informed NBM on a turbine none of them was fitted on.
 
 ENGIE's La Haute Borne SCADA (not shipped; docs/real-data.md says where it comes from) is read through the `engie`
-column map. The NBM (tools/scada/nbm.py) is fitted on two turbines' rows of a year and scored on the third's; the
+column map. The NBMs (tools/scada/nbm.py: the issue's linear NBM, lags to 2 h, and the long-lag one, lags to 24 h
+and the producing history) are fitted on two turbines' rows of a year and scored on the third's; the
 physics model is the shipped MM82 (its calibrated values were fitted on R80736 and R80790, so R80721 is held out
 for it too), replayed over the third turbine: the bearings from the measured oil, the oil in model mode (no oil
 reading); the physics-informed NBM (tools/scada/hybrid.py) is the NBM with that replay's estimate as one more
@@ -11,7 +12,7 @@ feature, fitted on the same two turbines. Writes, into --out (default docs/img):
 - ``real_heldout_month.png``: measured and estimated bearings and sump over one month of the held-out turbine;
 - ``real_residual_by_regime.png``: the RMS residual per operating regime (tools/scada/regimes.py) over its year.
 
-and prints the RMS per channel of the three models over the year and the month.
+and prints the RMS per channel of the four models over the year and the month.
 
     python benchmarks/real_data_figures.py DATA_DIR [--test R80721] [--year 2017] [--month 4] [--out docs/img]
 """
@@ -35,7 +36,7 @@ from firmware_model.config import load_config  # noqa: E402
 from tools.cli.gearbox_option import with_gearbox  # noqa: E402
 from tools.scada.diagnose import thermostat_of  # noqa: E402
 from tools.scada.hybrid import PhysicsInformedNBM  # noqa: E402
-from tools.scada.nbm import TASKS, LinearNBM  # noqa: E402
+from tools.scada.nbm import TASKS, LinearNBM, LongLagNBM  # noqa: E402
 from tools.scada.physics import PhysicsModel  # noqa: E402
 from tools.scada.reader import read_units  # noqa: E402
 from tools.scada.regimes import regimes  # noqa: E402
@@ -45,16 +46,27 @@ CHANNELS = (("bearings", ("Gb1t_avg", "Gb2t_avg")), ("oil", ("Gost_avg",)))
 LABEL = {"Gb1t_avg": "bearing 1 (Gb1t)", "Gb2t_avg": "bearing 2 (Gb2t)", "Gost_avg": "oil sump (Gost)"}
 
 
+#: the models of the figures and tables, in their order, with their colour
+MODELS = {
+    "physics": "tab:red",
+    "linear NBM": "tab:blue",
+    "long-lag NBM": "tab:purple",
+    "physics-informed NBM": "tab:green",
+}
+
+
 def estimates(train: list, test, config) -> dict:
-    """{channel: (measured, physics, NBM, physics-informed NBM)} over ``test``."""
+    """{channel: (measured, {model of MODELS: its estimate})} over ``test``."""
     out = {}
     for task, channels in CHANNELS:
         nbm = LinearNBM(TASKS[task]).fit(train).predict(test)
+        long_lag = LongLagNBM(TASKS[task]).fit(train).predict(test)
         sensor = PhysicsModel(TASKS[task], config, fit_effects=False)  # the shipped values, no effect fitted
         phys = sensor.predict(test)
         informed = PhysicsInformedNBM(TASKS[task], sensor).fit(train).predict(test)
         for ch in channels:
-            out[ch] = (np.asarray(test.values[ch], dtype=float), phys[ch], nbm[ch], informed[ch])
+            models = dict(zip(MODELS, (phys[ch], nbm[ch], long_lag[ch], informed[ch])))
+            out[ch] = (np.asarray(test.values[ch], dtype=float), models)
     return out
 
 
@@ -70,20 +82,17 @@ def plot_month(test, est: dict, month: np.ndarray, title: str, path: Path) -> No
     import matplotlib.pyplot as plt
 
     t = np.array([dt.datetime.fromtimestamp(s, dt.timezone.utc) for s in np.asarray(test.time_s)[month]])
-    fig, axes = plt.subplots(len(est) + 1, 1, figsize=(11, 2.4 * (len(est) + 1)), sharex=True)
+    fig, axes = plt.subplots(len(est) + 1, 1, figsize=(11, 2.7 * (len(est) + 1)), sharex=True)
     axes[0].plot(t, np.asarray(test.values["power_kw"])[month], lw=0.6, color="0.3")
     axes[0].set_ylabel("power [kW]")
     axes[0].set_title(title, fontsize=10)
-    for ax, (ch, (meas, phys, nbm, informed)) in zip(axes[1:], est.items()):
-        r_p, _ = rms(meas, phys, month)
-        r_n, _ = rms(meas, nbm, month)
-        r_i, _ = rms(meas, informed, month)
+    for ax, (ch, (meas, models)) in zip(axes[1:], est.items()):
         ax.plot(t, meas[month], ".", ms=1.5, color="k", label="measured")
-        ax.plot(t, phys[month], lw=0.8, color="tab:red", label=f"physics (RMS {r_p:.2f} K)")
-        ax.plot(t, nbm[month], lw=0.8, color="tab:blue", alpha=0.8, label=f"linear NBM (RMS {r_n:.2f} K)")
-        ax.plot(t, informed[month], lw=0.8, color="tab:green", alpha=0.9, label=f"physics-informed NBM ({r_i:.2f} K)")
+        for name, e in models.items():
+            r, _ = rms(meas, e, month)
+            ax.plot(t, e[month], lw=0.8, color=MODELS[name], alpha=0.85, label=f"{name} (RMS {r:.2f} K)")
         ax.set_ylabel(f"{LABEL[ch]} [degC]", fontsize=8)
-        ax.legend(loc="upper right", fontsize=7, ncol=4)
+        ax.legend(loc="lower left", bbox_to_anchor=(0.0, 1.0), fontsize=7, ncol=5, frameon=False, borderaxespad=0.1)
     fig.autofmt_xdate()
     fig.tight_layout()
     fig.savefig(path, dpi=80)
@@ -98,20 +107,19 @@ def plot_regimes(masks: dict, est: dict, title: str, path: Path) -> list[str]:
 
     names = list(masks)
     lines = []
-    fig, axes = plt.subplots(1, len(est), figsize=(4.2 * len(est), 0.42 * len(names) + 1.6), sharey=True)
+    fig, axes = plt.subplots(1, len(est), figsize=(4.4 * len(est), 0.55 * len(names) + 1.6), sharey=True)
     y = np.arange(len(names))
-    for ax, (ch, (meas, phys, nbm, informed)) in zip(np.atleast_1d(axes), est.items()):
-        rp = [rms(meas, phys, masks[n])[0] for n in names]
-        rn = [rms(meas, nbm, masks[n])[0] for n in names]
-        ri = [rms(meas, informed, masks[n])[0] for n in names]
-        ax.barh(y - 0.27, rp, 0.27, color="tab:red", label="physics")
-        ax.barh(y, rn, 0.27, color="tab:blue", label="linear NBM")
-        ax.barh(y + 0.27, ri, 0.27, color="tab:green", label="physics-informed NBM")
+    h = 0.8 / len(MODELS)
+    for ax, (ch, (meas, models)) in zip(np.atleast_1d(axes), est.items()):
+        r = {m: [rms(meas, e, masks[n])[0] for n in names] for m, e in models.items()}
+        for j, m in enumerate(models):
+            ax.barh(y + (j - (len(models) - 1) / 2) * h, r[m], h, color=MODELS[m], label=m)
         ax.set_title(LABEL[ch], fontsize=9)
         ax.set_xlabel("RMS error [K]")
         ax.invert_yaxis()
         lines += [
-            f"| {ch} | {n} | {masks[n].sum()} | {a:.2f} | {b:.2f} | {c:.2f} |" for n, a, b, c in zip(names, rp, rn, ri)
+            f"| {ch} | {n} | {masks[n].sum()} | " + " | ".join(f"{r[m][i]:.2f}" for m in models) + " |"
+            for i, n in enumerate(names)
         ]
     np.atleast_1d(axes)[0].set_yticks(y, names, fontsize=8)
     np.atleast_1d(axes)[0].legend(fontsize=7)
@@ -120,6 +128,24 @@ def plot_regimes(masks: dict, est: dict, title: str, path: Path) -> list[str]:
     fig.savefig(path, dpi=80)
     plt.close(fig)
     return lines
+
+
+def print_tables(est: dict, month: np.ndarray, rows: list[str], year: int) -> None:
+    """The year's and the month's RMS per channel and model, then by regime (the rows of plot_regimes)."""
+    heads = " | ".join(f"{m} RMS [K]" for m in MODELS)
+    print(f"| channel | rows {year} | {heads} | month rows | " + " | ".join(MODELS) + " |")
+    print("|---|---:|" + "---:|" * len(MODELS) + "---:|" + "---:|" * len(MODELS))
+    for ch, (meas, models) in est.items():
+        year_rms = [rms(meas, e) for e in models.values()]
+        month_rms = [rms(meas, e, month) for e in models.values()]
+        cells = " | ".join(f"{r:.2f}" for r, _ in year_rms)
+        print(
+            f"| {ch} | {year_rms[0][1]} | {cells} | {month_rms[0][1]} | "
+            + " | ".join(f"{r:.2f}" for r, _ in month_rms)
+            + " |"
+        )
+    print(f"\n| channel | regime | rows | {heads} |\n|---|---|---:|" + "---:|" * len(MODELS))
+    print("\n".join(rows))
 
 
 def main(argv: list[str]) -> int:
@@ -155,7 +181,7 @@ def main(argv: list[str]) -> int:
         test,
         est,
         month,
-        f"{a.test} {a.year}-{a.month:02d}, held out. Linear NBM and physics-informed NBM fitted on {fitted_on} "
+        f"{a.test} {a.year}-{a.month:02d}, held out. The NBMs fitted on {fitted_on} "
         f"{a.year}; physics: the shipped MM82\n(the bearings from the measured oil, the sump in model mode: no oil "
         "reading)",
         out / "real_heldout_month.png",
@@ -164,20 +190,7 @@ def main(argv: list[str]) -> int:
     rows = plot_regimes(
         masks, est, f"{a.test} {a.year} held out: RMS error by regime", out / "real_residual_by_regime.png"
     )
-    print(
-        f"| channel | rows {a.year} | physics RMS [K] | NBM RMS [K] | physics-informed NBM RMS [K] | month rows "
-        "| physics | NBM | physics-informed NBM |"
-    )
-    print("|---|---:|---:|---:|---:|---:|---:|---:|---:|")
-    for ch, (meas, phys, nbm, informed) in est.items():
-        (rp, n), (rn, _), (ri, _) = rms(meas, phys), rms(meas, nbm), rms(meas, informed)
-        (mp, m), (mn, _), (mi, _) = rms(meas, phys, month), rms(meas, nbm, month), rms(meas, informed, month)
-        print(f"| {ch} | {n} | {rp:.2f} | {rn:.2f} | {ri:.2f} | {m} | {mp:.2f} | {mn:.2f} | {mi:.2f} |")
-    print(
-        "\n| channel | regime | rows | physics RMS [K] | NBM RMS [K] | physics-informed NBM RMS [K] |"
-        "\n|---|---|---:|---:|---:|---:|"
-    )
-    print("\n".join(rows))
+    print_tables(est, month, rows, a.year)
     print(
         f"\nwrote {out / 'real_heldout_month.png'} and {out / 'real_residual_by_regime.png'} "
         f"in {time.perf_counter() - t0:.1f} s"
