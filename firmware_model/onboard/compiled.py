@@ -29,7 +29,7 @@ from firmware_model.onboard.held_inputs import jump_state
 from firmware_model.onboard.kernel_interface import NEED_JUMP
 from firmware_model.onboard.kernel_tables import VEHICLE_EFFECTS, table_arrays, vehicle_arrays
 from firmware_model.onboard.params import SensorParams
-from firmware_model.onboard.records import N_INPUTS, SensorInputs, SensorOutputs, SensorState, SensorStatus
+from firmware_model.onboard.records import I_OIL, N_INPUTS, SensorInputs, SensorOutputs, SensorState, SensorStatus
 from firmware_model.onboard.step_cache import StepCache
 from firmware_model.onboard.time_to_limit import TtlJob, TtlPoint
 
@@ -281,7 +281,7 @@ class CompiledCore:
         )
         if self.lib.gvs_step(*args, 0, out.ctypes.data, pts.ctypes.data) == NEED_JUMP:
             gap = float(rec["t_s"]) - float(buf["t_last_s"])
-            st = jump_state(self.unpack(buf), gap - self.sp.dt_s, self.sp, cache)
+            st = jump_state(self.unpack(buf), gap - self.sp.dt_s, self.sp, cache, rec["raw"][I_OIL])
             buf["T_c"][:, : self.n], buf["pending_s"][: self.n_pub] = st.T_c, st.pending_s
             self.lib.gvs_step(*args, 1, out.ctypes.data, pts.ctypes.data)
         return self.unpack(buf), self.outputs(out), self.ttl_job(pts)
@@ -297,7 +297,7 @@ class CompiledCore:
         backward = known & (gap < 0.5 * dt) & ~(gap < -self.sp.options.clock_reset_s)  # not a reset clock
         jump = known & (gap > 1.5 * dt) & ~backward  # (the kernel skips the backward ones itself)
         if jump.any():
-            st = jump_state(self.unpack(buf), np.where(jump, gap - dt, 0.0), self.sp, cache)
+            st = jump_state(self.unpack(buf), np.where(jump, gap - dt, 0.0), self.sp, cache, rec["raw"][..., I_OIL])
             buf["T_c"][..., : self.n], buf["pending_s"][..., : self.n_pub] = st.T_c, st.pending_s
         return np.ascontiguousarray(jump, dtype=np.int8).reshape(-1)
 
@@ -386,7 +386,7 @@ class CompiledCore:
         j += done
         if status == NEED_JUMP:
             gap = rec["t_s"][j] - float(buf["t_last_s"])
-            st = jump_state(self.unpack(buf), gap - self.sp.dt_s, self.sp, cache)
+            st = jump_state(self.unpack(buf), gap - self.sp.dt_s, self.sp, cache, rec["raw"][j][I_OIL])
             buf["T_c"][:, : self.n], buf["pending_s"][: self.n_pub] = st.T_c, st.pending_s
             one = np.zeros((), dtype=self.S["TtlPoint_dtype"])
             kept = kf is None or bool(kf[j])

@@ -103,13 +103,15 @@ def cooler_slope_w_per_k(
     return max(float((Q_hi_w - Q_lo_w) / 0.1), 0.0)
 
 
-def jump_state(state: SensorState, gap_s, sp: SensorParams, cache: StepCache) -> SensorState:
+def jump_state(state: SensorState, gap_s, sp: SensorParams, cache: StepCache, oil_after_c=None) -> SensorState:
     """Propagate over a forward time jump of ``gap_s`` (per vehicle; <= 0: none): held inputs for up to
     time_jump_hold_s, then engine off. The inputs age by the gap: a value held from before it is no recent good
     value (the oil's jump check and the drive inputs' hold then treat it as old, as the C kernel does). A warning
     level change pending before the gap has been pending through it: its debounce timer counts the gap (else rows
     10 s apart took 10 rows to raise a 1 s debounce, 30 s rows never). A single vehicle's propagation that
-    :func:`prepare_jump` did ahead is taken from ``cache.ahead`` (the same bits)."""
+    :func:`prepare_jump` did ahead is taken from ``cache.ahead`` (the same bits). ``oil_after_c``: the raw oil
+    reading of the step after the jump (per vehicle; None or NaN: none), which anchors the state
+    (:func:`anchored_to_reading`)."""
     B = state.t_last_s.shape
     T = np.array(state.T_c, dtype=float, copy=True)
     age = np.array(state.age_s, dtype=float, copy=True)
@@ -122,7 +124,23 @@ def jump_state(state: SensorState, gap_s, sp: SensorParams, cache: StepCache) ->
         pending[v] = np.where(pending[v] > 0, pending[v] + g, pending[v])
         ahead = cache.ahead.take(cache.ahead.key_of(state, g)) if not B and cache.ahead.key is not None else None
         T[v] = ahead if ahead is not None else _jump_temperatures(state, v, g, sp, cache)
+        if oil_after_c is not None:
+            T[v] = anchored_to_reading(T[v], g, float(np.asarray(oil_after_c, dtype=float)[v]), sp)
     return state._replace(T_c=T, age_s=age.astype(np.asarray(state.age_s).dtype, copy=False), pending_s=pending)
+
+
+def anchored_to_reading(T_c: np.ndarray, gap_s: float, oil_c: float, sp: SensorParams) -> np.ndarray:
+    """(2, n) temperatures after a jump of ``gap_s``, anchored to the sump read after it: with the sump measured and
+    the jump past the hold (its engine-off cool-down taken), every part of both copies moves by its copy's sump's
+    distance from a plausible reading ``oil_c``. The cool-down assumed the gearbox stood still through the gap; the
+    reading says what it did (a SCADA logger's 101-day gap ended with a turbine running: its sump read 54.8 degC,
+    its bearings were taken at the air's 18 degC, 38 K under their reading). A gearbox that did stand still reads
+    about what the cool-down gave, and moves little. Otherwise ``T_c`` as it is."""
+    if sp.options.oil_mode != "measured" or not gap_s > sp.options.time_jump_hold_s:
+        return T_c
+    if not (math.isfinite(oil_c) and sp.input_lo[I_OIL] <= oil_c <= sp.input_hi[I_OIL]):
+        return T_c
+    return T_c + (oil_c - T_c[:, sp.reduced.i_oil])[:, None]
 
 
 def prepare_jump(state: SensorState, gap_s: float, sp: SensorParams, cache: StepCache) -> None:

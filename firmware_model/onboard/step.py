@@ -137,7 +137,7 @@ def _step_all(state, raw, t_now, counts, jump, gap, sp: SensorParams, cache: Ste
     time-to-limit job)."""
     if jump is not None and jump.any():
         g_s = np.where(jump, gap - sp.dt_s, 0.0)
-        state = jump_state(state, g_s, sp, cache)._replace(recover_s=jump_recover_s(state, g_s, sp))
+        state = jump_state(state, g_s, sp, cache, raw[..., I_OIL])._replace(recover_s=jump_recover_s(state, g_s, sp))
     chk = check_inputs(state, raw, sp)
     counts[..., : chk.counts.shape[-1]] = chk.counts
     net = _network_step(state, chk, raw[..., I_OIL], sp, cache)

@@ -505,6 +505,50 @@ def test_after_a_time_jump_the_first_oil_reading_is_used(params, core):
     assert c.rejects[RJ["oil_implausible"]] == b.rejects[RJ["oil_implausible"]] + 1
 
 
+def _after_a_logger_gap(params, core: str, oil_mode: str, oil_after_c: float):
+    """A gearbox warm from load, then a logger off for 3 days while it kept running: the step after the gap reads
+    the oil at ``oil_after_c``."""
+    try:
+        s = VirtualSensor(params, core=core, oil_mode=oil_mode)
+    except ParameterError as exc:
+        pytest.skip(str(exc))
+    st, _ = run(s, s.initial_state(T_oil_c=80.0), NOMINAL, 50)
+    a, _ = s.step(st, NOMINAL._replace(t_s=100.0))
+    return s.step(a, NOMINAL._replace(t_s=100.0 + 3 * 86400.0, oil_temp_c=oil_after_c))
+
+
+def test_after_a_long_time_jump_the_oil_reading_anchors_every_part():
+    """The engine-off cool-down over a gap is what happened only if the gearbox stood still: a SCADA logger's 101-day
+    gap left a turbine's bearing estimate at 18 degC beside a sump read at 54.8 degC (38 K under its reading, levels
+    known), because the parts had cooled to the air while the turbine ran when the logging came back. With the sump
+    measured, the first reading after a jump past the hold shifts every part of both copies by the sump's distance
+    from it: here the parts had cooled to the air (25 degC) and the reading says 80 degC. Both cores, the same bits."""
+    params = load_parameters("GRS905")
+    outs = {}
+    for core in ("numpy", "c"):
+        try:
+            st, out = _after_a_logger_gap(params, core, "measured", 80.0)
+        except pytest.skip.Exception:
+            continue
+        assert st.rejects[RJ["time_jump"]] == 1
+        assert out.T_c[I["oil"]] == 80.0
+        assert np.min(out.T_c) > 78.0, out.T_c  # each part near the sump it was at rest with (was 25-26 degC)
+        outs[core] = (np.asarray(st.T_c), np.asarray(out.T_c))
+    if len(outs) == 2:
+        np.testing.assert_array_equal(outs["numpy"][0], outs["c"][0])
+        np.testing.assert_array_equal(outs["numpy"][1], outs["c"][1])
+
+
+@pytest.mark.parametrize("oil_mode, oil_after_c", [("model", 80.0), ("measured", math.nan), ("measured", 400.0)])
+def test_no_reading_or_no_measured_sump_leaves_the_cool_down(oil_mode, oil_after_c):
+    """Without a measured sump (oil mode "model"), or without a plausible reading after the gap, the cool-down over
+    the gap stands: every part near the air."""
+    st, out = _after_a_logger_gap(load_parameters("GRS905"), "numpy", oil_mode, oil_after_c)
+    assert st.rejects[RJ["time_jump"]] == 1
+    parts = [i for c, i in I.items() if c != "oil"]
+    assert np.max(np.asarray(out.T_c)[parts]) < 40.0
+
+
 def test_a_long_time_jump_cools_the_gearbox(sensor, warm):
     hot, _ = run(sensor, warm, SensorInputs(1400.0, 2600.0, 5, 80.0, 20.0, 85.0, 30.0, 0.0, 0.0), 1)
     st, out = sensor.step(hot, SensorInputs(700.0, 0.0, 0, math.nan, 20.0, 85.0, 0.0, 0.0, 10 * 3600.0))
