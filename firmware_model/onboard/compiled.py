@@ -28,7 +28,7 @@ from firmware_model.onboard.ckernel import TABLE_FIELDS, CoreUnavailable, load
 from firmware_model.onboard.held_inputs import jump_state
 from firmware_model.onboard.kernel_interface import NEED_JUMP
 from firmware_model.onboard.kernel_tables import VEHICLE_EFFECTS, table_arrays, vehicle_arrays
-from firmware_model.onboard.params import SensorParams
+from firmware_model.onboard.params import SensorParams, boundary_change_steps
 from firmware_model.onboard.records import I_OIL, N_INPUTS, SensorInputs, SensorOutputs, SensorState, SensorStatus
 from firmware_model.onboard.step_cache import StepCache
 from firmware_model.onboard.time_to_limit import TtlJob, TtlPoint
@@ -410,11 +410,19 @@ class CompiledCore:
         return j, w
 
     def run_batch(
-        self, state: SensorState, raw: np.ndarray, keep: np.ndarray, nodes: np.ndarray, rec: np.ndarray
+        self,
+        state: SensorState,
+        raw: np.ndarray,
+        keep: np.ndarray,
+        nodes: np.ndarray,
+        rec: np.ndarray,
+        bc_shift_k: np.ndarray | None = None,
     ) -> np.ndarray:
         """V vehicles (per-vehicle effects as in ``self.sp``) stepped through the same inputs ``raw`` (n, 8) on the
         0.1 s grid, one kernel call per step and no time-to-limit refresh (the diagnosis needs only temperatures):
-        ``rec[j]`` = the main copy's temperatures of ``nodes`` after step ``keep[j]`` (rec[0]: given)."""
+        ``rec[j]`` = the main copy's temperatures of ``nodes`` after step ``keep[j]`` (rec[0]: given).
+        ``bc_shift_k`` (n, nb): added at each step to every vehicle's boundary temperatures (offline, boundaries
+        measured on a rig; None: the defaults throughout; the ambient and coolant slots come from ``raw``)."""
         buf = self.pack(state)
         V = buf.shape[0]
         inp = np.empty((raw.shape[0], V), dtype=self.S["Inputs_dtype"])
@@ -422,11 +430,19 @@ class CompiledCore:
         inp["t_s"] = np.nan
         out = np.zeros(V, dtype=self.S["Outputs_dtype"])
         veh = self.vehicles(V)
+        bc_at = set()
+        if bc_shift_k is not None:  # on a copy: the cached records keep the defaults
+            veh = veh.copy()
+            bc_base_c = veh["T_bc_default_c"][:, : self.nb].copy()
+            bc_at = boundary_change_steps(bc_shift_k)
         stride = 1 if veh.shape[0] > 1 else 0
         step_batch, tables, nbytes = self.lib.gvs_step_batch, self._tables_p, inp.strides[0]
         base, veh_p, buf_p, out_p = inp.ctypes.data, veh.ctypes.data, buf.ctypes.data, out.ctypes.data
         j = 1
         for k in range(raw.shape[0] - 1):
+            if k in bc_at:  # new boundaries: the memoised bin conductances (radiation to them) computed again
+                veh["T_bc_default_c"][:, : self.nb] = bc_base_c + bc_shift_k[k]
+                buf["memo_valid"] = 0
             step_batch(tables, veh_p, stride, V, buf_p, base + k * nbytes, None, out_p, None, None)
             if j < keep.size and k + 1 == keep[j]:
                 rec[j] = buf["T_c"][:, 0, nodes]

@@ -189,3 +189,10 @@ def first_row(value) -> np.ndarray:
 def _per_vehicle(value):
     """An effect value as the cooler arithmetic broadcasts it: a float, or (V, 1) for one value per vehicle."""
     return np.asarray(value)[..., None] if np.ndim(value) else float(value)
+
+
+def boundary_change_steps(bc_shift_k: np.ndarray) -> set:
+    """The steps at which a per-step shift of the boundary temperatures (n, nb) takes a new value: step 0 and every
+    step whose row differs from the row before (a 1 Hz table held on the 0.1 s grid changes every tenth step)."""
+    moved = np.any(np.diff(np.asarray(bc_shift_k, dtype=float), axis=0) != 0.0, axis=1)
+    return {0, *(int(k) + 1 for k in np.flatnonzero(moved))}

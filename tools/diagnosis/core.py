@@ -220,15 +220,14 @@ def make_model(kind: str, params, cooler: str | None, opts: Options):
 
 
 def boundary_note(runs) -> str | None:
-    """The note for an onboard diagnosis of files with bc_* boundary columns (OnboardModel.boundary_correction),
-    None without them."""
+    """The note for an onboard diagnosis of files with bc_* boundary columns (the onboard runs take them as their
+    boundary temperatures, tools.diagnosis.models.run_onboard_pass), None without them."""
     cols = sorted({c for ds in (*runs.train, *runs.test) for c in ds.inputs.columns if c.startswith("bc_")})
     if not cols:
         return None
     return (
-        f"the files give boundary temperatures ({', '.join(cols)}) that the onboard model cannot take (a truck "
-        f"sends the ambient and the coolant only): what they change, by the reference plant without any effect, "
-        f"is added to every onboard run"
+        f"the files give boundary temperatures ({', '.join(cols)}) that a truck does not send (only the ambient "
+        f"and the coolant): the onboard model was run with them, as the reference plant is"
     )
 
 

@@ -26,7 +26,7 @@ import math
 import multiprocessing as mp
 import os
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -273,8 +273,7 @@ class PlantModel(DiagnosisModel):
         nd = len(datasets)
         return [outs[i * nd : (i + 1) * nd] for i in range(len(runs))]
 
-    #: plant runs kept per diagnosis: the same run of the same table asked twice (the onboard model's boundary
-    #: correction and its heat pair both run the plant with no effect on the first training file) runs once
+    #: plant runs kept per diagnosis: the same run of the same table asked twice runs once
     REMEMBER_MAX = 16
 
     def _remembered(self, job) -> dict | None:
@@ -317,8 +316,10 @@ class OnboardModel(DiagnosisModel):
     integrates the sump with its cooler model. The runs of one call are the vehicles of one vectorised pass per
     file (the onboard model's per-vehicle effect hooks, firmware_model.onboard.reduce.EFFECT_HOOKS); ``oil_level_low``
     is
-    one build per volume, ``oil_sensor_lag`` a filter on the sump output. Other effects are delegated to `fallback`
-    (a PlantModel) and listed in `delegated`. Passes are spread over a process pool (one file per process).
+    one build per volume, ``oil_sensor_lag`` a filter on the sump output. A file's bc_<boundary>_c columns are its
+    runs' boundary temperatures, as they are the plant's (run_onboard_pass). Other effects are delegated to
+    `fallback` (a PlantModel) and listed in `delegated`. Passes are spread over a process pool (one file per
+    process).
     """
 
     name = "onboard"
@@ -350,33 +351,6 @@ class OnboardModel(DiagnosisModel):
         )
         self.delegated = []
         self.notes = []
-        self._bc_corrections = {}
-
-    def boundary_correction(self, ds, columns) -> dict | None:
-        """What a file's bc_* boundary columns change, by the reference plant with no effect: per column, the plant
-        with them minus the plant without them on the plant's output grid (with ``time_s``); None without such
-        columns or without a fallback plant. The onboard model reads only the ambient and the coolant (a truck
-        sends no other boundary); offline its runs get this added, so that a rig's measured boundaries (or a named
-        cycle's) neither stay in the residual for a catalog effect to take up nor hide in the model-error floor."""
-        if self.fallback is None or not any(c.startswith("bc_") for c in ds.inputs.columns):
-            return None
-        key = (id(ds), tuple(columns))
-        cached = self._bc_corrections.get(key)
-        if cached is not None and cached[0] is ds:  # (the data set itself kept: an id can be reused)
-            return cached[1]
-        from tools.runtable import RunTable
-
-        bare = _DS(
-            RunTable({c: ds.inputs[c] for c in ds.inputs.columns if not c.startswith("bc_")}, meta=ds.inputs.meta),
-            ds.initial_temp_c,
-        )
-        with_bc, without = self.fallback.simulate([ds, bare], [Run.of()], columns)[0]
-        corr = {"time_s": np.asarray(with_bc["time_s"], dtype=float)}
-        for c, v in with_bc.items():
-            if c != "time_s" and c in without and not isinstance(v, dict):
-                corr[c] = np.asarray(v, dtype=float) - np.asarray(without[c], dtype=float)
-        self._bc_corrections[key] = (ds, corr)
-        return corr
 
     def simulate(self, datasets, runs, columns):
         native = [r for r in runs if all(e in self.native_effects for e, _ in r.effects) and not r.full]
@@ -404,10 +378,6 @@ class OnboardModel(DiagnosisModel):
             for (j, idx), res in zip(where, outs):
                 for i, o in zip(idx, res):
                     per[j][i] = o
-            for j, ds in enumerate(datasets):
-                corr = self.boundary_correction(ds, columns)
-                if corr is not None:
-                    per[j] = [_corrected(o, corr) for o in per[j]]
             for i, r in enumerate(native):
                 results[r] = [per[j][i] for j in range(len(datasets))]
         if other:
@@ -450,28 +420,21 @@ class OnboardModel(DiagnosisModel):
         return d
 
 
-def _corrected(out: dict, corr: dict) -> dict:
-    """An onboard run's columns plus a boundary correction (OnboardModel.boundary_correction) on its time grid."""
-    t = np.asarray(out["time_s"], dtype=float)
-    return {
-        c: (np.asarray(v, dtype=float) + np.interp(t, corr["time_s"], corr[c]) if c in corr and c != "time_s" else v)
-        for c, v in out.items()
-    }
-
-
 @dataclass
 class _DS:
     inputs: object
     initial_temp_c: float
 
 
-_ONB = {"builds": {}}
+_ONB = {"builds": {}, "boundary_names": {}}
 
 
 def _init_onboard(params, cooler, config, out_dt_s):
     key = (id(params), cooler, out_dt_s)
     if _ONB.get("key") != key:
-        _ONB.update(params=params, cooler=cooler, config=config, out_dt_s=out_dt_s, builds={}, key=key)
+        _ONB.update(
+            params=params, cooler=cooler, config=config, out_dt_s=out_dt_s, builds={}, boundary_names={}, key=key
+        )
     warnings.filterwarnings("ignore", category=RuntimeWarning)
 
 
@@ -498,11 +461,12 @@ def _onboard_build(volume_l: float):
     return vs
 
 
-def _onboard_steps(vs, sp, state, raw: np.ndarray, keep: np.ndarray, wi: np.ndarray) -> np.ndarray:
+def _onboard_steps(vs, sp, state, raw: np.ndarray, keep: np.ndarray, wi: np.ndarray, bc_shift_k=None) -> np.ndarray:
     """The main copy's temperatures of nodes ``wi`` at the steps ``keep`` (V vehicles, the same inputs ``raw``
     (n, 8) for all): the compiled kernel when the sensor has it (one call per step for the whole batch), else the
-    numpy step."""
+    numpy step. ``bc_shift_k`` (n, nb): the boundaries' shift from their defaults at each step (None: none)."""
     from firmware_model.onboard import sensor as S
+    from firmware_model.onboard.params import boundary_change_steps
 
     V = state.T_c.shape[0]
     rec = np.empty((keep.size, V, len(wi)))
@@ -510,14 +474,48 @@ def _onboard_steps(vs, sp, state, raw: np.ndarray, keep: np.ndarray, wi: np.ndar
     if getattr(vs, "compiled", None) is not None:
         from firmware_model.onboard.compiled import CompiledCore
 
-        return CompiledCore(sp).run_batch(state, raw, keep, wi, rec)
-    j = 1
+        return CompiledCore(sp).run_batch(state, raw, keep, wi, rec, bc_shift_k)
+    bc_at = boundary_change_steps(bc_shift_k) if bc_shift_k is not None else set()
+    sp_k, j = sp, 1
     for k in range(raw.shape[0] - 1):
-        state, _ = S.step(state, S.SensorInputs(*raw[k].tolist()), sp)
+        if k in bc_at:
+            sp_k = replace(sp, T_bc_default_c=np.asarray(sp.T_bc_default_c, dtype=float) + bc_shift_k[k])
+        state, _ = S.step(state, S.SensorInputs(*raw[k].tolist()), sp_k)
         if j < keep.size and k + 1 == keep[j]:
             rec[j] = state.T_c[:, S.MAIN, :][:, wi]
             j += 1
     return rec
+
+
+#: the boundaries the onboard step takes from its drive inputs (ambient_temp_c, coolant_temp_c), not from bc_ columns
+INPUT_BOUNDARIES = ("ambient", "coolant")
+
+
+def _boundary_shift_k(vs, table, idx: np.ndarray):
+    """The shift of the onboard model's boundaries from their defaults [K] at each 0.1 s step (n, nb; ``idx``: the
+    table's row held at each step), from the table's bc_<boundary>_c columns (a rig's measured boundaries, a named
+    cycle's), their empty cells bridged linearly as the plant bridges them; None without such a column. A truck
+    sends the ambient and the coolant only, but offline the diagnosis knows the boundaries the plant takes, and a
+    run's effects must act on them as in the plant: a cooler at 0.6 lets the same boundaries lift the oil 1.5 K
+    where the nominal cooler lets them lift it 1.0 K (docs/diagnosis.md, "Boundary columns")."""
+    from firmware_model.network import build_network
+    from firmware_model.onboard.reduce import onboard_boundaries
+
+    names = _ONB["boundary_names"].get(id(vs))
+    if names is None:  # (per build: the builds are kept, so an id is not reused)
+        names = _ONB["boundary_names"][id(vs)] = onboard_boundaries(build_network(vs.params))
+    t = np.asarray(table["time_s"], dtype=float)
+    default_c = np.asarray(vs.reduced.bc_default_c, dtype=float)
+    shift_k = np.zeros((idx.size, default_c.size))
+    found = False
+    for i, b in enumerate(names):
+        v = np.asarray(table[f"bc_{b}_c"], dtype=float) if table.has(f"bc_{b}_c") else np.full(t.size, np.nan)
+        ok = np.isfinite(v)
+        if b in INPUT_BOUNDARIES or not ok.any():
+            continue
+        shift_k[:, i] = np.interp(t, t[ok], v[ok])[idx] - default_c[i]
+        found = True
+    return shift_k if found else None
 
 
 def run_onboard_pass(ds, runs, columns, volume_l: float) -> list:
@@ -562,7 +560,7 @@ def run_onboard_pass(ds, runs, columns, volume_l: float) -> list:
     want = sorted({c[2:-2] for c in columns if c.startswith("T_") and c.endswith("_c") and c[2:-2] in nodes} | {"oil"})
     wi = np.array([nodes.index(w) for w in want])
     raw = np.stack([spd, tq, gear, np.full(n, math.nan), amb, cool, vk, ret], axis=-1)
-    rec = _onboard_steps(vs, sp, state, raw, keep, wi)
+    rec = _onboard_steps(vs, sp, state, raw, keep, wi, _boundary_shift_k(vs, ds.inputs, idx))
     t_out = ts[keep]
     outs = []
     for v, r in enumerate(runs):
