@@ -11,7 +11,7 @@ from firmware_model.config import load_config
 from firmware_model.errors import InputError
 from tools.cli.gearbox_option import add_gearbox_option, require_vehicle_drive, resolve_gearbox
 from tools.cli.paths import check_paths
-from tools.cli.scada_notes import say_damaged_lines, say_stuck_channels
+from tools.cli.scada_notes import say_conflicting_rows, say_damaged_lines, say_stuck_channels
 from tools.cli.settings import add_hidden, setting
 
 #: --report's help
@@ -283,6 +283,7 @@ def _run_scada(args, cfg, params) -> int:
     setup, notes = setup_of(cfg, train[0].cmap)
     say_damaged_lines([*train, *test], "read", args.quiet)
     say_stuck_channels([*train, *test])
+    say_conflicting_rows([*train, *test])
     for note in [] if args.quiet else notes:  # what the fit leaves out by design: a note, not a warning
         print(f"note: {note}", file=sys.stderr)
     cal = calibrate_records(setup, train, test, keys)

@@ -13,7 +13,7 @@ from firmware_model.errors import InputError
 from tools.cli.core_option import add_core_option, apply_core
 from tools.cli.gearbox_option import add_gearbox_option, require_vehicle_drive, resolve_gearbox
 from tools.cli.paths import check_paths
-from tools.cli.scada_notes import say_damaged_lines, say_stuck_channels
+from tools.cli.scada_notes import say_conflicting_rows, say_damaged_lines, say_stuck_channels
 from tools.cli.settings import add_hidden, setting
 
 
@@ -207,6 +207,7 @@ def _run_scada(args) -> int:
     setup, notes = setup_of(cfg, train[0].cmap)
     say_damaged_lines([*train, *test], "read", args.quiet)
     say_stuck_channels([*train, *test])
+    say_conflicting_rows([*train, *test])
     held = held_readings(test)
     if max(held.values(), default=0) < TEST_MIN_READINGS:  # as calibrate: a verdict those rows cannot test
         raise InputError(

@@ -12,7 +12,7 @@ from pathlib import Path
 from firmware_model.errors import InputError
 from tools.cli.gearbox_option import add_gearbox_option, resolve_gearbox
 from tools.cli.paths import check_paths
-from tools.cli.scada_notes import say_damaged_lines, say_stuck_channels, stuck_sentences
+from tools.cli.scada_notes import say_conflicting_rows, say_damaged_lines, say_stuck_channels, stuck_sentences
 from tools.cli.settings import add_hidden, given, setting
 
 
@@ -290,8 +290,10 @@ def _run_scada(args) -> int:
     _check_scada_drive(cfg, records)  # before the notes: a gearbox of another drive is the one sentence
     say_damaged_lines(records.values(), "read")
     say_stuck_channels(records.values())
+    say_conflicting_rows(records.values())
     for rec in records.values():  # kept with the output, as a channel left out is (errors.parquet)
-        skipped += [(", ".join(str(p) for p in rec.files), why) for why in stuck_sentences(rec)]
+        whys = stuck_sentences(rec) + ([rec.conflict_sentence()] if rec.conflict_sentence() else [])
+        skipped += [(", ".join(str(p) for p in rec.files), why) for why in whys]
     setup, notes = setup_of(cfg, next(iter(records.values())).cmap)
     for note in notes:
         print(f"note: {note}", file=sys.stderr)
@@ -393,7 +395,10 @@ def _say_rows_dropped(records) -> None:
     from tools.scada.clean import REASON_WORDS
 
     for unit, rec in sorted(records.items()):
-        c = {k: rec.counts.get(k, 0) for k in ("bad_line", "bad_time", "duplicate_time", "out_of_order")}
+        c = {
+            k: rec.counts.get(k, 0)
+            for k in ("bad_line", "bad_time", "duplicate_time", "conflicting_time", "out_of_order")
+        }
         if any(c.values()):
             said = "; ".join(f"{v} {REASON_WORDS[k]}" for k, v in c.items() if v)
             print(f"note: {unit} ({rec.n} rows kept): {said}", file=sys.stderr)

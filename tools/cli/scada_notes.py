@@ -49,3 +49,13 @@ def say_stuck_channels(records) -> None:
     for record in records:
         for sentence in stuck_sentences(record):
             print(f"warning: {sentence}", file=sys.stderr)
+
+
+def say_conflicting_rows(records) -> list[str]:
+    """On stderr, a warning per record of ``records`` with rows dropped because they repeat a time stamp with other
+    values (tools.scada.reader.ScadaRecord.conflict_sentence; said even with --quiet, as replay says it); returns
+    the sentences."""
+    said = [s for s in (r.conflict_sentence() for r in records) if s]
+    for sentence in said:
+        print(f"warning: {sentence}", file=sys.stderr)
+    return said

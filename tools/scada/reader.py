@@ -6,10 +6,11 @@ UTC offset become UTC seconds; a stamp without one, or one that does not parse, 
 does a line with the wrong number of fields (``bad_line``); the first such lines of each file, and those with a
 value that is no number, are kept by number and reason (:class:`BadLines`) for the note every command reading SCADA
 prints (tools/cli/scada_notes.py). The files of one unit are joined in time order: a row earlier than one before it
-in its file is counted (``out_of_order``) and sorted into place; a repeated time stamp keeps its first row
-(``duplicate_time``). A step longer than 1.5 periods starts a new stretch (``gap``): the record keeps the true
-times, no row is invented, and a model resets its state at each stretch's first row. The values' rules (missing,
-implausible, spikes, standstill, negative power) are :mod:`tools.scada.clean`'s.
+in its file is counted (``out_of_order``) and sorted into place; the rows of a repeated time stamp that agree are
+one row (``duplicate_time``), and those that differ are all dropped (``conflicting_time``): the record is the same
+whatever order the files are given in. A step longer than 1.5 periods starts a new stretch (``gap``): the record
+keeps the true times, no row is invented, and a model resets its state at each stretch's first row. The values'
+rules (missing, implausible, spikes, standstill, negative power) are :mod:`tools.scada.clean`'s.
 
 A file that is not such a SCADA file (binary, a damaged gzip, a header without the map's columns, no rows) raises an
 :class:`~firmware_model.errors.InputError` with one sentence naming the file.
@@ -93,6 +94,21 @@ class ScadaRecord:
     files: list[Path] = field(default_factory=list)
     bad_lines: list[BadLines] = field(default_factory=list)
     stuck: dict = field(default_factory=dict)  # channel -> its stuck runs: (start row, stop row, value)
+    conflicts: dict = field(default_factory=dict)  # file -> its rows dropped as conflicting_time
+
+    def conflict_sentence(self) -> str | None:
+        """One sentence on the rows dropped because they repeat a time stamp with other values
+        (``conflicting_time``): how many, the files, why; None when there are none."""
+        n = self.counts.get("conflicting_time", 0)
+        if not n:
+            return None
+        names = sorted(p.name for p in self.conflicts)
+        where = "another file" if len(names) > 1 else "their file"
+        return (
+            f"{self.unit}: {n} rows repeat a time stamp of {where} with different values ({', '.join(names)}): none "
+            "of them kept: two records of one unit disagree (another unit's rows under its name, or two exports that "
+            "differ), and which holds its readings cannot be told"
+        )
 
     @property
     def n(self) -> int:
@@ -123,6 +139,7 @@ class ScadaRecord:
             cmap=self.cmap,
             files=list(self.files),
             bad_lines=list(self.bad_lines),
+            conflicts=dict(self.conflicts),
             stuck={},  # (row numbers of the whole record; its values are NaN already)
         )
 
@@ -418,18 +435,40 @@ def _rows_of(path: Path, semicolon: bool, width: int):
     return (r for r in reader if len(r) == width)
 
 
-def _order(parts: list[FileRows], counts: dict[str, int]) -> tuple[np.ndarray, dict[str, np.ndarray]]:
-    """The files' rows joined in time order, duplicates removed (both counted): (time_s, raw columns)."""
+#: two rows of one time stamp agree when each value of the map's columns is within this share of the larger (or
+#: of 1) of the other's, or missing in one of them: float noise, not two readings
+SAME_VALUE_REL = 1e-9
+
+
+def _order(parts: list[FileRows], counts: dict[str, int]) -> tuple[np.ndarray, dict[str, np.ndarray], dict]:
+    """The files' rows joined in time order, duplicates removed (each counted): (time_s, raw columns, the rows of
+    each file dropped as ``conflicting_time``). The rows of a repeated time stamp that agree (SAME_VALUE_REL; a value
+    missing in one is taken from another) are one row (``duplicate_time``: the others); if any value differs, no
+    row of that stamp is kept (``conflicting_time``: all of them): which of two records holds the unit's readings
+    cannot be told, and keeping the first made the result depend on the order the files were given in."""
     parts = sorted(parts, key=lambda p: float(np.min(p.time_s)))
     for p in parts:
         counts["out_of_order"] += int(np.sum(p.time_s < np.maximum.accumulate(p.time_s)))
     t = np.concatenate([p.time_s for p in parts])
-    raw = {c: np.concatenate([p.raw[c] for p in parts]) for c in parts[0].raw}
+    src = np.concatenate([np.full(p.time_s.size, i) for i, p in enumerate(parts)])
     order = np.argsort(t, kind="stable")
-    t = t[order]
-    keep = np.diff(t, prepend=-np.inf) > 0
-    counts["duplicate_time"] += int(np.sum(~keep))
-    return t[keep], {c: v[order][keep] for c, v in raw.items()}
+    t, src = t[order], src[order]
+    starts = np.flatnonzero(np.diff(t, prepend=-np.inf) > 0)
+    size = np.diff(np.append(starts, t.size))
+    agree = np.ones(starts.size, dtype=bool)
+    raw = {}
+    for c in parts[0].raw:
+        x = np.concatenate([p.raw[c] for p in parts])[order]
+        with np.errstate(invalid="ignore"):
+            lo, hi = np.fmin.reduceat(x, starts), np.fmax.reduceat(x, starts)  # (NaN where none is read)
+            noise = SAME_VALUE_REL * np.fmax(1.0, np.fmax(np.abs(lo), np.abs(hi)))
+            agree &= (lo == hi) | np.isnan(lo) | (hi - lo <= noise)
+        raw[c] = lo  # a stamp's one value, whatever the files' order
+    conflict = np.repeat(~agree & (size > 1), size)
+    counts["duplicate_time"] += int(np.sum(size[agree] - 1))
+    counts["conflicting_time"] += int(np.sum(conflict))
+    dropped = {parts[i].path: int(n) for i, n in enumerate(np.bincount(src[conflict], minlength=len(parts))) if n}
+    return t[starts][agree], {c: v[agree] for c, v in raw.items()}, dropped
 
 
 def _record(unit: str, parts: list[FileRows], cmap: ColumnMap) -> ScadaRecord:
@@ -437,7 +476,7 @@ def _record(unit: str, parts: list[FileRows], cmap: ColumnMap) -> ScadaRecord:
     for p in parts:
         for k, v in p.counts.items():
             counts[k] += v
-    t, raw = _order(parts, counts)
+    t, raw, conflicts = _order(parts, counts)
     gap = np.diff(t, prepend=t[0]) > GAP_PERIODS * cmap.period_s
     counts["gap"] += int(np.sum(gap))
     stretch = np.cumsum(gap)
@@ -453,6 +492,7 @@ def _record(unit: str, parts: list[FileRows], cmap: ColumnMap) -> ScadaRecord:
         files=[p.path for p in parts],
         bad_lines=[p.bad for p in parts if p.bad is not None],
         stuck=stuck,
+        conflicts=conflicts,
     )
 
 

@@ -265,7 +265,10 @@ def record_findings(record: ScadaRecord, result: ScadaReplay) -> list:
         found = [f for f in found if not f.sentence.startswith("time_s jumps forward")] + [spacing]
     c = record.counts
     dropped = {k: c.get(k, 0) for k in ("bad_line", "bad_time", "duplicate_time") if c.get(k, 0)}
-    read = record.n + sum(dropped.values())
+    read = record.n + sum(dropped.values()) + c.get("conflicting_time", 0)
+    conflict = record.conflict_sentence()  # whatever its share: its own warning
+    if conflict:
+        found.append(RecordFinding("rows", WARNING, conflict))
     if read and sum(dropped.values()) > DROPPED_WARN_SHARE * read:
         why = ", ".join(f"{v} {k.replace('_', ' ')}" for k, v in dropped.items())
         found.append(
@@ -279,7 +282,7 @@ def record_findings(record: ScadaRecord, result: ScadaReplay) -> list:
                     else ""
                 )
                 + (
-                    " (duplicate time: a second row with a time stamp already read; the first kept)"
+                    " (duplicate time: a row repeating a time stamp with the same values; one kept)"
                     if "duplicate_time" in dropped
                     else ""
                 ),

@@ -407,3 +407,26 @@ def test_the_scada_fleet_report_shows_its_fitted_values_in_a_plot(tmp_path):
     nothing = [f._replace(se=dict.fromkeys(f.se, float("inf"))) for f in fits]
     write_report(tmp_path / "report.md", nothing, [], {}, [], "unit-months")
     assert not png.exists() and f"{PLOT_NAME} not written" in (tmp_path / "report.md").read_text()
+
+
+def test_a_unit_s_files_disagreeing_on_a_time_stamp_are_said_and_kept_with_the_output(tmp_path):
+    """A file of another turbine relabelled T1 over T1's own stamps: the fleet kept whichever came first and noted
+    "repeated time stamps (the first row kept)". Now those rows are dropped, warned of with both files named, and
+    listed in health/errors.parquet."""
+    import subprocess
+
+    from tests.tools.scada.test_replay_scada import REPO
+
+    pq = pytest.importorskip("pyarrow.parquet", reason="fleet --columns writes Parquet: pip install '.[fleet]'")
+    cmd = [*_scada_folder(tmp_path, {"T1": None, "T2": None}, rows=144), "--gearbox", "HR225"]
+    other = _rows(0, 30, oil_c=lambda k: 65.0 + 0.1 * k)
+    write(tmp_path / "scada" / "T1_reexport.csv", [line.replace("R1,", "T1,", 1) for line in other])
+    p = subprocess.run([*cmd, "--out", str(tmp_path / "out")], cwd=REPO, capture_output=True, text=True, timeout=300)
+    assert p.returncode == 0, p.stderr
+    said = (
+        "warning: T1: 60 rows repeat a time stamp of another file with different values (T1.csv, T1_reexport.csv): "
+        "none of them kept"
+    )
+    assert said in p.stderr and "60 rows repeating a time stamp with other values (none of them kept)" in p.stderr
+    errors = pq.read_table(tmp_path / "out" / "health" / "errors.parquet").to_pylist()
+    assert any(r["error"].startswith("T1: 60 rows repeat a time stamp") for r in errors), errors

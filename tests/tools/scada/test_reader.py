@@ -63,8 +63,8 @@ def write(path, lines, gz=False):
 @pytest.fixture
 def two_files(tmp_path):
     """File A (gzip): 2017-03-26 00:00..02:50 UTC across the DST change, with a glitch, a negative power, a
-    standstill, a missing value, a spike and a bad line. File B (plain), after a one-hour gap: a duplicate and an
-    out-of-order row."""
+    standstill, a missing value, a spike and a bad line. File B (plain), after a one-hour gap: a duplicate (the same
+    values) and an out-of-order row."""
     t0 = datetime(2017, 3, 26, 0, 0, tzinfo=timezone.utc)
     step = timedelta(minutes=10)
     a = [row(t0 + k * step) for k in range(18)]
@@ -78,7 +78,7 @@ def two_files(tmp_path):
     a.insert(12, "R1,2017-03-26T02:40:00+01:00,1.0")  # a bad line: too few fields
     tb = t0 + 18 * step + timedelta(hours=1)
     b = [row(tb + k * step) for k in range(6)]
-    b.insert(3, row(tb + 2 * step, Gost_avg=99.0))  # repeated time stamp: the first row is kept
+    b.insert(3, row(tb + 2 * step))  # repeated time stamp, the same values: one row kept
     b[4], b[5] = b[5], b[4]  # rows 3 and 4 swapped: one row out of order
     return write(tmp_path / "a.csv.gz", a, gz=True), write(tmp_path / "b.csv", b), t0
 
@@ -106,9 +106,40 @@ def test_files_join_in_utc_with_their_gap_and_every_bad_row_counted(two_files):
     v = rec.values
     assert np.isnan(v["outdoor_temp_c"][3]) and np.isnan(v["Gost_avg"][8]) and np.isnan(v["Gb1t_avg"][10])
     assert v["input_torque_nm"][5] == 0.0 and v["input_torque_nm"][6] == 0.0
-    # the duplicate's second row (99 degC) is dropped, the first kept
-    assert np.nanmax(v["Gost_avg"]) == 55.0
+    assert np.nanmax(v["Gost_avg"]) == 55.0 and c["conflicting_time"] == 0
     assert np.isfinite(v["Gb1t_avg"][[9, 11]]).all()
+
+
+def test_rows_repeating_a_time_stamp_with_other_values_are_all_dropped_whatever_the_files_order(tmp_path):
+    """Two files of one unit over the same hour, another unit's readings in the second on four stamps (and one row
+    the same): the record is the same in either order, the four stamps' rows all dropped and counted apart from the
+    identical repeat, and the sentence names both files (keeping the first took the second file's readings when it
+    was given first)."""
+    t0 = datetime(2017, 9, 3, 0, 0, tzinfo=timezone.utc)
+    step = timedelta(minutes=10)
+    a = [row(t0 + k * step) for k in range(8)]
+    b = [row(t0 + k * step, Gb1t_avg=70.0 + k, Git_avg=None) for k in range(2, 6)]
+    b.append(row(t0 + 6 * step, Git_avg=50.0 + 1e-12))  # the same within float noise
+    b.append(row(t0 + 7 * step, Git_avg=None))  # a value missing in one copy: no disagreement
+    fa, fb = write(tmp_path / "a.csv.gz", a, gz=True), write(tmp_path / "b.csv", b)
+    one, two = read_record([fa, fb]), read_record([fb, fa])
+    for rec in (one, two):
+        assert rec.counts["conflicting_time"] == 8 and rec.counts["duplicate_time"] == 2
+        assert rec.n == 4 and np.all(rec.values["Gb1t_avg"] == 62.0) and np.all(rec.values["Git_avg"] == 50.0)
+        assert rec.n_stretches == 2  # no row over the four stamps: a gap
+        assert sorted(p.name for p in rec.conflicts) == ["a.csv.gz", "b.csv"] and set(rec.conflicts.values()) == {4}
+        s = rec.conflict_sentence()
+        assert "8 rows repeat a time stamp of another file with different values (a.csv.gz, b.csv)" in s
+        assert "none of them kept" in s
+    np.testing.assert_array_equal(one.time_s, two.time_s)
+    for k in one.values:
+        np.testing.assert_array_equal(one.values[k], two.values[k])
+    # within one file: the same rule, the sentence names that file
+    c = write(tmp_path / "c.csv", a[:3] + [row(t0 + 2 * step, Gost_avg=99.0)])
+    rec = read_record([c])
+    assert rec.n == 2 and rec.counts["conflicting_time"] == 2
+    assert "2 rows repeat a time stamp of their file with different values (c.csv)" in rec.conflict_sentence()
+    assert read_record([fa]).conflict_sentence() is None
 
 
 def test_the_input_torque_is_power_over_rotor_speed_or_converter_torque_times_ratio(tmp_path, two_files):

@@ -133,6 +133,29 @@ def test_several_files_of_one_unit_are_one_record(tmp_path):
         np.testing.assert_array_equal(w[c], s[c])
 
 
+def test_files_disagreeing_on_their_rows_give_the_same_replay_in_either_order_and_a_warning(tmp_path):
+    """Another unit's half day relabelled as this one (its sump 8 K warmer) over the same stamps as this unit's file:
+    the first file given was kept, so the estimates depended on the order of the files, and the warning called them
+    duplicates, "the first kept". Now neither file's rows of those stamps is kept, in either order, and said."""
+    own = write(tmp_path / "own.csv", _rows(0, ROWS))
+    other = write(tmp_path / "other.csv", _rows(ROWS // 2, ROWS, oil_c=lambda k: 63.0 + 4.0 * math.sin(k / 5.0)))
+    runs = [
+        _replay(tmp_path, files, "--out", tmp_path / f"{n}.csv")
+        for n, files in (("ab", [own, other]), ("ba", [other, own]))
+    ]
+    for p in runs:
+        assert p.returncode == 0, p.stderr
+        assert "rows: conflicting time 72" in p.stdout
+        assert (
+            "warning: R1: 72 rows repeat a time stamp of another file with different values (other.csv, own.csv): "
+            "none of them kept" in p.stderr
+        )
+    ab, ba = (read_run_table(tmp_path / f, required=("time_s",)) for f in ("ab.csv", "ba.csv"))
+    assert ab.n == ba.n == ROWS // 2
+    for c in ("time_utc_s", "Gost_avg", "est_Gb1t_avg", "est_Gb2t_avg"):
+        np.testing.assert_array_equal(ab[c], ba[c])
+
+
 @pytest.mark.parametrize(
     "case",
     [
