@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import datetime as dt
 from collections.abc import Sequence
+from pathlib import Path
 from typing import NamedTuple
 
 import numpy as np
@@ -61,7 +62,8 @@ DRIFT_WORDS = {
         "its oil runs hotter under load than its siblings' (a cooler losing effectiveness: fouled, blocked, a fan)",
     ),
 }
-#: a period needs this many rows with every channel measured
+#: a period needs this many rows with every channel of its unit measured (a channel without a single reading in the
+#: unit's record left out: unit_channels)
 MIN_ROWS = 36
 #: the block of the cluster-robust error: a day, or a sixth of a period shorter than six days [s] (assumed: the
 #: weather and the daily cycle set how long a model's error stays alike); a period needs MIN_BLOCKS blocks with rows
@@ -112,19 +114,31 @@ def block_s(days: float | None) -> float:
 
 
 def fit_period(
-    setup: Setup, r0: dict, r_step: dict, unit: str, period: int, start: str, block: np.ndarray | None = None
+    setup: Setup,
+    r0: dict,
+    r_step: dict,
+    unit: str,
+    period: int,
+    start: str,
+    block: np.ndarray | None = None,
+    channels: Sequence[str] | None = None,
 ) -> PeriodFit | None:
     """The effects of one unit's period from the residual at the neutral effects ``r0`` and with each effect stepped
     (``r_step``: effect -> residual), all {channel: rows of the period}; ``block``: each row's block number (None:
-    every row its own). None with too few measured rows or blocks."""
-    ok = np.all([np.isfinite(r0[ch]) for ch in setup.channels], axis=0)
+    every row its own); ``channels``: the channels fitted (None: the setup's; a unit's channel without any reading is
+    left out of its fits: :func:`unit_channels`). None with too few rows with every one of them measured, or
+    blocks."""
+    channels = setup.channels if channels is None else tuple(channels)
+    if not channels:
+        return None
+    ok = np.all([np.isfinite(r0[ch]) for ch in channels], axis=0)
     n = int(ok.sum())
     blk = np.arange(ok.size) if block is None else np.asarray(block)
     blocks = np.unique(blk[ok])
     if n < MIN_ROWS or blocks.size < MIN_BLOCKS:
         return None
-    y = np.concatenate([r0[ch][ok] for ch in setup.channels])
-    cols = [np.concatenate([(r0[ch][ok] - r_step[e][ch][ok]) / STEP[e] for ch in setup.channels]) for e in EFFECTS]
+    y = np.concatenate([r0[ch][ok] for ch in channels])
+    cols = [np.concatenate([(r0[ch][ok] - r_step[e][ch][ok]) / STEP[e] for ch in channels]) for e in EFFECTS]
     # an effect that moves nothing here (no cooler, a cooler bypassed all period) stays neutral, unknown
     moves = np.array([float(np.max(np.abs(c))) * abs(STEP[e]) >= IDENTIFIABLE_K for c, e in zip(cols, EFFECTS)])
     delta, se = np.zeros(len(EFFECTS)), np.full(len(EFFECTS), np.inf)
@@ -135,11 +149,11 @@ def fit_period(
         res = y - a @ d
         bread = np.linalg.pinv(a.T @ a)
         # AR(1): the residual's variance over an effective sample size
-        n_eff = effective_n({ch: res[i * n : (i + 1) * n] for i, ch in enumerate(setup.channels)})
+        n_eff = effective_n({ch: res[i * n : (i + 1) * n] for i, ch in enumerate(channels)})
         s2 = float(res @ res) / max(y.size - int(moves.sum()), 1)
         cov_ar1 = bread * s2 * y.size / n_eff
         # blocks: the sandwich with each block's score summed over its rows and channels (small-sample G / (G - 1))
-        g = np.tile(blk[ok], len(setup.channels))
+        g = np.tile(blk[ok], len(channels))
         _, inv = np.unique(g, return_inverse=True)
         scores = np.zeros((blocks.size, a.shape[1]))
         np.add.at(scores, inv, a * res[:, None])
@@ -175,12 +189,32 @@ def stepped_residuals(setup: Setup, record: ScadaRecord) -> dict:
     return {e: _residual(setup, record, {e: CATALOG[e].neutral + STEP[e]}) for e in EFFECTS}
 
 
+def unit_channels(setup: Setup, record: ScadaRecord) -> tuple[tuple[str, ...], list[str]]:
+    """(the channels a unit's periods are fitted on, the channels left out for it): a channel other than the sump
+    without a single reading in the unit's record (its column absent from its files, or empty, or every value
+    rejected) is left out, so a unit with one dead column is still fitted on the rest (it lacked a row with every
+    channel read: no period fitted, the unit dropped from the fleet). The sump is never left out: the other
+    channels' estimates start from its reading, and the fleet's sump is fitted from the model alone."""
+    dead = [
+        ch
+        for ch in setup.others
+        if ch not in record.values or not np.isfinite(np.asarray(record.values[ch], dtype=float)).any()
+    ]
+    return tuple(ch for ch in setup.channels if ch not in dead), dead
+
+
 def fit_unit(
-    setup: Setup, record: ScadaRecord, days: float | None = None, resid=None, unit: str | None = None
+    setup: Setup,
+    record: ScadaRecord,
+    days: float | None = None,
+    resid=None,
+    unit: str | None = None,
+    channels: Sequence[str] | None = None,
 ) -> list[PeriodFit]:
     """One unit's PeriodFits in time order; ``resid``: its :func:`residuals` when already computed; ``unit``: its
-    name (default: the record's)."""
+    name (default: the record's); ``channels``: the channels fitted (None: :func:`unit_channels`)."""
     r0, r_step = residuals(setup, record) if resid is None else resid
+    channels = unit_channels(setup, record)[0] if channels is None else channels
     block = np.floor(np.asarray(record.time_s, dtype=float) / block_s(days)).astype(np.int64)
     fits = []
     for period, start, m in periods_of(record, days):
@@ -192,6 +226,7 @@ def fit_unit(
             period,
             start,
             block[m],
+            channels,
         )
         if f is not None:
             fits.append(f)
@@ -212,6 +247,17 @@ def fit_fleet(
 
     fits = []
     for unit, rec in sorted(records.items()):
+        _, dead = unit_channels(setup, rec)
+        if rejected is not None:
+            files = ", ".join(Path(f).name for f in rec.files[:3]) + (" ..." if len(rec.files) > 3 else "")
+            rejected += [
+                (
+                    unit,
+                    f"the fleet record of {unit} ({files}): {ch} left out: no reading of it in the unit's files (its "
+                    "column absent, empty or every value rejected); its periods are fitted on its other channels",
+                )
+                for ch in dead
+            ]
         r0 = _residual(setup, rec, {})
         try:
             (rec,), (r0,), notes = screen_untrusted([rec], [r0], setup.params, "fleet", setup.sump)
@@ -222,7 +268,7 @@ def fit_fleet(
             if rejected is not None:  # a channel left out, the unit kept
                 rejected += [(unit, note) for note in notes]
             resid = r0, stepped_residuals(setup, rec)
-            fits += fit_unit(setup, rec, days, resid=resid, unit=unit)
+            fits += fit_unit(setup, rec, days, resid=resid, unit=unit)  # (a channel screened out is NaN: left out)
         if progress is not None:
             progress()
     return fits
@@ -274,8 +320,8 @@ def deviations(
 
 def coverage(fits: Sequence[PeriodFit], units, baseline_periods: int = BASELINE_PERIODS) -> dict[str, str]:
     """unit -> why it was not judged against its siblings ('' when it was, for some effect): no period fitted (each
-    needs MIN_ROWS rows with every channel read over MIN_BLOCKS blocks), or too few periods shared with MIN_UNITS
-    units for a baseline and a drift after it."""
+    needs MIN_ROWS rows with every channel of the unit read over MIN_BLOCKS blocks), or too few periods shared with
+    MIN_UNITS units for a baseline and a drift after it."""
     fitted: dict = {}
     for f in fits:
         fitted[f.unit] = fitted.get(f.unit, 0) + 1
@@ -290,8 +336,8 @@ def coverage(fits: Sequence[PeriodFit], units, baseline_periods: int = BASELINE_
             out[u] = ""
         elif not fitted.get(u):
             out[u] = (
-                f"no period could be fitted (each needs {MIN_ROWS} rows with every measured channel read, over "
-                f"{MIN_BLOCKS} days or more): not judged"
+                f"no period could be fitted (each needs {MIN_ROWS} rows with the sump and every other channel the "
+                f"unit has a reading of read, over {MIN_BLOCKS} days or more): not judged"
             )
         else:
             out[u] = (

@@ -430,3 +430,33 @@ def test_a_unit_s_files_disagreeing_on_a_time_stamp_are_said_and_kept_with_the_o
     assert said in p.stderr and "60 rows repeating a time stamp with other values (none of them kept)" in p.stderr
     errors = pq.read_table(tmp_path / "out" / "health" / "errors.parquet").to_pylist()
     assert any(r["error"].startswith("T1: 60 rows repeat a time stamp") for r in errors), errors
+
+
+def test_a_unit_without_a_single_reading_of_one_channel_is_fitted_on_its_other_channels(tmp_path):
+    """A stand-in turbine whose files lack the Gb2t_avg column was dropped from the fleet ("no period could be
+    fitted (each needs 36 rows with every measured channel read ...)") though replay and diagnose take it channel by
+    channel. Its periods are now fitted on the sump and Gb1t_avg, said in a note; a channel read on a few rows is
+    no dead column: its periods keep the 36-row rule for it, and the other units' fits are the same."""
+    from tools.scada import fleet
+    from tools.scada.fleet import MIN_ROWS, coverage
+
+    setup = Setup(with_gearbox(load_config(None), "HR225"), "Gost_avg", ("Gb1t_avg", "Gb2t_avg"))
+    days = PERIOD_ROWS * 600.0 / 86400.0
+    units = {n: _unit(tmp_path, setup, n, load, None) for n, load in (("A", 1.0), ("B", 0.9), ("C", 1.1))}
+    units["D"] = _unit(tmp_path, setup, "D", 0.95, None)
+    whole = fit_fleet(setup, {u: units[u] for u in "ABC"}, days)
+    units["D"].values["Gb2t_avg"] = np.full(units["D"].n, np.nan)  # its column absent from its files
+    rejected: list = []
+    fits = fit_fleet(setup, units, days, rejected=rejected)
+    d = [f for f in fits if f.unit == "D"]
+    assert len(d) == len([f for f in fits if f.unit == "A"]) >= PERIODS - 1
+    assert all(abs(f.values["bearing_loss_scale"] - 1.0) < 0.1 and f.rows >= MIN_ROWS for f in d), d
+    assert [f for f in fits if f.unit != "D"] == whole  # the siblings' fits as without it
+    assert rejected == [(u, w) for u, w in rejected if u == "D"] and len(rejected) == 1
+    assert "Gb2t_avg left out: no reading of it in the unit's files" in rejected[0][1]
+    assert coverage(fits, ["A", "B", "C", "D"])["D"] == ""
+    assert fleet.unit_channels(setup, units["D"]) == (("Gost_avg", "Gb1t_avg"), ["Gb2t_avg"])
+    # read on the first period's rows only: not a dead column, the later periods lack its 36 rows: not fitted
+    e = _unit(tmp_path, setup, "E", 1.0, None)
+    e.values["Gb2t_avg"][PERIOD_ROWS:] = np.nan
+    assert fleet.unit_channels(setup, e)[1] == [] and len(fleet.fit_unit(setup, e, days)) <= 1
