@@ -166,6 +166,8 @@ def replay_record(
         notes.append(
             f"the model's sump starts at {which} ({start_c:.1f} degC), reads no other and is not compared with that one"
         )
+    elif oil_mode == "model":
+        notes.append(unread_start_note(record, sensor, table))
     n = record.n
     if out.n != n:  # one output row per SCADA row (tools.replay.table.replay_held)
         raise RuntimeError(f"the replay gave {out.n} rows for {n} SCADA rows")
@@ -193,6 +195,34 @@ def replay_record(
     result = RunTable(cols, meta=meta, source=f"replay of {record.unit}")
     mark_for_findings(result, sensor)  # (a rotor's drive: no idle-speed rule; its own kN m rule)
     return ScadaReplay(result, oil_mode, estimated, notes, np.asarray(record.stretch), not_written(d))
+
+
+def unread_start_note(record: ScadaRecord, sensor, table) -> str:
+    """With the sump modelled and no reading to start it from (:func:`first_sump`: none in the record's first hour
+    and stretch): where the model's sump starts (the sensor's own start without an oil reading: ``[sensor]
+    initial_temp_c``, else the first row's air, else the gearbox's ambient boundary) and why, in words (it started
+    at the air in silence, where a reading's start is said)."""
+    air = np.asarray(table["ambient_temp_c"], dtype=float)[0] if table.has("ambient_temp_c") else math.nan
+    start_c = float(np.ravel(sensor.initial_state(T_oil_c=None, ambient_c=float(air)).T_c)[0])
+    if sensor.options.initial_temp_c is not None:
+        where = f"the configuration's [sensor] initial_temp_c ({start_c:.1f} degC)"
+    elif math.isfinite(air) and start_c == air:
+        air_col = record.cmap.channels["ambient_temp_c"].columns[0] if "ambient_temp_c" in record.cmap.channels else ""
+        where = f"the air of the record's first row ({start_c:.1f} degC{', ' + air_col if air_col else ''})"
+    else:
+        where = f"the gearbox's ambient boundary ({start_c:.1f} degC; the first row's air missing or out of range)"
+    oil = oil_channel(record)
+    read = np.flatnonzero(np.isfinite(np.asarray(record.values[oil], dtype=float))) if oil else np.array([], int)
+    if oil is None:
+        why = "the column map has no channel tied to the sump"
+    elif not read.size:
+        why = f"no sump reading in the record ({oil} empty or rejected on every row)"
+    else:
+        why = f"no sump reading in the record's first hour and stretch ({oil}'s first is on row {read[0] + 1})"
+    return (
+        f"the model's sump starts at {where}: {why}; a gearbox already warm then reads warmer than the model's sump "
+        "for most of a day"
+    )
 
 
 def reading_response(est_c, sump_c, time_s, stretch, tau_s: float) -> np.ndarray:

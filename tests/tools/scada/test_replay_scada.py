@@ -595,3 +595,23 @@ def test_quiet_leaves_out_the_note_of_a_channel_left_out_by_design(tmp_path, com
         # the MM82 lists oil.inlet among its published parts: the note says why it is not scored, not "not published"
         assert quiet or "'oil.inlet' is a derived temperature, not a node of the model" in p.stderr, p.stderr
         assert "warning: Git_avg" not in p.stderr, p.stderr
+
+
+def test_a_modelled_sump_without_a_reading_to_start_from_says_where_it_starts_and_why(tmp_path):
+    """With no sump reading in the record the model's sump started at the first row's air in silence (with one, a
+    note says "starts at the first sump reading"): a note says where it starts and why; a record whose first
+    reading comes after its first hour says that row."""
+    lines = _rows(0, ROWS)
+    none = write(tmp_path / "none.csv", _edit(lines, "Gost_avg", lambda c: ""))
+    p = _replay(tmp_path, [none], "--oil-mode", "model", "--out", tmp_path / "none_est.csv")
+    assert p.returncode == 0, p.stderr
+    assert (
+        "note: the model's sump starts at the air of the record's first row (25.0 degC, Yt_avg): no sump reading in "
+        "the record (Gost_avg empty or rejected on every row)" in p.stdout
+    ), p.stdout
+    e = read_run_table(tmp_path / "none_est.csv", required=("time_s",))
+    assert abs(e["est_Gost_avg"][0] - 25.0) < 5.0  # where it said: the air (the first row's mean), not 55 degC
+    late = write(tmp_path / "late.csv", _edit(lines[:8], "Gost_avg", lambda c: "") + lines[8:])
+    p = _replay(tmp_path, [late], "--oil-mode", "model", "--out", tmp_path / "late_est.csv")
+    assert p.returncode == 0, p.stderr
+    assert "no sump reading in the record's first hour and stretch (Gost_avg's first is on row 9)" in p.stdout
