@@ -402,6 +402,24 @@ def test_an_effect_that_makes_one_channel_worse_held_out_is_no_verdict(setup, mo
     assert diagnose_records(s, [tr], [te])["verdict"]["effect"] == "bearing_loss_scale"
 
 
+def test_an_effect_that_shrinks_the_held_out_record_too_little_is_no_verdict(setup, monkeypatch):
+    """A claim must shrink the pooled held-out RMS by CLAIM_MIN_SHRINK (5 %, as much as the per-channel guard lets
+    a channel be worse): a healthy stand-in turbine was named churning_scale 1.93 at 1 %. The planted bearing loss
+    shrinks its held-out record far more than 5 % and is claimed; were 99 % asked of it, it would be too little:
+    unexplained, the reason naming the effect and its shrink."""
+    import tools.scada.diagnose as D
+
+    s, train, test = setup
+    planted = {"bearing_loss_scale": 1.8}
+    tr, te = _measured(s, train, planted, 1), _measured(s, test, planted, 2)
+    v = diagnose_records(s, [tr], [te])["verdict"]
+    assert v["effect"] == "bearing_loss_scale" and v["shrink"] >= D.CLAIM_MIN_SHRINK, v
+    monkeypatch.setattr(D, "CLAIM_MIN_SHRINK", 0.99)
+    v = diagnose_records(s, [tr], [te])["verdict"]
+    assert v["effect"] == "unexplained", v
+    assert "the best that holds, bearing_loss_scale (factor = " in v["reason"] and "a claim needs 99 %" in v["reason"]
+
+
 def test_a_physics_informed_nbm_without_estimates_leaves_its_column_nan_not_the_table(setup, monkeypatch):
     """nbm_beside: when the sensor's estimates leave no complete row, the NBM's figures stand and the physics-informed
     NBM's are NaN (calibrate prints 'nan' in that column instead of failing)."""
