@@ -514,9 +514,9 @@ def _verdict(r0: dict, t_before: dict, cands: list[dict], where_rows: list[dict]
         if c["at_bound"] and c["train_rms_after_c"] >= NOISE_K:
             bound = c
             break
-        if before > 0 and c["test_rms_after_c"] > before * (1.0 - CLAIM_MIN_SHRINK):  # (and the weaker below it)
-            weak = c
-            break
+        if not before > 0 or c["test_rms_after_c"] > before * (1.0 - CLAIM_MIN_SHRINK):  # too little: the next
+            weak = weak or c
+            continue
         return {
             **base,
             "effect": c["effect"],

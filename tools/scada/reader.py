@@ -460,10 +460,12 @@ def _order(parts: list[FileRows], counts: dict[str, int]) -> tuple[np.ndarray, d
     for c in parts[0].raw:
         x = np.concatenate([p.raw[c] for p in parts])[order]
         with np.errstate(invalid="ignore"):
-            lo, hi = np.fmin.reduceat(x, starts), np.fmax.reduceat(x, starts)  # (NaN where none is read)
+            # agreement among the numbers read (a cell that is no number, read as inf, is judged like an empty one)
+            xf = np.where(np.isfinite(x), x, np.nan)
+            lo, hi = np.fmin.reduceat(xf, starts), np.fmax.reduceat(xf, starts)  # (NaN where none is read)
             noise = SAME_VALUE_REL * np.fmax(1.0, np.fmax(np.abs(lo), np.abs(hi)))
             agree &= (lo == hi) | np.isnan(lo) | (hi - lo <= noise)
-        raw[c] = lo  # a stamp's one value, whatever the files' order
+        raw[c] = np.fmin.reduceat(x, starts)  # a stamp's one value, whatever the files' order
     conflict = np.repeat(~agree & (size > 1), size)
     counts["duplicate_time"] += int(np.sum(size[agree] - 1))
     counts["conflicting_time"] += int(np.sum(conflict))

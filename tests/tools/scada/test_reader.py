@@ -140,6 +140,14 @@ def test_rows_repeating_a_time_stamp_with_other_values_are_all_dropped_whatever_
     assert rec.n == 2 and rec.counts["conflicting_time"] == 2
     assert "2 rows repeat a time stamp of their file with different values (c.csv)" in rec.conflict_sentence()
     assert read_record([fa]).conflict_sentence() is None
+    # a third copy whose cell is no number: judged like an empty cell, the two numbers still disagree (a reviewer:
+    # its inf once made any spread "agree")
+    d = write(
+        tmp_path / "d.csv",
+        a[:3] + [row(t0 + 2 * step, Gost_avg=99.0), row(t0 + 2 * step, Gost_avg=123.25).replace("123.25", "x")],
+    )
+    rec = read_record([d])
+    assert rec.n == 2 and rec.counts["conflicting_time"] == 3 and rec.counts["duplicate_time"] == 0
 
 
 def test_the_input_torque_is_power_over_rotor_speed_or_converter_torque_times_ratio(tmp_path, two_files):
