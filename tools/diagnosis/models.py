@@ -494,7 +494,8 @@ INPUT_BOUNDARIES = ("ambient", "coolant")
 def _boundary_shift_k(vs, table, idx: np.ndarray):
     """The shift of the onboard model's boundaries from their defaults [K] at each 0.1 s step (n, nb; ``idx``: the
     table's row held at each step), from the table's bc_<boundary>_c columns (a rig's measured boundaries, a named
-    cycle's), their empty cells bridged linearly as the plant bridges them; None without such a column. A truck
+    cycle's), their empty cells bridged linearly as the plant bridges them, each row's value held over its row (the
+    plant interpolates within a row); None without such a column. A truck
     sends the ambient and the coolant only, but offline the diagnosis knows the boundaries the plant takes, and a
     run's effects must act on them as in the plant: a cooler at 0.6 lets the same boundaries lift the oil 1.5 K
     where the nominal cooler lets them lift it 1.0 K (docs/diagnosis.md, "Boundary columns")."""

@@ -248,16 +248,12 @@ def fit_fleet(
     fits = []
     for unit, rec in sorted(records.items()):
         _, dead = unit_channels(setup, rec)
-        if rejected is not None:
-            files = ", ".join(Path(f).name for f in rec.files[:3]) + (" ..." if len(rec.files) > 3 else "")
-            rejected += [
-                (
-                    unit,
-                    f"the fleet record of {unit} ({files}): {ch} left out: no reading of it in the unit's files (its "
-                    "column absent, empty or every value rejected); its periods are fitted on its other channels",
-                )
-                for ch in dead
-            ]
+        files = ", ".join(Path(f).name for f in rec.files[:3]) + (" ..." if len(rec.files) > 3 else "")
+        dead_notes = [
+            f"the fleet record of {unit} ({files}): {ch} left out: no reading of it in the unit's files (its column "
+            "absent, empty or every value rejected); its periods are fitted on its other channels"
+            for ch in dead
+        ]
         r0 = _residual(setup, rec, {})
         try:
             (rec,), (r0,), notes = screen_untrusted([rec], [r0], setup.params, "fleet", setup.sump)
@@ -265,8 +261,8 @@ def fit_fleet(
             if rejected is not None:
                 rejected.append((unit, str(exc)))
         else:
-            if rejected is not None:  # a channel left out, the unit kept
-                rejected += [(unit, note) for note in notes]
+            if rejected is not None:  # a channel left out, the unit kept (a unit left out: its reason alone)
+                rejected += [(unit, note) for note in (*dead_notes, *notes)]
             resid = r0, stepped_residuals(setup, rec)
             fits += fit_unit(setup, rec, days, resid=resid, unit=unit)  # (a channel screened out is NaN: left out)
         if progress is not None:
