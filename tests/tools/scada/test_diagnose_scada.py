@@ -21,7 +21,7 @@ from firmware_model.errors import InputError
 from tests.tools.scada.test_reader import row, write
 from tests.tools.scada.test_replay_scada import REPO, _map, _rows
 from tools.cli.gearbox_option import with_gearbox
-from tools.scada.diagnose import Setup, diagnose_records, estimates
+from tools.scada.diagnose import Setup, after_long_gaps, diagnose_records, estimates
 from tools.scada.reader import read_record
 
 ROWS = 36
@@ -576,3 +576,20 @@ def test_the_air_s_regimes_take_the_map_s_name_for_it(tmp_path):
     own.write_text((MAP_DIR / "engie.toml").read_text().replace('what = "nacelle"', ""))
     plain = regimes(read_record([f], own))
     assert plain["air around the gearbox >= 20 degC"].sum() == 7 and not any("nacelle" in k for k in plain)
+
+
+def test_the_modelled_sump_is_no_evidence_for_six_hours_after_a_day_s_gap(setup, tmp_path):
+    """A record with a two-day hole: the modelled sump comes out of it cooled over an assumed standstill, so its
+    estimate is left out (NaN: neither fitted nor scored) on the rows of the 6 h after the hole, and only there (a
+    healthy stand-in turbine's test files with a day's hole had churning_scale claimed at 6 %, nearly all of it those
+    rows); the bearings, from the measured sump, keep theirs."""
+    s = setup[0]
+    rec = read_record(
+        [write(tmp_path / "a.csv", _rows(0, 72)), write(tmp_path / "b.csv", _rows(72 + 288, 72 + 288 + 72))],
+        _map(tmp_path),
+    )
+    after = after_long_gaps(rec)
+    assert after.sum() == 36 and np.all(after[72:108]) and not after[:72].any() and not after[108:].any()
+    est = estimates(s, rec, {})
+    assert np.all(np.isnan(est["Gost_avg"][72:108])) and np.isfinite(est["Gost_avg"][108:]).all()
+    assert np.isfinite(est["Gb1t_avg"][72:108]).all()
