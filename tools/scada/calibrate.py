@@ -26,7 +26,7 @@ import numpy as np
 from firmware_model.errors import InputError
 from tools.diagnosis.calibrate import COLLINEAR_COS, IDENT_MIN_C, SENS_STEP, Calibration, Identifiability
 from tools.scada import gauss_newton
-from tools.scada.diagnose import Setup, effective_n, estimates, neutral_residuals
+from tools.scada.diagnose import Setup, after_long_gaps, effective_n, estimates, neutral_residuals
 from tools.scada.reader import ScadaRecord
 
 
@@ -207,7 +207,10 @@ def nbm_beside(setup: Setup, train: Sequence[ScadaRecord], test: Sequence[ScadaR
             except InputError:
                 pass
         for ch in task.targets:
-            meas = np.concatenate([r.values[ch] for r in test])
+            # on the rows the physics is scored on: the sump's after a day's gap are no evidence (after_long_gaps)
+            meas = np.concatenate(
+                [np.where(after_long_gaps(r), np.nan, r.values[ch]) if ch == setup.sump else r.values[ch] for r in test]
+            )
             rms = [errors(meas, np.concatenate([p[ch] for p in pm]))[1] for pm in preds]
             out[ch] = (rms[0], rms[1] if len(rms) > 1 else float("nan"))
     return out

@@ -593,3 +593,22 @@ def test_the_modelled_sump_is_no_evidence_for_six_hours_after_a_day_s_gap(setup,
     est = estimates(s, rec, {})
     assert np.all(np.isnan(est["Gost_avg"][72:108])) and np.isfinite(est["Gost_avg"][108:]).all()
     assert np.isfinite(est["Gb1t_avg"][72:108]).all()
+
+
+def test_calibrate_s_nbm_is_scored_on_the_rows_the_physics_is(setup, tmp_path):
+    """nbm_beside: the linear NBM's sump figure leaves out the rows after a day's gap as the physics' does (the
+    calibrate table compared the NBM over every row with the physics over the rows left)."""
+    import tools.scada.calibrate as cal
+    from tools.scada.holdout import errors
+    from tools.scada.nbm import LinearNBM, task_for
+
+    s, train, _ = setup
+    rec = read_record(
+        [write(tmp_path / "a.csv", _rows(0, 72)), write(tmp_path / "b.csv", _rows(72 + 288, 72 + 288 + 72))],
+        _map(tmp_path),
+    )
+    task = task_for([train, rec], "oil", (s.sump,))
+    pred = LinearNBM(task).fit([train]).predict(rec)[s.sump]
+    meas = np.where(after_long_gaps(rec), np.nan, rec.values[s.sump])
+    assert cal.nbm_beside(s, [train], [rec])[s.sump][0] == errors(meas, pred)[1]
+    assert errors(rec.values[s.sump], pred)[1] != errors(meas, pred)[1]
