@@ -44,6 +44,19 @@ REMOVED_OPTIONS = {
 }
 
 
+#: what a record's count counts, where it is not rows (tools.scada.clean.REASON_WORDS): `rows: missing 2034` on a
+#: record of 2014 rows without a sump column counted its empty cells
+COUNTED = {
+    "bad_bytes": "lines",
+    "bad_line": "lines",
+    "gap": "gaps",
+    "missing": "cells",
+    "implausible": "values",
+    "jump": "values",
+    "stuck": "values",
+}
+
+
 def add_subparser(sub):
     p = can_subcommand(
         sub,
@@ -281,8 +294,11 @@ def _run_scada(args) -> int:
         if held_step_line(result.table):
             print(held_step_line(result.table))
         dropped = {k: v for k, v in record.counts.items() if v}
-        if dropped:
-            print("  rows: " + ", ".join(f"{k.replace('_', ' ')} {v}" for k, v in dropped.items()))
+        if dropped:  # each count in what it counts: rows, lines, cells (a record without a column: every row's cell)
+            print(
+                "  read: "
+                + ", ".join(f"{k.replace('_', ' ')} {v} {COUNTED.get(k, 'rows')}" for k, v in dropped.items())
+            )
         for line in error_lines(result, oil_channel(record)):
             print(line)
     say_damaged_lines([record], "replayed", args.quiet)

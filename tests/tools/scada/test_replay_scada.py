@@ -68,6 +68,20 @@ def _replay(tmp_path: Path, files, *extra, response_s: float = 0.0) -> subproces
     )
 
 
+def test_the_record_s_counts_say_what_they_count(tmp_path):
+    """The replay's summary line of the reader's counts: rows, gaps and empty cells each named as such (a record of
+    2014 rows without its sump column printed "rows: missing 2034")."""
+    rows = _rows(0, ROWS)
+    cells = rows[5].split(",")
+    cells[9] = ""  # Gb2t_avg (tests.tools.scada.test_reader.HEADER) empty on one row
+    rows[5] = ",".join(cells)
+    scada = write(tmp_path / "a.csv", rows[:10] + rows[20:])
+    p = _replay(tmp_path, [scada], "--out", tmp_path / "est.csv")
+    assert p.returncode == 0, p.stderr
+    line = next(x for x in p.stdout.splitlines() if x.startswith("  read: "))
+    assert "gap 1 gaps" in line and "missing 1 cells" in line and "rows:" not in p.stdout, line
+
+
 def test_each_measured_channel_is_written_beside_its_estimate_one_row_per_record_row(tmp_path):
     scada = write(tmp_path / "a.csv", _rows(0, ROWS))
     p = _replay(tmp_path, [scada], "--out", tmp_path / "est.csv")
@@ -145,7 +159,7 @@ def test_files_disagreeing_on_their_rows_give_the_same_replay_in_either_order_an
     ]
     for p in runs:
         assert p.returncode == 0, p.stderr
-        assert "rows: conflicting time 72" in p.stdout
+        assert "read: conflicting time 72 rows" in p.stdout
         assert (
             "warning: R1: 72 rows repeat a time stamp of another file with different values (other.csv, own.csv): "
             "none of them kept" in p.stderr
