@@ -136,9 +136,8 @@ def anchored_to_reading(
     """(2, n) temperatures after a jump of ``gap_s``, anchored to the sump read after it: with the sump measured and
     the jump past the hold (its engine-off cool-down taken), every part of both copies moves by its copy's sump's
     distance from a plausible reading ``oil_c``. The cool-down assumed the gearbox stood still through the gap; the
-    reading says what it did (a SCADA logger's 101-day gap ended with a turbine running: its sump read 54.8 degC,
-    its bearings were taken at the air's 18 degC, 38 K under their reading). A gearbox that did stand still reads
-    about what the cool-down gave, and moves little. A reading equal to the last raw one before the gap
+    reading says what it did (a gearbox that ran through it reads warmer than the cool-down gave; one that stood
+    still reads about what it gave, and moves little). A reading equal to the last raw one before the gap
     (``raw_prev_c``) does not anchor: a stuck sensor's value, which the frozen check would reject. Otherwise ``T_c``
     as it is."""
     if sp.options.oil_mode != "measured" or not gap_s > sp.options.time_jump_hold_s:

@@ -26,7 +26,7 @@ import numpy as np
 from firmware_model.errors import InputError
 from tools.diagnosis.calibrate import COLLINEAR_COS, IDENT_MIN_C, SENS_STEP, Calibration, Identifiability
 from tools.scada import gauss_newton
-from tools.scada.diagnose import Setup, after_long_gaps, effective_n, estimates, neutral_residuals
+from tools.scada.diagnose import Setup, effective_n, estimates, neutral_residuals
 from tools.scada.reader import ScadaRecord
 
 
@@ -190,6 +190,7 @@ def nbm_beside(setup: Setup, train: Sequence[ScadaRecord], test: Sequence[ScadaR
     from tools.scada.hybrid import PhysicsInformedNBM
     from tools.scada.nbm import LinearNBM, task_for
     from tools.scada.physics import PhysicsModel
+    from tools.scada.replay import after_long_gaps
 
     both = [*train, *test]
     tasks = ([task_for(both, "oil", (setup.sump,))] if setup.sump else []) + (

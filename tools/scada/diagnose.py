@@ -60,9 +60,7 @@ TESTED = 3
 WORSE_REL = 0.05
 WORSE_MIN_K = 0.05
 #: a claim must shrink the pooled held-out RMS by at least this fraction: the per-channel guard lets a channel be
-#: WORSE_REL worse as no change, so a smaller shrink is none either (a validation engineer's healthy stand-in
-#: turbine was named `churning_scale` 1.93 at a 1 % shrink, the stronger candidates making it worse; across
-#: turbines on R80721 `gear_friction_scale` 1.38 at 1 %, bearing 1 2 % worse)
+#: WORSE_REL worse as no change, so a smaller shrink is no change either
 CLAIM_MIN_SHRINK = WORSE_REL
 #: a fitted value within this fraction of its range from a bound sits at the bound (as calibrate's)
 BOUND_FRACTION = 0.01
@@ -137,7 +135,7 @@ def thermostat_of(params) -> tuple[float, float] | None:
 def estimates(setup: Setup, record: ScadaRecord, effects: dict, params=None) -> dict[str, np.ndarray]:
     """{channel: the model's estimate} over ``record`` with ``effects`` (the sump's from the model alone, the others
     from the measured sump); ``params``: the gearbox's parameters in place of the configuration's."""
-    from tools.scada.replay import ESTIMATES_ONLY, replay_record
+    from tools.scada.replay import ESTIMATES_ONLY, after_long_gaps, replay_record
 
     model_effects = {k: v for k, v in effects.items() if k in EFFECTS}
     params = setup.params if params is None else params
@@ -156,25 +154,12 @@ def estimates(setup: Setup, record: ScadaRecord, effects: dict, params=None) -> 
         tables = {mode: replay(mode) for mode in modes}
     out = {}
     if setup.sump:
+        # the modelled sump's rows just after a day's gap rest on an assumed standstill: no evidence, neither fitted
+        # nor scored
         est = np.asarray(tables["model"][f"est_{setup.sump}"], dtype=float) + effects.get("oil_sensor_offset", 0.0)
         out[setup.sump] = np.where(after_long_gaps(record), np.nan, est)
     for ch in setup.others:
         out[ch] = tables["measured"][f"est_{ch}"] + effects.get(f"thermocouple_offset:{ch}", 0.0)
-    return out
-
-
-def after_long_gaps(record: ScadaRecord) -> np.ndarray:
-    """(N,) bool: the rows within AFTER_GAP_S after a gap of LONG_GAP_S or more (tools.scada.replay), where the
-    modelled sump comes out of the gap cooled over an assumed standstill, not from what the gearbox did: no evidence
-    of its physics, so neither fitted nor scored (a validation engineer's healthy stand-in, a day's hole in its test
-    files: `churning_scale` 1.93 claimed at 6 %, nearly all of it the sump's 90 rows after the hole, 8.2 K off)."""
-    from tools.scada.replay import AFTER_GAP_S, LONG_GAP_S
-
-    t = np.asarray(record.time_s, dtype=float)
-    out = np.zeros(t.size, dtype=bool)
-    for a, _ in record.stretch_bounds()[1:]:
-        if t[a] - t[a - 1] >= LONG_GAP_S:
-            out[a : int(np.searchsorted(t, t[a] + AFTER_GAP_S))] = True
     return out
 
 
@@ -546,10 +531,11 @@ def _verdict(r0: dict, t_before: dict, cands: list[dict], where_rows: list[dict]
     at = f"; the largest share of the gap: {top['channel']} in '{top['regime']}'" if top else ""
     at += f"; {_at_bound_text(bound)}" if bound else ""
     if weak:
+        shrink = 1.0 - weak["test_rms_after_c"] / before if before > 0 else 0.0
         at += (
             f"; the best that holds, {weak['effect']} ({_fmt_params(weak['parameters'])}), shrinks the held-out RMS "
-            f"by {100 * (1 - weak['test_rms_after_c'] / before):.1f} % only ({before:.2f} -> "
-            f"{weak['test_rms_after_c']:.2f} K; a claim needs {100 * CLAIM_MIN_SHRINK:g} %)"
+            f"by {100 * shrink:.1f} % only ({before:.2f} -> {weak['test_rms_after_c']:.2f} K; a claim needs "
+            f"{100 * CLAIM_MIN_SHRINK:g} %)"
         )
     if worse:
         at += (

@@ -67,13 +67,29 @@ LONG_GAP_S = 86400.0
 AFTER_GAP_S = 6 * 3600.0
 
 
+def long_gap_starts(record: ScadaRecord) -> list[int]:
+    """The first row of each stretch that follows a gap of LONG_GAP_S or more."""
+    t = np.asarray(record.time_s, dtype=float)
+    return [a for a, _ in record.stretch_bounds()[1:] if t[a] - t[a - 1] >= LONG_GAP_S]
+
+
+def after_long_gaps(record: ScadaRecord) -> np.ndarray:
+    """(N,) bool: the rows within AFTER_GAP_S after a gap of LONG_GAP_S or more, where a modelled sump comes out of
+    the gap cooled over an assumed standstill, not from what the gearbox did."""
+    t = np.asarray(record.time_s, dtype=float)
+    out = np.zeros(t.size, dtype=bool)
+    for a in long_gap_starts(record):
+        out[a : int(np.searchsorted(t, t[a] + AFTER_GAP_S))] = True
+    return out
+
+
 def _long_gap_notes(record: ScadaRecord, cols: dict) -> list[str]:
     """With the sump modelled: one note on the record's gaps of LONG_GAP_S or more, the longest and the largest
     sump error in the AFTER_GAP_S after any of them (the model's sump restarts from its state cooled over the gap,
     not from a reading)."""
     oil = oil_channel(record)
     t = np.asarray(record.time_s, dtype=float)
-    starts = [a for a, _ in record.stretch_bounds()[1:] if t[a] - t[a - 1] >= LONG_GAP_S]
+    starts = long_gap_starts(record)
     if oil is None or not starts:
         return []
     err = np.abs(np.asarray(cols[f"est_{oil}"]) - np.asarray(cols[oil]))

@@ -21,8 +21,9 @@ from firmware_model.errors import InputError
 from tests.tools.scada.test_reader import row, write
 from tests.tools.scada.test_replay_scada import REPO, _map, _rows
 from tools.cli.gearbox_option import with_gearbox
-from tools.scada.diagnose import Setup, after_long_gaps, diagnose_records, estimates
+from tools.scada.diagnose import Setup, diagnose_records, estimates
 from tools.scada.reader import read_record
+from tools.scada.replay import after_long_gaps
 
 ROWS = 36
 
