@@ -251,7 +251,8 @@ def fit_fleet(
         files = ", ".join(Path(f).name for f in rec.files[:3]) + (" ..." if len(rec.files) > 3 else "")
         dead_notes = [
             f"the fleet record of {unit} ({files}): {ch} left out: no reading of it in the unit's files (its column "
-            "absent, empty or every value rejected); its periods are fitted on its other channels"
+            "absent, empty or every value rejected); its periods are fitted on its other channels, so its values "
+            "are not comparable with its siblings' (its flags judge its drift from its own baseline, which is)"
             for ch in dead
         ]
         r0 = _residual(setup, rec, {})
@@ -281,13 +282,21 @@ def _median_se(values: list[float], ses: list[float]) -> tuple[float, float]:
     return float(0.5 * (v[k - 1] + v[k])), float(0.5 * np.hypot(s[k - 1], s[k]))
 
 
-def in_range(f: PeriodFit, eid: str) -> bool:
-    """Whether a period's fitted ``eid`` is identified (a finite standard error) and within the effect's plausible
-    range (firmware_model.effects.CATALOG). Outside it a value is a short period's noise (a cooler at -4 x its
-    effectiveness, +-2.8) or a failure beyond the range (a dead cooler near 0): the fleet's medians and drifts keep
-    it, with its standard error, and effects.parquet marks it."""
+def identified(f: PeriodFit, eid: str) -> bool:
+    """Whether a period identifies its fitted ``eid``: a finite standard error no wider than the effect's plausible
+    range (firmware_model.effects.CATALOG); an error wider than the whole range says nothing of where in it the
+    value lies (a unit without its Gb2t reading: bearing losses 2.30 +- 23.80)."""
     e = CATALOG[eid]
-    return bool(np.isfinite(f.se[eid]) and e.low <= f.values[eid] <= e.high)
+    return bool(f.se[eid] <= e.high - e.low)  # (NaN and inf: not identified)
+
+
+def in_range(f: PeriodFit, eid: str) -> bool:
+    """Whether a period's fitted ``eid`` is identified (:func:`identified`) and within the effect's plausible range.
+    Outside it a value is a short period's noise (a cooler at -4 x its effectiveness, +-2.8) or a failure beyond the
+    range (a dead cooler near 0): the fleet's medians and drifts keep it, with its standard error, and
+    effects.parquet and the report mark it."""
+    e = CATALOG[eid]
+    return identified(f, eid) and bool(e.low <= f.values[eid] <= e.high)
 
 
 def deviations(

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from tools.scada.fleet import EFFECTS, PeriodFit, in_range
+from tools.scada.fleet import EFFECTS, PeriodFit, identified, in_range
 
 #: the effects in a reader's words (columns of the per-unit tables)
 EFFECT_WORDS = {"bearing_loss_scale": "bearing losses [x nominal]", "cooler_effectiveness_scale": "cooler [x nominal]"}
@@ -27,11 +27,15 @@ def _cell(text) -> str:
 
 
 def _value(f: PeriodFit, eid: str) -> str:
-    """A fitted value with its standard error, '-' where the period does not identify it, '(out of range)' marked."""
+    """A fitted value with its standard error, '-' where the period fits none, a value with an error wider than its
+    plausible range or outside that range marked."""
     v, se = f.values.get(eid, math.nan), f.se.get(eid, math.inf)
     if not (math.isfinite(v) and math.isfinite(se)):
         return "-"
-    mark = "" if in_range(f, eid) else " (outside its plausible range)"
+    if not identified(f, eid):
+        mark = " (not identified: its error is wider than its plausible range)"
+    else:
+        mark = "" if in_range(f, eid) else " (outside its plausible range)"
     return f"{v:.2f} +- {se:.2f}{mark}"
 
 
@@ -121,7 +125,8 @@ def period_medians(fits: Sequence[PeriodFit], eid: str) -> dict:
 def plot_fitted(fits: Sequence[PeriodFit], flags: Sequence, path: str | os.PathLike) -> Path:
     """Write the fitted values' plot: one panel per effect, each drawn unit's value per period with its standard
     error (at most PLOT_SE_CAP), the median of all units' values per period, a flag's first period circled.
-    A value outside the effect's plausible range is drawn at the panel's edge as a cross."""
+    A value outside the effect's plausible range is drawn at the panel's edge as a cross, one not identified (an
+    error wider than the range) as a cross without its error bar."""
     import datetime as dt
 
     from firmware_model.effects import CATALOG
@@ -170,7 +175,7 @@ def plot_fitted(fits: Sequence[PeriodFit], flags: Sequence, path: str | os.PathL
     n = len({f.unit for f in fits})
     axes[0, 0].set_title(
         f"Fitted values per period of {len(units)} of {n} units (1 standard error, at most {PLOT_SE_CAP:g}); red "
-        "circle: a flag's first period; x: outside the plausible range, drawn at the edge"
+        "circle: a flag's first period; x: outside the plausible range (drawn at the edge) or not identified"
     )
     axes[-1, 0].set_xlabel("period start (UTC)")
     path = Path(path)

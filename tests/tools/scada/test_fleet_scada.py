@@ -324,6 +324,10 @@ def test_a_unit_never_set_beside_two_siblings_is_said_not_judged():
     assert in_range(fit("A", 1), "cooler_effectiveness_scale")
     assert not in_range(fit("A", 1, -4.16), "cooler_effectiveness_scale")
     assert not in_range(fit("A", 1)._replace(se=dict.fromkeys(EFFECTS, math.inf)), "bearing_loss_scale")
+    # a verification trial's unit without Gb2t: bearing losses 2.30 +- 23.80, inside the range 0.5..3 and unmarked
+    # while 5.83 +- 16.70 was marked: an error wider than the whole range identifies nothing
+    assert not in_range(fit("A", 1, 2.30)._replace(se=dict.fromkeys(EFFECTS, 23.80)), "bearing_loss_scale")
+    assert in_range(fit("A", 1, 2.30)._replace(se=dict.fromkeys(EFFECTS, 0.5)), "bearing_loss_scale")
 
 
 def test_the_periods_a_unit_was_fitted_without_two_siblings_are_named():
@@ -369,16 +373,17 @@ def test_the_scada_fleet_writes_a_report_in_words():
         ses = {"bearing_loss_scale": 0.02, "cooler_effectiveness_scale": se}
         return PeriodFit(unit, period, f"2017-{period:02d}-01", 4000, values, ses, 1.5, 20)
 
-    fits = [fit("A", 1, 0.95), fit("B", 1, 1.0), fit("B", 2, -1.3), fit("C", 1, 1.0)]
+    fits = [fit("A", 1, 0.95), fit("B", 1, 1.0), fit("B", 2, -1.3), fit("C", 1, 1.0), fit("C", 2, 0.8, se=4.2)]
     flag = Flag("B", "cooler_effectiveness_scale", 2, "2017-02-01", -1.3, 0.0, "its oil runs hotter under load ...")
     left = [("x.csv", "stuck"), (Path("d/y.csv"), "no SCADA file")]
     judged = {"A": "", "C": "1 of its periods (2017-02-01) was ..."}
     text = "\n".join(report_lines(fits, [flag], judged, left, "unit-months"))
-    assert "3 units fitted, 4 unit-months; 1 flagged" in text
+    assert "3 units fitted, 5 unit-months; 1 flagged" in text
     assert "| B | cooler_effectiveness_scale | 2017-02-01 | its oil runs hotter under load ... |" in text
     assert "- C: 1 of its periods (2017-02-01) was ..." in text and "| x.csv | stuck |" in text
     assert "| y.csv | no SCADA file |" in text
     assert "| 2017-02-01 | 4000 | 1.10 +- 0.02 | -1.30 +- 0.05 (outside its plausible range) | 1.50 |" in text
+    assert "| 2017-02-01 | 4000 | 1.10 +- 0.02 | 0.80 +- 4.20 (not identified: its error is wider than its " in text
     assert "None: no unit drifted" in "\n".join(report_lines(fits, [], {}, [], "unit-months"))
 
 
@@ -454,6 +459,7 @@ def test_a_unit_without_a_single_reading_of_one_channel_is_fitted_on_its_other_c
     assert [f for f in fits if f.unit != "D"] == whole  # the siblings' fits as without it
     assert rejected == [(u, w) for u, w in rejected if u == "D"] and len(rejected) == 1
     assert "Gb2t_avg left out: no reading of it in the unit's files" in rejected[0][1]
+    assert "not comparable with its siblings'" in rejected[0][1]
     assert coverage(fits, ["A", "B", "C", "D"])["D"] == ""
     assert fleet.unit_channels(setup, units["D"]) == (("Gost_avg", "Gb1t_avg"), ["Gb2t_avg"])
     # read on the first period's rows only: not a dead column, the later periods lack its 36 rows: not fitted
