@@ -1659,20 +1659,22 @@ static int ttl_refresh_bound(const gvs_tables *tb, const gvs_vehicle *veh, const
     /* ttl_bound.cut_path: the fewest parts whose lines lie within GVS_TTL_SEG_GAP_W of the curves, else
      * GVS_TTL_SEG_MAX (3) parts with the least worst gap, every choice of cuts tried in order, the first within
      * GVS_TTL_SEG_TIE_W of the least taken */
+    /* each part's gap computed when the search first asks for it (most paths are one part: one gap, not 153) */
     for (j = 0; j < SEG_N; ++j)
-        for (k = j + 1; k <= SEG_N; ++k) gt[j][k] = seg_gap(Tg, Qg, dg, mcp, j, k);
+        for (k = j + 1; k <= SEG_N; ++k) gt[j][k] = (gvs_real)NAN;
+#define GAP(a, b) (gt[a][b] == gt[a][b] ? gt[a][b] : (gt[a][b] = seg_gap(Tg, Qg, dg, mcp, a, b)))
     cuts[0] = 0;
     cuts[1] = SEG_N;
-    best = gt[0][SEG_N];
+    best = GAP(0, SEG_N);
     for (m = 1; m < GVS_TTL_SEG_MAX && best > R_(GVS_TTL_SEG_GAP_W) && T_far > p->T_oil_c; ++m) {
         gvs_real least = (gvs_real)INFINITY;
         int pass, found = 0;
         for (pass = 0; pass < 2 && !found; ++pass)     /* the least worst gap, then the first within the tie */
             for (j = 1; j < SEG_N && !found; ++j)
                 for (k = m == 1 ? SEG_N : j + 1; k <= SEG_N - (m == 1 ? 0 : 1) && !found; ++k) {
-                    gvs_real w = gt[0][j], x = gt[j][k];
+                    gvs_real w = GAP(0, j), x = GAP(j, k);
                     if (x > w) w = x;
-                    if (m > 1 && gt[k][SEG_N] > w) w = gt[k][SEG_N];
+                    if (m > 1 && GAP(k, SEG_N) > w) w = GAP(k, SEG_N);
                     if (!pass) {
                         if (w < least) least = w;
                     } else if (w <= least + R_(GVS_TTL_SEG_TIE_W)) {
@@ -1687,6 +1689,7 @@ static int ttl_refresh_bound(const gvs_tables *tb, const gvs_vehicle *veh, const
         if (m == 1) cuts[2] = SEG_N;
         else cuts[3] = SEG_N;
     }
+#undef GAP
     for (j = 0; j < nc; ++j) {
         Tc[j] = Tg[cuts[j]];
         if (j) point_heat(tb, veh, p, Tc[j], srcs[j]);
