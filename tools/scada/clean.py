@@ -2,7 +2,8 @@
 
 Per channel of the column map, in this order: an empty cell is ``missing``; a value that is no number or lies
 outside the channel's ``range`` is ``implausible``; a value further than ``jump_k`` from both neighbours of its
-stretch, on the same side (a one-row spike), is a ``jump``; a measured temperature the same to the bit for
+stretch, on the same side (a one-row spike), is a ``jump``, and so is a measured temperature's run of up to
+SPIKE_RUN_S off the readings around it (:func:`glitch_runs`); a measured temperature the same to the bit for
 STUCK_MIN_S or more while the load or the air moved is ``stuck`` after its first row. Each of these leaves NaN in
 the channel, the row stays. A derived input torque is 0 where the rotor stands still (speed below the map's
 ``standstill_rpm``: ``standstill``) and where the power (or the converter torque) is negative, the turbine drawing
@@ -44,7 +45,7 @@ REASON_WORDS = {
     "gap": "gaps (a step over 1.5 periods): a new stretch starts, models reset",
     "missing": "empty cells (NaN)",
     "implausible": "values outside the channel's range or not numbers (NaN)",
-    "jump": "one-row spikes beyond the channel's jump_k (NaN)",
+    "jump": "spikes beyond the channel's jump_k (NaN; an input's one row, a gearbox temperature's up to an hour)",
     "stuck": "measured temperatures stuck at one value for a day or more while the load or the air moved (NaN after "
     "the run's first)",
     "standstill": "rows with the rotor standing still (input torque 0)",
@@ -76,6 +77,42 @@ def spikes(x: np.ndarray, stretch: np.ndarray, jump: float) -> np.ndarray:
         with_next2 = with_next & np.r_[with_next[1:], False]
         first = ~with_prev & with_next2 & (np.abs(down) > jump) & (np.abs(nxt - nxt2) <= jump)
     return inner | first
+
+
+#: a measured gearbox temperature that leaves its readings before and after by more than its ``jump_k``, on one
+#: side, for at most this long is a glitch too [s] (a logger's fill value or a sensor's dropout to -40 or 0 degC:
+#: two rows of a sump at -40 degC beside 59 degC, accepted as the oil, put the bearings' estimates at 19 000 degC
+#: with critical warnings; a part's thermal mass does not leave and come back by 20 K within an hour), and its
+#: neighbours may lie across a gap up to this long (one such reading on a stretch's last row is no spike otherwise);
+#: the air around the gearbox can (a door, a heater): its spikes are one row
+SPIKE_RUN_S = 3600.0
+
+
+def glitch_runs(x: np.ndarray, linked: np.ndarray, jump: float, max_rows: int) -> np.ndarray:
+    """Runs of 1..``max_rows`` rows further than ``jump`` from both the value before the run and the value after
+    it, all on one side, the three in one ``linked`` stretch (stretches joined across gaps of up to SPIKE_RUN_S);
+    and a linked stretch's last row off the two before it, which agree."""
+    out = np.zeros(x.shape, dtype=bool)
+    with np.errstate(invalid="ignore"):
+        step = np.abs(np.diff(x)) > jump
+    for a in np.flatnonzero(step & (linked[1:] == linked[:-1])) + 1:  # a run's first row: a step from the row before
+        p, sign = x[a - 1], 1.0 if x[a] > x[a - 1] else -1.0
+        b = a
+        while b < x.size and b - a < max_rows and linked[b] == linked[a - 1] and sign * (x[b] - p) > jump:
+            b += 1
+        if b == a or b >= x.size or linked[b] != linked[a - 1] or not np.isfinite(x[b]):
+            continue
+        if np.min(sign * (x[a:b] - x[b])) > jump:
+            out[a:b] = True
+    # a linked stretch's last row further than jump from the one before, where that one and its own previous agree
+    # (the mirror of spikes' first row: a sump read at -40 degC on a turbine's last row before a day's gap)
+    last = np.flatnonzero(np.r_[linked[1:] != linked[:-1], True])
+    last = last[last >= 2]
+    with np.errstate(invalid="ignore"):
+        same = (linked[last - 2] == linked[last]) & (np.abs(x[last - 1] - x[last - 2]) <= jump)
+        same &= ~out[last - 1] & ~out[last - 2]  # (not the row a glitch run came back on)
+        out[last[same & (np.abs(x[last] - x[last - 1]) > jump)]] = True
+    return out
 
 
 def stuck_runs(x: np.ndarray, stretch: np.ndarray, min_rows: int) -> list[tuple[int, int]]:
@@ -111,10 +148,11 @@ def _checked(
     stuck: dict,
     stuck_rows: int = 0,
     inputs: dict | None = None,
+    glitch: tuple | None = None,
 ) -> np.ndarray:
-    """``x`` with its missing, implausible, spike and (``stuck_rows``: runs that long while ``inputs`` moved, see
-    :func:`_moved`) stuck values NaN, each counted in ``by[name]``; each stuck run in ``stuck[name]``: (start, stop,
-    value)."""
+    """``x`` with its missing, implausible, spike (``glitch``: (linked stretches, rows) of :func:`glitch_runs` as
+    well) and (``stuck_rows``: runs that long while ``inputs`` moved, see :func:`_moved`) stuck values NaN, each
+    counted in ``by[name]``; each stuck run in ``stuck[name]``: (start, stop, value)."""
     x = x.copy()
     miss = np.isnan(x)
     bad = ~miss & ~np.isfinite(x)
@@ -123,6 +161,8 @@ def _checked(
             bad |= ~miss & ((x < ch.range[0]) | (x > ch.range[1]))
     x[bad] = np.nan
     jump = spikes(x, stretch, ch.jump_k) if ch.jump_k else np.zeros(x.shape, bool)
+    if ch.jump_k and glitch is not None:  # a measured temperature: runs of up to an hour, across short gaps
+        jump |= glitch_runs(np.where(jump, np.nan, x), glitch[0], ch.jump_k, glitch[1])
     x[jump] = np.nan
     runs = [r for r in stuck_runs(x, stretch, stuck_rows) if _moved(inputs or {}, *r)] if stuck_rows else []
     values = [float(x[a]) for a, _ in runs]
@@ -161,11 +201,18 @@ def _derived(ch: Channel, raw: dict, cmap: ColumnMap, counts: dict) -> np.ndarra
     return out * ch.scale + ch.offset
 
 
-def clean_values(raw: dict, stretch: np.ndarray, cmap: ColumnMap, counts: dict) -> tuple[dict, dict, dict]:
+def clean_values(
+    raw: dict, stretch: np.ndarray, cmap: ColumnMap, counts: dict, time_s: np.ndarray | None = None
+) -> tuple[dict, dict, dict]:
     """(channel -> values, channel -> reason -> count, channel -> its stuck runs [(start, stop, value)]) of every
-    input and measured channel of ``cmap``; the totals are added to ``counts``."""
+    input and measured channel of ``cmap``; the totals are added to ``counts``. ``time_s``: the rows' times, for
+    the measured channels' glitch runs (SPIKE_RUN_S; None: one-row spikes only)."""
     values, by, stuck = {}, {}, {}
     stuck_rows = int(np.ceil(STUCK_MIN_S / cmap.period_s))
+    glitch = None
+    if time_s is not None and len(time_s):
+        linked = np.cumsum(np.diff(np.asarray(time_s, dtype=float), prepend=time_s[0]) > SPIKE_RUN_S)
+        glitch = (linked, max(1, int(SPIKE_RUN_S // cmap.period_s)))
     for name, ch in cmap.channels.items():
         if ch.derive:
             x = _derived(ch, raw, cmap, counts)
@@ -173,7 +220,9 @@ def clean_values(raw: dict, stretch: np.ndarray, cmap: ColumnMap, counts: dict) 
             x = raw[ch.column]
             x = np.where(np.isfinite(x), x * ch.scale + ch.offset, x)
         measured = name in cmap.measured  # (the map's inputs come first: the load and the air are read by then)
-        values[name] = _checked(name, x, ch, stretch, by, stuck, stuck_rows if measured else 0, values)
+        values[name] = _checked(
+            name, x, ch, stretch, by, stuck, stuck_rows if measured else 0, values, glitch if measured else None
+        )
     for reason in CHANNEL_REASONS:
         counts[reason] += sum(c[reason] for c in by.values())
     return values, by, stuck

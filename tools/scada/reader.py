@@ -482,7 +482,7 @@ def _record(unit: str, parts: list[FileRows], cmap: ColumnMap) -> ScadaRecord:
     gap = np.diff(t, prepend=t[0]) > GAP_PERIODS * cmap.period_s
     counts["gap"] += int(np.sum(gap))
     stretch = np.cumsum(gap)
-    values, by_channel, stuck = clean_values(raw, stretch, cmap, counts)
+    values, by_channel, stuck = clean_values(raw, stretch, cmap, counts, t)
     return ScadaRecord(
         unit=unit,
         time_s=t,

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from firmware_model.errors import InputError
-from tools.scada.clean import REASONS, spikes
+from tools.scada.clean import REASONS, glitch_runs, spikes
 from tools.scada.columns import MAP_DIR, load_column_map, shipped_maps
 from tools.scada.reader import read_record, read_units
 
@@ -387,6 +387,45 @@ def test_a_spike_is_one_row_off_both_neighbours_on_one_side_within_a_stretch():
     edge = np.array([5.0, 55.0, 56.0, 57.0, 90.0])
     assert spikes(edge, np.zeros(5, int), 20.0).tolist() == [True, False, False, False, False]
     assert spikes(edge[:2], np.zeros(2, int), 20.0).tolist() == [False, False]  # no third row to agree with
+
+
+def test_a_gearbox_temperature_off_for_up_to_an_hour_and_back_is_a_glitch():
+    """A verification trial: two rows of a sump read at -40 degC beside 59 degC were no one-row spike, taken as the
+    oil, and put the bearings' estimates at 19 000 degC with critical warnings (exit 0 over a year's files); one
+    on a stretch's last row, and an hour of 0.0 degC, the same. A held step, or a run longer than an hour, stays."""
+    one = np.zeros(12, int)
+    x = np.array([59.0, 59.2, -40.0, -40.0, 60.1, 60.3, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0])
+    assert glitch_runs(x, one, 20.0, 6).tolist() == [False, False, True, True] + [False, False] + [False] * 6
+    x[-1] = 60.0  # six rows off, then back: one hour of 10-min rows
+    assert glitch_runs(x, one, 20.0, 6).tolist() == [False, False, True, True, False, False] + [True] * 5 + [False]
+    assert glitch_runs(x, one, 20.0, 4)[6:11].tolist() == [False] * 5  # longer than max_rows: believed
+    # a step that holds; a rise that settles within jump_k of where it went (a step, then a drift back)
+    assert not glitch_runs(np.array([50.0, 50.0, 80.0, 80.0, 80.0, 81.0]), np.zeros(6, int), 20.0, 2).any()
+    assert not glitch_runs(np.array([50.0, 80.0, 65.0, 66.0]), np.zeros(4, int), 20.0, 6).any()
+    # the neighbours across a short gap (linked stretches), and a linked stretch's last row off the two before it
+    linked = np.array([0, 0, 0, 1, 1, 1])
+    last = np.array([59.0, 59.1, -40.0, 58.0, 58.5, 58.9])
+    assert glitch_runs(last, np.zeros(6, int), 20.0, 6).tolist() == [False, False, True, False, False, False]
+    assert glitch_runs(last, linked, 20.0, 6).tolist() == [False, False, True, False, False, False]
+    assert glitch_runs(np.array([59.0, 59.1, 90.0]), np.zeros(3, int), 20.0, 6).tolist() == [False, False, True]
+    assert not glitch_runs(np.array([20.0, 59.1, 90.0]), np.zeros(3, int), 20.0, 6).any()  # the two do not agree
+
+
+def test_a_sump_dropout_in_a_file_is_counted_and_left_out_but_the_air_may_move_for_two_rows(tmp_path):
+    """End to end: the reader leaves the sump's two -40 degC rows out (counted as jump), keeps the nacelle air's two
+    rows 18 K up (the air can: a door, a heater), and the real rows' values as they were."""
+    t0 = datetime(2017, 5, 1, 0, 0, tzinfo=timezone.utc)
+    step = timedelta(minutes=10)
+    lines = [row(t0 + k * step, Gost_avg=59.0 + 0.1 * k) for k in range(12)]
+    lines[5] = row(t0 + 5 * step, Gost_avg=-40.0)
+    lines[6] = row(t0 + 6 * step, Gost_avg=-40.0)
+    lines[8] = row(t0 + 8 * step, Gost_avg=59.8, Yt_avg=38.0)
+    lines[9] = row(t0 + 9 * step, Gost_avg=59.9, Yt_avg=38.0)
+    rec = read_record([write(tmp_path / "d.csv", lines)], "engie")
+    sump = rec.values["Gost_avg"]
+    assert np.isnan(sump[[5, 6]]).all() and np.isfinite(np.delete(sump, [5, 6])).all()
+    assert rec.by_channel["Gost_avg"]["jump"] == 2 and rec.by_channel["ambient_temp_c"]["jump"] == 0
+    assert rec.values["ambient_temp_c"][8] == 38.0
 
 
 def test_the_autumn_change_is_continuous_in_utc_and_a_dropped_repeated_hour_is_a_gap(tmp_path):
