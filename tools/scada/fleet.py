@@ -11,13 +11,17 @@ which also covers the slower, weather-long correlation of a model's error that a
 MIN_BLOCKS blocks with rows.
 
 Per period, each effect's median over the units that identify it is the fleet's (seasons, the farm's weather move
-every unit alike); only with MIN_UNITS units or more, where one drifting unit cannot move it. A unit's *deviation*
+every unit alike); only with MIN_UNITS units or more, where one drifting unit cannot move it. With an even number
+of units each unit is set against the median of the others (an odd number): the mean of the two middle values
+moves with a drifting unit that is one of them (four turbines, one a twin of another with a bearing sensor reading
+6 K higher from a date on: its drift halved under the bar, a healthy sibling flagged instead). A unit's *deviation*
 is its value minus that median (its error: the unit's and the median unit's errors together), its *baseline* the
 precision-weighted mean of its first BASELINE_PERIODS deviations no poorer than POOR_SE_FACTOR times its median
 standard error (a unit may always differ a little; a partial first period or one standing still is left out of
 it), and it is
 flagged when its deviation leaves the baseline by more than DRIFT_MIN and 3 standard errors (the deviation's and the
-baseline's together) for CONSECUTIVE of its periods in a row: the first of them is the date in the flag. Flags are
+baseline's together) for CONSECUTIVE of its periods in a row, and it does so against more than half of its siblings
+one by one (:func:`against_most_siblings`): the first of them is the date in the flag. Flags are
 taken in time order, and a flagged unit leaves the fleet from its flag's period on: a failing unit is no sibling's
 reference (:func:`flag_units`).
 """
@@ -54,7 +58,8 @@ DRIFT_MIN = {"bearing_loss_scale": 0.15, "cooler_effectiveness_scale": 0.15}
 #: effect's id and a signed number alone: a review)
 DRIFT_WORDS = {
     "bearing_loss_scale": (
-        "its bearings run hotter for their load than its siblings' (more bearing heat: wear, preload)",
+        "its bearings run hotter for their load than its siblings' (more bearing heat: wear, preload; or a bearing "
+        "sensor reads high: diagnose)",
         "its bearings run cooler for their load than its siblings' (or a bearing sensor reads low: diagnose)",
     ),
     "cooler_effectiveness_scale": (
@@ -317,8 +322,11 @@ def deviations(
         group = by_period[period]
         if len(group) < MIN_UNITS:
             continue
-        med, se_med = _median_se([f.values[eid] for f in group], [f.se[eid] for f in group])
-        for f in group:
+        values, ses = [f.values[eid] for f in group], [f.se[eid] for f in group]
+        med, se_med = _median_se(values, ses)
+        for i, f in enumerate(group):
+            if len(group) % 2 == 0:  # even: the median of the others, an odd count (module doc)
+                med, se_med = _median_se(values[:i] + values[i + 1 :], ses[:i] + ses[i + 1 :])
             out.setdefault(f.unit, []).append((f, f.values[eid] - med, float(np.hypot(f.se[eid], se_med))))
     return out
 
@@ -374,20 +382,57 @@ def drifts(
     (``flagged``: as :func:`deviations`)."""
     out = {}
     for unit, rows in sorted(deviations(fits, eid, flagged).items()):
+        if len(rows) > baseline_periods:
+            out[unit] = _from_baseline(rows, baseline_periods)
+    return out
+
+
+def _from_baseline(rows: list, baseline_periods: int) -> tuple[float, float, list]:
+    """(baseline, its standard error, [(fit, drift, its standard error)] after it) of [(fit, deviation, standard
+    error)] in time order: the baseline the precision-weighted mean of the first ``baseline_periods`` rows no poorer
+    than POOR_SE_FACTOR times the median standard error (the first rows when too few are)."""
+    typical = float(np.median([se for _, _, se in rows]))
+    fine = [i for i, (_, _, se) in enumerate(rows[:-1]) if se <= POOR_SE_FACTOR * typical]
+    chosen = fine[:baseline_periods] if len(fine) >= baseline_periods else list(range(baseline_periods))
+    w = np.array([1.0 / rows[i][2] ** 2 for i in chosen])
+    baseline = float(np.sum(w * [rows[i][1] for i in chosen]) / np.sum(w))
+    se_base = float(1.0 / np.sqrt(np.sum(w)))
+    return baseline, se_base, [(f, d - baseline, float(np.hypot(se, se_base))) for f, d, se in rows[chosen[-1] + 1 :]]
+
+
+def _drifting(drift: float, se: float, eid: str) -> bool:
+    return abs(drift) > DRIFT_MIN[eid] and abs(drift) > 3.0 * se
+
+
+def against_most_siblings(
+    fits: Sequence[PeriodFit], unit: str, eid: str, run: list, sign: float, baseline_periods: int, flagged: dict
+) -> bool:
+    """Whether ``unit`` drifts by ``sign`` over the periods ``run`` against most of its siblings one by one: each
+    sibling's difference from it over their shared periods, from its own baseline as :func:`drifts` takes one, past
+    the same bar in every period of the run, for more than half of the siblings with such a series (True when none
+    has one). A drifting unit drifts against every sibling; a sound one whose median a drifting sibling moved drifts
+    against that one alone (four turbines: the median of the other three is the drifting one's once it sits between
+    them)."""
+    mine = {f.period: f for f in fits if f.unit == unit and np.isfinite(f.se[eid])}
+    agree = votes = 0
+    for sib in sorted({f.unit for f in fits} - {unit}):
+        theirs = {
+            f.period: f
+            for f in fits
+            if f.unit == sib and np.isfinite(f.se[eid]) and not (sib in flagged and f.period >= flagged[sib])
+        }
+        rows = [
+            (mine[k], mine[k].values[eid] - theirs[k].values[eid], float(np.hypot(mine[k].se[eid], theirs[k].se[eid])))
+            for k in sorted(set(mine) & set(theirs))
+        ]
         if len(rows) <= baseline_periods:
             continue
-        typical = float(np.median([se for _, _, se in rows]))
-        fine = [i for i, (_, _, se) in enumerate(rows[:-1]) if se <= POOR_SE_FACTOR * typical]
-        chosen = fine[:baseline_periods] if len(fine) >= baseline_periods else list(range(baseline_periods))
-        w = np.array([1.0 / rows[i][2] ** 2 for i in chosen])
-        baseline = float(np.sum(w * [rows[i][1] for i in chosen]) / np.sum(w))
-        se_base = float(1.0 / np.sqrt(np.sum(w)))
-        out[unit] = (
-            baseline,
-            se_base,
-            [(f, d - baseline, float(np.hypot(se, se_base))) for f, d, se in rows[chosen[-1] + 1 :]],
-        )
-    return out
+        after = {f.period: (d, se) for f, d, se in _from_baseline(rows, baseline_periods)[2]}
+        if not all(k in after for k in run):
+            continue
+        votes += 1
+        agree += all(_drifting(after[k][0], after[k][1], eid) and after[k][0] * sign > 0 for k in run)
+    return votes == 0 or 2 * agree > votes
 
 
 def flag_units(
@@ -401,7 +446,10 @@ def flag_units(
     taken: list[Flag] = []
     while True:
         new = [
-            (f, k) for f, k in _drift_flags(fits, baseline_periods, consecutive, flagged) if f.vehicle not in flagged
+            (f, k)
+            for f, k, sign, run in _drift_flags(fits, baseline_periods, consecutive, flagged)
+            if f.vehicle not in flagged
+            and against_most_siblings(fits, f.vehicle, f.effect, run, sign, baseline_periods, flagged)
         ]
         if not new:
             return sorted(taken, key=lambda f: (f.vehicle, f.effect))
@@ -411,15 +459,16 @@ def flag_units(
         flagged[first.vehicle] = first.period
 
 
-def _drift_flags(fits, baseline_periods: int, consecutive: int, flagged: dict) -> list[tuple[Flag, float]]:
+def _drift_flags(fits, baseline_periods: int, consecutive: int, flagged: dict) -> list[tuple]:
     """Every unit's first drifting run per effect, the units in ``flagged`` left out from their periods on: (flag,
-    its drift over its threshold, the larger of DRIFT_MIN and 3 standard errors, at the run's last period)."""
+    its drift over its threshold, the larger of DRIFT_MIN and 3 standard errors, at the run's last period, the
+    drift's sign, the run's periods)."""
     flags = []
     for eid in EFFECTS:
         for unit, (baseline, se_base, rows) in drifts(fits, eid, baseline_periods, flagged).items():
             run = 0
             for i, (f, drift, se) in enumerate(rows):
-                run = run + 1 if abs(drift) > DRIFT_MIN[eid] and abs(drift) > 3.0 * se else 0
+                run = run + 1 if _drifting(drift, se, eid) else 0
                 if run >= consecutive:
                     first = rows[i - consecutive + 1][0]
                     strength = abs(drift) / max(DRIFT_MIN[eid], 3.0 * se)
@@ -438,6 +487,8 @@ def _drift_flags(fits, baseline_periods: int, consecutive: int, flagged: dict) -
                                 "flag",
                             ),
                             strength,
+                            1.0 if drift > 0 else -1.0,
+                            [r[0].period for r in rows[i - consecutive + 1 : i + 1]],
                         )
                     )
                     break

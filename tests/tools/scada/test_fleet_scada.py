@@ -214,6 +214,29 @@ def test_a_partial_first_period_and_a_week_standing_still_do_not_make_the_baseli
     assert flags[0].reason.startswith("its bearings run hotter for their load than its siblings'"), flags[0].reason
 
 
+def test_with_four_units_each_is_set_against_the_median_of_the_other_three():
+    """A verification trial: four turbines, the fourth a twin of the third with its bearing 2 reading 6 K higher
+    from a date on (bearing losses 0.91 -> 1.19). The median of four is the mean of the middle two, the twin one of
+    them: it moved by half the drift, the twin's drift (0.14) stayed under the bar and a sound sibling seemed to
+    drift by -0.16 and was flagged. Against the median of the other three the twin is flagged and no one else."""
+    from tools.scada.fleet import PeriodFit, deviations
+
+    def fit(unit, k, value):
+        values = {"bearing_loss_scale": value, "cooler_effectiveness_scale": 1.0}
+        ses = {"bearing_loss_scale": 0.02, "cooler_effectiveness_scale": float("inf")}
+        return PeriodFit(unit, k, f"2017-01-{k + 1:02d}", 500, values, ses, 1.0)
+
+    fits = []
+    for k in range(10):
+        drift = 0.29 if k >= 5 else 0.0  # D stays under B: the middle two are C and D throughout
+        fits += [fit("A", k, 0.80), fit("B", k, 1.30), fit("C", k, 0.91), fit("D", k, 0.91 + drift)]
+    flags = [(f.vehicle, f.period) for f in flag_units(fits) if f.effect == "bearing_loss_scale"]
+    assert flags == [("D", 5)], flags
+    # an odd count keeps the median of all (three units: each in its own median, as before)
+    dev = deviations([f for f in fits if f.unit != "D"], "bearing_loss_scale")
+    assert dev["C"][0][1] == 0.0 and abs(dev["A"][0][1] + 0.11) < 1e-12 and abs(dev["B"][0][1] - 0.39) < 1e-12
+
+
 def test_a_flagged_unit_leaves_the_siblings_median_so_a_sound_sibling_is_not_flagged():
     """Three units: C's cooler fails from period 6 and its fitted bearing effect falls with it (the two effects are
     fitted together); with C in the median the median passes from C to B, and A, sound, seems to drift by B's offset
