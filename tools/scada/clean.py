@@ -164,7 +164,9 @@ def _checked(
     if ch.jump_k and glitch is not None:  # a measured temperature: runs of up to an hour, across short gaps
         jump |= glitch_runs(np.where(jump, np.nan, x), glitch[0], ch.jump_k, glitch[1])
     x[jump] = np.nan
-    runs = [r for r in stuck_runs(x, stretch, stuck_rows) if _moved(inputs or {}, *r)] if stuck_rows else []
+    # across gaps of up to SPIKE_RUN_S too: a logger dropping one row a day hid a bearing stuck for three weeks
+    runs_in = stretch if glitch is None else glitch[0]
+    runs = [r for r in stuck_runs(x, runs_in, stuck_rows) if _moved(inputs or {}, *r)] if stuck_rows else []
     values = [float(x[a]) for a, _ in runs]
     for a, b in runs:
         x[a + 1 : b] = np.nan  # the first is a reading; the rest repeat it

@@ -428,6 +428,24 @@ def test_a_sump_dropout_in_a_file_is_counted_and_left_out_but_the_air_may_move_f
     assert rec.values["ambient_temp_c"][8] == 38.0
 
 
+def test_a_stuck_bearing_is_found_across_the_rows_a_logger_dropped(tmp_path):
+    """A verification trial: a bearing stuck for three weeks with one row dropped every 20 h (a logger's dropouts)
+    gave no stuck warning at all (each stretch shorter than a day), and its rows were scored and fitted. A run that
+    goes on across gaps of up to an hour is one run."""
+    t0 = datetime(2017, 5, 1, 0, 0, tzinfo=timezone.utc)
+    step = timedelta(minutes=10)
+    lines = []
+    for k in range(3 * 144):
+        if k % 120 == 119:
+            continue  # dropped: a 20-min step, a new stretch
+        p = 300.0 + 600.0 * (k % 7) / 6  # the load moves
+        lines.append(row(t0 + k * step, p_kw=p, Gb1t_avg=46.35 if k >= 20 else 60.0 + 0.01 * k))
+    rec = read_record([write(tmp_path / "s.csv", lines)], "engie")
+    assert rec.counts["gap"] >= 3
+    gb1 = rec.values["Gb1t_avg"]
+    assert rec.by_channel["Gb1t_avg"]["stuck"] > 300 and np.isnan(gb1[30:]).all() and gb1[20] == 46.35
+
+
 def test_the_autumn_change_is_continuous_in_utc_and_a_dropped_repeated_hour_is_a_gap(tmp_path):
     """Local time repeats 02:00-02:59 on 2017-10-29 (+02:00, then +01:00); in UTC the rows follow each other. A copy
     that drops the repeated hour (as the published La Haute Borne files do) has a one-hour gap in UTC."""
