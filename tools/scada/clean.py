@@ -177,17 +177,29 @@ def _checked(
     return x
 
 
-def _derived(ch: Channel, raw: dict, cmap: ColumnMap, counts: dict) -> np.ndarray:
-    """A derived input torque [N m]: P / omega_rotor or Cm * fast / slow, 0 at standstill and under negative load."""
+#: a load over this share of the record's largest while the rotor's speed reads standstill is no standstill: the
+#: speed reading is implausible (a generator makes no power standing still; a speed sensor read 0 for a week while
+#: the turbine produced, and the week was replayed parked, the bearings up to 33 K low, exit 0: a verification trial)
+LOAD_AT_STANDSTILL_SHARE = 0.05
+
+
+def _derived(ch: Channel, raw: dict, cmap: ColumnMap, counts: dict, implausible_speed: dict) -> np.ndarray:
+    """A derived input torque [N m]: P / omega_rotor or Cm * fast / slow, 0 at standstill and under negative load;
+    NaN where the speed reads standstill under a load (LOAD_AT_STANDSTILL_SHARE), those rows' mask kept in
+    ``implausible_speed`` under the speed's column."""
     src = ch.sources
-    speed = raw[src["speed"] if ch.derive == "power_over_speed" else src["slow_speed"]] * ch.speed_scale  # rpm
+    speed_col = src["speed"] if ch.derive == "power_over_speed" else src["slow_speed"]
+    speed = raw[speed_col] * ch.speed_scale  # rpm
     load = raw[src["power"] if ch.derive == "power_over_speed" else src["torque"]] * ch.source_scale
+    top = np.nanmax(np.where(np.isfinite(load), load, np.nan)) if np.isfinite(load).any() else np.nan
     with np.errstate(invalid="ignore"):
-        still = speed < cmap.standstill_rpm
+        loaded_still = (speed < cmap.standstill_rpm) & (load > LOAD_AT_STANDSTILL_SHARE * top) & (top > 0.0)
+        still = (speed < cmap.standstill_rpm) & ~loaded_still
         negative = load < 0.0
+    implausible_speed[speed_col] = loaded_still
     moving = ~still & ~negative
     # a source cell that is no number (inf: the reader's mark) is no reading either: no torque, not 0
-    unread = ~np.isfinite(load) | ~np.isfinite(speed)
+    unread = ~np.isfinite(load) | ~np.isfinite(speed) | loaded_still
     if ch.derive != "power_over_speed":
         unread |= ~np.isfinite(raw[src["fast_speed"]])
     moving &= ~unread
@@ -209,7 +221,7 @@ def clean_values(
     """(channel -> values, channel -> reason -> count, channel -> its stuck runs [(start, stop, value)]) of every
     input and measured channel of ``cmap``; the totals are added to ``counts``. ``time_s``: the rows' times, for
     the measured channels' glitch runs (SPIKE_RUN_S; None: one-row spikes only)."""
-    values, by, stuck = {}, {}, {}
+    values, by, stuck, implausible_speed = {}, {}, {}, {}
     stuck_rows = int(np.ceil(STUCK_MIN_S / cmap.period_s))
     glitch = None
     if time_s is not None and len(time_s):
@@ -217,7 +229,7 @@ def clean_values(
         glitch = (linked, max(1, int(SPIKE_RUN_S // cmap.period_s)))
     for name, ch in cmap.channels.items():
         if ch.derive:
-            x = _derived(ch, raw, cmap, counts)
+            x = _derived(ch, raw, cmap, counts, implausible_speed)
         else:
             x = raw[ch.column]
             x = np.where(np.isfinite(x), x * ch.scale + ch.offset, x)
@@ -225,6 +237,12 @@ def clean_values(
         values[name] = _checked(
             name, x, ch, stretch, by, stuck, stuck_rows if measured else 0, values, glitch if measured else None
         )
+    for name, ch in cmap.channels.items():  # a speed read as standstill under a load: implausible, NaN
+        bad = implausible_speed.get(ch.column) if not ch.derive else None
+        if bad is not None and bad.any():
+            bad = bad & np.isfinite(values[name])
+            values[name] = np.where(bad, np.nan, values[name])
+            by[name]["implausible"] += int(bad.sum())
     for reason in CHANNEL_REASONS:
         counts[reason] += sum(c[reason] for c in by.values())
     return values, by, stuck

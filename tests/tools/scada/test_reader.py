@@ -446,6 +446,24 @@ def test_a_stuck_bearing_is_found_across_the_rows_a_logger_dropped(tmp_path):
     assert rec.by_channel["Gb1t_avg"]["stuck"] > 300 and np.isnan(gb1[30:]).all() and gb1[20] == 46.35
 
 
+def test_a_rotor_speed_of_0_under_load_is_an_implausible_speed_not_a_standstill(tmp_path):
+    """A verification trial: the rotor speed read 0 for a week while the turbine produced; those rows were counted
+    as standstill, the torque 0, and the week replayed parked (the bearings up to 33 K low, exit 0). A speed that
+    reads standstill under more than 5 % of the record's largest load is implausible: speed and torque NaN."""
+    t0 = datetime(2017, 5, 1, 0, 0, tzinfo=timezone.utc)
+    step = timedelta(minutes=10)
+    lines = [row(t0 + k * step, p_kw=1500.0) for k in range(12)]
+    for k in (4, 5, 6):
+        lines[k] = row(t0 + k * step, p_kw=1500.0, Rs_avg=0.0, Ds_avg=0.0)  # the speed sensor's fault
+    lines[9] = row(t0 + 9 * step, p_kw=-6.0, rs=0.0)  # a real standstill: the turbine draws a little
+    rec = read_record([write(tmp_path / "z.csv", lines)], "engie")
+    speed, torque = rec.values["input_speed_rpm"], rec.values["input_torque_nm"]
+    assert np.isnan(speed[[4, 5, 6]]).all() and np.isnan(torque[[4, 5, 6]]).all()
+    assert speed[9] == 0.0 and torque[9] == 0.0 and rec.counts["standstill"] == 1
+    assert rec.by_channel["input_speed_rpm"]["implausible"] == 3
+    assert np.isfinite(np.delete(torque, [4, 5, 6])).all()
+
+
 def test_the_autumn_change_is_continuous_in_utc_and_a_dropped_repeated_hour_is_a_gap(tmp_path):
     """Local time repeats 02:00-02:59 on 2017-10-29 (+02:00, then +01:00); in UTC the rows follow each other. A copy
     that drops the repeated hour (as the published La Haute Borne files do) has a one-hour gap in UTC."""
