@@ -510,6 +510,16 @@ def speed_unit_hint(record: ScadaRecord, name: str) -> str:
     ch = record.cmap.channels.get(name)
     if name != "input_torque_nm" or ch is None or ch.derive != "power_over_speed" or "power_kw" not in record.values:
         return ""
+    power_bad = record.by_channel.get("power_kw", {}).get("implausible", 0) / max(record.n, 1)
+    if power_bad > IMPLAUSIBLE_WARN_SHARE:
+        # the power itself out of its range (in W where the map says kW): its unit first, not the speed's (a
+        # verification trial's power in W was told to set the speed in rad/s)
+        power = ch.sources["power"]
+        return (
+            f"the torque is {power} over {ch.sources['speed']}, and {power} itself is out of its range on "
+            f"{power_bad:.0%} of the rows: set its unit first (unit of power_kw and power_unit of the torque in the "
+            "column map)"
+        )
     lo, hi = ch.range or (-math.inf, math.inf)
     speed_rpm = np.asarray(record.values["input_speed_rpm"], dtype=float)
     power_w = np.asarray(record.values["power_kw"], dtype=float) * 1e3

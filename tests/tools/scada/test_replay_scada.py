@@ -437,7 +437,12 @@ def test_a_rotor_speed_in_rad_s_read_as_rpm_is_named_with_the_map_s_fix(tmp_path
         'with Rs_avg read as rad/s it fits its range on 100% of those rows: if Rs_avg is in rad/s, set unit = "rad/s"'
         in p.stderr
     )
-    watts = [row(T0 + timedelta(minutes=10 * k), p_kw=9.0e5 + 3.0e5 * math.sin(k / 4.0), rs=14.0) for k in range(ROWS)]
+    # a power in W read as kW, with the low-wind rows a real record has (1.5 kW in W: in the power's range), where
+    # a verification trial's torque was told to take the speed as rad/s: the power's unit is named first
+    watts = [
+        row(T0 + timedelta(minutes=10 * k), p_kw=1500.0 if k % 4 == 0 else 9.0e5 + 3.0e5 * math.sin(k / 4.0), rs=14.0)
+        for k in range(ROWS)
+    ]
     p = subprocess.run(
         [sys.executable, "-m", "tools.cli", *args[:1], str(write(tmp_path / "w.csv", watts)), *args[2:]],
         cwd=REPO,
@@ -447,6 +452,7 @@ def test_a_rotor_speed_in_rad_s_read_as_rpm_is_named_with_the_map_s_fix(tmp_path
     )
     assert p.returncode == 3 and "input_torque_nm (P_avg, Rs_avg)" in p.stderr, p.stderr
     assert "is the column in another unit?" in p.stderr and "read as rad/s" not in p.stderr
+    assert "P_avg itself is out of its range on 75% of the rows: set its unit first" in p.stderr
 
 
 @pytest.mark.parametrize(
