@@ -635,3 +635,31 @@ def test_a_modelled_sump_without_a_reading_to_start_from_says_where_it_starts_an
     p = _replay(tmp_path, [late], "--oil-mode", "model", "--out", tmp_path / "late_est.csv")
     assert p.returncode == 0, p.stderr
     assert "no sump reading in the record's first hour and stretch (Gost_avg's first is on row 9)" in p.stdout
+
+
+def test_days_of_held_drive_inputs_are_said_whatever_the_record_s_share(tmp_path):
+    """A verification trial: a month of a turbine's power missing was 100 % degraded (the sensor holding its last
+    inputs), 18 % of the year's record: under the degraded share's warning, and nothing said. A run of held drive
+    inputs of a day or more is a warning of its own, with its length and start; shorter runs are not."""
+    from firmware_model.config import load_config
+    from tools.cli.gearbox_option import with_gearbox
+    from tools.scada.reader import read_record
+    from tools.scada.replay import holding_run_finding, record_findings, replay_record
+
+    n = 6 * 24 * 10  # ten days of 10-minute rows
+    lines = []
+    for k in range(n):
+        t = T0 + timedelta(minutes=10 * k)
+        gone = 3 * 144 <= k < 3 * 144 + 1.5 * 144  # a day and a half without the power
+        lines.append(
+            row(t, p_kw=900.0 + 300.0 * math.sin(k / 9.0), P_avg=None if gone else 900.0 + 300.0 * math.sin(k / 9.0))
+        )
+    rec = read_record([write(tmp_path / "p.csv", lines)], "engie")
+    cfg = with_gearbox(load_config(None), "MM82")
+    result = replay_record(rec, cfg)
+    found = holding_run_finding(result.table)
+    assert found is not None and "not usable for 1.5 days in a row from 2018-06-04 00:00 UTC" in found.sentence
+    assert found.sentence in [f.sentence for f in record_findings(rec, result)]
+    short = [row(T0 + timedelta(minutes=10 * k), P_avg=None if 20 <= k < 40 else 800.0) for k in range(ROWS)]
+    rec = read_record([write(tmp_path / "q.csv", short)], "engie")
+    assert holding_run_finding(replay_record(rec, cfg).table) is None
