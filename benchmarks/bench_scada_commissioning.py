@@ -43,13 +43,16 @@ COMMISSIONING_DAYS = 14.0
 
 
 def commissioned(record, predicted: np.ndarray, measured: np.ndarray, days: float) -> tuple[np.ndarray, float]:
-    """(the rows after the channel's first ``days`` days with a reading, the mean error [K] over those days)."""
+    """(the rows after the channel's first ``days`` days from its first reading, the same for every predictor; the
+    mean error [K] over those days where the predictor has an estimate)."""
     t_s = np.asarray(record.time_s, dtype=float)
-    read = np.isfinite(measured) & np.isfinite(predicted)
+    read = np.isfinite(measured)
     if not read.any():
         return np.zeros(t_s.size, dtype=bool), float("nan")
-    window = read & (t_s < t_s[read][0] + 86400.0 * days)
-    return t_s >= t_s[read][0] + 86400.0 * days, float(np.mean(predicted[window] - measured[window]))
+    end_s = t_s[read][0] + 86400.0 * days
+    window = read & np.isfinite(predicted) & (t_s < end_s)
+    bias = float(np.mean(predicted[window] - measured[window])) if window.any() else float("nan")
+    return t_s >= end_s, bias
 
 
 def scores(make, task, split, days: float) -> tuple[list[Score], list[Score], list[str]]:

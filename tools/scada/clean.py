@@ -96,6 +96,8 @@ def glitch_runs(x: np.ndarray, linked: np.ndarray, jump: float, max_rows: int) -
     with np.errstate(invalid="ignore"):
         step = np.abs(np.diff(x)) > jump
     for a in np.flatnonzero(step & (linked[1:] == linked[:-1])) + 1:  # a run's first row: a step from the row before
+        if out[a - 1]:
+            continue  # the step back from a glitch run (its good rows are no run of their own)
         p, sign = x[a - 1], 1.0 if x[a] > x[a - 1] else -1.0
         b = a
         while b < x.size and b - a < max_rows and linked[b] == linked[a - 1] and sign * (x[b] - p) > jump:
@@ -177,7 +179,8 @@ def _checked(
     return x
 
 
-#: a load over this share of the record's largest while the rotor's speed reads standstill is no standstill: the
+#: a load over this share of the record's largest (the 99th percentile while turning) while the rotor's speed reads
+#: standstill is no standstill: the
 #: speed reading is implausible (a generator makes no power standing still; a speed sensor read 0 for a week while
 #: the turbine produced, and the week was replayed parked, the bearings up to 33 K low, exit 0: a verification trial)
 LOAD_AT_STANDSTILL_SHARE = 0.05
@@ -191,7 +194,10 @@ def _derived(ch: Channel, raw: dict, cmap: ColumnMap, counts: dict, implausible_
     speed_col = src["speed"] if ch.derive == "power_over_speed" else src["slow_speed"]
     speed = raw[speed_col] * ch.speed_scale  # rpm
     load = raw[src["power"] if ch.derive == "power_over_speed" else src["torque"]] * ch.source_scale
-    top = np.nanmax(np.where(np.isfinite(load), load, np.nan)) if np.isfinite(load).any() else np.nan
+    # the record's large loads while the rotor turns: a high percentile, so that one stray value does not set it
+    with np.errstate(invalid="ignore"):
+        turning = np.isfinite(load) & (speed >= cmap.standstill_rpm)
+    top = float(np.percentile(load[turning], 99.0)) if turning.any() else np.nan
     with np.errstate(invalid="ignore"):
         loaded_still = (speed < cmap.standstill_rpm) & (load > LOAD_AT_STANDSTILL_SHARE * top) & (top > 0.0)
         still = (speed < cmap.standstill_rpm) & ~loaded_still
@@ -225,7 +231,9 @@ def clean_values(
     stuck_rows = int(np.ceil(STUCK_MIN_S / cmap.period_s))
     glitch = None
     if time_s is not None and len(time_s):
-        linked = np.cumsum(np.diff(np.asarray(time_s, dtype=float), prepend=time_s[0]) > SPIKE_RUN_S)
+        # stretches joined across gaps of up to SPIKE_RUN_S (never split where a stretch is not: hourly rows)
+        apart = np.diff(np.asarray(time_s, dtype=float)) > SPIKE_RUN_S
+        linked = np.cumsum(np.r_[False, apart & (np.diff(stretch) != 0)])
         glitch = (linked, max(1, int(SPIKE_RUN_S // cmap.period_s)))
     for name, ch in cmap.channels.items():
         if ch.derive:

@@ -315,7 +315,7 @@ def deviations(
     for f in fits:
         if f.unit in flagged and f.period >= flagged[f.unit]:
             continue
-        if np.isfinite(f.se[eid]):
+        if identified(f, eid):
             by_period.setdefault(f.period, []).append(f)
     out: dict = {}
     for period in sorted(by_period):
@@ -413,13 +413,13 @@ def against_most_siblings(
     has one). A drifting unit drifts against every sibling; a sound one whose median a drifting sibling moved drifts
     against that one alone (four turbines: the median of the other three is the drifting one's once it sits between
     them)."""
-    mine = {f.period: f for f in fits if f.unit == unit and np.isfinite(f.se[eid])}
+    mine = {f.period: f for f in fits if f.unit == unit and identified(f, eid)}
     agree = votes = 0
     for sib in sorted({f.unit for f in fits} - {unit}):
         theirs = {
             f.period: f
             for f in fits
-            if f.unit == sib and np.isfinite(f.se[eid]) and not (sib in flagged and f.period >= flagged[sib])
+            if f.unit == sib and identified(f, eid) and not (sib in flagged and f.period >= flagged[sib])
         }
         rows = [
             (mine[k], mine[k].values[eid] - theirs[k].values[eid], float(np.hypot(mine[k].se[eid], theirs[k].se[eid])))
@@ -445,12 +445,7 @@ def flag_units(
     flagged: dict = {}
     taken: list[Flag] = []
     while True:
-        new = [
-            (f, k)
-            for f, k, sign, run in _drift_flags(fits, baseline_periods, consecutive, flagged)
-            if f.vehicle not in flagged
-            and against_most_siblings(fits, f.vehicle, f.effect, run, sign, baseline_periods, flagged)
-        ]
+        new = [fk for fk in _drift_flags(fits, baseline_periods, consecutive, flagged) if fk[0].vehicle not in flagged]
         if not new:
             return sorted(taken, key=lambda f: (f.vehicle, f.effect))
         # the earliest flag, of two in one period the stronger (its drift over its threshold): all its unit's flags
@@ -459,17 +454,24 @@ def flag_units(
         flagged[first.vehicle] = first.period
 
 
-def _drift_flags(fits, baseline_periods: int, consecutive: int, flagged: dict) -> list[tuple]:
-    """Every unit's first drifting run per effect, the units in ``flagged`` left out from their periods on: (flag,
-    its drift over its threshold, the larger of DRIFT_MIN and 3 standard errors, at the run's last period, the
-    drift's sign, the run's periods)."""
+def _drift_flags(fits, baseline_periods: int, consecutive: int, flagged: dict) -> list[tuple[Flag, float]]:
+    """Every unit's first drifting run per effect that drifts against most of its siblings one by one
+    (:func:`against_most_siblings`; a run that does not is passed over, and the scan goes on), the units in
+    ``flagged`` left out from their periods on: (flag, its drift over its threshold, the larger of DRIFT_MIN and 3
+    standard errors, at the run's last period)."""
     flags = []
     for eid in EFFECTS:
         for unit, (baseline, se_base, rows) in drifts(fits, eid, baseline_periods, flagged).items():
             run = 0
             for i, (f, drift, se) in enumerate(rows):
                 run = run + 1 if _drifting(drift, se, eid) else 0
-                if run >= consecutive:
+                if run >= consecutive and all(
+                    np.sign(d) == np.sign(drift) for _, d, _ in rows[i - consecutive + 1 : i + 1]
+                ):
+                    periods = [r[0].period for r in rows[i - consecutive + 1 : i + 1]]
+                    sign = 1.0 if drift > 0 else -1.0
+                    if not against_most_siblings(fits, unit, eid, periods, sign, baseline_periods, flagged):
+                        continue
                     first = rows[i - consecutive + 1][0]
                     strength = abs(drift) / max(DRIFT_MIN[eid], 3.0 * se)
                     flags.append(
@@ -487,8 +489,6 @@ def _drift_flags(fits, baseline_periods: int, consecutive: int, flagged: dict) -
                                 "flag",
                             ),
                             strength,
-                            1.0 if drift > 0 else -1.0,
-                            [r[0].period for r in rows[i - consecutive + 1 : i + 1]],
                         )
                     )
                     break

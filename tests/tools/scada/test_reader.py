@@ -464,6 +464,53 @@ def test_a_rotor_speed_of_0_under_load_is_an_implausible_speed_not_a_standstill(
     assert np.isfinite(np.delete(torque, [4, 5, 6])).all()
 
 
+def _cleaned(t_s, columns: dict, period_s=600.0):
+    """clean_values over rows at times ``t_s`` with the engie map's columns (the rest steady), the map's period."""
+    import dataclasses
+
+    from tools.scada.clean import clean_values
+    from tools.scada.reader import GAP_PERIODS
+
+    cmap = dataclasses.replace(load_column_map("engie"), period_s=period_s)
+    n = len(t_s)
+    raw = {c: np.full(n, v) for c, v in dict(P_avg=800.0, Rs_avg=14.0, Ds_avg=14.0 * RATIO, Cm_avg=5000.0).items()}
+    raw.update({c: np.full(n, v) for c, v in dict(Gost_avg=55.0, Git_avg=50.0, Gb1t_avg=62.0, Gb2t_avg=61.0).items()})
+    raw.update({c: np.full(n, v) for c, v in dict(Ot_avg=8.0, Yt_avg=20.0, Ws_avg=7.0).items()})
+    raw["P_avg"] = 800.0 + 300.0 * np.sin(np.arange(n) / 5.0)  # the load moves
+    raw.update(columns)
+    t = np.asarray(t_s, dtype=float)
+    stretch = np.cumsum(np.diff(t, prepend=t[0]) > GAP_PERIODS * period_s)
+    counts = dict.fromkeys(REASONS, 0)
+    return clean_values(raw, stretch, cmap, counts, t), counts
+
+
+def test_the_glitch_and_stuck_rules_keep_their_ground_on_hourly_rows_and_repeated_dropouts():
+    """A review of the hour-long glitch runs: hourly rows with a few seconds' jitter split the linked stretches at
+    every row, and a bearing stuck for nine days was no longer found; a sump with two-row dropouts every 7 rows lost
+    every good row between them; one stray power value turned the standstill-under-load check off."""
+    rng = np.random.default_rng(0)
+    n = 240
+    t = np.arange(n) * 3600.0 + rng.integers(-2, 3, n)
+    gb = 65.0 + 0.01 * np.arange(n)
+    gb[24:] = 46.35
+    (_, by, _), _ = _cleaned(t, {"Gb1t_avg": gb}, period_s=3600.0)
+    assert by["Gb1t_avg"]["stuck"] == 215
+    t = np.arange(400) * 600.0
+    sump = 60.0 + 0.01 * np.arange(400)
+    real = np.ones(400, bool)
+    for s in range(100, 200, 7):
+        sump[s : s + 2] = -40.0
+        real[s : s + 2] = False
+    (values, by, _), _ = _cleaned(t, {"Gost_avg": sump})
+    assert np.isfinite(values["Gost_avg"][real]).all() and np.isnan(values["Gost_avg"][~real]).all()
+    rs = np.full(200, 15.0)
+    rs[50:80] = 0.0
+    p = np.full(200, 1500.0)
+    p[10] = 5.0e7  # one stray value in the power column
+    (values, by, _), counts = _cleaned(np.arange(200) * 600.0, {"Rs_avg": rs, "P_avg": p})
+    assert by["input_speed_rpm"]["implausible"] == 30 and counts["standstill"] == 0
+
+
 def test_the_autumn_change_is_continuous_in_utc_and_a_dropped_repeated_hour_is_a_gap(tmp_path):
     """Local time repeats 02:00-02:59 on 2017-10-29 (+02:00, then +01:00); in UTC the rows follow each other. A copy
     that drops the repeated hour (as the published La Haute Borne files do) has a one-hour gap in UTC."""
