@@ -152,7 +152,8 @@ def main() -> int:
                 d = np.array([x for _, x, _ in devs])
                 s = np.array([x for _, _, x in devs])
                 print(
-                    f"  {unit} {eid}: {d.size} periods in a fleet of 3, deviation {d.min():+.2f}..{d.max():+.2f}, "
+                    f"  {unit} {eid}: {d.size} periods beside {fleet.MIN_UNITS - 1} or more siblings, deviation "
+                    f"{d.min():+.2f}..{d.max():+.2f}, "
                     f"median standard error {np.median(s):.2f}"
                 )
 
