@@ -292,8 +292,9 @@ def _run_scada(args) -> int:
     say_stuck_channels(records.values())
     say_conflicting_rows(records.values())
     for rec in records.values():  # kept with the output, as a channel left out is (errors.parquet)
-        whys = stuck_sentences(rec) + ([rec.conflict_sentence()] if rec.conflict_sentence() else [])
-        skipped += [(", ".join(str(p) for p in rec.files), why) for why in whys]
+        skipped += [(", ".join(str(p) for p in rec.files), why) for why in stuck_sentences(rec)]
+        if rec.conflict_sentence():  # the files whose rows disagreed, not every file of the unit
+            skipped.append((", ".join(str(p) for p in sorted(rec.conflicts)), rec.conflict_sentence()))
     setup, notes = setup_of(cfg, next(iter(records.values())).cmap)
     for note in notes:
         print(f"note: {note}", file=sys.stderr)

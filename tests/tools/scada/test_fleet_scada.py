@@ -449,6 +449,8 @@ def test_a_unit_s_files_disagreeing_on_a_time_stamp_are_said_and_kept_with_the_o
     cmd = [*_scada_folder(tmp_path, {"T1": None, "T2": None}, rows=144), "--gearbox", "HR225"]
     other = _rows(0, 30, oil_c=lambda k: 65.0 + 0.1 * k)
     write(tmp_path / "scada" / "T1_reexport.csv", [line.replace("R1,", "T1,", 1) for line in other])
+    later = _rows(200, 260)  # a third file of T1, later: no part in the disagreement
+    write(tmp_path / "scada" / "T1_later.csv", [line.replace("R1,", "T1,", 1) for line in later])
     p = subprocess.run([*cmd, "--out", str(tmp_path / "out")], cwd=REPO, capture_output=True, text=True, timeout=300)
     assert p.returncode == 0, p.stderr
     said = (
@@ -457,7 +459,10 @@ def test_a_unit_s_files_disagreeing_on_a_time_stamp_are_said_and_kept_with_the_o
     )
     assert said in p.stderr and "60 rows repeating a time stamp with other values (none of them kept)" in p.stderr
     errors = pq.read_table(tmp_path / "out" / "health" / "errors.parquet").to_pylist()
-    assert any(r["error"].startswith("T1: 60 rows repeat a time stamp") for r in errors), errors
+    conflict = [r for r in errors if r["error"].startswith("T1: 60 rows repeat a time stamp")]
+    # the files whose rows disagreed (a verification trial's cell listed all 25 files of the unit)
+    assert len(conflict) == 1 and "T1_later.csv" not in conflict[0]["file"], errors
+    assert "T1.csv" in conflict[0]["file"] and "T1_reexport.csv" in conflict[0]["file"]
 
 
 def test_a_unit_without_a_single_reading_of_one_channel_is_fitted_on_its_other_channels(tmp_path):
