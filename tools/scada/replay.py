@@ -250,15 +250,17 @@ def reading_response(est_c, sump_c, time_s, stretch, tau_s: float) -> np.ndarray
     oil's spray cools (docs/real-data.md, "The bearings' reading"). A row without a rise is NaN and leaves the lag
     where it was."""
     est_c, sump_c, time_s = (np.asarray(v, dtype=float) for v in (est_c, sump_c, time_s))
-    rise, out = est_c - sump_c, np.full(est_c.shape, np.nan)
-    stretch = np.asarray(stretch)
-    y, t_y = math.nan, math.nan  # the lagged rise and the time it stands for
-    for i in range(rise.size):
-        if i == 0 or stretch[i] != stretch[i - 1]:
-            y = math.nan
-        if math.isfinite(rise[i]):
-            y = rise[i] if not math.isfinite(y) else rise[i] + math.exp(-(time_s[i] - t_y) / tau_s) * (y - rise[i])
-            t_y, out[i] = time_s[i], sump_c[i] + y
+    rise_a, out = est_c - sump_c, np.full(est_c.shape, np.nan)
+    # Python floats in the loop (a numpy scalar per element was two thirds of its time; the same arithmetic)
+    rise, sump, t, st = rise_a.tolist(), sump_c.tolist(), time_s.tolist(), np.asarray(stretch).tolist()
+    y, t_y, prev = math.nan, math.nan, None  # the lagged rise, the time it stands for, the last row's stretch
+    isfinite, exp = math.isfinite, math.exp
+    for i, r in enumerate(rise):
+        if st[i] != prev:
+            y, prev = math.nan, st[i]
+        if isfinite(r):
+            y = r if not isfinite(y) else r + exp(-(t[i] - t_y) / tau_s) * (y - r)
+            t_y, out[i] = t[i], sump[i] + y
     return out
 
 
