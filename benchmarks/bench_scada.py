@@ -107,6 +107,19 @@ def period_of(records: dict, period: str) -> dict:
     return out
 
 
+def add_data_dir(ap) -> None:
+    """The SCADA folder argument of the benchmarks that take argparse options (GVS_REAL_SCADA by default)."""
+    ap.add_argument("data_dir", nargs="?", default=os.environ.get("GVS_REAL_SCADA"), help="the ENGIE SCADA files")
+
+
+def data_dir_of(args, usage: str) -> Path | None:
+    """The parsed SCADA folder, or None after printing ``usage`` (no folder given, or not a folder)."""
+    if not args.data_dir or not Path(args.data_dir).is_dir():
+        print(f"usage: {usage} (or set GVS_REAL_SCADA)")
+        return None
+    return Path(args.data_dir)
+
+
 def records_and_splits(data_dir: Path, period: str | None, only: list[str] | None):
     """The folder's records (of ``period``, when given) and the held-out splits whose label holds one of ``only``."""
     records = read_units(sorted(data_dir.glob("*.csv*")), "engie")

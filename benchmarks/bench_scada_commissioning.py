@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import argparse
 import functools
-import os
 import sys
 import tempfile
 import time
@@ -30,7 +29,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from bench_scada import records_and_splits  # noqa: E402
+from bench_scada import add_data_dir, data_dir_of, records_and_splits  # noqa: E402
 from bench_scada_refit import Refitted, shipped  # noqa: E402
 
 from firmware_model.onboard.blas import limit_blas_threads  # noqa: E402
@@ -92,17 +91,17 @@ def best_nbm_table(plain: dict, offset: dict) -> str:
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("data_dir", nargs="?", default=os.environ.get("GVS_REAL_SCADA"), help="the ENGIE SCADA files")
+    add_data_dir(ap)
     ap.add_argument("--period", help="only that calendar year (YYYY) or month (YYYY-MM) of every turbine (UTC)")
     ap.add_argument("--days", type=float, default=COMMISSIONING_DAYS, help="the commissioning window [d]")
     ap.add_argument("--no-refit", action="store_true", help="leave out the values fitted again per split (minutes)")
     args = ap.parse_args(argv)
-    if not args.data_dir or not Path(args.data_dir).is_dir():
-        print("usage: bench_scada_commissioning.py DATA_DIR [--period YYYY] [--days N] [--no-refit]")
+    data_dir = data_dir_of(args, "bench_scada_commissioning.py DATA_DIR [--period YYYY] [--days N] [--no-refit]")
+    if data_dir is None:
         return 2
     limit_blas_threads()
     t0 = time.perf_counter()
-    _, splits = records_and_splits(Path(args.data_dir), args.period, ["+"])
+    _, splits = records_and_splits(data_dir, args.period, ["+"])
     task = TASKS["bearings"]
     makers = {"linear NBM": LinearNBM, "long-lag NBM": LongLagNBM, "physics, shipped": shipped}
     plain: dict = {k: [] for k in makers}

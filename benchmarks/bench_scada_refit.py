@@ -25,7 +25,6 @@ import argparse
 import dataclasses
 import datetime as dt
 import functools
-import os
 import sys
 import tempfile
 import time
@@ -34,7 +33,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from bench_scada import records_and_splits  # noqa: E402
+from bench_scada import add_data_dir, data_dir_of, records_and_splits  # noqa: E402
 
 from firmware_model.config import load_config  # noqa: E402
 from firmware_model.onboard.blas import limit_blas_threads  # noqa: E402
@@ -109,16 +108,16 @@ def shipped(task):
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("data_dir", nargs="?", default=os.environ.get("GVS_REAL_SCADA"), help="the ENGIE SCADA files")
+    add_data_dir(ap)
     ap.add_argument("--only", action="append", help="the splits whose label holds TEXT (repeatable)")
     ap.add_argument("--period", help="only that calendar year (YYYY) or month (YYYY-MM) of every turbine (UTC)")
     args = ap.parse_args(argv)
-    if not args.data_dir or not Path(args.data_dir).is_dir():
-        print("usage: bench_scada_refit.py DATA_DIR [--only TEXT]... (or set GVS_REAL_SCADA)")
+    data_dir = data_dir_of(args, "bench_scada_refit.py DATA_DIR [--only TEXT]...")
+    if data_dir is None:
         return 2
     limit_blas_threads()
     t0 = time.perf_counter()
-    _, splits = records_and_splits(Path(args.data_dir), args.period, args.only)
+    _, splits = records_and_splits(data_dir, args.period, args.only)
     scores: dict = {"linear NBM": [], "long-lag NBM": [], "physics, shipped": [], "physics, refit": []}
     with tempfile.TemporaryDirectory() as tmp:
         for split in splits:

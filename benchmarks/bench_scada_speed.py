@@ -35,6 +35,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from bench_held_month import time_replay_command  # noqa: E402
+from bench_scada import add_data_dir, data_dir_of  # noqa: E402
 
 from firmware_model.config import load_config  # noqa: E402
 from firmware_model.onboard.blas import limit_blas_threads  # noqa: E402
@@ -229,20 +230,20 @@ def _figure_diff(a, b) -> float:
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("data_dir", nargs="?", default=os.environ.get("GVS_REAL_SCADA"), help="the ENGIE SCADA files")
+    add_data_dir(ap)
     ap.add_argument("--only", choices=("replay", "diagnose"), help="only (A) or only (B)")
     ap.add_argument("--no-memo", action="store_true", help="(A) also with a kernel built without the host's memo")
     args = ap.parse_args(argv)
-    if not args.data_dir or not Path(args.data_dir).is_dir():
-        print("usage: bench_scada_speed.py DATA_DIR [--only replay|diagnose] [--no-memo] (or set GVS_REAL_SCADA)")
+    data_dir = data_dir_of(args, "bench_scada_speed.py DATA_DIR [--only replay|diagnose] [--no-memo]")
+    if data_dir is None:
         return 2
     limit_blas_threads()
     if args.only != "diagnose":
-        replay_figures(Path(args.data_dir))
+        replay_figures(data_dir)
         if args.no_memo:
-            without_memo_lines(Path(args.data_dir))
+            without_memo_lines(data_dir)
     if args.only != "replay":
-        diagnose_figures(Path(args.data_dir))
+        diagnose_figures(data_dir)
     return 0
 
 

@@ -79,12 +79,10 @@ def spikes(x: np.ndarray, stretch: np.ndarray, jump: float) -> np.ndarray:
     return inner | first
 
 
-#: a measured gearbox temperature that leaves its readings before and after by more than its ``jump_k``, on one
-#: side, for at most this long is a glitch too [s] (a logger's fill value or a sensor's dropout to -40 or 0 degC:
-#: two rows of a sump at -40 degC beside 59 degC, accepted as the oil, put the bearings' estimates at 19 000 degC
-#: with critical warnings; a part's thermal mass does not leave and come back by 20 K within an hour), and its
-#: neighbours may lie across a gap up to this long (one such reading on a stretch's last row is no spike otherwise);
-#: the air around the gearbox can (a door, a heater): its spikes are one row
+#: a measured gearbox temperature off its readings before and after by more than its ``jump_k``, on one side, for at
+#: most this long is a glitch too (a sensor's dropout to -40 or 0 degC: a part's thermal mass does not leave and come
+#: back by 20 K within an hour), and its neighbours may lie across a gap up to this long [s]; the air around the
+#: gearbox can move so (a door, a heater): its spikes stay one row
 SPIKE_RUN_S = 3600.0
 
 
@@ -166,7 +164,7 @@ def _checked(
     if ch.jump_k and glitch is not None:  # a measured temperature: runs of up to an hour, across short gaps
         jump |= glitch_runs(np.where(jump, np.nan, x), glitch[0], ch.jump_k, glitch[1])
     x[jump] = np.nan
-    # across gaps of up to SPIKE_RUN_S too: a logger dropping one row a day hid a bearing stuck for three weeks
+    # across gaps of up to SPIKE_RUN_S too (a logger that drops a row now and then breaks no stuck run)
     runs_in = stretch if glitch is None else glitch[0]
     runs = [r for r in stuck_runs(x, runs_in, stuck_rows) if _moved(inputs or {}, *r)] if stuck_rows else []
     values = [float(x[a]) for a, _ in runs]
@@ -179,10 +177,8 @@ def _checked(
     return x
 
 
-#: a load over this share of the record's largest (the 99th percentile while turning) while the rotor's speed reads
-#: standstill is no standstill: the
-#: speed reading is implausible (a generator makes no power standing still; a speed sensor read 0 for a week while
-#: the turbine produced, and the week was replayed parked, the bearings up to 33 K low, exit 0: a verification trial)
+#: a load over this share of the record's large loads (the 99th percentile while turning) while the rotor's speed
+#: reads standstill is no standstill: a generator makes no power standing still, so the speed reading is implausible
 LOAD_AT_STANDSTILL_SHARE = 0.05
 
 

@@ -13,8 +13,7 @@ MIN_BLOCKS blocks with rows.
 Per period, each effect's median over the units that identify it is the fleet's (seasons, the farm's weather move
 every unit alike); only with MIN_UNITS units or more, where one drifting unit cannot move it. With an even number
 of units each unit is set against the median of the others (an odd number): the mean of the two middle values
-moves with a drifting unit that is one of them (four turbines, one a twin of another with a bearing sensor reading
-6 K higher from a date on: its drift halved under the bar, a healthy sibling flagged instead). A unit's *deviation*
+moves with a drifting unit that is one of them. A unit's *deviation*
 is its value minus that median (its error: the unit's and the median unit's errors together), its *baseline* the
 precision-weighted mean of its first BASELINE_PERIODS deviations no poorer than POOR_SE_FACTOR times its median
 standard error (a unit may always differ a little; a partial first period or one standing still is left out of

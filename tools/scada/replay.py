@@ -353,9 +353,8 @@ def record_findings(record: ScadaRecord, result: ScadaReplay) -> list:
     return sorted(found + ([shared] if shared else []) + ([held] if held else []), key=lambda f: -f.severity)
 
 
-#: the sensor holding its drive inputs (missing or implausible speed or torque) on every row for this long: a warning
-#: whatever the whole record's degraded share [s] (a month of a turbine's power missing was 100 % degraded, 18 % of
-#: the record: under the share's warning, and not said: a verification trial)
+#: the sensor holding its drive inputs (missing or implausible speed or torque) on every row for this long is a
+#: warning whatever the whole record's degraded share [s]: a month of them can be a small share of a year
 HOLDING_RUN_WARN_S = 86400.0
 
 
@@ -548,8 +547,7 @@ def speed_unit_hint(record: ScadaRecord, name: str) -> str:
         return ""
     power_bad = record.by_channel.get("power_kw", {}).get("implausible", 0) / max(record.n, 1)
     if power_bad > IMPLAUSIBLE_WARN_SHARE:
-        # the power itself out of its range (in W where the map says kW): its unit first, not the speed's (a
-        # verification trial's power in W was told to set the speed in rad/s)
+        # the power itself out of its range (in W where the map says kW): its unit first, not the speed's
         power = ch.sources["power"]
         return (
             f"the torque is {power} over {ch.sources['speed']}, and {power} itself is out of its range on "
