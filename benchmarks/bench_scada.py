@@ -117,6 +117,9 @@ def data_dir_of(args, usage: str) -> Path | None:
     if not args.data_dir or not Path(args.data_dir).is_dir():
         print(f"usage: {usage} (or set GVS_REAL_SCADA)")
         return None
+    if not any(Path(args.data_dir).glob("turbine_*.csv*")):
+        print(f"{args.data_dir}: no turbine_<ID>_<period>_<k>.csv.gz files there (ENGIE's La Haute Borne SCADA)")
+        return None
     return Path(args.data_dir)
 
 
