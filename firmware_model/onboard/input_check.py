@@ -10,6 +10,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from firmware_model.onboard.kernel_interface import OIL_DRIFT_K_PER_S
 from firmware_model.onboard.params import SensorParams
 from firmware_model.onboard.records import (
     I_AMB,
@@ -18,6 +19,7 @@ from firmware_model.onboard.records import (
     I_RET,
     I_SPEED,
     I_TORQUE,
+    MAIN,
     N_INPUTS,
     REJECT_INDEX,
     REJECT_REASONS,
@@ -55,7 +57,9 @@ class InputCheck(NamedTuple):
 def check_inputs(state: SensorState, raw: np.ndarray, sp: SensorParams) -> InputCheck:
     """Check the raw inputs (B + (8,), NaN missing) against the state's holds: a good speed or torque is clamped to
     the engine's range, a gear must be an integer in range and a gear of the description, the measured oil
-    plausible, steady (no step above ``oil_step_c`` from a recent good value) and not frozen, the auxiliary inputs
+    plausible, steady (with the sump measured within ``oil_step_c`` + OIL_DRIFT_K_PER_S x the time since the last good
+    reading came of the main copy's sump, else no step above ``oil_step_c`` from a good value under 1 s old) and not
+    frozen, the auxiliary inputs
     in range (a missing one takes its default, it is not held; counted only if the drive has it)."""
     opt, dt = sp.options, sp.dt_s
     finite = np.isfinite(raw)
@@ -67,10 +71,19 @@ def check_inputs(state: SensorState, raw: np.ndarray, sp: SensorParams) -> Input
     gear_ok = in_range[..., I_GEAR] & (gear == np.rint(gear))
     # and a gear of the description (a table lookup, as the kernel's): another gearbox's number is unknown too
     gear_ok &= sp.reduced.gear_defined[np.where(gear_ok, gear, GEAR_MIN).astype(np.int64) - GEAR_MIN]
-    # oil: plausible range, no implausible step from a recent good value, not frozen while the twin's sump moves
+    # oil: plausible range, no implausible step, not frozen while the twin's sump moves
     oil = raw[..., I_OIL]
     oil_in_range = in_range[..., I_OIL]
-    jumpy = oil_in_range & (state.age_s[..., I_OIL] <= 1.0) & (np.abs(oil - state.hold[..., I_OIL]) > opt.oil_step_c)
+    age_oil_s = state.age_s[..., I_OIL]
+    if opt.oil_mode == "measured":
+        # against the main copy's sump (the last good reading carried by the model since), within oil_step_c and a
+        # drift over the time since that reading came (its age, and how long it stood unchanged, at most
+        # oil_frozen_s: a SCADA row's reading stands for its 10 minutes): a reading that jumps and stays is not taken
+        over_s = age_oil_s + np.minimum(state.same_s[..., I_OIL], opt.oil_frozen_s)
+        off_k = np.abs(oil - state.T_c[..., MAIN, sp.reduced.i_oil])
+        jumpy = oil_in_range & (off_k > opt.oil_step_c + OIL_DRIFT_K_PER_S * over_s)
+    else:  # the reading is not used: a step from a good value less than 1 s old
+        jumpy = oil_in_range & (age_oil_s <= 1.0) & (np.abs(oil - state.hold[..., I_OIL]) > opt.oil_step_c)
     same = np.where(finite & (raw == state.raw_prev), state.same_s + dt, 0.0)
     twin_oil = state.T_c[..., TWIN, sp.reduced.i_oil]
     oil_ref = np.where(same[..., I_OIL] > 0, state.oil_ref_c, twin_oil)

@@ -115,7 +115,7 @@ class SensorOptions:
     drive_frozen_s: float = 120.0  # speed and torque bit-identical this long while turning: flagged frozen
     oil_frozen_s: float = 300.0  # measured oil bit-identical this long ...
     oil_frozen_drift_c: float = 3.0  # ... while the twin's sump moved this much: measurement frozen
-    oil_step_c: float = 5.0  # a measured oil step larger than this within one step is implausible
+    oil_step_c: float = 5.0  # a measured oil off the last good one by more than this (+ a drift with its age)
     oil_range_c: tuple = (-40.0, 200.0)  # plausible measured oil
     aux_range_c: tuple = (-60.0, 150.0)  # plausible ambient / coolant
     max_vehicle_speed_kmh: float = 250.0

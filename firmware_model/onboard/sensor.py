@@ -35,6 +35,7 @@ from firmware_model.onboard.held_inputs import (
     prepare_jump,
     shutdown_boundaries_c,
 )
+from firmware_model.onboard.kernel_interface import OIL_AGE_NONE_S
 from firmware_model.onboard.params import SensorParams
 from firmware_model.onboard.records import (
     I_AMB,
@@ -258,15 +259,18 @@ class VirtualSensor:
                 amb,
                 float(rp.bc_default_c[rp.i_ambient]),
             )
+        read = np.broadcast_to(np.isfinite(T0), B)
         T0 = np.broadcast_to(np.where(np.isfinite(T0), T0, default), B).astype(float)
         hold = np.full(B + (N_INPUTS,), np.nan)
         hold[..., [I_SPEED, I_TORQUE, I_GEAR]] = 0.0
         hold[..., I_OIL] = T0
+        age_s = np.zeros(B + (N_INPUTS,))
+        age_s[..., I_OIL] = np.where(read, 0.0, OIL_AGE_NONE_S)  # no reading yet: the first one is not judged
         return SensorState(
             T_c=np.broadcast_to(T0[..., None, None], B + (2, rp.n)).copy(),
             lag_w=np.zeros(B + (len(rp.src_names),)),
             hold=hold,
-            age_s=np.full(B + (N_INPUTS,), 0.0),
+            age_s=age_s,
             same_s=np.zeros(B + (N_INPUTS,)),
             raw_prev=np.full(B + (N_INPUTS,), np.nan),
             oil_ref_c=np.array(T0, dtype=float),

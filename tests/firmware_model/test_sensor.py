@@ -439,6 +439,64 @@ def test_an_oil_step_faster_than_the_sump_can_move_is_rejected(sensor, warm):
     assert st.rejects[RJ["oil_implausible"]] == 1 and out.T_c[I["oil"]] < 85.0
 
 
+def _core_sensor(params, core, **kw):
+    try:
+        return VirtualSensor(params, core=core, **kw)
+    except ParameterError as exc:
+        pytest.skip(str(exc))
+
+
+@pytest.mark.parametrize("core", ["numpy", "c"])
+def test_an_oil_reading_that_jumps_and_stays_is_not_taken(params, core):
+    """An oil sensor failed to a plausible value (an open circuit read as -40..-39 degC on an 80 degC sump): the
+    sump is modelled for as long as the reading stays that far off the last good one carried by the model (it was
+    taken after a second: the estimates then rested on a -40 degC sump, on a wind turbine 19 000 degC)."""
+    s = _core_sensor(params, core)
+    st, _ = run(s, s.initial_state(T_oil_c=80.0), NOMINAL, 50)
+    n0 = int(st.rejects[RJ["oil_implausible"]])
+    for k in range(600):  # a minute
+        st, out = s.step(st, NOMINAL._replace(oil_temp_c=-40.0 + 0.5 * (k % 3)))
+        assert not bool(out.status.oil_valid) and int(out.status.degraded_mode) == MODE_OIL_MODEL
+    assert int(st.rejects[RJ["oil_implausible"]]) == n0 + 600
+    assert 75.0 < out.T_c[I["oil"]] < 90.0 and np.isfinite(out.T_c).all() and out.T_c.max() < 200.0
+    # the sensor back at the sump the model carried: the sump again at once
+    back = float(out.status.model_oil_temp_c) + 1.0
+    st, out = s.step(st, NOMINAL._replace(oil_temp_c=back))
+    assert bool(out.status.oil_valid) and out.T_c[I["oil"]] == back and int(out.status.degraded_mode) == MODE_NORMAL
+
+
+@pytest.mark.parametrize("core", ["numpy", "c"])
+def test_an_oil_step_that_stays_is_taken_once_the_drift_allows_it(params, core):
+    """A reading 10 K off the carried sump is taken when oil_step_c + OIL_DRIFT_K_PER_S x the time since it came
+    reaches it (its age and, the reading unchanged, its standing: within (10 - 5) / 0.05 = 100 s; sooner where the
+    model's sump moves towards it); with the sump modelled (oil_mode model) the reading is not used and is judged as
+    a step only within a second."""
+    s = _core_sensor(params, core)
+    st, _ = run(s, s.initial_state(T_oil_c=80.0), NOMINAL, 50)
+    step_c = float(st.T_c[0, s.reduced.i_oil]) + 10.0
+    st, out = run(s, st, NOMINAL._replace(oil_temp_c=step_c), 100)
+    assert not bool(out.status.oil_valid)  # 10 s: still off
+    st, out = run(s, st, NOMINAL._replace(oil_temp_c=step_c), 900)
+    assert bool(out.status.oil_valid) and out.T_c[I["oil"]] == step_c  # 100 s: taken
+    m = _core_sensor(params, core, oil_mode="model")
+    st, _ = run(m, m.initial_state(T_oil_c=80.0), NOMINAL, 50)
+    st, out = run(m, st, NOMINAL._replace(oil_temp_c=100.0), 12)  # the age reaches 1 s after 10 or 11 steps
+    assert bool(out.status.oil_valid) and int(st.rejects[RJ["oil_implausible"]]) in (10, 11)
+
+
+@pytest.mark.parametrize("core", ["numpy", "c"])
+def test_the_first_oil_reading_of_a_start_without_one_is_taken(params, core):
+    """Started from the ambient (no oil reading yet), the first reading is the sump at once: there is no good
+    reading to judge it against (it was rejected for a second as a step from the ambient)."""
+    s = _core_sensor(params, core)
+    st = s.initial_state(T_oil_c=None, ambient_c=10.0)
+    st, out = s.step(st, NOMINAL._replace(oil_temp_c=70.0))
+    assert bool(out.status.oil_valid) and out.T_c[I["oil"]] == 70.0
+    assert int(st.rejects[RJ["oil_implausible"]]) == 0
+    st, out = s.step(st, NOMINAL._replace(oil_temp_c=90.0))  # and the next is judged again
+    assert not bool(out.status.oil_valid) and int(st.rejects[RJ["oil_implausible"]]) == 1
+
+
 def test_a_frozen_oil_reading_falls_back_to_the_model(params):
     s = VirtualSensor(params, oil_frozen_s=20.0, oil_frozen_drift_c=0.5)
     st = s.initial_state(T_oil_c=40.0)

@@ -364,6 +364,15 @@ int main(void)
     /* the uptime clock restarts from 0 after the restore: no step is skipped, none counted as time going back */
     if (gvs_sensor_resume(&st, NAN) != 0) { printf("resume refused a good state\n"); return 1; }
     if (run(0.0, 50, NAN, &out) != 0 || st.rejects[12] != saved.rejects[12]) { printf("steps skipped\n"); bad = 1; }
+    /* resumed without an oil reading (the saved sump not cooled here), the first reading is the sump at once */
+    memcpy(&st, &saved, sizeof st);
+    if (gvs_sensor_resume(&st, NAN) != 0) return 1;
+    run(0.0, 1, T_hot - 30.0, &out);
+    if (st.rejects[7] != saved.rejects[7] || out.degraded_mode != 0) { printf("oil not taken (resume)\n"); bad = 14; }
+    /* ... as after a cold start without one */
+    gvs_sensor_init_ambient(&st, NAN, -20.0);
+    run(0.0, 1, 60.0, &out);
+    if (st.rejects[7] != 0 || out.degraded_mode != 0) { printf("first oil not taken\n"); bad = 15; }
     /* an oil reading 10 K or more below the saved sump: every node starts at it */
     memcpy(&st, &saved, sizeof st);
     if (gvs_sensor_resume(&st, T_hot - 30.0) != 0) return 1;

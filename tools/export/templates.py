@@ -92,6 +92,7 @@ void gvs_sensor_init_ambient(gvs_state *st, double T_oil_c, double T_ambient_c)
     for (i = 0; i < GVS_N_INPUTS; ++i) { st->hold[i] = (gvs_real)NAN; st->raw_prev[i] = (gvs_real)NAN; }
     st->hold[GVS_I_SPEED] = st->hold[GVS_I_TORQUE] = st->hold[GVS_I_GEAR] = 0;
     st->hold[GVS_I_OIL] = T0;
+    if (!oil_ok) st->age_s[GVS_I_OIL] = (gvs_real)GVS_OIL_AGE_NONE_S;     /* no reading yet: the first is not judged */
     st->oil_ref_c = T0;
     for (i = 0; i < GVS_MAX_PUB; ++i) st->ttl_s[i] = (gvs_real)NAN;
     st->t_last_s = NAN;
@@ -163,6 +164,9 @@ int gvs_sensor_resume(gvs_state *st, double T_oil_c)
             }
         }
         st->T_c[0][io] = st->T_c[1][io] = T;
+    } else {
+        /* the saved sump is from before the stop, not cooled here: the first reading is not judged against it */
+        st->age_s[GVS_I_OIL] = (gvs_real)GVS_OIL_AGE_NONE_S;
     }
     st->t_last_s = NAN;
     st->k = 0;
@@ -697,8 +701,10 @@ Input checks a bench meets (the counters and `frozen_flags` say which fired): sp
 {drive_frozen} s while the engine turns are flagged as frozen (`frozen_flags` bits 0 and 1, `drive_frozen`; still
 used, the mode stays 0), so a bench feeding constant values sees this after {drive_frozen} s; an oil reading
 bit-identical for {oil_frozen} s while the modelled sump moved {oil_drift} K is frozen (modelled instead, mode 1,
-`oil_frozen`); an oil reading more than {oil_step} K from a good one at most 1 s old is not used that step
-(`oil_implausible`); speed, torque or gear missing for more than {hold} s make every level 3 (not available).
+`oil_frozen`); with the sump measured, an oil reading off the main copy's sump (the last good reading carried by
+the model) by more than {oil_step} K + 0.05 K/s (`GVS_OIL_DRIFT_K_PER_S`) x the time since that reading came (its age
+and how long it stood unchanged, at most {oil_frozen} s) is not used (`oil_implausible`, mode 1): a reading that jumps
+and stays is modelled over until the allowance reaches it; speed, torque or gear missing for more than {hold} s make every level 3 (not available).
 
 Thread safety: the functions keep no global state; one `gvs_state` per sensor, not shared between threads without
 a lock.

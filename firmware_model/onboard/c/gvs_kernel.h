@@ -130,6 +130,8 @@ typedef gvs_real gvs_t2;
 #define GVS_TTL_SEG_TIE_W 1.0                   /* ... at the first sample within this of the best [W] */
 #define GVS_TTL_FRESH_S 10.0                    /* an early warning judges a time to limit at most this old [s] */
 #define GVS_RECOVER_MAX_S 600.0                 /* levels not available after an outage: at most this long [s] */
+#define GVS_OIL_DRIFT_K_PER_S 0.05              /* measured oil: off the main sump by oil_step_c + this x its time */
+#define GVS_OIL_AGE_NONE_S 1000000000.0         /* the age of an oil reading never taken [s] */
 
 /* input fields (records.INPUT_FIELDS order) */
 enum { GVS_I_SPEED = 0, GVS_I_TORQUE = 1, GVS_I_GEAR = 2, GVS_I_OIL = 3, GVS_I_AMB = 4, GVS_I_COOL = 5, GVS_I_VKMH = 6,
