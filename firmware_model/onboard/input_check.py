@@ -58,8 +58,8 @@ def check_inputs(state: SensorState, raw: np.ndarray, sp: SensorParams) -> Input
     """Check the raw inputs (B + (8,), NaN missing) against the state's holds: a good speed or torque is clamped to
     the engine's range, a gear must be an integer in range and a gear of the description, the measured oil
     plausible, steady (with the sump measured within ``oil_step_c`` + OIL_DRIFT_K_PER_S x the time since the last good
-    reading came of the main copy's sump, else no step above ``oil_step_c`` from a good value under 1 s old) and not
-    frozen, the auxiliary inputs
+    reading came of that reading or of the main copy's sump, else no step above ``oil_step_c`` from a good value
+    under 1 s old) and not frozen, the auxiliary inputs
     in range (a missing one takes its default, it is not held; counted only if the drive has it)."""
     opt, dt = sp.options, sp.dt_s
     finite = np.isfinite(raw)
@@ -76,12 +76,12 @@ def check_inputs(state: SensorState, raw: np.ndarray, sp: SensorParams) -> Input
     oil_in_range = in_range[..., I_OIL]
     age_oil_s = state.age_s[..., I_OIL]
     if opt.oil_mode == "measured":
-        # against the main copy's sump (the last good reading carried by the model since), within oil_step_c and a
-        # drift over the time since that reading came (its age, and how long it stood unchanged, at most
-        # oil_frozen_s: a SCADA row's reading stands for its 10 minutes): a reading that jumps and stays is not taken
-        over_s = age_oil_s + np.minimum(state.same_s[..., I_OIL], opt.oil_frozen_s)
-        off_k = np.abs(oil - state.T_c[..., MAIN, sp.reduced.i_oil])
-        jumpy = oil_in_range & (off_k > opt.oil_step_c + OIL_DRIFT_K_PER_S * over_s)
+        # off both the last good reading and the main copy's sump (that reading carried by the model since) by more
+        # than oil_step_c and a drift over the time since it came (its age and the period one reading stands for):
+        # a reading that jumps and stays is not taken
+        allow_k = opt.oil_step_c + OIL_DRIFT_K_PER_S * (age_oil_s + opt.oil_period_s)
+        off_carried = np.abs(oil - state.T_c[..., MAIN, sp.reduced.i_oil]) > allow_k
+        jumpy = oil_in_range & off_carried & (np.abs(oil - state.hold[..., I_OIL]) > allow_k)
     else:  # the reading is not used: a step from a good value less than 1 s old
         jumpy = oil_in_range & (age_oil_s <= 1.0) & (np.abs(oil - state.hold[..., I_OIL]) > opt.oil_step_c)
     same = np.where(finite & (raw == state.raw_prev), state.same_s + dt, 0.0)

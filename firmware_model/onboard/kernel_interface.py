@@ -114,12 +114,12 @@ TTL_FRESH_S = 10.0
 #: published parts, ~200 s; after a 5-min torque outage on the uphill cycle the sun wheel read 11 K high in mode 0
 #: and warned, the true one 10 K under its limit, the error down to 4 K after 200 s: docs/sensor.md "Bad input")
 RECOVER_MAX_S = 600.0
-#: with the sump measured, an oil reading is judged against the main copy's sump, which is the last good reading
-#: carried by the model since: a reading off it by more than oil_step_c plus this rate times the time since that
-#: reading came (its age, and how long it stood unchanged, at most oil_frozen_s) is implausible [K/s] (derived: the
-#: measured sump's distance from the model moved by at most 0.053 K/s from one 10-minute row to the next on three
-#: MM82 turbines' five years, its 99.9th percentile 0.008-0.010 K/s; a reading that jumps and stays, a sensor failed
-#: to a plausible value, is modelled over for about the gap / this rate: 30 min for a sump at 95 K from it)
+#: with the sump measured, an oil reading is judged against the last good reading and the main copy's sump (that
+#: reading carried by the model since): a reading off both by more than oil_step_c plus this rate times the time
+#: since that reading came (its age and oil_period_s, the period one reading stands for) is implausible [K/s]
+#: (derived: the measured sump's distance from the model moved by at most 0.053 K/s from one 10-minute row to the
+#: next on three MM82 turbines' five years, its 99.9th percentile 0.008-0.010 K/s; a reading that jumps and stays, a
+#: sensor failed to a plausible value, is modelled over for about the gap / this rate: 30 min for 95 K)
 OIL_DRIFT_K_PER_S = 0.05
 #: the age of an oil reading never taken (a start without one) [s]: any first reading is good
 OIL_AGE_NONE_S = 1.0e9
@@ -201,7 +201,7 @@ DEFINES = (
     Constant("TTL_SEG_TIE_W", TTL_SEG_TIE_W, "... at the first sample within this of the best [W]"),
     Constant("TTL_FRESH_S", TTL_FRESH_S, "an early warning judges a time to limit at most this old [s]"),
     Constant("RECOVER_MAX_S", RECOVER_MAX_S, "levels not available after an outage: at most this long [s]"),
-    Constant("OIL_DRIFT_K_PER_S", OIL_DRIFT_K_PER_S, "measured oil: off the main sump by oil_step_c + this x its time"),
+    Constant("OIL_DRIFT_K_PER_S", OIL_DRIFT_K_PER_S, "oil off the last good one and its carry: step + this x age"),
     Constant("OIL_AGE_NONE_S", OIL_AGE_NONE_S, "the age of an oil reading never taken [s]"),
 )
 #: the structs gvs_sizeof() measures, in its argument's order ("real": sizeof(gvs_real))
@@ -400,7 +400,7 @@ _TABLES = (
     Field("dt_s", REAL, (), "s"),
     *_f("input_lo input_hi clamp_lo clamp_hi", PREAL, ("N_INPUTS",)),
     Field("aux_default", PREAL, ("N_INPUTS - I_AMB",), doc="ambient, coolant, vehicle speed, retarder"),
-    *_f("hold_s drive_frozen_s oil_frozen_s", REAL, (), "s"),
+    *_f("hold_s drive_frozen_s oil_frozen_s oil_period_s", REAL, (), "s"),
     *_f("oil_frozen_drift_c oil_step_c", REAL, (), "K"),
     Field("clock_reset_s", REAL, (), "s", "t_s back by more than this: a reset clock (stepped, counted)"),
     *_f("warning_c critical_c", PREAL, ("n_pub",), "degC"),

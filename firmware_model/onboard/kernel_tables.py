@@ -253,6 +253,7 @@ def _sensor(sp: SensorParams) -> dict:
         oil_frozen_s=opt.oil_frozen_s,
         oil_frozen_drift_c=opt.oil_frozen_drift_c,
         oil_step_c=opt.oil_step_c,
+        oil_period_s=opt.oil_period_s,
         clock_reset_s=opt.clock_reset_s,
         warning_c=_f64(lim.warning_c),
         critical_c=_f64(lim.critical_c),

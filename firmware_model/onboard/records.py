@@ -116,6 +116,7 @@ class SensorOptions:
     oil_frozen_s: float = 300.0  # measured oil bit-identical this long ...
     oil_frozen_drift_c: float = 3.0  # ... while the twin's sump moved this much: measurement frozen
     oil_step_c: float = 5.0  # a measured oil off the last good one by more than this (+ a drift with its age)
+    oil_period_s: float = 0.0  # how long one oil reading stands for: 0 a live one; a held table's row period
     oil_range_c: tuple = (-40.0, 200.0)  # plausible measured oil
     aux_range_c: tuple = (-60.0, 150.0)  # plausible ambient / coolant
     max_vehicle_speed_kmh: float = 250.0

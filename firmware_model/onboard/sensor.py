@@ -323,12 +323,15 @@ class VirtualSensor:
             level = np.where(off[..., None], 0, level).astype(np.asarray(st.level).dtype)
             pending_s = np.where(off[..., None], 0.0, pending_s)
         B = T.shape[:-2]
+        age_s = np.array(np.where(elapsed_s > 0, np.maximum(st.age_s, elapsed_s), st.age_s), dtype=float)
+        if not np.all(np.isfinite(T_oil_c)):  # no reading: the saved sump is none to judge the first one against
+            age_s[..., I_OIL] = OIL_AGE_NONE_S
         return st._replace(
             T_c=T,
             level=level,
             pending_s=pending_s,
             t_last_s=np.full(B, np.nan),
-            age_s=np.where(elapsed_s > 0, np.maximum(st.age_s, elapsed_s), st.age_s),
+            age_s=age_s,
             ttl_s=np.full(B + (self.n_pub,), np.nan),
             k=np.zeros(B, dtype=np.int64),
         )

@@ -221,6 +221,23 @@ def test_a_late_oil_reading_starts_the_state_and_unconnected_inputs_read_missing
     assert idle["degraded_mode"][-1] == 2 and idle["W_1M.teeth"][-1] == 3  # the drive inputs missing: holding
 
 
+def test_a_start_at_initial_temp_c_takes_the_first_oil_reading(fmu):
+    """initial_temp_c is no oil reading: an oil input of 80 degC on a start at 25 degC is the sump from the first
+    step (it was judged a step from the start value and modelled over for 3 minutes, mode 1)."""
+    from firmware_model.service.options import SENSOR_INPUTS
+
+    names = [col for _, col in SENSOR_INPUTS]
+    t = np.arange(0.0, 5.0, 0.1)
+    sig = np.zeros(t.size, dtype=[("time", float)] + [(c, float) for c in names])
+    sig["time"] = t
+    sig["engine_speed_rpm"], sig["engine_torque_nm"], sig["gear"] = 1300.0, 2000.0, 10.0
+    sig["ambient_temp_c"], sig["coolant_temp_c"], sig["vehicle_speed_kmh"], sig["retarder_torque_nm"] = 20, 85, 60, 0
+    sig["oil_temp_c"] = 80.0
+    run = dict(stop_time=4.9, output_interval=0.1, output=["degraded_mode", "T_oil_c"])
+    res = fmpy.simulate_fmu(str(fmu), input=sig, start_values={"initial_temp_c": 25.0}, **run)
+    assert (res["degraded_mode"][1:] == 0).all() and res["T_oil_c"][-1] == 80.0
+
+
 @pytest.mark.skipif(shutil.which("cmake") is None, reason="fmpy compile builds with CMake: not installed here")
 def test_fmpy_rebuilds_the_binary_from_the_sources(fmu, tmp_path):
     """The sources an importer rebuilds the binary from (deploy.md: `python -m fmpy compile`): the rebuilt FMU

@@ -77,6 +77,8 @@ static void start_state(Instance *m)
     double T0 = m->initial_temp_c == m->initial_temp_c ? m->initial_temp_c : m->inputs[GVS_I_OIL];
     m->waited = 0;
     m->awaiting = !gvs_sensor_start(&m->st, 0.0, T0, m->inputs[GVS_I_AMB], &m->out);
+    /* a start at initial_temp_c is no oil reading: the first one is not judged against it */
+    if (!m->awaiting && m->initial_temp_c == m->initial_temp_c) m->st.age_s[GVS_I_OIL] = (gvs_real)GVS_OIL_AGE_NONE_S;
     if (!m->awaiting) publish_state(m);
 }
 

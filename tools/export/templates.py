@@ -701,10 +701,9 @@ Input checks a bench meets (the counters and `frozen_flags` say which fired): sp
 {drive_frozen} s while the engine turns are flagged as frozen (`frozen_flags` bits 0 and 1, `drive_frozen`; still
 used, the mode stays 0), so a bench feeding constant values sees this after {drive_frozen} s; an oil reading
 bit-identical for {oil_frozen} s while the modelled sump moved {oil_drift} K is frozen (modelled instead, mode 1,
-`oil_frozen`); with the sump measured, an oil reading off the main copy's sump (the last good reading carried by
-the model) by more than {oil_step} K + 0.05 K/s (`GVS_OIL_DRIFT_K_PER_S`) x the time since that reading came (its age
-and how long it stood unchanged, at most {oil_frozen} s) is not used (`oil_implausible`, mode 1): a reading that jumps
-and stays is modelled over until the allowance reaches it; speed, torque or gear missing for more than {hold} s make every level 3 (not available).
+`oil_frozen`); with the sump measured, an oil reading off both the last good one and the main copy's sump (that
+reading carried by the model) by more than {oil_step} K + 0.05 K/s (`GVS_OIL_DRIFT_K_PER_S`) x its age is not used
+(`oil_implausible`, mode 1): a reading that jumps and stays is modelled over until the allowance reaches it; speed, torque or gear missing for more than {hold} s make every level 3 (not available).
 
 Thread safety: the functions keep no global state; one `gvs_state` per sensor, not shared between threads without
 a lock.

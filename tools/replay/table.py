@@ -250,17 +250,20 @@ def replay_steps(times: np.ndarray, data: np.ndarray, sensor, initial_oil_c: flo
 def held_options(table) -> dict:
     """The sensor options a held table needs (none for a vehicle's table): a row held over its interval is
     bit-identical for up to GAP_PERIODS row periods by construction, so the frozen checks of speed, torque and oil
-    look past that (a SCADA channel stuck over more rows is still found)."""
+    look past that (a SCADA channel stuck over more rows is still found); its oil reading changes once a row, so
+    the oil step check allows a row period's drift."""
     from firmware_model.onboard.records import SensorOptions
     from tools.drive_table import GAP_PERIODS
 
     meta = getattr(table, "meta", None) or {}
     if meta.get("drive") != "fixed_ratio":
         return {}
-    held_s = (GAP_PERIODS + 1.0) * float(meta.get("row_period_s") or 0.0)
+    period_s = float(meta.get("row_period_s") or 0.0)
+    held_s = (GAP_PERIODS + 1.0) * period_s
     return {
         "drive_frozen_s": max(SensorOptions.drive_frozen_s, held_s),
         "oil_frozen_s": max(SensorOptions.oil_frozen_s, held_s),
+        "oil_period_s": period_s,  # a row's oil reading stands for its interval: the step check looks over it
     }
 
 

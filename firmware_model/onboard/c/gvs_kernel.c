@@ -499,11 +499,13 @@ static void check_inputs(const gvs_tables *tb, gvs_state *st, const double *raw_
     gear_ok = in_range[GVS_I_GEAR] && raw[GVS_I_GEAR] == RINT(raw[GVS_I_GEAR])
         && ((tb->gear_defined >> ((int32_t)raw[GVS_I_GEAR] - tb->gear_min)) & 1);
     oil_in_range = in_range[GVS_I_OIL];
-    if (tb->oil_mode_measured)  /* against the main copy's sump (the last good reading carried by the model since), */
-        jumpy = oil_in_range    /* over the time since that reading came (its age + how long it stood, capped) */
-            && FABS(raw[GVS_I_OIL] - st->T_c[GVS_MAIN][tb->i_oil]) > tb->oil_step_c + R_(GVS_OIL_DRIFT_K_PER_S)
-                * (st->age_s[GVS_I_OIL] + min_r(st->same_s[GVS_I_OIL], tb->oil_frozen_s));
-    else                        /* the reading is not used: a step from a good value less than 1 s old */
+    if (tb->oil_mode_measured) {
+        /* off both the last good reading and the main copy's sump (that reading carried by the model since) by more
+         * than oil_step_c and a drift over the time since it came (its age and the period one reading stands for) */
+        gvs_real allow = tb->oil_step_c + R_(GVS_OIL_DRIFT_K_PER_S) * (st->age_s[GVS_I_OIL] + tb->oil_period_s);
+        jumpy = oil_in_range && FABS(raw[GVS_I_OIL] - st->T_c[GVS_MAIN][tb->i_oil]) > allow
+            && FABS(raw[GVS_I_OIL] - st->hold[GVS_I_OIL]) > allow;
+    } else                      /* the reading is not used: a step from a good value less than 1 s old */
         jumpy = oil_in_range && st->age_s[GVS_I_OIL] <= R_(1.0)
             && FABS(raw[GVS_I_OIL] - st->hold[GVS_I_OIL]) > tb->oil_step_c;
     for (i = 0; i < GVS_N_INPUTS; ++i)

@@ -130,7 +130,7 @@ typedef gvs_real gvs_t2;
 #define GVS_TTL_SEG_TIE_W 1.0                   /* ... at the first sample within this of the best [W] */
 #define GVS_TTL_FRESH_S 10.0                    /* an early warning judges a time to limit at most this old [s] */
 #define GVS_RECOVER_MAX_S 600.0                 /* levels not available after an outage: at most this long [s] */
-#define GVS_OIL_DRIFT_K_PER_S 0.05              /* measured oil: off the main sump by oil_step_c + this x its time */
+#define GVS_OIL_DRIFT_K_PER_S 0.05              /* oil off the last good one and its carry: step + this x age */
 #define GVS_OIL_AGE_NONE_S 1000000000.0         /* the age of an oil reading never taken [s] */
 
 /* input fields (records.INPUT_FIELDS order) */
@@ -283,7 +283,7 @@ typedef struct {
     gvs_real dt_s;                      /* [s] */
     const gvs_real *input_lo, *input_hi, *clamp_lo, *clamp_hi; /* (N_INPUTS) */
     const gvs_real *aux_default;        /* (N_INPUTS - I_AMB) ambient, coolant, vehicle speed, retarder */
-    gvs_real hold_s, drive_frozen_s, oil_frozen_s; /* [s] */
+    gvs_real hold_s, drive_frozen_s, oil_frozen_s, oil_period_s; /* [s] */
     gvs_real oil_frozen_drift_c, oil_step_c; /* [K] */
     gvs_real clock_reset_s;             /* [s] t_s back by more than this: a reset clock (stepped, counted) */
     const gvs_real *warning_c, *critical_c; /* (n_pub) [degC] */
