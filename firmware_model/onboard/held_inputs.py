@@ -126,25 +126,33 @@ def jump_state(state: SensorState, gap_s, sp: SensorParams, cache: StepCache, oi
         T[v] = ahead if ahead is not None else _jump_temperatures(state, v, g, sp, cache)
         if oil_after_c is not None:
             oil_c, prev_c = float(np.asarray(oil_after_c, dtype=float)[v]), float(state.raw_prev[v + (I_OIL,)])
-            T[v] = anchored_to_reading(T[v], g, oil_c, sp, prev_c)
+            T[v] = anchored_to_reading(T[v], g, oil_c, sp, prev_c, float(state.age_s[v + (I_OIL,)]))
     return state._replace(T_c=T, age_s=age.astype(np.asarray(state.age_s).dtype, copy=False), pending_s=pending)
 
 
 def anchored_to_reading(
-    T_c: np.ndarray, gap_s: float, oil_c: float, sp: SensorParams, raw_prev_c: float = math.nan
+    T_c: np.ndarray,
+    gap_s: float,
+    oil_c: float,
+    sp: SensorParams,
+    raw_prev_c: float = math.nan,
+    prev_age_s: float = 0.0,
 ) -> np.ndarray:
     """(2, n) temperatures after a jump of ``gap_s``, anchored to the sump read after it: with the sump measured and
     the jump past the hold (its engine-off cool-down taken), every part of both copies moves by its copy's sump's
     distance from a plausible reading ``oil_c``. The cool-down assumed the gearbox stood still through the gap; the
     reading says what it did (a gearbox that ran through it reads warmer than the cool-down gave; one that stood
     still reads about what it gave, and moves little). A reading equal to the last raw one before the gap
-    (``raw_prev_c``) does not anchor: a stuck sensor's value, which the frozen check would reject. Otherwise ``T_c``
-    as it is."""
+    (``raw_prev_c``) does not anchor: a stuck sensor's value, which the frozen check would reject; nor one within
+    ``oil_step_c`` of it when that one was not taken (``prev_age_s``, the oil's age before the gap, above 0): a
+    rejected reading going on, which the step check goes on judging. Otherwise ``T_c`` as it is."""
     if sp.options.oil_mode != "measured" or not gap_s > sp.options.time_jump_hold_s:
         return T_c
     if not (math.isfinite(oil_c) and sp.input_lo[I_OIL] <= oil_c <= sp.input_hi[I_OIL]):
         return T_c
     if oil_c == raw_prev_c:  # the value from before the gap again: a stuck reading tells nothing (the frozen check)
+        return T_c
+    if prev_age_s > 0.0 and abs(oil_c - raw_prev_c) <= sp.options.oil_step_c:  # (False for a NaN raw_prev_c)
         return T_c
     return T_c + (oil_c - T_c[:, sp.reduced.i_oil])[:, None]
 

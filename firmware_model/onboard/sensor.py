@@ -311,21 +311,8 @@ class VirtualSensor:
                 bc[rp.i_ambient] = amb
                 for c in (MAIN, TWIN):
                     T[v + (c,)] = cool_down(self.sp, self.cache, T[v + (c,)], float(elapsed_s) - held_s, amb, bc)
-        T_oil_c = self._plausible_oil_c(T_oil_c)
-        level, pending_s = st.level, st.pending_s
-        if np.all(np.isfinite(T_oil_c)):
-            meas = np.broadcast_to(T_oil_c, T.shape[:-2])
-            off = np.abs(T[..., MAIN, rp.i_oil] - meas) > 10.0
-            T = np.where(off[..., None, None], meas[..., None, None], T)
-            T[..., :, rp.i_oil] = meas[..., None]
-            # every node restarted at the reading: the warning levels of the saved temperatures go with them (else a
-            # warning is kept for the debounce time on a gearbox restarted at 40 degC)
-            level = np.where(off[..., None], 0, level).astype(np.asarray(st.level).dtype)
-            pending_s = np.where(off[..., None], 0.0, pending_s)
+        T, level, pending_s, age_s = self._restored_oil(st, T, T_oil_c, elapsed_s)
         B = T.shape[:-2]
-        age_s = np.array(np.where(elapsed_s > 0, np.maximum(st.age_s, elapsed_s), st.age_s), dtype=float)
-        if not np.all(np.isfinite(T_oil_c)):  # no reading: the saved sump is none to judge the first one against
-            age_s[..., I_OIL] = OIL_AGE_NONE_S
         return st._replace(
             T_c=T,
             level=level,
@@ -335,6 +322,28 @@ class VirtualSensor:
             ttl_s=np.full(B + (self.n_pub,), np.nan),
             k=np.zeros(B, dtype=np.int64),
         )
+
+    def _restored_oil(self, st: SensorState, T, T_oil_c, elapsed_s: float):
+        """The oil reading of a restore on the propagated temperatures ``T``: (T, level, pending_s, age_s). A
+        plausible reading more than 10 K off the sump restarts every node at it (the saved warning levels go with
+        the saved temperatures: else a warning is kept for the debounce time on a gearbox restarted at 40 degC),
+        else the sump takes it; one within ``oil_step_c`` of a reading rejected before the stop goes on being judged
+        by the step check instead. Without a reading, the oil taken before the stop, the saved sump counts as never
+        read (the first reading is taken as it comes)."""
+        rp, B = self.reduced, T.shape[:-2]
+        meas = np.broadcast_to(self._plausible_oil_c(T_oil_c), B)
+        prev_age = np.asarray(st.age_s, dtype=float)[..., I_OIL]
+        prev_raw = np.asarray(st.raw_prev, dtype=float)[..., I_OIL]
+        rejected = (prev_age > 0.0) & np.isfinite(prev_raw)  # a reading came and was not taken
+        read = np.isfinite(meas) & ~(rejected & (np.abs(meas - prev_raw) <= self.sp.options.oil_step_c))
+        off = read & (np.abs(T[..., MAIN, rp.i_oil] - meas) > 10.0)
+        T = np.where(off[..., None, None], meas[..., None, None], T)
+        T[..., :, rp.i_oil] = np.where(read[..., None], meas[..., None], T[..., :, rp.i_oil])
+        level = np.where(off[..., None], 0, st.level).astype(np.asarray(st.level).dtype)
+        pending_s = np.where(off[..., None], 0.0, st.pending_s)
+        age_s = np.array(np.where(elapsed_s > 0, np.maximum(st.age_s, elapsed_s), st.age_s), dtype=float)
+        age_s[..., I_OIL] = np.where(read | rejected, age_s[..., I_OIL], OIL_AGE_NONE_S)
+        return T, level, pending_s, age_s
 
     # -- the step
 

@@ -522,6 +522,48 @@ def test_a_restore_without_an_oil_reading_takes_the_first_one(params, core):
     assert bool(out.status.oil_valid) and out.T_c[I["oil"]] == 30.0
 
 
+def _faulty_oil_run(n=3000, fault_at=600, jump_at=1500, gap_s=90.0):
+    """Inputs at load with a 80 degC sump whose sensor fails at ``fault_at`` to -40..-39 degC (an open circuit),
+    and a forward time jump of ``gap_s`` at ``jump_at``: (raw, t_s)."""
+    t = np.arange(n) * 0.1
+    t[jump_at:] += gap_s
+    raw = np.tile(np.array(NOMINAL[:8], dtype=float), (n, 1))
+    raw[:, 0] += np.arange(n) % 7  # not frozen
+    raw[:, 1] += np.arange(n) % 5
+    raw[:, 3] = 80.0 + 0.01 * (np.arange(n) % 3)
+    raw[fault_at:, 3] = -40.0 + 0.5 * (np.arange(n - fault_at) % 3)
+    return raw, t
+
+
+@pytest.mark.parametrize("core", ["numpy", "c"])
+def test_a_time_jump_does_not_anchor_the_state_to_a_rejected_reading(params, core):
+    """A failed oil sensor rejected before a 90 s gap in the frames reads the same after it: the state is not anchored
+    to that reading (it was, and the fault was the sump from then on: estimates at 955 degC), the step check goes on
+    rejecting it."""
+    s = _core_sensor(params, core)
+    raw, t = _faulty_oil_run()
+    st, out = s.step_table(s.initial_state(T_oil_c=80.0), raw, t)
+    assert not np.asarray(out.valid)[600:, 3].any()
+    assert np.asarray(out.T_c)[-1].max() < 200.0 and float(np.asarray(out.model_oil_temp_c)[-1]) > 60.0
+
+
+@pytest.mark.parametrize("core", ["numpy", "c"])
+def test_a_restore_goes_on_judging_a_rejected_oil_reading(params, core):
+    """An oil sensor failed before the stop (rejected for 100 s): restored with no reading, or with the failed
+    reading itself, the failed reading is still not taken (the restore took it at once: a fault cleared by every
+    ignition cycle); a reading near the sump the sensor read before is."""
+    s = _core_sensor(params, core)
+    raw, _ = _faulty_oil_run(n=1600, fault_at=600, jump_at=1600, gap_s=0.0)
+    st, _ = s.step_table(s.initial_state(T_oil_c=80.0), raw)
+    for reading in (None, -40.0):
+        back = s.initial_state(T_oil_c=reading, snapshot=s.snapshot(st), elapsed_s=600.0)
+        _, out = s.step(back, NOMINAL._replace(oil_temp_c=-39.5))
+        assert not bool(out.status.oil_valid) and out.T_c.max() < 200.0
+    back = s.initial_state(snapshot=s.snapshot(st), elapsed_s=600.0)
+    _, out = s.step(back, NOMINAL._replace(oil_temp_c=float(back.T_c[0, s.reduced.i_oil]) + 1.0))
+    assert bool(out.status.oil_valid)
+
+
 def test_a_row_of_held_oil_readings_may_move_by_a_row_periods_drift(params):
     """A held table's reading stands for its row (oil_period_s = 600 s): a change of 17 K from one row to the next (a
     turbine's sump at a stop) is taken at once, a drop of 95 K (a dropout to -40 degC) is not."""

@@ -332,7 +332,7 @@ RESUME_PROGRAM = r"""
 #include <string.h>
 #include "gvs_sensor.h"
 
-static gvs_state st, saved;
+static gvs_state st, saved, faulty;
 
 static int run(double t0, int n, double oil, gvs_outputs *out)
 {
@@ -369,6 +369,19 @@ int main(void)
     if (gvs_sensor_resume(&st, NAN) != 0) return 1;
     run(0.0, 1, T_hot - 30.0, &out);
     if (st.rejects[7] != saved.rejects[7] || out.degraded_mode != 0) { printf("oil not taken (resume)\n"); bad = 14; }
+    /* a reading rejected before the stop (the oil 20 s old, -40 degC read): resumed with none or with the same
+     * reading, the next -39.5 degC is still rejected, not the sump */
+    memcpy(&faulty, &saved, sizeof st);
+    faulty.age_s[3] = (gvs_real)20.0;
+    faulty.raw_prev[3] = (gvs_real)-40.0;
+    memcpy(&st, &faulty, sizeof st);
+    if (gvs_sensor_resume(&st, NAN) != 0) return 1;
+    run(0.0, 1, -39.5, &out);
+    if (st.rejects[7] != faulty.rejects[7] + 1 || out.degraded_mode != 1) { printf("fault taken (none)\n"); bad = 16; }
+    memcpy(&st, &faulty, sizeof st);
+    if (gvs_sensor_resume(&st, -40.0) != 0 || st.T_c[0][GVS_TABLES.i_oil] == (gvs_real)-40.0) bad = 17;
+    run(0.0, 1, -39.5, &out);
+    if (st.rejects[7] != faulty.rejects[7] + 1) { printf("fault taken (same)\n"); bad = 18; }
     /* ... as after a cold start without one */
     gvs_sensor_init_ambient(&st, NAN, -20.0);
     run(0.0, 1, 60.0, &out);

@@ -51,8 +51,10 @@ int gvs_sensor_start(gvs_state *st, double waited_s, double T_oil_c, double T_am
  * counts every input's last value as old (the stop lay between: the first oil reading is not judged a step from
  * the one before shutdown; without fresh drive inputs for a step the levels read 3), and applies a plausible oil reading
  * T_oil_c (NaN: none) as the host sensor does: more than 10 K from the saved sump, every node starts at it; else
- * the sump takes it. It does not cool the state over the time the truck stood (the host sensor does): after a long
- * stop without an oil reading, start cold instead. */
+ * the sump takes it; one within oil_step_c of a reading rejected before the stop is not applied (the step check
+ * goes on judging it), and without a reading the first one is taken as it comes unless one was being rejected. It
+ * does not cool the state over the time the truck stood (the host sensor does): after a long stop without an oil
+ * reading, start cold instead. */
 int gvs_sensor_resume(gvs_state *st, double T_oil_c);
 
 /* One 0.1 s step: call every 100 ms with the latest inputs (NaN = not available). Each accepted call advances the
@@ -127,7 +129,7 @@ static int finite_value(gvs_real x)
 int gvs_sensor_resume(gvs_state *st, double T_oil_c)
 {
     const gvs_tables *tb = &GVS_TABLES;
-    int i, c, io = tb->i_oil;
+    int i, c, io = tb->i_oil, rejected, going_on;
     for (c = 0; c < 2; ++c)
         for (i = 0; i < tb->n; ++i)
             if (!(st->T_c[c][i] >= (gvs_real)-100.0 && st->T_c[c][i] <= (gvs_real)500.0)) return -1;
@@ -147,12 +149,16 @@ int gvs_sensor_resume(gvs_state *st, double T_oil_c)
     if (!finite_value(st->oil_ref_c) || !(st->recover_s >= (gvs_real)0.0) || !finite_value(st->recover_s)) return -1;
     st->memo_valid = 0;                 /* the conductance memo is recomputed, never trusted from storage */
     st->memo_heat_valid = 0;            /* and the heat memo of a build with GVS_STEP_MEMO */
+    /* an oil reading came before the stop and was not taken (VirtualSensor._restored_oil): one within oil_step_c of
+     * it at the restart goes on being judged by the step check, it does not restart the state */
+    rejected = st->age_s[GVS_I_OIL] > (gvs_real)0.0 && finite_value(st->raw_prev[GVS_I_OIL]);
+    going_on = rejected && fabs(T_oil_c - (double)st->raw_prev[GVS_I_OIL]) <= (double)tb->oil_step_c;
     /* an ignition cycle lies between: every input's last value is older than any check's window (the oil reading
      * after a stop is no 0.1 s step from the one before it: VirtualSensor._restored_state ages them by the stop) */
     for (i = 0; i < GVS_N_INPUTS; ++i)
         if (!(st->age_s[i] >= tb->hold_s)) st->age_s[i] = tb->hold_s;
     /* the oil reading (VirtualSensor._restored_state with no time elapsed) */
-    if (T_oil_c >= (double)tb->input_lo[GVS_I_OIL] && T_oil_c <= (double)tb->input_hi[GVS_I_OIL]) {
+    if (T_oil_c >= (double)tb->input_lo[GVS_I_OIL] && T_oil_c <= (double)tb->input_hi[GVS_I_OIL] && !going_on) {
         gvs_real T = (gvs_real)T_oil_c;
         if (fabs((double)st->T_c[0][io] - T_oil_c) > 10.0) {
             for (c = 0; c < 2; ++c)
@@ -164,7 +170,7 @@ int gvs_sensor_resume(gvs_state *st, double T_oil_c)
             }
         }
         st->T_c[0][io] = st->T_c[1][io] = T;
-    } else {
+    } else if (!rejected) {
         /* the saved sump is from before the stop, not cooled here: the first reading is not judged against it */
         st->age_s[GVS_I_OIL] = (gvs_real)GVS_OIL_AGE_NONE_S;
     }
