@@ -183,6 +183,18 @@ def test_a_rig_s_own_sampling_and_life_cycle(fmu):
     slave.freeInstance()
 
 
+def _drive_at_load(t: np.ndarray) -> np.ndarray:
+    """fmpy's input signal at times ``t``: every sensor input, at load in gear 10 with an 80 degC sump."""
+    from firmware_model.service.options import SENSOR_INPUTS
+
+    sig = np.zeros(t.size, dtype=[("time", float)] + [(col, float) for _, col in SENSOR_INPUTS])
+    sig["time"] = t
+    sig["engine_speed_rpm"], sig["engine_torque_nm"], sig["gear"] = 1300.0, 2000.0, 10.0
+    sig["ambient_temp_c"], sig["coolant_temp_c"], sig["vehicle_speed_kmh"], sig["retarder_torque_nm"] = 20, 85, 60, 0
+    sig["oil_temp_c"] = 80.0
+    return sig
+
+
 def test_a_late_oil_reading_starts_the_state_and_unconnected_inputs_read_missing(fmu):
     """The oil input 1 s late (NaN before; TRF1 comes once a second): the FMU waits for it as the CAN service does,
     "not initialised" meanwhile (temperatures NaN, levels 3, degraded_mode 3), then starts every node at it: the run
@@ -192,11 +204,7 @@ def test_a_late_oil_reading_starts_the_state_and_unconnected_inputs_read_missing
 
     names = [col for _, col in SENSOR_INPUTS]
     t = np.arange(0.0, 30.0, 0.1)
-    sig = np.zeros(t.size, dtype=[("time", float)] + [(c, float) for c in names])
-    sig["time"] = t
-    sig["engine_speed_rpm"], sig["engine_torque_nm"], sig["gear"] = 1300.0, 2000.0, 10.0
-    sig["ambient_temp_c"], sig["coolant_temp_c"], sig["vehicle_speed_kmh"], sig["retarder_torque_nm"] = 20, 85, 60, 0
-    sig["oil_temp_c"] = 80.0
+    sig = _drive_at_load(t)
     late = sig.copy()
     late["oil_temp_c"][t < 0.95] = np.nan
     out = ["T_1M.teeth_c", "W_1M.teeth", "ttl_1M.teeth_s", "degraded_mode"]
@@ -224,15 +232,7 @@ def test_a_late_oil_reading_starts_the_state_and_unconnected_inputs_read_missing
 def test_a_start_at_initial_temp_c_takes_the_first_oil_reading(fmu):
     """initial_temp_c is no oil reading: an oil input of 80 degC on a start at 25 degC is the sump from the first
     step (it was judged a step from the start value and modelled over for 3 minutes, mode 1)."""
-    from firmware_model.service.options import SENSOR_INPUTS
-
-    names = [col for _, col in SENSOR_INPUTS]
-    t = np.arange(0.0, 5.0, 0.1)
-    sig = np.zeros(t.size, dtype=[("time", float)] + [(c, float) for c in names])
-    sig["time"] = t
-    sig["engine_speed_rpm"], sig["engine_torque_nm"], sig["gear"] = 1300.0, 2000.0, 10.0
-    sig["ambient_temp_c"], sig["coolant_temp_c"], sig["vehicle_speed_kmh"], sig["retarder_torque_nm"] = 20, 85, 60, 0
-    sig["oil_temp_c"] = 80.0
+    sig = _drive_at_load(np.arange(0.0, 5.0, 0.1))
     run = dict(stop_time=4.9, output_interval=0.1, output=["degraded_mode", "T_oil_c"])
     res = fmpy.simulate_fmu(str(fmu), input=sig, start_values={"initial_temp_c": 25.0}, **run)
     assert (res["degraded_mode"][1:] == 0).all() and res["T_oil_c"][-1] == 80.0
