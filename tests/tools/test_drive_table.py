@@ -174,7 +174,11 @@ def test_a_held_row_is_not_a_frozen_signal(fixed_grs905):
     src["input_torque_nm"][:] += rng.normal(0.0, 50.0, src.n)
     src["oil_temp_c"][:] += rng.normal(0.0, 1.0, src.n)
     m = map_fixed_ratio(src, fixed_grs905)
-    assert held_options(map_fixed_ratio(_scada(), fixed_grs905)) == {"drive_frozen_s": 1800.0, "oil_frozen_s": 1800.0}
+    assert held_options(map_fixed_ratio(_scada(), fixed_grs905)) == {
+        "drive_frozen_s": 1800.0,
+        "oil_frozen_s": 1800.0,
+        "oil_period_s": 600.0,  # and a row's oil reading stands for its 10 minutes (the oil step check)
+    }
     assert held_options(RunTable({"time_s": [0.0, 1.0]})) == {}
     plain = replay_table(m, _sensor())
     assert plain["rejects_drive_frozen"][-1] > 0  # the default 120 s takes a held row for a frozen drive
