@@ -328,8 +328,8 @@ class VirtualSensor:
         plausible reading more than 10 K off the sump restarts every node at it (the saved warning levels go with
         the saved temperatures: else a warning is kept for the debounce time on a gearbox restarted at 40 degC),
         else the sump takes it; one within ``oil_step_c`` of a reading rejected before the stop goes on being judged
-        by the step check instead. Without a reading, the oil taken before the stop, the saved sump counts as never
-        read (the first reading is taken as it comes)."""
+        by the step check instead. Without a reading, and unless a reading was being rejected before the stop, the
+        saved sump counts as never read (the first reading is taken as it comes)."""
         rp, B = self.reduced, T.shape[:-2]
         meas = np.broadcast_to(self._plausible_oil_c(T_oil_c), B)
         prev_age = np.asarray(st.age_s, dtype=float)[..., I_OIL]

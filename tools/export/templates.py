@@ -153,8 +153,8 @@ int gvs_sensor_resume(gvs_state *st, double T_oil_c)
      * it at the restart goes on being judged by the step check, it does not restart the state */
     rejected = st->age_s[GVS_I_OIL] > (gvs_real)0.0 && finite_value(st->raw_prev[GVS_I_OIL]);
     going_on = rejected && fabs(T_oil_c - (double)st->raw_prev[GVS_I_OIL]) <= (double)tb->oil_step_c;
-    /* an ignition cycle lies between: every input's last value is older than any check's window (the oil reading
-     * after a stop is no 0.1 s step from the one before it: VirtualSensor._restored_state ages them by the stop) */
+    /* an ignition cycle lies between: every input's last value is at least hold_s old (no 0.1 s step from the one
+     * before the stop; VirtualSensor._restored_state ages them by the stop, which this build does not know) */
     for (i = 0; i < GVS_N_INPUTS; ++i)
         if (!(st->age_s[i] >= tb->hold_s)) st->age_s[i] = tb->hold_s;
     /* the oil reading (VirtualSensor._restored_state with no time elapsed) */
@@ -708,8 +708,11 @@ Input checks a bench meets (the counters and `frozen_flags` say which fired): sp
 used, the mode stays 0), so a bench feeding constant values sees this after {drive_frozen} s; an oil reading
 bit-identical for {oil_frozen} s while the modelled sump moved {oil_drift} K is frozen (modelled instead, mode 1,
 `oil_frozen`); with the sump measured, an oil reading off both the last good one and the main copy's sump (that
-reading carried by the model) by more than {oil_step} K + 0.05 K/s (`GVS_OIL_DRIFT_K_PER_S`) x its age is not used
-(`oil_implausible`, mode 1): a reading that jumps and stays is modelled over until the allowance reaches it; speed, torque or gear missing for more than {hold} s make every level 3 (not available).
+reading carried by the model) by more than {oil_step} K + 0.05 K/s (`GVS_OIL_DRIFT_K_PER_S`) x its age (this build's
+readings stand for no period: `oil_period_s` 0) is not used (`oil_implausible`, mode 1): a reading that jumps and
+stays is modelled over until the allowance reaches it; with the sump modelled, a reading more than {oil_step} K from
+a good one at most 1 s old is not taken that step; speed, torque or gear missing for more than {hold} s make every
+level 3 (not available).
 
 Thread safety: the functions keep no global state; one `gvs_state` per sensor, not shared between threads without
 a lock.
