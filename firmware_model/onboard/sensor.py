@@ -141,6 +141,9 @@ class VirtualSensor:
                 f"sensor option clock_reset_s = {reset_s!r} must be a number of seconds, at least 1 "
                 f"(time back by more than it is a reset clock; less is skipped)"
             )
+        period_s = options.get("oil_period_s", 0.0)
+        if not (isinstance(period_s, (int, float)) and 0.0 <= period_s < math.inf):
+            raise ParameterError(f"sensor option oil_period_s = {period_s!r} must be a number of seconds, 0 or more")
         #: a rig's configuration: the sump is conditioned from outside, the model's own sump (the twin) means nothing
         self.rig = params.strings.get("cooler.kind") in ("hold", "measured")
         if self.rig:

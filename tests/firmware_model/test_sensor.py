@@ -575,6 +575,13 @@ def test_a_row_of_held_oil_readings_may_move_by_a_row_periods_drift(params):
     assert not bool(out.status.oil_valid)
 
 
+@pytest.mark.parametrize("bad", [-1.0, math.nan, math.inf, "600"])
+def test_a_bad_oil_period_is_refused(params, bad):
+    """A negative period would reject every reading, a NaN one none: refused in one sentence."""
+    with pytest.raises(ParameterError, match="oil_period_s"):
+        VirtualSensor(params, oil_period_s=bad)
+
+
 def test_a_rig_held_oil_reading_that_jumps_is_not_taken(params):
     """A rig's sump conditioned from outside reads bit-identical for long (no frozen check there): a jump to -40 degC
     after an hour of it is still no reading."""
