@@ -43,6 +43,7 @@ from __future__ import annotations
 
 import datetime as dt
 import os
+import re
 import sys
 import time
 from pathlib import Path
@@ -105,6 +106,15 @@ def period_of(records: dict, period: str) -> dict:
         if mask.any():
             out[unit] = rec.select(mask)
     return out
+
+
+def period_arg(text: str) -> str:
+    """argparse type of --period: a calendar year YYYY or month YYYY-MM (else argparse's one-line error)."""
+    import argparse
+
+    if not re.fullmatch(r"\d{4}(-(0[1-9]|1[0-2]))?", text):
+        raise argparse.ArgumentTypeError(f"{text!r} is no calendar year YYYY or month YYYY-MM")
+    return text
 
 
 def add_data_dir(ap) -> None:

@@ -25,7 +25,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from bench_scada import add_data_dir, data_dir_of, period_of  # noqa: E402
+from bench_scada import add_data_dir, data_dir_of, period_arg, period_of  # noqa: E402
 
 from tools.scada.reader import read_units  # noqa: E402
 
@@ -147,7 +147,9 @@ def regression_table(records: dict) -> str:
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     add_data_dir(ap)
-    ap.add_argument("--period", default="2017", help="calendar year YYYY of tables 1, 2 and 4 (default: 2017)")
+    ap.add_argument(
+        "--period", type=period_arg, default="2017", help="calendar year YYYY of tables 1, 2 and 4 (default: 2017)"
+    )
     args = ap.parse_args(argv)
     data_dir = data_dir_of(args, "python benchmarks/bench_scada_bearing_offsets.py DATA_DIR [--period YYYY]")
     if data_dir is None:

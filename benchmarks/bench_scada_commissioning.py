@@ -29,7 +29,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from bench_scada import add_data_dir, data_dir_of, records_and_splits  # noqa: E402
+from bench_scada import add_data_dir, data_dir_of, period_arg, records_and_splits  # noqa: E402
 from bench_scada_refit import Refitted, shipped  # noqa: E402
 
 from firmware_model.onboard.blas import limit_blas_threads  # noqa: E402
@@ -92,7 +92,9 @@ def best_nbm_table(plain: dict, offset: dict) -> str:
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     add_data_dir(ap)
-    ap.add_argument("--period", help="only that calendar year (YYYY) or month (YYYY-MM) of every turbine (UTC)")
+    ap.add_argument(
+        "--period", type=period_arg, help="only that calendar year (YYYY) or month (YYYY-MM) of every turbine (UTC)"
+    )
     ap.add_argument("--days", type=float, default=COMMISSIONING_DAYS, help="the commissioning window [d]")
     ap.add_argument("--no-refit", action="store_true", help="leave out the values fitted again per split (minutes)")
     args = ap.parse_args(argv)

@@ -33,7 +33,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from bench_scada import add_data_dir, data_dir_of, records_and_splits  # noqa: E402
+from bench_scada import add_data_dir, data_dir_of, period_arg, records_and_splits  # noqa: E402
 
 from firmware_model.config import load_config  # noqa: E402
 from firmware_model.onboard.blas import limit_blas_threads  # noqa: E402
@@ -110,7 +110,9 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     add_data_dir(ap)
     ap.add_argument("--only", action="append", help="the splits whose label holds TEXT (repeatable)")
-    ap.add_argument("--period", help="only that calendar year (YYYY) or month (YYYY-MM) of every turbine (UTC)")
+    ap.add_argument(
+        "--period", type=period_arg, help="only that calendar year (YYYY) or month (YYYY-MM) of every turbine (UTC)"
+    )
     args = ap.parse_args(argv)
     data_dir = data_dir_of(args, "bench_scada_refit.py DATA_DIR [--only TEXT]...")
     if data_dir is None:
